@@ -1,0 +1,1 @@
+"""Baseline agents for the humotion_gym tasks."""

@@ -1,0 +1,11 @@
+"""humotion_gym: Gymnasium environments for monocular 3D human pose tracking.
+
+Importing the package registers the environment ids under the ``humotion_gym/``
+namespace, so ``gymnasium.make("humotion_gym/BodyTrack-v0")`` works.
+"""
+
+from __future__ import annotations
+
+__version__ = "0.1.0"
+
+__all__ = ["__version__"]

@@ -1,0 +1,584 @@
+"""The cone body: parameter layout, limits, shape and batched forward kinematics.
+
+The figure is ten truncated cones (torso, head, upper arms, forearms, thighs,
+shins) driven by 25 pose parameters. Every module of the package uses the names,
+order, units and conventions defined here.
+
+World frame:
+    Right-handed, millimetres, ``z`` up, the ground at ``z = 0``.
+
+Body frame (the torso's frame, also the rest frame of every joint):
+    ``x`` points to the subject's right, ``y`` forward (the way the subject
+    faces), ``z`` up. In the rest pose (all parameters zero) the subject stands
+    upright at the origin facing ``+y`` with the arms and legs hanging straight
+    down.
+
+Rotations (all angles in radians):
+    * root orientation ``(yaw, pitch, roll)``: ``R = Rz(yaw) @ Rx(pitch) @ Ry(roll)``
+      (intrinsic z-x-y), so ``yaw`` is the heading about the vertical.
+    * ball joints (neck, shoulders, hips) ``(x, y, z)``:
+      ``R = Rx(x) @ Ry(y) @ Rz(z)`` (intrinsic x-y-z) relative to the parent.
+      For a limb hanging along ``-z`` the outer angle ``x`` is the flexion in the
+      sagittal plane (positive swings the limb forward), ``y`` the swing out of
+      that plane (positive swings the limb towards the subject's left) and ``z``
+      the twist about the limb's own axis. For the neck, whose rest direction is
+      ``+z``, positive ``x`` tilts the head backward.
+    * hinges: the elbow bends the forearm forward, ``Rx(elbow)``; the knee bends
+      the shin backward, ``Rx(-knee)``. Both are zero when straight and positive
+      when bent.
+
+Units: millimetres for lengths and the root position, radians for angles,
+seconds for time (velocities are per second).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+FloatArray = NDArray[np.float64]
+
+# ---------------------------------------------------------------------------
+# Parameters
+# ---------------------------------------------------------------------------
+
+#: The 25 pose parameters, in the order every array of poses uses.
+PARAM_NAMES: tuple[str, ...] = (
+    "root_x", "root_y", "root_z",
+    "root_yaw", "root_pitch", "root_roll",
+    "neck_x", "neck_y", "neck_z",
+    "r_shoulder_x", "r_shoulder_y", "r_shoulder_z", "r_elbow",
+    "l_shoulder_x", "l_shoulder_y", "l_shoulder_z", "l_elbow",
+    "r_hip_x", "r_hip_y", "r_hip_z", "r_knee",
+    "l_hip_x", "l_hip_y", "l_hip_z", "l_knee",
+)  # fmt: skip
+N_PARAMS = len(PARAM_NAMES)
+PARAM_INDEX: dict[str, int] = {name: i for i, name in enumerate(PARAM_NAMES)}
+
+ROOT_POSITION = slice(0, 3)
+ROOT_ROTATION = slice(3, 6)
+NECK = slice(6, 9)
+R_SHOULDER = slice(9, 12)
+R_ELBOW = 12
+L_SHOULDER = slice(13, 16)
+L_ELBOW = 16
+R_HIP = slice(17, 20)
+R_KNEE = 20
+L_HIP = slice(21, 24)
+L_KNEE = 24
+
+#: Unit of each parameter ("mm" or "rad").
+PARAM_UNITS: tuple[str, ...] = tuple("mm" if i < 3 else "rad" for i in range(N_PARAMS))
+
+#: True for every angle (index 3 onwards); angles are averaged on the circle.
+ANGLE_MASK: NDArray[np.bool_] = np.array([unit == "rad" for unit in PARAM_UNITS])
+
+#: Angles that go all the way round and are compared modulo 2 pi: the heading.
+PERIODIC_MASK: NDArray[np.bool_] = np.zeros(N_PARAMS, dtype=bool)
+PERIODIC_MASK[PARAM_INDEX["root_yaw"]] = True
+
+_PI = np.pi
+# Joint limits: the range that the poses of the shared motion capture fall in
+# after retargeting (checked in tests/test_body.py), rounded outwards. They
+# bound the environments' action normalisation and the priors' samples. The
+# heading is periodic and its interval is one turn.
+_LIMITS: dict[str, tuple[float, float]] = {
+    "root_x": (-10000.0, 10000.0),
+    "root_y": (-10000.0, 10000.0),
+    "root_z": (0.0, 2500.0),
+    "root_yaw": (-_PI, _PI),
+    "root_pitch": (-_PI / 2, _PI / 2),
+    "root_roll": (-_PI / 2, _PI / 2),
+    "neck_x": (-1.2, 1.2),
+    "neck_y": (-1.0, 1.0),
+    "neck_z": (-1.5, 1.5),
+    "r_shoulder_x": (-_PI, _PI),
+    "r_shoulder_y": (-_PI / 2, _PI / 2),
+    "r_shoulder_z": (-_PI, _PI),
+    "r_elbow": (0.0, 2.9),
+    "l_shoulder_x": (-_PI, _PI),
+    "l_shoulder_y": (-_PI / 2, _PI / 2),
+    "l_shoulder_z": (-_PI, _PI),
+    "l_elbow": (0.0, 2.9),
+    "r_hip_x": (-1.5, 2.8),
+    "r_hip_y": (-1.5, 1.2),
+    "r_hip_z": (-_PI, _PI),
+    "r_knee": (0.0, 2.9),
+    "l_hip_x": (-1.5, 2.8),
+    "l_hip_y": (-1.2, 1.5),
+    "l_hip_z": (-_PI, _PI),
+    "l_knee": (0.0, 2.9),
+}
+#: Lower and upper limit of each parameter, shape (25,).
+PARAM_LOWER: FloatArray = np.array([_LIMITS[n][0] for n in PARAM_NAMES])
+PARAM_UPPER: FloatArray = np.array([_LIMITS[n][1] for n in PARAM_NAMES])
+
+# ---------------------------------------------------------------------------
+# Keypoints and cones
+# ---------------------------------------------------------------------------
+
+#: The 15 evaluation keypoints (the HumanEva set of Sigal, Balan & Black 2010).
+KEYPOINT_NAMES: tuple[str, ...] = (
+    "pelvis",
+    "r_hip", "r_knee", "r_ankle",
+    "l_hip", "l_knee", "l_ankle",
+    "neck", "head_top",
+    "r_shoulder", "r_elbow", "r_wrist",
+    "l_shoulder", "l_elbow", "l_wrist",
+)  # fmt: skip
+N_KEYPOINTS = len(KEYPOINT_NAMES)
+KEYPOINT_INDEX: dict[str, int] = {name: i for i, name in enumerate(KEYPOINT_NAMES)}
+
+#: The ten truncated cones, each between two keypoints (proximal, distal).
+CONE_NAMES: tuple[str, ...] = (
+    "torso", "head",
+    "r_upper_arm", "r_forearm", "l_upper_arm", "l_forearm",
+    "r_thigh", "r_shin", "l_thigh", "l_shin",
+)  # fmt: skip
+N_CONES = len(CONE_NAMES)
+CONE_KEYPOINTS: NDArray[np.intp] = np.array(
+    [
+        [KEYPOINT_INDEX["pelvis"], KEYPOINT_INDEX["neck"]],
+        [KEYPOINT_INDEX["neck"], KEYPOINT_INDEX["head_top"]],
+        [KEYPOINT_INDEX["r_shoulder"], KEYPOINT_INDEX["r_elbow"]],
+        [KEYPOINT_INDEX["r_elbow"], KEYPOINT_INDEX["r_wrist"]],
+        [KEYPOINT_INDEX["l_shoulder"], KEYPOINT_INDEX["l_elbow"]],
+        [KEYPOINT_INDEX["l_elbow"], KEYPOINT_INDEX["l_wrist"]],
+        [KEYPOINT_INDEX["r_hip"], KEYPOINT_INDEX["r_knee"]],
+        [KEYPOINT_INDEX["r_knee"], KEYPOINT_INDEX["r_ankle"]],
+        [KEYPOINT_INDEX["l_hip"], KEYPOINT_INDEX["l_knee"]],
+        [KEYPOINT_INDEX["l_knee"], KEYPOINT_INDEX["l_ankle"]],
+    ],
+    dtype=np.intp,
+)
+
+#: Pairs of keypoints joined by the wire figure drawn over frames.
+SKELETON_EDGES: tuple[tuple[int, int], ...] = tuple(
+    (int(a), int(b)) for a, b in CONE_KEYPOINTS
+) + (
+    (KEYPOINT_INDEX["pelvis"], KEYPOINT_INDEX["r_hip"]),
+    (KEYPOINT_INDEX["pelvis"], KEYPOINT_INDEX["l_hip"]),
+    (KEYPOINT_INDEX["neck"], KEYPOINT_INDEX["r_shoulder"]),
+    (KEYPOINT_INDEX["neck"], KEYPOINT_INDEX["l_shoulder"]),
+)
+
+# ---------------------------------------------------------------------------
+# Shape
+# ---------------------------------------------------------------------------
+
+_SHAPE_SCALARS: tuple[str, ...] = (
+    "neck_forward",
+    "neck_up",
+    "shoulder_half_width",
+    "shoulder_forward",
+    "shoulder_up",
+    "hip_half_width",
+    "hip_forward",
+    "hip_up",
+    "head_length",
+    "upper_arm_length",
+    "forearm_length",
+    "thigh_length",
+    "shin_length",
+)
+SHAPE_VECTOR_SIZE = len(_SHAPE_SCALARS) + 2 * N_CONES + N_CONES
+
+
+@dataclass(frozen=True, eq=False)
+class BodyShape:
+    """The subject's shape: where the joints sit on the torso, limb lengths, radii.
+
+    All lengths in millimetres. Offsets are in the torso (body) frame relative to
+    the pelvis, for the right side; the left side mirrors ``x``. The shape is
+    known to the agent, like the hand-set body model of the papers.
+
+    Attributes:
+        neck_forward: ``y`` of the neck base (the top of the torso cone).
+        neck_up: ``z`` of the neck base.
+        shoulder_half_width: ``x`` of the right shoulder joint.
+        shoulder_forward: ``y`` of the shoulder joints.
+        shoulder_up: ``z`` of the shoulder joints.
+        hip_half_width: ``x`` of the right hip joint.
+        hip_forward: ``y`` of the hip joints.
+        hip_up: ``z`` of the hip joints (negative: below the pelvis point).
+        head_length: neck base to the top of the head.
+        upper_arm_length: shoulder to elbow.
+        forearm_length: elbow to wrist.
+        thigh_length: hip to knee.
+        shin_length: knee to ankle.
+        radii: ``(10, 2)`` radius of each cone (in ``CONE_NAMES`` order) at its
+            proximal and distal end.
+        aspect: ``(10,)`` depth-to-width ratio of each cone's cross-section
+            (1 for round limbs; the torso is flatter front to back).
+    """
+
+    neck_forward: float
+    neck_up: float
+    shoulder_half_width: float
+    shoulder_forward: float
+    shoulder_up: float
+    hip_half_width: float
+    hip_forward: float
+    hip_up: float
+    head_length: float
+    upper_arm_length: float
+    forearm_length: float
+    thigh_length: float
+    shin_length: float
+    radii: FloatArray
+    aspect: FloatArray
+
+    def __post_init__(self) -> None:
+        radii = np.array(self.radii, dtype=np.float64)
+        aspect = np.array(self.aspect, dtype=np.float64)
+        if radii.shape != (N_CONES, 2):
+            raise ValueError(f"BodyShape.radii: expected shape (10, 2), got {radii.shape}")
+        if aspect.shape != (N_CONES,):
+            raise ValueError(f"BodyShape.aspect: expected shape (10,), got {aspect.shape}")
+        values = np.array([getattr(self, n) for n in _SHAPE_SCALARS], dtype=np.float64)
+        if not (np.all(np.isfinite(values)) and np.all(np.isfinite(radii))):
+            raise ValueError("BodyShape: every length and radius must be finite")
+        for name in _SHAPE_SCALARS[8:]:
+            if getattr(self, name) <= 0:
+                raise ValueError(f"BodyShape.{name}: expected a positive length in mm")
+        if np.any(radii <= 0) or np.any(aspect <= 0):
+            raise ValueError("BodyShape: radii and aspect ratios must be positive")
+        radii.setflags(write=False)
+        aspect.setflags(write=False)
+        object.__setattr__(self, "radii", radii)
+        object.__setattr__(self, "aspect", aspect)
+        for name in _SHAPE_SCALARS:
+            object.__setattr__(self, name, float(getattr(self, name)))
+
+    def to_vector(self) -> FloatArray:
+        """The shape as one flat float vector (for ``.npz`` files)."""
+        scalars = np.array([getattr(self, n) for n in _SHAPE_SCALARS])
+        return np.concatenate([scalars, self.radii.ravel(), self.aspect])
+
+    @classmethod
+    def from_vector(cls, vector: ArrayLike) -> BodyShape:
+        """Rebuild a shape from :meth:`to_vector`'s output.
+
+        Raises:
+            ValueError: If the vector does not have ``SHAPE_VECTOR_SIZE`` entries.
+        """
+        v = np.asarray(vector, dtype=np.float64).ravel()
+        if v.size != SHAPE_VECTOR_SIZE:
+            raise ValueError(
+                f"BodyShape.from_vector: expected {SHAPE_VECTOR_SIZE} numbers, got {v.size}"
+            )
+        n = len(_SHAPE_SCALARS)
+        kwargs = {name: float(v[i]) for i, name in enumerate(_SHAPE_SCALARS)}
+        radii = v[n : n + 2 * N_CONES].reshape(N_CONES, 2)
+        aspect = v[n + 2 * N_CONES :]
+        return cls(**kwargs, radii=radii, aspect=aspect)
+
+    def replace(self, **changes: object) -> BodyShape:
+        """A copy with some fields changed."""
+        return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, BodyShape):
+            return NotImplemented
+        return bool(np.array_equal(self.to_vector(), other.to_vector()))
+
+    def __hash__(self) -> int:
+        return hash(self.to_vector().tobytes())
+
+    def __repr__(self) -> str:
+        return (
+            f"BodyShape(height~{self.standing_height():.0f} mm, "
+            f"thigh={self.thigh_length:.0f}, shin={self.shin_length:.0f}, "
+            f"upper_arm={self.upper_arm_length:.0f}, forearm={self.forearm_length:.0f})"
+        )
+
+    def standing_height(self) -> float:
+        """Height of the head top above the ankles in the rest pose, in mm."""
+        return self.thigh_length + self.shin_length - self.hip_up + self.neck_up + self.head_length
+
+    def torso_points(self) -> FloatArray:
+        """The five torso points in the body frame, shape (5, 3).
+
+        Rows: pelvis, neck base, right shoulder, left shoulder, right hip, left hip
+        without the pelvis; i.e. neck, r_shoulder, l_shoulder, r_hip, l_hip.
+        """
+        sx, sy, sz = self.shoulder_half_width, self.shoulder_forward, self.shoulder_up
+        hx, hy, hz = self.hip_half_width, self.hip_forward, self.hip_up
+        return np.array(
+            [
+                [0.0, self.neck_forward, self.neck_up],
+                [sx, sy, sz],
+                [-sx, sy, sz],
+                [hx, hy, hz],
+                [-hx, hy, hz],
+            ]
+        )
+
+
+def default_shape(height: float = 1750.0) -> BodyShape:
+    """A plausible adult shape scaled to a standing height.
+
+    Segment proportions follow the anthropometric table of Drillis & Contini
+    (1966) as reproduced by Winter, *Biomechanics and Motor Control of Human
+    Movement* (2009), Fig. 4.1.
+
+    Args:
+        height: Standing height (ankle to head top plus the ankle height) in mm.
+
+    Returns:
+        The shape.
+    """
+    if not np.isfinite(height) or height <= 0:
+        raise ValueError(f"default_shape: height must be a positive number of mm, got {height}")
+    h = height / 1750.0
+    radii = np.array(
+        [
+            [150.0, 165.0],  # torso: pelvis, neck (width; depth = aspect * width)
+            [55.0, 85.0],  # head: neck, crown
+            [48.0, 40.0],  # upper arms
+            [38.0, 28.0],  # forearms
+            [48.0, 40.0],
+            [38.0, 28.0],
+            [80.0, 55.0],  # thighs
+            [55.0, 38.0],  # shins
+            [80.0, 55.0],
+            [55.0, 38.0],
+        ]
+    )
+    aspect = np.ones(N_CONES)
+    aspect[0] = 0.6
+    return BodyShape(
+        neck_forward=0.0,
+        neck_up=490.0 * h,
+        shoulder_half_width=180.0 * h,
+        shoulder_forward=0.0,
+        shoulder_up=465.0 * h,
+        hip_half_width=90.0 * h,
+        hip_forward=0.0,
+        hip_up=-60.0 * h,
+        head_length=280.0 * h,
+        upper_arm_length=300.0 * h,
+        forearm_length=255.0 * h,
+        thigh_length=430.0 * h,
+        shin_length=430.0 * h,
+        radii=radii * h,
+        aspect=aspect,
+    )
+
+
+# ---------------------------------------------------------------------------
+# Rotations
+# ---------------------------------------------------------------------------
+
+
+def rotation_x(angle: ArrayLike) -> FloatArray:
+    """Rotation matrices about ``x``, shape ``angle.shape + (3, 3)``."""
+    a = np.asarray(angle, dtype=np.float64)
+    c, s = np.cos(a), np.sin(a)
+    one, zero = np.ones_like(a), np.zeros_like(a)
+    return np.stack([one, zero, zero, zero, c, -s, zero, s, c], axis=-1).reshape(a.shape + (3, 3))
+
+
+def euler_xyz_to_matrix(angles: ArrayLike) -> FloatArray:
+    """``Rx(a) @ Ry(b) @ Rz(c)`` for ``angles[..., :] = (a, b, c)``; shape (..., 3, 3)."""
+    ang = np.asarray(angles, dtype=np.float64)
+    ca, cb, cc = np.cos(ang[..., 0]), np.cos(ang[..., 1]), np.cos(ang[..., 2])
+    sa, sb, sc = np.sin(ang[..., 0]), np.sin(ang[..., 1]), np.sin(ang[..., 2])
+    out = np.empty(ang.shape[:-1] + (3, 3))
+    out[..., 0, 0] = cb * cc
+    out[..., 0, 1] = -cb * sc
+    out[..., 0, 2] = sb
+    out[..., 1, 0] = ca * sc + sa * sb * cc
+    out[..., 1, 1] = ca * cc - sa * sb * sc
+    out[..., 1, 2] = -sa * cb
+    out[..., 2, 0] = sa * sc - ca * sb * cc
+    out[..., 2, 1] = sa * cc + ca * sb * sc
+    out[..., 2, 2] = ca * cb
+    return out
+
+
+def euler_zxy_to_matrix(angles: ArrayLike) -> FloatArray:
+    """``Rz(y) @ Rx(p) @ Ry(r)`` for ``angles[..., :] = (y, p, r)``; shape (..., 3, 3)."""
+    ang = np.asarray(angles, dtype=np.float64)
+    cy, cp, cr = np.cos(ang[..., 0]), np.cos(ang[..., 1]), np.cos(ang[..., 2])
+    sy, sp, sr = np.sin(ang[..., 0]), np.sin(ang[..., 1]), np.sin(ang[..., 2])
+    out = np.empty(ang.shape[:-1] + (3, 3))
+    out[..., 0, 0] = cy * cr - sy * sp * sr
+    out[..., 0, 1] = -sy * cp
+    out[..., 0, 2] = cy * sr + sy * sp * cr
+    out[..., 1, 0] = sy * cr + cy * sp * sr
+    out[..., 1, 1] = cy * cp
+    out[..., 1, 2] = sy * sr - cy * sp * cr
+    out[..., 2, 0] = -cp * sr
+    out[..., 2, 1] = sp
+    out[..., 2, 2] = cp * cr
+    return out
+
+
+def matrix_to_euler_xyz(matrix: ArrayLike) -> FloatArray:
+    """Inverse of :func:`euler_xyz_to_matrix`: angles with ``b`` in [-pi/2, pi/2]."""
+    m = np.asarray(matrix, dtype=np.float64)
+    b = np.arcsin(np.clip(m[..., 0, 2], -1.0, 1.0))
+    a = np.arctan2(-m[..., 1, 2], m[..., 2, 2])
+    c = np.arctan2(-m[..., 0, 1], m[..., 0, 0])
+    return np.stack([a, b, c], axis=-1)
+
+
+def matrix_to_euler_zxy(matrix: ArrayLike) -> FloatArray:
+    """Inverse of :func:`euler_zxy_to_matrix`: angles with ``p`` in [-pi/2, pi/2]."""
+    m = np.asarray(matrix, dtype=np.float64)
+    p = np.arcsin(np.clip(m[..., 2, 1], -1.0, 1.0))
+    r = np.arctan2(-m[..., 2, 0], m[..., 2, 2])
+    y = np.arctan2(-m[..., 0, 1], m[..., 1, 1])
+    return np.stack([y, p, r], axis=-1)
+
+
+# ---------------------------------------------------------------------------
+# Forward kinematics
+# ---------------------------------------------------------------------------
+
+
+class ConeGeometry(NamedTuple):
+    """Everything the renderer and the observation model need about a pose.
+
+    Attributes:
+        keypoints: ``(..., 15, 3)`` keypoints in the world frame, mm.
+        starts: ``(..., 10, 3)`` proximal end of each cone.
+        ends: ``(..., 10, 3)`` distal end of each cone.
+        rotations: ``(..., 10, 3, 3)`` each cone's frame in the world; its
+            columns are the cone's ``x`` (width), ``y`` (depth) and ``z`` axes.
+    """
+
+    keypoints: FloatArray
+    starts: FloatArray
+    ends: FloatArray
+    rotations: FloatArray
+
+
+def _check_params(params: ArrayLike) -> FloatArray:
+    p = np.asarray(params, dtype=np.float64)
+    if p.ndim < 1 or p.shape[-1] != N_PARAMS:
+        raise ValueError(
+            f"pose parameters: expected an array of shape (..., {N_PARAMS}), got {p.shape}"
+        )
+    return p
+
+
+def _kinematic_chain(p: FloatArray, shape: BodyShape, want_frames: bool):
+    root_rot = euler_zxy_to_matrix(p[..., ROOT_ROTATION])
+    # Torso points: neck, shoulders, hips (body frame) -> world.
+    torso = np.einsum("...ij,kj->...ki", root_rot, shape.torso_points())
+    torso += p[..., None, ROOT_POSITION]
+    neck, r_sh, l_sh, r_hip, l_hip = (torso[..., i, :] for i in range(5))
+
+    neck_rot = root_rot @ euler_xyz_to_matrix(p[..., NECK])
+    head_top = neck + shape.head_length * neck_rot[..., :, 2]
+
+    def limb(base, rot_local, bend, upper_len, lower_len, sign):
+        # Upper segment hangs along -z of the joint frame; the hinge turns the
+        # lower segment about x: forward for the elbow (sign +1), backward for
+        # the knee (sign -1). Lower direction = sign*sin(k)*y - cos(k)*z.
+        rot = root_rot @ euler_xyz_to_matrix(rot_local)
+        y_axis, z_axis = rot[..., :, 1], rot[..., :, 2]
+        mid = base - upper_len * z_axis
+        s, c = np.sin(bend)[..., None], np.cos(bend)[..., None]
+        tip = mid + lower_len * (sign * s * y_axis - c * z_axis)
+        return mid, tip, rot
+
+    r_el, r_wr, r_sh_rot = limb(
+        r_sh, p[..., R_SHOULDER], p[..., R_ELBOW], shape.upper_arm_length,
+        shape.forearm_length, 1.0,
+    )  # fmt: skip
+    l_el, l_wr, l_sh_rot = limb(
+        l_sh, p[..., L_SHOULDER], p[..., L_ELBOW], shape.upper_arm_length,
+        shape.forearm_length, 1.0,
+    )  # fmt: skip
+    r_kn, r_an, r_hip_rot = limb(
+        r_hip, p[..., R_HIP], p[..., R_KNEE], shape.thigh_length, shape.shin_length, -1.0
+    )
+    l_kn, l_an, l_hip_rot = limb(
+        l_hip, p[..., L_HIP], p[..., L_KNEE], shape.thigh_length, shape.shin_length, -1.0
+    )
+    pelvis = p[..., ROOT_POSITION]
+    keypoints = np.stack(
+        [pelvis, r_hip, r_kn, r_an, l_hip, l_kn, l_an, neck, head_top,
+         r_sh, r_el, r_wr, l_sh, l_el, l_wr],
+        axis=-2,
+    )  # fmt: skip
+    if not want_frames:
+        return keypoints, None
+    rots = np.stack(
+        [
+            root_rot,
+            neck_rot,
+            r_sh_rot,
+            r_sh_rot @ rotation_x(p[..., R_ELBOW]),
+            l_sh_rot,
+            l_sh_rot @ rotation_x(p[..., L_ELBOW]),
+            r_hip_rot,
+            r_hip_rot @ rotation_x(-p[..., R_KNEE]),
+            l_hip_rot,
+            l_hip_rot @ rotation_x(-p[..., L_KNEE]),
+        ],
+        axis=-3,
+    )
+    return keypoints, rots
+
+
+def forward_kinematics(params: ArrayLike, shape: BodyShape) -> FloatArray:
+    """Keypoints of poses, batched over any leading axes.
+
+    Args:
+        params: ``(..., 25)`` pose parameters (``PARAM_NAMES`` order).
+        shape: The subject's shape.
+
+    Returns:
+        ``(..., 15, 3)`` keypoints (``KEYPOINT_NAMES`` order) in the world frame, mm.
+
+    Raises:
+        ValueError: If the last axis of ``params`` is not 25 long.
+
+    Example:
+        >>> import numpy as np
+        >>> from humotion_gym.body import default_shape, forward_kinematics
+        >>> kp = forward_kinematics(np.zeros((4, 25)), default_shape())
+        >>> kp.shape
+        (4, 15, 3)
+    """
+    keypoints, _ = _kinematic_chain(_check_params(params), shape, want_frames=False)
+    return keypoints
+
+
+def cone_geometry(params: ArrayLike, shape: BodyShape) -> ConeGeometry:
+    """Keypoints, cone end points and cone frames, batched over leading axes.
+
+    Args:
+        params: ``(..., 25)`` pose parameters.
+        shape: The subject's shape.
+
+    Returns:
+        The :class:`ConeGeometry` of the poses.
+    """
+    keypoints, rots = _kinematic_chain(_check_params(params), shape, want_frames=True)
+    starts = keypoints[..., CONE_KEYPOINTS[:, 0], :]
+    ends = keypoints[..., CONE_KEYPOINTS[:, 1], :]
+    return ConeGeometry(keypoints, starts, ends, rots)
+
+
+def wrap_angles(params: ArrayLike) -> FloatArray:
+    """Wrap the periodic parameters (the heading) into [-pi, pi); others unchanged."""
+    p = np.array(params, dtype=np.float64, copy=True)
+    p[..., PERIODIC_MASK] = (p[..., PERIODIC_MASK] + np.pi) % (2 * np.pi) - np.pi
+    return p
+
+
+def standing_pose(shape: BodyShape, yaw: float = 0.0) -> FloatArray:
+    """The rest pose standing on the ground (ankles at z = 0), shape (25,)."""
+    pose = np.zeros(N_PARAMS)
+    pose[2] = shape.thigh_length + shape.shin_length - shape.hip_up
+    pose[PARAM_INDEX["root_yaw"]] = yaw
+    return pose

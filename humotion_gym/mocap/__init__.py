@@ -1,0 +1,1 @@
+"""Motion capture in: parsers, rigs, retargeting, the motion library."""

@@ -1,0 +1,1 @@
+"""Motion priors for the particle filter."""
