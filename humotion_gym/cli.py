@@ -1,0 +1,188 @@
+"""The ``humotion-gym`` command line.
+
+Sub-commands::
+
+    humotion-gym data table [--data-dir DIR]       the default library, one row per clip
+    humotion-gym data info PATH... [--json]        per clip: rig, subject, label, frames,
+                                                   fps, seconds, retargeting error
+    humotion-gym data convert IN OUT.bvh           a motion as BVH on the cone-body skeleton
+    humotion-gym download cmu --subjects 2 7 35    CMU ASF/AMC into the download cache
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+
+def _add_data(sub: argparse._SubParsersAction) -> None:
+    data = sub.add_parser("data", help="motion data: list, inspect, convert")
+    dsub = data.add_subparsers(dest="data_command", required=True)
+
+    table = dsub.add_parser("table", help="print the default motion library")
+    table.add_argument("--data-dir", nargs="*", default=None, help="folders of real mocap")
+    table.add_argument("--fps", type=float, default=30.0)
+    table.add_argument("--split", choices=["train", "test"], default=None)
+    table.set_defaults(func=_cmd_data_table)
+
+    info = dsub.add_parser("info", help="one row per clip with the retargeting error")
+    info.add_argument("paths", nargs="+", help="mocap files or folders")
+    info.add_argument("--json", action="store_true", help="JSON lines instead of a table")
+    info.add_argument("--fps", type=float, default=30.0)
+    info.add_argument("--summary", action="store_true", help="only totals per data set")
+    info.add_argument("--no-cache", action="store_true", help="parse again, ignore the cache")
+    info.set_defaults(func=_cmd_data_info)
+
+    conv = dsub.add_parser("convert", help="write a motion as BVH on the cone-body skeleton")
+    conv.add_argument("input", help="a BVH or AMC file (or 'synthetic/<clip>')")
+    conv.add_argument("output", help="the .bvh to write")
+    conv.add_argument("--fps", type=float, default=30.0)
+    conv.set_defaults(func=_cmd_data_convert)
+
+
+def _add_download(sub: argparse._SubParsersAction) -> None:
+    dl = sub.add_parser("download", help="fetch public motion capture into the cache")
+    dsub = dl.add_subparsers(dest="source", required=True)
+    cmu = dsub.add_parser("cmu", help="CMU Graphics Lab Motion Capture Database (ASF/AMC)")
+    cmu.add_argument("--subjects", type=int, nargs="+", required=True)
+    cmu.add_argument("--dest", type=Path, default=None)
+    cmu.add_argument("--base-url", default=None)
+    cmu.add_argument("--quiet", action="store_true")
+    cmu.set_defaults(func=_cmd_download_cmu)
+
+
+def _cmd_data_table(args: argparse.Namespace) -> int:
+    from humotion_gym.mocap.library import default_library
+
+    lib = default_library(args.data_dir or None, fps=args.fps)
+    if args.split:
+        lib = lib.split(args.split)
+    print(lib.table())
+    return 0
+
+
+def _clip_rows(paths: Sequence[str], fps: float, use_cache: bool) -> list[dict]:
+    from humotion_gym.mocap.library import find_clips, load_library
+
+    lib = load_library(paths, fps=fps, use_cache=use_cache)
+    files = {s.clip_id: s for s in find_clips(paths)}
+    rows = []
+    for m in lib:
+        err = m.retarget_error()
+        err = err[np.isfinite(err)]
+        rows.append(
+            {
+                "file": str(files[m.clip_id].path) if m.clip_id in files else m.source,
+                "clip": m.clip_id,
+                "dataset": m.dataset,
+                "rig": m.meta.get("rig", ""),
+                "subject": m.subject,
+                "label": m.label,
+                "frames": m.n_frames,
+                "fps": m.fps,
+                "seconds": round(m.duration, 3),
+                "observed": round(float(m.frame_observed.mean()), 4),
+                "error_mean_mm": round(float(err.mean()), 2) if err.size else None,
+                "error_max_mm": round(float(err.max()), 2) if err.size else None,
+                "_errors": err,
+            }
+        )
+    return rows
+
+
+def _cmd_data_info(args: argparse.Namespace) -> int:
+    rows = _clip_rows(args.paths, args.fps, not args.no_cache)
+    if args.summary:
+        out = {}
+        for ds in sorted({r["dataset"] for r in rows}):
+            sel = [r for r in rows if r["dataset"] == ds]
+            errs = np.concatenate([r["_errors"] for r in sel])
+            out[ds] = {
+                "clips": len(sel),
+                "frames": int(sum(r["frames"] for r in sel)),
+                "seconds": round(sum(r["seconds"] for r in sel), 1),
+                "error_mean_mm": round(float(errs.mean()), 1),
+                "error_median_mm": round(float(np.median(errs)), 1),
+                "error_p95_mm": round(float(np.percentile(errs, 95)), 1),
+                "error_max_mm": round(float(errs.max()), 1),
+            }
+        if args.json:
+            print(json.dumps(out, indent=2))
+        else:
+            print(f"{'data set':12s} {'clips':>6s} {'frames':>8s} {'mean':>6s} {'median':>6s} "
+                  f"{'p95':>6s} {'max':>6s}   (retargeting error, mm)")  # fmt: skip
+            for ds, s in out.items():
+                print(f"{ds:12s} {s['clips']:6d} {s['frames']:8d} {s['error_mean_mm']:6.1f} "
+                      f"{s['error_median_mm']:6.1f} {s['error_p95_mm']:6.1f} {s['error_max_mm']:6.1f}")  # fmt: skip
+        return 0
+    for r in rows:
+        r.pop("_errors")
+    if args.json:
+        for r in rows:
+            print(json.dumps(r))
+        return 0
+    head = (f"{'file':48s} {'rig':17s} {'subject':20s} {'label':10s} {'frames':>6s} {'fps':>4s} "
+            f"{'sec':>6s} {'err':>6s} {'max':>6s}")  # fmt: skip
+    print(head)
+    for r in rows:
+        name = r["file"] if len(r["file"]) <= 48 else "..." + r["file"][-45:]
+        print(f"{name:48s} {r['rig']:17s} {r['subject']:20s} {r['label']:10s} {r['frames']:6d} "
+              f"{r['fps']:4.0f} {r['seconds']:6.1f} {r['error_mean_mm']:6.1f} {r['error_max_mm']:6.1f}")  # fmt: skip
+    return 0
+
+
+def _cmd_data_convert(args: argparse.Namespace) -> int:
+    from humotion_gym.mocap.export import write_motion_bvh
+    from humotion_gym.mocap.library import load_library, synthetic_library
+
+    if args.input.startswith("synthetic/"):
+        motion = synthetic_library(fps=args.fps)[args.input]
+    else:
+        lib = load_library([args.input], fps=args.fps, progress=False)
+        motion = lib[0]
+    write_motion_bvh(args.output, motion.params, motion.shape, motion.fps)
+    print(f"wrote {args.output}: {motion.n_frames} frames at {motion.fps:g} fps ({motion.clip_id})")
+    return 0
+
+
+def _cmd_download_cmu(args: argparse.Namespace) -> int:
+    from humotion_gym.mocap import download
+
+    kwargs = {"dest": args.dest, "progress": not args.quiet}
+    if args.base_url:
+        kwargs["base_url"] = args.base_url
+    files = download.download_cmu(args.subjects, **kwargs)
+    print(f"{len(files)} files in {files[0].parent.parent if files else args.dest}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``humotion-gym``."""
+    parser = argparse.ArgumentParser(
+        prog="humotion-gym",
+        description="Gymnasium environments for monocular 3D human pose tracking.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    _add_data(sub)
+    _add_download(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``humotion-gym`` console script."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except (ValueError, FileNotFoundError, KeyError) as exc:
+        print(f"humotion-gym: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

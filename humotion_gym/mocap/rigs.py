@@ -1,0 +1,343 @@
+"""Rig profiles: which joints of a source skeleton are the cone body's 15 keypoints.
+
+A profile maps every keypoint of :data:`humotion_gym.body.KEYPOINT_NAMES` to a
+point of the source skeleton (a joint, or for BVH an end site ``"<joint>_End"``,
+or for ASF the tip of a bone). Where a rig has no point at the top of the head,
+the head top is extended from the head joint along the neck-to-head direction by
+a fixed length (:class:`Extend`). Profiles are plain data; :func:`detect_rig`
+picks one from the joint names and a user can pass their own mapping.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from humotion_gym.body import KEYPOINT_NAMES
+from humotion_gym.errors import RigError
+from humotion_gym.mocap.skeleton import SkeletonClip
+
+#: Source axes to the world frame (z up) for a y-up source: a +90 degree turn
+#: about x, (x, y, z) -> (x, -z, y), which keeps the frame right-handed.
+Y_UP_TO_Z_UP: NDArray[np.float64] = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+
+
+@dataclass(frozen=True)
+class Extend:
+    """A keypoint the rig lacks, extended from two of its points.
+
+    The keypoint is ``point + length_mm * unit(point - towards)``: e.g. the head
+    top as the head joint pushed on along the neck-to-head direction.
+
+    Attributes:
+        point: The joint to extend from.
+        towards: The joint that gives the direction (``point - towards``).
+        length_mm: How far to extend, in millimetres.
+    """
+
+    point: str
+    towards: str
+    length_mm: float
+
+
+KeypointSource = str | Extend
+
+
+@dataclass(frozen=True)
+class RigProfile:
+    """How one family of skeletons maps onto the 15 keypoints.
+
+    Attributes:
+        name: Short name, e.g. ``"cmu-asf"``.
+        keypoints: For each keypoint name, the source point (or :class:`Extend`).
+        up_axis: The source's vertical axis, ``"y"`` or ``"z"``.
+        description: Where such skeletons come from.
+        aliases: Alternative names tried for a point when the first is absent
+            (rigs exported by different tools vary in small ways).
+    """
+
+    name: str
+    keypoints: Mapping[str, KeypointSource]
+    up_axis: str = "y"
+    description: str = ""
+    aliases: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        missing = [k for k in KEYPOINT_NAMES if k not in self.keypoints]
+        extra = [k for k in self.keypoints if k not in KEYPOINT_NAMES]
+        if missing or extra:
+            raise RigError(
+                f"rig {self.name!r}: the mapping must name exactly the 15 keypoints; "
+                f"missing {missing}, unknown {extra}"
+            )
+        if self.up_axis not in ("y", "z"):
+            raise RigError(f"rig {self.name!r}: up_axis must be 'y' or 'z', got {self.up_axis!r}")
+
+    def source_points(self) -> list[str]:
+        """Every source point the profile reads."""
+        names: list[str] = []
+        for src in self.keypoints.values():
+            for n in (src.point, src.towards) if isinstance(src, Extend) else (src,):
+                if n not in names:
+                    names.append(n)
+        return names
+
+    def resolve(self, available: Sequence[str]) -> tuple[dict[str, str], list[str]]:
+        """Match the profile's points to a skeleton's point names.
+
+        Returns:
+            The mapping from profile point names to the skeleton's names, and
+            the keypoints that could not be found.
+        """
+        have = set(available)
+        lowered = {n.lower(): n for n in available}
+        found: dict[str, str] = {}
+        for name in self.source_points():
+            for cand in (name, *self.aliases.get(name, ())):
+                if cand in have:
+                    found[name] = cand
+                    break
+                if cand.lower() in lowered:
+                    found[name] = lowered[cand.lower()]
+                    break
+        missing = []
+        for kp, src in self.keypoints.items():
+            needed = (src.point, src.towards) if isinstance(src, Extend) else (src,)
+            if any(n not in found for n in needed):
+                missing.append(kp)
+        return found, missing
+
+    def keypoints_from(self, clip: SkeletonClip, units_to_mm: float) -> NDArray[np.float64]:
+        """The clip's 15 keypoints in the world frame (z up), mm: ``(T, 15, 3)``.
+
+        Raises:
+            RigError: If the clip lacks a point the profile needs.
+        """
+        found, missing = self.resolve(clip.point_names)
+        if missing:
+            raise RigError(
+                f"{clip.path}: rig {self.name!r} cannot find the points for keypoints {missing}"
+            )
+        names = list(found.values())
+        pos = clip.point_positions(names) * units_to_mm
+        if self.up_axis == "y":
+            pos = pos @ Y_UP_TO_Z_UP.T
+        by_name = {src: pos[:, i] for i, src in enumerate(found)}
+        out = np.empty((pos.shape[0], len(KEYPOINT_NAMES), 3))
+        for k, kp in enumerate(KEYPOINT_NAMES):
+            src = self.keypoints[kp]
+            if isinstance(src, Extend):
+                a, b = by_name[src.point], by_name[src.towards]
+                d = a - b
+                norm = np.linalg.norm(d, axis=-1, keepdims=True)
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    out[:, k] = a + src.length_mm * d / norm
+            else:
+                out[:, k] = by_name[src]
+        return out
+
+
+def _sided(template: Mapping[str, str], right: str, left: str) -> dict[str, str]:
+    """Expand ``{"hip": "{S}UpLeg"}`` into right and left keypoints."""
+    out: dict[str, str] = {}
+    for kp, pattern in template.items():
+        out[f"r_{kp}"] = pattern.format(S=right)
+        out[f"l_{kp}"] = pattern.format(S=left)
+    return out
+
+
+# Head extension for rigs whose head joint sits at the base of the skull: the
+# crown is about 200 mm above it for an adult (Winter 2009, Fig. 4.1: head and
+# neck 0.13-0.18 of the height).
+_HEAD_EXTENSION_MM = 200.0
+
+CMU_ASF = RigProfile(
+    name="cmu-asf",
+    description="CMU Graphics Lab ASF skeletons (VICON BodyBuilder): points are bone tips",
+    keypoints={
+        "pelvis": "root",
+        "neck": "thorax",
+        "head_top": "head",
+        **_sided(
+            {
+                "hip": "{S}hipjoint",
+                "knee": "{S}femur",
+                "ankle": "{S}tibia",
+                "shoulder": "{S}clavicle",
+                "elbow": "{S}humerus",
+                "wrist": "{S}radius",
+            },
+            "r",
+            "l",
+        ),
+    },
+)
+
+CMU_BVH = RigProfile(
+    name="cmu-bvh",
+    description="the widely used BVH conversions of the CMU database (Hips, LeftUpLeg, ...)",
+    keypoints={
+        "pelvis": "Hips",
+        "neck": "Neck",
+        "head_top": "Head_End",
+        **_sided(
+            {
+                "hip": "{S}UpLeg",
+                "knee": "{S}Leg",
+                "ankle": "{S}Foot",
+                "shoulder": "{S}Arm",
+                "elbow": "{S}ForeArm",
+                "wrist": "{S}Hand",
+            },
+            "Right",
+            "Left",
+        ),
+    },
+    aliases={"Head_End": ("Head_end", "HeadEnd", "Head_Nub"), "Neck": ("Neck1",)},
+)
+
+CHARACTER_CREATOR = RigProfile(
+    name="character-creator",
+    description="Reallusion Character Creator rigs (CC_Base_*), e.g. the CMU conversions",
+    keypoints={
+        "pelvis": "CC_Base_Hip",
+        "neck": "CC_Base_NeckTwist01",
+        "head_top": Extend("CC_Base_Head", "CC_Base_NeckTwist01", _HEAD_EXTENSION_MM),
+        **_sided(
+            {
+                "hip": "CC_Base_{S}_Thigh",
+                "knee": "CC_Base_{S}_Calf",
+                "ankle": "CC_Base_{S}_Foot",
+                "shoulder": "CC_Base_{S}_Upperarm",
+                "elbow": "CC_Base_{S}_Forearm",
+                "wrist": "CC_Base_{S}_Hand",
+            },
+            "R",
+            "L",
+        ),
+    },
+)
+
+BANDAI = RigProfile(
+    name="bandai",
+    description="Bandai-Namco-Research-Motiondataset rigs (joint_Root, Hips, UpperArm_L, ...)",
+    keypoints={
+        "pelvis": "Hips",
+        "neck": "Neck",
+        "head_top": Extend("Head", "Neck", _HEAD_EXTENSION_MM),
+        **_sided(
+            {
+                "hip": "UpperLeg_{S}",
+                "knee": "LowerLeg_{S}",
+                "ankle": "Foot_{S}",
+                "shoulder": "UpperArm_{S}",
+                "elbow": "LowerArm_{S}",
+                "wrist": "Hand_{S}",
+            },
+            "R",
+            "L",
+        ),
+    },
+)
+
+MIXAMO = RigProfile(
+    name="mixamo",
+    description="Adobe Mixamo rigs (mixamorig:*)",
+    keypoints={
+        "pelvis": "mixamorig:Hips",
+        "neck": "mixamorig:Neck",
+        "head_top": "mixamorig:HeadTop_End",
+        **_sided(
+            {
+                "hip": "mixamorig:{S}UpLeg",
+                "knee": "mixamorig:{S}Leg",
+                "ankle": "mixamorig:{S}Foot",
+                "shoulder": "mixamorig:{S}Arm",
+                "elbow": "mixamorig:{S}ForeArm",
+                "wrist": "mixamorig:{S}Hand",
+            },
+            "Right",
+            "Left",
+        ),
+    },
+    aliases={"mixamorig:HeadTop_End": ("mixamorig:HeadTop_End_End", "mixamorig:Head_End")},
+)
+
+CONE_BODY = RigProfile(
+    name="cone-body",
+    description="the cone body's own skeleton, as written by humotion_gym.mocap.export",
+    keypoints={k: k for k in KEYPOINT_NAMES},
+    up_axis="z",
+)
+
+#: Every built-in profile, in the order detection tries them.
+RIGS: dict[str, RigProfile] = {
+    rig.name: rig for rig in (CONE_BODY, CMU_ASF, CMU_BVH, CHARACTER_CREATOR, BANDAI, MIXAMO)
+}
+
+
+def detect_rig(point_names: Sequence[str], path: str = "<skeleton>") -> RigProfile:
+    """Choose the profile that finds all 15 keypoints among a skeleton's points.
+
+    Args:
+        point_names: The skeleton's point names.
+        path: The file, for the error message.
+
+    Returns:
+        The first profile in :data:`RIGS` that finds every keypoint.
+
+    Raises:
+        RigError: If none does; the message lists, for the closest profile,
+            the keypoints it could not find.
+    """
+    best: tuple[int, RigProfile, list[str]] | None = None
+    for rig in RIGS.values():
+        _, missing = rig.resolve(point_names)
+        if not missing:
+            return rig
+        if best is None or len(missing) < best[0]:
+            best = (len(missing), rig, missing)
+    assert best is not None
+    _, rig, missing = best
+    raise RigError(
+        f"{path}: unknown rig; the closest profile, {rig.name!r}, could not find the "
+        f"keypoints {missing}. Pass rig=RigProfile(...) or a dict mapping each of "
+        f"{list(KEYPOINT_NAMES)} to a joint name."
+    )
+
+
+def make_rig(mapping: Mapping[str, KeypointSource], up_axis: str = "y", name: str = "custom") -> RigProfile:
+    """A user's own profile from a ``{keypoint: joint name}`` mapping.
+
+    Raises:
+        RigError: If the mapping does not name exactly the 15 keypoints.
+    """
+    return RigProfile(name=name, keypoints=dict(mapping), up_axis=up_axis)
+
+
+# Snapping a BVH file's unknown length unit: the common choices, in mm per unit.
+_UNITS_MM = {"mm": 1.0, "cm": 10.0, "inch": 25.4, "dm": 100.0, "m": 1000.0}
+# Thigh plus shin of an adult, mm (Winter 2009: 0.245 H + 0.246 H for H ~ 1.7 m).
+_TYPICAL_LEG_MM = 840.0
+
+
+def guess_units_to_mm(leg_length: float) -> tuple[float, str]:
+    """Millimetres per file unit from the median hip-to-ankle length in file units.
+
+    The nearest common unit (mm, cm, inch, dm, m) on a log scale is taken, so a
+    child or a tall actor still gets the unit the file was written in.
+
+    Returns:
+        The factor and the unit's name.
+
+    Raises:
+        RigError: If the length is not a positive finite number.
+    """
+    if not np.isfinite(leg_length) or leg_length <= 0:
+        raise RigError(f"cannot guess the length unit from a leg length of {leg_length}")
+    estimate = _TYPICAL_LEG_MM / leg_length
+    name = min(_UNITS_MM, key=lambda n: abs(np.log(_UNITS_MM[n] / estimate)))
+    return _UNITS_MM[name], name
