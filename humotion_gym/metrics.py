@@ -1,0 +1,87 @@
+"""Tracking error measures: keypoint error, angle error, the lost-track test.
+
+The keypoint error is the mean Euclidean distance over keypoints, in mm: the
+HumanEva measure of Sigal, Balan & Black, *HumanEva: Synchronized video and
+motion capture dataset and baseline algorithm for evaluation of articulated
+human motion*, IJCV 2010.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from humotion_gym.body import ANGLE_MASK, BodyShape, forward_kinematics
+
+FloatArray = NDArray[np.float64]
+
+
+def keypoint_errors(estimate: ArrayLike, truth: ArrayLike, shape: BodyShape) -> FloatArray:
+    """Per-keypoint Euclidean distance (mm) between two poses' keypoints.
+
+    Args:
+        estimate: ``(..., 25)`` estimated parameters.
+        truth: ``(..., 25)`` true parameters (broadcast against ``estimate``).
+        shape: The subject's shape.
+
+    Returns:
+        ``(..., 15)`` distances in mm.
+    """
+    return np.linalg.norm(forward_kinematics(estimate, shape) - forward_kinematics(truth, shape), axis=-1)
+
+
+def mean_keypoint_error(
+    estimate: ArrayLike, truth: ArrayLike, shape: BodyShape, keypoints: ArrayLike | None = None
+) -> FloatArray:
+    """Mean keypoint error in mm (the HumanEva measure), over chosen keypoints.
+
+    Args:
+        estimate: ``(..., 25)`` estimated parameters.
+        truth: ``(..., 25)`` true parameters.
+        shape: The subject's shape.
+        keypoints: Indices of the keypoints to average (all 15 when None).
+
+    Returns:
+        ``(...)`` mean error in mm.
+    """
+    err = keypoint_errors(estimate, truth, shape)
+    if keypoints is not None:
+        err = err[..., np.asarray(keypoints)]
+    return err.mean(axis=-1)
+
+
+def angle_errors(estimate: ArrayLike, truth: ArrayLike) -> FloatArray:
+    """Absolute angle differences (rad) wrapped to [0, pi]; positions give NaN.
+
+    Returns:
+        ``(..., 25)`` errors; the three root-position entries are NaN.
+    """
+    d = np.asarray(estimate, dtype=np.float64) - np.asarray(truth, dtype=np.float64)
+    d = np.abs((d + np.pi) % (2 * np.pi) - np.pi)
+    d[..., ~ANGLE_MASK] = np.nan
+    return d
+
+
+def lost_track_frame(errors_mm: ArrayLike, threshold_mm: float, patience: int) -> int | None:
+    """The first frame of the first run of ``patience`` frames above the threshold.
+
+    Track is lost when the error stays above ``threshold_mm`` for ``patience``
+    consecutive frames; the frame reported is where that run began.
+
+    Args:
+        errors_mm: ``(T,)`` error per frame.
+        threshold_mm: The error that counts as off track.
+        patience: How many consecutive frames above it make a loss.
+
+    Returns:
+        The 0-based frame index, or None if track was never lost.
+    """
+    if patience < 1:
+        raise ValueError(f"lost_track_frame: patience must be >= 1, got {patience}")
+    above = np.asarray(errors_mm, dtype=np.float64) > threshold_mm
+    if above.size < patience:
+        return None
+    # Sum of a sliding window of `patience` frames: a full window is a loss.
+    counts = np.convolve(above.astype(np.int64), np.ones(patience, dtype=np.int64), mode="valid")
+    hits = np.flatnonzero(counts == patience)
+    return int(hits[0]) if hits.size else None

@@ -1,0 +1,121 @@
+import numpy as np
+import pytest
+
+from humotion_gym.filtering import (
+    RESAMPLING,
+    ParticleFilter,
+    ParticleState,
+    effective_sample_size,
+    weighted_mean,
+)
+
+
+class LinearGaussianPrior:
+    """Test-only prior: x_t = A x_{t-1} + N(0, Q), x_0 ~ N(pose, P0)."""
+
+    def __init__(self, a, q, p0):
+        self.a, self.q, self.p0 = np.asarray(a), np.asarray(q), np.asarray(p0)
+
+    def initial(self, fitted, pose, n, rng):
+        return ParticleState(rng.multivariate_normal(pose, self.p0, size=n))
+
+    def transition(self, fitted, state, rng):
+        noise = rng.multivariate_normal(np.zeros(len(self.a)), self.q, size=state.n)
+        return ParticleState(state.pose @ self.a.T + noise, state.extra)
+
+
+class GaussianObservation:
+    def __init__(self, r):
+        self.r_inv = np.linalg.inv(r)
+
+    def log_likelihood(self, y, poses):
+        d = poses - y
+        return -0.5 * np.einsum("ni,ij,nj->n", d, self.r_inv, d)
+
+
+def kalman(a, q, r, m0, p0, ys):
+    m, p = m0, p0
+    means = []
+    for y in ys:
+        m, p = a @ m, a @ p @ a.T + q
+        s = p + r
+        k = p @ np.linalg.inv(s)
+        m, p = m + k @ (y - m), (np.eye(len(m)) - k) @ p
+        means.append(m)
+    return np.array(means)
+
+
+def simulate(seed=0, steps=15):
+    rng = np.random.default_rng(seed)
+    a = np.array([[1.0, 0.1], [-0.05, 0.95]])
+    q = np.diag([0.05, 0.02])
+    r = np.diag([0.1, 0.2])
+    p0 = np.diag([0.2, 0.2])
+    m0 = np.array([0.5, -0.3])
+    x = rng.multivariate_normal(m0, p0)
+    ys = []
+    for _ in range(steps):
+        x = a @ x + rng.multivariate_normal(np.zeros(2), q)
+        ys.append(x + rng.multivariate_normal(np.zeros(2), r))
+    return a, q, r, m0, p0, np.array(ys)
+
+
+def run_filter(n, seed, a, q, r, m0, p0, ys, **kwargs):
+    pf = ParticleFilter(LinearGaussianPrior(a, q, p0), None, GaussianObservation(r), n, **kwargs)
+    pf.reset(m0, np.random.default_rng(seed))
+    return np.array([pf.step(y) for y in ys])
+
+
+def test_filter_mean_approaches_exact_kalman_filter():
+    a, q, r, m0, p0, ys = simulate()
+    exact = kalman(a, q, r, m0, p0, ys)
+    errors = {}
+    for n in (100, 1000, 20000):
+        runs = [np.abs(run_filter(n, s, a, q, r, m0, p0, ys) - exact).mean() for s in range(3)]
+        errors[n] = float(np.mean(runs))
+    assert errors[100] > errors[1000] > errors[20000]
+    assert errors[20000] < 0.01  # Monte Carlo error ~ 1/sqrt(N)
+
+
+@pytest.mark.parametrize("scheme", sorted(RESAMPLING))
+def test_resampling_schemes_are_unbiased(scheme):
+    rng = np.random.default_rng(0)
+    w = rng.random(50)
+    w /= w.sum()
+    counts = np.zeros(50)
+    for _ in range(400):
+        counts += np.bincount(RESAMPLING[scheme](w, rng), minlength=50)
+    assert np.allclose(counts / (400 * 50), w, atol=0.01)
+
+
+def test_systematic_resampling_is_low_variance():
+    w = np.full(10, 0.1)
+    idx = RESAMPLING["systematic"](w, np.random.default_rng(1))
+    assert np.array_equal(np.sort(idx), np.arange(10))
+
+
+def test_same_seed_same_run_and_ess_threshold():
+    a, q, r, m0, p0, ys = simulate(seed=2, steps=5)
+    x = run_filter(300, 7, a, q, r, m0, p0, ys)
+    y = run_filter(300, 7, a, q, r, m0, p0, ys)
+    assert np.array_equal(x, y)
+    z = run_filter(300, 7, a, q, r, m0, p0, ys, ess_threshold=0.3, estimate="map")
+    assert z.shape == x.shape
+
+
+def test_circular_mean_across_the_wrap():
+    particles = np.array([[np.pi - 0.1, 1.0], [-np.pi + 0.1, 3.0]])
+    m = weighted_mean(particles, np.array([0.5, 0.5]), np.array([True, False]))
+    assert abs(abs(m[0]) - np.pi) < 1e-9 and m[1] == 2.0
+
+
+def test_ess_and_state_validation():
+    assert effective_sample_size(np.full(4, 0.25)) == pytest.approx(4)
+    assert effective_sample_size(np.array([1.0, 0, 0])) == pytest.approx(1)
+    with pytest.raises(ValueError, match="leading axis"):
+        ParticleState(np.zeros((3, 2)), {"v": np.zeros((2, 2))})
+    with pytest.raises(ValueError, match="n must be"):
+        ParticleFilter(None, None, None, 0)
+    pf = ParticleFilter(None, None, None, 3)
+    with pytest.raises(RuntimeError, match="before reset"):
+        pf.step(None)
