@@ -1,0 +1,438 @@
+"""The ASF/AMC reader: handmade files against scipy oracles, errors, real CMU data."""
+
+from __future__ import annotations
+
+import time
+from itertools import permutations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from humotion_gym.errors import MocapFormatError
+from humotion_gym.mocap.asfamc import AcclaimClip, load_amc, load_asf, load_asf_amc
+from humotion_gym.mocap.skeleton import SkeletonClip
+
+ORDERS = ["".join(p) for p in permutations("XYZ")]
+
+
+def acclaim(order: str, angles) -> np.ndarray:
+    """Acclaim angles turn about fixed axes in the listed order: ``XYZ`` is Rz @ Ry @ Rx.
+
+    That is scipy's extrinsic (lowercase) sequence, or equally the intrinsic
+    (uppercase) sequence of the reversed order with the angles reversed.
+    """
+    angles = np.asarray(angles, dtype=float)
+    return Rotation.from_euler(order[::-1].upper(), angles[..., ::-1], degrees=True).as_matrix()
+
+
+def test_acclaim_oracle_is_the_extrinsic_sequence():
+    a = [10.0, -35.0, 70.0]
+    np.testing.assert_allclose(
+        acclaim("XZY", a), Rotation.from_euler("xzy", a, degrees=True).as_matrix(), atol=1e-15
+    )
+    rx, rz = Rotation.from_euler("X", 10, degrees=True), Rotation.from_euler("Z", -35, degrees=True)
+    ry = Rotation.from_euler("Y", 70, degrees=True)
+    np.testing.assert_allclose(acclaim("XZY", a), (ry * rz * rx).as_matrix(), atol=1e-15)
+
+
+def asf_text(order: str = "XYZ", axis=(25.0, -40.0, 60.0), angle: str = "deg") -> str:
+    dofs = " ".join(f"r{c.lower()}" for c in order)
+    root_rot = " ".join(f"R{c}" for c in order)
+    return f"""# hand-made skeleton
+:version 1.10
+:name test
+:units
+  mass 1.0
+  length 0.45
+  angle {angle}
+:documentation
+   made by hand: # comments and documentation are skipped
+:root
+   order TX TY TZ {root_rot}
+   axis {order}
+   position 1 2 3
+   orientation {" ".join(str(v) for v in np.array([5.0, 10.0, -15.0]) * SCALE[angle])}
+:bonedata
+  begin
+     id 1
+     name upper
+     direction 0 1 0
+     length 2
+     axis {" ".join(str(v) for v in np.array(axis) * SCALE[angle])} {order}
+    dof {dofs}
+    limits (-180.0 180.0)
+           (-180.0 180.0)
+           (-180.0 180.0)
+  end
+  begin
+     id 2
+     name lower
+     direction 2 0 0
+     length 1.5
+     axis {" ".join(str(v) for v in np.array([10.0, -20.0, 30.0]) * SCALE[angle])} XYZ
+    dof rz rx
+    limits (-inf inf)
+           (-180 180)
+  end
+  begin
+     id 3
+     name side
+     direction 0 0 1
+     length 1
+     axis 0 0 0 XYZ
+  end
+:hierarchy
+  begin
+    root upper side
+    upper lower
+  end
+"""
+
+
+SCALE = {"deg": 1.0, "rad": np.pi / 180}
+
+
+def amc_text(frames: dict[int, np.ndarray], unit: str = ":DEGREES", scale: float = 1.0) -> str:
+    out = ["#!OML:ASF test.asf", ":FULLY-SPECIFIED", unit]
+    for n, v in frames.items():
+        r = np.concatenate([v[:3], v[3:] * scale])
+        out.append(str(n))
+        out.append("root " + " ".join(repr(float(x)) for x in r[:6]))
+        out.append("upper " + " ".join(repr(float(x)) for x in r[6:9]))
+        out.append("lower " + " ".join(repr(float(x)) for x in r[9:11]))
+    return "\n".join(out) + "\n"
+
+
+def oracle(order: str, axis, v: np.ndarray) -> np.ndarray:
+    """root, upper, lower, side positions for one frame's 11 values."""
+    c_root = acclaim(order, [5.0, 10.0, -15.0])
+    r0 = c_root @ acclaim(order, v[3:6]) @ c_root.T
+    p0 = np.array([1.0, 2.0, 3.0]) + v[:3]
+    c_up = acclaim(order, axis)
+    r_up = r0 @ c_up @ acclaim(order, v[6:9]) @ c_up.T
+    up = p0 + r_up @ [0.0, 2.0, 0.0]
+    c_low = acclaim("XYZ", [10.0, -20.0, 30.0])
+    r_low = r_up @ c_low @ acclaim("ZX", v[9:11]) @ c_low.T
+    low = up + r_low @ [1.5, 0.0, 0.0]  # the direction is normalised
+    side = p0 + r0 @ [0.0, 0.0, 1.0]
+    return np.stack([p0, up, low, side])
+
+
+def random_frames(seed: int, n: int = 4) -> dict[int, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return {
+        k + 1: np.concatenate([rng.uniform(-20, 20, 3), rng.uniform(-180, 180, 8)])
+        for k in range(n)
+    }
+
+
+@pytest.mark.parametrize("order", ORDERS)
+def test_every_rotation_order_matches_scipy(write_text, order):
+    axis = (25.0, -40.0, 60.0)
+    frames = random_frames(seed=ORDERS.index(order))
+    asf = write_text("t.asf", asf_text(order, axis))
+    clip = load_asf_amc(asf, write_text("t.amc", amc_text(frames)))
+    assert isinstance(clip, AcclaimClip) and isinstance(clip, SkeletonClip)
+    assert clip.point_names == ("root", "upper", "lower", "side")
+    assert list(clip.parents) == [-1, 0, 1, 0]
+    assert clip.frame_valid.all() and clip.n_frames == 4 and clip.fps == 120.0
+    want = np.stack([oracle(order, axis, v) for v in frames.values()])
+    np.testing.assert_allclose(clip.point_positions(), want, atol=1e-9)
+    np.testing.assert_allclose(clip.point_positions(["side", "root"]), want[:, [3, 0]], atol=1e-9)
+    assert clip.skeleton.root_order == ("tx", "ty", "tz", *(f"r{c.lower()}" for c in order))
+
+
+def test_known_pose_by_hand(write_text):
+    asf = """:units
+  length 1
+  angle deg
+:root
+  order TX TY TZ RX RY RZ
+  axis XYZ
+  position 0 0 0
+  orientation 0 0 0
+:bonedata
+  begin
+    name arm
+    direction 1 0 0
+    length 1
+    axis 0 0 90 XYZ
+    dof rx
+  end
+:hierarchy
+  begin
+    root arm
+  end
+"""
+    amc = ":FULLY-SPECIFIED\n:DEGREES\n1\nroot 0 0 0 0 0 0\narm 0\n2\nroot 0 0 0 0 0 0\narm 90\n"
+    clip = load_asf_amc(write_text("a.asf", asf), write_text("a.amc", amc))
+    # The arm's local x is the global y (axis 0 0 90), so rx 90 turns it about
+    # y: the bone along +x swings to -z.
+    np.testing.assert_allclose(
+        clip.point_positions(["arm"])[:, 0], [[1, 0, 0], [0, 0, -1]], atol=1e-12
+    )
+    assert clip.units_to_mm == 25.4
+
+
+def test_units_and_radians(write_text):
+    frames = random_frames(seed=3)
+    deg = load_asf_amc(write_text("d.asf", asf_text()), write_text("d.amc", amc_text(frames)))
+    rad = load_asf_amc(
+        write_text("r.asf", asf_text(angle="rad")),
+        write_text("r.amc", amc_text(frames, ":RADIANS", np.pi / 180)),
+    )
+    assert rad.angle_unit == "rad" and rad.skeleton.angle_unit == "rad"
+    np.testing.assert_allclose(rad.point_positions(), deg.point_positions(), atol=1e-9)
+    assert deg.units_to_mm == pytest.approx(25.4 / 0.45)
+    sk = deg.skeleton
+    assert sk.name == "test" and sk.length_unit == 0.45
+    np.testing.assert_allclose(sk.limits[1], [[-np.inf, np.inf], [-180, 180]])
+    np.testing.assert_allclose(sk.directions[1], [1, 0, 0])
+    assert sk.channel_names[-2:] == (("lower", "rz"), ("lower", "rx"))
+    np.testing.assert_allclose(sk.rest_positions()[2], [1 + 1.5, 2 + 2, 3])
+
+
+def test_crlf_tabs_and_trailing_blanks(write_text):
+    frames = random_frames(seed=4)
+
+    def messy(text: str) -> str:
+        return "\r\n".join("\t" + line.replace(" ", " \t") + "  " for line in text.split("\n"))
+
+    clean = load_asf_amc(write_text("c.asf", asf_text()), write_text("c.amc", amc_text(frames)))
+    dirty = load_asf_amc(
+        write_text("m.asf", messy(asf_text())),
+        write_text("m.amc", messy(amc_text(frames)) + "\r\n\r\n"),
+    )
+    np.testing.assert_array_equal(dirty.point_positions(), clean.point_positions())
+
+
+def test_skipped_frames_and_missing_bones_are_invalid(write_text):
+    sk = load_asf(write_text("t.asf", asf_text()))
+    frames = random_frames(seed=5, n=5)
+    del frames[3]  # frame 3 is skipped
+    lines = amc_text(frames).split("\n")
+    del lines[next(i for i, ln in enumerate(lines) if ln.startswith("lower"))]  # frame 1 lacks it
+    clip = load_amc(write_text("t.amc", "\n".join(lines)), sk)
+    assert list(clip.frame_numbers) == [1, 2, 3, 4, 5]
+    assert list(clip.frame_valid) == [False, True, False, True, True]
+    pos = clip.point_positions()
+    assert np.isnan(pos[[0, 2]]).all() and np.isfinite(pos[[1, 3, 4]]).all()
+    assert np.isnan(clip.channels[2]).all()  # nothing invented for the skipped frame
+    assert np.isfinite(clip.channels[0, :9]).all() and np.isnan(clip.channels[0, 9:]).all()
+
+
+def test_frames_may_start_above_one_and_bones_come_in_any_order(write_text):
+    sk = load_asf(write_text("t.asf", asf_text()))
+    frames = random_frames(seed=6, n=2)
+    text = amc_text({10: frames[1], 11: frames[2]})
+    lines = text.split("\n")
+    lines[4], lines[6] = lines[6], lines[4]  # root line last in frame 10
+    clip = load_amc(write_text("t.amc", "\n".join(lines)), sk)
+    want = np.stack([oracle("XYZ", (25.0, -40.0, 60.0), v) for v in frames.values()])
+    np.testing.assert_allclose(clip.point_positions(), want, atol=1e-9)
+    assert list(clip.frame_numbers) == [10, 11]
+
+
+def test_nan_frames_are_masked_or_raise(write_text):
+    sk = load_asf(write_text("t.asf", asf_text()))
+    text = amc_text(random_frames(seed=7, n=3)).split("\n")
+    assert text[9].startswith("upper")  # line 10: frame 2
+    text[9] = "upper 1 nan 2"
+    path = write_text("t.amc", "\n".join(text))
+    clip = load_amc(path, sk)
+    assert list(clip.frame_valid) == [True, False, True]
+    assert np.isnan(clip.point_positions()[1]).all()
+    with pytest.raises(MocapFormatError, match=r"line 10: expected finite values, found nan"):
+        load_amc(path, sk, on_nan="raise")
+
+
+# ---------------------------------------------------------------- errors
+
+AMC_LINES = amc_text(random_frames(seed=8, n=2)).split("\n")
+# 1 #!OML, 2 :FULLY-SPECIFIED, 3 :DEGREES, 4 "1", 5 root, 6 upper, 7 lower, 8 "2", 9 root...
+
+
+def amc_with(n: int, new: str | None) -> str:
+    lines = list(AMC_LINES)
+    if new is None:
+        del lines[n - 1]
+    else:
+        lines[n - 1] = new
+    return "\n".join(lines)
+
+
+AMC_MALFORMED = {
+    "empty": ("", 1, "empty"),
+    "header only": (":FULLY-SPECIFIED\n:DEGREES\n", 2, "expected AMC frames, found end of file"),
+    "unknown bone": (amc_with(6, "elbow 1 2 3"), 6, "bone 'elbow' is not defined in the skeleton"),
+    "too few values": (
+        amc_with(6, "upper 1 2"),
+        6,
+        "expected 3 values for 'upper' (dof rx ry rz), found 2",
+    ),
+    "too many values": (amc_with(9, "root 1 2 3 4 5 6 7"), 9, "expected 6 values for 'root'"),
+    "non-numeric": (amc_with(7, "lower 1 x"), 7, "expected a number, found 'x'"),
+    "frame numbers go back": (amc_with(8, "1"), 8, "expected a frame number above 1, found 1"),
+    "bone twice": (amc_with(7, "upper 1 2 3"), 7, "'upper' appears twice in frame 1"),
+    "bone before any frame": (
+        amc_with(4, None),
+        4,
+        "expected a frame number before the bone lines",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", sorted(AMC_MALFORMED))
+def test_malformed_amc_names_the_file_and_line(write_text, case):
+    sk = load_asf(write_text("t.asf", asf_text()))
+    text, line, fragment = AMC_MALFORMED[case]
+    path = write_text("bad.amc", text)
+    with pytest.raises(MocapFormatError) as info:
+        load_amc(path, sk)
+    err = info.value
+    assert err.path == str(path) and err.line == line, str(err)
+    assert str(err).startswith(f"{path}, line {line}: ")
+    assert fragment in str(err)
+
+
+ASF_LINES = asf_text().split("\n")
+# 10 :root, 11 order, 16 begin (upper), 18 name upper, 19 direction, 20 length, 21 axis,
+# 22 dof, 23-25 limits, 26 end, 29 name lower, 44 :hierarchy, 45 begin, 46 root upper
+# side, 47 upper lower, 48 end
+
+
+def asf_with(n: int, new: str | None) -> str:
+    lines = list(ASF_LINES)
+    if new is None:
+        del lines[n - 1]
+    else:
+        lines[n - 1] = new
+    return "\n".join(lines)
+
+
+ASF_MALFORMED = {
+    "empty": ("  \n", 1, "empty"),
+    "no root": ("\n".join(ASF_LINES[:9]), 9, "expected a :root section"),
+    "no order": (asf_with(11, "   axis XYZ"), 10, "expected 'order' in :root"),
+    "bad root channel": (asf_with(11, "   order TX TY QZ"), 11, "expected root channels"),
+    "bad axis order": (asf_with(21, "     axis 0 0 0 XYQ"), 21, "rotation order such as XYZ"),
+    "NaN direction": (asf_with(19, "     direction nan 1 0"), 19, "the bone direction (finite)"),
+    "short direction": (asf_with(19, "     direction 0 1"), 19, "the bone direction (3 numbers)"),
+    "no length": (asf_with(20, "     id 1"), 26, "expected 'length' in the bone begun at line 16"),
+    "translation dof": (asf_with(22, "    dof rx ty"), 22, "translation and length dof"),
+    "limits count": (asf_with(25, ""), 26, "expected 3 limits for bone 'upper'"),
+    "bone not closed": (asf_with(26, ""), 27, "expected 'end' closing the bone begun at line 16"),
+    "unknown bone in hierarchy": (asf_with(47, "    upper elbow"), 47, "unknown bone 'elbow'"),
+    "bone without parent": (
+        asf_with(47, ""),
+        44,
+        "expected a parent in :hierarchy for bones ['lower']",
+    ),
+    "two parents": (
+        asf_with(47, "    upper lower side"),
+        47,
+        "bone 'side' is given a second parent",
+    ),
+    "hierarchy not closed": (asf_with(48, ""), 48, "expected 'end' closing :hierarchy (line 44)"),
+    "duplicate bone": (asf_with(29, "     name upper"), 29, "bone name 'upper' is used twice"),
+}
+
+
+def test_asf_line_map_is_as_the_cases_assume():
+    assert ASF_LINES[9].startswith(":root") and ASF_LINES[15].strip() == "begin"
+    assert ASF_LINES[25].strip() == "end" and ASF_LINES[43].startswith(":hierarchy")
+    assert ASF_LINES[46].strip() == "upper lower" and ASF_LINES[28].strip() == "name lower"
+
+
+@pytest.mark.parametrize("case", sorted(ASF_MALFORMED))
+def test_malformed_asf_names_the_file_and_line(write_text, case):
+    text, line, fragment = ASF_MALFORMED[case]
+    path = write_text("bad.asf", text)
+    with pytest.raises(MocapFormatError) as info:
+        load_asf(path)
+    err = info.value
+    assert err.path == str(path) and err.line == line, str(err)
+    assert str(err).startswith(f"{path}, line {line}: ")
+    assert fragment in str(err)
+
+
+def test_bad_on_nan_argument(write_text):
+    sk = load_asf(write_text("t.asf", asf_text()))
+    with pytest.raises(ValueError, match="on_nan"):
+        load_amc(write_text("t.amc", amc_text(random_frames(0))), sk, on_nan="fill")  # type: ignore[arg-type]
+
+
+# ---------------------------------------------------------------- real data
+
+
+@pytest.mark.mocap
+def test_every_shared_asf_amc_loads(shared_mocap):
+    subjects = sorted((shared_mocap / "cmu-asfamc").iterdir())
+    assert len(subjects) == 3
+    n = 0
+    for folder in subjects:
+        sk = load_asf(folder / f"{folder.name}.asf")
+        assert len(sk.bone_names) == 30 and sk.units_to_mm == pytest.approx(25.4 / 0.45)
+        for amc in sorted(folder.glob("*.amc")):
+            clip = load_amc(amc, sk)
+            n += 1
+            assert clip.n_frames > 100 and clip.frame_valid.all(), amc
+            assert clip.frame_numbers[0] == 1
+            pos = clip.point_positions()
+            assert np.isfinite(pos).all()
+            # Every bone keeps its ASF length in every frame.
+            d = np.linalg.norm(pos[:, 1:] - pos[:, clip.parents[1:]], axis=-1)
+            np.testing.assert_allclose(d, np.broadcast_to(sk.lengths, d.shape), rtol=1e-6)
+            # Y up, in ASF units: the lower toe reaches the floor at some point
+            # (03_* walk over raised terrain), the head is 1.4-2.0 m up.
+            mm = pos * clip.units_to_mm
+            toes = mm[:, [clip.point_names.index("ltoes"), clip.point_names.index("rtoes")], 1]
+            assert -100 < toes.min() < 150, amc
+            assert 1400 < np.median(mm[:, clip.point_names.index("head"), 1]) < 2000, amc
+    assert n == 15
+
+
+@pytest.mark.mocap
+def test_largest_amc_parses_in_well_under_a_second(shared_mocap):
+    amc = max((shared_mocap / "cmu-asfamc").rglob("*.amc"), key=lambda p: p.stat().st_size)
+    sk = load_asf(amc.parent / f"{amc.parent.name}.asf")
+    t0 = time.perf_counter()
+    clip = load_amc(amc, sk)
+    elapsed = time.perf_counter() - t0
+    assert clip.n_frames > 4000
+    assert elapsed < 1.0, f"{amc.name} ({amc.stat().st_size / 1e6:.1f} MB) took {elapsed:.2f} s"
+
+
+@pytest.mark.mocap
+def test_fast_and_general_readers_agree(shared_mocap, monkeypatch):
+    # CMU files take the fixed-stride fast path; the general one must read them the same.
+    from humotion_gym.mocap import asfamc
+
+    amc = shared_mocap / "cmu-asfamc" / "02" / "02_01.amc"
+    sk = load_asf(amc.parent / "02.asf")
+    fast = load_amc(amc, sk)
+    monkeypatch.setattr(asfamc, "_amc_regular", lambda *args: None)
+    general = load_amc(amc, sk)
+    np.testing.assert_array_equal(fast.channels, general.channels)
+    np.testing.assert_array_equal(fast.frame_numbers, general.frame_numbers)
+    np.testing.assert_array_equal(fast.point_positions(), general.point_positions())
+
+
+def test_regular_handmade_file_takes_the_fast_path(write_text, monkeypatch):
+    from humotion_gym.mocap import asfamc
+
+    sk = load_asf(write_text("t.asf", asf_text()))
+    frames = random_frames(seed=9, n=3)
+    frames[7] = frames.pop(3)  # a gap: frames 1, 2, 7
+    path = write_text("t.amc", amc_text(frames))
+    results = []
+    original = asfamc._amc_regular
+    monkeypatch.setattr(
+        asfamc, "_amc_regular", lambda *a: results.append(original(*a)) or results[-1]
+    )
+    clip = load_amc(path, sk)
+    assert len(results) == 1 and results[0] is not None
+    assert list(clip.frame_valid) == [True, True, False, False, False, False, True]
+    want = np.stack([oracle("XYZ", (25.0, -40.0, 60.0), v) for v in frames.values()])
+    np.testing.assert_allclose(clip.point_positions()[[0, 1, 6]], want, atol=1e-9)

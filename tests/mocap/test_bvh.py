@@ -1,0 +1,583 @@
+"""The BVH reader and writer: handmade files against scipy oracles, errors, real data."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from humotion_gym.errors import MocapFormatError
+from humotion_gym.mocap.bvh import BvhClip, load_bvh, write_bvh
+from humotion_gym.mocap.skeleton import SkeletonClip
+
+ORDERS = ["XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX"]
+
+
+def euler(order: str, angles) -> np.ndarray:
+    # Uppercase scipy sequences are intrinsic, as BVH's rotation channels are.
+    return Rotation.from_euler(order, angles, degrees=True).as_matrix()
+
+
+def rotations(order: str) -> str:
+    return " ".join(f"{a}rotation" for a in order)
+
+
+def numbers(row) -> str:
+    return " ".join(repr(float(v)) for v in row)
+
+
+# A three-joint chain: a 6-channel root with an offset, a 3-channel joint, and a
+# 6-channel joint listing rotations before positions; an end site at the tip.
+ROOT_OFFSET = np.array([1.0, 2.0, 3.0])
+CHEST_OFFSET = np.array([0.0, 10.0, 0.0])
+ARM_OFFSET = np.array([5.0, 2.0, -1.0])
+TIP_OFFSET = np.array([0.0, 0.0, 4.0])
+
+
+def chain_text(order: str, values: np.ndarray, frame_time: str = "0.0333333") -> str:
+    return f"""HIERARCHY
+ROOT hips
+{{
+  OFFSET {numbers(ROOT_OFFSET)}
+  CHANNELS 6 Xposition Yposition Zposition {rotations(order)}
+  JOINT chest
+  {{
+    OFFSET {numbers(CHEST_OFFSET)}
+    CHANNELS 3 {rotations(order)}
+    JOINT arm
+    {{
+      OFFSET {numbers(ARM_OFFSET)}
+      CHANNELS 6 {rotations(order)} Xposition Yposition Zposition
+      End Site
+      {{
+        OFFSET {numbers(TIP_OFFSET)}
+      }}
+    }}
+  }}
+}}
+MOTION
+Frames: {len(values)}
+Frame Time: {frame_time}
+""" + "".join(numbers(row) + "\n" for row in values)
+
+
+def chain_oracle(order: str, row: np.ndarray) -> np.ndarray:
+    """hips, chest, arm, arm_End by the textbook formula, one frame."""
+    hips = ROOT_OFFSET + row[0:3]
+    r0 = euler(order, row[3:6])
+    chest = hips + r0 @ CHEST_OFFSET
+    r1 = r0 @ euler(order, row[6:9])
+    arm = chest + r1 @ (ARM_OFFSET + row[12:15])
+    r2 = r1 @ euler(order, row[9:12])
+    return np.stack([hips, chest, arm, arm + r2 @ TIP_OFFSET])
+
+
+def random_chain_values(seed: int, frames: int = 5) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    v = np.empty((frames, 15))
+    v[:, 0:3] = rng.uniform(-50, 50, (frames, 3))
+    v[:, 3:12] = rng.uniform(-180, 180, (frames, 9))
+    v[:, 12:15] = rng.uniform(-3, 3, (frames, 3))
+    return v
+
+
+@pytest.mark.parametrize("order", ORDERS)
+def test_every_rotation_order_matches_scipy(write_text, order):
+    values = random_chain_values(seed=ORDERS.index(order))
+    clip = load_bvh(write_text("chain.bvh", chain_text(order, values)))
+    assert clip.point_names == ("hips", "chest", "arm", "arm_End")
+    assert list(clip.parents) == [-1, 0, 1, 2]
+    assert clip.position_channels == "add"  # small translations: not MotionBuilder style
+    got = clip.point_positions()
+    want = np.stack([chain_oracle(order, row) for row in values])
+    np.testing.assert_allclose(got, want, atol=1e-9)
+    np.testing.assert_array_equal(clip.channels, values)
+    assert clip.joint_channels[2] == (*(f"{a}rotation" for a in order), *CHANNELS_POS)
+    rots, pos = clip.global_transforms()
+    np.testing.assert_allclose(pos, want[:, :3], atol=1e-9)
+    r_arm = np.stack(
+        [euler(order, r[3:6]) @ euler(order, r[6:9]) @ euler(order, r[9:12]) for r in values]
+    )
+    np.testing.assert_allclose(rots[:, 2], r_arm, atol=1e-12)
+
+
+CHANNELS_POS = ("Xposition", "Yposition", "Zposition")
+
+BASE = """HIERARCHY
+ROOT hips
+{
+  OFFSET 0 0 0
+  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
+  JOINT knee
+  {
+    OFFSET 0 -1 0
+    CHANNELS 3 Zrotation Xrotation Yrotation
+    End Site
+    {
+      OFFSET 0 -1 0
+    }
+  }
+}
+MOTION
+Frames: 2
+Frame Time: 0.5
+0 1 0 0 0 0 0 0 0
+0 1 0 90 0 0 0 0 0
+"""
+BASE_POSITIONS = np.array(
+    [
+        [[0, 1, 0], [0, 0, 0], [0, -1, 0]],
+        [[0, 1, 0], [1, 1, 0], [2, 1, 0]],  # +90 about z takes -y to +x
+    ],
+    dtype=float,
+)
+
+
+def test_known_pose_by_hand(write_text):
+    clip = load_bvh(write_text("base.bvh", BASE))
+    np.testing.assert_allclose(clip.point_positions(), BASE_POSITIONS, atol=1e-12)
+    assert clip.fps == 2.0 and clip.frame_time == 0.5 and clip.n_frames == 2
+    assert clip.units_to_mm is None
+    assert isinstance(clip, SkeletonClip)
+    np.testing.assert_allclose(
+        clip.point_positions(["knee_End", "hips"]), BASE_POSITIONS[:, [2, 0]], atol=1e-12
+    )
+    with pytest.raises(KeyError, match="nose"):
+        clip.point_positions(["nose"])
+
+
+def test_rotation_about_y_by_hand(write_text):
+    text = BASE.replace("0 1 0 90 0 0 0 0 0", "0 0 0 0 0 90 0 0 0").replace(
+        "OFFSET 0 -1 0\n    CHANNELS", "OFFSET 0 0 1\n    CHANNELS"
+    )
+    pos = load_bvh(write_text("y.bvh", text)).point_positions(["knee"])
+    np.testing.assert_allclose(pos[1, 0], [1.0, 0.0, 0.0], atol=1e-12)  # +90 about y: z -> x
+
+
+def test_tabs_crlf_trailing_blanks_and_blank_end_lines(write_text):
+    messy = "\r\n".join(line.replace("  ", "\t") + " \t " for line in BASE.split("\n"))
+    messy = messy.replace("Frames: 2", "Frames:\t2").replace("Frame Time: 0.5", "Frame Time:\t0.5")
+    messy += "\r\n\r\n   \r\n\t\r\n"
+    clip = load_bvh(write_text("messy.bvh", messy))
+    np.testing.assert_allclose(clip.point_positions(), BASE_POSITIONS, atol=1e-12)
+    assert clip.joint_names == ("hips", "knee")
+
+
+def test_any_channel_count_and_repeated_axes(write_text):
+    text = """HIERARCHY
+ROOT a
+{
+  OFFSET 0 0 0
+  CHANNELS 1 Zrotation
+  JOINT b
+  {
+    OFFSET 1 0 0
+    CHANNELS 0
+    JOINT c
+    {
+      OFFSET 0 2 0
+      CHANNELS 4 Zrotation Xrotation Zrotation Yposition
+      End Site
+      {
+        OFFSET 0 0 1
+      }
+      End Site
+      {
+        OFFSET 1 0 0
+      }
+    }
+  }
+}
+MOTION
+Frames: 1
+Frame Time: 0.01
+30 10 20 40 0.5
+"""
+    clip = load_bvh(write_text("counts.bvh", text))
+    assert clip.point_names == ("a", "b", "c", "c_End", "c_End2")
+    assert clip.joint_channels[1] == () and clip.channels.shape == (1, 5)
+    ra = euler("Z", 30)
+    b = ra @ [1, 0, 0]
+    c = b + ra @ [0, 2.5, 0]
+    rc = ra @ euler("ZXZ", [10, 20, 40])
+    want = np.stack([[0, 0, 0], b, c, c + rc @ [0, 0, 1], c + rc @ [1, 0, 0]])
+    np.testing.assert_allclose(clip.point_positions()[0], want, atol=1e-12)
+    assert set(clip.end_sites) == {2}
+    np.testing.assert_array_equal(clip.end_sites[2], [[0, 0, 1], [1, 0, 0]])
+
+
+def motionbuilder_style(frames: int = 4) -> tuple[str, np.ndarray]:
+    """Every joint keyed with 6 channels whose translations repeat the offsets."""
+    rng = np.random.default_rng(7)
+    rows = []
+    for _ in range(frames):
+        hips_t = rng.uniform(-20, 20, 3) + [0, 90, 0]
+        rows.append(
+            [0, 0, 0, 0, 0, 0, *hips_t, *rng.uniform(-40, 40, 3), 0, 10, 0]
+            + list(rng.uniform(-40, 40, 3))
+            + [0, 20, 0]
+            + list(rng.uniform(-40, 40, 3))
+        )
+    six = "CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation"
+    text = f"""HIERARCHY
+ROOT ground
+{{
+OFFSET 0 0 0
+{six}
+JOINT Hips
+{{
+OFFSET 0 93 -5
+{six}
+JOINT Spine
+{{
+OFFSET 0 10 0
+{six}
+JOINT Head
+{{
+OFFSET 0 20 0
+{six}
+End Site
+{{
+OFFSET 0 0 0
+}}
+}}
+}}
+}}
+}}
+MOTION
+Frames: {frames}
+Frame Time: 0.0333333
+""" + "".join(numbers(r) + "\n" for r in rows)
+    return text, np.array(rows)
+
+
+def test_position_channels_that_repeat_offsets_replace_them(write_text):
+    text, rows = motionbuilder_style()
+    path = write_text("mb.bvh", text)
+    auto = load_bvh(path)
+    assert auto.position_channels == "replace" and auto.fps == 30.0
+    hips = rows[:, 6:9]  # the Hips translation is its position, not offset + it
+    np.testing.assert_allclose(auto.point_positions(["Hips"])[:, 0], hips, atol=1e-9)
+    spine = auto.point_positions(["Hips", "Spine"])
+    lengths = np.linalg.norm(spine[:, 1] - spine[:, 0], axis=-1)
+    np.testing.assert_allclose(lengths, 10.0, rtol=1e-12)
+    added = load_bvh(path, position_channels="add")
+    assert added.position_channels == "add"
+    doubled = added.point_positions(["Hips", "Spine"])
+    np.testing.assert_allclose(np.linalg.norm(doubled[:, 1] - doubled[:, 0], axis=-1), 20.0)
+    forced = load_bvh(path, position_channels="replace")
+    np.testing.assert_array_equal(forced.point_positions(), auto.point_positions())
+
+
+@pytest.mark.parametrize(
+    ("token", "fps"),
+    [("0.016667", 60.0), ("0.0333333", 30.0), ("0.008333", 120.0), ("0.033367", 1 / 0.033367)],
+)
+def test_fps_snaps_to_the_rate_the_frame_time_rounds(write_text, token, fps):
+    clip = load_bvh(write_text("f.bvh", BASE.replace("Frame Time: 0.5", f"Frame Time: {token}")))
+    assert clip.fps == pytest.approx(fps, rel=1e-12)
+    assert clip.frame_time == float(token)
+
+
+# ---------------------------------------------------------------- errors
+
+BASE_LINES = BASE.split("\n")
+
+
+def replace_line(n: int, new: str | None) -> str:
+    """BASE with its 1-based line n replaced (None deletes it)."""
+    lines = list(BASE_LINES)
+    if new is None:
+        del lines[n - 1]
+    else:
+        lines[n - 1] = new
+    return "\n".join(lines)
+
+
+MALFORMED = {
+    "empty": ("", 1, "empty"),
+    "blank": ("\n  \n\t\n", 1, "empty"),
+    "not bvh": ("hello\n", 1, "expected HIERARCHY"),
+    "unclosed joint": (
+        replace_line(15, None),
+        15,
+        "expected '}' closing 'hips' (opened at line 2)",
+    ),
+    "extra brace": (replace_line(15, "}\n}"), 16, "unbalanced '}'"),
+    "cut in header": ("\n".join(BASE_LINES[:9]), 9, "found end of file"),
+    "no MOTION": (replace_line(16, None), 16, "expected ROOT or MOTION, found 'Frames:'"),
+    "no Frames": (replace_line(17, None), 17, "expected 'Frames: <value>', found 'Frame Time"),
+    "no Frame Time": (replace_line(18, None), 18, "expected 'Frame Time: <value>', found '0 1 0"),
+    "cut after MOTION": ("\n".join(BASE_LINES[:16]), 16, "expected 'Frames: <value>'"),
+    "bad frame count": (replace_line(17, "Frames: two"), 17, "whole number of frames"),
+    "zero frame time": (replace_line(18, "Frame Time: 0"), 18, "positive frame time"),
+    "short line": (
+        replace_line(20, "0 1 0 90 0 0 0 0"),
+        20,
+        "expected 9 values (the channels of 2 joints), found 8",
+    ),
+    "long line": (
+        replace_line(19, "0 1 0 0 0 0 0 0 0 0"),
+        19,
+        "expected 9 values (the channels of 2 joints), found 10",
+    ),
+    "non-numeric": (replace_line(19, "0 1 0 abc 0 0 0 0 0"), 19, "expected a number, found 'abc'"),
+    "fewer frames than declared": (
+        replace_line(17, "Frames: 3"),
+        17,
+        "expected 3 frame lines as declared here, found 2",
+    ),
+    "more frames than declared": (
+        replace_line(17, "Frames: 1"),
+        20,
+        "expected 1 frames (Frames: at line 17)",
+    ),
+    "blank line inside the motion": (
+        replace_line(19, "0 1 0 0 0 0 0 0 0\n"),
+        20,
+        "found 0",
+    ),
+    "NaN offset": (replace_line(8, "    OFFSET nan -1 0"), 8, "three finite OFFSET values"),
+    "short offset": (replace_line(8, "    OFFSET 0 -1"), 9, "three finite OFFSET values"),
+    "unknown channel": (
+        replace_line(9, "    CHANNELS 3 Zrotation Xrotation Yscale"),
+        9,
+        "expected a channel name",
+    ),
+    "duplicate joint": (replace_line(6, "  JOINT hips"), 6, "used twice"),
+    "no offset": (replace_line(12, "      "), 13, "expected OFFSET in End Site"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(MALFORMED))
+def test_malformed_files_name_the_file_and_line(write_text, case):
+    text, line, fragment = MALFORMED[case]
+    path = write_text("bad.bvh", text)
+    with pytest.raises(MocapFormatError) as info:
+        load_bvh(path)
+    err = info.value
+    assert err.path == str(path)
+    assert err.line == line, str(err)
+    assert str(err).startswith(f"{path}, line {line}: ")
+    assert fragment in str(err)
+
+
+def test_nan_frames_are_masked_or_raise(write_text):
+    path = write_text("nan.bvh", replace_line(20, "0 1 0 nan 0 0 0 0 0"))
+    clip = load_bvh(path)
+    assert list(clip.frame_valid) == [True, False]
+    pos = clip.point_positions()
+    assert np.isnan(pos[1]).all()
+    np.testing.assert_allclose(pos[0], BASE_POSITIONS[0], atol=1e-12)
+    assert np.isnan(clip.channels[1, 3])  # kept as read, never zero-filled
+    with pytest.raises(
+        MocapFormatError, match=r"line 20: .*nan in channel Zrotation of joint 'hips'"
+    ):
+        load_bvh(path, on_nan="raise")
+    inf = write_text("inf.bvh", replace_line(19, "0 1 0 0 inf 0 0 0 0"))
+    assert list(load_bvh(inf).frame_valid) == [False, True]
+
+
+def test_bad_arguments_raise_value_error(write_text):
+    path = write_text("base.bvh", BASE)
+    with pytest.raises(ValueError, match="on_nan"):
+        load_bvh(path, on_nan="zero")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="position_channels"):
+        load_bvh(path, position_channels="both")  # type: ignore[arg-type]
+
+
+# ---------------------------------------------------------------- writing
+
+
+def rewrite(clip: BvhClip, path: Path, **kwargs) -> BvhClip:
+    write_bvh(
+        path,
+        clip.joint_names,
+        clip.joint_parents,
+        clip.offsets,
+        clip.joint_channels,
+        clip.channels,
+        clip.frame_time,
+        end_sites=clip.end_sites,
+        **kwargs,
+    )
+    return load_bvh(path, position_channels=clip.position_channels)
+
+
+def assert_same_clip(a: BvhClip, b: BvhClip) -> None:
+    assert a.joint_names == b.joint_names and a.point_names == b.point_names
+    assert a.joint_channels == b.joint_channels
+    np.testing.assert_array_equal(a.joint_parents, b.joint_parents)
+    np.testing.assert_array_equal(a.parents, b.parents)
+    np.testing.assert_array_equal(a.offsets, b.offsets)
+    np.testing.assert_array_equal(a.end_site_offsets, b.end_site_offsets)
+    np.testing.assert_array_equal(a.channels, b.channels)
+    assert a.frame_time == b.frame_time and a.fps == b.fps
+    np.testing.assert_array_equal(a.point_positions(), b.point_positions())
+
+
+@pytest.mark.parametrize("order", ["ZXY", "YZX"])
+def test_write_round_trip_is_exact(write_text, tmp_path, order):
+    values = random_chain_values(seed=11) * np.pi  # digits a 6-decimal writer would lose
+    clip = load_bvh(write_text("chain.bvh", chain_text(order, values, "0.016667")))
+    again = rewrite(clip, tmp_path / "again.bvh")
+    assert_same_clip(clip, again)
+    third = rewrite(again, tmp_path / "third.bvh")
+    assert (tmp_path / "again.bvh").read_text() == (tmp_path / "third.bvh").read_text()
+    assert_same_clip(again, third)
+
+
+def test_write_with_fixed_decimals(write_text, tmp_path):
+    clip = load_bvh(write_text("base.bvh", BASE))
+    again = rewrite(clip, tmp_path / "d.bvh", decimals=6)
+    assert "0.000000" in (tmp_path / "d.bvh").read_text()
+    assert_same_clip(clip, again)
+
+
+def test_write_reorders_joints_depth_first(tmp_path):
+    # Joint 1's parent is joint 2: the file lists root, joint 2, joint 1.
+    names = ["root", "hand", "arm"]
+    channels = [("Zrotation",), ("Xrotation",), ("Yrotation", "Yposition")]
+    values = np.array([[10.0, 20.0, 30.0, 0.5], [0.0, -5.0, 45.0, 1.0]])
+    offsets = np.array([[0.0, 0, 0], [0, 0, 2], [1, 0, 0]])
+    path = tmp_path / "w.bvh"
+    write_bvh(path, names, [-1, 2, 0], offsets, channels, values, 0.1, end_sites={1: [0, 1, 0]})
+    clip = load_bvh(path)
+    assert clip.joint_names == ("root", "arm", "hand")
+    assert clip.point_names == ("root", "arm", "hand", "hand_End")
+    np.testing.assert_array_equal(clip.channels, values[:, [0, 2, 3, 1]])
+    root_r = euler("Z", values[:, [0]])
+    arm = root_r @ [1.0, 0.0, 0.0] + root_r @ [0.0, 1.0, 0.0] * values[:, [3]]
+    arm_r = root_r @ euler("Y", values[:, [2]])
+    hand = arm + arm_r @ offsets[1]
+    tip = hand + arm_r @ euler("X", values[:, [1]]) @ [0.0, 1.0, 0.0]
+    got = clip.point_positions(["arm", "hand", "hand_End"])
+    np.testing.assert_allclose(got, np.stack([arm, hand, tip], axis=1), atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"values": np.full((1, 4), np.nan)}, "finite"),
+        ({"values": np.zeros((1, 3))}, r"values must be \(T, 4\)"),
+        (
+            {"channels": [("Zrotation",), ("Xrotation",), ("Yscale", "Yposition")]},
+            "unknown channel",
+        ),
+        ({"parents": [-1, 2, 1]}, "cycle"),
+        ({"names": ["root", "my hand", "arm"]}, None),
+        ({"names": ["root", "a{", "arm"]}, "cannot be written"),
+        ({"frame_time": 0.0}, "frame_time"),
+    ],
+)
+def test_write_rejects_what_bvh_cannot_hold(tmp_path, kwargs, match):
+    args = {
+        "names": ["root", "hand", "arm"],
+        "parents": [-1, 2, 0],
+        "offsets": np.zeros((3, 3)),
+        "channels": [("Zrotation",), ("Xrotation",), ("Yrotation", "Yposition")],
+        "values": np.zeros((2, 4)),
+        "frame_time": 0.1,
+    }
+    args.update(kwargs)
+    path = tmp_path / "w.bvh"
+    if match is None:  # a name with a space is legal and read back whole
+        write_bvh(path, **args)
+        assert load_bvh(path).joint_names == ("root", "arm", "my hand")
+        return
+    with pytest.raises(ValueError, match=match):
+        write_bvh(path, **args)
+
+
+def test_four_megabyte_motion_parses_fast(tmp_path):
+    rng = np.random.default_rng(0)
+    n_j, n_t = 30, 4000
+    channels = [("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")] + [
+        ("Zrotation", "Xrotation", "Yrotation")
+    ] * (n_j - 1)
+    values = rng.uniform(-180, 180, (n_t, 3 + 3 * n_j))
+    path = tmp_path / "big.bvh"
+    write_bvh(
+        path,
+        [f"j{i}" for i in range(n_j)],
+        np.arange(n_j) - 1,
+        rng.normal(size=(n_j, 3)),
+        channels,
+        values,
+        1 / 120,
+        decimals=6,
+    )
+    assert path.stat().st_size > 4e6
+    t0 = time.perf_counter()
+    clip = load_bvh(path)
+    elapsed = time.perf_counter() - t0
+    assert clip.n_frames == n_t
+    assert elapsed < 1.0, f"parsing 4 MB took {elapsed:.2f} s"
+
+
+# ---------------------------------------------------------------- real data
+
+
+def rigid_bone_lengths(clip: BvhClip) -> tuple[np.ndarray, np.ndarray]:
+    """(T, K) distances from each rigidly attached point to its parent, and the points.
+
+    A joint whose translation channels vary is not a bone (e.g. Bandai's Hips,
+    positioned over the ground-projected joint_Root), so it is left out.
+    """
+    starts = clip.channel_starts
+    moving = set()
+    for j, chans in enumerate(clip.joint_channels):
+        cols = [starts[j] + k for k, c in enumerate(chans) if c.lower().endswith("position")]
+        if cols and np.ptp(clip.channels[:, cols], axis=0).max() > 1e-4:
+            moving.add(clip.joint_names[j])
+    keep = [i for i, n in enumerate(clip.point_names) if clip.parents[i] >= 0 and n not in moving]
+    pos = clip.point_positions()
+    d = np.linalg.norm(pos[:, keep] - pos[:, clip.parents[keep]], axis=-1)
+    return d, np.array(keep)
+
+
+@pytest.mark.mocap
+def test_every_shared_bvh_loads(shared_mocap):
+    files = sorted(shared_mocap.rglob("*.bvh"))
+    assert len(files) > 500
+    t0 = time.perf_counter()
+    rigs: dict[str, set[str]] = {}
+    for f in files:
+        clip = load_bvh(f)
+        assert clip.n_frames > 0 and clip.frame_valid.all(), f
+        pos = clip.point_positions()
+        assert pos.shape == (clip.n_frames, len(clip.point_names), 3)
+        assert np.isfinite(pos).all(), f
+        rigs.setdefault(f.parent.name if "bandai" in str(f) else "cc", set()).add(
+            clip.position_channels
+        )
+        d, keep = rigid_bone_lengths(clip)
+        assert len(keep) >= len(clip.point_names) - 3, f  # at most the root and hips move
+        rel = np.abs(d - d[0]) / np.maximum(d[0], 1e-9)
+        assert rel[:, d[0] > 1e-6].max(initial=0.0) < 1e-6, f
+    elapsed = time.perf_counter() - t0
+    # Bandai keys every joint's whole translation; the CC exports add to offsets.
+    assert rigs == {"bandai-1": {"replace"}, "bandai-2": {"replace"}, "cc": {"add"}}
+    assert elapsed < 40, f"loading {len(files)} BVH files took {elapsed:.1f} s"
+
+
+@pytest.mark.mocap
+def test_real_files_stand_on_the_ground_y_up_in_centimetres(shared_mocap):
+    for rel, foot, head in [
+        ("bandai-1/dataset-1_walk_normal_001.bvh", "Toes_L", "Head"),
+        ("cmu-bvh-cc/005/005_01.bvh", "CC_Base_L_ToeBase", "CC_Base_Head"),
+    ]:
+        clip = load_bvh(shared_mocap / rel)
+        pos = clip.point_positions([foot, head])
+        assert -5 < pos[:, 0, 1].min() < 15  # toes near y = 0 cm
+        assert 130 < np.median(pos[:, 1, 1]) < 180  # head 1.3-1.8 m up
+
+
+@pytest.mark.mocap
+def test_real_files_round_trip_through_the_writer(shared_mocap, tmp_path):
+    for rel in ["bandai-2/dataset-2_walk_normal_001.bvh", "cmu-bvh-cc/007/007_01.bvh"]:
+        clip = load_bvh(shared_mocap / rel)
+        assert_same_clip(clip, rewrite(clip, tmp_path / Path(rel).name))
