@@ -157,9 +157,7 @@ CONE_KEYPOINTS: NDArray[np.intp] = np.array(
 )
 
 #: Pairs of keypoints joined by the wire figure drawn over frames.
-SKELETON_EDGES: tuple[tuple[int, int], ...] = tuple(
-    (int(a), int(b)) for a, b in CONE_KEYPOINTS
-) + (
+SKELETON_EDGES: tuple[tuple[int, int], ...] = tuple((int(a), int(b)) for a, b in CONE_KEYPOINTS) + (
     (KEYPOINT_INDEX["pelvis"], KEYPOINT_INDEX["r_hip"]),
     (KEYPOINT_INDEX["pelvis"], KEYPOINT_INDEX["l_hip"]),
     (KEYPOINT_INDEX["neck"], KEYPOINT_INDEX["r_shoulder"]),

@@ -114,11 +114,18 @@ def _cmd_data_info(args: argparse.Namespace) -> int:
         if args.json:
             print(json.dumps(out, indent=2))
         else:
-            print(f"{'data set':12s} {'clips':>6s} {'frames':>8s} {'mean':>6s} {'median':>6s} "
-                  f"{'p95':>6s} {'max':>6s}   (retargeting error, mm)")  # fmt: skip
+            cols = ("mean", "median", "p95", "max")
+            print(
+                f"{'data set':12s} {'clips':>6s} {'frames':>8s} "
+                + " ".join(f"{c:>6s}" for c in cols)
+                + "   (retargeting error, mm)"
+            )
             for ds, s in out.items():
-                print(f"{ds:12s} {s['clips']:6d} {s['frames']:8d} {s['error_mean_mm']:6.1f} "
-                      f"{s['error_median_mm']:6.1f} {s['error_p95_mm']:6.1f} {s['error_max_mm']:6.1f}")  # fmt: skip
+                errs = (s[f"error_{c}_mm"] for c in cols)
+                print(
+                    f"{ds:12s} {s['clips']:6d} {s['frames']:8d} "
+                    + " ".join(f"{e:6.1f}" for e in errs)
+                )
         return 0
     for r in rows:
         r.pop("_errors")
@@ -131,8 +138,11 @@ def _cmd_data_info(args: argparse.Namespace) -> int:
     print(head)
     for r in rows:
         name = r["file"] if len(r["file"]) <= 48 else "..." + r["file"][-45:]
-        print(f"{name:48s} {r['rig']:17s} {r['subject']:20s} {r['label']:10s} {r['frames']:6d} "
-              f"{r['fps']:4.0f} {r['seconds']:6.1f} {r['error_mean_mm']:6.1f} {r['error_max_mm']:6.1f}")  # fmt: skip
+        print(
+            f"{name:48s} {r['rig']:17s} {r['subject']:20s} {r['label']:10s} {r['frames']:6d} "
+            f"{r['fps']:4.0f} {r['seconds']:6.1f} {r['error_mean_mm']:6.1f} "
+            f"{r['error_max_mm']:6.1f}"
+        )
     return 0
 
 

@@ -41,7 +41,8 @@ class ParticleState:
         for key, value in self.extra.items():
             if value.shape[:1] != (n,):
                 raise ValueError(
-                    f"ParticleState.extra[{key!r}] has leading axis {value.shape[:1]}, expected ({n},)"
+                    f"ParticleState.extra[{key!r}] has leading axis {value.shape[:1]}, "
+                    f"expected ({n},)"
                 )
 
     @property
@@ -57,11 +58,15 @@ class ParticleState:
 class Prior(Protocol):
     """What the filter needs of a motion prior (a module or object with these)."""
 
-    def initial(self, fitted: Any, pose: FloatArray, n: int, rng: np.random.Generator) -> ParticleState:
+    def initial(
+        self, fitted: Any, pose: FloatArray, n: int, rng: np.random.Generator
+    ) -> ParticleState:
         """N particles around a known initial pose ``(D,)``."""
         ...
 
-    def transition(self, fitted: Any, state: ParticleState, rng: np.random.Generator) -> ParticleState:
+    def transition(
+        self, fitted: Any, state: ParticleState, rng: np.random.Generator
+    ) -> ParticleState:
         """A sample from p(phi_t | history) for every particle."""
         ...
 
@@ -119,7 +124,9 @@ def effective_sample_size(weights: FloatArray) -> float:
     return float(1.0 / np.sum(np.square(weights)))
 
 
-def weighted_mean(particles: FloatArray, weights: FloatArray, angle_mask: NDArray[np.bool_]) -> FloatArray:
+def weighted_mean(
+    particles: FloatArray, weights: FloatArray, angle_mask: NDArray[np.bool_]
+) -> FloatArray:
     """Posterior mean; angles averaged on the circle (atan2 of mean sine and cosine).
 
     Args:
@@ -175,7 +182,9 @@ class ParticleFilter:
         if estimate not in ("mean", "map"):
             raise ValueError(f"ParticleFilter: estimate must be 'mean' or 'map', got {estimate!r}")
         if not 0.0 <= ess_threshold <= 1.0:
-            raise ValueError(f"ParticleFilter: ess_threshold must be in [0, 1], got {ess_threshold}")
+            raise ValueError(
+                f"ParticleFilter: ess_threshold must be in [0, 1], got {ess_threshold}"
+            )
         self.prior = prior
         self.fitted = fitted
         self.observation_model = observation_model
@@ -221,7 +230,9 @@ class ParticleFilter:
         if self.state is None or self.log_weights is None or self._rng is None:
             raise RuntimeError("ParticleFilter.step() called before reset()")
         self.state = self.prior.transition(self.fitted, self.state, self._rng)
-        loglik = np.asarray(self.observation_model.log_likelihood(frame, self.state.pose), dtype=np.float64)
+        loglik = np.asarray(
+            self.observation_model.log_likelihood(frame, self.state.pose), dtype=np.float64
+        )
         if loglik.shape != (self.n,):
             raise ValueError(f"log_likelihood returned shape {loglik.shape}, expected ({self.n},)")
         loglik = np.where(np.isnan(loglik), -np.inf, loglik)

@@ -27,7 +27,9 @@ def keypoint_errors(estimate: ArrayLike, truth: ArrayLike, shape: BodyShape) -> 
     Returns:
         ``(..., 15)`` distances in mm.
     """
-    return np.linalg.norm(forward_kinematics(estimate, shape) - forward_kinematics(truth, shape), axis=-1)
+    return np.linalg.norm(
+        forward_kinematics(estimate, shape) - forward_kinematics(truth, shape), axis=-1
+    )
 
 
 def mean_keypoint_error(

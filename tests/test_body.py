@@ -32,7 +32,9 @@ def test_rest_pose_keypoints_are_known():
     # ankles on the ground, below the hips, limbs straight down
     assert np.allclose(kp[[K["r_ankle"], K["l_ankle"]], 2], 0.0)
     assert np.allclose(kp[K["r_hip"]], [s.hip_half_width, 0, s.thigh_length + s.shin_length])
-    assert np.allclose(kp[K["r_wrist"]] - kp[K["r_shoulder"]], [0, 0, -(s.upper_arm_length + s.forearm_length)])
+    assert np.allclose(
+        kp[K["r_wrist"]] - kp[K["r_shoulder"]], [0, 0, -(s.upper_arm_length + s.forearm_length)]
+    )
     assert np.isclose(kp[K["head_top"], 2], s.standing_height())
     # the subject's right is +x
     assert kp[K["r_shoulder"], 0] > 0 > kp[K["l_shoulder"], 0]
@@ -81,7 +83,9 @@ def test_twist_only_moves_the_bent_forearm():
 def test_batched_equals_single():
     rng = np.random.default_rng(1)
     s = default_shape(1600)
-    params = rng.uniform(body.PARAM_LOWER.clip(-3, 3), body.PARAM_UPPER.clip(-3, 3), size=(4, 3, 25))
+    params = rng.uniform(
+        body.PARAM_LOWER.clip(-3, 3), body.PARAM_UPPER.clip(-3, 3), size=(4, 3, 25)
+    )
     params[..., :3] = rng.normal(0, 500, size=(4, 3, 3))
     batched = forward_kinematics(params, s)
     assert batched.shape == (4, 3, 15, 3)

@@ -167,9 +167,7 @@ def describe_file(path: Path, skeleton: Path | None = None) -> ClipSource:
             activity_label(desc) if desc else "other", desc, f"cmu/{stem}",
         )  # fmt: skip
     label = activity_label(stem)
-    return ClipSource(
-        path, skeleton, "user", path.parent.name or "user", label, "", f"user/{stem}"
-    )
+    return ClipSource(path, skeleton, "user", path.parent.name or "user", label, "", f"user/{stem}")
 
 
 def _asf_for(amc: Path) -> Path | None:

@@ -64,7 +64,9 @@ class Motion:
         ]
         for name, got, want in checks:
             if t < 1 or got != want:
-                raise ValueError(f"Motion {self.clip_id!r}: {name} has shape {got}, expected {want}")
+                raise ValueError(
+                    f"Motion {self.clip_id!r}: {name} has shape {got}, expected {want}"
+                )
         if not np.isfinite(self.fps) or self.fps <= 0:
             raise ValueError(f"Motion {self.clip_id!r}: fps must be positive, got {self.fps}")
         if not np.all(np.isfinite(self.params)):

@@ -90,7 +90,9 @@ def _valid_frames(keypoints: FloatArray, valid: BoolArray | None) -> BoolArray:
 
 def _provisional_frames(kp: FloatArray) -> FloatArray:
     """A torso frame per frame from hips, shoulders and neck (columns x, y, z)."""
-    x = _unit(kp[:, _K["r_hip"]] - kp[:, _K["l_hip"]] + kp[:, _K["r_shoulder"]] - kp[:, _K["l_shoulder"]])
+    x = _unit(
+        kp[:, _K["r_hip"]] - kp[:, _K["l_hip"]] + kp[:, _K["r_shoulder"]] - kp[:, _K["l_shoulder"]]
+    )
     z0 = kp[:, _K["neck"]] - kp[:, _K["pelvis"]]
     z = _unit(z0 - np.sum(z0 * x, axis=-1, keepdims=True) * x)
     y = np.cross(z, x)
@@ -267,7 +269,10 @@ def inverse_kinematics(
     params[:, ROOT_POSITION] = pos
     params[:, ROOT_ROTATION] = matrix_to_euler_zxy(root)
     torso = pos[:, None] + np.einsum("tij,kj->tki", root, template)
-    body = {name: torso[:, i] for i, name in enumerate(["pelvis", "neck", "r_sh", "l_sh", "r_hip", "l_hip"])}
+    body = {
+        name: torso[:, i]
+        for i, name in enumerate(["pelvis", "neck", "r_sh", "l_sh", "r_hip", "l_hip"])
+    }
 
     limbs = [
         (R_SHOULDER, R_ELBOW, "r_sh", "r_elbow", "r_wrist", shape.upper_arm_length, 1.0),
@@ -276,13 +281,16 @@ def inverse_kinematics(
         (L_HIP, L_KNEE, "l_hip", "l_knee", "l_ankle", shape.thigh_length, -1.0),
     ]
     for joint, hinge, base, mid, tip, length, sign in limbs:
-        angles, bend, _ = _limb(body[base], src[:, _K[mid]], src[:, _K[tip]], root, length, sign, straight_bend)
+        angles, bend, _ = _limb(
+            body[base], src[:, _K[mid]], src[:, _K[tip]], root, length, sign, straight_bend
+        )
         params[:, joint] = angles
         params[:, hinge] = bend
 
     d = _unit(np.einsum("tji,tj->ti", root, src[:, _K["head_top"]] - body["neck"]))
     params[:, NECK] = np.stack(
-        [np.arctan2(-d[:, 1], d[:, 2]), np.arcsin(np.clip(d[:, 0], -1.0, 1.0)), np.zeros(n)], axis=-1
+        [np.arctan2(-d[:, 1], d[:, 2]), np.arcsin(np.clip(d[:, 0], -1.0, 1.0)), np.zeros(n)],
+        axis=-1,
     )
     params[:, ANGLE_MASK] = _unwrap_valid(params[:, ANGLE_MASK], ok)
     params[~ok] = np.nan
@@ -368,7 +376,9 @@ def resample(
         params[:, ROOT_ROTATION], euler_zxy_to_matrix, matrix_to_euler_zxy, lo, w
     )
     for joint in (NECK, R_SHOULDER, L_SHOULDER, R_HIP, L_HIP):
-        out[:, joint] = _slerp_group(params[:, joint], euler_xyz_to_matrix, matrix_to_euler_xyz, lo, w)
+        out[:, joint] = _slerp_group(
+            params[:, joint], euler_xyz_to_matrix, matrix_to_euler_xyz, lo, w
+        )
     exact = w < 1e-9
     obs = observed[lo] & (observed[lo + 1] | exact.reshape((-1,) + (1,) * (observed.ndim - 1)))
     kp = (1.0 - w)[:, None, None] * keypoints[lo] + w[:, None, None] * keypoints[lo + 1]

@@ -269,8 +269,14 @@ MIXAMO = RigProfile(
 CONE_BODY = RigProfile(
     name="cone-body",
     description="the cone body's own skeleton, as written by humotion_gym.mocap.export",
-    keypoints={k: k for k in KEYPOINT_NAMES},
-    up_axis="z",
+    keypoints={
+        **{k: k for k in KEYPOINT_NAMES},
+        "head_top": "neck_End",
+        "r_wrist": "r_elbow_End",
+        "l_wrist": "l_elbow_End",
+        "r_ankle": "r_knee_End",
+        "l_ankle": "l_knee_End",
+    },
 )
 
 #: Every built-in profile, in the order detection tries them.
@@ -309,7 +315,9 @@ def detect_rig(point_names: Sequence[str], path: str = "<skeleton>") -> RigProfi
     )
 
 
-def make_rig(mapping: Mapping[str, KeypointSource], up_axis: str = "y", name: str = "custom") -> RigProfile:
+def make_rig(
+    mapping: Mapping[str, KeypointSource], up_axis: str = "y", name: str = "custom"
+) -> RigProfile:
     """A user's own profile from a ``{keypoint: joint name}`` mapping.
 
     Raises:

@@ -55,7 +55,9 @@ class ConstantVelocityParams:
 
     def with_multiplier(self, multiplier: float) -> ConstantVelocityParams:
         """A copy with another noise multiplier."""
-        return ConstantVelocityParams(self.free, self.accel_std, self.velocity_std, self.fps, float(multiplier))
+        return ConstantVelocityParams(
+            self.free, self.accel_std, self.velocity_std, self.fps, float(multiplier)
+        )
 
 
 def fit(
@@ -110,14 +112,18 @@ def fit(
     )
 
 
-def initial(fitted: ConstantVelocityParams, pose: ArrayLike, n: int, rng: np.random.Generator) -> ParticleState:
+def initial(
+    fitted: ConstantVelocityParams, pose: ArrayLike, n: int, rng: np.random.Generator
+) -> ParticleState:
     """N particles at the known pose with velocities drawn from the data's spread."""
     p = np.asarray(pose, dtype=np.float64)
     velocity = rng.standard_normal((n, p.shape[-1])) * fitted.velocity_std
     return ParticleState(np.repeat(p[None], n, axis=0), {"velocity": velocity})
 
 
-def transition(fitted: ConstantVelocityParams, state: ParticleState, rng: np.random.Generator) -> ParticleState:
+def transition(
+    fitted: ConstantVelocityParams, state: ParticleState, rng: np.random.Generator
+) -> ParticleState:
     """One step: the velocity takes a random kick, the pose moves by it."""
     noise = rng.standard_normal(state.pose.shape) * (fitted.multiplier * fitted.accel_std)
     velocity = state.extra["velocity"] + noise

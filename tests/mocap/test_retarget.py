@@ -129,7 +129,9 @@ def test_resample_keeps_angles_continuous_across_wraps():
     out, _, _ = resample(p, np.ones((200, 25), bool), kp, 60.0, 24.0)
     assert np.abs(np.diff(out[:, ANGLE_MASK], axis=0)).max() < 0.6
     # the heading keeps its unwrapped branch (no 2 pi jumps back)
-    assert out[-1, PARAM_INDEX["root_yaw"]] == pytest.approx(20 * (out.shape[0] - 1) * 2.5 / 199, abs=0.05)
+    assert out[-1, PARAM_INDEX["root_yaw"]] == pytest.approx(
+        20 * (out.shape[0] - 1) * 2.5 / 199, abs=0.05
+    )
 
 
 def test_velocities_of_linear_motion():
@@ -167,6 +169,8 @@ def test_custom_rig_must_name_all_keypoints():
         rigs.make_rig(mapping)
 
 
-@pytest.mark.parametrize("leg, unit", [(84.0, "cm"), (0.84, "m"), (840.0, "mm"), (33.0, "inch"), (70.0, "cm")])
+@pytest.mark.parametrize(
+    "leg, unit", [(84.0, "cm"), (0.84, "m"), (840.0, "mm"), (33.0, "inch"), (70.0, "cm")]
+)
 def test_unit_guess(leg, unit):
     assert rigs.guess_units_to_mm(leg)[1] == unit

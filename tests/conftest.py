@@ -1,0 +1,45 @@
+"""Fixtures shared by the whole test suite."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import pytest
+
+# ../shared/mocap beside the project's root (tests/conftest.py -> parents[2]).
+_DEFAULT_SHARED = Path(__file__).resolve().parents[2] / "shared" / "mocap"
+
+
+def shared_mocap_dir() -> Path:
+    """Where the shared real motion capture lives (HUMOTION_SHARED_MOCAP overrides)."""
+    env = os.environ.get("HUMOTION_SHARED_MOCAP")
+    return Path(env) if env else _DEFAULT_SHARED
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    # Keep the suite's clip and prior caches out of the user's home, and keep
+    # the environments on the synthetic data unless a test asks for real data.
+    os.environ["HUMOTION_CACHE"] = tempfile.mkdtemp(prefix="humotion-test-cache-")
+    os.environ.pop("HUMOTION_MOCAP", None)
+
+
+@pytest.fixture(scope="session")
+def shared_mocap() -> Path:
+    """The shared real motion capture; skips the test when it is absent."""
+    path = shared_mocap_dir()
+    if not path.is_dir():
+        pytest.skip(
+            "../shared/mocap is absent: real-data tests need the shared motion capture "
+            f"(looked in {path}; set HUMOTION_SHARED_MOCAP to point elsewhere)"
+        )
+    return path
+
+
+@pytest.fixture(scope="session")
+def real_library(shared_mocap: Path):
+    """Every clip of the shared motion capture, at 30 Hz (parsed once per session)."""
+    from humotion_gym.mocap.library import load_library
+
+    return load_library([shared_mocap], fps=30.0, progress=False)

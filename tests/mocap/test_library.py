@@ -1,0 +1,174 @@
+import json
+import os
+import time
+
+import numpy as np
+import pytest
+
+from humotion_gym.cli import main
+from humotion_gym.mocap import library as lib_mod
+from humotion_gym.mocap.export import write_motion_bvh
+from humotion_gym.mocap.library import (
+    TEST_SUBJECTS,
+    activity_label,
+    default_library,
+    describe_file,
+    find_clips,
+    load_library,
+    synthetic_library,
+)
+from humotion_gym.mocap.motion import Motion
+
+
+def test_default_library_is_synthetic_without_data(monkeypatch):
+    monkeypatch.delenv("HUMOTION_MOCAP", raising=False)
+    lib = default_library()
+    assert lib.is_synthetic and len(lib) >= 30
+    assert "synthetic" in lib.table()
+
+
+def test_split_is_by_subject_and_disjoint():
+    lib = synthetic_library()
+    train, test = lib.split("train"), lib.split("test")
+    assert len(train) + len(test) == len(lib)
+    assert not set(train.subjects) & set(test.subjects)
+    assert set(test.subjects) <= TEST_SUBJECTS
+    with pytest.raises(ValueError, match="train"):
+        lib.split("validation")
+
+
+def test_lookup_filter_and_errors():
+    lib = synthetic_library()
+    m = lib["synthetic/walk-01"]
+    assert m.label == "walk"
+    assert all(x.label == "run" for x in lib.filter(labels=["run"]))
+    with pytest.raises(KeyError, match="no clip"):
+        lib["nope"]
+
+
+def test_motion_save_load_round_trip(tmp_path):
+    m = synthetic_library()["synthetic/reach-03"]
+    m.save(tmp_path / "m.npz")
+    back = Motion.load(tmp_path / "m.npz")
+    assert back.clip_id == m.clip_id and back.shape == m.shape and back.synthetic
+    assert np.array_equal(back.params, m.params) and np.array_equal(back.observed, m.observed)
+    with pytest.raises(ValueError, match="not a saved Motion"):
+        (tmp_path / "bad.npz").write_bytes(b"junk")
+        Motion.load(tmp_path / "bad.npz")
+
+
+@pytest.mark.parametrize(
+    "name, dataset, subject, label",
+    [
+        ("dataset-1_walk-back_proud_003.bvh", "bandai-1", "bandai-1/proud", "walk-back"),
+        ("dataset-2_run_masculine_012.bvh", "bandai-2", "bandai-2/masculine", "run"),
+        ("02_03.amc", "cmu", "cmu-02", "run"),
+        ("07_01.bvh", "cmu", "cmu-07", "other"),
+        ("my_take.bvh", "user", "x", "other"),
+    ],
+)
+def test_file_descriptions(tmp_path, name, dataset, subject, label):
+    folder = tmp_path / "x"
+    folder.mkdir()
+    src = describe_file(folder / name)
+    assert (src.dataset, src.subject, src.label) == (dataset, subject, label)
+
+
+def test_activity_labels():
+    assert activity_label("walk on uneven terrain") == "walk"
+    assert activity_label("run/jog") == "run"
+    assert activity_label("dance - sideways arabesque") == "dance"
+    assert activity_label("playground - forward jumps, turn around") == "jump"
+
+
+def _write_clip(folder, name, motion):
+    path = folder / name
+    write_motion_bvh(path, motion.params, motion.shape, motion.fps)
+    return path
+
+
+def test_cache_is_used_and_rebuilt_when_the_file_changes(tmp_path, monkeypatch):
+    data, cache = tmp_path / "data", tmp_path / "cache"
+    data.mkdir()
+    walk = synthetic_library()["synthetic/walk-01"]
+    path = _write_clip(data, "take.bvh", walk)
+    (data / "partial.bvh.part").write_text("not a clip")  # partial downloads are ignored
+    first = load_library([data], cache_dir=cache, progress=False)
+    assert len(first) == 1 and len(list((cache / "clips").glob("*.npz"))) == 1
+
+    calls = []
+    real_load = lib_mod.load_clip
+    monkeypatch.setattr(lib_mod, "load_clip", lambda *a, **k: calls.append(a) or real_load(*a, **k))
+    second = load_library([data], cache_dir=cache, progress=False)
+    assert calls == [] and np.array_equal(second[0].params, first[0].params)
+
+    run = synthetic_library()["synthetic/run-01"]
+    time.sleep(0.01)
+    _write_clip(data, "take.bvh", run)
+    os.utime(path, ns=(time.time_ns(), time.time_ns() + 10**9))
+    third = load_library([data], cache_dir=cache, progress=False)
+    assert len(calls) == 1
+    assert not np.array_equal(third[0].params, first[0].params)
+
+
+def test_missing_paths_and_orphan_amc(tmp_path):
+    with pytest.raises(FileNotFoundError, match="no such file"):
+        find_clips([tmp_path / "absent"])
+    (tmp_path / "09_01.amc").write_text(":DEGREES\n")
+    with pytest.raises(ValueError, match="no ASF skeleton"):
+        find_clips([tmp_path])
+
+
+def test_cli_data_table_and_convert(tmp_path, capsys):
+    assert main(["data", "table"]) == 0
+    assert "synthetic" in capsys.readouterr().out
+    out = tmp_path / "skip.bvh"
+    assert main(["data", "convert", "synthetic/skip-02", str(out)]) == 0
+    assert out.is_file()
+    assert main(["data", "info", str(out), "--json"]) == 0
+    row = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert row["rig"] == "cone-body" and row["error_max_mm"] < 1e-3
+
+
+# -- real data -------------------------------------------------------------------
+
+
+@pytest.mark.mocap
+def test_every_shared_clip_loads(real_library, shared_mocap):
+    files = [p for p in shared_mocap.rglob("*") if p.suffix in (".bvh", ".amc")]
+    assert len(real_library) == len(files) > 500
+    datasets = {m.dataset for m in real_library}
+    assert datasets == {"cmu", "bandai-1", "bandai-2"}
+    rigs = {m.meta["rig"] for m in real_library}
+    assert rigs == {"cmu-asf", "character-creator", "bandai"}
+    for m in real_library:
+        assert np.all(np.isfinite(m.params)) and m.fps == 30.0
+
+
+@pytest.mark.mocap
+def test_retargeting_error_on_real_data_is_small(real_library):
+    # Limbs follow the source exactly; the error is the rigid torso against a
+    # bending spine, and one symmetric shape per clip (see retarget.py).
+    for dataset, bound in (("cmu", 15.0), ("bandai-1", 8.0), ("bandai-2", 8.0)):
+        errs = np.concatenate([m.retarget_error() for m in real_library if m.dataset == dataset])
+        assert np.nanmean(errs) < bound, dataset
+        assert np.nanmax(errs) < 100.0, dataset
+
+
+@pytest.mark.mocap
+def test_real_splits_hold_out_subjects(real_library):
+    test = real_library.split("test")
+    train = real_library.split("train")
+    assert {"cmu-02", "bandai-2/masculine", "bandai-1/masculinity"} <= set(test.subjects)
+    assert not set(test.subjects) & set(train.subjects)
+    assert len(test.filter(labels=["walk"])) >= 5 and len(train.filter(labels=["walk"])) >= 20
+
+
+@pytest.mark.mocap
+def test_poses_on_real_data_stay_within_the_joint_limits(real_library):
+    from humotion_gym.body import ANGLE_MASK, PARAM_LOWER, PARAM_UPPER
+
+    params = np.concatenate([m.params for m in real_library])
+    params[:, ANGLE_MASK] = (params[:, ANGLE_MASK] + np.pi) % (2 * np.pi) - np.pi
+    outside = (params < PARAM_LOWER) | (params > PARAM_UPPER)
+    assert outside.mean(axis=0).max() < 0.001
