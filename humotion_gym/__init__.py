@@ -8,4 +8,8 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
-__all__ = ["__version__"]
+from humotion_gym.envs import ENV_IDS, register_envs  # noqa: E402
+
+register_envs()
+
+__all__ = ["ENV_IDS", "__version__"]

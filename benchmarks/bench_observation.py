@@ -1,0 +1,84 @@
+"""Observation-model speed: milliseconds to score N poses on one 128x128 frame.
+
+Run: ``python benchmarks/bench_observation.py``. For N = 300, 3,000 and 10,000
+poses it prints the time of :meth:`ObservationModel.log_likelihood` on a
+prepared frame and, measured in the same run as a reference, the time of a
+plain numpy scorer doing the least a comparable model must do: forward
+kinematics of the N poses (:func:`humotion_gym.body.forward_kinematics`),
+projection of the keypoints, 15 points along each of the 10 projected cone
+axes (150 per pose) and a nearest-pixel lookup of each in a distance map. The
+ratio (reference time / model time) is the figure of merit: these machines are
+noisy, so compare ratios, not absolute numbers. The time of ``prepare`` (once
+per frame) is printed too.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from humotion_gym import body
+from humotion_gym.camera import Camera, fit_camera
+from humotion_gym.observation import ObservationModel
+from humotion_gym.render import SceneOptions, render
+
+
+def best_of(fn, n: int, repeats: int = 7) -> float:
+    """Best mean seconds per call over ``repeats`` runs of ``n`` calls."""
+    fn()
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(n):
+            fn()
+        best = min(best, (time.perf_counter() - t0) / n)
+    return best
+
+
+def reference_scores(
+    distance: np.ndarray, params: np.ndarray, shape: body.BodyShape, camera: Camera
+) -> np.ndarray:
+    """Plain numpy: FK, projection, 150 points per pose, nearest-pixel lookup."""
+    keypoints = body.forward_kinematics(params, shape)  # (N, 15, 3)
+    pixels = camera.project(keypoints)  # (N, 15, 2)
+    starts = pixels[:, body.CONE_KEYPOINTS[:, 0]]
+    ends = pixels[:, body.CONE_KEYPOINTS[:, 1]]
+    t = np.linspace(0.0, 1.0, 15)[None, None, :, None]
+    points = starts[:, :, None] + t * (ends - starts)[:, :, None]  # (N, 10, 15, 2)
+    h, w = distance.shape
+    u = np.clip(np.rint(points[..., 0]), 0, w - 1).astype(np.intp)
+    v = np.clip(np.rint(points[..., 1]), 0, h - 1).astype(np.intp)
+    return -distance[v, u].sum(axis=(1, 2))
+
+
+def main() -> None:
+    shape = body.default_shape()
+    rng = np.random.default_rng(0)
+    truth = body.standing_pose(shape)
+    truth[6:] += rng.normal(0.0, 0.3, 19)
+    truth = np.clip(truth, body.PARAM_LOWER, body.PARAM_UPPER)
+    scene = SceneOptions()
+    camera = fit_camera(body.forward_kinematics(truth, shape)[None], 128, 128, 50.0, 30.0, 10.0)
+    frame = render(truth, shape, camera, scene, rng)
+    model = ObservationModel()
+    features = model.prepare(frame)
+    distance = features.distance.min(axis=0)
+    prepare = best_of(lambda: model.prepare(frame), 200)
+    print(f"prepare (once per frame, 128x128): {1e3 * prepare:6.3f} ms")
+    for n in (300, 3000, 10000):
+        poses = truth + rng.normal(0.0, 0.05, (n, 25))
+        poses[:, :3] = truth[:3] + rng.normal(0.0, 50.0, (n, 3))
+        calls = max(3, 6000 // n)
+        ours = best_of(
+            lambda poses=poses: model.log_likelihood(features, poses, shape, camera), calls
+        )
+        ref = best_of(lambda poses=poses: reference_scores(distance, poses, shape, camera), calls)
+        print(
+            f"N={n:6d}: log_likelihood {1e3 * ours:7.3f} ms, numpy reference "
+            f"{1e3 * ref:7.3f} ms, ratio {ref / ours:4.1f}x"
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,83 @@
+"""Rendering speed: microseconds per frame, against Gymnasium's CartPole.
+
+Run: ``python benchmarks/bench_render.py``. Prints, for 128x128 and 256x256
+frames of the default scene (clutter, noise, shaded cones), the time per frame
+of :func:`humotion_gym.render.render` and, measured in the same run as a
+reference, the step-plus-render rate of ``CartPole-v1`` with
+``render_mode="rgb_array"`` (a 600x400 pygame frame), reported as a ratio.
+These machines are noisy: compare ratios, not absolute numbers.
+"""
+
+from __future__ import annotations
+
+import time
+
+import gymnasium as gym
+import numpy as np
+
+from humotion_gym import body
+from humotion_gym.camera import fit_camera
+from humotion_gym.render import SceneOptions, make_background, render
+
+
+def best_of(fn, n: int, repeats: int = 5) -> float:
+    """Best mean seconds per call over ``repeats`` runs of ``n`` calls."""
+    fn()
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(n):
+            fn()
+        best = min(best, (time.perf_counter() - t0) / n)
+    return best
+
+
+def cartpole_seconds_per_frame(n: int = 500) -> tuple[float, str]:
+    """CartPole-v1 step + rgb_array render; step only when pygame is missing."""
+    env = gym.make("CartPole-v1", render_mode="rgb_array")
+    env.reset(seed=0)
+    try:
+        env.render()
+        rendering, label = True, "step+render (rgb_array)"
+    except gym.error.DependencyNotInstalled:
+        rendering, label = False, "step only (pygame not installed, so no render)"
+
+    def step() -> None:
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        if rendering:
+            env.render()
+        if terminated or truncated:
+            env.reset()
+
+    seconds = best_of(step, n if rendering else 20 * n, repeats=3)
+    env.close()
+    return seconds, label
+
+
+def main() -> None:
+    shape = body.default_shape()
+    rng = np.random.default_rng(0)
+    poses = np.tile(body.standing_pose(shape), (64, 1))
+    poses[:, 6:] += rng.normal(0.0, 0.3, (64, 19))
+    poses = np.clip(poses, body.PARAM_LOWER, body.PARAM_UPPER)
+    cartpole, label = cartpole_seconds_per_frame()
+    print(f"CartPole-v1 {label}: {1e6 * cartpole:8.1f} us/frame ({1 / cartpole:7.0f} frames/s)")
+    for size in (128, 256):
+        scene = SceneOptions(width=size, height=size)
+        cam = fit_camera(body.forward_kinematics(poses, shape), size, size, 50.0, 30.0, 10.0)
+        background = make_background(scene, rng)
+        k = [0]
+
+        def frame(scene=scene, cam=cam, background=background, k=k) -> None:
+            k[0] = (k[0] + 1) % len(poses)
+            render(poses[k[0]], shape, cam, scene, rng, background, frame_index=k[0])
+
+        seconds = best_of(frame, 2000)
+        print(
+            f"render {size}x{size} (default scene): {1e6 * seconds:8.1f} us/frame "
+            f"({1 / seconds:7.0f} frames/s) = {cartpole / seconds:5.2f}x CartPole's rate"
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,366 @@
+"""Pinhole camera: intrinsics, extrinsics and batched projection.
+
+Conventions (those of OpenCV):
+    * Camera frame: ``x`` right, ``y`` down, ``z`` forward (the optical axis);
+      a point is in front of the camera when its camera-space ``z`` (its depth)
+      is positive.
+    * Pixels: ``u`` (column) grows to the right, ``v`` (row) grows downwards, and
+      integer coordinates are pixel centres, so pixel ``(u, v)`` covers
+      ``[u - 0.5, u + 0.5] x [v - 0.5, v + 0.5]`` and the image spans
+      ``[-0.5, width - 0.5] x [-0.5, height - 0.5]``. This is what
+      ``cv2`` drawing functions assume.
+    * The principal point is the image centre ``((width - 1) / 2, (height - 1) / 2)``
+      and pixels are square: ``fx = fy = f = (height / 2) / tan(fov / 2)`` for the
+      vertical field of view ``fov``.
+    * Extrinsics: ``rotation`` maps world directions to camera directions and
+      ``position`` is the camera centre in the world (mm), so
+      ``x_cam = rotation @ (x_world - position)``.
+
+The world frame is the one of :mod:`humotion_gym.body` (``z`` up, mm).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+FloatArray = NDArray[np.float64]
+
+_WORLD_UP = (0.0, 0.0, 1.0)
+
+
+def _check_size(width: int, height: int, fov_deg: float, where: str) -> None:
+    if not (isinstance(width, (int, np.integer)) and isinstance(height, (int, np.integer))):
+        raise ValueError(f"{where}: width and height must be integers, got {width!r}, {height!r}")
+    if width <= 0 or height <= 0:
+        raise ValueError(f"{where}: image size must be positive, got {width}x{height}")
+    if not (math.isfinite(fov_deg) and 1.0 < fov_deg < 179.0):
+        raise ValueError(f"{where}: fov_deg must lie in (1, 179) degrees, got {fov_deg}")
+
+
+@dataclass(frozen=True, eq=False)
+class Camera:
+    """A pinhole camera with square pixels and the principal point at the centre.
+
+    Attributes:
+        width: Image width in pixels.
+        height: Image height in pixels.
+        fov_deg: Vertical field of view in degrees, in (1, 179).
+        rotation: ``(3, 3)`` rotation from world to camera directions (its rows are
+            the camera's ``x``, ``y``, ``z`` axes written in the world frame).
+        position: ``(3,)`` camera centre in the world frame, mm.
+    """
+
+    width: int
+    height: int
+    fov_deg: float
+    rotation: FloatArray
+    position: FloatArray
+
+    def __post_init__(self) -> None:
+        _check_size(self.width, self.height, float(self.fov_deg), "Camera")
+        rot = np.array(self.rotation, dtype=np.float64)
+        pos = np.array(self.position, dtype=np.float64)
+        if rot.shape != (3, 3) or not np.all(np.isfinite(rot)):
+            raise ValueError(f"Camera.rotation: expected a finite (3, 3) matrix, got {rot.shape}")
+        if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-6) or np.linalg.det(rot) < 0:
+            raise ValueError("Camera.rotation: expected a proper rotation matrix (R R^T = I)")
+        if pos.shape != (3,) or not np.all(np.isfinite(pos)):
+            raise ValueError(f"Camera.position: expected 3 finite numbers, got {pos.shape}")
+        rot.setflags(write=False)
+        pos.setflags(write=False)
+        object.__setattr__(self, "width", int(self.width))
+        object.__setattr__(self, "height", int(self.height))
+        object.__setattr__(self, "fov_deg", float(self.fov_deg))
+        object.__setattr__(self, "rotation", rot)
+        object.__setattr__(self, "position", pos)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Camera):
+            return NotImplemented
+        return (
+            (self.width, self.height, self.fov_deg) == (other.width, other.height, other.fov_deg)
+            and np.array_equal(self.rotation, other.rotation)
+            and np.array_equal(self.position, other.position)
+        )
+
+    def __hash__(self) -> int:
+        return hash(
+            (
+                self.width,
+                self.height,
+                self.fov_deg,
+                self.rotation.tobytes(),
+                self.position.tobytes(),
+            )
+        )
+
+    # -- constructors -----------------------------------------------------
+
+    @classmethod
+    def look_at(
+        cls,
+        eye: ArrayLike,
+        target: ArrayLike,
+        width: int,
+        height: int,
+        fov_deg: float,
+        up: ArrayLike = _WORLD_UP,
+    ) -> Camera:
+        """A camera at ``eye`` whose optical axis passes through ``target``.
+
+        The image's ``up`` (its ``-y`` axis) is the projection of ``up`` on the
+        image plane. When the optical axis is parallel to ``up`` (looking straight
+        down or up) the world ``y`` axis (or ``x``) is used instead.
+
+        Args:
+            eye: Camera centre in the world, mm.
+            target: A point on the optical axis, mm.
+            width: Image width in pixels.
+            height: Image height in pixels.
+            fov_deg: Vertical field of view in degrees.
+            up: The world direction that should point up in the image.
+
+        Returns:
+            The camera.
+
+        Raises:
+            ValueError: If ``eye == target``, the size is not positive, the field
+                of view is outside (1, 179) or ``up`` is zero.
+        """
+        _check_size(width, height, float(fov_deg), "Camera.look_at")
+        eye_v = np.asarray(eye, dtype=np.float64).reshape(3)
+        forward = np.asarray(target, dtype=np.float64).reshape(3) - eye_v
+        dist = float(np.linalg.norm(forward))
+        if not np.isfinite(dist) or dist < 1e-9:
+            raise ValueError("Camera.look_at: eye and target must be distinct finite points")
+        forward /= dist
+        up_v = np.asarray(up, dtype=np.float64).reshape(3)
+        if not np.all(np.isfinite(up_v)) or np.linalg.norm(up_v) < 1e-12:
+            raise ValueError("Camera.look_at: up must be a non-zero finite vector")
+        right = np.cross(forward, up_v)
+        for fallback in ((0.0, 1.0, 0.0), (1.0, 0.0, 0.0)):
+            if np.linalg.norm(right) > 1e-9 * np.linalg.norm(up_v):
+                break
+            right = np.cross(forward, np.array(fallback))
+        right /= np.linalg.norm(right)
+        down = np.cross(forward, right)
+        rotation = np.stack([right, down, forward])
+        return cls(int(width), int(height), float(fov_deg), rotation, eye_v)
+
+    # -- intrinsics -------------------------------------------------------
+
+    @functools.cached_property
+    def focal(self) -> float:
+        """Focal length in pixels (``fx = fy``)."""
+        return 0.5 * self.height / math.tan(math.radians(self.fov_deg) / 2.0)
+
+    @functools.cached_property
+    def principal_point(self) -> tuple[float, float]:
+        """``(cx, cy)``: the image centre in pixel coordinates."""
+        return (self.width - 1) / 2.0, (self.height - 1) / 2.0
+
+    @functools.cached_property
+    def intrinsics(self) -> FloatArray:
+        """The ``(3, 3)`` calibration matrix ``K`` (OpenCV layout; read-only)."""
+        cx, cy = self.principal_point
+        f = self.focal
+        k = np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
+        k.setflags(write=False)
+        return k
+
+    @functools.cached_property
+    def translation(self) -> FloatArray:
+        """``t = -R @ position``, so that ``x_cam = R @ x_world + t`` (read-only)."""
+        t = -self.rotation @ self.position
+        t.setflags(write=False)
+        return t
+
+    @property
+    def forward(self) -> FloatArray:
+        """The optical axis (camera ``z``) in the world frame."""
+        return self.rotation[2].copy()
+
+    # -- projection -------------------------------------------------------
+
+    def to_camera(self, points: ArrayLike) -> FloatArray:
+        """World points to camera coordinates.
+
+        Args:
+            points: ``(..., 3)`` world points, mm.
+
+        Returns:
+            ``(..., 3)`` camera-frame points, mm.
+        """
+        p = _check_points(points, "Camera.to_camera")
+        return (p - self.position) @ self.rotation.T
+
+    def depth(self, points: ArrayLike) -> FloatArray:
+        """Camera-space ``z`` of world points (positive in front), shape ``(...)``."""
+        p = _check_points(points, "Camera.depth")
+        return (p - self.position) @ self.rotation[2]
+
+    def project(self, points: ArrayLike) -> FloatArray:
+        """Project world points to pixel coordinates.
+
+        Args:
+            points: ``(..., 3)`` world points, mm.
+
+        Returns:
+            ``(..., 2)`` pixel coordinates ``(u, v)``. Points at or behind the
+            camera centre (depth <= 0) get ``nan``.
+        """
+        cam = self.to_camera(points)
+        z = cam[..., 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = np.where(z > 0.0, self.focal / z, np.nan)
+        cx, cy = self.principal_point
+        out = np.empty(cam.shape[:-1] + (2,))
+        out[..., 0] = cam[..., 0] * inv + cx
+        out[..., 1] = cam[..., 1] * inv + cy
+        return out
+
+    def pixels_per_mm(self, depth: ArrayLike) -> FloatArray:
+        """Image size in pixels of 1 mm seen fronto-parallel at the given depth.
+
+        Args:
+            depth: Camera-space depth(s) in mm (positive).
+
+        Returns:
+            ``focal / depth``, the same shape as ``depth``.
+
+        Raises:
+            ValueError: If a depth is not positive.
+        """
+        d = np.asarray(depth, dtype=np.float64)
+        if np.any(~(d > 0)):
+            raise ValueError("Camera.pixels_per_mm: depth must be positive")
+        return self.focal / d
+
+    def in_image(self, pixels: ArrayLike) -> NDArray[np.bool_]:
+        """Whether pixel coordinates ``(..., 2)`` lie inside the image (nan: False)."""
+        px = np.asarray(pixels, dtype=np.float64)
+        u, v = px[..., 0], px[..., 1]
+        with np.errstate(invalid="ignore"):
+            return (u >= -0.5) & (u <= self.width - 0.5) & (v >= -0.5) & (v <= self.height - 0.5)
+
+
+def _check_points(points: ArrayLike, where: str) -> FloatArray:
+    p = np.asarray(points, dtype=np.float64)
+    if p.ndim < 1 or p.shape[-1] != 3:
+        raise ValueError(f"{where}: expected points of shape (..., 3), got {p.shape}")
+    return p
+
+
+def view_direction(azimuth_deg: float, elevation_deg: float) -> FloatArray:
+    """Unit vector from the target to the camera for an azimuth and elevation.
+
+    Azimuth 0 puts the camera on the ``+y`` side of the target, so it sees the
+    front of a subject at heading 0 (who faces ``+y``); positive azimuth turns the
+    camera counter-clockwise seen from above (90 degrees: on the ``-x`` side, the
+    subject's left). Elevation raises the camera above the horizontal plane.
+
+    Args:
+        azimuth_deg: Azimuth in degrees.
+        elevation_deg: Elevation in degrees, in [-90, 90].
+
+    Returns:
+        ``(3,)`` unit vector.
+    """
+    az, el = math.radians(azimuth_deg), math.radians(elevation_deg)
+    return np.array([-math.sin(az) * math.cos(el), math.cos(az) * math.cos(el), math.sin(el)])
+
+
+def fit_camera(
+    keypoints: ArrayLike,
+    width: int,
+    height: int,
+    fov_deg: float,
+    azimuth_deg: float = 0.0,
+    elevation_deg: float = 10.0,
+    margin: float = 0.1,
+    pad_mm: float = 150.0,
+    min_distance_mm: float = 500.0,
+) -> Camera:
+    """A camera that keeps a whole clip in frame, seen from a given direction.
+
+    The camera looks at the centre of the points' bounding box from the
+    direction :func:`view_direction` gives, and stands back just far enough that
+    every point, grown into a sphere of ``pad_mm`` (to cover the cones' radii),
+    projects inside the image with ``margin`` of the image left free on each side.
+
+    Typical uses: a general view of a body clip (azimuth 30, elevation 10); a
+    side view of walking (azimuth from :func:`side_view_azimuth`); a close-up of
+    one arm (pass only that arm's keypoints, ``keypoints[:, [9, 10, 11]]``).
+
+    Args:
+        keypoints: ``(..., 3)`` points to keep in view, e.g. a clip's keypoints
+            ``(T, 15, 3)`` in mm.
+        width: Image width in pixels.
+        height: Image height in pixels.
+        fov_deg: Vertical field of view in degrees, in (1, 179).
+        azimuth_deg: Viewing azimuth (see :func:`view_direction`).
+        elevation_deg: Viewing elevation in degrees, in [-89, 89].
+        margin: Fraction of the image's half-size left free at each border, in
+            [0, 0.9].
+        pad_mm: Radius added around every point, mm (>= 0).
+        min_distance_mm: The camera never stands closer to the target than this.
+
+    Returns:
+        The camera.
+
+    Raises:
+        ValueError: For bad sizes, field of view, margin, elevation or points.
+    """
+    _check_size(width, height, float(fov_deg), "fit_camera")
+    pts = _check_points(keypoints, "fit_camera").reshape(-1, 3)
+    if pts.shape[0] == 0 or not np.all(np.isfinite(pts)):
+        raise ValueError("fit_camera: expected at least one point, all finite")
+    if not 0.0 <= margin <= 0.9:
+        raise ValueError(f"fit_camera: margin must lie in [0, 0.9], got {margin}")
+    if not -89.0 <= elevation_deg <= 89.0:
+        raise ValueError(f"fit_camera: elevation_deg must lie in [-89, 89], got {elevation_deg}")
+    if not (pad_mm >= 0.0 and min_distance_mm > 0.0):
+        raise ValueError("fit_camera: pad_mm must be >= 0 and min_distance_mm > 0")
+    target = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    direction = view_direction(azimuth_deg, elevation_deg)
+    probe = Camera.look_at(target + direction, target, width, height, fov_deg)
+    rel = (pts - target) @ probe.rotation.T  # target-centred, camera axes
+    f = probe.focal
+    half_w = (width - 1) / 2.0 * (1.0 - margin)
+    half_h = (height - 1) / 2.0 * (1.0 - margin)
+    # Depth of a point is rel_z + D; it is in frame when f * (|rel_x| + pad) <=
+    # half_w * (rel_z + D - pad), i.e. D >= f (|x| + pad) / half_w - z + pad.
+    need_x = f * (np.abs(rel[:, 0]) + pad_mm) / half_w - rel[:, 2] + pad_mm
+    need_y = f * (np.abs(rel[:, 1]) + pad_mm) / half_h - rel[:, 2] + pad_mm
+    near = pad_mm + 100.0 - rel[:, 2]  # keep every point well in front
+    distance = float(max(need_x.max(), need_y.max(), near.max(), min_distance_mm))
+    return Camera.look_at(target + distance * direction, target, width, height, fov_deg)
+
+
+def side_view_azimuth(pelvis: ArrayLike) -> float:
+    """Azimuth of a side view perpendicular to the main horizontal travel direction.
+
+    Args:
+        pelvis: ``(T, 3)`` (or ``(T, 2)``) pelvis positions over a clip, mm.
+
+    Returns:
+        Azimuth in degrees for :func:`fit_camera`: the camera looks across the
+        travel direction (the principal horizontal axis of the positions). With
+        no horizontal motion, 90 (the subject's left side at heading 0).
+    """
+    p = np.asarray(pelvis, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] not in (2, 3) or p.shape[0] == 0:
+        raise ValueError(f"side_view_azimuth: expected (T, 3) positions, got {p.shape}")
+    xy = p[:, :2] - p[:, :2].mean(axis=0)
+    if not np.all(np.isfinite(xy)) or np.abs(xy).max() < 1e-6:
+        return 90.0
+    _, _, vt = np.linalg.svd(xy, full_matrices=False)
+    travel = vt[0]
+    # view_direction(az) = (-sin az, cos az); we want it perpendicular to travel.
+    perp = np.array([-travel[1], travel[0]])
+    return float(math.degrees(math.atan2(-perp[0], perp[1])))

@@ -1,0 +1,55 @@
+"""The tracking environments and their registration.
+
+Importing :mod:`humotion_gym` registers every id below (Gymnasium 1.x has no
+entry-point plugins). Each id exists under the ``humotion_gym/`` namespace,
+and once more without it so that ``gymnasium.make("humotion_gym:ArmTrack-v0")``
+(the ``module:id`` form, which imports the module first) works from a fresh
+interpreter.
+"""
+
+from __future__ import annotations
+
+from gymnasium.envs.registration import register, registry
+
+from humotion_gym.envs.arm_track import ArmTrackEnv
+from humotion_gym.envs.body_track import BodyTrackEnv
+from humotion_gym.envs.pose_tracking import PoseTrackingEnv
+from humotion_gym.envs.side_walk import SideWalkEnv
+from humotion_gym.envs.tasks import TASKS, TaskSpec, get_task
+from humotion_gym.envs.walk_track import WalkTrackEnv
+
+NAMESPACE = "humotion_gym"
+
+#: (id without namespace, entry point, scored frames per episode)
+ENVIRONMENTS: tuple[tuple[str, str, int], ...] = (
+    ("ArmTrack-v0", "humotion_gym.envs.arm_track:ArmTrackEnv", 30),
+    ("BodyTrack-v0", "humotion_gym.envs.body_track:BodyTrackEnv", 30),
+    ("WalkTrack-v0", "humotion_gym.envs.walk_track:WalkTrackEnv", 90),
+    ("SideWalk-v0", "humotion_gym.envs.side_walk:SideWalkEnv", 60),
+)
+
+#: The canonical ids, with namespace.
+ENV_IDS: tuple[str, ...] = tuple(f"{NAMESPACE}/{name}" for name, _, _ in ENVIRONMENTS)
+
+
+def register_envs() -> None:
+    """Register every environment (idempotent)."""
+    for name, entry_point, _ in ENVIRONMENTS:
+        for env_id in (f"{NAMESPACE}/{name}", name):
+            if env_id not in registry:
+                register(id=env_id, entry_point=entry_point)
+
+
+__all__ = [
+    "ENVIRONMENTS",
+    "ENV_IDS",
+    "TASKS",
+    "ArmTrackEnv",
+    "BodyTrackEnv",
+    "PoseTrackingEnv",
+    "SideWalkEnv",
+    "TaskSpec",
+    "WalkTrackEnv",
+    "get_task",
+    "register_envs",
+]

@@ -1,0 +1,58 @@
+"""The parts of the environments' documentation pages that every task shares."""
+
+from __future__ import annotations
+
+COMMON_SECTIONS = """
+    ## Rewards
+
+    The estimate is scored on the keypoints its free parameters move
+    (``task.error_keypoints``): with ``e_k`` the Euclidean error of keypoint
+    ``k`` in mm and ``s = reward_scale_mm`` (100 by default),
+
+        reward = mean_k exp(-e_k / s)
+
+    in [0, 1] (1 for a perfect estimate). ``info`` splits it by body region,
+    ``reward_torso + reward_arms + reward_legs == reward``, and reports
+    ``error_mm`` (mean error over the scored keypoints, the HumanEva measure),
+    ``error_all_mm`` (over all 15) and ``keypoint_errors_mm`` (15,).
+
+    ## Episode End
+
+    1. Termination (track lost): ``error_mm`` above ``lost_threshold_mm``
+       (150) for ``lost_patience`` (5) frames in a row; ``info["lost"]`` says
+       so. ``terminate_on_lost=False`` keeps the episode going.
+    2. Truncation: after the task's number of scored frames.
+
+    ## Info
+
+    ``reset`` gives ``initial_pose`` (25,), the true pose of the frame before
+    the first one shown (the papers set frame 0 by hand), ``shape`` (the
+    subject's :class:`~humotion_gym.body.BodyShape`), ``camera``,
+    ``clip_id``, ``fps``, ``start_frame`` and ``synthetic``. Every ``reset``
+    and ``step`` gives ``fixed_params``: the true values of the parameters the
+    task does not track (``task.fixed_indices`` order) for the frame in the
+    returned observation, and that frame's ``camera``. The ground truth of the
+    free parameters never appears.
+
+    ## Arguments
+
+    ``gymnasium.make(id, **kwargs)`` passes these on:
+
+    | argument | default | meaning |
+    |---|---|---|
+    | ``render_mode`` | None | ``"rgb_array"``: ``render()`` returns the frame with the last estimate drawn as a wire figure |
+    | ``data_dir`` | None | folders of real mocap (else ``$HUMOTION_MOCAP``, else the built-in synthetic set); the test split is used |
+    | ``width``, ``height`` | 128, 128 | frame size (64x64 to 640x480) |
+    | ``color`` | ``"rgb"`` | or ``"gray"`` (one channel) |
+    | ``background`` | ``"clutter"`` | or ``"flat"`` |
+    | ``noise`` | 4.0 | sensor noise, grey levels |
+    | ``blur`` | 0.0 | Gaussian blur, pixels |
+    | ``occluders`` | 0 | bars and blobs crossing the figure |
+    | ``fps`` | 30 | the library's rate; ``frame_skip`` shows every k-th frame |
+    | ``episode_frames`` | task's | scored frames per episode |
+    | ``terminate_on_lost`` | True | end the episode when track is lost |
+    | ``lost_threshold_mm``, ``lost_patience`` | 150, 5 | the lost-track test |
+    | ``reward_scale_mm`` | 100 | the reward's length scale |
+
+    The defaults are the difficulty the leaderboard reports.
+"""

@@ -1,0 +1,440 @@
+"""The pose-tracking environment: one class, configured by a task spec."""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+
+from humotion_gym.body import (
+    ANGLE_MASK,
+    KEYPOINT_INDEX,
+    PARAM_LOWER,
+    PARAM_UPPER,
+    BodyShape,
+    forward_kinematics,
+)
+from humotion_gym.camera import Camera
+from humotion_gym.envs.tasks import TaskSpec, get_task
+from humotion_gym.mocap.library import (
+    MotionLibrary,
+    configured_data_dirs,
+    load_library,
+    synthetic_library,
+)
+from humotion_gym.mocap.motion import Motion
+from humotion_gym.observation import ObservationModel
+from humotion_gym.render import SceneOptions, draw_pose_overlay, make_background, render
+
+FloatArray = NDArray[np.float64]
+
+_REGIONS: dict[str, tuple[str, ...]] = {
+    "torso": ("pelvis", "neck", "head_top", "r_hip", "l_hip", "r_shoulder", "l_shoulder"),
+    "arms": ("r_elbow", "r_wrist", "l_elbow", "l_wrist"),
+    "legs": ("r_knee", "r_ankle", "l_knee", "l_ankle"),
+}
+
+
+@functools.lru_cache(maxsize=4)
+def _cached_library(dirs: tuple[str, ...], fps: float) -> MotionLibrary:
+    if not dirs:
+        return synthetic_library(fps=fps)
+    return load_library(list(dirs), fps=fps, progress=False)
+
+
+def _wrap(angles: FloatArray) -> FloatArray:
+    return (angles + np.pi) % (2 * np.pi) - np.pi
+
+
+class PoseTrackingEnv(gym.Env):
+    """Track a cone figure's 3D pose from rendered frames: the one environment class.
+
+    A :class:`~humotion_gym.envs.tasks.TaskSpec` says which parameters are free,
+    where the camera stands and how long an episode is; keyword arguments set
+    the difficulty. Each registered task has a subclass whose docstring is its
+    documentation page (:class:`~humotion_gym.envs.arm_track.ArmTrackEnv`,
+    :class:`~humotion_gym.envs.body_track.BodyTrackEnv`,
+    :class:`~humotion_gym.envs.walk_track.WalkTrackEnv`,
+    :class:`~humotion_gym.envs.side_walk.SideWalkEnv`): spaces, reward,
+    episode end, info and arguments are described there.
+
+    The environment exposes what an agent needs to score particles with exactly
+    its likelihood: ``task``, ``observation_model``, ``camera`` and ``shape``
+    of the episode, and the action mapping :meth:`pose_to_action` /
+    :meth:`action_to_pose`.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
+
+    def __init__(
+        self,
+        task: str | TaskSpec = "BodyTrack-v0",
+        render_mode: str | None = None,
+        data_dir: str | Path | Sequence[str | Path] | None = None,
+        library: MotionLibrary | None = None,
+        width: int = 128,
+        height: int = 128,
+        color: str = "rgb",
+        background: str = "clutter",
+        noise: float | None = None,
+        blur: float | None = None,
+        occluders: int | None = None,
+        fps: float = 30.0,
+        frame_skip: int = 1,
+        episode_frames: int | None = None,
+        terminate_on_lost: bool = True,
+        lost_threshold_mm: float = 150.0,
+        lost_patience: int = 5,
+        reward_scale_mm: float = 100.0,
+        observation_model: ObservationModel | None = None,
+    ) -> None:
+        self.task = get_task(task) if isinstance(task, str) else task
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}"
+            )
+        if frame_skip < 1:
+            raise ValueError(f"frame_skip must be >= 1, got {frame_skip}")
+        if lost_patience < 1 or lost_threshold_mm <= 0 or reward_scale_mm <= 0:
+            raise ValueError("lost_patience, lost_threshold_mm and reward_scale_mm must be positive")
+        self.render_mode = render_mode
+        scene_kwargs: dict[str, Any] = {
+            "width": width,
+            "height": height,
+            "color": color,
+            "background": background,
+        }
+        if noise is not None:
+            scene_kwargs["noise_sigma"] = noise
+        if blur is not None:
+            scene_kwargs["blur_sigma"] = blur
+        if occluders is not None:
+            scene_kwargs["occluders"] = occluders
+        self.scene = SceneOptions(**scene_kwargs)
+        self.frame_skip = int(frame_skip)
+        self.episode_frames = int(episode_frames or self.task.episode_frames)
+        self.terminate_on_lost = terminate_on_lost
+        self.lost_threshold_mm = float(lost_threshold_mm)
+        self.lost_patience = int(lost_patience)
+        self.reward_scale_mm = float(reward_scale_mm)
+        self.observation_model = observation_model or ObservationModel()
+        self.metadata = {**self.metadata, "render_fps": fps / self.frame_skip}
+
+        if library is None:
+            dirs = tuple(str(p) for p in configured_data_dirs(data_dir))
+            library = _cached_library(dirs, float(fps))
+        self.library = library
+        clips = library.split("test").filter(labels=self.task.labels)
+        need = self.episode_frames * self.frame_skip + 1
+        self.clips = clips.filter(min_frames=need)
+        if len(self.clips) == 0:
+            raise ValueError(
+                f"{self.task.name}: no test clip with labels {self.task.labels} and at least "
+                f"{need} frames in the library ({len(library)} clips)"
+            )
+
+        channels = 3 if self.scene.color == "rgb" else 1
+        self.observation_space = spaces.Box(
+            0, 255, shape=(self.scene.height, self.scene.width, channels), dtype=np.uint8
+        )
+        n_free = len(self.task.free)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(n_free,), dtype=np.float32)
+        self._free = self.task.free_indices
+        self._fixed = self.task.fixed_indices
+        self._err_kp = self.task.error_keypoint_indices
+        self._region_of = {
+            name: [i for i, k in enumerate(self.task.error_keypoints) if k in members]
+            for name, members in _REGIONS.items()
+        }
+        self._motion: Motion | None = None
+
+    # -- pose <-> action ---------------------------------------------------------
+
+    def _action_bounds(self) -> tuple[FloatArray, FloatArray]:
+        lo, hi = PARAM_LOWER.copy(), PARAM_UPPER.copy()
+        if self._motion is not None:
+            r = self.task.root_range_mm
+            lo[:3] = self._root0 - r
+            hi[:3] = self._root0 + r
+        return lo[self._free], hi[self._free]
+
+    def pose_to_action(self, pose: FloatArray) -> NDArray[np.float32]:
+        """Normalise a pose's free parameters to the action range [-1, 1].
+
+        Angles are first wrapped to [-pi, pi) (every angle is periodic in the
+        forward kinematics), then each free parameter is mapped linearly from
+        its range to [-1, 1] and clipped: joint angles use
+        ``body.PARAM_LOWER``/``PARAM_UPPER``; a free root position uses the
+        episode's initial root position plus or minus ``task.root_range_mm``.
+
+        Args:
+            pose: ``(..., 25)`` full poses.
+
+        Returns:
+            ``(..., n_free)`` float32 actions.
+        """
+        p = np.array(pose, dtype=np.float64)
+        p[..., ANGLE_MASK] = _wrap(p[..., ANGLE_MASK])
+        lo, hi = self._action_bounds()
+        a = 2.0 * (p[..., self._free] - lo) / (hi - lo) - 1.0
+        return np.clip(a, -1.0, 1.0).astype(np.float32)
+
+    def action_to_pose(self, action: NDArray, fixed: FloatArray | None = None) -> FloatArray:
+        """The full pose an action stands for.
+
+        Args:
+            action: ``(..., n_free)`` values in [-1, 1] (clipped).
+            fixed: ``(25,)`` pose whose non-free parameters fill the rest; the
+                ground truth of the frame on show when None.
+
+        Returns:
+            ``(..., 25)`` poses.
+        """
+        a = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
+        lo, hi = self._action_bounds()
+        base = self._truth() if fixed is None else np.asarray(fixed, dtype=np.float64)
+        pose = np.broadcast_to(base, a.shape[:-1] + (base.shape[-1],)).copy()
+        pose[..., self._free] = lo + (a + 1.0) * 0.5 * (hi - lo)
+        return pose
+
+    # -- episode -----------------------------------------------------------------
+
+    def _frame_index(self, k: int | None = None) -> int:
+        k = self._k if k is None else k
+        return self._t0 + k * self.frame_skip
+
+    def _truth(self, k: int | None = None) -> FloatArray:
+        assert self._motion is not None, "call reset() first"
+        return np.array(self._motion.params[self._frame_index(k)])
+
+    def _pick_clip(self, options: dict[str, Any]) -> Motion:
+        if "motion" in options:
+            return options["motion"]
+        if "clip_id" in options:
+            return self.library[options["clip_id"]]
+        if "file" in options:
+            lib = load_library([options["file"]], fps=self.library[0].fps, progress=False)
+            return lib[0]
+        return self.clips[int(self.np_random.integers(len(self.clips)))]
+
+    def _pick_start(self, motion: Motion, options: dict[str, Any]) -> int:
+        span = self.episode_frames * self.frame_skip
+        if motion.n_frames <= span:
+            raise ValueError(
+                f"{motion.clip_id}: {motion.n_frames} frames, an episode needs {span + 1}"
+            )
+        if "start" in options:
+            start = int(options["start"])
+            if not 0 <= start < motion.n_frames - span:
+                raise ValueError(f"options['start'] must be in [0, {motion.n_frames - span})")
+            return start
+        ok = motion.frame_observed
+        # A start is good when every frame of the episode was observed.
+        window = np.convolve(ok.astype(int), np.ones(span + 1, dtype=int), mode="valid")
+        good = np.flatnonzero(window == span + 1)
+        if good.size == 0:
+            good = np.arange(motion.n_frames - span)
+        return int(good[self.np_random.integers(good.size)])
+
+    def _place_camera(self) -> None:
+        spec = self.task.camera
+        m = self._motion
+        assert m is not None
+        idx = self._t0 + np.arange(self.episode_frames + 1) * self.frame_skip
+        kp = forward_kinematics(m.params[idx], m.shape)
+        if spec.reference == "walk":
+            travel = kp[-1, KEYPOINT_INDEX["pelvis"], :2] - kp[0, KEYPOINT_INDEX["pelvis"], :2]
+            if np.linalg.norm(travel) < 100.0:
+                yaw = float(m.params[idx[0], 3])
+                ref = np.array([-np.sin(yaw), np.cos(yaw)])
+            else:
+                ref = travel / np.linalg.norm(travel)
+        else:
+            yaw = float(m.params[idx[0], 3])
+            ref = np.array([-np.sin(yaw), np.cos(yaw)])  # the subject's facing direction
+        az = np.deg2rad(spec.azimuth_deg)
+        # Rotate the reference direction by the azimuth towards the subject's right
+        # (clockwise seen from above), then tilt up by the elevation.
+        c, s = np.cos(-az), np.sin(-az)
+        horiz = np.array([c * ref[0] - s * ref[1], s * ref[0] + c * ref[1]])
+        el = np.deg2rad(spec.elevation_deg)
+        view = np.array([horiz[0] * np.cos(el), horiz[1] * np.cos(el), np.sin(el)])
+        fov = np.deg2rad(spec.fov_deg)
+        aspect = self.scene.width / self.scene.height
+        half = np.tan(fov / 2) * min(1.0, aspect)
+        pad = float(np.max(m.shape.radii))
+        if spec.follow == "r_shoulder":
+            center = kp[:, KEYPOINT_INDEX["r_shoulder"]]
+            reach = m.shape.upper_arm_length + m.shape.forearm_length + pad
+            dist = spec.margin * reach / half
+            self._camera_targets = center
+        else:
+            if spec.follow == "pelvis_xy":
+                rel = kp - kp[:, KEYPOINT_INDEX["pelvis"], None] * np.array([1.0, 1.0, 0.0])
+                center = kp[:, KEYPOINT_INDEX["pelvis"]] * np.array([1.0, 1.0, 0.0])
+                center = center + 0.5 * (rel.reshape(-1, 3).max(0) + rel.reshape(-1, 3).min(0))
+                radius = np.max(np.linalg.norm(rel - (center[0] - kp[0, 0] * [1, 1, 0]), axis=-1))
+                self._camera_targets = center
+            else:
+                pts = kp.reshape(-1, 3)
+                c0 = 0.5 * (pts.max(0) + pts.min(0))
+                radius = float(np.max(np.linalg.norm(pts - c0, axis=-1)))
+                self._camera_targets = np.repeat(c0[None], len(idx), axis=0)
+            dist = spec.margin * (radius + pad) / half
+        self._camera_offset = view * dist
+        self._cameras = [
+            Camera.look_at(
+                target + self._camera_offset, target, self.scene.width, self.scene.height,
+                spec.fov_deg,
+            )  # fmt: skip
+            for target in self._camera_targets
+        ]
+
+    @property
+    def camera(self) -> Camera:
+        """The camera of the frame on show."""
+        return self._cameras[self._k]
+
+    @property
+    def shape(self) -> BodyShape:
+        """The episode subject's shape."""
+        assert self._motion is not None, "call reset() first"
+        return self._motion.shape
+
+    def _observe(self) -> NDArray[np.uint8]:
+        frame = render(
+            self._truth(), self.shape, self.camera, self.scene, self._frame_rng(),
+            self._background, self._k,
+        )  # fmt: skip
+        self._frame = frame
+        return frame
+
+    def _frame_rng(self) -> np.random.Generator:
+        return np.random.default_rng([self._episode_seed, self._k])
+
+    def _info(self) -> dict[str, Any]:
+        truth = self._truth()
+        return {
+            "fixed_params": truth[self._fixed].copy(),
+            "camera": self.camera,
+            "frame": self._frame_index(),
+            "step": self._k,
+        }
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[NDArray[np.uint8], dict[str, Any]]:
+        """Start an episode on a test clip.
+
+        Args:
+            seed: Seeds the environment's generator (clip, start frame, scene).
+            options: ``clip_id`` (a library id), ``file`` (a mocap file) or
+                ``motion`` (a :class:`Motion`) to choose the clip; ``start``
+                for the first frame.
+
+        Returns:
+            The first frame to track and the info dict (see the class docstring).
+        """
+        super().reset(seed=seed)
+        options = dict(options or {})
+        self._motion = self._pick_clip(options)
+        self._t0 = self._pick_start(self._motion, options)
+        self._root0 = self._motion.params[self._t0, :3].copy()
+        self._episode_seed = int(self.np_random.integers(2**63 - 1))
+        self._background = make_background(self.scene, np.random.default_rng(self._episode_seed))
+        self._place_camera()
+        self._lost_run = 0
+        self._last_estimate: FloatArray | None = None
+        initial = self._truth(0)
+        self._k = 1
+        obs = self._observe()
+        info = self._info()
+        info.update(
+            {
+                "initial_pose": initial,
+                "shape": self.shape,
+                "clip_id": self._motion.clip_id,
+                "fps": self._motion.fps / self.frame_skip,
+                "start_frame": self._t0,
+                "synthetic": self._motion.synthetic,
+            }
+        )
+        return obs, info
+
+    def step(self, action: NDArray) -> tuple[NDArray[np.uint8], float, bool, bool, dict[str, Any]]:
+        """Score the estimate of the frame on show, then show the next frame.
+
+        Args:
+            action: ``(n_free,)`` the estimate of the free parameters, normalised
+                to [-1, 1] (values outside are clipped).
+
+        Returns:
+            ``(observation, reward, terminated, truncated, info)``.
+
+        Raises:
+            ValueError: If the action has the wrong shape or is not finite.
+            RuntimeError: If called before ``reset`` or after the episode ended.
+        """
+        if self._motion is None:
+            raise RuntimeError("step() called before reset()")
+        if self._k > self.episode_frames:
+            raise RuntimeError("step() called after the episode ended; call reset()")
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != self.action_space.shape:
+            raise ValueError(
+                f"{self.task.name}: action must have shape {self.action_space.shape} "
+                f"(the free parameters {list(self.task.free)}), got {a.shape}"
+            )
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"{self.task.name}: action must be finite, got {a.tolist()}")
+        truth = self._truth()
+        estimate = self.action_to_pose(a, truth)
+        self._last_estimate = estimate
+        err_all = np.linalg.norm(
+            forward_kinematics(estimate, self.shape) - forward_kinematics(truth, self.shape), axis=-1
+        )
+        err = err_all[self._err_kp]
+        error_mm = float(err.mean())
+        # Reward: the mean over scored keypoints of exp(-e_k / scale), split by
+        # body region so the terms add up to the reward.
+        per_kp = np.exp(-err / self.reward_scale_mm) / len(err)
+        terms = {f"reward_{name}": float(per_kp[idx].sum()) for name, idx in self._region_of.items()}
+        reward = float(sum(terms.values()))
+        self._lost_run = self._lost_run + 1 if error_mm > self.lost_threshold_mm else 0
+        lost = self._lost_run >= self.lost_patience
+        terminated = bool(lost and self.terminate_on_lost)
+        truncated = bool(self._k >= self.episode_frames and not terminated)
+        scored = {
+            "error_mm": error_mm,
+            "error_all_mm": float(err_all.mean()),
+            "keypoint_errors_mm": err_all,
+            "lost": bool(lost),
+            **terms,
+        }
+        if not (terminated or truncated):
+            self._k += 1
+            obs = self._observe()
+        else:
+            obs = self._frame.copy()
+        info = self._info()
+        info.update(scored)
+        return obs, reward, terminated, truncated, info
+
+    def render(self) -> NDArray[np.uint8] | None:
+        """The frame on show with the last estimate drawn over it as a wire figure."""
+        if self.render_mode is None or self._motion is None:
+            return None
+        frame = self._frame
+        if frame.shape[-1] == 1:
+            frame = np.repeat(frame, 3, axis=-1)
+        if self._last_estimate is None:
+            return frame.copy()
+        return draw_pose_overlay(frame, self._last_estimate, self.shape, self.camera)
+
+

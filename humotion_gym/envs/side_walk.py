@@ -1,0 +1,58 @@
+"""SideWalk-v0: fronto-parallel walking and jogging seen from the side."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from humotion_gym.envs._docs import COMMON_SECTIONS
+from humotion_gym.envs.pose_tracking import PoseTrackingEnv
+
+
+class SideWalkEnv(PoseTrackingEnv):
+    """Track the sagittal joint angles of a walker or jogger seen from the side.
+
+    ## Description
+
+    The fronto-parallel setting of Pavlovic, Rehg, Cham & Murphy, *A dynamic
+    Bayesian network approach to figure tracking using learned dynamic
+    models*, ICCV 1999 (Fig. 4): a camera perpendicular to the walking
+    direction pans with the subject, and the agent estimates the eight
+    sagittal angles of the limbs. The root, the torso's orientation, the neck
+    and the out-of-plane limb angles follow the ground truth and are given.
+
+    ## Action Space
+
+    ``Box(-1, 1, (8,), float32)``:
+
+    | index | parameter | range mapped to [-1, 1] (rad) |
+    |---|---|---|
+    | 0 | ``r_hip_x`` | [-1.5, 2.8] |
+    | 1 | ``r_knee`` | [0, 2.9] |
+    | 2 | ``l_hip_x`` | [-1.5, 2.8] |
+    | 3 | ``l_knee`` | [0, 2.9] |
+    | 4 | ``r_shoulder_x`` | [-pi, pi] |
+    | 5 | ``r_elbow`` | [0, 2.9] |
+    | 6 | ``l_shoulder_x`` | [-pi, pi] |
+    | 7 | ``l_elbow`` | [0, 2.9] |
+
+    ## Observation Space
+
+    ``Box(0, 255, (height, width, 3), uint8)``: the side view (90 degrees
+    from the walking direction, at hip height), following the pelvis
+    horizontally.
+
+    ## Starting State
+
+    A test-split walking or running clip (labels ``walk``, ``run``) long
+    enough for 61 frames, and a start frame whose frames were all observed.
+    """
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(task="SideWalk-v0", **kwargs)
+
+
+SideWalkEnv.__doc__ = (SideWalkEnv.__doc__ or "") + COMMON_SECTIONS + """
+    ## Version History
+
+    * v0: first release (60 scored frames per episode).
+"""

@@ -1,0 +1,618 @@
+"""Frames from poses: shaded cones over a background, with noise and occluders.
+
+Each of the ten truncated cones of :mod:`humotion_gym.body` is drawn as the
+filled convex hull of its two projected end ellipses (circles for the limbs,
+ellipses of depth-to-width ratio ``aspect`` for the torso), far cones first
+(painter's algorithm). A cone is shaded like a lit cylinder: the hull takes the
+colour of its visible end cap, and a few strips along its length, each lit by
+Lambert's law for the surface normal at that strip's position across the limb,
+show the gradient from the lit side to the dark side (cones narrower than six
+pixels get one flat shade instead).
+
+The background is made once per episode (:func:`make_background`) from the
+episode's random generator and reused every frame: a flat wall colour, or
+``clutter``: random textured shapes and lines whose edges compete with the
+figure's, as the furniture of a real room would. Occluders (bars and blobs) move
+across the image over the episode. Each frame gets sensor noise (and an optional
+blur) from the generator passed to :func:`render`.
+
+Every random draw goes through an explicit ``numpy.random.Generator``: the same
+pose, scene, background and generator state give the same frame bit for bit.
+
+Speed: about 110-130 microseconds for a 128x128 RGB frame of the default scene,
+about a third of it in the OpenCV drawing calls, the rest in the kinematics
+(on Python floats) and in a few dozen numpy calls on tiny arrays; see
+``benchmarks/bench_render.py``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from humotion_gym import body
+from humotion_gym.body import CONE_KEYPOINTS, N_CONES, N_KEYPOINTS, BodyShape
+from humotion_gym.camera import Camera
+from humotion_gym.observation import single_pose_geometry
+
+Color = tuple[int, int, int]
+
+_SHIRT: Color = (170, 40, 40)
+_SKIN: Color = (230, 180, 150)
+_TROUSERS: Color = (40, 55, 120)
+
+#: Default colour (RGB) of each cone, in ``body.CONE_NAMES`` order: a red shirt,
+#: skin-coloured head and forearms, dark blue trousers.
+DEFAULT_FIGURE_COLORS: tuple[Color, ...] = (
+    _SHIRT,  # torso
+    _SKIN,  # head
+    _SHIRT,  # r_upper_arm
+    _SKIN,  # r_forearm
+    _SHIRT,  # l_upper_arm
+    _SKIN,  # l_forearm
+    _TROUSERS,  # r_thigh
+    _TROUSERS,  # r_shin
+    _TROUSERS,  # l_thigh
+    _TROUSERS,  # l_shin
+)
+
+_MIN_SIZE = (64, 64)
+_MAX_SIZE = (640, 480)
+_SHIFT = 4  # fixed-point bits for sub-pixel polygon vertices
+_ONE = float(1 << _SHIFT)
+_NEAR_MM = 1.0  # cones with an end closer to the camera plane are not drawn
+_ELLIPSE_POINTS = 12
+_UNIT_CIRCLE = np.stack(
+    [
+        np.cos(2 * np.pi * np.arange(_ELLIPSE_POINTS) / _ELLIPSE_POINTS),
+        np.sin(2 * np.pi * np.arange(_ELLIPSE_POINTS) / _ELLIPSE_POINTS),
+    ]
+)  # (2, K)
+_CONE_ROWS = np.asarray(CONE_KEYPOINTS)  # rows of each cone's start and end keypoints
+# Cones narrower than this (silhouette half-width in pixels at both ends) are
+# drawn in one flat shade: strips of less than a pixel would not show.
+_STRIP_MIN_HALF_WIDTH_PX = 3.0
+_LUMA = np.array([0.299, 0.587, 0.114])  # ITU-R BT.601, as cv2.cvtColor
+
+
+@dataclass(frozen=True)
+class SceneOptions:
+    """How frames look: size, colour, background, noise, blur, occluders, figure.
+
+    The defaults are the leaderboard's default difficulty.
+
+    Attributes:
+        width: Image width in pixels (default 128; 64 to 640). Small frames keep
+            the environment fast (the papers' frames were 320x240 and larger).
+        height: Image height in pixels (default 128; 64 to 480).
+        color: ``"rgb"`` (default; frames ``(H, W, 3)``) or ``"gray"`` (frames
+            ``(H, W, 1)``, the luminance of the same scene).
+        background: ``"clutter"`` (default: random textured shapes and lines, a
+            room-like scene whose edges compete with the figure's) or ``"flat"``
+            (one wall colour; the easy setting).
+        clutter_density: Clutter amount (default 1.0): on average
+            ``8 * density`` shapes and ``4 * density`` lines per square of the
+            image's short side (shapes are sized relative to it, so the clutter
+            looks the same at every size). 0 gives a flat background.
+        background_color: RGB wall colour (default (150, 150, 145), a mid grey
+            that differs from all three figure colours in luminance). Each
+            cluttered episode jitters it by up to 20 grey levels.
+        noise_sigma: Standard deviation of the per-pixel Gaussian sensor noise in
+            grey levels (default 4.0, a typical well-lit webcam); 0 turns it off.
+        blur_sigma: Gaussian blur of every frame in pixels (default 0.0: off;
+            about 0.7 mimics a slightly soft lens at twice the cost of a frame).
+        occluders: Number of bars and blobs that sweep across the image in
+            front of the figure, through its middle third (default 0).
+        occluder_period: Frames an occluder takes to cross the image (default
+            150, five seconds at 30 fps).
+        figure_colors: RGB colour of each cone in ``body.CONE_NAMES`` order
+            (default :data:`DEFAULT_FIGURE_COLORS`).
+        light_direction: Direction towards the light in the camera frame
+            (x right, y down, z forward; default (-0.4, -0.7, -0.6): above, left
+            and behind the camera, so fronts are lit).
+        ambient: Shade of a surface facing away from the light (default 0.45).
+        diffuse: Added shade of a surface facing the light (default 0.6); a
+            strip's colour is ``color * (ambient + diffuse * max(0, n.l))``.
+        shading_strips: Strips per cone showing the shading across the limb
+            (default 3; 1 gives flat per-cone shading). Each costs one filled
+            polygon per cone.
+    """
+
+    width: int = 128
+    height: int = 128
+    color: str = "rgb"
+    background: str = "clutter"
+    clutter_density: float = 1.0
+    background_color: Color = (150, 150, 145)
+    noise_sigma: float = 4.0
+    blur_sigma: float = 0.0
+    occluders: int = 0
+    occluder_period: float = 150.0
+    figure_colors: tuple[Color, ...] = DEFAULT_FIGURE_COLORS
+    light_direction: tuple[float, float, float] = (-0.4, -0.7, -0.6)
+    ambient: float = 0.45
+    diffuse: float = 0.6
+    shading_strips: int = 3
+
+    def __post_init__(self) -> None:
+        w, h = self.width, self.height
+        if not (isinstance(w, (int, np.integer)) and isinstance(h, (int, np.integer))):
+            raise ValueError(f"SceneOptions: width and height must be integers, got {w!r}, {h!r}")
+        if not (_MIN_SIZE[0] <= w <= _MAX_SIZE[0] and _MIN_SIZE[1] <= h <= _MAX_SIZE[1]):
+            raise ValueError(
+                f"SceneOptions: image size must be between {_MIN_SIZE[0]}x{_MIN_SIZE[1]} and "
+                f"{_MAX_SIZE[0]}x{_MAX_SIZE[1]}, got {w}x{h}"
+            )
+        if self.color not in ("rgb", "gray"):
+            raise ValueError(f"SceneOptions.color: expected 'rgb' or 'gray', got {self.color!r}")
+        if self.background not in ("flat", "clutter"):
+            raise ValueError(
+                f"SceneOptions.background: expected 'flat' or 'clutter', got {self.background!r}"
+            )
+        for name in ("clutter_density", "noise_sigma", "blur_sigma", "ambient", "diffuse"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"SceneOptions.{name}: expected a finite number >= 0")
+        if not (isinstance(self.occluders, (int, np.integer)) and self.occluders >= 0):
+            raise ValueError("SceneOptions.occluders: expected an integer >= 0")
+        if not self.occluder_period > 0:
+            raise ValueError("SceneOptions.occluder_period: expected a positive number of frames")
+        if not (isinstance(self.shading_strips, (int, np.integer)) and self.shading_strips >= 1):
+            raise ValueError("SceneOptions.shading_strips: expected an integer >= 1")
+        colors = np.asarray(self.figure_colors)
+        if colors.shape != (N_CONES, 3) or colors.min() < 0 or colors.max() > 255:
+            raise ValueError("SceneOptions.figure_colors: expected 10 RGB triples in [0, 255]")
+        bg = np.asarray(self.background_color)
+        if bg.shape != (3,) or bg.min() < 0 or bg.max() > 255:
+            raise ValueError("SceneOptions.background_color: expected an RGB triple in [0, 255]")
+        light = np.asarray(self.light_direction, dtype=np.float64)
+        if light.shape != (3,) or not np.all(np.isfinite(light)) or np.linalg.norm(light) == 0:
+            raise ValueError("SceneOptions.light_direction: expected a non-zero 3-vector")
+        object.__setattr__(self, "figure_colors", tuple(tuple(int(v) for v in c) for c in colors))
+        object.__setattr__(self, "background_color", tuple(int(v) for v in bg))
+        object.__setattr__(self, "light_direction", tuple(float(v) for v in light))
+        object.__setattr__(self, "_drawing", _drawing_constants(self))
+
+    @property
+    def channels(self) -> int:
+        """3 for ``"rgb"``, 1 for ``"gray"``."""
+        return 3 if self.color == "rgb" else 1
+
+    @property
+    def frame_shape(self) -> tuple[int, int, int]:
+        """``(height, width, channels)`` of the frames."""
+        return (self.height, self.width, self.channels)
+
+
+@dataclass(frozen=True, eq=False)
+class Background:
+    """The per-episode part of the scene, drawn once from the episode's generator.
+
+    Attributes:
+        scene: The options it was made for.
+        image: ``(H, W, C)`` uint8 background (read-only).
+        occluders: ``(K, 7)`` occluder parameters: kind (0 bar, 1 blob), the
+            frame at which it crosses the middle, heading of its motion
+            (radians), sideways offset of its path from the image centre
+            (pixels), speed (pixels per frame), size (pixels) and orientation
+            (radians). Each sweeps across the image once per
+            ``scene.occluder_period`` frames.
+        occluder_colors: ``(K, C)`` occluder colours.
+        noise: ``(2, 2H, 2W, C)`` uint8 bank of Gaussian sensor noise (rounded
+            to grey levels), split into its positive and negative parts. Each
+            frame adds the window of the bank at an offset drawn from the frame's
+            generator, so every frame's noise is i.i.d. Gaussian per pixel and
+            frames draw from (H + 1)(W + 1) different windows (see :func:`render`).
+    """
+
+    scene: SceneOptions
+    image: NDArray[np.uint8]
+    occluders: NDArray[np.float64]
+    occluder_colors: NDArray[np.uint8]
+    noise: NDArray[np.uint8] = field(repr=False)
+
+
+def _to_channels(rgb: ArrayLike, channels: int) -> NDArray[np.float64]:
+    c = np.asarray(rgb, dtype=np.float64)
+    return c if channels == 3 else (c @ _LUMA)[..., None]
+
+
+def _noise_bank(
+    sigma: float, shape: tuple[int, int, int], rng: np.random.Generator
+) -> NDArray[np.uint8]:
+    """Positive and negative parts of a ``(2H, 2W, C)`` bank of Gaussian noise."""
+    h, w, c = shape
+    if sigma <= 0:
+        return np.zeros((2, 1, 1, c), np.uint8)
+    noise = rng.standard_normal((2 * h, 2 * w, c), dtype=np.float32)
+    noise *= np.float32(sigma)
+    np.rint(noise, out=noise)
+    np.clip(noise, -255, 255, out=noise)
+    return np.stack([np.maximum(noise, 0), np.maximum(-noise, 0)]).astype(np.uint8)
+
+
+def _texture(rng: np.random.Generator, h: int, w: int, channels: int) -> NDArray[np.uint8]:
+    """A random stripe or checker texture of two colours, ``(h, w, C)``."""
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+    a, b = (_to_channels(rng.uniform(25, 235, 3), channels) for _ in range(2))
+    period = rng.uniform(3.0, 12.0) * max(h, w) / 128.0 + 2.0
+    angle = rng.uniform(0, np.pi)
+    u = (xx * math.cos(angle) + yy * math.sin(angle)) / period
+    if rng.random() < 0.5:
+        mask = (np.floor(u) % 2) == 0
+    else:
+        v = (-xx * math.sin(angle) + yy * math.cos(angle)) / period
+        mask = ((np.floor(u) + np.floor(v)) % 2) == 0
+    return np.where(mask[..., None], a, b).astype(np.uint8)
+
+
+def _draw_clutter(img: NDArray[np.uint8], scene: SceneOptions, rng: np.random.Generator) -> None:
+    h, w, channels = img.shape
+    size = min(h, w)
+    # Shapes are sized relative to the short side, so their number grows with
+    # the aspect ratio only: the clutter covers the same fraction at any size.
+    area = (h * w) / float(size * size)
+    n_shapes = int(rng.poisson(8.0 * scene.clutter_density * area))
+    n_lines = int(rng.poisson(4.0 * scene.clutter_density * area))
+    for _ in range(n_shapes):
+        kind = int(rng.integers(0, 3))
+        mask = np.zeros((h, w), np.uint8)
+        cx, cy = rng.uniform(-0.1, 1.1) * w, rng.uniform(-0.1, 1.1) * h
+        rx, ry = rng.uniform(0.05, 0.3, 2) * size
+        if kind == 0:  # axis-aligned box (furniture, frames, doors)
+            p0 = (int(cx - rx), int(cy - ry))
+            p1 = (int(cx + rx), int(cy + ry))
+            cv2.rectangle(mask, p0, p1, 255, -1)
+        elif kind == 1:  # ellipse
+            angle = float(rng.uniform(0, 180))
+            cv2.ellipse(
+                mask, (int(cx), int(cy)), (int(rx) + 1, int(ry) + 1), angle, 0, 360, 255, -1
+            )
+        else:  # random convex polygon
+            angles = np.sort(rng.uniform(0, 2 * np.pi, int(rng.integers(3, 7))))
+            pts = np.stack([cx + rx * np.cos(angles), cy + ry * np.sin(angles)], axis=1)
+            cv2.fillConvexPoly(mask, pts.astype(np.int32), 255)
+        x0, y0, bw, bh = cv2.boundingRect(mask)
+        if bw == 0 or bh == 0:
+            continue
+        box = (slice(y0, y0 + bh), slice(x0, x0 + bw))
+        inside = mask[box][..., None] > 0
+        if rng.random() < 0.4:
+            np.copyto(img[box], _texture(rng, bh, bw, channels), where=inside)
+        else:
+            color = _to_channels(rng.uniform(25, 235, 3), channels)
+            np.copyto(img[box], color.round().astype(np.uint8), where=inside)
+    for _ in range(n_lines):
+        p0 = rng.uniform(0, 1, 2) * (w, h)
+        direction = rng.normal(size=2)
+        direction /= np.linalg.norm(direction) + 1e-12
+        length = rng.uniform(0.2, 1.0) * size
+        p1 = p0 + length * direction
+        color = _to_channels(rng.uniform(20, 240, 3), channels).round().tolist()
+        thickness = int(rng.integers(1, 3)) * max(1, size // 128)
+        cv2.line(
+            img,
+            (int(p0[0]), int(p0[1])),
+            (int(p1[0]), int(p1[1])),
+            color,
+            thickness,
+            cv2.LINE_AA,
+        )
+
+
+def make_background(scene: SceneOptions, rng: np.random.Generator) -> Background:
+    """The background of one episode, drawn from the episode's generator.
+
+    Args:
+        scene: Scene options.
+        rng: The episode's random generator (advanced by this call).
+
+    Returns:
+        The :class:`Background` to pass to every :func:`render` call of the
+        episode.
+    """
+    h, w, channels = scene.frame_shape
+    base = np.asarray(scene.background_color, dtype=np.float64)
+    clutter = scene.background == "clutter" and scene.clutter_density > 0
+    if clutter:
+        base = np.clip(base + rng.uniform(-20, 20), 0, 255)
+    img = np.empty((h, w, channels), np.uint8)
+    img[...] = _to_channels(base, channels).round().astype(np.uint8)
+    if clutter:
+        _draw_clutter(img, scene, rng)
+    k = scene.occluders
+    occ = np.zeros((k, 7))
+    if k:
+        # Each occluder sweeps across the image along a line through the middle
+        # third (where fitted cameras put the figure), once per period.
+        size = min(h, w)
+        heading = rng.uniform(0, 2 * np.pi, k)
+        occ[:, 0] = rng.integers(0, 2, k)
+        occ[:, 1] = rng.uniform(0, scene.occluder_period, k)
+        occ[:, 2] = heading
+        occ[:, 3] = rng.uniform(-1 / 6, 1 / 6, k) * size
+        occ[:, 4] = math.hypot(w, h) / scene.occluder_period
+        occ[:, 5] = rng.uniform(0.06, 0.15, k) * size
+        # Bars lie roughly across their motion (a pole passing by); blobs anyhow.
+        across = heading + np.pi / 2 + rng.uniform(-0.35, 0.35, k)
+        occ[:, 6] = np.where(occ[:, 0] == 0, across, rng.uniform(0, np.pi, k))
+    occ_colors = _to_channels(rng.uniform(20, 235, (k, 3)), channels).round().astype(np.uint8)
+    img.setflags(write=False)
+    noise = _noise_bank(scene.noise_sigma, (h, w, channels), rng)
+    return Background(scene, img, occ, occ_colors, noise)
+
+
+def _check_inputs(params: ArrayLike, camera: Camera, scene: SceneOptions) -> NDArray[np.float64]:
+    p = np.asarray(params, dtype=np.float64)
+    if p.shape != (body.N_PARAMS,):
+        raise ValueError(f"render: expected one pose of shape (25,), got {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError("render: the pose has non-finite parameters")
+    if (camera.width, camera.height) != (scene.width, scene.height):
+        raise ValueError(
+            f"render: camera is {camera.width}x{camera.height} but the scene is "
+            f"{scene.width}x{scene.height}"
+        )
+    return p
+
+
+def _drawing_constants(scene: SceneOptions) -> dict[str, NDArray]:
+    """Per-scene arrays of the drawing code (stored on the SceneOptions)."""
+    strips = scene.shading_strips
+    edges = np.linspace(-1.0, 1.0, strips + 1)
+    across = 0.5 * (edges[1:] + edges[:-1])  # lateral position of each strip's centre
+    light = np.asarray(scene.light_direction, dtype=np.float64)
+    light = light / np.linalg.norm(light)
+    # Lambert factors from the cone's (cap . l, m . l, w . l): column 0 the
+    # visible cap, column 1 the flat shade of a narrow cone (normal w, facing
+    # the camera), then one column per strip: normal = s m + sqrt(1 - s^2) w.
+    shading = np.zeros((3, 2 + strips))
+    shading[0, 0] = 1.0
+    shading[2, 1] = 1.0
+    shading[1, 2:] = across
+    shading[2, 2:] = np.sqrt(1.0 - across**2)
+    # Strip b joins corners (b, start), (b, end), (b + 1, end), (b + 1, start)
+    # of each cone's (S + 1) x 2 corner grid.
+    quad = np.array([[2 * b, 2 * b + 1, 2 * b + 3, 2 * b + 2] for b in range(strips)])
+    quad = quad[None] + (2 * strips + 2) * np.arange(N_CONES)[:, None, None]
+    ring = np.zeros((_ELLIPSE_POINTS + 1, 2))  # the last point is the centre
+    ring[:-1] = _UNIT_CIRCLE.T
+    return {
+        "edges": edges[None, :, None, None],
+        "shading": shading,
+        "light": light,
+        "light_xy": light[:2].copy(),
+        "light_z": np.array(light[2]),
+        "base": _to_channels(scene.figure_colors, scene.channels)[:, None, :],
+        "ambient": np.array(scene.ambient),
+        "diffuse": np.array(scene.diffuse),
+        "quad_index": quad,
+        "ring": ring,
+        "flip": np.array([1.0, -1.0]),
+        "fixed": np.array(_ONE),
+        "near": np.array(_NEAR_MM),
+        "tiny": np.array(1e-12),
+    }
+
+
+def _cone_polygons(
+    params: NDArray[np.float64], shape: BodyShape, camera: Camera, scene: SceneOptions
+) -> tuple[list[int], NDArray[np.int32], NDArray[np.int32], list, NDArray[np.bool_]]:
+    """Everything the drawing loop needs, computed for all ten cones at once.
+
+    Written with few numpy calls on tiny arrays (each costs ~0.3-1 us): the
+    kinematics run in the camera frame on Python floats, ellipse points and
+    cone ends are projected together, and the shading is one small product.
+
+    Returns:
+        Drawing order (far first, only cones in front of the camera), end-ellipse
+        points ``(10, 2K, 2)`` and strip quads ``(10, S, 4, 2)`` in fixed point,
+        colours (10 lists of ``2 + S`` colours: cap, flat, strips) and whether
+        each cone is wide enough for strips.
+    """
+    const: dict[str, NDArray] = scene._drawing  # type: ignore[attr-defined]
+    both = single_pose_geometry(params, shape, camera.rotation, camera.translation)
+    ends = both[_CONE_ROWS]  # (10, 2, 3): start and end of each cone, camera frame
+    ax = both[N_KEYPOINTS:].reshape(N_CONES, 2, 3)
+    ax[:, 1] *= shape.aspect[:, None]
+    # End ellipses centre + r (cos t x + aspect sin t y), with the centre last:
+    # (10, 2, K + 1, 3).
+    ellipse = const["ring"] @ ax  # (10, K + 1, 3)
+    ellipse = ellipse[:, None] * shape.radii[:, :, None, None]
+    ellipse += ends[:, :, None, :]
+    # Project with K (the last row of K is (0, 0, 1): the third coordinate is z).
+    proj = ellipse @ camera.intrinsics.T
+    z = proj[..., 2]
+    np.maximum(z, const["near"], out=z)
+    uv = proj[..., :2]
+    uv /= z[..., None]
+    k = _ELLIPSE_POINTS
+    ellipse_px = (uv[:, :, :k] * const["fixed"]).astype(np.int32).reshape(N_CONES, 2 * k, 2)
+    uv_ends = uv[:, :, k]  # (10, 2, 2)
+    # Unit image normal (dy, -dx) of each projected axis, and the silhouette
+    # half-width along it: r * |(x.m, aspect y.m)| for an elliptical section.
+    d = uv_ends[:, 1] - uv_ends[:, 0]
+    normal = d[:, ::-1] * const["flip"]
+    length = np.sqrt((normal * normal).sum(axis=1))
+    length += const["tiny"]
+    normal /= length[:, None]
+    half = (ax[:, :, :2] * normal[:, None, :]).sum(axis=2)
+    half = np.sqrt((half * half).sum(axis=1))
+    width = shape.radii / z[:, :, k]
+    width *= half[:, None] * camera.focal  # (10, 2) silhouette half-widths in pixels
+    corners = const["edges"] * (width[:, None, :, None] * normal[:, None, None, :])
+    corners += uv_ends[:, None]
+    corners *= const["fixed"]
+    quads = corners.astype(np.int32).reshape(-1, 2)[const["quad_index"]]  # (10, S, 4, 2)
+    # Lambert shading: the cone axis a, the image normal m and the normal w
+    # facing the camera across the limb (w = (a_z a - e_z) / sqrt(1 - a_z^2)).
+    axis = ends[:, 1] - ends[:, 0]
+    axis /= np.sqrt((axis * axis).sum(axis=1))[:, None] + const["tiny"]
+    dots = np.empty((N_CONES, 3))
+    a_l = axis @ const["light"]
+    a_z = axis[:, 2]
+    dots[:, 0] = a_l * -np.sign(a_z)  # the cap that faces the camera
+    dots[:, 1] = normal @ const["light_xy"]
+    dots[:, 2] = (a_z * a_l - const["light_z"]) / np.sqrt(1.0 - a_z * a_z + 1e-9)
+    lambert = dots @ const["shading"]
+    np.maximum(lambert, 0.0, out=lambert)
+    lambert *= const["diffuse"]
+    lambert += const["ambient"]
+    # OpenCV saturates colours above 255 when drawing.
+    colors = (const["base"] * lambert[:, :, None]).tolist()
+    wide = width.max(axis=1) >= _STRIP_MIN_HALF_WIDTH_PX
+    # Painter's order, far first; cones reaching behind the near plane are skipped.
+    z_min = ellipse[..., 2].reshape(N_CONES, -1).min(axis=1).tolist()
+    depth = ends[:, :, 2].sum(axis=1)
+    order = [c for c in np.argsort(-depth, kind="stable").tolist() if z_min[c] > _NEAR_MM]
+    return order, ellipse_px, quads, colors, wide
+
+
+def _draw_figure(
+    img: NDArray[np.uint8],
+    params: NDArray[np.float64],
+    shape: BodyShape,
+    camera: Camera,
+    scene: SceneOptions,
+) -> None:
+    order, ellipse_px, quads, colors, wide = _cone_polygons(params, shape, camera, scene)
+    wide_list = wide.tolist()
+    for c in order:
+        color = colors[c]
+        if wide_list[c]:
+            cv2.fillConvexPoly(img, cv2.convexHull(ellipse_px[c]), color[0], cv2.LINE_8, _SHIFT)
+            for quad, strip_color in zip(quads[c], color[2:], strict=True):
+                cv2.fillConvexPoly(img, quad, strip_color, cv2.LINE_8, _SHIFT)
+        else:
+            cv2.fillConvexPoly(img, cv2.convexHull(ellipse_px[c]), color[1], cv2.LINE_8, _SHIFT)
+
+
+def _draw_occluders(img: NDArray[np.uint8], background: Background, frame_index: int) -> None:
+    h, w = img.shape[:2]
+    occ = background.occluders
+    colors = background.occluder_colors.tolist()
+    diag = math.hypot(w, h)
+    for k in range(occ.shape[0]):
+        kind, t0, heading, offset, speed, size, angle = occ[k].tolist()
+        # Distance travelled past the middle, wrapped to one crossing of the image.
+        span = diag + 2 * size
+        along = ((frame_index - t0) * speed + span / 2) % span - span / 2
+        cos_h, sin_h = math.cos(heading), math.sin(heading)
+        x = (w - 1) / 2 + along * cos_h - offset * sin_h
+        y = (h - 1) / 2 + along * sin_h + offset * cos_h
+        if kind == 0:  # a bar through (x, y), as long as the image is wide
+            dx, dy = math.cos(angle) * diag, math.sin(angle) * diag
+            p0 = (int((x - dx) * _ONE), int((y - dy) * _ONE))
+            p1 = (int((x + dx) * _ONE), int((y + dy) * _ONE))
+            cv2.line(img, p0, p1, colors[k], max(1, int(size * 0.6)), cv2.LINE_8, _SHIFT)
+        else:
+            axes = (int(size * _ONE), int(size * 0.6 * _ONE))
+            centre = (int(x * _ONE), int(y * _ONE))
+            cv2.ellipse(
+                img, centre, axes, math.degrees(angle), 0, 360, colors[k], -1, cv2.LINE_8, _SHIFT
+            )
+
+
+def _add_noise(img: NDArray[np.uint8], bank: NDArray[np.uint8], rng: np.random.Generator) -> None:
+    """Add the bank's window at a random offset (one of (H + 1)(W + 1))."""
+    h, w = img.shape[:2]
+    y, x = divmod(int(rng.integers(0, (h + 1) * (w + 1))), w + 1)
+    cv2.add(img, bank[0, y : y + h, x : x + w].reshape(img.shape), dst=img)
+    cv2.subtract(img, bank[1, y : y + h, x : x + w].reshape(img.shape), dst=img)
+
+
+def render(
+    params: ArrayLike,
+    shape: BodyShape,
+    camera: Camera,
+    scene: SceneOptions,
+    rng: np.random.Generator,
+    background: Background | None = None,
+    frame_index: int = 0,
+) -> NDArray[np.uint8]:
+    """Render one frame of the cone figure.
+
+    Args:
+        params: ``(25,)`` pose parameters.
+        shape: The subject's shape.
+        camera: The camera (its size must match the scene's).
+        scene: Scene options.
+        rng: Generator for this frame's sensor noise (and for the background
+            when none is given).
+        background: The episode's background from :func:`make_background`; when
+            None one is drawn from ``rng`` first (slow: pass it in a loop).
+        frame_index: Frame number within the episode; moves the occluders.
+
+    Returns:
+        ``(H, W, 3)`` (rgb) or ``(H, W, 1)`` (gray) uint8 frame.
+
+    Raises:
+        ValueError: For a malformed pose, a camera of another size or a
+            background made for other scene options.
+    """
+    p = _check_inputs(params, camera, scene)
+    if background is None:
+        background = make_background(scene, rng)
+    elif background.scene is not scene and background.scene != scene:
+        raise ValueError("render: the background was made for other scene options")
+    img = background.image.copy()
+    canvas = img if scene.channels == 3 else img.reshape(scene.height, scene.width)
+    _draw_figure(canvas, p, shape, camera, scene)
+    if scene.occluders:
+        _draw_occluders(canvas, background, frame_index)
+    if scene.noise_sigma > 0:
+        _add_noise(canvas, background.noise, rng)
+    if scene.blur_sigma > 0:
+        cv2.GaussianBlur(canvas, (0, 0), scene.blur_sigma, dst=canvas)
+    return img
+
+
+def draw_pose_overlay(
+    frame: ArrayLike,
+    params: ArrayLike,
+    shape: BodyShape,
+    camera: Camera,
+    color: Color = (0, 255, 0),
+    thickness: int = 1,
+) -> NDArray[np.uint8]:
+    """Draw the wire figure of a pose (skeleton edges and joint dots) on a frame.
+
+    Args:
+        frame: ``(H, W, 3)``, ``(H, W, 1)`` or ``(H, W)`` uint8 frame (not modified).
+        params: ``(25,)`` pose to draw.
+        shape: The subject's shape.
+        camera: The frame's camera.
+        color: RGB colour of the figure.
+        thickness: Line thickness in pixels (joint dots get a radius of
+            ``thickness + 1``).
+
+    Returns:
+        An ``(H, W, 3)`` copy of the frame with the figure drawn (single-channel
+        frames are converted to three channels so the colour shows).
+    """
+    img = np.asarray(frame)
+    if img.ndim == 3 and img.shape[2] == 1:
+        img = img[:, :, 0]
+    if img.dtype != np.uint8 or img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] != 3):
+        raise ValueError(f"draw_pose_overlay: expected a uint8 image, got {img.dtype} {img.shape}")
+    out = cv2.cvtColor(img, cv2.COLOR_GRAY2RGB) if img.ndim == 2 else img.copy()
+    if thickness < 1:
+        raise ValueError("draw_pose_overlay: thickness must be >= 1")
+    p = np.asarray(params, dtype=np.float64)
+    if p.shape != (body.N_PARAMS,):
+        raise ValueError(f"draw_pose_overlay: expected one pose of shape (25,), got {p.shape}")
+    px = camera.project(body.forward_kinematics(p, shape))
+    ok = np.all(np.isfinite(px), axis=1)
+    fixed = np.rint(np.clip(np.nan_to_num(px), -1e5, 1e5) * _ONE).astype(np.int64).tolist()
+    col = tuple(int(v) for v in color)
+    for a, b in body.SKELETON_EDGES:
+        if ok[a] and ok[b]:
+            cv2.line(out, fixed[a], fixed[b], col, thickness, cv2.LINE_AA, _SHIFT)
+    radius = int((thickness + 1) * _ONE)
+    for k in np.flatnonzero(ok).tolist():
+        cv2.circle(out, fixed[k], radius, col, -1, cv2.LINE_AA, _SHIFT)
+    return out

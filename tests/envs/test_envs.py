@@ -1,0 +1,223 @@
+"""Suite-wide checks over every registered environment."""
+
+import pickle
+import subprocess
+import sys
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import humotion_gym
+from humotion_gym.envs import ENV_IDS, get_task
+
+IDS = list(ENV_IDS)
+
+
+def rollout(env_id, seed, steps=8, actions_seed=0, **kwargs):
+    env = gym.make(env_id, **kwargs)
+    obs, info = env.reset(seed=seed)
+    rng = np.random.default_rng(actions_seed)
+    frames, rewards, infos = [obs], [], [info]
+    for _ in range(steps):
+        obs, r, term, trunc, info = env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
+        frames.append(obs)
+        rewards.append(r)
+        infos.append(info)
+        if term or trunc:
+            break
+    env.close()
+    return frames, rewards, infos
+
+
+def test_all_four_tasks_are_registered():
+    assert IDS == [f"humotion_gym/{n}" for n in ("ArmTrack-v0", "BodyTrack-v0", "WalkTrack-v0", "SideWalk-v0")]
+    for env_id in IDS:
+        assert gym.spec(env_id).entry_point == gym.spec(env_id.split("/")[1]).entry_point
+
+
+def test_module_colon_id_works_from_a_fresh_interpreter():
+    code = "import gymnasium as gym; e = gym.make('humotion_gym:ArmTrack-v0'); print(e.reset(seed=0)[0].shape)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "(128, 128, 3)"
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_gymnasium_env_checker_passes_without_warnings(env_id):
+    env = gym.make(env_id).unwrapped
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env, skip_render_check=False)
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_stable_baselines3_checker_passes_without_warnings(env_id):
+    sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
+    env = gym.make(env_id)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sb3_checker.check_env(env, warn=True)
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_determinism(env_id):
+    a = rollout(env_id, seed=3)
+    b = rollout(env_id, seed=3)
+    for fa, fb in zip(a[0], b[0], strict=True):
+        assert np.array_equal(fa, fb)
+    assert a[1] == b[1]
+    for ia, ib in zip(a[2], b[2], strict=True):
+        assert ia.keys() == ib.keys()
+        for k in ia:
+            va, vb = ia[k], ib[k]
+            if isinstance(va, np.ndarray):
+                assert np.array_equal(va, vb), k
+            elif isinstance(va, float | int | str | bool):
+                assert va == vb, k
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_different_seeds_give_different_episodes(env_id):
+    a = rollout(env_id, seed=1, steps=2)
+    b = rollout(env_id, seed=2, steps=2)
+    assert not np.array_equal(a[0][0], b[0][0])
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_reward_range_terms_and_no_shared_memory(env_id):
+    env = gym.make(env_id)
+    obs, info = env.reset(seed=5)
+    previous = obs
+    rng = np.random.default_rng(0)
+    for step in range(6):
+        obs, reward, term, trunc, info = env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
+        assert 0.0 <= reward <= 1.0
+        terms = sum(v for k, v in info.items() if k.startswith("reward_"))
+        assert terms == pytest.approx(reward, abs=1e-12)
+        assert not np.shares_memory(obs, previous)
+        previous = obs
+        if term or trunc:
+            break
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_true_pose_gives_full_reward_and_episode_length(env_id):
+    env = gym.make(env_id).unwrapped
+    obs, info = env.reset(seed=0)
+    task = get_task(env_id)
+    steps, rewards = 0, []
+    while True:
+        action = env.pose_to_action(env._truth())
+        obs, r, term, trunc, info = env.step(action)
+        rewards.append(r)
+        steps += 1
+        if term or trunc:
+            break
+    assert trunc and not term and steps == task.episode_frames
+    assert min(rewards) > 0.999 and info["error_mm"] < 0.5
+
+
+def test_track_lost_terminates_and_can_be_switched_off():
+    env = gym.make("humotion_gym/BodyTrack-v0").unwrapped
+    env.reset(seed=0)
+    bad = np.ones(env.action_space.shape, dtype=np.float32)
+    for k in range(1, 10):
+        _, _, term, _, info = env.step(bad)
+        if term:
+            break
+    assert term and info["lost"] and k == env.lost_patience
+    env = gym.make("humotion_gym/BodyTrack-v0", terminate_on_lost=False).unwrapped
+    env.reset(seed=0)
+    for _ in range(10):
+        _, _, term, _, info = env.step(bad)
+    assert not term and info["lost"]
+
+
+@pytest.mark.parametrize("bad, match", [(np.full(4, np.nan), "finite"), (np.full(4, np.inf), "finite"), (np.zeros(5), "shape")])
+def test_bad_actions_raise_value_errors(bad, match):
+    env = gym.make("humotion_gym/ArmTrack-v0").unwrapped
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=match):
+        env.step(bad)
+
+
+def test_info_gives_what_the_agent_needs_and_never_the_truth():
+    env = gym.make("humotion_gym/ArmTrack-v0").unwrapped
+    obs, info = env.reset(seed=0)
+    assert info["initial_pose"].shape == (25,) and info["fps"] == 30.0
+    assert info["fixed_params"].shape == (21,)
+    truth = env._truth()
+    # the fixed parameters are the truth of the frame on show; the free ones are absent
+    assert np.array_equal(info["fixed_params"], truth[env.task.fixed_indices])
+    for value in info.values():
+        if isinstance(value, np.ndarray) and value.shape == (25,) and value is not info["initial_pose"]:
+            assert not np.array_equal(value, truth)
+
+
+def test_pose_action_round_trip():
+    env = gym.make("humotion_gym/BodyTrack-v0").unwrapped
+    env.reset(seed=4)
+    truth = env._truth()
+    pose = env.action_to_pose(env.pose_to_action(truth))
+    kp_err = np.abs(humotion_gym.body.forward_kinematics(pose, env.shape) - humotion_gym.body.forward_kinematics(truth, env.shape))
+    assert kp_err.max() < 0.5  # float32 actions
+
+
+def test_options_choose_clip_and_start():
+    env = gym.make("humotion_gym/WalkTrack-v0").unwrapped
+    _, info = env.reset(seed=0, options={"clip_id": "synthetic/walk-06", "start": 7})
+    assert info["clip_id"] == "synthetic/walk-06" and info["start_frame"] == 7
+    with pytest.raises(ValueError, match="start"):
+        env.reset(seed=0, options={"clip_id": "synthetic/walk-06", "start": 10_000})
+
+
+def test_render_overlays_the_estimate():
+    env = gym.make("humotion_gym/BodyTrack-v0", render_mode="rgb_array")
+    obs, _ = env.reset(seed=0)
+    before = env.render()
+    assert np.array_equal(before, obs)
+    env.step(np.zeros(25, dtype=np.float32))
+    after = env.render()
+    assert after.shape == (128, 128, 3) and not np.array_equal(after, env.unwrapped._frame)
+
+
+def test_vector_env_async_runs():
+    envs = gym.make_vec("humotion_gym/ArmTrack-v0", num_envs=4, vectorization_mode="async")
+    obs, _ = envs.reset(seed=0)
+    assert obs.shape == (4, 128, 128, 3)
+    for _ in range(3):
+        obs, r, term, trunc, _ = envs.step(envs.action_space.sample())
+    assert r.shape == (4,)
+    envs.close()
+
+
+def test_record_video_writes_a_file(tmp_path):
+    pytest.importorskip("moviepy", reason="gymnasium's RecordVideo needs moviepy")
+    from gymnasium.wrappers import RecordVideo
+
+    env = RecordVideo(gym.make("humotion_gym/ArmTrack-v0", render_mode="rgb_array"), str(tmp_path))
+    env.reset(seed=0)
+    for _ in range(5):
+        env.step(env.action_space.sample())
+    env.close()
+    assert list(tmp_path.glob("*.mp4"))
+
+
+def test_env_pickles():
+    env = gym.make("humotion_gym/SideWalk-v0").unwrapped
+    env.reset(seed=0)
+    clone = pickle.loads(pickle.dumps(env))
+    a = np.zeros(8, dtype=np.float32)
+    assert np.array_equal(clone.step(a)[0], env.step(a)[0])
+
+
+@pytest.mark.mocap
+def test_envs_run_on_real_data(shared_mocap):
+    for env_id in IDS:
+        env = gym.make(env_id, data_dir=str(shared_mocap)).unwrapped
+        _, info = env.reset(seed=0)
+        assert not info["synthetic"] and env.clips.split("test") is not None
+        assert all(m.subject in humotion_gym.mocap.library.TEST_SUBJECTS for m in env.clips)
+        env.step(env.pose_to_action(env._truth()))

@@ -1,0 +1,211 @@
+"""Tests of the pinhole camera, its projection and fit_camera."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from humotion_gym import body
+from humotion_gym.camera import Camera, fit_camera, side_view_azimuth, view_direction
+
+SHAPE = body.default_shape()
+
+
+def _camera(width: int = 160, height: int = 120, fov: float = 60.0) -> Camera:
+    return Camera.look_at((1000.0, -3000.0, 1500.0), (0.0, 0.0, 900.0), width, height, fov)
+
+
+def _walk_clip(steps: int = 60, speed_mm: float = 25.0, heading: float = 0.0) -> np.ndarray:
+    """Keypoints (T, 15, 3) of a crude walk along the heading."""
+    t = np.arange(steps)
+    poses = np.tile(body.standing_pose(SHAPE, yaw=heading), (steps, 1))
+    direction = np.array([-math.sin(heading), math.cos(heading)])  # facing +y at yaw 0
+    poses[:, 0:2] += (speed_mm * t)[:, None] * direction
+    swing = 0.5 * np.sin(2 * np.pi * t / 30)
+    poses[:, body.PARAM_INDEX["r_hip_x"]] = swing
+    poses[:, body.PARAM_INDEX["l_hip_x"]] = -swing
+    poses[:, body.PARAM_INDEX["r_knee"]] = 0.6 * np.maximum(0, -swing)
+    poses[:, body.PARAM_INDEX["l_knee"]] = 0.6 * np.maximum(0, swing)
+    poses[:, body.PARAM_INDEX["r_shoulder_x"]] = -0.6 * swing
+    poses[:, body.PARAM_INDEX["l_shoulder_x"]] = 0.6 * swing
+    return body.forward_kinematics(poses, SHAPE)
+
+
+def test_point_on_optical_axis_projects_to_centre() -> None:
+    cam = _camera()
+    for distance in (500.0, 2000.0, 9000.0):
+        point = cam.position + distance * cam.forward
+        u, v = cam.project(point)
+        assert u == pytest.approx((cam.width - 1) / 2, abs=1e-9)
+        assert v == pytest.approx((cam.height - 1) / 2, abs=1e-9)
+        assert cam.depth(point) == pytest.approx(distance)
+
+
+def test_pixel_scale_follows_vertical_fov() -> None:
+    cam = Camera(200, 100, 90.0, np.eye(3), np.zeros(3))
+    assert cam.focal == pytest.approx(50.0)  # (H / 2) / tan(45 deg)
+    # A point at the top edge of the field of view lands on the image's top edge.
+    u, v = cam.project(np.array([0.0, -1000.0, 1000.0]))
+    assert v == pytest.approx(-0.5)
+    assert u == pytest.approx(99.5)
+    # 1 mm at 100 mm depth spans focal / 100 pixels.
+    assert cam.pixels_per_mm(100.0) == pytest.approx(0.5)
+    np.testing.assert_allclose(cam.pixels_per_mm([50.0, 200.0]), [1.0, 0.25])
+
+
+def test_projection_matches_opencv() -> None:
+    cam = _camera()
+    rng = np.random.default_rng(0)
+    points = rng.uniform([-800, -800, 0], [800, 800, 1800], size=(50, 3))
+    rvec, _ = cv2.Rodrigues(cam.rotation)
+    expected, _ = cv2.projectPoints(points, rvec, cam.translation, cam.intrinsics, None)
+    np.testing.assert_allclose(cam.project(points), expected[:, 0], atol=1e-6)
+
+
+def test_batched_shapes_and_to_camera() -> None:
+    cam = _camera()
+    rng = np.random.default_rng(1)
+    points = rng.uniform(-500, 500, size=(2, 3, 4, 3)) + np.array([0, 0, 900.0])
+    px = cam.project(points)
+    assert px.shape == (2, 3, 4, 2)
+    assert cam.depth(points).shape == (2, 3, 4)
+    cam_pts = cam.to_camera(points)
+    assert cam_pts.shape == (2, 3, 4, 3)
+    np.testing.assert_allclose(cam_pts[..., 2], cam.depth(points))
+    # Projection is the pinhole division of camera coordinates.
+    np.testing.assert_allclose(
+        px[..., 0], cam.focal * cam_pts[..., 0] / cam_pts[..., 2] + (cam.width - 1) / 2
+    )
+    # Each point projects the same alone as in the batch.
+    np.testing.assert_allclose(cam.project(points[1, 2, 3]), px[1, 2, 3])
+
+
+def test_points_behind_camera_are_nan() -> None:
+    cam = _camera()
+    behind = cam.position - 100.0 * cam.forward
+    assert np.all(np.isnan(cam.project(behind)))
+    assert not cam.in_image(cam.project(behind))
+
+
+def test_look_at_is_orthonormal_and_upright() -> None:
+    rng = np.random.default_rng(2)
+    for _ in range(20):
+        eye = rng.uniform(-5000, 5000, 3)
+        target = rng.uniform(-500, 500, 3)
+        cam = Camera.look_at(eye, target, 64, 48, 40.0)
+        r = cam.rotation
+        np.testing.assert_allclose(r @ r.T, np.eye(3), atol=1e-12)
+        assert np.linalg.det(r) == pytest.approx(1.0)
+        direction = (target - eye) / np.linalg.norm(target - eye)
+        np.testing.assert_allclose(cam.forward, direction, atol=1e-12)
+        # World up points up in the image (smaller row), unless looking along it.
+        above = cam.project(target + np.array([0.0, 0.0, 10.0]))
+        below = cam.project(target)
+        if abs(direction[2]) < 0.99:
+            assert above[1] < below[1]
+
+
+def test_look_at_straight_down_uses_fallback_up() -> None:
+    cam = Camera.look_at((0.0, 0.0, 5000.0), (0.0, 0.0, 0.0), 64, 64, 50.0)
+    np.testing.assert_allclose(cam.rotation @ cam.rotation.T, np.eye(3), atol=1e-12)
+    np.testing.assert_allclose(cam.forward, [0.0, 0.0, -1.0])
+
+
+@pytest.mark.parametrize(
+    ("args", "match"),
+    [
+        (((0, 0, 0), (0, 0, 0), 64, 64, 50.0), "distinct"),
+        (((0, 0, 0), (0, 1, 0), 0, 64, 50.0), "positive"),
+        (((0, 0, 0), (0, 1, 0), 64, -1, 50.0), "positive"),
+        (((0, 0, 0), (0, 1, 0), 64, 64, 0.5), "fov"),
+        (((0, 0, 0), (0, 1, 0), 64, 64, 179.0), "fov"),
+        (((0, 0, 0), (0, 1, 0), 64.5, 64, 50.0), "integers"),
+    ],
+)
+def test_bad_arguments_raise(args: tuple, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        Camera.look_at(*args)
+
+
+def test_bad_rotation_raises() -> None:
+    with pytest.raises(ValueError, match="rotation"):
+        Camera(64, 64, 50.0, np.ones((3, 3)), np.zeros(3))
+    with pytest.raises(ValueError, match="rotation"):
+        Camera(64, 64, 50.0, -np.eye(3), np.zeros(3))  # a reflection
+    with pytest.raises(ValueError, match="depth"):
+        _camera().pixels_per_mm(0.0)
+    with pytest.raises(ValueError, match="points"):
+        _camera().project(np.zeros((4, 2)))
+
+
+def test_camera_equality_and_hash() -> None:
+    a, b = _camera(), _camera()
+    assert a == b and hash(a) == hash(b)
+    assert a != _camera(width=161)
+
+
+@pytest.mark.parametrize(("width", "height"), [(64, 64), (128, 128), (320, 240), (640, 480)])
+@pytest.mark.parametrize(("azimuth", "elevation"), [(0.0, 0.0), (30.0, 10.0), (200.0, 45.0)])
+def test_fit_camera_keeps_clip_in_frame(
+    width: int, height: int, azimuth: float, elevation: float
+) -> None:
+    clip = _walk_clip(heading=0.4)
+    cam = fit_camera(clip, width, height, 50.0, azimuth, elevation, margin=0.1)
+    px = cam.project(clip)
+    assert np.all(cam.in_image(px))
+    assert np.all(cam.depth(clip) > 0)
+    # With the margin, points stay at least ~10% of the half-size from the border.
+    cx, cy = cam.principal_point
+    assert np.abs(px[..., 0] - cx).max() <= 0.9 * cx + 1e-6
+    assert np.abs(px[..., 1] - cy).max() <= 0.9 * cy + 1e-6
+    # It is not absurdly far: the clip fills a good part of the frame.
+    extent = max(np.ptp(px[..., 0]) / width, np.ptp(px[..., 1]) / height)
+    assert extent > 0.35
+
+
+def test_fit_camera_close_up_of_arm() -> None:
+    pose = body.standing_pose(SHAPE)
+    pose[body.PARAM_INDEX["r_shoulder_x"]] = 1.0
+    pose[body.PARAM_INDEX["r_elbow"]] = 1.2
+    kp = body.forward_kinematics(pose, SHAPE)
+    arm = kp[[body.KEYPOINT_INDEX[n] for n in ("r_shoulder", "r_elbow", "r_wrist")]]
+    cam = fit_camera(arm[None], 128, 128, 40.0, azimuth_deg=-90.0, elevation_deg=0.0)
+    px = cam.project(arm)
+    assert np.all(cam.in_image(px))
+    whole = fit_camera(kp[None], 128, 128, 40.0, azimuth_deg=-90.0, elevation_deg=0.0)
+    # The close-up is nearer than a view of the whole body.
+    assert np.linalg.norm(cam.position - arm.mean(0)) < np.linalg.norm(whole.position - kp.mean(0))
+
+
+def test_side_view_is_perpendicular_to_walking() -> None:
+    for heading in (0.0, 0.7, -2.0):
+        clip = _walk_clip(heading=heading)
+        pelvis = clip[:, body.KEYPOINT_INDEX["pelvis"]]
+        azimuth = side_view_azimuth(pelvis)
+        travel = pelvis[-1] - pelvis[0]
+        travel /= np.linalg.norm(travel)
+        assert abs(view_direction(azimuth, 0.0) @ travel) < 1e-6
+        cam = fit_camera(clip, 128, 96, 50.0, azimuth, 5.0)
+        assert np.all(cam.in_image(cam.project(clip)))
+    assert side_view_azimuth(np.zeros((5, 3))) == 90.0
+
+
+def test_view_direction_convention() -> None:
+    np.testing.assert_allclose(view_direction(0.0, 0.0), [0.0, 1.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(view_direction(90.0, 0.0), [-1.0, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(view_direction(0.0, 90.0), [0.0, 0.0, 1.0], atol=1e-12)
+
+
+def test_fit_camera_bad_arguments() -> None:
+    clip = _walk_clip(steps=5)
+    with pytest.raises(ValueError, match="margin"):
+        fit_camera(clip, 64, 64, 50.0, margin=0.95)
+    with pytest.raises(ValueError, match="elevation"):
+        fit_camera(clip, 64, 64, 50.0, elevation_deg=90.0)
+    with pytest.raises(ValueError, match="finite"):
+        fit_camera(np.full((2, 15, 3), np.nan), 64, 64, 50.0)
+    with pytest.raises(ValueError, match="fov"):
+        fit_camera(clip, 64, 64, 200.0)

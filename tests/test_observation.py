@@ -1,0 +1,297 @@
+"""Tests of the observation model and its fast kinematics."""
+
+from __future__ import annotations
+
+import inspect
+
+import numpy as np
+import pytest
+
+from humotion_gym import body
+from humotion_gym.camera import fit_camera
+from humotion_gym.observation import (
+    FrameFeatures,
+    ObservationModel,
+    fast_cone_axes,
+    fast_forward_kinematics,
+    single_pose_geometry,
+)
+from humotion_gym.render import SceneOptions, make_background, render
+
+SHAPE = body.default_shape()
+MODEL = ObservationModel()
+
+
+def random_poses(rng: np.random.Generator, n: int, spread: float = 0.35) -> np.ndarray:
+    """Random poses within the limits, near standing, any heading."""
+    poses = np.tile(body.standing_pose(SHAPE), (n, 1))
+    poses[:, 3] = rng.uniform(-np.pi, np.pi, n)
+    poses[:, 4:6] = rng.normal(0.0, 0.1, (n, 2))
+    poses[:, 6:] = rng.normal(0.0, spread, (n, 19))
+    for hinge in (body.R_ELBOW, body.L_ELBOW, body.R_KNEE, body.L_KNEE):
+        poses[:, hinge] = 2.0 * np.abs(poses[:, hinge])
+    return np.clip(poses, body.PARAM_LOWER, body.PARAM_UPPER)
+
+
+def perturbations(
+    pose: np.ndarray, rng: np.random.Generator, n: int, low: float = 50.0, high: float = 100.0
+) -> np.ndarray:
+    """Poses whose mean keypoint displacement from ``pose`` is uniform in [low, high] mm.
+
+    A random direction in parameter space (positions in 100 mm units, angles in
+    0.15 rad units) is scaled by bisection to the drawn displacement.
+    """
+    direction = rng.normal(0.0, 1.0, (n, 25))
+    direction[:, :3] *= 100.0
+    direction[:, 3:] *= 0.15
+    target = rng.uniform(low, high, n)
+    truth = body.forward_kinematics(pose, SHAPE)
+
+    def displacement(scale: np.ndarray) -> np.ndarray:
+        moved = body.forward_kinematics(pose + scale[:, None] * direction, SHAPE)
+        return np.linalg.norm(moved - truth, axis=-1).mean(axis=-1)
+
+    lo, hi = np.zeros(n), np.ones(n)
+    while np.any(small := displacement(hi) < target):
+        hi[small] *= 2.0
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        below = displacement(mid) < target
+        lo = np.where(below, mid, lo)
+        hi = np.where(below, hi, mid)
+    return pose + (0.5 * (lo + hi))[:, None] * direction
+
+
+def scene_frame(pose: np.ndarray, scene: SceneOptions, rng: np.random.Generator):
+    kp = body.forward_kinematics(pose, SHAPE)
+    cam = fit_camera(
+        kp[None], scene.width, scene.height, 50.0, rng.uniform(0, 360), rng.uniform(0, 20)
+    )
+    frame = render(pose, SHAPE, cam, scene, rng, make_background(scene, rng))
+    return frame, cam
+
+
+def win_rate(scene: SceneOptions, seeds: tuple[int, ...], frames: int, n_perturbed: int) -> float:
+    wins = []
+    for seed in seeds:
+        rng = np.random.default_rng(seed)
+        for pose in random_poses(rng, frames):
+            frame, cam = scene_frame(pose, scene, rng)
+            others = perturbations(pose, rng, n_perturbed)
+            scores = MODEL.log_likelihood(frame, np.vstack([pose, others]), SHAPE, cam)
+            wins.append(scores[0] > scores[1:])
+    return float(np.mean(wins))
+
+
+# -- fast kinematics ---------------------------------------------------------
+
+
+def test_fast_kinematics_agrees_with_body() -> None:
+    rng = np.random.default_rng(0)
+    poses = rng.uniform(body.PARAM_LOWER, body.PARAM_UPPER, size=(500, 25))
+    poses[:, :3] = rng.normal(0.0, 3000.0, (500, 3))
+    reference = body.forward_kinematics(poses, SHAPE)
+    np.testing.assert_allclose(fast_forward_kinematics(poses, SHAPE), reference, atol=1e-6, rtol=0)
+    fast32 = fast_forward_kinematics(poses, SHAPE, np.float32)
+    assert fast32.dtype == np.float32
+    np.testing.assert_allclose(fast32, reference, atol=2e-2, rtol=0)
+    # Any leading shape.
+    assert fast_forward_kinematics(poses.reshape(5, 100, 25), SHAPE).shape == (5, 100, 15, 3)
+    other = body.default_shape(1500.0).replace(neck_forward=30.0, hip_forward=-20.0)
+    np.testing.assert_allclose(
+        fast_forward_kinematics(poses[:20], other),
+        body.forward_kinematics(poses[:20], other),
+        atol=1e-6,
+        rtol=0,
+    )
+
+
+def test_single_pose_geometry_agrees_with_cone_geometry() -> None:
+    rng = np.random.default_rng(1)
+    cam = fit_camera(body.forward_kinematics(body.standing_pose(SHAPE), SHAPE)[None], 64, 64, 50)
+    for pose in rng.uniform(body.PARAM_LOWER, body.PARAM_UPPER, size=(20, 25)):
+        geometry = body.cone_geometry(pose, SHAPE)
+        keypoints, axes = fast_cone_axes(pose, SHAPE)
+        np.testing.assert_allclose(keypoints, geometry.keypoints, atol=1e-6, rtol=0)
+        np.testing.assert_allclose(
+            axes, np.swapaxes(geometry.rotations[..., :2], -1, -2), atol=1e-12, rtol=0
+        )
+        in_camera = single_pose_geometry(pose, SHAPE, cam.rotation, cam.translation)
+        np.testing.assert_allclose(in_camera[:15], cam.to_camera(keypoints), atol=1e-6)
+        np.testing.assert_allclose(in_camera[15:], (axes @ cam.rotation.T).reshape(20, 3))
+
+
+# -- the likelihood's contract -----------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def scene_and_poses():
+    rng = np.random.default_rng(2)
+    pose = random_poses(rng, 1)[0]
+    frame, cam = scene_frame(pose, SceneOptions(), rng)
+    poses = np.vstack([pose, perturbations(pose, rng, 40, 0.0, 300.0)])
+    return frame, cam, poses
+
+
+def test_log_likelihood_shapes_and_finiteness(scene_and_poses) -> None:
+    frame, cam, poses = scene_and_poses
+    scores = MODEL.log_likelihood(frame, poses, SHAPE, cam)
+    assert scores.shape == (len(poses),) and scores.dtype == np.float64
+    assert np.all(np.isfinite(scores)) and np.all(scores <= 0)
+    assert MODEL.log_likelihood(frame, poses[0], SHAPE, cam).shape == ()
+    assert MODEL.log_likelihood(frame, poses.reshape(1, -1, 25), SHAPE, cam).shape == (1, 41)
+    assert MODEL.log_likelihood(frame, poses.astype(np.float32), SHAPE, cam).shape == (41,)
+
+
+def test_single_and_batched_scores_agree(scene_and_poses) -> None:
+    frame, cam, poses = scene_and_poses
+    features = MODEL.prepare(frame)
+    batched = MODEL.log_likelihood(features, poses, SHAPE, cam)
+    one_by_one = np.array([MODEL.log_likelihood(features, p[None], SHAPE, cam)[0] for p in poses])
+    np.testing.assert_allclose(one_by_one, batched, rtol=1e-6, atol=1e-6)
+    # Scoring the frame directly is the same as scoring its features.
+    np.testing.assert_array_equal(MODEL.log_likelihood(frame, poses, SHAPE, cam), batched)
+    # Large batches are split into chunks; the scores do not depend on it.
+    many = np.repeat(poses, 120, axis=0)  # 4920 poses
+    np.testing.assert_allclose(
+        MODEL.log_likelihood(features, many, SHAPE, cam), np.repeat(batched, 120), atol=1e-6
+    )
+
+
+def test_scores_are_deterministic(scene_and_poses) -> None:
+    frame, cam, poses = scene_and_poses
+    a = MODEL.log_likelihood(frame, poses, SHAPE, cam)
+    b = MODEL.log_likelihood(frame.copy(), poses.copy(), SHAPE, cam)
+    np.testing.assert_array_equal(a, b)
+
+
+def test_log_likelihood_sees_only_frame_camera_and_shape() -> None:
+    signature = inspect.signature(ObservationModel.log_likelihood)
+    assert list(signature.parameters) == ["self", "frame", "params", "shape", "camera"]
+    # The score is a function of the frame: the same poses score differently on
+    # a frame of the figure and on an empty frame of the same room.
+    rng = np.random.default_rng(3)
+    pose = random_poses(rng, 1)[0]
+    scene = SceneOptions()
+    kp = body.forward_kinematics(pose, SHAPE)
+    cam = fit_camera(kp[None], 128, 128, 50.0)
+    background = make_background(scene, np.random.default_rng(4))
+    with_figure = render(pose, SHAPE, cam, scene, np.random.default_rng(5), background)
+    empty = background.image.copy()
+    assert MODEL.log_likelihood(with_figure, pose, SHAPE, cam) > MODEL.log_likelihood(
+        empty, pose, SHAPE, cam
+    )
+
+
+def test_off_image_poses_get_the_truncation_cost(scene_and_poses) -> None:
+    frame, cam, poses = scene_and_poses
+    far_left, behind = poses[0].copy(), poses[0].copy()
+    far_left[:3] += 1e5 * cam.rotation[0]  # far to the right of the image
+    behind[:3] = cam.position - 2000.0 * cam.forward
+    scores = MODEL.log_likelihood(frame, np.vstack([poses[0], far_left, behind]), SHAPE, cam)
+    # Every point costs the maximum: 10 cones x (edge range + foreground weight).
+    worst = -10 * (MODEL.edge_truncation**2 / (2 * MODEL.edge_sigma**2) + MODEL.foreground_weight)
+    np.testing.assert_allclose(scores[1:], worst, rtol=1e-2)
+    assert scores[0] > worst + 5.0
+
+
+def test_non_finite_poses_score_minus_infinity(scene_and_poses) -> None:
+    frame, cam, poses = scene_and_poses
+    bad = poses[:3].copy()
+    bad[1, 7] = np.nan
+    scores = MODEL.log_likelihood(frame, bad, SHAPE, cam)
+    assert scores[1] == -np.inf and np.all(np.isfinite(scores[[0, 2]]))
+
+
+def test_features_of_a_frame() -> None:
+    rng = np.random.default_rng(6)
+    pose = random_poses(rng, 1)[0]
+    for scene in (SceneOptions(), SceneOptions(color="gray", width=160, height=120)):
+        frame, cam = scene_frame(pose, scene, rng)
+        features = MODEL.prepare(frame)
+        assert isinstance(features, FrameFeatures)
+        assert (features.width, features.height) == (scene.width, scene.height)
+        assert features.edges.shape == (scene.height, scene.width)
+        assert features.distance.shape == (MODEL.orientation_bins, scene.height, scene.width)
+        assert features.distance.max() <= MODEL.edge_truncation
+        assert 0.0 <= features.foreground.min() and features.foreground.max() <= 1.0
+        # The figure's middle is foreground, the frame's corner is background.
+        u, v = np.rint(cam.project(body.forward_kinematics(pose, SHAPE)[0])).astype(int)
+        assert features.foreground[v, u] > 0.5
+
+
+def test_bad_inputs_raise(scene_and_poses) -> None:
+    frame, cam, poses = scene_and_poses
+    with pytest.raises(ValueError, match="camera"):
+        other = fit_camera(np.zeros((1, 3)) + [0, 0, 900], 64, 64, 50.0)
+        MODEL.log_likelihood(frame, poses, SHAPE, other)
+    with pytest.raises(ValueError, match="shape"):
+        MODEL.log_likelihood(frame, poses[:, :24], SHAPE, cam)
+    with pytest.raises(ValueError, match="uint8"):
+        MODEL.prepare(frame.astype(np.float32))
+    with pytest.raises(ValueError, match="uint8"):
+        MODEL.prepare(np.zeros((64, 64, 2), np.uint8))
+    for kwargs in (
+        {"edge_sigma": 0.0},
+        {"edge_truncation": -1.0},
+        {"foreground_weight": -1.0},
+        {"foreground_low": 80.0},
+        {"outline_samples": 0},
+        {"orientation_bins": 0},
+        {"canny_low": 0.0},
+    ):
+        with pytest.raises(ValueError):
+            ObservationModel(**kwargs)
+
+
+def test_unoriented_and_other_bin_counts_work(scene_and_poses) -> None:
+    frame, cam, poses = scene_and_poses
+    for bins in (1, 6):
+        model = ObservationModel(orientation_bins=bins)
+        scores = model.log_likelihood(frame, poses, SHAPE, cam)
+        assert np.all(np.isfinite(scores))
+        assert scores[0] >= np.quantile(scores, 0.9)
+
+
+def test_likelihood_falls_with_displacement(scene_and_poses) -> None:
+    frame, cam, poses = scene_and_poses
+    rng = np.random.default_rng(8)
+    near = perturbations(poses[0], rng, 30, 10.0, 20.0)
+    far = perturbations(poses[0], rng, 30, 150.0, 250.0)
+    features = MODEL.prepare(frame)
+    assert (
+        MODEL.log_likelihood(features, near, SHAPE, cam).mean()
+        > MODEL.log_likelihood(features, far, SHAPE, cam).mean() + 3.0
+    )
+
+
+# -- the key test: the truth beats poses 5-10 cm off ---------------------------
+
+
+def test_true_pose_beats_perturbed_poses_at_default_difficulty() -> None:
+    """The true pose outscores poses 50-100 mm off on >= 95% of pairs.
+
+    Default scene (128x128 RGB, clutter, noise); random poses within the limits
+    near standing with any heading; random camera azimuth and elevation; five
+    seeds x 20 frames x 25 perturbations = 2,500 (frame, perturbation) pairs.
+    Measured when written: 99.4% (99.6% on 5,000 pairs of other seeds).
+    """
+    rate = win_rate(SceneOptions(), seeds=(101, 102, 103, 104, 105), frames=20, n_perturbed=25)
+    print(f"default scene: true pose wins {rate:.1%} of pairs")
+    assert rate >= 0.95
+
+
+@pytest.mark.parametrize(
+    "scene",
+    [
+        SceneOptions(color="gray"),
+        SceneOptions(width=320, height=240),
+        SceneOptions(width=64, height=64),
+        SceneOptions(noise_sigma=8.0, occluders=2, blur_sigma=0.7),
+    ],
+    ids=["gray", "320x240", "64x64", "hard"],
+)
+def test_true_pose_wins_in_other_scenes(scene: SceneOptions) -> None:
+    rate = win_rate(scene, seeds=(201,), frames=10, n_perturbed=20)
+    print(f"{scene.width}x{scene.height} {scene.color}: true pose wins {rate:.1%} of pairs")
+    assert rate >= 0.9

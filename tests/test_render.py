@@ -1,0 +1,264 @@
+"""Tests of the cone-body renderer."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from humotion_gym import body
+from humotion_gym.camera import fit_camera
+from humotion_gym.render import (
+    DEFAULT_FIGURE_COLORS,
+    SceneOptions,
+    draw_pose_overlay,
+    make_background,
+    render,
+)
+
+SHAPE = body.default_shape()
+PI = body.PARAM_INDEX
+
+
+def _pose() -> np.ndarray:
+    pose = body.standing_pose(SHAPE, yaw=0.3)
+    pose[PI["r_shoulder_x"]] = 0.8
+    pose[PI["r_elbow"]] = 1.0
+    pose[PI["l_hip_x"]] = 0.4
+    pose[PI["l_knee"]] = 0.7
+    return pose
+
+
+def _camera(scene: SceneOptions, pose: np.ndarray, azimuth: float = 20.0):
+    kp = body.forward_kinematics(pose, SHAPE)
+    return fit_camera(kp[None], scene.width, scene.height, 50.0, azimuth, 10.0)
+
+
+def test_same_pose_scene_and_seed_give_the_same_frame() -> None:
+    scene = SceneOptions(occluders=2)
+    pose = _pose()
+    cam = _camera(scene, pose)
+    a = render(pose, SHAPE, cam, scene, np.random.default_rng(7))
+    b = render(pose, SHAPE, cam, scene, np.random.default_rng(7))
+    assert a.dtype == np.uint8 and a.shape == (128, 128, 3)
+    np.testing.assert_array_equal(a, b)
+    # The same with an explicit background and a sequence of frames.
+    frames = []
+    for _ in range(2):
+        rng = np.random.default_rng(11)
+        background = make_background(scene, rng)
+        frames.append(
+            [render(pose, SHAPE, cam, scene, rng, background, frame_index=k) for k in range(3)]
+        )
+    for x, y in zip(*frames, strict=True):
+        np.testing.assert_array_equal(x, y)
+
+
+def test_different_seeds_differ_with_clutter_and_noise() -> None:
+    pose = _pose()
+    clutter = SceneOptions(noise_sigma=0.0)
+    cam = _camera(clutter, pose)
+    a = render(pose, SHAPE, cam, clutter, np.random.default_rng(1))
+    b = render(pose, SHAPE, cam, clutter, np.random.default_rng(2))
+    assert np.mean(a != b) > 0.05  # different rooms
+    noisy = SceneOptions(background="flat", noise_sigma=4.0)
+    a = render(pose, SHAPE, cam, noisy, np.random.default_rng(1))
+    b = render(pose, SHAPE, cam, noisy, np.random.default_rng(2))
+    assert np.mean(a != b) > 0.3  # different noise
+    # Without clutter or noise nothing is random.
+    plain = SceneOptions(background="flat", noise_sigma=0.0)
+    a = render(pose, SHAPE, cam, plain, np.random.default_rng(1))
+    b = render(pose, SHAPE, cam, plain, np.random.default_rng(2))
+    np.testing.assert_array_equal(a, b)
+
+
+def test_noise_frames_change_within_an_episode() -> None:
+    scene = SceneOptions(background="flat")
+    pose = _pose()
+    cam = _camera(scene, pose)
+    rng = np.random.default_rng(3)
+    background = make_background(scene, rng)
+    a = render(pose, SHAPE, cam, scene, rng, background)
+    b = render(pose, SHAPE, cam, scene, rng, background)
+    assert np.mean(a != b) > 0.3
+
+
+@pytest.mark.parametrize(
+    ("width", "height"), [(64, 64), (128, 128), (160, 120), (256, 256), (640, 480)]
+)
+@pytest.mark.parametrize("color", ["rgb", "gray"])
+def test_every_size_and_colour(width: int, height: int, color: str) -> None:
+    scene = SceneOptions(width=width, height=height, color=color, occluders=1)
+    pose = _pose()
+    cam = _camera(scene, pose)
+    frame = render(pose, SHAPE, cam, scene, np.random.default_rng(0))
+    assert frame.dtype == np.uint8
+    assert frame.shape == (height, width, 3 if color == "rgb" else 1)
+    assert frame.flags.c_contiguous
+
+
+def test_figure_is_drawn_where_the_keypoints_project() -> None:
+    scene = SceneOptions(width=256, height=256, background="flat", noise_sigma=0.0)
+    pose = _pose()
+    cam = _camera(scene, pose)
+    frame = render(pose, SHAPE, cam, scene, np.random.default_rng(0))
+    background = np.array(scene.background_color)
+    geometry = body.cone_geometry(pose, SHAPE)
+    mids = cam.project(0.5 * (geometry.starts + geometry.ends))  # cone middles
+    for u, v in np.rint(mids).astype(int):
+        assert np.abs(frame[v, u].astype(int) - background).max() > 20
+    # Far from the figure, the background is untouched.
+    np.testing.assert_array_equal(frame[0, 0], background)
+    # The figure covers a plausible part of the frame.
+    covered = np.abs(frame.astype(int) - background).max(axis=2) > 0
+    assert 0.03 < covered.mean() < 0.5
+
+
+def test_cones_are_shaded_not_flat() -> None:
+    scene = SceneOptions(width=320, height=240, background="flat", noise_sigma=0.0)
+    pose = body.standing_pose(SHAPE)
+    cam = _camera(scene, pose, azimuth=0.0)
+    frame = render(pose, SHAPE, cam, scene, np.random.default_rng(0))
+    torso_mid = cam.project(body.forward_kinematics(pose, SHAPE)[[0, 7]].mean(axis=0))
+    u, v = np.rint(torso_mid).astype(int)
+    row = frame[v, u - 15 : u + 16].astype(int)
+    # Several shades across the torso, all reddish (the shirt).
+    assert len({tuple(c) for c in row}) >= 2
+    assert np.all(row[:, 0] > row[:, 2])
+
+
+def _crossing_arm_pose() -> np.ndarray:
+    """The right forearm held across the chest, in front of the torso."""
+    pose = body.standing_pose(SHAPE)
+    pose[PI["r_shoulder_x"]] = 0.7  # upper arm a little forward
+    pose[PI["r_shoulder_z"]] = np.pi / 2  # turn the elbow's bending plane inwards
+    pose[PI["r_elbow"]] = np.pi / 2  # forearm across the body, towards the left
+    return pose
+
+
+def test_near_cone_is_drawn_over_far_cone() -> None:
+    colors = list(DEFAULT_FIGURE_COLORS)
+    colors[body.CONE_NAMES.index("torso")] = (220, 20, 20)  # red torso
+    colors[body.CONE_NAMES.index("r_forearm")] = (20, 220, 20)  # green forearm
+    scene = SceneOptions(
+        width=256, height=256, background="flat", noise_sigma=0.0, figure_colors=tuple(colors)
+    )
+    pose = _crossing_arm_pose()
+    kp = body.forward_kinematics(pose, SHAPE)
+    elbow, wrist = kp[body.KEYPOINT_INDEX["r_elbow"]], kp[body.KEYPOINT_INDEX["r_wrist"]]
+    forearm_mid = 0.5 * (elbow + wrist)
+    # From the front the forearm is nearer than the torso; from behind, farther.
+    for azimuth, near_is_forearm in ((0.0, True), (180.0, False)):
+        cam = fit_camera(kp[None], 256, 256, 50.0, azimuth, 0.0)
+        frame = render(pose, SHAPE, cam, scene, np.random.default_rng(0))
+        u, v = np.rint(cam.project(forearm_mid)).astype(int)
+        r, g, _ = frame[v, u].astype(int)
+        if near_is_forearm:
+            assert g > r, f"front view: expected the green forearm, got {frame[v, u]}"
+        else:
+            assert r > g, f"back view: expected the red torso, got {frame[v, u]}"
+
+
+def test_occluders_move_across_the_episode() -> None:
+    scene = SceneOptions(background="flat", noise_sigma=0.0, occluders=3)
+    pose = _pose()
+    cam = _camera(scene, pose)
+    rng = np.random.default_rng(5)
+    background = make_background(scene, rng)
+    a = render(pose, SHAPE, cam, scene, rng, background, frame_index=0)
+    b = render(pose, SHAPE, cam, scene, rng, background, frame_index=20)
+    assert np.mean(a != b) > 0.01
+    plain = render(pose, SHAPE, cam, SceneOptions(background="flat", noise_sigma=0.0), rng)
+    assert np.mean(a != plain) > 0.01  # occluders are drawn
+
+
+def test_noise_has_the_requested_sigma() -> None:
+    pose = _pose()
+    clean_scene = SceneOptions(background="flat", noise_sigma=0.0)
+    cam = _camera(clean_scene, pose)
+    clean = render(pose, SHAPE, cam, clean_scene, np.random.default_rng(0)).astype(float)
+    noisy = render(
+        pose, SHAPE, cam, SceneOptions(background="flat", noise_sigma=6.0), np.random.default_rng(0)
+    ).astype(float)
+    residual = noisy - clean
+    assert residual.std() == pytest.approx(6.0, rel=0.15)
+    assert abs(residual.mean()) < 0.5
+
+
+def test_blur_smooths_the_frame() -> None:
+    pose = _pose()
+    sharp_scene = SceneOptions(background="flat", noise_sigma=0.0)
+    cam = _camera(sharp_scene, pose)
+    sharp = render(pose, SHAPE, cam, sharp_scene, np.random.default_rng(0)).astype(float)
+    blurred = render(
+        pose, SHAPE, cam, SceneOptions(background="flat", noise_sigma=0.0, blur_sigma=1.0),
+        np.random.default_rng(0),
+    ).astype(float)  # fmt: skip
+    # Blur spreads the edges: less gradient energy.
+    assert np.square(np.diff(blurred, axis=1)).sum() < 0.6 * np.square(np.diff(sharp, axis=1)).sum()
+
+
+def test_gray_frame_is_the_luminance_of_the_scene() -> None:
+    pose = _pose()
+    rgb_scene = SceneOptions(background="flat", noise_sigma=0.0)
+    gray_scene = SceneOptions(background="flat", noise_sigma=0.0, color="gray")
+    cam = _camera(rgb_scene, pose)
+    rgb = render(pose, SHAPE, cam, rgb_scene, np.random.default_rng(0)).astype(float)
+    gray = render(pose, SHAPE, cam, gray_scene, np.random.default_rng(0)).astype(float)
+    luma = rgb @ np.array([0.299, 0.587, 0.114])
+    assert np.mean(np.abs(luma - gray[..., 0]) <= 2.0) > 0.97
+
+
+def test_overlay_draws_a_wire_figure() -> None:
+    scene = SceneOptions(background="flat", noise_sigma=0.0)
+    pose = _pose()
+    cam = _camera(scene, pose)
+    frame = render(pose, SHAPE, cam, scene, np.random.default_rng(0))
+    before = frame.copy()
+    out = draw_pose_overlay(frame, pose, SHAPE, cam, color=(0, 255, 0), thickness=1)
+    np.testing.assert_array_equal(frame, before)  # the input is not modified
+    assert out.shape == frame.shape
+    changed = np.any(out != frame, axis=2)
+    assert changed.sum() > 50
+    # Joint dots sit on the projected keypoints.
+    for u, v in np.rint(cam.project(body.forward_kinematics(pose, SHAPE))).astype(int):
+        assert out[v, u, 1] > 150
+    gray = render(pose, SHAPE, cam, SceneOptions(color="gray"), np.random.default_rng(0))
+    assert draw_pose_overlay(gray, pose, SHAPE, cam).shape == (128, 128, 3)
+
+
+def test_bad_inputs_raise() -> None:
+    scene = SceneOptions()
+    pose = _pose()
+    cam = _camera(scene, pose)
+    rng = np.random.default_rng(0)
+    with pytest.raises(ValueError, match="shape"):
+        render(np.zeros(24), SHAPE, cam, scene, rng)
+    with pytest.raises(ValueError, match="non-finite"):
+        render(np.full(25, np.nan), SHAPE, cam, scene, rng)
+    with pytest.raises(ValueError, match="camera"):
+        render(pose, SHAPE, cam, SceneOptions(width=64, height=64), rng)
+    other = make_background(SceneOptions(noise_sigma=1.0), rng)
+    with pytest.raises(ValueError, match="background"):
+        render(pose, SHAPE, cam, scene, rng, other)
+    for kwargs in (
+        {"width": 32},
+        {"height": 481},
+        {"color": "bgr"},
+        {"background": "room"},
+        {"noise_sigma": -1.0},
+        {"occluders": -1},
+        {"shading_strips": 0},
+        {"figure_colors": ((0, 0, 0),)},
+    ):
+        with pytest.raises(ValueError):
+            SceneOptions(**kwargs)
+
+
+def test_pose_behind_the_camera_is_not_drawn() -> None:
+    scene = SceneOptions(background="flat", noise_sigma=0.0)
+    pose = _pose()
+    cam = _camera(scene, pose)
+    behind = pose.copy()
+    behind[:3] = cam.position - 1500.0 * cam.forward
+    frame = render(behind, SHAPE, cam, scene, np.random.default_rng(0))
+    assert np.all(frame == frame[0, 0])
