@@ -24,7 +24,7 @@ NAMESPACE = "humotion_gym"
 ENVIRONMENTS: tuple[tuple[str, str, int], ...] = (
     ("ArmTrack-v0", "humotion_gym.envs.arm_track:ArmTrackEnv", 30),
     ("BodyTrack-v0", "humotion_gym.envs.body_track:BodyTrackEnv", 30),
-    ("WalkTrack-v0", "humotion_gym.envs.walk_track:WalkTrackEnv", 90),
+    ("WalkTrack-v0", "humotion_gym.envs.walk_track:WalkTrackEnv", 60),
     ("SideWalk-v0", "humotion_gym.envs.side_walk:SideWalkEnv", 60),
 )
 

@@ -15,12 +15,13 @@ from numpy.typing import NDArray
 from humotion_gym.body import (
     ANGLE_MASK,
     KEYPOINT_INDEX,
+    PARAM_INDEX,
     PARAM_LOWER,
     PARAM_UPPER,
     BodyShape,
     forward_kinematics,
 )
-from humotion_gym.camera import Camera
+from humotion_gym.camera import Camera, fit_camera
 from humotion_gym.envs.tasks import TaskSpec, get_task
 from humotion_gym.mocap.library import (
     MotionLibrary,
@@ -46,6 +47,13 @@ def _cached_library(dirs: tuple[str, ...], fps: float) -> MotionLibrary:
     if not dirs:
         return synthetic_library(fps=fps)
     return load_library(list(dirs), fps=fps, progress=False)
+
+
+def _sphere(radius: float, n: int = 26) -> FloatArray:
+    """Points on a sphere (the 26 directions of a cube's faces, edges, corners)."""
+    grid = np.stack(np.meshgrid(*[np.array([-1.0, 0.0, 1.0])] * 3, indexing="ij"), -1).reshape(-1, 3)
+    grid = grid[np.any(grid != 0, axis=1)][:n]
+    return radius * grid / np.linalg.norm(grid, axis=1, keepdims=True)
 
 
 def _wrap(angles: FloatArray) -> FloatArray:
@@ -243,57 +251,48 @@ class PoseTrackingEnv(gym.Env):
         return int(good[self.np_random.integers(good.size)])
 
     def _place_camera(self) -> None:
+        """Cameras for every frame of the episode, from the task's camera spec.
+
+        A static camera frames all of the episode's keypoints; a following
+        camera frames them relative to the followed point and moves with it.
+        The ground truth only places the camera, which the agent is given.
+        """
         spec = self.task.camera
         m = self._motion
         assert m is not None
         idx = self._t0 + np.arange(self.episode_frames + 1) * self.frame_skip
         kp = forward_kinematics(m.params[idx], m.shape)
-        if spec.reference == "walk":
-            travel = kp[-1, KEYPOINT_INDEX["pelvis"], :2] - kp[0, KEYPOINT_INDEX["pelvis"], :2]
-            if np.linalg.norm(travel) < 100.0:
-                yaw = float(m.params[idx[0], 3])
-                ref = np.array([-np.sin(yaw), np.cos(yaw)])
-            else:
-                ref = travel / np.linalg.norm(travel)
+        pelvis = kp[:, KEYPOINT_INDEX["pelvis"]]
+        travel = pelvis[-1, :2] - pelvis[0, :2]
+        if spec.reference == "walk" and np.linalg.norm(travel) > 100.0:
+            # the heading whose facing direction (-sin, cos) is the travel
+            reference = float(np.arctan2(-travel[0], travel[1]))
         else:
-            yaw = float(m.params[idx[0], 3])
-            ref = np.array([-np.sin(yaw), np.cos(yaw)])  # the subject's facing direction
-        az = np.deg2rad(spec.azimuth_deg)
-        # Rotate the reference direction by the azimuth towards the subject's right
-        # (clockwise seen from above), then tilt up by the elevation.
-        c, s = np.cos(-az), np.sin(-az)
-        horiz = np.array([c * ref[0] - s * ref[1], s * ref[0] + c * ref[1]])
-        el = np.deg2rad(spec.elevation_deg)
-        view = np.array([horiz[0] * np.cos(el), horiz[1] * np.cos(el), np.sin(el)])
-        fov = np.deg2rad(spec.fov_deg)
-        aspect = self.scene.width / self.scene.height
-        half = np.tan(fov / 2) * min(1.0, aspect)
+            reference = float(m.params[idx[0], PARAM_INDEX["root_yaw"]])
+        # camera.view_direction turns counter-clockwise; the spec's azimuth
+        # turns towards the subject's right, i.e. clockwise.
+        azimuth = np.rad2deg(reference) - spec.azimuth_deg
+        size = (self.scene.width, self.scene.height, spec.fov_deg)
+        margin = spec.margin
         pad = float(np.max(m.shape.radii))
+        if spec.follow is None:
+            cam = fit_camera(kp, *size, azimuth, spec.elevation_deg, margin, pad)
+            self._cameras = [cam] * len(idx)
+            return
         if spec.follow == "r_shoulder":
-            center = kp[:, KEYPOINT_INDEX["r_shoulder"]]
-            reach = m.shape.upper_arm_length + m.shape.forearm_length + pad
-            dist = spec.margin * reach / half
-            self._camera_targets = center
+            targets = kp[:, KEYPOINT_INDEX["r_shoulder"]]
+            # frame the sphere the arm can reach, so any pose of it stays in view
+            reach = m.shape.upper_arm_length + m.shape.forearm_length
+            local = _sphere(reach)
+        elif spec.follow == "pelvis_xy":
+            targets = pelvis * np.array([1.0, 1.0, 0.0])
+            local = kp - targets[:, None]
         else:
-            if spec.follow == "pelvis_xy":
-                rel = kp - kp[:, KEYPOINT_INDEX["pelvis"], None] * np.array([1.0, 1.0, 0.0])
-                center = kp[:, KEYPOINT_INDEX["pelvis"]] * np.array([1.0, 1.0, 0.0])
-                center = center + 0.5 * (rel.reshape(-1, 3).max(0) + rel.reshape(-1, 3).min(0))
-                radius = np.max(np.linalg.norm(rel - (center[0] - kp[0, 0] * [1, 1, 0]), axis=-1))
-                self._camera_targets = center
-            else:
-                pts = kp.reshape(-1, 3)
-                c0 = 0.5 * (pts.max(0) + pts.min(0))
-                radius = float(np.max(np.linalg.norm(pts - c0, axis=-1)))
-                self._camera_targets = np.repeat(c0[None], len(idx), axis=0)
-            dist = spec.margin * (radius + pad) / half
-        self._camera_offset = view * dist
+            raise ValueError(f"{self.task.name}: unknown camera follow mode {spec.follow!r}")
+        base = fit_camera(local, *size, azimuth, spec.elevation_deg, margin, pad)
         self._cameras = [
-            Camera.look_at(
-                target + self._camera_offset, target, self.scene.width, self.scene.height,
-                spec.fov_deg,
-            )  # fmt: skip
-            for target in self._camera_targets
+            Camera(base.width, base.height, base.fov_deg, base.rotation, base.position + t)
+            for t in targets
         ]
 
     @property

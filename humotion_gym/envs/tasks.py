@@ -33,7 +33,7 @@ class CameraSpec:
             it fixed in the image (``"r_shoulder"`` for the stabilised arm
             sequence, ``"pelvis_xy"`` for a camera that pans horizontally with
             the walker), or None for a static camera framing the episode.
-        margin: Extra room around the framed keypoints, as a factor.
+        margin: Fraction of the image's half-size left free at each border.
     """
 
     azimuth_deg: float
@@ -41,7 +41,7 @@ class CameraSpec:
     fov_deg: float
     reference: str = "heading"
     follow: str | None = None
-    margin: float = 1.15
+    margin: float = 0.1
 
 
 @dataclass(frozen=True)
@@ -128,9 +128,9 @@ WALK_TRACK = TaskSpec(
     free=_ALL_PARAMS,
     error_keypoints=_ALL_KEYPOINTS,
     labels=_WALK,
-    episode_frames=90,
-    camera=CameraSpec(azimuth_deg=45.0, elevation_deg=10.0, fov_deg=45.0, reference="walk"),
-    root_range_mm=6000.0,
+    episode_frames=60,
+    camera=CameraSpec(azimuth_deg=30.0, elevation_deg=10.0, fov_deg=45.0, reference="walk"),
+    root_range_mm=5000.0,
     description="walking, longer episodes (Ormoneit et al. 2005, Fig. 11)",
 )
 

@@ -16,23 +16,23 @@ class WalkTrackEnv(PoseTrackingEnv):
     The walking experiment of Ormoneit, Black, Hastie & Kjellström,
     *Representing cyclic human motion using functional analysis*, Image and
     Vision Computing 2005 (Fig. 11): all 25 parameters of a test subject
-    walking, seen obliquely, over 90 frames (three seconds at 30 Hz, about
-    three gait cycles).
+    walking, seen obliquely, over 60 frames (two seconds at 30 Hz, about
+    two gait cycles).
 
     ## Action Space
 
     ``Box(-1, 1, (25,), float32)`` in ``body.PARAM_NAMES`` order; joint angles
     as in BodyTrack-v0, the root position over the episode's initial root
-    position plus or minus 6,000 mm (a walk covers several metres).
+    position plus or minus 5,000 mm (a walk covers several metres).
 
     ## Observation Space
 
-    ``Box(0, 255, (height, width, 3), uint8)``: a static camera 45 degrees to
+    ``Box(0, 255, (height, width, 3), uint8)``: a static camera 30 degrees to
     the right of the walking direction, 10 degrees up, framing the whole walk.
 
     ## Starting State
 
-    A test-split walking clip (label ``walk``) long enough for 91 frames, and
+    A test-split walking clip (label ``walk``) long enough for 61 frames, and
     a start frame whose episode frames were all observed.
     """
 
@@ -43,5 +43,5 @@ class WalkTrackEnv(PoseTrackingEnv):
 WalkTrackEnv.__doc__ = (WalkTrackEnv.__doc__ or "") + COMMON_SECTIONS + """
     ## Version History
 
-    * v0: first release (90 scored frames per episode).
+    * v0: first release (60 scored frames per episode).
 """

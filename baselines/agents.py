@@ -1,0 +1,297 @@
+"""Particle-filter agents that answer like a stable-baselines3 policy.
+
+An agent is a :class:`~humotion_gym.filtering.ParticleFilter` over one prior,
+scoring particles with the environment's own observation model, camera and the
+subject's known shape. It follows stable-baselines3's
+``predict(observation, state, episode_start, deterministic)`` so one evaluation
+loop scores particle filters and learned policies alike; the loop also hands it
+each step's ``info`` (:meth:`ParticleFilterAgent.observe_info`), which carries
+the initial pose, the subject's shape, the camera and the parameters the task
+does not track, never the truth of the tracked ones.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from numpy.typing import NDArray
+
+from humotion_gym.body import ANGLE_MASK, N_PARAMS, BodyShape
+from humotion_gym.camera import Camera
+from humotion_gym.envs.pose_tracking import PoseTrackingEnv
+from humotion_gym.filtering import ParticleFilter
+from humotion_gym.mocap.library import CACHE_VERSION, MotionLibrary, default_cache_dir
+from humotion_gym.observation import ObservationModel
+
+FloatArray = NDArray[np.float64]
+
+
+class TaskLikelihood:
+    """The environment's observation model over a task's free parameters.
+
+    Particles hold only the free parameters; this fills in the parameters the
+    task gives (``info["fixed_params"]``) and scores full poses with the
+    environment's model, camera and the known shape.
+    """
+
+    def __init__(self, model: ObservationModel, free: NDArray[np.intp], fixed: NDArray[np.intp]):
+        self.model = model
+        self.free = free
+        self.fixed = fixed
+        self.base = np.zeros(N_PARAMS)
+        self.shape: BodyShape | None = None
+        self.camera: Camera | None = None
+
+    def update(self, fixed_values: FloatArray, shape: BodyShape, camera: Camera) -> None:
+        """The given parameters, shape and camera of the frame on show."""
+        self.base[self.fixed] = fixed_values
+        self.shape = shape
+        self.camera = camera
+
+    def full_pose(self, particles: FloatArray) -> FloatArray:
+        """``(N, 25)`` poses from ``(N, D)`` free parameters."""
+        poses = np.broadcast_to(self.base, (particles.shape[0], N_PARAMS)).copy()
+        poses[:, self.free] = particles
+        return poses
+
+    def log_likelihood(self, frame: Any, particles: FloatArray) -> FloatArray:
+        """``(N,)`` log p(frame | pose) of the particles."""
+        assert self.shape is not None and self.camera is not None
+        return self.model.log_likelihood(frame, self.full_pose(particles), self.shape, self.camera)
+
+
+class ParticleFilterAgent:
+    """A particle filter over one motion prior, answering like an SB3 policy.
+
+    Args:
+        env: The environment (its task, observation model and action mapping).
+        prior: The prior module (``initial``, ``transition``).
+        fitted: The prior's fitted parameters.
+        n_particles: Number of particles.
+        seed: Seeds the filter's generator (reset per episode from it).
+        estimate: ``"mean"`` or ``"map"``.
+        name: Shown in tables.
+    """
+
+    def __init__(
+        self,
+        env: gym.Env,
+        prior: ModuleType,
+        fitted: Any,
+        n_particles: int = 300,
+        seed: int = 0,
+        estimate: str = "mean",
+        name: str = "pf",
+    ) -> None:
+        self.env: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
+        task = self.env.task
+        self.name = name
+        self.prior = prior
+        self.fitted = fitted
+        self.n_particles = int(n_particles)
+        self.free = task.free_indices
+        self.likelihood = TaskLikelihood(self.env.observation_model, self.free, task.fixed_indices)
+        self.filter = ParticleFilter(
+            prior, fitted, self.likelihood, self.n_particles, ANGLE_MASK[self.free], estimate=estimate
+        )
+        self._seed_rng = np.random.default_rng(seed)
+        self._info: Mapping[str, Any] | None = None
+        self._started = False
+        self.frame_times: list[float] = []
+
+    def observe_info(self, info: Mapping[str, Any]) -> None:
+        """Take the ``info`` of the last ``reset`` or ``step`` (called by the loop)."""
+        self._info = info
+        if "initial_pose" in info:
+            self._started = False
+
+    def reset(self, info: Mapping[str, Any]) -> None:
+        """Start tracking from an episode's first ``info``."""
+        self.observe_info(info)
+        pose = np.asarray(info["initial_pose"], dtype=np.float64)
+        self.filter.reset(pose[self.free], np.random.default_rng(self._seed_rng.integers(2**63)))
+        self.shape = info["shape"]
+        self._started = True
+        self.frame_times = []
+
+    def predict(
+        self,
+        observation: NDArray[np.uint8],
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[NDArray[np.float32], Any]:
+        """Estimate the pose in the frame and return it as an action.
+
+        Args:
+            observation: The frame.
+            state: Unused (stable-baselines3's recurrent state).
+            episode_start: True at the first frame of an episode.
+            deterministic: Unused (the filter's randomness is its own seeded
+                generator).
+
+        Returns:
+            The action (normalised estimate) and ``None``.
+        """
+        del state, deterministic
+        if self._info is None:
+            raise RuntimeError(f"{self.name}: observe_info(info) must be called before predict()")
+        start = bool(np.any(episode_start)) if episode_start is not None else False
+        if start or not self._started:
+            self.reset(self._info)
+        t0 = time.perf_counter()
+        info = self._info
+        self.likelihood.update(np.asarray(info["fixed_params"]), self.shape, info["camera"])
+        features = self.env.observation_model.prepare(observation)
+        estimate = self.filter.step(features)
+        pose = self.likelihood.full_pose(estimate[None])[0]
+        action = self.env.pose_to_action(pose)
+        self.frame_times.append(time.perf_counter() - t0)
+        return action, None
+
+
+# -- priors and their cached fits ------------------------------------------------
+
+
+@dataclass(frozen=True)
+class AgentSpec:
+    """A registered agent: a prior module and its settings.
+
+    Attributes:
+        prior: Dotted module path of the prior (``humotion_gym.priors.tree``).
+        fit_settings: Keyword arguments of the prior's ``fit``.
+        description: One line for listings.
+        tasks: Task names the agent supports (None for every task).
+    """
+
+    prior: str
+    fit_settings: Mapping[str, Any] = field(default_factory=dict)
+    description: str = ""
+    tasks: tuple[str, ...] | None = None
+
+
+def _import(path: str) -> ModuleType:
+    import importlib
+
+    return importlib.import_module(path)
+
+
+def training_motions(env: PoseTrackingEnv) -> MotionLibrary:
+    """The prior's training data: the train split of the env's library, task labels."""
+    train = env.library.split("train").filter(labels=env.task.labels)
+    if len(train) == 0:
+        train = env.library.split("train")
+    return train
+
+
+def _fingerprint(lib: MotionLibrary) -> str:
+    h = hashlib.sha256()
+    for m in lib:
+        h.update(f"{m.clip_id}:{m.n_frames}:{m.fps}:{m.source};".encode())
+    return h.hexdigest()[:16]
+
+
+def fit_prior(
+    spec: AgentSpec,
+    env: PoseTrackingEnv,
+    settings: Mapping[str, Any] | None = None,
+    cache_dir: str | Path | None = None,
+    use_cache: bool = True,
+) -> tuple[ModuleType, Any]:
+    """The prior module and its fitted parameters for an env's task, cached on disk.
+
+    The cache key covers the prior, its settings, the task's free parameters,
+    the frame rate and the training clips, so a change to any refits.
+    """
+    module = _import(spec.prior)
+    train = training_motions(env)
+    kwargs = {**spec.fit_settings, **(settings or {})}
+    if env.frame_skip != 1:
+        kwargs.setdefault("frame_skip", env.frame_skip)
+    key = json.dumps(
+        {
+            "prior": spec.prior,
+            "settings": kwargs,
+            "free": env.task.free_indices.tolist(),
+            "data": _fingerprint(train),
+            "version": CACHE_VERSION,
+        },
+        sort_keys=True,
+        default=str,
+    )
+    digest = hashlib.sha256(key.encode()).hexdigest()[:24]
+    cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    path = cache / "priors" / f"{spec.prior.rsplit('.', 1)[-1]}-{digest}.npz"
+    if use_cache and path.is_file():
+        try:
+            return module, module.load(path)
+        except (ValueError, KeyError, OSError):
+            pass  # a damaged entry is refitted below
+    fitted = module.fit(train.motions, free=env.task.free_indices, rng=np.random.default_rng(0), **kwargs)
+    if use_cache:
+        module.save(fitted, path)
+    return module, fitted
+
+
+AGENTS: dict[str, AgentSpec] = {
+    "pf-cv": AgentSpec(
+        "humotion_gym.priors.constant_velocity",
+        description="constant velocity: every parameter moves on with its velocity plus noise",
+    ),
+}
+
+
+def register_agent(name: str, spec: AgentSpec) -> None:
+    """Add an agent to :data:`AGENTS`."""
+    AGENTS[name] = spec
+
+
+def make(
+    name: str,
+    env: gym.Env,
+    n_particles: int = 300,
+    seed: int = 0,
+    estimate: str = "mean",
+    fit_settings: Mapping[str, Any] | None = None,
+    use_cache: bool = True,
+) -> ParticleFilterAgent:
+    """A registered particle-filter agent for an environment.
+
+    Args:
+        name: A key of :data:`AGENTS` (``"pf-cv"``, ``"pf-tree"``...).
+        env: The environment it will act in.
+        n_particles: Particles.
+        seed: The agent's seed.
+        estimate: ``"mean"`` or ``"map"``.
+        fit_settings: Overrides of the prior's fit settings.
+        use_cache: Read and write fitted priors in the cache.
+
+    Raises:
+        KeyError: If the name is unknown.
+        ValueError: If the agent does not support the env's task.
+    """
+    if name not in AGENTS:
+        raise KeyError(f"unknown agent {name!r}; the agents are {sorted(AGENTS)}")
+    spec = AGENTS[name]
+    base: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
+    if spec.tasks is not None and base.task.name not in spec.tasks:
+        raise ValueError(f"{name} supports the tasks {list(spec.tasks)} only, not {base.task.name}")
+    module, fitted = fit_prior(spec, base, fit_settings, use_cache=use_cache)
+    return ParticleFilterAgent(env, module, fitted, n_particles, seed, estimate, name)
+
+
+Policy = Callable[..., tuple[NDArray[np.float32], Any]]
+
+
+def agent_names() -> Sequence[str]:
+    """The registered agents."""
+    return sorted(AGENTS)
