@@ -101,7 +101,12 @@ class ParticleFilterAgent:
         self.free = task.free_indices
         self.likelihood = TaskLikelihood(self.env.observation_model, self.free, task.fixed_indices)
         self.filter = ParticleFilter(
-            prior, fitted, self.likelihood, self.n_particles, ANGLE_MASK[self.free], estimate=estimate
+            prior,
+            fitted,
+            self.likelihood,
+            self.n_particles,
+            ANGLE_MASK[self.free],
+            estimate=estimate,
         )
         self._seed_rng = np.random.default_rng(seed)
         self._info: Mapping[str, Any] | None = None
@@ -236,7 +241,9 @@ def fit_prior(
             return module, module.load(path)
         except (ValueError, KeyError, OSError):
             pass  # a damaged entry is refitted below
-    fitted = module.fit(train.motions, free=env.task.free_indices, rng=np.random.default_rng(0), **kwargs)
+    fitted = module.fit(
+        train.motions, free=env.task.free_indices, rng=np.random.default_rng(0), **kwargs
+    )
     if use_cache:
         module.save(fitted, path)
     return module, fitted

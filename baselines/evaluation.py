@@ -77,7 +77,9 @@ def run_episode(
         if hasattr(agent, "observe_info"):
             agent.observe_info(info)
         t0 = time.perf_counter()
-        action, state = agent.predict(obs, state=state, episode_start=episode_start, deterministic=True)
+        action, state = agent.predict(
+            obs, state=state, episode_start=episode_start, deterministic=True
+        )
         times.append(time.perf_counter() - t0)
         episode_start = np.array([False])
         obs, reward, terminated, truncated, info = env.step(action)

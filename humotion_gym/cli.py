@@ -7,6 +7,10 @@ Sub-commands::
                                                    fps, seconds, retargeting error
     humotion-gym data convert IN OUT.bvh           a motion as BVH on the cone-body skeleton
     humotion-gym download cmu --subjects 2 7 35    CMU ASF/AMC into the download cache
+    humotion-gym render --task BodyTrack-v0 --seed 0 --frames 90 --out clip.mp4
+                                                   an episode as video and contact sheet
+    humotion-gym track --task ArmTrack-v0 --agent pf-tree --particles 300 --episodes 20
+                                                   track episodes, errors and timing
 """
 
 from __future__ import annotations
@@ -171,6 +175,148 @@ def _cmd_download_cmu(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_envs(sub: argparse._SubParsersAction) -> None:
+    rend = sub.add_parser("render", help="render an episode of a task as video and contact sheet")
+    rend.add_argument("--task", default="BodyTrack-v0")
+    rend.add_argument("--seed", type=int, default=0)
+    rend.add_argument("--frames", type=int, default=90)
+    rend.add_argument("--out", type=Path, default=Path("clip.mp4"), help=".mp4 or .avi")
+    rend.add_argument(
+        "--sheet", type=Path, default=None, help="contact sheet PNG (default: OUT.png)"
+    )
+    rend.add_argument("--scale", type=int, default=2, help="pixel scale of the video")
+    rend.add_argument("--data-dir", nargs="*", default=None)
+    rend.add_argument("--size", default=None, help="WIDTHxHEIGHT, e.g. 256x256")
+    rend.set_defaults(func=_cmd_render)
+
+    track = sub.add_parser("track", help="track episodes with a particle-filter agent")
+    track.add_argument("--task", default="ArmTrack-v0")
+    track.add_argument("--agent", default="pf-cv")
+    track.add_argument("--particles", type=int, default=300)
+    track.add_argument("--episodes", type=int, default=20)
+    track.add_argument("--seed", type=int, default=0)
+    track.add_argument("--clip", default=None, help="a mocap file or clip id to track")
+    track.add_argument("--video", type=Path, default=None, help="video of the first episode")
+    track.add_argument("--json", action="store_true")
+    track.add_argument("--data-dir", nargs="*", default=None)
+    track.set_defaults(func=_cmd_track)
+
+
+def _add_leaderboard(sub: argparse._SubParsersAction) -> None:
+    lb = sub.add_parser("leaderboard", help="agents x tasks x particle counts x seeded episodes")
+    lb.add_argument("--tasks", nargs="+", default=["ArmTrack-v0", "BodyTrack-v0"])
+    lb.add_argument("--agents", nargs="+", default=["pf-cv", "pf-tree"])
+    lb.add_argument("--particles", type=int, nargs="+", default=[300, 3000])
+    lb.add_argument("--episodes", type=int, default=20)
+    lb.add_argument("--seed", type=int, default=0)
+    lb.add_argument("--data-dir", nargs="*", default=None)
+    lb.add_argument("--out", type=Path, default=None, help="JSON with every episode")
+    lb.add_argument("--background", default=None, help="flat or clutter (difficulty)")
+    lb.add_argument("--noise", type=float, default=None, help="sensor noise (difficulty)")
+    lb.set_defaults(func=_cmd_leaderboard)
+
+
+def _cmd_leaderboard(args: argparse.Namespace) -> int:
+    from baselines.leaderboard import markdown_table, run_leaderboard, save
+
+    kwargs = _env_kwargs(args)
+    if args.background:
+        kwargs["background"] = args.background
+    if args.noise is not None:
+        kwargs["noise"] = args.noise
+    rows = run_leaderboard(
+        args.tasks, args.agents, args.particles, args.episodes, args.seed, kwargs
+    )
+    if args.out:
+        save(rows, args.out)
+    print(markdown_table(rows))
+    return 0
+
+
+def _env_kwargs(args: argparse.Namespace) -> dict:
+    kwargs: dict = {}
+    if args.data_dir:
+        kwargs["data_dir"] = args.data_dir
+    if getattr(args, "size", None):
+        w, h = (int(v) for v in args.size.lower().split("x"))
+        kwargs.update(width=w, height=h)
+    return kwargs
+
+
+def _cmd_render(args: argparse.Namespace) -> int:
+    import gymnasium as gym
+    from tqdm.auto import tqdm
+
+    from humotion_gym.envs import get_task
+    from humotion_gym.video import contact_sheet, write_png, write_video
+
+    task = get_task(args.task)
+    env = gym.make(
+        f"humotion_gym/{task.name}", episode_frames=args.frames, terminate_on_lost=False,
+        **_env_kwargs(args),
+    )  # fmt: skip
+    base = env.unwrapped
+    obs, info = env.reset(seed=args.seed)
+    frames = [obs]
+    for _ in tqdm(range(args.frames - 1), desc=f"rendering {task.name}", unit="frame"):
+        obs, *_ = env.step(base.pose_to_action(base._truth()))
+        frames.append(obs)
+    write_video(args.out, frames, fps=info["fps"], scale=args.scale)
+    sheet = args.sheet or args.out.with_suffix(".png")
+    write_png(sheet, contact_sheet(frames, columns=6, count=6))
+    print(f"wrote {args.out} ({len(frames)} frames of {info['clip_id']}) and {sheet}")
+    return 0
+
+
+def _cmd_track(args: argparse.Namespace) -> int:
+    import gymnasium as gym
+
+    from baselines.agents import make
+    from baselines.evaluation import evaluate, run_episode, summarize
+    from humotion_gym.envs import get_task
+    from humotion_gym.video import write_video
+
+    task = get_task(args.task)
+    render_mode = "rgb_array" if args.video else None
+    env = gym.make(
+        f"humotion_gym/{task.name}", terminate_on_lost=False, render_mode=render_mode,
+        **_env_kwargs(args),
+    )  # fmt: skip
+    agent = make(args.agent, env, n_particles=args.particles, seed=args.seed)
+    options = None
+    if args.clip:
+        options = {"file": args.clip} if Path(args.clip).exists() else {"clip_id": args.clip}
+    results = evaluate(agent, env, args.episodes, seed=args.seed, options=options, progress=True)
+    if args.video:
+        frames: list = []
+        run_episode(agent, env, args.seed, options, on_frame=lambda f, i: frames.append(f))
+        write_video(args.video, frames, fps=env.unwrapped.metadata["render_fps"])
+    summary = summarize(results)
+    if args.json:
+        print(json.dumps({
+            "task": task.name, "agent": args.agent, "particles": args.particles,
+            "episodes": [r.to_dict() for r in results], "summary": summary,
+        }))  # fmt: skip
+        return 0
+    print(f"{task.name}  {args.agent}  {args.particles} particles")
+    print(
+        f"{'seed':>5s} {'clip':28s} {'mean mm':>8s} {'final mm':>9s} "
+        f"{'lost at':>8s} {'ms/frame':>9s}"
+    )
+    for r in results:
+        lost = "-" if r.lost_frame is None else str(r.lost_frame)
+        print(f"{r.seed:5d} {r.clip_id[:28]:28s} {r.mean_error_mm:8.1f} {r.final_error_mm:9.1f} "
+              f"{lost:>8s} {r.ms_per_frame:9.2f}")  # fmt: skip
+    lo, hi = summary["mean_error_ci"]
+    llo, lhi = summary["lost_fraction_ci"]
+    print(
+        f"mean error {summary['mean_error_mm']:.1f} mm (95% CI {lo:.1f}-{hi:.1f}), "
+        f"IQM {summary['iqm_error_mm']:.1f} mm, lost {summary['lost_fraction']:.0%} "
+        f"(95% CI {llo:.0%}-{lhi:.0%}), {summary['ms_per_frame']:.2f} ms/frame"
+    )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``humotion-gym``."""
     parser = argparse.ArgumentParser(
@@ -180,6 +326,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     _add_data(sub)
     _add_download(sub)
+    _add_envs(sub)
+    _add_leaderboard(sub)
     return parser
 
 

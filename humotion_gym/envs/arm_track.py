@@ -51,8 +51,12 @@ class ArmTrackEnv(PoseTrackingEnv):
         super().__init__(task="ArmTrack-v0", **kwargs)
 
 
-ArmTrackEnv.__doc__ = (ArmTrackEnv.__doc__ or "") + COMMON_SECTIONS + """
+ArmTrackEnv.__doc__ = (
+    (ArmTrackEnv.__doc__ or "")
+    + COMMON_SECTIONS
+    + """
     ## Version History
 
     * v0: first release (30 scored frames per episode, as in the paper's experiments).
 """
+)

@@ -42,8 +42,12 @@ class BodyTrackEnv(PoseTrackingEnv):
         super().__init__(task="BodyTrack-v0", **kwargs)
 
 
-BodyTrackEnv.__doc__ = (BodyTrackEnv.__doc__ or "") + COMMON_SECTIONS + """
+BodyTrackEnv.__doc__ = (
+    (BodyTrackEnv.__doc__ or "")
+    + COMMON_SECTIONS
+    + """
     ## Version History
 
     * v0: first release (30 scored frames per episode, as in the paper's experiments).
 """
+)

@@ -51,7 +51,9 @@ def _cached_library(dirs: tuple[str, ...], fps: float) -> MotionLibrary:
 
 def _sphere(radius: float, n: int = 26) -> FloatArray:
     """Points on a sphere (the 26 directions of a cube's faces, edges, corners)."""
-    grid = np.stack(np.meshgrid(*[np.array([-1.0, 0.0, 1.0])] * 3, indexing="ij"), -1).reshape(-1, 3)
+    grid = np.stack(np.meshgrid(*[np.array([-1.0, 0.0, 1.0])] * 3, indexing="ij"), -1).reshape(
+        -1, 3
+    )
     grid = grid[np.any(grid != 0, axis=1)][:n]
     return radius * grid / np.linalg.norm(grid, axis=1, keepdims=True)
 
@@ -105,12 +107,15 @@ class PoseTrackingEnv(gym.Env):
         self.task = get_task(task) if isinstance(task, str) else task
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
-                f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}"
+                f"render_mode must be one of {self.metadata['render_modes']} or None, "
+                f"got {render_mode!r}"
             )
         if frame_skip < 1:
             raise ValueError(f"frame_skip must be >= 1, got {frame_skip}")
         if lost_patience < 1 or lost_threshold_mm <= 0 or reward_scale_mm <= 0:
-            raise ValueError("lost_patience, lost_threshold_mm and reward_scale_mm must be positive")
+            raise ValueError(
+                "lost_patience, lost_threshold_mm and reward_scale_mm must be positive"
+            )
         self.render_mode = render_mode
         scene_kwargs: dict[str, Any] = {
             "width": width,
@@ -396,14 +401,17 @@ class PoseTrackingEnv(gym.Env):
         estimate = self.action_to_pose(a, truth)
         self._last_estimate = estimate
         err_all = np.linalg.norm(
-            forward_kinematics(estimate, self.shape) - forward_kinematics(truth, self.shape), axis=-1
+            forward_kinematics(estimate, self.shape) - forward_kinematics(truth, self.shape),
+            axis=-1,
         )
         err = err_all[self._err_kp]
         error_mm = float(err.mean())
         # Reward: the mean over scored keypoints of exp(-e_k / scale), split by
         # body region so the terms add up to the reward.
         per_kp = np.exp(-err / self.reward_scale_mm) / len(err)
-        terms = {f"reward_{name}": float(per_kp[idx].sum()) for name, idx in self._region_of.items()}
+        terms = {
+            f"reward_{name}": float(per_kp[idx].sum()) for name, idx in self._region_of.items()
+        }
         reward = float(sum(terms.values()))
         self._lost_run = self._lost_run + 1 if error_mm > self.lost_threshold_mm else 0
         lost = self._lost_run >= self.lost_patience
@@ -435,5 +443,3 @@ class PoseTrackingEnv(gym.Env):
         if self._last_estimate is None:
             return frame.copy()
         return draw_pose_overlay(frame, self._last_estimate, self.shape, self.camera)
-
-

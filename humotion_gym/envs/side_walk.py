@@ -51,8 +51,12 @@ class SideWalkEnv(PoseTrackingEnv):
         super().__init__(task="SideWalk-v0", **kwargs)
 
 
-SideWalkEnv.__doc__ = (SideWalkEnv.__doc__ or "") + COMMON_SECTIONS + """
+SideWalkEnv.__doc__ = (
+    (SideWalkEnv.__doc__ or "")
+    + COMMON_SECTIONS
+    + """
     ## Version History
 
     * v0: first release (60 scored frames per episode).
 """
+)

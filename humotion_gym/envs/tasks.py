@@ -137,10 +137,25 @@ WALK_TRACK = TaskSpec(
 SIDE_WALK = TaskSpec(
     name="SideWalk-v0",
     free=(
-        "r_hip_x", "r_knee", "l_hip_x", "l_knee",
-        "r_shoulder_x", "r_elbow", "l_shoulder_x", "l_elbow",
+        "r_hip_x",
+        "r_knee",
+        "l_hip_x",
+        "l_knee",
+        "r_shoulder_x",
+        "r_elbow",
+        "l_shoulder_x",
+        "l_elbow",
     ),  # fmt: skip
-    error_keypoints=("r_knee", "r_ankle", "l_knee", "l_ankle", "r_elbow", "r_wrist", "l_elbow", "l_wrist"),
+    error_keypoints=(
+        "r_knee",
+        "r_ankle",
+        "l_knee",
+        "l_ankle",
+        "r_elbow",
+        "r_wrist",
+        "l_elbow",
+        "l_wrist",
+    ),
     labels=_WALK_RUN,
     episode_frames=60,
     camera=CameraSpec(

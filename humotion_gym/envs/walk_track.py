@@ -40,8 +40,12 @@ class WalkTrackEnv(PoseTrackingEnv):
         super().__init__(task="WalkTrack-v0", **kwargs)
 
 
-WalkTrackEnv.__doc__ = (WalkTrackEnv.__doc__ or "") + COMMON_SECTIONS + """
+WalkTrackEnv.__doc__ = (
+    (WalkTrackEnv.__doc__ or "")
+    + COMMON_SECTIONS
+    + """
     ## Version History
 
     * v0: first release (60 scored frames per episode).
 """
+)

@@ -1,0 +1,65 @@
+"""Writing frames as videos and contact sheets (OpenCV, no extra dependency)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+
+def _to_bgr(frame: NDArray[np.uint8], scale: int) -> NDArray[np.uint8]:
+    img = (
+        frame
+        if frame.ndim == 3 and frame.shape[-1] == 3
+        else np.repeat(frame.reshape(frame.shape[0], frame.shape[1], 1), 3, axis=-1)
+    )
+    if scale != 1:
+        img = cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
+    return cv2.cvtColor(np.ascontiguousarray(img), cv2.COLOR_RGB2BGR)
+
+
+def write_video(
+    path: str | Path, frames: Sequence[NDArray[np.uint8]], fps: float, scale: int = 2
+) -> None:
+    """Write RGB (or grey) uint8 frames to an ``.mp4`` (MPEG-4 part 2) or ``.avi`` file.
+
+    Raises:
+        ValueError: If there are no frames.
+        OSError: If OpenCV cannot open the file for writing.
+    """
+    if not frames:
+        raise ValueError("write_video: no frames")
+    first = _to_bgr(frames[0], scale)
+    h, w = first.shape[:2]
+    fourcc = cv2.VideoWriter_fourcc(*("mp4v" if str(path).endswith(".mp4") else "MJPG"))
+    writer = cv2.VideoWriter(str(path), fourcc, float(fps), (w, h))
+    if not writer.isOpened():
+        raise OSError(f"{path}: OpenCV could not open a video writer")
+    try:
+        for frame in frames:
+            writer.write(_to_bgr(frame, scale))
+    finally:
+        writer.release()
+
+
+def contact_sheet(
+    frames: Sequence[NDArray[np.uint8]], columns: int = 6, count: int = 12, scale: int = 1
+) -> NDArray[np.uint8]:
+    """Evenly spaced frames tiled in a grid, as one RGB image."""
+    if not frames:
+        raise ValueError("contact_sheet: no frames")
+    pick = np.unique(np.linspace(0, len(frames) - 1, min(count, len(frames))).round().astype(int))
+    tiles = [cv2.cvtColor(_to_bgr(frames[i], scale), cv2.COLOR_BGR2RGB) for i in pick]
+    rows = int(np.ceil(len(tiles) / columns))
+    blank = np.zeros_like(tiles[0])
+    tiles += [blank] * (rows * columns - len(tiles))
+    return np.vstack([np.hstack(tiles[r * columns : (r + 1) * columns]) for r in range(rows)])
+
+
+def write_png(path: str | Path, image: NDArray[np.uint8]) -> None:
+    """Write an RGB image as PNG."""
+    if not cv2.imwrite(str(path), cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_RGB2BGR)):
+        raise OSError(f"{path}: could not write the PNG")
