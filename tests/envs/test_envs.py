@@ -91,7 +91,7 @@ def test_reward_range_terms_and_no_shared_memory(env_id):
     obs, info = env.reset(seed=5)
     previous = obs
     rng = np.random.default_rng(0)
-    for step in range(6):
+    for _ in range(6):
         obs, reward, term, trunc, info = env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
         assert 0.0 <= reward <= 1.0
         terms = sum(v for k, v in info.items() if k.startswith("reward_"))
@@ -123,7 +123,7 @@ def test_track_lost_terminates_and_can_be_switched_off():
     env = gym.make("humotion_gym/BodyTrack-v0").unwrapped
     env.reset(seed=0)
     bad = np.ones(env.action_space.shape, dtype=np.float32)
-    for k in range(1, 10):
+    for k in range(1, 10):  # noqa: B007  (k is read after the loop)
         _, _, term, _, info = env.step(bad)
         if term:
             break
