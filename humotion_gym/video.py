@@ -63,3 +63,37 @@ def write_png(path: str | Path, image: NDArray[np.uint8]) -> None:
     """Write an RGB image as PNG."""
     if not cv2.imwrite(str(path), cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_RGB2BGR)):
         raise OSError(f"{path}: could not write the PNG")
+
+
+def render_motion(
+    params: NDArray[np.float64],
+    shape: object,
+    width: int = 256,
+    height: int = 256,
+    azimuth_deg: float = 30.0,
+    seed: int = 0,
+) -> list[NDArray[np.uint8]]:
+    """Frames of a motion on a flat background, seen by a camera that frames it all.
+
+    Args:
+        params: ``(T, 25)`` poses.
+        shape: The body's :class:`~humotion_gym.body.BodyShape`.
+        width: Frame width.
+        height: Frame height.
+        azimuth_deg: Viewing direction relative to the first frame's heading.
+        seed: Seeds the sensor noise.
+    """
+    from humotion_gym.body import forward_kinematics
+    from humotion_gym.camera import fit_camera
+    from humotion_gym.render import SceneOptions, make_background, render
+
+    kp = forward_kinematics(params, shape)  # type: ignore[arg-type]
+    heading = float(np.rad2deg(params[0, 3]))
+    camera = fit_camera(kp, width, height, 45.0, heading - azimuth_deg, 10.0)
+    scene = SceneOptions(width=width, height=height, background="flat")
+    rng = np.random.default_rng(seed)
+    background = make_background(scene, rng)
+    return [
+        render(p, shape, camera, scene, rng, background, i)  # type: ignore[arg-type]
+        for i, p in enumerate(params)
+    ]
