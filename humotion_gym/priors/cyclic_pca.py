@@ -1,0 +1,900 @@
+"""Cyclic functional PCA: the walking prior of Ormoneit, Black, Hastie & Kjellström (2005).
+
+*Representing cyclic human motion using functional analysis*, Image and Vision
+Computing 23 (2005), section 5. Walking clips are cut into cycles
+(:mod:`~humotion_gym.priors.cycles`, section 3), and the cycles' joint angles
+are summarised by a mean curve and ``q`` principal component curves in the
+Fourier domain (:mod:`~humotion_gym.priors.fpca`, section 4). A particle is
+
+    (c_t, psi_t, rho_t, global pose)
+
+with ``c_t`` the ``q`` coefficients, ``psi_t`` the phase in ``[0, S)`` samples of
+the reference cycle and ``rho_t`` the speed in samples per frame. The joint
+angles are
+
+    theta(t) = mu(psi_t) + sum_k c_{t,k} v_k(psi_t) (+ a fixed offset, below)
+
+with ``mu`` and ``v_k`` evaluated at any fractional phase from their Fourier
+coefficients. One step of the transition is
+
+    psi_{t+1} = (psi_t + rho_t) mod S
+    rho_{t+1} = rho_t + N(0, sigma_rho^2)             (clipped to the speeds seen)
+    c_{t+1}   = c_t + N(0, diag(sigma_c^2))           (sigma_c proportional to the
+                                                        singular values)
+
+and the global pose (root position, heading, pitch and roll), where the task
+tracks it, follows random walks with fitted scales: the root's velocity in the
+body frame is a random walk (so the walker keeps moving the way it faces) and
+the three root rotations are random walks.
+
+Fitted scales: ``sigma_c`` from the change of the coefficients between
+consecutive cycles of the same clip (per frame); the speed's spread from the
+clips' cycle lengths and ``sigma_rho`` from the drift of whole cycles against
+the aligned reference curves (:func:`~humotion_gym.priors.cycles.cycle_shifts`);
+the global scales from the training clips' root motion.
+
+``initial`` fits phase and coefficients to the known first pose: a grid over
+the phase, and for each phase the ridge least-squares coefficients (prior
+``c_k ~ N(0, sd_k^2)`` from the singular values, residual variance per angle
+from the fit); phases are drawn from the resulting posterior and coefficients
+around their fit. What the fit cannot explain (the subject's own posture, the
+retargeting) is kept as a fixed per-angle offset, so every particle starts at a
+plausible pose near the true one.
+
+The model is meant for the walking tasks only (:func:`check_task`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from humotion_gym.body import (
+    KEYPOINT_INDEX,
+    N_PARAMS,
+    PARAM_INDEX,
+    PARAM_LOWER,
+    PARAM_NAMES,
+    PARAM_UPPER,
+)
+from humotion_gym.filtering import ParticleState
+from humotion_gym.mocap.motion import Motion
+from humotion_gym.priors import cycles, fpca
+from humotion_gym.priors._io import load_fitted, save_fitted
+
+FloatArray = NDArray[np.float64]
+NAME = "cyclic_pca"
+
+#: The tasks this prior is meant for (cyclic walking).
+SUPPORTED_TASKS: tuple[str, ...] = ("WalkTrack-v0", "SideWalk-v0")
+#: Labels of the clips the prior is fitted to.
+WALK_LABELS: tuple[str, ...] = ("walk",)
+
+_ROOT_POSITION = (0, 1, 2)
+_ROOT_ROTATION = (3, 4, 5)
+_YAW = PARAM_INDEX["root_yaw"]
+
+
+def check_task(task_name: str) -> None:
+    """Raise unless the task is one of cyclic walking.
+
+    Args:
+        task_name: A task id, with or without the ``humotion_gym/`` namespace.
+
+    Raises:
+        ValueError: For any task but ``WalkTrack-v0`` and ``SideWalk-v0``.
+    """
+    key = str(task_name).split("/")[-1].split(":")[-1]
+    if key not in SUPPORTED_TASKS:
+        raise ValueError(
+            f"cyclic_pca cannot track {task_name!r}: the cyclic PCA model covers cyclic "
+            f"walking only (tasks {', '.join(SUPPORTED_TASKS)})"
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class CyclicPCAParams:
+    """Fitted cyclic-PCA prior (plain arrays; saved as ``.npz``).
+
+    Attributes:
+        free: ``(D,)`` indices of the modelled parameters in the 25-vector.
+        angles: ``(A,)`` the free joint angles the curves cover (25-vector indices).
+        n_samples: Samples per reference cycle ``S`` (phase is in ``[0, S)``).
+        mean_coef: ``(A, 2H - 1)`` mean curves' Fourier coefficients.
+        component_coef: ``(q, A, 2H - 1)`` component curves' coefficients.
+        singular_values: ``(q,)`` of the FPCA.
+        component_std: ``(q,)`` spread of the coefficients over the cycles.
+        coef_step_std: ``(q,)`` random-walk noise on the coefficients per frame.
+        residual_std: ``(A,)`` rms reconstruction error per angle (rad, at
+            least half a degree).
+        speed_mean: Mean speed, samples per frame.
+        speed_std: Spread of the clips' speeds.
+        speed_step_std: Random-walk noise on the speed per frame.
+        speed_min: Lowest speed allowed.
+        speed_max: Highest speed allowed.
+        root_velocity_mean: ``(3,)`` root velocity in the body frame, mm per frame.
+        root_velocity_std: ``(3,)`` its spread over the training frames.
+        root_accel_std: ``(3,)`` random-walk noise on it per frame.
+        rotation_step_std: ``(3,)`` random-walk noise on yaw, pitch, roll per frame.
+        periods: ``(n,)`` cycle lengths of the training clips, frames.
+        fps: Frame rate the per-frame scales refer to.
+        coef_noise: Multiplier on ``coef_step_std`` when sampling.
+        speed_noise: Multiplier on ``speed_step_std``.
+        global_noise: Multiplier on the global pose's noise.
+        keep_offset: Keep the initial pose's unexplained part as a fixed offset.
+    """
+
+    free: NDArray[np.intp]
+    angles: NDArray[np.intp]
+    n_samples: int
+    mean_coef: FloatArray
+    component_coef: FloatArray
+    singular_values: FloatArray
+    component_std: FloatArray
+    coef_step_std: FloatArray
+    residual_std: FloatArray
+    speed_mean: float
+    speed_std: float
+    speed_step_std: float
+    speed_min: float
+    speed_max: float
+    root_velocity_mean: FloatArray
+    root_velocity_std: FloatArray
+    root_accel_std: FloatArray
+    rotation_step_std: FloatArray
+    periods: FloatArray
+    fps: float
+    coef_noise: float = 1.0
+    speed_noise: float = 1.0
+    global_noise: float = 1.0
+    keep_offset: bool = True
+
+    def __post_init__(self) -> None:
+        # Contiguous copies, so that a loaded model computes bit for bit like
+        # the fitted one (BLAS sums in an order that depends on the layout).
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if f.name in ("free", "angles"):
+                value = np.ascontiguousarray(value, dtype=np.intp)
+            elif isinstance(value, np.ndarray) and value.ndim > 0:
+                value = np.ascontiguousarray(value, dtype=np.float64)
+            elif f.name == "n_samples":
+                value = int(value)
+            elif f.name == "keep_offset":
+                value = bool(value)
+            elif isinstance(value, (float, int, np.floating, np.integer)):
+                value = float(value)
+            object.__setattr__(self, f.name, value)
+
+    @property
+    def n_components(self) -> int:
+        """Number of components ``q``."""
+        return int(self.singular_values.size)
+
+    @property
+    def n_harmonics(self) -> int:
+        """Fourier coefficients per curve ``H``."""
+        return (int(self.mean_coef.shape[-1]) + 1) // 2
+
+
+# ---------------------------------------------------------------------------
+# Curves at fractional phases
+# ---------------------------------------------------------------------------
+
+
+def curves(fitted: CyclicPCAParams, phase: ArrayLike, coef: ArrayLike | None = None) -> FloatArray:
+    """Joint angles ``mu(psi) + sum_k c_k v_k(psi)`` at any phases.
+
+    Args:
+        fitted: The prior.
+        phase: ``(N,)`` phases in samples (any real; taken modulo ``S``).
+        coef: ``(N, q)`` coefficients (the mean curve when None).
+
+    Returns:
+        ``(N, A)`` angles of ``fitted.angles``.
+    """
+    basis = fpca.fourier_basis(phase, fitted.n_harmonics, fitted.n_samples)  # (N, 2H-1)
+    out = basis @ fitted.mean_coef.T
+    if coef is not None:
+        comps = np.einsum("nh,qah->nqa", basis, fitted.component_coef)
+        out = out + np.einsum("nq,nqa->na", np.asarray(coef, dtype=np.float64), comps)
+    return out
+
+
+# ---------------------------------------------------------------------------
+# Fit
+# ---------------------------------------------------------------------------
+
+
+def _walking_clips(motions: Sequence[Motion], labels: Sequence[str]) -> list[Motion]:
+    clips = [m for m in motions if m.label in labels]
+    if not clips:
+        found = sorted({m.label for m in motions})
+        raise ValueError(
+            f"cyclic_pca.fit: no clips labelled {list(labels)} among {len(motions)} "
+            f"(labels found: {found[:10]}); the cyclic PCA model covers cyclic walking only"
+        )
+    fps = {float(m.fps) for m in clips}
+    if len(fps) > 1:
+        raise ValueError(f"cyclic_pca.fit: the walking clips have different frame rates {fps}")
+    return clips
+
+
+def _global_scales(series: list[FloatArray], observed: list[NDArray[np.bool_]]) -> dict:
+    """Root velocity (body frame) and rotation step statistics, per frame."""
+    vel, acc, rot = [], [], []
+    for p, ok in zip(series, observed, strict=True):
+        if p.shape[0] < 3:
+            continue
+        d = np.diff(p[:, :3], axis=0)
+        yaw = p[:-1, _YAW]
+        c, s = np.cos(yaw), np.sin(yaw)
+        # Body frame: rotate the world displacement by -yaw about z.
+        v = np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], d[:, 2]], axis=1)
+        ok1 = ok[1:] & ok[:-1]
+        vel.append(v[ok1])
+        acc.append(np.diff(v, axis=0)[ok1[1:] & ok1[:-1]])
+        rot.append(np.diff(p[:, 3:6], axis=0)[ok1])
+    if not vel:
+        zero = np.zeros(3)
+        return {"mean": zero, "std": zero + 1e-3, "acc": zero + 1e-3, "rot": zero + 1e-4}
+    v, a, r = np.concatenate(vel), np.concatenate(acc), np.concatenate(rot)
+    floor = 1e-6
+    # Robust location and scale (median, 1.4826 x median absolute deviation):
+    # a few clips have single-frame jumps of the root that would swamp the std.
+    return {
+        "mean": np.median(v, axis=0),
+        "std": np.maximum(_robust_std(v), floor),
+        "acc": np.maximum(_robust_std(a), floor),
+        "rot": np.maximum(_robust_std(r), floor),
+    }
+
+
+def _robust_std(x: FloatArray) -> FloatArray:
+    return 1.4826 * np.median(np.abs(x - np.median(x, axis=0)), axis=0)
+
+
+def joint_series(
+    params: Sequence[FloatArray], observed: Sequence[NDArray[np.bool_]]
+) -> tuple[list[FloatArray], list[NDArray[np.bool_]]]:
+    """The 19 joint angles of clips, ready for the cycle analysis.
+
+    Each angle is moved by whole turns to the turn of the others
+    (:func:`~humotion_gym.priors.cycles.nearest_turn`), and frames outside the
+    body's joint limits (a retargeting flip; one shared walking clip has them)
+    are marked missing, to be imputed like any other gap.
+
+    Args:
+        params: ``(T_i, 25)`` parameters per clip.
+        observed: ``(T_i, 25)`` masks.
+
+    Returns:
+        ``(xs, ws)``: ``(T_i, 19)`` angles and masks.
+    """
+    joint = cycles.JOINT_ANGLES
+    xs, ws = [], []
+    for p, o in zip(params, observed, strict=True):
+        x = cycles.nearest_turn(p[:, joint], o[:, joint])
+        inside = (x >= PARAM_LOWER[joint]) & (x <= PARAM_UPPER[joint])
+        xs.append(x)
+        ws.append(o[:, joint] & inside)
+    return xs, ws
+
+
+def fit(
+    motions: Sequence[Motion],
+    free: ArrayLike | None = None,
+    rng: np.random.Generator | None = None,
+    n_components: int = 8,
+    n_harmonics: int = fpca.DEFAULT_HARMONICS,
+    n_samples: int = cycles.DEFAULT_SAMPLES,
+    labels: Sequence[str] = WALK_LABELS,
+    frame_skip: int = 1,
+    coef_noise: float = 1.0,
+    speed_noise: float = 1.0,
+    global_noise: float = 1.0,
+    keep_offset: bool = True,
+    tol: float = 1e-6,
+) -> CyclicPCAParams:
+    """Fit the cyclic PCA prior to the walking clips among ``motions``.
+
+    Cycle lengths (eq. 3) and offsets (Fig. 6) use all 19 joint angles; the
+    functional PCA (Fig. 8) covers the free joint angles. Clips too short to
+    show two cycles are skipped.
+
+    Args:
+        motions: Training clips (the train split); only those labelled
+            ``labels`` are used. All at one frame rate.
+        free: Indices of the tracked parameters (all 25 when None).
+        rng: Unused (the fit is deterministic); accepted for the common interface.
+        n_components: Principal components ``q``.
+        n_harmonics: Fourier coefficients per curve (20 in the paper).
+        n_samples: Samples per reference cycle ``S``.
+        labels: Activity labels of the walking clips.
+        frame_skip: Use every ``frame_skip``-th frame (the environment's rate).
+        coef_noise: Multiplier on the coefficients' random-walk noise.
+        speed_noise: Multiplier on the speed's random-walk noise.
+        global_noise: Multiplier on the global pose's random-walk noise.
+        keep_offset: Keep the initial pose's unexplained part as an offset.
+        tol: Tolerance of the offset algorithm and of the FPCA.
+
+    Returns:
+        The fitted parameters.
+
+    Raises:
+        ValueError: If there are no walking clips, or none shows two cycles.
+    """
+    del rng
+    idx = np.arange(N_PARAMS, dtype=np.intp) if free is None else np.asarray(free, np.intp)
+    if idx.ndim != 1 or np.any((idx < 0) | (idx >= N_PARAMS)) or np.unique(idx).size != idx.size:
+        raise ValueError(f"cyclic_pca.fit: free must be distinct indices in [0, 25), got {idx}")
+    clips = _walking_clips(motions, labels)
+    fps = float(clips[0].fps) / frame_skip
+    series = [m.params[::frame_skip] for m in clips]
+    observed = [m.observed[::frame_skip] for m in clips]
+    joint = cycles.JOINT_ANGLES
+    xs, ws = joint_series(series, observed)
+    periods = np.array([cycles.estimate_period(x, w, fps) for x, w in zip(xs, ws, strict=True)])
+    keep = np.flatnonzero(np.isfinite(periods))
+    if keep.size == 0:
+        raise ValueError("cyclic_pca.fit: no walking clip is long enough to show two cycles")
+    xs, ws, periods = [xs[i] for i in keep], [ws[i] for i in keep], periods[keep]
+    alignment = cycles.align_offsets(xs, periods, ws, tol=tol)
+    seg = cycles.segment(xs, periods, alignment.offsets, ws, n_samples=n_samples)
+
+    angles = np.array([i for i in idx if i in set(joint.tolist())], dtype=np.intp)
+    if angles.size == 0:
+        raise ValueError("cyclic_pca.fit: the free parameters include no joint angle")
+    columns = np.searchsorted(joint, angles)
+    result = fpca.fpca(
+        seg.values[:, columns],
+        seg.observed[:, columns],
+        n_components=n_components,
+        n_harmonics=min(n_harmonics, n_samples // 2),
+        tol=tol,
+    )
+    q = result.n_components
+    component_std = np.maximum(result.component_std, 1e-9)
+
+    # Coefficient random walk: change between consecutive whole cycles, per frame.
+    whole = seg.observed[:, columns].all(axis=(1, 2))
+    pairs = [
+        (a, a + 1)
+        for a in range(seg.n_cycles - 1)
+        if whole[a]
+        and whole[a + 1]
+        and seg.sequence[a] == seg.sequence[a + 1]
+        and seg.cycle[a + 1] == seg.cycle[a] + 1
+    ]
+    mean_period = float(np.mean(periods))
+    if pairs:
+        a, b = np.array(pairs).T
+        step = result.scores[b] - result.scores[a]
+        coef_step = np.sqrt(np.mean(step**2, axis=0) / mean_period)
+    else:
+        coef_step = component_std / np.sqrt(mean_period)
+    coef_step = np.clip(coef_step, 1e-6 * component_std, component_std)
+
+    # Speed: spread over the clips; random walk from the drift of whole cycles.
+    speeds = n_samples / periods
+    local = []
+    for shifts, p in zip(cycles.cycle_shifts(alignment, xs, ws), periods, strict=True):
+        if shifts.size >= 3:
+            lengths = p * (1.0 + np.diff(shifts))
+            local.append(np.diff(n_samples / lengths) / np.sqrt(p))
+    if local and np.concatenate(local).size >= 2:
+        speed_step = float(np.sqrt(np.mean(np.concatenate(local) ** 2)))
+    else:
+        speed_step = float(np.std(speeds) / np.sqrt(np.mean([x.shape[0] for x in xs])))
+    speed_step = max(speed_step, 1e-4 * float(np.mean(speeds)))
+
+    glob = _global_scales([series[i] for i in keep], [observed[i].all(axis=1) for i in keep])
+    return CyclicPCAParams(
+        free=idx,
+        angles=angles,
+        n_samples=n_samples,
+        mean_coef=result.mean_coef,
+        component_coef=result.component_coef,
+        singular_values=result.singular_values[:q],
+        component_std=component_std,
+        coef_step_std=coef_step,
+        # Floor at half a degree: an angle the training rigs never move (neck
+        # twist in some) must not dominate the fit of a pose that does move it.
+        residual_std=np.maximum(np.sqrt(result.residual_var), np.radians(0.5)),
+        speed_mean=float(np.mean(speeds)),
+        speed_std=float(max(np.std(speeds), 1e-3 * np.mean(speeds))),
+        speed_step_std=speed_step,
+        speed_min=float(0.7 * speeds.min()),
+        speed_max=float(1.3 * speeds.max()),
+        root_velocity_mean=glob["mean"],
+        root_velocity_std=glob["std"],
+        root_accel_std=glob["acc"],
+        rotation_step_std=glob["rot"],
+        periods=periods,
+        fps=fps,
+        coef_noise=float(coef_noise),
+        speed_noise=float(speed_noise),
+        global_noise=float(global_noise),
+        keep_offset=bool(keep_offset),
+    )
+
+
+# ---------------------------------------------------------------------------
+# Particles
+# ---------------------------------------------------------------------------
+
+
+def _slots(fitted: CyclicPCAParams) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
+    """Positions in the free vector of the angles, the root position and root rotations."""
+    where = {int(f): d for d, f in enumerate(fitted.free)}
+    angle_slots = np.array([where[int(a)] for a in fitted.angles], dtype=np.intp)
+    pos_slots = np.array([where.get(i, -1) for i in _ROOT_POSITION], dtype=np.intp)
+    rot_slots = np.array([where.get(i, -1) for i in _ROOT_ROTATION], dtype=np.intp)
+    return angle_slots, pos_slots, rot_slots
+
+
+def fit_phase(
+    fitted: CyclicPCAParams, angles: ArrayLike, grid: int | None = None
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Phase and coefficients that explain a pose's joint angles.
+
+    For every phase of a grid, the coefficients ``c`` minimising
+    ``sum_a (y_a - mu_a(psi) - (V(psi) c)_a)^2 / r_a + sum_k c_k^2 / sd_k^2``
+    (ridge prior from the singular values, ``r`` the residual variances), and
+    the log posterior of the phase (Gaussian marginal likelihood of ``y``).
+
+    Args:
+        fitted: The prior.
+        angles: ``(A,)`` joint angles of ``fitted.angles``.
+        grid: Number of phases (``S`` when None).
+
+    Returns:
+        ``(phases (G,), coefs (G, q), log_post (G,), cov (G, q, q))``: the
+        grid, the fitted coefficients, the log posterior (up to a constant)
+        and the coefficients' posterior covariance at each phase.
+    """
+    y = np.asarray(angles, dtype=np.float64)
+    g = fitted.n_samples if grid is None else int(grid)
+    phases = np.arange(g) * (fitted.n_samples / g)
+    basis = fpca.fourier_basis(phases, fitted.n_harmonics, fitted.n_samples)
+    mu = basis @ fitted.mean_coef.T  # (G, A)
+    comps = np.einsum("gh,qah->gqa", basis, fitted.component_coef)  # (G, q, A)
+    inv_r = 1.0 / fitted.residual_std**2
+    prec = np.einsum("gqa,a,gka->gqk", comps, inv_r, comps) + np.diag(1.0 / fitted.component_std**2)
+    resid0 = y - mu
+    rhs = np.einsum("gqa,a,ga->gq", comps, inv_r, resid0)
+    cov = np.linalg.inv(prec)
+    cov = 0.5 * (cov + np.swapaxes(cov, 1, 2))
+    coef = np.einsum("gqk,gk->gq", cov, rhs)
+    resid = resid0 - np.einsum("gq,gqa->ga", coef, comps)
+    quad = (resid**2 * inv_r).sum(axis=1) + (coef**2 / fitted.component_std**2).sum(axis=1)
+    _, logdet = np.linalg.slogdet(prec)
+    # Marginal likelihood of y at each phase (Woodbury): quadratic + log det terms.
+    log_post = -0.5 * (quad + logdet)
+    return phases, coef, log_post, cov
+
+
+def initial(
+    fitted: CyclicPCAParams, pose: ArrayLike, n: int, rng: np.random.Generator
+) -> ParticleState:
+    """N particles whose phase and coefficients fit a known pose.
+
+    Phases are drawn from the posterior over a grid of phases (plus a uniform
+    jitter within the grid cell), coefficients from their posterior at that
+    phase, speeds from the clips' spread. The part of the pose the best fit
+    does not explain becomes a fixed per-angle offset (``keep_offset``); the
+    global parameters start at the pose with a heading-aligned velocity.
+
+    Args:
+        fitted: The prior.
+        pose: ``(D,)`` the free parameters at the first frame.
+        n: Number of particles.
+        rng: Generator.
+
+    Returns:
+        The particles; ``extra`` holds ``phase (N,)``, ``speed (N,)``,
+        ``coef (N, q)``, ``offset (N, A)`` and ``root_velocity (N, 3)``.
+    """
+    p = np.asarray(pose, dtype=np.float64)
+    if p.shape != (fitted.free.size,):
+        raise ValueError(f"cyclic_pca.initial: pose must have shape ({fitted.free.size},)")
+    angle_slots, pos_slots, rot_slots = _slots(fitted)
+    y = p[angle_slots]
+    # Unwrapped angles may sit whole turns away from the model's: fit the
+    # nearest turn, and keep the turns in the offset.
+    level = fitted.mean_coef[:, 0] / np.sqrt(fitted.n_samples)  # mean over the cycle
+    turns = 2 * np.pi * np.round((y - level) / (2 * np.pi))
+    phases, coefs, log_post, cov = fit_phase(fitted, y - turns)
+    weights = np.exp(log_post - log_post.max())
+    weights /= weights.sum()
+    cell = np.searchsorted(np.cumsum(weights), rng.random(n), side="right")
+    cell = np.minimum(cell, phases.size - 1)
+    step = fitted.n_samples / phases.size
+    phase = np.mod(phases[cell] + (rng.random(n) - 0.5) * step, fitted.n_samples)
+    chol = np.linalg.cholesky(cov[cell])  # (N, q, q)
+    coef = coefs[cell] + np.einsum("nqk,nk->nq", chol, rng.standard_normal((n, cov.shape[1])))
+    best = int(np.argmax(log_post))
+    if fitted.keep_offset:
+        offset = y - curves(fitted, phases[best : best + 1], coefs[best : best + 1])[0]
+    else:
+        offset = turns
+    offset = np.repeat(offset[None], n, axis=0)
+    speed = np.clip(
+        fitted.speed_mean + fitted.speed_std * rng.standard_normal(n),
+        fitted.speed_min,
+        fitted.speed_max,
+    )
+    velocity = fitted.root_velocity_mean + fitted.root_velocity_std * rng.standard_normal((n, 3))
+    if rot_slots[0] < 0:
+        # Heading unknown to the prior: the velocity is in the world frame, of
+        # the walking speed but in no particular horizontal direction.
+        speed_xy = float(np.hypot(*fitted.root_velocity_mean[:2]))
+        velocity[:, :2] = speed_xy * rng.standard_normal((n, 2)) / np.sqrt(2.0)
+    out = np.repeat(p[None], n, axis=0)
+    out[:, angle_slots] = curves(fitted, phase, coef) + offset
+    extra = {
+        "phase": phase,
+        "speed": speed,
+        "coef": coef,
+        "offset": offset,
+        "root_velocity": velocity,
+    }
+    return ParticleState(out, extra)
+
+
+def transition(
+    fitted: CyclicPCAParams, state: ParticleState, rng: np.random.Generator
+) -> ParticleState:
+    """One frame: advance the phase by the speed, random-walk speed, coefficients, global pose."""
+    n = state.n
+    angle_slots, pos_slots, rot_slots = _slots(fitted)
+    phase = np.mod(state.extra["phase"] + state.extra["speed"], fitted.n_samples)
+    speed = np.clip(
+        state.extra["speed"] + fitted.speed_noise * fitted.speed_step_std * rng.standard_normal(n),
+        fitted.speed_min,
+        fitted.speed_max,
+    )
+    coef = state.extra["coef"] + fitted.coef_noise * fitted.coef_step_std * rng.standard_normal(
+        (n, fitted.n_components)
+    )
+    offset = state.extra["offset"]
+    pose = state.pose.copy()
+    pose[:, angle_slots] = curves(fitted, phase, coef) + offset
+    # Global pose (section 5): random walks with the fitted scales.
+    velocity = state.extra["root_velocity"] + fitted.global_noise * fitted.root_accel_std * (
+        rng.standard_normal((n, 3))
+    )
+    for axis, slot in enumerate(rot_slots):
+        if slot >= 0:
+            step = fitted.global_noise * fitted.rotation_step_std[axis]
+            pose[:, slot] += step * rng.standard_normal(n)
+    if np.any(pos_slots >= 0):
+        if rot_slots[0] >= 0:  # body-frame velocity turned by each particle's heading
+            yaw = pose[:, rot_slots[0]]
+            c, s = np.cos(yaw), np.sin(yaw)
+            world = np.stack(
+                [c * velocity[:, 0] - s * velocity[:, 1], s * velocity[:, 0] + c * velocity[:, 1],
+                 velocity[:, 2]], axis=1,
+            )  # fmt: skip
+        else:
+            world = velocity
+        for axis, slot in enumerate(pos_slots):
+            if slot >= 0:
+                pose[:, slot] += world[:, axis]
+    extra = {
+        "phase": phase,
+        "speed": speed,
+        "coef": coef,
+        "offset": offset,
+        "root_velocity": velocity,
+    }
+    return ParticleState(pose, extra)
+
+
+def save(fitted: CyclicPCAParams, path: str | Path) -> None:
+    """Write the fitted parameters as ``.npz`` (no pickle)."""
+    save_fitted(fitted, path)
+
+
+def load(path: str | Path) -> CyclicPCAParams:
+    """Read parameters written by :func:`save`."""
+    return load_fitted(CyclicPCAParams, path)
+
+
+# ---------------------------------------------------------------------------
+# Synthesis
+# ---------------------------------------------------------------------------
+
+
+def _walk(
+    fitted: CyclicPCAParams, frames: int, rng: np.random.Generator, rate: float
+) -> tuple[FloatArray, FloatArray]:
+    """Angles ``(frames, A)`` and speeds of a random walk of the model at ``rate`` x fps."""
+    q = fitted.n_components
+    coef = fitted.component_std * rng.standard_normal(q)
+    speed = float(np.clip(fitted.speed_mean + fitted.speed_std * rng.standard_normal(),
+                          fitted.speed_min, fitted.speed_max))  # fmt: skip
+    phase = rng.uniform(0, fitted.n_samples)
+    phases, coefs = np.empty(frames), np.empty((frames, q))
+    for t in range(frames):
+        phases[t], coefs[t] = phase, coef
+        phase = (phase + speed * rate) % fitted.n_samples
+        speed = float(np.clip(speed + fitted.speed_step_std * np.sqrt(rate) * rng.standard_normal(),
+                              fitted.speed_min, fitted.speed_max))  # fmt: skip
+        coef = coef + fitted.coef_step_std * np.sqrt(rate) * rng.standard_normal(q)
+        # Keep the walk inside the training spread (+-3 sd) so long clips stay plausible.
+        coef = np.clip(coef, -3 * fitted.component_std, 3 * fitted.component_std)
+    return curves(fitted, phases, coefs), phases
+
+
+def synthesize(fitted: CyclicPCAParams, frames: int, rng: np.random.Generator) -> FloatArray:
+    """Random walking cycles from random combinations of the components.
+
+    Coefficients start at a draw from ``N(0, sd_k^2)`` and drift by the fitted
+    random walk; the speed starts at a draw from the clips' spread.
+
+    Args:
+        fitted: The prior.
+        frames: Number of frames (at ``fitted.fps``).
+        rng: Generator.
+
+    Returns:
+        ``(frames, 25)`` parameters: the modelled joint angles from the model,
+        every other parameter zero.
+    """
+    if frames < 1:
+        raise ValueError(f"synthesize: frames must be >= 1, got {frames}")
+    angles, _ = _walk(fitted, int(frames), rng, 1.0)
+    out = np.zeros((int(frames), N_PARAMS))
+    out[:, fitted.angles] = angles
+    return out
+
+
+def synthesize_motion(
+    fitted: CyclicPCAParams,
+    base_pose: ArrayLike,
+    frames: int,
+    fps: float,
+    rng: np.random.Generator,
+) -> FloatArray:
+    """A walking clip on the cone body: the model's angles over a base pose.
+
+    The modelled joint angles come from :func:`synthesize`'s random walk (at
+    ``fps``); the other parameters from ``base_pose``; the root moves along the
+    base pose's heading at the training clips' mean velocity.
+
+    Args:
+        fitted: The prior.
+        base_pose: ``(25,)`` pose giving root height, heading and the angles the
+            model does not cover (e.g. ``body.standing_pose(shape)``).
+        frames: Number of frames.
+        fps: Frame rate of the clip.
+        rng: Generator.
+
+    Returns:
+        ``(frames, 25)`` parameters, ready for ``mocap.export.write_motion_bvh``.
+    """
+    base = np.asarray(base_pose, dtype=np.float64)
+    if base.shape != (N_PARAMS,):
+        raise ValueError(f"synthesize_motion: base_pose must have shape (25,), got {base.shape}")
+    if frames < 1 or not fps > 0:
+        raise ValueError("synthesize_motion: frames and fps must be positive")
+    rate = fitted.fps / float(fps)
+    angles, _ = _walk(fitted, int(frames), rng, rate)
+    out = np.repeat(base[None], int(frames), axis=0)
+    out[:, fitted.angles] = angles
+    yaw = base[_YAW]
+    v = fitted.root_velocity_mean * rate
+    step = np.array([np.cos(yaw) * v[0] - np.sin(yaw) * v[1],
+                     np.sin(yaw) * v[0] + np.cos(yaw) * v[1]])  # fmt: skip
+    out[:, :2] = base[:2] + np.arange(int(frames))[:, None] * step
+    return out
+
+
+# ---------------------------------------------------------------------------
+# Cycle lengths: eq. 3 against the feet
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class CycleLength:
+    """The cycle length of one clip, from eq. 3 and from the feet.
+
+    Attributes:
+        clip_id: The clip.
+        fps: Its frame rate.
+        frames_snr: Cycle length maximising eq. 3 over the joint angles, frames.
+        frames_feet: Median interval between every other maximum of the ankles'
+            separation (one stride = two steps), frames.
+        steps: Maxima of the ankles' separation found.
+    """
+
+    clip_id: str
+    fps: float
+    frames_snr: float
+    frames_feet: float
+    steps: int
+
+    @property
+    def seconds_snr(self) -> float:
+        """Eq. 3's cycle length in seconds."""
+        return self.frames_snr / self.fps
+
+    @property
+    def seconds_feet(self) -> float:
+        """The feet's cycle length in seconds."""
+        return self.frames_feet / self.fps
+
+    @property
+    def relative_difference(self) -> float:
+        """``|snr - feet| / feet``."""
+        return abs(self.frames_snr - self.frames_feet) / self.frames_feet
+
+    def as_dict(self) -> dict[str, float | int | str]:
+        """Plain dict for JSON."""
+        return {
+            "clip": self.clip_id,
+            "fps": self.fps,
+            "frames_snr": round(self.frames_snr, 3),
+            "frames_feet": round(self.frames_feet, 3),
+            "seconds_snr": round(self.seconds_snr, 4),
+            "seconds_feet": round(self.seconds_feet, 4),
+            "steps": self.steps,
+        }
+
+
+def foot_cycle_length(motion: Motion) -> tuple[float, int]:
+    """Cycle length from the feet: the ankles' separation peaks at every step.
+
+    The separation of the two ankle keypoints (the source's ``Motion.keypoints``
+    where observed, else the cone body's forward kinematics) has a local maximum
+    at each step (feet furthest apart, around heel strike); a gait cycle is two
+    steps, so the cycle length is the median distance between every other
+    maximum.
+
+    Returns:
+        ``(frames, number of maxima)``; NaN frames with fewer than three maxima.
+    """
+    from scipy.signal import find_peaks  # scipy.signal takes a second to import
+
+    r, l_ = KEYPOINT_INDEX["r_ankle"], KEYPOINT_INDEX["l_ankle"]
+    kp = motion.keypoints[:, [r, l_]]
+    if not np.all(np.isfinite(kp)):
+        kp = motion.body_keypoints()[:, [r, l_]]
+    sep = np.linalg.norm(kp[:, 0] - kp[:, 1], axis=-1)
+    spread = float(np.ptp(sep)) if sep.size else 0.0
+    peaks, _ = find_peaks(sep, distance=max(2, int(0.25 * motion.fps)), prominence=0.2 * spread)
+    if peaks.size < 3:
+        return float("nan"), int(peaks.size)
+    # Sub-frame peak positions: the vertex of the parabola through each maximum
+    # and its two neighbours.
+    inner = np.clip(peaks, 1, sep.size - 2)
+    left, mid, right = sep[inner - 1], sep[inner], sep[inner + 1]
+    curvature = left - 2 * mid + right
+    shift = np.where(curvature < 0, 0.5 * (left - right) / np.where(curvature < 0, curvature, 1), 0)
+    where = inner + np.clip(shift, -0.5, 0.5)
+    return float(np.median(where[2:] - where[:-2])), int(peaks.size)
+
+
+def cycle_lengths(motions: Sequence[Motion]) -> list[CycleLength]:
+    """Per clip, the cycle length from eq. 3 and from the foot keypoints."""
+    out = []
+    for m in motions:
+        joint = cycles.JOINT_ANGLES
+        p = cycles.estimate_period(m.params[:, joint], m.observed[:, joint], m.fps)
+        feet, steps = foot_cycle_length(m)
+        out.append(CycleLength(m.clip_id, float(m.fps), p, feet, steps))
+    return out
+
+
+# ---------------------------------------------------------------------------
+# Command line: humotion-gym pca period | figures
+# ---------------------------------------------------------------------------
+
+
+def register_cli(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``pca period`` and ``pca figures`` to the ``humotion-gym`` parser.
+
+    Args:
+        subparsers: The top-level ``add_subparsers()`` object of ``cli.build_parser``.
+    """
+    pca = subparsers.add_parser("pca", help="cyclic PCA walking model (Ormoneit et al. 2005)")
+    psub = pca.add_subparsers(dest="pca_command", required=True)
+    period = psub.add_parser("period", help="cycle length per clip: eq. 3 and the feet")
+    period.add_argument("paths", nargs="+", help="mocap files or folders")
+    period.add_argument("--json", action="store_true", help="JSON lines instead of a table")
+    period.add_argument("--fps", type=float, default=30.0)
+    period.add_argument(
+        "--all-labels", action="store_true", help="every clip, not only those labelled walk"
+    )
+    period.set_defaults(func=_cmd_period)
+    figs = psub.add_parser("figures", help="figures like the paper's Figs. 5, 7, 9 and 10")
+    figs.add_argument("--data-dir", nargs="*", default=None, help="folders of real mocap")
+    figs.add_argument("--out", type=Path, default=Path("pca-figures"))
+    figs.add_argument("--fps", type=float, default=30.0)
+    figs.add_argument("--components", type=int, default=5)
+    figs.set_defaults(func=_cmd_figures)
+
+
+def _cmd_period(args: argparse.Namespace) -> int:
+    from humotion_gym.mocap.library import load_library
+
+    lib = load_library(args.paths, fps=args.fps, progress=False)
+    clips = list(lib) if args.all_labels else [m for m in lib if m.label in WALK_LABELS]
+    if not clips:
+        raise ValueError("no walking clips among the files (use --all-labels for every clip)")
+    rows = cycle_lengths(clips)
+    if args.json:
+        for r in rows:
+            print(json.dumps(r.as_dict()))
+    else:
+        print(
+            f"{'clip':44s} {'eq3 fr':>7s} {'feet fr':>7s} {'eq3 s':>6s} {'feet s':>6s} {'diff':>6s}"
+        )
+        for r in rows:
+            diff = (
+                f"{100 * r.relative_difference:5.1f}%" if np.isfinite(r.frames_feet) else "   -  "
+            )
+            print(
+                f"{r.clip_id[-44:]:44s} {r.frames_snr:7.2f} {r.frames_feet:7.2f} "
+                f"{r.seconds_snr:6.3f} {r.seconds_feet:6.3f} {diff}"
+            )
+        rel = np.array([r.relative_difference for r in rows])
+        rel = rel[np.isfinite(rel)]
+        if rel.size:
+            print(
+                f"{len(rows)} clips; eq. 3 vs feet: median difference {100 * np.median(rel):.1f}%, "
+                f"{100 * np.mean(rel <= 0.1):.0f}% of clips within 10%"
+            )
+    return 0
+
+
+def _cmd_figures(args: argparse.Namespace) -> int:
+    from humotion_gym.mocap.library import default_library
+
+    lib = default_library(args.data_dir or None, fps=args.fps, progress=False)
+    clips = [m for m in lib.split("train") if m.label in WALK_LABELS]
+    if not clips:
+        raise ValueError("no walking clips in the library's train split")
+    args.out.mkdir(parents=True, exist_ok=True)
+    joint = cycles.JOINT_ANGLES
+    names = [PARAM_NAMES[i] for i in joint]
+    xs, ws = joint_series([m.params for m in clips], [m.observed for m in clips])
+    periods = np.array(
+        [cycles.estimate_period(x, w, args.fps) for x, w in zip(xs, ws, strict=True)]
+    )
+    keep = np.flatnonzero(np.isfinite(periods))
+    xs, ws, periods = [xs[i] for i in keep], [ws[i] for i in keep], periods[keep]
+    subjects = [clips[i].subject for i in keep]
+    written = []
+    path = args.out / "fig5_snr.png"
+    cycles.plot_snr(xs[0], path, ws[0], args.fps, names, title=clips[keep[0]].clip_id)
+    written.append(path)
+    alignment = cycles.align_offsets(xs, periods, ws)
+    path = args.out / "fig7_aligned.png"
+    cycles.plot_aligned(alignment, xs, path, ws, angle_names=names)
+    written.append(path)
+    seg = cycles.segment(xs, periods, alignment.offsets, ws)
+    across = fpca.fpca(seg.values, seg.observed, n_components=args.components)
+    path = args.out / "fig9_components.png"
+    fpca.plot_components(across, path, names, title="mean and components across subjects")
+    written.append(path)
+    groups = np.array([subjects[i] for i in seg.sequence])
+    per_subject = fpca.fpca(seg.values, seg.observed, n_components=args.components, groups=groups)
+    path = args.out / "fig10_per_subject.png"
+    fpca.plot_components(
+        per_subject, path, names, title="components with per-subject means", show_groups=True
+    )
+    written.append(path)
+    kind = " (synthetic)" if lib.is_synthetic else ""
+    print(f"{len(xs)} walking clips{kind}, {seg.n_cycles} cycles, {len(set(subjects))} subjects")
+    for p in written:
+        print(f"wrote {p}")
+    return 0

@@ -1,0 +1,348 @@
+"""Cyclic functional PCA (Ormoneit, Black, Hastie & Kjellström 2005): cycles, FPCA, prior."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+import pytest
+
+from humotion_gym.body import PARAM_INDEX, default_shape, standing_pose
+from humotion_gym.envs.tasks import SIDE_WALK, WALK_TRACK
+from humotion_gym.filtering import ParticleFilter
+from humotion_gym.mocap.export import write_motion_bvh
+from humotion_gym.mocap.library import synthetic_library
+from humotion_gym.priors import cycles, cyclic_pca, fpca
+
+# ---------------------------------------------------------------------------
+# helpers
+# ---------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def synthetic_walks():
+    return [m for m in synthetic_library() if m.label == "walk"]
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    return cyclic_pca.fit(list(synthetic_library().split("train")))
+
+
+def periodic_series(rng, n_frames=300, period=27.5, n_angles=4, noise=0.05):
+    t = np.arange(n_frames)[:, None]
+    phase = 2 * np.pi * t / period
+    amp = rng.uniform(0.3, 1.0, n_angles)
+    shift = rng.uniform(0, 2 * np.pi, n_angles)
+    x = amp * np.sin(phase + shift) + 0.4 * amp * np.sin(2 * phase + 2 * shift)
+    return x + noise * rng.standard_normal(x.shape)
+
+
+def remove_spans(motions, rng, names=("r_knee", "l_hip_x", "r_shoulder_x", "l_elbow"), gaps=2):
+    """Joint-angle series with spans of 10-50 frames removed in a few angles."""
+    cols = [int(np.flatnonzero(cycles.JOINT_ANGLES == PARAM_INDEX[n])[0]) for n in names]
+    xs, ws, truth, holes = [], [], [], []
+    for m in motions:
+        x = m.params[:, cycles.JOINT_ANGLES]
+        hole = np.zeros(x.shape, dtype=bool)
+        for c in cols:
+            for _ in range(gaps):
+                length = int(rng.integers(10, 51))
+                start = int(rng.integers(1, x.shape[0] - length - 1))
+                hole[start : start + length, c] = True
+        xs.append(np.where(hole, 0.0, x))
+        ws.append(m.observed[:, cycles.JOINT_ANGLES] & ~hole)
+        truth.append(x)
+        holes.append(hole)
+    return xs, ws, truth, holes
+
+
+def linear_fill(x, w):
+    out = x.copy()
+    t = np.arange(x.shape[0])
+    for j in range(x.shape[1]):
+        gap = ~w[:, j]
+        if gap.any():
+            out[gap, j] = np.interp(t[gap], t[~gap], x[~gap, j])
+    return out
+
+
+def gap_rmse(filled, truth, holes):
+    err = np.concatenate([(f - t)[h] for f, t, h in zip(filled, truth, holes, strict=True)])
+    return float(np.sqrt(np.mean(err**2)))
+
+
+def assert_theorem_1(errors):
+    # The observed error never rises (rounding aside).
+    rises = np.diff(errors)
+    assert np.all(rises <= 1e-12 * errors[:-1]), rises.max()
+
+
+# ---------------------------------------------------------------------------
+# section 3: cycles
+# ---------------------------------------------------------------------------
+
+
+def test_periodic_spline_basis_meets_its_three_boundary_constraints():
+    null = cycles.periodic_null_space()
+    assert null.shape == (13, 10)
+    np.testing.assert_allclose(null.T @ null, np.eye(10), atol=1e-12)
+    for derivative in range(3):
+        ends = cycles.truncated_power_basis(np.array([0.0, 1.0]), derivative=derivative) @ null
+        assert np.abs(ends[1] - ends[0]).max() < 1e-12
+    # and the basis is genuinely periodic: it repeats with period 1
+    x = np.linspace(0, 1, 50, endpoint=False)
+    np.testing.assert_allclose(
+        cycles.periodic_spline_basis(x), cycles.periodic_spline_basis(x + 3.0), atol=1e-9
+    )
+
+
+def test_snr_peaks_at_the_true_period_despite_missing_data():
+    rng = np.random.default_rng(0)
+    x = periodic_series(rng, period=27.5)
+    observed = rng.random(x.shape) > 0.2
+    observed[100:140, :2] = False
+    x = np.where(observed, x, 1e3)  # garbage where unobserved must not matter
+    assert cycles.estimate_period(x, observed, fps=30.0) == pytest.approx(27.5, abs=0.5)
+
+
+def test_snr_stays_flat_for_white_noise():
+    rng = np.random.default_rng(1)
+    periods = cycles.candidate_periods(30.0, 600)
+    noise = cycles.signal_to_noise(rng.standard_normal((600, 19)), None, periods).sum(axis=1)
+    walk = cycles.signal_to_noise(periodic_series(rng, 600, 30.0, 19), None, periods).sum(axis=1)
+    # F statistic: about 1 per angle whatever p, no trend, far below a real period's peak.
+    assert 0.6 * 19 < noise.min() and noise.max() < 1.6 * 19
+    assert abs(np.corrcoef(periods, noise)[0, 1]) < 0.5
+    assert walk.max() > 50 * noise.max()
+
+
+def test_offset_algorithm_recovers_known_shifts():
+    rng = np.random.default_rng(2)
+    periods = np.array([30.0, 27.0, 33.5, 31.0])
+    shifts = np.array([0.0, 0.21, 0.58, 0.83])  # in cycles
+
+    def curve(phase):
+        k = 2 * np.pi * phase
+        return np.stack([np.sin(k), np.cos(2 * k) + 0.5 * np.sin(k), np.sin(k + 1.0) ** 3], axis=-1)
+
+    xs, ws = [], []
+    for p, d in zip(periods, shifts, strict=True):
+        t = np.arange(200)
+        x = curve(t / p - d) + 0.02 * rng.standard_normal((200, 3))
+        w = rng.random(x.shape) > 0.1
+        xs.append(x)
+        ws.append(w)
+    al = cycles.align_offsets(xs, periods, ws)
+    recovered = al.offsets / al.periods  # phase 0 of sequence i is at offset o_i
+    rel = (recovered - recovered[0]) - (shifts - shifts[0])
+    rel = (rel + 0.5) % 1.0 - 0.5
+    assert np.abs(rel).max() < 0.01
+    assert np.all(np.diff(al.errors) <= 1e-12 * al.errors[:-1])
+
+
+def test_segmentation_keeps_missing_labels_and_maps_back(synthetic_walks):
+    m = synthetic_walks[0]
+    x = m.params[:, cycles.JOINT_ANGLES]
+    p = cycles.estimate_period(x, None, m.fps)
+    seg = cycles.segment([x], [p], [7.3], n_samples=64)
+    assert seg.values.shape[1:] == (19, 64)
+    assert seg.cycle[0] == -1 and not seg.observed[0].all()  # partial first cycle
+    assert seg.observed[1:-1].all()
+    back = seg.to_frames(seg.values, 0)
+    ok = np.isfinite(back[:, 0])
+    assert ok.mean() > 0.95
+    assert np.sqrt(np.mean((back[ok] - x[ok]) ** 2)) < np.radians(1.0)
+    design, mask = seg.design_matrix()
+    assert design.shape == mask.shape == (seg.n_cycles, 19 * 64)
+    # A cycle with (almost) no data is dropped; its frames map back to NaN.
+    observed = np.ones(x.shape, dtype=bool)
+    start = int(np.ceil(7.3 + 2 * p))
+    observed[start : start + int(p)] = False
+    gappy = cycles.segment([x], [p], [7.3], [observed], n_samples=64)
+    assert 2 not in gappy.cycle and gappy.n_cycles == seg.n_cycles - 1
+    back = gappy.to_frames(gappy.values, 0)
+    assert np.isnan(back[start + 3]).all() and np.isfinite(back[start + int(p) + 3]).all()
+
+
+# ---------------------------------------------------------------------------
+# section 4: functional PCA with missing data
+# ---------------------------------------------------------------------------
+
+
+def test_fourier_coefficients_are_an_isometry_and_invert():
+    rng = np.random.default_rng(3)
+    z = rng.standard_normal((5, 3, 39))
+    curves = fpca.to_curves(z, 120)
+    np.testing.assert_allclose(fpca.to_coefficients(curves, 20), z, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(curves, axis=-1), np.linalg.norm(z, axis=-1))
+    np.testing.assert_allclose(fpca.fourier_basis(np.arange(120), 20, 120) @ z[0, 0], curves[0, 0])
+
+
+def test_fpca_without_missing_data_is_pca_of_the_coefficients():
+    rng = np.random.default_rng(4)
+    x = fpca.to_curves(rng.standard_normal((40, 2, 9)) * np.arange(9, 0, -1), 32)
+    fit = fpca.fpca(x, n_components=3, n_harmonics=5)
+    z = fpca.to_coefficients(x, 5).reshape(40, -1)
+    sv = np.linalg.svd(z - z.mean(axis=0), compute_uv=False)
+    np.testing.assert_allclose(fit.singular_values, sv[:3], rtol=1e-10)
+
+
+def test_theorem_1_on_synthetic_walking_with_spans_removed(synthetic_walks):
+    xs, ws, truth, holes = remove_spans(synthetic_walks, np.random.default_rng(5))
+    imp = fpca.impute_sequences(xs, ws, fps=30.0, n_components=5)
+    assert imp.result.n_iter > 3
+    assert_theorem_1(imp.result.errors)
+    # and with per-subject means (the paper's Fig. 10)
+    groups = imp.segmentation.sequence
+    grouped = fpca.fpca(imp.segmentation.values, imp.segmentation.observed, 3, groups=groups)
+    assert_theorem_1(grouped.errors)
+
+
+def test_imputation_beats_linear_interpolation_on_synthetic_walking(synthetic_walks):
+    xs, ws, truth, holes = remove_spans(synthetic_walks, np.random.default_rng(6))
+    imp = fpca.impute_sequences(xs, ws, fps=30.0, n_components=5)
+    ours = gap_rmse(imp.filled, truth, holes)
+    linear = gap_rmse([linear_fill(x, w) for x, w in zip(xs, ws, strict=True)], truth, holes)
+    assert ours < 0.5 * linear
+    assert ours < np.radians(4.0)
+    for f, x, w in zip(imp.filled, xs, ws, strict=True):
+        np.testing.assert_array_equal(f[w], x[w])  # observed entries untouched
+
+
+@pytest.mark.mocap
+def test_theorem_1_and_imputation_on_real_walking(real_library):
+    walks = [m for m in real_library.filter(labels=["walk"]) if m.subject == "cmu-07"]
+    walks += [m for m in real_library.filter(labels=["walk"]) if m.dataset == "bandai-2"][:6]
+    assert len(walks) >= 12
+    xs, ws, truth, holes = remove_spans(walks, np.random.default_rng(7))
+    imp = fpca.impute_sequences(xs, ws, fps=30.0, n_components=5)
+    assert imp.result.n_iter > 3
+    assert_theorem_1(imp.result.errors)
+    ours = gap_rmse(imp.filled, truth, holes)
+    linear = gap_rmse([linear_fill(x, w) for x, w in zip(xs, ws, strict=True)], truth, holes)
+    assert ours < 0.6 * linear
+
+
+@pytest.mark.mocap
+def test_cycle_lengths_agree_with_the_feet_on_real_walking(real_library):
+    walks = [m for m in real_library.filter(labels=["walk"]) if m.subject == "cmu-07"]
+    walks += [m for m in real_library.filter(labels=["walk"]) if m.dataset == "bandai-2"][::8]
+    rows = cyclic_pca.cycle_lengths(walks)
+    rel = np.array([r.relative_difference for r in rows])
+    assert np.isfinite(rel).all()
+    assert np.median(rel) < 0.03 and rel.max() < 0.1
+
+
+# ---------------------------------------------------------------------------
+# section 5: the tracking prior
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("task", [WALK_TRACK, SIDE_WALK])
+def test_prior_contract(task, synthetic_walks):
+    train = list(synthetic_library().split("train"))
+    fitted = cyclic_pca.fit(train, free=task.free_indices)
+    d = task.free_indices.size
+    pose = synthetic_walks[-1].params[20, task.free_indices]
+    state = cyclic_pca.initial(fitted, pose, 64, np.random.default_rng(0))
+    assert state.pose.shape == (64, d)
+    assert state.extra["phase"].shape == (64,) and state.extra["speed"].shape == (64,)
+    assert state.extra["coef"].shape == (64, fitted.n_components)
+    # starting particles sit near the known pose (the global part exactly on it)
+    assert np.abs(np.median(state.pose, axis=0) - pose).max() < np.radians(5)
+    again = cyclic_pca.initial(fitted, pose, 64, np.random.default_rng(0))
+    np.testing.assert_array_equal(state.pose, again.pose)
+    nxt = cyclic_pca.transition(fitted, state, np.random.default_rng(1))
+    nxt2 = cyclic_pca.transition(fitted, again, np.random.default_rng(1))
+    np.testing.assert_array_equal(nxt.pose, nxt2.pose)
+    assert nxt.pose.shape == (64, d) and np.all(np.isfinite(nxt.pose))
+    np.testing.assert_allclose(
+        nxt.extra["phase"], (state.extra["phase"] + state.extra["speed"]) % fitted.n_samples
+    )
+
+
+def test_prior_predicts_walking_better_than_standing_still(fitted, synthetic_walks):
+    m = synthetic_walks[-1]  # held-out subject
+    rng = np.random.default_rng(8)
+    state = cyclic_pca.initial(fitted, m.params[10], 300, rng)
+    ours, still = [], []
+    for k in range(1, 16):
+        state = cyclic_pca.transition(fitted, state, rng)
+        ours.append(np.abs(state.pose[:, 6:].mean(axis=0) - m.params[10 + k, 6:]).mean())
+        still.append(np.abs(m.params[10, 6:] - m.params[10 + k, 6:]).mean())
+    assert np.mean(ours) < 0.6 * np.mean(still)
+
+
+def test_save_load_round_trip(fitted, tmp_path):
+    path = tmp_path / "pca.npz"
+    cyclic_pca.save(fitted, path)
+    back = cyclic_pca.load(path)
+    for name in fitted.__dataclass_fields__:
+        np.testing.assert_array_equal(np.asarray(getattr(back, name)), getattr(fitted, name))
+    pose = standing_pose(default_shape())
+    a = cyclic_pca.initial(fitted, pose, 16, np.random.default_rng(3))
+    b = cyclic_pca.initial(back, pose, 16, np.random.default_rng(3))
+    np.testing.assert_array_equal(a.pose, b.pose)
+
+
+def test_particle_filter_runs_with_the_prior(fitted, synthetic_walks):
+    m = synthetic_walks[-1]
+
+    class Oracle:
+        """Gaussian likelihood around the true pose of the frame (a stand-in camera)."""
+
+        def log_likelihood(self, frame, poses):
+            return -0.5 * np.sum(((poses[:, 6:] - frame[6:]) / 0.05) ** 2, axis=1)
+
+    pf = ParticleFilter(cyclic_pca, fitted, Oracle(), 200)
+    pf.reset(m.params[0], np.random.default_rng(0))
+    errors = [np.abs(pf.step(m.params[t])[6:] - m.params[t, 6:]).mean() for t in range(1, 31)]
+    assert np.all(np.isfinite(errors))
+    assert np.mean(errors) < np.radians(3.0)
+
+
+def test_synthesis(fitted):
+    rng = np.random.default_rng(9)
+    params = cyclic_pca.synthesize(fitted, 90, rng)
+    assert params.shape == (90, 25) and np.all(np.isfinite(params))
+    assert np.all(params[:, :6] == 0)
+    knee = params[:, PARAM_INDEX["r_knee"]]
+    assert np.ptp(knee) > np.radians(20)  # the knee swings
+    base = standing_pose(default_shape(), yaw=0.7)
+    motion = cyclic_pca.synthesize_motion(fitted, base, 60, 30.0, rng)
+    assert motion.shape == (60, 25)
+    assert np.allclose(motion[:, 2], base[2]) and np.allclose(motion[:, 3], 0.7)
+    heading = np.array([-np.sin(0.7), np.cos(0.7)])
+    assert (motion[-1, :2] - motion[0, :2]) @ heading > 500.0  # walks the way it faces
+
+
+def test_check_task_refuses_non_walking_tasks():
+    cyclic_pca.check_task("WalkTrack-v0")
+    cyclic_pca.check_task("humotion_gym/SideWalk-v0")
+    for task in ("ArmTrack-v0", "humotion_gym/BodyTrack-v0", "Nope-v0"):
+        with pytest.raises(ValueError, match="cyclic walking only"):
+            cyclic_pca.check_task(task)
+
+
+def test_fit_needs_walking_clips():
+    others = [m for m in synthetic_library() if m.label in ("wave", "reach")]
+    with pytest.raises(ValueError, match="cyclic walking only"):
+        cyclic_pca.fit(others)
+
+
+def test_cycle_lengths_and_the_period_command(synthetic_walks, tmp_path, capsys):
+    rows = cyclic_pca.cycle_lengths(synthetic_walks)
+    rel = np.array([r.relative_difference for r in rows])
+    assert np.all(rel < 0.1)
+    m = synthetic_walks[0]
+    path = tmp_path / "walk_01.bvh"
+    write_motion_bvh(path, m.params, m.shape, m.fps)
+    parser = argparse.ArgumentParser()
+    cyclic_pca.register_cli(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(["pca", "period", str(path), "--json", "--all-labels"])
+    assert args.func(args) == 0
+    row = json.loads(capsys.readouterr().out.strip().splitlines()[0])
+    assert row["frames_snr"] == pytest.approx(rows[0].frames_snr, abs=1.0)
+    assert row["seconds_feet"] == pytest.approx(row["frames_feet"] / 30.0, abs=1e-3)
