@@ -254,6 +254,22 @@ AGENTS: dict[str, AgentSpec] = {
         "humotion_gym.priors.constant_velocity",
         description="constant velocity: every parameter moves on with its velocity plus noise",
     ),
+    "pf-tree": AgentSpec(
+        "humotion_gym.priors.tree",
+        description="implicit PCA-tree prior (Sidenbladh, Black & Sigal 2002), the paper's "
+        "absolute replay of the database's next pose",
+    ),
+    "pf-tree-vel": AgentSpec(
+        "humotion_gym.priors.tree",
+        fit_settings={"replay": "velocity"},
+        description="the tree prior replaying the database's velocities from each particle's "
+        "own pose (transfers better to a new subject)",
+    ),
+    "pf-pca": AgentSpec(
+        "humotion_gym.priors.cyclic_pca",
+        description="cyclic functional PCA of walking (Ormoneit, Black, Hastie & Kjellström 2005)",
+        tasks=("WalkTrack-v0", "SideWalk-v0"),
+    ),
 }
 
 
@@ -291,6 +307,9 @@ def make(
     spec = AGENTS[name]
     base: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
     if spec.tasks is not None and base.task.name not in spec.tasks:
+        module = _import(spec.prior)
+        if hasattr(module, "check_task"):
+            module.check_task(base.task.name)  # the prior's own explanation
         raise ValueError(f"{name} supports the tasks {list(spec.tasks)} only, not {base.task.name}")
     module, fitted = fit_prior(spec, base, fit_settings, use_cache=use_cache)
     return ParticleFilterAgent(env, module, fitted, n_particles, seed, estimate, name)

@@ -328,6 +328,11 @@ def build_parser() -> argparse.ArgumentParser:
     _add_download(sub)
     _add_envs(sub)
     _add_leaderboard(sub)
+    from humotion_gym.priors.cyclic_pca import register_cli as _add_pca
+    from humotion_gym.priors.tree_figures import register_cli as _add_tree_figures
+
+    _add_tree_figures(sub)
+    _add_pca(sub)
     return parser
 
 

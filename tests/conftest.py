@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import os
+
+# Multi-threaded BLAS fights itself on small matrices on a 2-core machine; one
+# thread per process keeps the suite's run time steady.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import tempfile
 from pathlib import Path
 
