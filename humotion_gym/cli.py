@@ -233,6 +233,64 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_synth(sub: argparse._SubParsersAction) -> None:
+    syn = sub.add_parser("synth", help="synthesise motion from a fitted prior, as BVH")
+    syn.add_argument("--prior", choices=["tree", "slds", "pca"], default="tree")
+    syn.add_argument("--seconds", type=float, default=2.0)
+    syn.add_argument("--start", default=None, help="clip id whose first frames start the motion")
+    syn.add_argument("--beta", type=float, default=0.05, help="tree temperature (low: faithful)")
+    syn.add_argument("--seed", type=int, default=0)
+    syn.add_argument("--out", type=Path, default=Path("synth.bvh"))
+    syn.add_argument("--video", type=Path, default=None, help="also write a video")
+    syn.add_argument("--data-dir", nargs="*", default=None)
+    syn.add_argument("--fps", type=float, default=30.0)
+    syn.set_defaults(func=_cmd_synth)
+
+
+def _cmd_synth(args: argparse.Namespace) -> int:
+    from humotion_gym.body import N_PARAMS, standing_pose
+    from humotion_gym.mocap.export import write_motion_bvh
+    from humotion_gym.mocap.library import default_library
+    from humotion_gym.video import render_motion, write_video
+
+    lib = default_library(args.data_dir or None, fps=args.fps)
+    train = lib.split("train")
+    rng = np.random.default_rng(args.seed)
+    frames = max(2, int(round(args.seconds * args.fps)))
+    if args.start:
+        start_motion = lib[args.start]
+    else:
+        walks = train.filter(labels=["walk"])
+        start_motion = (walks if len(walks) else train)[0]
+    shape = start_motion.shape
+    free = np.arange(N_PARAMS)
+    if args.prior == "tree":
+        from humotion_gym.priors import tree
+
+        fitted = tree.fit(train.motions, free=free, rng=rng)
+        window = fitted.window + 1
+        if start_motion.n_frames < window:
+            raise ValueError(f"{start_motion.clip_id}: needs at least {window} frames to start")
+        history = start_motion.params[:window]
+        params = np.vstack([history, tree.synthesize(fitted, history, frames, args.beta, rng)])
+    elif args.prior == "pca":
+        from humotion_gym.priors import cyclic_pca
+
+        walks = train.filter(labels=["walk"])
+        fitted = cyclic_pca.fit(walks.motions, free=free, rng=rng)
+        params = cyclic_pca.synthesize_motion(fitted, standing_pose(shape), frames, args.fps, rng)
+    else:
+        from humotion_gym.priors import slds_tasks
+
+        params = slds_tasks.synthesize_walk(train, frames, args.fps, rng, shape)
+    write_motion_bvh(args.out, params, shape, args.fps)
+    print(f"wrote {args.out}: {params.shape[0]} frames from the {args.prior} prior")
+    if args.video:
+        write_video(args.video, render_motion(params, shape), fps=args.fps, scale=1)
+        print(f"wrote {args.video}")
+    return 0
+
+
 def _env_kwargs(args: argparse.Namespace) -> dict:
     kwargs: dict = {}
     if args.data_dir:
@@ -328,6 +386,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_download(sub)
     _add_envs(sub)
     _add_leaderboard(sub)
+    _add_synth(sub)
     from humotion_gym.priors.cyclic_pca import register_cli as _add_pca
     from humotion_gym.priors.tree_figures import register_cli as _add_tree_figures
 
