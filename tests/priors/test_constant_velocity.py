@@ -1,0 +1,69 @@
+import numpy as np
+import pytest
+
+from humotion_gym.filtering import ParticleFilter
+from humotion_gym.mocap.library import synthetic_library
+from humotion_gym.priors import constant_velocity as cv
+
+
+class GaussianOnPose:
+    def __init__(self, r):
+        self.r = r
+
+    def log_likelihood(self, y, poses):
+        return -0.5 * np.sum((poses - y) ** 2, axis=1) / self.r**2
+
+
+def kalman_cv(y, p0, accel, vel0, r):
+    """Exact Kalman filter of p_t = p_{t-1} + v_t, v_t = v_{t-1} + e_t, y_t = p_t + w_t."""
+    a = np.array([[1.0, 1.0], [0.0, 1.0]])
+    q = accel**2 * np.array([[1.0, 1.0], [1.0, 1.0]])  # both rows carry the same kick e_t
+    h = np.array([[1.0, 0.0]])
+    m, p = np.array([p0, 0.0]), np.diag([0.0, vel0**2])
+    out = []
+    for obs in y:
+        m, p = a @ m, a @ p @ a.T + q
+        s = h @ p @ h.T + r**2
+        k = p @ h.T / s
+        m = m + (k * (obs - h @ m)).ravel()
+        p = p - k @ h @ p
+        out.append(m[0])
+    return np.array(out)
+
+
+def test_constant_velocity_filter_matches_the_exact_kalman_filter():
+    fitted = cv.ConstantVelocityParams(
+        free=np.array([0]), accel_std=np.array([0.3]), velocity_std=np.array([0.5]), fps=30.0
+    )
+    rng = np.random.default_rng(0)
+    truth = np.cumsum(np.cumsum(rng.normal(0, 0.3, 20)))
+    y = truth + rng.normal(0, 1.0, 20)
+    exact = kalman_cv(y, 0.0, 0.3, 0.5, 1.0)
+    errors = []
+    for n in (200, 20000):
+        pf = ParticleFilter(cv, fitted, GaussianOnPose(1.0), n)
+        pf.reset(np.array([0.0]), np.random.default_rng(1))
+        est = np.array([pf.step(np.array([obs]))[0] for obs in y])
+        errors.append(np.abs(est - exact).mean())
+    assert errors[1] < errors[0] and errors[1] < 0.05
+
+
+def test_fit_from_accelerations_and_contract(tmp_path):
+    lib = synthetic_library().split("train")
+    free = np.array([12, 20])  # r_elbow, r_knee
+    fitted = cv.fit(lib.motions, free=free)
+    acc = np.concatenate([np.diff(m.params[:, free], n=2, axis=0) for m in lib])
+    assert np.allclose(fitted.accel_std, acc.std(axis=0))
+    pose = lib[0].params[0, free]
+    a = cv.transition(fitted, cv.initial(fitted, pose, 50, np.random.default_rng(3)), np.random.default_rng(4))
+    b = cv.transition(fitted, cv.initial(fitted, pose, 50, np.random.default_rng(3)), np.random.default_rng(4))
+    assert a.pose.shape == (50, 2) and np.array_equal(a.pose, b.pose) and np.all(np.isfinite(a.pose))
+    cv.save(fitted, tmp_path / "cv.npz")
+    back = cv.load(tmp_path / "cv.npz")
+    assert np.array_equal(back.accel_std, fitted.accel_std) and np.array_equal(back.free, free)
+    assert cv.fit(lib.motions, free=free, multiplier=2.0).multiplier == 2.0
+
+
+def test_fit_needs_data():
+    with pytest.raises(ValueError, match="no training motions"):
+        cv.fit([])
