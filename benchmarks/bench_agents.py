@@ -1,0 +1,65 @@
+"""Particle-filter agents: milliseconds per frame on BodyTrack-v0 at 128x128.
+
+Run: python benchmarks/bench_agents.py [--data-dir ../shared/mocap]
+
+Reports pf-cv and pf-tree at 300, 3,000 and 10,000 particles, split into the
+prior's transition, the observation model (prepare + score) and the rest, with
+the environment's own step (render included) measured in the same run as the
+reference.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import gymnasium as gym
+import numpy as np
+
+import humotion_gym  # noqa: F401
+from baselines.agents import make
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--data-dir", default=None)
+    ap.add_argument("--frames", type=int, default=30)
+    args = ap.parse_args()
+    kwargs = {"data_dir": args.data_dir} if args.data_dir else {}
+    env = gym.make("humotion_gym/BodyTrack-v0", terminate_on_lost=False, **kwargs)
+    base = env.unwrapped
+    env.reset(seed=0)
+    t0 = time.perf_counter()
+    for _ in range(args.frames - 1):
+        env.step(np.zeros(25, np.float32))
+    env_ms = 1000 * (time.perf_counter() - t0) / (args.frames - 1)
+    print(f"reference: env step with rendering {env_ms:.2f} ms")
+    print(f"{'agent':10s} {'particles':>9s} {'ms/frame':>9s} {'transition':>11s} {'likelihood':>11s} {'x env step':>11s}")
+    for name in ("pf-cv", "pf-tree"):
+        for n in (300, 3000, 10000):
+            agent = make(name, env, n_particles=n, seed=0)
+            obs, info = env.reset(seed=0)
+            agent.observe_info(info)
+            agent.predict(obs, episode_start=True)
+            total = trans = lik = 0.0
+            for _ in range(args.frames):
+                obs, _, _, _, info = env.step(np.zeros(25, np.float32))
+                agent.observe_info(info)
+                state = agent.filter.state
+                t = time.perf_counter()
+                agent.prior.transition(agent.fitted, state, np.random.default_rng(0))
+                trans += time.perf_counter() - t
+                t = time.perf_counter()
+                feats = base.observation_model.prepare(obs)
+                agent.likelihood.update(np.asarray(info["fixed_params"]), base.shape, info["camera"])
+                agent.likelihood.log_likelihood(feats, state.pose)
+                lik += time.perf_counter() - t
+                t = time.perf_counter()
+                agent.predict(obs)
+                total += time.perf_counter() - t
+            k = 1000 / args.frames
+            print(f"{name:10s} {n:9,d} {total * k:9.2f} {trans * k:11.2f} {lik * k:11.2f} {total * k / env_ms:11.1f}")
+
+
+if __name__ == "__main__":
+    main()
