@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -399,6 +400,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``humotion-gym`` console script."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    # The hot loops multiply small matrices many times; a multi-threaded BLAS
+    # spends longer waking its threads than computing (6 times slower per
+    # tracked frame on 2 cores). The user's OPENBLAS_NUM_THREADS still wins.
+    if "OPENBLAS_NUM_THREADS" not in os.environ and "OMP_NUM_THREADS" not in os.environ:
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(limits=1, user_api="blas")
     try:
         return int(args.func(args) or 0)
     except (ValueError, FileNotFoundError, KeyError) as exc:
