@@ -1,0 +1,1425 @@
+"""Inference and learning for the switching linear dynamic system: pure functions.
+
+Pavlovic, Rehg, Cham & Murphy, *A dynamic Bayesian network approach to figure
+tracking using learned dynamic models*, ICCV 1999, section 2. The model
+(:class:`SLDSParams`, plain arrays) is
+
+    s_t ~ Pi[s_{t-1}, :],  s_0 ~ pi_0                         (Markov switch)
+    x_t = A(s_t) x_{t-1} + b(s_t) + v_t,  v_t ~ N(0, Q(s_t))   (eq. 1, with an offset)
+    x_0 ~ N(x0(s_0), Q0(s_0))
+    y_t = C x_t + d + w_t,  w_t ~ N(0, R)                      (eq. 2)
+
+The offset ``b`` lets every linear model turn about its own fixed point (the
+paper's models are linear in a centred state; an affine term is the same thing
+with the centre learned).
+
+What is here, all over numpy arrays, vectorised over sequences and switch
+states, with the only Python loop over time:
+
+* :func:`viterbi`: the approximate Viterbi decoder of section 2.2 (eqs. 3-12):
+  one Kalman time and measurement update for every pair of switch states
+  ``j -> i`` at every frame, the innovation cost of each pair (eq. 6), the best
+  partial cost and its predecessor for every state (eqs. 7-8), and
+  backtracking (eq. 12).
+* :func:`filter_path` and :func:`rts_smoother`: the Kalman filter and the
+  Rauch-Tung-Striebel smoother of ``x`` given a switch sequence, which give the
+  sufficient statistics of the M-step.
+* :func:`fit_em`: learning (section 2.3) by EM with the Viterbi E-step, from an
+  initial segmentation found by clustering windows under a local linear
+  dynamic model (:func:`initialise`).
+* :func:`combine`: models learned per activity joined into one SLDS with a
+  block transition matrix (section 4.1).
+* :func:`decode`, :func:`sample` and :func:`smooth`: Viterbi segmentation
+  (classification, section 4.1), synthesis (section 4.3) and smoothing with
+  missing measurements (interpolation, Fig. 6); :func:`stabilise` pulls the
+  models' eigenvalues inside the unit circle after learning.
+* :func:`smooth_mean`, an extension: the posterior mean of missing frames
+  averaged over switch paths (importance sampling of the switch with the
+  continuous state integrated exactly), where the paper follows one path.
+
+Costs are negative log probabilities (nats). Measurements enter through a
+selection: the filters observe the first ``dz`` latent components with noise
+``Rm``. With the identity emission (``C = [I 0]``) that is the model as it
+stands; with a learned ``C`` (``dy >= dx``) the measurement is first projected
+exactly onto the latent space,
+
+    log N(y; C x + d, R) = log N(z; x, (C' R^-1 C)^-1) + c(y),
+    z = (C' R^-1 C)^-1 C' R^-1 (y - d),
+
+where ``c(y)`` does not depend on ``x`` or the switch, so every decision is the
+same and the costs stay exact while every matrix is ``dx`` wide instead of ``dy``.
+
+Learning is MAP rather than ML, with weak conjugate priors that keep every
+covariance positive definite when a state sees few frames (a matrix-normal /
+inverse-Wishart prior on each ``[A|b], Q``, the same row-wise on ``[C|d], R``,
+a normal-inverse-Wishart on ``x0, Q0`` and Dirichlet pseudo-counts on ``Pi``
+and ``pi_0``; see :class:`Regulariser`). Each M-step is the exact joint
+maximiser, and the E-step keeps, for every sequence, whichever of the new
+Viterbi path and the previous path costs less, so the reported cost
+``-log p(y, s | theta) - log p(theta)`` can never rise between iterations.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.cluster.vq import kmeans2
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.intp]
+
+LOG_2PI = float(np.log(2.0 * np.pi))
+#: Emission kinds: ``"identity"`` observes the current angles of the state
+#: (``C = [I 0]``, ``d = 0``, fixed); ``"learned"`` learns ``C`` and ``d``.
+EMISSIONS = ("identity", "learned")
+
+
+@dataclass(frozen=True, eq=False)
+class SLDSParams:
+    """A switching linear dynamic system (fitted parameters, plain arrays).
+
+    Attributes:
+        free: ``(dy,)`` indices of the modelled pose parameters in the 25-vector
+            (for the identity emission; any labels for a learned one).
+        state_labels: ``(S,)`` the activity each switch state belongs to.
+        emission: ``"identity"`` or ``"learned"``.
+        order: Order of the dynamics in the observed angles with the identity
+            emission: 1 (``x_t = theta_t``) or 2 (``x_t = [theta_t, theta_{t-1}]``);
+            1 with a learned emission.
+        A: ``(S, dx, dx)`` dynamics of each switch state.
+        b: ``(S, dx)`` offsets.
+        Q: ``(S, dx, dx)`` process noise (zero on the copied rows of order 2).
+        C: ``(dy, dx)`` emission.
+        d: ``(dy,)`` emission offset.
+        R: ``(dy, dy)`` measurement noise (diagonal).
+        x0: ``(S, dx)`` initial-state mean of each switch state.
+        Q0: ``(S, dx, dx)`` initial-state covariance.
+        Pi: ``(S, S)`` switch transitions, ``Pi[j, i] = P(s_t = i | s_{t-1} = j)``.
+        pi0: ``(S,)`` initial switch distribution.
+        fps: Frame rate the dynamics step at.
+        switch_prob: Probability per frame of leaving one activity's block for
+            another's (section 4.1); 0 for a single model.
+    """
+
+    free: IntArray
+    state_labels: NDArray[np.str_]
+    emission: str
+    order: int
+    A: FloatArray
+    b: FloatArray
+    Q: FloatArray
+    C: FloatArray
+    d: FloatArray
+    R: FloatArray
+    x0: FloatArray
+    Q0: FloatArray
+    Pi: FloatArray
+    pi0: FloatArray
+    fps: float
+    switch_prob: float = 0.0
+
+    def __post_init__(self) -> None:
+        s, dx = self.x0.shape
+        dy = self.d.shape[0]
+        want = {
+            "A": (s, dx, dx), "b": (s, dx), "Q": (s, dx, dx), "C": (dy, dx), "R": (dy, dy),
+            "Q0": (s, dx, dx), "Pi": (s, s), "pi0": (s,), "state_labels": (s,),
+        }  # fmt: skip
+        for name, shape in want.items():
+            got = np.shape(getattr(self, name))
+            if got != shape:
+                raise ValueError(f"SLDSParams: {name} has shape {got}, expected {shape}")
+        if self.emission not in EMISSIONS:
+            raise ValueError(
+                f"SLDSParams: emission must be one of {EMISSIONS}, got {self.emission!r}"
+            )
+        if self.order not in (1, 2) or (self.emission == "learned" and self.order != 1):
+            raise ValueError(f"SLDSParams: order must be 1 or 2 (1 when learned), got {self.order}")
+        if self.emission == "identity" and dx != self.order * dy:
+            raise ValueError(f"SLDSParams: identity emission needs dx = order * dy, got {dx}, {dy}")
+        if self.emission == "learned" and dx > dy:
+            raise ValueError(f"SLDSParams: a learned emission needs dx <= dy, got {dx} > {dy}")
+
+    @property
+    def n_states(self) -> int:
+        """Number of switch states S."""
+        return int(self.x0.shape[0])
+
+    @property
+    def latent_dim(self) -> int:
+        """Dimension dx of the continuous state."""
+        return int(self.x0.shape[1])
+
+    @property
+    def obs_dim(self) -> int:
+        """Dimension dy of a measurement."""
+        return int(self.d.shape[0])
+
+    @property
+    def learned_rows(self) -> slice:
+        """Rows of ``A, b, Q`` that are learned (order 2 copies theta_{t-1} exactly)."""
+        return slice(0, self.obs_dim) if self.order == 2 else slice(0, self.latent_dim)
+
+    def replace(self, **changes: object) -> SLDSParams:
+        """A copy with some fields changed."""
+        return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True, eq=False)
+class Sequences:
+    """Sequences padded to a common length.
+
+    Attributes:
+        y: ``(B, T, dy)`` measurements (anything where unobserved or padded).
+        observed: ``(B, T)`` True where a measurement is present.
+        lengths: ``(B,)`` the length of each sequence.
+    """
+
+    y: FloatArray
+    observed: NDArray[np.bool_]
+    lengths: IntArray
+
+    @property
+    def n(self) -> int:
+        """Number of sequences B."""
+        return int(self.y.shape[0])
+
+    @property
+    def valid(self) -> NDArray[np.bool_]:
+        """``(B, T)`` True inside each sequence."""
+        return np.arange(self.y.shape[1])[None, :] < self.lengths[:, None]
+
+    def take(self, index: ArrayLike) -> Sequences:
+        """The sequences at ``index``."""
+        i = np.asarray(index)
+        return Sequences(self.y[i], self.observed[i], self.lengths[i])
+
+
+def pack(arrays: Sequence[ArrayLike], observed: Sequence[ArrayLike] | None = None) -> Sequences:
+    """Pad sequences of measurements ``(T_b, dy)`` to one batch.
+
+    Args:
+        arrays: The sequences.
+        observed: ``(T_b,)`` masks (True = measured); all observed when None.
+
+    Raises:
+        ValueError: If the sequences are empty, differ in width or hold
+            non-finite observed values.
+    """
+    ys = [np.asarray(a, dtype=np.float64) for a in arrays]
+    if not ys:
+        raise ValueError("pack: no sequences")
+    dy = ys[0].shape[-1]
+    for k, y in enumerate(ys):
+        if y.ndim != 2 or y.shape[1] != dy or y.shape[0] < 1:
+            raise ValueError(f"pack: sequence {k} has shape {y.shape}, expected (T, {dy})")
+    masks = (
+        [np.ones(y.shape[0], dtype=bool) for y in ys]
+        if observed is None
+        else [np.asarray(o, dtype=bool) for o in observed]
+    )
+    lengths = np.array([y.shape[0] for y in ys], dtype=np.intp)
+    t_max = int(lengths.max())
+    y_out = np.zeros((len(ys), t_max, dy))
+    o_out = np.zeros((len(ys), t_max), dtype=bool)
+    for k, (y, o) in enumerate(zip(ys, masks, strict=True)):
+        if o.shape != (y.shape[0],):
+            raise ValueError(f"pack: mask {k} has shape {o.shape}, expected ({y.shape[0]},)")
+        if not np.all(np.isfinite(y[o])):
+            raise ValueError(f"pack: sequence {k} has non-finite observed values")
+        y_out[k, : y.shape[0]] = np.where(o[:, None], y, 0.0)
+        o_out[k, : y.shape[0]] = o
+    return Sequences(y_out, o_out, lengths)
+
+
+# ---------------------------------------------------------------------------
+# Gaussian helpers
+# ---------------------------------------------------------------------------
+
+
+def _sym(m: FloatArray) -> FloatArray:
+    return 0.5 * (m + np.swapaxes(m, -1, -2))
+
+
+def _cholesky(s: FloatArray) -> FloatArray:
+    """Batched Cholesky factor; a matrix that rounding left indefinite is repaired."""
+    try:
+        return np.linalg.cholesky(s)
+    except np.linalg.LinAlgError:
+        w, v = np.linalg.eigh(_sym(s))
+        floor = 1e-12 * np.maximum(np.abs(w).max(axis=-1, keepdims=True), 1e-300)
+        w = np.maximum(w, floor)
+        return np.linalg.cholesky(_sym((v * w[..., None, :]) @ np.swapaxes(v, -1, -2)))
+
+
+def _solve_lower(chol: FloatArray, rhs: FloatArray) -> FloatArray:
+    """``L^-1 B`` for batched lower-triangular ``L`` by forward substitution.
+
+    A loop over the (few) rows, each one batched matmul over every matrix of
+    the batch; several times faster than ``numpy.linalg.solve`` on stacks of
+    small matrices.
+    """
+    n = chol.shape[-1]
+    shape = np.broadcast_shapes(chol.shape[:-2], rhs.shape[:-2]) + rhs.shape[-2:]
+    out = np.empty(shape)
+    diag = np.diagonal(chol, axis1=-2, axis2=-1)
+    out[..., 0, :] = rhs[..., 0, :] / diag[..., 0, None]
+    for i in range(1, n):
+        done = (chol[..., i : i + 1, :i] @ out[..., :i, :])[..., 0, :]
+        out[..., i, :] = (rhs[..., i, :] - done) / diag[..., i, None]
+    return out
+
+
+def _logdet_pd(s: FloatArray) -> FloatArray:
+    return 2.0 * np.log(np.diagonal(_cholesky(s), axis1=-2, axis2=-1)).sum(axis=-1)
+
+
+def psd_sqrt(q: FloatArray) -> FloatArray:
+    """Symmetric square root of positive semi-definite matrices ``(..., n, n)``."""
+    w, v = np.linalg.eigh(_sym(q))
+    return (v * np.sqrt(np.maximum(w, 0.0))[..., None, :]) @ np.swapaxes(v, -1, -2)
+
+
+@dataclass(frozen=True, eq=False)
+class _Measurements:
+    """The measurement model the filters see: ``z_t = x_t[:dz] + N(0, R)``."""
+
+    z: FloatArray  # (B, T, dz)
+    R: FloatArray  # (dz, dz)
+    const: FloatArray  # (B, T) -log p(y | x) minus -log N(z; x, R), 0 where unobserved
+
+
+def _measurements(params: SLDSParams, seqs: Sequences) -> _Measurements:
+    resid = seqs.y - params.d
+    if params.emission == "identity":
+        return _Measurements(resid, params.R, np.zeros(seqs.observed.shape))
+    # Learned emission: project y onto the latent space exactly (module docstring).
+    r_diag = np.diag(params.R)
+    r_inv = 1.0 / r_diag
+    c = params.C
+    m = _sym((c.T * r_inv) @ c)  # C' R^-1 C
+    rz = _sym(np.linalg.inv(m))
+    g = (resid * r_inv) @ c  # C' R^-1 (y - d)
+    z = g @ rz
+    dy, dx = c.shape
+    log_c = (
+        -0.5 * ((resid**2 * r_inv).sum(-1) - (z * g).sum(-1))
+        - 0.5 * (dy - dx) * LOG_2PI
+        - 0.5 * np.log(r_diag).sum()
+        - 0.5 * _logdet_pd(m)
+    )
+    return _Measurements(z, rz, np.where(seqs.observed, -log_c, 0.0))
+
+
+def _innovation(
+    m_p: FloatArray, p_p: FloatArray, z: FloatArray, r: FloatArray, gain: bool = True
+) -> tuple[FloatArray, FloatArray | None, FloatArray, FloatArray]:
+    """Whitened innovation and gain factor, and the innovation cost (eqs. 4, 6).
+
+    With ``e = z - H m_p`` and ``S = H P_p H' + R = L L'`` this returns
+    ``v = L^-1 e``, ``W = L^-1 H P_p`` (None unless ``gain``), ``L`` and
+    ``0.5 e' S^-1 e + 0.5 log|S| + 0.5 dz log 2 pi``.
+    """
+    dz = r.shape[0]
+    e = z - m_p[..., :dz]
+    chol = _cholesky(p_p[..., :dz, :dz] + r)
+    if gain:
+        sol = _solve_lower(chol, np.concatenate([e[..., None], p_p[..., :dz, :]], axis=-1))
+        v, w = sol[..., :1], sol[..., 1:]
+    else:
+        v, w = _solve_lower(chol, e[..., None]), None
+    cost = (
+        0.5 * np.square(v[..., 0]).sum(-1)
+        + np.log(np.diagonal(chol, axis1=-2, axis2=-1)).sum(-1)
+        + 0.5 * dz * LOG_2PI
+    )
+    return v, w, chol, cost
+
+
+def _update(
+    m_p: FloatArray, p_p: FloatArray, v: FloatArray, w: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Kalman measurement update (eq. 5) from the whitened innovation, batched.
+
+    ``m = m_p + W' v`` and ``P = P_p - W' W`` (symmetrised): the gain
+    ``P_p H' S^-1`` written through ``S = L L'``.
+    """
+    w_t = np.swapaxes(w, -1, -2)
+    return m_p + (w_t @ v)[..., 0], _sym(p_p - w_t @ w)
+
+
+def _neg_log(p: FloatArray) -> FloatArray:
+    with np.errstate(divide="ignore"):
+        return -np.log(p)
+
+
+# ---------------------------------------------------------------------------
+# Approximate Viterbi (section 2.2, eqs. 3-12)
+# ---------------------------------------------------------------------------
+
+
+def viterbi(
+    params: SLDSParams, seqs: Sequences, meas: _Measurements | None = None
+) -> tuple[IntArray, FloatArray]:
+    """Approximate Viterbi decoding of the switch sequence (eqs. 3-12).
+
+    For every frame and every pair of switch states ``j -> i`` the best
+    Gaussian kept for ``j`` is pushed through model ``i`` (time update, eq. 3),
+    compared with the measurement (innovation and its cost, eqs. 4 and 6), and
+    state ``i`` keeps the predecessor with the lowest partial cost (eqs. 7-8)
+    and its measurement-updated estimate (eq. 5). Missing measurements skip the
+    innovation cost and the update. The path is read back from the best final
+    state (eq. 12). Along the returned path the kept estimates are exactly the
+    Kalman filter of that path, so the returned cost is that path's exact
+    ``-log p(y, s)``.
+
+    Args:
+        params: The model.
+        seqs: The sequences.
+        meas: Precomputed measurements (internal).
+
+    Returns:
+        ``(B, T)`` switch sequences (padding repeats the last state) and
+        ``(B,)`` their costs.
+    """
+    meas = _measurements(params, seqs) if meas is None else meas
+    n_seq, t_max = seqs.observed.shape
+    n_states, dx = params.x0.shape
+    a, b, q, r = params.A, params.b, params.Q, meas.R
+    a_t = np.swapaxes(a, -1, -2)
+    trans = _neg_log(params.Pi).T  # trans[i, j] = -log P(s_t = i | s_{t-1} = j)
+    lengths = seqs.lengths
+    rows = np.arange(n_seq)[:, None]
+    cols = np.arange(n_states)[None, :]
+
+    # t = 0: the prior of each switch state plays the prediction.
+    m = np.broadcast_to(params.x0, (n_seq, n_states, dx)).copy()
+    p = np.broadcast_to(params.Q0, (n_seq, n_states, dx, dx)).copy()
+    cost = np.broadcast_to(_neg_log(params.pi0), (n_seq, n_states)).copy()
+    obs = seqs.observed[:, 0]
+    if obs.any():
+        v, gain, _, c = _innovation(m, p, meas.z[:, 0, None, :], r)
+        cost = cost + np.where(obs[:, None], c + meas.const[:, 0, None], 0.0)
+        m_u, p_u = _update(m, p, v, gain)
+        m = np.where(obs[:, None, None], m_u, m)
+        p = np.where(obs[:, None, None, None], p_u, p)
+    psi = np.zeros((n_seq, t_max, n_states), dtype=np.intp)
+    final = np.where((lengths == 1)[:, None], cost, np.inf)
+    shortest = int(lengths.min())
+    dz = r.shape[0]
+    g = a[:, :dz, :]  # H A_i: the rows of A_i that reach the measurement
+    g_t = np.swapaxes(g, -1, -2)
+    q_zz = q[:, :dz, :dz] + r
+
+    for t in range(1, t_max):
+        obs = seqs.observed[:, t]
+        all_obs = bool(obs.all())
+        any_obs = all_obs or bool(obs.any())
+        # eq. 3, every pair j -> i: m_p[b, i, j] = A_i m_j + b_i
+        m_p = m[:, None] @ a_t[None] + b[None, :, None, :]
+        pair = cost[:, None, :] + trans[None]  # J_{t-1}(j) - log Pi[j, i]
+        if any_obs:
+            # eq. 4: innovation covariance of every pair, H (A_i P_j A_i' + Q_i) H' + R,
+            # computed through H A_i so that the full P_p is formed for the kept pairs only
+            s_pair = g[None, :, None] @ p[:, None, :] @ g_t[None, :, None] + q_zz[None, :, None]
+            chol = _cholesky(s_pair)
+            v = _solve_lower(chol, (meas.z[:, t, None, None, :] - m_p[..., :dz])[..., None])
+            # eq. 6: innovation cost of every pair
+            c = (
+                0.5 * np.square(v[..., 0]).sum(-1)
+                + np.log(np.diagonal(chol, axis1=-2, axis2=-1)).sum(-1)
+                + 0.5 * dz * LOG_2PI
+            )
+            pair = pair + (c if all_obs else np.where(obs[:, None, None], c, 0.0))
+        # eqs. 7-8: best predecessor psi_t(i) and partial cost J_t(i)
+        best = np.argmin(pair, axis=2)
+        new_cost = pair[rows, cols, best] + np.where(obs, meas.const[:, t], 0.0)[:, None]
+        m_new = m_p[rows, cols, best]
+        # eq. 3 for the kept pairs: P_p = A_i P_psi(i) A_i' + Q_i
+        p_new = a[None] @ p[rows, best] @ a_t[None] + q[None]
+        if any_obs:
+            # eq. 5: measurement update of the kept pairs only
+            gain = _solve_lower(chol[rows, cols, best], p_new[..., :dz, :])
+            m_u, p_u = _update(m_new, p_new, v[rows, cols, best], gain)
+            if all_obs:
+                m_new, p_new = m_u, p_u
+            else:
+                m_new = np.where(obs[:, None, None], m_u, m_new)
+                p_new = np.where(obs[:, None, None, None], p_u, p_new)
+        if t < shortest:
+            cost, m, p = new_cost, m_new, p_new
+        else:
+            # Padding after a sequence's end changes nothing (and cannot overflow).
+            active = t < lengths
+            cost = np.where(active[:, None], new_cost, cost)
+            m = np.where(active[:, None, None], m_new, m)
+            p = np.where(active[:, None, None, None], p_new, p)
+        if t >= shortest - 1:
+            final = np.where((lengths - 1 == t)[:, None], cost, final)
+        psi[:, t] = best
+
+    # eq. 12: backtrack from the best final state of each sequence.
+    last = np.argmin(final, axis=1)
+    total = final[np.arange(n_seq), last]
+    path = np.zeros((n_seq, t_max), dtype=np.intp)
+    state = last.copy()
+    for t in range(t_max - 1, -1, -1):
+        path[:, t] = state
+        if t > 0:
+            state = np.where(t <= lengths - 1, psi[np.arange(n_seq), t, state], state)
+    return path, total
+
+
+# ---------------------------------------------------------------------------
+# Kalman filter and RTS smoother along a switch sequence
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class FilterResult:
+    """Kalman filter along a switch sequence.
+
+    Attributes:
+        m_pred: ``(B, T, dx)`` predicted means ``E[x_t | y_{0:t-1}]``.
+        p_pred: ``(B, T, dx, dx)`` predicted covariances.
+        m_filt: ``(B, T, dx)`` filtered means ``E[x_t | y_{0:t}]``.
+        p_filt: ``(B, T, dx, dx)`` filtered covariances.
+        cost: ``(B,)`` ``-log p(y, s)`` of each sequence.
+    """
+
+    m_pred: FloatArray
+    p_pred: FloatArray
+    m_filt: FloatArray
+    p_filt: FloatArray
+    cost: FloatArray
+
+
+def filter_path(
+    params: SLDSParams, seqs: Sequences, path: ArrayLike, meas: _Measurements | None = None
+) -> FilterResult:
+    """The Kalman filter of ``x`` given a switch sequence, and the sequence's cost.
+
+    Args:
+        params: The model.
+        seqs: The sequences.
+        path: ``(B, T)`` switch states.
+        meas: Precomputed measurements (internal).
+
+    Returns:
+        Predicted and filtered moments and the exact ``-log p(y, s)``.
+    """
+    meas = _measurements(params, seqs) if meas is None else meas
+    path = np.asarray(path, dtype=np.intp)
+    n_seq, t_max = seqs.observed.shape
+    dx = params.latent_dim
+    r = meas.R
+    trans = _neg_log(params.Pi)
+    m_pred = np.empty((n_seq, t_max, dx))
+    p_pred = np.empty((n_seq, t_max, dx, dx))
+    m_filt = np.empty((n_seq, t_max, dx))
+    p_filt = np.empty((n_seq, t_max, dx, dx))
+    cost = _neg_log(params.pi0)[path[:, 0]]
+    m = params.x0[path[:, 0]]
+    p = params.Q0[path[:, 0]]
+    shortest = int(seqs.lengths.min())
+    for t in range(t_max):
+        if t > 0:
+            s = path[:, t]
+            a_s = params.A[s]
+            m_p = (a_s @ m[..., None])[..., 0] + params.b[s]
+            p_p = a_s @ p @ np.swapaxes(a_s, -1, -2) + params.Q[s]
+            step = trans[path[:, t - 1], s]
+            if t >= shortest:
+                active = t < seqs.lengths
+                m_p = np.where(active[:, None], m_p, m)
+                p_p = np.where(active[:, None, None], p_p, p)
+                step = np.where(active, step, 0.0)
+            cost = cost + step
+        else:
+            m_p, p_p = m, p
+        obs = seqs.observed[:, t]
+        m, p = m_p, p_p
+        if obs.all():
+            v, gain, _, c = _innovation(m_p, p_p, meas.z[:, t], r)
+            cost = cost + c + meas.const[:, t]
+            m, p = _update(m_p, p_p, v, gain)
+        elif obs.any():
+            v, gain, _, c = _innovation(m_p, p_p, meas.z[:, t], r)
+            cost = cost + np.where(obs, c + meas.const[:, t], 0.0)
+            m_u, p_u = _update(m_p, p_p, v, gain)
+            m = np.where(obs[:, None], m_u, m_p)
+            p = np.where(obs[:, None, None], p_u, p_p)
+        m_pred[:, t], p_pred[:, t], m_filt[:, t], p_filt[:, t] = m_p, p_p, m, p
+    return FilterResult(m_pred, p_pred, m_filt, p_filt, cost)
+
+
+@dataclass(frozen=True, eq=False)
+class SmootherResult:
+    """RTS smoother along a switch sequence.
+
+    Attributes:
+        mean: ``(B, T, dx)`` ``E[x_t | y_{0:T}]``.
+        cov: ``(B, T, dx, dx)`` ``Cov[x_t | y_{0:T}]``.
+        cross: ``(B, T, dx, dx)`` ``Cov[x_t, x_{t-1} | y_{0:T}]`` (entry 0 is zero).
+    """
+
+    mean: FloatArray
+    cov: FloatArray
+    cross: FloatArray
+
+
+def rts_smoother(
+    params: SLDSParams, path: ArrayLike, filt: FilterResult, lengths: ArrayLike
+) -> SmootherResult:
+    """Rauch-Tung-Striebel smoothing of ``x`` given a switch sequence.
+
+    Args:
+        params: The model.
+        path: ``(B, T)`` switch states.
+        filt: The filter's output along the same path.
+        lengths: ``(B,)`` sequence lengths.
+
+    Returns:
+        Smoothed means, covariances and lag-one cross-covariances.
+    """
+    path = np.asarray(path, dtype=np.intp)
+    lengths = np.asarray(lengths)
+    n_seq, t_max, dx = filt.m_filt.shape
+    mean = filt.m_filt.copy()
+    cov = filt.p_filt.copy()
+    cross = np.zeros((n_seq, t_max, dx, dx))
+    for t in range(t_max - 2, -1, -1):
+        inside = (t + 1 < lengths)[:, None]
+        a_next = params.A[path[:, t + 1]]
+        # G_t = P_{t|t} A' P_{t+1|t}^-1 (P_pred symmetric)
+        gain = np.swapaxes(
+            np.linalg.solve(filt.p_pred[:, t + 1], a_next @ filt.p_filt[:, t]), -1, -2
+        )
+        m_s = (
+            filt.m_filt[:, t] + (gain @ (mean[:, t + 1] - filt.m_pred[:, t + 1])[..., None])[..., 0]
+        )
+        p_s = filt.p_filt[:, t] + gain @ (cov[:, t + 1] - filt.p_pred[:, t + 1]) @ np.swapaxes(
+            gain, -1, -2
+        )
+        mean[:, t] = np.where(inside, m_s, filt.m_filt[:, t])
+        cov[:, t] = np.where(inside[..., None], _sym(p_s), filt.p_filt[:, t])
+        cross[:, t + 1] = np.where(
+            inside[..., None], cov[:, t + 1] @ np.swapaxes(gain, -1, -2), 0.0
+        )
+    return SmootherResult(mean, cov, cross)
+
+
+# ---------------------------------------------------------------------------
+# Learning (section 2.3)
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class Regulariser:
+    """Weak conjugate priors of the MAP M-step (fixed for a whole fit).
+
+    ``[A_i|b_i], Q_i``: matrix normal / inverse Wishart, ``-log p = kappa_q/2
+    log|Q| + 1/2 tr(Q^-1 (W diag(ridge) W' + diag(psi_q)))``; ``[C|d], R``:
+    the same row by row (``ridge_c``, ``psi_r``, ``kappa_r``); ``x0_i, Q0_i``:
+    normal-inverse-Wishart about ``m0`` with ``eps0`` pseudo-sequences;
+    ``Pi`` and ``pi0``: Dirichlet pseudo-counts ``alpha`` and ``alpha0``.
+
+    Attributes:
+        psi_q: ``(p,)`` prior scale of the learned rows' process noise.
+        kappa_q: Prior weight (pseudo-frames) of ``Q``.
+        ridge: ``(dx + 1,)`` ridge on ``[A|b]``.
+        psi_r: ``(dy,)`` prior scale of ``R``.
+        kappa_r: Prior weight of ``R``.
+        ridge_c: ``(dx + 1,)`` ridge on ``[C|d]`` (learned emission).
+        m0: ``(dx,)`` prior mean of the initial state.
+        eps0: Pseudo-sequences of ``m0``.
+        psi0: ``(dx,)`` prior scale of ``Q0``.
+        kappa0: Prior weight of ``Q0``.
+        alpha: Pseudo-count of every switch transition.
+        alpha0: Pseudo-count of every initial switch state.
+    """
+
+    psi_q: FloatArray
+    kappa_q: float
+    ridge: FloatArray
+    psi_r: FloatArray
+    kappa_r: float
+    ridge_c: FloatArray
+    m0: FloatArray
+    eps0: float
+    psi0: FloatArray
+    kappa0: float
+    alpha: float = 1.0
+    alpha0: float = 1.0
+
+
+def penalty(params: SLDSParams, reg: Regulariser) -> float:
+    """``-log p(theta)`` of the priors in :class:`Regulariser` (constants dropped)."""
+    rows = params.learned_rows
+    q = params.Q[:, rows, rows]
+    w = np.concatenate([params.A[:, rows, :], params.b[:, rows, None]], axis=2)
+    scatter = (w * reg.ridge) @ np.swapaxes(w, -1, -2) + np.diag(reg.psi_q)
+    total = 0.5 * reg.kappa_q * _logdet_pd(q).sum()
+    total += 0.5 * np.trace(np.linalg.solve(q, scatter), axis1=-2, axis2=-1).sum()
+    r = np.diag(params.R)
+    extra = reg.psi_r.copy()
+    if params.emission == "learned":
+        cd = np.concatenate([params.C, params.d[:, None]], axis=1)
+        extra = extra + (cd**2 * reg.ridge_c).sum(axis=1)
+    total += np.sum(0.5 * reg.kappa_r * np.log(r) + 0.5 * extra / r)
+    dev = params.x0 - reg.m0
+    scatter0 = reg.eps0 * dev[:, :, None] * dev[:, None, :] + np.diag(reg.psi0)
+    total += 0.5 * reg.kappa0 * _logdet_pd(params.Q0).sum()
+    total += 0.5 * np.trace(np.linalg.solve(params.Q0, scatter0), axis1=-2, axis2=-1).sum()
+    with np.errstate(divide="ignore"):
+        total -= reg.alpha * np.log(params.Pi).sum() + reg.alpha0 * np.log(params.pi0).sum()
+    return float(total)
+
+
+@dataclass
+class _Stats:
+    """Sufficient statistics of the M-step, summed over sequences."""
+
+    suu: FloatArray  # (S, dx+1, dx+1) E[u u'], u = [x_{t-1}; 1]
+    syu: FloatArray  # (S, dx, dx+1) E[x_t u']
+    syy: FloatArray  # (S, dx, dx) E[x_t x_t']
+    n: FloatArray  # (S,) transitions into each state
+    sx0: FloatArray  # (S, dx)
+    sxx0: FloatArray  # (S, dx, dx)
+    n0: FloatArray  # (S,)
+    counts: FloatArray  # (S, S) transitions j -> i
+    e_resid: FloatArray  # (dy,) identity: sum E[(z - x[:dy])^2]
+    e_yy: FloatArray  # (dy,) learned: sum y^2
+    e_yu: FloatArray  # (dy, dx+1) learned: sum y [x; 1]'
+    e_uu: FloatArray  # (dx+1, dx+1) learned: sum E[[x; 1][x; 1]']
+    n_obs: float
+
+    @classmethod
+    def zeros(cls, s: int, dx: int, dy: int) -> _Stats:
+        return cls(
+            np.zeros((s, dx + 1, dx + 1)), np.zeros((s, dx, dx + 1)), np.zeros((s, dx, dx)),
+            np.zeros(s), np.zeros((s, dx)), np.zeros((s, dx, dx)), np.zeros(s),
+            np.zeros((s, s)), np.zeros(dy), np.zeros(dy), np.zeros((dy, dx + 1)),
+            np.zeros((dx + 1, dx + 1)), 0.0,
+        )  # fmt: skip
+
+
+def _wsum(weights: FloatArray, values: FloatArray) -> FloatArray:
+    """``sum_{b,t} weights[b, t, s] * values[b, t, ...]`` for every ``s`` (one GEMM)."""
+    n = weights.shape[0] * weights.shape[1]
+    tail = values.shape[2:]
+    out = weights.reshape(n, -1).T @ values.reshape(n, -1)
+    return out.reshape((weights.shape[2],) + tail)
+
+
+def _accumulate(
+    stats: _Stats,
+    params: SLDSParams,
+    seqs: Sequences,
+    meas: _Measurements,
+    path: IntArray,
+    sm: SmootherResult,
+) -> None:
+    n_states = params.n_states
+    dx, dy = params.latent_dim, params.obs_dim
+    valid = seqs.valid
+    w = ((path[..., None] == np.arange(n_states)) & valid[..., None]).astype(np.float64)
+    m = sm.mean
+    exx = sm.cov + m[..., :, None] * m[..., None, :]
+    # Transitions t-1 -> t, weighted by the switch state at t; u_{t-1} = [x_{t-1}; 1].
+    # Shifted weights keep every sum over whole (contiguous) arrays.
+    w_cur = w.copy()
+    w_cur[:, 0] = 0.0  # weight of x_t as the target of a transition
+    w_prev = np.zeros_like(w)
+    w_prev[:, :-1] = w[:, 1:]  # weight of x_{t-1} as its regressor
+    stats.suu[:, :dx, :dx] += _wsum(w_prev, exx)
+    sum_prev = _wsum(w_prev, m)
+    stats.suu[:, :dx, dx] += sum_prev
+    stats.suu[:, dx, :dx] += sum_prev
+    stats.suu[:, dx, dx] += w_cur.sum(axis=(0, 1))
+    m_before = np.zeros_like(m)
+    m_before[:, 1:] = m[:, :-1]
+    cross = sm.cross + m[..., :, None] * m_before[..., None, :]
+    stats.syu[:, :, :dx] += _wsum(w_cur, cross)
+    stats.syu[:, :, dx] += _wsum(w_cur, m)
+    stats.syy += _wsum(w_cur, exx)
+    stats.n += w_cur.sum(axis=(0, 1))
+    w0 = w[:, :1]
+    stats.sx0 += _wsum(w0, m[:, :1])
+    stats.sxx0 += _wsum(w0, exx[:, :1])
+    stats.n0 += w0.sum(axis=(0, 1))
+    stats.counts += _wsum(w[:, :-1], w[:, 1:])
+    obs = (seqs.observed & valid).astype(np.float64)[..., None]
+    stats.n_obs += float(obs.sum())
+    if params.emission == "identity":
+        resid = (meas.z - m[..., :dy]) ** 2 + np.diagonal(sm.cov[..., :dy, :dy], axis1=-2, axis2=-1)
+        stats.e_resid += _wsum(obs, resid)[0]
+    else:
+        y = seqs.y
+        stats.e_yy += _wsum(obs, y**2)[0]
+        stats.e_yu[:, :dx] += _wsum(obs, y[..., :, None] * m[..., None, :])[0]
+        stats.e_yu[:, dx] += _wsum(obs, y)[0]
+        stats.e_uu[:dx, :dx] += _wsum(obs, exx)[0]
+        sum_m = _wsum(obs, m)[0]
+        stats.e_uu[:dx, dx] += sum_m
+        stats.e_uu[dx, :dx] += sum_m
+        stats.e_uu[dx, dx] += float(obs.sum())
+
+
+def m_step(params: SLDSParams, stats: _Stats, reg: Regulariser) -> SLDSParams:
+    """The exact MAP M-step (section 2.3 with the priors of :class:`Regulariser`)."""
+    rows = params.learned_rows
+    dx = params.latent_dim
+    n_states = params.n_states
+    # [A|b] = E[x u'] (E[u u'] + ridge)^-1;  Q = (E[x x'] - W E[u x'] + psi) / (n + kappa)
+    suu = stats.suu + np.diag(reg.ridge)
+    syu = stats.syu[:, rows]
+    w = np.swapaxes(np.linalg.solve(suu, np.swapaxes(syu, -1, -2)), -1, -2)
+    q_rows = stats.syy[:, rows, rows] - w @ np.swapaxes(syu, -1, -2) + np.diag(reg.psi_q)
+    q_rows = _sym(q_rows / (stats.n + reg.kappa_q)[:, None, None])
+    a = params.A.copy()
+    b = params.b.copy()
+    q = np.zeros_like(params.Q)
+    a[:, rows, :] = w[..., :dx]
+    b[:, rows] = w[..., dx]
+    q[:, rows, rows] = q_rows
+    # Initial state: normal-inverse-Wishart MAP
+    x0 = (stats.sx0 + reg.eps0 * reg.m0) / (stats.n0 + reg.eps0)[:, None]
+    n0 = stats.n0[:, None, None]
+    scat = stats.sxx0 - x0[:, :, None] * stats.sx0[:, None, :]
+    scat = scat - stats.sx0[:, :, None] * x0[:, None, :] + n0 * x0[:, :, None] * x0[:, None, :]
+    dev = x0 - reg.m0
+    scat = scat + reg.eps0 * dev[:, :, None] * dev[:, None, :] + np.diag(reg.psi0)
+    q0 = _sym(scat / (stats.n0 + reg.kappa0)[:, None, None])
+    # Switch: Dirichlet MAP
+    counts = stats.counts + reg.alpha
+    pi = counts / counts.sum(axis=1, keepdims=True)
+    pi0 = (stats.n0 + reg.alpha0) / (stats.n0.sum() + reg.alpha0 * n_states)
+    # Emission
+    c, d = params.C, params.d
+    if params.emission == "identity":
+        r = (stats.e_resid + reg.psi_r) / (stats.n_obs + reg.kappa_r)
+    else:
+        cd = np.linalg.solve(stats.e_uu + np.diag(reg.ridge_c), stats.e_yu.T).T
+        c, d = cd[:, :dx], cd[:, dx]
+        r = (stats.e_yy - np.einsum("ij,ij->i", cd, stats.e_yu) + reg.psi_r) / (
+            stats.n_obs + reg.kappa_r
+        )
+    return params.replace(A=a, b=b, Q=q, x0=x0, Q0=q0, Pi=pi, pi0=pi0, C=c, d=d, R=np.diag(r))
+
+
+# ---------------------------------------------------------------------------
+# Initial segmentation (section 2.3: clustering under a simple dynamic model)
+# ---------------------------------------------------------------------------
+
+
+def _fill_gaps(y: FloatArray, observed: NDArray[np.bool_]) -> FloatArray:
+    """Linear interpolation over unobserved frames (initialisation only)."""
+    if observed.all():
+        return y
+    if not observed.any():
+        raise ValueError("initialise: a sequence has no observed frame")
+    t = np.arange(y.shape[0])
+    return np.stack([np.interp(t, t[observed], y[observed, k]) for k in range(y.shape[1])], axis=1)
+
+
+def window_ar_features(w: FloatArray, half_window: int, ridge: float = 1e-3) -> FloatArray:
+    """Per-frame coefficients of an affine AR(1) model fitted in a window.
+
+    For frame ``t`` (``t >= 1``) the model ``w_k = F [w_{k-1}; 1]`` is fitted by
+    ridge least squares to the transitions ``k`` within ``half_window`` of
+    ``t``; the feature is ``vec(F)`` followed by the window's mean. Frame 0
+    copies frame 1.
+
+    Args:
+        w: ``(T, q)`` a low-dimensional signal.
+        half_window: Half the window, in frames.
+        ridge: Ridge on the regression, relative to the window's scale.
+
+    Returns:
+        ``(T, q (q + 1) + q)`` features.
+    """
+    t_len, q = w.shape
+    if t_len < 2:
+        return np.zeros((t_len, q * (q + 1) + q))
+    u = np.concatenate([w[:-1], np.ones((t_len - 1, 1))], axis=1)  # (T-1, q+1)
+    target = w[1:]
+    uu = u[:, :, None] * u[:, None, :]
+    yu = target[:, :, None] * u[:, None, :]
+    c_uu = np.concatenate([np.zeros((1, q + 1, q + 1)), np.cumsum(uu, axis=0)])
+    c_yu = np.concatenate([np.zeros((1, q, q + 1)), np.cumsum(yu, axis=0)])
+    c_w = np.concatenate([np.zeros((1, q)), np.cumsum(target, axis=0)])
+    centre = np.arange(t_len - 1)
+    lo = np.clip(centre - half_window, 0, t_len - 1)
+    hi = np.clip(centre + half_window + 1, 0, t_len - 1)
+    s_uu = c_uu[hi] - c_uu[lo]
+    s_yu = c_yu[hi] - c_yu[lo]
+    count = (hi - lo)[:, None]
+    scale = np.trace(s_uu, axis1=1, axis2=2)[:, None, None] / (q + 1)
+    f = np.linalg.solve(s_uu + ridge * scale * np.eye(q + 1), np.swapaxes(s_yu, 1, 2))
+    feats = np.concatenate(
+        [np.swapaxes(f, 1, 2).reshape(t_len - 1, -1), (c_w[hi] - c_w[lo]) / count], 1
+    )
+    return np.concatenate([feats[:1], feats], axis=0)
+
+
+def _state_sequences(ys: Sequence[FloatArray], emission: str, order: int, latent_dim: int):
+    """Initial latent trajectories and emission from the measurements alone."""
+    dy = ys[0].shape[1]
+    if emission == "identity":
+        if order == 1:
+            xs = [y.copy() for y in ys]
+        else:
+            xs = [np.concatenate([y, np.concatenate([y[:1], y[:-1]])], axis=1) for y in ys]
+        c = np.eye(dy, order * dy)
+        return xs, c, np.zeros(dy)
+    # Learned emission: PCA (latents scaled to unit variance).
+    allv = np.concatenate(ys)
+    d = allv.mean(axis=0)
+    cov = np.cov((allv - d).T) if allv.shape[0] > 1 else np.eye(dy)
+    evals, evecs = np.linalg.eigh(np.atleast_2d(cov))
+    order_idx = np.argsort(evals)[::-1][:latent_dim]
+    lam = np.maximum(evals[order_idx], 1e-12)
+    c = evecs[:, order_idx] * np.sqrt(lam)
+    xs = [((y - d) @ evecs[:, order_idx]) / np.sqrt(lam) for y in ys]
+    return xs, c, d
+
+
+@dataclass(frozen=True, eq=False)
+class EMResult:
+    """What :func:`fit_em` learned.
+
+    Attributes:
+        params: The fitted model (unused switch states removed).
+        costs: ``(n_iter + 1,)`` the penalised cost ``-log p(y, s | theta) -
+            log p(theta)`` before each M-step and after the last; never rises.
+        paths: The final switch sequence of every training sequence.
+        initial_paths: The initial segmentation.
+    """
+
+    params: SLDSParams
+    costs: FloatArray
+    paths: list[IntArray]
+    initial_paths: list[IntArray]
+
+
+def initialise(
+    ys: Sequence[FloatArray],
+    observed: Sequence[NDArray[np.bool_]],
+    n_states: int,
+    emission: str,
+    order: int,
+    latent_dim: int,
+    rng: np.random.Generator,
+    half_window: int = 5,
+    feature_dim: int = 3,
+    restarts: int = 5,
+) -> tuple[list[IntArray], list[FloatArray], FloatArray, FloatArray, Regulariser]:
+    """Initial segmentation by clustering local linear dynamics (section 2.3).
+
+    Every frame gets the coefficients of an affine AR(1) model fitted in a
+    window about it (:func:`window_ar_features`) on the first ``feature_dim``
+    principal components of the (initial) state; k-means (best of
+    ``restarts``) clusters them into ``n_states`` segments.
+
+    Returns:
+        Per sequence the labels and the initial state trajectory, the initial
+        emission ``C``, ``d``, and the priors (scaled to the data).
+    """
+    filled = [_fill_gaps(y, o) for y, o in zip(ys, observed, strict=True)]
+    xs, c, d = _state_sequences(filled, emission, order, latent_dim)
+    allx = np.concatenate(xs)
+    centre = allx.mean(axis=0)
+    cov = np.atleast_2d(np.cov((allx - centre).T))
+    evals, evecs = np.linalg.eigh(cov)
+    top = evecs[:, np.argsort(evals)[::-1][: min(feature_dim, allx.shape[1])]]
+    feats = [window_ar_features((x - centre) @ top, half_window) for x in xs]
+    f_all = np.concatenate(feats)
+    mu, sd = f_all.mean(axis=0), f_all.std(axis=0)
+    f_std = (f_all - mu) / np.where(sd > 0, sd, 1.0)
+    best_labels, best_inertia = None, np.inf
+    for _ in range(max(1, restarts)):
+        seed = int(rng.integers(2**31 - 1))
+        cent, lab = kmeans2(f_std, n_states, minit="++", seed=seed)
+        inertia = float(((f_std - cent[lab]) ** 2).sum())
+        if inertia < best_inertia:
+            best_labels, best_inertia = lab, inertia
+    assert best_labels is not None
+    splits = np.cumsum([x.shape[0] for x in xs])[:-1]
+    labels = [np.asarray(p, dtype=np.intp) for p in np.split(best_labels, splits)]
+    # Priors scaled to the data (see Regulariser); weights of about one frame.
+    dvar = np.concatenate([np.diff(x, axis=0) for x in xs if x.shape[0] > 1] or [allx * 0])
+    dvar = np.maximum(dvar.var(axis=0) if dvar.shape[0] > 1 else np.ones(allx.shape[1]), 1e-12)
+    xvar = np.maximum(allx.var(axis=0), 1e-12)
+    dy = filled[0].shape[1]
+    dx = allx.shape[1]
+    p = dy if (emission == "identity" and order == 2) else dx
+    second = np.concatenate([(allx**2).mean(axis=0), [1.0]])
+    if emission == "identity":
+        psi_r = 0.1 * dvar[:dy]
+        ridge_c = np.zeros(dx + 1)
+    else:
+        allv = np.concatenate(filled)
+        psi_r = 1e-2 * np.maximum(allv.var(axis=0), 1e-12)
+        ridge_c = 1e-3 * second
+    reg = Regulariser(
+        psi_q=0.1 * dvar[:p], kappa_q=1.0, ridge=1e-3 * second, psi_r=psi_r, kappa_r=1.0,
+        ridge_c=ridge_c, m0=np.mean([x[0] for x in xs], axis=0), eps0=1e-3, psi0=xvar,
+        kappa0=1.0,
+    )  # fmt: skip
+    return labels, xs, c, d, reg
+
+
+def _initial_params(
+    labels: Sequence[IntArray],
+    xs: Sequence[FloatArray],
+    ys: Sequence[FloatArray],
+    observed: Sequence[NDArray[np.bool_]],
+    c: FloatArray,
+    d: FloatArray,
+    reg: Regulariser,
+    template: SLDSParams,
+) -> SLDSParams:
+    """Parameters fitted to the initial segmentation, with the state taken as known."""
+    seqs = pack(ys, observed)
+    n_states, dx, dy = template.n_states, template.latent_dim, template.obs_dim
+    path = np.zeros(seqs.observed.shape, dtype=np.intp)
+    mean = np.zeros(seqs.observed.shape + (dx,))
+    for k, (lab, x) in enumerate(zip(labels, xs, strict=True)):
+        path[k, : lab.shape[0]] = lab
+        mean[k, : x.shape[0]] = x
+    zeros = np.zeros(mean.shape + (dx,))
+    params = template.replace(C=c, d=d)
+    stats = _Stats.zeros(n_states, dx, dy)
+    meas = _measurements(params, seqs)
+    _accumulate(stats, params, seqs, meas, path, SmootherResult(mean, zeros, zeros))
+    fitted = m_step(params, stats, reg)
+    # R from the known-state fit is degenerate (the state *is* the data here);
+    # start it at a fraction of the one-step noise instead.
+    rows = fitted.learned_rows
+    noise = np.mean(np.diagonal(fitted.Q[:, rows, rows], axis1=1, axis2=2), axis=0)
+    if fitted.emission == "identity":
+        r = np.diag(0.1 * noise[:dy] + 1e-12)
+    else:
+        r = np.diag(np.maximum(np.diag(fitted.R), 1e-9))
+    return fitted.replace(R=r)
+
+
+def _chunks(lengths: IntArray, max_batch: int) -> list[IntArray]:
+    order = np.argsort(lengths, kind="stable")
+    return [order[i : i + max_batch] for i in range(0, len(order), max_batch)]
+
+
+def _e_step(
+    params: SLDSParams,
+    seqs: Sequences,
+    old_path: IntArray | None,
+    stats: _Stats | None,
+) -> tuple[IntArray, float]:
+    """Viterbi E-step on one batch; keeps the old path where it costs less."""
+    meas = _measurements(params, seqs)
+    new_path, _ = viterbi(params, seqs, meas)
+    if old_path is None:
+        differ = np.zeros(seqs.n, dtype=bool)
+    else:
+        differ = np.any((new_path != old_path) & seqs.valid, axis=1)
+    idx = np.flatnonzero(differ)
+    both = np.concatenate([new_path, old_path[idx]]) if idx.size else new_path
+    seqs2 = seqs.take(np.concatenate([np.arange(seqs.n), idx]))
+    meas2 = _Measurements(
+        np.concatenate([meas.z, meas.z[idx]]), meas.R, np.concatenate([meas.const, meas.const[idx]])
+    )
+    filt = filter_path(params, seqs2, both, meas2)
+    keep_new = np.ones(seqs.n, dtype=bool)
+    keep_new[idx] = filt.cost[: seqs.n][idx] <= filt.cost[seqs.n :]
+    pick = np.arange(seqs.n)
+    pick[idx[~keep_new[idx]]] = seqs.n + np.flatnonzero(~keep_new[idx])
+    path = both[pick]
+    cost = float(filt.cost[pick].sum())
+    if stats is not None:
+        chosen = FilterResult(
+            filt.m_pred[pick],
+            filt.p_pred[pick],
+            filt.m_filt[pick],
+            filt.p_filt[pick],
+            filt.cost[pick],
+        )
+        sm = rts_smoother(params, path, chosen, seqs.lengths)
+        _accumulate(stats, params, seqs, meas, path, sm)
+    return path, cost
+
+
+def prune_states(params: SLDSParams, used: NDArray[np.bool_]) -> SLDSParams:
+    """Drop switch states that no training frame used; renormalise ``Pi`` and ``pi0``."""
+    keep = np.flatnonzero(used)
+    if keep.size == params.n_states:
+        return params
+    if keep.size == 0:
+        raise ValueError("prune_states: no state is used")
+    pi = params.Pi[np.ix_(keep, keep)]
+    pi = pi / pi.sum(axis=1, keepdims=True)
+    pi0 = params.pi0[keep] / params.pi0[keep].sum()
+    return params.replace(
+        state_labels=params.state_labels[keep], A=params.A[keep], b=params.b[keep],
+        Q=params.Q[keep], x0=params.x0[keep], Q0=params.Q0[keep], Pi=pi, pi0=pi0,
+    )  # fmt: skip
+
+
+def fit_em(
+    ys: Sequence[ArrayLike],
+    observed: Sequence[ArrayLike] | None = None,
+    n_states: int = 4,
+    emission: str = "identity",
+    order: int = 2,
+    latent_dim: int | None = None,
+    n_iter: int = 30,
+    tol: float = 1e-7,
+    rng: np.random.Generator | None = None,
+    label: str = "",
+    free: ArrayLike | None = None,
+    fps: float = 30.0,
+    max_batch: int = 32,
+    half_window: int = 5,
+    prune: bool = True,
+) -> EMResult:
+    """Learn an SLDS by EM with the approximate Viterbi E-step (section 2.3).
+
+    Args:
+        ys: Training sequences ``(T_b, dy)``.
+        observed: ``(T_b,)`` masks of measured frames (all when None).
+        n_states: Number of switch states S.
+        emission: ``"identity"`` (``C = [I 0]``) or ``"learned"`` (``C, d`` learned).
+        order: 1 or 2 with the identity emission (see :class:`SLDSParams`).
+        latent_dim: ``dx`` with a learned emission.
+        n_iter: Number of M-steps.
+        tol: Stop when the cost falls by less than ``tol`` times its size.
+        rng: Generator for the k-means initialisation.
+        label: The activity name given to every state.
+        free: Indices of the modelled pose parameters (stored with the model).
+        fps: Frame rate of the sequences.
+        max_batch: Sequences decoded together (memory bound).
+        half_window: Half-window of the initial segmentation's AR fits.
+        prune: Remove states that no frame uses at the end.
+
+    Returns:
+        The model, the cost per iteration and the segmentations.
+
+    Raises:
+        ValueError: On inconsistent settings or data.
+    """
+    rng = np.random.default_rng(0) if rng is None else rng
+    if emission not in EMISSIONS:
+        raise ValueError(f"fit_em: emission must be one of {EMISSIONS}, got {emission!r}")
+    arrays = [np.asarray(y, dtype=np.float64) for y in ys]
+    masks = (
+        [np.ones(y.shape[0], dtype=bool) for y in arrays]
+        if observed is None
+        else [np.asarray(o, dtype=bool) for o in observed]
+    )
+    if not arrays:
+        raise ValueError("fit_em: no training sequences")
+    dy = arrays[0].shape[1]
+    if emission == "identity":
+        if order not in (1, 2):
+            raise ValueError(f"fit_em: order must be 1 or 2, got {order}")
+        dx = order * dy
+    else:
+        order = 1
+        dx = dy if latent_dim is None else int(latent_dim)
+        if not 1 <= dx <= dy:
+            raise ValueError(f"fit_em: latent_dim must be in [1, {dy}], got {latent_dim}")
+    n_frames = sum(int(m.sum()) for m in masks)
+    if n_frames < 2 * n_states:
+        raise ValueError(f"fit_em: {n_frames} observed frames are too few for {n_states} states")
+    labels, xs, c, d, reg = initialise(
+        arrays, masks, n_states, emission, order, dx, rng, half_window=half_window
+    )
+    template = SLDSParams(
+        free=np.arange(dy, dtype=np.intp) if free is None else np.asarray(free, dtype=np.intp),
+        state_labels=np.array([label] * n_states),
+        emission=emission, order=order,
+        A=np.zeros((n_states, dx, dx)), b=np.zeros((n_states, dx)),
+        Q=np.broadcast_to(np.eye(dx), (n_states, dx, dx)).copy(),
+        C=c, d=d, R=np.eye(dy), x0=np.zeros((n_states, dx)),
+        Q0=np.broadcast_to(np.eye(dx), (n_states, dx, dx)).copy(),
+        Pi=np.full((n_states, n_states), 1.0 / n_states), pi0=np.full(n_states, 1.0 / n_states),
+        fps=float(fps),
+    )  # fmt: skip
+    if order == 2:
+        # x_t = [theta_t, theta_{t-1}]: the lower rows copy theta_{t-1} exactly.
+        template = template.replace(A=np.broadcast_to(np.eye(dx, k=-dy), (n_states, dx, dx)).copy())
+    params = _initial_params(labels, xs, arrays, masks, c, d, reg, template)
+
+    chunks = _chunks(np.array([y.shape[0] for y in arrays]), max_batch)
+    batches = [pack([arrays[i] for i in ch], [masks[i] for i in ch]) for ch in chunks]
+    paths: list[IntArray] = []
+    for ch, batch in zip(chunks, batches, strict=True):
+        p = np.zeros(batch.observed.shape, dtype=np.intp)
+        for k, i in enumerate(ch):
+            p[k, : labels[i].shape[0]] = labels[i]
+        paths.append(p)
+    initial_paths = [lab.copy() for lab in labels]
+    costs: list[float] = []
+    for it in range(n_iter + 1):
+        last = it == n_iter
+        stats = None if last else _Stats.zeros(params.n_states, dx, dy)
+        total = 0.0
+        for k, batch in enumerate(batches):
+            paths[k], cost = _e_step(params, batch, paths[k], stats)
+            total += cost
+        costs.append(total + penalty(params, reg))
+        if last:
+            break
+        if it > 0 and costs[-2] - costs[-1] <= tol * abs(costs[-1]):
+            break
+        assert stats is not None
+        params = m_step(params, stats, reg)
+
+    out_paths: list[IntArray] = [np.empty(0, dtype=np.intp)] * len(arrays)
+    for ch, batch, p in zip(chunks, batches, paths, strict=True):
+        for k, i in enumerate(ch):
+            out_paths[i] = p[k, : batch.lengths[k]].copy()
+    if prune:
+        used = np.zeros(params.n_states, dtype=bool)
+        for p in out_paths:
+            used[np.unique(p)] = True
+        remap = np.cumsum(used) - 1
+        params = prune_states(params, used)
+        out_paths = [remap[p] for p in out_paths]
+    return EMResult(params, np.asarray(costs), out_paths, initial_paths)
+
+
+# ---------------------------------------------------------------------------
+# Models per activity, synthesis, smoothing
+# ---------------------------------------------------------------------------
+
+
+def combine(models: Sequence[SLDSParams], switch_prob: float = 0.01) -> SLDSParams:
+    """Join models learned per activity into one SLDS (section 4.1).
+
+    The transition matrix is block diagonal: inside model ``k`` it is
+    ``(1 - switch_prob) Pi_k``; with probability ``switch_prob`` per frame the
+    switch leaves for another model ``l`` (each of the ``K - 1`` others equally
+    likely), entering its states with that model's initial distribution
+    ``pi0_l``. ``pi0`` is the models' initial distributions, each weighted
+    ``1 / K``. The emission must be the same identity emission in every model;
+    ``R`` is the mean of the models' ``R``.
+
+    Raises:
+        ValueError: If the models do not share their state space.
+    """
+    if not models:
+        raise ValueError("combine: no models")
+    first = models[0]
+    for m in models[1:]:
+        same = (
+            m.emission == first.emission and m.order == first.order
+            and m.latent_dim == first.latent_dim and np.array_equal(m.free, first.free)
+            and np.allclose(m.C, first.C) and np.allclose(m.d, first.d)
+        )  # fmt: skip
+        if not same:
+            raise ValueError("combine: models must share emission, order, free parameters and C, d")
+    if len(models) == 1:
+        return first
+    if not 0.0 <= switch_prob < 1.0:
+        raise ValueError(f"combine: switch_prob must be in [0, 1), got {switch_prob}")
+    k = len(models)
+    sizes = [m.n_states for m in models]
+    starts = np.concatenate([[0], np.cumsum(sizes)])
+    total = int(starts[-1])
+    pi = np.zeros((total, total))
+    for a, ma in enumerate(models):
+        sa = slice(starts[a], starts[a + 1])
+        pi[sa, sa] = (1.0 - switch_prob) * ma.Pi
+        for b, mb in enumerate(models):
+            if b != a:
+                pi[sa, starts[b] : starts[b + 1]] = switch_prob / (k - 1) * mb.pi0[None, :]
+    return first.replace(
+        state_labels=np.concatenate([m.state_labels for m in models]),
+        A=np.concatenate([m.A for m in models]), b=np.concatenate([m.b for m in models]),
+        Q=np.concatenate([m.Q for m in models]), x0=np.concatenate([m.x0 for m in models]),
+        Q0=np.concatenate([m.Q0 for m in models]), Pi=pi,
+        pi0=np.concatenate([m.pi0 for m in models]) / k,
+        R=np.mean([m.R for m in models], axis=0), switch_prob=float(switch_prob),
+    )  # fmt: skip
+
+
+def stabilise(params: SLDSParams, max_radius: float = 1.0) -> SLDSParams:
+    """Every model's dynamics with its eigenvalues pulled inside ``max_radius``.
+
+    EM's linear models fit a gait cycle piece by piece and some come out
+    slightly unstable (spectral radius up to about 1.06 on walking): harmless
+    while the data steer the switch, but noise-driven sampling (section 4.3)
+    and particles that the likelihood does not hold then drift off. Each
+    eigenvalue ``lambda`` with ``|lambda| > max_radius`` is scaled to that
+    radius, keeping its phase (frequency) and its eigenvector. For order 2 the
+    eigenvectors ``[lambda v; v]`` become ``[lambda' v; v]``, so the matrix
+    stays a block companion ``[[A1, A2], [I, 0]]``.
+    """
+    a = params.A.copy()
+    dy = params.obs_dim
+    for k in range(params.n_states):
+        lam, vec = np.linalg.eig(a[k])
+        radius = np.abs(lam)
+        if radius.max() <= max_radius:
+            continue
+        new = lam * np.minimum(1.0, max_radius / np.maximum(radius, 1e-300))
+        if params.order == 2:
+            lower = vec[dy:]
+            vec = np.concatenate([lower * new, lower])
+        rebuilt = vec @ np.diag(new) @ np.linalg.inv(vec)
+        a[k] = np.real(rebuilt)
+        if params.order == 2:
+            a[k, dy:] = np.eye(a.shape[1], k=-dy)[dy:]  # exact copy rows
+    return params.replace(A=a)
+
+
+def sample_switches(pi: FloatArray, current: IntArray, rng: np.random.Generator) -> IntArray:
+    """Next switch state of every chain: ``s' ~ Pi[s, :]`` (vectorised)."""
+    cumulative = np.cumsum(pi, axis=1)
+    cumulative[:, -1] = 1.0
+    u = rng.random(current.shape[0])
+    return (u[:, None] >= cumulative[current]).sum(axis=1).astype(np.intp)
+
+
+def sample(
+    params: SLDSParams, frames: int, rng: np.random.Generator, measurement_noise: bool = False
+) -> tuple[FloatArray, IntArray, FloatArray]:
+    """Draw one sequence from the model (section 4.3).
+
+    Returns:
+        ``(T, dy)`` measurements ``C x + d`` (plus ``N(0, R)`` when
+        ``measurement_noise``), ``(T,)`` switch states and ``(T, dx)`` states.
+    """
+    if frames < 1:
+        raise ValueError(f"sample: frames must be >= 1, got {frames}")
+    dx = params.latent_dim
+    q_sqrt = psd_sqrt(params.Q)
+    s = np.empty(frames, dtype=np.intp)
+    x = np.empty((frames, dx))
+    s[0] = sample_switches(params.pi0[None, :], np.zeros(1, dtype=np.intp), rng)[0]
+    x[0] = params.x0[s[0]] + psd_sqrt(params.Q0[s[0]]) @ rng.standard_normal(dx)
+    for t in range(1, frames):
+        s[t] = sample_switches(params.Pi, s[t - 1 : t], rng)[0]
+        x[t] = params.A[s[t]] @ x[t - 1] + params.b[s[t]] + q_sqrt[s[t]] @ rng.standard_normal(dx)
+    y = x @ params.C.T + params.d
+    if measurement_noise:
+        y = y + rng.standard_normal(y.shape) * np.sqrt(np.diag(params.R))
+    return y, s, x
+
+
+def decode(
+    params: SLDSParams,
+    ys: Sequence[ArrayLike],
+    observed: Sequence[ArrayLike] | None = None,
+    max_batch: int = 48,
+) -> list[IntArray]:
+    """Viterbi switch sequences of several sequences (batched by length)."""
+    arrays = [np.asarray(y, dtype=np.float64) for y in ys]
+    masks = None if observed is None else [np.asarray(o, dtype=bool) for o in observed]
+    out: list[IntArray] = [np.empty(0, dtype=np.intp)] * len(arrays)
+    for ch in _chunks(np.array([y.shape[0] for y in arrays]), max_batch):
+        seqs = pack([arrays[i] for i in ch], None if masks is None else [masks[i] for i in ch])
+        path, _ = viterbi(params, seqs)
+        for k, i in enumerate(ch):
+            out[i] = path[k, : seqs.lengths[k]]
+    return out
+
+
+def smooth(
+    params: SLDSParams, y: ArrayLike, observed: ArrayLike | None = None
+) -> tuple[FloatArray, IntArray, SmootherResult]:
+    """Viterbi switch sequence, then RTS smoothing of one sequence with gaps.
+
+    Args:
+        params: The model.
+        y: ``(T, dy)`` measurements (any values where unobserved).
+        observed: ``(T,)`` True where measured.
+
+    Returns:
+        ``(T, dy)`` smoothed measurements ``C E[x_t | y] + d``, ``(T,)`` the
+        switch sequence and the smoother's moments.
+    """
+    arr = np.asarray(y, dtype=np.float64)
+    mask = np.ones(arr.shape[0], dtype=bool) if observed is None else np.asarray(observed, bool)
+    seqs = pack([arr], [mask])
+    meas = _measurements(params, seqs)
+    path, _ = viterbi(params, seqs, meas)
+    filt = filter_path(params, seqs, path, meas)
+    sm = rts_smoother(params, path, filt, seqs.lengths)
+    y_hat = sm.mean[0] @ params.C.T + params.d
+    return y_hat, path[0], SmootherResult(sm.mean[0], sm.cov[0], sm.cross[0])
+
+
+def smooth_mean(
+    params: SLDSParams,
+    y: ArrayLike,
+    observed: ArrayLike,
+    rng: np.random.Generator,
+    n_samples: int = 128,
+    context: int = 30,
+    max_batch: int = 32,
+) -> tuple[FloatArray, float]:
+    """Posterior-mean fill of missing frames, averaging over switch paths (an extension).
+
+    The Viterbi fill of :func:`smooth` follows one switch path through a gap,
+    and with no measurements there that path is the most probable a priori,
+    usually one state held throughout. This estimate instead keeps the Viterbi
+    switch states at the measured frames and draws the states of the missing
+    frames from the switch chain, ``s_t ~ Pi[s_{t-1}]``; every draw is
+    Kalman-smoothed and weighted by ``p(y, s) / q(s)`` (importance sampling;
+    the continuous state is integrated exactly, Rao-Blackwellised). Only the
+    frames within ``context`` of a gap are filtered.
+
+    Returns:
+        ``(T, dy)`` the smoothed measurements (the Viterbi smoother's outside
+        the windows) and the effective sample size of the weights (smallest
+        over the gaps).
+    """
+    arr = np.asarray(y, dtype=np.float64)
+    mask = np.asarray(observed, dtype=bool)
+    filled, path, _ = smooth(params, arr, mask)
+    missing = np.flatnonzero(~mask)
+    if missing.size == 0:
+        return filled, float(n_samples)
+    # contiguous runs of missing frames, each with its window of context
+    breaks = np.flatnonzero(np.diff(missing) > 1)
+    runs = np.split(missing, breaks + 1)
+    log_pi = np.log(np.maximum(params.Pi, 1e-300))
+    min_ess = float(n_samples)
+    for run in runs:
+        lo = max(0, int(run[0]) - context)
+        hi = min(arr.shape[0], int(run[-1]) + 1 + context)
+        win_y, win_mask, win_path = arr[lo:hi], mask[lo:hi], path[lo:hi]
+        t_len = hi - lo
+        paths = np.repeat(win_path[None], n_samples, axis=0)
+        log_q = np.zeros(n_samples)
+        for t in range(t_len):
+            if not win_mask[t] and t > 0:
+                paths[:, t] = sample_switches(params.Pi, paths[:, t - 1], rng)
+                log_q += log_pi[paths[:, t - 1], paths[:, t]]
+            elif not win_mask[t]:
+                paths[:, t] = sample_switches(
+                    params.pi0[None, :], np.zeros(n_samples, np.intp), rng
+                )
+                log_q += np.log(np.maximum(params.pi0[paths[:, t]], 1e-300))
+        means = np.empty((n_samples, t_len, params.latent_dim))
+        log_w = np.empty(n_samples)
+        for first in range(0, n_samples, max_batch):
+            part = paths[first : first + max_batch]
+            seqs = pack([win_y] * part.shape[0], [win_mask] * part.shape[0])
+            filt = filter_path(params, seqs, part)
+            sm = rts_smoother(params, part, filt, seqs.lengths)
+            means[first : first + part.shape[0]] = sm.mean
+            log_w[first : first + part.shape[0]] = -filt.cost
+        log_w -= log_q
+        w = np.exp(log_w - log_w.max())
+        w /= w.sum()
+        min_ess = min(min_ess, float(1.0 / np.sum(w**2)))
+        fill = np.einsum("k,ktd->td", w, means) @ params.C.T + params.d
+        filled[run] = fill[run - lo]
+    return filled, min_ess

@@ -1,0 +1,530 @@
+"""Tests of the switching linear dynamic system (Pavlovic et al. 1999)."""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+
+import numpy as np
+import pytest
+
+from humotion_gym.body import PARAM_LOWER, PARAM_UPPER
+from humotion_gym.filtering import ParticleFilter
+from humotion_gym.mocap.library import synthetic_library
+from humotion_gym.priors import slds, slds_tasks
+from humotion_gym.priors.slds_inference import (
+    SLDSParams,
+    combine,
+    filter_path,
+    fit_em,
+    pack,
+    rts_smoother,
+    sample,
+    stabilise,
+    viterbi,
+)
+
+# ---------------------------------------------------------------------------
+# Small models
+# ---------------------------------------------------------------------------
+
+
+def _rot(theta):
+    return np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
+
+
+def _spd(rng, n, scale):
+    m = rng.standard_normal((n, n))
+    return scale * (m @ m.T / n + 0.5 * np.eye(n))
+
+
+def random_model(rng, emission="learned", order=1, n_states=2, dx=2, dy=3, r_scale=0.05):
+    """A random stable SLDS (identity emission: dy angles, dx = order * dy)."""
+    if emission == "identity":
+        dx = order * dy
+    a = np.zeros((n_states, dx, dx))
+    q = np.zeros((n_states, dx, dx))
+    p = dy if (emission == "identity" and order == 2) else dx
+    for k in range(n_states):
+        block = rng.standard_normal((p, dx))
+        a[k, :p] = 0.9 * block / np.abs(np.linalg.eigvals(block[:, :p])).max() / (1 + order)
+        q[k, :p, :p] = _spd(rng, p, 0.1)
+        if p < dx:
+            a[k, p:, :p] = np.eye(p)
+    if emission == "identity":
+        c, d = np.eye(dy, dx), np.zeros(dy)
+    else:
+        c, d = rng.standard_normal((dy, dx)), rng.standard_normal(dy)
+    pi = rng.dirichlet(np.ones(n_states) * 3, size=n_states) + np.eye(n_states)
+    return SLDSParams(
+        free=np.arange(dy, dtype=np.intp), state_labels=np.array(["a"] * n_states),
+        emission=emission, order=order, A=a, b=rng.standard_normal((n_states, dx)) * 0.3,
+        Q=q, C=c, d=d, R=np.diag(r_scale * (1 + rng.random(dy))),
+        x0=rng.standard_normal((n_states, dx)),
+        Q0=np.stack([_spd(rng, dx, 0.5) for _ in range(n_states)]),
+        Pi=pi / pi.sum(1, keepdims=True), pi0=rng.dirichlet(np.ones(n_states)), fps=30.0,
+    )  # fmt: skip
+
+
+def brute_force(params, y, path, observed):
+    """Moments of x_{0:T} given y (all, and up to each t) from the joint Gaussian."""
+    t_len = len(path)
+    dx = params.latent_dim
+    mu = np.zeros((t_len, dx))
+    phi = np.zeros((t_len, t_len, dx, dx))  # x_t = mu_t + sum_k phi[t, k] eps_k
+    noise = np.zeros((t_len, dx, dx))
+    for t, s in enumerate(path):
+        if t == 0:
+            mu[0], noise[0] = params.x0[s], params.Q0[s]
+        else:
+            mu[t] = params.A[s] @ mu[t - 1] + params.b[s]
+            noise[t] = params.Q[s]
+            phi[t, :t] = params.A[s] @ phi[t - 1, :t]
+        phi[t, t] = np.eye(dx)
+    sx = np.einsum("tkij,kjl,ukml->tuim", phi, noise, phi).transpose(0, 2, 1, 3)
+    sx = sx.reshape(t_len * dx, t_len * dx)
+    big_c = np.kron(np.eye(t_len), params.C)
+    sy = big_c @ sx @ big_c.T + np.kron(np.eye(t_len), params.R)
+    sxy = sx @ big_c.T
+    mu_y = (mu @ params.C.T + params.d).reshape(-1)
+    dy = params.obs_dim
+    obs_rows = np.repeat(observed, dy)
+
+    def condition(rows):
+        k = np.flatnonzero(rows)
+        gain = np.linalg.solve(sy[np.ix_(k, k)], sxy[:, k].T).T
+        mean = mu.reshape(-1) + gain @ (y.reshape(-1)[k] - mu_y[k])
+        cov = sx - gain @ sxy[:, k].T
+        return mean.reshape(t_len, dx), cov
+
+    smoothed_mean, smoothed_cov = condition(obs_rows)
+    filtered = []
+    for t in range(t_len):
+        rows = obs_rows & (np.arange(t_len * dy) < (t + 1) * dy)
+        m, c = condition(rows) if rows.any() else (mu, sx)
+        filtered.append((m[t], c[t * dx : (t + 1) * dx, t * dx : (t + 1) * dx]))
+    k = np.flatnonzero(obs_rows)
+    diff = y.reshape(-1)[k] - mu_y[k]
+    s_k = sy[np.ix_(k, k)]
+    nll = 0.5 * (
+        diff @ np.linalg.solve(s_k, diff) + np.linalg.slogdet(s_k)[1] + k.size * np.log(2 * np.pi)
+    )
+    nll -= np.log(params.pi0[path[0]]) + sum(
+        np.log(params.Pi[a, b]) for a, b in itertools.pairwise(path)
+    )
+    return filtered, smoothed_mean, smoothed_cov, nll
+
+
+@pytest.mark.parametrize(
+    ("emission", "order", "dy"), [("learned", 1, 3), ("identity", 2, 2), ("identity", 1, 2)]
+)
+def test_kalman_filter_and_smoother_match_brute_force_gaussian(emission, order, dy):
+    rng = np.random.default_rng(3)
+    params = random_model(rng, emission, order, dy=dy)
+    t_len = 6
+    y, _, _ = sample(params, t_len, rng, measurement_noise=True)
+    path = np.array([0, 0, 1, 1, 0, 1])
+    observed = np.array([True, True, False, True, True, True])
+    seqs = pack([y], [observed])
+    filt = filter_path(params, seqs, path[None])
+    sm = rts_smoother(params, path[None], filt, seqs.lengths)
+    filtered, mean, cov, nll = brute_force(params, y, path, observed)
+    dx = params.latent_dim
+    for t in range(t_len):
+        np.testing.assert_allclose(filt.m_filt[0, t], filtered[t][0], atol=1e-9)
+        np.testing.assert_allclose(filt.p_filt[0, t], filtered[t][1], atol=1e-9)
+        np.testing.assert_allclose(sm.mean[0, t], mean[t], atol=1e-9)
+        np.testing.assert_allclose(
+            sm.cov[0, t], cov[t * dx : (t + 1) * dx, t * dx : (t + 1) * dx], atol=1e-9
+        )
+        if t > 0:
+            block = cov[t * dx : (t + 1) * dx, (t - 1) * dx : t * dx]
+            np.testing.assert_allclose(sm.cross[0, t], block, atol=1e-9)
+    np.testing.assert_allclose(filt.cost[0], nll, rtol=1e-10)
+
+
+# ---------------------------------------------------------------------------
+# Approximate Viterbi (eqs. 3-12)
+# ---------------------------------------------------------------------------
+
+
+def reference_viterbi(params, y):
+    """Eqs. 3-12 written out with loops over switch pairs, one plain Kalman step each."""
+    n_states = params.n_states
+    c, r = params.C, params.R
+
+    def measure(m_p, p_p, yt):
+        s = c @ p_p @ c.T + r
+        e = yt - c @ m_p - params.d
+        k = p_p @ c.T @ np.linalg.inv(s)
+        cost = 0.5 * (
+            e @ np.linalg.solve(s, e) + np.linalg.slogdet(s)[1] + len(e) * np.log(2 * np.pi)
+        )
+        return m_p + k @ e, p_p - k @ s @ k.T, cost
+
+    m, p, cost = [], [], np.zeros(n_states)
+    for i in range(n_states):
+        mi, pi_, ci = measure(params.x0[i], params.Q0[i], y[0])
+        m.append(mi)
+        p.append(pi_)
+        cost[i] = ci - np.log(params.pi0[i])
+    back = []
+    for t in range(1, len(y)):
+        new_m, new_p, new_cost, psi = [], [], np.zeros(n_states), np.zeros(n_states, int)
+        for i in range(n_states):
+            best = None
+            for j in range(n_states):
+                m_p = params.A[i] @ m[j] + params.b[i]
+                p_p = params.A[i] @ p[j] @ params.A[i].T + params.Q[i]
+                mu, pu, ci = measure(m_p, p_p, y[t])
+                total = cost[j] - np.log(params.Pi[j, i]) + ci
+                if best is None or total < best[0]:
+                    best = (total, j, mu, pu)
+            new_cost[i], psi[i] = best[0], best[1]
+            new_m.append(best[2])
+            new_p.append(best[3])
+        m, p, cost = new_m, new_p, new_cost
+        back.append(psi)
+    state = int(np.argmin(cost))
+    path = [state]
+    for psi in reversed(back):
+        state = int(psi[state])
+        path.append(state)
+    return np.array(path[::-1]), float(cost.min())
+
+
+def all_path_costs(params, y, n_states=2):
+    paths = np.array(list(itertools.product(range(n_states), repeat=len(y))))
+    seqs = pack([y] * len(paths))
+    return paths, filter_path(params, seqs, paths).cost
+
+
+def test_viterbi_matches_a_loop_implementation_of_eqs_3_to_12():
+    rng = np.random.default_rng(5)
+    params = random_model(rng, "learned", dy=3)
+    y, _, _ = sample(params, 6, rng, measurement_noise=True)
+    path, cost = viterbi(params, pack([y]))
+    ref_path, ref_cost = reference_viterbi(params, y)
+    np.testing.assert_array_equal(path[0], ref_path)
+    np.testing.assert_allclose(cost[0], ref_cost, rtol=1e-10)
+    # Along its own path the approximation is the exact Kalman filter of that path,
+    # so the decoded cost is that path's exact cost, at least the exhaustive minimum.
+    paths, costs = all_path_costs(params, y)
+    np.testing.assert_allclose(cost[0], costs[np.all(paths == path[0], axis=1)][0], rtol=1e-10)
+    assert cost[0] >= costs.min() - 1e-9
+
+
+def test_viterbi_is_the_exhaustive_argmin_when_the_approximation_is_exact():
+    # With (almost) noise-free measurements of the whole state, the filtered state
+    # is the measurement whatever the past, so pruning loses nothing.
+    rng = np.random.default_rng(11)
+    params = random_model(rng, "identity", order=1, dy=2).replace(R=1e-10 * np.eye(2))
+    for _ in range(3):
+        y, _, _ = sample(params, 6, rng, measurement_noise=True)
+        paths, costs = all_path_costs(params, y)
+        path, cost = viterbi(params, pack([y]))
+        np.testing.assert_array_equal(path[0], paths[np.argmin(costs)])
+        np.testing.assert_allclose(cost[0], costs.min(), rtol=1e-9)
+
+
+def test_viterbi_handles_missing_frames_and_unequal_lengths():
+    rng = np.random.default_rng(2)
+    params = random_model(rng, "identity", order=2, dy=2)
+    ys = [sample(params, n, rng, measurement_noise=True)[0] for n in (7, 4, 9)]
+    masks = [np.ones(len(y), bool) for y in ys]
+    masks[2][3:6] = False
+    batch_path, batch_cost = viterbi(params, pack(ys, masks))
+    for k, (y, mask) in enumerate(zip(ys, masks, strict=True)):
+        path, cost = viterbi(params, pack([y], [mask]))
+        np.testing.assert_array_equal(batch_path[k, : len(y)], path[0])
+        np.testing.assert_allclose(batch_cost[k], cost[0], rtol=1e-10)
+        exact = filter_path(params, pack([y], [mask]), path).cost[0]
+        np.testing.assert_allclose(cost[0], exact, rtol=1e-10)
+
+
+# ---------------------------------------------------------------------------
+# Learning (section 2.3)
+# ---------------------------------------------------------------------------
+
+
+def two_state_data(seed=0, n_seq=10, t_len=100):
+    rng = np.random.default_rng(seed)
+    a = [0.9 * _rot(0.3), 0.9 * _rot(-0.5)]
+    centres = [np.array([2.0, 0.0]), np.array([-2.0, 0.5])]
+    ys, truth = [], []
+    for _ in range(n_seq):
+        s = np.zeros(t_len, int)
+        x = np.zeros((t_len, 2))
+        s[0] = rng.integers(2)
+        x[0] = centres[s[0]] + rng.standard_normal(2)
+        for t in range(1, t_len):
+            s[t] = s[t - 1] if rng.random() < 0.95 else 1 - s[t - 1]
+            k = s[t]
+            x[t] = a[k] @ (x[t - 1] - centres[k]) + centres[k] + 0.05 * rng.standard_normal(2)
+        ys.append(x + 0.01 * rng.standard_normal(x.shape))
+        truth.append(s)
+    b = [centres[k] - a[k] @ centres[k] for k in range(2)]
+    return ys, truth, a, b
+
+
+@pytest.fixture(scope="module")
+def two_state_fit():
+    ys, truth, a, b = two_state_data()
+    result = fit_em(
+        ys, n_states=2, emission="identity", order=1, n_iter=15, rng=np.random.default_rng(0)
+    )
+    return result, truth, a, b
+
+
+def test_em_recovers_a_known_two_state_system(two_state_fit):
+    result, truth, a, b = two_state_fit
+    paths = np.concatenate(result.paths)
+    true = np.concatenate(truth)
+    mapping = np.array([np.bincount(true[paths == k], minlength=2).argmax() for k in range(2)])
+    assert sorted(mapping.tolist()) == [0, 1]
+    assert np.mean(mapping[paths] == true) > 0.97
+    params = result.params
+    for k in range(2):
+        np.testing.assert_allclose(params.A[k], a[mapping[k]], atol=0.05)
+        np.testing.assert_allclose(params.b[k], b[mapping[k]], atol=0.1)
+        np.testing.assert_allclose(np.sqrt(np.diag(params.Q[k])), 0.05, rtol=0.25)
+    assert np.all(np.diag(params.Pi) > 0.9)
+
+
+@pytest.mark.parametrize("case", ["identity-1", "identity-2", "learned"])
+def test_em_cost_never_rises(case, two_state_fit):
+    if case == "identity-1":
+        costs = two_state_fit[0].costs
+    else:
+        ys, _, _, _ = two_state_data(seed=1, n_seq=6, t_len=60)
+        if case == "learned":
+            rng = np.random.default_rng(0)
+            c = rng.standard_normal((5, 2))
+            ys = [y @ c.T + 0.1 * rng.standard_normal((len(y), 5)) for y in ys]
+            result = fit_em(ys, n_states=3, emission="learned", latent_dim=2, n_iter=12, tol=0.0)
+        else:
+            result = fit_em(ys, n_states=3, emission="identity", order=2, n_iter=12, tol=0.0)
+        costs = result.costs
+    assert len(costs) > 3
+    assert np.all(np.diff(costs) <= 1e-9 * np.abs(costs[:-1])), np.diff(costs)
+    assert costs[-1] < costs[0]
+
+
+def test_combine_builds_a_block_transition_matrix():
+    rng = np.random.default_rng(0)
+    one = random_model(rng, "identity", order=2, dy=2).replace(state_labels=np.array(["walk"] * 2))
+    two = random_model(rng, "identity", order=2, dy=2, n_states=3)
+    two = two.replace(state_labels=np.array(["run"] * 3))
+    joined = combine([one, two], switch_prob=0.02)
+    assert joined.n_states == 5
+    np.testing.assert_allclose(joined.Pi.sum(axis=1), 1.0)
+    np.testing.assert_allclose(joined.Pi[:2, 2:].sum(axis=1), 0.02)
+    np.testing.assert_allclose(joined.Pi[:2, :2], 0.98 * one.Pi)
+    np.testing.assert_allclose(joined.Pi[2:, :2].sum(axis=1), 0.02)
+    np.testing.assert_allclose(joined.pi0.sum(), 1.0)
+    assert joined.state_labels.tolist() == ["walk"] * 2 + ["run"] * 3
+
+
+def test_stabilise_bounds_the_spectrum_and_keeps_the_companion_form():
+    rng = np.random.default_rng(4)
+    params = random_model(rng, "identity", order=2, dy=3)
+    a = params.A.copy()
+    a[0, :3] *= 3.0  # an unstable model
+    params = params.replace(A=a)
+    assert np.abs(np.linalg.eigvals(params.A[0])).max() > 1.0
+    stable = stabilise(params, 0.99)
+    for k in range(params.n_states):
+        radius = np.abs(np.linalg.eigvals(stable.A[k]))
+        assert radius.max() <= 0.99 + 1e-9
+        np.testing.assert_array_equal(stable.A[k, 3:], np.eye(6, k=-3)[3:])
+    if np.abs(np.linalg.eigvals(params.A[1])).max() <= 0.99:
+        np.testing.assert_array_equal(stable.A[1], params.A[1])
+    # phases (frequencies) are kept
+    before = np.sort(np.angle(np.linalg.eigvals(params.A[0])))
+    after = np.sort(np.angle(np.linalg.eigvals(stable.A[0])))
+    np.testing.assert_allclose(before, after, atol=1e-8)
+
+
+# ---------------------------------------------------------------------------
+# The tracking prior (section 4.2)
+# ---------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def synthetic():
+    lib = synthetic_library()
+    train = lib.split("train").filter(labels=["walk", "run"])
+    test = lib.split("test").filter(labels=["walk", "run"])
+    return train, test
+
+
+@pytest.fixture(scope="module")
+def fitted(synthetic):
+    train, _ = synthetic
+    return slds.fit(list(train), n_states=3, n_iter=4, rng=np.random.default_rng(0))
+
+
+def test_prior_contract(fitted, synthetic, tmp_path):
+    _, test = synthetic
+    assert fitted.n_states <= 6 and set(fitted.state_labels) == {"walk", "run"}
+    np.testing.assert_array_equal(fitted.free, slds.SAGITTAL_INDEX)
+    pose = test[0].params[10, slds.SAGITTAL_INDEX]
+    first = slds.initial(fitted, pose, 50, np.random.default_rng(1))
+    assert first.pose.shape == (50, 8)
+    assert first.extra["switch"].shape == (50,) and first.extra["state"].shape == (50, 16)
+    assert np.abs(first.pose - pose).max() < np.radians(3)
+    again = slds.initial(fitted, pose, 50, np.random.default_rng(1))
+    np.testing.assert_array_equal(first.pose, again.pose)
+    step = slds.transition(fitted, first, np.random.default_rng(2))
+    step2 = slds.transition(fitted, first, np.random.default_rng(2))
+    np.testing.assert_array_equal(step.pose, step2.pose)
+    np.testing.assert_array_equal(step.extra["switch"], step2.extra["switch"])
+    assert step.pose.shape == (50, 8) and np.all(np.isfinite(step.pose))
+    assert np.all(step.pose >= PARAM_LOWER[fitted.free]) and np.all(
+        step.pose <= PARAM_UPPER[fitted.free]
+    )
+    # The previous-frame half of the state is the previous pose (order 2).
+    np.testing.assert_allclose(step.extra["state"][:, 8:], first.extra["state"][:, :8])
+    path = tmp_path / "slds.npz"
+    slds.save(fitted, path)
+    loaded = slds.load(path)
+    for name in ("A", "b", "Q", "C", "d", "R", "x0", "Q0", "Pi", "pi0", "free", "state_labels"):
+        np.testing.assert_array_equal(getattr(loaded, name), getattr(fitted, name))
+    assert loaded.emission == fitted.emission and loaded.order == 2 and loaded.fps == fitted.fps
+
+
+class _AngleLikelihood:
+    def __init__(self, sigma):
+        self.sigma = sigma
+
+    def log_likelihood(self, frame, poses):
+        return -0.5 * np.sum((poses - frame) ** 2, axis=1) / self.sigma**2
+
+
+def test_particle_filter_runs_with_the_slds_prior(fitted, synthetic):
+    _, test = synthetic
+    walk = [m for m in test if m.label == "walk"][0]
+    truth = walk.params[:12, slds.SAGITTAL_INDEX]
+    pf = ParticleFilter(slds, fitted, _AngleLikelihood(np.radians(3)), 200)
+    pf.reset(truth[0], np.random.default_rng(0))
+    errors = []
+    for t in range(1, len(truth)):
+        estimate = pf.step(truth[t])
+        assert estimate.shape == (8,)
+        errors.append(np.degrees(np.abs(estimate - truth[t]).mean()))
+    assert np.all(np.isfinite(errors)) and np.mean(errors) < 5.0
+
+
+def test_synthesis_is_deterministic_and_fills_a_full_pose(fitted):
+    poses, switches = slds.synthesize(fitted, 40, np.random.default_rng(4))
+    again, _ = slds.synthesize(fitted, 40, np.random.default_rng(4))
+    np.testing.assert_array_equal(poses, again)
+    assert poses.shape == (40, 8) and switches.shape == (40,)
+    assert np.all(np.isfinite(poses))
+    base = np.zeros(25)
+    base[2] = 1000.0
+    params = slds.synthesize_motion(fitted, None, base, 30, 30.0, np.random.default_rng(4))
+    assert params.shape == (30, 25)
+    np.testing.assert_allclose(params[:, 2], 1000.0)
+    np.testing.assert_allclose(
+        params[:, slds.SAGITTAL_INDEX],
+        np.clip(poses[:30], PARAM_LOWER[slds.SAGITTAL_INDEX], PARAM_UPPER[slds.SAGITTAL_INDEX]),
+    )
+
+
+# ---------------------------------------------------------------------------
+# Uses (section 4): classification, interpolation, the command line
+# ---------------------------------------------------------------------------
+
+
+def test_test_sequences_follow_footnote_4(synthetic):
+    _, test = synthetic
+    seqs = slds_tasks.build_test_sequences(
+        list(test), slds.SAGITTAL_INDEX, np.random.default_rng(0), noise_std=0.0
+    )
+    clips = [c for s in seqs for c in s.clips]
+    assert sorted(clips) == sorted(m.clip_id for m in test)
+    for s in seqs:
+        assert s.truth.shape[0] == s.angles.shape[0]
+        assert 2 <= len(s.clips) <= 4 or s is seqs[-1]
+        for start, clip in zip(s.starts, s.clips, strict=True):
+            assert s.truth[start] == test[clip].label
+        # B-spline transitions: no jump at a junction is much larger than the clips' own steps
+        steps = np.abs(np.diff(s.clean, axis=0)).max(axis=1)
+        assert steps.max() < 0.5
+
+
+def test_classification_end_to_end_on_synthetic_walk_and_run(synthetic):
+    train, test = synthetic
+    result = slds_tasks.run_classification(
+        list(train), list(test), np.random.default_rng(0), n_states=3, n_iter=4
+    )
+    assert result.n_points == sum(m.n_frames for m in test)
+    assert result.n_sequences >= 1
+    assert result.error < 0.05, result.summary()
+
+
+def test_interpolation_fills_only_the_gap(fitted, synthetic):
+    _, test = synthetic
+    model = slds.activity_model(fitted, "walk")
+    assert set(model.state_labels) == {"walk"}
+    walk = [m for m in test if m.label == "walk"][0]
+    angles = walk.params[:, slds.SAGITTAL_INDEX]
+    result = slds_tasks.interpolate_gap(model, angles, (50, 100), rng=np.random.default_rng(0))
+    assert set(result.errors) == {"slds", "slds_mean", "linear", "spline"}
+    for fill in (result.slds, result.slds_mean, result.linear, result.spline):
+        np.testing.assert_array_equal(fill[:50], angles[:50])
+        np.testing.assert_array_equal(fill[100:], angles[100:])
+        # continuous into and out of the gap: no step much larger than the motion's own
+        assert np.abs(fill[50] - angles[49]).max() < 0.3
+        assert np.abs(fill[99] - angles[100]).max() < 0.3
+    assert all(np.isfinite(v) for v in result.errors.values())
+
+
+def _cli(argv):
+    parser = argparse.ArgumentParser()
+    sub = parser.add_subparsers(dest="command", required=True)
+    slds_tasks.register_cli(sub)
+    args = parser.parse_args(argv)
+    return args.func(args)
+
+
+def test_cli_interpolate_on_the_synthetic_set(capsys, tmp_path):
+    figure = tmp_path / "fig6.png"
+    code = _cli(
+        ["slds", "interpolate", "--json", "--states", "2", "--iters", "2", "--figure", str(figure)]
+    )
+    assert code == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["clips"] >= 1 and set(out["mean_abs_error_deg"]) == {
+        "slds",
+        "slds_mean",
+        "linear",
+        "spline",
+    }
+    assert figure.stat().st_size > 0
+
+
+@pytest.mark.mocap
+def test_cli_classify_on_bandai_walk_and_run(shared_mocap, capsys, tmp_path):
+    folder = shared_mocap / "bandai-2"
+    if not folder.is_dir():
+        pytest.skip("bandai-2 is not in the shared motion capture")
+    files = [str(folder / f"dataset-2_{label}_{style}_00{k}.bvh")
+             for label in ("walk", "run") for style in ("normal", "active") for k in (1, 2)]  # fmt: skip
+    tests = [
+        str(folder / f"dataset-2_{label}_masculine_00{k}.bvh")
+        for label in ("walk", "run")
+        for k in (1, 2)
+    ]
+    figure = tmp_path / "fig3.png"
+    code = _cli(["slds", "classify", "--train", *files, "--test", *tests, "--json", "--states", "2",
+                 "--iters", "3", "--figure", str(figure)])  # fmt: skip
+    assert code == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["train_clips"] == 8 and out["test_clips"] == 4
+    assert out["n_points"] > 300 and out["error"] < 0.3
+    for costs in out["em_costs"].values():
+        assert all(b <= a + 1e-6 * abs(a) for a, b in itertools.pairwise(costs))
+    assert figure.stat().st_size > 0
