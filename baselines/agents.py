@@ -265,6 +265,12 @@ AGENTS: dict[str, AgentSpec] = {
         description="the tree prior replaying the database's velocities from each particle's "
         "own pose (transfers better to a new subject)",
     ),
+    "pf-slds": AgentSpec(
+        "humotion_gym.priors.slds",
+        description="switching linear dynamic system (Pavlovic, Rehg, Cham & Murphy 1999), "
+        "one model per activity joined by a block transition matrix",
+        tasks=("ArmTrack-v0", "SideWalk-v0"),
+    ),
     "pf-pca": AgentSpec(
         "humotion_gym.priors.cyclic_pca",
         description="cyclic functional PCA of walking (Ormoneit, Black, Hastie & Kjellström 2005)",

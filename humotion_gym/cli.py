@@ -391,8 +391,11 @@ def build_parser() -> argparse.ArgumentParser:
     from humotion_gym.priors.cyclic_pca import register_cli as _add_pca
     from humotion_gym.priors.tree_figures import register_cli as _add_tree_figures
 
+    from humotion_gym.priors.slds_tasks import register_cli as _add_slds
+
     _add_tree_figures(sub)
     _add_pca(sub)
+    _add_slds(sub)
     return parser
 
 

@@ -10,7 +10,8 @@
   truth (:func:`classify`).
 * Synthesis (section 4.3, Fig. 5): noise-driven sampling of a learned model
   (:func:`humotion_gym.priors.slds.synthesize`), plotted with its switch states
-  (:func:`plot_synthesis`).
+  (:func:`plot_synthesis`); :func:`synthesize_walk` makes a full 25-parameter
+  motion of it for ``humotion-gym synth --prior slds``.
 * Interpolation (Fig. 6): a gap of a held-out walking clip filled by smoothing
   with missing measurements, compared with linear and cubic-spline
   interpolation of the same gap (:func:`interpolate_gap`).
@@ -27,6 +28,19 @@ given twice) they are split by subject with the library's named constants
 (:meth:`~humotion_gym.mocap.library.MotionLibrary.split`): training uses the
 train split of ``--train``, testing the test split of ``--test``; for
 Bandai-Namco set 2 that holds out the style ``bandai-2/masculine``.
+
+Measured on Bandai-Namco set 2 (30 Hz; 239 training clips of the styles
+active, feminine and normal; the 72 masculine clips held out; 4 switch
+states per activity, 20 EM iterations):
+
+* classification (hip and knee angles, noise 2 deg, ``switch_prob`` 1e-3):
+  2.4%, 2.1% and 2.7% error for seeds 0, 1, 2 over 10,254 frames in 23-27
+  sequences (the paper: 2.9% over 8,312); with the arms as well (the eight
+  sagittal angles) 12.4%, nearly all of it held-out walking read as running.
+* interpolation of frames 50-99 of the 25 held-out walking clips (eight
+  sagittal angles), mean absolute error in degrees for seeds 0, 1, 2: the
+  Viterbi fill 21.2, 25.7, 25.6; the posterior mean over switch paths 13.8,
+  18.3, 20.8; linear 16.4; cubic spline 26.4.
 """
 
 from __future__ import annotations
@@ -43,7 +57,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicSpline, make_interp_spline
 
-from humotion_gym.body import PARAM_INDEX, PARAM_LOWER, PARAM_NAMES, PARAM_UPPER
+from humotion_gym.body import PARAM_INDEX, PARAM_LOWER, PARAM_NAMES, PARAM_UPPER, BodyShape
 from humotion_gym.mocap.motion import Motion
 from humotion_gym.priors import slds
 from humotion_gym.priors.slds_inference import SLDSParams, combine, decode, smooth, smooth_mean
@@ -451,6 +465,47 @@ def run_interpolation(
     results = [interpolate_gap(model, m.params[:, idx], gap, m.clip_id, rng) for m in held]
     mean = {k: float(np.mean([r.errors[k] for r in results])) for k in results[0].errors}
     return results, mean, model
+
+
+# ---------------------------------------------------------------------------
+# Synthesis (section 4.3)
+# ---------------------------------------------------------------------------
+
+
+def synthesize_walk(
+    train: Sequence[Motion],
+    frames: int,
+    fps: float,
+    rng: np.random.Generator,
+    shape: BodyShape,
+    label: str = "walk",
+    n_states: int = slds.N_STATES,
+    n_iter: int = slds.N_ITER,
+    max_clips: int | None = 40,
+) -> FloatArray:
+    """Noise-driven walking (Fig. 5) as a full ``(frames, 25)`` motion, for BVH export.
+
+    Learns one SLDS of the sagittal angles from the ``label`` clips of
+    ``train`` (at most ``max_clips`` of them, a random subset, to bound the
+    time), samples it (:func:`humotion_gym.priors.slds.synthesize_motion`) and
+    fills every other parameter from the standing pose of ``shape``: the
+    figure walks on the spot.
+
+    Raises:
+        ValueError: If no training clip has the label.
+    """
+    from humotion_gym.body import standing_pose
+
+    clips = [m for m in train if m.label == label]
+    if not clips:
+        raise ValueError(f"synthesize_walk: no training clip has the label {label!r}")
+    if max_clips is not None and len(clips) > max_clips:
+        pick = np.sort(rng.choice(len(clips), max_clips, replace=False))
+        clips = [clips[k] for k in pick]
+    model = slds.fit_activity(
+        clips, slds.SAGITTAL_INDEX, rng, n_states=n_states, n_iter=n_iter, label=label
+    ).params
+    return slds.synthesize_motion(model, None, standing_pose(shape), frames, fps, rng)
 
 
 # ---------------------------------------------------------------------------

@@ -433,6 +433,17 @@ def test_synthesis_is_deterministic_and_fills_a_full_pose(fitted):
     )
 
 
+def test_synthesize_walk_gives_a_full_motion(synthetic):
+    train, _ = synthetic
+    shape = train[0].shape
+    params = slds_tasks.synthesize_walk(
+        train, 45, 30.0, np.random.default_rng(0), shape, n_states=2, n_iter=2
+    )
+    assert params.shape == (45, 25) and np.all(np.isfinite(params))
+    assert np.all(params >= PARAM_LOWER) and np.all(params <= PARAM_UPPER)
+    assert np.ptp(params[:, slds.SAGITTAL_INDEX], axis=0).min() > 0
+
+
 # ---------------------------------------------------------------------------
 # Uses (section 4): classification, interpolation, the command line
 # ---------------------------------------------------------------------------
