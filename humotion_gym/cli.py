@@ -389,9 +389,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_leaderboard(sub)
     _add_synth(sub)
     from humotion_gym.priors.cyclic_pca import register_cli as _add_pca
-    from humotion_gym.priors.tree_figures import register_cli as _add_tree_figures
-
     from humotion_gym.priors.slds_tasks import register_cli as _add_slds
+    from humotion_gym.priors.tree_figures import register_cli as _add_tree_figures
 
     _add_tree_figures(sub)
     _add_pca(sub)
