@@ -1,6 +1,7 @@
-"""Particle-filter agents: milliseconds per frame on BodyTrack-v0 at 128x128.
+"""Particle-filter agents: milliseconds per frame (BodyTrack-v0 at 128x128 by default).
 
 Run: python benchmarks/bench_agents.py [--data-dir ../shared/mocap]
+     python benchmarks/bench_agents.py --task SideWalk-v0 --agents pf-cv pf-slds
 
 Reports pf-cv and pf-tree at 300, 3,000 and 10,000 particles, split into the
 prior's transition, the observation model (prepare + score) and the rest, with
@@ -24,26 +25,30 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--data-dir", default=None)
     ap.add_argument("--frames", type=int, default=30)
+    ap.add_argument("--task", default="BodyTrack-v0")
+    ap.add_argument("--agents", nargs="+", default=["pf-cv", "pf-tree"])
+    ap.add_argument("--particles", type=int, nargs="+", default=[300, 3000, 10000])
     args = ap.parse_args()
     kwargs = {"data_dir": args.data_dir} if args.data_dir else {}
-    env = gym.make("humotion_gym/BodyTrack-v0", terminate_on_lost=False, **kwargs)
+    env = gym.make(f"humotion_gym/{args.task}", terminate_on_lost=False, **kwargs)
     base = env.unwrapped
     env.reset(seed=0)
     t0 = time.perf_counter()
     for _ in range(args.frames - 1):
-        env.step(np.zeros(25, np.float32))
+        env.step(np.zeros(env.action_space.shape, np.float32))
     env_ms = 1000 * (time.perf_counter() - t0) / (args.frames - 1)
     print(f"reference: env step with rendering {env_ms:.2f} ms")
     print(f"{'agent':10s} {'particles':>9s} {'ms/frame':>9s} {'transition':>11s} {'likelihood':>11s} {'x env step':>11s}")
-    for name in ("pf-cv", "pf-tree"):
-        for n in (300, 3000, 10000):
+    action = np.zeros(env.action_space.shape, np.float32)
+    for name in args.agents:
+        for n in args.particles:
             agent = make(name, env, n_particles=n, seed=0)
             obs, info = env.reset(seed=0)
             agent.observe_info(info)
             agent.predict(obs, episode_start=True)
             total = trans = lik = 0.0
             for _ in range(args.frames):
-                obs, _, _, _, info = env.step(np.zeros(25, np.float32))
+                obs, _, _, _, info = env.step(action)
                 agent.observe_info(info)
                 state = agent.filter.state
                 t = time.perf_counter()
