@@ -73,3 +73,28 @@ def test_cli_track_and_render(tmp_path, capsys):
     video = tmp_path / "clip.mp4"
     assert main(["render", "--task", "BodyTrack-v0", "--frames", "12", "--out", str(video)]) == 0
     assert video.stat().st_size > 0 and video.with_suffix(".png").is_file()
+
+
+@pytest.mark.parametrize("prior", ["tree", "pca", "slds"])
+def test_cli_synth_writes_a_bvh_the_parser_reads_back(tmp_path, prior):
+    from humotion_gym.mocap.export import read_motion_bvh
+
+    out = tmp_path / f"{prior}.bvh"
+    assert main(["synth", "--prior", prior, "--seconds", "0.5", "--out", str(out)]) == 0
+    params, fps = read_motion_bvh(out)
+    assert fps == 30.0 and params.shape[0] >= 15 and np.all(np.isfinite(params))
+
+
+def test_every_agent_is_made_or_refuses_with_a_reason():
+    for name in AGENTS:
+        for task in ("ArmTrack-v0", "SideWalk-v0"):
+            env = gym.make(f"humotion_gym/{task}")
+            try:
+                agent = make(name, env, n_particles=20)
+            except ValueError as exc:
+                assert "walking" in str(exc) or "supports" in str(exc)
+                continue
+            obs, info = env.reset(seed=0)
+            agent.observe_info(info)
+            action, _ = agent.predict(obs, episode_start=np.array([True]))
+            assert env.action_space.contains(action)
