@@ -167,15 +167,21 @@ class PoseTrackingEnv(gym.Env):
             for name, members in _REGIONS.items()
         }
         self._motion: Motion | None = None
+        self._bounds: tuple[FloatArray, FloatArray] | None = None
 
     # -- pose <-> action ---------------------------------------------------------
 
     def _action_bounds(self) -> tuple[FloatArray, FloatArray]:
+        if self._bounds is not None:
+            return self._bounds
         lo, hi = PARAM_LOWER.copy(), PARAM_UPPER.copy()
         if self._motion is not None:
             r = self.task.root_range_mm
             lo[:3] = self._root0 - r
             hi[:3] = self._root0 + r
+            # the bounds hold for the whole episode: computed once per reset
+            self._bounds = (lo[self._free], hi[self._free])
+            return self._bounds
         return lo[self._free], hi[self._free]
 
     def pose_to_action(self, pose: FloatArray) -> NDArray[np.float32]:
@@ -213,7 +219,10 @@ class PoseTrackingEnv(gym.Env):
         a = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
         lo, hi = self._action_bounds()
         base = self._truth() if fixed is None else np.asarray(fixed, dtype=np.float64)
-        pose = np.broadcast_to(base, a.shape[:-1] + (base.shape[-1],)).copy()
+        if a.ndim == 1:
+            pose = base.copy()
+        else:
+            pose = np.broadcast_to(base, a.shape[:-1] + (base.shape[-1],)).copy()
         pose[..., self._free] = lo + (a + 1.0) * 0.5 * (hi - lo)
         return pose
 
@@ -268,6 +277,7 @@ class PoseTrackingEnv(gym.Env):
         assert m is not None
         idx = self._t0 + np.arange(self.episode_frames + 1) * self.frame_skip
         kp = forward_kinematics(m.params[idx], m.shape)
+        self._truth_keypoints = kp  # scored against in step()
         pelvis = kp[:, KEYPOINT_INDEX["pelvis"]]
         travel = pelvis[-1, :2] - pelvis[0, :2]
         if spec.reference == "walk" and np.linalg.norm(travel) > 100.0:
@@ -348,6 +358,7 @@ class PoseTrackingEnv(gym.Env):
         self._motion = self._pick_clip(options)
         self._t0 = self._pick_start(self._motion, options)
         self._root0 = self._motion.params[self._t0, :3].copy()
+        self._bounds = None
         self._episode_seed = int(self.np_random.integers(2**63 - 1))
         self._background = make_background(self.scene, np.random.default_rng(self._episode_seed))
         # Per-frame sensor noise comes from one generator per episode, advanced
@@ -405,25 +416,26 @@ class PoseTrackingEnv(gym.Env):
         # numpy on 3-vectors (tested to agree with body.forward_kinematics).
         err_all = np.linalg.norm(
             single_pose_geometry(estimate, self.shape)[:N_KEYPOINTS]
-            - single_pose_geometry(truth, self.shape)[:N_KEYPOINTS],
+            - self._truth_keypoints[self._k],
             axis=-1,
         )
         err = err_all[self._err_kp]
-        error_mm = float(err.mean())
+        n_scored = len(err)
+        error_mm = float(err.sum()) / n_scored
         # Reward: the mean over scored keypoints of exp(-e_k / scale), split by
         # body region so the terms add up to the reward.
-        per_kp = np.exp(-err / self.reward_scale_mm) / len(err)
+        per_kp = (np.exp(err * (-1.0 / self.reward_scale_mm)) / n_scored).tolist()
         terms = {
-            f"reward_{name}": float(per_kp[idx].sum()) for name, idx in self._region_of.items()
+            f"reward_{name}": sum(per_kp[i] for i in idx) for name, idx in self._region_of.items()
         }
-        reward = float(sum(terms.values()))
+        reward = sum(terms.values())
         self._lost_run = self._lost_run + 1 if error_mm > self.lost_threshold_mm else 0
         lost = self._lost_run >= self.lost_patience
         terminated = bool(lost and self.terminate_on_lost)
         truncated = bool(self._k >= self.episode_frames and not terminated)
         scored = {
             "error_mm": error_mm,
-            "error_all_mm": float(err_all.mean()),
+            "error_all_mm": float(err_all.sum()) / N_KEYPOINTS,
             "keypoint_errors_mm": err_all,
             "lost": bool(lost),
             **terms,
