@@ -411,6 +411,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         threadpool_limits(limits=1, user_api="blas")
     try:
         return int(args.func(args) or 0)
+    except ModuleNotFoundError as exc:
+        extra = {"matplotlib": "plots", "moviepy": "video", "stable_baselines3": "rl"}
+        hint = extra.get(str(exc.name).split(".")[0])
+        more = f"; install it with: pip install -e '.[{hint}]'" if hint else ""
+        print(f"humotion-gym: error: {exc}{more}", file=sys.stderr)
+        return 2
     except (ValueError, FileNotFoundError, KeyError) as exc:
         print(f"humotion-gym: error: {exc}", file=sys.stderr)
         return 2
