@@ -38,7 +38,9 @@ def main() -> None:
         env.step(np.zeros(env.action_space.shape, np.float32))
     env_ms = 1000 * (time.perf_counter() - t0) / (args.frames - 1)
     print(f"reference: env step with rendering {env_ms:.2f} ms")
-    print(f"{'agent':10s} {'particles':>9s} {'ms/frame':>9s} {'transition':>11s} {'likelihood':>11s} {'x env step':>11s}")
+    print(
+        f"{'agent':10s} {'particles':>9s} {'ms/frame':>9s} {'transition':>11s} {'likelihood':>11s} {'x env step':>11s}"
+    )
     action = np.zeros(env.action_space.shape, np.float32)
     for name in args.agents:
         for n in args.particles:
@@ -56,14 +58,18 @@ def main() -> None:
                 trans += time.perf_counter() - t
                 t = time.perf_counter()
                 feats = base.observation_model.prepare(obs)
-                agent.likelihood.update(np.asarray(info["fixed_params"]), base.shape, info["camera"])
+                agent.likelihood.update(
+                    np.asarray(info["fixed_params"]), base.shape, info["camera"]
+                )
                 agent.likelihood.log_likelihood(feats, state.pose)
                 lik += time.perf_counter() - t
                 t = time.perf_counter()
                 agent.predict(obs)
                 total += time.perf_counter() - t
             k = 1000 / args.frames
-            print(f"{name:10s} {n:9,d} {total * k:9.2f} {trans * k:11.2f} {lik * k:11.2f} {total * k / env_ms:11.1f}")
+            print(
+                f"{name:10s} {n:9,d} {total * k:9.2f} {trans * k:11.2f} {lik * k:11.2f} {total * k / env_ms:11.1f}"
+            )
 
 
 if __name__ == "__main__":

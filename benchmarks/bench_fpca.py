@@ -27,26 +27,13 @@ does itself when ``threadpoolctl`` is installed).
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
+from _timing import best_of
 
 from humotion_gym.mocap.synthetic import synthetic_motions
 from humotion_gym.priors import cycles, fpca
 
 N_CYCLES, N_SAMPLES, N_HARMONICS, N_COMPONENTS = 100, 120, 20, 5
-
-
-def best_of(fn, n: int, repeats: int = 7) -> float:
-    """Best mean seconds per call over ``repeats`` runs of ``n`` calls."""
-    fn()
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        for _ in range(n):
-            fn()
-        best = min(best, (time.perf_counter() - t0) / n)
-    return best
 
 
 def walking_cycles(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

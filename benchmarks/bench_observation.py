@@ -14,26 +14,13 @@ per frame) is printed too.
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
+from _timing import best_of
 
 from humotion_gym import body
 from humotion_gym.camera import Camera, fit_camera
 from humotion_gym.observation import ObservationModel
 from humotion_gym.render import SceneOptions, render
-
-
-def best_of(fn, n: int, repeats: int = 7) -> float:
-    """Best mean seconds per call over ``repeats`` runs of ``n`` calls."""
-    fn()
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        for _ in range(n):
-            fn()
-        best = min(best, (time.perf_counter() - t0) / n)
-    return best
 
 
 def reference_scores(

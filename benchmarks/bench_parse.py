@@ -20,26 +20,16 @@ import argparse
 import io
 import os
 import tempfile
-import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from _timing import best_of
 
 from humotion_gym.mocap.asfamc import load_amc, load_asf
 from humotion_gym.mocap.bvh import load_bvh, write_bvh
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def best_of(fn: Callable[[], object], repeat: int) -> float:
-    """Fastest wall time of ``repeat`` calls (the least disturbed by other work)."""
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def synthetic_bvh(folder: Path, megabytes: float = 4.0) -> Path:
@@ -125,10 +115,16 @@ def amc_numeric_table(path: Path) -> str:
 
 def measure(name: str, path: Path, parse: Callable[[], object], block: str, repeat: int) -> dict:
     mb = path.stat().st_size / 1e6
-    t_parse = best_of(parse, repeat)
+    t_parse = best_of(parse, repeats=repeat, warmup=False)
     clip = parse()
-    t_fk = best_of(lambda: (setattr(clip, "_positions", None), clip.point_positions()), repeat)
-    t_loadtxt = best_of(lambda: np.loadtxt(io.StringIO(block)), max(1, repeat // 2))
+    t_fk = best_of(
+        lambda: (setattr(clip, "_positions", None), clip.point_positions()),
+        repeats=repeat,
+        warmup=False,
+    )
+    t_loadtxt = best_of(
+        lambda: np.loadtxt(io.StringIO(block)), repeats=max(1, repeat // 2), warmup=False
+    )
     return {
         "name": name,
         "mb": mb,

@@ -10,26 +10,13 @@ These machines are noisy: compare ratios, not absolute numbers.
 
 from __future__ import annotations
 
-import time
-
 import gymnasium as gym
 import numpy as np
+from _timing import best_of
 
 from humotion_gym import body
 from humotion_gym.camera import fit_camera
 from humotion_gym.render import SceneOptions, make_background, render
-
-
-def best_of(fn, n: int, repeats: int = 5) -> float:
-    """Best mean seconds per call over ``repeats`` runs of ``n`` calls."""
-    fn()
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        for _ in range(n):
-            fn()
-        best = min(best, (time.perf_counter() - t0) / n)
-    return best
 
 
 def cartpole_seconds_per_frame(n: int = 500) -> tuple[float, str]:
@@ -72,7 +59,7 @@ def main() -> None:
             k[0] = (k[0] + 1) % len(poses)
             render(poses[k[0]], shape, cam, scene, rng, background, frame_index=k[0])
 
-        seconds = best_of(frame, 2000)
+        seconds = best_of(frame, 2000, repeats=5)
         print(
             f"render {size}x{size} (default scene): {1e6 * seconds:8.1f} us/frame "
             f"({1 / seconds:7.0f} frames/s) = {cartpole / seconds:5.2f}x CartPole's rate"

@@ -9,22 +9,12 @@ ratio is stable on a noisy machine.
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
+from _timing import best_of
 
 from humotion_gym.body import default_shape, forward_kinematics
 from humotion_gym.mocap.retarget import retarget_keypoints
 from humotion_gym.mocap.synthetic import synthetic_motions
-
-
-def best_of(fn, repeats=5):
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def main() -> None:
@@ -34,10 +24,10 @@ def main() -> None:
     shape = default_shape()
     n = keypoints.shape[0]
     print(f"{n} frames of synthetic motion at 120 Hz")
-    t_fk = best_of(lambda: forward_kinematics(params, shape))
-    t_same = best_of(lambda: retarget_keypoints(keypoints, 120.0, None))
-    t_30 = best_of(lambda: retarget_keypoints(keypoints, 120.0, 30.0))
-    t_25 = best_of(lambda: retarget_keypoints(keypoints, 120.0, 25.0))
+    t_fk = best_of(lambda: forward_kinematics(params, shape), repeats=5, warmup=False)
+    t_same = best_of(lambda: retarget_keypoints(keypoints, 120.0, None), repeats=5, warmup=False)
+    t_30 = best_of(lambda: retarget_keypoints(keypoints, 120.0, 30.0), repeats=5, warmup=False)
+    t_25 = best_of(lambda: retarget_keypoints(keypoints, 120.0, 25.0), repeats=5, warmup=False)
     print(f"{'step':40s} {'frames/s':>12s} {'x FK time':>10s}")
     print(f"{'forward kinematics (reference)':40s} {n / t_fk:12,.0f} {1.0:10.1f}")
     print(f"{'retarget (fit shape + IK), 120 Hz':40s} {n / t_same:12,.0f} {t_same / t_fk:10.1f}")

@@ -31,28 +31,17 @@ from __future__ import annotations
 
 import argparse
 import os
-import time
 from functools import partial
 from pathlib import Path
 
 import numpy as np
+from _timing import best_of
 
 from humotion_gym.mocap.library import load_library, synthetic_library
 from humotion_gym.priors import tree
 
 SIZES = (1_000, 3_000, 10_000, 30_000, 50_000)
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "mocap"
-
-
-def best_of(fn, repeats: int = 5) -> float:
-    """Best seconds of one call over ``repeats`` calls (after a warm-up)."""
-    fn()
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def load_data(data_dir: Path | None) -> tuple[list, list, str]:
@@ -117,7 +106,7 @@ def main() -> None:
         scaled = probes / fitted.sigma
         inside = database[rng.choice(fitted.n_windows, n_probe)]
         t_tree, t_unif, t_exact, t_kd, t_kd_in = (
-            best_of(fn, repeats) / count
+            best_of(fn, repeats=repeats) / count
             for fn, repeats, count in (
                 (partial(tree.sample_windows, fitted, probes, rng), 5, n_probe),
                 (partial(tree.sample_windows, fitted, probes, rng, leaf="uniform"), 5, n_probe),
