@@ -15,7 +15,7 @@ from __future__ import annotations
 import hashlib
 import json
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
@@ -319,11 +319,3 @@ def make(
         raise ValueError(f"{name} supports the tasks {list(spec.tasks)} only, not {base.task.name}")
     module, fitted = fit_prior(spec, base, fit_settings, use_cache=use_cache)
     return ParticleFilterAgent(env, module, fitted, n_particles, seed, estimate, name)
-
-
-Policy = Callable[..., tuple[NDArray[np.float32], Any]]
-
-
-def agent_names() -> Sequence[str]:
-    """The registered agents."""
-    return sorted(AGENTS)

@@ -71,51 +71,34 @@ def _cmd_data_table(args: argparse.Namespace) -> int:
     return 0
 
 
-def _clip_rows(paths: Sequence[str], fps: float, use_cache: bool) -> list[dict]:
-    from humotion_gym.mocap.library import find_clips, load_library
-
-    lib = load_library(paths, fps=fps, use_cache=use_cache)
-    files = {s.clip_id: s for s in find_clips(paths)}
-    rows = []
-    for m in lib:
-        err = m.retarget_error()
-        err = err[np.isfinite(err)]
-        rows.append(
-            {
-                "file": str(files[m.clip_id].path) if m.clip_id in files else m.source,
-                "clip": m.clip_id,
-                "dataset": m.dataset,
-                "rig": m.meta.get("rig", ""),
-                "subject": m.subject,
-                "label": m.label,
-                "frames": m.n_frames,
-                "fps": m.fps,
-                "seconds": round(m.duration, 3),
-                "observed": round(float(m.frame_observed.mean()), 4),
-                "error_mean_mm": round(float(err.mean()), 2) if err.size else None,
-                "error_max_mm": round(float(err.max()), 2) if err.size else None,
-                "_errors": err,
-            }
-        )
-    return rows
+def _clip_row(m) -> dict:
+    err = m.retarget_error()
+    err = err[np.isfinite(err)]
+    return {
+        "file": m.source,
+        "clip": m.clip_id,
+        "dataset": m.dataset,
+        "rig": m.meta.get("rig", ""),
+        "subject": m.subject,
+        "label": m.label,
+        "frames": m.n_frames,
+        "fps": m.fps,
+        "seconds": round(m.duration, 3),
+        "observed": round(float(m.frame_observed.mean()), 4),
+        "error_mean_mm": round(float(err.mean()), 2) if err.size else None,
+        "error_max_mm": round(float(err.max()), 2) if err.size else None,
+    }
 
 
 def _cmd_data_info(args: argparse.Namespace) -> int:
-    rows = _clip_rows(args.paths, args.fps, not args.no_cache)
+    from humotion_gym.mocap.library import library_summary, load_library
+
+    lib = load_library(args.paths, fps=args.fps, use_cache=not args.no_cache)
     if args.summary:
-        out = {}
-        for ds in sorted({r["dataset"] for r in rows}):
-            sel = [r for r in rows if r["dataset"] == ds]
-            errs = np.concatenate([r["_errors"] for r in sel])
-            out[ds] = {
-                "clips": len(sel),
-                "frames": int(sum(r["frames"] for r in sel)),
-                "seconds": round(sum(r["seconds"] for r in sel), 1),
-                "error_mean_mm": round(float(errs.mean()), 1),
-                "error_median_mm": round(float(np.median(errs)), 1),
-                "error_p95_mm": round(float(np.percentile(errs, 95)), 1),
-                "error_max_mm": round(float(errs.max()), 1),
-            }
+        out = {
+            ds: {k: v if k in ("clips", "frames") else round(v, 1) for k, v in s.items()}
+            for ds, s in library_summary(lib).items()
+        }
         if args.json:
             print(json.dumps(out, indent=2))
         else:
@@ -132,8 +115,7 @@ def _cmd_data_info(args: argparse.Namespace) -> int:
                     + " ".join(f"{e:6.1f}" for e in errs)
                 )
         return 0
-    for r in rows:
-        r.pop("_errors")
+    rows = [_clip_row(m) for m in lib]
     if args.json:
         for r in rows:
             print(json.dumps(r))

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import csv
 import hashlib
-import json
 import os
 import re
 from collections.abc import Iterable, Iterator, Sequence
@@ -435,22 +434,25 @@ def default_library(
 
 
 def library_summary(library: MotionLibrary) -> dict[str, dict[str, float]]:
-    """Per data set: clips, frames and the retargeting error (mean and max, mm)."""
+    """Per data set: clips, frames, seconds and the retargeting error in mm.
+
+    The error (:meth:`Motion.retarget_error`, per observed frame) is summarised
+    by its mean, median, 95th percentile and maximum.
+    """
     out: dict[str, dict[str, float]] = {}
     for name in sorted({m.dataset for m in library}):
         clips = [m for m in library if m.dataset == name]
         errors = np.concatenate([m.retarget_error() for m in clips])
         errors = errors[np.isfinite(errors)]
+        stats = {"mean": np.mean, "median": np.median, "p95": lambda e: np.percentile(e, 95),
+                 "max": np.max}  # fmt: skip
         out[name] = {
             "clips": len(clips),
             "frames": int(sum(m.n_frames for m in clips)),
             "seconds": float(sum(m.duration for m in clips)),
-            "error_mean_mm": float(errors.mean()) if errors.size else float("nan"),
-            "error_max_mm": float(errors.max()) if errors.size else float("nan"),
+            **{
+                f"error_{k}_mm": float(f(errors)) if errors.size else float("nan")
+                for k, f in stats.items()
+            },
         }
     return out
-
-
-def summary_json(library: MotionLibrary) -> str:
-    """:func:`library_summary` as JSON text."""
-    return json.dumps(library_summary(library), indent=2)

@@ -53,7 +53,6 @@ from humotion_gym.body import (
     default_shape,
     euler_xyz_to_matrix,
     euler_zxy_to_matrix,
-    forward_kinematics,
     matrix_to_euler_xyz,
     matrix_to_euler_zxy,
 )
@@ -416,13 +415,6 @@ class Retargeted:
     fps: float
     rig: RigProfile
     units_to_mm: float
-
-    def errors(self) -> FloatArray:
-        """``(T,)`` mean keypoint error (mm) of the cone body; NaN unobserved."""
-        diff = np.linalg.norm(forward_kinematics(self.params, self.shape) - self.keypoints, axis=-1)
-        err = diff.mean(axis=-1)
-        err[~np.all(self.observed, axis=1)] = np.nan
-        return err
 
 
 def retarget_keypoints(
