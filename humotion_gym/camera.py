@@ -67,7 +67,7 @@ class Camera:
         pos = np.array(self.position, dtype=np.float64)
         if rot.shape != (3, 3) or not np.all(np.isfinite(rot)):
             raise ValueError(f"Camera.rotation: expected a finite (3, 3) matrix, got {rot.shape}")
-        if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-6) or np.linalg.det(rot) < 0:
+        if not _is_rotation(rot.tolist()):
             raise ValueError("Camera.rotation: expected a proper rotation matrix (R R^T = I)")
         if pos.shape != (3,) or not np.all(np.isfinite(pos)):
             raise ValueError(f"Camera.position: expected 3 finite numbers, got {pos.shape}")
@@ -133,24 +133,65 @@ class Camera:
                 of view is outside (1, 179) or ``up`` is zero.
         """
         _check_size(width, height, float(fov_deg), "Camera.look_at")
+        # Three-vectors on Python floats: numpy's per-call cost would dominate.
         eye_v = np.asarray(eye, dtype=np.float64).reshape(3)
-        forward = np.asarray(target, dtype=np.float64).reshape(3) - eye_v
-        dist = float(np.linalg.norm(forward))
-        if not np.isfinite(dist) or dist < 1e-9:
+        ex, ey, ez = eye_v.tolist()
+        tx, ty, tz = np.asarray(target, dtype=np.float64).reshape(3).tolist()
+        forward = (tx - ex, ty - ey, tz - ez)
+        dist = math.hypot(*forward)
+        if not math.isfinite(dist) or dist < 1e-9:
             raise ValueError("Camera.look_at: eye and target must be distinct finite points")
-        forward /= dist
-        up_v = np.asarray(up, dtype=np.float64).reshape(3)
-        if not np.all(np.isfinite(up_v)) or np.linalg.norm(up_v) < 1e-12:
+        forward = (forward[0] / dist, forward[1] / dist, forward[2] / dist)
+        up_v = tuple(np.asarray(up, dtype=np.float64).reshape(3).tolist())
+        up_norm = math.hypot(*up_v)
+        if not math.isfinite(up_norm) or up_norm < 1e-12:
             raise ValueError("Camera.look_at: up must be a non-zero finite vector")
-        right = np.cross(forward, up_v)
+        right = _cross(forward, up_v)
         for fallback in ((0.0, 1.0, 0.0), (1.0, 0.0, 0.0)):
-            if np.linalg.norm(right) > 1e-9 * np.linalg.norm(up_v):
+            if math.hypot(*right) > 1e-9 * up_norm:
                 break
-            right = np.cross(forward, np.array(fallback))
-        right /= np.linalg.norm(right)
-        down = np.cross(forward, right)
-        rotation = np.stack([right, down, forward])
+            right = _cross(forward, fallback)
+        norm = math.hypot(*right)
+        right = (right[0] / norm, right[1] / norm, right[2] / norm)
+        rotation = np.array([right, _cross(forward, right), forward])
         return cls(int(width), int(height), float(fov_deg), rotation, eye_v)
+
+    def shifted(self, offsets: ArrayLike) -> list[Camera]:
+        """Copies of this camera moved by each of ``offsets``: a following camera.
+
+        The copies share this camera's rotation array and intrinsics (nothing
+        is validated again but the offsets), so a camera per frame of an
+        episode costs a few microseconds each.
+
+        Args:
+            offsets: ``(T, 3)`` translations of the camera centre, mm.
+
+        Returns:
+            T cameras, the ``t``-th at ``position + offsets[t]``.
+
+        Raises:
+            ValueError: If the offsets are not a finite ``(T, 3)`` array.
+        """
+        off = np.asarray(offsets, dtype=np.float64)
+        if off.ndim != 2 or off.shape[1] != 3 or not np.all(np.isfinite(off)):
+            raise ValueError(f"Camera.shifted: expected finite (T, 3) offsets, got {off.shape}")
+        positions = self.position + off
+        positions.setflags(write=False)
+        state = {
+            "width": self.width,
+            "height": self.height,
+            "fov_deg": self.fov_deg,
+            "rotation": self.rotation,
+            "focal": self.focal,
+            "principal_point": self.principal_point,
+            "intrinsics": self.intrinsics,
+        }
+        cameras = []
+        for position in positions:
+            cam = object.__new__(Camera)
+            cam.__dict__.update(state, position=position)  # frozen: set the fields directly
+            cameras.append(cam)
+        return cameras
 
     # -- intrinsics -------------------------------------------------------
 
@@ -247,6 +288,21 @@ class Camera:
         u, v = px[..., 0], px[..., 1]
         with np.errstate(invalid="ignore"):
             return (u >= -0.5) & (u <= self.width - 0.5) & (v >= -0.5) & (v <= self.height - 0.5)
+
+
+def _cross(a: tuple, b: tuple) -> tuple[float, float, float]:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _is_rotation(r: list[list[float]], tol: float = 1e-6) -> bool:
+    """Whether nested lists hold a proper rotation: R R^T = I (to ``tol``), det > 0."""
+    for i in range(3):
+        for j in range(i, 3):
+            dot = r[i][0] * r[j][0] + r[i][1] * r[j][1] + r[i][2] * r[j][2]
+            if abs(dot - (1.0 if i == j else 0.0)) > tol:
+                return False
+    c = _cross(r[0], r[1])
+    return c[0] * r[2][0] + c[1] * r[2][1] + c[2] * r[2][2] > 0
 
 
 def _check_points(points: ArrayLike, where: str) -> FloatArray:

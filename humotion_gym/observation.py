@@ -347,6 +347,93 @@ def single_pose_geometry(
     return np.array(out).reshape(_SINGLE_ROWS, 3)
 
 
+def batch_pose_geometry(
+    params: ArrayLike,
+    shape: BodyShape,
+    rotation: ArrayLike | None = None,
+    translation: ArrayLike | None = None,
+) -> FloatArray:
+    """Keypoints and cone axes of T poses: :func:`single_pose_geometry` batched.
+
+    The same layout and formulas, vectorised over poses (component-major, the
+    four limbs stacked): for a sequence of frames this costs about what one
+    pose costs on Python floats. Agrees with :func:`single_pose_geometry` to
+    rounding (tested to 1e-9 mm).
+
+    Args:
+        params: ``(T, 25)`` pose parameters.
+        shape: The subject's shape.
+        rotation: Optional ``(3, 3)`` or ``(T, 3, 3)`` rotation to another frame
+            (one per pose), e.g. each frame's camera.
+        translation: Optional ``(3,)`` or ``(T, 3)`` translation to that frame (mm).
+
+    Returns:
+        ``(T, 35, 3)`` float64: rows 0-14 the keypoints, rows ``15 + 2 c`` and
+        ``16 + 2 c`` the x and y axes of cone ``c``.
+
+    Raises:
+        ValueError: If the poses, rotations or translations have the wrong shape.
+    """
+    p = np.asarray(params, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != N_PARAMS:
+        raise ValueError(f"batch_pose_geometry: expected (T, 25) poses, got {p.shape}")
+    n = p.shape[0]
+    pt = p.T
+    c, s = np.cos(pt[3:]), np.sin(pt[3:])
+    r = _root_matrix(c[0], s[0], c[1], s[1], c[2], s[2])
+    pos = (pt[0], pt[1], pt[2])
+    out = np.empty((_SINGLE_ROWS, 3, n))
+    out[0] = pos
+    off = _torso_offsets(shape)[:, :, None]  # (5, 3, 1): neck, limb bases
+    torso = np.empty((5, 3, n))
+    for i in range(3):
+        torso[:, i] = r[i][0] * off[:, 0] + r[i][1] * off[:, 1] + r[i][2] * off[:, 2] + pos[i]
+    out[_KP["neck"]] = torso[0]
+    out[N_KEYPOINTS + 2 * _TORSO] = (r[0][0], r[1][0], r[2][0])
+    out[N_KEYPOINTS + 2 * _TORSO + 1] = (r[0][1], r[1][1], r[2][1])
+    hx, hy, hz = _ball_columns(c[3], s[3], c[4], s[4], c[5], s[5])
+    out[_KP["head_top"]] = torso[0] + shape.head_length * np.array(_rotate(r, hz))
+    out[N_KEYPOINTS + 2 * _HEAD] = _rotate(r, hx)
+    out[N_KEYPOINTS + 2 * _HEAD + 1] = _rotate(r, hy)
+    # Limbs stacked (4, T): rows of c and s are 6:10 x angles, 10:14 y, 14:18 z,
+    # 18:22 hinges, in the order r_shoulder, l_shoulder, r_hip, l_hip.
+    ball = (c[6:22:4], s[6:22:4], c[7:22:4], s[7:22:4], c[8:22:4], s[8:22:4])
+    upper = np.array([shape.upper_arm_length] * 2 + [shape.thigh_length] * 2)[:, None]
+    lower = np.array([shape.forearm_length] * 2 + [shape.shin_length] * 2)[:, None]
+    sign = np.array(_LIMB_SIGN)[:, None]
+    base = (torso[1:, 0], torso[1:, 1], torso[1:, 2])
+    mid, tip, (ux, uy), (lx, ly) = _limb(
+        r, base, ball, c[9:22:4], s[9:22:4], upper, lower, sign, True
+    )
+    out[_LIMB_BASE] = torso[1:]
+    out[_LIMB_MID] = np.stack(mid, axis=1)
+    out[_LIMB_TIP] = np.stack(tip, axis=1)
+    upper_rows = N_KEYPOINTS + 2 * np.array(_LIMB_UPPER_CONE)
+    lower_rows = N_KEYPOINTS + 2 * np.array(_LIMB_LOWER_CONE)
+    out[upper_rows] = np.stack(ux, axis=1)
+    out[upper_rows + 1] = np.stack(uy, axis=1)
+    out[lower_rows] = np.stack(lx, axis=1)
+    out[lower_rows + 1] = np.stack(ly, axis=1)
+    geometry = out.transpose(2, 0, 1)
+    if rotation is None:
+        return geometry.copy()
+    q = np.asarray(rotation, dtype=np.float64)
+    if q.shape not in ((3, 3), (n, 3, 3)):
+        raise ValueError(
+            f"batch_pose_geometry: rotation must be (3, 3) or ({n}, 3, 3), got {q.shape}"
+        )
+    # x' = q x + t for the keypoints, q a for the axes: one batched product.
+    geometry = geometry @ np.swapaxes(q, -1, -2)
+    if translation is not None:
+        t = np.asarray(translation, dtype=np.float64)
+        if t.shape not in ((3,), (n, 3)):
+            raise ValueError(
+                f"batch_pose_geometry: translation must be (3,) or ({n}, 3), got {t.shape}"
+            )
+        geometry[:, :N_KEYPOINTS] += t[..., None, :] if t.ndim == 2 else t
+    return geometry
+
+
 # Internal keypoint order of the batched kinematics, chosen so that every group
 # is a contiguous slice: pelvis, neck, the four limb bases, head top, the four
 # middle joints, the four tips.

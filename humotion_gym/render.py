@@ -30,6 +30,7 @@ from __future__ import annotations
 import functools
 import math
 import statistics
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import cv2
@@ -39,7 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 from humotion_gym import body
 from humotion_gym.body import CONE_KEYPOINTS, N_CONES, N_KEYPOINTS, BodyShape
 from humotion_gym.camera import Camera
-from humotion_gym.observation import single_pose_geometry
+from humotion_gym.observation import batch_pose_geometry, single_pose_geometry
 
 Color = tuple[int, int, int]
 
@@ -213,7 +214,9 @@ class Background:
             independent unless their offsets coincide (one chance in
             ``(H + 1)(W + 1)``), though the two frames' noise fields are shifted
             copies of parts of one bank. Drawing fresh Gaussian noise per frame
-            would cost more than the rest of the frame.
+            would cost more than the rest of the frame. A bank may serve many
+            episodes (:func:`noise_bank`): the environments draw one per
+            seeded reset.
     """
 
     scene: SceneOptions
@@ -257,19 +260,44 @@ def _noise_tables(sigma: float) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
     return np.maximum(levels, 0).astype(np.uint8), np.maximum(-levels, 0).astype(np.uint8)
 
 
-def _texture(rng: np.random.Generator, h: int, w: int, channels: int) -> NDArray[np.uint8]:
-    """A random stripe or checker texture of two colours, ``(h, w, C)``."""
-    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
-    a, b = (_to_channels(rng.uniform(25, 235, 3), channels) for _ in range(2))
+def _paint_texture(
+    region: NDArray[np.uint8], inside: NDArray[np.bool_], rng: np.random.Generator
+) -> None:
+    """Paint a random stripe or checker texture of two colours where ``inside``.
+
+    ``region`` is a view of the image (written in place), ``inside`` a boolean
+    mask of its size.
+    """
+    h, w, channels = region.shape
+    a, b = (_to_channels(rng.uniform(25, 235, 3), channels).round().astype(np.uint8) for _ in "ab")
     period = rng.uniform(3.0, 12.0) * max(h, w) / 128.0 + 2.0
     angle = rng.uniform(0, np.pi)
-    u = (xx * math.cos(angle) + yy * math.sin(angle)) / period
-    if rng.random() < 0.5:
-        mask = (np.floor(u) % 2) == 0
-    else:
-        v = (-xx * math.sin(angle) + yy * math.cos(angle)) / period
-        mask = ((np.floor(u) + np.floor(v)) % 2) == 0
-    return np.where(mask[..., None], a, b).astype(np.uint8)
+    cos_a, sin_a = math.cos(angle) / period, math.sin(angle) / period
+    x = np.arange(w, dtype=np.float32)
+    y = np.arange(h, dtype=np.float32)[:, None]
+    # Stripe (or checker) index along the texture's axes, as a sum of a row
+    # and a column term: (h, w) at the cost of one broadcast.
+    parity = np.floor(x * cos_a + y * sin_a)
+    if rng.random() >= 0.5:
+        parity += np.floor(y * cos_a - x * sin_a)
+    odd = (parity.astype(np.int32) & 1).astype(np.uint8)
+    texture = np.take(np.stack([a, b]), odd, axis=0)  # (h, w, C): the two-colour palette
+    cv2.copyTo(texture, inside.view(np.uint8), region)  # in place, where inside
+
+
+def _clutter_shape(
+    target: NDArray[np.uint8], kind: int, geometry: tuple, color: float | tuple, offset=(0, 0)
+) -> None:
+    """Draw one filled clutter shape (box, ellipse or polygon) on ``target``."""
+    ox, oy = offset
+    if kind == 0:  # axis-aligned box (furniture, frames, doors)
+        (x0, y0), (x1, y1) = geometry
+        cv2.rectangle(target, (x0 - ox, y0 - oy), (x1 - ox, y1 - oy), color, -1)
+    elif kind == 1:  # ellipse
+        (cx, cy), axes, angle = geometry
+        cv2.ellipse(target, (cx - ox, cy - oy), axes, angle, 0, 360, color, -1)
+    else:  # random convex polygon
+        cv2.fillConvexPoly(target, geometry - np.array([ox, oy], np.int32), color)
 
 
 def _draw_clutter(img: NDArray[np.uint8], scene: SceneOptions, rng: np.random.Generator) -> None:
@@ -282,32 +310,33 @@ def _draw_clutter(img: NDArray[np.uint8], scene: SceneOptions, rng: np.random.Ge
     n_lines = int(rng.poisson(4.0 * scene.clutter_density * area))
     for _ in range(n_shapes):
         kind = int(rng.integers(0, 3))
-        mask = np.zeros((h, w), np.uint8)
         cx, cy = rng.uniform(-0.1, 1.1) * w, rng.uniform(-0.1, 1.1) * h
         rx, ry = rng.uniform(0.05, 0.3, 2) * size
-        if kind == 0:  # axis-aligned box (furniture, frames, doors)
-            p0 = (int(cx - rx), int(cy - ry))
-            p1 = (int(cx + rx), int(cy + ry))
-            cv2.rectangle(mask, p0, p1, 255, -1)
-        elif kind == 1:  # ellipse
-            angle = float(rng.uniform(0, 180))
-            cv2.ellipse(
-                mask, (int(cx), int(cy)), (int(rx) + 1, int(ry) + 1), angle, 0, 360, 255, -1
-            )
-        else:  # random convex polygon
+        if kind == 0:
+            geometry: tuple = ((int(cx - rx), int(cy - ry)), (int(cx + rx), int(cy + ry)))
+            corners = np.array(geometry)
+        elif kind == 1:
+            axes = (int(rx) + 1, int(ry) + 1)
+            geometry = ((int(cx), int(cy)), axes, float(rng.uniform(0, 180)))
+            corners = np.array([[cx - axes[0] - axes[1], cy - axes[0] - axes[1]],
+                                [cx + axes[0] + axes[1], cy + axes[0] + axes[1]]])  # fmt: skip
+        else:
             angles = np.sort(rng.uniform(0, 2 * np.pi, int(rng.integers(3, 7))))
             pts = np.stack([cx + rx * np.cos(angles), cy + ry * np.sin(angles)], axis=1)
-            cv2.fillConvexPoly(mask, pts.astype(np.int32), 255)
-        x0, y0, bw, bh = cv2.boundingRect(mask)
-        if bw == 0 or bh == 0:
+            geometry = pts.astype(np.int32)
+            corners = geometry
+        if rng.random() >= 0.4:  # a plain colour, drawn directly
+            color = _to_channels(rng.uniform(25, 235, 3), channels).round().tolist()
+            _clutter_shape(img, kind, geometry, color)
             continue
-        box = (slice(y0, y0 + bh), slice(x0, x0 + bw))
-        inside = mask[box][..., None] > 0
-        if rng.random() < 0.4:
-            np.copyto(img[box], _texture(rng, bh, bw, channels), where=inside)
-        else:
-            color = _to_channels(rng.uniform(25, 235, 3), channels)
-            np.copyto(img[box], color.round().astype(np.uint8), where=inside)
+        # A textured shape: its mask, drawn only over its bounding box.
+        x0, y0 = np.maximum(np.floor(corners.min(axis=0)).astype(int) - 1, 0).tolist()
+        x1, y1 = np.minimum(np.ceil(corners.max(axis=0)).astype(int) + 2, (w, h)).tolist()
+        if x1 <= x0 or y1 <= y0:
+            continue
+        mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        _clutter_shape(mask, kind, geometry, 255, (x0, y0))
+        _paint_texture(img[y0:y1, x0:x1], mask > 0, rng)
     for _ in range(n_lines):
         p0 = rng.uniform(0, 1, 2) * (w, h)
         direction = rng.normal(size=2)
@@ -326,24 +355,58 @@ def _draw_clutter(img: NDArray[np.uint8], scene: SceneOptions, rng: np.random.Ge
         )
 
 
-def make_background(scene: SceneOptions, rng: np.random.Generator) -> Background:
+def noise_bank(scene: SceneOptions, rng: np.random.Generator) -> NDArray[np.uint8]:
+    """A bank of sensor noise for :func:`make_background` (see :class:`Background`).
+
+    Drawing it is a third of the cost of a background; the environments draw
+    one per seeded reset and reuse it for the episodes that follow (each frame
+    still reads its own random window of it).
+
+    Args:
+        scene: Scene options (their size, channels and ``noise_sigma``).
+        rng: Generator to draw it from (advanced by this call).
+
+    Returns:
+        The ``(2, 2H, 2W, C)`` uint8 bank (``(2, 1, 1, C)`` zeros without noise).
+    """
+    return _noise_bank(scene.noise_sigma, scene.frame_shape, rng)
+
+
+def make_background(
+    scene: SceneOptions, rng: np.random.Generator, noise: NDArray[np.uint8] | None = None
+) -> Background:
     """The background of one episode, drawn from the episode's generator.
 
     Args:
         scene: Scene options.
         rng: The episode's random generator (advanced by this call).
+        noise: A bank from :func:`noise_bank` for the same scene options to
+            reuse; when None a new one is drawn from ``rng``.
 
     Returns:
         The :class:`Background` to pass to every :func:`render` call of the
         episode.
+
+    Raises:
+        ValueError: If ``noise`` is not a bank of these scene options.
     """
     h, w, channels = scene.frame_shape
+    if noise is not None:
+        want = (2, 2 * h, 2 * w, channels) if scene.noise_sigma > 0 else (2, 1, 1, channels)
+        if noise.dtype != np.uint8 or noise.shape != want:
+            raise ValueError(
+                f"make_background: noise must be a uint8 bank of shape {want} for these scene "
+                f"options, got {noise.dtype} {noise.shape}"
+            )
     base = np.asarray(scene.background_color, dtype=np.float64)
     clutter = scene.background == "clutter" and scene.clutter_density > 0
     if clutter:
         base = np.clip(base + rng.uniform(-20, 20), 0, 255)
     img = np.empty((h, w, channels), np.uint8)
-    img[...] = _to_channels(base, channels).round().astype(np.uint8)
+    # Fill one row, then the image from it: broadcasting a colour over every
+    # pixel at once is 20 times slower.
+    img[0] = _to_channels(base, channels).round().astype(np.uint8)
+    img[1:] = img[0]
     if clutter:
         _draw_clutter(img, scene, rng)
     k = scene.occluders
@@ -364,8 +427,17 @@ def make_background(scene: SceneOptions, rng: np.random.Generator) -> Background
         occ[:, 6] = np.where(occ[:, 0] == 0, across, rng.uniform(0, np.pi, k))
     occ_colors = _to_channels(rng.uniform(20, 235, (k, 3)), channels).round().astype(np.uint8)
     img.setflags(write=False)
-    noise = _noise_bank(scene.noise_sigma, (h, w, channels), rng)
+    if noise is None:
+        noise = noise_bank(scene, rng)
     return Background(scene, img, occ, occ_colors, noise)
+
+
+def _check_camera(camera: Camera, scene: SceneOptions, where: str) -> None:
+    if (camera.width, camera.height) != (scene.width, scene.height):
+        raise ValueError(
+            f"{where}: camera is {camera.width}x{camera.height} but the scene is "
+            f"{scene.width}x{scene.height}"
+        )
 
 
 def _check_inputs(params: ArrayLike, camera: Camera, scene: SceneOptions) -> NDArray[np.float64]:
@@ -374,11 +446,7 @@ def _check_inputs(params: ArrayLike, camera: Camera, scene: SceneOptions) -> NDA
         raise ValueError(f"render: expected one pose of shape (25,), got {p.shape}")
     if not np.all(np.isfinite(p)):
         raise ValueError("render: the pose has non-finite parameters")
-    if (camera.width, camera.height) != (scene.width, scene.height):
-        raise ValueError(
-            f"render: camera is {camera.width}x{camera.height} but the scene is "
-            f"{scene.width}x{scene.height}"
-        )
+    _check_camera(camera, scene, "render")
     return p
 
 
@@ -401,117 +469,225 @@ def _drawing_constants(scene: SceneOptions) -> dict[str, NDArray]:
     # of each cone's (S + 1) x 2 corner grid.
     quad = np.array([[2 * b, 2 * b + 1, 2 * b + 3, 2 * b + 2] for b in range(strips)])
     quad = quad[None] + (2 * strips + 2) * np.arange(N_CONES)[:, None, None]
-    ring = np.zeros((_ELLIPSE_POINTS + 1, 2))  # the last point is the centre
-    ring[:-1] = _UNIT_CIRCLE.T
     return {
-        "edges": edges[None, :, None, None],
+        "edges": edges[:, None],  # (S + 1, 1): broadcast over a cone's two ends
         "shading": shading,
         "light": light,
-        "light_xy": light[:2].copy(),
-        "light_z": np.array(light[2]),
         "base": _to_channels(scene.figure_colors, scene.channels)[:, None, :],
-        "ambient": np.array(scene.ambient),
-        "diffuse": np.array(scene.diffuse),
         "quad_index": quad,
-        "ring": ring,
-        "flip": np.array([1.0, -1.0]),
-        "fixed": np.array(_ONE),
-        "near": np.array(_NEAR_MM),
-        "tiny": np.array(1e-12),
+        "cos": _UNIT_CIRCLE[0],
+        "sin": _UNIT_CIRCLE[1],
     }
 
 
-def _cone_polygons(
-    params: NDArray[np.float64], shape: BodyShape, camera: Camera, scene: SceneOptions
-) -> tuple[list[int], NDArray[np.int32], NDArray[np.int32], list, NDArray[np.bool_]]:
-    """Everything the drawing loop needs, computed for all ten cones at once.
+def _figure_polygons(
+    geometry: NDArray[np.float64], shape: BodyShape, camera: Camera, scene: SceneOptions
+) -> tuple[list[list[int]], NDArray[np.int32], NDArray[np.int32], NDArray[np.uint8], list]:
+    """Everything the drawing loop needs, for T frames and all ten cones at once.
 
-    Written with few numpy calls on tiny arrays (each costs ~0.3-1 us): the
-    kinematics run in the camera frame on Python floats, ellipse points and
-    cone ends are projected together, and the shading is one small product.
+    Vectorised over frames, cones and ellipse points, component by component
+    (every array below is contiguous): a few dozen numpy calls in all, so a
+    whole episode costs a few times what one frame does. Pixel coordinates are
+    kept in OpenCV's fixed point (``_SHIFT`` fractional bits) throughout.
+
+    Args:
+        geometry: ``(T, 35, 3)`` keypoints and cone axes in each frame's camera
+            frame (the layout of :func:`~humotion_gym.observation.single_pose_geometry`).
+        shape: The subject's shape.
+        camera: The cameras' intrinsics (every frame's camera has the same).
+        scene: Scene options.
 
     Returns:
-        Drawing order (far first, only cones in front of the camera), end-ellipse
-        points ``(10, 2K, 2)`` and strip quads ``(10, S, 4, 2)`` in fixed point,
-        colours (10 lists of ``2 + S`` colours: cap, flat, strips) and whether
-        each cone is wide enough for strips.
+        Per frame, the drawing order (far first, only cones in front of the
+        camera); end-ellipse points ``(T, 10, 2K, 2)`` and strip quads
+        ``(T, 10, S, 4, 2)`` in fixed point; uint8 colours ``(T, 10, 2 + S, C)``
+        (cap, flat, strips); whether each cone is wide enough for strips
+        (``T x 10`` lists).
     """
     const: dict[str, NDArray] = scene._drawing  # type: ignore[attr-defined]
-    both = single_pose_geometry(params, shape, camera.rotation, camera.translation)
-    ends = both[_CONE_ROWS]  # (10, 2, 3): start and end of each cone, camera frame
-    ax = both[N_KEYPOINTS:].reshape(N_CONES, 2, 3)
-    ax[:, 1] *= shape.aspect[:, None]
-    # End ellipses centre + r (cos t x + aspect sin t y), with the centre last:
-    # (10, 2, K + 1, 3).
-    ellipse = const["ring"] @ ax  # (10, K + 1, 3)
-    ellipse = ellipse[:, None] * shape.radii[:, :, None, None]
-    ellipse += ends[:, :, None, :]
-    # Project with K (the last row of K is (0, 0, 1): the third coordinate is z).
-    proj = ellipse @ camera.intrinsics.T
-    z = proj[..., 2]
-    np.maximum(z, const["near"], out=z)
-    uv = proj[..., :2]
-    uv /= z[..., None]
-    np.clip(uv, -_FAR_PX, _FAR_PX, out=uv)  # keep fixed-point coordinates in int32
-    k = _ELLIPSE_POINTS
-    ellipse_px = (uv[:, :, :k] * const["fixed"]).astype(np.int32).reshape(N_CONES, 2 * k, 2)
-    uv_ends = uv[:, :, k]  # (10, 2, 2)
-    # Unit image normal (dy, -dx) of each projected axis, and the silhouette
-    # half-width along it: r * |(x.m, aspect y.m)| for an elliptical section.
-    d = uv_ends[:, 1] - uv_ends[:, 0]
-    normal = d[:, ::-1] * const["flip"]
-    length = np.sqrt((normal * normal).sum(axis=1))
-    length += const["tiny"]
-    normal /= length[:, None]
-    half = (ax[:, :, :2] * normal[:, None, :]).sum(axis=2)
-    half = np.sqrt((half * half).sum(axis=1))
-    width = shape.radii / z[:, :, k]
-    width *= half[:, None] * camera.focal  # (10, 2) silhouette half-widths in pixels
-    corners = const["edges"] * (width[:, None, :, None] * normal[:, None, None, :])
-    corners += uv_ends[:, None]
-    corners *= const["fixed"]
-    quads = corners.astype(np.int32).reshape(-1, 2)[const["quad_index"]]  # (10, S, 4, 2)
+    n = geometry.shape[0]
+    g = geometry.transpose(2, 0, 1)  # (3, T, 35): x, y, z components
+    ends = g[:, :, _CONE_ROWS]  # (3, T, 10, 2): start and end of each cone
+    ax = g[:, :, N_KEYPOINTS:].reshape(3, n, N_CONES, 2)
+    ax_x = ax[..., 0]  # (3, T, 10): the cone's width axis
+    ax_y = ax[..., 1] * shape.aspect  # its depth axis, scaled to the ellipse's
+    # End ellipses: centre + r (cos t x + aspect sin t y), (3, T, 10, 2, K).
+    ring = ax_x[..., None] * const["cos"]
+    ring += ax_y[..., None] * const["sin"]
+    points = ring[:, :, :, None, :] * shape.radii[:, :, None]
+    points += ends[..., None]
+    # Pinhole projection in fixed point: u = (f x / z + cx) * 2^shift.
+    fx, (cx, cy) = camera.focal * _ONE, camera.principal_point
+    scale = np.maximum(points[2], _NEAR_MM)
+    np.divide(fx, scale, out=scale)
+    ellipse_px = np.empty((n, N_CONES, 2, _ELLIPSE_POINTS, 2), np.int32)
+    for i, centre in enumerate((cx, cy)):
+        coord = points[i] * scale
+        coord += centre * _ONE
+        np.clip(coord, -_FAR_PX * _ONE, _FAR_PX * _ONE, out=coord)  # valid int32
+        np.copyto(ellipse_px[..., i], coord, casting="unsafe")  # truncates, as astype
+    ellipse_px = ellipse_px.reshape(n, N_CONES, 2 * _ELLIPSE_POINTS, 2)
+    # The cone ends' image points, and the unit image normal (dy, -dx) of the
+    # projected axis.
+    end_scale = fx / np.maximum(ends[2], _NEAR_MM)  # (T, 10, 2)
+    end_u = ends[0] * end_scale + cx * _ONE
+    end_v = ends[1] * end_scale + cy * _ONE
+    nx = end_v[..., 1] - end_v[..., 0]
+    ny = end_u[..., 0] - end_u[..., 1]
+    length = np.hypot(nx, ny)
+    length += 1e-12
+    nx /= length
+    ny /= length
+    # Silhouette half-width along the normal: r |(x.m, aspect y.m)| in pixels
+    # for an elliptical section.
+    half = np.hypot(ax_x[0] * nx + ax_x[1] * ny, ax_y[0] * nx + ax_y[1] * ny)
+    width = shape.radii * end_scale
+    width *= half[..., None]  # (T, 10, 2), fixed point
+    # Strip corners: the ends pushed along the normal by the strips' edges,
+    # a (S + 1) x 2 grid per cone.
+    corners = np.empty((n, N_CONES, len(const["edges"]), 2, 2))
+    np.multiply(const["edges"], (width * nx[..., None])[:, :, None], out=corners[..., 0])
+    np.multiply(const["edges"], (width * ny[..., None])[:, :, None], out=corners[..., 1])
+    corners[..., 0] += end_u[:, :, None]
+    corners[..., 1] += end_v[:, :, None]
+    np.clip(corners, -_FAR_PX * _ONE, _FAR_PX * _ONE, out=corners)
+    quads = np.take(corners.astype(np.int32).reshape(n, -1, 2), const["quad_index"], axis=1)
     # Lambert shading: the cone axis a, the image normal m and the normal w
     # facing the camera across the limb (w = (a_z a - e_z) / sqrt(1 - a_z^2)).
-    axis = ends[:, 1] - ends[:, 0]
-    axis /= np.sqrt((axis * axis).sum(axis=1))[:, None] + const["tiny"]
-    dots = np.empty((N_CONES, 3))
-    a_l = axis @ const["light"]
-    a_z = axis[:, 2]
-    dots[:, 0] = a_l * -np.sign(a_z)  # the cap that faces the camera
-    dots[:, 1] = normal @ const["light_xy"]
-    dots[:, 2] = (a_z * a_l - const["light_z"]) / np.sqrt(1.0 - a_z * a_z + 1e-9)
+    axis = ends[..., 1] - ends[..., 0]  # (3, T, 10)
+    axis /= np.sqrt((axis * axis).sum(axis=0)) + 1e-12
+    lx, ly, lz = const["light"].tolist()
+    a_l = axis[0] * lx + axis[1] * ly + axis[2] * lz
+    a_z = axis[2]
+    dots = np.empty((n, N_CONES, 3))
+    np.multiply(a_l, -np.sign(a_z), out=dots[..., 0])  # the cap that faces the camera
+    dots[..., 1] = nx * lx + ny * ly
+    dots[..., 2] = (a_z * a_l - lz) / np.sqrt(1.0 - a_z * a_z + 1e-9)
     lambert = dots @ const["shading"]
     np.maximum(lambert, 0.0, out=lambert)
-    lambert *= const["diffuse"]
-    lambert += const["ambient"]
-    # OpenCV saturates colours above 255 when drawing.
-    colors = (const["base"] * lambert[:, :, None]).tolist()
-    wide = width.max(axis=1) >= _STRIP_MIN_HALF_WIDTH_PX
-    # Painter's order, far first; cones reaching behind the near plane are skipped.
-    z_min = ellipse[..., 2].reshape(N_CONES, -1).min(axis=1).tolist()
-    depth = ends[:, :, 2].sum(axis=1)
-    order = [c for c in np.argsort(-depth, kind="stable").tolist() if z_min[c] > _NEAR_MM]
+    lambert *= scene.diffuse
+    lambert += scene.ambient
+    # Rounded and saturated here as OpenCV would when drawing.
+    colors = np.rint(const["base"] * lambert[..., None])
+    colors = np.minimum(colors, 255.0, out=colors).astype(np.uint8)
+    wide = (width.max(axis=-1) >= _STRIP_MIN_HALF_WIDTH_PX * _ONE).tolist()
+    # Painter's order, far first; cones whose end spheres reach behind the near
+    # plane are skipped (rare: only frames that have one are filtered).
+    order = np.argsort(-ends[2].sum(axis=-1), axis=-1, kind="stable").tolist()
+    visible = (ends[2] - shape.radii).min(axis=-1) > _NEAR_MM  # (T, 10)
+    for t in np.flatnonzero(~visible.all(axis=1)).tolist():
+        order[t] = [c for c in order[t] if visible[t, c]]
     return order, ellipse_px, quads, colors, wide
 
 
-def _draw_figure(
-    img: NDArray[np.uint8],
-    params: NDArray[np.float64],
+@dataclass(frozen=True, eq=False)
+class FigureSequence:
+    """The cone figure of T frames, ready to draw (see :func:`figure_sequence`).
+
+    Attributes:
+        scene: The scene options it was prepared for.
+        order: Per frame, the cones to draw, far first.
+        ellipses: ``(T, 10, 2K, 2)`` int32 end-ellipse points (fixed point).
+        quads: ``(T, 10, S, 4, 2)`` int32 shading-strip corners (fixed point).
+        colors: ``(T, 10, 2 + S, C)`` uint8 colours of each cone's cap, flat
+            shade and strips.
+        wide: ``T x 10`` booleans: whether a cone is drawn with strips.
+    """
+
+    scene: SceneOptions
+    order: list[list[int]] = field(repr=False)
+    ellipses: NDArray[np.int32] = field(repr=False)
+    quads: NDArray[np.int32] = field(repr=False)
+    colors: NDArray[np.uint8] = field(repr=False)
+    wide: list = field(repr=False)
+
+    def __len__(self) -> int:
+        return len(self.order)
+
+
+def figure_sequence(
+    params: ArrayLike,
     shape: BodyShape,
-    camera: Camera,
+    cameras: Camera | Sequence[Camera],
     scene: SceneOptions,
-) -> None:
-    order, ellipse_px, quads, colors, wide = _cone_polygons(params, shape, camera, scene)
-    wide_list = wide.tolist()
-    for c in order:
+    geometry: ArrayLike | None = None,
+) -> FigureSequence:
+    """Prepare the figure of a whole sequence of frames at once.
+
+    The projection, silhouettes, shading and depth order of every frame are
+    computed together (vectorised over frames and cones), so an episode's
+    figures cost about what one frame's do; :func:`render_frame` then only
+    draws. This is how the environments render.
+
+    Args:
+        params: ``(T, 25)`` poses, one per frame.
+        shape: The subject's shape.
+        cameras: One camera for every frame, or a sequence of T cameras (of the
+            scene's size, all with the same field of view).
+        scene: Scene options.
+        geometry: The poses' world-frame keypoints and cone axes from
+            :func:`~humotion_gym.observation.batch_pose_geometry`, when already
+            computed (``(T, 35, 3)``).
+
+    Returns:
+        The prepared figures.
+
+    Raises:
+        ValueError: For malformed poses, cameras of another size or field of
+            view, or a sequence of cameras of the wrong length.
+    """
+    p = np.asarray(params, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != body.N_PARAMS or p.shape[0] == 0:
+        raise ValueError(f"figure_sequence: expected poses of shape (T, 25), got {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError("figure_sequence: the poses have non-finite parameters")
+    n = p.shape[0]
+    cams = [cameras] if isinstance(cameras, Camera) else list(cameras)
+    if len(cams) not in (1, n):
+        raise ValueError(f"figure_sequence: expected 1 or {n} cameras, got {len(cams)}")
+    first = cams[0]
+    _check_camera(first, scene, "figure_sequence")
+    for cam in cams[1:]:
+        if cam is not first and (cam.width, cam.height, cam.fov_deg) != (
+            first.width, first.height, first.fov_deg
+        ):  # fmt: skip
+            raise ValueError("figure_sequence: every camera must have the same size and fov")
+    if all(cam is first for cam in cams):
+        rotation, translation = first.rotation, first.translation
+    elif all(cam.rotation is first.rotation for cam in cams):  # a following camera
+        rotation = first.rotation
+        translation = np.stack([cam.position for cam in cams]) @ -rotation.T
+    else:
+        rotation = np.stack([cam.rotation for cam in cams])
+        translation = np.stack([cam.translation for cam in cams])
+    if geometry is None:
+        world = batch_pose_geometry(p, shape)
+    else:
+        world = np.asarray(geometry, dtype=np.float64)
+        if world.shape != (n, N_KEYPOINTS + 2 * N_CONES, 3):
+            raise ValueError(
+                f"figure_sequence: geometry must have shape ({n}, 35, 3), got {world.shape}"
+            )
+    # x_cam = R x + t for the keypoints, R a for the cone axes.
+    in_camera = world @ np.swapaxes(rotation, -1, -2)
+    in_camera[:, :N_KEYPOINTS] += translation[..., None, :] if translation.ndim == 2 else translation
+    order, ellipses, quads, colors, wide = _figure_polygons(in_camera, shape, first, scene)
+    return FigureSequence(scene, order, ellipses, quads, colors, wide)
+
+
+def _draw_figure(img: NDArray[np.uint8], figures: FigureSequence, t: int) -> None:
+    ellipses, quads = figures.ellipses[t], figures.quads[t]
+    colors = figures.colors[t].tolist()  # lists of ints, per frame, for OpenCV
+    wide = figures.wide[t]
+    for c in figures.order[t]:
         color = colors[c]
-        if wide_list[c]:
-            cv2.fillConvexPoly(img, cv2.convexHull(ellipse_px[c]), color[0], cv2.LINE_8, _SHIFT)
+        hull = cv2.convexHull(ellipses[c])
+        if wide[c]:
+            cv2.fillConvexPoly(img, hull, color[0], cv2.LINE_8, _SHIFT)
             for quad, strip_color in zip(quads[c], color[2:], strict=True):
                 cv2.fillConvexPoly(img, quad, strip_color, cv2.LINE_8, _SHIFT)
         else:
-            cv2.fillConvexPoly(img, cv2.convexHull(ellipse_px[c]), color[1], cv2.LINE_8, _SHIFT)
+            cv2.fillConvexPoly(img, hull, color[1], cv2.LINE_8, _SHIFT)
 
 
 def _draw_occluders(img: NDArray[np.uint8], background: Background, frame_index: int) -> None:
@@ -595,11 +771,62 @@ def render(
     p = _check_inputs(params, camera, scene)
     if background is None:
         background = make_background(scene, rng)
-    elif background.scene is not scene and background.scene != scene:
-        raise ValueError("render: the background was made for other scene options")
+    # One pose: the kinematics on Python floats beats the batched version.
+    geometry = single_pose_geometry(p, shape, camera.rotation, camera.translation)[None]
+    figures = FigureSequence(scene, *_figure_polygons(geometry, shape, camera, scene))
+    return _compose(figures, 0, rng, background, frame_index, "render")
+
+
+def render_frame(
+    figures: FigureSequence,
+    t: int,
+    rng: np.random.Generator,
+    background: Background,
+    frame_index: int | None = None,
+) -> NDArray[np.uint8]:
+    """Render frame ``t`` of a sequence prepared by :func:`figure_sequence`.
+
+    The same frame :func:`render` gives for that frame's pose and camera (up to
+    the rounding of a vertex to 1/16 pixel, the kinematics being computed in
+    another order), at the cost of the drawing alone.
+
+    Args:
+        figures: The prepared sequence.
+        t: Frame number in the sequence (``0 <= t < len(figures)``).
+        rng: Generator for this frame's sensor noise.
+        background: The episode's background (made for ``figures.scene``).
+        frame_index: Frame number within the episode (moves the occluders);
+            ``t`` when None.
+
+    Returns:
+        The ``(H, W, C)`` uint8 frame.
+
+    Raises:
+        ValueError: If ``t`` is out of range or the background was made for
+            other scene options.
+    """
+    if not (isinstance(t, (int, np.integer)) and 0 <= t < len(figures)):
+        raise ValueError(f"render_frame: t must be an integer in [0, {len(figures)}), got {t!r}")
+    return _compose(
+        figures, int(t), rng, background, t if frame_index is None else frame_index, "render_frame"
+    )
+
+
+def _compose(
+    figures: FigureSequence,
+    t: int,
+    rng: np.random.Generator,
+    background: Background,
+    frame_index: int,
+    where: str,
+) -> NDArray[np.uint8]:
+    """Background, figure, occluders, noise and blur: one frame."""
+    scene = figures.scene
+    if background.scene is not scene and background.scene != scene:
+        raise ValueError(f"{where}: the background was made for other scene options")
     img = background.image.copy()
     canvas = img if scene.channels == 3 else img.reshape(scene.height, scene.width)
-    _draw_figure(canvas, p, shape, camera, scene)
+    _draw_figure(canvas, figures, t)
     if scene.occluders:
         _draw_occluders(canvas, background, frame_index)
     if scene.noise_sigma > 0:

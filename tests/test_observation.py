@@ -168,19 +168,25 @@ def test_scores_are_deterministic(scene_and_poses) -> None:
 def test_log_likelihood_sees_only_frame_camera_and_shape() -> None:
     signature = inspect.signature(ObservationModel.log_likelihood)
     assert list(signature.parameters) == ["self", "frame", "params", "shape", "camera"]
-    # The score is a function of the frame: the same poses score differently on
-    # a frame of the figure and on an empty frame of the same room.
+    # The score is a function of the frame: the same pose scores higher on a
+    # frame of the figure than on an empty frame of the same room. Not on every
+    # room: a fine checker texture behind the figure can explain its outline
+    # as well (1 of these 8 rooms), hence the count and the mean.
     rng = np.random.default_rng(3)
     pose = random_poses(rng, 1)[0]
     scene = SceneOptions()
     kp = body.forward_kinematics(pose, SHAPE)
     cam = fit_camera(kp[None], 128, 128, 50.0)
-    background = make_background(scene, np.random.default_rng(4))
-    with_figure = render(pose, SHAPE, cam, scene, np.random.default_rng(5), background)
-    empty = background.image.copy()
-    assert MODEL.log_likelihood(with_figure, pose, SHAPE, cam) > MODEL.log_likelihood(
-        empty, pose, SHAPE, cam
-    )
+    gains = []
+    for seed in range(4, 12):
+        background = make_background(scene, np.random.default_rng(seed))
+        with_figure = render(pose, SHAPE, cam, scene, np.random.default_rng(5), background)
+        empty = background.image.copy()
+        gains.append(
+            MODEL.log_likelihood(with_figure, pose, SHAPE, cam)
+            - MODEL.log_likelihood(empty, pose, SHAPE, cam)
+        )
+    assert sum(g > 0 for g in gains) >= 7 and np.mean(gains) > 5.0, gains
 
 
 def test_off_image_poses_get_the_truncation_cost(scene_and_poses) -> None:
