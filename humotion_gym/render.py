@@ -670,7 +670,7 @@ def figure_sequence(
             )
     # x_cam = R x + t for the keypoints, R a for the cone axes.
     in_camera = world @ np.swapaxes(rotation, -1, -2)
-    in_camera[:, :N_KEYPOINTS] += translation[..., None, :] if translation.ndim == 2 else translation
+    in_camera[:, :N_KEYPOINTS] += translation[:, None] if translation.ndim == 2 else translation
     order, ellipses, quads, colors, wide = _figure_polygons(in_camera, shape, first, scene)
     return FigureSequence(scene, order, ellipses, quads, colors, wide)
 

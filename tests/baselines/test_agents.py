@@ -57,7 +57,9 @@ def test_summary_and_statistics():
     env = gym.make("humotion_gym/ArmTrack-v0", terminate_on_lost=False)
     results = evaluate(RandomPolicy(env.action_space), env, 3, seed=0)
     s = summarize(results)
-    assert s["episodes"] == 3 and s["mean_error_ci"][0] <= s["mean_error_mm"] <= s["mean_error_ci"][1]
+    assert (
+        s["episodes"] == 3 and s["mean_error_ci"][0] <= s["mean_error_mm"] <= s["mean_error_ci"][1]
+    )
     assert iqm([1, 2, 3, 4, 100, -100, 2.5, 3.5]) == pytest.approx(np.mean([2, 2.5, 3, 3.5]))
     lo, hi = bootstrap_ci(np.arange(100.0))
     assert lo < 49.5 < hi
@@ -66,8 +68,23 @@ def test_summary_and_statistics():
 
 
 def test_cli_track_and_render(tmp_path, capsys):
-    assert main(["track", "--task", "ArmTrack-v0", "--agent", "pf-cv", "--particles", "50",
-                 "--episodes", "2", "--json"]) == 0
+    assert (
+        main(
+            [
+                "track",
+                "--task",
+                "ArmTrack-v0",
+                "--agent",
+                "pf-cv",
+                "--particles",
+                "50",
+                "--episodes",
+                "2",
+                "--json",
+            ]
+        )
+        == 0
+    )
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["summary"]["episodes"] == 2 and len(out["episodes"][0]["errors_mm"]) == 30
     video = tmp_path / "clip.mp4"

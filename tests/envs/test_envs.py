@@ -22,7 +22,9 @@ def rollout(env_id, seed, steps=8, actions_seed=0, **kwargs):
     rng = np.random.default_rng(actions_seed)
     frames, rewards, infos = [obs], [], [info]
     for _ in range(steps):
-        obs, r, term, trunc, info = env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
+        obs, r, term, trunc, info = env.step(
+            rng.uniform(-1, 1, env.action_space.shape).astype(np.float32)
+        )
         frames.append(obs)
         rewards.append(r)
         infos.append(info)
@@ -33,7 +35,9 @@ def rollout(env_id, seed, steps=8, actions_seed=0, **kwargs):
 
 
 def test_all_four_tasks_are_registered():
-    assert IDS == [f"humotion_gym/{n}" for n in ("ArmTrack-v0", "BodyTrack-v0", "WalkTrack-v0", "SideWalk-v0")]
+    assert IDS == [
+        f"humotion_gym/{n}" for n in ("ArmTrack-v0", "BodyTrack-v0", "WalkTrack-v0", "SideWalk-v0")
+    ]
     for env_id in IDS:
         assert gym.spec(env_id).entry_point == gym.spec(env_id.split("/")[1]).entry_point
 
@@ -92,7 +96,9 @@ def test_reward_range_terms_and_no_shared_memory(env_id):
     previous = obs
     rng = np.random.default_rng(0)
     for _ in range(6):
-        obs, reward, term, trunc, info = env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
+        obs, reward, term, trunc, info = env.step(
+            rng.uniform(-1, 1, env.action_space.shape).astype(np.float32)
+        )
         assert 0.0 <= reward <= 1.0
         terms = sum(v for k, v in info.items() if k.startswith("reward_"))
         assert terms == pytest.approx(reward, abs=1e-12)
@@ -135,7 +141,10 @@ def test_track_lost_terminates_and_can_be_switched_off():
     assert not term and info["lost"]
 
 
-@pytest.mark.parametrize("bad, match", [(np.full(4, np.nan), "finite"), (np.full(4, np.inf), "finite"), (np.zeros(5), "shape")])
+@pytest.mark.parametrize(
+    "bad, match",
+    [(np.full(4, np.nan), "finite"), (np.full(4, np.inf), "finite"), (np.zeros(5), "shape")],
+)
 def test_bad_actions_raise_value_errors(bad, match):
     env = gym.make("humotion_gym/ArmTrack-v0").unwrapped
     env.reset(seed=0)
@@ -152,7 +161,11 @@ def test_info_gives_what_the_agent_needs_and_never_the_truth():
     # the fixed parameters are the truth of the frame on show; the free ones are absent
     assert np.array_equal(info["fixed_params"], truth[env.task.fixed_indices])
     for value in info.values():
-        if isinstance(value, np.ndarray) and value.shape == (25,) and value is not info["initial_pose"]:
+        if (
+            isinstance(value, np.ndarray)
+            and value.shape == (25,)
+            and value is not info["initial_pose"]
+        ):
             assert not np.array_equal(value, truth)
 
 
@@ -161,7 +174,10 @@ def test_pose_action_round_trip():
     env.reset(seed=4)
     truth = env._truth()
     pose = env.action_to_pose(env.pose_to_action(truth))
-    kp_err = np.abs(humotion_gym.body.forward_kinematics(pose, env.shape) - humotion_gym.body.forward_kinematics(truth, env.shape))
+    kp_err = np.abs(
+        humotion_gym.body.forward_kinematics(pose, env.shape)
+        - humotion_gym.body.forward_kinematics(truth, env.shape)
+    )
     assert kp_err.max() < 0.5  # float32 actions
 
 

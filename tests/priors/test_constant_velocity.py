@@ -55,9 +55,15 @@ def test_fit_from_accelerations_and_contract(tmp_path):
     acc = np.concatenate([np.diff(m.params[:, free], n=2, axis=0) for m in lib])
     assert np.allclose(fitted.accel_std, acc.std(axis=0))
     pose = lib[0].params[0, free]
-    a = cv.transition(fitted, cv.initial(fitted, pose, 50, np.random.default_rng(3)), np.random.default_rng(4))
-    b = cv.transition(fitted, cv.initial(fitted, pose, 50, np.random.default_rng(3)), np.random.default_rng(4))
-    assert a.pose.shape == (50, 2) and np.array_equal(a.pose, b.pose) and np.all(np.isfinite(a.pose))
+    a = cv.transition(
+        fitted, cv.initial(fitted, pose, 50, np.random.default_rng(3)), np.random.default_rng(4)
+    )
+    b = cv.transition(
+        fitted, cv.initial(fitted, pose, 50, np.random.default_rng(3)), np.random.default_rng(4)
+    )
+    assert (
+        a.pose.shape == (50, 2) and np.array_equal(a.pose, b.pose) and np.all(np.isfinite(a.pose))
+    )
     cv.save(fitted, tmp_path / "cv.npz")
     back = cv.load(tmp_path / "cv.npz")
     assert np.array_equal(back.accel_std, fitted.accel_std) and np.array_equal(back.free, free)
