@@ -2,10 +2,15 @@
 
 Run: ``python benchmarks/bench_render.py``. Prints, for 128x128 and 256x256
 frames of the default scene (clutter, noise, shaded cones), the time per frame
-of :func:`humotion_gym.render.render` and, measured in the same run as a
-reference, the step-plus-render rate of ``CartPole-v1`` with
-``render_mode="rgb_array"`` (a 600x400 pygame frame), reported as a ratio.
-These machines are noisy: compare ratios, not absolute numbers.
+of :func:`humotion_gym.render.render` (one pose at a time) and of the
+environments' path, :func:`~humotion_gym.render.figure_sequence` over a
+30-frame episode plus :func:`~humotion_gym.render.render_frame` per frame
+(the preparation amortised over the episode), and the time of one background
+(:func:`~humotion_gym.render.make_background`, with and without a reused noise
+bank). The reference, measured in the same run, is the step-plus-render rate of
+``CartPole-v1`` with ``render_mode="rgb_array"`` (a 600x400 pygame frame),
+reported as a ratio. These machines are noisy: compare ratios, not absolute
+numbers.
 """
 
 from __future__ import annotations
@@ -16,7 +21,16 @@ from _timing import best_of
 
 from humotion_gym import body
 from humotion_gym.camera import fit_camera
-from humotion_gym.render import SceneOptions, make_background, render
+from humotion_gym.render import (
+    SceneOptions,
+    figure_sequence,
+    make_background,
+    noise_bank,
+    render,
+    render_frame,
+)
+
+EPISODE = 30  # frames per episode in the environments' path
 
 
 def cartpole_seconds_per_frame(n: int = 500) -> tuple[float, str]:
@@ -59,10 +73,31 @@ def main() -> None:
             k[0] = (k[0] + 1) % len(poses)
             render(poses[k[0]], shape, cam, scene, rng, background, frame_index=k[0])
 
-        seconds = best_of(frame, 2000, repeats=5)
+        def episode(scene=scene, cam=cam, background=background) -> None:
+            figures = figure_sequence(poses[:EPISODE], shape, cam, scene)
+            for t in range(EPISODE):
+                render_frame(figures, t, rng, background)
+
+        bank = noise_bank(scene, rng)
+        timings = [
+            ("render, one pose", best_of(frame, 2000, repeats=5)),
+            (
+                f"figure_sequence + render_frame ({EPISODE}-frame episode)",
+                best_of(episode, 60, repeats=5) / EPISODE,
+            ),
+        ]
+        for name, seconds in timings:
+            print(
+                f"{size}x{size} {name:56s} {1e6 * seconds:8.1f} us/frame "
+                f"({1 / seconds:7.0f} frames/s) = {cartpole / seconds:5.2f}x CartPole's rate"
+            )
+        fresh = best_of(lambda scene=scene: make_background(scene, rng), 100, repeats=5)
+        reused = best_of(
+            lambda scene=scene, bank=bank: make_background(scene, rng, bank), 100, repeats=5
+        )
         print(
-            f"render {size}x{size} (default scene): {1e6 * seconds:8.1f} us/frame "
-            f"({1 / seconds:7.0f} frames/s) = {cartpole / seconds:5.2f}x CartPole's rate"
+            f"{size}x{size} make_background: {1e6 * fresh:8.1f} us, "
+            f"{1e6 * reused:8.1f} us with a reused noise bank (once per episode)"
         )
 
 

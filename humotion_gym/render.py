@@ -480,6 +480,15 @@ def _drawing_constants(scene: SceneOptions) -> dict[str, NDArray]:
     }
 
 
+def _clip_far(coords: NDArray[np.float64]) -> None:
+    """Clip fixed-point coordinates to +-_FAR_PX pixels in place (valid int32).
+
+    Two ufunc calls: ``np.clip``'s Python wrapper costs more than the work here.
+    """
+    np.minimum(coords, _FAR_PX * _ONE, out=coords)
+    np.maximum(coords, -_FAR_PX * _ONE, out=coords)
+
+
 def _figure_polygons(
     geometry: NDArray[np.float64], shape: BodyShape, camera: Camera, scene: SceneOptions
 ) -> tuple[list[list[int]], NDArray[np.int32], NDArray[np.int32], NDArray[np.uint8], list]:
@@ -524,7 +533,7 @@ def _figure_polygons(
     for i, centre in enumerate((cx, cy)):
         coord = points[i] * scale
         coord += centre * _ONE
-        np.clip(coord, -_FAR_PX * _ONE, _FAR_PX * _ONE, out=coord)  # valid int32
+        _clip_far(coord)
         np.copyto(ellipse_px[..., i], coord, casting="unsafe")  # truncates, as astype
     ellipse_px = ellipse_px.reshape(n, N_CONES, 2 * _ELLIPSE_POINTS, 2)
     # The cone ends' image points, and the unit image normal (dy, -dx) of the
@@ -550,7 +559,7 @@ def _figure_polygons(
     np.multiply(const["edges"], (width * ny[..., None])[:, :, None], out=corners[..., 1])
     corners[..., 0] += end_u[:, :, None]
     corners[..., 1] += end_v[:, :, None]
-    np.clip(corners, -_FAR_PX * _ONE, _FAR_PX * _ONE, out=corners)
+    _clip_far(corners)
     quads = np.take(corners.astype(np.int32).reshape(n, -1, 2), const["quad_index"], axis=1)
     # Lambert shading: the cone axis a, the image normal m and the normal w
     # facing the camera across the limb (w = (a_z a - e_z) / sqrt(1 - a_z^2)).
@@ -575,8 +584,9 @@ def _figure_polygons(
     # plane are skipped (rare: only frames that have one are filtered).
     order = np.argsort(-ends[2].sum(axis=-1), axis=-1, kind="stable").tolist()
     visible = (ends[2] - shape.radii).min(axis=-1) > _NEAR_MM  # (T, 10)
-    for t in np.flatnonzero(~visible.all(axis=1)).tolist():
-        order[t] = [c for c in order[t] if visible[t, c]]
+    if not visible.all():
+        for t in np.flatnonzero(~visible.all(axis=1)).tolist():
+            order[t] = [c for c in order[t] if visible[t, c]]
     return order, ellipse_px, quads, colors, wide
 
 

@@ -83,17 +83,16 @@ def render_motion(
         azimuth_deg: Viewing direction relative to the first frame's heading.
         seed: Seeds the sensor noise.
     """
-    from humotion_gym.body import forward_kinematics
     from humotion_gym.camera import fit_camera
-    from humotion_gym.render import SceneOptions, make_background, render
+    from humotion_gym.observation import batch_pose_geometry
+    from humotion_gym.render import SceneOptions, figure_sequence, make_background, render_frame
 
-    kp = forward_kinematics(params, shape)  # type: ignore[arg-type]
+    geometry = batch_pose_geometry(params, shape)  # type: ignore[arg-type]
     heading = float(np.rad2deg(params[0, 3]))
-    camera = fit_camera(kp, width, height, 45.0, heading - azimuth_deg, 10.0)
+    camera = fit_camera(geometry[:, :15], width, height, 45.0, heading - azimuth_deg, 10.0)
     scene = SceneOptions(width=width, height=height, background="flat")
     rng = np.random.default_rng(seed)
     background = make_background(scene, rng)
-    return [
-        render(p, shape, camera, scene, rng, background, i)  # type: ignore[arg-type]
-        for i, p in enumerate(params)
-    ]
+    # The whole motion's figures at once, then drawing frame by frame.
+    figures = figure_sequence(params, shape, camera, scene, geometry)  # type: ignore[arg-type]
+    return [render_frame(figures, t, rng, background) for t in range(len(params))]

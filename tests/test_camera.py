@@ -141,6 +141,33 @@ def test_bad_rotation_raises() -> None:
         _camera().project(np.zeros((4, 2)))
 
 
+def test_rotation_check_tolerance() -> None:
+    # Nearly orthonormal (1e-7 off) passes; 1e-4 off, a shear, fails.
+    r = np.eye(3)
+    r[0, 1] = 1e-7
+    Camera(64, 64, 50.0, r, np.zeros(3))
+    r[0, 1] = 1e-4
+    with pytest.raises(ValueError, match="rotation"):
+        Camera(64, 64, 50.0, r, np.zeros(3))
+
+
+def test_shifted_cameras_are_moved_copies() -> None:
+    base = _camera()
+    offsets = np.array([[0.0, 0.0, 0.0], [100.0, -50.0, 20.0], [-3.0, 4.0, 5.0]])
+    moved = base.shifted(offsets)
+    points = np.array([[10.0, 20.0, 30.0], [-400.0, 100.0, 900.0]])
+    for cam, off in zip(moved, offsets, strict=True):
+        same = Camera(base.width, base.height, base.fov_deg, base.rotation, base.position + off)
+        assert cam == same and hash(cam) == hash(same)
+        assert cam.rotation is base.rotation and not cam.position.flags.writeable
+        np.testing.assert_allclose(cam.translation, same.translation)
+        np.testing.assert_allclose(cam.project(points + off), base.project(points), atol=1e-9)
+        assert cam.focal == base.focal and np.array_equal(cam.intrinsics, base.intrinsics)
+    for bad in (np.zeros(3), np.zeros((2, 2)), np.array([[0.0, np.nan, 0.0]])):
+        with pytest.raises(ValueError, match="offsets"):
+            base.shifted(bad)
+
+
 def test_camera_equality_and_hash() -> None:
     a, b = _camera(), _camera()
     assert a == b and hash(a) == hash(b)

@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 
 from humotion_gym import body
-from humotion_gym.camera import fit_camera
+from humotion_gym.camera import Camera, fit_camera
 from humotion_gym.observation import (
     FrameFeatures,
     ObservationModel,
+    batch_pose_geometry,
     fast_cone_axes,
     fast_forward_kinematics,
     single_pose_geometry,
@@ -119,6 +120,41 @@ def test_single_pose_geometry_agrees_with_cone_geometry() -> None:
         in_camera = single_pose_geometry(pose, SHAPE, cam.rotation, cam.translation)
         np.testing.assert_allclose(in_camera[:15], cam.to_camera(keypoints), atol=1e-6)
         np.testing.assert_allclose(in_camera[15:], (axes @ cam.rotation.T).reshape(20, 3))
+
+
+def test_batch_pose_geometry_is_single_pose_geometry_batched() -> None:
+    rng = np.random.default_rng(5)
+    poses = rng.uniform(body.PARAM_LOWER, body.PARAM_UPPER, size=(12, 25))
+    shape = body.default_shape(1600.0).replace(neck_forward=25.0)
+    cams = [
+        Camera.look_at(rng.normal(0.0, 3000.0, 3), rng.normal(0.0, 100.0, 3), 64, 64, 50.0)
+        for _ in range(12)
+    ]
+    one = cams[0]
+    world = batch_pose_geometry(poses, shape)
+    static = batch_pose_geometry(poses, shape, one.rotation, one.translation)
+    moving = batch_pose_geometry(
+        poses,
+        shape,
+        np.stack([c.rotation for c in cams]),
+        np.stack([c.translation for c in cams]),
+    )
+    assert world.shape == static.shape == moving.shape == (12, 35, 3)
+    for t, pose in enumerate(poses):
+        np.testing.assert_allclose(world[t], single_pose_geometry(pose, shape), atol=1e-9)
+        np.testing.assert_allclose(
+            static[t], single_pose_geometry(pose, shape, one.rotation, one.translation), atol=1e-9
+        )
+        cam = cams[t]
+        np.testing.assert_allclose(
+            moving[t], single_pose_geometry(pose, shape, cam.rotation, cam.translation), atol=1e-9
+        )
+    with pytest.raises(ValueError, match=r"\(T, 25\)"):
+        batch_pose_geometry(poses[0], shape)
+    with pytest.raises(ValueError, match="rotation"):
+        batch_pose_geometry(poses, shape, np.eye(3)[None].repeat(5, axis=0))
+    with pytest.raises(ValueError, match="translation"):
+        batch_pose_geometry(poses, shape, np.eye(3), np.zeros((5, 3)))
 
 
 # -- the likelihood's contract -----------------------------------------------

@@ -6,13 +6,17 @@ import numpy as np
 import pytest
 
 from humotion_gym import body
-from humotion_gym.camera import fit_camera
+from humotion_gym.camera import Camera, fit_camera
+from humotion_gym.observation import batch_pose_geometry
 from humotion_gym.render import (
     DEFAULT_FIGURE_COLORS,
     SceneOptions,
     draw_pose_overlay,
+    figure_sequence,
     make_background,
+    noise_bank,
     render,
+    render_frame,
 )
 
 SHAPE = body.default_shape()
@@ -262,3 +266,84 @@ def test_pose_behind_the_camera_is_not_drawn() -> None:
     behind[:3] = cam.position - 1500.0 * cam.forward
     frame = render(behind, SHAPE, cam, scene, np.random.default_rng(0))
     assert np.all(frame == frame[0, 0])
+
+
+def _walk(n: int) -> np.ndarray:
+    """n poses of a figure walking past and swinging its limbs."""
+    t = np.arange(n)[:, None]
+    poses = np.repeat(_pose()[None], n, axis=0)
+    poses[:, :2] += t * np.array([25.0, 10.0])
+    for name in ("r_shoulder_x", "l_hip_x", "r_elbow", "l_knee"):
+        poses[:, PI[name]] += 0.4 * np.sin(0.3 * t[:, 0] + len(name))
+    return poses
+
+
+@pytest.mark.parametrize("cameras", ["static", "following", "each_its_own"])
+def test_figure_sequence_frames_are_render_frames(cameras: str) -> None:
+    # The environments' path (prepare the episode's figures at once, then draw
+    # frame by frame) gives the frames render() gives, bit for bit.
+    scene = SceneOptions(occluders=1)
+    poses = _walk(12)
+    base = _camera(scene, poses[0])
+    if cameras == "static":
+        cams = [base] * len(poses)
+    elif cameras == "following":
+        cams = base.shifted(poses[:, :3] - poses[0, :3])
+    else:
+        cams = [_camera(scene, p, azimuth=10.0 * k) for k, p in enumerate(poses)]
+    figures = figure_sequence(poses, SHAPE, cams if cameras != "static" else base, scene)
+    assert len(figures) == len(poses)
+    background = make_background(scene, np.random.default_rng(0))
+    for t, (pose, cam) in enumerate(zip(poses, cams, strict=True)):
+        expected = render(pose, SHAPE, cam, scene, np.random.default_rng(t), background, t)
+        got = render_frame(figures, t, np.random.default_rng(t), background)
+        assert np.array_equal(got, expected), t
+
+
+def test_figure_sequence_takes_precomputed_geometry_and_checks_inputs() -> None:
+    scene = SceneOptions()
+    poses = _walk(4)
+    cam = _camera(scene, poses[0])
+    a = figure_sequence(poses, SHAPE, cam, scene)
+    b = figure_sequence(poses, SHAPE, cam, scene, batch_pose_geometry(poses, SHAPE))
+    assert np.array_equal(a.ellipses, b.ellipses) and np.array_equal(a.quads, b.quads)
+    with pytest.raises(ValueError, match=r"\(T, 25\)"):
+        figure_sequence(poses[0], SHAPE, cam, scene)
+    with pytest.raises(ValueError, match="non-finite"):
+        figure_sequence(np.full((2, 25), np.inf), SHAPE, cam, scene)
+    with pytest.raises(ValueError, match="cameras"):
+        figure_sequence(poses, SHAPE, [cam, cam], scene)
+    with pytest.raises(ValueError, match="camera is 128x128"):
+        figure_sequence(poses, SHAPE, cam, SceneOptions(width=64, height=64))
+    wide = Camera(128, 128, 70.0, cam.rotation, cam.position)
+    with pytest.raises(ValueError, match="same size and fov"):
+        figure_sequence(poses, SHAPE, [cam, cam, wide, cam], scene)
+    with pytest.raises(ValueError, match="geometry"):
+        figure_sequence(poses, SHAPE, cam, scene, np.zeros((4, 15, 3)))
+    background = make_background(scene, np.random.default_rng(0))
+    rng = np.random.default_rng(0)
+    for t in (-1, 4, 1.5):
+        with pytest.raises(ValueError, match="t must be"):
+            render_frame(a, t, rng, background)
+    with pytest.raises(ValueError, match="background"):
+        render_frame(a, 0, rng, make_background(SceneOptions(noise_sigma=1.0), rng))
+
+
+def test_a_noise_bank_serves_many_backgrounds() -> None:
+    scene = SceneOptions()
+    bank = noise_bank(scene, np.random.default_rng(1))
+    assert bank.shape == (2, 256, 256, 3) and bank.dtype == np.uint8
+    a = make_background(scene, np.random.default_rng(2), bank)
+    b = make_background(scene, np.random.default_rng(3), bank)
+    assert a.noise is bank and b.noise is bank
+    assert not np.array_equal(a.image, b.image)  # the room is still each episode's own
+    # Reusing the bank leaves the rest of the background as the generator draws it.
+    fresh = make_background(scene, np.random.default_rng(2))
+    assert np.array_equal(fresh.image, a.image)
+    assert noise_bank(SceneOptions(noise_sigma=0.0), np.random.default_rng(0)).shape == (
+        2, 1, 1, 3,
+    )  # fmt: skip
+    with pytest.raises(ValueError, match="noise must be a uint8 bank"):
+        make_background(SceneOptions(width=64, height=64), np.random.default_rng(0), bank)
+    with pytest.raises(ValueError, match="noise must be a uint8 bank"):
+        make_background(scene, np.random.default_rng(0), bank.astype(np.int16))

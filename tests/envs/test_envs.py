@@ -82,6 +82,24 @@ def test_determinism(env_id):
                 assert va == vb, k
 
 
+def test_seeded_reset_after_other_episodes_repeats_a_fresh_env():
+    # The noise bank (and everything else) is redrawn at a seeded reset: an env
+    # that has run other episodes replays a fresh env's episode exactly.
+    used = gym.make("humotion_gym/BodyTrack-v0").unwrapped
+    used.reset(seed=11)
+    for _ in range(3):
+        used.reset()
+    fresh = gym.make("humotion_gym/BodyTrack-v0").unwrapped
+    action = np.zeros(used.action_space.shape, np.float32)
+    for env in (used, fresh):
+        env.reset(seed=5)
+    for _ in range(4):
+        assert np.array_equal(used.step(action)[0], fresh.step(action)[0])
+    # Episodes after a seeded one differ from each other (their rooms and noise windows).
+    first = fresh.reset()[0]
+    assert not np.array_equal(first, fresh.reset()[0])
+
+
 @pytest.mark.parametrize("env_id", IDS)
 def test_different_seeds_give_different_episodes(env_id):
     a = rollout(env_id, seed=1, steps=2)
@@ -213,12 +231,13 @@ def test_record_video_writes_a_file(tmp_path):
     pytest.importorskip("moviepy", reason="gymnasium's RecordVideo needs moviepy")
     from gymnasium.wrappers import RecordVideo
 
-    env = RecordVideo(gym.make("humotion_gym/ArmTrack-v0", render_mode="rgb_array"), str(tmp_path))
+    folder = tmp_path / "videos"  # a new folder: RecordVideo warns about an existing one
+    env = RecordVideo(gym.make("humotion_gym/ArmTrack-v0", render_mode="rgb_array"), str(folder))
     env.reset(seed=0)
     for _ in range(5):
         env.step(env.action_space.sample())
     env.close()
-    assert list(tmp_path.glob("*.mp4"))
+    assert list(folder.glob("*.mp4"))
 
 
 def test_env_pickles():

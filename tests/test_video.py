@@ -1,0 +1,30 @@
+"""Tests of the video helpers."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from humotion_gym import body
+from humotion_gym.camera import fit_camera
+from humotion_gym.mocap.library import synthetic_library
+from humotion_gym.render import SceneOptions, make_background, render
+from humotion_gym.video import render_motion
+
+
+def test_render_motion_frames_are_render_frames() -> None:
+    motion = synthetic_library()[0]
+    params = motion.params[:20]
+    frames = render_motion(params, motion.shape, width=96, height=64, azimuth_deg=40.0, seed=3)
+    assert len(frames) == 20 and frames[0].shape == (64, 96, 3)
+    # The same frames one pose at a time (the camera frames the whole motion).
+    camera = fit_camera(
+        body.forward_kinematics(params, motion.shape),
+        96, 64, 45.0, float(np.rad2deg(params[0, 3])) - 40.0, 10.0,
+    )  # fmt: skip
+    scene = SceneOptions(width=96, height=64, background="flat")
+    rng = np.random.default_rng(3)
+    background = make_background(scene, rng)
+    for t, pose in enumerate(params):
+        expected = render(pose, motion.shape, camera, scene, rng, background, t)
+        assert np.array_equal(frames[t], expected), t
+    assert not np.array_equal(frames[0], frames[-1])
