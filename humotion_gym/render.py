@@ -19,10 +19,17 @@ blur) from the generator passed to :func:`render`.
 Every random draw goes through an explicit ``numpy.random.Generator``: the same
 pose, scene, background and generator state give the same frame bit for bit.
 
-Speed: about 110-130 microseconds for a 128x128 RGB frame of the default scene,
-about a third of it in the OpenCV drawing calls, the rest in the kinematics
-(on Python floats) and in a few dozen numpy calls on tiny arrays; see
-``benchmarks/bench_render.py``.
+Two ways to render. :func:`render` draws one pose. For a sequence,
+:func:`figure_sequence` computes the projection, silhouettes, shading and depth
+order of every frame at once (vectorised over frames, cones and ellipse
+points), and :func:`render_frame` then only draws frame ``t``; the frames are
+the same bit for bit. The environments prepare each episode this way at reset.
+
+Speed (128x128 RGB, default scene; ``benchmarks/bench_render.py``): about 140
+microseconds for one pose with :func:`render`, most of it in some sixty numpy
+calls on tiny arrays; about 65 microseconds a frame on the sequence path, of
+which the OpenCV drawing calls are about 30 and the episode's preparation,
+shared by its 30 frames, about 8.
 """
 
 from __future__ import annotations
@@ -40,7 +47,7 @@ from numpy.typing import ArrayLike, NDArray
 from humotion_gym import body
 from humotion_gym.body import CONE_KEYPOINTS, N_CONES, N_KEYPOINTS, BodyShape
 from humotion_gym.camera import Camera
-from humotion_gym.observation import batch_pose_geometry, single_pose_geometry
+from humotion_gym.kinematics import batch_pose_geometry, single_pose_geometry
 
 Color = tuple[int, int, int]
 
@@ -501,7 +508,7 @@ def _figure_polygons(
 
     Args:
         geometry: ``(T, 35, 3)`` keypoints and cone axes in each frame's camera
-            frame (the layout of :func:`~humotion_gym.observation.single_pose_geometry`).
+            frame (the layout of :func:`~humotion_gym.kinematics.single_pose_geometry`).
         shape: The subject's shape.
         camera: The cameras' intrinsics (every frame's camera has the same).
         scene: Scene options.
@@ -636,7 +643,7 @@ def figure_sequence(
             scene's size, all with the same field of view).
         scene: Scene options.
         geometry: The poses' world-frame keypoints and cone axes from
-            :func:`~humotion_gym.observation.batch_pose_geometry`, when already
+            :func:`~humotion_gym.kinematics.batch_pose_geometry`, when already
             computed (``(T, 35, 3)``).
 
     Returns:

@@ -84,7 +84,7 @@ def render_motion(
         seed: Seeds the sensor noise.
     """
     from humotion_gym.camera import fit_camera
-    from humotion_gym.observation import batch_pose_geometry
+    from humotion_gym.kinematics import batch_pose_geometry
     from humotion_gym.render import SceneOptions, figure_sequence, make_background, render_frame
 
     geometry = batch_pose_geometry(params, shape)  # type: ignore[arg-type]

@@ -7,7 +7,7 @@ import pytest
 
 from humotion_gym import body
 from humotion_gym.camera import Camera, fit_camera
-from humotion_gym.observation import batch_pose_geometry
+from humotion_gym.kinematics import batch_pose_geometry
 from humotion_gym.render import (
     DEFAULT_FIGURE_COLORS,
     SceneOptions,

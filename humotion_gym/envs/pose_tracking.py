@@ -23,6 +23,7 @@ from humotion_gym.body import (
 )
 from humotion_gym.camera import Camera, fit_camera
 from humotion_gym.envs.tasks import TaskSpec, get_task
+from humotion_gym.kinematics import batch_pose_geometry, single_pose_geometry
 from humotion_gym.mocap.library import (
     MotionLibrary,
     configured_data_dirs,
@@ -30,7 +31,7 @@ from humotion_gym.mocap.library import (
     synthetic_library,
 )
 from humotion_gym.mocap.motion import Motion
-from humotion_gym.observation import ObservationModel, batch_pose_geometry, single_pose_geometry
+from humotion_gym.observation import ObservationModel
 from humotion_gym.render import (
     SceneOptions,
     draw_pose_overlay,
