@@ -265,10 +265,10 @@ class PoseTrackingEnv(gym.Env):
             if not 0 <= start < motion.n_frames - span:
                 raise ValueError(f"options['start'] must be in [0, {motion.n_frames - span})")
             return start
-        ok = motion.frame_observed
-        # A start is good when every frame of the episode was observed.
-        window = np.convolve(ok.astype(int), np.ones(span + 1, dtype=int), mode="valid")
-        good = np.flatnonzero(window == span + 1)
+        # A start is good when every frame of the episode was observed: count
+        # the observed frames of each window from a running sum.
+        count = np.concatenate([[0], np.cumsum(motion.frame_observed)])
+        good = np.flatnonzero(count[span + 1 :] - count[: -span - 1] == span + 1)
         if good.size == 0:
             good = np.arange(motion.n_frames - span)
         return int(good[self.np_random.integers(good.size)])
