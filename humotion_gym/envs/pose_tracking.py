@@ -284,9 +284,10 @@ class PoseTrackingEnv(gym.Env):
         m = self._motion
         assert m is not None
         idx = self._t0 + np.arange(self.episode_frames + 1) * self.frame_skip
+        self._episode_params = m.params[idx]
         # Keypoints and cone axes of every frame of the episode at once: the
         # renderer's figures are prepared from them in one vectorised pass.
-        self._geometry = batch_pose_geometry(m.params[idx], m.shape)
+        self._geometry = batch_pose_geometry(self._episode_params, m.shape)
         kp = self._geometry[:, :N_KEYPOINTS]
         self._truth_keypoints = kp  # scored against in step()
         pelvis = kp[:, KEYPOINT_INDEX["pelvis"]]
@@ -377,9 +378,8 @@ class PoseTrackingEnv(gym.Env):
         # frame by frame: the same seed and steps give the same frames.
         self._noise_rng = np.random.default_rng([self._episode_seed, 1])
         self._place_camera()
-        idx = self._t0 + np.arange(self.episode_frames + 1) * self.frame_skip
         self._figures = figure_sequence(
-            self._motion.params[idx], self.shape, self._cameras, self.scene, self._geometry
+            self._episode_params, self.shape, self._cameras, self.scene, self._geometry
         )
         self._lost_run = 0
         self._last_estimate: FloatArray | None = None
