@@ -58,6 +58,13 @@ PARAM_NAMES: tuple[str, ...] = (
 )  # fmt: skip
 N_PARAMS = len(PARAM_NAMES)
 PARAM_INDEX: dict[str, int] = {name: i for i, name in enumerate(PARAM_NAMES)}
+#: The flexion angles of the hips, knees, shoulders and elbows: what a side view
+#: of walking shows (SideWalk-v0's free parameters, the switching linear model's
+#: default).
+SAGITTAL_PARAMS: tuple[str, ...] = (
+    "r_hip_x", "r_knee", "l_hip_x", "l_knee",
+    "r_shoulder_x", "r_elbow", "l_shoulder_x", "l_elbow",
+)  # fmt: skip
 
 ROOT_POSITION = slice(0, 3)
 ROOT_ROTATION = slice(3, 6)

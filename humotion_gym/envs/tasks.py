@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from humotion_gym.body import KEYPOINT_INDEX, N_PARAMS, PARAM_INDEX
+from humotion_gym.body import KEYPOINT_INDEX, N_PARAMS, PARAM_INDEX, SAGITTAL_PARAMS
 
 
 @dataclass(frozen=True)
@@ -136,16 +136,7 @@ WALK_TRACK = TaskSpec(
 
 SIDE_WALK = TaskSpec(
     name="SideWalk-v0",
-    free=(
-        "r_hip_x",
-        "r_knee",
-        "l_hip_x",
-        "l_knee",
-        "r_shoulder_x",
-        "r_elbow",
-        "l_shoulder_x",
-        "l_elbow",
-    ),  # fmt: skip
+    free=SAGITTAL_PARAMS,
     error_keypoints=(
         "r_knee",
         "r_ankle",

@@ -61,7 +61,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from humotion_gym.body import N_PARAMS, PARAM_INDEX, PARAM_LOWER, PARAM_UPPER
+from humotion_gym.body import N_PARAMS, PARAM_INDEX, PARAM_LOWER, PARAM_UPPER, SAGITTAL_PARAMS
 from humotion_gym.filtering import ParticleState
 from humotion_gym.mocap.motion import Motion
 from humotion_gym.priors._io import load_fitted, save_fitted
@@ -79,10 +79,7 @@ FloatArray = NDArray[np.float64]
 NAME = "slds"
 
 #: The paper's model: the sagittal angles of SideWalk-v0 (used when ``free`` is None).
-SAGITTAL: tuple[str, ...] = (
-    "r_hip_x", "r_knee", "l_hip_x", "l_knee",
-    "r_shoulder_x", "r_elbow", "l_shoulder_x", "l_elbow",
-)  # fmt: skip
+SAGITTAL: tuple[str, ...] = SAGITTAL_PARAMS
 SAGITTAL_INDEX: NDArray[np.intp] = np.array([PARAM_INDEX[n] for n in SAGITTAL], dtype=np.intp)
 #: Switch states per activity model.
 N_STATES = 4

@@ -3,26 +3,12 @@
 import numpy as np
 import pytest
 
-from humotion_gym.body import PARAM_INDEX
+from humotion_gym.body import PARAM_INDEX, SAGITTAL_PARAMS
 from humotion_gym.filtering import ParticleFilter, ParticleState
 from humotion_gym.mocap.library import synthetic_library
 from humotion_gym.priors import PRIORS, get_prior
 
-SAGITTAL = np.array(
-    [
-        PARAM_INDEX[n]
-        for n in (
-            "r_hip_x",
-            "r_knee",
-            "l_hip_x",
-            "l_knee",
-            "r_shoulder_x",
-            "r_elbow",
-            "l_shoulder_x",
-            "l_elbow",
-        )
-    ]
-)
+SAGITTAL = np.array([PARAM_INDEX[n] for n in SAGITTAL_PARAMS])
 
 
 @pytest.fixture(scope="module")
