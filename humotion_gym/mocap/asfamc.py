@@ -43,6 +43,7 @@ from humotion_gym.errors import MocapFormatError
 
 # Shared low-level helpers: the bulk number scan and batched Euler rotations.
 from humotion_gym.mocap.bvh import _euler_matrices, _line_token_counts, _to_floats
+from humotion_gym.mocap.skeleton import select_points
 
 __all__ = ["AcclaimClip", "AsfSkeleton", "load_amc", "load_asf", "load_asf_amc"]
 
@@ -202,13 +203,7 @@ class AcclaimClip:
         """
         if self._positions is None:
             self._positions = self._kinematics()
-        if names is None:
-            return self._positions.copy()
-        index = {n: i for i, n in enumerate(self.point_names)}
-        missing = [n for n in names if n not in index]
-        if missing:
-            raise KeyError(f"{self.path}: no point(s) {missing} (points: {list(self.point_names)})")
-        return self._positions[:, [index[n] for n in names]]
+        return select_points(self._positions, self.point_names, names, self.path)
 
     def _kinematics(self) -> NDArray[np.float64]:
         """Acclaim forward kinematics: loop over bones, every frame at once."""

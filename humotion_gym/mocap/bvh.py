@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from humotion_gym.errors import MocapFormatError
+from humotion_gym.mocap.skeleton import select_points
 
 __all__ = ["CHANNEL_NAMES", "BvhClip", "load_bvh", "write_bvh"]
 
@@ -305,13 +306,7 @@ class BvhClip:
                 j if is_joint else len(self.joint_names) + j for is_joint, j in self._point_joint
             ]
             self._positions = pos[:, order]
-        if names is None:
-            return self._positions.copy()
-        index = {n: i for i, n in enumerate(self.point_names)}
-        missing = [n for n in names if n not in index]
-        if missing:
-            raise KeyError(f"{self.path}: no point(s) {missing} (points: {list(self.point_names)})")
-        return self._positions[:, [index[n] for n in names]]
+        return select_points(self._positions, self.point_names, names, self.path)
 
     def _kinematics(
         self, keep_rotations: bool

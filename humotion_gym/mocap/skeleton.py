@@ -54,3 +54,32 @@ class SkeletonClip(Protocol):
             KeyError: If a name is not one of ``point_names``.
         """
         ...
+
+
+def select_points(
+    positions: NDArray[np.float64],
+    point_names: Sequence[str],
+    names: Sequence[str] | None,
+    path: str,
+) -> NDArray[np.float64]:
+    """The columns of ``positions`` for the named points: both parsers' selection.
+
+    Args:
+        positions: ``(T, P, 3)`` positions of every point, in ``point_names`` order.
+        point_names: The ``P`` point names.
+        names: The points wanted (a copy of all of them when None).
+        path: The clip's file, for the error message.
+
+    Returns:
+        ``(T, len(names), 3)`` positions.
+
+    Raises:
+        KeyError: If a name is not one of ``point_names``.
+    """
+    if names is None:
+        return positions.copy()
+    index = {n: i for i, n in enumerate(point_names)}
+    missing = [n for n in names if n not in index]
+    if missing:
+        raise KeyError(f"{path}: no point(s) {missing} (points: {list(point_names)})")
+    return positions[:, [index[n] for n in names]]
