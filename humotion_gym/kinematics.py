@@ -38,8 +38,6 @@ FloatArray = NDArray[np.float64]
 # numpy's per-call overhead would dominate.
 # ---------------------------------------------------------------------------
 
-_LIMB_BALL = (body.R_SHOULDER, body.L_SHOULDER, body.R_HIP, body.L_HIP)
-_LIMB_HINGE = (body.R_ELBOW, body.L_ELBOW, body.R_KNEE, body.L_KNEE)
 # Keypoint rows of the four limbs' base, middle and tip joints.
 _KP = body.KEYPOINT_INDEX
 _LIMB_BASE = [_KP["r_shoulder"], _KP["l_shoulder"], _KP["r_hip"], _KP["l_hip"]]
@@ -126,11 +124,6 @@ def _limb(
     # Column y of r @ E @ Rx(sign * k): the lower cone's depth axis.
     lower_y = (ck * y[0] + ssk * z[0], ck * y[1] + ssk * z[1], ck * y[2] + ssk * z[2])
     return mid, tip, (x, y), (x, lower_y)
-
-
-def _torso_offsets(shape: BodyShape) -> FloatArray:
-    """Body-frame offsets of neck, r_shoulder, l_shoulder, r_hip, l_hip, (5, 3)."""
-    return shape.torso_points()
 
 
 _SHAPE_CACHE: dict[int, tuple[weakref.ref, tuple]] = {}
@@ -357,7 +350,7 @@ def batch_pose_geometry(
     pos = (pt[0], pt[1], pt[2])
     out = np.empty((_SINGLE_ROWS, 3, n))
     out[0] = pos
-    off = _torso_offsets(shape)[:, :, None]  # (5, 3, 1): neck, limb bases
+    off = shape.torso_points()[:, :, None]  # (5, 3, 1): neck, limb bases
     torso = np.empty((5, 3, n))
     for i in range(3):
         torso[:, i] = r[i][0] * off[:, 0] + r[i][1] * off[:, 1] + r[i][2] * off[:, 2] + pos[i]
@@ -470,7 +463,7 @@ def _batch_kinematics(
     # 10:14 y angles, 14:18 z angles, 18:22 hinges.
     r = _root_matrix(c[0], s[0], c[1], s[1], c[2], s[2])
     kp = work["keypoints"]
-    off = _torso_offsets(shape).astype(dtype)  # (5, 3): neck, limb bases
+    off = shape.torso_points().astype(dtype)  # (5, 3): neck, limb bases
     for i in range(3):
         kp[i, 0] = a[i]
         torso = kp[i, 1:6]

@@ -238,24 +238,10 @@ def _to_channels(rgb: ArrayLike, channels: int) -> NDArray[np.float64]:
     return c if channels == 3 else (c @ _LUMA)[..., None]
 
 
-def _noise_bank(
-    sigma: float, shape: tuple[int, int, int], rng: np.random.Generator
-) -> NDArray[np.uint8]:
-    """Positive and negative parts of a ``(2H, 2W, C)`` bank of Gaussian noise.
-
-    Drawn by inverse transform: each uniform random byte ``k`` maps to the
-    Gaussian quantile at ``(k + 0.5) / 256``, rounded to a grey level (so the
-    tails are cut at 2.66 sigma). Fast enough to make per episode.
-    """
-    h, w, c = shape
-    if sigma <= 0:
-        return np.zeros((2, 1, 1, c), np.uint8)
-    positive, negative = _noise_tables(sigma)
-    raw = np.frombuffer(rng.bytes(4 * h * w * c), dtype=np.uint8).reshape(2 * h, 2 * w, c)
-    bank = np.empty((2, 2 * h, 2 * w, c), np.uint8)
-    bank[0] = cv2.LUT(raw, positive).reshape(2 * h, 2 * w, c)
-    bank[1] = cv2.LUT(raw, negative).reshape(2 * h, 2 * w, c)
-    return bank
+def _bank_shape(scene: SceneOptions) -> tuple[int, int, int, int]:
+    """Shape of a scene's noise bank: ``(2, 2H, 2W, C)``, or ``(2, 1, 1, C)`` without noise."""
+    h, w, c = scene.frame_shape
+    return (2, 2 * h, 2 * w, c) if scene.noise_sigma > 0 else (2, 1, 1, c)
 
 
 @functools.lru_cache(maxsize=16)
@@ -293,7 +279,11 @@ def _paint_texture(
 
 
 def _clutter_shape(
-    target: NDArray[np.uint8], kind: int, geometry: tuple, color: float | tuple, offset=(0, 0)
+    target: NDArray[np.uint8],
+    kind: int,
+    geometry: tuple | NDArray[np.int32],
+    color: int | list,
+    offset: tuple[int, int] = (0, 0),
 ) -> None:
     """Draw one filled clutter shape (box, ellipse or polygon) on ``target``."""
     ox, oy = offset
@@ -374,9 +364,22 @@ def noise_bank(scene: SceneOptions, rng: np.random.Generator) -> NDArray[np.uint
         rng: Generator to draw it from (advanced by this call).
 
     Returns:
-        The ``(2, 2H, 2W, C)`` uint8 bank (``(2, 1, 1, C)`` zeros without noise).
+        The ``(2, 2H, 2W, C)`` uint8 bank: the positive and negative parts of
+        Gaussian noise drawn by inverse transform (each uniform random byte
+        ``k`` maps to the quantile at ``(k + 0.5) / 256``, rounded to a grey
+        level, so the tails are cut at 2.66 sigma); ``(2, 1, 1, C)`` zeros
+        without noise.
     """
-    return _noise_bank(scene.noise_sigma, scene.frame_shape, rng)
+    shape = _bank_shape(scene)
+    if scene.noise_sigma <= 0:
+        return np.zeros(shape, np.uint8)
+    _, h2, w2, c = shape
+    positive, negative = _noise_tables(scene.noise_sigma)
+    raw = np.frombuffer(rng.bytes(h2 * w2 * c), dtype=np.uint8).reshape(h2, w2, c)
+    bank = np.empty(shape, np.uint8)
+    bank[0] = cv2.LUT(raw, positive).reshape(h2, w2, c)
+    bank[1] = cv2.LUT(raw, negative).reshape(h2, w2, c)
+    return bank
 
 
 def make_background(
@@ -399,7 +402,7 @@ def make_background(
     """
     h, w, channels = scene.frame_shape
     if noise is not None:
-        want = (2, 2 * h, 2 * w, channels) if scene.noise_sigma > 0 else (2, 1, 1, channels)
+        want = _bank_shape(scene)
         if noise.dtype != np.uint8 or noise.shape != want:
             raise ValueError(
                 f"make_background: noise must be a uint8 bank of shape {want} for these scene "
