@@ -7,9 +7,11 @@ retargeted clip as ``.npz`` (no pickle) so later loads take seconds; a cached
 clip is rebuilt when its source file changes. With no data configured,
 :func:`default_library` gives the built-in synthetic motions.
 
-Train and test are split by subject (named constants below): the CMU database by
-subject number; the Bandai-Namco sets, whose files do not name their actor, by
-style. The tracked subject is never in a prior's training data.
+Train and test are split by person (named constants below), checked from the
+skeletons: the CMU database by subject number, where the held-out subjects' ASF
+skeletons differ from every training skeleton; the Bandai-Namco sets, whose files
+do not name their actor and share one skeleton across every style, train whole.
+The tracked person is never in a prior's training data.
 """
 
 from __future__ import annotations
@@ -35,21 +37,20 @@ MOCAP_ENV = "HUMOTION_MOCAP"
 #: Environment variable overriding the cache folder.
 CACHE_ENV = "HUMOTION_CACHE"
 
-#: CMU subjects held out for testing: subject 2 walks, runs, jumps, punches,
-#: swings a sword and bends (a bit of everything the tasks track).
-CMU_TEST_SUBJECTS: tuple[str, ...] = ("cmu-02",)
-#: Bandai-Namco styles held out for testing (the files name no actor).
-BANDAI_TEST_STYLES: tuple[str, ...] = ("masculinity", "masculine")
+#: CMU subjects held out for testing, each a different person (their ASF
+#: skeletons differ from every training skeleton; checked by
+#: :func:`humotion_gym.mocap.persons.check_person_split`). Subject 2 walks, runs,
+#: jumps, punches, swings a sword and bends (a bit of everything the tasks
+#: track); subject 3 walks on uneven terrain (long walks for the walking tasks).
+CMU_TEST_SUBJECTS: tuple[str, ...] = ("cmu-02", "cmu-03")
 #: Synthetic subjects held out for testing.
 SYNTHETIC_TEST_SUBJECTS: tuple[str, ...] = ("synthetic-05", "synthetic-06")
 
-#: Every held-out subject (or style), whatever the data set.
-TEST_SUBJECTS: frozenset[str] = frozenset(
-    CMU_TEST_SUBJECTS
-    + tuple(f"bandai-1/{s}" for s in BANDAI_TEST_STYLES)
-    + tuple(f"bandai-2/{s}" for s in BANDAI_TEST_STYLES)
-    + SYNTHETIC_TEST_SUBJECTS
-)
+#: Every held-out person, whatever the data set. The Bandai-Namco sets are not
+#: split: their files do not name the actor and every style of both sets shares
+#: one skeleton, so no style can be shown to be another person; all of their
+#: clips train. A style held out of them is "style held out, same performers".
+TEST_SUBJECTS: frozenset[str] = frozenset(CMU_TEST_SUBJECTS + SYNTHETIC_TEST_SUBJECTS)
 
 #: CMU's descriptions of the trials of subjects 1-3 (mocap.cs.cmu.edu); other
 #: subjects' descriptions come from an ``index.csv`` beside the files if any.
