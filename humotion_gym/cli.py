@@ -5,6 +5,9 @@ Sub-commands::
     humotion-gym data table [--data-dir DIR]       the default library, one row per clip
     humotion-gym data info PATH... [--json]        per clip: rig, subject, label, frames,
                                                    fps, seconds, retargeting error
+    humotion-gym data persons [PATH...] [--json]   per subject: skeleton signature, group of
+                                                   subjects sharing it, train/test; checks
+                                                   that no test person trains (exit 1)
     humotion-gym data convert IN OUT.bvh           a motion as BVH on the cone-body skeleton
     humotion-gym download cmu --subjects 2 7 35    CMU ASF/AMC into the download cache
     humotion-gym render --task BodyTrack-v0 --seed 0 --frames 90 --out clip.mp4
@@ -42,6 +45,20 @@ def _add_data(sub: argparse._SubParsersAction) -> None:
     info.add_argument("--summary", action="store_true", help="only totals per data set")
     info.add_argument("--no-cache", action="store_true", help="parse again, ignore the cache")
     info.set_defaults(func=_cmd_data_info)
+
+    persons = dsub.add_parser(
+        "persons", help="one row per subject with its skeleton; checks the person split"
+    )
+    persons.add_argument(
+        "paths", nargs="*", help="mocap files or folders (default: $HUMOTION_MOCAP, else synthetic)"
+    )
+    persons.add_argument("--json", action="store_true", help="one JSON object instead of a table")
+    persons.add_argument("--fps", type=float, default=30.0)
+    persons.add_argument(
+        "--test", nargs="+", default=None, metavar="SUBJECT",
+        help="check this held-out set instead of the library's TEST_SUBJECTS",
+    )  # fmt: skip
+    persons.set_defaults(func=_cmd_data_persons)
 
     conv = dsub.add_parser("convert", help="write a motion as BVH on the cone-body skeleton")
     conv.add_argument("input", help="a BVH or AMC file (or 'synthetic/<clip>')")
@@ -130,6 +147,78 @@ def _cmd_data_info(args: argparse.Namespace) -> int:
             f"{r['fps']:4.0f} {r['seconds']:6.1f} {r['error_mean_mm']:6.1f} "
             f"{r['error_max_mm']:6.1f}"
         )
+    return 0
+
+
+def _cmd_data_persons(args: argparse.Namespace) -> int:
+    from humotion_gym.mocap.library import default_library, load_library
+    from humotion_gym.mocap.persons import (
+        SIGNATURE_NAMES,
+        SplitError,
+        check_person_split,
+        held_out_subjects,
+        skeleton_groups,
+        subject_skeletons,
+    )
+
+    if args.paths:
+        lib = load_library(args.paths, fps=args.fps, progress=not args.json)
+    else:
+        lib = default_library(None, fps=args.fps, progress=not args.json)
+    test = frozenset(args.test) if args.test else held_out_subjects(lib)
+    groups = skeleton_groups(lib)
+    group_of = {s: i for i, g in enumerate(groups) for s in g}
+    try:
+        report = check_person_split(lib, test)
+        ok, message = True, str(report)
+    except SplitError as exc:
+        ok, message = False, str(exc)
+    rows = [
+        {
+            "subject": s.subject,
+            "dataset": ",".join(s.datasets),
+            "clips": s.clips,
+            "frames": s.frames,
+            "split": "test" if s.subject in test else "train",
+            "signature_mm": {
+                n: round(float(v), 2) for n, v in zip(SIGNATURE_NAMES, s.signature, strict=True)
+            },
+            "spread_mm": round(s.spread_mm, 4),
+            "group": f"G{group_of[s.subject] + 1}",
+            "same_skeleton_as": [o for o in groups[group_of[s.subject]] if o != s.subject],
+        }
+        for s in subject_skeletons(lib)
+    ]
+    if args.json:
+        print(json.dumps({
+            "subjects": rows,
+            "groups": {f"G{i + 1}": list(g) for i, g in enumerate(groups)},
+            "split_ok": ok, "message": message,
+        }))  # fmt: skip
+    else:
+        head = (f"{'dataset':9s} {'subject':22s} {'clips':>5s} {'frames':>6s} {'split':5s} "
+                f"{'hip':>5s} {'uparm':>5s} {'forarm':>6s} {'thigh':>5s} {'shin':>5s} "
+                f"{'group'}")  # fmt: skip
+        print(head + "   (mm; limbs: mean of right and left)")
+        for r in rows:
+            v = list(r["signature_mm"].values())
+            limbs = (0.5 * (v[k] + v[k + 1]) for k in (1, 3, 5, 7))
+            size = len(r["same_skeleton_as"]) + 1
+            print(
+                f"{r['dataset']:9s} {r['subject']:22s} {r['clips']:5d} {r['frames']:6d} "
+                f"{r['split']:5s} {v[0]:5.0f} "
+                + " ".join(f"{x:5.0f}" for x in limbs)
+                + f"  {r['group']}"
+                + (f" ({size})" if size > 1 else "")
+            )
+        for i, g in enumerate(groups):
+            if len(g) > 1:
+                print(f"G{i + 1}, one skeleton: {', '.join(g)}")
+        if ok:
+            print(message)
+    if not ok:
+        print(f"humotion-gym: error: {message}", file=sys.stderr)
+        return 1
     return 0
 
 
