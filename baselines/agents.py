@@ -1,6 +1,13 @@
-"""Particle-filter agents that answer like a stable-baselines3 policy.
+"""The agent table: reference agents and particle filters, answering like an SB3 policy.
 
-An agent is a :class:`~humotion_gym.filtering.ParticleFilter` over one prior,
+Two kinds of agent are made by :func:`make`:
+
+* **references** (:data:`REFERENCES`): ``hold`` answers the initial pose every
+  frame, the floor every tracker must beat clearly; ``random`` answers uniform
+  actions, the ceiling of error;
+* **particle filters** (:data:`AGENTS`): a particle filter over a motion prior.
+
+A particle-filter agent is a :class:`~humotion_gym.filtering.ParticleFilter` over one prior,
 scoring particles with the environment's own observation model, camera and the
 subject's known shape. It follows stable-baselines3's
 ``predict(observation, state, episode_start, deterministic)`` so one evaluation
@@ -164,6 +171,78 @@ class ParticleFilterAgent:
         return action, None
 
 
+class HoldAgent:
+    """The ``hold`` reference: the initial pose (``info["initial_pose"]``) every frame.
+
+    It tracks nothing: its error is what the motion of the episode itself
+    costs. A task measures tracking only where the baselines beat it clearly.
+    """
+
+    name = "hold"
+    n_particles = 0
+
+    def __init__(self, env: gym.Env, seed: int = 0) -> None:
+        self.env: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
+        self._info: Mapping[str, Any] | None = None
+        self._action: NDArray[np.float32] | None = None
+
+    def observe_info(self, info: Mapping[str, Any]) -> None:
+        """Take the ``info`` of the last ``reset`` or ``step``; a reset's holds its pose."""
+        self._info = info
+        if "initial_pose" in info:
+            self._action = None
+
+    def predict(
+        self,
+        observation: NDArray[np.uint8],
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[NDArray[np.float32], Any]:
+        """The initial pose as an action (the observation is ignored)."""
+        del observation, state, deterministic
+        start = bool(np.any(episode_start)) if episode_start is not None else False
+        if self._action is None or start:
+            if self._info is None or "initial_pose" not in self._info:
+                raise RuntimeError("hold: observe_info(reset info) must be called before predict()")
+            self._action = self.env.pose_to_action(np.asarray(self._info["initial_pose"]))
+        return self._action.copy(), None
+
+
+class RandomAgent:
+    """The ``random`` reference: uniform actions in [-1, 1] from a seeded generator."""
+
+    name = "random"
+    n_particles = 0
+
+    def __init__(self, env: gym.Env, seed: int = 0) -> None:
+        self.env: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
+        self._seed = seed
+        self._rng = np.random.default_rng(seed)
+        self._shape = self.env.action_space.shape
+
+    def observe_info(self, info: Mapping[str, Any]) -> None:
+        """Nothing to take: random actions use no information."""
+
+    def predict(
+        self,
+        observation: NDArray[np.uint8],
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[NDArray[np.float32], Any]:
+        """A uniform action."""
+        del observation, state, deterministic
+        return self._rng.uniform(-1.0, 1.0, self._shape).astype(np.float32), None
+
+
+#: The reference agents by name: (class, one line for listings).
+REFERENCES: dict[str, tuple[type, str]] = {
+    "hold": (HoldAgent, "the initial pose every frame: what doing nothing scores"),
+    "random": (RandomAgent, "uniform random actions"),
+}
+
+
 # -- priors and their cached fits ------------------------------------------------
 
 
@@ -269,14 +348,19 @@ AGENTS: dict[str, AgentSpec] = {
         "humotion_gym.priors.slds",
         description="switching linear dynamic system (Pavlovic, Rehg, Cham & Murphy 1999), "
         "one model per activity joined by a block transition matrix",
-        tasks=("ArmTrack-v0", "SideWalk-v0"),
+        tasks=("ArmTrack-v1", "SideWalk-v1"),
     ),
     "pf-pca": AgentSpec(
         "humotion_gym.priors.cyclic_pca",
         description="cyclic functional PCA of walking (Ormoneit, Black, Hastie & Kjellström 2005)",
-        tasks=("WalkTrack-v0", "SideWalk-v0"),
+        tasks=("WalkTrack-v1", "SideWalk-v1"),
     ),
 }
+
+
+def agent_names() -> list[str]:
+    """Every agent :func:`make` knows: the references, then the particle filters."""
+    return list(REFERENCES) + sorted(AGENTS)
 
 
 def register_agent(name: str, spec: AgentSpec) -> None:
@@ -292,11 +376,12 @@ def make(
     estimate: str = "mean",
     fit_settings: Mapping[str, Any] | None = None,
     use_cache: bool = True,
-) -> ParticleFilterAgent:
-    """A registered particle-filter agent for an environment.
+) -> ParticleFilterAgent | HoldAgent | RandomAgent:
+    """A registered agent for an environment: a reference or a particle filter.
 
     Args:
-        name: A key of :data:`AGENTS` (``"pf-cv"``, ``"pf-tree"``...).
+        name: A key of :data:`REFERENCES` (``"hold"``, ``"random"``; they take
+            no particles) or of :data:`AGENTS` (``"pf-cv"``, ``"pf-tree"``...).
         env: The environment it will act in.
         n_particles: Particles.
         seed: The agent's seed.
@@ -308,8 +393,10 @@ def make(
         KeyError: If the name is unknown.
         ValueError: If the agent does not support the env's task.
     """
+    if name in REFERENCES:
+        return REFERENCES[name][0](env, seed=seed)
     if name not in AGENTS:
-        raise KeyError(f"unknown agent {name!r}; the agents are {sorted(AGENTS)}")
+        raise KeyError(f"unknown agent {name!r}; the agents are {agent_names()}")
     spec = AGENTS[name]
     base: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
     if spec.tasks is not None and base.task.name not in spec.tasks:

@@ -1,7 +1,7 @@
-"""Particle-filter agents: milliseconds per frame (BodyTrack-v0 at 128x128 by default).
+"""Particle-filter agents: milliseconds per frame (BodyTrack-v1 at 128x128 by default).
 
 Run: python benchmarks/bench_agents.py [--data-dir ../shared/mocap]
-     python benchmarks/bench_agents.py --task SideWalk-v0 --agents pf-cv pf-slds
+     python benchmarks/bench_agents.py --task SideWalk-v1 --agents pf-cv pf-slds
 
 Reports pf-cv and pf-tree at 300, 3,000 and 10,000 particles, split into the
 prior's transition, the observation model (prepare + score) and the rest, with
@@ -25,7 +25,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--data-dir", default=None)
     ap.add_argument("--frames", type=int, default=30)
-    ap.add_argument("--task", default="BodyTrack-v0")
+    ap.add_argument("--task", default="BodyTrack-v1")
     ap.add_argument("--agents", nargs="+", default=["pf-cv", "pf-tree"])
     ap.add_argument("--particles", type=int, nargs="+", default=[300, 3000, 10000])
     args = ap.parse_args()

@@ -47,8 +47,8 @@ def main() -> None:
         ref_name = f"CartPole-v1 step only (render unavailable: {type(exc).__name__})"
     print(f"{'environment':46s} {'steps/s':>10s} {'x reference':>12s}")
     print(f"{ref_name:46s} {ref:10,.0f} {1.0:12.2f}")
-    for env_id in ("humotion_gym/ArmTrack-v0", "humotion_gym/BodyTrack-v0", "humotion_gym/WalkTrack-v0",
-                   "humotion_gym/SideWalk-v0"):  # fmt: skip
+    for env_id in ("humotion_gym/ArmTrack-v1", "humotion_gym/BodyTrack-v1", "humotion_gym/WalkTrack-v1",
+                   "humotion_gym/SideWalk-v1"):  # fmt: skip
         for size in (128, 256):
             env = gym.make(env_id, width=size, height=size, terminate_on_lost=False).unwrapped
             sps = steps_per_second(env, 600)

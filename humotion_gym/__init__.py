@@ -1,7 +1,7 @@
 """humotion_gym: Gymnasium environments for monocular 3D human pose tracking.
 
 Importing the package registers the environment ids under the ``humotion_gym/``
-namespace, so ``gymnasium.make("humotion_gym/BodyTrack-v0")`` works.
+namespace, so ``gymnasium.make("humotion_gym/BodyTrack-v1")`` works.
 """
 
 from __future__ import annotations

@@ -10,9 +10,9 @@ Sub-commands::
                                                    that no test person trains (exit 1)
     humotion-gym data convert IN OUT.bvh           a motion as BVH on the cone-body skeleton
     humotion-gym download cmu --subjects 2 7 35    CMU ASF/AMC into the download cache
-    humotion-gym render --task BodyTrack-v0 --seed 0 --frames 90 --out clip.mp4
+    humotion-gym render --task BodyTrack-v1 --seed 0 --frames 90 --out clip.mp4
                                                    an episode as video and contact sheet
-    humotion-gym track --task ArmTrack-v0 --agent pf-tree --particles 300 --episodes 20
+    humotion-gym track --task ArmTrack-v1 --agent pf-tree --particles 300 --episodes 20
                                                    track episodes, errors and timing
 """
 
@@ -249,7 +249,7 @@ def _cmd_download_cmu(args: argparse.Namespace) -> int:
 
 def _add_envs(sub: argparse._SubParsersAction) -> None:
     rend = sub.add_parser("render", help="render an episode of a task as video and contact sheet")
-    rend.add_argument("--task", default="BodyTrack-v0")
+    rend.add_argument("--task", default="BodyTrack-v1")
     rend.add_argument("--seed", type=int, default=0)
     rend.add_argument("--frames", type=int, default=90)
     rend.add_argument("--out", type=Path, default=Path("clip.mp4"), help=".mp4 or .avi")
@@ -262,7 +262,7 @@ def _add_envs(sub: argparse._SubParsersAction) -> None:
     rend.set_defaults(func=_cmd_render)
 
     track = sub.add_parser("track", help="track episodes with a particle-filter agent")
-    track.add_argument("--task", default="ArmTrack-v0")
+    track.add_argument("--task", default="ArmTrack-v1")
     track.add_argument("--agent", default="pf-cv")
     track.add_argument("--particles", type=int, default=300)
     track.add_argument("--episodes", type=int, default=20)
@@ -276,7 +276,7 @@ def _add_envs(sub: argparse._SubParsersAction) -> None:
 
 def _add_leaderboard(sub: argparse._SubParsersAction) -> None:
     lb = sub.add_parser("leaderboard", help="agents x tasks x particle counts x seeded episodes")
-    lb.add_argument("--tasks", nargs="+", default=["ArmTrack-v0", "BodyTrack-v0"])
+    lb.add_argument("--tasks", nargs="+", default=["ArmTrack-v1", "BodyTrack-v1"])
     lb.add_argument("--agents", nargs="+", default=["pf-cv", "pf-tree"])
     lb.add_argument("--particles", type=int, nargs="+", default=[300, 3000])
     lb.add_argument("--episodes", type=int, default=20)
@@ -289,7 +289,7 @@ def _add_leaderboard(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_leaderboard(args: argparse.Namespace) -> int:
-    from baselines.leaderboard import markdown_table, run_leaderboard, save
+    from baselines.leaderboard import markdown_table, run_leaderboard, save, validity_lines
 
     kwargs = _env_kwargs(args)
     if args.background:
@@ -302,6 +302,8 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
     if args.out:
         save(rows, args.out)
     print(markdown_table(rows))
+    for line in validity_lines(rows):
+        print(line)
     return 0
 
 

@@ -2,7 +2,7 @@
 
 Importing :mod:`humotion_gym` registers every id below (Gymnasium 1.x has no
 entry-point plugins). Each id exists under the ``humotion_gym/`` namespace,
-and once more without it so that ``gymnasium.make("humotion_gym:ArmTrack-v0")``
+and once more without it so that ``gymnasium.make("humotion_gym:ArmTrack-v1")``
 (the ``module:id`` form, which imports the module first) works from a fresh
 interpreter.
 """
@@ -22,10 +22,10 @@ NAMESPACE = "humotion_gym"
 
 #: (id without namespace, entry point, scored frames per episode)
 ENVIRONMENTS: tuple[tuple[str, str, int], ...] = (
-    ("ArmTrack-v0", "humotion_gym.envs.arm_track:ArmTrackEnv", 30),
-    ("BodyTrack-v0", "humotion_gym.envs.body_track:BodyTrackEnv", 30),
-    ("WalkTrack-v0", "humotion_gym.envs.walk_track:WalkTrackEnv", 60),
-    ("SideWalk-v0", "humotion_gym.envs.side_walk:SideWalkEnv", 60),
+    ("ArmTrack-v1", "humotion_gym.envs.arm_track:ArmTrackEnv", 30),
+    ("BodyTrack-v1", "humotion_gym.envs.body_track:BodyTrackEnv", 30),
+    ("WalkTrack-v1", "humotion_gym.envs.walk_track:WalkTrackEnv", 60),
+    ("SideWalk-v1", "humotion_gym.envs.side_walk:SideWalkEnv", 60),
 )
 
 #: The canonical ids, with namespace.

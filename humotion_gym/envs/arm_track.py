@@ -1,4 +1,4 @@
-"""ArmTrack-v0: the right arm, seen with the shoulder held fixed in the image."""
+"""ArmTrack-v1: the right arm, seen with the shoulder held fixed in the image."""
 
 from __future__ import annotations
 
@@ -48,7 +48,7 @@ class ArmTrackEnv(PoseTrackingEnv):
     """
 
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__(task="ArmTrack-v0", **kwargs)
+        super().__init__(task="ArmTrack-v1", **kwargs)
 
 
 ArmTrackEnv.__doc__ = (

@@ -1,4 +1,4 @@
-"""BodyTrack-v0: the whole body, mixed activities."""
+"""BodyTrack-v1: the whole body, mixed activities."""
 
 from __future__ import annotations
 
@@ -39,7 +39,7 @@ class BodyTrackEnv(PoseTrackingEnv):
     """
 
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__(task="BodyTrack-v0", **kwargs)
+        super().__init__(task="BodyTrack-v1", **kwargs)
 
 
 BodyTrackEnv.__doc__ = (

@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 
 from humotion_gym.body import (
     ANGLE_MASK,
+    CONE_NAMES,
     KEYPOINT_INDEX,
     N_KEYPOINTS,
     PARAM_INDEX,
@@ -66,6 +67,10 @@ def _sphere(radius: float, n: int = 26) -> FloatArray:
     return radius * grid / np.linalg.norm(grid, axis=1, keepdims=True)
 
 
+# The right arm's cones (upper arm, forearm), whose radii pad an arm close-up.
+_ARM_CONES = [CONE_NAMES.index("r_upper_arm"), CONE_NAMES.index("r_forearm")]
+
+
 def _wrap(angles: FloatArray) -> FloatArray:
     return (angles + np.pi) % (2 * np.pi) - np.pi
 
@@ -92,10 +97,11 @@ class PoseTrackingEnv(gym.Env):
 
     def __init__(
         self,
-        task: str | TaskSpec = "BodyTrack-v0",
+        task: str | TaskSpec = "BodyTrack-v1",
         render_mode: str | None = None,
         data_dir: str | Path | Sequence[str | Path] | None = None,
         library: MotionLibrary | None = None,
+        split: str = "test",
         width: int = 128,
         height: int = 128,
         color: str = "rgb",
@@ -144,19 +150,24 @@ class PoseTrackingEnv(gym.Env):
         self.lost_threshold_mm = float(lost_threshold_mm)
         self.lost_patience = int(lost_patience)
         self.reward_scale_mm = float(reward_scale_mm)
-        self.observation_model = observation_model or ObservationModel()
+        self.observation_model = observation_model or ObservationModel(
+            **dict(self.task.observation)
+        )
         self.metadata = {**self.metadata, "render_fps": fps / self.frame_skip}
 
         if library is None:
             dirs = tuple(str(p) for p in configured_data_dirs(data_dir))
             library = _cached_library(dirs, float(fps))
+        if split not in ("train", "test"):
+            raise ValueError(f"split: expected 'train' or 'test', got {split!r}")
+        self.split = split
         self.library = library
-        clips = library.split("test").filter(labels=self.task.labels)
+        clips = library.split(split).filter(labels=self.task.labels)
         need = self.episode_frames * self.frame_skip + 1
         self.clips = clips.filter(min_frames=need)
         if len(self.clips) == 0:
             raise ValueError(
-                f"{self.task.name}: no test clip with labels {self.task.labels} and at least "
+                f"{self.task.name}: no {split} clip with labels {self.task.labels} and at least "
                 f"{need} frames in the library ({len(library)} clips)"
             )
 
@@ -174,6 +185,19 @@ class PoseTrackingEnv(gym.Env):
             for name, members in _REGIONS.items()
         }
         self._motion: Motion | None = None
+        self._starts: dict[str, tuple[Motion, NDArray[np.intp]]] = {}
+        if self.task.min_motion_mm > 0:
+            # only clips with at least one start that moves enough
+            self.clips = MotionLibrary(
+                tuple(m for m in self.clips if self._good_starts(m).size),
+                self.clips.test_subjects,
+            )
+            if len(self.clips) == 0:
+                raise ValueError(
+                    f"{self.task.name}: no {split} clip moves its "
+                    f"{list(self.task.error_keypoints)} "
+                    f"by {self.task.min_motion_mm:g} mm within an episode"
+                )
         self._noise: NDArray[np.uint8] | None = None
         self._bounds: tuple[FloatArray, FloatArray] | None = None
 
@@ -265,20 +289,62 @@ class PoseTrackingEnv(gym.Env):
             if not 0 <= start < motion.n_frames - span:
                 raise ValueError(f"options['start'] must be in [0, {motion.n_frames - span})")
             return start
-        # A start is good when every frame of the episode was observed: count
-        # the observed frames of each window from a running sum.
-        count = np.concatenate([[0], np.cumsum(motion.frame_observed)])
-        good = np.flatnonzero(count[span + 1 :] - count[: -span - 1] == span + 1)
+        good = self._good_starts(motion)
         if good.size == 0:
             good = np.arange(motion.n_frames - span)
         return int(good[self.np_random.integers(good.size)])
 
-    def _place_camera(self) -> None:
-        """Cameras for every frame of the episode, from the task's camera spec.
+    def _good_starts(self, motion: Motion) -> NDArray[np.intp]:
+        """Start frames whose episode was observed throughout and moves enough.
 
-        A static camera frames all of the episode's keypoints; a following
-        camera frames them relative to the followed point and moves with it.
-        The ground truth only places the camera, which the agent is given.
+        A start is good when every frame of its episode was observed and, for a
+        task with ``min_motion_mm``, its scored keypoints (relative to the
+        task's anchor) move at least that far within the episode. Selection
+        only: what a start's episode shows is still a function of its frames.
+        Cached per clip.
+        """
+        cached = self._starts.get(motion.clip_id)
+        if cached is not None and cached[0] is motion:
+            return cached[1]
+        span = self.episode_frames * self.frame_skip
+        n_starts = motion.n_frames - span
+        if n_starts < 1:
+            good = np.zeros(0, np.intp)
+        else:
+            # count the observed frames of each window from a running sum
+            count = np.concatenate([[0], np.cumsum(motion.frame_observed)])
+            ok = count[span + 1 :] - count[: -span - 1] == span + 1
+            if self.task.min_motion_mm > 0:
+                ok &= self._episode_motion(motion) >= self.task.min_motion_mm
+            good = np.flatnonzero(ok)
+        self._starts[motion.clip_id] = (motion, good)
+        return good
+
+    def _episode_motion(self, motion: Motion) -> FloatArray:
+        """``(n_starts,)`` how far the scored keypoints move in each start's episode.
+
+        The mean over the scored keypoints, relative to ``task.motion_anchor``, of
+        the largest distance from their position at the start frame.
+        """
+        span = self.episode_frames * self.frame_skip
+        kp = batch_pose_geometry(motion.params, motion.shape)[:, :N_KEYPOINTS]
+        anchor = KEYPOINT_INDEX[self.task.motion_anchor]
+        rel = kp[:, self._err_kp] - kp[:, anchor : anchor + 1]  # (T, K, 3)
+        steps = np.arange(0, span + 1, self.frame_skip)
+        starts = np.arange(motion.n_frames - span)
+        moved = rel[starts[:, None] + steps[None]] - rel[starts][:, None]  # (S, F, K, 3)
+        return np.linalg.norm(moved, axis=-1).max(axis=1).mean(axis=1)
+
+    def _place_camera(self) -> None:
+        """Cameras for every frame of the episode, from the first frame only.
+
+        The camera is handed to the agent, so it may depend on the episode up
+        to the frame on show and nothing later (a camera fitted to the whole
+        episode tells where the body will go). A static camera frames the
+        initial pose swept through the task's travel box, oriented by the
+        initial heading; a following camera frames the initial pose about the
+        followed point (or the arm's reach) and moves with that point, which
+        the task gives the agent anyway.
         """
         spec = self.task.camera
         m = self._motion
@@ -290,34 +356,32 @@ class PoseTrackingEnv(gym.Env):
         self._geometry = batch_pose_geometry(self._episode_params, m.shape)
         kp = self._geometry[:, :N_KEYPOINTS]
         self._truth_keypoints = kp  # scored against in step()
-        pelvis = kp[:, KEYPOINT_INDEX["pelvis"]]
-        travel = pelvis[-1, :2] - pelvis[0, :2]
-        if spec.reference == "walk" and np.linalg.norm(travel) > 100.0:
-            # the heading whose facing direction (-sin, cos) is the travel
-            reference = float(np.arctan2(-travel[0], travel[1]))
-        else:
-            reference = float(m.params[idx[0], PARAM_INDEX["root_yaw"]])
+        first = kp[0]
+        heading = float(m.params[idx[0], PARAM_INDEX["root_yaw"]])
         # camera.view_direction turns counter-clockwise; the spec's azimuth
         # turns towards the subject's right, i.e. clockwise.
-        azimuth = np.rad2deg(reference) - spec.azimuth_deg
+        azimuth = np.rad2deg(heading) - spec.azimuth_deg
         size = (self.scene.width, self.scene.height, spec.fov_deg)
-        margin = spec.margin
-        pad = float(np.max(m.shape.radii))
+        corners = spec.travel_corners(heading)
         if spec.follow is None:
-            cam = fit_camera(kp, *size, azimuth, spec.elevation_deg, margin, pad)
+            swept = first[None] + corners[:, None]
+            pad = float(np.max(m.shape.radii))
+            cam = fit_camera(swept, *size, azimuth, spec.elevation_deg, spec.margin, pad)
             self._cameras = [cam] * len(idx)
             return
         if spec.follow == "r_shoulder":
             targets = kp[:, KEYPOINT_INDEX["r_shoulder"]]
-            # frame the sphere the arm can reach, so any pose of it stays in view
+        else:  # "pelvis_xy"
+            targets = kp[:, KEYPOINT_INDEX["pelvis"]] * np.array([1.0, 1.0, 0.0])
+        if spec.frame_arm:
+            # the sphere the arm can reach, so any pose of it stays in view
             reach = m.shape.upper_arm_length + m.shape.forearm_length
             local = _sphere(reach)
-        elif spec.follow == "pelvis_xy":
-            targets = pelvis * np.array([1.0, 1.0, 0.0])
-            local = kp - targets[:, None]
+            pad = float(np.max(m.shape.radii[_ARM_CONES]))
         else:
-            raise ValueError(f"{self.task.name}: unknown camera follow mode {spec.follow!r}")
-        base = fit_camera(local, *size, azimuth, spec.elevation_deg, margin, pad)
+            local = (first - targets[0])[None] + corners[:, None]
+            pad = float(np.max(m.shape.radii))
+        base = fit_camera(local, *size, azimuth, spec.elevation_deg, spec.margin, pad)
         self._cameras = base.shifted(targets)
 
     @property

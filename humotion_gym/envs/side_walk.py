@@ -1,4 +1,4 @@
-"""SideWalk-v0: fronto-parallel walking and jogging seen from the side."""
+"""SideWalk-v1: fronto-parallel walking and jogging seen from the side."""
 
 from __future__ import annotations
 
@@ -48,7 +48,7 @@ class SideWalkEnv(PoseTrackingEnv):
     """
 
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__(task="SideWalk-v0", **kwargs)
+        super().__init__(task="SideWalk-v1", **kwargs)
 
 
 SideWalkEnv.__doc__ = (

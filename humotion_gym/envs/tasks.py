@@ -19,29 +19,70 @@ from humotion_gym.body import KEYPOINT_INDEX, N_PARAMS, PARAM_INDEX, SAGITTAL_PA
 
 @dataclass(frozen=True)
 class CameraSpec:
-    """Where a task's camera stands.
+    """Where a task's camera stands: rules that use the first frame only.
+
+    Nothing here may depend on the episode after its first frame: the camera is
+    handed to the agent, so a camera fitted to the whole episode would tell
+    where the body goes. A static camera frames the initial pose swept through
+    ``travel_mm``, a box of root displacements fixed per task; a following
+    camera moves with a point the task gives the agent anyway.
 
     Attributes:
         azimuth_deg: Viewing direction about the vertical, relative to the
-            reference direction (the subject's heading at the first frame, or
-            the walking direction with ``reference="walk"``): 0 looks at the
-            subject's front, 90 at its right side.
+            subject's heading at the first frame: 0 looks at the subject's
+            front, 90 at its right side.
         elevation_deg: Height of the viewpoint above the horizontal.
         fov_deg: Vertical field of view.
-        reference: ``"heading"`` or ``"walk"``.
         follow: A keypoint the camera translates with, frame by frame, keeping
             it fixed in the image (``"r_shoulder"`` for the stabilised arm
             sequence, ``"pelvis_xy"`` for a camera that pans horizontally with
-            the walker), or None for a static camera framing the episode.
+            the walker), or None for a static camera. A followed point must be
+            set by parameters the task gives the agent (``fixed_params``).
         margin: Fraction of the image's half-size left free at each border.
+        travel_mm: ``(back, forward, right, left, down, up)``: how far, in mm,
+            the framing reaches beyond the initial pose along the initial
+            heading, across it and vertically. A static camera frames the
+            initial keypoints moved to every corner of that box; a following
+            camera frames the initial pose around the followed point, grown by
+            the box (limbs swing about it). Set per task from the training
+            split's root travel (see the task's documentation).
+        frame_arm: Frame the sphere the right arm can reach around the
+            shoulder (with the arm's own radius as padding), instead of the
+            initial pose.
     """
 
     azimuth_deg: float
     elevation_deg: float
     fov_deg: float
-    reference: str = "heading"
     follow: str | None = None
     margin: float = 0.1
+    travel_mm: tuple[float, float, float, float, float, float] = (0.0,) * 6
+    frame_arm: bool = False
+
+    def __post_init__(self) -> None:
+        if self.follow not in (None, "r_shoulder", "pelvis_xy"):
+            raise ValueError(f"CameraSpec.follow: unknown mode {self.follow!r}")
+        if len(self.travel_mm) != 6 or any(not v >= 0.0 for v in self.travel_mm):
+            raise ValueError("CameraSpec.travel_mm: expected six distances >= 0 (mm)")
+
+    def travel_corners(self, heading: float) -> NDArray[np.float64]:
+        """``(8, 3)`` world displacements of the travel box's corners for a heading.
+
+        The facing direction of heading ``h`` is ``(-sin h, cos h, 0)`` (the
+        body's convention), its right ``(cos h, sin h, 0)``.
+        """
+        back, forward, right, left, down, up = self.travel_mm
+        facing = np.array([-np.sin(heading), np.cos(heading), 0.0])
+        side = np.array([np.cos(heading), np.sin(heading), 0.0])
+        along = np.array([-back, forward])
+        across = np.array([-left, right])
+        vertical = np.array([-down, up])
+        a, c, v = np.meshgrid(along, across, vertical, indexing="ij")
+        return (
+            a.reshape(-1, 1) * facing
+            + c.reshape(-1, 1) * side
+            + v.reshape(-1, 1) * np.array([0.0, 0.0, 1.0])
+        )
 
 
 @dataclass(frozen=True)
@@ -49,7 +90,7 @@ class TaskSpec:
     """One tracking task.
 
     Attributes:
-        name: The id without namespace, e.g. ``"ArmTrack-v0"``.
+        name: The id without namespace, e.g. ``"ArmTrack-v1"``.
         free: The parameters the agent estimates; the rest follow the ground
             truth and are given to the agent in ``info["fixed_params"]``.
         error_keypoints: The keypoints the free parameters move; the error,
@@ -60,6 +101,15 @@ class TaskSpec:
         root_range_mm: Half-width of the action range of the root position
             around the episode's initial root position (free root only).
         description: One line for listings.
+        min_motion_mm: Episodes start only where the scored keypoints, taken
+            relative to ``motion_anchor``, move at least this far (mean over
+            the keypoints of the largest distance from their first position
+            within the episode): a task about tracking motion is not scored on
+            a limb that rests. 0 keeps every start.
+        motion_anchor: The keypoint motion is measured relative to.
+        observation: Overrides of :class:`~humotion_gym.observation.ObservationModel`
+            defaults for this task, as ``(name, value)`` pairs, chosen on the
+            training persons (see the task's documentation).
     """
 
     name: str
@@ -70,14 +120,21 @@ class TaskSpec:
     camera: CameraSpec
     root_range_mm: float = 2500.0
     description: str = ""
+    min_motion_mm: float = 0.0
+    motion_anchor: str = "pelvis"
+    observation: tuple[tuple[str, float], ...] = ()
 
     def __post_init__(self) -> None:
         unknown = [n for n in self.free if n not in PARAM_INDEX]
         unknown += [n for n in self.error_keypoints if n not in KEYPOINT_INDEX]
+        if self.motion_anchor not in KEYPOINT_INDEX:
+            unknown.append(self.motion_anchor)
         if unknown:
             raise ValueError(f"task {self.name}: unknown parameter or keypoint names {unknown}")
         if self.episode_frames < 1:
             raise ValueError(f"task {self.name}: episode_frames must be >= 1")
+        if not self.min_motion_mm >= 0.0:
+            raise ValueError(f"task {self.name}: min_motion_mm must be >= 0")
 
     @property
     def free_indices(self) -> NDArray[np.intp]:
@@ -103,39 +160,68 @@ _ALL_PARAMS = tuple(PARAM_INDEX)
 _WALK = ("walk",)
 _WALK_RUN = ("walk", "run")
 
+# Framing from the first frame (``CameraSpec.travel_mm``: back, forward, right,
+# left, down, up in mm). The boxes cover the root's travel over an episode in
+# most training episodes (``humotion-gym tasks --framing`` measures it on the
+# training split): BodyTrack's 30 frames of mixed activity, about the 75th
+# percentile of forward travel (1.5 m; runs and dashes go further and leave
+# the frame in part); WalkTrack's 60 frames of walking, about the 80th (2.8 m).
+BODY_TRAVEL_MM = (300.0, 1500.0, 300.0, 300.0, 200.0, 300.0)
+WALK_TRAVEL_MM = (0.0, 2800.0, 300.0, 300.0, 100.0, 100.0)
+# SideWalk's camera pans with the pelvis (the root is given); the box is the
+# swing of the limbs about it beyond the initial pose.
+SIDE_SWING_MM = (450.0, 450.0, 0.0, 0.0, 50.0, 100.0)
+# ArmTrack: the elbow and wrist must move this far relative to the shoulder
+# within an episode (see TaskSpec.min_motion_mm).
+ARM_MIN_MOTION_MM = 150.0
+# ArmTrack's likelihood: only two of the ten cones move, so the whole-body
+# likelihood's scale leaves the arm nearly unobserved; chosen by cross-validation
+# on training persons (``humotion-gym select``).
+ARM_OBSERVATION: tuple[tuple[str, float], ...] = ()
+
 ARM_TRACK = TaskSpec(
-    name="ArmTrack-v0",
+    name="ArmTrack-v1",
     free=("r_shoulder_x", "r_shoulder_y", "r_shoulder_z", "r_elbow"),
     error_keypoints=("r_elbow", "r_wrist"),
     labels=None,
     episode_frames=30,
-    camera=CameraSpec(azimuth_deg=20.0, elevation_deg=5.0, fov_deg=50.0, follow="r_shoulder"),
+    camera=CameraSpec(
+        azimuth_deg=20.0,
+        elevation_deg=5.0,
+        fov_deg=50.0,
+        follow="r_shoulder",
+        margin=0.04,
+        frame_arm=True,
+    ),  # fmt: skip
+    min_motion_mm=ARM_MIN_MOTION_MM,
+    motion_anchor="r_shoulder",
+    observation=ARM_OBSERVATION,
     description="right arm, shoulder held fixed in the image (Sidenbladh et al. 2002, Fig. 6)",
 )
 
 BODY_TRACK = TaskSpec(
-    name="BodyTrack-v0",
+    name="BodyTrack-v1",
     free=_ALL_PARAMS,
     error_keypoints=_ALL_KEYPOINTS,
     labels=None,
     episode_frames=30,
-    camera=CameraSpec(azimuth_deg=30.0, elevation_deg=10.0, fov_deg=45.0),
+    camera=CameraSpec(azimuth_deg=30.0, elevation_deg=10.0, fov_deg=45.0, travel_mm=BODY_TRAVEL_MM),
     description="whole body, mixed activities (Sidenbladh et al. 2002, Fig. 7)",
 )
 
 WALK_TRACK = TaskSpec(
-    name="WalkTrack-v0",
+    name="WalkTrack-v1",
     free=_ALL_PARAMS,
     error_keypoints=_ALL_KEYPOINTS,
     labels=_WALK,
     episode_frames=60,
-    camera=CameraSpec(azimuth_deg=30.0, elevation_deg=10.0, fov_deg=45.0, reference="walk"),
+    camera=CameraSpec(azimuth_deg=30.0, elevation_deg=10.0, fov_deg=45.0, travel_mm=WALK_TRAVEL_MM),
     root_range_mm=5000.0,
     description="walking, longer episodes (Ormoneit et al. 2005, Fig. 11)",
 )
 
 SIDE_WALK = TaskSpec(
-    name="SideWalk-v0",
+    name="SideWalk-v1",
     free=SAGITTAL_PARAMS,
     error_keypoints=(
         "r_knee",
@@ -150,8 +236,12 @@ SIDE_WALK = TaskSpec(
     labels=_WALK_RUN,
     episode_frames=60,
     camera=CameraSpec(
-        azimuth_deg=90.0, elevation_deg=0.0, fov_deg=45.0, reference="walk", follow="pelvis_xy"
-    ),
+        azimuth_deg=90.0,
+        elevation_deg=0.0,
+        fov_deg=45.0,
+        follow="pelvis_xy",
+        travel_mm=SIDE_SWING_MM,
+    ),  # fmt: skip
     description="fronto-parallel walking and jogging, side view (Pavlovic et al. 1999, Fig. 4)",
 )
 

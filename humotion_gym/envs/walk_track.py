@@ -1,4 +1,4 @@
-"""WalkTrack-v0: walking, longer episodes."""
+"""WalkTrack-v1: walking, longer episodes."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ class WalkTrackEnv(PoseTrackingEnv):
     ## Action Space
 
     ``Box(-1, 1, (25,), float32)`` in ``body.PARAM_NAMES`` order; joint angles
-    as in BodyTrack-v0, the root position over the episode's initial root
+    as in BodyTrack-v1, the root position over the episode's initial root
     position plus or minus 5,000 mm (a walk covers several metres).
 
     ## Observation Space
@@ -37,7 +37,7 @@ class WalkTrackEnv(PoseTrackingEnv):
     """
 
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__(task="WalkTrack-v0", **kwargs)
+        super().__init__(task="WalkTrack-v1", **kwargs)
 
 
 WalkTrackEnv.__doc__ = (

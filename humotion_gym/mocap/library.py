@@ -261,9 +261,13 @@ class MotionLibrary:
 
     Attributes:
         motions: The clips, in load order.
+        test_subjects: The subjects of the ``"test"`` split; None for the
+            project's held-out persons (:data:`TEST_SUBJECTS`). A validation
+            fold (:meth:`validation_fold`) names its own.
     """
 
     motions: tuple[Motion, ...]
+    test_subjects: frozenset[str] | None = None
 
     def __post_init__(self) -> None:
         ids = [m.clip_id for m in self.motions]
@@ -326,14 +330,47 @@ class MotionLibrary:
             and (datasets is None or m.dataset in datasets)
             and m.n_frames >= min_frames
         ]
-        return MotionLibrary(tuple(keep))
+        return MotionLibrary(tuple(keep), self.test_subjects)
+
+    @property
+    def held_out(self) -> frozenset[str]:
+        """The subjects of the ``"test"`` split."""
+        return TEST_SUBJECTS if self.test_subjects is None else self.test_subjects
 
     def split(self, which: str) -> MotionLibrary:
-        """The ``"train"`` or ``"test"`` clips (by subject; see ``TEST_SUBJECTS``)."""
+        """The ``"train"`` or ``"test"`` clips, by person (see :attr:`held_out`)."""
         if which not in ("train", "test"):
             raise ValueError(f"split: expected 'train' or 'test', got {which!r}")
         test = which == "test"
-        return MotionLibrary(tuple(m for m in self.motions if (m.subject in TEST_SUBJECTS) == test))
+        held = self.held_out
+        return MotionLibrary(
+            tuple(m for m in self.motions if (m.subject in held) == test), self.test_subjects
+        )
+
+    def validation_fold(self, subjects: Sequence[str]) -> MotionLibrary:
+        """The training split with ``subjects`` held out as its own test split.
+
+        Settings are chosen on such folds (cross-validation within the training
+        persons), never on the test persons: priors fit on the rest of the
+        training split and environments made with ``library=`` this fold track
+        the held-out training subjects.
+
+        Raises:
+            ValueError: If a subject is a test person or absent from the
+                training split.
+        """
+        train = self.split("train")
+        chosen = frozenset(subjects)
+        wrong = sorted(chosen & self.held_out)
+        if wrong:
+            raise ValueError(f"validation_fold: {wrong} are test persons, never used to choose")
+        missing = sorted(chosen - set(train.subjects))
+        if missing or not chosen:
+            raise ValueError(
+                f"validation_fold: subjects {missing or '(none)'} are not in the training split "
+                f"(its subjects: {train.subjects})"
+            )
+        return MotionLibrary(train.motions, test_subjects=chosen)
 
     def table(self) -> str:
         """A text table: one row per clip, then totals."""

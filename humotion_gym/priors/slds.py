@@ -8,7 +8,7 @@ angles at every frame:
     x_t = A(s_t) x_{t-1} + b(s_t) + v_t,  v_t ~ N(0, Q(s_t))   (eq. 1)
     y_t = C x_t + w_t,                    w_t ~ N(0, R)        (eq. 2)
 
-with ``y_t`` the task's free angles (for SideWalk-v0 the eight sagittal angles
+with ``y_t`` the task's free angles (for SideWalk-v1 the eight sagittal angles
 ``r_hip_x, r_knee, l_hip_x, l_knee, r_shoulder_x, r_elbow, l_shoulder_x, l_elbow``).
 
 State: second order. ``x_t = [theta_t, theta_{t-1}]`` and ``C = [I 0]``: each
@@ -78,7 +78,7 @@ from humotion_gym.priors.slds_inference import (
 FloatArray = NDArray[np.float64]
 NAME = "slds"
 
-#: The paper's model: the sagittal angles of SideWalk-v0 (used when ``free`` is None).
+#: The paper's model: the sagittal angles of SideWalk-v1 (used when ``free`` is None).
 SAGITTAL: tuple[str, ...] = SAGITTAL_PARAMS
 SAGITTAL_INDEX: NDArray[np.intp] = np.array([PARAM_INDEX[n] for n in SAGITTAL], dtype=np.intp)
 #: Switch states per activity model.

@@ -23,13 +23,13 @@ class RandomPolicy:
 
 def test_registry_and_unknown_agent():
     assert "pf-cv" in AGENTS
-    env = gym.make("humotion_gym/ArmTrack-v0")
+    env = gym.make("humotion_gym/ArmTrack-v1")
     with pytest.raises(KeyError, match="unknown agent"):
         make("pf-nothing", env)
 
 
 def test_particle_filter_agent_tracks_end_to_end_on_synthetic_data():
-    env = gym.make("humotion_gym/SideWalk-v0", terminate_on_lost=False)
+    env = gym.make("humotion_gym/SideWalk-v1", terminate_on_lost=False)
     agent = make("pf-cv", env, n_particles=200, seed=0)
     result = run_episode(agent, env, seed=0)
     assert len(result.errors_mm) == 60 and np.isfinite(result.mean_error_mm)
@@ -39,14 +39,14 @@ def test_particle_filter_agent_tracks_end_to_end_on_synthetic_data():
 
 
 def test_agent_runs_are_deterministic_by_seed():
-    env = gym.make("humotion_gym/ArmTrack-v0", terminate_on_lost=False)
+    env = gym.make("humotion_gym/ArmTrack-v1", terminate_on_lost=False)
     a = evaluate(make("pf-cv", env, n_particles=100, seed=3), env, 2, seed=5)
     b = evaluate(make("pf-cv", env, n_particles=100, seed=3), env, 2, seed=5)
     assert [r.errors_mm for r in a] == [r.errors_mm for r in b]
 
 
 def test_agent_predict_needs_info_first():
-    env = gym.make("humotion_gym/ArmTrack-v0")
+    env = gym.make("humotion_gym/ArmTrack-v1")
     agent = make("pf-cv", env, n_particles=10)
     obs, _ = env.reset(seed=0)
     with pytest.raises(RuntimeError, match="observe_info"):
@@ -54,7 +54,7 @@ def test_agent_predict_needs_info_first():
 
 
 def test_summary_and_statistics():
-    env = gym.make("humotion_gym/ArmTrack-v0", terminate_on_lost=False)
+    env = gym.make("humotion_gym/ArmTrack-v1", terminate_on_lost=False)
     results = evaluate(RandomPolicy(env.action_space), env, 3, seed=0)
     s = summarize(results)
     assert (
@@ -73,7 +73,7 @@ def test_cli_track_and_render(tmp_path, capsys):
             [
                 "track",
                 "--task",
-                "ArmTrack-v0",
+                "ArmTrack-v1",
                 "--agent",
                 "pf-cv",
                 "--particles",
@@ -88,7 +88,7 @@ def test_cli_track_and_render(tmp_path, capsys):
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["summary"]["episodes"] == 2 and len(out["episodes"][0]["errors_mm"]) == 30
     video = tmp_path / "clip.mp4"
-    assert main(["render", "--task", "BodyTrack-v0", "--frames", "12", "--out", str(video)]) == 0
+    assert main(["render", "--task", "BodyTrack-v1", "--frames", "12", "--out", str(video)]) == 0
     assert video.stat().st_size > 0 and video.with_suffix(".png").is_file()
 
 
@@ -104,7 +104,7 @@ def test_cli_synth_writes_a_bvh_the_parser_reads_back(tmp_path, prior):
 
 def test_every_agent_is_made_or_refuses_with_a_reason():
     for name in AGENTS:
-        for task in ("ArmTrack-v0", "SideWalk-v0"):
+        for task in ("ArmTrack-v1", "SideWalk-v1"):
             env = gym.make(f"humotion_gym/{task}")
             try:
                 agent = make(name, env, n_particles=20)

@@ -36,14 +36,14 @@ def rollout(env_id, seed, steps=8, actions_seed=0, **kwargs):
 
 def test_all_four_tasks_are_registered():
     assert IDS == [
-        f"humotion_gym/{n}" for n in ("ArmTrack-v0", "BodyTrack-v0", "WalkTrack-v0", "SideWalk-v0")
+        f"humotion_gym/{n}" for n in ("ArmTrack-v1", "BodyTrack-v1", "WalkTrack-v1", "SideWalk-v1")
     ]
     for env_id in IDS:
         assert gym.spec(env_id).entry_point == gym.spec(env_id.split("/")[1]).entry_point
 
 
 def test_module_colon_id_works_from_a_fresh_interpreter():
-    code = "import gymnasium as gym; e = gym.make('humotion_gym:ArmTrack-v0'); print(e.reset(seed=0)[0].shape)"
+    code = "import gymnasium as gym; e = gym.make('humotion_gym:ArmTrack-v1'); print(e.reset(seed=0)[0].shape)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "(128, 128, 3)"
 
@@ -85,11 +85,11 @@ def test_determinism(env_id):
 def test_seeded_reset_after_other_episodes_repeats_a_fresh_env():
     # The noise bank (and everything else) is redrawn at a seeded reset: an env
     # that has run other episodes replays a fresh env's episode exactly.
-    used = gym.make("humotion_gym/BodyTrack-v0").unwrapped
+    used = gym.make("humotion_gym/BodyTrack-v1").unwrapped
     used.reset(seed=11)
     for _ in range(3):
         used.reset()
-    fresh = gym.make("humotion_gym/BodyTrack-v0").unwrapped
+    fresh = gym.make("humotion_gym/BodyTrack-v1").unwrapped
     action = np.zeros(used.action_space.shape, np.float32)
     for env in (used, fresh):
         env.reset(seed=5)
@@ -144,7 +144,7 @@ def test_true_pose_gives_full_reward_and_episode_length(env_id):
 
 
 def test_track_lost_terminates_and_can_be_switched_off():
-    env = gym.make("humotion_gym/BodyTrack-v0").unwrapped
+    env = gym.make("humotion_gym/BodyTrack-v1").unwrapped
     env.reset(seed=0)
     bad = np.ones(env.action_space.shape, dtype=np.float32)
     for k in range(1, 10):  # noqa: B007  (k is read after the loop)
@@ -152,7 +152,7 @@ def test_track_lost_terminates_and_can_be_switched_off():
         if term:
             break
     assert term and info["lost"] and k == env.lost_patience
-    env = gym.make("humotion_gym/BodyTrack-v0", terminate_on_lost=False).unwrapped
+    env = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False).unwrapped
     env.reset(seed=0)
     for _ in range(10):
         _, _, term, _, info = env.step(bad)
@@ -164,14 +164,14 @@ def test_track_lost_terminates_and_can_be_switched_off():
     [(np.full(4, np.nan), "finite"), (np.full(4, np.inf), "finite"), (np.zeros(5), "shape")],
 )
 def test_bad_actions_raise_value_errors(bad, match):
-    env = gym.make("humotion_gym/ArmTrack-v0").unwrapped
+    env = gym.make("humotion_gym/ArmTrack-v1").unwrapped
     env.reset(seed=0)
     with pytest.raises(ValueError, match=match):
         env.step(bad)
 
 
 def test_info_gives_what_the_agent_needs_and_never_the_truth():
-    env = gym.make("humotion_gym/ArmTrack-v0").unwrapped
+    env = gym.make("humotion_gym/ArmTrack-v1").unwrapped
     obs, info = env.reset(seed=0)
     assert info["initial_pose"].shape == (25,) and info["fps"] == 30.0
     assert info["fixed_params"].shape == (21,)
@@ -188,7 +188,7 @@ def test_info_gives_what_the_agent_needs_and_never_the_truth():
 
 
 def test_pose_action_round_trip():
-    env = gym.make("humotion_gym/BodyTrack-v0").unwrapped
+    env = gym.make("humotion_gym/BodyTrack-v1").unwrapped
     env.reset(seed=4)
     truth = env._truth()
     pose = env.action_to_pose(env.pose_to_action(truth))
@@ -200,7 +200,7 @@ def test_pose_action_round_trip():
 
 
 def test_options_choose_clip_and_start():
-    env = gym.make("humotion_gym/WalkTrack-v0").unwrapped
+    env = gym.make("humotion_gym/WalkTrack-v1").unwrapped
     _, info = env.reset(seed=0, options={"clip_id": "synthetic/walk-06", "start": 7})
     assert info["clip_id"] == "synthetic/walk-06" and info["start_frame"] == 7
     with pytest.raises(ValueError, match="start"):
@@ -208,7 +208,7 @@ def test_options_choose_clip_and_start():
 
 
 def test_render_overlays_the_estimate():
-    env = gym.make("humotion_gym/BodyTrack-v0", render_mode="rgb_array")
+    env = gym.make("humotion_gym/BodyTrack-v1", render_mode="rgb_array")
     obs, _ = env.reset(seed=0)
     before = env.render()
     assert np.array_equal(before, obs)
@@ -218,7 +218,7 @@ def test_render_overlays_the_estimate():
 
 
 def test_vector_env_async_runs():
-    envs = gym.make_vec("humotion_gym/ArmTrack-v0", num_envs=4, vectorization_mode="async")
+    envs = gym.make_vec("humotion_gym/ArmTrack-v1", num_envs=4, vectorization_mode="async")
     obs, _ = envs.reset(seed=0)
     assert obs.shape == (4, 128, 128, 3)
     for _ in range(3):
@@ -232,7 +232,7 @@ def test_record_video_writes_a_file(tmp_path):
     from gymnasium.wrappers import RecordVideo
 
     folder = tmp_path / "videos"  # a new folder: RecordVideo warns about an existing one
-    env = RecordVideo(gym.make("humotion_gym/ArmTrack-v0", render_mode="rgb_array"), str(folder))
+    env = RecordVideo(gym.make("humotion_gym/ArmTrack-v1", render_mode="rgb_array"), str(folder))
     env.reset(seed=0)
     for _ in range(5):
         env.step(env.action_space.sample())
@@ -241,7 +241,7 @@ def test_record_video_writes_a_file(tmp_path):
 
 
 def test_env_pickles():
-    env = gym.make("humotion_gym/SideWalk-v0").unwrapped
+    env = gym.make("humotion_gym/SideWalk-v1").unwrapped
     env.reset(seed=0)
     clone = pickle.loads(pickle.dumps(env))
     a = np.zeros(8, dtype=np.float32)
