@@ -46,6 +46,7 @@ states per activity, 20 EM iterations):
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import time
 from collections.abc import Sequence
@@ -57,7 +58,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicSpline, make_interp_spline
 
-from humotion_gym.body import PARAM_INDEX, PARAM_LOWER, PARAM_NAMES, PARAM_UPPER, BodyShape
+from humotion_gym.body import (
+    PARAM_INDEX,
+    PARAM_LOWER,
+    PARAM_NAMES,
+    PARAM_UPPER,
+    SAGITTAL_PARAMS,
+    BodyShape,
+)
 from humotion_gym.mocap.motion import Motion
 from humotion_gym.priors import slds
 from humotion_gym.priors.slds_inference import SLDSParams, combine, decode, smooth, smooth_mean
@@ -66,17 +74,31 @@ FloatArray = NDArray[np.float64]
 
 #: Standard deviation of the noise added to the test sequences (rad), about 2 deg.
 NOISE_STD = float(np.radians(2.0))
-#: Angles the classifier sees: the sagittal hip and knee angles. The arms are
-#: left out because the held-out Bandai-Namco style (masculine) swings them in
-#: walking as the other styles do only in running: with the eight sagittal
-#: angles of SideWalk-v0 about a fifth of the held-out walking frames are
-#: decoded as running (12.4% error overall, seed 0) against 2.4% with the legs.
-CLASSIFY_PARAMS: tuple[str, ...] = ("r_hip_x", "r_knee", "l_hip_x", "l_knee")
-CLASSIFY_INDEX: NDArray[np.intp] = np.array([PARAM_INDEX[n] for n in CLASSIFY_PARAMS], np.intp)
-#: Between-activity switching probability per frame used for classification: a
-#: stickier switch than the tracking prior's, which keeps short stretches of a
-#: style that resembles the other activity from flipping the label.
+#: Activities the classifier tells apart.
+CLASSIFY_LABELS: tuple[str, ...] = ("walk", "run")
+#: Labels folded into them: Bandai-Namco set 1's ``dash`` (a sprint, with a
+#: flight phase like every run) is running.
+LABEL_ALIASES: dict[str, str] = {"dash": "run"}
+#: Leg angles: the sagittal hip and knee angles.
+LEG_PARAMS: tuple[str, ...] = ("r_hip_x", "r_knee", "l_hip_x", "l_knee")
+#: Candidate parameter subsets of :func:`select_classifier_settings`.
+CANDIDATE_PARAMS: dict[str, tuple[str, ...]] = {
+    "legs": LEG_PARAMS,
+    "legs+shoulders": (*LEG_PARAMS, "r_shoulder_x", "l_shoulder_x"),
+    "sagittal": SAGITTAL_PARAMS,
+}
+#: Candidate between-activity switching probabilities per frame.
+CANDIDATE_SWITCH_PROBS: tuple[float, ...] = (1e-2, 1e-3, 1e-4, 1e-5)
+#: The settings used before they were chosen by cross-validation: picked after
+#: looking at held-out results (kept only to compare with, never as a default).
+OLD_CLASSIFY_PARAMS: tuple[str, ...] = LEG_PARAMS
+OLD_CLASSIFY_SWITCH_PROB = 1e-3
+#: Angles the classifier sees and its between-activity switching probability
+#: per frame: chosen by leave-one-group-out cross-validation on the training
+#: split (``humotion-gym slds select --data-dir ../shared/mocap``), CHOSEN_COMMENT.
+CLASSIFY_PARAMS: tuple[str, ...] = LEG_PARAMS
 CLASSIFY_SWITCH_PROB = 1e-3
+CLASSIFY_INDEX: NDArray[np.intp] = np.array([PARAM_INDEX[n] for n in CLASSIFY_PARAMS], np.intp)
 #: Frames replaced by the B-spline on each side of a junction between two clips.
 BLEND_FRAMES = 5
 #: Clips per test sequence: drawn uniformly from this inclusive range.
@@ -331,6 +353,628 @@ def run_classification(
         error, int(truth.shape[0]), len(sequences), per_label, sequences, decoded, switches,
         model, fitted_s, decode_s, costs,
     )  # fmt: skip
+
+
+# ---------------------------------------------------------------------------
+# Choosing the classifier's settings by cross-validation on the training split
+# ---------------------------------------------------------------------------
+
+
+def activity_clips(
+    motions: Sequence[Motion],
+    labels: Sequence[str] = CLASSIFY_LABELS,
+    aliases: dict[str, str] | None = None,
+) -> list[Motion]:
+    """The clips of the classified activities, with aliased labels folded in.
+
+    Args:
+        motions: Any clips.
+        labels: The activities kept.
+        aliases: Label renames applied first (:data:`LABEL_ALIASES` when None:
+            Bandai-Namco set 1's ``dash`` is running).
+
+    Returns:
+        The clips whose (renamed) label is in ``labels``, in their order.
+    """
+    aliases = LABEL_ALIASES if aliases is None else aliases
+    out = []
+    for m in motions:
+        label = aliases.get(m.label, m.label)
+        if label in labels:
+            out.append(m if label == m.label else dataclasses.replace(m, label=label))
+    return out
+
+
+def check_training_only(motions: Sequence[Motion], what: str = "motions") -> None:
+    """Refuse any clip of a held-out test person (``library.TEST_SUBJECTS``).
+
+    Raises:
+        ValueError: Naming the first such clip and its subject.
+    """
+    from humotion_gym.mocap.library import TEST_SUBJECTS
+
+    for m in motions:
+        if m.subject in TEST_SUBJECTS:
+            raise ValueError(
+                f"{what}: clip {m.clip_id!r} is of the test subject {m.subject!r}; settings "
+                "must be chosen on the training split only (MotionLibrary.split('train'))"
+            )
+
+
+def cv_groups(motions: Sequence[Motion]) -> list[str | None]:
+    """The cross-validation group of every clip (None: in every fold's training data).
+
+    A Bandai-Namco style (subject ``"bandai-2/masculine"``...) is a group: the
+    same actors perform every style, so holding one out is "style held out,
+    same performers". Any other subject is a group when it has clips of two or
+    more activities (a held-out person); a subject with one activity only
+    (CMU subject 7's walks) always trains.
+    """
+    labels: dict[str, set[str]] = {}
+    for m in motions:
+        labels.setdefault(m.subject, set()).add(m.label)
+    out: list[str | None] = []
+    for m in motions:
+        bandai = m.dataset.startswith("bandai")
+        out.append(m.subject if bandai or len(labels[m.subject]) > 1 else None)
+    return out
+
+
+def group_kind(group: str) -> str:
+    """How a held-out group relates to the training data, in words."""
+    if group.startswith("bandai"):
+        return "style held out, same performers"
+    return "person held out"
+
+
+@dataclass(frozen=True)
+class ClassifierSetting:
+    """One candidate setting of the classifier.
+
+    Attributes:
+        params: The modelled parameter names.
+        switch_prob: Between-activity switching probability per frame.
+        name: Short name of the parameter subset.
+    """
+
+    params: tuple[str, ...]
+    switch_prob: float
+    name: str = ""
+
+    def label(self) -> str:
+        """``"legs, 1e-03"``."""
+        return f"{self.name or '+'.join(self.params)}, {self.switch_prob:.0e}"
+
+
+@dataclass(frozen=True, eq=False)
+class SettingScores:
+    """Misclassified frames of a grid of settings on one set of test sequences.
+
+    Attributes:
+        labels: The activities.
+        wrong: ``(P, W, L)`` misclassified frames per parameter subset, switch
+            probability and true label.
+        frames: ``(L,)`` frames of each true label.
+        n_sequences: Test sequences.
+        n_clips: Test clips.
+    """
+
+    labels: tuple[str, ...]
+    wrong: NDArray[np.int64]
+    frames: NDArray[np.int64]
+    n_sequences: int
+    n_clips: int
+
+    @property
+    def error(self) -> FloatArray:
+        """``(P, W)`` footnote 5's error."""
+        return self.wrong.sum(axis=-1) / max(int(self.frames.sum()), 1)
+
+    @property
+    def per_label_error(self) -> FloatArray:
+        """``(P, W, L)`` error among the frames of each true label (NaN: no frame)."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(self.frames > 0, self.wrong / np.maximum(self.frames, 1), np.nan)
+
+
+def _test_sequences_all_params(
+    test: Sequence[Motion], rng: np.random.Generator, noise_std: float,
+    clips_per_sequence: tuple[int, int],
+) -> list[TestSequence]:  # fmt: skip
+    """Footnote-4 sequences of all 25 parameters, to be sliced per subset.
+
+    Noise is drawn for every parameter, so a subset's sequences do not depend
+    on which other subsets are scored with it.
+    """
+    return build_test_sequences(
+        test, np.arange(len(PARAM_NAMES)), rng, clips_per_sequence=clips_per_sequence,
+        noise_std=noise_std,
+    )  # fmt: skip
+
+
+def score_settings(
+    train: Sequence[Motion],
+    tests: Sequence[Sequence[Motion]],
+    param_sets: Sequence[Sequence[str]],
+    switch_probs: Sequence[float],
+    seed: int,
+    labels: Sequence[str] = CLASSIFY_LABELS,
+    n_states: int = slds.N_STATES,
+    n_iter: int = slds.N_ITER,
+    noise_std: float = NOISE_STD,
+    clips_per_sequence: tuple[int, int] = CLIPS_PER_SEQUENCE,
+) -> list[SettingScores]:
+    """Learn once per parameter subset, decode every test set at every switch probability.
+
+    Each activity's SLDS is fitted once per parameter subset (EM seeded by
+    ``[seed, 1]``, the same for every subset); the switch probability only
+    joins the fitted models (:func:`~humotion_gym.priors.slds_inference.combine`),
+    so it costs a decode, not a fit. Each test set's footnote-4 sequences are
+    drawn once (seeded by ``[seed, 2, k]``) and shared by every setting.
+
+    Args:
+        train: Training clips with the activity labels.
+        tests: Test sets; clips whose label is not in ``labels`` are dropped.
+        param_sets: Parameter subsets (names of ``humotion_gym.body.PARAM_NAMES``).
+        switch_probs: Switching probabilities.
+        seed: Seed of the fits and test sequences.
+        labels: The activities.
+        n_states: Switch states per activity.
+        n_iter: EM iterations per activity.
+        noise_std: Test noise (rad), known to the decoder.
+        clips_per_sequence: Clips per test sequence (inclusive range).
+
+    Returns:
+        One :class:`SettingScores` per test set.
+
+    Raises:
+        ValueError: If a test set has no clip of the labels.
+    """
+    labels = tuple(labels)
+    test_sets = [[m for m in t if m.label in labels] for t in tests]
+    for k, t in enumerate(test_sets):
+        if not t:
+            raise ValueError(f"score_settings: test set {k} has no clip labelled {labels}")
+    seqs = [
+        _test_sequences_all_params(t, np.random.default_rng([seed, 2, k]), noise_std,
+                                   clips_per_sequence)
+        for k, t in enumerate(test_sets)
+    ]  # fmt: skip
+    code = {lab: i for i, lab in enumerate(labels)}
+    shape = (len(param_sets), len(switch_probs), len(labels))
+    wrong = [np.zeros(shape, dtype=np.int64) for _ in tests]
+    for p, names in enumerate(param_sets):
+        idx = _indices(names)
+        models = [
+            slds.fit_activity(
+                [m for m in train if m.label == lab], idx, np.random.default_rng([seed, 1]),
+                n_states=n_states, n_iter=n_iter, label=lab,
+            ).params
+            for lab in labels
+        ]  # fmt: skip
+        for k, seq_set in enumerate(seqs):
+            sliced = [dataclasses.replace(s, angles=s.angles[:, idx], clean=s.clean[:, idx])
+                      for s in seq_set]  # fmt: skip
+            truth = np.array([code[v] for v in np.concatenate([s.truth for s in sliced])])
+            for w, prob in enumerate(switch_probs):
+                _, decoded, _ = classify(combine(models, prob), sliced, noise_std)
+                bad = np.concatenate(decoded) != np.array(labels)[truth]
+                wrong[k][p, w] = np.bincount(truth[bad], minlength=len(labels))
+    out = []
+    for k, seq_set in enumerate(seqs):
+        truth = np.concatenate([s.truth for s in seq_set])
+        frames = np.array([np.sum(truth == lab) for lab in labels], dtype=np.int64)
+        out.append(SettingScores(labels, wrong[k], frames, len(seq_set), len(test_sets[k])))
+    return out
+
+
+# Clips of a cross-validation run, set before forking its worker processes.
+_POOL_MOTIONS: list[Motion] = []
+
+
+def _set_pool_motions(motions: list[Motion]) -> None:
+    global _POOL_MOTIONS
+    _POOL_MOTIONS = motions
+
+
+def _cv_fold(
+    groups: list[str | None], held: str, param_sets: list[tuple[str, ...]],
+    switch_probs: list[float], seed: int, options: dict[str, Any],
+) -> SettingScores:  # fmt: skip
+    train = [m for m, g in zip(_POOL_MOTIONS, groups, strict=True) if g != held]
+    test = [m for m, g in zip(_POOL_MOTIONS, groups, strict=True) if g == held]
+    return score_settings(train, [test], param_sets, switch_probs, seed, **options)[0]
+
+
+@dataclass(frozen=True, eq=False)
+class SelectionResult:
+    """Leave-one-group-out cross-validation of the classifier's settings.
+
+    Attributes:
+        settings: The candidates, in tie-breaking order (simplest first).
+        groups: The held-out groups, one fold each.
+        fold_scores: Each fold's :class:`SettingScores` (settings flattened to
+            ``param_sets x switch_probs``).
+        cv_error: ``(K,)`` misclassified frames over all folds' frames, per setting.
+        mean_fold_error: ``(K,)`` unweighted mean of the folds' errors.
+        per_label_error: ``(K, L)`` pooled error per true label.
+        chosen: Index of the chosen setting.
+        n_train_clips: Clips cross-validated over.
+        seconds: Wall time.
+    """
+
+    settings: list[ClassifierSetting]
+    groups: list[str]
+    fold_scores: list[SettingScores]
+    cv_error: FloatArray
+    mean_fold_error: FloatArray
+    per_label_error: FloatArray
+    chosen: int
+    n_train_clips: int
+    seconds: float = 0.0
+
+    @property
+    def best(self) -> ClassifierSetting:
+        """The chosen setting."""
+        return self.settings[self.chosen]
+
+    def summary(self) -> dict[str, Any]:
+        """The numbers as a JSON-ready dict."""
+        labels = self.fold_scores[0].labels
+        n_probs = len({s.switch_prob for s in self.settings})
+        return {
+            "chosen": {"params": list(self.best.params), "switch_prob": self.best.switch_prob,
+                       "name": self.best.name,
+                       "cv_error": round(float(self.cv_error[self.chosen]), 5)},
+            "settings": [
+                {"name": s.name, "params": list(s.params), "switch_prob": s.switch_prob,
+                 "cv_error": round(float(e), 5), "mean_fold_error": round(float(f), 5),
+                 "per_label_error": dict(zip(labels, np.round(pl, 5).tolist(), strict=True))}
+                for s, e, f, pl in zip(self.settings, self.cv_error, self.mean_fold_error,
+                                       self.per_label_error, strict=True)
+            ],
+            "folds": [
+                {"group": g, "kind": group_kind(g), "frames": int(sc.frames.sum()),
+                 "sequences": sc.n_sequences, "clips": sc.n_clips,
+                 "error": {s.label(): round(float(e), 5) for s, e in
+                           zip(self.settings, sc.error.reshape(-1), strict=True)}}
+                for g, sc in zip(self.groups, self.fold_scores, strict=True)
+            ],
+            "n_train_clips": self.n_train_clips,
+            "cv_frames": int(sum(sc.frames.sum() for sc in self.fold_scores)),
+            "n_switch_probs": n_probs,
+            "seconds": round(self.seconds, 1),
+        }  # fmt: skip
+
+    def table(self) -> str:
+        """The candidates and their cross-validation errors, as text."""
+        labels = self.fold_scores[0].labels
+        frames = int(sum(sc.frames.sum() for sc in self.fold_scores))
+        seqs = sum(sc.n_sequences for sc in self.fold_scores)
+        head = (f"{'params':16s} {'switch':>7s} {'CV error':>9s} {'fold mean':>9s} "
+                + " ".join(f"{lab:>7s}" for lab in labels))  # fmt: skip
+        lines = [
+            f"leave-one-group-out CV on {self.n_train_clips} training clips, {len(self.groups)} "
+            f"folds, {frames} frames in {seqs} sequences (no test person):",
+            head,
+            "-" * len(head),
+        ]
+        for k, (s, e, f, pl) in enumerate(
+            zip(self.settings, self.cv_error, self.mean_fold_error, self.per_label_error,
+                strict=True)
+        ):  # fmt: skip
+            mark = "  <- chosen" if k == self.chosen else ""
+            lines.append(
+                f"{s.name:16s} {s.switch_prob:7.0e} {100 * e:8.2f}% {100 * f:8.2f}% "
+                + " ".join(f"{100 * v:6.2f}%" for v in pl)
+                + mark
+            )
+        lines.append("folds: " + ", ".join(
+            f"{g} ({int(sc.frames.sum())} frames)" for g, sc in zip(self.groups, self.fold_scores,
+                                                                    strict=True)))  # fmt: skip
+        return "\n".join(lines)
+
+
+def select_classifier_settings(
+    train_motions: Sequence[Motion],
+    rng: np.random.Generator,
+    param_sets: dict[str, Sequence[str]] | None = None,
+    switch_probs: Sequence[float] = CANDIDATE_SWITCH_PROBS,
+    n_states: int = slds.N_STATES,
+    n_iter: int = slds.N_ITER,
+    noise_std: float = NOISE_STD,
+    jobs: int = 1,
+    log: Any = None,
+) -> SelectionResult:
+    """Choose the parameter subset and switch probability by leave-one-group-out CV.
+
+    Only training clips are used (a clip of a test subject raises). The clips
+    of :data:`CLASSIFY_LABELS` (with :data:`LABEL_ALIASES` folded in) are
+    grouped by :func:`cv_groups`; every fold trains on all other clips and
+    decodes footnote-4 sequences of the held-out group's clips
+    (:func:`score_settings`: one fit per subset and fold, the switch
+    probability varied at decode time). A setting's CV error is its
+    misclassified frames over all folds' frames; the chosen setting has the
+    lowest, ties going to the simpler one: fewer parameters first, then the
+    earlier switch probability in ``switch_probs``.
+
+    Args:
+        train_motions: Training clips (any labels; the others are ignored).
+        rng: Generator: each fold's seed is drawn from it.
+        param_sets: Named parameter subsets (:data:`CANDIDATE_PARAMS` when None).
+        switch_probs: Candidate switching probabilities.
+        n_states: Switch states per activity.
+        n_iter: EM iterations per activity.
+        noise_std: Test noise (rad).
+        jobs: Folds run in this many processes (the result does not depend on it).
+        log: Called with a line of progress after each fold (None: silent).
+
+    Raises:
+        ValueError: If a clip is of a test subject, if there are fewer than two
+            groups, or if a candidate is malformed.
+    """
+    check_training_only(train_motions, "select_classifier_settings: train_motions")
+    param_sets = dict(CANDIDATE_PARAMS if param_sets is None else param_sets)
+    if not param_sets or not switch_probs:
+        raise ValueError(
+            "select_classifier_settings: param_sets and switch_probs must be non-empty"
+        )
+    for name, names in param_sets.items():
+        _indices(names)
+        if not names:
+            raise ValueError(f"select_classifier_settings: param_sets[{name!r}] is empty")
+    probs = [float(p) for p in switch_probs]
+    if any(not 0.0 < p < 1.0 for p in probs):
+        raise ValueError(f"select_classifier_settings: switch_probs must be in (0, 1), got {probs}")
+    if jobs < 1:
+        raise ValueError(f"select_classifier_settings: jobs must be >= 1, got {jobs}")
+    names_sorted = sorted(param_sets, key=lambda n: (len(param_sets[n]), list(param_sets).index(n)))
+    sets = [tuple(param_sets[n]) for n in names_sorted]
+    motions = activity_clips(train_motions)
+    groups = cv_groups(motions)
+    held = sorted({g for g in groups if g is not None})
+    if len(held) < 2:
+        raise ValueError(
+            f"select_classifier_settings: need at least two CV groups, got {held} (a Bandai-Namco "
+            "style, or a person with both walking and running)"
+        )
+    seeds = rng.integers(0, 2**62, size=len(held))
+    options = {"n_states": n_states, "n_iter": n_iter, "noise_std": noise_std}
+    start = time.perf_counter()
+    scores: list[SettingScores] = []
+    if jobs == 1:
+        _set_pool_motions(motions)
+        for g, s in zip(held, seeds, strict=True):
+            scores.append(_cv_fold(groups, g, sets, probs, int(s), options))
+            if log is not None:
+                log(f"fold {len(scores)}/{len(held)} {g}: {time.perf_counter() - start:.0f} s")
+    else:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        ctx = multiprocessing.get_context("fork")
+        with ProcessPoolExecutor(jobs, ctx, _set_pool_motions, (motions,)) as pool:
+            futures = [pool.submit(_cv_fold, groups, g, sets, probs, int(s), options)
+                       for g, s in zip(held, seeds, strict=True)]  # fmt: skip
+            for g, fut in zip(held, futures, strict=True):
+                scores.append(fut.result())
+                if log is not None:
+                    log(f"fold {len(scores)}/{len(held)} {g}: {time.perf_counter() - start:.0f} s")
+    _set_pool_motions([])
+    settings = [
+        ClassifierSetting(sets[p], probs[w], names_sorted[p])
+        for p in range(len(sets)) for w in range(len(probs))
+    ]  # fmt: skip
+    wrong = np.sum([sc.wrong for sc in scores], axis=0).reshape(len(settings), -1)
+    frames = np.sum([sc.frames for sc in scores], axis=0)
+    cv_error = wrong.sum(axis=1) / max(int(frames.sum()), 1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        per_label = np.where(frames > 0, wrong / np.maximum(frames, 1), np.nan)
+    fold_mean = np.mean([sc.error.reshape(-1) for sc in scores], axis=0)
+    chosen = int(np.argmin(cv_error))  # the first minimum: the simplest tied setting
+    return SelectionResult(
+        settings, held, scores, cv_error, fold_mean, per_label, chosen, len(motions),
+        time.perf_counter() - start,
+    )  # fmt: skip
+
+
+def _score_job(
+    train_ids: list[int], test_ids: list[list[int]], param_sets: list[tuple[str, ...]],
+    switch_probs: list[float], seed: int, options: dict[str, Any],
+) -> list[SettingScores]:  # fmt: skip
+    train = [_POOL_MOTIONS[i] for i in train_ids]
+    tests = [[_POOL_MOTIONS[i] for i in ids] for ids in test_ids]
+    return score_settings(train, tests, param_sets, switch_probs, seed, **options)
+
+
+def _run_jobs(
+    motions: list[Motion], jobs_args: list[tuple[Any, ...]], jobs: int, log: Any,
+) -> list[list[SettingScores]]:  # fmt: skip
+    """Run :func:`_score_job` on each argument tuple, in ``jobs`` forked processes."""
+    start = time.perf_counter()
+    out: list[list[SettingScores]] = []
+    _set_pool_motions(motions)
+    try:
+        if jobs == 1:
+            for a in jobs_args:
+                out.append(_score_job(*a))
+                if log is not None:
+                    log(f"fit {len(out)}/{len(jobs_args)}: {time.perf_counter() - start:.0f} s")
+        else:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+
+            ctx = multiprocessing.get_context("fork")
+            with ProcessPoolExecutor(jobs, ctx, _set_pool_motions, (motions,)) as pool:
+                for fut in [pool.submit(_score_job, *a) for a in jobs_args]:
+                    out.append(fut.result())
+                    if log is not None:
+                        log(f"fit {len(out)}/{len(jobs_args)}: {time.perf_counter() - start:.0f} s")
+    finally:
+        _set_pool_motions([])
+    return out
+
+
+@dataclass(frozen=True)
+class SplitRow:
+    """The classification error of one setting on one train/test split.
+
+    Attributes:
+        split: The held-out part (``"bandai-2/masculine"``, ``"cmu-02 + cmu-03"``...).
+        kind: ``"style held out, same performers"`` or ``"person held out"``.
+        setting_name: ``"CV-chosen"`` or ``"old fixed"``...
+        setting: The setting.
+        train_clips: Training clips.
+        test_clips: Test clips.
+        frames: Classified frames.
+        sequences: Footnote-4 test sequences.
+        error: Footnote 5's error.
+        per_label_error: Error among the frames of each true label.
+        per_label_frames: Frames of each true label.
+    """
+
+    split: str
+    kind: str
+    setting_name: str
+    setting: ClassifierSetting
+    train_clips: int
+    test_clips: int
+    frames: int
+    sequences: int
+    error: float
+    per_label_error: dict[str, float]
+    per_label_frames: dict[str, int]
+
+    def summary(self) -> dict[str, Any]:
+        """The row as a JSON-ready dict."""
+        return {
+            "split": self.split, "kind": self.kind, "setting": self.setting_name,
+            "params": list(self.setting.params), "switch_prob": self.setting.switch_prob,
+            "train_clips": self.train_clips, "test_clips": self.test_clips,
+            "frames": self.frames, "sequences": self.sequences, "error": round(self.error, 5),
+            "per_label_error": {k: round(v, 5) for k, v in self.per_label_error.items()},
+            "per_label_frames": self.per_label_frames,
+        }  # fmt: skip
+
+
+def default_settings() -> dict[str, ClassifierSetting]:
+    """The CV-chosen defaults and, for comparison, the old fixed settings."""
+    return {
+        "CV-chosen": ClassifierSetting(
+            CLASSIFY_PARAMS, CLASSIFY_SWITCH_PROB, _set_name(CLASSIFY_PARAMS)
+        ),
+        "old fixed": ClassifierSetting(
+            OLD_CLASSIFY_PARAMS, OLD_CLASSIFY_SWITCH_PROB, _set_name(OLD_CLASSIFY_PARAMS)
+        ),
+    }
+
+
+def _set_name(params: Sequence[str]) -> str:
+    for name, names in CANDIDATE_PARAMS.items():
+        if tuple(names) == tuple(params):
+            return name
+    return "+".join(params)
+
+
+def evaluate_splits(
+    motions: Sequence[Motion],
+    rng: np.random.Generator,
+    settings: dict[str, ClassifierSetting] | None = None,
+    style_dataset: str = "bandai-2",
+    n_states: int = slds.N_STATES,
+    n_iter: int = slds.N_ITER,
+    noise_std: float = NOISE_STD,
+    jobs: int = 1,
+    log: Any = None,
+) -> list[SplitRow]:
+    """The classification error of fixed settings on several train/test splits.
+
+    The settings are given (by default :func:`default_settings`: the
+    CV-chosen ones and the old fixed ones); nothing here chooses them.
+
+    * One split per style of ``style_dataset`` in the training split: train on
+      every other training clip, test on the style ("style held out, same
+      performers").
+    * The held-out persons: train on the whole training split, test on the
+      test persons' clips (``library.TEST_SUBJECTS``) together and each alone
+      ("person held out").
+
+    Only :data:`CLASSIFY_LABELS` (with :data:`LABEL_ALIASES`) are used. Each
+    training set is fitted once per parameter subset; its seed is drawn from
+    ``rng``.
+
+    Raises:
+        ValueError: If there is neither a style nor a test person to hold out.
+    """
+    from humotion_gym.mocap.library import TEST_SUBJECTS
+
+    settings = default_settings() if settings is None else dict(settings)
+    clips = activity_clips(motions)
+    is_test = np.array([m.subject in TEST_SUBJECTS for m in clips], dtype=bool)
+    train_ids = np.flatnonzero(~is_test).tolist()
+    styles = sorted({clips[i].subject for i in train_ids if clips[i].dataset == style_dataset})
+    persons = sorted({m.subject for m in clips if m.subject in TEST_SUBJECTS})
+    if not styles and not persons:
+        raise ValueError(
+            f"evaluate_splits: no {style_dataset} style and no test person among the motions"
+        )
+    sets = list(dict.fromkeys(s.params for s in settings.values()))
+    probs = list(dict.fromkeys(s.switch_prob for s in settings.values()))
+    options = {"n_states": n_states, "n_iter": n_iter, "noise_std": noise_std}
+    plans: list[tuple[list[str], str, list[int], list[list[int]]]] = []
+    for style in styles:
+        held = [i for i in train_ids if clips[i].subject == style]
+        rest = [i for i in train_ids if clips[i].subject != style]
+        plans.append(([style], "style held out, same performers", rest, [held]))
+    if persons:
+        names = [" + ".join(persons)] + (persons if len(persons) > 1 else [])
+        tests = [np.flatnonzero(is_test).tolist()] + (
+            [[i for i, m in enumerate(clips) if m.subject == p] for p in persons]
+            if len(persons) > 1 else []
+        )  # fmt: skip
+        plans.append((names, "person held out", train_ids, tests))
+    seeds = rng.integers(0, 2**62, size=len(plans))
+    args = [
+        (tr, te, sets, probs, int(s), options)
+        for (_, _, tr, te), s in zip(plans, seeds, strict=True)
+    ]
+    results = _run_jobs(clips, args, jobs, log)
+    rows = []
+    for (names, kind, tr, tests), scores in zip(plans, results, strict=True):
+        for split, ids, sc in zip(names, tests, scores, strict=True):
+            for setting_name, st in settings.items():
+                p, w = sets.index(st.params), probs.index(st.switch_prob)
+                per = sc.per_label_error[p, w]
+                rows.append(SplitRow(
+                    split, kind, setting_name, st, len(tr), len(ids), int(sc.frames.sum()),
+                    sc.n_sequences, float(sc.error[p, w]),
+                    {lab: float(v) for lab, v, f in zip(sc.labels, per, sc.frames, strict=True)
+                     if f > 0},
+                    {lab: int(f) for lab, f in zip(sc.labels, sc.frames, strict=True)},
+                ))  # fmt: skip
+    return rows
+
+
+def splits_table(rows: Sequence[SplitRow]) -> str:
+    """The per-split errors as text."""
+    head = (f"{'held out':26s} {'setting':10s} {'params':15s} {'switch':>6s} {'train':>5s} "
+            f"{'test':>4s} {'frames':>6s} {'seqs':>4s} {'error':>7s}  per label")  # fmt: skip
+    lines = [head, "-" * (len(head) + 20)]
+    kind = None
+    for r in rows:
+        if r.kind != kind:
+            kind = r.kind
+            lines.append(f"[{kind}]")
+        per = ", ".join(
+            f"{lab} {100 * e:.2f}% of {r.per_label_frames[lab]}"
+            for lab, e in r.per_label_error.items()
+        )
+        lines.append(
+            f"{r.split:26s} {r.setting_name:10s} {r.setting.name:15s} {r.setting.switch_prob:6.0e} "
+            f"{r.train_clips:5d} {r.test_clips:4d} {r.frames:6d} {r.sequences:4d} "
+            f"{100 * r.error:6.2f}%  {per}"
+        )
+    return "\n".join(lines)
 
 
 # ---------------------------------------------------------------------------
@@ -634,14 +1278,23 @@ def _load(paths: Sequence[str]) -> list[Motion]:
 def split_train_test(
     train: Sequence[Motion], test: Sequence[Motion]
 ) -> tuple[list[Motion], list[Motion]]:
-    """Overlapping clip sets are split by subject (module docstring); disjoint ones kept."""
-    from humotion_gym.mocap.library import MotionLibrary
+    """Overlapping clip sets are split by subject (module docstring); disjoint ones kept.
+
+    Raises:
+        ValueError: If overlapping sets leave no test clip (no test person in ``test``).
+    """
+    from humotion_gym.mocap.library import TEST_SUBJECTS, MotionLibrary
 
     if {m.clip_id for m in train} & {m.clip_id for m in test}:
-        return (
-            list(MotionLibrary(tuple(train)).split("train")),
-            list(MotionLibrary(tuple(test)).split("test")),
-        )
+        train_split = list(MotionLibrary(tuple(train)).split("train"))
+        test_split = list(MotionLibrary(tuple(test)).split("test"))
+        if not test_split:
+            raise ValueError(
+                "--train and --test overlap, so they are split by person, but --test has no clip "
+                f"of a test person ({sorted(TEST_SUBJECTS)}); give --test disjoint clips or a "
+                "folder with the test persons (e.g. ../shared/mocap)"
+            )
+        return train_split, test_split
     return list(train), list(test)
 
 
@@ -678,6 +1331,8 @@ def _add_model_args(p: argparse.ArgumentParser) -> None:
 
 def _cmd_classify(args: argparse.Namespace) -> int:
     train, test = split_train_test(_load(args.train), _load(args.test))
+    if args.labels is None:  # walk and run, Bandai-Namco set 1's dash as run
+        train, test = activity_clips(train), activity_clips(test)
     result = run_classification(
         train, test, np.random.default_rng(args.seed), free=_indices(args.free),
         labels=args.labels, n_states=args.states, n_iter=args.iters,
@@ -703,6 +1358,72 @@ def _cmd_classify(args: argparse.Namespace) -> int:
         print(
             f"  {len(train)} training clips, {len(test)} test clips, "
             f"{result.model.n_states} switch states, fit {result.seconds_fit:.1f} s"
+        )
+    return 0
+
+
+def _train_motions(data_dir: Sequence[str] | None) -> list[Motion]:
+    """The training split of the configured library (never a test person)."""
+    from humotion_gym.mocap.library import MotionLibrary
+
+    return list(MotionLibrary(tuple(_default_motions(data_dir))).split("train"))
+
+
+def _param_sets_arg(names: Sequence[str] | None) -> dict[str, tuple[str, ...]]:
+    if names is None:
+        return dict(CANDIDATE_PARAMS)
+    unknown = [n for n in names if n not in CANDIDATE_PARAMS]
+    if unknown:
+        raise ValueError(f"--param-sets: unknown {unknown}; choose from {list(CANDIDATE_PARAMS)}")
+    return {n: CANDIDATE_PARAMS[n] for n in names}
+
+
+def _log(line: str) -> None:
+    import sys
+
+    print(line, file=sys.stderr, flush=True)
+
+
+def _cmd_select(args: argparse.Namespace) -> int:
+    train = _train_motions(args.data_dir)
+    result = select_classifier_settings(
+        train, np.random.default_rng(args.seed), param_sets=_param_sets_arg(args.param_sets),
+        switch_probs=args.switch_probs, n_states=args.states, n_iter=args.iters,
+        jobs=args.jobs, log=None if args.quiet else _log,
+    )  # fmt: skip
+    if args.json:
+        print(json.dumps({**result.summary(), "seed": args.seed, "states": args.states,
+                          "iters": args.iters}))  # fmt: skip
+    else:
+        print(result.table())
+        best = result.best
+        print(
+            f"chosen: {' '.join(best.params)} ({best.name}), switch probability "
+            f"{best.switch_prob:g}, CV error {100 * result.cv_error[result.chosen]:.2f}%"
+        )
+    return 0
+
+
+def _cmd_splits(args: argparse.Namespace) -> int:
+    settings = default_settings()
+    if args.params is not None or args.switch_prob is not None:
+        params = tuple(args.params) if args.params is not None else CLASSIFY_PARAMS
+        _indices(params)
+        prob = args.switch_prob if args.switch_prob is not None else CLASSIFY_SWITCH_PROB
+        settings["given"] = ClassifierSetting(params, prob, _set_name(params))
+    rows = evaluate_splits(
+        _default_motions(args.data_dir), np.random.default_rng(args.seed), settings,
+        n_states=args.states, n_iter=args.iters, jobs=args.jobs,
+        log=None if args.quiet else _log,
+    )  # fmt: skip
+    if args.json:
+        print(json.dumps({"rows": [r.summary() for r in rows], "seed": args.seed,
+                          "states": args.states, "iters": args.iters}))  # fmt: skip
+    else:
+        print(splits_table(rows))
+        print(
+            "CV-chosen: the defaults CLASSIFY_PARAMS/CLASSIFY_SWITCH_PROB (from "
+            "`humotion-gym slds select`); old fixed: picked after seeing held-out results"
         )
     return 0
 
@@ -742,7 +1463,8 @@ def _cmd_figures(args: argparse.Namespace) -> int:
     rng = np.random.default_rng(args.seed)
     train, test = _split(_default_motions(args.data_dir))
     result = run_classification(
-        train, test, rng, labels=("walk", "run"), n_states=args.states, n_iter=args.iters,
+        activity_clips(train), activity_clips(test), rng, labels=CLASSIFY_LABELS,
+        n_states=args.states, n_iter=args.iters,
         max_train_clips=args.max_train_clips,
     )  # fmt: skip
     plot_segmentation(result, out / "slds_fig3_classification.png")
@@ -770,7 +1492,10 @@ def register_cli(subparsers: argparse._SubParsersAction) -> None:
     c = sub.add_parser("classify", help="walk/run classification (section 4.1, Fig. 3)")
     c.add_argument("--train", nargs="+", required=True, help="training mocap files or folders")
     c.add_argument("--test", nargs="+", required=True, help="test mocap files or folders")
-    c.add_argument("--labels", nargs="+", default=None, help="activities (default: all labels)")
+    c.add_argument(
+        "--labels", nargs="+", default=None,
+        help="activities (default: walk and run, with dash counted as run)",
+    )  # fmt: skip
     c.add_argument("--switch-prob", type=float, default=CLASSIFY_SWITCH_PROB)
     c.add_argument(
         "--free", nargs="+", default=None,
@@ -779,6 +1504,45 @@ def register_cli(subparsers: argparse._SubParsersAction) -> None:
     c.add_argument("--noise-deg", type=float, default=float(np.degrees(NOISE_STD)))
     _add_model_args(c)
     c.set_defaults(func=_cmd_classify)
+
+    sel = sub.add_parser(
+        "select", help="choose the classifier's settings by cross-validation on the train split"
+    )
+    sel.add_argument(
+        "--data-dir", nargs="*", default=None, help="mocap folders (default: configured)"
+    )
+    sel.add_argument(
+        "--param-sets", nargs="+", default=None,
+        help=f"candidate parameter subsets (default: all of {list(CANDIDATE_PARAMS)})",
+    )  # fmt: skip
+    sel.add_argument("--switch-probs", nargs="+", type=float, default=list(CANDIDATE_SWITCH_PROBS))
+    sel.add_argument("--seed", type=int, default=0)
+    sel.add_argument("--states", type=int, default=slds.N_STATES)
+    sel.add_argument("--iters", type=int, default=slds.N_ITER)
+    sel.add_argument("--jobs", type=int, default=1, help="folds run in parallel processes")
+    sel.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    sel.add_argument("--json", action="store_true", help="print JSON")
+    sel.set_defaults(func=_cmd_select)
+
+    spl = sub.add_parser(
+        "splits", help="classification error per held-out style and per held-out person"
+    )
+    spl.add_argument(
+        "--data-dir", nargs="*", default=None, help="mocap folders (default: configured)"
+    )
+    spl.add_argument(
+        "--params", nargs="+", default=None, help="also score these parameters ('given')"
+    )
+    spl.add_argument(
+        "--switch-prob", type=float, default=None, help="also score this switch probability"
+    )
+    spl.add_argument("--seed", type=int, default=0)
+    spl.add_argument("--states", type=int, default=slds.N_STATES)
+    spl.add_argument("--iters", type=int, default=slds.N_ITER)
+    spl.add_argument("--jobs", type=int, default=1, help="fits run in parallel processes")
+    spl.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    spl.add_argument("--json", action="store_true", help="print JSON")
+    spl.set_defaults(func=_cmd_splits)
 
     i = sub.add_parser("interpolate", help="fill a gap of held-out walking (Fig. 6)")
     i.add_argument(
