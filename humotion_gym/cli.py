@@ -274,6 +274,107 @@ def _add_envs(sub: argparse._SubParsersAction) -> None:
     track.set_defaults(func=_cmd_track)
 
 
+def _add_select(sub: argparse._SubParsersAction) -> None:
+    sel = sub.add_parser(
+        "select",
+        help="choose a likelihood setting by cross-validation on training persons",
+        description="Track the validation persons (training persons held out of the priors' "
+        "data) with each candidate value of one ObservationModel setting and pick the value "
+        "with the lowest mean error. Test persons are never loaded.",
+    )
+    sel.add_argument("--task", default="ArmTrack-v1", help="task id (default: ArmTrack-v1)")
+    sel.add_argument("--agent", default="pf-tree", help="particle-filter agent (default: pf-tree)")
+    sel.add_argument(
+        "--param", default="sharpness", help="ObservationModel field (default: sharpness)"
+    )
+    sel.add_argument(
+        "--values", type=float, nargs="+", default=[1.0, 2.0, 3.0, 5.0],
+        help="candidate values (default: 1 2 3 5)",
+    )  # fmt: skip
+    sel.add_argument("--particles", type=int, default=300, help="particles (default: 300)")
+    sel.add_argument("--episodes", type=int, default=20, help="episodes per value (default: 20)")
+    sel.add_argument("--seed", type=int, default=0, help="first episode seed (default: 0)")
+    sel.add_argument(
+        "--validation", nargs="+", default=None,
+        help="training subjects to hold out (default: experiments.selection.VALIDATION_SUBJECTS)",
+    )  # fmt: skip
+    sel.add_argument("--data-dir", nargs="*", default=None, help="mocap folders")
+    sel.add_argument("--json", action="store_true", help="print JSON")
+    sel.set_defaults(func=_cmd_select)
+
+
+def _cmd_select(args: argparse.Namespace) -> int:
+    from humotion_gym.experiments.selection import select_observation_setting, validation_library
+
+    if args.particles < 1:
+        raise ValueError(f"--particles: expected at least 1, got {args.particles}")
+    if args.episodes < 1:
+        raise ValueError(f"--episodes: expected at least 1, got {args.episodes}")
+    lib = validation_library(args.data_dir or None, args.validation)
+    out = select_observation_setting(
+        args.task, args.agent, args.param, args.values, lib, args.particles, args.episodes,
+        args.seed,
+    )  # fmt: skip
+    if args.json:
+        print(json.dumps(out))
+        return 0
+    print(
+        f"{out['task']}: {args.param} for {args.agent} at {args.particles} particles, "
+        f"{args.episodes} episodes of the validation persons "
+        f"{', '.join(out['validation_subjects'])} "
+        f"(priors fitted on the other {out['train_clips']} training clips)"
+    )
+    print(f"{'value':>8s} {'mean error mm':>14s} {'x hold':>7s}")
+    for row in out["rows"]:
+        print(f"{row['value']:8g} {row['mean_error_mm']:14.1f} {row['hold_ratio']:7.2f}")
+    print(f"hold: {out['hold_mm']:.1f} mm; chosen: {args.param} = {out['chosen']:g}")
+    return 0
+
+
+def _add_discrimination(sub: argparse._SubParsersAction) -> None:
+    dis = sub.add_parser(
+        "discrimination",
+        help="how far the likelihood separates the true pose from poses a few cm off",
+    )
+    dis.add_argument("--task", default="ArmTrack-v1", help="task id (default: ArmTrack-v1)")
+    dis.add_argument("--episodes", type=int, default=20, help="seeded episodes (default: 20)")
+    dis.add_argument("--seed", type=int, default=0, help="first episode seed (default: 0)")
+    dis.add_argument(
+        "--distances", type=float, nargs="+", default=[50.0, 100.0, 200.0],
+        help="error bins' centres in mm (default: 50 100 200)",
+    )  # fmt: skip
+    dis.add_argument("--data-dir", nargs="*", default=None, help="mocap folders")
+    dis.add_argument("--json", action="store_true", help="print JSON")
+    dis.set_defaults(func=_cmd_discrimination)
+
+
+def _cmd_discrimination(args: argparse.Namespace) -> int:
+    import gymnasium as gym
+
+    from humotion_gym.envs import get_task
+    from humotion_gym.experiments.discrimination import likelihood_discrimination
+
+    if args.episodes < 1:
+        raise ValueError(f"--episodes: expected at least 1, got {args.episodes}")
+    task = get_task(args.task)
+    env = gym.make(f"humotion_gym/{task.name}", terminate_on_lost=False, **_env_kwargs(args))
+    out = likelihood_discrimination(env, args.episodes, args.seed, args.distances)
+    if args.json:
+        print(json.dumps(out))
+        return 0
+    print(
+        f"{task.name}: log-likelihood of the true pose minus that of perturbed poses, "
+        f"{out['frames']} frames of {args.episodes} episodes"
+    )
+    print(f"{'error mm':>9s} {'pairs':>7s} {'mean nats':>10s} {'median':>7s} {'truth wins':>11s}")
+    for b in out["bins"]:
+        print(
+            f"{b['distance_mm']:9.0f} {b['pairs']:7d} {b['mean_gap_nats']:10.2f} "
+            f"{b['median_gap_nats']:7.2f} {100 * b['truth_wins']:10.1f}%"
+        )
+    return 0
+
+
 def _add_leaderboard(sub: argparse._SubParsersAction) -> None:
     lb = sub.add_parser("leaderboard", help="agents x tasks x particle counts x seeded episodes")
     lb.add_argument("--tasks", nargs="+", default=["ArmTrack-v1", "BodyTrack-v1"])
@@ -460,6 +561,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_download(sub)
     _add_envs(sub)
     _add_leaderboard(sub)
+    _add_select(sub)
+    _add_discrimination(sub)
     _add_synth(sub)
     from humotion_gym.priors.cyclic_pca import register_cli as _add_pca
     from humotion_gym.priors.slds_tasks import register_cli as _add_slds

@@ -32,7 +32,9 @@ COMMON_SECTIONS = """
     and ``step`` gives ``fixed_params``: the true values of the parameters the
     task does not track (``task.fixed_indices`` order) for the frame in the
     returned observation, and that frame's ``camera``. The ground truth of the
-    free parameters never appears.
+    free parameters never appears, and nothing given at a step (observation,
+    info, camera, action bounds) depends on the episode after the frame on
+    show (``tests/envs/test_no_future_leak.py`` checks every task).
 
     ## Arguments
 
@@ -41,7 +43,9 @@ COMMON_SECTIONS = """
     | argument | default | meaning |
     |---|---|---|
     | ``render_mode`` | None | ``"rgb_array"``: ``render()`` returns the frame with the last estimate drawn as a wire figure |
-    | ``data_dir`` | None | folders of real mocap (else ``$HUMOTION_MOCAP``, else the built-in synthetic set); the test split is used |
+    | ``data_dir`` | None | folders of real mocap (else ``$HUMOTION_MOCAP``, else the built-in synthetic set) |
+    | ``library`` | None | a ready :class:`~humotion_gym.mocap.library.MotionLibrary` instead of ``data_dir`` (e.g. a validation fold) |
+    | ``split`` | ``"test"`` | ``"test"``: the held-out persons (CMU subjects 2 and 3 on the shared data); ``"train"``: the training persons, for training learned policies |
     | ``width``, ``height`` | 128, 128 | frame size (64x64 to 640x480) |
     | ``color`` | ``"rgb"`` | or ``"gray"`` (one channel) |
     | ``background`` | ``"clutter"`` | or ``"flat"`` |

@@ -30,7 +30,16 @@ class BodyTrackEnv(PoseTrackingEnv):
 
     ``Box(0, 255, (height, width, 3), uint8)``: a static camera 30 degrees to
     the subject's right of its initial heading, 10 degrees up, 45 degree field
-    of view, placed to frame the whole episode.
+    of view, placed from the first frame only: it frames the initial pose swept
+    through a box of root travel along the initial heading (0.3 m back, 1.5 m
+    forward, 0.3 m to each side, 0.2 m down, 0.3 m up; about the 75th
+    percentile of a 30-frame episode's forward travel on the training persons).
+    Faster motion (runs, dashes) can leave the frame in part.
+
+    ## Given Truth
+
+    None: every parameter is free, so ``info["fixed_params"]`` is empty. The
+    initial pose (``info["initial_pose"]``) and the subject's shape are given.
 
     ## Starting State
 
@@ -48,6 +57,10 @@ BodyTrackEnv.__doc__ = (
     + """
     ## Version History
 
-    * v0: first release (30 scored frames per episode, as in the paper's experiments).
+    * v1: the camera is placed from the first frame only; test persons CMU 2 and 3.
+    * v0: withdrawn. Its static cameras were fitted to every frame of the episode
+      (and WalkTrack's and SideWalk's heading to the episode's total travel), so
+      the camera handed to the agent told where the body would go; its test
+      split held out a Bandai-Namco style performed by the training actors.
 """
 )

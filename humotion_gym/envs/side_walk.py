@@ -38,8 +38,17 @@ class SideWalkEnv(PoseTrackingEnv):
     ## Observation Space
 
     ``Box(0, 255, (height, width, 3), uint8)``: the side view (90 degrees
-    from the walking direction, at hip height), following the pelvis
-    horizontally.
+    from the initial heading, at hip height), following the pelvis
+    horizontally. The framing is set from the first frame: the initial pose
+    about the pelvis, grown by 0.45 m forward and back for the limbs' swing.
+
+    ## Given Truth
+
+    ``info["fixed_params"]`` gives, for the frame on show, the true values of
+    the 17 parameters the task does not track: the root position (3; the
+    camera follows it anyway) and orientation (3), the neck (3), the
+    shoulders' swing and twist (2 per side) and the hips' abduction and
+    rotation (2 per side).
 
     ## Starting State
 
@@ -57,6 +66,11 @@ SideWalkEnv.__doc__ = (
     + """
     ## Version History
 
-    * v0: first release (60 scored frames per episode).
+    * v1: the camera's heading and framing come from the first frame only; test persons
+      CMU 2 and 3 (no jogging clip of theirs is long enough for 61 frames).
+    * v0: withdrawn. Its static cameras were fitted to every frame of the episode
+      (and WalkTrack's and SideWalk's heading to the episode's total travel), so
+      the camera handed to the agent told where the body would go; its test
+      split held out a Bandai-Namco style performed by the training actors.
 """
 )

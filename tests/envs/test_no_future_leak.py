@@ -107,3 +107,10 @@ def test_the_test_detects_a_leak(env_id, monkeypatch):
     monkeypatch.setattr(pose_tracking.PoseTrackingEnv, "_place_camera", leaky_place_camera)
     with pytest.raises(AssertionError, match="depends on later frames"):
         test_nothing_given_depends_on_the_future(env_id)
+
+
+@pytest.mark.mocap
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_nothing_given_depends_on_the_future_on_real_data(env_id, shared_mocap, monkeypatch):
+    monkeypatch.setenv("HUMOTION_MOCAP", str(shared_mocap))
+    test_nothing_given_depends_on_the_future(env_id)

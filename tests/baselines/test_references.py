@@ -1,0 +1,94 @@
+"""The reference agents, the leaderboard's hold floor and the validity verdict."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import humotion_gym  # noqa: F401
+from baselines.agents import REFERENCES, agent_names, make
+from baselines.evaluation import run_episode
+from baselines.leaderboard import (
+    VALID_RATIO,
+    compare_to_hold,
+    markdown_table,
+    run_leaderboard,
+    validity_lines,
+)
+from humotion_gym.body import PARAM_INDEX
+
+
+def test_hold_answers_the_initial_pose_every_frame():
+    env = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
+    base = env.unwrapped
+    agent = make("hold", env)
+    obs, info = env.reset(seed=3)
+    expected = base.pose_to_action(info["initial_pose"])
+    for k in range(5):
+        agent.observe_info(info)
+        action, _ = agent.predict(obs, episode_start=np.array([k == 0]))
+        assert np.array_equal(action, expected)
+        obs, *_, info = env.step(action)
+    # a new episode holds its own initial pose
+    obs, info = env.reset(seed=4)
+    agent.observe_info(info)
+    action, _ = agent.predict(obs, episode_start=np.array([True]))
+    assert np.array_equal(action, base.pose_to_action(info["initial_pose"]))
+
+
+def test_hold_scores_what_the_motion_costs():
+    """hold's error at each frame is the distance the scored keypoints moved."""
+    env = gym.make("humotion_gym/WalkTrack-v1", terminate_on_lost=False)
+    result = run_episode(make("hold", env), env, seed=1)
+    assert result.errors_mm[0] < result.errors_mm[-1]  # the walker walks away from it
+    assert result.errors_mm[-1] > 300.0
+
+
+def test_random_agent_is_seeded_and_in_the_action_space():
+    env = gym.make("humotion_gym/ArmTrack-v1")
+    a, b = make("random", env, seed=2), make("random", env, seed=2)
+    obs, info = env.reset(seed=0)
+    for _ in range(3):
+        x, _ = a.predict(obs)
+        y, _ = b.predict(obs)
+        assert np.array_equal(x, y) and env.action_space.contains(x)
+
+
+def test_agent_names_lists_references_first():
+    names = agent_names()
+    assert names[: len(REFERENCES)] == list(REFERENCES) and "pf-tree" in names
+
+
+def test_leaderboard_always_runs_hold_once_per_task_and_compares_to_it():
+    rows = run_leaderboard(["SideWalk-v1"], ["pf-cv"], [30, 60], episodes=2, progress=False)
+    agents = [(r["agent"], r["particles"]) for r in rows]
+    assert agents == [("hold", 0), ("pf-cv", 30), ("pf-cv", 60)]
+    table = markdown_table(rows)
+    assert "| SideWalk-v1 | hold | - |" in table and "x hold" in table
+    ratio, wins, paired = compare_to_hold(rows[1], rows[0])
+    assert paired == 2 and 0 <= wins <= 2
+    hold_mean = rows[0]["summary"]["mean_error_mm"]
+    assert ratio == pytest.approx(hold_mean / rows[1]["summary"]["mean_error_mm"])
+    (line,) = validity_lines(rows)
+    assert line.startswith("SideWalk-v1: best filter at 30 particles")
+    assert ("NOT valid" in line) == (ratio < VALID_RATIO) or "pf-cv" in line
+
+
+def test_leaderboard_refuses_bad_counts():
+    with pytest.raises(ValueError, match="episodes"):
+        run_leaderboard(["ArmTrack-v1"], ["hold"], [300], episodes=0, progress=False)
+    with pytest.raises(ValueError, match="particles"):
+        run_leaderboard(["ArmTrack-v1"], ["pf-cv"], [0], episodes=1, progress=False)
+
+
+def test_arm_episodes_move_the_arm():
+    """ArmTrack-v1 starts only where the elbow and wrist move 150 mm or more."""
+    env = gym.make("humotion_gym/ArmTrack-v1", terminate_on_lost=False)
+    base = env.unwrapped
+    minimum = base.task.min_motion_mm
+    assert minimum == 150.0
+    for seed in range(6):
+        result = run_episode(make("hold", env), env, seed=seed)
+        motion = base.library[result.clip_id]
+        moved = base._episode_motion(motion)[result.start_frame]
+        assert moved >= minimum
+    assert PARAM_INDEX["r_elbow"] in base.task.free_indices
