@@ -352,13 +352,17 @@ def _cmd_discrimination(args: argparse.Namespace) -> int:
     import gymnasium as gym
 
     from humotion_gym.envs import get_task
-    from humotion_gym.experiments.discrimination import likelihood_discrimination
+    from humotion_gym.experiments.discrimination import (
+        likelihood_discrimination,
+        likelihood_peak_error,
+    )
 
     if args.episodes < 1:
         raise ValueError(f"--episodes: expected at least 1, got {args.episodes}")
     task = get_task(args.task)
     env = gym.make(f"humotion_gym/{task.name}", terminate_on_lost=False, **_env_kwargs(args))
     out = likelihood_discrimination(env, args.episodes, args.seed, args.distances)
+    out["peak"] = likelihood_peak_error(env, args.episodes, args.seed)
     if args.json:
         print(json.dumps(out))
         return 0
@@ -372,6 +376,12 @@ def _cmd_discrimination(args: argparse.Namespace) -> int:
             f"{b['distance_mm']:9.0f} {b['pairs']:7d} {b['mean_gap_nats']:10.2f} "
             f"{b['median_gap_nats']:7.2f} {100 * b['truth_wins']:10.1f}%"
         )
+    peak = out["peak"]
+    print(
+        f"among 2,000 poses drawn within 1.2 rad of the truth ({peak['frames']} frames): "
+        f"typical error {peak['typical_mm']:.0f} mm, the likelihood's peak "
+        f"{peak['peak_mm']:.0f} mm, its weighted mean {peak['weighted_mm']:.0f} mm"
+    )
     return 0
 
 

@@ -1,0 +1,30 @@
+"""The likelihood-discrimination measurements."""
+
+import gymnasium as gym
+import pytest
+
+import humotion_gym  # noqa: F401
+from humotion_gym.experiments.discrimination import (
+    likelihood_discrimination,
+    likelihood_peak_error,
+)
+
+
+def test_the_truth_scores_higher_the_further_off_a_pose_is():
+    env = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
+    out = likelihood_discrimination(env, episodes=2, perturbations=300, frame_stride=10)
+    gaps = [b["mean_gap_nats"] for b in out["bins"]]
+    assert all(b["pairs"] > 0 for b in out["bins"]) and out["frames"] == 6
+    assert gaps[0] > 0 and gaps == sorted(gaps)
+    assert out["bins"][-1]["truth_wins"] > 0.9
+    with pytest.raises(ValueError, match="tolerance"):
+        likelihood_discrimination(env, tolerance=1.5)
+
+
+def test_peak_error_is_measured_from_candidates_around_the_truth():
+    env = gym.make("humotion_gym/ArmTrack-v1", terminate_on_lost=False)
+    out = likelihood_peak_error(env, episodes=1, candidates=200, frame_stride=10)
+    assert out["frames"] == 3
+    assert 0 < out["weighted_mm"] < out["typical_mm"]
+    with pytest.raises(ValueError):
+        likelihood_peak_error(env, spread=0.0)
