@@ -13,7 +13,7 @@ from gymnasium.envs.registration import register, registry
 
 from humotion_gym.envs.arm_track import ArmTrackEnv
 from humotion_gym.envs.body_track import BodyTrackEnv
-from humotion_gym.envs.pose_tracking import PoseTrackingEnv
+from humotion_gym.envs.pose_tracking import RESET_OPTIONS, PoseTrackingEnv
 from humotion_gym.envs.side_walk import SideWalkEnv
 from humotion_gym.envs.tasks import TASKS, TaskSpec, get_task
 from humotion_gym.envs.walk_track import WalkTrackEnv
@@ -43,6 +43,7 @@ def register_envs() -> None:
 __all__ = [
     "ENVIRONMENTS",
     "ENV_IDS",
+    "RESET_OPTIONS",
     "TASKS",
     "ArmTrackEnv",
     "BodyTrackEnv",

@@ -71,6 +71,28 @@ def _sphere(radius: float, n: int = 26) -> FloatArray:
 _ARM_CONES = [CONE_NAMES.index("r_upper_arm"), CONE_NAMES.index("r_forearm")]
 
 
+#: The keys ``reset(options=...)`` understands.
+RESET_OPTIONS: tuple[str, ...] = ("clip_id", "file", "motion", "start")
+# What a reset assigns: restored when a reset fails, so a reset is all-or-nothing.
+_EPISODE_STATE: tuple[str, ...] = (
+    "_motion", "_t0", "_root0", "_bounds", "_episode_seed", "_noise", "_background",
+    "_noise_rng", "_episode_params", "_geometry", "_truth_keypoints", "_cameras", "_figures",
+    "_lost_run", "_last_estimate", "_k", "_frame", "_done", "_np_random", "_np_random_seed",
+)  # fmt: skip
+
+
+def _check_count(name: str, value: Any) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name}: expected an integer >= 1, got {value!r}")
+
+
+def _check_positive(name: str, value: Any) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{name}: expected a positive finite number, got {value!r}")
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"{name}: expected a positive finite number, got {value!r}")
+
+
 def _wrap(angles: FloatArray) -> FloatArray:
     return (angles + np.pi) % (2 * np.pi) - np.pi
 
@@ -124,12 +146,16 @@ class PoseTrackingEnv(gym.Env):
                 f"render_mode must be one of {self.metadata['render_modes']} or None, "
                 f"got {render_mode!r}"
             )
-        if frame_skip < 1:
-            raise ValueError(f"frame_skip must be >= 1, got {frame_skip}")
-        if lost_patience < 1 or lost_threshold_mm <= 0 or reward_scale_mm <= 0:
-            raise ValueError(
-                "lost_patience, lost_threshold_mm and reward_scale_mm must be positive"
-            )
+        _check_count("frame_skip", frame_skip)
+        _check_count("lost_patience", lost_patience)
+        if episode_frames is not None:
+            _check_count("episode_frames", episode_frames)
+        for name, value in (
+            ("lost_threshold_mm", lost_threshold_mm),
+            ("reward_scale_mm", reward_scale_mm),
+            ("fps", fps),
+        ):
+            _check_positive(name, value)
         self.render_mode = render_mode
         scene_kwargs: dict[str, Any] = {
             "width": width,
@@ -185,6 +211,7 @@ class PoseTrackingEnv(gym.Env):
             for name, members in _REGIONS.items()
         }
         self._motion: Motion | None = None
+        self._done = False
         self._starts: dict[str, tuple[Motion, NDArray[np.intp]]] = {}
         if self.task.min_motion_mm > 0:
             # only clips with at least one start that moves enough
@@ -268,6 +295,39 @@ class PoseTrackingEnv(gym.Env):
         assert self._motion is not None, "call reset() first"
         return np.array(self._motion.params[self._frame_index(k)])
 
+    def _check_options(self, options: dict[str, Any] | None) -> dict[str, Any]:
+        """The reset options, refused with a clear ``ValueError`` when wrong."""
+        if options is None:
+            return {}
+        if not isinstance(options, dict):
+            raise ValueError(f"reset: options must be a dict, got {type(options).__name__}")
+        unknown = sorted(set(options) - set(RESET_OPTIONS))
+        if unknown:
+            raise ValueError(
+                f"reset: unknown options {unknown}; the options are {list(RESET_OPTIONS)}"
+            )
+        chosen = [k for k in ("clip_id", "file", "motion") if k in options]
+        if len(chosen) > 1:
+            raise ValueError(f"reset: give at most one of clip_id, file, motion; got {chosen}")
+        if "motion" in options and not isinstance(options["motion"], Motion):
+            raise ValueError(
+                "reset: options['motion'] must be a humotion_gym Motion, got "
+                f"{type(options['motion']).__name__}"
+            )
+        if "clip_id" in options:
+            clip_id = options["clip_id"]
+            if not isinstance(clip_id, str) or clip_id not in self.library.clip_ids:
+                ids = self.library.clip_ids
+                raise ValueError(
+                    f"reset: options['clip_id'] {clip_id!r} is not in the library; its "
+                    f"{len(ids)} clips include {ids[:8]}"
+                )
+        if "start" in options:
+            start = options["start"]
+            if isinstance(start, bool) or not isinstance(start, (int, np.integer)):
+                raise ValueError(f"reset: options['start'] must be an integer frame, got {start!r}")
+        return dict(options)
+
     def _pick_clip(self, options: dict[str, Any]) -> Motion:
         if "motion" in options:
             return options["motion"]
@@ -275,6 +335,8 @@ class PoseTrackingEnv(gym.Env):
             return self.library[options["clip_id"]]
         if "file" in options:
             lib = load_library([options["file"]], fps=self.library[0].fps, progress=False)
+            if len(lib) == 0:
+                raise ValueError(f"reset: options['file'] {options['file']!r} holds no clip")
             return lib[0]
         return self.clips[int(self.np_random.integers(len(self.clips)))]
 
@@ -418,13 +480,37 @@ class PoseTrackingEnv(gym.Env):
             seed: Seeds the environment's generator (clip, start frame, scene).
             options: ``clip_id`` (a library id), ``file`` (a mocap file) or
                 ``motion`` (a :class:`Motion`) to choose the clip; ``start``
-                for the first frame.
+                (an integer) for the first frame. Nothing else.
 
         Returns:
             The first frame to track and the info dict (see the class docstring).
+
+        Raises:
+            ValueError: For an unknown option or a bad value (the message lists
+                what is valid). The environment is then as it was before the
+                call: a reset is all or nothing.
         """
+        options = self._check_options(options)
+        # All or nothing: a reset that fails leaves the previous episode as it was.
+        saved = {name: getattr(self, name) for name in _EPISODE_STATE if hasattr(self, name)}
+        rng_state = self._np_random.bit_generator.state if self._np_random is not None else None
+        try:
+            return self._reset(seed, options)
+        except BaseException:
+            for name in _EPISODE_STATE:
+                if name in saved:
+                    setattr(self, name, saved[name])
+                elif hasattr(self, name) and not name.startswith("_np_random"):
+                    delattr(self, name)
+            if self._np_random is not None and rng_state is not None:
+                self._np_random.bit_generator.state = rng_state
+            raise
+
+    def _reset(
+        self, seed: int | None, options: dict[str, Any]
+    ) -> tuple[NDArray[np.uint8], dict[str, Any]]:
         super().reset(seed=seed)
-        options = dict(options or {})
+        self._done = False
         self._motion = self._pick_clip(options)
         self._t0 = self._pick_start(self._motion, options)
         self._root0 = self._motion.params[self._t0, :3].copy()
@@ -479,9 +565,14 @@ class PoseTrackingEnv(gym.Env):
         """
         if self._motion is None:
             raise RuntimeError("step() called before reset()")
-        if self._k > self.episode_frames:
+        if self._done:
             raise RuntimeError("step() called after the episode ended; call reset()")
-        a = np.asarray(action, dtype=np.float64)
+        raw = np.asarray(action)
+        if raw.dtype.kind not in "iuf":
+            raise ValueError(
+                f"{self.task.name}: action must hold real numbers, got dtype {raw.dtype}"
+            )
+        a = raw.astype(np.float64)
         if a.shape != self.action_space.shape:
             raise ValueError(
                 f"{self.task.name}: action must have shape {self.action_space.shape} "
@@ -520,7 +611,8 @@ class PoseTrackingEnv(gym.Env):
             "lost": bool(lost),
             **terms,
         }
-        if not (terminated or truncated):
+        self._done = terminated or truncated
+        if not self._done:
             self._k += 1
             obs = self._observe()
         else:

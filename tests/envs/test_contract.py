@@ -1,0 +1,135 @@
+"""The environment's contract is strict: bad calls are refused clearly, resets are atomic."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import humotion_gym  # noqa: F401
+from humotion_gym.envs import RESET_OPTIONS
+
+
+@pytest.fixture
+def env():
+    e = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False).unwrapped
+    yield e
+    e.close()
+
+
+def _truth_action(env):
+    return env.pose_to_action(env.library[env._motion.clip_id].params[env._frame_index()])
+
+
+def test_step_after_the_end_raises(env):
+    env.reset(seed=0)
+    for _ in range(env.episode_frames):
+        *_, terminated, truncated, _ = env.step(_truth_action(env))
+    assert truncated
+    with pytest.raises(RuntimeError, match="after the episode ended"):
+        env.step(_truth_action(env))
+
+
+def test_step_after_a_lost_track_raises():
+    env = gym.make("humotion_gym/BodyTrack-v1").unwrapped
+    env.reset(seed=0)
+    far = np.ones(env.action_space.shape, np.float32)
+    for _ in range(env.episode_frames):
+        *_, terminated, truncated, _ = env.step(far)
+        if terminated:
+            break
+    assert terminated
+    with pytest.raises(RuntimeError, match="after the episode ended"):
+        env.step(far)
+
+
+def test_step_before_reset_raises(env):
+    with pytest.raises(RuntimeError, match="before reset"):
+        env.step(np.zeros(env.action_space.shape, np.float32))
+
+
+def test_a_failed_reset_leaves_the_episode_as_it_was(env):
+    obs, info = env.reset(seed=1)
+    env.step(_truth_action(env))
+    clip, k = env._motion.clip_id, env._k
+    rng_state = env.np_random.bit_generator.state
+    with pytest.raises(ValueError, match="start"):
+        env.reset(seed=5, options={"start": 10**9})
+    assert env._motion.clip_id == clip and env._k == k
+    assert env.np_random.bit_generator.state == rng_state
+    # the episode goes on and still scores the truth perfectly
+    _, reward, *_ = env.step(_truth_action(env))
+    assert reward == pytest.approx(1.0)
+
+
+def test_a_failed_first_reset_leaves_an_unstarted_env(env):
+    with pytest.raises(ValueError):
+        env.reset(seed=0, options={"start": 10**9})
+    with pytest.raises(RuntimeError, match="before reset"):
+        env.step(np.zeros(env.action_space.shape, np.float32))
+    env.reset(seed=0)  # and a good reset still works
+
+
+@pytest.mark.parametrize(
+    ("options", "match"),
+    [
+        ({"clip": "x"}, "unknown options"),
+        ({"clip_id": "nope/none"}, "not in the library"),
+        ({"clip_id": 3}, "not in the library"),
+        ({"motion": "walk.bvh"}, "must be a humotion_gym Motion"),
+        ({"start": 2.7}, "must be an integer"),
+        ({"start": True}, "must be an integer"),
+        ({"start": -1}, "must be in"),
+        ({"clip_id": "a", "motion": None}, "at most one"),
+    ],
+)
+def test_bad_reset_options_are_refused(env, options, match):
+    with pytest.raises(ValueError, match=match):
+        env.reset(seed=0, options=options)
+
+
+def test_the_valid_options_are_listed():
+    assert RESET_OPTIONS == ("clip_id", "file", "motion", "start")
+
+
+def test_an_empty_folder_is_refused(env, tmp_path):
+    with pytest.raises(ValueError, match="holds no clip"):
+        env.reset(seed=0, options={"file": str(tmp_path)})
+
+
+@pytest.mark.parametrize(
+    "action",
+    [
+        np.zeros(25, dtype=complex),
+        np.array(["0.1"] * 25),
+        np.zeros(25, dtype=bool),
+        np.array([None] * 25, dtype=object),
+    ],
+)
+def test_actions_of_non_real_dtypes_are_refused(env, action):
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="real numbers"):
+        env.step(action)
+
+
+def test_integer_actions_are_accepted(env):
+    env.reset(seed=0)
+    env.step(np.zeros(25, dtype=np.int64))
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"lost_threshold_mm": float("nan")},
+        {"lost_threshold_mm": -1.0},
+        {"reward_scale_mm": float("inf")},
+        {"episode_frames": 0},
+        {"episode_frames": 2.5},
+        {"lost_patience": 0},
+        {"frame_skip": 0},
+        {"fps": 0.0},
+        {"split": "validation"},
+    ],
+)
+def test_constructor_arguments_are_range_checked(kwargs):
+    name = next(iter(kwargs))
+    with pytest.raises(ValueError, match=name):
+        gym.make("humotion_gym/ArmTrack-v1", **kwargs)
