@@ -285,11 +285,9 @@ def _add_select(sub: argparse._SubParsersAction) -> None:
     sel.add_argument("--task", default="ArmTrack-v1", help="task id (default: ArmTrack-v1)")
     sel.add_argument("--agent", default="pf-tree", help="particle-filter agent (default: pf-tree)")
     sel.add_argument(
-        "--param", default="sharpness", help="ObservationModel field (default: sharpness)"
-    )
-    sel.add_argument(
-        "--values", type=float, nargs="+", default=[1.0, 2.0, 3.0, 5.0],
-        help="candidate values (default: 1 2 3 5)",
+        "--grid", nargs="+", default=["sharpness=1,2,3,5"], metavar="NAME=V1,V2",
+        help="candidate values per ObservationModel setting; every combination is tried "
+        "(default: sharpness=1,2,3,5)",
     )  # fmt: skip
     sel.add_argument("--particles", type=int, default=300, help="particles (default: 300)")
     sel.add_argument("--episodes", type=int, default=20, help="episodes per value (default: 20)")
@@ -303,31 +301,45 @@ def _add_select(sub: argparse._SubParsersAction) -> None:
     sel.set_defaults(func=_cmd_select)
 
 
+def _parse_grid(items: Sequence[str]) -> dict[str, list[float]]:
+    grid: dict[str, list[float]] = {}
+    for item in items:
+        name, sep, values = item.partition("=")
+        try:
+            grid[name.strip()] = [float(v) for v in values.split(",") if v.strip()]
+        except ValueError:
+            sep = ""
+        if not sep or not name.strip() or not grid.get(name.strip()):
+            raise ValueError(f"--grid: expected NAME=V1,V2,... with numbers, got {item!r}")
+    return grid
+
+
 def _cmd_select(args: argparse.Namespace) -> int:
-    from humotion_gym.experiments.selection import select_observation_setting, validation_library
+    from humotion_gym.experiments.selection import select_observation_settings, validation_library
 
     if args.particles < 1:
         raise ValueError(f"--particles: expected at least 1, got {args.particles}")
     if args.episodes < 1:
         raise ValueError(f"--episodes: expected at least 1, got {args.episodes}")
+    grid = _parse_grid(args.grid)
     lib = validation_library(args.data_dir or None, args.validation)
-    out = select_observation_setting(
-        args.task, args.agent, args.param, args.values, lib, args.particles, args.episodes,
-        args.seed,
-    )  # fmt: skip
+    out = select_observation_settings(
+        args.task, args.agent, grid, lib, args.particles, args.episodes, args.seed
+    )
     if args.json:
         print(json.dumps(out))
         return 0
     print(
-        f"{out['task']}: {args.param} for {args.agent} at {args.particles} particles, "
-        f"{args.episodes} episodes of the validation persons "
-        f"{', '.join(out['validation_subjects'])} "
+        f"{out['task']}: {args.agent} at {args.particles} particles, {args.episodes} episodes "
+        f"of the validation persons {', '.join(out['validation_subjects'])} "
         f"(priors fitted on the other {out['train_clips']} training clips)"
     )
-    print(f"{'value':>8s} {'mean error mm':>14s} {'x hold':>7s}")
+    print(f"{'settings':44s} {'mean error mm':>14s} {'x hold':>7s}")
     for row in out["rows"]:
-        print(f"{row['value']:8g} {row['mean_error_mm']:14.1f} {row['hold_ratio']:7.2f}")
-    print(f"hold: {out['hold_mm']:.1f} mm; chosen: {args.param} = {out['chosen']:g}")
+        text = " ".join(f"{k}={v:g}" for k, v in row["settings"].items())
+        print(f"{text:44s} {row['mean_error_mm']:14.1f} {row['hold_ratio']:7.2f}")
+    chosen = " ".join(f"{k}={v:g}" for k, v in out["chosen"].items())
+    print(f"hold: {out['hold_mm']:.1f} mm; chosen: {chosen}")
     return 0
 
 

@@ -4,7 +4,7 @@ import pytest
 
 from humotion_gym.experiments.selection import (
     VALIDATION_SUBJECTS,
-    select_observation_setting,
+    select_observation_settings,
     validation_library,
 )
 from humotion_gym.mocap.library import TEST_SUBJECTS, synthetic_library
@@ -28,13 +28,26 @@ def test_the_real_validation_persons_are_training_persons():
 
 def test_selection_tracks_the_fold_and_picks_the_lowest_error():
     fold = validation_library(None)
-    out = select_observation_setting(
-        "SideWalk-v1", "pf-cv", "sharpness", [0.5, 2.0], fold, particles=30, episodes=2
-    )
+    grid = {"sharpness": [0.5, 2.0], "foreground_weight": [0.0, 0.5]}
+    out = select_observation_settings("SideWalk-v1", "pf-cv", grid, fold, particles=30, episodes=2)
+    assert [r["settings"] for r in out["rows"]] == [
+        {"sharpness": a, "foreground_weight": b} for a in (0.5, 2.0) for b in (0.0, 0.5)
+    ]
     errors = [r["mean_error_mm"] for r in out["rows"]]
-    assert out["chosen"] == out["rows"][errors.index(min(errors))]["value"]
+    assert out["chosen"] == out["rows"][errors.index(min(errors))]["settings"]
     assert out["validation_subjects"] == sorted(fold.held_out)
-    with pytest.raises(ValueError, match="not an ObservationModel setting"):
-        select_observation_setting("SideWalk-v1", "pf-cv", "nonsense", [1.0], fold)
+    with pytest.raises(ValueError, match="not ObservationModel settings"):
+        select_observation_settings("SideWalk-v1", "pf-cv", {"nonsense": [1.0]}, fold)
     with pytest.raises(ValueError, match="at least one"):
-        select_observation_setting("SideWalk-v1", "pf-cv", "sharpness", [], fold)
+        select_observation_settings("SideWalk-v1", "pf-cv", {"sharpness": []}, fold)
+    with pytest.raises(ValueError, match="validation fold"):
+        select_observation_settings("SideWalk-v1", "pf-cv", grid, synthetic_library())
+
+
+def test_cli_select_parses_the_grid(capsys):
+    from humotion_gym.cli import main
+
+    code = main(["select", "--task", "SideWalk-v1", "--agent", "pf-cv", "--grid",
+                 "sharpness=1,2", "--particles", "20", "--episodes", "1"])  # fmt: skip
+    assert code == 0 and "chosen: sharpness=" in capsys.readouterr().out
+    assert main(["select", "--grid", "sharpness"]) == 2

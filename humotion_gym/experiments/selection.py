@@ -8,13 +8,14 @@ training persons. The test persons are never loaded into a fold (see
 :meth:`~humotion_gym.mocap.library.MotionLibrary.validation_fold`), so no
 setting is chosen after looking at a test number.
 
-``humotion-gym select --task ArmTrack-v1 --param sharpness --values 1 3 10``
+``humotion-gym select --task ArmTrack-v1 --grid sharpness=1,2,3 foreground_weight=0,0.5``
 prints the table this module computes.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import itertools
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -23,7 +24,12 @@ import gymnasium as gym
 import numpy as np
 
 from humotion_gym.envs.tasks import get_task
-from humotion_gym.mocap.library import MotionLibrary, configured_data_dirs, load_library
+from humotion_gym.mocap.library import (
+    TEST_SUBJECTS,
+    MotionLibrary,
+    configured_data_dirs,
+    load_library,
+)
 from humotion_gym.observation import ObservationModel
 
 #: Training persons held out to choose settings on real data: CMU subject 1
@@ -58,51 +64,53 @@ def _observation_fields() -> set[str]:
     return set(ObservationModel.__dataclass_fields__)
 
 
-def select_observation_setting(
+def select_observation_settings(
     task: str,
     agent: str,
-    name: str,
-    values: Sequence[float],
+    grid: Mapping[str, Sequence[float]],
     library: MotionLibrary,
     particles: int = 300,
     episodes: int = 20,
     seed: int = 0,
     env_kwargs: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """Track the validation persons with each value of one likelihood setting.
+    """Track the validation persons with every combination of likelihood settings.
 
     Args:
         task: Task id.
         agent: Agent name (a particle filter of :data:`baselines.agents.AGENTS`).
-        name: A field of :class:`ObservationModel` (``"sharpness"``...).
-        values: The candidate values.
+        grid: Candidate values per :class:`ObservationModel` field
+            (``{"sharpness": [1, 2], "foreground_weight": [0, 0.5]}``); every
+            combination is tried, starting from the task's own settings.
         library: A validation fold (:func:`validation_library`).
         particles: Particles of the agent.
-        episodes: Seeded episodes per value (the same episodes for every value).
+        episodes: Seeded episodes per combination (the same for every one).
         seed: First episode seed.
         env_kwargs: Other environment keywords (difficulty).
 
     Returns:
-        ``{"rows": [{"value", "mean_error_mm", "lost"}...], "hold_mm", "chosen",
-        "validation_subjects", "train_clips"}``; the chosen value has the lowest
-        mean error (ties: the first listed).
+        ``{"rows": [{"settings", "mean_error_mm", "hold_ratio"}...], "hold_mm",
+        "chosen", "validation_subjects", "train_clips"}``; the chosen settings
+        have the lowest mean error (ties: the first in grid order).
 
     Raises:
-        ValueError: If ``name`` is not a likelihood setting, ``values`` is
-            empty, or ``library`` holds out a test person.
+        ValueError: If a name is not a likelihood setting, a value list is
+            empty, or ``library`` is not a validation fold of training persons.
     """
     from baselines.agents import make
     from baselines.evaluation import evaluate
 
-    if name not in _observation_fields():
+    fields = _observation_fields()
+    unknown = sorted(set(grid) - fields)
+    if unknown:
         raise ValueError(
-            f"param: {name!r} is not an ObservationModel setting "
-            f"(one of {sorted(_observation_fields())})"
+            f"grid: {unknown} are not ObservationModel settings (they are {sorted(fields)})"
         )
-    if not values:
-        raise ValueError("values: expected at least one candidate")
+    if not grid or any(len(v) == 0 for v in grid.values()):
+        raise ValueError("grid: expected at least one setting, each with at least one value")
+    if library.test_subjects is None or library.held_out & TEST_SUBJECTS:
+        raise ValueError("library: expected a validation fold of training persons")
     spec = get_task(task)
-    base_settings = dict(spec.observation)
     kwargs = {"terminate_on_lost": False, **(env_kwargs or {})}
 
     def errors(agent_name: str, model: ObservationModel) -> list[float]:
@@ -113,29 +121,23 @@ def select_observation_setting(
         env.close()
         return out
 
-    default = ObservationModel(**base_settings)
-    hold = errors("hold", default)
+    default = ObservationModel(**dict(spec.observation))
+    hold = float(np.mean(errors("hold", default)))
+    names = list(grid)
     rows = []
-    for value in values:
-        model = replace(default, **{name: type(getattr(default, name))(value)})
-        errs = errors(agent, model)
-        rows.append(
-            {
-                "value": float(value),
-                "mean_error_mm": float(np.mean(errs)),
-                "hold_ratio": float(np.mean(hold) / np.mean(errs)),
-            }
-        )
+    for combo in itertools.product(*(grid[n] for n in names)):
+        settings = {n: type(getattr(default, n))(v) for n, v in zip(names, combo, strict=True)}
+        mean = float(np.mean(errors(agent, replace(default, **settings))))
+        rows.append({"settings": settings, "mean_error_mm": mean, "hold_ratio": hold / mean})
     best = min(range(len(rows)), key=lambda i: rows[i]["mean_error_mm"])
     return {
         "task": spec.name,
         "agent": agent,
-        "param": name,
         "particles": particles,
         "episodes": episodes,
         "rows": rows,
-        "hold_mm": float(np.mean(hold)),
-        "chosen": rows[best]["value"],
+        "hold_mm": hold,
+        "chosen": rows[best]["settings"],
         "validation_subjects": sorted(library.held_out),
         "train_clips": len(library.split("train")),
     }
