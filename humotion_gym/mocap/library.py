@@ -4,7 +4,8 @@ A :class:`MotionLibrary` is an immutable collection of :class:`Motion` clips.
 :func:`load_library` reads it from folders or files of BVH and ASF/AMC, from
 ``HUMOTION_MOCAP`` or a ``data_dir`` argument, and caches every parsed and
 retargeted clip as ``.npz`` (no pickle) so later loads take seconds; a cached
-clip is rebuilt when its source file changes. With no data configured,
+clip is rebuilt when its source file changes, and a damaged or foreign entry is
+reported (:class:`CacheWarning`) and rebuilt. With no data configured,
 :func:`default_library` gives the built-in synthetic motions.
 
 Train and test are split by person (named constants below), checked from the
@@ -17,10 +18,16 @@ The tracked person is never in a prior's training data.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import hashlib
 import os
 import re
-from collections.abc import Iterable, Iterator, Sequence
+import threading
+import uuid
+import warnings
+import zipfile
+import zlib
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -213,13 +220,138 @@ def find_clips(paths: Iterable[str | Path]) -> list[ClipSource]:
     return out
 
 
+class CacheWarning(UserWarning):
+    """A cache entry was unreadable, inconsistent or foreign, or could not be written.
+
+    Raised through :func:`warnings.warn` once per damaged entry, naming the
+    file and what was wrong; the entry is rebuilt and overwritten, so loading
+    carries on. Filter it like any warning (``warnings.simplefilter("error",
+    CacheWarning)`` turns it into an exception, ``pytest.warns`` catches it).
+    """
+
+
+#: What reading or writing a cache entry can raise: a truncated or corrupted
+#: archive (``BadZipFile``, ``zlib.error``, ``EOFError``), a directory or an
+#: unreadable file at the path (``OSError``), or contents of the wrong kind.
+CACHE_ERRORS: tuple[type[BaseException], ...] = (
+    zipfile.BadZipFile,
+    zlib.error,
+    EOFError,
+    OSError,
+    ValueError,
+    KeyError,
+    TypeError,
+)
+
+
+def package_version() -> str:
+    """The installed humotion_gym's version (``humotion_gym.__version__``), part of cache keys."""
+    import humotion_gym
+
+    return str(getattr(humotion_gym, "__version__", "unknown"))
+
+
+def report_cache_problem(path: Path, problem: str) -> None:
+    """Report a cache entry that is being rebuilt: one :class:`CacheWarning` naming it."""
+    warnings.warn(f"humotion_gym cache: {path}: {problem}", CacheWarning, stacklevel=3)
+
+
+def cache_entry_path(folder: Path, stem: str) -> tuple[Path | None, str | None]:
+    """Where the cache entry ``stem`` lives in ``folder``, and what blocked its natural name.
+
+    The natural name is ``folder/stem.npz``. A stray empty directory there is
+    removed; a non-empty one is left alone and the entry moves to
+    ``stem.1.npz`` (``stem.2.npz``... if those are directories too).
+
+    Returns:
+        The file to read and write (None when no name is free), and a line to
+        report if the entry must be rebuilt (None when the natural name was free).
+    """
+    path = folder / f"{stem}.npz"
+    if not path.is_dir():
+        return path, None
+    try:
+        path.rmdir()
+    except OSError:
+        pass
+    else:
+        return path, "a stray empty directory stood at the entry's path; removed it"
+    for i in range(1, 10):
+        alt = folder / f"{stem}.{i}.npz"
+        if not alt.is_dir():
+            return alt, f"a non-empty directory stands at {path.name}; using {alt.name}"
+    return None, f"directories stand at {path.name} and its alternatives; not caching it"
+
+
+def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
+    """Write a file through ``write(temporary path)`` then rename it onto ``path``.
+
+    The temporary file lies in the same folder with a name unique to the
+    process, the thread and the call, so concurrent writers never share one
+    and a reader never sees half a file. It is removed if writing fails.
+
+    Raises:
+        OSError: If the folder cannot be made or the file written.
+    """
+    path.parent.mkdir(parents=True, exist_ok=True)
+    token = f"{os.getpid()}.{threading.get_ident()}.{uuid.uuid4().hex[:12]}"
+    tmp = path.with_name(f".{path.name}.{token}.tmp")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 def _cache_key(src: ClipSource, fps: float | None) -> str:
-    parts = [CACHE_VERSION, str(fps)]
+    """The clip cache key: format and package versions, frame rate, and the files' stats."""
+    parts = [CACHE_VERSION, package_version(), str(fps)]
     for f in (src.path, src.skeleton):
         if f is not None:
             st = f.stat()
             parts += [str(f.resolve()), str(st.st_size), str(st.st_mtime_ns)]
     return hashlib.sha256("|".join(parts).encode()).hexdigest()[:32]
+
+
+def _clip_entry_info(src: ClipSource, fps: float | None, key: str) -> dict[str, str]:
+    """What a clip cache entry stores about itself, compared on every read."""
+    return {
+        "key": key,
+        "clip_id": src.clip_id,
+        "source": str(src.path.resolve()),
+        "skeleton": str(src.skeleton.resolve()) if src.skeleton is not None else "",
+        "fps": str(fps),
+        "cache_version": CACHE_VERSION,
+        "package_version": package_version(),
+    }
+
+
+def _read_clip_entry(path: Path, src: ClipSource, info: Mapping[str, str]) -> Motion:
+    """The cached clip at ``path``, checked against what was asked for.
+
+    The stored key, clip id, source, frame rate and versions must all equal
+    ``info``; the clip's metadata (subject, label...) is refreshed from ``src``.
+
+    Raises:
+        ValueError: If the entry is unreadable, damaged or another clip's.
+    """
+    motion, stored = Motion.load_with_extra(path)
+    wrong = [k for k in info if stored.get(k) != info[k]]
+    if motion.clip_id != src.clip_id and "clip_id" not in wrong:
+        wrong.append("clip_id")
+    if wrong:
+        shown = ", ".join(f"{k}={stored.get(k, '(none)')!r} (expected {info[k]!r})" for k in wrong)
+        raise ValueError(f"a foreign entry: {shown}")
+    fresh = {
+        "source": str(src.path),
+        "subject": src.subject,
+        "label": src.label,
+        "dataset": src.dataset,
+        "description": src.description,
+    }
+    if any(getattr(motion, k) != v for k, v in fresh.items()):
+        motion = dataclasses.replace(motion, **fresh)
+    return motion
 
 
 def load_clip(src: ClipSource, fps: float | None = 30.0) -> Motion:
@@ -401,7 +533,13 @@ def load_library(
 
     The first load parses and retargets each clip (with a progress bar) and
     writes it to ``cache_dir/clips`` as ``.npz``; later loads read the cache.
-    A clip is rebuilt when its file's size or modification time changes.
+    A clip is rebuilt when its file's size or modification time, the frame
+    rate, :data:`CACHE_VERSION` or the package version changes (all part of
+    the key). The cache heals: an entry that is unreadable (truncated, empty,
+    corrupted, a ``.npy``, a directory), holds data of the wrong types or
+    another clip's or version's data (each entry stores its key, clip id and
+    source, compared on read) is reported once with a :class:`CacheWarning`
+    naming the file, rebuilt and overwritten. Entries are written atomically.
 
     Args:
         paths: Files or folders of BVH and ASF/AMC.
@@ -417,27 +555,34 @@ def load_library(
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     clip_dir = cache / "clips"
     motions: list[Motion] = []
-    todo: list[tuple[ClipSource, Path]] = []
+    todo: list[tuple[ClipSource, Path | None, dict[str, str]]] = []
     for src in sources:
-        target = clip_dir / f"{_cache_key(src, fps)}.npz"
-        if use_cache and target.is_file():
+        if not use_cache:
+            todo.append((src, None, {}))
+            continue
+        key = _cache_key(src, fps)
+        info = _clip_entry_info(src, fps, key)
+        target, blocked = cache_entry_path(clip_dir, key)
+        problem = blocked
+        if target is not None and (target.exists() or target.is_symlink()):
             try:
-                motions.append(Motion.load(target))
+                motions.append(_read_clip_entry(target, src, info))
                 continue
-            except ValueError:
-                pass  # a damaged cache entry is rebuilt below
-        todo.append((src, target))
-    if todo:
-        if use_cache:
-            clip_dir.mkdir(parents=True, exist_ok=True)
-        bar = tqdm(todo, desc="parsing mocap", unit="clip", disable=not progress or len(todo) < 2)
-        for src, target in bar:
-            motion = load_clip(src, fps)
-            if use_cache:
-                tmp = target.with_suffix(f".{os.getpid()}.tmp")
-                motion.save(tmp)
-                os.replace(tmp, target)
-            motions.append(motion)
+            except CACHE_ERRORS as exc:
+                why = str(exc).removeprefix(f"{target}: ")
+                problem = (f"{blocked}; " if blocked else "") + f"bad entry of {src.clip_id}: {why}"
+        if problem is not None:
+            report_cache_problem(target or clip_dir / f"{key}.npz", f"{problem}; rebuilding it")
+        todo.append((src, target, info))
+    bar = tqdm(todo, desc="parsing mocap", unit="clip", disable=not progress or len(todo) < 2)
+    for src, target, info in bar:
+        motion = load_clip(src, fps)
+        if target is not None:
+            try:
+                write_atomically(target, lambda tmp, m=motion, i=info: m.save(tmp, extra=i))
+            except CACHE_ERRORS as exc:
+                report_cache_problem(target, f"could not write the entry ({exc}); not cached")
+        motions.append(motion)
     order = {src.clip_id: i for i, src in enumerate(sources)}
     motions.sort(key=lambda m: order.get(m.clip_id, 0))
     return MotionLibrary(tuple(motions))

@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
+import zipfile
+import zlib
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -125,55 +130,177 @@ class Motion:
 
     # -- storage -------------------------------------------------------------
 
-    def save(self, path: str | Path) -> None:
-        """Write the motion to ``path`` as ``.npz`` (no pickled objects)."""
-        header = {
+    def save(self, path: str | Path, extra: Mapping[str, str] | None = None) -> None:
+        """Write the motion to ``path`` as ``.npz`` (no pickled objects).
+
+        The header holds a digest of the arrays (:func:`content_digest`), which
+        :meth:`load` checks, so damaged data never loads as a motion.
+
+        Args:
+            path: The file to write (written as given, no suffix added).
+            extra: Strings stored beside the motion (a cache stores its key and
+                the clip's source); read back by :meth:`load_with_extra`.
+        """
+        arrays = {
+            "params": np.asarray(self.params, dtype=np.float64),
+            "velocities": np.asarray(self.velocities, dtype=np.float64),
+            "observed": np.asarray(self.observed, dtype=np.bool_),
+            "shape": self.shape.to_vector().astype(np.float64),
+            "keypoints": self.keypoints.astype(np.float32),
+        }
+        header: dict[str, Any] = {
             "clip_id": self.clip_id,
-            "fps": self.fps,
+            "fps": float(self.fps),
             "subject": self.subject,
             "label": self.label,
             "source": self.source,
             "dataset": self.dataset,
             "description": self.description,
-            "synthetic": self.synthetic,
-            "meta": self.meta,
+            "synthetic": bool(self.synthetic),
+            "meta": dict(self.meta),
+            "digest": content_digest(arrays),
         }
+        if extra is not None:
+            header["extra"] = {str(k): str(v) for k, v in extra.items()}
         with open(path, "wb") as fh:
-            np.savez_compressed(
-                fh,
-                header=np.array(json.dumps(header)),
-                params=self.params,
-                velocities=self.velocities,
-                observed=self.observed,
-                shape=self.shape.to_vector(),
-                keypoints=self.keypoints.astype(np.float32),
-            )
+            np.savez_compressed(fh, header=np.array(json.dumps(header)), **arrays)
 
     @classmethod
     def load(cls, path: str | Path) -> Motion:
         """Read a motion written by :meth:`save`.
 
         Raises:
-            ValueError: If the file is not a saved motion.
+            ValueError: If the file is not a saved motion: unreadable, not an
+                ``.npz`` archive, a damaged archive, missing or extra arrays,
+                arrays or header fields of the wrong type, or arrays that do
+                not match the header's digest.
+        """
+        return cls.load_with_extra(path)[0]
+
+    @classmethod
+    def load_with_extra(cls, path: str | Path) -> tuple[Motion, dict[str, str]]:
+        """Read a motion written by :meth:`save` and the ``extra`` strings saved with it.
+
+        Returns:
+            The motion and the ``extra`` mapping (empty when none was saved).
+
+        Raises:
+            ValueError: As :meth:`load`; every failure to read, whatever its
+                kind (a truncated or corrupted archive, a directory at the
+                path, a ``.npy`` file...), is raised as ``ValueError``.
         """
         try:
-            with np.load(path, allow_pickle=False) as data:
-                header = json.loads(str(data["header"]))
-                return cls(
-                    clip_id=header["clip_id"],
-                    params=data["params"],
-                    velocities=data["velocities"],
-                    observed=data["observed"],
-                    fps=float(header["fps"]),
-                    shape=BodyShape.from_vector(data["shape"]),
-                    keypoints=data["keypoints"].astype(np.float64),
-                    subject=header["subject"],
-                    label=header["label"],
-                    source=header["source"],
-                    dataset=header.get("dataset", ""),
-                    description=header.get("description", ""),
-                    synthetic=bool(header.get("synthetic", False)),
-                    meta=dict(header.get("meta", {})),
-                )
-        except (KeyError, json.JSONDecodeError, OSError, ValueError) as exc:
-            raise ValueError(f"{path}: not a saved Motion ({exc})") from exc
+            # Open the file here so that it is closed whatever np.load raises.
+            with open(path, "rb") as fh:
+                loaded = np.load(fh, allow_pickle=False)
+                if not isinstance(loaded, np.lib.npyio.NpzFile):
+                    raise ValueError(f"a lone {type(loaded).__name__} (.npy), not an .npz archive")
+                with loaded as data:
+                    names = set(data.files)
+                    if names != _SAVED_ARRAYS | {"header"}:
+                        expected = sorted(_SAVED_ARRAYS | {"header"})
+                        raise ValueError(f"arrays {sorted(names)}, expected {expected}")
+                    raw = data["header"]
+                    if raw.ndim != 0 or raw.dtype.kind != "U":
+                        raise ValueError(f"header is a {raw.dtype} array of shape {raw.shape}")
+                    header = _check_header(json.loads(str(raw)))
+                    arrays = {name: data[name] for name in sorted(_SAVED_ARRAYS)}
+            for name, kind in _ARRAY_KINDS.items():
+                if arrays[name].dtype.kind != kind:
+                    raise ValueError(f"array {name!r} has dtype {arrays[name].dtype}")
+            if "digest" in header and header["digest"] != content_digest(arrays):
+                raise ValueError("the arrays do not match the header's digest")
+            motion = cls(
+                clip_id=header["clip_id"],
+                params=arrays["params"].astype(np.float64),
+                velocities=arrays["velocities"].astype(np.float64),
+                observed=arrays["observed"],
+                fps=float(header["fps"]),
+                shape=BodyShape.from_vector(arrays["shape"]),
+                keypoints=arrays["keypoints"].astype(np.float64),
+                subject=header["subject"],
+                label=header["label"],
+                source=header["source"],
+                dataset=header.get("dataset", ""),
+                description=header.get("description", ""),
+                synthetic=header.get("synthetic", False),
+                meta=dict(header.get("meta", {})),
+            )
+            return motion, dict(header.get("extra", {}))
+        except _READ_ERRORS as exc:
+            raise ValueError(f"{path}: not a saved Motion ({type(exc).__name__}: {exc})") from exc
+
+
+#: The arrays of a saved motion (besides its JSON ``header``) and their dtype kinds.
+_ARRAY_KINDS: dict[str, str] = {
+    "params": "f",
+    "velocities": "f",
+    "observed": "b",
+    "shape": "f",
+    "keypoints": "f",
+}
+_SAVED_ARRAYS = frozenset(_ARRAY_KINDS)
+#: The header's fields and their JSON types; ``fps`` is a number, not a bool.
+_HEADER_TYPES: dict[str, type | tuple[type, ...]] = {
+    "clip_id": str,
+    "fps": (int, float),
+    "subject": str,
+    "label": str,
+    "source": str,
+    "dataset": str,
+    "description": str,
+    "synthetic": bool,
+    "meta": dict,
+    "digest": str,
+    "extra": dict,
+}
+_REQUIRED_HEADER = ("clip_id", "fps", "subject", "label", "source")
+#: What reading a damaged, foreign or misplaced file can raise.
+_READ_ERRORS: tuple[type[BaseException], ...] = (
+    zipfile.BadZipFile,
+    zlib.error,
+    EOFError,
+    OSError,
+    ValueError,
+    KeyError,
+    TypeError,
+)
+
+
+def _check_header(header: Any) -> dict[str, Any]:
+    """The header of a saved motion, its fields' types checked.
+
+    Raises:
+        ValueError: If it is not a JSON object, misses a field or holds one of
+            the wrong type.
+    """
+    if not isinstance(header, dict):
+        raise ValueError(f"header is a JSON {type(header).__name__}, not an object")
+    missing = [k for k in _REQUIRED_HEADER if k not in header]
+    if missing:
+        raise ValueError(f"header lacks {missing}")
+    for key, value in header.items():
+        want = _HEADER_TYPES.get(key)
+        if want is None:
+            raise ValueError(f"header has an unknown field {key!r}")
+        if not isinstance(value, want) or (key == "fps" and isinstance(value, bool)):
+            raise ValueError(f"header field {key!r} has the wrong type {type(value).__name__}")
+    for key in ("meta", "extra"):
+        if not all(
+            isinstance(k, str) and isinstance(v, str) for k, v in header.get(key, {}).items()
+        ):
+            raise ValueError(f"header field {key!r} must map strings to strings")
+    return header
+
+
+def content_digest(arrays: Mapping[str, NDArray[Any]]) -> str:
+    """A SHA-256 digest of named arrays: names, dtypes, shapes and bytes.
+
+    Used to check that a file's arrays are the ones that were written.
+    """
+    h = hashlib.sha256()
+    for name in sorted(arrays):
+        arr = np.ascontiguousarray(arrays[name])
+        h.update(f"{name}|{arr.dtype.str}|{arr.shape}|".encode())
+        h.update(arr.tobytes())
+    return h.hexdigest()

@@ -1,0 +1,263 @@
+"""The prior cache heals: every damaged, foreign or misplaced fit is reported once and refitted.
+
+Fits ``pf-cv`` (the constant-velocity prior, well under a second) on the
+synthetic ``SideWalk-v1`` environment.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import shutil
+import warnings
+import zipfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import humotion_gym
+from baselines import agents as agents_mod
+from baselines.agents import AGENTS, fit_prior
+from humotion_gym.envs.pose_tracking import PoseTrackingEnv
+from humotion_gym.mocap.library import CacheWarning
+
+SPEC = AGENTS["pf-cv"]
+
+
+@pytest.fixture(scope="module")
+def env() -> PoseTrackingEnv:
+    return gym.make("humotion_gym/SideWalk-v1").unwrapped  # type: ignore[return-value]
+
+
+@pytest.fixture(scope="module")
+def fresh(env: PoseTrackingEnv) -> Any:
+    return fit_prior(SPEC, env, use_cache=False)[1]
+
+
+def _fit(env: PoseTrackingEnv, cache: Path, **settings: Any) -> Any:
+    return fit_prior(SPEC, env, settings=settings or None, cache_dir=cache)[1]
+
+
+def _entries(cache: Path) -> list[Path]:
+    return sorted((cache / "priors").glob("*.npz"))
+
+
+def _assert_same(got: Any, want: Any) -> None:
+    assert type(got) is type(want)
+    for f in dataclasses.fields(want):
+        a, b = getattr(got, f.name), getattr(want, f.name)
+        assert np.array_equal(np.asarray(a), np.asarray(b)), f.name
+        assert np.asarray(a).dtype == np.asarray(b).dtype, f.name
+
+
+def _no_warning_fit(env: PoseTrackingEnv, cache: Path, monkeypatch) -> Any:
+    """Fit with every CacheWarning an error, checking that the cache answers."""
+    module = agents_mod._import(SPEC.prior)
+    calls: list[object] = []
+    real = module.fit
+
+    @functools.wraps(real)  # the same signature, so the same cache key
+    def counting_fit(*args: Any, **kwargs: Any) -> Any:
+        calls.append(args)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(module, "fit", counting_fit)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", CacheWarning)
+        out = _fit(env, cache)
+    monkeypatch.setattr(module, "fit", real)
+    assert calls == []
+    return out
+
+
+# -- the corruptions ---------------------------------------------------------------------
+
+
+def _truncate(path: Path, ctx: dict) -> None:
+    raw = path.read_bytes()
+    path.write_bytes(raw[: len(raw) // 2])
+
+
+def _zero_length(path: Path, ctx: dict) -> None:
+    path.write_bytes(b"")
+
+
+def _flip_byte(path: Path, ctx: dict) -> None:
+    """Flip one byte inside the stored data of the accel_std array."""
+    raw = bytearray(path.read_bytes())
+    with zipfile.ZipFile(path) as zf:
+        info = zf.getinfo("accel_std.npy")
+    offset = info.header_offset
+    name_len = int.from_bytes(raw[offset + 26 : offset + 28], "little")
+    extra_len = int.from_bytes(raw[offset + 28 : offset + 30], "little")
+    raw[offset + 30 + name_len + extra_len + info.compress_size - 3] ^= 0xFF
+    path.write_bytes(bytes(raw))
+
+
+def _npy_in_place(path: Path, ctx: dict) -> None:
+    with open(path, "wb") as fh:
+        np.save(fh, np.zeros(8))
+
+
+def _rewrite(path: Path, change: Callable[[dict, dict], None]) -> None:
+    with np.load(path, allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files}
+    header = json.loads(str(arrays.pop("__cache__")))
+    change(header, arrays)
+    with open(path, "wb") as fh:
+        np.savez(fh, __cache__=np.array(json.dumps(header)), **arrays)
+
+
+def _header_wrong_types(path: Path, ctx: dict) -> None:
+    def change(header: dict, arrays: dict) -> None:
+        header["key"] = 12345
+        header["cache_version"] = 1
+
+    _rewrite(path, change)
+
+
+def _header_not_an_object(path: Path, ctx: dict) -> None:
+    with np.load(path, allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files if k != "__cache__"}
+    with open(path, "wb") as fh:
+        np.savez(fh, __cache__=np.arange(3), **arrays)
+
+
+def _arrays_wrong_dtypes(path: Path, ctx: dict) -> None:
+    def change(header: dict, arrays: dict) -> None:
+        arrays["free"] = arrays["free"].astype(np.float64)
+        arrays["accel_std"] = arrays["accel_std"].astype(str)
+
+    _rewrite(path, change)
+
+
+def _other_kind(path: Path, ctx: dict) -> None:
+    """Another prior's parameters under a copied header (the digest no longer matches)."""
+
+    def change(header: dict, arrays: dict) -> None:
+        arrays["__kind__"] = np.array("TreeParams")
+
+    _rewrite(path, change)
+
+
+def _empty_directory(path: Path, ctx: dict) -> None:
+    path.unlink()
+    path.mkdir()
+
+
+def _full_directory(path: Path, ctx: dict) -> None:
+    path.unlink()
+    path.mkdir()
+    (path / "someone's file").write_text("keep me")
+
+
+def _other_settings(path: Path, ctx: dict) -> None:
+    """The entry of a fit with other settings, copied over this one's name."""
+    _fit(ctx["env"], ctx["cache"], multiplier=2.0)
+    other = next(p for p in _entries(ctx["cache"]) if p != path)
+    shutil.copyfile(other, path)
+    other.unlink()
+
+
+def _other_version(path: Path, ctx: dict) -> None:
+    """An entry written by another package version, copied over this version's name."""
+    mp: pytest.MonkeyPatch = ctx["monkeypatch"]
+    old_cache = ctx["cache"].parent / "old-cache"
+    mp.setattr(humotion_gym, "__version__", "0.0.0-old")
+    _fit(ctx["env"], old_cache)
+    mp.undo()
+    (old_entry,) = _entries(old_cache)
+    assert old_entry.name != path.name  # the version is part of the key
+    shutil.copyfile(old_entry, path)
+
+
+CORRUPTIONS: dict[str, Callable[[Path, dict], None]] = {
+    "truncated": _truncate,
+    "zero-length": _zero_length,
+    "flipped-byte": _flip_byte,
+    "npy-in-place": _npy_in_place,
+    "header-wrong-types": _header_wrong_types,
+    "header-not-an-object": _header_not_an_object,
+    "arrays-wrong-dtypes": _arrays_wrong_dtypes,
+    "other-kind": _other_kind,
+    "empty-directory": _empty_directory,
+    "full-directory": _full_directory,
+    "other-settings": _other_settings,
+    "other-version": _other_version,
+}
+
+
+@pytest.mark.parametrize("corruption", list(CORRUPTIONS))
+def test_a_bad_entry_is_reported_once_and_refitted(env, fresh, tmp_path, monkeypatch, corruption):
+    cache = tmp_path / "cache"
+    _assert_same(_fit(env, cache), fresh)
+    (path,) = _entries(cache)
+    ctx = {"env": env, "cache": cache, "monkeypatch": monkeypatch}
+    CORRUPTIONS[corruption](path, ctx)
+
+    with pytest.warns(CacheWarning) as record:
+        healed = _fit(env, cache)
+    messages = [str(w.message) for w in record if issubclass(w.category, CacheWarning)]
+    assert len(messages) == 1, messages
+    assert path.name in messages[0] and "refitting" in messages[0]
+    _assert_same(healed, fresh)
+
+    # Healed: the next call reads the cache silently and fits nothing.
+    _assert_same(_no_warning_fit(env, cache, monkeypatch), fresh)
+    if corruption == "full-directory":
+        assert (path / "someone's file").read_text() == "keep me"
+    else:
+        assert path.is_file()
+    assert not list((cache / "priors").glob(".*.tmp"))
+
+
+def test_a_good_entry_is_read_without_refitting(env, fresh, tmp_path, monkeypatch):
+    cache = tmp_path / "cache"
+    _fit(env, cache)
+    _assert_same(_no_warning_fit(env, cache, monkeypatch), fresh)
+
+
+def test_the_key_holds_the_package_version_and_the_fit_defaults(env, tmp_path, monkeypatch):
+    cache = tmp_path / "cache"
+    _fit(env, cache)
+    monkeypatch.setattr(humotion_gym, "__version__", "99.0")
+    _fit(env, cache)
+    monkeypatch.undo()
+    assert len(_entries(cache)) == 2  # an upgrade refits instead of reusing
+
+    # A fit whose default changes (a new release of the fitting code) refits too.
+    module = agents_mod._import(SPEC.prior)
+    real = module.fit
+
+    def fit_with_new_default(motions, free=None, rng=None, multiplier=1.5, frame_skip=1):
+        return real(motions, free=free, rng=rng, multiplier=multiplier, frame_skip=frame_skip)
+
+    monkeypatch.setattr(module, "fit", fit_with_new_default)
+    got = _fit(env, cache)
+    assert got.multiplier == 1.5 and len(_entries(cache)) == 3
+
+
+def test_an_unwritable_cache_reports_and_fits(env, fresh, tmp_path):
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    (cache / "priors").write_text("a file where the folder should be")
+    with pytest.warns(CacheWarning, match="could not write"):
+        got = _fit(env, cache)
+    _assert_same(got, fresh)
+
+
+def test_messages_say_what_was_wrong(env, tmp_path):
+    cache = tmp_path / "cache"
+    _fit(env, cache)
+    (path,) = _entries(cache)
+    path.write_bytes(b"")
+    with pytest.warns(CacheWarning, match=r"bad constant_velocity entry: EOFError"):
+        _fit(env, cache)
+    _other_settings(path, {"env": env, "cache": cache})
+    with pytest.warns(CacheWarning, match=r"foreign entry: .*settings="):
+        _fit(env, cache)

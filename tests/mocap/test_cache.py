@@ -1,0 +1,284 @@
+"""The clip cache heals: every damaged, foreign or misplaced entry is reported once and rebuilt.
+
+Clips are small BVH files written from the synthetic motions
+(:func:`humotion_gym.mocap.export.write_motion_bvh`), never copies of real data.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import threading
+import warnings
+import zipfile
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import humotion_gym
+from humotion_gym.mocap import library as lib_mod
+from humotion_gym.mocap.export import write_motion_bvh
+from humotion_gym.mocap.library import (
+    CacheWarning,
+    MotionLibrary,
+    find_clips,
+    load_library,
+    synthetic_library,
+)
+from humotion_gym.mocap.motion import Motion
+
+FRAMES = 40
+
+
+@pytest.fixture
+def data(tmp_path: Path) -> Path:
+    """A folder of two short BVH clips."""
+    folder = tmp_path / "data"
+    folder.mkdir()
+    lib = synthetic_library()
+    for name, clip in (("take_a", "synthetic/walk-01"), ("take_b", "synthetic/run-01")):
+        m = lib[clip].slice(0, FRAMES)
+        write_motion_bvh(folder / f"{name}.bvh", m.params, m.shape, m.fps)
+    return folder
+
+
+def _load(data: Path, cache: Path) -> MotionLibrary:
+    return load_library([data], cache_dir=cache, progress=False)
+
+
+def _entry(data: Path, cache: Path, clip: str = "take_a") -> Path:
+    """The natural cache file of one clip."""
+    src = next(s for s in find_clips([data]) if s.path.stem == clip)
+    return cache / "clips" / f"{lib_mod._cache_key(src, 30.0)}.npz"
+
+
+def _assert_same(got: MotionLibrary, want: MotionLibrary) -> None:
+    assert got.clip_ids == want.clip_ids
+    for a, b in zip(got, want, strict=True):
+        for name in ("params", "velocities", "observed"):
+            assert np.array_equal(getattr(a, name), getattr(b, name)), name
+        assert np.allclose(a.keypoints, b.keypoints, equal_nan=True, atol=1e-3)
+        assert a.shape == b.shape
+        for name in ("fps", "subject", "label", "source", "dataset", "description", "meta"):
+            assert getattr(a, name) == getattr(b, name), name
+
+
+def _no_warning_load(data: Path, cache: Path, monkeypatch) -> MotionLibrary:
+    """Load with every CacheWarning an error, checking that nothing is parsed."""
+    parsed: list[object] = []
+    real = lib_mod.load_clip
+    monkeypatch.setattr(lib_mod, "load_clip", lambda *a, **k: parsed.append(a) or real(*a, **k))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", CacheWarning)
+        out = _load(data, cache)
+    monkeypatch.setattr(lib_mod, "load_clip", real)
+    assert parsed == []
+    return out
+
+
+# -- the corruptions: each turns a good entry at ``path`` into a bad one --------------
+
+
+def _truncate(path: Path, ctx: dict) -> None:
+    raw = path.read_bytes()
+    path.write_bytes(raw[: len(raw) // 2])
+
+
+def _zero_length(path: Path, ctx: dict) -> None:
+    path.write_bytes(b"")
+
+
+def _flip_byte(path: Path, ctx: dict) -> None:
+    """Flip one byte inside the compressed data of the params array."""
+    raw = bytearray(path.read_bytes())
+    with zipfile.ZipFile(path) as zf:
+        info = zf.getinfo("params.npy")
+    offset = info.header_offset
+    name_len = int.from_bytes(raw[offset + 26 : offset + 28], "little")
+    extra_len = int.from_bytes(raw[offset + 28 : offset + 30], "little")
+    start = offset + 30 + name_len + extra_len
+    raw[start + info.compress_size // 2] ^= 0xFF
+    path.write_bytes(bytes(raw))
+
+
+def _npy_in_place(path: Path, ctx: dict) -> None:
+    with open(path, "wb") as fh:
+        np.save(fh, np.zeros((FRAMES, 25)))
+
+
+def _rewrite(path: Path, change: Callable[[dict, dict], None]) -> None:
+    with np.load(path, allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files}
+    header = json.loads(str(arrays.pop("header")))
+    change(header, arrays)
+    with open(path, "wb") as fh:
+        np.savez_compressed(fh, header=np.array(json.dumps(header)), **arrays)
+
+
+def _header_wrong_types(path: Path, ctx: dict) -> None:
+    def change(header: dict, arrays: dict) -> None:
+        header["fps"] = "30"
+        header["clip_id"] = 7
+
+    _rewrite(path, change)
+
+
+def _arrays_wrong_dtypes(path: Path, ctx: dict) -> None:
+    def change(header: dict, arrays: dict) -> None:
+        arrays["params"] = arrays["params"].astype(str)
+        arrays["observed"] = arrays["observed"].astype(np.float64)
+
+    _rewrite(path, change)
+
+
+def _arrays_changed_under_header(path: Path, ctx: dict) -> None:
+    """Right types, wrong data: the header's digest no longer matches."""
+
+    def change(header: dict, arrays: dict) -> None:
+        arrays["params"] = arrays["params"] + 0.1
+
+    _rewrite(path, change)
+
+
+def _empty_directory(path: Path, ctx: dict) -> None:
+    path.unlink()
+    path.mkdir()
+
+
+def _full_directory(path: Path, ctx: dict) -> None:
+    path.unlink()
+    path.mkdir()
+    (path / "someone's file").write_text("keep me")
+
+
+def _other_clip(path: Path, ctx: dict) -> None:
+    shutil.copyfile(_entry(ctx["data"], ctx["cache"], "take_b"), path)
+
+
+def _other_version(path: Path, ctx: dict) -> None:
+    """An entry written by another package version, copied over this version's name."""
+    mp: pytest.MonkeyPatch = ctx["monkeypatch"]
+    old_cache = ctx["cache"].parent / "old-cache"
+    mp.setattr(humotion_gym, "__version__", "0.0.0-old")
+    _load(ctx["data"], old_cache)
+    old_entry = _entry(ctx["data"], old_cache)
+    mp.undo()
+    assert old_entry.name != path.name  # the version is part of the key
+    shutil.copyfile(old_entry, path)
+
+
+CORRUPTIONS: dict[str, Callable[[Path, dict], None]] = {
+    "truncated": _truncate,
+    "zero-length": _zero_length,
+    "flipped-byte": _flip_byte,
+    "npy-in-place": _npy_in_place,
+    "header-wrong-types": _header_wrong_types,
+    "arrays-wrong-dtypes": _arrays_wrong_dtypes,
+    "arrays-changed": _arrays_changed_under_header,
+    "empty-directory": _empty_directory,
+    "full-directory": _full_directory,
+    "other-clip": _other_clip,
+    "other-version": _other_version,
+}
+
+
+@pytest.mark.parametrize("corruption", list(CORRUPTIONS))
+def test_a_bad_entry_is_reported_once_and_rebuilt(data, tmp_path, monkeypatch, corruption):
+    cache = tmp_path / "cache"
+    fresh = load_library([data], use_cache=False, progress=False)
+    _assert_same(_load(data, cache), fresh)
+    path = _entry(data, cache)
+    CORRUPTIONS[corruption](path, {"data": data, "cache": cache, "monkeypatch": monkeypatch})
+
+    with pytest.warns(CacheWarning) as record:
+        healed = _load(data, cache)
+    messages = [str(w.message) for w in record if issubclass(w.category, CacheWarning)]
+    assert len(messages) == 1, messages
+    assert path.name in messages[0] and "rebuilding" in messages[0]
+    _assert_same(healed, fresh)
+
+    # Healed: the next load reads the cache silently and parses nothing.
+    _assert_same(_no_warning_load(data, cache, monkeypatch), fresh)
+    if corruption == "full-directory":
+        assert (path / "someone's file").read_text() == "keep me"
+    else:
+        assert path.is_file()
+    assert not list((cache / "clips").glob(".*.tmp"))
+
+
+def test_messages_say_what_was_wrong(data, tmp_path):
+    cache = tmp_path / "cache"
+    _load(data, cache)
+    path = _entry(data, cache)
+    shutil.copyfile(_entry(data, cache, "take_b"), path)
+    with pytest.warns(CacheWarning, match=r"foreign entry: .*clip_id='user/take_b'"):
+        _load(data, cache)
+    path.write_bytes(b"")
+    with pytest.warns(CacheWarning, match=r"bad entry of user/take_a: .*EOFError"):
+        _load(data, cache)
+
+
+def test_the_key_holds_the_package_version(data, tmp_path, monkeypatch):
+    cache = tmp_path / "cache"
+    src = find_clips([data])[0]
+    key = lib_mod._cache_key(src, 30.0)
+    monkeypatch.setattr(humotion_gym, "__version__", "99.0")
+    assert lib_mod._cache_key(src, 30.0) != key
+    _load(data, cache)
+    monkeypatch.undo()
+    # An upgrade never reuses the other version's entries: every clip is parsed again.
+    parsed: list[object] = []
+    real = lib_mod.load_clip
+    monkeypatch.setattr(lib_mod, "load_clip", lambda *a, **k: parsed.append(a) or real(*a, **k))
+    _load(data, cache)
+    assert len(parsed) == 2
+
+
+def test_an_unwritable_cache_reports_and_loads(data, tmp_path):
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    (cache / "clips").write_text("a file where the folder should be")
+    fresh = load_library([data], use_cache=False, progress=False)
+    with pytest.warns(CacheWarning, match="could not write"):
+        got = _load(data, cache)
+    _assert_same(got, fresh)
+
+
+def test_concurrent_loads_share_the_cache(data, tmp_path):
+    cache = tmp_path / "cache"
+    fresh = load_library([data], use_cache=False, progress=False)
+    results: list[MotionLibrary] = []
+    errors: list[BaseException] = []
+
+    def work() -> None:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("error", CacheWarning)
+                results.append(_load(data, cache))
+        except BaseException as exc:  # noqa: BLE001 - handed to the main thread
+            errors.append(exc)
+
+    threads = [threading.Thread(target=work) for _ in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert errors == [] and len(results) == 4
+    for got in results:
+        _assert_same(got, fresh)
+    assert len(list((cache / "clips").glob("*.npz"))) == 2
+    assert not list((cache / "clips").glob(".*.tmp"))
+
+
+def test_motion_load_rejects_what_is_not_a_motion(tmp_path):
+    m = synthetic_library()["synthetic/walk-01"].slice(0, 10)
+    m.save(tmp_path / "m.npz", extra={"key": "k"})
+    back, extra = Motion.load_with_extra(tmp_path / "m.npz")
+    assert extra == {"key": "k"} and np.array_equal(back.params, m.params)
+    np.save(tmp_path / "a.npy", np.zeros(3))
+    (tmp_path / "d.npz").mkdir()
+    for bad in (tmp_path / "a.npy", tmp_path / "d.npz", tmp_path / "absent.npz"):
+        with pytest.raises(ValueError, match="not a saved Motion"):
+            Motion.load(bad)
