@@ -43,8 +43,10 @@ class ArmTrackEnv(PoseTrackingEnv):
     given parameters place.
 
     The likelihood (``observation_model``) is the shared one with
-    ``sharpness=2``: only two of the ten cones move, and the sharpness was
-    chosen by cross-validation on training persons (``humotion-gym select``).
+    ``sharpness=3``, no foreground term and 8 edge-orientation bins, chosen by
+    cross-validation on training persons (``humotion-gym select``): only two of
+    the ten cones move, and the foreground term rewards an arm laid over the
+    torso.
 
     ## Given Truth
 
@@ -75,8 +77,8 @@ ArmTrackEnv.__doc__ = (
     ## Version History
 
     * v1: a close-up of the arm's reach; episodes where the arm moves (150 mm);
-      likelihood sharpness 2; the camera's heading from the first frame; test
-      persons CMU 2 and 3.
+      a likelihood chosen for the arm (``tasks.ARM_OBSERVATION``); the camera's
+      heading from the first frame; test persons CMU 2 and 3.
     * v0: withdrawn. The arm was small in a view of the upper body, many
       episodes barely moved the arm, and holding the initial pose scored as
       well as the trackers; its test split held out a Bandai-Namco style
