@@ -71,10 +71,58 @@ def _add_download(sub: argparse._SubParsersAction) -> None:
     dl = sub.add_parser("download", help="fetch public motion capture into the cache")
     dsub = dl.add_subparsers(dest="source", required=True)
     cmu = dsub.add_parser("cmu", help="CMU Graphics Lab Motion Capture Database (ASF/AMC)")
-    cmu.add_argument("--subjects", type=int, nargs="+", required=True)
+    cmu.add_argument(
+        "--subjects",
+        type=int,
+        nargs="+",
+        default=None,
+        help="CMU subject numbers (required unless --verify)",
+    )
     cmu.add_argument("--dest", type=Path, default=None)
     cmu.add_argument("--base-url", default=None)
     cmu.add_argument("--quiet", action="store_true")
+    cmu.add_argument("--retries", type=int, default=3, help="attempts per file (default 3)")
+    cmu.add_argument(
+        "--timeout",
+        type=float,
+        default=30.0,
+        help="socket timeout per connect and per read, s (default 30)",
+    )
+    cmu.add_argument(
+        "--file-deadline",
+        type=float,
+        default=600.0,
+        help="deadline per file or listing, all attempts, s (default 600)",
+    )
+    cmu.add_argument(
+        "--deadline",
+        type=float,
+        default=7200.0,
+        help="deadline for the whole run, s (default 7200)",
+    )
+    cmu.add_argument(
+        "--max-asf-mib", type=float, default=1.0, help="cap on an .asf file, MiB (default 1)"
+    )
+    cmu.add_argument(
+        "--max-amc-mib", type=float, default=64.0, help="cap on an .amc file, MiB (default 64)"
+    )
+    cmu.add_argument(
+        "--max-listing-kib",
+        type=float,
+        default=1024.0,
+        help="cap on a subject's HTML listing, KiB (default 1024)",
+    )
+    cmu.add_argument(
+        "--registry",
+        type=Path,
+        default=None,
+        help="SHA-256 registry file (default: the packaged cmu_sha256.txt)",
+    )
+    cmu.add_argument(
+        "--verify",
+        action="store_true",
+        help="download nothing; check DEST: verified / unverified / corrupt (exit 1)",
+    )
     cmu.set_defaults(func=_cmd_download_cmu)
 
 
@@ -239,7 +287,27 @@ def _cmd_data_convert(args: argparse.Namespace) -> int:
 def _cmd_download_cmu(args: argparse.Namespace) -> int:
     from humotion_gym.mocap import download
 
-    kwargs = {"dest": args.dest, "progress": not args.quiet}
+    if args.verify:
+        report = download.verify_cache(args.dest, registry=args.registry)
+        print(report.summary())
+        return 0 if report.ok else 1
+    if not args.subjects:
+        raise ValueError("download cmu: --subjects is required (or --verify)")
+    mib = 1 << 20
+    kwargs = {
+        "dest": args.dest,
+        "progress": not args.quiet,
+        "retries": args.retries,
+        "timeout": args.timeout,
+        "file_deadline_s": args.file_deadline,
+        "deadline_s": args.deadline,
+        "max_bytes": {
+            ".asf": max(int(args.max_asf_mib * mib), 1),
+            ".amc": max(int(args.max_amc_mib * mib), 1),
+        },
+        "max_listing_bytes": max(int(args.max_listing_kib * 1024), 1),
+        "registry": args.registry,
+    }
     if args.base_url:
         kwargs["base_url"] = args.base_url
     files = download.download_cmu(args.subjects, **kwargs)

@@ -5,31 +5,66 @@
 (``{base_url}/{SS}/{SS}.asf``, ``{base_url}/{SS}/{SS}_{TT}.amc``) into
 ``dest/{SS}/``, the same layout the motion library loads.
 
-Downloads are resumable and atomic: bytes stream into ``name.part``; a dropped
-connection or a short read is retried with an HTTP ``Range`` header from the
-bytes already written, and a later call resumes any ``.part`` left behind. Only
-a complete file is renamed to its final name, so the library (which ignores
-``*.part``) never loads half a clip. Every finished file is recorded with its
-SHA-256 in ``dest/manifest.json``; :func:`verify_cache` re-checks them.
+What a finished download guarantees:
+
+- **Complete.** The size of every file must be known before its body is
+  trusted: from ``Content-Length`` (or the total of a ``Content-Range``), else
+  from the registry below. A body that ends short is an error, never a file; a
+  server that sends no size for a file the registry does not know is refused.
+- **Atomic and resumable, never spliced.** Bytes stream into ``name.part``
+  beside a small sidecar ``name.part.json`` holding the server's validator
+  (its ``ETag`` if strong, else its ``Last-Modified``) and the file's size. A
+  resume asks for ``Range: bytes=N-`` with ``If-Range: <validator>``: a server
+  whose file changed answers 200 with the whole new file, which is written
+  from zero; a 412 or 416 also restarts from zero. A ``.part`` without a
+  usable sidecar (stale, foreign, or from a server that sent no validator) is
+  discarded, not resumed. Only a complete, checked file is renamed to its
+  final name, so the library (which ignores ``*.part``) never loads half a clip.
+- **Checked against a registry, not against itself.** The package ships
+  ``humotion_gym/mocap/data/cmu_sha256.txt``: SHA-256 and size of CMU files,
+  recorded by :func:`record_registry` from CMU's original files (the shared
+  mirror ``cmu-asfamc``: subjects 1, 2 and 3). A downloaded file the registry
+  names must match it, or it is deleted and refused with both hashes in the
+  error. A file the registry does not name is checked for size and
+  completeness only and recorded in ``dest/manifest.json`` as
+  ``"unverified"``; registry matches are recorded as ``"verified"``.
+  :func:`verify_cache` reports the two apart, and corrupt files separately.
+- **Bounded.** Every file has a size cap (:data:`DEFAULT_MAX_BYTES`: 1 MiB for
+  ``.asf``, 64 MiB for ``.amc``/``.bvh``), the listing has a byte cap and an
+  entry cap, every socket read has a timeout, and each file and the whole run
+  have a deadline (:data:`DEFAULT_FILE_DEADLINE_S`,
+  :data:`DEFAULT_RUN_DEADLINE_S`), so a server that drips one byte a second
+  is stopped at the deadline with an error saying so.
+
+Every :class:`DownloadError` names the URL and says what was left on disk: the
+path of a ``.part`` kept for a later call to resume, or that nothing was kept.
 
 Only the standard library speaks HTTP (no extra dependency); tqdm draws the
-progress bars.
+progress bars. To re-record the registry from a folder of original files::
+
+    python -m humotion_gym.mocap.download --record-registry ../shared/mocap/cmu-asfamc
 """
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import hashlib
 import http.client
 import json
+import math
 import operator
 import os
 import re
+import socket
+import sys
 import tempfile
+import threading
 import time
 import urllib.error
 import urllib.request
-from collections.abc import Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -40,12 +75,23 @@ from humotion_gym.mocap.library import default_cache_dir
 
 __all__ = [
     "CMU_BASE_URL",
+    "DEFAULT_FILE_DEADLINE_S",
+    "DEFAULT_MAX_BYTES",
+    "DEFAULT_MAX_LISTING_BYTES",
+    "DEFAULT_MAX_LISTING_ENTRIES",
+    "DEFAULT_RUN_DEADLINE_S",
+    "DEFAULT_TIMEOUT_S",
     "MANIFEST_NAME",
+    "REGISTRY_PATH",
+    "CacheReport",
     "DownloadError",
+    "RegistryEntry",
     "cmu_subject_code",
     "default_cache_dir",
     "download_cmu",
     "list_cmu_trials",
+    "load_registry",
+    "record_registry",
     "verify_cache",
 ]
 
@@ -55,14 +101,32 @@ CMU_BASE_URL = "http://mocap.cs.cmu.edu/subjects"
 MANIFEST_NAME = "manifest.json"
 #: Suffix of a file still being downloaded.
 PART_SUFFIX = ".part"
+#: Suffix of the sidecar beside a ``.part``: the URL, validator and size it belongs to.
+SIDECAR_SUFFIX = ".part.json"
+#: The packaged registry of SHA-256 and sizes of CMU's files.
+REGISTRY_PATH = Path(__file__).resolve().parent / "data" / "cmu_sha256.txt"
+
+#: Cap on one file's size by suffix, in bytes. CMU's skeletons are about 7 KB and
+#: its longest trials a few MB, so these leave ample room while refusing junk.
+#: Raise with ``max_bytes=`` or ``--max-asf-mib`` / ``--max-amc-mib``.
+DEFAULT_MAX_BYTES: Mapping[str, int] = {".asf": 1 << 20, ".amc": 64 << 20, ".bvh": 64 << 20}
+#: Cap on a file whose suffix :data:`DEFAULT_MAX_BYTES` does not name.
+FALLBACK_MAX_BYTES = 64 << 20
+#: Cap on the size of a subject's HTML listing (CMU's are a few KB).
+DEFAULT_MAX_LISTING_BYTES = 1 << 20
+#: Cap on the number of trials one listing may name (trial numbers run 1..999).
+DEFAULT_MAX_LISTING_ENTRIES = 999
+#: Socket timeout in seconds, for the connection and for every single read.
+DEFAULT_TIMEOUT_S = 30.0
+#: Deadline for one file (all its attempts together) and for one listing, seconds.
+DEFAULT_FILE_DEADLINE_S = 600.0
+#: Deadline for a whole :func:`download_cmu` call, seconds.
+DEFAULT_RUN_DEADLINE_S = 7200.0
 #: Seconds to wait before the first retry; doubles with each retry (capped at 8 s)
 #: so a briefly overloaded server is not hammered. Tests set it to 0.
 RETRY_BACKOFF_S = 1.0
 
 _CHUNK = 1 << 16
-# A listing is a small HTML page; the cap keeps a misbehaving server from
-# feeding us an endless body.
-_MAX_LISTING_BYTES = 8 << 20
 # Probing stops here even if a server answers every URL (CMU's largest subject
 # has well under a hundred trials).
 _MAX_TRIALS = 999
@@ -70,28 +134,98 @@ _USER_AGENT = "humotion_gym-download/1 (+urllib)"
 # Statuses worth another attempt; any other HTTP error is final (a 403 or 410
 # will not change by asking again).
 _RETRY_STATUSES = frozenset({408, 425, 429, 500, 502, 503, 504})
+# A CMU file's path relative to the download folder: SS/SS.asf or SS/SS_TT.amc.
+_CMU_REL = re.compile(r"(\d{2,3})/\1(?:_\d{2,3})?\.(?:asf|amc)")
 
 
 class DownloadError(ValueError):
-    """A file could not be downloaded.
+    """A file or listing could not be downloaded, or was refused.
+
+    The message starts with the URL and says what is left on disk.
 
     Attributes:
         url: The URL that failed.
         status: The HTTP status if the server answered with an error, else None.
         received: Bytes of the file held locally (in its ``.part``) when giving up.
+        path: The file left on disk for this URL (a resumable ``.part``), or None
+            when nothing was kept.
     """
 
     def __init__(
-        self, url: str, reason: str, *, status: int | None = None, received: int = 0
+        self,
+        url: str,
+        reason: str,
+        *,
+        status: int | None = None,
+        received: int = 0,
+        path: Path | None = None,
     ) -> None:
         self.url = url
         self.status = status
         self.received = received
+        self.path = path
         super().__init__(f"{url}: {reason}")
 
 
-class _ShortRead(OSError):
-    """The connection ended before the announced Content-Length was reached."""
+class _Retry(OSError):
+    """An attempt failed in a way another attempt may mend (a short body...)."""
+
+
+@dataclass(frozen=True)
+class RegistryEntry:
+    """What a registered file must be: its SHA-256 (hex) and size in bytes."""
+
+    sha256: str
+    bytes: int
+
+
+@dataclass(frozen=True)
+class CacheReport:
+    """What :func:`verify_cache` found, by relative path (``/``-separated, sorted).
+
+    Attributes:
+        verified: Files whose SHA-256 matches the registry.
+        unverified: Files the registry does not name, intact against the manifest
+            (complete, but checked only against their own download).
+        corrupt: Files whose size or SHA-256 disagrees with the registry or the
+            manifest; never counted as verified.
+        missing: Files in the manifest that are no longer on disk.
+        reasons: For each corrupt or missing file, why.
+    """
+
+    verified: list[str] = field(default_factory=list)
+    unverified: list[str] = field(default_factory=list)
+    corrupt: list[str] = field(default_factory=list)
+    missing: list[str] = field(default_factory=list)
+    reasons: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        """True when nothing is corrupt or missing."""
+        return not self.corrupt and not self.missing
+
+    def summary(self) -> str:
+        """One line of counts, then one line per corrupt or missing file and why."""
+        lines = [
+            f"{len(self.verified)} verified (match the registry), "
+            f"{len(self.unverified)} unverified (not in the registry; size and manifest "
+            f"checked), {len(self.corrupt)} corrupt, {len(self.missing)} missing"
+        ]
+        return "\n".join(lines + [f"  {self.reasons[rel]}" for rel in self.problems])
+
+    @property
+    def problems(self) -> list[str]:
+        """Corrupt and missing files together, sorted; :func:`download_cmu` refetches them."""
+        return sorted(self.corrupt + self.missing)
+
+
+@dataclass(frozen=True)
+class _Deadline:
+    at: float  # time.monotonic() value
+    what: str  # e.g. "the per-file deadline of 600 s (file_deadline_s=, --file-deadline)"
+
+    def left(self) -> float:
+        return self.at - time.monotonic()
 
 
 def cmu_subject_code(subject: int) -> str:
@@ -113,13 +247,161 @@ def cmu_subject_code(subject: int) -> str:
     return f"{n:02d}"
 
 
+# --- registry -------------------------------------------------------------------
+
+
+def load_registry(path: str | Path | None = None) -> dict[str, RegistryEntry]:
+    """Read a registry of SHA-256 and sizes.
+
+    The format is one file per line, ``SHA256 BYTES SS/NAME`` separated by
+    spaces (``#`` starts a comment), as :func:`record_registry` writes it.
+
+    Args:
+        path: The registry file; the packaged :data:`REGISTRY_PATH` when None.
+
+    Returns:
+        Relative path (``01/01_01.amc``) -> :class:`RegistryEntry`.
+
+    Raises:
+        FileNotFoundError: If the file does not exist.
+        ValueError: If a line is malformed (the message names file and line).
+    """
+    path = Path(path) if path is not None else REGISTRY_PATH
+    out: dict[str, RegistryEntry] = {}
+    for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+        line = line.split("#", 1)[0].strip()
+        if not line:
+            continue
+        parts = line.split()
+        if (
+            len(parts) != 3
+            or not re.fullmatch(r"[0-9a-f]{64}", parts[0])
+            or not parts[1].isdigit()
+            or not _CMU_REL.fullmatch(parts[2])
+        ):
+            raise ValueError(f"{path}:{n}: expected 'SHA256 BYTES SS/NAME.asf|amc', got {line!r}")
+        out[parts[2]] = RegistryEntry(parts[0], int(parts[1]))
+    return out
+
+
+def record_registry(src: str | Path, out: str | Path | None = None) -> dict[str, RegistryEntry]:
+    """Record SHA-256 and sizes of the original CMU files under ``src``.
+
+    ``src`` holds subject folders as CMU lays them out (``src/02/02.asf``,
+    ``src/02/02_01.amc``...); other files are ignored. Only record files known
+    to be CMU's originals: a download is later refused when it disagrees.
+
+    Args:
+        src: The folder of original files (``../shared/mocap/cmu-asfamc``).
+        out: Where to write the registry; the packaged :data:`REGISTRY_PATH`
+            when None. Entries already there for other files are kept.
+
+    Returns:
+        All entries written, by relative path.
+
+    Raises:
+        FileNotFoundError: If ``src`` holds no CMU ASF/AMC file.
+    """
+    src = Path(src)
+    out = Path(out) if out is not None else REGISTRY_PATH
+    found = {
+        p.relative_to(src).as_posix(): p
+        for p in sorted(src.glob("*/*"))
+        if p.is_file() and _CMU_REL.fullmatch(p.relative_to(src).as_posix())
+    }
+    if not found:
+        raise FileNotFoundError(f"{src}: no CMU files (SS/SS.asf, SS/SS_TT.amc) here")
+    entries = load_registry(out) if out.is_file() else {}
+    for rel, p in found.items():
+        entries[rel] = RegistryEntry(_sha256(p), p.stat().st_size)
+    lines = [
+        "# SHA-256 and size in bytes of CMU Graphics Lab Motion Capture Database files,",
+        f"# recorded from CMU's original ASF/AMC files (a folder named {src.name!r}) by",
+        "#   python -m humotion_gym.mocap.download --record-registry DIR",
+        "# A downloaded file named here must match it or is refused; see docs/data.md.",
+        "# sha256 bytes path",
+    ]
+    lines += [f"{e.sha256} {e.bytes} {rel}" for rel, e in sorted(entries.items())]
+    out.parent.mkdir(parents=True, exist_ok=True)
+    _write_atomic(out, "\n".join(lines) + "\n")
+    return entries
+
+
+def _resolve_registry(
+    registry: Mapping[str, RegistryEntry] | str | Path | None,
+) -> Mapping[str, RegistryEntry]:
+    if registry is None or isinstance(registry, (str, Path)):
+        return load_registry(registry)
+    return registry
+
+
+# --- HTTP -----------------------------------------------------------------------
+
+
 def _subject_url(base_url: str, code: str) -> str:
     return f"{base_url.rstrip('/')}/{code}/"
 
 
-def _open(url: str, timeout: float, headers: dict[str, str] | None = None) -> Any:
+def _opener(socks: list[socket.socket]) -> urllib.request.OpenerDirector:
+    """A urllib opener that records every socket it connects, for the watchdog."""
+
+    class _Conn(http.client.HTTPConnection):
+        def connect(self) -> None:
+            super().connect()
+            socks.append(self.sock)
+
+    class _SConn(http.client.HTTPSConnection):
+        def connect(self) -> None:
+            super().connect()
+            socks.append(self.sock)
+
+    class _Handler(urllib.request.HTTPHandler):
+        def http_open(self, req: urllib.request.Request) -> Any:
+            return self.do_open(_Conn, req)
+
+    class _SHandler(urllib.request.HTTPSHandler):
+        def https_open(self, req: urllib.request.Request) -> Any:
+            return self.do_open(_SConn, req)
+
+    return urllib.request.build_opener(_Handler, _SHandler)
+
+
+@contextlib.contextmanager
+def _open(
+    url: str, timeout: float, deadline: _Deadline, headers: dict[str, str] | None = None
+) -> Iterator[Any]:
+    """GET ``url``; the response, its sockets shut down if the deadline passes.
+
+    The per-read timeout bounds a stall; the watchdog bounds everything else a
+    server can drag out (headers sent a byte at a time, a body that drips).
+    """
     req = urllib.request.Request(url, headers={"User-Agent": _USER_AGENT, **(headers or {})})
-    return urllib.request.urlopen(req, timeout=timeout)  # noqa: S310 (http(s) URLs only)
+    socks: list[socket.socket] = []
+
+    def cut() -> None:
+        for sock in list(socks):
+            with contextlib.suppress(OSError):
+                sock.shutdown(socket.SHUT_RDWR)
+
+    watchdog = threading.Timer(max(deadline.left(), 0.0), cut)
+    watchdog.daemon = True
+    watchdog.start()
+    try:
+        with _opener(socks).open(req, timeout=max(min(timeout, deadline.left()), 0.01)) as resp:
+            yield resp
+    finally:
+        watchdog.cancel()
+
+
+def _set_read_timeout(resp: Any, timeout: float, deadline: _Deadline) -> None:
+    """Bound the next socket read by the timeout and by the time left to the deadline."""
+    sock = getattr(getattr(getattr(resp, "fp", None), "raw", None), "_sock", None)
+    if sock is not None:
+        sock.settimeout(max(min(timeout, deadline.left()), 0.01))
+
+
+def _deadline_error(url: str, deadline: _Deadline, state: str) -> DownloadError:
+    return DownloadError(url, f"stopped at {deadline.what}; {state}")
 
 
 def _trials_from_listing(html: str, code: str) -> list[int]:
@@ -131,27 +413,86 @@ def _trials_from_listing(html: str, code: str) -> list[int]:
     return sorted({int(m) for m in pattern.findall(html)})
 
 
-def list_cmu_trials(subject: int, base_url: str = CMU_BASE_URL, timeout: float = 30.0) -> list[int]:
+def _read_listing(
+    url: str, code: str, timeout: float, deadline: _Deadline, max_bytes: int, max_entries: int
+) -> list[int]:
+    try:
+        with _open(url, timeout, deadline) as resp:
+            if deadline.left() <= 0:
+                raise _deadline_error(url, deadline, "the headers came in too slowly")
+            length = resp.headers.get("Content-Length")
+            if length and length.isdigit() and int(length) > max_bytes:
+                raise DownloadError(
+                    url,
+                    f"listing of {int(length)} bytes is over the cap of {max_bytes} bytes "
+                    "(max_listing_bytes=, --max-listing-kib)",
+                )
+            charset = resp.headers.get_content_charset() or "utf-8"
+            body = bytearray()
+            while True:
+                if deadline.left() <= 0:
+                    raise _deadline_error(url, deadline, f"listing read {len(body)} bytes")
+                _set_read_timeout(resp, timeout, deadline)
+                chunk = resp.read1(_CHUNK)
+                if not chunk:
+                    break
+                body += chunk
+                if len(body) > max_bytes:
+                    raise DownloadError(
+                        url,
+                        f"listing is over the cap of {max_bytes} bytes "
+                        "(max_listing_bytes=, --max-listing-kib); nothing written",
+                    )
+    except (OSError, http.client.HTTPException):
+        if deadline.left() <= 0:
+            raise _deadline_error(url, deadline, "listing not read") from None
+        # No listing (404, listings disabled, network trouble): probing follows.
+        return []
+    trials = _trials_from_listing(body.decode(charset, errors="replace"), code)
+    if len(trials) > max_entries:
+        raise DownloadError(
+            url,
+            f"listing names {len(trials)} trials, over the cap of {max_entries} "
+            "(max_listing_entries=)",
+        )
+    return [t for t in trials if 1 <= t <= _MAX_TRIALS]
+
+
+def list_cmu_trials(
+    subject: int,
+    base_url: str = CMU_BASE_URL,
+    timeout: float = DEFAULT_TIMEOUT_S,
+    *,
+    max_listing_bytes: int = DEFAULT_MAX_LISTING_BYTES,
+    max_listing_entries: int = DEFAULT_MAX_LISTING_ENTRIES,
+    deadline_s: float = DEFAULT_FILE_DEADLINE_S,
+) -> list[int]:
     """The trial numbers of a subject, read from the folder's HTML listing.
 
     Args:
         subject: CMU subject number (1..999).
         base_url: Where the subject folders are.
-        timeout: Socket timeout in seconds.
+        timeout: Socket timeout in seconds, per connect and per read.
+        max_listing_bytes: Cap on the listing's size.
+        max_listing_entries: Cap on the number of trials it may name.
+        deadline_s: Seconds the whole listing may take.
 
     Returns:
         Sorted trial numbers, or an empty list when the listing cannot be had or
         names no trial (the caller then probes trial numbers instead).
+
+    Raises:
+        DownloadError: If the listing is over a cap or its deadline passes.
     """
     code = cmu_subject_code(subject)
-    try:
-        with _open(_subject_url(base_url, code), timeout) as resp:
-            raw = resp.read(_MAX_LISTING_BYTES)
-            charset = resp.headers.get_content_charset() or "utf-8"
-    except (OSError, http.client.HTTPException, ValueError):
-        # No listing (404, listings disabled, network trouble): probing follows.
-        return []
-    return _trials_from_listing(raw.decode(charset, errors="replace"), code)
+    deadline = _Deadline(
+        time.monotonic() + deadline_s, f"the listing's deadline of {deadline_s:g} s"
+    )
+    url = _subject_url(base_url, code)
+    return _read_listing(url, code, timeout, deadline, max_listing_bytes, max_listing_entries)
+
+
+# --- files ----------------------------------------------------------------------
 
 
 def _sha256(path: Path) -> str:
@@ -177,7 +518,7 @@ def _read_manifest(dest: Path) -> dict[str, dict[str, Any]]:
 
 def _write_atomic(path: Path, text: str) -> None:
     # Write a sibling temp file then rename: readers see the old or the new
-    # manifest, never a torn one.
+    # file, never a torn one.
     fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as f:
@@ -195,13 +536,28 @@ def _write_manifest(dest: Path, manifest: dict[str, dict[str, Any]]) -> None:
     _write_atomic(dest / MANIFEST_NAME, json.dumps(manifest, indent=1, sort_keys=True) + "\n")
 
 
-def _is_complete(path: Path, entry: dict[str, Any] | None) -> bool:
-    if not entry or not path.is_file():
-        return False
+def _check_file(path: Path, entry: Any, expected: RegistryEntry | None) -> str | None:
+    """Why ``path`` is not the intact file its manifest entry records (None if it is).
+
+    A file the registry names must also match the registry: the manifest alone
+    never vouches for it.
+    """
+    if not isinstance(entry, dict):
+        return "no manifest entry"
+    if not path.is_file():
+        return "missing"
+    size = path.stat().st_size
     # Size first: a cheap test that rules out most damaged files unhashed.
-    if path.stat().st_size != entry.get("bytes"):
-        return False
-    return _sha256(path) == entry.get("sha256")
+    if expected is not None and size != expected.bytes:
+        return f"{size} bytes, the registry says {expected.bytes}"
+    if size != entry.get("bytes"):
+        return f"{size} bytes, the manifest says {entry.get('bytes')}"
+    sha = _sha256(path)
+    if expected is not None and sha != expected.sha256:
+        return f"SHA-256 {sha}, the registry says {expected.sha256}"
+    if sha != entry.get("sha256"):
+        return f"SHA-256 {sha}, the manifest says {entry.get('sha256')}"
+    return None
 
 
 def _parse_content_range(value: str | None) -> tuple[int, int | None] | None:
@@ -212,18 +568,115 @@ def _parse_content_range(value: str | None) -> tuple[int, int | None] | None:
     return int(m[1]), (int(m[3]) if m[3] != "*" else None)
 
 
-def _fetch(url: str, target: Path, *, retries: int, timeout: float, progress: bool) -> int:
-    """Download ``url`` to ``target`` through ``target.part``; return its size.
+@dataclass
+class _Part:
+    """A file being downloaded: ``target.part`` and its sidecar ``target.part.json``."""
+
+    url: str
+    target: Path
+
+    @property
+    def path(self) -> Path:
+        return self.target.with_name(self.target.name + PART_SUFFIX)
+
+    @property
+    def sidecar(self) -> Path:
+        return self.target.with_name(self.target.name + SIDECAR_SUFFIX)
+
+    def size(self) -> int:
+        return self.path.stat().st_size if self.path.exists() else 0
+
+    def discard(self) -> None:
+        self.path.unlink(missing_ok=True)
+        self.sidecar.unlink(missing_ok=True)
+
+    def read_sidecar(self) -> dict[str, Any] | None:
+        try:
+            data = json.loads(self.sidecar.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return None
+        return data if isinstance(data, dict) and data.get("url") == self.url else None
+
+    def write_sidecar(self, validator: str | None, total: int) -> None:
+        _write_atomic(
+            self.sidecar, json.dumps({"url": self.url, "validator": validator, "total": total})
+        )
+
+    def resume_point(self) -> tuple[int, str | None, int | None]:
+        """(bytes to resume from, If-Range validator, file size) or (0, None, None).
+
+        A ``.part`` that cannot be resumed safely (no sidecar, another URL, no
+        validator, longer than the file) is deleted here: never spliced.
+        """
+        have = self.size()
+        side = self.read_sidecar() if have else None
+        validator = side.get("validator") if side else None
+        total = side.get("total") if side else None
+        if (
+            not have
+            or not isinstance(validator, str)
+            or not validator
+            or not isinstance(total, int)
+            or have > total
+        ):
+            self.discard()
+            return 0, None, None
+        return have, validator, total
+
+    def resumable(self) -> bool:
+        side = self.read_sidecar()
+        return self.size() > 0 and bool(side and side.get("validator"))
+
+    def give_up(
+        self, reason: str, *, status: int | None = None, keep: bool = True
+    ) -> DownloadError:
+        """The error for this file, after keeping a resumable ``.part`` or deleting it.
+
+        The message says truthfully what is on disk afterwards.
+        """
+        if keep and self.resumable():
+            n = self.size()
+            where = f"{n} bytes kept in {self.path} for a later call to resume"
+            return DownloadError(
+                self.url, f"{reason}; {where}", status=status, received=n, path=self.path
+            )
+        self.discard()
+        return DownloadError(self.url, f"{reason}; nothing kept on disk", status=status)
+
+
+def _validator(headers: Any) -> str | None:
+    """The If-Range validator of a response: a strong ETag, else Last-Modified."""
+    etag = (headers.get("ETag") or "").strip()
+    if etag and not etag.startswith("W/"):  # weak ETags are not allowed in If-Range
+        return etag
+    return (headers.get("Last-Modified") or "").strip() or None
+
+
+def _fetch(
+    part: _Part,
+    *,
+    retries: int,
+    timeout: float,
+    deadline: _Deadline,
+    max_bytes: int,
+    expected: RegistryEntry | None,
+    progress: bool,
+) -> tuple[int, str]:
+    """Download ``part.url`` into ``part.path``, checked; return (size, sha256).
+
+    On return ``part.path`` holds the complete file, its size matching the
+    server's and, for a registered file, its SHA-256 the registry's.
 
     Raises:
-        DownloadError: On a final HTTP error, or when ``retries`` attempts failed.
+        DownloadError: On a final HTTP error, a refusal (over the cap, no size,
+            registry mismatch), the deadline, or when ``retries`` attempts failed.
     """
-    part = target.with_name(target.name + PART_SUFFIX)
+    url = part.url
     failures = 0
-    restarted_416 = False
+    restarted = False
     last = ""
     with tqdm(
-        desc=target.name,
+        desc=part.target.name,
         unit="B",
         unit_scale=True,
         unit_divisor=1024,
@@ -231,82 +684,173 @@ def _fetch(url: str, target: Path, *, retries: int, timeout: float, progress: bo
         disable=not progress,
     ) as bar:
         while True:
-            have = part.stat().st_size if part.exists() else 0
-            headers = {"Range": f"bytes={have}-"} if have else {}
+            if deadline.left() <= 0:
+                raise part.give_up(f"stopped at {deadline.what} ({last or 'no answer'})")
+            have, validator, total = part.resume_point()
+            headers = {"Range": f"bytes={have}-", "If-Range": validator} if have else {}
             try:
-                with _open(url, timeout, headers) as resp:
-                    total = _stream(resp, part, have, bar)
-                if total is not None and part.stat().st_size != total:
-                    raise _ShortRead(f"got {part.stat().st_size} of {total} bytes")
+                with _open(url, timeout, deadline, headers) as resp:
+                    _stream(
+                        resp,
+                        part,
+                        have,
+                        total,
+                        bar,
+                        timeout=timeout,
+                        deadline=deadline,
+                        max_bytes=max_bytes,
+                        expected=expected,
+                    )
                 break
             except urllib.error.HTTPError as e:
                 e.close()
-                if e.code == 416 and have and not restarted_416:
-                    # Our .part is at or past the end of the file on the server
-                    # (the file changed, or the .part is stale): start over once.
-                    part.unlink()
-                    restarted_416 = True
+                if e.code in (412, 416) and have and not restarted:
+                    # 412: the server refused our precondition; 416: our .part is
+                    # at or past the end of its file. Either way the file is not
+                    # the one the .part began: start over from zero, once.
+                    part.discard()
+                    restarted = True
                     continue
                 if e.code not in _RETRY_STATUSES:
-                    raise DownloadError(
-                        url, f"HTTP {e.code} {e.reason}", status=e.code, received=have
-                    ) from e
+                    raise part.give_up(f"HTTP {e.code} {e.reason}", status=e.code) from e
                 last = f"HTTP {e.code} {e.reason}"
             except (OSError, http.client.HTTPException) as e:
-                # URLError, timeouts, resets, IncompleteRead and our _ShortRead
-                # all mean "try again from where we are".
+                # URLError, timeouts, resets, IncompleteRead and our _Retry all
+                # mean "try again from where we are".
                 last = str(getattr(e, "reason", None) or e) or type(e).__name__
             failures += 1
+            if deadline.left() <= 0:
+                raise part.give_up(f"stopped at {deadline.what} ({last})")
             if failures >= retries:
-                received = part.stat().st_size if part.exists() else 0
-                raise DownloadError(
-                    url,
+                raise part.give_up(
                     f"failed after {failures} attempt{'s' * (failures != 1)} "
-                    f"({received} bytes received, kept in {part.name}): {last}",
-                    received=received,
+                    f"({part.size()} bytes received): {last}"
                 )
-            time.sleep(min(RETRY_BACKOFF_S * 2 ** (failures - 1), 8.0))
-    size = part.stat().st_size
-    os.replace(part, target)
-    return size
+            time.sleep(max(min(RETRY_BACKOFF_S * 2 ** (failures - 1), 8.0, deadline.left()), 0))
+    size = part.size()
+    sha = _sha256(part.path)
+    if expected is not None and sha != expected.sha256:
+        raise part.give_up(
+            f"refused {part.target}: its SHA-256 {sha} disagrees with the registry's "
+            f"{expected.sha256} (deleted)",
+            keep=False,
+        )
+    return size, sha
 
 
-def _stream(resp: Any, part: Path, have: int, bar: tqdm) -> int | None:
-    """Write a response body into ``part``; return the full file size if known."""
+def _stream(
+    resp: Any,
+    part: _Part,
+    have: int,
+    known_total: int | None,
+    bar: tqdm,
+    *,
+    timeout: float,
+    deadline: _Deadline,
+    max_bytes: int,
+    expected: RegistryEntry | None,
+) -> None:
+    """Write a response body into ``part``, checking size, cap and deadline.
+
+    Raises:
+        _Retry: The body ended short, or the server's range cannot be appended
+            (another attempt may mend it).
+        DownloadError: A final refusal or the deadline.
+    """
+    if deadline.left() <= 0:
+        # The watchdog cut the connection while the headers came in: what was
+        # parsed of them is not to be trusted.
+        raise part.give_up(f"stopped at {deadline.what} while the headers came in")
     length = resp.headers.get("Content-Length")
-    length = int(length) if length and length.isdigit() else None
+    length = int(length) if length and length.strip().isdigit() else None
     if resp.status == 206:
         rng = _parse_content_range(resp.headers.get("Content-Range"))
-        if rng is None or rng[0] != have:
-            # A range we did not ask for cannot be appended safely; the next
-            # attempt starts from zero instead.
-            part.unlink(missing_ok=True)
-            raise _ShortRead(f"unexpected Content-Range {resp.headers.get('Content-Range')!r}")
-        start, total = have, rng[1]
-        if total is None and length is not None:
+        total = rng[1] if rng else None
+        if total is None and rng and length is not None:
             total = have + length
-        mode = "ab"
+        if rng is None or rng[0] != have or (total is not None and total != known_total):
+            # A range we did not ask for, or of a file of another size (a
+            # server that ignored If-Range): appending would splice two files.
+            part.discard()
+            raise _Retry(f"unexpected Content-Range {resp.headers.get('Content-Range')!r}")
+        start, mode = have, "ab"
     else:
-        # 200 to a Range request: the server ignores ranges, so the body is the
-        # whole file and the .part must be rewritten from zero.
+        # 200 to a Range + If-Range request: the file changed (or the server
+        # ignores ranges), and the body is the whole file: rewrite from zero.
         start, total, mode = 0, length, "wb"
+        part.discard()
+    if total is None and expected is not None:
+        total = expected.bytes
+    if total is None:
+        raise part.give_up(
+            "the server sent no Content-Length and the registry does not know this file, "
+            "so a cut body could not be told from a complete one; refused",
+            keep=False,
+        )
+    if expected is not None and total != expected.bytes:
+        raise part.give_up(
+            f"refused {part.target}: the server's file is {total} bytes, "
+            f"the registry says {expected.bytes}",
+            keep=False,
+        )
+    if total > max_bytes:
+        raise part.give_up(
+            f"refused {part.target}: {total} bytes is over the cap of {max_bytes} bytes "
+            "(raise it with max_bytes= or --max-asf-mib / --max-amc-mib)",
+            keep=False,
+        )
+    if mode == "wb":
+        part.path.parent.mkdir(parents=True, exist_ok=True)
+        part.write_sidecar(_validator(resp.headers), total)
+    size = start
+    stop = ""
     bar.reset(total=total)
     bar.update(start)
-    with part.open(mode) as f:
+    with part.path.open(mode) as f:
         while True:
+            if deadline.left() <= 0:
+                stop = "deadline"
+                break
+            _set_read_timeout(resp, timeout, deadline)
             # read1, not read: read(n) waits for all n bytes, so on a stall the
             # bytes already received would be lost to the timeout instead of
-            # being kept for the resume.
-            chunk = resp.read1(_CHUNK)
+            # being kept for the resume. One byte more than expected is asked
+            # for, to catch a body without Content-Length that runs long.
+            chunk = resp.read1(min(_CHUNK, total - size + 1))
             if not chunk:
                 break
+            if size + len(chunk) > total:
+                stop = "overlong"
+                break
             f.write(chunk)
+            size += len(chunk)
             bar.update(len(chunk))
         f.flush()
         # On disk before the rename, so a crash cannot leave a final-named file
         # with missing blocks.
         os.fsync(f.fileno())
-    return total
+    if stop == "deadline":
+        raise part.give_up(f"stopped at {deadline.what} after {size} of {total} bytes")
+    if stop == "overlong":
+        raise part.give_up(
+            f"refused {part.target}: the server sent more than the {total} bytes expected",
+            keep=False,
+        )
+    if size < total:
+        raise _Retry(f"body ended at {size} of {total} bytes")
+
+
+def _resolve_caps(max_bytes: int | Mapping[str, int] | None) -> dict[str, int]:
+    """Suffix -> cap in bytes; the key ``""`` holds the cap of other suffixes."""
+    caps = {**DEFAULT_MAX_BYTES, "": FALLBACK_MAX_BYTES}
+    if isinstance(max_bytes, Mapping):
+        caps.update({k.lower(): v for k, v in max_bytes.items()})
+    elif max_bytes is not None:
+        caps = dict.fromkeys(caps, max_bytes)
+    for suffix, cap in caps.items():
+        if isinstance(cap, bool) or not isinstance(cap, int) or cap < 1:
+            raise ValueError(f"max_bytes: caps must be positive integers, got {suffix!r}: {cap!r}")
+    return caps
 
 
 def _download_one(
@@ -315,13 +859,18 @@ def _download_one(
     rel: str,
     manifest: dict[str, dict[str, Any]],
     *,
+    registry: Mapping[str, RegistryEntry],
+    caps: Mapping[str, int],
+    file_deadline_s: float,
+    run_deadline: _Deadline,
     retries: int,
     timeout: float,
     progress: bool,
 ) -> tuple[Path, bool]:
-    """Fetch one file unless the manifest says it is complete; (path, fetched)."""
+    """Fetch one file unless the manifest (and registry) say it is intact; (path, fetched)."""
     target = dest / rel
-    if _is_complete(target, manifest.get(rel)):
+    expected = registry.get(rel)
+    if _check_file(target, manifest.get(rel), expected) is None:
         return target, False
     target.parent.mkdir(parents=True, exist_ok=True)
     # Drop the stale entry and any unverified file at the final name first: if
@@ -329,11 +878,29 @@ def _download_one(
     # does not vouch for (the library would load it as a clip).
     manifest.pop(rel, None)
     target.unlink(missing_ok=True)
-    size = _fetch(url, target, retries=retries, timeout=timeout, progress=progress)
+    deadline = run_deadline
+    if file_deadline_s < run_deadline.left():
+        deadline = _Deadline(
+            time.monotonic() + file_deadline_s,
+            f"the per-file deadline of {file_deadline_s:g} s (file_deadline_s=, --file-deadline)",
+        )
+    size, sha = _fetch(
+        _Part(url, target),
+        retries=retries,
+        timeout=timeout,
+        deadline=deadline,
+        max_bytes=caps.get(target.suffix.lower(), caps[""]),
+        expected=expected,
+        progress=progress,
+    )
+    part = _Part(url, target)
+    os.replace(part.path, target)
+    part.sidecar.unlink(missing_ok=True)
     manifest[rel] = {
-        "sha256": _sha256(target),
+        "sha256": sha,
         "bytes": size,
         "url": url,
+        "status": "verified" if expected is not None else "unverified",
         "downloaded_at": datetime.now(timezone.utc).isoformat(timespec="seconds"),
     }
     return target, True
@@ -345,16 +912,25 @@ def download_cmu(
     base_url: str = CMU_BASE_URL,
     progress: bool = True,
     retries: int = 3,
-    timeout: float = 30.0,
+    timeout: float = DEFAULT_TIMEOUT_S,
+    *,
+    max_bytes: int | Mapping[str, int] | None = None,
+    max_listing_bytes: int = DEFAULT_MAX_LISTING_BYTES,
+    max_listing_entries: int = DEFAULT_MAX_LISTING_ENTRIES,
+    file_deadline_s: float = DEFAULT_FILE_DEADLINE_S,
+    deadline_s: float = DEFAULT_RUN_DEADLINE_S,
+    registry: Mapping[str, RegistryEntry] | str | Path | None = None,
 ) -> list[Path]:
-    """Download the ASF skeleton and every AMC trial of CMU subjects.
+    """Download the ASF skeleton and every AMC trial of CMU subjects, checked.
 
     Files land in ``dest/{SS}/`` (``SS`` the two- or three-digit subject
     number), the layout :func:`humotion_gym.mocap.library.load_library` reads.
     A subject's trials come from the HTML listing of ``{base_url}/{SS}/``; when
     there is none, trial numbers 1, 2, 3... are tried until the first 404.
-    Files already complete (in the manifest with matching size and SHA-256) are
-    not fetched again; ``.part`` files of earlier calls are resumed.
+    Files already intact (in the manifest with matching size and SHA-256, and
+    matching the registry where it names them) are not fetched again;
+    resumable ``.part`` files of earlier calls are resumed (see the module's
+    docstring for what a finished file guarantees).
 
     Args:
         subjects: CMU subject numbers (1..999); duplicates are fetched once.
@@ -363,16 +939,29 @@ def download_cmu(
         progress: Show a tqdm bar (bytes) per file; silent when False.
         retries: Attempts per file before giving up (at least 1).
         timeout: Socket timeout in seconds, per connect and per read.
+        max_bytes: Cap on one file's size in bytes: one number for every file,
+            or suffix -> cap (``{".amc": 128 << 20}``) over
+            :data:`DEFAULT_MAX_BYTES`; the defaults when None.
+        max_listing_bytes: Cap on a subject's HTML listing, bytes.
+        max_listing_entries: Cap on the trials one listing may name.
+        file_deadline_s: Seconds one file (all its attempts) or listing may take.
+        deadline_s: Seconds the whole call may take.
+        registry: Expected SHA-256 and sizes: a mapping, a registry file, or
+            None for the packaged one (:data:`REGISTRY_PATH`). ``{}`` checks no
+            file against a registry (all are recorded as unverified).
 
     Returns:
         The paths of all the subjects' files, skipped ones included: per
         subject the ASF, then the AMC files by trial number.
 
     Raises:
-        ValueError: If a subject number is outside 1..999, or ``retries`` < 1.
+        ValueError: If a subject number is outside 1..999, or ``retries``, a
+            cap or a deadline is not positive.
         TypeError: If a subject number is not an integer.
-        DownloadError: If a subject does not exist (its ASF gives HTTP 404), or
-            a file still fails after ``retries`` attempts.
+        DownloadError: If a subject does not exist (its ASF gives HTTP 404), a
+            file is refused (over its cap, no size known, registry mismatch), a
+            deadline passes, a listing is over its caps, or a file still fails
+            after ``retries`` attempts.
 
     Example:
         >>> paths = download_cmu([2], progress=False)  # doctest: +SKIP
@@ -383,10 +972,33 @@ def download_cmu(
     codes = list(dict.fromkeys(cmu_subject_code(s) for s in subjects))
     if retries < 1:
         raise ValueError(f"retries: need at least 1 attempt, got {retries}")
+    for name, value in (
+        ("timeout", timeout),
+        ("file_deadline_s", file_deadline_s),
+        ("deadline_s", deadline_s),
+        ("max_listing_bytes", max_listing_bytes),
+        ("max_listing_entries", max_listing_entries),
+    ):
+        if not value > 0 or math.isnan(value):
+            raise ValueError(f"{name}: must be positive, got {value!r}")
+    caps = _resolve_caps(max_bytes)
+    reg = _resolve_registry(registry)
+    run_deadline = _Deadline(
+        time.monotonic() + deadline_s,
+        f"the run's deadline of {deadline_s:g} s (deadline_s=, --deadline)",
+    )
     dest = Path(dest) if dest is not None else default_cache_dir() / "cmu"
     dest.mkdir(parents=True, exist_ok=True)
     manifest = _read_manifest(dest)
-    opts = {"retries": retries, "timeout": timeout, "progress": progress}
+    opts: dict[str, Any] = {
+        "registry": reg,
+        "caps": caps,
+        "file_deadline_s": file_deadline_s,
+        "run_deadline": run_deadline,
+        "retries": retries,
+        "timeout": timeout,
+        "progress": progress,
+    }
     out: list[Path] = []
     try:
         for code in codes:
@@ -402,7 +1014,16 @@ def download_cmu(
                     ) from None
                 raise
             out.append(path)
-            trials = list_cmu_trials(int(code), base_url, timeout)
+            listing_deadline = run_deadline
+            if file_deadline_s < run_deadline.left():
+                listing_deadline = _Deadline(
+                    time.monotonic() + file_deadline_s,
+                    f"the per-file deadline of {file_deadline_s:g} s "
+                    "(file_deadline_s=, --file-deadline)",
+                )
+            trials = _read_listing(
+                subject_url, code, timeout, listing_deadline, max_listing_bytes, max_listing_entries
+            )
             if trials:
                 for t in trials:
                     name = f"{code}_{t:02d}.amc"
@@ -442,16 +1063,22 @@ def _probe_trials(
     return out
 
 
-def verify_cache(dest: Path | None = None) -> list[str]:
-    """Re-check the downloaded files against the manifest's SHA-256 and size.
+def verify_cache(
+    dest: Path | None = None, registry: Mapping[str, RegistryEntry] | str | Path | None = None
+) -> CacheReport:
+    """Re-check the downloaded files against the registry and the manifest.
+
+    A file the registry names is verified only if its SHA-256 and size match
+    the registry, whatever the manifest says; a file it does not name is
+    unverified if it still matches the manifest's record of its download.
 
     Args:
         dest: Download folder; ``default_cache_dir() / "cmu"`` when None.
+        registry: As for :func:`download_cmu`; the packaged one when None.
 
     Returns:
-        Relative paths (as in the manifest, ``/``-separated, sorted) of the files
-        that are missing or whose size or checksum no longer matches. A call to
-        :func:`download_cmu` fetches them again.
+        A :class:`CacheReport`: verified, unverified, corrupt and missing files.
+        A call to :func:`download_cmu` fetches the corrupt and missing ones again.
 
     Raises:
         FileNotFoundError: If ``dest`` has no manifest.
@@ -460,5 +1087,51 @@ def verify_cache(dest: Path | None = None) -> list[str]:
     path = dest / MANIFEST_NAME
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no download manifest here")
-    manifest = _read_manifest(dest)
-    return sorted(rel for rel, entry in manifest.items() if not _is_complete(dest / rel, entry))
+    reg = _resolve_registry(registry)
+    report = CacheReport()
+    for rel, entry in sorted(_read_manifest(dest).items()):
+        expected = reg.get(rel)
+        why = _check_file(dest / rel, entry, expected)
+        if why == "missing":
+            report.missing.append(rel)
+            report.reasons[rel] = f"{dest / rel}: missing"
+        elif why is not None:
+            report.corrupt.append(rel)
+            report.reasons[rel] = f"{dest / rel}: {why}"
+        elif expected is not None:
+            report.verified.append(rel)
+        else:
+            report.unverified.append(rel)
+    return report
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m humotion_gym.mocap.download``: record or check the registry.
+
+    ``--record-registry DIR [--out FILE]`` records SHA-256 and sizes of CMU's
+    original files under ``DIR`` (the packaged registry when no ``--out``);
+    ``--verify DEST`` prints a :class:`CacheReport` of a download folder.
+    """
+    parser = argparse.ArgumentParser(
+        prog="python -m humotion_gym.mocap.download", description=main.__doc__
+    )
+    group = parser.add_mutually_exclusive_group(required=True)
+    group.add_argument("--record-registry", type=Path, metavar="DIR")
+    group.add_argument("--verify", type=Path, metavar="DEST")
+    parser.add_argument("--out", type=Path, default=None, help="registry file to write")
+    args = parser.parse_args(argv)
+    try:
+        if args.record_registry is not None:
+            entries = record_registry(args.record_registry, args.out)
+            print(f"{len(entries)} entries in {args.out or REGISTRY_PATH}")
+            return 0
+        report = verify_cache(args.verify)
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"{parser.prog}: error: {exc}", file=sys.stderr)
+        return 2
+    print(report.summary())
+    return 0 if report.ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

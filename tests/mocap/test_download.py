@@ -1,26 +1,38 @@
-"""Tests of the CMU downloader against local HTTP servers on 127.0.0.1 only."""
+"""Tests of the CMU downloader against local HTTP servers on 127.0.0.1 only.
+
+Every server here is an ``http.server`` in a thread of this process, bound to
+127.0.0.1 on a free port, shut down by its fixture; clients use timeouts of a
+few seconds and misbehaving handlers stop by themselves (``MAX_HANDLER_S``).
+"""
 
 from __future__ import annotations
 
 import functools
 import hashlib
 import json
+import os
 import random
 import re
 import threading
 import time
+from email.utils import formatdate
 from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
 import pytest
 
+from humotion_gym import cli
 from humotion_gym.mocap import download as dl
 from humotion_gym.mocap.download import (
     MANIFEST_NAME,
+    REGISTRY_PATH,
     DownloadError,
+    RegistryEntry,
     cmu_subject_code,
     download_cmu,
     list_cmu_trials,
+    load_registry,
+    record_registry,
     verify_cache,
 )
 
@@ -32,21 +44,33 @@ needs_shared = pytest.mark.skipif(
 
 # Short enough that a stuck test fails in seconds, long enough for a loaded CI box.
 TIMEOUT = 5.0
+# No misbehaving handler (a slow drip) runs longer than this.
+MAX_HANDLER_S = 10.0
 
 
 class MirrorServer(ThreadingHTTPServer):
-    """A file server with Range support and switches for misbehaviour."""
+    """A file server with Range/If-Range support and switches for misbehaviour."""
 
     daemon_threads = True  # a handler stuck in a test must not block teardown
 
     def __init__(self, root: Path) -> None:
         super().__init__(("127.0.0.1", 0), functools.partial(MirrorHandler, directory=str(root)))
         self.root = root
-        self.requests: list[tuple[str, str | None]] = []
+        self.requests: list[tuple[str, str | None]] = []  # (path, Range)
+        self.if_ranges: list[tuple[str, str | None]] = []  # (path, If-Range)
         self.listing = True  # serve directory listings
+        self.listing_body: bytes | None = None  # serve this as every listing instead
+        self.listing_length = True  # send Content-Length with listing_body
         self.honour_range = True
+        self.validators: str | None = "etag"  # "etag", "last-modified", "fixed" or None
+        self.if_range_412 = False  # answer 412 to any request with If-Range
         self.cuts: dict[str, int] = {}  # URL path -> how many more times to cut (-1: always)
         self.stall_s: dict[str, float] = {}  # URL path -> sleep this long mid-body, once
+        self.no_length: set[str] = set()  # URL paths served without Content-Length
+        self.drip_s: dict[str, float] = {}  # URL path -> send one byte per this many seconds
+        self.header_drip_s: dict[str, float] = {}  # URL path -> headers at one byte per ... s
+        self.status: dict[str, int] = {}  # URL path -> answer with this HTTP error
+        self.stopping = threading.Event()
         self.lock = threading.Lock()
 
     @property
@@ -77,13 +101,44 @@ class MirrorHandler(SimpleHTTPRequestHandler):
     def log_message(self, *args) -> None:  # keep the test output clean
         pass
 
+    def _validator_headers(self, path: Path, data: bytes) -> dict[str, str]:
+        mode = self.server.validators
+        if mode == "etag":
+            return {"ETag": '"' + hashlib.sha256(data).hexdigest()[:16] + '"'}
+        if mode == "last-modified":
+            return {"Last-Modified": formatdate(path.stat().st_mtime, usegmt=True)}
+        if mode == "fixed":  # a server whose validator never changes (a lying one)
+            return {"ETag": '"fixed"'}
+        return {}
+
     def do_GET(self) -> None:
         srv = self.server
         rng = self.headers.get("Range")
+        if_range = self.headers.get("If-Range")
         with srv.lock:
             srv.requests.append((self.path, rng))
+            srv.if_ranges.append((self.path, if_range))
+        if self.path in srv.status:
+            self.send_error(srv.status[self.path])
+            return
+        if self.path in srv.header_drip_s:
+            self.wfile.write(b"HTTP/1.1 200 OK\r\nX-Slow: ")
+            self._drip(b"a" * 60000, srv.header_drip_s[self.path])
+            return
         path = Path(self.translate_path(self.path))
         if path.is_dir():
+            if srv.listing_body is not None:
+                self.send_response(200)
+                self.send_header("Content-Type", "text/html; charset=utf-8")
+                if srv.listing_length:
+                    self.send_header("Content-Length", str(len(srv.listing_body)))
+                else:
+                    self.send_header("Connection", "close")
+                    self.close_connection = True
+                self.end_headers()
+                with _quiet_disconnect():
+                    self.wfile.write(srv.listing_body)
+                return
             if not srv.listing:
                 self.send_error(404)
                 return
@@ -93,34 +148,77 @@ class MirrorHandler(SimpleHTTPRequestHandler):
             self.send_error(404)
             return
         data = path.read_bytes()
+        validators = self._validator_headers(path, data)
         start = 0
+        partial = False
         if rng and srv.honour_range:
-            start = int(re.fullmatch(r"bytes=(\d+)-", rng)[1])
-            if start >= len(data):
-                self.send_response(416)
-                self.send_header("Content-Range", f"bytes */{len(data)}")
+            if if_range is not None and srv.if_range_412:
+                self.send_response(412)
                 self.send_header("Content-Length", "0")
                 self.end_headers()
                 return
-            self.send_response(206)
-            self.send_header("Content-Range", f"bytes {start}-{len(data) - 1}/{len(data)}")
-        else:
-            self.send_response(200)
+            # If-Range: the range only if the validator still matches, else the whole file.
+            if if_range is None or if_range in validators.values():
+                start = int(re.fullmatch(r"bytes=(\d+)-", rng)[1])
+                partial = True
+        if partial and start >= len(data):
+            self.send_response(416)
+            self.send_header("Content-Range", f"bytes */{len(data)}")
+            self.send_header("Content-Length", "0")
+            self.end_headers()
+            return
         body = data[start:]
+        self.send_response(206 if partial else 200)
+        if partial:
+            self.send_header("Content-Range", f"bytes {start}-{len(data) - 1}/{len(data)}")
+        for k, v in validators.items():
+            self.send_header(k, v)
         self.send_header("Content-Type", "application/octet-stream")
-        self.send_header("Content-Length", str(len(body)))
+        if self.path in srv.no_length:
+            # The body ends when the connection closes: a cut looks like the end.
+            self.send_header("Connection", "close")
+            self.close_connection = True
+        else:
+            self.send_header("Content-Length", str(len(body)))
         self.end_headers()
+        drip = srv.drip_s.get(self.path)
+        if drip is not None:
+            self._drip(body, drip)
+            return
         stall = srv._take(srv.stall_s, self.path)
         if srv._take(srv.cuts, self.path) is not None or stall is not None:
-            # Full Content-Length announced, half the body sent, then the
-            # socket closes (or stalls past the client's timeout).
-            self.wfile.write(body[: len(body) // 2])
-            self.wfile.flush()
+            # Half the body sent, then the socket closes (or stalls past the
+            # client's timeout).
+            with _quiet_disconnect():
+                self.wfile.write(body[: len(body) // 2])
+                self.wfile.flush()
             if stall is not None:
                 time.sleep(stall)
             self.close_connection = True
             return
-        self.wfile.write(body)
+        with _quiet_disconnect():
+            self.wfile.write(body)
+
+    def _drip(self, body: bytes, every_s: float) -> None:
+        t0 = time.monotonic()
+        self.close_connection = True
+        with _quiet_disconnect():
+            for i in range(len(body)):
+                if self.server.stopping.is_set() or time.monotonic() - t0 > MAX_HANDLER_S:
+                    return
+                self.wfile.write(body[i : i + 1])
+                self.wfile.flush()
+                time.sleep(every_s)
+
+
+class _quiet_disconnect:
+    """Ignore the client hanging up (what a refused or stopped download does)."""
+
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(self, kind, value, tb) -> bool:
+        return kind is not None and issubclass(kind, (BrokenPipeError, ConnectionResetError))
 
 
 def serve(root: Path):
@@ -129,6 +227,13 @@ def serve(root: Path):
     thread.daemon = True
     thread.start()
     return srv, thread
+
+
+def stop(srv: MirrorServer, thread: threading.Thread) -> None:
+    srv.stopping.set()
+    srv.shutdown()
+    srv.server_close()
+    thread.join(timeout=5)
 
 
 @pytest.fixture(autouse=True)
@@ -160,29 +265,35 @@ def make_mirror(root: Path) -> dict[str, bytes]:
     return out
 
 
+def registry_of(files: dict[str, bytes], *rels: str) -> dict[str, RegistryEntry]:
+    return {r: RegistryEntry(hashlib.sha256(files[r]).hexdigest(), len(files[r])) for r in rels}
+
+
 @pytest.fixture
 def tiny(tmp_path):
     root = tmp_path / "mirror"
     files = make_mirror(root)
     srv, thread = serve(root)
-    yield srv, files, tmp_path / "dest"
-    srv.shutdown()
-    srv.server_close()
-    thread.join(timeout=5)
+    try:
+        yield srv, files, tmp_path / "dest"
+    finally:
+        stop(srv, thread)
 
 
 @pytest.fixture
 def shared_server():
     srv, thread = serve(SHARED_CMU)
-    yield srv
-    srv.shutdown()
-    srv.server_close()
-    thread.join(timeout=5)
+    try:
+        yield srv
+    finally:
+        stop(srv, thread)
 
 
 def get(srv, dest, subjects=(1,), **kw):
     kw.setdefault("progress", False)
     kw.setdefault("timeout", TIMEOUT)
+    # The random mirror reuses CMU's names: check it against no registry unless told.
+    kw.setdefault("registry", {})
     return download_cmu(subjects, dest, base_url=srv.url, **kw)
 
 
@@ -190,8 +301,17 @@ def final_files(dest: Path) -> set[str]:
     return {
         p.relative_to(dest).as_posix()
         for p in dest.rglob("*")
-        if p.is_file() and p.name != MANIFEST_NAME and not p.name.endswith(".part")
+        if p.is_file() and p.name != MANIFEST_NAME and not p.name.endswith((".part", ".part.json"))
     }
+
+
+def leftovers(dest: Path) -> set[str]:
+    """Partial downloads and sidecars left on disk."""
+    return {p.relative_to(dest).as_posix() for p in dest.rglob("*.part*")}
+
+
+def manifest_of(dest: Path) -> dict:
+    return json.loads((dest / MANIFEST_NAME).read_text())
 
 
 # --- argument checks (no network) ---------------------------------------------
@@ -215,6 +335,15 @@ def test_non_integer_subject_rejected(tmp_path):
         download_cmu(["2"], tmp_path, base_url="http://127.0.0.1:9", progress=False)
 
 
+@pytest.mark.parametrize(
+    "kw",
+    [{"deadline_s": 0}, {"file_deadline_s": -1}, {"max_bytes": 0}, {"max_bytes": {".amc": -5}}],
+)
+def test_bad_caps_and_deadlines_rejected(kw, tmp_path):
+    with pytest.raises(ValueError, match=next(iter(kw))):
+        download_cmu([2], tmp_path, base_url="http://127.0.0.1:9", progress=False, **kw)
+
+
 def test_listing_parser_accepts_apache_and_http_server_hrefs():
     html = (
         '<a href="02_01.amc">02_01.amc</a> <A HREF="/subjects/02/02_10.amc">x</a>'
@@ -224,7 +353,7 @@ def test_listing_parser_accepts_apache_and_http_server_hrefs():
     assert dl._trials_from_listing(html, "02") == [1, 3, 10]
 
 
-# --- tiny mirror built here ---------------------------------------------------
+# --- tiny mirror built here: the normal path ----------------------------------
 
 
 def test_full_download_is_byte_identical_with_manifest(tiny):
@@ -233,8 +362,8 @@ def test_full_download_is_byte_identical_with_manifest(tiny):
     rels = [p.relative_to(dest).as_posix() for p in paths]
     assert rels == list(files)  # ASF first, then trials in order; subject order kept
     assert final_files(dest) == set(files)
-    assert not list(dest.rglob("*.part"))
-    manifest = json.loads((dest / MANIFEST_NAME).read_text())
+    assert leftovers(dest) == set()
+    manifest = manifest_of(dest)
     assert set(manifest) == set(files)
     for rel, data in files.items():
         assert (dest / rel).read_bytes() == data
@@ -242,8 +371,10 @@ def test_full_download_is_byte_identical_with_manifest(tiny):
         assert entry["sha256"] == hashlib.sha256(data).hexdigest()
         assert entry["bytes"] == len(data)
         assert entry["url"] == f"{srv.url}/{rel}"
+        assert entry["status"] == "unverified"  # no registry names these
         assert "T" in entry["downloaded_at"]
-    assert verify_cache(dest) == []
+    report = verify_cache(dest, registry={})
+    assert report.ok and report.unverified == sorted(files) and report.verified == []
 
 
 def test_second_call_skips_complete_files(tiny):
@@ -257,7 +388,7 @@ def test_second_call_skips_complete_files(tiny):
     assert len(srv.requests) == 2
 
 
-def test_cut_connection_resumes_with_range(tiny):
+def test_cut_connection_resumes_with_range_and_if_range(tiny):
     srv, files, dest = tiny
     rel = "01/01_02.amc"
     srv.cuts[f"/{rel}"] = 1
@@ -265,26 +396,31 @@ def test_cut_connection_resumes_with_range(tiny):
     tries = [r for r in srv.requests if r[0] == f"/{rel}"]
     half = len(files[rel]) // 2
     assert tries == [(f"/{rel}", None), (f"/{rel}", f"bytes={half}-")]
+    etag = '"' + hashlib.sha256(files[rel]).hexdigest()[:16] + '"'
+    assert (f"/{rel}", etag) in srv.if_ranges
     assert (dest / rel).read_bytes() == files[rel]
-    assert verify_cache(dest) == []
+    assert verify_cache(dest, registry={}).ok
 
 
 def test_later_call_resumes_left_part_file(tiny):
     srv, files, dest = tiny
     rel = "01/01_01.amc"
     srv.cuts[f"/{rel}"] = 1
-    with pytest.raises(DownloadError, match=rf"{re.escape(srv.url)}/{rel}.*10000 bytes"):
+    with pytest.raises(DownloadError, match=rf"{re.escape(srv.url)}/{rel}.*10000 bytes") as err:
         get(srv, dest, retries=1)
+    part = dest / (rel + ".part")
+    assert err.value.path == part and str(part) in str(err.value)  # names what is on disk
     assert not (dest / rel).exists()
-    assert (dest / (rel + ".part")).stat().st_size == len(files[rel]) // 2
+    assert part.stat().st_size == len(files[rel]) // 2
+    assert json.loads((dest / (rel + ".part.json")).read_text())["total"] == len(files[rel])
     # The ASF finished before the failure and is recorded.
-    assert "01/01.asf" in json.loads((dest / MANIFEST_NAME).read_text())
+    assert "01/01.asf" in manifest_of(dest)
     srv.requests.clear()
     get(srv, dest)
     assert (f"/{rel}", "bytes=10000-") in srv.requests
     assert ("/01/01.asf", None) not in srv.requests
     assert (dest / rel).read_bytes() == files[rel]
-    assert not list(dest.rglob("*.part"))
+    assert leftovers(dest) == set()
 
 
 def test_server_that_always_cuts_leaves_no_final_file(tiny):
@@ -298,7 +434,7 @@ def test_server_that_always_cuts_leaves_no_final_file(tiny):
     assert 0 < err.value.received < len(files[rel])
     assert len([r for r in srv.requests if r[0] == f"/{rel}"]) == 3  # bounded
     assert not (dest / rel).exists()
-    assert rel not in json.loads((dest / MANIFEST_NAME).read_text())
+    assert rel not in manifest_of(dest)
     assert rel not in final_files(dest)
 
 
@@ -313,12 +449,17 @@ def test_server_ignoring_range_restarts_from_zero(tiny):
     assert (dest / rel).read_bytes() == files[rel]
 
 
-def test_stale_part_longer_than_file_is_restarted(tiny):
+def test_server_without_validators_is_not_resumed(tiny):
+    # Without ETag or Last-Modified a resume could not be checked: start over.
     srv, files, dest = tiny
-    rel = "01/01_03.amc"  # 7 bytes on the server
-    (dest / "01").mkdir(parents=True)
-    (dest / (rel + ".part")).write_bytes(b"x" * 100)
-    get(srv, dest)  # 416, then from zero
+    srv.validators = None
+    rel = "01/01_01.amc"
+    srv.cuts[f"/{rel}"] = 1
+    with pytest.raises(DownloadError, match="nothing kept on disk") as err:
+        get(srv, dest, retries=1)
+    assert err.value.path is None and leftovers(dest) == set()
+    get(srv, dest)
+    assert [r for r in srv.requests if r[0] == f"/{rel}"][-1] == (f"/{rel}", None)
     assert (dest / rel).read_bytes() == files[rel]
 
 
@@ -366,11 +507,14 @@ def test_verify_cache_detects_corruption_and_download_repairs(tiny):
     data[100] ^= 0xFF  # same size, different content
     (dest / rel).write_bytes(bytes(data))
     (dest / "01" / "01_03.amc").unlink()
-    assert verify_cache(dest) == ["01/01_03.amc", rel]
+    report = verify_cache(dest, registry={})
+    assert report.corrupt == [rel] and report.missing == ["01/01_03.amc"]
+    assert report.problems == ["01/01_03.amc", rel] and not report.ok
+    assert "manifest says" in report.reasons[rel]
     srv.requests.clear()
     get(srv, dest, subjects=[1, 7])
     assert sorted(r[0] for r in srv.file_requests()) == ["/01/01_03.amc", f"/{rel}"]
-    assert verify_cache(dest) == []
+    assert verify_cache(dest, registry={}).ok
     assert (dest / rel).read_bytes() == files[rel]
 
 
@@ -383,7 +527,7 @@ def test_failed_repair_leaves_no_damaged_final_file(tiny):
     with pytest.raises(DownloadError, match="07_01.amc"):
         get(srv, dest, subjects=[7], retries=2)
     assert not (dest / rel).exists()
-    assert rel not in json.loads((dest / MANIFEST_NAME).read_text())
+    assert rel not in manifest_of(dest)
     assert (dest / "07" / "07.asf").read_bytes() == files["07/07.asf"]  # untouched
 
 
@@ -408,13 +552,369 @@ def test_progress_silent_when_disabled(tiny, capsys):
     assert "07_02.amc" in capsys.readouterr().err
 
 
+# --- faults found by the fault-injection campaign -----------------------------
+
+
+def test_cut_without_content_length_is_refused(tiny):
+    # Fault: a body cut with no Content-Length was accepted as complete.
+    srv, files, dest = tiny
+    rel = "07/07_01.amc"
+    srv.no_length.add(f"/{rel}")
+    srv.cuts[f"/{rel}"] = -1
+    with pytest.raises(DownloadError, match="no Content-Length.*nothing kept on disk") as err:
+        get(srv, dest, subjects=[7])
+    assert err.value.url == f"{srv.url}/{rel}" and err.value.path is None
+    assert rel not in final_files(dest) and leftovers(dest) == set()
+    assert rel not in manifest_of(dest)
+    assert len([r for r in srv.requests if r[0] == f"/{rel}"]) == 1  # refusal is final
+
+
+def test_cut_without_content_length_fails_the_cli(tiny, capsys):
+    srv, _, dest = tiny
+    srv.no_length.add("/07/07_02.amc")
+    srv.cuts["/07/07_02.amc"] = -1
+    argv = ["download", "cmu", "--subjects", "7", "--dest", str(dest), "--quiet"]
+    rc = cli.main([*argv, "--base-url", srv.url, "--timeout", str(TIMEOUT)])
+    assert rc != 0
+    err = capsys.readouterr().err
+    assert f"{srv.url}/07/07_02.amc" in err and "no Content-Length" in err
+    assert not (dest / "07" / "07_02.amc").exists()
+
+
+def test_no_content_length_checked_against_registry_size(tiny):
+    # With no Content-Length the registry's size tells a cut from the end.
+    srv, files, dest = tiny
+    rel = "07/07_01.amc"
+    srv.no_length.add(f"/{rel}")
+    srv.cuts[f"/{rel}"] = 1
+    get(srv, dest, subjects=[7], registry=registry_of(files, rel))
+    half = len(files[rel]) // 2
+    assert [r for r in srv.requests if r[0] == f"/{rel}"][1] == (f"/{rel}", f"bytes={half}-")
+    assert (dest / rel).read_bytes() == files[rel]
+    assert manifest_of(dest)[rel]["status"] == "verified"
+
+
+@pytest.mark.parametrize("validators", ["etag", "last-modified"])
+def test_file_changed_on_server_is_restarted_not_spliced(tiny, validators):
+    # Fault: a resume spliced a stale .part with a file that changed on the server.
+    srv, files, dest = tiny
+    srv.validators = validators
+    rel = "01/01_01.amc"
+    srv.cuts[f"/{rel}"] = 1
+    with pytest.raises(DownloadError, match=r"kept in .*01_01\.amc\.part"):
+        get(srv, dest, retries=1)
+    side = json.loads((dest / (rel + ".part.json")).read_text())
+    new = random.Random(1).randbytes(len(files[rel]))  # same size, other content
+    mirror = srv.root / rel
+    mirror.write_bytes(new)
+    later = mirror.stat().st_mtime + 100
+    os.utime(mirror, (later, later))
+    srv.requests.clear()
+    srv.if_ranges.clear()
+    get(srv, dest)
+    half = len(new) // 2
+    assert srv.if_ranges[[r[0] for r in srv.requests].index(f"/{rel}")] == (
+        f"/{rel}",
+        side["validator"],
+    )
+    assert (f"/{rel}", f"bytes={half}-") in srv.requests  # asked to resume, got 200
+    assert (dest / rel).read_bytes() == new  # the new file, whole
+    assert (dest / rel).read_bytes() != files[rel][:half] + new[half:]
+    assert manifest_of(dest)[rel]["sha256"] == hashlib.sha256(new).hexdigest()
+    assert leftovers(dest) == set()
+
+
+def test_412_on_resume_restarts_from_zero(tiny):
+    srv, files, dest = tiny
+    rel = "01/01_02.amc"
+    srv.cuts[f"/{rel}"] = 1
+    srv.if_range_412 = True
+    get(srv, dest)
+    tries = [r for r in srv.requests if r[0] == f"/{rel}"]
+    half = len(files[rel]) // 2
+    assert tries == [(f"/{rel}", None), (f"/{rel}", f"bytes={half}-"), (f"/{rel}", None)]
+    assert (dest / rel).read_bytes() == files[rel]
+
+
+def test_server_ignoring_if_range_with_other_size_is_not_spliced(tiny):
+    # A server whose validator never changes answers 206 for a file of another size.
+    srv, files, dest = tiny
+    srv.validators = "fixed"
+    rel = "01/01_01.amc"
+    srv.cuts[f"/{rel}"] = 1
+    with pytest.raises(DownloadError):
+        get(srv, dest, retries=1)
+    new = random.Random(2).randbytes(len(files[rel]) + 500)
+    (srv.root / rel).write_bytes(new)
+    get(srv, dest)
+    assert (dest / rel).read_bytes() == new
+
+
+@pytest.mark.parametrize("sidecar", [None, "other-url", "no-validator"])
+def test_stale_part_is_discarded_not_spliced(tiny, sidecar):
+    srv, files, dest = tiny
+    rel = "01/01_01.amc"
+    part = dest / (rel + ".part")
+    part.parent.mkdir(parents=True)
+    part.write_bytes(b"stale bytes of some other download" * 10)
+    url = f"{srv.url}/{rel}"
+    side = {"url": url, "validator": '"x"', "total": len(files[rel])}
+    if sidecar == "other-url":
+        side["url"] = url + "?old"
+    elif sidecar == "no-validator":
+        side["validator"] = None
+    if sidecar is not None:
+        (dest / (rel + ".part.json")).write_text(json.dumps(side))
+    get(srv, dest)
+    assert [r for r in srv.requests if r[0] == f"/{rel}"] == [(f"/{rel}", None)]
+    assert (dest / rel).read_bytes() == files[rel]
+    assert leftovers(dest) == set()
+
+
+def test_stale_part_longer_than_file_is_restarted(tiny):
+    srv, files, dest = tiny
+    srv.validators = "fixed"
+    rel = "01/01_03.amc"  # 7 bytes on the server
+    (dest / "01").mkdir(parents=True)
+    (dest / (rel + ".part")).write_bytes(b"x" * 100)
+    side = {"url": f"{srv.url}/{rel}", "validator": '"fixed"', "total": 200}
+    (dest / (rel + ".part.json")).write_text(json.dumps(side))
+    get(srv, dest)  # 416, then from zero
+    tries = [r for r in srv.requests if r[0] == f"/{rel}"]
+    assert tries == [(f"/{rel}", "bytes=100-"), (f"/{rel}", None)]
+    assert (dest / rel).read_bytes() == files[rel]
+
+
+def test_oversize_file_refused(tiny):
+    # Fault: no size cap (64 MiB of junk accepted).
+    srv, files, dest = tiny
+    rel = "01/01_01.amc"  # 20000 bytes
+    with pytest.raises(DownloadError, match=r"20000 bytes is over the cap of 10000.*max-amc-mib"):
+        get(srv, dest, max_bytes={".amc": 10000})
+    assert len([r for r in srv.requests if r[0] == f"/{rel}"]) == 1  # refused, not retried
+    assert rel not in final_files(dest) and leftovers(dest) == set()
+    assert rel not in manifest_of(dest)
+
+
+def test_oversize_asf_refused_by_default_cap(tiny):
+    srv, files, dest = tiny
+    (srv.root / "07" / "07.asf").write_bytes(b"#" * ((1 << 20) + 1))
+    with pytest.raises(DownloadError, match=r"07\.asf.*over the cap of 1048576 bytes"):
+        get(srv, dest, subjects=[7])
+    assert final_files(dest) == set() and leftovers(dest) == set()
+
+
+def test_oversize_cap_raised_from_cli(tiny, capsys):
+    srv, _, dest = tiny
+    argv = ["download", "cmu", "--subjects", "7", "--dest", str(dest), "--quiet"]
+    argv += ["--base-url", srv.url, "--timeout", str(TIMEOUT)]
+    assert cli.main([*argv, "--max-asf-mib", "0.001"]) != 0  # 1048 bytes < 2500
+    assert "over the cap of 1048 bytes" in capsys.readouterr().err
+    assert cli.main([*argv, "--max-asf-mib", "1"]) == 0
+    assert (dest / "07" / "07.asf").is_file()
+
+
+def test_body_without_length_longer_than_registry_refused(tiny):
+    srv, files, dest = tiny
+    rel = "07/07_01.amc"
+    srv.no_length.add(f"/{rel}")
+    reg = {rel: RegistryEntry(hashlib.sha256(files[rel]).hexdigest(), 100)}
+    with pytest.raises(DownloadError, match=r"more than the 100 bytes expected"):
+        get(srv, dest, subjects=[7], registry=reg)
+    assert rel not in final_files(dest) and leftovers(dest) == set()
+
+
+def test_slow_drip_stopped_at_file_deadline(tiny):
+    # Fault: no deadline (a 1 byte/s server kept the download running for hours).
+    srv, files, dest = tiny
+    rel = "07/07_01.amc"
+    srv.drip_s[f"/{rel}"] = 0.05
+    t0 = time.monotonic()
+    with pytest.raises(DownloadError, match=r"per-file deadline of 1 s") as err:
+        get(srv, dest, subjects=[7], file_deadline_s=1.0)
+    assert time.monotonic() - t0 < 4.0
+    assert err.value.url == f"{srv.url}/{rel}"
+    # What arrived is kept, resumable, and the message names it.
+    assert err.value.path == dest / (rel + ".part") and err.value.path.is_file()
+    assert 0 < err.value.path.stat().st_size < len(files[rel])
+    assert rel not in final_files(dest)
+
+
+def test_slow_drip_stopped_at_run_deadline(tiny):
+    srv, files, dest = tiny
+    srv.drip_s["/07/07_02.amc"] = 0.05
+    t0 = time.monotonic()
+    with pytest.raises(DownloadError, match=r"07_02\.amc.*run's deadline of 1 s"):
+        get(srv, dest, subjects=[7], deadline_s=1.0)
+    assert time.monotonic() - t0 < 4.0
+    assert "07/07_02.amc" not in final_files(dest)
+
+
+def test_headers_dripped_stopped_at_deadline(tiny):
+    # A server can drag out its headers too; the deadline's watchdog stops it.
+    srv, _, dest = tiny
+    rel = "07/07_01.amc"
+    srv.header_drip_s[f"/{rel}"] = 0.05
+    t0 = time.monotonic()
+    with pytest.raises(DownloadError, match=r"07_01\.amc: stopped at the per-file deadline"):
+        get(srv, dest, subjects=[7], file_deadline_s=1.0)
+    assert time.monotonic() - t0 < 4.0
+    assert rel not in final_files(dest) and leftovers(dest) == set()
+
+
+def test_stall_near_deadline_ends_at_deadline(tiny):
+    # A stall shorter than the read timeout but past the deadline stops at the deadline.
+    srv, _, dest = tiny
+    srv.stall_s["/07/07_01.amc"] = 3.0
+    t0 = time.monotonic()
+    with pytest.raises(DownloadError, match="deadline"):
+        get(srv, dest, subjects=[7], file_deadline_s=0.5, timeout=TIMEOUT)
+    assert time.monotonic() - t0 < 2.5
+
+
+@pytest.mark.parametrize("with_length", [True, False])
+def test_huge_listing_refused(tiny, with_length):
+    # Fault: the listing was not capped.
+    srv, _, dest = tiny
+    srv.listing_body = b"<html>" + b"x" * (2 << 20)
+    srv.listing_length = with_length
+    with pytest.raises(DownloadError, match=r"/07/: listing .*over the cap of 1048576 bytes"):
+        get(srv, dest, subjects=[7])
+    with pytest.raises(DownloadError, match="over the cap of 1000 bytes"):
+        list_cmu_trials(7, srv.url, TIMEOUT, max_listing_bytes=1000)
+
+
+def test_listing_with_too_many_entries_refused(tiny):
+    srv, _, dest = tiny
+    rows = "".join(f'<a href="07_{t:02d}.amc">x</a>\n' for t in range(1, 5001))
+    srv.listing_body = rows.encode()
+    with pytest.raises(DownloadError, match=r"names 5000 trials, over the cap of 999"):
+        get(srv, dest, subjects=[7])
+    assert list_cmu_trials(7, srv.url, TIMEOUT, max_listing_entries=5000)[-1] == 999
+
+
+def test_http_500_message_is_truthful(tiny):
+    # Fault: after HTTP 500 the message named a .part that did not exist.
+    srv, _, dest = tiny
+    rel = "07/07_01.amc"
+    srv.status[f"/{rel}"] = 500
+    with pytest.raises(DownloadError) as err:
+        get(srv, dest, subjects=[7], retries=2)
+    msg = str(err.value)
+    assert msg.startswith(f"{srv.url}/{rel}: ") and "HTTP 500" in msg
+    assert "nothing kept on disk" in msg and ".part" not in msg
+    assert err.value.path is None and leftovers(dest) == set()
+
+
+def test_http_500_after_cut_names_the_part_on_disk(tiny):
+    srv, files, dest = tiny
+    rel = "07/07_01.amc"
+    srv.cuts[f"/{rel}"] = 1
+    with pytest.raises(DownloadError):
+        get(srv, dest, subjects=[7], retries=1)
+    srv.status[f"/{rel}"] = 500
+    with pytest.raises(DownloadError, match="HTTP 500") as err:
+        get(srv, dest, subjects=[7], retries=1)
+    part = dest / (rel + ".part")
+    assert str(part) in str(err.value) and part.stat().st_size == len(files[rel]) // 2
+
+
+# --- the registry -------------------------------------------------------------
+
+
+def test_registry_mismatch_is_refused(tiny):
+    # Fault: the manifest recorded whatever arrived, so verify_cache vouched for it.
+    srv, files, dest = tiny
+    rel = "07/07_01.amc"
+    wrong = "0" * 64
+    reg = {rel: RegistryEntry(wrong, len(files[rel]))}
+    with pytest.raises(DownloadError) as err:
+        get(srv, dest, subjects=[7], registry=reg)
+    msg = str(err.value)
+    got = hashlib.sha256(files[rel]).hexdigest()
+    assert err.value.url == f"{srv.url}/{rel}"
+    assert str(dest / rel) in msg and got in msg and wrong in msg and "deleted" in msg
+    assert not (dest / rel).exists() and leftovers(dest) == set()
+    assert rel not in manifest_of(dest)
+    assert "07/07.asf" in manifest_of(dest)
+
+
+def test_registry_size_mismatch_refused_before_body(tiny):
+    srv, files, dest = tiny
+    rel = "07/07.asf"
+    reg = {rel: RegistryEntry(hashlib.sha256(files[rel]).hexdigest(), 7262)}
+    with pytest.raises(DownloadError, match=r"2500 bytes, the registry says 7262"):
+        get(srv, dest, subjects=[7], registry=reg)
+    assert leftovers(dest) == set() and final_files(dest) == set()
+
+
+def test_registry_match_is_verified_and_never_vouched_otherwise(tiny):
+    srv, files, dest = tiny
+    reg = registry_of(files, *[r for r in files if r.startswith("01/")])
+    get(srv, dest, subjects=[1, 7], registry=reg)
+    manifest = manifest_of(dest)
+    assert {r for r, e in manifest.items() if e["status"] == "verified"} == set(reg)
+    report = verify_cache(dest, registry=reg)
+    assert report.verified == sorted(reg)
+    assert report.unverified == sorted(r for r in files if r.startswith("07/"))
+    assert report.ok
+    # A file changed on disk with its manifest entry changed to match: the
+    # manifest agrees, the registry does not, so it is corrupt, not verified.
+    rel = "01/01_02.amc"
+    bad = random.Random(3).randbytes(len(files[rel]))
+    (dest / rel).write_bytes(bad)
+    manifest[rel]["sha256"] = hashlib.sha256(bad).hexdigest()
+    (dest / MANIFEST_NAME).write_text(json.dumps(manifest))
+    report = verify_cache(dest, registry=reg)
+    assert report.corrupt == [rel] and rel not in report.verified
+    assert "registry says" in report.reasons[rel]
+    # The same file against no registry is only unverified; download repairs it.
+    assert rel in verify_cache(dest, registry={}).unverified
+    get(srv, dest, subjects=[1], registry=reg)
+    assert (dest / rel).read_bytes() == files[rel]
+    assert verify_cache(dest, registry=reg).verified == sorted(reg)
+
+
+def test_registry_file_round_trip_and_errors(tmp_path):
+    src = tmp_path / "src"
+    files = make_mirror(src)
+    (src / "07" / "notes.txt").write_text("ignored")
+    out = tmp_path / "reg.txt"
+    entries = record_registry(src, out)
+    assert entries == registry_of(files, *files)
+    assert load_registry(out) == entries
+    assert dl.main(["--record-registry", str(src / ".." / "src"), "--out", str(out)]) == 0
+    assert load_registry(out) == entries
+    out.write_text("not a registry line\n")
+    with pytest.raises(ValueError, match=r"reg\.txt:1"):
+        load_registry(out)
+    with pytest.raises(FileNotFoundError, match="no CMU files"):
+        record_registry(tmp_path / "empty-dir-that-does-not-exist", out)
+
+
+def test_packaged_registry_lists_cmu_subjects_1_to_3():
+    reg = load_registry()
+    assert REGISTRY_PATH.name == "cmu_sha256.txt"
+    assert len(reg) == 18
+    assert {r.split("/")[0] for r in reg} == {"01", "02", "03"}
+    assert {"01/01.asf", "02/02_10.amc", "03/03_04.amc"} <= set(reg)
+
+
+@needs_shared
+def test_packaged_registry_matches_shared_originals():
+    reg = load_registry()
+    for rel, entry in reg.items():
+        data = (SHARED_CMU / rel).read_bytes()
+        assert (hashlib.sha256(data).hexdigest(), len(data)) == (entry.sha256, entry.bytes), rel
+
+
 # --- the shared CMU mirror ----------------------------------------------------
 
 
 @needs_shared
-def test_shared_subjects_1_and_2_byte_identical(shared_server, tmp_path):
+def test_shared_subjects_1_and_2_byte_identical_and_verified(shared_server, tmp_path):
     dest = tmp_path / "cmu"
-    paths = get(shared_server, dest, subjects=[1, 2])
+    paths = get(shared_server, dest, subjects=[1, 2], registry=None)  # the packaged registry
     expected = sorted(
         p.relative_to(SHARED_CMU).as_posix()
         for s in ("01", "02")
@@ -422,12 +922,30 @@ def test_shared_subjects_1_and_2_byte_identical(shared_server, tmp_path):
         if p.suffix in (".asf", ".amc")
     )
     assert sorted(p.relative_to(dest).as_posix() for p in paths) == expected
-    manifest = json.loads((dest / MANIFEST_NAME).read_text())
+    manifest = manifest_of(dest)
     assert sorted(manifest) == expected
     for rel in expected:
         data = (SHARED_CMU / rel).read_bytes()
         assert (dest / rel).read_bytes() == data
         assert manifest[rel]["sha256"] == hashlib.sha256(data).hexdigest()
+        assert manifest[rel]["status"] == "verified"
+    report = verify_cache(dest)
+    assert report.verified == expected and report.unverified == [] and report.ok
     shared_server.requests.clear()
-    get(shared_server, dest, subjects=[1, 2])
+    get(shared_server, dest, subjects=[1, 2], registry=None)
     assert shared_server.file_requests() == []
+
+
+def test_cli_verify_reports_and_fails_on_corrupt(tiny, tmp_path, capsys):
+    srv, files, dest = tiny
+    reg_file = tmp_path / "reg.txt"
+    record_registry(srv.root, reg_file)
+    base = ["download", "cmu", "--dest", str(dest), "--registry", str(reg_file)]
+    assert cli.main([*base, "--subjects", "7", "--quiet", "--base-url", srv.url]) == 0
+    capsys.readouterr()
+    assert cli.main([*base, "--verify"]) == 0
+    assert "3 verified" in capsys.readouterr().out
+    (dest / "07" / "07_02.amc").write_bytes(b"junk")
+    assert cli.main([*base, "--verify"]) == 1
+    out = capsys.readouterr().out
+    assert "2 verified" in out and "1 corrupt" in out and "07_02.amc" in out
