@@ -24,6 +24,38 @@ When every frame has the same lines in the same order (CMU's files do), names
 and frame numbers sit at a fixed stride among the tokens and are checked by
 slicing; otherwise a general reader checks and places each line's values with
 vectorised per-line counts, and names the line at fault in any error.
+
+Limits on input files
+---------------------
+A file of a few lines must not cost gigabytes or minutes, nor may nonsense
+numbers pass into the kinematics. The limits are module constants, read at each
+call, so a program may raise them by assignment (e.g.
+``humotion_gym.mocap.asfamc.MAX_FRAME_GAP = 10_000``):
+
+- :data:`MAX_FRAMES` (1,000,000; per call ``load_amc(..., max_frames=...)``):
+  the most frames, counted from the first frame number to the last.
+- :data:`MAX_FRAME_GAP` (1,000): the most frame numbers one step may skip, and
+  :data:`FRAME_SPAN_FACTOR` (4): the frames from first to last may be at most
+  ``FRAME_SPAN_FACTOR * (frame blocks present) + MAX_FRAME_GAP``. The channel
+  array is allocated only after these checks, so its size is bounded by the
+  file's. Frame numbers are ASCII digits, at most :data:`MAX_FRAME_NUMBER`.
+- :data:`MAX_BONES` (1,000) bones, :data:`MAX_DEPTH` (256) bones from the
+  root to the deepest tip, and :data:`MAX_FRAME_POINTS` (20,000,000) frames
+  times points, the size of the forward kinematics' output.
+- ASF numbers: a bone ``length`` is finite, positive and at most
+  :data:`MAX_BONE_LENGTH` (1e5 file units); ``:units length`` is between
+  :data:`MIN_LENGTH_UNIT` and :data:`MAX_LENGTH_UNIT` (1e-3 to 1e3 file units
+  per inch); a ``dof`` lists each of ``rx ry rz`` at most once; directions,
+  axes, the root's position and orientation are finite and of magnitude at most
+  :data:`MAX_ABS_VALUE` (1e9); limits are ``(min max)`` with ``min <= max``
+  (either may be infinite, neither NaN).
+- AMC values: finite values are of magnitude at most :data:`MAX_ABS_VALUE`
+  (NaN and infinite values mark frames invalid, as before).
+- The ``fps`` argument is between 1 and 10,000 (a ``ValueError`` otherwise).
+
+Every violation in a file raises :class:`~humotion_gym.errors.MocapFormatError`
+naming the file, the line and what was expected; no other exception escapes
+parsing (an unreadable file still raises :class:`OSError`).
 """
 
 from __future__ import annotations
@@ -42,17 +74,66 @@ from numpy.typing import NDArray
 from humotion_gym.errors import MocapFormatError
 
 # Shared low-level helpers: the bulk number scan and batched Euler rotations.
-from humotion_gym.mocap.bvh import _euler_matrices, _line_token_counts, _to_floats
+from humotion_gym.mocap.bvh import (
+    _count,
+    _euler_matrices,
+    _line_token_counts,
+    _short,
+    _to_floats,
+)
 from humotion_gym.mocap.skeleton import select_points
 
-__all__ = ["AcclaimClip", "AsfSkeleton", "load_amc", "load_asf", "load_asf_amc"]
+__all__ = [
+    "FRAME_SPAN_FACTOR",
+    "MAX_ABS_VALUE",
+    "MAX_BONES",
+    "MAX_BONE_LENGTH",
+    "MAX_DEPTH",
+    "MAX_FRAMES",
+    "MAX_FRAME_GAP",
+    "MAX_FRAME_NUMBER",
+    "MAX_FRAME_POINTS",
+    "MAX_LENGTH_UNIT",
+    "MIN_LENGTH_UNIT",
+    "AcclaimClip",
+    "AsfSkeleton",
+    "load_amc",
+    "load_asf",
+    "load_asf_amc",
+]
+
+#: The most frames (first frame number to last) a file may hold (``load_amc(max_frames=...)``).
+MAX_FRAMES: int = 1_000_000
+#: The most frame numbers one step between consecutive frames may skip.
+MAX_FRAME_GAP: int = 1000
+#: Frames from first to last are at most this times the frame blocks, plus MAX_FRAME_GAP.
+FRAME_SPAN_FACTOR: int = 4
+#: The largest AMC frame number.
+MAX_FRAME_NUMBER: int = 10**15
+#: The most bones in an ASF.
+MAX_BONES: int = 1000
+#: The most bones on the path from the root to a bone's tip.
+MAX_DEPTH: int = 256
+#: The most frames times points (root and bone tips): the forward kinematics' size.
+MAX_FRAME_POINTS: int = 20_000_000
+#: The longest bone, in file units.
+MAX_BONE_LENGTH: float = 1e5
+#: The smallest ``:units length`` (file units per inch).
+MIN_LENGTH_UNIT: float = 1e-3
+#: The largest ``:units length`` (file units per inch).
+MAX_LENGTH_UNIT: float = 1e3
+#: The largest magnitude of an ASF direction, axis, position or orientation, or an AMC value.
+MAX_ABS_VALUE: float = 1e9
+# The frame rates ``load_amc`` accepts (the BVH reader's frame-time range).
+_MIN_FPS, _MAX_FPS = 1.0, 1e4
 
 OnNan = Literal["mask", "raise"]
 
 _AXIS = {"x": 0, "y": 1, "z": 2}
 _BONE_DOFS = ("rx", "ry", "rz")
 _ROOT_CHANNELS = ("tx", "ty", "tz", "rx", "ry", "rz")
-_LIMIT = re.compile(r"\(\s*(\S+)\s+(\S+)\s*\)")
+# No parenthesis inside a number: keeps matching linear on lines like "((((...".
+_LIMIT = re.compile(r"\(\s*([^\s()]+)\s+([^\s()]+)\s*\)")
 
 
 @dataclass(frozen=True, eq=False)
@@ -202,7 +283,8 @@ class AcclaimClip:
             KeyError: If a name is not one of :attr:`point_names`.
         """
         if self._positions is None:
-            self._positions = self._kinematics()
+            with np.errstate(invalid="ignore"):  # invalid frames are masked anyway
+                self._positions = self._kinematics()
         return select_points(self._positions, self.point_names, names, self.path)
 
     def _kinematics(self) -> NDArray[np.float64]:
@@ -254,8 +336,29 @@ class AcclaimClip:
 # --------------------------------------------------------------------------
 
 
-def _numbers(path: str, ln: int, toks: Sequence[str], count: int, what: str) -> list[float]:
-    """Exactly ``count`` finite numbers from ``toks``, or a MocapFormatError naming ``what``."""
+def _numbers(
+    path: str,
+    ln: int,
+    toks: Sequence[str],
+    count: int,
+    what: str,
+    bound: float | None = None,
+) -> list[float]:
+    """Exactly ``count`` finite numbers from ``toks``, or a MocapFormatError naming ``what``.
+
+    Args:
+        path: The file, for errors.
+        ln: The line, for errors.
+        toks: The tokens.
+        count: How many numbers there must be.
+        what: What they are, for errors.
+        bound: The largest magnitude (:data:`MAX_ABS_VALUE` when None; the
+            caller checks its own range when inf).
+
+    Returns:
+        The numbers.
+    """
+    bound = MAX_ABS_VALUE if bound is None else bound
     if len(toks) != count:
         raise MocapFormatError(path, ln, f"expected {what} ({count} numbers), found {len(toks)}")
     out = []
@@ -266,6 +369,10 @@ def _numbers(path: str, ln: int, toks: Sequence[str], count: int, what: str) -> 
             raise MocapFormatError(path, ln, f"expected {what}, found {t!r}") from None
         if not np.isfinite(v):
             raise MocapFormatError(path, ln, f"expected {what} (finite), found {t!r}")
+        if abs(v) > bound:
+            raise MocapFormatError(
+                path, ln, f"expected {what} of magnitude at most {bound:g}, found {t!r}"
+            )
         out.append(v)
     return out
 
@@ -312,6 +419,7 @@ def load_asf(path: str | Path) -> AsfSkeleton:
     hierarchy_line = 0
     hierarchy_done = False
     edges: list[tuple[str, str, int]] = []  # (parent, child, line)
+    bone_names: set[str] = set()
     last_key = ""
     for ln, raw in enumerate(lines, 1):
         line = raw.split("#", 1)[0].strip()
@@ -338,9 +446,14 @@ def load_asf(path: str | Path) -> AsfSkeleton:
         key = toks[0].lower()
         if section == "units":
             if key == "length":
-                length_unit = _numbers(spath, ln, toks[1:], 1, "the length unit")[0]
-                if length_unit <= 0:
-                    raise MocapFormatError(spath, ln, "expected a positive length unit")
+                length_unit = _numbers(spath, ln, toks[1:], 1, "the length unit", np.inf)[0]
+                if not MIN_LENGTH_UNIT <= length_unit <= MAX_LENGTH_UNIT:
+                    raise MocapFormatError(
+                        spath,
+                        ln,
+                        f"expected a positive length unit between {MIN_LENGTH_UNIT:g} and "
+                        f"{MAX_LENGTH_UNIT:g} (file units per inch), found {toks[1]!r}",
+                    )
             elif key == "angle":
                 unit = toks[1].lower() if len(toks) == 2 else ""
                 if unit not in ("deg", "rad"):
@@ -368,6 +481,13 @@ def load_asf(path: str | Path) -> AsfSkeleton:
                 if bone is not None:
                     raise MocapFormatError(
                         spath, ln, f"expected 'end' closing the bone begun at line {bone['line']}"
+                    )
+                if len(bones) >= MAX_BONES:
+                    raise MocapFormatError(
+                        spath,
+                        ln,
+                        f"expected at most {MAX_BONES} bones, found more (raise "
+                        "humotion_gym.mocap.asfamc.MAX_BONES for such a file)",
                     )
                 bone = {"line": ln, "limits": []}
                 continue
@@ -401,18 +521,34 @@ def load_asf(path: str | Path) -> AsfSkeleton:
                 rest = line
             else:
                 rest = line[len(toks[0]) :]
+            if key in ("name", "direction", "length", "axis", "dof") and key in bone:
+                raise MocapFormatError(
+                    spath,
+                    ln,
+                    f"expected one '{key}' in the bone begun at line {bone['line']}, "
+                    "found a second",
+                )
             if key == "id":
                 bone["id"] = toks[1] if len(toks) > 1 else ""
             elif key == "name":
                 if len(toks) != 2:
                     raise MocapFormatError(spath, ln, f"expected 'name <bone>', found {line!r}")
-                if toks[1] == "root" or any(b["name"] == toks[1] for b in bones):
+                if toks[1] == "root" or toks[1] in bone_names:
                     raise MocapFormatError(spath, ln, f"bone name {toks[1]!r} is used twice")
+                bone_names.add(toks[1])
                 bone["name"] = toks[1]
             elif key == "direction":
                 bone["direction"] = _numbers(spath, ln, toks[1:], 3, "the bone direction")
             elif key == "length":
-                bone["length"] = _numbers(spath, ln, toks[1:], 1, "the bone length")[0]
+                length = _numbers(spath, ln, toks[1:], 1, "the bone length", np.inf)[0]
+                if not 0.0 < length <= MAX_BONE_LENGTH:
+                    raise MocapFormatError(
+                        spath,
+                        ln,
+                        f"expected a positive bone length of at most {MAX_BONE_LENGTH:g} "
+                        f"(file units), found {toks[1]!r}",
+                    )
+                bone["length"] = length
             elif key == "axis":
                 if len(toks) != 5:
                     raise MocapFormatError(
@@ -430,22 +566,34 @@ def load_asf(path: str | Path) -> AsfSkeleton:
                         f"expected bone dof among rx ry rz, found {bad[0]!r} "
                         "(translation and length dof are not supported)",
                     )
+                if len(set(dofs)) != len(dofs):
+                    twice = next(d for d in dofs if dofs.count(d) > 1)
+                    raise MocapFormatError(
+                        spath, ln, f"expected each dof at most once, found {twice!r} twice"
+                    )
                 bone["dof"] = dofs
             elif key == "limits":
                 pairs = _LIMIT.findall(rest)
                 if not pairs or _LIMIT.sub("", rest).strip():
                     raise MocapFormatError(
-                        spath, ln, f"expected limits '(min max)', found {line!r}"
+                        spath, ln, f"expected limits '(min max)', found {_short(line)}"
                     )
                 lims = bone["limits"]
                 assert isinstance(lims, list)
                 for lo, hi in pairs:
                     try:
-                        lims.append((float(lo), float(hi)))
+                        lo_v, hi_v = float(lo), float(hi)
                     except ValueError:
                         raise MocapFormatError(
                             spath, ln, f"expected numeric limits, found ({lo} {hi})"
                         ) from None
+                    if not lo_v <= hi_v:  # also refuses NaN
+                        raise MocapFormatError(
+                            spath,
+                            ln,
+                            f"expected limits '(min max)' with min <= max, found ({lo} {hi})",
+                        )
+                    lims.append((lo_v, hi_v))
             last_key = key
         elif section == "hierarchy":
             if key == "begin":
@@ -496,9 +644,22 @@ def load_asf(path: str | Path) -> AsfSkeleton:
         raise MocapFormatError(
             spath, hierarchy_line or last, f"expected a parent in :hierarchy for bones {orphans}"
         )
-    if len(_topological(parents)) != len(bones):
+    order = _topological(parents)
+    if len(order) != len(bones):
         raise MocapFormatError(
             spath, hierarchy_line, ":hierarchy has a cycle (bones reach no root)"
+        )
+    depth = np.zeros(len(bones) + 1, dtype=np.intp)  # bones from the root, by point
+    for b in order:
+        depth[b + 1] = depth[parents[b] + 1] + 1
+    if len(bones) and int(depth.max()) > MAX_DEPTH:
+        deepest = names[int(np.argmax(depth[1:]))]
+        raise MocapFormatError(
+            spath,
+            hierarchy_line,
+            f"expected chains of at most {MAX_DEPTH} bones in :hierarchy, found "
+            f"{int(depth.max())} down to {deepest!r} (raise "
+            "humotion_gym.mocap.asfamc.MAX_DEPTH for such a file)",
         )
 
     directions = np.array([b["direction"] for b in bones], dtype=np.float64).reshape(-1, 3)
@@ -530,12 +691,73 @@ def load_asf(path: str | Path) -> AsfSkeleton:
 # --------------------------------------------------------------------------
 
 
+def _frame_span_problem(
+    numbers: NDArray[np.int64], n_points: int, max_frames: int
+) -> tuple[int, str] | None:
+    """Check increasing AMC frame numbers against the limits before any allocation.
+
+    Args:
+        numbers: ``(N,)`` the frame numbers, in file order (N >= 1).
+        n_points: Points of the skeleton (root and bones).
+        max_frames: The most frames from the first number to the last.
+
+    Returns:
+        None when they pass, else the index of the frame at fault and what was
+        expected there.
+    """
+    steps = np.diff(numbers)
+    down = np.flatnonzero(steps <= 0)
+    if len(down):
+        k = int(down[0]) + 1
+        return k, f"expected a frame number above {numbers[k - 1]}, found {numbers[k]}"
+    gaps = np.flatnonzero(steps > MAX_FRAME_GAP + 1)
+    if len(gaps):
+        k = int(gaps[0]) + 1
+        return k, (
+            f"expected a frame number at most {numbers[k - 1] + MAX_FRAME_GAP + 1} after "
+            f"{numbers[k - 1]} (at most {MAX_FRAME_GAP} skipped; raise "
+            f"humotion_gym.mocap.asfamc.MAX_FRAME_GAP for such a file), found {numbers[k]}"
+        )
+    span = numbers - numbers[0] + 1
+    over = np.flatnonzero(span > max_frames)
+    if len(over):
+        k = int(over[0])
+        return k, (
+            f"expected at most {max_frames} frames from frame number {numbers[0]}, found "
+            f"frame number {numbers[k]} (pass max_frames= or raise "
+            "humotion_gym.mocap.asfamc.MAX_FRAMES for such a file)"
+        )
+    bound = FRAME_SPAN_FACTOR * len(numbers) + MAX_FRAME_GAP
+    if span[-1] > bound:
+        return len(numbers) - 1, (
+            f"expected frame numbers spanning at most {bound} frames ({FRAME_SPAN_FACTOR} "
+            f"per frame present, {len(numbers)} present, plus {MAX_FRAME_GAP}), found "
+            f"{numbers[0]} to {numbers[-1]} (raise humotion_gym.mocap.asfamc."
+            "FRAME_SPAN_FACTOR for such a file)"
+        )
+    if int(span[-1]) * n_points > MAX_FRAME_POINTS:
+        return len(numbers) - 1, (
+            f"expected at most {MAX_FRAME_POINTS} frames times points, found {span[-1]} "
+            f"frames of {n_points} points (raise humotion_gym.mocap.asfamc.MAX_FRAME_POINTS "
+            "for such a file)"
+        )
+    return None
+
+
+def _out_of_range(values: NDArray[np.float64]) -> NDArray[np.intp]:
+    """Indices of the finite values beyond :data:`MAX_ABS_VALUE`."""
+    with np.errstate(invalid="ignore"):
+        big = np.abs(values) > MAX_ABS_VALUE
+    return np.flatnonzero(big & np.isfinite(values))
+
+
 def _amc_regular(
     sk: AsfSkeleton,
     widths: NDArray[np.intp],
     counts: NDArray[np.intp],
     tokens: list[bytes],
     on_nan: OnNan,
+    max_frames: int,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]] | None:
     """Fast path for files whose every frame has the same lines in the same order.
 
@@ -571,10 +793,12 @@ def _amc_regular(
         if tokens[o::stride] != [tokens[o]] * n_t:
             return None
     frame_tokens = tokens[0::stride]
-    if not all(map(bytes.isdigit, frame_tokens)):
+    if not all(map(bytes.isdigit, frame_tokens)) or max(map(len, frame_tokens)) > 16:
         return None
     numbers = np.array(list(map(int, frame_tokens)), dtype=np.int64)
-    if (np.diff(numbers) <= 0).any():
+    if numbers.max() > MAX_FRAME_NUMBER:
+        return None
+    if _frame_span_problem(numbers, len(sk.point_names), max_frames) is not None:
         return None
     is_value = np.ones(stride, dtype=bool)
     is_value[offs] = False
@@ -586,6 +810,8 @@ def _amc_regular(
     except ValueError:
         return None
     if on_nan == "raise" and not np.isfinite(values).all():
+        return None
+    if len(_out_of_range(values)):
         return None
     col0 = np.concatenate(([0], np.cumsum(widths)[:-1])).astype(np.intp)
     cols = np.concatenate([col0[p] + np.arange(widths[p]) for p in points])
@@ -602,6 +828,7 @@ def _amc_general(
     tokens: list[bytes],
     first: int,
     on_nan: OnNan,
+    max_frames: int,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Read frames of any layout (bones in any order, some missing), checking everything.
 
@@ -613,6 +840,7 @@ def _amc_general(
         tokens: The body's tokens.
         first: The file line of the body's first line.
         on_nan: As :func:`load_amc`.
+        max_frames: As :func:`load_amc`.
 
     Returns:
         The ``(T, C)`` channels (NaN where nothing was read) and the frame numbers.
@@ -669,16 +897,24 @@ def _amc_general(
             f"found {got[k]}",
         )
 
-    # Frame numbers: increasing; gaps become invalid frames.
-    numbers = np.array([int(firsts[k]) for k in np.flatnonzero(is_frame)], dtype=np.int64)
-    steps = np.flatnonzero(np.diff(numbers) <= 0)
-    if len(steps):
-        k = int(steps[0]) + 1
+    # Frame numbers: increasing, small gaps (they become invalid frames), all
+    # checked against the limits before the channels are allocated.
+    frame_tokens = list(itertools.compress(firsts, is_frame))
+    parsed = list(map(_count, frame_tokens))
+    too_big = [k for k, v in enumerate(parsed) if v is None or v > MAX_FRAME_NUMBER]
+    if too_big:
+        k = too_big[0]
         raise MocapFormatError(
             spath,
             first + int(frame_lines[k]),
-            f"expected a frame number above {numbers[k - 1]}, found {numbers[k]}",
+            f"expected a frame number of at most {MAX_FRAME_NUMBER}, found "
+            f"{_short(frame_tokens[k])}",
         )
+    numbers = np.array(parsed, dtype=np.int64)
+    problem = _frame_span_problem(numbers, len(sk.point_names), max_frames)
+    if problem is not None:
+        k, reason = problem
+        raise MocapFormatError(spath, first + int(frame_lines[k]), reason)
     n_frames = int(numbers[-1] - numbers[0] + 1)
     frame_flag = np.zeros(len(counts), dtype=np.intp)
     frame_flag[frame_lines] = 1
@@ -707,6 +943,14 @@ def _amc_general(
     values = _to_floats(
         list(itertools.compress(tokens, is_value)), spath, first + value_lines, "a number"
     )
+    big = _out_of_range(values)
+    if len(big):
+        raise MocapFormatError(
+            spath,
+            first + int(value_lines[big[0]]),
+            f"expected values of magnitude at most {MAX_ABS_VALUE:g}, found "
+            f"{float(values[big[0]])!r}",
+        )
     if on_nan == "raise":
         bad = np.flatnonzero(~np.isfinite(values))
         if len(bad):
@@ -729,6 +973,7 @@ def load_amc(
     skeleton: AsfSkeleton | str | Path,
     on_nan: OnNan = "mask",
     fps: float = 120.0,
+    max_frames: int | None = None,
 ) -> AcclaimClip:
     """Read an Acclaim motion file on its skeleton.
 
@@ -737,7 +982,10 @@ def load_amc(
         skeleton: The parsed ASF (or its path).
         on_nan: ``"mask"`` marks frames holding NaN (or infinite) values
             invalid; ``"raise"`` raises instead.
-        fps: The frame rate (AMC files do not record it; CMU's are 120 Hz).
+        fps: The frame rate (AMC files do not record it; CMU's are 120 Hz),
+            between 1 and 10,000.
+        max_frames: The most frames, first frame number to last
+            (:data:`MAX_FRAMES` when None).
 
     Returns:
         The clip. Frame numbers the file skips become invalid frames; so do
@@ -748,11 +996,18 @@ def load_amc(
             bone the ASF does not define, a bone line has the wrong number of
             values, a value is not a number, frame numbers do not increase, a
             bone appears twice in one frame, or (with ``on_nan="raise"``) a
-            value is NaN.
+            value is NaN; or if the file exceeds a limit (see the module's
+            "Limits on input files": frame numbers, gaps, frames, magnitudes).
         OSError: If a file cannot be read.
+        ValueError: If an argument is invalid.
     """
     if on_nan not in ("mask", "raise"):
         raise ValueError(f"on_nan must be 'mask' or 'raise', got {on_nan!r}")
+    limit = MAX_FRAMES if max_frames is None else max_frames
+    if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 1:
+        raise ValueError(f"max_frames must be a whole number >= 1, got {max_frames!r}")
+    if not (isinstance(fps, (int, float, np.number)) and _MIN_FPS <= fps <= _MAX_FPS):
+        raise ValueError(f"fps must be between {_MIN_FPS:g} and {_MAX_FPS:g}, got {fps!r}")
     sk = skeleton if isinstance(skeleton, AsfSkeleton) else load_asf(skeleton)
     spath = str(path)
     data = Path(path).read_bytes()
@@ -785,9 +1040,9 @@ def load_amc(
     if not tokens:
         raise MocapFormatError(spath, max(lineno, 1), "expected AMC frames, found end of file")
     widths = np.array([len(sk.root_order)] + [len(d) for d in sk.dofs], dtype=np.intp)
-    regular = _amc_regular(sk, widths, counts, tokens, on_nan)
+    regular = _amc_regular(sk, widths, counts, tokens, on_nan, limit)
     if regular is None:
-        channels, numbers = _amc_general(spath, sk, widths, counts, tokens, first, on_nan)
+        channels, numbers = _amc_general(spath, sk, widths, counts, tokens, first, on_nan, limit)
     else:
         channels, numbers = regular
     # Missing frames, missing bone lines and NaN values all leave NaN here.
@@ -809,7 +1064,11 @@ def load_amc(
 
 
 def load_asf_amc(
-    asf_path: str | Path, amc_path: str | Path, on_nan: OnNan = "mask", fps: float = 120.0
+    asf_path: str | Path,
+    amc_path: str | Path,
+    on_nan: OnNan = "mask",
+    fps: float = 120.0,
+    max_frames: int | None = None,
 ) -> AcclaimClip:
     """Read an ASF skeleton and an AMC motion on it (see :func:`load_amc`)."""
-    return load_amc(amc_path, load_asf(asf_path), on_nan=on_nan, fps=fps)
+    return load_amc(amc_path, load_asf(asf_path), on_nan=on_nan, fps=fps, max_frames=max_frames)

@@ -19,11 +19,42 @@ checks that every line holds one value per channel; when it refuses, a
 vectorised count of the values on each line and a bisection for the first
 non-number name the line at fault. A 4 MB file parses in tens of milliseconds.
 Forward kinematics loops over joints only, batched over frames.
+
+Limits on input files
+---------------------
+A file of a few lines must not cost gigabytes or minutes, so the reader checks
+what it is told against what it holds and against documented maxima (module
+constants, read at each call, so a program may raise them by assignment, e.g.
+``humotion_gym.mocap.bvh.MAX_JOINTS = 5000``):
+
+- :data:`MAX_FRAMES` (1,000,000; per call ``load_bvh(..., max_frames=...)``):
+  the most frames, whether declared by ``Frames:`` or present. ``Frames:``
+  must also equal the frame lines present, so the cost of the motion block is
+  bounded by the file's size.
+- :data:`MIN_FRAME_TIME` and :data:`MAX_FRAME_TIME` (1e-4 s to 1 s, i.e. 1 to
+  10,000 frames per second): ``Frame Time:`` is in seconds; a value between 1
+  and 1000 is refused as one that looks like milliseconds. This also bounds the
+  resampling of :func:`~humotion_gym.mocap.retarget.retarget_clip` to 30 Hz to
+  at most 30 output frames per file frame.
+- :data:`MAX_JOINTS` (1,000): joints plus end sites; :data:`MAX_DEPTH` (256):
+  nesting of ``{ }`` blocks; :data:`MAX_JOINT_CHANNELS` (64): channels of one
+  joint. The hierarchy is parsed in linear time (names kept in sets and dicts).
+- :data:`MAX_FRAME_POINTS` (20,000,000): frames times points (joints and end
+  sites), the size of the forward kinematics' output.
+- :data:`MAX_ABS_VALUE` (1e9): the largest magnitude of an ``OFFSET`` or a
+  motion value; beyond it, or NaN/infinite in the hierarchy, the file is
+  refused (NaN and infinite motion values mark frames invalid, as before).
+- Counts (``Frames:``, ``CHANNELS``) are ASCII digits only.
+
+Every violation raises :class:`~humotion_gym.errors.MocapFormatError` naming the
+file, the line and what was expected; no other exception escapes parsing (an
+unreadable file still raises :class:`OSError`).
 """
 
 from __future__ import annotations
 
 import io
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from decimal import Decimal, InvalidOperation
@@ -36,7 +67,40 @@ from numpy.typing import ArrayLike, NDArray
 from humotion_gym.errors import MocapFormatError
 from humotion_gym.mocap.skeleton import select_points
 
-__all__ = ["CHANNEL_NAMES", "BvhClip", "load_bvh", "write_bvh"]
+__all__ = [
+    "CHANNEL_NAMES",
+    "MAX_ABS_VALUE",
+    "MAX_DEPTH",
+    "MAX_FRAMES",
+    "MAX_FRAME_POINTS",
+    "MAX_FRAME_TIME",
+    "MAX_JOINTS",
+    "MAX_JOINT_CHANNELS",
+    "MIN_FRAME_TIME",
+    "BvhClip",
+    "load_bvh",
+    "write_bvh",
+]
+
+#: The most frames a file may declare or hold (``load_bvh(max_frames=...)`` per call).
+MAX_FRAMES: int = 1_000_000
+#: The shortest ``Frame Time:`` accepted, in seconds (10 kHz).
+MIN_FRAME_TIME: float = 1e-4
+#: The longest ``Frame Time:`` accepted, in seconds (1 Hz).
+MAX_FRAME_TIME: float = 1.0
+#: The most joints plus end sites in a hierarchy.
+MAX_JOINTS: int = 1000
+#: The deepest nesting of ``{ }`` blocks (joints and end sites).
+MAX_DEPTH: int = 256
+#: The most channels one joint may declare.
+MAX_JOINT_CHANNELS: int = 64
+#: The most frames times points (joints and end sites): the forward kinematics' size.
+MAX_FRAME_POINTS: int = 20_000_000
+#: The largest magnitude of an ``OFFSET`` component or a motion value.
+MAX_ABS_VALUE: float = 1e9
+
+# A count: ASCII digits only (str.isdigit also takes superscripts such as "²").
+_COUNT = re.compile(r"[0-9]+", re.ASCII)
 
 OnNan = Literal["mask", "raise"]
 PositionMode = Literal["auto", "add", "replace"]
@@ -171,6 +235,82 @@ def _euler_matrices(
     return out
 
 
+def _short(token: str | bytes, limit: int = 40) -> str:
+    """``repr`` of a token for an error message, cut to about ``limit`` characters."""
+    text = token.decode("utf-8", "replace") if isinstance(token, bytes) else token
+    return repr(text) if len(text) <= limit else repr(text[:limit]) + f"... ({len(text)} chars)"
+
+
+def _count(token: str | bytes) -> int | None:
+    """A whole number written in ASCII digits, or None when ``token`` is not one.
+
+    Args:
+        token: The text, e.g. ``"120"``; ``"²"``, ``"-1"`` and ``"1.0"`` are not counts.
+
+    Returns:
+        The value; values of more than 18 digits (above any limit) come back
+        as ``10**18`` without converting the whole text.
+    """
+    text = token.decode("ascii", "replace") if isinstance(token, bytes) else token
+    if not _COUNT.fullmatch(text):
+        return None
+    text = text.lstrip("0") or "0"
+    return 10**18 if len(text) > 18 else int(text)
+
+
+def _check_frame_time(path: str, line: int, token: str) -> float:
+    """The ``Frame Time:`` value in seconds, within [MIN_FRAME_TIME, MAX_FRAME_TIME].
+
+    Args:
+        path: The file, for errors.
+        line: The line of ``Frame Time:``.
+        token: The value as written.
+
+    Returns:
+        Seconds per frame.
+
+    Raises:
+        MocapFormatError: If the value is not a number, not finite, not
+            positive, out of range, or looks like milliseconds.
+    """
+    try:
+        frame_time = float(token)
+    except ValueError:
+        frame_time = float("nan")
+    if not (np.isfinite(frame_time) and frame_time > 0):
+        raise MocapFormatError(
+            path, line, f"expected a positive frame time in seconds, found {_short(token)}"
+        )
+    if frame_time > MAX_FRAME_TIME and MIN_FRAME_TIME <= frame_time / 1000.0 <= MAX_FRAME_TIME:
+        raise MocapFormatError(
+            path,
+            line,
+            f"expected a frame time in seconds (between {MIN_FRAME_TIME:g} and "
+            f"{MAX_FRAME_TIME:g}), found {_short(token)}, which looks like milliseconds "
+            f"(it would be {frame_time / 1000.0:g} s, {1000.0 / frame_time:.4g} frames "
+            "per second); write the frame time in seconds",
+        )
+    if not MIN_FRAME_TIME <= frame_time <= MAX_FRAME_TIME:
+        raise MocapFormatError(
+            path,
+            line,
+            f"expected a frame time in seconds between {MIN_FRAME_TIME:g} and "
+            f"{MAX_FRAME_TIME:g} ({1.0 / MAX_FRAME_TIME:g} to {1.0 / MIN_FRAME_TIME:g} "
+            f"frames per second), found {_short(token)}",
+        )
+    return frame_time
+
+
+def _first_out_of_range(values: NDArray[np.float64]) -> int | None:
+    """Flat index of the first finite value beyond :data:`MAX_ABS_VALUE`, or None."""
+    with np.errstate(invalid="ignore"):
+        big = np.abs(values) > MAX_ABS_VALUE
+    big &= np.isfinite(values)
+    if not big.any():
+        return None
+    return int(np.argmax(big.reshape(-1)))
+
+
 def _snap_fps(frame_time: float, token: str) -> float:
     """Frames per second, snapped to a whole rate when the file rounded its period.
 
@@ -188,7 +328,7 @@ def _snap_fps(frame_time: float, token: str) -> float:
     fps = 1.0 / frame_time
     try:
         quantum = 10.0 ** Decimal(token).as_tuple().exponent
-    except (InvalidOperation, TypeError):
+    except (InvalidOperation, TypeError, OverflowError):
         return fps
     n = round(fps)
     if n >= 1 and abs(frame_time - 1.0 / n) <= 0.5 * float(quantum) * (1 + 1e-9):
@@ -283,7 +423,9 @@ class BvhClip:
             ``(T, J, 3, 3)`` rotations and ``(T, J, 3)`` positions, in the file's
             axes and units. Rows of invalid frames are NaN.
         """
-        rots, pos = self._kinematics(keep_rotations=True)
+        # Invalid frames (NaN, inf) give NaN silently: they are masked below anyway.
+        with np.errstate(invalid="ignore"):
+            rots, pos = self._kinematics(keep_rotations=True)
         assert rots is not None
         return rots, pos[:, : len(self.joint_names)]
 
@@ -300,7 +442,8 @@ class BvhClip:
             KeyError: If a name is not one of :attr:`point_names`.
         """
         if self._positions is None:
-            _, pos = self._kinematics(keep_rotations=False)
+            with np.errstate(invalid="ignore"):  # invalid frames are masked anyway
+                _, pos = self._kinematics(keep_rotations=False)
             # Reorder from (joints, end sites) to the file order of the points.
             order = [
                 j if is_joint else len(self.joint_names) + j for is_joint, j in self._point_joint
@@ -390,6 +533,9 @@ class _Header:
         self.end_parents: list[int] = []
         self.end_offsets: list[tuple[float, float, float]] = []
         self.points: list[tuple[bool, int]] = []  # (is a joint, joint or end-site index)
+        self.joint_lines: list[int] = []
+        self.end_lines: list[int] = []
+        self.name_set: set[str] = set()
 
 
 def _header_tokens(lines: list[tuple[int, str]]) -> list[tuple[str, int, int]]:
@@ -437,8 +583,10 @@ def _parse_hierarchy(path: str, lines: list[tuple[int, str]], last_line: int) ->
                 v = float(tok)
             except ValueError:
                 raise MocapFormatError(path, tok_ln, f"expected {what}, found {tok!r}") from None
-            if not np.isfinite(v):
-                raise MocapFormatError(path, tok_ln, f"expected {what}, found {tok!r}")
+            if not (np.isfinite(v) and abs(v) <= MAX_ABS_VALUE):
+                raise MocapFormatError(
+                    path, tok_ln, f"expected {what} (at most {MAX_ABS_VALUE:g}), found {tok!r}"
+                )
             vals.append(v)
         return vals
 
@@ -449,10 +597,24 @@ def _parse_hierarchy(path: str, lines: list[tuple[int, str]], last_line: int) ->
             if tok != "{":
                 what = f"joint {pending.name!r}" if pending.is_joint else "End Site"
                 raise MocapFormatError(path, ln, f"expected '{{' opening {what}, found {tok!r}")
+            if len(stack) >= MAX_DEPTH:
+                raise MocapFormatError(
+                    path,
+                    ln,
+                    f"expected blocks nested at most {MAX_DEPTH} deep, found deeper "
+                    "(raise humotion_gym.mocap.bvh.MAX_DEPTH for such a file)",
+                )
             stack.append(pending)
             pending = None
             i += 1
             continue
+        if up in ("ROOT", "JOINT", "END") and len(hdr.points) >= MAX_JOINTS:
+            raise MocapFormatError(
+                path,
+                ln,
+                f"expected at most {MAX_JOINTS} joints and end sites, found more "
+                "(raise humotion_gym.mocap.bvh.MAX_JOINTS for such a file)",
+            )
         if up in ("ROOT", "JOINT"):
             if up == "ROOT" and stack:
                 raise MocapFormatError(
@@ -469,9 +631,11 @@ def _parse_hierarchy(path: str, lines: list[tuple[int, str]], last_line: int) ->
             name = " ".join(rest)
             if not name:
                 raise MocapFormatError(path, ln, f"expected a joint name after {tok}")
-            if name in hdr.names:
+            if name in hdr.name_set:
                 raise MocapFormatError(path, ln, f"joint name {name!r} is used twice")
             parent = stack[-1].index if stack else -1
+            hdr.name_set.add(name)
+            hdr.joint_lines.append(ln)
             hdr.names.append(name)
             hdr.parents.append(parent)
             hdr.offsets.append((0.0, 0.0, 0.0))
@@ -485,6 +649,7 @@ def _parse_hierarchy(path: str, lines: list[tuple[int, str]], last_line: int) ->
                 raise MocapFormatError(path, ln, "expected 'End Site'")
             if not stack or not stack[-1].is_joint:
                 raise MocapFormatError(path, ln, "expected End Site inside a joint's braces")
+            hdr.end_lines.append(ln)
             hdr.end_parents.append(stack[-1].index)
             hdr.end_offsets.append((0.0, 0.0, 0.0))
             hdr.points.append((False, len(hdr.end_parents) - 1))
@@ -510,11 +675,21 @@ def _parse_hierarchy(path: str, lines: list[tuple[int, str]], last_line: int) ->
             if top.has_channels:
                 raise MocapFormatError(path, ln, f"second CHANNELS in joint {top.name!r}")
             count_tok = toks[i + 1][0] if i + 1 < n else "end of file"
-            if not count_tok.isdigit():
+            count_or_none = _count(count_tok)
+            if count_or_none is None:
                 raise MocapFormatError(
-                    path, ln, f"expected the number of channels after CHANNELS, found {count_tok!r}"
+                    path,
+                    ln,
+                    f"expected the number of channels after CHANNELS, found {_short(count_tok)}",
                 )
-            count = int(count_tok)
+            count = count_or_none
+            if count > MAX_JOINT_CHANNELS:
+                raise MocapFormatError(
+                    path,
+                    ln,
+                    f"expected at most {MAX_JOINT_CHANNELS} channels in joint {top.name!r}, "
+                    f"found CHANNELS {_short(count_tok)[1:-1]}",
+                )
             names = toks[i + 2 : i + 2 + count]
             for name, name_ln, _ in names:
                 if name.lower() not in _CHANNEL_KIND:
@@ -656,7 +831,10 @@ def _read_motion(
 
 
 def load_bvh(
-    path: str | Path, on_nan: OnNan = "mask", position_channels: PositionMode = "auto"
+    path: str | Path,
+    on_nan: OnNan = "mask",
+    position_channels: PositionMode = "auto",
+    max_frames: int | None = None,
 ) -> BvhClip:
     """Read a BVH file.
 
@@ -669,6 +847,7 @@ def load_bvh(
             channels are the whole translation; ``"auto"``: ``"replace"`` when the
             channels of most animated non-root joints repeat their offsets (see
             :attr:`BvhClip.position_channels`), else ``"add"``.
+        max_frames: The most frames accepted (:data:`MAX_FRAMES` when None).
 
     Returns:
         The clip.
@@ -678,9 +857,15 @@ def load_bvh(
             incomplete (unbalanced braces, no ``MOTION``, ``Frames:`` or
             ``Frame Time:``), a frame line does not hold one value per channel,
             a value is not a number, ``Frames:`` disagrees with the lines, or
-            (with ``on_nan="raise"``) a value is NaN.
+            (with ``on_nan="raise"``) a value is NaN; or if the file exceeds a
+            limit (see the module's "Limits on input files": frames, frame
+            time, joints, nesting, channels, magnitudes).
         OSError: If the file cannot be read.
+        ValueError: If an argument is invalid.
     """
+    limit = MAX_FRAMES if max_frames is None else max_frames
+    if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 0:
+        raise ValueError(f"max_frames must be a whole number >= 0, got {max_frames!r}")
     if on_nan not in ("mask", "raise"):
         raise ValueError(f"on_nan must be 'mask' or 'raise', got {on_nan!r}")
     if position_channels not in ("auto", "add", "replace"):
@@ -732,25 +917,36 @@ def load_bvh(
         )
 
     frames_tok, frames_line = header_value("Frames")
-    if not frames_tok.isdigit():
+    declared = _count(frames_tok)
+    if declared is None:
         raise MocapFormatError(
-            spath, frames_line, f"expected a whole number of frames, found {frames_tok!r}"
+            spath, frames_line, f"expected a whole number of frames, found {_short(frames_tok)}"
         )
-    n_declared = int(frames_tok)
+    n_declared = declared
+    if n_declared > limit:
+        raise MocapFormatError(
+            spath,
+            frames_line,
+            f"expected at most {limit} frames, found Frames: {_short(frames_tok)[1:-1]} (pass "
+            "max_frames= or raise humotion_gym.mocap.bvh.MAX_FRAMES for such a file)",
+        )
+    n_points = len(hdr.points)
+    if n_declared * n_points > MAX_FRAME_POINTS:
+        raise MocapFormatError(
+            spath,
+            frames_line,
+            f"expected at most {MAX_FRAME_POINTS} frames times points, found {n_declared} "
+            f"frames of {n_points} joints and end sites (raise "
+            "humotion_gym.mocap.bvh.MAX_FRAME_POINTS for such a file)",
+        )
     ft_tok, ft_line = header_value("Frame Time")
-    try:
-        frame_time = float(ft_tok)
-    except ValueError:
-        frame_time = float("nan")
-    if not (np.isfinite(frame_time) and frame_time > 0):
-        raise MocapFormatError(
-            spath, ft_line, f"expected a positive frame time in seconds, found {ft_tok!r}"
-        )
+    frame_time = _check_frame_time(spath, ft_line, ft_tok)
 
     n_joints = len(hdr.names)
     n_chan = sum(len(c) for c in hdr.channels)
-    values = _read_motion(spath, data[pos:], lineno + 1, n_chan, n_joints)
     first = lineno + 1  # the file line of the first frame
+    body = data[pos:]
+    values = _read_motion(spath, body, first, n_chan, n_joints)
     n_frames = len(values)
     if n_frames > n_declared:
         raise MocapFormatError(
@@ -765,21 +961,32 @@ def load_bvh(
             frames_line,
             f"expected {n_declared} frame lines as declared here, found {n_frames}",
         )
+    starts = np.concatenate(([0], np.cumsum([len(c) for c in hdr.channels]))).astype(np.intp)
+
+    def channel_of(col: int) -> str:
+        j = int(np.searchsorted(starts, col, side="right") - 1)
+        return f"channel {hdr.channels[j][col - starts[j]]} of joint {hdr.names[j]!r}"
+
+    big = _first_out_of_range(values)
+    if big is not None:
+        t, col = divmod(big, n_chan)
+        raise MocapFormatError(
+            spath,
+            first + t,
+            f"expected values of magnitude at most {MAX_ABS_VALUE:g}, found "
+            f"{float(values[t, col])!r} in {channel_of(col)}",
+        )
     finite_rows = np.isfinite(values).all(axis=1)
     if on_nan == "raise" and not finite_rows.all():
         t = int(np.flatnonzero(~finite_rows)[0])
         col = int(np.flatnonzero(~np.isfinite(values[t]))[0])
-        starts = np.cumsum([0] + [len(c) for c in hdr.channels])
-        j = int(np.searchsorted(starts, col, side="right") - 1)
         raise MocapFormatError(
             spath,
             first + t,
-            f"expected finite values, found {float(values[t, col])!r} in channel "
-            f"{hdr.channels[j][col - starts[j]]} of joint {hdr.names[j]!r}",
+            f"expected finite values, found {float(values[t, col])!r} in {channel_of(col)}",
         )
 
     offsets = np.array(hdr.offsets, dtype=np.float64).reshape(n_joints, 3)
-    starts = np.concatenate(([0], np.cumsum([len(c) for c in hdr.channels]))).astype(np.intp)
     mode: Literal["add", "replace"]
     if position_channels == "auto":
         mode = _infer_position_mode(hdr, offsets, values, starts)
@@ -796,7 +1003,10 @@ def load_bvh(
             parent = hdr.parents[idx]
             if name in point_index:
                 raise MocapFormatError(
-                    spath, None, f"the joint name {name!r} collides with an end site's name"
+                    spath,
+                    hdr.joint_lines[idx],
+                    f"expected a joint name unlike the end sites' names, found {name!r}, "
+                    "the name of an earlier end site",
                 )
             point_index[name] = len(point_names)
             point_parents.append(point_index[hdr.names[parent]] if parent >= 0 else -1)
@@ -807,7 +1017,10 @@ def load_bvh(
             name = hdr.names[j] + suffix
             if name in point_index:
                 raise MocapFormatError(
-                    spath, None, f"the end site name {name!r} collides with a joint's name"
+                    spath,
+                    hdr.end_lines[idx],
+                    f"expected an End Site whose name {name!r} (its joint's name and a "
+                    "suffix) is unlike the joints' names, found a joint of that name",
                 )
             point_index[name] = len(point_names)
             point_parents.append(point_index[hdr.names[j]])

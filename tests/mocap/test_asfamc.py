@@ -280,6 +280,26 @@ AMC_MALFORMED = {
         4,
         "expected a frame number before the bone lines",
     ),
+    # Found by fuzzing (tests/mocap/test_fuzz.py): 1000000 once took 21 s and 3.5 GB,
+    # 10000000 ended in MemoryError and 2**63 in OverflowError.
+    "frame number 1000000": (
+        amc_with(8, "1000000"),
+        8,
+        "expected a frame number at most 1002 after 1 (at most 1000 skipped",
+    ),
+    "frame number 10000000": (amc_with(8, "10000000"), 8, "at most 1000 skipped"),
+    "frame number 2**63": (
+        amc_with(8, str(2**63)),
+        8,
+        "expected a frame number of at most 1000000000000000, found '9223372036854775808'",
+    ),
+    "frame number of 5000 digits": (amc_with(4, "9" * 5000), 4, "... (5000 chars)"),
+    "huge value": (
+        amc_with(9, "root 1 2 3 1e308 5 6"),
+        9,
+        "expected values of magnitude at most 1e+09, found 1e+308",
+    ),
+    "superscript frame number": (amc_with(8, "²"), 8, "bone '²' is not defined"),
 }
 
 
@@ -336,6 +356,44 @@ ASF_MALFORMED = {
     ),
     "hierarchy not closed": (asf_with(48, ""), 48, "expected 'end' closing :hierarchy (line 44)"),
     "duplicate bone": (asf_with(29, "     name upper"), 29, "bone name 'upper' is used twice"),
+    # Found by fuzzing: lengths or units of 1e308 once ended in fit_shape's "no frame
+    # has all 15 keypoints" or a NaN height; bones of length <= 0 and "dof rx rx" passed.
+    "huge length": (
+        asf_with(20, "     length 1e308"),
+        20,
+        "expected a positive bone length of at most 100000 (file units), found '1e308'",
+    ),
+    "zero length": (asf_with(20, "     length 0"), 20, "positive bone length"),
+    "negative length": (asf_with(20, "     length -2"), 20, "positive bone length"),
+    "infinite length": (asf_with(20, "     length inf"), 20, "the bone length (finite)"),
+    "huge unit": (
+        asf_with(6, "  length 1e308"),
+        6,
+        "expected a positive length unit between 0.001 and 1000 (file units per inch)",
+    ),
+    "tiny unit": (asf_with(6, "  length 1e-308"), 6, "positive length unit"),
+    "huge direction": (
+        asf_with(19, "     direction 0 1e308 0"),
+        19,
+        "expected the bone direction of magnitude at most 1e+09",
+    ),
+    "huge root position": (asf_with(13, "   position 1 1e10 3"), 13, "the root position"),
+    "repeated dof": (
+        asf_with(22, "    dof rx rx"),
+        22,
+        "expected each dof at most once, found 'rx'",
+    ),
+    "reversed limits": (
+        asf_with(23, "    limits (180.0 -180.0)"),
+        23,
+        "expected limits '(min max)' with min <= max, found (180.0 -180.0)",
+    ),
+    "NaN limit": (asf_with(23, "    limits (nan 180.0)"), 23, "with min <= max"),
+    "second length": (
+        asf_with(20, "     length 2\n     length 3"),
+        21,
+        "expected one 'length' in the bone begun at line 16, found a second",
+    ),
 }
 
 
@@ -436,3 +494,111 @@ def test_regular_handmade_file_takes_the_fast_path(write_text, monkeypatch):
     assert list(clip.frame_valid) == [True, True, False, False, False, False, True]
     want = np.stack([oracle("XYZ", (25.0, -40.0, 60.0), v) for v in frames.values()])
     np.testing.assert_allclose(clip.point_positions()[[0, 1, 6]], want, atol=1e-9)
+
+
+# ---------------------------------------------------------------- limits
+
+
+def frames_at(numbers: list[int]) -> str:
+    """The test AMC with these frame numbers, every frame complete."""
+    rng = np.random.default_rng(0)
+    return amc_text({n: rng.uniform(-20, 20, 11) for n in numbers})
+
+
+def test_frame_gaps_and_spans_are_bounded_before_allocating(write_text, monkeypatch):
+    import tracemalloc
+
+    from humotion_gym.mocap import asfamc
+
+    sk = load_asf(write_text("t.asf", asf_text()))
+    # A gap of MAX_FRAME_GAP skipped frames is accepted, one more is not.
+    clip = load_amc(write_text("a.amc", frames_at([1, 1002])), sk)
+    assert clip.n_frames == 1002 and clip.frame_valid.sum() == 2
+    with pytest.raises(MocapFormatError, match="line 8: expected a frame number at most 1002"):
+        load_amc(write_text("b.amc", frames_at([1, 1003])), sk)
+    # Gaps each allowed, but the span exceeds 4 per frame present plus 1000.
+    text = write_text("c.amc", frames_at([1, 1001, 2001, 3001]))
+    with pytest.raises(
+        MocapFormatError, match=r"line 16: expected frame numbers spanning at most 1016"
+    ):
+        load_amc(text, sk)
+    monkeypatch.setattr(asfamc, "FRAME_SPAN_FACTOR", 1000)
+    assert load_amc(text, sk).n_frames == 3001
+    with pytest.raises(MocapFormatError, match="line 16: expected at most 3000 frames"):
+        load_amc(text, sk, max_frames=3000)
+    monkeypatch.setattr(asfamc, "MAX_FRAME_POINTS", 3001 * 4 - 1)
+    with pytest.raises(MocapFormatError, match="frames times points"):
+        load_amc(text, sk)
+    # The 66-byte file of the campaign: refused at once, without the 3.5 GB.
+    tiny = write_text("d.amc", "1\nroot 0 0 0 0 0 0\n1000000\nroot 0 0 0 0 0 0\n")
+    tracemalloc.start()
+    t0 = time.perf_counter()
+    with pytest.raises(MocapFormatError, match="line 3: "):
+        load_amc(tiny, sk)
+    elapsed = time.perf_counter() - t0
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert elapsed < 1.0 and peak < 10 * 2**20
+
+
+def test_both_readers_refuse_the_same_frame_numbers(write_text, monkeypatch):
+    from humotion_gym.mocap import asfamc
+
+    sk = load_asf(write_text("t.asf", asf_text()))
+    for numbers in ([1, 1003], [1, 1001, 2001, 3001], [1, 2**63]):
+        path = write_text("a.amc", frames_at(numbers))
+        with pytest.raises(MocapFormatError) as fast:
+            load_amc(path, sk)
+        with monkeypatch.context() as m:
+            m.setattr(asfamc, "_amc_regular", lambda *args: None)
+            with pytest.raises(MocapFormatError) as general:
+                load_amc(path, sk)
+        assert str(fast.value) == str(general.value)
+
+
+def test_bone_count_and_depth_are_bounded(write_text):
+    def chain(n: int, deep: bool) -> str:
+        bones = "".join(
+            f"  begin\n    name x{i}\n    direction 0 1 0\n    length 1\n"
+            f"    axis 0 0 0 XYZ\n  end\n"
+            for i in range(n)
+        )
+        if deep:
+            links = "    root x0\n" + "".join(f"    x{i} x{i + 1}\n" for i in range(n - 1))
+        else:
+            links = "    root " + " ".join(f"x{i}" for i in range(n)) + "\n"
+        return (
+            ":root\n  order TX TY TZ RX RY RZ\n:bonedata\n"
+            + bones
+            + ":hierarchy\n  begin\n"
+            + links
+            + "  end\n"
+        )
+
+    assert len(load_asf(write_text("ok.asf", chain(256, deep=True))).bone_names) == 256
+    with pytest.raises(MocapFormatError, match="chains of at most 256 bones .* 257 down to 'x256'"):
+        load_asf(write_text("deep.asf", chain(257, deep=True)))
+    t0 = time.perf_counter()
+    with pytest.raises(MocapFormatError, match=r"line 6004: expected at most 1000 bones"):
+        load_asf(write_text("many.asf", chain(20_000, deep=False)))
+    assert time.perf_counter() - t0 < 2.0
+
+
+def test_limits_lines_are_matched_in_linear_time(write_text):
+    # The old pattern backtracked quadratically: 100,000 '(' took about 50 s.
+    path = write_text("l.asf", asf_with(23, "    limits " + "(" * 100_000))
+    t0 = time.perf_counter()
+    with pytest.raises(MocapFormatError, match=r"line 23: expected limits '\(min max\)'"):
+        load_asf(path)
+    assert time.perf_counter() - t0 < 1.0
+
+
+def test_bad_fps_and_max_frames_arguments(write_text):
+    sk = load_asf(write_text("t.asf", asf_text()))
+    path = write_text("t.amc", amc_text(random_frames(0)))
+    for fps in (0.0, -120.0, float("nan"), float("inf"), 1e5):
+        with pytest.raises(ValueError, match="fps must be between 1 and 10000"):
+            load_amc(path, sk, fps=fps)
+    with pytest.raises(ValueError, match="max_frames"):
+        load_amc(path, sk, max_frames=0)
+    assert load_amc(path, sk, fps=10_000.0, max_frames=4).n_frames == 4

@@ -349,6 +349,64 @@ MALFORMED = {
     ),
     "duplicate joint": (replace_line(6, "  JOINT hips"), 6, "used twice"),
     "no offset": (replace_line(12, "      "), 13, "expected OFFSET in End Site"),
+    # Found by fuzzing (tests/mocap/test_fuzz.py): each once leaked another exception
+    # (OverflowError, a bare ValueError) or gave no line.
+    "frame time in milliseconds": (
+        replace_line(18, "Frame Time: 33.3333"),
+        18,
+        "'33.3333', which looks like milliseconds (it would be 0.0333333 s",
+    ),
+    "frame time of 1000": (replace_line(18, "Frame Time: 1000"), 18, "looks like milliseconds"),
+    "subnormal frame time": (
+        replace_line(18, "Frame Time: 1e-310"),
+        18,
+        "expected a frame time in seconds between 0.0001 and 1 (1 to 10000 frames per second)",
+    ),
+    "huge frame time": (replace_line(18, "Frame Time: 1e308"), 18, "between 0.0001 and 1"),
+    "infinite frame time": (replace_line(18, "Frame Time: inf"), 18, "positive frame time"),
+    "superscript channel count": (
+        replace_line(9, "    CHANNELS ³ Zrotation Xrotation Yrotation"),
+        9,
+        "expected the number of channels after CHANNELS, found '³'",
+    ),
+    "superscript frame count": (replace_line(17, "Frames: ²"), 17, "whole number of frames"),
+    "negative frame count": (replace_line(17, "Frames: -2"), 17, "whole number of frames"),
+    "huge frame count": (
+        replace_line(17, "Frames: " + "9" * 5000),
+        17,
+        "expected at most 1000000 frames, found Frames: 9999",
+    ),
+    "too many channels": (
+        replace_line(9, "    CHANNELS 65 " + " ".join(["Zrotation"] * 65)),
+        9,
+        "expected at most 64 channels in joint 'knee'",
+    ),
+    "huge offset": (replace_line(8, "    OFFSET 0 1e308 0"), 8, "(at most 1e+09), found '1e308'"),
+    "huge motion value": (
+        replace_line(20, "0 1 0 90 0 0 0 1e308 0"),
+        20,
+        "expected values of magnitude at most 1e+09, found 1e+308 in channel Xrotation of "
+        "joint 'knee'",
+    ),
+    "end site named like a joint": (
+        replace_line(
+            6,
+            "  JOINT hips_End\n  {\n    OFFSET 0 0 0\n  }\n  End Site\n  {\n"
+            "    OFFSET 0 0 1\n  }\n  JOINT knee",
+        ),
+        10,
+        "expected an End Site whose name 'hips_End' (its joint's name and a suffix) is unlike "
+        "the joints' names",
+    ),
+    "joint named like an end site": (
+        replace_line(
+            6,
+            "  End Site\n  {\n    OFFSET 0 0 1\n  }\n  JOINT hips_End\n  {\n"
+            "    OFFSET 0 0 0\n  }\n  JOINT knee",
+        ),
+        10,
+        "expected a joint name unlike the end sites' names, found 'hips_End'",
+    ),
 }
 
 
@@ -387,6 +445,73 @@ def test_bad_arguments_raise_value_error(write_text):
         load_bvh(path, on_nan="zero")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="position_channels"):
         load_bvh(path, position_channels="both")  # type: ignore[arg-type]
+
+
+# ---------------------------------------------------------------- limits
+
+
+def flat_joints(n: int, close: bool = True) -> str:
+    """A root with ``n`` child joints (or ``n`` nested, unclosed joints when not ``close``)."""
+    if close:
+        body = "".join(f"  JOINT j{i}\n  {{\n    OFFSET 0 0 1\n  }}\n" for i in range(n))
+    else:
+        body = "".join(f"JOINT j{i}\n{{\nOFFSET 0 0 1\n" for i in range(n))
+    tail = "}\nMOTION\nFrames: 1\nFrame Time: 0.01\n0\n" if close else "MOTION\n"
+    return f"HIERARCHY\nROOT r\n{{\n  OFFSET 0 0 0\n  CHANNELS 1 Zrotation\n{body}{tail}"
+
+
+def test_many_joints_are_refused_fast_and_parsed_in_linear_time(write_text, monkeypatch):
+    from humotion_gym.mocap import bvh
+
+    # 50,000 joints once took 15 s (a list scan per name); 100,000 unclosed, 84 s.
+    path = write_text("many.bvh", flat_joints(50_000))
+    t0 = time.perf_counter()
+    with pytest.raises(MocapFormatError, match=r"line 4002: expected at most 1000 joints"):
+        load_bvh(path)
+    deep = write_text("deep.bvh", flat_joints(100_000, close=False))
+    with pytest.raises(MocapFormatError, match=r"line 772: expected blocks nested at most 256"):
+        load_bvh(deep)
+    assert time.perf_counter() - t0 < 5.0
+    # Raised limits: both still take about a second (linear in the joints).
+    monkeypatch.setattr(bvh, "MAX_JOINTS", 200_000)
+    monkeypatch.setattr(bvh, "MAX_DEPTH", 200_000)
+    t0 = time.perf_counter()
+    assert len(load_bvh(path).joint_names) == 50_001
+    with pytest.raises(MocapFormatError, match="expected '}' closing 'j99999'"):
+        load_bvh(deep)
+    assert time.perf_counter() - t0 < 10.0
+
+
+def test_frame_limits_can_be_raised(write_text, monkeypatch):
+    from humotion_gym.mocap import bvh
+
+    path = write_text("base.bvh", BASE)
+    with pytest.raises(
+        MocapFormatError, match=r"line 17: expected at most 1 frames, found Frames: 2"
+    ):
+        load_bvh(path, max_frames=1)
+    assert load_bvh(path, max_frames=2).n_frames == 2
+    monkeypatch.setattr(bvh, "MAX_FRAMES", 1)
+    with pytest.raises(MocapFormatError, match="raise humotion_gym.mocap.bvh.MAX_FRAMES"):
+        load_bvh(path)
+    monkeypatch.setattr(bvh, "MAX_FRAMES", 10)
+    monkeypatch.setattr(bvh, "MAX_FRAME_POINTS", 5)  # 2 frames x 3 points
+    with pytest.raises(MocapFormatError, match="expected at most 5 frames times points"):
+        load_bvh(path)
+    monkeypatch.setattr(bvh, "MAX_FRAME_POINTS", 6)
+    assert load_bvh(path).n_frames == 2
+    with pytest.raises(ValueError, match="max_frames"):
+        load_bvh(path, max_frames=-1)
+
+
+def test_frame_time_bounds_are_inclusive(write_text):
+    for token, fps in [("0.0001", 10_000.0), ("1", 1.0), ("1.0", 1.0)]:
+        clip = load_bvh(
+            write_text("f.bvh", BASE.replace("Frame Time: 0.5", f"Frame Time: {token}"))
+        )
+        assert clip.fps == fps
+    with pytest.raises(MocapFormatError, match="between 0.0001 and 1"):
+        load_bvh(write_text("f.bvh", BASE.replace("Frame Time: 0.5", "Frame Time: 0.00009")))
 
 
 # ---------------------------------------------------------------- writing
