@@ -74,6 +74,9 @@ iterations, noise 2 deg; the paper: 2.9% over 8,312 frames):
     205 frames in 1 sequence; subject 3 alone (walks on uneven terrain only)
     20.5% [35.1%] of 2,522 frames in 1 sequence.
 
+  With ``--seed 1``: ``active`` 26.7% [52.6%], ``feminine`` 1.5% [2.0%],
+  ``masculine`` 1.8% [2.1%], ``normal`` 1.3% [1.6%]; CMU 2 and 3 20.6%
+  [30.4%] in 4 sequences, subject 2 2.4% [5.9%], subject 3 24.0% [34.6%].
   The test persons are few and mostly walking (one 44-frame run), and the
   errors move by several points with the seed of EM and of the test
   sequences (the CV fold of ``active`` gave 17.0% for the chosen setting
