@@ -228,7 +228,6 @@ class RandomAgent:
 
     def __init__(self, env: gym.Env, seed: int = 0) -> None:
         self.env: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
-        self._seed = seed
         self._rng = np.random.default_rng(seed)
         self._shape = self.env.action_space.shape
 

@@ -25,8 +25,6 @@ import re
 import threading
 import uuid
 import warnings
-import zipfile
-import zlib
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,7 +32,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from humotion_gym.mocap.motion import Motion
+from humotion_gym.mocap.motion import READ_ERRORS, Motion
 
 #: Version of the cached clip format and retargeting; bump to invalidate caches.
 CACHE_VERSION = "1"
@@ -230,18 +228,8 @@ class CacheWarning(UserWarning):
     """
 
 
-#: What reading or writing a cache entry can raise: a truncated or corrupted
-#: archive (``BadZipFile``, ``zlib.error``, ``EOFError``), a directory or an
-#: unreadable file at the path (``OSError``), or contents of the wrong kind.
-CACHE_ERRORS: tuple[type[BaseException], ...] = (
-    zipfile.BadZipFile,
-    zlib.error,
-    EOFError,
-    OSError,
-    ValueError,
-    KeyError,
-    TypeError,
-)
+#: What reading or writing a cache entry can raise (the same as reading a saved clip).
+CACHE_ERRORS: tuple[type[BaseException], ...] = READ_ERRORS
 
 
 def package_version() -> str:

@@ -227,7 +227,7 @@ class Motion:
                 meta=dict(header.get("meta", {})),
             )
             return motion, dict(header.get("extra", {}))
-        except _READ_ERRORS as exc:
+        except READ_ERRORS as exc:
             raise ValueError(f"{path}: not a saved Motion ({type(exc).__name__}: {exc})") from exc
 
 
@@ -255,8 +255,10 @@ _HEADER_TYPES: dict[str, type | tuple[type, ...]] = {
     "extra": dict,
 }
 _REQUIRED_HEADER = ("clip_id", "fps", "subject", "label", "source")
-#: What reading a damaged, foreign or misplaced file can raise.
-_READ_ERRORS: tuple[type[BaseException], ...] = (
+#: What reading a damaged, foreign or misplaced file can raise: a truncated or
+#: corrupted archive (``BadZipFile``, ``zlib.error``, ``EOFError``), a directory or
+#: an unreadable file at the path (``OSError``), or contents of the wrong kind.
+READ_ERRORS: tuple[type[BaseException], ...] = (
     zipfile.BadZipFile,
     zlib.error,
     EOFError,
