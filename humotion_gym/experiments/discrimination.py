@@ -17,7 +17,7 @@ agent never sees it.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -27,6 +27,30 @@ from numpy.typing import NDArray
 from humotion_gym.body import ANGLE_MASK, forward_kinematics
 
 FloatArray = NDArray[np.float64]
+
+
+def _scored_frames(
+    env: gym.Env, episodes: int, seed: int, frame_stride: int
+) -> Iterator[tuple[NDArray[np.uint8], dict[str, Any], FloatArray]]:
+    """Every ``frame_stride``-th frame of seeded episodes tracked with the truth.
+
+    Yields:
+        ``(frame, info, true pose)``; the truth is read from the library through
+        the ``clip_id`` and ``frame`` the environment reports.
+    """
+    base = env.unwrapped
+    for k in range(episodes):
+        obs, info = env.reset(seed=seed + k)
+        motion = base.library[info["clip_id"]]
+        step = 0
+        while True:
+            truth = motion.params[info["frame"]]
+            if step % frame_stride == 0:
+                yield obs, info, truth
+            obs, _, terminated, truncated, info = env.step(base.pose_to_action(truth))
+            step += 1
+            if terminated or truncated:
+                break
 
 
 def likelihood_discrimination(
@@ -69,33 +93,19 @@ def likelihood_discrimination(
     gaps: list[FloatArray] = []
     errors: list[FloatArray] = []
     frames = 0
-    for k in range(episodes):
-        obs, info = env.reset(seed=seed + k)
-        motion = base.library[info["clip_id"]]
-        step = 0
-        while True:
-            if step % frame_stride == 0:
-                truth = motion.params[info["frame"]]
-                # Gaussian steps whose size is log-uniform: 0.02-1 rad on
-                # angles, 20-1000 mm on a free root position.
-                size = np.exp(rng.uniform(np.log(0.02), np.log(1.0), (perturbations, 1)))
-                step_size = np.where(angle, size, size * 1000.0)
-                poses = np.broadcast_to(truth, (perturbations + 1, truth.size)).copy()
-                poses[1:, free] += step_size * rng.standard_normal((perturbations, free.size))
-                kp = forward_kinematics(poses, base.shape)[:, scored]
-                err = np.linalg.norm(kp[1:] - kp[:1], axis=-1).mean(axis=1)
-                loglik = base.observation_model.log_likelihood(
-                    obs, poses, base.shape, info["camera"]
-                )
-                gaps.append(loglik[0] - loglik[1:])
-                errors.append(err)
-                frames += 1
-            obs, _, terminated, truncated, info = env.step(
-                base.pose_to_action(motion.params[info["frame"]])
-            )
-            step += 1
-            if terminated or truncated:
-                break
+    for obs, info, truth in _scored_frames(env, episodes, seed, frame_stride):
+        # Gaussian steps whose size is log-uniform: 0.02-1 rad on angles,
+        # 20-1000 mm on a free root position.
+        size = np.exp(rng.uniform(np.log(0.02), np.log(1.0), (perturbations, 1)))
+        step_size = np.where(angle, size, size * 1000.0)
+        poses = np.broadcast_to(truth, (perturbations + 1, truth.size)).copy()
+        poses[1:, free] += step_size * rng.standard_normal((perturbations, free.size))
+        kp = forward_kinematics(poses, base.shape)[:, scored]
+        err = np.linalg.norm(kp[1:] - kp[:1], axis=-1).mean(axis=1)
+        loglik = base.observation_model.log_likelihood(obs, poses, base.shape, info["camera"])
+        gaps.append(loglik[0] - loglik[1:])
+        errors.append(err)
+        frames += 1
     gap = np.concatenate(gaps)
     err = np.concatenate(errors)
     bins = []
@@ -146,30 +156,18 @@ def likelihood_peak_error(
     scale = np.where(ANGLE_MASK[free], spread, spread * 1000.0)
     rng = np.random.default_rng([seed, 8])
     typical, peak, weighted = [], [], []
-    for k in range(episodes):
-        obs, info = env.reset(seed=seed + k)
-        motion = base.library[info["clip_id"]]
-        step = 0
-        while True:
-            truth = motion.params[info["frame"]]
-            if step % frame_stride == 0:
-                poses = np.broadcast_to(truth, (candidates + 1, truth.size)).copy()
-                poses[1:, free] += scale * rng.uniform(-1.0, 1.0, (candidates, free.size))
-                kp = forward_kinematics(poses, base.shape)[:, scored]
-                err = np.linalg.norm(kp[1:] - kp[:1], axis=-1).mean(axis=1)
-                loglik = base.observation_model.log_likelihood(
-                    obs, poses[1:], base.shape, info["camera"]
-                )
-                w = np.exp(loglik - loglik.max())
-                w /= w.sum()
-                mean_kp = np.tensordot(w, kp[1:], axes=1)
-                typical.append(float(np.median(err)))
-                peak.append(float(err[np.argmax(loglik)]))
-                weighted.append(float(np.linalg.norm(mean_kp - kp[0], axis=-1).mean()))
-            obs, _, terminated, truncated, info = env.step(base.pose_to_action(truth))
-            step += 1
-            if terminated or truncated:
-                break
+    for obs, info, truth in _scored_frames(env, episodes, seed, frame_stride):
+        poses = np.broadcast_to(truth, (candidates + 1, truth.size)).copy()
+        poses[1:, free] += scale * rng.uniform(-1.0, 1.0, (candidates, free.size))
+        kp = forward_kinematics(poses, base.shape)[:, scored]
+        err = np.linalg.norm(kp[1:] - kp[:1], axis=-1).mean(axis=1)
+        loglik = base.observation_model.log_likelihood(obs, poses[1:], base.shape, info["camera"])
+        w = np.exp(loglik - loglik.max())
+        w /= w.sum()
+        mean_kp = np.tensordot(w, kp[1:], axes=1)
+        typical.append(float(np.median(err)))
+        peak.append(float(err[np.argmax(loglik)]))
+        weighted.append(float(np.linalg.norm(mean_kp - kp[0], axis=-1).mean()))
     return {
         "typical_mm": float(np.mean(typical)),
         "peak_mm": float(np.mean(peak)),
