@@ -1,0 +1,191 @@
+"""Wrappers for learners: a ``Dict`` observation and a training-only supervision signal.
+
+The tracking environments show a frame and take a pose estimate; the figure's
+motion comes from motion capture, so an action never changes the next frame.
+Each step is an estimation problem with a reward, and a policy's only temporal
+context is what it is shown of the past. :class:`LearnerObservation` shows it
+what a particle-filter agent has: the frame, its own previous estimate and the
+given initial pose, the two poses normalised like the action. Nothing in it
+depends on the truth (the previous estimate is the agent's own last action).
+
+:class:`Supervision` adds the true normalised action to ``info`` for supervised
+training (behaviour cloning). The truth of the tracked parameters is exactly
+what the benchmark withholds, so it refuses any environment that does not draw
+its episodes from the training persons (``split="train"``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import cv2
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+
+from humotion_gym.envs.pose_tracking import PoseTrackingEnv
+
+#: The keys of the learner observation, in the order a policy sees them.
+OBSERVATION_KEYS: tuple[str, ...] = ("frame", "previous", "initial")
+
+
+def _base(env: gym.Env) -> PoseTrackingEnv:
+    base = env.unwrapped
+    if not isinstance(base, PoseTrackingEnv):
+        raise TypeError(f"expected a humotion_gym tracking environment, got {type(base).__name__}")
+    return base
+
+
+def learner_frame(frame: NDArray[np.uint8], size: int | None) -> NDArray[np.uint8]:
+    """A frame as a policy sees it: channels first, area-downsampled to ``size``.
+
+    Args:
+        frame: ``(H, W, C)`` uint8, as the environment renders it.
+        size: Side of the square output in pixels; None keeps the frame's size.
+
+    Returns:
+        ``(C, size, size)`` uint8 (channels first, the layout SB3's CNNs take
+        without transposing).
+    """
+    f = np.asarray(frame)
+    if f.ndim != 3 or f.dtype != np.uint8:
+        raise ValueError(
+            f"learner_frame: expected an (H, W, C) uint8 frame, got {f.shape} {f.dtype}"
+        )
+    if size is not None and (f.shape[0] != size or f.shape[1] != size):
+        # INTER_AREA averages the pixels a target pixel covers: no aliasing of
+        # the cone edges, which a nearest-pixel subsampling would break up.
+        f = cv2.resize(f, (size, size), interpolation=cv2.INTER_AREA)
+        if f.ndim == 2:
+            f = f[:, :, None]
+    return np.ascontiguousarray(f.transpose(2, 0, 1))
+
+
+def learner_observation(
+    frame: NDArray[np.uint8],
+    previous: NDArray[np.floating],
+    initial: NDArray[np.floating],
+    size: int | None,
+) -> dict[str, NDArray[Any]]:
+    """The ``Dict`` observation of :class:`LearnerObservation` from its parts.
+
+    One function serves the wrapper (training) and the agent that runs a saved
+    policy in the plain environment (:mod:`baselines.learned`), so the two
+    cannot drift apart.
+    """
+    return {
+        "frame": learner_frame(frame, size),
+        "previous": np.clip(np.asarray(previous, dtype=np.float32), -1.0, 1.0),
+        "initial": np.clip(np.asarray(initial, dtype=np.float32), -1.0, 1.0),
+    }
+
+
+class LearnerObservation(gym.Wrapper):
+    """A ``Dict`` observation for stable-baselines3's ``MultiInputPolicy``.
+
+    ``frame``: ``Box(0, 255, (C, size, size), uint8)``, the rendered frame,
+    channels first, area-downsampled to ``size`` (None keeps the env's size).
+    ``previous``: ``Box(-1, 1, (n_free,), float32)``, the agent's previous
+    action (at a reset: the initial pose). ``initial``: the same space, the
+    episode's initial pose (``info["initial_pose"]``) normalised like the
+    action. Actions, rewards, episode ends and ``info`` pass through unchanged.
+    Gymnasium's ``FrameStackObservation`` stacks this observation like any other.
+
+    Args:
+        env: A tracking environment (any wrapper chain around one).
+        size: Side of the frame shown, in pixels (default 64).
+    """
+
+    def __init__(self, env: gym.Env, size: int | None = 64) -> None:
+        super().__init__(env)
+        base = _base(env)
+        if size is not None and (isinstance(size, bool) or not isinstance(size, int) or size < 8):
+            raise ValueError(
+                f"LearnerObservation: size must be an integer >= 8 or None, got {size!r}"
+            )
+        self.size = size
+        h, w, c = base.observation_space.shape
+        side_h, side_w = (h, w) if size is None else (size, size)
+        n_free = base.action_space.shape[0]
+        vector = spaces.Box(-1.0, 1.0, shape=(n_free,), dtype=np.float32)
+        self.observation_space = spaces.Dict(
+            {
+                "frame": spaces.Box(0, 255, shape=(c, side_h, side_w), dtype=np.uint8),
+                "previous": vector,
+                "initial": vector,
+            }
+        )
+        self._previous = np.zeros(n_free, np.float32)
+        self._initial = np.zeros(n_free, np.float32)
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, NDArray[Any]], dict[str, Any]]:
+        """Reset; the previous estimate starts at the initial pose."""
+        frame, info = self.env.reset(seed=seed, options=options)
+        self._initial = _base(self.env).pose_to_action(info["initial_pose"])
+        self._previous = self._initial.copy()
+        return learner_observation(frame, self._previous, self._initial, self.size), info
+
+    def step(
+        self, action: NDArray[Any]
+    ) -> tuple[dict[str, NDArray[Any]], float, bool, bool, dict[str, Any]]:
+        """Step; the action becomes the next observation's previous estimate."""
+        frame, reward, terminated, truncated, info = self.env.step(action)
+        self._previous = np.clip(np.asarray(action, dtype=np.float32), -1.0, 1.0)
+        obs = learner_observation(frame, self._previous, self._initial, self.size)
+        return obs, reward, terminated, truncated, info
+
+
+class Supervision(gym.Wrapper):
+    """Training only: ``info["true_action"]``, the true pose of the frame on show.
+
+    The value is the frame's true pose normalised like the action
+    (``pose_to_action``), the action that scores best; after the episode's
+    last step it is the last frame's. Behaviour cloning regresses a policy
+    onto it (:mod:`baselines.learned`).
+
+    Args:
+        env: A tracking environment made with ``split="train"`` (any wrapper
+            chain around one).
+
+    Raises:
+        ValueError: If the environment draws test episodes: the truth of the
+            test persons is the benchmark's answer and no policy may see it.
+    """
+
+    def __init__(self, env: gym.Env) -> None:
+        base = _base(env)
+        if base.split != "train":
+            raise ValueError(
+                f"Supervision: refusing a {base.split!r}-split {base.task.name} environment; "
+                "the true pose is a training signal only, make the environment with "
+                "split='train'"
+            )
+        super().__init__(env)
+
+    def _label(self, info: dict[str, Any]) -> dict[str, Any]:
+        base = _base(self.env)
+        return {**info, "true_action": base.pose_to_action(base._truth())}
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Any, dict[str, Any]]:
+        """Reset, with the first frame's true action in ``info``."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        return obs, self._label(info)
+
+    def step(self, action: NDArray[Any]) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        """Step, with the true action of the frame now on show in ``info``."""
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        return obs, reward, terminated, truncated, self._label(info)
+
+
+__all__ = [
+    "OBSERVATION_KEYS",
+    "LearnerObservation",
+    "Supervision",
+    "learner_frame",
+    "learner_observation",
+]
