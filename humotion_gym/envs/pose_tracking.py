@@ -290,6 +290,19 @@ class PoseTrackingEnv(gym.Env):
         k = self._k if k is None else k
         return self._t0 + k * self.frame_skip
 
+    def true_pose(self) -> FloatArray:
+        """The ground-truth ``(25,)`` pose of the frame on show (a copy).
+
+        For rendering and demonstrations (``humotion-gym render`` replays the
+        truth); an agent that reads it is not tracking.
+
+        Raises:
+            RuntimeError: Before the first ``reset()``.
+        """
+        if self._motion is None:
+            raise RuntimeError("call reset() first")
+        return self._truth()
+
     def _truth(self, k: int | None = None) -> FloatArray:
         assert self._motion is not None, "call reset() first"
         return np.array(self._motion.params[self._frame_index(k)])
