@@ -42,7 +42,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import scipy.linalg
@@ -425,65 +424,3 @@ def impute_sequences(
                 back[gap, j] = np.interp(t[gap], t[w[:, j]], x[w[:, j], j])
         filled.append(np.where(w, x, back))
     return Imputation(filled, periods, alignment, seg, result)
-
-
-# ---------------------------------------------------------------------------
-# Figures 9 and 10
-# ---------------------------------------------------------------------------
-
-
-def plot_components(
-    result: FPCAResult,
-    path: str | Path,
-    angle_names: Sequence[str],
-    n_show: int = 3,
-    title: str = "",
-    show_groups: bool = False,
-) -> None:
-    """Figure like the paper's Figs. 9 and 10: mean and leading components per angle.
-
-    Each panel is one angle: the mean curve (black) and ``mean +- 2 sd_k v_k``
-    for the first ``n_show`` components; with ``show_groups`` the per-group
-    (per-subject) mean curves are drawn thin and grey.
-
-    Args:
-        result: A fitted :class:`FPCAResult`.
-        path: Image file to write.
-        angle_names: ``J`` names for the panels.
-        n_show: Components to draw.
-        title: Figure title.
-        show_groups: Draw the group means too (Fig. 10).
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    j, s = result.mean.shape
-    cols = 5
-    rows = int(np.ceil(j / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(3.0 * cols, 2.3 * rows), squeeze=False)
-    phase = np.arange(s) / s
-    colours = ["tab:red", "tab:blue", "tab:green", "tab:orange", "tab:purple"]
-    sd = result.component_std
-    for a, ax in enumerate(axes.ravel()):
-        if a >= j:
-            ax.axis("off")
-            continue
-        if show_groups:
-            for g in result.group_means:
-                ax.plot(phase, np.degrees(g[a]), color="0.7", lw=0.6)
-        ax.plot(phase, np.degrees(result.mean[a]), "k", lw=1.8)
-        for k in range(min(n_show, result.n_components)):
-            for sign, style in ((1, "-"), (-1, "--")):
-                curve = result.mean[a] + sign * 2 * sd[k] * result.components[k, a]
-                label = f"mean {'+' if sign > 0 else '-'} 2 sd PC{k + 1}" if a == 0 else None
-                ax.plot(phase, np.degrees(curve), style, color=colours[k % 5], lw=0.9, label=label)
-        ax.set_title(angle_names[a] if a < len(angle_names) else str(a), fontsize=8)
-        ax.tick_params(labelsize=6)
-    axes.ravel()[0].legend(fontsize=5)
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)

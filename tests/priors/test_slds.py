@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import itertools
 import json
@@ -11,9 +10,11 @@ import numpy as np
 import pytest
 
 from humotion_gym.body import PARAM_LOWER, PARAM_UPPER
+from humotion_gym.cli import main
+from humotion_gym.experiments import pavlovic1999 as slds_tasks
 from humotion_gym.filtering import ParticleFilter
 from humotion_gym.mocap.library import synthetic_library
-from humotion_gym.priors import slds, slds_tasks
+from humotion_gym.priors import slds
 from humotion_gym.priors.slds_inference import (
     SLDSParams,
     combine,
@@ -495,11 +496,7 @@ def test_interpolation_fills_only_the_gap(fitted, synthetic):
 
 
 def _cli(argv):
-    parser = argparse.ArgumentParser()
-    sub = parser.add_subparsers(dest="command", required=True)
-    slds_tasks.register_cli(sub)
-    args = parser.parse_args(argv)
-    return args.func(args)
+    return main(argv)
 
 
 def test_cli_interpolate_on_the_synthetic_set(capsys, tmp_path):

@@ -10,13 +10,12 @@
   and beside exact draws from eq. 3, for the first four coefficients.
 
 The next poses are drawn without the transition's added noise, so the spread is
-the search's alone. Command line: ``humotion-gym tree-figures --out DIR``
-(:func:`register_cli`).
+the search's alone. Command line: ``humotion-gym tree figures --out-dir DIR``
+(:func:`make_figures`).
 """
 
 from __future__ import annotations
 
-import argparse
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -228,25 +227,3 @@ def make_figures(library: MotionLibrary, out_dir: str | Path, seed: int = 0) -> 
     figure3(fitted, test.motions, paths["fig3"], seed)
     figure4(fitted, test.motions, paths["fig4"], seed)
     return paths
-
-
-def _cmd_tree_figures(args: argparse.Namespace) -> int:
-    from humotion_gym.mocap.library import default_library
-
-    library = default_library(args.data_dir or None)
-    paths = make_figures(library, args.out, args.seed)
-    kind = "synthetic" if library.is_synthetic else "real"
-    for name, path in paths.items():
-        print(f"{name}: {path} ({kind} motion, {library.total_frames} frames)")
-    return 0
-
-
-def register_cli(subparsers: argparse._SubParsersAction) -> None:
-    """Add ``tree-figures --out DIR [--data-dir DIR...] [--seed S]`` to a CLI."""
-    cmd = subparsers.add_parser(
-        "tree-figures", help="Figs. 3 and 4 of Sidenbladh et al. (2002) for the tree prior"
-    )
-    cmd.add_argument("--out", type=Path, required=True, help="folder for the PNG files")
-    cmd.add_argument("--data-dir", nargs="*", default=None, help="folders of real mocap")
-    cmd.add_argument("--seed", type=int, default=0)
-    cmd.set_defaults(func=_cmd_tree_figures)

@@ -16,7 +16,7 @@
   with missing measurements, compared with linear and cubic-spline
   interpolation of the same gap (:func:`interpolate_gap`).
 
-Command line (``register_cli`` adds these under ``humotion-gym slds``)::
+Command line (:mod:`humotion_gym.cli.slds`)::
 
     humotion-gym slds classify --train PATH... --test PATH... [--seed S] [--json] [--figure F]
     humotion-gym slds select [--data-dir DIR] [--jobs N] [--json]
@@ -90,9 +90,7 @@ iterations, noise 2 deg; the paper: 2.9% over 8,312 frames):
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
-import json
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -593,7 +591,7 @@ def score_settings(
     shape = (len(param_sets), len(switch_probs), len(labels))
     wrong = [np.zeros(shape, dtype=np.int64) for _ in tests]
     for p, names in enumerate(param_sets):
-        idx = _indices(names)
+        idx = param_indices(names)
         models = [
             slds.fit_activity(
                 [m for m in train if m.label == lab], idx, np.random.default_rng([seed, 1]),
@@ -769,7 +767,7 @@ def select_classifier_settings(
             "select_classifier_settings: param_sets and switch_probs must be non-empty"
         )
     for name, names in param_sets.items():
-        _indices(names)
+        param_indices(names)
         if not names:
             raise ValueError(f"select_classifier_settings: param_sets[{name!r}] is empty")
     probs = [float(p) for p in switch_probs]
@@ -910,15 +908,16 @@ def default_settings() -> dict[str, ClassifierSetting]:
     """The CV-chosen defaults and, for comparison, the old fixed settings."""
     return {
         "CV-chosen": ClassifierSetting(
-            CLASSIFY_PARAMS, CLASSIFY_SWITCH_PROB, _set_name(CLASSIFY_PARAMS)
+            CLASSIFY_PARAMS, CLASSIFY_SWITCH_PROB, setting_name(CLASSIFY_PARAMS)
         ),
         "old fixed": ClassifierSetting(
-            OLD_CLASSIFY_PARAMS, OLD_CLASSIFY_SWITCH_PROB, _set_name(OLD_CLASSIFY_PARAMS)
+            OLD_CLASSIFY_PARAMS, OLD_CLASSIFY_SWITCH_PROB, setting_name(OLD_CLASSIFY_PARAMS)
         ),
     }
 
 
-def _set_name(params: Sequence[str]) -> str:
+def setting_name(params: Sequence[str]) -> str:
+    """The candidate set's name for a parameter subset, else the names joined by ``+``."""
     for name, names in CANDIDATE_PARAMS.items():
         if tuple(names) == tuple(params):
             return name
@@ -1314,11 +1313,12 @@ def plot_interpolation(
 
 
 # ---------------------------------------------------------------------------
-# Command line
+# Loading and splitting clips (for the command line)
 # ---------------------------------------------------------------------------
 
 
-def _load(paths: Sequence[str]) -> list[Motion]:
+def load_motions(paths: Sequence[str]) -> list[Motion]:
+    """Every clip under the files or folders, at 30 Hz."""
     from humotion_gym.mocap.library import load_library
 
     return list(load_library(paths, fps=30.0, progress=False))
@@ -1347,267 +1347,30 @@ def split_train_test(
     return list(train), list(test)
 
 
-def _default_motions(data_dir: Sequence[str] | None) -> list[Motion]:
+def default_motions(data_dir: Sequence[str] | None) -> list[Motion]:
+    """The default library's clips (``data_dir``, else ``$HUMOTION_MOCAP``, else synthetic)."""
     from humotion_gym.mocap.library import default_library
 
     return list(default_library(data_dir or None, fps=30.0, progress=False))
 
 
-def _split(motions: Sequence[Motion]) -> tuple[list[Motion], list[Motion]]:
+def person_split(motions: Sequence[Motion]) -> tuple[list[Motion], list[Motion]]:
+    """The clips of training persons and those of test persons."""
     from humotion_gym.mocap.library import MotionLibrary
 
     lib = MotionLibrary(tuple(motions))
     return list(lib.split("train")), list(lib.split("test"))
 
 
-def _indices(names: Sequence[str] | None) -> NDArray[np.intp] | None:
+def param_indices(names: Sequence[str] | None) -> NDArray[np.intp] | None:
+    """Indices of named parameters in the 25-vector (None for None).
+
+    Raises:
+        ValueError: Naming the unknown names.
+    """
     if names is None:
         return None
     unknown = [n for n in names if n not in PARAM_INDEX]
     if unknown:
         raise ValueError(f"unknown parameter names {unknown}; see humotion_gym.body.PARAM_NAMES")
     return np.array([PARAM_INDEX[n] for n in names], dtype=np.intp)
-
-
-def _add_model_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--states", type=int, default=slds.N_STATES, help="switch states per activity")
-    p.add_argument("--iters", type=int, default=slds.N_ITER, help="EM iterations per activity")
-    p.add_argument("--max-train-clips", type=int, default=None, help="per activity")
-    p.add_argument("--json", action="store_true", help="print JSON")
-    p.add_argument("--figure", type=Path, default=None, help="write the figure here (.png)")
-
-
-def _cmd_classify(args: argparse.Namespace) -> int:
-    train, test = split_train_test(_load(args.train), _load(args.test))
-    if args.labels is None:  # walk and run, Bandai-Namco set 1's dash as run
-        train, test = activity_clips(train), activity_clips(test)
-    result = run_classification(
-        train, test, np.random.default_rng(args.seed), free=_indices(args.free),
-        labels=args.labels, n_states=args.states, n_iter=args.iters,
-        switch_prob=args.switch_prob, noise_std=float(np.radians(args.noise_deg)),
-        max_train_clips=args.max_train_clips,
-    )  # fmt: skip
-    out = result.summary()
-    out.update(
-        train_clips=len(train), test_clips=len(test), seed=args.seed,
-        params=[PARAM_NAMES[i] for i in result.model.free],
-    )  # fmt: skip
-    if args.figure:
-        plot_segmentation(result, args.figure)
-    if args.json:
-        print(json.dumps(out))
-    else:
-        print(
-            f"SLDS classification: error {100 * result.error:.2f}% over {result.n_points} points "
-            f"in {result.n_sequences} sequences (paper: 2.9% over 8,312 points)"
-        )
-        for lab, err in result.per_label_error.items():
-            print(f"  {lab:8s} error {100 * err:.2f}%")
-        print(
-            f"  {len(train)} training clips, {len(test)} test clips, "
-            f"{result.model.n_states} switch states, fit {result.seconds_fit:.1f} s"
-        )
-    return 0
-
-
-def _train_motions(data_dir: Sequence[str] | None) -> list[Motion]:
-    """The training split of the configured library (never a test person)."""
-    from humotion_gym.mocap.library import MotionLibrary
-
-    return list(MotionLibrary(tuple(_default_motions(data_dir))).split("train"))
-
-
-def _param_sets_arg(names: Sequence[str] | None) -> dict[str, tuple[str, ...]]:
-    if names is None:
-        return dict(CANDIDATE_PARAMS)
-    unknown = [n for n in names if n not in CANDIDATE_PARAMS]
-    if unknown:
-        raise ValueError(f"--param-sets: unknown {unknown}; choose from {list(CANDIDATE_PARAMS)}")
-    return {n: CANDIDATE_PARAMS[n] for n in names}
-
-
-def _log(line: str) -> None:
-    import sys
-
-    print(line, file=sys.stderr, flush=True)
-
-
-def _cmd_select(args: argparse.Namespace) -> int:
-    train = _train_motions(args.data_dir)
-    result = select_classifier_settings(
-        train, np.random.default_rng(args.seed), param_sets=_param_sets_arg(args.param_sets),
-        switch_probs=args.switch_probs, n_states=args.states, n_iter=args.iters,
-        jobs=args.jobs, log=None if args.quiet else _log,
-    )  # fmt: skip
-    if args.json:
-        print(json.dumps({**result.summary(), "seed": args.seed, "states": args.states,
-                          "iters": args.iters}))  # fmt: skip
-    else:
-        print(result.table())
-        best = result.best
-        print(
-            f"chosen: {' '.join(best.params)} ({best.name}), switch probability "
-            f"{best.switch_prob:g}, CV error {100 * result.cv_error[result.chosen]:.2f}%"
-        )
-    return 0
-
-
-def _cmd_splits(args: argparse.Namespace) -> int:
-    settings = default_settings()
-    if args.params is not None or args.switch_prob is not None:
-        params = tuple(args.params) if args.params is not None else CLASSIFY_PARAMS
-        _indices(params)
-        prob = args.switch_prob if args.switch_prob is not None else CLASSIFY_SWITCH_PROB
-        settings["given"] = ClassifierSetting(params, prob, _set_name(params))
-    rows = evaluate_splits(
-        _default_motions(args.data_dir), np.random.default_rng(args.seed), settings,
-        n_states=args.states, n_iter=args.iters, jobs=args.jobs,
-        log=None if args.quiet else _log,
-    )  # fmt: skip
-    if args.json:
-        print(json.dumps({"rows": [r.summary() for r in rows], "seed": args.seed,
-                          "states": args.states, "iters": args.iters}))  # fmt: skip
-    else:
-        print(splits_table(rows))
-        print(
-            "CV-chosen: the defaults CLASSIFY_PARAMS/CLASSIFY_SWITCH_PROB (from "
-            "`humotion-gym slds select`); old fixed: picked after seeing held-out results"
-        )
-    return 0
-
-
-def _cmd_interpolate(args: argparse.Namespace) -> int:
-    motions = _default_motions(args.data_dir)
-    train, test = _split(motions)
-    results, mean, _ = run_interpolation(
-        train, test, np.random.default_rng(args.seed), label=args.label,
-        n_states=args.states, n_iter=args.iters, max_train_clips=args.max_train_clips,
-    )  # fmt: skip
-    if args.figure:
-        plot_interpolation(results[0], slds.SAGITTAL_INDEX, args.figure)
-    out = {
-        "clips": len(results),
-        "gap": list(GAP),
-        "mean_abs_error_deg": {k: round(v, 3) for k, v in mean.items()},
-        "per_clip": [
-            {"clip": r.clip, **{k: round(v, 3) for k, v in r.errors.items()}} for r in results
-        ],
-    }
-    if args.json:
-        print(json.dumps(out))
-    else:
-        print(
-            f"gap frames {GAP[0]}-{GAP[1] - 1} of {len(results)} held-out {args.label} clips, "
-            "mean absolute joint-angle error (deg):"
-        )
-        for k, v in mean.items():
-            print(f"  {k:9s} {v:6.2f}")
-    return 0
-
-
-def _cmd_figures(args: argparse.Namespace) -> int:
-    out = Path(args.out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    rng = np.random.default_rng(args.seed)
-    train, test = _split(_default_motions(args.data_dir))
-    result = run_classification(
-        activity_clips(train), activity_clips(test), rng, labels=CLASSIFY_LABELS,
-        n_states=args.states, n_iter=args.iters,
-        max_train_clips=args.max_train_clips,
-    )  # fmt: skip
-    plot_segmentation(result, out / "slds_fig3_classification.png")
-    results, mean, walk = run_interpolation(
-        train, test, rng, n_states=args.states, n_iter=args.iters,
-        max_train_clips=args.max_train_clips,
-    )  # fmt: skip
-    plot_interpolation(results[0], walk.free, out / "slds_fig6_interpolation.png")
-    poses, switches = slds.synthesize(walk, 300, rng)
-    plot_synthesis(poses, switches, walk.free, out / "slds_fig5_synthesis.png", walk.fps)
-    summary = {
-        "classification": result.summary(),
-        "interpolation_mean_abs_error_deg": mean,
-        "figures": sorted(str(p) for p in out.glob("slds_fig*.png")),
-    }
-    print(json.dumps(summary, indent=2))
-    return 0
-
-
-def register_cli(subparsers: argparse._SubParsersAction) -> None:
-    """Add ``slds classify``, ``slds interpolate`` and ``slds figures`` to a CLI."""
-    p = subparsers.add_parser("slds", help="switching linear dynamic system (Pavlovic et al. 1999)")
-    sub = p.add_subparsers(dest="slds_command", required=True)
-
-    c = sub.add_parser("classify", help="walk/run classification (section 4.1, Fig. 3)")
-    c.add_argument("--train", nargs="+", required=True, help="training mocap files or folders")
-    c.add_argument("--test", nargs="+", required=True, help="test mocap files or folders")
-    c.add_argument(
-        "--labels", nargs="+", default=None,
-        help="activities (default: walk and run, with dash counted as run)",
-    )  # fmt: skip
-    c.add_argument("--switch-prob", type=float, default=CLASSIFY_SWITCH_PROB)
-    c.add_argument(
-        "--free", nargs="+", default=None,
-        help=f"parameter names to model (default: {' '.join(CLASSIFY_PARAMS)})",
-    )  # fmt: skip
-    c.add_argument("--noise-deg", type=float, default=float(np.degrees(NOISE_STD)))
-    _add_model_args(c)
-    c.set_defaults(func=_cmd_classify)
-
-    sel = sub.add_parser(
-        "select", help="choose the classifier's settings by cross-validation on the train split"
-    )
-    sel.add_argument(
-        "--data-dir", nargs="*", default=None, help="mocap folders (default: configured)"
-    )
-    sel.add_argument(
-        "--param-sets", nargs="+", default=None,
-        help=f"candidate parameter subsets (default: all of {list(CANDIDATE_PARAMS)})",
-    )  # fmt: skip
-    sel.add_argument("--switch-probs", nargs="+", type=float, default=list(CANDIDATE_SWITCH_PROBS))
-    sel.add_argument("--seed", type=int, default=0)
-    sel.add_argument("--states", type=int, default=slds.N_STATES)
-    sel.add_argument("--iters", type=int, default=slds.N_ITER)
-    sel.add_argument("--jobs", type=int, default=1, help="folds run in parallel processes")
-    sel.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    sel.add_argument("--json", action="store_true", help="print JSON")
-    sel.set_defaults(func=_cmd_select)
-
-    spl = sub.add_parser(
-        "splits", help="classification error per held-out style and per held-out person"
-    )
-    spl.add_argument(
-        "--data-dir", nargs="*", default=None, help="mocap folders (default: configured)"
-    )
-    spl.add_argument(
-        "--params", nargs="+", default=None, help="also score these parameters ('given')"
-    )
-    spl.add_argument(
-        "--switch-prob", type=float, default=None, help="also score this switch probability"
-    )
-    spl.add_argument("--seed", type=int, default=0)
-    spl.add_argument("--states", type=int, default=slds.N_STATES)
-    spl.add_argument("--iters", type=int, default=slds.N_ITER)
-    spl.add_argument("--jobs", type=int, default=1, help="fits run in parallel processes")
-    spl.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    spl.add_argument("--json", action="store_true", help="print JSON")
-    spl.set_defaults(func=_cmd_splits)
-
-    i = sub.add_parser("interpolate", help="fill a gap of held-out walking (Fig. 6)")
-    i.add_argument(
-        "--data-dir", nargs="*", default=None, help="mocap folders (default: configured)"
-    )
-    i.add_argument("--label", default="walk")
-    _add_model_args(i)
-    i.set_defaults(func=_cmd_interpolate)
-
-    f = sub.add_parser("figures", help="Figs. 3, 5 and 6 on walk/run data")
-    f.add_argument(
-        "--data-dir", nargs="*", default=None, help="mocap folders (default: configured)"
-    )
-    f.add_argument("--out-dir", default="slds_figures")
-    f.add_argument("--seed", type=int, default=0)
-    f.add_argument("--states", type=int, default=slds.N_STATES)
-    f.add_argument("--iters", type=int, default=slds.N_ITER)
-    f.add_argument("--max-train-clips", type=int, default=None)
-    f.set_defaults(func=_cmd_figures)

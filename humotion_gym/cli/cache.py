@@ -1,0 +1,96 @@
+"""``humotion-gym cache``: where the cache is, what it holds, and clearing it.
+
+The cache folder is ``$HUMOTION_CACHE`` if set, else
+``$XDG_CACHE_HOME/humotion_gym`` (``~/.cache/humotion_gym``). It holds parsed
+clips (``clips/``), fitted priors (``priors/``) and downloads (``cmu/``);
+everything but the downloads is rebuilt on demand.
+
+::
+
+    humotion-gym cache info [--json]
+    humotion-gym cache clear [--downloads]
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+from pathlib import Path
+
+from humotion_gym.cli._common import add_json, print_json
+
+#: Sub-folders rebuilt on demand (``cache clear`` removes them).
+REBUILT = ("clips", "priors")
+#: Sub-folders of downloaded data (``cache clear --downloads`` removes them too).
+DOWNLOADS = ("cmu",)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``cache info`` and ``cache clear``."""
+    cache = subparsers.add_parser(
+        "cache", help="the cache of parsed clips, fitted priors and downloads"
+    )
+    csub = cache.add_subparsers(dest="cache_command", required=True, metavar="COMMAND")
+    info = csub.add_parser("info", help="where the cache is and the size of each part")
+    add_json(info, "one JSON object instead of lines")
+    info.set_defaults(func=_cmd_info)
+    clear = csub.add_parser(
+        "clear", help="remove parsed clips and fitted priors (rebuilt on demand)"
+    )
+    clear.add_argument(
+        "--downloads", action="store_true", help="also remove downloaded mocap (cmu/)"
+    )
+    clear.set_defaults(func=_cmd_clear)
+
+
+def _size(path: Path) -> tuple[int, int]:
+    """Files and bytes under a folder (0, 0 when absent)."""
+    if not path.is_dir():
+        return 0, 0
+    files = [p for p in path.rglob("*") if p.is_file() and not p.is_symlink()]
+    return len(files), sum(p.stat().st_size for p in files)
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    from humotion_gym.mocap.library import CACHE_ENV, default_cache_dir
+
+    root = default_cache_dir()
+    parts = {name: _size(root / name) for name in REBUILT + DOWNLOADS}
+    if args.json:
+        print_json({
+            "path": str(root), "set_by": CACHE_ENV if _from_env() else "default",
+            "parts": {k: {"files": n, "bytes": b} for k, (n, b) in parts.items()},
+        })  # fmt: skip
+        return 0
+    how = f"${CACHE_ENV}" if _from_env() else f"default; set ${CACHE_ENV} to move it"
+    print(f"cache: {root} ({how})")
+    for name, (n, b) in parts.items():
+        kind = "downloads, kept by cache clear" if name in DOWNLOADS else "rebuilt on demand"
+        print(f"  {name + '/':8s} {n:6d} files {b / 2**20:9.1f} MiB  ({kind})")
+    return 0
+
+
+def _from_env() -> bool:
+    import os
+
+    from humotion_gym.mocap.library import CACHE_ENV
+
+    return bool(os.environ.get(CACHE_ENV))
+
+
+def _cmd_clear(args: argparse.Namespace) -> int:
+    from humotion_gym.mocap.library import default_cache_dir
+
+    root = default_cache_dir()
+    names = REBUILT + (DOWNLOADS if args.downloads else ())
+    freed = 0
+    for name in names:
+        folder = root / name
+        n, b = _size(folder)
+        if folder.is_dir():
+            shutil.rmtree(folder)
+            freed += b
+            print(f"removed {folder} ({n} files, {b / 2**20:.1f} MiB)")
+    if not freed:
+        print(f"nothing to remove in {root}")
+    return 0

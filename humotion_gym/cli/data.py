@@ -1,0 +1,228 @@
+"""``humotion-gym data``: list, inspect, check and convert motion data.
+
+::
+
+    humotion-gym data table [--data-dir DIR...] [--split train|test] [--json]
+    humotion-gym data info PATH... [--summary] [--json]
+    humotion-gym data persons [PATH...] [--test SUBJECT...] [--json]
+    humotion-gym data convert IN OUT.bvh
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+import numpy as np
+
+from humotion_gym.cli._common import (
+    add_data_dir,
+    add_fps,
+    add_json,
+)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``data table|info|persons|convert``."""
+    data = subparsers.add_parser("data", help="motion data: list, inspect, check, convert")
+    dsub = data.add_subparsers(dest="data_command", required=True, metavar="COMMAND")
+
+    table = dsub.add_parser("table", help="the default motion library, one row per clip")
+    add_data_dir(table)
+    add_fps(table)
+    table.add_argument(
+        "--split", choices=["train", "test"], default=None,
+        help="only the clips of this person split (default: every clip)",
+    )  # fmt: skip
+    table.set_defaults(func=_cmd_data_table)
+
+    info = dsub.add_parser(
+        "info", help="per clip: rig, subject, label, frames, fps, seconds, retargeting error"
+    )
+    info.add_argument("paths", nargs="+", metavar="PATH", help="mocap files or folders")
+    add_json(info, "JSON lines instead of a table")
+    add_fps(info)
+    info.add_argument("--summary", action="store_true", help="only totals per data set")
+    info.add_argument("--no-cache", action="store_true", help="parse again, ignore the cache")
+    info.set_defaults(func=_cmd_data_info)
+
+    persons = dsub.add_parser(
+        "persons",
+        help="one row per subject with its skeleton; checks that no test person trains (exit 1)",
+    )
+    persons.add_argument(
+        "paths", nargs="*", metavar="PATH",
+        help="mocap files or folders (default: $HUMOTION_MOCAP, else synthetic)",
+    )  # fmt: skip
+    add_json(persons, "one JSON object instead of a table")
+    add_fps(persons)
+    persons.add_argument(
+        "--test", nargs="+", default=None, metavar="SUBJECT",
+        help="check this held-out set instead of the library's TEST_SUBJECTS",
+    )  # fmt: skip
+    persons.set_defaults(func=_cmd_data_persons)
+
+    conv = dsub.add_parser("convert", help="write a motion as BVH on the cone-body skeleton")
+    conv.add_argument("input", help="a BVH or AMC file (or 'synthetic/<clip>')")
+    conv.add_argument("output", help="the .bvh to write")
+    add_fps(conv)
+    conv.set_defaults(func=_cmd_data_convert)
+
+
+def _cmd_data_table(args: argparse.Namespace) -> int:
+    from humotion_gym.mocap.library import default_library
+
+    lib = default_library(args.data_dir or None, fps=args.fps)
+    if args.split:
+        lib = lib.split(args.split)
+    print(lib.table())
+    return 0
+
+
+def _clip_row(m) -> dict:
+    err = m.retarget_error()
+    err = err[np.isfinite(err)]
+    return {
+        "file": m.source,
+        "clip": m.clip_id,
+        "dataset": m.dataset,
+        "rig": m.meta.get("rig", ""),
+        "subject": m.subject,
+        "label": m.label,
+        "frames": m.n_frames,
+        "fps": m.fps,
+        "seconds": round(m.duration, 3),
+        "observed": round(float(m.frame_observed.mean()), 4),
+        "error_mean_mm": round(float(err.mean()), 2) if err.size else None,
+        "error_max_mm": round(float(err.max()), 2) if err.size else None,
+    }
+
+
+def _cmd_data_info(args: argparse.Namespace) -> int:
+    from humotion_gym.mocap.library import library_summary, load_library
+
+    lib = load_library(args.paths, fps=args.fps, use_cache=not args.no_cache)
+    if args.summary:
+        out = {
+            ds: {k: v if k in ("clips", "frames") else round(v, 1) for k, v in s.items()}
+            for ds, s in library_summary(lib).items()
+        }
+        if args.json:
+            print(json.dumps(out, indent=2))
+        else:
+            cols = ("mean", "median", "p95", "max")
+            print(
+                f"{'data set':12s} {'clips':>6s} {'frames':>8s} "
+                + " ".join(f"{c:>6s}" for c in cols)
+                + "   (retargeting error, mm)"
+            )
+            for ds, s in out.items():
+                errs = (s[f"error_{c}_mm"] for c in cols)
+                print(
+                    f"{ds:12s} {s['clips']:6d} {s['frames']:8d} "
+                    + " ".join(f"{e:6.1f}" for e in errs)
+                )
+        return 0
+    rows = [_clip_row(m) for m in lib]
+    if args.json:
+        for r in rows:
+            print(json.dumps(r))
+        return 0
+    head = (f"{'file':48s} {'rig':17s} {'subject':20s} {'label':10s} {'frames':>6s} {'fps':>4s} "
+            f"{'sec':>6s} {'err':>6s} {'max':>6s}")  # fmt: skip
+    print(head)
+    for r in rows:
+        name = r["file"] if len(r["file"]) <= 48 else "..." + r["file"][-45:]
+        print(
+            f"{name:48s} {r['rig']:17s} {r['subject']:20s} {r['label']:10s} {r['frames']:6d} "
+            f"{r['fps']:4.0f} {r['seconds']:6.1f} {r['error_mean_mm']:6.1f} "
+            f"{r['error_max_mm']:6.1f}"
+        )
+    return 0
+
+
+def _cmd_data_persons(args: argparse.Namespace) -> int:
+    from humotion_gym.mocap.library import default_library, load_library
+    from humotion_gym.mocap.persons import (
+        SIGNATURE_NAMES,
+        SplitError,
+        check_person_split,
+        held_out_subjects,
+        skeleton_groups,
+        subject_skeletons,
+    )
+
+    if args.paths:
+        lib = load_library(args.paths, fps=args.fps, progress=not args.json)
+    else:
+        lib = default_library(None, fps=args.fps, progress=not args.json)
+    test = frozenset(args.test) if args.test else held_out_subjects(lib)
+    groups = skeleton_groups(lib)
+    group_of = {s: i for i, g in enumerate(groups) for s in g}
+    try:
+        report = check_person_split(lib, test)
+        ok, message = True, str(report)
+    except SplitError as exc:
+        ok, message = False, str(exc)
+    rows = [
+        {
+            "subject": s.subject,
+            "dataset": ",".join(s.datasets),
+            "clips": s.clips,
+            "frames": s.frames,
+            "split": "test" if s.subject in test else "train",
+            "signature_mm": {
+                n: round(float(v), 2) for n, v in zip(SIGNATURE_NAMES, s.signature, strict=True)
+            },
+            "spread_mm": round(s.spread_mm, 4),
+            "group": f"G{group_of[s.subject] + 1}",
+            "same_skeleton_as": [o for o in groups[group_of[s.subject]] if o != s.subject],
+        }
+        for s in subject_skeletons(lib)
+    ]
+    if args.json:
+        print(json.dumps({
+            "subjects": rows,
+            "groups": {f"G{i + 1}": list(g) for i, g in enumerate(groups)},
+            "split_ok": ok, "message": message,
+        }))  # fmt: skip
+    else:
+        head = (f"{'dataset':9s} {'subject':22s} {'clips':>5s} {'frames':>6s} {'split':5s} "
+                f"{'hip':>5s} {'uparm':>5s} {'forarm':>6s} {'thigh':>5s} {'shin':>5s} "
+                f"{'group'}")  # fmt: skip
+        print(head + "   (mm; limbs: mean of right and left)")
+        for r in rows:
+            v = list(r["signature_mm"].values())
+            limbs = (0.5 * (v[k] + v[k + 1]) for k in (1, 3, 5, 7))
+            size = len(r["same_skeleton_as"]) + 1
+            print(
+                f"{r['dataset']:9s} {r['subject']:22s} {r['clips']:5d} {r['frames']:6d} "
+                f"{r['split']:5s} {v[0]:5.0f} "
+                + " ".join(f"{x:5.0f}" for x in limbs)
+                + f"  {r['group']}"
+                + (f" ({size})" if size > 1 else "")
+            )
+        for i, g in enumerate(groups):
+            if len(g) > 1:
+                print(f"G{i + 1}, one skeleton: {', '.join(g)}")
+        if ok:
+            print(message)
+    if not ok:
+        print(f"humotion-gym: error: {message}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _cmd_data_convert(args: argparse.Namespace) -> int:
+    from humotion_gym.mocap.export import write_motion_bvh
+    from humotion_gym.mocap.library import load_library, synthetic_library
+
+    if args.input.startswith("synthetic/"):
+        motion = synthetic_library(fps=args.fps)[args.input]
+    else:
+        lib = load_library([args.input], fps=args.fps, progress=False)
+        motion = lib[0]
+    write_motion_bvh(args.output, motion.params, motion.shape, motion.fps)
+    print(f"wrote {args.output}: {motion.n_frames} frames at {motion.fps:g} fps ({motion.clip_id})")
+    return 0

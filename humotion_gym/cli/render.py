@@ -1,0 +1,76 @@
+"""``humotion-gym render``: an episode of a task as video and contact sheet.
+
+::
+
+    humotion-gym render --out clip.mp4 [--task BodyTrack-v1] [--seed 0] [--frames 90]
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from humotion_gym.cli._common import (
+    add_data_dir,
+    add_seed,
+    env_kwargs,
+    image_size,
+    int_at_least,
+    positive_int,
+    task_name,
+    wrote,
+)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``render``."""
+    rend = subparsers.add_parser(
+        "render", help="render an episode of a task as video and contact sheet"
+    )
+    rend.add_argument(
+        "--task", type=task_name, default="BodyTrack-v1",
+        help="task id, see humotion-gym tasks (default: BodyTrack-v1)",
+    )  # fmt: skip
+    add_seed(rend, "episode seed")
+    rend.add_argument(
+        "--frames", type=int_at_least(2), default=90, help="frames to render (default: 90)"
+    )
+    rend.add_argument(
+        "--out", type=Path, required=True, help="the video to write, .mp4 or .avi (required)"
+    )
+    rend.add_argument(
+        "--sheet", type=Path, default=None, help="contact sheet PNG (default: OUT with .png)"
+    )
+    rend.add_argument(
+        "--scale", type=positive_int, default=2, help="pixel scale of the video (default: 2)"
+    )
+    add_data_dir(rend)
+    rend.add_argument(
+        "--size", type=image_size, default=None, metavar="WxH",
+        help="image size, e.g. 256x256 (default: the task's)",
+    )  # fmt: skip
+    rend.set_defaults(func=_cmd_render)
+
+
+def _cmd_render(args: argparse.Namespace) -> int:
+    import gymnasium as gym
+    from tqdm.auto import tqdm
+
+    from humotion_gym.video import contact_sheet, write_png, write_video
+
+    env = gym.make(
+        f"humotion_gym/{args.task}", episode_frames=args.frames, terminate_on_lost=False,
+        **env_kwargs(args),
+    )  # fmt: skip
+    base = env.unwrapped
+    obs, info = env.reset(seed=args.seed)
+    frames = [obs]
+    for _ in tqdm(range(args.frames - 1), desc=f"rendering {args.task}", unit="frame"):
+        obs, *_ = env.step(base.pose_to_action(base.true_pose()))
+        frames.append(obs)
+    write_video(args.out, frames, fps=info["fps"], scale=args.scale)
+    sheet = args.sheet or args.out.with_suffix(".png")
+    write_png(sheet, contact_sheet(frames, columns=6, count=6))
+    wrote(args.out, f"{len(frames)} frames of {info['clip_id']}")
+    wrote(sheet, "contact sheet")
+    return 0

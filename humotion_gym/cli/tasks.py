@@ -1,0 +1,48 @@
+"""``humotion-gym tasks``: the tracking tasks (environment ids) and what each scores.
+
+::
+
+    humotion-gym tasks [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from humotion_gym.cli._common import add_json, print_json
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``tasks``."""
+    cmd = subparsers.add_parser("tasks", help="list the tasks (environment ids)")
+    add_json(cmd, "one JSON object per task instead of a table")
+    cmd.set_defaults(func=_cmd_tasks)
+
+
+def _cmd_tasks(args: argparse.Namespace) -> int:
+    from humotion_gym.envs import NAMESPACE, TASKS
+
+    rows = [
+        {
+            "task": t.name,
+            "id": f"{NAMESPACE}/{t.name}",
+            "episode_frames": t.episode_frames,
+            "free_params": len(t.free),
+            "labels": list(t.labels) if t.labels is not None else None,
+            "description": t.description,
+        }
+        for t in TASKS.values()
+    ]
+    if args.json:
+        for r in rows:
+            print_json(r)
+        return 0
+    print(f"{'task':14s} {'frames':>6s} {'free':>4s} {'clips':12s} description")
+    for r in rows:
+        labels = ",".join(r["labels"]) if r["labels"] else "every clip"
+        print(
+            f"{r['task']:14s} {r['episode_frames']:6d} {r['free_params']:4d} {labels:12s} "
+            f"{r['description']}"
+        )
+    print(f"gymnasium.make('{NAMESPACE}/<task>'); frames: scored frames per episode")
+    return 0
