@@ -461,7 +461,9 @@ AGENTS: dict[str, AgentSpec] = {
 
 def agent_names() -> list[str]:
     """Every agent :func:`make` knows: the references, then the particle filters."""
-    return list(REFERENCES) + sorted(AGENTS)
+    from baselines.learned import LEARNED  # learned policies: loaded only when asked for
+
+    return list(REFERENCES) + sorted(AGENTS) + list(LEARNED)
 
 
 def register_agent(name: str, spec: AgentSpec) -> None:
@@ -482,7 +484,9 @@ def make(
 
     Args:
         name: A key of :data:`REFERENCES` (``"hold"``, ``"random"``; they take
-            no particles) or of :data:`AGENTS` (``"pf-cv"``, ``"pf-tree"``...).
+            no particles) or of :data:`AGENTS` (``"pf-cv"``, ``"pf-tree"``...),
+            or a learned agent (:mod:`baselines.learned`: ``"bc"``, ``"ppo"``,
+            ``"PATH.zip"``, ``"LABEL=PATH.zip"``, ``"pf-tree+bc"``).
         env: The environment it will act in.
         n_particles: Particles.
         seed: The agent's seed.
@@ -496,6 +500,10 @@ def make(
     """
     if name in REFERENCES:
         return REFERENCES[name][0](env, seed=seed)
+    from baselines.learned import is_learned, make_learned
+
+    if is_learned(name):  # bc, ppo, a saved PATH.zip or LABEL=PATH.zip, pf-PRIOR+POLICY
+        return make_learned(name, env, n_particles=n_particles, seed=seed)
     if name not in AGENTS:
         raise KeyError(f"unknown agent {name!r}; the agents are {agent_names()}")
     spec = AGENTS[name]

@@ -1,0 +1,379 @@
+"""Learned agents: saved stable-baselines3 policies and the particle filter they propose to.
+
+Three kinds of name reach :func:`make_learned` through :func:`baselines.agents.make`:
+
+* ``bc`` and ``ppo``: the pretrained checkpoint of the task shipped in
+  ``baselines/checkpoints/`` (:func:`checkpoint_path`), made by the command
+  its sidecar JSON records;
+* a saved policy, ``PATH.zip`` or ``LABEL=PATH.zip`` (the label names the row
+  in tables), e.g. ``bc=runs/bc-body/model.zip`` from ``humotion-gym train``;
+* a hybrid ``pf-PRIOR+POLICY`` (``pf-tree+bc``, ``pf-tree+runs/x/model.zip``):
+  the particle filter over the prior whose particles are, in part, drawn
+  around the policy's estimate (:class:`ProposalPrior`).
+
+A learned agent answers ``predict`` like every agent and is scored by the same
+:func:`baselines.evaluation.evaluate` loop on the plain environment: it builds
+the observation the policy was trained on (:func:`humotion_gym.wrappers.learner_observation`)
+from the frame, its own previous estimate and ``info["initial_pose"]``.
+Importing this module does not import torch; loading a policy does.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from numpy.typing import NDArray
+
+from humotion_gym.body import ANGLE_MASK, PARAM_LOWER, PARAM_UPPER
+from humotion_gym.envs.pose_tracking import PoseTrackingEnv
+from humotion_gym.filtering import ParticleState
+from humotion_gym.wrappers import learner_observation
+
+FloatArray = NDArray[np.float64]
+
+#: Where the pretrained checkpoints live (package data).
+CHECKPOINT_DIR = Path(__file__).resolve().parent / "checkpoints"
+
+#: The learned agents by name: one line each for listings.
+LEARNED: dict[str, str] = {
+    "bc": "behaviour cloning with DAgger-style rollouts (pretrained checkpoint of the task)",
+    "ppo": "PPO on the reward from pixels (pretrained checkpoint of the task)",
+    "pf-tree+bc": "pf-tree whose particles are in part drawn around bc's estimate",
+}
+
+#: The hybrid's defaults: the fraction of particles redrawn around the learned
+#: estimate each frame, and the spread of those draws in normalised action units.
+HYBRID_FRACTION = 0.25
+HYBRID_SPREAD = 0.02
+
+
+def checkpoint_path(algo: str, task: str) -> Path:
+    """The pretrained checkpoint of an algorithm on a task (it may not exist)."""
+    return CHECKPOINT_DIR / f"{algo}-{task}.zip"
+
+
+def _split_label(name: str) -> tuple[str, str]:
+    """``(label, path)`` of ``LABEL=PATH.zip`` or ``PATH.zip``."""
+    if "=" in name:
+        label, path = name.split("=", 1)
+        return label, path
+    return Path(name).stem if name.endswith(".zip") else name, name
+
+
+def is_learned(name: str) -> bool:
+    """Whether :func:`make_learned` makes this agent (a learned name, a .zip, a hybrid)."""
+    if name in LEARNED or _split_label(name)[1].endswith(".zip"):
+        return True
+    return name.startswith("pf-") and "+" in name
+
+
+def takes_particles(name: str) -> bool:
+    """Whether a learned agent uses particles (hybrids do; plain policies run once)."""
+    return name.startswith("pf-") and "+" in name
+
+
+def load_policy(path: str | Path) -> Any:
+    """A saved SB3 policy (``PPO.load``), on the CPU.
+
+    Raises:
+        FileNotFoundError: If the file does not exist (the message says how to make one).
+        ValueError: If it is not a policy over :class:`~humotion_gym.wrappers.LearnerObservation`.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(
+            f"{p}: no saved policy; train one with `humotion-gym train --algo bc --task TASK "
+            f"--steps N --out runs/NAME` (it writes runs/NAME/model.zip)"
+        )
+    from stable_baselines3 import PPO
+
+    try:
+        model = PPO.load(p, device="cpu")
+    except Exception as exc:  # SB3 raises many kinds on a foreign or damaged zip
+        raise ValueError(f"{p}: not a readable stable-baselines3 PPO policy ({exc})") from exc
+    space = model.observation_space
+    keys = getattr(space, "spaces", {})
+    if not {"frame", "previous", "initial"} <= set(keys):
+        raise ValueError(
+            f"{p}: the policy observes {space}, not the Dict of frame, previous and "
+            "initial that humotion_gym.wrappers.LearnerObservation gives"
+        )
+    return model
+
+
+class LearnedAgent:
+    """A saved SB3 policy acting in the plain environment, answering like every agent.
+
+    It keeps what the policy's observation needs besides the frame: the
+    initial pose (from the reset's ``info``) and its own previous action, and
+    stacks observations when the policy was trained on stacked frames
+    (Gymnasium's ``FrameStackObservation``, padded with the first one).
+
+    Args:
+        env: The environment.
+        model: The policy (see :func:`load_policy`).
+        name: Shown in tables.
+        source: Where it was loaded from (for messages).
+
+    Raises:
+        ValueError: If the policy was trained for another number of free parameters.
+    """
+
+    n_particles = 0
+
+    def __init__(self, env: gym.Env, model: Any, name: str = "learned", source: str = "") -> None:
+        self.env: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
+        self.model = model
+        self.name = name
+        space = model.observation_space
+        frame_shape = space["frame"].shape
+        n_free = self.env.action_space.shape[0]
+        if space["previous"].shape[-1] != n_free:
+            raise ValueError(
+                f"{source or name}: a policy for {space['previous'].shape[-1]} free parameters; "
+                f"{self.env.task.name} has {n_free}"
+            )
+        channels = self.env.observation_space.shape[-1]
+        if frame_shape[-3] != channels:
+            raise ValueError(
+                f"{source or name}: a policy for {frame_shape[-3]}-channel frames; the "
+                f"environment renders {channels}"
+            )
+        self.size = int(frame_shape[-1])
+        self.stack = int(frame_shape[0]) if len(frame_shape) == 4 else 0
+        self._history: list[dict[str, NDArray[Any]]] = []
+        self._info: Mapping[str, Any] | None = None
+        self.initial: NDArray[np.float32] | None = None
+        self.previous: NDArray[np.float32] | None = None
+        self.frame_times: list[float] = []
+
+    def observe_info(self, info: Mapping[str, Any]) -> None:
+        """Take an ``info``; a reset's starts a new episode at its initial pose."""
+        self._info = info
+        if "initial_pose" in info:
+            self.start(np.asarray(info["initial_pose"], dtype=np.float64))
+
+    def start(self, initial_pose: FloatArray) -> None:
+        """Start an episode: the previous estimate is the initial pose."""
+        self.initial = self.env.pose_to_action(initial_pose)
+        self.previous = self.initial.copy()
+        self._history = []
+        self.frame_times = []
+
+    def observation(self, frame: NDArray[np.uint8]) -> dict[str, NDArray[Any]]:
+        """The policy's observation of a frame (stacked if the policy stacks)."""
+        if self.initial is None or self.previous is None:
+            raise RuntimeError(f"{self.name}: observe_info(reset info) must come before predict()")
+        obs = learner_observation(frame, self.previous, self.initial, self.size)
+        if not self.stack:
+            return obs
+        self._history.append(obs)
+        recent = self._history[-self.stack :]
+        recent = [recent[0]] * (self.stack - len(recent)) + recent
+        self._history = recent
+        return {k: np.stack([o[k] for o in recent]) for k in obs}
+
+    def predict(
+        self,
+        observation: NDArray[np.uint8],
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[NDArray[np.float32], Any]:
+        """The policy's action for the frame (its mean when ``deterministic``)."""
+        del state, episode_start
+        t0 = time.perf_counter()
+        action, _ = self.model.predict(self.observation(observation), deterministic=deterministic)
+        action = np.asarray(action, dtype=np.float32).reshape(self.env.action_space.shape)
+        self.previous = np.clip(action, -1.0, 1.0)
+        self.frame_times.append(time.perf_counter() - t0)
+        return action, None
+
+
+class ProposalPrior:
+    """A prior's transition with part of the particles redrawn around a learned estimate.
+
+    After the prior moves every particle, a fraction of them (chosen at random)
+    is replaced by draws from a Gaussian around the learned estimate of the
+    frame: a mixture proposal, as the boosted particle filter mixes a
+    detector's proposals into the dynamics (Okuma, Taleghani, de Freitas,
+    Little & Lowe, *A boosted particle filter: multitarget detection and
+    tracking*, ECCV 2004). As there, the weights are the likelihood alone (the
+    prior's density is not available for the tree's replay), so the learned
+    estimate acts as a guess that the image has to confirm: a wrong guess gets
+    little weight, a right one lets the filter recover a lost track that the
+    prior cannot reach. A tree particle's history ends with its pose, so the
+    redrawn pose is written there too.
+
+    Args:
+        prior: The prior module (``initial``, ``transition``).
+        fraction: Share of particles redrawn each frame, in [0, 1]; 0 is the
+            prior alone (identical draws).
+        spread: ``(D,)`` standard deviation of the draws, in the pose's units.
+        angle_mask: ``(D,)`` True for angles (a draw is put on the branch of
+            the particles' mean angle).
+    """
+
+    def __init__(
+        self,
+        prior: Any,
+        fraction: float,
+        spread: FloatArray,
+        angle_mask: NDArray[np.bool_],
+    ) -> None:
+        if not 0.0 <= fraction <= 1.0:
+            raise ValueError(f"ProposalPrior: fraction must be in [0, 1], got {fraction}")
+        self.prior = prior
+        self.fraction = float(fraction)
+        self.spread = np.asarray(spread, dtype=np.float64)
+        self.angle_mask = np.asarray(angle_mask, dtype=bool)
+        self.proposal: FloatArray | None = None
+
+    def initial(
+        self, fitted: Any, pose: FloatArray, n: int, rng: np.random.Generator
+    ) -> ParticleState:
+        """The prior's initial particles."""
+        self.proposal = None
+        return self.prior.initial(fitted, pose, n, rng)
+
+    def transition(
+        self, fitted: Any, state: ParticleState, rng: np.random.Generator
+    ) -> ParticleState:
+        """The prior's move, then ``fraction`` of the particles drawn around the proposal."""
+        moved = self.prior.transition(fitted, state, rng)
+        m = int(round(self.fraction * moved.n))
+        if self.proposal is None or m == 0:
+            return moved
+        center = self.proposal.copy()
+        if np.any(self.angle_mask):
+            # on the branch of the particles' own (possibly unwrapped) angles
+            mean = moved.pose[:, self.angle_mask].mean(axis=0)
+            ang = center[self.angle_mask]
+            center[self.angle_mask] = ang + 2 * np.pi * np.round((mean - ang) / (2 * np.pi))
+        index = rng.choice(moved.n, size=m, replace=False)
+        pose = moved.pose.copy()
+        pose[index] = center + self.spread * rng.standard_normal((m, center.size))
+        extra = dict(moved.extra)
+        if "history" in extra:
+            history = extra["history"].copy()
+            history[index, -1] = pose[index]
+            extra["history"] = history
+        return ParticleState(pose, extra)
+
+
+class HybridAgent:
+    """A particle filter whose proposal mixes in a learned policy's estimate.
+
+    Each frame the policy estimates the pose from the frame, the hybrid's own
+    previous estimate and the initial pose; :class:`ProposalPrior` draws part
+    of the particles around it; the filter weights every particle with the
+    environment's likelihood and returns its estimate, which is also the
+    policy's next previous estimate.
+
+    Args:
+        env: The environment.
+        pf: The particle-filter agent (its prior is wrapped in place).
+        policy: The learned agent.
+        fraction: Share of particles redrawn around the policy's estimate.
+        spread: Spread of the draws in normalised action units.
+        name: Shown in tables.
+    """
+
+    def __init__(
+        self,
+        env: gym.Env,
+        pf: Any,
+        policy: LearnedAgent,
+        fraction: float = HYBRID_FRACTION,
+        spread: float = HYBRID_SPREAD,
+        name: str = "pf+learned",
+    ) -> None:
+        self.env: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
+        self.pf = pf
+        self.policy = policy
+        self.name = name
+        self.n_particles = pf.n_particles
+        free = self.env.task.free_indices
+        # half the width of each free parameter's action range (the root's is
+        # the task's root range around the episode's start)
+        half = 0.5 * (PARAM_UPPER - PARAM_LOWER)
+        half[:3] = self.env.task.root_range_mm
+        self.proposal_prior = ProposalPrior(
+            pf.filter.prior, fraction, spread * half[free], ANGLE_MASK[free]
+        )
+        pf.filter.prior = self.proposal_prior
+        self.free = free
+        self.frame_times: list[float] = []
+
+    def observe_info(self, info: Mapping[str, Any]) -> None:
+        """Pass the ``info`` to the filter and the policy."""
+        self.pf.observe_info(info)
+        self.policy.observe_info(info)
+
+    def predict(
+        self,
+        observation: NDArray[np.uint8],
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[NDArray[np.float32], Any]:
+        """The filter's estimate with the policy's estimate as part of its proposal."""
+        t0 = time.perf_counter()
+        start = bool(np.any(episode_start)) if episode_start is not None else False
+        if start:
+            self.proposal_prior.proposal = None
+        guess, _ = self.policy.predict(observation, deterministic=True)
+        fixed = np.zeros(25)
+        info = self.pf._info
+        if info is not None and len(self.env.task.fixed_indices):
+            fixed[self.env.task.fixed_indices] = np.asarray(info["fixed_params"])
+        # set after the filter's reset (predict resets it at an episode start)
+        if start or not self.pf._started:
+            self.pf.reset(info)
+        self.proposal_prior.proposal = self.env.action_to_pose(guess, fixed=fixed)[self.free]
+        action, _ = self.pf.predict(observation, None, np.array([False]), deterministic)
+        self.policy.previous = np.clip(action, -1.0, 1.0).astype(np.float32)
+        self.frame_times.append(time.perf_counter() - t0)
+        return action, None
+
+
+def _policy_for(spec: str, task: str) -> tuple[str, str]:
+    """``(label, path)`` of a policy named ``bc``/``ppo`` or given as a path."""
+    if spec in ("bc", "ppo"):
+        return spec, str(checkpoint_path(spec, task))
+    return _split_label(spec)
+
+
+def make_learned(name: str, env: gym.Env, n_particles: int = 300, seed: int = 0) -> Any:
+    """A learned agent by name (see the module docstring).
+
+    Raises:
+        ValueError: If the task has no pretrained checkpoint of that name, or
+            the policy does not fit the task.
+        FileNotFoundError: If a named ``.zip`` does not exist.
+    """
+    base: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
+    task = base.task.name
+    if takes_particles(name):
+        from baselines.agents import make
+
+        pf_name, policy_spec = name.split("+", 1)
+        label, path = _policy_for(policy_spec, task)
+        if policy_spec in ("bc", "ppo") and not Path(path).is_file():
+            raise ValueError(f"{name}: no pretrained {policy_spec} checkpoint for {task} ({path})")
+        policy = LearnedAgent(env, load_policy(path), label, path)
+        pf = make(pf_name, env, n_particles=n_particles, seed=seed)
+        return HybridAgent(env, pf, policy, name=f"{pf_name}+{label}")
+    label, path = _policy_for(name, task)
+    if name in ("bc", "ppo") and not Path(path).is_file():
+        raise ValueError(
+            f"{name}: no pretrained checkpoint for {task} ({path}); train one with "
+            f"`humotion-gym train --algo {name} --task {task} --steps N --out runs/NAME` and "
+            f"pass {name}=runs/NAME/model.zip"
+        )
+    return LearnedAgent(env, load_policy(path), label, path)

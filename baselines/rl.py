@@ -1,0 +1,631 @@
+"""Training learned trackers with stable-baselines3: PPO from pixels and behaviour cloning.
+
+Both algorithms train the same network, a stable-baselines3 ``MultiInputPolicy``
+over :class:`~humotion_gym.wrappers.LearnerObservation` (the frame, the
+previous estimate and the initial pose) with :class:`TrackingExtractor` as its
+features extractor, on episodes of the training persons only
+(``split="train"``), and save an SB3 ``.zip`` that ``PPO.load`` reads.
+
+* ``ppo``: Schulman, Wolski, Dhariwal, Radford & Klimov, *Proximal policy
+  optimization algorithms*, 2017, on the environment's reward. The motion
+  never depends on the action, so every step is a one-frame estimation problem
+  scored by a scalar: PPO must learn monocular pose regression from that
+  scalar alone.
+* ``bc``: supervised regression of the policy's mean action onto the true
+  action (:class:`~humotion_gym.wrappers.Supervision`), with DAgger-style
+  rollouts (Ross, Gordon & Bagnell, *A reduction of imitation learning and
+  structured prediction to no-regret online learning*, AISTATS 2011): round r
+  acts with the expert with probability ``0.5 ** r`` and with the policy
+  otherwise, so the previous-estimate input comes to look like the policy's
+  own estimates, errors included. The expert's actions carry Gaussian noise
+  (Laskey, Lee, Fox, Dragan & Goldberg, *DART: noise injection for robust
+  imitation learning*, CoRL 2017) for the same reason. The loss weighs each
+  action dimension by how far a unit of it moves the scored keypoints
+  (:func:`keypoint_sensitivity`): a linearised keypoint error in mm.
+
+The policy starts as ``hold``: its action layer copies the previous estimate
+(:func:`start_as_hold`), so an untrained policy holds the initial pose and
+learning only has to add what the frame says.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import math
+import platform
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import torch as th
+from gymnasium import spaces
+from numpy.typing import NDArray
+from stable_baselines3 import PPO
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
+from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
+from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor
+from torch import nn
+
+from humotion_gym.body import N_KEYPOINTS
+from humotion_gym.envs import get_task
+from humotion_gym.envs.pose_tracking import PoseTrackingEnv
+from humotion_gym.kinematics import batch_pose_geometry
+from humotion_gym.wrappers import LearnerObservation, Supervision
+
+ALGOS: tuple[str, ...] = ("ppo", "bc")
+
+#: PPO settings used when no hyperparameter file is given (``hyperparams/ppo.yml``
+#: holds the same values per task in the RL Baselines3 Zoo format; a test checks
+#: that they agree).
+PPO_DEFAULTS: dict[str, Any] = {
+    "n_envs": 8,
+    "n_steps": 128,
+    "batch_size": 256,
+    "n_epochs": 4,
+    "learning_rate": 3e-4,
+    "gamma": 0.9,
+    "gae_lambda": 0.9,
+    "clip_range": 0.2,
+    "ent_coef": 0.0,
+    "vf_coef": 0.5,
+    "max_grad_norm": 0.5,
+    "log_std_init": -2.5,
+    "features_dim": 128,
+    "frame_size": 64,
+}
+
+#: Behaviour-cloning settings (see :func:`train_bc`).
+BC_DEFAULTS: dict[str, Any] = {
+    "n_envs": 8,
+    "rounds": 8,
+    "batch_size": 128,
+    "learning_rate": 1e-3,
+    "passes": 4.0,
+    "buffer_size": 40_000,
+    "expert_noise": 0.02,
+    "features_dim": 128,
+    "frame_size": 64,
+}
+
+
+class TrackingExtractor(BaseFeaturesExtractor):
+    """A small CNN over the frame, joined with the previous estimate and initial pose.
+
+    Three strided convolutions (16, 32, 32 channels) read the frame; their
+    features and the two pose vectors go through one ReLU layer of
+    ``features_dim`` units. The previous estimate is appended to the output
+    unchanged, so a linear action layer can copy it (:func:`start_as_hold`).
+    Frames stacked by Gymnasium's ``FrameStackObservation`` (``(k, C, H, W)``)
+    are read as ``k * C`` channels. Pixels are scaled to [0, 1] here (the
+    policy is built with ``normalize_images=False``, which also covers stacked
+    frames that SB3 would not recognise as images).
+
+    Args:
+        observation_space: The ``Dict`` space of :class:`LearnerObservation`.
+        features_dim: Units of the joint layer.
+    """
+
+    def __init__(self, observation_space: spaces.Dict, features_dim: int = 128) -> None:
+        frame = observation_space["frame"].shape
+        previous = observation_space["previous"].shape
+        n_free = int(previous[-1])
+        super().__init__(observation_space, features_dim + n_free)
+        channels = int(np.prod(frame[:-2]))
+        self.n_free = n_free
+        self.cnn = nn.Sequential(
+            nn.Conv2d(channels, 16, kernel_size=5, stride=2),
+            nn.ReLU(),
+            nn.Conv2d(16, 32, kernel_size=3, stride=2),
+            nn.ReLU(),
+            nn.Conv2d(32, 32, kernel_size=3, stride=2),
+            nn.ReLU(),
+            nn.Flatten(),
+        )
+        with th.no_grad():
+            n_flat = int(self.cnn(th.zeros(1, channels, *frame[-2:])).shape[1])
+        n_vectors = int(np.prod(previous)) + int(np.prod(observation_space["initial"].shape))
+        self.joint = nn.Sequential(nn.Linear(n_flat + n_vectors, features_dim), nn.ReLU())
+
+    def forward(self, observations: dict[str, th.Tensor]) -> th.Tensor:
+        """``(B, features_dim + n_free)`` features: the joint layer, then the previous estimate."""
+        frame = observations["frame"].float() / 255.0
+        batch = frame.shape[0]
+        frame = frame.reshape(batch, -1, *frame.shape[-2:])
+        previous = observations["previous"].reshape(batch, -1)
+        initial = observations["initial"].reshape(batch, -1)
+        joint = self.joint(th.cat([self.cnn(frame), previous, initial], dim=1))
+        return th.cat([joint, previous[:, -self.n_free :]], dim=1)
+
+
+def policy_kwargs(features_dim: int, log_std_init: float) -> dict[str, Any]:
+    """The ``policy_kwargs`` of every learned tracker (PPO and BC alike)."""
+    return {
+        "features_extractor_class": TrackingExtractor,
+        "features_extractor_kwargs": {"features_dim": int(features_dim)},
+        # an empty policy net: the action layer reads the features directly,
+        # so it can copy the previous estimate that the extractor passes on
+        "net_arch": {"pi": [], "vf": [64]},
+        "normalize_images": False,
+        "log_std_init": float(log_std_init),
+    }
+
+
+def start_as_hold(model: PPO) -> None:
+    """Make the policy's mean action copy the previous estimate: ``hold`` at the start.
+
+    The action layer's weights are zero except an identity on the previous
+    estimate that :class:`TrackingExtractor` appends to its features.
+    """
+    net = model.policy.action_net
+    n_free = net.out_features
+    with th.no_grad():
+        net.weight.zero_()
+        net.bias.zero_()
+        net.weight[:, -n_free:] = th.eye(n_free)
+
+
+def make_learner_env(
+    task: str,
+    split: str = "train",
+    frame_size: int | None = 64,
+    supervised: bool = False,
+    data_dir: str | Path | Sequence[str | Path] | None = None,
+    **env_kwargs: Any,
+) -> gym.Env:
+    """A task's environment as learners see it: ``LearnerObservation`` (and ``Supervision``).
+
+    Episodes run their full length (``terminate_on_lost=False``), as the
+    leaderboard scores them.
+    """
+    kwargs = {"terminate_on_lost": False, **env_kwargs}
+    if data_dir is not None:
+        kwargs["data_dir"] = data_dir
+    env = gym.make(f"humotion_gym/{get_task(task).name}", split=split, **kwargs)
+    if supervised:
+        env = Supervision(env)
+    return LearnerObservation(env, size=frame_size)
+
+
+def keypoint_sensitivity(
+    env: gym.Env, episodes: int = 16, eps: float = 0.02, seed: int = 0
+) -> NDArray[np.float64]:
+    """``(n_free,)`` mm that the scored keypoints move, on average, per unit of each action.
+
+    Measured by finite differences at the first frames of ``episodes`` training
+    episodes: each action dimension is moved by ``eps`` (inwards, so clipping
+    does not cut the step) and the mean displacement of the task's scored
+    keypoints is divided by ``eps``. Squared and summed over dimensions, the
+    weighted action error is a first-order estimate of the squared keypoint error.
+    """
+    base: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
+    kp = base.task.error_keypoint_indices
+    rows = []
+    for k in range(episodes):
+        env.reset(seed=seed + k)
+        truth = base._truth()
+        action = base.pose_to_action(truth).astype(np.float64)
+        n = action.size
+        step = np.where(action > 0, -eps, eps)
+        moved = action[None] + np.diag(step)  # (n, n)
+        poses = base.action_to_pose(np.concatenate([action[None], moved]), fixed=truth)
+        geometry = batch_pose_geometry(poses, base.shape)[:, :N_KEYPOINTS][:, kp]
+        shift = np.linalg.norm(geometry[1:] - geometry[:1], axis=-1).mean(axis=1)
+        rows.append(shift / eps)
+        del n
+    return np.mean(rows, axis=0)
+
+
+@dataclass
+class TrainConfig:
+    """Everything a training run needs, saved as ``config.json`` beside the model.
+
+    Attributes:
+        algo: ``"ppo"`` or ``"bc"``.
+        task: Task id, e.g. ``"BodyTrack-v1"``.
+        steps: Environment steps to train for.
+        seed: Seed of the policy, the episodes and the rollouts.
+        out: Output folder (``model.zip``, ``config.json``, ``checkpoints/``).
+        data_dir: Motion capture folders (None: the configured data or synthetic).
+        settings: Algorithm settings (:data:`PPO_DEFAULTS`/:data:`BC_DEFAULTS`
+            overridden by the hyperparameter file and the caller).
+        init: A saved policy to start from (PPO fine-tuning from ``bc``).
+        checkpoint_every: Save a checkpoint every this many env steps.
+        threads: Torch threads.
+    """
+
+    algo: str
+    task: str
+    steps: int
+    seed: int = 0
+    out: str = "runs/run"
+    data_dir: list[str] | None = None
+    settings: dict[str, Any] = field(default_factory=dict)
+    init: str | None = None
+    checkpoint_every: int = 10_000
+    threads: int = 1
+
+    def __post_init__(self) -> None:
+        if self.algo not in ALGOS:
+            raise ValueError(f"algo: expected one of {list(ALGOS)}, got {self.algo!r}")
+        self.task = get_task(self.task).name
+        if isinstance(self.steps, bool) or not isinstance(self.steps, int) or self.steps < 1:
+            raise ValueError(f"steps: expected an integer >= 1, got {self.steps!r}")
+        if self.checkpoint_every < 1:
+            raise ValueError(f"checkpoint_every: expected >= 1, got {self.checkpoint_every}")
+        defaults = PPO_DEFAULTS if self.algo == "ppo" else BC_DEFAULTS
+        unknown = sorted(set(self.settings) - set(defaults))
+        if unknown:
+            raise ValueError(
+                f"{self.algo} settings: unknown {unknown}; the settings are {sorted(defaults)}"
+            )
+        self.settings = {**defaults, **self.settings}
+
+
+def load_hyperparams(path: str | Path, task: str) -> dict[str, Any]:
+    """PPO settings of one task from an RL Baselines3 Zoo YAML file.
+
+    Reads the entry ``humotion_gym/TASK`` (or ``TASK``): ``n_envs``,
+    ``n_steps``, ``batch_size``, ``n_epochs``, ``learning_rate``, ``gamma``,
+    ``gae_lambda``, ``clip_range``, ``ent_coef``, ``vf_coef``,
+    ``max_grad_norm``; ``log_std_init`` and ``features_dim`` from the
+    ``policy_kwargs`` string; ``frame_size`` from the ``env_wrapper``'s ``size``.
+
+    Raises:
+        ValueError: If the file has no entry for the task.
+    """
+    import re
+
+    import yaml
+
+    name = get_task(task).name
+    data = yaml.safe_load(Path(path).read_text())
+    entry = (data or {}).get(f"humotion_gym/{name}") or (data or {}).get(name)
+    if entry is None:
+        raise ValueError(f"{path}: no entry humotion_gym/{name}")
+    out = {k: entry[k] for k in PPO_DEFAULTS if k in entry}
+    text = str(entry.get("policy_kwargs", ""))
+    for key in ("log_std_init", "features_dim"):
+        match = re.search(rf"{key}\s*=\s*(-?[0-9.e+-]+)", text)
+        if match:
+            out[key] = float(match.group(1)) if key == "log_std_init" else int(match.group(1))
+    for wrapper in entry.get("env_wrapper", []) or []:
+        if isinstance(wrapper, dict):
+            for kwargs in wrapper.values():
+                if isinstance(kwargs, dict) and "size" in kwargs:
+                    out["frame_size"] = kwargs["size"]
+    for key in ("n_envs", "n_steps", "batch_size", "n_epochs"):
+        if key in out:
+            out[key] = int(out[key])
+    return out
+
+
+def _git_commit() -> str:
+    try:
+        return subprocess.run(
+            ["git", "rev-parse", "HEAD"], capture_output=True, text=True, timeout=5,
+            cwd=Path(__file__).resolve().parent,
+        ).stdout.strip() or "unknown"  # fmt: skip
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+def _provenance(config: TrainConfig, command: str | None) -> dict[str, Any]:
+    import stable_baselines3
+
+    from humotion_gym.mocap.library import package_version
+
+    return {
+        **asdict(config),
+        "command": command or " ".join(sys.argv),
+        "commit": _git_commit(),
+        "split": "train",
+        "versions": {
+            "humotion_gym": package_version(),
+            "stable_baselines3": stable_baselines3.__version__,
+            "torch": th.__version__,
+            "numpy": np.__version__,
+            "python": platform.python_version(),
+        },
+    }
+
+
+class _Progress(BaseCallback):
+    """A tqdm bar over env steps (SB3's own bar needs ``rich``)."""
+
+    def __init__(self, total: int, done: int = 0) -> None:
+        super().__init__()
+        self.total, self.done = total, done
+        self.bar: Any = None
+
+    def _on_training_start(self) -> None:
+        from tqdm.auto import tqdm
+
+        self.bar = tqdm(total=self.total, initial=self.done, desc="ppo", unit="step")
+
+    def _on_step(self) -> bool:
+        self.bar.update(self.training_env.num_envs)
+        return True
+
+    def _on_training_end(self) -> None:
+        self.bar.close()
+
+
+def _latest_checkpoint(folder: Path) -> tuple[Path, int] | None:
+    best: tuple[Path, int] | None = None
+    for path in folder.glob("model_*_steps.zip"):
+        try:
+            steps = int(path.stem.split("_")[1])
+        except (IndexError, ValueError):
+            continue
+        if best is None or steps > best[1]:
+            best = (path, steps)
+    return best
+
+
+def _tensorboard_dir(out: Path) -> str | None:
+    return str(out / "tb") if importlib.util.find_spec("tensorboard") else None
+
+
+def _vec_env(config: TrainConfig, supervised: bool = False) -> VecMonitor:
+    s = config.settings
+
+    def factory(i: int) -> Callable[[], gym.Env]:
+        def make() -> gym.Env:
+            env = make_learner_env(
+                config.task, "train", s["frame_size"], supervised, config.data_dir
+            )
+            env.reset(seed=config.seed * 1000 + i)
+            return env
+
+        return make
+
+    venv = DummyVecEnv([factory(i) for i in range(int(s["n_envs"]))])
+    venv.seed(config.seed)
+    return VecMonitor(venv)
+
+
+def new_model(config: TrainConfig, env: Any) -> PPO:
+    """A fresh PPO model (policy starting as ``hold``) with the config's settings."""
+    s = config.settings
+    ppo_kwargs: dict[str, Any] = {}
+    if config.algo == "ppo":
+        ppo_kwargs = {
+            k: s[k]
+            for k in (
+                "n_steps", "batch_size", "n_epochs", "learning_rate", "gamma", "gae_lambda",
+                "clip_range", "ent_coef", "vf_coef", "max_grad_norm",
+            )
+        }  # fmt: skip
+    log_std = s.get("log_std_init", PPO_DEFAULTS["log_std_init"])
+    model = PPO(
+        "MultiInputPolicy",
+        env,
+        policy_kwargs=policy_kwargs(s["features_dim"], log_std),
+        seed=config.seed,
+        device="cpu",
+        tensorboard_log=_tensorboard_dir(Path(config.out)),
+        verbose=0,
+        **ppo_kwargs,
+    )
+    start_as_hold(model)
+    return model
+
+
+def _write_config(config: TrainConfig, command: str | None, extra: dict[str, Any]) -> None:
+    out = Path(config.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "config.json").write_text(
+        json.dumps({**_provenance(config, command), **extra}, indent=1, default=str)
+    )
+
+
+def _save(model: PPO, path: Path) -> None:
+    # The optimizer's moment estimates would triple the file; a loaded policy
+    # that is trained on starts them afresh (as a new optimizer would).
+    policy = model.policy
+    policy.optimizer = policy.optimizer_class(
+        policy.parameters(), lr=model.lr_schedule(1.0), **policy.optimizer_kwargs
+    )
+    path.parent.mkdir(parents=True, exist_ok=True)
+    model.save(path)
+
+
+def train(config: TrainConfig, resume: bool = True, command: str | None = None) -> Path:
+    """Train a policy as the config says; the path of the saved ``model.zip``.
+
+    The run writes ``config.json`` (the config, command, commit and versions),
+    checkpoints under ``checkpoints/`` every ``checkpoint_every`` env steps and
+    ``model.zip`` at the end. With ``resume`` a run whose ``checkpoints/``
+    holds a checkpoint continues from the latest one.
+    """
+    th.set_num_threads(max(1, int(config.threads)))
+    if config.algo == "ppo":
+        return train_ppo(config, resume, command)
+    return train_bc(config, resume, command)
+
+
+def train_ppo(config: TrainConfig, resume: bool = True, command: str | None = None) -> Path:
+    """PPO on the environment's reward (see :func:`train`)."""
+    out = Path(config.out)
+    folder = out / "checkpoints"
+    venv = _vec_env(config)
+    latest = _latest_checkpoint(folder) if resume else None
+    done = 0
+    if latest is not None:
+        model = PPO.load(latest[0], env=venv, device="cpu")
+        done = latest[1]
+    elif config.init is not None:
+        model = new_model(config, venv)
+        source = PPO.load(config.init, device="cpu")
+        model.policy.load_state_dict(source.policy.state_dict(), strict=False)
+    else:
+        model = new_model(config, venv)
+    _write_config(config, command, {"resumed_from": done})
+    t0 = time.perf_counter()
+    remaining = max(0, config.steps - done)
+    n_envs = venv.num_envs
+    callbacks = CallbackList(
+        [
+            CheckpointCallback(
+                max(1, config.checkpoint_every // n_envs), str(folder), name_prefix="model"
+            ),
+            _Progress(config.steps, done),
+        ]
+    )
+    if remaining:
+        model.learn(remaining, callback=callbacks, reset_num_timesteps=latest is None)
+    path = out / "model.zip"
+    _save(model, path)
+    _write_config(
+        config, command, {"resumed_from": done, "wall_s": time.perf_counter() - t0,
+                          "env_steps": int(model.num_timesteps)}
+    )  # fmt: skip
+    venv.close()
+    return path
+
+
+class _Buffer:
+    """A preallocated first-in-first-out store of (observation, true action) pairs."""
+
+    def __init__(self, space: spaces.Dict, capacity: int) -> None:
+        self.capacity = int(capacity)
+        self.data = {
+            k: np.zeros((self.capacity, *space[k].shape), dtype=space[k].dtype) for k in space
+        }
+        self.target = np.zeros((self.capacity, space["previous"].shape[-1]), np.float32)
+        self.size = 0
+        self.next = 0
+
+    def add(self, obs: dict[str, NDArray[Any]], target: NDArray[np.float32]) -> None:
+        i = self.next
+        for k, v in obs.items():
+            self.data[k][i] = v
+        self.target[i] = target
+        self.next = (i + 1) % self.capacity
+        self.size = min(self.size + 1, self.capacity)
+
+    def sample(self, n: int, rng: np.random.Generator) -> tuple[dict[str, NDArray[Any]], Any]:
+        idx = rng.integers(0, self.size, n)
+        return {k: v[idx] for k, v in self.data.items()}, self.target[idx]
+
+
+def _policy_mean(model: PPO, obs: dict[str, Any]) -> th.Tensor:
+    tensors, _ = model.policy.obs_to_tensor(obs)
+    return model.policy.get_distribution(tensors).distribution.mean
+
+
+def train_bc(config: TrainConfig, resume: bool = True, command: str | None = None) -> Path:
+    """Behaviour cloning with DAgger-style rollouts (see the module docstring).
+
+    The budget ``steps`` is split into ``rounds`` rounds of rollouts. Round r
+    acts, at each step of each environment, with the expert (the true action
+    plus ``N(0, expert_noise)``) with probability ``0.5 ** r`` and with the
+    policy's mean otherwise; every step adds (observation, true action) to a
+    first-in-first-out buffer of ``buffer_size`` pairs. After each round the
+    policy takes ``passes * new pairs / batch_size`` Adam steps on minibatches
+    drawn from the whole buffer, minimising the squared action error weighted
+    by :func:`keypoint_sensitivity`. A checkpoint is written after each round
+    (and resumed from: the buffer is refilled by the rounds that follow).
+    """
+    s = config.settings
+    out = Path(config.out)
+    folder = out / "checkpoints"
+    rng = np.random.default_rng(config.seed)
+    th.manual_seed(config.seed)
+    envs = [
+        make_learner_env(config.task, "train", s["frame_size"], True, config.data_dir)
+        for _ in range(int(s["n_envs"]))
+    ]
+    weights_env = make_learner_env(config.task, "train", s["frame_size"], True, config.data_dir)
+    weights = keypoint_sensitivity(weights_env, seed=10_000 + config.seed)
+    weights_env.close()
+    latest = _latest_checkpoint(folder) if resume else None
+    done = 0
+    if latest is not None:
+        model = PPO.load(latest[0], device="cpu")
+        done = latest[1]
+    else:
+        model = new_model(config, envs[0])
+        if config.init is not None:
+            source = PPO.load(config.init, device="cpu")
+            model.policy.load_state_dict(source.policy.state_dict(), strict=False)
+    policy = model.policy
+    params = [p for name, p in policy.named_parameters() if not name.startswith(("value", "mlp"))]
+    optimizer = th.optim.Adam(params, lr=float(s["learning_rate"]))
+    w = th.as_tensor(weights, dtype=th.float32)
+    buffer = _Buffer(envs[0].observation_space, int(s["buffer_size"]))
+    rounds = max(1, int(s["rounds"]))
+    per_round = math.ceil(config.steps / rounds)
+    _write_config(config, command, {"resumed_from": done, "sensitivity_mm": weights.tolist()})
+    t0 = time.perf_counter()
+    obs_list, labels = [], []
+    for i, env in enumerate(envs):
+        obs, info = env.reset(seed=int(rng.integers(2**31)) + i)
+        obs_list.append(obs)
+        labels.append(info["true_action"])
+    losses: list[float] = []
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=config.steps, initial=done, desc="bc", unit="step")
+    while done < config.steps:
+        r = done // per_round
+        beta = 0.5**r
+        n_new = min(per_round, config.steps - done)
+        collected = 0
+        policy.set_training_mode(False)
+        while collected < n_new:
+            batch = {k: np.stack([o[k] for o in obs_list]) for k in obs_list[0]}
+            with th.no_grad():
+                mean = _policy_mean(model, batch).numpy()
+            for i, env in enumerate(envs):
+                if collected >= n_new:
+                    break
+                buffer.add(obs_list[i], labels[i])
+                if rng.random() < beta:
+                    noise = rng.normal(0.0, float(s["expert_noise"]), labels[i].shape)
+                    action = labels[i] + noise
+                else:
+                    action = mean[i]
+                action = np.clip(action, -1.0, 1.0).astype(np.float32)
+                obs, _, terminated, truncated, info = env.step(action)
+                if terminated or truncated:
+                    obs, info = env.reset(seed=int(rng.integers(2**31)))
+                obs_list[i], labels[i] = obs, info["true_action"]
+                collected += 1
+                bar.update(1)
+        done += collected
+        policy.set_training_mode(True)
+        updates = max(1, math.ceil(float(s["passes"]) * collected / int(s["batch_size"])))
+        for _ in range(updates):
+            obs, target = buffer.sample(int(s["batch_size"]), rng)
+            mean = _policy_mean(model, obs)
+            diff = (mean - th.as_tensor(target)) * w
+            loss = (diff**2).sum(dim=1).mean()
+            optimizer.zero_grad()
+            loss.backward()
+            nn.utils.clip_grad_norm_(params, 1.0)
+            optimizer.step()
+            losses.append(float(loss.detach()))
+        recent = float(np.sqrt(np.mean(losses[-updates:])))
+        bar.set_postfix(round=r, beta=f"{beta:.2f}", kp_err_mm=f"{recent:.0f}")
+        model.num_timesteps = done
+        _save(model, folder / f"model_{done}_steps.zip")
+    bar.close()
+    path = out / "model.zip"
+    _save(model, path)
+    _write_config(
+        config, command,
+        {"resumed_from": latest[1] if latest else 0, "wall_s": time.perf_counter() - t0,
+         "env_steps": done, "sensitivity_mm": weights.tolist(),
+         "final_loss_rms_mm": float(np.sqrt(np.mean(losses[-50:]))) if losses else None},
+    )  # fmt: skip
+    for env in envs:
+        env.close()
+    return path
