@@ -10,6 +10,7 @@ picks one from the joint names and a user can pass their own mapping.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -57,6 +58,13 @@ class RigProfile:
         description: Where such skeletons come from.
         aliases: Alternative names tried for a point when the first is absent
             (rigs exported by different tools vary in small ways).
+        fallbacks: For a keypoint, the source used when its own points are
+            absent (e.g. the head top extended from the head when the file has
+            no end site above the head).
+        formats: The file formats the profile reads: ``"bvh"`` (points are
+            joint origins and end sites) and/or ``"asf"`` (points are bone
+            tips). A skeleton with ASF bone names written as BVH puts every
+            point one bone higher, so such profiles name one format.
     """
 
     name: str
@@ -64,6 +72,8 @@ class RigProfile:
     up_axis: str = "y"
     description: str = ""
     aliases: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    fallbacks: Mapping[str, KeypointSource] = field(default_factory=dict)
+    formats: tuple[str, ...] = ("bvh", "asf")
 
     def __post_init__(self) -> None:
         missing = [k for k in KEYPOINT_NAMES if k not in self.keypoints]
@@ -75,15 +85,51 @@ class RigProfile:
             )
         if self.up_axis not in ("y", "z"):
             raise RigError(f"rig {self.name!r}: up_axis must be 'y' or 'z', got {self.up_axis!r}")
+        wrong = [k for k in self.fallbacks if k not in KEYPOINT_NAMES]
+        if wrong or not set(self.formats) <= {"bvh", "asf"} or not self.formats:
+            raise RigError(
+                f"rig {self.name!r}: fallbacks must name keypoints (unknown {wrong}) and "
+                f"formats be 'bvh' and/or 'asf' (got {self.formats})"
+            )
 
     def source_points(self) -> list[str]:
-        """Every source point the profile reads."""
+        """Every source point the profile reads (fallbacks' points last)."""
         names: list[str] = []
-        for src in self.keypoints.values():
-            for n in (src.point, src.towards) if isinstance(src, Extend) else (src,):
+        for src in (*self.keypoints.values(), *self.fallbacks.values()):
+            for n in _points_of(src):
                 if n not in names:
                     names.append(n)
         return names
+
+    def plan(
+        self, available: Sequence[str]
+    ) -> tuple[dict[str, KeypointSource], list[str], list[str]]:
+        """Which source each keypoint will be read from, for a skeleton's point names.
+
+        Returns:
+            The keypoints' sources in the skeleton's own names (a name, or an
+            :class:`Extend` between two of its names), the keypoints that could
+            not be found, and those read from their fallback.
+        """
+        found, _ = self.resolve(available)
+        sources: dict[str, KeypointSource] = {}
+        missing: list[str] = []
+        fell_back: list[str] = []
+        for kp in KEYPOINT_NAMES:
+            for i, src in enumerate((self.keypoints[kp], self.fallbacks.get(kp))):
+                if src is None or any(n not in found for n in _points_of(src)):
+                    continue
+                sources[kp] = (
+                    Extend(found[src.point], found[src.towards], src.length_mm)
+                    if isinstance(src, Extend)
+                    else found[src]
+                )
+                if i:
+                    fell_back.append(kp)
+                break
+            else:
+                missing.append(kp)
+        return sources, missing, fell_back
 
     def resolve(self, available: Sequence[str]) -> tuple[dict[str, str], list[str]]:
         """Match the profile's points to a skeleton's point names.
@@ -105,8 +151,10 @@ class RigProfile:
                     break
         missing = []
         for kp, src in self.keypoints.items():
-            needed = (src.point, src.towards) if isinstance(src, Extend) else (src,)
-            if any(n not in found for n in needed):
+            alt = self.fallbacks.get(kp)
+            if any(n not in found for n in _points_of(src)) and (
+                alt is None or any(n not in found for n in _points_of(alt))
+            ):
                 missing.append(kp)
         return found, missing
 
@@ -116,19 +164,19 @@ class RigProfile:
         Raises:
             RigError: If the clip lacks a point the profile needs.
         """
-        found, missing = self.resolve(clip.point_names)
+        sources, missing, _ = self.plan(clip.point_names)
         if missing:
             raise RigError(
                 f"{clip.path}: rig {self.name!r} cannot find the points for keypoints {missing}"
             )
-        names = list(found.values())
+        names = list(dict.fromkeys(n for src in sources.values() for n in _points_of(src)))
         pos = clip.point_positions(names) * units_to_mm
         if self.up_axis == "y":
             pos = pos @ Y_UP_TO_Z_UP.T
-        by_name = {src: pos[:, i] for i, src in enumerate(found)}
+        by_name = {src: pos[:, i] for i, src in enumerate(names)}
         out = np.empty((pos.shape[0], len(KEYPOINT_NAMES), 3))
         for k, kp in enumerate(KEYPOINT_NAMES):
-            src = self.keypoints[kp]
+            src = sources[kp]
             if isinstance(src, Extend):
                 a, b = by_name[src.point], by_name[src.towards]
                 d = a - b
@@ -138,6 +186,11 @@ class RigProfile:
             else:
                 out[:, k] = by_name[src]
         return out
+
+
+def _points_of(src: KeypointSource) -> tuple[str, ...]:
+    """The source points a keypoint source reads."""
+    return (src.point, src.towards) if isinstance(src, Extend) else (src,)
 
 
 def _sided(template: Mapping[str, str], right: str, left: str) -> dict[str, str]:
@@ -157,6 +210,7 @@ _HEAD_EXTENSION_MM = 200.0
 CMU_ASF = RigProfile(
     name="cmu-asf",
     description="CMU Graphics Lab ASF skeletons (VICON BodyBuilder): points are bone tips",
+    formats=("asf",),
     keypoints={
         "pelvis": "root",
         "neck": "thorax",
@@ -197,6 +251,95 @@ CMU_BVH = RigProfile(
         ),
     },
     aliases={"Head_End": ("Head_end", "HeadEnd", "Head_Nub"), "Neck": ("Neck1",)},
+    fallbacks={"head_top": Extend("Head", "Neck", _HEAD_EXTENSION_MM)},
+)
+
+CMU_BVH_JOINT_NAMES = RigProfile(
+    name="cmu-bvh-joint-names",
+    description="CMU BVH conversions naming joints by place (Hips, LHipJoint, LeftHip, "
+    "LeftKnee, LeftAnkle, LeftCollar, LeftShoulder, LeftElbow, LeftWrist)",
+    formats=("bvh",),
+    keypoints={
+        "pelvis": "Hips",
+        "neck": "Neck",
+        "head_top": "Head_End",
+        **_sided(
+            {
+                "hip": "{S}Hip",
+                "knee": "{S}Knee",
+                "ankle": "{S}Ankle",
+                "shoulder": "{S}Shoulder",
+                "elbow": "{S}Elbow",
+                "wrist": "{S}Wrist",
+            },
+            "Right",
+            "Left",
+        ),
+    },
+    aliases={"Head_End": ("Head_end", "HeadEnd", "Head_Nub"), "Neck": ("Neck1",)},
+    fallbacks={"head_top": Extend("Head", "Neck", _HEAD_EXTENSION_MM)},
+)
+
+# In a BVH that keeps CMU's ASF bone names every joint sits at the start of
+# its bone, one bone higher than the ASF's tips: lfemur is the hip, ltibia the
+# knee, lfoot the ankle, lhumerus the shoulder, lradius the elbow, lwrist the
+# wrist, lowerneck the base of the neck, and head's end site the crown.
+CMU_BVH_ASF_NAMES = RigProfile(
+    name="cmu-bvh-asf-names",
+    description="CMU BVH conversions keeping the ASF bone names (root, lowerback, thorax, "
+    "lowerneck, head, lclavicle, lhumerus, lradius, lwrist, lfemur, ltibia, lfoot)",
+    formats=("bvh",),
+    keypoints={
+        "pelvis": "root",
+        "neck": "lowerneck",
+        "head_top": "head_End",
+        **_sided(
+            {
+                "hip": "{S}femur",
+                "knee": "{S}tibia",
+                "ankle": "{S}foot",
+                "shoulder": "{S}humerus",
+                "elbow": "{S}radius",
+                "wrist": "{S}wrist",
+            },
+            "r",
+            "l",
+        ),
+    },
+    aliases={"root": ("Hips", "hip"), "head_End": ("head_end", "head_Nub")},
+    fallbacks={"head_top": Extend("head", "lowerneck", _HEAD_EXTENSION_MM)},
+)
+
+DAZ = RigProfile(
+    name="daz",
+    description="Daz Studio / Poser style BVH (hip, abdomen, chest, neck, head, lCollar, "
+    "lShldr, lForeArm, lHand, lThigh, lShin, lFoot), e.g. the Daz-friendly CMU conversions",
+    formats=("bvh",),
+    keypoints={
+        "pelvis": "hip",
+        "neck": "neck",
+        "head_top": "head_End",
+        **_sided(
+            {
+                "hip": "{S}Thigh",
+                "knee": "{S}Shin",
+                "ankle": "{S}Foot",
+                "shoulder": "{S}Shldr",
+                "elbow": "{S}ForeArm",
+                "wrist": "{S}Hand",
+            },
+            "r",
+            "l",
+        ),
+    },
+    aliases={
+        **{f"{s}Thigh": (f"{s}ThighBend",) for s in "rl"},
+        **{f"{s}Shldr": (f"{s}ShldrBend",) for s in "rl"},
+        **{f"{s}ForeArm": (f"{s}ForearmBend",) for s in "rl"},
+        "neck": ("neckLower",),
+        "head_End": ("head_end", "head_Nub"),
+    },
+    fallbacks={"head_top": Extend("head", "neck", _HEAD_EXTENSION_MM)},
 )
 
 CHARACTER_CREATOR = RigProfile(
@@ -281,16 +424,33 @@ CONE_BODY = RigProfile(
 
 #: Every built-in profile, in the order detection tries them.
 RIGS: dict[str, RigProfile] = {
-    rig.name: rig for rig in (CONE_BODY, CMU_ASF, CMU_BVH, CHARACTER_CREATOR, BANDAI, MIXAMO)
-}
+    rig.name: rig
+    for rig in (
+        CONE_BODY, CMU_ASF, CMU_BVH, CMU_BVH_JOINT_NAMES, CMU_BVH_ASF_NAMES, DAZ,
+        CHARACTER_CREATOR, BANDAI, MIXAMO,
+    )
+}  # fmt: skip
 
 
-def detect_rig(point_names: Sequence[str], path: str = "<skeleton>") -> RigProfile:
+def guess_format(point_names: Sequence[str]) -> str:
+    """``"bvh"`` when any point is a BVH end site (``*_End``), else ``"asf"``.
+
+    The parsers name BVH end sites ``"<joint>_End"``; ASF/AMC clips have none.
+    Callers that know the file's format should pass it instead.
+    """
+    return "bvh" if any(re.search(r"_End\d*$", n) for n in point_names) else "asf"
+
+
+def detect_rig(
+    point_names: Sequence[str], path: str = "<skeleton>", fmt: str | None = None
+) -> RigProfile:
     """Choose the profile that finds all 15 keypoints among a skeleton's points.
 
     Args:
         point_names: The skeleton's point names.
         path: The file, for the error message.
+        fmt: ``"bvh"`` or ``"asf"``: only profiles reading that format are
+            tried; guessed from the names (:func:`guess_format`) when None.
 
     Returns:
         The first profile in :data:`RIGS` that finds every keypoint.
@@ -299,8 +459,11 @@ def detect_rig(point_names: Sequence[str], path: str = "<skeleton>") -> RigProfi
         RigError: If none does; the message lists, for the closest profile,
             the keypoints it could not find.
     """
+    fmt = fmt or guess_format(point_names)
     best: tuple[int, RigProfile, list[str]] | None = None
     for rig in RIGS.values():
+        if fmt not in rig.formats:
+            continue
         _, missing = rig.resolve(point_names)
         if not missing:
             return rig
