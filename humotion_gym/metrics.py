@@ -1,5 +1,11 @@
 """Tracking error measures: keypoint error, angle error, the lost-track test.
 
+The one implementation of each measure: the environment
+(:mod:`humotion_gym.envs.pose_tracking`) scores every step with
+:func:`point_errors` and :func:`update_lost_run`, and the evaluation
+(:mod:`baselines.evaluation`) finds where an episode lost track with
+:func:`lost_track_frame`, the same rule read over a whole episode.
+
 The keypoint error is the mean Euclidean distance over keypoints, in mm: the
 HumanEva measure of Sigal, Balan & Black, *HumanEva: Synchronized video and
 motion capture dataset and baseline algorithm for evaluation of articulated
@@ -16,6 +22,20 @@ from humotion_gym.body import ANGLE_MASK, BodyShape, forward_kinematics
 FloatArray = NDArray[np.float64]
 
 
+def point_errors(estimate_points: ArrayLike, truth_points: ArrayLike) -> FloatArray:
+    """Euclidean distance between corresponding 3D points (keypoints), in their unit.
+
+    Args:
+        estimate_points: ``(..., K, 3)`` estimated points.
+        truth_points: ``(..., K, 3)`` true points (broadcast against the estimate).
+
+    Returns:
+        ``(..., K)`` distances.
+    """
+    diff = np.asarray(estimate_points, dtype=np.float64) - np.asarray(truth_points, np.float64)
+    return np.linalg.norm(diff, axis=-1)
+
+
 def keypoint_errors(estimate: ArrayLike, truth: ArrayLike, shape: BodyShape) -> FloatArray:
     """Per-keypoint Euclidean distance (mm) between two poses' keypoints.
 
@@ -27,9 +47,7 @@ def keypoint_errors(estimate: ArrayLike, truth: ArrayLike, shape: BodyShape) -> 
     Returns:
         ``(..., 15)`` distances in mm.
     """
-    return np.linalg.norm(
-        forward_kinematics(estimate, shape) - forward_kinematics(truth, shape), axis=-1
-    )
+    return point_errors(forward_kinematics(estimate, shape), forward_kinematics(truth, shape))
 
 
 def mean_keypoint_error(
@@ -62,6 +80,23 @@ def angle_errors(estimate: ArrayLike, truth: ArrayLike) -> FloatArray:
     d = np.abs((d + np.pi) % (2 * np.pi) - np.pi)
     d[..., ~ANGLE_MASK] = np.nan
     return d
+
+
+def update_lost_run(run: int, error_mm: float, threshold_mm: float) -> int:
+    """The count of consecutive frames above the threshold, after one more frame.
+
+    Track is lost at a frame once this count reaches the patience (the rule of
+    :func:`lost_track_frame`, applied online by the environment).
+
+    Args:
+        run: The count before this frame (0 at the start of an episode).
+        error_mm: This frame's error.
+        threshold_mm: The error that counts as off track (strictly above it).
+
+    Returns:
+        ``run + 1`` if the error is above the threshold, else 0.
+    """
+    return run + 1 if error_mm > threshold_mm else 0
 
 
 def lost_track_frame(errors_mm: ArrayLike, threshold_mm: float, patience: int) -> int | None:

@@ -25,6 +25,7 @@ from humotion_gym.body import (
 from humotion_gym.camera import Camera, fit_camera
 from humotion_gym.envs.tasks import TaskSpec, get_task
 from humotion_gym.kinematics import batch_pose_geometry, single_pose_geometry
+from humotion_gym.metrics import point_errors, update_lost_run
 from humotion_gym.mocap.library import (
     MotionLibrary,
     configured_data_dirs,
@@ -597,10 +598,9 @@ class PoseTrackingEnv(gym.Env):
         self._last_estimate = estimate
         # One pose: the unrolled scalar kinematics is several times faster than
         # numpy on 3-vectors (tested to agree with body.forward_kinematics).
-        err_all = np.linalg.norm(
-            single_pose_geometry(estimate, self.shape)[:N_KEYPOINTS]
-            - self._truth_keypoints[self._k],
-            axis=-1,
+        err_all = point_errors(
+            single_pose_geometry(estimate, self.shape)[:N_KEYPOINTS],
+            self._truth_keypoints[self._k],
         )
         err = err_all[self._err_kp]
         n_scored = len(err)
@@ -612,7 +612,7 @@ class PoseTrackingEnv(gym.Env):
             f"reward_{name}": sum(per_kp[i] for i in idx) for name, idx in self._region_of.items()
         }
         reward = sum(terms.values())
-        self._lost_run = self._lost_run + 1 if error_mm > self.lost_threshold_mm else 0
+        self._lost_run = update_lost_run(self._lost_run, error_mm, self.lost_threshold_mm)
         lost = self._lost_run >= self.lost_patience
         terminated = bool(lost and self.terminate_on_lost)
         truncated = bool(self._k >= self.episode_frames and not terminated)

@@ -1,0 +1,70 @@
+"""The error measures of humotion_gym.metrics: exact answers and agreement of the two lost rules."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from humotion_gym.body import N_KEYPOINTS, default_shape, forward_kinematics, standing_pose
+from humotion_gym.metrics import (
+    angle_errors,
+    keypoint_errors,
+    lost_track_frame,
+    mean_keypoint_error,
+    point_errors,
+    update_lost_run,
+)
+
+
+def test_point_errors_are_euclidean_distances():
+    a = np.zeros((2, 3, 3))
+    b = np.zeros((2, 3, 3))
+    b[0, 0] = [3.0, 4.0, 0.0]
+    b[1, 2] = [0.0, 0.0, -2.0]
+    np.testing.assert_array_equal(point_errors(a, b), [[5.0, 0.0, 0.0], [0.0, 0.0, 2.0]])
+
+
+def test_keypoint_error_of_a_pure_root_shift_is_the_shift():
+    shape = default_shape()
+    pose = standing_pose(shape)
+    moved = pose.copy()
+    moved[0] += 30.0
+    moved[1] -= 40.0
+    errs = keypoint_errors(moved, pose, shape)
+    assert errs.shape == (N_KEYPOINTS,)
+    np.testing.assert_allclose(errs, 50.0, rtol=1e-12)
+    assert mean_keypoint_error(moved, pose, shape, keypoints=[0, 1]) == pytest.approx(50.0)
+    assert keypoint_errors(pose, pose, shape).max() == 0.0
+    kp = forward_kinematics(pose, shape)
+    np.testing.assert_array_equal(point_errors(kp, kp), np.zeros(N_KEYPOINTS))
+
+
+def test_angle_errors_wrap_and_skip_positions():
+    est = np.zeros(25)
+    truth = np.zeros(25)
+    est[3] = np.pi - 0.1
+    truth[3] = -np.pi + 0.1
+    d = angle_errors(est, truth)
+    assert np.isnan(d[:3]).all()
+    assert d[3] == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize("patience", [1, 2, 5])
+def test_online_run_and_offline_frame_agree(patience):
+    rng = np.random.default_rng(patience)
+    for _ in range(200):
+        errors = rng.choice([100.0, 150.0, 200.0], size=int(rng.integers(0, 30)))
+        run, first = 0, None
+        for t, e in enumerate(errors):
+            run = update_lost_run(run, float(e), 150.0)
+            if run >= patience and first is None:
+                first = t - patience + 1
+        assert lost_track_frame(errors, 150.0, patience) == first
+
+
+def test_lost_track_frame_exact_cases():
+    assert lost_track_frame([200, 200, 100, 200, 200, 200], 150, 3) == 3
+    assert lost_track_frame([150, 150, 150], 150, 1) is None  # strictly above
+    assert lost_track_frame([], 150, 1) is None
+    with pytest.raises(ValueError, match="patience"):
+        lost_track_frame([1.0], 0.0, 0)
