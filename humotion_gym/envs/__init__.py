@@ -20,21 +20,22 @@ from humotion_gym.envs.walk_track import WalkTrackEnv
 
 NAMESPACE = "humotion_gym"
 
-#: (id without namespace, entry point, scored frames per episode)
-ENVIRONMENTS: tuple[tuple[str, str, int], ...] = (
-    ("ArmTrack-v1", "humotion_gym.envs.arm_track:ArmTrackEnv", 30),
-    ("BodyTrack-v1", "humotion_gym.envs.body_track:BodyTrackEnv", 30),
-    ("WalkTrack-v1", "humotion_gym.envs.walk_track:WalkTrackEnv", 60),
-    ("SideWalk-v1", "humotion_gym.envs.side_walk:SideWalkEnv", 60),
+#: (id without namespace, entry point). Everything else about a task (its
+#: episode length, free parameters, camera) is in its :data:`TASKS` spec.
+ENVIRONMENTS: tuple[tuple[str, str], ...] = (
+    ("ArmTrack-v1", "humotion_gym.envs.arm_track:ArmTrackEnv"),
+    ("BodyTrack-v1", "humotion_gym.envs.body_track:BodyTrackEnv"),
+    ("WalkTrack-v1", "humotion_gym.envs.walk_track:WalkTrackEnv"),
+    ("SideWalk-v1", "humotion_gym.envs.side_walk:SideWalkEnv"),
 )
 
 #: The canonical ids, with namespace.
-ENV_IDS: tuple[str, ...] = tuple(f"{NAMESPACE}/{name}" for name, _, _ in ENVIRONMENTS)
+ENV_IDS: tuple[str, ...] = tuple(f"{NAMESPACE}/{name}" for name, _ in ENVIRONMENTS)
 
 
 def register_envs() -> None:
     """Register every environment (idempotent)."""
-    for name, entry_point, _ in ENVIRONMENTS:
+    for name, entry_point in ENVIRONMENTS:
         for env_id in (f"{NAMESPACE}/{name}", name):
             if env_id not in registry:
                 register(id=env_id, entry_point=entry_point)
