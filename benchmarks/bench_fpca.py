@@ -32,6 +32,7 @@ from _timing import best_of
 
 from humotion_gym.mocap.synthetic import synthetic_motions
 from humotion_gym.priors import cycles, fpca
+from humotion_gym.threads import single_threaded_blas
 
 N_CYCLES, N_SAMPLES, N_HARMONICS, N_COMPONENTS = 100, 120, 20, 5
 
@@ -89,7 +90,7 @@ def main() -> None:
         f"{100 * (1 - observed.mean()):.1f}% missing (the reference FPCA gets them complete); "
         f"q = {N_COMPONENTS}, {N_HARMONICS} harmonics"
     )
-    with cycles.single_threaded_blas():
+    with single_threaded_blas():
         z = fpca.to_coefficients(np.where(observed, values, 0.0), N_HARMONICS)
         z = z.reshape(values.shape[0], -1)
         zc = z - z.mean(axis=0)

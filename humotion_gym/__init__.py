@@ -2,6 +2,8 @@
 
 Importing the package registers the environment ids under the ``humotion_gym/``
 namespace, so ``gymnasium.make("humotion_gym/BodyTrack-v1")`` works.
+Tracking with the particle filters from Python is several times faster on one
+BLAS thread: call :func:`limit_blas_threads` once (see :mod:`humotion_gym.threads`).
 """
 
 from __future__ import annotations
@@ -9,7 +11,8 @@ from __future__ import annotations
 __version__ = "0.1.0"
 
 from humotion_gym.envs import ENV_IDS, register_envs  # noqa: E402
+from humotion_gym.threads import limit_blas_threads  # noqa: E402
 
 register_envs()
 
-__all__ = ["ENV_IDS", "__version__"]
+__all__ = ["ENV_IDS", "__version__", "limit_blas_threads"]

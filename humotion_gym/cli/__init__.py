@@ -21,11 +21,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import os
 import sys
 from collections.abc import Sequence
 
 from humotion_gym.cli._common import CommandError, UsageError
+from humotion_gym.threads import limit_blas_threads
 
 #: The command modules (``humotion_gym.cli.<name>``), in ``--help`` order.
 COMMAND_MODULES: tuple[str, ...] = (
@@ -71,20 +71,6 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def limit_blas_threads() -> None:
-    """One BLAS thread, unless the user set ``OPENBLAS_NUM_THREADS`` or ``OMP_NUM_THREADS``.
-
-    The hot loops multiply small matrices many times; a multi-threaded BLAS
-    spends longer waking its threads than computing (6 times slower per
-    tracked frame on 2 cores). The command line sets this for the whole
-    process; from Python, see ``docs/architecture.md`` ("Threads").
-    """
-    if "OPENBLAS_NUM_THREADS" not in os.environ and "OMP_NUM_THREADS" not in os.environ:
-        from threadpoolctl import threadpool_limits
-
-        threadpool_limits(limits=1, user_api="blas")
-
-
 def _error(parser: argparse.ArgumentParser, args: argparse.Namespace, message: str) -> None:
     prog = " ".join(
         [parser.prog]
@@ -104,7 +90,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help (0) or argparse's usage error (2)
         return exc.code if isinstance(exc.code, int) else 2
-    limit_blas_threads()
+    limit_blas_threads()  # see humotion_gym.threads for why and for Python users
     try:
         return int(args.func(args) or 0)
     except UsageError as exc:

@@ -45,9 +45,7 @@ All functions take lists of ``(T_i, J)`` series (the ``J`` angles of
 
 from __future__ import annotations
 
-import contextlib
-import functools
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -55,6 +53,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import BSpline
 
 from humotion_gym.body import PARAM_NAMES
+from humotion_gym.threads import one_blas_thread
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -68,42 +67,6 @@ DEFAULT_KNOTS: FloatArray = np.round(np.arange(1, 10) / 10.0, 12)
 
 #: Number of resampling points per cycle (the reference domain's ``T``).
 DEFAULT_SAMPLES = 120
-
-_CONTROLLER: list = []
-
-
-def single_threaded_blas() -> contextlib.AbstractContextManager:
-    """A context with one BLAS thread (via ``threadpoolctl`` when installed).
-
-    The iterations here multiply small matrices thousands of times; on a busy
-    machine OpenBLAS's threads spin and wait for each other and the whole fit
-    runs several times slower than on one thread (measured 4x on 2 shared
-    cores). Without ``threadpoolctl`` this does nothing. The controller (which
-    scans the loaded libraries, a few milliseconds) is made once.
-    """
-    if not _CONTROLLER:
-        try:
-            from threadpoolctl import ThreadpoolController
-        except ImportError:  # pragma: no cover - optional
-            _CONTROLLER.append(None)
-        else:
-            _CONTROLLER.append(ThreadpoolController())
-    controller = _CONTROLLER[0]
-    if controller is None:  # pragma: no cover - optional
-        return contextlib.nullcontext()
-    return controller.limit(limits=1, user_api="blas")
-
-
-def one_blas_thread(func: Callable) -> Callable:
-    """Decorator: run ``func`` inside :func:`single_threaded_blas`."""
-
-    @functools.wraps(func)
-    def wrapper(*args, **kwargs):
-        with single_threaded_blas():
-            return func(*args, **kwargs)
-
-    return wrapper
-
 
 # ---------------------------------------------------------------------------
 # Appendix A: periodically constrained cubic regression splines

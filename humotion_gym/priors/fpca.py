@@ -48,6 +48,7 @@ import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from humotion_gym.priors import cycles
+from humotion_gym.threads import one_blas_thread
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -213,7 +214,7 @@ def _top_eigen(
     return vals[::-1], vecs[:, ::-1], None
 
 
-@cycles.one_blas_thread
+@one_blas_thread
 def fpca(
     values: ArrayLike,
     observed: ArrayLike | None = None,
