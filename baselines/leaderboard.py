@@ -28,6 +28,7 @@ from tqdm.auto import tqdm
 
 from baselines.agents import REFERENCES, make
 from baselines.evaluation import evaluate, summarize
+from baselines.learned import is_learned, takes_particles
 
 #: The reference every table shows.
 FLOOR = "hold"
@@ -43,7 +44,9 @@ def _cells(
     cells = []
     for task in tasks:
         for name in names:
-            counts = [0] if name in REFERENCES else list(particles)
+            # references and learned policies take no particles: one cell per task
+            once = name in REFERENCES or (is_learned(name) and not takes_particles(name))
+            counts = [0] if once else list(particles)
             cells.extend((task, name, n) for n in counts)
     return cells
 
@@ -59,8 +62,8 @@ def run_leaderboard(
 ) -> list[dict[str, Any]]:
     """Run every (task, agent, particle count) cell, and ``hold`` on every task.
 
-    Reference agents (``hold``, ``random``) run once per task with
-    ``particles`` 0.
+    Reference agents (``hold``, ``random``) and learned policies (``bc``,
+    ``ppo``, ``LABEL=PATH.zip``) run once per task with ``particles`` 0.
 
     Returns:
         One dict per cell: task, agent, particles, the summary and the episodes
@@ -156,7 +159,7 @@ def validity_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
         hold = _floor_of(rows, task)
         filters = [
             r for r in rows
-            if r["task"] == task and "summary" in r and r["agent"] not in REFERENCES
+            if r["task"] == task and "summary" in r and r["particles"] > 0
         ]  # fmt: skip
         if hold is None or not filters:
             continue

@@ -52,6 +52,14 @@ HYBRID_FRACTION = 0.25
 HYBRID_SPREAD = 0.02
 
 
+class NoCheckpointError(FileNotFoundError, ValueError):
+    """No pretrained checkpoint of a learned agent for a task.
+
+    A ``ValueError`` (the leaderboard skips an agent that does not cover a
+    task) and a ``FileNotFoundError`` (the command line reports it in one line).
+    """
+
+
 def checkpoint_path(algo: str, task: str) -> Path:
     """The pretrained checkpoint of an algorithm on a task (it may not exist)."""
     return CHECKPOINT_DIR / f"{algo}-{task}.zip"
@@ -90,8 +98,15 @@ def load_policy(path: str | Path) -> Any:
             f"{p}: no saved policy; train one with `humotion-gym train --algo bc --task TASK "
             f"--steps N --out runs/NAME` (it writes runs/NAME/model.zip)"
         )
+    import os
+
+    import torch
     from stable_baselines3 import PPO
 
+    if "OMP_NUM_THREADS" not in os.environ:
+        # one frame at a time: torch's thread pool costs more than it saves
+        # (and the particle filters it is compared with run on one thread)
+        torch.set_num_threads(1)
     try:
         model = PPO.load(p, device="cpu")
     except Exception as exc:  # SB3 raises many kinds on a foreign or damaged zip
@@ -353,8 +368,8 @@ def make_learned(name: str, env: gym.Env, n_particles: int = 300, seed: int = 0)
     """A learned agent by name (see the module docstring).
 
     Raises:
-        ValueError: If the task has no pretrained checkpoint of that name, or
-            the policy does not fit the task.
+        NoCheckpointError: If the task has no pretrained checkpoint of that name.
+        ValueError: If the policy does not fit the task.
         FileNotFoundError: If a named ``.zip`` does not exist.
     """
     base: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
@@ -365,13 +380,15 @@ def make_learned(name: str, env: gym.Env, n_particles: int = 300, seed: int = 0)
         pf_name, policy_spec = name.split("+", 1)
         label, path = _policy_for(policy_spec, task)
         if policy_spec in ("bc", "ppo") and not Path(path).is_file():
-            raise ValueError(f"{name}: no pretrained {policy_spec} checkpoint for {task} ({path})")
+            raise NoCheckpointError(
+                f"{name}: no pretrained {policy_spec} checkpoint for {task} ({path})"
+            )
         policy = LearnedAgent(env, load_policy(path), label, path)
         pf = make(pf_name, env, n_particles=n_particles, seed=seed)
         return HybridAgent(env, pf, policy, name=f"{pf_name}+{label}")
     label, path = _policy_for(name, task)
     if name in ("bc", "ppo") and not Path(path).is_file():
-        raise ValueError(
+        raise NoCheckpointError(
             f"{name}: no pretrained checkpoint for {task} ({path}); train one with "
             f"`humotion-gym train --algo {name} --task {task} --steps N --out runs/NAME` and "
             f"pass {name}=runs/NAME/model.zip"

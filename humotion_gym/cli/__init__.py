@@ -43,6 +43,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "tree",  # tree figures
     "pca",  # pca period|figures
     "slds",  # slds classify|select|splits|interpolate|figures
+    "train",  # train, learning-curve (learned trackers)
 )
 
 #: Extras that provide optional modules, for the hint when one is missing.

@@ -111,8 +111,9 @@ def task_name(text: str) -> str:
 def agent_name(text: str) -> str:
     """An argparse ``type`` for a registered agent (``hold``, ``pf-tree``...)."""
     from baselines.agents import agent_names
+    from baselines.learned import is_learned  # PATH.zip, LABEL=PATH.zip, pf-PRIOR+POLICY
 
-    if text not in agent_names():
+    if text not in agent_names() and not is_learned(text):
         raise argparse.ArgumentTypeError(
             f"unknown agent {text}; the agents are {', '.join(agent_names())} "
             "(see humotion-gym agents)"

@@ -1,0 +1,206 @@
+"""``humotion-gym train`` and ``learning-curve``: learned trackers (stable-baselines3).
+
+::
+
+    humotion-gym train --algo bc --task BodyTrack-v1 --steps 100000 --seed 0 --out runs/bc-body
+    humotion-gym leaderboard --tasks BodyTrack-v1 --agents bc=runs/bc-body/model.zip pf-tree
+    humotion-gym learning-curve --task BodyTrack-v1 --algos ppo bc --seeds 0 1 2 --steps 100000
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+from pathlib import Path
+
+from humotion_gym.cli._common import (
+    CommandError,
+    UsageError,
+    add_data_dir,
+    add_json,
+    add_seed,
+    positive_int,
+    print_json,
+    task_name,
+    wrote,
+)
+
+#: The repository's hyperparameter file (RL Baselines3 Zoo format), when present.
+DEFAULT_HYPERPARAMS = Path(__file__).resolve().parents[2] / "hyperparams" / "ppo.yml"
+
+
+def _setting(text: str) -> tuple[str, float]:
+    """``KEY=VALUE`` with a numeric value."""
+    key, sep, value = text.partition("=")
+    if not sep or not key:
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
+    try:
+        number = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{key}: expected a number, got {value!r}") from None
+    return key, int(number) if number.is_integer() and "." not in value else number
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``train`` and ``learning-curve``."""
+    tr = subparsers.add_parser(
+        "train", help="train a learned tracker (ppo or bc) on the training persons"
+    )
+    tr.add_argument("--algo", choices=["ppo", "bc"], required=True, help="ppo or bc (required)")
+    tr.add_argument(
+        "--task", type=task_name, default="BodyTrack-v1", help="task id (default: BodyTrack-v1)"
+    )
+    tr.add_argument(
+        "--steps", type=positive_int, default=100_000,
+        help="environment steps to train for (default: 100000)",
+    )  # fmt: skip
+    add_seed(tr, "seed of the policy, the episodes and the rollouts")
+    tr.add_argument(
+        "--out", type=Path, default=None,
+        help="output folder: model.zip, config.json, checkpoints/ (default: runs/ALGO-TASK-sSEED)",
+    )  # fmt: skip
+    tr.add_argument(
+        "--hyperparams", type=Path, default=None,
+        help="PPO settings, an RL Baselines3 Zoo YAML file with an entry per task "
+        "(default: the repository's hyperparams/ppo.yml when present, else built-in)",
+    )  # fmt: skip
+    tr.add_argument(
+        "--set", type=_setting, nargs="*", default=[], metavar="KEY=VALUE",
+        help="override settings, e.g. n_envs=4 rounds=10 (default: none)",
+    )  # fmt: skip
+    tr.add_argument(
+        "--init", type=Path, default=None,
+        help="start from this saved policy, e.g. PPO fine-tuning from bc (default: none)",
+    )  # fmt: skip
+    tr.add_argument(
+        "--checkpoint-every", type=positive_int, default=10_000,
+        help="save a checkpoint every this many env steps (default: 10000)",
+    )  # fmt: skip
+    tr.add_argument(
+        "--no-resume", action="store_true",
+        help="start afresh even if OUT/checkpoints holds a checkpoint (default: resume)",
+    )  # fmt: skip
+    tr.add_argument("--threads", type=positive_int, default=1, help="torch threads (default: 1)")
+    tr.add_argument(
+        "--export", type=Path, default=None,
+        help="also copy the model and its config to DIR/ALGO-TASK.zip and .json, as the "
+        "pretrained checkpoints in baselines/checkpoints are made (default: none)",
+    )  # fmt: skip
+    add_data_dir(tr)
+    add_json(tr, "print the run's config.json at the end")
+    tr.set_defaults(func=_cmd_train)
+
+    lc = subparsers.add_parser(
+        "learning-curve",
+        help="test-split error against env steps for learned trackers (IQM over seeds)",
+    )
+    lc.add_argument(
+        "--task", type=task_name, default="BodyTrack-v1", help="task id (default: BodyTrack-v1)"
+    )
+    lc.add_argument(
+        "--algos", nargs="+", choices=["ppo", "bc"], default=["ppo", "bc"],
+        help="algorithms (default: ppo bc)",
+    )  # fmt: skip
+    lc.add_argument(
+        "--seeds", type=int, nargs="+", default=[0, 1, 2], help="training seeds (default: 0 1 2)"
+    )
+    lc.add_argument(
+        "--steps", type=positive_int, default=100_000,
+        help="env steps per run (default: 100000)",
+    )  # fmt: skip
+    lc.add_argument(
+        "--points", type=positive_int, default=5,
+        help="checkpoints evaluated per run, evenly spaced (default: 5)",
+    )  # fmt: skip
+    lc.add_argument(
+        "--episodes", type=positive_int, default=10,
+        help="test episodes per evaluated checkpoint (default: 10)",
+    )  # fmt: skip
+    lc.add_argument(
+        "--runs-dir", type=Path, default=Path("runs/curve"),
+        help="where the runs are trained, and resumed from (default: runs/curve)",
+    )  # fmt: skip
+    lc.add_argument(
+        "--out", type=Path, default=Path("docs/img/rl_learning_curve.png"),
+        help="figure (PNG); the numbers go beside it as JSON "
+        "(default: docs/img/rl_learning_curve.png)",
+    )  # fmt: skip
+    lc.add_argument(
+        "--set", type=_setting, nargs="*", default=[], metavar="KEY=VALUE",
+        help="override settings of every run, e.g. n_envs=4 (default: none)",
+    )  # fmt: skip
+    add_data_dir(lc)
+    lc.set_defaults(func=_cmd_curve)
+
+
+def _settings(args: argparse.Namespace) -> dict:
+    from baselines.rl import load_hyperparams
+
+    settings: dict = {}
+    if args.algo == "ppo":
+        path = args.hyperparams or (DEFAULT_HYPERPARAMS if DEFAULT_HYPERPARAMS.is_file() else None)
+        if path is not None:
+            try:
+                settings.update(load_hyperparams(path, args.task))
+            except ValueError as exc:
+                raise CommandError(str(exc)) from None
+    elif args.hyperparams is not None:
+        raise UsageError("--hyperparams: PPO settings; bc takes --set KEY=VALUE")
+    settings.update(dict(args.set))
+    return settings
+
+
+def _cmd_train(args: argparse.Namespace) -> int:
+    import sys
+
+    from baselines.rl import TrainConfig, train
+
+    out = args.out or Path("runs") / f"{args.algo}-{args.task}-s{args.seed}"
+    try:
+        config = TrainConfig(
+            args.algo, args.task, args.steps, args.seed, str(out),
+            data_dir=[str(d) for d in args.data_dir] if args.data_dir else None,
+            settings=_settings(args), init=str(args.init) if args.init else None,
+            checkpoint_every=args.checkpoint_every, threads=args.threads,
+        )  # fmt: skip
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    if args.init is not None and not args.init.is_file():
+        raise CommandError(f"--init: {args.init} does not exist")
+    command = "humotion-gym " + " ".join(sys.argv[1:]) if sys.argv[1:] else None
+    path = train(config, resume=not args.no_resume, command=command)
+    run_config = json.loads((out / "config.json").read_text())
+    if args.export is not None:
+        args.export.mkdir(parents=True, exist_ok=True)
+        target = args.export / f"{args.algo}-{config.task}.zip"
+        shutil.copyfile(path, target)
+        shutil.copyfile(out / "config.json", target.with_suffix(".json"))
+        wrote(target, "the policy (and its config beside it)")
+    if args.json:
+        print_json(run_config)
+        return 0
+    print(
+        f"{args.algo} on {config.task}: {run_config.get('env_steps')} env steps in "
+        f"{run_config.get('wall_s', 0.0):.0f} s"
+    )
+    wrote(path, f"the policy; score it with --agents {args.algo}={path}")
+    return 0
+
+
+def _cmd_curve(args: argparse.Namespace) -> int:
+    from baselines.rl import learning_curve
+
+    data_dir = [str(d) for d in args.data_dir] if args.data_dir else None
+    result = learning_curve(
+        args.task, args.algos, args.seeds, args.steps, args.points, args.episodes,
+        args.runs_dir, args.out, data_dir=data_dir, settings=dict(args.set),
+    )  # fmt: skip
+    for algo, rows in result["curves"].items():
+        for row in rows:
+            lo, hi = row["iqm_ci"]
+            iqm = row["iqm_mm"]
+            print(f"{algo:4s} {row['steps']:>8d} steps  IQM {iqm:.0f} mm ({lo:.0f}-{hi:.0f})")
+    print(f"hold: {result['hold_mm']:.0f} mm")
+    wrote(args.out, "the learning curve")
+    return 0
