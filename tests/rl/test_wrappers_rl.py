@@ -1,0 +1,107 @@
+"""The learner wrappers: the Dict observation and the training-only supervision."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.wrappers import FrameStackObservation
+
+import humotion_gym  # noqa: F401  (registers the tasks)
+from humotion_gym.envs import ENV_IDS
+from humotion_gym.wrappers import (
+    LearnerObservation,
+    Supervision,
+    learner_frame,
+    learner_observation,
+)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_learner_observation_passes_the_sb3_checker(env_id: str) -> None:
+    from stable_baselines3.common.env_checker import check_env
+
+    env = LearnerObservation(gym.make(env_id), size=48)
+    check_env(env, warn=False)
+    obs, info = env.reset(seed=3)
+    assert env.observation_space.contains(obs)
+    n_free = env.action_space.shape[0]
+    assert obs["frame"].shape == (3, 48, 48)
+    assert obs["previous"].shape == obs["initial"].shape == (n_free,)
+
+
+def test_previous_is_the_last_action_and_starts_at_the_initial_pose() -> None:
+    env = LearnerObservation(gym.make("humotion_gym/BodyTrack-v1"), size=32)
+    base = env.unwrapped
+    obs, info = env.reset(seed=1)
+    initial = base.pose_to_action(info["initial_pose"])
+    np.testing.assert_array_equal(obs["initial"], initial)
+    np.testing.assert_array_equal(obs["previous"], initial)
+    rng = np.random.default_rng(0)
+    for _ in range(4):
+        action = rng.uniform(-1, 1, env.action_space.shape).astype(np.float32)
+        obs, *_ = env.step(action)
+        np.testing.assert_array_equal(obs["previous"], action)
+        np.testing.assert_array_equal(obs["initial"], initial)
+
+
+def test_the_observation_is_the_frame_and_the_agents_own_actions_only() -> None:
+    """No truth enters: the wrapper's observation is a function of the plain env's frame,
+    the actions taken and the reset's initial pose."""
+    plain = gym.make("humotion_gym/WalkTrack-v1")
+    wrapped = LearnerObservation(gym.make("humotion_gym/WalkTrack-v1"), size=40)
+    frame, info = plain.reset(seed=5)
+    obs, _ = wrapped.reset(seed=5)
+    initial = plain.unwrapped.pose_to_action(info["initial_pose"])
+    expected = learner_observation(frame, initial, initial, 40)
+    for key in expected:
+        np.testing.assert_array_equal(obs[key], expected[key])
+    action = np.zeros(plain.action_space.shape, np.float32)
+    frame, *_ = plain.step(action)
+    obs, *_ = wrapped.step(action)
+    expected = learner_observation(frame, action, initial, 40)
+    for key in expected:
+        np.testing.assert_array_equal(obs[key], expected[key])
+
+
+def test_learner_frame_averages_pixel_blocks() -> None:
+    rng = np.random.default_rng(0)
+    frame = rng.integers(0, 256, (64, 64, 3), dtype=np.uint8)
+    small = learner_frame(frame, 32)
+    blocks = frame.reshape(32, 2, 32, 2, 3).astype(float).mean(axis=(1, 3)).transpose(2, 0, 1)
+    assert small.shape == (3, 32, 32)
+    assert np.max(np.abs(small - blocks)) <= 1.0
+    np.testing.assert_array_equal(learner_frame(frame, None), frame.transpose(2, 0, 1))
+    with pytest.raises(ValueError, match="uint8"):
+        learner_frame(frame.astype(np.float32), 32)
+
+
+def test_bad_size_is_refused() -> None:
+    with pytest.raises(ValueError, match="size"):
+        LearnerObservation(gym.make("humotion_gym/ArmTrack-v1"), size=2)
+
+
+def test_frame_stacking_through_gymnasium() -> None:
+    env = FrameStackObservation(LearnerObservation(gym.make("humotion_gym/ArmTrack-v1"), 32), 3)
+    obs, _ = env.reset(seed=0)
+    assert obs["frame"].shape == (3, 3, 32, 32)
+    assert obs["previous"].shape == (3, 4)
+    assert env.observation_space.contains(obs)
+
+
+def test_supervision_refuses_a_test_split_env() -> None:
+    with pytest.raises(ValueError, match="split='train'"):
+        Supervision(gym.make("humotion_gym/BodyTrack-v1"))
+    with pytest.raises(ValueError, match="test"):
+        Supervision(LearnerObservation(gym.make("humotion_gym/ArmTrack-v1", split="test")))
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_the_true_action_scores_perfectly(env_id: str) -> None:
+    env = Supervision(gym.make(env_id, split="train", terminate_on_lost=False))
+    _, info = env.reset(seed=2)
+    for _ in range(6):
+        _, reward, _, _, info_next = env.step(info["true_action"])
+        assert info_next["error_mm"] < 1e-3
+        assert reward == pytest.approx(1.0, abs=1e-5)
+        info = info_next
