@@ -19,9 +19,6 @@ does not track, never the truth of the tracked ones.
 
 from __future__ import annotations
 
-import hashlib
-import inspect
-import json
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -38,17 +35,10 @@ from humotion_gym.camera import Camera
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 from humotion_gym.filtering import ParticleFilter
 from humotion_gym.mocap.library import (
-    CACHE_ERRORS,
-    CACHE_VERSION,
     MotionLibrary,
-    cache_entry_path,
-    default_cache_dir,
-    package_version,
-    report_cache_problem,
-    write_atomically,
 )
-from humotion_gym.mocap.motion import content_digest
 from humotion_gym.observation import ObservationModel
+from humotion_gym.priors.fitting import fit_prior as fit_prior_on
 
 FloatArray = NDArray[np.float64]
 
@@ -280,94 +270,8 @@ def _import(path: str) -> ModuleType:
 
 
 def training_motions(env: PoseTrackingEnv) -> MotionLibrary:
-    """The prior's training data: the train split of the env's library, task labels."""
-    train = env.library.split("train").filter(labels=env.task.labels)
-    if len(train) == 0:
-        train = env.library.split("train")
-    return train
-
-
-def _fingerprint(lib: MotionLibrary) -> str:
-    h = hashlib.sha256()
-    for m in lib:
-        h.update(f"{m.clip_id}:{m.n_frames}:{m.fps}:{m.source};".encode())
-    return h.hexdigest()[:16]
-
-
-def _effective_settings(module: ModuleType, kwargs: Mapping[str, Any]) -> dict[str, Any]:
-    """The fit's settings: its signature's defaults overridden by ``kwargs``.
-
-    The defaults are part of the cache key, so a release that changes one
-    refits instead of reusing a fit made with the old value.
-    """
-    params = inspect.signature(module.fit).parameters
-    defaults = {
-        name: p.default
-        for name, p in params.items()
-        if p.default is not inspect.Parameter.empty and name not in ("free", "rng")
-    }
-    return {**defaults, **kwargs}
-
-
-def _read_prior_entry(module: ModuleType, path: Path, info: Mapping[str, str]) -> Any:
-    """The fitted prior cached at ``path``, checked against what was asked for.
-
-    The entry's ``__cache__`` header must hold ``info`` (key, prior, settings
-    digest, data fingerprint, versions) and a digest of the other arrays that
-    matches them; only then is it read by the prior's own ``load``.
-
-    Raises:
-        ValueError: If the entry is not an ``.npz``, lacks the header, is
-            another prior's or version's, or its arrays were changed.
-        Any of :data:`CACHE_ERRORS`: If the file cannot be read.
-    """
-    with open(path, "rb") as fh:  # closed whatever np.load raises
-        loaded = np.load(fh, allow_pickle=False)
-        if not isinstance(loaded, np.lib.npyio.NpzFile):
-            raise ValueError(f"a lone {type(loaded).__name__} (.npy), not an .npz archive")
-        with loaded as data:
-            if "__cache__" not in data.files:
-                raise ValueError("no __cache__ header: not written by the prior cache")
-            raw = data["__cache__"]
-            if raw.ndim != 0 or raw.dtype.kind != "U":
-                raise ValueError(f"__cache__ header is a {raw.dtype} array of shape {raw.shape}")
-            header = json.loads(str(raw))
-            if not isinstance(header, dict):
-                raise ValueError(f"__cache__ header is a JSON {type(header).__name__}")
-            wrong = [k for k in info if header.get(k) != info[k]]
-            if wrong:
-                shown = ", ".join(
-                    f"{k}={header.get(k, '(none)')!r} (expected {info[k]!r})" for k in wrong
-                )
-                raise ValueError(f"a foreign entry: {shown}")
-            arrays = {name: data[name] for name in data.files if name != "__cache__"}
-    if header.get("digest") != content_digest(arrays):
-        raise ValueError("the arrays do not match the header's digest")
-    return module.load(path)
-
-
-def _write_prior_entry(
-    module: ModuleType, fitted: Any, path: Path, info: Mapping[str, str]
-) -> None:
-    """Write a fitted prior with its ``__cache__`` header, atomically.
-
-    The prior's own ``save`` writes its arrays; the header (``info`` and the
-    arrays' digest) is added beside them, which the prior's ``load`` ignores.
-    """
-
-    def write(tmp: Path) -> None:
-        inner = tmp.with_name(f"{tmp.name}.inner.npz")
-        try:
-            module.save(fitted, inner)
-            with np.load(inner, allow_pickle=False) as data:
-                arrays = {name: data[name] for name in data.files}
-        finally:
-            inner.unlink(missing_ok=True)
-        header = {**info, "digest": content_digest(arrays)}
-        with open(tmp, "wb") as fh:
-            np.savez(fh, **{"__cache__": np.array(json.dumps(header))}, **arrays)
-
-    write_atomically(path, write)
+    """The prior's training data: :meth:`PoseTrackingEnv.training_motions` of the env."""
+    return env.training_motions()
 
 
 def fit_prior(
@@ -379,54 +283,19 @@ def fit_prior(
 ) -> tuple[ModuleType, Any]:
     """The prior module and its fitted parameters for an env's task, cached on disk.
 
-    The cache key covers the prior, its effective settings (the fit's defaults
-    overridden by the spec's and ``settings``), the task's free parameters,
-    the frame rate, the training clips, :data:`CACHE_VERSION` and the package
-    version, so a change to any refits. Each entry stores its key, checked on
-    read; an unreadable, damaged or foreign entry is reported once with a
-    :class:`~humotion_gym.mocap.library.CacheWarning` naming the file, refitted
-    and overwritten (atomically), never used.
+    The env's training clips (:meth:`PoseTrackingEnv.training_motions`, never
+    a test person) and the task's free parameters, fitted by
+    :func:`humotion_gym.priors.fitting.fit_prior` with the spec's settings
+    overridden by ``settings`` (and the env's frame skip); see there for the
+    cache.
     """
-    module = _import(spec.prior)
-    train = training_motions(env)
     kwargs = {**spec.fit_settings, **(settings or {})}
     if env.frame_skip != 1:
         kwargs.setdefault("frame_skip", env.frame_skip)
-    name = spec.prior.rsplit(".", 1)[-1]
-    settings_json = json.dumps(_effective_settings(module, kwargs), sort_keys=True, default=str)
-    info = {
-        "prior": spec.prior,
-        "settings": hashlib.sha256(settings_json.encode()).hexdigest()[:24],
-        "free": json.dumps(env.task.free_indices.tolist()),
-        "data": _fingerprint(train),
-        "cache_version": CACHE_VERSION,
-        "package_version": package_version(),
-    }
-    digest = hashlib.sha256(json.dumps(info, sort_keys=True).encode()).hexdigest()[:24]
-    info["key"] = digest
-    cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    folder = cache / "priors"
-    path: Path | None = None
-    if use_cache:
-        path, problem = cache_entry_path(folder, f"{name}-{digest}")
-        if path is not None and (path.exists() or path.is_symlink()):
-            try:
-                return module, _read_prior_entry(module, path, info)
-            except CACHE_ERRORS as exc:
-                why = f"{type(exc).__name__}: {str(exc).removeprefix(f'{path}: ')}"
-                problem = (f"{problem}; " if problem else "") + f"bad {name} entry: {why}"
-        if problem is not None:
-            where = path or folder / f"{name}-{digest}.npz"
-            report_cache_problem(where, f"{problem}; refitting it")
-    fitted = module.fit(
-        train.motions, free=env.task.free_indices, rng=np.random.default_rng(0), **kwargs
-    )
-    if path is not None:
-        try:
-            _write_prior_entry(module, fitted, path, info)
-        except CACHE_ERRORS as exc:
-            report_cache_problem(path, f"could not write the entry ({exc}); not cached")
-    return module, fitted
+    return fit_prior_on(
+        spec.prior, training_motions(env), env.task.free_indices, kwargs,
+        use_cache=use_cache, cache_dir=cache_dir,
+    )  # fmt: skip
 
 
 AGENTS: dict[str, AgentSpec] = {

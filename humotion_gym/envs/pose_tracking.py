@@ -291,6 +291,19 @@ class PoseTrackingEnv(gym.Env):
         k = self._k if k is None else k
         return self._t0 + k * self.frame_skip
 
+    def training_motions(self) -> MotionLibrary:
+        """The clips a prior may learn from for this task.
+
+        The library's train split (never a test person) with the task's
+        labels, or the whole train split when no training clip has them. The
+        agents fit their priors on this, so they never read the library that
+        holds the test persons' truth.
+        """
+        train = self.library.split("train").filter(labels=self.task.labels)
+        if len(train) == 0:
+            train = self.library.split("train")
+        return train
+
     def true_pose(self) -> FloatArray:
         """The ground-truth ``(25,)`` pose of the frame on show (a copy).
 
