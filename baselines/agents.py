@@ -30,14 +30,21 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from humotion_gym.body import ANGLE_MASK, N_PARAMS, BodyShape
+from humotion_gym.body import (
+    ANGLE_MASK,
+    N_PARAMS,
+    PARAM_LOWER,
+    PARAM_UPPER,
+    PERIODIC_MASK,
+    BodyShape,
+)
 from humotion_gym.camera import Camera
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
-from humotion_gym.filtering import ParticleFilter
+from humotion_gym.filtering import AnnealedParticleFilter, ParticleFilter
 from humotion_gym.mocap.library import (
     MotionLibrary,
 )
-from humotion_gym.observation import ObservationModel
+from humotion_gym.observation import GivenBody, ObservationModel
 from humotion_gym.priors.fitting import fit_prior as fit_prior_on
 
 FloatArray = NDArray[np.float64]
@@ -65,6 +72,11 @@ class TaskLikelihood:
         self.shape = shape
         self.camera = camera
 
+    def given(self) -> GivenBody:
+        """The given part of the body in the frame on show (for ``prepare``)."""
+        assert self.shape is not None and self.camera is not None
+        return GivenBody(self.base.copy(), self.free, self.shape, self.camera)
+
     def full_pose(self, particles: FloatArray) -> FloatArray:
         """``(N, 25)`` poses from ``(N, D)`` free parameters."""
         poses = np.broadcast_to(self.base, (particles.shape[0], N_PARAMS)).copy()
@@ -88,6 +100,9 @@ class ParticleFilterAgent:
         seed: Seeds the filter's generator (reset per episode from it).
         estimate: ``"mean"`` or ``"map"``.
         name: Shown in tables.
+        layers: 1 for the particle filter; more for the annealed particle
+            filter with that many layers per frame (``n_particles`` per layer;
+            particles outside the joint limits never survive a layer).
     """
 
     def __init__(
@@ -99,6 +114,7 @@ class ParticleFilterAgent:
         seed: int = 0,
         estimate: str = "mean",
         name: str = "pf",
+        layers: int = 1,
     ) -> None:
         self.env: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
         task = self.env.task
@@ -108,14 +124,21 @@ class ParticleFilterAgent:
         self.n_particles = int(n_particles)
         self.free = task.free_indices
         self.likelihood = TaskLikelihood(self.env.observation_model, self.free, task.fixed_indices)
-        self.filter = ParticleFilter(
-            prior,
-            fitted,
-            self.likelihood,
-            self.n_particles,
-            ANGLE_MASK[self.free],
-            estimate=estimate,
-        )
+        self.layers = int(layers)
+        self.filter: ParticleFilter
+        if self.layers == 1:
+            self.filter = ParticleFilter(
+                prior, fitted, self.likelihood, self.n_particles, ANGLE_MASK[self.free],
+                estimate=estimate,
+            )  # fmt: skip
+        else:
+            # Joint limits bound the valid poses; the heading goes all the way round.
+            lower = np.where(PERIODIC_MASK, -np.inf, PARAM_LOWER)[self.free]
+            upper = np.where(PERIODIC_MASK, np.inf, PARAM_UPPER)[self.free]
+            self.filter = AnnealedParticleFilter(
+                prior, fitted, self.likelihood, self.n_particles, ANGLE_MASK[self.free],
+                estimate=estimate, layers=self.layers, lower=lower, upper=upper,
+            )  # fmt: skip
         self._seed_rng = np.random.default_rng(seed)
         self._info: Mapping[str, Any] | None = None
         self._started = False
@@ -164,7 +187,7 @@ class ParticleFilterAgent:
         t0 = time.perf_counter()
         info = self._info
         self.likelihood.update(np.asarray(info["fixed_params"]), self.shape, info["camera"])
-        features = self.env.observation_model.prepare(observation)
+        features = self.env.observation_model.prepare(observation, self.likelihood.given())
         estimate = self.filter.step(features)
         pose = self.likelihood.full_pose(estimate[None])[0]
         action = self.env.pose_to_action(pose)
@@ -255,12 +278,17 @@ class AgentSpec:
         fit_settings: Keyword arguments of the prior's ``fit``.
         description: One line for listings.
         tasks: Task names the agent supports (None for every task).
+        layers: Annealing layers per frame: 1 is the plain particle filter
+            (CONDENSATION), more the annealed particle filter
+            (:class:`~humotion_gym.filtering.AnnealedParticleFilter`), which
+            then evaluates ``layers`` times the particle count per frame.
     """
 
     prior: str
     fit_settings: Mapping[str, Any] = field(default_factory=dict)
     description: str = ""
     tasks: tuple[str, ...] | None = None
+    layers: int = 1
 
 
 def _import(path: str) -> ModuleType:
@@ -313,6 +341,23 @@ AGENTS: dict[str, AgentSpec] = {
         fit_settings={"replay": "velocity"},
         description="the tree prior replaying the database's velocities from each particle's "
         "own pose (transfers better to a new subject)",
+    ),
+    "apf-cv": AgentSpec(
+        "humotion_gym.priors.constant_velocity",
+        description="annealed particle filter (Deutscher, Blake & Reid 2000), 10 layers, "
+        "constant-velocity proposals",
+        layers=10,
+    ),
+    "apf-tree": AgentSpec(
+        "humotion_gym.priors.tree",
+        description="annealed particle filter, 10 layers, proposals from the tree prior",
+        layers=10,
+    ),
+    "apf-tree-vel": AgentSpec(
+        "humotion_gym.priors.tree",
+        fit_settings={"replay": "velocity"},
+        description="annealed particle filter, 10 layers, proposals from pf-tree-vel's prior",
+        layers=10,
     ),
     "pf-slds": AgentSpec(
         "humotion_gym.priors.slds",
@@ -383,4 +428,6 @@ def make(
             module.check_task(base.task.name)  # the prior's own explanation
         raise ValueError(f"{name} supports the tasks {list(spec.tasks)} only, not {base.task.name}")
     module, fitted = fit_prior(spec, base, fit_settings, use_cache=use_cache)
-    return ParticleFilterAgent(env, module, fitted, n_particles, seed, estimate, name)
+    return ParticleFilterAgent(
+        env, module, fitted, n_particles, seed, estimate, name, layers=spec.layers
+    )

@@ -265,3 +265,189 @@ class ParticleFilter:
         if self.log_weights is None:
             raise RuntimeError("ParticleFilter: no weights before reset()")
         return np.exp(self.log_weights)
+
+
+def temper_for_survival(
+    loglik: FloatArray, alpha: float, iterations: int = 60
+) -> tuple[float, FloatArray]:
+    """The exponent ``beta`` whose weights ``w ~ exp(beta loglik)`` keep ``ESS / N = alpha``.
+
+    Deutscher, Blake & Reid, *Articulated body motion capture by annealed
+    particle filtering*, CVPR 2000, section 3: the survival rate
+    ``alpha = ESS / N`` of a layer is fixed and ``beta`` found to match it. The
+    ESS of tempered weights falls monotonically from N (``beta = 0``) as
+    ``beta`` grows, so bisection on ``log beta`` finds it.
+
+    Args:
+        loglik: ``(N,)`` log-likelihoods; ``-inf`` marks impossible poses, which
+            get weight 0 whatever ``beta``.
+        alpha: Target survival rate in (0, 1).
+        iterations: Bisection steps (60 reach float precision in ``log beta``).
+
+    Returns:
+        ``beta`` and the normalised ``(N,)`` weights. When the possible
+        particles alone fall below ``alpha N`` (many impossible poses), or the
+        log-likelihoods are all equal, ``beta`` is 1 and the weights are those
+        of the untempered likelihood.
+    """
+    n = loglik.shape[0]
+    ok = np.isfinite(loglik)
+    if not ok.any():
+        return 1.0, np.full(n, 1.0 / n)
+    centred = np.where(ok, loglik - loglik[ok].max(), -np.inf)
+
+    def weights(beta: float) -> FloatArray:
+        w = np.exp(beta * centred)
+        return w / w.sum()
+
+    spread = float(-centred[ok].min())
+    if spread <= 0.0 or ok.sum() <= alpha * n:
+        return 1.0, weights(1.0)
+    lo, hi = np.log(1e-8 / spread), np.log(1e8 / spread)
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        if effective_sample_size(weights(float(np.exp(mid)))) > alpha * n:
+            lo = mid
+        else:
+            hi = mid
+    beta = float(np.exp(0.5 * (lo + hi)))
+    return beta, weights(beta)
+
+
+class AnnealedParticleFilter(ParticleFilter):
+    """The annealed particle filter over any prior.
+
+    Deutscher, Blake & Reid, CVPR 2000 (the HumanEva baseline of Sigal, Balan &
+    Black, IJCV 2010). Per frame: the prior moves the particles on (so the first
+    layer proposes from the motion prior and any prior works), then ``layers``
+    times the particles are weighted by the likelihood raised to ``beta_m``,
+    chosen so that the survival rate ``ESS / N`` is ``alpha``
+    (:func:`temper_for_survival`; a fixed schedule with ``betas``), resampled and
+    diffused by a Gaussian whose covariance is ``alpha^m`` times the
+    per-dimension variance of the prior's proposal (section 3: the search
+    narrows as the layers concentrate). The estimate is the weighted mean (or
+    heaviest particle) of the last layer, whose resampled set carries over to
+    the next frame. Each frame costs ``layers * n`` likelihood evaluations.
+
+    Args:
+        prior, fitted, observation_model, n, angle_mask, resampling, estimate:
+            As :class:`ParticleFilter`.
+        layers: Annealing layers per frame (``M``, default 10).
+        alpha: Survival rate per layer (default 0.5, the paper's).
+        betas: A fixed exponent per layer instead of the adaptive ones (length
+            ``layers``); ``layers=1, betas=(1.0,), diffusion=0`` is
+            :class:`ParticleFilter` with ``ess_threshold=1``.
+        diffusion: Scale on the diffusion's standard deviation (default 1; 0
+            turns diffusion off).
+        min_std: ``(D,)`` or scalar floor on the diffusion's base standard
+            deviation, so a collapsed proposal still searches (default 0).
+        lower, upper: ``(D,)`` bounds of valid poses (e.g. joint limits):
+            particles outside get weight 0 in every layer, so none survives.
+    """
+
+    def __init__(
+        self,
+        prior: Prior,
+        fitted: Any,
+        observation_model: Likelihood,
+        n: int,
+        angle_mask: ArrayLike | None = None,
+        resampling: str = "systematic",
+        estimate: str = "mean",
+        layers: int = 10,
+        alpha: float = 0.5,
+        betas: ArrayLike | None = None,
+        diffusion: float = 1.0,
+        min_std: ArrayLike = 0.0,
+        lower: ArrayLike | None = None,
+        upper: ArrayLike | None = None,
+    ) -> None:
+        super().__init__(prior, fitted, observation_model, n, angle_mask, resampling, 1.0, estimate)
+        if not isinstance(layers, (int, np.integer)) or layers < 1:
+            raise ValueError(
+                f"AnnealedParticleFilter: layers must be an integer >= 1, got {layers}"
+            )
+        if not 0.0 < alpha < 1.0:
+            raise ValueError(f"AnnealedParticleFilter: alpha must be in (0, 1), got {alpha}")
+        if not (np.isfinite(diffusion) and diffusion >= 0):
+            raise ValueError(f"AnnealedParticleFilter: diffusion must be >= 0, got {diffusion}")
+        self.layers = int(layers)
+        self.alpha = float(alpha)
+        self.betas: FloatArray | None = None
+        if betas is not None:
+            b = np.asarray(betas, dtype=np.float64).reshape(-1)
+            if b.shape != (self.layers,) or not np.all(np.isfinite(b) & (b > 0)):
+                raise ValueError(
+                    f"AnnealedParticleFilter: betas must be {self.layers} positive numbers"
+                )
+            self.betas = b
+        self.diffusion = float(diffusion)
+        self.min_std = np.asarray(min_std, dtype=np.float64)
+        if np.any(self.min_std < 0) or not np.all(np.isfinite(self.min_std)):
+            raise ValueError("AnnealedParticleFilter: min_std must be finite and >= 0")
+        self.lower = None if lower is None else np.asarray(lower, dtype=np.float64)
+        self.upper = None if upper is None else np.asarray(upper, dtype=np.float64)
+        #: Per layer of the last frame: the exponent and the survival rate.
+        self.layer_betas: list[float] = []
+        self.layer_survival: list[float] = []
+
+    def _valid(self, pose: FloatArray) -> NDArray[np.bool_]:
+        ok = np.isfinite(pose).all(axis=1)
+        if self.lower is not None:
+            ok &= (pose >= self.lower).all(axis=1)
+        if self.upper is not None:
+            ok &= (pose <= self.upper).all(axis=1)
+        return ok
+
+    def step(self, frame: Any) -> FloatArray:
+        """Advance one frame: propose from the prior, then anneal through the layers.
+
+        Args:
+            frame: The observation, passed to the observation model unchanged.
+
+        Returns:
+            ``(D,)`` the estimate of the last layer.
+        """
+        if self.state is None or self.log_weights is None or self._rng is None:
+            raise RuntimeError("AnnealedParticleFilter.step() called before reset()")
+        rng = self._rng
+        state = self.prior.transition(self.fitted, self.state, rng)
+        base_std = np.maximum(state.pose.std(axis=0), self.min_std) * self.diffusion
+        self.layer_betas, self.layer_survival = [], []
+        estimate = state.pose[0]
+        for m in range(self.layers):
+            loglik = np.asarray(
+                self.observation_model.log_likelihood(frame, state.pose), dtype=np.float64
+            )
+            if loglik.shape != (self.n,):
+                raise ValueError(
+                    f"log_likelihood returned shape {loglik.shape}, expected ({self.n},)"
+                )
+            loglik = np.where(np.isnan(loglik) | ~self._valid(state.pose), -np.inf, loglik)
+            if self.betas is not None:
+                beta = float(self.betas[m])
+                ok = np.isfinite(loglik)
+                if ok.any():
+                    log_w = np.where(ok, beta * (loglik - loglik[ok].max()), -np.inf)
+                    weights = np.exp(log_w - logsumexp(log_w))
+                else:
+                    weights = np.full(self.n, 1.0 / self.n)
+            else:
+                beta, weights = temper_for_survival(loglik, self.alpha)
+            self.layer_betas.append(beta)
+            self.ess = effective_sample_size(weights)
+            self.layer_survival.append(self.ess / self.n)
+            if m == self.layers - 1:
+                if self.estimate_kind == "map":
+                    estimate = state.pose[int(np.argmax(weights))].copy()
+                else:
+                    estimate = weighted_mean(state.pose, weights, self.angle_mask)
+            state = state.take(self.resample_fn(weights, rng))
+            if m < self.layers - 1 and self.diffusion > 0:
+                # Covariance alpha^(m+1) times the proposal's: the search narrows.
+                std = base_std * self.alpha ** (0.5 * (m + 1))
+                pose = state.pose + std * rng.standard_normal(state.pose.shape)
+                state = ParticleState(pose, state.extra)
+        self.state = state
+        self.log_weights = np.full(self.n, -np.log(self.n))
+        return estimate

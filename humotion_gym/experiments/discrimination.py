@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from humotion_gym.body import ANGLE_MASK, forward_kinematics
+from humotion_gym.observation import GivenBody
 
 FloatArray = NDArray[np.float64]
 
@@ -51,6 +52,14 @@ def _scored_frames(
             step += 1
             if terminated or truncated:
                 break
+
+
+def _given(base: Any, truth: FloatArray, info: dict[str, Any]) -> GivenBody:
+    """What the task gives of the frame's body (the agent's view, not the truth's free part)."""
+    pose = np.zeros_like(truth)
+    fixed = base.task.fixed_indices
+    pose[fixed] = info["fixed_params"]
+    return GivenBody(pose, base.task.free_indices, base.shape, info["camera"])
 
 
 def likelihood_discrimination(
@@ -102,7 +111,8 @@ def likelihood_discrimination(
         poses[1:, free] += step_size * rng.standard_normal((perturbations, free.size))
         kp = forward_kinematics(poses, base.shape)[:, scored]
         err = np.linalg.norm(kp[1:] - kp[:1], axis=-1).mean(axis=1)
-        loglik = base.observation_model.log_likelihood(obs, poses, base.shape, info["camera"])
+        feats = base.observation_model.prepare(obs, _given(base, truth, info))
+        loglik = base.observation_model.log_likelihood(feats, poses, base.shape, info["camera"])
         gaps.append(loglik[0] - loglik[1:])
         errors.append(err)
         frames += 1
@@ -161,7 +171,8 @@ def likelihood_peak_error(
         poses[1:, free] += scale * rng.uniform(-1.0, 1.0, (candidates, free.size))
         kp = forward_kinematics(poses, base.shape)[:, scored]
         err = np.linalg.norm(kp[1:] - kp[:1], axis=-1).mean(axis=1)
-        loglik = base.observation_model.log_likelihood(obs, poses[1:], base.shape, info["camera"])
+        feats = base.observation_model.prepare(obs, _given(base, truth, info))
+        loglik = base.observation_model.log_likelihood(feats, poses[1:], base.shape, info["camera"])
         w = np.exp(loglik - loglik.max())
         w /= w.sum()
         mean_kp = np.tensordot(w, kp[1:], axes=1)

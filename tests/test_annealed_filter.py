@@ -1,0 +1,128 @@
+"""Tests of the annealed particle filter (Deutscher, Blake & Reid 2000)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from humotion_gym.filtering import (
+    AnnealedParticleFilter,
+    ParticleFilter,
+    ParticleState,
+    effective_sample_size,
+    temper_for_survival,
+)
+
+
+class RandomWalk:
+    """Test-only prior: x_t = x_{t-1} + N(0, s^2), x_0 ~ N(pose, s0^2)."""
+
+    def __init__(self, step: float, start: float = 0.1):
+        self.step, self.start = step, start
+
+    def initial(self, fitted, pose, n, rng):
+        return ParticleState(pose + self.start * rng.standard_normal((n, pose.size)))
+
+    def transition(self, fitted, state, rng):
+        return ParticleState(state.pose + self.step * rng.standard_normal(state.pose.shape))
+
+
+class Peak:
+    """log p(y | x) of a narrow Gaussian around the frame's value."""
+
+    def __init__(self, sigma: float):
+        self.sigma = sigma
+
+    def log_likelihood(self, frame, poses):
+        return -0.5 * np.sum((poses - frame) ** 2, axis=1) / self.sigma**2
+
+
+def test_one_layer_at_beta_one_is_the_particle_filter() -> None:
+    frames = np.cumsum(np.full((8, 3), 0.05), axis=0)
+    prior, like = RandomWalk(0.1), Peak(0.2)
+    pf = ParticleFilter(prior, None, like, 200)
+    apf = AnnealedParticleFilter(prior, None, like, 200, layers=1, betas=[1.0], diffusion=0.0)
+    pf.reset(np.zeros(3), np.random.default_rng(5))
+    apf.reset(np.zeros(3), np.random.default_rng(5))
+    for y in frames:
+        np.testing.assert_allclose(apf.step(y), pf.step(y), rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(apf.state.pose, pf.state.pose, rtol=1e-9, atol=1e-12)
+
+
+def test_each_layer_keeps_the_survival_rate() -> None:
+    apf = AnnealedParticleFilter(RandomWalk(0.5), None, Peak(0.05), 500, layers=6, alpha=0.5)
+    apf.reset(np.zeros(4), np.random.default_rng(0))
+    for y in np.linspace(0.0, 0.5, 5)[:, None] * np.ones(4):
+        apf.step(y)
+        assert len(apf.layer_survival) == 6
+        np.testing.assert_allclose(apf.layer_survival, 0.5, atol=0.01)
+        assert np.all(np.diff(apf.layer_betas) > 0)  # sharper as the cloud narrows
+
+
+def test_temper_for_survival() -> None:
+    rng = np.random.default_rng(3)
+    loglik = -50.0 * rng.random(1000)
+    for alpha in (0.1, 0.5, 0.9):
+        beta, w = temper_for_survival(loglik, alpha)
+        assert beta > 0 and abs(w.sum() - 1.0) < 1e-12
+        assert abs(effective_sample_size(w) / 1000 - alpha) < 1e-3
+        np.testing.assert_allclose(w, np.exp(beta * loglik) / np.exp(beta * loglik).sum())
+    # Impossible particles get no weight; a flat likelihood keeps every particle.
+    loglik[:10] = -np.inf
+    _, w = temper_for_survival(loglik, 0.5)
+    assert np.all(w[:10] == 0)
+    beta, w = temper_for_survival(np.zeros(50), 0.5)
+    assert beta == 1.0 and np.allclose(w, 1 / 50)
+
+
+def test_invalid_poses_never_survive() -> None:
+    lower, upper = np.array([-0.2, -1.0]), np.array([0.2, 1.0])
+    # The likelihood peaks outside the limits: the filter must stay inside them.
+    apf = AnnealedParticleFilter(
+        RandomWalk(0.3), None, Peak(0.1), 300, layers=5, lower=lower, upper=upper
+    )
+    apf.reset(np.zeros(2), np.random.default_rng(1))
+    for _ in range(5):
+        estimate = apf.step(np.array([0.6, 0.0]))
+        assert np.all(apf.state.pose >= lower) and np.all(apf.state.pose <= upper)
+        assert np.all(estimate >= lower) and np.all(estimate <= upper)
+
+
+def test_annealing_finds_a_narrow_peak_the_filter_misses() -> None:
+    # Broad proposals and a narrow likelihood in 6 dimensions: at equal
+    # likelihood evaluations (10 x 100 against 1,000) the layers home in.
+    truth = np.full(6, 0.3)
+    errors = {}
+    for name, filt in (
+        ("pf", ParticleFilter(RandomWalk(0.5), None, Peak(0.02), 1000)),
+        ("apf", AnnealedParticleFilter(RandomWalk(0.5), None, Peak(0.02), 100, layers=10)),
+    ):
+        err = []
+        for seed in range(5):
+            filt.reset(np.zeros(6), np.random.default_rng(seed))
+            err.append(np.linalg.norm(filt.step(truth) - truth))
+        errors[name] = np.mean(err)
+    assert errors["apf"] < 0.5 * errors["pf"]
+
+
+def test_same_seed_same_run() -> None:
+    def run():
+        apf = AnnealedParticleFilter(RandomWalk(0.2), None, Peak(0.1), 100, layers=4)
+        apf.reset(np.zeros(3), np.random.default_rng(9))
+        return np.array([apf.step(np.full(3, 0.1 * t)) for t in range(4)])
+
+    np.testing.assert_array_equal(run(), run())
+
+
+def test_bad_arguments() -> None:
+    prior, like = RandomWalk(0.1), Peak(0.1)
+    with pytest.raises(ValueError, match="layers"):
+        AnnealedParticleFilter(prior, None, like, 10, layers=0)
+    with pytest.raises(ValueError, match="alpha"):
+        AnnealedParticleFilter(prior, None, like, 10, alpha=1.0)
+    with pytest.raises(ValueError, match="betas"):
+        AnnealedParticleFilter(prior, None, like, 10, layers=3, betas=[1.0, 2.0])
+    with pytest.raises(ValueError, match="diffusion"):
+        AnnealedParticleFilter(prior, None, like, 10, diffusion=-1.0)
+    with pytest.raises(RuntimeError, match="before reset"):
+        AnnealedParticleFilter(prior, None, like, 10).step(np.zeros(2))

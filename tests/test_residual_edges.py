@@ -1,0 +1,149 @@
+"""Tests of the residual-edge term (the image-to-model chamfer on what the given body leaves)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from humotion_gym import body
+from humotion_gym.camera import fit_camera
+from humotion_gym.observation import GivenBody, ObservationModel
+from humotion_gym.render import SceneOptions, make_background, render
+
+SHAPE = body.default_shape()
+ARM = np.arange(9, 13)  # r_shoulder_x, _y, _z, r_elbow
+FLAT = SceneOptions(background="flat", noise_sigma=0.0)
+
+
+def arm_pose(rng: np.random.Generator) -> np.ndarray:
+    pose = body.standing_pose(SHAPE)
+    pose[3] = rng.uniform(-0.6, 0.6)  # heading: the figure faces the camera, roughly
+    pose[ARM] = [rng.uniform(-1.2, 0.4), rng.uniform(-1.0, -0.3), rng.uniform(-0.5, 0.5), 0.8]
+    return pose
+
+
+def frame_of(pose: np.ndarray, scene: SceneOptions, rng: np.random.Generator):
+    kp = body.forward_kinematics(pose, SHAPE)
+    cam = fit_camera(kp[None], scene.width, scene.height, 50.0, 0.0, 5.0)
+    return render(pose, SHAPE, cam, scene, rng, make_background(scene, rng)), cam
+
+
+def outline_segments(poses: np.ndarray, cam, cones) -> np.ndarray:
+    """(N, 2 C, 2, 2) outline segments in pixels, the observation model's geometry."""
+    g = body.cone_geometry(poses, SHAPE)
+    s, e = g.starts[:, cones], g.ends[:, cones]
+    ps, pe = cam.project(s), cam.project(e)
+    zs, ze = cam.to_camera(s)[..., 2], cam.to_camera(e)[..., 2]
+    r = SHAPE.radii[cones] * ((1 + SHAPE.aspect[cones, None]) / 2)
+    rs, re = cam.focal * r[:, 0] / zs, cam.focal * r[:, 1] / ze
+    d = pe - ps
+    n = np.stack([d[..., 1], -d[..., 0]], -1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    lines = [
+        np.stack([ps + sign * rs[..., None] * n, pe + sign * re[..., None] * n], -2)
+        for sign in (1.0, -1.0)
+    ]
+    return np.concatenate(lines, axis=1)
+
+
+def point_segment_distance(q: np.ndarray, seg: np.ndarray) -> np.ndarray:
+    """(E,) distance of each point to the nearest of the (S, 2, 2) segments, by brute force."""
+    out = np.full(len(q), np.inf)
+    for a, b in seg:
+        ab = b - a
+        t = np.clip(((q - a) @ ab) / (ab @ ab), 0.0, 1.0)
+        out = np.minimum(out, np.linalg.norm(q - (a + t[:, None] * ab), axis=1))
+    return out
+
+
+@pytest.fixture(scope="module")
+def arm_scene():
+    rng = np.random.default_rng(4)
+    pose = arm_pose(rng)
+    frame, cam = frame_of(pose, FLAT, rng)
+    given = GivenBody(pose, ARM, SHAPE, cam)
+    return pose, frame, cam, given
+
+
+def test_off_by_default_and_without_a_given_body(arm_scene) -> None:
+    pose, frame, cam, given = arm_scene
+    rng = np.random.default_rng(0)
+    poses = np.tile(pose, (20, 1))
+    poses[:, ARM] += rng.normal(0.0, 0.3, (20, 4))
+    plain = ObservationModel()
+    reference = plain.log_likelihood(plain.prepare(frame), poses, SHAPE, cam)
+    # Weight 0: a given body changes nothing, bit for bit.
+    features = plain.prepare(frame, given)
+    assert features.residual is None
+    np.testing.assert_array_equal(plain.log_likelihood(features, poses, SHAPE, cam), reference)
+    # A positive weight without a given body: nothing to explain, the same scores.
+    weighted = ObservationModel(residual_weight=2.0)
+    np.testing.assert_array_equal(
+        weighted.log_likelihood(weighted.prepare(frame), poses, SHAPE, cam), reference
+    )
+
+
+def test_residual_points_are_the_free_arms_edges(arm_scene) -> None:
+    pose, frame, cam, given = arm_scene
+    model = ObservationModel(residual_weight=1.0, residual_points=10_000)
+    features = model.prepare(frame, given)
+    assert features.residual_cones is not None
+    assert features.residual_cones.tolist() == [2, 3]  # r_upper_arm, r_forearm
+    points = features.residual.T - 1.5
+    assert len(points) > 20
+    # On a flat background the edges the given body leaves are the arm's own.
+    d = point_segment_distance(points, outline_segments(pose[None], cam, [2, 3])[0])
+    assert np.mean(d < 3.0) > 0.8
+
+
+def test_residual_cost_matches_brute_force(arm_scene) -> None:
+    pose, frame, cam, given = arm_scene
+    rng = np.random.default_rng(1)
+    poses = np.tile(pose, (15, 1))
+    poses[1:, ARM] += rng.normal(0.0, 0.4, (14, 4))
+    model = ObservationModel(residual_weight=2.5, sharpness=1.5)
+    off = ObservationModel(residual_weight=0.0, sharpness=1.5)
+    features = model.prepare(frame, given)
+    got = off.log_likelihood(features, poses, SHAPE, cam) - model.log_likelihood(
+        features, poses, SHAPE, cam
+    )
+    q = features.residual.T.astype(np.float64) - 1.5
+    segments = outline_segments(poses, cam, [2, 3])
+    scale = frame.shape[0] / model.reference_height
+    tau = model.residual_truncation * scale
+    sigma = model.edge_sigma * scale
+    expected = np.array(
+        [
+            np.mean(np.minimum(point_segment_distance(q, s), tau) ** 2) / (2 * sigma**2)
+            for s in segments
+        ]
+    )
+    expected *= model.residual_weight * model.sharpness
+    np.testing.assert_allclose(got, expected, rtol=2e-3, atol=2e-3)
+
+
+def test_the_true_arm_explains_its_edges_best() -> None:
+    rng = np.random.default_rng(7)
+    model = ObservationModel(residual_weight=1.0)
+    wins = []
+    for _ in range(6):
+        pose = arm_pose(rng)
+        frame, cam = frame_of(pose, FLAT, rng)
+        features = model.prepare(frame, GivenBody(pose, ARM, SHAPE, cam))
+        poses = np.tile(pose, (40, 1))
+        poses[1:, ARM] += rng.normal(0.0, 0.3, (39, 4))
+        poses[1:, ARM] = np.clip(poses[1:, ARM], body.PARAM_LOWER[ARM], body.PARAM_UPPER[ARM])
+        loglik = model.log_likelihood(features, poses, SHAPE, cam)
+        wins.append(loglik[0] > loglik[1:])
+    assert np.mean(wins) > 0.9
+
+
+def test_bad_given_body_raises(arm_scene) -> None:
+    pose, frame, cam, _ = arm_scene
+    model = ObservationModel(residual_weight=1.0)
+    with pytest.raises(ValueError, match="GivenBody.pose"):
+        model.prepare(frame, GivenBody(pose[:10], ARM, SHAPE, cam))
+    with pytest.raises(ValueError, match="GivenBody.free"):
+        model.prepare(frame, GivenBody(pose, np.array([30]), SHAPE, cam))
+    with pytest.raises(ValueError, match="residual_weight"):
+        ObservationModel(residual_weight=-1.0)
