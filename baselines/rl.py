@@ -282,11 +282,9 @@ def load_hyperparams(path: str | Path, task: str) -> dict[str, Any]:
     """
     import re
 
-    import yaml
-
     name = get_task(task).name
-    data = yaml.safe_load(Path(path).read_text())
-    entry = (data or {}).get(f"humotion_gym/{name}") or (data or {}).get(name)
+    data = _read_zoo_yaml(Path(path))
+    entry = data.get(f"humotion_gym/{name}") or data.get(name)
     if entry is None:
         raise ValueError(f"{path}: no entry humotion_gym/{name}")
     out = {k: entry[k] for k in PPO_DEFAULTS if k in entry}
@@ -304,6 +302,68 @@ def load_hyperparams(path: str | Path, task: str) -> dict[str, Any]:
         if key in out:
             out[key] = int(out[key])
     return out
+
+
+def _scalar(text: str) -> Any:
+    text = text.strip().removeprefix("!!float").strip()
+    if len(text) >= 2 and text[0] == text[-1] and text[0] in "'\"":
+        return text[1:-1]
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return {"true": True, "false": False, "null": None}.get(text, text)
+
+
+def _read_zoo_yaml(path: Path) -> dict[str, Any]:
+    """The entries of a zoo hyperparameter file.
+
+    PyYAML reads it when installed; else a reader of the subset that
+    ``hyperparams/ppo.yml`` uses: entries of ``key: scalar`` lines, mappings
+    of ``key: scalar`` lines (``env_kwargs``) and an ``env_wrapper`` list of
+    ``- module.Class:`` items with ``key: scalar`` arguments.
+    """
+    text = path.read_text()
+    if importlib.util.find_spec("yaml") is not None:
+        import yaml
+
+        data = yaml.safe_load(text)
+        return data if isinstance(data, dict) else {}
+    data: dict[str, Any] = {}
+    entry: dict[str, Any] | None = None
+    wrapper: dict[str, Any] | None = None
+    section: dict[str, Any] | None = None
+    for number, raw in enumerate(text.splitlines(), 1):
+        line = raw.split(" #")[0].rstrip() if not raw.lstrip().startswith("#") else ""
+        if not line.strip():
+            continue
+        indent = len(line) - len(line.lstrip())
+        key, sep, value = line.strip().partition(":")
+        if indent == 0:
+            if not sep or value.strip():
+                raise ValueError(f"{path}:{number}: expected an entry 'ENV_ID:', got {raw!r}")
+            entry = data[key.strip()] = {}
+            wrapper = section = None
+        elif entry is None:
+            raise ValueError(f"{path}:{number}: a setting outside any entry")
+        elif key.startswith("- "):
+            wrapper = {}
+            entry.setdefault("env_wrapper", []).append({key[2:].strip(): wrapper})
+        elif indent > 2 and (wrapper if wrapper is not None else section) is not None:
+            target = wrapper if wrapper is not None else section
+            assert target is not None
+            target[key.strip()] = _scalar(value)
+        elif value.strip():
+            entry[key.strip()] = _scalar(value)
+            wrapper = section = None
+        elif key.strip() == "env_wrapper":
+            entry["env_wrapper"] = []
+            wrapper = section = None
+        else:
+            section = entry[key.strip()] = {}
+            wrapper = None
+    return data
 
 
 def _git_commit() -> str:
