@@ -1,0 +1,229 @@
+"""Learned trackers: smoke trainings, saved policies in the agent table, the hybrid, checkpoints."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import humotion_gym  # noqa: F401  (registers the tasks)
+from baselines.agents import HoldAgent, agent_names, make
+from baselines.evaluation import evaluate, run_episode
+from baselines.learned import (
+    CHECKPOINT_DIR,
+    LEARNED,
+    HybridAgent,
+    LearnedAgent,
+    NoCheckpointError,
+    is_learned,
+    load_policy,
+    takes_particles,
+)
+from baselines.leaderboard import run_leaderboard
+from baselines.rl import (
+    PPO_DEFAULTS,
+    TrainConfig,
+    keypoint_sensitivity,
+    load_hyperparams,
+    make_learner_env,
+    new_model,
+    train,
+)
+from humotion_gym.envs import TASKS
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def bc_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A smoke behaviour-cloning run on the synthetic library (a few hundred steps)."""
+    out = tmp_path_factory.mktemp("bc") / "run"
+    config = TrainConfig(
+        "bc", "ArmTrack-v1", steps=240, seed=0, out=str(out),
+        settings={"n_envs": 2, "rounds": 2, "buffer_size": 500, "frame_size": 32},
+    )  # fmt: skip
+    train(config, command="test smoke bc")
+    return out
+
+
+def test_smoke_bc_writes_a_policy_ppo_load_reads(bc_run: Path) -> None:
+    from stable_baselines3 import PPO
+
+    model = PPO.load(bc_run / "model.zip", device="cpu")
+    assert model.observation_space["frame"].shape == (3, 32, 32)
+    config = json.loads((bc_run / "config.json").read_text())
+    assert config["algo"] == "bc" and config["split"] == "train"
+    assert config["env_steps"] == 240 and config["command"] == "test smoke bc"
+    assert "commit" in config and "versions" in config
+    assert sorted(p.name for p in (bc_run / "checkpoints").iterdir()) == [
+        "model_120_steps.zip",
+        "model_240_steps.zip",
+    ]
+
+
+def test_smoke_ppo_trains_checkpoints_and_resumes(tmp_path: Path) -> None:
+    settings = {"n_envs": 2, "n_steps": 64, "batch_size": 64, "n_epochs": 1, "frame_size": 32}
+    config = TrainConfig(
+        "ppo", "BodyTrack-v1", steps=256, seed=1, out=str(tmp_path), settings=settings,
+        checkpoint_every=128,
+    )  # fmt: skip
+    train(config)
+    assert (tmp_path / "model.zip").is_file()
+    assert (tmp_path / "checkpoints" / "model_256_steps.zip").is_file()
+    more = TrainConfig(
+        "ppo", "BodyTrack-v1", steps=384, seed=1, out=str(tmp_path), settings=settings,
+        checkpoint_every=128,
+    )  # fmt: skip
+    train(more)
+    config = json.loads((tmp_path / "config.json").read_text())
+    assert config["resumed_from"] == 256
+    assert config["env_steps"] >= 384
+
+
+def test_bc_resumes_from_its_last_checkpoint(bc_run: Path, tmp_path: Path) -> None:
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(bc_run, run)
+    config = TrainConfig(
+        "bc", "ArmTrack-v1", steps=360, seed=0, out=str(run),
+        settings={"n_envs": 2, "rounds": 3, "buffer_size": 500, "frame_size": 32},
+    )  # fmt: skip
+    train(config)
+    saved = json.loads((run / "config.json").read_text())
+    assert saved["resumed_from"] == 240 and saved["env_steps"] == 360
+
+
+def test_a_saved_policy_scores_through_evaluate_and_round_trips(bc_run: Path) -> None:
+    path = str(bc_run / "model.zip")
+    env = gym.make("humotion_gym/ArmTrack-v1", terminate_on_lost=False)
+    first = make(f"mine={path}", env, seed=0)
+    assert isinstance(first, LearnedAgent) and first.name == "mine"
+    results = evaluate(first, env, 2, seed=0)
+    again = evaluate(make(path, env, seed=0), env, 2, seed=0)
+    assert [r.errors_mm for r in results] == [r.errors_mm for r in again]
+    assert all(np.isfinite(r.mean_error_mm) for r in results)
+
+
+def test_an_untrained_policy_is_hold() -> None:
+    """The policy starts as hold: its action layer copies the previous estimate."""
+    config = TrainConfig("bc", "BodyTrack-v1", steps=1, settings={"frame_size": 32})
+    learner = make_learner_env("BodyTrack-v1", "train", 32)
+    model = new_model(config, learner)
+    env = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
+    policy = run_episode(LearnedAgent(env, model, "untrained"), env, seed=4)
+    hold = run_episode(HoldAgent(env), env, seed=4)
+    np.testing.assert_allclose(policy.errors_mm, hold.errors_mm, atol=1e-3)
+
+
+def test_the_hybrid_without_proposals_is_the_particle_filter(bc_run: Path) -> None:
+    path = str(bc_run / "model.zip")
+    env = gym.make("humotion_gym/ArmTrack-v1", terminate_on_lost=False)
+    hybrid = make(f"pf-tree+{path}", env, n_particles=60, seed=3)
+    assert isinstance(hybrid, HybridAgent)
+    hybrid.proposal_prior.fraction = 0.0
+    pf = make("pf-tree", env, n_particles=60, seed=3)
+    a = run_episode(hybrid, env, seed=2)
+    b = run_episode(pf, env, seed=2)
+    assert a.errors_mm == b.errors_mm
+    # with proposals it is another tracker, still scored by the same loop
+    with_proposals = run_episode(make(f"pf-tree+{path}", env, n_particles=60, seed=3), env, 2)
+    assert with_proposals.errors_mm != b.errors_mm
+
+
+def test_names_and_errors() -> None:
+    assert set(LEARNED) <= set(agent_names())
+    assert is_learned("bc") and is_learned("x=runs/a/model.zip") and is_learned("pf-tree+bc")
+    assert not is_learned("pf-tree") and not is_learned("hold")
+    assert takes_particles("pf-tree+bc") and not takes_particles("bc")
+    env = gym.make("humotion_gym/ArmTrack-v1")
+    with pytest.raises(FileNotFoundError, match="humotion-gym train"):
+        make("nothing/here.zip", env)
+    with pytest.raises(ValueError, match="not a readable"):
+        load_policy(REPO / "pyproject.toml")
+
+
+def test_a_missing_pretrained_checkpoint_is_skipped_by_the_leaderboard(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    monkeypatch.setattr("baselines.learned.CHECKPOINT_DIR", tmp_path)
+    env = gym.make("humotion_gym/ArmTrack-v1")
+    with pytest.raises(NoCheckpointError, match="no pretrained"):
+        make("ppo", env)
+    rows = run_leaderboard(["ArmTrack-v1"], ["ppo"], [10], episodes=1, progress=False)
+    assert [r["agent"] for r in rows] == ["hold", "ppo"] and "skipped" in rows[1]
+
+
+def test_a_policy_for_another_task_is_refused(bc_run: Path) -> None:
+    env = gym.make("humotion_gym/BodyTrack-v1")
+    with pytest.raises(ValueError, match="4 free parameters; BodyTrack-v1 has 25"):
+        make(str(bc_run / "model.zip"), env)
+
+
+def test_leaderboard_runs_a_saved_policy_once_per_task(bc_run: Path) -> None:
+    name = f"bc={bc_run / 'model.zip'}"
+    rows = run_leaderboard(["ArmTrack-v1"], [name], [10, 20], episodes=2, progress=False)
+    assert [(r["agent"], r["particles"]) for r in rows] == [("hold", 0), (name, 0)]
+
+
+def test_keypoint_sensitivity_of_the_root_is_its_range() -> None:
+    """A unit of a root-position action moves every keypoint by the root range (mm)."""
+    env = make_learner_env("BodyTrack-v1", "train", 32)
+    w = keypoint_sensitivity(env, episodes=2)
+    np.testing.assert_allclose(w[:3], TASKS["BodyTrack-v1"].root_range_mm, rtol=1e-6)
+    assert np.all(w >= 0) and np.all(w[3:6] > 50)
+
+
+def test_hyperparams_file_matches_the_built_in_defaults() -> None:
+    for task in TASKS:
+        assert load_hyperparams(REPO / "hyperparams" / "ppo.yml", task) == PPO_DEFAULTS
+
+
+def test_bad_configs_are_refused() -> None:
+    with pytest.raises(ValueError, match="algo"):
+        TrainConfig("sac", "BodyTrack-v1", 10)
+    with pytest.raises(ValueError, match="steps"):
+        TrainConfig("bc", "BodyTrack-v1", 0)
+    with pytest.raises(ValueError, match="unknown"):
+        TrainConfig("bc", "BodyTrack-v1", 10, settings={"n_step": 3})
+
+
+def test_cli_train_and_track_a_saved_policy(tmp_path: Path) -> None:
+    from humotion_gym.cli import main
+
+    out = tmp_path / "run"
+    code = main([
+        "train", "--algo", "bc", "--task", "SideWalk-v1", "--steps", "100", "--out", str(out),
+        "--set", "n_envs=2", "rounds=1", "frame_size=32", "--export", str(tmp_path / "ck"),
+    ])  # fmt: skip
+    assert code == 0
+    assert (tmp_path / "ck" / "bc-SideWalk-v1.zip").is_file()
+    assert (tmp_path / "ck" / "bc-SideWalk-v1.json").is_file()
+    model = out / "model.zip"
+    assert main(["track", "--task", "SideWalk-v1", "--agent", str(model), "--episodes", "1"]) == 0
+    assert main(["train", "--algo", "bc", "--set", "bogus=1", "--out", str(out)]) == 2
+
+
+PRETRAINED = sorted(CHECKPOINT_DIR.glob("*.zip"))
+
+
+@pytest.mark.parametrize("path", PRETRAINED, ids=[p.stem for p in PRETRAINED])
+def test_pretrained_checkpoint_loads_acts_and_says_how_it_was_made(path: Path) -> None:
+    algo, task = path.stem.split("-", 1)
+    assert algo in ("bc", "ppo") and task in TASKS
+    meta = json.loads(path.with_suffix(".json").read_text())
+    assert meta["task"] == task and meta["algo"] == algo and meta["split"] == "train"
+    assert meta["command"].startswith("humotion-gym train") and len(meta["commit"]) == 40
+    assert meta["data_dir"], "a pretrained checkpoint is trained on real motion capture"
+    env = gym.make(f"humotion_gym/{task}", terminate_on_lost=False)
+    result = run_episode(make(algo, env), env, seed=0)
+    assert len(result.errors_mm) == env.unwrapped.episode_frames
+    assert np.all(np.isfinite(result.errors_mm))
+
+
+def test_pretrained_checkpoints_are_small() -> None:
+    total = sum(p.stat().st_size for p in CHECKPOINT_DIR.glob("*"))
+    assert total <= 10 * 2**20
