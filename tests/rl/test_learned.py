@@ -12,6 +12,7 @@ import pytest
 import humotion_gym  # noqa: F401  (registers the tasks)
 from baselines.agents import HoldAgent, agent_names, make
 from baselines.evaluation import evaluate, run_episode
+from baselines.leaderboard import run_leaderboard
 from baselines.learned import (
     CHECKPOINT_DIR,
     LEARNED,
@@ -22,7 +23,6 @@ from baselines.learned import (
     load_policy,
     takes_particles,
 )
-from baselines.leaderboard import run_leaderboard
 from baselines.rl import (
     PPO_DEFAULTS,
     TrainConfig,
