@@ -9,10 +9,15 @@ reported (:class:`CacheWarning`) and rebuilt. With no data configured,
 :func:`default_library` gives the built-in synthetic motions.
 
 Train and test are split by person (named constants below), checked from the
-skeletons: the CMU database by subject number, where the held-out subjects' ASF
-skeletons differ from every training skeleton; the Bandai-Namco sets, whose files
-do not name their actor and share one skeleton across every style, train whole.
-The tracked person is never in a prior's training data.
+skeletons: the CMU database by person (:mod:`humotion_gym.mocap.cmu`: subject
+numbers grouped into persons, :data:`CMU_TEST_SUBJECTS` every number of a test
+person), where the held-out subjects' ASF skeletons differ from every training
+skeleton; the Bandai-Namco sets, whose files do not name their actor and share
+one skeleton across every style, train whole; a user's folders by the rule in
+:func:`user_split` unless ``load_library(split_by=...)`` says otherwise. Every
+clip's person, split and the rule that put it there are in its ``meta``, and
+loading refuses a person on both sides. The tracked person is never in a
+prior's training data.
 """
 
 from __future__ import annotations
@@ -32,22 +37,37 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
+from humotion_gym.body import KEYPOINT_INDEX as _K
+from humotion_gym.mocap.cmu import (
+    CMU_TEST_PERSONS,
+    cmu_description,
+    cmu_label,
+    cmu_person,
+    cmu_subject_id,
+    cmu_test_subjects,
+)
+from humotion_gym.mocap.labels import activity_label
 from humotion_gym.mocap.motion import READ_ERRORS, Motion
 
 #: Version of the cached clip format and retargeting; bump to invalidate caches.
-CACHE_VERSION = "1"
+#: 2: rigs matched by :func:`humotion_gym.mocap.rigmap.match_rig`, leading T-pose dropped.
+CACHE_VERSION = "2"
 
 #: Environment variable naming folders of real mocap (``os.pathsep``-separated).
 MOCAP_ENV = "HUMOTION_MOCAP"
 #: Environment variable overriding the cache folder.
 CACHE_ENV = "HUMOTION_CACHE"
 
-#: CMU subjects held out for testing, each a different person (their ASF
-#: skeletons differ from every training skeleton; checked by
-#: :func:`humotion_gym.mocap.persons.check_person_split`). Subject 2 walks, runs,
+#: CMU subjects held out for testing: every subject number of a test person
+#: (:data:`humotion_gym.mocap.cmu.CMU_TEST_PERSONS`). Subject 2 walks, runs,
 #: jumps, punches, swings a sword and bends (a bit of everything the tasks
-#: track); subject 3 walks on uneven terrain (long walks for the walking tasks).
-CMU_TEST_SUBJECTS: tuple[str, ...] = ("cmu-02", "cmu-03")
+#: track); subject 3 walks on uneven terrain (long walks for the walking tasks);
+#: 16 walks and runs straight, veering and turning; 141 and 143 are CMU's
+#: "General Subject Capture" sessions (walk, run, jump, everyday motion). Of
+#: the shared data (CMU 1, 2, 3, 5, 7) only 2 and 3 are test persons. Their ASF
+#: skeletons differ from every training skeleton (checked by
+#: :func:`humotion_gym.mocap.persons.check_person_split`).
+CMU_TEST_SUBJECTS: tuple[str, ...] = cmu_test_subjects()
 #: Synthetic subjects held out for testing.
 SYNTHETIC_TEST_SUBJECTS: tuple[str, ...] = ("synthetic-05", "synthetic-06")
 
@@ -57,47 +77,34 @@ SYNTHETIC_TEST_SUBJECTS: tuple[str, ...] = ("synthetic-05", "synthetic-06")
 #: clips train. A style held out of them is "style held out, same performers".
 TEST_SUBJECTS: frozenset[str] = frozenset(CMU_TEST_SUBJECTS + SYNTHETIC_TEST_SUBJECTS)
 
-#: CMU's descriptions of the trials of subjects 1-3 (mocap.cs.cmu.edu); other
-#: subjects' descriptions come from an ``index.csv`` beside the files if any.
-CMU_DESCRIPTIONS: dict[str, str] = {
-    "01_01": "playground - forward jumps, turn around",
-    "02_01": "walk",
-    "02_02": "walk",
-    "02_03": "run/jog",
-    "02_04": "jump, balance",
-    "02_05": "punch/strike",
-    "02_06": "bend over, scoop up, rise, lift arm",
-    "02_07": "swordplay",
-    "02_08": "swordplay",
-    "02_09": "swordplay",
-    "02_10": "wash self",
-    "03_01": "walk on uneven terrain",
-    "03_02": "walk on uneven terrain",
-    "03_03": "walk on uneven terrain",
-    "03_04": "walk on uneven terrain",
+#: The split rule of each known data set, as the library reports it.
+SPLIT_RULES: Mapping[str, str] = {
+    "cmu": f"cmu-persons (test persons {', '.join(CMU_TEST_PERSONS)})",
+    "bandai-1": "bandai (all train: one skeleton, actors unnamed)",
+    "bandai-2": "bandai (all train: one skeleton, actors unnamed)",
+    "synthetic": "synthetic (test subjects 05, 06)",
 }
-
-# Coarse activity labels from a free-text description: the first rule that
-# matches wins, so "walk on uneven terrain" is a walk and "run/jog" a run.
-_LABEL_RULES: tuple[tuple[str, str], ...] = (
-    (r"\bwalk", "walk"),
-    (r"\b(run|jog)", "run"),
-    (r"\b(jump|hop)", "jump"),
-    (r"\bdance", "dance"),
-    (r"\b(punch|strike|box)", "punch"),
-    (r"\bsword", "swordplay"),
-    (r"\bwash", "wash"),
-    (r"\b(bend|scoop|lift|pick)", "lift"),
-)
+#: What ``load_library(split_by=...)`` accepts for a user's clips: a function of
+#: a clip's :class:`ClipSource` returning ``"train"`` or ``"test"``, or a mapping
+#: from clip ids, subject ids or person ids to ``"train"``/``"test"``.
+SplitBy = Callable[["ClipSource"], str] | Mapping[str, str]
+#: The default rule for a user's folders (:func:`user_split`).
+USER_SPLIT_RULE = "user-hash (1 person in 5 to test, by SHA-256 of the person id)"
 
 
-def activity_label(description: str) -> str:
-    """A coarse activity label (walk, run, jump, dance...) from a description."""
-    text = description.lower()
-    for pattern, label in _LABEL_RULES:
-        if re.search(pattern, text):
-            return label
-    return "other"
+def user_split(person: str) -> str:
+    """The default split of a user's person: ``"test"`` for one in five, by hash.
+
+    The person's id (its folder name) is hashed with SHA-256 and the person is
+    a test person when the hash is 0 modulo 5: stable across runs, machines
+    and added folders, and independent of load order.
+
+    Example:
+        >>> sorted({user_split(f"actor-{i}") for i in range(20)})
+        ['test', 'train']
+    """
+    digest = int(hashlib.sha256(person.encode("utf-8")).hexdigest(), 16)
+    return "test" if digest % 5 == 0 else "train"
 
 
 def default_cache_dir() -> Path:
@@ -120,6 +127,8 @@ class ClipSource:
         label: Coarse activity label.
         description: Free text.
         clip_id: ``"{dataset}/{file stem}"``.
+        person: Who performed it: a CMU person (:func:`~humotion_gym.mocap.cmu.cmu_person`),
+            ``"bandai"`` for the Bandai-Namco actors, else the subject id.
     """
 
     path: Path
@@ -129,10 +138,18 @@ class ClipSource:
     label: str
     description: str
     clip_id: str
+    person: str = ""
+
+    @property
+    def who(self) -> str:
+        """The person id, or the subject id when no person is known."""
+        return self.person or self.subject
 
 
 _BANDAI = re.compile(r"^dataset-(\d)_(?P<content>[a-z\-]+)_(?P<style>[a-z\-]+)_\d+$")
-_CMU = re.compile(r"^(?P<subject>\d+)_(?P<trial>\d+)$")
+# CMU's names (``02_01``, ``143_07``), also as BVH conversions name them
+# (``005_01``, ``cmu_02_01``, ``02_01_poses``).
+_CMU = re.compile(r"^(?:cmu[_-]?)?(?P<subject>\d{1,3})_(?P<trial>\d{1,3})(?:[_-][A-Za-z]\w*)?$")
 
 
 def _read_cmu_index(folder: Path) -> dict[str, str]:
@@ -152,7 +169,12 @@ def _read_cmu_index(folder: Path) -> dict[str, str]:
 
 
 def describe_file(path: Path, skeleton: Path | None = None) -> ClipSource:
-    """Dataset, subject, label and id of a mocap file, from its name and folder."""
+    """Dataset, subject, person, label and id of a mocap file, from its name and folder.
+
+    A CMU trial (``SS_TT``, in any format) takes CMU's description from the
+    packaged index (:mod:`humotion_gym.mocap.cmu`), else from an ``index.csv``
+    beside the files, and its person from the index's person groups.
+    """
     stem = path.stem
     m = _BANDAI.match(stem)
     if m:
@@ -160,19 +182,75 @@ def describe_file(path: Path, skeleton: Path | None = None) -> ClipSource:
         content, style = m["content"], m["style"]
         return ClipSource(
             path, skeleton, dataset, f"{dataset}/{style}", content,
-            f"Bandai-Namco {content}, {style} style", f"{dataset}/{stem}",
+            f"Bandai-Namco {content}, {style} style", f"{dataset}/{stem}", "bandai",
         )  # fmt: skip
     m = _CMU.match(stem)
     if m:
         subject, trial = int(m["subject"]), int(m["trial"])
         key = f"{subject:02d}_{trial:02d}"
-        desc = CMU_DESCRIPTIONS.get(key) or _read_cmu_index(path.parent).get(key, "")
+        desc = cmu_description(subject, trial) or _read_cmu_index(path.parent).get(key, "")
         return ClipSource(
-            path, skeleton, "cmu", f"cmu-{subject:02d}",
-            activity_label(desc) if desc else "other", desc, f"cmu/{stem}",
+            path, skeleton, "cmu", cmu_subject_id(subject), cmu_label(subject, trial, desc),
+            desc, f"cmu/{stem}", cmu_person(subject),
         )  # fmt: skip
     label = activity_label(stem)
-    return ClipSource(path, skeleton, "user", path.parent.name or "user", label, "", f"user/{stem}")
+    subject = path.parent.name or "user"
+    return ClipSource(path, skeleton, "user", subject, label, "", f"user/{stem}", subject)
+
+
+def assign_split(src: ClipSource, split_by: SplitBy | None = None) -> tuple[str, str]:
+    """A clip's split and the rule that decided it.
+
+    Known data sets follow the benchmark's split (:data:`TEST_SUBJECTS`,
+    :data:`SPLIT_RULES`). A user's clip follows ``split_by`` when given (a
+    function of the :class:`ClipSource`, or a mapping looked up by clip id,
+    then subject id, then person id; a clip the mapping does not name falls
+    back on the default), else :func:`user_split` of its person.
+
+    Returns:
+        ``("train" | "test", rule)``.
+
+    Raises:
+        ValueError: If ``split_by`` gives something other than ``"train"``/``"test"``.
+    """
+    if src.dataset != "user":
+        split = "test" if src.subject in TEST_SUBJECTS else "train"
+        return split, SPLIT_RULES.get(src.dataset, src.dataset)
+    if split_by is not None:
+        if callable(split_by):
+            value, rule = split_by(src), f"split_by={getattr(split_by, '__name__', 'function')}"
+        else:
+            key = next((k for k in (src.clip_id, src.subject, src.who) if k in split_by), None)
+            value, rule = (split_by[key], f"split_by mapping ({key})") if key else (None, "")
+        if value is not None:
+            if value not in ("train", "test"):
+                raise ValueError(
+                    f"split_by: expected 'train' or 'test' for {src.clip_id}, got {value!r}"
+                )
+            return value, rule
+    return user_split(src.who), USER_SPLIT_RULE
+
+
+class PersonSplitError(ValueError):
+    """One person's clips were put on both sides of the split (names them)."""
+
+
+def check_person_sides(assigned: Sequence[tuple[ClipSource, str]]) -> None:
+    """Refuse a person with clips in both splits.
+
+    Raises:
+        PersonSplitError: Naming each such person and one clip on each side.
+    """
+    sides: dict[str, dict[str, str]] = {}
+    for src, split in assigned:
+        sides.setdefault(src.who, {}).setdefault(split, src.clip_id)
+    both = {p: v for p, v in sides.items() if len(v) > 1}
+    if both:
+        lines = [f"  {p}: train {v['train']}, test {v['test']}" for p, v in sorted(both.items())]
+        raise PersonSplitError(
+            f"{len(both)} person(s) on both sides of the split (split_by must put all of a "
+            "person's clips on one side):\n" + "\n".join(lines)
+        )
 
 
 def _asf_for(amc: Path) -> Path | None:
@@ -342,36 +420,89 @@ def _read_clip_entry(path: Path, src: ClipSource, info: Mapping[str, str]) -> Mo
     return motion
 
 
-def load_clip(src: ClipSource, fps: float | None = 30.0) -> Motion:
+def _with_split(motion: Motion, src: ClipSource, split: tuple[str, str]) -> Motion:
+    """The motion with its person and split (which may change without the file) in ``meta``."""
+    want = {"person": src.who, "split": split[0], "split_rule": split[1]}
+    if all(motion.meta.get(k) == v for k, v in want.items()):
+        return motion
+    return dataclasses.replace(motion, meta={**motion.meta, **want})
+
+
+def load_clip(
+    src: ClipSource, fps: float | None = 30.0, split: tuple[str, str] | None = None
+) -> Motion:
     """Parse and retarget one clip (no cache).
+
+    The rig is matched by :func:`humotion_gym.mocap.rigmap.match_rig` (a
+    built-in profile, else names and topology); a T-pose at frame 0 is dropped
+    (:func:`humotion_gym.mocap.tpose.is_tpose_frame`). ``meta`` records the
+    rig, how it was matched and how sure, the T-pose, the person and the split.
+
+    Args:
+        src: The clip.
+        fps: The frame rate (None keeps the file's).
+        split: ``(split, rule)``; :func:`assign_split` with no ``split_by`` when None.
 
     Raises:
         MocapFormatError: If the file is malformed.
         RigError: If its skeleton cannot be mapped onto the cone body.
     """
+    from humotion_gym.errors import RigError
     from humotion_gym.mocap.asfamc import load_amc, load_asf
     from humotion_gym.mocap.bvh import load_bvh
-    from humotion_gym.mocap.retarget import retarget_clip
+    from humotion_gym.mocap.retarget import retarget_keypoints, velocities
+    from humotion_gym.mocap.rigmap import match_rig
+    from humotion_gym.mocap.rigs import guess_units_to_mm
+    from humotion_gym.mocap.tpose import is_tpose_frame
 
     if src.skeleton is not None:
         clip = load_amc(src.path, load_asf(src.skeleton))
     else:
         clip = load_bvh(src.path)
-    result = retarget_clip(clip, fps=fps)
+    match = match_rig(clip)
+    units = clip.units_to_mm
+    if units is None:
+        # As retarget_clip: the unit from the right leg's length in file units.
+        raw = match.profile.keypoints_from(clip, 1.0)
+        hip, knee, ankle = (raw[:, _K[f"r_{j}"]] for j in ("hip", "knee", "ankle"))
+        leg = np.nanmedian(
+            np.linalg.norm(hip - knee, axis=-1) + np.linalg.norm(knee - ankle, axis=-1)
+        )
+        units, _ = guess_units_to_mm(float(leg))
+    keypoints = match.profile.keypoints_from(clip, units)
+    valid = np.asarray(clip.frame_valid, dtype=bool)
+    tpose = bool(valid[:2].all()) and is_tpose_frame(keypoints[:2])
+    if tpose:
+        keypoints, valid = keypoints[1:], valid[1:]
+    if not np.any(valid):
+        raise RigError(f"{src.path}: no valid frame to retarget")
+    params, observed, kp, shape = retarget_keypoints(keypoints, clip.fps, fps, valid)
+    out_fps = clip.fps if fps is None else fps
+    split, rule = split if split is not None else assign_split(src)
     return Motion(
         clip_id=src.clip_id,
-        params=result.params,
-        velocities=result.velocities,
-        observed=result.observed,
-        fps=result.fps,
-        shape=result.shape,
-        keypoints=result.keypoints,
+        params=params,
+        velocities=velocities(params, out_fps),
+        observed=observed,
+        fps=out_fps,
+        shape=shape,
+        keypoints=kp,
         subject=src.subject,
         label=src.label,
         source=str(src.path),
         dataset=src.dataset,
         description=src.description,
-        meta={"rig": result.rig.name, "units_to_mm": f"{result.units_to_mm:g}"},
+        meta={
+            "rig": match.profile.name,
+            "rig_match": match.method,
+            "rig_confidence": f"{match.confidence:.2f}",
+            "rig_summary": match.summary(),
+            "units_to_mm": f"{units:g}",
+            "tpose": "dropped frame 0" if tpose else "",
+            "person": src.who,
+            "split": split,
+            "split_rule": rule,
+        },
     )
 
 
@@ -383,7 +514,8 @@ class MotionLibrary:
         motions: The clips, in load order.
         test_subjects: The subjects of the ``"test"`` split; None for the
             project's held-out persons (:data:`TEST_SUBJECTS`). A validation
-            fold (:meth:`validation_fold`) names its own.
+            fold (:meth:`validation_fold`) names its own; :func:`load_library`
+            adds a user's test persons to :data:`TEST_SUBJECTS`.
     """
 
     motions: tuple[Motion, ...]
@@ -428,6 +560,12 @@ class MotionLibrary:
     def labels(self) -> list[str]:
         """Distinct labels, sorted."""
         return sorted({m.label for m in self.motions})
+
+    @property
+    def split_rules(self) -> list[str]:
+        """The rules that split the clips (from each clip's ``meta``), sorted."""
+        rules = {m.meta.get("split_rule") or SPLIT_RULES.get(m.dataset, "") for m in self.motions}
+        return sorted(r for r in rules if r)
 
     @property
     def is_synthetic(self) -> bool:
@@ -507,6 +645,7 @@ class MotionLibrary:
             f"{len(self)} clips{kind}, {self.total_frames} frames, {seconds:.0f} s, "
             f"{len(self.subjects)} subjects; test split: {len(self.split('test'))} clips"
         )
+        lines += [f"split rule: {r}" for r in self.split_rules]
         return "\n".join(lines)
 
 
@@ -516,6 +655,7 @@ def load_library(
     cache_dir: str | Path | None = None,
     use_cache: bool = True,
     progress: bool = True,
+    split_by: SplitBy | None = None,
 ) -> MotionLibrary:
     """Load every clip under the given files and folders.
 
@@ -535,11 +675,28 @@ def load_library(
         cache_dir: Where to cache (``default_cache_dir()`` when None).
         use_cache: Read and write the cache.
         progress: Show a progress bar while parsing.
+        split_by: How to split a user's clips (those of no known data set):
+            a function of a :class:`ClipSource` returning ``"train"`` or
+            ``"test"``, or a mapping from clip, subject or person ids to
+            them; :func:`user_split` (one person in five to test, by hash)
+            for clips it leaves out. CMU, Bandai-Namco and synthetic clips
+            keep the benchmark's split. Each clip's ``meta["split_rule"]``
+            and :attr:`MotionLibrary.split_rules` say which rule was used.
 
     Returns:
-        The library, clips sorted by path.
+        The library, clips sorted by path; its test split is
+        :data:`TEST_SUBJECTS` plus the user's test persons.
+
+    Raises:
+        PersonSplitError: If ``split_by`` puts one person on both sides.
     """
     sources = find_clips(paths)
+    assigned = [(src, assign_split(src, split_by)) for src in sources]
+    check_person_sides([(src, split[0]) for src, split in assigned])
+    splits = {src.clip_id: split for src, split in assigned}
+    user_test = frozenset(
+        src.subject for src, (split, _) in assigned if src.dataset == "user" and split == "test"
+    )
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     clip_dir = cache / "clips"
     motions: list[Motion] = []
@@ -554,7 +711,9 @@ def load_library(
         problem = blocked
         if target is not None and (target.exists() or target.is_symlink()):
             try:
-                motions.append(_read_clip_entry(target, src, info))
+                motions.append(
+                    _with_split(_read_clip_entry(target, src, info), src, splits[src.clip_id])
+                )
                 continue
             except CACHE_ERRORS as exc:
                 why = str(exc).removeprefix(f"{target}: ")
@@ -564,7 +723,7 @@ def load_library(
         todo.append((src, target, info))
     bar = tqdm(todo, desc="parsing mocap", unit="clip", disable=not progress or len(todo) < 2)
     for src, target, info in bar:
-        motion = load_clip(src, fps)
+        motion = load_clip(src, fps, splits[src.clip_id])
         if target is not None:
             try:
                 write_atomically(target, lambda tmp, m=motion, i=info: m.save(tmp, extra=i))
@@ -573,7 +732,7 @@ def load_library(
         motions.append(motion)
     order = {src.clip_id: i for i, src in enumerate(sources)}
     motions.sort(key=lambda m: order.get(m.clip_id, 0))
-    return MotionLibrary(tuple(motions))
+    return MotionLibrary(tuple(motions), TEST_SUBJECTS | user_test if user_test else None)
 
 
 def configured_data_dirs(data_dir: str | Path | Sequence[str | Path] | None = None) -> list[Path]:

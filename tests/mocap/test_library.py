@@ -66,7 +66,11 @@ def test_motion_save_load_round_trip(tmp_path):
         ("dataset-1_walk-back_proud_003.bvh", "bandai-1", "bandai-1/proud", "walk-back"),
         ("dataset-2_run_masculine_012.bvh", "bandai-2", "bandai-2/masculine", "run"),
         ("02_03.amc", "cmu", "cmu-02", "run"),
-        ("07_01.bvh", "cmu", "cmu-07", "other"),
+        ("07_01.bvh", "cmu", "cmu-07", "walk"),
+        ("35_17.bvh", "cmu", "cmu-35", "run"),
+        ("cmu_16_11.bvh", "cmu", "cmu-16", "walk"),
+        ("143_25_poses.bvh", "cmu", "cmu-143", "reach"),
+        ("13_99.bvh", "cmu", "cmu-13", "other"),
         ("my_take.bvh", "user", "x", "other"),
     ],
 )

@@ -1,0 +1,522 @@
+"""Map any humanoid skeleton onto the 15 keypoints, and say how sure the mapping is.
+
+:func:`match_rig` first tries the built-in profiles (:data:`humotion_gym.mocap.rigs.RIGS`);
+when none fits it maps the hierarchy itself (:func:`map_humanoid`):
+
+1. **Names.** Each joint name is split into words (CamelCase, ``_ . - :`` and
+   spaces; a namespace such as ``mixamorig:`` is dropped) and read for a side
+   marker in any position (``L``, ``Left``, ``l_``, ``_L``, ``.L``, ``lf``,
+   ``lfemur``) and a body part: thigh / upleg / upper leg / femur / hip;
+   shin / leg / lower leg / calf / tibia / knee; foot / ankle; upper arm /
+   arm / humerus / shoulder / shldr; forearm / lower arm / elbow / radius /
+   ulna; hand / wrist; neck; head; hips / pelvis / root. Fingers, toes, eyes,
+   twist and roll helpers are never candidates.
+2. **Topology.** A limb is a chain: the foot (hand) candidate nearest the
+   root, the shin (forearm) candidate nearest above it, the thigh (upper arm)
+   candidate nearest above that. A link without a name is the chain's next
+   joint up (or down, for a missing foot or hand). The pelvis is where the two
+   legs meet (their lowest common ancestor); the neck is the head's parent
+   when no joint is called neck. Without side or limb names at all, the
+   hierarchy is read as a body: the branch point with the legs and the spine,
+   the chest where the spine splits into two arms and the head (the two
+   branches alike in shape are the arms), each limb's three keypoints at the
+   two longest consecutive bones of its chain, and left and right from the
+   geometry of the first frame (left is ``up x forward`` with forward the
+   toes' direction, or +z, the BVH convention, without toes).
+3. **Where points sit.** In BVH a joint's point is where its bone starts
+   (``LeftUpLeg`` is the hip); in ASF/AMC a bone's point is its tip (``lfemur``
+   is the knee), so every ASF keypoint is taken one bone higher.
+
+The result, :class:`RigMatch`, names the profile, how each keypoint was
+found (``profile``, ``name``, ``topology``, ``extended`` or ``fallback``) and
+a confidence (the mean over keypoints of 1 for a profile or name, 0.8 for an
+extended or fallback point, 0.5 for topology). Where the mapper cannot place
+every keypoint, :class:`~humotion_gym.errors.RigError` lists the keypoints it
+could not find and the candidates it saw.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from humotion_gym.body import KEYPOINT_NAMES
+from humotion_gym.errors import RigError
+from humotion_gym.mocap.rigs import (
+    RIGS,
+    Extend,
+    KeypointSource,
+    RigProfile,
+    guess_format,
+)
+from humotion_gym.mocap.skeleton import SkeletonClip
+
+#: Confidence given to a keypoint by how it was found.
+METHOD_CONFIDENCE: Mapping[str, float] = {
+    "profile": 1.0,
+    "name": 1.0,
+    "extended": 0.8,
+    "fallback": 0.8,
+    "topology": 0.5,
+}
+
+# Head top extended from the head joint when nothing marks the crown (as rigs.py).
+_HEAD_EXTENSION_MM = 200.0
+
+_LEFT = {"l", "left", "lf", "lft"}
+_RIGHT = {"r", "right", "rt", "rgt"}
+_NOISE = {"cc", "base", "bip", "def", "org", "mch", "jnt", "bone", "character", "joint"}
+_EXCLUDE = re.compile(
+    r"\b(finger|thumb|index|middle|ring|pinky|little|toe|toes|ball|heel|eye|jaw|tongue|"
+    r"teeth|twist|roll|share|nub|end|helper|ik|pole|target|ctrl|breast|hair|carpal|"
+    r"metacarpal|weapon|prop|top)\b"
+)
+_SEGMENTS: tuple[tuple[str, re.Pattern[str]], ...] = (
+    ("hand", re.compile(r"\b(hand|wrist|palm)\b")),
+    ("foot", re.compile(r"\b(foot|ankle)\b")),
+    ("forearm", re.compile(r"\b(fore ?arm|lower ?arm|low ?arm|arm ?lower|elbow|radius|ulna)\b")),
+    ("upperarm", re.compile(r"\b(upper ?arm|up ?arm|arm ?upper|arm|humerus|shoulder|shldr)\b")),
+    ("thigh", re.compile(r"\b(thigh|up ?leg|upper ?leg|leg ?upper|femur|hip ?joint|hip)\b")),
+    ("shin", re.compile(r"\b(shin|calf|tibia|knee|crus|shank|low(?:er)? ?leg|leg ?lower|leg)\b")),
+)
+_PELVIS = re.compile(r"\b(hips?|pelvis|root)\b")
+_NECK = re.compile(r"neck")
+_HEAD = re.compile(r"\bhead\b")
+_HEAD_TOP = re.compile(r"\bhead ?(top|end|nub|tip)\b")
+_GLUED = re.compile(
+    r"^(l|r|lf|rt)(thigh|femur|tibia|shin|foot|hand|wrist|radius|humerus|clavicle|hipjoint|"
+    r"collar|shldr|forearm|upleg|leg|arm|knee|elbow|shoulder|ankle|hip|calf|uparm|lowarm|"
+    r"toes|fingers|thumb|ulna)$"
+)
+# Each limb: (distal, middle, proximal) segments and the keypoints they give.
+_LIMBS: tuple[tuple[tuple[str, str, str], tuple[str, str, str]], ...] = (
+    (("foot", "shin", "thigh"), ("ankle", "knee", "hip")),
+    (("hand", "forearm", "upperarm"), ("wrist", "elbow", "shoulder")),
+)
+
+
+@dataclass(frozen=True)
+class RigMatch:
+    """How a skeleton was mapped onto the 15 keypoints.
+
+    Attributes:
+        profile: The profile used (a built-in one, or one made by the mapper).
+        method: ``"profile"`` (a built-in profile found every keypoint),
+            ``"names"`` (the mapper, every keypoint by name), ``"names+topology"``
+            or ``"topology"``.
+        how: Keypoint -> ``"profile"``, ``"name"``, ``"topology"``,
+            ``"extended"`` or ``"fallback"``.
+        confidence: Mean of :data:`METHOD_CONFIDENCE` over the keypoints (0..1).
+        notes: Lines on what was guessed.
+    """
+
+    profile: RigProfile
+    method: str
+    how: Mapping[str, str]
+    confidence: float
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+    def summary(self) -> str:
+        """One line: method, confidence, and which keypoints were not found by name."""
+        weak = sorted(k for k, h in self.how.items() if h not in ("profile", "name"))
+        tail = f"; {', '.join(f'{k} by {self.how[k]}' for k in weak)}" if weak else ""
+        return f"{self.method} ({self.confidence:.2f}){tail}"
+
+
+def _tokens(name: str) -> tuple[str | None, str]:
+    """A joint name's side (``"l"``, ``"r"`` or None) and its body words."""
+    base = name.rsplit(":", 1)[-1]
+    text = re.sub(r"([a-z])([A-Z])", r"\1 \2", base)
+    text = re.sub(r"([A-Z]+)([A-Z][a-z])", r"\1 \2", text)
+    text = re.sub(r"([A-Za-z])(\d)|(\d)([A-Za-z])", r"\1\3 \2\4", text)
+    raw = [t for t in re.split(r"[\s_.\-|]+", text.lower()) if t]
+    side: str | None = None
+    out: list[str] = []
+    for t in raw:
+        glued = _GLUED.match(t)
+        if glued and t not in ("leg", "arm"):
+            side = "l" if glued[1] in _LEFT else "r"
+            out.append(glued[2])
+        elif t in _LEFT and side is None:
+            side = "l"
+        elif t in _RIGHT and side is None:
+            side = "r"
+        elif t not in _NOISE and not t.isdigit():
+            out.append(t)
+    words = " ".join(out).replace("hipjoint", "hip joint")
+    return side, words
+
+
+def _segment(words: str) -> str | None:
+    if _EXCLUDE.search(words):
+        return None
+    for seg, pattern in _SEGMENTS:
+        if pattern.search(words):
+            return seg
+    return None
+
+
+class _Tree:
+    def __init__(self, names: Sequence[str], parents: Sequence[int]) -> None:
+        self.names = list(names)
+        self.parents = [int(p) for p in parents]
+        self.children: list[list[int]] = [[] for _ in self.names]
+        for i, p in enumerate(self.parents):
+            if p >= 0:
+                self.children[p].append(i)
+        self.depth = [len(self.ancestors(i)) for i in range(len(self.names))]
+
+    def ancestors(self, i: int) -> list[int]:
+        out = []
+        p = self.parents[i]
+        while p >= 0:
+            out.append(p)
+            p = self.parents[p]
+        return out
+
+    def lca(self, a: int, b: int) -> int:
+        up = {a, *self.ancestors(a)}
+        for j in (b, *self.ancestors(b)):
+            if j in up:
+                return j
+        return -1
+
+    def is_end(self, i: int) -> bool:
+        return re.search(r"_End\d*$", self.names[i]) is not None
+
+    def subtree_height(self, i: int) -> int:
+        kids = [c for c in self.children[i] if not self.is_end(c)]
+        return 1 + max((self.subtree_height(c) for c in kids), default=0)
+
+    def subtree_size(self, i: int) -> int:
+        return 1 + sum(self.subtree_size(c) for c in self.children[i] if not self.is_end(c))
+
+
+@dataclass
+class _Mapping:
+    joints: dict[str, int] = field(default_factory=dict)  # keypoint -> point index (BVH sense)
+    how: dict[str, str] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+
+def _limbs_by_names(tree: _Tree, cands: dict[tuple[str | None, str], list[int]], out: _Mapping):
+    for side in ("l", "r"):
+        for segs, kps in _LIMBS:
+            distal_c = [i for i in cands.get((side, segs[0]), [])]
+            middle_c = cands.get((side, segs[1]), [])
+            prox_c = cands.get((side, segs[2]), [])
+            chain: list[int | None] = [None, None, None]
+            how = ["name", "name", "name"]
+            if distal_c:
+                chain[0] = min(distal_c, key=lambda i: tree.depth[i])
+            elif middle_c:
+                m = max(middle_c, key=lambda i: tree.depth[i])
+                kids = [c for c in tree.children[m] if not tree.is_end(c)]
+                if kids:
+                    chain[0], how[0] = kids[0], "topology"
+            if chain[0] is not None:
+                up = tree.ancestors(chain[0])
+                named = [a for a in up if a in middle_c]
+                chain[1] = named[0] if named else (up[0] if up else None)
+                how[1] = "name" if named else "topology"
+            if chain[1] is not None:
+                up = tree.ancestors(chain[1])
+                named = [a for a in up if a in prox_c]
+                chain[2] = named[0] if named else (up[0] if up else None)
+                how[2] = "name" if named else "topology"
+            for kp, j, h in zip(kps, chain, how, strict=True):
+                if j is not None:
+                    out.joints[f"{side}_{kp}"] = j
+                    out.how[f"{side}_{kp}"] = h
+
+
+def _chain(tree: _Tree, start: int) -> list[int]:
+    """From ``start`` down the child with the tallest subtree."""
+    out = [start]
+    while True:
+        kids = [c for c in tree.children[out[-1]] if not tree.is_end(c)]
+        if not kids:
+            return out
+        out.append(max(kids, key=tree.subtree_height))
+
+
+def _three_on_chain(chain: list[int], pos: NDArray[np.float64]) -> list[int] | None:
+    """The joints at the two longest consecutive bones of a chain: (proximal, middle, distal)."""
+    if len(chain) < 3:
+        return None
+    seg = np.linalg.norm(pos[chain[1:]] - pos[chain[:-1]], axis=-1)
+    k = int(np.argmax(seg[:-1] + seg[1:]))
+    return [chain[k], chain[k + 1], chain[k + 2]]
+
+
+def _by_topology(tree: _Tree, pos: NDArray[np.float64] | None, out: _Mapping) -> None:
+    """Legs, arms and head from the hierarchy's shape; sides from the first frame."""
+    if pos is None:
+        out.notes.append("no positions to read the hierarchy's shape from")
+        return
+    branchy = [
+        i
+        for i in range(len(tree.names))
+        if len([c for c in tree.children[i] if not tree.is_end(c)]) >= 3
+    ]
+    if len(branchy) < 2:
+        out.notes.append("the hierarchy has no two joints with three branches (pelvis, chest)")
+        return
+    pelvis = min(branchy, key=lambda i: tree.depth[i])
+    kids = [c for c in tree.children[pelvis] if not tree.is_end(c)]
+    spine = max(kids, key=tree.subtree_size)
+    legs = sorted((c for c in kids if c != spine), key=tree.subtree_height, reverse=True)[:2]
+    in_spine = [i for i in branchy if spine in (i, *tree.ancestors(i))]
+    chest = min(in_spine, key=tree.depth.__getitem__, default=None)
+    if chest is None or len(legs) < 2:
+        out.notes.append("could not find two legs and a chest below the pelvis")
+        return
+    branches = [c for c in tree.children[chest] if not tree.is_end(c)]
+    shapes = {c: (tree.subtree_height(c), tree.subtree_size(c)) for c in branches}
+    pair = None
+    for a in branches:
+        for b in branches:
+            if a < b and shapes[a] == shapes[b] and (pair is None or shapes[a] > shapes[pair[0]]):
+                pair = (a, b)
+    if pair is None:
+        pair = tuple(sorted(branches, key=tree.subtree_size, reverse=True)[:2])
+        out.notes.append("no two chest branches alike in shape; took the two largest as arms")
+    head_branch = [c for c in branches if c not in pair]
+    up = pos[chest] - pos[pelvis]
+    up /= np.linalg.norm(up) or 1.0
+    forward = np.array([0.0, 0.0, 1.0])
+    left = np.cross(up, forward)
+    out.notes.append("left and right from the first frame, facing +z (the BVH convention)")
+    limbs = ((("hip", "knee", "ankle"), legs), (("shoulder", "elbow", "wrist"), list(pair)))
+    for kps, starts in limbs:
+        triples = [_three_on_chain(_chain(tree, s), pos) for s in starts]
+        if any(t is None for t in triples):
+            continue
+        sides = [float(np.dot(pos[t[0]] - pos[pelvis], left)) for t in triples]
+        order = ("l", "r") if sides[0] > sides[1] else ("r", "l")
+        for side, t in zip(order, triples, strict=True):
+            for kp, j in zip(kps, t, strict=True):
+                key = f"{side}_{kp}"
+                if key not in out.joints:
+                    out.joints[key] = j
+                    out.how[key] = "topology"
+    if "pelvis" not in out.joints:
+        out.joints["pelvis"], out.how["pelvis"] = pelvis, "topology"
+    if head_branch and "head" not in out.joints:
+        chain = _chain(tree, head_branch[0])
+        out.joints["head"] = chain[-1]
+        out.how["head"] = "topology"
+        if "neck" not in out.joints:
+            out.joints["neck"] = chain[0] if len(chain) > 1 else chest
+            out.how["neck"] = "topology"
+
+
+def _candidates(tree: _Tree) -> dict[tuple[str | None, str], list[int]]:
+    cands: dict[tuple[str | None, str], list[int]] = {}
+    for i, name in enumerate(tree.names):
+        if tree.is_end(i):
+            continue
+        side, words = _tokens(name)
+        if side is not None:
+            seg = _segment(words)
+            if seg is not None:
+                cands.setdefault((side, seg), []).append(i)
+        elif _HEAD_TOP.search(words):
+            cands.setdefault((None, "head_top"), []).append(i)
+        elif _EXCLUDE.search(words):
+            continue
+        elif _HEAD.search(words):
+            cands.setdefault((None, "head"), []).append(i)
+        elif _NECK.search(words):
+            cands.setdefault((None, "neck"), []).append(i)
+        elif _PELVIS.search(words):
+            cands.setdefault((None, "pelvis"), []).append(i)
+    return cands
+
+
+def _describe_candidates(tree: _Tree, cands: dict[tuple[str | None, str], list[int]]) -> str:
+    if not cands:
+        return "none (no joint name reads as a body part)"
+    parts = []
+    for (side, seg), idx in sorted(cands.items(), key=lambda kv: (kv[0][1], kv[0][0] or "")):
+        label = f"{side}_{seg}" if side else seg
+        parts.append(f"{label}: {[tree.names[i] for i in idx]}")
+    return "; ".join(parts)
+
+
+def map_humanoid(
+    point_names: Sequence[str],
+    parents: Sequence[int],
+    fmt: str,
+    path: str = "<skeleton>",
+    positions: NDArray[np.float64] | None = None,
+) -> RigMatch:
+    """Map a humanoid hierarchy by joint names and topology (see the module docstring).
+
+    Args:
+        point_names: The skeleton's points (BVH joints and end sites, or ASF bones).
+        parents: ``(P,)`` parent index of each point, -1 for the root.
+        fmt: ``"bvh"`` (points are joint origins) or ``"asf"`` (bone tips).
+        path: The file, for messages.
+        positions: ``(P, 3)`` positions of every point in one frame (the
+            first valid one), for the up axis and for reading a hierarchy
+            without names; None skips both (the up axis is then y).
+
+    Returns:
+        The match; its profile names the skeleton's own points.
+
+    Raises:
+        RigError: If some keypoint cannot be placed; the message lists them
+            and the candidates seen.
+    """
+    if fmt not in ("bvh", "asf"):
+        raise RigError(f"{path}: format must be 'bvh' or 'asf', got {fmt!r}")
+    if len(parents) != len(point_names):
+        raise RigError(f"{path}: {len(point_names)} point names but {len(parents)} parents")
+    tree = _Tree(point_names, parents)
+    cands = _candidates(tree)
+    out = _Mapping()
+    _limbs_by_names(tree, cands, out)
+    if "head" in {s for _, s in cands}:
+        out.joints["head"] = min(cands[(None, "head")], key=lambda i: tree.depth[i])
+        out.how["head"] = "name"
+    if (None, "neck") in cands:
+        head = out.joints.get("head")
+        necks = cands[(None, "neck")]
+        above = [n for n in necks if head is None or n in tree.ancestors(head)]
+        out.joints["neck"] = min(above or necks, key=lambda i: tree.depth[i])
+        out.how["neck"] = "name"
+    if "l_hip" in out.joints and "r_hip" in out.joints:
+        j = tree.lca(out.joints["l_hip"], out.joints["r_hip"])
+        if j >= 0:
+            _, words = _tokens(tree.names[j])
+            out.joints["pelvis"] = j
+            out.how["pelvis"] = "name" if _PELVIS.search(words) else "topology"
+    joints = ("hip", "knee", "ankle", "shoulder", "elbow", "wrist")
+    limb_keys = [f"{s}_{k}" for s in "lr" for k in joints]
+    if any(k not in out.joints for k in (*limb_keys, "pelvis", "head")):
+        _by_topology(tree, positions, out)
+    if "neck" not in out.joints and "head" in out.joints and tree.parents[out.joints["head"]] >= 0:
+        out.joints["neck"] = tree.parents[out.joints["head"]]
+        out.how["neck"] = "topology"
+    keypoints, how = _place(tree, fmt, out, cands)
+    missing = [k for k in KEYPOINT_NAMES if k not in keypoints]
+    if missing:
+        shown = ", ".join(tree.names[:40]) + (" ..." if len(tree.names) > 40 else "")
+        raise RigError(
+            f"{path}: unknown rig, and mapping it by names and topology could not find the "
+            f"keypoints {missing}. Candidates seen: {_describe_candidates(tree, cands)}. "
+            f"Joints: {shown}. "
+            + (f"Notes: {'; '.join(out.notes)}. " if out.notes else "")
+            + "Pass rig=RigProfile(...) or a dict mapping each keypoint to a joint name."
+        )
+    up_axis = "y"
+    if positions is not None:
+        index = {n: i for i, n in enumerate(point_names)}
+        neck, pelvis = (index[keypoints_point(keypoints[k])] for k in ("neck", "pelvis"))
+        d = positions[neck] - positions[pelvis]
+        up_axis = "z" if abs(d[2]) > abs(d[1]) else "y"
+    profile = RigProfile(
+        name="auto", keypoints=keypoints, up_axis=up_axis, formats=(fmt,),
+        description=f"mapped by joint names and topology from {path}",
+    )  # fmt: skip
+    kinds = set(how.values())
+    if "name" not in kinds:
+        method = "topology"
+    else:
+        method = "names+topology" if "topology" in kinds else "names"
+    confidence = float(np.mean([METHOD_CONFIDENCE[h] for h in how.values()]))
+    return RigMatch(profile, method, how, confidence, tuple(out.notes))
+
+
+def keypoints_point(src: KeypointSource) -> str:
+    """The point a keypoint source stands on (an :class:`Extend`'s own point)."""
+    return src.point if isinstance(src, Extend) else src
+
+
+def _place(
+    tree: _Tree, fmt: str, m: _Mapping, cands: dict[tuple[str | None, str], list[int]]
+) -> tuple[dict[str, KeypointSource], dict[str, str]]:
+    """Keypoint sources from the chosen joints, in the format's sense of a point."""
+    names = tree.names
+    out: dict[str, KeypointSource] = {}
+    how: dict[str, str] = {}
+
+    def up_one(i: int) -> int | None:
+        # ASF points are bone tips: a joint where bone i starts is its parent's tip.
+        if fmt == "bvh":
+            return i
+        p = tree.parents[i]
+        return p if p >= 0 else None
+
+    for kp in KEYPOINT_NAMES:
+        if kp == "head_top":
+            continue
+        j = m.joints.get("head" if kp == "head_top" else kp)
+        if j is None:
+            continue
+        point = j if kp == "pelvis" else up_one(j)
+        if point is None:
+            continue
+        out[kp] = names[point]
+        how[kp] = m.how[kp]
+    head = m.joints.get("head")
+    if head is not None:
+        if fmt == "asf":
+            out["head_top"], how["head_top"] = names[head], m.how["head"]
+        else:
+            ends = [c for c in tree.children[head] if tree.is_end(c)]
+            tops = [t for t in cands.get((None, "head_top"), []) if head in tree.ancestors(t)]
+            if tops:
+                out["head_top"], how["head_top"] = names[tops[0]], "name"
+            elif ends:
+                out["head_top"], how["head_top"] = names[ends[0]], m.how["head"]
+            elif "neck" in out:
+                neck = keypoints_point(out["neck"])
+                out["head_top"] = Extend(names[head], neck, _HEAD_EXTENSION_MM)
+                how["head_top"] = "extended"
+    return out, how
+
+
+def _clip_format(clip: SkeletonClip) -> str:
+    from humotion_gym.mocap.asfamc import AcclaimClip
+
+    return "asf" if isinstance(clip, AcclaimClip) else "bvh"
+
+
+def match_rig(clip: SkeletonClip, fmt: str | None = None) -> RigMatch:
+    """The profile for a parsed clip: a built-in one if any fits, else :func:`map_humanoid`.
+
+    Args:
+        clip: A parsed BVH or ASF/AMC clip.
+        fmt: ``"bvh"`` or ``"asf"``; from the clip's type when None.
+
+    Returns:
+        How the clip's skeleton maps onto the 15 keypoints.
+
+    Raises:
+        RigError: If neither a profile nor the mapper places every keypoint.
+    """
+    fmt = fmt or _clip_format(clip)
+    names = clip.point_names
+    for rig in RIGS.values():
+        if fmt not in rig.formats:
+            continue
+        _, missing, fell_back = rig.plan(names)
+        if not missing:
+            how = {k: ("fallback" if k in fell_back else "profile") for k in KEYPOINT_NAMES}
+            conf = float(np.mean([METHOD_CONFIDENCE[h] for h in how.values()]))
+            notes = tuple(f"{k}: {rig.fallbacks[k]}" for k in fell_back)
+            return RigMatch(rig, "profile", how, conf, notes)
+    valid = np.flatnonzero(np.asarray(clip.frame_valid, dtype=bool))
+    positions = None
+    if valid.size:
+        positions = clip.point_positions()[valid[0]]
+    return map_humanoid(names, clip.parents, fmt, clip.path, positions)
+
+
+__all__ = ["METHOD_CONFIDENCE", "RigMatch", "guess_format", "map_humanoid", "match_rig"]
