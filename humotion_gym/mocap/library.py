@@ -231,15 +231,27 @@ def assign_split(src: ClipSource, split_by: SplitBy | None = None) -> tuple[str,
     return user_split(src.who), USER_SPLIT_RULE
 
 
-class PersonSplitError(ValueError):
-    """One person's clips were put on both sides of the split (names them)."""
+class SplitError(ValueError):
+    """A person is on both sides of the split, or shares a skeleton across it.
+
+    Raised by :func:`check_person_sides` (a person's clips on both sides) and
+    :func:`humotion_gym.mocap.persons.check_person_split` (a held-out person's
+    skeleton also in the training data).
+
+    Attributes:
+        pairs: Every ``(test, train)`` pair of subjects, persons or clips at fault.
+    """
+
+    def __init__(self, message: str, pairs: Sequence[tuple[str, str]]) -> None:
+        super().__init__(message)
+        self.pairs: tuple[tuple[str, str], ...] = tuple(pairs)
 
 
 def check_person_sides(assigned: Sequence[tuple[ClipSource, str]]) -> None:
     """Refuse a person with clips in both splits.
 
     Raises:
-        PersonSplitError: Naming each such person and one clip on each side.
+        SplitError: Naming each such person and one clip on each side.
     """
     sides: dict[str, dict[str, str]] = {}
     for src, split in assigned:
@@ -247,9 +259,10 @@ def check_person_sides(assigned: Sequence[tuple[ClipSource, str]]) -> None:
     both = {p: v for p, v in sides.items() if len(v) > 1}
     if both:
         lines = [f"  {p}: train {v['train']}, test {v['test']}" for p, v in sorted(both.items())]
-        raise PersonSplitError(
+        raise SplitError(
             f"{len(both)} person(s) on both sides of the split (split_by must put all of a "
-            "person's clips on one side):\n" + "\n".join(lines)
+            "person's clips on one side):\n" + "\n".join(lines),
+            [(v["test"], v["train"]) for v in both.values()],
         )
 
 
@@ -688,7 +701,7 @@ def load_library(
         :data:`TEST_SUBJECTS` plus the user's test persons.
 
     Raises:
-        PersonSplitError: If ``split_by`` puts one person on both sides.
+        SplitError: If ``split_by`` puts one person on both sides.
     """
     sources = find_clips(paths)
     assigned = [(src, assign_split(src, split_by)) for src in sources]

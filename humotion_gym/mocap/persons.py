@@ -66,7 +66,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.sparse.csgraph import connected_components
 
 from humotion_gym.body import KEYPOINT_INDEX
-from humotion_gym.mocap.library import TEST_SUBJECTS, MotionLibrary
+from humotion_gym.mocap.library import TEST_SUBJECTS, MotionLibrary, SplitError
 from humotion_gym.mocap.motion import Motion
 
 FloatArray = NDArray[np.float64]
@@ -105,17 +105,12 @@ _BONE_B = np.array([KEYPOINT_INDEX[b] for _, b in SIGNATURE_BONES], dtype=np.int
 # comparison; every representative is still a real clip's signature.
 _DEDUP_DECIMALS = 2
 
-
-class SplitError(ValueError):
-    """A held-out person's skeleton is also in the training data.
-
-    Attributes:
-        pairs: Every ``(test subject, train subject)`` whose skeletons match.
-    """
-
-    def __init__(self, message: str, pairs: Sequence[tuple[str, str]]) -> None:
-        super().__init__(message)
-        self.pairs: tuple[tuple[str, str], ...] = tuple(pairs)
+__all__ = [
+    "DEFAULT_ATOL_MM", "DEFAULT_RTOL", "SIGNATURE_BONES", "SIGNATURE_NAMES", "SIGNATURE_SIZE",
+    "PersonSplitReport", "SplitError", "SubjectSkeleton", "check_person_split",
+    "held_out_subjects", "same_skeleton", "skeleton_difference", "skeleton_groups",
+    "skeleton_signature", "subject_skeletons",
+]  # fmt: skip
 
 
 def _shape_signature(motion: Motion) -> FloatArray:
