@@ -51,3 +51,20 @@ def test_cli_select_parses_the_grid(capsys):
                  "sharpness=1,2", "--particles", "20", "--episodes", "1"])  # fmt: skip
     assert code == 0 and "chosen: sharpness=" in capsys.readouterr().out
     assert main(["select", "--grid", "sharpness"]) == 2
+
+
+def test_prior_settings_are_selected_like_likelihood_settings(tmp_path, monkeypatch):
+    monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
+    fold = validation_library(None)
+    grid = {"fit.damping": [1.0, 0.3], "sharpness": [1.0]}
+    out = select_observation_settings("SideWalk-v1", "pf-cv", grid, fold, particles=30, episodes=2)
+    assert [r["settings"] for r in out["rows"]] == [
+        {"fit.damping": 1.0, "sharpness": 1.0},
+        {"fit.damping": 0.3, "sharpness": 1.0},
+    ]
+    # The damping reaches the prior: the two runs differ.
+    assert out["rows"][0]["mean_error_mm"] != out["rows"][1]["mean_error_mm"]
+    with pytest.raises(ValueError, match="not settings of"):
+        select_observation_settings("SideWalk-v1", "pf-cv", {"fit.nonsense": [1.0]}, fold)
+    with pytest.raises(ValueError, match="particle-filter agent"):
+        select_observation_settings("SideWalk-v1", "hold", {"fit.damping": [1.0]}, fold)

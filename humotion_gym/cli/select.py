@@ -28,8 +28,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "select",
         help="choose a likelihood setting by cross-validation on training persons",
         description="Track the validation persons (training persons held out of the priors' "
-        "data) with each candidate value of one ObservationModel setting and pick the value "
-        "with the lowest mean error. Test persons are never loaded.",
+        "data) with each candidate value of likelihood settings (or prior settings, fit.NAME) and pick "
+        "the combination with the lowest mean error. Test persons are never loaded.",
     )
     sel.add_argument(
         "--task", type=task_name, default="ArmTrack-v1", help="task id (default: ArmTrack-v1)"
@@ -40,7 +40,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     sel.add_argument(
         "--grid", nargs="+", default=["sharpness=1,2,3,5"], metavar="NAME=V1,V2",
-        help="candidate values per ObservationModel setting; every combination is tried "
+        help="candidate values per ObservationModel setting, or per setting of the agent's "
+        "prior written fit.NAME (e.g. fit.damping=1,0.5); every combination is tried "
         "(default: sharpness=1,2,3,5)",
     )  # fmt: skip
     sel.add_argument("--particles", type=positive_int, default=300, help="particles (default: 300)")

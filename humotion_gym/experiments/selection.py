@@ -14,6 +14,7 @@ prints the table this module computes.
 
 from __future__ import annotations
 
+import importlib
 import itertools
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
@@ -60,6 +61,10 @@ def validation_library(
     return lib.validation_fold(subjects)
 
 
+#: Prefix of a grid name that is a setting of the agent's prior (its ``fit`` keyword).
+FIT_PREFIX = "fit."
+
+
 def _observation_fields() -> set[str]:
     return set(ObservationModel.__dataclass_fields__)
 
@@ -80,8 +85,11 @@ def select_observation_settings(
         task: Task id.
         agent: Agent name (a particle filter of :data:`baselines.agents.AGENTS`).
         grid: Candidate values per :class:`ObservationModel` field
-            (``{"sharpness": [1, 2], "foreground_weight": [0, 0.5]}``); every
-            combination is tried, starting from the task's own settings.
+            (``{"sharpness": [1, 2], "foreground_weight": [0, 0.5]}``), or per
+            setting of the agent's prior with a ``fit.`` prefix
+            (``{"fit.damping": [1, 0.5]}``: a keyword of the prior's ``fit``);
+            every combination is tried, starting from the task's own settings
+            and the agent's registered fit settings.
         library: A validation fold (:func:`validation_library`).
         particles: Particles of the agent.
         episodes: Seeded episodes per combination (the same for every one).
@@ -94,18 +102,35 @@ def select_observation_settings(
         have the lowest mean error (ties: the first in grid order).
 
     Raises:
-        ValueError: If a name is not a likelihood setting, a value list is
-            empty, or ``library`` is not a validation fold of training persons.
+        ValueError: If a name is neither a likelihood setting nor a ``fit.``
+            keyword of the prior, a value list is empty, or ``library`` is not
+            a validation fold of training persons.
     """
-    from baselines.agents import make
+    import inspect
+    import json
+
+    from baselines.agents import AGENTS, make
     from baselines.evaluation import evaluate
 
     fields = _observation_fields()
-    unknown = sorted(set(grid) - fields)
+    fit_names = [n for n in grid if n.startswith(FIT_PREFIX)]
+    unknown = sorted(set(grid) - fields - set(fit_names))
     if unknown:
         raise ValueError(
-            f"grid: {unknown} are not ObservationModel settings (they are {sorted(fields)})"
+            f"grid: {unknown} are not ObservationModel settings (they are {sorted(fields)}) "
+            f"nor prior settings written {FIT_PREFIX}NAME"
         )
+    if fit_names:
+        if agent not in AGENTS:
+            raise ValueError(f"grid: {fit_names} need a particle-filter agent, not {agent}")
+        prior = importlib.import_module(AGENTS[agent].prior)
+        known = set(inspect.signature(prior.fit).parameters) - {"motions", "free", "rng"}
+        bad = sorted(n for n in fit_names if n[len(FIT_PREFIX) :] not in known)
+        if bad:
+            raise ValueError(
+                f"grid: {bad} are not settings of {AGENTS[agent].prior}.fit "
+                f"(they are {sorted(known)})"
+            )
     if not grid or any(len(v) == 0 for v in grid.values()):
         raise ValueError("grid: expected at least one setting, each with at least one value")
     if library.test_subjects is None or library.held_out & TEST_SUBJECTS:
@@ -113,10 +138,12 @@ def select_observation_settings(
     spec = get_task(task)
     kwargs = {"terminate_on_lost": False, **(env_kwargs or {})}
 
-    def errors(agent_name: str, model: ObservationModel) -> list[float]:
+    def errors(
+        agent_name: str, model: ObservationModel, fit: dict[str, float] | None = None
+    ) -> list[float]:
         env = gym.make(f"humotion_gym/{spec.name}", library=library, observation_model=model,
                        **kwargs)  # fmt: skip
-        runner = make(agent_name, env, n_particles=particles, seed=seed)
+        runner = make(agent_name, env, n_particles=particles, seed=seed, fit_settings=fit)
         out = [r.mean_error_mm for r in evaluate(runner, env, episodes, seed=seed)]
         env.close()
         return out
@@ -125,9 +152,17 @@ def select_observation_settings(
     hold = float(np.mean(errors("hold", default)))
     names = list(grid)
     rows = []
+    base_fit = dict(AGENTS[agent].fit_settings) if agent in AGENTS else {}
     for combo in itertools.product(*(grid[n] for n in names)):
-        settings = {n: type(getattr(default, n))(v) for n, v in zip(names, combo, strict=True)}
-        mean = float(np.mean(errors(agent, replace(default, **settings))))
+        settings = {
+            n: v if n.startswith(FIT_PREFIX) else type(getattr(default, n))(v)
+            for n, v in zip(names, combo, strict=True)
+        }
+        model = replace(default, **{n: v for n, v in settings.items() if n in fields})
+        fit = {n[len(FIT_PREFIX) :]: v for n, v in settings.items() if n.startswith(FIT_PREFIX)}
+        # Fit settings go into the cache key: json-normalised floats refit once each.
+        fit = json.loads(json.dumps(fit)) if fit else None
+        mean = float(np.mean(errors(agent, model, {**base_fit, **fit} if fit else None)))
         rows.append({"settings": settings, "mean_error_mm": mean, "hold_ratio": hold / mean})
     best = min(range(len(rows)), key=lambda i: rows[i]["mean_error_mm"])
     return {

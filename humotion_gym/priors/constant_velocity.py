@@ -15,21 +15,33 @@ velocity spread is the standard deviation of the first differences. Angles in a
 :class:`~humotion_gym.mocap.motion.Motion` are unwrapped, so differences are
 true angular steps. ``multiplier`` scales the noise (1 = the data's own
 accelerations).
+
+Two settings make it a tracker that can stand still, both chosen by
+cross-validation on training persons (``humotion-gym select --fit``):
+``damping`` (``lambda``) pulls the velocity towards zero,
+``v_t = lambda v_{t-1} + e_t``, so a velocity picked up from noise decays
+instead of carrying the pose away (1 is the plain model); ``position_noise``
+adds independent noise on the pose, ``position_noise * velocity_std`` per frame,
+so the cloud keeps searching around where it is. Samples stay within the joint
+limits (:data:`humotion_gym.body.PARAM_LOWER`, ``PARAM_UPPER``; the heading is
+free): a coordinate that leaves them is put back on the limit and its velocity
+set to zero.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from humotion_gym.body import N_PARAMS
+from humotion_gym.body import N_PARAMS, PARAM_LOWER, PARAM_UPPER, PERIODIC_MASK
 from humotion_gym.filtering import ParticleState
 from humotion_gym.mocap.motion import Motion
 from humotion_gym.priors._io import load_fitted, save_fitted
+from humotion_gym.priors._synthesis import check_request, model_frames, to_motion
 
 FloatArray = NDArray[np.float64]
 NAME = "constant_velocity"
@@ -45,6 +57,8 @@ class ConstantVelocityParams:
         velocity_std: ``(D,)`` spread of the initial velocities (units per frame).
         fps: Frame rate the scales refer to.
         multiplier: Scale on ``accel_std`` used when sampling.
+        damping: ``lambda`` in ``v_t = lambda v_{t-1} + e_t`` (1: no damping).
+        position_noise: Noise on the pose per frame, in units of ``velocity_std``.
     """
 
     free: NDArray[np.intp]
@@ -52,12 +66,12 @@ class ConstantVelocityParams:
     velocity_std: FloatArray
     fps: float
     multiplier: float = 1.0
+    damping: float = 1.0
+    position_noise: float = 0.0
 
     def with_multiplier(self, multiplier: float) -> ConstantVelocityParams:
         """A copy with another noise multiplier."""
-        return ConstantVelocityParams(
-            self.free, self.accel_std, self.velocity_std, self.fps, float(multiplier)
-        )
+        return replace(self, multiplier=float(multiplier))
 
 
 def fit(
@@ -66,6 +80,8 @@ def fit(
     rng: np.random.Generator | None = None,
     multiplier: float = 1.0,
     frame_skip: int = 1,
+    damping: float = 1.0,
+    position_noise: float = 0.0,
 ) -> ConstantVelocityParams:
     """Fit the noise scales from the training clips' accelerations.
 
@@ -75,6 +91,9 @@ def fit(
         rng: Unused (the fit is deterministic); accepted for the common interface.
         multiplier: Scale on the fitted noise.
         frame_skip: Use every ``frame_skip``-th frame (the environment's rate).
+        damping: Velocity damping ``lambda`` in [0, 1] (1: none).
+        position_noise: Noise on the pose per frame, in units of the data's
+            first-difference spread (>= 0; 0: none).
 
     Returns:
         The fitted parameters.
@@ -83,6 +102,14 @@ def fit(
         ValueError: If no clip has three observed frames in a row.
     """
     del rng
+    if not 0.0 <= damping <= 1.0:
+        raise ValueError(f"constant_velocity.fit: damping must be in [0, 1], got {damping}")
+    if not (np.isfinite(position_noise) and position_noise >= 0):
+        raise ValueError(
+            f"constant_velocity.fit: position_noise must be >= 0, got {position_noise}"
+        )
+    if not (np.isfinite(multiplier) and multiplier >= 0):
+        raise ValueError(f"constant_velocity.fit: multiplier must be >= 0, got {multiplier}")
     idx = np.arange(N_PARAMS) if free is None else np.asarray(free, dtype=np.intp)
     if not motions:
         raise ValueError("constant_velocity.fit: no training motions")
@@ -109,6 +136,8 @@ def fit(
         velocity_std=np.maximum(v.std(axis=0), floor),
         fps=fps,
         multiplier=float(multiplier),
+        damping=float(damping),
+        position_noise=float(position_noise),
     )
 
 
@@ -124,10 +153,64 @@ def initial(
 def transition(
     fitted: ConstantVelocityParams, state: ParticleState, rng: np.random.Generator
 ) -> ParticleState:
-    """One step: the velocity takes a random kick, the pose moves by it."""
+    """One step: the velocity decays and takes a random kick, the pose moves by it."""
     noise = rng.standard_normal(state.pose.shape) * (fitted.multiplier * fitted.accel_std)
-    velocity = state.extra["velocity"] + noise
-    return ParticleState(state.pose + velocity, {"velocity": velocity})
+    velocity = state.extra["velocity"]
+    if fitted.damping != 1.0:
+        velocity = velocity * fitted.damping
+    velocity = velocity + noise
+    pose = state.pose + velocity
+    if fitted.position_noise > 0:
+        pose += rng.standard_normal(pose.shape) * (fitted.position_noise * fitted.velocity_std)
+    lower, upper = _limits(fitted.free)
+    outside = (pose < lower) | (pose > upper)
+    if outside.any():
+        np.clip(pose, lower, upper, out=pose)
+        velocity = np.where(outside, 0.0, velocity)
+    return ParticleState(pose, {"velocity": velocity})
+
+
+def _limits(free: NDArray[np.intp]) -> tuple[FloatArray, FloatArray]:
+    """Joint limits of the modelled parameters; the heading is unbounded."""
+    lower = np.where(PERIODIC_MASK, -np.inf, PARAM_LOWER)[free]
+    upper = np.where(PERIODIC_MASK, np.inf, PARAM_UPPER)[free]
+    return lower, upper
+
+
+def synthesize_motion(
+    fitted: ConstantVelocityParams,
+    base_pose: ArrayLike,
+    frames: int,
+    fps: float,
+    rng: np.random.Generator,
+) -> FloatArray:
+    """A full 25-parameter motion: one particle of the prior from ``base_pose``.
+
+    The signature every prior shares (``humotion-gym synth``): the free
+    parameters start at ``base_pose`` with a velocity drawn by :func:`initial`
+    and follow :func:`transition` (a random walk of the velocity); the others
+    stay at ``base_pose``.
+
+    Args:
+        fitted: The prior.
+        base_pose: ``(25,)`` the first pose.
+        frames: Number of frames at ``fps``.
+        fps: Frame rate of the output; the prior runs at ``fitted.fps`` and is
+            resampled linearly when they differ.
+        rng: Generator.
+
+    Returns:
+        ``(frames, 25)`` parameters.
+    """
+    base = check_request(base_pose, frames, fps)
+    n_model = model_frames(frames, fitted.fps, fps)
+    state = initial(fitted, base[fitted.free], 1, rng)
+    poses = np.empty((n_model, fitted.free.size))
+    poses[0] = state.pose[0]
+    for t in range(1, n_model):
+        state = transition(fitted, state, rng)
+        poses[t] = state.pose[0]
+    return to_motion(base, fitted.free, poses, fitted.fps, frames, fps)
 
 
 def save(fitted: ConstantVelocityParams, path: str | Path) -> None:

@@ -73,3 +73,37 @@ def test_fit_from_accelerations_and_contract(tmp_path):
 def test_fit_needs_data():
     with pytest.raises(ValueError, match="no training motions"):
         cv.fit([])
+
+
+def test_damping_position_noise_and_joint_limits():
+    from humotion_gym.body import PARAM_LOWER, PARAM_UPPER, PERIODIC_MASK
+    from humotion_gym.filtering import ParticleState
+
+    motions = synthetic_library().split("train").motions
+    free = np.arange(25)
+    rng = np.random.default_rng(0)
+    quiet = cv.fit(motions, free=free, multiplier=0.0, damping=0.4)
+    pose = np.clip(motions[0].params[0], PARAM_LOWER, PARAM_UPPER)
+    state = ParticleState(np.tile(pose, (5, 1)), {"velocity": np.full((5, 25), 1e-3)})
+    moved = cv.transition(quiet, state, rng)
+    # No kick: the velocity decays by the damping and the pose moves by it.
+    np.testing.assert_allclose(moved.extra["velocity"], 0.4e-3)
+    np.testing.assert_allclose(moved.pose, np.tile(pose + 0.4e-3, (5, 1)))
+    # Position noise: per-frame spread position_noise * velocity_std.
+    noisy = cv.fit(motions, free=free, multiplier=0.0, damping=0.0, position_noise=0.5)
+    state = ParticleState(np.tile(pose, (20000, 1)), {"velocity": np.zeros((20000, 25))})
+    spread = cv.transition(noisy, state, rng).pose.std(axis=0)
+    inside = (pose - PARAM_LOWER > 1.0) & (PARAM_UPPER - pose > 1.0)  # far from limits
+    np.testing.assert_allclose(spread[inside], 0.5 * noisy.velocity_std[inside], rtol=0.05)
+    # Samples never leave the joint limits (the heading is free).
+    wild = cv.fit(motions, free=free, multiplier=200.0)
+    state = cv.initial(wild, pose, 500, rng)
+    for _ in range(10):
+        state = cv.transition(wild, state, rng)
+        bounded = ~PERIODIC_MASK
+        assert np.all(state.pose[:, bounded] >= PARAM_LOWER[bounded])
+        assert np.all(state.pose[:, bounded] <= PARAM_UPPER[bounded])
+    with pytest.raises(ValueError, match="damping"):
+        cv.fit(motions, damping=1.5)
+    with pytest.raises(ValueError, match="position_noise"):
+        cv.fit(motions, position_noise=-1.0)
