@@ -28,8 +28,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "select",
         help="choose a likelihood setting by cross-validation on training persons",
         description="Track the validation persons (training persons held out of the priors' "
-        "data) with each candidate value of likelihood settings (or prior settings, fit.NAME) and pick "
-        "the combination with the lowest mean error. Test persons are never loaded.",
+        "data) with each candidate value of likelihood settings (or prior settings, fit.NAME) "
+        "and pick the combination with the lowest mean error. Test persons are never loaded.",
     )
     sel.add_argument(
         "--task", type=task_name, default="ArmTrack-v1", help="task id (default: ArmTrack-v1)"
