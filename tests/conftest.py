@@ -7,6 +7,7 @@ import os
 # Multi-threaded BLAS fights itself on small matrices on a 2-core machine; one
 # thread per process keeps the suite's run time steady.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -14,6 +15,9 @@ import pytest
 
 # ../shared/mocap beside the project's root (tests/conftest.py -> parents[2]).
 _DEFAULT_SHARED = Path(__file__).resolve().parents[2] / "shared" / "mocap"
+
+
+_CACHE_KEY = pytest.StashKey[str]()
 
 
 def shared_mocap_dir() -> Path:
@@ -26,7 +30,15 @@ def pytest_configure(config: pytest.Config) -> None:
     # Keep the suite's clip and prior caches out of the user's home, and keep
     # the environments on the synthetic data unless a test asks for real data.
     os.environ["HUMOTION_CACHE"] = tempfile.mkdtemp(prefix="humotion-test-cache-")
+    config.stash[_CACHE_KEY] = os.environ["HUMOTION_CACHE"]
     os.environ.pop("HUMOTION_MOCAP", None)
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    # The suite's cache (about 50 MB of parsed clips and fitted priors) goes with it.
+    cache = config.stash.get(_CACHE_KEY, None)
+    if cache is not None:
+        shutil.rmtree(cache, ignore_errors=True)
 
 
 @pytest.fixture(scope="session")

@@ -10,8 +10,8 @@
   truth (:func:`classify`).
 * Synthesis (section 4.3, Fig. 5): noise-driven sampling of a learned model
   (:func:`humotion_gym.priors.slds.synthesize`), plotted with its switch states
-  (:func:`plot_synthesis`); :func:`synthesize_walk` makes a full 25-parameter
-  motion of it for ``humotion-gym synth --prior slds``.
+  (:func:`plot_synthesis`); ``humotion-gym synth --prior slds`` makes a full
+  25-parameter motion of it (:func:`humotion_gym.priors.slds.synthesize_motion`).
 * Interpolation (Fig. 6): a gap of a held-out walking clip filled by smoothing
   with missing measurements, compared with linear and cubic-spline
   interpolation of the same gap (:func:`interpolate_gap`).
@@ -107,7 +107,6 @@ from humotion_gym.body import (
     PARAM_NAMES,
     PARAM_UPPER,
     SAGITTAL_PARAMS,
-    BodyShape,
 )
 from humotion_gym.mocap.motion import Motion
 from humotion_gym.priors import slds
@@ -1162,42 +1161,6 @@ def run_interpolation(
 # ---------------------------------------------------------------------------
 # Synthesis (section 4.3)
 # ---------------------------------------------------------------------------
-
-
-def synthesize_walk(
-    train: Sequence[Motion],
-    frames: int,
-    fps: float,
-    rng: np.random.Generator,
-    shape: BodyShape,
-    label: str = "walk",
-    n_states: int = slds.N_STATES,
-    n_iter: int = slds.N_ITER,
-    max_clips: int | None = 40,
-) -> FloatArray:
-    """Noise-driven walking (Fig. 5) as a full ``(frames, 25)`` motion, for BVH export.
-
-    Learns one SLDS of the sagittal angles from the ``label`` clips of
-    ``train`` (at most ``max_clips`` of them, a random subset, to bound the
-    time), samples it (:func:`humotion_gym.priors.slds.synthesize_motion`) and
-    fills every other parameter from the standing pose of ``shape``: the
-    figure walks on the spot.
-
-    Raises:
-        ValueError: If no training clip has the label.
-    """
-    from humotion_gym.body import standing_pose
-
-    clips = [m for m in train if m.label == label]
-    if not clips:
-        raise ValueError(f"synthesize_walk: no training clip has the label {label!r}")
-    if max_clips is not None and len(clips) > max_clips:
-        pick = np.sort(rng.choice(len(clips), max_clips, replace=False))
-        clips = [clips[k] for k in pick]
-    model = slds.fit_activity(
-        clips, slds.SAGITTAL_INDEX, rng, n_states=n_states, n_iter=n_iter, label=label
-    ).params
-    return slds.synthesize_motion(model, None, standing_pose(shape), frames, fps, rng)
 
 
 # ---------------------------------------------------------------------------

@@ -43,28 +43,21 @@ from humotion_gym.mocap.library import (
     write_atomically,
 )
 from humotion_gym.mocap.motion import Motion, content_digest
-
-#: Short names of the priors (``fit_prior("tree", ...)``) and their modules.
-PRIORS: dict[str, str] = {
-    "constant_velocity": "humotion_gym.priors.constant_velocity",
-    "tree": "humotion_gym.priors.tree",
-    "slds": "humotion_gym.priors.slds",
-    "cyclic_pca": "humotion_gym.priors.cyclic_pca",
-}
+from humotion_gym.priors import get_prior
 
 
 def prior_module(prior: str | ModuleType) -> ModuleType:
-    """A prior's module from its short name, its dotted path or the module itself.
+    """A prior's module from its name, its dotted path or the module itself.
+
+    Names are those of :data:`~humotion_gym.priors.PRIORS`.
 
     Raises:
-        KeyError: For an unknown short name, listing the known ones.
+        KeyError: For an unknown name, listing the known ones.
     """
     if isinstance(prior, ModuleType):
         return prior
     if "." not in prior:
-        if prior not in PRIORS:
-            raise KeyError(f"unknown prior {prior!r}; the priors are {sorted(PRIORS)}")
-        prior = PRIORS[prior]
+        return get_prior(prior)
     return importlib.import_module(prior)
 
 
@@ -159,7 +152,7 @@ def _write_prior_entry(
 def fit_prior(
     prior: str | ModuleType,
     motions: MotionLibrary | Sequence[Motion],
-    free: ArrayLike,
+    free: ArrayLike | None,
     settings: Mapping[str, Any] | None = None,
     use_cache: bool = True,
     cache_dir: str | Path | None = None,
@@ -168,9 +161,10 @@ def fit_prior(
     """A prior fitted to clips, read from the cache when it was fitted before.
 
     Args:
-        prior: Short name (:data:`PRIORS`), dotted module path or module.
+        prior: Name in :data:`~humotion_gym.priors.PRIORS`, dotted module path or module.
         motions: The training clips.
-        free: Indices of the modelled parameters in the 25-vector.
+        free: Indices of the modelled parameters in the 25-vector (None: the
+            prior's own default set).
         settings: Keyword arguments of the prior's ``fit`` (part of the key).
         use_cache: Read and write the cache (``cache_dir/priors``).
         cache_dir: The cache folder (``default_cache_dir()`` when None).
@@ -182,7 +176,7 @@ def fit_prior(
         ``(module, fitted)``: the prior's module and its fitted parameters.
     """
     module = prior_module(prior)
-    free = np.asarray(free, dtype=np.intp)
+    free = None if free is None else np.asarray(free, dtype=np.intp)
     kwargs = dict(settings or {})
     dotted = module.__name__
     name = dotted.rsplit(".", 1)[-1]
@@ -190,7 +184,7 @@ def fit_prior(
     info = {
         "prior": dotted,
         "settings": hashlib.sha256(settings_json.encode()).hexdigest()[:24],
-        "free": json.dumps(free.tolist()),
+        "free": json.dumps(None if free is None else free.tolist()),
         "data": _fingerprint(motions),
         "cache_version": CACHE_VERSION,
         "package_version": package_version(),
@@ -214,7 +208,7 @@ def fit_prior(
     if log is not None:
         frames = sum(m.n_frames for m in motions)
         log(
-            f"fitting the {name} prior ({free.size} parameters) on {len(motions)} clips, "
+            f"fitting the {name} prior on {len(motions)} clips, "
             f"{frames:,} frames" + (f"; it will be cached in {folder}" if path else "")
         )
     t0 = time.perf_counter()

@@ -65,6 +65,7 @@ from humotion_gym.body import N_PARAMS, PARAM_INDEX, PARAM_LOWER, PARAM_UPPER, S
 from humotion_gym.filtering import ParticleState
 from humotion_gym.mocap.motion import Motion
 from humotion_gym.priors._io import load_fitted, save_fitted
+from humotion_gym.priors._synthesis import check_request, model_frames, to_motion
 from humotion_gym.priors.slds_inference import (
     EMResult,
     SLDSParams,
@@ -356,18 +357,19 @@ def synthesize(
 
 def synthesize_motion(
     fitted: SLDSParams,
-    free: ArrayLike | None,
     base_pose: ArrayLike,
     frames: int,
     fps: float,
     rng: np.random.Generator,
+    *,
     max_radius: float | None = MAX_RADIUS,
 ) -> FloatArray:
     """A full 25-parameter motion: the modelled parameters synthesised, the rest from a pose.
 
+    The signature every prior shares (``humotion-gym synth``).
+
     Args:
-        fitted: The prior.
-        free: Indices of the modelled parameters (``fitted.free`` when None).
+        fitted: The prior; its ``free`` parameters are synthesised.
         base_pose: ``(25,)`` values of every other parameter (held still).
         frames: Number of frames at ``fps``.
         fps: Frame rate of the output; the model runs at ``fitted.fps`` and is
@@ -378,22 +380,10 @@ def synthesize_motion(
     Returns:
         ``(frames, 25)`` parameters, clipped to the body's limits.
     """
-    idx = fitted.free if free is None else np.asarray(free, dtype=np.intp)
-    if idx.shape != fitted.free.shape:
-        raise ValueError(
-            f"synthesize_motion: free has {idx.size} entries, the model {fitted.obs_dim}"
-        )
-    base = np.asarray(base_pose, dtype=np.float64).reshape(-1)
-    if base.shape != (N_PARAMS,):
-        raise ValueError(f"synthesize_motion: base_pose has shape {base.shape}, expected (25,)")
-    ratio = fitted.fps / float(fps)
-    n_model = max(2, int(np.ceil((frames - 1) * ratio)) + 1)
+    base = check_request(base_pose, frames, fps)
+    n_model = model_frames(frames, fitted.fps, fps)
     poses, _ = synthesize(fitted, n_model, rng, max_radius)
-    t_out = np.arange(frames) * ratio
-    t_model = np.arange(n_model)
-    angles = np.stack([np.interp(t_out, t_model, poses[:, k]) for k in range(idx.size)], axis=1)
-    params = np.repeat(base[None, :], frames, axis=0)
-    params[:, idx] = angles
+    params = to_motion(base, fitted.free, poses, fitted.fps, frames, fps)
     return np.clip(params, PARAM_LOWER, PARAM_UPPER)
 
 

@@ -135,6 +135,7 @@ from humotion_gym.body import N_PARAMS, PARAM_INDEX, PARAM_NAMES
 from humotion_gym.filtering import ParticleState
 from humotion_gym.mocap.motion import Motion
 from humotion_gym.priors._io import load_fitted, save_fitted
+from humotion_gym.priors._synthesis import check_request, model_frames, to_motion
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -1133,6 +1134,37 @@ def synthesize(
         state = transition(model, state, rng)
         out[t] = state.pose[0]
     return out
+
+
+def synthesize_motion(
+    fitted: TreeParams,
+    base_pose: ArrayLike,
+    frames: int,
+    fps: float,
+    rng: np.random.Generator,
+) -> FloatArray:
+    """A full 25-parameter motion sampled at the fitted temperature ``fitted.beta``.
+
+    The signature every prior shares (``humotion-gym synth``): the free
+    parameters start at ``base_pose`` (their past drawn as in :func:`initial`)
+    and follow :func:`synthesize`; the others stay at ``base_pose``.
+
+    Args:
+        fitted: The prior (``fitted.with_settings(beta=...)`` for another temperature).
+        base_pose: ``(25,)`` the first pose.
+        frames: Number of frames at ``fps`` (the first is ``base_pose``).
+        fps: Frame rate of the output; the prior runs at ``fitted.fps`` and is
+            resampled linearly when they differ.
+        rng: Generator.
+
+    Returns:
+        ``(frames, 25)`` parameters.
+    """
+    base = check_request(base_pose, frames, fps)
+    n_model = model_frames(frames, fitted.fps, fps)
+    start = base[fitted.free]
+    poses = np.vstack([start, synthesize(fitted, start, n_model - 1, fitted.beta, rng)])
+    return to_motion(base, fitted.free, poses, fitted.fps, frames, fps)
 
 
 def summary(fitted: TreeParams) -> dict[str, float | int | str]:

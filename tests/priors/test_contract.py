@@ -57,3 +57,14 @@ def test_prior_contract(name, walks, tmp_path):
     for _ in range(3):
         est = pf.step(None)
     assert est.shape == (8,) and np.all(np.isfinite(est))
+    # one synthesis signature for every prior: (fitted, base_pose, frames, fps, rng)
+    base = walks[0].params[40]
+    motion = prior.synthesize_motion(fitted, base, 20, 15.0, np.random.default_rng(3))
+    again = prior.synthesize_motion(fitted, base, 20, 15.0, np.random.default_rng(3))
+    assert motion.shape == (20, 25) and np.all(np.isfinite(motion))
+    np.testing.assert_array_equal(motion, again)
+    others = np.setdiff1d(np.arange(2, 25), SAGITTAL)  # cyclic PCA walks the root forward
+    np.testing.assert_array_equal(motion[:, others], np.broadcast_to(base[others], (20, 15)))
+    assert not np.allclose(motion[:, SAGITTAL], motion[0, SAGITTAL])  # it moves
+    with pytest.raises(ValueError, match="base_pose"):
+        prior.synthesize_motion(fitted, base[:3], 20, 15.0, np.random.default_rng(3))

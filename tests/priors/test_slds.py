@@ -426,24 +426,13 @@ def test_synthesis_is_deterministic_and_fills_a_full_pose(fitted):
     assert np.all(np.isfinite(poses))
     base = np.zeros(25)
     base[2] = 1000.0
-    params = slds.synthesize_motion(fitted, None, base, 30, 30.0, np.random.default_rng(4))
+    params = slds.synthesize_motion(fitted, base, 30, 30.0, np.random.default_rng(4))
     assert params.shape == (30, 25)
     np.testing.assert_allclose(params[:, 2], 1000.0)
     np.testing.assert_allclose(
         params[:, slds.SAGITTAL_INDEX],
         np.clip(poses[:30], PARAM_LOWER[slds.SAGITTAL_INDEX], PARAM_UPPER[slds.SAGITTAL_INDEX]),
     )
-
-
-def test_synthesize_walk_gives_a_full_motion(synthetic):
-    train, _ = synthetic
-    shape = train[0].shape
-    params = slds_tasks.synthesize_walk(
-        train, 45, 30.0, np.random.default_rng(0), shape, n_states=2, n_iter=2
-    )
-    assert params.shape == (45, 25) and np.all(np.isfinite(params))
-    assert np.all(params >= PARAM_LOWER) and np.all(params <= PARAM_UPPER)
-    assert np.ptp(params[:, slds.SAGITTAL_INDEX], axis=0).min() > 0
 
 
 # ---------------------------------------------------------------------------

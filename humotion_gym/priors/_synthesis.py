@@ -1,0 +1,58 @@
+"""What every prior's ``synthesize_motion`` shares: checks and resampling to the output rate."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from humotion_gym.body import N_PARAMS
+
+FloatArray = NDArray[np.float64]
+
+
+def check_request(base_pose: ArrayLike, frames: int, fps: float) -> FloatArray:
+    """The base pose as a ``(25,)`` array, after checking the request.
+
+    Raises:
+        ValueError: If the pose has another shape or frames/fps are not positive.
+    """
+    base = np.asarray(base_pose, dtype=np.float64)
+    if base.shape != (N_PARAMS,):
+        raise ValueError(f"synthesize_motion: base_pose must have shape (25,), got {base.shape}")
+    if int(frames) < 1 or not float(fps) > 0:
+        raise ValueError(
+            f"synthesize_motion: frames and fps must be positive, got {frames} and {fps}"
+        )
+    return base
+
+
+def model_frames(frames: int, model_fps: float, fps: float) -> int:
+    """Frames at the model's rate that cover ``frames`` output frames at ``fps`` (at least 2)."""
+    return max(2, int(np.ceil((int(frames) - 1) * model_fps / float(fps))) + 1)
+
+
+def to_motion(
+    base: FloatArray,
+    free: NDArray[np.intp],
+    poses: FloatArray,
+    model_fps: float,
+    frames: int,
+    fps: float,
+) -> FloatArray:
+    """``(frames, 25)``: ``base`` everywhere, ``free`` from ``poses`` resampled linearly.
+
+    Args:
+        base: ``(25,)`` values of the parameters the model does not cover.
+        free: ``(D,)`` indices of the modelled parameters.
+        poses: ``(M, D)`` the model's poses at ``model_fps``.
+        model_fps: The model's frame rate.
+        frames: Output frames.
+        fps: Output frame rate.
+    """
+    t_out = np.arange(int(frames)) * (model_fps / float(fps))
+    t_model = np.arange(poses.shape[0])
+    out = np.repeat(base[None], int(frames), axis=0)
+    out[:, free] = np.stack(
+        [np.interp(t_out, t_model, poses[:, k]) for k in range(poses.shape[1])], axis=1
+    )
+    return out
