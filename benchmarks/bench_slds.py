@@ -30,7 +30,7 @@ import numpy as np
 
 from humotion_gym.mocap.library import synthetic_library
 from humotion_gym.priors import constant_velocity, slds
-from humotion_gym.priors.slds_inference import fit_em
+from humotion_gym.priors.slds_learning import fit_em
 
 
 def _rotation(theta: float) -> np.ndarray:

@@ -27,7 +27,7 @@ first-order one's, and walk/run classification with it makes fewer errors.
 the speed benchmark, is the general ``y = C x + d`` with ``C``, ``d`` learned.)
 
 Learning (section 2.3): EM with the approximate Viterbi E-step
-(:func:`~humotion_gym.priors.slds_inference.fit_em`) from an initial
+(:func:`~humotion_gym.priors.slds_learning.fit_em`) from an initial
 segmentation by clustering windowed AR fits; one model per activity label,
 joined into one SLDS with a block transition matrix (section 4.1,
 :func:`~humotion_gym.priors.slds_inference.combine`): with probability
@@ -67,14 +67,13 @@ from humotion_gym.mocap.motion import Motion
 from humotion_gym.priors._io import load_fitted, save_fitted
 from humotion_gym.priors._synthesis import check_request, model_frames, to_motion
 from humotion_gym.priors.slds_inference import (
-    EMResult,
     SLDSParams,
     combine,
-    fit_em,
     psd_sqrt,
     sample_switches,
     stabilise,
 )
+from humotion_gym.priors.slds_learning import EMResult, fit_em
 
 FloatArray = NDArray[np.float64]
 NAME = "slds"

@@ -19,13 +19,13 @@ from humotion_gym.priors.slds_inference import (
     SLDSParams,
     combine,
     filter_path,
-    fit_em,
     pack,
     rts_smoother,
     sample,
     stabilise,
     viterbi,
 )
+from humotion_gym.priors.slds_learning import fit_em
 
 # ---------------------------------------------------------------------------
 # Small models
