@@ -1,0 +1,486 @@
+"""Rigs: handmade files of every CMU format and the Daz style, the fallback mapper, T-poses.
+
+One abstract skeleton (positions in cm, y up, facing +z, left = +x) is written
+as ASF/AMC and as BVH in each rig's naming. Every rig must give the same 15
+keypoints (the oracle below), and a CMU-named file must load with the label,
+person and split of CMU's index. Real-data tests rename joints of the shared
+files in tmp_path and check the mapper finds the profile's own keypoints.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from humotion_gym.body import KEYPOINT_INDEX, KEYPOINT_NAMES
+from humotion_gym.errors import RigError
+from humotion_gym.mocap.library import SplitError, assign_split, describe_file, load_library
+from humotion_gym.mocap.rigmap import map_humanoid, match_rig
+from humotion_gym.mocap.rigs import RIGS, Y_UP_TO_Z_UP, detect_rig
+from humotion_gym.mocap.tpose import is_tpose_frame
+
+# The abstract skeleton: role -> (parent role, start point in cm). A role's
+# bone runs from its start to the start of its (first) child, or to its tip.
+_SPINE = {
+    "root": (None, (0, 100, 0)),
+    "lowerback": ("root", (0, 100, 0)),
+    "upperback": ("lowerback", (0, 110, 0)),
+    "thorax": ("upperback", (0, 120, 0)),
+    "lowerneck": ("thorax", (0, 130, 0)),
+    "upperneck": ("lowerneck", (0, 137, 0)),
+    "head": ("upperneck", (0, 145, 0)),
+}
+_SIDE = {
+    "hipjoint": ("root", (0, 100, 0)),
+    "thigh": ("hipjoint", (9, 95, 0)),
+    "shin": ("thigh", (9, 53, 0)),
+    "foot": ("shin", (9, 12, 0)),
+    "toe": ("foot", (9, 7, 12)),
+    "collar": ("thorax", (0, 130, 0)),
+    "upperarm": ("collar", (17, 127, 0)),
+    "forearm": ("upperarm", (21, 99, 0)),
+    "wrist": ("forearm", (24, 74, 0)),
+    "hand": ("wrist", (24, 71, 0)),
+}
+_TIPS = {"head": (0, 163, 0), "toe": (9, 7, 16), "hand": (24, 63, 0)}
+
+
+def _skeleton() -> dict[str, tuple[str | None, np.ndarray]]:
+    out = {k: (p, np.array(v, float)) for k, (p, v) in _SPINE.items()}
+    for side, sign in (("l", 1.0), ("r", -1.0)):
+        for role, (parent, pos) in _SIDE.items():
+            par = parent if parent in _SPINE else f"{side}_{parent}"
+            out[f"{side}_{role}"] = (par, np.array(pos, float) * [sign, 1, 1])
+    return out
+
+
+SKELETON = _skeleton()
+# Expected keypoints (cm, y up) of the abstract skeleton.
+EXPECTED_CM = {
+    "pelvis": (0, 100, 0), "neck": (0, 130, 0), "head_top": (0, 163, 0),
+    **{f"{s}_{k}": (sign * x, y, z) for s, sign in (("l", 1), ("r", -1))
+       for k, (x, y, z) in {"hip": (9, 95, 0), "knee": (9, 53, 0), "ankle": (9, 12, 0),
+                            "shoulder": (17, 127, 0), "elbow": (21, 99, 0),
+                            "wrist": (24, 74, 0)}.items()},
+}  # fmt: skip
+
+# Each rig: role -> joint name (roles it leaves out are skipped: children attach to
+# the nearest kept ancestor). "{S}" is the side's word.
+_LR = {"l": "Left", "r": "Right"}
+RIG_NAMES: dict[str, tuple[dict[str, str], dict[str, str]]] = {
+    "cmu-bvh": (
+        {"root": "Hips", "lowerback": "LowerBack", "upperback": "Spine", "thorax": "Spine1",
+         "lowerneck": "Neck", "upperneck": "Neck1", "head": "Head"},
+        {"hipjoint": "{s}HipJoint", "thigh": "{S}UpLeg", "shin": "{S}Leg", "foot": "{S}Foot",
+         "toe": "{S}ToeBase", "collar": "{S}Shoulder", "upperarm": "{S}Arm",
+         "forearm": "{S}ForeArm", "wrist": "{S}Hand"},
+    ),
+    "cmu-bvh-joint-names": (
+        {"root": "Hips", "upperback": "Spine", "thorax": "Spine1", "lowerneck": "Neck",
+         "head": "Head"},
+        {"hipjoint": "{s}HipJoint", "thigh": "{S}Hip", "shin": "{S}Knee", "foot": "{S}Ankle",
+         "toe": "{S}Toe", "collar": "{S}Collar", "upperarm": "{S}Shoulder",
+         "forearm": "{S}Elbow", "wrist": "{S}Wrist"},
+    ),
+    "cmu-bvh-asf-names": (
+        {"root": "root", "lowerback": "lowerback", "upperback": "upperback",
+         "thorax": "thorax", "lowerneck": "lowerneck", "upperneck": "upperneck",
+         "head": "head"},
+        {"hipjoint": "{l}hipjoint", "thigh": "{l}femur", "shin": "{l}tibia", "foot": "{l}foot",
+         "toe": "{l}toes", "collar": "{l}clavicle", "upperarm": "{l}humerus",
+         "forearm": "{l}radius", "wrist": "{l}wrist", "hand": "{l}hand"},
+    ),
+    "daz": (
+        {"root": "hip", "upperback": "abdomen", "thorax": "chest", "lowerneck": "neck",
+         "head": "head"},
+        {"thigh": "{l}Thigh", "shin": "{l}Shin", "foot": "{l}Foot", "toe": "{l}Toe",
+         "collar": "{l}Collar", "upperarm": "{l}Shldr", "forearm": "{l}ForeArm",
+         "wrist": "{l}Hand"},
+    ),
+    # Rigify-like names no profile knows: the mapper reads them.
+    "names": (
+        {"root": "pelvis", "upperback": "spine", "thorax": "chest", "lowerneck": "neck",
+         "head": "head"},
+        {"thigh": "thigh.{L}", "shin": "shin.{L}", "foot": "foot.{L}", "toe": "toe.{L}",
+         "collar": "shoulder.{L}", "upperarm": "upper_arm.{L}", "forearm": "forearm.{L}",
+         "wrist": "hand.{L}"},
+    ),
+}  # fmt: skip
+
+
+def rig_joints(rig: str) -> dict[str, str]:
+    """Abstract role (``l_thigh``...) -> the rig's joint name."""
+    spine, side = RIG_NAMES[rig]
+    out = dict(spine)
+    for s in "lr":
+        for role, pattern in side.items():
+            out[f"{s}_{role}"] = pattern.format(S=_LR[s], s=s.upper(), l=s, L=s.upper())
+    return out
+
+
+def _kept_parent(role: str, names: dict[str, str]) -> str | None:
+    parent = SKELETON[role][0]
+    while parent is not None and parent not in names:
+        parent = SKELETON[parent][0]
+    return parent
+
+
+def write_bvh(path: Path, names: dict[str, str], frames: list[dict[str, tuple]] | None = None,
+              root_z: tuple[float, ...] = (0.0, 5.0, 10.0)) -> Path:  # fmt: skip
+    """A BVH of the abstract skeleton in a rig's names; frames all at rest unless given.
+
+    ``frames[i]`` maps a role to its (Z, X, Y) rotation in degrees for frame i.
+    """
+    kids: dict[str | None, list[str]] = {}
+    for role in SKELETON:
+        if role in names:
+            kids.setdefault(_kept_parent(role, names), []).append(role)
+    order: list[str] = []
+    lines = ["HIERARCHY"]
+
+    def emit(role: str, depth: int) -> None:
+        pad = "  " * depth
+        parent = _kept_parent(role, names)
+        off = SKELETON[role][1] - (SKELETON[parent][1] if parent else 0)
+        kind = "ROOT" if parent is None else "JOINT"
+        lines.append(f"{pad}{kind} {names[role]}")
+        lines.append(pad + "{")
+        lines.append(f"{pad}  OFFSET {off[0]:g} {off[1]:g} {off[2]:g}")
+        chans = "6 Xposition Yposition Zposition" if parent is None else "3"
+        lines.append(f"{pad}  CHANNELS {chans} Zrotation Xrotation Yrotation")
+        order.append(role)
+        children = kids.get(role, [])
+        for c in children:
+            emit(c, depth + 1)
+        if not children:
+            base = role.split("_", 1)[-1]
+            tip = np.array(_TIPS.get(base, (0, 0, 0)), float)
+            if role.startswith("r_"):
+                tip = tip * [-1, 1, 1]
+            end = tip - SKELETON[role][1] if base in _TIPS else np.array([0.0, -3.0, 0.0])
+            lines.extend([f"{pad}  End Site", pad + "  {",
+                          f"{pad}    OFFSET {end[0]:g} {end[1]:g} {end[2]:g}", pad + "  }"])  # fmt: skip
+        lines.append(pad + "}")
+
+    emit("root", 0)
+    n = len(root_z)
+    frames = frames or [{} for _ in range(n)]
+    lines += ["MOTION", f"Frames: {n}", "Frame Time: 0.0333333"]
+    for i in range(n):
+        vals = [0.0, 100.0, root_z[i], 0.0, 0.0, 0.0]
+        for role in order[1:]:
+            vals += list(frames[i].get(role, (0.0, 0.0, 0.0)))
+        lines.append(" ".join(f"{v:g}" for v in vals))
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def write_asf_amc(folder: Path, subject: int, trial: int) -> Path:
+    """CMU-style ASF (bone tips, inches) and AMC of the abstract skeleton; returns the AMC."""
+    bones = [r for r in SKELETON if r != "root"]
+    names = {r: (r if r in _SPINE else r[0] + {"hipjoint": "hipjoint", "thigh": "femur",
+             "shin": "tibia", "foot": "foot", "collar": "clavicle", "upperarm": "humerus",
+             "forearm": "radius", "wrist": "wrist", "hand": "hand", "toe": "toes"}[r[2:]])
+             for r in bones}  # fmt: skip
+    child = {}
+    for r in bones:
+        child.setdefault(SKELETON[r][0], r)
+    lines = [":version 1.10", ":name VICON", ":units", "  mass 1.0", "  length 1", "  angle deg",
+             ":root", "   order TX TY TZ RX RY RZ", "   axis XYZ", "   position 0 0 0",
+             "   orientation 0 0 0", ":bonedata"]  # fmt: skip
+    for i, r in enumerate(bones, start=1):
+        start = SKELETON[r][1]
+        base = r.split("_", 1)[-1]
+        if r in child:
+            end = SKELETON[child[r]][1]
+        else:
+            end = np.array(_TIPS[base], float) * ([-1, 1, 1] if r.startswith("r_") else 1)
+        # An ASF bone's tip is where its first child starts; hipjoint/collar carry the
+        # offset from the root/thorax (their own start equals the parent's tip).
+        if r.endswith("hipjoint"):
+            end = SKELETON[f"{r[0]}_thigh"][1]
+        vec = (end - start) / 2.54
+        length = float(np.linalg.norm(vec))
+        lines += ["  begin", f"     id {i}", f"     name {names[r]}",
+                  f"     direction {vec[0] / length:.9g} {vec[1] / length:.9g} "
+                  f"{vec[2] / length:.9g}", f"     length {length:.9g}",
+                  "     axis 0 0 0 XYZ", "  end"]  # fmt: skip
+    lines.append(":hierarchy")
+    lines.append("  begin")
+    kids: dict[str, list[str]] = {}
+    for r in bones:
+        kids.setdefault(SKELETON[r][0], []).append(names[r])
+    for parent, cs in kids.items():
+        lines.append(f"    {names.get(parent, 'root')} {' '.join(cs)}")
+    lines.append("  end")
+    asf = folder / f"{subject:02d}.asf"
+    asf.write_text("\n".join(lines) + "\n")
+    amc = folder / f"{subject:02d}_{trial:02d}.amc"
+    body = [":FULLY-SPECIFIED", ":DEGREES"]
+    for f, z in enumerate((0.0, 2.0, 4.0), start=1):
+        body += [str(f), f"root 0 {100 / 2.54:.9g} {z:g} 0 0 0"]
+    amc.write_text("\n".join(body) + "\n")
+    return amc
+
+
+def expected_mm() -> np.ndarray:
+    cm = np.array([EXPECTED_CM[k] for k in KEYPOINT_NAMES], float)
+    return (cm * 10.0) @ Y_UP_TO_Z_UP.T
+
+
+def _first_frame_centered(kp: np.ndarray) -> np.ndarray:
+    return kp[0] - kp[0, KEYPOINT_INDEX["pelvis"]]
+
+
+@pytest.mark.parametrize("rig", ["cmu-bvh", "cmu-bvh-joint-names", "cmu-bvh-asf-names", "daz"])
+def test_each_bvh_rig_is_recognised_and_labelled(tmp_path, rig):
+    path = write_bvh(tmp_path / "16_11.bvh", rig_joints(rig))
+    lib = load_library([tmp_path], cache_dir=tmp_path / "cache", progress=False)
+    (m,) = lib.motions
+    assert m.meta["rig"] == rig and m.meta["rig_match"] == "profile"
+    assert (m.label, m.subject, m.meta["person"], m.meta["split"]) == (
+        "walk", "cmu-16", "cmu-16", "test"
+    )  # fmt: skip
+    assert m.description == "walk, veer left" and m.source == str(path)
+    assert lib.split("test").clip_ids == ["cmu/16_11"]
+    np.testing.assert_allclose(
+        _first_frame_centered(m.keypoints), expected_mm() - expected_mm()[0], atol=1e-6
+    )
+
+
+def test_asf_amc_is_recognised_and_labelled(tmp_path):
+    write_asf_amc(tmp_path, 35, 17)
+    (m,) = load_library([tmp_path], cache_dir=tmp_path / "cache", progress=False).motions
+    assert m.meta["rig"] == "cmu-asf" and (m.label, m.meta["split"]) == ("run", "train")
+    np.testing.assert_allclose(
+        _first_frame_centered(m.keypoints), expected_mm() - expected_mm()[0], atol=1e-4
+    )
+
+
+def test_asf_names_in_a_bvh_are_not_read_as_asf_tips():
+    names = list(rig_joints("cmu-bvh-asf-names").values()) + ["head_End"]
+    assert detect_rig(names, fmt="bvh").name == "cmu-bvh-asf-names"
+    assert detect_rig([n for n in names if not n.endswith("_End")], fmt="asf").name == "cmu-asf"
+
+
+@pytest.mark.parametrize("rig", ["names", "cmu-bvh-joint-names", "daz"])
+def test_the_mapper_reads_names_no_profile_knows(tmp_path, rig):
+    # Unknown spellings: sides as suffixes, prefixes, glued letters.
+    joints = rig_joints(rig)
+    if rig != "names":
+        joints = {k: f"mocap:{v}_jnt" for k, v in joints.items()}
+    write_bvh(tmp_path / "take.bvh", joints)
+    (m,) = load_library([tmp_path], cache_dir=tmp_path / "cache", progress=False).motions
+    assert m.meta["rig"] == "auto" and m.meta["rig_match"] in ("names", "names+topology")
+    assert float(m.meta["rig_confidence"]) >= 0.9
+    np.testing.assert_allclose(
+        _first_frame_centered(m.keypoints), expected_mm() - expected_mm()[0], atol=1e-6
+    )
+
+
+def test_the_mapper_reads_a_nameless_hierarchy_by_topology(tmp_path):
+    joints = {k: f"J{i}" for i, k in enumerate(rig_joints("cmu-bvh"))}
+    write_bvh(tmp_path / "take.bvh", joints)
+    (m,) = load_library([tmp_path], cache_dir=tmp_path / "cache", progress=False).motions
+    assert m.meta["rig_match"] == "topology" and m.meta["rig_confidence"] == "0.50"
+    assert "facing +z" in m.meta["rig_summary"] or "topology" in m.meta["rig_summary"]
+    np.testing.assert_allclose(
+        _first_frame_centered(m.keypoints), expected_mm() - expected_mm()[0], atol=1e-6
+    )
+
+
+def test_the_mapper_lists_what_it_could_not_find():
+    names = ["Root", "Spine", "Head", "L_Thigh", "L_Calf", "L_Foot", "Arm_L"]
+    parents = [-1, 0, 1, 0, 3, 4, 1]
+    with pytest.raises(RigError) as info:
+        map_humanoid(names, parents, "bvh", "odd.bvh")
+    msg = str(info.value)
+    assert msg.startswith("odd.bvh: ")
+    for kp in ("r_hip", "r_knee", "r_ankle", "l_elbow", "l_wrist"):
+        assert kp in msg
+    assert "l_thigh: ['L_Thigh']" in msg and "l_upperarm: ['Arm_L']" in msg
+    assert "l_knee" not in re.search(r"keypoints \[(.*?)\]", msg)[1]
+
+
+def test_the_mapper_checks_its_arguments():
+    with pytest.raises(RigError, match="format"):
+        map_humanoid(["a"], [-1], "fbx")
+    with pytest.raises(RigError, match="parents"):
+        map_humanoid(["a", "b"], [-1], "bvh")
+
+
+def test_tpose_frame_is_dropped_and_reported(tmp_path):
+    # Frame 0 holds both arms straight out (upper arm turned about z), then rest.
+    out = {"l_upperarm": (81.87, 0.0, 0.0), "r_upperarm": (-81.87, 0.0, 0.0)}
+    frames = [out, {}, {}, {}]
+    write_bvh(tmp_path / "07_01.bvh", rig_joints("cmu-bvh"), frames, (0.0, 1.0, 2.0, 3.0))
+    write_bvh(tmp_path / "07_02.bvh", rig_joints("cmu-bvh"), None, (0.0, 1.0, 2.0, 3.0))
+    lib = load_library([tmp_path], cache_dir=tmp_path / "cache", progress=False)
+    tpose, rest = lib["cmu/07_01"], lib["cmu/07_02"]
+    assert tpose.meta["tpose"] == "dropped frame 0" and tpose.n_frames == 3
+    assert rest.meta["tpose"] == "" and rest.n_frames == 4
+    np.testing.assert_allclose(tpose.keypoints, rest.keypoints[1:], atol=1e-6)
+
+
+def test_tpose_needs_arms_out_and_a_jump():
+    rest = expected_mm()
+    tpose = rest.copy()
+    k = KEYPOINT_INDEX
+    for s, sign in (("l", 1.0), ("r", -1.0)):
+        sh = tpose[k[f"{s}_shoulder"]]
+        tpose[k[f"{s}_elbow"]] = sh + [sign * 282.8, 0, 0]
+        tpose[k[f"{s}_wrist"]] = sh + [sign * 534.6, 0, 0]
+    assert is_tpose_frame(np.stack([tpose, rest]))
+    assert not is_tpose_frame(np.stack([tpose, tpose + 5.0]))  # held, not a reference frame
+    assert not is_tpose_frame(np.stack([rest, tpose]))  # arms down at frame 0
+    tilted = tpose.copy()
+    tilted[k["l_wrist"], 2] += 300.0
+    assert not is_tpose_frame(np.stack([tilted, rest]))
+    assert not is_tpose_frame(tpose[None])
+    assert not is_tpose_frame(np.stack([np.full_like(rest, np.nan), rest]))
+
+
+def test_user_split_rule_and_override(tmp_path):
+    for actor in ("ann", "bob", "cy", "dee", "eve", "fay"):
+        (tmp_path / actor).mkdir()
+        write_bvh(tmp_path / actor / f"{actor}_walk.bvh", rig_joints("cmu-bvh"))
+    lib = load_library([tmp_path], cache_dir=tmp_path / "cache", progress=False)
+    rules = {m.meta["split_rule"] for m in lib}
+    assert len(rules) == 1 and rules.pop().startswith("user-hash")
+    for m in lib:
+        assert (m.subject in lib.held_out) == (m.meta["split"] == "test")
+        assert m.meta["split"] == assign_split(describe_file(Path(m.source)))[0]
+    chosen = load_library(
+        [tmp_path], cache_dir=tmp_path / "cache", progress=False, split_by={"bob": "test"}
+    )
+    assert "bob" in chosen.held_out and chosen["user/bob_walk"].meta["split"] == "test"
+    assert chosen["user/bob_walk"].meta["split_rule"] == "split_by mapping (bob)"
+    assert any("user-hash" in r for r in chosen.split_rules)
+
+    def everyone_trains(src):
+        return "train"
+
+    none = load_library(
+        [tmp_path], cache_dir=tmp_path / "cache", progress=False, split_by=everyone_trains
+    )
+    assert none.split("test").clip_ids == [] and none.split_rules == ["split_by=everyone_trains"]
+
+
+def test_a_person_on_both_sides_is_refused(tmp_path):
+    (tmp_path / "ann").mkdir()
+    for take in ("walk", "run"):
+        write_bvh(tmp_path / "ann" / f"{take}.bvh", rig_joints("cmu-bvh"))
+    with pytest.raises(SplitError, match="ann: train user/walk, test user/run"):
+        load_library(
+            [tmp_path], cache_dir=tmp_path / "c", progress=False,
+            split_by={"user/run": "test", "user/walk": "train"},
+        )  # fmt: skip
+    with pytest.raises(ValueError, match="expected 'train' or 'test'"):
+        load_library([tmp_path], cache_dir=tmp_path / "c", progress=False, split_by={"ann": "x"})
+
+
+def test_every_profile_reads_only_its_formats():
+    for rig in RIGS.values():
+        assert set(rig.formats) <= {"bvh", "asf"}
+
+
+# -- renamed copies of the shared files (made in tmp_path, never kept) ---------
+
+
+def _rename_bvh(src: Path, dst: Path, rename) -> Path:
+    text = src.read_text()
+    text = re.sub(r"^(\s*(?:ROOT|JOINT)\s+)(\S+)", lambda m: m[1] + rename(m[2]), text, flags=re.M)
+    dst.write_text(text)
+    return dst
+
+
+_CC_TO_NEW = {
+    "CC_Base_Hip": "Hips", "CC_Base_L_Thigh": "thigh_L", "CC_Base_L_Calf": "calf_L",
+    "CC_Base_L_Foot": "foot_L", "CC_Base_R_Thigh": "thigh_R", "CC_Base_R_Calf": "calf_R",
+    "CC_Base_R_Foot": "foot_R", "CC_Base_L_Upperarm": "upperarm_L",
+    "CC_Base_L_Forearm": "lowerarm_L", "CC_Base_L_Hand": "hand_L",
+    "CC_Base_R_Upperarm": "upperarm_R", "CC_Base_R_Forearm": "lowerarm_R",
+    "CC_Base_R_Hand": "hand_R", "CC_Base_Head": "head", "CC_Base_NeckTwist01": "neck_01",
+}  # fmt: skip
+
+
+@pytest.mark.mocap
+def test_renamed_character_creator_copy_maps_to_the_same_keypoints(shared_mocap, tmp_path):
+    src = shared_mocap / "cmu-bvh-cc" / "007" / "007_02.bvh"
+    # Unreal-style names for the keypoint joints, every other joint "bone_N".
+    counter = iter(range(10_000))
+    dst = _rename_bvh(
+        src, tmp_path / "007_02.bvh", lambda n: _CC_TO_NEW.get(n, f"bone_{next(counter)}")
+    )
+    from humotion_gym.mocap.bvh import load_bvh
+
+    original, renamed = load_bvh(src), load_bvh(dst)
+    match = match_rig(renamed)
+    assert match.profile.name == "auto" and match.method.startswith("names")
+    a = RIGS["character-creator"].keypoints_from(original, 10.0)
+    b = match.profile.keypoints_from(renamed, 10.0)
+    body = [KEYPOINT_INDEX[k] for k in KEYPOINT_NAMES if k not in ("pelvis", "head_top", "neck")]
+    np.testing.assert_allclose(b[:, body], a[:, body], atol=1e-6)
+    # The pelvis is where the legs meet (CC_Base_Pelvis, 0.07 mm from CC_Base_Hip).
+    np.testing.assert_allclose(b[:, 0], a[:, 0], atol=1.0)
+
+
+@pytest.mark.mocap
+def test_renamed_bandai_copy_by_names_and_by_topology(shared_mocap, tmp_path):
+    src = next((shared_mocap / "bandai-1").glob("dataset-1_walk_normal_*.bvh"))
+    from humotion_gym.mocap.bvh import load_bvh
+
+    original = load_bvh(src)
+    want = RIGS["bandai"].keypoints_from(original, 10.0)
+    # Sides moved to the front with other words: UpperLeg_L -> Left_Thigh ...
+    words = {"UpperLeg": "Thigh", "LowerLeg": "Shin", "Foot": "Ankle", "UpperArm": "UpArm",
+             "LowerArm": "Elbow", "Hand": "Wrist"}  # fmt: skip
+
+    def swap(n: str) -> str:
+        m = re.match(r"^(\w+?)_([LR])$", n)
+        if m and m[1] in words:
+            return f"{'Left' if m[2] == 'L' else 'Right'}_{words[m[1]]}"
+        return n
+
+    renamed = load_bvh(_rename_bvh(src, tmp_path / "a.bvh", swap))
+    match = match_rig(renamed)
+    assert match.profile.name == "auto" and match.method == "names"
+    got = match.profile.keypoints_from(renamed, 10.0)
+    # The head top: the profile extends the head, the mapper takes the head's end site.
+    body = [i for i, k in enumerate(KEYPOINT_NAMES) if k != "head_top"]
+    np.testing.assert_allclose(got[:, body], want[:, body], atol=1e-6)
+    # Every joint renamed to a number: topology and geometry find the same points.
+    counter = iter(range(10_000))
+    nameless = load_bvh(_rename_bvh(src, tmp_path / "b.bvh", lambda n: f"j{next(counter)}"))
+    match = match_rig(nameless)
+    assert match.method == "topology" and match.confidence == 0.5
+    got = match.profile.keypoints_from(nameless, 10.0)
+    np.testing.assert_allclose(got[:, body], want[:, body], atol=1e-6)
+
+
+@pytest.mark.mocap
+def test_renamed_asf_copy_maps_exactly_like_the_cmu_profile(shared_mocap, tmp_path):
+    from humotion_gym.mocap.asfamc import load_amc, load_asf
+
+    folder = shared_mocap / "cmu-asfamc" / "02"
+    rename = {"lfemur": "LeftThigh", "ltibia": "LeftShin", "rfemur": "RightThigh",
+              "rtibia": "RightShin", "lhumerus": "L_UpperArm", "rhumerus": "R_UpperArm",
+              "lradius": "L_Forearm", "rradius": "R_Forearm"}  # fmt: skip
+    asf_text, amc_text = (folder / "02.asf").read_text(), (folder / "02_01.amc").read_text()
+    for old, new in rename.items():
+        asf_text = re.sub(rf"\b{old}\b", new, asf_text)
+        amc_text = re.sub(rf"^{old}\b", new, amc_text, flags=re.M)
+    (tmp_path / "x.asf").write_text(asf_text)
+    (tmp_path / "x.amc").write_text(amc_text)
+    original = load_amc(folder / "02_01.amc", load_asf(folder / "02.asf"))
+    renamed = load_amc(tmp_path / "x.amc", load_asf(tmp_path / "x.asf"))
+    match = match_rig(renamed)
+    assert match.profile.name == "auto" and match.method == "names"
+    np.testing.assert_allclose(
+        match.profile.keypoints_from(renamed, 25.4),
+        RIGS["cmu-asf"].keypoints_from(original, 25.4),
+        atol=1e-9,
+    )
