@@ -427,6 +427,20 @@ def fit(
 # ---------------------------------------------------------------------------
 
 
+#: Keys of a particle's ``ParticleState.extra`` (each an ``(N, ...)`` array):
+#: the phase in ``[0, S)``, the speed (samples per frame), the ``q``
+#: coefficients, the fixed per-angle offset and the root's velocity.
+PHASE, SPEED, COEF, OFFSET, ROOT_VELOCITY = "phase", "speed", "coef", "offset", "root_velocity"
+STATE_KEYS: tuple[str, ...] = (PHASE, SPEED, COEF, OFFSET, ROOT_VELOCITY)
+
+
+def _particle_extra(
+    phase: FloatArray, speed: FloatArray, coef: FloatArray, offset: FloatArray, velocity: FloatArray
+) -> dict[str, FloatArray]:
+    """The per-particle state beside the pose, under :data:`STATE_KEYS`."""
+    return dict(zip(STATE_KEYS, (phase, speed, coef, offset, velocity), strict=True))
+
+
 def _slots(fitted: CyclicPCAParams) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
     """Positions in the free vector of the angles, the root position and root rotations."""
     where = {int(f): d for d, f in enumerate(fitted.free)}
@@ -535,13 +549,7 @@ def initial(
         velocity[:, :2] = speed_xy * rng.standard_normal((n, 2)) / np.sqrt(2.0)
     out = np.repeat(p[None], n, axis=0)
     out[:, angle_slots] = curves(fitted, phase, coef) + offset
-    extra = {
-        "phase": phase,
-        "speed": speed,
-        "coef": coef,
-        "offset": offset,
-        "root_velocity": velocity,
-    }
+    extra = _particle_extra(phase, speed, coef, offset, velocity)
     return ParticleState(out, extra)
 
 
@@ -551,20 +559,20 @@ def transition(
     """One frame: advance the phase by the speed, random-walk speed, coefficients, global pose."""
     n = state.n
     angle_slots, pos_slots, rot_slots = _slots(fitted)
-    phase = np.mod(state.extra["phase"] + state.extra["speed"], fitted.n_samples)
+    phase = np.mod(state.extra[PHASE] + state.extra[SPEED], fitted.n_samples)
     speed = np.clip(
-        state.extra["speed"] + fitted.speed_noise * fitted.speed_step_std * rng.standard_normal(n),
+        state.extra[SPEED] + fitted.speed_noise * fitted.speed_step_std * rng.standard_normal(n),
         fitted.speed_min,
         fitted.speed_max,
     )
-    coef = state.extra["coef"] + fitted.coef_noise * fitted.coef_step_std * rng.standard_normal(
+    coef = state.extra[COEF] + fitted.coef_noise * fitted.coef_step_std * rng.standard_normal(
         (n, fitted.n_components)
     )
-    offset = state.extra["offset"]
+    offset = state.extra[OFFSET]
     pose = state.pose.copy()
     pose[:, angle_slots] = curves(fitted, phase, coef) + offset
     # Global pose (section 5): random walks with the fitted scales.
-    velocity = state.extra["root_velocity"] + fitted.global_noise * fitted.root_accel_std * (
+    velocity = state.extra[ROOT_VELOCITY] + fitted.global_noise * fitted.root_accel_std * (
         rng.standard_normal((n, 3))
     )
     for axis, slot in enumerate(rot_slots):
@@ -584,13 +592,7 @@ def transition(
         for axis, slot in enumerate(pos_slots):
             if slot >= 0:
                 pose[:, slot] += world[:, axis]
-    extra = {
-        "phase": phase,
-        "speed": speed,
-        "coef": coef,
-        "offset": offset,
-        "root_velocity": velocity,
-    }
+    extra = _particle_extra(phase, speed, coef, offset, velocity)
     return ParticleState(pose, extra)
 
 

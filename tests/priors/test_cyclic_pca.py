@@ -249,8 +249,10 @@ def test_prior_contract(task, synthetic_walks):
     pose = synthetic_walks[-1].params[20, task.free_indices]
     state = cyclic_pca.initial(fitted, pose, 64, np.random.default_rng(0))
     assert state.pose.shape == (64, d)
-    assert state.extra["phase"].shape == (64,) and state.extra["speed"].shape == (64,)
-    assert state.extra["coef"].shape == (64, fitted.n_components)
+    assert state.extra[cyclic_pca.PHASE].shape == (64,) and state.extra[cyclic_pca.SPEED].shape == (
+        64,
+    )
+    assert state.extra[cyclic_pca.COEF].shape == (64, fitted.n_components)
     # starting particles sit near the known pose (the global part exactly on it)
     assert np.abs(np.median(state.pose, axis=0) - pose).max() < np.radians(5)
     again = cyclic_pca.initial(fitted, pose, 64, np.random.default_rng(0))
@@ -260,7 +262,8 @@ def test_prior_contract(task, synthetic_walks):
     np.testing.assert_array_equal(nxt.pose, nxt2.pose)
     assert nxt.pose.shape == (64, d) and np.all(np.isfinite(nxt.pose))
     np.testing.assert_allclose(
-        nxt.extra["phase"], (state.extra["phase"] + state.extra["speed"]) % fitted.n_samples
+        nxt.extra[cyclic_pca.PHASE],
+        (state.extra[cyclic_pca.PHASE] + state.extra[cyclic_pca.SPEED]) % fitted.n_samples,
     )
 
 
