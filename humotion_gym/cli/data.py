@@ -38,7 +38,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     table.set_defaults(func=_cmd_data_table)
 
     info = dsub.add_parser(
-        "info", help="per clip: rig, subject, label, frames, fps, seconds, retargeting error"
+        "info",
+        help="per clip: rig and how it was matched, person, split, label, frames, fps, "
+        "seconds, retargeting error, T-pose dropped",
     )
     info.add_argument("paths", nargs="+", metavar="PATH", help="mocap files or folders")
     add_json(info, "JSON lines instead of a table")
@@ -88,7 +90,14 @@ def _clip_row(m) -> dict:
         "clip": m.clip_id,
         "dataset": m.dataset,
         "rig": m.meta.get("rig", ""),
+        "rig_match": m.meta.get("rig_match", ""),
+        "rig_confidence": float(m.meta["rig_confidence"]) if "rig_confidence" in m.meta else None,
+        "rig_detail": m.meta.get("rig_summary", ""),
+        "tpose": m.meta.get("tpose", ""),
         "subject": m.subject,
+        "person": m.meta.get("person", m.subject),
+        "split": m.meta.get("split", ""),
+        "split_rule": m.meta.get("split_rule", ""),
         "label": m.label,
         "frames": m.n_frames,
         "fps": m.fps,
@@ -129,16 +138,24 @@ def _cmd_data_info(args: argparse.Namespace) -> int:
         for r in rows:
             print(json.dumps(r))
         return 0
-    head = (f"{'file':48s} {'rig':17s} {'subject':20s} {'label':10s} {'frames':>6s} {'fps':>4s} "
-            f"{'sec':>6s} {'err':>6s} {'max':>6s}")  # fmt: skip
+    head = (f"{'file':40s} {'rig':19s} {'matched':14s} {'person':16s} {'split':5s} "
+            f"{'label':10s} {'frames':>6s} {'fps':>4s} {'sec':>6s} {'err':>6s} {'max':>6s}  "
+            "t-pose")  # fmt: skip
     print(head)
     for r in rows:
-        name = r["file"] if len(r["file"]) <= 48 else "..." + r["file"][-45:]
+        name = r["file"] if len(r["file"]) <= 40 else "..." + r["file"][-37:]
+        matched = f"{r['rig_match']} {r['rig_confidence']:.2f}" if r["rig_match"] else ""
         print(
-            f"{name:48s} {r['rig']:17s} {r['subject']:20s} {r['label']:10s} {r['frames']:6d} "
-            f"{r['fps']:4.0f} {r['seconds']:6.1f} {r['error_mean_mm']:6.1f} "
-            f"{r['error_max_mm']:6.1f}"
+            f"{name:40s} {r['rig']:19s} {matched:14s} {r['person']:16s} {r['split']:5s} "
+            f"{r['label']:10s} {r['frames']:6d} {r['fps']:4.0f} {r['seconds']:6.1f} "
+            f"{r['error_mean_mm']:6.1f} {r['error_max_mm']:6.1f}  {r['tpose'] or '-'}"
         )
+    weak = [r for r in rows if r["rig_match"] not in ("", "profile")]
+    for r in weak:
+        print(f"rig of {r['clip']}: {r['rig_detail']}")
+    dropped = sum(bool(r["tpose"]) for r in rows)
+    rules = "; ".join(lib.split_rules) or "-"
+    print(f"{len(rows)} clips; T-pose dropped from {dropped}; split rule(s): {rules}")
     return 0
 
 

@@ -3,6 +3,7 @@
 ::
 
     humotion-gym download cmu --subjects 2 7 35 [--dest DIR]
+    humotion-gym download cmu --activity walk [run ...] --persons 10 [--train-only]
     humotion-gym download cmu --verify [--dest DIR]
 """
 
@@ -21,8 +22,27 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     cmu = dsub.add_parser("cmu", help="CMU Graphics Lab Motion Capture Database (ASF/AMC)")
     cmu.add_argument(
         "--subjects", type=nonnegative_int, nargs="+", default=None, metavar="N",
-        help="CMU subject numbers (required unless --verify)",
+        help="CMU subject numbers (required unless --activity or --verify)",
     )  # fmt: skip
+    cmu.add_argument(
+        "--activity", nargs="+", default=None, metavar="LABEL",
+        help="choose subjects who did these activities (walk, run, jump, dance, fight, sports, "
+        "acrobatics, reach, everyday, pantomime), most trials first, one per person "
+        "(default: none)",
+    )  # fmt: skip
+    cmu.add_argument(
+        "--persons", type=positive_int, default=None,
+        help="with --activity: how many persons (default: all who did it)",
+    )  # fmt: skip
+    cmu.add_argument(
+        "--train-only", action="store_true",
+        help="with --activity: leave out the benchmark's test persons (default: include them)",
+    )  # fmt: skip
+    cmu.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="print the chosen subjects with their labels and persons, download nothing",
+    )
     cmu.add_argument(
         "--dest", type=Path, default=None,
         help="folder to download into (default: the download cache, see humotion-gym cache info)",
@@ -76,8 +96,23 @@ def _cmd_download_cmu(args: argparse.Namespace) -> int:
         report = download.verify_cache(args.dest, registry=args.registry)
         print(report.summary())
         return 0 if report.ok else 1
-    if not args.subjects:
-        raise UsageError("--subjects is required (or --verify)")
+    subjects = list(args.subjects or [])
+    if args.activity:
+        from humotion_gym.mocap.labels import ACTIVITY_LABELS
+
+        unknown = sorted(set(args.activity) - set(ACTIVITY_LABELS))
+        if unknown:
+            raise UsageError(f"--activity: unknown label(s) {unknown}; use {list(ACTIVITY_LABELS)}")
+        chosen = download.choose_cmu_subjects(args.activity, args.persons, not args.train_only)
+        subjects += [s for s in chosen if s not in subjects]
+    elif args.persons is not None or args.train_only:
+        raise UsageError("--persons and --train-only choose by --activity; give --activity")
+    if not subjects:
+        raise UsageError("--subjects or --activity is required (or --verify)")
+    if args.activity or args.dry_run:
+        _print_choice(subjects, args.activity)
+    if args.dry_run:
+        return 0
     mib = 1 << 20
     kwargs = {
         "dest": args.dest,
@@ -95,6 +130,24 @@ def _cmd_download_cmu(args: argparse.Namespace) -> int:
     }
     if args.base_url:
         kwargs["base_url"] = args.base_url
-    files = download.download_cmu(args.subjects, **kwargs)
+    files = download.download_cmu(subjects, **kwargs)
     print(f"{len(files)} files in {files[0].parent.parent if files else args.dest}")
     return 0
+
+
+def _print_choice(subjects: list[int], activities: list[str] | None) -> None:
+    """One line per chosen subject: person, split, trials and labels from the index."""
+    from collections import Counter
+
+    from humotion_gym.mocap.cmu import cmu_index, cmu_label, cmu_person, cmu_subject_id
+    from humotion_gym.mocap.library import TEST_SUBJECTS
+
+    print(f"{'subject':8s} {'person':14s} {'split':5s} {'trials':>6s}  labels")
+    for s in subjects:
+        trials = cmu_index().subject_trials(s)
+        labels = Counter(cmu_label(s, t.trial) for t in trials)
+        shown = ", ".join(f"{k} {v}" for k, v in labels.most_common())
+        split = "test" if cmu_subject_id(s) in TEST_SUBJECTS else "train"
+        print(f"{s:<8d} {cmu_person(s):14s} {split:5s} {len(trials):6d}  {shown}")
+    if activities:
+        print(f"{len(subjects)} subjects chosen for {', '.join(activities)}")

@@ -33,7 +33,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from humotion_gym.mocap.labels import activity_label
+from humotion_gym.mocap.labels import activity_label, says_nothing
 
 #: The packaged trial descriptions.
 CMU_TRIALS_PATH = Path(__file__).resolve().parent / "data" / "cmu_trials.txt"
@@ -207,17 +207,18 @@ def cmu_label(subject: int, trial: int, description: str | None = None) -> str:
         description: The description to use; the packaged index's when None.
 
     Returns:
-        The label of the trial's description; where that says nothing (label
-        ``"other"``: "Unknown", "clean"...), the label of the subject's session
-        title ("Walking with obstacles" -> walk); ``"other"`` for a trial the
-        index does not know.
+        The label of the trial's description; where that says nothing
+        ("Unknown", "clean", "bad AMC": :func:`~humotion_gym.mocap.labels.says_nothing`),
+        the label of the subject's session title ("Walking with obstacles" ->
+        walk); ``"other"`` for a trial the index does not know. A description
+        the rules do not know ("OffensiveMoveSpinLeft") stays ``"other"``.
     """
     index = cmu_index()
     if description is None:
         known = index.get(subject, trial)
         description = known.description if known is not None else ""
     label = activity_label(description) if description else "other"
-    if label == "other" and subject in index.titles:
+    if says_nothing(description) and subject in index.titles:
         title = activity_label(index.titles[subject])
         if title != "calibration":
             label = title

@@ -36,6 +36,12 @@ What a finished download guarantees:
   :data:`DEFAULT_RUN_DEADLINE_S`), so a server that drips one byte a second
   is stopped at the deadline with an error saying so.
 
+**Labelled and chosen by activity.** Each AMC file's manifest entry also
+records its CMU description, activity label and person from the packaged index
+(:mod:`humotion_gym.mocap.cmu`); :func:`choose_cmu_subjects` picks subjects by
+what they did (``--activity walk --persons 10``), one subject per person, those
+with the most trials of the activity first.
+
 Every :class:`DownloadError` names the URL and says what was left on disk: the
 path of a ``.part`` kept for a later call to resume, or that nothing was kept.
 
@@ -86,6 +92,7 @@ __all__ = [
     "CacheReport",
     "DownloadError",
     "RegistryEntry",
+    "choose_cmu_subjects",
     "cmu_subject_code",
     "default_cache_dir",
     "download_cmu",
@@ -1033,12 +1040,49 @@ def download_cmu(
                     out.append(path)
             else:
                 out.extend(_probe_trials(code, subject_url, dest, manifest, opts))
+            _label_entries(manifest, code)
             # Saved per subject (not per file) to keep rewrites of a large
             # manifest cheap; the finally below covers an interruption.
             _write_manifest(dest, manifest)
     finally:
         _write_manifest(dest, manifest)
     return out
+
+
+def _label_entries(manifest: dict[str, dict[str, Any]], code: str) -> None:
+    """Add CMU's description, the activity label and the person to a subject's AMC entries."""
+    from humotion_gym.mocap.cmu import cmu_description, cmu_label, cmu_person
+
+    for rel, entry in manifest.items():
+        m = re.fullmatch(rf"{code}/{code}_(\d+)\.amc", rel)
+        if m:
+            subject, trial = int(code), int(m[1])
+            entry["description"] = cmu_description(subject, trial)
+            entry["label"] = cmu_label(subject, trial)
+            entry["person"] = cmu_person(subject)
+
+
+def choose_cmu_subjects(
+    activities: Sequence[str], persons: int | None = None, include_test: bool = True
+) -> list[int]:
+    """CMU subjects to download for some activities, from the packaged index.
+
+    Args:
+        activities: Activity labels (``["walk"]``, ``["run", "jump"]``...).
+        persons: How many distinct persons (all who did it when None).
+        include_test: Also choose test persons
+            (:data:`humotion_gym.mocap.cmu.CMU_TEST_PERSONS`); False picks
+            training persons only.
+
+    Returns:
+        Subject numbers, most trials of the activities first, one per person.
+
+    Raises:
+        ValueError: If an activity is not a known label or ``persons`` < 1.
+    """
+    from humotion_gym.mocap.cmu import subjects_by_activity
+
+    return subjects_by_activity(activities, persons, exclude_test=not include_test)
 
 
 def _probe_trials(

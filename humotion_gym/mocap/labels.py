@@ -154,6 +154,11 @@ def words(text: str) -> str:
     return re.sub(r"\s+", " ", text).strip()
 
 
+def says_nothing(description: str) -> bool:
+    """True for a description that names no motion ("Unknown", "clean", "bad AMC", "")."""
+    return _NOTHING.match(words(description)) is not None
+
+
 def activity_label(description: str) -> str:
     """The coarse activity label of a description (rules in the module docstring).
 

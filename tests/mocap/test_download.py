@@ -949,3 +949,82 @@ def test_cli_verify_reports_and_fails_on_corrupt(tiny, tmp_path, capsys):
     assert cli.main([*base, "--verify"]) == 1
     out = capsys.readouterr().out
     assert "2 verified" in out and "1 corrupt" in out and "07_02.amc" in out
+
+
+# --- labels, persons and choosing subjects by activity (issue 17) --------------
+
+
+def test_manifest_records_labels_and_persons_from_the_index(tiny):
+    srv, files, dest = tiny
+    get(srv, dest, subjects=[1, 7])
+    man = manifest_of(dest)
+    from humotion_gym.mocap.cmu import cmu_index, cmu_label
+
+    for rel in ("07/07_01.amc", "07/07_02.amc", "01/01_01.amc"):
+        subject, trial = (int(x) for x in Path(rel).stem.split("_"))
+        entry = man[rel]
+        assert entry["description"] == cmu_index().get(subject, trial).description
+        assert entry["label"] == cmu_label(subject, trial)
+        assert entry["person"] == f"cmu-{subject:02d}"
+    assert man["07/07_01.amc"]["label"] == "walk" and man["01/01_01.amc"]["label"] == "jump"
+    assert "label" not in man["07/07.asf"]
+
+
+def test_choose_subjects_by_activity():
+    from humotion_gym.mocap.cmu import CMU_TEST_PERSONS, cmu_person
+
+    walkers = dl.choose_cmu_subjects(["walk"], persons=10)
+    assert len(walkers) == 10 and len({cmu_person(s) for s in walkers}) == 10
+    train = dl.choose_cmu_subjects(["walk"], persons=10, include_test=False)
+    assert not {cmu_person(s) for s in train} & set(CMU_TEST_PERSONS)
+    assert set(walkers) - set(train) <= {16}  # the one test walker in the top ten
+    with pytest.raises(ValueError, match="unknown label"):
+        dl.choose_cmu_subjects(["strolling"])
+
+
+@pytest.fixture
+def walk_mirror(tmp_path):
+    """A mirror holding the subject that ``--activity walk --persons 1`` chooses."""
+    top = dl.choose_cmu_subjects(["walk"], persons=1)[0]
+    code = cmu_subject_code(top)
+    root = tmp_path / "mirror"
+    rng = random.Random(1)
+    for name in (f"{code}.asf", f"{code}_01.amc", f"{code}_02.amc"):
+        (root / code).mkdir(parents=True, exist_ok=True)
+        (root / code / name).write_bytes(rng.randbytes(500))
+    srv, thread = serve(root)
+    try:
+        yield srv, code, tmp_path / "dest"
+    finally:
+        stop(srv, thread)
+
+
+def test_cli_downloads_by_activity_and_prints_the_choice(walk_mirror, capsys):
+    srv, code, dest = walk_mirror
+    argv = ["download", "cmu", "--activity", "walk", "--persons", "1", "--dest", str(dest)]
+    rc = cli.main([*argv, "--quiet", "--base-url", srv.url, "--timeout", str(TIMEOUT)])
+    assert rc == 0
+    out = capsys.readouterr().out
+    assert f"cmu-{code}" in out and "1 subjects chosen for walk" in out
+    assert final_files(dest) == {f"{code}/{code}.asf", f"{code}/{code}_01.amc",
+                                 f"{code}/{code}_02.amc"}  # fmt: skip
+    assert manifest_of(dest)[f"{code}/{code}_01.amc"]["label"] == "walk"
+
+
+def test_cli_activity_cut_connection_resumes(walk_mirror):
+    srv, code, dest = walk_mirror
+    srv.cuts[f"/{code}/{code}_02.amc"] = 1
+    argv = ["download", "cmu", "--activity", "walk", "--persons", "1", "--dest", str(dest)]
+    assert cli.main([*argv, "--quiet", "--base-url", srv.url, "--timeout", str(TIMEOUT)]) == 0
+    got = [r for r in srv.requests if r[0] == f"/{code}/{code}_02.amc"]
+    assert len(got) == 2 and got[1][1] == "bytes=250-"
+    assert leftovers(dest) == set()
+
+
+def test_cli_activity_arguments_are_checked(capsys):
+    assert cli.main(["download", "cmu", "--activity", "strolling"]) == 2
+    assert "--activity: unknown label" in capsys.readouterr().err
+    assert cli.main(["download", "cmu", "--persons", "3"]) == 2
+    assert "give --activity" in capsys.readouterr().err
+    assert cli.main(["download", "cmu", "--activity", "run", "--persons", "2", "--dry-run"]) == 0
+    assert "2 subjects chosen for run" in capsys.readouterr().out

@@ -9,6 +9,7 @@ files in tmp_path and check the mapper finds the profile's own keypoints.
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -484,3 +485,25 @@ def test_renamed_asf_copy_maps_exactly_like_the_cmu_profile(shared_mocap, tmp_pa
         RIGS["cmu-asf"].keypoints_from(original, 25.4),
         atol=1e-9,
     )
+
+
+def test_data_info_shows_rig_match_person_split_and_tpose(tmp_path, capsys):
+    from humotion_gym.cli import main
+
+    out = {"l_upperarm": (81.87, 0.0, 0.0), "r_upperarm": (-81.87, 0.0, 0.0)}
+    write_bvh(tmp_path / "16_11.bvh", rig_joints("daz"), [out, {}, {}, {}], (0.0, 1.0, 2.0, 3.0))
+    (tmp_path / "ann").mkdir()
+    write_bvh(tmp_path / "ann" / "take.bvh", rig_joints("names"))
+    assert main(["data", "info", str(tmp_path), "--json"]) == 0
+    rows = {r["clip"]: r for r in map(json.loads, capsys.readouterr().out.splitlines())}
+    cmu, user = rows["cmu/16_11"], rows["user/take"]
+    assert (cmu["rig"], cmu["rig_match"], cmu["person"], cmu["split"]) == (
+        "daz", "profile", "cmu-16", "test"
+    )  # fmt: skip
+    assert cmu["tpose"] == "dropped frame 0" and cmu["frames"] == 3
+    assert (user["rig"], user["rig_match"], user["person"]) == ("auto", "names", "ann")
+    assert user["split_rule"].startswith("user-hash") and user["rig_confidence"] == 1.0
+    assert main(["data", "info", str(tmp_path)]) == 0
+    table = capsys.readouterr().out
+    assert "matched" in table and "person" in table and "split" in table
+    assert "T-pose dropped from 1" in table and "user-hash" in table
