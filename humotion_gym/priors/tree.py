@@ -511,6 +511,127 @@ def _tree_arrays(coefficients: FloatArray) -> tuple[IntArray, NDArray[np.int64],
     return order, codes, offsets, flags
 
 
+def _check_fit_arguments(
+    motions: Sequence[Motion],
+    free: ArrayLike | None,
+    window: int,
+    leaf: str,
+    replay: str,
+    proposals: int,
+    frame_skip: int,
+) -> NDArray[np.intp]:
+    """The modelled parameters' indices, after checking :func:`fit`'s arguments.
+
+    Raises:
+        ValueError: As documented in :func:`fit`.
+    """
+    if not motions:
+        raise ValueError("tree.fit: no training motions")
+    idx = np.arange(N_PARAMS) if free is None else np.asarray(free, dtype=np.intp).ravel()
+    if idx.size == 0 or np.unique(idx).size != idx.size or idx.min() < 0 or idx.max() >= N_PARAMS:
+        raise ValueError(
+            f"tree.fit: free must be distinct indices in 0..{N_PARAMS - 1}, got {idx.tolist()}"
+        )
+    if window < 1 or frame_skip < 1:
+        raise ValueError(
+            f"tree.fit: window and frame_skip must be >= 1, got {window}, {frame_skip}"
+        )
+    if leaf not in LEAF_RULES:
+        raise ValueError(f"tree.fit: leaf must be one of {LEAF_RULES}, got {leaf!r}")
+    if replay not in REPLAY_RULES:
+        raise ValueError(f"tree.fit: replay must be one of {REPLAY_RULES}, got {replay!r}")
+    if proposals < 1:
+        raise ValueError(f"tree.fit: proposals must be >= 1, got {proposals}")
+    rates = {float(m.fps) for m in motions}
+    if len(rates) != 1:
+        raise ValueError(f"tree.fit: every clip must have the same frame rate, got {sorted(rates)}")
+    return idx
+
+
+def _window_pca(
+    frames: FloatArray, ends: IntArray, lay: _Layout, d: int, n_free: int, b: int
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, float, FloatArray]:
+    """The scaled PCA of the database's windows (section 4), in two passes over chunks.
+
+    Pass 1 finds the mean window ``mu``; pass 2 the per-feature variance
+    ``Gamma`` and the scatter of ``Gamma^-1/2 (X - mu)``, whose eigenvectors
+    are the principal directions.
+
+    Returns:
+        ``(mean, gamma, inv_sd, components, singular_values, explained, sigma)``.
+    """
+    n = ends.size
+    n_feat = lay.absolute.size + n_free
+    width = d * n_feat
+
+    def windows(part: slice) -> FloatArray:
+        anchored = _anchor(_histories(frames, ends[part], d), lay)
+        return _features(anchored, lay).reshape(-1, width)
+
+    parts = _chunks(n, width)
+    total = np.zeros(width)
+    for part in parts:
+        total += windows(part).sum(axis=0)
+    mean = total / n
+    scatter = np.zeros((width, width))
+    sq = np.zeros(n_feat)
+    pooled = mean.reshape(d, n_feat).mean(axis=0)
+    for part in parts:
+        x = windows(part)
+        xc = x - mean
+        scatter += xc.T @ xc
+        sq += ((x.reshape(-1, d, n_feat) - pooled) ** 2).sum(axis=(0, 1))
+    gamma = np.maximum(sq / (n * d), _VARIANCE_FLOOR)  # Gamma: per-feature variance
+    inv_sd = 1.0 / np.sqrt(np.tile(gamma, d))
+    scatter *= inv_sd[:, None] * inv_sd[None, :]
+    # Right singular vectors of Gamma^-1/2 (X - mu) = eigenvectors of its scatter matrix.
+    eigval, eigvec = np.linalg.eigh(scatter)
+    eigval, eigvec = eigval[::-1], eigvec[:, ::-1]
+    eigval = np.maximum(eigval, 0.0)
+    components = eigvec[:, :b].copy()
+    flip = np.sign(components[np.argmax(np.abs(components), axis=0), np.arange(b)])
+    components *= np.where(flip == 0, 1.0, flip)
+    singular = np.sqrt(eigval[:b])
+    explained = float(eigval[:b].sum() / max(eigval.sum(), np.finfo(float).tiny))
+    sigma = np.maximum(singular / np.sqrt(n), np.finfo(float).tiny)
+
+    return mean, gamma, inv_sd, components, singular, explained, sigma
+
+
+def _history_projection(
+    lay: _Layout, d: int, n_free: int, components: FloatArray, inv_sd: FloatArray, mean: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The linear map from a history of ``d + 1`` absolute poses to its coefficients.
+
+    The window's features are linear in the history except for the root's
+    path, which enters rotated into the heading frame; those rows are kept
+    apart in ``projection_heading``.
+
+    Returns:
+        ``(projection ((d + 1) * D, b), projection_heading (2 (d + 1), b), offset (b,))``.
+    """
+    b = components.shape[1]
+    idx_size = n_free
+    width = mean.size
+    span = (d + 1) * idx_size
+    basis = np.eye(span).reshape(span, d + 1, idx_size)
+    lin = _features(basis, lay).reshape(span, width)
+    full = lin @ (components * inv_sd[:, None])
+    offset = (mean * inv_sd) @ components
+    projection = full
+    projection_heading = np.zeros((d + 1, 2, b))
+    if lay.rel_xy is not None:
+        # The root's path enters rotated into the heading frame (R_z(-h)).
+        ix, iy = lay.relative[list(lay.rel_xy)]
+        rows = np.arange(d + 1) * idx_size
+        projection_heading[:, 0], projection_heading[:, 1] = full[rows + ix], full[rows + iy]
+        projection[rows + ix] = 0.0
+        projection[rows + iy] = 0.0
+    projection_heading = projection_heading.reshape(2 * (d + 1), b)
+
+    return projection, projection_heading, offset
+
+
 def fit(
     motions: Sequence[Motion],
     free: ArrayLike | None = None,
@@ -556,26 +677,7 @@ def fit(
             windows fit in the clips.
     """
     del rng
-    if not motions:
-        raise ValueError("tree.fit: no training motions")
-    idx = np.arange(N_PARAMS) if free is None else np.asarray(free, dtype=np.intp).ravel()
-    if idx.size == 0 or np.unique(idx).size != idx.size or idx.min() < 0 or idx.max() >= N_PARAMS:
-        raise ValueError(
-            f"tree.fit: free must be distinct indices in 0..{N_PARAMS - 1}, got {idx.tolist()}"
-        )
-    if window < 1 or frame_skip < 1:
-        raise ValueError(
-            f"tree.fit: window and frame_skip must be >= 1, got {window}, {frame_skip}"
-        )
-    if leaf not in LEAF_RULES:
-        raise ValueError(f"tree.fit: leaf must be one of {LEAF_RULES}, got {leaf!r}")
-    if replay not in REPLAY_RULES:
-        raise ValueError(f"tree.fit: replay must be one of {REPLAY_RULES}, got {replay!r}")
-    if proposals < 1:
-        raise ValueError(f"tree.fit: proposals must be >= 1, got {proposals}")
-    rates = {float(m.fps) for m in motions}
-    if len(rates) != 1:
-        raise ValueError(f"tree.fit: every clip must have the same frame rate, got {sorted(rates)}")
+    idx = _check_fit_arguments(motions, free, window, leaf, replay, proposals, frame_skip)
     d = int(window)
     lay = _layout(idx)
     frames, frame_clip, ends = _database(motions, idx, d, frame_skip)
@@ -593,54 +695,15 @@ def fit(
     if not 1 <= b <= max_depth:
         raise ValueError(f"tree.fit: depth must be in 1..{max_depth} for {n} windows, got {b}")
 
-    def windows(part: slice) -> FloatArray:
-        anchored = _anchor(_histories(frames, ends[part], d), lay)
-        return _features(anchored, lay).reshape(-1, width)
-
-    # Pass 1: the mean window mu.  Pass 2: Gamma and the centred scatter.
-    parts = _chunks(n, width)
-    total = np.zeros(width)
-    for part in parts:
-        total += windows(part).sum(axis=0)
-    mean = total / n
-    scatter = np.zeros((width, width))
-    sq = np.zeros(n_feat)
-    pooled = mean.reshape(d, n_feat).mean(axis=0)
-    for part in parts:
-        x = windows(part)
-        xc = x - mean
-        scatter += xc.T @ xc
-        sq += ((x.reshape(-1, d, n_feat) - pooled) ** 2).sum(axis=(0, 1))
-    gamma = np.maximum(sq / (n * d), _VARIANCE_FLOOR)  # Gamma: per-feature variance
-    inv_sd = 1.0 / np.sqrt(np.tile(gamma, d))
-    scatter *= inv_sd[:, None] * inv_sd[None, :]
-    # Right singular vectors of Gamma^-1/2 (X - mu) = eigenvectors of its scatter matrix.
-    eigval, eigvec = np.linalg.eigh(scatter)
-    eigval, eigvec = eigval[::-1], eigvec[:, ::-1]
-    eigval = np.maximum(eigval, 0.0)
-    components = eigvec[:, :b].copy()
-    flip = np.sign(components[np.argmax(np.abs(components), axis=0), np.arange(b)])
-    components *= np.where(flip == 0, 1.0, flip)
-    singular = np.sqrt(eigval[:b])
-    explained = float(eigval[:b].sum() / max(eigval.sum(), np.finfo(float).tiny))
-    sigma = np.maximum(singular / np.sqrt(n), np.finfo(float).tiny)
+    mean, gamma, inv_sd, components, singular, explained, sigma = _window_pca(
+        frames, ends, lay, d, idx.size, b
+    )
 
     # The same linear map for database windows and particles: history -> c.
+    projection, projection_heading, offset = _history_projection(
+        lay, d, idx.size, components, inv_sd, mean
+    )
     span = (d + 1) * idx.size
-    basis = np.eye(span).reshape(span, d + 1, idx.size)
-    lin = _features(basis, lay).reshape(span, width)
-    full = lin @ (components * inv_sd[:, None])
-    offset = (mean * inv_sd) @ components
-    projection = full
-    projection_heading = np.zeros((d + 1, 2, b))
-    if lay.rel_xy is not None:
-        # The root's path enters rotated into the heading frame (R_z(-h)).
-        ix, iy = lay.relative[list(lay.rel_xy)]
-        rows = np.arange(d + 1) * idx.size
-        projection_heading[:, 0], projection_heading[:, 1] = full[rows + ix], full[rows + iy]
-        projection[rows + ix] = 0.0
-        projection[rows + iy] = 0.0
-    projection_heading = projection_heading.reshape(2 * (d + 1), b)
 
     coefficients = np.empty((n, b))
     for part in _chunks(n, span):
