@@ -1,9 +1,36 @@
-"""The timing helper every benchmark script shares (imported as a sibling module)."""
+"""What every benchmark script shares (imported as a sibling module).
+
+Importing it limits BLAS to one thread for the process, as the command line
+does (see :mod:`humotion_gym.threads`; ``OPENBLAS_NUM_THREADS`` and
+``OMP_NUM_THREADS`` still win). A benchmark reports ratios against a reference
+measured in the same run, and refuses to run without it (:func:`require`).
+"""
 
 from __future__ import annotations
 
+import importlib.util
+import sys
 import time
 from collections.abc import Callable
+
+from humotion_gym.threads import limit_blas_threads
+
+limit_blas_threads()
+
+
+def require(module: str, reference: str) -> None:
+    """Exit with a message (status 1) unless ``module`` is installed.
+
+    Args:
+        module: The import name the reference needs (``pygame``, ``sklearn``).
+        reference: What it is needed for, for the message.
+    """
+    if importlib.util.find_spec(module) is None:
+        script = sys.argv[0] or "this benchmark"
+        sys.exit(
+            f"{script}: the reference ({reference}) needs {module}, which is not installed; "
+            "install the bench extra: pip install -e '.[bench]'"
+        )
 
 
 def best_of(fn: Callable[[], object], n: int = 1, repeats: int = 7, warmup: bool = True) -> float:

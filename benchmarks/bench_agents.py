@@ -19,9 +19,11 @@ import numpy as np
 
 import humotion_gym  # noqa: F401
 from baselines.agents import make
+from humotion_gym.threads import limit_blas_threads
 
 
 def main() -> None:
+    limit_blas_threads()  # as the command line does
     ap = argparse.ArgumentParser()
     ap.add_argument("--data-dir", default=None)
     ap.add_argument("--frames", type=int, default=30)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
-from _timing import best_of
+from _timing import best_of, require
 
 import humotion_gym  # noqa: F401  (registers the envs)
 
@@ -37,14 +37,10 @@ def steps_per_second(env: gym.Env, steps: int, render: bool = False) -> float:
 
 
 def main() -> None:
-    try:
-        cart = gym.make("CartPole-v1", render_mode="rgb_array")
-        ref = steps_per_second(cart, 300, render=True)
-        ref_name = "CartPole-v1 step + render()"
-    except Exception as exc:  # pygame missing
-        cart = gym.make("CartPole-v1")
-        ref = steps_per_second(cart, 3000)
-        ref_name = f"CartPole-v1 step only (render unavailable: {type(exc).__name__})"
+    require("pygame", "CartPole-v1 with render()")
+    cart = gym.make("CartPole-v1", render_mode="rgb_array")
+    ref = steps_per_second(cart, 300, render=True)
+    ref_name = "CartPole-v1 step + render()"
     print(f"{'environment':46s} {'steps/s':>10s} {'x reference':>12s}")
     print(f"{ref_name:46s} {ref:10,.0f} {1.0:12.2f}")
     for env_id in ("humotion_gym/ArmTrack-v1", "humotion_gym/BodyTrack-v1", "humotion_gym/WalkTrack-v1",

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
-from _timing import best_of
+from _timing import best_of, require
 
 from humotion_gym import body
 from humotion_gym.camera import fit_camera
@@ -34,25 +34,21 @@ EPISODE = 30  # frames per episode in the environments' path
 
 
 def cartpole_seconds_per_frame(n: int = 500) -> tuple[float, str]:
-    """CartPole-v1 step + rgb_array render; step only when pygame is missing."""
+    """CartPole-v1 step + rgb_array render (the reference; needs pygame)."""
+    require("pygame", "CartPole-v1 with render()")
     env = gym.make("CartPole-v1", render_mode="rgb_array")
     env.reset(seed=0)
-    try:
-        env.render()
-        rendering, label = True, "step+render (rgb_array)"
-    except gym.error.DependencyNotInstalled:
-        rendering, label = False, "step only (pygame not installed, so no render)"
+    env.render()
 
     def step() -> None:
         _, _, terminated, truncated, _ = env.step(env.action_space.sample())
-        if rendering:
-            env.render()
+        env.render()
         if terminated or truncated:
             env.reset()
 
-    seconds = best_of(step, n if rendering else 20 * n, repeats=3)
+    seconds = best_of(step, n, repeats=3)
     env.close()
-    return seconds, label
+    return seconds, "step+render (rgb_array)"
 
 
 def main() -> None:

@@ -31,6 +31,7 @@ import numpy as np
 from humotion_gym.mocap.library import synthetic_library
 from humotion_gym.priors import constant_velocity, slds
 from humotion_gym.priors.slds_learning import fit_em
+from humotion_gym.threads import limit_blas_threads
 
 
 def _rotation(theta: float) -> np.ndarray:
@@ -134,6 +135,7 @@ def bench_transition(n_particles: int = 3000, steps: int = 50) -> dict[str, floa
 
 
 def main() -> None:
+    limit_blas_threads()  # as the command line does
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--json", action="store_true")

@@ -35,7 +35,7 @@ from functools import partial
 from pathlib import Path
 
 import numpy as np
-from _timing import best_of
+from _timing import best_of, require
 
 from humotion_gym.mocap.library import load_library, synthetic_library
 from humotion_gym.priors import tree
@@ -74,6 +74,7 @@ def main() -> None:
     parser.add_argument("--data-dir", type=Path, default=None)
     parser.add_argument("--particles", type=int, default=3000)
     args = parser.parse_args()
+    require("sklearn", "scikit-learn's KDTree")
     from sklearn.neighbors import KDTree
 
     train, test, what = load_data(args.data_dir)
