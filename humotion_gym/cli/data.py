@@ -82,7 +82,7 @@ def _cmd_data_table(args: argparse.Namespace) -> int:
     return 0
 
 
-def _clip_row(m) -> dict:
+def _clip_row(m, held_out: frozenset[str] = frozenset()) -> dict:
     err = m.retarget_error()
     err = err[np.isfinite(err)]
     return {
@@ -96,7 +96,7 @@ def _clip_row(m) -> dict:
         "tpose": m.meta.get("tpose", ""),
         "subject": m.subject,
         "person": m.meta.get("person", m.subject),
-        "split": m.meta.get("split", ""),
+        "split": m.meta.get("split") or ("test" if m.subject in held_out else "train"),
         "split_rule": m.meta.get("split_rule", ""),
         "label": m.label,
         "frames": m.n_frames,
@@ -133,7 +133,7 @@ def _cmd_data_info(args: argparse.Namespace) -> int:
                     + " ".join(f"{e:6.1f}" for e in errs)
                 )
         return 0
-    rows = [_clip_row(m) for m in lib]
+    rows = [_clip_row(m, lib.held_out) for m in lib]
     if args.json:
         for r in rows:
             print(json.dumps(r))
@@ -176,6 +176,7 @@ def _cmd_data_persons(args: argparse.Namespace) -> int:
         lib = default_library(None, fps=args.fps, progress=not args.json)
     test = frozenset(args.test) if args.test else held_out_subjects(lib)
     groups = skeleton_groups(lib)
+    person_of = {m.subject: m.meta.get("person", m.subject) for m in lib}
     group_of = {s: i for i, g in enumerate(groups) for s in g}
     try:
         report = check_person_split(lib, test)
@@ -188,6 +189,7 @@ def _cmd_data_persons(args: argparse.Namespace) -> int:
             "dataset": ",".join(s.datasets),
             "clips": s.clips,
             "frames": s.frames,
+            "person": person_of.get(s.subject, s.subject),
             "split": "test" if s.subject in test else "train",
             "signature_mm": {
                 n: round(float(v), 2) for n, v in zip(SIGNATURE_NAMES, s.signature, strict=True)

@@ -507,3 +507,18 @@ def test_data_info_shows_rig_match_person_split_and_tpose(tmp_path, capsys):
     table = capsys.readouterr().out
     assert "matched" in table and "person" in table and "split" in table
     assert "T-pose dropped from 1" in table and "user-hash" in table
+
+
+def test_one_person_under_two_numbers(tmp_path, capsys):
+    from humotion_gym.cli import main
+
+    write_bvh(tmp_path / "78_06.bvh", rig_joints("cmu-bvh"))
+    write_bvh(tmp_path / "102_05.bvh", rig_joints("cmu-bvh-joint-names"))
+    lib = load_library([tmp_path], cache_dir=tmp_path / "cache", progress=False)
+    assert {m.meta["person"] for m in lib} == {"cmu-78+102"}
+    assert {m.label for m in lib} == {"run"}  # RunningStraight
+    assert main(["data", "persons", str(tmp_path), "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)["subjects"]
+    assert {(r["subject"], r["person"]) for r in rows} == {
+        ("cmu-78", "cmu-78+102"), ("cmu-102", "cmu-78+102")
+    }  # fmt: skip
