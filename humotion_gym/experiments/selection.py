@@ -152,7 +152,7 @@ def select_observation_settings(
     hold = float(np.mean(errors("hold", default)))
     names = list(grid)
     rows = []
-    base_fit = dict(AGENTS[agent].fit_settings) if agent in AGENTS else {}
+    base_fit = AGENTS[agent].settings_for(spec.name) if agent in AGENTS else {}
     for combo in itertools.product(*(grid[n] for n in names)):
         settings = {
             n: v if n.startswith(FIT_PREFIX) else type(getattr(default, n))(v)

@@ -26,7 +26,8 @@ from baselines.agents import AGENTS, fit_prior
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 from humotion_gym.mocap.library import CacheWarning
 
-SPEC = AGENTS["pf-cv"]
+# The plain constant-velocity prior (no registered settings): its fit defaults are the key's.
+SPEC = agents_mod.AgentSpec(AGENTS["pf-cv"].prior)
 
 
 @pytest.fixture(scope="module")
