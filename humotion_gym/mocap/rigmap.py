@@ -17,12 +17,14 @@ when none fits it maps the hierarchy itself (:func:`map_humanoid`):
    joint up (or down, for a missing foot or hand). The pelvis is where the two
    legs meet (their lowest common ancestor); the neck is the head's parent
    when no joint is called neck. Without side or limb names at all, the
-   hierarchy is read as a body: the branch point with the legs and the spine,
-   the chest where the spine splits into two arms and the head (the two
-   branches alike in shape are the arms), each limb's three keypoints at the
-   two longest consecutive bones of its chain, and left and right from the
-   geometry of the first frame (left is ``up x forward`` with forward the
-   toes' direction, or +z, the BVH convention, without toes).
+   hierarchy is read as a body: the chest where the spine splits into two
+   arms and the head (the two branches alike in shape are the arms), the
+   legs as the largest pair of alike branches elsewhere (so legs and spine
+   may leave one joint or two), each limb's three keypoints at the two
+   longest consecutive bones of its chain, the head where the neck's chain
+   first branches, and left and right from the geometry of the first frame
+   (left is ``up x forward`` with forward the toes' direction; without toes
+   +z for a y-up skeleton, the BVH convention, and +y for a z-up one).
 3. **Where points sit.** In BVH a joint's point is where its bone starts
    (``LeftUpLeg`` is the hip); in ASF/AMC a bone's point is its tip (``lfemur``
    is the knee), so every ASF keypoint is taken one bone higher.
@@ -253,44 +255,131 @@ def _three_on_chain(chain: list[int], pos: NDArray[np.float64]) -> list[int] | N
     return [chain[k], chain[k + 1], chain[k + 2]]
 
 
+def _kids(tree: _Tree, i: int) -> list[int]:
+    return [c for c in tree.children[i] if not tree.is_end(c)]
+
+
+def _alike_pair(tree: _Tree, nodes: Sequence[int]) -> tuple[int, int] | None:
+    """The two nodes whose subtrees have the same height and size, the largest such."""
+    shapes = {c: (tree.subtree_height(c), tree.subtree_size(c)) for c in nodes}
+    pair = None
+    for a in nodes:
+        for b in nodes:
+            if a < b and shapes[a] == shapes[b] and shapes[a][0] > 1:
+                if pair is None or shapes[a] > shapes[pair[0]]:
+                    pair = (a, b)
+    return pair
+
+
+def _find_body(
+    tree: _Tree,
+) -> tuple[int, list[int], int, tuple[int, int], list[int]] | str:
+    """Pelvis, legs, chest, arms and the chest's branches from the shape alone.
+
+    The chest is a joint with three or more branches, two alike in shape (the
+    arms) and none of the others branching again (the neck and head); the legs
+    are the largest pair of alike sibling branches outside the chest's
+    subtree and off the path to it; the pelvis is their parent. The legs and
+    the spine may leave the same joint (CMU, Bandai) or two (a hip above a
+    pelvis, as in Character Creator).
+
+    Returns:
+        The parts, or a note saying what could not be found.
+    """
+    n = len(tree.names)
+    branchy = {i for i in range(n) if len(_kids(tree, i)) >= 2}
+    chest = None
+    for i in sorted(range(n), key=tree.depth.__getitem__):
+        kids = _kids(tree, i)
+        if len(kids) < 3:
+            continue
+        pair = _alike_pair(tree, kids)
+        if pair is None:
+            continue
+        others = [c for c in kids if c not in pair]
+
+        def branches_again(c: int) -> bool:
+            # A pair of limbs further down (the chest below a pelvis); eyes do not count.
+            stack = [c]
+            while stack:
+                j = stack.pop()
+                if j in branchy:
+                    limbs = _alike_pair(tree, _kids(tree, j))
+                    if limbs is not None and tree.subtree_height(limbs[0]) >= 3:
+                        return True
+                stack.extend(_kids(tree, j))
+            return False
+
+        if not any(branches_again(c) for c in others):
+            chest, arms = i, pair
+            break
+    if chest is None:
+        return "no joint splits into two alike arms and a head (the chest)"
+    inside = {chest}
+    stack = [chest]
+    while stack:
+        for c in _kids(tree, stack.pop()):
+            inside.add(c)
+            stack.append(c)
+    path = set(tree.ancestors(chest))
+    best: tuple[tuple[int, int], int, tuple[int, int]] | None = None
+    for p in range(n):
+        if p in inside:
+            continue
+        pair = _alike_pair(tree, [c for c in _kids(tree, p) if c not in path])
+        if pair is None:
+            continue
+        key = (tree.subtree_height(pair[0]), -tree.depth[p])
+        if best is None or key > best[0]:
+            best = (key, p, pair)
+    if best is None:
+        return "no two alike leg branches outside the chest"
+    _, pelvis, legs = best
+    return pelvis, list(legs), chest, arms, _kids(tree, chest)
+
+
+def _forward(
+    tree: _Tree, pos: NDArray[np.float64], legs: Sequence[int], up: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], str]:
+    """Which way the body faces: its toes (ankle to the next joint), else a convention.
+
+    Without toes a y-up skeleton is taken to face +z (the BVH convention), a
+    z-up one +y.
+    """
+    steps = []
+    for start in legs:
+        chain = _chain(tree, start)
+        triple = _three_on_chain(chain, pos)
+        if triple is not None and chain.index(triple[2]) + 1 < len(chain):
+            toe = chain[chain.index(triple[2]) + 1]
+            steps.append(pos[toe] - pos[triple[2]])
+    if steps:
+        f = np.mean(steps, axis=0)
+        f = f - np.dot(f, up) * up
+        norm = np.linalg.norm(f)
+        if norm > 1e-9:
+            return f / norm, "where the toes point"
+    if abs(up[2]) > abs(up[1]):
+        return np.array([0.0, 1.0, 0.0]), "+y (no toes; z up)"
+    return np.array([0.0, 0.0, 1.0]), "+z (no toes; the BVH convention)"
+
+
 def _by_topology(tree: _Tree, pos: NDArray[np.float64] | None, out: _Mapping) -> None:
     """Legs, arms and head from the hierarchy's shape; sides from the first frame."""
     if pos is None:
         out.notes.append("no positions to read the hierarchy's shape from")
         return
-    branchy = [
-        i
-        for i in range(len(tree.names))
-        if len([c for c in tree.children[i] if not tree.is_end(c)]) >= 3
-    ]
-    if len(branchy) < 2:
-        out.notes.append("the hierarchy has no two joints with three branches (pelvis, chest)")
+    found = _find_body(tree)
+    if isinstance(found, str):
+        out.notes.append(found)
         return
-    pelvis = min(branchy, key=lambda i: tree.depth[i])
-    kids = [c for c in tree.children[pelvis] if not tree.is_end(c)]
-    spine = max(kids, key=tree.subtree_size)
-    legs = sorted((c for c in kids if c != spine), key=tree.subtree_height, reverse=True)[:2]
-    in_spine = [i for i in branchy if spine in (i, *tree.ancestors(i))]
-    chest = min(in_spine, key=tree.depth.__getitem__, default=None)
-    if chest is None or len(legs) < 2:
-        out.notes.append("could not find two legs and a chest below the pelvis")
-        return
-    branches = [c for c in tree.children[chest] if not tree.is_end(c)]
-    shapes = {c: (tree.subtree_height(c), tree.subtree_size(c)) for c in branches}
-    pair = None
-    for a in branches:
-        for b in branches:
-            if a < b and shapes[a] == shapes[b] and (pair is None or shapes[a] > shapes[pair[0]]):
-                pair = (a, b)
-    if pair is None:
-        pair = tuple(sorted(branches, key=tree.subtree_size, reverse=True)[:2])
-        out.notes.append("no two chest branches alike in shape; took the two largest as arms")
+    pelvis, legs, chest, pair, branches = found
     head_branch = [c for c in branches if c not in pair]
     up = pos[chest] - pos[pelvis]
     up /= np.linalg.norm(up) or 1.0
-    forward = np.array([0.0, 0.0, 1.0])
+    forward, facing = _forward(tree, pos, legs, up)
     left = np.cross(up, forward)
-    out.notes.append("left and right from the first frame, facing +z (the BVH convention)")
+    out.notes.append(f"left and right from the first frame, facing {facing}")
     limbs = ((("hip", "knee", "ankle"), legs), (("shoulder", "elbow", "wrist"), list(pair)))
     for kps, starts in limbs:
         triples = [_three_on_chain(_chain(tree, s), pos) for s in starts]
@@ -307,8 +396,10 @@ def _by_topology(tree: _Tree, pos: NDArray[np.float64] | None, out: _Mapping) ->
     if "pelvis" not in out.joints:
         out.joints["pelvis"], out.how["pelvis"] = pelvis, "topology"
     if head_branch and "head" not in out.joints:
-        chain = _chain(tree, head_branch[0])
-        out.joints["head"] = chain[-1]
+        chain = _chain(tree, max(head_branch, key=tree.subtree_height))
+        # The head is where the chain first branches (eyes, jaw), else its end.
+        split = [j for j in chain if len(_kids(tree, j)) >= 2]
+        out.joints["head"] = split[0] if split else chain[-1]
         out.how["head"] = "topology"
         if "neck" not in out.joints:
             out.joints["neck"] = chain[0] if len(chain) > 1 else chest

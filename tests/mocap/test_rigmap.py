@@ -427,6 +427,14 @@ def test_renamed_character_creator_copy_maps_to_the_same_keypoints(shared_mocap,
     np.testing.assert_allclose(b[:, body], a[:, body], atol=1e-6)
     # The pelvis is where the legs meet (CC_Base_Pelvis, 0.07 mm from CC_Base_Hip).
     np.testing.assert_allclose(b[:, 0], a[:, 0], atol=1.0)
+    # Every joint a number: legs and spine leave two joints (Hip -> Pelvis, Hip -> Waist).
+    counter = iter(range(10_000))
+    nameless = load_bvh(_rename_bvh(src, tmp_path / "n.bvh", lambda n: f"j{next(counter)}"))
+    match = match_rig(nameless)
+    assert match.method == "topology"
+    c = match.profile.keypoints_from(nameless, 10.0)
+    np.testing.assert_allclose(c[:, body], a[:, body], atol=1e-6)
+    np.testing.assert_allclose(c[:, 0], a[:, 0], atol=1.0)
 
 
 @pytest.mark.mocap
