@@ -130,7 +130,7 @@ def _kept_parent(role: str, names: dict[str, str]) -> str | None:
 
 
 def write_bvh(path: Path, names: dict[str, str], frames: list[dict[str, tuple]] | None = None,
-              root_z: tuple[float, ...] = (0.0, 5.0, 10.0)) -> Path:  # fmt: skip
+              root_z: tuple[float, ...] = (0.0, 5.0, 10.0), yaw: float = 0.0) -> Path:  # fmt: skip
     """A BVH of the abstract skeleton in a rig's names; frames all at rest unless given.
 
     ``frames[i]`` maps a role to its (Z, X, Y) rotation in degrees for frame i.
@@ -171,7 +171,7 @@ def write_bvh(path: Path, names: dict[str, str], frames: list[dict[str, tuple]] 
     frames = frames or [{} for _ in range(n)]
     lines += ["MOTION", f"Frames: {n}", "Frame Time: 0.0333333"]
     for i in range(n):
-        vals = [0.0, 100.0, root_z[i], 0.0, 0.0, 0.0]
+        vals = [0.0, 100.0, root_z[i], 0.0, 0.0, yaw]
         for role in order[1:]:
             vals += list(frames[i].get(role, (0.0, 0.0, 0.0)))
         lines.append(" ".join(f"{v:g}" for v in vals))
@@ -530,3 +530,18 @@ def test_one_person_under_two_numbers(tmp_path, capsys):
     assert {(r["subject"], r["person"]) for r in rows} == {
         ("cmu-78", "cmu-78+102"), ("cmu-102", "cmu-78+102")
     }  # fmt: skip
+
+
+def test_topology_sides_follow_the_toes_not_a_convention(tmp_path):
+    # Facing -z (turned 180 degrees about y): the toes, not +z, say where forward is.
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    write_bvh(tmp_path / "a" / "named.bvh", rig_joints("cmu-bvh"), yaw=180.0)
+    joints = {k: f"J{i}" for i, k in enumerate(rig_joints("cmu-bvh"))}
+    write_bvh(tmp_path / "b" / "nameless.bvh", joints, yaw=180.0)
+    a = load_library([tmp_path / "a"], cache_dir=tmp_path / "c", progress=False).motions[0]
+    b = load_library([tmp_path / "b"], cache_dir=tmp_path / "c", progress=False).motions[0]
+    assert a.meta["rig_match"] == "profile" and b.meta["rig_match"] == "topology"
+    np.testing.assert_allclose(b.keypoints, a.keypoints, atol=1e-6)
+    lk, rk = KEYPOINT_INDEX["l_knee"], KEYPOINT_INDEX["r_knee"]
+    assert a.keypoints[0, lk, 0] < a.keypoints[0, rk, 0]  # facing -y in the world: left is -x
