@@ -177,3 +177,13 @@ def test_subjects_by_activity_ranks_distinct_persons():
         subjects_by_activity(["walking"])
     with pytest.raises(ValueError, match="persons"):
         subjects_by_activity(["walk"], persons=0)
+
+
+def test_a_person_never_straddles_the_split():
+    from humotion_gym.mocap.library import CMU_TEST_SUBJECTS, TEST_SUBJECTS
+
+    assert set(CMU_TEST_SUBJECTS) <= TEST_SUBJECTS
+    for subjects, evidence in CMU_SAME_PERSON:
+        sides = {f"cmu-{s:02d}" in CMU_TEST_SUBJECTS for s in subjects}
+        assert len(sides) == 1, (subjects, evidence)
+        assert evidence
