@@ -88,9 +88,9 @@ BC_DEFAULTS: dict[str, Any] = {
     "rounds": 8,
     "batch_size": 128,
     "learning_rate": 1e-3,
-    "passes": 4.0,
+    "passes": 16.0,
     "buffer_size": 40_000,
-    "expert_noise": 0.02,
+    "expert_noise": 0.08,
     "features_dim": 128,
     "frame_size": 64,
 }
