@@ -463,7 +463,7 @@ def _batch_kinematics(
     # 10:14 y angles, 14:18 z angles, 18:22 hinges.
     r = _root_matrix(c[0], s[0], c[1], s[1], c[2], s[2])
     kp = work["keypoints"]
-    off = shape.torso_points().astype(dtype)  # (5, 3): neck, limb bases
+    off: NDArray[Any] = shape.torso_points().astype(dtype)  # (5, 3): neck, limb bases
     for i in range(3):
         kp[i, 0] = a[i]
         torso = kp[i, 1:6]
@@ -478,9 +478,9 @@ def _batch_kinematics(
     for i in range(3):
         np.multiply(hz[i], hl, out=kp[i, 6])
         kp[i, 6] += neck[i]
-    upper = np.array([shape.upper_arm_length] * 2 + [shape.thigh_length] * 2, dtype=dtype)
-    lower = np.array([shape.forearm_length] * 2 + [shape.shin_length] * 2, dtype=dtype)
-    sign = np.array(_LIMB_SIGN, dtype=dtype).reshape(4, 1)
+    upper: NDArray[Any] = np.array([shape.upper_arm_length] * 2 + [shape.thigh_length] * 2, dtype)
+    lower: NDArray[Any] = np.array([shape.forearm_length] * 2 + [shape.shin_length] * 2, dtype)
+    sign: NDArray[Any] = np.array(_LIMB_SIGN, dtype=dtype).reshape(4, 1)
     mid, tip, _, _ = _limb(
         r,
         (kp[0, 2:6], kp[1, 2:6], kp[2, 2:6]),

@@ -34,7 +34,7 @@ def write_video(
         raise ValueError("write_video: no frames")
     first = _to_bgr(frames[0], scale)
     h, w = first.shape[:2]
-    fourcc = cv2.VideoWriter_fourcc(*("mp4v" if str(path).endswith(".mp4") else "MJPG"))
+    fourcc = cv2.VideoWriter.fourcc(*("mp4v" if str(path).endswith(".mp4") else "MJPG"))
     writer = cv2.VideoWriter(str(path), fourcc, float(fps), (w, h))
     if not writer.isOpened():
         raise OSError(f"{path}: OpenCV could not open a video writer")

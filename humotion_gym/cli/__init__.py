@@ -47,7 +47,7 @@ COMMAND_MODULES: tuple[str, ...] = (
 )
 
 #: Extras that provide optional modules, for the hint when one is missing.
-_EXTRAS = {"matplotlib": "plots", "moviepy": "video", "stable_baselines3": "rl", "torch": "rl"}
+_EXTRAS = {"matplotlib": "plots", "stable_baselines3": "rl", "torch": "rl"}
 
 
 def _runtime_errors() -> tuple[type[BaseException], ...]:

@@ -8,6 +8,7 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 from humotion_gym.cli._common import add_json, print_json
 
@@ -22,7 +23,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _cmd_agents(args: argparse.Namespace) -> int:
     from baselines.agents import AGENTS, REFERENCES, agent_names
 
-    rows = []
+    rows: list[dict[str, Any]] = []
     for name in agent_names():
         if name in REFERENCES:
             rows.append({"agent": name, "kind": "reference", "prior": None, "tasks": None,

@@ -61,7 +61,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_fps(persons)
     persons.add_argument(
         "--test", nargs="+", default=None, metavar="SUBJECT",
-        help="check this held-out set instead of the library's TEST_SUBJECTS",
+        help="check this held-out set (default: the library's TEST_SUBJECTS)",
     )  # fmt: skip
     persons.set_defaults(func=_cmd_data_persons)
 

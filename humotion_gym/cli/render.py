@@ -56,13 +56,14 @@ def _cmd_render(args: argparse.Namespace) -> int:
     import gymnasium as gym
     from tqdm.auto import tqdm
 
+    from humotion_gym.envs.pose_tracking import PoseTrackingEnv
     from humotion_gym.video import contact_sheet, write_png, write_video
 
     env = gym.make(
         f"humotion_gym/{args.task}", episode_frames=args.frames, terminate_on_lost=False,
         **env_kwargs(args),
     )  # fmt: skip
-    base = env.unwrapped
+    base: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
     obs, info = env.reset(seed=args.seed)
     frames = [obs]
     for _ in tqdm(range(args.frames - 1), desc=f"rendering {args.task}", unit="frame"):

@@ -322,8 +322,8 @@ class AcclaimClip:
                     _angles_to_rad(vals, self.angle_unit),
                     intrinsic=False,
                 )
-                c = _axis_rotation(sk.axes[b], sk.axis_orders[b], sk.angle_unit)
-                glob_r[b + 1] = glob_r[p] @ (c @ m @ c.T)
+                axis = _axis_rotation(sk.axes[b], sk.axis_orders[b], sk.angle_unit)
+                glob_r[b + 1] = glob_r[p] @ (axis @ m @ axis.T)
             else:
                 glob_r[b + 1] = glob_r[p]
             pos[:, b + 1] = pos[:, p] + glob_r[b + 1] @ (sk.directions[b] * sk.lengths[b])

@@ -540,7 +540,7 @@ class _Header:
 
 def _header_tokens(lines: list[tuple[int, str]]) -> list[tuple[str, int, int]]:
     """Flatten header lines to ``(token, line, index of the token on its line)``."""
-    out = []
+    out: list[tuple[str, int, int]] = []
     for lineno, text in lines:
         out.extend((tok, lineno, k) for k, tok in enumerate(text.split()))
     return out

@@ -335,7 +335,8 @@ def _check_sequences(
 ) -> tuple[list[FloatArray], list[BoolArray]]:
     if len(sequences) == 0:
         raise ValueError("no sequences given")
-    xs, ws = [], []
+    xs: list[FloatArray] = []
+    ws: list[BoolArray] = []
     for i, s in enumerate(sequences):
         x, w = _as_series(s, None if observed is None else observed[i])
         if xs and x.shape[1] != xs[0].shape[1]:
