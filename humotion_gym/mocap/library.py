@@ -644,13 +644,18 @@ class MotionLibrary:
         return MotionLibrary(train.motions, test_subjects=chosen)
 
     def table(self) -> str:
-        """A text table: one row per clip, then totals."""
-        head = f"{'clip':32s} {'subject':22s} {'label':10s} {'frames':>7s} {'fps':>5s} {'sec':>7s}"
+        """A text table: one row per clip (person and split included), totals, split rules."""
+        head = (
+            f"{'clip':32s} {'subject':22s} {'person':16s} {'split':5s} {'label':10s} "
+            f"{'frames':>7s} {'fps':>5s} {'sec':>7s}"
+        )
         lines = [head, "-" * len(head)]
+        held = self.held_out
         for m in self.motions:
+            split = "test" if m.subject in held else "train"
             lines.append(
-                f"{m.clip_id:32s} {m.subject:22s} {m.label:10s} {m.n_frames:7d} "
-                f"{m.fps:5.0f} {m.duration:7.1f}"
+                f"{m.clip_id:32s} {m.subject:22s} {m.meta.get('person', m.subject):16s} "
+                f"{split:5s} {m.label:10s} {m.n_frames:7d} {m.fps:5.0f} {m.duration:7.1f}"
             )
         seconds = sum(m.duration for m in self.motions)
         kind = " (synthetic)" if self.is_synthetic else ""

@@ -25,6 +25,9 @@ def test_default_library_is_synthetic_without_data(monkeypatch):
     lib = default_library()
     assert lib.is_synthetic and len(lib) >= 30
     assert "synthetic" in lib.table()
+    rows = {line.split()[0]: line.split() for line in lib.table().splitlines()[2:-2]}
+    for m in lib:
+        assert rows[m.clip_id][3] == ("test" if m.subject in lib.held_out else "train")
 
 
 def test_split_is_by_subject_and_disjoint():
