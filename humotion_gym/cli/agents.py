@@ -22,19 +22,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _cmd_agents(args: argparse.Namespace) -> int:
     from baselines.agents import AGENTS, REFERENCES, agent_names
+    from baselines.learned import LEARNED
 
     rows: list[dict[str, Any]] = []
     for name in agent_names():
         if name in REFERENCES:
             rows.append({"agent": name, "kind": "reference", "prior": None, "tasks": None,
                          "description": REFERENCES[name][1]})  # fmt: skip
-        else:
+        elif name in AGENTS:
             spec = AGENTS[name]
             rows.append({
                 "agent": name, "kind": "particle filter", "prior": spec.prior,
                 "tasks": list(spec.tasks) if spec.tasks is not None else None,
                 "description": spec.description,
             })  # fmt: skip
+        else:
+            rows.append({"agent": name, "kind": "learned", "prior": None, "tasks": None,
+                         "description": LEARNED.get(name, "")})  # fmt: skip
     if args.json:
         for r in rows:
             print_json(r)

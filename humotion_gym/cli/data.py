@@ -17,6 +17,7 @@ import sys
 import numpy as np
 
 from humotion_gym.cli._common import (
+    CommandError,
     add_data_dir,
     add_fps,
     add_json,
@@ -35,6 +36,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--split", choices=["train", "test"], default=None,
         help="only the clips of this person split (default: every clip)",
     )  # fmt: skip
+    add_json(table, "JSON lines, one per clip, instead of the table")
     table.set_defaults(func=_cmd_data_table)
 
     info = dsub.add_parser(
@@ -75,9 +77,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _cmd_data_table(args: argparse.Namespace) -> int:
     from humotion_gym.mocap.library import default_library
 
-    lib = default_library(args.data_dir or None, fps=args.fps)
+    lib = default_library(args.data_dir or None, fps=args.fps, progress=not args.json)
     if args.split:
         lib = lib.split(args.split)
+    if args.json:
+        for m in lib:
+            print(json.dumps({
+                "clip": m.clip_id, "dataset": m.dataset, "subject": m.subject, "label": m.label,
+                "frames": m.n_frames, "fps": m.fps, "source": m.source,
+            }))  # fmt: skip
+        return 0
     print(lib.table())
     return 0
 
@@ -112,6 +121,10 @@ def _cmd_data_info(args: argparse.Namespace) -> int:
     from humotion_gym.mocap.library import library_summary, load_library
 
     lib = load_library(args.paths, fps=args.fps, use_cache=not args.no_cache)
+    if len(lib) == 0:
+        raise CommandError(
+            f"no BVH or ASF/AMC motion capture under {', '.join(map(str, args.paths))}"
+        )
     if args.summary:
         out = {
             ds: {k: v if k in ("clips", "frames") else round(v, 1) for k, v in s.items()}

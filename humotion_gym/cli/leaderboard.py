@@ -22,6 +22,15 @@ from humotion_gym.cli._common import (
     wrote,
 )
 
+#: Printed under the table: what its columns mean.
+LEGEND = (
+    "mean error: keypoint error over the episodes' frames, mm, with a 95% bootstrap "
+    "interval; IQM: interquartile mean over the episodes (the mean of the middle 50%); "
+    "x hold: hold's mean error over the row's (above 1: better than doing nothing); "
+    "beats hold: paired episodes where the row's error is lower; lost track: episodes "
+    "whose error stayed above the task's lost-track threshold long enough to count as lost."
+)
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``leaderboard``."""
@@ -82,6 +91,7 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
     print(markdown_table(rows))
     for line in validity_lines(rows):
         print(line)
+    print(LEGEND)
     if args.out:
         wrote(args.out, "every episode of every cell")
     return 0

@@ -1,0 +1,81 @@
+"""The command line's contract: exit codes, flag names in errors, listings, the cache commands."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+import humotion_gym
+from humotion_gym.cli import main
+
+
+@pytest.mark.parametrize(
+    "argv, flag",
+    [
+        (["track", "--episodes", "0"], "--episodes"),
+        (["track", "--particles", "0"], "--particles"),
+        (["track", "--agent", "nobody"], "--agent"),
+        (["leaderboard", "--tasks", "NoTask-v1"], "--tasks"),
+        (["render", "--out", "x.mp4", "--size", "12by12"], "--size"),
+        (["select", "--grid", "sharpness"], "--grid"),
+        (["synth", "--prior", "cyclic_pca", "--beta", "0.1"], "--beta"),
+    ],
+)
+def test_usage_errors_exit_2_and_name_the_flag(argv, flag, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert flag in err and "Traceback" not in err
+
+
+def test_runtime_errors_exit_1_with_one_line(tmp_path, capsys):
+    assert main(["data", "info", str(tmp_path)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("humotion-gym data info: error:") and str(tmp_path) in err
+    assert len(err.splitlines()) == 1
+
+
+def test_unexpected_exceptions_keep_their_traceback(monkeypatch):
+    from humotion_gym.cli import tasks as tasks_cli
+
+    def broken(args):
+        raise KeyError("a bug")
+
+    monkeypatch.setattr(tasks_cli, "_cmd_tasks", broken)
+    with pytest.raises(KeyError, match="a bug"):
+        main(["tasks"])
+
+
+def test_help_exits_0(capsys):
+    assert main(["--help"]) == 0
+    out = capsys.readouterr().out
+    assert "tasks" in out and "agents" in out and "cache" in out
+
+
+def test_tasks_and_agents_list_what_exists(capsys):
+    assert main(["tasks", "--json"]) == 0
+    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [r["id"] for r in rows] == list(humotion_gym.ENV_IDS)
+    assert main(["agents", "--json"]) == 0
+    names = {json.loads(line)["agent"] for line in capsys.readouterr().out.splitlines()}
+    assert {"hold", "random", "pf-cv", "pf-tree"} <= names
+
+
+def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
+    for part, size in (("clips", 10), ("priors", 20), ("cmu", 30)):
+        (tmp_path / part).mkdir()
+        (tmp_path / part / "entry.npz").write_bytes(b"x" * size)
+    assert main(["cache", "info", "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["path"] == str(tmp_path) and info["set_by"] == "HUMOTION_CACHE"
+    assert {k: v["bytes"] for k, v in info["parts"].items()} == {
+        "clips": 10,
+        "priors": 20,
+        "cmu": 30,
+    }
+    assert main(["cache", "clear"]) == 0
+    assert not (tmp_path / "clips").exists() and not (tmp_path / "priors").exists()
+    assert (tmp_path / "cmu" / "entry.npz").is_file()  # downloads are kept
+    assert main(["cache", "clear", "--downloads"]) == 0
+    assert not (tmp_path / "cmu").exists()
