@@ -546,6 +546,215 @@ def _header_tokens(lines: list[tuple[int, str]]) -> list[tuple[str, int, int]]:
     return out
 
 
+class _HierarchyParser:
+    """The state of parsing ``HIERARCHY`` token by token (one method per keyword).
+
+    Each method consumes its keyword's tokens (advancing :attr:`i`) and records
+    what it read in :attr:`hdr`; every failure is a :class:`MocapFormatError`
+    naming the file and line.
+    """
+
+    def __init__(self, path: str, lines: list[tuple[int, str]]) -> None:
+        self.path = path
+        self.toks = _header_tokens(lines)
+        self.line_tokens = {ln: text.split() for ln, text in lines}
+        self.hdr = _Header()
+        self.stack: list[_Block] = []
+        self.pending: _Block | None = None
+        self.i = 1
+        self.n = len(self.toks)
+
+    def _error(self, ln: int, reason: str) -> MocapFormatError:
+        return MocapFormatError(self.path, ln, reason)
+
+    def parse(self, last_line: int) -> _Header:
+        """Every token up to ``MOTION``, then the end checks."""
+        toks = self.toks
+        if not toks or toks[0][0].upper() != "HIERARCHY":
+            ln = toks[0][1] if toks else 1
+            found = repr(toks[0][0]) if toks else "nothing"
+            raise self._error(ln, f"expected HIERARCHY, found {found}")
+        while self.i < self.n:
+            tok, ln, k = toks[self.i]
+            up = tok.upper()
+            if self.pending is not None:
+                self._open(tok, ln, self.pending)
+                continue
+            if up in ("ROOT", "JOINT", "END") and len(self.hdr.points) >= MAX_JOINTS:
+                raise self._error(
+                    ln,
+                    f"expected at most {MAX_JOINTS} joints and end sites, found more "
+                    "(raise humotion_gym.mocap.bvh.MAX_JOINTS for such a file)",
+                )
+            if up in ("ROOT", "JOINT"):
+                self._joint(tok, up, ln, k)
+            elif up == "END":
+                self._end_site(ln)
+            elif up == "OFFSET":
+                self._offset(ln)
+            elif up == "CHANNELS":
+                self._channels(ln)
+            elif tok == "}":
+                self._close(ln)
+            elif up == "MOTION":
+                break
+            elif not self.stack:
+                raise self._error(ln, f"expected ROOT or MOTION, found {tok!r}")
+            else:
+                raise self._error(
+                    ln, f"expected OFFSET, CHANNELS, JOINT, End Site or '}}', found {tok!r}"
+                )
+        return self._finish(last_line)
+
+    def _numbers(self, start: int, count: int, what: str, ln: int) -> list[float]:
+        got = self.toks[start : start + count]
+        if len(got) < count:
+            raise self._error(ln, f"expected {what}, found end of file")
+        vals = []
+        for tok, tok_ln, _ in got:
+            try:
+                v = float(tok)
+            except ValueError:
+                raise self._error(tok_ln, f"expected {what}, found {tok!r}") from None
+            if not (np.isfinite(v) and abs(v) <= MAX_ABS_VALUE):
+                raise self._error(
+                    tok_ln, f"expected {what} (at most {MAX_ABS_VALUE:g}), found {tok!r}"
+                )
+            vals.append(v)
+        return vals
+
+    def _open(self, tok: str, ln: int, pending: _Block) -> None:
+        if tok != "{":
+            what = f"joint {pending.name!r}" if pending.is_joint else "End Site"
+            raise self._error(ln, f"expected '{{' opening {what}, found {tok!r}")
+        if len(self.stack) >= MAX_DEPTH:
+            raise self._error(
+                ln,
+                f"expected blocks nested at most {MAX_DEPTH} deep, found deeper "
+                "(raise humotion_gym.mocap.bvh.MAX_DEPTH for such a file)",
+            )
+        self.stack.append(pending)
+        self.pending = None
+        self.i += 1
+
+    def _joint(self, tok: str, up: str, ln: int, k: int) -> None:
+        stack, hdr = self.stack, self.hdr
+        if up == "ROOT" and stack:
+            raise self._error(
+                ln,
+                f"expected '}}' closing joint {stack[-1].name!r} (opened at line "
+                f"{stack[-1].line}), found ROOT",
+            )
+        if up == "JOINT" and (not stack or not stack[-1].is_joint):
+            raise self._error(ln, "expected JOINT inside a joint's braces")
+        rest = self.line_tokens[ln][k + 1 :]
+        if rest and rest[-1] == "{":
+            rest = rest[:-1]
+        name = " ".join(rest)
+        if not name:
+            raise self._error(ln, f"expected a joint name after {tok}")
+        if name in hdr.name_set:
+            raise self._error(ln, f"joint name {name!r} is used twice")
+        parent = stack[-1].index if stack else -1
+        hdr.name_set.add(name)
+        hdr.joint_lines.append(ln)
+        hdr.names.append(name)
+        hdr.parents.append(parent)
+        hdr.offsets.append((0.0, 0.0, 0.0))
+        hdr.channels.append(())
+        hdr.points.append((True, len(hdr.names) - 1))
+        self.pending = _Block(True, len(hdr.names) - 1, name, ln)
+        self.i += 1 + len(rest)
+
+    def _end_site(self, ln: int) -> None:
+        stack, hdr = self.stack, self.hdr
+        nxt = self.toks[self.i + 1] if self.i + 1 < self.n else None
+        if nxt is None or nxt[0].upper() != "SITE":
+            raise self._error(ln, "expected 'End Site'")
+        if not stack or not stack[-1].is_joint:
+            raise self._error(ln, "expected End Site inside a joint's braces")
+        hdr.end_lines.append(ln)
+        hdr.end_parents.append(stack[-1].index)
+        hdr.end_offsets.append((0.0, 0.0, 0.0))
+        hdr.points.append((False, len(hdr.end_parents) - 1))
+        self.pending = _Block(False, len(hdr.end_parents) - 1, "End Site", ln)
+        self.i += 2
+
+    def _offset(self, ln: int) -> None:
+        if not self.stack:
+            raise self._error(ln, "expected OFFSET inside a joint's braces")
+        top = self.stack[-1]
+        if top.has_offset:
+            raise self._error(ln, f"second OFFSET in {top.name!r}")
+        off = self._numbers(self.i + 1, 3, "three finite OFFSET values", ln)
+        if top.is_joint:
+            self.hdr.offsets[top.index] = (off[0], off[1], off[2])
+        else:
+            self.hdr.end_offsets[top.index] = (off[0], off[1], off[2])
+        top.has_offset = True
+        self.i += 4
+
+    def _channels(self, ln: int) -> None:
+        toks, i, n = self.toks, self.i, self.n
+        if not self.stack or not self.stack[-1].is_joint:
+            raise self._error(ln, "expected CHANNELS inside a joint's braces")
+        top = self.stack[-1]
+        if top.has_channels:
+            raise self._error(ln, f"second CHANNELS in joint {top.name!r}")
+        count_tok = toks[i + 1][0] if i + 1 < n else "end of file"
+        count_or_none = _count(count_tok)
+        if count_or_none is None:
+            raise self._error(
+                ln, f"expected the number of channels after CHANNELS, found {_short(count_tok)}"
+            )
+        count = count_or_none
+        if count > MAX_JOINT_CHANNELS:
+            raise self._error(
+                ln,
+                f"expected at most {MAX_JOINT_CHANNELS} channels in joint {top.name!r}, "
+                f"found CHANNELS {_short(count_tok)[1:-1]}",
+            )
+        names = toks[i + 2 : i + 2 + count]
+        for name, name_ln, _ in names:
+            if name.lower() not in _CHANNEL_KIND:
+                raise self._error(
+                    name_ln,
+                    f"expected a channel name ({', '.join(CHANNEL_NAMES)}), found {name!r}",
+                )
+        if len(names) < count:
+            raise self._error(ln, f"expected {count} channel names, found end of file")
+        self.hdr.channels[top.index] = tuple(t for t, _, _ in names)
+        top.has_channels = True
+        self.i += 2 + count
+
+    def _close(self, ln: int) -> None:
+        if not self.stack:
+            raise self._error(ln, "unbalanced '}': no joint is open here")
+        top = self.stack.pop()
+        if not top.has_offset:
+            what = f"joint {top.name!r}" if top.is_joint else "End Site"
+            raise self._error(ln, f"expected OFFSET in {what} (opened at line {top.line})")
+        self.i += 1
+
+    def _finish(self, last_line: int) -> _Header:
+        at_end = self.i >= self.n
+        where = last_line if at_end else self.toks[self.i][1]
+        found = "end of file" if at_end else "MOTION"
+        if self.pending is not None:
+            raise self._error(where, f"expected '{{' opening {self.pending.name!r}, found {found}")
+        if self.stack:
+            top = self.stack[-1]
+            raise self._error(
+                where,
+                f"expected '}}' closing {top.name!r} (opened at line {top.line}), found {found}",
+            )
+        if not self.hdr.names:
+            raise self._error(where, f"expected ROOT, found {found}")
+        if at_end:
+            raise self._error(where, "expected MOTION after the hierarchy, found end of file")
+        return self.hdr
+
+
 def _parse_hierarchy(path: str, lines: list[tuple[int, str]], last_line: int) -> _Header:
     """Parse ``HIERARCHY`` up to (not including) ``MOTION``.
 
@@ -561,189 +770,7 @@ def _parse_hierarchy(path: str, lines: list[tuple[int, str]], last_line: int) ->
     Raises:
         MocapFormatError: On any deviation from the grammar.
     """
-    toks = _header_tokens(lines)
-    line_tokens = {ln: text.split() for ln, text in lines}
-    hdr = _Header()
-    if not toks or toks[0][0].upper() != "HIERARCHY":
-        ln = toks[0][1] if toks else 1
-        found = repr(toks[0][0]) if toks else "nothing"
-        raise MocapFormatError(path, ln, f"expected HIERARCHY, found {found}")
-    stack: list[_Block] = []
-    pending: _Block | None = None
-    i = 1
-    n = len(toks)
-
-    def numbers(start: int, count: int, what: str, ln: int) -> list[float]:
-        got = toks[start : start + count]
-        if len(got) < count:
-            raise MocapFormatError(path, ln, f"expected {what}, found end of file")
-        vals = []
-        for tok, tok_ln, _ in got:
-            try:
-                v = float(tok)
-            except ValueError:
-                raise MocapFormatError(path, tok_ln, f"expected {what}, found {tok!r}") from None
-            if not (np.isfinite(v) and abs(v) <= MAX_ABS_VALUE):
-                raise MocapFormatError(
-                    path, tok_ln, f"expected {what} (at most {MAX_ABS_VALUE:g}), found {tok!r}"
-                )
-            vals.append(v)
-        return vals
-
-    while i < n:
-        tok, ln, k = toks[i]
-        up = tok.upper()
-        if pending is not None:
-            if tok != "{":
-                what = f"joint {pending.name!r}" if pending.is_joint else "End Site"
-                raise MocapFormatError(path, ln, f"expected '{{' opening {what}, found {tok!r}")
-            if len(stack) >= MAX_DEPTH:
-                raise MocapFormatError(
-                    path,
-                    ln,
-                    f"expected blocks nested at most {MAX_DEPTH} deep, found deeper "
-                    "(raise humotion_gym.mocap.bvh.MAX_DEPTH for such a file)",
-                )
-            stack.append(pending)
-            pending = None
-            i += 1
-            continue
-        if up in ("ROOT", "JOINT", "END") and len(hdr.points) >= MAX_JOINTS:
-            raise MocapFormatError(
-                path,
-                ln,
-                f"expected at most {MAX_JOINTS} joints and end sites, found more "
-                "(raise humotion_gym.mocap.bvh.MAX_JOINTS for such a file)",
-            )
-        if up in ("ROOT", "JOINT"):
-            if up == "ROOT" and stack:
-                raise MocapFormatError(
-                    path,
-                    ln,
-                    f"expected '}}' closing joint {stack[-1].name!r} (opened at line "
-                    f"{stack[-1].line}), found ROOT",
-                )
-            if up == "JOINT" and (not stack or not stack[-1].is_joint):
-                raise MocapFormatError(path, ln, "expected JOINT inside a joint's braces")
-            rest = line_tokens[ln][k + 1 :]
-            if rest and rest[-1] == "{":
-                rest = rest[:-1]
-            name = " ".join(rest)
-            if not name:
-                raise MocapFormatError(path, ln, f"expected a joint name after {tok}")
-            if name in hdr.name_set:
-                raise MocapFormatError(path, ln, f"joint name {name!r} is used twice")
-            parent = stack[-1].index if stack else -1
-            hdr.name_set.add(name)
-            hdr.joint_lines.append(ln)
-            hdr.names.append(name)
-            hdr.parents.append(parent)
-            hdr.offsets.append((0.0, 0.0, 0.0))
-            hdr.channels.append(())
-            hdr.points.append((True, len(hdr.names) - 1))
-            pending = _Block(True, len(hdr.names) - 1, name, ln)
-            i += 1 + len(rest)
-        elif up == "END":
-            nxt = toks[i + 1] if i + 1 < n else None
-            if nxt is None or nxt[0].upper() != "SITE":
-                raise MocapFormatError(path, ln, "expected 'End Site'")
-            if not stack or not stack[-1].is_joint:
-                raise MocapFormatError(path, ln, "expected End Site inside a joint's braces")
-            hdr.end_lines.append(ln)
-            hdr.end_parents.append(stack[-1].index)
-            hdr.end_offsets.append((0.0, 0.0, 0.0))
-            hdr.points.append((False, len(hdr.end_parents) - 1))
-            pending = _Block(False, len(hdr.end_parents) - 1, "End Site", ln)
-            i += 2
-        elif up == "OFFSET":
-            if not stack:
-                raise MocapFormatError(path, ln, "expected OFFSET inside a joint's braces")
-            top = stack[-1]
-            if top.has_offset:
-                raise MocapFormatError(path, ln, f"second OFFSET in {top.name!r}")
-            off = numbers(i + 1, 3, "three finite OFFSET values", ln)
-            if top.is_joint:
-                hdr.offsets[top.index] = (off[0], off[1], off[2])
-            else:
-                hdr.end_offsets[top.index] = (off[0], off[1], off[2])
-            top.has_offset = True
-            i += 4
-        elif up == "CHANNELS":
-            if not stack or not stack[-1].is_joint:
-                raise MocapFormatError(path, ln, "expected CHANNELS inside a joint's braces")
-            top = stack[-1]
-            if top.has_channels:
-                raise MocapFormatError(path, ln, f"second CHANNELS in joint {top.name!r}")
-            count_tok = toks[i + 1][0] if i + 1 < n else "end of file"
-            count_or_none = _count(count_tok)
-            if count_or_none is None:
-                raise MocapFormatError(
-                    path,
-                    ln,
-                    f"expected the number of channels after CHANNELS, found {_short(count_tok)}",
-                )
-            count = count_or_none
-            if count > MAX_JOINT_CHANNELS:
-                raise MocapFormatError(
-                    path,
-                    ln,
-                    f"expected at most {MAX_JOINT_CHANNELS} channels in joint {top.name!r}, "
-                    f"found CHANNELS {_short(count_tok)[1:-1]}",
-                )
-            names = toks[i + 2 : i + 2 + count]
-            for name, name_ln, _ in names:
-                if name.lower() not in _CHANNEL_KIND:
-                    raise MocapFormatError(
-                        path,
-                        name_ln,
-                        f"expected a channel name ({', '.join(CHANNEL_NAMES)}), found {name!r}",
-                    )
-            if len(names) < count:
-                raise MocapFormatError(
-                    path, ln, f"expected {count} channel names, found end of file"
-                )
-            hdr.channels[top.index] = tuple(t for t, _, _ in names)
-            top.has_channels = True
-            i += 2 + count
-        elif tok == "}":
-            if not stack:
-                raise MocapFormatError(path, ln, "unbalanced '}': no joint is open here")
-            top = stack.pop()
-            if not top.has_offset:
-                what = f"joint {top.name!r}" if top.is_joint else "End Site"
-                raise MocapFormatError(
-                    path, ln, f"expected OFFSET in {what} (opened at line {top.line})"
-                )
-            i += 1
-        elif up == "MOTION":
-            break
-        elif not stack:
-            raise MocapFormatError(path, ln, f"expected ROOT or MOTION, found {tok!r}")
-        else:
-            raise MocapFormatError(
-                path, ln, f"expected OFFSET, CHANNELS, JOINT, End Site or '}}', found {tok!r}"
-            )
-    at_end = i >= n
-    where = last_line if at_end else toks[i][1]
-    found = "end of file" if at_end else "MOTION"
-    if pending is not None:
-        raise MocapFormatError(
-            path, where, f"expected '{{' opening {pending.name!r}, found {found}"
-        )
-    if stack:
-        top = stack[-1]
-        raise MocapFormatError(
-            path,
-            where,
-            f"expected '}}' closing {top.name!r} (opened at line {top.line}), found {found}",
-        )
-    if not hdr.names:
-        raise MocapFormatError(path, where, f"expected ROOT, found {found}")
-    if at_end:
-        raise MocapFormatError(
-            path, where, "expected MOTION after the hierarchy, found end of file"
-        )
-    return hdr
+    return _HierarchyParser(path, lines).parse(last_line)
 
 
 def _infer_position_mode(
