@@ -227,3 +227,30 @@ def test_pretrained_checkpoint_loads_acts_and_says_how_it_was_made(path: Path) -
 def test_pretrained_checkpoints_are_small() -> None:
     total = sum(p.stat().st_size for p in CHECKPOINT_DIR.glob("*"))
     assert total <= 10 * 2**20
+
+
+def test_proposal_prior_redraws_the_chosen_share_and_dimensions() -> None:
+    from types import SimpleNamespace
+
+    from baselines.learned import ProposalPrior
+    from humotion_gym.filtering import ParticleState
+
+    still = SimpleNamespace(
+        initial=lambda fitted, pose, n, rng: ParticleState(np.tile(pose, (n, 1))),
+        transition=lambda fitted, state, rng: state,
+    )
+    angles = np.array([False, False, True, True])
+    prior = ProposalPrior(still, 0.25, np.zeros(4), angles, dims=np.array([0, 1]))
+    state = prior.initial(None, np.zeros(4), 8, np.random.default_rng(0))
+    prior.proposal = np.array([5.0, 6.0, 1.0, 2 * np.pi + 0.5])
+    moved = prior.transition(None, state, np.random.default_rng(1))
+    redrawn = np.flatnonzero(moved.pose[:, 0] == 5.0)
+    assert redrawn.size == 2  # a quarter of 8
+    np.testing.assert_array_equal(moved.pose[redrawn, 1], 6.0)
+    np.testing.assert_array_equal(moved.pose[:, 2:], 0.0)  # not chosen: the prior's values
+    whole = ProposalPrior(still, 1.0, np.zeros(4), angles)
+    whole.initial(None, np.zeros(4), 4, np.random.default_rng(0))
+    whole.proposal = np.array([5.0, 6.0, 1.0, 2 * np.pi + 0.5])
+    out = whole.transition(None, state.take(np.arange(4)), np.random.default_rng(1))
+    # angles are put on the branch of the particles' mean (here 0): 2 pi + 0.5 -> 0.5
+    np.testing.assert_allclose(out.pose, np.tile([5.0, 6.0, 1.0, 0.5], (4, 1)))
