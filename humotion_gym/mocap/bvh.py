@@ -857,6 +857,182 @@ def _read_motion(
     return _to_floats(trimmed.split(), path, line_of).reshape(n_lines, n_chan)
 
 
+def _check_load_arguments(max_frames: int | None, on_nan: str, position_channels: str) -> int:
+    """The frame limit, after checking :func:`load_bvh`'s arguments.
+
+    Raises:
+        ValueError: If an argument is invalid.
+    """
+    limit = MAX_FRAMES if max_frames is None else max_frames
+    if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 0:
+        raise ValueError(f"max_frames must be a whole number >= 0, got {max_frames!r}")
+    if on_nan not in ("mask", "raise"):
+        raise ValueError(f"on_nan must be 'mask' or 'raise', got {on_nan!r}")
+    if position_channels not in ("auto", "add", "replace"):
+        raise ValueError(
+            f"position_channels must be 'auto', 'add' or 'replace', got {position_channels!r}"
+        )
+    return int(limit)
+
+
+class _LineReader:
+    """The file's bytes read line by line (only the header goes through Python)."""
+
+    def __init__(self, spath: str, data: bytes) -> None:
+        self.spath = spath
+        self.data = data
+        self.pos = 0
+        self.lineno = 0
+
+    def next_line(self) -> str | None:
+        """The next line's text, or None at the end of the file."""
+        if self.pos >= len(self.data):
+            return None
+        end = self.data.find(b"\n", self.pos)
+        end = len(self.data) if end < 0 else end
+        text = self.data[self.pos : end].decode("utf-8", "replace")
+        self.pos = end + 1
+        self.lineno += 1
+        return text
+
+    def header_lines(self) -> list[tuple[int, str]]:
+        """``(line number, text)`` of the lines up to and including ``MOTION``."""
+        lines: list[tuple[int, str]] = []
+        while (text := self.next_line()) is not None:
+            lines.append((self.lineno, text))
+            if text.strip().upper() == "MOTION":
+                break
+        return lines
+
+    def header_value(self, label: str, motion_line: int) -> tuple[str, int]:
+        """The value of ``<label>: value`` on the next non-blank line, and its line."""
+        while (text := self.next_line()) is not None:
+            if text.strip():
+                head, colon, value = text.partition(":")
+                if colon and " ".join(head.split()).lower() == label.lower() and value.split():
+                    if len(value.split()) == 1:
+                        return value.split()[0], self.lineno
+                raise MocapFormatError(
+                    self.spath, self.lineno, f"expected '{label}: <value>', found {text.strip()!r}"
+                )
+        raise MocapFormatError(
+            self.spath,
+            max(self.lineno, motion_line),
+            f"expected '{label}: <value>', found end of file",
+        )
+
+
+def _declared_frames(
+    reader: _LineReader, motion_line: int, limit: int, n_points: int
+) -> tuple[int, int]:
+    """``Frames:``: the declared count and its line, checked against the limits."""
+    spath = reader.spath
+    frames_tok, frames_line = reader.header_value("Frames", motion_line)
+    declared = _count(frames_tok)
+    if declared is None:
+        raise MocapFormatError(
+            spath, frames_line, f"expected a whole number of frames, found {_short(frames_tok)}"
+        )
+    if declared > limit:
+        raise MocapFormatError(
+            spath,
+            frames_line,
+            f"expected at most {limit} frames, found Frames: {_short(frames_tok)[1:-1]} (pass "
+            "max_frames= or raise humotion_gym.mocap.bvh.MAX_FRAMES for such a file)",
+        )
+    if declared * n_points > MAX_FRAME_POINTS:
+        raise MocapFormatError(
+            spath,
+            frames_line,
+            f"expected at most {MAX_FRAME_POINTS} frames times points, found {declared} "
+            f"frames of {n_points} joints and end sites (raise "
+            "humotion_gym.mocap.bvh.MAX_FRAME_POINTS for such a file)",
+        )
+    return declared, frames_line
+
+
+def _check_values(
+    spath: str,
+    values: NDArray[np.float64],
+    hdr: _Header,
+    starts: NDArray[np.intp],
+    first: int,
+    on_nan: str,
+) -> NDArray[np.bool_]:
+    """Each frame is finite (``(T,)``), after refusing magnitudes above the limit.
+
+    Raises:
+        MocapFormatError: For a value above :data:`MAX_ABS_VALUE`, or a NaN
+            with ``on_nan="raise"``, naming the line, channel and joint.
+    """
+    n_chan = values.shape[1] if values.ndim == 2 else 0
+
+    def channel_of(col: int) -> str:
+        j = int(np.searchsorted(starts, col, side="right") - 1)
+        return f"channel {hdr.channels[j][col - starts[j]]} of joint {hdr.names[j]!r}"
+
+    big = _first_out_of_range(values)
+    if big is not None:
+        t, col = divmod(big, n_chan)
+        raise MocapFormatError(
+            spath,
+            first + t,
+            f"expected values of magnitude at most {MAX_ABS_VALUE:g}, found "
+            f"{float(values[t, col])!r} in {channel_of(col)}",
+        )
+    finite_rows = np.isfinite(values).all(axis=1)
+    if on_nan == "raise" and not finite_rows.all():
+        t = int(np.flatnonzero(~finite_rows)[0])
+        col = int(np.flatnonzero(~np.isfinite(values[t]))[0])
+        raise MocapFormatError(
+            spath,
+            first + t,
+            f"expected finite values, found {float(values[t, col])!r} in {channel_of(col)}",
+        )
+    return finite_rows
+
+
+def _point_tree(spath: str, hdr: _Header) -> tuple[list[str], list[int]]:
+    """Names and parents of every point: the joints, and end sites named ``<joint>_End``.
+
+    Raises:
+        MocapFormatError: If a joint and an end site would share a name.
+    """
+    point_index: dict[str, int] = {}
+    point_names: list[str] = []
+    point_parents: list[int] = []
+    end_count: dict[int, int] = {}
+    for is_joint, idx in hdr.points:
+        if is_joint:
+            name = hdr.names[idx]
+            parent = hdr.parents[idx]
+            if name in point_index:
+                raise MocapFormatError(
+                    spath,
+                    hdr.joint_lines[idx],
+                    f"expected a joint name unlike the end sites' names, found {name!r}, "
+                    "the name of an earlier end site",
+                )
+            point_index[name] = len(point_names)
+            point_parents.append(point_index[hdr.names[parent]] if parent >= 0 else -1)
+        else:
+            j = hdr.end_parents[idx]
+            end_count[j] = end_count.get(j, 0) + 1
+            suffix = "_End" if end_count[j] == 1 else f"_End{end_count[j]}"
+            name = hdr.names[j] + suffix
+            if name in point_index:
+                raise MocapFormatError(
+                    spath,
+                    hdr.end_lines[idx],
+                    f"expected an End Site whose name {name!r} (its joint's name and a "
+                    "suffix) is unlike the joints' names, found a joint of that name",
+                )
+            point_index[name] = len(point_names)
+            point_parents.append(point_index[hdr.names[j]])
+        point_names.append(name)
+    return point_names, point_parents
+
+
 def load_bvh(
     path: str | Path,
     on_nan: OnNan = "mask",
@@ -890,15 +1066,7 @@ def load_bvh(
         OSError: If the file cannot be read.
         ValueError: If an argument is invalid.
     """
-    limit = MAX_FRAMES if max_frames is None else max_frames
-    if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 0:
-        raise ValueError(f"max_frames must be a whole number >= 0, got {max_frames!r}")
-    if on_nan not in ("mask", "raise"):
-        raise ValueError(f"on_nan must be 'mask' or 'raise', got {on_nan!r}")
-    if position_channels not in ("auto", "add", "replace"):
-        raise ValueError(
-            f"position_channels must be 'auto', 'add' or 'replace', got {position_channels!r}"
-        )
+    limit = _check_load_arguments(max_frames, on_nan, position_channels)
     spath = str(path)
     data = Path(path).read_bytes()
     if data.startswith(b"\xef\xbb\xbf"):
@@ -906,74 +1074,17 @@ def load_bvh(
     if not data.strip():
         raise MocapFormatError(spath, 1, "the file is empty (expected HIERARCHY)")
 
-    # Header lines, up to MOTION; only these go through Python line by line.
-    pos, lineno = 0, 0
-    lines: list[tuple[int, str]] = []
-
-    def next_line() -> str | None:
-        nonlocal pos, lineno
-        if pos >= len(data):
-            return None
-        end = data.find(b"\n", pos)
-        end = len(data) if end < 0 else end
-        text = data[pos:end].decode("utf-8", "replace")
-        pos = end + 1
-        lineno += 1
-        return text
-
-    while (text := next_line()) is not None:
-        lines.append((lineno, text))
-        if text.strip().upper() == "MOTION":
-            break
-    hdr = _parse_hierarchy(spath, lines, lineno)
-    motion_line = lineno
-
-    def header_value(label: str) -> tuple[str, int]:
-        # Skip blank lines, then expect "<label>: value" (any spacing, any case).
-        while (text := next_line()) is not None:
-            if text.strip():
-                head, colon, value = text.partition(":")
-                if colon and " ".join(head.split()).lower() == label.lower() and value.split():
-                    if len(value.split()) == 1:
-                        return value.split()[0], lineno
-                raise MocapFormatError(
-                    spath, lineno, f"expected '{label}: <value>', found {text.strip()!r}"
-                )
-        raise MocapFormatError(
-            spath, max(lineno, motion_line), f"expected '{label}: <value>', found end of file"
-        )
-
-    frames_tok, frames_line = header_value("Frames")
-    declared = _count(frames_tok)
-    if declared is None:
-        raise MocapFormatError(
-            spath, frames_line, f"expected a whole number of frames, found {_short(frames_tok)}"
-        )
-    n_declared = declared
-    if n_declared > limit:
-        raise MocapFormatError(
-            spath,
-            frames_line,
-            f"expected at most {limit} frames, found Frames: {_short(frames_tok)[1:-1]} (pass "
-            "max_frames= or raise humotion_gym.mocap.bvh.MAX_FRAMES for such a file)",
-        )
-    n_points = len(hdr.points)
-    if n_declared * n_points > MAX_FRAME_POINTS:
-        raise MocapFormatError(
-            spath,
-            frames_line,
-            f"expected at most {MAX_FRAME_POINTS} frames times points, found {n_declared} "
-            f"frames of {n_points} joints and end sites (raise "
-            "humotion_gym.mocap.bvh.MAX_FRAME_POINTS for such a file)",
-        )
-    ft_tok, ft_line = header_value("Frame Time")
+    reader = _LineReader(spath, data)
+    hdr = _parse_hierarchy(spath, reader.header_lines(), reader.lineno)
+    motion_line = reader.lineno
+    n_declared, frames_line = _declared_frames(reader, motion_line, limit, len(hdr.points))
+    ft_tok, ft_line = reader.header_value("Frame Time", motion_line)
     frame_time = _check_frame_time(spath, ft_line, ft_tok)
 
     n_joints = len(hdr.names)
     n_chan = sum(len(c) for c in hdr.channels)
-    first = lineno + 1  # the file line of the first frame
-    body = data[pos:]
-    values = _read_motion(spath, body, first, n_chan, n_joints)
+    first = reader.lineno + 1  # the file line of the first frame
+    values = _read_motion(spath, data[reader.pos :], first, n_chan, n_joints)
     n_frames = len(values)
     if n_frames > n_declared:
         raise MocapFormatError(
@@ -989,29 +1100,7 @@ def load_bvh(
             f"expected {n_declared} frame lines as declared here, found {n_frames}",
         )
     starts = np.concatenate(([0], np.cumsum([len(c) for c in hdr.channels]))).astype(np.intp)
-
-    def channel_of(col: int) -> str:
-        j = int(np.searchsorted(starts, col, side="right") - 1)
-        return f"channel {hdr.channels[j][col - starts[j]]} of joint {hdr.names[j]!r}"
-
-    big = _first_out_of_range(values)
-    if big is not None:
-        t, col = divmod(big, n_chan)
-        raise MocapFormatError(
-            spath,
-            first + t,
-            f"expected values of magnitude at most {MAX_ABS_VALUE:g}, found "
-            f"{float(values[t, col])!r} in {channel_of(col)}",
-        )
-    finite_rows = np.isfinite(values).all(axis=1)
-    if on_nan == "raise" and not finite_rows.all():
-        t = int(np.flatnonzero(~finite_rows)[0])
-        col = int(np.flatnonzero(~np.isfinite(values[t]))[0])
-        raise MocapFormatError(
-            spath,
-            first + t,
-            f"expected finite values, found {float(values[t, col])!r} in {channel_of(col)}",
-        )
+    finite_rows = _check_values(spath, values, hdr, starts, first, on_nan)
 
     offsets = np.array(hdr.offsets, dtype=np.float64).reshape(n_joints, 3)
     mode: Literal["add", "replace"]
@@ -1019,39 +1108,7 @@ def load_bvh(
         mode = _infer_position_mode(hdr, offsets, values, starts)
     else:
         mode = position_channels
-
-    point_index = {}
-    point_names: list[str] = []
-    point_parents: list[int] = []
-    end_count: dict[int, int] = {}
-    for is_joint, idx in hdr.points:
-        if is_joint:
-            name = hdr.names[idx]
-            parent = hdr.parents[idx]
-            if name in point_index:
-                raise MocapFormatError(
-                    spath,
-                    hdr.joint_lines[idx],
-                    f"expected a joint name unlike the end sites' names, found {name!r}, "
-                    "the name of an earlier end site",
-                )
-            point_index[name] = len(point_names)
-            point_parents.append(point_index[hdr.names[parent]] if parent >= 0 else -1)
-        else:
-            j = hdr.end_parents[idx]
-            end_count[j] = end_count.get(j, 0) + 1
-            suffix = "_End" if end_count[j] == 1 else f"_End{end_count[j]}"
-            name = hdr.names[j] + suffix
-            if name in point_index:
-                raise MocapFormatError(
-                    spath,
-                    hdr.end_lines[idx],
-                    f"expected an End Site whose name {name!r} (its joint's name and a "
-                    "suffix) is unlike the joints' names, found a joint of that name",
-                )
-            point_index[name] = len(point_names)
-            point_parents.append(point_index[hdr.names[j]])
-        point_names.append(name)
+    point_names, point_parents = _point_tree(spath, hdr)
 
     return BvhClip(
         path=spath,
