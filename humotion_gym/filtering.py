@@ -343,6 +343,8 @@ class AnnealedParticleFilter(ParticleFilter):
             deviation, so a collapsed proposal still searches (default 0).
         lower, upper: ``(D,)`` bounds of valid poses (e.g. joint limits):
             particles outside get weight 0 in every layer, so none survives.
+        beta_max: Cap on the adaptive exponents (default: none). 1 never
+            sharpens the weights beyond the likelihood's own.
     """
 
     def __init__(
@@ -361,6 +363,7 @@ class AnnealedParticleFilter(ParticleFilter):
         min_std: ArrayLike = 0.0,
         lower: ArrayLike | None = None,
         upper: ArrayLike | None = None,
+        beta_max: float = np.inf,
     ) -> None:
         super().__init__(prior, fitted, observation_model, n, angle_mask, resampling, 1.0, estimate)
         if not isinstance(layers, (int, np.integer)) or layers < 1:
@@ -381,6 +384,9 @@ class AnnealedParticleFilter(ParticleFilter):
                     f"AnnealedParticleFilter: betas must be {self.layers} positive numbers"
                 )
             self.betas = b
+        if not beta_max > 0:
+            raise ValueError(f"AnnealedParticleFilter: beta_max must be > 0, got {beta_max}")
+        self.beta_max = float(beta_max)
         self.diffusion = float(diffusion)
         self.min_std = np.asarray(min_std, dtype=np.float64)
         if np.any(self.min_std < 0) or not np.all(np.isfinite(self.min_std)):
@@ -434,6 +440,11 @@ class AnnealedParticleFilter(ParticleFilter):
                     weights = np.full(self.n, 1.0 / self.n)
             else:
                 beta, weights = temper_for_survival(loglik, self.alpha)
+                if beta > self.beta_max:
+                    beta = self.beta_max
+                    ok = np.isfinite(loglik)
+                    log_w = np.where(ok, beta * (loglik - loglik[ok].max()), -np.inf)
+                    weights = np.exp(log_w - logsumexp(log_w))
             self.layer_betas.append(beta)
             self.ess = effective_sample_size(weights)
             self.layer_survival.append(self.ess / self.n)

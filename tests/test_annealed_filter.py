@@ -126,3 +126,14 @@ def test_bad_arguments() -> None:
         AnnealedParticleFilter(prior, None, like, 10, diffusion=-1.0)
     with pytest.raises(RuntimeError, match="before reset"):
         AnnealedParticleFilter(prior, None, like, 10).step(np.zeros(2))
+
+
+def test_beta_cap() -> None:
+    # A broad likelihood would want exponents far above 1 to reach alpha = 0.5.
+    apf = AnnealedParticleFilter(RandomWalk(0.5), None, Peak(5.0), 300, layers=4, beta_max=1.0)
+    apf.reset(np.zeros(2), np.random.default_rng(2))
+    apf.step(np.full(2, 0.2))
+    assert apf.layer_betas == [1.0] * 4
+    assert min(apf.layer_survival) > 0.5  # so more particles survive than alpha
+    with pytest.raises(ValueError, match="beta_max"):
+        AnnealedParticleFilter(RandomWalk(0.5), None, Peak(0.05), 10, beta_max=0.0)
