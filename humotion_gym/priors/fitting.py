@@ -18,13 +18,15 @@ Every prior module has the same interface (:class:`~humotion_gym.filtering.Prior
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib
 import inspect
 import json
+import logging
 import sys
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -63,6 +65,32 @@ def prior_module(prior: str | ModuleType) -> ModuleType:
 
 def _stderr(line: str) -> None:
     print(line, file=sys.stderr, flush=True)
+
+
+class _Forward(logging.Handler):
+    def __init__(self, log: Callable[[str], None]) -> None:
+        super().__init__(logging.INFO)
+        self.log = log
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.log(record.getMessage())
+
+
+@contextlib.contextmanager
+def _progress_to(log: Callable[[str], None] | None) -> Iterator[None]:
+    """Forward the priors' progress messages (logger ``humotion_gym.priors``) to ``log``."""
+    if log is None:
+        yield
+        return
+    logger = logging.getLogger("humotion_gym.priors")
+    handler, level = _Forward(log), logger.level
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
 
 
 def _fingerprint(lib: MotionLibrary | Sequence[Motion]) -> str:
@@ -213,7 +241,8 @@ def fit_prior(
         )
     t0 = time.perf_counter()
     clips = motions.motions if isinstance(motions, MotionLibrary) else list(motions)
-    fitted = module.fit(clips, free=free, rng=np.random.default_rng(0), **kwargs)
+    with _progress_to(log):
+        fitted = module.fit(clips, free=free, rng=np.random.default_rng(0), **kwargs)
     if log is not None:
         log(f"fitted the {name} prior in {time.perf_counter() - t0:.1f} s")
     if path is not None:

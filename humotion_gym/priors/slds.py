@@ -55,6 +55,8 @@ sagittal angles (:data:`SAGITTAL`).
 from __future__ import annotations
 
 import dataclasses
+import logging
+import time
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -77,6 +79,8 @@ from humotion_gym.priors.slds_learning import EMResult, fit_em
 
 FloatArray = NDArray[np.float64]
 NAME = "slds"
+#: Progress of the fit (shown on stderr by :func:`humotion_gym.priors.fitting.fit_prior`).
+_LOG = logging.getLogger(__name__)
 
 #: The paper's model: the sagittal angles of SideWalk-v1 (used when ``free`` is None).
 SAGITTAL: tuple[str, ...] = SAGITTAL_PARAMS
@@ -216,10 +220,16 @@ def fit(
         if max_clips_per_label is not None and len(clips) > max_clips_per_label:
             pick = np.sort(rng.choice(len(clips), max_clips_per_label, replace=False))
             clips = [clips[k] for k in pick]
+        _LOG.info(
+            "slds: fitting the %s model (%d of %d) on %d clips, %d EM iterations",
+            label, len(models) + 1, len(groups), len(clips), n_iter,
+        )  # fmt: skip
+        t0 = time.perf_counter()
         result = fit_activity(
             clips, free, rng, n_states=n_states, order=order, n_iter=n_iter,
             frame_skip=frame_skip, label=label,
         )  # fmt: skip
+        _LOG.info("slds: the %s model took %.1f s", label, time.perf_counter() - t0)
         models.append(result.params)
     return combine(models, switch_prob)
 
