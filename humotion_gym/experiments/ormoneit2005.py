@@ -213,7 +213,7 @@ def plot_aligned(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    xs, ws = cycles._check_sequences(sequences, observed)
+    xs, ws = cycles.check_sequences(sequences, observed)
     n_angles = xs[0].shape[1]
     names = angle_names or [PARAM_NAMES[i] for i in cycles.JOINT_ANGLES][:n_angles]
     grid = np.linspace(0, 1, 200)

@@ -330,9 +330,14 @@ class Alignment:
         return np.mod((t - self.offsets[index]) / self.periods[index], 1.0)
 
 
-def _check_sequences(
+def check_sequences(
     sequences: Sequence[ArrayLike], observed: Sequence[ArrayLike] | None
 ) -> tuple[list[FloatArray], list[BoolArray]]:
+    """The sequences as float arrays with their observed masks (all True when None).
+
+    Raises:
+        ValueError: If there are none, or shapes or masks disagree.
+    """
     if len(sequences) == 0:
         raise ValueError("no sequences given")
     xs: list[FloatArray] = []
@@ -455,7 +460,7 @@ def align_offsets(
     Returns:
         The :class:`Alignment`.
     """
-    xs, ws = _check_sequences(sequences, observed)
+    xs, ws = check_sequences(sequences, observed)
     p = np.asarray(periods, dtype=np.float64).ravel()
     if p.shape != (len(xs),) or not np.all(np.isfinite(p) & (p > 1)):
         raise ValueError(f"align_offsets: need one finite period > 1 per sequence, got {p}")
@@ -516,7 +521,7 @@ def cycle_shifts(
     Returns:
         One ``(K_i,)`` array of shifts per sequence (cycles in time order).
     """
-    xs, ws = _check_sequences(sequences, observed)
+    xs, ws = check_sequences(sequences, observed)
     harmonics, grid = 24, 256
     a = _fourier_coefficients(alignment.coef, alignment.knots, harmonics)
     a2 = np.stack([np.convolve(row, row) for row in a])
@@ -731,7 +736,7 @@ def segment(
     Returns:
         The :class:`Segmentation`.
     """
-    xs, ws = _check_sequences(sequences, observed)
+    xs, ws = check_sequences(sequences, observed)
     p = np.asarray(periods, dtype=np.float64).ravel()
     o = np.asarray(offsets, dtype=np.float64).ravel()
     if p.shape != (len(xs),) or o.shape != (len(xs),):
