@@ -2,6 +2,11 @@
 
 Run: python benchmarks/bench_agents.py [--data-dir ../shared/mocap]
      python benchmarks/bench_agents.py --task SideWalk-v1 --agents pf-cv pf-slds
+     python benchmarks/bench_agents.py --agents apf-tree --particles 300
+
+The annealed filters (apf-*) take N particles per layer (10 N likelihood
+evaluations per frame); their transition and likelihood columns are one
+layer's, ms/frame is the whole frame's.
 
 Reports pf-cv and pf-tree at 300, 3,000 and 10,000 particles, split into the
 prior's transition, the observation model (prepare + score) and the rest, with
