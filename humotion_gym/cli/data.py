@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from typing import Any
 
 import numpy as np
 
@@ -196,7 +197,7 @@ def _cmd_data_persons(args: argparse.Namespace) -> int:
         ok, message = True, str(report)
     except SplitError as exc:
         ok, message = False, str(exc)
-    rows = [
+    rows: list[dict[str, Any]] = [
         {
             "subject": s.subject,
             "dataset": ",".join(s.datasets),

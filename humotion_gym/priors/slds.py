@@ -214,7 +214,7 @@ def fit(
     groups: dict[str, list[Motion]] = {}
     for m in motions:
         groups.setdefault(m.label if per_label else "all", []).append(m)
-    models = []
+    models: list[SLDSParams] = []
     for label in sorted(groups):
         clips = groups[label]
         if max_clips_per_label is not None and len(clips) > max_clips_per_label:
