@@ -99,7 +99,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.interpolate import CubicSpline, make_interp_spline
 
 from humotion_gym.body import (
     PARAM_INDEX,
@@ -193,6 +192,8 @@ def _bridge(before: FloatArray, after: FloatArray, blend: int) -> FloatArray:
         [np.arange(n_a - blend - ctx, n_a - blend), n_a + blend + np.arange(ctx)]
     ).astype(np.float64)
     knots_y = np.concatenate([before[n_a - blend - ctx : n_a - blend], after[blend : blend + ctx]])
+    from scipy.interpolate import make_interp_spline  # imported here: keeps --help fast
+
     spline = make_interp_spline(knots_t, knots_y, k=3)
     out = np.concatenate([before, after])
     gap = np.arange(n_a - blend, n_a + blend)
@@ -1102,6 +1103,8 @@ def interpolate_gap(
         linear[start:stop, k] = np.interp(
             t[start:stop], t[[start - 1, stop]], y[[start - 1, stop], k]
         )
+    from scipy.interpolate import CubicSpline  # imported here: keeps --help fast
+
     spline[start:stop] = CubicSpline(t[observed], y[observed])(t[start:stop])
     slds_fill = y.copy()
     slds_fill[start:stop] = filled[start:stop]
