@@ -133,7 +133,7 @@ def test_true_pose_gives_full_reward_and_episode_length(env_id):
     task = get_task(env_id)
     steps, rewards = 0, []
     while True:
-        action = env.pose_to_action(env._truth())
+        action = env.pose_to_action(env.true_pose())
         obs, r, term, trunc, info = env.step(action)
         rewards.append(r)
         steps += 1
@@ -175,7 +175,7 @@ def test_info_gives_what_the_agent_needs_and_never_the_truth():
     obs, info = env.reset(seed=0)
     assert info["initial_pose"].shape == (25,) and info["fps"] == 30.0
     assert info["fixed_params"].shape == (21,)
-    truth = env._truth()
+    truth = env.true_pose()
     # the fixed parameters are the truth of the frame on show; the free ones are absent
     assert np.array_equal(info["fixed_params"], truth[env.task.fixed_indices])
     for value in info.values():
@@ -190,7 +190,7 @@ def test_info_gives_what_the_agent_needs_and_never_the_truth():
 def test_pose_action_round_trip():
     env = gym.make("humotion_gym/BodyTrack-v1").unwrapped
     env.reset(seed=4)
-    truth = env._truth()
+    truth = env.true_pose()
     pose = env.action_to_pose(env.pose_to_action(truth))
     kp_err = np.abs(
         humotion_gym.body.forward_kinematics(pose, env.shape)
@@ -255,4 +255,4 @@ def test_envs_run_on_real_data(shared_mocap):
         _, info = env.reset(seed=0)
         assert not info["synthetic"] and env.clips.split("test") is not None
         assert all(m.subject in humotion_gym.mocap.library.TEST_SUBJECTS for m in env.clips)
-        env.step(env.pose_to_action(env._truth()))
+        env.step(env.pose_to_action(env.true_pose()))

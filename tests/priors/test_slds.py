@@ -11,7 +11,7 @@ import pytest
 
 from humotion_gym.body import PARAM_LOWER, PARAM_UPPER
 from humotion_gym.cli import main
-from humotion_gym.experiments import pavlovic1999 as slds_tasks
+from humotion_gym.experiments import pavlovic1999
 from humotion_gym.filtering import ParticleFilter
 from humotion_gym.mocap.library import synthetic_library
 from humotion_gym.priors import slds
@@ -442,7 +442,7 @@ def test_synthesis_is_deterministic_and_fills_a_full_pose(fitted):
 
 def test_test_sequences_follow_footnote_4(synthetic):
     _, test = synthetic
-    seqs = slds_tasks.build_test_sequences(
+    seqs = pavlovic1999.build_test_sequences(
         list(test), slds.SAGITTAL_INDEX, np.random.default_rng(0), noise_std=0.0
     )
     clips = [c for s in seqs for c in s.clips]
@@ -459,7 +459,7 @@ def test_test_sequences_follow_footnote_4(synthetic):
 
 def test_classification_end_to_end_on_synthetic_walk_and_run(synthetic):
     train, test = synthetic
-    result = slds_tasks.run_classification(
+    result = pavlovic1999.run_classification(
         list(train), list(test), np.random.default_rng(0), n_states=3, n_iter=4
     )
     assert result.n_points == sum(m.n_frames for m in test)
@@ -473,7 +473,7 @@ def test_interpolation_fills_only_the_gap(fitted, synthetic):
     assert set(model.state_labels) == {"walk"}
     walk = [m for m in test if m.label == "walk"][0]
     angles = walk.params[:, slds.SAGITTAL_INDEX]
-    result = slds_tasks.interpolate_gap(model, angles, (50, 100), rng=np.random.default_rng(0))
+    result = pavlovic1999.interpolate_gap(model, angles, (50, 100), rng=np.random.default_rng(0))
     assert set(result.errors) == {"slds", "slds_mean", "linear", "spline"}
     for fill in (result.slds, result.slds_mean, result.linear, result.spline):
         np.testing.assert_array_equal(fill[:50], angles[:50])
@@ -532,7 +532,7 @@ def test_cli_classify_on_bandai_walk_and_run(shared_mocap, capsys, tmp_path):
 # Settings chosen by cross-validation on the training split only
 # ---------------------------------------------------------------------------
 
-_SMALL_SETS = {"legs": slds_tasks.LEG_PARAMS, "sagittal": slds.SAGITTAL}
+_SMALL_SETS = {"legs": pavlovic1999.LEG_PARAMS, "sagittal": slds.SAGITTAL}
 
 
 @pytest.fixture(scope="module")
@@ -547,7 +547,7 @@ def small_train():
 def _select(motions, seed=0, **kw):
     kw = {"param_sets": _SMALL_SETS, "switch_probs": (1e-2, 1e-4), "n_states": 2,
           "n_iter": 2, **kw}  # fmt: skip
-    return slds_tasks.select_classifier_settings(motions, np.random.default_rng(seed), **kw)
+    return pavlovic1999.select_classifier_settings(motions, np.random.default_rng(seed), **kw)
 
 
 def test_selection_refuses_a_test_person_clip(small_train):
@@ -566,13 +566,13 @@ def test_cv_groups_are_styles_and_persons_with_both_activities(small_train):
     motions += [dataclasses.replace(m, subject="bandai-2/normal", dataset="bandai-2",
                                     clip_id=f"bandai-2/{m.clip_id}") for m in small_train[:2]]  # fmt: skip
     motions += small_train[2:4]
-    groups = slds_tasks.cv_groups(motions)
+    groups = pavlovic1999.cv_groups(motions)
     assert groups[0] is None  # one activity only: always trains
     assert groups[1:3] == ["bandai-2/normal"] * 2
     assert groups[3:5] == [small_train[2].subject] * 2
-    assert slds_tasks.group_kind("bandai-2/normal") == "style held out, same performers"
+    assert pavlovic1999.group_kind("bandai-2/normal") == "style held out, same performers"
     dash = dataclasses.replace(small_train[1], label="dash", clip_id="x/dash")
-    assert [m.label for m in slds_tasks.activity_clips([dash, small_train[0]])] == ["run", "walk"]
+    assert [m.label for m in pavlovic1999.activity_clips([dash, small_train[0]])] == ["run", "walk"]
 
 
 def test_selection_is_deterministic_and_returns_the_argmin(small_train):
@@ -582,7 +582,7 @@ def test_selection_is_deterministic_and_returns_the_argmin(small_train):
     assert first.chosen == again.chosen and first.groups == again.groups
     # one fold per training subject (each has walk and run), none a test person
     assert first.groups == sorted({m.subject for m in small_train})
-    assert not set(first.groups) & slds_tasks_test_subjects()
+    assert not set(first.groups) & pavlovic_test_subjects()
     # the CV error pools every fold's misclassified frames
     wrong = sum(sc.wrong.sum(axis=-1).reshape(-1) for sc in first.fold_scores)
     frames = sum(int(sc.frames.sum()) for sc in first.fold_scores)
@@ -598,7 +598,7 @@ def test_selection_is_deterministic_and_returns_the_argmin(small_train):
     assert len(summary["settings"]) == 4 and len(summary["folds"]) == 3
 
 
-def slds_tasks_test_subjects():
+def pavlovic_test_subjects():
     from humotion_gym.mocap.library import TEST_SUBJECTS
 
     return set(TEST_SUBJECTS)
