@@ -192,7 +192,7 @@ def _train_motions(data_dir: Sequence[str] | None) -> list[Motion]:
     return list(MotionLibrary(tuple(pav.default_motions(data_dir))).split("train"))
 
 
-def _param_sets_arg(names: Sequence[str] | None) -> dict[str, tuple[str, ...]]:
+def _param_sets_arg(names: Sequence[str] | None) -> dict[str, Sequence[str]]:
     from humotion_gym.experiments import pavlovic1999 as pav
 
     if names is None:

@@ -8,6 +8,7 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 from humotion_gym.cli._common import add_json, print_json
 
@@ -22,7 +23,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _cmd_tasks(args: argparse.Namespace) -> int:
     from humotion_gym.envs import NAMESPACE, TASKS
 
-    rows = [
+    rows: list[dict[str, Any]] = [
         {
             "task": t.name,
             "id": f"{NAMESPACE}/{t.name}",

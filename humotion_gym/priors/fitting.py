@@ -172,7 +172,8 @@ def _write_prior_entry(
             inner.unlink(missing_ok=True)
         header = {**info, "digest": content_digest(arrays)}
         with open(tmp, "wb") as fh:
-            np.savez(fh, **{"__cache__": np.array(json.dumps(header))}, **arrays)
+            # numpy's stub types savez's keyword arrays as its allow_pickle flag.
+            np.savez(fh, **{"__cache__": np.array(json.dumps(header))}, **arrays)  # type: ignore[arg-type]
 
     write_atomically(path, write)
 
