@@ -65,6 +65,7 @@ class TaskLikelihood:
         self.base = np.zeros(N_PARAMS)
         self.shape: BodyShape | None = None
         self.camera: Camera | None = None
+        self.colors: FloatArray | None = None
 
     def update(self, fixed_values: FloatArray, shape: BodyShape, camera: Camera) -> None:
         """The given parameters, shape and camera of the frame on show."""
@@ -75,7 +76,17 @@ class TaskLikelihood:
     def given(self) -> GivenBody:
         """The given part of the body in the frame on show (for ``prepare``)."""
         assert self.shape is not None and self.camera is not None
-        return GivenBody(self.base.copy(), self.free, self.shape, self.camera)
+        return GivenBody(self.base.copy(), self.free, self.shape, self.camera, self.colors)
+
+    def read_colors(self, frame: Any, initial_pose: FloatArray) -> None:
+        """Each cone's colour at the episode's first frame, from the given initial pose.
+
+        Only where the model has an appearance term (else nothing is read).
+        """
+        assert self.shape is not None and self.camera is not None
+        self.colors = None
+        if self.model.appearance_weight > 0:
+            self.colors = self.model.cone_colors(frame, initial_pose, self.shape, self.camera)
 
     def full_pose(self, particles: FloatArray) -> FloatArray:
         """``(N, 25)`` poses from ``(N, D)`` free parameters."""
@@ -182,11 +193,14 @@ class ParticleFilterAgent:
         if self._info is None:
             raise RuntimeError(f"{self.name}: observe_info(info) must be called before predict()")
         start = bool(np.any(episode_start)) if episode_start is not None else False
-        if start or not self._started:
+        first = start or not self._started
+        if first:
             self.reset(self._info)
         t0 = time.perf_counter()
         info = self._info
         self.likelihood.update(np.asarray(info["fixed_params"]), self.shape, info["camera"])
+        if first:
+            self.likelihood.read_colors(observation, np.asarray(info["initial_pose"]))
         features = self.env.observation_model.prepare(observation, self.likelihood.given())
         estimate = self.filter.step(features)
         pose = self.likelihood.full_pose(estimate[None])[0]

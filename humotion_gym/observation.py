@@ -44,6 +44,7 @@ import functools
 import math
 import threading
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
@@ -89,6 +90,9 @@ class FrameFeatures:
             (see :class:`GivenBody`), or ``None`` when no body part was given.
         residual_cones: The cones (indices into ``CONE_NAMES``) whose outline
             must explain ``residual``: those that move with the free parameters.
+        appearance_cones: The cones whose axis points read their own colour
+            map (the maps after the foreground map in ``cost``, in this
+            order), or ``None``.
     """
 
     width: int
@@ -101,6 +105,7 @@ class FrameFeatures:
     cost_unit: float
     residual: NDArray[np.float32] | None = None
     residual_cones: NDArray[np.intp] | None = None
+    appearance_cones: NDArray[np.intp] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -113,12 +118,16 @@ class GivenBody:
         free: Indices of the parameters the agent estimates.
         shape: The subject's shape.
         camera: The frame's camera.
+        colors: ``(10, C)`` each cone's colour as seen at the episode's first
+            frame (:meth:`ObservationModel.cone_colors` with the given initial
+            pose), for the appearance term; ``None`` without one.
     """
 
     pose: NDArray[np.float64]
     free: NDArray[np.intp]
     shape: BodyShape
     camera: Camera
+    colors: NDArray[np.float64] | None = None
 
 
 # Per-thread scratch buffers of log_likelihood, keyed by (N, points per cone):
@@ -253,6 +262,18 @@ class ObservationModel:
             128, an evenly strided subset in raster order: deterministic).
         residual_clearance: Half-width (reference px, default 2) of the band
             around the given cones' outlines whose edges count as explained.
+        appearance_weight: Weight (default 0: off) of the *appearance* term,
+            used where a task gives part of the body and the colours of the
+            cones were read at the first frame (``GivenBody.colors``): the
+            axis points of each free cone cost, per cone, up to this weight
+            where the pixel's colour differs from that cone's (between
+            ``appearance_low`` and ``appearance_high`` grey levels of the
+            largest channel difference the cost rises linearly). Clutter and
+            the torso rarely share a forearm's colour.
+        appearance_low: Colour difference (default 20) below which a pixel
+            matches the cone's colour.
+        appearance_high: Colour difference (default 60) above which it does
+            not match at all.
     """
 
     edge_sigma: float = 1.5
@@ -274,6 +295,9 @@ class ObservationModel:
     residual_truncation: float = 6.0
     residual_points: int = 128
     residual_clearance: float = 2.0
+    appearance_weight: float = 0.0
+    appearance_low: float = 20.0
+    appearance_high: float = 60.0
 
     def __post_init__(self) -> None:
         positive = ("edge_sigma", "edge_truncation", "near_mm", "residual_truncation")
@@ -289,7 +313,9 @@ class ObservationModel:
             raise ValueError("ObservationModel: expected 0 <= foreground_low < foreground_high")
         if not 0 < self.canny_low <= self.canny_high:
             raise ValueError("ObservationModel: expected 0 < canny_low <= canny_high")
-        for name in ("residual_weight", "residual_clearance"):
+        if not 0 <= self.appearance_low < self.appearance_high:
+            raise ValueError("ObservationModel: expected 0 <= appearance_low < appearance_high")
+        for name in ("residual_weight", "residual_clearance", "appearance_weight"):
             value = float(getattr(self, name))
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"ObservationModel.{name}: expected a number >= 0")
@@ -361,21 +387,91 @@ class ObservationModel:
         fg, bg = self._foreground(smooth)
         fg_scale = self.foreground_weight / self.axis_samples
 
-        maps = np.empty((n_bins + 1, h + 2, w + 2), np.float32)
+        app_cones = None
+        if given is not None and self.appearance_weight > 0 and given.colors is not None:
+            app_cones = self._free_cones(given)[0]
+        n_app = 0 if app_cones is None else app_cones.size
+        app_scale = self.appearance_weight / self.axis_samples if n_app else 0.0
+
+        maps = np.empty((n_bins + 1 + n_app, h + 2, w + 2), np.float32)
         maps[:n_bins].fill(edge_out)
         np.multiply(dist, dist, out=maps[:n_bins, 1:-1, 1:-1])
         maps[:n_bins, 1:-1, 1:-1] *= edge_scale
         maps[n_bins].fill(fg_scale)
         np.multiply(1.0 - fg, np.float32(fg_scale), out=maps[n_bins, 1:-1, 1:-1])
+        if n_app:
+            assert given is not None and given.colors is not None and app_cones is not None
+            colors = np.asarray(given.colors, dtype=np.float64)
+            if colors.shape != (N_CONES, channels):
+                raise ValueError(
+                    f"GivenBody.colors: expected shape ({N_CONES}, {channels}), got {colors.shape}"
+                )
+            span = np.float32(1.0 / (self.appearance_high - self.appearance_low))
+            for k, cone in enumerate(app_cones.tolist()):
+                diff = np.abs(smooth.astype(np.float32) - colors[cone].astype(np.float32))
+                mismatch = diff.max(axis=2) - np.float32(self.appearance_low)
+                mismatch *= span
+                np.clip(mismatch, 0.0, 1.0, out=mismatch)
+                maps[n_bins + 1 + k].fill(app_scale)
+                np.multiply(mismatch, np.float32(app_scale), out=maps[n_bins + 1 + k, 1:-1, 1:-1])
         # Quantise to bytes (a gather of bytes is faster than one of floats):
         # 1/255 of the largest per-point cost is far below anything that matters.
-        unit = max(edge_out, fg_scale) / 255.0 or 1.0
+        unit = max(edge_out, fg_scale, app_scale) / 255.0 or 1.0
         maps *= np.float32(1.0 / unit)
         cost = np.rint(maps, out=maps).astype(np.uint8).reshape(-1)
         residual, cones = None, None
         if given is not None and self.residual_weight > 0:
             residual, cones = self._residual_edges(edges, given, scale)
-        return FrameFeatures(w, h, edges, dist, fg, bg, cost, float(unit), residual, cones)
+        return FrameFeatures(
+            w, h, edges, dist, fg, bg, cost, float(unit), residual, cones, app_cones
+        )
+
+    def cone_colors(
+        self, frame: ArrayLike, pose: ArrayLike, shape: BodyShape, camera: Camera
+    ) -> NDArray[np.float64]:
+        """Each cone's colour in a frame where its pose is known: ``(10, C)``.
+
+        The median of the (blurred) pixels at the middle of each cone's
+        projected axis (fractions 0.3-0.7 of its length), where the pose is
+        the given initial pose; a cone off the image gets its nearest pixels.
+        """
+        from humotion_gym.body import cone_geometry
+
+        img = np.asarray(frame)
+        if img.ndim == 2:
+            img = img[:, :, None]
+        if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] not in (1, 3):
+            raise ValueError(f"cone_colors: expected a uint8 frame, got {img.dtype} {img.shape}")
+        h, w, channels = img.shape
+        smooth = img if self.edge_blur <= 0 else cv2.GaussianBlur(img, (0, 0), self.edge_blur)
+        smooth = smooth.reshape(h, w, channels)
+        geo = cone_geometry(np.asarray(pose, dtype=np.float64), shape)
+        t = np.linspace(0.3, 0.7, 5)[:, None, None]
+        points = geo.starts[None] * (1.0 - t) + geo.ends[None] * t  # (5, 10, 3)
+        uv = camera.project(points)
+        uv = np.nan_to_num(uv, nan=-1.0)
+        x = np.clip(np.rint(uv[..., 0]), 0, w - 1).astype(np.intp)
+        y = np.clip(np.rint(uv[..., 1]), 0, h - 1).astype(np.intp)
+        return np.median(smooth[y, x].astype(np.float64), axis=0)
+
+    def _free_cones(self, given: GivenBody) -> tuple[NDArray[np.intp], Any]:
+        """The cones that move with the free parameters, and the probe's geometry."""
+        from humotion_gym.body import cone_geometry
+
+        pose = np.asarray(given.pose, dtype=np.float64)
+        free = np.asarray(given.free, dtype=np.intp)
+        if pose.shape != (N_PARAMS,):
+            raise ValueError(f"GivenBody.pose: expected shape (25,), got {pose.shape}")
+        if free.ndim != 1 or (free.size and not (0 <= free.min() and free.max() < N_PARAMS)):
+            raise ValueError("GivenBody.free: expected indices of pose parameters (0-24)")
+        # Two moves of the free parameters tell which cone ends depend on them.
+        probe = np.stack([pose, pose, pose])
+        probe[1, free] += 0.5
+        probe[2, free] -= 0.7
+        geo = cone_geometry(probe, given.shape)
+        ends = np.stack([geo.starts, geo.ends], axis=2)  # (3, 10, 2, 3)
+        moved = np.abs(ends[1:] - ends[0]).max(axis=(0, 3)) > 1e-6  # (10, 2)
+        return np.flatnonzero(moved.any(axis=1)), (geo, ends, moved)
 
     def _residual_edges(
         self, edges: NDArray[np.uint8], given: GivenBody, scale: float
@@ -392,25 +488,10 @@ class ObservationModel:
             ``(2, E)`` points (x then y, plus the cost table's 1.5 offset) and
             the free cones' indices.
         """
-        from humotion_gym.body import cone_geometry
-
-        pose = np.asarray(given.pose, dtype=np.float64)
-        free = np.asarray(given.free, dtype=np.intp)
         camera = given.camera
-        if pose.shape != (N_PARAMS,):
-            raise ValueError(f"GivenBody.pose: expected shape (25,), got {pose.shape}")
-        if free.ndim != 1 or (free.size and not (0 <= free.min() and free.max() < N_PARAMS)):
-            raise ValueError("GivenBody.free: expected indices of pose parameters (0-24)")
+        free_cones, (geo, ends, moved) = self._free_cones(given)
         if (camera.width, camera.height) != (edges.shape[1], edges.shape[0]):
             raise ValueError("GivenBody.camera: its image size differs from the frame's")
-        # Two moves of the free parameters tell which cone ends depend on them.
-        probe = np.stack([pose, pose, pose])
-        probe[1, free] += 0.5
-        probe[2, free] -= 0.7
-        geo = cone_geometry(probe, given.shape)
-        ends = np.stack([geo.starts, geo.ends], axis=2)  # (3, 10, 2, 3)
-        moved = np.abs(ends[1:] - ends[0]).max(axis=(0, 3)) > 1e-6  # (10, 2)
-        free_cones = np.flatnonzero(moved.any(axis=1))
         h, w = edges.shape
         if free_cones.size == 0:
             return np.zeros((2, 0), np.float32), free_cones
@@ -660,6 +741,11 @@ class ObservationModel:
         n_out = 2 * self.outline_samples
         n_bins = self.orientation_bins
         iy[n_out:] += n_bins * w2 * h2  # axis points read the foreground map
+        if feats.appearance_cones is not None:
+            # ... except a free cone's, which read its own colour map.
+            axis_index = iy[n_out:].reshape(-1, N_CONES, n)
+            for k, cone in enumerate(feats.appearance_cones.tolist()):
+                axis_index[:, cone] += (1 + k) * w2 * h2
         if n_bins > 1:
             iy[:n_out] += _orientation_bin(nx, ny, n_bins, tmp[2]).reshape(-1) * (w2 * h2)
         values = work["values"]

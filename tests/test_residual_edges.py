@@ -147,3 +147,76 @@ def test_bad_given_body_raises(arm_scene) -> None:
         model.prepare(frame, GivenBody(pose, np.array([30]), SHAPE, cam))
     with pytest.raises(ValueError, match="residual_weight"):
         ObservationModel(residual_weight=-1.0)
+
+
+# -- the appearance term ------------------------------------------------------------
+
+
+def test_cone_colors_read_the_figure(arm_scene) -> None:
+    pose, frame, cam, _ = arm_scene
+    colors = ObservationModel().cone_colors(frame, pose, SHAPE, cam)
+    assert colors.shape == (10, 3)
+    wall = np.asarray(FLAT.background_color, dtype=float)
+    # The torso and the arms are drawn in their own colours, far from the wall's.
+    assert np.all(np.abs(colors[[0, 2, 3]] - wall).max(axis=1) > 25)
+
+
+def test_appearance_cost_matches_brute_force(arm_scene) -> None:
+    import cv2
+
+    pose, frame, cam, given = arm_scene
+    # A free cone's axis points read its colour map instead of the foreground
+    # map, so compare without the foreground term (as ArmTrack runs);
+    # appearance_weight / axis_samples is below the edge term's per-point
+    # maximum, so both models quantise costs with the same unit.
+    off = ObservationModel(foreground_weight=0.0)
+    on = ObservationModel(foreground_weight=0.0, appearance_weight=0.5)
+    colors = on.cone_colors(frame, pose, SHAPE, cam)
+    with_colors = GivenBody(pose, ARM, SHAPE, cam, colors)
+    feats_on, feats_off = on.prepare(frame, with_colors), off.prepare(frame, with_colors)
+    assert feats_on.cost_unit == feats_off.cost_unit
+    assert feats_on.appearance_cones.tolist() == [2, 3]
+    assert feats_off.appearance_cones is None
+    rng = np.random.default_rng(3)
+    poses = np.tile(pose, (12, 1))
+    poses[1:, ARM] += rng.normal(0.0, 0.3, (11, 4))
+    got = off.log_likelihood(feats_off, poses, SHAPE, cam) - on.log_likelihood(
+        feats_on, poses, SHAPE, cam
+    )
+    smooth = cv2.GaussianBlur(frame, (0, 0), on.edge_blur).astype(float)
+    g = body.cone_geometry(poses, SHAPE)
+    t = ((np.arange(on.axis_samples) + 0.5) / on.axis_samples)[:, None, None, None]
+    axis = g.starts[None, :, [2, 3]] * (1 - t) + g.ends[None, :, [2, 3]] * t  # (k, N, 2, 3)
+    uv = cam.project(axis)
+    span = on.appearance_high - on.appearance_low
+
+    def cost(dx: int, dy: int) -> np.ndarray:
+        x = np.floor(uv[..., 0] + 0.5).astype(int) + dx
+        y = np.floor(uv[..., 1] + 0.5).astype(int) + dy
+        inside = (x >= 0) & (x < frame.shape[1]) & (y >= 0) & (y < frame.shape[0])
+        pixel = smooth[np.clip(y, 0, frame.shape[0] - 1), np.clip(x, 0, frame.shape[1] - 1)]
+        diff = np.abs(pixel - colors[[2, 3]][None, None]).max(axis=-1)
+        mismatch = np.where(inside, np.clip((diff - on.appearance_low) / span, 0, 1), 1.0)
+        return mismatch * on.appearance_weight / on.axis_samples  # (k, N, 2)
+
+    expected = cost(0, 0).sum(axis=(0, 2))
+    # The model projects in float32: a point on a colour boundary may read the
+    # next pixel. Every pose lies within its points' neighbourhood bounds, and
+    # most match exactly.
+    near = np.stack([cost(dx, dy) for dx in (-1, 0, 1) for dy in (-1, 0, 1)])
+    lo, hi = near.min(axis=0).sum(axis=(0, 2)), near.max(axis=0).sum(axis=(0, 2))
+    tol = 2 * on.axis_samples * feats_on.cost_unit
+    assert np.all((got >= lo - tol) & (got <= hi + tol))
+    assert np.mean(np.abs(got - expected) <= tol) >= 0.75
+    assert np.ptp(expected) > 10 * tol  # the term does vary between poses
+
+
+def test_appearance_needs_colors_of_the_right_shape(arm_scene) -> None:
+    pose, frame, cam, _ = arm_scene
+    model = ObservationModel(appearance_weight=1.0)
+    # Without colours the term is off.
+    assert model.prepare(frame, GivenBody(pose, ARM, SHAPE, cam)).appearance_cones is None
+    with pytest.raises(ValueError, match="GivenBody.colors"):
+        model.prepare(frame, GivenBody(pose, ARM, SHAPE, cam, np.zeros((10, 1))))
+    with pytest.raises(ValueError, match="appearance_low"):
+        ObservationModel(appearance_low=50.0, appearance_high=40.0)
