@@ -2,17 +2,12 @@
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 
 from humotion_gym.body import PARAM_INDEX, default_shape, standing_pose
-from humotion_gym.cli import main
 from humotion_gym.envs.tasks import SIDE_WALK, WALK_TRACK
-from humotion_gym.experiments import ormoneit2005
 from humotion_gym.filtering import ParticleFilter
-from humotion_gym.mocap.export import write_motion_bvh
 from humotion_gym.mocap.library import synthetic_library
 from humotion_gym.priors import cycles, cyclic_pca, fpca
 
@@ -226,16 +221,6 @@ def test_theorem_1_and_imputation_on_real_walking(real_library):
     assert ours < 0.6 * linear
 
 
-@pytest.mark.mocap
-def test_cycle_lengths_agree_with_the_feet_on_real_walking(real_library):
-    walks = [m for m in real_library.filter(labels=["walk"]) if m.subject == "cmu-07"]
-    walks += [m for m in real_library.filter(labels=["walk"]) if m.dataset == "bandai-2"][::8]
-    rows = ormoneit2005.cycle_lengths(walks)
-    rel = np.array([r.relative_difference for r in rows])
-    assert np.isfinite(rel).all()
-    assert np.median(rel) < 0.03 and rel.max() < 0.1
-
-
 # ---------------------------------------------------------------------------
 # section 5: the tracking prior
 # ---------------------------------------------------------------------------
@@ -334,16 +319,3 @@ def test_fit_needs_walking_clips():
     others = [m for m in synthetic_library() if m.label in ("wave", "reach")]
     with pytest.raises(ValueError, match="cyclic walking only"):
         cyclic_pca.fit(others)
-
-
-def test_cycle_lengths_and_the_period_command(synthetic_walks, tmp_path, capsys):
-    rows = ormoneit2005.cycle_lengths(synthetic_walks)
-    rel = np.array([r.relative_difference for r in rows])
-    assert np.all(rel < 0.1)
-    m = synthetic_walks[0]
-    path = tmp_path / "walk_01.bvh"
-    write_motion_bvh(path, m.params, m.shape, m.fps)
-    assert main(["pca", "period", str(path), "--json", "--all-labels"]) == 0
-    row = json.loads(capsys.readouterr().out.strip().splitlines()[0])
-    assert row["frames_snr"] == pytest.approx(rows[0].frames_snr, abs=1.0)
-    assert row["seconds_feet"] == pytest.approx(row["frames_feet"] / 30.0, abs=1e-3)
