@@ -43,10 +43,15 @@ class ArmTrackEnv(PoseTrackingEnv):
     given parameters place.
 
     The likelihood (``observation_model``) is the shared one with
-    ``sharpness=3``, no foreground term and 8 edge-orientation bins, chosen by
-    cross-validation on training persons (``humotion-gym select``): only two of
-    the ten cones move, and the foreground term rewards an arm laid over the
-    torso.
+    ``sharpness=3``, no foreground term, 8 edge-orientation bins, and the two
+    terms that use the given body (``residual_weight=1``: edges the given body
+    leaves unexplained must lie on the arm's outline; ``appearance_weight=1``:
+    the arm's axis on the arm's colour, read at the first frame with the given
+    initial pose), all chosen by cross-validation on training persons
+    (``humotion-gym select``): only two of the ten cones move, the foreground
+    term rewards an arm laid over the torso, and edges alone are explained as
+    well by an arm laid along the torso's side or the clutter. Agents pass the
+    given body to ``observation_model.prepare`` (``GivenBody``).
 
     ## Given Truth
 

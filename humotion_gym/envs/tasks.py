@@ -162,8 +162,8 @@ _WALK_RUN = ("walk", "run")
 
 # Framing from the first frame (``CameraSpec.travel_mm``: back, forward, right,
 # left, down, up in mm). The boxes cover the root's travel over an episode in
-# most training episodes (``humotion-gym tasks --framing`` measures it on the
-# training split): BodyTrack's 30 frames of mixed activity, about the 75th
+# most training episodes (measured on the training split): BodyTrack's 30
+# frames of mixed activity, about the 75th
 # percentile of forward travel (1.5 m; runs and dashes go further and leave
 # the frame in part); WalkTrack's 60 frames of walking, about the 80th (2.8 m).
 BODY_TRAVEL_MM = (300.0, 1500.0, 300.0, 300.0, 200.0, 300.0)
@@ -183,10 +183,19 @@ ARM_MIN_MOTION_MM = 150.0
 # foreground_weight=0,0.5 orientation_bins=4,8 --data-dir ../shared/mocap`` gave
 # 158 mm for sharpness 3, no foreground term, 8 orientation bins, against 200 mm
 # for the shared defaults (hold: 217 mm); sharpness 5 and 8 gave 173 and 177 mm.
+# Then the two terms that use the given body (ObservationModel.residual_weight:
+# edges the given body leaves must lie on the arm's outline; appearance_weight:
+# the arm's axis on its own colour, read at the first frame), the same way:
+# ``humotion-gym select --task ArmTrack-v1 --grid appearance_weight=0,1,3
+# residual_weight=0,1 --data-dir ../shared/mocap`` gave 149 mm for both at 1,
+# 152 for appearance alone, 163 for residual edges alone, 160 for neither, 169-171
+# at appearance 3 (hold: 217 mm).
 ARM_OBSERVATION: tuple[tuple[str, float | int], ...] = (
     ("sharpness", 3.0),
     ("foreground_weight", 0.0),
     ("orientation_bins", 8),
+    ("residual_weight", 1.0),
+    ("appearance_weight", 1.0),
 )
 
 ARM_TRACK = TaskSpec(

@@ -17,7 +17,7 @@ true angular steps. ``multiplier`` scales the noise (1 = the data's own
 accelerations).
 
 Two settings make it a tracker that can stand still, both chosen by
-cross-validation on training persons (``humotion-gym select --fit``):
+cross-validation on training persons (``humotion-gym select --grid fit.NAME=...``):
 ``damping`` (``lambda``) pulls the velocity towards zero,
 ``v_t = lambda v_{t-1} + e_t``, so a velocity picked up from noise decays
 instead of carrying the pose away (1 is the plain model); ``position_noise``
