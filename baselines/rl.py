@@ -828,7 +828,8 @@ def learning_curve(
             rows.append({"steps": int(n), "iqm_mm": iqm(matrix), "iqm_ci": [lo, hi],
                          "per_seed_mean_mm": matrix.mean(axis=1).tolist()})  # fmt: skip
         curves[algo] = rows
-    hold_mm = float(np.mean(hold)) if hold is not None else float("nan")
+    # the same statistic as the curve's points (step 0 is hold's episodes)
+    hold_mm = iqm(hold) if hold is not None else float("nan")
     result = {"task": get_task(task).name, "seeds": list(seeds), "episodes": episodes,
               "steps": steps, "hold_mm": hold_mm, "curves": curves}  # fmt: skip
     out = Path(out)
@@ -863,7 +864,7 @@ def _plot_curve(result: dict[str, Any], out: Path) -> None:
         hi = [r["iqm_ci"][1] for r in rows]
         ax.plot(x, y, marker="o", label=algo)
         ax.fill_between(x, lo, hi, alpha=0.2)
-    ax.axhline(result["hold_mm"], color="gray", linestyle="--", label="hold")
+    ax.axhline(result["hold_mm"], color="gray", linestyle="--", label="hold (IQM)")
     ax.set_xlabel("environment steps (training persons)")
     ax.set_ylabel("test-person mean error, mm (IQM)")
     ax.set_title(
