@@ -263,8 +263,7 @@ class ProposalPrior:
     def initial(
         self, fitted: Any, pose: FloatArray, n: int, rng: np.random.Generator
     ) -> ParticleState:
-        """The prior's initial particles."""
-        self.proposal = None
+        """The prior's initial particles (the proposal is the caller's to set)."""
         return self.prior.initial(fitted, pose, n, rng)
 
     def transition(
@@ -361,18 +360,14 @@ class HybridAgent:
         """The filter's estimate with the policy's estimate as part of its proposal."""
         t0 = time.perf_counter()
         start = bool(np.any(episode_start)) if episode_start is not None else False
-        if start:
-            self.proposal_prior.proposal = None
         guess, _ = self.policy.predict(observation, deterministic=True)
         fixed = np.zeros(25)
         info = self.pf._info
         if info is not None and len(self.env.task.fixed_indices):
             fixed[self.env.task.fixed_indices] = np.asarray(info["fixed_params"])
-        # set after the filter's reset (predict resets it at an episode start)
-        if start or not self.pf._started:
-            self.pf.reset(info)
+        # this frame's proposal; the filter (re)starts itself at an episode start
         self.proposal_prior.proposal = self.env.action_to_pose(guess, fixed=fixed)[self.free]
-        action, _ = self.pf.predict(observation, None, np.array([False]), deterministic)
+        action, _ = self.pf.predict(observation, None, np.array([start]), deterministic)
         self.policy.previous = np.clip(action, -1.0, 1.0).astype(np.float32)
         self.frame_times.append(time.perf_counter() - t0)
         return action, None
