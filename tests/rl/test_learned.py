@@ -254,3 +254,20 @@ def test_proposal_prior_redraws_the_chosen_share_and_dimensions() -> None:
     out = whole.transition(None, state.take(np.arange(4)), np.random.default_rng(1))
     # angles are put on the branch of the particles' mean (here 0): 2 pi + 0.5 -> 0.5
     np.testing.assert_allclose(out.pose, np.tile([5.0, 6.0, 1.0, 0.5], (4, 1)))
+
+
+def test_ppo_fine_tunes_from_a_bc_policy(bc_run: Path, tmp_path: Path) -> None:
+    from stable_baselines3 import PPO
+
+    settings = {"n_envs": 2, "n_steps": 32, "batch_size": 64, "n_epochs": 1, "frame_size": 32}
+    config = TrainConfig(
+        "ppo", "ArmTrack-v1", steps=64, seed=0, out=str(tmp_path), settings=settings,
+        init=str(bc_run / "model.zip"), checkpoint_every=64,
+    )  # fmt: skip
+    train(config)
+    assert json.loads((tmp_path / "config.json").read_text())["init"] == config.init
+    start = PPO.load(bc_run / "model.zip", device="cpu").policy.features_extractor
+    tuned = PPO.load(tmp_path / "model.zip", device="cpu").policy.features_extractor
+    # one epoch of small steps from the bc weights: close to them, not a fresh network
+    for a, b in zip(start.parameters(), tuned.parameters(), strict=True):
+        assert float((a - b).detach().abs().max()) < 0.05
