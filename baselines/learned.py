@@ -42,7 +42,8 @@ CHECKPOINT_DIR = Path(__file__).resolve().parent / "checkpoints"
 #: The learned agents by name: one line each for listings.
 LEARNED: dict[str, str] = {
     "bc": "behaviour cloning with DAgger-style rollouts (pretrained checkpoint of the task)",
-    "ppo": "PPO on the reward from pixels (pretrained checkpoint of the task)",
+    "ppo": "PPO on the reward from pixels (the task's pretrained checkpoint; none ships yet: "
+    "train one with humotion-gym train --algo ppo)",
     "pf-tree+bc": "pf-tree whose particles are in part drawn around bc's estimate",
 }
 

@@ -92,7 +92,9 @@ def _cmd_track(args: argparse.Namespace) -> int:
             "video": str(args.video) if args.video else None,
         }))  # fmt: skip
         return 0
-    print(f"{args.task}  {args.agent}  {args.particles} particles")
+    # references and learned policies take no particles
+    n = getattr(agent, "n_particles", args.particles)
+    print(f"{args.task}  {args.agent}  {f'{n} particles' if n else 'no particles'}")
     width = max([4] + [len(r.clip_id) for r in results])
     print(
         f"{'seed':>5s} {'clip':{width}s} {'mean mm':>8s} {'final mm':>9s} "
