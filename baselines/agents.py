@@ -33,9 +33,8 @@ from numpy.typing import NDArray
 from humotion_gym.body import (
     ANGLE_MASK,
     N_PARAMS,
-    PARAM_LOWER,
-    PARAM_UPPER,
-    PERIODIC_MASK,
+    VALID_LOWER,
+    VALID_UPPER,
     BodyShape,
 )
 from humotion_gym.camera import Camera
@@ -143,12 +142,10 @@ class ParticleFilterAgent:
                 estimate=estimate,
             )  # fmt: skip
         else:
-            # Joint limits bound the valid poses; the heading goes all the way round.
-            lower = np.where(PERIODIC_MASK, -np.inf, PARAM_LOWER)[self.free]
-            upper = np.where(PERIODIC_MASK, np.inf, PARAM_UPPER)[self.free]
             self.filter = AnnealedParticleFilter(
                 prior, fitted, self.likelihood, self.n_particles, ANGLE_MASK[self.free],
-                estimate=estimate, layers=self.layers, lower=lower, upper=upper,
+                estimate=estimate, layers=self.layers,
+                lower=VALID_LOWER[self.free], upper=VALID_UPPER[self.free],
             )  # fmt: skip
         self._seed_rng = np.random.default_rng(seed)
         self._info: Mapping[str, Any] | None = None

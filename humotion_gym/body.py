@@ -123,6 +123,10 @@ _LIMITS: dict[str, tuple[float, float]] = {
 #: Lower and upper limit of each parameter, shape (25,).
 PARAM_LOWER: FloatArray = np.array([_LIMITS[n][0] for n in PARAM_NAMES])
 PARAM_UPPER: FloatArray = np.array([_LIMITS[n][1] for n in PARAM_NAMES])
+#: The bounds a valid pose keeps: the limits, except the heading, which goes all
+#: the way round and is unbounded (samples and tracked poses carry it unwrapped).
+VALID_LOWER: FloatArray = np.where(PERIODIC_MASK, -np.inf, PARAM_LOWER)
+VALID_UPPER: FloatArray = np.where(PERIODIC_MASK, np.inf, PARAM_UPPER)
 
 # ---------------------------------------------------------------------------
 # Keypoints and cones

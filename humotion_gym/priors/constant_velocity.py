@@ -23,7 +23,7 @@ cross-validation on training persons (``humotion-gym select --grid fit.NAME=...`
 instead of carrying the pose away (1 is the plain model); ``position_noise``
 adds independent noise on the pose, ``position_noise * velocity_std`` per frame,
 so the cloud keeps searching around where it is. Samples stay within the joint
-limits (:data:`humotion_gym.body.PARAM_LOWER`, ``PARAM_UPPER``; the heading is
+limits (:data:`humotion_gym.body.VALID_LOWER`, ``VALID_UPPER``: the heading is
 free): a coordinate that leaves them is put back on the limit and its velocity
 set to zero.
 """
@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from humotion_gym.body import N_PARAMS, PARAM_LOWER, PARAM_UPPER, PERIODIC_MASK
+from humotion_gym.body import N_PARAMS, VALID_LOWER, VALID_UPPER
 from humotion_gym.filtering import ParticleState
 from humotion_gym.mocap.motion import Motion
 from humotion_gym.priors._io import load_fitted, save_fitted
@@ -162,19 +162,12 @@ def transition(
     pose = state.pose + velocity
     if fitted.position_noise > 0:
         pose += rng.standard_normal(pose.shape) * (fitted.position_noise * fitted.velocity_std)
-    lower, upper = _limits(fitted.free)
+    lower, upper = VALID_LOWER[fitted.free], VALID_UPPER[fitted.free]
     outside = (pose < lower) | (pose > upper)
     if outside.any():
         np.clip(pose, lower, upper, out=pose)
         velocity = np.where(outside, 0.0, velocity)
     return ParticleState(pose, {"velocity": velocity})
-
-
-def _limits(free: NDArray[np.intp]) -> tuple[FloatArray, FloatArray]:
-    """Joint limits of the modelled parameters; the heading is unbounded."""
-    lower = np.where(PERIODIC_MASK, -np.inf, PARAM_LOWER)[free]
-    upper = np.where(PERIODIC_MASK, np.inf, PARAM_UPPER)[free]
-    return lower, upper
 
 
 def synthesize_motion(
