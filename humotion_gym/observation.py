@@ -50,7 +50,14 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from humotion_gym.body import CONE_KEYPOINTS, N_CONES, N_KEYPOINTS, N_PARAMS, BodyShape
+from humotion_gym.body import (
+    CONE_KEYPOINTS,
+    N_CONES,
+    N_KEYPOINTS,
+    N_PARAMS,
+    BodyShape,
+    cone_geometry,
+)
 from humotion_gym.camera import Camera
 from humotion_gym.kinematics import (
     _HEAD,
@@ -110,7 +117,7 @@ class FrameFeatures:
 
 @dataclass(frozen=True, eq=False)
 class GivenBody:
-    """The part of the body a task hands out, for the residual-edge term.
+    """The part of the body a task hands out, for the residual-edge and appearance terms.
 
     Attributes:
         pose: ``(25,)`` a full pose whose parameters outside ``free`` are the
@@ -343,8 +350,9 @@ class ObservationModel:
         Args:
             frame: ``(H, W, 3)``, ``(H, W, 1)`` or ``(H, W)`` uint8 image.
             given: The body part the task gives in this frame; with a positive
-                ``residual_weight``, the features then hold the edge points it
-                leaves unexplained (see ``residual_weight``). Ignored otherwise.
+                ``residual_weight`` the features then hold the edge points it
+                leaves unexplained, with a positive ``appearance_weight`` (and
+                ``given.colors``) a colour map per free cone. Ignored otherwise.
 
         Returns:
             The frame's features, to pass to :meth:`log_likelihood` for any
@@ -353,20 +361,10 @@ class ObservationModel:
         Raises:
             ValueError: If the frame is not a uint8 image of that shape.
         """
-        img = np.asarray(frame)
-        if img.ndim == 2:
-            img = img[:, :, None]
-        if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] not in (1, 3):
-            raise ValueError(
-                "ObservationModel.prepare: expected a uint8 frame of shape (H, W, 3) or "
-                f"(H, W, 1), got {img.dtype} {img.shape}"
-            )
-        h, w, channels = img.shape
+        smooth = self._smoothed(frame, "ObservationModel.prepare")
+        h, w, channels = smooth.shape
         if h < 8 or w < 8:
             raise ValueError(f"ObservationModel.prepare: frame too small ({w}x{h})")
-        img = np.ascontiguousarray(img)
-        smooth = img if self.edge_blur <= 0 else cv2.GaussianBlur(img, (0, 0), self.edge_blur)
-        smooth = smooth.reshape(h, w, channels)
         edges, bins = self._oriented_edges(smooth)
         scale = h / self.reference_height
         n_bins = self.orientation_bins
@@ -387,9 +385,14 @@ class ObservationModel:
         fg, bg = self._foreground(smooth)
         fg_scale = self.foreground_weight / self.axis_samples
 
-        app_cones = None
-        if given is not None and self.appearance_weight > 0 and given.colors is not None:
-            app_cones = self._free_cones(given)[0]
+        use_appearance = (
+            given is not None and self.appearance_weight > 0 and given.colors is not None
+        )
+        use_residual = given is not None and self.residual_weight > 0
+        free = None
+        if given is not None and (use_appearance or use_residual):
+            free = self._free_cones(given)
+        app_cones = free[0] if use_appearance and free is not None else None
         n_app = 0 if app_cones is None else app_cones.size
         app_scale = self.appearance_weight / self.axis_samples if n_app else 0.0
 
@@ -407,8 +410,9 @@ class ObservationModel:
                     f"GivenBody.colors: expected shape ({N_CONES}, {channels}), got {colors.shape}"
                 )
             span = np.float32(1.0 / (self.appearance_high - self.appearance_low))
+            pixels = smooth.astype(np.float32)
             for k, cone in enumerate(app_cones.tolist()):
-                diff = np.abs(smooth.astype(np.float32) - colors[cone].astype(np.float32))
+                diff = np.abs(pixels - colors[cone].astype(np.float32))
                 mismatch = diff.max(axis=2) - np.float32(self.appearance_low)
                 mismatch *= span
                 np.clip(mismatch, 0.0, 1.0, out=mismatch)
@@ -420,8 +424,8 @@ class ObservationModel:
         maps *= np.float32(1.0 / unit)
         cost = np.rint(maps, out=maps).astype(np.uint8).reshape(-1)
         residual, cones = None, None
-        if given is not None and self.residual_weight > 0:
-            residual, cones = self._residual_edges(edges, given, scale)
+        if use_residual and given is not None and free is not None:
+            residual, cones = self._residual_edges(edges, given, scale, free)
         return FrameFeatures(
             w, h, edges, dist, fg, bg, cost, float(unit), residual, cones, app_cones
         )
@@ -435,16 +439,8 @@ class ObservationModel:
         projected axis (fractions 0.3-0.7 of its length), where the pose is
         the given initial pose; a cone off the image gets its nearest pixels.
         """
-        from humotion_gym.body import cone_geometry
-
-        img = np.asarray(frame)
-        if img.ndim == 2:
-            img = img[:, :, None]
-        if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] not in (1, 3):
-            raise ValueError(f"cone_colors: expected a uint8 frame, got {img.dtype} {img.shape}")
-        h, w, channels = img.shape
-        smooth = img if self.edge_blur <= 0 else cv2.GaussianBlur(img, (0, 0), self.edge_blur)
-        smooth = smooth.reshape(h, w, channels)
+        smooth = self._smoothed(frame, "ObservationModel.cone_colors")
+        h, w, _ = smooth.shape
         geo = cone_geometry(np.asarray(pose, dtype=np.float64), shape)
         t = np.linspace(0.3, 0.7, 5)[:, None, None]
         points = geo.starts[None] * (1.0 - t) + geo.ends[None] * t  # (5, 10, 3)
@@ -456,8 +452,6 @@ class ObservationModel:
 
     def _free_cones(self, given: GivenBody) -> tuple[NDArray[np.intp], Any]:
         """The cones that move with the free parameters, and the probe's geometry."""
-        from humotion_gym.body import cone_geometry
-
         pose = np.asarray(given.pose, dtype=np.float64)
         free = np.asarray(given.free, dtype=np.intp)
         if pose.shape != (N_PARAMS,):
@@ -474,7 +468,11 @@ class ObservationModel:
         return np.flatnonzero(moved.any(axis=1)), (geo, ends, moved)
 
     def _residual_edges(
-        self, edges: NDArray[np.uint8], given: GivenBody, scale: float
+        self,
+        edges: NDArray[np.uint8],
+        given: GivenBody,
+        scale: float,
+        free: tuple[NDArray[np.intp], Any],
     ) -> tuple[NDArray[np.float32], NDArray[np.intp]]:
         """Edge points the given cones do not explain, near the free cones.
 
@@ -489,7 +487,7 @@ class ObservationModel:
             the free cones' indices.
         """
         camera = given.camera
-        free_cones, (geo, ends, moved) = self._free_cones(given)
+        free_cones, (geo, ends, moved) = free  # _free_cones(given), computed once per frame
         if (camera.width, camera.height) != (edges.shape[1], edges.shape[0]):
             raise ValueError("GivenBody.camera: its image size differs from the frame's")
         h, w = edges.shape
@@ -534,6 +532,25 @@ class ObservationModel:
         points = np.stack([xs, ys]).astype(np.float32)
         points += np.float32(1.5)  # the offset _score gives image coordinates
         return points, free_cones
+
+    def _smoothed(self, frame: ArrayLike, where: str) -> NDArray[np.uint8]:
+        """The frame as ``(H, W, C)`` uint8, blurred by ``edge_blur``.
+
+        Raises:
+            ValueError: Naming ``where``, if the frame is not a uint8 image of
+                shape ``(H, W, 3)``, ``(H, W, 1)`` or ``(H, W)``.
+        """
+        img = np.asarray(frame)
+        if img.ndim == 2:
+            img = img[:, :, None]
+        if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] not in (1, 3):
+            raise ValueError(
+                f"{where}: expected a uint8 frame of shape (H, W, 3) or "
+                f"(H, W, 1), got {img.dtype} {img.shape}"
+            )
+        img = np.ascontiguousarray(img)
+        smooth = img if self.edge_blur <= 0 else cv2.GaussianBlur(img, (0, 0), self.edge_blur)
+        return smooth.reshape(img.shape)
 
     def _oriented_edges(self, smooth: NDArray[np.uint8]) -> tuple[NDArray, NDArray]:
         """Canny edges (any channel) and their split into orientation bins.
