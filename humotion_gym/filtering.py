@@ -267,6 +267,15 @@ class ParticleFilter:
         return np.exp(self.log_weights)
 
 
+def tempered_weights(loglik: FloatArray, beta: float) -> FloatArray:
+    """Normalised weights ``w ~ exp(beta loglik)``; ``-inf`` gets 0, all ``-inf`` equal weights."""
+    ok = np.isfinite(loglik)
+    if not ok.any():
+        return np.full(loglik.shape[0], 1.0 / loglik.shape[0])
+    log_w = np.where(ok, beta * (loglik - loglik[ok].max()), -np.inf)
+    return np.exp(log_w - logsumexp(log_w))
+
+
 def temper_for_survival(
     loglik: FloatArray, alpha: float, iterations: int = 60
 ) -> tuple[float, FloatArray]:
@@ -432,19 +441,12 @@ class AnnealedParticleFilter(ParticleFilter):
             loglik = np.where(np.isnan(loglik) | ~self._valid(state.pose), -np.inf, loglik)
             if self.betas is not None:
                 beta = float(self.betas[m])
-                ok = np.isfinite(loglik)
-                if ok.any():
-                    log_w = np.where(ok, beta * (loglik - loglik[ok].max()), -np.inf)
-                    weights = np.exp(log_w - logsumexp(log_w))
-                else:
-                    weights = np.full(self.n, 1.0 / self.n)
+                weights = tempered_weights(loglik, beta)
             else:
                 beta, weights = temper_for_survival(loglik, self.alpha)
                 if beta > self.beta_max:
                     beta = self.beta_max
-                    ok = np.isfinite(loglik)
-                    log_w = np.where(ok, beta * (loglik - loglik[ok].max()), -np.inf)
-                    weights = np.exp(log_w - logsumexp(log_w))
+                    weights = tempered_weights(loglik, beta)
             self.layer_betas.append(beta)
             self.ess = effective_sample_size(weights)
             self.layer_survival.append(self.ess / self.n)
