@@ -107,7 +107,6 @@ def select_observation_settings(
             a validation fold of training persons.
     """
     import inspect
-    import json
 
     from baselines.agents import AGENTS, make
     from baselines.evaluation import evaluate
@@ -160,8 +159,6 @@ def select_observation_settings(
         }
         model = replace(default, **{n: v for n, v in settings.items() if n in fields})
         fit = {n[len(FIT_PREFIX) :]: v for n, v in settings.items() if n.startswith(FIT_PREFIX)}
-        # Fit settings go into the cache key: json-normalised floats refit once each.
-        fit = json.loads(json.dumps(fit)) if fit else None
         mean = float(np.mean(errors(agent, model, {**base_fit, **fit} if fit else None)))
         rows.append({"settings": settings, "mean_error_mm": mean, "hold_ratio": hold / mean})
     best = min(range(len(rows)), key=lambda i: rows[i]["mean_error_mm"])
