@@ -863,6 +863,7 @@ def draw_pose_overlay(
     camera: Camera,
     color: Color = (0, 255, 0),
     thickness: int = 1,
+    keypoints: ArrayLike | None = None,
 ) -> NDArray[np.uint8]:
     """Draw the wire figure of a pose (skeleton edges and joint dots) on a frame.
 
@@ -874,6 +875,10 @@ def draw_pose_overlay(
         color: RGB colour of the figure.
         thickness: Line thickness in pixels (joint dots get a radius of
             ``thickness + 1``).
+        keypoints: The pose's ``(15, 3)`` world keypoints from
+            :func:`~humotion_gym.kinematics.single_pose_geometry`, when the
+            caller has them already (the environment scored them in ``step``);
+            the same figure is drawn, without the kinematics.
 
     Returns:
         An ``(H, W, 3)`` copy of the frame with the figure drawn (single-channel
@@ -890,16 +895,32 @@ def draw_pose_overlay(
     p = np.asarray(params, dtype=np.float64)
     if p.shape != (body.N_PARAMS,):
         raise ValueError(f"draw_pose_overlay: expected one pose of shape (25,), got {p.shape}")
-    if not np.all(np.isfinite(p)):
+    if not np.isfinite(p).all():
         raise ValueError("draw_pose_overlay: the pose has non-finite parameters")
-    px = camera.project(single_pose_geometry(p, shape)[:N_KEYPOINTS])
-    ok = np.all(np.isfinite(px), axis=1)
-    fixed = np.rint(np.clip(np.nan_to_num(px), -1e5, 1e5) * _ONE).astype(np.int64).tolist()
+    if keypoints is None:
+        kp = single_pose_geometry(p, shape)[:N_KEYPOINTS]
+    else:
+        kp = np.asarray(keypoints, dtype=np.float64)
+        if kp.shape != (N_KEYPOINTS, 3):
+            raise ValueError(f"draw_pose_overlay: keypoints must be (15, 3), got {kp.shape}")
+    px = camera.project(kp)
+    ok = np.isfinite(px).all(axis=1)
+    shown = ok.tolist()
+    if not all(shown):
+        # Points behind the camera are not drawn; zeros stand in for them so
+        # that the conversion to fixed point stays finite.
+        px[~ok] = 0.0
+    # Plain ufuncs: np.clip and np.nan_to_num cost more than the drawing here.
+    np.minimum(px, 1e5, out=px)
+    np.maximum(px, -1e5, out=px)
+    px *= _ONE
+    fixed = np.rint(px, out=px).astype(np.int64).tolist()
     col = tuple(int(v) for v in color)
     for a, b in body.SKELETON_EDGES:
-        if ok[a] and ok[b]:
+        if shown[a] and shown[b]:
             cv2.line(out, fixed[a], fixed[b], col, thickness, cv2.LINE_AA, _SHIFT)
     radius = int((thickness + 1) * _ONE)
-    for k in np.flatnonzero(ok).tolist():
-        cv2.circle(out, fixed[k], radius, col, -1, cv2.LINE_AA, _SHIFT)
+    for k, point in enumerate(fixed):
+        if shown[k]:
+            cv2.circle(out, point, radius, col, -1, cv2.LINE_AA, _SHIFT)
     return out

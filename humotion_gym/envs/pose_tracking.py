@@ -78,7 +78,8 @@ RESET_OPTIONS: tuple[str, ...] = ("clip_id", "file", "motion", "start")
 _EPISODE_STATE: tuple[str, ...] = (
     "_motion", "_t0", "_root0", "_bounds", "_episode_seed", "_noise", "_background",
     "_noise_rng", "_episode_params", "_geometry", "_truth_keypoints", "_cameras", "_figures",
-    "_lost_run", "_last_estimate", "_k", "_frame", "_done", "_np_random", "_np_random_seed",
+    "_lost_run", "_last_estimate", "_estimate_keypoints", "_k", "_frame", "_done",
+    "_np_random", "_np_random_seed",
 )  # fmt: skip
 
 
@@ -559,6 +560,7 @@ class PoseTrackingEnv(gym.Env):
         )
         self._lost_run = 0
         self._last_estimate: FloatArray | None = None
+        self._estimate_keypoints: FloatArray | None = None
         initial = self._truth(0)
         self._k = 1
         obs = self._observe()
@@ -611,10 +613,9 @@ class PoseTrackingEnv(gym.Env):
         self._last_estimate = estimate
         # One pose: the unrolled scalar kinematics is several times faster than
         # numpy on 3-vectors (tested to agree with body.forward_kinematics).
-        err_all = point_errors(
-            single_pose_geometry(estimate, self.shape)[:N_KEYPOINTS],
-            self._truth_keypoints[self._k],
-        )
+        # Kept for render(), which draws these keypoints.
+        self._estimate_keypoints = single_pose_geometry(estimate, self.shape)[:N_KEYPOINTS]
+        err_all = point_errors(self._estimate_keypoints, self._truth_keypoints[self._k])
         err = err_all[self._err_kp]
         n_scored = len(err)
         error_mm = float(err.sum()) / n_scored
@@ -647,7 +648,13 @@ class PoseTrackingEnv(gym.Env):
         return obs, reward, terminated, truncated, info
 
     def render(self) -> NDArray[np.uint8] | None:
-        """The frame on show with the last estimate drawn over it as a wire figure."""
+        """The frame on show with the last estimate drawn over it as a wire figure.
+
+        Nothing is rendered again: the frame is the observation that ``reset``
+        or ``step`` drew from the episode's prepared figures, and the wire
+        figure joins the keypoints ``step`` scored (only their projection and
+        the lines are drawn here).
+        """
         if self.render_mode is None or self._motion is None:
             return None
         frame = self._frame
@@ -655,4 +662,10 @@ class PoseTrackingEnv(gym.Env):
             frame = np.repeat(frame, 3, axis=-1)
         if self._last_estimate is None:
             return frame.copy()
-        return draw_pose_overlay(frame, self._last_estimate, self.shape, self.camera)
+        return draw_pose_overlay(
+            frame,
+            self._last_estimate,
+            self.shape,
+            self.camera,
+            keypoints=self._estimate_keypoints,
+        )

@@ -1,0 +1,77 @@
+"""``render()`` reuses the observation and the scored keypoints, and draws what it drew before.
+
+The reference below is the overlay as ``render()`` drew it before it reused
+anything: the estimate's keypoints recomputed by ``single_pose_geometry``,
+projected by the camera and drawn over a copy of the frame on show. The
+environment's ``render()`` must give the same image bit for bit, and the frame
+under the overlay must be the observation ``reset``/``step`` returned.
+"""
+
+from __future__ import annotations
+
+import cv2
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import humotion_gym  # noqa: F401
+from humotion_gym import body
+from humotion_gym.body import N_KEYPOINTS
+from humotion_gym.kinematics import single_pose_geometry
+
+
+def _reference_render(frame, estimate, shape, camera):
+    """The overlay of ``draw_pose_overlay`` as it was, from the pose alone."""
+    img = frame[:, :, 0] if frame.shape[2] == 1 else frame
+    out = cv2.cvtColor(img, cv2.COLOR_GRAY2RGB) if img.ndim == 2 else img.copy()
+    px = camera.project(single_pose_geometry(estimate, shape)[:N_KEYPOINTS])
+    ok = np.all(np.isfinite(px), axis=1)
+    fixed = np.rint(np.clip(np.nan_to_num(px), -1e5, 1e5) * 16.0).astype(np.int64).tolist()
+    for a, b in body.SKELETON_EDGES:
+        if ok[a] and ok[b]:
+            cv2.line(out, fixed[a], fixed[b], (0, 255, 0), 1, cv2.LINE_AA, 4)
+    for k in np.flatnonzero(ok).tolist():
+        cv2.circle(out, fixed[k], 32, (0, 255, 0), -1, cv2.LINE_AA, 4)
+    return out
+
+
+@pytest.mark.parametrize(
+    ("env_id", "kwargs"),
+    [
+        ("humotion_gym/BodyTrack-v1", {}),
+        ("humotion_gym/ArmTrack-v1", {"color": "gray"}),  # a following camera, one channel
+        ("humotion_gym/SideWalk-v1", {"width": 96, "height": 64}),
+    ],
+)
+def test_render_equals_the_reference_overlay(env_id, kwargs):
+    env = gym.make(env_id, render_mode="rgb_array", terminate_on_lost=False, **kwargs)
+    base = env.unwrapped
+    rng = np.random.default_rng(3)
+    for seed in (0, 1, 2):
+        obs, _ = env.reset(seed=seed)
+        first = env.render()
+        expected = np.repeat(obs, 3, axis=-1) if obs.shape[-1] == 1 else obs
+        assert np.array_equal(first, expected)
+        for k in range(8):
+            # near the truth, then far from it (points may leave the image)
+            scale = 0.05 if k < 4 else 1.0
+            truth = base.pose_to_action(base.true_pose())
+            action = np.clip(truth + rng.normal(0, scale, truth.shape), -1, 1).astype(np.float32)
+            estimate = base.action_to_pose(action)
+            obs, *_ = env.step(action)
+            image = env.render()
+            assert image.dtype == np.uint8 and image.shape == obs.shape[:2] + (3,)
+            reference = _reference_render(obs, estimate, base.shape, base.camera)
+            assert np.array_equal(image, reference), (env_id, seed, k)
+
+
+def test_render_does_not_touch_the_observation():
+    env = gym.make("humotion_gym/BodyTrack-v1", render_mode="rgb_array")
+    env.reset(seed=4)
+    obs, *_ = env.step(env.action_space.sample())
+    kept = obs.copy()
+    image = env.render()
+    assert np.array_equal(obs, kept)
+    assert not np.shares_memory(image, obs)
+    # a second call draws the same image
+    assert np.array_equal(env.render(), image)
