@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -11,7 +11,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from baselines.stats import bootstrap_ci, iqm
+from baselines.stats import bootstrap_ci, iqm, median_lost_frame, proportion_ci
 from humotion_gym.metrics import lost_track_frame
 
 
@@ -118,22 +118,46 @@ def evaluate(
     return results
 
 
-def summarize(results: list[EpisodeResult], seed: int = 0) -> dict[str, Any]:
-    """Aggregate episodes: mean and IQM error with 95% bootstrap intervals, lost rate."""
-    mean_err = np.array([r.mean_error_mm for r in results])
-    final_err = np.array([r.final_error_mm for r in results])
-    lost = np.array([r.lost_frame is not None for r in results], dtype=float)
-    lo, hi = bootstrap_ci(mean_err, seed=seed)
-    flo, fhi = bootstrap_ci(final_err, seed=seed)
-    llo, lhi = bootstrap_ci(lost, seed=seed)
+def summarize(
+    results: Sequence[EpisodeResult | Mapping[str, Any]], seed: int = 0
+) -> dict[str, Any]:
+    """One cell's statistics over its episodes (see :mod:`baselines.stats`).
+
+    Args:
+        results: The episodes, as :class:`EpisodeResult` or its ``to_dict()``
+            (so a saved leaderboard can be summarised again).
+        seed: Seeds every bootstrap (same episodes and seed, same numbers).
+
+    Returns:
+        ``episodes``; ``mean_error_mm`` and ``iqm_error_mm`` (over the episodes'
+        mean errors) with 95% percentile bootstrap intervals ``mean_error_ci``,
+        ``iqm_error_ci``; ``final_error_mm`` with ``final_error_ci``;
+        ``lost_episodes``, ``lost_fraction`` with its Wilson interval
+        ``lost_fraction_ci``; ``median_lost_frame`` over the episodes that lost
+        track (None if none did); ``ms_per_frame`` and ``mean_reward``.
+
+    Raises:
+        ValueError: If there are no episodes.
+    """
+    if not results:
+        raise ValueError("results: expected at least one episode")
+    eps = [r.to_dict() if isinstance(r, EpisodeResult) else r for r in results]
+    mean_err = np.array([e["mean_error_mm"] for e in eps], dtype=np.float64)
+    final_err = np.array([e["final_error_mm"] for e in eps], dtype=np.float64)
+    lost_frames = [e["lost_frame"] for e in eps]
+    n_lost = sum(f is not None for f in lost_frames)
     return {
-        "episodes": len(results),
+        "episodes": len(eps),
         "mean_error_mm": float(mean_err.mean()),
-        "mean_error_ci": [lo, hi],
+        "mean_error_ci": list(bootstrap_ci(mean_err, np.mean, seed=seed)),
         "iqm_error_mm": iqm(mean_err),
+        "iqm_error_ci": list(bootstrap_ci(mean_err, iqm, seed=seed)),
         "final_error_mm": float(final_err.mean()),
-        "final_error_ci": [flo, fhi],
-        "lost_fraction": float(lost.mean()),
-        "lost_fraction_ci": [llo, lhi],
-        "ms_per_frame": float(np.mean([r.ms_per_frame for r in results])),
+        "final_error_ci": list(bootstrap_ci(final_err, np.mean, seed=seed)),
+        "lost_episodes": n_lost,
+        "lost_fraction": n_lost / len(eps),
+        "lost_fraction_ci": list(proportion_ci(n_lost, len(eps))),
+        "median_lost_frame": median_lost_frame(lost_frames),
+        "ms_per_frame": float(np.mean([e["ms_per_frame"] for e in eps])),
+        "mean_reward": float(np.mean([e["mean_reward"] for e in eps])),
     }

@@ -1,14 +1,27 @@
-"""Leaderboard statistics: interquartile mean and bootstrap confidence intervals.
+"""Leaderboard statistics: robust aggregates with bootstrap intervals.
 
 Following Agarwal, Schwarzer, Castro, Courville & Bellemare, *Deep
-reinforcement learning at the edge of the statistical precipice*, NeurIPS 2021:
-report robust aggregates (the interquartile mean) with percentile bootstrap
-confidence intervals over runs, stratified by task when runs cover several.
+reinforcement learning at the edge of the statistical precipice*, NeurIPS 2021
+(the rliable library): report the interquartile mean (IQM) beside the mean,
+with percentile bootstrap confidence intervals over runs, stratified by task
+when runs cover several (each task's runs are resampled on their own, so every
+resample keeps every task); normalise each task's scores against a reference
+before aggregating; and report the probability that one method beats another
+on a random run.
+
+Here a run is one seeded episode and its score the episode's mean keypoint
+error in mm (lower is better); the reference is ``hold``, the agent that keeps
+the initial pose. Every bootstrap is :func:`scipy.stats.bootstrap` with the
+percentile method and a seeded :class:`numpy.random.Generator`, so the same
+episodes and seed give the same interval bit for bit, whichever process or
+machine computes them.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import warnings
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -16,64 +29,414 @@ from scipy import stats
 
 FloatArray = NDArray[np.float64]
 
+#: Bootstrap resamples of every interval (rliable uses 2,000 to 50,000).
+N_RESAMPLES = 2000
+#: Resamples evaluated at once (bounds the memory of the per-frame bands).
+_BATCH = 250
+
 
 def iqm(values: ArrayLike) -> float:
-    """Interquartile mean: the mean of the middle 50% of the values."""
+    """Interquartile mean: the mean of the middle 50% of the values (NaN if empty)."""
     v = np.asarray(values, dtype=np.float64).ravel()
     if v.size == 0:
         return float("nan")
     return float(stats.trim_mean(v, proportiontocut=0.25))
 
 
+def _iqm_along(x: FloatArray, axis: int = -1) -> FloatArray:
+    # the same trimming as iqm, over one axis of a batch of resamples
+    return np.asarray(stats.trim_mean(x, proportiontocut=0.25, axis=axis))
+
+
+def _vectorised(statistic: Callable[[FloatArray], float]) -> Callable[..., FloatArray]:
+    """``statistic(x, axis)`` over a batch: the known statistics natively, others row by row."""
+    if statistic is iqm:
+        return _iqm_along
+    if statistic in (np.mean, np.median):
+        return lambda x, axis=-1: statistic(x, axis=axis)  # type: ignore[call-arg]
+    return lambda x, axis=-1: np.apply_along_axis(statistic, axis, x)
+
+
+def _rng(seed: int | np.random.Generator) -> np.random.Generator:
+    return seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+
+
 def bootstrap_ci(
     values: ArrayLike,
     statistic: Callable[[FloatArray], float] = np.mean,
-    n_resamples: int = 2000,
+    n_resamples: int = N_RESAMPLES,
     confidence: float = 0.95,
-    seed: int = 0,
+    seed: int | np.random.Generator = 0,
 ) -> tuple[float, float]:
     """Percentile bootstrap interval of a statistic of a 1-D sample.
 
-    Resampling is vectorised: one ``(n_resamples, n)`` index draw.
+    Args:
+        values: The sample (e.g. one cell's episode errors).
+        statistic: ``np.mean``, ``np.median``, :func:`iqm` (vectorised) or any
+            function of a 1-D array.
+        n_resamples: Bootstrap resamples.
+        confidence: Confidence level of the two-sided interval.
+        seed: Seed or generator of the resampling.
 
     Returns:
-        The lower and upper bound (NaN for an empty sample).
+        The lower and upper bound: NaN for an empty sample, the value itself
+        twice for a single one (every resample is that value).
     """
     v = np.asarray(values, dtype=np.float64).ravel()
     if v.size == 0:
         return float("nan"), float("nan")
-    rng = np.random.default_rng(seed)
-    idx = rng.integers(0, v.size, size=(n_resamples, v.size))
-    samples = v[idx]
-    if statistic is np.mean:
-        boot = samples.mean(axis=1)
-    else:
-        boot = np.array([statistic(s) for s in samples])
-    alpha = (1.0 - confidence) / 2
-    lo, hi = np.quantile(boot, [alpha, 1.0 - alpha])
-    return float(lo), float(hi)
+    if v.size == 1:
+        return float(v[0]), float(v[0])
+    res = stats.bootstrap(
+        (v,), _vectorised(statistic), n_resamples=n_resamples, vectorized=True,
+        confidence_level=confidence, method="percentile", rng=_rng(seed),
+    )  # fmt: skip
+    return float(res.confidence_interval.low), float(res.confidence_interval.high)
 
 
 def stratified_bootstrap_ci(
-    scores: ArrayLike,
+    scores: ArrayLike | Sequence[ArrayLike],
     statistic: Callable[[FloatArray], float] = iqm,
-    n_resamples: int = 2000,
+    n_resamples: int = N_RESAMPLES,
     confidence: float = 0.95,
-    seed: int = 0,
+    seed: int | np.random.Generator = 0,
 ) -> tuple[float, float]:
-    """Bootstrap interval over a ``(runs, tasks)`` matrix, resampling runs per task.
+    """Bootstrap interval of a statistic of all scores, resampling runs within each task.
+
+    Each task's runs form one sample of :func:`scipy.stats.bootstrap`, which
+    resamples every sample independently: that is the stratified bootstrap of
+    Agarwal et al. (2021), Sec. 4, and every resample keeps every task's share.
+
+    Args:
+        scores: A ``(runs, tasks)`` matrix, or one 1-D array of runs per task
+            (tasks may have different numbers of runs).
+        statistic: Aggregate of the pooled scores (:func:`iqm` by default).
+        n_resamples: Bootstrap resamples.
+        confidence: Confidence level.
+        seed: Seed or generator of the resampling.
 
     Returns:
-        The lower and upper bound of the statistic of the whole matrix.
+        The lower and upper bound (NaN if there are no scores).
     """
-    m = np.asarray(scores, dtype=np.float64)
-    if m.ndim == 1:
-        m = m[:, None]
-    rng = np.random.default_rng(seed)
-    runs, tasks = m.shape
-    idx = rng.integers(0, runs, size=(n_resamples, runs, tasks))
-    resampled = np.take_along_axis(m[None].repeat(n_resamples, axis=0), idx, axis=1)
-    boot = np.array([statistic(r) for r in resampled])
-    alpha = (1.0 - confidence) / 2
-    lo, hi = np.quantile(boot, [alpha, 1.0 - alpha])
-    return float(lo), float(hi)
+    columns = _columns(scores)
+    if not columns:
+        return float("nan"), float("nan")
+    single = [c for c in columns if c.size == 1]
+    if len(single) == len(columns):  # nothing to resample
+        value = float(statistic(np.concatenate(columns)))
+        return value, value
+    along = _vectorised(statistic)
+    # a task with one run is constant under resampling: bootstrap refuses it, so
+    # it is appended to every resample instead of being resampled
+    varied = tuple(c for c in columns if c.size > 1)
+    fixed = np.concatenate(single) if single else np.empty(0)
+
+    def statistic_of(*samples: FloatArray, axis: int = -1) -> FloatArray:
+        parts = list(samples)
+        if fixed.size:
+            shape = samples[0].shape[:-1] + (fixed.size,)
+            parts.append(np.broadcast_to(fixed, shape))
+        return along(np.concatenate(parts, axis=-1), -1)
+
+    res = stats.bootstrap(
+        varied, statistic_of, n_resamples=n_resamples, vectorized=True, axis=-1,
+        confidence_level=confidence, method="percentile", rng=_rng(seed), batch=_BATCH,
+    )  # fmt: skip
+    return float(res.confidence_interval.low), float(res.confidence_interval.high)
+
+
+def _columns(scores: ArrayLike | Sequence[ArrayLike]) -> list[FloatArray]:
+    """The per-task samples of a ``(runs, tasks)`` matrix or of a list of 1-D arrays."""
+    if isinstance(scores, (list, tuple)) and any(np.ndim(s) == 1 for s in scores):
+        cols = [np.asarray(s, dtype=np.float64).ravel() for s in scores]
+    else:
+        m = np.asarray(scores, dtype=np.float64)
+        if m.ndim == 1:
+            m = m[:, None]
+        if m.ndim != 2:
+            raise ValueError(f"scores: expected a (runs, tasks) matrix, got shape {m.shape}")
+        cols = [m[:, j] for j in range(m.shape[1])]
+    return [c for c in cols if c.size]
+
+
+def proportion_ci(successes: int, trials: int, confidence: float = 0.95) -> tuple[float, float]:
+    """Wilson score interval of a binomial proportion (e.g. episodes that lost track).
+
+    Wilson's interval (Wilson, *Probable inference, the law of succession, and
+    statistical inference*, JASA 1927) stays informative at 0/n and n/n, where
+    a bootstrap of 0/1 outcomes collapses to a point.
+
+    Returns:
+        The lower and upper bound (NaN for no trials).
+
+    Raises:
+        ValueError: If ``successes`` is not within ``[0, trials]``.
+    """
+    if trials == 0:
+        return float("nan"), float("nan")
+    if not 0 <= successes <= trials:
+        raise ValueError(f"successes: expected 0..{trials}, got {successes}")
+    ci = stats.binomtest(int(successes), int(trials)).proportion_ci(confidence, method="wilson")
+    return float(ci.low), float(ci.high)
+
+
+def median_lost_frame(lost_frames: Sequence[int | None]) -> float | None:
+    """Median frame at which track was lost, over the episodes that lost it (None if none)."""
+    lost = [f for f in lost_frames if f is not None]
+    return float(np.median(lost)) if lost else None
+
+
+def survival(
+    lost_frames: Sequence[int | None], lengths: Sequence[int], confidence: float = 0.95
+) -> dict[str, FloatArray]:
+    """Kaplan-Meier curve of still tracking, with its pointwise interval.
+
+    An episode that lost track at frame ``f`` is an event at ``f``; one that
+    never did is censored at its length (it tracked all its frames).
+
+    Args:
+        lost_frames: Each episode's lost-track frame, or None.
+        lengths: Each episode's number of scored frames.
+        confidence: Level of the pointwise (log-log) interval.
+
+    Returns:
+        ``frames`` (0 and each event frame), ``survival`` (fraction still
+        tracking after that frame), ``low`` and ``high``.
+    """
+    if len(lost_frames) != len(lengths):
+        raise ValueError("lost_frames and lengths: expected one entry per episode each")
+    events = np.array([f for f in lost_frames if f is not None], dtype=np.float64)
+    censored = np.array(
+        [n for f, n in zip(lost_frames, lengths, strict=True) if f is None], dtype=np.float64
+    )
+    if events.size == 0:
+        one = np.ones(1)
+        return {"frames": np.zeros(1), "survival": one, "low": one, "high": one}
+    result = stats.ecdf(stats.CensoredData(uncensored=events, right=censored)).sf
+    with warnings.catch_warnings():
+        # undefined where the curve reaches 0 or 1: NaN there, filled below
+        warnings.simplefilter("ignore", RuntimeWarning)
+        ci = result.confidence_interval(confidence, method="log-log")
+    return {
+        "frames": np.concatenate([[0.0], result.quantiles]),
+        "survival": np.concatenate([[1.0], result.probabilities]),
+        "low": np.nan_to_num(np.concatenate([[1.0], ci.low.probabilities]), nan=0.0),
+        "high": np.nan_to_num(np.concatenate([[1.0], ci.high.probabilities]), nan=1.0),
+    }
+
+
+def mean_band(
+    errors: ArrayLike,
+    confidence: float = 0.95,
+    n_resamples: int = N_RESAMPLES,
+    seed: int | np.random.Generator = 0,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Mean over episodes at every frame, with a percentile bootstrap band.
+
+    Args:
+        errors: ``(episodes, frames)`` errors; episodes are resampled, the
+            frames of one episode stay together.
+        confidence: Confidence level.
+        n_resamples: Bootstrap resamples.
+        seed: Seed or generator.
+
+    Returns:
+        ``(mean, low, high)``, each ``(frames,)``.
+    """
+    e = np.asarray(errors, dtype=np.float64)
+    if e.ndim != 2 or e.shape[0] == 0:
+        raise ValueError(f"errors: expected an (episodes, frames) array, got shape {e.shape}")
+    mean = e.mean(axis=0)
+    if e.shape[0] == 1:
+        return mean, mean.copy(), mean.copy()
+    res = stats.bootstrap(
+        (e,), np.mean, n_resamples=n_resamples, vectorized=True, axis=0,
+        confidence_level=confidence, method="percentile", rng=_rng(seed), batch=_BATCH,
+    )  # fmt: skip
+    return mean, np.asarray(res.confidence_interval.low), np.asarray(res.confidence_interval.high)
+
+
+def probability_of_improvement(
+    x: Sequence[ArrayLike], y: Sequence[ArrayLike], lower_is_better: bool = True
+) -> float:
+    """P(X beats Y): the chance a random run of X scores better than one of Y.
+
+    Per task, the Mann-Whitney U statistic over all pairs of runs divided by
+    their number (a tie counts one half), averaged over tasks with equal weight
+    (Agarwal et al., 2021, Sec. 4.2, "probability of improvement").
+
+    Args:
+        x: One 1-D array of X's runs per task.
+        y: Y's runs on the same tasks, in the same order.
+        lower_is_better: True for errors (X beats Y when its error is lower).
+
+    Raises:
+        ValueError: If ``x`` and ``y`` cover different numbers of tasks or a task is empty.
+    """
+    sign = _sign(x, y, lower_is_better)
+    return float(_poi(*[np.asarray(a, dtype=np.float64).ravel() for a in (*x, *y)], sign=sign))
+
+
+def _sign(x: Sequence[ArrayLike], y: Sequence[ArrayLike], lower_is_better: bool) -> float:
+    if len(x) != len(y) or not len(x):
+        raise ValueError(f"x, y: expected runs of the same tasks, got {len(x)} and {len(y)} tasks")
+    if any(np.size(a) == 0 for a in (*x, *y)):
+        raise ValueError("x, y: every task needs at least one run of each")
+    return -1.0 if lower_is_better else 1.0
+
+
+def _poi(*samples: FloatArray, sign: float, axis: int = -1) -> FloatArray:
+    """Mean over tasks of the pairwise win rate; ``samples`` = X's tasks then Y's."""
+    m = len(samples) // 2
+    rates = []
+    for a, b in zip(samples[:m], samples[m:], strict=True):
+        d = sign * (a[..., :, None] - b[..., None, :])  # (..., n_x, n_y)
+        rates.append(((d > 0) + 0.5 * (d == 0)).mean(axis=(-2, -1)))
+    return np.mean(rates, axis=0)
+
+
+def probability_of_improvement_ci(
+    x: Sequence[ArrayLike],
+    y: Sequence[ArrayLike],
+    lower_is_better: bool = True,
+    n_resamples: int = N_RESAMPLES,
+    confidence: float = 0.95,
+    seed: int | np.random.Generator = 0,
+) -> tuple[float, float]:
+    """Stratified bootstrap interval of :func:`probability_of_improvement`.
+
+    X's and Y's runs are resampled independently within each task (each is
+    one sample of :func:`scipy.stats.bootstrap`), as rliable does.
+    """
+    sign = _sign(x, y, lower_is_better)
+    samples = tuple(np.asarray(a, dtype=np.float64).ravel() for a in (*x, *y))
+    if all(s.size == 1 for s in samples):
+        value = float(_poi(*samples, sign=sign))
+        return value, value
+    # bootstrap needs two runs per sample: a single run is repeated (it is
+    # constant under resampling anyway, so the interval is unchanged)
+    samples = tuple(np.repeat(s, 2) if s.size == 1 else s for s in samples)
+
+    def statistic(*resampled: FloatArray, axis: int = -1) -> FloatArray:
+        return _poi(*resampled, sign=sign)
+
+    res = stats.bootstrap(
+        samples, statistic, n_resamples=n_resamples, vectorized=True, axis=-1,
+        confidence_level=confidence, method="percentile", rng=_rng(seed), batch=_BATCH,
+    )  # fmt: skip
+    return float(res.confidence_interval.low), float(res.confidence_interval.high)
+
+
+# ---------------------------------------------------------------- leaderboard rows
+
+
+def cell_label(row: dict[str, Any]) -> str:
+    """``agent`` for references and learned policies, ``agent@particles`` for filters."""
+    return f"{row['agent']}@{row['particles']}" if row.get("particles") else str(row["agent"])
+
+
+def normalised_scores(
+    rows: Sequence[dict[str, Any]], reference: str = "hold"
+) -> dict[str, dict[str, FloatArray]]:
+    """Each cell's episode errors over the reference's on the same episode seeds.
+
+    A score of 0.5 halves ``hold``'s error on that episode; 1 is no better
+    than holding the initial pose. Episodes without a reference episode of
+    the same seed on the same task are left out.
+
+    Returns:
+        ``{cell label: {task: scores (episodes,)}}`` in the rows' order, for
+        every cell that ran (not skipped or failed) on a task with a reference.
+    """
+    refs = {
+        r["task"]: {e["seed"]: e["mean_error_mm"] for e in r["episodes"]}
+        for r in rows if r["agent"] == reference and "episodes" in r
+    }  # fmt: skip
+    out: dict[str, dict[str, FloatArray]] = {}
+    for r in rows:
+        held = refs.get(r["task"])
+        if held is None or "episodes" not in r or "skipped" in r or "error" in r:
+            continue
+        s = [e["mean_error_mm"] / held[e["seed"]] for e in r["episodes"] if e["seed"] in held]
+        if s:
+            out.setdefault(cell_label(r), {})[r["task"]] = np.asarray(s, dtype=np.float64)
+    return out
+
+
+def aggregate(
+    rows: Sequence[dict[str, Any]],
+    reference: str = "hold",
+    seed: int = 0,
+    n_resamples: int = N_RESAMPLES,
+) -> list[dict[str, Any]]:
+    """Across tasks: IQM and mean of the normalised scores with stratified intervals.
+
+    Returns:
+        One dict per cell label: ``cell``, ``tasks`` (names), ``episodes``,
+        ``iqm_score`` and ``iqm_score_ci``, ``mean_score`` and
+        ``mean_score_ci``, and ``beats_reference`` (probability of improvement
+        over the reference, with ``beats_reference_ci``).
+    """
+    scores = normalised_scores(rows, reference)
+    out = []
+    for label, per_task in scores.items():
+        cols = list(per_task.values())
+        pooled = np.concatenate(cols)
+        ones = [np.ones_like(c) for c in cols]  # the reference scores 1 everywhere
+        out.append(
+            {
+                "cell": label,
+                "tasks": list(per_task),
+                "episodes": int(pooled.size),
+                "iqm_score": iqm(pooled),
+                "iqm_score_ci": list(stratified_bootstrap_ci(cols, iqm, n_resamples, seed=seed)),
+                "mean_score": float(pooled.mean()),
+                "mean_score_ci": list(
+                    stratified_bootstrap_ci(cols, np.mean, n_resamples, seed=seed)
+                ),
+                "beats_reference": probability_of_improvement(cols, ones),
+                "beats_reference_ci": list(
+                    probability_of_improvement_ci(cols, ones, n_resamples=n_resamples, seed=seed)
+                ),
+            }
+        )
+    return out
+
+
+def pairwise_improvement(
+    rows: Sequence[dict[str, Any]],
+    seed: int = 0,
+    n_resamples: int = N_RESAMPLES,
+) -> list[dict[str, Any]]:
+    """P(X beats Y) for every ordered pair of cells on the tasks both ran.
+
+    Compared on raw episode errors per task (the probability is invariant to a
+    per-task normalisation), averaged over the shared tasks.
+
+    Returns:
+        One dict per ordered pair: ``x``, ``y``, ``tasks``, ``probability``, ``ci``.
+    """
+    per_cell: dict[str, dict[str, FloatArray]] = {}
+    for r in rows:
+        if "episodes" in r and "skipped" not in r and "error" not in r and r["episodes"]:
+            per_cell.setdefault(cell_label(r), {})[r["task"]] = np.array(
+                [e["mean_error_mm"] for e in r["episodes"]], dtype=np.float64
+            )
+    out = []
+    for a, xa in per_cell.items():
+        for b, yb in per_cell.items():
+            shared = [t for t in xa if t in yb]
+            if a == b or not shared:
+                continue
+            x, y = [xa[t] for t in shared], [yb[t] for t in shared]
+            out.append(
+                {
+                    "x": a,
+                    "y": b,
+                    "tasks": shared,
+                    "probability": probability_of_improvement(x, y),
+                    "ci": list(probability_of_improvement_ci(x, y, n_resamples=n_resamples,
+                                                             seed=seed)),
+                }
+            )  # fmt: skip
+    return out

@@ -1,0 +1,73 @@
+"""``humotion-gym report``: the report folder of a saved leaderboard.
+
+::
+
+    humotion-gym leaderboard --tasks ArmTrack-v1 --out runs/lb.json
+    humotion-gym report runs/lb.json --out runs/lb-report --videos
+
+Writes ``index.html`` (sortable tables, figures, videos), ``tables.md`` (the
+Markdown tables the README pastes) and ``stats.json`` (every statistic).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from humotion_gym.cli._common import CommandError, add_data_dir, add_seed, wrote
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``report``."""
+    rp = subparsers.add_parser(
+        "report", help="tables, figures, videos and index.html of a saved leaderboard"
+    )
+    rp.add_argument(
+        "results", type=Path,
+        help="leaderboard JSON: the rows list of leaderboard --out, or an object with 'rows'",
+    )  # fmt: skip
+    rp.add_argument("--out", type=Path, required=True, help="the report folder (created if needed)")
+    rp.add_argument(
+        "--videos", action="store_true",
+        help="re-run each cell's best, median and worst episode and write videos of them "
+        "(costs up to one more run of each cell)",
+    )  # fmt: skip
+    rp.add_argument(
+        "--video-agents", nargs="+", default=None, metavar="AGENT",
+        help="only these agents get videos (default: every agent)",
+    )  # fmt: skip
+    add_data_dir(rp)
+    add_seed(rp, "seed of the bootstrap resampling")
+    rp.add_argument(
+        "--title", default="humotion_gym leaderboard",
+        help="the page's title (default: humotion_gym leaderboard)",
+    )  # fmt: skip
+    rp.set_defaults(func=_cmd_report)
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    import importlib.util
+
+    from baselines.report import ReplayMismatch, load_rows, write_report
+
+    try:
+        rows, settings = load_rows(args.results)
+    except ValueError as exc:
+        raise CommandError(str(exc)) from None
+    env_kwargs = dict(settings.get("env_kwargs") or {})
+    if args.data_dir:
+        env_kwargs["data_dir"] = args.data_dir
+    agents = set(args.video_agents or [])
+    try:
+        index = write_report(
+            rows, args.out, videos=args.videos, env_kwargs=env_kwargs, seed=args.seed,
+            video_cells=(lambda r: r["agent"] in agents) if agents else None, title=args.title,
+        )  # fmt: skip
+    except (ValueError, ReplayMismatch) as exc:
+        raise CommandError(str(exc)) from None
+    if importlib.util.find_spec("matplotlib") is None:
+        print("no figures: matplotlib is not installed (pip install -e '.[plots]' adds it)")
+    wrote(args.out / "tables.md", "Markdown tables")
+    wrote(args.out / "stats.json", "every statistic")
+    wrote(index, "open it in a browser")
+    return 0

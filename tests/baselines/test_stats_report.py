@@ -1,0 +1,359 @@
+"""Leaderboard statistics against scipy and exact answers; the report folder and its page."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+from html.parser import HTMLParser
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from scipy import stats as sps
+
+from baselines import stats
+from baselines.evaluation import EpisodeResult, summarize
+from baselines.report import (
+    ReplayMismatch,
+    choose_episodes,
+    load_rows,
+    replay_episodes,
+    write_report,
+)
+from humotion_gym.cli import main
+
+# ------------------------------------------------------------------ statistics
+
+
+def test_iqm_is_scipys_quarter_trimmed_mean():
+    x = np.random.default_rng(3).normal(size=37)
+    assert stats.iqm(x) == pytest.approx(sps.trim_mean(x, 0.25))
+    assert stats.iqm([1, 2, 3, 4, 100, -100, 2.5, 3.5]) == pytest.approx(2.75)
+    assert np.isnan(stats.iqm([]))
+
+
+@pytest.mark.parametrize("statistic", [np.mean, stats.iqm, np.median])
+def test_bootstrap_ci_is_scipys_percentile_bootstrap(statistic):
+    x = np.random.default_rng(4).gamma(2.0, 50.0, size=25)
+    got = stats.bootstrap_ci(x, statistic, seed=7)
+    ref = sps.bootstrap(
+        (x,), lambda v, axis: np.apply_along_axis(statistic, axis, v), n_resamples=2000,
+        method="percentile", rng=np.random.default_rng(7), vectorized=True,
+    ).confidence_interval  # fmt: skip
+    assert got == pytest.approx((ref.low, ref.high), rel=1e-12)
+    assert got == stats.bootstrap_ci(x, statistic, seed=7)  # seeded: the same bits
+    assert got[0] <= statistic(x) <= got[1]
+
+
+def test_stratified_bootstrap_keeps_every_tasks_share():
+    # task A always scores 0, task B always 100: every stratified resample has
+    # the same pooled mean (50); an unstratified resample of the pool would not
+    matrix = np.column_stack([np.zeros(10), np.full(10, 100.0)])
+    assert stats.stratified_bootstrap_ci(matrix, np.mean) == (50.0, 50.0)
+    pooled = stats.bootstrap_ci(matrix.ravel(), np.mean)
+    assert pooled[0] < 40 and pooled[1] > 60
+    # ragged tasks, one with a single run (constant under resampling)
+    lo, hi = stats.stratified_bootstrap_ci([np.arange(6.0), [3.0], np.arange(9.0)])
+    assert lo <= stats.iqm(np.concatenate([np.arange(6.0), [3.0], np.arange(9.0)])) <= hi
+
+
+def test_stratified_bootstrap_of_one_task_is_the_plain_bootstrap():
+    x = np.random.default_rng(5).normal(size=15)
+    assert stats.stratified_bootstrap_ci(x[:, None], stats.iqm, seed=2) == pytest.approx(
+        stats.bootstrap_ci(x, stats.iqm, seed=2), rel=1e-12
+    )
+
+
+def test_wilson_interval_matches_its_formula():
+    k, n, z = 3, 20, sps.norm.ppf(0.975)
+    p = k / n
+    centre = (p + z**2 / (2 * n)) / (1 + z**2 / n)
+    half = z / (1 + z**2 / n) * np.sqrt(p * (1 - p) / n + z**2 / (4 * n**2))
+    assert stats.proportion_ci(k, n) == pytest.approx((centre - half, centre + half))
+    lo, hi = stats.proportion_ci(0, 20)
+    assert lo == pytest.approx(0.0, abs=1e-12) and hi > 0.1  # informative at 0/n
+    with pytest.raises(ValueError, match="successes"):
+        stats.proportion_ci(5, 3)
+
+
+def test_probability_of_improvement_is_mann_whitney_averaged_over_tasks():
+    rng = np.random.default_rng(6)
+    x = [rng.normal(size=12), rng.normal(size=7)]
+    y = [rng.normal(0.3, size=9), rng.normal(-0.2, size=7)]
+    # lower error wins: P(X < Y) per task is U(Y, X) / (n m)
+    expected = np.mean(
+        [sps.mannwhitneyu(b, a).statistic / (a.size * b.size) for a, b in zip(x, y, strict=True)]
+    )
+    assert stats.probability_of_improvement(x, y) == pytest.approx(expected)
+    assert stats.probability_of_improvement(x, y) + stats.probability_of_improvement(
+        y, x
+    ) == pytest.approx(1.0)
+    # ties count one half: [1, 2] vs [2, 3] wins 3 pairs and ties 1 of 4
+    assert stats.probability_of_improvement([[1.0, 2.0]], [[2.0, 3.0]]) == 0.875
+    lo, hi = stats.probability_of_improvement_ci(x, y, seed=1)
+    assert lo <= stats.probability_of_improvement(x, y) <= hi
+    assert (lo, hi) == stats.probability_of_improvement_ci(x, y, seed=1)
+    with pytest.raises(ValueError, match="same tasks"):
+        stats.probability_of_improvement(x, y[:1])
+
+
+def test_kaplan_meier_by_hand_and_median_lost_frame():
+    # five episodes of 10 frames: lost at 3, 5, 3; two never lost (censored at 10)
+    curve = stats.survival([3, None, 5, None, 3], [10] * 5)
+    steps = dict(zip(curve["frames"].tolist(), curve["survival"].tolist(), strict=True))
+    assert steps[0.0] == 1.0
+    assert steps[3.0] == pytest.approx(3 / 5)  # 2 of 5 at risk lost
+    assert steps[5.0] == pytest.approx(3 / 5 * 2 / 3)  # 1 of the 3 left lost
+    assert np.all(curve["low"] <= curve["survival"] + 1e-12)
+    assert np.all(curve["survival"] <= curve["high"] + 1e-12)
+    assert stats.median_lost_frame([3, None, 5, None, 3]) == 3.0
+    assert stats.median_lost_frame([None, None]) is None
+    assert stats.survival([None, None], [10, 10])["survival"].tolist() == [1.0]
+
+
+def test_mean_band_is_the_per_frame_bootstrap():
+    e = np.random.default_rng(8).gamma(2.0, 40.0, size=(9, 5))
+    mean, lo, hi = stats.mean_band(e, seed=3)
+    np.testing.assert_allclose(mean, e.mean(axis=0))
+    assert np.all(lo <= mean) and np.all(mean <= hi)
+    # frames are bootstrapped together (episodes resampled): scipy's own answer
+    ref = sps.bootstrap((e,), np.mean, axis=0, n_resamples=2000, method="percentile",
+                        rng=np.random.default_rng(3), vectorized=True)  # fmt: skip
+    np.testing.assert_allclose(lo, ref.confidence_interval.low, rtol=1e-12)
+
+
+# ------------------------------------------------------------------ leaderboard rows
+
+
+def _episode(seed: int, errors: np.ndarray, threshold: float = 150.0) -> dict[str, Any]:
+    above = np.flatnonzero(errors > threshold)
+    return EpisodeResult(
+        seed=seed, clip_id=f"clip{seed}", start_frame=0, errors_mm=errors.tolist(),
+        mean_error_mm=float(errors.mean()), final_error_mm=float(errors[-1]),
+        lost_frame=int(above[0]) if above.size else None, ms_per_frame=1.0,
+        mean_reward=float(np.exp(-errors.mean() / 100)),
+    ).to_dict()  # fmt: skip
+
+
+def _rows(scale: dict[str, float], tasks=("ArmTrack-v1", "BodyTrack-v1"), n=6) -> list[dict]:
+    """Rows whose agents' errors are exactly ``scale`` times hold's, episode by episode."""
+    rng = np.random.default_rng(11)
+    rows = []
+    for task in tasks:
+        base = {s: np.cumsum(rng.gamma(2.0, 4.0, size=12)) + 20 for s in range(n)}
+        for agent, factor in {"hold": 1.0, **scale}.items():
+            particles = 0 if agent in ("hold", "random") else 100
+            eps = [_episode(s, factor * base[s]) for s in range(n)]
+            rows.append({"task": task, "agent": agent, "particles": particles,
+                         "summary": summarize(eps), "episodes": eps})  # fmt: skip
+    return rows
+
+
+def test_summarize_takes_results_or_their_dicts_and_is_seeded():
+    eps = _rows({"pf-cv": 0.5})[1]["episodes"]
+    as_results = [EpisodeResult(**e) for e in eps]
+    s = summarize(eps, seed=2)
+    assert s == summarize(as_results, seed=2)
+    errors = [e["mean_error_mm"] for e in eps]
+    assert s["iqm_error_mm"] == pytest.approx(stats.iqm(errors))
+    assert s["iqm_error_ci"] == list(stats.bootstrap_ci(errors, stats.iqm, seed=2))
+    lost = sum(e["lost_frame"] is not None for e in eps)
+    assert s["lost_episodes"] == lost
+    assert s["lost_fraction_ci"] == list(stats.proportion_ci(lost, len(eps)))
+    with pytest.raises(ValueError, match="at least one episode"):
+        summarize([])
+
+
+def test_normalised_scores_aggregate_and_pairwise_on_known_rows():
+    rows = _rows({"pf-cv": 0.5, "pf-tree": 0.25})
+    rows.append({"task": "ArmTrack-v1", "agent": "pf-pca", "particles": 100, "skipped": "no"})
+    rows.append({"task": "ArmTrack-v1", "agent": "pf-x", "particles": 100, "error": "boom"})
+    scores = stats.normalised_scores(rows)
+    assert set(scores) == {"hold", "pf-cv@100", "pf-tree@100"}
+    np.testing.assert_allclose(scores["pf-cv@100"]["BodyTrack-v1"], 0.5)
+    agg = {a["cell"]: a for a in stats.aggregate(rows)}
+    assert agg["pf-tree@100"]["iqm_score"] == pytest.approx(0.25)
+    assert agg["pf-tree@100"]["iqm_score_ci"] == pytest.approx([0.25, 0.25])
+    assert agg["pf-cv@100"]["beats_reference"] == 1.0  # every episode halves hold's error
+    assert agg["hold"]["beats_reference"] == 0.5
+    assert agg["pf-cv@100"]["tasks"] == ["ArmTrack-v1", "BodyTrack-v1"]
+    pairs = {(p["x"], p["y"]): p for p in stats.pairwise_improvement(rows)}
+    for (a, b), p in pairs.items():
+        assert p["probability"] + pairs[(b, a)]["probability"] == pytest.approx(1.0)
+
+
+# ------------------------------------------------------------------ the report
+
+
+class _Links(HTMLParser):
+    def __init__(self) -> None:
+        super().__init__()
+        self.links: list[str] = []
+        self.tables: list[list[list[str]]] = []
+        self.scripts = 0
+        self._cell: list[str] | None = None
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        a = dict(attrs)
+        for key in ("href", "src", "poster"):
+            if a.get(key):
+                self.links.append(str(a[key]))
+        if tag == "table":
+            self.tables.append([])
+        elif tag == "tr":
+            self.tables[-1].append([])
+        elif tag in ("td", "th"):
+            self._cell = []
+        elif tag == "script":
+            self.scripts += 1
+            assert "src" not in a, "no external scripts"
+
+    def handle_data(self, data: str) -> None:
+        if self._cell is not None:
+            self._cell.append(data)
+
+    def handle_endtag(self, tag: str) -> None:
+        if tag in ("td", "th") and self._cell is not None:
+            self.tables[-1][-1].append("".join(self._cell))
+            self._cell = None
+
+
+def _check_page(index: Path) -> _Links:
+    page = _Links()
+    page.feed(index.read_text())
+    assert page.scripts == 1 and page.tables
+    for link in page.links:
+        assert "://" not in link, f"external asset {link}"
+        assert (index.parent / link).is_file(), f"{link} is linked but missing"
+    return page
+
+
+def test_report_writes_tables_figures_and_a_page_whose_links_exist(tmp_path):
+    rows = _rows({"pf-cv": 0.5, "random": 3.0})
+    rows.append({"task": "ArmTrack-v1", "agent": "pf-x", "particles": 100, "error": "fit failed"})
+    index = write_report(rows, tmp_path / "rep", videos=False, progress=False)
+    assert index == tmp_path / "rep" / "index.html"
+    page = _check_page(index)
+    assert {"error_over_frames.png", "survival.png", "iqm_per_task.png", "aggregate.png"} <= set(
+        page.links
+    )
+    # the README's leaderboard columns, as leaderboard.markdown_table writes them
+    from baselines.leaderboard import markdown_table
+
+    md = (tmp_path / "rep" / "tables.md").read_text()
+    assert markdown_table([r for r in rows if "error" not in r]).splitlines()[0] in md
+    assert "fit failed" in md and "Across tasks" in md
+    header = page.tables[0][0]
+    assert header[:3] == ["task", "agent", "particles"]
+    assert len(page.tables[0]) == 1 + sum("summary" in r for r in rows)
+    computed = json.loads((tmp_path / "rep" / "stats.json").read_text())
+    assert {a["cell"] for a in computed["aggregate"]} == {"hold", "pf-cv@100", "random"}
+
+
+def test_report_without_matplotlib_says_so_and_writes_the_rest(tmp_path, monkeypatch):
+    import baselines.report as report
+
+    def missing() -> None:
+        raise ModuleNotFoundError("No module named 'matplotlib'", name="matplotlib")
+
+    monkeypatch.setattr(report, "_pyplot", missing)
+    index = write_report(_rows({"pf-cv": 0.5}), tmp_path, progress=False)
+    assert "matplotlib is not installed" in index.read_text()
+    assert not list(tmp_path.glob("*.png"))
+    _check_page(index)
+
+
+def test_report_refuses_rows_that_never_ran(tmp_path):
+    with pytest.raises(ValueError, match="no cell ran"):
+        write_report([{"task": "t", "agent": "a", "particles": 0, "skipped": "x"}], tmp_path)
+
+
+def test_load_rows_takes_a_list_or_a_results_object(tmp_path):
+    rows = _rows({"pf-cv": 0.5})
+    (tmp_path / "list.json").write_text(json.dumps(rows))
+    (tmp_path / "obj.json").write_text(json.dumps({"rows": rows, "env_kwargs": {"noise": 2.0}}))
+    (tmp_path / "bad.json").write_text(json.dumps({"cells": []}))
+    assert load_rows(tmp_path / "list.json") == (rows, {})
+    assert load_rows(tmp_path / "obj.json") == (rows, {"env_kwargs": {"noise": 2.0}})
+    with pytest.raises(ValueError, match="bad.json"):
+        load_rows(tmp_path / "bad.json")
+
+
+def test_choose_episodes_picks_best_median_worst():
+    row = {"episodes": [{"seed": s, "mean_error_mm": e} for s, e in enumerate([5, 1, 9, 3, 7])]}
+    assert choose_episodes(row) == {"best": 1, "median": 0, "worst": 2}
+
+
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory):
+    """A real two-cell leaderboard, short episodes, saved as JSON."""
+    from baselines.leaderboard import run_leaderboard, save
+
+    settings = {"episode_frames": 6, "width": 64, "height": 64}
+    rows = run_leaderboard(["ArmTrack-v1"], ["pf-cv"], [20], 3, 5, settings, progress=False)
+    path = tmp_path_factory.mktemp("run") / "results.json"
+    save(rows, path)
+    return rows, settings, path
+
+
+def test_replayed_episodes_reproduce_the_recorded_errors(small_run):
+    rows, settings, _ = small_run
+    pf = next(r for r in rows if r["agent"] == "pf-cv")
+    seeds = [e["seed"] for e in pf["episodes"]][1:]
+    out = replay_episodes(pf, seeds, settings)
+    for s in seeds:
+        result, frames = out[s]
+        assert len(frames) == len(result.errors_mm) == 6
+        assert frames[0].shape == (64, 64, 3)
+    tampered = {**pf, "episodes": [dict(e) for e in pf["episodes"]]}
+    tampered["episodes"][1]["errors_mm"] = [e + 1.0 for e in tampered["episodes"][1]["errors_mm"]]
+    with pytest.raises(ReplayMismatch, match="seed 6"):
+        replay_episodes(tampered, [6], settings)
+
+
+def test_report_command_with_videos(small_run, tmp_path, capsys):
+    _, settings, path = small_run
+    results = tmp_path / "results.json"
+    results.write_text(json.dumps({"rows": json.loads(path.read_text()), "env_kwargs": settings}))
+    out = tmp_path / "report"
+    assert main(["report", str(results), "--out", str(out), "--videos"]) == 0
+    assert "index.html" in capsys.readouterr().out
+    page = _check_page(out / "index.html")
+    videos = [link for link in page.links if link.endswith(".webm")]
+    assert len(videos) == 2 * 3  # hold and pf-cv: best, median, worst
+    import cv2
+
+    cap = cv2.VideoCapture(str(out / videos[0]))
+    frames = 0
+    while cap.read()[0]:
+        frames += 1
+    assert frames == 6
+    assert main(["report", str(tmp_path / "missing.json"), "--out", str(out)]) == 1
+
+
+def _chromium() -> str | None:
+    for name in ("chromium", "chromium-browser", "google-chrome", "chrome"):
+        if shutil.which(name):
+            return shutil.which(name)
+    return None
+
+
+@pytest.mark.skipif(
+    _chromium() is None,
+    reason="no chromium binary on PATH (apt-get install chromium) to render index.html headless",
+)
+def test_report_renders_in_headless_chromium(tmp_path):
+    index = write_report(_rows({"pf-cv": 0.5}), tmp_path / "rep", progress=False)
+    shot = tmp_path / "shot.png"
+    subprocess.run(
+        [str(_chromium()), "--headless", "--no-sandbox", "--disable-gpu",
+         f"--screenshot={shot}", "--window-size=1200,1600", index.resolve().as_uri()],
+        check=True, timeout=120, capture_output=True,
+    )  # fmt: skip
+    import cv2
+
+    image = cv2.imread(str(shot))
+    assert image is not None and image.shape[:2] == (1600, 1200)
+    assert image.std() > 5  # the tables and figures drew something, not a blank page
