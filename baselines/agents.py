@@ -147,10 +147,20 @@ class ParticleFilterAgent:
                 estimate=estimate, layers=self.layers,
                 lower=VALID_LOWER[self.free], upper=VALID_UPPER[self.free],
             )  # fmt: skip
+        self.seed = int(seed)
         self._seed_rng = np.random.default_rng(seed)
         self._info: Mapping[str, Any] | None = None
         self._started = False
         self.frame_times: list[float] = []
+
+    def seed_episode(self, episode_seed: int) -> None:
+        """Seed the next episode's filter from ``(seed, episode_seed)`` alone.
+
+        The evaluation loop calls it before each episode, so an episode's result
+        does not depend on which episodes this agent ran before (any order, any
+        worker: the same numbers).
+        """
+        self._seed_rng = np.random.default_rng([self.seed, int(episode_seed)])
 
     def observe_info(self, info: Mapping[str, Any]) -> None:
         """Take the ``info`` of the last ``reset`` or ``step`` (called by the loop)."""
@@ -252,8 +262,13 @@ class RandomAgent:
 
     def __init__(self, env: gym.Env, seed: int = 0) -> None:
         self.env: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
+        self.seed = int(seed)
         self._rng = np.random.default_rng(seed)
         self._shape = self.env.action_space.shape
+
+    def seed_episode(self, episode_seed: int) -> None:
+        """Seed the next episode's actions from ``(seed, episode_seed)`` alone."""
+        self._rng = np.random.default_rng([self.seed, int(episode_seed)])
 
     def observe_info(self, info: Mapping[str, Any]) -> None:
         """Nothing to take: random actions use no information."""

@@ -63,11 +63,16 @@ def run_episode(
         agent: Has ``predict(obs, state, episode_start, deterministic)``; if it
             also has ``observe_info(info)``, it is given each info first.
         env: The environment.
-        seed: Reset seed.
+        seed: Reset seed; also seeds the agent's randomness for this episode
+            (with the agent's own seed) where it has ``seed_episode``.
         options: Reset options (clip, start frame).
         on_frame: Called with ``env.render()`` output after each step, if the
             env renders (for videos).
     """
+    if hasattr(agent, "seed_episode"):
+        # the agent's randomness from (its seed, this episode's seed) alone: an
+        # episode's numbers do not depend on the episodes run before it
+        agent.seed_episode(seed)
     obs, info = env.reset(seed=seed, options=options)
     base = env.unwrapped
     clip_id, start = info.get("clip_id", ""), int(info.get("start_frame", 0))

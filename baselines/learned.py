@@ -346,6 +346,10 @@ class HybridAgent:
         self.free = free
         self.frame_times: list[float] = []
 
+    def seed_episode(self, episode_seed: int) -> None:
+        """Seed the filter's next episode from its seed and ``episode_seed`` alone."""
+        self.pf.seed_episode(episode_seed)
+
     def observe_info(self, info: Mapping[str, Any]) -> None:
         """Pass the ``info`` to the filter and the policy."""
         self.pf.observe_info(info)

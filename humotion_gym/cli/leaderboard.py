@@ -3,14 +3,24 @@
 ::
 
     humotion-gym leaderboard --tasks ArmTrack-v1 --agents pf-cv pf-tree --particles 300 3000
+    humotion-gym leaderboard --engine ray --workers 2 --out results/lb   # on a local Ray
+    humotion-gym leaderboard --engine ray --workers 2 --out results/lb --resume
+
+Exit codes: 0 when every cell ran or was skipped (an agent that does not cover
+a task shows as a row with its reason); 1 when a cell failed (its agent could
+not be built, or an episode raised): the table shows it and stderr names it;
+2 on a usage error; 130 when interrupted (``--out`` keeps what finished).
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from humotion_gym.cli._common import (
+    CommandError,
+    UsageError,
     add_data_dir,
     add_seed,
     agent_name,
@@ -55,8 +65,28 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_seed(lb, "seed of the first episode")
     add_data_dir(lb)
     lb.add_argument(
-        "--out", type=Path, default=None,
-        help="also write every episode of every cell to this JSON file (default: none)",
+        "--out", type=Path, default=None, metavar="FOLDER",
+        help="results folder: each finished episode is saved as it finishes (episodes.jsonl), "
+        "then results.json, table.md and the report (default: none)",
+    )  # fmt: skip
+    lb.add_argument(
+        "--resume", action="store_true",
+        help="continue the run saved in --out FOLDER, skipping its finished episodes",
+    )  # fmt: skip
+    lb.add_argument(
+        "--engine", choices=["inprocess", "ray"], default="inprocess",
+        help="where episodes run: in this process, or on Ray (the distributed extra) "
+        "(default: inprocess)",
+    )  # fmt: skip
+    lb.add_argument(
+        "--workers", type=positive_int, default=None,
+        help="with --engine ray: workers (one CPU each) of a local Ray started here, or "
+        "actors on the cluster of --address (default: every CPU)",
+    )  # fmt: skip
+    lb.add_argument(
+        "--address", default=None,
+        help="with --engine ray: the Ray cluster to join (default: $RAY_ADDRESS if set, "
+        "else a local Ray)",
     )  # fmt: skip
     lb.add_argument(
         "--json", action="store_true", help="print the rows as JSON instead of the table"
@@ -73,25 +103,63 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_leaderboard(args: argparse.Namespace) -> int:
-    from baselines.leaderboard import markdown_table, run_leaderboard, save, validity_lines
+    from baselines.leaderboard import (
+        ResumeError,
+        default_command,
+        markdown_table,
+        run_leaderboard,
+        validity_lines,
+    )
 
+    if args.resume and args.out is None:
+        raise UsageError("--resume: needs --out FOLDER, the run to continue")
+    if args.engine != "ray" and (args.workers is not None or args.address is not None):
+        raise UsageError("--workers, --address: only with --engine ray")
+    if args.out is not None and args.out.suffix == ".json":
+        raise UsageError(
+            f"--out: expected a results folder (it holds results.json), got the file {args.out}"
+        )
     kwargs = env_kwargs(args)
     if args.background:
         kwargs["background"] = args.background
     if args.noise is not None:
         kwargs["noise"] = args.noise
-    rows = run_leaderboard(
-        args.tasks, args.agents, args.particles, args.episodes, args.seed, kwargs
-    )
-    if args.out:
-        save(rows, args.out)
+    command = default_command(
+        args.tasks, args.agents, args.particles, args.episodes, args.seed,
+        data_dir=args.data_dir, background=args.background, noise=args.noise,
+        engine=args.engine, workers=args.workers, address=args.address, out=args.out,
+    )  # fmt: skip
+    try:
+        rows = run_leaderboard(
+            args.tasks, args.agents, args.particles, args.episodes, args.seed, kwargs,
+            engine=args.engine, workers=args.workers, address=args.address, out=args.out,
+            resume=args.resume, command=command,
+        )  # fmt: skip
+    except ModuleNotFoundError as exc:
+        if exc.name != "ray":
+            raise
+        raise CommandError(f"--engine ray: {exc}") from None
+    except ResumeError as exc:
+        raise CommandError(f"--resume: {exc}") from None
+    except KeyboardInterrupt:
+        where = f"; the finished episodes are saved in {args.out}" if args.out else ""
+        print(f"interrupted{where}", file=sys.stderr)
+        if args.out:
+            print(f"to finish it: {command} --resume", file=sys.stderr)
+        return 130
+    failed = [r for r in rows if "error" in r]
     if args.json:
         print_json({"rows": rows, "validity": validity_lines(rows)})
-        return 0
-    print(markdown_table(rows))
-    for line in validity_lines(rows):
-        print(line)
-    print(LEGEND)
-    if args.out:
-        wrote(args.out, "every episode of every cell")
-    return 0
+    else:
+        print(markdown_table(rows))
+        for line in validity_lines(rows):
+            print(line)
+        print(LEGEND)
+        if args.out:
+            wrote(args.out, "results.json, table.md, episodes.jsonl and the report")
+    for r in failed:
+        print(
+            f"error: {r['agent']} on {r['task']} ({r['particles']} particles): {r['error']}",
+            file=sys.stderr,
+        )
+    return 1 if failed else 0

@@ -1,0 +1,485 @@
+"""The leaderboard's engine: episodes as the unit of work, in-process or on Ray.
+
+A leaderboard is a list of **cells** (task, agent, particle count), each run
+on the same seeded episodes. The unit of work is one **episode**: a cell and
+an episode seed. An :class:`EpisodeRunner` runs episodes; it builds each
+cell's environment and agent once and keeps them (a small cache keyed by the
+cell), so an episode costs its tracking alone. Two engines drive runners:
+
+* :class:`InProcessEngine` (the default; needs nothing beyond the package): one
+  runner in this process, episodes one after another;
+* :class:`RayEngine` (the ``distributed`` extra, ``pip install
+  'humotion-gym[distributed]'``): one runner per Ray actor, on a local Ray
+  started with ``workers`` CPUs or on an existing cluster (``address`` or
+  ``RAY_ADDRESS``). Each actor has at most two episodes queued, so it never
+  waits for the driver between episodes.
+
+**Same numbers on any engine and any number of workers.** An episode's result
+depends on its cell, its seed and the run's settings alone:
+:func:`baselines.evaluation.run_episode` reseeds the agent from (agent seed,
+episode seed) before each episode and the environment's seeded reset draws
+everything else, and every runner tracks with one BLAS thread. Only the
+timings (``ms_per_frame``, ``wall_s``) differ between runs.
+
+**Priors are fitted once, in the driver** (:func:`prepare_cells`), before any
+episode is dispatched: a fit is written to the on-disk prior cache
+(``HUMOTION_CACHE``) and the fitted parameters of every particle-filter agent
+are shipped to the runners (through Ray's object store on Ray), which build
+their filters from them and never fit. Hybrids of a filter and a learned
+policy read their filter's prior from the on-disk cache.
+
+Every finished episode comes back as a **record**, a plain-JSON dict: the
+cell's ``task``, ``agent`` and ``particles``, the episode ``seed``, ``wall_s``
+(the episode's wall time in its worker), and either ``result``
+(:meth:`~baselines.evaluation.EpisodeResult.to_dict`) or ``error`` (``"Type:
+message"``) with ``traceback``.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import os
+import time
+import traceback
+from collections import OrderedDict, deque
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from numpy.typing import NDArray
+from tqdm.auto import tqdm
+
+from baselines.evaluation import EpisodeResult, run_episode
+from humotion_gym.threads import single_threaded_blas
+
+#: The engines by name (``--engine``).
+ENGINES: tuple[str, ...] = ("inprocess", "ray")
+#: Episodes queued per Ray actor: one running, one waiting, so an actor never
+#: idles while the driver collects a result and sends the next episode.
+QUEUE_DEPTH = 2
+#: Cells whose environment and agent a runner keeps (least recently used
+#: dropped first). Episodes are dispatched cell by cell, so a few suffice.
+CACHED_CELLS = 8
+#: Environment variables handed to Ray workers (the prior cache, the mocap
+#: folder and the BLAS threads), where set in the driver.
+WORKER_ENV_VARS: tuple[str, ...] = (
+    "HUMOTION_CACHE",
+    "HUMOTION_MOCAP",
+    "XDG_CACHE_HOME",
+    "OPENBLAS_NUM_THREADS",
+    "OMP_NUM_THREADS",
+    "MKL_NUM_THREADS",
+)
+
+
+@dataclass(frozen=True, order=True)
+class Cell:
+    """One leaderboard cell.
+
+    Attributes:
+        task: Task name (``BodyTrack-v1``).
+        agent: Agent name (``pf-cv``, ``hold``, ``LABEL=PATH.zip``...).
+        particles: Particle count; 0 for agents that take none (references,
+            plain learned policies).
+    """
+
+    task: str
+    agent: str
+    particles: int
+
+
+@dataclass(frozen=True)
+class Episode:
+    """The unit of work: one seeded episode of one cell."""
+
+    cell: Cell
+    seed: int
+
+
+#: ``(module name, fitted parameters)`` of a particle-filter agent's prior, by
+#: (task, agent): what the driver fitted and the runners build filters from.
+Fits = Mapping[tuple[str, str], tuple[str, Any]]
+
+
+def make_env(task: str, env_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
+    """A task's environment as the leaderboard runs it (every episode to its end)."""
+    return gym.make(f"humotion_gym/{task}", terminate_on_lost=False, **dict(env_kwargs or {}))
+
+
+def build_agent(cell: Cell, env: gym.Env, seed: int, fits: Fits | None = None) -> Any:
+    """A cell's agent; a particle filter from its shipped fit when there is one.
+
+    Args:
+        cell: The cell.
+        env: Its environment.
+        seed: The agent's seed (the leaderboard's seed).
+        fits: Fitted priors from :func:`prepare_cells`; without the cell's,
+            :func:`baselines.agents.make` builds the agent (reading or writing
+            the on-disk prior cache).
+    """
+    from baselines.agents import AGENTS, ParticleFilterAgent, make
+
+    fit = (fits or {}).get((cell.task, cell.agent))
+    n = max(cell.particles, 1)
+    if fit is None:
+        return make(cell.agent, env, n_particles=n, seed=seed)
+    module_name, fitted = fit
+    spec = AGENTS[cell.agent]
+    module = importlib.import_module(module_name)
+    return ParticleFilterAgent(env, module, fitted, n, seed, "mean", cell.agent, spec.layers)
+
+
+def run_cell_episode(
+    task: str,
+    agent: str,
+    particles: int,
+    episode_seed: int,
+    first_seed: int,
+    env_kwargs: Mapping[str, Any] | None = None,
+    on_frame: Callable[[NDArray[np.uint8], dict[str, Any]], None] | None = None,
+) -> EpisodeResult:
+    """One leaderboard episode on its own: the numbers the leaderboard recorded for it.
+
+    Episodes do not depend on each other, so this reproduces an episode of a
+    saved leaderboard (for a video, say) without running its cell's others.
+
+    Args:
+        task: Task name.
+        agent: Agent name.
+        particles: Particle count (0 for agents that take none).
+        episode_seed: The episode's seed.
+        first_seed: The leaderboard's seed (its first episode's, and every
+            agent's seed).
+        env_kwargs: The run's environment settings (add ``render_mode`` for
+            ``on_frame``).
+        on_frame: Called with each rendered frame and its info.
+    """
+    env = make_env(task, env_kwargs)
+    try:
+        built = build_agent(Cell(task, agent, particles), env, first_seed)
+        with single_threaded_blas():
+            return run_episode(built, env, episode_seed, on_frame=on_frame)
+    finally:
+        env.close()
+
+
+class EpisodeRunner:
+    """Runs episodes, keeping each cell's environment and agent between them.
+
+    One per process: the in-process engine's, or one per Ray actor.
+
+    Args:
+        seed: Every agent's seed.
+        env_kwargs: The environments' settings.
+        fits: Fitted priors shipped by the driver.
+        cached_cells: Cells kept (:data:`CACHED_CELLS`).
+    """
+
+    def __init__(
+        self,
+        seed: int,
+        env_kwargs: Mapping[str, Any] | None = None,
+        fits: Fits | None = None,
+        cached_cells: int = CACHED_CELLS,
+    ) -> None:
+        self.seed = int(seed)
+        self.env_kwargs = dict(env_kwargs or {})
+        self.fits = dict(fits or {})
+        self.cached_cells = int(cached_cells)
+        self._envs: dict[str, gym.Env] = {}
+        self._agents: OrderedDict[Cell, Any] = OrderedDict()
+
+    def _env(self, task: str) -> gym.Env:
+        if task not in self._envs:
+            self._envs[task] = make_env(task, self.env_kwargs)
+        return self._envs[task]
+
+    def _agent(self, cell: Cell) -> Any:
+        if cell in self._agents:
+            self._agents.move_to_end(cell)
+            return self._agents[cell]
+        agent = build_agent(cell, self._env(cell.task), self.seed, self.fits)
+        self._agents[cell] = agent
+        while len(self._agents) > self.cached_cells:
+            self._agents.popitem(last=False)
+        return agent
+
+    def run(self, episode: Episode) -> dict[str, Any]:
+        """Run one episode; its record (``result``, or ``error`` if it raised)."""
+        cell = episode.cell
+        record: dict[str, Any] = {
+            "task": cell.task, "agent": cell.agent, "particles": cell.particles,
+            "seed": episode.seed,
+        }  # fmt: skip
+        t0 = time.perf_counter()
+        try:
+            agent = self._agent(cell)
+            with single_threaded_blas():
+                result = run_episode(agent, self._env(cell.task), episode.seed)
+            record["result"] = result.to_dict()
+        except Exception as exc:  # an agent that raises is an error row, not a crash
+            record["error"] = f"{type(exc).__name__}: {exc}"
+            record["traceback"] = traceback.format_exc()
+            self._agents.pop(cell, None)  # a half-run agent is not reused
+        record["wall_s"] = time.perf_counter() - t0
+        return record
+
+    def close(self) -> None:
+        """Close the environments."""
+        for env in self._envs.values():
+            env.close()
+        self._envs.clear()
+        self._agents.clear()
+
+
+def prepare_cells(
+    cells: Sequence[Cell],
+    seed: int,
+    env_kwargs: Mapping[str, Any] | None = None,
+    progress: bool = True,
+) -> tuple[dict[tuple[str, str], tuple[str, Any]], dict[tuple[str, str], tuple[str, str]]]:
+    """Build every (task, agent) once in the driver: fit its prior, find what cannot run.
+
+    Fits go to the on-disk prior cache as well (:func:`baselines.agents.fit_prior`),
+    where hybrids' runners read them.
+
+    Returns:
+        ``(fits, problems)``: the fitted prior of every particle-filter agent by
+        (task, agent); and by (task, agent), ``("skipped", reason)`` where the
+        agent does not cover the task (``make`` raised ``ValueError``) or
+        ``("error", reason)`` where building it failed otherwise (a fit that
+        raised).
+    """
+    from baselines.agents import ParticleFilterAgent, make
+
+    first: dict[tuple[str, str], Cell] = {}
+    for cell in cells:
+        first.setdefault((cell.task, cell.agent), cell)
+    fits: dict[tuple[str, str], tuple[str, Any]] = {}
+    problems: dict[tuple[str, str], tuple[str, str]] = {}
+    envs: dict[str, gym.Env] = {}
+    bar = tqdm(first.items(), desc="agents", unit="agent", disable=not progress, leave=False)
+    try:
+        for (task, name), cell in bar:
+            bar.set_postfix_str(f"{name} on {task}")
+            if task not in envs:
+                envs[task] = make_env(task, env_kwargs)
+            try:
+                agent = make(name, envs[task], n_particles=max(cell.particles, 1), seed=seed)
+            except ValueError as exc:  # the agent does not cover this task
+                problems[(task, name)] = ("skipped", str(exc))
+                continue
+            except KeyError:  # an unknown agent name is the caller's mistake
+                raise
+            except Exception as exc:  # a fit or a load that failed: an error row
+                problems[(task, name)] = (
+                    "error",
+                    f"building it failed: {type(exc).__name__}: {exc}",
+                )
+                continue
+            if type(agent) is ParticleFilterAgent:
+                fits[(task, name)] = (agent.prior.__name__, agent.fitted)
+    finally:
+        for env in envs.values():
+            env.close()
+    return fits, problems
+
+
+class InProcessEngine:
+    """Runs episodes one after another in this process (no Ray needed)."""
+
+    workers = 1
+
+    def __init__(self, seed: int, env_kwargs: Mapping[str, Any] | None, fits: Fits) -> None:
+        self.runner = EpisodeRunner(seed, env_kwargs, fits)
+
+    def run(self, episodes: Iterable[Episode], on_record: Callable[[dict[str, Any]], None]) -> None:
+        """Run the episodes, handing each record to ``on_record`` as it finishes."""
+        for episode in episodes:
+            on_record(self.runner.run(episode))
+
+    def close(self) -> None:
+        """Close the runner's environments."""
+        self.runner.close()
+
+
+class _RayWorker:
+    """A Ray actor's body: an :class:`EpisodeRunner` in a worker process.
+
+    Importing this module imports :mod:`humotion_gym`, which registers the env
+    ids in the worker; BLAS gets one thread, as on the command line.
+    """
+
+    def __init__(self, seed: int, env_kwargs: Mapping[str, Any], fits: Fits) -> None:
+        import humotion_gym  # registers the environment ids in this process
+        from humotion_gym.threads import limit_blas_threads
+
+        limit_blas_threads()
+        self.version = str(getattr(humotion_gym, "__version__", "unknown"))
+        self.runner = EpisodeRunner(seed, env_kwargs, fits)
+
+    def ping(self) -> tuple[str, int]:
+        """The package version and process id of this worker."""
+        return self.version, os.getpid()
+
+    def run(self, episode: Episode) -> dict[str, Any]:
+        """Run one episode (see :meth:`EpisodeRunner.run`)."""
+        return self.runner.run(episode)
+
+
+def _import_ray() -> Any:
+    try:
+        import ray
+    except ModuleNotFoundError as exc:
+        raise ModuleNotFoundError(
+            "the ray engine needs Ray; install the distributed extra: "
+            "pip install -e '.[distributed]'",
+            name="ray",
+        ) from exc
+    return ray
+
+
+class RayEngine:
+    """Runs episodes on Ray actors, one :class:`EpisodeRunner` each.
+
+    Args:
+        seed: Every agent's seed.
+        env_kwargs: The environments' settings (paths in them must exist on
+            every node).
+        fits: Fitted priors, put once in the object store for every actor.
+        workers: Actors to start (one CPU each); on a local Ray also the CPUs
+            it gets. None: every CPU of the cluster (of this machine when Ray
+            is started here).
+        address: A running cluster to join (``ray://...`` or ``HOST:PORT``);
+            else ``RAY_ADDRESS`` if set, else a local Ray is started here.
+            A Ray already initialised in this process is used as it is.
+
+    Raises:
+        ModuleNotFoundError: If Ray is not installed.
+        RuntimeError: If a worker runs another version of the package.
+    """
+
+    def __init__(
+        self,
+        seed: int,
+        env_kwargs: Mapping[str, Any] | None,
+        fits: Fits,
+        workers: int | None = None,
+        address: str | None = None,
+    ) -> None:
+        ray = _import_ray()
+        self.ray = ray
+        self.started = False
+        if not ray.is_initialized():
+            env_vars = {k: os.environ[k] for k in WORKER_ENV_VARS if os.environ.get(k)}
+            common: dict[str, Any] = {
+                "runtime_env": {"env_vars": env_vars} if env_vars else None,
+                "logging_level": logging.WARNING,
+                "log_to_driver": True,
+            }
+            address = address or os.environ.get("RAY_ADDRESS") or None
+            if address:
+                ray.init(address=address, **common)
+            else:
+                ray.init(num_cpus=workers or os.cpu_count() or 1, include_dashboard=False, **common)
+            self.started = True
+        self.workers = int(workers or max(1, int(ray.cluster_resources().get("CPU", 1))))
+        self._actor = ray.remote(num_cpus=1)(_RayWorker)
+        self._args = (int(seed), dict(env_kwargs or {}), ray.put(dict(fits)))
+        self.actors = [self._new_actor() for _ in range(self.workers)]
+        import humotion_gym
+
+        mine = str(getattr(humotion_gym, "__version__", "unknown"))
+        for version, pid in ray.get([a.ping.remote() for a in self.actors]):
+            if version != mine:
+                raise RuntimeError(
+                    f"a Ray worker (pid {pid}) runs humotion_gym {version}, this driver "
+                    f"{mine}: install the same version on every node"
+                )
+
+    def _new_actor(self) -> Any:
+        return self._actor.remote(*self._args)
+
+    def run(self, episodes: Iterable[Episode], on_record: Callable[[dict[str, Any]], None]) -> None:
+        """Run the episodes, handing each record to ``on_record`` as it finishes.
+
+        Records come in the order episodes finish, not the order given.
+        """
+        ray = self.ray
+        queue = deque(episodes)
+        pending: dict[Any, tuple[int, Episode]] = {}
+
+        def submit(slot: int) -> None:
+            if queue:
+                episode = queue.popleft()
+                pending[self.actors[slot].run.remote(episode)] = (slot, episode)
+
+        for _ in range(QUEUE_DEPTH):
+            for slot in range(len(self.actors)):
+                submit(slot)
+        while pending:
+            (ref,), _ = ray.wait(list(pending), num_returns=1)
+            slot, episode = pending.pop(ref)
+            try:
+                record = ray.get(ref)
+            except ray.exceptions.RayActorError as exc:  # the worker died: replace it
+                record = _lost(episode, f"the Ray worker died: {exc}")
+                self.actors[slot] = self._new_actor()
+            except ray.exceptions.RayError as exc:
+                record = _lost(episode, f"{type(exc).__name__}: {exc}")
+            on_record(record)
+            submit(slot)
+
+    def close(self) -> None:
+        """Stop the actors, and Ray if this engine started it."""
+        for actor in self.actors:
+            self.ray.kill(actor)
+        self.actors = []
+        if self.started:
+            self.ray.shutdown()
+
+
+def _lost(episode: Episode, why: str) -> dict[str, Any]:
+    cell = episode.cell
+    return {
+        "task": cell.task, "agent": cell.agent, "particles": cell.particles,
+        "seed": episode.seed, "error": why, "traceback": "", "wall_s": 0.0,
+    }  # fmt: skip
+
+
+def make_engine(
+    name: str,
+    seed: int,
+    env_kwargs: Mapping[str, Any] | None,
+    fits: Fits,
+    workers: int | None = None,
+    address: str | None = None,
+) -> InProcessEngine | RayEngine:
+    """An engine by name (:data:`ENGINES`).
+
+    Raises:
+        ValueError: For an unknown name, or ``workers``/``address`` given to
+            the in-process engine.
+    """
+    if name == "inprocess":
+        if address is not None or (workers is not None and workers != 1):
+            raise ValueError("workers, address: the inprocess engine runs one worker, here")
+        return InProcessEngine(seed, env_kwargs, fits)
+    if name == "ray":
+        return RayEngine(seed, env_kwargs, fits, workers, address)
+    raise ValueError(f"engine: expected one of {list(ENGINES)}, got {name!r}")
+
+
+def resolve_env_kwargs(env_kwargs: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The env settings with ``data_dir`` folders made absolute (workers run elsewhere)."""
+    kwargs = dict(env_kwargs or {})
+    data_dir = kwargs.get("data_dir")
+    if isinstance(data_dir, (str, Path)):
+        kwargs["data_dir"] = str(Path(data_dir).resolve())
+    elif isinstance(data_dir, (list, tuple)):
+        kwargs["data_dir"] = [str(Path(d).resolve()) for d in data_dir]
+    return kwargs

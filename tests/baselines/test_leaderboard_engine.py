@@ -1,0 +1,201 @@
+"""The leaderboard engine: same numbers on any engine, resume, failure rows and exit codes."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from baselines import agents as agents_module
+from baselines.agents import AgentSpec, ParticleFilterAgent
+from baselines.engine import run_cell_episode
+from baselines.leaderboard import (
+    EPISODES_FILE,
+    RESULTS_FILE,
+    SCHEMA_VERSION,
+    TABLE_FILE,
+    ResultsFolder,
+    ResumeError,
+    run_leaderboard,
+)
+from humotion_gym.cli import main
+
+# A small leaderboard: hold, a seeded random agent and a particle filter on the
+# built-in synthetic data, 3 short episodes per cell.
+TASKS = ["BodyTrack-v1"]
+AGENTS = ["pf-cv", "random"]
+PARTICLES = [20]
+EPISODES = 3
+SEED = 5
+
+
+def _numbers(value: Any) -> Any:
+    """Everything but the timings (``ms_per_frame``), which differ run to run."""
+    if isinstance(value, dict):
+        return {k: _numbers(v) for k, v in value.items() if k != "ms_per_frame"}
+    if isinstance(value, list):
+        return [_numbers(v) for v in value]
+    return value
+
+
+def _run(**kwargs: Any) -> list[dict[str, Any]]:
+    return run_leaderboard(
+        TASKS, AGENTS, PARTICLES, episodes=EPISODES, seed=SEED, progress=False, **kwargs
+    )
+
+
+@pytest.fixture(scope="module")
+def inprocess_rows() -> list[dict[str, Any]]:
+    return _run()
+
+
+def test_the_small_leaderboard_runs_every_cell(inprocess_rows):
+    assert [(r["task"], r["agent"], r["particles"]) for r in inprocess_rows] == [
+        ("BodyTrack-v1", "hold", 0),
+        ("BodyTrack-v1", "pf-cv", 20),
+        ("BodyTrack-v1", "random", 0),
+    ]
+    for row in inprocess_rows:
+        assert [e["seed"] for e in row["episodes"]] == list(range(SEED, SEED + EPISODES))
+        assert row["summary"]["episodes"] == EPISODES
+
+
+@pytest.mark.skipif(
+    importlib.util.find_spec("ray") is None,
+    reason="ray is not installed (the distributed extra: pip install -e '.[distributed]')",
+)
+def test_ray_with_two_workers_gives_the_in_process_numbers_bit_for_bit(inprocess_rows):
+    rows = _run(engine="ray", workers=2)
+    assert _numbers(rows) == _numbers(inprocess_rows)
+    # the timings are real measurements, not copied
+    assert all(r["summary"]["ms_per_frame"] > 0 for r in rows if r["agent"] != "hold")
+
+
+def test_an_episode_alone_gives_the_numbers_it_gave_in_its_cell(inprocess_rows):
+    # episodes do not depend on the ones run before them in the same agent
+    for row in inprocess_rows[1:]:
+        last = row["episodes"][-1]
+        alone = run_cell_episode(
+            row["task"], row["agent"], row["particles"], last["seed"], SEED
+        ).to_dict()
+        assert _numbers(alone) == _numbers(last)
+
+
+def test_a_run_in_reverse_cell_order_gives_the_same_numbers(inprocess_rows):
+    rows = run_leaderboard(
+        TASKS, AGENTS[::-1], PARTICLES, episodes=EPISODES, seed=SEED, progress=False
+    )
+    by_cell = {(r["agent"], r["particles"]): _numbers(r) for r in rows}
+    for r in inprocess_rows:
+        assert by_cell[(r["agent"], r["particles"])] == _numbers(r)
+
+
+def _lines(folder: Path) -> list[dict[str, Any]]:
+    return [json.loads(line) for line in (folder / EPISODES_FILE).read_text().splitlines()]
+
+
+def test_resume_runs_only_the_missing_episodes_and_ends_with_the_same_results(
+    tmp_path, inprocess_rows
+):
+    out = tmp_path / "lb"
+    run_leaderboard(TASKS, AGENTS, PARTICLES, episodes=2, seed=SEED, progress=False, out=out)
+    assert len(_lines(out)) == 2 * len(inprocess_rows)
+    # an interruption mid-write leaves a cut line: it is dropped and its episode rerun
+    with open(out / EPISODES_FILE, "ab") as fh:
+        fh.write(b'{"task": "BodyTrack-v1", "agent": "pf-cv", "partic')
+    rows = _run(out=out, resume=True)
+    records = _lines(out)
+    assert len(records) == EPISODES * len(inprocess_rows)  # each missing episode ran once
+    assert sorted((r["agent"], r["seed"]) for r in records[-len(inprocess_rows) :]) == sorted(
+        (r["agent"], SEED + EPISODES - 1) for r in inprocess_rows
+    )
+    assert _numbers(rows) == _numbers(inprocess_rows)
+    saved = json.loads((out / RESULTS_FILE).read_text())
+    assert saved["schema_version"] == SCHEMA_VERSION
+    assert saved["seed"] == SEED and saved["config"]["episodes"] == EPISODES
+    assert _numbers(saved["rows"]) == _numbers(inprocess_rows)
+    assert "| pf-cv | 20 |" in (out / TABLE_FILE).read_text()
+    # a second resume has nothing left to run
+    _run(out=out, resume=True)
+    assert len(_lines(out)) == len(records)
+
+
+def test_a_results_folder_is_not_overwritten_nor_resumed_with_other_settings(tmp_path):
+    out = tmp_path / "lb"
+    run_leaderboard(["BodyTrack-v1"], ["hold"], [1], episodes=1, progress=False, out=out)
+    with pytest.raises(FileExistsError, match="--resume"):
+        run_leaderboard(["BodyTrack-v1"], ["hold"], [1], episodes=1, progress=False, out=out)
+    with pytest.raises(ResumeError, match="seed"):
+        run_leaderboard(
+            ["BodyTrack-v1"], ["hold"], [1], episodes=1, seed=1, progress=False, out=out,
+            resume=True,
+        )  # fmt: skip
+    with pytest.raises(FileNotFoundError, match="no run to resume"):
+        ResultsFolder(tmp_path / "empty").start({"seed": 0}, resume=True)
+
+
+def _cli(tmp_path: Path, *agents: str) -> list[str]:
+    return [
+        "leaderboard", "--tasks", "BodyTrack-v1", "--agents", *agents, "--particles", "10",
+        "--episodes", "1", "--out", str(tmp_path / "lb"),
+    ]  # fmt: skip
+
+
+def test_an_agent_that_does_not_cover_a_task_is_a_row_with_its_reason_and_exit_0(tmp_path, capsys):
+    assert main(_cli(tmp_path, "pf-slds")) == 0
+    out = capsys.readouterr().out
+    assert "| pf-slds | 10 | skipped: pf-slds supports the tasks" in out
+    rows = json.loads((tmp_path / "lb" / RESULTS_FILE).read_text())["rows"]
+    assert [r["agent"] for r in rows if "skipped" in r] == ["pf-slds"]
+
+
+def test_an_agent_whose_prior_fails_to_fit_is_an_error_row_and_exit_1(
+    tmp_path, capsys, monkeypatch
+):
+    broken = AgentSpec("humotion_gym.priors.constant_velocity", {"no_such_setting": 1.0})
+    monkeypatch.setitem(agents_module.AGENTS, "pf-broken", broken)
+    assert main(_cli(tmp_path, "pf-broken", "pf-cv")) == 1
+    captured = capsys.readouterr()
+    assert "| pf-broken | 10 | ERROR: building it failed: TypeError" in captured.out
+    assert "error: pf-broken on BodyTrack-v1" in captured.err
+    rows = json.loads((tmp_path / "lb" / RESULTS_FILE).read_text())["rows"]
+    assert {r["agent"]: ("error" in r) for r in rows} == {
+        "hold": False, "pf-broken": True, "pf-cv": False,
+    }  # fmt: skip
+
+
+def test_an_agent_that_raises_in_an_episode_is_an_error_row_and_exit_1(
+    tmp_path, capsys, monkeypatch
+):
+    def predict(self, *args, **kwargs):
+        raise FloatingPointError("the filter's weights are all zero")
+
+    monkeypatch.setattr(ParticleFilterAgent, "predict", predict)
+    assert main(_cli(tmp_path, "pf-cv")) == 1
+    captured = capsys.readouterr()
+    assert "ERROR: episode 0 raised FloatingPointError" in captured.out
+    rows = json.loads((tmp_path / "lb" / RESULTS_FILE).read_text())["rows"]
+    assert rows[0]["agent"] == "hold" and "summary" in rows[0]
+    assert rows[1]["failed_seeds"] == [0]
+    # the failed episode is recorded but not done: a resume retries it
+    monkeypatch.undo()
+    assert main([*_cli(tmp_path, "pf-cv"), "--resume"]) == 0
+    rows = json.loads((tmp_path / "lb" / RESULTS_FILE).read_text())["rows"]
+    assert all("summary" in r for r in rows)
+
+
+@pytest.mark.parametrize(
+    "extra, flag",
+    [
+        (["--resume"], "--resume"),
+        (["--workers", "2"], "--workers"),
+        (["--address", "x"], "--address"),
+    ],
+)
+def test_engine_flags_used_wrongly_are_usage_errors(extra, flag, capsys):
+    argv = ["leaderboard", "--tasks", "BodyTrack-v1", "--agents", "hold", "--episodes", "1"]
+    assert main(argv + extra) == 2
+    assert flag in capsys.readouterr().err
