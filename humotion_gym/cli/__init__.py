@@ -45,6 +45,8 @@ COMMAND_MODULES: tuple[str, ...] = (
     "pca",  # pca period|figures
     "slds",  # slds classify|select|splits|interpolate|figures
     "train",  # train, learning-curve (learned trackers)
+    "report",  # report (tables, figures, videos, index.html of a saved leaderboard)
+    "sweep",  # sweep (difficulty curves over environment settings)
 )
 
 #: Extras that provide optional modules, for the hint when one is missing.

@@ -1,0 +1,233 @@
+"""Difficulty sweeps: the leaderboard over a grid of environment settings.
+
+A sweep varies one setting at a time (image size, background, noise,
+occluders, blur, frame skip) from the task's defaults, runs
+:func:`baselines.leaderboard.run_leaderboard` at every value (so every engine
+feature applies) and draws the difficulty curves: each cell's interquartile
+mean error against the setting, with its 95% bootstrap interval.
+One-at-a-time curves keep the cost linear in the number of values; a full
+product of settings grows too fast to run on one machine.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from baselines.stats import cell_label
+
+#: Sweep format version (``sweep.json``'s ``version``).
+VERSION = 1
+
+#: Settings a sweep can vary: name -> (environment keyword(s), what it is).
+SETTINGS: dict[str, str] = {
+    "size": "image width and height in pixels (width=height=SIZE)",
+    "background": "scene background, 'flat' or 'clutter'",
+    "noise": "per-pixel Gaussian sensor noise, grey levels",
+    "occluders": "bars and blobs sweeping in front of the figure",
+    "blur": "Gaussian blur of every frame, pixels",
+    "frame_skip": "source frames per environment step (1: every frame)",
+}
+
+
+def setting_kwargs(name: str, value: Any) -> dict[str, Any]:
+    """The environment keyword arguments that set one setting to a value.
+
+    Raises:
+        ValueError: If the setting is unknown or the value has the wrong type.
+    """
+    if name not in SETTINGS:
+        raise ValueError(f"setting: expected one of {', '.join(SETTINGS)}, got {name!r}")
+    if name == "size":
+        return {"width": int(value), "height": int(value)}
+    if name == "background":
+        if value not in ("flat", "clutter"):
+            raise ValueError(f"background: expected 'flat' or 'clutter', got {value!r}")
+        return {"background": value}
+    if name in ("occluders", "frame_skip"):
+        return {name: int(value)}
+    return {name: float(value)}
+
+
+def run_sweep(
+    tasks: Sequence[str],
+    agents: Sequence[str],
+    particles: Sequence[int],
+    grid: Mapping[str, Sequence[Any]],
+    episodes: int = 5,
+    seed: int = 0,
+    env_kwargs: Mapping[str, Any] | None = None,
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Run the leaderboard at every value of every setting of the grid.
+
+    Args:
+        tasks: Task names.
+        agents: Agent names (``hold`` always runs, as on the leaderboard).
+        particles: Particle counts of the particle filters.
+        grid: Setting name (see :data:`SETTINGS`) -> its values; the other
+            settings keep ``env_kwargs`` or the task's defaults.
+        episodes: Seeded episodes per cell and value.
+        seed: First episode seed.
+        env_kwargs: Settings common to every run (``data_dir``...).
+        progress: Show a progress bar over the sweep's points.
+
+    Returns:
+        The sweep (plain JSON, :data:`VERSION`): ``tasks``, ``agents``,
+        ``particles``, ``episodes``, ``seed``, ``env_kwargs`` and ``points``,
+        one per (setting, value) with its leaderboard ``rows``.
+
+    Raises:
+        ValueError: If the grid is empty or names an unknown setting.
+    """
+    from baselines.leaderboard import run_leaderboard
+
+    points = [(name, v) for name, values in grid.items() for v in values]
+    if not points:
+        raise ValueError("grid: expected at least one setting with at least one value")
+    base = dict(env_kwargs or {})
+    for name, v in points:
+        setting_kwargs(name, v)  # every value checked before the first run
+    out: dict[str, Any] = {
+        "version": VERSION,
+        "tasks": list(tasks),
+        "agents": list(agents),
+        "particles": list(particles),
+        "episodes": episodes,
+        "seed": seed,
+        "env_kwargs": base,
+        "points": [],
+    }
+    bar = tqdm(points, desc="sweep", disable=not progress)
+    for name, value in bar:
+        bar.set_postfix_str(f"{name}={value}")
+        rows = run_leaderboard(
+            tasks, agents, particles, episodes, seed, {**base, **setting_kwargs(name, value)}
+        )
+        out["points"].append({"setting": name, "value": value, "rows": rows})
+    return out
+
+
+def curves(sweep: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """One curve per (setting, task, cell): values, IQM errors and intervals.
+
+    Returns:
+        Dicts with ``setting``, ``task``, ``cell``, ``values``, ``iqm_mm``,
+        ``low``, ``high``, ``mean_mm`` and ``lost_fraction`` (lists in the
+        grid's order); cells that did not run at a value are left out there.
+    """
+    from baselines.evaluation import summarize
+
+    table: dict[tuple[str, str, str], dict[str, list[Any]]] = {}
+    for point in sweep["points"]:
+        for r in point["rows"]:
+            if "episodes" not in r or "skipped" in r or "error" in r:
+                continue
+            s = summarize(r["episodes"], seed=int(sweep.get("seed", 0)))
+            c = table.setdefault(
+                (point["setting"], r["task"], cell_label(r)),
+                {k: [] for k in ("values", "iqm_mm", "low", "high", "mean_mm", "lost_fraction")},
+            )
+            c["values"].append(point["value"])
+            c["iqm_mm"].append(s["iqm_error_mm"])
+            c["low"].append(s["iqm_error_ci"][0])
+            c["high"].append(s["iqm_error_ci"][1])
+            c["mean_mm"].append(s["mean_error_mm"])
+            c["lost_fraction"].append(s["lost_fraction"])
+    return [
+        {"setting": setting, "task": task, "cell": cell, **c}
+        for (setting, task, cell), c in table.items()
+    ]
+
+
+def markdown(sweep: Mapping[str, Any]) -> str:
+    """The curves as one Markdown table: IQM error (95% CI) per cell and value."""
+    lines = [
+        "| setting | value | task | agent | IQM error mm (95% CI) | mean mm | lost track |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for c in curves(sweep):
+        for k, v in enumerate(c["values"]):
+            lines.append(
+                f"| {c['setting']} | {v} | {c['task']} | {c['cell']} | {c['iqm_mm'][k]:.0f} "
+                f"({c['low'][k]:.0f}-{c['high'][k]:.0f}) | {c['mean_mm'][k]:.0f} | "
+                f"{c['lost_fraction'][k]:.0%} |"
+            )
+    return "\n".join(lines)
+
+
+def figure(sweep: Mapping[str, Any], path: str | Path, title: str | None = None) -> Path:
+    """Difficulty curves: IQM error against each setting, one panel per (task, setting).
+
+    Numeric settings are drawn on their own scale; others (background) as
+    categories. Bands and bars are the 95% bootstrap intervals of the IQM.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    all_curves = curves(sweep)
+    settings = list(dict.fromkeys(c["setting"] for c in all_curves))
+    tasks = list(dict.fromkeys(c["task"] for c in all_curves))
+    fig, axes = plt.subplots(
+        len(tasks), len(settings), figsize=(4.6 * len(settings), 3.5 * len(tasks)),
+        squeeze=False,
+    )  # fmt: skip
+    colors: dict[str, Any] = {}
+    for i, task in enumerate(tasks):
+        for j, setting in enumerate(settings):
+            ax = axes[i, j]
+            for c in (c for c in all_curves if c["task"] == task and c["setting"] == setting):
+                numeric = all(isinstance(v, (int, float)) for v in c["values"])
+                x = np.asarray(c["values"], dtype=float) if numeric else np.arange(len(c["values"]))
+                color = colors.setdefault(c["cell"], f"C{len(colors) % 10}")
+                ax.plot(x, c["iqm_mm"], "o-", color=color, label=c["cell"], lw=1.5, ms=4)
+                ax.fill_between(x, c["low"], c["high"], color=color, alpha=0.15, lw=0)
+                if not numeric:
+                    ax.set_xticks(x, [str(v) for v in c["values"]])
+            ax.set(
+                title=f"{task}: {setting}", xlabel=SETTINGS[setting],
+                ylabel="IQM keypoint error, mm (95% CI)",
+            )  # fmt: skip
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=7)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def save(sweep: Mapping[str, Any], path: str | Path) -> Path:
+    """Write the sweep as JSON."""
+    path = Path(path)
+    path.write_text(json.dumps(sweep, indent=1, default=_plain))
+    return path
+
+
+def load(path: str | Path) -> dict[str, Any]:
+    """Read a sweep written by :func:`save`.
+
+    Raises:
+        ValueError: If the file is not a sweep of this version (names the file).
+    """
+    data = json.loads(Path(path).read_text())
+    if not isinstance(data, dict) or data.get("version") != VERSION or "points" not in data:
+        raise ValueError(f"{path}: not a sweep file of version {VERSION}")
+    return data
+
+
+def _plain(value: Any) -> Any:
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"not JSON-serialisable: {type(value).__name__}")

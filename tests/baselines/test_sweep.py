@@ -1,0 +1,98 @@
+"""Difficulty sweeps: each setting reaches the environment; curves, table, figure and CLI."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from baselines import sweep
+from baselines.leaderboard import run_leaderboard
+from humotion_gym.cli import main
+
+#: Tiny episodes so a sweep point costs a fraction of a second.
+BASE = {"episode_frames": 5, "width": 64, "height": 64}
+
+
+def test_setting_kwargs_maps_names_to_environment_keywords():
+    assert sweep.setting_kwargs("size", 96) == {"width": 96, "height": 96}
+    assert sweep.setting_kwargs("noise", 8) == {"noise": 8.0}
+    assert sweep.setting_kwargs("occluders", 2) == {"occluders": 2}
+    assert sweep.setting_kwargs("frame_skip", 2) == {"frame_skip": 2}
+    assert sweep.setting_kwargs("background", "flat") == {"background": "flat"}
+    with pytest.raises(ValueError, match="setting"):
+        sweep.setting_kwargs("gravity", 1)
+    with pytest.raises(ValueError, match="background"):
+        sweep.setting_kwargs("background", "jungle")
+
+
+@pytest.fixture(scope="module")
+def small_sweep():
+    grid = {"noise": [0.0, 12.0], "occluders": [0, 3]}
+    return sweep.run_sweep(
+        ["ArmTrack-v1"], ["pf-cv"], [10], grid, episodes=2, seed=3, env_kwargs=BASE,
+        progress=False,
+    )  # fmt: skip
+
+
+def _errors(rows, agent):
+    return [e["errors_mm"] for r in rows if r["agent"] == agent for e in r["episodes"]]
+
+
+def test_each_point_is_the_leaderboard_at_that_setting(small_sweep):
+    points = small_sweep["points"]
+    assert [(p["setting"], p["value"]) for p in points] == [
+        ("noise", 0.0), ("noise", 12.0), ("occluders", 0), ("occluders", 3),
+    ]  # fmt: skip
+    direct = run_leaderboard(["ArmTrack-v1"], ["pf-cv"], [10], 2, 3, {**BASE, "noise": 12.0})
+    assert _errors(points[1]["rows"], "pf-cv") == _errors(direct, "pf-cv")
+    # the setting reaches the frames: the filter sees other pixels at another noise level
+    assert _errors(points[0]["rows"], "pf-cv") != _errors(points[1]["rows"], "pf-cv")
+    assert {r["agent"] for r in points[0]["rows"]} == {"hold", "pf-cv"}
+
+
+def test_curves_table_and_figure(small_sweep, tmp_path):
+    curves = sweep.curves(small_sweep)
+    assert {(c["setting"], c["cell"]) for c in curves} == {
+        (s, a) for s in ("noise", "occluders") for a in ("hold", "pf-cv@10")
+    }
+    for c in curves:
+        assert len(c["values"]) == 2
+        assert np.all(np.array(c["low"]) <= np.array(c["iqm_mm"]) + 1e-9)
+        assert np.all(np.array(c["iqm_mm"]) <= np.array(c["high"]) + 1e-9)
+    table = sweep.markdown(small_sweep)
+    assert len(table.splitlines()) == 2 + 4 * 2  # header, rule, 4 curves x 2 values
+    path = sweep.figure(small_sweep, tmp_path / "curves.png", title="test")
+    import cv2
+
+    image = cv2.imread(str(path))
+    assert image is not None and image.std() > 5
+    saved = sweep.save(small_sweep, tmp_path / "sweep.json")
+    assert sweep.load(saved)["points"][1]["value"] == 12.0
+    (tmp_path / "bad.json").write_text(json.dumps([1]))
+    with pytest.raises(ValueError, match="bad.json"):
+        sweep.load(tmp_path / "bad.json")
+    with pytest.raises(ValueError, match="grid"):
+        sweep.run_sweep(["ArmTrack-v1"], ["pf-cv"], [10], {})
+
+
+def test_sweep_command(tmp_path, capsys, monkeypatch):
+    seen = []
+
+    def fake_leaderboard(tasks, agents, particles, episodes, seed, env_kwargs):
+        seen.append(env_kwargs)
+        return run_leaderboard(tasks, agents, particles, episodes, seed, {**env_kwargs, **BASE})
+
+    monkeypatch.setattr("baselines.leaderboard.run_leaderboard", fake_leaderboard)
+    out = tmp_path / "sw"
+    code = main(
+        ["sweep", "--tasks", "ArmTrack-v1", "--agents", "hold", "--episodes", "1",
+         "--size", "64", "80", "--out", str(out), "--figure", str(tmp_path / "fig.png")]
+    )  # fmt: skip
+    assert code == 0
+    assert seen == [{"width": 64, "height": 64}, {"width": 80, "height": 80}]
+    assert {p.name for p in out.iterdir()} == {"sweep.json", "sweep.md", "sweep.png"}
+    assert (tmp_path / "fig.png").is_file()
+    assert "| size | 64 |" in capsys.readouterr().out
+    assert main(["sweep", "--tasks", "ArmTrack-v1", "--out", str(out)]) == 2  # nothing to sweep
