@@ -194,7 +194,8 @@ def markdown_report(rows: Sequence[dict[str, Any]], computed: dict[str, Any]) ->
     from baselines.leaderboard import markdown_table, validity_lines
 
     good = [r for r in rows if ran(r)]
-    parts = ["# Leaderboard", "", markdown_table(good), ""]
+    # every row: markdown_table shows a cell that did not run with its reason
+    parts = ["# Leaderboard", "", markdown_table(rows), ""]
     parts += [f"- {line}" for line in validity_lines(good)] + [""]
     parts += ["## Cell statistics", "", _markdown(statistics_table(rows)), ""]
     if computed["aggregate"]:
@@ -598,7 +599,7 @@ def _leaderboard_table(rows: Sequence[dict[str, Any]]) -> list[list[str]]:
     """The Markdown leaderboard table parsed back into cells (the same columns)."""
     from baselines.leaderboard import markdown_table
 
-    lines = markdown_table([r for r in rows if ran(r)]).splitlines()
+    lines = markdown_table(rows).splitlines()
     return [[c.strip() for c in line.strip().strip("|").split("|")] for line in lines if
             not line.startswith("|---")]  # fmt: skip
 
@@ -610,6 +611,7 @@ def html_page(
     videos: Sequence[dict[str, Any]],
     notes: Sequence[str],
     title: str = "humotion_gym leaderboard",
+    files: Sequence[str] = (),
 ) -> str:
     """The static ``index.html`` (inline CSS and JavaScript, links relative to its folder)."""
     parts = [
@@ -618,7 +620,9 @@ def html_page(
         f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
         f"<h1>{html.escape(title)}</h1>",
         '<p>Files: <a href="tables.md">tables.md</a> (Markdown tables) &middot; '
-        '<a href="stats.json">stats.json</a> (every statistic). Click a column to sort.</p>',
+        '<a href="stats.json">stats.json</a> (every statistic)'
+        + "".join(f' &middot; <a href="{html.escape(f)}">{html.escape(f)}</a>' for f in files)
+        + ". Click a column to sort.</p>",
     ]
     parts += [f'<p class="legend">{html.escape(n)}</p>' for n in notes]
     parts += ["<h2>Leaderboard</h2>", _html_table(_leaderboard_table(rows), "leaderboard")]
@@ -727,7 +731,9 @@ def write_report(
         made = write_videos(rows, folder, env_kwargs, video_cells, progress)
         (folder / "videos.json").write_text(json.dumps(made, indent=1))
     index = folder / "index.html"
-    index.write_text(html_page(rows, computed, figures, made, notes, title))
+    # the engine's files of the same results folder, where they are
+    files = [f for f in ("results.json", "table.md", "episodes.jsonl") if (folder / f).is_file()]
+    index.write_text(html_page(rows, computed, figures, made, notes, title, files))
     return index
 
 

@@ -63,6 +63,7 @@ def run_sweep(
     seed: int = 0,
     env_kwargs: Mapping[str, Any] | None = None,
     progress: bool = True,
+    engine_options: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Run the leaderboard at every value of every setting of the grid.
 
@@ -76,6 +77,9 @@ def run_sweep(
         seed: First episode seed.
         env_kwargs: Settings common to every run (``data_dir``...).
         progress: Show a progress bar over the sweep's points.
+        engine_options: Keyword arguments of
+            :func:`~baselines.leaderboard.run_leaderboard` that choose its
+            engine (``engine="ray"``, ``workers``, ``address``); none: in-process.
 
     Returns:
         The sweep (plain JSON, :data:`VERSION`): ``tasks``, ``agents``,
@@ -106,9 +110,13 @@ def run_sweep(
     bar = tqdm(points, desc="sweep", disable=not progress)
     for name, value in bar:
         bar.set_postfix_str(f"{name}={value}")
-        rows = run_leaderboard(
-            tasks, agents, particles, episodes, seed, {**base, **setting_kwargs(name, value)}
-        )
+        settings = {**base, **setting_kwargs(name, value)}
+        if engine_options:
+            rows = run_leaderboard(
+                tasks, agents, particles, episodes, seed, settings, **dict(engine_options)
+            )
+        else:
+            rows = run_leaderboard(tasks, agents, particles, episodes, seed, settings)
         out["points"].append({"setting": name, "value": value, "rows": rows})
     return out
 

@@ -74,6 +74,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--frame-skip", type=positive_int, nargs="+", default=None, metavar="K",
         help="frame skips (default: not swept)",
     )  # fmt: skip
+    sw.add_argument(
+        "--engine", choices=["inprocess", "ray"], default="inprocess",
+        help="run episodes in this process or on Ray, as leaderboard does (default: inprocess)",
+    )  # fmt: skip
+    sw.add_argument(
+        "--workers", type=positive_int, default=None,
+        help="Ray workers (default: every CPU of the Ray cluster)",
+    )  # fmt: skip
+    sw.add_argument(
+        "--address", default=None,
+        help="a Ray cluster to join (default: $RAY_ADDRESS, else a local Ray)",
+    )  # fmt: skip
     add_seed(sw, "seed of the first episode")
     add_data_dir(sw)
     sw.add_argument(
@@ -105,9 +117,13 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             "nothing to sweep: give at least one of --size, --background, --noise, "
             "--occluders, --blur, --frame-skip"
         )
+    engine = None
+    if args.engine != "inprocess" or args.workers or args.address:
+        engine = {"engine": args.engine, "workers": args.workers, "address": args.address}
     result = sweep.run_sweep(
-        args.tasks, args.agents, args.particles, grid, args.episodes, args.seed, env_kwargs(args)
-    )
+        args.tasks, args.agents, args.particles, grid, args.episodes, args.seed,
+        env_kwargs(args), engine_options=engine,
+    )  # fmt: skip
     args.out.mkdir(parents=True, exist_ok=True)
     wrote(sweep.save(result, args.out / "sweep.json"), "every episode at every setting")
     table = sweep.markdown(result)

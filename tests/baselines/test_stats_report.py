@@ -247,7 +247,8 @@ def test_report_writes_tables_figures_and_a_page_whose_links_exist(tmp_path):
     assert "fit failed" in md and "Across tasks" in md
     header = page.tables[0][0]
     assert header[:3] == ["task", "agent", "particles"]
-    assert len(page.tables[0]) == 1 + sum("summary" in r for r in rows)
+    assert len(page.tables[0]) == 1 + len(rows)  # the failed cell too, with its reason
+    assert "ERROR: fit failed" in [c for row in page.tables[0] for c in row]
     computed = json.loads((tmp_path / "rep" / "stats.json").read_text())
     assert {a["cell"] for a in computed["aggregate"]} == {"hold", "pf-cv@100", "random"}
 

@@ -80,8 +80,8 @@ def test_curves_table_and_figure(small_sweep, tmp_path):
 def test_sweep_command(tmp_path, capsys, monkeypatch):
     seen = []
 
-    def fake_leaderboard(tasks, agents, particles, episodes, seed, env_kwargs):
-        seen.append(env_kwargs)
+    def fake_leaderboard(tasks, agents, particles, episodes, seed, env_kwargs, **engine):
+        seen.append((env_kwargs, engine))
         return run_leaderboard(tasks, agents, particles, episodes, seed, {**env_kwargs, **BASE})
 
     monkeypatch.setattr("baselines.leaderboard.run_leaderboard", fake_leaderboard)
@@ -91,8 +91,15 @@ def test_sweep_command(tmp_path, capsys, monkeypatch):
          "--size", "64", "80", "--out", str(out), "--figure", str(tmp_path / "fig.png")]
     )  # fmt: skip
     assert code == 0
-    assert seen == [{"width": 64, "height": 64}, {"width": 80, "height": 80}]
+    assert seen == [({"width": 64, "height": 64}, {}), ({"width": 80, "height": 80}, {})]
     assert {p.name for p in out.iterdir()} == {"sweep.json", "sweep.md", "sweep.png"}
     assert (tmp_path / "fig.png").is_file()
     assert "| size | 64 |" in capsys.readouterr().out
     assert main(["sweep", "--tasks", "ArmTrack-v1", "--out", str(out)]) == 2  # nothing to sweep
+    # the engine options reach the leaderboard (this fake runs it in-process)
+    seen.clear()
+    argv = ["sweep", "--tasks", "ArmTrack-v1", "--agents", "hold", "--episodes", "1"]
+    assert (
+        main([*argv, "--noise", "2", "--engine", "ray", "--workers", "2", "--out", str(out)]) == 0
+    )
+    assert seen == [({"noise": 2.0}, {"engine": "ray", "workers": 2, "address": None})]
