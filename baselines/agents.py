@@ -311,6 +311,12 @@ class AgentSpec:
         task_fit_settings: Per task name, fit settings chosen for that task
             by cross-validation on training persons (``humotion-gym select
             --grid fit.NAME=...``); they override ``fit_settings``.
+        components: For a mixture prior (``prior`` is
+            :mod:`humotion_gym.priors.mixture`): ``(label, spec)`` per
+            component, each fitted (and cached) as its own agent would be; the
+            settings ``weight.LABEL`` (a component's probability; the first
+            takes the rest) and ``LABEL.NAME`` (a component's fit setting)
+            apply.
     """
 
     prior: str
@@ -319,10 +325,29 @@ class AgentSpec:
     tasks: tuple[str, ...] | None = None
     layers: int = 1
     task_fit_settings: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    components: tuple[tuple[str, AgentSpec], ...] = ()
 
     def settings_for(self, task: str) -> dict[str, Any]:
         """The fit settings of this agent on a task."""
         return {**self.fit_settings, **self.task_fit_settings.get(task, {})}
+
+    def setting_names(self) -> set[str]:
+        """The names its fit settings may take (``humotion-gym select --grid fit.NAME``).
+
+        A prior's ``fit`` keywords; for a mixture (``components``),
+        ``weight.LABEL`` (the probability of the component labelled ``LABEL``;
+        the first takes the rest) and ``LABEL.NAME`` for a keyword of that
+        component's prior.
+        """
+        import inspect
+
+        if not self.components:
+            fit = _import(self.prior).fit
+            return set(inspect.signature(fit).parameters) - {"motions", "free", "rng"}
+        names = {MIXTURE_WEIGHT + label for label, _ in self.components[1:]}
+        for label, spec in self.components:
+            names |= {f"{label}.{n}" for n in spec.setting_names()}
+        return names
 
 
 def _import(path: str) -> ModuleType:
@@ -352,12 +377,50 @@ def fit_prior(
     cache.
     """
     kwargs = {**spec.settings_for(env.task.name), **(settings or {})}
+    if spec.components:
+        return _fit_mixture(spec, env, kwargs, cache_dir, use_cache)
     if env.frame_skip != 1:
         kwargs.setdefault("frame_skip", env.frame_skip)
     return fit_prior_on(
         spec.prior, training_motions(env), env.task.free_indices, kwargs,
         use_cache=use_cache, cache_dir=cache_dir,
     )  # fmt: skip
+
+
+#: A mixture agent's setting ``weight.LABEL``: the probability of the
+#: component labelled ``LABEL`` (the first component has what the others leave).
+MIXTURE_WEIGHT = "weight."
+
+
+def _fit_mixture(
+    spec: AgentSpec,
+    env: PoseTrackingEnv,
+    settings: Mapping[str, Any],
+    cache_dir: str | Path | None,
+    use_cache: bool,
+) -> tuple[ModuleType, Any]:
+    """Fit (or read from the cache) each component, then compose the mixture."""
+    from humotion_gym.priors import mixture
+
+    unknown = sorted(set(settings) - spec.setting_names())
+    if unknown:
+        raise ValueError(
+            f"{spec.prior}: unknown settings {unknown}; they are {sorted(spec.setting_names())}"
+        )
+    labels = [label for label, _ in spec.components]
+    weights = np.array([float(settings.get(MIXTURE_WEIGHT + label, 0.0)) for label in labels])
+    weights[0] = 1.0 - weights[1:].sum()
+    if np.any(weights < 0) or np.any(weights > 1):
+        raise ValueError(
+            f"mixture weights: expected probabilities summing to at most 1 for "
+            f"{labels[1:]}, got {weights[1:].tolist()}"
+        )
+    fits = []
+    for label, component in spec.components:
+        prefix = f"{label}."
+        own = {n[len(prefix) :]: v for n, v in settings.items() if n.startswith(prefix)}
+        fits.append(fit_prior(component, env, own, cache_dir=cache_dir, use_cache=use_cache))
+    return mixture, mixture.compose(fits, weights)
 
 
 # pf-cv's settings, chosen by cross-validation on the training persons (pf-cv at
@@ -370,6 +433,11 @@ def fit_prior(
 # velocity is mostly a nuisance at 30 frames per second: what keeps
 # the cloud on the person is noise on the pose itself.
 CV_SETTINGS: dict[str, float] = {"multiplier": 0.5, "damping": 0.3, "position_noise": 1.5}
+
+CONSTANT_VELOCITY = "humotion_gym.priors.constant_velocity"
+#: A random walk on the pose (constant velocity with no velocity): what lets a
+#: mixture stand still.
+STILL_SETTINGS: dict[str, float] = {"multiplier": 0.0, "damping": 0.0, "position_noise": 0.15}
 
 AGENTS: dict[str, AgentSpec] = {
     "pf-cv": AgentSpec(
@@ -406,6 +474,17 @@ AGENTS: dict[str, AgentSpec] = {
         fit_settings={"replay": "velocity"},
         description="annealed particle filter, 10 layers, proposals from pf-tree-vel's prior",
         layers=10,
+    ),
+    "pf-mix": AgentSpec(
+        "humotion_gym.priors.mixture",
+        fit_settings={"weight.cv": 0.3, "weight.still": 0.2},
+        components=(
+            ("tree", AgentSpec("humotion_gym.priors.tree")),
+            ("cv", AgentSpec(CONSTANT_VELOCITY, fit_settings=CV_SETTINGS)),
+            ("still", AgentSpec(CONSTANT_VELOCITY, fit_settings=STILL_SETTINGS)),
+        ),
+        description="a mixture of the tree prior, constant velocity and a small random walk "
+        "(Sidenbladh, Black & Sigal 2002, section 7): each particle, each frame, moves by one",
     ),
     "pf-slds": AgentSpec(
         "humotion_gym.priors.slds",

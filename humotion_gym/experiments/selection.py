@@ -14,7 +14,6 @@ prints the table this module computes.
 
 from __future__ import annotations
 
-import importlib
 import itertools
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
@@ -106,8 +105,6 @@ def select_observation_settings(
             keyword of the prior, a value list is empty, or ``library`` is not
             a validation fold of training persons.
     """
-    import inspect
-
     from baselines.agents import AGENTS, make
     from baselines.evaluation import evaluate
 
@@ -122,12 +119,11 @@ def select_observation_settings(
     if fit_names:
         if agent not in AGENTS:
             raise ValueError(f"grid: {fit_names} need a particle-filter agent, not {agent}")
-        prior = importlib.import_module(AGENTS[agent].prior)
-        known = set(inspect.signature(prior.fit).parameters) - {"motions", "free", "rng"}
+        known = AGENTS[agent].setting_names()
         bad = sorted(n for n in fit_names if n[len(FIT_PREFIX) :] not in known)
         if bad:
             raise ValueError(
-                f"grid: {bad} are not settings of {AGENTS[agent].prior}.fit "
+                f"grid: {bad} are not settings of {agent}'s prior {AGENTS[agent].prior} "
                 f"(they are {sorted(known)})"
             )
     if not grid or any(len(v) == 0 for v in grid.values()):

@@ -1,0 +1,174 @@
+"""A mixture of motion priors: each particle, each frame, moves by one of them.
+
+Sidenbladh, Black & Sigal, *Implicit probabilistic models of human motion for
+synthesis and tracking*, ECCV 2002, section 7, propose a mixture of the tree
+prior and constant velocity "so that motion outside the database can still be
+followed". With component priors ``p_k`` and weights ``w_k`` the transition is
+
+    p(phi_t | phi_{<t}) = sum_k w_k p_k(phi_t | phi_{<t}),
+
+and a sample of it is: pick ``k`` with probability ``w_k``, then sample ``p_k``.
+So the particle filter over a mixture is still the plain bootstrap filter; the
+particles the likelihood prefers carry on, whichever component moved them.
+
+Each component keeps its own per-particle memory in :class:`ParticleState`'s
+``extra`` (the tree its history window, constant velocity its velocity). When
+one component moves a particle, the others' memory must follow that move
+(:data:`FOLLOW`): the tree's history window shifts in the new pose, so a
+particle that stood still for a while is searched in the database by a still
+history; the velocity becomes the step just taken (then damped as usual).
+
+The mixture has no fitted arrays of its own beyond its weights: it is composed
+(:func:`compose`) from components fitted and cached as usual, and is not saved.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from humotion_gym.filtering import ParticleState
+
+FloatArray = NDArray[np.float64]
+NAME = "mixture"
+
+
+def _follow_tree(old: ParticleState, pose: FloatArray) -> dict[str, NDArray[Any]]:
+    """The tree's memory after another model moved the particles to ``pose``."""
+    history = old.extra["history"]
+    shifted = np.empty_like(history)
+    shifted[:, :-1] = history[:, 1:]
+    shifted[:, -1] = pose
+    return {"history": shifted, "window": old.extra["window"]}
+
+
+def _follow_velocity(old: ParticleState, pose: FloatArray) -> dict[str, NDArray[Any]]:
+    """Constant velocity's memory: the step just taken is the velocity."""
+    return {"velocity": pose - old.pose}
+
+
+#: Per component prior (its module's ``NAME``): how its per-particle memory
+#: follows a move made by another component.
+FOLLOW: dict[str, Callable[[ParticleState, FloatArray], dict[str, NDArray[Any]]]] = {
+    "tree": _follow_tree,
+    "constant_velocity": _follow_velocity,
+}
+
+
+@dataclass(frozen=True, eq=False)
+class MixtureParams:
+    """A mixture of fitted priors.
+
+    Attributes:
+        modules: The component prior modules (each with ``initial``,
+            ``transition`` and a ``NAME`` in :data:`FOLLOW`).
+        fitted: Their fitted parameters, in the same order.
+        weights: ``(K,)`` the probability that a particle moves by each
+            component in a frame (sums to 1).
+        free: ``(D,)`` the modelled parameters (the components').
+    """
+
+    modules: tuple[ModuleType, ...]
+    fitted: tuple[Any, ...]
+    weights: FloatArray
+    free: NDArray[np.intp]
+
+
+def compose(components: Sequence[tuple[ModuleType, Any]], weights: ArrayLike) -> MixtureParams:
+    """A mixture of fitted priors with the given weights.
+
+    Args:
+        components: ``(module, fitted)`` per component prior.
+        weights: ``(K,)`` non-negative, summing to 1.
+
+    Raises:
+        ValueError: If there are fewer than two components, the weights do not
+            match them or are not a distribution, a component's prior has no
+            rule to follow another's moves, or the components model different
+            parameters.
+    """
+    if len(components) < 2:
+        raise ValueError(f"mixture: expected at least two components, got {len(components)}")
+    w = np.asarray(weights, dtype=np.float64)
+    if w.shape != (len(components),):
+        raise ValueError(f"mixture: expected {len(components)} weights, got shape {w.shape}")
+    if np.any(w < 0) or not np.isclose(w.sum(), 1.0):
+        raise ValueError(f"mixture: weights must be non-negative and sum to 1, got {w.tolist()}")
+    modules = tuple(m for m, _ in components)
+    for m in modules:
+        if getattr(m, "NAME", None) not in FOLLOW:
+            raise ValueError(
+                f"mixture: the prior {m.__name__} cannot be a component (the components "
+                f"are priors named {sorted(FOLLOW)})"
+            )
+    free = np.asarray(components[0][1].free, dtype=np.intp)
+    for m, f in components[1:]:
+        if not np.array_equal(np.asarray(f.free), free):
+            raise ValueError(
+                f"mixture: {m.__name__} models the parameters {np.asarray(f.free).tolist()}, "
+                f"the first component {free.tolist()}"
+            )
+    return MixtureParams(modules, tuple(f for _, f in components), w, free)
+
+
+def _key(c: int, key: str) -> str:
+    return f"{c}/{key}"
+
+
+def _memory(state: ParticleState, c: int, rows: NDArray[np.intp]) -> ParticleState:
+    """Component ``c``'s view of the particles at ``rows``: its own memory, unprefixed."""
+    prefix = f"{c}/"
+    own = {k[len(prefix) :]: v[rows] for k, v in state.extra.items() if k.startswith(prefix)}
+    return ParticleState(state.pose[rows], own)
+
+
+def initial(
+    fitted: MixtureParams, pose: ArrayLike, n: int, rng: np.random.Generator
+) -> ParticleState:
+    """N particles at the known pose, with every component's memory started.
+
+    Component ``c``'s per-particle arrays are kept as ``extra["c/NAME"]``, so
+    two components of the same prior (two constant-velocity models) keep
+    apart.
+    """
+    extra: dict[str, NDArray[Any]] = {}
+    start = None
+    for c, (module, params) in enumerate(zip(fitted.modules, fitted.fitted, strict=True)):
+        state = module.initial(params, pose, n, rng)
+        start = state.pose if start is None else start
+        extra.update({_key(c, k): v for k, v in state.extra.items()})
+    assert start is not None
+    return ParticleState(start, extra)
+
+
+def transition(
+    fitted: MixtureParams, state: ParticleState, rng: np.random.Generator
+) -> ParticleState:
+    """One step: each particle picks a component by the weights and moves by it.
+
+    The other components' memory of the moved particles follows the move
+    (:data:`FOLLOW`).
+    """
+    k = len(fitted.modules)
+    pick = rng.choice(k, size=state.n, p=fitted.weights)
+    pose = np.empty_like(state.pose)
+    extra = {key: np.empty_like(value) for key, value in state.extra.items()}
+    for c, (module, params) in enumerate(zip(fitted.modules, fitted.fitted, strict=True)):
+        rows = np.flatnonzero(pick == c)
+        if rows.size == 0:
+            continue
+        moved = module.transition(params, _memory(state, c, rows), rng)
+        pose[rows] = moved.pose
+        for key, value in moved.extra.items():
+            extra[_key(c, key)][rows] = value
+        for o, other in enumerate(fitted.modules):
+            if o != c:
+                followed = FOLLOW[other.NAME](_memory(state, o, rows), moved.pose)
+                for key, value in followed.items():
+                    extra[_key(o, key)][rows] = value
+    return ParticleState(pose, extra)

@@ -1,0 +1,73 @@
+"""Still episodes (the person barely moves) and the mixture agent that can stand still."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import humotion_gym  # noqa: F401
+from baselines.agents import AGENTS, make
+from baselines.evaluation import run_episode
+from baselines.stillness import STILL_RATIO, markdown_table, run_still, still_windows
+
+
+@pytest.fixture(scope="module")
+def env():
+    return gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
+
+
+def test_still_windows_are_what_hold_scores_lowest_and_never_overlap(env):
+    windows = still_windows(env, max_hold_mm=200.0, count=6, stride=10)
+    assert 1 <= len(windows) <= 6
+    hold = make("hold", env)
+    errors = [run_episode(hold, env, 0, w.options).mean_error_mm for w in windows]
+    assert np.allclose(errors, [w.hold_mm for w in windows])  # the window is its episode
+    assert errors == sorted(errors) and max(errors) <= 200.0
+    span = env.unwrapped.episode_frames
+    for i, a in enumerate(windows):
+        for b in windows[i + 1 :]:
+            assert a.clip_id != b.clip_id or abs(a.start - b.start) >= span
+    # a tighter bound keeps a prefix of the same windows (none may be looser)
+    tight = still_windows(env, max_hold_mm=windows[0].hold_mm + 1e-9, count=6, stride=10)
+    assert tight[0] == windows[0] and all(w.hold_mm <= windows[0].hold_mm for w in tight)
+
+
+def test_still_windows_refuse_bad_arguments(env):
+    with pytest.raises(ValueError, match="max_hold_mm"):
+        still_windows(env, max_hold_mm=0.0)
+    with pytest.raises(ValueError, match="count and stride"):
+        still_windows(env, count=0)
+
+
+def test_run_still_compares_every_agent_to_hold(env):
+    windows = still_windows(env, max_hold_mm=200.0, count=2, stride=20)
+    out = run_still("BodyTrack-v1", ["pf-cv"], particles=20, windows=windows, progress=False)
+    rows = {r["agent"]: r for r in out["rows"]}
+    assert list(rows) == ["hold", "pf-cv"]
+    assert rows["hold"]["x_hold"] == 1.0 and rows["hold"]["within"]
+    ratio = rows["pf-cv"]["mean_error_mm"] / rows["hold"]["mean_error_mm"]
+    assert rows["pf-cv"]["x_hold"] == pytest.approx(ratio)
+    assert rows["pf-cv"]["within"] == (ratio <= STILL_RATIO)
+    assert [e["clip_id"] for e in rows["pf-cv"]["episodes"]] == [w.clip_id for w in windows]
+    assert "| pf-cv | 20 |" in markdown_table(out)
+    with pytest.raises(ValueError, match="raise max_hold_mm"):
+        run_still("BodyTrack-v1", ["pf-cv"], windows=[], progress=False)
+
+
+def test_mixture_agent_is_seeded_and_checks_its_settings(env, tmp_path, monkeypatch):
+    monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
+    spec = AGENTS["pf-mix"]
+    assert {"weight.cv", "weight.still", "tree.beta", "cv.damping"} <= spec.setting_names()
+
+    def track(seed):
+        agent = make("pf-mix", env, n_particles=40, seed=seed)
+        return run_episode(agent, env, 5).errors_mm
+
+    assert track(1) == track(1)
+    with pytest.raises(ValueError, match="unknown settings"):
+        make("pf-mix", env, n_particles=10, fit_settings={"weight": 0.5})
+    with pytest.raises(ValueError, match="mixture weights"):
+        make("pf-mix", env, n_particles=10, fit_settings={"weight.cv": 0.7, "weight.still": 0.6})
+    # a component's own settings reach its fit
+    agent = make("pf-mix", env, n_particles=10, fit_settings={"still.position_noise": 0.5})
+    still = agent.fitted.fitted[2]
+    assert still.position_noise == 0.5 and agent.fitted.weights.sum() == pytest.approx(1.0)
