@@ -121,30 +121,79 @@ def run_sweep(
     return out
 
 
-def curves(sweep: Mapping[str, Any]) -> list[dict[str, Any]]:
-    """One curve per (setting, task, cell): values, IQM errors and intervals.
+def default_value(name: str) -> Any:
+    """The environment's default of a setting (the leaderboard's difficulty)."""
+    import inspect
+
+    from humotion_gym.envs.pose_tracking import PoseTrackingEnv
+    from humotion_gym.render import SceneOptions
+
+    scene = SceneOptions()
+    env_defaults = inspect.signature(PoseTrackingEnv.__init__).parameters
+    return {
+        "size": scene.width,
+        "background": scene.background,
+        "noise": scene.noise_sigma,
+        "occluders": scene.occluders,
+        "blur": scene.blur_sigma,
+        "frame_skip": env_defaults["frame_skip"].default,
+    }[name]
+
+
+#: What a curve can show (:func:`curves`' ``metric``).
+METRICS: dict[str, str] = {
+    "error": "IQM keypoint error, mm (95% CI)",
+    "score": "IQM of error / hold's (same episode)",
+}
+
+
+def curves(sweep: Mapping[str, Any], metric: str = "error") -> list[dict[str, Any]]:
+    """One curve per (setting, task, cell): values, IQMs and intervals.
+
+    Args:
+        sweep: A sweep (:func:`run_sweep` or :func:`load`).
+        metric: ``"error"``: the IQM of the episodes' mean keypoint errors in
+            mm; ``"score"``: the IQM of each episode's error over ``hold``'s
+            on the same episode (paired, so the spread of episode difficulty
+            cancels; ``hold`` does not look at the frames, so its own score
+            is 1 everywhere).
 
     Returns:
-        Dicts with ``setting``, ``task``, ``cell``, ``values``, ``iqm_mm``,
+        Dicts with ``setting``, ``task``, ``cell``, ``values``, ``iqm``,
         ``low``, ``high``, ``mean_mm`` and ``lost_fraction`` (lists in the
         grid's order); cells that did not run at a value are left out there.
+
+    Raises:
+        ValueError: If the metric is unknown.
     """
     from baselines.evaluation import summarize
+    from baselines.stats import bootstrap_ci, iqm, normalised_scores
 
+    if metric not in METRICS:
+        raise ValueError(f"metric: expected one of {', '.join(METRICS)}, got {metric!r}")
+    seed = int(sweep.get("seed", 0))
     table: dict[tuple[str, str, str], dict[str, list[Any]]] = {}
     for point in sweep["points"]:
+        scores = normalised_scores(point["rows"]) if metric == "score" else {}
         for r in point["rows"]:
             if "episodes" not in r or "skipped" in r or "error" in r:
                 continue
-            s = summarize(r["episodes"], seed=int(sweep.get("seed", 0)))
+            s = summarize(r["episodes"], seed=seed)
+            if metric == "score":
+                values = scores.get(cell_label(r), {}).get(r["task"])
+                if values is None:  # no hold on this task: no score
+                    continue
+                centre, (low, high) = iqm(values), bootstrap_ci(values, iqm, seed=seed)
+            else:
+                centre, (low, high) = s["iqm_error_mm"], s["iqm_error_ci"]
             c = table.setdefault(
                 (point["setting"], r["task"], cell_label(r)),
-                {k: [] for k in ("values", "iqm_mm", "low", "high", "mean_mm", "lost_fraction")},
+                {k: [] for k in ("values", "iqm", "low", "high", "mean_mm", "lost_fraction")},
             )
             c["values"].append(point["value"])
-            c["iqm_mm"].append(s["iqm_error_mm"])
-            c["low"].append(s["iqm_error_ci"][0])
-            c["high"].append(s["iqm_error_ci"][1])
+            c["iqm"].append(centre)
+            c["low"].append(low)
+            c["high"].append(high)
             c["mean_mm"].append(s["mean_error_mm"])
             c["lost_fraction"].append(s["lost_fraction"])
     return [
@@ -162,52 +211,70 @@ def markdown(sweep: Mapping[str, Any]) -> str:
     for c in curves(sweep):
         for k, v in enumerate(c["values"]):
             lines.append(
-                f"| {c['setting']} | {v} | {c['task']} | {c['cell']} | {c['iqm_mm'][k]:.0f} "
+                f"| {c['setting']} | {v} | {c['task']} | {c['cell']} | {c['iqm'][k]:.0f} "
                 f"({c['low'][k]:.0f}-{c['high'][k]:.0f}) | {c['mean_mm'][k]:.0f} | "
                 f"{c['lost_fraction'][k]:.0%} |"
             )
     return "\n".join(lines)
 
 
-def figure(sweep: Mapping[str, Any], path: str | Path, title: str | None = None) -> Path:
-    """Difficulty curves: IQM error against each setting, one panel per (task, setting).
+def figure(
+    sweep: Mapping[str, Any],
+    path: str | Path,
+    title: str | None = None,
+    metrics: Sequence[str] = ("error", "score"),
+) -> Path:
+    """Difficulty curves against each setting: one panel per (task and metric, setting).
 
     Numeric settings are drawn on their own scale; others (background) as
-    categories. Bands and bars are the 95% bootstrap intervals of the IQM.
+    categories. Bands are the 95% bootstrap intervals of the IQM; a dotted
+    line marks the setting's default (the leaderboard's difficulty).
     """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    all_curves = curves(sweep)
-    settings = list(dict.fromkeys(c["setting"] for c in all_curves))
-    tasks = list(dict.fromkeys(c["task"] for c in all_curves))
+    by_metric = {m: curves(sweep, m) for m in metrics}
+    first = by_metric[metrics[0]]
+    settings = list(dict.fromkeys(c["setting"] for c in first))
+    tasks = list(dict.fromkeys(c["task"] for c in first))
+    panels = [(task, m) for task in tasks for m in metrics]
     fig, axes = plt.subplots(
-        len(tasks), len(settings), figsize=(4.6 * len(settings), 3.5 * len(tasks)),
+        len(panels), len(settings), figsize=(4.8 * len(settings), 3.3 * len(panels)),
         squeeze=False,
     )  # fmt: skip
     colors: dict[str, Any] = {}
-    for i, task in enumerate(tasks):
+    for i, (task, metric) in enumerate(panels):
         for j, setting in enumerate(settings):
             ax = axes[i, j]
-            for c in (c for c in all_curves if c["task"] == task and c["setting"] == setting):
-                numeric = all(isinstance(v, (int, float)) for v in c["values"])
+            mine = [c for c in by_metric[metric] if c["task"] == task and c["setting"] == setting]
+            numeric = all(isinstance(v, (int, float)) for c in mine for v in c["values"])
+            for c in mine:
+                if metric == "score" and c["cell"] == "hold":
+                    continue  # 1 by definition: the dashed line
                 x = np.asarray(c["values"], dtype=float) if numeric else np.arange(len(c["values"]))
                 color = colors.setdefault(c["cell"], f"C{len(colors) % 10}")
-                ax.plot(x, c["iqm_mm"], "o-", color=color, label=c["cell"], lw=1.5, ms=4)
-                ax.fill_between(x, c["low"], c["high"], color=color, alpha=0.15, lw=0)
+                ax.plot(x, c["iqm"], "o-", color=color, label=c["cell"], lw=1.5, ms=4)
+                ax.fill_between(x, c["low"], c["high"], color=color, alpha=0.12, lw=0)
                 if not numeric:
                     ax.set_xticks(x, [str(v) for v in c["values"]])
-            ax.set(
-                title=f"{task}: {setting}", xlabel=SETTINGS[setting],
-                ylabel="IQM keypoint error, mm (95% CI)",
-            )  # fmt: skip
+            default = default_value(setting)
+            if numeric:
+                ax.axvline(float(default), color="grey", ls=":", lw=1, label="default")
+            if metric == "score":
+                ax.axhline(1.0, color="grey", ls="--", lw=1, label="hold")
+            ax.set(title=f"{task}: {setting}", xlabel=SETTINGS[setting], ylabel=METRICS[metric])
             ax.grid(alpha=0.3)
-            ax.legend(fontsize=7)
+    legend: dict[str, Any] = {}  # one entry per cell over all panels
+    for ax in axes.ravel():
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            legend.setdefault(label, handle)
+    fig.legend(legend.values(), legend.keys(), loc="lower center", ncol=min(len(legend), 7),
+               fontsize=8, frameon=False)  # fmt: skip
     if title:
         fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
     path = Path(path)
     fig.savefig(path, dpi=120)
     plt.close(fig)

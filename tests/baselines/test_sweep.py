@@ -9,6 +9,7 @@ import pytest
 
 from baselines import sweep
 from baselines.leaderboard import run_leaderboard
+from baselines.stats import iqm
 from humotion_gym.cli import main
 
 #: Tiny episodes so a sweep point costs a fraction of a second.
@@ -59,8 +60,21 @@ def test_curves_table_and_figure(small_sweep, tmp_path):
     }
     for c in curves:
         assert len(c["values"]) == 2
-        assert np.all(np.array(c["low"]) <= np.array(c["iqm_mm"]) + 1e-9)
-        assert np.all(np.array(c["iqm_mm"]) <= np.array(c["high"]) + 1e-9)
+        assert np.all(np.array(c["low"]) <= np.array(c["iqm"]) + 1e-9)
+        assert np.all(np.array(c["iqm"]) <= np.array(c["high"]) + 1e-9)
+    # the paired score: each episode's error over hold's on the same episode
+    scores = {(c["setting"], c["cell"]): c for c in sweep.curves(small_sweep, "score")}
+    assert scores[("noise", "hold")]["iqm"] == [1.0, 1.0]
+    rows = small_sweep["points"][1]["rows"]
+    held = {
+        e["seed"]: e["mean_error_mm"] for r in rows if r["agent"] == "hold" for e in r["episodes"]
+    }
+    pf = [e["mean_error_mm"] / held[e["seed"]] for r in rows if r["agent"] == "pf-cv"
+          for e in r["episodes"]]  # fmt: skip
+    assert scores[("noise", "pf-cv@10")]["iqm"][1] == pytest.approx(iqm(pf))
+    with pytest.raises(ValueError, match="metric"):
+        sweep.curves(small_sweep, "speed")
+    assert sweep.default_value("noise") == 4.0 and sweep.default_value("frame_skip") == 1
     table = sweep.markdown(small_sweep)
     assert len(table.splitlines()) == 2 + 4 * 2  # header, rule, 4 curves x 2 values
     path = sweep.figure(small_sweep, tmp_path / "curves.png", title="test")
