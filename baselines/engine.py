@@ -294,8 +294,12 @@ class InProcessEngine:
 
     workers = 1
 
-    def __init__(self, seed: int, env_kwargs: Mapping[str, Any] | None, fits: Fits) -> None:
-        self.runner = EpisodeRunner(seed, env_kwargs, fits)
+    def __init__(self, seed: int, env_kwargs: Mapping[str, Any] | None) -> None:
+        self.runner = EpisodeRunner(seed, env_kwargs)
+
+    def start(self, fits: Fits) -> None:
+        """Hand the runner the driver's fitted priors (before :meth:`run`)."""
+        self.runner.fits = dict(fits)
 
     def run(self, episodes: Iterable[Episode], on_record: Callable[[dict[str, Any]], None]) -> None:
         """Run the episodes, handing each record to ``on_record`` as it finishes."""
@@ -314,16 +318,17 @@ class _RayWorker:
     ids in the worker; BLAS gets one thread, as on the command line.
     """
 
-    def __init__(self, seed: int, env_kwargs: Mapping[str, Any], fits: Fits) -> None:
+    def __init__(self, seed: int, env_kwargs: Mapping[str, Any]) -> None:
         import humotion_gym  # registers the environment ids in this process
         from humotion_gym.threads import limit_blas_threads
 
         limit_blas_threads()
         self.version = str(getattr(humotion_gym, "__version__", "unknown"))
-        self.runner = EpisodeRunner(seed, env_kwargs, fits)
+        self.runner = EpisodeRunner(seed, env_kwargs)
 
-    def ping(self) -> tuple[str, int]:
-        """The package version and process id of this worker."""
+    def start(self, fits: Fits) -> tuple[str, int]:
+        """Take the fitted priors; the package version and process id of this worker."""
+        self.runner.fits = dict(fits)
         return self.version, os.getpid()
 
     def run(self, episode: Episode) -> dict[str, Any]:
@@ -343,14 +348,52 @@ def _import_ray() -> Any:
     return ray
 
 
+class _Schedule:
+    """Which episode a free worker runs next: preferably one of a cell it has built.
+
+    A worker keeps to its cell while the cell has episodes left, then takes a
+    cell no worker has started, then helps on the cell with the most episodes
+    left. Each cell is built by as few workers as possible (building one costs
+    a few episodes on real data); the order changes nothing in the numbers.
+    """
+
+    def __init__(self, episodes: Iterable[Episode]) -> None:
+        self.left: OrderedDict[Cell, deque[Episode]] = OrderedDict()
+        for episode in episodes:
+            self.left.setdefault(episode.cell, deque()).append(episode)
+        self.started: set[Cell] = set()
+        self.last: dict[int, Cell] = {}
+
+    def __bool__(self) -> bool:
+        return bool(self.left)
+
+    def next(self, slot: int) -> Episode | None:
+        if not self.left:
+            return None
+        cell = self.last.get(slot)
+        if cell not in self.left:
+            fresh = [c for c in self.left if c not in self.started]
+            cell = fresh[0] if fresh else max(self.left, key=lambda c: len(self.left[c]))
+        queue = self.left[cell]
+        episode = queue.popleft()
+        if not queue:
+            del self.left[cell]
+        self.started.add(cell)
+        self.last[slot] = cell
+        return episode
+
+
 class RayEngine:
     """Runs episodes on Ray actors, one :class:`EpisodeRunner` each.
+
+    The actors start (a process each, importing the package) as soon as the
+    engine is made, while the driver fits the priors; :meth:`start` hands
+    them the fits, through the object store.
 
     Args:
         seed: Every agent's seed.
         env_kwargs: The environments' settings (paths in them must exist on
             every node).
-        fits: Fitted priors, put once in the object store for every actor.
         workers: Actors to start (one CPU each); on a local Ray also the CPUs
             it gets. None: every CPU of the cluster (of this machine when Ray
             is started here).
@@ -360,14 +403,12 @@ class RayEngine:
 
     Raises:
         ModuleNotFoundError: If Ray is not installed.
-        RuntimeError: If a worker runs another version of the package.
     """
 
     def __init__(
         self,
         seed: int,
         env_kwargs: Mapping[str, Any] | None,
-        fits: Fits,
         workers: int | None = None,
         address: str | None = None,
     ) -> None:
@@ -389,20 +430,26 @@ class RayEngine:
             self.started = True
         self.workers = int(workers or max(1, int(ray.cluster_resources().get("CPU", 1))))
         self._actor = ray.remote(num_cpus=1)(_RayWorker)
-        self._args = (int(seed), dict(env_kwargs or {}), ray.put(dict(fits)))
-        self.actors = [self._new_actor() for _ in range(self.workers)]
+        self._args = (int(seed), dict(env_kwargs or {}))
+        self._fits: Any = None
+        self.actors = [self._actor.remote(*self._args) for _ in range(self.workers)]
+
+    def start(self, fits: Fits) -> None:
+        """Put the fits in the object store once and hand them to every actor.
+
+        Raises:
+            RuntimeError: If a worker runs another version of the package.
+        """
         import humotion_gym
 
+        self._fits = self.ray.put(dict(fits))
         mine = str(getattr(humotion_gym, "__version__", "unknown"))
-        for version, pid in ray.get([a.ping.remote() for a in self.actors]):
+        for version, pid in self.ray.get([a.start.remote(self._fits) for a in self.actors]):
             if version != mine:
                 raise RuntimeError(
                     f"a Ray worker (pid {pid}) runs humotion_gym {version}, this driver "
                     f"{mine}: install the same version on every node"
                 )
-
-    def _new_actor(self) -> Any:
-        return self._actor.remote(*self._args)
 
     def run(self, episodes: Iterable[Episode], on_record: Callable[[dict[str, Any]], None]) -> None:
         """Run the episodes, handing each record to ``on_record`` as it finishes.
@@ -410,12 +457,12 @@ class RayEngine:
         Records come in the order episodes finish, not the order given.
         """
         ray = self.ray
-        queue = deque(episodes)
+        schedule = _Schedule(episodes)
         pending: dict[Any, tuple[int, Episode]] = {}
 
         def submit(slot: int) -> None:
-            if queue:
-                episode = queue.popleft()
+            episode = schedule.next(slot)
+            if episode is not None:
                 pending[self.actors[slot].run.remote(episode)] = (slot, episode)
 
         for _ in range(QUEUE_DEPTH):
@@ -428,7 +475,9 @@ class RayEngine:
                 record = ray.get(ref)
             except ray.exceptions.RayActorError as exc:  # the worker died: replace it
                 record = _lost(episode, f"the Ray worker died: {exc}")
-                self.actors[slot] = self._new_actor()
+                self.actors[slot] = self._actor.remote(*self._args)
+                if self._fits is not None:
+                    self.actors[slot].start.remote(self._fits)
             except ray.exceptions.RayError as exc:
                 record = _lost(episode, f"{type(exc).__name__}: {exc}")
             on_record(record)
@@ -455,11 +504,10 @@ def make_engine(
     name: str,
     seed: int,
     env_kwargs: Mapping[str, Any] | None,
-    fits: Fits,
     workers: int | None = None,
     address: str | None = None,
 ) -> InProcessEngine | RayEngine:
-    """An engine by name (:data:`ENGINES`).
+    """An engine by name (:data:`ENGINES`); call its ``start(fits)`` before ``run``.
 
     Raises:
         ValueError: For an unknown name, or ``workers``/``address`` given to
@@ -468,9 +516,9 @@ def make_engine(
     if name == "inprocess":
         if address is not None or (workers is not None and workers != 1):
             raise ValueError("workers, address: the inprocess engine runs one worker, here")
-        return InProcessEngine(seed, env_kwargs, fits)
+        return InProcessEngine(seed, env_kwargs)
     if name == "ray":
-        return RayEngine(seed, env_kwargs, fits, workers, address)
+        return RayEngine(seed, env_kwargs, workers, address)
     raise ValueError(f"engine: expected one of {list(ENGINES)}, got {name!r}")
 
 

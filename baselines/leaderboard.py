@@ -196,6 +196,8 @@ def run_leaderboard(
     out: str | Path | None = None,
     resume: bool = False,
     command: str | None = None,
+    report: bool = True,
+    videos: bool = False,
 ) -> list[dict[str, Any]]:
     """Run every (task, agent, particle count) cell, and ``hold`` on every task.
 
@@ -222,6 +224,9 @@ def run_leaderboard(
             ``table.md`` and the report are written at the end.
         resume: Continue the run saved in ``out``, skipping finished episodes.
         command: The command line that ran this, kept in ``results.json``.
+        report: With ``out``, also write the report (figures, ``index.html``).
+        videos: With ``out`` and ``report``, also the videos of each cell's
+            best, median and worst episode (each re-run).
 
     Returns:
         One dict per cell: ``task``, ``agent``, ``particles`` and either
@@ -250,40 +255,24 @@ def run_leaderboard(
     folder = ResultsFolder(out) if out is not None else None
     settings = _settings(seed, kwargs)
     done = folder.start(settings, resume) if folder is not None else {}
-    fits, problems = prepare_cells(cells, seed, kwargs, progress)
-    todo = [
+    left = [
         Episode(cell, s)
         for cell in cells
-        if (cell.task, cell.agent) not in problems
         for s in seeds
         if (cell.task, cell.agent, cell.particles, s) not in done
     ]
+    # the engine's workers start (Ray: a process each) while the driver fits
+    runner = make_engine(engine, seed, kwargs, workers, address) if left else None
     records = dict(done)
     failures: dict[Cell, list[dict[str, Any]]] = {}
-    if todo:
-        runner = make_engine(engine, seed, kwargs, fits, workers, address)
-        bar = tqdm(total=len(todo), desc="episodes", unit="episode", disable=not progress)
-        if done:
-            bar.write(f"resuming: {len(done)} episodes were done, {len(todo)} to run")
-
-        def take(record: dict[str, Any]) -> None:
-            if folder is not None:
-                folder.append(record)
-            if "result" in record:
-                records[_key(record)] = record
-            else:
-                failures.setdefault(Cell(*_key(record)[:3]), []).append(record)
-                bar.write(
-                    f"error: {record['agent']} on {record['task']} ({record['particles']} "
-                    f"particles), episode {record['seed']}: {record['error']}"
-                )
-            bar.set_postfix_str(f"{record['agent']} on {record['task']}", refresh=False)
-            bar.update(1)
-
-        try:
-            runner.run(todo, take)
-        finally:
-            bar.close()
+    try:
+        fits, problems = prepare_cells(cells, seed, kwargs, progress)
+        todo = [e for e in left if (e.cell.task, e.cell.agent) not in problems]
+        if runner is not None and todo:
+            runner.start(fits)
+            _run_episodes(runner, todo, len(done), records, failures, folder, progress)
+    finally:
+        if runner is not None:
             runner.close()
     rows = _rows(cells, seeds, records, problems, failures, seed)
     if folder is not None:
@@ -292,8 +281,42 @@ def run_leaderboard(
             "episodes": episodes, "seed": seed, "env_kwargs": kwargs, "engine": engine,
             "workers": workers, "address": address,
         }  # fmt: skip
-        write_results(rows, folder.folder, config, command)
+        write_results(rows, folder.folder, config, command, report, videos, progress)
     return rows
+
+
+def _run_episodes(
+    runner: Any,
+    todo: list[Episode],
+    n_done: int,
+    records: dict[tuple[str, str, int, int], dict[str, Any]],
+    failures: dict[Cell, list[dict[str, Any]]],
+    folder: ResultsFolder | None,
+    progress: bool,
+) -> None:
+    """Run the episodes with a progress bar (time left), saving each record as it comes."""
+    bar = tqdm(total=len(todo), desc="episodes", unit="episode", disable=not progress)
+    if n_done:
+        bar.write(f"resuming: {n_done} episodes were done, {len(todo)} to run")
+
+    def take(record: dict[str, Any]) -> None:
+        if folder is not None:
+            folder.append(record)
+        if "result" in record:
+            records[_key(record)] = record
+        else:
+            failures.setdefault(Cell(*_key(record)[:3]), []).append(record)
+            bar.write(
+                f"error: {record['agent']} on {record['task']} ({record['particles']} "
+                f"particles), episode {record['seed']}: {record['error']}"
+            )
+        bar.set_postfix_str(f"{record['agent']} on {record['task']}", refresh=False)
+        bar.update(1)
+
+    try:
+        runner.run(todo, take)
+    finally:
+        bar.close()
 
 
 def _settings(seed: int, env_kwargs: dict[str, Any]) -> dict[str, Any]:
@@ -343,8 +366,16 @@ def write_results(
     folder: str | Path,
     config: dict[str, Any],
     command: str | None = None,
+    report: bool = True,
+    videos: bool = False,
+    progress: bool = True,
 ) -> None:
     """Write ``results.json`` and ``table.md``, then the report if :mod:`baselines.report` exists.
+
+    The report (:func:`baselines.report.write_report`: figures, ``index.html``,
+    with ``videos`` the best, median and worst episode of each cell) needs the
+    ``plots`` extra; without it, or with ``report`` False, the folder holds the
+    results and the table alone.
 
     ``results.json`` (schema :data:`SCHEMA_VERSION`, docs/leaderboard.md):
     ``schema_version``, ``kind``, ``created`` (UTC), ``package_version``,
@@ -371,12 +402,23 @@ def write_results(
     _write_text(out / RESULTS_FILE, json.dumps(_jsonable(document), indent=1) + "\n")
     table = markdown_table(rows) + "\n\n" + "\n".join(validity_lines(rows)) + "\n"
     _write_text(out / TABLE_FILE, table)
+    if not report:
+        return
     try:
         from baselines.report import write_report
     except ImportError:  # the report module is optional: the folder is complete without it
         print(f"{out}: no figures or index.html (baselines.report is not available)")
         return
-    write_report(list(rows), out)
+    if not any("summary" in r for r in rows):
+        print(f"{out}: no figures or index.html (no cell ran)")
+        return
+    try:
+        write_report(
+            list(rows), out, videos=videos, env_kwargs=document["env_kwargs"],
+            seed=document["seed"], progress=progress,
+        )  # fmt: skip
+    except ModuleNotFoundError as exc:  # matplotlib (the plots extra) is optional
+        print(f"{out}: no figures or index.html ({exc}; install the plots extra)")
 
 
 def default_command(

@@ -74,6 +74,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="continue the run saved in --out FOLDER, skipping its finished episodes",
     )  # fmt: skip
     lb.add_argument(
+        "--videos", action="store_true",
+        help="with --out: also videos of each cell's best, median and worst episode (re-run)",
+    )  # fmt: skip
+    lb.add_argument(
+        "--no-report", action="store_true",
+        help="with --out: results.json and table.md only, no figures or index.html",
+    )  # fmt: skip
+    lb.add_argument(
         "--engine", choices=["inprocess", "ray"], default="inprocess",
         help="where episodes run: in this process, or on Ray (the distributed extra) "
         "(default: inprocess)",
@@ -113,6 +121,8 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
 
     if args.resume and args.out is None:
         raise UsageError("--resume: needs --out FOLDER, the run to continue")
+    if (args.videos or args.no_report) and args.out is None:
+        raise UsageError("--videos, --no-report: need --out FOLDER")
     if args.engine != "ray" and (args.workers is not None or args.address is not None):
         raise UsageError("--workers, --address: only with --engine ray")
     if args.out is not None and args.out.suffix == ".json":
@@ -128,12 +138,13 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         args.tasks, args.agents, args.particles, args.episodes, args.seed,
         data_dir=args.data_dir, background=args.background, noise=args.noise,
         engine=args.engine, workers=args.workers, address=args.address, out=args.out,
+        videos=args.videos, no_report=args.no_report,
     )  # fmt: skip
     try:
         rows = run_leaderboard(
             args.tasks, args.agents, args.particles, args.episodes, args.seed, kwargs,
             engine=args.engine, workers=args.workers, address=args.address, out=args.out,
-            resume=args.resume, command=command,
+            resume=args.resume, command=command, report=not args.no_report, videos=args.videos,
         )  # fmt: skip
     except ModuleNotFoundError as exc:
         if exc.name != "ray":

@@ -199,3 +199,23 @@ def test_engine_flags_used_wrongly_are_usage_errors(extra, flag, capsys):
     argv = ["leaderboard", "--tasks", "BodyTrack-v1", "--agents", "hold", "--episodes", "1"]
     assert main(argv + extra) == 2
     assert flag in capsys.readouterr().err
+
+
+def test_the_ray_schedule_hands_out_every_episode_once_keeping_workers_on_their_cells():
+    from baselines.engine import Cell, Episode, _Schedule
+
+    cells = [Cell("BodyTrack-v1", a, 10) for a in ("a", "b", "c")]
+    episodes = [Episode(c, s) for c in cells for s in range(4)]
+    schedule = _Schedule(episodes)
+    given: dict[int, list[Episode]] = {0: [], 1: []}
+    slot = 0
+    while schedule:
+        episode = schedule.next(slot)
+        assert episode is not None
+        given[slot].append(episode)
+        slot = 1 - slot
+    assert schedule.next(0) is None
+    assert sorted(given[0] + given[1], key=lambda e: (e.cell, e.seed)) == episodes
+    # each worker starts on a cell of its own and stays on it while it lasts
+    assert {e.cell for e in given[0][:4]} == {cells[0]}
+    assert {e.cell for e in given[1][:4]} == {cells[1]}
