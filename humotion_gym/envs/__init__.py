@@ -29,6 +29,15 @@ ENVIRONMENTS: tuple[tuple[str, str], ...] = (
     ("SideWalk-v1", "humotion_gym.envs.side_walk:SideWalkEnv"),
 )
 
+#: The batched version of each id's environment, for ``gymnasium.make_vec(id,
+#: num_envs=N, vectorization_mode="vector_entry_point")`` (N episodes stepped
+#: as one batch, the same results as N single environments; see
+#: :mod:`humotion_gym.envs.vector`).
+VECTOR_ENTRY_POINTS: dict[str, str] = {
+    name: f"humotion_gym.envs.vector:{entry_point.split(':')[1].replace('Env', 'VectorEnv')}"
+    for name, entry_point in ENVIRONMENTS
+}
+
 #: The canonical ids, with namespace.
 ENV_IDS: tuple[str, ...] = tuple(f"{NAMESPACE}/{name}" for name, _ in ENVIRONMENTS)
 
@@ -38,7 +47,11 @@ def register_envs() -> None:
     for name, entry_point in ENVIRONMENTS:
         for env_id in (f"{NAMESPACE}/{name}", name):
             if env_id not in registry:
-                register(id=env_id, entry_point=entry_point)
+                register(
+                    id=env_id,
+                    entry_point=entry_point,
+                    vector_entry_point=VECTOR_ENTRY_POINTS[name],
+                )
 
 
 __all__ = [
@@ -46,6 +59,7 @@ __all__ = [
     "ENV_IDS",
     "RESET_OPTIONS",
     "TASKS",
+    "VECTOR_ENTRY_POINTS",
     "ArmTrackEnv",
     "BodyTrackEnv",
     "PoseTrackingEnv",

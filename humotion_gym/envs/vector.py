@@ -1,0 +1,396 @@
+"""N tracking episodes advanced together: the environments' ``vector_entry_point``.
+
+``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``
+gives a :class:`PoseTrackingVectorEnv`. It returns what a
+``SyncVectorEnv`` of N single environments returns for the same seeds,
+bit for bit (observations, rewards, episode ends and the batched ``info``
+with its ``_key`` masks; ``tests/envs/test_vector_env.py``), with Gymnasium
+1.x's autoreset modes (``NEXT_STEP`` by default, ``SAME_STEP``,
+``DISABLED``), at a fraction of the cost: the step's action mapping,
+kinematics, errors, rewards and lost-track counts are computed for the N
+episodes at once, and an episode's start (clip, start frame, background,
+camera) is the single environment's own reset, with the episode's geometry
+read from a per-clip table instead of being recomputed.
+
+Each of the N episodes is held by a :class:`PoseTrackingEnv` (``envs``), kept
+in step, so its methods (``pose_to_action``, ``action_to_pose``,
+``observation_model``, ``camera``, ``shape``, ``render``) serve the agents
+exactly as in the single environment.
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+from numpy.typing import NDArray
+
+from humotion_gym.body import N_KEYPOINTS, N_PARAMS
+from humotion_gym.envs.pose_tracking import PoseTrackingEnv
+from humotion_gym.kinematics import single_pose_geometry
+
+FloatArray = NDArray[np.float64]
+
+# Keys of a step's info whose values the sync vector env batches as arrays of
+# the type of the first value (gymnasium.vector.VectorEnv._add_info).
+_RESET_KEYS = ("initial_pose", "shape", "clip_id", "fps", "start_frame", "synthetic")
+
+
+class PoseTrackingVectorEnv(VectorEnv):
+    """``num_envs`` episodes of one tracking task, stepped as one batch.
+
+    The spaces are the single environment's batched: observations
+    ``(N, H, W, C)`` uint8, actions ``(N, n_free)`` float32 in [-1, 1]. Every
+    keyword argument of :class:`PoseTrackingEnv` is accepted and applies to
+    every episode.
+
+    ``reset(seed=s)`` seeds episode ``i`` with ``s + i`` (a list gives one seed
+    per episode), as ``SyncVectorEnv`` does; ``options`` go to every episode,
+    and ``options["reset_mask"]`` resets only the masked ones.
+
+    Args:
+        num_envs: Number of episodes N.
+        task: The task's id or spec.
+        autoreset_mode: Gymnasium's autoreset mode (``NEXT_STEP``: the step
+            after an episode's end starts the next one and ignores its action;
+            ``SAME_STEP``: the next episode starts at once and the finished
+            one's last observation and info are in ``info["final_obs"]`` and
+            ``info["final_info"]``; ``DISABLED``: call ``reset`` with a mask).
+        **kwargs: Keyword arguments of :class:`PoseTrackingEnv`.
+    """
+
+    metadata = {
+        "render_modes": ["rgb_array"],
+        "render_fps": 30,
+        "autoreset_mode": AutoresetMode.NEXT_STEP,
+    }
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        task: str = "BodyTrack-v1",
+        autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+        **kwargs: Any,
+    ) -> None:
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)):
+            raise ValueError(f"num_envs: expected an integer >= 1, got {num_envs!r}")
+        if num_envs < 1:
+            raise ValueError(f"num_envs: expected an integer >= 1, got {num_envs!r}")
+        template = PoseTrackingEnv(task=task, **kwargs)
+        # The episodes share the template's library, clip table and caches
+        # (shallow copies): constructing one env filters the clips once.
+        self.envs: list[PoseTrackingEnv] = [template] + [
+            copy.copy(template) for _ in range(int(num_envs) - 1)
+        ]
+        self.num_envs = int(num_envs)
+        self.task = template.task
+        self.render_mode = template.render_mode
+        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        self.metadata = {
+            **self.metadata,
+            "render_fps": template.metadata["render_fps"],
+            "autoreset_mode": self.autoreset_mode,
+        }
+        self.single_observation_space = template.observation_space
+        self.single_action_space = template.action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        assert isinstance(self.single_action_space, spaces.Box)
+        self._free = template.task.free_indices
+        self._fixed = template.task.fixed_indices
+        self._err_kp = template.task.error_keypoint_indices
+        self._regions = [
+            (f"reward_{name}", np.array(idx, dtype=np.intp))
+            for name, idx in template._region_of.items()
+        ]
+        # One table of every clip's geometry, shared by the N episodes.
+        self._clip_geometry: dict[str, tuple[Any, FloatArray]] = {}
+        n, frames = self.num_envs, template.episode_frames + 1
+        self._params = np.zeros((n, frames, N_PARAMS))
+        self._truth_kp = np.zeros((n, frames, N_KEYPOINTS, 3))
+        self._lo = np.zeros((n, len(self._free)))
+        self._hi = np.ones((n, len(self._free)))
+        self._k = np.zeros(n, np.intp)
+        self._lost_run = np.zeros(n, np.intp)
+        self._autoreset = np.zeros(n, np.bool_)
+        self._started = np.zeros(n, np.bool_)
+        self._obs = np.zeros((n, *template.observation_space.shape), np.uint8)
+
+    # -- episodes ----------------------------------------------------------------
+
+    def _start(self, i: int, seed: int | None, options: dict[str, Any] | None) -> dict[str, Any]:
+        """Reset episode ``i`` (the single environment's reset) and copy its tables."""
+        env = self.envs[i]
+        obs, info = env.reset(seed=seed, options=options)
+        self._obs[i] = obs
+        self._params[i] = env._episode_params
+        self._truth_kp[i] = env._truth_keypoints
+        self._lo[i], self._hi[i] = env._action_bounds()
+        self._k[i] = env._k
+        self._lost_run[i] = 0
+        self._started[i] = True
+        return info
+
+    def reset(
+        self,
+        *,
+        seed: int | list[int | None] | None = None,
+        options: dict[str, Any] | None = None,
+    ) -> tuple[NDArray[np.uint8], dict[str, Any]]:
+        """Start episodes: all of them, or those in ``options["reset_mask"]``.
+
+        Args:
+            seed: None, an int (episode ``i`` gets ``seed + i``) or one seed
+                per episode.
+            options: The single environment's reset options, given to every
+                episode reset, plus ``reset_mask`` (a boolean ``(N,)`` array).
+
+        Returns:
+            The batched first frames and the batched info.
+        """
+        n = self.num_envs
+        if seed is None:
+            seeds: list[int | None] = [None] * n
+        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            seeds = [int(seed) + i for i in range(n)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != n:
+                raise ValueError(
+                    f"reset: a list of seeds must have num_envs={n} entries, got {len(seeds)}"
+                )
+        mask = np.ones(n, np.bool_)
+        if options is not None and "reset_mask" in options:
+            options = dict(options)
+            mask = options.pop("reset_mask")
+            if not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_ and mask.shape == (n,)):
+                raise ValueError(
+                    f"reset: options['reset_mask'] must be a bool array of shape ({n},)"
+                )
+            if not mask.any():
+                raise ValueError("reset: options['reset_mask'] selects no episode")
+        infos: dict[str, Any] = {}
+        for i in np.flatnonzero(mask).tolist():
+            info = self._start(i, seeds[i], options or None)
+            _add_info(infos, info, i, n)
+        self._autoreset[mask] = False
+        return self._obs.copy(), infos
+
+    # -- step ----------------------------------------------------------------------
+
+    def step(
+        self, actions: NDArray[Any]
+    ) -> tuple[
+        NDArray[np.uint8], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]
+    ]:
+        """Score every episode's estimate, show each its next frame.
+
+        Args:
+            actions: ``(N, n_free)`` estimates normalised to [-1, 1].
+
+        Returns:
+            ``(observations, rewards, terminations, truncations, infos)``, batched.
+
+        Raises:
+            ValueError: If the actions have the wrong shape or are not finite.
+            RuntimeError: Before ``reset``.
+        """
+        if not self._started.all():
+            raise RuntimeError("step() called before reset()")
+        raw = np.asarray(actions)
+        if raw.dtype.kind not in "iuf":
+            raise ValueError(f"{self.task.name}: actions must hold real numbers, got {raw.dtype}")
+        if raw.shape != self.action_space.shape:
+            raise ValueError(
+                f"{self.task.name}: actions must have shape {self.action_space.shape}, "
+                f"got {raw.shape}"
+            )
+        if not np.isfinite(raw).all():
+            raise ValueError(f"{self.task.name}: actions must be finite")
+        n = self.num_envs
+        restart = self._autoreset.copy()
+        if self.autoreset_mode == AutoresetMode.DISABLED and restart.any():
+            raise RuntimeError(
+                f"step(): episodes {np.flatnonzero(restart).tolist()} ended; with autoreset "
+                "disabled, reset them (options={'reset_mask': ...}) before stepping"
+            )
+        active = ~restart
+        rows = np.arange(n)
+        k = self._k
+        truth = self._params[rows, k]
+        # action_to_pose of every episode at once (the same operations, row by row)
+        a = np.clip(raw.astype(np.float64), -1.0, 1.0)
+        estimate = truth.copy()
+        estimate[:, self._free] = self._lo + (a + 1.0) * 0.5 * (self._hi - self._lo)
+        keypoints = np.zeros((n, N_KEYPOINTS, 3))  # rows of restarting episodes stay 0
+        envs = self.envs
+        for i in np.flatnonzero(active).tolist():
+            keypoints[i] = single_pose_geometry(estimate[i], envs[i].shape)[:N_KEYPOINTS]
+        diff = keypoints - self._truth_kp[rows, k]
+        err_all = np.linalg.norm(diff, axis=-1)
+        # C-contiguous rows (``err_all[:, idx]`` is laid out column-major): each
+        # row is then summed like the single environment's 1-D array (numpy's
+        # pairwise summation), so the sums agree bit for bit.
+        err = np.ascontiguousarray(np.take(err_all, self._err_kp, axis=1))
+        n_scored = err.shape[1]
+        error_mm = err.sum(axis=1) / n_scored
+        # Reward: the mean over scored keypoints of exp(-e / scale), by region,
+        # summed in the single environment's order.
+        template = envs[0]
+        per_kp = np.exp(err * (-1.0 / template.reward_scale_mm)) / n_scored
+        terms: dict[str, NDArray[Any]] = {}
+        for name, idx in self._regions:
+            if idx.size == 0:
+                terms[name] = np.zeros(n, np.int64)  # an empty Python sum is the int 0
+                continue
+            total = per_kp[:, idx[0]].copy()
+            for j in idx[1:].tolist():
+                total += per_kp[:, j]
+            terms[name] = total
+        reward = np.zeros(n)
+        for value in terms.values():
+            reward = reward + value
+        self._lost_run = np.where(error_mm > template.lost_threshold_mm, self._lost_run + 1, 0)
+        lost = self._lost_run >= template.lost_patience
+        terminated = lost & template.terminate_on_lost
+        truncated = (k >= template.episode_frames) & ~terminated
+        done = terminated | truncated
+        terminated &= active
+        truncated &= active
+        reward[restart] = 0.0
+
+        observations = np.empty_like(self._obs)
+        step_infos: list[dict[str, Any] | None] = [None] * n
+        final: list[tuple[NDArray[np.uint8], dict[str, Any]] | None] = [None] * n
+        scored = {
+            "error_mm": error_mm,
+            "error_all_mm": err_all.sum(axis=1) / N_KEYPOINTS,
+            "keypoint_errors_mm": err_all,
+            "lost": lost,
+            **terms,
+        }
+        for i in range(n):
+            env = envs[i]
+            if restart[i]:
+                step_infos[i] = self._start(i, None, None)
+                observations[i] = self._obs[i]
+                continue
+            env._last_estimate = estimate[i]
+            env._estimate_keypoints = keypoints[i]
+            env._lost_run = int(self._lost_run[i])
+            if done[i]:
+                env._done = True
+                frame = env._frame
+            else:
+                env._k = int(k[i]) + 1
+                frame = env._observe()
+            info = env._info()
+            info.update({key: _item(value, i) for key, value in scored.items()})
+            if done[i] and self.autoreset_mode == AutoresetMode.SAME_STEP:
+                final[i] = (frame.copy(), info)
+                info = self._start(i, None, None)
+                frame = self._obs[i]
+            observations[i] = frame
+            step_infos[i] = info
+        self._k = np.array([env._k for env in envs], np.intp)
+        if self.autoreset_mode == AutoresetMode.SAME_STEP:
+            self._autoreset[:] = False
+        else:
+            self._autoreset = (terminated | truncated).copy()
+        infos: dict[str, Any] = {}
+        for i in range(n):
+            if final[i] is not None:
+                final_obs, final_info = final[i]  # type: ignore[misc]
+                _add_info(infos, {"final_obs": final_obs, "final_info": final_info}, i, n)
+            _add_info(infos, step_infos[i], i, n)  # type: ignore[arg-type]
+        return observations, reward, terminated, truncated, infos
+
+    def render(self) -> tuple[NDArray[np.uint8], ...] | None:
+        """Every episode's ``render()`` (the frame on show with its estimate drawn over it)."""
+        if self.render_mode is None:
+            return None
+        frames = [env.render() for env in self.envs]
+        return tuple(frame for frame in frames if frame is not None)
+
+    def close_extras(self, **kwargs: Any) -> None:
+        """Close the episodes' environments."""
+        for env in self.envs:
+            env.close()
+
+
+def _item(value: NDArray[Any], i: int) -> Any:
+    """Row ``i`` of a batched value, as the single environment gives it."""
+    row = value[i]
+    if isinstance(row, np.ndarray):
+        return row
+    if value.dtype == np.bool_:
+        return bool(row)
+    if value.dtype.kind in "iu":
+        return int(row)
+    return float(row)
+
+
+def _add_info(infos: dict[str, Any], info: dict[str, Any], i: int, n: int) -> dict[str, Any]:
+    """Add episode ``i``'s info to the batched ``infos`` as ``SyncVectorEnv`` does.
+
+    Each key holds an array over the N episodes (of the type of the first
+    value seen: numbers and bools as numpy arrays, arrays stacked, anything
+    else in an object array) and ``_key`` a mask of the episodes that have it;
+    a dict value is batched the same way, recursively.
+    """
+    for key, value in info.items():
+        if key == "final_obs":
+            array = infos.get(key)
+            if array is None:
+                array = np.full(n, None, dtype=object)
+            array[i] = value
+        elif isinstance(value, dict):
+            array = _add_info(infos.get(key, {}), value, i, n)
+        else:
+            array = infos.get(key)
+            if array is None:
+                if type(value) in (int, float, bool) or isinstance(value, np.number):
+                    array = np.zeros(n, dtype=type(value))
+                elif isinstance(value, np.ndarray):
+                    array = np.zeros((n, *value.shape), dtype=value.dtype)
+                else:
+                    array = np.full(n, None, dtype=object)
+            array[i] = value
+        mask = infos.get(f"_{key}")
+        if mask is None:
+            mask = np.zeros(n, np.bool_)
+        mask[i] = True
+        infos[key], infos[f"_{key}"] = array, mask
+    return infos
+
+
+class ArmTrackVectorEnv(PoseTrackingVectorEnv):
+    """:class:`~humotion_gym.envs.arm_track.ArmTrackEnv`, N episodes at once."""
+
+    def __init__(self, num_envs: int = 1, **kwargs: Any) -> None:
+        super().__init__(num_envs, task="ArmTrack-v1", **kwargs)
+
+
+class BodyTrackVectorEnv(PoseTrackingVectorEnv):
+    """:class:`~humotion_gym.envs.body_track.BodyTrackEnv`, N episodes at once."""
+
+    def __init__(self, num_envs: int = 1, **kwargs: Any) -> None:
+        super().__init__(num_envs, task="BodyTrack-v1", **kwargs)
+
+
+class WalkTrackVectorEnv(PoseTrackingVectorEnv):
+    """:class:`~humotion_gym.envs.walk_track.WalkTrackEnv`, N episodes at once."""
+
+    def __init__(self, num_envs: int = 1, **kwargs: Any) -> None:
+        super().__init__(num_envs, task="WalkTrack-v1", **kwargs)
+
+
+class SideWalkVectorEnv(PoseTrackingVectorEnv):
+    """:class:`~humotion_gym.envs.side_walk.SideWalkEnv`, N episodes at once."""
+
+    def __init__(self, num_envs: int = 1, **kwargs: Any) -> None:
+        super().__init__(num_envs, task="SideWalk-v1", **kwargs)

@@ -1,0 +1,140 @@
+"""The batched vector env gives what N single environments give (Gymnasium's sync vector env).
+
+For every registered task and each autoreset mode, ``make_vec(...,
+vectorization_mode="vector_entry_point")`` and ``vectorization_mode="sync"``
+are reset with the same seeds and stepped with the same actions (near the
+truth and far from it, so episodes end by truncation and by lost track), and
+must return bit-identical observations, rewards, terminations, truncations
+and batched infos (values, dtypes and ``_key`` masks).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode
+
+from humotion_gym.camera import Camera
+from humotion_gym.envs import ENV_IDS
+from humotion_gym.envs.vector import PoseTrackingVectorEnv
+
+
+def _assert_same(a, b, where: str = "") -> None:
+    if isinstance(a, dict):
+        assert isinstance(b, dict) and a.keys() == b.keys(), (where, sorted(a), sorted(b))
+        for key in a:
+            _assert_same(a[key], b[key], f"{where}/{key}")
+    elif isinstance(a, tuple):
+        assert isinstance(b, tuple) and len(a) == len(b), where
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            _assert_same(x, y, f"{where}[{i}]")
+    elif isinstance(a, np.ndarray):
+        assert isinstance(b, np.ndarray), where
+        assert a.dtype == b.dtype and a.shape == b.shape, (
+            where,
+            a.dtype,
+            b.dtype,
+            a.shape,
+            b.shape,
+        )
+        if a.dtype == object:
+            for x, y in zip(a, b, strict=True):
+                _assert_same(x, y, where)
+        else:
+            assert np.array_equal(a, b), (where, a, b)
+    elif isinstance(a, Camera):
+        assert isinstance(b, Camera)
+        assert np.array_equal(a.rotation, b.rotation) and np.array_equal(a.position, b.position)
+        assert (a.focal, a.principal_point) == (b.focal, b.principal_point), where
+    elif dataclasses.is_dataclass(a):
+        for f in dataclasses.fields(a):
+            _assert_same(getattr(a, f.name), getattr(b, f.name), f"{where}.{f.name}")
+    else:
+        assert type(a) is type(b) and a == b, (where, a, b)
+
+
+def _actions(venv, rng: np.random.Generator, t: int) -> np.ndarray:
+    """Near the truth (episodes run to their end), but far from it for six steps (lost)."""
+    if 40 <= t < 46:
+        return rng.uniform(-1, 1, venv.action_space.shape).astype(np.float32)
+    truth = np.stack([env.pose_to_action(env.true_pose()) for env in venv.unwrapped.envs])
+    return np.clip(truth + rng.normal(0, 0.01, truth.shape), -1, 1).astype(np.float32)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_vector_env_equals_sync_vector_env(env_id, mode):
+    n = 3
+    kwargs = {"width": 64, "height": 64}
+    vec = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point", autoreset_mode=mode,
+                       **kwargs)  # fmt: skip
+    sync = gym.make_vec(env_id, n, vectorization_mode="sync",
+                        vector_kwargs={"autoreset_mode": mode}, **kwargs)  # fmt: skip
+    assert isinstance(vec.unwrapped, PoseTrackingVectorEnv)
+    assert vec.metadata["autoreset_mode"] == mode
+    assert vec.observation_space == sync.observation_space
+    assert vec.action_space == sync.action_space
+    _assert_same(vec.reset(seed=7), sync.reset(seed=7), "reset")
+    rng = np.random.default_rng(1)
+    ends = {"terminated": 0, "truncated": 0}
+    steps = 2 * vec.unwrapped.envs[0].episode_frames + 10
+    for t in range(steps):
+        actions = _actions(vec, rng, t)
+        got, want = vec.step(actions), sync.step(actions)
+        _assert_same(got, want, f"step {t}")
+        ends["terminated"] += int(want[2].sum())
+        ends["truncated"] += int(want[3].sum())
+    # both ways an episode ends were exercised
+    assert ends["terminated"] > 0 and ends["truncated"] > 0, ends
+    # a reset with a mask and a list of seeds
+    mask = np.array([True, False, True])
+    got = vec.reset(seed=[3, 4, 5], options={"reset_mask": mask})
+    want = sync.reset(seed=[3, 4, 5], options={"reset_mask": mask.copy()})
+    _assert_same(got[1], want[1], "masked reset")
+    _assert_same(got[0][mask], want[0][mask], "masked reset")
+
+
+def test_vector_env_disabled_autoreset_needs_a_masked_reset():
+    vec = PoseTrackingVectorEnv(2, task="BodyTrack-v1", autoreset_mode=AutoresetMode.DISABLED)
+    vec.reset(seed=0)
+    far = np.ones(vec.action_space.shape, np.float32)
+    done = np.zeros(2, bool)
+    for _ in range(vec.envs[0].episode_frames):
+        _, _, term, trunc, _ = vec.step(far)
+        done |= term | trunc
+        if done.any():
+            break
+    assert done.any()
+    with pytest.raises(RuntimeError, match="reset_mask"):
+        vec.step(far)
+    vec.reset(options={"reset_mask": done})
+    vec.step(far)
+
+
+def test_vector_env_refuses_bad_calls():
+    with pytest.raises(ValueError, match="num_envs"):
+        PoseTrackingVectorEnv(0)
+    vec = PoseTrackingVectorEnv(2, task="SideWalk-v1")
+    with pytest.raises(RuntimeError, match="reset"):
+        vec.step(np.zeros(vec.action_space.shape, np.float32))
+    vec.reset(seed=0)
+    with pytest.raises(ValueError, match="shape"):
+        vec.step(np.zeros(vec.single_action_space.shape, np.float32))
+    with pytest.raises(ValueError, match="finite"):
+        vec.step(np.full(vec.action_space.shape, np.nan, np.float32))
+    with pytest.raises(ValueError, match="seeds"):
+        vec.reset(seed=[1, 2, 3])
+
+
+def test_vector_env_render_is_each_episodes_render():
+    vec = gym.make_vec("humotion_gym/BodyTrack-v1", 2, vectorization_mode="vector_entry_point",
+                       render_mode="rgb_array")  # fmt: skip
+    vec.reset(seed=0)
+    vec.step(vec.action_space.sample())
+    frames = vec.render()
+    assert len(frames) == 2
+    for frame, env in zip(frames, vec.unwrapped.envs, strict=True):
+        assert np.array_equal(frame, env.render())
