@@ -35,6 +35,18 @@ def save_fitted(fitted: Any, path: str | Path) -> None:
         if arr.dtype == object:
             raise TypeError(f"save_fitted: field {f.name!r} is not an array or scalar")
         arrays[f.name] = arr
+    save_arrays(arrays, path)
+
+
+def save_arrays(arrays: dict[str, np.ndarray], path: str | Path) -> None:
+    """Write named arrays to ``path`` (.npz, no pickle) through a temporary file and a rename.
+
+    Raises:
+        TypeError: If an array holds Python objects.
+    """
+    for name, arr in arrays.items():
+        if arr.dtype == object:
+            raise TypeError(f"save_arrays: {name!r} is not an array of numbers or strings")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")

@@ -47,6 +47,12 @@ from humotion_gym.mocap.library import (
 from humotion_gym.mocap.motion import Motion, content_digest
 from humotion_gym.priors import get_prior
 
+#: Version of the prior cache's entries (part of the key, beside the library's
+#: :data:`~humotion_gym.mocap.library.CACHE_VERSION`): raised when a prior's file
+#: format changes, so that older entries are refitted instead of read (2: the
+#: tree prior's database saved once, in single precision).
+PRIOR_CACHE_VERSION = "2"
+
 
 def prior_module(prior: str | ModuleType) -> ModuleType:
     """A prior's module from its name, its dotted path or the module itself.
@@ -216,6 +222,7 @@ def fit_prior(
         "free": json.dumps(None if free is None else free.tolist()),
         "data": _fingerprint(motions),
         "cache_version": CACHE_VERSION,
+        "prior_cache_version": PRIOR_CACHE_VERSION,
         "package_version": package_version(),
     }
     digest = hashlib.sha256(json.dumps(info, sort_keys=True).encode()).hexdigest()[:24]

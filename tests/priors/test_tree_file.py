@@ -1,0 +1,123 @@
+"""The tree prior's file: the database once, in single precision; the tree recomputed on load."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from humotion_gym.mocap.library import synthetic_library
+from humotion_gym.priors import tree
+from humotion_gym.priors._io import save_fitted
+
+ARM = [9, 10, 11, 12]
+
+
+@pytest.fixture(scope="module")
+def train():
+    return synthetic_library(seed=0).split("train").motions[:6]
+
+
+@pytest.fixture(scope="module")
+def prior(train):
+    return tree.fit(train)
+
+
+@pytest.fixture(scope="module")
+def double_prior(train):
+    """The same fit from the clips in double precision (the format before single precision)."""
+    mp = pytest.MonkeyPatch()
+    mp.setattr(tree, "DATABASE_DTYPE", np.float64)
+    try:
+        return tree.fit(train)
+    finally:
+        mp.undo()
+
+
+def test_database_is_the_clips_in_single_precision(train, prior):
+    frames = np.concatenate([m.params for m in train]).astype(np.float32)
+    np.testing.assert_array_equal(prior.frames, frames.astype(np.float64))
+    assert prior.frames.dtype == np.float64  # arithmetic stays in double
+
+
+def test_file_holds_the_database_once_in_single_precision(tmp_path, prior):
+    path = tmp_path / "tree.npz"
+    tree.save(prior, path)
+    with np.load(path, allow_pickle=False) as data:
+        assert data["frames"].dtype == np.float32
+        assert data["frames"].shape == prior.frames.shape
+        for derived in ("coefficients", "next_step", "codes", "offsets", "node_flags"):
+            assert derived not in data.files
+        np.testing.assert_array_equal(
+            np.repeat(np.arange(data["clip_lengths"].size), data["clip_lengths"]), prior.frame_clip
+        )
+    # The derived arrays would take more than the database: the file is far smaller
+    # than every array written whole.
+    whole = tmp_path / "whole.npz"
+    save_fitted(prior, whole)
+    assert path.stat().st_size < 0.45 * whole.stat().st_size
+
+
+@pytest.mark.parametrize("free", [None, ARM])
+def test_loaded_prior_equals_the_fitted_one(tmp_path, train, free):
+    fitted = tree.fit(train, free=free, replay="velocity")
+    path = tmp_path / "tree.npz"
+    tree.save(fitted, path)
+    loaded = tree.load(path)
+    for name in fitted.__dataclass_fields__:
+        a, b = getattr(fitted, name), getattr(loaded, name)
+        if isinstance(a, np.ndarray):
+            assert a.dtype == b.dtype, name
+            np.testing.assert_array_equal(a, b, err_msg=name)
+        else:
+            assert a == b, name
+
+
+def test_a_double_precision_database_is_saved_whole(tmp_path, double_prior):
+    path = tmp_path / "tree.npz"
+    tree.save(double_prior, path)
+    loaded = tree.load(path)
+    np.testing.assert_array_equal(loaded.frames, double_prior.frames)
+    np.testing.assert_array_equal(loaded.coefficients, double_prior.coefficients)
+
+
+def test_single_precision_keeps_the_tree_and_the_searches(prior, double_prior):
+    """Rounding the database to single precision picks the same windows as the clips."""
+    assert prior.n_windows == double_prior.n_windows
+    np.testing.assert_array_equal(prior.window_end, double_prior.window_end)
+    np.testing.assert_array_equal(prior.codes, double_prior.codes)
+    scale = np.abs(double_prior.coefficients).max()
+    np.testing.assert_allclose(prior.coefficients, double_prior.coefficients, atol=1e-5 * scale)
+    # The same probes and random numbers choose the same windows (descent and eq. 3
+    # in the leaf), and the initialisation draws the same windows for a pose.
+    probes = double_prior.coefficients[::7] + 0.2 * double_prior.sigma
+    a = tree.sample_windows(prior, probes, np.random.default_rng(3))
+    b = tree.sample_windows(double_prior, probes, np.random.default_rng(3))
+    np.testing.assert_array_equal(a, b)
+    pose = double_prior.frames[200]
+    np.testing.assert_array_equal(
+        tree.initial_windows(prior, pose, 500, np.random.default_rng(4)),
+        tree.initial_windows(double_prior, pose, 500, np.random.default_rng(4)),
+    )
+
+
+def test_load_refuses_other_files_clearly(tmp_path, prior):
+    old = tmp_path / "old.npz"
+    save_fitted(prior, old)  # every field whole, no __format__: the format before 2
+    with pytest.raises(ValueError, match=r"old\.npz.*format 1.*fit the prior again"):
+        tree.load(old)
+    path = tmp_path / "tree.npz"
+    tree.save(prior, path)
+    with np.load(path, allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files}
+    missing = tmp_path / "missing.npz"
+    np.savez(missing, **{k: v for k, v in arrays.items() if k != "components"})
+    with pytest.raises(ValueError, match=r"missing\.npz.*lacks components"):
+        tree.load(missing)
+    outside = tmp_path / "outside.npz"
+    np.savez(outside, **{**arrays, "window_end": arrays["window_end"] + prior.frames.shape[0]})
+    with pytest.raises(ValueError, match=r"outside\.npz.*do not fit its"):
+        tree.load(outside)
+    other = tmp_path / "other.npz"
+    np.savez(other, **{**arrays, "__kind__": np.array("SLDSParams")})
+    with pytest.raises(ValueError, match="holds SLDSParams parameters, expected TreeParams"):
+        tree.load(other)
