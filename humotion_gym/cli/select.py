@@ -53,6 +53,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--validation", nargs="+", default=None, metavar="SUBJECT",
         help="training subjects to hold out (default: experiments.selection.VALIDATION_SUBJECTS)",
     )  # fmt: skip
+    sel.add_argument(
+        "--still", type=int, default=0, metavar="N",
+        help="also track up to N still episodes of the validation persons (where hold scores "
+        "lowest) and choose the lowest mean error among the settings within 2x hold there "
+        "(default: 0, mean error only)",
+    )  # fmt: skip
     add_data_dir(sel)
     add_json(sel)
     sel.set_defaults(func=_cmd_select)
@@ -82,8 +88,9 @@ def _cmd_select(args: argparse.Namespace) -> int:
     grid = parse_grid(args.grid)
     lib = validation_library(args.data_dir or None, args.validation)
     out = select_observation_settings(
-        args.task, args.agent, grid, lib, args.particles, args.episodes, args.seed
-    )
+        args.task, args.agent, grid, lib, args.particles, args.episodes, args.seed,
+        still=args.still,
+    )  # fmt: skip
     if args.json:
         print_json(out)
         return 0
@@ -92,10 +99,22 @@ def _cmd_select(args: argparse.Namespace) -> int:
         f"of the validation persons {', '.join(out['validation_subjects'])} "
         f"(priors fitted on the other {out['train_clips']} training clips)"
     )
-    print(f"{'settings':44s} {'mean error mm':>14s} {'x hold':>7s}")
+    still = "still_hold_mm" in out
+    print(
+        f"{'settings':44s} {'mean error mm':>14s} {'x hold':>7s}"
+        + (f" {'still mm':>9s} {'/ hold':>7s}" if still else "")
+    )
     for row in out["rows"]:
         text = " ".join(f"{k}={v:g}" for k, v in row["settings"].items())
-        print(f"{text:44s} {row['mean_error_mm']:14.1f} {row['hold_ratio']:7.2f}")
+        line = f"{text:44s} {row['mean_error_mm']:14.1f} {row['hold_ratio']:7.2f}"
+        if still:
+            line += f" {row['still_error_mm']:9.1f} {row['still_ratio']:7.2f}"
+        print(line)
     chosen = " ".join(f"{k}={v:g}" for k, v in out["chosen"].items())
     print(f"hold: {out['hold_mm']:.1f} mm; chosen: {chosen}")
+    if still:
+        print(
+            f"still episodes: {out['still_episodes']}, hold {out['still_hold_mm']:.1f} mm there; "
+            "chosen among the settings within 2x hold on them (if any)"
+        )
     return 0

@@ -77,6 +77,8 @@ def select_observation_settings(
     episodes: int = 20,
     seed: int = 0,
     env_kwargs: dict[str, Any] | None = None,
+    still: int = 0,
+    still_max_hold_mm: float = 50.0,
 ) -> dict[str, Any]:
     """Track the validation persons with every combination of likelihood settings.
 
@@ -94,11 +96,21 @@ def select_observation_settings(
         episodes: Seeded episodes per combination (the same for every one).
         seed: First episode seed.
         env_kwargs: Other environment keywords (difficulty).
+        still: When > 0, also track up to this many *still* episodes of the
+            validation persons (:func:`baselines.stillness.still_windows`:
+            where ``hold`` scores lowest), and choose by the rule declared
+            before any result is seen: among the combinations whose still
+            error is within :data:`baselines.stillness.STILL_RATIO` times
+            ``hold``'s, the lowest mean error; when none is, the lowest still
+            error.
+        still_max_hold_mm: The still episodes' bound on ``hold``'s error.
 
     Returns:
         ``{"rows": [{"settings", "mean_error_mm", "hold_ratio"}...], "hold_mm",
-        "chosen", "validation_subjects", "train_clips"}``; the chosen settings
-        have the lowest mean error (ties: the first in grid order).
+        "chosen", "validation_subjects", "train_clips"}`` (with ``still``: each
+        row's ``still_error_mm`` and ``still_ratio``, and ``still_hold_mm``,
+        ``still_episodes``); without ``still`` the chosen settings have the
+        lowest mean error (ties: the first in grid order).
 
     Raises:
         ValueError: If a name is neither a likelihood setting nor a ``fit.``
@@ -106,7 +118,7 @@ def select_observation_settings(
             a validation fold of training persons.
     """
     from baselines.agents import AGENTS, make
-    from baselines.evaluation import evaluate
+    from baselines.evaluation import evaluate, run_episode
 
     fields = _observation_fields()
     fit_names = [n for n in grid if n.startswith(FIT_PREFIX)]
@@ -133,18 +145,33 @@ def select_observation_settings(
     spec = get_task(task)
     kwargs = {"terminate_on_lost": False, **(env_kwargs or {})}
 
+    default = ObservationModel(**dict(spec.observation))
+    windows: list[Any] = []
+    if still > 0:
+        from baselines.stillness import still_windows
+
+        probe = gym.make(f"humotion_gym/{spec.name}", library=library, **kwargs)
+        windows = still_windows(probe, still_max_hold_mm, count=still)
+        probe.close()
+        if not windows:
+            raise ValueError(f"{spec.name}: the validation persons have no still episode")
+
     def errors(
         agent_name: str, model: ObservationModel, fit: dict[str, float] | None = None
-    ) -> list[float]:
+    ) -> tuple[list[float], list[float]]:
         env = gym.make(f"humotion_gym/{spec.name}", library=library, observation_model=model,
                        **kwargs)  # fmt: skip
         runner = make(agent_name, env, n_particles=particles, seed=seed, fit_settings=fit)
         out = [r.mean_error_mm for r in evaluate(runner, env, episodes, seed=seed)]
+        quiet = [
+            run_episode(runner, env, seed + k, w.options).mean_error_mm
+            for k, w in enumerate(windows)
+        ]
         env.close()
-        return out
+        return out, quiet
 
-    default = ObservationModel(**dict(spec.observation))
-    hold = float(np.mean(errors("hold", default)))
+    hold_errors, hold_still = errors("hold", default)
+    hold = float(np.mean(hold_errors))
     names = list(grid)
     rows = []
     base_fit = AGENTS[agent].settings_for(spec.name) if agent in AGENTS else {}
@@ -155,10 +182,19 @@ def select_observation_settings(
         }
         model = replace(default, **{n: v for n, v in settings.items() if n in fields})
         fit = {n[len(FIT_PREFIX) :]: v for n, v in settings.items() if n.startswith(FIT_PREFIX)}
-        mean = float(np.mean(errors(agent, model, {**base_fit, **fit} if fit else None)))
-        rows.append({"settings": settings, "mean_error_mm": mean, "hold_ratio": hold / mean})
-    best = min(range(len(rows)), key=lambda i: rows[i]["mean_error_mm"])
+        regular, quiet = errors(agent, model, {**base_fit, **fit} if fit else None)
+        mean = float(np.mean(regular))
+        row = {"settings": settings, "mean_error_mm": mean, "hold_ratio": hold / mean}
+        if windows:
+            row["still_error_mm"] = float(np.mean(quiet))
+            row["still_ratio"] = row["still_error_mm"] / float(np.mean(hold_still))
+        rows.append(row)
+    best = _chosen(rows)
+    extra = {}
+    if windows:
+        extra = {"still_hold_mm": float(np.mean(hold_still)), "still_episodes": len(windows)}
     return {
+        **extra,
         "task": spec.name,
         "agent": agent,
         "particles": particles,
@@ -169,3 +205,16 @@ def select_observation_settings(
         "validation_subjects": sorted(library.held_out),
         "train_clips": len(library.split("train")),
     }
+
+
+def _chosen(rows: Sequence[Mapping[str, Any]]) -> int:
+    """The row the declared rule picks (see :func:`select_observation_settings`)."""
+    from baselines.stillness import STILL_RATIO
+
+    order = range(len(rows))
+    if rows and "still_ratio" in rows[0]:
+        standing = [i for i in order if rows[i]["still_ratio"] <= STILL_RATIO]
+        if not standing:
+            return min(order, key=lambda i: rows[i]["still_error_mm"])
+        order = standing  # type: ignore[assignment]
+    return min(order, key=lambda i: rows[i]["mean_error_mm"])

@@ -71,3 +71,25 @@ def test_mixture_agent_is_seeded_and_checks_its_settings(env, tmp_path, monkeypa
     agent = make("pf-mix", env, n_particles=10, fit_settings={"still.position_noise": 0.5})
     still = agent.fitted.fitted[2]
     assert still.position_noise == 0.5 and agent.fitted.weights.sum() == pytest.approx(1.0)
+
+
+def test_selection_with_still_episodes_follows_the_declared_rule(tmp_path, monkeypatch):
+    from humotion_gym.experiments.selection import select_observation_settings, validation_library
+
+    monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
+    fold = validation_library(None)
+    grid = {"fit.position_noise": [0.05, 3.0]}
+    out = select_observation_settings(
+        "BodyTrack-v1", "pf-cv", grid, fold, particles=20, episodes=1, still=2,
+        still_max_hold_mm=300.0,
+    )  # fmt: skip
+    assert out["still_episodes"] == 2 and out["still_hold_mm"] > 0
+    rows = out["rows"]
+    for r in rows:
+        assert r["still_ratio"] == pytest.approx(r["still_error_mm"] / out["still_hold_mm"])
+    standing = [r for r in rows if r["still_ratio"] <= STILL_RATIO]
+    if standing:
+        want = min(standing, key=lambda r: r["mean_error_mm"])
+    else:
+        want = min(rows, key=lambda r: r["still_error_mm"])
+    assert out["chosen"] == want["settings"]
