@@ -374,15 +374,21 @@ def aggregate(
     Returns:
         One dict per cell label: ``cell``, ``tasks`` (names), ``episodes``,
         ``iqm_score`` and ``iqm_score_ci``, ``mean_score`` and
-        ``mean_score_ci``, and ``beats_reference`` (probability of improvement
-        over the reference, with ``beats_reference_ci``).
+        ``mean_score_ci``, and ``beats_reference`` (the probability that a
+        random episode of the cell has a lower error than a random episode of
+        the reference on the same task, averaged over tasks, as
+        :func:`pairwise_improvement`; with ``beats_reference_ci``).
     """
     scores = normalised_scores(rows, reference)
+    errors = _errors_by_cell(rows)
+    references = {r["task"]: cell_label(r) for r in rows if r["agent"] == reference}
     out = []
     for label, per_task in scores.items():
         cols = list(per_task.values())
         pooled = np.concatenate(cols)
-        ones = [np.ones_like(c) for c in cols]  # the reference scores 1 everywhere
+        # P(beats the reference) on raw errors, unpaired as rliable (the tasks scored here)
+        x = [errors[label][t] for t in per_task]
+        y = [errors[references[t]][t] for t in per_task]
         out.append(
             {
                 "cell": label,
@@ -394,12 +400,23 @@ def aggregate(
                 "mean_score_ci": list(
                     stratified_bootstrap_ci(cols, np.mean, n_resamples, seed=seed)
                 ),
-                "beats_reference": probability_of_improvement(cols, ones),
+                "beats_reference": probability_of_improvement(x, y),
                 "beats_reference_ci": list(
-                    probability_of_improvement_ci(cols, ones, n_resamples=n_resamples, seed=seed)
+                    probability_of_improvement_ci(x, y, n_resamples=n_resamples, seed=seed)
                 ),
             }
         )
+    return out
+
+
+def _errors_by_cell(rows: Sequence[dict[str, Any]]) -> dict[str, dict[str, FloatArray]]:
+    """``{cell label: {task: episode mean errors}}`` of the rows that ran."""
+    out: dict[str, dict[str, FloatArray]] = {}
+    for r in rows:
+        if "episodes" in r and "skipped" not in r and "error" not in r and r["episodes"]:
+            out.setdefault(cell_label(r), {})[r["task"]] = np.array(
+                [e["mean_error_mm"] for e in r["episodes"]], dtype=np.float64
+            )
     return out
 
 
@@ -416,12 +433,7 @@ def pairwise_improvement(
     Returns:
         One dict per ordered pair: ``x``, ``y``, ``tasks``, ``probability``, ``ci``.
     """
-    per_cell: dict[str, dict[str, FloatArray]] = {}
-    for r in rows:
-        if "episodes" in r and "skipped" not in r and "error" not in r and r["episodes"]:
-            per_cell.setdefault(cell_label(r), {})[r["task"]] = np.array(
-                [e["mean_error_mm"] for e in r["episodes"]], dtype=np.float64
-            )
+    per_cell = _errors_by_cell(rows)
     out = []
     for a, xa in per_cell.items():
         for b, yb in per_cell.items():

@@ -176,10 +176,13 @@ def test_normalised_scores_aggregate_and_pairwise_on_known_rows():
     agg = {a["cell"]: a for a in stats.aggregate(rows)}
     assert agg["pf-tree@100"]["iqm_score"] == pytest.approx(0.25)
     assert agg["pf-tree@100"]["iqm_score_ci"] == pytest.approx([0.25, 0.25])
-    assert agg["pf-cv@100"]["beats_reference"] == 1.0  # every episode halves hold's error
     assert agg["hold"]["beats_reference"] == 0.5
     assert agg["pf-cv@100"]["tasks"] == ["ArmTrack-v1", "BodyTrack-v1"]
     pairs = {(p["x"], p["y"]): p for p in stats.pairwise_improvement(rows)}
+    # P(beats hold) is the pairwise probability against hold (random episodes, unpaired)
+    for cell in ("pf-cv@100", "pf-tree@100"):
+        assert agg[cell]["beats_reference"] == pairs[(cell, "hold")]["probability"]
+        assert agg[cell]["beats_reference_ci"] == pairs[(cell, "hold")]["ci"]
     for (a, b), p in pairs.items():
         assert p["probability"] + pairs[(b, a)]["probability"] == pytest.approx(1.0)
 
