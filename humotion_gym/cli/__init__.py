@@ -39,6 +39,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "track",  # track
     "leaderboard",  # leaderboard
     "select",  # select
+    "still",  # still (every agent where the person barely moves)
     "discrimination",  # discrimination
     "synth",  # synth
     "tree",  # tree figures

@@ -93,3 +93,19 @@ def test_selection_with_still_episodes_follows_the_declared_rule(tmp_path, monke
     else:
         want = min(rows, key=lambda r: r["still_error_mm"])
     assert out["chosen"] == want["settings"]
+
+
+def test_cli_still_prints_the_table_and_writes_json(tmp_path, capsys):
+    import json
+
+    from humotion_gym.cli import main
+
+    out = tmp_path / "still.json"
+    code = main(["still", "--agents", "random", "--max-hold", "300", "--episodes", "2",
+                 "--out", str(out)])  # fmt: skip
+    text = capsys.readouterr().out
+    assert code == 0 and "| hold | - |" in text and "| random |" in text
+    saved = json.loads(out.read_text())
+    assert [r["agent"] for r in saved["rows"]] == ["hold", "random"]
+    assert len(saved["windows"]) == 2
+    assert main(["still", "--max-hold", "-1"]) == 2

@@ -1,0 +1,74 @@
+"""``humotion-gym still``: every agent on the episodes where the person barely moves.
+
+::
+
+    humotion-gym still --task BodyTrack-v1 --agents pf-cv pf-tree pf-mix --data-dir ../shared/mocap
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from humotion_gym.cli._common import (
+    add_data_dir,
+    add_json,
+    add_seed,
+    agent_name,
+    env_kwargs,
+    positive_float,
+    positive_int,
+    print_json,
+    task_name,
+    wrote,
+)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``still``."""
+    st = subparsers.add_parser(
+        "still",
+        help="every agent on the test persons' still episodes, against hold",
+        description="Find the episodes of the task's test clips where the person barely moves "
+        "(hold's mean error at most --max-hold mm, lowest first, none overlapping) and track "
+        "them with every agent; an agent stands still when its error is within 2x hold's.",
+    )
+    st.add_argument(
+        "--task", type=task_name, default="BodyTrack-v1", help="task id (default: BodyTrack-v1)"
+    )
+    st.add_argument(
+        "--agents", type=agent_name, nargs="+", default=["pf-cv", "pf-tree"], metavar="AGENT",
+        help="agents; hold always runs (default: pf-cv pf-tree)",
+    )  # fmt: skip
+    st.add_argument("--particles", type=positive_int, default=300, help="particles (default: 300)")
+    st.add_argument(
+        "--max-hold", type=positive_float, default=50.0, metavar="MM",
+        help="keep episodes whose hold error is at most this (default: 50 mm)",
+    )  # fmt: skip
+    st.add_argument(
+        "--episodes", type=positive_int, default=20, help="at most this many episodes (default: 20)"
+    )
+    add_seed(st, "the agents' seed")
+    add_data_dir(st)
+    st.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
+    add_json(st)
+    st.set_defaults(func=_cmd_still)
+
+
+def _cmd_still(args: argparse.Namespace) -> int:
+    from baselines.stillness import markdown_table, run_still
+
+    out = run_still(
+        args.task, args.agents, args.particles, seed=args.seed, env_kwargs=env_kwargs(args),
+        max_hold_mm=args.max_hold, count=args.episodes,
+    )  # fmt: skip
+    if args.out:
+        args.out.write_text(json.dumps(out, indent=1))
+        if not args.json:
+            wrote(args.out, "still episodes")
+    if args.json:
+        print_json(out)
+        return 0
+    print(markdown_table(out))
+    return 0
