@@ -361,3 +361,49 @@ def test_report_renders_in_headless_chromium(tmp_path):
     image = cv2.imread(str(shot))
     assert image is not None and image.shape[:2] == (1600, 1200)
     assert image.std() > 5  # the tables and figures drew something, not a blank page
+
+
+# A minimal DOM for the page's sorting script: the headers, one table body whose
+# rows are reordered by appendChild, click handlers called by hand.
+_DOM_SHIM = """
+const data = JSON.parse(process.argv[1]);
+let table;
+const ths = data.head.map((h, i) => ({
+  textContent: h, cellIndex: i, attrs: {}, listeners: {},
+  addEventListener(type, f) { this.listeners[type] = f; },
+  getAttribute(k) { return k in this.attrs ? this.attrs[k] : null; },
+  setAttribute(k, v) { this.attrs[k] = v; }, removeAttribute(k) { delete this.attrs[k]; },
+  closest() { return table; },
+}));
+const body = {
+  rows: data.rows.map(r => ({ cells: r.map(t => ({ textContent: t })), data: r })),
+  appendChild(row) { this.rows.splice(this.rows.indexOf(row), 1); this.rows.push(row); },
+};
+table = { tBodies: [body], querySelectorAll() { return ths; } };
+global.document = { querySelectorAll() { return ths; } };
+eval(data.script);
+const out = [];
+for (let k = 0; k < 2; k++) {
+  ths[data.col].listeners.click();
+  out.push(body.rows.map(r => r.data[data.col]));
+}
+console.log(JSON.stringify(out));
+"""
+
+
+@pytest.mark.skipif(shutil.which("node") is None, reason="no node on PATH to run the page's script")
+def test_page_script_sorts_numbers_as_numbers():
+    import baselines.report as report
+
+    column = ["3,000", "300", "-", "1,000", "25"]
+    payload = {
+        "head": ["particles"], "rows": [[c] for c in column], "col": 0,
+        "script": report._SORT_JS,
+    }  # fmt: skip
+    done = subprocess.run(
+        ["node", "-e", _DOM_SHIM, json.dumps(payload)],
+        check=True, capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    up, down = json.loads(done.stdout)
+    assert up == ["25", "300", "1,000", "3,000", "-"]  # numbers by value, text after
+    assert down == up[::-1]
