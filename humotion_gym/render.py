@@ -656,6 +656,67 @@ def figure_sequence(
         ValueError: For malformed poses, cameras of another size or field of
             view, or a sequence of cameras of the wrong length.
     """
+    in_camera, first = _in_camera(params, shape, cameras, scene, geometry)
+    order, ellipses, quads, colors, wide = _figure_polygons(in_camera, shape, first, scene)
+    return FigureSequence(scene, order, ellipses, quads, colors, wide)
+
+
+def figure_sequences(
+    sequences: Sequence[tuple[ArrayLike, BodyShape, Camera | Sequence[Camera], ArrayLike | None]],
+    scene: SceneOptions,
+) -> list[FigureSequence]:
+    """:func:`figure_sequence` of several sequences, prepared in one pass.
+
+    Each sequence's poses are brought into its cameras' frames as
+    :func:`figure_sequence` does; then the silhouettes, shading and depth
+    order of the frames of every sequence whose figure has the same radii and
+    aspect and whose cameras the same intrinsics are computed together. The
+    result is the same, frame for frame and bit for bit, as one call per
+    sequence (every step is elementwise over frames); the vector environment
+    prepares the episodes it starts in one step this way.
+
+    Args:
+        sequences: ``(params, shape, cameras, geometry)`` per sequence, the
+            arguments of :func:`figure_sequence`.
+        scene: Scene options.
+
+    Returns:
+        One :class:`FigureSequence` per sequence, in order.
+    """
+    prepared = [_in_camera(p, shape, cams, scene, g) for p, shape, cams, g in sequences]
+    groups: dict[tuple, list[int]] = {}
+    for i, ((_, shape, _, _), (_, cam)) in enumerate(zip(sequences, prepared, strict=True)):
+        key = (shape.radii.tobytes(), shape.aspect.tobytes(), cam.focal, cam.principal_point)
+        groups.setdefault(key, []).append(i)
+    out: list[FigureSequence | None] = [None] * len(sequences)
+    for members in groups.values():
+        first = members[0]
+        shape, camera = sequences[first][1], prepared[first][1]
+        stacked = np.concatenate([prepared[i][0] for i in members])
+        order, ellipses, quads, colors, wide = _figure_polygons(stacked, shape, camera, scene)
+        start = 0
+        for i in members:
+            stop = start + prepared[i][0].shape[0]
+            out[i] = FigureSequence(
+                scene,
+                order[start:stop],
+                ellipses[start:stop],
+                quads[start:stop],
+                colors[start:stop],
+                wide[start:stop],
+            )
+            start = stop
+    return [seq for seq in out if seq is not None]
+
+
+def _in_camera(
+    params: ArrayLike,
+    shape: BodyShape,
+    cameras: Camera | Sequence[Camera],
+    scene: SceneOptions,
+    geometry: ArrayLike | None,
+) -> tuple[NDArray[np.float64], Camera]:
+    """The checked poses' geometry in each frame's camera frame, and the first camera."""
     p = np.asarray(params, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != body.N_PARAMS or p.shape[0] == 0:
         raise ValueError(f"figure_sequence: expected poses of shape (T, 25), got {p.shape}")
@@ -691,8 +752,7 @@ def figure_sequence(
     # x_cam = R x + t for the keypoints, R a for the cone axes.
     in_camera = world @ np.swapaxes(rotation, -1, -2)
     in_camera[:, :N_KEYPOINTS] += translation[:, None] if translation.ndim == 2 else translation
-    order, ellipses, quads, colors, wide = _figure_polygons(in_camera, shape, first, scene)
-    return FigureSequence(scene, order, ellipses, quads, colors, wide)
+    return in_camera, first
 
 
 def _draw_figure(img: NDArray[np.uint8], figures: FigureSequence, t: int) -> None:

@@ -117,6 +117,9 @@ class PoseTrackingEnv(gym.Env):
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
+    #: Per-clip geometry shared by the episodes of a vector environment (see
+    #: :meth:`_episode_geometry`); None computes each episode's own.
+    _clip_geometry: dict[str, tuple[Motion, FloatArray]] | None = None
 
     def __init__(
         self,
@@ -442,7 +445,7 @@ class PoseTrackingEnv(gym.Env):
         self._episode_params = m.params[idx]
         # Keypoints and cone axes of every frame of the episode at once: the
         # renderer's figures are prepared from them in one vectorised pass.
-        self._geometry = batch_pose_geometry(self._episode_params, m.shape)
+        self._geometry = self._episode_geometry(m, idx)
         kp = self._geometry[:, :N_KEYPOINTS]
         self._truth_keypoints = kp  # scored against in step()
         first = kp[0]
@@ -472,6 +475,23 @@ class PoseTrackingEnv(gym.Env):
             pad = float(np.max(m.shape.radii))
         base = fit_camera(local, *size, azimuth, spec.elevation_deg, spec.margin, pad)
         self._cameras = base.shifted(targets)
+
+    def _episode_geometry(self, motion: Motion, idx: NDArray[np.intp]) -> FloatArray:
+        """``(len(idx), 35, 3)`` keypoints and cone axes of the clip's frames ``idx``.
+
+        Computed for the episode's frames; with a clip table
+        (``_clip_geometry``, a dict the vector environment shares among its
+        episodes) computed once per clip and indexed, which gives the same
+        numbers (the kinematics is elementwise over frames).
+        """
+        table = self._clip_geometry
+        if table is None:
+            return batch_pose_geometry(motion.params[idx], motion.shape)
+        entry = table.get(motion.clip_id)
+        if entry is None or entry[0] is not motion:
+            entry = (motion, batch_pose_geometry(motion.params, motion.shape))
+            table[motion.clip_id] = entry
+        return entry[1][idx]
 
     @property
     def camera(self) -> Camera:
@@ -536,6 +556,19 @@ class PoseTrackingEnv(gym.Env):
     def _reset(
         self, seed: int | None, options: dict[str, Any]
     ) -> tuple[NDArray[np.uint8], dict[str, Any]]:
+        self._begin_episode(seed, options)
+        self._figures = figure_sequence(
+            self._episode_params, self.shape, self._cameras, self.scene, self._geometry
+        )
+        return self._first_frame()
+
+    def _begin_episode(self, seed: int | None, options: dict[str, Any]) -> None:
+        """A reset up to the figures: clip, start, background, noise, cameras.
+
+        :meth:`_reset` then prepares the episode's figures and shows the first
+        frame (:meth:`_first_frame`); the vector environment prepares the
+        figures of several episodes in one pass between the two.
+        """
         super().reset(seed=seed)
         self._done = False
         self._motion = self._pick_clip(options)
@@ -555,9 +588,10 @@ class PoseTrackingEnv(gym.Env):
         # frame by frame: the same seed and steps give the same frames.
         self._noise_rng = np.random.default_rng([self._episode_seed, 1])
         self._place_camera()
-        self._figures = figure_sequence(
-            self._episode_params, self.shape, self._cameras, self.scene, self._geometry
-        )
+
+    def _first_frame(self) -> tuple[NDArray[np.uint8], dict[str, Any]]:
+        """The end of a reset: the first frame and the reset's info."""
+        assert self._motion is not None
         self._lost_run = 0
         self._last_estimate: FloatArray | None = None
         self._estimate_keypoints: FloatArray | None = None

@@ -21,6 +21,7 @@ exactly as in the single environment.
 from __future__ import annotations
 
 import copy
+import math
 from typing import Any
 
 import numpy as np
@@ -29,9 +30,9 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
-from humotion_gym.body import N_KEYPOINTS, N_PARAMS
+from humotion_gym.body import KEYPOINT_INDEX, N_KEYPOINTS, N_PARAMS, BodyShape
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
-from humotion_gym.kinematics import single_pose_geometry
+from humotion_gym.render import figure_sequences
 
 FloatArray = NDArray[np.float64]
 
@@ -81,6 +82,8 @@ class PoseTrackingVectorEnv(VectorEnv):
         if num_envs < 1:
             raise ValueError(f"num_envs: expected an integer >= 1, got {num_envs!r}")
         template = PoseTrackingEnv(task=task, **kwargs)
+        # One table of every clip's geometry, shared by the N episodes.
+        template._clip_geometry = {}
         # The episodes share the template's library, clip table and caches
         # (shallow copies): constructing one env filters the clips once.
         self.envs: list[PoseTrackingEnv] = [template] + [
@@ -88,6 +91,7 @@ class PoseTrackingVectorEnv(VectorEnv):
         ]
         self.num_envs = int(num_envs)
         self.task = template.task
+        self._scene = template.scene
         self.render_mode = template.render_mode
         self.autoreset_mode = AutoresetMode(autoreset_mode)
         self.metadata = {
@@ -107,14 +111,16 @@ class PoseTrackingVectorEnv(VectorEnv):
             (f"reward_{name}", np.array(idx, dtype=np.intp))
             for name, idx in template._region_of.items()
         ]
-        # One table of every clip's geometry, shared by the N episodes.
-        self._clip_geometry: dict[str, tuple[Any, FloatArray]] = {}
         n, frames = self.num_envs, template.episode_frames + 1
         self._params = np.zeros((n, frames, N_PARAMS))
         self._truth_kp = np.zeros((n, frames, N_KEYPOINTS, 3))
+        self._torso = np.zeros((n, 5, 3))
+        self._head = np.zeros(n)
+        self._limbs = np.zeros((n, 4, 2))
         self._lo = np.zeros((n, len(self._free)))
         self._hi = np.ones((n, len(self._free)))
         self._k = np.zeros(n, np.intp)
+        self._t0 = np.zeros(n, np.intp)
         self._lost_run = np.zeros(n, np.intp)
         self._autoreset = np.zeros(n, np.bool_)
         self._started = np.zeros(n, np.bool_)
@@ -122,18 +128,40 @@ class PoseTrackingVectorEnv(VectorEnv):
 
     # -- episodes ----------------------------------------------------------------
 
-    def _start(self, i: int, seed: int | None, options: dict[str, Any] | None) -> dict[str, Any]:
-        """Reset episode ``i`` (the single environment's reset) and copy its tables."""
-        env = self.envs[i]
-        obs, info = env.reset(seed=seed, options=options)
-        self._obs[i] = obs
-        self._params[i] = env._episode_params
-        self._truth_kp[i] = env._truth_keypoints
-        self._lo[i], self._hi[i] = env._action_bounds()
-        self._k[i] = env._k
-        self._lost_run[i] = 0
-        self._started[i] = True
-        return info
+    def _start(
+        self, rows: list[int], seeds: list[int | None], options: dict[str, Any] | None
+    ) -> dict[int, dict[str, Any]]:
+        """Start the episodes ``rows`` (the single environment's reset) and copy their tables.
+
+        Each episode's reset runs as in the single environment, except that
+        the figures of all of them are prepared in one pass
+        (:func:`~humotion_gym.render.figure_sequences`). A reset refused for
+        its options leaves the episodes before it started.
+
+        Returns:
+            The reset info of each row.
+        """
+        envs = [self.envs[i] for i in rows]
+        for env, seed in zip(envs, seeds, strict=True):
+            env._begin_episode(seed, env._check_options(options))
+        figures = figure_sequences(
+            [(env._episode_params, env.shape, env._cameras, env._geometry) for env in envs],
+            self._scene,
+        )
+        infos = {}
+        for i, env, figure in zip(rows, envs, figures, strict=True):
+            env._figures = figure
+            obs, infos[i] = env._first_frame()
+            self._obs[i] = obs
+            self._params[i] = env._episode_params
+            self._truth_kp[i] = env._truth_keypoints
+            self._lo[i], self._hi[i] = env._action_bounds()
+            self._torso[i], self._head[i], self._limbs[i] = _shape_table(env.shape)
+            self._k[i] = env._k
+            self._t0[i] = env._t0
+            self._lost_run[i] = 0
+            self._started[i] = True
+        return infos
 
     def reset(
         self,
@@ -173,10 +201,11 @@ class PoseTrackingVectorEnv(VectorEnv):
                 )
             if not mask.any():
                 raise ValueError("reset: options['reset_mask'] selects no episode")
+        rows = np.flatnonzero(mask).tolist()
+        started = self._start(rows, [seeds[i] for i in rows], options or None)
         infos: dict[str, Any] = {}
-        for i in np.flatnonzero(mask).tolist():
-            info = self._start(i, seeds[i], options or None)
-            _add_info(infos, info, i, n)
+        for i in rows:
+            _add_info(infos, started[i], i, n)
         self._autoreset[mask] = False
         return self._obs.copy(), infos
 
@@ -226,10 +255,8 @@ class PoseTrackingVectorEnv(VectorEnv):
         a = np.clip(raw.astype(np.float64), -1.0, 1.0)
         estimate = truth.copy()
         estimate[:, self._free] = self._lo + (a + 1.0) * 0.5 * (self._hi - self._lo)
-        keypoints = np.zeros((n, N_KEYPOINTS, 3))  # rows of restarting episodes stay 0
         envs = self.envs
-        for i in np.flatnonzero(active).tolist():
-            keypoints[i] = single_pose_geometry(estimate[i], envs[i].shape)[:N_KEYPOINTS]
+        keypoints = np.ascontiguousarray(_keypoints(estimate, self._torso, self._head, self._limbs))
         diff = keypoints - self._truth_kp[rows, k]
         err_all = np.linalg.norm(diff, axis=-1)
         # C-contiguous rows (``err_all[:, idx]`` is laid out column-major): each
@@ -264,19 +291,11 @@ class PoseTrackingVectorEnv(VectorEnv):
         reward[restart] = 0.0
 
         observations = np.empty_like(self._obs)
-        step_infos: list[dict[str, Any] | None] = [None] * n
-        final: list[tuple[NDArray[np.uint8], dict[str, Any]] | None] = [None] * n
-        scored = {
-            "error_mm": error_mm,
-            "error_all_mm": err_all.sum(axis=1) / N_KEYPOINTS,
-            "keypoint_errors_mm": err_all,
-            "lost": lost,
-            **terms,
-        }
+        restarted = self._start(np.flatnonzero(restart).tolist(), [None] * int(restart.sum()), None)
+        cameras = np.full(n, None, dtype=object)
         for i in range(n):
             env = envs[i]
             if restart[i]:
-                step_infos[i] = self._start(i, None, None)
                 observations[i] = self._obs[i]
                 continue
             env._last_estimate = estimate[i]
@@ -284,29 +303,53 @@ class PoseTrackingVectorEnv(VectorEnv):
             env._lost_run = int(self._lost_run[i])
             if done[i]:
                 env._done = True
-                frame = env._frame
+                observations[i] = env._frame
             else:
                 env._k = int(k[i]) + 1
-                frame = env._observe()
-            info = env._info()
-            info.update({key: _item(value, i) for key, value in scored.items()})
-            if done[i] and self.autoreset_mode == AutoresetMode.SAME_STEP:
-                final[i] = (frame.copy(), info)
-                info = self._start(i, None, None)
-                frame = self._obs[i]
-            observations[i] = frame
-            step_infos[i] = info
+                observations[i] = env._observe()
+            cameras[i] = env._cameras[env._k]
+        shown = k + (active & ~done)  # the frame each stepped episode now shows
+        # The info of every stepped episode, batched as SyncVectorEnv batches
+        # the single environments' dicts (same keys, dtypes and masks).
+        step_info: dict[str, NDArray[Any]] = {
+            "fixed_params": self._params[rows, shown][:, self._fixed],
+            "camera": cameras,
+            "frame": (self._t0 + shown * template.frame_skip).astype(np.int64),
+            "step": shown.astype(np.int64),
+            "error_mm": error_mm,
+            "error_all_mm": err_all.sum(axis=1) / N_KEYPOINTS,
+            "keypoint_errors_mm": err_all,
+            "lost": lost,
+            **terms,
+        }
+        final: dict[int, tuple[NDArray[np.uint8], dict[str, Any]]] = {}
+        if self.autoreset_mode == AutoresetMode.SAME_STEP and done.any():
+            # the finished episodes' last frame and info, then their next episode
+            ended = np.flatnonzero(done).tolist()
+            for i in ended:
+                info = {key: _item(value, i) for key, value in step_info.items()}
+                final[i] = (observations[i].copy(), info)
+            restarted = self._start(ended, [None] * len(ended), None)
+            for i in ended:
+                observations[i] = self._obs[i]
+        stepped = active.copy()
+        stepped[list(final)] = False
+        infos: dict[str, Any] = {}
+        for key, value in step_info.items() if stepped.any() else ():
+            if not stepped.all():
+                value = value.copy()
+                value[~stepped] = None if value.dtype == object else 0
+            infos[key], infos[f"_{key}"] = value, stepped.copy()
+        for i in sorted(set(restarted) | set(final)):
+            if i in final:
+                final_obs, final_info = final[i]
+                _add_info(infos, {"final_obs": final_obs, "final_info": final_info}, i, n)
+            _add_info(infos, restarted[i], i, n)
         self._k = np.array([env._k for env in envs], np.intp)
         if self.autoreset_mode == AutoresetMode.SAME_STEP:
             self._autoreset[:] = False
         else:
             self._autoreset = (terminated | truncated).copy()
-        infos: dict[str, Any] = {}
-        for i in range(n):
-            if final[i] is not None:
-                final_obs, final_info = final[i]  # type: ignore[misc]
-                _add_info(infos, {"final_obs": final_obs, "final_info": final_info}, i, n)
-            _add_info(infos, step_infos[i], i, n)  # type: ignore[arg-type]
         return observations, reward, terminated, truncated, infos
 
     def render(self) -> tuple[NDArray[np.uint8], ...] | None:
@@ -322,10 +365,107 @@ class PoseTrackingVectorEnv(VectorEnv):
             env.close()
 
 
+_KP = KEYPOINT_INDEX
+_LIMB_KEYPOINTS = (
+    (_KP["r_shoulder"], _KP["r_elbow"], _KP["r_wrist"]),
+    (_KP["l_shoulder"], _KP["l_elbow"], _KP["l_wrist"]),
+    (_KP["r_hip"], _KP["r_knee"], _KP["r_ankle"]),
+    (_KP["l_hip"], _KP["l_knee"], _KP["l_ankle"]),
+)
+_LIMB_SIGN = (1.0, 1.0, -1.0, -1.0)  # elbows bend forward, knees backward
+
+
+def _shape_table(shape: BodyShape) -> tuple[FloatArray, float, FloatArray]:
+    """A shape's constants for :func:`_keypoints`: torso offsets, head length, limb lengths."""
+    limbs = np.array(
+        [[shape.upper_arm_length, shape.forearm_length]] * 2
+        + [[shape.thigh_length, shape.shin_length]] * 2
+    )
+    return shape.torso_points(), float(shape.head_length), limbs
+
+
+def _keypoints(
+    params: FloatArray, torso: FloatArray, head: FloatArray, limbs: FloatArray
+) -> FloatArray:
+    """Keypoints of N poses, each with its own shape, equal bit for bit to the single env's.
+
+    :func:`~humotion_gym.kinematics.single_pose_geometry` (keypoint rows,
+    world frame) with every Python float replaced by an ``(N,)`` array: the
+    same products and sums in the same order (IEEE arithmetic gives the same
+    result per element) and the same ``math.cos``/``math.sin``, so the errors
+    and rewards equal the single environment's exactly
+    (``tests/envs/test_vector_env.py``).
+
+    Args:
+        params: ``(N, 25)`` poses.
+        torso: ``(N, 5, 3)`` torso offsets (neck, shoulders, hips) of each pose's shape.
+        head: ``(N,)`` head lengths.
+        limbs: ``(N, 4, 2)`` upper and lower segment lengths of the four limbs.
+
+    Returns:
+        ``(N, 15, 3)`` keypoints.
+    """
+    n = params.shape[0]
+    angles = params[:, 3:].T.ravel().tolist()  # angle-major: (22 * N,)
+    cos = np.array([math.cos(x) for x in angles]).reshape(-1, n)
+    sin = np.array([math.sin(x) for x in angles]).reshape(-1, n)
+    p = params.T
+    cy, sy, cp, sp, cr, sr = cos[0], sin[0], cos[1], sin[1], cos[2], sin[2]
+    r00, r01, r02 = cy * cr - sy * sp * sr, -sy * cp, cy * sr + sy * sp * cr
+    r10, r11, r12 = sy * cr + cy * sp * sr, cy * cp, sy * sr - cy * sp * cr
+    r20, r21, r22 = -cp * sr, sp, cp * cr
+    px, py, pz = p[0], p[1], p[2]
+    out = np.empty((N_KEYPOINTS, 3, n))
+    out[_KP["pelvis"]] = px, py, pz
+    base = []
+    for j in range(5):
+        ox, oy, oz = torso[:, j, 0], torso[:, j, 1], torso[:, j, 2]
+        base.append(
+            (
+                r00 * ox + r01 * oy + r02 * oz + px,
+                r10 * ox + r11 * oy + r12 * oz + py,
+                r20 * ox + r21 * oy + r22 * oz + pz,
+            )
+        )
+    nx, ny, nz = base[0]
+    out[_KP["neck"]] = nx, ny, nz
+    ca, sa, cb, sb = cos[3], sin[3], cos[4], sin[4]
+    ez0, ez1, ez2 = sb, -sa * cb, ca * cb
+    out[_KP["head_top"]] = (
+        nx + head * (r00 * ez0 + r01 * ez1 + r02 * ez2),
+        ny + head * (r10 * ez0 + r11 * ez1 + r12 * ez2),
+        nz + head * (r20 * ez0 + r21 * ez1 + r22 * ez2),
+    )
+    for i in range(4):
+        j = 6 + 4 * i  # rows of cos/sin: the limb's x, y, z angles and hinge
+        ca, sa, cb, sb = cos[j], sin[j], cos[j + 1], sin[j + 1]
+        cc, sc, ck, sk = cos[j + 2], sin[j + 2], cos[j + 3], sin[j + 3]
+        upper, lower, sign = limbs[:, i, 0], limbs[:, i, 1], _LIMB_SIGN[i]
+        sa_sb, ca_sb = sa * sb, ca * sb
+        ly0, lz0 = -cb * sc, sb
+        ly1, lz1 = ca * cc - sa_sb * sc, -sa * cb
+        ly2, lz2 = sa * cc + ca_sb * sc, ca * cb
+        y0 = r00 * ly0 + r01 * ly1 + r02 * ly2
+        y1 = r10 * ly0 + r11 * ly1 + r12 * ly2
+        y2 = r20 * ly0 + r21 * ly1 + r22 * ly2
+        z0 = r00 * lz0 + r01 * lz1 + r02 * lz2
+        z1 = r10 * lz0 + r11 * lz1 + r12 * lz2
+        z2 = r20 * lz0 + r21 * lz1 + r22 * lz2
+        bx, by, bz = base[i + 1]
+        mx, my, mz = bx - upper * z0, by - upper * z1, bz - upper * z2
+        ssk = sign * sk
+        lk, ls = lower * ck, lower * ssk
+        base_row, mid_row, tip_row = _LIMB_KEYPOINTS[i]
+        out[base_row] = bx, by, bz
+        out[mid_row] = mx, my, mz
+        out[tip_row] = mx + ls * y0 - lk * z0, my + ls * y1 - lk * z1, mz + ls * y2 - lk * z2
+    return out.transpose(2, 0, 1)
+
+
 def _item(value: NDArray[Any], i: int) -> Any:
     """Row ``i`` of a batched value, as the single environment gives it."""
     row = value[i]
-    if isinstance(row, np.ndarray):
+    if isinstance(row, np.ndarray) or value.dtype == object:
         return row
     if value.dtype == np.bool_:
         return bool(row)
