@@ -318,13 +318,18 @@ class _RayWorker:
     ids in the worker; BLAS gets one thread, as on the command line.
     """
 
-    def __init__(self, seed: int, env_kwargs: Mapping[str, Any]) -> None:
+    def __init__(self, seed: int, env_kwargs: Mapping[str, Any], tasks: Sequence[str]) -> None:
         import humotion_gym  # registers the environment ids in this process
         from humotion_gym.threads import limit_blas_threads
 
         limit_blas_threads()
         self.version = str(getattr(humotion_gym, "__version__", "unknown"))
         self.runner = EpisodeRunner(seed, env_kwargs)
+        for task in tasks:  # load the clips while the driver fits (about 1 s on real data)
+            try:
+                self.runner._env(task)
+            except Exception:  # the episode that needs it reports the error
+                pass
 
     def start(self, fits: Fits) -> tuple[str, int]:
         """Take the fitted priors; the package version and process id of this worker."""
@@ -400,6 +405,8 @@ class RayEngine:
         address: A running cluster to join (``ray://...`` or ``HOST:PORT``);
             else ``RAY_ADDRESS`` if set, else a local Ray is started here.
             A Ray already initialised in this process is used as it is.
+        tasks: The run's tasks: each actor makes their environments (loads
+            the clips) as it starts.
 
     Raises:
         ModuleNotFoundError: If Ray is not installed.
@@ -411,6 +418,7 @@ class RayEngine:
         env_kwargs: Mapping[str, Any] | None,
         workers: int | None = None,
         address: str | None = None,
+        tasks: Sequence[str] = (),
     ) -> None:
         ray = _import_ray()
         self.ray = ray
@@ -430,7 +438,7 @@ class RayEngine:
             self.started = True
         self.workers = int(workers or max(1, int(ray.cluster_resources().get("CPU", 1))))
         self._actor = ray.remote(num_cpus=1)(_RayWorker)
-        self._args = (int(seed), dict(env_kwargs or {}))
+        self._args = (int(seed), dict(env_kwargs or {}), list(dict.fromkeys(tasks)))
         self._fits: Any = None
         self.actors = [self._actor.remote(*self._args) for _ in range(self.workers)]
 
@@ -506,6 +514,7 @@ def make_engine(
     env_kwargs: Mapping[str, Any] | None,
     workers: int | None = None,
     address: str | None = None,
+    tasks: Sequence[str] = (),
 ) -> InProcessEngine | RayEngine:
     """An engine by name (:data:`ENGINES`); call its ``start(fits)`` before ``run``.
 
@@ -518,7 +527,7 @@ def make_engine(
             raise ValueError("workers, address: the inprocess engine runs one worker, here")
         return InProcessEngine(seed, env_kwargs)
     if name == "ray":
-        return RayEngine(seed, env_kwargs, workers, address)
+        return RayEngine(seed, env_kwargs, workers, address, tasks)
     raise ValueError(f"engine: expected one of {list(ENGINES)}, got {name!r}")
 
 

@@ -262,7 +262,7 @@ def run_leaderboard(
         if (cell.task, cell.agent, cell.particles, s) not in done
     ]
     # the engine's workers start (Ray: a process each) while the driver fits
-    runner = make_engine(engine, seed, kwargs, workers, address) if left else None
+    runner = make_engine(engine, seed, kwargs, workers, address, tasks) if left else None
     records = dict(done)
     failures: dict[Cell, list[dict[str, Any]]] = {}
     try:
