@@ -375,6 +375,27 @@ _LIMB_KEYPOINTS = (
 _LIMB_SIGN = (1.0, 1.0, -1.0, -1.0)  # elbows bend forward, knees backward
 
 
+def _trig_is_libm() -> bool:
+    """Whether numpy's float64 cos and sin give ``math.cos``/``math.sin`` bit for bit.
+
+    They do where numpy calls the C library per element (as on this project's
+    machines); a build with its own vectorised implementation differs in the
+    last bit for some angles, which a probe of a few thousand angles shows.
+    """
+    probe = np.random.default_rng(0).uniform(-20.0, 20.0, 4096)
+    probe[:64] = np.linspace(-np.pi, np.pi, 64)
+    values = probe.tolist()
+    return bool(
+        np.array_equal(np.cos(probe), [math.cos(x) for x in values])
+        and np.array_equal(np.sin(probe), [math.sin(x) for x in values])
+    )
+
+
+# The single env's kinematics runs on Python floats (math.cos); the batched one
+# uses numpy's where that is the same function, and math's otherwise.
+_NUMPY_TRIG_IS_LIBM = _trig_is_libm()
+
+
 def _shape_table(shape: BodyShape) -> tuple[FloatArray, float, FloatArray]:
     """A shape's constants for :func:`_keypoints`: torso offsets, head length, limb lengths."""
     limbs = np.array(
@@ -392,7 +413,8 @@ def _keypoints(
     :func:`~humotion_gym.kinematics.single_pose_geometry` (keypoint rows,
     world frame) with every Python float replaced by an ``(N,)`` array: the
     same products and sums in the same order (IEEE arithmetic gives the same
-    result per element) and the same ``math.cos``/``math.sin``, so the errors
+    result per element) and the same cosines and sines (``math``'s, or numpy's
+    where a probe finds them equal: :func:`_trig_is_libm`), so the errors
     and rewards equal the single environment's exactly
     (``tests/envs/test_vector_env.py``).
 
@@ -406,9 +428,12 @@ def _keypoints(
         ``(N, 15, 3)`` keypoints.
     """
     n = params.shape[0]
-    angles = params[:, 3:].T.ravel().tolist()  # angle-major: (22 * N,)
-    cos = np.array([math.cos(x) for x in angles]).reshape(-1, n)
-    sin = np.array([math.sin(x) for x in angles]).reshape(-1, n)
+    angles = np.ascontiguousarray(params[:, 3:].T)  # (22, N)
+    if _NUMPY_TRIG_IS_LIBM:
+        cos, sin = np.cos(angles), np.sin(angles)
+    else:
+        cos = np.array([math.cos(x) for x in angles.ravel().tolist()]).reshape(-1, n)
+        sin = np.array([math.sin(x) for x in angles.ravel().tolist()]).reshape(-1, n)
     p = params.T
     cy, sy, cp, sp, cr, sr = cos[0], sin[0], cos[1], sin[1], cos[2], sin[2]
     r00, r01, r02 = cy * cr - sy * sp * sr, -sy * cp, cy * sr + sy * sp * cr
