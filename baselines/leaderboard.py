@@ -28,6 +28,7 @@ import datetime
 import json
 import os
 import shlex
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -297,7 +298,7 @@ def _run_episodes(
     """Run the episodes with a progress bar (time left), saving each record as it comes."""
     bar = tqdm(total=len(todo), desc="episodes", unit="episode", disable=not progress)
     if n_done:
-        bar.write(f"resuming: {n_done} episodes were done, {len(todo)} to run")
+        bar.write(f"resuming: {n_done} episodes were done, {len(todo)} to run", file=sys.stderr)
 
     def take(record: dict[str, Any]) -> None:
         if folder is not None:
@@ -308,7 +309,8 @@ def _run_episodes(
             failures.setdefault(Cell(*_key(record)[:3]), []).append(record)
             bar.write(
                 f"error: {record['agent']} on {record['task']} ({record['particles']} "
-                f"particles), episode {record['seed']}: {record['error']}"
+                f"particles), episode {record['seed']}: {record['error']}",
+                file=sys.stderr,
             )
         bar.set_postfix_str(f"{record['agent']} on {record['task']}", refresh=False)
         bar.update(1)
@@ -407,10 +409,12 @@ def write_results(
     try:
         from baselines.report import write_report
     except ImportError:  # the report module is optional: the folder is complete without it
-        print(f"{out}: no figures or index.html (baselines.report is not available)")
+        print(
+            f"{out}: no figures or index.html (baselines.report is not available)", file=sys.stderr
+        )
         return
     if not any("summary" in r for r in rows):
-        print(f"{out}: no figures or index.html (no cell ran)")
+        print(f"{out}: no figures or index.html (no cell ran)", file=sys.stderr)
         return
     try:
         write_report(
@@ -418,7 +422,7 @@ def write_results(
             seed=document["seed"], progress=progress,
         )  # fmt: skip
     except ModuleNotFoundError as exc:  # matplotlib (the plots extra) is optional
-        print(f"{out}: no figures or index.html ({exc}; install the plots extra)")
+        print(f"{out}: no figures or index.html ({exc}; install the plots extra)", file=sys.stderr)
 
 
 def default_command(

@@ -167,7 +167,8 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
             print(line)
         print(LEGEND)
         if args.out:
-            wrote(args.out, "results.json, table.md, episodes.jsonl and the report")
+            report = "" if args.no_report else ", the report (index.html)"
+            wrote(args.out, f"results.json, table.md, episodes.jsonl{report}")
     for r in failed:
         print(
             f"error: {r['agent']} on {r['task']} ({r['particles']} particles): {r['error']}",

@@ -219,3 +219,25 @@ def test_the_ray_schedule_hands_out_every_episode_once_keeping_workers_on_their_
     # each worker starts on a cell of its own and stays on it while it lasts
     assert {e.cell for e in given[0][:4]} == {cells[0]}
     assert {e.cell for e in given[1][:4]} == {cells[1]}
+
+
+def test_an_interrupted_run_exits_130_keeps_its_episodes_and_resumes(tmp_path, capsys, monkeypatch):
+    import baselines.engine as engine
+
+    real, calls = engine.run_episode, []
+
+    def interrupted_after_three(*args, **kwargs):
+        calls.append(1)
+        if len(calls) > 3:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(engine, "run_episode", interrupted_after_three)
+    argv = [*_cli(tmp_path, "pf-cv", "random"), "--episodes", "2", "--no-report"]
+    assert main(argv) == 130
+    assert "--resume" in capsys.readouterr().err
+    assert len(_lines(tmp_path / "lb")) == 3
+    monkeypatch.undo()
+    assert main([*argv, "--resume"]) == 0
+    assert "resuming: 3 episodes were done, 3 to run" in capsys.readouterr().err
+    assert len(_lines(tmp_path / "lb")) == 6
