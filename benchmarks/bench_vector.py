@@ -1,6 +1,6 @@
 """The batched vector environment against Gymnasium's sync vector env, in the same run.
 
-Run: python benchmarks/bench_vector.py [--num-envs 16] [--task BodyTrack-v1]
+Run: python benchmarks/bench_vector.py [--num-envs 16] [--task BodyTrack-v1] [--ppo-steps 4096]
 
 Both run N episodes of the same task from the same seeds (the two give the
 same results, ``tests/envs/test_vector_env.py``), stepping with actions drawn
@@ -9,6 +9,10 @@ steps included) are timed in alternation, the best round of each. Two
 settings: the defaults, with random actions, so episodes end when track is
 lost (five frames in) and resets are frequent; and the 30-frame episodes of
 ``terminate_on_lost=False`` that the learners train on. One core.
+
+Then PPO (stable-baselines3, 8 envs, as ``humotion-gym train`` runs it) on the
+vector env through :class:`humotion_gym.sb3.LearnerVecEnv`, against the same
+PPO on a trivial environment with identical spaces (see :func:`ppo_rows`).
 """
 
 from __future__ import annotations
@@ -68,14 +72,68 @@ def rows(task: str = "BodyTrack-v1", num_envs: int = 16) -> list[tuple[str, floa
     return out
 
 
+def ppo_rows(
+    task: str = "BodyTrack-v1", n_envs: int = 8, steps: int = 4096, repeats: int = 3
+) -> list[tuple[str, float, str, float]]:
+    """PPO env steps per second on the vector env (through :class:`LearnerVecEnv`).
+
+    Against the same PPO (``baselines.rl.new_model``: 64x64 frames, one torch
+    thread) on a trivial environment with identical spaces (constant
+    observation, zero reward; ``bench_rl.TrivialEnv`` in a ``DummyVecEnv``),
+    and, for comparison, on today's ``DummyVecEnv`` of ``LearnerObservation``
+    environments. The three are timed in alternation, best of ``repeats``.
+    """
+    import torch as th
+    from bench_rl import TrivialEnv
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from baselines.rl import TrainConfig, make_learner_env, new_model
+    from humotion_gym.sb3 import learner_vec_env
+
+    th.set_num_threads(1)
+    batched = learner_vec_env(task, n_envs, "train", 64)
+    frames = batched.venv.envs[0].episode_frames
+
+    def trivial() -> gym.Env:
+        return TrivialEnv(batched.observation_space, batched.action_space, frames)  # type: ignore[arg-type]
+
+    venvs = {
+        "trivial": DummyVecEnv([trivial] * n_envs),
+        "vector": batched,
+        "dummy": DummyVecEnv([lambda: make_learner_env(task, "train", 64)] * n_envs),
+    }
+    models = {}
+    for name, venv in venvs.items():
+        config = TrainConfig("ppo", task, steps, settings={"n_envs": n_envs})
+        models[name] = new_model(config, venv)
+        models[name].learn(models[name].n_steps * n_envs)  # warm-up
+    best = dict.fromkeys(venvs, 0.0)
+    for _ in range(repeats):
+        for name, model in models.items():
+            t0 = time.perf_counter()
+            model.learn(steps, reset_num_timesteps=False)
+            best[name] = max(best[name], steps / (time.perf_counter() - t0))
+    ref = f"PPO on a trivial env with {task}'s learner spaces, {n_envs} envs"
+    return [
+        (ref, best["trivial"], ref, 1.0),
+        (f"PPO on the vector env, {n_envs} x {task}", best["vector"], ref,
+         best["vector"] / best["trivial"]),
+        (f"PPO on DummyVecEnv, {n_envs} x {task}", best["dummy"], ref,
+         best["dummy"] / best["trivial"]),
+    ]  # fmt: skip
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--num-envs", type=int, default=16)
     ap.add_argument("--task", default="BodyTrack-v1")
+    ap.add_argument("--ppo-steps", type=int, default=4096, help="PPO env steps timed (0: skip)")
     args = ap.parse_args()
     t0 = time.perf_counter()
     measured = rows(args.task, args.num_envs)
-    print(f"{'vector environment':78s} {'env steps/s':>11s} {'x sync':>7s}")
+    if args.ppo_steps:
+        measured += ppo_rows(args.task, 8, args.ppo_steps)
+    print(f"{'vector environment':78s} {'env steps/s':>11s} {'ratio':>7s}")
     for name, value, _, ratio in measured:
         print(f"{name:78s} {value:11,.0f} {ratio:7.2f}")
     print(f"({time.perf_counter() - t0:.0f} s)")

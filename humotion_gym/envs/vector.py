@@ -372,7 +372,10 @@ _LIMB_KEYPOINTS = (
     (_KP["r_hip"], _KP["r_knee"], _KP["r_ankle"]),
     (_KP["l_hip"], _KP["l_knee"], _KP["l_ankle"]),
 )
-_LIMB_SIGN = (1.0, 1.0, -1.0, -1.0)  # elbows bend forward, knees backward
+# Rows of the limbs' base, middle and tip keypoints, each in limb order.
+_LIMB_ROWS = tuple(np.array(rows, dtype=np.intp) for rows in zip(*_LIMB_KEYPOINTS, strict=True))
+# elbows bend forward, knees backward
+_LIMB_SIGN_COLUMN = np.array([1.0, 1.0, -1.0, -1.0])[:, None]
 
 
 def _trig_is_libm() -> bool:
@@ -442,17 +445,13 @@ def _keypoints(
     px, py, pz = p[0], p[1], p[2]
     out = np.empty((N_KEYPOINTS, 3, n))
     out[_KP["pelvis"]] = px, py, pz
-    base = []
-    for j in range(5):
-        ox, oy, oz = torso[:, j, 0], torso[:, j, 1], torso[:, j, 2]
-        base.append(
-            (
-                r00 * ox + r01 * oy + r02 * oz + px,
-                r10 * ox + r11 * oy + r12 * oz + py,
-                r20 * ox + r21 * oy + r22 * oz + pz,
-            )
-        )
-    nx, ny, nz = base[0]
+    # The five torso points (neck, shoulders, hips) stacked as (5, N) arrays:
+    # each line below is the single env's line for all five at once.
+    ox, oy, oz = torso[:, :, 0].T, torso[:, :, 1].T, torso[:, :, 2].T
+    bx = r00 * ox + r01 * oy + r02 * oz + px
+    by = r10 * ox + r11 * oy + r12 * oz + py
+    bz = r20 * ox + r21 * oy + r22 * oz + pz
+    nx, ny, nz = bx[0], by[0], bz[0]
     out[_KP["neck"]] = nx, ny, nz
     ca, sa, cb, sb = cos[3], sin[3], cos[4], sin[4]
     ez0, ez1, ez2 = sb, -sa * cb, ca * cb
@@ -461,29 +460,33 @@ def _keypoints(
         ny + head * (r10 * ez0 + r11 * ez1 + r12 * ez2),
         nz + head * (r20 * ez0 + r21 * ez1 + r22 * ez2),
     )
-    for i in range(4):
-        j = 6 + 4 * i  # rows of cos/sin: the limb's x, y, z angles and hinge
-        ca, sa, cb, sb = cos[j], sin[j], cos[j + 1], sin[j + 1]
-        cc, sc, ck, sk = cos[j + 2], sin[j + 2], cos[j + 3], sin[j + 3]
-        upper, lower, sign = limbs[:, i, 0], limbs[:, i, 1], _LIMB_SIGN[i]
-        sa_sb, ca_sb = sa * sb, ca * sb
-        ly0, lz0 = -cb * sc, sb
-        ly1, lz1 = ca * cc - sa_sb * sc, -sa * cb
-        ly2, lz2 = sa * cc + ca_sb * sc, ca * cb
-        y0 = r00 * ly0 + r01 * ly1 + r02 * ly2
-        y1 = r10 * ly0 + r11 * ly1 + r12 * ly2
-        y2 = r20 * ly0 + r21 * ly1 + r22 * ly2
-        z0 = r00 * lz0 + r01 * lz1 + r02 * lz2
-        z1 = r10 * lz0 + r11 * lz1 + r12 * lz2
-        z2 = r20 * lz0 + r21 * lz1 + r22 * lz2
-        bx, by, bz = base[i + 1]
-        mx, my, mz = bx - upper * z0, by - upper * z1, bz - upper * z2
-        ssk = sign * sk
-        lk, ls = lower * ck, lower * ssk
-        base_row, mid_row, tip_row = _LIMB_KEYPOINTS[i]
-        out[base_row] = bx, by, bz
-        out[mid_row] = mx, my, mz
-        out[tip_row] = mx + ls * y0 - lk * z0, my + ls * y1 - lk * z1, mz + ls * y2 - lk * z2
+    # The four limbs stacked as (4, N) arrays (rows of cos/sin: 6 + 4 i the
+    # limb's x angle, then y, z and the hinge).
+    ca, sa, cb, sb = cos[6:22:4], sin[6:22:4], cos[7:22:4], sin[7:22:4]
+    cc, sc, ck, sk = cos[8:22:4], sin[8:22:4], cos[9:22:4], sin[9:22:4]
+    upper, lower = limbs[:, :, 0].T, limbs[:, :, 1].T
+    sa_sb, ca_sb = sa * sb, ca * sb
+    ly0, lz0 = -cb * sc, sb
+    ly1, lz1 = ca * cc - sa_sb * sc, -sa * cb
+    ly2, lz2 = sa * cc + ca_sb * sc, ca * cb
+    y0 = r00 * ly0 + r01 * ly1 + r02 * ly2
+    y1 = r10 * ly0 + r11 * ly1 + r12 * ly2
+    y2 = r20 * ly0 + r21 * ly1 + r22 * ly2
+    z0 = r00 * lz0 + r01 * lz1 + r02 * lz2
+    z1 = r10 * lz0 + r11 * lz1 + r12 * lz2
+    z2 = r20 * lz0 + r21 * lz1 + r22 * lz2
+    lbx, lby, lbz = bx[1:], by[1:], bz[1:]
+    mx, my, mz = lbx - upper * z0, lby - upper * z1, lbz - upper * z2
+    ssk = _LIMB_SIGN_COLUMN * sk
+    lk, ls = lower * ck, lower * ssk
+    base_rows, mid_rows, tip_rows = _LIMB_ROWS
+    for rows, values in (
+        (base_rows, (lbx, lby, lbz)),
+        (mid_rows, (mx, my, mz)),
+        (tip_rows, (mx + ls * y0 - lk * z0, my + ls * y1 - lk * z1, mz + ls * y2 - lk * z2)),
+    ):
+        for axis in range(3):
+            out[rows, axis] = values[axis]
     return out.transpose(2, 0, 1)
 
 

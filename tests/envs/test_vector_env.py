@@ -138,3 +138,35 @@ def test_vector_env_render_is_each_episodes_render():
     assert len(frames) == 2
     for frame, env in zip(frames, vec.unwrapped.envs, strict=True):
         assert np.array_equal(frame, env.render())
+
+
+def test_learner_vec_env_equals_dummy_vec_env_of_learner_envs():
+    """The SB3 adapter gives what PPO gets today from DummyVecEnv(LearnerObservation envs)."""
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from baselines.rl import make_learner_env
+    from humotion_gym.sb3 import learner_vec_env
+
+    n, task = 3, "ArmTrack-v1"
+    dummy = DummyVecEnv([lambda: make_learner_env(task, "train", 32)] * n)
+    ours = learner_vec_env(task, n, "train", 32)
+    dummy.seed(5)
+    ours.seed(5)
+    _assert_same(dict(dummy.reset()), ours.reset(), "reset")
+    rng = np.random.default_rng(0)
+    ends = 0
+    for t in range(70):
+        actions = rng.uniform(-1, 1, (n, *ours.action_space.shape)).astype(np.float32)
+        (obs, rewards, dones, infos), want = ours.step(actions), dummy.step(actions)
+        _assert_same(obs, dict(want[0]), f"step {t}")
+        _assert_same(rewards, want[1], f"step {t}")
+        _assert_same(dones, want[2], f"step {t}")
+        for got_info, want_info in zip(infos, want[3], strict=True):
+            for key in ("TimeLimit.truncated", "error_mm", "lost"):
+                assert got_info[key] == want_info[key], (t, key)
+            assert ("terminal_observation" in got_info) == ("terminal_observation" in want_info)
+            if "terminal_observation" in want_info:
+                ends += 1
+                _assert_same(got_info["terminal_observation"], want_info["terminal_observation"])
+    assert ends > 0

@@ -1,0 +1,218 @@
+"""The batched vector environment as a stable-baselines3 ``VecEnv`` (needs the ``rl`` extra).
+
+stable-baselines3 steps its own ``VecEnv`` class, not Gymnasium's vector
+environments. :class:`LearnerVecEnv` adapts a
+:class:`~humotion_gym.envs.vector.PoseTrackingVectorEnv` to it and shows each
+episode as :class:`~humotion_gym.wrappers.LearnerObservation` does (the same
+``Dict`` observation, computed by the same function), so PPO trains on it
+exactly as on a ``DummyVecEnv`` of ``LearnerObservation`` environments with the
+same seeds (``tests/envs/test_vector_env.py``), with the N episodes stepped as
+one batch.
+
+Example:
+    >>> from humotion_gym.sb3 import learner_vec_env
+    >>> venv = learner_vec_env("BodyTrack-v1", n_envs=8, split="train")  # doctest: +SKIP
+    >>> PPO("MultiInputPolicy", venv)  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode
+from numpy.typing import NDArray
+from stable_baselines3.common.vec_env.base_vec_env import (
+    VecEnv,
+    VecEnvIndices,
+    VecEnvObs,
+    VecEnvStepReturn,
+)
+
+from humotion_gym.envs.vector import PoseTrackingVectorEnv
+from humotion_gym.wrappers import learner_frame
+
+# The step's scalar info that each episode's info dict carries (SB3 keeps one
+# dict per episode; the batched arrays stay in ``last_infos``).
+_SCALAR_INFO = ("error_mm", "error_all_mm", "lost")
+
+
+class LearnerVecEnv(VecEnv):
+    """A :class:`PoseTrackingVectorEnv` as stable-baselines3 steps it, with learner observations.
+
+    Observations are ``LearnerObservation``'s ``Dict`` (``frame`` channels
+    first at ``frame_size``, ``previous`` and ``initial`` estimates), batched.
+    An episode that ends is restarted in the same step (SB3's convention):
+    its last observation is in ``info["terminal_observation"]`` and
+    ``info["TimeLimit.truncated"]`` says whether it was cut rather than lost.
+    Each episode's info holds the step's ``error_mm``, ``error_all_mm``,
+    ``lost`` and reward terms; the vector environment's batched info of the
+    last step is ``last_infos``.
+
+    Args:
+        venv: The vector environment, made with ``autoreset_mode=SAME_STEP``.
+        frame_size: Side of the frame shown, in pixels (None keeps the env's).
+
+    Raises:
+        ValueError: If ``venv`` does not restart episodes in the same step.
+    """
+
+    def __init__(self, venv: PoseTrackingVectorEnv, frame_size: int | None = 64) -> None:
+        if venv.autoreset_mode != AutoresetMode.SAME_STEP:
+            raise ValueError(
+                "LearnerVecEnv: the vector env must restart episodes in the same step "
+                f"(autoreset_mode=AutoresetMode.SAME_STEP), got {venv.autoreset_mode}"
+            )
+        self.venv = venv
+        self.frame_size = frame_size
+        h, w, c = venv.single_observation_space.shape  # type: ignore[misc]
+        side_h, side_w = (h, w) if frame_size is None else (frame_size, frame_size)
+        action_space = venv.single_action_space
+        assert isinstance(action_space, spaces.Box)
+        n_free = action_space.shape[0]
+        vector = spaces.Box(-1.0, 1.0, shape=(n_free,), dtype=np.float32)
+        observation_space = spaces.Dict(
+            {
+                "frame": spaces.Box(0, 255, shape=(c, side_h, side_w), dtype=np.uint8),
+                "previous": vector,
+                "initial": vector,
+            }
+        )
+        super().__init__(venv.num_envs, observation_space, action_space)
+        self._previous = np.zeros((venv.num_envs, n_free), np.float32)
+        self._initial = np.zeros((venv.num_envs, n_free), np.float32)
+        self._actions = np.zeros((venv.num_envs, n_free), np.float32)
+        self.last_infos: dict[str, Any] = {}
+
+    def _initial_actions(self, rows: Sequence[int], poses: NDArray[np.float64]) -> None:
+        envs = self.venv.envs
+        for i in rows:
+            self._initial[i] = envs[i].pose_to_action(poses[i])
+            self._previous[i] = self._initial[i]
+
+    def _observation(self, frames: NDArray[np.uint8]) -> dict[str, NDArray[Any]]:
+        return {
+            "frame": np.stack([learner_frame(f, self.frame_size) for f in frames]),
+            "previous": self._previous.copy(),
+            "initial": self._initial.copy(),
+        }
+
+    def reset(self) -> VecEnvObs:
+        """Start every episode (with the seeds and options given by ``seed``/``set_options``)."""
+        seeds = None if all(s is None for s in self._seeds) else list(self._seeds)
+        options = self._options[0] if self._options and self._options[0] else None
+        if any(o != self._options[0] for o in self._options):
+            raise ValueError("LearnerVecEnv: every episode must get the same reset options")
+        frames, info = self.venv.reset(seed=seeds, options=options)
+        self.last_infos = info
+        self._initial_actions(range(self.num_envs), info["initial_pose"])
+        self.reset_infos = [
+            {"clip_id": info["clip_id"][i], "start_frame": int(info["start_frame"][i])}
+            for i in range(self.num_envs)
+        ]
+        self._reset_seeds()
+        self._reset_options()
+        return self._observation(frames)
+
+    def step_async(self, actions: NDArray[Any]) -> None:
+        """Keep the actions for :meth:`step_wait`."""
+        self._actions = np.asarray(actions)
+
+    def step_wait(self) -> VecEnvStepReturn:
+        """Step every episode; restart those that end (their last observation in info)."""
+        frames, rewards, terminated, truncated, info = self.venv.step(self._actions)
+        self.last_infos = info
+        # LearnerObservation: the action becomes the next observation's previous estimate.
+        self._previous = np.clip(np.asarray(self._actions, dtype=np.float32), -1.0, 1.0)
+        dones = terminated | truncated
+        keys = set(info) | set(info.get("final_info", ()))
+        terms = sorted(key for key in keys if key.startswith("reward_"))
+        infos: list[dict[str, Any]] = []
+        for i in range(self.num_envs):
+            source = info["final_info"] if dones[i] else info
+            row = {key: source[key][i].item() for key in (*_SCALAR_INFO, *terms)}
+            row["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
+            infos.append(row)
+        ended = np.flatnonzero(dones).tolist()
+        if ended:
+            for i in ended:
+                infos[i]["terminal_observation"] = {
+                    "frame": learner_frame(info["final_obs"][i], self.frame_size),
+                    "previous": self._previous[i].copy(),
+                    "initial": self._initial[i].copy(),
+                }
+            self._initial_actions(ended, info["initial_pose"])
+        return self._observation(frames), rewards.astype(np.float32), dones, infos
+
+    def close(self) -> None:
+        """Close the vector environment."""
+        self.venv.close()
+
+    def _targets(self, indices: VecEnvIndices) -> list[gym.Env]:
+        return [self.venv.envs[i] for i in self._get_indices(indices)]
+
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        """An attribute of each episode's environment."""
+        return [getattr(env, attr_name) for env in self._targets(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        """Set an attribute of each episode's environment."""
+        for env in self._targets(indices):
+            setattr(env, attr_name, value)
+
+    def env_method(
+        self,
+        method_name: str,
+        *method_args: Any,
+        indices: VecEnvIndices = None,
+        **method_kwargs: Any,
+    ) -> list[Any]:
+        """Call a method of each episode's environment."""
+        return [
+            getattr(env, method_name)(*method_args, **method_kwargs)
+            for env in self._targets(indices)
+        ]
+
+    def env_is_wrapped(
+        self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None
+    ) -> list[bool]:
+        """No episode is wrapped (the learner observation is the adapter's own)."""
+        return [False for _ in self._targets(indices)]
+
+    def get_images(self) -> Sequence[NDArray[np.uint8] | None]:
+        """Each episode's ``render()``."""
+        return [env.render() for env in self.venv.envs]
+
+
+def learner_vec_env(
+    task: str,
+    n_envs: int,
+    split: str = "train",
+    frame_size: int | None = 64,
+    **env_kwargs: Any,
+) -> LearnerVecEnv:
+    """A task's N learner environments as one batched SB3 ``VecEnv``.
+
+    The batched counterpart of ``DummyVecEnv`` over
+    :func:`baselines.rl.make_learner_env` environments: episodes run their full
+    length (``terminate_on_lost=False``) unless ``env_kwargs`` says otherwise.
+
+    Args:
+        task: The task's id (with or without namespace).
+        n_envs: Number of episodes stepped together.
+        split: ``"train"`` or ``"test"``.
+        frame_size: Side of the frame shown to the policy.
+        **env_kwargs: Keyword arguments of the environment.
+    """
+    kwargs = {"terminate_on_lost": False, **env_kwargs}
+    venv = PoseTrackingVectorEnv(
+        n_envs, task=task.split("/")[-1], split=split,
+        autoreset_mode=AutoresetMode.SAME_STEP, **kwargs,
+    )  # fmt: skip
+    return LearnerVecEnv(venv, frame_size)
+
+
+__all__ = ["LearnerVecEnv", "learner_vec_env"]
