@@ -114,3 +114,44 @@ def test_the_test_detects_a_leak(env_id, monkeypatch):
 def test_nothing_given_depends_on_the_future_on_real_data(env_id, shared_mocap, monkeypatch):
     monkeypatch.setenv("HUMOTION_MOCAP", str(shared_mocap))
     test_nothing_given_depends_on_the_future(env_id)
+
+
+def _run_vector(env_id: str, motion, start: int, steps: int, n: int = 2):
+    """:func:`_run` for the batched vector env: every episode on the same motion."""
+    venv = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point",
+                        terminate_on_lost=False)  # fmt: skip
+    envs = venv.unwrapped.envs
+    obs, info = venv.reset(seed=11, options={"motion": motion, "start": start})
+
+    def given(info):
+        skip = ("error", "reward", "keypoint", "_error", "_reward", "_keypoint", "lost", "_lost")
+        drop = ("camera", "_camera", "shape", "_shape")
+        return {k: v for k, v in info.items() if not k.startswith(skip) and k not in drop}
+
+    def state():
+        return [(_camera_state(e.camera), np.array(e._action_bounds()).tobytes()) for e in envs]
+
+    seen = [(obs.copy(), given(info), state())]
+    actions = np.random.default_rng(5).uniform(-1, 1, (steps, *venv.action_space.shape))
+    for a in actions:
+        obs, reward, term, trunc, info = venv.step(a.astype(np.float32))
+        seen.append((obs.copy(), given(info), state()))
+    venv.close()
+    return seen
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_nothing_the_vector_env_gives_depends_on_the_future(env_id):
+    env = gym.make(env_id)
+    base = env.unwrapped
+    span = base.episode_frames * base.frame_skip
+    motion = max(base.clips, key=lambda m: m.n_frames)
+    env.close()
+    start = (motion.n_frames - span) // 2
+    changed = _changed_after(motion, start, CUT, np.random.default_rng(0))
+    a = _run_vector(env_id, motion, start, CUT - 1)
+    b = _run_vector(env_id, changed, start, CUT - 1)
+    for t, ((obs_a, info_a, st_a), (obs_b, info_b, st_b)) in enumerate(zip(a, b, strict=True)):
+        assert np.array_equal(obs_a, obs_b), f"{env_id}: frame {t} depends on later frames"
+        assert st_a == st_b, f"{env_id}: camera or bounds at step {t} depend on later frames"
+        assert _equal(info_a, info_b), f"{env_id}: info at step {t} depends on later frames"
