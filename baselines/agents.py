@@ -436,8 +436,17 @@ CV_SETTINGS: dict[str, float] = {"multiplier": 0.5, "damping": 0.3, "position_no
 
 CONSTANT_VELOCITY = "humotion_gym.priors.constant_velocity"
 #: A random walk on the pose (constant velocity with no velocity): what lets a
-#: mixture stand still.
-STILL_SETTINGS: dict[str, float] = {"multiplier": 0.0, "damping": 0.0, "position_noise": 0.15}
+#: mixture stand still. Its pose noise and pf-mix's weights were chosen by
+#: cross-validation on the training persons, on both their ordinary episodes
+#: and their still ones (``humotion-gym select --task BodyTrack-v1 --agent
+#: pf-mix --grid fit.weight.cv=0.1,0.2,0.3 fit.weight.still=0.4,0.5,0.6
+#: fit.still.position_noise=0.05,0.15 --still 20 --data-dir ../shared/mocap``):
+#: 197 mm on the validation persons' episodes (hold 654, pf-cv 213, pf-tree
+#: 232) and 28 mm on their 20 still episodes (hold 15.5: 1.83x; pf-cv 109,
+#: pf-tree 163).
+STILL_SETTINGS: dict[str, float] = {"multiplier": 0.0, "damping": 0.0, "position_noise": 0.05}
+#: pf-mix's component weights (the tree takes the rest, 0.4); see above.
+MIX_WEIGHTS: dict[str, float] = {"weight.cv": 0.1, "weight.still": 0.5}
 
 AGENTS: dict[str, AgentSpec] = {
     "pf-cv": AgentSpec(
@@ -477,7 +486,7 @@ AGENTS: dict[str, AgentSpec] = {
     ),
     "pf-mix": AgentSpec(
         "humotion_gym.priors.mixture",
-        fit_settings={"weight.cv": 0.3, "weight.still": 0.2},
+        fit_settings=MIX_WEIGHTS,
         components=(
             ("tree", AgentSpec("humotion_gym.priors.tree")),
             ("cv", AgentSpec(CONSTANT_VELOCITY, fit_settings=CV_SETTINGS)),
