@@ -105,7 +105,8 @@ def stratified_bootstrap_ci(
 
     Each task's runs form one sample of :func:`scipy.stats.bootstrap`, which
     resamples every sample independently: that is the stratified bootstrap of
-    Agarwal et al. (2021), Sec. 4, and every resample keeps every task's share.
+    Agarwal et al. (2021) (rliable's ``get_interval_estimates``), and every resample keeps
+    every task's share.
 
     Args:
         scores: A ``(runs, tasks)`` matrix, or one 1-D array of runs per task
@@ -263,7 +264,8 @@ def probability_of_improvement(
 
     Per task, the Mann-Whitney U statistic over all pairs of runs divided by
     their number (a tie counts one half), averaged over tasks with equal weight
-    (Agarwal et al., 2021, Sec. 4.2, "probability of improvement").
+    (Agarwal et al., 2021, "probability of improvement"; rliable's
+    ``metrics.probability_of_improvement``).
 
     Args:
         x: One 1-D array of X's runs per task.
