@@ -17,7 +17,7 @@
   aggregate scores;
 * ``videos/``: the best, median and worst episode of each cell re-run with the
   estimate drawn over the frame (WebM, VP8, plays in browsers) and a contact
-  sheet of each (PNG); re-running an episode must reproduce its recorded
+  sheet of each (JPEG); re-running an episode must reproduce its recorded
   errors, or the report stops (:class:`ReplayMismatch`);
 * ``index.html``: all of it on one static page, tables sortable by a click on
   a column (a few lines of inline JavaScript, no external assets).
@@ -515,9 +515,10 @@ def write_videos(
         One dict per video: task, cell, choice, seed, mean_error_mm, video and
         sheet (paths relative to ``folder``).
     """
+    import cv2
     from tqdm.auto import tqdm
 
-    from humotion_gym.video import contact_sheet, write_png
+    from humotion_gym.video import contact_sheet
 
     (folder / "videos").mkdir(parents=True, exist_ok=True)
     chosen = [r for r in rows if ran(r) and (cells is None or cells(r))]
@@ -532,10 +533,14 @@ def write_videos(
             result, frames = replayed[s]
             stem = _slug(f"{r['task']}_{stats.cell_label(r)}_{choice}_seed{s}")
             video = folder / "videos" / f"{stem}.webm"
-            sheet = folder / "videos" / f"{stem}.png"
+            sheet = folder / "videos" / f"{stem}.jpg"
             if not video.exists():
                 write_webm(video, _caption(frames, result.errors_mm), fps)
-                write_png(sheet, contact_sheet(frames, columns=6, count=12))
+                # JPEG: the sensor noise makes a PNG of the sheet five times larger
+                sheet_rgb = contact_sheet(frames, columns=6, count=12)
+                image = cv2.cvtColor(sheet_rgb, cv2.COLOR_RGB2BGR)
+                if not cv2.imwrite(str(sheet), image, [cv2.IMWRITE_JPEG_QUALITY, 90]):
+                    raise OSError(f"{sheet}: could not write the contact sheet")
             out.append(
                 {"task": r["task"], "cell": stats.cell_label(r), "choice": choice, "seed": s,
                  "mean_error_mm": result.mean_error_mm,
