@@ -19,8 +19,10 @@ Two measurements, each against a reference taken in the same run:
    The same episodes in-process give the episode's time without Ray.
 
 Priors are fitted before any timing (the engines read the same cached fits).
-On a shared machine other work inflates every time: run it when the machine is
-quiet, and read the speed-up with the load printed beside it.
+On a shared machine other work takes cores: the speed-up is printed beside the
+reference measured just before it, how many times more work ``--workers`` busy
+Python processes did than one (2.0 on 2 idle cores; nearer 1 when other work
+holds a core), and the share of it Ray's speed-up reached.
 """
 
 from __future__ import annotations
@@ -45,14 +47,39 @@ def _numbers(value: Any) -> Any:
     return value
 
 
+def _spin(_: int) -> float:
+    t0 = time.perf_counter()
+    total = 0
+    for i in range(3_000_000):
+        total += i * i
+    return time.perf_counter() - t0
+
+
+def parallel_scaling(workers: int) -> float:
+    """How many times more work ``workers`` busy processes do than one, now.
+
+    The reference for the speed-up: on a machine shared with other work, N
+    processes get fewer than N cores. Pure Python, no shared data.
+    """
+    import multiprocessing
+
+    with multiprocessing.get_context("spawn").Pool(workers) as pool:
+        pool.map(_spin, range(workers))  # start the processes, untimed
+        one = min(pool.map(_spin, [0]) for _ in range(3))[0]
+        t0 = time.perf_counter()
+        pool.map(_spin, range(workers))
+        together = time.perf_counter() - t0
+    return workers * one / together
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--data-dir", nargs="*", default=None)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--tasks", nargs="+", default=["ArmTrack-v1", "BodyTrack-v1"])
     ap.add_argument("--agents", nargs="+", default=["pf-cv", "pf-tree"])
-    ap.add_argument("--particles", type=int, nargs="+", default=[300])
-    ap.add_argument("--episodes", type=int, default=4, help="episodes per cell of the grid")
+    ap.add_argument("--particles", type=int, nargs="+", default=[300, 3000])
+    ap.add_argument("--episodes", type=int, default=10, help="episodes per cell of the grid")
     ap.add_argument("--overhead-episodes", type=int, default=12)
     args = ap.parse_args()
     _timing.require("ray", "the Ray engine (the distributed extra)")
@@ -69,6 +96,7 @@ def main() -> None:
     inproc = run_leaderboard(**grid, episodes=args.episodes, env_kwargs=kwargs, progress=False)
     t_in = time.perf_counter() - t0
 
+    scaling = parallel_scaling(args.workers)
     t0 = time.perf_counter()
     ray.init(num_cpus=args.workers, include_dashboard=False, logging_level="WARNING")
     t_init = time.perf_counter() - t0
@@ -92,6 +120,11 @@ def main() -> None:
         print(f"  speed-up:                {t_in / t_ray:7.2f}x  (with ray.init: "
               f"{t_in / (t_ray + t_init):.2f}x; target 1.8x on 2 cores)")  # fmt: skip
         print(f"  same numbers:            {same}")
+        print(
+            f"  reference: {args.workers} busy processes did {scaling:.2f}x the work of one "
+            f"just before (the cores this machine gave); Ray's speed-up is "
+            f"{100 * t_in / t_ray / scaling:.0f}% of that"
+        )
 
         # Ray's cost per episode: one worker, K 300-particle BodyTrack-v1 episodes of pf-cv
         cell = Cell("BodyTrack-v1", "pf-cv", 300)
