@@ -323,8 +323,8 @@ class _RayWorker:
         from humotion_gym.threads import limit_blas_threads
 
         limit_blas_threads()
-        # one CPU per actor: OpenCV's own thread pool (rendering) would make two
-        # workers fight over each core (measured: 2.3x slower episodes on 2 cores)
+        # one CPU per actor: OpenCV's own pool (rendering; one thread per core by
+        # default) would have N workers run N threads per core
         import cv2
 
         cv2.setNumThreads(1)
