@@ -58,6 +58,7 @@ from humotion_gym.body import N_KEYPOINTS
 from humotion_gym.envs import get_task
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 from humotion_gym.kinematics import batch_pose_geometry
+from humotion_gym.sb3 import learner_vec_env
 from humotion_gym.wrappers import LearnerObservation, Supervision
 
 ALGOS: tuple[str, ...] = ("ppo", "bc")
@@ -485,6 +486,14 @@ def _tensorboard_dir(out: Path) -> str | None:
 
 def _vec_env(config: TrainConfig, supervised: bool = False) -> VecMonitor:
     s = config.settings
+    if not supervised:
+        # The episodes stepped as one batch (humotion_gym.sb3.LearnerVecEnv):
+        # the same observations, rewards and episode ends as the DummyVecEnv
+        # below with the same seeds (tests/envs/test_vector_env.py), cheaper.
+        kwargs = {} if config.data_dir is None else {"data_dir": config.data_dir}
+        batched = learner_vec_env(config.task, int(s["n_envs"]), "train", s["frame_size"], **kwargs)
+        batched.seed(config.seed)
+        return VecMonitor(batched)
 
     def factory(i: int) -> Callable[[], gym.Env]:
         def make() -> gym.Env:
