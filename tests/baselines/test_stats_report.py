@@ -349,11 +349,12 @@ def _chromium() -> str | None:
     reason="no chromium binary on PATH (apt-get install chromium) to render index.html headless",
 )
 def test_report_renders_in_headless_chromium(tmp_path):
-    index = write_report(_rows({"pf-cv": 0.5}), tmp_path / "rep", progress=False)
+    rows = _rows({"pf-cv": 0.5})
+    index = write_report(rows, tmp_path / "rep", progress=False)
+    browser = [str(_chromium()), "--headless", "--no-sandbox", "--disable-gpu"]
     shot = tmp_path / "shot.png"
     subprocess.run(
-        [str(_chromium()), "--headless", "--no-sandbox", "--disable-gpu",
-         f"--screenshot={shot}", "--window-size=1200,1600", index.resolve().as_uri()],
+        [*browser, f"--screenshot={shot}", "--window-size=1200,1600", index.resolve().as_uri()],
         check=True, timeout=120, capture_output=True,
     )  # fmt: skip
     import cv2
@@ -361,6 +362,15 @@ def test_report_renders_in_headless_chromium(tmp_path):
     image = cv2.imread(str(shot))
     assert image is not None and image.shape[:2] == (1600, 1200)
     assert image.std() > 5  # the tables and figures drew something, not a blank page
+    # the page's script ran in the browser: it marks how many headers sort
+    dom = subprocess.run(
+        [*browser, "--dump-dom", index.resolve().as_uri()],
+        check=True, timeout=120, capture_output=True, text=True,
+    ).stdout  # fmt: skip
+    page = _Links()
+    page.feed(index.read_text())
+    headers = sum(len(t[0]) for t in page.tables)
+    assert f'data-sortable-headers="{headers}"' in dom
 
 
 # A minimal DOM for the page's sorting script: the headers, one table body whose
@@ -380,7 +390,7 @@ const body = {
   appendChild(row) { this.rows.splice(this.rows.indexOf(row), 1); this.rows.push(row); },
 };
 table = { tBodies: [body], querySelectorAll() { return ths; } };
-global.document = { querySelectorAll() { return ths; } };
+global.document = { querySelectorAll() { return ths; }, body: { setAttribute() {} } };
 eval(data.script);
 const out = [];
 for (let k = 0; k < 2; k++) {
