@@ -587,7 +587,7 @@ th { background: #eee; cursor: pointer; user-select: none; }
 th[data-dir=up]::after { content: ' \\25B2'; } th[data-dir=down]::after { content: ' \\25BC'; }
 img.figure { max-width: 100%; border: 1px solid #ddd; }
 .videos { display: flex; flex-wrap: wrap; gap: 1em; }
-.videos figure { margin: 0; } .videos video, .videos img { width: 256px; }
+.videos figure { margin: 0; } .videos video { width: 256px; height: auto; }
 .legend { color: #555; font-size: 0.85em; max-width: 60em; }
 """
 
@@ -653,21 +653,32 @@ def html_page(
                 f'alt="{html.escape(caption)}">'
             ]
     if videos:
-        parts += ["<h2>Episodes</h2>", '<div class="videos">']
-        for v in videos:
-            label = (
-                f"{v['task']} {v['cell']}: {v['choice']} (seed {v['seed']}, "
-                f"{v['mean_error_mm']:.0f} mm)"
-            )
-            parts += [
-                f'<figure><video src="{html.escape(v["video"])}" controls loop muted '
-                f'poster="{html.escape(v["sheet"])}"></video>'
-                f'<figcaption>{html.escape(label)} &middot; <a href="{html.escape(v["sheet"])}">'
-                "frames</a></figcaption></figure>"
-            ]
-        parts += ["</div>"]
+        parts += [
+            "<h2>Episodes</h2>",
+            '<p class="legend">Each cell\'s best, median and worst episode by mean error, '
+            "re-run with the estimate drawn over the frame (green wire figure); frame number "
+            "and error in the corner. 'frames': a contact sheet of 12 frames.</p>",
+        ]
+        for (task, cell), group in _grouped(videos).items():
+            parts += [f"<h3>{html.escape(task)} {html.escape(cell)}</h3>", '<div class="videos">']
+            for v in group:
+                label = f"{v['choice']}: seed {v['seed']}, {v['mean_error_mm']:.0f} mm"
+                parts += [
+                    f'<figure><video src="{html.escape(v["video"])}" controls loop muted '
+                    'preload="metadata"></video>'
+                    f"<figcaption>{html.escape(label)} &middot; "
+                    f'<a href="{html.escape(v["sheet"])}">frames</a></figcaption></figure>'
+                ]
+            parts += ["</div>"]
     parts += [f"<script>{_SORT_JS}</script>", "</body></html>"]
     return "\n".join(parts)
+
+
+def _grouped(videos: Sequence[dict[str, Any]]) -> dict[tuple[str, str], list[dict[str, Any]]]:
+    out: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for v in videos:
+        out.setdefault((v["task"], v["cell"]), []).append(v)
+    return out
 
 
 # ------------------------------------------------------------------ the report
