@@ -51,7 +51,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     add_seed(st, "the agents' seed")
     add_data_dir(st)
-    st.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
+    st.add_argument(
+        "--out", type=Path, default=None,
+        help="also write the result as JSON to this file (default: none)",
+    )  # fmt: skip
     add_json(st)
     st.set_defaults(func=_cmd_still)
 
