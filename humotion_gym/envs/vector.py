@@ -6,16 +6,26 @@ gives a :class:`PoseTrackingVectorEnv`. It returns what a
 bit for bit (observations, rewards, episode ends and the batched ``info``
 with its ``_key`` masks; ``tests/envs/test_vector_env.py``), with Gymnasium
 1.x's autoreset modes (``NEXT_STEP`` by default, ``SAME_STEP``,
-``DISABLED``), at a fraction of the cost: the step's action mapping,
-kinematics, errors, rewards and lost-track counts are computed for the N
-episodes at once, and an episode's start (clip, start frame, background,
-camera) is the single environment's own reset, with the episode's geometry
-read from a per-clip table instead of being recomputed.
+``DISABLED``), at a fraction of the cost:
+
+* the step's action mapping, kinematics (the single environment's formulas
+  in the same order, so the same bits), errors, rewards, lost-track counts
+  and info are computed for the N episodes at once;
+* an episode's start (clip, start frame, background, camera) is the single
+  environment's own reset, but the figures of the episodes a step starts are
+  prepared in one pass (:func:`~humotion_gym.render.figure_sequences`), for
+  their first frames only until they get further, and the episode's
+  geometry is read from a per-clip table instead of being recomputed;
+* each frame is drawn by the single environment's own renderer, which is
+  what is left: about 35 us a frame at 128x128, with the episode's
+  background (its clutter drawn from the episode's seed) a few hundred us
+  per episode.
 
 Each of the N episodes is held by a :class:`PoseTrackingEnv` (``envs``), kept
 in step, so its methods (``pose_to_action``, ``action_to_pose``,
 ``observation_model``, ``camera``, ``shape``, ``render``) serve the agents
-exactly as in the single environment.
+exactly as in the single environment; step them through the vector
+environment only (their figures are prepared by it).
 """
 
 from __future__ import annotations
@@ -32,13 +42,15 @@ from numpy.typing import NDArray
 
 from humotion_gym.body import KEYPOINT_INDEX, N_KEYPOINTS, N_PARAMS, BodyShape
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
-from humotion_gym.render import figure_sequences
+from humotion_gym.render import FigureSequence, figure_sequences
 
 FloatArray = NDArray[np.float64]
 
-# Keys of a step's info whose values the sync vector env batches as arrays of
-# the type of the first value (gymnasium.vector.VectorEnv._add_info).
-_RESET_KEYS = ("initial_pose", "shape", "clip_id", "fps", "start_frame", "synthetic")
+# An episode's figures are prepared for its first frames when it starts, and
+# for the rest when it reaches them (all frames are prepared the same way, each
+# on its own): an episode that loses track within a few frames, as most do
+# under an untrained policy, never pays for the frames it does not show.
+_FIRST_FIGURES = 8
 
 
 class PoseTrackingVectorEnv(VectorEnv):
@@ -144,10 +156,7 @@ class PoseTrackingVectorEnv(VectorEnv):
         envs = [self.envs[i] for i in rows]
         for env, seed in zip(envs, seeds, strict=True):
             env._begin_episode(seed, env._check_options(options))
-        figures = figure_sequences(
-            [(env._episode_params, env.shape, env._cameras, env._geometry) for env in envs],
-            self._scene,
-        )
+        figures = self._figures(envs, 0, _FIRST_FIGURES)
         infos = {}
         for i, env, figure in zip(rows, envs, figures, strict=True):
             env._figures = figure
@@ -162,6 +171,24 @@ class PoseTrackingVectorEnv(VectorEnv):
             self._lost_run[i] = 0
             self._started[i] = True
         return infos
+
+    def _figures(self, envs: list[PoseTrackingEnv], start: int, stop: int) -> list[FigureSequence]:
+        """The figures of frames ``start:stop`` of the episodes of ``envs``, in one pass."""
+        return figure_sequences(
+            [
+                (env._episode_params[start:stop], env.shape, env._cameras[start:stop],
+                 env._geometry[start:stop])
+                for env in envs
+            ],
+            self._scene,
+        )  # fmt: skip
+
+    def _prepare_rest(self, rows: list[int]) -> None:
+        """Prepare the figures of the episodes' frames after the first ones (see ``_start``)."""
+        envs = [self.envs[i] for i in rows]
+        rest = self._figures(envs, _FIRST_FIGURES, self._params.shape[1])
+        for env, more in zip(envs, rest, strict=True):
+            env._figures = _joined(env._figures, more)
 
     def reset(
         self,
@@ -292,6 +319,11 @@ class PoseTrackingVectorEnv(VectorEnv):
 
         observations = np.empty_like(self._obs)
         restarted = self._start(np.flatnonzero(restart).tolist(), [None] * int(restart.sum()), None)
+        # Episodes about to show their first unprepared frame get the rest of
+        # their figures, together.
+        grow = active & ~done & (k + 1 == _FIRST_FIGURES)
+        if grow.any():
+            self._prepare_rest(np.flatnonzero(grow).tolist())
         cameras = np.full(n, None, dtype=object)
         for i in range(n):
             env = envs[i]
@@ -488,6 +520,18 @@ def _keypoints(
         for axis in range(3):
             out[rows, axis] = values[axis]
     return out.transpose(2, 0, 1)
+
+
+def _joined(first: FigureSequence, rest: FigureSequence) -> FigureSequence:
+    """The figures of ``first``'s frames followed by ``rest``'s."""
+    return FigureSequence(
+        first.scene,
+        first.order + rest.order,
+        np.concatenate([first.ellipses, rest.ellipses]),
+        np.concatenate([first.quads, rest.quads]),
+        np.concatenate([first.colors, rest.colors]),
+        first.wide + rest.wide,
+    )
 
 
 def _item(value: NDArray[Any], i: int) -> Any:
