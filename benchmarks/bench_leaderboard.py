@@ -108,6 +108,12 @@ def main() -> None:
         )  # fmt: skip
         t_ray = time.perf_counter() - t0
         same = _numbers(on_ray) == _numbers(inproc)
+        failed = [r for r in inproc + on_ray if "error" in r]
+        if failed:
+            raise SystemExit(
+                f"{len(failed)} cells failed (e.g. {failed[0]['agent']} on {failed[0]['task']}: "
+                f"{failed[0]['error']}): no timing reported"
+            )
         n_eps = sum(len(r.get("episodes", [])) for r in inproc)
         print(
             f"grid: {args.tasks} x {['hold', *args.agents]} x {args.particles} particles, "
