@@ -40,9 +40,14 @@ def _stepper(venv: Any, actions: np.ndarray) -> Any:
 
 
 def rates(
-    task: str, num_envs: int, rounds: int = 5, steps: int = 40, **kwargs: Any
+    task: str, num_envs: int, rounds: int = 9, steps: int = 62, **kwargs: Any
 ) -> tuple[float, float]:
-    """Env steps per second of the vector env and of the sync vector env."""
+    """Env steps per second of the vector env and of the sync vector env.
+
+    Each round is ``steps`` vector steps (62: two 30-frame episodes and their
+    restarts), the two envs alternating round by round from the same seeds
+    and actions, so both rounds hold the same episode starts; best round of each.
+    """
     env_id = f"humotion_gym/{task}"
     vec = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs)
     sync = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="sync", **kwargs)
