@@ -155,6 +155,10 @@ DATABASE_DTYPE: type[np.floating] = np.float32
 LEAF_RULES: tuple[str, ...] = ("weighted", "uniform")
 #: How the chosen continuation moves the absolute parameters (joint angles).
 REPLAY_RULES: tuple[str, ...] = ("absolute", "velocity")
+#: What the search compares: every frame's pose and velocity (section 4), or
+#: the poses alone (``humotion-gym tree variance``: the scaled velocities are
+#: what keeps 16 components at about 60% of the whole body's variance).
+SEARCH_RULES: tuple[str, ...] = ("pose+velocity", "pose")
 
 # Root parameters that are made relative (velocity only) when free.
 _ROOT_X, _ROOT_Y, _ROOT_Z = PARAM_INDEX["root_x"], PARAM_INDEX["root_y"], PARAM_INDEX["root_z"]
@@ -197,6 +201,8 @@ class TreeParams:
             velocity from the particle's own pose).
         proposals: Tree descents per draw; 1 is the paper's search, more
             importance-resample the descents toward eq. 3.
+        search: The window features the PCA and the search use
+            (:data:`SEARCH_RULES`).
         frames: ``(M, D)`` every training frame's free pose, clip after clip.
         frame_clip: ``(M,)`` which training clip each frame came from.
         window_end: ``(n,)`` index in ``frames`` of each window's last frame;
@@ -208,6 +214,10 @@ class TreeParams:
         feature_mean: ``(d * F,)`` the mean window ``mu``.
         feature_var: ``(F,)`` ``Gamma``, each feature's variance (features:
             the ``D_abs`` absolute poses, then the ``D`` velocities).
+        step_var: ``(D,)`` each free parameter's per-frame change variance
+            (pooled over the windows' frames), which scales the transition's
+            noise (the velocity features' part of ``Gamma`` when the search
+            uses them).
         components: ``(d * F, b)`` ``V``, the principal directions.
         singular_values: ``(b,)`` their singular values.
         sigma: ``(b,)`` standard deviation of each coefficient.
@@ -240,12 +250,14 @@ class TreeParams:
     init_scale: float
     replay: str
     proposals: int
+    search: str
     frames: FloatArray
     frame_clip: IntArray
     window_end: IntArray
     next_step: FloatArray
     feature_mean: FloatArray
     feature_var: FloatArray
+    step_var: FloatArray
     components: FloatArray
     singular_values: FloatArray
     sigma: FloatArray
@@ -273,6 +285,10 @@ class TreeParams:
             raise ValueError(
                 f"TreeParams.replay must be one of {REPLAY_RULES}, got {self.replay!r}"
             )
+        if self.search not in SEARCH_RULES:
+            raise ValueError(
+                f"TreeParams.search must be one of {SEARCH_RULES}, got {self.search!r}"
+            )
 
     @property
     def n_windows(self) -> int:
@@ -287,8 +303,7 @@ class TreeParams:
     @property
     def noise_std(self) -> FloatArray:
         """``(D,)`` standard deviation of the noise added to the next state."""
-        d_abs = self.feature_var.shape[0] - self.n_free
-        return self.noise_scale * np.sqrt(self.feature_var[d_abs:])
+        return self.noise_scale * np.sqrt(self.step_var)
 
     def with_settings(
         self,
@@ -417,14 +432,22 @@ def _advance(pose: FloatArray, step: FloatArray, lay: _Layout) -> FloatArray:
     return out
 
 
-def _features(anchored: FloatArray, lay: _Layout) -> FloatArray:
+def _features(anchored: FloatArray, lay: _Layout, search: str = "pose+velocity") -> FloatArray:
     """Per-frame features ``(..., d, F)`` of anchored ``(..., d + 1, D)`` histories.
 
     ``F = D_abs + D``: the absolute parameters' values, then every free
-    parameter's velocity (per-frame difference). Linear in the history.
+    parameter's velocity (per-frame difference); with ``search="pose"``,
+    ``F = D_abs``, the values alone. Linear in the history.
     """
+    if search == "pose":
+        return anchored[..., 1:, lay.absolute]
     velocity = anchored[..., 1:, :] - anchored[..., :-1, :]
     return np.concatenate([anchored[..., 1:, lay.absolute], velocity], axis=-1)
+
+
+def _n_features(lay: _Layout, n_free: int, search: str) -> int:
+    """``F``, the features per frame of :func:`_features`."""
+    return lay.absolute.size + (0 if search == "pose" else n_free)
 
 
 # ---------------------------------------------------------------------------
@@ -524,6 +547,7 @@ def _check_fit_arguments(
     replay: str,
     proposals: int,
     frame_skip: int,
+    search: str = "pose+velocity",
 ) -> NDArray[np.intp]:
     """The modelled parameters' indices, after checking :func:`fit`'s arguments.
 
@@ -547,6 +571,8 @@ def _check_fit_arguments(
         raise ValueError(f"tree.fit: replay must be one of {REPLAY_RULES}, got {replay!r}")
     if proposals < 1:
         raise ValueError(f"tree.fit: proposals must be >= 1, got {proposals}")
+    if search not in SEARCH_RULES:
+        raise ValueError(f"tree.fit: search must be one of {SEARCH_RULES}, got {search!r}")
     rates = {float(m.fps) for m in motions}
     if len(rates) != 1:
         raise ValueError(f"tree.fit: every clip must have the same frame rate, got {sorted(rates)}")
@@ -554,7 +580,7 @@ def _check_fit_arguments(
 
 
 def _window_pca(
-    frames: FloatArray, ends: IntArray, lay: _Layout, d: int, n_free: int, b: int
+    frames: FloatArray, ends: IntArray, lay: _Layout, d: int, n_free: int, b: int, search: str
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, float, FloatArray]:
     """The scaled PCA of the database's windows (section 4), in two passes over chunks.
 
@@ -566,12 +592,12 @@ def _window_pca(
         ``(mean, gamma, inv_sd, components, singular_values, explained, sigma)``.
     """
     n = ends.size
-    n_feat = lay.absolute.size + n_free
+    n_feat = _n_features(lay, n_free, search)
     width = d * n_feat
 
     def windows(part: slice) -> FloatArray:
         anchored = _anchor(_histories(frames, ends[part], d), lay)
-        return _features(anchored, lay).reshape(-1, width)
+        return _features(anchored, lay, search).reshape(-1, width)
 
     parts = _chunks(n, width)
     total = np.zeros(width)
@@ -603,8 +629,40 @@ def _window_pca(
     return mean, gamma, inv_sd, components, singular, explained, sigma
 
 
+def _step_variance(
+    frames: FloatArray, ends: IntArray, lay: _Layout, d: int, n_free: int
+) -> FloatArray:
+    """``(D,)`` the velocity features' ``Gamma`` of :func:`_window_pca`, for a pose search.
+
+    The same pooled variance (over windows and their ``d`` frames, about the
+    pooled mean) that a pose-and-velocity search would compute.
+    """
+    n = ends.size
+    width = d * n_free
+
+    def velocities(part: slice) -> FloatArray:
+        anchored = _anchor(_histories(frames, ends[part], d), lay)
+        return _features(anchored, lay)[..., lay.absolute.size :].reshape(-1, d, n_free)
+
+    parts = _chunks(n, width)
+    total = np.zeros(n_free)
+    for part in parts:
+        total += velocities(part).sum(axis=(0, 1))
+    pooled = total / (n * d)
+    sq = np.zeros(n_free)
+    for part in parts:
+        sq += ((velocities(part) - pooled) ** 2).sum(axis=(0, 1))
+    return np.maximum(sq / (n * d), _VARIANCE_FLOOR)
+
+
 def _history_projection(
-    lay: _Layout, d: int, n_free: int, components: FloatArray, inv_sd: FloatArray, mean: FloatArray
+    lay: _Layout,
+    d: int,
+    n_free: int,
+    components: FloatArray,
+    inv_sd: FloatArray,
+    mean: FloatArray,
+    search: str = "pose+velocity",
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """The linear map from a history of ``d + 1`` absolute poses to its coefficients.
 
@@ -620,7 +678,7 @@ def _history_projection(
     width = mean.size
     span = (d + 1) * idx_size
     basis = np.eye(span).reshape(span, d + 1, idx_size)
-    lin = _features(basis, lay).reshape(span, width)
+    lin = _features(basis, lay, search).reshape(span, width)
     full = lin @ (components * inv_sd[:, None])
     offset = (mean * inv_sd) @ components
     projection = full
@@ -709,6 +767,7 @@ def fit(
     replay: str = "absolute",
     proposals: int = 1,
     frame_skip: int = 1,
+    search: str = "pose+velocity",
 ) -> TreeParams:
     """Build the database, its PCA and its tree from training clips.
 
@@ -731,6 +790,8 @@ def fit(
         proposals: Tree descents per draw (1: the paper's search; ``K > 1``
             importance-resamples ``K`` descents toward eq. 3).
         frame_skip: Use every ``frame_skip``-th frame (the environment's rate).
+        search: What the PCA and the search compare (:data:`SEARCH_RULES`):
+            ``"pose+velocity"`` (the paper's state, section 4) or ``"pose"``.
 
     Returns:
         The fitted prior.
@@ -741,7 +802,7 @@ def fit(
             windows fit in the clips.
     """
     del rng
-    idx = _check_fit_arguments(motions, free, window, leaf, replay, proposals, frame_skip)
+    idx = _check_fit_arguments(motions, free, window, leaf, replay, proposals, frame_skip, search)
     d = int(window)
     lay = _layout(idx)
     frames, frame_clip, ends = _database(motions, idx, d, frame_skip)
@@ -751,7 +812,7 @@ def fit(
             f"tree.fit: only {n} window(s) of {d + 2} observed frames in a row in "
             f"{len(motions)} clip(s); need at least 2"
         )
-    n_feat = lay.absolute.size + idx.size
+    n_feat = _n_features(lay, idx.size, search)
     width = d * n_feat
     b = int(np.floor(np.log2(n))) if depth is None else int(depth)
     # The leaf offsets take 2**b entries: at most 16 per window.
@@ -760,12 +821,16 @@ def fit(
         raise ValueError(f"tree.fit: depth must be in 1..{max_depth} for {n} windows, got {b}")
 
     mean, gamma, inv_sd, components, singular, explained, sigma = _window_pca(
-        frames, ends, lay, d, idx.size, b
+        frames, ends, lay, d, idx.size, b, search
     )
+    if search == "pose+velocity":
+        step_var = gamma[lay.absolute.size :].copy()
+    else:
+        step_var = _step_variance(frames, ends, lay, d, idx.size)
 
     # The same linear map for database windows and particles: history -> c.
     projection, projection_heading, offset = _history_projection(
-        lay, d, idx.size, components, inv_sd, mean
+        lay, d, idx.size, components, inv_sd, mean, search
     )
     coefficients = _database_coefficients(
         frames, ends, lay, d, projection, projection_heading, offset
@@ -783,12 +848,14 @@ def fit(
         init_scale=float(init_scale),
         replay=str(replay),
         proposals=int(proposals),
+        search=str(search),
         frames=frames,
         frame_clip=frame_clip,
         window_end=tree.window_end,
         next_step=tree.next_step,
         feature_mean=mean,
         feature_var=gamma,
+        step_var=step_var,
         components=components,
         singular_values=singular,
         sigma=sigma,
@@ -822,7 +889,7 @@ def database_windows(fitted: TreeParams) -> FloatArray:
     """
     lay = _layout(fitted.free)
     anchored = _anchor(window_histories(fitted), lay)
-    x = _features(anchored, lay).reshape(fitted.n_windows, -1)
+    x = _features(anchored, lay, fitted.search).reshape(fitted.n_windows, -1)
     return (x - fitted.feature_mean) / np.sqrt(np.tile(fitted.feature_var, fitted.window))
 
 
@@ -1310,7 +1377,7 @@ def summary(fitted: TreeParams) -> dict[str, float | int | str]:
 
 
 #: Version of the file :func:`save` writes (``__format__``); :func:`load` refuses others.
-FILE_FORMAT = "2"
+FILE_FORMAT = "3"
 # Arrays load recomputes from the database and its PCA (the bulk of the prior).
 _DERIVED = (
     "frame_clip",

@@ -427,3 +427,32 @@ def test_real_data_arm_and_body(real_library):
     for _ in range(3):
         state = tree.transition(full, state, np.random.default_rng(1))
     assert np.all(np.isfinite(state.pose))
+
+
+def test_a_pose_search_holds_more_variance_and_projects_like_its_windows():
+    from humotion_gym.mocap.library import synthetic_library
+
+    motions = synthetic_library().split("train").motions[:6]
+    both = tree.fit(motions)
+    pose = tree.fit(motions, search="pose")
+    assert pose.search == "pose" and both.search == "pose+velocity"
+    # the features per frame: the absolute parameters alone
+    lay = tree._layout(pose.free)
+    assert pose.feature_var.size == lay.absolute.size
+    assert both.feature_var.size == lay.absolute.size + both.n_free
+    assert pose.explained_variance > both.explained_variance
+    # the history projection gives every window the coefficients of its scaled, centred features
+    x = tree.database_windows(pose)
+    assert np.allclose(x @ pose.components, pose.coefficients, atol=1e-6)
+    with pytest.raises(ValueError, match="search must be one of"):
+        tree.fit(motions, search="velocity")
+
+
+def test_the_transition_noise_does_not_depend_on_what_the_search_compares():
+    from humotion_gym.mocap.library import synthetic_library
+
+    motions = synthetic_library().split("train").motions[:6]
+    both = tree.fit(motions)
+    pose = tree.fit(motions, search="pose")
+    assert np.allclose(pose.step_var, both.step_var, rtol=1e-9)
+    assert np.array_equal(both.step_var, both.feature_var[-both.n_free :])
