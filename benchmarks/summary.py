@@ -318,6 +318,8 @@ def main() -> None:
     unknown = sorted(set(args.only or ()) - names - scripts)
     if unknown:
         ap.error(f"unknown benchmarks {unknown}; they are {sorted(names)}")
+    # the benchmarks run in benchmarks/: a relative path is the caller's
+    data_dir = str(Path(args.data_dir).resolve()) if args.data_dir else None
     rows: list[tuple[str, Row]] = []
     # A benchmark script without a reader is named, not skipped in silence.
     for path in sorted(HERE.glob("bench_*.py")):
@@ -329,7 +331,7 @@ def main() -> None:
             continue
         start = time.perf_counter()
         print(f"running {bench.name} ...", file=sys.stderr, flush=True)
-        rows += [(bench.name, row) for row in run(bench, args.quick, args.data_dir, args.timeout)]
+        rows += [(bench.name, row) for row in run(bench, args.quick, data_dir, args.timeout)]
         print(f"  {time.perf_counter() - start:.0f} s", file=sys.stderr, flush=True)
     print(format_table(rows, args.markdown))
     print(f"({len(rows)} rows, {time.perf_counter() - t0:.0f} s)", file=sys.stderr)
