@@ -325,12 +325,15 @@ def _settings(seed: int, env_kwargs: dict[str, Any]) -> dict[str, Any]:
     """What decides an episode's numbers besides its cell and seed (checked on resume)."""
     from humotion_gym.mocap.library import package_version
 
-    return {
+    settings = {
         "schema_version": SCHEMA_VERSION,
         "seed": seed,
         "env_kwargs": env_kwargs,
         "package_version": package_version(),
     }
+    if "data_dir" not in env_kwargs:  # the clips come from $HUMOTION_MOCAP, else synthetic
+        settings["HUMOTION_MOCAP"] = os.environ.get("HUMOTION_MOCAP") or None
+    return settings
 
 
 def _rows(
