@@ -125,6 +125,11 @@ class CyclicPCAParams:
         speed_noise: Multiplier on ``speed_step_std``.
         global_noise: Multiplier on the global pose's noise.
         keep_offset: Keep the initial pose's unexplained part as a fixed offset.
+        reversion: 0 for the paper's random walks of the coefficients, the
+            speed and the root's velocity; 1 for mean-reverting walks
+            (:func:`_revert`) with the same per-frame noise whose spread stays
+            at the training data's instead of growing without bound (values
+            between scale the pull).
     """
 
     free: NDArray[np.intp]
@@ -151,6 +156,7 @@ class CyclicPCAParams:
     speed_noise: float = 1.0
     global_noise: float = 1.0
     keep_offset: bool = True
+    reversion: float = 0.0
 
     def __post_init__(self) -> None:
         # Contiguous copies, so that a loaded model computes bit for bit like
@@ -298,6 +304,7 @@ def fit(
     global_noise: float = 1.0,
     keep_offset: bool = True,
     tol: float = 1e-6,
+    reversion: float = 0.0,
 ) -> CyclicPCAParams:
     """Fit the cyclic PCA prior to the walking clips among ``motions``.
 
@@ -320,6 +327,8 @@ def fit(
         global_noise: Multiplier on the global pose's random-walk noise.
         keep_offset: Keep the initial pose's unexplained part as an offset.
         tol: Tolerance of the offset algorithm and of the FPCA.
+        reversion: The walks' pull towards the data's mean (0: none, the
+            paper's random walks; 1: a spread that stays the data's), >= 0.
 
     Returns:
         The fitted parameters.
@@ -328,6 +337,8 @@ def fit(
         ValueError: If there are no walking clips, or none shows two cycles.
     """
     del rng
+    if not (np.isfinite(reversion) and reversion >= 0):
+        raise ValueError(f"cyclic_pca.fit: reversion must be >= 0, got {reversion}")
     idx = np.arange(N_PARAMS, dtype=np.intp) if free is None else np.asarray(free, np.intp)
     if idx.ndim != 1 or np.any((idx < 0) | (idx >= N_PARAMS)) or np.unique(idx).size != idx.size:
         raise ValueError(f"cyclic_pca.fit: free must be distinct indices in [0, 25), got {idx}")
@@ -419,6 +430,7 @@ def fit(
         speed_noise=float(speed_noise),
         global_noise=float(global_noise),
         keep_offset=bool(keep_offset),
+        reversion=float(reversion),
     )
 
 
@@ -553,6 +565,23 @@ def initial(
     return ParticleState(out, extra)
 
 
+def _revert(
+    value: FloatArray, mean: FloatArray | float, step_std: FloatArray | float,
+    spread: FloatArray | float, reversion: float,
+) -> FloatArray:  # fmt: skip
+    """Pull a random walk's value towards its mean so that its spread stays bounded.
+
+    With per-frame noise ``s`` and the data's spread ``sd``, the walk
+    ``x' = m + a (x - m) + s e`` has the stationary spread ``sd`` when
+    ``a = sqrt(1 - s^2 / sd^2)`` (an Ornstein-Uhlenbeck process sampled per
+    frame); ``reversion`` scales the pull ``1 - a`` (0: the plain random walk).
+    The noise is added by the caller.
+    """
+    ratio = np.minimum(np.asarray(step_std, dtype=np.float64) / np.asarray(spread), 1.0)
+    pull = reversion * (1.0 - np.sqrt(1.0 - ratio**2))
+    return value - np.minimum(pull, 1.0) * (value - mean)
+
+
 def transition(
     fitted: CyclicPCAParams, state: ParticleState, rng: np.random.Generator
 ) -> ParticleState:
@@ -560,19 +589,28 @@ def transition(
     n = state.n
     angle_slots, pos_slots, rot_slots = _slots(fitted)
     phase = np.mod(state.extra[PHASE] + state.extra[SPEED], fitted.n_samples)
+    speed, coef, velocity = state.extra[SPEED], state.extra[COEF], state.extra[ROOT_VELOCITY]
+    if fitted.reversion > 0:
+        k = fitted.reversion
+        speed_step = fitted.speed_noise * fitted.speed_step_std
+        speed = _revert(speed, fitted.speed_mean, speed_step, fitted.speed_std, k)
+        coef_step = fitted.coef_noise * fitted.coef_step_std
+        coef = _revert(coef, 0.0, coef_step, fitted.component_std, k)
+        accel = fitted.global_noise * fitted.root_accel_std
+        velocity = _revert(velocity, fitted.root_velocity_mean, accel, fitted.root_velocity_std, k)
     speed = np.clip(
-        state.extra[SPEED] + fitted.speed_noise * fitted.speed_step_std * rng.standard_normal(n),
+        speed + fitted.speed_noise * fitted.speed_step_std * rng.standard_normal(n),
         fitted.speed_min,
         fitted.speed_max,
     )
-    coef = state.extra[COEF] + fitted.coef_noise * fitted.coef_step_std * rng.standard_normal(
+    coef = coef + fitted.coef_noise * fitted.coef_step_std * rng.standard_normal(
         (n, fitted.n_components)
     )
     offset = state.extra[OFFSET]
     pose = state.pose.copy()
     pose[:, angle_slots] = curves(fitted, phase, coef) + offset
     # Global pose (section 5): random walks with the fitted scales.
-    velocity = state.extra[ROOT_VELOCITY] + fitted.global_noise * fitted.root_accel_std * (
+    velocity = velocity + fitted.global_noise * fitted.root_accel_std * (
         rng.standard_normal((n, 3))
     )
     for axis, slot in enumerate(rot_slots):

@@ -319,3 +319,43 @@ def test_fit_needs_walking_clips():
     others = [m for m in synthetic_library() if m.label in ("wave", "reach")]
     with pytest.raises(ValueError, match="cyclic walking only"):
         cyclic_pca.fit(others)
+
+
+def test_reversion_keeps_the_walks_spread_at_the_datas(fitted):
+    import dataclasses
+
+    from humotion_gym.filtering import ParticleState
+
+    n, steps = 4000, 400
+    q = fitted.n_components
+    rng0 = np.random.default_rng(0)
+    start = cyclic_pca.initial(fitted, np.zeros(fitted.free.size) + 0.0, 4, rng0)
+    base = ParticleState(
+        np.zeros((n, fitted.free.size)),
+        {
+            "phase": np.zeros(n),
+            "speed": np.full(n, fitted.speed_mean),
+            "coef": np.zeros((n, q)),
+            "offset": np.repeat(start.extra["offset"][:1], n, axis=0),
+            "root_velocity": np.repeat(fitted.root_velocity_mean[None], n, axis=0),
+        },
+    )
+
+    def spread(reversion):
+        model = dataclasses.replace(fitted, reversion=reversion)
+        state, rng = base, np.random.default_rng(1)
+        for _ in range(steps):
+            state = cyclic_pca.transition(model, state, rng)
+        return state.extra["coef"].std(axis=0), state.extra["root_velocity"].std(axis=0)
+
+    walk_coef, walk_vel = spread(0.0)
+    held_coef, held_vel = spread(1.0)
+    # the random walk's spread grows as sqrt(steps); the mean-reverting one settles at the data's
+    assert np.allclose(walk_coef, fitted.coef_noise * fitted.coef_step_std * np.sqrt(steps), rtol=0.1)
+    settled = fitted.component_std * np.sqrt(1 - np.exp(-2 * steps * (1 - np.sqrt(
+        1 - np.minimum(fitted.coef_step_std / fitted.component_std, 1) ** 2))))  # fmt: skip
+    assert np.allclose(held_coef, settled, rtol=0.12)
+    assert np.all(held_coef <= 1.12 * fitted.component_std)
+    assert np.all(held_vel <= walk_vel + 1e-9)
+    with pytest.raises(ValueError, match="reversion"):
+        cyclic_pca.fit(list(synthetic_library().split("train")), reversion=-1.0)
