@@ -974,11 +974,14 @@ def draw_pose_overlay(
     np.minimum(px, 1e5, out=px)
     np.maximum(px, -1e5, out=px)
     px *= _ONE
-    fixed = np.rint(px, out=px).astype(np.int64).tolist()
+    points = np.rint(px, out=px).astype(np.int32)
+    fixed = points.tolist()
     col = tuple(int(v) for v in color)
-    for a, b in body.SKELETON_EDGES:
-        if shown[a] and shown[b]:
-            cv2.line(out, fixed[a], fixed[b], col, thickness, cv2.LINE_AA, _SHIFT)
+    # Each edge as its own two-point curve: one OpenCV call draws them one after
+    # the other exactly as cv2.line would (the same anti-aliased segments, in order).
+    edges = [edge for edge in body.SKELETON_EDGES if shown[edge[0]] and shown[edge[1]]]
+    if edges:
+        cv2.polylines(out, list(points[edges]), False, col, thickness, cv2.LINE_AA, _SHIFT)
     radius = int((thickness + 1) * _ONE)
     for k, point in enumerate(fixed):
         if shown[k]:
