@@ -214,6 +214,7 @@ class PoseTrackingEnv(gym.Env):
             name: [i for i, k in enumerate(self.task.error_keypoints) if k in members]
             for name, members in _REGIONS.items()
         }
+        self._reward_terms = [(f"reward_{name}", idx) for name, idx in self._region_of.items()]
         self._motion: Motion | None = None
         self._done = False
         self._starts: dict[str, tuple[Motion, NDArray[np.intp]]] = {}
@@ -640,7 +641,7 @@ class PoseTrackingEnv(gym.Env):
                 f"{self.task.name}: action must have shape {self.action_space.shape} "
                 f"(the free parameters {list(self.task.free)}), got {a.shape}"
             )
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             raise ValueError(f"{self.task.name}: action must be finite, got {a.tolist()}")
         truth = self._truth()
         estimate = self.action_to_pose(a, truth)
@@ -656,9 +657,7 @@ class PoseTrackingEnv(gym.Env):
         # Reward: the mean over scored keypoints of exp(-e_k / scale), split by
         # body region so the terms add up to the reward.
         per_kp = (np.exp(err * (-1.0 / self.reward_scale_mm)) / n_scored).tolist()
-        terms = {
-            f"reward_{name}": sum(per_kp[i] for i in idx) for name, idx in self._region_of.items()
-        }
+        terms = {key: sum([per_kp[i] for i in idx]) for key, idx in self._reward_terms}
         reward = sum(terms.values())
         self._lost_run = update_lost_run(self._lost_run, error_mm, self.lost_threshold_mm)
         lost = self._lost_run >= self.lost_patience
