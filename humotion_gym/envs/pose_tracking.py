@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import functools
+import weakref
+from collections import OrderedDict
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -57,6 +59,30 @@ def _cached_library(dirs: tuple[str, ...], fps: float) -> MotionLibrary:
     if not dirs:
         return synthetic_library(fps=fps)
     return load_library(list(dirs), fps=fps, progress=False)
+
+
+# Keypoints and cone axes of every frame of the clips episodes were drawn from,
+# computed once per clip and shared by every environment of the process (a
+# reset then indexes its frames instead of running the kinematics). Least
+# recently used clips go beyond _CLIP_GEOMETRY_FRAMES frames (~840 bytes each).
+_CLIP_GEOMETRY: OrderedDict[int, tuple[weakref.ref[Motion], FloatArray]] = OrderedDict()
+_CLIP_GEOMETRY_FRAMES = 60_000
+
+
+def _clip_geometry(motion: Motion) -> FloatArray:
+    """``(T, 35, 3)`` :func:`batch_pose_geometry` of a clip's frames (cached)."""
+    key = id(motion)
+    entry = _CLIP_GEOMETRY.get(key)
+    if entry is not None and entry[0]() is motion:
+        _CLIP_GEOMETRY.move_to_end(key)
+        return entry[1]
+    geometry = batch_pose_geometry(motion.params, motion.shape)
+    _CLIP_GEOMETRY[key] = (weakref.ref(motion), geometry)
+    total = sum(g.shape[0] for _, g in _CLIP_GEOMETRY.values())
+    while total > _CLIP_GEOMETRY_FRAMES and len(_CLIP_GEOMETRY) > 1:
+        _, (_, dropped) = _CLIP_GEOMETRY.popitem(last=False)
+        total -= dropped.shape[0]
+    return geometry
 
 
 def _sphere(radius: float, n: int = 26) -> FloatArray:
@@ -117,9 +143,6 @@ class PoseTrackingEnv(gym.Env):
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
-    #: Per-clip geometry shared by the episodes of a vector environment (see
-    #: :meth:`_episode_geometry`); None computes each episode's own.
-    _clip_geometry: dict[str, tuple[Motion, FloatArray]] | None = None
 
     def __init__(
         self,
@@ -421,7 +444,7 @@ class PoseTrackingEnv(gym.Env):
         the largest distance from their position at the start frame.
         """
         span = self.episode_frames * self.frame_skip
-        kp = batch_pose_geometry(motion.params, motion.shape)[:, :N_KEYPOINTS]
+        kp = _clip_geometry(motion)[:, :N_KEYPOINTS]
         anchor = KEYPOINT_INDEX[self.task.motion_anchor]
         rel = kp[:, self._err_kp] - kp[:, anchor : anchor + 1]  # (T, K, 3)
         steps = np.arange(0, span + 1, self.frame_skip)
@@ -481,19 +504,11 @@ class PoseTrackingEnv(gym.Env):
     def _episode_geometry(self, motion: Motion, idx: NDArray[np.intp]) -> FloatArray:
         """``(len(idx), 35, 3)`` keypoints and cone axes of the clip's frames ``idx``.
 
-        Computed for the episode's frames; with a clip table
-        (``_clip_geometry``, a dict the vector environment shares among its
-        episodes) computed once per clip and indexed, which gives the same
-        numbers (the kinematics is elementwise over frames).
+        Read from the clip's table (:func:`_clip_geometry`), which gives the
+        same numbers as computing the episode's frames alone (the kinematics
+        is elementwise over frames; ``tests/envs/test_render_reuse.py``).
         """
-        table = self._clip_geometry
-        if table is None:
-            return batch_pose_geometry(motion.params[idx], motion.shape)
-        entry = table.get(motion.clip_id)
-        if entry is None or entry[0] is not motion:
-            entry = (motion, batch_pose_geometry(motion.params, motion.shape))
-            table[motion.clip_id] = entry
-        return entry[1][idx]
+        return _clip_geometry(motion)[idx]
 
     @property
     def camera(self) -> Camera:

@@ -14,8 +14,7 @@ with its ``_key`` masks; ``tests/envs/test_vector_env.py``), with Gymnasium
 * an episode's start (clip, start frame, background, camera) is the single
   environment's own reset, but the figures of the episodes a step starts are
   prepared in one pass (:func:`~humotion_gym.render.figure_sequences`), for
-  their first frames only until they get further, and the episode's
-  geometry is read from a per-clip table instead of being recomputed;
+  their first frames only until they get further;
 * each frame is drawn by the single environment's own renderer, which is
   what is left: about 35 us a frame at 128x128, with the episode's
   background (its clutter drawn from the episode's seed) a few hundred us
@@ -94,8 +93,6 @@ class PoseTrackingVectorEnv(VectorEnv):
         if num_envs < 1:
             raise ValueError(f"num_envs: expected an integer >= 1, got {num_envs!r}")
         template = PoseTrackingEnv(task=task, **kwargs)
-        # One table of every clip's geometry, shared by the N episodes.
-        template._clip_geometry = {}
         # The episodes share the template's library, clip table and caches
         # (shallow copies): constructing one env filters the clips once.
         self.envs: list[PoseTrackingEnv] = [template] + [

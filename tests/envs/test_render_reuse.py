@@ -1,10 +1,12 @@
-"""``render()`` reuses the observation and the scored keypoints, and draws what it drew before.
+"""``render()`` and the frames reuse what was computed, and draw what they drew before.
 
 The reference below is the overlay as ``render()`` drew it before it reused
 anything: the estimate's keypoints recomputed by ``single_pose_geometry``,
 projected by the camera and drawn over a copy of the frame on show. The
 environment's ``render()`` must give the same image bit for bit, and the frame
-under the overlay must be the observation ``reset``/``step`` returned.
+under the overlay must be the observation ``reset``/``step`` returned. The frames themselves, prepared from
+each clip's geometry table, must equal those prepared from the episode's own
+kinematics.
 """
 
 from __future__ import annotations
@@ -17,7 +19,9 @@ import pytest
 import humotion_gym  # noqa: F401
 from humotion_gym import body
 from humotion_gym.body import N_KEYPOINTS
-from humotion_gym.kinematics import single_pose_geometry
+from humotion_gym.envs import ENV_IDS
+from humotion_gym.kinematics import batch_pose_geometry, single_pose_geometry
+from humotion_gym.render import figure_sequence, render_frame
 
 
 def _reference_render(frame, estimate, shape, camera):
@@ -75,3 +79,19 @@ def test_render_does_not_touch_the_observation():
     assert not np.shares_memory(image, obs)
     # a second call draws the same image
     assert np.array_equal(env.render(), image)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_episode_frames_equal_the_per_episode_path(env_id):
+    """Frames from the clip's geometry table equal those of the episode's own kinematics."""
+    env = gym.make(env_id, terminate_on_lost=False).unwrapped
+    action = np.zeros(env.action_space.shape, np.float32)
+    for seed in (0, 1):
+        obs, _ = env.reset(seed=seed)
+        geometry = batch_pose_geometry(env._episode_params, env.shape)
+        assert np.array_equal(env._geometry, geometry)
+        figures = figure_sequence(env._episode_params, env.shape, env._cameras, env.scene, geometry)
+        rng = np.random.default_rng([env._episode_seed, 1])
+        frames = [obs] + [env.step(action)[0] for _ in range(env.episode_frames - 1)]
+        for k, frame in enumerate(frames, start=1):
+            assert np.array_equal(frame, render_frame(figures, k, rng, env._background)), k
