@@ -40,6 +40,7 @@ from __future__ import annotations
 import importlib
 import logging
 import os
+import sys
 import time
 import traceback
 from collections import OrderedDict, deque
@@ -262,14 +263,19 @@ def prepare_cells(
     fits: dict[tuple[str, str], tuple[str, Any]] = {}
     problems: dict[tuple[str, str], tuple[str, str]] = {}
     envs: dict[str, gym.Env] = {}
-    bar = tqdm(first.items(), desc="agents", unit="agent", disable=not progress, leave=False)
+    bar = tqdm(
+        first.items(), desc="agents", unit="agent", disable=not progress, leave=False,
+        file=sys.stderr,
+    )  # fmt: skip
     try:
         for (task, name), cell in bar:
             bar.set_postfix_str(f"{name} on {task}")
             if task not in envs:
                 envs[task] = make_env(task, env_kwargs)
             try:
-                agent = make(name, envs[task], n_particles=max(cell.particles, 1), seed=seed)
+                # a fit prints what it fits and its progress: on lines of their own
+                with tqdm.external_write_mode(file=sys.stderr):
+                    agent = make(name, envs[task], n_particles=max(cell.particles, 1), seed=seed)
             except ValueError as exc:  # the agent does not cover this task
                 problems[(task, name)] = ("skipped", str(exc))
                 continue
