@@ -503,7 +503,13 @@ AGENTS: dict[str, AgentSpec] = {
     ),
     "pf-pca": AgentSpec(
         "humotion_gym.priors.cyclic_pca",
-        description="cyclic functional PCA of walking (Ormoneit, Black, Hastie & Kjellström 2005)",
+        # Mean-reverting walks of the coefficients, speed and root velocity, chosen by
+        # cross-validation on the training persons: ``humotion-gym select --task
+        # WalkTrack-v1 --agent pf-pca --grid fit.reversion=0,0.5,1,2,4 --data-dir
+        # ../shared/mocap`` gave 254, 230, 201, 252, 329 mm (hold 1,731).
+        fit_settings={"reversion": 1.0},
+        description="cyclic functional PCA of walking (Ormoneit, Black, Hastie & Kjellström "
+        "2005), its coefficients, speed and root velocity mean-reverting",
         tasks=("WalkTrack-v1", "SideWalk-v1"),
     ),
 }
