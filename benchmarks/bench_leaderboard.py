@@ -24,9 +24,10 @@ Two measurements, each against a reference taken in the same run:
 
 Priors are fitted before any timing (the engines read the same cached fits).
 On a shared machine other work takes cores: the speed-up is printed beside the
-reference measured just before it, how many times more work ``--workers`` busy
-Python processes did than one (2.0 on 2 idle cores; nearer 1 when other work
-holds a core), and the share of it Ray's speed-up reached.
+reference measured before, between and after the two runs, how many times more
+work ``--workers`` busy Python processes did than one (2.0 on 2 idle cores;
+nearer 1 when other work holds a core), and the share of its mean that Ray's
+speed-up reached.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ import time
 from typing import Any
 
 import _timing  # one BLAS thread, as the command line
+import numpy as np
 
 import humotion_gym  # noqa: F401
 from baselines.engine import (
@@ -127,13 +129,16 @@ def main() -> None:
         records.sort(key=lambda r: (r["task"], r["agent"], r["particles"], r["seed"]))
         return [_numbers(r["result"]) for r in records], t1 - t0, t2 - t1
 
+    scalings = [parallel_scaling(args.workers)]
     inproc, in_start, in_eps = timed("inprocess")
-    scaling = parallel_scaling(args.workers)
+    scalings.append(parallel_scaling(args.workers))
     t0 = time.perf_counter()
     ray.init(num_cpus=args.workers, include_dashboard=False, logging_level="WARNING")
     t_init = time.perf_counter() - t0
     try:
         on_ray, ray_start, ray_eps = timed("ray")
+        scalings.append(parallel_scaling(args.workers))
+        scaling = float(np.mean(scalings))
         t_in, t_ray = in_start + in_eps, ray_start + ray_eps
         print(
             f"grid: {args.tasks} x {['hold', *args.agents]} x {args.particles} particles, "
@@ -149,9 +154,10 @@ def main() -> None:
               "with ray.init; target 1.8x on 2 cores")  # fmt: skip
         print(f"  same numbers:      {on_ray == inproc}")
         print(
-            f"  reference: {args.workers} busy processes did {scaling:.2f}x the work of one "
-            f"just before (the cores this machine gave); Ray's episodes ran "
-            f"{100 * in_eps / ray_eps / scaling:.0f}% of that"
+            f"  reference: {args.workers} busy processes did "
+            f"{' / '.join(f'{x:.2f}x' for x in scalings)} the work of one before, between and "
+            f"after the runs (the cores this machine gave; 2.00x on 2 idle cores); Ray's "
+            f"episodes' speed-up is {100 * in_eps / ray_eps / scaling:.0f}% of their mean"
         )
 
         # Ray's cost per episode: one worker, K 300-particle BodyTrack-v1 episodes of pf-cv
