@@ -57,11 +57,12 @@ from __future__ import annotations
 import dataclasses
 import logging
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from tqdm import tqdm
 
 from humotion_gym.body import N_PARAMS, PARAM_INDEX, PARAM_LOWER, PARAM_UPPER, SAGITTAL_PARAMS
 from humotion_gym.filtering import ParticleState
@@ -135,6 +136,7 @@ def fit_activity(
     label: str | None = None,
     max_batch: int = 32,
     max_radius: float | None = None,
+    progress: Callable[[int, float], None] | None = None,
 ) -> EMResult:
     """Learn one SLDS from clips of one activity (section 2.3).
 
@@ -151,6 +153,8 @@ def fit_activity(
         max_radius: After EM, pull every model's eigenvalues inside this radius
             (:func:`~humotion_gym.priors.slds_inference.stabilise`); None (the
             default) keeps EM's estimate, the better one-step predictor.
+        progress: Called after every EM iteration (see
+            :func:`~humotion_gym.priors.slds_learning.fit_em`).
 
     Returns:
         The fit with its cost per iteration (of EM, before the stabilisation).
@@ -169,7 +173,7 @@ def fit_activity(
     result = fit_em(
         [ys[k] for k in keep], [masks[k] for k in keep], n_states=n_states, emission="identity",
         order=order, n_iter=n_iter, rng=rng, label=name, free=idx,
-        fps=float(motions[0].fps) / frame_skip, max_batch=max_batch,
+        fps=float(motions[0].fps) / frame_skip, max_batch=max_batch, progress=progress,
     )  # fmt: skip
     if max_radius is None:
         return result
@@ -215,22 +219,33 @@ def fit(
     for m in motions:
         groups.setdefault(m.label if per_label else "all", []).append(m)
     models: list[SLDSParams] = []
-    for label in sorted(groups):
-        clips = groups[label]
-        if max_clips_per_label is not None and len(clips) > max_clips_per_label:
-            pick = np.sort(rng.choice(len(clips), max_clips_per_label, replace=False))
-            clips = [clips[k] for k in pick]
-        _LOG.info(
-            "slds: fitting the %s model (%d of %d) on %d clips, %d EM iterations",
-            label, len(models) + 1, len(groups), len(clips), n_iter,
-        )  # fmt: skip
-        t0 = time.perf_counter()
-        result = fit_activity(
-            clips, free, rng, n_states=n_states, order=order, n_iter=n_iter,
-            frame_skip=frame_skip, label=label,
-        )  # fmt: skip
-        _LOG.info("slds: the %s model took %.1f s", label, time.perf_counter() - t0)
-        models.append(result.params)
+    # A bar over every model's EM iterations when the progress messages are shown
+    # (humotion_gym.priors.fitting.fit_prior shows them on stderr).
+    bar = tqdm(
+        total=len(groups) * (n_iter + 1), desc="slds EM", unit="iter", leave=False,
+        disable=not _LOG.isEnabledFor(logging.INFO),
+    )  # fmt: skip
+    with bar:
+        for label in sorted(groups):
+            clips = groups[label]
+            if max_clips_per_label is not None and len(clips) > max_clips_per_label:
+                pick = np.sort(rng.choice(len(clips), max_clips_per_label, replace=False))
+                clips = [clips[k] for k in pick]
+            _LOG.info(
+                "slds: fitting the %s model (%d of %d) on %d clips, %d EM iterations",
+                label, len(models) + 1, len(groups), len(clips), n_iter,
+            )  # fmt: skip
+            bar.set_postfix_str(label)
+            done = bar.n
+            t0 = time.perf_counter()
+            result = fit_activity(
+                clips, free, rng, n_states=n_states, order=order, n_iter=n_iter,
+                frame_skip=frame_skip, label=label,
+                progress=lambda _it, _cost: bar.update(),
+            )  # fmt: skip
+            bar.update(done + n_iter + 1 - bar.n)  # EM may stop early
+            _LOG.info("slds: the %s model took %.1f s", label, time.perf_counter() - t0)
+            models.append(result.params)
     return combine(models, switch_prob)
 
 

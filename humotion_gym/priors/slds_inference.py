@@ -380,6 +380,34 @@ def viterbi(
         ``(B, T)`` switch sequences (padding repeats the last state) and
         ``(B,)`` their costs.
     """
+    path, total, _ = _viterbi(params, seqs, meas, keep=False)
+    return path, total
+
+
+def viterbi_filter(
+    params: SLDSParams, seqs: Sequences, meas: Measurements | None = None
+) -> tuple[IntArray, FloatArray, FilterResult]:
+    """:func:`viterbi`, with the Kalman filter along the returned path.
+
+    The estimates Viterbi keeps for every state are the Kalman filter of the
+    path that reaches it (eqs. 3-5), so the filter along the decoded path is
+    read back from them instead of being run again (:func:`filter_path` gives
+    the same moments and cost up to rounding: the innovation covariance is
+    formed as ``H A P A' H' + H Q H' + R`` here). Memory: ``2 B T S dx^2``
+    floats more than :func:`viterbi`.
+
+    Returns:
+        ``(B, T)`` switch sequences, ``(B,)`` their costs and the filter along
+        them (where a sequence is padded its moments are held, finite).
+    """
+    path, total, filt = _viterbi(params, seqs, meas, keep=True)
+    assert filt is not None
+    return path, total, filt
+
+
+def _viterbi(
+    params: SLDSParams, seqs: Sequences, meas: Measurements | None, keep: bool
+) -> tuple[IntArray, FloatArray, FilterResult | None]:
     meas = measurement_terms(params, seqs) if meas is None else meas
     n_seq, t_max = seqs.observed.shape
     n_states, dx = params.x0.shape
@@ -401,6 +429,14 @@ def viterbi(
         m_u, p_u = _update(m, p, v, gain)
         m = np.where(obs[:, None, None], m_u, m)
         p = np.where(obs[:, None, None, None], p_u, p)
+    if keep:
+        # The moments every state keeps at every frame (read back along the path).
+        kept_m_pred = np.empty((n_seq, t_max, n_states, dx))
+        kept_p_pred = np.empty((n_seq, t_max, n_states, dx, dx))
+        kept_m_filt = np.empty((n_seq, t_max, n_states, dx))
+        kept_p_filt = np.empty((n_seq, t_max, n_states, dx, dx))
+        kept_m_pred[:, 0], kept_p_pred[:, 0] = params.x0, params.Q0
+        kept_m_filt[:, 0], kept_p_filt[:, 0] = m, p
     psi = np.zeros((n_seq, t_max, n_states), dtype=np.intp)
     final = np.where((lengths == 1)[:, None], cost, np.inf)
     shortest = int(lengths.min())
@@ -435,6 +471,8 @@ def viterbi(
         m_new = m_p[rows, cols, best]
         # eq. 3 for the kept pairs: P_p = A_i P_psi(i) A_i' + Q_i
         p_new = a[None] @ p[rows, best] @ a_t[None] + q[None]
+        if keep:
+            kept_m_pred[:, t], kept_p_pred[:, t] = m_new, p_new
         if any_obs:
             # eq. 5: measurement update of the kept pairs only
             gain = _solve_lower(chol[rows, cols, best], p_new[..., :dz, :])
@@ -455,6 +493,8 @@ def viterbi(
         if t >= shortest - 1:
             final = np.where((lengths - 1 == t)[:, None], cost, final)
         psi[:, t] = best
+        if keep:
+            kept_m_filt[:, t], kept_p_filt[:, t] = m, p
 
     # eq. 12: backtrack from the best final state of each sequence.
     last = np.argmin(final, axis=1)
@@ -465,7 +505,14 @@ def viterbi(
         path[:, t] = state
         if t > 0:
             state = np.where(t <= lengths - 1, psi[np.arange(n_seq), t, state], state)
-    return path, total
+    if not keep:
+        return path, total, None
+    seq, frame = np.arange(n_seq)[:, None], np.arange(t_max)[None, :]
+    filt = FilterResult(
+        kept_m_pred[seq, frame, path], kept_p_pred[seq, frame, path],
+        kept_m_filt[seq, frame, path], kept_p_filt[seq, frame, path], total,
+    )  # fmt: skip
+    return path, total, filt
 
 
 # ---------------------------------------------------------------------------
@@ -586,24 +633,24 @@ def rts_smoother(
     mean = filt.m_filt.copy()
     cov = filt.p_filt.copy()
     cross = np.zeros((n_seq, t_max, dx, dx))
+    if t_max < 2:
+        return SmootherResult(mean, cov, cross)
+    # The gains G_t = P_{t|t} A' P_{t+1|t}^-1 (P_pred symmetric) depend on the filter
+    # alone: one batched solve for every frame instead of one per frame (the same
+    # LAPACK call on the same matrices, so the same numbers).
+    a_next = params.A[path[:, 1:]]
+    gain = np.swapaxes(np.linalg.solve(filt.p_pred[:, 1:], a_next @ filt.p_filt[:, :-1]), -1, -2)
+    gain_t = np.swapaxes(gain, -1, -2)
     for t in range(t_max - 2, -1, -1):
         inside = (t + 1 < lengths)[:, None]
-        a_next = params.A[path[:, t + 1]]
-        # G_t = P_{t|t} A' P_{t+1|t}^-1 (P_pred symmetric)
-        gain = np.swapaxes(
-            np.linalg.solve(filt.p_pred[:, t + 1], a_next @ filt.p_filt[:, t]), -1, -2
-        )
-        m_s = (
-            filt.m_filt[:, t] + (gain @ (mean[:, t + 1] - filt.m_pred[:, t + 1])[..., None])[..., 0]
-        )
-        p_s = filt.p_filt[:, t] + gain @ (cov[:, t + 1] - filt.p_pred[:, t + 1]) @ np.swapaxes(
-            gain, -1, -2
-        )
+        g = gain[:, t]
+        m_s = filt.m_filt[:, t] + (g @ (mean[:, t + 1] - filt.m_pred[:, t + 1])[..., None])[..., 0]
+        p_s = filt.p_filt[:, t] + g @ (cov[:, t + 1] - filt.p_pred[:, t + 1]) @ gain_t[:, t]
         mean[:, t] = np.where(inside, m_s, filt.m_filt[:, t])
         cov[:, t] = np.where(inside[..., None], symmetrise(p_s), filt.p_filt[:, t])
-        cross[:, t + 1] = np.where(
-            inside[..., None], cov[:, t + 1] @ np.swapaxes(gain, -1, -2), 0.0
-        )
+    # Cov[x_{t+1}, x_t | y] = P^s_{t+1} G_t', zero where t + 1 is padding.
+    inside_all = (np.arange(1, t_max)[None, :] < lengths[:, None])[..., None, None]
+    cross[:, 1:] = np.where(inside_all, cov[:, 1:] @ gain_t, 0.0)
     return SmootherResult(mean, cov, cross)
 
 
@@ -617,10 +664,31 @@ def rts_smoother(
 # ---------------------------------------------------------------------------
 
 
-def length_batches(lengths: IntArray, max_batch: int) -> list[IntArray]:
-    """Sequence indices in batches of at most ``max_batch``, similar lengths together."""
+def length_batches(
+    lengths: IntArray, max_batch: int, max_frames: int | None = None
+) -> list[IntArray]:
+    """Sequence indices in batches, similar lengths together.
+
+    Args:
+        lengths: ``(n,)`` sequence lengths.
+        max_batch: At most this many sequences per batch.
+        max_frames: At most this many padded frames (sequences times the
+            longest one's length) per batch, which bounds the memory of the
+            filter's ``(B, T, dx, dx)`` arrays; a longer sequence goes alone.
+            None: no bound.
+    """
     order = np.argsort(lengths, kind="stable")
-    return [order[i : i + max_batch] for i in range(0, len(order), max_batch)]
+    if max_frames is None:
+        return [order[i : i + max_batch] for i in range(0, len(order), max_batch)]
+    batches: list[IntArray] = []
+    start = 0
+    for k in range(1, len(order) + 1):
+        # Sorted ascending, so the batch's longest is its last sequence.
+        full = k - start >= max_batch
+        if k == len(order) or full or (k + 1 - start) * int(lengths[order[k]]) > max_frames:
+            batches.append(order[start:k])
+            start = k
+    return batches
 
 
 # ---------------------------------------------------------------------------

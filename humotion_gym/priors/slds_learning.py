@@ -23,7 +23,7 @@ Viterbi path and the previous path costs less, so the reported cost
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,7 +32,6 @@ from scipy.cluster.vq import kmeans2
 
 from humotion_gym.priors.slds_inference import (
     EMISSIONS,
-    FilterResult,
     Measurements,
     Sequences,
     SLDSParams,
@@ -44,7 +43,7 @@ from humotion_gym.priors.slds_inference import (
     pack,
     rts_smoother,
     symmetrise,
-    viterbi,
+    viterbi_filter,
 )
 
 FloatArray = NDArray[np.float64]
@@ -443,37 +442,38 @@ def _e_step(
     old_path: IntArray | None,
     stats: _Stats | None,
 ) -> tuple[IntArray, float]:
-    """Viterbi E-step on one batch; keeps the old path where it costs less."""
+    """Viterbi E-step on one batch; keeps the old path where it costs less.
+
+    The filter along the new path comes with the decoding
+    (:func:`~humotion_gym.priors.slds_inference.viterbi_filter`); only the
+    sequences whose path changed are filtered along their old path, to compare.
+    """
     meas = measurement_terms(params, seqs)
-    new_path, _ = viterbi(params, seqs, meas)
+    path, new_cost, filt = viterbi_filter(params, seqs, meas)
     if old_path is None:
         differ = np.zeros(seqs.n, dtype=bool)
     else:
-        differ = np.any((new_path != old_path) & seqs.valid, axis=1)
+        differ = np.any((path != old_path) & seqs.valid, axis=1)
     idx = np.flatnonzero(differ)
-    both = np.concatenate([new_path, old_path[idx]]) if idx.size else new_path
-    seqs2 = seqs.take(np.concatenate([np.arange(seqs.n), idx]))
-    meas2 = Measurements(
-        np.concatenate([meas.z, meas.z[idx]]), meas.R, np.concatenate([meas.const, meas.const[idx]])
-    )
-    filt = filter_path(params, seqs2, both, meas2)
-    keep_new = np.ones(seqs.n, dtype=bool)
-    keep_new[idx] = filt.cost[: seqs.n][idx] <= filt.cost[seqs.n :]
-    pick = np.arange(seqs.n)
-    pick[idx[~keep_new[idx]]] = seqs.n + np.flatnonzero(~keep_new[idx])
-    path = both[pick]
-    cost = float(filt.cost[pick].sum())
+    cost = new_cost.copy()
+    if idx.size:
+        assert old_path is not None
+        meas_old = Measurements(meas.z[idx], meas.R, meas.const[idx])
+        old = filter_path(params, seqs.take(idx), old_path[idx], meas_old)
+        back = idx[old.cost < new_cost[idx]]  # the new path must cost no more to replace it
+        if back.size:
+            pick = np.flatnonzero(old.cost < new_cost[idx])
+            path = path.copy()
+            path[back] = old_path[back]
+            cost[back] = old.cost[pick]
+            fields = [filt.m_pred, filt.p_pred, filt.m_filt, filt.p_filt]
+            olds = [old.m_pred, old.p_pred, old.m_filt, old.p_filt]
+            for field, value in zip(fields, olds, strict=True):
+                field[back] = value[pick]
     if stats is not None:
-        chosen = FilterResult(
-            filt.m_pred[pick],
-            filt.p_pred[pick],
-            filt.m_filt[pick],
-            filt.p_filt[pick],
-            filt.cost[pick],
-        )
-        sm = rts_smoother(params, path, chosen, seqs.lengths)
+        sm = rts_smoother(params, path, filt, seqs.lengths)
         _accumulate(stats, params, seqs, meas, path, sm)
-    return path, cost
+    return path, float(cost.sum())
 
 
 def prune_states(params: SLDSParams, used: NDArray[np.bool_]) -> SLDSParams:
@@ -508,6 +508,8 @@ def fit_em(
     max_batch: int = 32,
     half_window: int = 5,
     prune: bool = True,
+    max_frames: int | None = None,
+    progress: Callable[[int, float], None] | None = None,
 ) -> EMResult:
     """Learn an SLDS by EM with the approximate Viterbi E-step (section 2.3).
 
@@ -524,9 +526,13 @@ def fit_em(
         label: The activity name given to every state.
         free: Indices of the modelled pose parameters (stored with the model).
         fps: Frame rate of the sequences.
-        max_batch: Sequences decoded together (memory bound).
+        max_batch: Sequences decoded together.
+        max_frames: Padded frames decoded together (memory bound; see
+            :func:`~humotion_gym.priors.slds_inference.length_batches`).
         half_window: Half-window of the initial segmentation's AR fits.
         prune: Remove states that no frame uses at the end.
+        progress: Called after every E-step with its index (0 to ``n_iter``)
+            and the cost (for a progress bar).
 
     Returns:
         The model, the cost per iteration and the segmentations.
@@ -577,7 +583,7 @@ def fit_em(
         template = template.replace(A=np.broadcast_to(np.eye(dx, k=-dy), (n_states, dx, dx)).copy())
     params = _initial_params(labels, xs, arrays, masks, c, d, reg, template)
 
-    chunks = length_batches(np.array([y.shape[0] for y in arrays]), max_batch)
+    chunks = length_batches(np.array([y.shape[0] for y in arrays]), max_batch, max_frames)
     batches = [pack([arrays[i] for i in ch], [masks[i] for i in ch]) for ch in chunks]
     paths: list[IntArray] = []
     for ch, batch in zip(chunks, batches, strict=True):
@@ -595,6 +601,8 @@ def fit_em(
             paths[k], cost = _e_step(params, batch, paths[k], stats)
             total += cost
         costs.append(total + penalty(params, reg))
+        if progress is not None:
+            progress(it, costs[-1])
         if last:
             break
         if it > 0 and costs[-2] - costs[-1] <= tol * abs(costs[-1]):

@@ -1,0 +1,107 @@
+"""The SLDS fit's faster paths against the plain ones they replace."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_slds import random_model  # the same small random models
+
+from humotion_gym.priors.slds_inference import (
+    filter_path,
+    length_batches,
+    pack,
+    rts_smoother,
+    sample,
+    symmetrise,
+    viterbi,
+    viterbi_filter,
+)
+from humotion_gym.priors.slds_learning import fit_em
+
+
+def reference_smoother(params, path, filt, lengths):
+    """The RTS smoother with one gain solve per frame (the loop before the batched gains)."""
+    n_seq, t_max, dx = filt.m_filt.shape
+    mean, cov = filt.m_filt.copy(), filt.p_filt.copy()
+    cross = np.zeros((n_seq, t_max, dx, dx))
+    for t in range(t_max - 2, -1, -1):
+        inside = (t + 1 < lengths)[:, None]
+        a_next = params.A[path[:, t + 1]]
+        gain = np.swapaxes(
+            np.linalg.solve(filt.p_pred[:, t + 1], a_next @ filt.p_filt[:, t]), -1, -2
+        )
+        m_s = (
+            filt.m_filt[:, t] + (gain @ (mean[:, t + 1] - filt.m_pred[:, t + 1])[..., None])[..., 0]
+        )
+        p_s = filt.p_filt[:, t] + gain @ (cov[:, t + 1] - filt.p_pred[:, t + 1]) @ np.swapaxes(
+            gain, -1, -2
+        )
+        mean[:, t] = np.where(inside, m_s, filt.m_filt[:, t])
+        cov[:, t] = np.where(inside[..., None], symmetrise(p_s), filt.p_filt[:, t])
+        cross[:, t + 1] = np.where(
+            inside[..., None], cov[:, t + 1] @ np.swapaxes(gain, -1, -2), 0.0
+        )
+    return mean, cov, cross
+
+
+def ragged_batch(seed, emission="identity", order=2):
+    rng = np.random.default_rng(seed)
+    params = random_model(rng, emission, order=order, n_states=3, dy=3)
+    ys = [sample(params, n, rng, measurement_noise=True)[0] for n in (12, 5, 30, 1, 17)]
+    masks = [np.ones(len(y), bool) for y in ys]
+    masks[2][4:9] = False  # a gap
+    masks[4][0] = False  # the first frame missing
+    return params, pack(ys, masks)
+
+
+@pytest.mark.parametrize(("emission", "order"), [("identity", 2), ("identity", 1), ("learned", 1)])
+def test_viterbi_filter_is_viterbi_and_the_filter_along_its_path(emission, order):
+    params, seqs = ragged_batch(1, emission, order)
+    path, cost = viterbi(params, seqs)
+    path2, cost2, filt = viterbi_filter(params, seqs)
+    np.testing.assert_array_equal(path, path2)
+    np.testing.assert_array_equal(cost, cost2)
+    ref = filter_path(params, seqs, path)
+    # The same filter written two ways (H A P A' H' + H Q H' + R against
+    # H (A P A' + Q) H' + R): equal up to rounding, inside every sequence.
+    valid = seqs.valid
+    for name in ("m_pred", "p_pred", "m_filt", "p_filt"):
+        a, b = getattr(filt, name)[valid], getattr(ref, name)[valid]
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12 * np.abs(b).max(), err_msg=name)
+    np.testing.assert_allclose(filt.cost, ref.cost, rtol=1e-10)
+    for arr in (filt.m_pred, filt.p_pred, filt.m_filt, filt.p_filt):
+        assert np.all(np.isfinite(arr))  # padding is held, never garbage
+
+
+def test_batched_smoother_gains_give_the_same_numbers():
+    params, seqs = ragged_batch(2)
+    path, _ = viterbi(params, seqs)
+    filt = filter_path(params, seqs, path)
+    sm = rts_smoother(params, path, filt, seqs.lengths)
+    mean, cov, cross = reference_smoother(params, path, filt, seqs.lengths)
+    np.testing.assert_array_equal(sm.mean, mean)
+    np.testing.assert_array_equal(sm.cov, cov)
+    np.testing.assert_array_equal(sm.cross, cross)
+
+
+def test_length_batches_bound_sequences_and_frames():
+    lengths = np.random.default_rng(3).integers(1, 200, size=300)
+    for max_batch, max_frames in [(32, None), (64, 2_000), (1_000, 500), (5, 10_000)]:
+        batches = length_batches(lengths, max_batch, max_frames)
+        np.testing.assert_array_equal(np.sort(np.concatenate(batches)), np.arange(lengths.size))
+        for b in batches:
+            assert 1 <= b.size <= max_batch
+            longest = lengths[b].max()
+            # a sequence longer than the frame bound goes alone
+            assert max_frames is None or b.size * longest <= max_frames or b.size == 1
+        tails = [lengths[b].max() for b in batches]
+        assert tails == sorted(tails)  # similar lengths together
+
+
+def test_em_progress_is_called_once_per_e_step():
+    params, seqs = ragged_batch(4)
+    ys = [seqs.y[k, : seqs.lengths[k]] for k in range(seqs.n) if seqs.lengths[k] > 3]
+    calls = []
+    result = fit_em(ys, n_states=2, n_iter=4, tol=0.0, progress=lambda it, c: calls.append((it, c)))
+    assert [it for it, _ in calls] == list(range(len(result.costs)))
+    np.testing.assert_array_equal([c for _, c in calls], result.costs)
