@@ -221,6 +221,17 @@ def _read_leaderboard(out: str) -> list[Row]:
     return rows
 
 
+def _read_fit(out: str) -> list[Row]:
+    refs = dict(re.findall(r"^(\S+)\s+reference\s+\d+\s+\d+\s+([\d.]+)", out, re.M))
+    pattern = r"^(\S+)\s+(pf-\S+)\s+\d+\s+(\d+)\s+([\d.]+)\s+([\d.]+)\s+([\d.]+)$"
+    return [
+        (f"{agent} prior, first fit on {task}'s training clips ({int(frames):,} frames; "
+         f"file {mb} MB)", f"{seconds} s",
+         f"a numpy Kalman filter pass ({refs.get(task, '?')} s)", f"{ratio}x the time")
+        for task, agent, frames, seconds, ratio, mb in re.findall(pattern, out, re.M)
+    ]  # fmt: skip
+
+
 #: Every benchmark, in the order of the table.
 BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark(
@@ -240,6 +251,7 @@ BENCHMARKS: tuple[Benchmark, ...] = (
         quick=("--particles", "300", "3000", "--frames", "10"),
     ),  # fmt: skip
     Benchmark("bench_tree", _read_tree, data_dir=True),
+    Benchmark("bench_fit", _read_fit, data_dir=True, quick=("--tasks", "BodyTrack-v1")),
     Benchmark("bench_slds", _read_slds, args=("--json",), quick=("--json", "--repeats", "1")),
     Benchmark("bench_fpca", _read_fpca),
     Benchmark("bench_parse", _read_parse),
