@@ -3,8 +3,10 @@
 The experiments are in :mod:`humotion_gym.experiments.pavlovic1999`::
 
     humotion-gym slds classify --train PATH... --test PATH... [--seed S] [--json] [--figure F]
-    humotion-gym slds select [--data-dir DIR] [--jobs N] [--json]
-    humotion-gym slds splits [--data-dir DIR] [--jobs N] [--seed S] [--json]
+    humotion-gym slds select [--data-dir DIR] [--features F...] [--extra-noise-degs DEG...]
+                             [--criterion kinds|frames] [--jobs N] [--json]
+    humotion-gym slds splits [--data-dir DIR] [--features F] [--extra-noise-deg DEG]
+                             [--training-persons] [--jobs N] [--seed S] [--json]
     humotion-gym slds interpolate [--data-dir DIR] [--json] [--figure F]
     humotion-gym slds figures [--data-dir DIR] [--out-dir DIR]
 """
@@ -56,6 +58,32 @@ def _add_model_args(p: argparse.ArgumentParser, figure: bool = True) -> None:
         )  # fmt: skip
 
 
+def features_arg(text: str) -> str:
+    """An argparse ``type`` for a feature name (``pavlovic1999.parse_features``)."""
+    from humotion_gym.experiments import pavlovic1999 as pav
+
+    try:
+        pav.parse_features(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+def _add_variant_args(p: argparse.ArgumentParser) -> None:
+    """``--features`` and ``--extra-noise-deg`` of one classifier setting."""
+    from humotion_gym.experiments import pavlovic1999 as pav
+
+    p.add_argument(
+        "--features", type=features_arg, default=pav.CLASSIFY_FEATURES,
+        help=f"what the models see: {pav.FEATURES_HELP} (default: {pav.CLASSIFY_FEATURES})",
+    )  # fmt: skip
+    p.add_argument(
+        "--extra-noise-deg", type=nonnegative_float, default=pav.CLASSIFY_EXTRA_NOISE_DEG,
+        help="measurement noise the decoder assumes on top of the test noise, degrees "
+        f"(default: {pav.CLASSIFY_EXTRA_NOISE_DEG:g})",
+    )  # fmt: skip
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``slds classify|select|splits|interpolate|figures``."""
     from humotion_gym.experiments import pavlovic1999 as pav
@@ -89,6 +117,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--noise-deg", type=nonnegative_float, default=noise,
         help=f"noise added to the test sequences, degrees (default: {noise:g})",
     )  # fmt: skip
+    _add_variant_args(c)
     _add_model_args(c)
     c.set_defaults(func=_cmd_classify)
 
@@ -104,6 +133,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sel.add_argument(
         "--switch-probs", nargs="+", type=probability, default=probs, metavar="P",
         help=f"candidate switch probabilities (default: {' '.join(f'{v:g}' for v in probs)})",
+    )  # fmt: skip
+    sel.add_argument(
+        "--features", nargs="+", type=features_arg, default=["angles"], metavar="F",
+        help=f"candidate features: {pav.FEATURES_HELP} (default: angles; the variant grid: "
+        f"{' '.join(pav.CANDIDATE_FEATURES)})",
+    )  # fmt: skip
+    sel.add_argument(
+        "--extra-noise-degs", nargs="+", type=nonnegative_float, default=[0.0], metavar="DEG",
+        help="candidate extra measurement noise the decoder assumes, degrees (default: 0; the "
+        f"variant grid: {' '.join(f'{v:g}' for v in pav.CANDIDATE_EXTRA_NOISE_DEG)})",
+    )  # fmt: skip
+    sel.add_argument(
+        "--person-folds", action=argparse.BooleanOptionalAction, default=True,
+        help="hold out every training person outside Bandai-Namco as a CV fold "
+        "(leave-one-person-out; default: on)",
+    )  # fmt: skip
+    sel.add_argument(
+        "--criterion", choices=pav.CV_CRITERIA, default="kinds",
+        help="kinds: mean of the style folds' and the person folds' pooled errors; frames: "
+        "every held-out frame weighs the same (default: kinds)",
     )  # fmt: skip
     _add_model_args(sel, figure=False)
     sel.add_argument(
@@ -124,6 +173,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     spl.add_argument(
         "--switch-prob", type=probability, default=None,
         help="also score this switch probability as 'given' (default: none)",
+    )  # fmt: skip
+    spl.add_argument(
+        "--features", type=features_arg, default=None,
+        help=f"also score these features as 'given': {pav.FEATURES_HELP} (default: none)",
+    )  # fmt: skip
+    spl.add_argument(
+        "--extra-noise-deg", type=nonnegative_float, default=None,
+        help="also score this extra assumed noise (degrees) as 'given' (default: none)",
+    )  # fmt: skip
+    spl.add_argument(
+        "--training-persons", action="store_true",
+        help="also hold out each training person outside Bandai-Namco (CMU 5, 7) in turn "
+        "(default: off)",
     )  # fmt: skip
     _add_model_args(spl, figure=False)
     spl.add_argument(
@@ -159,12 +221,14 @@ def _cmd_classify(args: argparse.Namespace) -> int:
         train, test, np.random.default_rng(args.seed), free=pav.param_indices(args.free),
         labels=args.labels, n_states=args.states, n_iter=args.iters,
         switch_prob=args.switch_prob, noise_std=float(np.radians(args.noise_deg)),
-        max_train_clips=args.max_train_clips,
+        max_train_clips=args.max_train_clips, features=args.features,
+        extra_noise_deg=args.extra_noise_deg,
     )  # fmt: skip
     out = result.summary()
     out.update(
         train_clips=len(train), test_clips=len(test), seed=args.seed,
-        params=[PARAM_NAMES[i] for i in result.model.free],
+        params=[PARAM_NAMES[i] for i in result.model.free], features=args.features,
+        extra_noise_deg=args.extra_noise_deg,
     )  # fmt: skip
     if args.figure:
         pav.plot_segmentation(result, args.figure)
@@ -217,7 +281,9 @@ def _cmd_select(args: argparse.Namespace) -> int:
     result = pav.select_classifier_settings(
         train, np.random.default_rng(args.seed), param_sets=_param_sets_arg(args.param_sets),
         switch_probs=args.switch_probs, n_states=args.states, n_iter=args.iters,
-        jobs=args.jobs, log=None if args.quiet else _log,
+        jobs=args.jobs, log=None if args.quiet else _log, features=args.features,
+        extra_noise_degs=args.extra_noise_degs, person_folds=args.person_folds,
+        criterion=args.criterion,
     )  # fmt: skip
     if args.json:
         print_json({**result.summary(), "seed": args.seed, "states": args.states,
@@ -226,8 +292,10 @@ def _cmd_select(args: argparse.Namespace) -> int:
         print(result.table())
         best = result.best
         print(
-            f"chosen: {' '.join(best.params)} ({best.name}), switch probability "
-            f"{best.switch_prob:g}, CV error {100 * result.cv_error[result.chosen]:.2f}%"
+            f"chosen: {' '.join(best.params)} ({best.name}), features {best.features}, switch "
+            f"probability {best.switch_prob:g}, extra noise {best.extra_noise_deg:g} deg; "
+            f"{args.criterion} score {100 * result.scores[result.chosen]:.2f}%, CV error "
+            f"{100 * result.cv_error[result.chosen]:.2f}%"
         )
     return 0
 
@@ -236,15 +304,23 @@ def _cmd_splits(args: argparse.Namespace) -> int:
     from humotion_gym.experiments import pavlovic1999 as pav
 
     settings = pav.default_settings()
-    if args.params is not None or args.switch_prob is not None:
+    given = (args.params, args.switch_prob, args.features, args.extra_noise_deg)
+    if any(v is not None for v in given):
         params = tuple(args.params) if args.params is not None else pav.CLASSIFY_PARAMS
         pav.param_indices(params)
         prob = args.switch_prob if args.switch_prob is not None else pav.CLASSIFY_SWITCH_PROB
-        settings["given"] = pav.ClassifierSetting(params, prob, pav.setting_name(params))
+        feats = args.features if args.features is not None else pav.CLASSIFY_FEATURES
+        extra = (
+            args.extra_noise_deg if args.extra_noise_deg is not None
+            else pav.CLASSIFY_EXTRA_NOISE_DEG
+        )  # fmt: skip
+        settings["given"] = pav.ClassifierSetting(
+            params, prob, pav.setting_name(params), feats, extra
+        )
     rows = pav.evaluate_splits(
         pav.default_motions(args.data_dir), np.random.default_rng(args.seed), settings,
         n_states=args.states, n_iter=args.iters, jobs=args.jobs,
-        log=None if args.quiet else _log,
+        log=None if args.quiet else _log, training_persons=args.training_persons,
     )  # fmt: skip
     if args.json:
         print_json({"rows": [r.summary() for r in rows], "seed": args.seed,

@@ -144,6 +144,30 @@ OLD_CLASSIFY_SWITCH_PROB = 1e-3
 CLASSIFY_PARAMS: tuple[str, ...] = CANDIDATE_PARAMS["legs+shoulders"]
 CLASSIFY_SWITCH_PROB = 1e-5
 CLASSIFY_INDEX: NDArray[np.intp] = np.array([PARAM_INDEX[n] for n in CLASSIFY_PARAMS], np.intp)
+#: What the classifier's models see (:func:`feature_transform`; every one causal):
+#: ``"angles"`` the angles themselves (the paper); ``"centred-Ns"`` the angles
+#: less their causal running mean over the last N seconds (the cumulative mean
+#: over the first N s; ``"centred-all"``: the cumulative mean from the start),
+#: removing a person's posture offset; ``"velocity"`` the angles' first
+#: differences per second (posture-free, but differencing doubles the noise's
+#: variance).
+FEATURES_HELP = "angles, centred-Ns (N seconds, or all), velocity"
+#: Candidate features of :func:`select_classifier_settings` (the variant runs).
+CANDIDATE_FEATURES: tuple[str, ...] = ("angles", "centred-4s", "velocity")
+#: Candidate extra measurement noise (deg) the decoder assumes on top of the
+#: test noise (inflating ``R`` tolerates a new person's postures and styles).
+CANDIDATE_EXTRA_NOISE_DEG: tuple[float, ...] = (0.0, 2.0, 4.0, 8.0, 16.0)
+#: Candidate switch probabilities of the variant runs: longer dwells than the
+#: grid of :data:`CANDIDATE_SWITCH_PROBS` (whose smallest value was chosen).
+VARIANT_SWITCH_PROBS: tuple[float, ...] = (1e-4, 1e-5, 1e-6, 1e-8)
+#: The classifier's features and extra assumed noise (deg) by default.
+CLASSIFY_FEATURES = "angles"
+CLASSIFY_EXTRA_NOISE_DEG = 0.0
+#: How :func:`select_classifier_settings` scores a setting: ``"kinds"`` the mean
+#: of the pooled error of the style folds and that of the person folds (each
+#: kind of "new" weighs the same, however many frames it has); ``"frames"``
+#: every held-out frame weighs the same (the style folds dominate).
+CV_CRITERIA: tuple[str, ...] = ("kinds", "frames")
 #: Frames replaced by the B-spline on each side of a junction between two clips.
 BLEND_FRAMES = 5
 #: Clips per test sequence: drawn uniformly from this inclusive range.
@@ -299,6 +323,109 @@ class ClassificationResult:
         }
 
 
+def parse_features(features: str) -> tuple[str, float]:
+    """The kind of a feature name and its window in seconds (``inf``: none or all).
+
+    Args:
+        features: ``"angles"``, ``"velocity"``, ``"centred-all"`` or
+            ``"centred-Ns"`` with ``N`` a positive number of seconds.
+
+    Returns:
+        ``(kind, seconds)``, kind one of ``"angles"``, ``"centred"``, ``"velocity"``.
+
+    Raises:
+        ValueError: Naming ``features`` when it is none of these.
+    """
+    if features in ("angles", "velocity"):
+        return features, float("inf")
+    if features.startswith("centred-"):
+        window = features[len("centred-") :]
+        if window == "all":
+            return "centred", float("inf")
+        if window.endswith("s"):
+            try:
+                seconds = float(window[:-1])
+            except ValueError:
+                seconds = float("nan")
+            if seconds > 0 and np.isfinite(seconds):
+                return "centred", seconds
+    raise ValueError(f"features: unknown {features!r}; expected {FEATURES_HELP}")
+
+
+def running_mean(y: ArrayLike, window: float) -> FloatArray:
+    """Causal running mean of ``y`` along the frames (axis 0).
+
+    The mean at frame ``t`` uses frames ``0..t`` only: the cumulative mean for
+    the first ``window`` frames, then an exponential moving average with weight
+    ``1 / window`` on the newest frame (the two agree at the hand-over).
+
+    Args:
+        y: ``(T, D)`` values.
+        window: Frames (> 0; ``inf``: the cumulative mean throughout).
+
+    Raises:
+        ValueError: If ``window`` is not positive.
+    """
+    x = np.asarray(y, dtype=np.float64)
+    if not window > 0:
+        raise ValueError(f"running_mean: window must be > 0 frames, got {window}")
+    n_frames = x.shape[0]
+    head = n_frames if not np.isfinite(window) else min(n_frames, max(int(round(window)), 1))
+    out = np.empty_like(x)
+    counts = np.arange(1, head + 1, dtype=np.float64).reshape((-1,) + (1,) * (x.ndim - 1))
+    out[:head] = np.cumsum(x[:head], axis=0) / counts
+    if head < n_frames:
+        from scipy.signal import lfilter  # imported here: keeps --help fast
+
+        a = 1.0 / head
+        zi = ((1.0 - a) * out[head - 1])[None]
+        out[head:], _ = lfilter([a], [1.0, a - 1.0], x[head:], axis=0, zi=zi)
+    return out
+
+
+def feature_transform(angles: ArrayLike, features: str, fps: float) -> FloatArray:
+    """The classifier's features of a sequence of angles (causal: frame t uses frames <= t).
+
+    Args:
+        angles: ``(T, D)`` angles (rad).
+        features: A name of :data:`FEATURES_HELP` (:func:`parse_features`).
+        fps: Frames per second.
+
+    Returns:
+        ``(T, D)``: the angles (``"angles"``); the angles less their running
+        mean (:func:`running_mean`, ``"centred-Ns"``); the first differences
+        times ``fps``, the first frame's taken as zero (``"velocity"``).
+    """
+    kind, seconds = parse_features(features)
+    y = np.asarray(angles, dtype=np.float64)
+    if kind == "angles":
+        return y
+    if kind == "centred":
+        return y - running_mean(y, seconds * fps if np.isfinite(seconds) else np.inf)
+    out = np.zeros_like(y)
+    out[1:] = np.diff(y, axis=0) * fps
+    return out
+
+
+def feature_noise(features: str, noise_std: float, fps: float) -> float:
+    """Standard deviation in the features of white noise ``noise_std`` on the angles.
+
+    Centring leaves it (the running mean averages the noise away); a first
+    difference doubles its variance and scales it by ``fps``.
+    """
+    kind, _ = parse_features(features)
+    return noise_std * np.sqrt(2.0) * fps if kind == "velocity" else noise_std
+
+
+def motion_features(motion: Motion, features: str) -> Motion:
+    """The clip with every parameter replaced by its features (the clip's own start is t=0)."""
+    if parse_features(features)[0] == "angles":
+        return motion
+    return dataclasses.replace(
+        motion, params=feature_transform(motion.params, features, motion.fps)
+    )
+
+
 def with_measurement_noise(fitted: SLDSParams, noise_std: float) -> SLDSParams:
     """The model with ``noise_std^2`` added to the measurement noise ``R``."""
     return fitted.replace(R=fitted.R + noise_std**2 * np.eye(fitted.obs_dim))
@@ -361,6 +488,8 @@ def run_classification(
     noise_std: float = NOISE_STD,
     max_train_clips: int | None = None,
     clips_per_sequence: tuple[int, int] = CLIPS_PER_SEQUENCE,
+    features: str = CLASSIFY_FEATURES,
+    extra_noise_deg: float = CLASSIFY_EXTRA_NOISE_DEG,
 ) -> ClassificationResult:
     """The whole protocol of section 4.1: learn per activity, build test sequences, score.
 
@@ -376,12 +505,26 @@ def run_classification(
         noise_std: Noise of the test sequences (rad), known to the decoder.
         max_train_clips: At most this many training clips per activity.
         clips_per_sequence: Clips per test sequence (inclusive range).
+        features: What the models see (:func:`parse_features`): the training
+            clips and the test sequences (from their noisy angles, causally)
+            are transformed alike.
+        extra_noise_deg: Measurement noise (deg, >= 0) the decoder assumes on
+            top of ``noise_std``.
+
+    Raises:
+        ValueError: If ``features`` or ``extra_noise_deg`` is malformed, or no
+            test clip has a modelled label.
     """
     idx = CLASSIFY_INDEX if free is None else np.asarray(free, dtype=np.intp)
+    parse_features(features)
+    if not (extra_noise_deg >= 0 and np.isfinite(extra_noise_deg)):
+        raise ValueError(f"extra_noise_deg must be finite and >= 0, got {extra_noise_deg}")
     start = time.perf_counter()
+    fps = float(train[0].fps) if train else 30.0
     model, costs = fit_activities(
-        train, idx, rng, labels, n_states, n_iter, switch_prob, max_train_clips
-    )
+        [motion_features(m, features) for m in train], idx, rng, labels, n_states, n_iter,
+        switch_prob, max_train_clips,
+    )  # fmt: skip
     fitted_s = time.perf_counter() - start
     known = set(model.state_labels.tolist())
     test_clips = [m for m in test if m.label in known]
@@ -390,8 +533,14 @@ def run_classification(
     sequences = build_test_sequences(
         test_clips, idx, rng, clips_per_sequence=clips_per_sequence, noise_std=noise_std
     )
+    sequences = [dataclasses.replace(s, angles=feature_transform(s.angles, features, fps))
+                 for s in sequences]  # fmt: skip
+    assumed = float(np.hypot(
+        feature_noise(features, noise_std, fps),
+        feature_noise(features, float(np.radians(extra_noise_deg)), fps),
+    ))  # fmt: skip
     start = time.perf_counter()
-    error, decoded, switches = classify(model, sequences, noise_std)
+    error, decoded, switches = classify(model, sequences, assumed)
     decode_s = time.perf_counter() - start
     truth = np.concatenate([s.truth for s in sequences])
     dec = np.concatenate(decoded)
@@ -448,14 +597,17 @@ def check_training_only(motions: Sequence[Motion], what: str = "motions") -> Non
             )
 
 
-def cv_groups(motions: Sequence[Motion]) -> list[str | None]:
+def cv_groups(motions: Sequence[Motion], every_person: bool = False) -> list[str | None]:
     """The cross-validation group of every clip (None: in every fold's training data).
 
     A Bandai-Namco style (subject ``"bandai-2/masculine"``...) is a group: the
     same actors perform every style, so holding one out is "style held out,
     same performers". Any other subject is a group when it has clips of two or
     more activities (a held-out person); a subject with one activity only
-    (CMU subject 7's walks) always trains.
+    (CMU subject 7's walks) always trains, unless ``every_person``: then every
+    non-Bandai subject is its own group (leave-one-person-out: a fold of a
+    person who only walks scores how often a new person's walking is read as
+    running, the error the test persons show).
     """
     labels: dict[str, set[str]] = {}
     for m in motions:
@@ -463,7 +615,8 @@ def cv_groups(motions: Sequence[Motion]) -> list[str | None]:
     out: list[str | None] = []
     for m in motions:
         bandai = m.dataset.startswith("bandai")
-        out.append(m.subject if bandai or len(labels[m.subject]) > 1 else None)
+        person = every_person or len(labels[m.subject]) > 1
+        out.append(m.subject if bandai or person else None)
     return out
 
 
@@ -482,15 +635,43 @@ class ClassifierSetting:
         params: The modelled parameter names.
         switch_prob: Between-activity switching probability per frame.
         name: Short name of the parameter subset.
+        features: What the models see (:func:`parse_features`).
+        extra_noise_deg: Measurement noise (deg) the decoder assumes on top of
+            the test noise: ``R`` grows by its square (in the features' units).
     """
 
     params: tuple[str, ...]
     switch_prob: float
     name: str = ""
+    features: str = "angles"
+    extra_noise_deg: float = 0.0
+
+    def __post_init__(self) -> None:
+        parse_features(self.features)
+        if not (self.extra_noise_deg >= 0 and np.isfinite(self.extra_noise_deg)):
+            raise ValueError(
+                f"ClassifierSetting: extra_noise_deg must be finite and >= 0, got "
+                f"{self.extra_noise_deg}"
+            )
+
+    @property
+    def fit_key(self) -> tuple[tuple[str, ...], str]:
+        """What the models are fitted to: the parameters and the features."""
+        return (tuple(self.params), self.features)
+
+    @property
+    def decode_key(self) -> tuple[float, float]:
+        """What only the decoding changes: switch probability and extra noise (deg)."""
+        return (float(self.switch_prob), float(self.extra_noise_deg))
 
     def label(self) -> str:
-        """``"legs, 1e-03"``."""
-        return f"{self.name or '+'.join(self.params)}, {self.switch_prob:.0e}"
+        """``"legs, 1e-03"``; non-default features and extra noise appended."""
+        out = f"{self.name or '+'.join(self.params)}, {self.switch_prob:.0e}"
+        if self.features != "angles":
+            out += f", {self.features}"
+        if self.extra_noise_deg:
+            out += f", +{self.extra_noise_deg:g} deg"
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -550,14 +731,18 @@ def score_settings(
     n_iter: int = slds.N_ITER,
     noise_std: float = NOISE_STD,
     clips_per_sequence: tuple[int, int] = CLIPS_PER_SEQUENCE,
+    features: Sequence[str] = ("angles",),
+    extra_noise_degs: Sequence[float] = (0.0,),
 ) -> list[SettingScores]:
-    """Learn once per parameter subset, decode every test set at every switch probability.
+    """Learn once per parameter subset and features, decode every test set at every decode option.
 
-    Each activity's SLDS is fitted once per parameter subset (EM seeded by
-    ``[seed, 1]``, the same for every subset); the switch probability only
-    joins the fitted models (:func:`~humotion_gym.priors.slds_inference.combine`),
-    so it costs a decode, not a fit. Each test set's footnote-4 sequences are
-    drawn once (seeded by ``[seed, 2, k]``) and shared by every setting.
+    Each activity's SLDS is fitted once per parameter subset and features
+    (EM seeded by ``[seed, 1]``, the same for every one); the switch
+    probability and the extra assumed noise only change the decoding
+    (:func:`~humotion_gym.priors.slds_inference.combine`, ``R``), so they cost
+    a decode, not a fit. Each test set's footnote-4 sequences are drawn once
+    (seeded by ``[seed, 2, k]``) and shared by every setting; the features of a
+    sequence are computed from its noisy angles, causally from its first frame.
 
     Args:
         train: Training clips with the activity labels.
@@ -570,41 +755,90 @@ def score_settings(
         n_iter: EM iterations per activity.
         noise_std: Test noise (rad), known to the decoder.
         clips_per_sequence: Clips per test sequence (inclusive range).
+        features: Features (:func:`parse_features`), each fitted with every subset.
+        extra_noise_degs: Extra assumed noise (deg), each decoded with every
+            switch probability.
 
     Returns:
-        One :class:`SettingScores` per test set.
+        One :class:`SettingScores` per test set: ``wrong`` is ``(P * F, W * N,
+        L)``, the subsets outer and the features inner on the first axis, the
+        switch probabilities outer and the extra noises inner on the second.
 
     Raises:
-        ValueError: If a test set has no clip of the labels.
+        ValueError: If a test set has no clip of the labels or a feature name is unknown.
+    """
+    fits = [(tuple(p), f) for p in param_sets for f in features]
+    decodes = [(float(w), float(n)) for w in switch_probs for n in extra_noise_degs]
+    return score_fits(train, tests, fits, decodes, seed, labels, n_states, n_iter, noise_std,
+                      clips_per_sequence)  # fmt: skip
+
+
+def score_fits(
+    train: Sequence[Motion],
+    tests: Sequence[Sequence[Motion]],
+    fits: Sequence[tuple[tuple[str, ...], str]],
+    decodes: Sequence[tuple[float, float]],
+    seed: int,
+    labels: Sequence[str] = CLASSIFY_LABELS,
+    n_states: int = slds.N_STATES,
+    n_iter: int = slds.N_ITER,
+    noise_std: float = NOISE_STD,
+    clips_per_sequence: tuple[int, int] = CLIPS_PER_SEQUENCE,
+) -> list[SettingScores]:
+    """:func:`score_settings` over explicit lists of fits and decodes.
+
+    Args:
+        train: Training clips with the activity labels.
+        tests: Test sets.
+        fits: ``(params, features)`` pairs, one fit of every activity each.
+        decodes: ``(switch_prob, extra_noise_deg)`` pairs, one decode each.
+        seed: Seed of the fits and test sequences.
+        labels: The activities.
+        n_states: Switch states per activity.
+        n_iter: EM iterations per activity.
+        noise_std: Test noise (rad) on the angles, known to the decoder.
+        clips_per_sequence: Clips per test sequence (inclusive range).
+
+    Returns:
+        One :class:`SettingScores` per test set, ``wrong`` ``(len(fits),
+        len(decodes), L)``.
     """
     labels = tuple(labels)
+    for _, feat in fits:
+        parse_features(feat)
     test_sets = [[m for m in t if m.label in labels] for t in tests]
     for k, t in enumerate(test_sets):
         if not t:
             raise ValueError(f"score_settings: test set {k} has no clip labelled {labels}")
+    fps = float(train[0].fps) if train else 30.0
     seqs = [
         _test_sequences_all_params(t, np.random.default_rng([seed, 2, k]), noise_std,
                                    clips_per_sequence)
         for k, t in enumerate(test_sets)
     ]  # fmt: skip
     code = {lab: i for i, lab in enumerate(labels)}
-    shape = (len(param_sets), len(switch_probs), len(labels))
+    shape = (len(fits), len(decodes), len(labels))
     wrong = [np.zeros(shape, dtype=np.int64) for _ in tests]
-    for p, names in enumerate(param_sets):
+    for p, (names, feat) in enumerate(fits):
         idx = param_indices(names)
+        feat_train = [motion_features(m, feat) for m in train]
         models = [
             slds.fit_activity(
-                [m for m in train if m.label == lab], idx, np.random.default_rng([seed, 1]),
+                [m for m in feat_train if m.label == lab], idx, np.random.default_rng([seed, 1]),
                 n_states=n_states, n_iter=n_iter, label=lab,
             ).params
             for lab in labels
         ]  # fmt: skip
+        std = feature_noise(feat, noise_std, fps)
+        scale = feature_noise(feat, 1.0, fps)
         for k, seq_set in enumerate(seqs):
-            sliced = [dataclasses.replace(s, angles=s.angles[:, idx], clean=s.clean[:, idx])
-                      for s in seq_set]  # fmt: skip
+            sliced = [dataclasses.replace(
+                s, angles=feature_transform(s.angles[:, idx], feat, fps), clean=s.clean[:, idx])
+                for s in seq_set]  # fmt: skip
             truth = np.array([code[v] for v in np.concatenate([s.truth for s in sliced])])
-            for w, prob in enumerate(switch_probs):
-                _, decoded, _ = classify(combine(models, prob), sliced, noise_std)
+            for w, (prob, extra) in enumerate(decodes):
+                assumed = float(np.hypot(std, scale * np.radians(extra)))
+                _, decoded, _ = classify(combine(models, prob), sliced, assumed)
                 bad = np.concatenate(decoded) != np.array(labels)[truth]
                 wrong[k][p, w] = np.bincount(truth[bad], minlength=len(labels))
     out = []
@@ -625,12 +859,44 @@ def _set_pool_motions(motions: list[Motion]) -> None:
 
 
 def _cv_fold(
-    groups: list[str | None], held: str, param_sets: list[tuple[str, ...]],
-    switch_probs: list[float], seed: int, options: dict[str, Any],
+    groups: list[str | None], held: str, fits: list[tuple[tuple[str, ...], str]],
+    decodes: list[tuple[float, float]], seed: int, options: dict[str, Any],
 ) -> SettingScores:  # fmt: skip
     train = [m for m, g in zip(_POOL_MOTIONS, groups, strict=True) if g != held]
     test = [m for m, g in zip(_POOL_MOTIONS, groups, strict=True) if g == held]
-    return score_settings(train, [test], param_sets, switch_probs, seed, **options)[0]
+    return score_fits(train, [test], fits, decodes, seed, **options)[0]
+
+
+def criterion_scores(
+    groups: Sequence[str], fold_scores: Sequence[SettingScores], criterion: str
+) -> tuple[FloatArray, dict[str, FloatArray]]:
+    """The selection score of every setting and the pooled error of each kind of fold.
+
+    Args:
+        groups: The held-out group of each fold.
+        fold_scores: The folds' scores (the same settings in each).
+        criterion: ``"frames"``: misclassified frames over all folds' frames;
+            ``"kinds"``: the mean over the kinds of fold (:func:`group_kind`)
+            of each kind's pooled error.
+
+    Returns:
+        ``(K,)`` scores (lower is better) and ``{kind: (K,) pooled error}``.
+
+    Raises:
+        ValueError: If ``criterion`` is not one of :data:`CV_CRITERIA`.
+    """
+    if criterion not in CV_CRITERIA:
+        raise ValueError(f"criterion: unknown {criterion!r}; choose from {CV_CRITERIA}")
+    per_kind: dict[str, FloatArray] = {}
+    for kind in sorted({group_kind(g) for g in groups}):
+        folds = [sc for g, sc in zip(groups, fold_scores, strict=True) if group_kind(g) == kind]
+        wrong = np.sum([sc.wrong.sum(axis=-1).reshape(-1) for sc in folds], axis=0)
+        per_kind[kind] = wrong / max(int(sum(sc.frames.sum() for sc in folds)), 1)
+    wrong = np.sum([sc.wrong.sum(axis=-1).reshape(-1) for sc in fold_scores], axis=0)
+    pooled = wrong / max(int(sum(sc.frames.sum() for sc in fold_scores)), 1)
+    if criterion == "frames":
+        return pooled, per_kind
+    return np.mean(list(per_kind.values()), axis=0), per_kind
 
 
 @dataclass(frozen=True, eq=False)
@@ -641,13 +907,16 @@ class SelectionResult:
         settings: The candidates, in tie-breaking order (simplest first).
         groups: The held-out groups, one fold each.
         fold_scores: Each fold's :class:`SettingScores` (settings flattened to
-            ``param_sets x switch_probs``).
+            ``fits x decodes``).
         cv_error: ``(K,)`` misclassified frames over all folds' frames, per setting.
         mean_fold_error: ``(K,)`` unweighted mean of the folds' errors.
         per_label_error: ``(K, L)`` pooled error per true label.
-        chosen: Index of the chosen setting.
+        chosen: Index of the chosen setting (lowest ``score``, the first on ties).
         n_train_clips: Clips cross-validated over.
         seconds: Wall time.
+        criterion: How the settings were scored (:data:`CV_CRITERIA`).
+        score: ``(K,)`` the criterion's value per setting (None: ``cv_error``).
+        kind_error: ``{kind: (K,)}`` pooled error of each kind of fold.
     """
 
     settings: list[ClassifierSetting]
@@ -659,26 +928,42 @@ class SelectionResult:
     chosen: int
     n_train_clips: int
     seconds: float = 0.0
+    criterion: str = "frames"
+    score: FloatArray | None = None
+    kind_error: dict[str, FloatArray] = field(default_factory=dict)
 
     @property
     def best(self) -> ClassifierSetting:
         """The chosen setting."""
         return self.settings[self.chosen]
 
+    @property
+    def scores(self) -> FloatArray:
+        """``(K,)`` the criterion's value per setting."""
+        return self.cv_error if self.score is None else self.score
+
     def summary(self) -> dict[str, Any]:
         """The numbers as a JSON-ready dict."""
         labels = self.fold_scores[0].labels
         n_probs = len({s.switch_prob for s in self.settings})
+        kinds = {k: np.round(v, 5).tolist() for k, v in self.kind_error.items()}
         return {
             "chosen": {"params": list(self.best.params), "switch_prob": self.best.switch_prob,
-                       "name": self.best.name,
-                       "cv_error": round(float(self.cv_error[self.chosen]), 5)},
+                       "name": self.best.name, "features": self.best.features,
+                       "extra_noise_deg": self.best.extra_noise_deg,
+                       "cv_error": round(float(self.cv_error[self.chosen]), 5),
+                       "score": round(float(self.scores[self.chosen]), 5)},
+            "criterion": self.criterion,
             "settings": [
                 {"name": s.name, "params": list(s.params), "switch_prob": s.switch_prob,
-                 "cv_error": round(float(e), 5), "mean_fold_error": round(float(f), 5),
+                 "features": s.features, "extra_noise_deg": s.extra_noise_deg,
+                 "cv_error": round(float(e), 5), "score": round(float(sc), 5),
+                 "mean_fold_error": round(float(f), 5),
+                 "kind_error": {k: v[i] for k, v in kinds.items()},
                  "per_label_error": dict(zip(labels, np.round(pl, 5).tolist(), strict=True))}
-                for s, e, f, pl in zip(self.settings, self.cv_error, self.mean_fold_error,
-                                       self.per_label_error, strict=True)
+                for i, (s, e, sc, f, pl) in enumerate(zip(
+                    self.settings, self.cv_error, self.scores, self.mean_fold_error,
+                    self.per_label_error, strict=True))
             ],
             "folds": [
                 {"group": g, "kind": group_kind(g), "frames": int(sc.frames.sum()),
@@ -698,11 +983,16 @@ class SelectionResult:
         labels = self.fold_scores[0].labels
         frames = int(sum(sc.frames.sum() for sc in self.fold_scores))
         seqs = sum(sc.n_sequences for sc in self.fold_scores)
-        head = (f"{'params':16s} {'switch':>7s} {'CV error':>9s} {'fold mean':>9s} "
+        kinds = list(self.kind_error)
+        short = {"style held out, same performers": "styles", "person held out": "persons"}
+        head = (f"{'params':16s} {'features':11s} {'switch':>7s} {'+noise':>6s} {'score':>7s} "
+                f"{'CV error':>9s} {'fold mean':>9s} "
+                + " ".join(f"{short.get(k, k):>8s}" for k in kinds) + " "
                 + " ".join(f"{lab:>7s}" for lab in labels))  # fmt: skip
         lines = [
             f"leave-one-group-out CV on {self.n_train_clips} training clips, {len(self.groups)} "
-            f"folds, {frames} frames in {seqs} sequences (no test person):",
+            f"folds, {frames} frames in {seqs} sequences (no test person); criterion "
+            f"{self.criterion!r}:",
             head,
             "-" * len(head),
         ]
@@ -712,7 +1002,10 @@ class SelectionResult:
         ):  # fmt: skip
             mark = "  <- chosen" if k == self.chosen else ""
             lines.append(
-                f"{s.name:16s} {s.switch_prob:7.0e} {100 * e:8.2f}% {100 * f:8.2f}% "
+                f"{s.name:16s} {s.features:11s} {s.switch_prob:7.0e} {s.extra_noise_deg:6g} "
+                f"{100 * self.scores[k]:6.2f}% {100 * e:8.2f}% {100 * f:8.2f}% "
+                + " ".join(f"{100 * self.kind_error[kd][k]:7.2f}%" for kd in kinds)
+                + " "
                 + " ".join(f"{100 * v:6.2f}%" for v in pl)
                 + mark
             )
@@ -732,18 +1025,23 @@ def select_classifier_settings(
     noise_std: float = NOISE_STD,
     jobs: int = 1,
     log: Any = None,
+    features: Sequence[str] = ("angles",),
+    extra_noise_degs: Sequence[float] = (0.0,),
+    person_folds: bool = True,
+    criterion: str = "kinds",
 ) -> SelectionResult:
-    """Choose the parameter subset and switch probability by leave-one-group-out CV.
+    """Choose the classifier's setting by leave-one-group-out CV on the training split.
 
     Only training clips are used (a clip of a test subject raises). The clips
     of :data:`CLASSIFY_LABELS` (with :data:`LABEL_ALIASES` folded in) are
-    grouped by :func:`cv_groups`; every fold trains on all other clips and
-    decodes footnote-4 sequences of the held-out group's clips
-    (:func:`score_settings`: one fit per subset and fold, the switch
-    probability varied at decode time). A setting's CV error is its
-    misclassified frames over all folds' frames; the chosen setting has the
-    lowest, ties going to the simpler one: fewer parameters first, then the
-    earlier switch probability in ``switch_probs``.
+    grouped by :func:`cv_groups` (with ``person_folds``, every training person
+    outside the Bandai-Namco sets is a fold: leave-one-person-out); every fold
+    trains on all other clips and decodes footnote-4 sequences of the held-out
+    group's clips (:func:`score_fits`: one fit per subset, features and fold;
+    the switch probability and the extra assumed noise varied at decode time).
+    The chosen setting has the lowest ``criterion`` (:func:`criterion_scores`),
+    ties going to the simpler one: fewer parameters first, then the earlier
+    features, switch probability and extra noise in the order given.
 
     Args:
         train_motions: Training clips (any labels; the others are ignored).
@@ -755,30 +1053,49 @@ def select_classifier_settings(
         noise_std: Test noise (rad).
         jobs: Folds run in this many processes (the result does not depend on it).
         log: Called with a line of progress after each fold (None: silent).
+        features: Candidate features (:func:`parse_features`).
+        extra_noise_degs: Candidate extra assumed noise (deg, >= 0).
+        person_folds: Hold out every training person (outside Bandai-Namco) as a fold.
+        criterion: ``"kinds"`` or ``"frames"`` (:data:`CV_CRITERIA`).
 
     Raises:
         ValueError: If a clip is of a test subject, if there are fewer than two
-            groups, or if a candidate is malformed.
+            groups, or if a candidate or the criterion is malformed.
     """
     check_training_only(train_motions, "select_classifier_settings: train_motions")
     param_sets = dict(CANDIDATE_PARAMS if param_sets is None else param_sets)
-    if not param_sets or not switch_probs:
+    if not param_sets or not switch_probs or not features or not extra_noise_degs:
         raise ValueError(
-            "select_classifier_settings: param_sets and switch_probs must be non-empty"
+            "select_classifier_settings: param_sets, switch_probs, features and "
+            "extra_noise_degs must be non-empty"
+        )
+    if criterion not in CV_CRITERIA:
+        raise ValueError(
+            f"select_classifier_settings: criterion must be one of {CV_CRITERIA}, got {criterion!r}"
         )
     for name, names in param_sets.items():
         param_indices(names)
         if not names:
             raise ValueError(f"select_classifier_settings: param_sets[{name!r}] is empty")
+    feats = list(dict.fromkeys(features))
+    for feat in feats:
+        parse_features(feat)
     probs = [float(p) for p in switch_probs]
     if any(not 0.0 < p < 1.0 for p in probs):
         raise ValueError(f"select_classifier_settings: switch_probs must be in (0, 1), got {probs}")
+    extras = [float(n) for n in extra_noise_degs]
+    if any(not (n >= 0.0 and np.isfinite(n)) for n in extras):
+        raise ValueError(
+            f"select_classifier_settings: extra_noise_degs must be finite and >= 0, got {extras}"
+        )
     if jobs < 1:
         raise ValueError(f"select_classifier_settings: jobs must be >= 1, got {jobs}")
     names_sorted = sorted(param_sets, key=lambda n: (len(param_sets[n]), list(param_sets).index(n)))
-    sets = [tuple(param_sets[n]) for n in names_sorted]
+    fits = [(tuple(param_sets[n]), f) for n in names_sorted for f in feats]
+    fit_names = [n for n in names_sorted for _ in feats]
+    decodes = [(p, n) for p in probs for n in extras]
     motions = activity_clips(train_motions)
-    groups = cv_groups(motions)
+    groups = cv_groups(motions, every_person=person_folds)
     held = sorted({g for g in groups if g is not None})
     if len(held) < 2:
         raise ValueError(
@@ -792,7 +1109,7 @@ def select_classifier_settings(
     if jobs == 1:
         _set_pool_motions(motions)
         for g, s in zip(held, seeds, strict=True):
-            scores.append(_cv_fold(groups, g, sets, probs, int(s), options))
+            scores.append(_cv_fold(groups, g, fits, decodes, int(s), options))
             if log is not None:
                 log(f"fold {len(scores)}/{len(held)} {g}: {time.perf_counter() - start:.0f} s")
     else:
@@ -801,7 +1118,7 @@ def select_classifier_settings(
 
         ctx = multiprocessing.get_context("fork")
         with ProcessPoolExecutor(jobs, ctx, _set_pool_motions, (motions,)) as pool:
-            futures = [pool.submit(_cv_fold, groups, g, sets, probs, int(s), options)
+            futures = [pool.submit(_cv_fold, groups, g, fits, decodes, int(s), options)
                        for g, s in zip(held, seeds, strict=True)]  # fmt: skip
             for g, fut in zip(held, futures, strict=True):
                 scores.append(fut.result())
@@ -809,8 +1126,8 @@ def select_classifier_settings(
                     log(f"fold {len(scores)}/{len(held)} {g}: {time.perf_counter() - start:.0f} s")
     _set_pool_motions([])
     settings = [
-        ClassifierSetting(sets[p], probs[w], names_sorted[p])
-        for p in range(len(sets)) for w in range(len(probs))
+        ClassifierSetting(params, prob, fit_names[p], feat, extra)
+        for p, (params, feat) in enumerate(fits) for prob, extra in decodes
     ]  # fmt: skip
     wrong = np.sum([sc.wrong for sc in scores], axis=0).reshape(len(settings), -1)
     frames = np.sum([sc.frames for sc in scores], axis=0)
@@ -818,20 +1135,21 @@ def select_classifier_settings(
     with np.errstate(invalid="ignore", divide="ignore"):
         per_label = np.where(frames > 0, wrong / np.maximum(frames, 1), np.nan)
     fold_mean = np.mean([sc.error.reshape(-1) for sc in scores], axis=0)
-    chosen = int(np.argmin(cv_error))  # the first minimum: the simplest tied setting
+    score, per_kind = criterion_scores(held, scores, criterion)
+    chosen = int(np.argmin(score))  # the first minimum: the simplest tied setting
     return SelectionResult(
         settings, held, scores, cv_error, fold_mean, per_label, chosen, len(motions),
-        time.perf_counter() - start,
+        time.perf_counter() - start, criterion, score, per_kind,
     )  # fmt: skip
 
 
 def _score_job(
-    train_ids: list[int], test_ids: list[list[int]], param_sets: list[tuple[str, ...]],
-    switch_probs: list[float], seed: int, options: dict[str, Any],
+    train_ids: list[int], test_ids: list[list[int]], fits: list[tuple[tuple[str, ...], str]],
+    decodes: list[tuple[float, float]], seed: int, options: dict[str, Any],
 ) -> list[SettingScores]:  # fmt: skip
     train = [_POOL_MOTIONS[i] for i in train_ids]
     tests = [[_POOL_MOTIONS[i] for i in ids] for ids in test_ids]
-    return score_settings(train, tests, param_sets, switch_probs, seed, **options)
+    return score_fits(train, tests, fits, decodes, seed, **options)
 
 
 def _run_jobs(
@@ -897,6 +1215,7 @@ class SplitRow:
         return {
             "split": self.split, "kind": self.kind, "setting": self.setting_name,
             "params": list(self.setting.params), "switch_prob": self.setting.switch_prob,
+            "features": self.setting.features, "extra_noise_deg": self.setting.extra_noise_deg,
             "train_clips": self.train_clips, "test_clips": self.test_clips,
             "frames": self.frames, "sequences": self.sequences, "error": round(self.error, 5),
             "per_label_error": {k: round(v, 5) for k, v in self.per_label_error.items()},
@@ -908,7 +1227,11 @@ def default_settings() -> dict[str, ClassifierSetting]:
     """The CV-chosen defaults and, for comparison, the old fixed settings."""
     return {
         "CV-chosen": ClassifierSetting(
-            CLASSIFY_PARAMS, CLASSIFY_SWITCH_PROB, setting_name(CLASSIFY_PARAMS)
+            CLASSIFY_PARAMS,
+            CLASSIFY_SWITCH_PROB,
+            setting_name(CLASSIFY_PARAMS),
+            CLASSIFY_FEATURES,
+            CLASSIFY_EXTRA_NOISE_DEG,
         ),
         "old fixed": ClassifierSetting(
             OLD_CLASSIFY_PARAMS, OLD_CLASSIFY_SWITCH_PROB, setting_name(OLD_CLASSIFY_PARAMS)
@@ -934,6 +1257,7 @@ def evaluate_splits(
     noise_std: float = NOISE_STD,
     jobs: int = 1,
     log: Any = None,
+    training_persons: bool = False,
 ) -> list[SplitRow]:
     """The classification error of fixed settings on several train/test splits.
 
@@ -946,6 +1270,10 @@ def evaluate_splits(
     * The held-out persons: train on the whole training split, test on the
       test persons' clips (``library.TEST_SUBJECTS``) together and each alone
       ("person held out").
+    * With ``training_persons``: one split per training person outside the
+      Bandai-Namco sets (CMU subjects 5 and 7 in the shared data, who only
+      walk): train on every other training clip, test on that person ("training
+      person held out", the leave-one-person-out folds of the CV).
 
     Only :data:`CLASSIFY_LABELS` (with :data:`LABEL_ALIASES`) are used. Each
     training set is fitted once per parameter subset; its seed is drawn from
@@ -966,8 +1294,8 @@ def evaluate_splits(
         raise ValueError(
             f"evaluate_splits: no {style_dataset} style and no test person among the motions"
         )
-    sets = list(dict.fromkeys(s.params for s in settings.values()))
-    probs = list(dict.fromkeys(s.switch_prob for s in settings.values()))
+    fits = list(dict.fromkeys(s.fit_key for s in settings.values()))
+    decodes = list(dict.fromkeys(s.decode_key for s in settings.values()))
     options = {"n_states": n_states, "n_iter": n_iter, "noise_std": noise_std}
     plans: list[tuple[list[str], str, list[int], list[list[int]]]] = []
     for style in styles:
@@ -981,9 +1309,15 @@ def evaluate_splits(
             if len(persons) > 1 else []
         )  # fmt: skip
         plans.append((names, "person held out", train_ids, tests))
+    if training_persons:  # after the others: their seeds stay those drawn without them
+        for person in sorted({clips[i].subject for i in train_ids
+                              if not clips[i].dataset.startswith("bandai")}):  # fmt: skip
+            held = [i for i in train_ids if clips[i].subject == person]
+            rest = [i for i in train_ids if clips[i].subject != person]
+            plans.append(([person], "training person held out", rest, [held]))
     seeds = rng.integers(0, 2**62, size=len(plans))
     args = [
-        (tr, te, sets, probs, int(s), options)
+        (tr, te, fits, decodes, int(s), options)
         for (_, _, tr, te), s in zip(plans, seeds, strict=True)
     ]
     results = _run_jobs(clips, args, jobs, log)
@@ -991,7 +1325,7 @@ def evaluate_splits(
     for (names, kind, tr, tests), scores in zip(plans, results, strict=True):
         for split, ids, sc in zip(names, tests, scores, strict=True):
             for setting_name, st in settings.items():
-                p, w = sets.index(st.params), probs.index(st.switch_prob)
+                p, w = fits.index(st.fit_key), decodes.index(st.decode_key)
                 per = sc.per_label_error[p, w]
                 rows.append(SplitRow(
                     split, kind, setting_name, st, len(tr), len(ids), int(sc.frames.sum()),
@@ -1005,8 +1339,9 @@ def evaluate_splits(
 
 def splits_table(rows: Sequence[SplitRow]) -> str:
     """The per-split errors as text."""
-    head = (f"{'held out':26s} {'setting':10s} {'params':15s} {'switch':>6s} {'train':>5s} "
-            f"{'test':>4s} {'frames':>6s} {'seqs':>4s} {'error':>7s}  per label")  # fmt: skip
+    head = (f"{'held out':26s} {'setting':10s} {'params':15s} {'features':11s} {'switch':>6s} "
+            f"{'+noise':>6s} {'train':>5s} {'test':>4s} {'frames':>6s} {'seqs':>4s} {'error':>7s}"
+            "  per label")  # fmt: skip
     lines = [head, "-" * (len(head) + 20)]
     kind = None
     for r in rows:
@@ -1018,8 +1353,9 @@ def splits_table(rows: Sequence[SplitRow]) -> str:
             for lab, e in r.per_label_error.items()
         )
         lines.append(
-            f"{r.split:26s} {r.setting_name:10s} {r.setting.name:15s} {r.setting.switch_prob:6.0e} "
-            f"{r.train_clips:5d} {r.test_clips:4d} {r.frames:6d} {r.sequences:4d} "
+            f"{r.split:26s} {r.setting_name:10s} {r.setting.name:15s} {r.setting.features:11s} "
+            f"{r.setting.switch_prob:6.0e} {r.setting.extra_noise_deg:6g} {r.train_clips:5d} "
+            f"{r.test_clips:4d} {r.frames:6d} {r.sequences:4d} "
             f"{100 * r.error:6.2f}%  {per}"
         )
     return "\n".join(lines)
