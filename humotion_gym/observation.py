@@ -142,6 +142,9 @@ class GivenBody:
 # on every call (glibc returns freed memory of that size to the system).
 _SCRATCH = threading.local()
 _SCRATCH_KEEP = 4
+# Columns (one cone of one pose each) that _score takes through its point
+# pipeline at once: a few hundred kB per pass, which stays in cache.
+_CHUNK_COLUMNS = 8192
 
 
 def _scratch(n: int, n_points: int) -> dict[str, NDArray]:
@@ -153,6 +156,7 @@ def _scratch(n: int, n_points: int) -> dict[str, NDArray]:
     work = cache.pop(key, None)
     if work is None:
         f4 = np.float32
+        columns = min(N_CONES, max(1, _CHUNK_COLUMNS // n)) * n
         work = {
             "params": np.empty((N_PARAMS, n), f4),
             "trig": np.empty((2, N_PARAMS - 3, n), f4),
@@ -161,9 +165,10 @@ def _scratch(n: int, n_points: int) -> dict[str, NDArray]:
             "inverse_depth": np.empty((N_KEYPOINTS * n,), f4),
             "basis": np.empty((8, N_CONES, n), f4),
             "scratch": np.empty((4, N_CONES, n), f4),
-            "points": np.empty((2 * n_points, N_CONES * n), f4),
-            "index": np.empty((2 * n_points, N_CONES * n), np.int32),
-            "values": np.empty((n_points, N_CONES * n), np.uint8),
+            # Flat: _score takes (2 P, columns) views of a few cones at a time.
+            "points": np.empty(2 * n_points * columns, f4),
+            "index": np.empty(2 * n_points * columns, np.int32),
+            "values": np.empty(n_points * columns, np.uint8),
         }
         while len(cache) >= _SCRATCH_KEEP:
             cache.pop(next(iter(cache)))
@@ -745,30 +750,45 @@ class ObservationModel:
                 rad[cone] *= factor
             np.multiply(rad, nx, out=basis[4 + 2 * k])
             np.multiply(rad, ny, out=basis[5 + 2 * k])
-        points = work["points"]
-        np.matmul(coef, basis.reshape(8, -1), out=points)
         w2, h2 = feats.width + 2, feats.height + 2
-        np.clip(points[:n_points], 0.0, f4(w2 - 1), out=points[:n_points])
-        np.clip(points[n_points:], 0.0, f4(h2 - 1), out=points[n_points:])
-        index = work["index"]
-        np.copyto(index, points, casting="unsafe")
-        ix, iy = index[:n_points], index[n_points:]
-        iy *= w2
-        iy += ix
+        plane = w2 * h2
         n_out = 2 * self.outline_samples
         n_bins = self.orientation_bins
-        iy[n_out:] += n_bins * w2 * h2  # axis points read the foreground map
+        # The map each cone's axis points read: the foreground map, or a free
+        # cone's own colour map.
+        axis_map = np.full((N_CONES, 1), n_bins * plane, np.int32)
         if feats.appearance_cones is not None:
-            # ... except a free cone's, which read its own colour map.
-            axis_index = iy[n_out:].reshape(-1, N_CONES, n)
             for k, cone in enumerate(feats.appearance_cones.tolist()):
-                axis_index[:, cone] += (1 + k) * w2 * h2
-        if n_bins > 1:
-            iy[:n_out] += _orientation_bin(nx, ny, n_bins, tmp[2]).reshape(-1) * (w2 * h2)
-        values = work["values"]
-        np.take(feats.cost, iy, out=values)
-        per_cone = values.sum(axis=0, dtype=np.uint16)
-        total = per_cone.reshape(N_CONES, n).sum(axis=0, dtype=np.float64)
+                axis_map[cone] += (1 + k) * plane
+        outline_map = None
+        if n_bins > 1:  # each cone's outline reads the map of its orientation
+            outline_map = _orientation_bin(nx, ny, n_bins, tmp[2])
+            outline_map *= plane
+        total = np.zeros(n)
+        # Points, indices and costs go a few cones at a time, so that they stay
+        # in cache between the passes over them; every step is per point, and
+        # the matrix product's columns do not depend on their neighbours, so the
+        # costs are the same as in one pass.
+        group = max(1, min(N_CONES, _CHUNK_COLUMNS // n))
+        for c0 in range(0, N_CONES, group):
+            c1 = min(N_CONES, c0 + group)
+            cols = (c1 - c0) * n
+            points = work["points"][: 2 * n_points * cols].reshape(2 * n_points, cols)
+            np.matmul(coef, basis[:, c0:c1].reshape(8, cols), out=points)
+            np.clip(points[:n_points], 0.0, f4(w2 - 1), out=points[:n_points])
+            np.clip(points[n_points:], 0.0, f4(h2 - 1), out=points[n_points:])
+            index = work["index"][: 2 * n_points * cols].reshape(2 * n_points, cols)
+            np.copyto(index, points, casting="unsafe")
+            ix, iy = index[:n_points], index[n_points:]
+            iy *= w2
+            iy += ix
+            iy[n_out:].reshape(-1, c1 - c0, n)[...] += axis_map[c0:c1]
+            if outline_map is not None:
+                iy[:n_out] += outline_map[c0:c1].reshape(-1)
+            values = work["values"][: n_points * cols].reshape(n_points, cols)
+            np.take(feats.cost, iy, out=values)
+            per_cone = values.sum(axis=0, dtype=np.uint16)
+            total += per_cone.reshape(c1 - c0, n).sum(axis=0, dtype=np.float64)
         if feats.residual is None or not feats.residual.shape[1] or self.residual_weight <= 0:
             total *= -feats.cost_unit * self.sharpness
             return total

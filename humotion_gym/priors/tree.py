@@ -103,8 +103,9 @@ Transition: the chosen window's following state plus Gaussian noise,
     current pose, single precision) and the window it followed in
     ``extra["window"]``, so resampling is one fancy index. Everything is
     vectorised over particles: one matrix product for the coefficients, a
-    loop over the ``b`` tree levels only, then the leaf; ``O(log n)`` per
-    particle plus the leaf.
+    descent through the ``b`` tree levels eight at a time by lookup tables
+    made once per tree, then the leaf; ``O(log n)`` per particle plus the
+    leaf.
 
 Initialisation (section 6): windows whose last pose is near the known first
     pose, distance in the scaled space over the absolute pose part (velocities
@@ -122,6 +123,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -952,25 +954,87 @@ def _descend(
     # P(z_l > 0) = Phi(c_t,l / (sqrt(beta) sigma_l)).
     scaled = coefficients.T / (np.sqrt(beta) * fitted.sigma[:, None])
     noise = rng.standard_normal((b, n_probe))
-    wanted = (noise > -scaled).astype(np.int64)
+    wanted = noise > -scaled
+    if not want_log_prob:
+        prefix = _descend_by_table(_descent_tables(fitted.node_flags, b), wanted)
+        return np.take(fitted.offsets, prefix), np.take(fitted.offsets[1:], prefix), None
     flags = fitted.node_flags
+    wanted_bits = wanted.astype(np.int64)
     prefix = np.zeros(n_probe, dtype=np.int64)
-    taken = np.empty((b, n_probe), dtype=np.int64) if want_log_prob else None
+    taken = np.empty((b, n_probe), dtype=np.int64)
     for level in range(b):
         node_flags = flags[prefix + ((1 << level) - 1)].astype(np.int64)
-        bit = _DESCENT_TABLE[node_flags * 2 + wanted[level]]
-        if taken is not None:
-            # Remember the branch (-1, +1), or 0 where the sibling was empty.
-            taken[level] = np.where(node_flags == 3, 2 * bit - 1, 0)
+        bit = _DESCENT_TABLE[node_flags * 2 + wanted_bits[level]]
+        # Remember the branch (-1, +1), or 0 where the sibling was empty.
+        taken[level] = np.where(node_flags == 3, 2 * bit - 1, 0)
         prefix *= 2
         prefix += bit
-    log_prob = None
-    if taken is not None:
-        both = taken != 0
-        terms = np.zeros((b, n_probe))
-        terms[both] = log_ndtr(taken[both] * scaled[both])
-        log_prob = terms.sum(axis=0)
-    return fitted.offsets[prefix], fitted.offsets[prefix + 1], log_prob
+    both = taken != 0
+    terms = np.zeros((b, n_probe))
+    terms[both] = log_ndtr(taken[both] * scaled[both])
+    return fitted.offsets[prefix], fitted.offsets[prefix + 1], terms.sum(axis=0)
+
+
+# Levels of the descent looked up at once (tables of 2**(level + 8) entries).
+_TABLE_LEVELS = 8
+# Descent tables by the identity of their node_flags array (shared by the
+# copies that TreeParams.with_settings makes); a weak reference checks that the
+# array is still the one the table was made from.
+_TABLE_CACHE: dict[int, tuple[weakref.ref, list[tuple[int, int, IntArray]]]] = {}
+
+
+def _descent_tables(node_flags: NDArray[np.uint8], b: int) -> list[tuple[int, int, IntArray]]:
+    """The descent through ``_TABLE_LEVELS`` levels at a time, as lookup tables.
+
+    A probe at level ``l`` with prefix ``p`` (its path so far) that wants the
+    ``k`` bits ``w`` (most significant first) next reaches the prefix
+    ``table[p * 2**k + w]`` at level ``l + k``: the per-level rule
+    (:data:`_DESCENT_TABLE`: follow the wanted child unless it is empty)
+    applied ``k`` times, worked out once per tree for every ``(p, w)``. The
+    descent then costs ``b / k`` gathers instead of ``b`` rounds of index
+    arithmetic, with the same result.
+
+    Returns:
+        ``(l, k, table)`` for each group of levels, cached per tree.
+    """
+    entry = _TABLE_CACHE.get(id(node_flags))
+    if entry is not None and entry[0]() is node_flags:
+        return entry[1]
+    flags = node_flags.astype(np.int64)
+    tables = []
+    for first in range(0, b, _TABLE_LEVELS):
+        k = min(_TABLE_LEVELS, b - first)
+        code = np.arange(1 << (first + k), dtype=np.int64)
+        prefix, want = code >> k, code & ((1 << k) - 1)
+        for j in range(k):
+            level = first + j
+            wanted_bit = (want >> (k - 1 - j)) & 1
+            bit = _DESCENT_TABLE[flags[prefix + ((1 << level) - 1)] * 2 + wanted_bit]
+            prefix = prefix * 2 + bit
+        tables.append((first, k, prefix.astype(np.intp)))
+    if len(_TABLE_CACHE) > 16:
+        _TABLE_CACHE.clear()
+    _TABLE_CACHE[id(node_flags)] = (weakref.ref(node_flags), tables)
+    return tables
+
+
+def _descend_by_table(
+    tables: list[tuple[int, int, IntArray]], wanted: NDArray[np.bool_]
+) -> IntArray:
+    """The leaf prefixes ``(N,)`` that probes wanting ``wanted`` ``(b, N)`` reach."""
+    prefix: IntArray = np.zeros(wanted.shape[1], dtype=np.intp)
+    for first, k, table in tables:
+        # The k wanted bits of each probe as one number, most significant first.
+        code = np.packbits(wanted[first : first + k], axis=0)[0].astype(np.intp)
+        if k < 8:
+            code >>= 8 - k
+        if first:
+            prefix <<= k
+            prefix |= code
+        else:
+            prefix = code
+        prefix = np.take(table, prefix)
+    return prefix
 
 
 def _eq3_log_weights(
@@ -1002,10 +1066,17 @@ def _choose_weighted(
     many = np.flatnonzero(hi - lo > 1)  # a leaf of one window needs no draw
     log_mass = _eq3_log_weights(fitted, lo, coefficients, beta) if want_log_mass else None
     if many.size:
-        chosen[many], mass = _choose_ragged(
-            fitted, coefficients[many], lo[many], hi[many], beta, rng
+        picked, mass = _choose_ragged(
+            fitted,
+            np.take(coefficients, many, axis=0),
+            np.take(lo, many),
+            np.take(hi, many),
+            beta,
+            rng,
+            want_log_mass,
         )
-        if log_mass is not None:
+        chosen[many] = picked
+        if log_mass is not None and mass is not None:
             log_mass[many] = mass
     return chosen, log_mass
 
@@ -1017,21 +1088,43 @@ def _choose_ragged(
     hi: IntArray,
     beta: float,
     rng: np.random.Generator,
-) -> tuple[IntArray, FloatArray]:
+    want_log_mass: bool = True,
+) -> tuple[IntArray, FloatArray | None]:
+    """One window per leaf ``[lo, hi)`` by eq. 3, all leaves' windows in one array.
+
+    The leaves' windows are laid end to end (``starts`` to ``ends``) and one
+    running sum of their weights serves every leaf's inverse-CDF draw. Rows
+    are repeated with ``np.repeat`` and gathered with ``np.take`` (the same
+    values as fancy indexing by each window's owner, without the index array).
+
+    Returns:
+        The chosen windows and, when asked, each leaf's log eq. 3 mass.
+    """
     sizes = hi - lo
-    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
-    total = int(sizes.sum())
-    owner = np.repeat(np.arange(lo.size), sizes)
-    member = lo[owner] + (np.arange(total) - starts[owner])
-    logw = _eq3_log_weights(fitted, member, coefficients[owner], beta)
+    ends = np.cumsum(sizes)
+    starts = ends - sizes
+    total = int(ends[-1])
+    member = np.repeat(lo - starts, sizes)
+    member += np.arange(total)
+    # Eq. 3's exponent, as _eq3_log_weights computes it.
+    diff = np.take(fitted.coefficients, member, axis=0)
+    diff -= np.repeat(coefficients, sizes, axis=0)
+    diff /= fitted.sigma
+    logw = np.einsum("ij,ij->i", diff, diff) * (-0.5 / beta)
     peak = np.maximum.reduceat(logw, starts)
-    logw -= peak[owner]
-    cum = np.cumsum(np.exp(logw))
-    before = np.concatenate([[0.0], cum])[starts]
-    mass = cum[starts + sizes - 1] - before
+    logw -= np.repeat(peak, sizes)
+    cum = np.cumsum(np.exp(logw, out=logw))
+    last = ends - 1
+    before = np.take(cum, starts - 1)  # the first leaf's -1 wraps: reset below
+    before[0] = 0.0
+    mass = np.take(cum, last) - before
     target = before + rng.random(lo.size) * mass
     pick = np.searchsorted(cum, target, side="right")
-    chosen = np.clip(pick, starts, starts + sizes - 1) - starts + lo
+    chosen = np.clip(pick, starts, last, out=pick)
+    chosen -= starts
+    chosen += lo
+    if not want_log_mass:
+        return chosen, None
     return chosen, peak + np.log(np.maximum(mass, np.finfo(float).tiny))
 
 
