@@ -820,24 +820,30 @@ class ObservationModel:
         tau = f4(self.residual_truncation * scale)
         unit = self.residual_weight / (2.0 * (self.edge_sigma * scale) ** 2 * q_x.size)
         out = np.empty(n)
-        chunk = max(1, 200_000 // max(1, p_x.shape[0] * q_x.size))
+        segments, e = p_x.shape[0], q_x.size
+        chunk = max(1, 200_000 // max(1, segments * e))
+        # Four (2C, chunk, E) buffers reused by every chunk: the arithmetic of
+        # the straightforward version without its temporaries.
+        buffers = np.empty((4, segments * min(chunk, n) * e), f4)
+        tau2 = tau * tau
         for lo in range(0, n, chunk):
             sl = slice(lo, lo + chunk)
-            px, py = p_x[:, sl, None], p_y[:, sl, None]
+            m = min(chunk, n - lo)
+            rx, ry, t, tmp = (buf[: segments * m * e].reshape(segments, m, e) for buf in buffers)
             dx, dy = d_x[:, sl, None], d_y[:, sl, None]
-            rx = q_x - px  # (2C, m, E)
-            ry = q_y - py
-            t = rx * dx
-            t += ry * dy
+            np.subtract(q_x, p_x[:, sl, None], out=rx)  # (2C, m, E)
+            np.subtract(q_y, p_y[:, sl, None], out=ry)
+            np.multiply(rx, dx, out=t)
+            t += np.multiply(ry, dy, out=tmp)
             t *= inv_len2[:, sl, None]
             np.clip(t, f4(0.0), f4(1.0), out=t)
-            rx -= t * dx
-            ry -= t * dy
+            rx -= np.multiply(t, dx, out=tmp)
+            ry -= np.multiply(t, dy, out=t)
             rx *= rx
             ry *= ry
             rx += ry
-            dist2 = rx.min(axis=0)  # (m, E)
-            np.minimum(dist2, tau * tau, out=dist2)
+            dist2 = np.min(rx, axis=0, out=tmp[0])  # (m, E)
+            np.minimum(dist2, tau2, out=dist2)
             out[sl] = dist2.sum(axis=1, dtype=np.float64)
         out *= unit
         return out
