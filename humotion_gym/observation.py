@@ -57,6 +57,7 @@ from humotion_gym.body import (
     N_PARAMS,
     BodyShape,
     cone_geometry,
+    default_shape,
 )
 from humotion_gym.camera import Camera
 from humotion_gym.kinematics import (
@@ -142,9 +143,6 @@ class GivenBody:
 # on every call (glibc returns freed memory of that size to the system).
 _SCRATCH = threading.local()
 _SCRATCH_KEEP = 4
-# Columns (one cone of one pose each) that _score takes through its point
-# pipeline at once: a few hundred kB per pass, which stays in cache.
-_CHUNK_COLUMNS = 8192
 
 
 def _scratch(n: int, n_points: int) -> dict[str, NDArray]:
@@ -156,7 +154,6 @@ def _scratch(n: int, n_points: int) -> dict[str, NDArray]:
     work = cache.pop(key, None)
     if work is None:
         f4 = np.float32
-        columns = min(N_CONES, max(1, _CHUNK_COLUMNS // n)) * n
         work = {
             "params": np.empty((N_PARAMS, n), f4),
             "trig": np.empty((2, N_PARAMS - 3, n), f4),
@@ -165,10 +162,10 @@ def _scratch(n: int, n_points: int) -> dict[str, NDArray]:
             "inverse_depth": np.empty((N_KEYPOINTS * n,), f4),
             "basis": np.empty((8, N_CONES, n), f4),
             "scratch": np.empty((4, N_CONES, n), f4),
-            # Flat: _score takes (2 P, columns) views of a few cones at a time.
-            "points": np.empty(2 * n_points * columns, f4),
-            "index": np.empty(2 * n_points * columns, np.int32),
-            "values": np.empty(n_points * columns, np.uint8),
+            # Flat: _point_costs takes (2 P, K) views for its K columns.
+            "points": np.empty(2 * n_points * N_CONES * n, f4),
+            "index": np.empty(2 * n_points * N_CONES * n, np.int32),
+            "values": np.empty(n_points * N_CONES * n, np.uint8),
         }
         while len(cache) >= _SCRATCH_KEEP:
             cache.pop(next(iter(cache)))
@@ -752,11 +749,10 @@ class ObservationModel:
             np.multiply(rad, ny, out=basis[5 + 2 * k])
         w2, h2 = feats.width + 2, feats.height + 2
         plane = w2 * h2
-        n_out = 2 * self.outline_samples
         n_bins = self.orientation_bins
         # The map each cone's axis points read: the foreground map, or a free
         # cone's own colour map.
-        axis_map = np.full((N_CONES, 1), n_bins * plane, np.int32)
+        axis_map = np.full(N_CONES, n_bins * plane, np.int32)
         if feats.appearance_cones is not None:
             for k, cone in enumerate(feats.appearance_cones.tolist()):
                 axis_map[cone] += (1 + k) * plane
@@ -765,30 +761,32 @@ class ObservationModel:
             outline_map = _orientation_bin(nx, ny, n_bins, tmp[2])
             outline_map *= plane
         total = np.zeros(n)
-        # Points, indices and costs go a few cones at a time, so that they stay
-        # in cache between the passes over them; every step is per point, and
-        # the matrix product's columns do not depend on their neighbours, so the
-        # costs are the same as in one pass.
-        group = max(1, min(N_CONES, _CHUNK_COLUMNS // n))
-        for c0 in range(0, N_CONES, group):
-            c1 = min(N_CONES, c0 + group)
-            cols = (c1 - c0) * n
-            points = work["points"][: 2 * n_points * cols].reshape(2 * n_points, cols)
-            np.matmul(coef, basis[:, c0:c1].reshape(8, cols), out=points)
-            np.clip(points[:n_points], 0.0, f4(w2 - 1), out=points[:n_points])
-            np.clip(points[n_points:], 0.0, f4(h2 - 1), out=points[n_points:])
-            index = work["index"][: 2 * n_points * cols].reshape(2 * n_points, cols)
-            np.copyto(index, points, casting="unsafe")
-            ix, iy = index[:n_points], index[n_points:]
-            iy *= w2
-            iy += ix
-            iy[n_out:].reshape(-1, c1 - c0, n)[...] += axis_map[c0:c1]
-            if outline_map is not None:
-                iy[:n_out] += outline_map[c0:c1].reshape(-1)
-            values = work["values"][: n_points * cols].reshape(n_points, cols)
-            np.take(feats.cost, iy, out=values)
-            per_cone = values.sum(axis=0, dtype=np.uint16)
-            total += per_cone.reshape(c1 - c0, n).sum(axis=0, dtype=np.float64)
+        # A cone whose parameters are the same in every pose (the body a task
+        # gives) costs the same for all: worked out on the first pose only.
+        # The others go in runs of consecutive cones. Every step is per point
+        # and the matrix product's columns do not depend on their neighbours,
+        # so the costs are those of one pass over all points.
+        fixed = _fixed_cones(work["params"])
+        for c0, c1 in _runs(np.flatnonzero(~fixed)):
+            axis = axis_map[c0:c1]
+            sums = self._point_costs(
+                feats,
+                basis[:, c0:c1].reshape(8, -1),
+                None if outline_map is None else outline_map[c0:c1].reshape(-1),
+                axis[0] if (axis == axis[0]).all() else np.repeat(axis, n),
+                work,
+            )
+            total += sums.reshape(c1 - c0, n).sum(axis=0, dtype=np.float64)
+        if fixed.any():
+            cones = np.flatnonzero(fixed)
+            sums = self._point_costs(
+                feats,
+                basis[:, cones, 0],
+                None if outline_map is None else outline_map[cones, 0],
+                axis_map[cones],
+                work,
+            )
+            total += sums.sum(dtype=np.float64)
         if feats.residual is None or not feats.residual.shape[1] or self.residual_weight <= 0:
             total *= -feats.cost_unit * self.sharpness
             return total
@@ -796,6 +794,52 @@ class ObservationModel:
         total += self._residual_cost(feats, basis, n)
         total *= -self.sharpness
         return total
+
+    def _point_costs(
+        self,
+        feats: FrameFeatures,
+        columns: NDArray,
+        outline_map: NDArray | None,
+        axis_map: NDArray | np.int32,
+        work: dict[str, NDArray],
+    ) -> NDArray[np.uint16]:
+        """Summed point costs of cone outlines given by their ``(8, K)`` bases.
+
+        Args:
+            feats: The frame's features.
+            columns: ``(8, K)`` one cone of one pose per column (the rows of
+                ``basis``).
+            outline_map: ``(K,)`` offset in the cost table of the map each
+                column's outline points read (its orientation's), or None with
+                one orientation bin.
+            axis_map: ``(K,)`` offset of the map its axis points read (one
+                number when the same for all).
+            work: The scratch buffers (at least ``K`` columns).
+
+        Returns:
+            ``(K,)`` the sum of each column's point costs, in ``cost_unit``.
+        """
+        f4 = np.float32
+        coef = self._coefficients
+        n_points = coef.shape[0] // 2
+        cols = columns.shape[1]
+        w2, h2 = feats.width + 2, feats.height + 2
+        n_out = 2 * self.outline_samples
+        points = work["points"][: 2 * n_points * cols].reshape(2 * n_points, cols)
+        np.matmul(coef, columns, out=points)
+        np.clip(points[:n_points], 0.0, f4(w2 - 1), out=points[:n_points])
+        np.clip(points[n_points:], 0.0, f4(h2 - 1), out=points[n_points:])
+        index = work["index"][: 2 * n_points * cols].reshape(2 * n_points, cols)
+        np.copyto(index, points, casting="unsafe")  # truncation: +0.5 was added
+        ix, iy = index[:n_points], index[n_points:]
+        iy *= w2
+        iy += ix
+        iy[n_out:] += axis_map
+        if outline_map is not None:
+            iy[:n_out] += outline_map
+        values = work["values"][: n_points * cols].reshape(n_points, cols)
+        np.take(feats.cost, iy, out=values)
+        return values.sum(axis=0, dtype=np.uint16)
 
     def _residual_cost(self, feats: FrameFeatures, basis: NDArray, n: int) -> FloatArray:
         """Mean truncated squared distance of the residual points to the free outlines.
@@ -918,3 +962,66 @@ def _orientation_bin(nx: NDArray, ny: NDArray, n_bins: int, scratch: NDArray) ->
     out = phi.astype(np.int32)
     out %= n_bins
     return out
+
+
+@functools.cache
+def _cone_parameters() -> NDArray[np.bool_]:
+    """``(10, 25)`` True where a parameter moves a cone (its ends or its axes).
+
+    Found by moving each parameter of a generic pose in turn; the kinematic
+    tree, not the shape, decides it. A cone's cost depends only on its ends
+    and axes, so a cone none of whose parameters differ between poses costs
+    the same in all of them.
+    """
+    shape = default_shape()
+    pose = np.full(N_PARAMS, 0.3)
+    pose[:3] = (100.0, 200.0, 900.0)
+    probes = np.repeat(pose[None], N_PARAMS + 1, axis=0)
+    probes[np.arange(1, N_PARAMS + 1), np.arange(N_PARAMS)] += 0.25
+    geo = cone_geometry(probes, shape)
+    where = np.concatenate(
+        [geo.starts, geo.ends, geo.rotations.reshape(N_PARAMS + 1, N_CONES, 9)], axis=2
+    )
+    return (where[1:] != where[0]).any(axis=2).T
+
+
+def _fixed_cones(rows: NDArray) -> NDArray[np.bool_]:
+    """``(10,)`` True for the cones that every pose places the same.
+
+    Args:
+        rows: ``(25, N)`` the poses' parameters as the kinematics reads them
+            (single precision, in ``_PARAM_ROWS`` order).
+
+    Every cone hangs from the root: when the first two poses' roots differ (the
+    whole-body tasks), no cone is fixed, which is known without a pass over N.
+    Otherwise each parameter's row is compared bit for bit with its first
+    value (so ``-0.0`` and ``0.0`` differ).
+    """
+    bits = rows.view(np.uint32 if rows.dtype.itemsize == 4 else np.uint64)
+    root = _ROOT_ROWS
+    if bits.shape[1] < 2 or (bits[root, 1] != bits[root, 0]).any():
+        return np.zeros(N_CONES, bool)
+    same = np.empty(N_PARAMS, bool)
+    same[_PARAM_ROWS] = (bits == bits[:, :1]).all(axis=1)
+    return ~_cone_parameters()[:, ~same].any(axis=1)
+
+
+# The parameter in each row of the kinematics' parameter rows
+# (_batch_kinematics: root and neck, then the four limbs' x, y, z and hinge
+# angles, each group in the order r_shoulder, l_shoulder, r_hip, l_hip).
+_PARAM_ROWS = np.array(
+    list(range(9)) + [9 + angle + 4 * limb for angle in range(4) for limb in range(4)],
+    dtype=np.intp,
+)
+_ROOT_ROWS = np.arange(6)  # rows 0-5: the root's position and orientation
+
+
+def _runs(cones: NDArray[np.intp]) -> list[tuple[int, int]]:
+    """Ranges ``[c0, c1)`` of consecutive cones covering ``cones``."""
+    runs: list[tuple[int, int]] = []
+    for cone in cones.tolist():
+        if runs and runs[-1][1] == cone:
+            runs[-1] = (runs[-1][0], cone + 1)
+        else:
+            runs.append((cone, cone + 1))
+    return runs

@@ -33,6 +33,7 @@ from humotion_gym.observation import (
     FrameFeatures,
     GivenBody,
     ObservationModel,
+    _cone_parameters,
     _orientation_bin,
 )
 from humotion_gym.priors import tree
@@ -187,6 +188,43 @@ def test_arm_terms_match_the_reference(seed: int) -> None:
         fast = model.log_likelihood(feats, poses, SHAPE, cam)
         ref = reference_log_likelihood(model, feats, poses, SHAPE, cam)
         np.testing.assert_array_equal(fast, ref)
+
+
+@pytest.mark.parametrize(
+    "free",
+    [
+        np.array([9, 10, 11, 12]),  # the arm task's: the right arm's two cones move
+        np.array([17, 20, 21, 24, 9, 12, 13, 16]),  # the side-walk task's: torso and head fixed
+        np.array([7]),  # the neck alone: only the head moves
+        np.array([], dtype=np.intp),  # every pose the same
+        np.array([0]),  # the root: every cone moves
+    ],
+)
+def test_cones_the_poses_share_match_the_reference(free: np.ndarray) -> None:
+    # Cones whose parameters are equal in every pose are scored on one pose.
+    frame, cam, pose = scene(11)
+    model = ObservationModel()
+    feats = model.prepare(frame)
+    rng = np.random.default_rng(12)
+    poses = np.tile(pose, (700, 1))
+    poses[:, free] += rng.normal(0.0, 0.3, (700, free.size))
+    fast = model.log_likelihood(feats, poses, SHAPE, cam)
+    np.testing.assert_array_equal(fast, reference_log_likelihood(model, feats, poses, SHAPE, cam))
+    # -0.0 and 0.0 are different bits: the cone they touch is not shared.
+    poses[:, 6] = 0.0
+    poses[::2, 6] = -0.0
+    fast = model.log_likelihood(feats, poses, SHAPE, cam)
+    np.testing.assert_array_equal(fast, reference_log_likelihood(model, feats, poses, SHAPE, cam))
+
+
+def test_cone_parameters_follow_the_kinematic_tree() -> None:
+    moves = _cone_parameters()
+    names = body.CONE_NAMES
+    assert moves[:, :6].all()  # the root moves every cone
+    assert moves.sum(axis=0)[6:9].tolist() == [1, 1, 1]  # the neck only the head
+    assert moves[names.index("head"), 6:9].all()
+    elbow = body.PARAM_NAMES.index("r_elbow")
+    assert np.flatnonzero(moves[:, elbow]).tolist() == [names.index("r_forearm")]
 
 
 # -- the tree prior -------------------------------------------------------------
