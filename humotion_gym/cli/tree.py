@@ -70,9 +70,8 @@ def _cmd_variance(args: argparse.Namespace) -> int:
     import gymnasium as gym
 
     from baselines.agents import AGENTS, fit_prior
-    from humotion_gym.experiments.sidenbladh2002 import explained_variance_by_features
-
     from humotion_gym.envs.pose_tracking import PoseTrackingEnv
+    from humotion_gym.experiments.sidenbladh2002 import explained_variance_by_features
 
     env = gym.make(f"humotion_gym/{args.task}", **env_kwargs(args)).unwrapped
     assert isinstance(env, PoseTrackingEnv)

@@ -351,7 +351,9 @@ def test_reversion_keeps_the_walks_spread_at_the_datas(fitted):
     walk_coef, walk_vel = spread(0.0)
     held_coef, held_vel = spread(1.0)
     # the random walk's spread grows as sqrt(steps); the mean-reverting one settles at the data's
-    assert np.allclose(walk_coef, fitted.coef_noise * fitted.coef_step_std * np.sqrt(steps), rtol=0.1)
+    assert np.allclose(
+        walk_coef, fitted.coef_noise * fitted.coef_step_std * np.sqrt(steps), rtol=0.1
+    )
     settled = fitted.component_std * np.sqrt(1 - np.exp(-2 * steps * (1 - np.sqrt(
         1 - np.minimum(fitted.coef_step_std / fitted.component_std, 1) ** 2))))  # fmt: skip
     assert np.allclose(held_coef, settled, rtol=0.12)
