@@ -760,24 +760,32 @@ class ObservationModel:
         if n_bins > 1:  # each cone's outline reads the map of its orientation
             outline_map = _orientation_bin(nx, ny, n_bins, tmp[2])
             outline_map *= plane
-        total = np.zeros(n)
         # A cone whose parameters are the same in every pose (the body a task
         # gives) costs the same for all: worked out on the first pose only.
         # The others go in runs of consecutive cones. Every step is per point
         # and the matrix product's columns do not depend on their neighbours,
         # so the costs are those of one pass over all points.
         fixed = _fixed_cones(work["params"])
-        for c0, c1 in _runs(np.flatnonzero(~fixed)):
-            axis = axis_map[c0:c1]
+        if fixed is None:  # every cone moves: one pass
             sums = self._point_costs(
                 feats,
-                basis[:, c0:c1].reshape(8, -1),
-                None if outline_map is None else outline_map[c0:c1].reshape(-1),
-                axis[0] if (axis == axis[0]).all() else np.repeat(axis, n),
+                basis.reshape(8, -1),
+                None if outline_map is None else outline_map.reshape(-1),
+                axis_map[0] if feats.appearance_cones is None else np.repeat(axis_map, n),
                 work,
             )
-            total += sums.reshape(c1 - c0, n).sum(axis=0, dtype=np.float64)
-        if fixed.any():
+            total = sums.reshape(N_CONES, n).sum(axis=0, dtype=np.float64)
+        else:
+            total = np.zeros(n)
+            for c0, c1 in _runs(np.flatnonzero(~fixed)):
+                sums = self._point_costs(
+                    feats,
+                    basis[:, c0:c1].reshape(8, -1),
+                    None if outline_map is None else outline_map[c0:c1].reshape(-1),
+                    np.repeat(axis_map[c0:c1], n),
+                    work,
+                )
+                total += sums.reshape(c1 - c0, n).sum(axis=0, dtype=np.float64)
             cones = np.flatnonzero(fixed)
             sums = self._point_costs(
                 feats,
@@ -985,25 +993,25 @@ def _cone_parameters() -> NDArray[np.bool_]:
     return (where[1:] != where[0]).any(axis=2).T
 
 
-def _fixed_cones(rows: NDArray) -> NDArray[np.bool_]:
-    """``(10,)`` True for the cones that every pose places the same.
+def _fixed_cones(rows: NDArray) -> NDArray[np.bool_] | None:
+    """``(10,)`` True for the cones that every pose places the same; None for none.
 
     Args:
         rows: ``(25, N)`` the poses' parameters as the kinematics reads them
             (single precision, in ``_PARAM_ROWS`` order).
 
-    Every cone hangs from the root: when the first two poses' roots differ (the
-    whole-body tasks), no cone is fixed, which is known without a pass over N.
-    Otherwise each parameter's row is compared bit for bit with its first
-    value (so ``-0.0`` and ``0.0`` differ).
+    Every cone hangs from the root (rows 0-5): when the first two poses' roots
+    differ (the whole-body tasks), no cone is fixed, which is known without a
+    pass over N. Otherwise each parameter's row is compared bit for bit with
+    its first value (so ``-0.0`` and ``0.0`` differ).
     """
     bits = rows.view(np.uint32 if rows.dtype.itemsize == 4 else np.uint64)
-    root = _ROOT_ROWS
-    if bits.shape[1] < 2 or (bits[root, 1] != bits[root, 0]).any():
-        return np.zeros(N_CONES, bool)
+    if bits.shape[1] < 2 or (bits[:6, 1] != bits[:6, 0]).any():
+        return None
     same = np.empty(N_PARAMS, bool)
     same[_PARAM_ROWS] = (bits == bits[:, :1]).all(axis=1)
-    return ~_cone_parameters()[:, ~same].any(axis=1)
+    fixed = ~_cone_parameters()[:, ~same].any(axis=1)
+    return fixed if fixed.any() else None
 
 
 # The parameter in each row of the kinematics' parameter rows
@@ -1013,7 +1021,6 @@ _PARAM_ROWS = np.array(
     list(range(9)) + [9 + angle + 4 * limb for angle in range(4) for limb in range(4)],
     dtype=np.intp,
 )
-_ROOT_ROWS = np.arange(6)  # rows 0-5: the root's position and orientation
 
 
 def _runs(cones: NDArray[np.intp]) -> list[tuple[int, int]]:
