@@ -317,6 +317,9 @@ class AgentSpec:
             settings ``weight.LABEL`` (a component's probability; the first
             takes the rest) and ``LABEL.NAME`` (a component's fit setting)
             apply.
+        per_part: The prior is one tree prior per body part
+            (:mod:`humotion_gym.priors.limbs`), each fitted (and cached) on its
+            part's free parameters with the same settings (the tree's).
     """
 
     prior: str
@@ -326,6 +329,7 @@ class AgentSpec:
     layers: int = 1
     task_fit_settings: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     components: tuple[tuple[str, AgentSpec], ...] = ()
+    per_part: bool = False
 
     def settings_for(self, task: str) -> dict[str, Any]:
         """The fit settings of this agent on a task."""
@@ -342,7 +346,7 @@ class AgentSpec:
         import inspect
 
         if not self.components:
-            fit = _import(self.prior).fit
+            fit = _import(TREE if self.per_part else self.prior).fit
             return set(inspect.signature(fit).parameters) - {"motions", "free", "rng"}
         names = {MIXTURE_WEIGHT + label for label, _ in self.components[1:]}
         for label, spec in self.components:
@@ -379,6 +383,8 @@ def fit_prior(
     kwargs = {**spec.settings_for(env.task.name), **(settings or {})}
     if spec.components:
         return _fit_mixture(spec, env, kwargs, cache_dir, use_cache)
+    if spec.per_part:
+        return _fit_per_part(spec, env, kwargs, cache_dir, use_cache)
     if env.frame_skip != 1:
         kwargs.setdefault("frame_skip", env.frame_skip)
     return fit_prior_on(
@@ -421,6 +427,38 @@ def _fit_mixture(
         own = {n[len(prefix) :]: v for n, v in settings.items() if n.startswith(prefix)}
         fits.append(fit_prior(component, env, own, cache_dir=cache_dir, use_cache=use_cache))
     return mixture, mixture.compose(fits, weights)
+
+
+TREE = "humotion_gym.priors.tree"
+
+
+def _fit_per_part(
+    spec: AgentSpec,
+    env: PoseTrackingEnv,
+    settings: Mapping[str, Any],
+    cache_dir: str | Path | None,
+    use_cache: bool,
+) -> tuple[ModuleType, Any]:
+    """Fit (or read from the cache) one tree per body part, then compose them."""
+    from humotion_gym.priors import limbs
+
+    unknown = sorted(set(settings) - spec.setting_names())
+    if unknown:
+        raise ValueError(
+            f"{spec.prior}: unknown settings {unknown}; they are {sorted(spec.setting_names())}"
+        )
+    kwargs = dict(settings)
+    if env.frame_skip != 1:
+        kwargs.setdefault("frame_skip", env.frame_skip)
+    free = np.asarray(env.task.free_indices, dtype=np.intp)
+    motions = training_motions(env)
+    parts = []
+    for name, cols in limbs.part_columns(free):
+        _, fitted = fit_prior_on(
+            TREE, motions, free[cols], kwargs, use_cache=use_cache, cache_dir=cache_dir
+        )
+        parts.append((name, fitted))
+    return limbs, limbs.compose(free, parts)
 
 
 # pf-cv's settings, chosen by cross-validation on the training persons (pf-cv at
@@ -494,6 +532,18 @@ AGENTS: dict[str, AgentSpec] = {
         ),
         description="a mixture of the tree prior, constant velocity and a small random walk "
         "(Sidenbladh, Black & Sigal 2002, section 7): each particle, each frame, moves by one",
+    ),
+    "pf-limbs": AgentSpec(
+        "humotion_gym.priors.limbs",
+        per_part=True,
+        description="one tree prior per body part (torso with the root, each arm, each leg; "
+        "Sidenbladh, Black & Sigal 2002, section 7), searched independently",
+    ),
+    "pf-limbs-vel": AgentSpec(
+        "humotion_gym.priors.limbs",
+        fit_settings={"replay": "velocity"},
+        per_part=True,
+        description="one tree prior per body part, each replaying the database's velocities",
     ),
     "pf-slds": AgentSpec(
         "humotion_gym.priors.slds",
