@@ -56,6 +56,9 @@ class ParticleState:
         ``np.take`` along the first axis copies the same rows as fancy
         indexing, a few times faster for the (N, d + 1, D) histories.
         """
+        index = np.asarray(index)
+        if index.dtype == bool:  # a mask selects, as fancy indexing would
+            index = np.flatnonzero(index)
         return ParticleState(
             np.take(self.pose, index, axis=0),
             {k: np.take(v, index, axis=0) for k, v in self.extra.items()},

@@ -173,6 +173,11 @@ def _scratch(n: int, n_points: int) -> dict[str, NDArray]:
     return work
 
 
+# Fewer poses than this are scored in one pass even when some cones are the
+# same in all of them: the extra bookkeeping (tens of us) would cost about
+# what scoring those cones saves.
+_SHARED_MIN_POSES = 1000
+
 # Cone ends in the internal keypoint order of _batch_kinematics.
 _CONE_START = _TO_INTERNAL[CONE_KEYPOINTS[:, 0]]
 _CONE_END = _TO_INTERNAL[CONE_KEYPOINTS[:, 1]]
@@ -378,7 +383,8 @@ class ObservationModel:
                 )
             else:
                 dist[b] = np.inf
-        dist *= np.float32(1.0 / scale)
+        if scale != 1.0:  # (a product by 1 changes nothing: skipped)
+            dist *= np.float32(1.0 / scale)
         np.minimum(dist, np.float32(self.edge_truncation), out=dist)
         n_out = 2 * self.outline_samples
         edge_scale = np.float32(1.0 / (2.0 * self.edge_sigma**2 * n_out))
@@ -574,9 +580,13 @@ class ObservationModel:
         if n_bins == 1:
             bins[0] = edges
             return edges, bins
-        ys, xs = np.nonzero(edges)
-        if ys.size == 0:
+        # The edge pixels in raster order, as np.nonzero lists them (OpenCV's
+        # scan is several times faster).
+        found = cv2.findNonZero(edges)
+        if found is None:
             return edges, bins
+        found = found.reshape(-1, 2)
+        ys, xs = found[:, 1], found[:, 0]
         gx = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=3).reshape(h, w, channels)[ys, xs]
         gy = cv2.Sobel(smooth, cv2.CV_32F, 0, 1, ksize=3).reshape(h, w, channels)[ys, xs]
         # The channel with the strongest gradient gives the orientation.
@@ -765,8 +775,8 @@ class ObservationModel:
         # The others go in runs of consecutive cones. Every step is per point
         # and the matrix product's columns do not depend on their neighbours,
         # so the costs are those of one pass over all points.
-        fixed = _fixed_cones(work["params"])
-        if fixed is None:  # every cone moves: one pass
+        fixed = _fixed_cones(work["params"]) if n >= _SHARED_MIN_POSES else None
+        if fixed is None:  # every cone moves (or too few poses to pay): one pass
             sums = self._point_costs(
                 feats,
                 basis.reshape(8, -1),

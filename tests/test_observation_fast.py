@@ -12,6 +12,7 @@ appearance terms).
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 from scipy.special import log_ndtr, logsumexp
@@ -30,6 +31,7 @@ from humotion_gym.mocap.library import synthetic_library
 from humotion_gym.observation import (
     _CONE_END,
     _CONE_START,
+    _SHARED_MIN_POSES,
     FrameFeatures,
     GivenBody,
     ObservationModel,
@@ -202,12 +204,13 @@ def test_arm_terms_match_the_reference(seed: int) -> None:
 )
 def test_cones_the_poses_share_match_the_reference(free: np.ndarray) -> None:
     # Cones whose parameters are equal in every pose are scored on one pose.
+    assert _SHARED_MIN_POSES <= 1200
     frame, cam, pose = scene(11)
     model = ObservationModel()
     feats = model.prepare(frame)
     rng = np.random.default_rng(12)
-    poses = np.tile(pose, (700, 1))
-    poses[:, free] += rng.normal(0.0, 0.3, (700, free.size))
+    poses = np.tile(pose, (1200, 1))  # at least _SHARED_MIN_POSES
+    poses[:, free] += rng.normal(0.0, 0.3, (1200, free.size))
     fast = model.log_likelihood(feats, poses, SHAPE, cam)
     np.testing.assert_array_equal(fast, reference_log_likelihood(model, feats, poses, SHAPE, cam))
     # -0.0 and 0.0 are different bits: the cone they touch is not shared.
@@ -225,6 +228,41 @@ def test_cone_parameters_follow_the_kinematic_tree() -> None:
     assert moves[names.index("head"), 6:9].all()
     elbow = body.PARAM_NAMES.index("r_elbow")
     assert np.flatnonzero(moves[:, elbow]).tolist() == [names.index("r_forearm")]
+
+
+def reference_edge_distance(model: ObservationModel, frame: np.ndarray) -> np.ndarray:
+    """Each orientation bin's truncated edge distance, with np.nonzero and no shortcut."""
+    smooth = model._smoothed(frame, "test")
+    h, w, channels = smooth.shape
+    edges = cv2.Canny(smooth if channels == 3 else smooth[:, :, 0], 40.0, 100.0)
+    n_bins = model.orientation_bins
+    bins = np.zeros((n_bins, h, w), np.uint8)
+    ys, xs = np.nonzero(edges)
+    if ys.size:
+        gx = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=3).reshape(h, w, channels)[ys, xs]
+        gy = cv2.Sobel(smooth, cv2.CV_32F, 0, 1, ksize=3).reshape(h, w, channels)[ys, xs]
+        best = np.argmax(gx * gx + gy * gy, axis=1)
+        pick = np.arange(ys.size)
+        theta = np.arctan2(gy[pick, best], gx[pick, best])
+        lo = np.floor(np.mod(theta, np.pi) * (n_bins / np.pi)).astype(np.intp) % n_bins
+        bins[lo, ys, xs] = 255
+        bins[(lo + 1) % n_bins, ys, xs] = 255
+    dist = np.full((n_bins, h, w), np.inf, np.float32)
+    for b in range(n_bins):
+        if bins[b].any():
+            dist[b] = cv2.distanceTransform(255 - bins[b], cv2.DIST_L2, cv2.DIST_MASK_5)
+    dist *= np.float32(1.0 / (h / model.reference_height))
+    return np.minimum(dist, np.float32(model.edge_truncation))
+
+
+@pytest.mark.parametrize("size", [64, 96, 128])
+def test_frame_features_match_the_reference(size: int) -> None:
+    # Edge pixels listed by OpenCV, no product by 1 at the reference height.
+    model = ObservationModel()
+    frame, _, _ = scene(size, size=size)
+    for image in (frame, frame[:, :, :1], np.full_like(frame, 90)):
+        feats = model.prepare(image)
+        np.testing.assert_array_equal(feats.distance, reference_edge_distance(model, image))
 
 
 # -- the tree prior -------------------------------------------------------------
