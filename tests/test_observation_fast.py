@@ -24,6 +24,7 @@ from humotion_gym.filtering import (
     ParticleState,
     log_sum_exp,
     systematic_resample,
+    temper_for_survival,
     tempered_weights,
 )
 from humotion_gym.kinematics import _HEAD, _batch_kinematics
@@ -434,3 +435,45 @@ def test_filter_step_matches_a_plain_step(priors) -> None:
     index = systematic_resample(weights, rng)
     np.testing.assert_array_equal(pf.state.pose, moved.pose[index])
     np.testing.assert_array_equal(pf.state.extra["history"], moved.extra["history"][index])
+
+
+def reference_temper(loglik: np.ndarray, alpha: float, iterations: int = 60):
+    """temper_for_survival's bisection written with a fresh array per round."""
+    n = loglik.shape[0]
+    ok = np.isfinite(loglik)
+    if not ok.any():
+        return 1.0, np.full(n, 1.0 / n)
+    centred = np.where(ok, loglik - loglik[ok].max(), -np.inf)
+
+    def weights(beta):
+        w = np.exp(beta * centred)
+        return w / w.sum()
+
+    spread = float(-centred[ok].min())
+    if spread <= 0.0 or ok.sum() <= alpha * n:
+        return 1.0, weights(1.0)
+    lo, hi = np.log(1e-8 / spread), np.log(1e8 / spread)
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        if float(1.0 / np.sum(np.square(weights(float(np.exp(mid)))))) > alpha * n:
+            lo = mid
+        else:
+            hi = mid
+    beta = float(np.exp(0.5 * (lo + hi)))
+    return beta, weights(beta)
+
+
+def test_annealing_exponents_match_the_reference() -> None:
+    rng = np.random.default_rng(4)
+    for trial in range(300):
+        n = int(rng.choice([1, 5, 300, 3000]))
+        loglik = rng.normal(-10.0, rng.uniform(0.01, 20.0), n)
+        if trial % 4 == 0:
+            loglik[rng.random(n) < 0.3] = -np.inf
+        if trial % 25 == 0:
+            loglik[:] = -3.0
+        alpha = float(rng.uniform(0.05, 0.95))
+        beta, weights = temper_for_survival(loglik, alpha)
+        ref_beta, ref_weights = reference_temper(loglik, alpha)
+        assert beta == ref_beta
+        np.testing.assert_array_equal(weights, ref_weights)
