@@ -54,15 +54,24 @@ class ParticleState:
         """The particles at ``index`` (with repeats): resampling.
 
         ``np.take`` along the first axis copies the same rows as fancy
-        indexing, a few times faster for the (N, d + 1, D) histories.
+        indexing, a few times faster for the (N, d + 1, D) histories
+        (:func:`_rows`).
         """
         index = np.asarray(index)
         if index.dtype == bool:  # a mask selects, as fancy indexing would
             index = np.flatnonzero(index)
         return ParticleState(
-            np.take(self.pose, index, axis=0),
-            {k: np.take(v, index, axis=0) for k, v in self.extra.items()},
+            _rows(self.pose, index), {k: _rows(v, index) for k, v in self.extra.items()}
         )
+
+
+def _rows(array: NDArray[Any], index: NDArray[np.intp]) -> NDArray[Any]:
+    """``array[index]``: ``np.take`` where it is faster (a C-contiguous array).
+
+    On another layout ``np.take`` would first copy the whole array, so fancy
+    indexing is used there; the rows are the same either way.
+    """
+    return np.take(array, index, axis=0) if array.flags.c_contiguous else array[index]
 
 
 class Prior(Protocol):

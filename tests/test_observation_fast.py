@@ -397,6 +397,7 @@ def test_resampling_copies_the_same_rows() -> None:
         {
             "history": rng.normal(size=(500, 11, 25)).astype(np.float32),
             "window": rng.integers(0, 100, 500),
+            "fortran": np.asfortranarray(rng.normal(size=(500, 3))),
         },
     )
     weights = rng.random(500)
@@ -406,6 +407,8 @@ def test_resampling_copies_the_same_rows() -> None:
     for key, value in state.extra.items():
         np.testing.assert_array_equal(moved.extra[key], value[index])
         assert moved.extra[key].dtype == value.dtype
+    mask = rng.random(500) < 0.5  # a mask selects rows, as fancy indexing does
+    np.testing.assert_array_equal(state.take(mask).pose, state.pose[mask])
 
 
 def test_filter_step_matches_a_plain_step(priors) -> None:

@@ -1037,6 +1037,16 @@ def _descend_by_table(
     return prefix
 
 
+def _rows(table: NDArray[Any], index: IntArray) -> NDArray[Any]:
+    """``table[index]``: the same rows, gathered the fastest way.
+
+    ``np.take`` is several times faster on a C-contiguous table; on another
+    layout it would first copy the whole table (the fitted ``frames`` are in
+    Fortran order), so fancy indexing is used there.
+    """
+    return np.take(table, index, axis=0) if table.flags.c_contiguous else table[index]
+
+
 def _eq3_log_weights(
     fitted: TreeParams, windows: IntArray, probe: FloatArray, beta: float
 ) -> FloatArray:
@@ -1107,7 +1117,7 @@ def _choose_ragged(
     member = np.repeat(lo - starts, sizes)
     member += np.arange(total)
     # Eq. 3's exponent, as _eq3_log_weights computes it.
-    diff = np.take(fitted.coefficients, member, axis=0)
+    diff = _rows(fitted.coefficients, member)
     diff -= np.repeat(coefficients, sizes, axis=0)
     diff /= fitted.sigma
     logw = np.einsum("ij,ij->i", diff, diff) * (-0.5 / beta)
@@ -1361,7 +1371,7 @@ def transition(fitted: TreeParams, state: ParticleState, rng: np.random.Generato
     lay = _layout(fitted.free)
     c = window_coefficients(fitted, history)
     chosen = sample_windows(fitted, c, rng)
-    step = fitted.next_step[chosen]
+    step = _rows(fitted.next_step, chosen)
     if fitted.replay == "velocity" and lay.absolute.size:
         # Joint angles move by the database's velocity: next = own pose + (next - last).
         last = fitted.frames[fitted.window_end[chosen][:, None], lay.absolute[None, :]]
