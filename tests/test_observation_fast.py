@@ -32,6 +32,7 @@ from humotion_gym.mocap.library import synthetic_library
 from humotion_gym.observation import (
     _CONE_END,
     _CONE_START,
+    _PARAM_ROWS,
     _SHARED_MIN_POSES,
     FrameFeatures,
     GivenBody,
@@ -219,6 +220,18 @@ def test_cones_the_poses_share_match_the_reference(free: np.ndarray) -> None:
     poses[::2, 6] = -0.0
     fast = model.log_likelihood(feats, poses, SHAPE, cam)
     np.testing.assert_array_equal(fast, reference_log_likelihood(model, feats, poses, SHAPE, cam))
+
+
+def test_parameter_rows_are_the_kinematics_order() -> None:
+    # _fixed_cones reads the kinematics' (25, N) single-precision rows.
+    params = np.random.default_rng(13).normal(size=(50, 25))
+    work = {
+        "params": np.empty((25, 50), np.float32),
+        "trig": np.empty((2, 22, 50), np.float32),
+        "keypoints": np.empty((3, 15, 50), np.float32),
+    }
+    _batch_kinematics(params, SHAPE, np.float32, work=work)
+    np.testing.assert_array_equal(work["params"], params[:, _PARAM_ROWS].T.astype(np.float32))
 
 
 def test_cone_parameters_follow_the_kinematic_tree() -> None:
