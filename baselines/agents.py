@@ -398,6 +398,15 @@ def fit_prior(
 MIXTURE_WEIGHT = "weight."
 
 
+def _check_settings(spec: AgentSpec, settings: Mapping[str, Any]) -> None:
+    """Raise naming the settings a composed prior does not take, and those it does."""
+    unknown = sorted(set(settings) - spec.setting_names())
+    if unknown:
+        raise ValueError(
+            f"{spec.prior}: unknown settings {unknown}; they are {sorted(spec.setting_names())}"
+        )
+
+
 def _fit_mixture(
     spec: AgentSpec,
     env: PoseTrackingEnv,
@@ -408,11 +417,7 @@ def _fit_mixture(
     """Fit (or read from the cache) each component, then compose the mixture."""
     from humotion_gym.priors import mixture
 
-    unknown = sorted(set(settings) - spec.setting_names())
-    if unknown:
-        raise ValueError(
-            f"{spec.prior}: unknown settings {unknown}; they are {sorted(spec.setting_names())}"
-        )
+    _check_settings(spec, settings)
     labels = [label for label, _ in spec.components]
     weights = np.array([float(settings.get(MIXTURE_WEIGHT + label, 0.0)) for label in labels])
     weights[0] = 1.0 - weights[1:].sum()
@@ -442,11 +447,7 @@ def _fit_per_part(
     """Fit (or read from the cache) one tree per body part, then compose them."""
     from humotion_gym.priors import limbs
 
-    unknown = sorted(set(settings) - spec.setting_names())
-    if unknown:
-        raise ValueError(
-            f"{spec.prior}: unknown settings {unknown}; they are {sorted(spec.setting_names())}"
-        )
+    _check_settings(spec, settings)
     kwargs = dict(settings)
     if env.frame_skip != 1:
         kwargs.setdefault("frame_skip", env.frame_skip)
