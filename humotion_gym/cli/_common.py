@@ -147,6 +147,31 @@ def add_seed(parser: argparse.ArgumentParser, what: str = "random seed") -> None
     parser.add_argument("--seed", type=nonnegative_int, default=0, help=f"{what} (default: 0)")
 
 
+def add_engine(parser: argparse.ArgumentParser) -> None:
+    """``--engine``, ``--workers``, ``--address``: where a leaderboard's episodes run."""
+    parser.add_argument(
+        "--engine", choices=["inprocess", "ray"], default="inprocess",
+        help="where episodes run: in this process, or on Ray (the distributed extra) "
+        "(default: inprocess)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--workers", type=positive_int, default=None,
+        help="with --engine ray: workers (one CPU each) of a local Ray started here, or "
+        "actors on the cluster of --address (default: every CPU)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--address", default=None,
+        help="with --engine ray: the Ray cluster to join (default: $RAY_ADDRESS if set, "
+        "else a local Ray)",
+    )  # fmt: skip
+
+
+def check_engine(args: argparse.Namespace) -> None:
+    """Refuse ``--workers``/``--address`` without ``--engine ray`` (see :func:`add_engine`)."""
+    if args.engine != "ray" and (args.workers is not None or args.address is not None):
+        raise UsageError("--workers, --address: only with --engine ray")
+
+
 def env_kwargs(args: argparse.Namespace) -> dict[str, Any]:
     """Keyword arguments of ``gymnasium.make`` from ``--data-dir`` and ``--size``."""
     kwargs: dict[str, Any] = {}

@@ -22,8 +22,10 @@ from humotion_gym.cli._common import (
     CommandError,
     UsageError,
     add_data_dir,
+    add_engine,
     add_seed,
     agent_name,
+    check_engine,
     env_kwargs,
     nonnegative_float,
     positive_int,
@@ -81,21 +83,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--no-report", action="store_true",
         help="with --out: results.json and table.md only, no figures or index.html",
     )  # fmt: skip
-    lb.add_argument(
-        "--engine", choices=["inprocess", "ray"], default="inprocess",
-        help="where episodes run: in this process, or on Ray (the distributed extra) "
-        "(default: inprocess)",
-    )  # fmt: skip
-    lb.add_argument(
-        "--workers", type=positive_int, default=None,
-        help="with --engine ray: workers (one CPU each) of a local Ray started here, or "
-        "actors on the cluster of --address (default: every CPU)",
-    )  # fmt: skip
-    lb.add_argument(
-        "--address", default=None,
-        help="with --engine ray: the Ray cluster to join (default: $RAY_ADDRESS if set, "
-        "else a local Ray)",
-    )  # fmt: skip
+    add_engine(lb)
     lb.add_argument(
         "--json", action="store_true", help="print the rows as JSON instead of the table"
     )
@@ -123,8 +111,7 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         raise UsageError("--resume: needs --out FOLDER, the run to continue")
     if (args.videos or args.no_report) and args.out is None:
         raise UsageError("--videos, --no-report: need --out FOLDER")
-    if args.engine != "ray" and (args.workers is not None or args.address is not None):
-        raise UsageError("--workers, --address: only with --engine ray")
+    check_engine(args)
     if args.out is not None and args.out.suffix == ".json":
         raise UsageError(
             f"--out: expected a results folder (it holds results.json), got the file {args.out}"

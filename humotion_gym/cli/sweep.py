@@ -18,8 +18,10 @@ from pathlib import Path
 from humotion_gym.cli._common import (
     UsageError,
     add_data_dir,
+    add_engine,
     add_seed,
     agent_name,
+    check_engine,
     env_kwargs,
     nonnegative_float,
     nonnegative_int,
@@ -74,18 +76,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--frame-skip", type=positive_int, nargs="+", default=None, metavar="K",
         help="frame skips (default: not swept)",
     )  # fmt: skip
-    sw.add_argument(
-        "--engine", choices=["inprocess", "ray"], default="inprocess",
-        help="run episodes in this process or on Ray, as leaderboard does (default: inprocess)",
-    )  # fmt: skip
-    sw.add_argument(
-        "--workers", type=positive_int, default=None,
-        help="Ray workers (default: every CPU of the Ray cluster)",
-    )  # fmt: skip
-    sw.add_argument(
-        "--address", default=None,
-        help="a Ray cluster to join (default: $RAY_ADDRESS, else a local Ray)",
-    )  # fmt: skip
+    add_engine(sw)
     add_seed(sw, "seed of the first episode")
     add_data_dir(sw)
     sw.add_argument(
@@ -117,8 +108,9 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             "nothing to sweep: give at least one of --size, --background, --noise, "
             "--occluders, --blur, --frame-skip"
         )
+    check_engine(args)
     engine = None
-    if args.engine != "inprocess" or args.workers or args.address:
+    if args.engine != "inprocess":
         engine = {"engine": args.engine, "workers": args.workers, "address": args.address}
     result = sweep.run_sweep(
         args.tasks, args.agents, args.particles, grid, args.episodes, args.seed,
