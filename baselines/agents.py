@@ -43,7 +43,7 @@ from humotion_gym.filtering import AnnealedParticleFilter, ParticleFilter
 from humotion_gym.mocap.library import (
     MotionLibrary,
 )
-from humotion_gym.observation import GivenBody, ObservationModel
+from humotion_gym.observation import Backdrop, GivenBody, ObservationModel
 from humotion_gym.priors.fitting import fit_prior as fit_prior_on
 
 FloatArray = NDArray[np.float64]
@@ -65,6 +65,7 @@ class TaskLikelihood:
         self.shape: BodyShape | None = None
         self.camera: Camera | None = None
         self.colors: FloatArray | None = None
+        self.backdrop: Backdrop | None = None
 
     def update(self, fixed_values: FloatArray, shape: BodyShape, camera: Camera) -> None:
         """The given parameters, shape and camera of the frame on show."""
@@ -75,17 +76,24 @@ class TaskLikelihood:
     def given(self) -> GivenBody:
         """The given part of the body in the frame on show (for ``prepare``)."""
         assert self.shape is not None and self.camera is not None
-        return GivenBody(self.base.copy(), self.free, self.shape, self.camera, self.colors)
+        return GivenBody(
+            self.base.copy(), self.free, self.shape, self.camera, self.colors, self.backdrop
+        )
 
-    def read_colors(self, frame: Any, initial_pose: FloatArray) -> None:
-        """Each cone's colour at the episode's first frame, from the given initial pose.
+    def read_first_frame(self, frame: Any, initial_pose: FloatArray) -> None:
+        """What the model reads at the episode's first frame, from the given initial pose.
 
-        Only where the model has an appearance term (else nothing is read).
+        Each cone's colour where the model has an appearance term, the backdrop
+        (:meth:`~humotion_gym.observation.ObservationModel.read_backdrop`)
+        where it uses one; nothing otherwise.
         """
         assert self.shape is not None and self.camera is not None
         self.colors = None
+        self.backdrop = None
         if self.model.appearance_weight > 0:
             self.colors = self.model.cone_colors(frame, initial_pose, self.shape, self.camera)
+        if self.model.backdrop:
+            self.backdrop = self.model.read_backdrop(frame, initial_pose, self.shape, self.camera)
 
     def full_pose(self, particles: FloatArray) -> FloatArray:
         """``(N, 25)`` poses from ``(N, D)`` free parameters."""
@@ -207,7 +215,7 @@ class ParticleFilterAgent:
         info = self._info
         self.likelihood.update(np.asarray(info["fixed_params"]), self.shape, info["camera"])
         if first:
-            self.likelihood.read_colors(observation, np.asarray(info["initial_pose"]))
+            self.likelihood.read_first_frame(observation, np.asarray(info["initial_pose"]))
         features = self.env.observation_model.prepare(observation, self.likelihood.given())
         estimate = self.filter.step(features)
         pose = self.likelihood.full_pose(estimate[None])[0]

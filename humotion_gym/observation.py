@@ -101,6 +101,12 @@ class FrameFeatures:
         appearance_cones: The cones whose axis points read their own colour
             map (the maps after the foreground map in ``cost``, in this
             order), or ``None``.
+        coverage: ``(2, F)`` float32 image coordinates (plus the padding
+            offset) of foreground pixels the free cones must cover (the
+            coverage term, see ``ObservationModel.coverage_weight``), or
+            ``None``.
+        coverage_cones: The cones that may cover them (those that move with
+            the free parameters).
     """
 
     width: int
@@ -114,6 +120,30 @@ class FrameFeatures:
     residual: NDArray[np.float32] | None = None
     residual_cones: NDArray[np.intp] | None = None
     appearance_cones: NDArray[np.intp] | None = None
+    coverage: NDArray[np.float32] | None = None
+    coverage_cones: NDArray[np.intp] | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Backdrop:
+    """The scene behind the figure, read at an episode's first frame.
+
+    The renderer draws each episode's backdrop once, fixed in the image, and
+    only sensor noise changes it from frame to frame (a static camera's
+    background, as in the background subtraction Deutscher, Blake & Reid, CVPR
+    2000, took their silhouettes from). At the first frame the figure's pose is
+    given, so every pixel its silhouette does not cover shows the backdrop.
+    Nothing after the first frame is used.
+
+    Attributes:
+        image: ``(H, W, C)`` uint8, the first frame blurred by the model's
+            ``edge_blur``.
+        known: ``(H, W)`` bool, the pixels the initial pose's silhouette (grown
+            by ``backdrop_margin``) leaves uncovered, whose backdrop is known.
+    """
+
+    image: NDArray[np.uint8]
+    known: NDArray[np.bool_]
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,6 +159,9 @@ class GivenBody:
         colors: ``(10, C)`` each cone's colour as seen at the episode's first
             frame (:meth:`ObservationModel.cone_colors` with the given initial
             pose), for the appearance term; ``None`` without one.
+        backdrop: The scene behind the figure, read at the first frame
+            (:meth:`ObservationModel.read_backdrop`), for a model with
+            ``backdrop`` on; ``None`` without one.
     """
 
     pose: NDArray[np.float64]
@@ -136,6 +169,7 @@ class GivenBody:
     shape: BodyShape
     camera: Camera
     colors: NDArray[np.float64] | None = None
+    backdrop: Backdrop | None = None
 
 
 # Per-thread scratch buffers of log_likelihood, keyed by (N, points per cone):
@@ -288,6 +322,37 @@ class ObservationModel:
             matches the cone's colour.
         appearance_high: Colour difference (default 60) above which it does
             not match at all.
+        backdrop: Whether to use the backdrop read at the first frame
+            (default False; :class:`Backdrop`, handed in ``GivenBody.backdrop``).
+            Where it is known, a pixel's foreground probability comes from its
+            colour distance to the backdrop's pixel instead of to the border's
+            median (clutter is backdrop, not figure), and edges farther than
+            ``backdrop_reach`` from any foreground pixel are dropped (the
+            clutter's edges: the figure's outline borders its foreground).
+            Elsewhere (under the initial figure, or without a backdrop) the
+            border rule and every edge remain.
+        backdrop_margin: Reference pixels (default 2) the initial pose's
+            silhouette is grown by before the rest counts as known backdrop:
+            the blur and the cones' rounded ends spill past their outline.
+        backdrop_reach: Reference pixels (default 3) around the foreground
+            within which edges are kept; 0 keeps every edge.
+        coverage_weight: Weight (default 0: off) of the *coverage* term, the
+            image-to-model direction of the foreground cue (the silhouette
+            explained, as in Deutscher, Blake & Reid's silhouette cue and
+            Sidenbladh & Black's foreground likelihood, which both count
+            foreground the model leaves unexplained). It needs the backdrop:
+            the pixels that differ clearly from the known backdrop
+            (``foreground_high``) and that the given body's cones do not
+            cover are the free limbs' own; each should lie inside a free
+            cone's projection, and costs ``min(d, coverage_truncation)^2 /
+            (2 sigma^2)`` for ``d`` its distance outside the nearest one,
+            averaged over the points and multiplied by this weight. The
+            model-to-image foreground term alone is as happy with both legs on
+            one leg's pixels as with each on its own.
+        coverage_truncation: Distance (reference px, default 4) beyond which
+            a coverage point costs no more.
+        coverage_points: At most this many coverage points per frame
+            (default 96, an evenly strided subset in raster order).
     """
 
     edge_sigma: float = 1.5
@@ -312,9 +377,21 @@ class ObservationModel:
     appearance_weight: float = 0.0
     appearance_low: float = 20.0
     appearance_high: float = 60.0
+    backdrop: bool = False
+    backdrop_margin: float = 2.0
+    backdrop_reach: float = 3.0
+    coverage_weight: float = 0.0
+    coverage_truncation: float = 4.0
+    coverage_points: int = 96
 
     def __post_init__(self) -> None:
-        positive = ("edge_sigma", "edge_truncation", "near_mm", "residual_truncation")
+        positive = (
+            "edge_sigma",
+            "edge_truncation",
+            "near_mm",
+            "residual_truncation",
+            "coverage_truncation",
+        )
         for name in positive:
             value = float(getattr(self, name))
             if not (math.isfinite(value) and value > 0):
@@ -329,7 +406,16 @@ class ObservationModel:
             raise ValueError("ObservationModel: expected 0 < canny_low <= canny_high")
         if not 0 <= self.appearance_low < self.appearance_high:
             raise ValueError("ObservationModel: expected 0 <= appearance_low < appearance_high")
-        for name in ("residual_weight", "residual_clearance", "appearance_weight"):
+        if not isinstance(self.backdrop, (bool, np.bool_)):
+            raise ValueError(f"ObservationModel.backdrop: expected a bool, got {self.backdrop!r}")
+        for name in (
+            "residual_weight",
+            "residual_clearance",
+            "appearance_weight",
+            "backdrop_margin",
+            "backdrop_reach",
+            "coverage_weight",
+        ):
             value = float(getattr(self, name))
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"ObservationModel.{name}: expected a number >= 0")
@@ -342,6 +428,7 @@ class ObservationModel:
             "reference_height",
             "orientation_bins",
             "residual_points",
+            "coverage_points",
         ):
             value = getattr(self, name)
             if not isinstance(value, (int, np.integer)) or value < 1:
@@ -372,8 +459,17 @@ class ObservationModel:
         h, w, channels = smooth.shape
         if h < 8 or w < 8:
             raise ValueError(f"ObservationModel.prepare: frame too small ({w}x{h})")
-        edges, bins = self._oriented_edges(smooth)
         scale = h / self.reference_height
+        backdrop = None
+        if self.backdrop and given is not None and given.backdrop is not None:
+            backdrop = given.backdrop
+            if backdrop.image.shape != smooth.shape or backdrop.known.shape != (h, w):
+                raise ValueError(
+                    f"GivenBody.backdrop: expected an image of shape {smooth.shape}, got "
+                    f"{backdrop.image.shape} (known {backdrop.known.shape})"
+                )
+        fg, bg, keep = self._foreground(smooth, backdrop, scale)
+        edges, bins = self._oriented_edges(smooth, keep)
         n_bins = self.orientation_bins
         dist = np.empty((n_bins, h, w), np.float32)
         for b in range(n_bins):
@@ -390,15 +486,15 @@ class ObservationModel:
         edge_scale = np.float32(1.0 / (2.0 * self.edge_sigma**2 * n_out))
         edge_out = self.edge_truncation**2 * edge_scale
 
-        fg, bg = self._foreground(smooth)
         fg_scale = self.foreground_weight / self.axis_samples
 
         use_appearance = (
             given is not None and self.appearance_weight > 0 and given.colors is not None
         )
         use_residual = given is not None and self.residual_weight > 0
+        use_coverage = backdrop is not None and self.coverage_weight > 0
         free = None
-        if given is not None and (use_appearance or use_residual):
+        if given is not None and (use_appearance or use_residual or use_coverage):
             free = self._free_cones(given)
         app_cones = free[0] if use_appearance and free is not None else None
         n_app = 0 if app_cones is None else app_cones.size
@@ -434,9 +530,49 @@ class ObservationModel:
         residual, cones = None, None
         if use_residual and given is not None and free is not None:
             residual, cones = self._residual_edges(edges, given, scale, free)
+        coverage, coverage_cones = None, None
+        if use_coverage and given is not None and backdrop is not None and free is not None:
+            coverage_cones = free[0]
+            coverage = self._coverage_points(fg, backdrop, given, free)
         return FrameFeatures(
-            w, h, edges, dist, fg, bg, cost, float(unit), residual, cones, app_cones
-        )
+            w, h, edges, dist, fg, bg, cost, float(unit), residual, cones, app_cones,
+            coverage, coverage_cones,
+        )  # fmt: skip
+
+    def _coverage_points(
+        self,
+        fg: NDArray[np.float32],
+        backdrop: Backdrop,
+        given: GivenBody,
+        free: tuple[NDArray[np.intp], Any],
+    ) -> NDArray[np.float32]:
+        """The foreground pixels the free cones must cover: ``(2, F)``, x then y (+1.5).
+
+        Pixels of the known backdrop that differ from it clearly (foreground
+        probability 1), outside the given cones' silhouettes in this frame.
+        """
+        free_cones, (geo, _ends, moved) = free
+        fixed_cones = np.flatnonzero(~moved.any(axis=1))
+        sure = (fg >= 1.0) & backdrop.known
+        if fixed_cones.size:
+            pose = np.asarray(given.pose, dtype=np.float64)
+            covered = _silhouette_mask(
+                pose, given.shape, given.camera, self.near_mm, cones=fixed_cones
+            )
+            r = int(math.ceil(self.backdrop_margin * fg.shape[0] / self.reference_height))
+            if r > 0:
+                kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+                covered = cv2.dilate(covered, kernel)
+            sure &= covered == 0
+        if free_cones.size == 0:
+            sure[:] = False
+        ys, xs = np.nonzero(sure)
+        if xs.size > self.coverage_points:
+            pick = np.linspace(0, xs.size - 1, self.coverage_points).astype(np.intp)
+            ys, xs = ys[pick], xs[pick]
+        points = np.stack([xs, ys]).astype(np.float32)
+        points += np.float32(1.5)  # the offset _score gives image coordinates
+        return points
 
     def cone_colors(
         self, frame: ArrayLike, pose: ArrayLike, shape: BodyShape, camera: Camera
@@ -560,8 +696,12 @@ class ObservationModel:
         smooth = img if self.edge_blur <= 0 else cv2.GaussianBlur(img, (0, 0), self.edge_blur)
         return smooth.reshape(img.shape)
 
-    def _oriented_edges(self, smooth: NDArray[np.uint8]) -> tuple[NDArray, NDArray]:
+    def _oriented_edges(
+        self, smooth: NDArray[np.uint8], keep: NDArray[np.uint8] | None = None
+    ) -> tuple[NDArray, NDArray]:
         """Canny edges (any channel) and their split into orientation bins.
+
+        ``keep`` (uint8, 255 where edges count), when given, masks the edges.
 
         Returns:
             The ``(H, W)`` edge map and ``(B, H, W)`` uint8 maps: bin ``b`` holds
@@ -575,6 +715,8 @@ class ObservationModel:
         edges = cv2.Canny(
             smooth if channels == 3 else smooth[:, :, 0], self.canny_low, self.canny_high
         )
+        if keep is not None:
+            cv2.bitwise_and(edges, keep, dst=edges)
         n_bins = self.orientation_bins
         bins = np.zeros((n_bins, h, w), np.uint8)
         if n_bins == 1:
@@ -599,8 +741,20 @@ class ObservationModel:
         bins[(lo + 1) % n_bins, ys, xs] = 255
         return edges, bins
 
-    def _foreground(self, smooth: NDArray[np.uint8]) -> tuple[NDArray, NDArray]:
-        """Foreground probability from the colour distance to the border's median."""
+    def _foreground(
+        self, smooth: NDArray[np.uint8], backdrop: Backdrop | None = None, scale: float = 1.0
+    ) -> tuple[NDArray, NDArray, NDArray[np.uint8] | None]:
+        """Foreground probability from the colour distance to the background.
+
+        The background is the border's median colour, and, where ``backdrop``
+        knows it, the backdrop's pixel.
+
+        Returns:
+            The ``(H, W)`` float32 probability, the border's median colour, and
+            with a backdrop and a positive ``backdrop_reach`` the uint8 mask of
+            where edges count (within reach of a foreground pixel, or where the
+            backdrop is unknown), else None.
+        """
         h, w, channels = smooth.shape
         b = min(self.border_width, h // 4, w // 4)
         border = np.concatenate(
@@ -612,17 +766,79 @@ class ObservationModel:
             ]
         )
         bg = np.median(border, axis=0)
-        diff = cv2.absdiff(smooth, tuple(float(v) for v in bg) + (0.0,) * (4 - channels))
-        diff = diff.reshape(h, w, channels)
-        if channels == 3:
-            d0, d1, d2 = cv2.split(diff)
-            diff = cv2.max(cv2.max(d0, d1), d2)
-        else:
-            diff = diff[:, :, 0]
+        diff = _channel_max(
+            cv2.absdiff(smooth, tuple(float(v) for v in bg) + (0.0,) * (4 - channels)),
+            h, w, channels,
+        )  # fmt: skip
+        keep = None
+        if backdrop is not None:
+            near = _channel_max(cv2.absdiff(smooth, backdrop.image), h, w, channels)
+            # Under the initial figure the first frame showed the figure: a
+            # pixel still as it was is figure (probability 1); one that changed
+            # shows the backdrop the figure left or another part of it (1/2).
+            # The border rule there would paint the clutter the figure uncovers
+            # as foreground where the figure started: a pull towards ``hold``.
+            changed = near > self.foreground_low
+            unknown = np.where(changed, 0.5 * (self.foreground_low + self.foreground_high),
+                               self.foreground_high)  # fmt: skip
+            np.copyto(diff, near, where=backdrop.known)
+            np.copyto(diff, np.clip(unknown, 0, 255).astype(np.uint8), where=~backdrop.known)
+            if self.backdrop_reach > 0:
+                # Edges count near the figure: within reach of a pixel that
+                # differs from the known backdrop, or where it is not known.
+                found = np.where(backdrop.known, near, 0) > self.foreground_low
+                r = max(1, int(round(self.backdrop_reach * scale)))
+                kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+                keep = cv2.dilate(found.astype(np.uint8) * np.uint8(255), kernel)
+                keep[~backdrop.known] = 255
         fg = cv2.subtract(diff, float(self.foreground_low)).astype(np.float32)
         fg *= np.float32(1.0 / (self.foreground_high - self.foreground_low))
         np.minimum(fg, np.float32(1.0), out=fg)
-        return fg, bg
+        return fg, bg, keep
+
+    def read_backdrop(
+        self, frame: ArrayLike, pose: ArrayLike, shape: BodyShape, camera: Camera
+    ) -> Backdrop:
+        """The backdrop of an episode from its first frame and the given initial pose.
+
+        Every pixel outside the pose's silhouette (each cone's projected
+        outline and end discs, with the larger semi-axis of its section, grown
+        by ``backdrop_margin``) shows the backdrop.
+
+        Args:
+            frame: The episode's first frame.
+            pose: ``(25,)`` the pose in that frame (``info["initial_pose"]``).
+            shape: The subject's shape.
+            camera: The camera of that frame.
+
+        Raises:
+            ValueError: If the frame is not a uint8 image of the camera's size
+                or the pose is not a finite ``(25,)`` vector.
+        """
+        smooth = self._smoothed(frame, "ObservationModel.read_backdrop")
+        h, w, _ = smooth.shape
+        if (camera.width, camera.height) != (w, h):
+            raise ValueError(
+                f"ObservationModel.read_backdrop: frame is {w}x{h} but the camera is "
+                f"{camera.width}x{camera.height}"
+            )
+        p = np.asarray(pose, dtype=np.float64)
+        if p.shape != (N_PARAMS,) or not np.all(np.isfinite(p)):
+            raise ValueError(
+                f"ObservationModel.read_backdrop: expected a finite pose of shape (25,), "
+                f"got {p.shape}"
+            )
+        scale = h / self.reference_height
+        covered = _silhouette_mask(p, shape, camera, self.near_mm)
+        r = int(math.ceil(self.backdrop_margin * scale))
+        if r > 0:
+            kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+            covered = cv2.dilate(covered, kernel)
+        image = smooth.copy()
+        image.setflags(write=False)
+        known = covered == 0
+        known.setflags(write=False)
+        return Backdrop(image, known)
 
     # -- per pose ----------------------------------------------------------
 
@@ -805,11 +1021,20 @@ class ObservationModel:
                 work,
             )
             total += sums.sum(dtype=np.float64)
-        if feats.residual is None or not feats.residual.shape[1] or self.residual_weight <= 0:
+        has_residual = (
+            feats.residual is not None and feats.residual.shape[1] > 0 and self.residual_weight > 0
+        )
+        has_coverage = (
+            feats.coverage is not None and feats.coverage.shape[1] > 0 and self.coverage_weight > 0
+        )
+        if not (has_residual or has_coverage):
             total *= -feats.cost_unit * self.sharpness
             return total
         total *= feats.cost_unit
-        total += self._residual_cost(feats, basis, n)
+        if has_residual:
+            total += self._residual_cost(feats, basis, n)
+        if has_coverage:
+            total += self._coverage_cost(feats, basis, n)
         total *= -self.sharpness
         return total
 
@@ -910,6 +1135,70 @@ class ObservationModel:
         out *= unit
         return out
 
+    def _coverage_cost(self, feats: FrameFeatures, basis: NDArray, n: int) -> FloatArray:
+        """Mean truncated squared distance of the coverage points outside the free cones.
+
+        A cone's projection is taken as its projected axis segment widened by
+        the interpolated projected radius, with the end radii as round caps in
+        the box sense: a point's distance outside it is ``max(|p|, e) - r``,
+        ``p`` its signed distance across the axis, ``e`` how far it lies
+        beyond the nearer end along it (negative between the ends) and ``r``
+        the radius at its foot on the axis. ``p`` and the position along the
+        axis are linear in the point, so one matrix product gives them for
+        every (cone, pose, point); each point reads the nearest cone of each
+        pose. Chunks of poses bound the scratch memory.
+        """
+        f4 = np.float32
+        assert feats.coverage is not None and feats.coverage_cones is not None
+        b = basis[:, feats.coverage_cones, :]  # (8, C, n)
+        s_x, s_y, e_x, e_y, a_x, a_y, b_x, b_y = b
+        r_s = np.sqrt(a_x * a_x + a_y * a_y)
+        r_e = np.sqrt(b_x * b_x + b_y * b_y)
+        d_x, d_y = e_x - s_x, e_y - s_y
+        length = np.sqrt(d_x * d_x + d_y * d_y)
+        # A cone seen end-on has no axis direction: any will do (x).
+        flat = length < f4(1e-3)
+        u_x = np.where(flat, f4(1.0), d_x / np.maximum(length, f4(1e-3)))
+        u_y = np.where(flat, f4(0.0), d_y / np.maximum(length, f4(1e-3)))
+        cones = s_x.shape[0]
+        # Rows (cone, pose): along = q.u - s.u, across = q.n - s.n, n = (-u_y, u_x).
+        coef = np.empty((2, cones, n, 3), f4)
+        coef[0, ..., 0], coef[0, ..., 1] = u_x, u_y
+        coef[0, ..., 2] = -(s_x * u_x + s_y * u_y)
+        coef[1, ..., 0], coef[1, ..., 1] = -u_y, u_x
+        coef[1, ..., 2] = s_x * u_y - s_y * u_x
+        half = f4(0.5) * length
+        slope = (r_e - r_s) / np.maximum(length, f4(1e-3))
+        q = np.vstack([feats.coverage, np.ones((1, feats.coverage.shape[1]), f4)])  # (3, F)
+        scale = feats.height / self.reference_height
+        tau = f4(self.coverage_truncation * scale)
+        e = q.shape[1]
+        unit = self.coverage_weight / (2.0 * (self.edge_sigma * scale) ** 2 * e)
+        out = np.empty(n)
+        chunk = max(1, 100_000 // max(1, cones * e))
+        for lo in range(0, n, chunk):
+            sl = slice(lo, lo + chunk)
+            m = min(chunk, n - lo)
+            lin = np.matmul(coef[:, :, sl].reshape(-1, 3), q).reshape(2, cones, m, e)
+            along, across = lin[0], lin[1]
+            np.abs(across, out=across)
+            h = half[:, sl, None]
+            beyond = np.subtract(along, h)
+            np.abs(beyond, out=beyond)
+            beyond -= h
+            np.maximum(across, beyond, out=across)
+            # The radius at the foot of the point on the axis.
+            np.clip(along, f4(0.0), length[:, sl, None], out=along)
+            along *= slope[:, sl, None]
+            along += r_s[:, sl, None]
+            across -= along
+            outside = np.min(across, axis=0)  # (m, F)
+            np.clip(outside, f4(0.0), tau, out=outside)
+            outside *= outside
+            out[sl] = outside.sum(axis=1, dtype=np.float64)
+        out *= unit
+        return out
+
     def _silhouette_radii(
         self,
         shape: BodyShape,
@@ -955,6 +1244,56 @@ class ObservationModel:
             xm += ym
             varying.append((cone, np.sqrt(xm, out=xm)))
         return radii.astype(f4), varying
+
+
+def _channel_max(diff: NDArray[np.uint8], h: int, w: int, channels: int) -> NDArray[np.uint8]:
+    """``(H, W)`` the largest channel of a ``(H, W, C)`` absolute difference."""
+    diff = diff.reshape(h, w, channels)
+    if channels == 3:
+        d0, d1, d2 = cv2.split(diff)
+        return cv2.max(cv2.max(d0, d1), d2)
+    return np.ascontiguousarray(diff[:, :, 0])
+
+
+def _silhouette_mask(
+    pose: NDArray[np.float64],
+    shape: BodyShape,
+    camera: Camera,
+    near_mm: float,
+    cones: NDArray[np.intp] | None = None,
+) -> NDArray[np.uint8]:
+    """``(H, W)`` uint8, 255 on the projected silhouette of one pose (conservative).
+
+    Each cone (of ``cones``, every cone when None) is the convex quadrilateral
+    of its two outline lines, with the larger semi-axis of its section, plus
+    filled discs at its ends; a cone with an end nearer the camera than
+    ``near_mm`` covers the whole image (its projection is unbounded).
+    """
+    geo = cone_geometry(pose, shape)
+    mask = np.zeros((camera.height, camera.width), np.uint8)
+    starts, ends = geo.starts, geo.ends
+    uv_s, uv_e = camera.project(starts), camera.project(ends)
+    z_s, z_e = camera.to_camera(starts)[:, 2], camera.to_camera(ends)[:, 2]
+    radii = shape.radii * np.maximum(1.0, shape.aspect)[:, None]
+    for c in range(N_CONES) if cones is None else cones.tolist():
+        if min(z_s[c], z_e[c]) < near_mm:
+            mask[:] = 255
+            return mask
+        d = uv_e[c] - uv_s[c]
+        n = np.array([d[1], -d[0]]) / (math.hypot(d[0], d[1]) + 1e-9)
+        r_s = camera.focal * radii[c, 0] / z_s[c]
+        r_e = camera.focal * radii[c, 1] / z_e[c]
+        quad = np.stack(
+            [uv_s[c] + r_s * n, uv_e[c] + r_e * n, uv_e[c] - r_e * n, uv_s[c] - r_s * n]
+        )
+        # Far outside the image the int32 corners would overflow: clip first.
+        quad = np.clip(quad, -4 * camera.width, 5 * camera.width)
+        cv2.fillConvexPoly(mask, np.rint(quad).astype(np.int32), 255)
+        for centre, r in ((uv_s[c], r_s), (uv_e[c], r_e)):
+            centre = np.clip(centre, -4 * camera.width, 5 * camera.width)
+            cv2.circle(mask, tuple(np.rint(centre).astype(int).tolist()),
+                       int(math.ceil(min(r, 10 * camera.width))), 255, -1)  # fmt: skip
+    return mask
 
 
 def _orientation_bin(nx: NDArray, ny: NDArray, n_bins: int, scratch: NDArray) -> NDArray:

@@ -1,0 +1,208 @@
+"""Tests of the backdrop read at the first frame and of the coverage term it enables."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import cv2
+import numpy as np
+import pytest
+
+from humotion_gym import body
+from humotion_gym.camera import fit_camera
+from humotion_gym.observation import Backdrop, GivenBody, ObservationModel
+from humotion_gym.render import SceneOptions, make_background, render
+
+SHAPE = body.default_shape()
+ALL = np.arange(body.N_PARAMS)
+ARM = np.arange(9, 13)  # r_shoulder_x, _y, _z, r_elbow
+CLEAN = SceneOptions(noise_sigma=0.0)  # clutter, no sensor noise: exact oracles
+
+
+def walking_poses(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """A standing pose and the same person a step to the side with other limbs."""
+    first = body.standing_pose(SHAPE)
+    first[3] = rng.uniform(-0.4, 0.4)
+    later = first.copy()
+    later[0] += 350.0  # the root moves 35 cm across
+    later[ARM] = [0.0, -1.3, 0.0, 0.3]  # the right arm raised sideways
+    later[body.PARAM_INDEX["l_hip_x"]] = -0.5
+    return first, later
+
+
+@pytest.fixture(scope="module")
+def episode():
+    rng = np.random.default_rng(11)
+    first, later = walking_poses(rng)
+    kp = body.forward_kinematics(np.stack([first, later]), SHAPE)
+    cam = fit_camera(kp, CLEAN.width, CLEAN.height, 45.0, 30.0, 10.0)
+    background = make_background(CLEAN, rng)
+    frames = [render(p, SHAPE, cam, CLEAN, rng, background) for p in (first, later)]
+    return first, later, cam, background, frames
+
+
+def test_known_pixels_show_the_backdrop(episode) -> None:
+    first, _later, cam, background, frames = episode
+    model = ObservationModel(backdrop=True, edge_blur=0.0)
+    backdrop = model.read_backdrop(frames[0], first, SHAPE, cam)
+    assert backdrop.known.shape == frames[0].shape[:2]
+    assert 0.5 < backdrop.known.mean() < 0.99
+    # Without noise or blur, every known pixel is the backdrop's own, and every
+    # pixel the figure changed is unknown.
+    np.testing.assert_array_equal(frames[0][backdrop.known], background.image[backdrop.known])
+    figure = np.any(frames[0] != background.image, axis=2)
+    assert figure.any() and not np.any(figure & backdrop.known)
+    assert not backdrop.image.flags.writeable and not backdrop.known.flags.writeable
+
+
+def test_foreground_ignores_clutter_and_edges_keep_near_the_figure(episode) -> None:
+    first, later, cam, background, frames = episode
+    model = ObservationModel(backdrop=True)
+    backdrop = model.read_backdrop(frames[0], first, SHAPE, cam)
+    given = GivenBody(later, ALL, SHAPE, cam, backdrop=backdrop)
+    with_backdrop = model.prepare(frames[1], given)
+    border = model.prepare(frames[1], GivenBody(later, ALL, SHAPE, cam))
+    # Where the backdrop is known and the later frame shows it, nothing is foreground;
+    # the border rule calls some of that clutter foreground.
+    shows_backdrop = backdrop.known & np.all(frames[1] == background.image, axis=2)
+    shows_backdrop = cv2.erode(shows_backdrop.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    assert with_backdrop.foreground[shows_backdrop].max() == 0.0
+    assert border.foreground[shows_backdrop].max() > 0.5
+    # Edges of the known backdrop farther than the reach from any foreground are gone.
+    scale = frames[1].shape[0] / model.reference_height
+    fg = (with_backdrop.foreground > 0) & backdrop.known
+    dist = cv2.distanceTransform((~fg).astype(np.uint8), cv2.DIST_L2, 5)
+    far = backdrop.known & (dist > model.backdrop_reach * scale + 1.5)
+    assert not np.any(with_backdrop.edges[far])
+    assert np.any(border.edges[far])
+    # What is kept are the border rule's own edges.
+    assert not np.any(with_backdrop.edges & ~border.edges)
+
+
+def test_off_means_bit_identical(episode) -> None:
+    first, later, cam, _background, frames = episode
+    plain = ObservationModel()
+    backdrop = ObservationModel(backdrop=True).read_backdrop(frames[0], first, SHAPE, cam)
+    rng = np.random.default_rng(3)
+    poses = later + rng.normal(0.0, 0.05, (40, body.N_PARAMS))
+    reference = plain.log_likelihood(plain.prepare(frames[1]), poses, SHAPE, cam)
+    # A backdrop handed to a model that does not use it changes nothing.
+    feats = plain.prepare(frames[1], GivenBody(later, ALL, SHAPE, cam, backdrop=backdrop))
+    np.testing.assert_array_equal(plain.log_likelihood(feats, poses, SHAPE, cam), reference)
+    # Nor does a model that uses it without one (no given body: the border rule).
+    on = ObservationModel(backdrop=True, coverage_weight=2.0)
+    np.testing.assert_array_equal(
+        on.log_likelihood(on.prepare(frames[1]), poses, SHAPE, cam), reference
+    )
+
+
+def box_outside(q: np.ndarray, start: np.ndarray, end: np.ndarray, r0: float, r1: float):
+    """Distance outside one projected cone, by the definition in _coverage_cost (float64)."""
+    d = end - start
+    length = np.linalg.norm(d)
+    u = d / length
+    n = np.array([-u[1], u[0]])
+    along = (q - start) @ u
+    across = np.abs((q - start) @ n)
+    beyond = np.abs(along - length / 2) - length / 2
+    foot = np.clip(along, 0.0, length)
+    return np.maximum(across, beyond) - (r0 + (r1 - r0) * foot / length)
+
+
+def test_coverage_cost_matches_its_definition(episode) -> None:
+    first, later, cam, _background, frames = episode
+    model = ObservationModel(backdrop=True, coverage_weight=1.5, sharpness=1.3)
+    off = replace(model, coverage_weight=0.0)
+    backdrop = model.read_backdrop(frames[0], first, SHAPE, cam)
+    given = GivenBody(later, ALL, SHAPE, cam, backdrop=backdrop)
+    feats = model.prepare(frames[1], given)
+    assert feats.coverage is not None and feats.coverage.shape[1] == model.coverage_points
+    assert feats.coverage_cones is not None and feats.coverage_cones.size == body.N_CONES
+    rng = np.random.default_rng(5)
+    poses = later + rng.normal(0.0, 0.08, (12, body.N_PARAMS)) * body.ANGLE_MASK
+    got = off.log_likelihood(feats, poses, SHAPE, cam) - model.log_likelihood(
+        feats, poses, SHAPE, cam
+    )
+    q = feats.coverage.T.astype(np.float64) - 1.5
+    geo = body.cone_geometry(poses, SHAPE)
+    radii = SHAPE.radii * ((1.0 + SHAPE.aspect[:, None]) / 2.0)
+    scale = frames[1].shape[0] / model.reference_height
+    tau, sigma = model.coverage_truncation * scale, model.edge_sigma * scale
+    expected = []
+    for k in range(len(poses)):
+        ps, pe = cam.project(geo.starts[k]), cam.project(geo.ends[k])
+        zs, ze = cam.to_camera(geo.starts[k])[:, 2], cam.to_camera(geo.ends[k])[:, 2]
+        outside = np.min(
+            [
+                box_outside(q, ps[c], pe[c], cam.focal * radii[c, 0] / zs[c],
+                            cam.focal * radii[c, 1] / ze[c])  # fmt: skip
+                for c in range(body.N_CONES)
+            ],
+            axis=0,
+        )
+        expected.append(np.mean(np.clip(outside, 0.0, tau) ** 2) / (2 * sigma**2))
+    # The torso's and head's elliptical sections give per-pose radii the
+    # round-section oracle does not have: compare where that cannot matter.
+    np.testing.assert_allclose(
+        got, np.array(expected) * model.coverage_weight * model.sharpness, rtol=0.05, atol=0.02
+    )
+
+
+def test_coverage_prefers_the_true_pose_to_a_limb_laid_on_the_body(episode) -> None:
+    first, later, cam, _background, frames = episode
+    model = ObservationModel(backdrop=True, coverage_weight=2.0, coverage_points=10_000)
+    backdrop = model.read_backdrop(frames[0], first, SHAPE, cam)
+    feats = model.prepare(frames[1], GivenBody(later, ALL, SHAPE, cam, backdrop=backdrop))
+    piled = later.copy()
+    piled[ARM] = 0.0  # the raised arm laid along the torso: on foreground all the same
+    off = replace(model, coverage_weight=0.0)
+    margin_on = np.diff(model.log_likelihood(feats, np.stack([piled, later]), SHAPE, cam))[0]
+    margin_off = np.diff(off.log_likelihood(feats, np.stack([piled, later]), SHAPE, cam))[0]
+    assert margin_on > margin_off
+
+
+def test_given_cones_are_not_coverage_points() -> None:
+    rng = np.random.default_rng(2)
+    pose = body.standing_pose(SHAPE)
+    pose[ARM] = [-1.0, -0.7, 0.0, 0.9]
+    kp = body.forward_kinematics(pose, SHAPE)
+    cam = fit_camera(kp[None], CLEAN.width, CLEAN.height, 50.0, 20.0, 5.0)
+    background = make_background(CLEAN, rng)
+    first = render(body.standing_pose(SHAPE), SHAPE, cam, CLEAN, rng, background)
+    frame = render(pose, SHAPE, cam, CLEAN, rng, background)
+    model = ObservationModel(backdrop=True, coverage_weight=1.0, coverage_points=10_000)
+    backdrop = model.read_backdrop(first, body.standing_pose(SHAPE), SHAPE, cam)
+    feats = model.prepare(frame, GivenBody(pose, ARM, SHAPE, cam, backdrop=backdrop))
+    assert feats.coverage_cones is not None and feats.coverage_cones.tolist() == [2, 3]
+    q = feats.coverage.T - 1.5
+    assert len(q) > 5
+    geo = body.cone_geometry(pose, SHAPE)
+    ps, pe = cam.project(geo.starts), cam.project(geo.ends)
+    zs = cam.to_camera(geo.starts)[:, 2]
+    near_arm = np.min(
+        [box_outside(q, ps[c], pe[c], 0.0, 0.0) - cam.focal * 60.0 / zs[c] for c in (2, 3)],
+        axis=0,
+    )
+    assert np.all(near_arm <= 0.0)  # within 60 mm (projected) of the arm's axis
+
+
+def test_bad_input_is_named(episode) -> None:
+    first, later, cam, _background, frames = episode
+    model = ObservationModel(backdrop=True)
+    with pytest.raises(ValueError, match="read_backdrop: expected a finite pose"):
+        model.read_backdrop(frames[0], first[:5], SHAPE, cam)
+    with pytest.raises(ValueError, match="read_backdrop: frame is 64x64"):
+        model.read_backdrop(frames[0][:64, :64], first, SHAPE, cam)
+    small = Backdrop(np.zeros((8, 8, 3), np.uint8), np.ones((8, 8), bool))
+    with pytest.raises(ValueError, match="GivenBody.backdrop"):
+        model.prepare(frames[1], GivenBody(later, ALL, SHAPE, cam, backdrop=small))
+    for bad in (
+        {"backdrop": 1.5},
+        {"backdrop_margin": -1.0},
+        {"backdrop_reach": float("nan")},
+        {"coverage_weight": -0.1},
+        {"coverage_truncation": 0.0},
+        {"coverage_points": 0},
+    ):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            ObservationModel(**bad)  # type: ignore[arg-type]
