@@ -88,6 +88,8 @@ _CONE_ROWS = np.asarray(CONE_KEYPOINTS)  # rows of each cone's start and end key
 # drawn in one flat shade: strips of less than a pixel would not show.
 _STRIP_MIN_HALF_WIDTH_PX = 3.0
 _LUMA = np.array([0.299, 0.587, 0.114])  # ITU-R BT.601, as cv2.cvtColor
+# Frames prepared per call by figure_sequences (see there).
+_CHUNK_FRAMES = 64
 
 
 @dataclass(frozen=True)
@@ -254,15 +256,22 @@ def _noise_tables(sigma: float) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
 
 
 def _paint_texture(
-    region: NDArray[np.uint8], inside: NDArray[np.bool_], rng: np.random.Generator
+    region: NDArray[np.uint8], inside: NDArray[np.uint8], rng: np.random.Generator
 ) -> None:
     """Paint a random stripe or checker texture of two colours where ``inside``.
 
-    ``region`` is a view of the image (written in place), ``inside`` a boolean
-    mask of its size.
+    ``region`` is a view of the image (written in place), ``inside`` a uint8
+    mask of its size (non-zero inside).
     """
     h, w, channels = region.shape
-    a, b = (_to_channels(rng.uniform(25, 235, 3), channels).round().astype(np.uint8) for _ in "ab")
+    # The two colours in one draw of six (the same doubles as two draws of
+    # three: uniform is elementwise over the generator's stream).
+    two = rng.uniform(25, 235, 6).reshape(2, 3)
+    if channels == 3:
+        palette = two.round().astype(np.uint8)
+    else:  # each colour's luminance on its own, as _to_channels gives it
+        palette = np.stack([_to_channels(two[0], 1), _to_channels(two[1], 1)])
+        palette = palette.round().astype(np.uint8)
     period = rng.uniform(3.0, 12.0) * max(h, w) / 128.0 + 2.0
     angle = rng.uniform(0, np.pi)
     cos_a, sin_a = math.cos(angle) / period, math.sin(angle) / period
@@ -273,9 +282,10 @@ def _paint_texture(
     parity = np.floor(x * cos_a + y * sin_a)
     if rng.random() >= 0.5:
         parity += np.floor(y * cos_a - x * sin_a)
-    odd = (parity.astype(np.int32) & 1).astype(np.uint8)
-    texture = np.take(np.stack([a, b]), odd, axis=0)  # (h, w, C): the two-colour palette
-    cv2.copyTo(texture, inside.view(np.uint8), region)  # in place, where inside
+    odd = parity.astype(np.int32)
+    odd &= 1
+    texture = palette.take(odd, axis=0)  # (h, w, C): the two-colour palette
+    cv2.copyTo(texture, inside, region)  # in place, where inside
 
 
 def _clutter_shape(
@@ -307,45 +317,54 @@ def _draw_clutter(img: NDArray[np.uint8], scene: SceneOptions, rng: np.random.Ge
     n_lines = int(rng.poisson(4.0 * scene.clutter_density * area))
     for _ in range(n_shapes):
         kind = int(rng.integers(0, 3))
-        cx, cy = rng.uniform(-0.1, 1.1) * w, rng.uniform(-0.1, 1.1) * h
-        rx, ry = rng.uniform(0.05, 0.3, 2) * size
+        # One draw of two for the centre: the same doubles as two scalar draws.
+        ux, uy = rng.uniform(-0.1, 1.1, 2).tolist()
+        cx, cy = ux * w, uy * h
+        rx, ry = rng.uniform(0.05, 0.3, 2).tolist()
+        rx, ry = rx * size, ry * size
+        # Each kind's geometry and bounding box (lo_x, lo_y, hi_x, hi_y), in
+        # Python numbers: the box is only needed for a textured shape.
         if kind == 0:
             geometry: tuple = ((int(cx - rx), int(cy - ry)), (int(cx + rx), int(cy + ry)))
-            corners = np.array(geometry)
+            box = (*geometry[0], *geometry[1])
         elif kind == 1:
             axes = (int(rx) + 1, int(ry) + 1)
             geometry = ((int(cx), int(cy)), axes, float(rng.uniform(0, 180)))
-            corners = np.array([[cx - axes[0] - axes[1], cy - axes[0] - axes[1]],
-                                [cx + axes[0] + axes[1], cy + axes[0] + axes[1]]])  # fmt: skip
+            reach = axes[0] + axes[1]
+            box = (cx - reach, cy - reach, cx + reach, cy + reach)
         else:
             angles = np.sort(rng.uniform(0, 2 * np.pi, int(rng.integers(3, 7))))
             pts = np.stack([cx + rx * np.cos(angles), cy + ry * np.sin(angles)], axis=1)
-            geometry = pts.astype(np.int32)
-            corners = geometry
+            polygon = pts.astype(np.int32)
+            geometry = polygon
+            box = (*polygon.min(axis=0).tolist(), *polygon.max(axis=0).tolist())
         if rng.random() >= 0.4:  # a plain colour, drawn directly
             color = _to_channels(rng.uniform(25, 235, 3), channels).round().tolist()
             _clutter_shape(img, kind, geometry, color)
             continue
         # A textured shape: its mask, drawn only over its bounding box.
-        x0, y0 = np.maximum(np.floor(corners.min(axis=0)).astype(int) - 1, 0).tolist()
-        x1, y1 = np.minimum(np.ceil(corners.max(axis=0)).astype(int) + 2, (w, h)).tolist()
+        x0, y0 = max(math.floor(box[0]) - 1, 0), max(math.floor(box[1]) - 1, 0)
+        x1, y1 = min(math.ceil(box[2]) + 2, w), min(math.ceil(box[3]) + 2, h)
         if x1 <= x0 or y1 <= y0:
             continue
         mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
         _clutter_shape(mask, kind, geometry, 255, (x0, y0))
-        _paint_texture(img[y0:y1, x0:x1], mask > 0, rng)
+        _paint_texture(img[y0:y1, x0:x1], mask, rng)
     for _ in range(n_lines):
-        p0 = rng.uniform(0, 1, 2) * (w, h)
+        x0f, y0f = rng.uniform(0, 1, 2).tolist()
+        x0f, y0f = x0f * w, y0f * h
         direction = rng.normal(size=2)
-        direction /= np.linalg.norm(direction) + 1e-12
+        # np.linalg.norm of a real vector is sqrt(x . x): the same bits, without its wrapper.
+        norm = math.sqrt(direction.dot(direction)) + 1e-12
+        dx, dy = direction.tolist()
+        dx, dy = dx / norm, dy / norm
         length = rng.uniform(0.2, 1.0) * size
-        p1 = p0 + length * direction
         color = _to_channels(rng.uniform(20, 240, 3), channels).round().tolist()
         thickness = int(rng.integers(1, 3)) * max(1, size // 128)
         cv2.line(
             img,
-            (int(p0[0]), int(p0[1])),
-            (int(p1[0]), int(p1[1])),
+            (int(x0f), int(y0f)),
+            (int(x0f + length * dx), int(y0f + length * dy)),
             color,
             thickness,
             cv2.LINE_AA,
@@ -670,8 +689,9 @@ def figure_sequences(
     Each sequence's poses are brought into its cameras' frames as
     :func:`figure_sequence` does; then the silhouettes, shading and depth
     order of the frames of every sequence whose figure has the same radii and
-    aspect and whose cameras the same intrinsics are computed together. The
-    result is the same, frame for frame and bit for bit, as one call per
+    aspect and whose cameras the same intrinsics are computed together (in
+    chunks of whole sequences of up to 64 frames, the size that stays in the
+    caches). The result is the same, frame for frame and bit for bit, as one call per
     sequence (every step is elementwise over frames); the vector environment
     prepares the episodes it starts in one step this way.
 
@@ -688,8 +708,23 @@ def figure_sequences(
     for i, ((_, shape, _, _), (_, cam)) in enumerate(zip(sequences, prepared, strict=True)):
         key = (shape.radii.tobytes(), shape.aspect.tobytes(), cam.focal, cam.principal_point)
         groups.setdefault(key, []).append(i)
-    out: list[FigureSequence | None] = [None] * len(sequences)
+    # Each group is prepared in chunks of whole sequences of at most
+    # _CHUNK_FRAMES frames (a longer sequence alone): beyond about 64 frames
+    # the arrays outgrow the caches and a frame costs twice as much.
+    chunks: list[list[int]] = []
     for members in groups.values():
+        chunk: list[int] = []
+        frames = 0
+        for i in members:
+            length = prepared[i][0].shape[0]
+            if chunk and frames + length > _CHUNK_FRAMES:
+                chunks.append(chunk)
+                chunk, frames = [], 0
+            chunk.append(i)
+            frames += length
+        chunks.append(chunk)
+    out: list[FigureSequence | None] = [None] * len(sequences)
+    for members in chunks:
         first = members[0]
         shape, camera = sequences[first][1], prepared[first][1]
         stacked = np.concatenate([prepared[i][0] for i in members])
@@ -759,15 +794,18 @@ def _draw_figure(img: NDArray[np.uint8], figures: FigureSequence, t: int) -> Non
     ellipses, quads = figures.ellipses[t], figures.quads[t]
     colors = figures.colors[t].tolist()  # lists of ints, per frame, for OpenCV
     wide = figures.wide[t]
+    # Local names: this loop runs some twenty OpenCV calls per frame, and the
+    # attribute look-ups would be a tenth of its Python time.
+    fill, hull_of, line8 = cv2.fillConvexPoly, cv2.convexHull, cv2.LINE_8
     for c in figures.order[t]:
         color = colors[c]
-        hull = cv2.convexHull(ellipses[c])
         if wide[c]:
-            cv2.fillConvexPoly(img, hull, color[0], cv2.LINE_8, _SHIFT)
-            for quad, strip_color in zip(quads[c], color[2:], strict=True):
-                cv2.fillConvexPoly(img, quad, strip_color, cv2.LINE_8, _SHIFT)
+            fill(img, hull_of(ellipses[c]), color[0], line8, _SHIFT)
+            cone_quads = quads[c]
+            for b in range(len(color) - 2):
+                fill(img, cone_quads[b], color[b + 2], line8, _SHIFT)
         else:
-            cv2.fillConvexPoly(img, hull, color[1], cv2.LINE_8, _SHIFT)
+            fill(img, hull_of(ellipses[c]), color[1], line8, _SHIFT)
 
 
 def _draw_occluders(img: NDArray[np.uint8], background: Background, frame_index: int) -> None:
@@ -899,12 +937,22 @@ def _compose(
     background: Background,
     frame_index: int,
     where: str,
+    out: NDArray[np.uint8] | None = None,
 ) -> NDArray[np.uint8]:
-    """Background, figure, occluders, noise and blur: one frame."""
+    """Background, figure, occluders, noise and blur: one frame.
+
+    ``out``, when given, is the ``(H, W, C)`` uint8 array to draw into (the
+    vector environment draws each frame straight into its row of the batch,
+    saving a copy per frame); otherwise a new array. Returns the frame.
+    """
     scene = figures.scene
     if background.scene is not scene and background.scene != scene:
         raise ValueError(f"{where}: the background was made for other scene options")
-    img = background.image.copy()
+    if out is None:
+        img = background.image.copy()
+    else:
+        img = out
+        np.copyto(img, background.image)
     canvas = img if scene.channels == 3 else img.reshape(scene.height, scene.width)
     _draw_figure(canvas, figures, t)
     if scene.occluders:
