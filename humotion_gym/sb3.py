@@ -147,11 +147,25 @@ class LearnerVecEnv(VecEnv):
         dones = terminated | truncated
         keys = set(info) | set(info.get("final_info", ()))
         terms = sorted(key for key in keys if key.startswith("reward_"))
+        # Each key's column as Python numbers, from the finished episode's
+        # final info where one ended (what ``.item()`` per episode and key
+        # gives, in one ``tolist`` per key and source).
+        final = info.get("final_info", {})
+        done_list = dones.tolist()
+        columns = []
+        for key in (*_SCALAR_INFO, *terms):
+            stepped, ended_values = info.get(key), final.get(key)
+            if ended_values is None:
+                columns.append((key, stepped.tolist()))
+                continue
+            last = ended_values.tolist()
+            now = last if stepped is None else stepped.tolist()
+            columns.append((key, [b if d else a for a, b, d in zip(now, last, done_list)]))
+        cut = (truncated & ~terminated).tolist()
         infos: list[dict[str, Any]] = []
         for i in range(self.num_envs):
-            source = info["final_info"] if dones[i] else info
-            row = {key: source[key][i].item() for key in (*_SCALAR_INFO, *terms)}
-            row["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
+            row = {key: values[i] for key, values in columns}
+            row["TimeLimit.truncated"] = cut[i]
             infos.append(row)
         ended = np.flatnonzero(dones).tolist()
         if ended:

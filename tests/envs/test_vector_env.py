@@ -163,8 +163,11 @@ def test_learner_vec_env_equals_dummy_vec_env_of_learner_envs():
         _assert_same(rewards, want[1], f"step {t}")
         _assert_same(dones, want[2], f"step {t}")
         for got_info, want_info in zip(infos, want[3], strict=True):
-            for key in ("TimeLimit.truncated", "error_mm", "lost"):
+            terms = [key for key in got_info if key.startswith("reward_")]
+            assert terms
+            for key in ("TimeLimit.truncated", "error_mm", "error_all_mm", "lost", *terms):
                 assert got_info[key] == want_info[key], (t, key)
+                assert type(got_info[key]) is type(want_info[key]), (t, key)
             assert ("terminal_observation" in got_info) == ("terminal_observation" in want_info)
             if "terminal_observation" in want_info:
                 ends += 1
