@@ -155,7 +155,8 @@ class LearnerVecEnv(VecEnv):
         columns = []
         for key in (*_SCALAR_INFO, *terms):
             stepped, ended_values = info.get(key), final.get(key)
-            if ended_values is None:
+            if ended_values is None:  # no episode ended: every one stepped
+                assert stepped is not None
                 columns.append((key, stepped.tolist()))
                 continue
             last = ended_values.tolist()
