@@ -50,8 +50,11 @@ class ArmTrackEnv(PoseTrackingEnv):
     initial pose), all chosen by cross-validation on training persons
     (``humotion-gym select``): only two of the ten cones move, the foreground
     term rewards an arm laid over the torso, and edges alone are explained as
-    well by an arm laid along the torso's side or the clutter. Agents pass the
-    given body to ``observation_model.prepare`` (``GivenBody``).
+    well by an arm laid along the torso's side or the clutter. It also reads
+    the backdrop at the first frame (``backdrop=True``: the pixels the given
+    initial pose leaves uncovered), and drops the clutter's edges away from
+    the figure. Agents pass the given body to ``observation_model.prepare``
+    (``GivenBody``, with the backdrop from ``observation_model.read_backdrop``).
 
     ## Given Truth
 

@@ -36,6 +36,16 @@ class BodyTrackEnv(PoseTrackingEnv):
     percentile of a 30-frame episode's forward travel on the training persons).
     Faster motion (runs, dashes) can leave the frame in part.
 
+    The likelihood (``observation_model``) is the shared one plus the backdrop
+    read at the first frame (``backdrop=True``: pixels the given initial pose
+    leaves uncovered show it, so clutter is not foreground and its edges away
+    from the figure are dropped) and the coverage term (``coverage_weight=2``,
+    64 points: foreground the cones leave uncovered costs), chosen by
+    cross-validation on training persons (``humotion-gym select``;
+    ``tasks.BODY_OBSERVATION``). Agents pass ``GivenBody(..., backdrop=
+    observation_model.read_backdrop(first_frame, initial_pose, shape, camera))``
+    to ``observation_model.prepare``.
+
     ## Given Truth
 
     None: every parameter is free, so ``info["fixed_params"]`` is empty. The

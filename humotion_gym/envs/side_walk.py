@@ -42,6 +42,16 @@ class SideWalkEnv(PoseTrackingEnv):
     horizontally. The framing is set from the first frame: the initial pose
     about the pelvis, grown by 0.45 m forward and back for the limbs' swing.
 
+    The likelihood (``observation_model``) is the shared one plus the backdrop
+    read at the first frame (``backdrop=True``: pixels the given initial pose
+    leaves uncovered show it, so clutter is not foreground and its edges away
+    from the figure are dropped) and the coverage term (``coverage_weight=2``,
+    64 points: foreground the cones leave uncovered costs), chosen by
+    cross-validation on training persons (``humotion-gym select``;
+    ``tasks.SIDE_OBSERVATION``). Agents pass ``GivenBody(..., backdrop=
+    observation_model.read_backdrop(first_frame, initial_pose, shape, camera))``
+    to ``observation_model.prepare``.
+
     ## Given Truth
 
     ``info["fixed_params"]`` gives, for the frame on show, the true values of

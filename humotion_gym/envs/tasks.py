@@ -122,7 +122,7 @@ class TaskSpec:
     description: str = ""
     min_motion_mm: float = 0.0
     motion_anchor: str = "pelvis"
-    observation: tuple[tuple[str, float | int], ...] = ()
+    observation: tuple[tuple[str, float | int | bool], ...] = ()
 
     def __post_init__(self) -> None:
         unknown = [n for n in self.free if n not in PARAM_INDEX]
@@ -190,13 +190,47 @@ ARM_MIN_MOTION_MM = 150.0
 # residual_weight=0,1 --data-dir ../shared/mocap`` gave 149 mm for both at 1,
 # 152 for appearance alone, 163 for residual edges alone, 160 for neither, 169-171
 # at appearance 3 (hold: 217 mm).
-ARM_OBSERVATION: tuple[tuple[str, float | int], ...] = (
+# Then the backdrop read at the first frame (ObservationModel.backdrop; on
+# ArmTrack its effect is the clutter edges it drops, as the arm's axis points
+# read the appearance maps, not the foreground), the same way:
+# ``humotion-gym select --task ArmTrack-v1 --grid backdrop=0,1
+# foreground_weight=0,0.5 --data-dir ../shared/mocap`` gave 144.1 mm with it
+# against 149.7 without (foreground weight no change); ``--grid backdrop=1
+# coverage_weight=0,1,2,4,8`` 144.1 mm without the coverage term and 154-178
+# with it; ``--grid backdrop=1 appearance_weight=0,1 foreground_weight=0.5,1
+# backdrop_reach=2,5`` 146.6-154.0 (hold: 217.2 mm).
+ARM_OBSERVATION: tuple[tuple[str, float | int | bool], ...] = (
     ("sharpness", 3.0),
     ("foreground_weight", 0.0),
     ("orientation_bins", 8),
     ("residual_weight", 1.0),
     ("appearance_weight", 1.0),
+    ("backdrop", True),
 )
+# The whole-body tasks: the backdrop and the coverage term (foreground pixels
+# of the known backdrop that no cone covers cost; ObservationModel.
+# coverage_weight), chosen on training persons (pf-tree, 300 particles, 20
+# episodes of CMU subjects 1, 5 and 7):
+# ``humotion-gym select --task TASK --grid backdrop=0,1 coverage_weight=0,1,2,4
+# --data-dir ../shared/mocap`` (BodyTrack: ``backdrop=1 coverage_weight=0,0.5,1,
+# 2,4``) gave, without the backdrop / with it alone / with coverage 2:
+# BodyTrack 235.4 / 234.2 / 210.4 mm (hold 653.8), WalkTrack 514.9 / 451.2 /
+# 411.3 (hold 1730.5), SideWalk 146.9 / 141.7 / 103.1 (hold 229.1). The
+# coverage points per frame (``--grid backdrop=1 coverage_weight=2
+# coverage_points=32,64,96``; time grows with them): BodyTrack 225.1 / 214.5 /
+# 213.9, SideWalk 110.1 / 96.0 / 114.9, so 64; WalkTrack at 64 points
+# (``coverage_weight=1,2,4``): 447.8 / 437.2 / 414.5, so weight 4 there.
+BODY_OBSERVATION: tuple[tuple[str, float | int | bool], ...] = (
+    ("backdrop", True),
+    ("coverage_weight", 2.0),
+    ("coverage_points", 64),
+)
+WALK_OBSERVATION: tuple[tuple[str, float | int | bool], ...] = (
+    ("backdrop", True),
+    ("coverage_weight", 4.0),
+    ("coverage_points", 64),
+)
+SIDE_OBSERVATION = BODY_OBSERVATION
 
 ARM_TRACK = TaskSpec(
     name="ArmTrack-v1",
@@ -225,6 +259,7 @@ BODY_TRACK = TaskSpec(
     labels=None,
     episode_frames=30,
     camera=CameraSpec(azimuth_deg=30.0, elevation_deg=10.0, fov_deg=45.0, travel_mm=BODY_TRAVEL_MM),
+    observation=BODY_OBSERVATION,
     description="whole body, mixed activities (Sidenbladh et al. 2002, Fig. 7)",
 )
 
@@ -236,6 +271,7 @@ WALK_TRACK = TaskSpec(
     episode_frames=60,
     camera=CameraSpec(azimuth_deg=30.0, elevation_deg=10.0, fov_deg=45.0, travel_mm=WALK_TRAVEL_MM),
     root_range_mm=5000.0,
+    observation=WALK_OBSERVATION,
     description="walking, longer episodes (Ormoneit et al. 2005, Fig. 11)",
 )
 
@@ -261,6 +297,7 @@ SIDE_WALK = TaskSpec(
         follow="pelvis_xy",
         travel_mm=SIDE_SWING_MM,
     ),  # fmt: skip
+    observation=SIDE_OBSERVATION,
     description="fronto-parallel walking and jogging, side view (Pavlovic et al. 1999, Fig. 4)",
 )
 

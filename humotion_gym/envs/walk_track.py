@@ -33,6 +33,16 @@ class WalkTrackEnv(PoseTrackingEnv):
     up to 2.8 m (about the 80th percentile of a 60-frame walk on the training
     persons), 0.3 m to each side and 0.1 m up and down.
 
+    The likelihood (``observation_model``) is the shared one plus the backdrop
+    read at the first frame (``backdrop=True``: pixels the given initial pose
+    leaves uncovered show it, so clutter is not foreground and its edges away
+    from the figure are dropped) and the coverage term (``coverage_weight=4``,
+    64 points: foreground the cones leave uncovered costs), chosen by
+    cross-validation on training persons (``humotion-gym select``;
+    ``tasks.WALK_OBSERVATION``). Agents pass ``GivenBody(..., backdrop=
+    observation_model.read_backdrop(first_frame, initial_pose, shape, camera))``
+    to ``observation_model.prepare``.
+
     ## Given Truth
 
     None: every parameter is free, so ``info["fixed_params"]`` is empty. The
