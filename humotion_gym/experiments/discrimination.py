@@ -32,34 +32,56 @@ FloatArray = NDArray[np.float64]
 
 def _scored_frames(
     env: gym.Env, episodes: int, seed: int, frame_stride: int
-) -> Iterator[tuple[NDArray[np.uint8], dict[str, Any], FloatArray]]:
+) -> Iterator[tuple[NDArray[np.uint8], dict[str, Any], FloatArray, GivenBody]]:
     """Every ``frame_stride``-th frame of seeded episodes tracked with the truth.
 
     Yields:
-        ``(frame, info, true pose)``; the truth is read from the library through
-        the ``clip_id`` and ``frame`` the environment reports.
+        ``(frame, info, true pose, given body)``; the truth is read from the
+        library through the ``clip_id`` and ``frame`` the environment reports;
+        the given body is what an agent has of the frame (:func:`_given`).
     """
     base = env.unwrapped
     for k in range(episodes):
         obs, info = env.reset(seed=seed + k)
+        first = (obs, info)
         motion = base.library[info["clip_id"]]
         step = 0
         while True:
             truth = motion.params[info["frame"]]
             if step % frame_stride == 0:
-                yield obs, info, truth
+                yield obs, info, truth, _given(base, truth, info, first)
             obs, _, terminated, truncated, info = env.step(base.pose_to_action(truth))
             step += 1
             if terminated or truncated:
                 break
 
 
-def _given(base: Any, truth: FloatArray, info: dict[str, Any]) -> GivenBody:
-    """What the task gives of the frame's body (the agent's view, not the truth's free part)."""
+def _given(
+    base: Any,
+    truth: FloatArray,
+    info: dict[str, Any],
+    first: tuple[NDArray[np.uint8], dict[str, Any]],
+) -> GivenBody:
+    """What the task gives of the frame's body (the agent's view, not the truth's free part).
+
+    With what a particle-filter agent reads at the episode's first frame
+    (``first``: its frame and info) where the task's model uses it: each
+    cone's colour and the backdrop.
+    """
     pose = np.zeros_like(truth)
     fixed = base.task.fixed_indices
     pose[fixed] = info["fixed_params"]
-    return GivenBody(pose, base.task.free_indices, base.shape, info["camera"])
+    model = base.observation_model
+    frame0, info0 = first
+    initial = np.asarray(info0["initial_pose"], dtype=np.float64)
+    colors = backdrop = None
+    if model.appearance_weight > 0:
+        colors = model.cone_colors(frame0, initial, base.shape, info0["camera"])
+    if model.backdrop:
+        backdrop = model.read_backdrop(frame0, initial, base.shape, info0["camera"])
+    return GivenBody(
+        pose, base.task.free_indices, base.shape, info["camera"], colors, backdrop
+    )
 
 
 def likelihood_discrimination(
@@ -102,7 +124,7 @@ def likelihood_discrimination(
     gaps: list[FloatArray] = []
     errors: list[FloatArray] = []
     frames = 0
-    for obs, info, truth in _scored_frames(env, episodes, seed, frame_stride):
+    for obs, info, truth, given in _scored_frames(env, episodes, seed, frame_stride):
         # Gaussian steps whose size is log-uniform: 0.02-1 rad on angles,
         # 20-1000 mm on a free root position.
         size = np.exp(rng.uniform(np.log(0.02), np.log(1.0), (perturbations, 1)))
@@ -111,7 +133,7 @@ def likelihood_discrimination(
         poses[1:, free] += step_size * rng.standard_normal((perturbations, free.size))
         kp = forward_kinematics(poses, base.shape)[:, scored]
         err = np.linalg.norm(kp[1:] - kp[:1], axis=-1).mean(axis=1)
-        feats = base.observation_model.prepare(obs, _given(base, truth, info))
+        feats = base.observation_model.prepare(obs, given)
         loglik = base.observation_model.log_likelihood(feats, poses, base.shape, info["camera"])
         gaps.append(loglik[0] - loglik[1:])
         errors.append(err)
@@ -166,12 +188,12 @@ def likelihood_peak_error(
     scale = np.where(ANGLE_MASK[free], spread, spread * 1000.0)
     rng = np.random.default_rng([seed, 8])
     typical, peak, weighted = [], [], []
-    for obs, info, truth in _scored_frames(env, episodes, seed, frame_stride):
+    for obs, info, truth, given in _scored_frames(env, episodes, seed, frame_stride):
         poses = np.broadcast_to(truth, (candidates + 1, truth.size)).copy()
         poses[1:, free] += scale * rng.uniform(-1.0, 1.0, (candidates, free.size))
         kp = forward_kinematics(poses, base.shape)[:, scored]
         err = np.linalg.norm(kp[1:] - kp[:1], axis=-1).mean(axis=1)
-        feats = base.observation_model.prepare(obs, _given(base, truth, info))
+        feats = base.observation_model.prepare(obs, given)
         loglik = base.observation_model.log_likelihood(feats, poses[1:], base.shape, info["camera"])
         w = np.exp(loglik - loglik.max())
         w /= w.sum()
