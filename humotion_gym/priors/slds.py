@@ -134,7 +134,7 @@ def fit_activity(
     n_iter: int = N_ITER,
     frame_skip: int = 1,
     label: str | None = None,
-    max_batch: int = 32,
+    max_batch: int = 64,
     max_radius: float | None = None,
     progress: Callable[[int, float], None] | None = None,
 ) -> EMResult:
@@ -149,7 +149,8 @@ def fit_activity(
         n_iter: EM iterations.
         frame_skip: Use every ``frame_skip``-th frame.
         label: Name of the activity (the clips' label when None).
-        max_batch: Sequences decoded together.
+        max_batch: Sequences decoded together (64: fewer steps of the time loop than 32,
+            and the covariance table keeps the work per step nearly flat in it).
         max_radius: After EM, pull every model's eigenvalues inside this radius
             (:func:`~humotion_gym.priors.slds_inference.stabilise`); None (the
             default) keeps EM's estimate, the better one-step predictor.

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -32,6 +33,7 @@ from scipy.cluster.vq import kmeans2
 
 from humotion_gym.priors.slds_inference import (
     EMISSIONS,
+    CovarianceTable,
     Measurements,
     Sequences,
     SLDSParams,
@@ -441,15 +443,19 @@ def _e_step(
     seqs: Sequences,
     old_path: IntArray | None,
     stats: _Stats | None,
+    table: CovarianceTable | None = None,
 ) -> tuple[IntArray, float]:
     """Viterbi E-step on one batch; keeps the old path where it costs less.
 
     The filter along the new path comes with the decoding
     (:func:`~humotion_gym.priors.slds_inference.viterbi_filter`); only the
     sequences whose path changed are filtered along their old path, to compare.
+    ``table`` (one per E-step, shared by its batches) holds the covariances,
+    which do not depend on the data.
     """
     meas = measurement_terms(params, seqs)
-    path, new_cost, filt = viterbi_filter(params, seqs, meas)
+    table = CovarianceTable(params, meas.R) if table is None else table
+    path, new_cost, filt = viterbi_filter(params, seqs, meas, table=table)
     if old_path is None:
         differ = np.zeros(seqs.n, dtype=bool)
     else:
@@ -459,15 +465,20 @@ def _e_step(
     if idx.size:
         assert old_path is not None
         meas_old = Measurements(meas.z[idx], meas.R, meas.const[idx])
-        old = filter_path(params, seqs.take(idx), old_path[idx], meas_old)
+        old = filter_path(params, seqs.take(idx), old_path[idx], meas_old, table=table)
         back = idx[old.cost < new_cost[idx]]  # the new path must cost no more to replace it
         if back.size:
             pick = np.flatnonzero(old.cost < new_cost[idx])
             path = path.copy()
             path[back] = old_path[back]
             cost[back] = old.cost[pick]
-            fields = [filt.m_pred, filt.p_pred, filt.m_filt, filt.p_filt]
-            olds = [old.m_pred, old.p_pred, old.m_filt, old.p_filt]
+            fields: list[NDArray[Any]] = [filt.m_pred, filt.p_pred, filt.m_filt, filt.p_filt]
+            olds: list[NDArray[Any]] = [old.m_pred, old.p_pred, old.m_filt, old.p_filt]
+            # The ids too (one table for both), for the smoother's shared gains.
+            assert filt.pred_id is not None and filt.filt_id is not None
+            assert old.pred_id is not None and old.filt_id is not None
+            fields += [filt.pred_id, filt.filt_id]
+            olds += [old.pred_id, old.filt_id]
             for field, value in zip(fields, olds, strict=True):
                 field[back] = value[pick]
     if stats is not None:
@@ -597,8 +608,11 @@ def fit_em(
         last = it == n_iter
         stats = None if last else _Stats.zeros(params.n_states, dx, dy)
         total = 0.0
+        # One covariance table for every batch: the measurement noise the filters
+        # see does not depend on the batch (it is R, or (C' R^-1 C)^-1).
+        table = CovarianceTable(params, measurement_terms(params, batches[0]).R)
         for k, batch in enumerate(batches):
-            paths[k], cost = _e_step(params, batch, paths[k], stats)
+            paths[k], cost = _e_step(params, batch, paths[k], stats, table)
             total += cost
         costs.append(total + penalty(params, reg))
         if progress is not None:

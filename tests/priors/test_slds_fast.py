@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_slds import random_model  # the same small random models
+from test_slds import _spd, random_model  # the same small random models
 
 from humotion_gym.priors.slds_inference import (
+    COV_RTOL,
+    CovarianceTable,
     filter_path,
     length_batches,
     pack,
@@ -62,8 +64,8 @@ def test_viterbi_filter_is_viterbi_and_the_filter_along_its_path(emission, order
     np.testing.assert_array_equal(path, path2)
     np.testing.assert_array_equal(cost, cost2)
     ref = filter_path(params, seqs, path)
-    # The same filter written two ways (H A P A' H' + H Q H' + R against
-    # H (A P A' + Q) H' + R): equal up to rounding, inside every sequence.
+    # The same filter read back from Viterbi and run along the path (each with
+    # its own covariance table): equal up to the table's tolerance.
     valid = seqs.valid
     for name in ("m_pred", "p_pred", "m_filt", "p_filt"):
         a, b = getattr(filt, name)[valid], getattr(ref, name)[valid]
@@ -105,3 +107,88 @@ def test_em_progress_is_called_once_per_e_step():
     result = fit_em(ys, n_states=2, n_iter=4, tol=0.0, progress=lambda it, c: calls.append((it, c)))
     assert [it for it, _ in calls] == list(range(len(result.costs)))
     np.testing.assert_array_equal([c for _, c in calls], result.costs)
+
+
+def plain_kalman(params, y, observed, path):
+    """Kalman filter of one sequence on the full measurement ``y = C x + d + N(0, R)``.
+
+    Written directly from the model (eqs. 1-6), one frame and one matrix at a
+    time; the oracle of the table-based filters.
+    """
+    a, b, q, c, d, r = params.A, params.b, params.Q, params.C, params.d, params.R
+    m, p = params.x0[path[0]].copy(), params.Q0[path[0]].copy()
+    cost = -np.log(params.pi0[path[0]])
+    out = {k: [] for k in ("m_pred", "p_pred", "m_filt", "p_filt")}
+    for t in range(len(path)):
+        if t > 0:
+            s = path[t]
+            m, p = a[s] @ m + b[s], a[s] @ p @ a[s].T + q[s]
+            cost -= np.log(params.Pi[path[t - 1], s])
+        out["m_pred"].append(m)
+        out["p_pred"].append(p)
+        if observed[t]:
+            s_cov = c @ p @ c.T + r
+            e = y[t] - c @ m - d
+            k = np.linalg.solve(s_cov, c @ p).T
+            cost += (
+                0.5 * e @ np.linalg.solve(s_cov, e) + 0.5 * np.linalg.slogdet(2 * np.pi * s_cov)[1]
+            )
+            m, p = m + k @ e, p - k @ s_cov @ k.T
+        out["m_filt"].append(m)
+        out["p_filt"].append(p)
+    return {k: np.array(v) for k, v in out.items()}, cost
+
+
+@pytest.mark.parametrize(("emission", "order"), [("identity", 2), ("identity", 1), ("learned", 1)])
+def test_table_filters_match_a_plain_kalman_filter(emission, order):
+    params, seqs = ragged_batch(5, emission, order)
+    # A random path (switching often: many distinct covariances), then Viterbi's own.
+    path = np.random.default_rng(6).integers(0, params.n_states, size=seqs.observed.shape)
+    for decoded in (False, True):
+        if decoded:
+            path, _, filt = viterbi_filter(params, seqs)
+        else:
+            filt = filter_path(params, seqs, path)
+        for k in range(seqs.n):
+            n = seqs.lengths[k]
+            ref, cost = plain_kalman(params, seqs.y[k, :n], seqs.observed[k, :n], path[k, :n])
+            for name, want in ref.items():
+                got = getattr(filt, name)[k, :n]
+                np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9 * np.abs(want).max())
+            np.testing.assert_allclose(filt.cost[k], cost, rtol=1e-10)
+
+
+def test_covariance_table_ids_hold_their_matrix_to_the_tolerance():
+    rng = np.random.default_rng(7)
+    params = random_model(rng, "identity", order=2, n_states=3, dy=3)
+    table = CovarianceTable(params, params.R)
+    base = np.stack([_spd(rng, 6, 1.0) for _ in range(20)])
+    ids = table.insert(base)
+    assert len(set(ids.tolist())) == 20  # distinct matrices, distinct ids
+    np.testing.assert_array_equal(table.insert(base[::-1]), ids[::-1])  # found again
+    scale = np.abs(np.diagonal(base, axis1=1, axis2=2)).max(axis=1)
+    # Any matrix near an entry: whichever id it gets holds it to within rtol * scale,
+    # and one farther than that from every entry gets an id of its own.
+    for size in (1e-3, 0.3, 3.0):
+        near = base + size * COV_RTOL * scale[:, None, None] * rng.standard_normal(base.shape)
+        got = table.insert(near)
+        err = np.abs(table.cov[got] - near).max(axis=(1, 2))
+        assert np.all(err <= COV_RTOL * scale)
+        if size > 2.5:
+            assert not np.any(got == ids)
+    assert np.all(table.insert(base) == ids)
+
+
+def test_one_table_shared_by_batches_gives_what_a_table_each_gives():
+    params, seqs = ragged_batch(8)
+    first, second = seqs.take([0, 1, 2]), seqs.take([3, 4])
+    shared = CovarianceTable(params, params.R)
+    for part in (first, second):
+        path, cost, filt = viterbi_filter(params, part, table=shared)
+        path2, cost2, filt2 = viterbi_filter(params, part)
+        np.testing.assert_array_equal(path, path2)
+        np.testing.assert_allclose(cost, cost2, rtol=1e-12)
+        sm = rts_smoother(params, path, filt, part.lengths)
+        sm2 = rts_smoother(params, path, filt2, part.lengths)
+        np.testing.assert_allclose(sm.cov, sm2.cov, rtol=1e-8, atol=1e-12)
+        np.testing.assert_allclose(sm.mean, sm2.mean, rtol=1e-8, atol=1e-12)
