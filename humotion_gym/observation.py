@@ -1139,14 +1139,17 @@ class ObservationModel:
         """Mean truncated squared distance of the coverage points outside the free cones.
 
         A cone's projection is taken as its projected axis segment widened by
-        the interpolated projected radius, with the end radii as round caps in
-        the box sense: a point's distance outside it is ``max(|p|, e) - r``,
-        ``p`` its signed distance across the axis, ``e`` how far it lies
-        beyond the nearer end along it (negative between the ends) and ``r``
-        the radius at its foot on the axis. ``p`` and the position along the
-        axis are linear in the point, so one matrix product gives them for
-        every (cone, pose, point); each point reads the nearest cone of each
-        pose. Chunks of poses bound the scratch memory.
+        the projected radius, interpolated linearly along the axis, with the
+        end radii as round caps in the box sense: a point's distance outside
+        it is ``max(|p| - r, |a - L/2| - L/2 - r)``, ``p`` its signed distance
+        across the axis, ``a`` its position along it from the start, ``L``
+        the axis' length and ``r`` the radius at its foot on the axis. ``p``,
+        ``a - L/2``, ``r`` and ``L/2 + r`` are linear in the point, so one
+        matrix product gives all four for every (cone, pose, point) and three
+        passes finish the distance; each point reads the nearest cone of each
+        pose. Beyond the ends the radius is extrapolated (by the cone's taper
+        over a few pixels: a fraction of a pixel). Chunks of poses keep the
+        scratch in cache.
         """
         f4 = np.float32
         assert feats.coverage is not None and feats.coverage_cones is not None
@@ -1158,44 +1161,47 @@ class ObservationModel:
         length = np.sqrt(d_x * d_x + d_y * d_y)
         # A cone seen end-on has no axis direction: any will do (x).
         flat = length < f4(1e-3)
-        u_x = np.where(flat, f4(1.0), d_x / np.maximum(length, f4(1e-3)))
-        u_y = np.where(flat, f4(0.0), d_y / np.maximum(length, f4(1e-3)))
+        safe = np.maximum(length, f4(1e-3))
+        u_x = np.where(flat, f4(1.0), d_x / safe)
+        u_y = np.where(flat, f4(0.0), d_y / safe)
+        half = f4(0.5) * length
+        slope = (r_e - r_s) / safe
         cones = s_x.shape[0]
-        # Rows (cone, pose): along = q.u - s.u, across = q.n - s.n, n = (-u_y, u_x).
-        coef = np.empty((2, cones, n, 3), f4)
-        coef[0, ..., 0], coef[0, ..., 1] = u_x, u_y
-        coef[0, ..., 2] = -(s_x * u_x + s_y * u_y)
+        # Rows (quantity, cone, pose) of coefficients of (x, y, 1):
+        # along - L/2 = q.u - s.u - L/2; across = q.n - s.n with n = (-u_y, u_x);
+        # r = r_s + slope (q.u - s.u); L/2 + r.
+        coef = np.empty((4, cones, n, 3), f4)
+        s_u = s_x * u_x + s_y * u_y
+        coef[0, ..., 0], coef[0, ..., 1], coef[0, ..., 2] = u_x, u_y, -s_u - half
         coef[1, ..., 0], coef[1, ..., 1] = -u_y, u_x
         coef[1, ..., 2] = s_x * u_y - s_y * u_x
-        half = f4(0.5) * length
-        slope = (r_e - r_s) / np.maximum(length, f4(1e-3))
+        coef[2, ..., 0], coef[2, ..., 1] = slope * u_x, slope * u_y
+        coef[2, ..., 2] = r_s - slope * s_u
+        coef[3, ..., :2] = coef[2, ..., :2]
+        coef[3, ..., 2] = coef[2, ..., 2] + half
         q = np.vstack([feats.coverage, np.ones((1, feats.coverage.shape[1]), f4)])  # (3, F)
         scale = feats.height / self.reference_height
         tau = f4(self.coverage_truncation * scale)
         e = q.shape[1]
         unit = self.coverage_weight / (2.0 * (self.edge_sigma * scale) ** 2 * e)
         out = np.empty(n)
-        chunk = max(1, 100_000 // max(1, cones * e))
+        chunk = max(1, 32_768 // max(1, cones * e))
+        lin = np.empty(4 * cones * min(chunk, n) * e, f4)
         for lo in range(0, n, chunk):
-            sl = slice(lo, lo + chunk)
             m = min(chunk, n - lo)
-            lin = np.matmul(coef[:, :, sl].reshape(-1, 3), q).reshape(2, cones, m, e)
-            along, across = lin[0], lin[1]
+            rows = coef[:, :, lo : lo + m].reshape(-1, 3)
+            work = lin[: 4 * cones * m * e].reshape(4 * cones * m, e)
+            np.matmul(rows, q, out=work)
+            along, across, radius, reach = work.reshape(4, cones, m, e)
             np.abs(across, out=across)
-            h = half[:, sl, None]
-            beyond = np.subtract(along, h)
-            np.abs(beyond, out=beyond)
-            beyond -= h
-            np.maximum(across, beyond, out=across)
-            # The radius at the foot of the point on the axis.
-            np.clip(along, f4(0.0), length[:, sl, None], out=along)
-            along *= slope[:, sl, None]
-            along += r_s[:, sl, None]
-            across -= along
+            across -= radius
+            np.abs(along, out=along)
+            along -= reach
+            np.maximum(across, along, out=across)
             outside = np.min(across, axis=0)  # (m, F)
             np.clip(outside, f4(0.0), tau, out=outside)
             outside *= outside
-            out[sl] = outside.sum(axis=1, dtype=np.float64)
+            out[lo : lo + m] = outside.sum(axis=1, dtype=np.float64)
         out *= unit
         return out
 

@@ -105,8 +105,8 @@ def box_outside(q: np.ndarray, start: np.ndarray, end: np.ndarray, r0: float, r1
     along = (q - start) @ u
     across = np.abs((q - start) @ n)
     beyond = np.abs(along - length / 2) - length / 2
-    foot = np.clip(along, 0.0, length)
-    return np.maximum(across, beyond) - (r0 + (r1 - r0) * foot / length)
+    radius = r0 + (r1 - r0) * along / length  # linear, extrapolated beyond the ends
+    return np.maximum(across, beyond) - radius
 
 
 def test_coverage_cost_matches_its_definition(episode) -> None:
