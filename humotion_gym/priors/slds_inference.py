@@ -848,34 +848,35 @@ def rts_smoother(
     if t_max < 2:
         return SmootherResult(mean, cov, cross)
     # The gains G_t = P_{t|t} A' P_{t+1|t}^-1 (P_pred symmetric) depend on the filter
-    # alone: one batched solve for every frame instead of one per frame (the same
-    # LAPACK call on the same matrices, so the same numbers).
+    # alone: batched solves before the loop instead of one per frame (the same
+    # LAPACK call on the same matrices, so the same numbers). Gains and
+    # cross-covariances are formed a frame at a time in the loop: on a whole
+    # (B, T, dx, dx) batch their temporaries cost more (fresh memory) than the math.
     if filt.table is not None and filt.pred_id is not None and filt.filt_id is not None:
         # The gain depends on (P_{t|t}, P_{t+1|t}, s_{t+1}) alone: one solve per
-        # distinct triple of the table's ids, gathered for every frame.
-        n_states = params.n_states
-        key = (filt.filt_id[:, :-1] * filt.table.n + filt.pred_id[:, 1:]) * n_states + path[:, 1:]
+        # distinct triple of the table's ids.
+        n_states, n_ids = params.n_states, filt.table.n
+        key = (filt.filt_id[:, :-1] * n_ids + filt.pred_id[:, 1:]) * n_states + path[:, 1:]
         uniq, inverse = np.unique(key.ravel(), return_inverse=True)
-        states = uniq % n_states
-        rest = uniq // n_states
-        p_f, p_p = filt.table.cov[rest // filt.table.n], filt.table.cov[rest % filt.table.n]
-        g_u = np.swapaxes(np.linalg.solve(p_p, params.A[states] @ p_f), -1, -2)
-        gain = g_u[inverse.reshape(key.shape)]
+        states, rest = uniq % n_states, uniq // n_states
+        p_f, p_p = filt.table.cov[rest // n_ids], filt.table.cov[rest % n_ids]
+        gains = np.swapaxes(np.linalg.solve(p_p, params.A[states] @ p_f), -1, -2)
+        which = inverse.reshape(key.shape)
     else:
         a_next = params.A[path[:, 1:]]
-        gain = np.linalg.solve(filt.p_pred[:, 1:], a_next @ filt.p_filt[:, :-1])
-        gain = np.swapaxes(gain, -1, -2)
-    gain_t = np.swapaxes(gain, -1, -2)
+        gain_all = np.linalg.solve(filt.p_pred[:, 1:], a_next @ filt.p_filt[:, :-1])
+        gains = np.swapaxes(gain_all, -1, -2).reshape(-1, dx, dx)
+        which = np.arange(n_seq * (t_max - 1)).reshape(n_seq, t_max - 1)
     for t in range(t_max - 2, -1, -1):
         inside = (t + 1 < lengths)[:, None]
-        g = gain[:, t]
+        g = gains[which[:, t]]
+        g_t = np.swapaxes(g, -1, -2)
         m_s = filt.m_filt[:, t] + (g @ (mean[:, t + 1] - filt.m_pred[:, t + 1])[..., None])[..., 0]
-        p_s = filt.p_filt[:, t] + g @ (cov[:, t + 1] - filt.p_pred[:, t + 1]) @ gain_t[:, t]
+        p_s = filt.p_filt[:, t] + g @ (cov[:, t + 1] - filt.p_pred[:, t + 1]) @ g_t
         mean[:, t] = np.where(inside, m_s, filt.m_filt[:, t])
         cov[:, t] = np.where(inside[..., None], symmetrise(p_s), filt.p_filt[:, t])
-    # Cov[x_{t+1}, x_t | y] = P^s_{t+1} G_t', zero where t + 1 is padding.
-    inside_all = (np.arange(1, t_max)[None, :] < lengths[:, None])[..., None, None]
-    cross[:, 1:] = np.where(inside_all, cov[:, 1:] @ gain_t, 0.0)
+        # Cov[x_{t+1}, x_t | y] = P^s_{t+1} G_t', zero where t + 1 is padding.
+        cross[:, t + 1] = np.where(inside[..., None], cov[:, t + 1] @ g_t, 0.0)
     return SmootherResult(mean, cov, cross)
 
 

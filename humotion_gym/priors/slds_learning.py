@@ -150,6 +150,19 @@ def _wsum(weights: FloatArray, values: FloatArray) -> FloatArray:
     return out.reshape((weights.shape[2],) + tail)
 
 
+def _wouter(weights: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
+    """``sum_{b,t} weights[b, t, s] * a[b, t] b[b, t]'`` for every ``s`` (one GEMM).
+
+    The same sum as ``_wsum(weights, a[..., :, None] * b[..., None, :])`` without
+    forming the ``(B, T, da, db)`` outer products (``S da`` numbers a frame
+    instead of ``da db``: fresh memory, not arithmetic, is what those cost).
+    """
+    n = weights.shape[0] * weights.shape[1]
+    n_states, da, db = weights.shape[2], a.shape[-1], b.shape[-1]
+    left = (weights.reshape(n, n_states, 1) * a.reshape(n, 1, da)).reshape(n, n_states * da)
+    return (left.T @ b.reshape(n, db)).reshape(n_states, da, db)
+
+
 def _accumulate(
     stats: _Stats,
     params: SLDSParams,
@@ -163,28 +176,28 @@ def _accumulate(
     valid = seqs.valid
     w = ((path[..., None] == np.arange(n_states)) & valid[..., None]).astype(np.float64)
     m = sm.mean
-    exx = sm.cov + m[..., :, None] * m[..., None, :]
+    # E[x x'] = Cov + m m' (and the same for the lag-one pair), summed as the two
+    # parts: the outer products are never formed for every frame.
     # Transitions t-1 -> t, weighted by the switch state at t; u_{t-1} = [x_{t-1}; 1].
     # Shifted weights keep every sum over whole (contiguous) arrays.
     w_cur = w.copy()
     w_cur[:, 0] = 0.0  # weight of x_t as the target of a transition
     w_prev = np.zeros_like(w)
     w_prev[:, :-1] = w[:, 1:]  # weight of x_{t-1} as its regressor
-    stats.suu[:, :dx, :dx] += _wsum(w_prev, exx)
+    stats.suu[:, :dx, :dx] += _wsum(w_prev, sm.cov) + _wouter(w_prev, m, m)
     sum_prev = _wsum(w_prev, m)
     stats.suu[:, :dx, dx] += sum_prev
     stats.suu[:, dx, :dx] += sum_prev
     stats.suu[:, dx, dx] += w_cur.sum(axis=(0, 1))
     m_before = np.zeros_like(m)
     m_before[:, 1:] = m[:, :-1]
-    cross = sm.cross + m[..., :, None] * m_before[..., None, :]
-    stats.syu[:, :, :dx] += _wsum(w_cur, cross)
+    stats.syu[:, :, :dx] += _wsum(w_cur, sm.cross) + _wouter(w_cur, m, m_before)
     stats.syu[:, :, dx] += _wsum(w_cur, m)
-    stats.syy += _wsum(w_cur, exx)
+    stats.syy += _wsum(w_cur, sm.cov) + _wouter(w_cur, m, m)
     stats.n += w_cur.sum(axis=(0, 1))
     w0 = w[:, :1]
     stats.sx0 += _wsum(w0, m[:, :1])
-    stats.sxx0 += _wsum(w0, exx[:, :1])
+    stats.sxx0 += _wsum(w0, sm.cov[:, :1]) + _wouter(w0, m[:, :1], m[:, :1])
     stats.n0 += w0.sum(axis=(0, 1))
     stats.counts += _wsum(w[:, :-1], w[:, 1:])
     obs = (seqs.observed & valid).astype(np.float64)[..., None]
@@ -195,9 +208,9 @@ def _accumulate(
     else:
         y = seqs.y
         stats.e_yy += _wsum(obs, y**2)[0]
-        stats.e_yu[:, :dx] += _wsum(obs, y[..., :, None] * m[..., None, :])[0]
+        stats.e_yu[:, :dx] += _wouter(obs, y, m)[0]
         stats.e_yu[:, dx] += _wsum(obs, y)[0]
-        stats.e_uu[:dx, :dx] += _wsum(obs, exx)[0]
+        stats.e_uu[:dx, :dx] += (_wsum(obs, sm.cov) + _wouter(obs, m, m))[0]
         sum_m = _wsum(obs, m)[0]
         stats.e_uu[:dx, dx] += sum_m
         stats.e_uu[dx, :dx] += sum_m
