@@ -476,12 +476,13 @@ def _fit_per_part(
 # --agent pf-cv --grid fit.multiplier=0.25,0.5 fit.damping=0,0.3
 # fit.position_noise=1,1.5,2,3 --data-dir ../shared/mocap`` gave, with
 # BodyTrack's likelihood before the backdrop and coverage terms, 201 mm (hold:
-# 654 mm) for damping 0.3, against 398 mm for the best undamped model without
-# pose noise (the plain model, multiplier 1, was worse than hold on every task);
-# with them, 173 mm for these (174-186 for every other setting with pose noise
-# 1-2, 216-255 with 3). The velocity is mostly a nuisance at 30 frames per
-# second: what keeps the cloud on the person is noise on the pose itself.
-CV_SETTINGS: dict[str, float] = {"multiplier": 0.5, "damping": 0.0, "position_noise": 1.5}
+# 654 mm) for these, against 398 mm for the best undamped model without pose
+# noise (the plain model, multiplier 1, was worse than hold on every task);
+# with them, 167 mm for these again (167-175 for every other setting with pose
+# noise 1-1.5, 184-200 with 2, 228-238 with 3). The velocity is mostly a
+# nuisance at 30 frames per second: what keeps the cloud on the person is
+# noise on the pose itself.
+CV_SETTINGS: dict[str, float] = {"multiplier": 0.5, "damping": 0.3, "position_noise": 1.5}
 
 CONSTANT_VELOCITY = "humotion_gym.priors.constant_velocity"
 #: A random walk on the pose (constant velocity with no velocity): what lets a
@@ -493,13 +494,13 @@ CONSTANT_VELOCITY = "humotion_gym.priors.constant_velocity"
 #: with BodyTrack's likelihood before the backdrop and coverage terms, 197 mm
 #: on the validation persons' episodes (hold 654, pf-cv 213, pf-tree 232) and
 #: 28 mm on their 20 still episodes (hold 15.5: 1.83x; pf-cv 109, pf-tree 163)
-#: for weights cv 0.1, still 0.5. With them (and pf-cv's settings chosen again
-#: under them, above), the same run chose cv 0.1, still 0.4, pose noise 0.05:
-#: 176 mm, 31 mm still (1.98x); the lowest errors, 156-161 mm (cv 0.2-0.3,
-#: still 0.4), stood 2.1-2.7x hold's when the person stands still.
-STILL_SETTINGS: dict[str, float] = {"multiplier": 0.0, "damping": 0.0, "position_noise": 0.05}
-#: pf-mix's component weights (the tree takes the rest, 0.5); see above.
-MIX_WEIGHTS: dict[str, float] = {"weight.cv": 0.1, "weight.still": 0.4}
+#: for weights cv 0.1, still 0.5, pose noise 0.05. With them, the same run
+#: chose cv 0.2, still 0.6, pose noise 0.15: 160 mm, 30 mm still (1.95x); the
+#: lowest errors, 158-162 mm (cv 0.2-0.3, still 0.4-0.5), stood 2.3-2.7x
+#: hold's when the person stands still.
+STILL_SETTINGS: dict[str, float] = {"multiplier": 0.0, "damping": 0.0, "position_noise": 0.15}
+#: pf-mix's component weights (the tree takes the rest, 0.2); see above.
+MIX_WEIGHTS: dict[str, float] = {"weight.cv": 0.2, "weight.still": 0.6}
 
 AGENTS: dict[str, AgentSpec] = {
     "pf-cv": AgentSpec(

@@ -39,8 +39,8 @@ class BodyTrackEnv(PoseTrackingEnv):
     The likelihood (``observation_model``) is the shared one plus the backdrop
     read at the first frame (``backdrop=True``: pixels the given initial pose
     leaves uncovered show it, so clutter is not foreground and its edges away
-    from the figure are dropped) and the coverage term (``coverage_weight=2``,
-    64 points: foreground the cones leave uncovered costs), chosen by
+    from the figure are dropped) and the coverage term (``coverage_weight=4``,
+    32 points: foreground the cones leave uncovered costs), chosen by
     cross-validation on training persons (``humotion-gym select``;
     ``tasks.BODY_OBSERVATION``). Agents pass ``GivenBody(..., backdrop=
     observation_model.read_backdrop(first_frame, initial_pose, shape, camera))``
