@@ -392,20 +392,32 @@ class CovarianceTable:
     """
 
     def __init__(self, params: SLDSParams, r: FloatArray, rtol: float = COV_RTOL) -> None:
+        self.rtol = float(rtol)
+        self.n_states, self.dx = params.n_states, params.latent_dim
+        self.dz = r.shape[0]
+        # Odd multipliers of the integer hash (fixed: the table is deterministic).
+        mult = np.random.default_rng(0).integers(1, 2**62, size=self.dx * self.dx + 1)
+        self._mult = (mult * 2 + 1).astype(np.uint64)
+        self.n = 0
+        self._alloc(1 << 16)
+        self.reset(params, r)
+
+    def reset(self, params: SLDSParams, r: FloatArray) -> None:
+        """Empty the table for another model of the same sizes, keeping its memory.
+
+        EM's every E-step needs a new table; reusing the arrays (their pages
+        already mapped) saves the first-touch cost of fresh memory, which on a
+        virtual machine is a sizeable part of filling the table.
+        """
+        if (params.n_states, params.latent_dim, r.shape[0]) != (self.n_states, self.dx, self.dz):
+            raise ValueError("CovarianceTable.reset: the model's sizes differ from the table's")
         self.a = params.A
         self.a_t = np.swapaxes(params.A, -1, -2)
         self.q = params.Q
         self.r = r
-        self.rtol = float(rtol)
-        self.n_states, self.dx = params.n_states, params.latent_dim
-        self.dz = r.shape[0]
         self.n = 0
-        # Odd multipliers of the integer hash (fixed: the table is deterministic).
-        mult = np.random.default_rng(0).integers(1, 2**62, size=self.dx * self.dx + 1)
-        self._mult = (mult * 2 + 1).astype(np.uint64)
         self._hash = np.empty(0, dtype=np.uint64)  # sorted
         self._hash_id = np.empty(0, dtype=np.intp)
-        self._alloc(1 << 16)
 
     def _alloc(self, cap: int) -> None:
         """(Re)allocate the per-id arrays with room for ``cap`` ids.

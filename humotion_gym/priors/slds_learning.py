@@ -623,7 +623,11 @@ def fit_em(
         total = 0.0
         # One covariance table for every batch: the measurement noise the filters
         # see does not depend on the batch (it is R, or (C' R^-1 C)^-1).
-        table = CovarianceTable(params, measurement_terms(params, batches[0]).R)
+        r_seen = measurement_terms(params, batches[0]).R
+        if it == 0:
+            table = CovarianceTable(params, r_seen)
+        else:
+            table.reset(params, r_seen)
         for k, batch in enumerate(batches):
             paths[k], cost = _e_step(params, batch, paths[k], stats, table)
             total += cost

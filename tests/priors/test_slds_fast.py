@@ -192,3 +192,18 @@ def test_one_table_shared_by_batches_gives_what_a_table_each_gives():
         sm2 = rts_smoother(params, path, filt2, part.lengths)
         np.testing.assert_allclose(sm.cov, sm2.cov, rtol=1e-8, atol=1e-12)
         np.testing.assert_allclose(sm.mean, sm2.mean, rtol=1e-8, atol=1e-12)
+
+
+def test_a_reset_table_gives_what_a_fresh_one_gives():
+    params, seqs = ragged_batch(9)
+    other = random_model(np.random.default_rng(10), "identity", order=2, n_states=3, dy=3)
+    table = CovarianceTable(other, other.R)
+    viterbi_filter(other, seqs, table=table)  # filled for another model
+    table.reset(params, params.R)
+    path, cost, filt = viterbi_filter(params, seqs, table=table)
+    path2, cost2, filt2 = viterbi_filter(params, seqs)
+    np.testing.assert_array_equal(path, path2)
+    np.testing.assert_array_equal(cost, cost2)
+    np.testing.assert_array_equal(filt.p_filt, filt2.p_filt)
+    with pytest.raises(ValueError, match="sizes"):
+        table.reset(random_model(np.random.default_rng(11), "identity", 2, 2, dy=3), params.R)
