@@ -559,10 +559,7 @@ class ObservationModel:
             covered = _silhouette_mask(
                 pose, given.shape, given.camera, self.near_mm, cones=fixed_cones
             )
-            r = int(math.ceil(self.backdrop_margin * fg.shape[0] / self.reference_height))
-            if r > 0:
-                kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
-                covered = cv2.dilate(covered, kernel)
+            covered = _grow(covered, self.backdrop_margin * fg.shape[0] / self.reference_height)
             sure &= covered == 0
         if free_cones.size == 0:
             sure[:] = False
@@ -787,9 +784,7 @@ class ObservationModel:
                 # Edges count near the figure: within reach of a pixel that
                 # differs from the known backdrop, or where it is not known.
                 found = np.where(backdrop.known, near, 0) > self.foreground_low
-                r = max(1, int(round(self.backdrop_reach * scale)))
-                kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
-                keep = cv2.dilate(found.astype(np.uint8) * np.uint8(255), kernel)
+                keep = _grow(found.astype(np.uint8) * np.uint8(255), self.backdrop_reach * scale)
                 keep[~backdrop.known] = 255
         fg = cv2.subtract(diff, float(self.foreground_low)).astype(np.float32)
         fg *= np.float32(1.0 / (self.foreground_high - self.foreground_low))
@@ -829,11 +824,9 @@ class ObservationModel:
                 f"got {p.shape}"
             )
         scale = h / self.reference_height
-        covered = _silhouette_mask(p, shape, camera, self.near_mm)
-        r = int(math.ceil(self.backdrop_margin * scale))
-        if r > 0:
-            kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
-            covered = cv2.dilate(covered, kernel)
+        covered = _grow(
+            _silhouette_mask(p, shape, camera, self.near_mm), self.backdrop_margin * scale
+        )
         image = smooth.copy()
         image.setflags(write=False)
         known = covered == 0
@@ -1250,6 +1243,15 @@ class ObservationModel:
             xm += ym
             varying.append((cone, np.sqrt(xm, out=xm)))
         return radii.astype(f4), varying
+
+
+def _grow(mask: NDArray[np.uint8], radius: float) -> NDArray[np.uint8]:
+    """``mask`` dilated by a disc of ``radius`` pixels (rounded up; none below 1e-9)."""
+    r = int(math.ceil(radius - 1e-9))
+    if r <= 0:
+        return mask
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    return cv2.dilate(mask, kernel)
 
 
 def _channel_max(diff: NDArray[np.uint8], h: int, w: int, channels: int) -> NDArray[np.uint8]:

@@ -134,8 +134,13 @@ def test_coverage_cost_matches_its_definition(episode) -> None:
         zs, ze = cam.to_camera(geo.starts[k])[:, 2], cam.to_camera(geo.ends[k])[:, 2]
         outside = np.min(
             [
-                box_outside(q, ps[c], pe[c], cam.focal * radii[c, 0] / zs[c],
-                            cam.focal * radii[c, 1] / ze[c])  # fmt: skip
+                box_outside(
+                    q,
+                    ps[c],
+                    pe[c],
+                    cam.focal * radii[c, 0] / zs[c],
+                    cam.focal * radii[c, 1] / ze[c],
+                )  # fmt: skip
                 for c in range(body.N_CONES)
             ],
             axis=0,

@@ -60,3 +60,26 @@ COMMON_SECTIONS = """
 
     The defaults are the difficulty the leaderboard reports.
 """
+
+
+def whole_body_likelihood(task: str) -> str:
+    """The ``## Likelihood`` section of a whole-body task, from its settings."""
+    from humotion_gym.envs.tasks import get_task
+
+    settings = dict(get_task(task).observation)
+    return f"""
+    ## Likelihood
+
+    ``observation_model`` is the shared one plus the backdrop read at the
+    first frame (``backdrop=True``: pixels the given initial pose leaves
+    uncovered show it, so clutter is not foreground and its edges away from
+    the figure are dropped) and the coverage term
+    (``coverage_weight={settings["coverage_weight"]:g}``,
+    ``coverage_points={settings["coverage_points"]}``: foreground the cones
+    leave uncovered costs), chosen by cross-validation on training persons
+    (``humotion-gym select``; the commands and numbers are beside the
+    settings in ``humotion_gym/envs/tasks.py``).
+    Agents pass ``GivenBody(..., backdrop=observation_model.read_backdrop(
+    first_frame, initial_pose, shape, camera))`` to
+    ``observation_model.prepare``.
+"""

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from humotion_gym.envs._docs import COMMON_SECTIONS
+from humotion_gym.envs._docs import COMMON_SECTIONS, whole_body_likelihood
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 
 
@@ -36,16 +36,6 @@ class BodyTrackEnv(PoseTrackingEnv):
     percentile of a 30-frame episode's forward travel on the training persons).
     Faster motion (runs, dashes) can leave the frame in part.
 
-    The likelihood (``observation_model``) is the shared one plus the backdrop
-    read at the first frame (``backdrop=True``: pixels the given initial pose
-    leaves uncovered show it, so clutter is not foreground and its edges away
-    from the figure are dropped) and the coverage term (``coverage_weight=4``,
-    32 points: foreground the cones leave uncovered costs), chosen by
-    cross-validation on training persons (``humotion-gym select``;
-    ``tasks.BODY_OBSERVATION``). Agents pass ``GivenBody(..., backdrop=
-    observation_model.read_backdrop(first_frame, initial_pose, shape, camera))``
-    to ``observation_model.prepare``.
-
     ## Given Truth
 
     None: every parameter is free, so ``info["fixed_params"]`` is empty. The
@@ -63,6 +53,7 @@ class BodyTrackEnv(PoseTrackingEnv):
 
 BodyTrackEnv.__doc__ = (
     (BodyTrackEnv.__doc__ or "")
+    + whole_body_likelihood("BodyTrack-v1")
     + COMMON_SECTIONS
     + """
     ## Version History

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from humotion_gym.envs._docs import COMMON_SECTIONS
+from humotion_gym.envs._docs import COMMON_SECTIONS, whole_body_likelihood
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 
 
@@ -42,16 +42,6 @@ class SideWalkEnv(PoseTrackingEnv):
     horizontally. The framing is set from the first frame: the initial pose
     about the pelvis, grown by 0.45 m forward and back for the limbs' swing.
 
-    The likelihood (``observation_model``) is the shared one plus the backdrop
-    read at the first frame (``backdrop=True``: pixels the given initial pose
-    leaves uncovered show it, so clutter is not foreground and its edges away
-    from the figure are dropped) and the coverage term (``coverage_weight=2``,
-    64 points: foreground the cones leave uncovered costs), chosen by
-    cross-validation on training persons (``humotion-gym select``;
-    ``tasks.SIDE_OBSERVATION``). Agents pass ``GivenBody(..., backdrop=
-    observation_model.read_backdrop(first_frame, initial_pose, shape, camera))``
-    to ``observation_model.prepare``.
-
     ## Given Truth
 
     ``info["fixed_params"]`` gives, for the frame on show, the true values of
@@ -72,6 +62,7 @@ class SideWalkEnv(PoseTrackingEnv):
 
 SideWalkEnv.__doc__ = (
     (SideWalkEnv.__doc__ or "")
+    + whole_body_likelihood("SideWalk-v1")
     + COMMON_SECTIONS
     + """
     ## Version History

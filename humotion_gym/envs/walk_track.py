@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from humotion_gym.envs._docs import COMMON_SECTIONS
+from humotion_gym.envs._docs import COMMON_SECTIONS, whole_body_likelihood
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 
 
@@ -33,16 +33,6 @@ class WalkTrackEnv(PoseTrackingEnv):
     up to 2.8 m (about the 80th percentile of a 60-frame walk on the training
     persons), 0.3 m to each side and 0.1 m up and down.
 
-    The likelihood (``observation_model``) is the shared one plus the backdrop
-    read at the first frame (``backdrop=True``: pixels the given initial pose
-    leaves uncovered show it, so clutter is not foreground and its edges away
-    from the figure are dropped) and the coverage term (``coverage_weight=2``,
-    64 points: foreground the cones leave uncovered costs), chosen by
-    cross-validation on training persons (``humotion-gym select``;
-    ``tasks.WALK_OBSERVATION``). Agents pass ``GivenBody(..., backdrop=
-    observation_model.read_backdrop(first_frame, initial_pose, shape, camera))``
-    to ``observation_model.prepare``.
-
     ## Given Truth
 
     None: every parameter is free, so ``info["fixed_params"]`` is empty. The
@@ -60,6 +50,7 @@ class WalkTrackEnv(PoseTrackingEnv):
 
 WalkTrackEnv.__doc__ = (
     (WalkTrackEnv.__doc__ or "")
+    + whole_body_likelihood("WalkTrack-v1")
     + COMMON_SECTIONS
     + """
     ## Version History

@@ -79,9 +79,7 @@ def _given(
         colors = model.cone_colors(frame0, initial, base.shape, info0["camera"])
     if model.backdrop:
         backdrop = model.read_backdrop(frame0, initial, base.shape, info0["camera"])
-    return GivenBody(
-        pose, base.task.free_indices, base.shape, info["camera"], colors, backdrop
-    )
+    return GivenBody(pose, base.task.free_indices, base.shape, info["camera"], colors, backdrop)
 
 
 def likelihood_discrimination(
