@@ -79,3 +79,14 @@ def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
     assert (tmp_path / "cmu" / "entry.npz").is_file()  # downloads are kept
     assert main(["cache", "clear", "--downloads"]) == 0
     assert not (tmp_path / "cmu").exists()
+
+
+def test_discrimination_writes_its_figure(tmp_path, capsys):
+    out = tmp_path / "panels.png"
+    argv = ["discrimination", "--task", "ArmTrack-v1", "--episodes", "1", "--figure", str(out)]
+    assert main(argv) == 0
+    assert f"wrote {out}" in capsys.readouterr().out
+    import cv2
+
+    image = cv2.imread(str(out))
+    assert image is not None and image.shape[1] == 6 * image.shape[0]

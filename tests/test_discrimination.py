@@ -1,11 +1,13 @@
 """The likelihood-discrimination measurements."""
 
 import gymnasium as gym
+import numpy as np
 import pytest
 
 import humotion_gym  # noqa: F401
 from humotion_gym.experiments.discrimination import (
     likelihood_discrimination,
+    likelihood_panels,
     likelihood_peak_error,
 )
 
@@ -28,3 +30,19 @@ def test_peak_error_is_measured_from_candidates_around_the_truth():
     assert 0 < out["weighted_mm"] < out["typical_mm"]
     with pytest.raises(ValueError):
         likelihood_peak_error(env, spread=0.0)
+
+
+def test_panels_show_what_the_likelihood_reads():
+    env = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
+    h, w = env.unwrapped.scene.height, env.unwrapped.scene.width
+    image = likelihood_panels(env, seed=1, frame=12)
+    assert image.shape == (h, 6 * w, 3) and image.dtype == np.uint8
+    border_fg, model_fg = image[:, w : 2 * w, 0], image[:, 2 * w : 3 * w, 0]
+    # The backdrop makes clutter background: less of the frame is foreground.
+    assert (model_fg > 127).sum() < (border_fg > 127).sum()
+    edges, kept = image[:, 3 * w : 4 * w, 0] > 0, image[:, 4 * w : 5 * w, 0] > 0
+    assert kept.sum() < edges.sum() and not np.any(kept & ~edges)
+    with pytest.raises(ValueError, match="fewer than 500 frames"):
+        likelihood_panels(env, seed=1, frame=499)
+    with pytest.raises(ValueError, match="frame"):
+        likelihood_panels(env, frame=-1)

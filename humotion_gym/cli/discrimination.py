@@ -8,6 +8,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from humotion_gym.cli._common import (
     add_data_dir,
@@ -18,6 +19,7 @@ from humotion_gym.cli._common import (
     positive_int,
     print_json,
     task_name,
+    wrote,
 )
 
 
@@ -38,6 +40,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--distances", type=positive_float, nargs="+", default=[50.0, 100.0, 200.0],
         metavar="MM", help="error bins' centres in mm (default: 50 100 200)",
     )  # fmt: skip
+    dis.add_argument(
+        "--figure", type=Path, default=None, metavar="PNG",
+        help="also write a picture of what the likelihood reads in one frame (frame, "
+        "foreground by the border rule and by the task's model, edges before and after, "
+        "coverage points; default: none)",
+    )  # fmt: skip
     add_data_dir(dis)
     add_json(dis)
     dis.set_defaults(func=_cmd_discrimination)
@@ -48,10 +56,20 @@ def _cmd_discrimination(args: argparse.Namespace) -> int:
 
     from humotion_gym.experiments.discrimination import (
         likelihood_discrimination,
+        likelihood_panels,
         likelihood_peak_error,
     )
 
     env = gym.make(f"humotion_gym/{args.task}", terminate_on_lost=False, **env_kwargs(args))
+    if args.figure is not None:
+        import cv2
+
+        panels = likelihood_panels(env, args.seed)
+        big = cv2.resize(panels, None, fx=2, fy=2, interpolation=cv2.INTER_NEAREST)
+        args.figure.parent.mkdir(parents=True, exist_ok=True)
+        if not cv2.imwrite(str(args.figure), cv2.cvtColor(big, cv2.COLOR_RGB2BGR)):
+            raise OSError(f"--figure: could not write {args.figure}")
+        wrote(args.figure)
     out = likelihood_discrimination(env, args.episodes, args.seed, args.distances)
     out["peak"] = likelihood_peak_error(env, args.episodes, args.seed)
     if args.json:

@@ -18,6 +18,7 @@ agent never sees it.
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
+from dataclasses import replace
 from typing import Any
 
 import gymnasium as gym
@@ -205,3 +206,52 @@ def likelihood_peak_error(
         "weighted_mm": float(np.mean(weighted)),
         "frames": len(peak),
     }
+
+
+def likelihood_panels(env: gym.Env, seed: int = 0, frame: int = 10) -> NDArray[np.uint8]:
+    """A picture of what the task's likelihood reads in one frame of an episode.
+
+    The episode (seed ``seed``) is stepped with the truth to frame ``frame``;
+    the panels, left to right: the frame; the foreground probability the
+    border's colour gives; the one the task's model gives (with the backdrop
+    read at the first frame where it uses one); the frame's edges; the edges
+    the model keeps; the frame with the coverage points (green) and the
+    backdrop's unknown pixels (darkened) where the model has them.
+
+    Returns:
+        ``(H, 6 W, 3)`` uint8 RGB.
+
+    Raises:
+        ValueError: If ``frame`` is negative or past the episode.
+    """
+    if frame < 0:
+        raise ValueError(f"frame: expected a frame index >= 0, got {frame}")
+    base = env.unwrapped
+    model = base.observation_model
+    border = replace(model, backdrop=False)
+    for k, (obs, _info, _truth, given) in enumerate(_scored_frames(env, 1, seed, 1)):
+        if k < frame:
+            continue
+        plain = border.prepare(obs, None)
+        feats = model.prepare(obs, given)
+        rgb = obs if obs.shape[2] == 3 else np.repeat(obs, 3, axis=2)
+
+        def gray(a: NDArray) -> NDArray[np.uint8]:
+            return np.repeat((np.clip(a, 0, 1) * 255).astype(np.uint8)[:, :, None], 3, axis=2)
+
+        marked = rgb.copy()
+        if given.backdrop is not None and model.backdrop:
+            marked[~given.backdrop.known] //= 2
+        if feats.coverage is not None:
+            xs, ys = np.rint(feats.coverage - 1.5).astype(np.intp)
+            marked[ys, xs] = (0, 255, 0)
+        panels = [
+            rgb,
+            gray(plain.foreground),
+            gray(feats.foreground),
+            gray(plain.edges / 255.0),
+            gray(feats.edges / 255.0),
+            marked,
+        ]
+        return np.concatenate(panels, axis=1)
+    raise ValueError(f"frame: the episode has fewer than {frame + 1} frames")
