@@ -161,7 +161,8 @@ class LearnerVecEnv(VecEnv):
                 continue
             last = ended_values.tolist()
             now = last if stepped is None else stepped.tolist()
-            columns.append((key, [b if d else a for a, b, d in zip(now, last, done_list)]))
+            merged = [b if d else a for a, b, d in zip(now, last, done_list, strict=True)]
+            columns.append((key, merged))
         cut = (truncated & ~terminated).tolist()
         infos: list[dict[str, Any]] = []
         for i in range(self.num_envs):

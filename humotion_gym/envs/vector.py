@@ -140,6 +140,9 @@ class PoseTrackingVectorEnv(VectorEnv):
         self._started = np.zeros(n, np.bool_)
         self._obs = np.zeros((n, *template.observation_space.shape), np.uint8)
         self._first_figures = _FIRST_FIGURES if template.terminate_on_lost else frames
+        # _keypoints' shape tables by id(shape), each with its shape (kept alive:
+        # the id stays its own).
+        self._shape_tables: dict[int, tuple[BodyShape, FloatArray, float, FloatArray]] = {}
 
     # -- episodes ----------------------------------------------------------------
 
@@ -168,7 +171,12 @@ class PoseTrackingVectorEnv(VectorEnv):
             self._params[i] = env._episode_params
             self._truth_kp[i] = env._truth_keypoints
             self._lo[i], self._hi[i] = env._action_bounds()
-            self._torso[i], self._head[i], self._limbs[i] = _shape_table(env.shape)
+            shape = env.shape
+            # A clip's subject keeps its shape object: its table is made once.
+            table = self._shape_tables.get(id(shape))
+            if table is None or table[0] is not shape:
+                table = self._shape_tables[id(shape)] = (shape, *_shape_table(shape))
+            self._torso[i], self._head[i], self._limbs[i] = table[1:]
             self._k[i] = env._k
             self._t0[i] = env._t0
             self._lost_run[i] = 0
@@ -321,7 +329,10 @@ class PoseTrackingVectorEnv(VectorEnv):
         reward[restart] = 0.0
 
         observations = np.empty_like(self._obs)
-        restarted = self._start(np.flatnonzero(restart).tolist(), [None] * int(restart.sum()), None)
+        restart_rows = np.flatnonzero(restart).tolist()
+        restarted = (
+            self._start(restart_rows, [None] * len(restart_rows), None) if restart_rows else {}
+        )
         # Episodes about to show their first unprepared frame get the rest of
         # their figures, together.
         grow = active & ~done & (k + 1 == self._first_figures)
