@@ -477,8 +477,13 @@ def _e_step(
     cost = new_cost.copy()
     if idx.size:
         assert old_path is not None
-        meas_old = Measurements(meas.z[idx], meas.R, meas.const[idx])
-        old = filter_path(params, seqs.take(idx), old_path[idx], meas_old, table=table)
+        # Filtered only up to the longest of them: the frames after it are padding
+        # for all of them (what the smoother and the statistics see there is the
+        # new path's held moments, finite, and masked).
+        n_t = int(seqs.lengths[idx].max())
+        sub = Sequences(seqs.y[idx, :n_t], seqs.observed[idx, :n_t], seqs.lengths[idx])
+        meas_old = Measurements(meas.z[idx, :n_t], meas.R, meas.const[idx, :n_t])
+        old = filter_path(params, sub, old_path[idx, :n_t], meas_old, table=table)
         back = idx[old.cost < new_cost[idx]]  # the new path must cost no more to replace it
         if back.size:
             pick = np.flatnonzero(old.cost < new_cost[idx])
@@ -493,7 +498,7 @@ def _e_step(
             fields += [filt.pred_id, filt.filt_id]
             olds += [old.pred_id, old.filt_id]
             for field, value in zip(fields, olds, strict=True):
-                field[back] = value[pick]
+                field[back, :n_t] = value[pick]
     if stats is not None:
         sm = rts_smoother(params, path, filt, seqs.lengths)
         _accumulate(stats, params, seqs, meas, path, sm)
