@@ -330,7 +330,9 @@ class ObservationModel:
             ``backdrop_reach`` from any foreground pixel are dropped (the
             clutter's edges: the figure's outline borders its foreground).
             Elsewhere (under the initial figure, or without a backdrop) the
-            border rule and every edge remain.
+            border rule and every edge remain. The threshold rises with the
+            frame's sensor noise (measured on the known pixels); where the
+            noise hides ``foreground_high`` the border rule is used alone.
         backdrop_margin: Reference pixels (default 2) the initial pose's
             silhouette is grown by before the rest counts as known backdrop:
             the blur and the cones' rounded ends spill past their outline.
@@ -468,7 +470,7 @@ class ObservationModel:
                     f"GivenBody.backdrop: expected an image of shape {smooth.shape}, got "
                     f"{backdrop.image.shape} (known {backdrop.known.shape})"
                 )
-        fg, bg, keep = self._foreground(smooth, backdrop, scale)
+        fg, bg, keep, backdrop = self._foreground(smooth, backdrop, scale)
         edges, bins = self._oriented_edges(smooth, keep)
         n_bins = self.orientation_bins
         dist = np.empty((n_bins, h, w), np.float32)
@@ -740,17 +742,24 @@ class ObservationModel:
 
     def _foreground(
         self, smooth: NDArray[np.uint8], backdrop: Backdrop | None = None, scale: float = 1.0
-    ) -> tuple[NDArray, NDArray, NDArray[np.uint8] | None]:
+    ) -> tuple[NDArray, NDArray, NDArray[np.uint8] | None, Backdrop | None]:
         """Foreground probability from the colour distance to the background.
 
         The background is the border's median colour, and, where ``backdrop``
-        knows it, the backdrop's pixel.
+        knows it, the backdrop's pixel. The backdrop's own differences (sensor
+        noise: the frame's known pixels mostly show it) set how far a pixel
+        must differ from it to count: ``foreground_low`` or 2.5 times their
+        median (about their 99.5th percentile), whichever is larger, the
+        ramp moved up by as much. Where that passes ``foreground_high`` the
+        noise hides what the model counts as certain foreground, and the
+        border rule is used alone.
 
         Returns:
-            The ``(H, W)`` float32 probability, the border's median colour, and
-            with a backdrop and a positive ``backdrop_reach`` the uint8 mask of
-            where edges count (within reach of a foreground pixel, or where the
-            backdrop is unknown), else None.
+            The ``(H, W)`` float32 probability, the border's median colour,
+            with a backdrop used and a positive ``backdrop_reach`` the uint8
+            mask of where edges count (within reach of a foreground pixel, or
+            where the backdrop is unknown), else None, and the backdrop if it
+            was used, else None.
         """
         h, w, channels = smooth.shape
         b = min(self.border_width, h // 4, w // 4)
@@ -770,6 +779,17 @@ class ObservationModel:
         keep = None
         if backdrop is not None:
             near = _channel_max(cv2.absdiff(smooth, backdrop.image), h, w, channels)
+            low = self.foreground_low
+            counts = np.bincount(near[backdrop.known], minlength=256)
+            if counts.sum():
+                median = int(np.searchsorted(np.cumsum(counts), 0.5 * counts.sum()))
+                low = max(low, 2.5 * median)
+            if low >= self.foreground_high:
+                backdrop = None
+        if backdrop is not None:
+            shift = low - self.foreground_low
+            if shift > 0:  # the ramp moved up: the same probabilities from ``low`` on
+                near = cv2.subtract(near, float(shift))
             # Under the initial figure the first frame showed the figure: a
             # pixel still as it was is figure (probability 1); one that changed
             # shows the backdrop the figure left or another part of it (1/2).
@@ -789,7 +809,7 @@ class ObservationModel:
         fg = cv2.subtract(diff, float(self.foreground_low)).astype(np.float32)
         fg *= np.float32(1.0 / (self.foreground_high - self.foreground_low))
         np.minimum(fg, np.float32(1.0), out=fg)
-        return fg, bg, keep
+        return fg, bg, keep, backdrop
 
     def read_backdrop(
         self, frame: ArrayLike, pose: ArrayLike, shape: BodyShape, camera: Camera

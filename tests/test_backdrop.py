@@ -211,3 +211,30 @@ def test_bad_input_is_named(episode) -> None:
     ):
         with pytest.raises(ValueError, match=next(iter(bad))):
             ObservationModel(**bad)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("sigma", [24.0, 64.0])
+def test_sensor_noise_raises_the_threshold_or_turns_the_backdrop_off(sigma: float) -> None:
+    rng = np.random.default_rng(21)
+    first, _later = walking_poses(rng)
+    scene = SceneOptions(noise_sigma=sigma)
+    kp = body.forward_kinematics(first, SHAPE)
+    cam = fit_camera(kp[None], scene.width, scene.height, 45.0, 30.0, 10.0)
+    background = make_background(scene, rng)
+    # The same pose twice: the known pixels differ by sensor noise alone.
+    frames = [render(first, SHAPE, cam, scene, rng, background) for _ in range(2)]
+    model = ObservationModel(backdrop=True, coverage_weight=2.0)
+    backdrop = model.read_backdrop(frames[0], first, SHAPE, cam)
+    feats = model.prepare(frames[1], GivenBody(first, ALL, SHAPE, cam, backdrop=backdrop))
+    border = model.prepare(frames[1], GivenBody(first, ALL, SHAPE, cam))
+    if sigma == 64.0:
+        # The noise passes foreground_high: the border rule alone, as without a backdrop.
+        np.testing.assert_array_equal(feats.foreground, border.foreground)
+        np.testing.assert_array_equal(feats.edges, border.edges)
+        assert feats.coverage is None
+    else:
+        smooth = [cv2.GaussianBlur(f, (0, 0), model.edge_blur) for f in frames]
+        diff = np.abs(smooth[1].astype(int) - smooth[0].astype(int)).max(axis=2)
+        known = backdrop.known
+        assert np.mean(diff[known] > model.foreground_low) > 0.05  # a fixed threshold fails
+        assert np.mean(feats.foreground[known] > 0) < 0.01
