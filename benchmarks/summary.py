@@ -86,11 +86,11 @@ def _read_render(out: str) -> list[Row]:
 
 
 def _read_observation(out: str) -> list[Row]:
-    pattern = r"N=\s*(\d+): log_likelihood\s+([\d.]+) ms, numpy reference\s+([\d.]+) ms, ratio\s+([\d.]+)x"
+    pattern = r"N=\s*(\d+)([^:]*): log_likelihood\s+([\d.]+) ms, numpy reference\s+([\d.]+) ms, ratio\s+([\d.]+)x"
     return [
-        (f"observation model, {int(n):,} poses (128x128)", f"{t} ms",
+        (f"observation model, {int(n):,} poses (128x128){label}", f"{t} ms",
          f"numpy reference ({ref} ms)", f"{ratio}x faster")
-        for n, t, ref, ratio in re.findall(pattern, out)
+        for n, label, t, ref, ratio in re.findall(pattern, out)
     ]  # fmt: skip
 
 
