@@ -84,6 +84,10 @@ ArmTrackEnv.__doc__ = (
     + """
     ## Version History
 
+    * v1, later: ``observation_model`` (the agents' likelihood, not part of the
+      environment's spaces, frames or rewards) reads the backdrop at the first
+      frame; the baselines' numbers changed
+      with it (README, "What changed").
     * v1: a close-up of the arm's reach; episodes where the arm moves (150 mm);
       a likelihood chosen for the arm (``tasks.ARM_OBSERVATION``); the camera's
       heading from the first frame; test persons CMU 2 and 3.

@@ -67,6 +67,10 @@ SideWalkEnv.__doc__ = (
     + """
     ## Version History
 
+    * v1, later: ``observation_model`` (the agents' likelihood, not part of the
+      environment's spaces, frames or rewards) reads the backdrop at the first
+      frame and has the coverage term; the baselines' numbers changed
+      with it (README, "What changed").
     * v1: the camera's heading and framing come from the first frame only; test persons
       CMU 2 and 3 (no jogging clip of theirs is long enough for 61 frames).
     * v0: withdrawn. Its static cameras were fitted to every frame of the episode

@@ -55,6 +55,10 @@ WalkTrackEnv.__doc__ = (
     + """
     ## Version History
 
+    * v1, later: ``observation_model`` (the agents' likelihood, not part of the
+      environment's spaces, frames or rewards) reads the backdrop at the first
+      frame and has the coverage term; the baselines' numbers changed
+      with it (README, "What changed").
     * v1: the camera is placed from the first frame only; test persons CMU 2 and 3.
     * v0: withdrawn. Its static cameras were fitted to every frame of the episode
       (and WalkTrack's and SideWalk's heading to the episode's total travel), so
