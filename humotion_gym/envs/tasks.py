@@ -220,7 +220,12 @@ ARM_OBSERVATION: tuple[tuple[str, float | int | bool], ...] = (
 # WalkTrack 451.2 / 448.0 / 427.8 / 419.6, 451.2 / 467.8 / 418.2 / 442.5;
 # SideWalk 141.7 / 110.5 / 104.9 / 118.7, 141.7 / 121.6 / 103.6 / 113.6. The
 # lowest of each task chosen; neighbouring settings differ by 5-15 mm, about
-# what 20 episodes resolve.
+# what 20 episodes resolve. Tried and not kept: learning, frame by frame, the
+# backdrop the figure uncovers (pixels outside the estimate's silhouette grown
+# by 4-16 px that did not change since the last frame): pf-tree on the
+# validation persons, without / with (margin 4, 8, 16): WalkTrack 418.2 / 448.4,
+# 426.1, 418.2; BodyTrack 215.6 / 225.7, 213.8, 216.9; SideWalk 103.6 / 106.9
+# (margin 4); ArmTrack 144.1 / 149.8 (margin 4).
 BODY_OBSERVATION: tuple[tuple[str, float | int | bool], ...] = (
     ("backdrop", True),
     ("coverage_weight", 4.0),
