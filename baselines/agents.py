@@ -501,6 +501,19 @@ CONSTANT_VELOCITY = "humotion_gym.priors.constant_velocity"
 STILL_SETTINGS: dict[str, float] = {"multiplier": 0.0, "damping": 0.0, "position_noise": 0.15}
 #: pf-mix's component weights (the tree takes the rest, 0.2); see above.
 MIX_WEIGHTS: dict[str, float] = {"weight.cv": 0.2, "weight.still": 0.6}
+#: pf-mix on the other tasks: the same grid on each task's validation episodes
+#: (``humotion-gym select --task TASK --agent pf-mix --grid fit.weight.cv=0.1,0.2,0.3
+#: fit.weight.still=0.4,0.5,0.6 fit.still.position_noise=0.05,0.15 --data-dir
+#: ../shared/mocap``), by mean error alone (ArmTrack's episodes all move the arm;
+#: WalkTrack and SideWalk are walks). Against BodyTrack's settings (cv 0.2, still
+#: 0.6, noise 0.15): ArmTrack 100.7 mm against 112.2 (the 18 settings 101-126;
+#: hold 217), SideWalk 85.8 against 120.7 (86-140; hold 229), WalkTrack 178.6
+#: against 222.3 (179-305; hold 1,731).
+MIX_TASK_SETTINGS: dict[str, dict[str, float]] = {
+    "ArmTrack-v1": {"weight.cv": 0.3, "weight.still": 0.5, "still.position_noise": 0.15},
+    "SideWalk-v1": {"weight.cv": 0.1, "weight.still": 0.4, "still.position_noise": 0.15},
+    "WalkTrack-v1": {"weight.cv": 0.3, "weight.still": 0.5, "still.position_noise": 0.05},
+}
 
 AGENTS: dict[str, AgentSpec] = {
     "pf-cv": AgentSpec(
@@ -541,6 +554,7 @@ AGENTS: dict[str, AgentSpec] = {
     "pf-mix": AgentSpec(
         "humotion_gym.priors.mixture",
         fit_settings=MIX_WEIGHTS,
+        task_fit_settings=MIX_TASK_SETTINGS,
         components=(
             ("tree", AgentSpec("humotion_gym.priors.tree")),
             ("cv", AgentSpec(CONSTANT_VELOCITY, fit_settings=CV_SETTINGS)),
