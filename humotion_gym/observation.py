@@ -784,8 +784,8 @@ class ObservationModel:
             if counts.sum():
                 median = int(np.searchsorted(np.cumsum(counts), 0.5 * counts.sum()))
                 low = max(low, 2.5 * median)
-            if low >= self.foreground_high:
-                backdrop = None
+            if low >= self.foreground_high or not counts.sum():
+                backdrop = None  # noise hides the figure, or nothing of the backdrop is known
         if backdrop is not None:
             shift = low - self.foreground_low
             if shift > 0:  # the ramp moved up: the same probabilities from ``low`` on

@@ -238,3 +238,27 @@ def test_sensor_noise_raises_the_threshold_or_turns_the_backdrop_off(sigma: floa
         known = backdrop.known
         assert np.mean(diff[known] > model.foreground_low) > 0.05  # a fixed threshold fails
         assert np.mean(feats.foreground[known] > 0) < 0.01
+
+
+def test_gray_frames_other_sizes_and_a_backdrop_with_nothing_known() -> None:
+    rng = np.random.default_rng(5)
+    first, later = walking_poses(rng)
+    scene = SceneOptions(width=256, height=192, color="gray", noise_sigma=0.0)
+    kp = body.forward_kinematics(np.stack([first, later]), SHAPE)
+    cam = fit_camera(kp, scene.width, scene.height, 45.0, 30.0, 10.0)
+    background = make_background(scene, rng)
+    frames = [render(p, SHAPE, cam, scene, rng, background) for p in (first, later)]
+    assert frames[0].shape == (192, 256, 1)
+    model = ObservationModel(backdrop=True, coverage_weight=2.0, edge_blur=0.0)
+    backdrop = model.read_backdrop(frames[0], first, SHAPE, cam)
+    np.testing.assert_array_equal(frames[0][backdrop.known], background.image[backdrop.known])
+    feats = model.prepare(frames[1], GivenBody(later, ALL, SHAPE, cam, backdrop=backdrop))
+    assert feats.coverage is not None and feats.coverage.shape[1] > 0
+    scores = model.log_likelihood(feats, np.stack([later, first]), SHAPE, cam)
+    assert scores[0] > scores[1]
+    # Nothing known (a figure filling the frame): the border rule alone.
+    blind = Backdrop(backdrop.image, np.zeros_like(backdrop.known))
+    border = model.prepare(frames[1], GivenBody(later, ALL, SHAPE, cam))
+    none = model.prepare(frames[1], GivenBody(later, ALL, SHAPE, cam, backdrop=blind))
+    np.testing.assert_array_equal(none.foreground, border.foreground)
+    assert none.coverage is None
