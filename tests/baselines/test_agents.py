@@ -115,3 +115,26 @@ def test_every_agent_is_made_or_refuses_with_a_reason():
             agent.observe_info(info)
             action, _ = agent.predict(obs, episode_start=np.array([True]))
             assert env.action_space.contains(action)
+
+
+def test_the_backdrop_is_read_at_each_episodes_first_frame_only():
+    env = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
+    base = env.unwrapped
+    assert base.observation_model.backdrop
+    agent = make("pf-cv", env, n_particles=50, seed=0)
+    for seed in (0, 1):
+        obs, info = env.reset(seed=seed)
+        agent.observe_info(info)
+        agent.predict(obs, episode_start=np.array([True]))
+        first = agent.likelihood.backdrop
+        assert first is not None
+        expected = base.observation_model.read_backdrop(
+            obs, info["initial_pose"], info["shape"], info["camera"]
+        )
+        np.testing.assert_array_equal(first.image, expected.image)
+        np.testing.assert_array_equal(first.known, expected.known)
+        for _ in range(3):  # later frames leave it as it was
+            obs, _, _, _, info = env.step(agent.predict(obs)[0])
+            agent.observe_info(info)
+        agent.predict(obs)
+        assert agent.likelihood.backdrop is first
