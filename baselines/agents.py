@@ -81,19 +81,15 @@ class TaskLikelihood:
         )
 
     def read_first_frame(self, frame: Any, initial_pose: FloatArray) -> None:
-        """What the model reads at the episode's first frame, from the given initial pose.
+        """What the model keeps of the episode's first frame, from the given initial pose.
 
-        Each cone's colour where the model has an appearance term, the backdrop
-        (:meth:`~humotion_gym.observation.ObservationModel.read_backdrop`)
-        where it uses one; nothing otherwise.
+        :meth:`~humotion_gym.observation.ObservationModel.read_first_frame`:
+        each cone's colour and the backdrop, where the model uses them.
         """
         assert self.shape is not None and self.camera is not None
-        self.colors = None
-        self.backdrop = None
-        if self.model.appearance_weight > 0:
-            self.colors = self.model.cone_colors(frame, initial_pose, self.shape, self.camera)
-        if self.model.backdrop:
-            self.backdrop = self.model.read_backdrop(frame, initial_pose, self.shape, self.camera)
+        self.colors, self.backdrop = self.model.read_first_frame(
+            frame, initial_pose, self.shape, self.camera
+        )
 
     def full_pose(self, particles: FloatArray) -> FloatArray:
         """``(N, 25)`` poses from ``(N, D)`` free parameters."""

@@ -557,10 +557,11 @@ class ObservationModel:
         fixed_cones = np.flatnonzero(~moved.any(axis=1))
         sure = (fg >= 1.0) & backdrop.known
         if fixed_cones.size:
-            pose = np.asarray(given.pose, dtype=np.float64)
+            # The given cones are where _free_cones' probe put them (its first pose).
             covered = _silhouette_mask(
-                pose, given.shape, given.camera, self.near_mm, cones=fixed_cones
-            )
+                geo.starts[0], geo.ends[0], given.shape, given.camera, self.near_mm,
+                cones=fixed_cones,
+            )  # fmt: skip
             covered = _grow(covered, self.backdrop_margin * fg.shape[0] / self.reference_height)
             sure &= covered == 0
         if free_cones.size == 0:
@@ -640,21 +641,16 @@ class ObservationModel:
         mask = np.zeros((h, w), np.uint8)
         thick = max(1, int(round(2.0 * self.residual_clearance * scale)) + 1)
         starts, stops = geo.starts[0], geo.ends[0]
-        uv_s, uv_e = camera.project(starts), camera.project(stops)
-        z_s, z_e = camera.to_camera(starts)[:, 2], camera.to_camera(stops)[:, 2]
         radii = given.shape.radii * ((1.0 + given.shape.aspect[:, None]) / 2.0)
+        uv_s, uv_e, z, r_s, r_e, normal = _projected_cones(starts, stops, radii, camera)
         for c in fixed_cones.tolist():
-            if min(z_s[c], z_e[c]) < self.near_mm:
+            if z[c] < self.near_mm:
                 continue
-            d = uv_e[c] - uv_s[c]
-            n = np.array([d[1], -d[0]]) / (np.hypot(d[0], d[1]) + 1e-9)
-            r_s = camera.focal * radii[c, 0] / z_s[c]
-            r_e = camera.focal * radii[c, 1] / z_e[c]
             for side in (1.0, -1.0):
-                p0 = np.rint(uv_s[c] + side * r_s * n).astype(int)
-                p1 = np.rint(uv_e[c] + side * r_e * n).astype(int)
+                p0 = np.rint(uv_s[c] + side * r_s[c] * normal[c]).astype(int)
+                p1 = np.rint(uv_e[c] + side * r_e[c] * normal[c]).astype(int)
                 cv2.line(mask, tuple(p0.tolist()), tuple(p1.tolist()), 255, thick)
-            for centre, r in ((uv_s[c], r_s), (uv_e[c], r_e)):
+            for centre, r in ((uv_s[c], r_s[c]), (uv_e[c], r_e[c])):
                 cv2.circle(mask, tuple(np.rint(centre).astype(int).tolist()),
                            max(0, int(round(r))), 255, thick)  # fmt: skip
         ys, xs = np.nonzero((edges > 0) & (mask == 0))
@@ -811,6 +807,23 @@ class ObservationModel:
         np.minimum(fg, np.float32(1.0), out=fg)
         return fg, bg, keep, backdrop
 
+    def read_first_frame(
+        self, frame: ArrayLike, pose: ArrayLike, shape: BodyShape, camera: Camera
+    ) -> tuple[NDArray[np.float64] | None, Backdrop | None]:
+        """What the model keeps of an episode's first frame, with the given initial pose.
+
+        Returns:
+            Each cone's colour (:meth:`cone_colors`) where the model has an
+            appearance term, the backdrop (:meth:`read_backdrop`) where it uses
+            one; ``None`` for what it does not use. They go in
+            :class:`GivenBody` for every frame of the episode.
+        """
+        colors = (
+            self.cone_colors(frame, pose, shape, camera) if self.appearance_weight > 0 else None
+        )
+        backdrop = self.read_backdrop(frame, pose, shape, camera) if self.backdrop else None
+        return colors, backdrop
+
     def read_backdrop(
         self, frame: ArrayLike, pose: ArrayLike, shape: BodyShape, camera: Camera
     ) -> Backdrop:
@@ -844,8 +857,10 @@ class ObservationModel:
                 f"got {p.shape}"
             )
         scale = h / self.reference_height
+        geo = cone_geometry(p, shape)
         covered = _grow(
-            _silhouette_mask(p, shape, camera, self.near_mm), self.backdrop_margin * scale
+            _silhouette_mask(geo.starts, geo.ends, shape, camera, self.near_mm),
+            self.backdrop_margin * scale,
         )
         image = smooth.copy()
         image.setflags(write=False)
@@ -1283,8 +1298,32 @@ def _channel_max(diff: NDArray[np.uint8], h: int, w: int, channels: int) -> NDAr
     return np.ascontiguousarray(diff[:, :, 0])
 
 
+def _projected_cones(
+    starts: FloatArray, ends: FloatArray, radii: FloatArray, camera: Camera
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Each cone's image geometry from its 3D ends ``(C, 3)`` and end radii ``(C, 2)``.
+
+    Returns:
+        The projected start and end ``(C, 2)``, the nearer end's depth ``(C,)``,
+        the projected radii at the start and the end ``(C,)`` and the unit image
+        normal of the projected axis ``(C, 2)``. Cones with an end behind the
+        camera get meaningless values: callers test the depth first.
+    """
+    uv_s, uv_e = camera.project(starts), camera.project(ends)
+    z_s, z_e = camera.to_camera(starts)[:, 2], camera.to_camera(ends)[:, 2]
+    d = uv_e - uv_s
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r_s = camera.focal * radii[:, 0] / z_s
+        r_e = camera.focal * radii[:, 1] / z_e
+        normal = (
+            np.stack([d[:, 1], -d[:, 0]], axis=1) / (np.hypot(d[:, 0], d[:, 1]) + 1e-9)[:, None]
+        )
+    return uv_s, uv_e, np.minimum(z_s, z_e), r_s, r_e, normal
+
+
 def _silhouette_mask(
-    pose: NDArray[np.float64],
+    starts: FloatArray,
+    ends: FloatArray,
     shape: BodyShape,
     camera: Camera,
     near_mm: float,
@@ -1292,32 +1331,28 @@ def _silhouette_mask(
 ) -> NDArray[np.uint8]:
     """``(H, W)`` uint8, 255 on the projected silhouette of one pose (conservative).
 
-    Each cone (of ``cones``, every cone when None) is the convex quadrilateral
-    of its two outline lines, with the larger semi-axis of its section, plus
-    filled discs at its ends; a cone with an end nearer the camera than
-    ``near_mm`` covers the whole image (its projection is unbounded).
+    ``starts`` and ``ends`` are the pose's cone ends ``(10, 3)``
+    (:func:`~humotion_gym.body.cone_geometry`). Each cone (of ``cones``, every
+    cone when None) is the convex quadrilateral of its two outline lines, with
+    the larger semi-axis of its section, plus filled discs at its ends; a cone
+    with an end nearer the camera than ``near_mm`` covers the whole image (its
+    projection is unbounded).
     """
-    geo = cone_geometry(pose, shape)
     mask = np.zeros((camera.height, camera.width), np.uint8)
-    starts, ends = geo.starts, geo.ends
-    uv_s, uv_e = camera.project(starts), camera.project(ends)
-    z_s, z_e = camera.to_camera(starts)[:, 2], camera.to_camera(ends)[:, 2]
     radii = shape.radii * np.maximum(1.0, shape.aspect)[:, None]
+    uv_s, uv_e, z, r_s, r_e, normal = _projected_cones(starts, ends, radii, camera)
     for c in range(N_CONES) if cones is None else cones.tolist():
-        if min(z_s[c], z_e[c]) < near_mm:
+        if z[c] < near_mm:
             mask[:] = 255
             return mask
-        d = uv_e[c] - uv_s[c]
-        n = np.array([d[1], -d[0]]) / (math.hypot(d[0], d[1]) + 1e-9)
-        r_s = camera.focal * radii[c, 0] / z_s[c]
-        r_e = camera.focal * radii[c, 1] / z_e[c]
+        n = normal[c]
         quad = np.stack(
-            [uv_s[c] + r_s * n, uv_e[c] + r_e * n, uv_e[c] - r_e * n, uv_s[c] - r_s * n]
+            [uv_s[c] + r_s[c] * n, uv_e[c] + r_e[c] * n, uv_e[c] - r_e[c] * n, uv_s[c] - r_s[c] * n]
         )
         # Far outside the image the int32 corners would overflow: clip first.
         quad = np.clip(quad, -4 * camera.width, 5 * camera.width)
         cv2.fillConvexPoly(mask, np.rint(quad).astype(np.int32), 255)
-        for centre, r in ((uv_s[c], r_s), (uv_e[c], r_e)):
+        for centre, r in ((uv_s[c], r_s[c]), (uv_e[c], r_e[c])):
             centre = np.clip(centre, -4 * camera.width, 5 * camera.width)
             cv2.circle(mask, tuple(np.rint(centre).astype(int).tolist()),
                        int(math.ceil(min(r, 10 * camera.width))), 255, -1)  # fmt: skip

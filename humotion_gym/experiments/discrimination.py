@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from humotion_gym.body import ANGLE_MASK, forward_kinematics
-from humotion_gym.observation import GivenBody
+from humotion_gym.observation import Backdrop, GivenBody
 
 FloatArray = NDArray[np.float64]
 
@@ -44,7 +44,11 @@ def _scored_frames(
     base = env.unwrapped
     for k in range(episodes):
         obs, info = env.reset(seed=seed + k)
-        first = (obs, info)
+        # What a particle-filter agent keeps of the first frame (cone colours,
+        # backdrop), read once per episode.
+        first = base.observation_model.read_first_frame(
+            obs, np.asarray(info["initial_pose"], dtype=np.float64), base.shape, info["camera"]
+        )
         motion = base.library[info["clip_id"]]
         step = 0
         while True:
@@ -61,25 +65,17 @@ def _given(
     base: Any,
     truth: FloatArray,
     info: dict[str, Any],
-    first: tuple[NDArray[np.uint8], dict[str, Any]],
+    first: tuple[FloatArray | None, Backdrop | None],
 ) -> GivenBody:
     """What the task gives of the frame's body (the agent's view, not the truth's free part).
 
-    With what a particle-filter agent reads at the episode's first frame
-    (``first``: its frame and info) where the task's model uses it: each
-    cone's colour and the backdrop.
+    With ``first``, what the model kept of the episode's first frame
+    (:meth:`~humotion_gym.observation.ObservationModel.read_first_frame`).
     """
     pose = np.zeros_like(truth)
     fixed = base.task.fixed_indices
     pose[fixed] = info["fixed_params"]
-    model = base.observation_model
-    frame0, info0 = first
-    initial = np.asarray(info0["initial_pose"], dtype=np.float64)
-    colors = backdrop = None
-    if model.appearance_weight > 0:
-        colors = model.cone_colors(frame0, initial, base.shape, info0["camera"])
-    if model.backdrop:
-        backdrop = model.read_backdrop(frame0, initial, base.shape, info0["camera"])
+    colors, backdrop = first
     return GivenBody(pose, base.task.free_indices, base.shape, info["camera"], colors, backdrop)
 
 
