@@ -387,10 +387,10 @@ def fit_prior(
     kwargs = {**spec.settings_for(env.task.name), **(settings or {})}
     if spec.components:
         return _fit_mixture(spec, env, kwargs, cache_dir, use_cache)
+    if env.frame_skip != 1:  # (a mixture's components each pass here)
+        kwargs.setdefault("frame_skip", env.frame_skip)
     if spec.per_part:
         return _fit_per_part(spec, env, kwargs, cache_dir, use_cache)
-    if env.frame_skip != 1:
-        kwargs.setdefault("frame_skip", env.frame_skip)
     return fit_prior_on(
         spec.prior, training_motions(env), env.task.free_indices, kwargs,
         use_cache=use_cache, cache_dir=cache_dir,
@@ -452,15 +452,12 @@ def _fit_per_part(
     from humotion_gym.priors import limbs
 
     _check_settings(spec, settings)
-    kwargs = dict(settings)
-    if env.frame_skip != 1:
-        kwargs.setdefault("frame_skip", env.frame_skip)
     free = np.asarray(env.task.free_indices, dtype=np.intp)
     motions = training_motions(env)
     parts = []
     for name, cols in limbs.part_columns(free):
         _, fitted = fit_prior_on(
-            TREE, motions, free[cols], kwargs, use_cache=use_cache, cache_dir=cache_dir
+            TREE, motions, free[cols], settings, use_cache=use_cache, cache_dir=cache_dir
         )
         parts.append((name, fitted))
     return limbs, limbs.compose(free, parts)
