@@ -66,6 +66,7 @@ class TaskLikelihood:
         self.camera: Camera | None = None
         self.colors: FloatArray | None = None
         self.backdrop: Backdrop | None = None
+        self.floor: float | None = None
 
     def update(self, fixed_values: FloatArray, shape: BodyShape, camera: Camera) -> None:
         """The given parameters, shape and camera of the frame on show."""
@@ -77,17 +78,19 @@ class TaskLikelihood:
         """The given part of the body in the frame on show (for ``prepare``)."""
         assert self.shape is not None and self.camera is not None
         return GivenBody(
-            self.base.copy(), self.free, self.shape, self.camera, self.colors, self.backdrop
-        )
+            self.base.copy(), self.free, self.shape, self.camera, self.colors, self.backdrop,
+            self.floor,
+        )  # fmt: skip
 
     def read_first_frame(self, frame: Any, initial_pose: FloatArray) -> None:
         """What the model keeps of the episode's first frame, from the given initial pose.
 
         :meth:`~humotion_gym.observation.ObservationModel.read_first_frame`:
-        each cone's colour and the backdrop, where the model uses them.
+        each cone's colour, the backdrop and the floor height, where the model
+        uses them.
         """
         assert self.shape is not None and self.camera is not None
-        self.colors, self.backdrop = self.model.read_first_frame(
+        self.colors, self.backdrop, self.floor = self.model.read_first_frame(
             frame, initial_pose, self.shape, self.camera
         )
 

@@ -24,7 +24,11 @@ For a pose ``x``::
           mean over c's outline points of min(d, tau)^2 / (2 sigma^2)
         + foreground_weight * mean over c's axis points of (1 - fg) ]
 
-up to a constant. Pixel distances are measured in *reference pixels* (those of
+up to a constant, less the optional *floor term* (``floor_below_mm``,
+``floor_above_mm``), which is not read from the image: the scene's floor is
+flat and the person's lowest ankle keeps near the height it had in the given
+first pose, which pins the depth the image barely shows. Pixel distances are
+measured in *reference pixels* (those of
 a 128-pixel-high frame), so one set of parameters serves every image size.
 Points outside the image cost the truncation value (and count as background).
 
@@ -44,7 +48,7 @@ import functools
 import math
 import threading
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import cv2
 import numpy as np
@@ -52,6 +56,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from humotion_gym.body import (
     CONE_KEYPOINTS,
+    KEYPOINT_NAMES,
     N_CONES,
     N_KEYPOINTS,
     N_PARAMS,
@@ -107,6 +112,9 @@ class FrameFeatures:
             ``None``.
         coverage_cones: The cones that may cover them (those that move with
             the free parameters).
+        floor: Height (mm, world z) of the lowest ankle in the episode's given
+            first pose, for the floor term (``GivenBody.floor``), or ``None``
+            where the model has no floor term.
     """
 
     width: int
@@ -122,6 +130,7 @@ class FrameFeatures:
     appearance_cones: NDArray[np.intp] | None = None
     coverage: NDArray[np.float32] | None = None
     coverage_cones: NDArray[np.intp] | None = None
+    floor: float | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -162,6 +171,9 @@ class GivenBody:
         backdrop: The scene behind the figure, read at the first frame
             (:meth:`ObservationModel.read_backdrop`), for a model with
             ``backdrop`` on; ``None`` without one.
+        floor: Height (mm) of the lowest ankle in the episode's given first
+            pose (:meth:`ObservationModel.floor_height`), for a model with a
+            floor term; ``None`` without one.
     """
 
     pose: NDArray[np.float64]
@@ -170,6 +182,15 @@ class GivenBody:
     camera: Camera
     colors: NDArray[np.float64] | None = None
     backdrop: Backdrop | None = None
+    floor: float | None = None
+
+
+class FirstFrame(NamedTuple):
+    """What an observation model keeps of an episode's first frame (see :class:`GivenBody`)."""
+
+    colors: NDArray[np.float64] | None
+    backdrop: Backdrop | None
+    floor: float | None
 
 
 # Per-thread scratch buffers of log_likelihood, keyed by (N, points per cone):
@@ -213,6 +234,9 @@ def _scratch(n: int, n_points: int) -> dict[str, NDArray]:
 _SHARED_MIN_POSES = 1000
 
 # Cone ends in the internal keypoint order of _batch_kinematics.
+#: The two ankles (KEYPOINT_NAMES order), whose lower one the floor term watches.
+_ANKLES_PUBLIC = (KEYPOINT_NAMES.index("r_ankle"), KEYPOINT_NAMES.index("l_ankle"))
+_ANKLES = tuple(int(_TO_INTERNAL[k]) for k in _ANKLES_PUBLIC)
 _CONE_START = _TO_INTERNAL[CONE_KEYPOINTS[:, 0]]
 _CONE_END = _TO_INTERNAL[CONE_KEYPOINTS[:, 1]]
 _DIST_MASK = cv2.DIST_MASK_5  # 5x5 chamfer: within 2% of the exact distance
@@ -355,6 +379,20 @@ class ObservationModel:
             a coverage point costs no more.
         coverage_points: At most this many coverage points per frame
             (default 96, an evenly strided subset in raster order).
+        floor_below_mm: Scale (mm; default ``inf``: off) of the *floor term*'s
+            cost for a pose whose lowest ankle is below the height it had in
+            the episode's given first pose (``GivenBody.floor``): ``d`` mm below
+            costs ``(d / floor_below_mm)^2 / 2`` nats. Not an image cue but
+            the scene's: the floor is flat and feet do not sink into it. The
+            image barely shows depth (a figure 5 m away grows one pixel in 128
+            per 100 mm nearer; on BodyTrack's validation frames the
+            log-likelihood of the true pose slid along the camera ray varies
+            by under 1.5 nats over +-400 mm), while sliding a figure along its
+            ray moves it up or down (the cameras look down on it), so the floor
+            pins the depth. Added to the log-likelihood after ``sharpness``.
+        floor_above_mm: Scale (mm; default ``inf``: off) of the floor term's
+            cost for a lowest ankle *above* that height (a person jumps, so it
+            is looser than ``floor_below_mm`` where used).
     """
 
     edge_sigma: float = 1.5
@@ -385,6 +423,8 @@ class ObservationModel:
     coverage_weight: float = 0.0
     coverage_truncation: float = 4.0
     coverage_points: int = 96
+    floor_below_mm: float = math.inf
+    floor_above_mm: float = math.inf
 
     def __post_init__(self) -> None:
         positive = (
@@ -421,6 +461,12 @@ class ObservationModel:
             value = float(getattr(self, name))
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"ObservationModel.{name}: expected a number >= 0")
+        for name in ("floor_below_mm", "floor_above_mm"):
+            value = float(getattr(self, name))
+            if not value > 0:  # inf (off) allowed; NaN and <= 0 refused
+                raise ValueError(
+                    f"ObservationModel.{name}: expected a positive number (inf: off), got {value}"
+                )
         if self.edge_blur < 0:
             raise ValueError("ObservationModel.edge_blur: expected a number >= 0")
         for name in (
@@ -536,9 +582,14 @@ class ObservationModel:
         if use_coverage and given is not None and backdrop is not None and free is not None:
             coverage_cones = free[0]
             coverage = self._coverage_points(fg, backdrop, given, free)
+        floor = None
+        if self.has_floor_term and given is not None and given.floor is not None:
+            floor = float(given.floor)
+            if not math.isfinite(floor):
+                raise ValueError(f"GivenBody.floor: expected a finite height in mm, got {floor}")
         return FrameFeatures(
             w, h, edges, dist, fg, bg, cost, float(unit), residual, cones, app_cones,
-            coverage, coverage_cones,
+            coverage, coverage_cones, floor,
         )  # fmt: skip
 
     def _coverage_points(
@@ -809,20 +860,43 @@ class ObservationModel:
 
     def read_first_frame(
         self, frame: ArrayLike, pose: ArrayLike, shape: BodyShape, camera: Camera
-    ) -> tuple[NDArray[np.float64] | None, Backdrop | None]:
+    ) -> FirstFrame:
         """What the model keeps of an episode's first frame, with the given initial pose.
 
         Returns:
             Each cone's colour (:meth:`cone_colors`) where the model has an
             appearance term, the backdrop (:meth:`read_backdrop`) where it uses
-            one; ``None`` for what it does not use. They go in
+            one, the floor height (:meth:`floor_height`) where it has a floor
+            term; ``None`` for what it does not use. They go in
             :class:`GivenBody` for every frame of the episode.
         """
         colors = (
             self.cone_colors(frame, pose, shape, camera) if self.appearance_weight > 0 else None
         )
         backdrop = self.read_backdrop(frame, pose, shape, camera) if self.backdrop else None
-        return colors, backdrop
+        floor = self.floor_height(pose, shape) if self.has_floor_term else None
+        return FirstFrame(colors, backdrop, floor)
+
+    @property
+    def has_floor_term(self) -> bool:
+        """Whether the floor term is on (either of its scales finite)."""
+        return math.isfinite(self.floor_below_mm) or math.isfinite(self.floor_above_mm)
+
+    @staticmethod
+    def floor_height(pose: ArrayLike, shape: BodyShape) -> float:
+        """Height (mm, world z) of the lowest ankle of a pose: the floor term's reference.
+
+        Raises:
+            ValueError: If the pose is not a finite ``(25,)`` vector.
+        """
+        p = np.asarray(pose, dtype=np.float64)
+        if p.shape != (N_PARAMS,) or not np.all(np.isfinite(p)):
+            raise ValueError(
+                f"ObservationModel.floor_height: expected a finite pose of shape (25,), "
+                f"got {p.shape}"
+            )
+        keypoints = cone_geometry(p, shape).keypoints
+        return float(keypoints[list(_ANKLES_PUBLIC), 2].min())
 
     def read_backdrop(
         self, frame: ArrayLike, pose: ArrayLike, shape: BodyShape, camera: Camera
@@ -1057,14 +1131,24 @@ class ObservationModel:
         )
         if not (has_residual or has_coverage):
             total *= -feats.cost_unit * self.sharpness
-            return total
-        total *= feats.cost_unit
-        if has_residual:
-            total += self._residual_cost(feats, basis, n)
-        if has_coverage:
-            total += self._coverage_cost(feats, basis, n)
-        total *= -self.sharpness
+        else:
+            total *= feats.cost_unit
+            if has_residual:
+                total += self._residual_cost(feats, basis, n)
+            if has_coverage:
+                total += self._coverage_cost(feats, basis, n)
+            total *= -self.sharpness
+        if feats.floor is not None and self.has_floor_term:
+            total -= self._floor_cost(poses.keypoints, feats.floor)
         return total
+
+    def _floor_cost(self, keypoints: NDArray, floor: float) -> FloatArray:
+        """The floor term (nats) of ``(3, 15, N)`` internal-order world keypoints."""
+        lowest = np.minimum(keypoints[2, _ANKLES[0]], keypoints[2, _ANKLES[1]])
+        height = lowest.astype(np.float64) - floor
+        below = np.minimum(height, 0.0) / self.floor_below_mm
+        above = np.maximum(height, 0.0) / self.floor_above_mm
+        return 0.5 * (below * below + above * above)
 
     def _point_costs(
         self,

@@ -6,6 +6,7 @@ import pytest
 
 import humotion_gym  # noqa: F401
 from humotion_gym.experiments.discrimination import (
+    likelihood_depth_profile,
     likelihood_discrimination,
     likelihood_panels,
     likelihood_peak_error,
@@ -46,3 +47,18 @@ def test_panels_show_what_the_likelihood_reads():
         likelihood_panels(env, seed=1, frame=499)
     with pytest.raises(ValueError, match="frame"):
         likelihood_panels(env, frame=-1)
+
+
+def test_depth_profile_slides_the_truth_along_the_camera_ray():
+    env = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
+    out = likelihood_depth_profile(env, episodes=1, reach_mm=300.0, steps=7, frame_stride=10)
+    assert out is not None and out["frames"] == 3
+    assert out["offsets_mm"] == [-300.0, -200.0, -100.0, 0.0, 100.0, 200.0, 300.0]
+    # The middle offset is the truth itself: its gap is exactly zero.
+    assert out["profile_nats"][3] == 0.0
+    assert out["contrast_nats"] >= max(out["profile_nats"]) - min(out["profile_nats"]) >= 0
+    assert 0 <= out["abs_peak_offset_mm"] <= 300 and abs(out["peak_offset_mm"]) <= 300
+    # Tasks that give the root have no depth to estimate.
+    assert likelihood_depth_profile(gym.make("humotion_gym/ArmTrack-v1")) is None
+    with pytest.raises(ValueError, match="steps >= 2"):
+        likelihood_depth_profile(env, steps=1)

@@ -55,6 +55,7 @@ def _cmd_discrimination(args: argparse.Namespace) -> int:
     import gymnasium as gym
 
     from humotion_gym.experiments.discrimination import (
+        likelihood_depth_profile,
         likelihood_discrimination,
         likelihood_panels,
         likelihood_peak_error,
@@ -72,6 +73,7 @@ def _cmd_discrimination(args: argparse.Namespace) -> int:
         wrote(args.figure)
     out = likelihood_discrimination(env, args.episodes, args.seed, args.distances)
     out["peak"] = likelihood_peak_error(env, args.episodes, args.seed)
+    out["depth"] = likelihood_depth_profile(env, args.episodes, args.seed)
     if args.json:
         print_json(out)
         return 0
@@ -91,4 +93,13 @@ def _cmd_discrimination(args: argparse.Namespace) -> int:
         f"typical error {peak['typical_mm']:.0f} mm, the likelihood's peak "
         f"{peak['peak_mm']:.0f} mm, its weighted mean {peak['weighted_mm']:.0f} mm"
     )
+    depth = out["depth"]
+    if depth is not None:
+        reach = depth["offsets_mm"][-1]
+        print(
+            f"the true pose slid along the camera ray through the pelvis, +-{reach:.0f} mm "
+            f"({depth['frames']} frames): the log-likelihood spans {depth['contrast_nats']:.2f} "
+            f"nats, peaks {depth['abs_peak_offset_mm']:.0f} mm from the truth (mean signed "
+            f"{depth['peak_offset_mm']:+.0f} mm, + away from the camera)"
+        )
     return 0

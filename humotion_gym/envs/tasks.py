@@ -226,6 +226,20 @@ ARM_OBSERVATION: tuple[tuple[str, float | int | bool], ...] = (
 # validation persons, without / with (margin 4, 8, 16): WalkTrack 418.2 / 448.4,
 # 426.1, 418.2; BodyTrack 215.6 / 225.7, 213.8, 216.9; SideWalk 103.6 / 106.9
 # (margin 4); ArmTrack 144.1 / 149.8 (margin 4).
+# Tried and not kept: the floor term (ObservationModel.floor_below_mm,
+# floor_above_mm: the lowest ankle keeps near its height in the given first
+# pose), against the depth the image barely shows (``humotion-gym
+# discrimination``: over +-400 mm along the camera ray the true pose's
+# log-likelihood spans about 1 nat). Rule declared before the runs: kept on a
+# task where it lowers the validation mean error by more than 5% at 60
+# episodes. ``humotion-gym select --task BodyTrack-v1 --grid
+# floor_below_mm=inf,4,8 floor_above_mm=inf,15,25 --episodes 60 --data-dir
+# ../shared/mocap``: 246.6 mm without it, 244.6-263.8 with it (hold 597.0); on
+# WalkTrack (``--grid floor_below_mm=inf,4,8,20 floor_above_mm=inf,60``) 383.0
+# without, 352.6 with floor_below_mm=4 alone (353-363 for 4-20 below only, 357-400
+# with a limit above; hold 1632.1), but the same setting made pf-cv (174.7 ->
+# 183.8) and pf-mix (192.3 -> 207.7) worse (``--agent pf-cv --grid
+# floor_below_mm=inf,4 --episodes 60``): not kept.
 BODY_OBSERVATION: tuple[tuple[str, float | int | bool], ...] = (
     ("backdrop", True),
     ("coverage_weight", 4.0),

@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from humotion_gym.body import ANGLE_MASK, forward_kinematics
-from humotion_gym.observation import Backdrop, GivenBody
+from humotion_gym.observation import FirstFrame, GivenBody
 
 FloatArray = NDArray[np.float64]
 
@@ -45,7 +45,7 @@ def _scored_frames(
     for k in range(episodes):
         obs, info = env.reset(seed=seed + k)
         # What a particle-filter agent keeps of the first frame (cone colours,
-        # backdrop), read once per episode.
+        # backdrop, floor height), read once per episode.
         first = base.observation_model.read_first_frame(
             obs, np.asarray(info["initial_pose"], dtype=np.float64), base.shape, info["camera"]
         )
@@ -65,7 +65,7 @@ def _given(
     base: Any,
     truth: FloatArray,
     info: dict[str, Any],
-    first: tuple[FloatArray | None, Backdrop | None],
+    first: FirstFrame,
 ) -> GivenBody:
     """What the task gives of the frame's body (the agent's view, not the truth's free part).
 
@@ -75,8 +75,7 @@ def _given(
     pose = np.zeros_like(truth)
     fixed = base.task.fixed_indices
     pose[fixed] = info["fixed_params"]
-    colors, backdrop = first
-    return GivenBody(pose, base.task.free_indices, base.shape, info["camera"], colors, backdrop)
+    return GivenBody(pose, base.task.free_indices, base.shape, info["camera"], *first)
 
 
 def likelihood_discrimination(
@@ -201,6 +200,60 @@ def likelihood_peak_error(
         "peak_mm": float(np.mean(peak)),
         "weighted_mm": float(np.mean(weighted)),
         "frames": len(peak),
+    }
+
+
+def likelihood_depth_profile(
+    env: gym.Env,
+    episodes: int = 10,
+    seed: int = 0,
+    reach_mm: float = 400.0,
+    steps: int = 17,
+    frame_stride: int = 3,
+) -> dict[str, Any] | None:
+    """How much the likelihood sees depth: the true pose slid along the camera ray.
+
+    Each scored frame slides the true pose's root along the ray from the
+    camera through the pelvis by ``steps`` offsets in ``[-reach_mm,
+    reach_mm]`` (positive: away from the camera), which keeps the pelvis on
+    the same pixel and changes only the figure's depth (its size, and where
+    its other joints project), and scores them with the task's model as an
+    agent would. Depth a monocular view barely shows must come from the
+    motion prior.
+
+    Returns:
+        ``None`` where the task does not estimate the root position; else the
+        ``offsets_mm``, the mean over frames of ``profile_nats`` (each
+        offset's log-likelihood minus the truth's), of ``peak_offset_mm`` (the
+        highest-scoring offset; its sign says which way the model leans), of
+        ``abs_peak_offset_mm`` and of ``contrast_nats`` (highest minus lowest
+        over the offsets), and the number of ``frames``.
+    """
+    if episodes < 1 or frame_stride < 1 or steps < 2 or not reach_mm > 0:
+        raise ValueError("episodes, frame_stride, reach_mm must be positive and steps >= 2")
+    base = env.unwrapped
+    if not np.isin(np.arange(3), base.task.free_indices).all():
+        return None
+    offsets = np.linspace(-reach_mm, reach_mm, steps)
+    model = base.observation_model
+    profiles, peaks = [], []
+    for obs, info, truth, given in _scored_frames(env, episodes, seed, frame_stride):
+        camera = info["camera"]
+        ray = truth[:3] - np.asarray(camera.position, dtype=np.float64)
+        ray /= np.linalg.norm(ray)
+        poses = np.broadcast_to(truth, (steps + 1, truth.size)).copy()
+        poses[1:, :3] += offsets[:, None] * ray
+        loglik = model.log_likelihood(model.prepare(obs, given), poses, base.shape, camera)
+        profiles.append(loglik[1:] - loglik[0])
+        peaks.append(float(offsets[np.argmax(loglik[1:])]))
+    profile = np.array(profiles)
+    return {
+        "offsets_mm": offsets.tolist(),
+        "profile_nats": profile.mean(axis=0).tolist(),
+        "peak_offset_mm": float(np.mean(peaks)),
+        "abs_peak_offset_mm": float(np.mean(np.abs(peaks))),
+        "contrast_nats": float(np.mean(profile.max(axis=1) - profile.min(axis=1))),
+        "frames": len(peaks),
     }
 
 
