@@ -30,6 +30,10 @@ class EpisodeResult:
             frames above ``lost_threshold_mm`` (0-based, scored frames), or None.
         ms_per_frame: The agent's time per frame (predict), milliseconds.
         mean_reward: Mean reward per frame.
+        aligned_errors_mm: Per frame error with the pelvises put together
+            (``info["error_aligned_mm"]``); None where the environment does
+            not report it (and in results saved before it did).
+        mean_aligned_error_mm: Their mean (None without them).
     """
 
     seed: int
@@ -41,6 +45,8 @@ class EpisodeResult:
     lost_frame: int | None
     ms_per_frame: float
     mean_reward: float
+    aligned_errors_mm: list[float] | None = None
+    mean_aligned_error_mm: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-JSON form."""
@@ -78,6 +84,7 @@ def run_episode(
     clip_id, start = info.get("clip_id", ""), int(info.get("start_frame", 0))
     state, episode_start = None, np.array([True])
     errors, rewards, times = [], [], []
+    aligned: list[float] | None = []
     while True:
         if hasattr(agent, "observe_info"):
             agent.observe_info(info)
@@ -89,6 +96,10 @@ def run_episode(
         episode_start = np.array([False])
         obs, reward, terminated, truncated, info = env.step(action)
         errors.append(float(info["error_mm"]))
+        if aligned is not None and "error_aligned_mm" in info:
+            aligned.append(float(info["error_aligned_mm"]))
+        else:  # an environment without it (a user's own): none for the episode
+            aligned = None
         rewards.append(float(reward))
         if on_frame is not None:
             frame = env.render()
@@ -107,6 +118,8 @@ def run_episode(
         lost_frame=lost,
         ms_per_frame=1000.0 * float(np.mean(times)),
         mean_reward=float(np.mean(rewards)),
+        aligned_errors_mm=aligned,
+        mean_aligned_error_mm=None if aligned is None else float(np.mean(aligned)),
     )
 
 
@@ -139,7 +152,10 @@ def summarize(
         ``iqm_error_ci``; ``final_error_mm`` with ``final_error_ci``;
         ``lost_episodes``, ``lost_fraction`` with its Wilson interval
         ``lost_fraction_ci``; ``median_lost_frame`` over the episodes that lost
-        track (None if none did); ``ms_per_frame`` and ``mean_reward``.
+        track (None if none did); ``ms_per_frame`` and ``mean_reward``;
+        ``aligned_error_mm`` (over the episodes' mean errors with the pelvises
+        put together) with ``aligned_error_ci``, both None unless every
+        episode has it.
 
     Raises:
         ValueError: If there are no episodes.
@@ -151,6 +167,12 @@ def summarize(
     final_err = np.array([e["final_error_mm"] for e in eps], dtype=np.float64)
     lost_frames = [e["lost_frame"] for e in eps]
     n_lost = sum(f is not None for f in lost_frames)
+    aligned_mean: float | None = None
+    aligned_ci: list[float] | None = None
+    if all(e.get("mean_aligned_error_mm") is not None for e in eps):
+        aligned = np.array([e["mean_aligned_error_mm"] for e in eps], dtype=np.float64)
+        aligned_mean = float(aligned.mean())
+        aligned_ci = list(bootstrap_ci(aligned, np.mean, seed=seed))
     return {
         "episodes": len(eps),
         "mean_error_mm": float(mean_err.mean()),
@@ -165,4 +187,6 @@ def summarize(
         "median_lost_frame": median_lost_frame(lost_frames),
         "ms_per_frame": float(np.mean([e["ms_per_frame"] for e in eps])),
         "mean_reward": float(np.mean([e["mean_reward"] for e in eps])),
+        "aligned_error_mm": aligned_mean,
+        "aligned_error_ci": aligned_ci,
     }

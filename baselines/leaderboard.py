@@ -494,16 +494,16 @@ def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
     not cover the task) or ``ERROR: ...`` (it failed).
     """
     lines = [
-        "| task | agent | particles | mean error mm (95% CI) | IQM mm | x hold "
-        "| beats hold | lost track | ms/frame |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| task | agent | particles | mean error mm (95% CI) | IQM mm | pelvis-aligned mm "
+        "| x hold | beats hold | lost track | ms/frame |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         particles = f"{r['particles']:,}" if r["particles"] else "-"
         if "summary" not in r:  # a cell that did not run: its reason, in the table
             what = f"skipped: {r['skipped']}" if "skipped" in r else f"ERROR: {r.get('error')}"
             what = what.replace("|", "/").replace("\n", " ")
-            lines.append(f"| {r['task']} | {r['agent']} | {particles} | {what} |  |  |  |  |  |")
+            lines.append(f"| {r['task']} | {r['agent']} | {particles} | {what} |  |  |  |  |  |  |")
             continue
         s = r["summary"]
         lo, hi = s["mean_error_ci"]
@@ -513,9 +513,11 @@ def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
         else:
             x, won, paired = compare_to_hold(r, hold)
             ratio, wins = f"{x:.2f}", f"{won}/{paired}"
+        aligned = s.get("aligned_error_mm")
+        aligned_text = "-" if aligned is None else f"{aligned:.0f}"
         lines.append(
             f"| {r['task']} | {r['agent']} | {particles} | {s['mean_error_mm']:.0f} "
-            f"({lo:.0f}-{hi:.0f}) | {s['iqm_error_mm']:.0f} | {ratio} | {wins} | "
+            f"({lo:.0f}-{hi:.0f}) | {s['iqm_error_mm']:.0f} | {aligned_text} | {ratio} | {wins} | "
             f"{round(s['lost_fraction'] * s['episodes'])}/{s['episodes']} | "
             f"{s['ms_per_frame']:.1f} |"
         )

@@ -38,7 +38,7 @@ from humotion_gym.wrappers import learner_frame
 
 # The step's scalar info that each episode's info dict carries (SB3 keeps one
 # dict per episode; the batched arrays stay in ``last_infos``).
-_SCALAR_INFO = ("error_mm", "error_all_mm", "lost")
+_SCALAR_INFO = ("error_mm", "error_all_mm", "error_aligned_mm", "lost")
 
 
 class LearnerVecEnv(VecEnv):
@@ -50,7 +50,7 @@ class LearnerVecEnv(VecEnv):
     its last observation is in ``info["terminal_observation"]`` and
     ``info["TimeLimit.truncated"]`` says whether it was cut rather than lost.
     Each episode's info holds the step's ``error_mm``, ``error_all_mm``,
-    ``lost`` and reward terms; the vector environment's batched info of the
+    ``error_aligned_mm``, ``lost`` and reward terms; the vector environment's batched info of the
     last step is ``last_infos``.
 
     Args:

@@ -14,7 +14,10 @@ COMMON_SECTIONS = """
     in [0, 1] (1 for a perfect estimate). ``info`` splits it by body region,
     ``reward_torso + reward_arms + reward_legs == reward``, and reports
     ``error_mm`` (mean error over the scored keypoints, the HumanEva measure),
-    ``error_all_mm`` (over all 15) and ``keypoint_errors_mm`` (15,).
+    ``error_all_mm`` (over all 15), ``error_aligned_mm`` (over the scored
+    keypoints with the estimate's pelvis moved onto the true one: the pose
+    itself, wherever the body is; equal to ``error_mm`` where the task gives
+    the root) and ``keypoint_errors_mm`` (15,).
 
     ## Episode End
 

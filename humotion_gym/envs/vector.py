@@ -303,6 +303,9 @@ class PoseTrackingVectorEnv(VectorEnv):
         err = np.ascontiguousarray(np.take(err_all, self._err_kp, axis=1))
         n_scored = err.shape[1]
         error_mm = err.sum(axis=1) / n_scored
+        aligned = np.linalg.norm(diff - diff[:, :1], axis=-1)
+        aligned_mm = np.ascontiguousarray(np.take(aligned, self._err_kp, axis=1)).sum(axis=1)
+        aligned_mm /= n_scored
         # Reward: the mean over scored keypoints of exp(-e / scale), by region,
         # summed in the single environment's order.
         template = envs[0]
@@ -372,6 +375,7 @@ class PoseTrackingVectorEnv(VectorEnv):
             "step": shown.astype(np.int64),
             "error_mm": error_mm,
             "error_all_mm": err_all.sum(axis=1) / N_KEYPOINTS,
+            "error_aligned_mm": aligned_mm,
             "keypoint_errors_mm": err_all,
             "lost": lost,
             **terms,

@@ -68,6 +68,13 @@ def test_leaderboard_always_runs_hold_once_per_task_and_compares_to_it():
     assert paired == 2 and 0 <= wins <= 2
     hold_mean = rows[0]["summary"]["mean_error_mm"]
     assert ratio == pytest.approx(hold_mean / rows[1]["summary"]["mean_error_mm"])
+    # SideWalk gives the root: the pelvis-aligned error is the error itself.
+    for row in rows:
+        s = row["summary"]
+        assert s["aligned_error_mm"] == pytest.approx(s["mean_error_mm"], rel=1e-9)
+        for episode in row["episodes"]:
+            assert len(episode["aligned_errors_mm"]) == len(episode["errors_mm"])
+    assert f"| {rows[0]['summary']['aligned_error_mm']:.0f} | 1.00 |" in table
     (line,) = validity_lines(rows)
     assert line.startswith("SideWalk-v1: best filter at 30 particles")
     assert ("NOT valid" in line) == (ratio < VALID_RATIO) or "pf-cv" in line

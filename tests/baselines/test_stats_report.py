@@ -166,6 +166,23 @@ def test_summarize_takes_results_or_their_dicts_and_is_seeded():
         summarize([])
 
 
+def test_the_pelvis_aligned_error_is_summarised_where_every_episode_has_it():
+    from baselines.leaderboard import markdown_table
+
+    rows = _rows({"pf-cv": 0.5})
+    eps = rows[1]["episodes"]
+    # Results saved before the environment reported it have none: "-" in the table.
+    assert all(e.get("mean_aligned_error_mm") is None for e in eps)
+    assert summarize(eps)["aligned_error_mm"] is None
+    assert "| - |" in markdown_table(rows).splitlines()[2]
+    with_aligned = [dict(e, mean_aligned_error_mm=0.5 * e["mean_error_mm"]) for e in eps]
+    s = summarize(with_aligned, seed=3)
+    halves = [0.5 * e["mean_error_mm"] for e in eps]
+    assert s["aligned_error_mm"] == pytest.approx(np.mean(halves))
+    assert s["aligned_error_ci"] == list(stats.bootstrap_ci(halves, np.mean, seed=3))
+    assert summarize([*with_aligned[:-1], eps[-1]])["aligned_error_mm"] is None
+
+
 def test_normalised_scores_aggregate_and_pairwise_on_known_rows():
     rows = _rows({"pf-cv": 0.5, "pf-tree": 0.25})
     rows.append({"task": "ArmTrack-v1", "agent": "pf-pca", "particles": 100, "skipped": "no"})

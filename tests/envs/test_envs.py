@@ -143,6 +143,29 @@ def test_true_pose_gives_full_reward_and_episode_length(env_id):
     assert min(rewards) > 0.999 and info["error_mm"] < 0.5
 
 
+@pytest.mark.parametrize("env_id", IDS)
+def test_aligned_error_is_the_pose_wherever_the_body_is(env_id):
+    """The truth moved as a whole: error_mm is the shift, error_aligned_mm none of it."""
+    env = gym.make(env_id).unwrapped
+    env.reset(seed=1)
+    free = get_task(env_id).free_indices
+    truth = env.true_pose()
+    if {0, 1, 2} <= set(free.tolist()):
+        shifted = truth.copy()
+        shifted[:3] += [30.0, -40.0, 0.0]  # 50 mm across the floor
+        _, _, _, _, info = env.step(env.pose_to_action(shifted))
+        assert info["error_mm"] == pytest.approx(50.0, abs=0.5)
+        assert info["error_aligned_mm"] < 0.5
+        truth = env.true_pose()
+    # A limb off: both see it; where the root is given they are the same number.
+    bent = truth.copy()
+    bent[free[-1]] += 0.4
+    _, _, _, _, info = env.step(env.pose_to_action(bent))
+    assert info["error_mm"] > 5.0 and info["error_aligned_mm"] > 5.0
+    if 0 not in free:
+        assert info["error_aligned_mm"] == pytest.approx(info["error_mm"], rel=1e-12)
+
+
 def test_track_lost_terminates_and_can_be_switched_off():
     env = gym.make("humotion_gym/BodyTrack-v1").unwrapped
     env.reset(seed=0)

@@ -165,7 +165,10 @@ def test_learner_vec_env_equals_dummy_vec_env_of_learner_envs():
         for got_info, want_info in zip(infos, want[3], strict=True):
             terms = [key for key in got_info if key.startswith("reward_")]
             assert terms
-            for key in ("TimeLimit.truncated", "error_mm", "error_all_mm", "lost", *terms):
+            for key in (
+                "TimeLimit.truncated", "error_mm", "error_all_mm", "error_aligned_mm", "lost",
+                *terms,
+            ):  # fmt: skip
                 assert got_info[key] == want_info[key], (t, key)
                 assert type(got_info[key]) is type(want_info[key]), (t, key)
             assert ("terminal_observation" in got_info) == ("terminal_observation" in want_info)
