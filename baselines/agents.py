@@ -481,6 +481,17 @@ def _fit_per_part(
 CV_SETTINGS: dict[str, float] = {"multiplier": 0.5, "damping": 0.3, "position_noise": 1.5}
 
 CONSTANT_VELOCITY = "humotion_gym.priors.constant_velocity"
+#: pf-follow: pf-cv's dynamics on the root alone, the articulation held (see
+#: ``constant_velocity.fit``'s ``moving``). Its pose noise and damping chosen on
+#: the validation persons (multiplier left at pf-cv's 0.5): ``humotion-gym select
+#: --task TASK --agent pf-follow --grid fit.position_noise=0.5,1,1.5,2,3
+#: fit.damping=0.3,0.8 --data-dir ../shared/mocap``, 20 episodes: BodyTrack
+#: 184.6 mm at noise 1, damping 0.3 (184.6-231.8 for the others at noise >= 1,
+#: 208-216 at 0.5; hold 653.8; pf-tree 215.6 in the same fold); WalkTrack 187.7
+#: at noise 1.5, damping 0.3 (192.5-215.7 for the others at noise >= 1, 703-1029
+#: at 0.5; hold 1,730.5; pf-tree 418.2).
+FOLLOW_SETTINGS: dict[str, float | str] = {**CV_SETTINGS, "moving": "root"}
+FOLLOW_TASK_SETTINGS: dict[str, dict[str, float]] = {"BodyTrack-v1": {"position_noise": 1.0}}
 #: A random walk on the pose (constant velocity with no velocity): what lets a
 #: mixture stand still. Its pose noise and pf-mix's weights were chosen by
 #: cross-validation on the training persons, on both their ordinary episodes
@@ -517,6 +528,14 @@ AGENTS: dict[str, AgentSpec] = {
         fit_settings=CV_SETTINGS,
         description="constant velocity with damped velocity and pose noise (settings chosen "
         "by cross-validation on training persons)",
+    ),
+    "pf-follow": AgentSpec(
+        CONSTANT_VELOCITY,
+        fit_settings=FOLLOW_SETTINGS,
+        task_fit_settings=FOLLOW_TASK_SETTINGS,
+        description="a reference: follows where the body goes (constant velocity on the "
+        "root's position and orientation) and holds the first frame's articulation",
+        tasks=("BodyTrack-v1", "WalkTrack-v1"),
     ),
     "pf-tree": AgentSpec(
         "humotion_gym.priors.tree",

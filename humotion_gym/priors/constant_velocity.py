@@ -45,6 +45,10 @@ from humotion_gym.priors._synthesis import check_request, model_frames, to_motio
 
 FloatArray = NDArray[np.float64]
 NAME = "constant_velocity"
+#: What may move (:func:`fit`'s ``moving``).
+MOVING = ("all", "root")
+#: The root's position and orientation: the first six of the 25 parameters.
+ROOT_PARAMS = 6
 
 
 @dataclass(frozen=True, eq=False)
@@ -82,6 +86,7 @@ def fit(
     frame_skip: int = 1,
     damping: float = 1.0,
     position_noise: float = 0.0,
+    moving: str = "all",
 ) -> ConstantVelocityParams:
     """Fit the noise scales from the training clips' accelerations.
 
@@ -94,14 +99,23 @@ def fit(
         damping: Velocity damping ``lambda`` in [0, 1] (1: none).
         position_noise: Noise on the pose per frame, in units of the data's
             first-difference spread (>= 0; 0: none).
+        moving: ``"all"`` (every modelled parameter moves) or ``"root"``: only
+            the root's position and orientation move, every other parameter
+            keeps the value it starts with (its noise scales are zero). The
+            latter follows where the body goes and holds the first frame's
+            articulation: the reference ``pf-follow``, a floor that ``hold``
+            (which keeps the body where it started) is not.
 
     Returns:
         The fitted parameters.
 
     Raises:
-        ValueError: If no clip has three observed frames in a row.
+        ValueError: If no clip has three observed frames in a row, or on a
+            setting out of range.
     """
     del rng
+    if moving not in MOVING:
+        raise ValueError(f"constant_velocity.fit: moving must be one of {MOVING}, got {moving!r}")
     if not 0.0 <= damping <= 1.0:
         raise ValueError(f"constant_velocity.fit: damping must be in [0, 1], got {damping}")
     if not (np.isfinite(position_noise) and position_noise >= 0):
@@ -130,10 +144,16 @@ def fit(
     a, v = np.concatenate(acc), np.concatenate(vel)
     fps = float(motions[0].fps) / frame_skip
     floor = 1e-9  # a parameter that never moves must still be able to
+    accel_std = np.maximum(a.std(axis=0), floor)
+    velocity_std = np.maximum(v.std(axis=0), floor)
+    if moving == "root":
+        held = idx >= ROOT_PARAMS
+        accel_std[held] = 0.0
+        velocity_std[held] = 0.0
     return ConstantVelocityParams(
         free=idx,
-        accel_std=np.maximum(a.std(axis=0), floor),
-        velocity_std=np.maximum(v.std(axis=0), floor),
+        accel_std=accel_std,
+        velocity_std=velocity_std,
         fps=fps,
         multiplier=float(multiplier),
         damping=float(damping),

@@ -138,3 +138,26 @@ def test_the_backdrop_is_read_at_each_episodes_first_frame_only():
             agent.observe_info(info)
         agent.predict(obs)
         assert agent.likelihood.backdrop is first
+
+
+def test_pf_follow_moves_the_body_and_holds_the_first_articulation():
+    env = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
+    base = env.unwrapped
+    agent = make("pf-follow", env, n_particles=100, seed=0)
+    obs, info = env.reset(seed=2)
+    first = np.asarray(info["initial_pose"])
+    agent.observe_info(info)
+    estimates = []
+    start = np.array([True])
+    for _ in range(6):
+        action, _ = agent.predict(obs, episode_start=start)
+        start = np.array([False])
+        estimates.append(base.action_to_pose(action, first))
+        obs, _, _, _, info = env.step(action)
+        agent.observe_info(info)
+    estimates = np.array(estimates)
+    # float32 actions: the articulation within their rounding of the first pose's
+    np.testing.assert_allclose(estimates[:, 6:], np.broadcast_to(first[6:], (6, 19)), atol=1e-3)
+    assert np.ptp(estimates[:, :3], axis=0).max() > 1.0  # the root moves
+    with pytest.raises(ValueError, match="supports"):
+        make("pf-follow", gym.make("humotion_gym/ArmTrack-v1"), n_particles=10)

@@ -107,3 +107,23 @@ def test_damping_position_noise_and_joint_limits():
         cv.fit(motions, damping=1.5)
     with pytest.raises(ValueError, match="position_noise"):
         cv.fit(motions, position_noise=-1.0)
+
+
+def test_moving_root_holds_the_articulation_and_moves_the_root():
+    motions = synthetic_library().split("train").motions
+    fitted = cv.fit(motions, multiplier=0.5, damping=0.3, position_noise=1.5, moving="root")
+    plain = cv.fit(motions, multiplier=0.5, damping=0.3, position_noise=1.5)
+    root = np.arange(cv.ROOT_PARAMS)
+    np.testing.assert_array_equal(fitted.accel_std[root], plain.accel_std[root])
+    np.testing.assert_array_equal(fitted.velocity_std[root], plain.velocity_std[root])
+    assert not fitted.accel_std[6:].any() and not fitted.velocity_std[6:].any()
+    rng = np.random.default_rng(3)
+    pose = motions[0].params[0]
+    state = cv.initial(fitted, pose, 200, rng)
+    for _ in range(10):
+        state = cv.transition(fitted, state, rng)
+    # Every particle keeps the first pose's articulation exactly; the root spreads.
+    np.testing.assert_array_equal(state.pose[:, 6:], np.broadcast_to(pose[6:], (200, 19)))
+    assert np.all(state.pose[:, :3].std(axis=0) > 1.0)
+    with pytest.raises(ValueError, match="moving must be one of"):
+        cv.fit(motions, moving="limbs")
