@@ -27,8 +27,9 @@ For a pose ``x``::
 up to a constant, less the optional *floor term* (``floor_below_mm``,
 ``floor_above_mm``), which is not read from the image: the scene's floor is
 flat and the person's lowest ankle keeps near the height it had in the given
-first pose, which pins the depth the image barely shows. Pixel distances are
-measured in *reference pixels* (those of
+first pose, meant to pin the depth the image barely shows (off on every task:
+tried on the validation persons and not kept, see ``envs/tasks.py``). Pixel
+distances are measured in *reference pixels* (those of
 a 128-pixel-high frame), so one set of parameters serves every image size.
 Points outside the image cost the truncation value (and count as background).
 
@@ -389,7 +390,9 @@ class ObservationModel:
             log-likelihood of the true pose slid along the camera ray varies
             by under 1.5 nats over +-400 mm), while sliding a figure along its
             ray moves it up or down (the cameras look down on it), so the floor
-            pins the depth. Added to the log-likelihood after ``sharpness``.
+            was meant to pin the depth; on the validation persons it did not
+            help (off on every task; numbers in ``humotion_gym/envs/tasks.py``).
+            Added to the log-likelihood after ``sharpness``.
         floor_above_mm: Scale (mm; default ``inf``: off) of the floor term's
             cost for a lowest ankle *above* that height (a person jumps, so it
             is looser than ``floor_below_mm`` where used).

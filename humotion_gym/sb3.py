@@ -50,8 +50,8 @@ class LearnerVecEnv(VecEnv):
     its last observation is in ``info["terminal_observation"]`` and
     ``info["TimeLimit.truncated"]`` says whether it was cut rather than lost.
     Each episode's info holds the step's ``error_mm``, ``error_all_mm``,
-    ``error_aligned_mm``, ``lost`` and reward terms; the vector environment's batched info of the
-    last step is ``last_infos``.
+    ``error_aligned_mm``, ``lost`` and reward terms; the vector environment's
+    batched info of the last step is ``last_infos``.
 
     Args:
         venv: The vector environment, made with ``autoreset_mode=SAME_STEP``.
