@@ -95,6 +95,8 @@ def reference_log_likelihood(
         rad = inv[ends] * radii[:, k : k + 1]
         for cone, factor in varying:
             rad[cone] *= factor
+        if model.raster_pad_px:
+            rad = rad + f4(model.raster_pad_px)
         offsets += [rad * nx, rad * ny]
     basis = np.stack([start[0], start[1], end[0], end[1], *offsets])  # (8, 10, n)
     coef = model.sample_coefficients()
@@ -168,9 +170,12 @@ def test_scores_match_the_one_pass_reference(seed: int, n: int) -> None:
 
 
 @pytest.mark.parametrize("bins", [1, 4, 6])
-def test_other_model_settings_match_the_reference(bins: int) -> None:
+@pytest.mark.parametrize("pad", [0.0, 0.5])
+def test_other_model_settings_match_the_reference(bins: int, pad: float) -> None:
     frame, cam, pose = scene(7, size=64)
-    model = ObservationModel(orientation_bins=bins, outline_samples=3, axis_samples=4)
+    model = ObservationModel(
+        orientation_bins=bins, outline_samples=3, axis_samples=4, raster_pad_px=pad
+    )
     feats = model.prepare(frame)
     poses = pose + np.random.default_rng(8).normal(0.0, 0.2, (1500, 25))
     fast = model.log_likelihood(feats, poses, SHAPE, cam)
@@ -204,11 +209,12 @@ def test_arm_terms_match_the_reference(seed: int) -> None:
         np.array([0]),  # the root: every cone moves
     ],
 )
-def test_cones_the_poses_share_match_the_reference(free: np.ndarray) -> None:
+@pytest.mark.parametrize("pad", [0.0, 0.5])
+def test_cones_the_poses_share_match_the_reference(free: np.ndarray, pad: float) -> None:
     # Cones whose parameters are equal in every pose are scored on one pose.
     assert _SHARED_MIN_POSES <= 1200
     frame, cam, pose = scene(11)
-    model = ObservationModel()
+    model = ObservationModel(raster_pad_px=pad)
     feats = model.prepare(frame)
     rng = np.random.default_rng(12)
     poses = np.tile(pose, (1200, 1))  # at least _SHARED_MIN_POSES
