@@ -53,6 +53,10 @@ FLOOR = "hold"
 #: A task measures tracking when its best particle filter's mean error is at
 #: least this many times lower than ``hold``'s (at the smallest particle count).
 VALID_RATIO = 2.0
+#: The harder reference of the whole-body tasks: the body followed, the first
+#: frame's articulation held. Where a table has it, :func:`validity_lines` also
+#: says how far the best motion prior is ahead of it.
+FOLLOW = "pf-follow"
 #: The version of ``results.json``'s layout (docs/leaderboard.md describes it);
 #: raised whenever a key is renamed, removed or changes meaning.
 SCHEMA_VERSION = 1
@@ -475,7 +479,8 @@ def _floor_of(rows: Sequence[dict[str, Any]], task: str) -> dict[str, Any] | Non
 def compare_to_hold(row: dict[str, Any], hold: dict[str, Any]) -> tuple[float, int, int]:
     """``hold``'s mean error over the row's, and the paired episodes the row wins.
 
-    Episodes are paired by seed (every cell runs the same seeds).
+    Episodes are paired by seed (every cell runs the same seeds). Any other
+    reference row (``pf-follow``'s) is compared the same way.
 
     Returns:
         ``(ratio, wins, paired)``.
@@ -528,6 +533,8 @@ def validity_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
     """Per task: does the best particle filter beat ``hold`` by :data:`VALID_RATIO`?
 
     Judged at the smallest particle count run, where the papers' claims are made.
+    Where :data:`FOLLOW` ran at that count too, a second line compares the best
+    other filter with it: what the motion prior adds to following the body.
     """
     out = []
     for task in dict.fromkeys(r["task"] for r in rows):
@@ -551,6 +558,29 @@ def validity_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
             f"({best['summary']['mean_error_mm']:.0f} vs {hold['summary']['mean_error_mm']:.0f} "
             f"mm), better in {wins}/{paired} paired episodes: {verdict}"
         )
+        at_fewest = [r for r in filters if r["particles"] == fewest]
+        follow = next((r for r in at_fewest if r["agent"] == FOLLOW), None)
+        priors = [r for r in at_fewest if r["agent"] != FOLLOW]
+        if follow is None or not priors:
+            continue
+        prior = min(priors, key=lambda r: r["summary"]["mean_error_mm"])
+        ratio, wins, paired = compare_to_hold(prior, follow)
+        means = (
+            f"{prior['summary']['mean_error_mm']:.0f} vs "
+            f"{follow['summary']['mean_error_mm']:.0f} mm"
+        )
+        won = f"better in {wins}/{paired} paired episodes"
+        if ratio > 1.0:
+            out.append(
+                f"{task}: against {FOLLOW} (the body followed, its first articulation held), "
+                f"the best other filter at {fewest:,} particles is {prior['agent']}, "
+                f"{ratio:.2f}x better in mean error ({means}), {won}"
+            )
+        else:
+            out.append(
+                f"{task}: no other filter at {fewest:,} particles beats {FOLLOW} in mean "
+                f"error: the best, {prior['agent']}, {means}, {won}"
+            )
     return out
 
 

@@ -8,6 +8,7 @@ import humotion_gym  # noqa: F401
 from baselines.agents import REFERENCES, agent_names, make
 from baselines.evaluation import run_episode
 from baselines.leaderboard import (
+    FOLLOW,
     VALID_RATIO,
     compare_to_hold,
     markdown_table,
@@ -99,3 +100,35 @@ def test_arm_episodes_move_the_arm():
         moved = base._episode_motion(motion)[result.start_frame]
         assert moved >= minimum
     assert PARAM_INDEX["r_elbow"] in base.task.free_indices
+
+
+def _row(agent: str, particles: int, errors: list[float]) -> dict:
+    return {
+        "task": "BodyTrack-v1", "agent": agent, "particles": particles,
+        "summary": {"mean_error_mm": float(np.mean(errors))},
+        "episodes": [{"seed": k, "mean_error_mm": e} for k, e in enumerate(errors)],
+    }  # fmt: skip
+
+
+def test_validity_compares_the_best_prior_with_pf_follow_where_it_ran():
+    hold = _row("hold", 0, [400.0, 400.0, 400.0])
+    follow = _row(FOLLOW, 300, [200.0, 210.0, 190.0])
+    tree = _row("pf-tree", 300, [150.0, 220.0, 130.0])
+    mix = _row("pf-mix", 300, [180.0, 180.0, 180.0])
+    many = _row("pf-tree", 3000, [10.0, 10.0, 10.0])  # only the fewest particles count
+    verdict, against = validity_lines([hold, follow, tree, mix, many])
+    assert verdict.startswith("BodyTrack-v1: best filter at 300 particles is pf-tree")
+    assert against == (
+        f"BodyTrack-v1: against {FOLLOW} (the body followed, its first articulation held), "
+        "the best other filter at 300 particles is pf-tree, 1.20x better in mean error "
+        "(167 vs 200 mm), better in 2/3 paired episodes"
+    )
+    # pf-follow itself the best: no prior beats it, said so.
+    worse = _row("pf-tree", 300, [300.0, 300.0, 300.0])
+    verdict, against = validity_lines([hold, follow, worse])
+    assert "best filter at 300 particles is pf-follow" in verdict
+    assert against.startswith(f"BodyTrack-v1: no other filter at 300 particles beats {FOLLOW}")
+    assert against.endswith(": the best, pf-tree, 300 vs 200 mm, better in 0/3 paired episodes")
+    # Without pf-follow (or with it alone) only the hold verdict.
+    assert len(validity_lines([hold, tree])) == 1
+    assert len(validity_lines([hold, follow])) == 1
