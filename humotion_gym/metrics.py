@@ -1,8 +1,9 @@
 """Tracking error measures: keypoint error, angle error, the lost-track test.
 
 The one implementation of each measure: the environment
-(:mod:`humotion_gym.envs.pose_tracking`) scores every step with
-:func:`point_errors` and :func:`update_lost_run`, and the evaluation
+(:mod:`humotion_gym.envs.pose_tracking`, and the vector environment batched)
+scores every step with :func:`point_errors`, :func:`aligned_point_errors` and
+:func:`update_lost_run`, and the evaluation
 (:mod:`baselines.evaluation`) finds where an episode lost track with
 :func:`lost_track_frame`, the same rule read over a whole episode.
 
@@ -17,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from humotion_gym.body import ANGLE_MASK, BodyShape, forward_kinematics
+from humotion_gym.body import ANGLE_MASK, KEYPOINT_INDEX, BodyShape, forward_kinematics
 
 FloatArray = NDArray[np.float64]
 
@@ -34,6 +35,27 @@ def point_errors(estimate_points: ArrayLike, truth_points: ArrayLike) -> FloatAr
     """
     diff = np.asarray(estimate_points, dtype=np.float64) - np.asarray(truth_points, np.float64)
     return np.linalg.norm(diff, axis=-1)
+
+
+def aligned_point_errors(
+    estimate_points: ArrayLike, truth_points: ArrayLike, anchor: int = KEYPOINT_INDEX["pelvis"]
+) -> FloatArray:
+    """:func:`point_errors` with the two point sets' ``anchor`` points put together.
+
+    The estimate is shifted by the anchor's error (the pelvis by default), so
+    what remains is the pose itself, wherever the body is: depth, which one
+    camera barely shows, drops out.
+
+    Args:
+        estimate_points: ``(..., K, 3)`` estimated points.
+        truth_points: ``(..., K, 3)`` true points (broadcast against the estimate).
+        anchor: Index of the point put together, in ``[0, K)``.
+
+    Returns:
+        ``(..., K)`` distances (0 at the anchor).
+    """
+    diff = np.asarray(estimate_points, dtype=np.float64) - np.asarray(truth_points, np.float64)
+    return np.linalg.norm(diff - diff[..., anchor : anchor + 1, :], axis=-1)
 
 
 def keypoint_errors(estimate: ArrayLike, truth: ArrayLike, shape: BodyShape) -> FloatArray:

@@ -7,6 +7,7 @@ import pytest
 
 from humotion_gym.body import N_KEYPOINTS, default_shape, forward_kinematics, standing_pose
 from humotion_gym.metrics import (
+    aligned_point_errors,
     angle_errors,
     keypoint_errors,
     lost_track_frame,
@@ -14,6 +15,22 @@ from humotion_gym.metrics import (
     point_errors,
     update_lost_run,
 )
+
+
+def test_aligned_point_errors_put_the_anchors_together():
+    rng = np.random.default_rng(0)
+    truth = rng.normal(size=(4, N_KEYPOINTS, 3))
+    estimate = truth + rng.normal(size=(4, N_KEYPOINTS, 3))
+    aligned = aligned_point_errors(estimate, truth)
+    assert aligned.shape == (4, N_KEYPOINTS) and np.all(aligned[:, 0] == 0.0)  # the pelvis
+    # Shifting the estimate as a whole moves the plain errors, not the aligned ones.
+    shifted = estimate + np.array([100.0, -50.0, 300.0])
+    np.testing.assert_allclose(aligned_point_errors(shifted, truth), aligned, atol=1e-9)
+    assert np.all(point_errors(shifted, truth)[:, 1:] != point_errors(estimate, truth)[:, 1:])
+    # Exact answer: the difference less the anchor's difference.
+    diff = estimate - truth
+    expected = np.linalg.norm(diff - diff[:, 2:3], axis=-1)
+    np.testing.assert_array_equal(aligned_point_errors(estimate, truth, anchor=2), expected)
 
 
 def test_point_errors_are_euclidean_distances():

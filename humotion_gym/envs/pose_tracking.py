@@ -27,7 +27,7 @@ from humotion_gym.body import (
 from humotion_gym.camera import Camera, fit_camera
 from humotion_gym.envs.tasks import TaskSpec, get_task
 from humotion_gym.kinematics import batch_pose_geometry, single_pose_geometry
-from humotion_gym.metrics import update_lost_run
+from humotion_gym.metrics import aligned_point_errors, point_errors, update_lost_run
 from humotion_gym.mocap.library import (
     MotionLibrary,
     configured_data_dirs,
@@ -666,14 +666,14 @@ class PoseTrackingEnv(gym.Env):
         # numpy on 3-vectors (tested to agree with body.forward_kinematics).
         # Kept for render(), which draws these keypoints.
         self._estimate_keypoints = single_pose_geometry(estimate, self.shape)[:N_KEYPOINTS]
-        diff = self._estimate_keypoints - self._truth_keypoints[self._k]
-        err_all = np.linalg.norm(diff, axis=-1)
+        truth = self._truth_keypoints[self._k]
+        err_all = point_errors(self._estimate_keypoints, truth)
         err = err_all[self._err_kp]
         n_scored = len(err)
         error_mm = float(err.sum()) / n_scored
         # The same keypoints with both poses' pelvises put together: the pose
         # itself, wherever the body is (depth is what one camera barely shows).
-        aligned = np.linalg.norm((diff - diff[0])[self._err_kp], axis=-1)
+        aligned = aligned_point_errors(self._estimate_keypoints, truth)[self._err_kp]
         # Reward: the mean over scored keypoints of exp(-e_k / scale), split by
         # body region so the terms add up to the reward.
         per_kp = (np.exp(err * (-1.0 / self.reward_scale_mm)) / n_scored).tolist()

@@ -44,6 +44,7 @@ from numpy.typing import NDArray
 
 from humotion_gym.body import KEYPOINT_INDEX, N_KEYPOINTS, N_PARAMS, BodyShape
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
+from humotion_gym.metrics import aligned_point_errors, point_errors
 from humotion_gym.render import FigureSequence, _compose, figure_sequences
 
 FloatArray = NDArray[np.float64]
@@ -295,15 +296,15 @@ class PoseTrackingVectorEnv(VectorEnv):
         estimate[:, self._free] = self._lo + (a + 1.0) * 0.5 * (self._hi - self._lo)
         envs = self.envs
         keypoints = np.ascontiguousarray(_keypoints(estimate, self._torso, self._head, self._limbs))
-        diff = keypoints - self._truth_kp[rows, k]
-        err_all = np.linalg.norm(diff, axis=-1)
+        truth_kp = self._truth_kp[rows, k]
+        err_all = point_errors(keypoints, truth_kp)
         # C-contiguous rows (``err_all[:, idx]`` is laid out column-major): each
         # row is then summed like the single environment's 1-D array (numpy's
         # pairwise summation), so the sums agree bit for bit.
         err = np.ascontiguousarray(np.take(err_all, self._err_kp, axis=1))
         n_scored = err.shape[1]
         error_mm = err.sum(axis=1) / n_scored
-        aligned = np.linalg.norm(diff - diff[:, :1], axis=-1)
+        aligned = aligned_point_errors(keypoints, truth_kp)
         aligned_mm = np.ascontiguousarray(np.take(aligned, self._err_kp, axis=1)).sum(axis=1)
         aligned_mm /= n_scored
         # Reward: the mean over scored keypoints of exp(-e / scale), by region,
