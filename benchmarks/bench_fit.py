@@ -12,6 +12,10 @@ cache); the reference, measured in the same run, is a plain per-sequence numpy
 Kalman filter over the task's training frames (its free parameters, a
 random-walk model), the work of one pass of the kind the SLDS fit makes 21 of
 per activity, so ``x ref`` says how many such passes a fit costs.
+
+The SLDS fit runs its activity models' EM in one process per core by default
+(``slds.fit(workers=None)``; the same model for any number); it is timed that
+way (``pf-slds(2p)`` with two cores) and in one process (``pf-slds(1p)``).
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ import numpy as np
 
 import humotion_gym  # noqa: F401
 from baselines.agents import AGENTS, fit_prior
+from humotion_gym.threads import available_cores
 
 TASKS = ("ArmTrack-v1", "BodyTrack-v1", "WalkTrack-v1", "SideWalk-v1")
 PRIOR_AGENTS = ("pf-cv", "pf-tree", "pf-tree-vel", "pf-slds", "pf-pca")
@@ -67,13 +72,17 @@ def main() -> None:
             spec = AGENTS[name]
             if spec.tasks is not None and task not in spec.tasks:
                 continue
-            with tempfile.TemporaryDirectory() as cache:
-                t0 = time.perf_counter()
-                fit_prior(spec, env, cache_dir=cache)
-                seconds = time.perf_counter() - t0
-                size = sum(p.stat().st_size for p in Path(cache).rglob("*.npz"))
-            print(f"{task:14s} {name:12s} {len(train):6d} {sum(len(s) for s in seqs):7d} "
-                  f"{seconds:7.2f} {seconds / ref:6.1f} {size / 1e6:8.2f}")  # fmt: skip
+            runs: list[tuple[str, dict[str, int]]] = [(name, {})]
+            if name == "pf-slds":  # across the cores (the default), then in one process
+                runs = [(f"{name}({available_cores()}p)", {}), (f"{name}(1p)", {"workers": 1})]
+            for label, settings in runs:
+                with tempfile.TemporaryDirectory() as cache:
+                    t0 = time.perf_counter()
+                    fit_prior(spec, env, settings, cache_dir=cache)
+                    seconds = time.perf_counter() - t0
+                    size = sum(p.stat().st_size for p in Path(cache).rglob("*.npz"))
+                print(f"{task:14s} {label:12s} {len(train):6d} {sum(len(s) for s in seqs):7d} "
+                      f"{seconds:7.2f} {seconds / ref:6.1f} {size / 1e6:8.2f}")  # fmt: skip
 
 
 if __name__ == "__main__":

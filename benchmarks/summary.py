@@ -224,12 +224,17 @@ def _read_leaderboard(out: str) -> list[Row]:
 def _read_fit(out: str) -> list[Row]:
     refs = dict(re.findall(r"^(\S+)\s+reference\s+\d+\s+\d+\s+([\d.]+)", out, re.M))
     pattern = r"^(\S+)\s+(pf-\S+)\s+\d+\s+(\d+)\s+([\d.]+)\s+([\d.]+)\s+([\d.]+)$"
-    return [
-        (f"{agent} prior, first fit on {task}'s training clips ({int(frames):,} frames; "
-         f"file {mb} MB)", f"{seconds} s",
-         f"a numpy Kalman filter pass ({refs.get(task, '?')} s)", f"{ratio}x the time")
-        for task, agent, frames, seconds, ratio, mb in re.findall(pattern, out, re.M)
-    ]  # fmt: skip
+    rows: list[Row] = []
+    for task, agent, frames, seconds, ratio, mb in re.findall(pattern, out, re.M):
+        # "pf-slds(2p)": the SLDS fit in 2 processes
+        name, procs = re.fullmatch(r"(.+?)(?:\((\d+)p\))?", agent).groups()  # type: ignore[union-attr]
+        how = "" if procs is None else f", {procs} process{'es' if procs != '1' else ''}"
+        rows.append((
+            f"{name} prior, first fit on {task}'s training clips ({int(frames):,} frames; "
+            f"file {mb} MB{how})", f"{seconds} s",
+            f"a numpy Kalman filter pass ({refs.get(task, '?')} s)", f"{ratio}x the time",
+        ))  # fmt: skip
+    return rows
 
 
 #: Every benchmark, in the order of the table.

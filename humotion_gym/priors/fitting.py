@@ -111,15 +111,18 @@ def _effective_settings(module: ModuleType, kwargs: Mapping[str, Any]) -> dict[s
     """The fit's settings: its signature's defaults overridden by ``kwargs``.
 
     The defaults are part of the cache key, so a release that changes one
-    refits instead of reusing a fit made with the old value.
+    refits instead of reusing a fit made with the old value. Left out: ``free``
+    and ``rng`` (keyed apart) and the names in the module's ``RUN_SETTINGS``,
+    which say how a fit runs (e.g. in how many processes), not what it fits.
     """
+    skip = {"free", "rng", *getattr(module, "RUN_SETTINGS", ())}
     params = inspect.signature(module.fit).parameters
     defaults = {
         name: p.default
         for name, p in params.items()
-        if p.default is not inspect.Parameter.empty and name not in ("free", "rng")
+        if p.default is not inspect.Parameter.empty and name not in skip
     }
-    return {**defaults, **kwargs}
+    return {**defaults, **{k: v for k, v in kwargs.items() if k not in skip}}
 
 
 def _read_prior_entry(module: ModuleType, path: Path, info: Mapping[str, str]) -> Any:

@@ -56,8 +56,12 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import multiprocessing
 import time
+import warnings
 from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 import numpy as np
@@ -76,7 +80,8 @@ from humotion_gym.priors.slds_inference import (
     sample_switches,
     stabilise,
 )
-from humotion_gym.priors.slds_learning import EMResult, fit_em
+from humotion_gym.priors.slds_learning import EMResult, EMStart, run_em, start_em
+from humotion_gym.threads import available_cores, limit_blas_threads
 
 FloatArray = NDArray[np.float64]
 NAME = "slds"
@@ -92,6 +97,16 @@ N_STATES = 4
 SWITCH_PROB = 0.01
 #: EM iterations per activity model.
 N_ITER = 20
+#: Sequences decoded together (64: fewer steps of the time loop than 32, and the
+#: covariance table keeps the work per step nearly flat in it; larger batches
+#: were slower on the walking data, 25 s at 64 against 35 s at 200 and 400).
+MAX_BATCH = 64
+#: Settings of :func:`fit` that say how it runs, not what it fits: left out of
+#: the fitted-prior cache's key (:func:`humotion_gym.priors.fitting.fit_prior`).
+RUN_SETTINGS: tuple[str, ...] = ("workers",)
+#: Below this many training frames :func:`fit` runs in one process by default:
+#: the fit takes a few seconds and starting processes would slow it.
+PARALLEL_MIN_FRAMES = 20_000
 #: Largest eigenvalue modulus of each model's dynamics when synthesising (see
 #: :func:`synthesize` and :func:`~humotion_gym.priors.slds_inference.stabilise`).
 MAX_RADIUS = 1.0
@@ -125,6 +140,33 @@ def _free_index(free: ArrayLike | None) -> NDArray[np.intp]:
     return idx
 
 
+def _start_activity(
+    motions: Sequence[Motion],
+    free: ArrayLike | None,
+    rng: np.random.Generator | None,
+    n_states: int,
+    order: int,
+    frame_skip: int,
+    label: str | None,
+) -> EMStart:
+    """The random part of :func:`fit_activity`: its EM's start (``start_em``)."""
+    if not motions:
+        raise ValueError("slds.fit_activity: no training motions")
+    rates = sorted({float(m.fps) for m in motions})
+    if len(rates) > 1:
+        raise ValueError(f"slds.fit_activity: the clips mix frame rates {rates}; resample them")
+    idx = _free_index(free)
+    ys, masks = motion_sequences(motions, idx, frame_skip)
+    keep = [k for k, y in enumerate(ys) if y.shape[0] >= 3]
+    if not keep:
+        raise ValueError("slds.fit_activity: every clip is shorter than 3 frames")
+    name = label if label is not None else motions[0].label
+    return start_em(
+        [ys[k] for k in keep], [masks[k] for k in keep], n_states=n_states, emission="identity",
+        order=order, rng=rng, label=name, free=idx, fps=float(motions[0].fps) / frame_skip,
+    )  # fmt: skip
+
+
 def fit_activity(
     motions: Sequence[Motion],
     free: ArrayLike | None = None,
@@ -134,7 +176,7 @@ def fit_activity(
     n_iter: int = N_ITER,
     frame_skip: int = 1,
     label: str | None = None,
-    max_batch: int = 64,
+    max_batch: int = MAX_BATCH,
     max_radius: float | None = None,
     progress: Callable[[int, float], None] | None = None,
 ) -> EMResult:
@@ -149,8 +191,7 @@ def fit_activity(
         n_iter: EM iterations.
         frame_skip: Use every ``frame_skip``-th frame.
         label: Name of the activity (the clips' label when None).
-        max_batch: Sequences decoded together (64: fewer steps of the time loop than 32,
-            and the covariance table keeps the work per step nearly flat in it).
+        max_batch: Sequences decoded together (:data:`MAX_BATCH`).
         max_radius: After EM, pull every model's eigenvalues inside this radius
             (:func:`~humotion_gym.priors.slds_inference.stabilise`); None (the
             default) keeps EM's estimate, the better one-step predictor.
@@ -160,25 +201,40 @@ def fit_activity(
     Returns:
         The fit with its cost per iteration (of EM, before the stabilisation).
     """
-    if not motions:
-        raise ValueError("slds.fit_activity: no training motions")
-    rates = sorted({float(m.fps) for m in motions})
-    if len(rates) > 1:
-        raise ValueError(f"slds.fit_activity: the clips mix frame rates {rates}; resample them")
-    idx = _free_index(free)
-    ys, masks = motion_sequences(motions, idx, frame_skip)
-    keep = [k for k, y in enumerate(ys) if y.shape[0] >= 3]
-    if not keep:
-        raise ValueError("slds.fit_activity: every clip is shorter than 3 frames")
-    name = label if label is not None else motions[0].label
-    result = fit_em(
-        [ys[k] for k in keep], [masks[k] for k in keep], n_states=n_states, emission="identity",
-        order=order, n_iter=n_iter, rng=rng, label=name, free=idx,
-        fps=float(motions[0].fps) / frame_skip, max_batch=max_batch, progress=progress,
-    )  # fmt: skip
+    start = _start_activity(motions, free, rng, n_states, order, frame_skip, label)
+    result = run_em(start, n_iter=n_iter, max_batch=max_batch, progress=progress)
     if max_radius is None:
         return result
     return dataclasses.replace(result, params=stabilise(result.params, max_radius))
+
+
+def _run_activity(start: EMStart, n_iter: int) -> tuple[SLDSParams, float]:
+    """One activity's EM in a worker process: the model and the seconds it took."""
+    limit_blas_threads()  # the workers share the cores: one BLAS thread each
+    t0 = time.perf_counter()
+    params = run_em(start, n_iter=n_iter, max_batch=MAX_BATCH).params
+    return params, time.perf_counter() - t0
+
+
+def fit_workers(starts: Sequence[EMStart], workers: int | None) -> int:
+    """How many processes fit the activity models (see :func:`fit`'s ``workers``).
+
+    Raises:
+        ValueError: If ``workers`` is not None or a whole number >= 1.
+    """
+    if workers is not None:
+        if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+            raise ValueError(
+                f"slds.fit: workers must be None or a whole number >= 1, got {workers!r}"
+            )
+        wanted = int(workers)
+    elif sum(s.n_frames for s in starts) < PARALLEL_MIN_FRAMES:
+        return 1
+    else:
+        wanted = available_cores()
+    if "fork" not in multiprocessing.get_all_start_methods():
+        return 1  # the models are sent to forked workers (no fork: one process)
+    return max(1, min(wanted, len(starts)))
 
 
 def fit(
@@ -192,8 +248,13 @@ def fit(
     per_label: bool = True,
     switch_prob: float = SWITCH_PROB,
     max_clips_per_label: int | None = None,
+    workers: int | None = None,
 ) -> SLDSParams:
     """Fit the SLDS prior: one model per activity label, joined (section 4.1).
+
+    The models are started (the initial clustering, the only random part) one
+    after another from ``rng``, then their EM runs in ``workers`` processes:
+    the result is the same for any number of them.
 
     Args:
         motions: Training clips, all at the same frame rate.
@@ -209,9 +270,17 @@ def fit(
         switch_prob: Between-model switching probability per frame.
         max_clips_per_label: Use at most this many clips per label (a random
             subset) to bound the fitting time.
+        workers: Processes running the models' EM (forked; where the platform
+            cannot fork, one). None: one per core this process may use, at
+            most one per model, and one when the clips hold fewer than
+            :data:`PARALLEL_MIN_FRAMES` frames (a fit of a few seconds, which
+            starting processes would slow). 1: all in this process.
 
     Returns:
         The fitted parameters.
+
+    Raises:
+        ValueError: For no clips or a bad setting.
     """
     rng = np.random.default_rng(0) if rng is None else rng
     if not motions:
@@ -219,35 +288,80 @@ def fit(
     groups: dict[str, list[Motion]] = {}
     for m in motions:
         groups.setdefault(m.label if per_label else "all", []).append(m)
-    models: list[SLDSParams] = []
+    labels = sorted(groups)
+    starts: list[EMStart] = []
+    for label in labels:
+        clips = groups[label]
+        if max_clips_per_label is not None and len(clips) > max_clips_per_label:
+            pick = np.sort(rng.choice(len(clips), max_clips_per_label, replace=False))
+            clips = [clips[k] for k in pick]
+        starts.append(_start_activity(clips, free, rng, n_states, order, frame_skip, label))
+    n_workers = fit_workers(starts, workers)
     # A bar over every model's EM iterations when the progress messages are shown
     # (humotion_gym.priors.fitting.fit_prior shows them on stderr).
     bar = tqdm(
-        total=len(groups) * (n_iter + 1), desc="slds EM", unit="iter", leave=False,
+        total=len(labels) * (n_iter + 1), desc="slds EM", unit="iter", leave=False,
         disable=not _LOG.isEnabledFor(logging.INFO),
     )  # fmt: skip
+    models: list[SLDSParams] = []
     with bar:
-        for label in sorted(groups):
-            clips = groups[label]
-            if max_clips_per_label is not None and len(clips) > max_clips_per_label:
-                pick = np.sort(rng.choice(len(clips), max_clips_per_label, replace=False))
-                clips = [clips[k] for k in pick]
-            _LOG.info(
-                "slds: fitting the %s model (%d of %d) on %d clips, %d EM iterations",
-                label, len(models) + 1, len(groups), len(clips), n_iter,
-            )  # fmt: skip
-            bar.set_postfix_str(label)
-            done = bar.n
-            t0 = time.perf_counter()
-            result = fit_activity(
-                clips, free, rng, n_states=n_states, order=order, n_iter=n_iter,
-                frame_skip=frame_skip, label=label,
-                progress=lambda _it, _cost: bar.update(),
-            )  # fmt: skip
-            bar.update(done + n_iter + 1 - bar.n)  # EM may stop early
-            _LOG.info("slds: the %s model took %.1f s", label, time.perf_counter() - t0)
-            models.append(result.params)
+        if n_workers == 1:
+            for k, (label, start) in enumerate(zip(labels, starts, strict=True)):
+                _LOG.info(
+                    "slds: fitting the %s model (%d of %d) on %d clips, %d EM iterations",
+                    label, k + 1, len(labels), len(start.arrays), n_iter,
+                )  # fmt: skip
+                bar.set_postfix_str(label)
+                done = bar.n
+                t0 = time.perf_counter()
+                result = run_em(
+                    start, n_iter=n_iter, max_batch=MAX_BATCH,
+                    progress=lambda _it, _cost: bar.update(),
+                )  # fmt: skip
+                bar.update(done + n_iter + 1 - bar.n)  # EM may stop early
+                _LOG.info("slds: the %s model took %.1f s", label, time.perf_counter() - t0)
+                models.append(result.params)
+        else:
+            models = _fit_in_processes(labels, starts, n_iter, n_workers, bar)
     return combine(models, switch_prob)
+
+
+def _fit_in_processes(
+    labels: list[str], starts: list[EMStart], n_iter: int, n_workers: int, bar: tqdm
+) -> list[SLDSParams]:
+    """Every model's EM in ``n_workers`` forked processes, the largest first."""
+    _LOG.info(
+        "slds: fitting %d activity models in %d processes, %d EM iterations each",
+        len(labels), n_workers, n_iter,
+    )  # fmt: skip
+    # Largest first, so that no big model starts last while the others idle.
+    order = sorted(range(len(starts)), key=lambda k: -starts[k].n_frames)
+    out: list[SLDSParams | None] = [None] * len(starts)
+    ctx = multiprocessing.get_context("fork")
+    try:
+        with ProcessPoolExecutor(n_workers, ctx) as pool:
+            futures = {pool.submit(_run_activity, starts[k], n_iter): k for k in order}
+            for fut in as_completed(futures):
+                k = futures[fut]
+                out[k], seconds = fut.result()
+                bar.update(n_iter + 1)
+                _LOG.info(
+                    "slds: the %s model (%d clips) took %.1f s", labels[k],
+                    len(starts[k].arrays), seconds,
+                )  # fmt: skip
+    except BrokenProcessPool as exc:
+        # A worker died (killed, out of memory): the models it left are fitted here.
+        left = [k for k in order if out[k] is None]
+        warnings.warn(
+            f"slds.fit: a worker process failed ({exc}); fitting the {len(left)} models left in "
+            "this process",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+        for k in left:
+            out[k] = run_em(starts[k], n_iter=n_iter, max_batch=MAX_BATCH).params
+            bar.update(n_iter + 1)
+    return [m for m in out if m is not None]
 
 
 def activity_model(fitted: SLDSParams, label: str) -> SLDSParams:

@@ -362,6 +362,74 @@ def _neg_log(p: FloatArray) -> FloatArray:
 COV_RTOL = 1e-10
 
 
+class _HashIndex:
+    """A hash set of uint64 keys with an id each: open addressing, linear probing.
+
+    Looked up and filled a whole array at a time (the probe rounds loop, not
+    the keys), so adding keys costs what they need instead of the copy of a
+    sorted index that grows with the table.
+    """
+
+    def __init__(self, capacity: int = 1 << 12) -> None:
+        self._alloc(capacity)
+        self.size = 0
+
+    def _alloc(self, capacity: int) -> None:
+        self.mask = np.uint64(capacity - 1)
+        # The home slot is the key's top bits: a multiplicative hash mixes
+        # every input bit into them, the low bits only from the inputs' low bits.
+        self.shift = np.uint64(64 - (capacity.bit_length() - 1))
+        self.keys = np.zeros(capacity, dtype=np.uint64)
+        self.ids = np.full(capacity, -1, dtype=np.intp)  # -1: an empty slot
+
+    def find(self, keys: NDArray[np.uint64]) -> IntArray:
+        """The id of every key, -1 where the key is not in the index."""
+        out = np.full(keys.shape[0], -1, dtype=np.intp)
+        todo = np.arange(keys.shape[0])
+        slot = keys >> self.shift
+        while todo.size:
+            at = slot[todo].astype(np.intp)
+            ids = self.ids[at]
+            hit = (ids >= 0) & (self.keys[at] == keys[todo])
+            out[todo[hit]] = ids[hit]
+            # Probe on past occupied slots holding other keys; an empty slot ends the search.
+            go_on = (ids >= 0) & ~hit
+            todo = todo[go_on]
+            slot[todo] = (slot[todo] + np.uint64(1)) & self.mask
+        return out
+
+    def add(self, keys: NDArray[np.uint64], ids: IntArray) -> None:
+        """Add distinct keys that are not in the index yet."""
+        if 2 * (self.size + keys.shape[0]) > self.ids.shape[0]:
+            old = self.ids >= 0
+            old_keys, old_ids = self.keys[old], self.ids[old]
+            capacity = self.ids.shape[0]
+            while 2 * (self.size + keys.shape[0]) > capacity:
+                capacity *= 2
+            self._alloc(capacity)
+            self.size = 0
+            self._place(old_keys, old_ids)
+        self._place(keys, ids)
+
+    def _place(self, keys: NDArray[np.uint64], ids: IntArray) -> None:
+        todo = np.arange(keys.shape[0])
+        slot = keys >> self.shift
+        while todo.size:
+            at = slot[todo].astype(np.intp)
+            empty = np.flatnonzero(self.ids[at] == -1)
+            # Keys that reach the same empty slot: one claims it (whichever write
+            # lands; which one does not change what the index finds), the rest
+            # probe on.
+            self.ids[at[empty]] = -2 - empty
+            take = np.zeros(todo.size, dtype=bool)
+            take[empty] = self.ids[at[empty]] == -2 - empty
+            self.keys[at[take]] = keys[todo[take]]
+            self.ids[at[take]] = ids[todo[take]]
+            todo = todo[~take]
+            slot[todo] = (slot[todo] + np.uint64(1)) & self.mask
+        self.size += keys.shape[0]
+
+
 class CovarianceTable:
     """The distinct covariances of the Kalman recursion and what the filter derives from them.
 
@@ -416,8 +484,7 @@ class CovarianceTable:
         self.q = params.Q
         self.r = r
         self.n = 0
-        self._hash = np.empty(0, dtype=np.uint64)  # sorted
-        self._hash_id = np.empty(0, dtype=np.intp)
+        self._index = _HashIndex()
 
     def _alloc(self, cap: int) -> None:
         """(Re)allocate the per-id arrays with room for ``cap`` ids.
@@ -455,8 +522,8 @@ class CovarianceTable:
 
         Each covariance is rounded to a grid (spacing a power of two below
         ``rtol`` times its largest variance, so that a key fixes the matrix to
-        within a spacing); keys are found by a wrapping integer hash in a sorted
-        index and then compared in full (a matrix whose hash collides with a
+        within a spacing); keys are found by a wrapping integer hash in a hash
+        index (:class:`_HashIndex`) and then compared in full (a matrix whose hash collides with a
         different key's gets an id of its own, unindexed: it is never shared).
         """
         covs = np.asarray(covs, dtype=np.float64).reshape(-1, self.dx, self.dx)
@@ -471,14 +538,8 @@ class CovarianceTable:
         ids = np.empty(n_new, dtype=np.intp)
         # Duplicates within the call: the first of each hash stands for the rest.
         uh, first, inverse = np.unique(h, return_index=True, return_inverse=True)
-        pos = np.searchsorted(self._hash, uh)
-        pos_c = np.minimum(pos, self._hash.size - 1)
-        found = (
-            (pos < self._hash.size) & (self._hash[pos_c] == uh)
-            if self._hash.size
-            else (np.zeros(uh.size, dtype=bool))
-        )
-        cand = np.where(found, self._hash_id[pos_c] if self._hash.size else 0, -1)
+        cand = self._index.find(uh)
+        found = cand >= 0
         hit = found & np.all(self.keys[np.maximum(cand, 0)] == keys[first], axis=1)
         fresh = np.flatnonzero(~hit)
         group_id = np.where(hit, cand, 0)
@@ -491,9 +552,7 @@ class CovarianceTable:
             group_id[fresh] = new_ids
             # Index the new hashes (a colliding one stays unindexed: found by nobody).
             add = fresh[~found[fresh]]
-            at = np.searchsorted(self._hash, uh[add])
-            self._hash = np.insert(self._hash, at, uh[add])
-            self._hash_id = np.insert(self._hash_id, at, group_id[add])
+            self._index.add(uh[add], group_id[add])
         ids[:] = group_id[inverse]
         # A member whose key differs from its group's first (a hash collision
         # inside the call) gets an id of its own.

@@ -7,7 +7,8 @@ its inference (Viterbi, Kalman filter, RTS smoother) are in
 
 * :func:`fit_em`: EM with the Viterbi E-step, from an initial segmentation
   found by clustering windows under a local linear dynamic model
-  (:func:`initialise`, :func:`window_ar_features`);
+  (:func:`initialise`, :func:`window_ar_features`); it is :func:`start_em`
+  (the random part) then :func:`run_em` (the deterministic rest);
 * :func:`m_step`: the exact joint maximiser of the regularised likelihood;
 * :func:`prune_states`: drop switch states no frame uses.
 
@@ -349,6 +350,35 @@ class EMResult:
     initial_paths: list[IntArray]
 
 
+@dataclass(frozen=True, eq=False)
+class EMStart:
+    """Where EM starts: the data and the initial model, the random part done.
+
+    :func:`start_em` draws it (the only use of the generator), :func:`run_em`
+    runs EM from it; :func:`fit_em` is the two in turn. Kept apart, several
+    models can be started in order from one generator and then run anywhere
+    (another process) with the same results.
+
+    Attributes:
+        arrays: The training sequences ``(T_b, dy)``.
+        masks: Their ``(T_b,)`` masks of measured frames.
+        params: The initial model (the M-step of the initial segmentation).
+        labels: The initial segmentation of every sequence.
+        reg: The conjugate priors of the M-steps.
+    """
+
+    arrays: list[FloatArray]
+    masks: list[NDArray[np.bool_]]
+    params: SLDSParams
+    labels: list[IntArray]
+    reg: Regulariser
+
+    @property
+    def n_frames(self) -> int:
+        """Frames in all sequences (how much work a run is)."""
+        return sum(a.shape[0] for a in self.arrays)
+
+
 def initialise(
     ys: Sequence[FloatArray],
     observed: Sequence[NDArray[np.bool_]],
@@ -569,6 +599,36 @@ def fit_em(
     Raises:
         ValueError: On inconsistent settings or data.
     """
+    start = start_em(
+        ys, observed, n_states=n_states, emission=emission, order=order, latent_dim=latent_dim,
+        rng=rng, label=label, free=free, fps=fps, half_window=half_window,
+    )  # fmt: skip
+    return run_em(
+        start, n_iter=n_iter, tol=tol, max_batch=max_batch, max_frames=max_frames, prune=prune,
+        progress=progress,
+    )  # fmt: skip
+
+
+def start_em(
+    ys: Sequence[ArrayLike],
+    observed: Sequence[ArrayLike] | None = None,
+    n_states: int = 4,
+    emission: str = "identity",
+    order: int = 2,
+    latent_dim: int | None = None,
+    rng: np.random.Generator | None = None,
+    label: str = "",
+    free: ArrayLike | None = None,
+    fps: float = 30.0,
+    half_window: int = 5,
+) -> EMStart:
+    """The random first part of :func:`fit_em`: check the data, segment it, first M-step.
+
+    Arguments as :func:`fit_em`; ``rng`` (seed 0 when None) is advanced.
+
+    Raises:
+        ValueError: On inconsistent settings or data.
+    """
     rng = np.random.default_rng(0) if rng is None else rng
     if emission not in EMISSIONS:
         raise ValueError(f"fit_em: emission must be one of {EMISSIONS}, got {emission!r}")
@@ -612,6 +672,25 @@ def fit_em(
         template = template.replace(A=np.broadcast_to(np.eye(dx, k=-dy), (n_states, dx, dx)).copy())
     params = _initial_params(labels, xs, arrays, masks, c, d, reg, template)
 
+    return EMStart(arrays, masks, params, labels, reg)
+
+
+def run_em(
+    start: EMStart,
+    n_iter: int = 30,
+    tol: float = 1e-7,
+    max_batch: int = 32,
+    max_frames: int | None = None,
+    prune: bool = True,
+    progress: Callable[[int, float], None] | None = None,
+) -> EMResult:
+    """EM from a start (:func:`start_em`): deterministic, the rest of :func:`fit_em`.
+
+    Arguments as :func:`fit_em`.
+    """
+    arrays, masks, labels, reg = start.arrays, start.masks, start.labels, start.reg
+    params = start.params
+    dx, dy = params.latent_dim, params.obs_dim
     chunks = length_batches(np.array([y.shape[0] for y in arrays]), max_batch, max_frames)
     batches = [pack([arrays[i] for i in ch], [masks[i] for i in ch]) for ch in chunks]
     paths: list[IntArray] = []

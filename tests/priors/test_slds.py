@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
+import multiprocessing
+import os
 
 import numpy as np
 import pytest
@@ -11,6 +14,7 @@ from humotion_gym.body import PARAM_LOWER, PARAM_UPPER
 from humotion_gym.filtering import ParticleFilter
 from humotion_gym.mocap.library import synthetic_library
 from humotion_gym.priors import slds
+from humotion_gym.priors.fitting import fit_prior
 from humotion_gym.priors.slds_inference import (
     SLDSParams,
     combine,
@@ -429,3 +433,79 @@ def test_synthesis_is_deterministic_and_fills_a_full_pose(fitted):
         params[:, slds.SAGITTAL_INDEX],
         np.clip(poses[:30], PARAM_LOWER[slds.SAGITTAL_INDEX], PARAM_UPPER[slds.SAGITTAL_INDEX]),
     )
+
+
+# ---------------------------------------------------------------------------
+# Fitting the activity models in several processes
+# ---------------------------------------------------------------------------
+
+needs_fork = pytest.mark.skipif(
+    "fork" not in multiprocessing.get_all_start_methods(), reason="the platform cannot fork"
+)
+
+
+def _assert_same_model(a, b):
+    for field in dataclasses.fields(a):
+        np.testing.assert_array_equal(getattr(a, field.name), getattr(b, field.name), field.name)
+
+
+def _killed_worker(start, n_iter):
+    """Stands in for a worker's fit: the process dies (as one the system killed)."""
+    os._exit(3)
+
+
+@needs_fork
+def test_fit_in_processes_is_the_one_process_fit(synthetic):
+    train, _ = synthetic
+    kwargs = {"n_states": 3, "n_iter": 4}
+    one = slds.fit(list(train), rng=np.random.default_rng(0), workers=1, **kwargs)
+    two = slds.fit(list(train), rng=np.random.default_rng(0), workers=2, **kwargs)
+    _assert_same_model(one, two)
+    assert set(two.state_labels) == {"walk", "run"}  # the models joined in label order
+    np.testing.assert_array_equal(one.state_labels, two.state_labels)
+
+
+@needs_fork
+def test_a_dead_worker_leaves_its_models_to_this_process(synthetic, monkeypatch):
+    train, _ = synthetic
+    kwargs = {"n_states": 3, "n_iter": 2}
+    one = slds.fit(list(train), rng=np.random.default_rng(0), workers=1, **kwargs)
+    monkeypatch.setattr(slds, "_run_activity", _killed_worker)
+    with pytest.warns(RuntimeWarning, match="worker process failed"):
+        two = slds.fit(list(train), rng=np.random.default_rng(0), workers=2, **kwargs)
+    _assert_same_model(one, two)
+
+
+@pytest.mark.parametrize("bad", [0, -2, 1.5, True, "2"])
+def test_fit_refuses_a_bad_number_of_workers(synthetic, bad):
+    train, _ = synthetic
+    with pytest.raises(ValueError, match="workers must be None or a whole number >= 1"):
+        slds.fit(list(train)[:4], n_states=2, n_iter=1, workers=bad)
+
+
+def test_fit_workers_by_default(synthetic):
+    train, _ = synthetic
+    rng = np.random.default_rng(0)
+    starts = [slds._start_activity([m], None, rng, 2, 2, 1, m.label) for m in list(train)[:3]]
+    small = sum(s.n_frames for s in starts)
+    assert small < slds.PARALLEL_MIN_FRAMES
+    assert slds.fit_workers(starts, None) == 1  # a small fit stays in this process
+    if "fork" in multiprocessing.get_all_start_methods():
+        assert slds.fit_workers(starts, 8) == 3  # at most one per model
+        assert slds.fit_workers(starts, 2) == 2
+
+
+def test_workers_is_not_part_of_the_cache_key(synthetic, tmp_path):
+    """How many processes fit a prior does not change it: the cache entry is shared."""
+    train, _ = synthetic
+    clips = [m for m in train if m.label == "walk"][:3]
+    settings = {"n_states": 2, "n_iter": 1}
+    _, first = fit_prior(slds, clips, None, {**settings, "workers": 1}, cache_dir=tmp_path)
+    said: list[str] = []
+    _, again = fit_prior(slds, clips, None, {**settings, "workers": 2}, cache_dir=tmp_path,
+                         log=said.append)  # fmt: skip
+    assert said == []  # read from the cache: nothing fitted
+    _assert_same_model(first, again)
+    said.clear()
+    fit_prior(slds, clips, None, {**settings, "n_iter": 2}, cache_dir=tmp_path, log=said.append)
+    assert any("fitted" in line for line in said)  # a setting that changes the fit is keyed
