@@ -76,6 +76,7 @@ from humotion_gym.priors._synthesis import check_request, model_frames, to_motio
 from humotion_gym.priors.slds_inference import (
     SLDSParams,
     combine,
+    length_batches,
     psd_sqrt,
     sample_switches,
     stabilise,
@@ -326,16 +327,29 @@ def fit(
     return combine(models, switch_prob)
 
 
+def _em_work(start: EMStart) -> float:
+    """How long a model's EM takes, in relative units: its time loop's steps and its frames.
+
+    Measured on ArmTrack-v1's 18 activity models in one process (20 EM
+    iterations): about 2.3 ms per step of the time loop (a batch of sequences
+    takes as many steps as its longest) and 0.16 ms per frame, so one clip of
+    1,900 frames takes longer than 218 clips of 19,000.
+    """
+    lengths = np.array([a.shape[0] for a in start.arrays])
+    steps = sum(int(lengths[ch].max()) for ch in length_batches(lengths, MAX_BATCH))
+    return steps + start.n_frames / 14.0
+
+
 def _fit_in_processes(
     labels: list[str], starts: list[EMStart], n_iter: int, n_workers: int, bar: tqdm
 ) -> list[SLDSParams]:
-    """Every model's EM in ``n_workers`` forked processes, the largest first."""
+    """Every model's EM in ``n_workers`` forked processes, the longest first."""
     _LOG.info(
         "slds: fitting %d activity models in %d processes, %d EM iterations each",
         len(labels), n_workers, n_iter,
     )  # fmt: skip
-    # Largest first, so that no big model starts last while the others idle.
-    order = sorted(range(len(starts)), key=lambda k: -starts[k].n_frames)
+    # Longest first, so that no long model starts last while the others idle.
+    order = sorted(range(len(starts)), key=lambda k: -_em_work(starts[k]))
     out: list[SLDSParams | None] = [None] * len(starts)
     ctx = multiprocessing.get_context("fork")
     try:
