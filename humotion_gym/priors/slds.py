@@ -304,27 +304,30 @@ def fit(
         total=len(labels) * (n_iter + 1), desc="slds EM", unit="iter", leave=False,
         disable=not _LOG.isEnabledFor(logging.INFO),
     )  # fmt: skip
-    models: list[SLDSParams] = []
+    # In processes first; here, one after another, what they did not fit (all of
+    # them with one worker, those a dead worker left otherwise).
+    models: list[SLDSParams | None] = [None] * len(labels)
     with bar:
-        if n_workers == 1:
-            for k, (label, start) in enumerate(zip(labels, starts, strict=True)):
-                _LOG.info(
-                    "slds: fitting the %s model (%d of %d) on %d clips, %d EM iterations",
-                    label, k + 1, len(labels), len(start.arrays), n_iter,
-                )  # fmt: skip
-                bar.set_postfix_str(label)
-                done = bar.n
-                t0 = time.perf_counter()
-                result = run_em(
-                    start, n_iter=n_iter, max_batch=MAX_BATCH,
-                    progress=lambda _it, _cost: bar.update(),
-                )  # fmt: skip
-                bar.update(done + n_iter + 1 - bar.n)  # EM may stop early
-                _LOG.info("slds: the %s model took %.1f s", label, time.perf_counter() - t0)
-                models.append(result.params)
-        else:
+        if n_workers > 1:
             models = _fit_in_processes(labels, starts, n_iter, n_workers, bar)
-    return combine(models, switch_prob)
+        for k, (label, start) in enumerate(zip(labels, starts, strict=True)):
+            if models[k] is not None:
+                continue
+            _LOG.info(
+                "slds: fitting the %s model (%d of %d) on %d clips, %d EM iterations",
+                label, k + 1, len(labels), len(start.arrays), n_iter,
+            )  # fmt: skip
+            bar.set_postfix_str(label)
+            done = bar.n
+            t0 = time.perf_counter()
+            result = run_em(
+                start, n_iter=n_iter, max_batch=MAX_BATCH,
+                progress=lambda _it, _cost: bar.update(),
+            )  # fmt: skip
+            bar.update(done + n_iter + 1 - bar.n)  # EM may stop early
+            _LOG.info("slds: the %s model took %.1f s", label, time.perf_counter() - t0)
+            models[k] = result.params
+    return combine([m for m in models if m is not None], switch_prob)
 
 
 def _em_work(start: EMStart) -> float:
@@ -342,8 +345,13 @@ def _em_work(start: EMStart) -> float:
 
 def _fit_in_processes(
     labels: list[str], starts: list[EMStart], n_iter: int, n_workers: int, bar: tqdm
-) -> list[SLDSParams]:
-    """Every model's EM in ``n_workers`` forked processes, the longest first."""
+) -> list[SLDSParams | None]:
+    """Every model's EM in ``n_workers`` forked processes, the longest first.
+
+    Returns:
+        The models in the order of ``starts``; None for those a worker that
+        died left undone (with a ``RuntimeWarning``).
+    """
     _LOG.info(
         "slds: fitting %d activity models in %d processes, %d EM iterations each",
         len(labels), n_workers, n_iter,
@@ -364,18 +372,15 @@ def _fit_in_processes(
                     len(starts[k].arrays), seconds,
                 )  # fmt: skip
     except BrokenProcessPool as exc:
-        # A worker died (killed, out of memory): the models it left are fitted here.
-        left = [k for k in order if out[k] is None]
+        # A worker died (killed, out of memory): :func:`fit` fits what it left here.
+        left = sum(m is None for m in out)
         warnings.warn(
-            f"slds.fit: a worker process failed ({exc}); fitting the {len(left)} models left in "
+            f"slds.fit: a worker process failed ({exc}); fitting the {left} models left in "
             "this process",
             RuntimeWarning,
             stacklevel=3,
         )
-        for k in left:
-            out[k] = run_em(starts[k], n_iter=n_iter, max_batch=MAX_BATCH).params
-            bar.update(n_iter + 1)
-    return [m for m in out if m is not None]
+    return out
 
 
 def activity_model(fitted: SLDSParams, label: str) -> SLDSParams:

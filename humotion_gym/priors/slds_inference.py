@@ -523,8 +523,9 @@ class CovarianceTable:
         Each covariance is rounded to a grid (spacing a power of two below
         ``rtol`` times its largest variance, so that a key fixes the matrix to
         within a spacing); keys are found by a wrapping integer hash in a hash
-        index (:class:`_HashIndex`) and then compared in full (a matrix whose hash collides with a
-        different key's gets an id of its own, unindexed: it is never shared).
+        index (:class:`_HashIndex`) and then compared in full (a matrix whose
+        hash collides with a different key's gets an id of its own, unindexed:
+        it is never shared).
         """
         covs = np.asarray(covs, dtype=np.float64).reshape(-1, self.dx, self.dx)
         n_new = covs.shape[0]
