@@ -81,6 +81,10 @@ FloatArray = NDArray[np.float64]
 # ---------------------------------------------------------------------------
 
 
+# ObservationModel._free_cones' last answer: (key, shape, result), per process.
+_FREE_CONES_CACHE: dict[str, tuple[tuple[bytes, bytes], BodyShape, Any]] = {}
+
+
 @dataclass(frozen=True, eq=False)
 class FrameFeatures:
     """What the observation model keeps of one frame (computed once per frame).
@@ -670,6 +674,13 @@ class ObservationModel:
             raise ValueError(f"GivenBody.pose: expected shape (25,), got {pose.shape}")
         if free.ndim != 1 or (free.size and not (0 <= free.min() and free.max() < N_PARAMS)):
             raise ValueError("GivenBody.free: expected indices of pose parameters (0-24)")
+        # The same given pose, free parameters and shape give the same answer:
+        # on tasks that give nothing (or the same thing every frame) the probe
+        # is worked out once per episode instead of once per frame.
+        key = (pose.tobytes(), free.tobytes())
+        cached = _FREE_CONES_CACHE.get("last")
+        if cached is not None and cached[0] == key and cached[1] is given.shape:
+            return cached[2]
         # Two moves of the free parameters tell which cone ends depend on them.
         probe = np.stack([pose, pose, pose])
         probe[1, free] += 0.5
@@ -677,7 +688,11 @@ class ObservationModel:
         geo = cone_geometry(probe, given.shape)
         ends = np.stack([geo.starts, geo.ends], axis=2)  # (3, 10, 2, 3)
         moved = np.abs(ends[1:] - ends[0]).max(axis=(0, 3)) > 1e-6  # (10, 2)
-        return np.flatnonzero(moved.any(axis=1)), (geo, ends, moved)
+        result = (np.flatnonzero(moved.any(axis=1)), (geo, ends, moved))
+        for array in (result[0], ends, moved, *geo):
+            array.setflags(write=False)  # shared by every frame that hits the cache
+        _FREE_CONES_CACHE["last"] = (key, given.shape, result)
+        return result
 
     def _residual_edges(
         self,

@@ -220,3 +220,41 @@ def test_appearance_needs_colors_of_the_right_shape(arm_scene) -> None:
         model.prepare(frame, GivenBody(pose, ARM, SHAPE, cam, np.zeros((10, 1))))
     with pytest.raises(ValueError, match="appearance_low"):
         ObservationModel(appearance_low=50.0, appearance_high=40.0)
+
+
+def test_free_cones_cache_gives_the_computed_answer(arm_scene) -> None:
+    # _free_cones keeps its last answer: the same given pose, free set and
+    # shape read it back (read-only), anything else computes afresh, and the
+    # answers are those of an empty cache.
+    from humotion_gym import observation
+
+    pose, _frame, cam, given = arm_scene
+    model = ObservationModel()
+
+    def fresh(g: GivenBody):
+        observation._FREE_CONES_CACHE.clear()
+        return model._free_cones(g)
+
+    def same(a, b) -> None:
+        np.testing.assert_array_equal(a[0], b[0])
+        for x, y in zip((*a[1][0], *a[1][1:]), (*b[1][0], *b[1][1:]), strict=True):
+            np.testing.assert_array_equal(x, y)
+
+    first = fresh(given)
+    again = model._free_cones(GivenBody(pose.copy(), ARM.copy(), SHAPE, cam))
+    assert again is first  # a hit: equal bytes, the same shape object
+    with pytest.raises(ValueError, match="read-only"):
+        again[1][2][0, 0] = True
+    moved = pose.copy()
+    moved[0] += 100.0  # another given pose
+    same(
+        model._free_cones(GivenBody(moved, ARM, SHAPE, cam)),
+        fresh(GivenBody(moved, ARM, SHAPE, cam)),
+    )
+    legs = np.arange(16, 20)  # another free set
+    got = model._free_cones(GivenBody(pose, legs, SHAPE, cam))
+    same(got, fresh(GivenBody(pose, legs, SHAPE, cam)))
+    assert set(got[0].tolist()) != set(first[0].tolist())
+    other = body.default_shape()  # an equal shape, another object: computed again
+    assert model._free_cones(GivenBody(pose, ARM, other, cam)) is not first
+    same(model._free_cones(GivenBody(pose, ARM, SHAPE, cam)), first)
