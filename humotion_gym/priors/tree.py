@@ -514,8 +514,11 @@ def _coefficients(
     if lay.rel_xy is not None:
         ix, iy = lay.relative[list(lay.rel_xy)]
         heading = history[:, -1:, lay.relative[lay.rel_yaw]]
+        # Both columns in one gather: each is a strided pass over the whole
+        # history (11 MB at 10,000 particles), so reading them together halves it.
+        xy = history[..., [ix, iy]]
         path = np.empty((n, history.shape[1], 2))
-        path[..., 0], path[..., 1] = _rotate(history[..., ix], history[..., iy], -heading)
+        path[..., 0], path[..., 1] = _rotate(xy[..., 0], xy[..., 1], -heading)
         c += path.reshape(n, -1) @ projection_heading
     return c
 
