@@ -10,7 +10,8 @@ evaluations per frame); their transition and likelihood columns are one
 layer's, ms/frame is the whole frame's.
 
 Reports pf-cv and pf-tree at 300, 3,000 and 10,000 particles, split into the
-prior's transition, the observation model (prepare + score) and the rest. The
+prior's transition, the observation model (prepare + score, with the task's given
+body: its backdrop and coverage terms, as the agent scores) and the rest. The
 reference, measured in the same run at each particle count, is a plain numpy
 scorer of the same frame (``bench_observation.reference_scores``: forward
 kinematics, projection and 150 nearest-pixel lookups per pose; best of three
@@ -94,10 +95,11 @@ def main() -> None:
                     agent.prior.transition(agent.fitted, state, np.random.default_rng(0))
                     trans_sum += clock() - t
                     t = clock()
-                    feats = base.observation_model.prepare(frame)
                     agent.likelihood.update(
                         np.asarray(step_info["fixed_params"]), base.shape, step_info["camera"]
                     )
+                    # The given body (backdrop, coverage points) as the agent prepares it.
+                    feats = base.observation_model.prepare(frame, agent.likelihood.given())
                     agent.likelihood.log_likelihood(feats, state.pose)
                     lik_sum += clock() - t
                     t = clock()
