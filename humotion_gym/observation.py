@@ -64,6 +64,7 @@ from humotion_gym.body import (
     BodyShape,
     cone_geometry,
     default_shape,
+    forward_kinematics,
 )
 from humotion_gym.camera import Camera
 from humotion_gym.kinematics import (
@@ -238,10 +239,11 @@ def _scratch(n: int, n_points: int) -> dict[str, NDArray]:
 # what scoring those cones saves.
 _SHARED_MIN_POSES = 1000
 
-# Cone ends in the internal keypoint order of _batch_kinematics.
-#: The two ankles (KEYPOINT_NAMES order), whose lower one the floor term watches.
+#: The two ankles (KEYPOINT_NAMES order), whose lower one the floor term watches,
+#: and the same in the internal keypoint order of _batch_kinematics.
 _ANKLES_PUBLIC = (KEYPOINT_NAMES.index("r_ankle"), KEYPOINT_NAMES.index("l_ankle"))
 _ANKLES = tuple(int(_TO_INTERNAL[k]) for k in _ANKLES_PUBLIC)
+# Cone ends in the internal keypoint order of _batch_kinematics.
 _CONE_START = _TO_INTERNAL[CONE_KEYPOINTS[:, 0]]
 _CONE_END = _TO_INTERNAL[CONE_KEYPOINTS[:, 1]]
 _DIST_MASK = cv2.DIST_MASK_5  # 5x5 chamfer: within 2% of the exact distance
@@ -927,7 +929,7 @@ class ObservationModel:
                 f"ObservationModel.floor_height: expected a finite pose of shape (25,), "
                 f"got {p.shape}"
             )
-        keypoints = cone_geometry(p, shape).keypoints
+        keypoints = forward_kinematics(p, shape)
         return float(keypoints[list(_ANKLES_PUBLIC), 2].min())
 
     def read_backdrop(
