@@ -59,6 +59,7 @@ def run_episode(
     seed: int,
     options: dict[str, Any] | None = None,
     on_frame: Callable[[NDArray[np.uint8], dict[str, Any]], None] | None = None,
+    on_step: Callable[[NDArray[Any], NDArray[np.float64], dict[str, Any]], None] | None = None,
 ) -> EpisodeResult:
     """Track one episode with any agent that has SB3's ``predict``.
 
@@ -74,6 +75,10 @@ def run_episode(
         options: Reset options (clip, start frame).
         on_frame: Called with ``env.render()`` output after each step, if the
             env renders (for videos).
+        on_step: Called before each step with the action, the true ``(25,)``
+            pose of the frame it answers and that frame's ``info`` (for
+            analyses of the estimate itself, e.g. :mod:`baselines.depth`; the
+            agent never sees the truth).
     """
     if hasattr(agent, "seed_episode"):
         # the agent's randomness from (its seed, this episode's seed) alone: an
@@ -94,6 +99,8 @@ def run_episode(
         )
         times.append(time.perf_counter() - t0)
         episode_start = np.array([False])
+        if on_step is not None:
+            on_step(action, base.true_pose(), info)
         obs, reward, terminated, truncated, info = env.step(action)
         errors.append(float(info["error_mm"]))
         if aligned is not None and "error_aligned_mm" in info:

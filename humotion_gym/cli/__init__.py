@@ -41,6 +41,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "select",  # select
     "still",  # still (every agent where the person barely moves)
     "discrimination",  # discrimination
+    "depth",  # depth (each agent's error along and across the line of sight)
     "synth",  # synth
     "tree",  # tree figures
     "pca",  # pca period|figures
