@@ -110,8 +110,12 @@ class DepthEpisode:
     estimate_travel_mm: list[float] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-JSON form."""
-        return asdict(self)
+        """Plain-JSON form, the per-frame values rounded to a micrometre."""
+        out = asdict(self)
+        for name, value in out.items():
+            if isinstance(value, list):
+                out[name] = [round(v, 3) for v in value]
+        return out
 
 
 class _Recorder:
@@ -217,8 +221,7 @@ def summarize_depth(episodes: Sequence[DepthEpisode], seed: int = 0) -> dict[str
         denom = float(true @ true)
         out["true_travel_mm"] = float(np.mean([e.true_travel_mm[-1] for e in episodes]))
         out["estimate_travel_mm"] = float(np.mean([e.estimate_travel_mm[-1] for e in episodes]))
-        # + 0.0: hold's travel is zero up to rounding; no "-0.00" in the table
-        out["followed"] = float(est @ true) / denom + 0.0 if denom > 0 else None
+        out["followed"] = float(est @ true) / denom if denom > 0 else None
     return out
 
 
@@ -283,13 +286,17 @@ def markdown_table(result: dict[str, Any]) -> str:
     ]
 
     def num(value: float | None, fmt: str) -> str:
-        return "-" if value is None else format(value, fmt)
+        if value is None:
+            return "-"
+        text = format(value, fmt)
+        # hold's travel is zero up to rounding: no "-0.00"
+        return text[1:] if text[0] in "+-" and not text.strip("+-0.") else text
 
     for r in result["rows"]:
         lo, hi = r["along_abs_ci"]
         particles = f"{r['particles']:,}" if r["particles"] else "-"
         lines.append(
-            f"| {r['agent']} | {particles} | {r['mean_error_mm']:.0f} | {r['along_mm']:+.0f} | "
+            f"| {r['agent']} | {particles} | {r['mean_error_mm']:.0f} | {num(r['along_mm'], '+.0f')} | "
             f"{r['along_abs_mm']:.0f} ({lo:.0f}-{hi:.0f}) | {r['across_mm']:.0f} | "
             f"{num(r['true_travel_mm'], '+.0f')} | {num(r['estimate_travel_mm'], '+.0f')} | "
             f"{num(r['followed'], '.2f')} |"
