@@ -89,8 +89,8 @@ class DepthEpisode:
         seed: The episode's reset seed.
         clip_id: The clip tracked.
         start_frame: Its first frame.
-        error_mm: Per frame, the mean over the scored keypoints of ``|e_k|``
-            (the environment's ``error_mm``).
+        error_mm: Per frame, the environment's ``error_mm`` (the mean over
+            the scored keypoints of ``|e_k|``).
         along_mm: Per frame, the mean signed component along the ray.
         along_abs_mm: Per frame, the mean of its absolute value.
         across_mm: Per frame, the mean length across the ray.
@@ -121,30 +121,24 @@ class DepthEpisode:
 class _Recorder:
     """``on_step`` of the evaluation loop: splits each answered frame's error."""
 
-    def __init__(self, env: gym.Env) -> None:
+    def __init__(self, env: gym.Env, episode: DepthEpisode) -> None:
         self.base = env.unwrapped
+        self.episode = episode
         self.scored = np.asarray(self.base.task.error_keypoint_indices, dtype=np.intp)
         free = set(np.asarray(self.base.task.free_indices).tolist())
         self.root_free = all(i in free for i in _ROOT_POSITION)
-        self.episode: DepthEpisode | None = None
         self.start_distance = 0.0
 
-    def begin(self, episode: DepthEpisode, initial_pose: NDArray[np.float64], camera: Any) -> None:
-        self.episode = episode
-        kp = forward_kinematics(initial_pose, self.base.shape)
-        self.start_distance = float(np.linalg.norm(kp[_PELVIS] - camera.position))
-
     def __call__(self, action: NDArray[Any], truth: NDArray[np.float64], info: dict) -> None:
-        assert self.episode is not None
-        if "initial_pose" in info:  # the episode's first frame
-            self.begin(self.episode, np.asarray(info["initial_pose"]), info["camera"])
+        if "initial_pose" in info:  # the episode's first frame: where the travel starts
+            start = forward_kinematics(np.asarray(info["initial_pose"]), self.base.shape)
+            self.start_distance = float(np.linalg.norm(start[_PELVIS] - info["camera"].position))
         estimate = self.base.action_to_pose(action, truth)
         kp = forward_kinematics(np.stack([estimate, truth]), self.base.shape)
         centre = np.asarray(info["camera"].position, dtype=np.float64)
         est, tru = kp[0, self.scored], kp[1, self.scored]
         along, across = split_along_ray(est, tru, centre)
         ep = self.episode
-        ep.error_mm.append(float(np.linalg.norm(est - tru, axis=-1).mean()))
         ep.along_mm.append(float(along.mean()))
         ep.along_abs_mm.append(float(np.abs(along).mean()))
         ep.across_mm.append(float(across.mean()))
@@ -172,11 +166,11 @@ def track_with_depth(
         The loop's :class:`~baselines.evaluation.EpisodeResult` and the
         :class:`DepthEpisode`.
     """
-    recorder = _Recorder(env)
     episode = DepthEpisode(seed=seed, clip_id="", start_frame=0)
-    recorder.episode = episode
-    result = run_episode(agent, env, seed, options, on_step=recorder)
+    result = run_episode(agent, env, seed, options, on_step=_Recorder(env, episode))
+    # The environment's own error of each frame (the norms of the split's parts).
     episode.clip_id, episode.start_frame = result.clip_id, result.start_frame
+    episode.error_mm = list(result.errors_mm)
     return result, episode
 
 
@@ -296,7 +290,8 @@ def markdown_table(result: dict[str, Any]) -> str:
         lo, hi = r["along_abs_ci"]
         particles = f"{r['particles']:,}" if r["particles"] else "-"
         lines.append(
-            f"| {r['agent']} | {particles} | {r['mean_error_mm']:.0f} | {num(r['along_mm'], '+.0f')} | "
+            f"| {r['agent']} | {particles} | {r['mean_error_mm']:.0f} | "
+            f"{num(r['along_mm'], '+.0f')} | "
             f"{r['along_abs_mm']:.0f} ({lo:.0f}-{hi:.0f}) | {r['across_mm']:.0f} | "
             f"{num(r['true_travel_mm'], '+.0f')} | {num(r['estimate_travel_mm'], '+.0f')} | "
             f"{num(r['followed'], '.2f')} |"
