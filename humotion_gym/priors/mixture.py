@@ -39,12 +39,17 @@ NAME = "mixture"
 
 
 def _follow_tree(old: ParticleState, pose: FloatArray) -> dict[str, NDArray[Any]]:
-    """The tree's memory after another model moved the particles to ``pose``."""
+    """The tree's memory after another model moved the particles to ``pose``.
+
+    The history shifts in the new pose; the window and (where the tree gives
+    particles one) the speed stay.
+    """
     history = old.extra["history"]
     shifted = np.empty_like(history)
     shifted[:, :-1] = history[:, 1:]
     shifted[:, -1] = pose
-    return {"history": shifted, "window": old.extra["window"]}
+    kept = {k: old.extra[k] for k in ("window", "speed") if k in old.extra}
+    return {"history": shifted, **kept}
 
 
 def _follow_velocity(old: ParticleState, pose: FloatArray) -> dict[str, NDArray[Any]]:

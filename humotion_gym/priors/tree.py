@@ -107,6 +107,19 @@ Transition: the chosen window's following state plus Gaussian noise,
     made once per tree, then the leaf; ``O(log n)`` per particle plus the
     leaf.
 
+Walking speed (beyond the paper): the database walks at its actors' speeds,
+    so a subject who walks faster or slower is given the database's speed,
+    and the depth a monocular view barely shows follows it (``humotion-gym
+    depth``). With ``speed_spread > 0`` (and the root's horizontal position
+    and heading free) each particle carries a speed ``v``, log-normal with
+    that standard deviation at the start and random-walking by
+    ``speed_drift`` per frame (``extra["speed"]``): the root's horizontal
+    step it replays is the database's times ``v``, and its history is
+    searched at the database's pace (its root path relative to the last
+    frame divided by ``v``), so the limbs still replay the database's gait.
+    The image shows the sideways part of the walk well, so the particles
+    whose speed matches it survive, and the depth they walk follows.
+
 Initialisation (section 6): windows whose last pose is near the known first
     pose, distance in the scaled space over the absolute pose part (velocities
     and relative root ignored), ``dist^2 = sum_j (q_i,j - q_j)^2 / Gamma_j``,
@@ -205,6 +218,12 @@ class TreeParams:
             importance-resample the descents toward eq. 3.
         search: The window features the PCA and the search use
             (:data:`SEARCH_RULES`).
+        speed_spread: Standard deviation of each particle's log walking speed
+            at the start (0: every particle walks at the database's speed).
+            A particle's speed ``v`` scales the root's horizontal step it
+            replays, and its history is searched at the database's pace.
+        speed_drift: Standard deviation of the per-frame random walk of the
+            log speed.
         frames: ``(M, D)`` every training frame's free pose, clip after clip.
         frame_clip: ``(M,)`` which training clip each frame came from.
         window_end: ``(n,)`` index in ``frames`` of each window's last frame;
@@ -271,6 +290,8 @@ class TreeParams:
     codes: NDArray[np.int64]
     offsets: IntArray
     node_flags: NDArray[np.uint8]
+    speed_spread: float = 0.0
+    speed_drift: float = 0.0
 
     def __post_init__(self) -> None:
         if self.leaf not in LEAF_RULES:
@@ -291,6 +312,10 @@ class TreeParams:
             raise ValueError(
                 f"TreeParams.search must be one of {SEARCH_RULES}, got {self.search!r}"
             )
+        for name in ("speed_spread", "speed_drift"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"TreeParams.{name} must be >= 0, got {value}")
 
     @property
     def n_windows(self) -> int:
@@ -315,9 +340,15 @@ class TreeParams:
         init_scale: float | None = None,
         replay: str | None = None,
         proposals: int | None = None,
+        speed_spread: float | None = None,
+        speed_drift: float | None = None,
     ) -> TreeParams:
         """A copy with other sampling settings (the database is shared, not copied)."""
         changes: dict[str, object] = {}
+        if speed_spread is not None:
+            changes["speed_spread"] = float(speed_spread)
+        if speed_drift is not None:
+            changes["speed_drift"] = float(speed_drift)
         if proposals is not None:
             changes["proposals"] = int(proposals)
         if replay is not None:
@@ -773,6 +804,8 @@ def fit(
     proposals: int = 1,
     frame_skip: int = 1,
     search: str = "pose+velocity",
+    speed_spread: float = 0.0,
+    speed_drift: float = 0.0,
 ) -> TreeParams:
     """Build the database, its PCA and its tree from training clips.
 
@@ -797,6 +830,15 @@ def fit(
         frame_skip: Use every ``frame_skip``-th frame (the environment's rate).
         search: What the PCA and the search compare (:data:`SEARCH_RULES`):
             ``"pose+velocity"`` (the paper's state, section 4) or ``"pose"``.
+        speed_spread: Standard deviation of each particle's log walking speed
+            at the start: the root's horizontal step a particle replays is the
+            database's times its speed ``v``, and its history is searched at
+            the database's pace (its root path divided by ``v``), so a
+            particle walks the database's gait at its own speed, which the
+            image's sideways motion selects. 0 (the paper's prior): every
+            particle walks at the database's speed, whoever walks.
+        speed_drift: Standard deviation of the per-frame random walk of each
+            particle's log speed (used when ``speed_spread > 0``).
 
     Returns:
         The fitted prior.
@@ -808,6 +850,9 @@ def fit(
     """
     del rng
     idx = _check_fit_arguments(motions, free, window, leaf, replay, proposals, frame_skip, search)
+    for name, value in (("speed_spread", speed_spread), ("speed_drift", speed_drift)):
+        if not (np.isfinite(value) and value >= 0):
+            raise ValueError(f"tree.fit: {name} must be a number >= 0, got {value}")
     d = int(window)
     lay = _layout(idx)
     frames, frame_clip, ends = _database(motions, idx, d, frame_skip)
@@ -872,6 +917,8 @@ def fit(
         codes=tree.codes,
         offsets=tree.offsets,
         node_flags=tree.node_flags,
+        speed_spread=float(speed_spread),
+        speed_drift=float(speed_drift),
     )
 
 
@@ -1331,7 +1378,9 @@ def initial(fitted: TreeParams, pose: ArrayLike, n: int, rng: np.random.Generato
     Returns:
         The particles: ``pose (N, D)`` all equal to ``pose``; ``extra["history"]``
         ``(N, d + 1, D)`` re-anchored windows; ``extra["window"]`` ``(N,)`` the
-        windows drawn.
+        windows drawn; with a ``speed_spread`` (and the root's horizontal
+        position free), ``extra["speed"]`` ``(N,)`` each particle's speed, and
+        its history's root path walked at that speed.
 
     Raises:
         ValueError: If ``pose`` has the wrong shape or ``n < 1``.
@@ -1342,8 +1391,31 @@ def initial(fitted: TreeParams, pose: ArrayLike, n: int, rng: np.random.Generato
     lay = _layout(fitted.free)
     chosen = initial_windows(fitted, p, n, rng)
     anchored = _anchor(window_histories(fitted, chosen), lay)
+    extra: dict[str, NDArray[Any]] = {"window": chosen}
+    if _has_speed(fitted, lay):
+        speed = np.exp(fitted.speed_spread * rng.standard_normal(n))
+        ix, iy = lay.relative[list(lay.rel_xy)]  # type: ignore[arg-type]
+        anchored[..., ix] *= speed[:, None]  # anchored: zero at the last frame
+        anchored[..., iy] *= speed[:, None]
+        extra["speed"] = speed
     history = _place(anchored, np.broadcast_to(p, (n, p.size)), lay).astype(HISTORY_DTYPE)
-    return ParticleState(np.repeat(p[None], n, axis=0), {"history": history, "window": chosen})
+    return ParticleState(np.repeat(p[None], n, axis=0), {"history": history, **extra})
+
+
+def _has_speed(fitted: TreeParams, lay: _Layout) -> bool:
+    """Whether particles carry a speed: a spread is set and the root walks (x, y free)."""
+    return fitted.speed_spread > 0 and lay.rel_xy is not None
+
+
+def _at_database_pace(history: FloatArray, speed: FloatArray, lay: _Layout) -> FloatArray:
+    """Histories whose root path (relative to the last frame) is divided by each speed."""
+    out = np.array(history, dtype=np.float64, copy=True)
+    ix, iy = lay.relative[list(lay.rel_xy)]  # type: ignore[arg-type]
+    inv = 1.0 / speed[:, None]
+    for i in (ix, iy):
+        last = out[:, -1:, i]
+        out[:, :, i] = last + (out[:, :, i] - last) * inv
+    return out
 
 
 def _history_of(fitted: TreeParams, state: ParticleState) -> FloatArray:
@@ -1372,13 +1444,22 @@ def transition(fitted: TreeParams, state: ParticleState, rng: np.random.Generato
     """
     history = _history_of(fitted, state)
     lay = _layout(fitted.free)
-    c = window_coefficients(fitted, history)
+    speed = _speed_of(fitted, state, lay)
+    # A particle with a speed is searched at the database's pace (its own
+    # path slowed or sped up to it), then walks the chosen step at its own.
+    c = window_coefficients(
+        fitted, history if speed is None else _at_database_pace(history, speed, lay)
+    )
     chosen = sample_windows(fitted, c, rng)
     step = _rows(fitted.next_step, chosen)
     if fitted.replay == "velocity" and lay.absolute.size:
         # Joint angles move by the database's velocity: next = own pose + (next - last).
         last = fitted.frames[fitted.window_end[chosen][:, None], lay.absolute[None, :]]
         step[:, lay.absolute] += state.pose[:, lay.absolute] - last
+    if speed is not None:
+        ix, iy = lay.relative[list(lay.rel_xy)]  # type: ignore[arg-type]
+        step[:, ix] *= speed
+        step[:, iy] *= speed
     if fitted.noise_scale > 0:
         noise = rng.standard_normal(step.shape)
         noise *= fitted.noise_std
@@ -1387,7 +1468,31 @@ def transition(fitted: TreeParams, state: ParticleState, rng: np.random.Generato
     new_history = np.empty_like(history)
     new_history[:, :-1] = history[:, 1:]
     new_history[:, -1] = pose
-    return ParticleState(pose, {"history": new_history, "window": chosen})
+    extra: dict[str, NDArray[Any]] = {"history": new_history, "window": chosen}
+    if speed is not None:
+        if fitted.speed_drift > 0:
+            speed = speed * np.exp(fitted.speed_drift * rng.standard_normal(speed.shape))
+        extra["speed"] = speed
+    return ParticleState(pose, extra)
+
+
+def _speed_of(fitted: TreeParams, state: ParticleState, lay: _Layout) -> FloatArray | None:
+    """The particles' speeds, or None where the prior gives them none."""
+    if not _has_speed(fitted, lay):
+        return None
+    try:
+        speed = np.asarray(state.extra["speed"], dtype=np.float64)
+    except KeyError:
+        raise ValueError(
+            "tree.transition: the prior has a speed_spread but the particles carry no "
+            "'speed'; start them with tree.initial of this prior"
+        ) from None
+    if speed.shape != (state.n,) or not np.all(speed > 0):
+        raise ValueError(
+            f"tree.transition: 'speed' must be ({state.n},) positive numbers, got shape "
+            f"{speed.shape}"
+        )
+    return speed
 
 
 def synthesize(
@@ -1544,6 +1649,8 @@ def load(path: str | Path) -> TreeParams:
                 f"{FILE_FORMAT}; fit the prior again"
             )
         stored = {f.name for f in dataclasses.fields(TreeParams)} - set(_DERIVED)
+        # Settings added after format 3 take their defaults in older files.
+        stored -= {"speed_spread", "speed_drift"} - set(data.files)
         missing = sorted((stored | {"clip_lengths", "window_end"}) - set(data.files))
         if missing:
             raise ValueError(f"{path}: the tree prior lacks {', '.join(missing)}")

@@ -1,0 +1,147 @@
+"""The tree prior's walking speed (``speed_spread``, ``speed_drift``): exact oracles."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from test_tree import ARM, walking_along_y
+
+from humotion_gym import body
+from humotion_gym.filtering import ParticleState
+from humotion_gym.priors import constant_velocity as cv
+from humotion_gym.priors import mixture, tree
+
+ROOT_X, ROOT_Y, YAW = (body.PARAM_INDEX[n] for n in ("root_x", "root_y", "root_yaw"))
+
+
+@pytest.fixture(scope="module")
+def walker():
+    """A database of one walk at 40 mm per frame along +y, facing +y."""
+    return walking_along_y()
+
+
+def start_pose(prior: tree.TreeParams) -> np.ndarray:
+    pose = prior.frames[60].copy()
+    pose[ROOT_X], pose[ROOT_Y] = 1000.0, -2000.0
+    pose[YAW] = -np.pi / 2  # facing +x
+    return pose
+
+
+def test_no_spread_is_the_paper_prior_and_draws_nothing_more(walker):
+    plain = tree.fit([walker], noise_scale=0.0)
+    assert plain.speed_spread == 0.0 and plain.speed_drift == 0.0
+    pose = start_pose(plain)
+    state = tree.initial(plain, pose, 16, np.random.default_rng(0))
+    assert "speed" not in state.extra
+    # A drift without a spread changes nothing (the particles carry no speed).
+    drift = plain.with_settings(speed_drift=0.1)
+    a = tree.transition(plain, state, np.random.default_rng(1))
+    b = tree.transition(drift, state, np.random.default_rng(1))
+    np.testing.assert_array_equal(a.pose, b.pose)
+    assert set(a.extra) == {"history", "window"}
+
+
+def test_each_particle_walks_the_database_gait_at_its_own_speed(walker):
+    plain = tree.fit([walker], noise_scale=0.0)
+    prior = plain.with_settings(speed_spread=0.4)
+    pose = start_pose(prior)
+    state = tree.initial(prior, pose, 64, np.random.default_rng(0))
+    speed = state.extra["speed"]
+    assert speed.shape == (64,) and np.all(speed > 0) and np.ptp(np.log(speed)) > 0.5
+    # Its history's path is the database's at its speed: 40 v mm per frame
+    # along its heading (+x), ending at the pose.
+    history = state.extra["history"].astype(np.float64)
+    per_frame = np.diff(history[:, :, ROOT_X], axis=1)
+    np.testing.assert_allclose(per_frame, np.broadcast_to(40.0 * speed[:, None], per_frame.shape),
+                               rtol=1e-5)  # fmt: skip
+    np.testing.assert_allclose(history[:, :, ROOT_Y], -2000.0, atol=1e-3)
+    np.testing.assert_allclose(history[:, -1], np.repeat(pose[None], 64, 0), rtol=1e-6)
+    rng = np.random.default_rng(1)
+    moved = state
+    for _ in range(20):
+        moved = tree.transition(prior, moved, rng)
+    np.testing.assert_array_equal(moved.extra["speed"], speed)  # no drift: kept
+    np.testing.assert_allclose(moved.pose[:, ROOT_X] - pose[ROOT_X], 20 * 40.0 * speed,
+                               rtol=1e-6)  # fmt: skip
+    np.testing.assert_allclose(moved.pose[:, ROOT_Y], pose[ROOT_Y], atol=1e-6)
+    # The limbs replay the database's gait: the same joints as a particle at the
+    # database's speed given the same windows (the search sees the same pace).
+    slow = ParticleState(state.pose, {k: v for k, v in state.extra.items() if k != "speed"})
+    slow = dataclasses.replace(
+        slow,
+        extra={**slow.extra, "history": tree._at_database_pace(history, speed, tree._layout(
+            prior.free)).astype(history.dtype)},
+    )  # fmt: skip
+    a = tree.transition(prior, state, np.random.default_rng(5))
+    b = tree.transition(plain, slow, np.random.default_rng(5))
+    np.testing.assert_array_equal(a.extra["window"], b.extra["window"])
+    np.testing.assert_allclose(a.pose[:, 4:], b.pose[:, 4:], atol=1e-9)
+
+
+def test_the_log_speed_random_walks_by_its_drift(walker):
+    prior = tree.fit([walker], noise_scale=0.0, speed_spread=0.2, speed_drift=0.05)
+    n = 4000
+    state = tree.initial(prior, start_pose(prior), n, np.random.default_rng(0))
+    log0 = np.log(state.extra["speed"])
+    assert abs(log0.std() - 0.2) < 0.01 and abs(log0.mean()) < 0.01
+    rng = np.random.default_rng(1)
+    x0 = state.pose[:, ROOT_X].copy()
+    path = np.zeros(n)
+    for _ in range(16):
+        path += 40.0 * state.extra["speed"]  # the step walks at the speed it had
+        state = tree.transition(prior, state, rng)
+    steps = np.log(state.extra["speed"]) - log0
+    assert abs(steps.std() - 0.05 * 4.0) < 0.01  # sqrt(16) frames of drift
+    np.testing.assert_allclose(state.pose[:, ROOT_X] - x0, path, rtol=1e-9)
+
+
+def test_no_speed_where_the_root_is_given():
+    motion = walking_along_y()
+    prior = tree.fit([motion], free=ARM, speed_spread=0.3)
+    state = tree.initial(prior, motion.params[30, ARM], 8, np.random.default_rng(0))
+    assert "speed" not in state.extra
+    tree.transition(prior, state, np.random.default_rng(1))
+
+
+def test_bad_speed_settings_and_states_are_refused(walker):
+    with pytest.raises(ValueError, match="speed_spread must be a number >= 0"):
+        tree.fit([walker], speed_spread=-0.1)
+    with pytest.raises(ValueError, match="speed_drift must be a number >= 0"):
+        tree.fit([walker], speed_drift=float("nan"))
+    prior = tree.fit([walker], speed_spread=0.3)
+    with pytest.raises(ValueError, match="speed_spread must be >= 0"):
+        prior.with_settings(speed_spread=-1.0)
+    plain = tree.fit([walker])
+    state = tree.initial(plain, start_pose(plain), 8, np.random.default_rng(0))
+    with pytest.raises(ValueError, match="carry no 'speed'"):
+        tree.transition(prior, state, np.random.default_rng(1))
+    bad = ParticleState(state.pose, {**state.extra, "speed": np.full(8, -1.0)})
+    with pytest.raises(ValueError, match="'speed' must be"):
+        tree.transition(prior, bad, np.random.default_rng(1))
+
+
+def test_speed_settings_round_trip_and_older_files_load(tmp_path, walker):
+    prior = tree.fit([walker], speed_spread=0.3, speed_drift=0.02)
+    path = tmp_path / "tree.npz"
+    tree.save(prior, path)
+    loaded = tree.load(path)
+    assert (loaded.speed_spread, loaded.speed_drift) == (0.3, 0.02)
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files if k not in ("speed_spread", "speed_drift")}
+    old = tmp_path / "old.npz"
+    np.savez(old, **arrays)
+    assert (tree.load(old).speed_spread, tree.load(old).speed_drift) == (0.0, 0.0)
+
+
+def test_the_mixture_keeps_each_particles_speed(walker):
+    prior = tree.fit([walker], noise_scale=0.0, speed_spread=0.3)
+    velocity = cv.fit([walker])
+    mix = mixture.compose([(tree, prior), (cv, velocity)], [0.5, 0.5])
+    state = mixture.initial(mix, start_pose(prior), 32, np.random.default_rng(0))
+    speed = state.extra["0/speed"]
+    rng = np.random.default_rng(1)
+    for _ in range(5):
+        state = mixture.transition(mix, state, rng)
+    np.testing.assert_array_equal(state.extra["0/speed"], speed)
