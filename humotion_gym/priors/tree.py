@@ -389,6 +389,13 @@ def _layout(free: NDArray[np.intp]) -> _Layout:
     return _layout_of(tuple(int(i) for i in free))
 
 
+def _root_xy(lay: _Layout) -> tuple[int, int]:
+    """Positions (in free) of root x and y, for a layout whose root path is rotated."""
+    assert lay.rel_xy is not None
+    ix, iy = lay.relative[list(lay.rel_xy)]
+    return int(ix), int(iy)
+
+
 # ---------------------------------------------------------------------------
 # Relative root: anchoring histories and steps
 # ---------------------------------------------------------------------------
@@ -430,7 +437,7 @@ def _place(anchored: FloatArray, pose: FloatArray, lay: _Layout) -> FloatArray:
     """
     out = anchored - anchored[..., -1:, :] + pose[..., None, :]
     if lay.relative.size and lay.rel_xy is not None:
-        ix, iy = lay.relative[list(lay.rel_xy)]
+        ix, iy = _root_xy(lay)
         iyaw = lay.relative[lay.rel_yaw]
         heading = pose[..., None, iyaw]
         dx, dy = _rotate(anchored[..., ix], anchored[..., iy], heading)
@@ -445,7 +452,7 @@ def _relative_step(prev: FloatArray, nxt: FloatArray, lay: _Layout) -> FloatArra
     if lay.relative.size:
         step[..., lay.relative] = nxt[..., lay.relative] - prev[..., lay.relative]
         if lay.rel_xy is not None:
-            ix, iy = lay.relative[list(lay.rel_xy)]
+            ix, iy = _root_xy(lay)
             heading = prev[..., lay.relative[lay.rel_yaw]]
             step[..., ix], step[..., iy] = _rotate(step[..., ix], step[..., iy], -heading)
     return step
@@ -457,7 +464,7 @@ def _advance(pose: FloatArray, step: FloatArray, lay: _Layout) -> FloatArray:
     if lay.relative.size:
         out[..., lay.relative] += pose[..., lay.relative]
         if lay.rel_xy is not None:
-            ix, iy = lay.relative[list(lay.rel_xy)]
+            ix, iy = _root_xy(lay)
             heading = pose[..., lay.relative[lay.rel_yaw]]
             dx, dy = _rotate(step[..., ix], step[..., iy], heading)
             out[..., ix] = pose[..., ix] + dx
@@ -543,7 +550,7 @@ def _coefficients(
     c = (history.reshape(n, -1) @ projection.astype(history.dtype, copy=False)).astype(np.float64)
     c -= offset
     if lay.rel_xy is not None:
-        ix, iy = lay.relative[list(lay.rel_xy)]
+        ix, iy = _root_xy(lay)
         heading = history[:, -1:, lay.relative[lay.rel_yaw]]
         # Both columns in one gather: each is a strided pass over the whole
         # history (11 MB at 10,000 particles), so reading them together halves it.
@@ -584,6 +591,8 @@ def _check_fit_arguments(
     proposals: int,
     frame_skip: int,
     search: str = "pose+velocity",
+    speed_spread: float = 0.0,
+    speed_drift: float = 0.0,
 ) -> NDArray[np.intp]:
     """The modelled parameters' indices, after checking :func:`fit`'s arguments.
 
@@ -609,6 +618,9 @@ def _check_fit_arguments(
         raise ValueError(f"tree.fit: proposals must be >= 1, got {proposals}")
     if search not in SEARCH_RULES:
         raise ValueError(f"tree.fit: search must be one of {SEARCH_RULES}, got {search!r}")
+    for name, value in (("speed_spread", speed_spread), ("speed_drift", speed_drift)):
+        if not (np.isfinite(value) and value >= 0):
+            raise ValueError(f"tree.fit: {name} must be a number >= 0, got {value}")
     rates = {float(m.fps) for m in motions}
     if len(rates) != 1:
         raise ValueError(f"tree.fit: every clip must have the same frame rate, got {sorted(rates)}")
@@ -721,7 +733,7 @@ def _history_projection(
     projection_heading = np.zeros((d + 1, 2, b))
     if lay.rel_xy is not None:
         # The root's path enters rotated into the heading frame (R_z(-h)).
-        ix, iy = lay.relative[list(lay.rel_xy)]
+        ix, iy = _root_xy(lay)
         rows = np.arange(d + 1) * idx_size
         projection_heading[:, 0], projection_heading[:, 1] = full[rows + ix], full[rows + iy]
         projection[rows + ix] = 0.0
@@ -849,10 +861,10 @@ def fit(
             windows fit in the clips.
     """
     del rng
-    idx = _check_fit_arguments(motions, free, window, leaf, replay, proposals, frame_skip, search)
-    for name, value in (("speed_spread", speed_spread), ("speed_drift", speed_drift)):
-        if not (np.isfinite(value) and value >= 0):
-            raise ValueError(f"tree.fit: {name} must be a number >= 0, got {value}")
+    idx = _check_fit_arguments(
+        motions, free, window, leaf, replay, proposals, frame_skip, search,
+        speed_spread, speed_drift,
+    )  # fmt: skip
     d = int(window)
     lay = _layout(idx)
     frames, frame_clip, ends = _database(motions, idx, d, frame_skip)
@@ -1394,7 +1406,7 @@ def initial(fitted: TreeParams, pose: ArrayLike, n: int, rng: np.random.Generato
     extra: dict[str, NDArray[Any]] = {"window": chosen}
     if _has_speed(fitted, lay):
         speed = np.exp(fitted.speed_spread * rng.standard_normal(n))
-        ix, iy = lay.relative[list(lay.rel_xy)]  # type: ignore[arg-type]
+        ix, iy = _root_xy(lay)
         anchored[..., ix] *= speed[:, None]  # anchored: zero at the last frame
         anchored[..., iy] *= speed[:, None]
         extra["speed"] = speed
@@ -1410,7 +1422,7 @@ def _has_speed(fitted: TreeParams, lay: _Layout) -> bool:
 def _at_database_pace(history: FloatArray, speed: FloatArray, lay: _Layout) -> FloatArray:
     """Histories whose root path (relative to the last frame) is divided by each speed."""
     out = np.array(history, dtype=np.float64, copy=True)
-    ix, iy = lay.relative[list(lay.rel_xy)]  # type: ignore[arg-type]
+    ix, iy = _root_xy(lay)
     inv = 1.0 / speed[:, None]
     for i in (ix, iy):
         last = out[:, -1:, i]
@@ -1457,7 +1469,7 @@ def transition(fitted: TreeParams, state: ParticleState, rng: np.random.Generato
         last = fitted.frames[fitted.window_end[chosen][:, None], lay.absolute[None, :]]
         step[:, lay.absolute] += state.pose[:, lay.absolute] - last
     if speed is not None:
-        ix, iy = lay.relative[list(lay.rel_xy)]  # type: ignore[arg-type]
+        ix, iy = _root_xy(lay)
         step[:, ix] *= speed
         step[:, iy] *= speed
     if fitted.noise_scale > 0:

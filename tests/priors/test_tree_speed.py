@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 from test_tree import ARM, walking_along_y
@@ -68,12 +66,8 @@ def test_each_particle_walks_the_database_gait_at_its_own_speed(walker):
     np.testing.assert_allclose(moved.pose[:, ROOT_Y], pose[ROOT_Y], atol=1e-6)
     # The limbs replay the database's gait: the same joints as a particle at the
     # database's speed given the same windows (the search sees the same pace).
-    slow = ParticleState(state.pose, {k: v for k, v in state.extra.items() if k != "speed"})
-    slow = dataclasses.replace(
-        slow,
-        extra={**slow.extra, "history": tree._at_database_pace(history, speed, tree._layout(
-            prior.free)).astype(history.dtype)},
-    )  # fmt: skip
+    paced = tree._at_database_pace(history, speed, tree._layout(prior.free))
+    slow = ParticleState(state.pose, {"history": paced, "window": state.extra["window"]})
     a = tree.transition(prior, state, np.random.default_rng(5))
     b = tree.transition(plain, slow, np.random.default_rng(5))
     np.testing.assert_array_equal(a.extra["window"], b.extra["window"])
