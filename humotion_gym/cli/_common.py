@@ -147,6 +147,20 @@ def add_seed(parser: argparse.ArgumentParser, what: str = "random seed") -> None
     parser.add_argument("--seed", type=nonnegative_int, default=0, help=f"{what} (default: 0)")
 
 
+def add_task(parser: argparse.ArgumentParser, default: str, what: str = "task id") -> None:
+    """``--task``: one registered task's id (with or without its namespace)."""
+    parser.add_argument(
+        "--task", type=task_name, default=default, help=f"{what} (default: {default})"
+    )
+
+
+def add_particles(parser: argparse.ArgumentParser, what: str = "particles") -> None:
+    """``--particles``: one particle count, default 300."""
+    parser.add_argument(
+        "--particles", type=positive_int, default=300, help=f"{what} (default: 300)"
+    )
+
+
 def add_engine(parser: argparse.ArgumentParser) -> None:
     """``--engine``, ``--workers``, ``--address``: where a leaderboard's episodes run."""
     parser.add_argument(

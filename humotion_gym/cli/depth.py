@@ -14,12 +14,13 @@ from pathlib import Path
 from humotion_gym.cli._common import (
     add_data_dir,
     add_json,
+    add_particles,
     add_seed,
+    add_task,
     agent_name,
     env_kwargs,
     positive_int,
     print_json,
-    task_name,
     wrote,
 )
 
@@ -35,14 +36,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "image shows; where the root's position is the agent's, also how far the pelvis "
         "travelled along the line of sight and how much of that the estimate followed.",
     )
-    dp.add_argument(
-        "--task", type=task_name, default="BodyTrack-v1", help="task id (default: BodyTrack-v1)"
-    )
+    add_task(dp, "BodyTrack-v1")
     dp.add_argument(
         "--agents", type=agent_name, nargs="+", default=["pf-cv", "pf-tree"], metavar="AGENT",
         help="agents; hold always runs (default: pf-cv pf-tree)",
     )  # fmt: skip
-    dp.add_argument("--particles", type=positive_int, default=300, help="particles (default: 300)")
+    add_particles(dp)
     dp.add_argument(
         "--episodes", type=positive_int, default=20, help="seeded episodes per agent (default: 20)"
     )

@@ -14,11 +14,11 @@ from humotion_gym.cli._common import (
     add_data_dir,
     add_json,
     add_seed,
+    add_task,
     env_kwargs,
     positive_float,
     positive_int,
     print_json,
-    task_name,
     wrote,
 )
 
@@ -29,9 +29,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "discrimination",
         help="how far the likelihood separates the true pose from poses a few cm off",
     )
-    dis.add_argument(
-        "--task", type=task_name, default="ArmTrack-v1", help="task id (default: ArmTrack-v1)"
-    )
+    add_task(dis, "ArmTrack-v1")
     dis.add_argument(
         "--episodes", type=positive_int, default=20, help="seeded episodes (default: 20)"
     )

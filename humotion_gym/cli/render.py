@@ -13,11 +13,11 @@ from pathlib import Path
 from humotion_gym.cli._common import (
     add_data_dir,
     add_seed,
+    add_task,
     env_kwargs,
     image_size,
     int_at_least,
     positive_int,
-    task_name,
     wrote,
 )
 
@@ -27,10 +27,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     rend = subparsers.add_parser(
         "render", help="render an episode of a task as video and contact sheet"
     )
-    rend.add_argument(
-        "--task", type=task_name, default="BodyTrack-v1",
-        help="task id, see humotion-gym tasks (default: BodyTrack-v1)",
-    )  # fmt: skip
+    add_task(rend, "BodyTrack-v1", "task id, see humotion-gym tasks")
     add_seed(rend, "episode seed")
     rend.add_argument(
         "--frames", type=int_at_least(2), default=90, help="frames to render (default: 90)"

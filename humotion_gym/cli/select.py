@@ -14,11 +14,12 @@ from humotion_gym.cli._common import (
     UsageError,
     add_data_dir,
     add_json,
+    add_particles,
     add_seed,
+    add_task,
     agent_name,
     positive_int,
     print_json,
-    task_name,
 )
 
 
@@ -31,9 +32,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "data) with each candidate value of likelihood settings (or prior settings, fit.NAME) "
         "and pick the combination with the lowest mean error. Test persons are never loaded.",
     )
-    sel.add_argument(
-        "--task", type=task_name, default="ArmTrack-v1", help="task id (default: ArmTrack-v1)"
-    )
+    add_task(sel, "ArmTrack-v1")
     sel.add_argument(
         "--agent", type=agent_name, default="pf-tree",
         help="particle-filter agent (default: pf-tree)",
@@ -44,7 +43,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "prior written fit.NAME (e.g. fit.damping=1,0.5); every combination is tried "
         "(default: sharpness=1,2,3,5)",
     )  # fmt: skip
-    sel.add_argument("--particles", type=positive_int, default=300, help="particles (default: 300)")
+    add_particles(sel)
     sel.add_argument(
         "--episodes", type=positive_int, default=20, help="episodes per value (default: 20)"
     )

@@ -14,13 +14,14 @@ from pathlib import Path
 from humotion_gym.cli._common import (
     add_data_dir,
     add_json,
+    add_particles,
     add_seed,
+    add_task,
     agent_name,
     env_kwargs,
     positive_float,
     positive_int,
     print_json,
-    task_name,
     wrote,
 )
 
@@ -34,14 +35,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "(hold's mean error at most --max-hold mm, lowest first, none overlapping) and track "
         "them with every agent; an agent stands still when its error is within 2x hold's.",
     )
-    st.add_argument(
-        "--task", type=task_name, default="BodyTrack-v1", help="task id (default: BodyTrack-v1)"
-    )
+    add_task(st, "BodyTrack-v1")
     st.add_argument(
         "--agents", type=agent_name, nargs="+", default=["pf-cv", "pf-tree"], metavar="AGENT",
         help="agents; hold always runs (default: pf-cv pf-tree)",
     )  # fmt: skip
-    st.add_argument("--particles", type=positive_int, default=300, help="particles (default: 300)")
+    add_particles(st)
     st.add_argument(
         "--max-hold", type=positive_float, default=50.0, metavar="MM",
         help="keep episodes whose hold error is at most this (default: 50 mm)",

@@ -14,11 +14,12 @@ from pathlib import Path
 from humotion_gym.cli._common import (
     add_data_dir,
     add_json,
+    add_particles,
     add_seed,
+    add_task,
     agent_name,
     env_kwargs,
     positive_int,
-    task_name,
     wrote,
 )
 
@@ -35,18 +36,12 @@ LEGEND = (
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``track``."""
     track = subparsers.add_parser("track", help="track seeded episodes with an agent")
-    track.add_argument(
-        "--task", type=task_name, default="ArmTrack-v1",
-        help="task id, see humotion-gym tasks (default: ArmTrack-v1)",
-    )  # fmt: skip
+    add_task(track, "ArmTrack-v1", "task id, see humotion-gym tasks")
     track.add_argument(
         "--agent", type=agent_name, default="pf-cv",
         help="agent, see humotion-gym agents (default: pf-cv)",
     )  # fmt: skip
-    track.add_argument(
-        "--particles", type=positive_int, default=300,
-        help="particles of a particle-filter agent (default: 300)",
-    )  # fmt: skip
+    add_particles(track, "particles of a particle-filter agent")
     track.add_argument(
         "--episodes", type=positive_int, default=20, help="episodes to track (default: 20)"
     )

@@ -20,9 +20,9 @@ from humotion_gym.cli._common import (
     add_data_dir,
     add_json,
     add_seed,
+    add_task,
     positive_int,
     print_json,
-    task_name,
     wrote,
 )
 
@@ -48,9 +48,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "train", help="train a learned tracker (ppo or bc) on the training persons"
     )
     tr.add_argument("--algo", choices=["ppo", "bc"], required=True, help="ppo or bc (required)")
-    tr.add_argument(
-        "--task", type=task_name, default="BodyTrack-v1", help="task id (default: BodyTrack-v1)"
-    )
+    add_task(tr, "BodyTrack-v1")
     tr.add_argument(
         "--steps", type=positive_int, default=100_000,
         help="environment steps to train for (default: 100000)",
@@ -95,9 +93,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "learning-curve",
         help="test-split error against env steps for learned trackers (IQM over seeds)",
     )
-    lc.add_argument(
-        "--task", type=task_name, default="BodyTrack-v1", help="task id (default: BodyTrack-v1)"
-    )
+    add_task(lc, "BodyTrack-v1")
     lc.add_argument(
         "--algos", nargs="+", choices=["ppo", "bc"], default=["ppo", "bc"],
         help="algorithms (default: ppo bc)",

@@ -15,10 +15,10 @@ from humotion_gym.cli._common import (
     add_data_dir,
     add_json,
     add_seed,
+    add_task,
     env_kwargs,
     positive_int,
     print_json,
-    task_name,
     wrote,
 )
 
@@ -41,10 +41,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "variance",
         help="the share of variance the tree's components hold, by feature set and scaling",
     )
-    var.add_argument(
-        "--task", type=task_name, default="BodyTrack-v1",
-        help="the task whose pf-tree prior to read (default: BodyTrack-v1)",
-    )  # fmt: skip
+    add_task(var, "BodyTrack-v1", "the task whose pf-tree prior to read")
     var.add_argument(
         "--windows", type=positive_int, default=15000, help="windows sampled (default: 15000)"
     )
