@@ -161,6 +161,14 @@ def add_particles(parser: argparse.ArgumentParser, what: str = "particles") -> N
     )
 
 
+def add_agents(parser: argparse.ArgumentParser, hold: str = "hold always runs") -> None:
+    """``--agents``: registered agent names, default pf-cv pf-tree (``hold`` runs besides)."""
+    parser.add_argument(
+        "--agents", type=agent_name, nargs="+", default=["pf-cv", "pf-tree"], metavar="AGENT",
+        help=f"agents; {hold} (default: pf-cv pf-tree)",
+    )  # fmt: skip
+
+
 def add_engine(parser: argparse.ArgumentParser) -> None:
     """``--engine``, ``--workers``, ``--address``: where a leaderboard's episodes run."""
     parser.add_argument(

@@ -12,12 +12,12 @@ import json
 from pathlib import Path
 
 from humotion_gym.cli._common import (
+    add_agents,
     add_data_dir,
     add_json,
     add_particles,
     add_seed,
     add_task,
-    agent_name,
     env_kwargs,
     positive_int,
     print_json,
@@ -37,10 +37,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "travelled along the line of sight and how much of that the estimate followed.",
     )
     add_task(dp, "BodyTrack-v1")
-    dp.add_argument(
-        "--agents", type=agent_name, nargs="+", default=["pf-cv", "pf-tree"], metavar="AGENT",
-        help="agents; hold always runs (default: pf-cv pf-tree)",
-    )  # fmt: skip
+    add_agents(dp)
     add_particles(dp)
     dp.add_argument(
         "--episodes", type=positive_int, default=20, help="seeded episodes per agent (default: 20)"

@@ -21,10 +21,10 @@ from pathlib import Path
 from humotion_gym.cli._common import (
     CommandError,
     UsageError,
+    add_agents,
     add_data_dir,
     add_engine,
     add_seed,
-    agent_name,
     check_engine,
     env_kwargs,
     nonnegative_float,
@@ -53,10 +53,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--tasks", type=task_name, nargs="+", default=["ArmTrack-v1", "BodyTrack-v1"],
         metavar="TASK", help="task ids (default: ArmTrack-v1 BodyTrack-v1)",
     )  # fmt: skip
-    lb.add_argument(
-        "--agents", type=agent_name, nargs="+", default=["pf-cv", "pf-tree"], metavar="AGENT",
-        help="agents; hold always runs as the floor (default: pf-cv pf-tree)",
-    )  # fmt: skip
+    add_agents(lb, "hold always runs as the floor")
     lb.add_argument(
         "--particles", type=positive_int, nargs="+", default=[300, 3000], metavar="N",
         help="particle counts of the particle filters (default: 300 3000)",

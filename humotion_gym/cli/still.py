@@ -12,12 +12,12 @@ import json
 from pathlib import Path
 
 from humotion_gym.cli._common import (
+    add_agents,
     add_data_dir,
     add_json,
     add_particles,
     add_seed,
     add_task,
-    agent_name,
     env_kwargs,
     positive_float,
     positive_int,
@@ -36,10 +36,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "them with every agent; an agent stands still when its error is within 2x hold's.",
     )
     add_task(st, "BodyTrack-v1")
-    st.add_argument(
-        "--agents", type=agent_name, nargs="+", default=["pf-cv", "pf-tree"], metavar="AGENT",
-        help="agents; hold always runs (default: pf-cv pf-tree)",
-    )  # fmt: skip
+    add_agents(st)
     add_particles(st)
     st.add_argument(
         "--max-hold", type=positive_float, default=50.0, metavar="MM",

@@ -17,10 +17,10 @@ from pathlib import Path
 
 from humotion_gym.cli._common import (
     UsageError,
+    add_agents,
     add_data_dir,
     add_engine,
     add_seed,
-    agent_name,
     check_engine,
     env_kwargs,
     nonnegative_float,
@@ -40,10 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--tasks", type=task_name, nargs="+", default=["BodyTrack-v1"], metavar="TASK",
         help="task ids (default: BodyTrack-v1)",
     )  # fmt: skip
-    sw.add_argument(
-        "--agents", type=agent_name, nargs="+", default=["pf-cv", "pf-tree"], metavar="AGENT",
-        help="agents; hold always runs (default: pf-cv pf-tree)",
-    )  # fmt: skip
+    add_agents(sw)
     sw.add_argument(
         "--particles", type=positive_int, nargs="+", default=[300], metavar="N",
         help="particle counts of the particle filters (default: 300)",
