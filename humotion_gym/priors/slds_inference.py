@@ -523,8 +523,10 @@ class CovarianceTable:
         dz = self.dz
         p = self.cov[new]
         chol = _cholesky(p[:, :dz, :dz] + self.r)
-        w = _solve_lower(chol, p[:, :dz, :])
-        linv = _solve_lower(chol, np.broadcast_to(np.eye(dz), chol.shape))
+        # L^-1 [H P, I] in one forward substitution: W and L^-1 side by side.
+        eye = np.broadcast_to(np.eye(dz), chol.shape)
+        both = _solve_lower(chol, np.concatenate([p[:, :dz, :], eye], axis=-1))
+        w, linv = both[..., : self.dx], both[..., self.dx :]
         half = np.log(np.diagonal(chol, axis1=-2, axis2=-1)).sum(-1)
         self.linv[new], self.w[new], self.half_logdet[new] = linv, w, half
         self.has_meas[new] = True
