@@ -209,6 +209,29 @@ def wrote(path: Path | str, what: str = "") -> None:
     print(f"wrote {path}" + (f" ({what})" if what else ""))
 
 
+def report(args: argparse.Namespace, result: Any, what: str, text: Callable[[], str]) -> int:
+    """A command's ending: the result to ``args.out`` as JSON (when given), then JSON or text.
+
+    Args:
+        args: The command's arguments (``out``: a path or None; ``json``: a flag).
+        result: The JSON-serialisable result.
+        what: What the file holds, for the message saying where it was written.
+        text: The human-readable report, made only when printed.
+
+    Returns:
+        The exit status, 0.
+    """
+    if args.out:
+        args.out.write_text(json.dumps(result, indent=1))
+        if not args.json:
+            wrote(args.out, what)
+    if args.json:
+        print_json(result)
+    else:
+        print(text())
+    return 0
+
+
 def _plain(value: Any) -> Any:
     if hasattr(value, "tolist"):  # numpy scalars and arrays
         return value.tolist()

@@ -8,7 +8,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from humotion_gym.cli._common import (
@@ -20,8 +19,7 @@ from humotion_gym.cli._common import (
     add_task,
     env_kwargs,
     positive_int,
-    print_json,
-    wrote,
+    report,
 )
 
 
@@ -73,14 +71,8 @@ def _cmd_depth(args: argparse.Namespace) -> int:
         env_kwargs=kwargs,
     )  # fmt: skip
     out["tracked"] = who
-    if args.out:
-        args.out.write_text(json.dumps(out, indent=1))
-        if not args.json:
-            wrote(args.out, "errors along and across the line of sight")
-    if args.json:
-        print_json(out)
-        return 0
-    print(f"{args.task}, {who}, {args.episodes} episodes (seed {args.seed}):")
-    print()
-    print(markdown_table(out))
-    return 0
+    return report(
+        args, out, "errors along and across the line of sight",
+        lambda: f"{args.task}, {who}, {args.episodes} episodes (seed {args.seed}):\n\n"
+        + markdown_table(out),
+    )  # fmt: skip

@@ -8,7 +8,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from humotion_gym.cli._common import (
@@ -21,8 +20,7 @@ from humotion_gym.cli._common import (
     env_kwargs,
     positive_float,
     positive_int,
-    print_json,
-    wrote,
+    report,
 )
 
 
@@ -62,12 +60,4 @@ def _cmd_still(args: argparse.Namespace) -> int:
         args.task, args.agents, args.particles, seed=args.seed, env_kwargs=env_kwargs(args),
         max_hold_mm=args.max_hold, count=args.episodes,
     )  # fmt: skip
-    if args.out:
-        args.out.write_text(json.dumps(out, indent=1))
-        if not args.json:
-            wrote(args.out, "still episodes")
-    if args.json:
-        print_json(out)
-        return 0
-    print(markdown_table(out))
-    return 0
+    return report(args, out, "still episodes", lambda: markdown_table(out))
