@@ -20,7 +20,7 @@ does not track, never the truth of the tracked ones.
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from humotion_gym.body import (
     ANGLE_MASK,
+    CONE_NAMES,
     N_PARAMS,
     VALID_LOWER,
     VALID_UPPER,
@@ -39,7 +40,12 @@ from humotion_gym.body import (
 )
 from humotion_gym.camera import Camera
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
-from humotion_gym.filtering import AnnealedParticleFilter, ParticleFilter
+from humotion_gym.filtering import (
+    AnnealedParticleFilter,
+    ParticleFilter,
+    PartitionedParticleFilter,
+    Stage,
+)
 from humotion_gym.mocap.library import (
     MotionLibrary,
 )
@@ -105,6 +111,48 @@ class TaskLikelihood:
         assert self.shape is not None and self.camera is not None
         return self.model.log_likelihood(frame, self.full_pose(particles), self.shape, self.camera)
 
+    def log_likelihood_partial(
+        self, frame: Any, particles: FloatArray, groups: Sequence[Sequence[int]]
+    ) -> FloatArray:
+        """``(N, G + 1)`` log-likelihoods of the figure built up group by group of cones.
+
+        :meth:`~humotion_gym.observation.ObservationModel.log_likelihood_partial`.
+        """
+        assert self.shape is not None and self.camera is not None
+        return self.model.log_likelihood_partial(
+            frame, self.full_pose(particles), self.shape, self.camera, groups
+        )
+
+
+#: The cones each body part of :data:`humotion_gym.priors.limbs.PARTS` places
+#: (with the parts before it: a limb's cones hang from the root).
+PART_CONES: dict[str, tuple[str, ...]] = {
+    "torso": ("torso", "head"),
+    "right_arm": ("r_upper_arm", "r_forearm"),
+    "left_arm": ("l_upper_arm", "l_forearm"),
+    "right_leg": ("r_thigh", "r_shin"),
+    "left_leg": ("l_thigh", "l_shin"),
+}
+
+
+def body_part_stages(free: NDArray[np.intp]) -> list[Stage]:
+    """Partitioned sampling's stages for a task: the torso with the root, then each limb.
+
+    Each stage searches one body part's free parameters (columns of the free
+    vector, :func:`humotion_gym.priors.limbs.part_columns`) and adds the cones
+    that part places to the partial figure
+    (:meth:`TaskLikelihood.log_likelihood_partial`). A part with no free
+    parameter has no stage; its cones weigh the particles at the end, with
+    the whole figure.
+    """
+    from humotion_gym.priors.limbs import part_columns
+
+    stages = []
+    for name, cols in part_columns(free):
+        cones = np.array([CONE_NAMES.index(c) for c in PART_CONES[name]], dtype=np.intp)
+        stages.append(Stage(np.asarray(cols, dtype=np.intp), tuple(cones.tolist()), name))
+    return stages
+
 
 class ParticleFilterAgent:
     """A particle filter over one motion prior, answering like an SB3 policy.
@@ -120,6 +168,11 @@ class ParticleFilterAgent:
         layers: 1 for the particle filter; more for the annealed particle
             filter with that many layers per frame (``n_particles`` per layer;
             particles outside the joint limits never survive a layer).
+        partitioned: Partitioned sampling instead
+            (:class:`~humotion_gym.filtering.PartitionedParticleFilter`): the
+            torso, then each limb (:func:`body_part_stages`), ``n_particles``
+            per stage; particles outside the joint limits never survive a stage.
+        diffusion: The annealed or partitioned filter's diffusion scale.
     """
 
     def __init__(
@@ -132,6 +185,8 @@ class ParticleFilterAgent:
         estimate: str = "mean",
         name: str = "pf",
         layers: int = 1,
+        partitioned: bool = False,
+        diffusion: float = 1.0,
     ) -> None:
         self.env: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
         task = self.env.task
@@ -143,7 +198,15 @@ class ParticleFilterAgent:
         self.likelihood = TaskLikelihood(self.env.observation_model, self.free, task.fixed_indices)
         self.layers = int(layers)
         self.filter: ParticleFilter
-        if self.layers == 1:
+        if partitioned:
+            if self.layers != 1:
+                raise ValueError(f"{name}: partitioned sampling has no annealing layers")
+            self.filter = PartitionedParticleFilter(
+                prior, fitted, self.likelihood, self.n_particles, body_part_stages(self.free),
+                ANGLE_MASK[self.free], estimate=estimate, diffusion=diffusion,
+                lower=VALID_LOWER[self.free], upper=VALID_UPPER[self.free],
+            )  # fmt: skip
+        elif self.layers == 1:
             # Resampling every frame (CONDENSATION; ess_threshold 1), as chosen on
             # the validation persons: resampling only when the effective sample
             # size falls below 0.25 or 0.5 of N lowered no task's mean error by
@@ -156,7 +219,7 @@ class ParticleFilterAgent:
         else:
             self.filter = AnnealedParticleFilter(
                 prior, fitted, self.likelihood, self.n_particles, ANGLE_MASK[self.free],
-                estimate=estimate, layers=self.layers,
+                estimate=estimate, layers=self.layers, diffusion=diffusion,
                 lower=VALID_LOWER[self.free], upper=VALID_UPPER[self.free],
             )  # fmt: skip
         self.seed = int(seed)
@@ -332,6 +395,13 @@ class AgentSpec:
         per_part: The prior is one tree prior per body part
             (:mod:`humotion_gym.priors.limbs`), each fitted (and cached) on its
             part's free parameters with the same settings (the tree's).
+        partitioned: Partitioned sampling
+            (:class:`~humotion_gym.filtering.PartitionedParticleFilter`), the
+            torso then each limb: one likelihood evaluation per particle per
+            stage (five per frame for the whole body).
+        diffusion: The annealed or partitioned filter's diffusion: the
+            standard deviation of its search, as a multiple of the spread of
+            the prior's proposal.
     """
 
     prior: str
@@ -342,6 +412,8 @@ class AgentSpec:
     task_fit_settings: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     components: tuple[tuple[str, AgentSpec], ...] = ()
     per_part: bool = False
+    partitioned: bool = False
+    diffusion: float = 1.0
 
     def settings_for(self, task: str) -> dict[str, Any]:
         """The fit settings of this agent on a task."""
@@ -738,6 +810,21 @@ def make(
             module.check_task(base.task.name)  # the prior's own explanation
         raise ValueError(f"{name} supports the tasks {list(spec.tasks)} only, not {base.task.name}")
     module, fitted = fit_prior(spec, base, fit_settings, use_cache=use_cache)
+    return filter_agent(spec, env, module, fitted, n_particles, seed, estimate, name)
+
+
+def filter_agent(
+    spec: AgentSpec,
+    env: gym.Env,
+    module: ModuleType,
+    fitted: Any,
+    n_particles: int,
+    seed: int,
+    estimate: str,
+    name: str,
+) -> ParticleFilterAgent:
+    """The particle-filter agent of a registered spec over a fitted prior."""
     return ParticleFilterAgent(
-        env, module, fitted, n_particles, seed, estimate, name, layers=spec.layers
-    )
+        env, module, fitted, n_particles, seed, estimate, name, layers=spec.layers,
+        partitioned=spec.partitioned, diffusion=spec.diffusion,
+    )  # fmt: skip

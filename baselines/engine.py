@@ -122,7 +122,7 @@ def build_agent(cell: Cell, env: gym.Env, seed: int, fits: Fits | None = None) -
             :func:`baselines.agents.make` builds the agent (reading or writing
             the on-disk prior cache).
     """
-    from baselines.agents import AGENTS, ParticleFilterAgent, make
+    from baselines.agents import AGENTS, filter_agent, make
 
     fit = (fits or {}).get((cell.task, cell.agent))
     n = max(cell.particles, 1)
@@ -131,7 +131,7 @@ def build_agent(cell: Cell, env: gym.Env, seed: int, fits: Fits | None = None) -
     module_name, fitted = fit
     spec = AGENTS[cell.agent]
     module = importlib.import_module(module_name)
-    return ParticleFilterAgent(env, module, fitted, n, seed, "mean", cell.agent, spec.layers)
+    return filter_agent(spec, env, module, fitted, n, seed, "mean", cell.agent)
 
 
 def run_cell_episode(

@@ -10,7 +10,7 @@ once; the only loop is over time, one frame per :meth:`ParticleFilter.step`.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -420,6 +420,18 @@ def temper_for_survival(
     return beta, weights(beta)
 
 
+def _within(
+    pose: FloatArray, lower: FloatArray | None, upper: FloatArray | None
+) -> NDArray[np.bool_]:
+    """``(N,)`` True for poses with finite parameters inside the bounds (None: unbounded)."""
+    ok = np.isfinite(pose).all(axis=1)
+    if lower is not None:
+        ok &= (pose >= lower).all(axis=1)
+    if upper is not None:
+        ok &= (pose <= upper).all(axis=1)
+    return ok
+
+
 class AnnealedParticleFilter(ParticleFilter):
     """The annealed particle filter over any prior.
 
@@ -504,12 +516,7 @@ class AnnealedParticleFilter(ParticleFilter):
         self.layer_survival: list[float] = []
 
     def _valid(self, pose: FloatArray) -> NDArray[np.bool_]:
-        ok = np.isfinite(pose).all(axis=1)
-        if self.lower is not None:
-            ok &= (pose >= self.lower).all(axis=1)
-        if self.upper is not None:
-            ok &= (pose <= self.upper).all(axis=1)
-        return ok
+        return _within(pose, self.lower, self.upper)
 
     def step(self, frame: Any) -> FloatArray:
         """Advance one frame: propose from the prior, then anneal through the layers.
@@ -561,3 +568,188 @@ class AnnealedParticleFilter(ParticleFilter):
         self.state = state
         self.log_weights = np.full(self.n, -np.log(self.n))
         return estimate
+
+
+class PartLikelihood(Protocol):
+    """What partitioned sampling needs of an observation model: partial likelihoods."""
+
+    def log_likelihood_partial(
+        self, frame: Any, poses: FloatArray, groups: Sequence[Sequence[int]]
+    ) -> FloatArray:
+        """``(N, G + 1)``: log-likelihoods of the model built up one group at a time.
+
+        Column ``g`` depends only on the dimensions of the stages up to ``g``;
+        the last column is log p(frame | pose).
+        """
+        ...
+
+
+@dataclass(frozen=True, eq=False)
+class Stage:
+    """One stage of partitioned sampling.
+
+    Attributes:
+        dims: Indices of the state dimensions the stage searches.
+        group: What the stage adds to the partial model, passed to the
+            likelihood's ``log_likelihood_partial`` (for the figure: the cones
+            the stage's dimensions place).
+        name: Shown in errors and diagnostics.
+    """
+
+    dims: NDArray[np.intp]
+    group: Sequence[int]
+    name: str = ""
+
+
+class PartitionedParticleFilter(ParticleFilter):
+    """Partitioned sampling over any prior.
+
+    MacCormick & Isard, *Partitioned sampling, articulated objects, and
+    interface-quality hand tracking*, ECCV 2000. The state is searched one
+    part at a time: stage ``k`` moves its own dimensions, then the particles
+    are weighed by ``g_k / g_{k-1}`` and resampled (section 3's weighted
+    resampling), where ``g_k`` is the likelihood of the partial model built
+    from the groups of stages ``0..k`` and depends on no dimension a later
+    stage moves. For the figure: the root and torso first (their cones'
+    likelihood, with the coverage of the foreground by those cones alone),
+    then each limb, whose cones hang from the root. After the last stage the
+    particles are weighed by ``L / g_K``: the likelihood of the whole figure
+    against the last partial one (the floor term, and the coverage where the
+    stages leave cones out); that gives the estimate and a last resampling,
+    whose equal weights carry to the next frame. Each stage thus searches a
+    few dimensions against the part of the image they explain, instead of
+    the whole body at once.
+
+    The prior moves every dimension once per frame, before the first stage.
+    A later stage's particles are then copies of the few that survived the
+    stages before it, so its dimensions are first diffused by a Gaussian of
+    ``diffusion`` times the per-dimension spread of the prior's proposal
+    (floored by ``min_std``): the search within the stage, as the annealed
+    filter's diffusion (:class:`AnnealedParticleFilter`). With ``diffusion =
+    0`` the stages only split one weighting into several. Each frame costs
+    ``len(stages) * n`` likelihood evaluations.
+
+    Args:
+        prior, fitted, n, angle_mask, resampling, estimate: As
+            :class:`ParticleFilter`.
+        observation_model: Gives ``log_likelihood_partial(frame, poses, groups)``.
+        stages: The stages in order; their ``dims`` must not overlap.
+        diffusion: Scale on the diffusion's standard deviation (>= 0).
+        min_std: ``(D,)`` or scalar floor on the proposal's spread.
+        lower, upper: ``(D,)`` bounds of valid poses (joint limits): particles
+            outside get weight 0 at every stage, so none survives.
+    """
+
+    def __init__(
+        self,
+        prior: Prior,
+        fitted: Any,
+        observation_model: PartLikelihood,
+        n: int,
+        stages: Sequence[Stage],
+        angle_mask: ArrayLike | None = None,
+        resampling: str = "systematic",
+        estimate: str = "mean",
+        diffusion: float = 1.0,
+        min_std: ArrayLike = 0.0,
+        lower: ArrayLike | None = None,
+        upper: ArrayLike | None = None,
+    ) -> None:
+        super().__init__(
+            prior,
+            fitted,
+            observation_model,
+            n,
+            angle_mask,
+            resampling,
+            1.0,
+            estimate,  # type: ignore[arg-type]
+        )
+        self.parts_model = observation_model
+        if not stages:
+            raise ValueError("PartitionedParticleFilter: expected at least one stage")
+        seen: set[int] = set()
+        for stage in stages:
+            dims = set(np.asarray(stage.dims, dtype=np.intp).tolist())
+            if not dims or dims & seen:
+                raise ValueError(
+                    f"PartitionedParticleFilter: stage {stage.name!r} must search at least one "
+                    f"dimension, none searched by an earlier stage; got {sorted(dims)}"
+                )
+            seen |= dims
+        self.stages = tuple(stages)
+        if not (np.isfinite(diffusion) and diffusion >= 0):
+            raise ValueError(f"PartitionedParticleFilter: diffusion must be >= 0, got {diffusion}")
+        self.diffusion = float(diffusion)
+        self.min_std = np.asarray(min_std, dtype=np.float64)
+        if np.any(self.min_std < 0) or not np.all(np.isfinite(self.min_std)):
+            raise ValueError("PartitionedParticleFilter: min_std must be finite and >= 0")
+        self.lower = None if lower is None else np.asarray(lower, dtype=np.float64)
+        self.upper = None if upper is None else np.asarray(upper, dtype=np.float64)
+        #: Per stage of the last frame, then the final weighing: ESS / N.
+        self.stage_survival: list[float] = []
+
+    def step(self, frame: Any) -> FloatArray:
+        """Advance one frame: propose from the prior, then weigh and resample stage by stage.
+
+        Args:
+            frame: The observation, passed to the observation model unchanged.
+
+        Returns:
+            ``(D,)`` the estimate (after the final weighing).
+        """
+        if self.state is None or self.log_weights is None or self._rng is None:
+            raise RuntimeError("PartitionedParticleFilter.step() called before reset()")
+        rng = self._rng
+        state = self.prior.transition(self.fitted, self.state, rng)
+        base_std = np.maximum(state.pose.std(axis=0), self.min_std) * self.diffusion
+        self.stage_survival = []
+        groups = [stage.group for stage in self.stages]
+        partial = np.empty((0, 0))
+        for k, stage in enumerate(self.stages):
+            if k > 0 and self.diffusion > 0:
+                pose = state.pose.copy()
+                pose[:, stage.dims] += base_std[stage.dims] * rng.standard_normal(
+                    (self.n, len(stage.dims))
+                )
+                state = ParticleState(pose, state.extra)
+            partial = np.asarray(
+                self.parts_model.log_likelihood_partial(frame, state.pose, groups),
+                dtype=np.float64,
+            )
+            if partial.shape != (self.n, len(groups) + 1):
+                raise ValueError(
+                    f"log_likelihood_partial returned shape {partial.shape}, expected "
+                    f"({self.n}, {len(groups) + 1})"
+                )
+            partial[~_within(state.pose, self.lower, self.upper)] = -np.inf
+            if k == len(groups) - 1:
+                break
+            weights = tempered_weights(_increment(partial, k, k), 1.0)
+            self.stage_survival.append(effective_sample_size(weights) / self.n)
+            index = self.resample_fn(weights, rng)
+            state = state.take(index)
+        # The last stage's weight g_K / g_{K-1} and the whole figure's L / g_K
+        # in one: L / g_{K-1}, so the estimate is the weighted mean of the
+        # last stage's particles (with one stage, the plain filter's).
+        weights = tempered_weights(_increment(partial, len(groups) - 1, len(groups)), 1.0)
+        self.ess = effective_sample_size(weights)
+        self.stage_survival.append(self.ess / self.n)
+        if self.estimate_kind == "map":
+            estimate = state.pose[int(np.argmax(weights))].copy()
+        else:
+            estimate = weighted_mean(state.pose, weights, self.angle_mask)
+        self.state = state.take(self.resample_fn(weights, rng))
+        self.log_weights = np.full(self.n, -np.log(self.n))
+        return estimate
+
+
+def _increment(partial: FloatArray, k: int, to: int) -> FloatArray:
+    """``log g_to - log g_{k-1}`` of ``(N, G + 1)`` partial log-likelihoods (``g_{-1} = 1``).
+
+    An impossible particle (``-inf`` or NaN in a column up to ``to``) gets ``-inf``.
+    """
+    with np.errstate(invalid="ignore"):  # -inf - -inf: caught below
+        step = partial[:, to] if k == 0 else partial[:, to] - partial[:, k - 1]
+    bad = ~np.isfinite(partial[:, : to + 1]).all(axis=1)
+    return np.where(bad, -np.inf, step)

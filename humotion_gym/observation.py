@@ -48,6 +48,7 @@ from __future__ import annotations
 import functools
 import math
 import threading
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -1029,16 +1030,80 @@ class ObservationModel:
         Raises:
             ValueError: If shapes disagree with each other or with the camera.
         """
+        return self._evaluate(frame, params, shape, camera, "log_likelihood")
+
+    def log_likelihood_partial(
+        self,
+        frame: ArrayLike | FrameFeatures,
+        params: ArrayLike,
+        shape: BodyShape,
+        camera: Camera,
+        groups: Sequence[Sequence[int]],
+    ) -> FloatArray:
+        """Log-likelihoods of the figure built up one group of cones at a time.
+
+        Column ``g`` is the log-likelihood of the figure made of the cones of
+        groups ``0..g`` alone: their edge and foreground terms, and the
+        coverage and residual terms measured against those cones only (a
+        foreground point no cone of theirs covers costs the truncation, as it
+        would with the cone missing); the floor term waits for the whole
+        figure. When group ``g``'s cones depend only on parameters the earlier
+        groups' do and its own, column ``g`` is a function of those
+        parameters: the importance functions of partitioned sampling
+        (:class:`~humotion_gym.filtering.PartitionedParticleFilter`). The last
+        column is :meth:`log_likelihood` itself.
+
+        Args:
+            frame: As :meth:`log_likelihood`.
+            params: As :meth:`log_likelihood`.
+            shape: As :meth:`log_likelihood`.
+            camera: As :meth:`log_likelihood`.
+            groups: Cone indices (:data:`~humotion_gym.body.CONE_NAMES`
+                order) per group, in the order the figure is built.
+
+        Returns:
+            ``(..., len(groups) + 1)`` float64; a pose with a non-finite
+            parameter has ``-inf`` in every column.
+
+        Raises:
+            ValueError: As :meth:`log_likelihood`, or if a group names a cone
+                that does not exist or one an earlier group has.
+        """
+        seen: set[int] = set()
+        masks = np.zeros((len(groups), N_CONES), dtype=bool)
+        for g, group in enumerate(groups):
+            cones = [int(c) for c in group]
+            if any(not 0 <= c < N_CONES for c in cones) or seen & set(cones):
+                raise ValueError(
+                    f"ObservationModel.log_likelihood_partial: groups[{g}] = {cones}: expected "
+                    f"cone indices in 0..{N_CONES - 1}, each in one group"
+                )
+            seen |= set(cones)
+            masks[g, cones] = True
+        return self._evaluate(
+            frame, params, shape, camera, "log_likelihood_partial", np.cumsum(masks, axis=0) > 0
+        )
+
+    def _evaluate(
+        self,
+        frame: ArrayLike | FrameFeatures,
+        params: ArrayLike,
+        shape: BodyShape,
+        camera: Camera,
+        caller: str,
+        prefixes: NDArray[np.bool_] | None = None,
+    ) -> FloatArray:
+        """Checks, then scores in chunks; ``prefixes`` ``(G, 10)``: the partial figures."""
         feats = frame if isinstance(frame, FrameFeatures) else self.prepare(frame)
         if (feats.width, feats.height) != (camera.width, camera.height):
             raise ValueError(
-                f"ObservationModel.log_likelihood: frame is {feats.width}x{feats.height} "
+                f"ObservationModel.{caller}: frame is {feats.width}x{feats.height} "
                 f"but the camera is {camera.width}x{camera.height}"
             )
         p = np.asarray(params)
         if p.ndim < 1 or p.shape[-1] != N_PARAMS:
             raise ValueError(
-                f"ObservationModel.log_likelihood: expected poses of shape (N, 25), got {p.shape}"
+                f"ObservationModel.{caller}: expected poses of shape (N, 25), got {p.shape}"
             )
         lead = p.shape[:-1]
         flat = p.reshape(-1, N_PARAMS)
@@ -1047,17 +1112,29 @@ class ObservationModel:
         finite = np.isfinite(flat).all(axis=1)
         if not finite.all():
             flat = np.where(finite[:, None], flat, 0.0)
-        out = np.empty(flat.shape[0])
+        width = () if prefixes is None else (prefixes.shape[0] + 1,)
+        out = np.empty(flat.shape[:1] + width)
         # cv2-free numpy path; chunks bound the scratch memory for huge N.
         chunk = 8192
         for lo in range(0, flat.shape[0], chunk):
-            out[lo : lo + chunk] = self._score(feats, flat[lo : lo + chunk], shape, camera)
+            out[lo : lo + chunk] = self._score(
+                feats, flat[lo : lo + chunk], shape, camera, prefixes
+            )
         out[~finite] = -np.inf
-        return out.reshape(lead)
+        return out.reshape(lead + width)
 
     def _score(
-        self, feats: FrameFeatures, params: NDArray, shape: BodyShape, camera: Camera
+        self,
+        feats: FrameFeatures,
+        params: NDArray,
+        shape: BodyShape,
+        camera: Camera,
+        prefixes: NDArray[np.bool_] | None = None,
     ) -> FloatArray:
+        """``(n,)`` log-likelihoods; with ``prefixes``, ``(n, G + 1)``.
+
+        The partial figures' columns: see :meth:`log_likelihood_partial`.
+        """
         n = params.shape[0]
         f4 = np.float32
         coef = self._coefficients
@@ -1130,6 +1207,8 @@ class ObservationModel:
         # and the matrix product's columns do not depend on their neighbours,
         # so the costs are those of one pass over all points.
         fixed = _fixed_cones(work["params"]) if n >= _SHARED_MIN_POSES else None
+        # Each cone's summed point costs, kept only for the partial figures.
+        per_cone = None if prefixes is None else np.empty((N_CONES, n))
         if fixed is None:  # every cone moves (or too few poses to pay): one pass
             sums = self._point_costs(
                 feats,
@@ -1138,6 +1217,8 @@ class ObservationModel:
                 axis_map[0] if feats.appearance_cones is None else np.repeat(axis_map, n),
                 work,
             )
+            if per_cone is not None:
+                per_cone[:] = sums.reshape(N_CONES, n)
             total = sums.reshape(N_CONES, n).sum(axis=0, dtype=np.float64)
         else:
             total = np.zeros(n)
@@ -1149,6 +1230,8 @@ class ObservationModel:
                     np.repeat(axis_map[c0:c1], n),
                     work,
                 )
+                if per_cone is not None:
+                    per_cone[c0:c1] = sums.reshape(c1 - c0, n)
                 total += sums.reshape(c1 - c0, n).sum(axis=0, dtype=np.float64)
             cones = np.flatnonzero(fixed)
             sums = self._point_costs(
@@ -1158,13 +1241,14 @@ class ObservationModel:
                 axis_map[cones],
                 work,
             )
+            if per_cone is not None:
+                per_cone[cones] = sums[:, None]
             total += sums.sum(dtype=np.float64)
-        has_residual = (
-            feats.residual is not None and feats.residual.shape[1] > 0 and self.residual_weight > 0
-        )
-        has_coverage = (
-            feats.coverage is not None and feats.coverage.shape[1] > 0 and self.coverage_weight > 0
-        )
+        partial = None
+        if prefixes is not None:
+            assert per_cone is not None
+            partial = self._partial(feats, per_cone, basis, n, prefixes)
+        has_residual, has_coverage = self._spanning_terms(feats)
         if not (has_residual or has_coverage):
             total *= -feats.cost_unit * self.sharpness
         else:
@@ -1176,7 +1260,42 @@ class ObservationModel:
             total *= -self.sharpness
         if feats.floor is not None and self.has_floor_term:
             total -= self._floor_cost(poses.keypoints, feats.floor)
+        if partial is not None:
+            partial[:, -1] = total
+            return partial
         return total
+
+    def _spanning_terms(self, feats: FrameFeatures) -> tuple[bool, bool]:
+        """Whether the residual and the coverage terms (which span cones) apply to a frame."""
+        has_residual = (
+            feats.residual is not None and feats.residual.shape[1] > 0 and self.residual_weight > 0
+        )
+        has_coverage = (
+            feats.coverage is not None and feats.coverage.shape[1] > 0 and self.coverage_weight > 0
+        )
+        return has_residual, has_coverage
+
+    def _partial(
+        self,
+        feats: FrameFeatures,
+        per_cone: FloatArray,
+        basis: NDArray,
+        n: int,
+        prefixes: NDArray[np.bool_],
+    ) -> FloatArray:
+        """``(n, G + 1)``: the partial figures' log-likelihoods (the last column left to fill)."""
+        out = np.empty((n, prefixes.shape[0] + 1))
+        # (G, n): the cone terms of each partial figure.
+        cones = prefixes.astype(np.float64) @ per_cone
+        cones *= feats.cost_unit
+        has_residual, has_coverage = self._spanning_terms(feats)
+        if has_residual:
+            cones += self._residual_cost(feats, basis, n, prefixes).T
+        if has_coverage:
+            cones += self._coverage_cost(feats, basis, n, prefixes).T
+        cones *= -self.sharpness
+        out[:, :-1] = cones.T
+        return out
 
     def _floor_cost(self, keypoints: NDArray, floor: float) -> FloatArray:
         """The floor term (nats) of ``(3, 15, N)`` internal-order world keypoints."""
@@ -1232,12 +1351,20 @@ class ObservationModel:
         np.take(feats.cost, iy, out=values)
         return values.sum(axis=0, dtype=np.uint16)
 
-    def _residual_cost(self, feats: FrameFeatures, basis: NDArray, n: int) -> FloatArray:
+    def _residual_cost(
+        self,
+        feats: FrameFeatures,
+        basis: NDArray,
+        n: int,
+        prefixes: NDArray[np.bool_] | None = None,
+    ) -> FloatArray:
         """Mean truncated squared distance of the residual points to the free outlines.
 
         Every residual point reads its distance to the nearest outline segment
         (two per free cone, ``s +- a`` to ``e +- b``) of each pose: an
-        ``(N, segments, E)`` computation, in chunks of poses.
+        ``(N, segments, E)`` computation, in chunks of poses. With ``prefixes``
+        (``(G, 10)`` cone masks) ``(N, G)``: the nearest segment of each
+        partial figure's free cones.
         """
         f4 = np.float32
         assert feats.residual is not None and feats.residual_cones is not None
@@ -1254,7 +1381,7 @@ class ObservationModel:
         scale = feats.height / self.reference_height
         tau = f4(self.residual_truncation * scale)
         unit = self.residual_weight / (2.0 * (self.edge_sigma * scale) ** 2 * q_x.size)
-        out = np.empty(n)
+        out = np.empty(n if prefixes is None else (n, prefixes.shape[0]))
         segments, e = p_x.shape[0], q_x.size
         chunk = max(1, 200_000 // max(1, segments * e))
         # Four (2C, chunk, E) buffers reused by every chunk: the arithmetic of
@@ -1277,14 +1404,28 @@ class ObservationModel:
             rx *= rx
             ry *= ry
             rx += ry
-            dist2 = np.min(rx, axis=0, out=tmp[0])  # (m, E)
-            np.minimum(dist2, tau2, out=dist2)
-            out[sl] = dist2.sum(axis=1, dtype=np.float64)
+            if prefixes is None:
+                dist2 = np.min(rx, axis=0, out=tmp[0])  # (m, E)
+                np.minimum(dist2, tau2, out=dist2)
+                out[sl] = dist2.sum(axis=1, dtype=np.float64)
+                continue
+            for g, dist2 in enumerate(_nearest(rx, np.tile(prefixes[:, cones], 2), tau2)):
+                np.minimum(dist2, tau2, out=dist2)
+                out[sl, g] = dist2.sum(axis=1, dtype=np.float64)
         out *= unit
         return out
 
-    def _coverage_cost(self, feats: FrameFeatures, basis: NDArray, n: int) -> FloatArray:
+    def _coverage_cost(
+        self,
+        feats: FrameFeatures,
+        basis: NDArray,
+        n: int,
+        prefixes: NDArray[np.bool_] | None = None,
+    ) -> FloatArray:
         """Mean truncated squared distance of the coverage points outside the free cones.
+
+        With ``prefixes`` (``(G, 10)`` cone masks) ``(N, G)``: outside each
+        partial figure's free cones.
 
         A cone's projection is taken as its projected axis segment widened by
         the projected radius, interpolated linearly along the axis, with the
@@ -1332,7 +1473,7 @@ class ObservationModel:
         tau = f4(self.coverage_truncation * scale)
         e = q.shape[1]
         unit = self.coverage_weight / (2.0 * (self.edge_sigma * scale) ** 2 * e)
-        out = np.empty(n)
+        out = np.empty(n if prefixes is None else (n, prefixes.shape[0]))
         chunk = max(1, 32_768 // max(1, cones * e))
         lin = np.empty(4 * cones * min(chunk, n) * e, f4)
         for lo in range(0, n, chunk):
@@ -1346,10 +1487,16 @@ class ObservationModel:
             np.abs(along, out=along)
             along -= reach
             np.maximum(across, along, out=across)
-            outside = np.min(across, axis=0)  # (m, F)
-            np.clip(outside, f4(0.0), tau, out=outside)
-            outside *= outside
-            out[lo : lo + m] = outside.sum(axis=1, dtype=np.float64)
+            if prefixes is None:
+                outside = np.min(across, axis=0)  # (m, F)
+                np.clip(outside, f4(0.0), tau, out=outside)
+                outside *= outside
+                out[lo : lo + m] = outside.sum(axis=1, dtype=np.float64)
+                continue
+            for g, outside in enumerate(_nearest(across, prefixes[:, feats.coverage_cones], tau)):
+                np.clip(outside, f4(0.0), tau, out=outside)
+                outside *= outside
+                out[lo : lo + m, g] = outside.sum(axis=1, dtype=np.float64)
         out *= unit
         return out
 
@@ -1398,6 +1545,18 @@ class ObservationModel:
             xm += ym
             varying.append((cone, np.sqrt(xm, out=xm)))
         return radii.astype(f4), varying
+
+
+def _nearest(values: NDArray, masks: NDArray[np.bool_], missing: Any) -> list[NDArray]:
+    """Per mask of rows, the minimum over those rows of ``(K, ...)`` values (``missing`` if none).
+
+    The partial figures' nearest cone (or outline segment) of a point: a
+    figure without any of the cones leaves every point at the truncation.
+    """
+    return [
+        values[rows].min(axis=0) if rows.any() else np.full(values.shape[1:], missing, values.dtype)
+        for rows in masks
+    ]
 
 
 def _grow(mask: NDArray[np.uint8], radius: float) -> NDArray[np.uint8]:
