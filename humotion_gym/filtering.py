@@ -432,6 +432,27 @@ def _within(
     return ok
 
 
+def _search_settings(
+    owner: str,
+    diffusion: float,
+    min_std: ArrayLike,
+    lower: ArrayLike | None,
+    upper: ArrayLike | None,
+) -> tuple[float, FloatArray, FloatArray | None, FloatArray | None]:
+    """The diffusion scale, its floor and the valid poses' bounds, checked."""
+    if not (np.isfinite(diffusion) and diffusion >= 0):
+        raise ValueError(f"{owner}: diffusion must be >= 0, got {diffusion}")
+    floor = np.asarray(min_std, dtype=np.float64)
+    if np.any(floor < 0) or not np.all(np.isfinite(floor)):
+        raise ValueError(f"{owner}: min_std must be finite and >= 0")
+    return (
+        float(diffusion),
+        floor,
+        None if lower is None else np.asarray(lower, dtype=np.float64),
+        None if upper is None else np.asarray(upper, dtype=np.float64),
+    )
+
+
 class AnnealedParticleFilter(ParticleFilter):
     """The annealed particle filter over any prior.
 
@@ -490,8 +511,9 @@ class AnnealedParticleFilter(ParticleFilter):
             )
         if not 0.0 < alpha < 1.0:
             raise ValueError(f"AnnealedParticleFilter: alpha must be in (0, 1), got {alpha}")
-        if not (np.isfinite(diffusion) and diffusion >= 0):
-            raise ValueError(f"AnnealedParticleFilter: diffusion must be >= 0, got {diffusion}")
+        self.diffusion, self.min_std, self.lower, self.upper = _search_settings(
+            "AnnealedParticleFilter", diffusion, min_std, lower, upper
+        )
         self.layers = int(layers)
         self.alpha = float(alpha)
         self.betas: FloatArray | None = None
@@ -505,12 +527,6 @@ class AnnealedParticleFilter(ParticleFilter):
         if not beta_max > 0:
             raise ValueError(f"AnnealedParticleFilter: beta_max must be > 0, got {beta_max}")
         self.beta_max = float(beta_max)
-        self.diffusion = float(diffusion)
-        self.min_std = np.asarray(min_std, dtype=np.float64)
-        if np.any(self.min_std < 0) or not np.all(np.isfinite(self.min_std)):
-            raise ValueError("AnnealedParticleFilter: min_std must be finite and >= 0")
-        self.lower = None if lower is None else np.asarray(lower, dtype=np.float64)
-        self.upper = None if upper is None else np.asarray(upper, dtype=np.float64)
         #: Per layer of the last frame: the exponent and the survival rate.
         self.layer_betas: list[float] = []
         self.layer_survival: list[float] = []
@@ -678,14 +694,9 @@ class PartitionedParticleFilter(ParticleFilter):
                 )
             seen |= dims
         self.stages = tuple(stages)
-        if not (np.isfinite(diffusion) and diffusion >= 0):
-            raise ValueError(f"PartitionedParticleFilter: diffusion must be >= 0, got {diffusion}")
-        self.diffusion = float(diffusion)
-        self.min_std = np.asarray(min_std, dtype=np.float64)
-        if np.any(self.min_std < 0) or not np.all(np.isfinite(self.min_std)):
-            raise ValueError("PartitionedParticleFilter: min_std must be finite and >= 0")
-        self.lower = None if lower is None else np.asarray(lower, dtype=np.float64)
-        self.upper = None if upper is None else np.asarray(upper, dtype=np.float64)
+        self.diffusion, self.min_std, self.lower, self.upper = _search_settings(
+            "PartitionedParticleFilter", diffusion, min_std, lower, upper
+        )
         #: Per stage of the last frame, then the final weighing: ESS / N.
         self.stage_survival: list[float] = []
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from filter_toys import RandomWalk
 
 from baselines.agents import PART_CONES, body_part_stages
 from humotion_gym import body
@@ -11,7 +12,6 @@ from humotion_gym.camera import fit_camera
 from humotion_gym.envs.tasks import get_task
 from humotion_gym.filtering import (
     ParticleFilter,
-    ParticleState,
     PartitionedParticleFilter,
     Stage,
 )
@@ -104,19 +104,6 @@ def test_the_stages_of_each_task() -> None:
 
 
 # -- the filter on a problem whose answer is known ------------------------------------
-
-
-class RandomWalk:
-    """Test-only prior: x_t = x_{t-1} + N(0, s^2), x_0 ~ N(pose, s0^2)."""
-
-    def __init__(self, step: float, start: float = 0.1):
-        self.step, self.start = step, start
-
-    def initial(self, fitted, pose, n, rng):
-        return ParticleState(pose + self.start * rng.standard_normal((n, pose.size)))
-
-    def transition(self, fitted, state, rng):
-        return ParticleState(state.pose + self.step * rng.standard_normal(state.pose.shape))
 
 
 class Peaks:
