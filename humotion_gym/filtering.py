@@ -586,8 +586,8 @@ class AnnealedParticleFilter(ParticleFilter):
         return estimate
 
 
-class PartLikelihood(Protocol):
-    """What partitioned sampling needs of an observation model: partial likelihoods."""
+class PartLikelihood(Likelihood, Protocol):
+    """What partitioned sampling needs of an observation model: partial likelihoods too."""
 
     def log_likelihood_partial(
         self, frame: Any, poses: FloatArray, groups: Sequence[Sequence[int]]
@@ -622,19 +622,19 @@ class PartitionedParticleFilter(ParticleFilter):
 
     MacCormick & Isard, *Partitioned sampling, articulated objects, and
     interface-quality hand tracking*, ECCV 2000. The state is searched one
-    part at a time: stage ``k`` moves its own dimensions, then the particles
-    are weighed by ``g_k / g_{k-1}`` and resampled (section 3's weighted
-    resampling), where ``g_k`` is the likelihood of the partial model built
-    from the groups of stages ``0..k`` and depends on no dimension a later
-    stage moves. For the figure: the root and torso first (their cones'
-    likelihood, with the coverage of the foreground by those cones alone),
-    then each limb, whose cones hang from the root. After the last stage the
-    particles are weighed by ``L / g_K``: the likelihood of the whole figure
-    against the last partial one (the floor term, and the coverage where the
-    stages leave cones out); that gives the estimate and a last resampling,
-    whose equal weights carry to the next frame. Each stage thus searches a
-    few dimensions against the part of the image they explain, instead of
-    the whole body at once.
+    part at a time: stage ``k`` (of ``0..K-1``) moves its own dimensions,
+    then the particles are weighed by ``g_k / g_{k-1}`` and resampled
+    (section 3's weighted resampling), where ``g_k`` is the likelihood of the
+    partial model built from the groups of stages ``0..k`` and depends on no
+    dimension a later stage moves. For the figure: the root and torso first
+    (their cones' likelihood, with the coverage of the foreground by those
+    cones alone), then each limb, whose cones hang from the root. The last
+    stage weighs by ``L / g_{K-2}``: its own ``g_{K-1} / g_{K-2}`` and the
+    whole likelihood's ``L / g_{K-1}`` (the floor term, and the cones no stage
+    places) in one, so the estimate is the weighted mean of its particles and
+    one stage is the plain filter; a last resampling leaves equal weights for
+    the next frame. Each stage thus searches a few dimensions against the
+    part of the image they explain, instead of the whole body at once.
 
     The prior moves every dimension once per frame, before the first stage.
     A later stage's particles are then copies of the few that survived the
@@ -671,16 +671,7 @@ class PartitionedParticleFilter(ParticleFilter):
         lower: ArrayLike | None = None,
         upper: ArrayLike | None = None,
     ) -> None:
-        super().__init__(
-            prior,
-            fitted,
-            observation_model,
-            n,
-            angle_mask,
-            resampling,
-            1.0,
-            estimate,  # type: ignore[arg-type]
-        )
+        super().__init__(prior, fitted, observation_model, n, angle_mask, resampling, 1.0, estimate)
         self.parts_model = observation_model
         if not stages:
             raise ValueError("PartitionedParticleFilter: expected at least one stage")
@@ -740,9 +731,9 @@ class PartitionedParticleFilter(ParticleFilter):
             self.stage_survival.append(effective_sample_size(weights) / self.n)
             index = self.resample_fn(weights, rng)
             state = state.take(index)
-        # The last stage's weight g_K / g_{K-1} and the whole figure's L / g_K
-        # in one: L / g_{K-1}, so the estimate is the weighted mean of the
-        # last stage's particles (with one stage, the plain filter's).
+        # The last stage's g_{K-1} / g_{K-2} and the whole figure's L / g_{K-1}
+        # in one, L / g_{K-2}: the estimate is the weighted mean of the last
+        # stage's particles (with one stage, the plain filter's).
         weights = tempered_weights(_increment(partial, len(groups) - 1, len(groups)), 1.0)
         self.ess = effective_sample_size(weights)
         self.stage_survival.append(self.ess / self.n)
