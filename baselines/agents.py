@@ -149,8 +149,8 @@ def body_part_stages(free: NDArray[np.intp]) -> list[Stage]:
 
     stages = []
     for name, cols in part_columns(free):
-        cones = np.array([CONE_NAMES.index(c) for c in PART_CONES[name]], dtype=np.intp)
-        stages.append(Stage(np.asarray(cols, dtype=np.intp), tuple(cones.tolist()), name))
+        cones = tuple(CONE_NAMES.index(c) for c in PART_CONES[name])
+        stages.append(Stage(np.asarray(cols, dtype=np.intp), cones, name))
     return stages
 
 

@@ -1244,58 +1244,54 @@ class ObservationModel:
             if per_cone is not None:
                 per_cone[cones] = sums[:, None]
             total += sums.sum(dtype=np.float64)
-        partial = None
-        if prefixes is not None:
-            assert per_cone is not None
-            partial = self._partial(feats, per_cone, basis, n, prefixes)
-        has_residual, has_coverage = self._spanning_terms(feats)
-        if not (has_residual or has_coverage):
-            total *= -feats.cost_unit * self.sharpness
-        else:
-            total *= feats.cost_unit
-            if has_residual:
-                total += self._residual_cost(feats, basis, n)
-            if has_coverage:
-                total += self._coverage_cost(feats, basis, n)
-            total *= -self.sharpness
-        if feats.floor is not None and self.has_floor_term:
-            total -= self._floor_cost(poses.keypoints, feats.floor)
-        if partial is not None:
-            partial[:, -1] = total
-            return partial
-        return total
-
-    def _spanning_terms(self, feats: FrameFeatures) -> tuple[bool, bool]:
-        """Whether the residual and the coverage terms (which span cones) apply to a frame."""
         has_residual = (
             feats.residual is not None and feats.residual.shape[1] > 0 and self.residual_weight > 0
         )
         has_coverage = (
             feats.coverage is not None and feats.coverage.shape[1] > 0 and self.coverage_weight > 0
         )
-        return has_residual, has_coverage
+        # With partial figures the whole figure is one more row of masks, so
+        # the terms that span cones are worked out once for all of them.
+        rows = None if prefixes is None else np.vstack([prefixes, np.ones((1, N_CONES), bool)])
+        residual = self._residual_cost(feats, basis, n, rows) if has_residual else None
+        coverage = self._coverage_cost(feats, basis, n, rows) if has_coverage else None
+        if not (has_residual or has_coverage):
+            total *= -feats.cost_unit * self.sharpness
+        else:
+            total *= feats.cost_unit
+            for term in (residual, coverage):
+                if term is not None:
+                    total += term if rows is None else term[:, -1]
+            total *= -self.sharpness
+        if feats.floor is not None and self.has_floor_term:
+            total -= self._floor_cost(poses.keypoints, feats.floor)
+        if prefixes is None:
+            return total
+        assert per_cone is not None
+        return self._partial(feats, per_cone, prefixes, residual, coverage, total)
 
     def _partial(
         self,
         feats: FrameFeatures,
         per_cone: FloatArray,
-        basis: NDArray,
-        n: int,
         prefixes: NDArray[np.bool_],
+        residual: FloatArray | None,
+        coverage: FloatArray | None,
+        total: FloatArray,
     ) -> FloatArray:
-        """``(n, G + 1)``: the partial figures' log-likelihoods (the last column left to fill)."""
-        out = np.empty((n, prefixes.shape[0] + 1))
+        """``(n, G + 1)``: the partial figures' log-likelihoods, then the whole's (``total``).
+
+        ``residual`` and ``coverage`` are ``(n, G + 1)`` (the last column the
+        whole figure's) or None where the term does not apply.
+        """
         # (G, n): the cone terms of each partial figure.
         cones = prefixes.astype(np.float64) @ per_cone
         cones *= feats.cost_unit
-        has_residual, has_coverage = self._spanning_terms(feats)
-        if has_residual:
-            cones += self._residual_cost(feats, basis, n, prefixes).T
-        if has_coverage:
-            cones += self._coverage_cost(feats, basis, n, prefixes).T
+        for term in (residual, coverage):
+            if term is not None:
+                cones += term[:, :-1].T
         cones *= -self.sharpness
-        out[:, :-1] = cones.T
-        return out
+        return np.column_stack([cones.T, total])
 
     def _floor_cost(self, keypoints: NDArray, floor: float) -> FloatArray:
         """The floor term (nats) of ``(3, 15, N)`` internal-order world keypoints."""

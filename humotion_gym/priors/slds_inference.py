@@ -362,6 +362,15 @@ def _neg_log(p: FloatArray) -> FloatArray:
 COV_RTOL = 1e-10
 
 
+def _pending(ids: IntArray, need: NDArray[np.bool_]) -> IntArray | None:
+    """The distinct ``ids`` where ``need``, or None where none is.
+
+    Once the recursion has converged nothing is new, and the check spares
+    ``np.unique``'s sort.
+    """
+    return np.unique(ids[need]) if need.any() else None
+
+
 class CovarianceTable:
     """The distinct covariances of the Kalman recursion and what the filter derives from them.
 
@@ -503,10 +512,8 @@ class CovarianceTable:
     def predicted(self, ids: IntArray) -> IntArray:
         """``(..., S)`` ids of ``A_i P A_i' + Q_i`` for every state ``i`` (eq. 3)."""
         ids = np.asarray(ids, dtype=np.intp)
-        need = self.pred[ids, 0] < 0
-        # Once the recursion has converged nothing is new: skip np.unique's sort.
-        if need.any():
-            new = np.unique(ids[need])
+        new = _pending(ids, self.pred[ids, 0] < 0)
+        if new is not None:
             p = self.cov[new]
             pp = self.a[None] @ p[:, None] @ self.a_t[None] + self.q[None]
             child = self.insert(pp.reshape(-1, self.dx, self.dx))
@@ -516,10 +523,9 @@ class CovarianceTable:
     def measure(self, ids: IntArray) -> None:
         """Innovation factor, gain and update of predicted covariances ``ids`` (eqs. 4-5)."""
         ids = np.asarray(ids, dtype=np.intp)
-        need = ~self.has_meas[ids]
-        if not need.any():
+        new = _pending(ids, ~self.has_meas[ids])
+        if new is None:
             return
-        new = np.unique(ids[need])
         dz = self.dz
         p = self.cov[new]
         chol = _cholesky(p[:, :dz, :dz] + self.r)
@@ -538,9 +544,8 @@ class CovarianceTable:
         only the kept ones.
         """
         ids = np.asarray(ids, dtype=np.intp)
-        need = self.upd[ids] < 0
-        if need.any():
-            new = np.unique(ids[need])
+        new = _pending(ids, self.upd[ids] < 0)
+        if new is not None:
             w = self.w[new]
             upd = self.insert(symmetrise(self.cov[new] - np.swapaxes(w, -1, -2) @ w))
             self.upd[new] = upd
