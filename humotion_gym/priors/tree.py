@@ -1430,6 +1430,33 @@ def _at_database_pace(history: FloatArray, speed: FloatArray, lay: _Layout) -> F
     return out
 
 
+# Histories brought to the database's pace and projected in blocks of this many
+# particles: at 10,000 the float64 copy (22 MB) leaves the cache between the
+# two passes over it, a block of 1,024 (2.3 MB) does not (4.3 instead of 7.4 ms
+# per frame on this project's machines; 3,000 particles: no change).
+_PACE_ROWS = 1024
+
+
+def _search_coefficients(
+    fitted: TreeParams, history: NDArray[Any], speed: FloatArray | None, lay: _Layout
+) -> FloatArray:
+    """The coefficients the particles search the tree with (see :func:`transition`).
+
+    Each row's product with the projection is its own, so the blocks give
+    the numbers of one pass (here bit for bit; ``tests/priors/test_tree.py``
+    checks them to rounding).
+    """
+    if speed is None or history.shape[0] <= _PACE_ROWS:
+        return window_coefficients(
+            fitted, history if speed is None else _at_database_pace(history, speed, lay)
+        )
+    out = np.empty((history.shape[0], fitted.projection.shape[1]))
+    for lo in range(0, history.shape[0], _PACE_ROWS):
+        rows = slice(lo, lo + _PACE_ROWS)
+        out[rows] = window_coefficients(fitted, _at_database_pace(history[rows], speed[rows], lay))
+    return out
+
+
 def _history_of(fitted: TreeParams, state: ParticleState) -> FloatArray:
     try:
         history = state.extra["history"]
@@ -1459,9 +1486,7 @@ def transition(fitted: TreeParams, state: ParticleState, rng: np.random.Generato
     speed = _speed_of(fitted, state, lay)
     # A particle with a speed is searched at the database's pace (its own
     # path slowed or sped up to it), then walks the chosen step at its own.
-    c = window_coefficients(
-        fitted, history if speed is None else _at_database_pace(history, speed, lay)
-    )
+    c = _search_coefficients(fitted, history, speed, lay)
     chosen = sample_windows(fitted, c, rng)
     step = _rows(fitted.next_step, chosen)
     if fitted.replay == "velocity" and lay.absolute.size:

@@ -139,3 +139,20 @@ def test_the_mixture_keeps_each_particles_speed(walker):
     for _ in range(5):
         state = mixture.transition(mix, state, rng)
     np.testing.assert_array_equal(state.extra["0/speed"], speed)
+
+
+def test_many_particles_search_in_blocks_with_the_numbers_of_one_pass(walker):
+    # Above tree._PACE_ROWS particles the histories are brought to the
+    # database's pace and projected block by block (to stay in cache): the
+    # coefficients are those of one pass, and so are the windows drawn.
+    prior = tree.fit([walker], noise_scale=0.0).with_settings(speed_spread=0.4)
+    n = 2 * tree._PACE_ROWS + 37
+    state = tree.initial(prior, start_pose(prior), n, np.random.default_rng(0))
+    lay = tree._layout(prior.free)
+    history, speed = state.extra["history"], state.extra["speed"]
+    blocks = tree._search_coefficients(prior, history, speed, lay)
+    one_pass = tree.window_coefficients(prior, tree._at_database_pace(history, speed, lay))
+    np.testing.assert_allclose(blocks, one_pass, rtol=1e-12, atol=1e-9)
+    a = tree.sample_windows(prior, blocks, np.random.default_rng(2))
+    b = tree.sample_windows(prior, one_pass, np.random.default_rng(2))
+    np.testing.assert_array_equal(a, b)
