@@ -1377,7 +1377,10 @@ class ObservationModel:
         scale = feats.height / self.reference_height
         tau = f4(self.residual_truncation * scale)
         unit = self.residual_weight / (2.0 * (self.edge_sigma * scale) ** 2 * q_x.size)
-        out = np.empty(n if prefixes is None else (n, prefixes.shape[0]))
+        # One column per figure: the whole one, or each partial figure's
+        # segments (a cone's two outline segments are rows c and C + c).
+        masks = None if prefixes is None else np.tile(prefixes[:, cones], 2)
+        out = np.empty((n, 1 if prefixes is None else prefixes.shape[0]))
         segments, e = p_x.shape[0], q_x.size
         chunk = max(1, 200_000 // max(1, segments * e))
         # Four (2C, chunk, E) buffers reused by every chunk: the arithmetic of
@@ -1400,16 +1403,11 @@ class ObservationModel:
             rx *= rx
             ry *= ry
             rx += ry
-            if prefixes is None:
-                dist2 = np.min(rx, axis=0, out=tmp[0])  # (m, E)
-                np.minimum(dist2, tau2, out=dist2)
-                out[sl] = dist2.sum(axis=1, dtype=np.float64)
-                continue
-            for g, dist2 in enumerate(_nearest(rx, np.tile(prefixes[:, cones], 2), tau2)):
+            for g, dist2 in enumerate(_nearest(rx, masks, tau2, out=tmp[0])):  # (m, E) each
                 np.minimum(dist2, tau2, out=dist2)
                 out[sl, g] = dist2.sum(axis=1, dtype=np.float64)
         out *= unit
-        return out
+        return out[:, 0] if prefixes is None else out
 
     def _coverage_cost(
         self,
@@ -1469,7 +1467,8 @@ class ObservationModel:
         tau = f4(self.coverage_truncation * scale)
         e = q.shape[1]
         unit = self.coverage_weight / (2.0 * (self.edge_sigma * scale) ** 2 * e)
-        out = np.empty(n if prefixes is None else (n, prefixes.shape[0]))
+        masks = None if prefixes is None else prefixes[:, feats.coverage_cones]
+        out = np.empty((n, 1 if prefixes is None else prefixes.shape[0]))
         chunk = max(1, 32_768 // max(1, cones * e))
         lin = np.empty(4 * cones * min(chunk, n) * e, f4)
         for lo in range(0, n, chunk):
@@ -1483,18 +1482,12 @@ class ObservationModel:
             np.abs(along, out=along)
             along -= reach
             np.maximum(across, along, out=across)
-            if prefixes is None:
-                outside = np.min(across, axis=0)  # (m, F)
-                np.clip(outside, f4(0.0), tau, out=outside)
-                outside *= outside
-                out[lo : lo + m] = outside.sum(axis=1, dtype=np.float64)
-                continue
-            for g, outside in enumerate(_nearest(across, prefixes[:, feats.coverage_cones], tau)):
+            for g, outside in enumerate(_nearest(across, masks, tau)):  # (m, F) each
                 np.clip(outside, f4(0.0), tau, out=outside)
                 outside *= outside
                 out[lo : lo + m, g] = outside.sum(axis=1, dtype=np.float64)
         out *= unit
-        return out
+        return out[:, 0] if prefixes is None else out
 
     def _silhouette_radii(
         self,
@@ -1543,12 +1536,18 @@ class ObservationModel:
         return radii.astype(f4), varying
 
 
-def _nearest(values: NDArray, masks: NDArray[np.bool_], missing: Any) -> list[NDArray]:
+def _nearest(
+    values: NDArray, masks: NDArray[np.bool_] | None, missing: Any, out: NDArray | None = None
+) -> list[NDArray]:
     """Per mask of rows, the minimum over those rows of ``(K, ...)`` values (``missing`` if none).
 
-    The partial figures' nearest cone (or outline segment) of a point: a
-    figure without any of the cones leaves every point at the truncation.
+    The figures' nearest cone (or outline segment) of a point: with ``masks``
+    None, the whole figure's (one minimum over every row, into ``out`` when
+    given); per partial figure otherwise, where a figure without any of the
+    cones leaves every point at the truncation.
     """
+    if masks is None:
+        return [np.min(values, axis=0, out=out)]
     return [
         values[rows].min(axis=0) if rows.any() else np.full(values.shape[1:], missing, values.dtype)
         for rows in masks
