@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from filter_toys import RandomWalk
+from filter_toys import RandomWalk, assert_tracks_as_the_particle_filter
 
 from humotion_gym.filtering import (
     AnnealedParticleFilter,
@@ -25,15 +25,9 @@ class Peak:
 
 
 def test_one_layer_at_beta_one_is_the_particle_filter() -> None:
-    frames = np.cumsum(np.full((8, 3), 0.05), axis=0)
     prior, like = RandomWalk(0.1), Peak(0.2)
-    pf = ParticleFilter(prior, None, like, 200)
     apf = AnnealedParticleFilter(prior, None, like, 200, layers=1, betas=[1.0], diffusion=0.0)
-    pf.reset(np.zeros(3), np.random.default_rng(5))
-    apf.reset(np.zeros(3), np.random.default_rng(5))
-    for y in frames:
-        np.testing.assert_allclose(apf.step(y), pf.step(y), rtol=1e-9, atol=1e-12)
-        np.testing.assert_allclose(apf.state.pose, pf.state.pose, rtol=1e-9, atol=1e-12)
+    assert_tracks_as_the_particle_filter(apf, prior, like, 200)
 
 
 def test_each_layer_keeps_the_survival_rate() -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from filter_toys import RandomWalk
+from filter_toys import RandomWalk, assert_tracks_as_the_particle_filter
 
 from baselines.agents import PART_CONES, body_part_stages
 from humotion_gym import body
@@ -128,15 +128,9 @@ def stages(d: int, size: int) -> list[Stage]:
 
 
 def test_one_stage_is_the_particle_filter() -> None:
-    frames = np.cumsum(np.full((8, 3), 0.05), axis=0)
     prior, like = RandomWalk(0.1), Peaks(0.2)
-    pf = ParticleFilter(prior, None, like, 200)
     ppf = PartitionedParticleFilter(prior, None, like, 200, stages(3, 3))
-    pf.reset(np.zeros(3), np.random.default_rng(5))
-    ppf.reset(np.zeros(3), np.random.default_rng(5))
-    for y in frames:
-        np.testing.assert_allclose(ppf.step(y), pf.step(y), rtol=1e-9, atol=1e-12)
-        np.testing.assert_allclose(ppf.state.pose, pf.state.pose, rtol=1e-9, atol=1e-12)
+    assert_tracks_as_the_particle_filter(ppf, prior, like, 200)
 
 
 def test_partitions_find_a_narrow_peak_in_many_dimensions() -> None:
