@@ -9,7 +9,8 @@ projection of the keypoints, 15 points along each of the 10 projected cone
 axes (150 per pose) and a nearest-pixel lookup of each in a distance map. The
 ratio (reference time / model time) is the figure of merit: these machines are
 noisy, so compare ratios, not absolute numbers. The time of ``prepare`` (once
-per frame) is printed too.
+per frame) is printed too. With the `fast` extra (numba) installed, the model
+is timed with its compiled kernel and without (the numpy path), same numbers.
 
 Then the same for the whole-body tasks' likelihood (BodyTrack-v1's settings:
 the backdrop read at a first frame where the figure stood 30 cm to the side,
@@ -21,11 +22,16 @@ from __future__ import annotations
 import numpy as np
 from _timing import best_of
 
-from humotion_gym import body
+from humotion_gym import _kernels, body
 from humotion_gym.camera import Camera, fit_camera
 from humotion_gym.envs.tasks import get_task
 from humotion_gym.observation import GivenBody, ObservationModel
 from humotion_gym.render import SceneOptions, make_background, render
+
+# The model with the compiled kernel (the `fast` extra, when installed) and
+# without: the same numbers (tests/test_kernels.py), timed in the same run.
+KERNELS = _kernels.enabled()
+PATHS = ([("compiled kernel", True)] if KERNELS else []) + [("numpy path", False)]
 
 
 def reference_scores(
@@ -75,19 +81,22 @@ def main() -> None:
             poses = truth + rng.normal(0.0, 0.05, (n, 25))
             poses[:, :3] = truth[:3] + rng.normal(0.0, 50.0, (n, 3))
             calls = max(3, 6000 // n)
-            ours = best_of(
-                lambda poses=poses, model=model, features=features: model.log_likelihood(
-                    features, poses, shape, camera
-                ),
-                calls,
-            )
             ref = best_of(
                 lambda poses=poses: reference_scores(distance, poses, shape, camera), calls
             )
-            print(
-                f"N={n:6d}{label}: log_likelihood {1e3 * ours:7.3f} ms, numpy reference "
-                f"{1e3 * ref:7.3f} ms, ratio {ref / ours:4.1f}x"
-            )
+            for path, on in PATHS:
+                _kernels.ENABLED = on
+                ours = best_of(
+                    lambda poses=poses, model=model, features=features: model.log_likelihood(
+                        features, poses, shape, camera
+                    ),
+                    calls,
+                )
+                print(
+                    f"N={n:6d}{label}, {path}: log_likelihood {1e3 * ours:7.3f} ms, numpy "
+                    f"reference {1e3 * ref:7.3f} ms, ratio {ref / ours:4.1f}x"
+                )
+            _kernels.ENABLED = KERNELS
 
 
 if __name__ == "__main__":

@@ -56,6 +56,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from humotion_gym import _kernels
 from humotion_gym.body import (
     CONE_KEYPOINTS,
     KEYPOINT_NAMES,
@@ -1331,6 +1332,11 @@ class ObservationModel:
         cols = columns.shape[1]
         w2, h2 = feats.width + 2, feats.height + 2
         n_out = 2 * self.outline_samples
+        # The compiled kernel (the `fast` extra) does the same steps in one
+        # pass, bit for bit; None where it does not run.
+        sums = _kernels.point_costs(coef, columns, outline_map, axis_map, feats.cost, w2, h2, n_out)
+        if sums is not None:
+            return sums
         points = work["points"][: 2 * n_points * cols].reshape(2 * n_points, cols)
         np.matmul(coef, columns, out=points)
         np.clip(points[:n_points], 0.0, f4(w2 - 1), out=points[:n_points])
