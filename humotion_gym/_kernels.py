@@ -68,9 +68,13 @@ def point_costs(
     """
     if not ENABLED or columns.shape[1] < 2:
         return None
-    out = np.empty(columns.shape[1], np.uint16)
-    outline = np.zeros(0, np.int32) if outline_map is None else outline_map.astype(np.int32)
-    axis = np.atleast_1d(np.asarray(axis_map, np.int32))
+    k = columns.shape[1]
+    out = np.empty(k, np.uint16)
+    # Each column's map offsets, one per column (no copy where they already are).
+    outline = np.zeros(k, np.int32) if outline_map is None else np.asarray(outline_map, np.int32)
+    axis = np.asarray(axis_map, np.int32)
+    if axis.ndim == 0:
+        axis = np.full(k, axis, np.int32)
     compiled()._point_costs(
         coef, np.ascontiguousarray(columns, np.float32), outline, axis, cost, width, height,
         n_out, out,

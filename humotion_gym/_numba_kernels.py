@@ -105,21 +105,14 @@ def _point_costs(
     n_out: int,
     out: NDArray[np.uint16],
 ) -> None:
+    """``(K,)`` summed costs; ``outline_map`` and ``axis_map`` are ``(K,)`` offsets."""
     n_points = coef.shape[0] // 2
     k = columns.shape[1]
-    outline = np.zeros(k, np.int32)
-    if outline_map.shape[0] > 0:
-        outline[:] = outline_map
-    axis = np.empty(k, np.int32)
-    if axis_map.shape[0] == 1:
-        axis[:] = axis_map[0]
-    else:
-        axis[:] = axis_map
     index = np.empty(k, np.int32)
     acc = np.zeros(k, np.int32)
     xmax, ymax = np.float32(w2 - 1), np.float32(h2 - 1)
     for p in range(n_points):
-        offsets = outline if p < n_out else axis
+        offsets = outline_map if p < n_out else axis_map
         _point_row(coef[p], coef[p + n_points], columns, offsets, cost, w2, xmax, ymax,
                    index, acc)  # fmt: skip
     for j in range(k):
