@@ -9,14 +9,28 @@ changes: the leaderboard's tables are the same numbers with or without it.
 ``HUMOTION_NUMBA=0`` in the environment turns the kernels off (the numpy paths
 run); :func:`enabled` says whether they are on.
 
-Why the results match: the observation model places its sample points with a
-float32 matrix product (:func:`numpy.matmul`, so BLAS ``sgemm``). OpenBLAS's
-``sgemm`` kernels on x86-64 accumulate each output as a chain of fused
-multiply-adds over the inner dimension, in order, from zero; the kernel below
-does exactly that with LLVM's ``fma`` intrinsic (ordinary ``a * b + c`` would
-round twice). A product with one column goes through ``sgemv`` instead, which
-sums differently, so one column is left to numpy. Everything after the product
-(clipping, truncation to a pixel, the table lookup, the integer sum) is exact.
+The kernels, in the order the likelihood runs them:
+
+- :func:`kinematics`: the batched forward kinematics after the sines and
+  cosines (those stay numpy's: its float32 ``sin`` and ``cos`` are its own
+  SIMD code, which libm's would not match);
+- :func:`cone_basis`: the camera projection of the keypoints, each cone's
+  image axis, normal and outline offsets, and the outline's orientation bin;
+- :func:`point_costs`: the sample points placed, looked up and summed.
+
+Why the results match: every step the numpy paths take elementwise is one
+IEEE float32 operation (add, multiply, divide, square root, comparison), and
+the kernels make the same operations in the same order (numba, without
+``fastmath``, neither fuses ``a * b + c`` nor reorders sums). Two steps are
+matrix products, which numpy hands to BLAS ``sgemm``: the camera's rotation
+of the keypoints and the sample points' placement. OpenBLAS's ``sgemm``
+kernels on x86-64 accumulate each output as a chain of fused multiply-adds
+over the inner dimension, in order, from zero; the kernels do exactly that
+with LLVM's ``fma`` intrinsic (ordinary ``a * b + c`` would round twice). A
+product with one column goes through ``sgemv`` instead, which sums
+differently, so one column is left to numpy. Everything after the points'
+product (clipping, truncation to a pixel, the table lookup, the integer sum)
+is exact.
 """
 
 from __future__ import annotations
@@ -30,7 +44,7 @@ from types import ModuleType
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["enabled", "point_costs"]
+__all__ = ["cone_basis", "enabled", "kinematics", "point_costs", "spaced_rows"]
 
 #: Whether the kernels run: numba is installed and ``HUMOTION_NUMBA`` is not 0.
 ENABLED: bool = (
@@ -41,6 +55,24 @@ ENABLED: bool = (
 def enabled() -> bool:
     """True when the compiled kernels run (numba installed, not turned off)."""
     return ENABLED
+
+
+def spaced_rows(lead: tuple[int, ...], n: int, dtype: type = np.float32) -> NDArray:
+    """An empty ``lead + (n,)`` array whose rows lie an odd number of cache lines apart.
+
+    For arrays a kernel reads or writes one pose (one column) at a time, down
+    dozens of rows: rows a multiple of 4 KiB apart (``n`` a multiple of 1,024
+    float32) all fall in one set of the L1 cache and evict each other, which
+    made the kinematics kernel five times slower at 4,096 poses than at 4,000.
+    With an odd number of 64-byte lines between rows, 64 rows fall in 64
+    different sets. A plain contiguous array when the kernels are off.
+    """
+    if not ENABLED:
+        return np.empty(lead + (n,), dtype)
+    per_line = 64 // np.dtype(dtype).itemsize
+    lines = -(-n // per_line)
+    lines += 1 - lines % 2
+    return np.empty(lead + (lines * per_line,), dtype)[..., :n]
 
 
 @functools.cache
@@ -80,3 +112,84 @@ def point_costs(
         n_out, out,
     )  # fmt: skip
     return out
+
+
+def cone_basis(
+    rot: NDArray[np.float32],
+    trans: NDArray[np.float32],
+    keypoints: NDArray[np.float32],
+    near: np.float32,
+    focal: np.float32,
+    shift_u: np.float32,
+    shift_u_behind: np.float32,
+    shift_v: np.float32,
+    cone_start: NDArray[np.intp],
+    cone_end: NDArray[np.intp],
+    radii: NDArray[np.float32],
+    varying: list[tuple[int, tuple, tuple, float]],
+    pad: np.float32,
+    four_bins: bool,
+    plane: int,
+    uvz: NDArray[np.float32],
+    basis: NDArray[np.float32],
+    normals: NDArray[np.float32],
+    outline: NDArray[np.int32],
+) -> bool:
+    """The cones' image bases (the kernel of ``ObservationModel._cone_basis``).
+
+    Fills ``basis`` ``(8, 10, N)``, ``normals`` ``(2, 10, N)`` and, with
+    ``four_bins``, ``outline`` ``(10, N)``; ``uvz`` ``(3, 15, N)`` is scratch.
+    ``varying``: ``(cone, x axis, y axis, aspect)`` of the cones whose
+    silhouette width varies with the pose. See
+    :meth:`humotion_gym.observation.ObservationModel._cone_basis` for the rest.
+
+    Returns:
+        False (nothing filled) when the kernels are off or the keypoints are
+        not float32.
+    """
+    if not ENABLED or keypoints.dtype != np.float32:
+        return False
+    n = keypoints.shape[2]
+    vary_cone = np.array([v[0] for v in varying], np.intp)
+    vary_axes = np.empty((len(varying), 2, 3, n), np.float32)
+    for k, (_, ax, ay, _) in enumerate(varying):
+        vary_axes[k, 0] = ax
+        vary_axes[k, 1] = ay
+    vary_aspect = np.array([v[3] for v in varying], np.float32)
+    compiled()._cone_basis(
+        rot, trans, keypoints, near, focal, shift_u, shift_u_behind, shift_v, cone_start,
+        cone_end, radii, vary_cone, vary_axes, vary_aspect, pad, four_bins, plane, uvz, basis,
+        normals, outline,
+    )  # fmt: skip
+    return True
+
+
+def kinematics(
+    a: NDArray,
+    c: NDArray,
+    s: NDArray,
+    off: NDArray,
+    head_length: np.floating,
+    upper: NDArray,
+    lower: NDArray,
+    sign: NDArray,
+    want_head_axes: bool,
+    kp: NDArray,
+) -> NDArray[np.float32] | None:
+    """The batched kinematics after the sines and cosines (``kinematics._batch_kinematics``).
+
+    Fills ``kp`` ``(3, 15, N)``; see ``_batch_kinematics`` for the rest.
+
+    Returns:
+        ``(4, 3, N)``: the torso's x and y axes, then the head's (filled with
+        ``want_head_axes``); None (nothing filled) when the kernels are off or
+        the arrays are not float32.
+    """
+    if not ENABLED or kp.dtype != np.float32:
+        return None
+    axes = spaced_rows((4, 3), a.shape[1])
+    compiled()._kinematics(
+        a, c, s, off, head_length, upper.reshape(-1), lower.reshape(-1), sign.reshape(-1),
+        want_head_axes, kp, axes,
+    )  # fmt: skip
+    return axes

@@ -117,3 +117,211 @@ def _point_costs(
                    index, acc)  # fmt: skip
     for j in range(k):
         out[j] = acc[j] & 0xFFFF  # numpy's uint16 sum wraps the same way
+
+
+_ZERO = np.float32(0.0)
+_ONE = np.float32(1.0)
+_MINUS_ONE = np.float32(-1.0)
+_TINY = np.float32(1e-12)
+
+
+@_njit()
+def _cone_basis(
+    rot: NDArray[np.float32],
+    trans: NDArray[np.float32],
+    keypoints: NDArray[np.float32],
+    near: np.float32,
+    focal: np.float32,
+    shift_u: np.float32,
+    shift_u_behind: np.float32,
+    shift_v: np.float32,
+    cone_start: NDArray[np.intp],
+    cone_end: NDArray[np.intp],
+    radii: NDArray[np.float32],
+    vary_cone: NDArray[np.intp],
+    vary_axes: NDArray[np.float32],
+    vary_aspect: NDArray[np.float32],
+    pad: np.float32,
+    four_bins: bool,
+    plane: int,
+    uvz: NDArray[np.float32],
+    basis: NDArray[np.float32],
+    normals: NDArray[np.float32],
+    outline: NDArray[np.int32],
+) -> None:
+    """The cones' image bases of every pose, as ``ObservationModel._cone_basis``'s numpy path.
+
+    ``keypoints`` ``(3, 15, n)``; ``uvz`` ``(3, 15, n)`` scratch; out: ``basis``
+    ``(8, 10, n)``, ``normals`` ``(2, 10, n)`` (x, y), and with ``four_bins``
+    ``outline`` ``(10, n)`` (each outline's map offset). ``vary_axes``
+    ``(V, 2, 3, n)``: the x and y axes of the ``V`` cones ``vary_cone`` whose
+    silhouette width varies with the pose. Every step is the numpy path's
+    float32 operation, in its order; the loops run over poses innermost.
+    """
+    n = keypoints.shape[2]
+    for k in range(keypoints.shape[1]):
+        for j in range(n):
+            x, y, z = keypoints[0, k, j], keypoints[1, k, j], keypoints[2, k, j]
+            # The camera's 3x3 product: sgemm's chain from zero, then + t.
+            cu = _fma32(rot[0, 2], z, _fma32(rot[0, 1], y, _fma32(rot[0, 0], x, _ZERO)))
+            cv = _fma32(rot[1, 2], z, _fma32(rot[1, 1], y, _fma32(rot[1, 0], x, _ZERO)))
+            cz = _fma32(rot[2, 2], z, _fma32(rot[2, 1], y, _fma32(rot[2, 0], x, _ZERO)))
+            cu = cu + trans[0]
+            cv = cv + trans[1]
+            cz = cz + trans[2]
+            behind = cz < near
+            cz = near if cz < near else cz  # np.maximum (a NaN stays NaN)
+            inv = focal / cz
+            uvz[0, k, j] = cu * inv + (shift_u_behind if behind else shift_u)
+            uvz[1, k, j] = cv * inv + shift_v
+            uvz[2, k, j] = inv
+    for c in range(cone_start.shape[0]):
+        s, e = cone_start[c], cone_end[c]
+        for j in range(n):
+            su, sv, eu, ev = uvz[0, s, j], uvz[1, s, j], uvz[0, e, j], uvz[1, e, j]
+            basis[0, c, j] = su
+            basis[1, c, j] = sv
+            basis[2, c, j] = eu
+            basis[3, c, j] = ev
+            dx = eu - su
+            dy = ev - sv
+            norm = dx * dx
+            norm = norm + dy * dy
+            norm = norm + _TINY
+            norm = _ONE / np.sqrt(norm)
+            normals[0, c, j] = dy * norm
+            normals[1, c, j] = (dx * norm) * _MINUS_ONE
+    factors = np.empty((vary_cone.shape[0], n), np.float32)
+    for v in range(vary_cone.shape[0]):
+        c = vary_cone[v]
+        for j in range(n):
+            m0, m1 = normals[0, c, j], normals[1, c, j]
+            a0, a1, a2 = vary_axes[v, 0, 0, j], vary_axes[v, 0, 1, j], vary_axes[v, 0, 2, j]
+            b0, b1, b2 = vary_axes[v, 1, 0, j], vary_axes[v, 1, 1, j], vary_axes[v, 1, 2, j]
+            xm = (rot[0, 0] * a0 + rot[0, 1] * a1 + rot[0, 2] * a2) * m0
+            xm = xm + (rot[1, 0] * a0 + rot[1, 1] * a1 + rot[1, 2] * a2) * m1
+            ym = (rot[0, 0] * b0 + rot[0, 1] * b1 + rot[0, 2] * b2) * m0
+            ym = ym + (rot[1, 0] * b0 + rot[1, 1] * b1 + rot[1, 2] * b2) * m1
+            ym = ym * vary_aspect[v]
+            xm = xm * xm
+            ym = ym * ym
+            factors[v, j] = np.sqrt(xm + ym)
+    for c in range(cone_start.shape[0]):
+        varies = -1
+        for v in range(vary_cone.shape[0]):
+            if vary_cone[v] == c:
+                varies = v
+        for k in range(2):
+            end = cone_start[c] if k == 0 else cone_end[c]
+            for j in range(n):
+                rad = uvz[2, end, j] * radii[c, k]
+                if varies >= 0:
+                    rad = rad * factors[varies, j]
+                if pad != _ZERO:
+                    rad = rad + pad
+                nx, ny = normals[0, c, j], normals[1, c, j]
+                basis[4 + 2 * k, c, j] = rad * nx
+                basis[5 + 2 * k, c, j] = rad * ny
+        if four_bins:
+            for j in range(n):
+                nx, ny = normals[0, c, j], normals[1, c, j]
+                c2 = nx * nx
+                c2 = c2 - ny * ny
+                s2 = nx * ny
+                if abs(c2) >= abs(s2):
+                    b = 2 if c2 < _ZERO else 0
+                else:
+                    b = 3 if s2 < _ZERO else 1
+                outline[c, j] = b * plane
+
+
+@_njit()
+def _kinematics(
+    a: NDArray[np.float32],
+    c: NDArray[np.float32],
+    s: NDArray[np.float32],
+    off: NDArray[np.float32],
+    head_length: np.float32,
+    upper: NDArray[np.float32],
+    lower: NDArray[np.float32],
+    sign: NDArray[np.float32],
+    want_head_axes: bool,
+    kp: NDArray[np.float32],
+    axes: NDArray[np.float32],
+) -> None:
+    """Batched kinematics after the sines and cosines, as ``kinematics._batch_kinematics``.
+
+    ``a`` ``(25, n)`` the parameters in its row order, ``c`` and ``s`` ``(22, n)``
+    their angles' cosines and sines (numpy's: its float32 ``sin`` and ``cos``
+    are its own); out: ``kp`` ``(3, 15, n)`` and ``axes`` ``(4, 3, n)`` (the
+    torso's x and y axes, then, with ``want_head_axes``, the head's). Every
+    expression is the numpy path's, in its order (``kinematics._root_matrix``,
+    ``_ball_columns``, ``_rotate``, ``_limb``). A pose reads 47 rows and
+    writes 57: rows a multiple of 4 KiB apart share one set of the L1 cache
+    and evict each other, so the callers space them (:func:`row_length
+    <humotion_gym._kernels.row_length>`).
+    """
+    n = a.shape[1]
+    for j in range(n):
+        # _root_matrix: Rz(yaw) @ Rx(pitch) @ Ry(roll), by rows.
+        cy, sy, cp, sp, cr, sr = c[0, j], s[0, j], c[1, j], s[1, j], c[2, j], s[2, j]
+        r00 = cy * cr - sy * sp * sr
+        r01 = -sy * cp
+        r02 = cy * sr + sy * sp * cr
+        r10 = sy * cr + cy * sp * sr
+        r11 = cy * cp
+        r12 = sy * sr - cy * sp * cr
+        r20 = -cp * sr
+        r21 = sp
+        r22 = cp * cr
+        axes[0, 0, j], axes[0, 1, j], axes[0, 2, j] = r00, r10, r20
+        axes[1, 0, j], axes[1, 1, j], axes[1, 2, j] = r01, r11, r21
+        p0, p1, p2 = a[0, j], a[1, j], a[2, j]
+        kp[0, 0, j], kp[1, 0, j], kp[2, 0, j] = p0, p1, p2
+        for q in range(5):  # neck and the four limb bases
+            o0, o1, o2 = off[q, 0], off[q, 1], off[q, 2]
+            kp[0, 1 + q, j] = r00 * o0 + r01 * o1 + r02 * o2 + p0
+            kp[1, 1 + q, j] = r10 * o0 + r11 * o1 + r12 * o2 + p1
+            kp[2, 1 + q, j] = r20 * o0 + r21 * o1 + r22 * o2 + p2
+        # The head: _ball_columns of the neck's angles, its z axis rotated.
+        ca, sa, cb, sb, cc, sc = c[3, j], s[3, j], c[4, j], s[4, j], c[5, j], s[5, j]
+        z0, z1, z2 = sb, -sa * cb, ca * cb
+        h0 = r00 * z0 + r01 * z1 + r02 * z2
+        h1 = r10 * z0 + r11 * z1 + r12 * z2
+        h2 = r20 * z0 + r21 * z1 + r22 * z2
+        kp[0, 6, j] = h0 * head_length + kp[0, 1, j]
+        kp[1, 6, j] = h1 * head_length + kp[1, 1, j]
+        kp[2, 6, j] = h2 * head_length + kp[2, 1, j]
+        if want_head_axes:
+            sa_sb, ca_sb = sa * sb, ca * sb
+            x0, x1, x2 = cb * cc, ca * sc + sa_sb * cc, sa * sc - ca_sb * cc
+            y0, y1, y2 = -cb * sc, ca * cc - sa_sb * sc, sa * cc + ca_sb * sc
+            axes[2, 0, j] = r00 * x0 + r01 * x1 + r02 * x2
+            axes[2, 1, j] = r10 * x0 + r11 * x1 + r12 * x2
+            axes[2, 2, j] = r20 * x0 + r21 * x1 + r22 * x2
+            axes[3, 0, j] = r00 * y0 + r01 * y1 + r02 * y2
+            axes[3, 1, j] = r10 * y0 + r11 * y1 + r12 * y2
+            axes[3, 2, j] = r20 * y0 + r21 * y1 + r22 * y2
+        for limb in range(4):  # _limb
+            ca, sa = c[6 + limb, j], s[6 + limb, j]
+            cb, sb = c[10 + limb, j], s[10 + limb, j]
+            cc, sc = c[14 + limb, j], s[14 + limb, j]
+            ck, sk = c[18 + limb, j], s[18 + limb, j]
+            sa_sb, ca_sb = sa * sb, ca * sb
+            ez0, ez1, ez2 = sb, -sa * cb, ca * cb
+            ey0, ey1, ey2 = -cb * sc, ca * cc - sa_sb * sc, sa * cc + ca_sb * sc
+            ssk = sign[limb] * sk
+            up = -upper[limb]
+            m0, m1, m2 = up * ez0, up * ez1, up * ez2
+            lk = lower[limb] * ck
+            lssk = lower[limb] * ssk
+            t0 = m0 + lssk * ey0 - lk * ez0
+            t1 = m1 + lssk * ey1 - lk * ez1
+            t2 = m2 + lssk * ey2 - lk * ez2
+            b0, b1, b2 = kp[0, 2 + limb, j], kp[1, 2 + limb, j], kp[2, 2 + limb, j]
+            kp[0, 7 + limb, j] = b0 + (r00 * m0 + r01 * m1 + r02 * m2)
+            kp[1, 7 + limb, j] = b1 + (r10 * m0 + r11 * m1 + r12 * m2)
+            kp[2, 7 + limb, j] = b2 + (r20 * m0 + r21 * m1 + r22 * m2)
+            kp[0, 11 + limb, j] = b0 + (r00 * t0 + r01 * t1 + r02 * t2)
+            kp[1, 11 + limb, j] = b1 + (r10 * t0 + r11 * t1 + r12 * t2)
+            kp[2, 11 + limb, j] = b2 + (r20 * t0 + r21 * t1 + r22 * t2)

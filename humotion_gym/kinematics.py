@@ -25,7 +25,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from humotion_gym import body
+from humotion_gym import _kernels, body
 from humotion_gym.body import N_CONES, N_KEYPOINTS, N_PARAMS, BodyShape
 
 FloatArray = NDArray[np.float64]
@@ -444,9 +444,9 @@ def _batch_kinematics(
     n = params.shape[0]
     if work is None:
         work = {
-            "params": np.empty((N_PARAMS, n), dtype),
-            "trig": np.empty((2, N_PARAMS - 3, n), dtype),
-            "keypoints": np.empty((3, N_KEYPOINTS, n), dtype),
+            "params": _kernels.spaced_rows((N_PARAMS,), n, dtype),
+            "trig": _kernels.spaced_rows((2, N_PARAMS - 3), n, dtype),
+            "keypoints": _kernels.spaced_rows((3, N_KEYPOINTS), n, dtype),
         }
     a = work["params"]
     pt = params.T
@@ -461,9 +461,18 @@ def _batch_kinematics(
     np.sin(a[3:], out=s)
     # Rows of c and s: 0:3 root yaw/pitch/roll, 3:6 neck, 6:10 limb x angles,
     # 10:14 y angles, 14:18 z angles, 18:22 hinges.
-    r = _root_matrix(c[0], s[0], c[1], s[1], c[2], s[2])
     kp = work["keypoints"]
     off: NDArray[Any] = shape.torso_points().astype(dtype)  # (5, 3): neck, limb bases
+    hl = dtype(shape.head_length)
+    upper: NDArray[Any] = np.array([shape.upper_arm_length] * 2 + [shape.thigh_length] * 2, dtype)
+    lower: NDArray[Any] = np.array([shape.forearm_length] * 2 + [shape.shin_length] * 2, dtype)
+    sign: NDArray[Any] = np.array(_LIMB_SIGN, dtype=dtype).reshape(4, 1)
+    # The compiled kernel (the `fast` extra) does what follows, bit for bit.
+    axes = _kernels.kinematics(a, c, s, off, hl, upper, lower, sign, want_head_axes, kp)
+    if axes is not None:
+        head = (tuple(axes[2]), tuple(axes[3])) if want_head_axes else (None, None)
+        return _BatchPoses(kp, tuple(axes[0]), tuple(axes[1]), *head)
+    r = _root_matrix(c[0], s[0], c[1], s[1], c[2], s[2])
     for i in range(3):
         kp[i, 0] = a[i]
         torso = kp[i, 1:6]
@@ -474,13 +483,9 @@ def _batch_kinematics(
     neck = (kp[0, 1], kp[1, 1], kp[2, 1])
     hx, hy, hz = _ball_columns(c[3], s[3], c[4], s[4], c[5], s[5])
     hz = _rotate(r, hz)
-    hl = dtype(shape.head_length)
     for i in range(3):
         np.multiply(hz[i], hl, out=kp[i, 6])
         kp[i, 6] += neck[i]
-    upper: NDArray[Any] = np.array([shape.upper_arm_length] * 2 + [shape.thigh_length] * 2, dtype)
-    lower: NDArray[Any] = np.array([shape.forearm_length] * 2 + [shape.shin_length] * 2, dtype)
-    sign: NDArray[Any] = np.array(_LIMB_SIGN, dtype=dtype).reshape(4, 1)
     mid, tip, _, _ = _limb(
         r,
         (kp[0, 2:6], kp[1, 2:6], kp[2, 2:6]),

@@ -218,9 +218,10 @@ def _scratch(n: int, n_points: int) -> dict[str, NDArray]:
     if work is None:
         f4 = np.float32
         work = {
-            "params": np.empty((N_PARAMS, n), f4),
-            "trig": np.empty((2, N_PARAMS - 3, n), f4),
-            "keypoints": np.empty((3, N_KEYPOINTS, n), f4),
+            # Read and written a pose at a time by the kinematics kernel.
+            "params": _kernels.spaced_rows((N_PARAMS,), n),
+            "trig": _kernels.spaced_rows((2, N_PARAMS - 3), n),
+            "keypoints": _kernels.spaced_rows((3, N_KEYPOINTS), n),
             "camera": np.empty((3, N_KEYPOINTS * n), f4),
             "inverse_depth": np.empty((N_KEYPOINTS * n,), f4),
             "basis": np.empty((8, N_CONES, n), f4),
@@ -1144,64 +1145,15 @@ class ObservationModel:
         poses = _batch_kinematics(
             params, shape, f4, want_head_axes=shape.aspect[_HEAD] != 1.0, work=work
         )
-        # World -> camera for the 15 keypoints of every pose at once.
-        cam = work["camera"]
-        np.matmul(camera.rotation.astype(f4), poses.keypoints.reshape(3, -1), out=cam)
-        cam += camera.translation.astype(f4)[:, None]
-        z = cam[2]
-        behind = z < self.near_mm
-        np.maximum(z, f4(self.near_mm), out=z)
-        inv = work["inverse_depth"]
-        np.divide(f4(camera.focal), z, out=inv)
-        uv = cam[:2]
-        uv *= inv
-        cx, cy = camera.principal_point
-        # +1.5: one pixel of padding, plus 0.5 so that truncation rounds to nearest.
-        uv[0] += f4(cx + 1.5) + behind * f4(1e7)
-        uv[1] += f4(cy + 1.5)
-        uv3 = uv.reshape(2, N_KEYPOINTS, n)
-        basis = work["basis"]
-        np.take(uv3, _CONE_START, axis=1, out=basis[0:2])
-        np.take(uv3, _CONE_END, axis=1, out=basis[2:4])
-        tmp = work["scratch"]
-        dx, dy, norm, rad = tmp
-        np.subtract(basis[2], basis[0], out=dx)
-        np.subtract(basis[3], basis[1], out=dy)
-        np.multiply(dx, dx, out=norm)
-        norm += dy * dy
-        norm += f4(1e-12)
-        np.sqrt(norm, out=norm)
-        np.divide(f4(1.0), norm, out=norm)
-        # Unit normal n = (dy, -dx) / |d| of each projected axis (its sign does
-        # not matter: the outline is sampled on both sides).
-        nx, ny = dy, dx
-        nx *= norm
-        ny *= norm
-        ny *= f4(-1.0)
-        inv3 = inv.reshape(N_KEYPOINTS, n)
-        radii, varying = self._silhouette_radii(shape, poses, camera, nx, ny)
-        for k, end_index in enumerate((_CONE_START, _CONE_END)):
-            np.take(inv3, end_index, axis=0, out=rad)
-            rad *= radii[:, k : k + 1]
-            for cone, factor in varying:
-                rad[cone] *= factor
-            if self.raster_pad_px:
-                rad += f4(self.raster_pad_px)  # the renderer's fill (see raster_pad_px)
-            np.multiply(rad, nx, out=basis[4 + 2 * k])
-            np.multiply(rad, ny, out=basis[5 + 2 * k])
+        basis, outline_map = self._cone_basis(feats, poses, shape, camera, work)
         w2, h2 = feats.width + 2, feats.height + 2
         plane = w2 * h2
-        n_bins = self.orientation_bins
         # The map each cone's axis points read: the foreground map, or a free
         # cone's own colour map.
-        axis_map = np.full(N_CONES, n_bins * plane, np.int32)
+        axis_map = np.full(N_CONES, self.orientation_bins * plane, np.int32)
         if feats.appearance_cones is not None:
             for k, cone in enumerate(feats.appearance_cones.tolist()):
                 axis_map[cone] += (1 + k) * plane
-        outline_map = None
-        if n_bins > 1:  # each cone's outline reads the map of its orientation
-            outline_map = _orientation_bin(nx, ny, n_bins, tmp[2])
-            outline_map *= plane
         # A cone whose parameters are the same in every pose (the body a task
         # gives) costs the same for all: worked out on the first pose only.
         # The others go in runs of consecutive cones. Every step is per point
@@ -1270,6 +1222,96 @@ class ObservationModel:
             return total
         assert per_cone is not None
         return self._partial(feats, per_cone, prefixes, residual, coverage, total)
+
+    def _cone_basis(
+        self,
+        feats: FrameFeatures,
+        poses: _BatchPoses,
+        shape: BodyShape,
+        camera: Camera,
+        work: dict[str, NDArray],
+    ) -> tuple[NDArray[np.float32], NDArray[np.int32] | None]:
+        """Each cone's image basis, and the map offset of its outline's orientation.
+
+        Returns:
+            ``basis`` ``(8, 10, N)``: rows (s_u, s_v, e_u, e_v) the projected
+            axis ends (padded pixel coordinates, +0.5 so that truncation
+            rounds), then ``(a_u, a_v, b_u, b_v)`` the outline's offsets at the
+            two ends (the image normal times the projected silhouette radius);
+            and ``(10, N)`` each outline's map offset in the cost table (None
+            with one orientation bin).
+        """
+        f4 = np.float32
+        n = poses.keypoints.shape[2]
+        n_bins = self.orientation_bins
+        plane = (feats.width + 2) * (feats.height + 2)
+        basis, tmp = work["basis"], work["scratch"]
+        rot = camera.rotation.astype(f4)
+        cx, cy = camera.principal_point
+        # +1.5: one pixel of padding, plus 0.5 so that truncation rounds to
+        # nearest; a keypoint behind the camera goes far off the image.
+        shift_u, shift_v = f4(cx + 1.5), f4(cy + 1.5)
+        radii, axes = self._silhouette_axes(shape, poses)
+        outline_map = None
+        # The compiled kernel (the `fast` extra): the same steps, bit for bit.
+        if _kernels.cone_basis(
+            rot, camera.translation.astype(f4), poses.keypoints, f4(self.near_mm),
+            f4(camera.focal), shift_u, shift_u + f4(1e7), shift_v, _CONE_START, _CONE_END,
+            radii, axes, f4(self.raster_pad_px), n_bins == 4, plane,
+            work["camera"].reshape(3, N_KEYPOINTS, n), basis, tmp[:2], tmp[2].view(np.int32),
+        ):  # fmt: skip
+            nx, ny = tmp[0], tmp[1]
+            if n_bins == 4:
+                return basis, tmp[2].view(np.int32)
+        else:
+            # World -> camera for the 15 keypoints of every pose at once.
+            cam = work["camera"]
+            np.matmul(rot, poses.keypoints.reshape(3, -1), out=cam)
+            cam += camera.translation.astype(f4)[:, None]
+            z = cam[2]
+            behind = z < self.near_mm
+            np.maximum(z, f4(self.near_mm), out=z)
+            inv = work["inverse_depth"]
+            np.divide(f4(camera.focal), z, out=inv)
+            uv = cam[:2]
+            uv *= inv
+            uv[0] += shift_u + behind * f4(1e7)
+            uv[1] += shift_v
+            uv3 = uv.reshape(2, N_KEYPOINTS, n)
+            np.take(uv3, _CONE_START, axis=1, out=basis[0:2])
+            np.take(uv3, _CONE_END, axis=1, out=basis[2:4])
+            dx, dy, norm, rad = tmp
+            np.subtract(basis[2], basis[0], out=dx)
+            np.subtract(basis[3], basis[1], out=dy)
+            np.multiply(dx, dx, out=norm)
+            norm += dy * dy
+            norm += f4(1e-12)
+            np.sqrt(norm, out=norm)
+            np.divide(f4(1.0), norm, out=norm)
+            # Unit normal n = (dy, -dx) / |d| of each projected axis (its sign
+            # does not matter: the outline is sampled on both sides).
+            nx, ny = dy, dx
+            nx *= norm
+            ny *= norm
+            ny *= f4(-1.0)
+            inv3 = inv.reshape(N_KEYPOINTS, n)
+            varying = [
+                (cone, _silhouette_factor(rot, ax, ay, aspect, nx[cone], ny[cone]))
+                for cone, ax, ay, aspect in axes
+            ]
+            for k, end_index in enumerate((_CONE_START, _CONE_END)):
+                np.take(inv3, end_index, axis=0, out=rad)
+                rad *= radii[:, k : k + 1]
+                for cone, factor in varying:
+                    rad[cone] *= factor
+                if self.raster_pad_px:
+                    rad += f4(self.raster_pad_px)  # the renderer's fill (see raster_pad_px)
+                np.multiply(rad, nx, out=basis[4 + 2 * k])
+                np.multiply(rad, ny, out=basis[5 + 2 * k])
+        if n_bins > 1:  # each cone's outline reads the map of its orientation
+            outline_map = _orientation_bin(nx, ny, n_bins, tmp[2])
+            outline_map *= plane
+        return basis, outline_map
 
     def _partial(
         self,
@@ -1495,51 +1537,57 @@ class ObservationModel:
         out *= unit
         return out[:, 0] if prefixes is None else out
 
-    def _silhouette_radii(
-        self,
-        shape: BodyShape,
-        poses: _BatchPoses,
-        camera: Camera,
-        nx: NDArray,
-        ny: NDArray,
-    ) -> tuple[NDArray, list[tuple[int, NDArray]]]:
+    def _silhouette_axes(
+        self, shape: BodyShape, poses: _BatchPoses
+    ) -> tuple[NDArray[np.float32], list[tuple[int, tuple, tuple, float]]]:
         """Silhouette half-widths (in mm at unit depth scale) of the cones.
 
         For an elliptical cross-section with semi-axes ``r`` (cone x) and
         ``aspect * r`` (cone y), the silhouette's half-width along the image
         normal ``m`` is ``r * sqrt((x.m)^2 + (aspect y.m)^2)`` (orthographic
-        approximation). Worked out per pose for the torso and the head, whose
-        frames the batched kinematics provides; limbs (round in the default
-        shape) use the mean of their two semi-axes.
+        approximation; :func:`_silhouette_factor`). Worked out per pose for the
+        torso and the head, whose frames the batched kinematics provides; limbs
+        (round in the default shape) use the mean of their two semi-axes.
 
         Returns:
             ``(10, 2)`` float32 radii at the cones' two ends and a list of
-            ``(cone, (N,) factor)`` pairs for the cones whose factor varies.
+            ``(cone, x axis, y axis, aspect)`` for the cones whose width
+            varies (each axis three ``(N,)`` components), whose radii are to
+            be multiplied by their factor.
         """
         aspect = shape.aspect
         radii = shape.radii * ((1.0 + aspect[:, None]) / 2.0)
-        varying: list[tuple[int, NDArray]] = []
-        f4 = np.float32
-        rot = camera.rotation.astype(f4)
+        varying: list[tuple[int, tuple, tuple, float]] = []
         for cone, ax, ay in (
             (_TORSO, poses.torso_x, poses.torso_y),
             (_HEAD, poses.head_x, poses.head_y),
         ):
-            if aspect[cone] == 1.0 or ax is None:
+            if aspect[cone] == 1.0 or ax is None or ay is None:
                 continue
             radii[cone] = shape.radii[cone]
-            m0, m1 = nx[cone], ny[cone]
-            # x.m and y.m with the axes taken to the camera frame (rows 0, 1).
-            xm = (rot[0, 0] * ax[0] + rot[0, 1] * ax[1] + rot[0, 2] * ax[2]) * m0
-            xm += (rot[1, 0] * ax[0] + rot[1, 1] * ax[1] + rot[1, 2] * ax[2]) * m1
-            ym = (rot[0, 0] * ay[0] + rot[0, 1] * ay[1] + rot[0, 2] * ay[2]) * m0
-            ym += (rot[1, 0] * ay[0] + rot[1, 1] * ay[1] + rot[1, 2] * ay[2]) * m1
-            ym *= f4(aspect[cone])
-            xm *= xm
-            ym *= ym
-            xm += ym
-            varying.append((cone, np.sqrt(xm, out=xm)))
-        return radii.astype(f4), varying
+            varying.append((cone, ax, ay, float(aspect[cone])))
+        return radii.astype(np.float32), varying
+
+
+def _silhouette_factor(
+    rot: NDArray[np.float32], ax: tuple, ay: tuple, aspect: float, m0: NDArray, m1: NDArray
+) -> NDArray[np.float32]:
+    """``(N,)`` ``sqrt((x.m)^2 + (aspect y.m)^2)`` (see ``_silhouette_axes``).
+
+    ``rot`` the camera's float32 rotation, ``ax``, ``ay`` the cone's x and y
+    axes in the world, ``(m0, m1)`` its image normal.
+    """
+    f4 = np.float32
+    # x.m and y.m with the axes taken to the camera frame (rows 0, 1).
+    xm = (rot[0, 0] * ax[0] + rot[0, 1] * ax[1] + rot[0, 2] * ax[2]) * m0
+    xm += (rot[1, 0] * ax[0] + rot[1, 1] * ax[1] + rot[1, 2] * ax[2]) * m1
+    ym = (rot[0, 0] * ay[0] + rot[0, 1] * ay[1] + rot[0, 2] * ay[2]) * m0
+    ym += (rot[1, 0] * ay[0] + rot[1, 1] * ay[1] + rot[1, 2] * ay[2]) * m1
+    ym *= f4(aspect)
+    xm *= xm
+    ym *= ym
+    xm += ym
+    return np.sqrt(xm, out=xm)
 
 
 def _nearest(

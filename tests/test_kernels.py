@@ -10,6 +10,7 @@ the likelihoods of every kind of task model.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import subprocess
 import sys
@@ -19,6 +20,7 @@ import pytest
 
 from humotion_gym import _kernels
 from humotion_gym.envs.tasks import get_task
+from humotion_gym.kinematics import _HEAD, _batch_kinematics
 from humotion_gym.observation import GivenBody, ObservationModel, _scratch
 from tests.test_observation_fast import ARM, SHAPE, random_poses, scene
 
@@ -134,3 +136,90 @@ def test_task_likelihoods_match_the_numpy_path(task: str, n: int, numpy_path) ->
     fast = model.log_likelihood_partial(feats, poses, SHAPE, cam, groups)
     slow = numpy_path(model.log_likelihood_partial, feats, poses, SHAPE, cam, groups)
     np.testing.assert_array_equal(fast, slow)
+
+
+# -- the kinematics and the cones' image bases ---------------------------------
+
+#: The default shape and one whose head is not round either (its axes enter the
+#: silhouette widths).
+SHAPES = [SHAPE, dataclasses.replace(SHAPE, aspect=np.r_[0.6, 0.7, np.ones(8)])]
+
+
+def _poses(rng: np.random.Generator, n: int) -> np.ndarray:
+    # Near standing and anywhere in the joints' range, some far off or behind
+    # the camera, large positions whose products round in every bit.
+    poses = random_poses(rng, n)
+    wild = rng.random(n) < 0.3
+    poses[wild, 3:] = rng.uniform(-4.0, 4.0, (int(wild.sum()), 22))
+    return poses
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 300, 1024, 3001])
+@pytest.mark.parametrize("shape", [0, 1])
+def test_kinematics_match_the_numpy_path(n: int, shape: int, numpy_path) -> None:
+    body_shape = SHAPES[shape]
+    poses = _poses(np.random.default_rng(n), n)
+    want = body_shape.aspect[_HEAD] != 1.0
+    fast = _batch_kinematics(poses, body_shape, np.float32, want, _scratch(n, 13))
+    slow = numpy_path(_batch_kinematics, poses, body_shape, np.float32, want)
+    np.testing.assert_array_equal(fast.keypoints, slow.keypoints)
+    for name in ("torso_x", "torso_y") + (("head_x", "head_y") if want else ()):
+        np.testing.assert_array_equal(np.array(getattr(fast, name)), np.array(getattr(slow, name)))
+    assert (fast.head_x is None) == (not want)
+
+
+@pytest.mark.parametrize("n", [1, 2, 300, 1024, 3001])
+@pytest.mark.parametrize(
+    ("bins", "pad", "shape"), [(1, 0.0, 0), (4, 0.0, 0), (4, 0.5, 1), (8, 0.0, 1)]
+)
+def test_cone_bases_match_the_numpy_path(
+    n: int, bins: int, pad: float, shape: int, numpy_path
+) -> None:
+    # The projected cones (ends, outline offsets at both ends, the outline's
+    # orientation map), with cones behind the camera among them.
+    body_shape = SHAPES[shape]
+    frame, cam, _ = scene(n % 7)
+    model = ObservationModel(orientation_bins=bins, raster_pad_px=pad)
+    feats = model.prepare(frame)
+    poses = _poses(np.random.default_rng(n + 1), n)
+    want = body_shape.aspect[_HEAD] != 1.0
+    work = _scratch(n, model._coefficients.shape[0] // 2)
+    batch = _batch_kinematics(poses, body_shape, np.float32, want, work)
+    basis, outline = model._cone_basis(feats, batch, body_shape, cam, work)
+    basis, outline = basis.copy(), None if outline is None else outline.copy()
+    slow_work = {k: np.zeros_like(v) for k, v in work.items()}
+    slow_basis, slow_outline = numpy_path(
+        model._cone_basis, feats, batch, body_shape, cam, slow_work
+    )
+    np.testing.assert_array_equal(basis, slow_basis)
+    if bins == 1:
+        assert outline is None and slow_outline is None
+    else:
+        np.testing.assert_array_equal(outline, slow_outline)
+
+
+def test_the_kernels_are_the_ones_that_ran(monkeypatch: pytest.MonkeyPatch) -> None:
+    # With numba installed, the likelihood's kinematics and cone bases go
+    # through the kernels (the tests above would pass trivially otherwise).
+    calls: list[str] = []
+    for name in ("kinematics", "cone_basis", "point_costs"):
+        real = getattr(_kernels, name)
+        monkeypatch.setattr(
+            _kernels,
+            name,
+            lambda *a, _real=real, _name=name, **k: calls.append(_name) or _real(*a, **k),
+        )
+    frame, cam, pose = scene(3)
+    model = ObservationModel()
+    model.log_likelihood(model.prepare(frame), np.tile(pose, (5, 1)), SHAPE, cam)
+    assert sorted(set(calls)) == ["cone_basis", "kinematics", "point_costs"]
+
+
+@pytest.mark.parametrize("n", [1, 15, 16, 17, 1000, 1024, 4096])
+def test_spaced_rows_are_an_odd_number_of_cache_lines_apart(n: int, monkeypatch) -> None:
+    rows = _kernels.spaced_rows((3, 5), n)
+    assert rows.shape == (3, 5, n) and rows.dtype == np.float32
+    step = rows.strides[-2]
+    assert step >= 4 * n and step % 64 == 0 and (step // 64) % 2 == 1
+    monkeypatch.setattr(_kernels, "ENABLED", False)
+    assert _kernels.spaced_rows((3, 5), n).flags.c_contiguous

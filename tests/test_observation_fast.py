@@ -39,6 +39,7 @@ from humotion_gym.observation import (
     ObservationModel,
     _cone_parameters,
     _orientation_bin,
+    _silhouette_factor,
 )
 from humotion_gym.priors import tree
 from humotion_gym.render import SceneOptions, render
@@ -88,7 +89,12 @@ def reference_log_likelihood(
     norm = f4(1.0) / np.sqrt(norm)
     nx, ny = dy * norm, dx * norm
     ny *= f4(-1.0)
-    radii, varying = model._silhouette_radii(shape, poses, camera, nx, ny)
+    radii, axes = model._silhouette_axes(shape, poses)
+    rot = camera.rotation.astype(f4)
+    varying = [
+        (cone, _silhouette_factor(rot, ax, ay, aspect, nx[cone], ny[cone]))
+        for cone, ax, ay, aspect in axes
+    ]
     inv = inv.reshape(body.N_KEYPOINTS, n)
     offsets = []
     for k, ends in enumerate((_CONE_START, _CONE_END)):
