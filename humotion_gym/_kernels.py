@@ -44,7 +44,14 @@ from types import ModuleType
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["cone_basis", "enabled", "kinematics", "point_costs", "spaced_rows"]
+__all__ = [
+    "cone_basis",
+    "coverage_sums",
+    "enabled",
+    "kinematics",
+    "point_costs",
+    "spaced_rows",
+]
 
 #: Whether the kernels run: numba is installed and ``HUMOTION_NUMBA`` is not 0.
 ENABLED: bool = (
@@ -193,3 +200,25 @@ def kinematics(
         want_head_axes, kp, axes,
     )  # fmt: skip
     return axes
+
+
+def coverage_sums(
+    coef: NDArray[np.float32], q: NDArray[np.float32], tau: np.float32
+) -> NDArray[np.float64] | None:
+    """Each pose's summed squared coverage distances (``ObservationModel._coverage_cost``).
+
+    ``coef`` ``(4, C, N, 3)``, ``q`` ``(3, F)``: see ``_coverage_cost``.
+
+    Returns:
+        ``(N,)`` float64, numpy's pairwise sums of each pose's ``F`` values;
+        None when the kernels are off, there is no cone, or ``F`` is 1 (numpy's
+        product is then ``sgemv``, which sums otherwise) or over 128 (numpy
+        sums more in halves, recursively): those are left to numpy.
+    """
+    if not ENABLED or coef.shape[1] == 0 or not 2 <= q.shape[1] <= 128:
+        return None
+    out = np.empty(coef.shape[2])
+    compiled()._coverage_sums(
+        np.ascontiguousarray(coef, np.float32), np.ascontiguousarray(q, np.float32), tau, out
+    )
+    return out

@@ -325,3 +325,90 @@ def _kinematics(
             kp[0, 11 + limb, j] = b0 + (r00 * t0 + r01 * t1 + r02 * t2)
             kp[1, 11 + limb, j] = b1 + (r10 * t0 + r11 * t1 + r12 * t2)
             kp[2, 11 + limb, j] = b2 + (r20 * t0 + r21 * t1 + r22 * t2)
+
+
+#: The most values :func:`_pairwise_sum` takes (numpy's block; more it would
+#: split in two recursively, which numba cannot cache).
+PAIRWISE_BLOCK = 128
+
+
+@_njit(inline="always")
+def _pairwise_sum(a: NDArray[np.float32], n: int) -> float:
+    """The pairwise sum of ``a[:n]`` in double precision, as numpy's ``sum(dtype=float64)``.
+
+    numpy's ``pairwise_sum`` for ``n <= 128``: fewer than 8 in order;
+    otherwise eight running sums joined as ``((0 + 1) + (2 + 3)) + ((4 + 5) +
+    (6 + 7))``, then the rest in order.
+    """
+    if n < 8:
+        res = 0.0
+        for i in range(n):
+            res += np.float64(a[i])
+        return res
+    r0, r1, r2, r3 = np.float64(a[0]), np.float64(a[1]), np.float64(a[2]), np.float64(a[3])
+    r4, r5, r6, r7 = np.float64(a[4]), np.float64(a[5]), np.float64(a[6]), np.float64(a[7])
+    i = 8
+    while i < n - n % 8:
+        r0 += np.float64(a[i])
+        r1 += np.float64(a[i + 1])
+        r2 += np.float64(a[i + 2])
+        r3 += np.float64(a[i + 3])
+        r4 += np.float64(a[i + 4])
+        r5 += np.float64(a[i + 5])
+        r6 += np.float64(a[i + 6])
+        r7 += np.float64(a[i + 7])
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += np.float64(a[i])
+        i += 1
+    return res
+
+
+@_njit()
+def _coverage_sums(
+    coef: NDArray[np.float32],
+    q: NDArray[np.float32],
+    tau: np.float32,
+    out: NDArray[np.float64],
+) -> None:
+    """Each pose's summed squared coverage distances, as ``ObservationModel._coverage_cost``.
+
+    ``coef`` ``(4, C, n, 3)`` the coefficients of (x, y, 1) of the four linear
+    quantities (along - L/2, across, radius, L/2 + radius) of each cone and
+    pose, ``q`` ``(3, F)`` the points (the last row ones; ``F`` at most
+    :data:`PAIRWISE_BLOCK`); out: ``(n,)``. The
+    quantities are the numpy path's ``sgemm`` (a chain of three fused
+    multiply-adds from zero), then the same float32 steps; the minimum over
+    the cones is exact in any order.
+    """
+    n_cones, n, f = coef.shape[1], coef.shape[2], q.shape[1]
+    nearest = np.empty(f, np.float32)
+    qx, qy, qw = q[0], q[1], q[2]
+    for j in range(n):
+        for c in range(n_cones):
+            a0, a1, a2 = coef[0, c, j, 0], coef[0, c, j, 1], coef[0, c, j, 2]
+            b0, b1, b2 = coef[1, c, j, 0], coef[1, c, j, 1], coef[1, c, j, 2]
+            r0, r1, r2 = coef[2, c, j, 0], coef[2, c, j, 1], coef[2, c, j, 2]
+            h0, h1, h2 = coef[3, c, j, 0], coef[3, c, j, 1], coef[3, c, j, 2]
+            for k in range(f):
+                x, y, w = qx[k], qy[k], qw[k]
+                along = _fma32(a2, w, _fma32(a1, y, _fma32(a0, x, _ZERO)))
+                across = _fma32(b2, w, _fma32(b1, y, _fma32(b0, x, _ZERO)))
+                radius = _fma32(r2, w, _fma32(r1, y, _fma32(r0, x, _ZERO)))
+                reach = _fma32(h2, w, _fma32(h1, y, _fma32(h0, x, _ZERO)))
+                across = abs(across) - radius
+                along = abs(along) - reach
+                # np.maximum and np.minimum (a NaN wins both).
+                v = across if (across >= along or across != across) else along
+                if c == 0:
+                    nearest[k] = v
+                else:
+                    m = nearest[k]
+                    nearest[k] = m if (m <= v or m != m) else v
+        for k in range(f):
+            v = nearest[k]
+            v = _ZERO if v < _ZERO else v  # np.clip(v, 0, tau)
+            v = tau if v > tau else v
+            nearest[k] = v * v
+        out[j] = _pairwise_sum(nearest, f)

@@ -1515,6 +1515,11 @@ class ObservationModel:
         tau = f4(self.coverage_truncation * scale)
         e = q.shape[1]
         unit = self.coverage_weight / (2.0 * (self.edge_sigma * scale) ** 2 * e)
+        # The compiled kernel (the `fast` extra): the whole figure's sums, bit for bit.
+        sums = None if prefixes is not None else _kernels.coverage_sums(coef, q, tau)
+        if sums is not None:
+            sums *= unit
+            return sums
         masks = None if prefixes is None else prefixes[:, feats.coverage_cones]
         out = np.empty((n, 1 if prefixes is None else prefixes.shape[0]))
         chunk = max(1, 32_768 // max(1, cones * e))

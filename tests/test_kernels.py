@@ -223,3 +223,44 @@ def test_spaced_rows_are_an_odd_number_of_cache_lines_apart(n: int, monkeypatch)
     assert step >= 4 * n and step % 64 == 0 and (step // 64) % 2 == 1
     monkeypatch.setattr(_kernels, "ENABLED", False)
     assert _kernels.spaced_rows((3, 5), n).flags.c_contiguous
+
+
+@pytest.mark.parametrize("f", [1, 7, 8, 32, 96, 200])
+@pytest.mark.parametrize("n", [1, 2, 300])
+def test_coverage_sums_match_the_numpy_path(f: int, n: int, numpy_path) -> None:
+    # The whole-body tasks' coverage term over random cones and points, many
+    # just outside a cone (tiny squared distances beside large ones, whose
+    # double-precision sum depends on numpy's pairwise order).
+    frame, cam, pose = scene(f + n)
+    model = _task_model("BodyTrack-v1")
+    first = pose.copy()
+    first[0] -= 300.0
+    backdrop = model.read_backdrop(scene(f + n)[0], first, SHAPE, cam)
+    free = get_task("BodyTrack-v1").free_indices
+    feats = model.prepare(frame, GivenBody(pose, free, SHAPE, cam, backdrop=backdrop))
+    rng = np.random.default_rng(f * n)
+    size = np.float32(feats.width)
+    points = rng.uniform(0.0, size, (2, f)).astype(np.float32)
+    feats = dataclasses.replace(feats, coverage=points)
+    basis = np.empty((8, 10, n), np.float32)
+    basis[:4] = rng.uniform(0.0, size, (4, 10, n))
+    basis[4:] = rng.normal(0.0, 6.0, (4, 10, n))
+    # Cone k of pose 0 runs from point k to beside it: the point lies near its edge.
+    for k in range(min(f, 10)):
+        basis[0:2, k, 0] = points[:, k] + rng.normal(0.0, 1e-3, 2)
+        basis[2:4, k, 0] = points[:, k] + np.float32(5.0)
+    fast = model._coverage_cost(feats, basis, n)
+    slow = numpy_path(model._coverage_cost, feats, basis, n)
+    assert fast.dtype == slow.dtype == np.float64
+    np.testing.assert_array_equal(fast, slow)
+
+
+def test_pairwise_sum_is_numpys() -> None:
+    # Values over 80 binades, whose double-precision sums round differently
+    # in another order (about half of them when summed one after another).
+    rng = np.random.default_rng(5)
+    pairwise = _kernels.compiled()._pairwise_sum
+    for n in range(1, _kernels.compiled().PAIRWISE_BLOCK + 1):
+        for _ in range(5):
+            a = np.exp(rng.uniform(-60.0, 3.0, n)).astype(np.float32)
+            assert pairwise(a, n) == a.sum(dtype=np.float64), n
