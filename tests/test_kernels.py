@@ -25,6 +25,10 @@ from humotion_gym.observation import GivenBody, ObservationModel, _scratch
 from tests.test_observation_fast import ARM, SHAPE, random_poses, scene
 
 pytest.importorskip("numba", reason="the compiled kernels need the `fast` extra (numba)")
+pytestmark = pytest.mark.skipif(
+    os.environ.get("HUMOTION_NUMBA", "1") == "0",
+    reason="the kernels are turned off (HUMOTION_NUMBA=0)",
+)
 
 
 @pytest.fixture
