@@ -50,6 +50,7 @@ __all__ = [
     "enabled",
     "kinematics",
     "point_costs",
+    "residual_sums",
     "spaced_rows",
 ]
 
@@ -221,4 +222,35 @@ def coverage_sums(
     compiled()._coverage_sums(
         np.ascontiguousarray(coef, np.float32), np.ascontiguousarray(q, np.float32), tau, out
     )
+    return out
+
+
+def residual_sums(
+    p_x: NDArray[np.float32],
+    p_y: NDArray[np.float32],
+    d_x: NDArray[np.float32],
+    d_y: NDArray[np.float32],
+    inv_len2: NDArray[np.float32],
+    q_x: NDArray[np.float32],
+    q_y: NDArray[np.float32],
+    tau2: np.float32,
+) -> NDArray[np.float64] | None:
+    """Each pose's summed squared residual distances (``ObservationModel._residual_cost``).
+
+    The segments' ``(S, N)`` starts, directions and inverse squared lengths
+    and the ``(E,)`` residual points: see ``_residual_cost``.
+
+    Returns:
+        ``(N,)`` float64, numpy's pairwise sums of each pose's ``E`` values;
+        None when the kernels are off, there is no segment or ``E`` is over
+        128 (numpy sums more in halves, recursively): those are left to numpy.
+    """
+    if not ENABLED or p_x.shape[0] == 0 or q_x.shape[0] > 128:
+        return None
+    out = np.empty(p_x.shape[1])
+    arrays = [np.ascontiguousarray(a, np.float32) for a in (p_x, p_y, d_x, d_y, inv_len2)]
+    compiled()._residual_sums(
+        *arrays, np.ascontiguousarray(q_x, np.float32), np.ascontiguousarray(q_y, np.float32),
+        tau2, out,
+    )  # fmt: skip
     return out

@@ -412,3 +412,52 @@ def _coverage_sums(
             v = tau if v > tau else v
             nearest[k] = v * v
         out[j] = _pairwise_sum(nearest, f)
+
+
+@_njit()
+def _residual_sums(
+    p_x: NDArray[np.float32],
+    p_y: NDArray[np.float32],
+    d_x: NDArray[np.float32],
+    d_y: NDArray[np.float32],
+    inv_len2: NDArray[np.float32],
+    q_x: NDArray[np.float32],
+    q_y: NDArray[np.float32],
+    tau2: np.float32,
+    out: NDArray[np.float64],
+) -> None:
+    """Each pose's summed squared residual distances, as ``ObservationModel._residual_cost``.
+
+    ``p``, ``d`` and ``inv_len2`` ``(S, n)``: each outline segment's start,
+    direction and inverse squared length; ``q`` ``(E,)`` the residual points
+    (``E`` at most :data:`PAIRWISE_BLOCK`); out: ``(n,)``. Each point's squared
+    distance to its nearest segment, truncated at ``tau2``, summed as numpy
+    sums (the same float32 steps in the same order; the minimum is exact).
+    """
+    n_seg, n = p_x.shape
+    e = q_x.shape[0]
+    nearest = np.empty(e, np.float32)
+    for j in range(n):
+        for s in range(n_seg):
+            px, py, dx, dy, il = p_x[s, j], p_y[s, j], d_x[s, j], d_y[s, j], inv_len2[s, j]
+            for k in range(e):
+                rx = q_x[k] - px
+                ry = q_y[k] - py
+                t = rx * dx
+                t = t + ry * dy
+                t = t * il
+                # np.clip(t, 0, 1) (a NaN stays NaN)
+                t = t if (t > _ZERO or t != t) else _ZERO
+                t = t if (t < _ONE or t != t) else _ONE
+                rx = rx - t * dx
+                ry = ry - t * dy
+                v = rx * rx + ry * ry
+                if s == 0:
+                    nearest[k] = v
+                else:
+                    m = nearest[k]
+                    nearest[k] = m if (m <= v or m != m) else v
+        for k in range(e):
+            v = nearest[k]
+            nearest[k] = v if (v <= tau2 or v != v) else tau2  # np.minimum(v, tau2)
+        out[j] = _pairwise_sum(nearest, e)

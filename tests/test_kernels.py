@@ -268,3 +268,32 @@ def test_pairwise_sum_is_numpys() -> None:
         for _ in range(5):
             a = np.exp(rng.uniform(-60.0, 3.0, n)).astype(np.float32)
             assert pairwise(a, n) == a.sum(dtype=np.float64), n
+
+
+@pytest.mark.parametrize("e", [1, 7, 8, 64, 128, 129])
+@pytest.mark.parametrize("n", [1, 2, 300])
+def test_residual_sums_match_the_numpy_path(e: int, n: int, numpy_path) -> None:
+    # The arm's residual-edge term over random outlines and points, one of
+    # them on a segment (a squared distance near zero beside large ones); 129
+    # points are left to numpy.
+    frame, cam, pose = scene(e + n)
+    model = _task_model("ArmTrack-v1")
+    colors = model.cone_colors(frame, pose, SHAPE, cam)
+    feats = model.prepare(frame, GivenBody(pose, ARM, SHAPE, cam, colors))
+    assert feats.residual_cones is not None and feats.residual_cones.size
+    rng = np.random.default_rng(e * n + 1)
+    size = np.float32(feats.width)
+    points = rng.uniform(0.0, size, (2, e)).astype(np.float32)
+    feats = dataclasses.replace(feats, residual=points)
+    basis = np.empty((8, 10, n), np.float32)
+    basis[:4] = rng.uniform(0.0, size, (4, 10, n))
+    basis[4:] = rng.normal(0.0, 6.0, (4, 10, n))
+    # Pose 0's first free cone is a bare axis through point 0.
+    cone = int(feats.residual_cones[0])
+    basis[4:, cone, 0] = 0.0
+    basis[0:2, cone, 0] = points[:, 0] - np.float32(3.0)
+    basis[2:4, cone, 0] = points[:, 0] + np.float32(3.0)
+    fast = model._residual_cost(feats, basis, n)
+    slow = numpy_path(model._residual_cost, feats, basis, n)
+    assert fast.dtype == slow.dtype == np.float64
+    np.testing.assert_array_equal(fast, slow)
