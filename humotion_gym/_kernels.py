@@ -16,7 +16,10 @@ The kernels, in the order the likelihood runs them:
   SIMD code, which libm's would not match);
 - :func:`cone_basis`: the camera projection of the keypoints, each cone's
   image axis, normal and outline offsets, and the outline's orientation bin;
-- :func:`point_costs`: the sample points placed, looked up and summed.
+- :func:`point_costs`: the sample points placed, looked up and summed;
+- :func:`coverage_sums`, :func:`residual_sums`: the whole-body tasks' coverage
+  term and the arm's residual-edge term, each pose's float32 costs summed in
+  double precision in numpy's pairwise order.
 
 Why the results match: every step the numpy paths take elementwise is one
 IEEE float32 operation (add, multiply, divide, square root, comparison), and

@@ -19,9 +19,11 @@ import numpy as np
 import pytest
 
 from humotion_gym import _kernels
+from humotion_gym.camera import Camera
 from humotion_gym.envs.tasks import get_task
 from humotion_gym.kinematics import _HEAD, _batch_kinematics
-from humotion_gym.observation import GivenBody, ObservationModel, _scratch
+from humotion_gym.observation import FrameFeatures, GivenBody, ObservationModel, _scratch
+from humotion_gym.render import SceneOptions, make_background, render
 from tests.test_observation_fast import ARM, SHAPE, random_poses, scene
 
 pytest.importorskip("numba", reason="the compiled kernels need the `fast` extra (numba)")
@@ -112,22 +114,37 @@ def _task_model(task: str) -> ObservationModel:
     return ObservationModel(**dict(get_task(task).observation))
 
 
+def _task_features(
+    task: str, seed: int
+) -> tuple[ObservationModel, FrameFeatures, np.ndarray, np.ndarray, Camera]:
+    """A task's model, a frame's features with its given body, the pose, free indices, camera.
+
+    The backdrop is read at a first frame where the figure stood 300 mm to the
+    side, in front of the same background, so that the whole-body tasks have
+    coverage points (foreground the given body does not cover).
+    """
+    _, cam, pose = scene(seed)
+    options = SceneOptions(width=96, height=96)
+    background = make_background(options, np.random.default_rng(seed))
+    first = pose.copy()
+    first[0] -= 300.0
+    first_frame = render(first, SHAPE, cam, options, np.random.default_rng(1), background)
+    frame = render(pose, SHAPE, cam, options, np.random.default_rng(2), background)
+    model = _task_model(task)
+    free = get_task(task).free_indices
+    backdrop = model.read_backdrop(first_frame, first, SHAPE, cam) if model.backdrop else None
+    colors = model.cone_colors(frame, pose, SHAPE, cam) if model.appearance_weight > 0 else None
+    feats = model.prepare(frame, GivenBody(pose, free, SHAPE, cam, colors, backdrop=backdrop))
+    return model, feats, pose, free, cam
+
+
 @pytest.mark.parametrize("task", ["ArmTrack-v1", "BodyTrack-v1", "WalkTrack-v1", "SideWalk-v1"])
 @pytest.mark.parametrize("n", [1, 2, 300, 1500])
 def test_task_likelihoods_match_the_numpy_path(task: str, n: int, numpy_path) -> None:
-    # Each task's own model and given body (backdrop, coverage, residual edges,
-    # colours, the free parameters), and poses moving only those: at 1,500 the
-    # cones every pose shares are scored once (a few columns per call).
-    frame, cam, pose = scene(21 + n)
-    model = _task_model(task)
-    free = get_task(task).free_indices
-    first = pose.copy()
-    first[0] -= 300.0
-    first_frame, _, _ = scene(21 + n)
-    backdrop = model.read_backdrop(first_frame, first, SHAPE, cam) if model.backdrop else None
-    colors = model.cone_colors(frame, pose, SHAPE, cam) if model.appearance_weight > 0 else None
-    given = GivenBody(pose, free, SHAPE, cam, colors, backdrop=backdrop)
-    feats = model.prepare(frame, given)
+    # Each task's own model and given body (backdrop, coverage points, residual
+    # edges, colours, the free parameters), and poses moving only those: at
+    # 1,500 the cones every pose shares are scored once (a few columns per call).
+    model, feats, pose, free, cam = _task_features(task, 21 + n)
     rng = np.random.default_rng(n)
     poses = np.tile(pose, (n, 1))
     poses[:, free] += rng.normal(0.0, 0.3, (n, free.size))
@@ -203,20 +220,26 @@ def test_cone_bases_match_the_numpy_path(
 
 
 def test_the_kernels_are_the_ones_that_ran(monkeypatch: pytest.MonkeyPatch) -> None:
-    # With numba installed, the likelihood's kinematics and cone bases go
-    # through the kernels (the tests above would pass trivially otherwise).
-    calls: list[str] = []
-    for name in ("kinematics", "cone_basis", "point_costs"):
+    # With numba installed, every kernel runs in the tasks' likelihoods (the
+    # comparisons above would pass trivially if one fell back to numpy).
+    ran: set[str] = set()
+    names = ("kinematics", "cone_basis", "point_costs", "coverage_sums", "residual_sums")
+    for name in names:
         real = getattr(_kernels, name)
-        monkeypatch.setattr(
-            _kernels,
-            name,
-            lambda *a, _real=real, _name=name, **k: calls.append(_name) or _real(*a, **k),
-        )
-    frame, cam, pose = scene(3)
-    model = ObservationModel()
-    model.log_likelihood(model.prepare(frame), np.tile(pose, (5, 1)), SHAPE, cam)
-    assert sorted(set(calls)) == ["cone_basis", "kinematics", "point_costs"]
+
+        def spy(*a, _real=real, _name=name, **k):
+            out = _real(*a, **k)
+            if out is not None and out is not False:
+                ran.add(_name)
+            return out
+
+        monkeypatch.setattr(_kernels, name, spy)
+    for task in ("BodyTrack-v1", "ArmTrack-v1"):
+        model, feats, pose, free, cam = _task_features(task, 3)
+        poses = np.tile(pose, (5, 1))
+        poses[:, free] += np.random.default_rng(0).normal(0.0, 0.2, (5, free.size))
+        model.log_likelihood(feats, poses, SHAPE, cam)
+    assert ran == set(names)
 
 
 @pytest.mark.parametrize("n", [1, 15, 16, 17, 1000, 1024, 4096])
