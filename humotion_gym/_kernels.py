@@ -207,11 +207,12 @@ def kinematics(
 
 
 def coverage_sums(
-    coef: NDArray[np.float32], q: NDArray[np.float32], tau: np.float32
+    basis: NDArray[np.float32], cones: NDArray[np.intp], q: NDArray[np.float32], tau: np.float32
 ) -> NDArray[np.float64] | None:
     """Each pose's summed squared coverage distances (``ObservationModel._coverage_cost``).
 
-    ``coef`` ``(4, C, N, 3)``, ``q`` ``(3, F)``: see ``_coverage_cost``.
+    ``basis`` ``(8, 10, N)``, ``cones`` the free cones, ``q`` ``(3, F)``: see
+    ``_coverage_cost``.
 
     Returns:
         ``(N,)`` float64, numpy's pairwise sums of each pose's ``F`` values;
@@ -219,12 +220,13 @@ def coverage_sums(
         product is then ``sgemv``, which sums otherwise) or over 128 (numpy
         sums more in halves, recursively): those are left to numpy.
     """
-    if not ENABLED or coef.shape[1] == 0 or not 2 <= q.shape[1] <= 128:
+    if not ENABLED or len(cones) == 0 or not 2 <= q.shape[1] <= 128:
         return None
-    out = np.empty(coef.shape[2])
+    out = np.empty(basis.shape[2])
     compiled()._coverage_sums(
-        np.ascontiguousarray(coef, np.float32), np.ascontiguousarray(q, np.float32), tau, out
-    )
+        np.ascontiguousarray(basis, np.float32), np.asarray(cones, np.intp),
+        np.ascontiguousarray(q, np.float32), tau, out,
+    )  # fmt: skip
     return out
 
 

@@ -365,43 +365,66 @@ def _pairwise_sum(a: NDArray[np.float32], n: int) -> float:
     return res
 
 
+_MIN_LENGTH = np.float32(1e-3)
+_HALF = np.float32(0.5)
+
+
 @_njit()
 def _coverage_sums(
-    coef: NDArray[np.float32],
+    basis: NDArray[np.float32],
+    cones: NDArray[np.intp],
     q: NDArray[np.float32],
     tau: np.float32,
     out: NDArray[np.float64],
 ) -> None:
     """Each pose's summed squared coverage distances, as ``ObservationModel._coverage_cost``.
 
-    ``coef`` ``(4, C, n, 3)`` the coefficients of (x, y, 1) of the four linear
-    quantities (along - L/2, across, radius, L/2 + radius) of each cone and
-    pose, ``q`` ``(3, F)`` the points (the last row ones; ``F`` at most
-    :data:`PAIRWISE_BLOCK`); out: ``(n,)``. The
-    quantities are the numpy path's ``sgemm`` (a chain of three fused
-    multiply-adds from zero), then the same float32 steps; the minimum over
-    the cones is exact in any order.
+    ``basis`` ``(8, 10, n)`` the cones' image bases, ``cones`` the free cones
+    the points must lie in, ``q`` ``(3, F)`` the points (the last row ones;
+    ``F`` at most :data:`PAIRWISE_BLOCK`); out: ``(n,)``. Per cone and pose,
+    the coefficients of (x, y, 1) of the four linear quantities (along - L/2,
+    across, radius, L/2 + radius) as the numpy path forms them; the quantities
+    as its ``sgemm`` (a chain of three fused multiply-adds from zero); then
+    the same float32 steps. The minimum over the cones is exact in any order.
     """
-    n_cones, n, f = coef.shape[1], coef.shape[2], q.shape[1]
+    n_cones, n, f = cones.shape[0], basis.shape[2], q.shape[1]
     nearest = np.empty(f, np.float32)
     qx, qy, qw = q[0], q[1], q[2]
     for j in range(n):
-        for c in range(n_cones):
-            a0, a1, a2 = coef[0, c, j, 0], coef[0, c, j, 1], coef[0, c, j, 2]
-            b0, b1, b2 = coef[1, c, j, 0], coef[1, c, j, 1], coef[1, c, j, 2]
-            r0, r1, r2 = coef[2, c, j, 0], coef[2, c, j, 1], coef[2, c, j, 2]
-            h0, h1, h2 = coef[3, c, j, 0], coef[3, c, j, 1], coef[3, c, j, 2]
+        for ci in range(n_cones):
+            c = cones[ci]
+            s_x, s_y, e_x, e_y = basis[0, c, j], basis[1, c, j], basis[2, c, j], basis[3, c, j]
+            a_x, a_y, b_x, b_y = basis[4, c, j], basis[5, c, j], basis[6, c, j], basis[7, c, j]
+            r_s = np.sqrt(a_x * a_x + a_y * a_y)
+            r_e = np.sqrt(b_x * b_x + b_y * b_y)
+            d_x = e_x - s_x
+            d_y = e_y - s_y
+            length = np.sqrt(d_x * d_x + d_y * d_y)
+            # np.maximum(length, 1e-3) (a NaN stays NaN) and the end-on cone's axis.
+            safe = length if (length >= _MIN_LENGTH or length != length) else _MIN_LENGTH
+            if length < _MIN_LENGTH:
+                u_x, u_y = _ONE, _ZERO
+            else:
+                u_x, u_y = d_x / safe, d_y / safe
+            half = _HALF * length
+            slope = (r_e - r_s) / safe
+            s_u = s_x * u_x + s_y * u_y
+            a0, a1, a2 = u_x, u_y, -s_u - half
+            b0, b1, b2 = -u_y, u_x, s_x * u_y - s_y * u_x
+            r0, r1 = slope * u_x, slope * u_y
+            r2 = r_s - slope * s_u
+            h2 = r2 + half
             for k in range(f):
                 x, y, w = qx[k], qy[k], qw[k]
                 along = _fma32(a2, w, _fma32(a1, y, _fma32(a0, x, _ZERO)))
                 across = _fma32(b2, w, _fma32(b1, y, _fma32(b0, x, _ZERO)))
                 radius = _fma32(r2, w, _fma32(r1, y, _fma32(r0, x, _ZERO)))
-                reach = _fma32(h2, w, _fma32(h1, y, _fma32(h0, x, _ZERO)))
+                reach = _fma32(h2, w, _fma32(r1, y, _fma32(r0, x, _ZERO)))
                 across = abs(across) - radius
                 along = abs(along) - reach
                 # np.maximum and np.minimum (a NaN wins both).
                 v = across if (across >= along or across != across) else along
-                if c == 0:
+                if ci == 0:
                     nearest[k] = v
                 else:
                     m = nearest[k]

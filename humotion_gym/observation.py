@@ -1497,6 +1497,18 @@ class ObservationModel:
         """
         f4 = np.float32
         assert feats.coverage is not None and feats.coverage_cones is not None
+        q = np.vstack([feats.coverage, np.ones((1, feats.coverage.shape[1]), f4)])  # (3, F)
+        scale = feats.height / self.reference_height
+        tau = f4(self.coverage_truncation * scale)
+        e = q.shape[1]
+        unit = self.coverage_weight / (2.0 * (self.edge_sigma * scale) ** 2 * e)
+        # The compiled kernel (the `fast` extra): the whole figure's sums, bit for bit.
+        sums = None
+        if prefixes is None:
+            sums = _kernels.coverage_sums(basis, feats.coverage_cones, q, tau)
+        if sums is not None:
+            sums *= unit
+            return sums
         b = basis[:, feats.coverage_cones, :]  # (8, C, n)
         s_x, s_y, e_x, e_y, a_x, a_y, b_x, b_y = b
         r_s = np.sqrt(a_x * a_x + a_y * a_y)
@@ -1523,16 +1535,6 @@ class ObservationModel:
         coef[2, ..., 2] = r_s - slope * s_u
         coef[3, ..., :2] = coef[2, ..., :2]
         coef[3, ..., 2] = coef[2, ..., 2] + half
-        q = np.vstack([feats.coverage, np.ones((1, feats.coverage.shape[1]), f4)])  # (3, F)
-        scale = feats.height / self.reference_height
-        tau = f4(self.coverage_truncation * scale)
-        e = q.shape[1]
-        unit = self.coverage_weight / (2.0 * (self.edge_sigma * scale) ** 2 * e)
-        # The compiled kernel (the `fast` extra): the whole figure's sums, bit for bit.
-        sums = None if prefixes is not None else _kernels.coverage_sums(coef, q, tau)
-        if sums is not None:
-            sums *= unit
-            return sums
         masks = None if prefixes is None else prefixes[:, feats.coverage_cones]
         out = np.empty((n, 1 if prefixes is None else prefixes.shape[0]))
         chunk = max(1, 32_768 // max(1, cones * e))

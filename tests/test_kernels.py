@@ -272,10 +272,12 @@ def test_coverage_sums_match_the_numpy_path(f: int, n: int, numpy_path) -> None:
     basis = np.empty((8, 10, n), np.float32)
     basis[:4] = rng.uniform(0.0, size, (4, 10, n))
     basis[4:] = rng.normal(0.0, 6.0, (4, 10, n))
-    # Cone k of pose 0 runs from point k to beside it: the point lies near its edge.
-    for k in range(min(f, 10)):
+    # Cone k of pose 0 runs from point k to beside it: the point lies near its
+    # edge. Cone 9 of the last pose is seen end-on (no axis direction).
+    for k in range(min(f, 9)):
         basis[0:2, k, 0] = points[:, k] + rng.normal(0.0, 1e-3, 2)
         basis[2:4, k, 0] = points[:, k] + np.float32(5.0)
+    basis[2:4, 9, -1] = basis[0:2, 9, -1]
     fast = model._coverage_cost(feats, basis, n)
     slow = numpy_path(model._coverage_cost, feats, basis, n)
     assert fast.dtype == slow.dtype == np.float64
