@@ -252,26 +252,27 @@ def test_spaced_rows_are_an_odd_number_of_cache_lines_apart(n: int, monkeypatch)
     assert _kernels.spaced_rows((3, 5), n).flags.c_contiguous
 
 
+def _random_cones(
+    rng: np.random.Generator, size: int, n_points: int, n: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(2, n_points)`` image points and ``(8, 10, n)`` cone bases anywhere in the image."""
+    points = rng.uniform(0.0, size, (2, n_points)).astype(np.float32)
+    basis = np.empty((8, 10, n), np.float32)
+    basis[:4] = rng.uniform(0.0, size, (4, 10, n))
+    basis[4:] = rng.normal(0.0, 6.0, (4, 10, n))
+    return points, basis
+
+
 @pytest.mark.parametrize("f", [1, 7, 8, 32, 96, 200])
 @pytest.mark.parametrize("n", [1, 2, 300])
 def test_coverage_sums_match_the_numpy_path(f: int, n: int, numpy_path) -> None:
     # The whole-body tasks' coverage term over random cones and points, many
     # just outside a cone (tiny squared distances beside large ones, whose
     # double-precision sum depends on numpy's pairwise order).
-    frame, cam, pose = scene(f + n)
-    model = _task_model("BodyTrack-v1")
-    first = pose.copy()
-    first[0] -= 300.0
-    backdrop = model.read_backdrop(scene(f + n)[0], first, SHAPE, cam)
-    free = get_task("BodyTrack-v1").free_indices
-    feats = model.prepare(frame, GivenBody(pose, free, SHAPE, cam, backdrop=backdrop))
+    model, feats, _, _, _ = _task_features("BodyTrack-v1", f + n)
     rng = np.random.default_rng(f * n)
-    size = np.float32(feats.width)
-    points = rng.uniform(0.0, size, (2, f)).astype(np.float32)
+    points, basis = _random_cones(rng, feats.width, f, n)
     feats = dataclasses.replace(feats, coverage=points)
-    basis = np.empty((8, 10, n), np.float32)
-    basis[:4] = rng.uniform(0.0, size, (4, 10, n))
-    basis[4:] = rng.normal(0.0, 6.0, (4, 10, n))
     # Cone k of pose 0 runs from point k to beside it: the point lies near its
     # edge. Cone 9 of the last pose is seen end-on (no axis direction).
     for k in range(min(f, 9)):
@@ -301,18 +302,11 @@ def test_residual_sums_match_the_numpy_path(e: int, n: int, numpy_path) -> None:
     # The arm's residual-edge term over random outlines and points, one of
     # them on a segment (a squared distance near zero beside large ones); 129
     # points are left to numpy.
-    frame, cam, pose = scene(e + n)
-    model = _task_model("ArmTrack-v1")
-    colors = model.cone_colors(frame, pose, SHAPE, cam)
-    feats = model.prepare(frame, GivenBody(pose, ARM, SHAPE, cam, colors))
+    model, feats, _, _, _ = _task_features("ArmTrack-v1", e + n)
     assert feats.residual_cones is not None and feats.residual_cones.size
     rng = np.random.default_rng(e * n + 1)
-    size = np.float32(feats.width)
-    points = rng.uniform(0.0, size, (2, e)).astype(np.float32)
+    points, basis = _random_cones(rng, feats.width, e, n)
     feats = dataclasses.replace(feats, residual=points)
-    basis = np.empty((8, 10, n), np.float32)
-    basis[:4] = rng.uniform(0.0, size, (4, 10, n))
-    basis[4:] = rng.normal(0.0, 6.0, (4, 10, n))
     # Pose 0's first free cone is a bare axis through point 0.
     cone = int(feats.residual_cones[0])
     basis[4:, cone, 0] = 0.0
