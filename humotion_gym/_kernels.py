@@ -7,7 +7,9 @@ readable reference and runs wherever numba is not installed. Nothing else
 changes: the leaderboard's tables are the same numbers with or without it.
 
 ``HUMOTION_NUMBA=0`` in the environment turns the kernels off (the numpy paths
-run); :func:`enabled` says whether they are on.
+run); :func:`enabled` says whether they are on. Where numba fails (a release
+that does not support the installed numpy, a broken cache) the kernels turn
+themselves off with a ``RuntimeWarning`` and the numpy paths run.
 
 The kernels, in the order the likelihood runs them:
 
@@ -42,7 +44,9 @@ import functools
 import importlib
 import importlib.util
 import os
+import warnings
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -92,6 +96,30 @@ def compiled() -> ModuleType:
     return importlib.import_module("humotion_gym._numba_kernels")
 
 
+def _run(kernel: str, *args: Any) -> bool:
+    """Run a kernel; False, with a warning and the kernels off, when numba fails.
+
+    numba compiles each kernel on its first call (or loads it from its cache).
+    A numba that cannot (one older or newer than this numpy supports, a
+    broken cache) should cost speed, not the run: the numpy path gives the
+    same numbers.
+    """
+    global ENABLED
+    try:
+        getattr(compiled(), kernel)(*args)
+    except Exception as exc:  # noqa: BLE001 (any failure of numba falls back)
+        ENABLED = False
+        warnings.warn(
+            f"humotion_gym: the compiled kernels (the `fast` extra) failed ({type(exc).__name__}: "
+            f"{exc}); the numpy path runs instead, with the same numbers. HUMOTION_NUMBA=0 "
+            "skips them.",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+        return False
+    return True
+
+
 def point_costs(
     coef: NDArray[np.float32],
     columns: NDArray[np.float32],
@@ -118,10 +146,11 @@ def point_costs(
     axis = np.asarray(axis_map, np.int32)
     if axis.ndim == 0:
         axis = np.full(k, axis, np.int32)
-    compiled()._point_costs(
-        coef, np.ascontiguousarray(columns, np.float32), outline, axis, cost, width, height,
-        n_out, out,
-    )  # fmt: skip
+    if not _run(
+        "_point_costs", coef, np.ascontiguousarray(columns, np.float32), outline, axis, cost,
+        width, height, n_out, out,
+    ):  # fmt: skip
+        return None
     return out
 
 
@@ -155,8 +184,8 @@ def cone_basis(
     :meth:`humotion_gym.observation.ObservationModel._cone_basis` for the rest.
 
     Returns:
-        False (nothing filled) when the kernels are off or the keypoints are
-        not float32.
+        False (the numpy path is to run) when the kernels are off or failed
+        (:func:`_run`) or the keypoints are not float32.
     """
     if not ENABLED or keypoints.dtype != np.float32:
         return False
@@ -167,12 +196,11 @@ def cone_basis(
         vary_axes[k, 0] = ax
         vary_axes[k, 1] = ay
     vary_aspect = np.array([v[3] for v in varying], np.float32)
-    compiled()._cone_basis(
-        rot, trans, keypoints, near, focal, shift_u, shift_u_behind, shift_v, cone_start,
-        cone_end, radii, vary_cone, vary_axes, vary_aspect, pad, four_bins, plane, uvz, basis,
-        normals, outline,
+    return _run(
+        "_cone_basis", rot, trans, keypoints, near, focal, shift_u, shift_u_behind, shift_v,
+        cone_start, cone_end, radii, vary_cone, vary_axes, vary_aspect, pad, four_bins, plane,
+        uvz, basis, normals, outline,
     )  # fmt: skip
-    return True
 
 
 def kinematics(
@@ -199,10 +227,11 @@ def kinematics(
     if not ENABLED or kp.dtype != np.float32:
         return None
     axes = spaced_rows((4, 3), a.shape[1])
-    compiled()._kinematics(
-        a, c, s, off, head_length, upper.reshape(-1), lower.reshape(-1), sign.reshape(-1),
-        want_head_axes, kp, axes,
-    )  # fmt: skip
+    if not _run(
+        "_kinematics", a, c, s, off, head_length, upper.reshape(-1), lower.reshape(-1),
+        sign.reshape(-1), want_head_axes, kp, axes,
+    ):  # fmt: skip
+        return None
     return axes
 
 
@@ -223,10 +252,11 @@ def coverage_sums(
     if not ENABLED or len(cones) == 0 or not 2 <= q.shape[1] <= 128:
         return None
     out = np.empty(basis.shape[2])
-    compiled()._coverage_sums(
-        np.ascontiguousarray(basis, np.float32), np.asarray(cones, np.intp),
+    if not _run(
+        "_coverage_sums", np.ascontiguousarray(basis, np.float32), np.asarray(cones, np.intp),
         np.ascontiguousarray(q, np.float32), tau, out,
-    )  # fmt: skip
+    ):  # fmt: skip
+        return None
     return out
 
 
@@ -254,8 +284,9 @@ def residual_sums(
         return None
     out = np.empty(p_x.shape[1])
     arrays = [np.ascontiguousarray(a, np.float32) for a in (p_x, p_y, d_x, d_y, inv_len2)]
-    compiled()._residual_sums(
-        *arrays, np.ascontiguousarray(q_x, np.float32), np.ascontiguousarray(q_y, np.float32),
-        tau2, out,
-    )  # fmt: skip
+    if not _run(
+        "_residual_sums", *arrays, np.ascontiguousarray(q_x, np.float32),
+        np.ascontiguousarray(q_y, np.float32), tau2, out,
+    ):  # fmt: skip
+        return None
     return out

@@ -316,3 +316,24 @@ def test_residual_sums_match_the_numpy_path(e: int, n: int, numpy_path) -> None:
     slow = numpy_path(model._residual_cost, feats, basis, n)
     assert fast.dtype == slow.dtype == np.float64
     np.testing.assert_array_equal(fast, slow)
+
+
+def test_a_numba_that_fails_falls_back_to_numpy(monkeypatch: pytest.MonkeyPatch) -> None:
+    # A numba that cannot compile or load the kernels costs speed, not the run:
+    # one warning, the kernels off, the numpy path's numbers.
+    frame, cam, pose = scene(4)
+    model = ObservationModel()
+    feats = model.prepare(frame)
+    poses = random_poses(np.random.default_rng(4), 50)
+    monkeypatch.setattr(_kernels, "ENABLED", False)
+    want = model.log_likelihood(feats, poses, SHAPE, cam)
+    monkeypatch.setattr(_kernels, "ENABLED", True)
+
+    def broken() -> None:
+        raise ImportError("numba 0.1 does not support numpy 9")
+
+    monkeypatch.setattr(_kernels, "compiled", broken)
+    with pytest.warns(RuntimeWarning, match="numba 0.1 does not support numpy 9"):
+        got = model.log_likelihood(feats, poses, SHAPE, cam)
+    np.testing.assert_array_equal(got, want)
+    assert not _kernels.enabled()
