@@ -43,8 +43,8 @@ def _add_model_args(p: argparse.ArgumentParser, figure: bool = True) -> None:
         help=f"switch states per activity (default: {slds.N_STATES})",
     )  # fmt: skip
     p.add_argument(
-        "--iters", type=positive_int, default=slds.N_ITER,
-        help=f"EM iterations per activity (default: {slds.N_ITER})",
+        "--iters", type=positive_int, default=slds.CLASSIFY_N_ITER,
+        help=f"EM iterations per activity (default: {slds.CLASSIFY_N_ITER})",
     )  # fmt: skip
     p.add_argument(
         "--max-train-clips", type=positive_int, default=None,

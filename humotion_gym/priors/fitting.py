@@ -125,6 +125,33 @@ def _effective_settings(module: ModuleType, kwargs: Mapping[str, Any]) -> dict[s
     return {**defaults, **{k: v for k, v in kwargs.items() if k not in skip}}
 
 
+def _typed_settings(module: ModuleType, settings: Mapping[str, Any]) -> dict[str, Any]:
+    """``settings`` with whole-number floats made ints where the fit's default is an int.
+
+    Settings come from the command line as numbers (``--grid fit.n_iter=20,40``
+    gives 20.0): a count must reach the fit as an int, and reach the cache key
+    as the default's type, so that ``n_iter=20`` reuses the default's fit.
+
+    Raises:
+        ValueError: Naming the prior and the setting, for a count that is not
+            a whole number.
+    """
+    params = inspect.signature(module.fit).parameters
+    out = dict(settings)
+    for name, value in settings.items():
+        p = params.get(name)
+        default = None if p is None else p.default
+        counted = isinstance(default, int) and not isinstance(default, bool)
+        if counted and isinstance(value, (float, np.floating)):
+            if not float(value).is_integer():
+                prior = module.__name__.rsplit(".", 1)[-1]
+                raise ValueError(
+                    f"{prior} prior: the setting {name} must be a whole number, got {value!r}"
+                )
+            out[name] = int(value)
+    return out
+
+
 def _read_prior_entry(module: ModuleType, path: Path, info: Mapping[str, str]) -> Any:
     """The fitted prior cached at ``path``, checked against what was asked for.
 
@@ -215,7 +242,7 @@ def fit_prior(
     """
     module = prior_module(prior)
     free = None if free is None else np.asarray(free, dtype=np.intp)
-    kwargs = dict(settings or {})
+    kwargs = _typed_settings(module, settings or {})
     dotted = module.__name__
     name = dotted.rsplit(".", 1)[-1]
     settings_json = json.dumps(_effective_settings(module, kwargs), sort_keys=True, default=str)

@@ -509,3 +509,15 @@ def test_workers_is_not_part_of_the_cache_key(synthetic, tmp_path):
     said.clear()
     fit_prior(slds, clips, None, {**settings, "n_iter": 2}, cache_dir=tmp_path, log=said.append)
     assert any("fitted" in line for line in said)  # a setting that changes the fit is keyed
+
+
+@pytest.mark.parametrize(
+    ("name", "bad"), [("n_iter", 2.0), ("n_iter", -1), ("n_states", 0), ("order", 2.0)]
+)
+def test_fit_refuses_counts_that_are_not_whole_numbers(synthetic, name, bad):
+    # Before, a float n_iter failed in a worker process with "'float' object
+    # cannot be interpreted as an integer".
+    train, _ = synthetic
+    settings = {"n_states": 2, "n_iter": 1, name: bad}
+    with pytest.raises(ValueError, match=f"slds.fit: {name} must be a whole number"):
+        slds.fit(list(train)[:4], **settings)

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_tree import walking_along_y
 
+from humotion_gym import body
 from humotion_gym.mocap.library import synthetic_library
 from humotion_gym.priors import tree
 from humotion_gym.priors._io import save_fitted
@@ -121,3 +123,18 @@ def test_load_refuses_other_files_clearly(tmp_path, prior):
     np.savez(other, **{**arrays, "__kind__": np.array("SLDSParams")})
     with pytest.raises(ValueError, match="holds SLDSParams parameters, expected TreeParams"):
         tree.load(other)
+
+
+def test_fit_prior_takes_counts_given_as_whole_floats(tmp_path):
+    # The command line gives every setting as a number (--grid fit.window=3,4
+    # gives 3.0): a whole one reaches the fit, and the cache key, as an int.
+    from humotion_gym.priors.fitting import fit_prior
+
+    motions = [walking_along_y(90)]
+    free = np.arange(body.N_PARAMS)
+    _, as_int = fit_prior("tree", motions, free, {"window": 3}, cache_dir=tmp_path, log=None)
+    _, as_float = fit_prior("tree", motions, free, {"window": 3.0}, cache_dir=tmp_path, log=None)
+    assert as_float.window == as_int.window == 3
+    assert len(list((tmp_path / "priors").glob("tree-*.npz"))) == 1  # the same entry
+    with pytest.raises(ValueError, match="tree prior: the setting window must be a whole number"):
+        fit_prior("tree", motions, free, {"window": 3.5}, use_cache=False, log=None)
