@@ -1359,6 +1359,27 @@ def _check_pose(fitted: TreeParams, pose: ArrayLike) -> FloatArray:
     return p
 
 
+def _last_pose_distances(fitted: TreeParams, pose: FloatArray, lay: _Layout) -> FloatArray:
+    """``(n_windows,)`` squared scaled distances of each window's last pose to ``pose``.
+
+    ``sum_k ((x_k - p_k) / s_k)^2`` over the absolute parameters, ``s`` their
+    feature scales. Taken a column at a time, in the order numpy's
+    ``sum(axis=1)`` takes over the Fortran-ordered
+    ``frames[window_end][:, absolute]`` (column after column), so the same
+    numbers, without that array and its temporaries (1.2 instead of 7.7 ms
+    over the whole body's 75,000 windows).
+    """
+    scale = np.sqrt(fitted.feature_var[: lay.absolute.size])
+    values = np.empty(fitted.window_end.size, fitted.frames.dtype)
+    dist2 = np.zeros(fitted.window_end.size)
+    for k, column in enumerate(lay.absolute.tolist()):
+        np.take(fitted.frames[:, column], fitted.window_end, out=values)
+        term = values - pose[column]
+        term /= scale[k]
+        dist2 += np.square(term, out=term)
+    return dist2
+
+
 def initial_windows(
     fitted: TreeParams, pose: ArrayLike, n: int, rng: np.random.Generator
 ) -> IntArray:
@@ -1369,15 +1390,7 @@ def initial_windows(
     """
     p = _check_pose(fitted, pose)
     lay = _layout(fitted.free)
-    # Each window's last pose, column by column into a Fortran-ordered array:
-    # the layout (and so the order of the sum below) of fancy indexing's
-    # frames[window_end][:, absolute], without its copy of every column
-    # (2.5 instead of 6 ms on the whole body's 75,000 windows).
-    last = np.empty((fitted.window_end.size, lay.absolute.size), fitted.frames.dtype, order="F")
-    for k, column in enumerate(lay.absolute.tolist()):
-        np.take(fitted.frames[:, column], fitted.window_end, out=last[:, k])
-    scale = np.sqrt(fitted.feature_var[: lay.absolute.size])
-    dist2 = np.sum(((last - p[lay.absolute]) / scale) ** 2, axis=1)
+    dist2 = _last_pose_distances(fitted, p, lay)
     logw = -(dist2 - dist2.min()) / (2.0 * fitted.init_scale**2)
     cum = np.cumsum(np.exp(logw))
     pick = np.searchsorted(cum, rng.random(n) * cum[-1], side="right")

@@ -162,10 +162,10 @@ def test_many_particles_search_in_blocks_with_the_numbers_of_one_pass(walker):
 
 @pytest.mark.parametrize("order", ["C", "F"])
 def test_initial_windows_are_those_of_the_plain_gather(order: str) -> None:
-    # initial_windows gathers the windows' last poses column by column; the
-    # plain fancy indexing it replaces gives the same Fortran-ordered array
-    # from frames of either layout, so the distances (summed in that layout's
-    # order) and the draws are the same.
+    # initial_windows sums the distances a column at a time; the plain
+    # expression it replaces sums a Fortran-ordered array (fancy indexing's,
+    # from frames of either layout) in that order, so the distances and the
+    # draws are the same, bit for bit.
     fitted = tree.fit([walking_along_y(200)], np.arange(body.N_PARAMS))
     fitted = dataclasses.replace(fitted, frames=np.asarray(fitted.frames, order=order))
     lay = tree._layout(fitted.free)
@@ -181,3 +181,4 @@ def test_initial_windows_are_those_of_the_plain_gather(order: str) -> None:
     want = np.minimum(want, fitted.n_windows - 1)
     got = tree.initial_windows(fitted, pose, 500, np.random.default_rng(9))
     np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(tree._last_pose_distances(fitted, pose, lay), dist2)
