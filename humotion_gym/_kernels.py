@@ -61,6 +61,11 @@ __all__ = [
     "spaced_rows",
 ]
 
+#: The most values a kernel sums in numpy's pairwise order (numpy's block of
+#: eight running sums; more it splits in two recursively, which numba cannot
+#: cache): terms over more points are left to numpy.
+PAIRWISE_BLOCK = 128
+
 #: Whether the kernels run: numba is installed and ``HUMOTION_NUMBA`` is not 0.
 ENABLED: bool = (
     importlib.util.find_spec("numba") is not None and os.environ.get("HUMOTION_NUMBA", "1") != "0"
@@ -221,8 +226,8 @@ def kinematics(
 
     Returns:
         ``(4, 3, N)``: the torso's x and y axes, then the head's (filled with
-        ``want_head_axes``); None (nothing filled) when the kernels are off or
-        the arrays are not float32.
+        ``want_head_axes``); None (the numpy path is to run) when the kernels
+        are off or failed (:func:`_run`) or the arrays are not float32.
     """
     if not ENABLED or kp.dtype != np.float32:
         return None
@@ -246,10 +251,10 @@ def coverage_sums(
     Returns:
         ``(N,)`` float64, numpy's pairwise sums of each pose's ``F`` values;
         None when the kernels are off, there is no cone, or ``F`` is 1 (numpy's
-        product is then ``sgemv``, which sums otherwise) or over 128 (numpy
-        sums more in halves, recursively): those are left to numpy.
+        product is then ``sgemv``, which sums otherwise) or over
+        :data:`PAIRWISE_BLOCK`: those are left to numpy.
     """
-    if not ENABLED or len(cones) == 0 or not 2 <= q.shape[1] <= 128:
+    if not ENABLED or len(cones) == 0 or not 2 <= q.shape[1] <= PAIRWISE_BLOCK:
         return None
     out = np.empty(basis.shape[2])
     if not _run(
@@ -278,9 +283,9 @@ def residual_sums(
     Returns:
         ``(N,)`` float64, numpy's pairwise sums of each pose's ``E`` values;
         None when the kernels are off, there is no segment or ``E`` is over
-        128 (numpy sums more in halves, recursively): those are left to numpy.
+        :data:`PAIRWISE_BLOCK`: those are left to numpy.
     """
-    if not ENABLED or p_x.shape[0] == 0 or q_x.shape[0] > 128:
+    if not ENABLED or p_x.shape[0] == 0 or q_x.shape[0] > PAIRWISE_BLOCK:
         return None
     out = np.empty(p_x.shape[1])
     arrays = [np.ascontiguousarray(a, np.float32) for a in (p_x, p_y, d_x, d_y, inv_len2)]

@@ -19,8 +19,9 @@ from numpy.typing import NDArray
 
 
 def _njit(**options: Any) -> Callable[[Callable[..., Any]], Any]:
-    # cache=True: compiled once per machine (about 2 s), then loaded from
-    # __pycache__; nogil: callers on several threads run in parallel.
+    # cache=True: compiled once per machine (a few seconds for all of them),
+    # then loaded from __pycache__; nogil: callers on several threads run in
+    # parallel.
     return numba.njit(cache=True, nogil=True, boundscheck=False, error_model="numpy", **options)
 
 
@@ -38,11 +39,16 @@ def _fma32_typer(typingctx: Any, a: Any, b: Any, c: Any) -> Any:
 #: ``_fma32(a, b, c)``: ``a * b + c`` rounded once, in float32 (``llvm.fma.f32``).
 _fma32: Any = intrinsic(_fma32_typer)
 
+_ZERO = np.float32(0.0)
+_ONE = np.float32(1.0)
+_MINUS_ONE = np.float32(-1.0)
+_TINY = np.float32(1e-12)
+
 
 @_njit(inline="always")
 def _product(a: NDArray[np.float32], columns: NDArray[np.float32], j: int) -> np.float32:
     """Row ``a`` times column ``j``: sgemm's chain of fused multiply-adds, in order."""
-    x = _fma32(a[0], columns[0, j], np.float32(0.0))
+    x = _fma32(a[0], columns[0, j], _ZERO)
     x = _fma32(a[1], columns[1, j], x)
     x = _fma32(a[2], columns[2, j], x)
     x = _fma32(a[3], columns[3, j], x)
@@ -76,7 +82,6 @@ def _point_row(
     acc: NDArray[np.int32],
 ) -> None:
     """One sample point (coefficient rows ``a`` for x, ``b`` for y) of every column."""
-    zero = np.float32(0.0)
     # Two passes, the arithmetic then the scattered lookups: 0.25 ms for all the
     # points of 3,000 poses, where one interleaved pass took 0.96.
     for j in range(columns.shape[1]):
@@ -84,9 +89,9 @@ def _point_row(
         y = _product(b, columns, j)
         # np.clip; a NaN (never produced: poses are finite, depths clamped)
         # would land on pixel 0 here rather than fail the lookup.
-        x = x if x > zero else zero
+        x = x if x > _ZERO else _ZERO
         x = x if x < xmax else xmax
-        y = y if y > zero else zero
+        y = y if y > _ZERO else _ZERO
         y = y if y < ymax else ymax
         index[j] = np.int32(y) * w2 + np.int32(x) + offsets[j]
     for j in range(columns.shape[1]):
@@ -117,12 +122,6 @@ def _point_costs(
                    index, acc)  # fmt: skip
     for j in range(k):
         out[j] = acc[j] & 0xFFFF  # numpy's uint16 sum wraps the same way
-
-
-_ZERO = np.float32(0.0)
-_ONE = np.float32(1.0)
-_MINUS_ONE = np.float32(-1.0)
-_TINY = np.float32(1e-12)
 
 
 @_njit()
@@ -258,8 +257,8 @@ def _kinematics(
     expression is the numpy path's, in its order (``kinematics._root_matrix``,
     ``_ball_columns``, ``_rotate``, ``_limb``). A pose reads 47 rows and
     writes 57: rows a multiple of 4 KiB apart share one set of the L1 cache
-    and evict each other, so the callers space them (:func:`row_length
-    <humotion_gym._kernels.row_length>`).
+    and evict each other, so the callers space them
+    (:func:`humotion_gym._kernels.spaced_rows`).
     """
     n = a.shape[1]
     for j in range(n):
@@ -327,16 +326,11 @@ def _kinematics(
             kp[2, 11 + limb, j] = b2 + (r20 * t0 + r21 * t1 + r22 * t2)
 
 
-#: The most values :func:`_pairwise_sum` takes (numpy's block; more it would
-#: split in two recursively, which numba cannot cache).
-PAIRWISE_BLOCK = 128
-
-
 @_njit(inline="always")
 def _pairwise_sum(a: NDArray[np.float32], n: int) -> float:
     """The pairwise sum of ``a[:n]`` in double precision, as numpy's ``sum(dtype=float64)``.
 
-    numpy's ``pairwise_sum`` for ``n <= 128``: fewer than 8 in order;
+    numpy's ``pairwise_sum`` for ``n <= _kernels.PAIRWISE_BLOCK``: fewer than 8 in order;
     otherwise eight running sums joined as ``((0 + 1) + (2 + 3)) + ((4 + 5) +
     (6 + 7))``, then the rest in order.
     """
@@ -365,6 +359,16 @@ def _pairwise_sum(a: NDArray[np.float32], n: int) -> float:
     return res
 
 
+@_njit(inline="always")
+def _keep_nearest(nearest: NDArray[np.float32], k: int, v: np.float32, first: bool) -> None:
+    """``nearest[k]``: ``v`` for the first cone or segment, else np.minimum (a NaN wins)."""
+    if first:
+        nearest[k] = v
+    else:
+        m = nearest[k]
+        nearest[k] = m if (m <= v or m != m) else v
+
+
 _MIN_LENGTH = np.float32(1e-3)
 _HALF = np.float32(0.5)
 
@@ -381,11 +385,12 @@ def _coverage_sums(
 
     ``basis`` ``(8, 10, n)`` the cones' image bases, ``cones`` the free cones
     the points must lie in, ``q`` ``(3, F)`` the points (the last row ones;
-    ``F`` at most :data:`PAIRWISE_BLOCK`); out: ``(n,)``. Per cone and pose,
-    the coefficients of (x, y, 1) of the four linear quantities (along - L/2,
-    across, radius, L/2 + radius) as the numpy path forms them; the quantities
-    as its ``sgemm`` (a chain of three fused multiply-adds from zero); then
-    the same float32 steps. The minimum over the cones is exact in any order.
+    ``F`` at most :data:`humotion_gym._kernels.PAIRWISE_BLOCK`); out:
+    ``(n,)``. Per cone and pose, the coefficients of (x, y, 1) of the four
+    linear quantities (along - L/2, across, radius, L/2 + radius) as the numpy
+    path forms them; the quantities as its ``sgemm`` (a chain of three fused
+    multiply-adds from zero); then the same float32 steps. The minimum over
+    the cones is exact in any order.
     """
     n_cones, n, f = cones.shape[0], basis.shape[2], q.shape[1]
     nearest = np.empty(f, np.float32)
@@ -422,13 +427,9 @@ def _coverage_sums(
                 reach = _fma32(h2, w, _fma32(r1, y, _fma32(r0, x, _ZERO)))
                 across = abs(across) - radius
                 along = abs(along) - reach
-                # np.maximum and np.minimum (a NaN wins both).
+                # np.maximum (a NaN wins), then the nearest cone.
                 v = across if (across >= along or across != across) else along
-                if ci == 0:
-                    nearest[k] = v
-                else:
-                    m = nearest[k]
-                    nearest[k] = m if (m <= v or m != m) else v
+                _keep_nearest(nearest, k, v, ci == 0)
         for k in range(f):
             v = nearest[k]
             v = _ZERO if v < _ZERO else v  # np.clip(v, 0, tau)
@@ -453,9 +454,10 @@ def _residual_sums(
 
     ``p``, ``d`` and ``inv_len2`` ``(S, n)``: each outline segment's start,
     direction and inverse squared length; ``q`` ``(E,)`` the residual points
-    (``E`` at most :data:`PAIRWISE_BLOCK`); out: ``(n,)``. Each point's squared
-    distance to its nearest segment, truncated at ``tau2``, summed as numpy
-    sums (the same float32 steps in the same order; the minimum is exact).
+    (``E`` at most :data:`humotion_gym._kernels.PAIRWISE_BLOCK`); out:
+    ``(n,)``. Each point's squared distance to its nearest segment, truncated
+    at ``tau2``, summed as numpy sums (the same float32 steps in the same
+    order; the minimum is exact).
     """
     n_seg, n = p_x.shape
     e = q_x.shape[0]
@@ -474,12 +476,7 @@ def _residual_sums(
                 t = t if (t < _ONE or t != t) else _ONE
                 rx = rx - t * dx
                 ry = ry - t * dy
-                v = rx * rx + ry * ry
-                if s == 0:
-                    nearest[k] = v
-                else:
-                    m = nearest[k]
-                    nearest[k] = m if (m <= v or m != m) else v
+                _keep_nearest(nearest, k, rx * rx + ry * ry, s == 0)
         for k in range(e):
             v = nearest[k]
             nearest[k] = v if (v <= tau2 or v != v) else tau2  # np.minimum(v, tau2)

@@ -290,7 +290,7 @@ def test_pairwise_sum_is_numpys() -> None:
     # in another order (about half of them when summed one after another).
     rng = np.random.default_rng(5)
     pairwise = _kernels.compiled()._pairwise_sum
-    for n in range(1, _kernels.compiled().PAIRWISE_BLOCK + 1):
+    for n in range(1, _kernels.PAIRWISE_BLOCK + 1):
         for _ in range(5):
             a = np.exp(rng.uniform(-60.0, 3.0, n)).astype(np.float32)
             assert pairwise(a, n) == a.sum(dtype=np.float64), n
