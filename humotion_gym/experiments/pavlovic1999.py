@@ -153,9 +153,6 @@ FloatArray = NDArray[np.float64]
 
 #: Standard deviation of the noise added to the test sequences (rad), about 2 deg.
 NOISE_STD = float(np.radians(2.0))
-#: EM iterations per activity here (the tracking prior's default,
-#: ``slds.N_ITER``, is 10, chosen by tracking on the validation persons).
-N_ITER = slds.CLASSIFY_N_ITER
 #: Activities the classifier tells apart.
 CLASSIFY_LABELS: tuple[str, ...] = ("walk", "run")
 #: Labels folded into them: Bandai-Namco set 1's ``dash`` (a sprint, with a
@@ -510,7 +507,7 @@ def fit_activities(
     rng: np.random.Generator | None = None,
     labels: Sequence[str] | None = None,
     n_states: int = slds.N_STATES,
-    n_iter: int = N_ITER,
+    n_iter: int = slds.CLASSIFY_N_ITER,
     switch_prob: float = slds.SWITCH_PROB,
     max_clips: int | None = None,
 ) -> tuple[SLDSParams, dict[str, list[float]]]:
@@ -538,7 +535,7 @@ def run_classification(
     free: ArrayLike | None = None,
     labels: Sequence[str] | None = None,
     n_states: int = slds.N_STATES,
-    n_iter: int = N_ITER,
+    n_iter: int = slds.CLASSIFY_N_ITER,
     switch_prob: float = CLASSIFY_SWITCH_PROB,
     noise_std: float = NOISE_STD,
     max_train_clips: int | None = None,
@@ -783,7 +780,7 @@ def score_settings(
     seed: int,
     labels: Sequence[str] = CLASSIFY_LABELS,
     n_states: int = slds.N_STATES,
-    n_iter: int = N_ITER,
+    n_iter: int = slds.CLASSIFY_N_ITER,
     noise_std: float = NOISE_STD,
     clips_per_sequence: tuple[int, int] = CLIPS_PER_SEQUENCE,
     features: Sequence[str] = ("angles",),
@@ -836,7 +833,7 @@ def score_fits(
     seed: int,
     labels: Sequence[str] = CLASSIFY_LABELS,
     n_states: int = slds.N_STATES,
-    n_iter: int = N_ITER,
+    n_iter: int = slds.CLASSIFY_N_ITER,
     noise_std: float = NOISE_STD,
     clips_per_sequence: tuple[int, int] = CLIPS_PER_SEQUENCE,
 ) -> list[SettingScores]:
@@ -1076,7 +1073,7 @@ def select_classifier_settings(
     param_sets: dict[str, Sequence[str]] | None = None,
     switch_probs: Sequence[float] = CANDIDATE_SWITCH_PROBS,
     n_states: int = slds.N_STATES,
-    n_iter: int = N_ITER,
+    n_iter: int = slds.CLASSIFY_N_ITER,
     noise_std: float = NOISE_STD,
     jobs: int = 1,
     log: Any = None,
@@ -1308,7 +1305,7 @@ def evaluate_splits(
     settings: dict[str, ClassifierSetting] | None = None,
     style_dataset: str = "bandai-2",
     n_states: int = slds.N_STATES,
-    n_iter: int = N_ITER,
+    n_iter: int = slds.CLASSIFY_N_ITER,
     noise_std: float = NOISE_STD,
     jobs: int = 1,
     log: Any = None,
@@ -1525,7 +1522,7 @@ def run_interpolation(
     label: str = "walk",
     gap: tuple[int, int] = GAP,
     n_states: int = slds.N_STATES,
-    n_iter: int = N_ITER,
+    n_iter: int = slds.CLASSIFY_N_ITER,
     max_train_clips: int | None = None,
     model: SLDSParams | None = None,
 ) -> tuple[list[InterpolationResult], dict[str, float], SLDSParams]:

@@ -230,6 +230,11 @@ def _run_activity(start: EMStart, n_iter: int) -> tuple[SLDSParams, float]:
     return params, time.perf_counter() - t0
 
 
+def _is_count(value: object, least: int) -> bool:
+    """Whether ``value`` is a whole number (an int, not a bool or a float) >= ``least``."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= least
+
+
 def fit_workers(starts: Sequence[EMStart], workers: int | None) -> int:
     """How many processes fit the activity models (see :func:`fit`'s ``workers``).
 
@@ -237,7 +242,7 @@ def fit_workers(starts: Sequence[EMStart], workers: int | None) -> int:
         ValueError: If ``workers`` is not None or a whole number >= 1.
     """
     if workers is not None:
-        if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        if not _is_count(workers, 1):
             raise ValueError(
                 f"slds.fit: workers must be None or a whole number >= 1, got {workers!r}"
             )
@@ -303,7 +308,7 @@ def fit(
         ("n_states", n_states, 1), ("order", order, 1), ("n_iter", n_iter, 0),
         ("frame_skip", frame_skip, 1),
     ):  # fmt: skip
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+        if not _is_count(value, least):
             raise ValueError(f"slds.fit: {name} must be a whole number >= {least}, got {value!r}")
     groups: dict[str, list[Motion]] = {}
     for m in motions:
