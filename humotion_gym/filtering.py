@@ -302,6 +302,19 @@ class ParticleFilter:
         if self.angle_mask is None:
             self.angle_mask = np.zeros(pose.shape[-1], dtype=bool)
 
+    def _estimate(
+        self, pose: FloatArray, weights: FloatArray, rank: FloatArray | None = None
+    ) -> FloatArray:
+        """``(D,)`` the weighted particles' estimate: their mean, or the MAP particle.
+
+        ``rank``: what the MAP particle maximises (the weights when None; the
+        filter passes their logarithms, which keep apart weights that
+        underflow alike).
+        """
+        if self.estimate_kind == "map":
+            return pose[int(np.argmax(weights if rank is None else rank))].copy()
+        return weighted_mean(pose, weights, self.angle_mask)
+
     def step(self, frame: Any) -> FloatArray:
         """Advance one frame: predict, weight, estimate, resample.
 
@@ -331,10 +344,7 @@ class ParticleFilter:
         log_w = log_w - norm
         weights = np.exp(log_w)
         self.ess = effective_sample_size(weights)
-        if self.estimate_kind == "map":
-            estimate = self.state.pose[int(np.argmax(log_w))].copy()
-        else:
-            estimate = weighted_mean(self.state.pose, weights, self.angle_mask)
+        estimate = self._estimate(self.state.pose, weights, log_w)
         if self.ess < self.ess_threshold * self.n or self.ess_threshold >= 1.0:
             index = self.resample_fn(weights, self._rng)
             self.state = self.state.take(index)
@@ -571,10 +581,7 @@ class AnnealedParticleFilter(ParticleFilter):
             self.ess = effective_sample_size(weights)
             self.layer_survival.append(self.ess / self.n)
             if m == self.layers - 1:
-                if self.estimate_kind == "map":
-                    estimate = state.pose[int(np.argmax(weights))].copy()
-                else:
-                    estimate = weighted_mean(state.pose, weights, self.angle_mask)
+                estimate = self._estimate(state.pose, weights)
             state = state.take(self.resample_fn(weights, rng))
             if m < self.layers - 1 and self.diffusion > 0:
                 # Covariance alpha^(m+1) times the proposal's: the search narrows.
@@ -737,10 +744,7 @@ class PartitionedParticleFilter(ParticleFilter):
         weights = tempered_weights(_increment(partial, len(groups) - 1, len(groups)), 1.0)
         self.ess = effective_sample_size(weights)
         self.stage_survival.append(self.ess / self.n)
-        if self.estimate_kind == "map":
-            estimate = state.pose[int(np.argmax(weights))].copy()
-        else:
-            estimate = weighted_mean(state.pose, weights, self.angle_mask)
+        estimate = self._estimate(state.pose, weights)
         self.state = state.take(self.resample_fn(weights, rng))
         self.log_weights = np.full(self.n, -np.log(self.n))
         return estimate
