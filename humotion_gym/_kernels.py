@@ -23,6 +23,10 @@ The kernels, in the order the likelihood runs them:
   term and the arm's residual-edge term, each pose's float32 costs summed in
   double precision in numpy's pairwise order.
 
+And one the priors run: :func:`standard_normal`, their noise, numpy's draws
+from numpy's generator (numba's port of its algorithm, same tables, same
+bit generator).
+
 Why the results match: every step the numpy paths take elementwise is one
 IEEE float32 operation (add, multiply, divide, square root, comparison), and
 the kernels make the same operations in the same order (numba, without
@@ -59,12 +63,18 @@ __all__ = [
     "point_costs",
     "residual_sums",
     "spaced_rows",
+    "standard_normal",
 ]
 
 #: The most values a kernel sums in numpy's pairwise order (numpy's block of
 #: eight running sums; more it splits in two recursively, which numba cannot
 #: cache): terms over more points are left to numpy.
 PAIRWISE_BLOCK = 128
+
+#: The fewest draws :func:`standard_normal` hands to numba: calling a kernel
+#: with a generator costs about 5 us (numba unwraps it), numpy's draws 8 ns
+#: each on this project's machines, numba's 2.
+NORMAL_MIN_SIZE = 2048
 
 #: Whether the kernels run: numba is installed and ``HUMOTION_NUMBA`` is not 0.
 ENABLED: bool = (
@@ -295,3 +305,24 @@ def residual_sums(
     ):  # fmt: skip
         return None
     return out
+
+
+def standard_normal(rng: np.random.Generator, shape: int | tuple[int, ...]) -> NDArray[np.float64]:
+    """``rng.standard_normal(shape)``: the same values, and the generator left in the same state.
+
+    numba's ``Generator.standard_normal`` is numpy's algorithm on numpy's bit
+    generator (see ``_numba_kernels._standard_normal``), at about a quarter of
+    the cost per draw; the priors draw tens of thousands a frame. Fewer than
+    :data:`NORMAL_MIN_SIZE` draws, or a generator of another kind, go to
+    numpy, as everything does when the kernels are off.
+    """
+    size = int(np.prod(shape))
+    if not ENABLED or size < NORMAL_MIN_SIZE or type(rng) is not np.random.Generator:
+        return rng.standard_normal(shape)
+    out = np.empty(shape)
+    # numpy holds the bit generator's lock while it draws; so does this.
+    with rng.bit_generator.lock:
+        ran = _run("_standard_normal", rng, out.reshape(-1))
+    # A numba that fails does so compiling, before it draws: numpy's draws
+    # then come from the same state.
+    return out if ran else rng.standard_normal(shape)

@@ -18,6 +18,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import logsumexp
 
+from humotion_gym import _kernels
+
 FloatArray = NDArray[np.float64]
 
 
@@ -586,7 +588,7 @@ class AnnealedParticleFilter(ParticleFilter):
             if m < self.layers - 1 and self.diffusion > 0:
                 # Covariance alpha^(m+1) times the proposal's: the search narrows.
                 std = base_std * self.alpha ** (0.5 * (m + 1))
-                pose = state.pose + std * rng.standard_normal(state.pose.shape)
+                pose = state.pose + std * _kernels.standard_normal(rng, state.pose.shape)
                 state = ParticleState(pose, state.extra)
         self.state = state
         self.log_weights = np.full(self.n, -np.log(self.n))
@@ -718,8 +720,8 @@ class PartitionedParticleFilter(ParticleFilter):
         for k, stage in enumerate(self.stages):
             if k > 0 and self.diffusion > 0:
                 pose = state.pose.copy()
-                pose[:, stage.dims] += base_std[stage.dims] * rng.standard_normal(
-                    (self.n, len(stage.dims))
+                pose[:, stage.dims] += base_std[stage.dims] * _kernels.standard_normal(
+                    rng, (self.n, len(stage.dims))
                 )
                 state = ParticleState(pose, state.extra)
             partial = np.asarray(

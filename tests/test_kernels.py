@@ -337,3 +337,58 @@ def test_a_numba_that_fails_falls_back_to_numpy(monkeypatch: pytest.MonkeyPatch)
         got = model.log_likelihood(feats, poses, SHAPE, cam)
     np.testing.assert_array_equal(got, want)
     assert not _kernels.enabled()
+
+
+@pytest.mark.parametrize(
+    "bits",
+    [np.random.PCG64, np.random.PCG64DXSM, np.random.MT19937, np.random.Philox, np.random.SFC64],
+)
+@pytest.mark.parametrize("shape", [5, (2047,), 2048, (16, 300), (300, 25), (3, 1000, 7)])
+def test_normal_draws_are_numpys_and_leave_the_generator_where_numpy_does(bits, shape) -> None:
+    # The priors' noise: the same values as rng.standard_normal, and the same
+    # draws after it (a uint32 left buffered by an integer draw included).
+    ours, theirs = np.random.Generator(bits(7)), np.random.Generator(bits(7))
+    for rng in (ours, theirs):
+        rng.integers(0, 10, 3, dtype=np.int32)
+    got = _kernels.standard_normal(ours, shape)
+    want = theirs.standard_normal(shape)
+    assert got.shape == want.shape and got.dtype == want.dtype
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(ours.integers(0, 1 << 30, 9, dtype=np.int32),
+                                  theirs.integers(0, 1 << 30, 9, dtype=np.int32))  # fmt: skip
+    np.testing.assert_array_equal(ours.standard_normal(9), theirs.standard_normal(9))
+
+
+def test_normal_draws_run_in_the_kernel_above_the_threshold(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    calls: list[str] = []
+    real = _kernels._run
+
+    def spy(kernel, *args):
+        calls.append(kernel)
+        return real(kernel, *args)
+
+    monkeypatch.setattr(_kernels, "_run", spy)
+    rng = np.random.default_rng(0)
+    _kernels.standard_normal(rng, _kernels.NORMAL_MIN_SIZE - 1)
+    assert calls == []
+    _kernels.standard_normal(rng, (2, _kernels.NORMAL_MIN_SIZE))
+    assert calls == ["_standard_normal"]
+    # A legacy RandomState is numpy's.
+    state = np.random.RandomState(3)
+    np.testing.assert_array_equal(_kernels.standard_normal(state, 5000),
+                                  np.random.RandomState(3).standard_normal(5000))  # fmt: skip
+    assert calls == ["_standard_normal"]
+
+
+def test_normal_draws_fall_back_to_numpy_from_the_same_state(monkeypatch) -> None:
+    def broken() -> None:
+        raise ImportError("numba 0.1 does not support numpy 9")
+
+    monkeypatch.setattr(_kernels, "ENABLED", True)  # restored after the test
+    monkeypatch.setattr(_kernels, "compiled", broken)
+    with pytest.warns(RuntimeWarning, match="numba 0.1"):
+        got = _kernels.standard_normal(np.random.default_rng(5), (100, 30))
+    np.testing.assert_array_equal(got, np.random.default_rng(5).standard_normal((100, 30)))
+    assert not _kernels.enabled()

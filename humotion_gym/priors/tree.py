@@ -146,6 +146,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import log_ndtr, ndtr
 
+from humotion_gym import _kernels
 from humotion_gym.body import N_PARAMS, PARAM_INDEX, PARAM_NAMES
 from humotion_gym.filtering import ParticleState
 from humotion_gym.mocap.motion import Motion
@@ -1015,7 +1016,7 @@ def _descend(
     # Eq. 7: follow the signs of z = c_t + sqrt(beta) sigma e, e ~ N(0, I), so that
     # P(z_l > 0) = Phi(c_t,l / (sqrt(beta) sigma_l)).
     scaled = coefficients.T / (np.sqrt(beta) * fitted.sigma[:, None])
-    noise = rng.standard_normal((b, n_probe))
+    noise = _kernels.standard_normal(rng, (b, n_probe))
     wanted = noise > -scaled
     if not want_log_prob:
         prefix = _descend_by_table(_descent_tables(fitted.node_flags, b), wanted)
@@ -1424,7 +1425,7 @@ def initial(fitted: TreeParams, pose: ArrayLike, n: int, rng: np.random.Generato
     anchored = _anchor(window_histories(fitted, chosen), lay)
     extra: dict[str, NDArray[Any]] = {"window": chosen}
     if _has_speed(fitted, lay):
-        speed = np.exp(fitted.speed_spread * rng.standard_normal(n))
+        speed = np.exp(fitted.speed_spread * _kernels.standard_normal(rng, n))
         ix, iy = _root_xy(lay)
         anchored[..., ix] *= speed[:, None]  # anchored: zero at the last frame
         anchored[..., iy] *= speed[:, None]
@@ -1517,7 +1518,7 @@ def transition(fitted: TreeParams, state: ParticleState, rng: np.random.Generato
         step[:, ix] *= speed
         step[:, iy] *= speed
     if fitted.noise_scale > 0:
-        noise = rng.standard_normal(step.shape)
+        noise = _kernels.standard_normal(rng, step.shape)
         noise *= fitted.noise_std
         step += noise
     pose = _advance(state.pose, step, lay)
@@ -1527,7 +1528,7 @@ def transition(fitted: TreeParams, state: ParticleState, rng: np.random.Generato
     extra: dict[str, NDArray[Any]] = {"history": new_history, "window": chosen}
     if speed is not None:
         if fitted.speed_drift > 0:
-            speed = speed * np.exp(fitted.speed_drift * rng.standard_normal(speed.shape))
+            speed = speed * np.exp(fitted.speed_drift * _kernels.standard_normal(rng, speed.shape))
         extra["speed"] = speed
     return ParticleState(pose, extra)
 
