@@ -58,6 +58,7 @@ from numpy.typing import NDArray
 __all__ = [
     "cone_basis",
     "coverage_sums",
+    "draw_figure",
     "enabled",
     "kinematics",
     "point_costs",
@@ -326,3 +327,30 @@ def standard_normal(rng: np.random.Generator, shape: int | tuple[int, ...]) -> N
     # A numba that fails does so compiling, before it draws: numpy's draws
     # then come from the same state.
     return out if ran else rng.standard_normal(shape)
+
+
+def draw_figure(
+    img: NDArray[np.uint8],
+    ellipses: NDArray[np.int32],
+    quads: NDArray[np.int32],
+    colors: NDArray[np.uint8],
+    order: NDArray[np.intp],
+    wide: NDArray[np.bool_],
+    shift: int,
+) -> bool:
+    """Draw one frame's cone figure into ``img`` (``render._draw_figure``'s OpenCV calls).
+
+    ``img`` ``(H, W, C)`` uint8, written in place; one frame's ``ellipses``
+    ``(10, 2K, 2)``, ``quads`` ``(10, S, 4, 2)`` and ``colors`` ``(10, 2 + S,
+    C)`` of a :class:`~humotion_gym.render.FigureSequence`, the cones to draw
+    in ``order`` and which are ``wide``; vertices with ``shift`` fractional
+    bits. The kernel is OpenCV's convex hull and 8-connected convex polygon
+    fill in the same integer steps, so the pixels are OpenCV's
+    (``tests/test_kernels.py`` compares them).
+
+    Returns:
+        False (OpenCV is to draw) when the kernels are off or failed.
+    """
+    if not ENABLED:
+        return False
+    return _run("_draw_figure", img, ellipses, quads, colors, order, wide, shift)

@@ -495,3 +495,313 @@ def _standard_normal(rng: np.random.Generator, out: NDArray[np.float64]) -> None
     """
     for i in range(out.size):
         out[i] = rng.standard_normal()
+
+
+# ---------------------------------------------------------------------------
+# The figure's drawing: OpenCV's convex polygon fill, in the same integer steps
+# ---------------------------------------------------------------------------
+
+#: OpenCV's fixed point inside its drawing code: 16 fractional bits.
+_XY_SHIFT = 16
+_XY_HALF = 1 << (_XY_SHIFT - 1)
+
+
+@_njit(inline="always")
+def _tdiv(a: int, b: int) -> int:
+    """C's integer division (truncated towards zero), where Python's floors."""
+    q = abs(a) // abs(b)
+    return q if (a >= 0) == (b > 0) else -q
+
+
+@_njit(inline="always")
+def _out_code(x: int, y: int, right: int, bottom: int) -> int:
+    return (
+        (1 if x < 0 else 0)
+        + (2 if x > right else 0)
+        + (4 if y < 0 else 0)
+        + (8 if y > bottom else 0)
+    )
+
+
+@_njit(inline="always")
+def _clip_line(
+    width: int, height: int, x1: int, y1: int, x2: int, y2: int
+) -> tuple[bool, int, int, int, int]:
+    """OpenCV's ``clipLine`` on a ``width x height`` box.
+
+    Each end is moved onto the box along the line, in OpenCV's order of steps
+    (the first end's move feeds the second's), the intercepts in double
+    precision truncated to integers.
+    """
+    right = width - 1
+    bottom = height - 1
+    c1 = _out_code(x1, y1, right, bottom)
+    c2 = _out_code(x2, y2, right, bottom)
+    if (c1 & c2) == 0 and (c1 | c2) != 0:
+        if c1 & 12:
+            a = 0 if c1 < 8 else bottom
+            x1 += int(float(a - y1) * float(x2 - x1) / float(y2 - y1))
+            y1 = a
+            c1 = _out_code(x1, 0, right, bottom)
+        if c2 & 12:
+            a = 0 if c2 < 8 else bottom
+            x2 += int(float(a - y2) * float(x2 - x1) / float(y2 - y1))
+            y2 = a
+            c2 = _out_code(x2, 0, right, bottom)
+        if (c1 & c2) == 0 and (c1 | c2) != 0:
+            if c1:
+                a = 0 if c1 == 1 else right
+                y1 += int(float(a - x1) * float(y2 - y1) / float(x2 - x1))
+                x1 = a
+                c1 = 0
+            if c2:
+                a = 0 if c2 == 1 else right
+                y2 += int(float(a - x2) * float(y2 - y1) / float(x2 - x1))
+                x2 = a
+                c2 = 0
+    return (c1 | c2) == 0, x1, y1, x2, y2
+
+
+@_njit(inline="always")
+def _put(img: NDArray[np.uint8], x: int, y: int, color: NDArray[np.uint8]) -> None:
+    if 0 <= x < img.shape[1] and 0 <= y < img.shape[0]:
+        for k in range(img.shape[2]):
+            img[y, x, k] = color[k]
+
+
+@_njit()
+def _line(img: NDArray[np.uint8], x1: int, y1: int, x2: int, y2: int, color: NDArray) -> None:
+    """OpenCV's 8-connected line between two points of 16 fractional bits (its ``Line2``).
+
+    Clipped to the image, walked from the end with the smaller coordinate
+    along the longer axis in steps of one pixel, the other coordinate
+    advanced by a truncated fixed-point slope; the far end is set first.
+    """
+    h, w = img.shape[0], img.shape[1]
+    inside, x1, y1, x2, y2 = _clip_line(w << _XY_SHIFT, h << _XY_SHIFT, x1, y1, x2, y2)
+    if not inside:
+        return
+    dx = x2 - x1
+    dy = y2 - y1
+    ax = -dx if dx < 0 else dx
+    ay = -dy if dy < 0 else dy
+    step = 0
+    if ax > ay:
+        if dx < 0:
+            dy = -dy
+            x1, x2, y1, y2 = x2, x1, y2, y1
+        step = _tdiv(dy << _XY_SHIFT, ax | 1)
+        count = (x2 - x1) >> _XY_SHIFT
+    else:
+        if dy < 0:
+            dx = -dx
+            x1, x2, y1, y2 = x2, x1, y2, y1
+        step = _tdiv(dx << _XY_SHIFT, ay | 1)
+        count = (y2 - y1) >> _XY_SHIFT
+    x1 += _XY_HALF
+    y1 += _XY_HALF
+    _put(img, (x2 + _XY_HALF) >> _XY_SHIFT, (y2 + _XY_HALF) >> _XY_SHIFT, color)
+    if ax > ay:
+        x1 >>= _XY_SHIFT
+        while count >= 0:
+            _put(img, x1, y1 >> _XY_SHIFT, color)
+            x1 += 1
+            y1 += step
+            count -= 1
+    else:
+        y1 >>= _XY_SHIFT
+        while count >= 0:
+            _put(img, x1 >> _XY_SHIFT, y1, color)
+            x1 += step
+            y1 += 1
+            count -= 1
+
+
+@_njit(inline="always")
+def _next_edge(
+    vx: NDArray[np.int64], vy: NDArray[np.int64], npts: int, y: int, idx0: int, di: int,
+    edges: int, shift: int,
+) -> tuple[int, int, int, int, int, int]:  # fmt: skip
+    """The polygon's next edge below scanline ``y`` from vertex ``idx0`` going ``di``.
+
+    Returns ``(found, ye, dx, x, idx)`` and the edges left (OpenCV counts them
+    down once per vertex looked at, and once more when none is left).
+    """
+    up = _XY_SHIFT - shift
+    delta = (1 << shift) >> 1
+    idx = idx0 + di
+    if idx >= npts:
+        idx -= npts
+    while True:
+        left = edges
+        edges -= 1
+        if left <= 0:
+            return 0, 0, 0, 0, 0, edges
+        ty = (vy[idx] + delta) >> shift
+        if ty > y:
+            xs = vx[idx0] << up
+            xe = vx[idx] << up
+            return 1, ty, _tdiv((xe - xs) * 2 + (ty - y), 2 * (ty - y)), xs, idx, edges
+        idx0 = idx
+        idx += di
+        if idx >= npts:
+            idx -= npts
+
+
+@_njit()
+def _fill_convex(
+    img: NDArray[np.uint8], vx: NDArray[np.int64], vy: NDArray[np.int64], npts: int,
+    color: NDArray, shift: int,
+) -> None:  # fmt: skip
+    """``cv2.fillConvexPoly(img, v, color, cv2.LINE_8, shift)``, the same pixels.
+
+    The outline first (:func:`_line` per edge, from the last vertex round),
+    then the scanlines from the topmost vertex down, between a left and a
+    right edge each stepped by its rounded fixed-point slope.
+    """
+    h, w = img.shape[0], img.shape[1]
+    delta = (1 << shift) >> 1
+    up = _XY_SHIFT - shift
+    p0x = vx[npts - 1] << up
+    p0y = vy[npts - 1] << up
+    xmin = xmax = vx[0]
+    ymin = ymax = vy[0]
+    imin = 0
+    for i in range(npts):
+        px = vx[i]
+        py = vy[i]
+        if py < ymin:
+            ymin = py
+            imin = i
+        ymax = max(ymax, py)
+        xmax = max(xmax, px)
+        xmin = min(xmin, px)
+        _line(img, p0x, p0y, px << up, py << up, color)
+        p0x = px << up
+        p0y = py << up
+    xmin = (xmin + delta) >> shift
+    xmax = (xmax + delta) >> shift
+    ymin = (ymin + delta) >> shift
+    ymax = (ymax + delta) >> shift
+    if npts < 3 or xmax < 0 or ymax < 0 or xmin >= w or ymin >= h:
+        return
+    ymax = min(ymax, h - 1)
+    a_idx = b_idx = imin
+    a_x = b_x = -(1 << _XY_SHIFT)
+    a_dx = b_dx = 0
+    a_ye = b_ye = ymin
+    edges = npts
+    y = ymin
+    while True:
+        if y >= a_ye:
+            found, ye, dx, x, idx, edges = _next_edge(vx, vy, npts, y, a_idx, 1, edges, shift)
+            if found:
+                a_ye, a_dx, a_x, a_idx = ye, dx, x, idx
+        if y >= b_ye:
+            found, ye, dx, x, idx, edges = _next_edge(
+                vx, vy, npts, y, b_idx, npts - 1, edges, shift
+            )
+            if found:
+                b_ye, b_dx, b_x, b_idx = ye, dx, x, idx
+        if edges < 0:
+            return
+        if y >= 0:
+            lo, hi = (b_x, a_x) if a_x > b_x else (a_x, b_x)
+            x1 = (lo + _XY_HALF) >> _XY_SHIFT
+            x2 = (hi + _XY_HALF) >> _XY_SHIFT
+            if x2 >= 0 and x1 < w:
+                x1 = max(x1, 0)
+                x2 = min(x2, w - 1)
+                for x in range(x1, x2 + 1):
+                    for k in range(img.shape[2]):
+                        img[y, x, k] = color[k]
+        a_x += a_dx
+        b_x += b_dx
+        y += 1
+        if y > ymax:
+            return
+
+
+_Y_BIAS = 1 << 31
+
+
+@_njit()
+def _hull(
+    points: NDArray[np.int32], keys: NDArray[np.int64], hx: NDArray[np.int64],
+    hy: NDArray[np.int64],
+) -> int:  # fmt: skip
+    """The convex hull of ``(m, 2)`` points into ``hx, hy``; returns its vertex count.
+
+    Andrew's monotone chain over the points sorted by x then y (one int64
+    key each, insertion-sorted: there are 24), duplicates and collinear
+    points dropped: the vertices of ``cv2.convexHull``, in its orientation
+    (it starts elsewhere; the fill does not depend on where). The cross
+    products are exact in int64, as OpenCV's for integer points.
+    """
+    m = 0
+    for i in range(points.shape[0]):
+        key = (np.int64(points[i, 0]) << 32) + (np.int64(points[i, 1]) + _Y_BIAS)
+        j = m
+        while j > 0 and keys[j - 1] > key:
+            keys[j] = keys[j - 1]
+            j -= 1
+        keys[j] = key
+        m += 1
+    n = 0
+    for i in range(m):  # unique, in order
+        if n == 0 or keys[i] != keys[n - 1]:
+            keys[n] = keys[i]
+            n += 1
+    if n <= 2:
+        for i in range(n):
+            hx[i] = keys[i] >> 32
+            hy[i] = keys[i] - (hx[i] << 32) - _Y_BIAS
+        return n
+    k = 0
+    for step in range(2):  # the lower chain, then the upper
+        lower = k + 1
+        for r in range(n - step):
+            i = r if step == 0 else n - 2 - r
+            x = keys[i] >> 32
+            y = keys[i] - (x << 32) - _Y_BIAS
+            while (
+                k >= (2 if step == 0 else lower)
+                and (hx[k - 1] - hx[k - 2]) * (y - hy[k - 2])
+                - (hy[k - 1] - hy[k - 2]) * (x - hx[k - 2])
+                <= 0
+            ):
+                k -= 1
+            hx[k] = x
+            hy[k] = y
+            k += 1
+    return k - 1
+
+
+@_njit()
+def _draw_figure(
+    img: NDArray[np.uint8], ellipses: NDArray[np.int32], quads: NDArray[np.int32],
+    colors: NDArray[np.uint8], order: NDArray[np.intp], wide: NDArray[np.bool_], shift: int,
+) -> None:  # fmt: skip
+    """One frame's figure, as ``render._draw_figure`` draws it with OpenCV.
+
+    For each cone in ``order``: the hull of its end ellipses filled with the
+    cap's colour and its shading strips over it (a wide cone), or the hull in
+    the flat shade.
+    """
+    m = ellipses.shape[1]
+    keys = np.empty(m, np.int64)
+    hx = np.empty(2 * m, np.int64)
+    hy = np.empty(2 * m, np.int64)
+    qx = np.empty(quads.shape[2], np.int64)
+    qy = np.empty(quads.shape[2], np.int64)
+    for c in order:
+        n = _hull(ellipses[c], keys, hx, hy)
+        if wide[c]:
+            _fill_convex(img, hx, hy, n, colors[c, 0], shift)
+            for b in range(quads.shape[1]):
+                for k in range(quads.shape[2]):
+                    qx[k] = quads[c, b, k, 0]
+                    qy[k] = quads[c, b, k, 1]
+                _fill_convex(img, qx, qy, quads.shape[2], colors[c, b + 2], shift)
+        else:
+            _fill_convex(img, hx, hy, n, colors[c, 1], shift)

@@ -44,7 +44,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from humotion_gym import body
+from humotion_gym import _kernels, body
 from humotion_gym.body import CONE_KEYPOINTS, N_CONES, N_KEYPOINTS, BodyShape
 from humotion_gym.camera import Camera
 from humotion_gym.kinematics import batch_pose_geometry, single_pose_geometry
@@ -643,6 +643,23 @@ class FigureSequence:
     def __len__(self) -> int:
         return len(self.order)
 
+    @functools.cached_property
+    def tables(self) -> tuple[NDArray[np.intp], NDArray[np.bool_]]:
+        """``order`` and ``wide`` as arrays, for the drawing kernel.
+
+        ``(T, 10)`` cone indices, each frame's first :attr:`counts` of them
+        its drawing order, and ``(T, 10)`` booleans.
+        """
+        order = np.zeros((len(self.order), N_CONES), np.intp)
+        for t, cones in enumerate(self.order):
+            order[t, : len(cones)] = cones
+        return order, np.array(self.wide, dtype=bool).reshape(-1, N_CONES)
+
+    @functools.cached_property
+    def counts(self) -> list[int]:
+        """Per frame, how many cones are drawn."""
+        return [len(cones) for cones in self.order]
+
 
 def figure_sequence(
     params: ArrayLike,
@@ -791,15 +808,24 @@ def _in_camera(
 
 
 def _draw_figure(img: NDArray[np.uint8], figures: FigureSequence, t: int) -> None:
+    """Draw frame ``t``'s cones, far first, into ``img`` (``(H, W, C)``, or ``(H, W)``)."""
+    if _kernels.ENABLED:
+        order, wide = figures.tables
+        canvas = img.reshape(img.shape[0], img.shape[1], -1)
+        if _kernels.draw_figure(
+            canvas, figures.ellipses[t], figures.quads[t], figures.colors[t],
+            order[t, : figures.counts[t]], wide[t], _SHIFT,
+        ):  # fmt: skip
+            return
     ellipses, quads = figures.ellipses[t], figures.quads[t]
     colors = figures.colors[t].tolist()  # lists of ints, per frame, for OpenCV
-    wide = figures.wide[t]
+    wide_t = figures.wide[t]
     # Local names: this loop runs some twenty OpenCV calls per frame, and the
     # attribute look-ups would be a tenth of its Python time.
     fill, hull_of, line8 = cv2.fillConvexPoly, cv2.convexHull, cv2.LINE_8
     for c in figures.order[t]:
         color = colors[c]
-        if wide[c]:
+        if wide_t[c]:
             fill(img, hull_of(ellipses[c]), color[0], line8, _SHIFT)
             cone_quads = quads[c]
             for b in range(len(color) - 2):

@@ -392,3 +392,91 @@ def test_normal_draws_fall_back_to_numpy_from_the_same_state(monkeypatch) -> Non
         got = _kernels.standard_normal(np.random.default_rng(5), (100, 30))
     np.testing.assert_array_equal(got, np.random.default_rng(5).standard_normal((100, 30)))
     assert not _kernels.enabled()
+
+
+def _random_polygon(rng: np.random.Generator) -> np.ndarray:
+    """1 to 24 int32 points: small, large, off the image, at the renderer's clip, on a line."""
+    n = int(rng.integers(1, 25))
+    span = int(rng.choice([40, 160, 2048, 100_000, 32_000_000]))
+    offset = int(rng.integers(-span, 2048))
+    if rng.random() < 0.15:  # collinear (a cone seen end-on or edge-on)
+        steps = rng.integers(-50, 50, n)[:, None] * rng.integers(-5, 6, 2)
+        return (steps + rng.integers(-500, 2000, 2)).astype(np.int32)
+    return (rng.integers(0, span, (n, 2)) + offset).astype(np.int32)
+
+
+@pytest.mark.parametrize("channels", [1, 3])
+def test_the_drawing_kernel_fills_polygons_as_opencv(channels: int) -> None:
+    # The hull of random points, and random quadrilaterals as given (convex or
+    # not): the kernel's pixels are cv2.fillConvexPoly's (LINE_8, 4 fractional
+    # bits, as the renderer draws), on a random image.
+    import cv2
+
+    kernels = _kernels.compiled()
+    rng = np.random.default_rng(channels)
+    keys = np.empty(24, np.int64)
+    hx, hy = np.empty(48, np.int64), np.empty(48, np.int64)
+    for _ in range(400):
+        points = _random_polygon(rng)
+        color = rng.integers(0, 256, channels).astype(np.uint8)
+        img = rng.integers(0, 256, (64, 96, channels)).astype(np.uint8)
+        want = img.copy()
+        cv2.fillConvexPoly(want.reshape(64, 96, -1) if channels == 3 else want.reshape(64, 96),
+                           cv2.convexHull(points), color.tolist(), cv2.LINE_8, 4)  # fmt: skip
+        n = kernels._hull(points, keys, hx, hy)
+        kernels._fill_convex(img, hx, hy, n, color, 4)
+        np.testing.assert_array_equal(img, want)
+        quad = _random_polygon(rng)[:4]
+        if len(quad) < 4:
+            continue
+        want = img.copy()
+        cv2.fillConvexPoly(want.reshape(64, 96, -1) if channels == 3 else want.reshape(64, 96),
+                           quad, color.tolist(), cv2.LINE_8, 4)  # fmt: skip
+        kernels._fill_convex(img, quad[:, 0].astype(np.int64), quad[:, 1].astype(np.int64),
+                             4, color, 4)  # fmt: skip
+        np.testing.assert_array_equal(img, want)
+
+
+def test_the_hull_is_opencvs() -> None:
+    # The same vertices in the same cyclic order as cv2.convexHull (from
+    # another start: the fill does not depend on it, tested above).
+    import cv2
+
+    kernels = _kernels.compiled()
+    rng = np.random.default_rng(9)
+    keys = np.empty(24, np.int64)
+    hx, hy = np.empty(48, np.int64), np.empty(48, np.int64)
+    for _ in range(500):
+        points = _random_polygon(rng)
+        n = kernels._hull(points, keys, hx, hy)
+        got = np.stack([hx[:n], hy[:n]], axis=1)
+        want = cv2.convexHull(points).reshape(-1, 2).astype(np.int64)
+        if len(got) < 3:  # a point or a segment: its ends, as a set
+            assert {tuple(p) for p in got.tolist()} <= {tuple(p) for p in points.tolist()}
+            continue
+        start = int(np.flatnonzero((got == want[0]).all(axis=1))[0])
+        np.testing.assert_array_equal(np.roll(got, -start, axis=0), want)
+
+
+@pytest.mark.parametrize("task", ["ArmTrack-v1", "BodyTrack-v1", "WalkTrack-v1", "SideWalk-v1"])
+@pytest.mark.parametrize(
+    "kwargs", [{}, {"width": 256, "height": 192}, {"color": "gray"}, {"occluders": 2, "blur": 0.8}]
+)
+def test_the_environments_frames_are_opencvs(task: str, kwargs: dict, monkeypatch) -> None:
+    # Whole episodes drawn with the kernel and with OpenCV: the same frames.
+    import gymnasium as gym
+
+    import humotion_gym  # noqa: F401
+
+    frames = {}
+    for on in (True, False):
+        monkeypatch.setattr(_kernels, "ENABLED", on)
+        env = gym.make(f"humotion_gym/{task}", terminate_on_lost=False, **kwargs)
+        obs, _ = env.reset(seed=11)
+        shown = [obs]
+        rng = np.random.default_rng(0)
+        for _ in range(12):
+            action = rng.uniform(-1, 1, env.action_space.shape).astype(np.float32)
+            shown.append(env.step(action)[0])
+        frames[on] = np.stack(shown)
+    np.testing.assert_array_equal(frames[True], frames[False])
