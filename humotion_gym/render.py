@@ -650,9 +650,12 @@ class FigureSequence:
         ``(T, 10)`` cone indices, each frame's first :attr:`counts` of them
         its drawing order, and ``(T, 10)`` booleans.
         """
-        order = np.zeros((len(self.order), N_CONES), np.intp)
-        for t, cones in enumerate(self.order):
-            order[t, : len(cones)] = cones
+        if min(self.counts) == N_CONES:  # every cone in every frame: the usual case
+            order = np.array(self.order, np.intp).reshape(-1, N_CONES)
+        else:
+            order = np.zeros((len(self.order), N_CONES), np.intp)
+            for t, cones in enumerate(self.order):
+                order[t, : len(cones)] = cones
         return order, np.array(self.wide, dtype=bool).reshape(-1, N_CONES)
 
     @functools.cached_property

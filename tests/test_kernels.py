@@ -480,3 +480,30 @@ def test_the_environments_frames_are_opencvs(task: str, kwargs: dict, monkeypatc
             shown.append(env.step(action)[0])
         frames[on] = np.stack(shown)
     np.testing.assert_array_equal(frames[True], frames[False])
+
+
+def test_frames_with_cones_left_out_are_drawn_as_opencv_draws_them(monkeypatch) -> None:
+    # Cones behind the near plane are left out of a frame's order (rare in
+    # the tasks); the kernel draws the cones listed, in their order.
+    from humotion_gym import body
+    from humotion_gym.camera import fit_camera
+    from humotion_gym.render import _draw_figure, figure_sequence
+
+    shape = body.default_shape()
+    poses = np.repeat(body.standing_pose(shape)[None], 4, axis=0)
+    poses[:, 3:] += np.random.default_rng(0).normal(0.0, 0.3, (4, poses.shape[1] - 3))
+    camera = fit_camera(body.forward_kinematics(poses[0], shape)[None], 128, 128, 50.0)
+    opts = SceneOptions()
+    figures = figure_sequence(poses, shape, camera, opts)
+    subsets = [[9, 0, 4], [], list(range(10))[::-1], [2]]
+    figures = dataclasses.replace(figures, order=subsets)
+    base = make_background(opts, np.random.default_rng(1)).image
+    for t in range(4):
+        got, want = base.copy(), base.copy()
+        monkeypatch.setattr(_kernels, "ENABLED", True)
+        _draw_figure(got, figures, t)
+        monkeypatch.setattr(_kernels, "ENABLED", False)
+        _draw_figure(want, figures, t)
+        np.testing.assert_array_equal(got, want)
+        assert np.array_equal(got, base) == (not subsets[t])  # cones listed were drawn
+    assert figures.counts == [3, 0, 10, 1]
