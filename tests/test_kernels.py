@@ -507,3 +507,25 @@ def test_frames_with_cones_left_out_are_drawn_as_opencv_draws_them(monkeypatch) 
         np.testing.assert_array_equal(got, want)
         assert np.array_equal(got, base) == (not subsets[t])  # cones listed were drawn
     assert figures.counts == [3, 0, 10, 1]
+
+
+def test_an_opencv_that_fills_otherwise_keeps_the_drawing(monkeypatch) -> None:
+    # The first drawing checks the kernel against the installed OpenCV; where
+    # they differ, OpenCV draws (one warning) and the other kernels stay on.
+    import cv2
+
+    _kernels._drawing_matches_opencv.cache_clear()
+    assert _kernels._drawing_matches_opencv()
+    _kernels._drawing_matches_opencv.cache_clear()
+    real = cv2.fillConvexPoly
+
+    def shifted(img, points, color, line_type=cv2.LINE_8, shift=0):  # a pixel to the right
+        return real(img, points + np.int32(1 << shift), color, line_type, shift)
+
+    monkeypatch.setattr(cv2, "fillConvexPoly", shifted)
+    try:
+        with pytest.warns(RuntimeWarning, match="fills polygons otherwise"):
+            scene(2)  # renders a frame
+        assert _kernels.enabled() and not _kernels._drawing_matches_opencv()
+    finally:
+        _kernels._drawing_matches_opencv.cache_clear()
