@@ -59,6 +59,7 @@ __all__ = [
     "cone_basis",
     "coverage_sums",
     "draw_figure",
+    "figure_polygons",
     "enabled",
     "kinematics",
     "point_costs",
@@ -396,3 +397,17 @@ def _drawing_matches_opencv() -> bool:
             )
             return False
     return True
+
+
+def figure_polygons(*args: Any) -> bool:
+    """``render._figure_polygons``' arrays from a kernel (see ``_numba_kernels._figure_polygons``).
+
+    The arguments are the kernel's, outputs last, filled in place. The same
+    numbers as the numpy path (``tests/test_kernels.py``).
+
+    Returns:
+        False (the numpy path is to run) when the kernels are off or failed.
+    """
+    if not ENABLED:
+        return False
+    return _run("_figure_polygons", *args)

@@ -39,6 +39,21 @@ def _fma32_typer(typingctx: Any, a: Any, b: Any, c: Any) -> Any:
 #: ``_fma32(a, b, c)``: ``a * b + c`` rounded once, in float32 (``llvm.fma.f32``).
 _fma32: Any = intrinsic(_fma32_typer)
 
+
+def _fma64_typer(typingctx: Any, a: Any, b: Any, c: Any) -> Any:
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+        f = ir.DoubleType()
+        fma = builder.module.declare_intrinsic("llvm.fma", [f], ir.FunctionType(f, [f, f, f]))
+        return builder.call(fma, args)
+
+    return sig, codegen
+
+
+#: ``_fma64(a, b, c)``: ``a * b + c`` rounded once, in float64 (``llvm.fma.f64``).
+_fma64: Any = intrinsic(_fma64_typer)
+
 _ZERO = np.float32(0.0)
 _ONE = np.float32(1.0)
 _MINUS_ONE = np.float32(-1.0)
@@ -805,3 +820,132 @@ def _draw_figure(
                 _fill_convex(img, qx, qy, quads.shape[2], colors[c, b + 2], shift)
         else:
             _fill_convex(img, hx, hy, n, colors[c, 1], shift)
+
+
+@_njit(inline="always")
+def _clipped_int32(v: float, far: float) -> np.int32:
+    """``render._clip_far`` then numpy's cast to int32 (truncation)."""
+    v = far if v > far else v  # np.minimum, then np.maximum
+    v = -far if v < -far else v
+    return np.int32(v)
+
+
+@_njit()
+def _figure_polygons(
+    g: NDArray[np.float64], cone_rows: NDArray[np.intp], radii: NDArray[np.float64],
+    aspect: NDArray[np.float64], cos: NDArray[np.float64], sin: NDArray[np.float64],
+    fx: float, cu: float, cv: float, far: float, near: float, edges: NDArray[np.float64],
+    light: NDArray[np.float64], shading: NDArray[np.float64], base: NDArray[np.float64],
+    diffuse: float, ambient: float, strip_min: float, quad_index: NDArray[np.int64],
+    ellipse_px: NDArray[np.int32], quads: NDArray[np.int32], colors: NDArray[np.uint8],
+    order: NDArray[np.int64], counts: NDArray[np.int64], wide: NDArray[np.bool_],
+) -> None:  # fmt: skip
+    """``render._figure_polygons`` frame by frame, cone by cone: the same numbers.
+
+    ``g`` ``(T, 35, 3)`` the keypoints and cone axes in the camera's frame;
+    the rest are the scene's drawing constants (``cu``, ``cv``: the principal
+    point times ``_ONE``; ``base`` ``(10, C)``). Fills the ellipses' points,
+    the strips' corners, the colours, each frame's drawing order (its first
+    ``counts[t]`` entries, far first, visible cones only) and ``wide``. Every
+    step is the numpy path's float64 operation in its order; the shading's
+    product is BLAS ``dgemm``'s chain of fused multiply-adds.
+    """
+    n_t = g.shape[0]
+    n_c = cone_rows.shape[0]
+    n_k = cos.shape[0]
+    n_e = edges.shape[0]
+    n_s = shading.shape[1]
+    lx, ly, lz = light[0], light[1], light[2]
+    corner_u = np.empty((n_e, 2))
+    corner_v = np.empty((n_e, 2))
+    depth = np.empty(n_c)
+    dots = np.empty(3)
+    n_kp = g.shape[1] - 2 * n_c
+    for t in range(n_t):
+        for c in range(n_c):
+            xr = n_kp + 2 * c  # the cone's width axis, then its depth axis
+            ax0, ax1, ax2 = g[t, xr, 0], g[t, xr, 1], g[t, xr, 2]
+            ay0 = g[t, xr + 1, 0] * aspect[c]
+            ay1 = g[t, xr + 1, 1] * aspect[c]
+            ay2 = g[t, xr + 1, 2] * aspect[c]
+            s0, s1 = cone_rows[c, 0], cone_rows[c, 1]
+            # End ellipses, projected in fixed point.
+            for e in range(2):
+                row = cone_rows[c, e]
+                ex, ey, ez = g[t, row, 0], g[t, row, 1], g[t, row, 2]
+                r = radii[c, e]
+                for k in range(n_k):
+                    px = (ax0 * cos[k] + ay0 * sin[k]) * r + ex
+                    py = (ax1 * cos[k] + ay1 * sin[k]) * r + ey
+                    pz = (ax2 * cos[k] + ay2 * sin[k]) * r + ez
+                    scale = fx / (pz if pz > near else near)
+                    ellipse_px[t, c, e * n_k + k, 0] = _clipped_int32(px * scale + cu, far)
+                    ellipse_px[t, c, e * n_k + k, 1] = _clipped_int32(py * scale + cv, far)
+            # The ends' image points and the unit image normal of the axis.
+            z0, z1 = g[t, s0, 2], g[t, s1, 2]
+            scale0 = fx / (z0 if z0 > near else near)
+            scale1 = fx / (z1 if z1 > near else near)
+            u0 = g[t, s0, 0] * scale0 + cu
+            u1 = g[t, s1, 0] * scale1 + cu
+            v0 = g[t, s0, 1] * scale0 + cv
+            v1 = g[t, s1, 1] * scale1 + cv
+            nx = v1 - v0
+            ny = u0 - u1
+            length = np.hypot(nx, ny)
+            length += 1e-12
+            nx /= length
+            ny /= length
+            half = np.hypot(ax0 * nx + ax1 * ny, ay0 * nx + ay1 * ny)
+            w0 = radii[c, 0] * scale0 * half
+            w1 = radii[c, 1] * scale1 * half
+            # The strips' corners and their quadrilaterals.
+            for j in range(n_e):
+                corner_u[j, 0] = edges[j] * (w0 * nx) + u0
+                corner_u[j, 1] = edges[j] * (w1 * nx) + u1
+                corner_v[j, 0] = edges[j] * (w0 * ny) + v0
+                corner_v[j, 1] = edges[j] * (w1 * ny) + v1
+            for b in range(quad_index.shape[1]):
+                for q in range(quad_index.shape[2]):
+                    flat = quad_index[c, b, q] - c * 2 * n_e  # within this cone's grid
+                    j, e = flat // 2, flat % 2
+                    quads[t, c, b, q, 0] = _clipped_int32(corner_u[j, e], far)
+                    quads[t, c, b, q, 1] = _clipped_int32(corner_v[j, e], far)
+            # Lambert shading.
+            a0 = g[t, s1, 0] - g[t, s0, 0]
+            a1 = g[t, s1, 1] - g[t, s0, 1]
+            a2 = g[t, s1, 2] - g[t, s0, 2]
+            norm = np.sqrt(a0 * a0 + a1 * a1 + a2 * a2) + 1e-12
+            a0 /= norm
+            a1 /= norm
+            a2 /= norm
+            a_l = a0 * lx + a1 * ly + a2 * lz
+            dots[0] = a_l * -np.sign(a2)
+            dots[1] = nx * lx + ny * ly
+            dots[2] = (a2 * a_l - lz) / np.sqrt(1.0 - a2 * a2 + 1e-9)
+            for m in range(n_s):
+                lam = _fma64(dots[0], shading[0, m], 0.0)
+                lam = _fma64(dots[1], shading[1, m], lam)
+                lam = _fma64(dots[2], shading[2, m], lam)
+                lam = lam if lam > 0.0 else 0.0
+                lam *= diffuse
+                lam += ambient
+                for ch in range(base.shape[1]):
+                    value = np.rint(base[c, ch] * lam)
+                    colors[t, c, m, ch] = np.uint8(value if value < 255.0 else 255.0)
+            wide[t, c] = (w0 if w0 > w1 else w1) >= strip_min
+            depth[c] = -(z0 + z1)
+        # Painter's order, far first (a stable sort), cones reaching behind the
+        # near plane left out.
+        count = 0
+        for c in range(n_c):
+            z0, z1 = g[t, cone_rows[c, 0], 2], g[t, cone_rows[c, 1], 2]
+            d0, d1 = z0 - radii[c, 0], z1 - radii[c, 1]
+            if (d0 if d0 < d1 else d1) <= near:
+                continue
+            j = count
+            while j > 0 and depth[order[t, j - 1]] > depth[c]:
+                order[t, j] = order[t, j - 1]
+                j -= 1
+            order[t, j] = c
+            count += 1
+        counts[t] = count

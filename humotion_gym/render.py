@@ -544,6 +544,10 @@ def _figure_polygons(
     """
     const: dict[str, NDArray] = scene._drawing  # type: ignore[attr-defined]
     n = geometry.shape[0]
+    if _kernels.ENABLED:
+        out = _compiled_polygons(geometry, shape, camera, scene, const)
+        if out is not None:
+            return out
     g = geometry.transpose(2, 0, 1)  # (3, T, 35): x, y, z components
     ends = g[:, :, _CONE_ROWS]  # (3, T, 10, 2): start and end of each cone
     ax = g[:, :, N_KEYPOINTS:].reshape(3, n, N_CONES, 2)
@@ -617,6 +621,39 @@ def _figure_polygons(
         for t in np.flatnonzero(~visible.all(axis=1)).tolist():
             order[t] = [c for c in order[t] if visible[t, c]]
     return order, ellipse_px, quads, colors, wide
+
+
+def _compiled_polygons(
+    geometry: NDArray[np.float64],
+    shape: BodyShape,
+    camera: Camera,
+    scene: SceneOptions,
+    const: dict[str, NDArray],
+) -> tuple[list[list[int]], NDArray[np.int32], NDArray[np.int32], NDArray[np.uint8], list] | None:
+    """:func:`_figure_polygons` by the compiled kernel (the same numbers), or None."""
+    n = geometry.shape[0]
+    n_strips = const["quad_index"].shape[1]
+    channels = const["base"].shape[2]
+    ellipse_px = np.empty((n, N_CONES, 2 * _ELLIPSE_POINTS, 2), np.int32)
+    quads = np.empty((n, N_CONES, n_strips, 4, 2), np.int32)
+    colors = np.empty((n, N_CONES, n_strips + 2, channels), np.uint8)
+    order = np.empty((n, N_CONES), np.int64)
+    counts = np.empty(n, np.int64)
+    wide = np.empty((n, N_CONES), np.bool_)
+    (cx, cy), fx = camera.principal_point, camera.focal * _ONE
+    if not _kernels.figure_polygons(
+        np.ascontiguousarray(geometry, np.float64), _CONE_ROWS, shape.radii, shape.aspect,
+        const["cos"], const["sin"], fx, cx * _ONE, cy * _ONE, _FAR_PX * _ONE, _NEAR_MM,
+        np.ascontiguousarray(const["edges"][:, 0]), const["light"], const["shading"],
+        np.ascontiguousarray(const["base"][:, 0, :]), float(scene.diffuse), float(scene.ambient),
+        _STRIP_MIN_HALF_WIDTH_PX * _ONE, const["quad_index"],
+        ellipse_px, quads, colors, order, counts, wide,
+    ):  # fmt: skip
+        return None
+    rows = order.tolist()
+    if counts.min() < N_CONES:
+        rows = [row[:k] for row, k in zip(rows, counts.tolist(), strict=True)]
+    return rows, ellipse_px, quads, colors, wide.tolist()
 
 
 @dataclass(frozen=True, eq=False)
