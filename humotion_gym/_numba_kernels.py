@@ -25,34 +25,26 @@ def _njit(**options: Any) -> Callable[[Callable[..., Any]], Any]:
     return numba.njit(cache=True, nogil=True, boundscheck=False, error_model="numpy", **options)
 
 
-def _fma32_typer(typingctx: Any, a: Any, b: Any, c: Any) -> Any:
-    sig = types.float32(types.float32, types.float32, types.float32)
+def _fma(numba_type: Any, llvm_type: Any) -> Any:
+    """An intrinsic ``fma(a, b, c)``: ``a * b + c`` rounded once (``llvm.fma``)."""
 
-    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-        f = ir.FloatType()
-        fma = builder.module.declare_intrinsic("llvm.fma", [f], ir.FunctionType(f, [f, f, f]))
-        return builder.call(fma, args)
+    def typer(typingctx: Any, a: Any, b: Any, c: Any) -> Any:
+        sig = numba_type(numba_type, numba_type, numba_type)
 
-    return sig, codegen
+        def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+            f = llvm_type
+            fma = builder.module.declare_intrinsic("llvm.fma", [f], ir.FunctionType(f, [f, f, f]))
+            return builder.call(fma, args)
+
+        return sig, codegen
+
+    return intrinsic(typer)
 
 
 #: ``_fma32(a, b, c)``: ``a * b + c`` rounded once, in float32 (``llvm.fma.f32``).
-_fma32: Any = intrinsic(_fma32_typer)
-
-
-def _fma64_typer(typingctx: Any, a: Any, b: Any, c: Any) -> Any:
-    sig = types.float64(types.float64, types.float64, types.float64)
-
-    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-        f = ir.DoubleType()
-        fma = builder.module.declare_intrinsic("llvm.fma", [f], ir.FunctionType(f, [f, f, f]))
-        return builder.call(fma, args)
-
-    return sig, codegen
-
-
-#: ``_fma64(a, b, c)``: ``a * b + c`` rounded once, in float64 (``llvm.fma.f64``).
-_fma64: Any = intrinsic(_fma64_typer)
+_fma32: Any = _fma(types.float32, ir.FloatType())
+#: ``_fma64(a, b, c)``: the same in float64 (``llvm.fma.f64``).
+_fma64: Any = _fma(types.float64, ir.DoubleType())
 
 _ZERO = np.float32(0.0)
 _ONE = np.float32(1.0)
