@@ -60,6 +60,7 @@ __all__ = [
     "coverage_sums",
     "draw_figure",
     "figure_polygons",
+    "paced_histories",
     "enabled",
     "kinematics",
     "point_costs",
@@ -411,3 +412,26 @@ def figure_polygons(*args: Any) -> bool:
     if not ENABLED:
         return False
     return _run("_figure_polygons", *args)
+
+
+def paced_histories(
+    history: NDArray[Any], speed: NDArray[np.float64], ix: int, iy: int, yaw: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """``tree._at_database_pace``'s histories and their root path turned into the heading frame.
+
+    Returns:
+        ``(N, d + 1, D)`` the paced histories and ``(N, d + 1, 2)`` the turned
+        path (``tree._coefficients``' ``turned``), the numpy path's numbers;
+        None when the kernels are off or failed.
+    """
+    if not ENABLED:
+        return None
+    heading = -np.asarray(history[:, -1, yaw], dtype=np.float64)
+    out = np.empty(history.shape)
+    turned = np.empty(history.shape[:2] + (2,))
+    if not _run(
+        "_paced_histories", np.ascontiguousarray(history), np.ascontiguousarray(speed, np.float64),
+        ix, iy, np.cos(heading), np.sin(heading), out, turned,
+    ):  # fmt: skip
+        return None
+    return out, turned

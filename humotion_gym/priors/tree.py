@@ -540,17 +540,21 @@ def _coefficients(
     projection: FloatArray,
     projection_heading: FloatArray,
     offset: FloatArray,
+    turned: FloatArray | None = None,
 ) -> FloatArray:
     """PCA coefficients ``c = V^T Gamma^-1/2 (x - mu)`` of ``(N, d + 1, D)`` histories.
 
     Anchoring subtracts the last frame from the relative parameters, which
     enter only through velocities, so it drops out of the linear map; only the
-    root's path needs turning into the heading frame of the last frame.
+    root's path needs turning into the heading frame of the last frame
+    (``turned``, ``(N, d + 1, 2)``, when the caller has it already).
     """
     n = history.shape[0]
     c = (history.reshape(n, -1) @ projection.astype(history.dtype, copy=False)).astype(np.float64)
     c -= offset
-    if lay.rel_xy is not None:
+    if turned is not None:
+        c += turned.reshape(n, -1) @ projection_heading
+    elif lay.rel_xy is not None:
         ix, iy = _root_xy(lay)
         heading = history[:, -1:, lay.relative[lay.rel_yaw]]
         # Both columns in one gather: each is a strided pass over the whole
@@ -1466,14 +1470,29 @@ def _search_coefficients(
     the numbers of one pass (here bit for bit; ``tests/priors/test_tree.py``
     checks them to rounding).
     """
-    if speed is None or history.shape[0] <= _PACE_ROWS:
-        return window_coefficients(
-            fitted, history if speed is None else _at_database_pace(history, speed, lay)
-        )
+    if speed is None:
+        return window_coefficients(fitted, history)
     out = np.empty((history.shape[0], fitted.projection.shape[1]))
+    ix, iy = _root_xy(lay)
+    yaw = int(lay.relative[lay.rel_yaw])
     for lo in range(0, history.shape[0], _PACE_ROWS):
         rows = slice(lo, lo + _PACE_ROWS)
-        out[rows] = window_coefficients(fitted, _at_database_pace(history[rows], speed[rows], lay))
+        # The compiled kernel makes the paced copy and turns its root path in
+        # one pass (the same numbers); else numpy does both.
+        paced = _kernels.paced_histories(history[rows], speed[rows], ix, iy, yaw)
+        if paced is None:
+            out[rows] = window_coefficients(
+                fitted, _at_database_pace(history[rows], speed[rows], lay)
+            )
+            continue
+        out[rows] = _coefficients(
+            paced[0],
+            lay,
+            fitted.projection,
+            fitted.projection_heading,
+            fitted.projection_offset,
+            paced[1],
+        )
     return out
 
 

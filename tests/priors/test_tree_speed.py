@@ -182,3 +182,30 @@ def test_initial_windows_are_those_of_the_plain_gather(order: str) -> None:
     got = tree.initial_windows(fitted, pose, 500, np.random.default_rng(9))
     np.testing.assert_array_equal(got, want)
     np.testing.assert_array_equal(tree._last_pose_distances(fitted, pose, lay), dist2)
+
+
+@pytest.mark.parametrize("n", [5, 1024, 2085])
+def test_the_compiled_pacing_gives_the_numpy_paths_coefficients(walker, n, monkeypatch):
+    # With the `fast` extra the paced histories and their turned root path
+    # come from one kernel: the search's coefficients are the numpy path's,
+    # bit for bit (particles turned every way, each at its own speed).
+    from humotion_gym import _kernels
+
+    if not _kernels.enabled():
+        pytest.skip("the compiled kernels are off (numba missing or HUMOTION_NUMBA=0)")
+    prior = tree.fit([walker], noise_scale=0.5).with_settings(speed_spread=0.4, speed_drift=0.1)
+    rng = np.random.default_rng(3)
+    state = tree.initial(prior, start_pose(prior), n, rng)
+    for _ in range(3):
+        state = tree.transition(prior, state, rng)
+    history = state.extra["history"].copy()
+    history[:, :, YAW] += rng.uniform(-np.pi, np.pi, (n, 1)).astype(history.dtype)
+    lay = tree._layout(prior.free)
+    ran = []
+    real = _kernels.paced_histories
+    monkeypatch.setattr(_kernels, "paced_histories", lambda *a: ran.append(1) or real(*a))
+    got = tree._search_coefficients(prior, history, state.extra["speed"], lay)
+    assert ran
+    monkeypatch.setattr(_kernels, "ENABLED", False)
+    want = tree._search_coefficients(prior, history, state.extra["speed"], lay)
+    np.testing.assert_array_equal(got, want)
