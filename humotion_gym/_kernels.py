@@ -47,6 +47,7 @@ from __future__ import annotations
 import functools
 import importlib
 import importlib.util
+import math
 import os
 import warnings
 from types import ModuleType
@@ -319,7 +320,7 @@ def standard_normal(rng: np.random.Generator, shape: int | tuple[int, ...]) -> N
     :data:`NORMAL_MIN_SIZE` draws, or a generator of another kind, go to
     numpy, as everything does when the kernels are off.
     """
-    size = int(np.prod(shape))
+    size = math.prod(shape) if isinstance(shape, tuple) else int(shape)
     if not ENABLED or size < NORMAL_MIN_SIZE or type(rng) is not np.random.Generator:
         return rng.standard_normal(shape)
     out = np.empty(shape)
@@ -348,56 +349,15 @@ def draw_figure(
     in ``order`` and which are ``wide``; vertices with ``shift`` fractional
     bits. The kernel is OpenCV's convex hull and 8-connected convex polygon
     fill in the same integer steps, so the pixels are OpenCV's
-    (``tests/test_kernels.py`` compares them).
+    (``tests/test_kernels.py`` compares them; the renderer checks it against
+    the installed OpenCV once, ``render._kernel_draws_as_opencv``).
 
     Returns:
         False (OpenCV is to draw) when the kernels are off or failed.
     """
-    if not ENABLED or not _drawing_matches_opencv():
+    if not ENABLED:
         return False
     return _run("_draw_figure", img, ellipses, quads, colors, order, wide, shift)
-
-
-@functools.cache
-def _drawing_matches_opencv() -> bool:
-    """Whether the drawing kernel fills as the installed OpenCV does (checked once).
-
-    The kernel copies OpenCV's integer steps; an OpenCV release that drew
-    otherwise would make frames depend on whether numba is installed. So on
-    first use both draw the same 20 random figures of 10 hulls and strips
-    (the kernel through the entry point the renderer calls, about 1 ms);
-    where any pixel differs, OpenCV draws, with one ``RuntimeWarning``.
-    """
-    import cv2
-
-    rng = np.random.default_rng(20261124)
-    for _ in range(20):
-        ellipses = (rng.integers(0, 2400, (10, 24, 2)) - 600).astype(np.int32)
-        ellipses[:, rng.integers(3, 24) :] = ellipses[:, :1]  # fewer distinct points
-        quads = (rng.integers(0, 2400, (10, 3, 4, 2)) - 600).astype(np.int32)
-        colors = rng.integers(0, 256, (10, 5, 3)).astype(np.uint8)
-        order = rng.permutation(10).astype(np.intp)
-        wide = rng.random(10) < 0.5
-        ours = np.zeros((96, 128, 3), np.uint8)
-        theirs = ours.copy()
-        for c in order.tolist():
-            hull = cv2.convexHull(ellipses[c])
-            cv2.fillConvexPoly(theirs, hull, colors[c, 0 if wide[c] else 1].tolist(), cv2.LINE_8, 4)
-            for b in range(3 if wide[c] else 0):
-                cv2.fillConvexPoly(theirs, quads[c, b], colors[c, b + 2].tolist(), cv2.LINE_8, 4)
-        try:
-            compiled()._draw_figure(ours, ellipses, quads, colors, order, wide, 4)
-        except Exception:  # noqa: BLE001 (numba failing: _run reports it on the real call)
-            return True
-        if not np.array_equal(ours, theirs):
-            warnings.warn(
-                f"humotion_gym: this OpenCV ({cv2.__version__}) fills polygons otherwise than "
-                "the drawing kernel; OpenCV draws the figures (the other kernels still run).",
-                RuntimeWarning,
-                stacklevel=3,
-            )
-            return False
-    return True
 
 
 def figure_polygons(*args: Any) -> bool:
