@@ -531,3 +531,43 @@ def test_an_opencv_that_fills_otherwise_keeps_the_drawing(monkeypatch) -> None:
         assert _kernels.enabled() and not render._kernel_draws_as_opencv()
     finally:
         render._kernel_draws_as_opencv.cache_clear()
+
+
+@pytest.mark.parametrize(
+    "options",
+    [{}, {"color": "gray"}, {"width": 256, "height": 192}, {"shading_strips": 1},
+     {"shading_strips": 6, "light_direction": (0.3, -1.0, 0.2), "ambient": 0.1}],
+)  # fmt: skip
+def test_figure_polygons_match_the_numpy_path(options: dict, monkeypatch) -> None:
+    # The figures of poses far and near, turned every way, some with cones
+    # reaching behind the camera (left out of the order) or far beyond the
+    # image (clipped): the kernel's arrays are the numpy path's, bit for bit.
+    from humotion_gym import body
+    from humotion_gym.camera import fit_camera
+    from humotion_gym.render import figure_sequence
+
+    opts = SceneOptions(**options)
+    rng = np.random.default_rng(len(options))
+    for shape in (body.default_shape(), SHAPE):
+        poses = np.repeat(body.standing_pose(shape)[None], 300, axis=0)
+        poses[:, 3:] += rng.normal(0.0, 0.8, (300, poses.shape[1] - 3))
+        poses[:, :3] += rng.normal(0.0, 1500.0, (300, 3)) * rng.random((300, 1)) ** 3
+        camera = fit_camera(
+            body.forward_kinematics(poses[0], shape)[None], opts.width, opts.height, 50.0
+        )
+        # Twenty figures around the camera itself: ends at the near plane, points
+        # projected beyond the renderer's clip.
+        poses[:20, :3] = camera.position + rng.normal(0.0, 300.0, (20, 3))
+        poses[20:25, :3] = camera.position + 1e4 * camera.rotation[0]  # 10 m aside, at the lens
+        got = {}
+        for on in (True, False):
+            monkeypatch.setattr(_kernels, "ENABLED", on)
+            got[on] = figure_sequence(poses, shape, camera, opts)
+        a, b = got[True], got[False]
+        assert a.order == b.order and a.wide == b.wide
+        for name in ("ellipses", "quads", "colors"):
+            x, y = getattr(a, name), getattr(b, name)
+            assert x.dtype == y.dtype
+            np.testing.assert_array_equal(x, y)
+        assert min(len(o) for o in a.order) < 10  # some cones were left out
+        assert (np.abs(a.ellipses) == 16_000_000).any()  # and some points clipped
