@@ -27,6 +27,12 @@ And one the priors run: :func:`standard_normal`, their noise, numpy's draws
 from numpy's generator (numba's port of its algorithm, same tables, same
 bit generator).
 
+The renderer's: :func:`figure_polygons` and :func:`draw_figure` (the cone
+figure's polygons, and OpenCV's fill of them), :func:`clutter_plan` (every
+random draw of an episode's background clutter, numba's ports of numpy's
+draws) and :func:`paint_texture` (its stripes and checks); the tree prior's
+:func:`paced_histories`.
+
 Why the results match: every step the numpy paths take elementwise is one
 IEEE float32 operation (add, multiply, divide, square root, comparison), and
 the kernels make the same operations in the same order (numba, without
@@ -57,6 +63,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
+    "clutter_plan",
     "cone_basis",
     "coverage_sums",
     "draw_figure",
@@ -64,6 +71,7 @@ __all__ = [
     "paced_histories",
     "enabled",
     "kinematics",
+    "paint_texture",
     "point_costs",
     "residual_sums",
     "spaced_rows",
@@ -115,8 +123,14 @@ def compiled() -> ModuleType:
     return importlib.import_module("humotion_gym._numba_kernels")
 
 
-def _run(kernel: str, *args: Any) -> bool:
-    """Run a kernel; False, with a warning and the kernels off, when numba fails.
+#: What :func:`_call` returns when numba failed.
+_FAILED = object()
+
+
+def _call(kernel: str, *args: Any) -> Any:
+    """Run a kernel and return its result; :data:`_FAILED` when numba fails.
+
+    A failure turns the kernels off, with a warning.
 
     numba compiles each kernel on its first call (or loads it from its cache).
     A numba that cannot (one older or newer than this numpy supports, a
@@ -125,7 +139,7 @@ def _run(kernel: str, *args: Any) -> bool:
     """
     global ENABLED
     try:
-        getattr(compiled(), kernel)(*args)
+        return getattr(compiled(), kernel)(*args)
     except Exception as exc:  # noqa: BLE001 (any failure of numba falls back)
         ENABLED = False
         warnings.warn(
@@ -133,10 +147,14 @@ def _run(kernel: str, *args: Any) -> bool:
             f"{exc}); the numpy path runs instead, with the same numbers. HUMOTION_NUMBA=0 "
             "skips them.",
             RuntimeWarning,
-            stacklevel=3,
+            stacklevel=4,
         )
-        return False
-    return True
+        return _FAILED
+
+
+def _run(kernel: str, *args: Any) -> bool:
+    """Run a kernel that fills its arguments; False when numba failed (see :func:`_call`)."""
+    return _call(kernel, *args) is not _FAILED
 
 
 def point_costs(
@@ -330,6 +348,53 @@ def standard_normal(rng: np.random.Generator, shape: int | tuple[int, ...]) -> N
     # A numba that fails does so compiling, before it draws: numpy's draws
     # then come from the same state.
     return out if ran else rng.standard_normal(shape)
+
+
+def clutter_plan(
+    rng: np.random.Generator,
+    h: int,
+    w: int,
+    size: int,
+    shape_rate: float,
+    line_rate: float,
+    thickness_unit: int,
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]] | None:
+    """``render._clutter_plan``'s arrays, drawn by numba from the same generator.
+
+    numba's ports of numpy's ``poisson``, ``integers``, ``uniform``, ``random``
+    and ``normal`` make the same draws from the same bit generator, so the
+    plan and the generator's state afterwards are numpy's
+    (``tests/test_kernels.py``; the renderer also checks it once,
+    ``render._kernel_plans_as_numpy``).
+
+    Returns:
+        ``(shapes, shape_floats, lines)``; None (the numpy path is to run) when
+        the kernels are off or failed, or ``rng`` is not a ``Generator``.
+    """
+    if not ENABLED or type(rng) is not np.random.Generator:
+        return None
+    with rng.bit_generator.lock:
+        out = _call("_clutter_plan", rng, h, w, size, shape_rate, line_rate, thickness_unit)
+    # A numba that fails does so compiling, before it draws.
+    return None if out is _FAILED else out
+
+
+def paint_texture(
+    region: NDArray[np.uint8],
+    inside: NDArray[np.uint8],
+    palette: NDArray[np.uint8],
+    cos_a: np.float32,
+    sin_a: np.float32,
+    checker: bool,
+) -> bool:
+    """``render._paint_texture``'s stripes or checks in ``region`` where ``inside``.
+
+    Returns:
+        False (the numpy path is to run) when the kernels are off or failed.
+    """
+    if not ENABLED:
+        return False
+    return _run("_paint_texture", region, inside, palette, cos_a, sin_a, checker)
 
 
 def draw_figure(

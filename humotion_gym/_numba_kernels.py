@@ -972,3 +972,132 @@ def _paced_histories(
             out[p, f, iy] = y
             turned[p, f, 0] = c * x - s * y
             turned[p, f, 1] = s * x + c * y
+
+
+# ---------------------------------------------------------------------------
+# The background's clutter: its random draws, and its textures
+# ---------------------------------------------------------------------------
+
+#: Columns of a clutter plan's integer rows (``render.ClutterPlan.shapes``).
+_SHAPE_INTS = 19
+#: Columns of its float rows (``render.ClutterPlan.shape_floats``).
+_SHAPE_FLOATS = 10
+#: Columns of its line rows (``render.ClutterPlan.lines``).
+_LINE_FLOATS = 9
+
+
+@_njit()
+def _clutter_plan(
+    rng: np.random.Generator,
+    h: int,
+    w: int,
+    size: int,
+    shape_rate: float,
+    line_rate: float,
+    thickness_unit: int,
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+    """``render._clutter_plan``'s arrays: the same draws from the same generator.
+
+    The draws are numba's ports of numpy's (``poisson``, ``integers``,
+    ``uniform``, ``random``, ``normal``) on the generator's bit generator, in
+    ``render._clutter_plan``'s order; the geometry is the same float64
+    operations and truncations. See there for the columns.
+    """
+    n_shapes = rng.poisson(shape_rate)
+    n_lines = rng.poisson(line_rate)
+    shapes = np.zeros((n_shapes, _SHAPE_INTS), np.int64)
+    floats = np.zeros((n_shapes, _SHAPE_FLOATS))
+    angles = np.empty(6)
+    for i in range(n_shapes):
+        kind = rng.integers(0, 3)
+        ux = rng.uniform(-0.1, 1.1)
+        uy = rng.uniform(-0.1, 1.1)
+        cx, cy = ux * w, uy * h
+        rx = rng.uniform(0.05, 0.3)
+        ry = rng.uniform(0.05, 0.3)
+        rx, ry = rx * size, ry * size
+        row = shapes[i]
+        row[0] = kind
+        if kind == 0:
+            row[6], row[7] = int(cx - rx), int(cy - ry)
+            row[8], row[9] = int(cx + rx), int(cy + ry)
+            lo_x, lo_y, hi_x, hi_y = float(row[6]), float(row[7]), float(row[8]), float(row[9])
+        elif kind == 1:
+            row[6], row[7] = int(cx), int(cy)
+            row[8], row[9] = int(rx) + 1, int(ry) + 1
+            floats[i, 0] = rng.uniform(0.0, 180.0)
+            reach = row[8] + row[9]
+            lo_x, lo_y, hi_x, hi_y = cx - reach, cy - reach, cx + reach, cy + reach
+        else:
+            n = rng.integers(3, 7)
+            for k in range(n):
+                angles[k] = rng.uniform(0.0, 2.0 * np.pi)
+            ordered = np.sort(angles[:n])
+            row[6] = n
+            lo_x = lo_y = np.inf
+            hi_x = hi_y = -np.inf
+            for k in range(n):
+                px = np.int32(cx + rx * np.cos(ordered[k]))
+                py = np.int32(cy + ry * np.sin(ordered[k]))
+                row[7 + 2 * k], row[8 + 2 * k] = px, py
+                lo_x, lo_y = min(lo_x, float(px)), min(lo_y, float(py))
+                hi_x, hi_y = max(hi_x, float(px)), max(hi_y, float(py))
+        if rng.random() >= 0.4:  # a plain colour
+            for c in range(3):
+                floats[i, 1 + c] = rng.uniform(25.0, 235.0)
+            continue
+        x0, y0 = max(np.floor(lo_x) - 1, 0), max(np.floor(lo_y) - 1, 0)
+        x1, y1 = min(np.ceil(hi_x) + 2, w), min(np.ceil(hi_y) + 2, h)
+        if x1 <= x0 or y1 <= y0:
+            row[1] = -1  # textured but off the image: nothing drawn, nothing more drawn
+            continue
+        row[1] = 1
+        row[2], row[3], row[4], row[5] = int(x0), int(y0), int(x1), int(y1)
+        for c in range(6):
+            floats[i, 1 + c] = rng.uniform(25.0, 235.0)
+        floats[i, 7] = rng.uniform(3.0, 12.0)
+        floats[i, 8] = rng.uniform(0.0, np.pi)
+        floats[i, 9] = rng.random()
+    lines = np.empty((n_lines, _LINE_FLOATS))
+    for i in range(n_lines):
+        lines[i, 0] = rng.uniform(0.0, 1.0) * w
+        lines[i, 1] = rng.uniform(0.0, 1.0) * h
+        lines[i, 2] = rng.normal()
+        lines[i, 3] = rng.normal()
+        lines[i, 4] = rng.uniform(0.2, 1.0) * size
+        for c in range(3):
+            lines[i, 5 + c] = rng.uniform(20.0, 240.0)
+        lines[i, 8] = rng.integers(1, 3) * thickness_unit
+    return shapes, floats, lines
+
+
+@_njit()
+def _paint_texture(
+    region: NDArray[np.uint8],
+    inside: NDArray[np.uint8],
+    palette: NDArray[np.uint8],
+    cos_a: np.float32,
+    sin_a: np.float32,
+    checker: bool,
+) -> None:
+    """``render._paint_texture``'s stripes or checks, where ``inside``: its float32 steps.
+
+    Each pixel's stripe index is ``floor(x cos_a + y sin_a)`` (plus
+    ``floor(y cos_a - x sin_a)`` for checks), each product and sum rounded to
+    float32 as numpy's broadcast does; its parity picks the colour.
+    """
+    h, w = inside.shape
+    channels = region.shape[2]
+    for y in range(h):
+        fy = np.float32(y)
+        y_cos, y_sin = fy * cos_a, fy * sin_a
+        for x in range(w):
+            if inside[y, x] == 0:
+                continue
+            fx = np.float32(x)
+            parity = np.floor(fx * cos_a + y_sin)
+            if checker:
+                parity = parity + np.floor(y_cos - fx * sin_a)
+            odd = np.int32(parity) & 1
+            for c in range(channels):
+                region[y, x, c] = palette[odd, c]

@@ -133,28 +133,18 @@ class Camera:
                 of view is outside (1, 179) or ``up`` is zero.
         """
         _check_size(width, height, float(fov_deg), "Camera.look_at")
-        # Three-vectors on Python floats: numpy's per-call cost would dominate.
         eye_v = np.asarray(eye, dtype=np.float64).reshape(3)
-        ex, ey, ez = eye_v.tolist()
-        tx, ty, tz = np.asarray(target, dtype=np.float64).reshape(3).tolist()
-        forward = (tx - ex, ty - ey, tz - ez)
-        dist = math.hypot(*forward)
-        if not math.isfinite(dist) or dist < 1e-9:
-            raise ValueError("Camera.look_at: eye and target must be distinct finite points")
-        forward = (forward[0] / dist, forward[1] / dist, forward[2] / dist)
-        up_v = tuple(np.asarray(up, dtype=np.float64).reshape(3).tolist())
-        up_norm = math.hypot(*up_v)
-        if not math.isfinite(up_norm) or up_norm < 1e-12:
-            raise ValueError("Camera.look_at: up must be a non-zero finite vector")
-        right = _cross(forward, up_v)
-        for fallback in ((0.0, 1.0, 0.0), (1.0, 0.0, 0.0)):
-            if math.hypot(*right) > 1e-9 * up_norm:
-                break
-            right = _cross(forward, fallback)
-        norm = math.hypot(*right)
-        right = (right[0] / norm, right[1] / norm, right[2] / norm)
-        rotation = np.array([right, _cross(forward, right), forward])
-        return cls(int(width), int(height), float(fov_deg), rotation, eye_v)
+        rotation = _look_at_rotation(eye_v, target, up, "Camera.look_at")
+        eye_v = eye_v.copy()  # the camera's own, read-only
+        eye_v.setflags(write=False)
+        # A rotation built from orthonormal axes around finite points (checked
+        # above): the constructor's checks would cost more than the rest.
+        cam = object.__new__(cls)
+        cam.__dict__.update(
+            width=int(width), height=int(height), fov_deg=float(fov_deg), rotation=rotation,
+            position=eye_v,
+        )  # fmt: skip
+        return cam
 
     def shifted(self, offsets: ArrayLike) -> list[Camera]:
         """Copies of this camera moved by each of ``offsets``: a following camera.
@@ -198,7 +188,7 @@ class Camera:
     @functools.cached_property
     def focal(self) -> float:
         """Focal length in pixels (``fx = fy``)."""
-        return 0.5 * self.height / math.tan(math.radians(self.fov_deg) / 2.0)
+        return _focal(self.height, self.fov_deg)
 
     @functools.cached_property
     def principal_point(self) -> tuple[float, float]:
@@ -288,6 +278,42 @@ class Camera:
         u, v = px[..., 0], px[..., 1]
         with np.errstate(invalid="ignore"):
             return (u >= -0.5) & (u <= self.width - 0.5) & (v >= -0.5) & (v <= self.height - 0.5)
+
+
+def _focal(height: int, fov_deg: float) -> float:
+    """Focal length in pixels of a vertical field of view over ``height`` pixels."""
+    return 0.5 * height / math.tan(math.radians(fov_deg) / 2.0)
+
+
+def _look_at_rotation(eye: ArrayLike, target: ArrayLike, up: ArrayLike, where: str) -> FloatArray:
+    """The read-only rotation of a camera at ``eye`` looking at ``target`` (see ``Camera.look_at``).
+
+    Raises:
+        ValueError: Naming ``where``, if ``eye == target``, either is not
+            finite, or ``up`` is zero.
+    """
+    # Three-vectors on Python floats: numpy's per-call cost would dominate.
+    ex, ey, ez = np.asarray(eye, dtype=np.float64).reshape(3).tolist()
+    tx, ty, tz = np.asarray(target, dtype=np.float64).reshape(3).tolist()
+    forward = (tx - ex, ty - ey, tz - ez)
+    dist = math.hypot(*forward)
+    if not math.isfinite(dist) or dist < 1e-9:
+        raise ValueError(f"{where}: eye and target must be distinct finite points")
+    forward = (forward[0] / dist, forward[1] / dist, forward[2] / dist)
+    up_v = tuple(np.asarray(up, dtype=np.float64).reshape(3).tolist())
+    up_norm = math.hypot(*up_v)
+    if not math.isfinite(up_norm) or up_norm < 1e-12:
+        raise ValueError(f"{where}: up must be a non-zero finite vector")
+    right = _cross(forward, up_v)
+    for fallback in ((0.0, 1.0, 0.0), (1.0, 0.0, 0.0)):
+        if math.hypot(*right) > 1e-9 * up_norm:
+            break
+        right = _cross(forward, fallback)
+    norm = math.hypot(*right)
+    right = (right[0] / norm, right[1] / norm, right[2] / norm)
+    rotation = np.array([right, _cross(forward, right), forward])
+    rotation.setflags(write=False)
+    return rotation
 
 
 def _cross(a: tuple, b: tuple) -> tuple[float, float, float]:
@@ -384,9 +410,10 @@ def fit_camera(
         raise ValueError("fit_camera: pad_mm must be >= 0 and min_distance_mm > 0")
     target = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
     direction = view_direction(azimuth_deg, elevation_deg)
-    probe = Camera.look_at(target + direction, target, width, height, fov_deg)
-    rel = (pts - target) @ probe.rotation.T  # target-centred, camera axes
-    f = probe.focal
+    # The final camera's rotation: it looks along the same direction.
+    rotation = _look_at_rotation(target + direction, target, _WORLD_UP, "fit_camera")
+    rel = (pts - target) @ rotation.T  # target-centred, camera axes
+    f = _focal(height, fov_deg)
     half_w = (width - 1) / 2.0 * (1.0 - margin)
     half_h = (height - 1) / 2.0 * (1.0 - margin)
     # Depth of a point is rel_z + D; it is in frame when f * (|rel_x| + pad) <=

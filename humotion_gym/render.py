@@ -40,6 +40,7 @@ import statistics
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any, NamedTuple
 
 import cv2
 import numpy as np
@@ -257,31 +258,37 @@ def _noise_tables(sigma: float) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
 
 
 def _paint_texture(
-    region: NDArray[np.uint8], inside: NDArray[np.uint8], rng: np.random.Generator
+    region: NDArray[np.uint8],
+    inside: NDArray[np.uint8],
+    two: NDArray[np.float64],
+    period: float,
+    angle: float,
+    checker: bool,
 ) -> None:
-    """Paint a random stripe or checker texture of two colours where ``inside``.
+    """Paint a stripe or checker texture of two colours where ``inside``.
 
     ``region`` is a view of the image (written in place), ``inside`` a uint8
-    mask of its size (non-zero inside).
+    mask of its size (non-zero inside); ``two`` the two colours' ``(2, 3)``
+    draws, ``period`` (pixels) and ``angle`` the stripes', ``checker`` adds
+    the stripes across them.
     """
     h, w, channels = region.shape
-    # The two colours in one draw of six (the same doubles as two draws of
-    # three: uniform is elementwise over the generator's stream).
-    two = rng.uniform(25, 235, 6).reshape(2, 3)
     if channels == 3:
         palette = two.round().astype(np.uint8)
     else:  # each colour's luminance on its own, as _to_channels gives it
         palette = np.stack([_to_channels(two[0], 1), _to_channels(two[1], 1)])
         palette = palette.round().astype(np.uint8)
-    period = rng.uniform(3.0, 12.0) * max(h, w) / 128.0 + 2.0
-    angle = rng.uniform(0, np.pi)
-    cos_a, sin_a = math.cos(angle) / period, math.sin(angle) / period
+    # The texture's axes scaled to stripes, in float32 as the pixels' steps are.
+    cos_a = np.float32(math.cos(angle) / period)
+    sin_a = np.float32(math.sin(angle) / period)
+    if _kernels.ENABLED and _kernels.paint_texture(region, inside, palette, cos_a, sin_a, checker):
+        return
     x = np.arange(w, dtype=np.float32)
     y = np.arange(h, dtype=np.float32)[:, None]
     # Stripe (or checker) index along the texture's axes, as a sum of a row
     # and a column term: (h, w) at the cost of one broadcast.
     parity = np.floor(x * cos_a + y * sin_a)
-    if rng.random() >= 0.5:
+    if checker:
         parity += np.floor(y * cos_a - x * sin_a)
     odd = parity.astype(np.int32)
     odd &= 1
@@ -289,34 +296,53 @@ def _paint_texture(
     cv2.copyTo(texture, inside, region)  # in place, where inside
 
 
-def _clutter_shape(
-    target: NDArray[np.uint8],
-    kind: int,
-    geometry: tuple | NDArray[np.int32],
-    color: int | list,
-    offset: tuple[int, int] = (0, 0),
-) -> None:
-    """Draw one filled clutter shape (box, ellipse or polygon) on ``target``."""
-    ox, oy = offset
-    if kind == 0:  # axis-aligned box (furniture, frames, doors)
-        (x0, y0), (x1, y1) = geometry
-        cv2.rectangle(target, (x0 - ox, y0 - oy), (x1 - ox, y1 - oy), color, -1)
-    elif kind == 1:  # ellipse
-        (cx, cy), axes, angle = geometry
-        cv2.ellipse(target, (cx - ox, cy - oy), axes, angle, 0, 360, color, -1)
-    else:  # random convex polygon
-        cv2.fillConvexPoly(target, geometry - np.array([ox, oy], np.int32), color)
+class ClutterPlan(NamedTuple):
+    """A background's clutter, drawn from its generator before any pixel is.
+
+    Attributes:
+        shapes: ``(S, 19)`` int64, a row per shape: its kind (0 box, 1 ellipse,
+            2 convex polygon); 0 for a plain colour, 1 textured, -1 textured but
+            off the image (not drawn); the textured shape's window ``x0, y0,
+            x1, y1``; then its geometry: a box's corners ``x0, y0, x1, y1``, an
+            ellipse's centre and half-axes, a polygon's vertex count and up to
+            six vertices.
+        shape_floats: ``(S, 10)`` float64: an ellipse's angle (degrees); the
+            plain colour's three draws or the texture's six (two colours); the
+            texture's period draw, angle and checker draw.
+        lines: ``(L, 9)`` float64, a row per line: start ``x, y``, two normal
+            draws (the direction), length, three colour draws, thickness.
+    """
+
+    shapes: NDArray[np.int64]
+    shape_floats: NDArray[np.float64]
+    lines: NDArray[np.float64]
 
 
-def _draw_clutter(img: NDArray[np.uint8], scene: SceneOptions, rng: np.random.Generator) -> None:
-    h, w, channels = img.shape
+def _clutter_plan(
+    rng: np.random.Generator, h: int, w: int, density: float, *, kernel: bool = True
+) -> ClutterPlan:
+    """Every random draw of a background's clutter, in the generator's order.
+
+    The numpy reference of ``_numba_kernels._clutter_plan``, which makes the
+    same draws in about a tenth of the time (some seventy scalar draws an
+    episode, a microsecond or more each through numpy); ``kernel=False``
+    keeps to numpy.
+    """
     size = min(h, w)
     # Shapes are sized relative to the short side, so their number grows with
     # the aspect ratio only: the clutter covers the same fraction at any size.
     area = (h * w) / float(size * size)
-    n_shapes = int(rng.poisson(8.0 * scene.clutter_density * area))
-    n_lines = int(rng.poisson(4.0 * scene.clutter_density * area))
-    for _ in range(n_shapes):
+    shape_rate, line_rate = 8.0 * density * area, 4.0 * density * area
+    unit = max(1, size // 128)
+    if kernel and _kernels.ENABLED and _kernel_plans_as_numpy():
+        planned = _kernels.clutter_plan(rng, h, w, size, shape_rate, line_rate, unit)
+        if planned is not None:
+            return ClutterPlan(*planned)
+    n_shapes = int(rng.poisson(shape_rate))
+    n_lines = int(rng.poisson(line_rate))
+    shapes = np.zeros((n_shapes, 19), np.int64)
+    floats = np.zeros((n_shapes, 10))
+    for i in range(n_shapes):
         kind = int(rng.integers(0, 3))
         # One draw of two for the centre: the same doubles as two scalar draws.
         ux, uy = rng.uniform(-0.1, 1.1, 2).tolist()
@@ -325,49 +351,135 @@ def _draw_clutter(img: NDArray[np.uint8], scene: SceneOptions, rng: np.random.Ge
         rx, ry = rx * size, ry * size
         # Each kind's geometry and bounding box (lo_x, lo_y, hi_x, hi_y), in
         # Python numbers: the box is only needed for a textured shape.
+        shapes[i, 0] = kind
         if kind == 0:
-            geometry: tuple = ((int(cx - rx), int(cy - ry)), (int(cx + rx), int(cy + ry)))
-            box = (*geometry[0], *geometry[1])
+            geometry = [int(cx - rx), int(cy - ry), int(cx + rx), int(cy + ry)]
+            box: tuple = tuple(geometry)
         elif kind == 1:
             axes = (int(rx) + 1, int(ry) + 1)
-            geometry = ((int(cx), int(cy)), axes, float(rng.uniform(0, 180)))
+            geometry = [int(cx), int(cy), *axes]
+            floats[i, 0] = float(rng.uniform(0, 180))
             reach = axes[0] + axes[1]
             box = (cx - reach, cy - reach, cx + reach, cy + reach)
         else:
             angles = np.sort(rng.uniform(0, 2 * np.pi, int(rng.integers(3, 7))))
             pts = np.stack([cx + rx * np.cos(angles), cy + ry * np.sin(angles)], axis=1)
             polygon = pts.astype(np.int32)
-            geometry = polygon
+            geometry = [len(polygon), *polygon.reshape(-1).tolist()]
             box = (*polygon.min(axis=0).tolist(), *polygon.max(axis=0).tolist())
-        if rng.random() >= 0.4:  # a plain colour, drawn directly
-            color = _to_channels(rng.uniform(25, 235, 3), channels).round().tolist()
-            _clutter_shape(img, kind, geometry, color)
+        shapes[i, 6 : 6 + len(geometry)] = geometry
+        if rng.random() >= 0.4:  # a plain colour
+            floats[i, 1:4] = rng.uniform(25, 235, 3)
             continue
-        # A textured shape: its mask, drawn only over its bounding box.
+        # A textured shape, drawn only over its bounding box.
         x0, y0 = max(math.floor(box[0]) - 1, 0), max(math.floor(box[1]) - 1, 0)
         x1, y1 = min(math.ceil(box[2]) + 2, w), min(math.ceil(box[3]) + 2, h)
         if x1 <= x0 or y1 <= y0:
+            shapes[i, 1] = -1
             continue
-        mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
-        _clutter_shape(mask, kind, geometry, 255, (x0, y0))
-        _paint_texture(img[y0:y1, x0:x1], mask, rng)
-    for _ in range(n_lines):
+        shapes[i, 1:6] = (1, x0, y0, x1, y1)
+        # The two colours in one draw of six (the same doubles as two draws of
+        # three: uniform is elementwise over the generator's stream).
+        floats[i, 1:7] = rng.uniform(25, 235, 6)
+        floats[i, 7] = rng.uniform(3.0, 12.0)
+        floats[i, 8] = rng.uniform(0, np.pi)
+        floats[i, 9] = rng.random()
+    lines = np.empty((n_lines, 9))
+    for i in range(n_lines):
         x0f, y0f = rng.uniform(0, 1, 2).tolist()
-        x0f, y0f = x0f * w, y0f * h
-        direction = rng.normal(size=2)
+        lines[i, :2] = x0f * w, y0f * h
+        lines[i, 2:4] = rng.normal(size=2)
+        lines[i, 4] = rng.uniform(0.2, 1.0) * size
+        lines[i, 5:8] = rng.uniform(20, 240, 3)
+        lines[i, 8] = int(rng.integers(1, 3)) * unit
+    return ClutterPlan(shapes, floats, lines)
+
+
+@functools.cache
+def _kernel_plans_as_numpy() -> bool:
+    """Whether the clutter kernel draws as the installed numpy does (checked once).
+
+    numba's draws are its ports of numpy's algorithms, and the polygons use
+    its ``cos`` and ``sin``; a numpy whose draws or trigonometry differed
+    would make backgrounds depend on whether numba is installed. So on first
+    use both plan the clutter of 20 seeds (about 3 ms); where anything
+    differs, numpy plans, with one ``RuntimeWarning``.
+    """
+    for seed in range(20):
+        h, w, density = (128, 128, 1.0) if seed % 2 else (96 + seed, 160, 0.5 + seed / 8)
+        ours_rng, theirs_rng = np.random.default_rng(seed), np.random.default_rng(seed)
+        size = min(h, w)
+        area = (h * w) / float(size * size)
+        ours = _kernels.clutter_plan(
+            ours_rng, h, w, size, 8.0 * density * area, 4.0 * density * area, max(1, size // 128)
+        )
+        if ours is None:
+            return True  # the kernels are off (numba failed and said so): nothing to check
+        theirs = _clutter_plan(theirs_rng, h, w, density, kernel=False)
+        same = all(np.array_equal(a, b) for a, b in zip(ours, theirs, strict=True))
+        if not same or ours_rng.random() != theirs_rng.random():
+            warnings.warn(
+                f"humotion_gym: this numpy ({np.__version__}) draws the background's clutter "
+                "otherwise than the clutter kernel; numpy draws it (the other kernels still run).",
+                RuntimeWarning,
+                stacklevel=4,
+            )
+            return False
+    return True
+
+
+def _clutter_shape(target: NDArray[np.uint8], row: list[int], angle: float, color: Any) -> None:
+    """Draw one filled clutter shape (a plan's row: box, ellipse or polygon) on ``target``.
+
+    A textured shape's ``target`` is its window's mask, its geometry moved by
+    the window's corner.
+    """
+    kind, textured, ox, oy = row[0], row[1], row[2], row[3]
+    if not textured:
+        ox = oy = 0
+    if kind == 0:  # axis-aligned box (furniture, frames, doors)
+        x0, y0, x1, y1 = row[6:10]
+        cv2.rectangle(target, (x0 - ox, y0 - oy), (x1 - ox, y1 - oy), color, -1)
+    elif kind == 1:  # ellipse
+        cx, cy, ax, ay = row[6:10]
+        cv2.ellipse(target, (cx - ox, cy - oy), (ax, ay), angle, 0, 360, color, -1)
+    else:  # random convex polygon
+        n = row[6]
+        polygon = np.array(row[7 : 7 + 2 * n], np.int32).reshape(n, 2)
+        if textured:
+            polygon -= np.array([ox, oy], np.int32)
+        cv2.fillConvexPoly(target, polygon, color)
+
+
+def _draw_clutter(img: NDArray[np.uint8], scene: SceneOptions, rng: np.random.Generator) -> None:
+    h, w, channels = img.shape
+    shapes, floats, lines = _clutter_plan(rng, h, w, scene.clutter_density)
+    for row, f in zip(shapes.tolist(), floats.tolist(), strict=True):
+        if row[1] < 0:
+            continue
+        if row[1] == 0:  # a plain colour, drawn directly
+            color = _to_channels(np.array(f[1:4]), channels).round().tolist()
+            _clutter_shape(img, row, f[0], color)
+            continue
+        x0, y0, x1, y1 = row[2:6]
+        mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        _clutter_shape(mask, row, f[0], 255)
+        # Pixels per stripe, in proportion to the shape's window.
+        period = f[7] * max(y1 - y0, x1 - x0) / 128.0 + 2.0
+        two = np.array(f[1:7]).reshape(2, 3)
+        _paint_texture(img[y0:y1, x0:x1], mask, two, period, f[8], f[9] >= 0.5)
+    for x0f, y0f, dx, dy, length, r, g, b, thickness in lines.tolist():
+        direction = np.array([dx, dy])
         # np.linalg.norm of a real vector is sqrt(x . x): the same bits, without its wrapper.
         norm = math.sqrt(direction.dot(direction)) + 1e-12
-        dx, dy = direction.tolist()
         dx, dy = dx / norm, dy / norm
-        length = rng.uniform(0.2, 1.0) * size
-        color = _to_channels(rng.uniform(20, 240, 3), channels).round().tolist()
-        thickness = int(rng.integers(1, 3)) * max(1, size // 128)
+        color = _to_channels(np.array([r, g, b]), channels).round().tolist()
         cv2.line(
             img,
             (int(x0f), int(y0f)),
             (int(x0f + length * dx), int(y0f + length * dy)),
             color,
-            thickness,
+            int(thickness),
             cv2.LINE_AA,
         )
 

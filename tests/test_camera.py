@@ -114,6 +114,45 @@ def test_look_at_straight_down_uses_fallback_up() -> None:
     np.testing.assert_allclose(cam.forward, [0.0, 0.0, -1.0])
 
 
+def test_look_at_gives_what_the_checked_constructor_accepts() -> None:
+    # look_at builds its camera without the constructor's checks (a rotation
+    # from orthonormal axes): the constructor accepts it, equal, read-only,
+    # and the camera keeps its own copy of the eye.
+    rng = np.random.default_rng(4)
+    for _ in range(50):
+        eye, target = rng.uniform(-5000, 5000, 3), rng.uniform(-500, 500, 3)
+        cam = Camera.look_at(eye, target, 96, 64, 45)
+        checked = Camera(96, 64, 45.0, cam.rotation, cam.position)
+        assert cam == checked and hash(cam) == hash(checked)
+        assert isinstance(cam.width, int) and isinstance(cam.fov_deg, float)
+        assert not cam.rotation.flags.writeable and not cam.position.flags.writeable
+        eye[:] = 0.0
+        np.testing.assert_array_equal(cam.position, checked.position)
+
+
+@pytest.mark.parametrize("eye", [(np.nan, 0.0, 0.0), (np.inf, 0.0, 0.0), (0.0, -np.inf, 1.0)])
+def test_look_at_refuses_points_that_are_not_finite(eye: tuple) -> None:
+    with pytest.raises(ValueError, match="distinct finite"):
+        Camera.look_at(eye, (0.0, 1.0, 0.0), 64, 64, 50.0)
+    with pytest.raises(ValueError, match="distinct finite"):
+        Camera.look_at((0.0, 1.0, 0.0), eye, 64, 64, 50.0)
+
+
+def test_fit_camera_looks_along_the_view_direction_from_the_fitted_distance() -> None:
+    # fit_camera's camera is look_at's from the box's centre along
+    # view_direction; its rotation is the one it measured the points in (to
+    # rounding: that one looks from a unit step along the direction).
+    pts = np.random.default_rng(5).uniform(-800, 800, (40, 3))
+    cam = fit_camera(pts, 128, 96, 45.0, 30.0, 10.0, 0.1, 150.0)
+    target = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    direction = view_direction(30.0, 10.0)
+    probe = Camera.look_at(target + direction, target, 128, 96, 45.0)
+    np.testing.assert_allclose(cam.rotation, probe.rotation, atol=1e-12)
+    distance = float(np.linalg.norm(cam.position - target))
+    np.testing.assert_allclose(cam.position, target + distance * direction, atol=1e-9)
+    assert distance > 500.0
+
+
 @pytest.mark.parametrize(
     ("args", "match"),
     [

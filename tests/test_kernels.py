@@ -571,3 +571,99 @@ def test_figure_polygons_match_the_numpy_path(options: dict, monkeypatch) -> Non
             np.testing.assert_array_equal(x, y)
         assert min(len(o) for o in a.order) < 10  # some cones were left out
         assert (np.abs(a.ellipses) == 16_000_000).any()  # and some points clipped
+
+
+@pytest.mark.parametrize(
+    "size,density", [((128, 128), 1.0), ((192, 256), 1.0), ((64, 64), 2.0), ((160, 96), 0.5),
+                     ((384, 512), 1.0), ((128, 128), 6.0)],
+)  # fmt: skip
+def test_the_clutter_plan_is_numpys_and_leaves_the_generator_where_numpy_does(
+    size: tuple[int, int], density: float
+) -> None:
+    # Every draw of the background's clutter (counts, kinds, geometry, colours,
+    # textures, lines), from numba's ports of numpy's draws: the same plan,
+    # and the generator left in the same state, over 300 seeds.
+    from humotion_gym.render import _clutter_plan
+
+    h, w = size
+    s = min(h, w)
+    area = h * w / float(s * s)
+    textured = kinds = 0
+    for seed in range(300):
+        ours, theirs = np.random.default_rng(seed), np.random.default_rng(seed)
+        got = _kernels.clutter_plan(
+            ours, h, w, s, 8.0 * density * area, 4.0 * density * area, max(1, s // 128)
+        )
+        assert got is not None
+        want = _clutter_plan(theirs, h, w, density, kernel=False)
+        for a, b in zip(got, want, strict=True):
+            assert a.dtype == b.dtype
+            np.testing.assert_array_equal(a, b)
+        assert ours.random() == theirs.random()
+        textured += int((want.shapes[:, 1] == 1).sum())
+        kinds |= int(np.bitwise_or.reduce(1 << want.shapes[:, 0], initial=0))
+    assert textured > 100 and kinds == 0b111  # every kind, plain and textured
+
+
+@pytest.mark.parametrize("channels", [1, 3])
+def test_the_texture_kernel_paints_as_numpy(channels: int, monkeypatch) -> None:
+    # Stripes and checks at every angle and period, in windows of every size,
+    # under random masks: the same pixels as the numpy path.
+    from humotion_gym.render import _paint_texture
+
+    rng = np.random.default_rng(channels)
+    for _ in range(300):
+        h, w = rng.integers(1, 90, 2)
+        region = rng.integers(0, 256, (h, w, channels), dtype=np.uint8)
+        inside = np.where(rng.random((h, w)) < 0.7, 255, 0).astype(np.uint8)
+        two = rng.uniform(25, 235, (2, 3))
+        period = rng.uniform(3.0, 12.0) * max(h, w) / 128.0 + 2.0
+        angle, checker = rng.uniform(0, np.pi), bool(rng.random() < 0.5)
+        got, want = region.copy(), region.copy()
+        _paint_texture(got, inside, two, period, angle, checker)
+        with monkeypatch.context() as m:
+            m.setattr(_kernels, "ENABLED", False)
+            _paint_texture(want, inside, two, period, angle, checker)
+        np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize(
+    "options", [{}, {"color": "gray"}, {"width": 256, "height": 192, "clutter_density": 2.0},
+                {"occluders": 2, "noise_sigma": 0.0}],
+)  # fmt: skip
+def test_backgrounds_are_the_numpy_paths(options: dict, monkeypatch) -> None:
+    opts = SceneOptions(**options)
+    for seed in range(60):
+        got = make_background(opts, np.random.default_rng(seed))
+        monkeypatch.setattr(_kernels, "ENABLED", False)
+        want = make_background(opts, np.random.default_rng(seed))
+        monkeypatch.setattr(_kernels, "ENABLED", True)
+        for name in ("image", "occluders", "occluder_colors", "noise"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
+
+
+def test_a_numpy_that_draws_otherwise_keeps_the_clutter(monkeypatch) -> None:
+    # The first background checks the clutter kernel against numpy's draws;
+    # where they differ, numpy plans (one warning) and the other kernels stay on.
+    from humotion_gym import render
+
+    render._kernel_plans_as_numpy.cache_clear()
+    assert render._kernel_plans_as_numpy()
+    render._kernel_plans_as_numpy.cache_clear()
+    real = _kernels.clutter_plan
+
+    def nudged(*args):  # one shape a pixel to the right
+        shapes, floats, lines = real(*args)
+        shapes[:1, 6] += 1
+        return shapes, floats, lines
+
+    monkeypatch.setattr(_kernels, "clutter_plan", nudged)
+    try:
+        with pytest.warns(RuntimeWarning, match="draws the background's clutter otherwise"):
+            a = make_background(SceneOptions(), np.random.default_rng(3))
+        assert _kernels.enabled() and not render._kernel_plans_as_numpy()
+        monkeypatch.setattr(_kernels, "ENABLED", False)
+        b = make_background(SceneOptions(), np.random.default_rng(3))
+        np.testing.assert_array_equal(a.image, b.image)
+    finally:
+        render._kernel_plans_as_numpy.cache_clear()

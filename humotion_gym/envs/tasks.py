@@ -9,12 +9,16 @@ ones the leaderboard reports.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from humotion_gym.body import KEYPOINT_INDEX, N_PARAMS, PARAM_INDEX, SAGITTAL_PARAMS
+
+#: The world's up, for the travel box's vertical corners.
+_UP = np.array([0.0, 0.0, 1.0])
 
 
 @dataclass(frozen=True)
@@ -71,18 +75,23 @@ class CameraSpec:
         The facing direction of heading ``h`` is ``(-sin h, cos h, 0)`` (the
         body's convention), its right ``(cos h, sin h, 0)``.
         """
-        back, forward, right, left, down, up = self.travel_mm
         facing = np.array([-np.sin(heading), np.cos(heading), 0.0])
         side = np.array([np.cos(heading), np.sin(heading), 0.0])
+        a, c, v = self._corner_distances
+        return a * facing + c * side + v * _UP
+
+    @functools.cached_property
+    def _corner_distances(self) -> tuple[NDArray[np.float64], ...]:
+        """The travel box's corners: ``(8, 1)`` distances along, across and up.
+
+        Made once per spec; every episode's start reads them.
+        """
+        back, forward, right, left, down, up = self.travel_mm
         along = np.array([-back, forward])
         across = np.array([-left, right])
         vertical = np.array([-down, up])
-        a, c, v = np.meshgrid(along, across, vertical, indexing="ij")
-        return (
-            a.reshape(-1, 1) * facing
-            + c.reshape(-1, 1) * side
-            + v.reshape(-1, 1) * np.array([0.0, 0.0, 1.0])
-        )
+        grid = np.meshgrid(along, across, vertical, indexing="ij")
+        return tuple(g.reshape(-1, 1) for g in grid)
 
 
 @dataclass(frozen=True)

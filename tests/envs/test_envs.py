@@ -279,3 +279,22 @@ def test_envs_run_on_real_data(shared_mocap):
         assert not info["synthetic"] and env.clips.split("test") is not None
         assert all(m.subject in humotion_gym.mocap.library.TEST_SUBJECTS for m in env.clips)
         env.step(env.pose_to_action(env.true_pose()))
+
+
+@pytest.mark.parametrize("task", ["BodyTrack-v1", "WalkTrack-v1", "SideWalk-v1"])
+def test_the_travel_box_corners_are_the_eight_combinations(task: str) -> None:
+    # Every corner of the box the static camera frames: back or forward along
+    # the heading, left or right across it, down or up; read again for every
+    # heading from the spec's cached distances.
+    spec = get_task(task).camera
+    back, forward, right, left, down, up = spec.travel_mm
+    for heading in (0.0, 1.2, -2.5, 4.0):
+        facing = np.array([-np.sin(heading), np.cos(heading), 0.0])
+        side = np.array([np.cos(heading), np.sin(heading), 0.0])
+        want = [
+            a * facing + c * side + v * np.array([0.0, 0.0, 1.0])
+            for a in (-back, forward)
+            for c in (-left, right)
+            for v in (-down, up)
+        ]
+        np.testing.assert_array_equal(spec.travel_corners(heading), np.array(want))
