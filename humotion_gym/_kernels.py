@@ -67,6 +67,7 @@ __all__ = [
     "cone_basis",
     "coverage_sums",
     "draw_figure",
+    "env_keypoints",
     "figure_polygons",
     "paced_histories",
     "enabled",
@@ -377,6 +378,30 @@ def clutter_plan(
         out = _call("_clutter_plan", rng, h, w, size, shape_rate, line_rate, thickness_unit)
     # A numba that fails does so compiling, before it draws.
     return None if out is _FAILED else out
+
+
+def env_keypoints(
+    params: NDArray[np.float64],
+    torso: NDArray[np.float64],
+    head: NDArray[np.float64],
+    limbs: NDArray[np.float64],
+    sign: NDArray[np.float64],
+    rows: NDArray[np.intp],
+) -> NDArray[np.float64] | None:
+    """The vector environment's keypoints of N poses (``envs.vector._keypoints``).
+
+    Returns:
+        ``(N, 15, 3)``, the numpy path's numbers (``tests/test_kernels.py``);
+        None (the numpy path is to run) when the kernels are off or failed.
+    """
+    if not ENABLED:
+        return None
+    out = np.empty((params.shape[0], 15, 3))
+    args = (params, torso, head, limbs, sign, rows)
+    contiguous = [np.ascontiguousarray(a, np.float64) for a in args[:5]]
+    if not _run("_env_keypoints", *contiguous, np.ascontiguousarray(rows, np.intp), out):
+        return None
+    return out
 
 
 def paint_texture(

@@ -1101,3 +1101,72 @@ def _paint_texture(
             odd = np.int32(parity) & 1
             for c in range(channels):
                 region[y, x, c] = palette[odd, c]
+
+
+# ---------------------------------------------------------------------------
+# The vector environment's scored keypoints
+# ---------------------------------------------------------------------------
+
+
+@_njit()
+def _env_keypoints(
+    params: NDArray[np.float64],
+    torso: NDArray[np.float64],
+    head: NDArray[np.float64],
+    limbs: NDArray[np.float64],
+    sign: NDArray[np.float64],
+    rows: NDArray[np.intp],
+    out: NDArray[np.float64],
+) -> None:
+    """``envs.vector._keypoints``, pose by pose: the same float64 steps in the same order.
+
+    ``params`` ``(N, 25)``, ``torso`` ``(N, 5, 3)``, ``head`` ``(N,)``, ``limbs``
+    ``(N, 4, 2)``, ``sign`` the limbs' hinge signs, ``rows`` ``(3, 4)`` the
+    limbs' base, middle and tip keypoint rows; ``out`` ``(N, 15, 3)``, with
+    the pelvis in row 0, the neck in 7 and the head's top in 8 (see
+    ``body.KEYPOINT_NAMES``). Each line is one of the numpy path's, whose
+    every step is elementwise (the same products and sums per element).
+    """
+    rot = np.empty((3, 3))
+    b = np.empty((3, 5))
+    cos = np.empty(22)
+    sin = np.empty(22)
+    for j in range(params.shape[0]):
+        for a in range(22):
+            cos[a] = np.cos(params[j, 3 + a])
+            sin[a] = np.sin(params[j, 3 + a])
+        cy, sy, cp, sp, cr, sr = cos[0], sin[0], cos[1], sin[1], cos[2], sin[2]
+        rot[0, 0], rot[0, 1], rot[0, 2] = cy * cr - sy * sp * sr, -sy * cp, cy * sr + sy * sp * cr
+        rot[1, 0], rot[1, 1], rot[1, 2] = sy * cr + cy * sp * sr, cy * cp, sy * sr - cy * sp * cr
+        rot[2, 0], rot[2, 1], rot[2, 2] = -cp * sr, sp, cp * cr
+        for i in range(3):
+            out[j, 0, i] = params[j, i]
+            for m in range(5):
+                b[i, m] = (
+                    rot[i, 0] * torso[j, m, 0] + rot[i, 1] * torso[j, m, 1]
+                    + rot[i, 2] * torso[j, m, 2] + params[j, i]
+                )  # fmt: skip
+        ca, sa, cb, sb = cos[3], sin[3], cos[4], sin[4]
+        ez0, ez1, ez2 = sb, -sa * cb, ca * cb
+        for i in range(3):
+            out[j, 7, i] = b[i, 0]
+            out[j, 8, i] = b[i, 0] + head[j] * (rot[i, 0] * ez0 + rot[i, 1] * ez1 + rot[i, 2] * ez2)
+        for limb in range(4):
+            a = 6 + 4 * limb
+            ca, sa, cb, sb = cos[a], sin[a], cos[a + 1], sin[a + 1]
+            cc, sc, ck, sk = cos[a + 2], sin[a + 2], cos[a + 3], sin[a + 3]
+            upper, lower = limbs[j, limb, 0], limbs[j, limb, 1]
+            sa_sb, ca_sb = sa * sb, ca * sb
+            ly0, lz0 = -cb * sc, sb
+            ly1, lz1 = ca * cc - sa_sb * sc, -sa * cb
+            ly2, lz2 = sa * cc + ca_sb * sc, ca * cb
+            ssk = sign[limb] * sk
+            lk, ls = lower * ck, lower * ssk
+            for i in range(3):
+                y = rot[i, 0] * ly0 + rot[i, 1] * ly1 + rot[i, 2] * ly2
+                z = rot[i, 0] * lz0 + rot[i, 1] * lz1 + rot[i, 2] * lz2
+                base = b[i, 1 + limb]
+                mid = base - upper * z
+                out[j, rows[0, limb], i] = base
+                out[j, rows[1, limb], i] = mid
+                out[j, rows[2, limb], i] = mid + ls * y - lk * z

@@ -33,7 +33,9 @@ environment only (their figures are prepared by it).
 from __future__ import annotations
 
 import copy
+import functools
 import math
+import warnings
 from typing import Any
 
 import numpy as np
@@ -42,6 +44,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
+from humotion_gym import _kernels
 from humotion_gym.body import KEYPOINT_INDEX, N_KEYPOINTS, N_PARAMS, BodyShape
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 from humotion_gym.metrics import aligned_point_errors, point_errors
@@ -434,7 +437,10 @@ _LIMB_KEYPOINTS = (
 # Rows of the limbs' base, middle and tip keypoints, each in limb order.
 _LIMB_ROWS = tuple(np.array(rows, dtype=np.intp) for rows in zip(*_LIMB_KEYPOINTS, strict=True))
 # elbows bend forward, knees backward
-_LIMB_SIGN_COLUMN = np.array([1.0, 1.0, -1.0, -1.0])[:, None]
+_LIMB_SIGN = np.array([1.0, 1.0, -1.0, -1.0])
+_LIMB_SIGN_COLUMN = _LIMB_SIGN[:, None]
+# The limbs' base, middle and tip rows as one (3, 4) table, for the kernel.
+_LIMB_TABLE = np.array(_LIMB_ROWS, dtype=np.intp)
 
 
 def _trig_is_libm() -> bool:
@@ -489,6 +495,47 @@ def _keypoints(
     Returns:
         ``(N, 15, 3)`` keypoints.
     """
+    if _kernels.ENABLED and _kernel_keypoints_as_numpy():
+        out = _kernels.env_keypoints(params, torso, head, limbs, _LIMB_SIGN, _LIMB_TABLE)
+        if out is not None:
+            return out
+    return _numpy_keypoints(params, torso, head, limbs)
+
+
+@functools.cache
+def _kernel_keypoints_as_numpy() -> bool:
+    """Whether the keypoints kernel gives the numpy path's numbers here (checked once).
+
+    Its cosines and sines are numba's (the C library's), the numpy path's
+    numpy's or ``math``'s: on a machine where they differed, so would the
+    errors and rewards. So on first use both place 2,048 random poses of
+    random shapes (about 2 ms); where any number differs, numpy does, with
+    one ``RuntimeWarning``.
+    """
+    rng = np.random.default_rng(20261124)
+    n = 2048
+    params = rng.uniform(-4.0, 4.0, (n, N_PARAMS)) * np.r_[[500.0] * 3, [1.0] * (N_PARAMS - 3)]
+    torso = rng.normal(0.0, 200.0, (n, 5, 3))
+    head, limbs = rng.uniform(100.0, 300.0, n), rng.uniform(150.0, 500.0, (n, 4, 2))
+    ours = _kernels.env_keypoints(params, torso, head, limbs, _LIMB_SIGN, _LIMB_TABLE)
+    if ours is None:
+        return True  # the kernels are off (numba failed and said so): nothing to check
+    if not np.array_equal(ours, _numpy_keypoints(params, torso, head, limbs)):
+        warnings.warn(
+            "humotion_gym: the vector environment's keypoints kernel differs from the numpy "
+            "path here (its cosines and sines); numpy computes them (the other kernels still "
+            "run).",
+            RuntimeWarning,
+            stacklevel=4,
+        )
+        return False
+    return True
+
+
+def _numpy_keypoints(
+    params: FloatArray, torso: FloatArray, head: FloatArray, limbs: FloatArray
+) -> FloatArray:
+    """:func:`_keypoints` in numpy, its reference (see there)."""
     n = params.shape[0]
     angles = np.ascontiguousarray(params[:, 3:].T)  # (22, N)
     if _NUMPY_TRIG_IS_LIBM:
