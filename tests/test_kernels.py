@@ -667,3 +667,45 @@ def test_a_numpy_that_draws_otherwise_keeps_the_clutter(monkeypatch) -> None:
         np.testing.assert_array_equal(a.image, b.image)
     finally:
         render._kernel_plans_as_numpy.cache_clear()
+
+
+@pytest.mark.parametrize("n", [1, 2, 16, 3001])
+def test_the_vector_envs_keypoints_are_the_numpy_paths(n: int) -> None:
+    # Poses anywhere (angles over several turns), shapes of every size: the
+    # kernel's keypoints equal the numpy path's, so the vector env's errors
+    # and rewards stay the single environment's.
+    from humotion_gym.envs import vector
+
+    rng = np.random.default_rng(n)
+    params = rng.uniform(-9.0, 9.0, (n, 25)) * np.r_[[2000.0] * 3, [1.0] * 22]
+    torso = rng.normal(0.0, 250.0, (n, 5, 3))
+    head, limbs = rng.uniform(50.0, 400.0, n), rng.uniform(100.0, 600.0, (n, 4, 2))
+    got = vector._keypoints(params, torso, head, limbs)
+    want = vector._numpy_keypoints(params, torso, head, limbs)
+    assert got.shape == want.shape == (n, 15, 3) and got.flags.c_contiguous
+    np.testing.assert_array_equal(got, want)
+
+
+def test_a_keypoints_kernel_that_differs_is_not_used(monkeypatch) -> None:
+    from humotion_gym.envs import vector
+
+    vector._kernel_keypoints_as_numpy.cache_clear()
+    real = _kernels.env_keypoints
+
+    def off(*args):  # a last-bit difference, as another C library's cosine would make
+        out = real(*args)
+        out[-1, -1, -1] = np.nextafter(out[-1, -1, -1], np.inf)
+        return out
+
+    monkeypatch.setattr(_kernels, "env_keypoints", off)
+    try:
+        with pytest.warns(RuntimeWarning, match="keypoints kernel differs"):
+            assert not vector._kernel_keypoints_as_numpy()
+        params = np.zeros((3, 25))
+        torso, head, limbs = np.ones((3, 5, 3)), np.full(3, 200.0), np.full((3, 4, 2), 300.0)
+        np.testing.assert_array_equal(
+            vector._keypoints(params, torso, head, limbs),
+            vector._numpy_keypoints(params, torso, head, limbs),
+        )
+    finally:
+        vector._kernel_keypoints_as_numpy.cache_clear()
