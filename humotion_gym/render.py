@@ -260,7 +260,7 @@ def _noise_tables(sigma: float) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
 def _paint_texture(
     region: NDArray[np.uint8],
     inside: NDArray[np.uint8],
-    two: NDArray[np.float64],
+    palette: NDArray[np.uint8],
     period: float,
     angle: float,
     checker: bool,
@@ -268,16 +268,11 @@ def _paint_texture(
     """Paint a stripe or checker texture of two colours where ``inside``.
 
     ``region`` is a view of the image (written in place), ``inside`` a uint8
-    mask of its size (non-zero inside); ``two`` the two colours' ``(2, 3)``
-    draws, ``period`` (pixels) and ``angle`` the stripes', ``checker`` adds
+    mask of its size (non-zero inside); ``palette`` the two colours ``(2,
+    C)``, ``period`` (pixels) and ``angle`` the stripes', ``checker`` adds
     the stripes across them.
     """
     h, w, channels = region.shape
-    if channels == 3:
-        palette = two.round().astype(np.uint8)
-    else:  # each colour's luminance on its own, as _to_channels gives it
-        palette = np.stack([_to_channels(two[0], 1), _to_channels(two[1], 1)])
-        palette = palette.round().astype(np.uint8)
     # The texture's axes scaled to stripes, in float32 as the pixels' steps are.
     cos_a = np.float32(math.cos(angle) / period)
     sin_a = np.float32(math.sin(angle) / period)
@@ -451,29 +446,40 @@ def _clutter_shape(target: NDArray[np.uint8], row: list[int], angle: float, colo
         cv2.fillConvexPoly(target, polygon, color)
 
 
+def _clutter_colors(draws: NDArray[np.float64], channels: int) -> list[list[float]]:
+    """Each row of RGB draws as the frame's channels, rounded (as OpenCV is given a colour)."""
+    if channels == 3:
+        return draws.round().tolist()
+    # each colour's luminance on its own, as _to_channels gives it
+    return [_to_channels(rgb, 1).round().tolist() for rgb in draws]
+
+
 def _draw_clutter(img: NDArray[np.uint8], scene: SceneOptions, rng: np.random.Generator) -> None:
     h, w, channels = img.shape
     shapes, floats, lines = _clutter_plan(rng, h, w, scene.clutter_density)
-    for row, f in zip(shapes.tolist(), floats.tolist(), strict=True):
+    # Every shape's colours at once: a plain shape's one, a textured shape's two.
+    colors = _clutter_colors(floats[:, 1:7].reshape(-1, 3), channels)
+    for i, (row, f) in enumerate(zip(shapes.tolist(), floats.tolist(), strict=True)):
         if row[1] < 0:
             continue
         if row[1] == 0:  # a plain colour, drawn directly
-            color = _to_channels(np.array(f[1:4]), channels).round().tolist()
-            _clutter_shape(img, row, f[0], color)
+            _clutter_shape(img, row, f[0], colors[2 * i])
             continue
         x0, y0, x1, y1 = row[2:6]
         mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
         _clutter_shape(mask, row, f[0], 255)
         # Pixels per stripe, in proportion to the shape's window.
         period = f[7] * max(y1 - y0, x1 - x0) / 128.0 + 2.0
-        two = np.array(f[1:7]).reshape(2, 3)
-        _paint_texture(img[y0:y1, x0:x1], mask, two, period, f[8], f[9] >= 0.5)
-    for x0f, y0f, dx, dy, length, r, g, b, thickness in lines.tolist():
+        palette = np.array(colors[2 * i : 2 * i + 2], np.uint8)
+        _paint_texture(img[y0:y1, x0:x1], mask, palette, period, f[8], f[9] >= 0.5)
+    line_colors = _clutter_colors(lines[:, 5:8], channels)
+    for (x0f, y0f, dx, dy, length, *_, thickness), color in zip(
+        lines.tolist(), line_colors, strict=True
+    ):
         direction = np.array([dx, dy])
         # np.linalg.norm of a real vector is sqrt(x . x): the same bits, without its wrapper.
         norm = math.sqrt(direction.dot(direction)) + 1e-12
         dx, dy = dx / norm, dy / norm
-        color = _to_channels(np.array([r, g, b]), channels).round().tolist()
         cv2.line(
             img,
             (int(x0f), int(y0f)),

@@ -616,14 +616,14 @@ def test_the_texture_kernel_paints_as_numpy(channels: int, monkeypatch) -> None:
         h, w = rng.integers(1, 90, 2)
         region = rng.integers(0, 256, (h, w, channels), dtype=np.uint8)
         inside = np.where(rng.random((h, w)) < 0.7, 255, 0).astype(np.uint8)
-        two = rng.uniform(25, 235, (2, 3))
+        palette = rng.integers(0, 256, (2, channels), dtype=np.uint8)
         period = rng.uniform(3.0, 12.0) * max(h, w) / 128.0 + 2.0
         angle, checker = rng.uniform(0, np.pi), bool(rng.random() < 0.5)
         got, want = region.copy(), region.copy()
-        _paint_texture(got, inside, two, period, angle, checker)
+        _paint_texture(got, inside, palette, period, angle, checker)
         with monkeypatch.context() as m:
             m.setattr(_kernels, "ENABLED", False)
-            _paint_texture(want, inside, two, period, angle, checker)
+            _paint_texture(want, inside, palette, period, angle, checker)
         np.testing.assert_array_equal(got, want)
 
 
