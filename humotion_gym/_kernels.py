@@ -404,22 +404,18 @@ def env_keypoints(
     return out
 
 
-def paint_texture(
-    region: NDArray[np.uint8],
-    inside: NDArray[np.uint8],
-    palette: NDArray[np.uint8],
-    cos_a: np.float32,
-    sin_a: np.float32,
-    checker: bool,
-) -> bool:
-    """``render._paint_texture``'s stripes or checks in ``region`` where ``inside``.
+def paint_texture(*args: Any) -> bool:
+    """``render._paint_texture``'s stripes or checks (see ``_numba_kernels._paint_texture``).
+
+    The arguments are the kernel's; ``region`` is written in place. The same
+    pixels as the numpy path (``tests/test_kernels.py``).
 
     Returns:
         False (the numpy path is to run) when the kernels are off or failed.
     """
     if not ENABLED:
         return False
-    return _run("_paint_texture", region, inside, palette, cos_a, sin_a, checker)
+    return _run("_paint_texture", *args)
 
 
 def draw_figure(
