@@ -482,7 +482,7 @@ class PoseTrackingEnv(gym.Env):
         corners = spec.travel_corners(heading)
         if spec.follow is None:
             swept = first[None] + corners[:, None]
-            pad = float(np.max(m.shape.radii))
+            pad = float(m.shape.radii.max())
             cam = fit_camera(swept, *size, azimuth, spec.elevation_deg, spec.margin, pad)
             self._cameras = [cam] * len(idx)
             return
@@ -494,10 +494,10 @@ class PoseTrackingEnv(gym.Env):
             # the sphere the arm can reach, so any pose of it stays in view
             reach = m.shape.upper_arm_length + m.shape.forearm_length
             local = _sphere(reach)
-            pad = float(np.max(m.shape.radii[_ARM_CONES]))
+            pad = float(m.shape.radii[_ARM_CONES].max())
         else:
             local = (first - targets[0])[None] + corners[:, None]
-            pad = float(np.max(m.shape.radii))
+            pad = float(m.shape.radii.max())
         base = fit_camera(local, *size, azimuth, spec.elevation_deg, spec.margin, pad)
         self._cameras = base.shifted(targets)
 
