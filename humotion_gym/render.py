@@ -313,6 +313,15 @@ class ClutterPlan(NamedTuple):
     lines: NDArray[np.float64]
 
 
+def _clutter_sizes(h: int, w: int, density: float) -> tuple[int, float, float, int]:
+    """The short side, the mean numbers of shapes and of lines, and the lines' thickness unit."""
+    size = min(h, w)
+    # Shapes are sized relative to the short side, so their number grows with
+    # the aspect ratio only: the clutter covers the same fraction at any size.
+    area = (h * w) / float(size * size)
+    return size, 8.0 * density * area, 4.0 * density * area, max(1, size // 128)
+
+
 def _clutter_plan(
     rng: np.random.Generator, h: int, w: int, density: float, *, kernel: bool = True
 ) -> ClutterPlan:
@@ -323,12 +332,7 @@ def _clutter_plan(
     episode, a microsecond or more each through numpy); ``kernel=False``
     keeps to numpy.
     """
-    size = min(h, w)
-    # Shapes are sized relative to the short side, so their number grows with
-    # the aspect ratio only: the clutter covers the same fraction at any size.
-    area = (h * w) / float(size * size)
-    shape_rate, line_rate = 8.0 * density * area, 4.0 * density * area
-    unit = max(1, size // 128)
+    size, shape_rate, line_rate, unit = _clutter_sizes(h, w, density)
     if kernel and _kernels.ENABLED and _kernel_plans_as_numpy():
         planned = _kernels.clutter_plan(rng, h, w, size, shape_rate, line_rate, unit)
         if planned is not None:
@@ -403,11 +407,7 @@ def _kernel_plans_as_numpy() -> bool:
     for seed in range(20):
         h, w, density = (128, 128, 1.0) if seed % 2 else (96 + seed, 160, 0.5 + seed / 8)
         ours_rng, theirs_rng = np.random.default_rng(seed), np.random.default_rng(seed)
-        size = min(h, w)
-        area = (h * w) / float(size * size)
-        ours = _kernels.clutter_plan(
-            ours_rng, h, w, size, 8.0 * density * area, 4.0 * density * area, max(1, size // 128)
-        )
+        ours = _kernels.clutter_plan(ours_rng, h, w, *_clutter_sizes(h, w, density))
         if ours is None:
             return True  # the kernels are off (numba failed and said so): nothing to check
         theirs = _clutter_plan(theirs_rng, h, w, density, kernel=False)

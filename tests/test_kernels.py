@@ -583,17 +583,13 @@ def test_the_clutter_plan_is_numpys_and_leaves_the_generator_where_numpy_does(
     # Every draw of the background's clutter (counts, kinds, geometry, colours,
     # textures, lines), from numba's ports of numpy's draws: the same plan,
     # and the generator left in the same state, over 300 seeds.
-    from humotion_gym.render import _clutter_plan
+    from humotion_gym.render import _clutter_plan, _clutter_sizes
 
     h, w = size
-    s = min(h, w)
-    area = h * w / float(s * s)
     textured = kinds = 0
     for seed in range(300):
         ours, theirs = np.random.default_rng(seed), np.random.default_rng(seed)
-        got = _kernels.clutter_plan(
-            ours, h, w, s, 8.0 * density * area, 4.0 * density * area, max(1, s // 128)
-        )
+        got = _kernels.clutter_plan(ours, h, w, *_clutter_sizes(h, w, density))
         assert got is not None
         want = _clutter_plan(theirs, h, w, density, kernel=False)
         for a, b in zip(got, want, strict=True):
