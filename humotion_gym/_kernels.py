@@ -65,6 +65,7 @@ from numpy.typing import NDArray
 __all__ = [
     "clutter_plan",
     "cone_basis",
+    "cost_table",
     "coverage_sums",
     "draw_figure",
     "env_keypoints",
@@ -349,6 +350,20 @@ def standard_normal(rng: np.random.Generator, shape: int | tuple[int, ...]) -> N
     # A numba that fails does so compiling, before it draws: numpy's draws
     # then come from the same state.
     return out if ran else rng.standard_normal(shape)
+
+
+def cost_table(*args: Any) -> bool:
+    """``ObservationModel.prepare``'s quantised cost maps (see ``_numba_kernels._cost_table``).
+
+    The arguments are the kernel's; the distances and the table are written
+    in place. The same bytes as the numpy path (``tests/test_kernels.py``).
+
+    Returns:
+        False (the numpy path is to run) when the kernels are off or failed.
+    """
+    if not ENABLED:
+        return False
+    return _run("_cost_table", *args)
 
 
 def clutter_plan(

@@ -1170,3 +1170,83 @@ def _env_keypoints(
                 out[j, rows[0, limb], i] = base
                 out[j, rows[1, limb], i] = mid
                 out[j, rows[2, limb], i] = mid + ls * y - lk * z
+
+
+# ---------------------------------------------------------------------------
+# The observation model's per-frame cost table
+# ---------------------------------------------------------------------------
+
+
+@_njit(inline="always")
+def _byte(v: np.float32) -> np.uint8:
+    """A float32 made a byte as numpy does: ``rint`` (half to even), then the cast."""
+    return np.uint8(np.rint(v))
+
+
+@_njit()
+def _cost_table(
+    dist: NDArray[np.float32],
+    rescale: bool,
+    inv_scale: np.float32,
+    truncation: np.float32,
+    edge_scale: np.float32,
+    edge_out: np.float32,
+    fg: NDArray[np.float32],
+    fg_scale: np.float32,
+    pixels: NDArray[np.uint8],
+    app_colors: NDArray[np.float32],
+    app_low: np.float32,
+    app_span: np.float32,
+    app_scale: np.float32,
+    inv_unit: np.float32,
+    cost: NDArray[np.uint8],
+) -> None:
+    """``ObservationModel.prepare``'s cost maps, quantised, in its float32 steps.
+
+    ``dist`` ``(B, H, W)``: the edge distances, rescaled (with ``rescale``) and
+    truncated in place, as the numpy path leaves them; ``cost`` ``(B + 1 + K,
+    H + 2, W + 2)``: the B edge maps, the foreground map and the K appearance
+    maps (``app_colors`` ``(K, C)``, compared with ``pixels`` ``(H, W, C)``),
+    each padded by its cost outside the image. Every value is the numpy path's
+    chain of float32 products (and differences, maxima and clips) in its
+    order, then ``rint`` and the cast to a byte.
+    """
+    n_bins, h, w = dist.shape
+    n_app, channels = app_colors.shape
+    for layer in range(cost.shape[0]):
+        if layer < n_bins:
+            outside = edge_out
+        elif layer == n_bins:
+            outside = fg_scale
+        else:
+            outside = app_scale
+        border = _byte(outside * inv_unit)
+        for x in range(w + 2):
+            cost[layer, 0, x] = border
+            cost[layer, h + 1, x] = border
+        for y in range(1, h + 1):
+            cost[layer, y, 0] = border
+            cost[layer, y, w + 1] = border
+    for b in range(n_bins):
+        for y in range(h):
+            for x in range(w):
+                d = dist[b, y, x]
+                if rescale:
+                    d = d * inv_scale
+                d = d if d <= truncation else truncation  # np.minimum (no NaN here)
+                dist[b, y, x] = d
+                cost[b, y + 1, x + 1] = _byte(((d * d) * edge_scale) * inv_unit)
+    for y in range(h):
+        for x in range(w):
+            cost[n_bins, y + 1, x + 1] = _byte(((_ONE - fg[y, x]) * fg_scale) * inv_unit)
+    for k in range(n_app):
+        for y in range(h):
+            for x in range(w):
+                m = abs(np.float32(pixels[y, x, 0]) - app_colors[k, 0])
+                for c in range(1, channels):
+                    v = abs(np.float32(pixels[y, x, c]) - app_colors[k, c])
+                    m = v if v > m else m
+                m = (m - app_low) * app_span
+                m = _ZERO if m < _ZERO else m  # np.clip(m, 0, 1)
+                m = _ONE if m > _ONE else m
+                cost[n_bins + 1 + k, y + 1, x + 1] = _byte((m * app_scale) * inv_unit)

@@ -553,9 +553,6 @@ class ObservationModel:
                 )
             else:
                 dist[b] = np.inf
-        if scale != 1.0:  # (a product by 1 changes nothing: skipped)
-            dist *= np.float32(1.0 / scale)
-        np.minimum(dist, np.float32(self.edge_truncation), out=dist)
         n_out = 2 * self.outline_samples
         edge_scale = np.float32(1.0 / (2.0 * self.edge_sigma**2 * n_out))
         edge_out = self.edge_truncation**2 * edge_scale
@@ -573,13 +570,7 @@ class ObservationModel:
         app_cones = free[0] if use_appearance and free is not None else None
         n_app = 0 if app_cones is None else app_cones.size
         app_scale = self.appearance_weight / self.axis_samples if n_app else 0.0
-
-        maps = np.empty((n_bins + 1 + n_app, h + 2, w + 2), np.float32)
-        maps[:n_bins].fill(edge_out)
-        np.multiply(dist, dist, out=maps[:n_bins, 1:-1, 1:-1])
-        maps[:n_bins, 1:-1, 1:-1] *= edge_scale
-        maps[n_bins].fill(fg_scale)
-        np.multiply(1.0 - fg, np.float32(fg_scale), out=maps[n_bins, 1:-1, 1:-1])
+        app_colors = np.zeros((n_app, channels), np.float32)
         if n_app:
             assert given is not None and given.colors is not None and app_cones is not None
             colors = np.asarray(given.colors, dtype=np.float64)
@@ -587,26 +578,24 @@ class ObservationModel:
                 raise ValueError(
                     f"GivenBody.colors: expected shape ({N_CONES}, {channels}), got {colors.shape}"
                 )
-            span = np.float32(1.0 / (self.appearance_high - self.appearance_low))
-            pixels = smooth.astype(np.float32)
-            for k, cone in enumerate(app_cones.tolist()):
-                diff = np.abs(pixels - colors[cone].astype(np.float32))
-                # The largest channel, channel by channel: the same maximum as
-                # diff.max(axis=2), which reduces three values at a time and
-                # took 0.47 ms at 128x128 (this, 0.014).
-                mismatch = diff[:, :, 0].copy()
-                for c in range(1, diff.shape[2]):
-                    np.maximum(mismatch, diff[:, :, c], out=mismatch)
-                mismatch -= np.float32(self.appearance_low)
-                mismatch *= span
-                np.clip(mismatch, 0.0, 1.0, out=mismatch)
-                maps[n_bins + 1 + k].fill(app_scale)
-                np.multiply(mismatch, np.float32(app_scale), out=maps[n_bins + 1 + k, 1:-1, 1:-1])
+            app_colors = colors[app_cones].astype(np.float32)
         # Quantise to bytes (a gather of bytes is faster than one of floats):
         # 1/255 of the largest per-point cost is far below anything that matters.
         unit = max(edge_out, fg_scale, app_scale) / 255.0 or 1.0
-        maps *= np.float32(1.0 / unit)
-        cost = np.rint(maps, out=maps).astype(np.uint8).reshape(-1)
+        table = np.empty((n_bins + 1 + n_app, h + 2, w + 2), np.uint8)
+        span = np.float32(1.0 / (self.appearance_high - self.appearance_low))
+        compiled = _kernels.ENABLED and _kernels.cost_table(
+            dist, scale != 1.0, np.float32(1.0 / scale), np.float32(self.edge_truncation),
+            edge_scale, np.float32(edge_out), fg, np.float32(fg_scale), smooth, app_colors,
+            np.float32(self.appearance_low), span, np.float32(app_scale), np.float32(1.0 / unit),
+            table,
+        )  # fmt: skip
+        if not compiled:
+            self._cost_maps(
+                dist, scale, edge_scale, edge_out, fg, fg_scale, smooth, app_colors, app_scale,
+                span, unit, table,
+            )  # fmt: skip
+        cost = table.reshape(-1)
         residual, cones = None, None
         if use_residual and given is not None and free is not None:
             residual, cones = self._residual_edges(edges, given, scale, free)
@@ -623,6 +612,56 @@ class ObservationModel:
             w, h, edges, dist, fg, bg, cost, float(unit), residual, cones, app_cones,
             coverage, coverage_cones, floor,
         )  # fmt: skip
+
+    def _cost_maps(
+        self,
+        dist: NDArray[np.float32],
+        scale: float,
+        edge_scale: np.float32,
+        edge_out: np.float32,
+        fg: NDArray[np.float32],
+        fg_scale: float,
+        smooth: NDArray[np.uint8],
+        app_colors: NDArray[np.float32],
+        app_scale: float,
+        span: np.float32,
+        unit: float,
+        table: NDArray[np.uint8],
+    ) -> None:
+        """The cost table's maps into ``table`` (the numpy reference of ``_kernels.cost_table``).
+
+        ``dist`` is rescaled by the frame's scale and truncated in place; each
+        map is padded by its cost outside the image, then all are quantised to
+        ``unit``.
+        """
+        n_bins, h, w = dist.shape
+        if scale != 1.0:  # (a product by 1 changes nothing: skipped)
+            dist *= np.float32(1.0 / scale)
+        np.minimum(dist, np.float32(self.edge_truncation), out=dist)
+        maps = np.empty(table.shape, np.float32)
+        maps[:n_bins].fill(edge_out)
+        np.multiply(dist, dist, out=maps[:n_bins, 1:-1, 1:-1])
+        maps[:n_bins, 1:-1, 1:-1] *= edge_scale
+        maps[n_bins].fill(fg_scale)
+        np.multiply(1.0 - fg, np.float32(fg_scale), out=maps[n_bins, 1:-1, 1:-1])
+        if app_colors.shape[0]:
+            pixels = smooth.astype(np.float32)
+            for k, color in enumerate(app_colors):
+                diff = np.abs(pixels - color)
+                # The largest channel, channel by channel: the same maximum as
+                # diff.max(axis=2), which reduces three values at a time and
+                # took 0.47 ms at 128x128 (this, 0.014).
+                mismatch = diff[:, :, 0].copy()
+                for c in range(1, diff.shape[2]):
+                    np.maximum(mismatch, diff[:, :, c], out=mismatch)
+                mismatch -= np.float32(self.appearance_low)
+                mismatch *= span
+                np.clip(mismatch, 0.0, 1.0, out=mismatch)
+                maps[n_bins + 1 + k].fill(app_scale)
+                np.multiply(mismatch, np.float32(app_scale), out=maps[n_bins + 1 + k, 1:-1, 1:-1])
+        maps *= np.float32(1.0 / unit)
+        np.rint(maps, out=maps)
+        table[...] = maps  # the cast to bytes (every value lies in [0, 255])
 
     def _coverage_points(
         self,

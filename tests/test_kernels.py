@@ -705,3 +705,79 @@ def test_a_keypoints_kernel_that_differs_is_not_used(monkeypatch) -> None:
         )
     finally:
         vector._kernel_keypoints_as_numpy.cache_clear()
+
+
+@pytest.mark.parametrize("task", ["ArmTrack-v1", "BodyTrack-v1", "WalkTrack-v1", "SideWalk-v1"])
+@pytest.mark.parametrize("size", [(96, 96), (128, 128), (256, 192)])
+@pytest.mark.parametrize("color", ["rgb", "gray"])
+def test_cost_tables_are_the_numpy_paths(task: str, size: tuple, color: str, monkeypatch) -> None:
+    # Each task's model and given body (its backdrop, coverage points,
+    # residual edges and colour maps), at the model's reference size and
+    # rescaled (96x96 and 256x192), in colour and grey: the quantised cost
+    # table and the truncated distances are the numpy path's, byte for byte.
+    from humotion_gym import body
+    from humotion_gym.camera import fit_camera
+
+    w, h = size
+    options = SceneOptions(width=w, height=h, color=color)
+    rng = np.random.default_rng(w + h)
+    model = _task_model(task)
+    free = get_task(task).free_indices
+    for trial in range(3):
+        pose = body.standing_pose(SHAPE)
+        pose[6:] += rng.normal(0.0, 0.4, pose.size - 6)
+        cam = fit_camera(body.forward_kinematics(pose, SHAPE)[None], w, h, 50.0, 30.0 * trial)
+        background = make_background(options, rng)
+        first = pose.copy()
+        first[0] -= 300.0
+        first_frame = render(first, SHAPE, cam, options, rng, background)
+        frame = render(pose, SHAPE, cam, options, rng, background)
+        backdrop = model.read_backdrop(first_frame, first, SHAPE, cam) if model.backdrop else None
+        colors = model.cone_colors(frame, pose, SHAPE, cam) if model.appearance_weight > 0 else None
+        given = GivenBody(pose, free, SHAPE, cam, colors, backdrop=backdrop)
+        feats = {}
+        for on in (True, False):
+            monkeypatch.setattr(_kernels, "ENABLED", on)
+            feats[on] = model.prepare(frame, given)
+        a, b = feats[True], feats[False]
+        assert a.cost.dtype == b.cost.dtype == np.uint8 and a.cost_unit == b.cost_unit
+        np.testing.assert_array_equal(a.cost, b.cost)
+        np.testing.assert_array_equal(a.distance, b.distance)
+        if model.appearance_weight > 0:
+            assert a.cost.size > (model.orientation_bins + 1) * (h + 2) * (w + 2)  # colour maps
+
+
+@pytest.mark.parametrize("rescale", [False, True])
+def test_the_cost_table_kernel_rounds_as_numpy_on_a_million_values(rescale: bool) -> None:
+    # Frames quantise the costs to bytes, which hides most last-bit
+    # differences; a million random distances, foreground values and pixels
+    # reach the rounding boundaries often enough that a product regrouped
+    # would show here.
+    model = _task_model("ArmTrack-v1")
+    rng = np.random.default_rng(int(rescale))
+    h, w = 500, 500
+    dist = rng.uniform(0.0, 1.3 * model.edge_truncation, (4, h, w)).astype(np.float32)
+    dist[:, ::7, ::5] = np.inf
+    fg = rng.random((h, w), dtype=np.float32)
+    pixels = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+    app_colors = rng.uniform(0, 255, (2, 3)).astype(np.float32)
+    scale = 0.75 if rescale else 1.0
+    edge_scale = np.float32(0.0123)
+    edge_out = model.edge_truncation**2 * edge_scale
+    fg_scale, app_scale = 1.7, 0.9
+    span = np.float32(1.0 / (model.appearance_high - model.appearance_low))
+    unit = max(edge_out, fg_scale, app_scale) / 255.0
+    ours, theirs = np.empty((2, 7, h + 2, w + 2), np.uint8)
+    d_ours, d_theirs = dist.copy(), dist.copy()
+    assert _kernels.cost_table(
+        d_ours, rescale, np.float32(1.0 / scale), np.float32(model.edge_truncation), edge_scale,
+        np.float32(edge_out), fg, np.float32(fg_scale), pixels, app_colors,
+        np.float32(model.appearance_low), span, np.float32(app_scale), np.float32(1.0 / unit),
+        ours,
+    )  # fmt: skip
+    model._cost_maps(
+        d_theirs, scale, edge_scale, edge_out, fg, fg_scale, pixels, app_colors, app_scale, span,
+        unit, theirs,
+    )  # fmt: skip
+    np.testing.assert_array_equal(d_ours, d_theirs)
+    np.testing.assert_array_equal(ours, theirs)
