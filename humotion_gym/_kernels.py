@@ -65,11 +65,13 @@ from numpy.typing import NDArray
 __all__ = [
     "clutter_plan",
     "cone_basis",
+    "colour_distances",
     "cost_table",
     "coverage_sums",
     "draw_figure",
     "env_keypoints",
     "figure_polygons",
+    "foreground_map",
     "paced_histories",
     "enabled",
     "kinematics",
@@ -364,6 +366,28 @@ def cost_table(*args: Any) -> bool:
     if not ENABLED:
         return False
     return _run("_cost_table", *args)
+
+
+def colour_distances(*args: Any) -> bool:
+    """``ObservationModel._foreground``'s colour distances (``_numba_kernels._colour_distances``).
+
+    Returns:
+        False (the numpy path is to run) when the kernels are off or failed.
+    """
+    if not ENABLED:
+        return False
+    return _run("_colour_distances", *args)
+
+
+def foreground_map(*args: Any) -> bool:
+    """``ObservationModel._foreground``'s probability map (see ``_numba_kernels._foreground_map``).
+
+    Returns:
+        False (the numpy path is to run) when the kernels are off or failed.
+    """
+    if not ENABLED:
+        return False
+    return _run("_foreground_map", *args)
 
 
 def clutter_plan(

@@ -1250,3 +1250,104 @@ def _cost_table(
                 m = _ZERO if m < _ZERO else m  # np.clip(m, 0, 1)
                 m = _ONE if m > _ONE else m
                 cost[n_bins + 1 + k, y + 1, x + 1] = _byte((m * app_scale) * inv_unit)
+
+
+# ---------------------------------------------------------------------------
+# The observation model's foreground
+# ---------------------------------------------------------------------------
+
+
+@_njit()
+def _colour_distances(
+    smooth: NDArray[np.uint8],
+    background: NDArray[np.uint8],
+    image: NDArray[np.uint8],
+    known: NDArray[np.bool_],
+    with_backdrop: bool,
+    diff: NDArray[np.uint8],
+    near: NDArray[np.uint8],
+    counts: NDArray[np.int64],
+) -> None:
+    """Each pixel's largest channel difference from the border's colour and from the backdrop.
+
+    ``ObservationModel._foreground``'s ``cv2.absdiff`` and channel maxima:
+    ``diff`` from the ``background`` colour (already the byte OpenCV makes
+    of it), with ``with_backdrop`` ``near`` from the backdrop's ``image``
+    and, in ``counts``, the histogram of ``near`` where the backdrop is
+    ``known``. Exact integer steps.
+    """
+    h, w, channels = smooth.shape
+    n_px = h * w
+    # Flat, with the three channels spelled out: the loop then vectorises (a
+    # loop over channels inside, and the histogram's scatter, kept it scalar).
+    s = smooth.reshape(n_px * channels)
+    im = image.reshape(image.size)
+    d = diff.reshape(n_px)
+    nr = near.reshape(n_px)
+    if channels == 3:
+        b0, b1, b2 = np.int32(background[0]), np.int32(background[1]), np.int32(background[2])
+        for i in range(n_px):
+            s0, s1, s2 = np.int32(s[3 * i]), np.int32(s[3 * i + 1]), np.int32(s[3 * i + 2])
+            d[i] = max(abs(s0 - b0), abs(s1 - b1), abs(s2 - b2))
+        if with_backdrop:
+            for i in range(n_px):
+                nr[i] = max(
+                    abs(np.int32(s[3 * i]) - np.int32(im[3 * i])),
+                    abs(np.int32(s[3 * i + 1]) - np.int32(im[3 * i + 1])),
+                    abs(np.int32(s[3 * i + 2]) - np.int32(im[3 * i + 2])),
+                )  # fmt: skip
+    else:
+        b0 = np.int32(background[0])
+        for i in range(n_px):
+            d[i] = abs(np.int32(s[i]) - b0)
+        if with_backdrop:
+            for i in range(n_px):
+                nr[i] = abs(np.int32(s[i]) - np.int32(im[i]))
+    counts[:] = 0
+    if with_backdrop:
+        kn = known.reshape(n_px)
+        for i in range(n_px):
+            if kn[i]:
+                counts[nr[i]] += 1
+
+
+@_njit()
+def _foreground_map(
+    diff: NDArray[np.uint8],
+    near: NDArray[np.uint8],
+    known: NDArray[np.bool_],
+    with_backdrop: bool,
+    shift: int,
+    low: float,
+    unknown_changed: int,
+    unknown_same: int,
+    floor: int,
+    inv_span: np.float32,
+    fg: NDArray[np.float32],
+    found: NDArray[np.uint8],
+) -> None:
+    """``ObservationModel._foreground``'s probability map (and its pixels found off the backdrop).
+
+    With ``with_backdrop``: ``near`` less ``shift`` (saturating, as
+    ``cv2.subtract``), the colour distance where the backdrop is ``known``
+    and ``unknown_changed`` or ``unknown_same`` where it is not, and
+    ``found`` 255 where a known pixel differs by more than ``low``. Then
+    ``(distance - floor)`` saturating at 0, as float32, times ``inv_span``,
+    at most 1: the numpy path's steps.
+    """
+    h, w = diff.shape
+    for y in range(h):
+        for x in range(w):
+            d = np.int32(diff[y, x])
+            if with_backdrop:
+                n = np.int32(near[y, x]) - shift
+                n = n if n > 0 else 0
+                if known[y, x]:
+                    d = n
+                    found[y, x] = 255 if n > low else 0
+                else:
+                    d = unknown_changed if n > low else unknown_same
+                    found[y, x] = 255 if 0 > low else 0
+            v = d - floor
+            f = np.float32(v if v > 0 else 0) * inv_span
+            fg[y, x] = f if f < _ONE else _ONE

@@ -901,6 +901,10 @@ class ObservationModel:
             ]
         )
         bg = np.median(border, axis=0)
+        if _kernels.ENABLED:
+            compiled = self._compiled_foreground(smooth, bg, backdrop, scale)
+            if compiled is not None:
+                return compiled
         diff = _channel_max(
             cv2.absdiff(smooth, tuple(float(v) for v in bg) + (0.0,) * (4 - channels)),
             h, w, channels,
@@ -908,14 +912,11 @@ class ObservationModel:
         keep = None
         if backdrop is not None:
             near = _channel_max(cv2.absdiff(smooth, backdrop.image), h, w, channels)
-            low = self.foreground_low
-            counts = np.bincount(near[backdrop.known], minlength=256)
-            if counts.sum():
-                median = int(np.searchsorted(np.cumsum(counts), 0.5 * counts.sum()))
-                low = max(low, 2.5 * median)
-            if low >= self.foreground_high or not counts.sum():
+            low = self._backdrop_low(np.bincount(near[backdrop.known], minlength=256))
+            if low is None:
                 backdrop = None  # noise hides the figure, or nothing of the backdrop is known
         if backdrop is not None:
+            assert low is not None
             shift = low - self.foreground_low
             if shift > 0:  # the ramp moved up: the same probabilities from ``low`` on
                 near = cv2.subtract(near, float(shift))
@@ -938,6 +939,62 @@ class ObservationModel:
         fg = cv2.subtract(diff, float(self.foreground_low)).astype(np.float32)
         fg *= np.float32(1.0 / (self.foreground_high - self.foreground_low))
         np.minimum(fg, np.float32(1.0), out=fg)
+        return fg, bg, keep, backdrop
+
+    def _backdrop_low(self, counts: NDArray[np.int64]) -> float | None:
+        """How far a pixel must differ from the backdrop, from the known pixels' histogram.
+
+        ``foreground_low`` or 2.5 times the known pixels' median difference,
+        whichever is larger; None where that reaches ``foreground_high`` or no
+        pixel is known (the backdrop is then not used).
+        """
+        low = self.foreground_low
+        total = counts.sum()
+        if total:
+            median = int(np.searchsorted(np.cumsum(counts), 0.5 * total))
+            low = max(low, 2.5 * median)
+        return None if low >= self.foreground_high or not total else low
+
+    def _compiled_foreground(
+        self, smooth: NDArray[np.uint8], bg: NDArray, backdrop: Backdrop | None, scale: float
+    ) -> tuple[NDArray, NDArray, NDArray[np.uint8] | None, Backdrop | None] | None:
+        """:meth:`_foreground` after the border's colour, by two kernels; None if they failed.
+
+        The same arrays as the numpy path (``tests/test_kernels.py``): OpenCV
+        makes a byte of a float colour or threshold by rounding half to even
+        and saturating, and so does this.
+        """
+        h, w, channels = smooth.shape
+        background = np.array([_as_byte(v) for v in bg.tolist()], np.uint8)
+        diff = np.empty((h, w), np.uint8)
+        near = np.empty((h, w), np.uint8)
+        counts = np.empty(256, np.int64)
+        with_backdrop = backdrop is not None
+        smooth = np.ascontiguousarray(smooth)  # (the kernel reads it flat)
+        image = np.ascontiguousarray(backdrop.image) if backdrop is not None else smooth
+        known = np.ascontiguousarray(backdrop.known) if backdrop is not None else _NOTHING_KNOWN
+        if not _kernels.colour_distances(
+            smooth, background, image, known, with_backdrop, diff, near, counts
+        ):
+            return None
+        low = self._backdrop_low(counts) if with_backdrop else None
+        if low is None:
+            backdrop, with_backdrop = None, False
+        shift = 0 if low is None else low - self.foreground_low
+        lo, hi = self.foreground_low, self.foreground_high
+        # np.clip(...).astype(np.uint8) of the two levels: clipped, then truncated.
+        unknown = [int(min(max(v, 0.0), 255.0)) for v in (0.5 * (lo + hi), hi)]
+        fg = np.empty((h, w), np.float32)
+        found = np.empty((h, w), np.uint8)
+        if not _kernels.foreground_map(
+            diff, near, known, with_backdrop, _as_byte(shift) if shift > 0 else 0, float(lo),
+            unknown[0], unknown[1], _as_byte(lo), np.float32(1.0 / (hi - lo)), fg, found,
+        ):  # fmt: skip
+            return None
+        keep = None
+        if backdrop is not None and self.backdrop_reach > 0:
+            keep = _grow(found, self.backdrop_reach * scale)
+            keep[~backdrop.known] = 255
         return fg, bg, keep, backdrop
 
     def read_first_frame(
@@ -1674,6 +1731,15 @@ def _grow(mask: NDArray[np.uint8], radius: float) -> NDArray[np.uint8]:
         return mask
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
     return cv2.dilate(mask, kernel)
+
+
+#: The foreground kernels' ``known`` where there is no backdrop (they do not read it).
+_NOTHING_KNOWN = np.zeros((1, 1), np.bool_)
+
+
+def _as_byte(value: float) -> int:
+    """The byte OpenCV makes of a float scalar: rounded half to even, saturated to [0, 255]."""
+    return min(max(round(value), 0), 255)  # (Python's round is half to even, as np.rint)
 
 
 def _channel_max(diff: NDArray[np.uint8], h: int, w: int, channels: int) -> NDArray[np.uint8]:

@@ -781,3 +781,48 @@ def test_the_cost_table_kernel_rounds_as_numpy_on_a_million_values(rescale: bool
     )  # fmt: skip
     np.testing.assert_array_equal(d_ours, d_theirs)
     np.testing.assert_array_equal(ours, theirs)
+
+
+@pytest.mark.parametrize("task", ["ArmTrack-v1", "BodyTrack-v1", "WalkTrack-v1", "SideWalk-v1"])
+@pytest.mark.parametrize(
+    "options", [{}, {"color": "gray"}, {"width": 256, "height": 192}, {"noise_sigma": 20.0},
+                {"noise_sigma": 80.0}, {"noise_sigma": 0.0, "background": "flat"}],
+)  # fmt: skip
+def test_foregrounds_are_the_numpy_paths(task: str, options: dict, monkeypatch) -> None:
+    # The foreground probability, the border's colour, the mask of where edges
+    # count and whether the backdrop was used, with and without a backdrop,
+    # with noise that moves the threshold up (sigma 20), that hides the figure
+    # (80: the backdrop is dropped) and none: the kernels' arrays are the
+    # numpy path's.
+    from humotion_gym import body
+    from humotion_gym.camera import fit_camera
+
+    opts = SceneOptions(**options)
+    rng = np.random.default_rng(len(task) + len(options))
+    model = _task_model(task)
+    used = 0
+    for trial in range(4):
+        pose = body.standing_pose(SHAPE)
+        pose[6:] += rng.normal(0.0, 0.4, pose.size - 6)
+        kp = body.forward_kinematics(pose, SHAPE)[None]
+        cam = fit_camera(kp, opts.width, opts.height, 50.0, 40.0 * trial)
+        background = make_background(opts, rng)
+        first = pose.copy()
+        first[0] -= 250.0 * trial
+        first_frame = render(first, SHAPE, cam, opts, rng, background)
+        frame = render(pose, SHAPE, cam, opts, rng, background)
+        smooth = model._smoothed(frame, "test")
+        scale = opts.height / model.reference_height
+        for backdrop in (None, model.read_backdrop(first_frame, first, SHAPE, cam)):
+            got = model._foreground(smooth, backdrop, scale)
+            monkeypatch.setattr(_kernels, "ENABLED", False)
+            want = model._foreground(smooth, backdrop, scale)
+            monkeypatch.setattr(_kernels, "ENABLED", True)
+            for a, b in zip(got[:3], want[:3], strict=True):
+                assert (a is None) == (b is None)
+                if a is not None:
+                    assert a.dtype == b.dtype
+                    np.testing.assert_array_equal(a, b)
+            assert got[3] is want[3]
+            used += got[3] is not None
+    assert (used > 0) == (opts.noise_sigma < 50)  # the backdrop used, or dropped for noise
