@@ -157,8 +157,11 @@ def _call(kernel: str, *args: Any) -> Any:
 
 
 def _run(kernel: str, *args: Any) -> bool:
-    """Run a kernel that fills its arguments; False when numba failed (see :func:`_call`)."""
-    return _call(kernel, *args) is not _FAILED
+    """Run a kernel that fills its arguments; False when the kernels are off or numba failed.
+
+    (See :func:`_call`.)
+    """
+    return ENABLED and _call(kernel, *args) is not _FAILED
 
 
 def point_costs(
@@ -363,8 +366,6 @@ def cost_table(*args: Any) -> bool:
     Returns:
         False (the numpy path is to run) when the kernels are off or failed.
     """
-    if not ENABLED:
-        return False
     return _run("_cost_table", *args)
 
 
@@ -374,8 +375,6 @@ def colour_distances(*args: Any) -> bool:
     Returns:
         False (the numpy path is to run) when the kernels are off or failed.
     """
-    if not ENABLED:
-        return False
     return _run("_colour_distances", *args)
 
 
@@ -385,8 +384,6 @@ def foreground_map(*args: Any) -> bool:
     Returns:
         False (the numpy path is to run) when the kernels are off or failed.
     """
-    if not ENABLED:
-        return False
     return _run("_foreground_map", *args)
 
 
@@ -452,8 +449,6 @@ def paint_texture(*args: Any) -> bool:
     Returns:
         False (the numpy path is to run) when the kernels are off or failed.
     """
-    if not ENABLED:
-        return False
     return _run("_paint_texture", *args)
 
 
@@ -480,8 +475,6 @@ def draw_figure(
     Returns:
         False (OpenCV is to draw) when the kernels are off or failed.
     """
-    if not ENABLED:
-        return False
     return _run("_draw_figure", img, ellipses, quads, colors, order, wide, shift)
 
 
@@ -494,8 +487,6 @@ def figure_polygons(*args: Any) -> bool:
     Returns:
         False (the numpy path is to run) when the kernels are off or failed.
     """
-    if not ENABLED:
-        return False
     return _run("_figure_polygons", *args)
 
 
