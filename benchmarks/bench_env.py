@@ -4,7 +4,9 @@ Run: python benchmarks/bench_env.py   (pip install -e ".[bench]" for pygame)
 
 Each env steps with a fixed action (the cost of the agent is not counted),
 once stepping alone and once stepping and calling render() (the frame on show
-with the estimate drawn over it, what RecordVideo records); the reference is
+with the estimate drawn over it, what RecordVideo records), and at 128x128 also
+starts episodes (``reset()``, unseeded: each a new clip, background and
+cameras); the reference is
 Gymnasium's CartPole-v1 stepping and calling render() with
 render_mode="rgb_array", timed in alternation with each row so the ratio holds on a
 noisy machine. One core: run with OMP_NUM_THREADS=1.
@@ -72,8 +74,9 @@ def rows(quick: bool = False) -> list[tuple[str, float, str, float]]:
 
     The first row is the reference itself (its best rate over the run). Each
     env is timed stepping alone, then stepping and calling ``render()`` (what
-    ``RecordVideo`` does), with ``render_mode="rgb_array"``; each row's ratio is
-    against the reference timed in alternation with it.
+    ``RecordVideo`` does), with ``render_mode="rgb_array"``, and at 128x128
+    starting episodes (``reset()`` per second); each row's ratio is against the
+    reference timed in alternation with it.
 
     Args:
         quick: BodyTrack at 128x128 only (for the summary).
@@ -94,13 +97,21 @@ def rows(quick: bool = False) -> list[tuple[str, float, str, float]]:
                 refs.append(ref)
                 what = "step + render()" if render else "step"
                 out.append((f"{label} {what}", sps, ref_name, sps / ref))
+            if size == 128:
+                # Starting an episode (clip, background, cameras, figures, first
+                # frame): what an env pays per episode, and what bounds the
+                # vector env where episodes end after a few frames.
+                env.reset(seed=0)
+                rps, ref = paired_rates(env.reset, 100, cart, 100)
+                refs.append(ref)
+                out.append((f"{label} reset()", rps, ref_name, rps / ref))
     out.insert(0, (ref_name, max(refs), ref_name, 1.0))
     return out
 
 
 def main() -> None:
     measured = rows()
-    print(f"{'environment':46s} {'steps/s':>10s} {'x reference':>12s}")
+    print(f"{'environment':46s} {'calls/s':>10s} {'x reference':>12s}")
     ref_name, ref, _, _ = measured[0]
     print(f"{ref_name:46s} {ref:10,.0f} {1.0:12.2f}")
     for name, value, _, ratio in measured[1:]:

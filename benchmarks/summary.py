@@ -68,7 +68,9 @@ def _json_rows(unit: str) -> Callable[[str], list[Row]]:
         for figure, value, reference, ratio in json.loads(line[5:]):
             if figure == reference:
                 continue  # the reference's own row: it is named in the others
-            rows.append((figure, f"{value:,.0f} {unit}", reference, f"{ratio:.2f}x"))
+            # (bench_env's reset() rows count episodes started, not steps)
+            what = "resets/s" if figure.endswith("reset()") else unit
+            rows.append((figure, f"{value:,.0f} {what}", reference, f"{ratio:.2f}x"))
         return rows
 
     return read
