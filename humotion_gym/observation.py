@@ -584,7 +584,7 @@ class ObservationModel:
         unit = max(edge_out, fg_scale, app_scale) / 255.0 or 1.0
         table = np.empty((n_bins + 1 + n_app, h + 2, w + 2), np.uint8)
         span = np.float32(1.0 / (self.appearance_high - self.appearance_low))
-        compiled = _kernels.ENABLED and _kernels.cost_table(
+        compiled = _kernels.cost_table(
             dist, scale != 1.0, np.float32(1.0 / scale), np.float32(self.edge_truncation),
             edge_scale, np.float32(edge_out), fg, np.float32(fg_scale), smooth, app_colors,
             np.float32(self.appearance_low), span, np.float32(app_scale), np.float32(1.0 / unit),

@@ -276,7 +276,7 @@ def _paint_texture(
     # The texture's axes scaled to stripes, in float32 as the pixels' steps are.
     cos_a = np.float32(math.cos(angle) / period)
     sin_a = np.float32(math.sin(angle) / period)
-    if _kernels.ENABLED and _kernels.paint_texture(region, inside, palette, cos_a, sin_a, checker):
+    if _kernels.paint_texture(region, inside, palette, cos_a, sin_a, checker):
         return
     x = np.arange(w, dtype=np.float32)
     y = np.arange(h, dtype=np.float32)[:, None]
