@@ -173,6 +173,8 @@ class ParticleFilterAgent:
             torso, then each limb (:func:`body_part_stages`), ``n_particles``
             per stage; particles outside the joint limits never survive a stage.
         diffusion: The annealed or partitioned filter's diffusion scale.
+        alpha: The annealed filter's survival rate per layer.
+        beta_max: Cap on the annealed filter's exponents.
     """
 
     def __init__(
@@ -187,6 +189,8 @@ class ParticleFilterAgent:
         layers: int = 1,
         partitioned: bool = False,
         diffusion: float = 1.0,
+        alpha: float = 0.5,
+        beta_max: float = float("inf"),
     ) -> None:
         self.env: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
         task = self.env.task
@@ -219,8 +223,8 @@ class ParticleFilterAgent:
         else:
             self.filter = AnnealedParticleFilter(
                 prior, fitted, self.likelihood, self.n_particles, ANGLE_MASK[self.free],
-                estimate=estimate, layers=self.layers, diffusion=diffusion,
-                lower=VALID_LOWER[self.free], upper=VALID_UPPER[self.free],
+                estimate=estimate, layers=self.layers, diffusion=diffusion, alpha=alpha,
+                beta_max=beta_max, lower=VALID_LOWER[self.free], upper=VALID_UPPER[self.free],
             )  # fmt: skip
         self.seed = int(seed)
         self._seed_rng = np.random.default_rng(seed)
@@ -402,6 +406,12 @@ class AgentSpec:
         diffusion: The annealed or partitioned filter's diffusion: the
             standard deviation of its search, as a multiple of the spread of
             the prior's proposal.
+        alpha: The annealed filter's survival rate per layer (ESS / N).
+        beta_max: Cap on the annealed filter's exponents (inf: none).
+        task_filter_settings: Per task name, the filter's own settings (the
+            names of :data:`FILTER_SETTINGS`) chosen for that task by
+            cross-validation on training persons (``humotion-gym select --grid
+            filter.NAME=...``); they override the fields above.
     """
 
     prior: str
@@ -414,10 +424,43 @@ class AgentSpec:
     per_part: bool = False
     partitioned: bool = False
     diffusion: float = 1.0
+    alpha: float = 0.5
+    beta_max: float = float("inf")
+    task_filter_settings: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
 
     def settings_for(self, task: str) -> dict[str, Any]:
         """The fit settings of this agent on a task."""
         return {**self.fit_settings, **self.task_fit_settings.get(task, {})}
+
+    def filter_settings_for(
+        self, task: str, overrides: Mapping[str, float] | None = None
+    ) -> dict[str, Any]:
+        """The filter's settings on a task (:data:`FILTER_SETTINGS`), with ``overrides``.
+
+        Raises:
+            ValueError: If a name is not one of :data:`FILTER_SETTINGS`, or a
+                search setting is given to a plain particle filter.
+        """
+        chosen = {**self.task_filter_settings.get(task, {}), **(overrides or {})}
+        unknown = sorted(set(chosen) - set(FILTER_SETTINGS))
+        if unknown:
+            raise ValueError(
+                f"filter settings {unknown} are not the filter's (they are {list(FILTER_SETTINGS)})"
+            )
+        if chosen and self.layers == 1 and not self.partitioned:
+            raise ValueError(
+                f"filter settings {sorted(chosen)} are the annealed or partitioned filter's; "
+                f"this agent is a plain particle filter"
+            )
+        out: dict[str, Any] = {
+            "layers": self.layers,
+            "alpha": self.alpha,
+            "diffusion": self.diffusion,
+            "beta_max": self.beta_max,
+        }
+        out.update(chosen)
+        out["layers"] = int(out["layers"])
+        return out
 
     def setting_names(self) -> set[str]:
         """The names its fit settings may take (``humotion-gym select --grid fit.NAME``).
@@ -436,6 +479,13 @@ class AgentSpec:
         for label, spec in self.components:
             names |= {f"{label}.{n}" for n in spec.setting_names()}
         return names
+
+
+#: The filter's settings an agent's spec may set per task and ``humotion-gym
+#: select --grid filter.NAME=...`` may try: the annealed filter's layers per
+#: frame, survival rate per layer, diffusion scale and cap on its exponents
+#: (the partitioned filter takes the diffusion alone).
+FILTER_SETTINGS: tuple[str, ...] = ("layers", "alpha", "diffusion", "beta_max")
 
 
 def _import(path: str) -> ModuleType:
@@ -806,6 +856,7 @@ def make(
     estimate: str = "mean",
     fit_settings: Mapping[str, Any] | None = None,
     use_cache: bool = True,
+    filter_settings: Mapping[str, float] | None = None,
 ) -> ParticleFilterAgent | HoldAgent | RandomAgent:
     """A registered agent for an environment: a reference or a particle filter.
 
@@ -820,10 +871,13 @@ def make(
         estimate: ``"mean"`` or ``"map"``.
         fit_settings: Overrides of the prior's fit settings.
         use_cache: Read and write fitted priors in the cache.
+        filter_settings: Overrides of the filter's settings (names in
+            :data:`FILTER_SETTINGS`; the annealed or partitioned filter's).
 
     Raises:
         KeyError: If the name is unknown.
-        ValueError: If the agent does not support the env's task.
+        ValueError: If the agent does not support the env's task, or a filter
+            setting is unknown or not the agent's filter's.
     """
     if name in REFERENCES:
         return REFERENCES[name][0](env, seed=seed)
@@ -840,8 +894,11 @@ def make(
         if hasattr(module, "check_task"):
             module.check_task(base.task.name)  # the prior's own explanation
         raise ValueError(f"{name} supports the tasks {list(spec.tasks)} only, not {base.task.name}")
+    spec.filter_settings_for(base.task.name, filter_settings)  # checked before the fit
     module, fitted = fit_prior(spec, base, fit_settings, use_cache=use_cache)
-    return filter_agent(spec, env, module, fitted, n_particles, seed, estimate, name)
+    return filter_agent(
+        spec, env, module, fitted, n_particles, seed, estimate, name, filter_settings
+    )
 
 
 def filter_agent(
@@ -853,9 +910,16 @@ def filter_agent(
     seed: int,
     estimate: str,
     name: str,
+    filter_settings: Mapping[str, float] | None = None,
 ) -> ParticleFilterAgent:
-    """The particle-filter agent of a registered spec over a fitted prior."""
+    """The particle-filter agent of a registered spec over a fitted prior.
+
+    The filter takes the spec's settings for the env's task
+    (:meth:`AgentSpec.filter_settings_for`), overridden by ``filter_settings``.
+    """
+    base: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
+    settings = spec.filter_settings_for(base.task.name, filter_settings)
     return ParticleFilterAgent(
-        env, module, fitted, n_particles, seed, estimate, name, layers=spec.layers,
-        partitioned=spec.partitioned, diffusion=spec.diffusion,
+        env, module, fitted, n_particles, seed, estimate, name,
+        partitioned=spec.partitioned, **settings,
     )  # fmt: skip

@@ -68,3 +68,20 @@ def test_prior_settings_are_selected_like_likelihood_settings(tmp_path, monkeypa
         select_observation_settings("SideWalk-v1", "pf-cv", {"fit.nonsense": [1.0]}, fold)
     with pytest.raises(ValueError, match="particle-filter agent"):
         select_observation_settings("SideWalk-v1", "hold", {"fit.damping": [1.0]}, fold)
+
+
+def test_the_annealed_filters_settings_are_selected_like_the_priors(tmp_path, monkeypatch):
+    monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
+    fold = validation_library(None)
+    grid = {"filter.alpha": [0.5, 0.9], "filter.layers": [2]}
+    out = select_observation_settings("SideWalk-v1", "apf-cv", grid, fold, particles=20, episodes=2)
+    assert [r["settings"] for r in out["rows"]] == [
+        {"filter.alpha": 0.5, "filter.layers": 2},
+        {"filter.alpha": 0.9, "filter.layers": 2},
+    ]
+    # The survival rate reaches the filter: the two runs differ.
+    assert out["rows"][0]["mean_error_mm"] != out["rows"][1]["mean_error_mm"]
+    with pytest.raises(ValueError, match="not filter settings"):
+        select_observation_settings("SideWalk-v1", "apf-cv", {"filter.nonsense": [1.0]}, fold)
+    with pytest.raises(ValueError, match="annealed agent"):
+        select_observation_settings("SideWalk-v1", "pf-cv", {"filter.alpha": [0.5]}, fold)

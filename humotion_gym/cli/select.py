@@ -29,7 +29,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "select",
         help="choose a likelihood setting by cross-validation on training persons",
         description="Track the validation persons (training persons held out of the priors' "
-        "data) with each candidate value of likelihood settings (or prior settings, fit.NAME) "
+        "data) with each candidate value of likelihood settings (or prior settings, fit.NAME, or "
+        "the annealed filter's settings, filter.NAME) "
         "and pick the combination with the lowest mean error. Test persons are never loaded.",
     )
     add_task(sel, "ArmTrack-v1")
@@ -40,7 +41,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sel.add_argument(
         "--grid", nargs="+", default=["sharpness=1,2,3,5"], metavar="NAME=V1,V2",
         help="candidate values per ObservationModel setting, or per setting of the agent's "
-        "prior written fit.NAME (e.g. fit.damping=1,0.5); every combination is tried "
+        "prior written fit.NAME (e.g. fit.damping=1,0.5), or of the annealed filter written "
+        "filter.NAME (layers, alpha, diffusion, beta_max; e.g. filter.alpha=0.5,0.7); every "
+        "combination is tried "
         "(default: sharpness=1,2,3,5)",
     )  # fmt: skip
     add_particles(sel)

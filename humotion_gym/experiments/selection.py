@@ -62,6 +62,9 @@ def validation_library(
 
 #: Prefix of a grid name that is a setting of the agent's prior (its ``fit`` keyword).
 FIT_PREFIX = "fit."
+#: Prefix of a grid name that is a setting of the agent's filter (the annealed
+#: filter's ``layers``, ``alpha``, ``diffusion``, ``beta_max``).
+FILTER_PREFIX = "filter."
 
 
 def _observation_fields() -> set[str]:
@@ -88,9 +91,12 @@ def select_observation_settings(
         grid: Candidate values per :class:`ObservationModel` field
             (``{"sharpness": [1, 2], "foreground_weight": [0, 0.5]}``), or per
             setting of the agent's prior with a ``fit.`` prefix
-            (``{"fit.damping": [1, 0.5]}``: a keyword of the prior's ``fit``);
-            every combination is tried, starting from the task's own settings
-            and the agent's registered fit settings.
+            (``{"fit.damping": [1, 0.5]}``: a keyword of the prior's ``fit``),
+            or per setting of the annealed filter with a ``filter.`` prefix
+            (``{"filter.alpha": [0.5, 0.8]}``,
+            :data:`baselines.agents.FILTER_SETTINGS`); every combination is
+            tried, starting from the task's own settings and the agent's
+            registered fit and filter settings.
         library: A validation fold (:func:`validation_library`).
         particles: Particles of the agent.
         episodes: Seeded episodes per combination (the same for every one).
@@ -113,21 +119,33 @@ def select_observation_settings(
         lowest mean error (ties: the first in grid order).
 
     Raises:
-        ValueError: If a name is neither a likelihood setting nor a ``fit.``
-            keyword of the prior, a value list is empty, or ``library`` is not
-            a validation fold of training persons.
+        ValueError: If a name is neither a likelihood setting, a ``fit.``
+            keyword of the prior nor a ``filter.`` setting of an annealed
+            agent, a value list is empty, or ``library`` is not a validation
+            fold of training persons.
     """
-    from baselines.agents import AGENTS, make
+    from baselines.agents import AGENTS, FILTER_SETTINGS, make
     from baselines.evaluation import evaluate, run_episode
 
     fields = _observation_fields()
     fit_names = [n for n in grid if n.startswith(FIT_PREFIX)]
-    unknown = sorted(set(grid) - fields - set(fit_names))
+    filter_names = [n for n in grid if n.startswith(FILTER_PREFIX)]
+    unknown = sorted(set(grid) - fields - set(fit_names) - set(filter_names))
     if unknown:
         raise ValueError(
             f"grid: {unknown} are not ObservationModel settings (they are {sorted(fields)}) "
-            f"nor prior settings written {FIT_PREFIX}NAME"
+            f"nor prior settings written {FIT_PREFIX}NAME nor filter settings written "
+            f"{FILTER_PREFIX}NAME"
         )
+    if filter_names:
+        if agent not in AGENTS or AGENTS[agent].layers == 1:
+            raise ValueError(f"grid: {filter_names} need an annealed agent (apf-...), not {agent}")
+        bad = sorted(n for n in filter_names if n[len(FILTER_PREFIX) :] not in FILTER_SETTINGS)
+        if bad:
+            raise ValueError(
+                f"grid: {bad} are not filter settings (they are "
+                f"{[FILTER_PREFIX + n for n in FILTER_SETTINGS]})"
+            )
     if fit_names:
         if agent not in AGENTS:
             raise ValueError(f"grid: {fit_names} need a particle-filter agent, not {agent}")
@@ -157,11 +175,15 @@ def select_observation_settings(
             raise ValueError(f"{spec.name}: the validation persons have no still episode")
 
     def errors(
-        agent_name: str, model: ObservationModel, fit: dict[str, float] | None = None
+        agent_name: str,
+        model: ObservationModel,
+        fit: dict[str, float] | None = None,
+        search: dict[str, float] | None = None,
     ) -> tuple[list[float], list[float]]:
         env = gym.make(f"humotion_gym/{spec.name}", library=library, observation_model=model,
                        **kwargs)  # fmt: skip
-        runner = make(agent_name, env, n_particles=particles, seed=seed, fit_settings=fit)
+        runner = make(agent_name, env, n_particles=particles, seed=seed, fit_settings=fit,
+                      filter_settings=search)  # fmt: skip
         out = [r.mean_error_mm for r in evaluate(runner, env, episodes, seed=seed)]
         quiet = [
             run_episode(runner, env, seed + k, w.options).mean_error_mm
@@ -177,12 +199,15 @@ def select_observation_settings(
     base_fit = AGENTS[agent].settings_for(spec.name) if agent in AGENTS else {}
     for combo in itertools.product(*(grid[n] for n in names)):
         settings = {
-            n: v if n.startswith(FIT_PREFIX) else type(getattr(default, n))(v)
+            n: type(getattr(default, n))(v) if n in fields else v
             for n, v in zip(names, combo, strict=True)
         }
         model = replace(default, **{n: v for n, v in settings.items() if n in fields})
         fit = {n[len(FIT_PREFIX) :]: v for n, v in settings.items() if n.startswith(FIT_PREFIX)}
-        regular, quiet = errors(agent, model, {**base_fit, **fit} if fit else None)
+        search = {
+            n[len(FILTER_PREFIX) :]: v for n, v in settings.items() if n.startswith(FILTER_PREFIX)
+        }
+        regular, quiet = errors(agent, model, {**base_fit, **fit} if fit else None, search or None)
         mean = float(np.mean(regular))
         row = {"settings": settings, "mean_error_mm": mean, "hold_ratio": hold / mean}
         if windows:

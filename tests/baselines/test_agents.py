@@ -161,3 +161,35 @@ def test_pf_follow_moves_the_body_and_holds_the_first_articulation():
     assert np.ptp(estimates[:, :3], axis=0).max() > 1.0  # the root moves
     with pytest.raises(ValueError, match="supports"):
         make("pf-follow", gym.make("humotion_gym/ArmTrack-v1"), n_particles=10)
+
+
+def test_the_annealed_filters_settings_come_from_the_spec_the_task_and_the_caller(monkeypatch):
+    import dataclasses
+
+    from baselines import agents
+    from humotion_gym.filtering import AnnealedParticleFilter, ParticleFilter
+
+    env = gym.make("humotion_gym/ArmTrack-v1")
+    default = make("apf-cv", env, n_particles=10)
+    assert isinstance(default.filter, AnnealedParticleFilter)
+    assert (default.filter.layers, default.filter.alpha) == (10, 0.5)
+    assert (default.filter.diffusion, default.filter.beta_max) == (1.0, np.inf)
+    # A task's own settings override the spec's; the caller's override both.
+    spec = dataclasses.replace(
+        AGENTS["apf-cv"], task_filter_settings={"ArmTrack-v1": {"alpha": 0.7, "diffusion": 0.3}}
+    )
+    monkeypatch.setitem(agents.AGENTS, "apf-test", spec)
+    chosen = make("apf-test", env, n_particles=10)
+    assert (chosen.filter.alpha, chosen.filter.diffusion, chosen.filter.layers) == (0.7, 0.3, 10)
+    called = make("apf-test", env, n_particles=10, filter_settings={"layers": 3.0, "beta_max": 1})
+    assert (called.filter.layers, called.filter.beta_max, called.filter.alpha) == (3, 1.0, 0.7)
+    body = make("apf-test", gym.make("humotion_gym/BodyTrack-v1"), n_particles=10)
+    assert (body.filter.alpha, body.filter.diffusion) == (0.5, 1.0)  # ArmTrack's alone
+    one = make("apf-test", env, n_particles=10, filter_settings={"layers": 1})
+    assert type(one.filter) is ParticleFilter
+    with pytest.raises(ValueError, match="not the filter's"):
+        make("apf-cv", env, n_particles=10, filter_settings={"sharpness": 2.0})
+    with pytest.raises(ValueError, match="plain particle filter"):
+        make("pf-cv", env, n_particles=10, filter_settings={"alpha": 0.7})
+    with pytest.raises(ValueError, match="alpha must be in"):
+        make("apf-cv", env, n_particles=10, filter_settings={"alpha": 1.5})
