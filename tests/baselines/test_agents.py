@@ -170,10 +170,16 @@ def test_the_annealed_filters_settings_come_from_the_spec_the_task_and_the_calle
     from humotion_gym.filtering import AnnealedParticleFilter, ParticleFilter
 
     env = gym.make("humotion_gym/ArmTrack-v1")
-    default = make("apf-cv", env, n_particles=10)
+    # SideWalk's apf-cv keeps the paper's settings (none chosen for it there)
+    default = make("apf-cv", gym.make("humotion_gym/SideWalk-v1"), n_particles=10)
     assert isinstance(default.filter, AnnealedParticleFilter)
     assert (default.filter.layers, default.filter.alpha) == (10, 0.5)
     assert (default.filter.diffusion, default.filter.beta_max) == (1.0, np.inf)
+    registered = make("apf-cv", env, n_particles=10)
+    assert (registered.filter.alpha, registered.filter.diffusion) == (
+        agents.APF_CV_SETTINGS["ArmTrack-v1"]["alpha"],
+        agents.APF_CV_SETTINGS["ArmTrack-v1"]["diffusion"],
+    )
     # A task's own settings override the spec's; the caller's override both.
     spec = dataclasses.replace(
         AGENTS["apf-cv"], task_filter_settings={"ArmTrack-v1": {"alpha": 0.7, "diffusion": 0.3}}
