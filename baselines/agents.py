@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -795,6 +795,9 @@ APF_TREE_VEL_SETTINGS: dict[str, dict[str, float]] = {
     "SideWalk-v1": {"alpha": 0.95, "diffusion": 0.1},
 }
 
+#: apf-mix's (see above).
+APF_MIX_SETTINGS: dict[str, dict[str, float]] = {}
+
 AGENTS: dict[str, AgentSpec] = {
     "pf-cv": AgentSpec(
         "humotion_gym.priors.constant_velocity",
@@ -891,6 +894,17 @@ AGENTS: dict[str, AgentSpec] = {
         tasks=("WalkTrack-v1", "SideWalk-v1"),
     ),
 }
+#: The annealed filter over pf-mix's prior (its weights and components as
+#: pf-mix's on each task), so that the annealed filter too has a prior that can
+#: stand still; its survival rate and diffusion chosen as the other annealed
+#: agents' (``APF_MIX_SETTINGS``).
+AGENTS["apf-mix"] = replace(
+    AGENTS["pf-mix"],
+    layers=10,
+    task_filter_settings=APF_MIX_SETTINGS,
+    description="annealed particle filter, 10 layers, proposals from pf-mix's mixture; "
+    "survival rate and diffusion chosen per task",
+)
 
 
 def agent_names() -> list[str]:
