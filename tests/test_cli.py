@@ -61,6 +61,27 @@ def test_tasks_and_agents_list_what_exists(capsys):
     assert {"hold", "random", "pf-cv", "pf-tree"} <= names
 
 
+def test_agents_show_each_filters_settings_on_a_task(capsys):
+    from baselines.agents import AGENTS
+
+    assert main(["agents", "--task", "humotion_gym/BodyTrack-v1", "--json"]) == 0
+    rows = {r["agent"]: r for r in map(json.loads, capsys.readouterr().out.splitlines())}
+    apf = rows["apf-tree"]["settings"]
+    assert apf["task"] == "BodyTrack-v1"
+    expected = AGENTS["apf-tree"].filter_settings_for("BodyTrack-v1")
+    assert apf["filter"] == {**expected, "beta_max": None}  # no cap: JSON null
+    assert rows["pf-tree-vel"]["settings"]["fit"] == AGENTS["pf-tree-vel"].settings_for(
+        "BodyTrack-v1"
+    )
+    assert rows["pf-cv"]["settings"]["filter"] == {"layers": 1}
+    assert "settings" not in rows["pf-slds"]  # not a BodyTrack agent
+    assert "settings" not in rows["hold"]
+    assert main(["agents", "--task", "ArmTrack-v1"]) == 0
+    out = capsys.readouterr().out
+    assert "on ArmTrack-v1: fit" in out and "filter layers=10, alpha=" in out
+    assert main(["agents", "--task", "NoTask-v1"]) == 2
+
+
 def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
     for part, size in (("clips", 10), ("priors", 20), ("cmu", 30)):
