@@ -11,7 +11,9 @@ layer's, ms/frame is the whole frame's.
 
 Reports pf-cv and pf-tree at 300, 3,000 and 10,000 particles, split into the
 prior's transition, the observation model (prepare + score, with the task's given
-body: its backdrop and coverage terms, as the agent scores) and the rest. The
+body: its backdrop and coverage terms, as the agent scores) and the rest; the
+``prepare`` column is the likelihood's part that does not grow with the particles
+(the frame's edges, distance maps, foreground and coverage points). The
 reference, measured in the same run at each particle count, is a plain numpy
 scorer of the same frame (``bench_observation.reference_scores``: forward
 kinematics, projection and 150 nearest-pixel lookups per pose; best of three
@@ -70,7 +72,7 @@ def main() -> None:
     )
     print(
         f"{'agent':10s} {'particles':>9s} {'ms/frame':>9s} {'transition':>11s} "
-        f"{'likelihood':>11s} {'ref ms':>8s} {'x ref':>6s}"
+        f"{'likelihood':>11s} {'prepare':>8s} {'ref ms':>8s} {'x ref':>6s}"
     )
     for name in args.agents:
         for n in args.particles:
@@ -79,7 +81,7 @@ def main() -> None:
             poses = info["initial_pose"] + rng.normal(0.0, 0.05, (n, 25))
             camera = steps[0][4]["camera"]
             ref = best = np.inf
-            trans = lik = np.inf
+            trans = lik = prep = np.inf
             for _ in range(args.repeats):
                 for _ in range(3):  # its large temporaries make single calls jumpy
                     t = clock()
@@ -87,7 +89,7 @@ def main() -> None:
                     ref = min(ref, clock() - t)
                 agent.observe_info(info)
                 agent.predict(obs, episode_start=True)
-                total = trans_sum = lik_sum = 0.0
+                total = trans_sum = lik_sum = prep_sum = 0.0
                 for frame, _, _, _, step_info in steps:
                     agent.observe_info(step_info)
                     state = agent.filter.state
@@ -100,6 +102,7 @@ def main() -> None:
                     )
                     # The given body (backdrop, coverage points) as the agent prepares it.
                     feats = base.observation_model.prepare(frame, agent.likelihood.given())
+                    prep_sum += clock() - t
                     agent.likelihood.log_likelihood(feats, state.pose)
                     lik_sum += clock() - t
                     t = clock()
@@ -107,10 +110,11 @@ def main() -> None:
                     total += clock() - t
                 best = min(best, total)
                 trans, lik = min(trans, trans_sum), min(lik, lik_sum)
+                prep = min(prep, prep_sum)
             k = 1000 / args.frames
             print(
                 f"{name:10s} {n:9,d} {best * k:9.2f} {trans * k:11.2f} {lik * k:11.2f} "
-                f"{1000 * ref:8.2f} {best / args.frames / ref:6.2f}"
+                f"{prep * k:8.2f} {1000 * ref:8.2f} {best / args.frames / ref:6.2f}"
             )
 
 

@@ -175,12 +175,13 @@ def _read_tree(out: str) -> list[Row]:
 
 
 def _read_agents(out: str) -> list[Row]:
-    # columns: agent, particles, ms/frame, transition, likelihood, ref ms, x ref
+    # columns: agent, particles, ms/frame, transition, likelihood, prepare, ref ms, x ref
     return [
         (f"{m[0]}, {m[1]} particles, per frame", f"{m[2]} ms",
          f"a plain numpy scorer of the same frame ({m[3]} ms)", f"{m[4]}x the time")
         for m in re.findall(
-            r"^(\S+)\s+([\d,]+)\s+([\d.]+)\s+[\d.]+\s+[\d.]+\s+([\d.]+)\s+([\d.]+)$", out, re.M
+            r"^(\S+)\s+([\d,]+)\s+([\d.]+)\s+[\d.]+\s+[\d.]+\s+[\d.]+\s+([\d.]+)\s+([\d.]+)$",
+            out, re.M,
         )
     ]  # fmt: skip
 
