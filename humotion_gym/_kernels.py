@@ -31,7 +31,7 @@ The renderer's: :func:`figure_polygons` and :func:`draw_figure` (the cone
 figure's polygons, and OpenCV's fill of them), :func:`clutter_plan` (every
 random draw of an episode's background clutter, numba's ports of numpy's
 draws) and :func:`paint_texture` (its stripes and checks); the tree prior's
-:func:`paced_histories`.
+:func:`paced_path`.
 
 Why the results match: every step the numpy paths take elementwise is one
 IEEE float32 operation (add, multiply, divide, square root, comparison), and
@@ -72,7 +72,7 @@ __all__ = [
     "env_keypoints",
     "figure_polygons",
     "foreground_map",
-    "paced_histories",
+    "paced_path",
     "enabled",
     "kinematics",
     "paint_texture",
@@ -490,24 +490,22 @@ def figure_polygons(*args: Any) -> bool:
     return _run("_figure_polygons", *args)
 
 
-def paced_histories(
+def paced_path(
     history: NDArray[Any], speed: NDArray[np.float64], ix: int, iy: int, yaw: int
-) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
-    """``tree._at_database_pace``'s histories and their root path turned into the heading frame.
+) -> NDArray[np.float64] | None:
+    """``tree._paced_path``: the root path at the database's pace, in the heading frame.
 
     Returns:
-        ``(N, d + 1, D)`` the paced histories and ``(N, d + 1, 2)`` the turned
-        path (``tree._coefficients``' ``turned``), the numpy path's numbers;
-        None when the kernels are off or failed.
+        ``(N, d + 1, 2)`` the turned path (``tree._coefficients``' ``turned``),
+        the numpy path's numbers; None when the kernels are off or failed.
     """
     if not ENABLED:
         return None
     heading = -np.asarray(history[:, -1, yaw], dtype=np.float64)
-    out = np.empty(history.shape)
     turned = np.empty(history.shape[:2] + (2,))
     if not _run(
-        "_paced_histories", np.ascontiguousarray(history), np.ascontiguousarray(speed, np.float64),
-        ix, iy, np.cos(heading), np.sin(heading), out, turned,
+        "_paced_path", np.ascontiguousarray(history), np.ascontiguousarray(speed, np.float64),
+        ix, iy, np.cos(heading), np.sin(heading), turned,
     ):  # fmt: skip
         return None
-    return out, turned
+    return turned

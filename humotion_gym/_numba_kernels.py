@@ -944,32 +944,27 @@ def _figure_polygons(
 
 
 @_njit()
-def _paced_histories(
+def _paced_path(
     history: NDArray[Any], speed: NDArray[np.float64], ix: int, iy: int,
-    cos_h: NDArray[np.float64], sin_h: NDArray[np.float64], out: NDArray[np.float64],
-    turned: NDArray[np.float64],
+    cos_h: NDArray[np.float64], sin_h: NDArray[np.float64], turned: NDArray[np.float64],
 ) -> None:  # fmt: skip
-    """``tree._at_database_pace`` and the heading turn of its root path, in one pass.
+    """``tree._paced_path``: the root path at the database's pace, turned, in one pass.
 
-    ``out`` ``(N, d + 1, D)``: the histories in double precision, root x and y
-    taken relative to the last frame, divided by each speed and put back
-    (``last + (x - last) * (1 / speed)``); ``turned`` ``(N, d + 1, 2)``: that
-    path turned by the last heading (``c x - s y``, ``s x + c y``, with numpy's
-    ``cos`` and ``sin`` given). The numpy path's operations, in its order.
+    ``turned`` ``(N, d + 1, 2)``: root x and y in double precision, taken
+    relative to the last frame, divided by each speed and put back
+    (``last + (x - last) * (1 / speed)``), then turned by the last heading
+    (``c x - s y``, ``s x + c y``, with numpy's ``cos`` and ``sin`` given).
+    The numpy path's operations, in its order.
     """
-    n, frames, dims = history.shape
+    n, frames = history.shape[0], history.shape[1]
     for p in range(n):
         inv = 1.0 / speed[p]
         last_x = np.float64(history[p, frames - 1, ix])
         last_y = np.float64(history[p, frames - 1, iy])
         c, s = cos_h[p], sin_h[p]
         for f in range(frames):
-            for d in range(dims):
-                out[p, f, d] = np.float64(history[p, f, d])
-            x = last_x + (out[p, f, ix] - last_x) * inv
-            y = last_y + (out[p, f, iy] - last_y) * inv
-            out[p, f, ix] = x
-            out[p, f, iy] = y
+            x = last_x + (np.float64(history[p, f, ix]) - last_x) * inv
+            y = last_y + (np.float64(history[p, f, iy]) - last_y) * inv
             turned[p, f, 0] = c * x - s * y
             turned[p, f, 1] = s * x + c * y
 

@@ -1443,22 +1443,26 @@ def _has_speed(fitted: TreeParams, lay: _Layout) -> bool:
     return fitted.speed_spread > 0 and lay.rel_xy is not None
 
 
-def _at_database_pace(history: FloatArray, speed: FloatArray, lay: _Layout) -> FloatArray:
-    """Histories whose root path (relative to the last frame) is divided by each speed."""
-    out = np.array(history, dtype=np.float64, copy=True)
+def _paced_path(history: NDArray[Any], speed: FloatArray, lay: _Layout) -> FloatArray:
+    """``(N, d + 1, 2)`` each history's root path at the database's pace, in its heading frame.
+
+    The path relative to the last frame is divided by the particle's speed
+    (``last + (x - last) / speed``), then turned by the last frame's heading
+    (``tree._coefficients``' ``turned``), in double precision. The compiled
+    kernel gives the same numbers in one pass over the two columns.
+    """
     ix, iy = _root_xy(lay)
-    inv = 1.0 / speed[:, None]
-    for i in (ix, iy):
-        last = out[:, -1:, i]
-        out[:, :, i] = last + (out[:, :, i] - last) * inv
+    yaw = int(lay.relative[lay.rel_yaw])
+    turned = _kernels.paced_path(history, speed, ix, iy, yaw)
+    if turned is not None:
+        return turned
+    xy = history[..., [ix, iy]].astype(np.float64)
+    last = xy[:, -1:]
+    paced = last + (xy - last) * (1.0 / speed)[:, None, None]
+    out = np.empty(xy.shape)
+    heading = np.asarray(history[:, -1:, yaw], dtype=np.float64)
+    out[..., 0], out[..., 1] = _rotate(paced[..., 0], paced[..., 1], -heading)
     return out
-
-
-# Histories brought to the database's pace and projected in blocks of this many
-# particles: at 10,000 the float64 copy (22 MB) leaves the cache between the
-# two passes over it, a block of 1,024 (2.3 MB) does not (4.3 instead of 7.4 ms
-# per frame on this project's machines; 3,000 particles: no change).
-_PACE_ROWS = 1024
 
 
 def _search_coefficients(
@@ -1466,34 +1470,23 @@ def _search_coefficients(
 ) -> FloatArray:
     """The coefficients the particles search the tree with (see :func:`transition`).
 
-    Each row's product with the projection is its own, so the blocks give
-    the numbers of one pass (here bit for bit; ``tests/priors/test_tree.py``
-    checks them to rounding).
+    A particle with a speed is searched at the database's pace: its root path
+    slowed or sped up to it. The projection's rows for the root's x and y are
+    zero (that path enters only turned, through ``projection_heading``; see
+    :func:`_history_projection`), so the pacing changes only the turned path
+    and the rest of the product reads the stored histories as they are, in
+    their own precision, as it does for a prior without speed.
     """
     if speed is None:
         return window_coefficients(fitted, history)
-    out = np.empty((history.shape[0], fitted.projection.shape[1]))
-    ix, iy = _root_xy(lay)
-    yaw = int(lay.relative[lay.rel_yaw])
-    for lo in range(0, history.shape[0], _PACE_ROWS):
-        rows = slice(lo, lo + _PACE_ROWS)
-        # The compiled kernel makes the paced copy and turns its root path in
-        # one pass (the same numbers); else numpy does both.
-        paced = _kernels.paced_histories(history[rows], speed[rows], ix, iy, yaw)
-        if paced is None:
-            out[rows] = window_coefficients(
-                fitted, _at_database_pace(history[rows], speed[rows], lay)
-            )
-            continue
-        out[rows] = _coefficients(
-            paced[0],
-            lay,
-            fitted.projection,
-            fitted.projection_heading,
-            fitted.projection_offset,
-            paced[1],
-        )
-    return out
+    return _coefficients(
+        history,
+        lay,
+        fitted.projection,
+        fitted.projection_heading,
+        fitted.projection_offset,
+        _paced_path(history, speed, lay),
+    )
 
 
 def _history_of(fitted: TreeParams, state: ParticleState) -> FloatArray:
