@@ -408,6 +408,16 @@ def _rotate(x: FloatArray, y: FloatArray, angle: FloatArray) -> tuple[FloatArray
     return c * x - s * y, s * x + c * y
 
 
+def _heading_frame(xy: NDArray[Any], heading: NDArray[Any]) -> FloatArray:
+    """``(N, F, 2)`` root paths ``xy`` turned into the frame of ``heading`` ``(N, 1)``.
+
+    ``R_z(-heading)`` in the inputs' precision, stored in double precision.
+    """
+    out = np.empty(xy.shape)
+    out[..., 0], out[..., 1] = _rotate(xy[..., 0], xy[..., 1], -heading)
+    return out
+
+
 def _anchor_relative(rel: FloatArray, lay: _Layout) -> FloatArray:
     """Relative parameters of ``(..., d + 1, D_rel)`` histories, anchored at the last frame.
 
@@ -559,10 +569,7 @@ def _coefficients(
         heading = history[:, -1:, lay.relative[lay.rel_yaw]]
         # Both columns in one gather: each is a strided pass over the whole
         # history (11 MB at 10,000 particles), so reading them together halves it.
-        xy = history[..., [ix, iy]]
-        path = np.empty((n, history.shape[1], 2))
-        path[..., 0], path[..., 1] = _rotate(xy[..., 0], xy[..., 1], -heading)
-        c += path.reshape(n, -1) @ projection_heading
+        c += _heading_frame(history[..., [ix, iy]], heading).reshape(n, -1) @ projection_heading
     return c
 
 
@@ -1459,10 +1466,7 @@ def _paced_path(history: NDArray[Any], speed: FloatArray, lay: _Layout) -> Float
     xy = history[..., [ix, iy]].astype(np.float64)
     last = xy[:, -1:]
     paced = last + (xy - last) * (1.0 / speed)[:, None, None]
-    out = np.empty(xy.shape)
-    heading = np.asarray(history[:, -1:, yaw], dtype=np.float64)
-    out[..., 0], out[..., 1] = _rotate(paced[..., 0], paced[..., 1], -heading)
-    return out
+    return _heading_frame(paced, np.asarray(history[:, -1:, yaw], dtype=np.float64))
 
 
 def _search_coefficients(
