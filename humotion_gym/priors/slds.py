@@ -75,6 +75,7 @@ from humotion_gym.mocap.motion import Motion
 from humotion_gym.priors._io import load_fitted, save_fitted
 from humotion_gym.priors._synthesis import check_request, model_frames, to_motion
 from humotion_gym.priors.slds_inference import (
+    COV_RTOL,
     SLDSParams,
     combine,
     length_batches,
@@ -82,7 +83,13 @@ from humotion_gym.priors.slds_inference import (
     sample_switches,
     stabilise,
 )
-from humotion_gym.priors.slds_learning import EMResult, EMStart, run_em, start_em
+from humotion_gym.priors.slds_learning import (
+    EMResult,
+    EMStart,
+    check_cov_rtol,
+    run_em,
+    start_em,
+)
 from humotion_gym.threads import available_cores, limit_blas_threads
 
 FloatArray = NDArray[np.float64]
@@ -116,6 +123,18 @@ CLASSIFY_N_ITER = 20
 #: covariance table keeps the work per step nearly flat in it; larger batches
 #: were slower on the walking data, 25 s at 64 against 35 s at 200 and 400).
 MAX_BATCH = 64
+#: Identification tolerance of the E-step's covariance table when :func:`fit`
+#: fits the prior (:class:`~humotion_gym.priors.slds_inference.CovarianceTable`;
+#: the library's default, ``COV_RTOL`` = 1e-10, is what :func:`fit_activity` and
+#: the classification experiments use). The prior is fitted on an agent's first
+#: use, where its seconds count: on the shared training data 1e-6 leaves every
+#: decoded path as it was and moves the fitted parameters by at most 1.1e-7
+#: (SideWalk-v1) and 1.3e-6 (ArmTrack-v1) of their largest entry, four orders of
+#: magnitude below what EM's last iteration still changes (its cost falls about
+#: 0.1% an iteration), and takes a quarter (ArmTrack-v1's 18 models) to two
+#: fifths (SideWalk-v1's walking model: 13.2 -> 7.8 s) less time. 1e-4 changed
+#: the walking model's paths.
+FIT_COV_RTOL = 1e-6
 #: Settings of :func:`fit` that say how it runs, not what it fits: left out of
 #: the fitted-prior cache's key (:func:`humotion_gym.priors.fitting.fit_prior`).
 RUN_SETTINGS: tuple[str, ...] = ("workers",)
@@ -194,6 +213,7 @@ def fit_activity(
     max_batch: int = MAX_BATCH,
     max_radius: float | None = None,
     progress: Callable[[int, float], None] | None = None,
+    cov_rtol: float = COV_RTOL,
 ) -> EMResult:
     """Learn one SLDS from clips of one activity (section 2.3).
 
@@ -212,22 +232,26 @@ def fit_activity(
             default) keeps EM's estimate, the better one-step predictor.
         progress: Called after every EM iteration (see
             :func:`~humotion_gym.priors.slds_learning.fit_em`).
+        cov_rtol: The E-step's covariance table's tolerance (see
+            :data:`FIT_COV_RTOL`; the default, 1e-10, gives the exact
+            recursion's model to rounding).
 
     Returns:
         The fit with its cost per iteration (of EM, before the stabilisation).
     """
+    cov_rtol = check_cov_rtol(cov_rtol, "slds.fit_activity")
     start = _start_activity(motions, free, rng, n_states, order, frame_skip, label)
-    result = run_em(start, n_iter=n_iter, max_batch=max_batch, progress=progress)
+    result = run_em(start, n_iter=n_iter, max_batch=max_batch, progress=progress, cov_rtol=cov_rtol)
     if max_radius is None:
         return result
     return dataclasses.replace(result, params=stabilise(result.params, max_radius))
 
 
-def _run_activity(start: EMStart, n_iter: int) -> tuple[SLDSParams, float]:
+def _run_activity(start: EMStart, n_iter: int, cov_rtol: float) -> tuple[SLDSParams, float]:
     """One activity's EM in a worker process: the model and the seconds it took."""
     limit_blas_threads()  # the workers share the cores: one BLAS thread each
     t0 = time.perf_counter()
-    params = run_em(start, n_iter=n_iter, max_batch=MAX_BATCH).params
+    params = run_em(start, n_iter=n_iter, max_batch=MAX_BATCH, cov_rtol=cov_rtol).params
     return params, time.perf_counter() - t0
 
 
@@ -269,6 +293,7 @@ def fit(
     switch_prob: float = SWITCH_PROB,
     max_clips_per_label: int | None = None,
     workers: int | None = None,
+    cov_rtol: float = FIT_COV_RTOL,
 ) -> SLDSParams:
     """Fit the SLDS prior: one model per activity label, joined (section 4.1).
 
@@ -295,6 +320,9 @@ def fit(
             most one per model, and one when the clips hold fewer than
             :data:`PARALLEL_MIN_FRAMES` frames (a fit of a few seconds, which
             starting processes would slow). 1: all in this process.
+        cov_rtol: The E-step's covariance table's tolerance
+            (:data:`FIT_COV_RTOL`; ``slds_inference.COV_RTOL`` for the exact
+            recursion's model to rounding, at a third to two thirds more time).
 
     Returns:
         The fitted parameters.
@@ -311,6 +339,7 @@ def fit(
     ):  # fmt: skip
         if not _is_count(value, least):
             raise ValueError(f"slds.fit: {name} must be a whole number >= {least}, got {value!r}")
+    cov_rtol = check_cov_rtol(cov_rtol, "slds.fit")
     groups: dict[str, list[Motion]] = {}
     for m in motions:
         groups.setdefault(m.label if per_label else "all", []).append(m)
@@ -334,7 +363,7 @@ def fit(
     models: list[SLDSParams | None] = [None] * len(labels)
     with bar:
         if n_workers > 1:
-            models = _fit_in_processes(labels, starts, n_iter, n_workers, bar)
+            models = _fit_in_processes(labels, starts, n_iter, n_workers, bar, cov_rtol)
         for k, (label, start) in enumerate(zip(labels, starts, strict=True)):
             if models[k] is not None:
                 continue
@@ -347,7 +376,7 @@ def fit(
             t0 = time.perf_counter()
             result = run_em(
                 start, n_iter=n_iter, max_batch=MAX_BATCH,
-                progress=lambda _it, _cost: bar.update(),
+                progress=lambda _it, _cost: bar.update(), cov_rtol=cov_rtol,
             )  # fmt: skip
             bar.update(done + n_iter + 1 - bar.n)  # EM may stop early
             _LOG.info("slds: the %s model took %.1f s", label, time.perf_counter() - t0)
@@ -369,7 +398,12 @@ def _em_work(start: EMStart) -> float:
 
 
 def _fit_in_processes(
-    labels: list[str], starts: list[EMStart], n_iter: int, n_workers: int, bar: tqdm
+    labels: list[str],
+    starts: list[EMStart],
+    n_iter: int,
+    n_workers: int,
+    bar: tqdm,
+    cov_rtol: float,
 ) -> list[SLDSParams | None]:
     """Every model's EM in ``n_workers`` forked processes, the longest first.
 
@@ -387,7 +421,7 @@ def _fit_in_processes(
     ctx = multiprocessing.get_context("fork")
     try:
         with ProcessPoolExecutor(n_workers, ctx) as pool:
-            futures = {pool.submit(_run_activity, starts[k], n_iter): k for k in order}
+            futures = {pool.submit(_run_activity, starts[k], n_iter, cov_rtol): k for k in order}
             for fut in as_completed(futures):
                 k = futures[fut]
                 out[k], seconds = fut.result()

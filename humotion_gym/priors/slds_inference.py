@@ -398,9 +398,15 @@ class CovarianceTable:
         params: The model (``A``, ``Q``).
         r: ``(dz, dz)`` the measurement noise the filters see.
         rtol: The identification tolerance.
+
+    Raises:
+        ValueError: If ``rtol`` is not in (0, 1).
     """
 
     def __init__(self, params: SLDSParams, r: FloatArray, rtol: float = COV_RTOL) -> None:
+        if not 0.0 < float(rtol) < 1.0:
+            # rtol 0 would make frexp's exponent that of zero: a grid of spacing 1/2.
+            raise ValueError(f"CovarianceTable: rtol must be in (0, 1), got {rtol!r}")
         self.rtol = float(rtol)
         self.n_states, self.dx = params.n_states, params.latent_dim
         self.dz = r.shape[0]

@@ -16,6 +16,8 @@ from humotion_gym.mocap.library import synthetic_library
 from humotion_gym.priors import slds
 from humotion_gym.priors.fitting import fit_prior
 from humotion_gym.priors.slds_inference import (
+    COV_RTOL,
+    CovarianceTable,
     SLDSParams,
     combine,
     filter_path,
@@ -449,7 +451,7 @@ def _assert_same_model(a, b):
         np.testing.assert_array_equal(getattr(a, field.name), getattr(b, field.name), field.name)
 
 
-def _killed_worker(start, n_iter):
+def _killed_worker(start, n_iter, cov_rtol):
     """Stands in for a worker's fit: the process dies (as one the system killed)."""
     os._exit(3)
 
@@ -521,3 +523,62 @@ def test_fit_refuses_counts_that_are_not_whole_numbers(synthetic, name, bad):
     settings = {"n_states": 2, "n_iter": 1, name: bad}
     with pytest.raises(ValueError, match=f"slds.fit: {name} must be a whole number"):
         slds.fit(list(train)[:4], **settings)
+
+
+# ---------------------------------------------------------------------------
+# The covariance table's tolerance of the prior's fit
+# ---------------------------------------------------------------------------
+
+
+def test_the_prior_fit_tolerance_is_the_exact_fit_to_about_its_size(synthetic):
+    """FIT_COV_RTOL trades the table's sharing for speed, not the model: the same
+    paths and the same parameters to a few times the tolerance."""
+    train, _ = synthetic
+    kwargs = {"n_states": 3, "n_iter": 4, "workers": 1}
+    exact = slds.fit(list(train), rng=np.random.default_rng(0), cov_rtol=COV_RTOL, **kwargs)
+    quick = slds.fit(list(train), rng=np.random.default_rng(0), **kwargs)
+    coarse = slds.fit(list(train), rng=np.random.default_rng(0), cov_rtol=1e-3, **kwargs)
+    np.testing.assert_array_equal(exact.state_labels, quick.state_labels)
+    worst = {}
+    for name in ("A", "b", "Q", "R", "x0", "Q0", "Pi", "pi0"):
+        ref = getattr(exact, name)
+        scale = np.abs(ref).max()
+        worst[name] = np.abs(getattr(quick, name) - ref).max() / scale
+        assert worst[name] <= 100 * slds.FIT_COV_RTOL, name
+    assert max(worst.values()) > 0  # the tolerance is used, not the exact default
+    # The setting reaches the tables: a coarse grid moves the model further.
+    far = max(
+        np.abs(getattr(coarse, n) - getattr(exact, n)).max() / np.abs(getattr(exact, n)).max()
+        for n in ("A", "Q", "R")
+    )
+    assert far > max(worst.values())
+
+
+@pytest.mark.parametrize("bad", [0, 0.0, -1e-6, 1e-2, float("nan"), True, "1e-6"])
+def test_fit_refuses_a_bad_covariance_tolerance(synthetic, bad):
+    train, _ = synthetic
+    with pytest.raises(ValueError, match=r"slds.fit: cov_rtol must be a number in \(0, 0.001\]"):
+        slds.fit(list(train)[:4], n_states=2, n_iter=1, cov_rtol=bad)
+    with pytest.raises(ValueError, match=r"slds.fit_activity: cov_rtol must be a number"):
+        slds.fit_activity(list(train)[:4], n_states=2, n_iter=1, cov_rtol=bad)
+
+
+def test_the_covariance_table_refuses_a_zero_tolerance():
+    """rtol 0 would give frexp's exponent of zero, a grid of spacing 1/2, silently."""
+    params = slds.fit_activity(
+        [m for m in synthetic_library().split("train") if m.label == "walk"][:2],
+        n_states=2, n_iter=0,
+    ).params  # fmt: skip
+    with pytest.raises(ValueError, match=r"rtol must be in \(0, 1\)"):
+        CovarianceTable(params, params.R, rtol=0.0)
+
+
+def test_the_covariance_tolerance_is_part_of_the_cache_key(synthetic, tmp_path):
+    train, _ = synthetic
+    clips = [m for m in train if m.label == "walk"][:3]
+    settings = {"n_states": 2, "n_iter": 1}
+    fit_prior(slds, clips, None, settings, cache_dir=tmp_path)
+    said: list[str] = []
+    fit_prior(slds, clips, None, {**settings, "cov_rtol": 1e-10}, cache_dir=tmp_path,
+              log=said.append)  # fmt: skip
+    assert any("fitted" in line for line in said)
