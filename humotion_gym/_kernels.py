@@ -31,7 +31,7 @@ The renderer's: :func:`figure_polygons` and :func:`draw_figure` (the cone
 figure's polygons, and OpenCV's fill of them), :func:`clutter_plan` (every
 random draw of an episode's background clutter, numba's ports of numpy's
 draws) and :func:`paint_texture` (its stripes and checks); the tree prior's
-:func:`paced_path`.
+:func:`paced_path`, :func:`leaf_log_weights` and :func:`leaf_draws`.
 
 Why the results match: every step the numpy paths take elementwise is one
 IEEE float32 operation (add, multiply, divide, square root, comparison), and
@@ -75,6 +75,8 @@ __all__ = [
     "paced_path",
     "enabled",
     "kinematics",
+    "leaf_draws",
+    "leaf_log_weights",
     "paint_texture",
     "point_costs",
     "residual_sums",
@@ -509,3 +511,59 @@ def paced_path(
     ):  # fmt: skip
         return None
     return turned
+
+
+def leaf_log_weights(
+    database: NDArray[np.float64],
+    probes: NDArray[np.float64],
+    lo: NDArray[np.intp],
+    sizes: NDArray[np.intp],
+    starts: NDArray[np.intp],
+    sigma: NDArray[np.float64],
+    factor: float,
+    total: int,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """``tree._leaf_log_weights``: eq. 3's exponents in each leaf, less the leaf's largest.
+
+    Returns:
+        ``(total,)`` the exponents and ``(N,)`` each leaf's largest, the numpy
+        path's numbers; None when the kernels are off or failed.
+    """
+    if not ENABLED:
+        return None
+    logw = np.empty(total)
+    peak = np.empty(lo.size)
+    if not _run(
+        "_leaf_log_weights", np.ascontiguousarray(database, np.float64),
+        np.ascontiguousarray(probes, np.float64), np.ascontiguousarray(lo, np.intp),
+        np.ascontiguousarray(sizes, np.intp), np.ascontiguousarray(starts, np.intp),
+        np.ascontiguousarray(sigma, np.float64), float(factor), logw, peak,
+    ):  # fmt: skip
+        return None
+    return logw, peak
+
+
+def leaf_draws(
+    cum: NDArray[np.float64],
+    starts: NDArray[np.intp],
+    sizes: NDArray[np.intp],
+    lo: NDArray[np.intp],
+    u: NDArray[np.float64],
+) -> tuple[NDArray[np.intp], NDArray[np.float64]] | None:
+    """``tree._leaf_draws``: each leaf's inverse-CDF draw on one running sum of weights.
+
+    Returns:
+        ``(N,)`` the chosen windows and each leaf's mass, the numpy path's
+        numbers; None when the kernels are off or failed.
+    """
+    if not ENABLED:
+        return None
+    chosen = np.empty(lo.size, np.intp)
+    mass = np.empty(lo.size)
+    if not _run(
+        "_leaf_draws", np.ascontiguousarray(cum, np.float64), np.ascontiguousarray(starts, np.intp),
+        np.ascontiguousarray(sizes, np.intp), np.ascontiguousarray(lo, np.intp),
+        np.ascontiguousarray(u, np.float64), chosen, mass,
+    ):  # fmt: skip
+        return None
+    return chosen, mass

@@ -969,6 +969,68 @@ def _paced_path(
             turned[p, f, 1] = s * x + c * y
 
 
+@_njit()
+def _leaf_log_weights(
+    database: NDArray[np.float64], probes: NDArray[np.float64], lo: NDArray[np.intp],
+    sizes: NDArray[np.intp], starts: NDArray[np.intp], sigma: NDArray[np.float64],
+    factor: float, logw: NDArray[np.float64], peak: NDArray[np.float64],
+) -> None:  # fmt: skip
+    """``tree._leaf_log_weights``: eq. 3's exponents in each leaf, less the leaf's largest.
+
+    ``logw`` (the leaves' windows end to end, leaf ``p`` from ``starts[p]``):
+    ``factor * sum_j ((database[w, j] - probes[p, j]) / sigma[j])^2`` summed
+    over ``j`` in order from zero, then the leaf's largest (``peak[p]``, NaN
+    when any is) subtracted. The numpy path's operations, in its order.
+    """
+    b = sigma.size
+    for p in range(lo.size):
+        first = starts[p]
+        best = -np.inf
+        for k in range(sizes[p]):
+            w = lo[p] + k
+            acc = 0.0
+            for j in range(b):
+                d = (database[w, j] - probes[p, j]) / sigma[j]
+                acc += d * d
+            v = acc * factor
+            logw[first + k] = v
+            if v > best or v != v:  # np.maximum: a NaN, once met, stays
+                best = v
+        peak[p] = best
+        for k in range(sizes[p]):
+            logw[first + k] -= best
+
+
+@_njit()
+def _leaf_draws(
+    cum: NDArray[np.float64], starts: NDArray[np.intp], sizes: NDArray[np.intp],
+    lo: NDArray[np.intp], u: NDArray[np.float64], chosen: NDArray[np.intp],
+    mass: NDArray[np.float64],
+) -> None:  # fmt: skip
+    """``tree._leaf_draws``: each leaf's inverse-CDF draw on one running sum of weights.
+
+    Leaf ``p``'s mass is ``cum[last] - cum[first - 1]`` (0 before the first);
+    its window is the first in ``[first, last]`` whose running sum exceeds
+    ``before + u[p] * mass`` (numpy's ``searchsorted(..., side="right")`` over
+    the whole sum, clipped to the leaf), else the last.
+    """
+    for p in range(lo.size):
+        first = starts[p]
+        last = first + sizes[p] - 1
+        before = cum[first - 1] if first > 0 else 0.0
+        m = cum[last] - before
+        target = before + u[p] * m
+        a, z = first, last
+        while a < z:  # the first index in [a, z] with cum > target, or z
+            mid = (a + z) // 2
+            if cum[mid] > target:
+                z = mid
+            else:
+                a = mid + 1
+        chosen[p] = a - first + lo[p]
+        mass[p] = m
+
+
 # ---------------------------------------------------------------------------
 # The background's clutter: its random draws, and its textures
 # ---------------------------------------------------------------------------

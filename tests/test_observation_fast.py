@@ -336,7 +336,10 @@ def reference_choose(
     owner = np.repeat(np.arange(lo.size), sizes)
     member = lo[owner] + np.arange(sizes.sum()) - starts[owner]
     diff = (fitted.coefficients[member] - coefficients[owner]) / fitted.sigma
-    logw = np.einsum("ij,ij->i", diff, diff) * (-0.5 / beta)
+    logw = np.zeros(member.size)
+    for j in range(diff.shape[1]):  # the squares summed component by component, in order
+        logw += diff[:, j] * diff[:, j]
+    logw *= -0.5 / beta
     peak = np.maximum.reduceat(logw, starts)
     cum = np.cumsum(np.exp(logw - peak[owner]))
     before = np.concatenate([[0.0], cum])[starts]
@@ -346,9 +349,20 @@ def reference_choose(
     return chosen, peak + np.log(np.maximum(mass, np.finfo(float).tiny))
 
 
+@pytest.mark.parametrize("kernels", [True, False], ids=["compiled", "numpy"])
 @pytest.mark.parametrize("which", ["body", "arm"])
 @pytest.mark.parametrize("beta", [0.3, 1.0, 5.0])
-def test_tree_descent_and_leaf_choice_match_the_reference(priors, which, beta) -> None:
+def test_tree_descent_and_leaf_choice_match_the_reference(
+    priors, which, beta, kernels, monkeypatch
+) -> None:
+    # The compiled leaf kernels (the `fast` extra) and the numpy path both
+    # give the reference's windows and masses, bit for bit.
+    from humotion_gym import _kernels
+
+    if kernels and not _kernels.enabled():
+        pytest.skip("the compiled kernels are off (numba missing or HUMOTION_NUMBA=0)")
+    if not kernels:
+        monkeypatch.setattr(_kernels, "ENABLED", False)
     fitted = priors[which]
     rng = np.random.default_rng(int(beta * 10))
     c = rng.normal(0.0, 1.5, (4000, fitted.depth)) * fitted.sigma

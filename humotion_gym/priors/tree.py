@@ -1124,11 +1124,27 @@ def _rows(table: NDArray[Any], index: IntArray) -> NDArray[Any]:
 def _eq3_log_weights(
     fitted: TreeParams, windows: IntArray, probe: FloatArray, beta: float
 ) -> FloatArray:
-    """Eq. 3's exponent ``-|c_i - c_t|^2_sigma / (2 beta)`` for the given windows."""
-    diff = fitted.coefficients[windows]
-    diff -= probe
-    diff /= fitted.sigma
-    return np.einsum("ij,ij->i", diff, diff) * (-0.5 / beta)
+    """Eq. 3's exponent ``-|c_i - c_t|^2_sigma / (2 beta)`` for the given windows.
+
+    The squares are summed component by component, in order (as
+    :func:`_leaf_log_weights` and its kernel sum them).
+    """
+    rows = _rows(fitted.coefficients, windows)
+    probe = np.asarray(probe, dtype=np.float64)
+    if probe.ndim == 1:
+        probe = np.broadcast_to(probe, rows.shape)
+    return _sum_of_squares(rows, probe, fitted.sigma) * (-0.5 / beta)
+
+
+def _sum_of_squares(rows: FloatArray, probes: FloatArray, sigma: FloatArray) -> FloatArray:
+    """``sum_j ((rows[:, j] - probes[:, j]) / sigma[j])^2``, summed over ``j`` in order."""
+    out = np.zeros(rows.shape[0])
+    for j in range(sigma.size):  # b components: a short loop, vectorised over rows
+        d = rows[:, j] - probes[:, j]
+        d /= sigma[j]
+        d *= d
+        out += d
+    return out
 
 
 def _choose_weighted(
@@ -1177,9 +1193,10 @@ def _choose_ragged(
     """One window per leaf ``[lo, hi)`` by eq. 3, all leaves' windows in one array.
 
     The leaves' windows are laid end to end (``starts`` to ``ends``) and one
-    running sum of their weights serves every leaf's inverse-CDF draw. Rows
-    are repeated with ``np.repeat`` and gathered with ``np.take`` (the same
-    values as fancy indexing by each window's owner, without the index array).
+    running sum of their weights serves every leaf's inverse-CDF draw. The
+    exponents and the draws come from compiled kernels where the ``fast``
+    extra is installed, with the numpy path's numbers
+    (``tests/test_observation_fast.py``).
 
     Returns:
         The chosen windows and, when asked, each leaf's log eq. 3 mass.
@@ -1187,29 +1204,67 @@ def _choose_ragged(
     sizes = hi - lo
     ends = np.cumsum(sizes)
     starts = ends - sizes
-    total = int(ends[-1])
-    member = np.repeat(lo - starts, sizes)
-    member += np.arange(total)
-    # Eq. 3's exponent, as _eq3_log_weights computes it.
-    diff = _rows(fitted.coefficients, member)
-    diff -= np.repeat(coefficients, sizes, axis=0)
-    diff /= fitted.sigma
-    logw = np.einsum("ij,ij->i", diff, diff) * (-0.5 / beta)
-    peak = np.maximum.reduceat(logw, starts)
-    logw -= np.repeat(peak, sizes)
+    logw, peak = _leaf_log_weights(fitted, coefficients, lo, sizes, starts, int(ends[-1]), beta)
     cum = np.cumsum(np.exp(logw, out=logw))
-    last = ends - 1
-    before = np.take(cum, starts - 1)  # the first leaf's -1 wraps: reset below
-    before[0] = 0.0
-    mass = np.take(cum, last) - before
-    target = before + rng.random(lo.size) * mass
-    pick = np.searchsorted(cum, target, side="right")
-    chosen = np.clip(pick, starts, last, out=pick)
-    chosen -= starts
-    chosen += lo
+    chosen, mass = _leaf_draws(cum, starts, sizes, lo, rng.random(lo.size))
     if not want_log_mass:
         return chosen, None
     return chosen, peak + np.log(np.maximum(mass, np.finfo(float).tiny))
+
+
+def _leaf_log_weights(
+    fitted: TreeParams,
+    coefficients: FloatArray,
+    lo: IntArray,
+    sizes: IntArray,
+    starts: IntArray,
+    total: int,
+    beta: float,
+) -> tuple[FloatArray, FloatArray]:
+    """Eq. 3's exponents of every leaf's windows, end to end, less each leaf's largest.
+
+    Returns:
+        ``(total,)`` the exponents and ``(N,)`` each leaf's largest.
+    """
+    factor = -0.5 / beta
+    done = _kernels.leaf_log_weights(
+        fitted.coefficients, coefficients, lo, sizes, starts, fitted.sigma, factor, total
+    )
+    if done is not None:
+        return done
+    # Rows are repeated with np.repeat and gathered with np.take (the same
+    # values as fancy indexing by each window's owner, without the index array).
+    member = np.repeat(lo - starts, sizes)
+    member += np.arange(total)
+    logw = _sum_of_squares(
+        _rows(fitted.coefficients, member), np.repeat(coefficients, sizes, axis=0), fitted.sigma
+    )
+    logw *= factor
+    peak = np.maximum.reduceat(logw, starts)
+    logw -= np.repeat(peak, sizes)
+    return logw, peak
+
+
+def _leaf_draws(
+    cum: FloatArray, starts: IntArray, sizes: IntArray, lo: IntArray, u: FloatArray
+) -> tuple[IntArray, FloatArray]:
+    """Each leaf's inverse-CDF draw ``u`` on the running sum ``cum`` of all leaves' weights.
+
+    Returns:
+        ``(N,)`` the chosen windows and each leaf's mass (its weights' sum).
+    """
+    done = _kernels.leaf_draws(cum, starts, sizes, lo, u)
+    if done is not None:
+        return done
+    last = starts + sizes - 1
+    before = np.take(cum, starts - 1)  # the first leaf's -1 wraps: reset below
+    before[0] = 0.0
+    mass = np.take(cum, last) - before
+    pick = np.searchsorted(cum, before + u * mass, side="right")
+    chosen = np.clip(pick, starts, last, out=pick)
+    chosen -= starts
+    chosen += lo
+    return chosen, mass
 
 
 def sample_windows(
