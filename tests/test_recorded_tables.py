@@ -1,0 +1,90 @@
+"""The README's and docs' result tables are the recorded runs' tables, row for row.
+
+Every table row of the README and ``docs/*.md`` shaped like a leaderboard or
+depth row (``| Task-v1 | agent | particles | ...``) must appear verbatim in a
+table the runs wrote (``results/*/table.md``, ``results/*/tables.md``,
+``results/depth/README.md``): a number copied by hand, or left behind when the
+runs were made again, fails here.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+ROW = re.compile(
+    r"^\| (?:ArmTrack|BodyTrack|WalkTrack|SideWalk)-v\d+ \| [a-z][a-z0-9+\-=._/]* \| (?:-|[0-9,]+) \| "
+)
+#: ``results/depth/README.md``'s sections, one per task (their rows lack the task column).
+DEPTH_SECTION = re.compile(r"^## ((?:ArmTrack|BodyTrack|WalkTrack|SideWalk)-v\d+), test persons")
+
+
+def _recorded_rows() -> set[str]:
+    files = [*ROOT.glob("results/*/table.md"), *ROOT.glob("results/*/tables.md")]
+    rows = {
+        line
+        for f in files
+        for line in f.read_text(encoding="utf-8").splitlines()
+        if line.startswith("| ")
+    }
+    depth = ROOT / "results" / "depth" / "README.md"
+    task = None
+    for line in depth.read_text(encoding="utf-8").splitlines() if depth.is_file() else []:
+        heading = DEPTH_SECTION.match(line)
+        if heading or line.startswith("## "):
+            task = heading.group(1) if heading else None
+        elif task is not None and line.startswith("| "):
+            rows.add(f"| {task} {line}")  # the README's combined table puts the task first
+    return rows
+
+
+def _documents() -> list[Path]:
+    return [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+
+
+def test_the_recorded_tables_exist():
+    rows = _recorded_rows()
+    assert len(rows) > 100, "results/*/table.md are missing: the check below would be empty"
+
+
+@pytest.mark.parametrize("doc", _documents(), ids=lambda p: p.name)
+def test_every_result_row_of_the_documents_is_a_recorded_row(doc):
+    recorded = _recorded_rows()
+    stray = [
+        f"{doc.name}:{number}: {line[:120]}"
+        for number, line in enumerate(doc.read_text(encoding="utf-8").splitlines(), 1)
+        if ROW.match(line) and line not in recorded
+    ]
+    assert not stray, "rows not in any results/ table (copy them from the run):\n" + "\n".join(
+        stray
+    )
+
+
+def test_the_row_pattern_finds_the_readme_tables():
+    """The check is not vacuous: the README quotes dozens of recorded rows."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
+    assert sum(bool(ROW.match(line)) for line in readme) > 50
+
+
+VERDICT = re.compile(r"^(?:- )?(?:ArmTrack|BodyTrack|WalkTrack|SideWalk)-v\d+: best filter at ")
+
+
+def test_every_verdict_of_the_readme_is_a_recorded_verdict():
+    """The validity lines under the tables ("best filter at 300 particles is ...")."""
+    recorded = {line.removeprefix("- ") for line in _recorded_rows_and_lines()}
+    readme = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
+    verdicts = [line for line in readme if VERDICT.match(line)]
+    assert len(verdicts) > 5
+    stray = [line for line in verdicts if line.removeprefix("- ") not in recorded]
+    assert not stray, "verdicts not in any results/ table:\n" + "\n".join(stray)
+
+
+def _recorded_rows_and_lines() -> set[str]:
+    return {
+        line
+        for f in [*ROOT.glob("results/*/table.md"), *ROOT.glob("results/*/tables.md")]
+        for line in f.read_text(encoding="utf-8").splitlines()
+    }
