@@ -9,10 +9,13 @@ runs were made again, fails here.
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
 import pytest
+
+from baselines.stillness import markdown_table
 
 ROOT = Path(__file__).resolve().parents[1]
 ROW = re.compile(
@@ -88,3 +91,22 @@ def _recorded_rows_and_lines() -> set[str]:
         for f in [*ROOT.glob("results/*/table.md"), *ROOT.glob("results/*/tables.md")]
         for line in f.read_text(encoding="utf-8").splitlines()
     }
+
+
+STILL_ROW = re.compile(
+    r"^\| [a-z][a-z0-9+\-]* \| (?:-|[0-9,]+) \| \d+ \(\d+-\d+\) \| \d+\.\d\d \| (?:yes|no) \|$"
+)
+
+
+def test_every_still_row_of_the_readme_is_a_recorded_row():
+    """The standing-still tables: rows of ``results/still_*.json`` as ``humotion-gym still`` prints them."""
+    recorded = {
+        line
+        for f in ROOT.glob("results/still_*.json")
+        for line in markdown_table(json.loads(f.read_text(encoding="utf-8"))).splitlines()
+    }
+    readme = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
+    rows = [line for line in readme if STILL_ROW.match(line)]
+    assert len(rows) > 10
+    stray = [line for line in rows if line not in recorded]
+    assert not stray, "still rows not in results/still_*.json:\n" + "\n".join(stray)
