@@ -3,12 +3,16 @@
 Every table row of the README and ``docs/*.md`` shaped like a leaderboard or
 depth row (``| Task-v1 | agent | particles | ...``) must appear verbatim in a
 table the runs wrote (``results/*/table.md``, ``results/*/tables.md``,
-``results/depth/README.md``): a number copied by hand, or left behind when the
-runs were made again, fails here.
+``results/depth/README.md``), every verdict line under the README's tables
+("best filter at 300 particles is ...") in a ``table.md`` or ``tables.md``, and
+every standing-still row in ``results/still_*.json`` as ``humotion-gym still``
+prints it: a number copied by hand, or left behind when the runs were made
+again, fails here.
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import re
 from pathlib import Path
@@ -18,30 +22,39 @@ import pytest
 from baselines.stillness import markdown_table
 
 ROOT = Path(__file__).resolve().parents[1]
-ROW = re.compile(
-    r"^\| (?:ArmTrack|BodyTrack|WalkTrack|SideWalk)-v\d+ \| [a-z][a-z0-9+\-=._/]* \| (?:-|[0-9,]+) \| "
-)
+TASK = r"(?:ArmTrack|BodyTrack|WalkTrack|SideWalk)-v\d+"
+ROW = re.compile(rf"^\| {TASK} \| [a-z][a-z0-9+\-=._/]* \| (?:-|[0-9,]+) \| ")
 #: ``results/depth/README.md``'s sections, one per task (their rows lack the task column).
-DEPTH_SECTION = re.compile(r"^## ((?:ArmTrack|BodyTrack|WalkTrack|SideWalk)-v\d+), test persons")
+DEPTH_SECTION = re.compile(rf"^## ({TASK}), test persons")
+VERDICT = re.compile(rf"^(?:- )?{TASK}: best filter at ")
+STILL_ROW = re.compile(
+    r"^\| [a-z][a-z0-9+\-]* \| (?:-|[0-9,]+) \| \d+ \(\d+-\d+\) \| \d+\.\d\d \| (?:yes|no) \|$"
+)
 
 
-def _recorded_rows() -> set[str]:
+def _lines(path: Path) -> list[str]:
+    return path.read_text(encoding="utf-8").splitlines()
+
+
+@functools.cache
+def _table_lines() -> frozenset[str]:
+    """Every line of the leaderboard runs' ``table.md`` and ``tables.md``."""
     files = [*ROOT.glob("results/*/table.md"), *ROOT.glob("results/*/tables.md")]
-    rows = {
-        line
-        for f in files
-        for line in f.read_text(encoding="utf-8").splitlines()
-        if line.startswith("| ")
-    }
+    return frozenset(line for f in files for line in _lines(f))
+
+
+@functools.cache
+def _recorded_rows() -> frozenset[str]:
+    rows = {line for line in _table_lines() if line.startswith("| ")}
     depth = ROOT / "results" / "depth" / "README.md"
     task = None
-    for line in depth.read_text(encoding="utf-8").splitlines() if depth.is_file() else []:
+    for line in _lines(depth) if depth.is_file() else []:
         heading = DEPTH_SECTION.match(line)
         if heading or line.startswith("## "):
             task = heading.group(1) if heading else None
         elif task is not None and line.startswith("| "):
             rows.add(f"| {task} {line}")  # the README's combined table puts the task first
-    return rows
+    return frozenset(rows)
 
 
 def _documents() -> list[Path]:
@@ -58,7 +71,7 @@ def test_every_result_row_of_the_documents_is_a_recorded_row(doc):
     recorded = _recorded_rows()
     stray = [
         f"{doc.name}:{number}: {line[:120]}"
-        for number, line in enumerate(doc.read_text(encoding="utf-8").splitlines(), 1)
+        for number, line in enumerate(_lines(doc), 1)
         if ROW.match(line) and line not in recorded
     ]
     assert not stray, "rows not in any results/ table (copy them from the run):\n" + "\n".join(
@@ -68,34 +81,16 @@ def test_every_result_row_of_the_documents_is_a_recorded_row(doc):
 
 def test_the_row_pattern_finds_the_readme_tables():
     """The check is not vacuous: the README quotes dozens of recorded rows."""
-    readme = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
-    assert sum(bool(ROW.match(line)) for line in readme) > 50
-
-
-VERDICT = re.compile(r"^(?:- )?(?:ArmTrack|BodyTrack|WalkTrack|SideWalk)-v\d+: best filter at ")
+    assert sum(bool(ROW.match(line)) for line in _lines(ROOT / "README.md")) > 50
 
 
 def test_every_verdict_of_the_readme_is_a_recorded_verdict():
     """The validity lines under the tables ("best filter at 300 particles is ...")."""
-    recorded = {line.removeprefix("- ") for line in _recorded_rows_and_lines()}
-    readme = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
-    verdicts = [line for line in readme if VERDICT.match(line)]
+    recorded = {line.removeprefix("- ") for line in _table_lines()}
+    verdicts = [line for line in _lines(ROOT / "README.md") if VERDICT.match(line)]
     assert len(verdicts) > 5
     stray = [line for line in verdicts if line.removeprefix("- ") not in recorded]
     assert not stray, "verdicts not in any results/ table:\n" + "\n".join(stray)
-
-
-def _recorded_rows_and_lines() -> set[str]:
-    return {
-        line
-        for f in [*ROOT.glob("results/*/table.md"), *ROOT.glob("results/*/tables.md")]
-        for line in f.read_text(encoding="utf-8").splitlines()
-    }
-
-
-STILL_ROW = re.compile(
-    r"^\| [a-z][a-z0-9+\-]* \| (?:-|[0-9,]+) \| \d+ \(\d+-\d+\) \| \d+\.\d\d \| (?:yes|no) \|$"
-)
 
 
 def test_every_still_row_of_the_readme_is_a_recorded_row():
@@ -105,8 +100,7 @@ def test_every_still_row_of_the_readme_is_a_recorded_row():
         for f in ROOT.glob("results/still_*.json")
         for line in markdown_table(json.loads(f.read_text(encoding="utf-8"))).splitlines()
     }
-    readme = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
-    rows = [line for line in readme if STILL_ROW.match(line)]
+    rows = [line for line in _lines(ROOT / "README.md") if STILL_ROW.match(line)]
     assert len(rows) > 10
     stray = [line for line in rows if line not in recorded]
     assert not stray, "still rows not in results/still_*.json:\n" + "\n".join(stray)

@@ -620,7 +620,8 @@ def fit_em(
             (:class:`~humotion_gym.priors.slds_inference.CovarianceTable`):
             the default keeps the exact recursion's model to about 1e-11
             relative; larger values trade that for speed (1e-6: about 1e-6
-            relative, a quarter to two fifths less time on the walking data).
+            relative, a quarter to two fifths less time on the shared training
+            data).
 
     Returns:
         The model, the cost per iteration and the segmentations.

@@ -530,9 +530,16 @@ def test_fit_refuses_counts_that_are_not_whole_numbers(synthetic, name, bad):
 # ---------------------------------------------------------------------------
 
 
+def _relative_change(model: SLDSParams, ref: SLDSParams, name: str) -> float:
+    """The largest change of a parameter array, over its largest entry."""
+    return float(
+        np.abs(getattr(model, name) - getattr(ref, name)).max() / np.abs(getattr(ref, name)).max()
+    )
+
+
 def test_the_prior_fit_tolerance_is_the_exact_fit_to_about_its_size(synthetic):
     """FIT_COV_RTOL trades the table's sharing for speed, not the model: the same
-    paths and the same parameters to a few times the tolerance."""
+    switch states and the same parameters to a few times the tolerance."""
     train, _ = synthetic
     kwargs = {"n_states": 3, "n_iter": 4, "workers": 1}
     exact = slds.fit(list(train), rng=np.random.default_rng(0), cov_rtol=COV_RTOL, **kwargs)
@@ -541,16 +548,11 @@ def test_the_prior_fit_tolerance_is_the_exact_fit_to_about_its_size(synthetic):
     np.testing.assert_array_equal(exact.state_labels, quick.state_labels)
     worst = {}
     for name in ("A", "b", "Q", "R", "x0", "Q0", "Pi", "pi0"):
-        ref = getattr(exact, name)
-        scale = np.abs(ref).max()
-        worst[name] = np.abs(getattr(quick, name) - ref).max() / scale
+        worst[name] = _relative_change(quick, exact, name)
         assert worst[name] <= 100 * slds.FIT_COV_RTOL, name
     assert max(worst.values()) > 0  # the tolerance is used, not the exact default
     # The setting reaches the tables: a coarse grid moves the model further.
-    far = max(
-        np.abs(getattr(coarse, n) - getattr(exact, n)).max() / np.abs(getattr(exact, n)).max()
-        for n in ("A", "Q", "R")
-    )
+    far = max(_relative_change(coarse, exact, n) for n in ("A", "Q", "R"))
     assert far > max(worst.values())
 
 
