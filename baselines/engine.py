@@ -251,11 +251,12 @@ def prepare_cells(
     Returns:
         ``(fits, problems)``: the fitted prior of every particle-filter agent by
         (task, agent); and by (task, agent), ``("skipped", reason)`` where the
-        agent does not cover the task (``make`` raised ``ValueError``) or
+        agent does not cover the task (``make`` raised
+        :class:`~baselines.agents.TaskNotSupported`) or
         ``("error", reason)`` where building it failed otherwise (a fit that
         raised).
     """
-    from baselines.agents import ParticleFilterAgent, make
+    from baselines.agents import ParticleFilterAgent, TaskNotSupported, make
 
     first: dict[tuple[str, str], Cell] = {}
     for cell in cells:
@@ -276,7 +277,7 @@ def prepare_cells(
                 # a fit prints what it fits and its progress: on lines of their own
                 with tqdm.external_write_mode(file=sys.stderr):
                     agent = make(name, envs[task], n_particles=max(cell.particles, 1), seed=seed)
-            except ValueError as exc:  # the agent does not cover this task
+            except TaskNotSupported as exc:  # the agent does not cover this task
                 problems[(task, name)] = ("skipped", str(exc))
                 continue
             except KeyError:  # an unknown agent name is the caller's mistake

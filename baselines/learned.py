@@ -29,6 +29,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
+from baselines.agents import TaskNotSupported
 from humotion_gym.body import ANGLE_MASK, PARAM_LOWER, PARAM_UPPER
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 from humotion_gym.filtering import ParticleState
@@ -60,11 +61,12 @@ HYBRID_FRACTION_WHOLE_POSE = 0.1
 HYBRID_SPREAD = 0.02
 
 
-class NoCheckpointError(FileNotFoundError, ValueError):
+class NoCheckpointError(FileNotFoundError, TaskNotSupported):
     """No pretrained checkpoint of a learned agent for a task.
 
-    A ``ValueError`` (the leaderboard skips an agent that does not cover a
-    task) and a ``FileNotFoundError`` (the command line reports it in one line).
+    A :class:`~baselines.agents.TaskNotSupported` (the leaderboard skips an
+    agent that does not cover a task) and a ``FileNotFoundError`` (the command
+    line reports it in one line).
     """
 
 
@@ -157,13 +159,13 @@ class LearnedAgent:
         frame_shape = space["frame"].shape
         n_free = self.env.action_space.shape[0]
         if space["previous"].shape[-1] != n_free:
-            raise ValueError(
+            raise TaskNotSupported(
                 f"{source or name}: a policy for {space['previous'].shape[-1]} free parameters; "
                 f"{self.env.task.name} has {n_free}"
             )
         channels = self.env.observation_space.shape[-1]
         if frame_shape[-3] != channels:
-            raise ValueError(
+            raise TaskNotSupported(
                 f"{source or name}: a policy for {frame_shape[-3]}-channel frames; the "
                 f"environment renders {channels}"
             )

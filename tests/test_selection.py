@@ -53,6 +53,22 @@ def test_cli_select_parses_the_grid(capsys):
     assert main(["select", "--grid", "sharpness"]) == 2
 
 
+def test_cli_select_reports_a_bad_setting_or_fold_in_one_line(capsys, tmp_path, monkeypatch):
+    """A setting the agent lacks, or still episodes the fold has none of: exit 2, no traceback."""
+    from humotion_gym.cli import main
+
+    monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
+    base = ["select", "--task", "WalkTrack-v1", "--agent", "pf-cv", "--particles", "10",
+            "--episodes", "1"]  # fmt: skip
+    assert main([*base, "--grid", "fit.bogus=0.5"]) == 2
+    err = capsys.readouterr().err
+    assert "error: grid: ['fit.bogus'] are not settings" in err and "Traceback" not in err
+    # the synthetic fold's walkers stray more than 50 mm from their first pose in every episode
+    code = main([*base, "--grid", "fit.multiplier=0.5", "--still", "2"])
+    err = capsys.readouterr().err
+    assert code == 2 and "have no still episode" in err and "--still 0" in err
+
+
 def test_prior_settings_are_selected_like_likelihood_settings(tmp_path, monkeypatch):
     monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
     fold = validation_library(None)

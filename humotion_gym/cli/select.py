@@ -89,10 +89,13 @@ def _cmd_select(args: argparse.Namespace) -> int:
 
     grid = parse_grid(args.grid)
     lib = validation_library(args.data_dir or None, args.validation)
-    out = select_observation_settings(
-        args.task, args.agent, grid, lib, args.particles, args.episodes, args.seed,
-        still=args.still,
-    )  # fmt: skip
+    try:
+        out = select_observation_settings(
+            args.task, args.agent, grid, lib, args.particles, args.episodes, args.seed,
+            still=args.still,
+        )  # fmt: skip
+    except ValueError as exc:  # a setting, agent or fold these arguments name
+        raise UsageError(str(exc)) from exc
     if args.json:
         print_json(out)
         return 0

@@ -172,7 +172,10 @@ def select_observation_settings(
         windows = still_windows(probe, still_max_hold_mm, count=still)
         probe.close()
         if not windows:
-            raise ValueError(f"{spec.name}: the validation persons have no still episode")
+            raise ValueError(
+                f"still: {spec.name}'s validation persons have no still episode (hold at most "
+                f"{still_max_hold_mm:g} mm); choose on their ordinary episodes (still=0, --still 0)"
+            )
 
     def errors(
         agent_name: str,

@@ -76,26 +76,34 @@ class MixtureParams:
         weights: ``(K,)`` the probability that a particle moves by each
             component in a frame (sums to 1).
         free: ``(D,)`` the modelled parameters (the components').
+        persistence: The probability that a particle keeps the component that
+            moved it in the previous frame; otherwise it draws one by the
+            weights (0: every frame a fresh draw, the paper's mixture).
     """
 
     modules: tuple[ModuleType, ...]
     fitted: tuple[Any, ...]
     weights: FloatArray
     free: NDArray[np.intp]
+    persistence: float = 0.0
 
 
-def compose(components: Sequence[tuple[ModuleType, Any]], weights: ArrayLike) -> MixtureParams:
+def compose(
+    components: Sequence[tuple[ModuleType, Any]], weights: ArrayLike, persistence: float = 0.0
+) -> MixtureParams:
     """A mixture of fitted priors with the given weights.
 
     Args:
         components: ``(module, fitted)`` per component prior.
         weights: ``(K,)`` non-negative, summing to 1.
+        persistence: The probability, in [0, 1), that a particle keeps its
+            previous frame's component (see :class:`MixtureParams`).
 
     Raises:
         ValueError: If there are fewer than two components, the weights do not
             match them or are not a distribution, a component's prior has no
-            rule to follow another's moves, or the components model different
-            parameters.
+            rule to follow another's moves, the components model different
+            parameters, or ``persistence`` is outside [0, 1).
     """
     if len(components) < 2:
         raise ValueError(f"mixture: expected at least two components, got {len(components)}")
@@ -104,6 +112,12 @@ def compose(components: Sequence[tuple[ModuleType, Any]], weights: ArrayLike) ->
         raise ValueError(f"mixture: expected {len(components)} weights, got shape {w.shape}")
     if np.any(w < 0) or not np.isclose(w.sum(), 1.0):
         raise ValueError(f"mixture: weights must be non-negative and sum to 1, got {w.tolist()}")
+    try:
+        p = float("nan") if isinstance(persistence, bool) else float(persistence)
+    except (TypeError, ValueError):
+        p = float("nan")
+    if not 0.0 <= p < 1.0:
+        raise ValueError(f"mixture: persistence must be in [0, 1), got {persistence!r}")
     modules = tuple(m for m, _ in components)
     for m in modules:
         if getattr(m, "NAME", None) not in FOLLOW:
@@ -118,7 +132,11 @@ def compose(components: Sequence[tuple[ModuleType, Any]], weights: ArrayLike) ->
                 f"mixture: {m.__name__} models the parameters {np.asarray(f.free).tolist()}, "
                 f"the first component {free.tolist()}"
             )
-    return MixtureParams(modules, tuple(f for _, f in components), w, free)
+    return MixtureParams(modules, tuple(f for _, f in components), w, free, p)
+
+
+#: ``extra``'s key of each particle's last component (with ``persistence`` only).
+COMPONENT = "component"
 
 
 def _key(c: int, key: str) -> str:
@@ -139,7 +157,8 @@ def initial(
 
     Component ``c``'s per-particle arrays are kept as ``extra["c/NAME"]``, so
     two components of the same prior (two constant-velocity models) keep
-    apart.
+    apart. With ``persistence``, each particle's component is drawn by the
+    weights and kept as ``extra["component"]``.
     """
     extra: dict[str, NDArray[Any]] = {}
     start = None
@@ -148,6 +167,8 @@ def initial(
         start = state.pose if start is None else start
         extra.update({_key(c, k): v for k, v in state.extra.items()})
     assert start is not None
+    if fitted.persistence > 0:
+        extra[COMPONENT] = rng.choice(len(fitted.modules), size=n, p=fitted.weights)
     return ParticleState(start, extra)
 
 
@@ -156,13 +177,25 @@ def transition(
 ) -> ParticleState:
     """One step: each particle picks a component by the weights and moves by it.
 
+    With ``persistence`` ``p``, a particle keeps its previous component with
+    probability ``p`` and draws a new one by the weights otherwise: a Markov
+    chain over the components whose stationary distribution is the weights
+    (so the mixture density of a frame is the same), but whose particles stay
+    in one regime, still or moving, for ``1 / (1 - p)`` frames on average.
     The other components' memory of the moved particles follows the move
     (:data:`FOLLOW`).
     """
     k = len(fitted.modules)
-    pick = rng.choice(k, size=state.n, p=fitted.weights)
+    if fitted.persistence > 0:
+        keep = rng.random(state.n) < fitted.persistence
+        fresh = rng.choice(k, size=state.n, p=fitted.weights)
+        previous = state.extra.get(COMPONENT)
+        pick = fresh if previous is None else np.where(keep, previous, fresh)
+    else:
+        # (no extra draws: the paper's mixture, its random stream unchanged)
+        pick = rng.choice(k, size=state.n, p=fitted.weights)
     pose = np.empty_like(state.pose)
-    extra = {key: np.empty_like(value) for key, value in state.extra.items()}
+    extra = {key: np.empty_like(value) for key, value in state.extra.items() if key != COMPONENT}
     for c, (module, params) in enumerate(zip(fitted.modules, fitted.fitted, strict=True)):
         rows = np.flatnonzero(pick == c)
         if rows.size == 0:
@@ -176,4 +209,6 @@ def transition(
                 followed = FOLLOW[other.NAME](_memory(state, o, rows), moved.pose)
                 for key, value in followed.items():
                     extra[_key(o, key)][rows] = value
+    if fitted.persistence > 0:
+        extra[COMPONENT] = pick
     return ParticleState(pose, extra)

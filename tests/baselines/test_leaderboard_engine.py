@@ -159,7 +159,7 @@ def test_an_agent_whose_prior_fails_to_fit_is_an_error_row_and_exit_1(
     monkeypatch.setitem(agents_module.AGENTS, "pf-broken", broken)
     assert main(_cli(tmp_path, "pf-broken", "pf-cv")) == 1
     captured = capsys.readouterr()
-    assert "| pf-broken | 10 | ERROR: building it failed: TypeError" in captured.out
+    assert "| pf-broken | 10 | ERROR: building it failed: ValueError" in captured.out
     assert "error: pf-broken on BodyTrack-v1" in captured.err
     rows = json.loads((tmp_path / "lb" / RESULTS_FILE).read_text())["rows"]
     assert {r["agent"]: ("error" in r) for r in rows} == {

@@ -73,6 +73,35 @@ def test_mixture_agent_is_seeded_and_checks_its_settings(env, tmp_path, monkeypa
     assert still.position_noise == 0.5 and agent.fitted.weights.sum() == pytest.approx(1.0)
 
 
+def test_cv_still_keeps_its_regimes_and_checks_its_persistence(env, tmp_path, monkeypatch):
+    """pf-cv-still: pf-cv's constant velocity and pf-mix's walk, each particle's regime kept."""
+    from humotion_gym.priors import mixture
+
+    monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
+    spec = AGENTS["pf-cv-still"]
+    assert {"weight.still", "persistence", "cv.damping", "still.position_noise"} <= (
+        spec.setting_names()
+    )
+    agent = make("pf-cv-still", env, n_particles=40, seed=0)
+    fitted = agent.fitted
+    assert 0 < fitted.persistence < 1
+    cv, still = fitted.fitted
+    assert still.multiplier == 0.0 and cv.damping == AGENTS["pf-cv"].fit_settings["damping"]
+    obs, info = env.reset(seed=0)
+    agent.observe_info(info)
+    agent.predict(obs, episode_start=np.array([True]))
+    for _ in range(3):
+        obs, *_, info = env.step(agent.predict(obs)[0])
+        agent.observe_info(info)
+    labels = agent.filter.state.extra[mixture.COMPONENT]
+    assert labels.shape == (40,) and set(np.unique(labels)) <= {0, 1}
+    with pytest.raises(ValueError, match="persistence must be in"):
+        make("pf-cv-still", env, n_particles=10, fit_settings={"persistence": 1.0})
+    # a prior that is not a mixture has no persistence to set
+    with pytest.raises(ValueError, match="persistence"):
+        make("pf-cv", env, n_particles=10, fit_settings={"persistence": 0.5})
+
+
 def test_selection_with_still_episodes_follows_the_declared_rule(tmp_path, monkeypatch):
     from humotion_gym.experiments.selection import select_observation_settings, validation_library
 

@@ -74,3 +74,58 @@ def test_compose_refuses_what_it_cannot_mix(parts):
     other = constant_velocity.fit(synthetic_library().split("train").motions[:3], free=SAGITTAL[:4])
     with pytest.raises(ValueError, match="models the parameters"):
         mixture.compose([(tree, t), (constant_velocity, other)], [0.5, 0.5])
+
+
+def test_persistence_keeps_a_particles_component_as_a_markov_chain(parts):
+    """P(same component next frame) = p + (1 - p) sum_k w_k^2; the weights stay its law."""
+    pose, _, cv, still = parts
+    w, p, n = np.array([0.3, 0.7]), 0.8, 40000
+    mix = mixture.compose([(constant_velocity, cv), (constant_velocity, still)], w, 0.8)
+    state = mixture.initial(mix, pose, n, np.random.default_rng(0))
+    first = state.extra[mixture.COMPONENT]
+    assert first.shape == (n,) and abs((first == 1).mean() - 0.7) < 0.01
+    moved = mixture.transition(mix, state, np.random.default_rng(1))
+    second = moved.extra[mixture.COMPONENT]
+    kept = (second == first).mean()
+    expected = p + (1 - p) * (w**2).sum()
+    assert abs(kept - expected) < 5 * np.sqrt(expected * (1 - expected) / n)
+    # the stationary law is still the weights, frame after frame
+    assert abs((second == 1).mean() - 0.7) < 0.01
+    # each particle moved by the component it is labelled with: the walk's
+    # particles carry a zero velocity (no velocity: multiplier 0, damping 0)
+    walked = np.all(moved.extra["1/velocity"] == 0.0, axis=1)
+    assert np.array_equal(walked, second == 1)
+    # same seed, same particles and labels
+    again = mixture.transition(mix, state, np.random.default_rng(1))
+    assert np.array_equal(again.pose, moved.pose)
+    assert np.array_equal(again.extra[mixture.COMPONENT], second)
+
+
+def test_without_persistence_no_label_is_kept(parts):
+    pose, t, cv, _ = parts
+    mix = mixture.compose([(tree, t), (constant_velocity, cv)], [0.5, 0.5])
+    state = mixture.initial(mix, pose, 20, np.random.default_rng(0))
+    assert mixture.COMPONENT not in state.extra
+    assert mixture.COMPONENT not in mixture.transition(mix, state, np.random.default_rng(1)).extra
+
+
+def test_resampled_labels_follow_their_particles(parts):
+    """The filter's resampling takes every extra array by the same rows, labels included."""
+    pose, _, cv, still = parts
+    mix = mixture.compose([(constant_velocity, cv), (constant_velocity, still)], [0.5, 0.5], 0.9)
+    state = mixture.initial(mix, pose, 200, np.random.default_rng(0))
+    rows = np.random.default_rng(1).integers(0, 200, 200)
+    taken = state.take(rows)
+    assert np.array_equal(taken.extra[mixture.COMPONENT], state.extra[mixture.COMPONENT][rows])
+    assert np.array_equal(taken.pose, state.pose[rows])
+    for _ in range(5):
+        state = mixture.transition(mix, state, np.random.default_rng(2))
+        labels = state.extra[mixture.COMPONENT]
+        assert labels.dtype.kind == "i" and set(np.unique(labels)) <= {0, 1}
+
+
+@pytest.mark.parametrize("bad", [1.0, -0.1, float("nan"), True, "0.5x", None])
+def test_compose_refuses_a_persistence_outside_0_1(parts, bad):
+    _, t, cv, _ = parts
+    with pytest.raises(ValueError, match="persistence must be in"):
+        mixture.compose([(tree, t), (constant_velocity, cv)], [0.5, 0.5], bad)
