@@ -547,7 +547,7 @@ MIXTURE_PERSISTENCE = "persistence"
 
 
 def _check_settings(spec: AgentSpec, settings: Mapping[str, Any]) -> None:
-    """Raise naming the settings a composed prior does not take, and those it does."""
+    """Raise naming the settings the agent's prior does not take, and those it does."""
     unknown = sorted(set(settings) - spec.setting_names())
     if unknown:
         raise ValueError(
@@ -950,10 +950,6 @@ AGENTS: dict[str, AgentSpec] = {
         tasks=("WalkTrack-v1", "SideWalk-v1"),
     ),
 }
-#: The annealed filter over pf-mix's prior (its weights and components as
-#: pf-mix's on each task), so that the annealed filter too has a prior that can
-#: stand still; its survival rate and diffusion chosen as the other annealed
-#: agents' (``APF_MIX_SETTINGS``).
 #: pf-cv-still: pf-cv's constant velocity and pf-mix's small random walk, each
 #: particle in one regime (moving or still) that it keeps from frame to frame
 #: with probability ``persistence``. Settings: see CV_STILL_TASK_SETTINGS.
@@ -969,6 +965,10 @@ AGENTS["pf-cv-still"] = AgentSpec(
     "velocity (pf-cv's) or takes a small random walk, and keeps its regime from frame to "
     "frame with a probability chosen on training persons",
 )
+#: The annealed filter over pf-mix's prior (its weights and components as
+#: pf-mix's on each task), so that the annealed filter too has a prior that can
+#: stand still; its survival rate and diffusion chosen as the other annealed
+#: agents' (``APF_MIX_SETTINGS``).
 AGENTS["apf-mix"] = replace(
     AGENTS["pf-mix"],
     layers=10,

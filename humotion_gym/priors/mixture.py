@@ -186,14 +186,11 @@ def transition(
     (:data:`FOLLOW`).
     """
     k = len(fitted.modules)
-    if fitted.persistence > 0:
-        keep = rng.random(state.n) < fitted.persistence
-        fresh = rng.choice(k, size=state.n, p=fitted.weights)
-        previous = state.extra.get(COMPONENT)
-        pick = fresh if previous is None else np.where(keep, previous, fresh)
-    else:
-        # (no extra draws: the paper's mixture, its random stream unchanged)
-        pick = rng.choice(k, size=state.n, p=fitted.weights)
+    # Without persistence no extra draw: the paper's mixture, its random stream unchanged.
+    keep = rng.random(state.n) < fitted.persistence if fitted.persistence > 0 else None
+    pick = rng.choice(k, size=state.n, p=fitted.weights)
+    if keep is not None and COMPONENT in state.extra:
+        pick = np.where(keep, state.extra[COMPONENT], pick)
     pose = np.empty_like(state.pose)
     extra = {key: np.empty_like(value) for key, value in state.extra.items() if key != COMPONENT}
     for c, (module, params) in enumerate(zip(fitted.modules, fitted.fitted, strict=True)):
@@ -209,6 +206,6 @@ def transition(
                 followed = FOLLOW[other.NAME](_memory(state, o, rows), moved.pose)
                 for key, value in followed.items():
                     extra[_key(o, key)][rows] = value
-    if fitted.persistence > 0:
+    if keep is not None:
         extra[COMPONENT] = pick
     return ParticleState(pose, extra)
