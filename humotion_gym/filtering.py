@@ -207,10 +207,11 @@ def weighted_mean(
     mean = weights @ particles
     if np.any(angle_mask):
         lin = mean[angle_mask]
-        columns: NDArray[np.intp] | slice = np.flatnonzero(angle_mask)
-        n, k = particles.shape[0], columns.size
-        if columns[-1] - columns[0] == k - 1:  # a run of columns: read through a view
-            columns = slice(int(columns[0]), int(columns[-1]) + 1)
+        index = np.flatnonzero(angle_mask)
+        n, k = particles.shape[0], index.size
+        columns: NDArray[np.intp] | slice = index
+        if index[-1] - index[0] == k - 1:  # a run of columns: read through a view
+            columns = slice(int(index[0]), int(index[-1]) + 1)
         sin, cos = np.empty((n, k)), np.empty((n, k))
         # Row blocks that stay in cache for the elementwise steps (the same
         # bits in any blocks); the weighted sums then run over all rows at
