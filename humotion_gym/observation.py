@@ -245,7 +245,7 @@ def _chunk_size(n: int) -> int:
     """Poses per pass when scoring ``n``: equal passes of at most :data:`_CHUNK_POSES`.
 
     Each pose is scored on its own, so any split gives the same numbers
-    (``tests/test_observation.py``). The scratch of a pass is about 3.4 KB per
+    (``tests/test_observation_fast.py``). The scratch of a pass is about 3.4 KB per
     pose; passes of 2,000-3,300 poses ran fastest on the project's machine
     (2 MiB of L2 per core): at 10,000 poses 6.8-6.9 ms per BodyTrack-v1 frame
     against 8.3 in passes of 8,192 (the 1,808 left over the slowest per
