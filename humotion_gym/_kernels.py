@@ -31,7 +31,9 @@ The renderer's: :func:`figure_polygons` and :func:`draw_figure` (the cone
 figure's polygons, and OpenCV's fill of them), :func:`clutter_plan` (every
 random draw of an episode's background clutter, numba's ports of numpy's
 draws) and :func:`paint_texture` (its stripes and checks); the tree prior's
-:func:`paced_path`, :func:`leaf_log_weights` and :func:`leaf_draws`.
+:func:`paced_path`, :func:`tree_descend`, :func:`leaf_log_weights`,
+:func:`leaf_draws` and :func:`tree_replay` (the last two draw from the
+generator as numpy would, in numpy's order).
 
 Why the results match: every step the numpy paths take elementwise is one
 IEEE float32 operation (add, multiply, divide, square root, comparison), and
@@ -82,6 +84,8 @@ __all__ = [
     "residual_sums",
     "spaced_rows",
     "standard_normal",
+    "tree_descend",
+    "tree_replay",
 ]
 
 #: The most values a kernel sums in numpy's pairwise order (numpy's block of
@@ -567,3 +571,104 @@ def leaf_draws(
     ):  # fmt: skip
         return None
     return chosen, mass
+
+
+def _draws_here(rng: np.random.Generator) -> bool:
+    """Whether a kernel may draw from ``rng`` itself: the kernels are on, it is numpy's."""
+    return ENABLED and type(rng) is np.random.Generator
+
+
+def tree_descend(
+    coefficients: NDArray[np.float64],
+    scale: NDArray[np.float64],
+    rng: np.random.Generator,
+    tables: tuple[NDArray[np.intp], ...],
+    offsets: NDArray[np.intp],
+) -> tuple[NDArray[np.intp], NDArray[np.intp]] | None:
+    """``tree._descend`` (eq. 7) without the log probability: the probes' leaves.
+
+    Args:
+        coefficients: ``(N, b)`` the probes.
+        scale: ``(b,)`` ``sqrt(beta) sigma``.
+        rng: Draws numpy's ``(b, N)`` normals, in their order.
+        tables: ``tree._packed_tables``: the descent tables end to end, each
+            table's start, first level and levels.
+        offsets: The tree's leaf offsets.
+
+    Returns:
+        ``[lo, hi)`` per probe, the numpy path's leaves with the generator left
+        where numpy leaves it; None (nothing drawn) when the kernels are off,
+        failed or the generator is not numpy's.
+    """
+    if not _draws_here(rng):
+        return None
+    n = coefficients.shape[0]
+    lo, hi = np.empty(n, np.intp), np.empty(n, np.intp)
+    with rng.bit_generator.lock:
+        ran = _run(
+            "_tree_descend", np.ascontiguousarray(coefficients, np.float64),
+            np.ascontiguousarray(scale, np.float64), rng, *tables,
+            np.ascontiguousarray(offsets, np.intp), lo, hi,
+        )  # fmt: skip
+    return (lo, hi) if ran else None
+
+
+def tree_replay(
+    next_step: NDArray[np.float64],
+    chosen: NDArray[np.intp],
+    pose: NDArray[np.float64],
+    velocity: tuple[NDArray[Any], NDArray[np.intp], NDArray[np.bool_]] | None,
+    speed: NDArray[np.float64] | None,
+    root_xy: tuple[int, int] | None,
+    rng: np.random.Generator,
+    noise_std: NDArray[np.float64] | None,
+    relative: NDArray[np.bool_],
+    heading: NDArray[np.float64] | None,
+    history: NDArray[Any],
+) -> tuple[NDArray[np.float64], NDArray[Any]] | None:
+    """``tree.transition`` after the choice of windows: the new poses and shifted histories.
+
+    Args:
+        next_step: ``(n, D)`` the database's next steps.
+        chosen: ``(N,)`` the chosen windows.
+        pose: ``(N, D)`` the particles' poses.
+        velocity: ``(frames, window_end, absolute)`` for the velocity replay, else None.
+        speed: ``(N,)`` the particles' speeds, or None.
+        root_xy: Root x and y's columns where the root path is turned, else None.
+        rng: Draws numpy's ``(N, D)`` normals where ``noise_std`` is given.
+        noise_std: ``(D,)`` the noise's scale, or None for no noise.
+        relative: ``(D,)`` True for the parameters that move relative to the pose.
+        heading: ``(N,)`` the poses' headings (with ``root_xy``).
+        history: ``(N, d + 1, D)`` the particles' histories.
+
+    Returns:
+        The numpy path's poses and histories (the generator left where numpy
+        leaves it); None (nothing drawn) when the kernels are off, failed or
+        the generator is not numpy's.
+    """
+    if not _draws_here(rng):
+        return None
+    n, dim = pose.shape
+    empty = np.zeros(0)
+    frames, window_end, absolute = (
+        velocity if velocity is not None else (np.zeros((1, dim)), np.zeros(1, np.intp), relative)
+    )
+    ix, iy = root_xy if root_xy is not None else (-1, -1)
+    cos_h = sin_h = empty
+    if root_xy is not None:
+        assert heading is not None
+        cos_h, sin_h = np.cos(heading), np.sin(heading)
+    speeds = empty if speed is None else np.ascontiguousarray(speed, np.float64)
+    scale = empty if noise_std is None else np.ascontiguousarray(noise_std, np.float64)
+    out_pose = np.empty((n, dim))
+    out_history = np.empty_like(history)
+    with rng.bit_generator.lock:
+        ran = _run(
+            "_tree_replay", np.ascontiguousarray(next_step, np.float64),
+            np.ascontiguousarray(chosen, np.intp), np.ascontiguousarray(pose, np.float64), frames,
+            np.ascontiguousarray(window_end, np.intp), np.ascontiguousarray(absolute, np.bool_),
+            velocity is not None, speeds, ix, iy, rng, scale, noise_std is not None,
+            np.ascontiguousarray(relative, np.bool_), cos_h, sin_h, np.ascontiguousarray(history),
+            out_pose, out_history,
+        )  # fmt: skip
+    return (out_pose, out_history) if ran else None

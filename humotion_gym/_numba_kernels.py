@@ -1031,6 +1031,92 @@ def _leaf_draws(
         mass[p] = m
 
 
+@_njit()
+def _tree_descend(
+    coefficients: NDArray[np.float64], scale: NDArray[np.float64], rng: np.random.Generator,
+    tables: NDArray[np.intp], table_starts: NDArray[np.intp], firsts: NDArray[np.intp],
+    widths: NDArray[np.intp], offsets: NDArray[np.intp], lo: NDArray[np.intp],
+    hi: NDArray[np.intp],
+) -> None:  # fmt: skip
+    """``tree._descend`` (eq. 7) without the log probability: each probe's leaf ``[lo, hi)``.
+
+    The normal draws are numpy's ``(b, N)`` array's, level by level (the
+    order ``rng.standard_normal((b, N))`` fills it); a probe wants the ``+``
+    child at level ``l`` when its draw exceeds ``-(c_l / scale_l)``. The
+    wanted bits, most significant first, then walk the descent tables
+    (``tree._descent_tables``, laid end to end from ``table_starts``), as
+    ``tree._descend_by_table`` does.
+    """
+    n, b = coefficients.shape
+    want = np.zeros(n, np.int64)
+    for level in range(b):
+        for p in range(n):
+            z = rng.standard_normal()
+            bit = 1 if z > -(coefficients[p, level] / scale[level]) else 0
+            want[p] = (want[p] << 1) | bit
+    for p in range(n):
+        prefix = 0
+        for g in range(firsts.size):
+            k = widths[g]
+            code = (want[p] >> (b - firsts[g] - k)) & ((1 << k) - 1)
+            prefix = tables[table_starts[g] + ((prefix << k) | code)]
+        lo[p] = offsets[prefix]
+        hi[p] = offsets[prefix + 1]
+
+
+@_njit()
+def _tree_replay(
+    next_step: NDArray[np.float64], chosen: NDArray[np.intp], pose: NDArray[np.float64],
+    frames: NDArray[Any], window_end: NDArray[np.intp], absolute: NDArray[np.bool_],
+    velocity: bool, speed: NDArray[np.float64], ix: int, iy: int, rng: np.random.Generator,
+    noise_std: NDArray[np.float64], noisy: bool, relative: NDArray[np.bool_],
+    cos_h: NDArray[np.float64], sin_h: NDArray[np.float64], history: NDArray[Any],
+    out_pose: NDArray[np.float64], out_history: NDArray[Any],
+) -> None:  # fmt: skip
+    """``tree.transition`` after the choice of windows: the steps replayed, the history shifted.
+
+    Per particle, in the numpy path's order of operations: the chosen
+    window's next step; with ``velocity``, the absolute parameters' step
+    plus ``pose - frames[window_end]``; root x and y times the particle's
+    speed (where ``speed`` is not empty); plus ``z * noise_std`` with ``z``
+    the particle's row of numpy's ``(N, D)`` normal draws (where ``noisy``);
+    then ``tree._advance``: relative parameters plus the pose, root x and y
+    turned by the heading (numpy's ``cos``, ``sin`` given; ``ix < 0``: none)
+    and added to the pose. The history moves up a frame, the new pose last,
+    in the history's precision.
+    """
+    n, dim = pose.shape
+    last = history.shape[1] - 1
+    step = np.empty(dim)
+    paced = speed.size > 0
+    for p in range(n):
+        w = chosen[p]
+        for j in range(dim):
+            step[j] = next_step[w, j]
+        if velocity:
+            e = window_end[w]
+            for j in range(dim):
+                if absolute[j]:
+                    step[j] += pose[p, j] - frames[e, j]
+        if paced:
+            step[ix] *= speed[p]
+            step[iy] *= speed[p]
+        if noisy:
+            for j in range(dim):
+                step[j] += rng.standard_normal() * noise_std[j]
+        for j in range(dim):
+            out_pose[p, j] = step[j] + pose[p, j] if relative[j] else step[j]
+        if ix >= 0:
+            c, s = cos_h[p], sin_h[p]
+            out_pose[p, ix] = pose[p, ix] + (c * step[ix] - s * step[iy])
+            out_pose[p, iy] = pose[p, iy] + (s * step[ix] + c * step[iy])
+        for f in range(last):
+            for j in range(dim):
+                out_history[p, f, j] = history[p, f + 1, j]
+        for j in range(dim):
+            out_history[p, last, j] = out_pose[p, j]
+
+
 # ---------------------------------------------------------------------------
 # The background's clutter: its random draws, and its textures
 # ---------------------------------------------------------------------------

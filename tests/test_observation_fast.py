@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from scipy.special import log_ndtr, logsumexp
 
-from humotion_gym import body
+from humotion_gym import _kernels, body
 from humotion_gym.camera import Camera, fit_camera
 from humotion_gym.filtering import (
     ParticleFilter,
@@ -396,8 +396,8 @@ def reference_choose(
 def test_tree_descent_and_leaf_choice_match_the_reference(
     priors, which, beta, kernels, monkeypatch
 ) -> None:
-    # The compiled leaf kernels (the `fast` extra) and the numpy path both
-    # give the reference's windows and masses, bit for bit.
+    # The compiled descent and leaf kernels (the `fast` extra) and the numpy
+    # path both give the reference's leaves, windows and masses, bit for bit.
     from humotion_gym import _kernels
 
     if kernels and not _kernels.enabled():
@@ -408,8 +408,10 @@ def test_tree_descent_and_leaf_choice_match_the_reference(
     rng = np.random.default_rng(int(beta * 10))
     c = rng.normal(0.0, 1.5, (4000, fitted.depth)) * fitted.sigma
     for want_log_prob in (False, True):
-        lo, hi, log_prob = tree._descend(fitted, c, beta, np.random.default_rng(1), want_log_prob)
-        ref_lo, ref_hi, ref_log_prob = reference_descend(fitted, c, beta, np.random.default_rng(1))
+        ours, theirs = np.random.default_rng(1), np.random.default_rng(1)
+        lo, hi, log_prob = tree._descend(fitted, c, beta, ours, want_log_prob)
+        ref_lo, ref_hi, ref_log_prob = reference_descend(fitted, c, beta, theirs)
+        assert ours.random() == theirs.random()  # the generator left where numpy leaves it
         np.testing.assert_array_equal(lo, ref_lo)
         np.testing.assert_array_equal(hi, ref_hi)
         if want_log_prob:
@@ -443,6 +445,16 @@ def test_descent_tables_cover_depths_that_are_not_multiples_of_eight(priors) -> 
             bit = np.where(node == 3, wanted[level], node == 2)
             prefix = 2 * prefix + bit
         np.testing.assert_array_equal(tree._descend_by_table(tables, wanted), prefix)
+        if _kernels.enabled():  # the compiled descent walks the same tables, packed
+            c = rng.normal(0.0, 1.0, (3000, depth))
+            scale = rng.uniform(0.5, 2.0, depth)
+            draws = np.random.default_rng(depth).standard_normal((depth, 3000))
+            wanted = draws > -(c.T / scale[:, None])
+            offsets = np.arange((1 << depth) + 1, dtype=np.intp)
+            packed = tree._packed_tables(flags, depth)
+            lo, hi = _kernels.tree_descend(c, scale, np.random.default_rng(depth), packed, offsets)
+            np.testing.assert_array_equal(lo, tree._descend_by_table(tables, wanted))
+            np.testing.assert_array_equal(hi, lo + 1)
 
 
 # -- the filter -------------------------------------------------------------------

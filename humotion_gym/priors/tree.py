@@ -1024,6 +1024,17 @@ def _descend(
         non-empty).
     """
     n_probe, b = coefficients.shape
+    if not want_log_prob and b <= _KERNEL_DEPTH:
+        # The compiled descent: the same draws, compares and tables in one pass.
+        done = _kernels.tree_descend(
+            coefficients,
+            np.sqrt(beta) * fitted.sigma,
+            rng,
+            _packed_tables(fitted.node_flags, b),
+            fitted.offsets,
+        )
+        if done is not None:
+            return done[0], done[1], None
     # Eq. 7: follow the signs of z = c_t + sqrt(beta) sigma e, e ~ N(0, I), so that
     # P(z_l > 0) = Phi(c_t,l / (sqrt(beta) sigma_l)).
     scaled = coefficients.T / (np.sqrt(beta) * fitted.sigma[:, None])
@@ -1051,6 +1062,8 @@ def _descend(
 
 # Levels of the descent looked up at once (tables of 2**(level + 8) entries).
 _TABLE_LEVELS = 8
+# The deepest tree the compiled descent takes: a probe's wanted bits are one int64.
+_KERNEL_DEPTH = 62
 # Descent tables by the identity of their node_flags array (shared by the
 # copies that TreeParams.with_settings makes); a weak reference checks that the
 # array is still the one the table was made from.
@@ -1090,6 +1103,35 @@ def _descent_tables(node_flags: NDArray[np.uint8], b: int) -> list[tuple[int, in
         _TABLE_CACHE.clear()
     _TABLE_CACHE[id(node_flags)] = (weakref.ref(node_flags), tables)
     return tables
+
+
+def _packed_tables(
+    node_flags: NDArray[np.uint8], b: int
+) -> tuple[IntArray, IntArray, IntArray, IntArray]:
+    """:func:`_descent_tables` for the compiled descent: the tables end to end.
+
+    Returns:
+        The tables laid end to end, each one's start among them, first level
+        and number of levels (cached with the tables).
+    """
+    entry = _PACKED_CACHE.get(id(node_flags))
+    if entry is not None and entry[0]() is node_flags:
+        return entry[1]
+    tables = _descent_tables(node_flags, b)
+    sizes = np.array([t.size for _, _, t in tables], dtype=np.intp)
+    packed = (
+        np.concatenate([t for _, _, t in tables]).astype(np.intp),
+        (np.cumsum(sizes) - sizes).astype(np.intp),
+        np.array([first for first, _, _ in tables], dtype=np.intp),
+        np.array([k for _, k, _ in tables], dtype=np.intp),
+    )
+    if len(_PACKED_CACHE) > 16:
+        _PACKED_CACHE.clear()
+    _PACKED_CACHE[id(node_flags)] = (weakref.ref(node_flags), packed)
+    return packed
+
+
+_PACKED_CACHE: dict[int, tuple[weakref.ref, tuple[IntArray, IntArray, IntArray, IntArray]]] = {}
 
 
 def _descend_by_table(
@@ -1579,6 +1621,34 @@ def transition(fitted: TreeParams, state: ParticleState, rng: np.random.Generato
     # path slowed or sped up to it), then walks the chosen step at its own.
     c = _search_coefficients(fitted, history, speed, lay)
     chosen = sample_windows(fitted, c, rng)
+    done = _replay_compiled(fitted, state, history, chosen, speed, lay, rng)
+    if done is not None:
+        pose, new_history = done
+    else:
+        pose, new_history = _replay(fitted, state, history, chosen, speed, lay, rng)
+    extra: dict[str, NDArray[Any]] = {"history": new_history, "window": chosen}
+    if speed is not None:
+        if fitted.speed_drift > 0:
+            speed = speed * np.exp(fitted.speed_drift * _kernels.standard_normal(rng, speed.shape))
+        extra["speed"] = speed
+    return ParticleState(pose, extra)
+
+
+def _replay(
+    fitted: TreeParams,
+    state: ParticleState,
+    history: NDArray[Any],
+    chosen: IntArray,
+    speed: FloatArray | None,
+    lay: _Layout,
+    rng: np.random.Generator,
+) -> tuple[FloatArray, NDArray[Any]]:
+    """What followed the chosen windows, replayed from the particles' poses, and the histories.
+
+    Returns:
+        ``(N, D)`` the new poses (with the noise) and ``(N, d + 1, D)`` the
+        histories moved up a frame, the new pose last.
+    """
     step = _rows(fitted.next_step, chosen)
     if fitted.replay == "velocity" and lay.absolute.size:
         # Joint angles move by the database's velocity: next = own pose + (next - last).
@@ -1596,12 +1666,50 @@ def transition(fitted: TreeParams, state: ParticleState, rng: np.random.Generato
     new_history = np.empty_like(history)
     new_history[:, :-1] = history[:, 1:]
     new_history[:, -1] = pose
-    extra: dict[str, NDArray[Any]] = {"history": new_history, "window": chosen}
-    if speed is not None:
-        if fitted.speed_drift > 0:
-            speed = speed * np.exp(fitted.speed_drift * _kernels.standard_normal(rng, speed.shape))
-        extra["speed"] = speed
-    return ParticleState(pose, extra)
+    return pose, new_history
+
+
+def _replay_compiled(
+    fitted: TreeParams,
+    state: ParticleState,
+    history: NDArray[Any],
+    chosen: IntArray,
+    speed: FloatArray | None,
+    lay: _Layout,
+    rng: np.random.Generator,
+) -> tuple[FloatArray, NDArray[Any]] | None:
+    """:func:`_replay` in one compiled pass (the same numbers), or None where it does not run.
+
+    At 10,000 particles the numpy path's gathers, noise, turn and the history's
+    shift are a dozen passes over arrays larger than the cache (3.6 ms); the
+    kernel makes one (``tests/test_observation_fast.py`` checks the numbers).
+    """
+    if not _kernels.enabled():
+        return None
+    velocity = None
+    if fitted.replay == "velocity" and lay.absolute.size:
+        absolute = np.zeros(fitted.n_free, dtype=bool)
+        absolute[lay.absolute] = True
+        velocity = (fitted.frames, fitted.window_end, absolute)
+    relative = np.zeros(fitted.n_free, dtype=bool)
+    relative[lay.relative] = True
+    root_xy = heading = None
+    if lay.relative.size and lay.rel_xy is not None:
+        root_xy = _root_xy(lay)
+        heading = state.pose[..., lay.relative[lay.rel_yaw]]
+    return _kernels.tree_replay(
+        fitted.next_step,
+        chosen,
+        state.pose,
+        velocity,
+        speed,
+        root_xy,
+        rng,
+        fitted.noise_std if fitted.noise_scale > 0 else None,
+        relative,
+        heading,
+        history,
+    )
 
 
 def _speed_of(fitted: TreeParams, state: ParticleState, lay: _Layout) -> FloatArray | None:

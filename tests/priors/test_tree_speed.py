@@ -227,3 +227,65 @@ def test_the_compiled_pacing_gives_the_numpy_paths_coefficients(walker, n, monke
     monkeypatch.setattr(_kernels, "ENABLED", False)
     want = tree._search_coefficients(prior, history, state.extra["speed"], lay)
     np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("n", [5, 2085])
+@pytest.mark.parametrize(
+    "variant", ["speed", "velocity", "no noise", "float64 history", "arm", "root without yaw"]
+)
+def test_the_compiled_replay_is_the_numpy_paths(walker, variant, n, monkeypatch):
+    # With the `fast` extra the replayed steps, their noise, the turn by the
+    # heading and the history's shift are one kernel, and the descent another:
+    # the same poses, histories, windows and speeds, bit for bit, and the
+    # generator left where the numpy path leaves it.
+    from humotion_gym import _kernels
+
+    if not _kernels.enabled():
+        pytest.skip("the compiled kernels are off (numba missing or HUMOTION_NUMBA=0)")
+    free = None
+    if variant == "arm":
+        free = ARM
+    elif variant == "root without yaw":
+        free = [ROOT_X, ROOT_Y] + ARM
+    prior = tree.fit([walker], free=free, noise_scale=0.5)
+    if variant == "speed":
+        prior = prior.with_settings(speed_spread=0.4, speed_drift=0.1)
+    elif variant == "velocity":
+        prior = prior.with_settings(replay="velocity")
+    elif variant == "no noise":
+        prior = prior.with_settings(noise_scale=0.0)
+    rng = np.random.default_rng(4)
+    start = start_pose(prior) if free is None else prior.frames[60]
+    state = tree.initial(prior, start, n, rng)
+    for _ in range(2):
+        state = tree.transition(prior, state, rng)
+    if variant == "float64 history":
+        wide = state.extra["history"].astype(np.float64)
+        state = ParticleState(state.pose, {**state.extra, "history": wide})
+    # Headings every way, so the turn is not the identity.
+    if YAW in prior.free.tolist():
+        column = prior.free.tolist().index(YAW)
+        pose = state.pose.copy()
+        pose[:, column] += rng.uniform(-np.pi, np.pi, n)
+        state = ParticleState(pose, state.extra)
+    ran: list[str] = []
+    for name in ("tree_replay", "tree_descend"):
+        real = getattr(_kernels, name)
+
+        def spy(*a, _real=real, _name=name):
+            done = _real(*a)
+            ran.append(_name if done is not None else "")
+            return done
+
+        monkeypatch.setattr(_kernels, name, spy)
+    got_rng, want_rng = np.random.default_rng(7), np.random.default_rng(7)
+    got = tree.transition(prior, state, got_rng)
+    assert sorted(ran) == ["tree_descend", "tree_replay"]
+    monkeypatch.setattr(_kernels, "ENABLED", False)
+    want = tree.transition(prior, state, want_rng)
+    np.testing.assert_array_equal(got.pose, want.pose)
+    assert set(got.extra) == set(want.extra)
+    for key in want.extra:
+        assert got.extra[key].dtype == want.extra[key].dtype
+        np.testing.assert_array_equal(got.extra[key], want.extra[key])
+    assert got_rng.random() == want_rng.random()
