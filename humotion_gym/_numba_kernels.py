@@ -380,6 +380,10 @@ _MIN_LENGTH = np.float32(1e-3)
 _HALF = np.float32(0.5)
 
 
+#: Poses per block of :func:`_coverage_sums` (its scratch stays in the L1 cache).
+_COVERAGE_BLOCK = 128
+
+
 @_njit()
 def _coverage_sums(
     basis: NDArray[np.float32],
@@ -398,51 +402,77 @@ def _coverage_sums(
     path forms them; the quantities as its ``sgemm`` (a chain of three fused
     multiply-adds from zero); then the same float32 steps. The minimum over
     the cones is exact in any order.
+
+    The loops run over blocks of poses innermost: a frame often has only a
+    handful of coverage points (6-32 on BodyTrack-v1), too few to fill the
+    vector lanes, and each cone's coefficients (three square roots, two
+    divisions) then cost more than its points; over poses both vectorise
+    (0.72 -> 0.41 ms at 3,000 poses and 32 points, 0.74 -> 0.12 at 6).
     """
     n_cones, n, f = cones.shape[0], basis.shape[2], q.shape[1]
-    nearest = np.empty(f, np.float32)
     qx, qy, qw = q[0], q[1], q[2]
-    for j in range(n):
+    block = _COVERAGE_BLOCK
+    nearest = np.empty((f, block), np.float32)
+    co = np.empty((9, block), np.float32)
+    column = np.empty(f, np.float32)
+    for j0 in range(0, n, block):
+        m = min(block, n - j0)
         for ci in range(n_cones):
             c = cones[ci]
-            s_x, s_y, e_x, e_y = basis[0, c, j], basis[1, c, j], basis[2, c, j], basis[3, c, j]
-            a_x, a_y, b_x, b_y = basis[4, c, j], basis[5, c, j], basis[6, c, j], basis[7, c, j]
-            r_s = np.sqrt(a_x * a_x + a_y * a_y)
-            r_e = np.sqrt(b_x * b_x + b_y * b_y)
-            d_x = e_x - s_x
-            d_y = e_y - s_y
-            length = np.sqrt(d_x * d_x + d_y * d_y)
-            # np.maximum(length, 1e-3) (a NaN stays NaN) and the end-on cone's axis.
-            safe = length if (length >= _MIN_LENGTH or length != length) else _MIN_LENGTH
-            if length < _MIN_LENGTH:
-                u_x, u_y = _ONE, _ZERO
-            else:
-                u_x, u_y = d_x / safe, d_y / safe
-            half = _HALF * length
-            slope = (r_e - r_s) / safe
-            s_u = s_x * u_x + s_y * u_y
-            a0, a1, a2 = u_x, u_y, -s_u - half
-            b0, b1, b2 = -u_y, u_x, s_x * u_y - s_y * u_x
-            r0, r1 = slope * u_x, slope * u_y
-            r2 = r_s - slope * s_u
-            h2 = r2 + half
+            for jj in range(m):
+                j = j0 + jj
+                s_x, s_y, e_x, e_y = basis[0, c, j], basis[1, c, j], basis[2, c, j], basis[3, c, j]
+                a_x, a_y, b_x, b_y = basis[4, c, j], basis[5, c, j], basis[6, c, j], basis[7, c, j]
+                r_s = np.sqrt(a_x * a_x + a_y * a_y)
+                r_e = np.sqrt(b_x * b_x + b_y * b_y)
+                d_x = e_x - s_x
+                d_y = e_y - s_y
+                length = np.sqrt(d_x * d_x + d_y * d_y)
+                # np.maximum(length, 1e-3) (a NaN stays NaN) and the end-on cone's axis.
+                safe = length if (length >= _MIN_LENGTH or length != length) else _MIN_LENGTH
+                flat = length < _MIN_LENGTH
+                u_x = _ONE if flat else d_x / safe
+                u_y = _ZERO if flat else d_y / safe
+                half = _HALF * length
+                slope = (r_e - r_s) / safe
+                s_u = s_x * u_x + s_y * u_y
+                r2 = r_s - slope * s_u
+                # along: (u_x, u_y, -s.u - L/2); across: (-u_y, u_x, s_x u_y - s_y u_x);
+                # radius: (slope u_x, slope u_y, r2); reach: radius's with r2 + L/2.
+                co[0, jj] = u_x
+                co[1, jj] = u_y
+                co[2, jj] = -s_u - half
+                co[3, jj] = -u_y
+                co[4, jj] = s_x * u_y - s_y * u_x
+                co[5, jj] = slope * u_x
+                co[6, jj] = slope * u_y
+                co[7, jj] = r2
+                co[8, jj] = r2 + half
+            first = ci == 0
             for k in range(f):
                 x, y, w = qx[k], qy[k], qw[k]
-                along = _fma32(a2, w, _fma32(a1, y, _fma32(a0, x, _ZERO)))
-                across = _fma32(b2, w, _fma32(b1, y, _fma32(b0, x, _ZERO)))
-                radius = _fma32(r2, w, _fma32(r1, y, _fma32(r0, x, _ZERO)))
-                reach = _fma32(h2, w, _fma32(r1, y, _fma32(r0, x, _ZERO)))
-                across = abs(across) - radius
-                along = abs(along) - reach
-                # np.maximum (a NaN wins), then the nearest cone.
-                v = across if (across >= along or across != across) else along
-                _keep_nearest(nearest, k, v, ci == 0)
-        for k in range(f):
-            v = nearest[k]
-            v = _ZERO if v < _ZERO else v  # np.clip(v, 0, tau)
-            v = tau if v > tau else v
-            nearest[k] = v * v
-        out[j] = _pairwise_sum(nearest, f)
+                for jj in range(m):
+                    along = _fma32(co[2, jj], w, _fma32(co[1, jj], y, _fma32(co[0, jj], x, _ZERO)))
+                    across = _fma32(co[4, jj], w, _fma32(co[0, jj], y, _fma32(co[3, jj], x, _ZERO)))
+                    slope_xy = _fma32(co[6, jj], y, _fma32(co[5, jj], x, _ZERO))
+                    radius = _fma32(co[7, jj], w, slope_xy)
+                    reach = _fma32(co[8, jj], w, slope_xy)
+                    across = abs(across) - radius
+                    along = abs(along) - reach
+                    # np.maximum (a NaN wins), then the nearest cone (np.minimum).
+                    v = across if (across >= along or across != across) else along
+                    if first:
+                        nearest[k, jj] = v
+                    else:
+                        near = nearest[k, jj]
+                        nearest[k, jj] = near if (near <= v or near != near) else v
+        for jj in range(m):
+            for k in range(f):
+                v = nearest[k, jj]
+                v = _ZERO if v < _ZERO else v  # np.clip(v, 0, tau)
+                v = tau if v > tau else v
+                column[k] = v * v
+            out[j0 + jj] = _pairwise_sum(column, f)
 
 
 @_njit()

@@ -268,7 +268,9 @@ def _random_cones(
 def test_coverage_sums_match_the_numpy_path(f: int, n: int, numpy_path) -> None:
     # The whole-body tasks' coverage term over random cones and points, many
     # just outside a cone (tiny squared distances beside large ones, whose
-    # double-precision sum depends on numpy's pairwise order).
+    # double-precision sum depends on numpy's pairwise order); over 300
+    # poses, two blocks of the kernel and part of a third, and poses whose
+    # cones hold a NaN or an infinity.
     model, feats, _, _, _ = _task_features("BodyTrack-v1", f + n)
     rng = np.random.default_rng(f * n)
     points, basis = _random_cones(rng, feats.width, f, n)
@@ -279,8 +281,13 @@ def test_coverage_sums_match_the_numpy_path(f: int, n: int, numpy_path) -> None:
         basis[0:2, k, 0] = points[:, k] + rng.normal(0.0, 1e-3, 2)
         basis[2:4, k, 0] = points[:, k] + np.float32(5.0)
     basis[2:4, 9, -1] = basis[0:2, 9, -1]
+    if n > 2:
+        basis[1, 3, 130] = np.nan
+        basis[4, 6, 131] = np.inf
+        basis[2, 0, 257] = -np.inf
     fast = model._coverage_cost(feats, basis, n)
-    slow = numpy_path(model._coverage_cost, feats, basis, n)
+    with np.errstate(invalid="ignore"):  # the numpy path meets the NaN and infinities
+        slow = numpy_path(model._coverage_cost, feats, basis, n)
     assert fast.dtype == slow.dtype == np.float64
     np.testing.assert_array_equal(fast, slow)
 
