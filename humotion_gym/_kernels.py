@@ -25,7 +25,8 @@ The kernels, in the order the likelihood runs them:
 
 And one the priors run: :func:`standard_normal`, their noise, numpy's draws
 from numpy's generator (numba's port of its algorithm, same tables, same
-bit generator).
+bit generator); and one the filter runs: :func:`angle_offsets`, its circular
+mean's wrapped offsets.
 
 The renderer's: :func:`figure_polygons` and :func:`draw_figure` (the cone
 figure's polygons, and OpenCV's fill of them), :func:`clutter_plan` (every
@@ -65,6 +66,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
+    "angle_offsets",
     "clutter_plan",
     "cone_basis",
     "colour_distances",
@@ -672,3 +674,23 @@ def tree_replay(
             out_pose, out_history,
         )  # fmt: skip
     return (out_pose, out_history) if ran else None
+
+
+def angle_offsets(
+    particles: NDArray[np.float64], columns: NDArray[np.intp], centre: NDArray[np.float64]
+) -> NDArray[np.float32] | None:
+    """``filtering.weighted_mean``'s wrapped offsets of the angle columns from ``centre``.
+
+    Returns:
+        ``(N, len(columns))`` float32, the numpy path's numbers; None when the
+        kernels are off or failed.
+    """
+    if not ENABLED:
+        return None
+    out = np.empty((particles.shape[0], columns.size), np.float32)
+    if not _run(
+        "_angle_offsets", np.ascontiguousarray(particles, np.float64),
+        np.ascontiguousarray(columns, np.intp), np.ascontiguousarray(centre, np.float64), out,
+    ):  # fmt: skip
+        return None
+    return out

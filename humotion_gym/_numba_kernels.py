@@ -1062,6 +1062,26 @@ def _leaf_draws(
 
 
 @_njit()
+def _angle_offsets(
+    particles: NDArray[np.float64], columns: NDArray[np.intp], centre: NDArray[np.float64],
+    out: NDArray[np.float32],
+) -> None:  # fmt: skip
+    """``filtering.weighted_mean``'s offsets of the angles from their linear mean, wrapped.
+
+    ``out[i, c]``: ``a - r`` less ``2 pi rint((a - r) / (2 pi))`` (multiplied
+    by the rounded ``1 / (2 pi)``, as the numpy path does), in single precision,
+    for ``a = particles[i, columns[c]]`` and ``r = centre[c]``.
+    """
+    inv_turn = 1.0 / (2.0 * np.pi)
+    turn = 2.0 * np.pi
+    for i in range(particles.shape[0]):
+        for c in range(columns.size):
+            offset = particles[i, columns[c]] - centre[c]
+            offset -= np.rint(offset * inv_turn) * turn
+            out[i, c] = offset
+
+
+@_njit()
 def _tree_descend(
     coefficients: NDArray[np.float64], scale: NDArray[np.float64], rng: np.random.Generator,
     tables: NDArray[np.intp], table_starts: NDArray[np.intp], firsts: NDArray[np.intp],

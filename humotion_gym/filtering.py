@@ -213,17 +213,23 @@ def weighted_mean(
         if index[-1] - index[0] == k - 1:  # a run of columns: read through a view
             columns = slice(int(index[0]), int(index[-1]) + 1)
         sin, cos = np.empty((n, k)), np.empty((n, k))
+        # The compiled kernel (the `fast` extra) wraps every offset in one
+        # pass, with the numpy path's numbers.
+        wrapped = _kernels.angle_offsets(particles, index, lin)
         # Row blocks that stay in cache for the elementwise steps (the same
         # bits in any blocks); the weighted sums then run over all rows at
         # once, as before. At 10,000 particles 0.6 ms instead of 1.0.
         for lo in range(0, n, _MEAN_ROWS):
             hi = min(n, lo + _MEAN_ROWS)
-            offset = np.subtract(particles[lo:hi, columns], lin)
-            turns = np.multiply(offset, 1.0 / (2.0 * np.pi))
-            np.rint(turns, out=turns)
-            turns *= 2.0 * np.pi
-            offset -= turns
-            small = offset.astype(np.float32)
+            if wrapped is not None:
+                small = wrapped[lo:hi]
+            else:
+                offset = np.subtract(particles[lo:hi, columns], lin)
+                turns = np.multiply(offset, 1.0 / (2.0 * np.pi))
+                np.rint(turns, out=turns)
+                turns *= 2.0 * np.pi
+                offset -= turns
+                small = offset.astype(np.float32)
             np.copyto(sin[lo:hi], np.sin(small))
             np.copyto(cos[lo:hi], np.cos(small, out=small))
         mean[angle_mask] = lin + np.arctan2(weights @ sin, weights @ cos)

@@ -159,3 +159,32 @@ def test_circular_mean_does_not_depend_on_its_row_blocks(monkeypatch, rows: int)
     monkeypatch.setattr(filtering, "_MEAN_ROWS", rows)
     for mask, want in zip(masks, expected, strict=True):
         assert np.array_equal(weighted_mean(particles, weights, mask), want)
+
+
+def test_the_compiled_angle_offsets_give_the_numpy_paths_mean(monkeypatch) -> None:
+    # With the `fast` extra the circular mean's wrapped offsets come from one
+    # kernel: the same means, bit for bit, for clouds narrow and wide (many
+    # offsets wrapped, some exactly half a turn), contiguous and scattered
+    # angle columns, and particles holding a NaN or an infinity.
+    from humotion_gym import _kernels
+
+    if not _kernels.enabled():
+        pytest.skip("the compiled kernels are off (numba missing or HUMOTION_NUMBA=0)")
+    rng = np.random.default_rng(11)
+    for trial in range(60):
+        n = int(rng.integers(1, 3000))
+        spread = float(rng.choice([0.01, 1.0, 10.0]))
+        particles = rng.uniform(-30.0, 30.0, 25) + rng.normal(0.0, spread, (n, 25))
+        if trial % 5 == 0:
+            particles[rng.integers(n), rng.integers(25)] = rng.choice([np.nan, np.inf])
+        if trial % 7 == 0:
+            particles[: n // 2, 5] = particles[0, 5] + np.pi * rng.choice([-1, 1], n // 2)
+        weights = rng.random(n)
+        weights /= weights.sum()
+        mask = np.arange(25) >= 3 if trial % 2 else rng.random(25) < 0.7
+        with np.errstate(invalid="ignore"):
+            fast = weighted_mean(particles, weights, mask)
+            with monkeypatch.context() as m:
+                m.setattr(_kernels, "ENABLED", False)
+                slow = weighted_mean(particles, weights, mask)
+        np.testing.assert_array_equal(fast, slow)
