@@ -1011,17 +1011,22 @@ def _leaf_log_weights(
     ``factor * sum_j ((database[w, j] - probes[p, j]) / sigma[j])^2`` summed
     over ``j`` in order from zero, then the leaf's largest (``peak[p]``, NaN
     when any is) subtracted. The numpy path's operations, in its order.
+
+    The scaled differences are formed first, apart from their sum: that loop
+    vectorises (the divisions were its cost), the sum stays in order.
     """
     b = sigma.size
+    d = np.empty(b)
     for p in range(lo.size):
         first = starts[p]
         best = -np.inf
         for k in range(sizes[p]):
             w = lo[p] + k
+            for j in range(b):
+                d[j] = (database[w, j] - probes[p, j]) / sigma[j]
             acc = 0.0
             for j in range(b):
-                d = (database[w, j] - probes[p, j]) / sigma[j]
-                acc += d * d
+                acc += d[j] * d[j]
             v = acc * factor
             logw[first + k] = v
             if v > best or v != v:  # np.maximum: a NaN, once met, stays
