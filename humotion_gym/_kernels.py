@@ -33,8 +33,9 @@ figure's polygons, and OpenCV's fill of them), :func:`clutter_plan` (every
 random draw of an episode's background clutter, numba's ports of numpy's
 draws) and :func:`paint_texture` (its stripes and checks); the tree prior's
 :func:`paced_path`, :func:`tree_descend`, :func:`leaf_log_weights`,
-:func:`leaf_draws` and :func:`tree_replay` (the last two draw from the
-generator as numpy would, in numpy's order).
+:func:`leaf_draws`, :func:`leaf_choice` and :func:`tree_replay` (the descent,
+the choice and the replay draw from the generator as numpy would, in numpy's
+order).
 
 Why the results match: every step the numpy paths take elementwise is one
 IEEE float32 operation (add, multiply, divide, square root, comparison), and
@@ -79,6 +80,7 @@ __all__ = [
     "paced_path",
     "enabled",
     "kinematics",
+    "leaf_choice",
     "leaf_draws",
     "leaf_log_weights",
     "paint_texture",
@@ -694,3 +696,43 @@ def angle_offsets(
     ):  # fmt: skip
         return None
     return out
+
+
+def leaf_choice(
+    database: NDArray[np.float64],
+    probes: NDArray[np.float64],
+    lo: NDArray[np.intp],
+    hi: NDArray[np.intp],
+    sigma: NDArray[np.float64],
+    factor: float,
+    rng: np.random.Generator,
+) -> NDArray[np.intp] | None:
+    """``tree._choose_weighted`` without the masses: one window per leaf ``[lo, hi)`` by eq. 3.
+
+    The leaves of more than one window are found, their exponents formed and
+    their windows drawn in two kernels; the exponentials between them are
+    numpy's (its own SIMD ``exp``, which libm's would not match).
+
+    Returns:
+        ``(N,)`` the chosen windows, the numpy path's, with the generator left
+        where numpy leaves it; None (nothing drawn) when the kernels are off,
+        failed or the generator is not numpy's.
+    """
+    if not _draws_here(rng):
+        return None
+    lo = np.ascontiguousarray(lo, np.intp)
+    made = _call(
+        "_leaf_choice", np.ascontiguousarray(database, np.float64),
+        np.ascontiguousarray(probes, np.float64), lo, np.ascontiguousarray(hi, np.intp),
+        np.ascontiguousarray(sigma, np.float64), float(factor),
+    )  # fmt: skip
+    if made is _FAILED:
+        return None
+    logw, many, starts, sizes = made
+    chosen = lo.copy()
+    if many.size == 0:
+        return chosen
+    np.exp(logw, out=logw)
+    with rng.bit_generator.lock:
+        ran = _run("_leaf_choice_draws", logw, many, starts, sizes, lo, rng, chosen)
+    return chosen if ran else None

@@ -1067,6 +1067,95 @@ def _leaf_draws(
 
 
 @_njit()
+def _leaf_choice(
+    database: NDArray[np.float64], probes: NDArray[np.float64], lo: NDArray[np.intp],
+    hi: NDArray[np.intp], sigma: NDArray[np.float64], factor: float,
+) -> tuple[NDArray[np.float64], NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:  # fmt: skip
+    """``tree._choose_weighted``'s leaves of more than one window, and their exponents.
+
+    Returns:
+        The exponents of :func:`_leaf_log_weights` (each leaf's largest
+        subtracted) of those leaves' windows end to end, the leaves (their
+        probes' rows), and their windows' starts and counts in the first.
+    """
+    n = lo.size
+    k = 0
+    total = 0
+    for p in range(n):
+        if hi[p] - lo[p] > 1:
+            k += 1
+            total += hi[p] - lo[p]
+    many = np.empty(k, np.intp)
+    starts = np.empty(k, np.intp)
+    sizes = np.empty(k, np.intp)
+    q = 0
+    first = 0
+    for p in range(n):
+        size = hi[p] - lo[p]
+        if size > 1:
+            many[q] = p
+            starts[q] = first
+            sizes[q] = size
+            first += size
+            q += 1
+    logw = np.empty(total)
+    b = sigma.size
+    d = np.empty(b)
+    for q in range(k):
+        p = many[q]
+        best = -np.inf
+        for m in range(sizes[q]):
+            w = lo[p] + m
+            for j in range(b):
+                d[j] = (database[w, j] - probes[p, j]) / sigma[j]
+            acc = 0.0
+            for j in range(b):
+                acc += d[j] * d[j]
+            v = acc * factor
+            logw[starts[q] + m] = v
+            if v > best or v != v:  # np.maximum: a NaN, once met, stays
+                best = v
+        for m in range(sizes[q]):
+            logw[starts[q] + m] -= best
+    return logw, many, starts, sizes
+
+
+@_njit()
+def _leaf_choice_draws(
+    weights: NDArray[np.float64], many: NDArray[np.intp], starts: NDArray[np.intp],
+    sizes: NDArray[np.intp], lo: NDArray[np.intp], rng: np.random.Generator,
+    chosen: NDArray[np.intp],
+) -> None:  # fmt: skip
+    """``tree._choose_weighted``'s draws: ``chosen`` (``lo`` on entry) gets each leaf's window.
+
+    The running sum of ``weights`` in order (numpy's ``cumsum``), one uniform
+    per leaf in order (numpy's ``rng.random(k)``), then :func:`_leaf_draws`.
+    """
+    cum = np.empty(weights.size)
+    acc = 0.0
+    for i in range(weights.size):
+        acc += weights[i]
+        cum[i] = acc
+    u = np.empty(many.size)
+    for q in range(many.size):
+        u[q] = rng.random()
+    for q in range(many.size):
+        first = starts[q]
+        last = first + sizes[q] - 1
+        before = cum[first - 1] if first > 0 else 0.0
+        m = cum[last] - before
+        target = before + u[q] * m
+        a, z = first, last
+        while a < z:  # the first index in [a, z] with cum > target, or z
+            mid = (a + z) // 2
+            if cum[mid] > target:
+                z = mid
+            else:
+                a = mid + 1
+        chosen[many[q]] = a - first + lo[many[q]]
+
+
+@_njit()
 def _angle_offsets(
     particles: NDArray[np.float64], columns: NDArray[np.intp], centre: NDArray[np.float64],
     out: NDArray[np.float32],

@@ -428,6 +428,14 @@ def test_tree_descent_and_leaf_choice_match_the_reference(
     )
     np.testing.assert_array_equal(chosen, ref_chosen)
     np.testing.assert_array_equal(log_mass, ref_log_mass)
+    # The whole choice, leaves of one window included (the compiled one finds
+    # the others itself), and the generator left where the reference leaves it.
+    ours, theirs = np.random.default_rng(3), np.random.default_rng(3)
+    chosen, no_mass = tree._choose_weighted(fitted, c, lo, hi, beta, ours)
+    want = lo.copy()
+    want[many] = reference_choose(fitted, c[many], lo[many], hi[many], beta, theirs)[0]
+    assert no_mass is None and ours.random() == theirs.random()
+    np.testing.assert_array_equal(chosen, want)
 
 
 def test_descent_tables_cover_depths_that_are_not_multiples_of_eight(priors) -> None:

@@ -1204,6 +1204,13 @@ def _choose_weighted(
         The chosen windows and, when asked, ``log sum_{i in leaf} k(c_i)``
         (the leaf's eq. 3 mass, unnormalised).
     """
+    if not want_log_mass:
+        # The compiled choice (the `fast` extra): the same windows and draws.
+        done = _kernels.leaf_choice(
+            fitted.coefficients, coefficients, lo, hi, fitted.sigma, -0.5 / beta, rng
+        )
+        if done is not None:
+            return done, None
     chosen = lo.copy()
     many = np.flatnonzero(hi - lo > 1)  # a leaf of one window needs no draw
     log_mass = _eq3_log_weights(fitted, lo, coefficients, beta) if want_log_mass else None

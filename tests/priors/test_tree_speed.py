@@ -235,7 +235,8 @@ def test_the_compiled_pacing_gives_the_numpy_paths_coefficients(walker, n, monke
 )
 def test_the_compiled_replay_is_the_numpy_paths(walker, variant, n, monkeypatch):
     # With the `fast` extra the replayed steps, their noise, the turn by the
-    # heading and the history's shift are one kernel, and the descent another:
+    # heading and the history's shift are one kernel, the descent and the
+    # choice in the leaves others:
     # the same poses, histories, windows and speeds, bit for bit, and the
     # generator left where the numpy path leaves it.
     from humotion_gym import _kernels
@@ -269,7 +270,7 @@ def test_the_compiled_replay_is_the_numpy_paths(walker, variant, n, monkeypatch)
         pose[:, column] += rng.uniform(-np.pi, np.pi, n)
         state = ParticleState(pose, state.extra)
     ran: list[str] = []
-    for name in ("tree_replay", "tree_descend"):
+    for name in ("tree_replay", "tree_descend", "leaf_choice"):
         real = getattr(_kernels, name)
 
         def spy(*a, _real=real, _name=name):
@@ -280,7 +281,7 @@ def test_the_compiled_replay_is_the_numpy_paths(walker, variant, n, monkeypatch)
         monkeypatch.setattr(_kernels, name, spy)
     got_rng, want_rng = np.random.default_rng(7), np.random.default_rng(7)
     got = tree.transition(prior, state, got_rng)
-    assert sorted(ran) == ["tree_descend", "tree_replay"]
+    assert sorted(ran) == ["leaf_choice", "tree_descend", "tree_replay"]
     monkeypatch.setattr(_kernels, "ENABLED", False)
     want = tree.transition(prior, state, want_rng)
     np.testing.assert_array_equal(got.pose, want.pose)
