@@ -999,6 +999,59 @@ def _paced_path(
             turned[p, f, 1] = s * x + c * y
 
 
+@_njit(inline="always")
+def _leaf_exponents(
+    database: NDArray[np.float64], probes: NDArray[np.float64], p: int, lo: int, size: int,
+    sigma: NDArray[np.float64], factor: float, d: NDArray[np.float64],
+    logw: NDArray[np.float64], first: int,
+) -> float:  # fmt: skip
+    """Eq. 3's exponents of probe ``p``'s leaf (windows ``lo`` on) into ``logw[first:]``.
+
+    ``factor * sum_j ((database[w, j] - probes[p, j]) / sigma[j])^2``, summed
+    in order, less the leaf's largest, which is returned (NaN when any is).
+    The scaled differences are formed first (``d``), apart from their sum:
+    that loop vectorises (the divisions were its cost), the sum stays in order.
+    """
+    b = sigma.size
+    best = -np.inf
+    for k in range(size):
+        w = lo + k
+        for j in range(b):
+            d[j] = (database[w, j] - probes[p, j]) / sigma[j]
+        acc = 0.0
+        for j in range(b):
+            acc += d[j] * d[j]
+        v = acc * factor
+        logw[first + k] = v
+        if v > best or v != v:  # np.maximum: a NaN, once met, stays
+            best = v
+    for k in range(size):
+        logw[first + k] -= best
+    return best
+
+
+@_njit(inline="always")
+def _inverse_cdf(cum: NDArray[np.float64], first: int, last: int, u: float) -> tuple[int, float]:
+    """A leaf's draw on the running sum ``cum``: its window's offset from ``first``, and its mass.
+
+    The mass is ``cum[last] - cum[first - 1]`` (0 before the first); the
+    window is the first in ``[first, last]`` whose running sum exceeds
+    ``before + u * mass`` (numpy's ``searchsorted(..., side="right")`` over
+    the whole sum, clipped to the leaf), else the last.
+    """
+    before = cum[first - 1] if first > 0 else 0.0
+    m = cum[last] - before
+    target = before + u * m
+    a, z = first, last
+    while a < z:  # the first index in [a, z] with cum > target, or z
+        mid = (a + z) // 2
+        if cum[mid] > target:
+            z = mid
+        else:
+            a = mid + 1
+    return a - first, m
+
+
 @_njit()
 def _leaf_log_weights(
     database: NDArray[np.float64], probes: NDArray[np.float64], lo: NDArray[np.intp],
@@ -1011,29 +1064,11 @@ def _leaf_log_weights(
     ``factor * sum_j ((database[w, j] - probes[p, j]) / sigma[j])^2`` summed
     over ``j`` in order from zero, then the leaf's largest (``peak[p]``, NaN
     when any is) subtracted. The numpy path's operations, in its order.
-
-    The scaled differences are formed first, apart from their sum: that loop
-    vectorises (the divisions were its cost), the sum stays in order.
     """
-    b = sigma.size
-    d = np.empty(b)
+    d = np.empty(sigma.size)
     for p in range(lo.size):
-        first = starts[p]
-        best = -np.inf
-        for k in range(sizes[p]):
-            w = lo[p] + k
-            for j in range(b):
-                d[j] = (database[w, j] - probes[p, j]) / sigma[j]
-            acc = 0.0
-            for j in range(b):
-                acc += d[j] * d[j]
-            v = acc * factor
-            logw[first + k] = v
-            if v > best or v != v:  # np.maximum: a NaN, once met, stays
-                best = v
-        peak[p] = best
-        for k in range(sizes[p]):
-            logw[first + k] -= best
+        peak[p] = _leaf_exponents(database, probes, p, lo[p], sizes[p], sigma, factor, d,
+                                  logw, starts[p])  # fmt: skip
 
 
 @_njit()
@@ -1042,28 +1077,10 @@ def _leaf_draws(
     lo: NDArray[np.intp], u: NDArray[np.float64], chosen: NDArray[np.intp],
     mass: NDArray[np.float64],
 ) -> None:  # fmt: skip
-    """``tree._leaf_draws``: each leaf's inverse-CDF draw on one running sum of weights.
-
-    Leaf ``p``'s mass is ``cum[last] - cum[first - 1]`` (0 before the first);
-    its window is the first in ``[first, last]`` whose running sum exceeds
-    ``before + u[p] * mass`` (numpy's ``searchsorted(..., side="right")`` over
-    the whole sum, clipped to the leaf), else the last.
-    """
+    """``tree._leaf_draws``: each leaf's inverse-CDF draw (:func:`_inverse_cdf`) on one sum."""
     for p in range(lo.size):
-        first = starts[p]
-        last = first + sizes[p] - 1
-        before = cum[first - 1] if first > 0 else 0.0
-        m = cum[last] - before
-        target = before + u[p] * m
-        a, z = first, last
-        while a < z:  # the first index in [a, z] with cum > target, or z
-            mid = (a + z) // 2
-            if cum[mid] > target:
-                z = mid
-            else:
-                a = mid + 1
-        chosen[p] = a - first + lo[p]
-        mass[p] = m
+        offset, mass[p] = _inverse_cdf(cum, starts[p], starts[p] + sizes[p] - 1, u[p])
+        chosen[p] = lo[p] + offset
 
 
 @_njit()
@@ -1099,24 +1116,10 @@ def _leaf_choice(
             first += size
             q += 1
     logw = np.empty(total)
-    b = sigma.size
-    d = np.empty(b)
+    d = np.empty(sigma.size)
     for q in range(k):
         p = many[q]
-        best = -np.inf
-        for m in range(sizes[q]):
-            w = lo[p] + m
-            for j in range(b):
-                d[j] = (database[w, j] - probes[p, j]) / sigma[j]
-            acc = 0.0
-            for j in range(b):
-                acc += d[j] * d[j]
-            v = acc * factor
-            logw[starts[q] + m] = v
-            if v > best or v != v:  # np.maximum: a NaN, once met, stays
-                best = v
-        for m in range(sizes[q]):
-            logw[starts[q] + m] -= best
+        _leaf_exponents(database, probes, p, lo[p], sizes[q], sigma, factor, d, logw, starts[q])
     return logw, many, starts, sizes
 
 
@@ -1129,7 +1132,7 @@ def _leaf_choice_draws(
     """``tree._choose_weighted``'s draws: ``chosen`` (``lo`` on entry) gets each leaf's window.
 
     The running sum of ``weights`` in order (numpy's ``cumsum``), one uniform
-    per leaf in order (numpy's ``rng.random(k)``), then :func:`_leaf_draws`.
+    per leaf in order (numpy's ``rng.random(k)``), then :func:`_inverse_cdf`.
     """
     cum = np.empty(weights.size)
     acc = 0.0
@@ -1140,19 +1143,8 @@ def _leaf_choice_draws(
     for q in range(many.size):
         u[q] = rng.random()
     for q in range(many.size):
-        first = starts[q]
-        last = first + sizes[q] - 1
-        before = cum[first - 1] if first > 0 else 0.0
-        m = cum[last] - before
-        target = before + u[q] * m
-        a, z = first, last
-        while a < z:  # the first index in [a, z] with cum > target, or z
-            mid = (a + z) // 2
-            if cum[mid] > target:
-                z = mid
-            else:
-                a = mid + 1
-        chosen[many[q]] = a - first + lo[many[q]]
+        offset, _ = _inverse_cdf(cum, starts[q], starts[q] + sizes[q] - 1, u[q])
+        chosen[many[q]] = lo[many[q]] + offset
 
 
 @_njit()

@@ -1628,11 +1628,7 @@ def transition(fitted: TreeParams, state: ParticleState, rng: np.random.Generato
     # path slowed or sped up to it), then walks the chosen step at its own.
     c = _search_coefficients(fitted, history, speed, lay)
     chosen = sample_windows(fitted, c, rng)
-    done = _replay_compiled(fitted, state, history, chosen, speed, lay, rng)
-    if done is not None:
-        pose, new_history = done
-    else:
-        pose, new_history = _replay(fitted, state, history, chosen, speed, lay, rng)
+    pose, new_history = _replay(fitted, state, history, chosen, speed, lay, rng)
     extra: dict[str, NDArray[Any]] = {"history": new_history, "window": chosen}
     if speed is not None:
         if fitted.speed_drift > 0:
@@ -1656,6 +1652,9 @@ def _replay(
         ``(N, D)`` the new poses (with the noise) and ``(N, d + 1, D)`` the
         histories moved up a frame, the new pose last.
     """
+    done = _replay_compiled(fitted, state.pose, history, chosen, speed, lay, rng)
+    if done is not None:
+        return done
     step = _rows(fitted.next_step, chosen)
     if fitted.replay == "velocity" and lay.absolute.size:
         # Joint angles move by the database's velocity: next = own pose + (next - last).
@@ -1677,19 +1676,15 @@ def _replay(
 
 
 def _replay_compiled(
-    fitted: TreeParams,
-    state: ParticleState,
-    history: NDArray[Any],
-    chosen: IntArray,
-    speed: FloatArray | None,
-    lay: _Layout,
-    rng: np.random.Generator,
-) -> tuple[FloatArray, NDArray[Any]] | None:
+    fitted: TreeParams, pose: FloatArray, history: NDArray[Any], chosen: IntArray,
+    speed: FloatArray | None, lay: _Layout, rng: np.random.Generator,
+) -> tuple[FloatArray, NDArray[Any]] | None:  # fmt: skip
     """:func:`_replay` in one compiled pass (the same numbers), or None where it does not run.
 
     At 10,000 particles the numpy path's gathers, noise, turn and the history's
-    shift are a dozen passes over arrays larger than the cache (3.6 ms); the
-    kernel makes one (``tests/test_observation_fast.py`` checks the numbers).
+    shift are a dozen passes over arrays larger than the cache (about 3.9 ms,
+    the normal draws included); the kernel makes one, in 2.1 ms
+    (``tests/priors/test_tree_speed.py`` checks the numbers).
     """
     if not _kernels.enabled():
         return None
@@ -1703,11 +1698,11 @@ def _replay_compiled(
     root_xy = heading = None
     if lay.relative.size and lay.rel_xy is not None:
         root_xy = _root_xy(lay)
-        heading = state.pose[..., lay.relative[lay.rel_yaw]]
+        heading = pose[..., lay.relative[lay.rel_yaw]]
     return _kernels.tree_replay(
         fitted.next_step,
         chosen,
-        state.pose,
+        pose,
         velocity,
         speed,
         root_xy,
