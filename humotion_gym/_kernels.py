@@ -174,6 +174,11 @@ def _run(kernel: str, *args: Any) -> bool:
     return ENABLED and _call(kernel, *args) is not _FAILED
 
 
+def _draws_here(rng: np.random.Generator) -> bool:
+    """Whether a kernel may draw from ``rng`` itself: the kernels are on, it is numpy's."""
+    return ENABLED and type(rng) is np.random.Generator
+
+
 def point_costs(
     coef: NDArray[np.float32],
     columns: NDArray[np.float32],
@@ -356,7 +361,7 @@ def standard_normal(rng: np.random.Generator, shape: int | tuple[int, ...]) -> N
     numpy, as everything does when the kernels are off.
     """
     size = math.prod(shape) if isinstance(shape, tuple) else int(shape)
-    if not ENABLED or size < NORMAL_MIN_SIZE or type(rng) is not np.random.Generator:
+    if size < NORMAL_MIN_SIZE or not _draws_here(rng):
         return rng.standard_normal(shape)
     out = np.empty(shape)
     # numpy holds the bit generator's lock while it draws; so does this.
@@ -418,7 +423,7 @@ def clutter_plan(
         ``(shapes, shape_floats, lines)``; None (the numpy path is to run) when
         the kernels are off or failed, or ``rng`` is not a ``Generator``.
     """
-    if not ENABLED or type(rng) is not np.random.Generator:
+    if not _draws_here(rng):
         return None
     with rng.bit_generator.lock:
         out = _call("_clutter_plan", rng, h, w, size, shape_rate, line_rate, thickness_unit)
@@ -575,11 +580,6 @@ def leaf_draws(
     ):  # fmt: skip
         return None
     return chosen, mass
-
-
-def _draws_here(rng: np.random.Generator) -> bool:
-    """Whether a kernel may draw from ``rng`` itself: the kernels are on, it is numpy's."""
-    return ENABLED and type(rng) is np.random.Generator
 
 
 def tree_descend(

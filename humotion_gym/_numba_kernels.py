@@ -451,6 +451,7 @@ def _coverage_sums(
             first = ci == 0
             for k in range(f):
                 x, y, w = qx[k], qy[k], qw[k]
+                row = nearest[k]
                 for jj in range(m):
                     along = _fma32(co[2, jj], w, _fma32(co[1, jj], y, _fma32(co[0, jj], x, _ZERO)))
                     across = _fma32(co[4, jj], w, _fma32(co[0, jj], y, _fma32(co[3, jj], x, _ZERO)))
@@ -459,13 +460,9 @@ def _coverage_sums(
                     reach = _fma32(co[8, jj], w, slope_xy)
                     across = abs(across) - radius
                     along = abs(along) - reach
-                    # np.maximum (a NaN wins), then the nearest cone (np.minimum).
+                    # np.maximum (a NaN wins), then the nearest cone.
                     v = across if (across >= along or across != across) else along
-                    if first:
-                        nearest[k, jj] = v
-                    else:
-                        near = nearest[k, jj]
-                        nearest[k, jj] = near if (near <= v or near != near) else v
+                    _keep_nearest(row, jj, v, first)
         for jj in range(m):
             for k in range(f):
                 v = nearest[k, jj]

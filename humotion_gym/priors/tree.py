@@ -372,6 +372,8 @@ class _Layout(NamedTuple):
     relative: IntArray  # positions (in free) of relative parameters
     rel_xy: tuple[int, int] | None  # positions (in relative) of root x, y to rotate
     rel_yaw: int  # position (in relative) of the heading, -1 if not free
+    absolute_mask: NDArray[np.bool_]  # (D,) True at the absolute parameters
+    relative_mask: NDArray[np.bool_]  # (D,) True at the relative parameters
 
 
 @functools.lru_cache(maxsize=64)
@@ -383,7 +385,15 @@ def _layout_of(free: tuple[int, ...]) -> _Layout:
     xy = None
     if yaw >= 0 and _ROOT_X in rel_params and _ROOT_Y in rel_params:
         xy = (rel_params.index(_ROOT_X), rel_params.index(_ROOT_Y))
-    return _Layout(np.array(absolute, dtype=np.intp), np.array(rel, dtype=np.intp), xy, yaw)
+    relative_mask = np.isin(np.arange(len(free)), rel)
+    return _Layout(
+        np.array(absolute, dtype=np.intp),
+        np.array(rel, dtype=np.intp),
+        xy,
+        yaw,
+        ~relative_mask,
+        relative_mask,
+    )
 
 
 def _layout(free: NDArray[np.intp]) -> _Layout:
@@ -1064,13 +1074,15 @@ def _descend(
 _TABLE_LEVELS = 8
 # The deepest tree the compiled descent takes: a probe's wanted bits are one int64.
 _KERNEL_DEPTH = 62
-# Descent tables by the identity of their node_flags array (shared by the
-# copies that TreeParams.with_settings makes); a weak reference checks that the
-# array is still the one the table was made from.
-_TABLE_CACHE: dict[int, tuple[weakref.ref, list[tuple[int, int, IntArray]]]] = {}
+_Tables = list[tuple[int, int, IntArray]]
+_Packed = tuple[IntArray, IntArray, IntArray, IntArray]
+# Descent tables (and their packed form) by the identity of their node_flags
+# array (shared by the copies that TreeParams.with_settings makes); a weak
+# reference checks that the array is still the one the tables were made from.
+_TABLE_CACHE: dict[int, tuple[weakref.ref, _Tables, _Packed]] = {}
 
 
-def _descent_tables(node_flags: NDArray[np.uint8], b: int) -> list[tuple[int, int, IntArray]]:
+def _descent_tables(node_flags: NDArray[np.uint8], b: int) -> _Tables:
     """The descent through ``_TABLE_LEVELS`` levels at a time, as lookup tables.
 
     A probe at level ``l`` with prefix ``p`` (its path so far) that wants the
@@ -1084,9 +1096,24 @@ def _descent_tables(node_flags: NDArray[np.uint8], b: int) -> list[tuple[int, in
     Returns:
         ``(l, k, table)`` for each group of levels, cached per tree.
     """
+    return _cached_tables(node_flags, b)[1]
+
+
+def _packed_tables(node_flags: NDArray[np.uint8], b: int) -> _Packed:
+    """:func:`_descent_tables` for the compiled descent: the tables end to end.
+
+    Returns:
+        The tables laid end to end, each one's start among them, first level
+        and number of levels (cached with the tables).
+    """
+    return _cached_tables(node_flags, b)[2]
+
+
+def _cached_tables(node_flags: NDArray[np.uint8], b: int) -> tuple[weakref.ref, _Tables, _Packed]:
+    """The cache entry of a tree's descent tables: made once, in both forms."""
     entry = _TABLE_CACHE.get(id(node_flags))
     if entry is not None and entry[0]() is node_flags:
-        return entry[1]
+        return entry
     flags = node_flags.astype(np.int64)
     tables = []
     for first in range(0, b, _TABLE_LEVELS):
@@ -1099,25 +1126,6 @@ def _descent_tables(node_flags: NDArray[np.uint8], b: int) -> list[tuple[int, in
             bit = _DESCENT_TABLE[flags[prefix + ((1 << level) - 1)] * 2 + wanted_bit]
             prefix = prefix * 2 + bit
         tables.append((first, k, prefix.astype(np.intp)))
-    if len(_TABLE_CACHE) > 16:
-        _TABLE_CACHE.clear()
-    _TABLE_CACHE[id(node_flags)] = (weakref.ref(node_flags), tables)
-    return tables
-
-
-def _packed_tables(
-    node_flags: NDArray[np.uint8], b: int
-) -> tuple[IntArray, IntArray, IntArray, IntArray]:
-    """:func:`_descent_tables` for the compiled descent: the tables end to end.
-
-    Returns:
-        The tables laid end to end, each one's start among them, first level
-        and number of levels (cached with the tables).
-    """
-    entry = _PACKED_CACHE.get(id(node_flags))
-    if entry is not None and entry[0]() is node_flags:
-        return entry[1]
-    tables = _descent_tables(node_flags, b)
     sizes = np.array([t.size for _, _, t in tables], dtype=np.intp)
     packed = (
         np.concatenate([t for _, _, t in tables]).astype(np.intp),
@@ -1125,13 +1133,10 @@ def _packed_tables(
         np.array([first for first, _, _ in tables], dtype=np.intp),
         np.array([k for _, k, _ in tables], dtype=np.intp),
     )
-    if len(_PACKED_CACHE) > 16:
-        _PACKED_CACHE.clear()
-    _PACKED_CACHE[id(node_flags)] = (weakref.ref(node_flags), packed)
-    return packed
-
-
-_PACKED_CACHE: dict[int, tuple[weakref.ref, tuple[IntArray, IntArray, IntArray, IntArray]]] = {}
+    if len(_TABLE_CACHE) > 16:
+        _TABLE_CACHE.clear()
+    entry = _TABLE_CACHE[id(node_flags)] = (weakref.ref(node_flags), tables, packed)
+    return entry
 
 
 def _descend_by_table(
@@ -1690,11 +1695,7 @@ def _replay_compiled(
         return None
     velocity = None
     if fitted.replay == "velocity" and lay.absolute.size:
-        absolute = np.zeros(fitted.n_free, dtype=bool)
-        absolute[lay.absolute] = True
-        velocity = (fitted.frames, fitted.window_end, absolute)
-    relative = np.zeros(fitted.n_free, dtype=bool)
-    relative[lay.relative] = True
+        velocity = (fitted.frames, fitted.window_end, lay.absolute_mask)
     root_xy = heading = None
     if lay.relative.size and lay.rel_xy is not None:
         root_xy = _root_xy(lay)
@@ -1708,7 +1709,7 @@ def _replay_compiled(
         root_xy,
         rng,
         fitted.noise_std if fitted.noise_scale > 0 else None,
-        relative,
+        lay.relative_mask,
         heading,
         history,
     )
