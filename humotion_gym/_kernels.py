@@ -467,6 +467,30 @@ def paint_texture(*args: Any) -> bool:
     return _run("_paint_texture", *args)
 
 
+def clutter_shapes(
+    img: NDArray[np.uint8],
+    shapes: NDArray[np.int64],
+    floats: NDArray[np.float64],
+    colors: NDArray[np.uint8],
+    sin_table: NDArray[np.float32],
+) -> bool:
+    """Draw a clutter plan's shapes into ``img`` as ``render._draw_clutter`` does with OpenCV.
+
+    ``img`` ``(H, W, C)`` uint8, written in place; ``shapes`` and ``floats``
+    a :class:`~humotion_gym.render.ClutterPlan`'s, ``colors`` ``(S, 2, C)``
+    uint8 each shape's colour (and a texture's second), ``sin_table``
+    OpenCV's table of whole-degree sines (451 float32). The kernel is OpenCV's
+    rectangle, ellipse and convex polygon fills in the same integer steps and
+    the texture painter's float32 steps, so the pixels are OpenCV's
+    (``tests/test_kernels.py``; the renderer checks it against the installed
+    OpenCV once, ``render._kernel_clutter_as_opencv``).
+
+    Returns:
+        False (OpenCV is to draw) when the kernels are off or failed.
+    """
+    return _run("_clutter_shapes", img, shapes, floats, colors, sin_table)
+
+
 def draw_figure(
     img: NDArray[np.uint8],
     ellipses: NDArray[np.int32],

@@ -7,6 +7,7 @@ for what each kernel matches and why it matches bit for bit.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -651,6 +652,73 @@ def _line(img: NDArray[np.uint8], x1: int, y1: int, x2: int, y2: int, color: NDA
             count -= 1
 
 
+@_njit()
+def _line8(img: NDArray[np.uint8], x1: int, y1: int, x2: int, y2: int, color: NDArray) -> None:
+    """OpenCV's 8-connected ``Line`` between two pixels (its ``LineIterator``, left to right).
+
+    Clipped to the image when an end lies outside (``clipLine``), then
+    Bresenham's walk from the left end: one pixel along the longer axis per
+    step, one along the shorter when the error term is negative, ``dx + 1``
+    pixels in all.
+    """
+    h, w = img.shape[0], img.shape[1]
+    if not (0 <= x1 < w and 0 <= x2 < w and 0 <= y1 < h and 0 <= y2 < h):
+        inside, x1, y1, x2, y2 = _clip_line(w, h, x1, y1, x2, y2)
+        if not inside:
+            return
+    dx = x2 - x1
+    dy = y2 - y1
+    if dx < 0:  # walked from the left end
+        dx, dy = -dx, -dy
+        x1, y1 = x2, y2
+    step_y = 1
+    if dy < 0:
+        dy, step_y = -dy, -1
+    vertical = dy > dx
+    if vertical:
+        dx, dy = dy, dx
+    err = dx - (dy + dy)
+    x, y = x1, y1
+    for _ in range(dx + 1):
+        _put(img, x, y, color)
+        minor = err < 0
+        err -= dy + dy
+        if minor:
+            err += dx + dx
+        if vertical:
+            y += step_y
+            if minor:
+                x += 1
+        else:
+            x += 1
+            if minor:
+                y += step_y
+
+
+@_njit(inline="always")
+def _span(img: NDArray[np.uint8], y: int, x1: int, x2: int, color: NDArray) -> None:
+    """Pixels ``x1..x2`` of row ``y`` set to ``color`` (OpenCV's ``ICV_HLINE``).
+
+    Written per channel count, so that the colour's bytes are loop constants
+    (a span is most of a fill's cost).
+    """
+    channels = img.shape[2]
+    if channels == 3:
+        c0, c1, c2 = color[0], color[1], color[2]
+        for x in range(x1, x2 + 1):
+            img[y, x, 0] = c0
+            img[y, x, 1] = c1
+            img[y, x, 2] = c2
+    elif channels == 1:
+        c0 = color[0]
+        for x in range(x1, x2 + 1):
+            img[y, x, 0] = c0
+    else:
+        for x in range(x1, x2 + 1):
+            for k in range(channels):
+                img[y, x, k] = color[k]
+
+
 @_njit(inline="always")
 def _next_edge(
     vx: NDArray[np.int64], vy: NDArray[np.int64], npts: int, y: int, idx0: int, di: int,
@@ -689,7 +757,8 @@ def _fill_convex(
 ) -> None:  # fmt: skip
     """``cv2.fillConvexPoly(img, v, color, cv2.LINE_8, shift)``, the same pixels.
 
-    The outline first (:func:`_line` per edge, from the last vertex round),
+    The outline first (per edge, from the last vertex round: :func:`_line`,
+    or :func:`_line8` for whole-pixel vertices, ``shift`` 0, as OpenCV does),
     then the scanlines from the topmost vertex down, between a left and a
     right edge each stepped by its rounded fixed-point slope.
     """
@@ -710,7 +779,10 @@ def _fill_convex(
         ymax = max(ymax, py)
         xmax = max(xmax, px)
         xmin = min(xmin, px)
-        _line(img, p0x, p0y, px << up, py << up, color)
+        if shift == 0:  # whole pixels: OpenCV outlines with its Line, not Line2
+            _line8(img, p0x >> _XY_SHIFT, p0y >> _XY_SHIFT, px, py, color)
+        else:
+            _line(img, p0x, p0y, px << up, py << up, color)
         p0x = px << up
         p0y = py << up
     xmin = (xmin + delta) >> shift
@@ -744,11 +816,7 @@ def _fill_convex(
             x1 = (lo + _XY_HALF) >> _XY_SHIFT
             x2 = (hi + _XY_HALF) >> _XY_SHIFT
             if x2 >= 0 and x1 < w:
-                x1 = max(x1, 0)
-                x2 = min(x2, w - 1)
-                for x in range(x1, x2 + 1):
-                    for k in range(img.shape[2]):
-                        img[y, x, k] = color[k]
+                _span(img, y, max(x1, 0), min(x2, w - 1), color)
         a_x += a_dx
         b_x += b_dx
         y += 1
@@ -1367,16 +1435,146 @@ def _paint_texture(
     for y in range(h):
         fy = np.float32(y)
         y_cos, y_sin = fy * cos_a, fy * sin_a
+        # Row views and the channels written out: half the time of indexing
+        # the 3-d region per channel.
+        row, row_inside = region[y], inside[y]
         for x in range(w):
-            if inside[y, x] == 0:
+            if row_inside[x] == 0:
                 continue
             fx = np.float32(x)
             parity = np.floor(fx * cos_a + y_sin)
             if checker:
                 parity = parity + np.floor(y_cos - fx * sin_a)
             odd = np.int32(parity) & 1
-            for c in range(channels):
-                region[y, x, c] = palette[odd, c]
+            if channels == 3:
+                row[x, 0] = palette[odd, 0]
+                row[x, 1] = palette[odd, 1]
+                row[x, 2] = palette[odd, 2]
+            else:
+                for c in range(channels):
+                    row[x, c] = palette[odd, c]
+
+
+# An ellipse's polygon has at most 73 vertices (5-degree steps round the turn
+# and the closing one); a plan's polygon at most six.
+_MAX_VERTICES = 80
+
+
+@_njit()
+def _ellipse_polygon(
+    cx: int, cy: int, ax: int, ay: int, angle: int, sin_table: NDArray[np.float32],
+    vx: NDArray[np.int64], vy: NDArray[np.int64],
+) -> int:  # fmt: skip
+    """The vertices of OpenCV's filled ellipse (``EllipseEx``), 16 fractional bits.
+
+    ``ellipse2Poly`` walks the whole turn in steps of 90, 30, 18 or 5 degrees
+    (by the larger half-axis), reading cosines and sines from OpenCV's table
+    of whole degrees (``sin_table``, float32, read from the installed OpenCV:
+    ``render._opencv_sin_table``), the rotation's too; each double vertex is
+    rounded to 16 fractional bits in OpenCV's two steps, repeats dropped.
+
+    Returns:
+        The number of vertices written to ``vx, vy``.
+    """
+    cx <<= _XY_SHIFT
+    cy <<= _XY_SHIFT
+    ax = abs(ax) << _XY_SHIFT
+    ay = abs(ay) << _XY_SHIFT
+    delta = (max(ax, ay) + _XY_HALF) >> _XY_SHIFT
+    delta = 90 if delta < 3 else (30 if delta < 10 else (18 if delta < 15 else 5))
+    while angle < 0:
+        angle += 360
+    while angle > 360:
+        angle -= 360
+    sin_r = np.float64(sin_table[angle])
+    cos_r = np.float64(sin_table[450 - angle])
+    fcx, fcy, fax, fay = np.float64(cx), np.float64(cy), np.float64(ax), np.float64(ay)
+    n = 0
+    prev_x = prev_y = -1  # OpenCV's (0xFFFFFFFFFFFFFFFF, ...)
+    for i in range(0, 360 + delta, delta):
+        a = min(i, 360)
+        x = fax * np.float64(sin_table[450 - a])
+        y = fay * np.float64(sin_table[a])
+        px = fcx + x * cos_r - y * sin_r
+        py = fcy + x * sin_r + y * cos_r
+        qx = np.int64(np.rint(px / 65536.0)) << _XY_SHIFT
+        qy = np.int64(np.rint(py / 65536.0)) << _XY_SHIFT
+        qx += np.int64(np.rint(px - np.float64(qx)))
+        qy += np.int64(np.rint(py - np.float64(qy)))
+        if qx != prev_x or qy != prev_y:
+            vx[n] = qx
+            vy[n] = qy
+            n += 1
+            prev_x, prev_y = qx, qy
+    if n == 1:  # a zero-size polygon: the centre twice
+        vx[0] = vx[1] = cx
+        vy[0] = vy[1] = cy
+        n = 2
+    return n
+
+
+@_njit()
+def _clutter_shape(
+    target: NDArray[np.uint8], row: NDArray[np.int64], angle: float, color: NDArray[np.uint8],
+    ox: int, oy: int, sin_table: NDArray[np.float32], vx: NDArray[np.int64],
+    vy: NDArray[np.int64],
+) -> None:  # fmt: skip
+    """``render._clutter_shape``: one plan row's box, ellipse or polygon, moved by ``-(ox, oy)``.
+
+    A box is ``cv2.rectangle``'s four corners and an outline-and-scan fill of
+    whole pixels, an ellipse ``cv2.ellipse``'s polygon (:func:`_ellipse_polygon`,
+    its angle rounded to whole degrees) filled with 16 fractional bits, a
+    polygon ``cv2.fillConvexPoly``'s fill of its vertices.
+    """
+    kind = row[0]
+    if kind == 0:
+        x0, y0, x1, y1 = row[6] - ox, row[7] - oy, row[8] - ox, row[9] - oy
+        vx[0], vy[0], vx[1], vy[1] = x0, y0, x1, y0
+        vx[2], vy[2], vx[3], vy[3] = x1, y1, x0, y1
+        _fill_convex(target, vx, vy, 4, color, 0)
+    elif kind == 1:
+        rounded = int(np.rint(angle))
+        n = _ellipse_polygon(row[6] - ox, row[7] - oy, row[8], row[9], rounded, sin_table, vx, vy)
+        _fill_convex(target, vx, vy, n, color, _XY_SHIFT)
+    else:
+        n = row[6]
+        for k in range(n):
+            vx[k] = row[7 + 2 * k] - ox
+            vy[k] = row[8 + 2 * k] - oy
+        _fill_convex(target, vx, vy, n, color, 0)
+
+
+@_njit()
+def _clutter_shapes(
+    img: NDArray[np.uint8], shapes: NDArray[np.int64], floats: NDArray[np.float64],
+    colors: NDArray[np.uint8], sin_table: NDArray[np.float32],
+) -> None:  # fmt: skip
+    """A clutter plan's shapes, as ``render._draw_clutter`` draws them with OpenCV.
+
+    In plan order: a plain shape filled in its colour (``colors[i, 0]``); a
+    textured one filled white into a zeroed mask of its window, then painted with its two colours
+    (``colors[i]``) where the mask is set (:func:`_paint_texture`, its period
+    and angle in ``render._paint_texture``'s float64 steps). The lines are
+    OpenCV's (anti-aliased), drawn after.
+    """
+    vx = np.empty(_MAX_VERTICES, np.int64)
+    vy = np.empty(_MAX_VERTICES, np.int64)
+    white = np.full(1, 255, np.uint8)
+    for i in range(shapes.shape[0]):
+        textured = shapes[i, 1]
+        if textured < 0:
+            continue
+        if textured == 0:
+            _clutter_shape(img, shapes[i], floats[i, 0], colors[i, 0], 0, 0, sin_table, vx, vy)
+            continue
+        x0, y0, x1, y1 = shapes[i, 2], shapes[i, 3], shapes[i, 4], shapes[i, 5]
+        mask = np.zeros((y1 - y0, x1 - x0, 1), np.uint8)
+        _clutter_shape(mask, shapes[i], floats[i, 0], white, x0, y0, sin_table, vx, vy)
+        period = floats[i, 7] * max(y1 - y0, x1 - x0) / 128.0 + 2.0
+        cos_a = np.float32(math.cos(floats[i, 8]) / period)
+        sin_a = np.float32(math.sin(floats[i, 8]) / period)
+        checker = floats[i, 9] >= 0.5
+        _paint_texture(img[y0:y1, x0:x1], mask[:, :, 0], colors[i], cos_a, sin_a, checker)
 
 
 # ---------------------------------------------------------------------------

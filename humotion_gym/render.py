@@ -459,19 +459,14 @@ def _draw_clutter(img: NDArray[np.uint8], scene: SceneOptions, rng: np.random.Ge
     shapes, floats, lines = _clutter_plan(rng, h, w, scene.clutter_density)
     # Every shape's colours at once: a plain shape's one, a textured shape's two.
     colors = _clutter_colors(floats[:, 1:7].reshape(-1, 3), channels)
-    for i, (row, f) in enumerate(zip(shapes.tolist(), floats.tolist(), strict=True)):
-        if row[1] < 0:
-            continue
-        if row[1] == 0:  # a plain colour, drawn directly
-            _clutter_shape(img, row, f[0], colors[2 * i])
-            continue
-        x0, y0, x1, y1 = row[2:6]
-        mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
-        _clutter_shape(mask, row, f[0], 255)
-        # Pixels per stripe, in proportion to the shape's window.
-        period = f[7] * max(y1 - y0, x1 - x0) / 128.0 + 2.0
-        palette = np.array(colors[2 * i : 2 * i + 2], np.uint8)
-        _paint_texture(img[y0:y1, x0:x1], mask, palette, period, f[8], f[9] >= 0.5)
+    if not (
+        _kernels.ENABLED
+        and _kernel_clutter_as_opencv()
+        and _kernels.clutter_shapes(
+            img, shapes, floats, _color_table(colors, channels), _opencv_sin_table()
+        )
+    ):
+        _draw_clutter_shapes(img, shapes, floats, colors)
     line_colors = _clutter_colors(lines[:, 5:8], channels)
     for (x0f, y0f, dx, dy, length, *_, thickness), color in zip(
         lines.tolist(), line_colors, strict=True
@@ -488,6 +483,122 @@ def _draw_clutter(img: NDArray[np.uint8], scene: SceneOptions, rng: np.random.Ge
             int(thickness),
             cv2.LINE_AA,
         )
+
+
+def _draw_clutter_shapes(
+    img: NDArray[np.uint8],
+    shapes: NDArray[np.int64],
+    floats: NDArray[np.float64],
+    colors: list[list[float]],
+) -> None:
+    """A clutter plan's shapes drawn by OpenCV, in plan order: the shape kernel's reference.
+
+    A plain shape is filled in its colour; a textured one is filled into a
+    mask of its window, then painted with its two colours where the mask is
+    set. ``colors`` holds two rows per shape (:func:`_clutter_colors`).
+    """
+    for i, (row, f) in enumerate(zip(shapes.tolist(), floats.tolist(), strict=True)):
+        if row[1] < 0:
+            continue
+        if row[1] == 0:  # a plain colour, drawn directly
+            _clutter_shape(img, row, f[0], colors[2 * i])
+            continue
+        x0, y0, x1, y1 = row[2:6]
+        mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        _clutter_shape(mask, row, f[0], 255)
+        # Pixels per stripe, in proportion to the shape's window.
+        period = f[7] * max(y1 - y0, x1 - x0) / 128.0 + 2.0
+        palette = np.array(colors[2 * i : 2 * i + 2], np.uint8)
+        _paint_texture(img[y0:y1, x0:x1], mask, palette, period, f[8], f[9] >= 0.5)
+
+
+def _color_table(colors: list[list[float]], channels: int) -> NDArray[np.uint8]:
+    """:func:`_clutter_colors`' rows as the shape kernel's ``(S, 2, C)`` uint8 table.
+
+    The rows are whole numbers in [0, 255] (rounded draws), so the cast is
+    what OpenCV makes of a colour and what the texture's palette holds.
+    """
+    return np.array(colors, np.uint8).reshape(-1, 2, channels)
+
+
+@functools.cache
+def _opencv_sin_table() -> NDArray[np.float32]:
+    """OpenCV's table of the sines of whole degrees 0..450, read from the installed OpenCV.
+
+    ``cv2.ellipse`` takes its polygon's cosines and sines from a float32
+    table; the shape kernel needs the same numbers. ``cv2.ellipse2Poly`` of
+    an unrotated circle of radius 2^29 in 1-degree steps gives ``2^29`` times
+    each entry, rounded, which is exact for every entry of 2^-6 or more (and
+    0): ``y`` the sines of 0..360, ``x`` the cosines, which are entries 90..450.
+    """
+    radius = 1 << 29
+    points = np.asarray(cv2.ellipse2Poly((0, 0), (radius, radius), 0, 0, 360, 1), np.float64)
+    if points.shape != (361, 2):
+        raise ValueError(
+            f"cv2.ellipse2Poly of a whole turn in 1-degree steps gave {points.shape[0]} points, "
+            "expected 361"
+        )
+    table = np.empty(451, np.float64)
+    table[:361] = points[:, 1] / radius
+    table[450:89:-1] = points[:, 0] / radius
+    return table.astype(np.float32)
+
+
+@functools.cache
+def _kernel_clutter_as_opencv() -> bool:
+    """Whether the shape kernel draws clutter as the installed OpenCV does (checked once).
+
+    The kernel copies OpenCV's integer steps and its sine table; an OpenCV
+    release that drew otherwise would make backgrounds depend on whether
+    numba is installed. So on first use both draw the shapes of 24 random
+    plans (colour and grey, two sizes) and ellipses at every whole angle the
+    plans use (about 10 ms); where any pixel differs, OpenCV draws, with one
+    ``RuntimeWarning``.
+    """
+    try:
+        table = _opencv_sin_table()
+    except ValueError as exc:
+        warnings.warn(
+            f"humotion_gym: this OpenCV ({cv2.__version__}) does not give its sine table ({exc}); "
+            "OpenCV draws the background's shapes (the other kernels still run).",
+            RuntimeWarning,
+            stacklevel=4,
+        )
+        return False
+    rng = np.random.default_rng(20261125)
+    cases = []
+    for seed in range(24):
+        h, w = (128, 128) if seed % 2 else (96, 160)
+        channels = 3 if seed % 3 else 1
+        plan = _clutter_plan(np.random.default_rng(seed), h, w, 1.0 + seed / 8, kernel=False)
+        cases.append((h, w, channels, plan.shapes, plan.shape_floats))
+    # Every rounded angle of an ellipse (0..180) at small and large half-axes.
+    n = 181
+    ellipses = np.zeros((n, 19), np.int64)
+    ellipses[:, 0] = 1
+    ellipses[:, 6:8] = rng.integers(-20, 150, (n, 2))
+    ellipses[:, 8:10] = rng.choice([1, 2, 5, 12, 40, 90], (n, 2))
+    angles = np.zeros((n, 10))
+    angles[:, 0] = np.arange(n) + rng.uniform(-0.49, 0.49, n)
+    angles[:, 1:4] = rng.uniform(25, 235, (n, 3))
+    cases.append((128, 128, 3, ellipses, angles))
+    for h, w, channels, shapes, floats in cases:
+        colors = _clutter_colors(floats[:, 1:7].reshape(-1, 3), channels)
+        ours = np.full((h, w, channels), 7, np.uint8)
+        theirs = ours.copy()
+        _draw_clutter_shapes(theirs, shapes, floats, colors)
+        if not _kernels.clutter_shapes(ours, shapes, floats, _color_table(colors, channels), table):
+            return True  # the kernels are off (numba failed and said so): nothing to check
+        if not np.array_equal(ours, theirs):
+            warnings.warn(
+                f"humotion_gym: this OpenCV ({cv2.__version__}) draws the background's shapes "
+                "otherwise than the shape kernel; OpenCV draws them (the other kernels still "
+                "run).",
+                RuntimeWarning,
+                stacklevel=4,
+            )
+            return False
+    return True
 
 
 def noise_bank(scene: SceneOptions, rng: np.random.Generator) -> NDArray[np.uint8]:

@@ -672,6 +672,158 @@ def test_a_numpy_that_draws_otherwise_keeps_the_clutter(monkeypatch) -> None:
         render._kernel_plans_as_numpy.cache_clear()
 
 
+def _opencv_target(img: np.ndarray) -> np.ndarray:
+    """The image as OpenCV is given it: 2-d for one channel."""
+    return img.reshape(img.shape[0], img.shape[1]) if img.shape[2] == 1 else img
+
+
+@pytest.mark.parametrize("channels", [1, 3])
+def test_whole_pixel_lines_and_fills_are_opencvs(channels: int) -> None:
+    # cv2.line (LINE_8, thickness 1, no fractional bits) is OpenCV's Line, and
+    # cv2.fillConvexPoly without fractional bits outlines with it: random
+    # segments and polygons (convex or not), inside, across and outside the
+    # image, give the kernels' pixels.
+    import cv2
+
+    kernels = _kernels.compiled()
+    rng = np.random.default_rng(10 + channels)
+    for _ in range(600):
+        img = rng.integers(0, 256, (48, 80, channels)).astype(np.uint8)
+        color = rng.integers(0, 256, channels).astype(np.uint8)
+        x1, y1, x2, y2 = (int(v) for v in rng.integers(-60, 140, 4))
+        want = img.copy()
+        cv2.line(_opencv_target(want), (x1, y1), (x2, y2), color.tolist(), 1, cv2.LINE_8)
+        kernels._line8(img, x1, y1, x2, y2, color)
+        np.testing.assert_array_equal(img, want)
+        n = int(rng.integers(1, 8))
+        poly = rng.integers(-40, 120, (n, 2)).astype(np.int32)
+        if rng.random() < 0.5:  # a small one, well inside
+            poly = (poly % 30 + 10).astype(np.int32)
+        want = img.copy()
+        cv2.fillConvexPoly(_opencv_target(want), poly, color.tolist(), cv2.LINE_8, 0)
+        vx, vy = poly[:, 0].astype(np.int64), poly[:, 1].astype(np.int64)
+        kernels._fill_convex(img, vx, vy, n, color, 0)
+        np.testing.assert_array_equal(img, want)
+
+
+def test_the_sine_table_is_opencvs() -> None:
+    # Read back from cv2.ellipse2Poly: the whole degrees' sines as float32,
+    # 0..450 (the cosines are entries 90 on).
+    from humotion_gym.render import _opencv_sin_table
+
+    table = _opencv_sin_table()
+    assert table.dtype == np.float32 and table.shape == (451,)
+    assert table[0] == table[180] == table[360] == 0.0
+    assert table[90] == table[450] == 1.0 and table[270] == -1.0 and table[30] == np.float32(0.5)
+    degrees = np.radians(np.arange(451))
+    np.testing.assert_allclose(table, np.sin(degrees), atol=1e-7)
+
+
+@pytest.mark.parametrize("size", [(128, 128), (96, 160), (32, 40)])
+@pytest.mark.parametrize("channels", [1, 3])
+def test_the_shape_kernel_draws_clutter_as_opencv(size: tuple[int, int], channels: int) -> None:
+    # The shapes of 300 plans (boxes, ellipses and polygons; plain and
+    # textured; on and off the image): the kernel's pixels are OpenCV's.
+    from humotion_gym.render import (
+        _clutter_colors,
+        _clutter_plan,
+        _color_table,
+        _draw_clutter_shapes,
+        _opencv_sin_table,
+    )
+
+    h, w = size
+    rng = np.random.default_rng(channels)
+    kinds = textured = clipped = 0
+    for seed in range(300):
+        plan = _clutter_plan(np.random.default_rng(seed), h, w, 0.5 + seed % 4)
+        colors = _clutter_colors(plan.shape_floats[:, 1:7].reshape(-1, 3), channels)
+        got = rng.integers(0, 256, (h, w, channels)).astype(np.uint8)
+        want = got.copy()
+        _draw_clutter_shapes(want, plan.shapes, plan.shape_floats, colors)
+        table = _color_table(colors, channels)
+        assert _kernels.clutter_shapes(got, plan.shapes, plan.shape_floats, table,
+                                       _opencv_sin_table())  # fmt: skip
+        np.testing.assert_array_equal(got, want)
+        kinds |= int(np.bitwise_or.reduce(1 << plan.shapes[:, 0], initial=0))
+        textured += int((plan.shapes[:, 1] == 1).sum())
+        clipped += int((plan.shapes[:, 1] == -1).sum())
+    assert kinds == 0b111 and textured > 100 and clipped > 0
+
+
+def test_ellipses_at_every_angle_and_size_are_opencvs() -> None:
+    # Every whole angle a plan's ellipse is drawn at (0..180, rounded as
+    # OpenCV rounds), at half-axes that take each of ellipse2Poly's steps
+    # (90, 30, 18 and 5 degrees), in the image and across its edges.
+    from humotion_gym.render import _draw_clutter_shapes, _opencv_sin_table
+
+    rng = np.random.default_rng(4)
+    for axes in ([0, 0], [1, 2], [4, 9], [12, 3], [14, 14], [30, 11], [200, 90]):
+        n = 181
+        shapes = np.zeros((n, 19), np.int64)
+        shapes[:, 0] = 1
+        shapes[:, 6:8] = rng.integers(-30, 160, (n, 2))
+        shapes[:, 8:10] = axes
+        floats = np.zeros((n, 10))
+        floats[:, 0] = np.arange(n) + rng.uniform(-0.5, 0.5, n)
+        floats[:, 1:4] = rng.uniform(25, 235, (n, 3))
+        colors = floats[:, 1:4].round()
+        table = np.zeros((n, 2, 3), np.uint8)
+        table[:, 0] = colors
+        for i in range(n):  # one at a time: each over the last would hide differences
+            got = np.zeros((128, 128, 3), np.uint8)
+            want = got.copy()
+            _draw_clutter_shapes(want, shapes[i : i + 1], floats[i : i + 1],
+                                 [colors[i].tolist(), [0.0, 0.0, 0.0]])  # fmt: skip
+            assert _kernels.clutter_shapes(got, shapes[i : i + 1], floats[i : i + 1],
+                                           table[i : i + 1], _opencv_sin_table())  # fmt: skip
+            np.testing.assert_array_equal(got, want)
+
+
+def test_an_opencv_without_the_sine_table_keeps_the_clutter(monkeypatch) -> None:
+    # An ellipse2Poly that does not give the table (here: points dropped)
+    # leaves the shapes to OpenCV, with one warning.
+    import cv2
+
+    from humotion_gym import render
+
+    real = cv2.ellipse2Poly
+    monkeypatch.setattr(cv2, "ellipse2Poly", lambda *args: real(*args)[:-1])
+    render._opencv_sin_table.cache_clear()
+    render._kernel_clutter_as_opencv.cache_clear()
+    try:
+        with pytest.warns(RuntimeWarning, match="does not give its sine table.*gave 360 points"):
+            a = make_background(SceneOptions(), np.random.default_rng(5))
+        monkeypatch.setattr(_kernels, "ENABLED", False)
+        b = make_background(SceneOptions(), np.random.default_rng(5))
+        np.testing.assert_array_equal(a.image, b.image)
+    finally:
+        render._opencv_sin_table.cache_clear()
+        render._kernel_clutter_as_opencv.cache_clear()
+
+
+def test_an_opencv_that_draws_shapes_otherwise_keeps_the_clutter(monkeypatch) -> None:
+    # The first background checks the shape kernel against the installed
+    # OpenCV; where any pixel differs (here: a sine table a step off), OpenCV
+    # draws the shapes (one warning) and the other kernels stay on.
+    from humotion_gym import render
+
+    render._kernel_clutter_as_opencv.cache_clear()
+    assert render._kernel_clutter_as_opencv()
+    render._kernel_clutter_as_opencv.cache_clear()
+    skewed = np.roll(render._opencv_sin_table(), 1)
+    monkeypatch.setattr(render, "_opencv_sin_table", lambda: skewed)
+    try:
+        with pytest.warns(RuntimeWarning, match="draws the background's shapes otherwise"):
+            a = make_background(SceneOptions(), np.random.default_rng(3))
+        assert _kernels.enabled() and not render._kernel_clutter_as_opencv()
+        monkeypatch.setattr(_kernels, "ENABLED", False)
+        b = make_background(SceneOptions(), np.random.default_rng(3))
+        np.testing.assert_array_equal(a.image, b.image)
+    finally:
+        render._kernel_clutter_as_opencv.cache_clear()
+
+
 @pytest.mark.parametrize("n", [1, 2, 16, 3001])
 def test_the_vector_envs_keypoints_are_the_numpy_paths(n: int) -> None:
     # Poses anywhere (angles over several turns), shapes of every size: the

@@ -54,11 +54,11 @@ FloatArray = NDArray[np.float64]
 
 # An episode's figures are prepared for its first frames when it starts, and
 # for the rest when it reaches them (all frames are prepared the same way, each
-# on its own): an episode that loses track within a few frames, as most do
-# under an untrained policy, never pays for the frames it does not show.
-# Episodes that run their full length (terminate_on_lost=False) are prepared
-# whole at their start: one pass costs less than two.
-_FIRST_FIGURES = 8
+# on its own): an episode that loses track from its first frame, as most do
+# under an untrained policy, ends on step ``lost_patience`` having shown frames
+# 1..lost_patience, and never pays for the frames it does not show. Episodes
+# that run their full length (terminate_on_lost=False) are prepared whole at
+# their start: one pass costs less than two.
 
 
 class PoseTrackingVectorEnv(VectorEnv):
@@ -143,7 +143,9 @@ class PoseTrackingVectorEnv(VectorEnv):
         self._autoreset = np.zeros(n, np.bool_)
         self._started = np.zeros(n, np.bool_)
         self._obs = np.zeros((n, *template.observation_space.shape), np.uint8)
-        self._first_figures = _FIRST_FIGURES if template.terminate_on_lost else frames
+        self._first_figures = (
+            min(template.lost_patience + 1, frames) if template.terminate_on_lost else frames
+        )
         # _keypoints' shape tables by id(shape), each with its shape (kept alive:
         # the id stays its own).
         self._shape_tables: dict[int, tuple[BodyShape, FloatArray, float, FloatArray]] = {}
