@@ -400,7 +400,12 @@ def fit_camera(
     """
     _check_size(width, height, float(fov_deg), "fit_camera")
     pts = _check_points(keypoints, "fit_camera").reshape(-1, 3)
-    if pts.shape[0] == 0 or not np.all(np.isfinite(pts)):
+    if pts.shape[0] == 0:
+        raise ValueError("fit_camera: expected at least one point, all finite")
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    # A NaN makes its column's min and max NaN, an infinity one of them
+    # infinite: six numbers tell whether every point is finite.
+    if not all(math.isfinite(v) for v in lo.tolist() + hi.tolist()):
         raise ValueError("fit_camera: expected at least one point, all finite")
     if not 0.0 <= margin <= 0.9:
         raise ValueError(f"fit_camera: margin must lie in [0, 0.9], got {margin}")
@@ -408,7 +413,7 @@ def fit_camera(
         raise ValueError(f"fit_camera: elevation_deg must lie in [-89, 89], got {elevation_deg}")
     if not (pad_mm >= 0.0 and min_distance_mm > 0.0):
         raise ValueError("fit_camera: pad_mm must be >= 0 and min_distance_mm > 0")
-    target = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    target = 0.5 * (lo + hi)
     direction = view_direction(azimuth_deg, elevation_deg)
     # The final camera's rotation: it looks along the same direction.
     rotation = _look_at_rotation(target + direction, target, _WORLD_UP, "fit_camera")

@@ -273,5 +273,14 @@ def test_fit_camera_bad_arguments() -> None:
         fit_camera(clip, 64, 64, 50.0, elevation_deg=90.0)
     with pytest.raises(ValueError, match="finite"):
         fit_camera(np.full((2, 15, 3), np.nan), 64, 64, 50.0)
+    # one bad number among finite points, in any column, is found
+    for bad in (np.nan, np.inf, -np.inf):
+        for column in range(3):
+            points = clip.copy()
+            points[3, 7, column] = bad
+            with pytest.raises(ValueError, match="finite"):
+                fit_camera(points, 64, 64, 50.0)
+    with pytest.raises(ValueError, match="at least one point"):
+        fit_camera(np.zeros((0, 3)), 64, 64, 50.0)
     with pytest.raises(ValueError, match="fov"):
         fit_camera(clip, 64, 64, 200.0)

@@ -248,8 +248,7 @@ class PoseTrackingVectorEnv(VectorEnv):
         rows = np.flatnonzero(mask).tolist()
         started = self._start(rows, [seeds[i] for i in rows], options or None)
         infos: dict[str, Any] = {}
-        for i in rows:
-            _add_info(infos, started[i], i, n)
+        _add_infos(infos, rows, [started[i] for i in rows], n)
         self._autoreset[mask] = False
         return self._obs.copy(), infos
 
@@ -404,11 +403,11 @@ class PoseTrackingVectorEnv(VectorEnv):
                 value = value.copy()
                 value[~stepped] = None if value.dtype == object else 0
             infos[key], infos[f"_{key}"] = value, stepped.copy()
-        for i in sorted(set(restarted) | set(final)):
-            if i in final:
-                final_obs, final_info = final[i]
-                _add_info(infos, {"final_obs": final_obs, "final_info": final_info}, i, n)
-            _add_info(infos, restarted[i], i, n)
+        for i in sorted(final):
+            final_obs, final_info = final[i]
+            _add_info(infos, {"final_obs": final_obs, "final_info": final_info}, i, n)
+        started_rows = sorted(restarted)
+        _add_infos(infos, started_rows, [restarted[i] for i in started_rows], n)
         self._k = np.array([env._k for env in envs], np.intp)
         if self.autoreset_mode == AutoresetMode.SAME_STEP:
             self._autoreset[:] = False
@@ -610,6 +609,43 @@ def _item(value: NDArray[Any], i: int) -> Any:
     if value.dtype.kind in "iu":
         return int(row)
     return float(row)
+
+
+def _add_infos(infos: dict[str, Any], rows: list[int], items: list[dict[str, Any]], n: int) -> None:
+    """:func:`_add_info` of ``items[j]`` for episode ``rows[j]``, in order, key by key.
+
+    The episodes a step starts give infos with the same keys; each key's
+    array and mask are then looked up once for all of them (a tenth of an
+    episode's start, done one info at a time). Infos with other keys, or
+    with nested ones, go one at a time.
+    """
+    if not items:
+        return
+    keys = list(items[0])
+    if "final_obs" in keys or any(
+        list(item) != keys or any(isinstance(v, dict) for v in item.values()) for item in items
+    ):
+        for i, item in zip(rows, items, strict=True):
+            _add_info(infos, item, i, n)
+        return
+    for key in keys:
+        values = [item[key] for item in items]
+        array = infos.get(key)
+        if array is None:
+            value = values[0]  # the first value seen sets the type, as in _add_info
+            if type(value) in (int, float, bool) or isinstance(value, np.number):
+                array = np.zeros(n, dtype=type(value))
+            elif isinstance(value, np.ndarray):
+                array = np.zeros((n, *value.shape), dtype=value.dtype)
+            else:
+                array = np.full(n, None, dtype=object)
+        for i, value in zip(rows, values, strict=True):
+            array[i] = value
+        mask = infos.get(f"_{key}")
+        if mask is None:
+            mask = np.zeros(n, np.bool_)
+        mask[rows] = True
+        infos[key], infos[f"_{key}"] = array, mask
 
 
 def _add_info(infos: dict[str, Any], info: dict[str, Any], i: int, n: int) -> dict[str, Any]:

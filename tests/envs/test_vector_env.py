@@ -176,3 +176,24 @@ def test_learner_vec_env_equals_dummy_vec_env_of_learner_envs():
                 ends += 1
                 _assert_same(got_info["terminal_observation"], want_info["terminal_observation"])
     assert ends > 0
+
+
+@pytest.mark.parametrize(
+    "items",
+    [
+        [{"a": 1, "b": np.ones(2), "c": "x"}, {"a": 2, "b": np.zeros(2), "c": None}],
+        [{"a": 1.5, "b": True}, {"b": False, "a": 2.5}],  # other key orders
+        [{"a": 1}, {"a": 2, "d": {"e": 3}}],  # a nested info
+        [{"final_obs": np.zeros(2)}, {"final_obs": np.ones(2)}],
+    ],
+)
+def test_infos_batched_key_by_key_are_infos_added_one_by_one(items):
+    from humotion_gym.envs.vector import _add_info, _add_infos
+
+    for before in ({}, {"a": np.zeros(4, np.int64), "_a": np.zeros(4, np.bool_)}):
+        got = {key: value.copy() for key, value in before.items()}
+        want = {key: value.copy() for key, value in before.items()}
+        _add_infos(got, [3, 1], items, 4)
+        for i, item in zip([3, 1], items, strict=True):
+            _add_info(want, item, i, 4)
+        _assert_same(got, want)
