@@ -17,11 +17,11 @@ with its ``_key`` masks; ``tests/envs/test_vector_env.py``), with Gymnasium
   their first frames only until they get further (whole, when episodes run
   their full length: ``terminate_on_lost=False``);
 * each frame is drawn by the single environment's own renderer, straight
-  into its row of the batch, which is what is left: about 35 us a frame at
-  128x128 (some twenty OpenCV calls: a convex hull and a fill per cone, a
-  fill per shading strip, the noise), with the episode's background (its
-  clutter drawn from the episode's seed) about 0.2 ms per episode and the
-  rest of its start (camera fit, clip choice) as much again.
+  into its row of the batch, which is what is left: about 20 us a frame at
+  128x128 (the figure's fills, then the sensor noise), with the episode's
+  background (its clutter drawn from the episode's seed) about 90 us per
+  episode and the rest of its start (camera fit, clip choice, generators)
+  about as much again.
 
 Each of the N episodes is held by a :class:`PoseTrackingEnv` (``envs``), kept
 in step, so its methods (``pose_to_action``, ``action_to_pose``,
