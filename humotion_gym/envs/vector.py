@@ -611,6 +611,19 @@ def _item(value: NDArray[Any], i: int) -> Any:
     return float(row)
 
 
+def _batch_of(value: Any, n: int) -> NDArray[Any]:
+    """An empty batch of ``n`` values of ``value``'s kind, as ``SyncVectorEnv`` makes it.
+
+    Numbers and bools in a numpy array of their type, arrays stacked, anything
+    else in an object array of None.
+    """
+    if type(value) in (int, float, bool) or isinstance(value, np.number):
+        return np.zeros(n, dtype=type(value))
+    if isinstance(value, np.ndarray):
+        return np.zeros((n, *value.shape), dtype=value.dtype)
+    return np.full(n, None, dtype=object)
+
+
 def _add_infos(infos: dict[str, Any], rows: list[int], items: list[dict[str, Any]], n: int) -> None:
     """:func:`_add_info` of ``items[j]`` for episode ``rows[j]``, in order, key by key.
 
@@ -631,14 +644,8 @@ def _add_infos(infos: dict[str, Any], rows: list[int], items: list[dict[str, Any
     for key in keys:
         values = [item[key] for item in items]
         array = infos.get(key)
-        if array is None:
-            value = values[0]  # the first value seen sets the type, as in _add_info
-            if type(value) in (int, float, bool) or isinstance(value, np.number):
-                array = np.zeros(n, dtype=type(value))
-            elif isinstance(value, np.ndarray):
-                array = np.zeros((n, *value.shape), dtype=value.dtype)
-            else:
-                array = np.full(n, None, dtype=object)
+        if array is None:  # the first value seen sets the type, as in _add_info
+            array = _batch_of(values[0], n)
         for i, value in zip(rows, values, strict=True):
             array[i] = value
         mask = infos.get(f"_{key}")
@@ -667,12 +674,7 @@ def _add_info(infos: dict[str, Any], info: dict[str, Any], i: int, n: int) -> di
         else:
             array = infos.get(key)
             if array is None:
-                if type(value) in (int, float, bool) or isinstance(value, np.number):
-                    array = np.zeros(n, dtype=type(value))
-                elif isinstance(value, np.ndarray):
-                    array = np.zeros((n, *value.shape), dtype=value.dtype)
-                else:
-                    array = np.full(n, None, dtype=object)
+                array = _batch_of(value, n)
             array[i] = value
         mask = infos.get(f"_{key}")
         if mask is None:
