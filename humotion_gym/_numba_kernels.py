@@ -1552,10 +1552,11 @@ def _clutter_shapes(
     """A clutter plan's shapes, as ``render._draw_clutter`` draws them with OpenCV.
 
     In plan order: a plain shape filled in its colour (``colors[i, 0]``); a
-    textured one filled white into a zeroed mask of its window, then painted with its two colours
-    (``colors[i]``) where the mask is set (:func:`_paint_texture`, its period
-    and angle in ``render._paint_texture``'s float64 steps). The lines are
-    OpenCV's (anti-aliased), drawn after.
+    textured one filled white into a zeroed mask of its window, then painted
+    with its two colours (``colors[i]``) where the mask is set
+    (:func:`_paint_texture`, its period and angle in
+    ``render._paint_texture``'s float64 steps). The lines are OpenCV's
+    (anti-aliased), drawn after.
     """
     vx = np.empty(_MAX_VERTICES, np.int64)
     vy = np.empty(_MAX_VERTICES, np.int64)
