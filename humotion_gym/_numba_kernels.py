@@ -164,8 +164,10 @@ def _cone_basis(
     ``(V, 2, 3, n)``: the x and y axes of the ``V`` cones ``vary_cone`` whose
     silhouette width varies with the pose. Every step is the numpy path's
     float32 operation, in its order; the loops run over poses innermost.
+    ``keypoints`` may be wider than ``n`` (the poses are ``basis``'s: the
+    padded buffer of spaced rows, which numba takes as contiguous).
     """
-    n = keypoints.shape[2]
+    n = basis.shape[2]
     for k in range(keypoints.shape[1]):
         for j in range(n):
             x, y, z = keypoints[0, k, j], keypoints[1, k, j], keypoints[2, k, j]

@@ -252,6 +252,27 @@ def test_spaced_rows_are_an_odd_number_of_cache_lines_apart(n: int, monkeypatch)
     assert _kernels.spaced_rows((3, 5), n).flags.c_contiguous
 
 
+@pytest.mark.parametrize("n", [1, 17, 1024, 3000])
+def test_padded_rows_is_the_spaced_rows_buffer(n: int) -> None:
+    rows = _kernels.spaced_rows((3, 5), n)
+    rows[...] = np.arange(rows.size, dtype=np.float32).reshape(rows.shape)
+    padded = _kernels.padded_rows(rows)
+    assert padded.flags.c_contiguous and np.shares_memory(padded, rows)
+    assert padded.shape[:2] == (3, 5) and padded.shape[2] >= n
+    np.testing.assert_array_equal(padded[..., :n], rows)
+    # Any other layout comes back as a contiguous copy (a view into the
+    # middle of a buffer must not hand the kernel the buffer's start).
+    middle = np.zeros((3, 5, n + 8), np.float32)[..., 4 : n + 4]
+    middle[...] = rows
+    other = _kernels.padded_rows(middle)
+    assert other.flags.c_contiguous and other.shape == middle.shape
+    np.testing.assert_array_equal(other, rows)
+    transposed = np.asarray(rows[0]).T
+    assert _kernels.padded_rows(transposed).flags.c_contiguous
+    contiguous = np.zeros((2, 3), np.float32)
+    assert _kernels.padded_rows(contiguous) is contiguous
+
+
 def _random_cones(
     rng: np.random.Generator, size: int, n_points: int, n: int
 ) -> tuple[np.ndarray, np.ndarray]:
