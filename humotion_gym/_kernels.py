@@ -428,6 +428,49 @@ def foreground_map(*args: Any) -> bool:
     return _run("_foreground_map", *args)
 
 
+def orientation_maps(
+    smooth: NDArray[np.uint8], edges: NDArray[np.uint8], n_bins: int
+) -> tuple[NDArray[np.uint8], NDArray[np.bool_]] | None:
+    """``ObservationModel._oriented_edges``' orientation maps, from the gradients at the edges.
+
+    ``_numba_kernels._edge_gradients`` lists the edge pixels and the
+    strongest channel's Sobel gradient at each (the numpy path filters the
+    whole frame twice); numpy's own ``arctan2`` turns them into angles (its
+    vectorised float32 arctangent differs from the C library's, which numba
+    would call, in the last bit of four angles in ten); and
+    ``_numba_kernels._orientation_maps`` puts each pixel into its two bins.
+
+    Args:
+        smooth: ``(H, W, C)`` uint8, the blurred frame.
+        edges: ``(H, W)`` uint8, its edge map (nonzero at edges).
+        n_bins: The number of orientation bins, at least 2.
+
+    Returns:
+        ``(B, H, W)`` uint8 maps (0 at each bin's edge pixels, 255 elsewhere)
+        and ``(B,)`` whether each bin holds an edge pixel, the numpy path's;
+        None when the kernels are off or failed.
+    """
+    if not ENABLED:
+        return None
+    h, w, _ = smooth.shape
+    n = int(np.count_nonzero(edges))
+    ys, xs = np.empty(n, np.intp), np.empty(n, np.intp)
+    gx, gy = np.empty(n, np.float32), np.empty(n, np.float32)
+    smooth, edges = np.ascontiguousarray(smooth), np.ascontiguousarray(edges)
+    written = _call("_edge_gradients", smooth, edges, ys, xs, gx, gy)
+    if written is _FAILED:
+        return None
+    if written != n:  # (count_nonzero and the kernel's scan count the same pixels)
+        raise RuntimeError(f"orientation_maps: {written} edge pixels scanned, {n} counted")
+    theta = np.arctan2(gy, gx)  # gradient = outline normal
+    free = np.empty((n_bins, h, w), np.uint8)
+    counts = np.empty(n_bins, np.int64)
+    half_turn, per_bin = np.float32(np.pi), np.float32(n_bins / np.pi)
+    if not _run("_orientation_maps", theta, ys, xs, half_turn, per_bin, free, counts):
+        return None
+    return free, counts > 0
+
+
 def clutter_plan(
     rng: np.random.Generator,
     h: int,

@@ -1828,3 +1828,105 @@ def _foreground_map(
             v = d - floor
             f = np.float32(v if v > 0 else 0) * inv_span
             fg[y, x] = f if f < _ONE else _ONE
+
+
+# ---------------------------------------------------------------------------
+# The observation model's edge orientations
+# ---------------------------------------------------------------------------
+
+
+@_njit()
+def _edge_gradients(
+    smooth: NDArray[np.uint8],
+    edges: NDArray[np.uint8],
+    ys: NDArray[np.intp],
+    xs: NDArray[np.intp],
+    gx: NDArray[np.float32],
+    gy: NDArray[np.float32],
+) -> int:
+    """The edge pixels in raster order and the strongest channel's gradient at each.
+
+    ``ObservationModel._oriented_edges``' ``cv2.findNonZero`` and its two
+    3x3 ``cv2.Sobel`` (border reflected about the edge pixel,
+    ``BORDER_REFLECT_101``), read at the edge pixels only: each derivative
+    is a sum of small integers, exact in any order and in float32; the
+    channel with the largest ``gx^2 + gy^2`` (the first of equals, as
+    ``np.argmax``) gives the pair. Returns how many edge pixels were written.
+    """
+    h, w, channels = smooth.shape
+    n = 0
+    for y in range(h):
+        up = y - 1 if y > 0 else 1
+        down = y + 1 if y < h - 1 else h - 2
+        for x in range(w):
+            if edges[y, x] == 0:
+                continue
+            left = x - 1 if x > 0 else 1
+            right = x + 1 if x < w - 1 else w - 2
+            best = np.int32(-1)
+            bx = by = np.int32(0)
+            for c in range(channels):
+                a = np.int32(smooth[up, left, c])
+                b = np.int32(smooth[up, x, c])
+                d = np.int32(smooth[up, right, c])
+                e = np.int32(smooth[y, left, c])
+                f = np.int32(smooth[y, right, c])
+                g = np.int32(smooth[down, left, c])
+                k = np.int32(smooth[down, x, c])
+                m = np.int32(smooth[down, right, c])
+                dx = (d - a) + 2 * (f - e) + (m - g)
+                dy = (g - a) + 2 * (k - b) + (m - d)
+                mag = dx * dx + dy * dy
+                if mag > best:
+                    best, bx, by = mag, dx, dy
+            ys[n] = y
+            xs[n] = x
+            gx[n] = np.float32(bx)
+            gy[n] = np.float32(by)
+            n += 1
+    return n
+
+
+@_njit()
+def _orientation_maps(
+    theta: NDArray[np.float32],
+    ys: NDArray[np.intp],
+    xs: NDArray[np.intp],
+    half_turn: np.float32,
+    per_bin: np.float32,
+    free: NDArray[np.uint8],
+    counts: NDArray[np.int64],
+) -> None:
+    """Each orientation bin's map for ``cv2.distanceTransform``: 0 at its edge pixels, else 255.
+
+    ``ObservationModel._oriented_edges``' bins, inverted: an edge pixel of
+    gradient angle ``theta`` (float32, from ``np.arctan2``) is in bins ``lo``
+    and ``lo + 1`` (mod B), ``lo = floor(mod(theta, pi) * B / pi)`` in
+    float32 steps. ``mod`` is numpy's float remainder for ``theta`` in
+    ``[-pi, pi]``: ``theta`` where positive, ``theta + pi`` where negative,
+    ``+0`` for zero and for ``+-pi`` (``half_turn``, pi as float32;
+    ``per_bin``, B / pi as float32). The same bins as numpy for every float32
+    in ``[-pi, pi]``. ``counts`` ``(B,)``: how many pixels each bin holds.
+    """
+    n_bins = free.shape[0]
+    flat = free.reshape(free.size)  # (a flat loop vectorises; the slice fill did not)
+    for i in range(flat.size):
+        flat[i] = 255
+    counts[:] = 0
+    for i in range(theta.shape[0]):
+        t = theta[i]
+        if t == _ZERO or t == half_turn or t == -half_turn:
+            t = _ZERO
+        elif t < _ZERO:
+            t = t + half_turn
+        # floor, as a truncation: the product is never negative.
+        lo = np.int64(t * per_bin)
+        lo = lo - n_bins if lo >= n_bins else lo
+        hi = lo + 1 if lo + 1 < n_bins else 0
+        y, x = ys[i], xs[i]
+        if free[lo, y, x]:
+            free[lo, y, x] = 0
+            counts[lo] += 1
+        if free[hi, y, x]:
+            free[hi, y, x] = 0
+            counts[hi] += 1

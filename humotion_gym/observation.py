@@ -563,14 +563,12 @@ class ObservationModel:
                     f"{backdrop.image.shape} (known {backdrop.known.shape})"
                 )
         fg, bg, keep, backdrop = self._foreground(smooth, backdrop, scale)
-        edges, bins = self._oriented_edges(smooth, keep)
+        edges, free, found = self._oriented_edges(smooth, keep)
         n_bins = self.orientation_bins
         dist = np.empty((n_bins, h, w), np.float32)
         for b in range(n_bins):
-            if bins[b].any():
-                cv2.distanceTransform(
-                    cv2.bitwise_not(bins[b]), cv2.DIST_L2, _DIST_MASK, dst=dist[b]
-                )
+            if found[b]:
+                cv2.distanceTransform(free[b], cv2.DIST_L2, _DIST_MASK, dst=dist[b])
             else:
                 dist[b] = np.inf
         n_out = 2 * self.outline_samples
@@ -846,16 +844,17 @@ class ObservationModel:
 
     def _oriented_edges(
         self, smooth: NDArray[np.uint8], keep: NDArray[np.uint8] | None = None
-    ) -> tuple[NDArray, NDArray]:
+    ) -> tuple[NDArray[np.uint8], NDArray[np.uint8], NDArray[np.bool_]]:
         """Canny edges (any channel) and their split into orientation bins.
 
         ``keep`` (uint8, 255 where edges count), when given, masks the edges.
 
         Returns:
-            The ``(H, W)`` edge map and ``(B, H, W)`` uint8 maps: bin ``b`` holds
-            the edge pixels whose gradient orientation (modulo pi) lies within
-            ``pi / B`` of ``b pi / B``, so every edge pixel is in its two nearest
-            bins.
+            The ``(H, W)`` edge map; ``(B, H, W)`` uint8 maps for
+            ``cv2.distanceTransform``, map ``b`` 0 at the edge pixels whose
+            gradient orientation (modulo pi) lies within ``pi / B`` of ``b pi /
+            B`` (so every edge pixel is in its two nearest bins) and 255
+            elsewhere; and ``(B,)`` whether each bin holds any edge pixel.
         """
         h, w, channels = smooth.shape
         # On a colour image OpenCV's Canny uses, per pixel, the channel with the
@@ -866,15 +865,30 @@ class ObservationModel:
         if keep is not None:
             cv2.bitwise_and(edges, keep, dst=edges)
         n_bins = self.orientation_bins
+        if n_bins > 1:
+            # The compiled kernels read the gradients at the edge pixels only
+            # (two whole-frame Sobel filters and their gathers were most of the
+            # split's 100-200 us); the same maps (tests/test_kernels.py).
+            compiled = _kernels.orientation_maps(smooth, edges, n_bins)
+            if compiled is not None:
+                return edges, compiled[0], compiled[1]
         bins = np.zeros((n_bins, h, w), np.uint8)
         if n_bins == 1:
             bins[0] = edges
-            return edges, bins
+        else:
+            self._bin_edges(smooth, edges, bins)
+        return edges, np.bitwise_not(bins), bins.reshape(n_bins, -1).any(axis=1)
+
+    @staticmethod
+    def _bin_edges(smooth: NDArray[np.uint8], edges: NDArray[np.uint8], bins: NDArray) -> None:
+        """Set each edge pixel to 255 in its two nearest orientation bins (the numpy path)."""
+        n_bins, h, w = bins.shape
+        channels = smooth.shape[2]
         # The edge pixels in raster order, as np.nonzero lists them (OpenCV's
         # scan is several times faster).
         found = cv2.findNonZero(edges)
         if found is None:
-            return edges, bins
+            return
         found = found.reshape(-1, 2)
         ys, xs = found[:, 1], found[:, 0]
         gx = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=3).reshape(h, w, channels)[ys, xs]
@@ -887,7 +901,6 @@ class ObservationModel:
         lo = np.floor(q).astype(np.intp) % n_bins
         bins[lo, ys, xs] = 255
         bins[(lo + 1) % n_bins, ys, xs] = 255
-        return edges, bins
 
     def _foreground(
         self, smooth: NDArray[np.uint8], backdrop: Backdrop | None = None, scale: float = 1.0
