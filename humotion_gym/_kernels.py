@@ -290,8 +290,7 @@ def cone_basis(
 
 def kinematics(
     a: NDArray,
-    c: NDArray,
-    s: NDArray,
+    trig: NDArray,
     off: NDArray,
     head_length: np.floating,
     upper: NDArray,
@@ -302,7 +301,10 @@ def kinematics(
 ) -> NDArray[np.float32] | None:
     """The batched kinematics after the sines and cosines (``kinematics._batch_kinematics``).
 
-    Fills ``kp`` ``(3, 15, N)``; see ``_batch_kinematics`` for the rest.
+    ``trig`` ``(2, 22, N)``: the angles' cosines, then sines. Fills ``kp``
+    ``(3, 15, N)``; see ``_batch_kinematics`` for the rest. The kernel takes
+    the spaced rows' buffers (:func:`padded_rows`): on contiguous rows its
+    loops over the poses vectorise.
 
     Returns:
         ``(4, 3, N)``: the torso's x and y axes, then the head's (filled with
@@ -311,12 +313,18 @@ def kinematics(
     """
     if not ENABLED or kp.dtype != np.float32:
         return None
-    axes = spaced_rows((4, 3), a.shape[1])
+    n = a.shape[1]
+    axes = spaced_rows((4, 3), n)
+    rot = spaced_rows((9,), n)
+    out = padded_rows(kp)  # a copy only where kp is neither contiguous nor spaced rows
     if not _run(
-        "_kinematics", a, c, s, off, head_length, upper.reshape(-1), lower.reshape(-1),
-        sign.reshape(-1), want_head_axes, kp, axes,
+        "_kinematics", padded_rows(a), padded_rows(trig), off, head_length, upper.reshape(-1),
+        lower.reshape(-1), sign.reshape(-1), want_head_axes, out, padded_rows(axes),
+        padded_rows(rot), n,
     ):  # fmt: skip
         return None
+    if out is not kp and out is not kp.base:
+        kp[...] = out[..., :n]
     return axes
 
 

@@ -247,8 +247,7 @@ def _cone_basis(
 @_njit()
 def _kinematics(
     a: NDArray[np.float32],
-    c: NDArray[np.float32],
-    s: NDArray[np.float32],
+    trig: NDArray[np.float32],
     off: NDArray[np.float32],
     head_length: np.float32,
     upper: NDArray[np.float32],
@@ -257,83 +256,105 @@ def _kinematics(
     want_head_axes: bool,
     kp: NDArray[np.float32],
     axes: NDArray[np.float32],
+    rot: NDArray[np.float32],
+    n: int,
 ) -> None:
     """Batched kinematics after the sines and cosines, as ``kinematics._batch_kinematics``.
 
-    ``a`` ``(25, n)`` the parameters in its row order, ``c`` and ``s`` ``(22, n)``
-    their angles' cosines and sines (numpy's: its float32 ``sin`` and ``cos``
-    are its own); out: ``kp`` ``(3, 15, n)`` and ``axes`` ``(4, 3, n)`` (the
-    torso's x and y axes, then, with ``want_head_axes``, the head's). Every
-    expression is the numpy path's, in its order (``kinematics._root_matrix``,
-    ``_ball_columns``, ``_rotate``, ``_limb``). A pose reads 47 rows and
-    writes 57: rows a multiple of 4 KiB apart share one set of the L1 cache
-    and evict each other, so the callers space them
-    (:func:`humotion_gym._kernels.spaced_rows`).
+    ``a`` ``(25, n)`` the parameters in its row order, ``trig`` ``(2, 22, n)``
+    their angles' cosines, then sines (numpy's: its float32 ``sin`` and
+    ``cos`` are its own); out: ``kp`` ``(3, 15, n)`` and ``axes`` ``(4, 3,
+    n)`` (the torso's x and y axes, then, with ``want_head_axes``, the
+    head's); ``rot`` ``(9, n)`` is scratch (the root matrices, by rows). The
+    arrays' last axes may be longer than ``n`` (the buffers of
+    :func:`humotion_gym._kernels.spaced_rows`). Every expression is the numpy
+    path's, in its order (``kinematics._root_matrix``, ``_ball_columns``,
+    ``_rotate``, ``_limb``).
+
+    Each loop runs over the poses innermost with straight-line arithmetic,
+    which LLVM turns into vector instructions; a loop that wrote more than
+    three rows (a limb's elbow and hand together) stayed scalar, so each limb
+    has two. One pose at a time in one loop took 115-140 us at 3,000 poses;
+    these loops take about 45.
     """
-    n = a.shape[1]
+    for j in range(n):  # _root_matrix: Rz(yaw) @ Rx(pitch) @ Ry(roll), by rows
+        cy, sy, cp, sp = trig[0, 0, j], trig[1, 0, j], trig[0, 1, j], trig[1, 1, j]
+        cr, sr = trig[0, 2, j], trig[1, 2, j]
+        rot[0, j] = cy * cr - sy * sp * sr
+        rot[1, j] = -sy * cp
+        rot[2, j] = cy * sr + sy * sp * cr
+        rot[3, j] = sy * cr + cy * sp * sr
+        rot[4, j] = cy * cp
+        rot[5, j] = sy * sr - cy * sp * cr
+        rot[6, j] = -cp * sr
+        rot[7, j] = sp
+        rot[8, j] = cp * cr
     for j in range(n):
-        # _root_matrix: Rz(yaw) @ Rx(pitch) @ Ry(roll), by rows.
-        cy, sy, cp, sp, cr, sr = c[0, j], s[0, j], c[1, j], s[1, j], c[2, j], s[2, j]
-        r00 = cy * cr - sy * sp * sr
-        r01 = -sy * cp
-        r02 = cy * sr + sy * sp * cr
-        r10 = sy * cr + cy * sp * sr
-        r11 = cy * cp
-        r12 = sy * sr - cy * sp * cr
-        r20 = -cp * sr
-        r21 = sp
-        r22 = cp * cr
-        axes[0, 0, j], axes[0, 1, j], axes[0, 2, j] = r00, r10, r20
-        axes[1, 0, j], axes[1, 1, j], axes[1, 2, j] = r01, r11, r21
-        p0, p1, p2 = a[0, j], a[1, j], a[2, j]
-        kp[0, 0, j], kp[1, 0, j], kp[2, 0, j] = p0, p1, p2
-        for q in range(5):  # neck and the four limb bases
-            o0, o1, o2 = off[q, 0], off[q, 1], off[q, 2]
-            kp[0, 1 + q, j] = r00 * o0 + r01 * o1 + r02 * o2 + p0
-            kp[1, 1 + q, j] = r10 * o0 + r11 * o1 + r12 * o2 + p1
-            kp[2, 1 + q, j] = r20 * o0 + r21 * o1 + r22 * o2 + p2
-        # The head: _ball_columns of the neck's angles, its z axis rotated.
-        ca, sa, cb, sb, cc, sc = c[3, j], s[3, j], c[4, j], s[4, j], c[5, j], s[5, j]
+        axes[0, 0, j], axes[0, 1, j], axes[0, 2, j] = rot[0, j], rot[3, j], rot[6, j]
+        axes[1, 0, j], axes[1, 1, j], axes[1, 2, j] = rot[1, j], rot[4, j], rot[7, j]
+        kp[0, 0, j], kp[1, 0, j], kp[2, 0, j] = a[0, j], a[1, j], a[2, j]
+    for q in range(5):  # neck and the four limb bases
+        o0, o1, o2 = off[q, 0], off[q, 1], off[q, 2]
+        for j in range(n):
+            kp[0, 1 + q, j] = rot[0, j] * o0 + rot[1, j] * o1 + rot[2, j] * o2 + a[0, j]
+            kp[1, 1 + q, j] = rot[3, j] * o0 + rot[4, j] * o1 + rot[5, j] * o2 + a[1, j]
+            kp[2, 1 + q, j] = rot[6, j] * o0 + rot[7, j] * o1 + rot[8, j] * o2 + a[2, j]
+    for j in range(n):  # the head: _ball_columns of the neck's angles, its z axis rotated
+        ca, sa, cb, sb = trig[0, 3, j], trig[1, 3, j], trig[0, 4, j], trig[1, 4, j]
         z0, z1, z2 = sb, -sa * cb, ca * cb
-        h0 = r00 * z0 + r01 * z1 + r02 * z2
-        h1 = r10 * z0 + r11 * z1 + r12 * z2
-        h2 = r20 * z0 + r21 * z1 + r22 * z2
+        h0 = rot[0, j] * z0 + rot[1, j] * z1 + rot[2, j] * z2
+        h1 = rot[3, j] * z0 + rot[4, j] * z1 + rot[5, j] * z2
+        h2 = rot[6, j] * z0 + rot[7, j] * z1 + rot[8, j] * z2
         kp[0, 6, j] = h0 * head_length + kp[0, 1, j]
         kp[1, 6, j] = h1 * head_length + kp[1, 1, j]
         kp[2, 6, j] = h2 * head_length + kp[2, 1, j]
-        if want_head_axes:
+    if want_head_axes:
+        for j in range(n):
+            ca, sa, cb, sb = trig[0, 3, j], trig[1, 3, j], trig[0, 4, j], trig[1, 4, j]
+            cc, sc = trig[0, 5, j], trig[1, 5, j]
             sa_sb, ca_sb = sa * sb, ca * sb
             x0, x1, x2 = cb * cc, ca * sc + sa_sb * cc, sa * sc - ca_sb * cc
             y0, y1, y2 = -cb * sc, ca * cc - sa_sb * sc, sa * cc + ca_sb * sc
-            axes[2, 0, j] = r00 * x0 + r01 * x1 + r02 * x2
-            axes[2, 1, j] = r10 * x0 + r11 * x1 + r12 * x2
-            axes[2, 2, j] = r20 * x0 + r21 * x1 + r22 * x2
-            axes[3, 0, j] = r00 * y0 + r01 * y1 + r02 * y2
-            axes[3, 1, j] = r10 * y0 + r11 * y1 + r12 * y2
-            axes[3, 2, j] = r20 * y0 + r21 * y1 + r22 * y2
-        for limb in range(4):  # _limb
-            ca, sa = c[6 + limb, j], s[6 + limb, j]
-            cb, sb = c[10 + limb, j], s[10 + limb, j]
-            cc, sc = c[14 + limb, j], s[14 + limb, j]
-            ck, sk = c[18 + limb, j], s[18 + limb, j]
+            axes[2, 0, j] = rot[0, j] * x0 + rot[1, j] * x1 + rot[2, j] * x2
+            axes[2, 1, j] = rot[3, j] * x0 + rot[4, j] * x1 + rot[5, j] * x2
+            axes[2, 2, j] = rot[6, j] * x0 + rot[7, j] * x1 + rot[8, j] * x2
+            axes[3, 0, j] = rot[0, j] * y0 + rot[1, j] * y1 + rot[2, j] * y2
+            axes[3, 1, j] = rot[3, j] * y0 + rot[4, j] * y1 + rot[5, j] * y2
+            axes[3, 2, j] = rot[6, j] * y0 + rot[7, j] * y1 + rot[8, j] * y2
+    for limb in range(4):  # _limb: the elbow or knee, then the hand or ankle
+        up = -upper[limb]
+        for j in range(n):
+            ca, sa = trig[0, 6 + limb, j], trig[1, 6 + limb, j]
+            cb, sb = trig[0, 10 + limb, j], trig[1, 10 + limb, j]
+            m0, m1, m2 = up * sb, up * (-sa * cb), up * (ca * cb)  # up times the z axis
+            m = rot[0, j] * m0 + rot[1, j] * m1 + rot[2, j] * m2
+            kp[0, 7 + limb, j] = kp[0, 2 + limb, j] + m
+            m = rot[3, j] * m0 + rot[4, j] * m1 + rot[5, j] * m2
+            kp[1, 7 + limb, j] = kp[1, 2 + limb, j] + m
+            m = rot[6, j] * m0 + rot[7, j] * m1 + rot[8, j] * m2
+            kp[2, 7 + limb, j] = kp[2, 2 + limb, j] + m
+        low, sg = lower[limb], sign[limb]
+        for j in range(n):
+            ca, sa = trig[0, 6 + limb, j], trig[1, 6 + limb, j]
+            cb, sb = trig[0, 10 + limb, j], trig[1, 10 + limb, j]
+            cc, sc = trig[0, 14 + limb, j], trig[1, 14 + limb, j]
+            ck, sk = trig[0, 18 + limb, j], trig[1, 18 + limb, j]
             sa_sb, ca_sb = sa * sb, ca * sb
             ez0, ez1, ez2 = sb, -sa * cb, ca * cb
             ey0, ey1, ey2 = -cb * sc, ca * cc - sa_sb * sc, sa * cc + ca_sb * sc
-            ssk = sign[limb] * sk
-            up = -upper[limb]
+            ssk = sg * sk
             m0, m1, m2 = up * ez0, up * ez1, up * ez2
-            lk = lower[limb] * ck
-            lssk = lower[limb] * ssk
+            lk = low * ck
+            lssk = low * ssk
             t0 = m0 + lssk * ey0 - lk * ez0
             t1 = m1 + lssk * ey1 - lk * ez1
             t2 = m2 + lssk * ey2 - lk * ez2
-            b0, b1, b2 = kp[0, 2 + limb, j], kp[1, 2 + limb, j], kp[2, 2 + limb, j]
-            kp[0, 7 + limb, j] = b0 + (r00 * m0 + r01 * m1 + r02 * m2)
-            kp[1, 7 + limb, j] = b1 + (r10 * m0 + r11 * m1 + r12 * m2)
-            kp[2, 7 + limb, j] = b2 + (r20 * m0 + r21 * m1 + r22 * m2)
-            kp[0, 11 + limb, j] = b0 + (r00 * t0 + r01 * t1 + r02 * t2)
-            kp[1, 11 + limb, j] = b1 + (r10 * t0 + r11 * t1 + r12 * t2)
-            kp[2, 11 + limb, j] = b2 + (r20 * t0 + r21 * t1 + r22 * t2)
+            t = rot[0, j] * t0 + rot[1, j] * t1 + rot[2, j] * t2
+            kp[0, 11 + limb, j] = kp[0, 2 + limb, j] + t
+            t = rot[3, j] * t0 + rot[4, j] * t1 + rot[5, j] * t2
+            kp[1, 11 + limb, j] = kp[1, 2 + limb, j] + t
+            t = rot[6, j] * t0 + rot[7, j] * t1 + rot[8, j] * t2
+            kp[2, 11 + limb, j] = kp[2, 2 + limb, j] + t
 
 
 @_njit(inline="always")

@@ -468,7 +468,7 @@ def _batch_kinematics(
     lower: NDArray[Any] = np.array([shape.forearm_length] * 2 + [shape.shin_length] * 2, dtype)
     sign: NDArray[Any] = np.array(_LIMB_SIGN, dtype=dtype).reshape(4, 1)
     # The compiled kernel (the `fast` extra) does what follows, bit for bit.
-    axes = _kernels.kinematics(a, c, s, off, hl, upper, lower, sign, want_head_axes, kp)
+    axes = _kernels.kinematics(a, work["trig"], off, hl, upper, lower, sign, want_head_axes, kp)
     if axes is not None:
         head = (tuple(axes[2]), tuple(axes[3])) if want_head_axes else (None, None)
         return _BatchPoses(kp, tuple(axes[0]), tuple(axes[1]), *head)

@@ -189,6 +189,30 @@ def test_kinematics_match_the_numpy_path(n: int, shape: int, numpy_path) -> None
     assert (fast.head_x is None) == (not want)
 
 
+@pytest.mark.parametrize("layout", ["spaced", "contiguous", "strided"])
+def test_the_kinematics_kernel_fills_keypoints_of_any_layout(layout: str) -> None:
+    # The kernel writes through the spaced rows' buffer; keypoints in a plain
+    # array, or in a strided view it cannot take as rows (written into a
+    # copy, then back), are filled with the same numbers.
+    n = 301
+    body_shape = SHAPES[1]
+    poses = _poses(np.random.default_rng(5), n)
+    want = _batch_kinematics(poses, body_shape, np.float32, True)
+    work = {
+        "params": _kernels.spaced_rows((25,), n),
+        "trig": _kernels.spaced_rows((2, 22), n),
+        "keypoints": {
+            "spaced": _kernels.spaced_rows((3, 15), n),
+            "contiguous": np.empty((3, 15, n), np.float32),
+            "strided": np.empty((3, 15, 2 * n), np.float32)[..., ::2],
+        }[layout],
+    }
+    got = _batch_kinematics(poses, body_shape, np.float32, True, work)
+    assert got.keypoints is work["keypoints"]
+    np.testing.assert_array_equal(got.keypoints, want.keypoints)
+    np.testing.assert_array_equal(np.array(got.head_x), np.array(want.head_x))
+
+
 @pytest.mark.parametrize("n", [1, 2, 300, 1024, 3001])
 @pytest.mark.parametrize(
     ("bins", "pad", "shape"), [(1, 0.0, 0), (4, 0.0, 0), (4, 0.5, 1), (8, 0.0, 1)]
