@@ -791,9 +791,11 @@ def angle_offsets(
     if not ENABLED:
         return None
     out = np.empty((particles.shape[0], columns.size), np.float32)
+    columns = np.ascontiguousarray(columns, np.intp)
+    run = columns.size > 0 and bool(np.all(np.diff(columns) == 1))
     if not _run(
-        "_angle_offsets", np.ascontiguousarray(particles, np.float64),
-        np.ascontiguousarray(columns, np.intp), np.ascontiguousarray(centre, np.float64), out,
+        "_angle_offsets", np.ascontiguousarray(particles, np.float64), columns,
+        np.ascontiguousarray(centre, np.float64), int(columns[0]) if run else -1, out,
     ):  # fmt: skip
         return None
     return out
