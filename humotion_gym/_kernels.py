@@ -471,12 +471,12 @@ def orientation_maps(
     if written != n:  # (count_nonzero and the kernel's scan count the same pixels)
         raise RuntimeError(f"orientation_maps: {written} edge pixels scanned, {n} counted")
     theta = np.arctan2(gy, gx)  # gradient = outline normal
-    free = np.empty((n_bins, h, w), np.uint8)
+    maps = np.empty((n_bins, h, w), np.uint8)
     counts = np.empty(n_bins, np.int64)
     half_turn, per_bin = np.float32(np.pi), np.float32(n_bins / np.pi)
-    if not _run("_orientation_maps", theta, ys, xs, half_turn, per_bin, free, counts):
+    if not _run("_orientation_maps", theta, ys, xs, half_turn, per_bin, maps, counts):
         return None
-    return free, counts > 0
+    return maps, counts > 0
 
 
 def clutter_plan(
@@ -780,22 +780,29 @@ def tree_replay(
 
 
 def angle_offsets(
-    particles: NDArray[np.float64], columns: NDArray[np.intp], centre: NDArray[np.float64]
+    particles: NDArray[np.float64],
+    columns: NDArray[np.intp] | slice,
+    centre: NDArray[np.float64],
 ) -> NDArray[np.float32] | None:
     """``filtering.weighted_mean``'s wrapped offsets of the angle columns from ``centre``.
 
+    ``columns``: the angle columns' indices, or (where they are a run) their
+    slice, through which the kernel reads each row as a slice.
+
     Returns:
-        ``(N, len(columns))`` float32, the numpy path's numbers; None when the
-        kernels are off or failed.
+        ``(N, number of columns)`` float32, the numpy path's numbers; None
+        when the kernels are off or failed.
     """
     if not ENABLED:
         return None
-    out = np.empty((particles.shape[0], columns.size), np.float32)
-    columns = np.ascontiguousarray(columns, np.intp)
-    run = columns.size > 0 and bool(np.all(np.diff(columns) == 1))
+    if isinstance(columns, slice):
+        first, index = int(columns.start), np.arange(columns.start, columns.stop, dtype=np.intp)
+    else:
+        first, index = -1, np.ascontiguousarray(columns, np.intp)
+    out = np.empty((particles.shape[0], index.size), np.float32)
     if not _run(
-        "_angle_offsets", np.ascontiguousarray(particles, np.float64), columns,
-        np.ascontiguousarray(centre, np.float64), int(columns[0]) if run else -1, out,
+        "_angle_offsets", np.ascontiguousarray(particles, np.float64), index,
+        np.ascontiguousarray(centre, np.float64), first, out,
     ):  # fmt: skip
         return None
     return out

@@ -1928,7 +1928,7 @@ def _orientation_maps(
     xs: NDArray[np.intp],
     half_turn: np.float32,
     per_bin: np.float32,
-    free: NDArray[np.uint8],
+    maps: NDArray[np.uint8],
     counts: NDArray[np.int64],
 ) -> None:
     """Each orientation bin's map for ``cv2.distanceTransform``: 0 at its edge pixels, else 255.
@@ -1940,10 +1940,11 @@ def _orientation_maps(
     ``[-pi, pi]``: ``theta`` where positive, ``theta + pi`` where negative,
     ``+0`` for zero and for ``+-pi`` (``half_turn``, pi as float32;
     ``per_bin``, B / pi as float32). The same bins as numpy for every float32
-    in ``[-pi, pi]``. ``counts`` ``(B,)``: how many pixels each bin holds.
+    in ``[-pi, pi]``. ``counts`` ``(B,)``: how many pixels each bin holds (each pixel is
+    listed once, and its two bins differ).
     """
-    n_bins = free.shape[0]
-    flat = free.reshape(free.size)  # (a flat loop vectorises; the slice fill did not)
+    n_bins = maps.shape[0]
+    flat = maps.reshape(maps.size)  # (a flat loop vectorises; the slice fill did not)
     for i in range(flat.size):
         flat[i] = 255
     counts[:] = 0
@@ -1958,9 +1959,7 @@ def _orientation_maps(
         lo = lo - n_bins if lo >= n_bins else lo
         hi = lo + 1 if lo + 1 < n_bins else 0
         y, x = ys[i], xs[i]
-        if free[lo, y, x]:
-            free[lo, y, x] = 0
-            counts[lo] += 1
-        if free[hi, y, x]:
-            free[hi, y, x] = 0
-            counts[hi] += 1
+        maps[lo, y, x] = 0
+        maps[hi, y, x] = 0
+        counts[lo] += 1
+        counts[hi] += 1

@@ -215,7 +215,7 @@ def weighted_mean(
         sin, cos = np.empty((n, k)), np.empty((n, k))
         # The compiled kernel (the `fast` extra) wraps every offset in one
         # pass, with the numpy path's numbers.
-        wrapped = _kernels.angle_offsets(particles, index, lin)
+        wrapped = _kernels.angle_offsets(particles, columns, lin)
         # Row blocks that stay in cache for the elementwise steps (the same
         # bits in any blocks); the weighted sums then run over all rows at
         # once, as before. At 10,000 particles 0.6 ms instead of 1.0.

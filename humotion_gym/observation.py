@@ -563,12 +563,12 @@ class ObservationModel:
                     f"{backdrop.image.shape} (known {backdrop.known.shape})"
                 )
         fg, bg, keep, backdrop = self._foreground(smooth, backdrop, scale)
-        edges, free, found = self._oriented_edges(smooth, keep)
+        edges, bin_maps, found = self._oriented_edges(smooth, keep)
         n_bins = self.orientation_bins
         dist = np.empty((n_bins, h, w), np.float32)
         for b in range(n_bins):
             if found[b]:
-                cv2.distanceTransform(free[b], cv2.DIST_L2, _DIST_MASK, dst=dist[b])
+                cv2.distanceTransform(bin_maps[b], cv2.DIST_L2, _DIST_MASK, dst=dist[b])
             else:
                 dist[b] = np.inf
         n_out = 2 * self.outline_samples
