@@ -213,29 +213,43 @@ def point_costs(
     width: int,
     height: int,
     n_out: int,
+    total: NDArray[np.float64] | None = None,
 ) -> NDArray[np.uint16] | None:
     """The observation model's summed point costs per column, or None to use numpy.
 
     The kernel of :meth:`humotion_gym.observation.ObservationModel._point_costs`
-    (see there for the arguments; ``width`` and ``height`` are the padded
-    table's). None when the kernels are off or there is a single column (whose
-    product numpy computes another way; see the module's docstring).
+    (see there for the arguments, ``total`` included; ``width`` and ``height``
+    are the padded table's). None when the kernels are off or there is a
+    single column (whose product numpy computes another way; see the module's
+    docstring).
     """
     if not ENABLED or columns.shape[1] < 2:
         return None
     k = columns.shape[1]
     out = np.empty(k, np.uint16)
-    # Each column's map offsets, one per column (no copy where they already are).
-    outline = np.zeros(k, np.int32) if outline_map is None else np.asarray(outline_map, np.int32)
+    # Each column's map offsets, one per column (no copy where they already
+    # are); one offset for all goes in as a number beside zeros.
+    outline = _zeros(k) if outline_map is None else np.asarray(outline_map, np.int32)
     axis = np.asarray(axis_map, np.int32)
+    base = 0
     if axis.ndim == 0:
-        axis = np.full(k, axis, np.int32)
+        axis, base = _zeros(k), int(axis)
     if not _run(
-        "_point_costs", coef, np.ascontiguousarray(columns, np.float32), outline, axis, cost,
-        width, height, n_out, out,
+        "_point_costs", coef, np.ascontiguousarray(columns, np.float32), outline, axis, base,
+        cost, width, height, n_out, out, _NO_TOTAL if total is None else total,
     ):  # fmt: skip
         return None
     return out
+
+
+#: ``total`` when the caller wants none (the kernels take an empty array).
+_NO_TOTAL = np.zeros(0)
+
+
+@functools.lru_cache(maxsize=4)
+def _zeros(k: int) -> NDArray[np.int32]:
+    """``k`` zero offsets, made once per size (only ever read)."""
+    return np.zeros(k, np.int32)
 
 
 def cone_basis(

@@ -237,6 +237,16 @@ def _scratch(n: int, n_points: int) -> dict[str, NDArray]:
     return work
 
 
+#: The largest magnitude of a parameter (mm or radians) a pose may have to be
+#: scored: the scorer works in single precision, and beyond this a keypoint's
+#: camera coordinates could overflow it (to infinities, then NaNs). Poses past
+#: it score ``-inf``, like those with a NaN. It is far beyond any figure that
+#: can appear in a frame, and it keeps every cone's image basis finite, which
+#: the point costs' kernel relies on to skip the zero coefficients' products.
+#: 2^100 (about 1.3e30): the same number in single and double precision, so
+#: a pose's dtype does not move the bound.
+POSE_LIMIT = 2.0**100
+
 #: At most this many poses are scored in one pass (:func:`_chunk_size`).
 _CHUNK_POSES = 3072
 
@@ -1162,7 +1172,8 @@ class ObservationModel:
 
         Returns:
             ``(N,)`` log-likelihoods (up to a constant), float64. Poses with a
-            non-finite parameter get ``-inf``.
+            parameter that is not finite, or beyond :data:`POSE_LIMIT` (out
+            of reach of the single-precision scorer), get ``-inf``.
 
         Raises:
             ValueError: If shapes disagree with each other or with the camera.
@@ -1199,8 +1210,9 @@ class ObservationModel:
                 order) per group, in the order the figure is built.
 
         Returns:
-            ``(..., len(groups) + 1)`` float64; a pose with a non-finite
-            parameter has ``-inf`` in every column.
+            ``(..., len(groups) + 1)`` float64; a pose with a parameter
+            that is not finite or beyond :data:`POSE_LIMIT` has ``-inf`` in
+            every column.
 
         Raises:
             ValueError: As :meth:`log_likelihood`, or if a group names a cone
@@ -1246,10 +1258,12 @@ class ObservationModel:
         flat = p.reshape(-1, N_PARAMS)
         if flat.dtype not in (np.float32, np.float64):
             flat = flat.astype(np.float64)
-        # One reduction over all values first (about a tenth of the row-wise
-        # test's cost at 3,000 poses); the rows are looked at only when one is not.
-        values_finite = np.isfinite(flat)
-        finite = None if values_finite.all() else values_finite.all(axis=1)
+        # Two reductions over all values first (a NaN fails both tests); the
+        # rows are looked at only when a value is out of bounds.
+        if not flat.size or -POSE_LIMIT <= flat.min() and flat.max() <= POSE_LIMIT:
+            finite = None
+        else:
+            finite = (np.abs(flat) <= POSE_LIMIT).all(axis=1)
         if finite is not None:
             flat = np.where(finite[:, None], flat, 0.0)
         width = () if prefixes is None else (prefixes.shape[0] + 1,)
@@ -1300,6 +1314,8 @@ class ObservationModel:
         fixed = _fixed_cones(work["params"]) if n >= _SHARED_MIN_POSES else None
         # Each cone's summed point costs, kept only for the partial figures.
         per_cone = None if prefixes is None else np.empty((N_CONES, n))
+        # Each pose's summed costs: whole numbers, so exact in any order.
+        total = np.zeros(n)
         if fixed is None:  # every cone moves (or too few poses to pay): one pass
             sums = self._point_costs(
                 feats,
@@ -1307,12 +1323,11 @@ class ObservationModel:
                 None if outline_map is None else outline_map.reshape(-1),
                 axis_map[0] if feats.appearance_cones is None else np.repeat(axis_map, n),
                 work,
+                total,
             )
             if per_cone is not None:
                 per_cone[:] = sums.reshape(N_CONES, n)
-            total = sums.reshape(N_CONES, n).sum(axis=0, dtype=np.float64)
         else:
-            total = np.zeros(n)
             for c0, c1 in _runs(np.flatnonzero(~fixed)):
                 sums = self._point_costs(
                     feats,
@@ -1320,10 +1335,10 @@ class ObservationModel:
                     None if outline_map is None else outline_map[c0:c1].reshape(-1),
                     np.repeat(axis_map[c0:c1], n),
                     work,
+                    total,
                 )
                 if per_cone is not None:
                     per_cone[c0:c1] = sums.reshape(c1 - c0, n)
-                total += sums.reshape(c1 - c0, n).sum(axis=0, dtype=np.float64)
             cones = np.flatnonzero(fixed)
             sums = self._point_costs(
                 feats,
@@ -1489,6 +1504,7 @@ class ObservationModel:
         outline_map: NDArray | None,
         axis_map: NDArray | np.int32,
         work: dict[str, NDArray],
+        total: FloatArray | None = None,
     ) -> NDArray[np.uint16]:
         """Summed point costs of cone outlines given by their ``(8, K)`` bases.
 
@@ -1502,6 +1518,9 @@ class ObservationModel:
             axis_map: ``(K,)`` offset of the map its axis points read (one
                 number when the same for all).
             work: The scratch buffers (at least ``K`` columns).
+            total: Optional ``(n,)`` float64 that each pose's sums are added
+                into, the columns being ``K / n`` runs of ``n`` poses (one
+                cone each).
 
         Returns:
             ``(K,)`` the sum of each column's point costs, in ``cost_unit``.
@@ -1514,7 +1533,9 @@ class ObservationModel:
         n_out = 2 * self.outline_samples
         # The compiled kernel (the `fast` extra) does the same steps in one
         # pass, bit for bit; None where it does not run.
-        sums = _kernels.point_costs(coef, columns, outline_map, axis_map, feats.cost, w2, h2, n_out)
+        sums = _kernels.point_costs(
+            coef, columns, outline_map, axis_map, feats.cost, w2, h2, n_out, total
+        )
         if sums is not None:
             return sums
         points = work["points"][: 2 * n_points * cols].reshape(2 * n_points, cols)
@@ -1531,7 +1552,10 @@ class ObservationModel:
             iy[:n_out] += outline_map
         values = work["values"][: n_points * cols].reshape(n_points, cols)
         np.take(feats.cost, iy, out=values)
-        return values.sum(axis=0, dtype=np.uint16)
+        sums = values.sum(axis=0, dtype=np.uint16)
+        if total is not None:
+            total += sums.reshape(-1, total.size).sum(axis=0, dtype=np.float64)
+        return sums
 
     def _residual_cost(
         self,

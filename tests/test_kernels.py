@@ -90,6 +90,53 @@ def test_point_costs_match_the_numpy_path(k: int, bins: int, numpy_path) -> None
         np.testing.assert_array_equal(fast, slow)
 
 
+def _numpy_point_costs(coef, columns, outline, axis, cost, w2, h2, n_out) -> np.ndarray:
+    points = coef @ columns
+    m = points.shape[0] // 2
+    x = np.clip(points[:m], 0.0, np.float32(w2 - 1)).astype(np.int64)
+    y = np.clip(points[m:], 0.0, np.float32(h2 - 1)).astype(np.int64)
+    offsets = np.where(np.arange(m)[:, None] < n_out, outline, axis)
+    return cost[offsets + y * w2 + x].sum(axis=0, dtype=np.uint16)
+
+
+def test_point_rows_skip_only_zero_coefficients() -> None:
+    # The model's outline points read four of a column's eight rows, its axis
+    # points two; the kernel multiplies only those, and any other row takes
+    # the whole chain.
+    nk = _kernels.compiled()
+    coef = ObservationModel(outline_samples=5, axis_samples=3)._coefficients
+    m = coef.shape[0] // 2
+    terms = [nk._point_terms(coef[p], coef[p + m]) for p in range(m)]
+    assert terms == [4] * 10 + [2] * 3
+    dense = coef[0].copy()
+    dense[1] = 0.5  # an x row that reads a v row
+    assert nk._point_terms(dense, coef[m]) == 8
+    rng = np.random.default_rng(3)
+    w2 = h2 = 40
+    cost = rng.integers(0, 256, 6 * w2 * h2).astype(np.uint8)
+    k = 5000
+    columns = rng.normal(20.0, 15.0, (8, k)).astype(np.float32)
+    # Huge but finite columns (a pose at POSE_LIMIT), exact zeros of both
+    # signs (a zero product may flip a zero sum's sign, never its pixel).
+    columns[:, rng.random(k) < 0.05] *= np.float32(1e30)
+    columns[rng.random((8, k)) < 0.1] = 0.0
+    columns[rng.random((8, k)) < 0.1] = -0.0
+    outline = (rng.integers(0, 4, k) * w2 * h2).astype(np.int32)
+    axis = np.full(k, 4 * w2 * h2, np.int32)
+    for c in (coef, rng.normal(0.0, 1.0, coef.shape).astype(np.float32)):
+        got = _kernels.point_costs(c, columns, outline, axis, cost, w2, h2, 10)
+        want = _numpy_point_costs(c, columns, outline, axis, cost, w2, h2, 10)
+        np.testing.assert_array_equal(got, want)
+        # One offset for all axis points, and the poses' totals over 10 runs
+        # of 500 columns added into what is there.
+        total = np.arange(500.0)
+        got = _kernels.point_costs(
+            c, columns, outline, np.int32(4 * w2 * h2), cost, w2, h2, 10, total
+        )
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(total, np.arange(500.0) + want.reshape(10, 500).sum(axis=0))
+
+
 def test_one_column_and_the_switch_leave_it_to_numpy(monkeypatch: pytest.MonkeyPatch) -> None:
     coef = ObservationModel()._coefficients
     cost = np.zeros(100, np.uint8)

@@ -7,9 +7,9 @@ import inspect
 import numpy as np
 import pytest
 
-from humotion_gym import body
+from humotion_gym import _kernels, body
 from humotion_gym.camera import fit_camera
-from humotion_gym.observation import FrameFeatures, ObservationModel
+from humotion_gym.observation import POSE_LIMIT, FrameFeatures, ObservationModel
 from humotion_gym.render import SceneOptions, make_background, render
 
 SHAPE = body.default_shape()
@@ -157,12 +157,26 @@ def test_off_image_poses_get_the_truncation_cost(scene_and_poses) -> None:
     assert scores[0] > worst + 5.0
 
 
-def test_non_finite_poses_score_minus_infinity(scene_and_poses) -> None:
+@pytest.mark.parametrize("kernels", [True, False])
+def test_non_finite_poses_score_minus_infinity(
+    scene_and_poses, kernels: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(_kernels, "ENABLED", kernels and _kernels.ENABLED)
     frame, cam, poses = scene_and_poses
-    bad = poses[:3].copy()
+    bad = poses[:6].copy()
     bad[1, 7] = np.nan
-    scores = MODEL.log_likelihood(frame, bad, SHAPE, cam)
-    assert scores[1] == -np.inf and np.all(np.isfinite(scores[[0, 2]]))
+    # Beyond the single-precision scorer's reach: a root past POSE_LIMIT, an
+    # angle past float32's range (its sine would be NaN), a root at -inf.
+    bad[2, 0] = 2 * POSE_LIMIT
+    bad[3, 12] = 1e39
+    bad[4, 1] = -np.inf
+    bad[5, 2] = POSE_LIMIT  # at the limit: scored, its figure far off the image
+    for params in (bad, bad.astype(np.float32)):
+        scores = MODEL.log_likelihood(frame, params, SHAPE, cam)
+        assert np.all(scores[1:5] == -np.inf)
+        assert np.all(np.isfinite(scores[[0, 5]]))
+        partial = MODEL.log_likelihood_partial(frame, params, SHAPE, cam, [[0, 1], [2]])
+        assert np.all(partial[1:5] == -np.inf) and np.all(np.isfinite(partial[[0, 5]]))
 
 
 def test_features_of_a_frame() -> None:

@@ -36,6 +36,7 @@ from humotion_gym.observation import (
     _CONE_START,
     _PARAM_ROWS,
     _SHARED_MIN_POSES,
+    POSE_LIMIT,
     FrameFeatures,
     GivenBody,
     ObservationModel,
@@ -70,7 +71,7 @@ def reference_log_likelihood(
     """
     f4 = np.float32
     p = np.asarray(params, dtype=np.float64).reshape(-1, body.N_PARAMS)
-    finite = np.isfinite(p).all(axis=1)
+    finite = (np.abs(p) <= POSE_LIMIT).all(axis=1)  # NaN fails too
     p = np.where(finite[:, None], p, 0.0)
     n = p.shape[0]
     poses = _batch_kinematics(p, shape, f4, want_head_axes=shape.aspect[_HEAD] != 1.0)
@@ -172,6 +173,10 @@ def test_scores_match_the_one_pass_reference(seed: int, n: int) -> None:
         poses[2, 2] = -1e5  # far behind the camera
     if n > 4:
         poses[3, 20] = -np.inf  # non-finite rows score -inf, the others as always
+    if n > 6:
+        poses[4, 0] = POSE_LIMIT  # scored: its cones' bases are huge but finite
+        poses[5, 1] = -2 * POSE_LIMIT  # beyond the limit: -inf
+        poses[6, 8] = 2 * POSE_LIMIT  # an angle too
     fast = model.log_likelihood(feats, poses, SHAPE, cam)
     np.testing.assert_array_equal(fast, reference_log_likelihood(model, feats, poses, SHAPE, cam))
     # Single precision poses take the same path.
