@@ -23,6 +23,9 @@ The kernels, in the order the likelihood runs them:
   term and the arm's residual-edge term, each pose's float32 costs summed in
   double precision in numpy's pairwise order.
 
+The environments' :func:`generator`: ``np.random.default_rng`` of a seed,
+numpy's SeedSequence hash in compiled code (the same generator state).
+
 And one the priors run: :func:`standard_normal`, their noise, numpy's draws
 from numpy's generator (numba's port of its algorithm, same tables, same
 bit generator); and one the filter runs: :func:`angle_offsets`, its circular
@@ -60,6 +63,7 @@ import importlib.util
 import math
 import os
 import warnings
+from collections.abc import Sequence
 from types import ModuleType
 from typing import Any
 
@@ -77,6 +81,7 @@ __all__ = [
     "env_keypoints",
     "figure_polygons",
     "foreground_map",
+    "generator",
     "paced_path",
     "enabled",
     "kinematics",
@@ -418,6 +423,64 @@ def standard_normal(rng: np.random.Generator, shape: int | tuple[int, ...]) -> N
     # A numba that fails does so compiling, before it draws: numpy's draws
     # then come from the same state.
     return out if ran else rng.standard_normal(shape)
+
+
+def generator(entropy: int | Sequence[int]) -> np.random.Generator:
+    """``np.random.default_rng(entropy)``: the same bit generator state, in a third of the time.
+
+    For a non-negative int or a flat sequence of them (anything else goes to
+    numpy, as everything does when the kernels are off). numpy's
+    :class:`~numpy.random.SeedSequence` spends about 6-8 us on small numpy
+    arrays hashing a seed into a PCG64 state, more than an episode's own
+    draws; :func:`_numba_kernels._seed_words` does the same word arithmetic
+    (``tests/test_kernels.py`` compares the states), and numpy's ``PCG64``
+    takes the words through its seed-sequence interface. The generator's
+    ``bit_generator.seed_seq`` is then a :class:`_SeedWords`, which cannot
+    ``spawn``: for the generators the package makes and keeps to itself.
+    """
+    if ENABLED:
+        words = _entropy_words(entropy)
+        if words is not None:
+            return np.random.Generator(np.random.PCG64(_SeedWords(words)))
+    return np.random.default_rng(entropy)
+
+
+def _entropy_words(entropy: Any) -> NDArray[np.uint32] | None:
+    """SeedSequence's 32-bit words of a non-negative int or a flat sequence of them; else None."""
+    values = [entropy] if type(entropy) is int else entropy
+    if not isinstance(values, (list, tuple)) or not values:
+        return None
+    words: list[int] = []
+    for value in values:
+        if type(value) is not int or value < 0:
+            return None
+        while True:  # least significant word first; 0 is one word
+            words.append(value & 0xFFFFFFFF)
+            value >>= 32
+            if not value:
+                break
+    return np.array(words, np.uint32)
+
+
+class _SeedWords(np.random.bit_generator.ISeedSequence):
+    """A seed sequence of given entropy words whose states the compiled kernel draws."""
+
+    __slots__ = ("_entropy",)
+
+    def __init__(self, entropy: NDArray[np.uint32]) -> None:
+        self._entropy = entropy
+
+    def generate_state(self, n_words: int, dtype: Any = np.uint32) -> NDArray[Any]:
+        """``SeedSequence.generate_state``: ``n_words`` words of ``dtype`` (uint32 or uint64)."""
+        kind = np.dtype(dtype)
+        if kind not in (np.dtype(np.uint32), np.dtype(np.uint64)):
+            raise ValueError(f"generate_state: dtype must be uint32 or uint64, got {kind}")
+        per = kind.itemsize // 4
+        words = _call("_seed_words", self._entropy, int(n_words) * per)
+        if words is _FAILED:  # numba failed: numpy's own hash
+            entropy = self._entropy.tolist()
+            return np.random.SeedSequence(entropy).generate_state(n_words, dtype)
+        return words.view(kind)
 
 
 def cost_table(*args: Any) -> bool:

@@ -2032,3 +2032,68 @@ def _orientation_maps(
         maps[hi, y, x] = 0
         counts[lo] += 1
         counts[hi] += 1
+
+
+# ---------------------------------------------------------------------------
+# Seeding: numpy's SeedSequence
+# ---------------------------------------------------------------------------
+
+# The constants of numpy's SeedSequence (O'Neill's seed_seq hash, as numpy
+# adapted it for its ``numpy.random.SeedSequence``).
+_POOL = 4
+_INIT_A = np.uint32(0x43B0D7E5)
+_MULT_A = np.uint32(0x931E8875)
+_INIT_B = np.uint32(0x8B51F9DD)
+_MULT_B = np.uint32(0x58F38DED)
+_MIX_L = np.uint32(0xCA01F9DD)
+_MIX_R = np.uint32(0x4973F715)
+_SHIFT = np.uint32(16)
+
+
+@_njit(inline="always")
+def _hashmix(value: np.uint32, constant: np.uint32) -> tuple[np.uint32, np.uint32]:
+    """One word hashed with the running constant; the constant's next value."""
+    value = np.uint32(value ^ constant)
+    constant = np.uint32(constant * _MULT_A)
+    value = np.uint32(value * constant)
+    return np.uint32(value ^ (value >> _SHIFT)), constant
+
+
+@_njit(inline="always")
+def _mix(x: np.uint32, y: np.uint32) -> np.uint32:
+    """Two words mixed into one."""
+    r = np.uint32(np.uint32(_MIX_L * x) - np.uint32(_MIX_R * y))
+    return np.uint32(r ^ (r >> _SHIFT))
+
+
+@_njit()
+def _seed_words(entropy: NDArray[np.uint32], n: int) -> NDArray[np.uint32]:
+    """``SeedSequence(entropy).generate_state(n, np.uint32)``, ``entropy`` as 32-bit words.
+
+    numpy's steps, word for word: the entropy hashed into a pool of four
+    words, every pool word mixed into every other, the entropy beyond the
+    pool's size mixed into each, then ``n`` words drawn from the pool with
+    the second hash (all arithmetic modulo 2^32).
+    """
+    pool = np.zeros(_POOL, np.uint32)
+    constant = _INIT_A
+    for i in range(_POOL):
+        word = entropy[i] if i < entropy.size else np.uint32(0)
+        pool[i], constant = _hashmix(word, constant)
+    for src in range(_POOL):
+        for dst in range(_POOL):
+            if src != dst:
+                hashed, constant = _hashmix(pool[src], constant)
+                pool[dst] = _mix(pool[dst], hashed)
+    for src in range(_POOL, entropy.size):
+        for dst in range(_POOL):
+            hashed, constant = _hashmix(entropy[src], constant)
+            pool[dst] = _mix(pool[dst], hashed)
+    out = np.empty(n, np.uint32)
+    constant = _INIT_B
+    for i in range(n):
+        value = np.uint32(pool[i % _POOL] ^ constant)
+        constant = np.uint32(constant * _MULT_B)
+        value = np.uint32(value * constant)
+        out[i] = np.uint32(value ^ (value >> _SHIFT))
+    return out

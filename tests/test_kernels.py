@@ -1194,3 +1194,57 @@ def test_oriented_edges_are_the_numpy_paths(n_bins: int, color: str, monkeypatch
             assert a.dtype == b.dtype and a.shape == b.shape
             np.testing.assert_array_equal(a, b)
         assert got[2].any() == (trial != 3)
+
+
+@pytest.mark.parametrize(
+    "entropy",
+    [
+        0,
+        1,
+        2**32 - 1,
+        2**32,
+        2**63 - 2,
+        2**64 + 5,
+        10**30,
+        [0],
+        [5, 1],
+        [2**40, 2],
+        [1, 2, 3, 4, 5, 6],
+    ],
+)
+def test_generators_are_default_rngs(entropy) -> None:
+    ours = _kernels.generator(entropy)
+    theirs = np.random.default_rng(entropy)
+    assert ours.bit_generator.state == theirs.bit_generator.state
+    np.testing.assert_array_equal(ours.random(5), theirs.random(5))
+    # Any number of words of either width, as SeedSequence draws them.
+    seq = ours.bit_generator.seed_seq
+    for n, dtype in ((1, np.uint32), (7, np.uint32), (3, np.uint64)):
+        np.testing.assert_array_equal(
+            seq.generate_state(n, dtype), np.random.SeedSequence(entropy).generate_state(n, dtype)
+        )
+
+
+def test_generators_of_many_seeds_and_what_goes_to_numpy(monkeypatch: pytest.MonkeyPatch) -> None:
+    rng = np.random.default_rng(11)
+    for seed in rng.integers(0, 2**63 - 1, 300).tolist():
+        for entropy in (seed, [seed, 1], [seed, 2]):
+            ours = _kernels.generator(entropy).bit_generator.state
+            assert ours == np.random.default_rng(entropy).bit_generator.state
+    # What the kernel does not take is numpy's, and numpy's errors stay numpy's.
+    assert (
+        _kernels.generator((3, 4)).bit_generator.state
+        == np.random.default_rng((3, 4)).bit_generator.state
+    )
+    for entropy in ([np.int64(3)], np.array([3, 4]), [True], []):
+        g = _kernels.generator(entropy)
+        assert isinstance(g.bit_generator.seed_seq, np.random.SeedSequence)
+        assert g.bit_generator.state == np.random.default_rng(entropy).bit_generator.state
+    with pytest.raises(ValueError):
+        _kernels.generator(-1)
+    with pytest.raises(ValueError):
+        _kernels.generator([3, -1])
+    with pytest.raises(ValueError, match="uint32 or uint64"):
+        _kernels.generator(3).bit_generator.seed_seq.generate_state(2, np.float64)
+    monkeypatch.setattr(_kernels, "ENABLED", False)
+    assert isinstance(_kernels.generator(3).bit_generator.seed_seq, np.random.SeedSequence)
