@@ -32,7 +32,8 @@ bit generator); and one the filter runs: :func:`angle_offsets`, its circular
 mean's wrapped offsets.
 
 The renderer's: :func:`figure_polygons` and :func:`draw_figure` (the cone
-figure's polygons, and OpenCV's fill of them), :func:`clutter_plan` (every
+figure's polygons, and OpenCV's fill of them), :func:`add_noise` (the sensor
+noise, OpenCV's saturating add and subtract in one pass), :func:`clutter_plan` (every
 random draw of an episode's background clutter, numba's ports of numpy's
 draws) and :func:`paint_texture` (its stripes and checks); the tree prior's
 :func:`paced_path`, :func:`tree_descend`, :func:`leaf_log_weights`,
@@ -71,6 +72,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
+    "add_noise",
     "angle_offsets",
     "clutter_plan",
     "cone_basis",
@@ -619,6 +621,28 @@ def paint_texture(*args: Any) -> bool:
         False (the numpy path is to run) when the kernels are off or failed.
     """
     return _run("_paint_texture", *args)
+
+
+def add_noise(img: NDArray[np.uint8], bank: NDArray[np.uint8], y: int, x: int) -> bool:
+    """``render._add_noise``'s window of the noise bank added, then subtracted, saturating.
+
+    ``img`` ``(H, W, C)`` (or ``(H, W)``), C-contiguous; ``bank`` ``(2, 2 H,
+    2 W, C)``; the window at row ``y``, column ``x``. The same bytes as
+    OpenCV's ``add`` and ``subtract`` (``tests/test_kernels.py``), in one pass.
+
+    Returns:
+        False (the numpy path is to run) when the kernels are off or failed,
+        or the arrays are not C-contiguous or the window does not fit (where
+        OpenCV then says what is wrong).
+    """
+    if not (ENABLED and img.flags.c_contiguous and bank.flags.c_contiguous and bank.ndim == 4):
+        return False
+    h, w = img.shape[:2]
+    _, rows, cols, c = bank.shape
+    if img.size != h * w * c or not (0 <= y <= rows - h and 0 <= x <= cols - w):
+        return False
+    flat = img.reshape(h, -1)
+    return _run("_add_noise", flat, bank[0].reshape(rows, -1), bank[1].reshape(rows, -1), y, x * c)
 
 
 def clutter_shapes(

@@ -1189,6 +1189,8 @@ def _add_noise(img: NDArray[np.uint8], bank: NDArray[np.uint8], rng: np.random.G
     """Add the bank's window at a random offset (one of (H + 1)(W + 1))."""
     h, w = img.shape[:2]
     y, x = divmod(int(rng.integers(0, (h + 1) * (w + 1))), w + 1)
+    if _kernels.add_noise(img, bank, y, x):  # the same bytes, in one pass
+        return
     cv2.add(img, bank[0, y : y + h, x : x + w].reshape(img.shape), dst=img)
     cv2.subtract(img, bank[1, y : y + h, x : x + w].reshape(img.shape), dst=img)
 

@@ -1248,3 +1248,37 @@ def test_generators_of_many_seeds_and_what_goes_to_numpy(monkeypatch: pytest.Mon
         _kernels.generator(3).bit_generator.seed_seq.generate_state(2, np.float64)
     monkeypatch.setattr(_kernels, "ENABLED", False)
     assert isinstance(_kernels.generator(3).bit_generator.seed_seq, np.random.SeedSequence)
+
+
+@pytest.mark.parametrize("channels", [1, 3])
+def test_noise_is_opencvs_saturating_add_and_subtract(channels: int, numpy_path) -> None:
+    from humotion_gym.render import _add_noise
+
+    rng = np.random.default_rng(channels)
+    h, w = 24, 40
+    bank = rng.integers(0, 256, (2, 2 * h, 2 * w, channels)).astype(np.uint8)
+    # Saturation both ways: bright pixels under large additions, dark ones
+    # under large subtractions.
+    bank[0, ::3] = 250
+    bank[1, 1::3] = 240
+    for seed in range(40):
+        img = rng.integers(0, 256, (h, w, channels)).astype(np.uint8)
+        img[::5] = 255
+        img[1::5] = 0
+        canvas = img if channels == 3 else img.reshape(h, w)
+        fast, slow = canvas.copy(), canvas.copy()
+        _add_noise(fast, bank, np.random.default_rng(seed))
+        numpy_path(_add_noise, slow, bank, np.random.default_rng(seed))
+        np.testing.assert_array_equal(fast, slow)
+        assert not np.array_equal(fast, canvas)
+    # Every corner window, and a bank the window does not fit goes to OpenCV.
+    img = rng.integers(0, 256, (h, w, channels)).astype(np.uint8)
+    for y, x in ((0, 0), (h, w), (0, w), (h, 0)):
+        fast, slow = img.copy(), img.copy()
+        assert _kernels.add_noise(fast, bank, y, x)
+        plus = bank[0, y : y + h, x : x + w].astype(int)
+        minus = bank[1, y : y + h, x : x + w].astype(int)
+        slow = np.clip(np.clip(img.astype(int) + plus, 0, 255) - minus, 0, 255)
+        np.testing.assert_array_equal(fast, slow)
+    assert not _kernels.add_noise(img.copy(), bank, h + 1, 0)
+    assert not _kernels.add_noise(img.copy(), bank[:, :h], 1, 0)
