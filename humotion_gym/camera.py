@@ -402,7 +402,10 @@ def fit_camera(
     pts = _check_points(keypoints, "fit_camera").reshape(-1, 3)
     if pts.shape[0] == 0:
         raise ValueError("fit_camera: expected at least one point, all finite")
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    # Each coordinate's extremes from a contiguous copy of its column: numpy
+    # reduces a few hundred rows along the first axis in twice the time.
+    columns = np.ascontiguousarray(pts.T)
+    lo, hi = columns.min(axis=1), columns.max(axis=1)
     # A NaN makes its column's min and max NaN, an infinity one of them
     # infinite: six numbers tell whether every point is finite.
     if not all(math.isfinite(v) for v in lo.tolist() + hi.tolist()):
