@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import pickle
 import subprocess
 import sys
 
@@ -1217,6 +1218,9 @@ def test_generators_are_default_rngs(entropy) -> None:
     theirs = np.random.default_rng(entropy)
     assert ours.bit_generator.state == theirs.bit_generator.state
     np.testing.assert_array_equal(ours.random(5), theirs.random(5))
+    # Copies (an environment deep-copied or pickled) go on with the same draws.
+    again = pickle.loads(pickle.dumps(ours))
+    np.testing.assert_array_equal(again.random(3), theirs.random(3))
     # Any number of words of either width, as SeedSequence draws them.
     seq = ours.bit_generator.seed_seq
     for n, dtype in ((1, np.uint32), (7, np.uint32), (3, np.uint64)):
