@@ -648,11 +648,7 @@ def _add_infos(infos: dict[str, Any], rows: list[int], items: list[dict[str, Any
             array = _batch_of(values[0], n)
         for i, value in zip(rows, values, strict=True):
             array[i] = value
-        mask = infos.get(f"_{key}")
-        if mask is None:
-            mask = np.zeros(n, np.bool_)
-        mask[rows] = True
-        infos[key], infos[f"_{key}"] = array, mask
+        _store(infos, key, array, rows, n)
 
 
 def _add_info(infos: dict[str, Any], info: dict[str, Any], i: int, n: int) -> dict[str, Any]:
@@ -676,12 +672,17 @@ def _add_info(infos: dict[str, Any], info: dict[str, Any], i: int, n: int) -> di
             if array is None:
                 array = _batch_of(value, n)
             array[i] = value
-        mask = infos.get(f"_{key}")
-        if mask is None:
-            mask = np.zeros(n, np.bool_)
-        mask[i] = True
-        infos[key], infos[f"_{key}"] = array, mask
+        _store(infos, key, array, i, n)
     return infos
+
+
+def _store(infos: dict[str, Any], key: str, array: Any, where: int | list[int], n: int) -> None:
+    """Put ``array`` under ``key`` and mark episodes ``where`` in its mask ``_key``."""
+    mask = infos.get(f"_{key}")
+    if mask is None:
+        mask = np.zeros(n, np.bool_)
+    mask[where] = True
+    infos[key], infos[f"_{key}"] = array, mask
 
 
 class ArmTrackVectorEnv(PoseTrackingVectorEnv):
