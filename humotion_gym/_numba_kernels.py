@@ -2061,6 +2061,132 @@ def _orientation_maps(
 
 
 # ---------------------------------------------------------------------------
+# The observation model's edge distances
+# ---------------------------------------------------------------------------
+
+
+@_njit(inline="always")
+def _less(a: np.float32, b: np.float32) -> np.float32:
+    """The smaller of two distances (exact; the order of a min never matters)."""
+    return b if b < a else a
+
+
+@_njit(inline="always")
+def _mask_terms(
+    out: NDArray[np.float32], far: NDArray[np.float32], near: NDArray[np.float32], w: int,
+    hv: np.float32, diag: np.float32, knight: np.float32,
+) -> None:  # fmt: skip
+    """``out[j]``: the least of the 5x5 mask's terms from the two rows on one side of a row.
+
+    ``far`` is the row two away, ``near`` the next one, both padded by two
+    columns each side: a knight's move from ``far`` (columns ``j +- 1``) and
+    from ``near`` (``j +- 2``), a diagonal step and a straight one from
+    ``near``; each term one float32 add (the mask is symmetric, so the
+    backward pass uses the same terms from the rows below).
+    """
+    a, b = far[1 : w + 1], far[3 : w + 3]
+    c, d = near[0:w], near[4 : w + 4]
+    e, f, g = near[1 : w + 1], near[3 : w + 3], near[2 : w + 2]
+    for j in range(w):
+        t = _less(a[j] + knight, b[j] + knight)
+        t = _less(t, c[j] + knight)
+        t = _less(t, d[j] + knight)
+        t = _less(t, e[j] + diag)
+        t = _less(t, f[j] + diag)
+        out[j] = _less(t, g[j] + hv)
+
+
+@_njit(inline="always")
+def _row_steps(v: NDArray[np.float32], pre: NDArray[np.float32], w: int, hv: np.float32,
+               steps: int, start: int, sign: int) -> None:  # fmt: skip
+    """``v[j]``: the row's chain of straight steps along it, cut at ``steps`` steps.
+
+    The two-pass algorithm carries each pixel to the next along the row one
+    add at a time (``x[j] = min(pre[j], x[j -+ 1] + hv)``), a chain LLVM
+    cannot vectorise. Adding a step is monotone, so it commutes with the
+    min: ``x[j]`` is the least over ``k`` of ``pre[j -+ k]`` with ``k``
+    steps added one at a time, and this folds those from the farthest in,
+    every pixel at once. A chain of more than ``steps`` steps is longer than
+    ``steps`` (each step adds 1), so every value up to ``steps`` is exact.
+    ``pre`` holds the row at ``start`` (forward: ``steps``; backward: 0),
+    infinity on both sides.
+    """
+    src = pre[start - sign * steps : start - sign * steps + w]
+    for j in range(w):
+        v[j] = src[j]
+    for k in range(steps - 1, -1, -1):
+        src = pre[start - sign * k : start - sign * k + w]
+        for j in range(w):
+            v[j] = _less(v[j] + hv, src[j])
+
+
+@_njit()
+def _distance_maps(
+    maps: NDArray[np.uint8],
+    found: NDArray[np.bool_],
+    hv: np.float32,
+    diag: np.float32,
+    knight: np.float32,
+    steps: int,
+    dist: NDArray[np.float32],
+    temp: NDArray[np.float32],
+    pre: NDArray[np.float32],
+    v: NDArray[np.float32],
+) -> None:
+    """``cv2.distanceTransform(map, DIST_L2, DIST_MASK_5)`` of each map, exact up to ``steps``.
+
+    The 5x5 chamfer (Borgefors, *Distance transformations in digital images*,
+    1986): a forward pass down the rows taking, at each pixel that is not an
+    edge, the least of its mask neighbours above and to the left plus their
+    steps (``hv`` straight, ``diag`` diagonal, ``knight`` a knight's move),
+    then a backward pass up from below and the right; every sum one float32
+    add, as OpenCV's. Each row's terms from the other rows come at once
+    (:func:`_mask_terms`); the chain along the row is cut at ``steps``
+    (:func:`_row_steps`). A value is the least of its terms, each a
+    monotone function of an earlier value, and a term the cut drops exceeds
+    ``steps``; so every value up to ``steps`` is OpenCV's, and every other is
+    at least OpenCV's (so above ``steps`` too). ``temp`` is ``(H + 4, W + 4)``,
+    ``pre`` ``(W + 2 steps,)``, ``v`` ``(W,)`` scratch; maps without an edge
+    (``found`` False) are infinite throughout.
+    """
+    n_maps, h, w = maps.shape
+    inf = np.float32(np.inf)
+    for b in range(n_maps):
+        if not found[b]:
+            dist[b] = inf
+            continue
+        temp[:2] = inf
+        temp[h + 2 :] = inf
+        temp[:, :2] = inf
+        temp[:, w + 2 :] = inf
+        pre[:] = inf
+        middle = pre[steps : steps + w]
+        edge = maps[b]
+        for i in range(h):
+            _mask_terms(middle, temp[i], temp[i + 1], w, hv, diag, knight)
+            row_edges = edge[i]
+            for j in range(w):
+                if row_edges[j] == 0:
+                    middle[j] = _ZERO
+            _row_steps(v, pre, w, hv, steps, steps, 1)
+            row = temp[i + 2, 2 : w + 2]
+            for j in range(w):
+                row[j] = v[j]
+        pre[:] = inf
+        head = pre[:w]
+        for i in range(h - 1, -1, -1):
+            row = temp[i + 2, 2 : w + 2]
+            _mask_terms(head, temp[i + 4], temp[i + 3], w, hv, diag, knight)
+            for j in range(w):
+                head[j] = _less(row[j], head[j])
+            _row_steps(v, pre, w, hv, steps, 0, -1)
+            out = dist[b, i]
+            for j in range(w):
+                row[j] = v[j]
+                out[j] = v[j]
+
+
+# ---------------------------------------------------------------------------
 # Seeding: numpy's SeedSequence
 # ---------------------------------------------------------------------------
 

@@ -48,6 +48,7 @@ from __future__ import annotations
 import functools
 import math
 import threading
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -280,6 +281,53 @@ _ANKLES = tuple(int(_TO_INTERNAL[k]) for k in _ANKLES_PUBLIC)
 _CONE_START = _TO_INTERNAL[CONE_KEYPOINTS[:, 0]]
 _CONE_END = _TO_INTERNAL[CONE_KEYPOINTS[:, 1]]
 _DIST_MASK = cv2.DIST_MASK_5  # 5x5 chamfer: within 2% of the exact distance
+
+
+@functools.cache
+def _kernel_distances_as_opencv() -> bool:
+    """Whether the distance kernel gives the installed OpenCV's distances (checked once).
+
+    The kernel copies the float32 sums of the IPP build that OpenCV's wheels
+    ship; a build that summed otherwise (OpenCV's own code works in fixed
+    point) would make the costs depend on whether numba is installed. So on
+    first use both transform maps of scattered points, of lines, and of one
+    point, at the kernel's longest reach (about 3 ms); where any distance up
+    to it differs, OpenCV runs, with one ``RuntimeWarning``.
+    """
+    rng = np.random.default_rng(20261124)
+    steps = int(_kernels.DISTANCE_LIMIT)
+    maps = []
+    for k, (h, w) in enumerate([(128, 128), (96, 160), (41, 67), (128, 128), (5, 9)]):
+        density = (0.002, 0.02, 0.2, 0.01, 0.1)[k]
+        m = np.where(rng.random((4, h, w)) < density, 0, 255).astype(np.uint8)
+        for b in range(2, 4):  # lines at every slope
+            for _ in range(6):
+                ends = rng.integers(-8, max(h, w) + 8, 4)
+                cv2.line(m[b], (int(ends[0]), int(ends[1])), (int(ends[2]), int(ends[3])), 0, 1)
+        maps.append(m)
+    single = np.full((1, 2 * steps + 9, 2 * steps + 9), 255, np.uint8)
+    single[0, steps + 4, steps + 4] = 0
+    maps.append(single)
+    for m in maps:
+        found = (m == 0).reshape(m.shape[0], -1).any(axis=1)
+        ours = np.empty(m.shape, np.float32)
+        if not _kernels.distance_maps(m, found, steps, ours):
+            return True  # the kernels are off (numba failed and said so): nothing to check
+        for b in range(m.shape[0]):
+            theirs = cv2.distanceTransform(m[b], cv2.DIST_L2, _DIST_MASK)
+            near = theirs <= steps
+            if not found[b] or (
+                np.array_equal(ours[b][near], theirs[near]) and (ours[b][~near] > steps).all()
+            ):
+                continue
+            warnings.warn(
+                f"humotion_gym: this OpenCV ({cv2.__version__}) gives other edge distances than "
+                "the distance kernel; OpenCV computes them (the other kernels still run).",
+                RuntimeWarning,
+                stacklevel=4,
+            )
+            return False
+    return True
 
 
 @dataclass(frozen=True)
@@ -575,12 +623,7 @@ class ObservationModel:
         fg, bg, keep, backdrop = self._foreground(smooth, backdrop, scale)
         edges, bin_maps, found = self._oriented_edges(smooth, keep)
         n_bins = self.orientation_bins
-        dist = np.empty((n_bins, h, w), np.float32)
-        for b in range(n_bins):
-            if found[b]:
-                cv2.distanceTransform(bin_maps[b], cv2.DIST_L2, _DIST_MASK, dst=dist[b])
-            else:
-                dist[b] = np.inf
+        dist = self._edge_distances(bin_maps, found, scale)
         n_out = 2 * self.outline_samples
         edge_scale = np.float32(1.0 / (2.0 * self.edge_sigma**2 * n_out))
         edge_out = self.edge_truncation**2 * edge_scale
@@ -640,6 +683,42 @@ class ObservationModel:
             w, h, edges, dist, fg, bg, cost, float(unit), residual, cones, app_cones,
             coverage, coverage_cones, floor,
         )  # fmt: skip
+
+    def _edge_distances(
+        self, bin_maps: NDArray[np.uint8], found: NDArray[np.bool_], scale: float
+    ) -> NDArray[np.float32]:
+        """``(B, H, W)`` each orientation bin's ``cv2.distanceTransform``, as the costs read it.
+
+        The cost table truncates the distances at ``edge_truncation``
+        reference pixels. The compiled kernel gives OpenCV's distance wherever
+        that is at most a whole number of pixels past the truncation (in this
+        frame's pixels) and a larger one elsewhere, so the table is the same;
+        :attr:`FrameFeatures.distance` holds them truncated either way.
+        OpenCV runs when the kernels are off, the truncation is too far for
+        the kernel (``_kernels.DISTANCE_LIMIT``), or this OpenCV's distances
+        differ from the kernel's (:func:`_kernel_distances_as_opencv`).
+        """
+        n_bins, h, w = bin_maps.shape
+        dist = np.empty((n_bins, h, w), np.float32)
+        steps = math.ceil(self.edge_truncation * scale) + 1
+        # The cost table scales a distance by 1 / scale (float32) and truncates
+        # it: everything from `steps` on must land on the truncation.
+        beyond = scale == 1.0 or np.float32(steps) * np.float32(1.0 / scale) >= np.float32(
+            self.edge_truncation
+        )
+        if (
+            beyond
+            and _kernels.ENABLED
+            and _kernel_distances_as_opencv()
+            and _kernels.distance_maps(bin_maps, found, steps, dist)
+        ):
+            return dist
+        for b in range(n_bins):
+            if found[b]:
+                cv2.distanceTransform(bin_maps[b], cv2.DIST_L2, _DIST_MASK, dst=dist[b])
+            else:
+                dist[b] = np.inf
+        return dist
 
     def _cost_maps(
         self,

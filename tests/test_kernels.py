@@ -16,6 +16,7 @@ import pickle
 import subprocess
 import sys
 
+import cv2
 import numpy as np
 import pytest
 
@@ -957,6 +958,123 @@ def test_a_keypoints_kernel_that_differs_is_not_used(monkeypatch) -> None:
         )
     finally:
         vector._kernel_keypoints_as_numpy.cache_clear()
+
+
+def _opencv_distances(maps: np.ndarray, found: np.ndarray) -> np.ndarray:
+    out = np.empty(maps.shape, np.float32)
+    for b in range(maps.shape[0]):
+        if found[b]:
+            cv2.distanceTransform(maps[b], cv2.DIST_L2, cv2.DIST_MASK_5, dst=out[b])
+        else:
+            out[b] = np.inf
+    return out
+
+
+@pytest.mark.parametrize("steps", [1, 2, 4, 7, 16])
+def test_edge_distances_are_opencvs_up_to_the_kernels_reach(steps: int) -> None:
+    # Maps of scattered points (from one point to nine in ten pixels), of
+    # lines at every slope, and without any edge, of every shape from one
+    # pixel up: every distance up to `steps` is OpenCV's, bit for bit, and
+    # every one OpenCV puts beyond it the kernel puts beyond it too.
+    rng = np.random.default_rng(steps)
+    for trial in range(150):
+        h, w = (int(x) for x in rng.integers(1, 150, 2))
+        maps = np.where(rng.random((4, h, w)) < rng.choice([0.0, 1e-3, 0.01, 0.1, 0.9]), 0, 255)
+        maps = maps.astype(np.uint8)
+        for _ in range(int(rng.integers(0, 4))):
+            ends = rng.integers(-5, max(h, w) + 5, 4)
+            cv2.line(
+                maps[trial % 4], tuple(int(e) for e in ends[:2]), tuple(int(e) for e in ends[2:]), 0
+            )
+        found = (maps == 0).reshape(4, -1).any(axis=1)
+        ours = np.full(maps.shape, -1.0, np.float32)
+        assert _kernels.distance_maps(maps, found, steps, ours)
+        theirs = _opencv_distances(maps, found)
+        near = theirs <= steps
+        np.testing.assert_array_equal(ours[near], theirs[near])
+        assert (ours[~near] > steps).all()
+        assert np.isinf(ours[~found]).all()
+
+
+def test_the_distance_kernel_stops_where_it_is_not_exact() -> None:
+    # Out of its range (a reach of 0 or over DISTANCE_LIMIT) it leaves the
+    # maps to OpenCV; and at 32.76 pixels OpenCV's sums round a tie otherwise
+    # than the kernel's (the reason for the limit): the one point's map, whose
+    # distances all come from the same few sums, shows it.
+    maps = np.full((1, 41, 81), 255, np.uint8)
+    maps[0, 0, 0] = 0
+    found = np.ones(1, bool)
+    out = np.empty(maps.shape, np.float32)
+    assert not _kernels.distance_maps(maps, found, 0, out)
+    assert not _kernels.distance_maps(maps, found, int(_kernels.DISTANCE_LIMIT) + 1, out)
+    from humotion_gym import _numba_kernels as nk
+
+    hv, diag, knight = _kernels.CHAMFER_STEPS
+    temp, pre, v = (
+        np.empty((45, 85), np.float32),
+        np.empty(81 + 200, np.float32),
+        np.empty(81, np.float32),
+    )
+    nk._distance_maps(maps, found, hv, diag, knight, 100, out, temp, pre, v)
+    theirs = _opencv_distances(maps, found)
+    differ = out != theirs
+    assert differ.any() and theirs[differ].min() > 32.0 and _kernels.DISTANCE_LIMIT <= 16.0
+    np.testing.assert_array_equal(out[theirs < 32.0], theirs[theirs < 32.0])
+
+
+def test_prepare_uses_the_distance_kernel_and_opencv_past_its_reach(monkeypatch) -> None:
+    from humotion_gym import observation
+
+    assert observation._kernel_distances_as_opencv()  # (checked once, before the spy)
+    calls = []
+    real = _kernels.distance_maps
+
+    def spy(maps, found, steps, dist):
+        calls.append(steps)
+        return real(maps, found, steps, dist)
+
+    monkeypatch.setattr(_kernels, "distance_maps", spy)
+    img, _, _ = scene(seed=4, size=128)
+    ObservationModel().prepare(img)
+    assert calls == [4]  # 3 px truncation at 128 px: exact up to 4
+    far = ObservationModel(edge_truncation=20.0)
+    monkeypatch.setattr(_kernels, "ENABLED", False)
+    expected = far.prepare(img)
+    monkeypatch.setattr(_kernels, "ENABLED", True)
+    got = far.prepare(img)
+    assert calls == [4, 21]  # past DISTANCE_LIMIT: the kernel declines, OpenCV runs
+    np.testing.assert_array_equal(got.distance, expected.distance)
+    np.testing.assert_array_equal(got.cost, expected.cost)
+
+
+def test_an_opencv_with_other_distances_keeps_its_own(monkeypatch) -> None:
+    # An OpenCV whose distances differ from the kernel's (here: one float32
+    # step up everywhere past 1 px) fails the check on first use: it warns
+    # once, and OpenCV's own distances go into the table.
+    from humotion_gym import observation
+
+    real = cv2.distanceTransform
+
+    def nudged(src, *args, dst=None, **kwargs):
+        out = real(src, *args, **kwargs)
+        out = np.where(out > 1.0, np.nextafter(out, np.float32(np.inf)), out).astype(np.float32)
+        if dst is not None:
+            dst[...] = out
+            return dst
+        return out
+
+    img, _, _ = scene(seed=5, size=128)
+    observation._kernel_distances_as_opencv.cache_clear()
+    monkeypatch.setattr(cv2, "distanceTransform", nudged)
+    try:
+        with pytest.warns(RuntimeWarning, match="other edge distances"):
+            got = ObservationModel().prepare(img)
+        monkeypatch.setattr(_kernels, "ENABLED", False)
+        expected = ObservationModel().prepare(img)
+    finally:
+        observation._kernel_distances_as_opencv.cache_clear()
+    np.testing.assert_array_equal(got.distance, expected.distance)
+    np.testing.assert_array_equal(got.cost, expected.cost)
 
 
 @pytest.mark.parametrize("task", ["ArmTrack-v1", "BodyTrack-v1", "WalkTrack-v1", "SideWalk-v1"])
