@@ -49,6 +49,7 @@ _fma64: Any = _fma(types.float64, ir.DoubleType())
 
 _ZERO = np.float32(0.0)
 _ONE = np.float32(1.0)
+_TWO = np.float32(2.0)
 _MINUS_ONE = np.float32(-1.0)
 _TINY = np.float32(1e-12)
 
@@ -2058,6 +2059,70 @@ def _orientation_maps(
         maps[hi, y, x] = 0
         counts[lo] += 1
         counts[hi] += 1
+
+
+@_njit(inline="always")
+def _sobel(up: NDArray[np.float32], mid: NDArray[np.float32], down: NDArray[np.float32],
+           x: int) -> tuple[np.float32, np.float32, np.float32]:  # fmt: skip
+    """The 3x3 Sobel pair at padded column ``x + 1``, and its L1 magnitude (exact integers)."""
+    a, b, d = up[x], up[x + 1], up[x + 2]
+    e, f = mid[x], mid[x + 2]
+    g, k, m = down[x], down[x + 1], down[x + 2]
+    gx = (d - a) + _TWO * (f - e) + (m - g)
+    gy = (g - a) + _TWO * (k - b) + (m - d)
+    return gx, gy, abs(gx) + abs(gy)
+
+
+@_njit()
+def _canny_gradients(
+    img: NDArray[np.uint8],
+    dx: NDArray[np.int16],
+    dy: NDArray[np.int16],
+    planes: NDArray[np.float32],
+) -> None:
+    """The gradients ``cv2.Canny`` takes from a colour image, for ``cv2.Canny(dx, dy, ...)``.
+
+    OpenCV's Canny filters each channel with the 3x3 Sobel pair (border
+    replicated) and keeps, per pixel, the channel with the largest
+    ``|dx| + |dy|`` (the first of equals). The channels go into padded
+    float32 planes first: every sum is of small integers, exact in float32,
+    and float32 keeps LLVM's vectors eight wide where numba's integer
+    arithmetic would widen to 64 bits. ``planes`` is ``(3, H + 2, W + 2)``
+    scratch.
+    """
+    h, w, _ = img.shape
+    for y in range(h):
+        src = img[y]
+        r0, r1, r2 = planes[0, y + 1], planes[1, y + 1], planes[2, y + 1]
+        for x in range(w):
+            r0[x + 1] = np.float32(src[x, 0])
+            r1[x + 1] = np.float32(src[x, 1])
+            r2[x + 1] = np.float32(src[x, 2])
+    for c in range(3):
+        p = planes[c]
+        for y in range(1, h + 1):
+            p[y, 0] = p[y, 1]
+            p[y, w + 1] = p[y, w]
+        p[0] = p[1]
+        p[h + 1] = p[h]
+    for y in range(h):
+        out_x, out_y = dx[y], dy[y]
+        u0, c0, d0 = planes[0, y], planes[0, y + 1], planes[0, y + 2]
+        u1, c1, d1 = planes[1, y], planes[1, y + 1], planes[1, y + 2]
+        u2, c2, d2 = planes[2, y], planes[2, y + 1], planes[2, y + 2]
+        for x in range(w):
+            gx, gy, best = _sobel(u0, c0, d0, x)
+            gx1, gy1, m1 = _sobel(u1, c1, d1, x)
+            more = m1 > best
+            gx = gx1 if more else gx
+            gy = gy1 if more else gy
+            best = m1 if more else best
+            gx2, gy2, m2 = _sobel(u2, c2, d2, x)
+            more = m2 > best
+            gx = gx2 if more else gx
+            gy = gy2 if more else gy
+            out_x[x] = np.int16(gx)
+            out_y[x] = np.int16(gy)
 
 
 # ---------------------------------------------------------------------------

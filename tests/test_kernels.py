@@ -960,6 +960,72 @@ def test_a_keypoints_kernel_that_differs_is_not_used(monkeypatch) -> None:
         vector._kernel_keypoints_as_numpy.cache_clear()
 
 
+@pytest.mark.parametrize("size", [(1, 1), (2, 7), (13, 5), (128, 128), (96, 160)])
+def test_canny_gradients_are_opencvs_sobel_of_the_strongest_channel(size: tuple) -> None:
+    # The oracle: cv2.Sobel of each channel (border replicated, as Canny
+    # filters), then per pixel the channel with the largest |dx| + |dy|, the
+    # first of equals (flat patches make many ties).
+    h, w = size
+    rng = np.random.default_rng(h * w)
+    for trial in range(4):
+        img = rng.integers(0, 256, (h, w, 3)).astype(np.uint8)
+        if trial % 2:
+            img = cv2.GaussianBlur(img, (0, 0), 1.2)
+        img[: h // 2, : w // 2] = rng.integers(0, 256, 3)
+        got = _kernels.canny_gradients(img)
+        assert got is not None
+        sx = cv2.Sobel(img, cv2.CV_16S, 1, 0, ksize=3, borderType=cv2.BORDER_REPLICATE)
+        sy = cv2.Sobel(img, cv2.CV_16S, 0, 1, ksize=3, borderType=cv2.BORDER_REPLICATE)
+        sx, sy = sx.reshape(h, w, 3), sy.reshape(h, w, 3)
+        pick = np.argmax(np.abs(sx.astype(int)) + np.abs(sy.astype(int)), axis=2)[..., None]
+        np.testing.assert_array_equal(got[0], np.take_along_axis(sx, pick, 2)[..., 0])
+        np.testing.assert_array_equal(got[1], np.take_along_axis(sy, pick, 2)[..., 0])
+
+
+@pytest.mark.parametrize("task", ["ArmTrack-v1", "BodyTrack-v1", "WalkTrack-v1", "SideWalk-v1"])
+def test_canny_from_the_kernels_gradients_is_opencvs_colour_canny(task: str) -> None:
+    import gymnasium as gym
+
+    from humotion_gym import observation
+
+    env = gym.make(f"humotion_gym/{task}", terminate_on_lost=False)
+    frame, _ = env.reset(seed=1)
+    env.action_space.seed(1)
+    for _ in range(6):
+        smooth = cv2.GaussianBlur(frame, (0, 0), 1.0)
+        for low, high in [(40.0, 100.0), (10.0, 30.0), (80.0, 200.0)]:
+            expected = cv2.Canny(smooth, low, high)
+            assert expected.any()
+            np.testing.assert_array_equal(observation._canny(smooth, low, high), expected)
+        frame, *_ = env.step(env.action_space.sample())
+
+
+def test_an_opencv_with_other_canny_edges_keeps_its_own(monkeypatch) -> None:
+    # An OpenCV whose Canny from gradients differs from its colour Canny (here:
+    # the gradients' edges shifted a pixel) fails the check on first use: it
+    # warns once, and OpenCV's own colour Canny finds the edges.
+    from humotion_gym import observation
+
+    real = cv2.Canny
+
+    def shifted(image, *args, **kwargs):
+        out = real(image, *args, **kwargs)
+        return np.roll(out, 1, axis=1) if image.dtype == np.int16 else out
+
+    img, _, _ = scene(seed=6, size=128)
+    observation._kernel_canny_as_opencv.cache_clear()
+    monkeypatch.setattr(cv2, "Canny", shifted)
+    try:
+        with pytest.warns(RuntimeWarning, match="other edges"):
+            got = ObservationModel().prepare(img)
+        monkeypatch.setattr(_kernels, "ENABLED", False)
+        expected = ObservationModel().prepare(img)
+    finally:
+        observation._kernel_canny_as_opencv.cache_clear()
+    np.testing.assert_array_equal(got.edges, expected.edges)
+    np.testing.assert_array_equal(got.cost, expected.cost)
+
+
 def _opencv_distances(maps: np.ndarray, found: np.ndarray) -> np.ndarray:
     out = np.empty(maps.shape, np.float32)
     for b in range(maps.shape[0]):
