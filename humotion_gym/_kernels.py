@@ -74,6 +74,7 @@ from numpy.typing import NDArray
 __all__ = [
     "add_noise",
     "angle_offsets",
+    "border_median",
     "canny_gradients",
     "clutter_plan",
     "cone_basis",
@@ -497,6 +498,27 @@ def cost_table(*args: Any) -> bool:
         False (the numpy path is to run) when the kernels are off or failed.
     """
     return _run("_cost_table", *args)
+
+
+def border_median(smooth: NDArray[np.uint8], b: int) -> NDArray[np.float64] | None:
+    """``np.median`` of each channel over the frame's border ``b`` wide, from value counts.
+
+    The values are bytes, so the two middle ones come from counts of each
+    value (``_numba_kernels._border_median``), and their mean is numpy's: the
+    same float64 (``tests/test_kernels.py``), in a tenth of ``np.median``'s
+    time.
+
+    Returns:
+        ``(C,)`` float64; None when the kernels are off or failed, or ``b`` is
+        under 1 (numpy's slices then take the whole frame).
+    """
+    if not ENABLED or b < 1:
+        return None
+    channels = smooth.shape[2]
+    out = np.empty(channels)
+    if not _run("_border_median", smooth, b, np.empty((4, channels, 256), np.int64), out):
+        return None
+    return out
 
 
 def colour_distances(*args: Any) -> bool:

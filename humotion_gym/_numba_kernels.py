@@ -1960,6 +1960,45 @@ def _foreground_map(
             fg[y, x] = f if f < _ONE else _ONE
 
 
+@_njit()
+def _border_median(smooth: NDArray[np.uint8], b: int, counts: NDArray[np.int64],
+                   out: NDArray[np.float64]) -> None:  # fmt: skip
+    """``out[c]``: ``np.median`` of channel ``c`` over the frame's border ``b`` wide.
+
+    The border is the ``b`` top and bottom rows and the ``b`` left and right
+    columns between them (``ObservationModel._foreground``'s). Its values are
+    bytes: each channel's are counted (``counts``, ``(4, C, 256)`` scratch:
+    four sets, a pixel's column picking one, so that runs of one colour do
+    not wait on one counter), and the two middle values (one and the same
+    for an odd count) read off the counts; their mean is numpy's.
+    """
+    h, w, channels = smooth.shape
+    counts[:] = 0
+    for y in range(h):
+        row = smooth[y]
+        if y < b or y >= h - b:
+            for x in range(w):
+                for c in range(channels):
+                    counts[x & 3, c, row[x, c]] += 1
+        else:
+            for x in range(b):
+                for c in range(channels):
+                    counts[x & 3, c, row[x, c]] += 1
+                    counts[(x + 2) & 3, c, row[w - b + x, c]] += 1
+    n = 2 * b * w + 2 * b * (h - 2 * b)
+    for c in range(channels):
+        seen = 0
+        lower = upper = -1
+        for v in range(256):
+            seen += counts[0, c, v] + counts[1, c, v] + counts[2, c, v] + counts[3, c, v]
+            if lower < 0 and seen > (n - 1) // 2:
+                lower = v
+            if seen > n // 2:
+                upper = v
+                break
+        out[c] = (np.float64(lower) + np.float64(upper)) / 2.0
+
+
 # ---------------------------------------------------------------------------
 # The observation model's edge orientations
 # ---------------------------------------------------------------------------

@@ -1060,15 +1060,17 @@ class ObservationModel:
         """
         h, w, channels = smooth.shape
         b = min(self.border_width, h // 4, w // 4)
-        border = np.concatenate(
-            [
-                smooth[:b].reshape(-1, channels),
-                smooth[-b:].reshape(-1, channels),
-                smooth[b:-b, :b].reshape(-1, channels),
-                smooth[b:-b, -b:].reshape(-1, channels),
-            ]
-        )
-        bg = np.median(border, axis=0)
+        bg = _kernels.border_median(smooth, b)
+        if bg is None:
+            border = np.concatenate(
+                [
+                    smooth[:b].reshape(-1, channels),
+                    smooth[-b:].reshape(-1, channels),
+                    smooth[b:-b, :b].reshape(-1, channels),
+                    smooth[b:-b, -b:].reshape(-1, channels),
+                ]
+            )
+            bg = np.median(border, axis=0)
         if _kernels.ENABLED:
             compiled = self._compiled_foreground(smooth, bg, backdrop, scale)
             if compiled is not None:

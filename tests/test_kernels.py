@@ -1026,6 +1026,32 @@ def test_an_opencv_with_other_canny_edges_keeps_its_own(monkeypatch) -> None:
     np.testing.assert_array_equal(got.cost, expected.cost)
 
 
+def test_border_medians_are_numpys() -> None:
+    # Grey and colour frames of many shapes and border widths, with few
+    # distinct values, many, and one (every count even and odd): the same
+    # float64 as np.median of the border's pixels; no border goes to numpy.
+    rng = np.random.default_rng(11)
+    for trial in range(600):
+        h, w = (int(x) for x in rng.integers(4, 70, 2))
+        c = int(rng.choice([1, 3]))
+        img = rng.integers(0, int(rng.integers(1, 257)), (h, w, c)).astype(np.uint8)
+        if trial % 5 == 0:
+            img[:] = rng.integers(0, 256)
+        b = int(rng.integers(1, min(h, w) // 4 + 1))
+        border = np.concatenate(
+            [
+                img[:b].reshape(-1, c),
+                img[-b:].reshape(-1, c),
+                img[b:-b, :b].reshape(-1, c),
+                img[b:-b, -b:].reshape(-1, c),
+            ]
+        )
+        got = _kernels.border_median(img, b)
+        assert got is not None and got.dtype == np.float64
+        np.testing.assert_array_equal(got, np.median(border, axis=0))
+    assert _kernels.border_median(img, 0) is None
+
+
 def _opencv_distances(maps: np.ndarray, found: np.ndarray) -> np.ndarray:
     out = np.empty(maps.shape, np.float32)
     for b in range(maps.shape[0]):
