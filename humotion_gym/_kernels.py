@@ -23,6 +23,16 @@ The kernels, in the order the likelihood runs them:
   term and the arm's residual-edge term, each pose's float32 costs summed in
   double precision in numpy's pairwise order.
 
+And the frame's features, once a frame: :func:`border_median` (the border's
+median colour, from counts of its bytes), :func:`canny_gradients` (the
+gradients OpenCV's Canny picks from a colour frame, which ``cv2.Canny(dx,
+dy)`` then finishes), :func:`orientation_maps`, :func:`distance_maps`
+(OpenCV's 5x5 chamfer distance transform, exact as far as the costs read it),
+:func:`colour_distances`, :func:`foreground_map` and :func:`cost_table`. The
+two that copy OpenCV (the gradients and the distances) are checked against
+the installed OpenCV once on first use (``observation._kernel_canny_as_opencv``,
+``_kernel_distances_as_opencv``); where it differs OpenCV runs, with a warning.
+
 The environments' :func:`generator`: ``np.random.default_rng`` of a seed,
 numpy's SeedSequence hash in compiled code (the same generator state).
 
