@@ -1000,6 +1000,25 @@ def test_canny_from_the_kernels_gradients_is_opencvs_colour_canny(task: str) -> 
         frame, *_ = env.step(env.action_space.sample())
 
 
+def _prepared_with_another_opencv(monkeypatch, name: str, fake, check, match: str) -> tuple:
+    """A frame's features with ``cv2.<name>`` faked: on first use (``check``), then numpy's.
+
+    The first-use check must warn (``match``) and leave the step to the fake
+    OpenCV; the second preparation runs with the kernels off, for comparison.
+    """
+    img, _, _ = scene(seed=6, size=128)
+    check.cache_clear()
+    monkeypatch.setattr(cv2, name, fake)
+    try:
+        with pytest.warns(RuntimeWarning, match=match):
+            got = ObservationModel().prepare(img)
+        monkeypatch.setattr(_kernels, "ENABLED", False)
+        expected = ObservationModel().prepare(img)
+    finally:
+        check.cache_clear()
+    return got, expected
+
+
 def test_an_opencv_with_other_canny_edges_keeps_its_own(monkeypatch) -> None:
     # An OpenCV whose Canny from gradients differs from its colour Canny (here:
     # the gradients' edges shifted a pixel) fails the check on first use: it
@@ -1012,16 +1031,9 @@ def test_an_opencv_with_other_canny_edges_keeps_its_own(monkeypatch) -> None:
         out = real(image, *args, **kwargs)
         return np.roll(out, 1, axis=1) if image.dtype == np.int16 else out
 
-    img, _, _ = scene(seed=6, size=128)
-    observation._kernel_canny_as_opencv.cache_clear()
-    monkeypatch.setattr(cv2, "Canny", shifted)
-    try:
-        with pytest.warns(RuntimeWarning, match="other edges"):
-            got = ObservationModel().prepare(img)
-        monkeypatch.setattr(_kernels, "ENABLED", False)
-        expected = ObservationModel().prepare(img)
-    finally:
-        observation._kernel_canny_as_opencv.cache_clear()
+    got, expected = _prepared_with_another_opencv(
+        monkeypatch, "Canny", shifted, observation._kernel_canny_as_opencv, "other edges"
+    )
     np.testing.assert_array_equal(got.edges, expected.edges)
     np.testing.assert_array_equal(got.cost, expected.cost)
 
@@ -1155,16 +1167,10 @@ def test_an_opencv_with_other_distances_keeps_its_own(monkeypatch) -> None:
             return dst
         return out
 
-    img, _, _ = scene(seed=5, size=128)
-    observation._kernel_distances_as_opencv.cache_clear()
-    monkeypatch.setattr(cv2, "distanceTransform", nudged)
-    try:
-        with pytest.warns(RuntimeWarning, match="other edge distances"):
-            got = ObservationModel().prepare(img)
-        monkeypatch.setattr(_kernels, "ENABLED", False)
-        expected = ObservationModel().prepare(img)
-    finally:
-        observation._kernel_distances_as_opencv.cache_clear()
+    got, expected = _prepared_with_another_opencv(
+        monkeypatch, "distanceTransform", nudged, observation._kernel_distances_as_opencv,
+        "other edge distances",
+    )  # fmt: skip
     np.testing.assert_array_equal(got.distance, expected.distance)
     np.testing.assert_array_equal(got.cost, expected.cost)
 
