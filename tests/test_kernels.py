@@ -739,14 +739,33 @@ def test_backgrounds_are_the_numpy_paths(options: dict, monkeypatch) -> None:
             np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
 
 
+def _made_both_ways(monkeypatch, target, name: str, fake, check, match: str, make) -> tuple:
+    """``make()`` with ``target.<name>`` faked so a kernel's first-use ``check`` fails, then again.
+
+    The real check passes; with the fake, the first ``make()`` must warn
+    (``match``), the kernels stay on and the check says no, so the step falls
+    back; the second ``make()`` runs with the kernels off, for comparison.
+    """
+    check.cache_clear()
+    assert check()
+    check.cache_clear()
+    monkeypatch.setattr(target, name, fake)
+    try:
+        with pytest.warns(RuntimeWarning, match=match):
+            got = make()
+        assert _kernels.enabled() and not check()
+        monkeypatch.setattr(_kernels, "ENABLED", False)
+        expected = make()
+    finally:
+        check.cache_clear()
+    return got, expected
+
+
 def test_a_numpy_that_draws_otherwise_keeps_the_clutter(monkeypatch) -> None:
     # The first background checks the clutter kernel against numpy's draws;
     # where they differ, numpy plans (one warning) and the other kernels stay on.
     from humotion_gym import render
 
-    render._kernel_plans_as_numpy.cache_clear()
-    assert render._kernel_plans_as_numpy()
-    render._kernel_plans_as_numpy.cache_clear()
     real = _kernels.clutter_plan
 
     def nudged(*args):  # one shape a pixel to the right
@@ -754,16 +773,12 @@ def test_a_numpy_that_draws_otherwise_keeps_the_clutter(monkeypatch) -> None:
         shapes[:1, 6] += 1
         return shapes, floats, lines
 
-    monkeypatch.setattr(_kernels, "clutter_plan", nudged)
-    try:
-        with pytest.warns(RuntimeWarning, match="draws the background's clutter otherwise"):
-            a = make_background(SceneOptions(), np.random.default_rng(3))
-        assert _kernels.enabled() and not render._kernel_plans_as_numpy()
-        monkeypatch.setattr(_kernels, "ENABLED", False)
-        b = make_background(SceneOptions(), np.random.default_rng(3))
-        np.testing.assert_array_equal(a.image, b.image)
-    finally:
-        render._kernel_plans_as_numpy.cache_clear()
+    a, b = _made_both_ways(
+        monkeypatch, _kernels, "clutter_plan", nudged, render._kernel_plans_as_numpy,
+        "draws the background's clutter otherwise",
+        lambda: make_background(SceneOptions(), np.random.default_rng(3)),
+    )  # fmt: skip
+    np.testing.assert_array_equal(a.image, b.image)
 
 
 def _opencv_target(img: np.ndarray) -> np.ndarray:
@@ -902,20 +917,13 @@ def test_an_opencv_that_draws_shapes_otherwise_keeps_the_clutter(monkeypatch) ->
     # draws the shapes (one warning) and the other kernels stay on.
     from humotion_gym import render
 
-    render._kernel_clutter_as_opencv.cache_clear()
-    assert render._kernel_clutter_as_opencv()
-    render._kernel_clutter_as_opencv.cache_clear()
     skewed = np.roll(render._opencv_sin_table(), 1)
-    monkeypatch.setattr(render, "_opencv_sin_table", lambda: skewed)
-    try:
-        with pytest.warns(RuntimeWarning, match="draws the background's shapes otherwise"):
-            a = make_background(SceneOptions(), np.random.default_rng(3))
-        assert _kernels.enabled() and not render._kernel_clutter_as_opencv()
-        monkeypatch.setattr(_kernels, "ENABLED", False)
-        b = make_background(SceneOptions(), np.random.default_rng(3))
-        np.testing.assert_array_equal(a.image, b.image)
-    finally:
-        render._kernel_clutter_as_opencv.cache_clear()
+    a, b = _made_both_ways(
+        monkeypatch, render, "_opencv_sin_table", lambda: skewed,
+        render._kernel_clutter_as_opencv, "draws the background's shapes otherwise",
+        lambda: make_background(SceneOptions(), np.random.default_rng(3)),
+    )  # fmt: skip
+    np.testing.assert_array_equal(a.image, b.image)
 
 
 @pytest.mark.parametrize("n", [1, 2, 16, 3001])
@@ -1000,25 +1008,6 @@ def test_canny_from_the_kernels_gradients_is_opencvs_colour_canny(task: str) -> 
         frame, *_ = env.step(env.action_space.sample())
 
 
-def _prepared_with_another_opencv(monkeypatch, name: str, fake, check, match: str) -> tuple:
-    """A frame's features with ``cv2.<name>`` faked: on first use (``check``), then numpy's.
-
-    The first-use check must warn (``match``) and leave the step to the fake
-    OpenCV; the second preparation runs with the kernels off, for comparison.
-    """
-    img, _, _ = scene(seed=6, size=128)
-    check.cache_clear()
-    monkeypatch.setattr(cv2, name, fake)
-    try:
-        with pytest.warns(RuntimeWarning, match=match):
-            got = ObservationModel().prepare(img)
-        monkeypatch.setattr(_kernels, "ENABLED", False)
-        expected = ObservationModel().prepare(img)
-    finally:
-        check.cache_clear()
-    return got, expected
-
-
 def test_an_opencv_with_other_canny_edges_keeps_its_own(monkeypatch) -> None:
     # An OpenCV whose Canny from gradients differs from its colour Canny (here:
     # the gradients' edges shifted a pixel) fails the check on first use: it
@@ -1031,9 +1020,11 @@ def test_an_opencv_with_other_canny_edges_keeps_its_own(monkeypatch) -> None:
         out = real(image, *args, **kwargs)
         return np.roll(out, 1, axis=1) if image.dtype == np.int16 else out
 
-    got, expected = _prepared_with_another_opencv(
-        monkeypatch, "Canny", shifted, observation._kernel_canny_as_opencv, "other edges"
-    )
+    img, _, _ = scene(seed=6, size=128)
+    got, expected = _made_both_ways(
+        monkeypatch, cv2, "Canny", shifted, observation._kernel_canny_as_opencv, "other edges",
+        lambda: ObservationModel().prepare(img),
+    )  # fmt: skip
     np.testing.assert_array_equal(got.edges, expected.edges)
     np.testing.assert_array_equal(got.cost, expected.cost)
 
@@ -1167,9 +1158,10 @@ def test_an_opencv_with_other_distances_keeps_its_own(monkeypatch) -> None:
             return dst
         return out
 
-    got, expected = _prepared_with_another_opencv(
-        monkeypatch, "distanceTransform", nudged, observation._kernel_distances_as_opencv,
-        "other edge distances",
+    img, _, _ = scene(seed=6, size=128)
+    got, expected = _made_both_ways(
+        monkeypatch, cv2, "distanceTransform", nudged, observation._kernel_distances_as_opencv,
+        "other edge distances", lambda: ObservationModel().prepare(img),
     )  # fmt: skip
     np.testing.assert_array_equal(got.distance, expected.distance)
     np.testing.assert_array_equal(got.cost, expected.cost)
