@@ -94,6 +94,7 @@ __all__ = [
     "distance_maps",
     "draw_figure",
     "env_keypoints",
+    "env_scores",
     "figure_polygons",
     "foreground_map",
     "generator",
@@ -716,6 +717,51 @@ def env_keypoints(
     if not _run("_env_keypoints", *contiguous, np.ascontiguousarray(rows, np.intp), out):
         return None
     return out
+
+
+def env_scores(
+    params: NDArray[np.float64],
+    truth_kp: NDArray[np.float64],
+    k: NDArray[np.intp],
+    actions: NDArray[Any],
+    free: NDArray[np.intp],
+    lo: NDArray[np.float64],
+    hi: NDArray[np.float64],
+    shape_table: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
+    sign: NDArray[np.float64],
+    rows: NDArray[np.intp],
+    scored: NDArray[np.intp],
+    anchor: int,
+) -> tuple[NDArray[np.float64], ...] | None:
+    """The vector environment's step scores (``envs.vector._numpy_scores``) in one pass.
+
+    ``params`` ``(N, F, 25)`` and ``truth_kp`` ``(N, F, 15, 3)`` the
+    episodes' poses and keypoints, ``k`` the frame each scores, ``actions``
+    ``(N, A)`` (any real dtype), ``shape_table`` the episodes' ``(torso,
+    head, limbs)``; the rest as :func:`_numba_kernels._env_scores` takes them.
+
+    Returns:
+        ``(estimate, keypoints, errors, scored_errors, means)``, the numpy
+        path's numbers (``tests/test_kernels.py``); None (the numpy path is
+        to run) when the kernels are off or failed.
+    """
+    if not ENABLED:
+        return None
+    n = params.shape[0]
+    out = (
+        np.empty((n, params.shape[2])),
+        np.empty((n, truth_kp.shape[2], 3)),
+        np.empty((n, truth_kp.shape[2])),
+        np.empty((n, scored.shape[0])),
+        np.empty((n, 3)),
+    )
+    torso, head, limbs = (np.ascontiguousarray(a, np.float64) for a in shape_table)
+    ran = _run(
+        "_env_scores", params, truth_kp, np.ascontiguousarray(k, np.intp),
+        np.ascontiguousarray(actions, np.float64), free, lo, hi, torso, head, limbs, sign, rows,
+        scored, anchor, *out,
+    )  # fmt: skip
+    return out if ran else None
 
 
 def paint_texture(*args: Any) -> bool:

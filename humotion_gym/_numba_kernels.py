@@ -1779,6 +1779,71 @@ def _env_keypoints(
                 out[j, rows[2, limb], i] = mid + ls * y - lk * z
 
 
+@_njit(inline="always")
+def _distance(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+    """``|a - b|`` of 3-vectors as ``np.linalg.norm(a - b, axis=-1)``: squares summed in order."""
+    d0, d1, d2 = a[0] - b[0], a[1] - b[1], a[2] - b[2]
+    return math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+
+
+@_njit()
+def _env_scores(
+    params: NDArray[np.float64], truth_kp: NDArray[np.float64], k: NDArray[np.intp],
+    actions: NDArray[np.float64], free: NDArray[np.intp], lo: NDArray[np.float64],
+    hi: NDArray[np.float64], torso: NDArray[np.float64], head: NDArray[np.float64],
+    limbs: NDArray[np.float64], sign: NDArray[np.float64], rows: NDArray[np.intp],
+    scored: NDArray[np.intp], anchor: int, estimate: NDArray[np.float64],
+    keypoints: NDArray[np.float64], errors: NDArray[np.float64], chosen: NDArray[np.float64],
+    means: NDArray[np.float64],
+) -> None:  # fmt: skip
+    """``envs.vector._numpy_scores``: a step's poses, keypoints and errors, episode by episode.
+
+    ``params`` ``(N, F, 25)`` and ``truth_kp`` ``(N, F, 15, 3)`` are the
+    episodes' tables, ``k`` ``(N,)`` the frame each scores; ``actions``
+    ``(N, A)`` in float64, ``free`` ``(A,)`` the parameters they set, ``lo``
+    and ``hi`` ``(N, A)`` their bounds; ``torso`` to ``rows`` as for
+    :func:`_env_keypoints`; ``scored`` ``(K,)`` the scored keypoints,
+    ``anchor`` the one the aligned errors put together. Filled: ``estimate``
+    ``(N, 25)``, ``keypoints`` ``(N, 15, 3)``, ``errors`` ``(N, 15)``,
+    ``chosen`` ``(N, K)`` the scored ones, ``means`` ``(N, 3)`` the mean
+    scored, scored aligned and overall error. Every step is the numpy
+    path's per element: the action clipped to [-1, 1] and mapped as
+    ``lo + (a + 1) * 0.5 * (hi - lo)``, the distances' squares summed in
+    order, the means numpy's pairwise sums divided by the count.
+    """
+    n_kp = errors.shape[1]
+    n_scored = scored.shape[0]
+    aligned = np.empty(n_scored)
+    for j in range(params.shape[0]):
+        frame = k[j]
+        for p in range(params.shape[2]):
+            estimate[j, p] = params[j, frame, p]
+        for m in range(free.shape[0]):
+            a = actions[j, m]
+            a = -1.0 if a < -1.0 else a  # np.clip: the maximum, then the minimum
+            a = 1.0 if a > 1.0 else a
+            estimate[j, free[m]] = lo[j, m] + (a + 1.0) * 0.5 * (hi[j, m] - lo[j, m])
+    _env_keypoints(estimate, torso, head, limbs, sign, rows, keypoints)
+    shift = np.empty(3)
+    for j in range(params.shape[0]):
+        truth = truth_kp[j, k[j]]
+        for c in range(3):
+            shift[c] = keypoints[j, anchor, c] - truth[anchor, c]
+        for q in range(n_kp):
+            errors[j, q] = _distance(keypoints[j, q], truth[q])
+        for m in range(n_scored):
+            q = scored[m]
+            chosen[j, m] = errors[j, q]
+            # the pose with the anchors' difference taken out of each coordinate
+            d0 = (keypoints[j, q, 0] - truth[q, 0]) - shift[0]
+            d1 = (keypoints[j, q, 1] - truth[q, 1]) - shift[1]
+            d2 = (keypoints[j, q, 2] - truth[q, 2]) - shift[2]
+            aligned[m] = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        means[j, 0] = _pairwise_sum(chosen[j], n_scored) / n_scored
+        means[j, 1] = _pairwise_sum(aligned, n_scored) / n_scored
+        means[j, 2] = _pairwise_sum(errors[j], n_kp) / n_kp
+
+
 # ---------------------------------------------------------------------------
 # The observation model's per-frame cost table
 # ---------------------------------------------------------------------------

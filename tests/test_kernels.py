@@ -968,6 +968,89 @@ def test_a_keypoints_kernel_that_differs_is_not_used(monkeypatch) -> None:
         vector._kernel_keypoints_as_numpy.cache_clear()
 
 
+def _step_inputs(n: int, seed: int, n_free: int = 19, n_scored: int = 13) -> tuple:
+    """Random inputs of ``vector._scores``: tables, frames, actions past the bounds, shapes."""
+    rng = np.random.default_rng(seed)
+    frames = 4
+    params = rng.uniform(-9.0, 9.0, (n, frames, 25)) * np.r_[[2000.0] * 3, [1.0] * 22]
+    truth_kp = rng.normal(0.0, 900.0, (n, frames, 15, 3))
+    k = rng.integers(0, frames, n).astype(np.intp)
+    free = np.sort(rng.choice(25, n_free, replace=False)).astype(np.intp)
+    actions = rng.uniform(-2.0, 2.0, (n, n_free)).astype(np.float32)
+    actions[: n // 2, 0], actions[n // 2 :, -1] = -1.0, 1.0  # the bounds themselves
+    lo = rng.uniform(-3.0, 0.0, (n, n_free))
+    hi = lo + rng.uniform(0.0, 4.0, (n, n_free))
+    table = (
+        rng.normal(0.0, 250.0, (n, 5, 3)),
+        rng.uniform(50.0, 400.0, n),
+        rng.uniform(100.0, 600.0, (n, 4, 2)),
+    )
+    scored = np.sort(rng.choice(15, n_scored, replace=False)).astype(np.intp)
+    return params, truth_kp, k, actions, free, lo, hi, table, scored
+
+
+@pytest.mark.parametrize(
+    ("n", "n_free", "n_scored"), [(1, 19, 13), (2, 6, 3), (16, 25, 15), (16, 1, 8), (777, 19, 9)]
+)
+def test_the_vector_envs_step_scores_are_the_numpy_paths(
+    n: int, n_free: int, n_scored: int
+) -> None:
+    # Poses anywhere, actions beyond [-1, 1] (clipped) and on it, every count
+    # of scored keypoints numpy sums in order (under 8) or in blocks: the
+    # kernel's estimates, keypoints, errors and means equal the numpy path's.
+    from humotion_gym.envs import vector
+
+    args = _step_inputs(n, n + n_free, n_free, n_scored)
+    got = _kernels.env_scores(*args[:8], vector._LIMB_SIGN, vector._LIMB_TABLE, args[8], 0)
+    assert got is not None, "the kernels run in the test environment"
+    want = vector._numpy_scores(*args)
+    shapes = [(n, 25), (n, 15, 3), (n, 15), (n, n_scored), (n, 3)]
+    for ours, theirs, shape in zip(got, want, shapes, strict=True):
+        assert ours.shape == theirs.shape == shape
+        np.testing.assert_array_equal(ours, theirs)
+    for ours, theirs in zip(vector._scores(*args), want, strict=True):
+        np.testing.assert_array_equal(ours, theirs)
+    # the oracle itself: the scored errors are the errors' columns, the means their means
+    params, truth_kp, k, actions, free, lo, hi, table, scored = args
+    estimate, keypoints, errors, chosen, means = want
+    a = np.clip(actions.astype(np.float64), -1.0, 1.0)
+    np.testing.assert_allclose(estimate[:, free], lo + (a + 1.0) / 2.0 * (hi - lo), rtol=1e-12)
+    np.testing.assert_array_equal(np.delete(estimate, free, axis=1),
+                                  np.delete(params[np.arange(n), k], free, axis=1))  # fmt: skip
+    truth = truth_kp[np.arange(n), k]
+    np.testing.assert_allclose(errors, np.sqrt(((keypoints - truth) ** 2).sum(-1)), rtol=1e-12)
+    np.testing.assert_array_equal(chosen, errors[:, scored])
+    np.testing.assert_allclose(means[:, 0], chosen.mean(axis=1), rtol=1e-12)
+    np.testing.assert_allclose(means[:, 2], errors.mean(axis=1), rtol=1e-12)
+    moved = keypoints - (keypoints[:, :1] - truth[:, :1])  # the pelvises put together
+    aligned = np.sqrt(((moved - truth) ** 2).sum(-1))[:, scored]
+    np.testing.assert_allclose(means[:, 1], aligned.mean(axis=1), rtol=1e-9, atol=1e-9)
+
+
+def test_a_scores_kernel_that_differs_is_not_used(monkeypatch) -> None:
+    from humotion_gym.envs import vector
+
+    vector._kernel_scores_as_numpy.cache_clear()
+    real = _kernels.env_scores
+    assert vector._kernel_scores_as_numpy(), "the kernel agrees with numpy here"
+    vector._kernel_scores_as_numpy.cache_clear()
+
+    def off(*args):  # a last-bit difference in one mean, as another summation order would make
+        out = real(*args)
+        out[-1][-1, -1] = np.nextafter(out[-1][-1, -1], np.inf)
+        return out
+
+    monkeypatch.setattr(_kernels, "env_scores", off)
+    try:
+        with pytest.warns(RuntimeWarning, match="scores kernel differs"):
+            assert not vector._kernel_scores_as_numpy()
+        args = _step_inputs(5, 1)
+        for ours, theirs in zip(vector._scores(*args), vector._numpy_scores(*args), strict=True):
+            np.testing.assert_array_equal(ours, theirs)
+    finally:
+        vector._kernel_scores_as_numpy.cache_clear()
+
+
 @pytest.mark.parametrize("size", [(1, 1), (2, 7), (13, 5), (128, 128), (96, 160)])
 def test_canny_gradients_are_opencvs_sobel_of_the_strongest_channel(size: tuple) -> None:
     # The oracle: cv2.Sobel of each channel (border replicated, as Canny

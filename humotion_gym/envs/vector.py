@@ -293,24 +293,13 @@ class PoseTrackingVectorEnv(VectorEnv):
         active = ~restart
         rows = np.arange(n)
         k = self._k
-        truth = self._params[rows, k]
-        # action_to_pose of every episode at once (the same operations, row by row)
-        a = np.clip(raw.astype(np.float64), -1.0, 1.0)
-        estimate = truth.copy()
-        estimate[:, self._free] = self._lo + (a + 1.0) * 0.5 * (self._hi - self._lo)
-        envs = self.envs
-        keypoints = np.ascontiguousarray(_keypoints(estimate, self._torso, self._head, self._limbs))
-        truth_kp = self._truth_kp[rows, k]
-        err_all = point_errors(keypoints, truth_kp)
-        # C-contiguous rows (``err_all[:, idx]`` is laid out column-major): each
-        # row is then summed like the single environment's 1-D array (numpy's
-        # pairwise summation), so the sums agree bit for bit.
-        err = np.ascontiguousarray(np.take(err_all, self._err_kp, axis=1))
+        estimate, keypoints, err_all, err, means = _scores(
+            self._params, self._truth_kp, k, raw, self._free, self._lo, self._hi,
+            (self._torso, self._head, self._limbs), self._err_kp,
+        )  # fmt: skip
+        error_mm, aligned_mm, error_all_mm = means.T.copy()
         n_scored = err.shape[1]
-        error_mm = err.sum(axis=1) / n_scored
-        aligned = aligned_point_errors(keypoints, truth_kp)
-        aligned_mm = np.ascontiguousarray(np.take(aligned, self._err_kp, axis=1)).sum(axis=1)
-        aligned_mm /= n_scored
+        envs = self.envs
         # Reward: the mean over scored keypoints of exp(-e / scale), by region,
         # summed in the single environment's order.
         template = envs[0]
@@ -379,7 +368,7 @@ class PoseTrackingVectorEnv(VectorEnv):
             "frame": (self._t0 + shown * template.frame_skip).astype(np.int64),
             "step": shown.astype(np.int64),
             "error_mm": error_mm,
-            "error_all_mm": err_all.sum(axis=1) / N_KEYPOINTS,
+            "error_all_mm": error_all_mm,
             "error_aligned_mm": aligned_mm,
             "keypoint_errors_mm": err_all,
             "lost": lost,
@@ -526,6 +515,135 @@ def _kernel_keypoints_as_numpy() -> bool:
             "humotion_gym: the vector environment's keypoints kernel differs from the numpy "
             "path here (its cosines and sines); numpy computes them (the other kernels still "
             "run).",
+            RuntimeWarning,
+            stacklevel=4,
+        )
+        return False
+    return True
+
+
+_PELVIS = KEYPOINT_INDEX["pelvis"]
+
+
+def _scores(
+    params: FloatArray,
+    truth_kp: FloatArray,
+    k: NDArray[np.intp],
+    actions: NDArray[Any],
+    free: NDArray[np.intp],
+    lo: FloatArray,
+    hi: FloatArray,
+    shape_table: tuple[FloatArray, FloatArray, FloatArray],
+    scored: NDArray[np.intp],
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """A step's estimates, their keypoints and errors, for every episode at once.
+
+    The kernel (:func:`humotion_gym._kernels.env_scores`, one pass) where it
+    gives :func:`_numpy_scores`' numbers (checked once), else that function.
+
+    Returns:
+        ``(estimate, keypoints, errors, scored_errors, means)``: see
+        :func:`_numpy_scores`.
+    """
+    if _kernels.ENABLED and _kernel_keypoints_as_numpy() and _kernel_scores_as_numpy():
+        out = _kernels.env_scores(
+            params, truth_kp, k, actions, free, lo, hi, shape_table, _LIMB_SIGN, _LIMB_TABLE,
+            scored, _PELVIS,
+        )  # fmt: skip
+        if out is not None:
+            return out  # type: ignore[return-value]
+    return _numpy_scores(params, truth_kp, k, actions, free, lo, hi, shape_table, scored)
+
+
+def _numpy_scores(
+    params: FloatArray,
+    truth_kp: FloatArray,
+    k: NDArray[np.intp],
+    actions: NDArray[Any],
+    free: NDArray[np.intp],
+    lo: FloatArray,
+    hi: FloatArray,
+    shape_table: tuple[FloatArray, FloatArray, FloatArray],
+    scored: NDArray[np.intp],
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The single environment's ``action_to_pose`` and errors, row by row (:func:`_scores`).
+
+    Args:
+        params: ``(N, F, 25)`` the episodes' poses.
+        truth_kp: ``(N, F, 15, 3)`` their keypoints.
+        k: ``(N,)`` the frame each episode scores.
+        actions: ``(N, A)`` the normalised estimates (clipped to [-1, 1]).
+        free: ``(A,)`` the parameters the actions set.
+        lo: ``(N, A)`` their lower bounds.
+        hi: ``(N, A)`` their upper bounds.
+        shape_table: The episodes' ``(torso, head, limbs)`` (see :func:`_keypoints`).
+        scored: ``(K,)`` the scored keypoints.
+
+    Returns:
+        ``estimate`` ``(N, 25)``, its ``keypoints`` ``(N, 15, 3)``, their
+        ``errors`` ``(N, 15)``, the scored ones ``(N, K)``, and ``means``
+        ``(N, 3)``: the mean scored error, the mean scored error with the
+        pelvises put together, the mean error over all keypoints.
+    """
+    rows = np.arange(params.shape[0])
+    a = np.clip(actions.astype(np.float64), -1.0, 1.0)
+    estimate = params[rows, k]
+    estimate[:, free] = lo + (a + 1.0) * 0.5 * (hi - lo)
+    keypoints = np.ascontiguousarray(_keypoints(estimate, *shape_table))
+    truth_kp = truth_kp[rows, k]
+    errors = point_errors(keypoints, truth_kp)
+    # C-contiguous rows (``errors[:, idx]`` is laid out column-major): each
+    # row is then summed like the single environment's 1-D array (numpy's
+    # pairwise summation), so the sums agree bit for bit.
+    err = np.ascontiguousarray(np.take(errors, scored, axis=1))
+    aligned = aligned_point_errors(keypoints, truth_kp)
+    aligned = np.ascontiguousarray(np.take(aligned, scored, axis=1))
+    means = np.stack(
+        [
+            err.sum(axis=1) / len(scored),
+            aligned.sum(axis=1) / len(scored),
+            errors.sum(axis=1) / N_KEYPOINTS,
+        ],
+        axis=1,
+    )
+    return estimate, keypoints, errors, err, means
+
+
+@functools.cache
+def _kernel_scores_as_numpy() -> bool:
+    """Whether the step's scores kernel gives :func:`_numpy_scores`' numbers here (checked once).
+
+    Its kinematics is the keypoints kernel's (checked by
+    :func:`_kernel_keypoints_as_numpy`); its distances and sums copy numpy's
+    order (``np.linalg.norm``'s squares, ``sum``'s pairwise blocks), which a
+    numpy release could change. So on first use both score 1,024 random
+    episodes (about 2 ms); where any number differs, numpy does, with one
+    ``RuntimeWarning``.
+    """
+    rng = np.random.default_rng(20261125)
+    n, frames = 1024, 3
+    params = rng.uniform(-4.0, 4.0, (n, frames, N_PARAMS)) * np.r_[[500.0] * 3, [1.0] * 22]
+    truth_kp = rng.normal(0.0, 600.0, (n, frames, N_KEYPOINTS, 3))
+    k = rng.integers(0, frames, n)
+    free = np.sort(rng.choice(N_PARAMS, 19, replace=False)).astype(np.intp)
+    actions = rng.uniform(-1.5, 1.5, (n, free.size)).astype(np.float32)
+    lo = rng.uniform(-3.0, 0.0, (n, free.size))
+    hi = lo + rng.uniform(0.1, 3.0, (n, free.size))
+    table = (
+        rng.normal(0.0, 200.0, (n, 5, 3)),
+        rng.uniform(100.0, 300.0, n),
+        rng.uniform(150.0, 500.0, (n, 4, 2)),
+    )
+    scored = np.sort(rng.choice(N_KEYPOINTS, 13, replace=False)).astype(np.intp)
+    args = (params, truth_kp, k, actions, free, lo, hi, table)
+    ours = _kernels.env_scores(*args, _LIMB_SIGN, _LIMB_TABLE, scored, _PELVIS)
+    if ours is None:
+        return True  # the kernels are off (numba failed and said so): nothing to check
+    theirs = _numpy_scores(*args, scored)
+    if not all(np.array_equal(a, b) for a, b in zip(ours, theirs, strict=True)):
+        warnings.warn(
+            "humotion_gym: the vector environment's scores kernel differs from the numpy path "
+            "here (its distances or sums); numpy computes them (the other kernels still run).",
             RuntimeWarning,
             stacklevel=4,
         )
