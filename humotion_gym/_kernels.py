@@ -106,6 +106,7 @@ __all__ = [
     "leaf_log_weights",
     "paint_texture",
     "point_costs",
+    "region_sums",
     "residual_sums",
     "spaced_rows",
     "standard_normal",
@@ -762,6 +763,25 @@ def env_scores(
         scored, anchor, *out,
     )  # fmt: skip
     return out if ran else None
+
+
+def region_sums(
+    per_kp: NDArray[np.float64], members: NDArray[np.intp], bounds: NDArray[np.intp]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """The vector environment's reward terms by region and their sum (``envs.vector``).
+
+    Returns:
+        ``(terms, reward)``, ``(R, N)`` and ``(N,)``: the numpy path's numbers
+        (each a chain of additions in a fixed order; ``tests/test_kernels.py``);
+        None (the numpy path is to run) when the kernels are off or failed.
+    """
+    if not ENABLED:
+        return None
+    terms = np.empty((bounds.shape[0] - 1, per_kp.shape[0]))
+    reward = np.empty(per_kp.shape[0])
+    if not _run("_region_sums", np.ascontiguousarray(per_kp), members, bounds, terms, reward):
+        return None
+    return terms, reward
 
 
 def paint_texture(*args: Any) -> bool:

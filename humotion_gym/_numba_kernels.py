@@ -1779,6 +1779,30 @@ def _env_keypoints(
                 out[j, rows[2, limb], i] = mid + ls * y - lk * z
 
 
+@_njit()
+def _region_sums(
+    per_kp: NDArray[np.float64], members: NDArray[np.intp], bounds: NDArray[np.intp],
+    terms: NDArray[np.float64], reward: NDArray[np.float64],
+) -> None:  # fmt: skip
+    """``envs.vector._numpy_region_sums``: each region's terms summed in order, then the regions.
+
+    ``per_kp`` ``(N, K)``; region ``g`` holds the columns ``members[bounds[g]
+    : bounds[g + 1]]``. Filled: ``terms`` ``(R, N)`` (0 for an empty region)
+    and ``reward`` ``(N,)``, their sum from 0 in region order.
+    """
+    for j in range(per_kp.shape[0]):
+        total = 0.0
+        for g in range(bounds.shape[0] - 1):
+            t = 0.0
+            if bounds[g + 1] > bounds[g]:
+                t = per_kp[j, members[bounds[g]]]
+                for m in range(bounds[g] + 1, bounds[g + 1]):
+                    t += per_kp[j, members[m]]
+            terms[g, j] = t
+            total = total + t
+        reward[j] = total
+
+
 @_njit(inline="always")
 def _distance(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
     """``|a - b|`` of 3-vectors as ``np.linalg.norm(a - b, axis=-1)``: squares summed in order."""

@@ -1027,6 +1027,42 @@ def test_the_vector_envs_step_scores_are_the_numpy_paths(
     np.testing.assert_allclose(means[:, 1], aligned.mean(axis=1), rtol=1e-9, atol=1e-9)
 
 
+@pytest.mark.parametrize("n", [1, 16, 301])
+def test_the_vector_envs_reward_terms_are_the_numpy_paths(n: int) -> None:
+    # Regions of every size, an empty one among them (its term the int 0, as
+    # an empty Python sum), shares spanning many magnitudes: the kernel's
+    # terms and rewards equal the numpy path's bit for bit.
+    from humotion_gym.envs import vector
+
+    rng = np.random.default_rng(n)
+    per_kp = np.exp(rng.uniform(-40.0, 0.0, (n, 13))) / 13
+    cut = rng.permutation(13)
+    regions = [
+        (name, np.sort(cut[a:b]).astype(np.intp))
+        for name, a, b in [("reward_a", 0, 1), ("reward_none", 1, 1), ("reward_b", 1, 9),
+                           ("reward_c", 9, 13)]
+    ]  # fmt: skip
+    table = (
+        np.concatenate([idx for _, idx in regions]).astype(np.intp),
+        np.cumsum([0] + [idx.size for _, idx in regions]).astype(np.intp),
+    )
+    assert _kernels.region_sums(per_kp, *table) is not None, "the kernels run in the tests"
+    terms, reward = vector._region_sums(per_kp, regions, table)
+    want_terms, want_reward = vector._numpy_region_sums(per_kp, regions)
+    assert list(terms) == list(want_terms) == [name for name, _ in regions]
+    for name in terms:
+        assert terms[name].dtype == want_terms[name].dtype
+        np.testing.assert_array_equal(terms[name], want_terms[name])
+    assert terms["reward_none"].dtype == np.int64 and not terms["reward_none"].any()
+    np.testing.assert_array_equal(reward, want_reward)
+    # the oracle: each row's terms are Python's sums of its shares, in order
+    for j in range(n):
+        row = per_kp[j].tolist()
+        for name, idx in regions:
+            assert terms[name][j] == sum([row[i] for i in idx])
+        assert reward[j] == sum(sum([row[i] for i in idx]) for _, idx in regions)
+
+
 def test_a_scores_kernel_that_differs_is_not_used(monkeypatch) -> None:
     from humotion_gym.envs import vector
 

@@ -39,6 +39,7 @@ from humotion_gym.mocap.motion import Motion
 from humotion_gym.observation import ObservationModel
 from humotion_gym.render import (
     SceneOptions,
+    _compose,
     draw_pose_overlay,
     figure_sequence,
     make_background,
@@ -522,8 +523,15 @@ class PoseTrackingEnv(gym.Env):
         assert self._motion is not None, "call reset() first"
         return self._motion.shape
 
-    def _observe(self) -> NDArray[np.uint8]:
-        frame = render_frame(self._figures, self._k, self._noise_rng, self._background)
+    def _observe(self, out: NDArray[np.uint8] | None = None) -> NDArray[np.uint8]:
+        """Draw the frame on show (into ``out`` when given: a row of the vector env's batch)."""
+        if out is None:
+            frame = render_frame(self._figures, self._k, self._noise_rng, self._background)
+        else:
+            frame = _compose(
+                self._figures, self._k, self._noise_rng, self._background, self._k, "render_frame",
+                out,
+            )  # fmt: skip
         self._frame = frame
         return frame
 
@@ -609,15 +617,17 @@ class PoseTrackingEnv(gym.Env):
         self._noise_rng = _kernels.generator([self._episode_seed, 1])
         self._place_camera()
 
-    def _first_frame(self) -> tuple[NDArray[np.uint8], dict[str, Any]]:
-        """The end of a reset: the first frame and the reset's info."""
+    def _first_frame(
+        self, out: NDArray[np.uint8] | None = None
+    ) -> tuple[NDArray[np.uint8], dict[str, Any]]:
+        """The end of a reset: the first frame (into ``out`` when given) and the reset's info."""
         assert self._motion is not None
         self._lost_run = 0
         self._last_estimate: FloatArray | None = None
         self._estimate_keypoints: FloatArray | None = None
         initial = self._truth(0)
         self._k = 1
-        obs = self._observe()
+        obs = self._observe(out)
         info = self._info()
         info.update(
             {

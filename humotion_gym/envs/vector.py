@@ -129,6 +129,11 @@ class PoseTrackingVectorEnv(VectorEnv):
             (f"reward_{name}", np.array(idx, dtype=np.intp))
             for name, idx in template._region_of.items()
         ]
+        # the regions' columns one after another, and where each starts
+        self._region_table = (
+            np.concatenate([idx for _, idx in self._regions]).astype(np.intp),
+            np.cumsum([0] + [idx.size for _, idx in self._regions]).astype(np.intp),
+        )
         n, frames = self.num_envs, template.episode_frames + 1
         self._params = np.zeros((n, frames, N_PARAMS))
         self._truth_kp = np.zeros((n, frames, N_KEYPOINTS, 3))
@@ -172,8 +177,8 @@ class PoseTrackingVectorEnv(VectorEnv):
         infos = {}
         for i, env, figure in zip(rows, envs, figures, strict=True):
             env._figures = figure
-            obs, infos[i] = env._first_frame()
-            self._obs[i] = obs
+            # drawn straight into the batch's row, which is then the frame on show
+            _, infos[i] = env._first_frame(self._obs[i])
             self._params[i] = env._episode_params
             self._truth_kp[i] = env._truth_keypoints
             self._lo[i], self._hi[i] = env._action_bounds()
@@ -304,18 +309,7 @@ class PoseTrackingVectorEnv(VectorEnv):
         # summed in the single environment's order.
         template = envs[0]
         per_kp = np.exp(err * (-1.0 / template.reward_scale_mm)) / n_scored
-        terms: dict[str, NDArray[Any]] = {}
-        for name, idx in self._regions:
-            if idx.size == 0:
-                terms[name] = np.zeros(n, np.int64)  # an empty Python sum is the int 0
-                continue
-            total = per_kp[:, idx[0]].copy()
-            for j in idx[1:].tolist():
-                total += per_kp[:, j]
-            terms[name] = total
-        reward = np.zeros(n)
-        for value in terms.values():
-            reward = reward + value
+        terms, reward = _region_sums(per_kp, self._regions, self._region_table)
         self._lost_run = np.where(error_mm > template.lost_threshold_mm, self._lost_run + 1, 0)
         lost = self._lost_run >= template.lost_patience
         terminated = lost & template.terminate_on_lost
@@ -387,11 +381,13 @@ class PoseTrackingVectorEnv(VectorEnv):
         stepped = active.copy()
         stepped[list(final)] = False
         infos: dict[str, Any] = {}
-        for key, value in step_info.items() if stepped.any() else ():
-            if not stepped.all():
-                value = value.copy()
-                value[~stepped] = None if value.dtype == object else 0
-            infos[key], infos[f"_{key}"] = value, stepped.copy()
+        if stepped.any():
+            skipped = None if stepped.all() else ~stepped
+            for key, value in step_info.items():
+                if skipped is not None:
+                    value = value.copy()
+                    value[skipped] = None if value.dtype == object else 0
+                infos[key], infos[f"_{key}"] = value, stepped.copy()
         for i in sorted(final):
             final_obs, final_info = final[i]
             _add_info(infos, {"final_obs": final_obs, "final_info": final_info}, i, n)
@@ -651,6 +647,55 @@ def _kernel_scores_as_numpy() -> bool:
     return True
 
 
+def _region_sums(
+    per_kp: FloatArray,
+    regions: list[tuple[str, NDArray[np.intp]]],
+    table: tuple[NDArray[np.intp], NDArray[np.intp]],
+) -> tuple[dict[str, NDArray[Any]], FloatArray]:
+    """The reward's terms by region and the reward, as the single environment sums them.
+
+    The kernel (:func:`humotion_gym._kernels.region_sums`) where the kernels
+    run, else :func:`_numpy_region_sums`: the same additions in the same order.
+
+    Args:
+        per_kp: ``(N, K)`` each scored keypoint's share of the reward.
+        regions: ``(info key, columns of per_kp)`` per region, in order.
+        table: The regions' columns one after another, and where each starts.
+
+    Returns:
+        The terms by info key (``(N,)`` each) and the reward ``(N,)``.
+    """
+    summed = _kernels.region_sums(per_kp, *table)
+    if summed is None:
+        return _numpy_region_sums(per_kp, regions)
+    n = per_kp.shape[0]
+    terms: dict[str, NDArray[Any]] = {}
+    for (name, idx), row in zip(regions, summed[0], strict=True):
+        # an empty Python sum is the int 0, and the single env's info holds it
+        terms[name] = row if idx.size else np.zeros(n, np.int64)
+    return terms, summed[1]
+
+
+def _numpy_region_sums(
+    per_kp: FloatArray, regions: list[tuple[str, NDArray[np.intp]]]
+) -> tuple[dict[str, NDArray[Any]], FloatArray]:
+    """:func:`_region_sums` in numpy: the single env's ``sum`` of each region, row by row."""
+    n = per_kp.shape[0]
+    terms: dict[str, NDArray[Any]] = {}
+    for name, idx in regions:
+        if idx.size == 0:
+            terms[name] = np.zeros(n, np.int64)  # an empty Python sum is the int 0
+            continue
+        total = per_kp[:, idx[0]].copy()
+        for j in idx[1:].tolist():
+            total += per_kp[:, j]
+        terms[name] = total
+    reward = np.zeros(n)
+    for value in terms.values():
+        reward = reward + value
+    return terms, reward
+
+
 def _numpy_keypoints(
     params: FloatArray, torso: FloatArray, head: FloatArray, limbs: FloatArray
 ) -> FloatArray:
@@ -764,8 +809,11 @@ def _add_infos(infos: dict[str, Any], rows: list[int], items: list[dict[str, Any
         array = infos.get(key)
         if array is None:  # the first value seen sets the type, as in _add_info
             array = _batch_of(values[0], n)
-        for i, value in zip(rows, values, strict=True):
-            array[i] = value
+        if array.dtype == object:  # one by one: a value that is a sequence stays one value
+            for i, value in zip(rows, values, strict=True):
+                array[i] = value
+        else:
+            array[rows] = values
         _store(infos, key, array, rows, n)
 
 
