@@ -9,7 +9,13 @@ import numpy as np
 import pytest
 
 from humotion_gym import body
-from humotion_gym.camera import Camera, fit_camera, side_view_azimuth, view_direction
+from humotion_gym.camera import (
+    Camera,
+    fit_camera,
+    fit_cameras,
+    side_view_azimuth,
+    view_direction,
+)
 
 SHAPE = body.default_shape()
 
@@ -284,3 +290,61 @@ def test_fit_camera_bad_arguments() -> None:
         fit_camera(np.zeros((0, 3)), 64, 64, 50.0)
     with pytest.raises(ValueError, match="fov"):
         fit_camera(clip, 64, 64, 200.0)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_fit_cameras_are_fit_cameras_bit_for_bit(seed: int) -> None:
+    # Sets of every size and spread, anywhere, seen from any azimuth and
+    # elevation, with their own pads: each camera is fit_camera's own.
+    rng = np.random.default_rng(seed)
+    n, m = int(rng.integers(1, 24)), int(rng.integers(1, 160))
+    points = rng.normal(0.0, rng.uniform(1.0, 3000.0), (n, m, 3))
+    points += rng.normal(0.0, 5000.0, (n, 1, 3))
+    azimuths, pads = rng.uniform(-720.0, 720.0, n), rng.uniform(0.0, 400.0, n)
+    pads[0] = 0.0
+    width, height = (int(v) for v in rng.integers(8, 400, 2))
+    fov, elevation, margin = rng.uniform(5.0, 170.0), rng.uniform(-89.0, 89.0), rng.uniform(0, 0.9)
+    cameras = fit_cameras(points, width, height, fov, azimuths, elevation, margin, pads)
+    assert len(cameras) == n
+    for j, camera in enumerate(cameras):
+        alone = fit_camera(points[j], width, height, fov, azimuths[j], elevation, margin, pads[j])
+        np.testing.assert_array_equal(camera.rotation, alone.rotation)
+        np.testing.assert_array_equal(camera.position, alone.position)
+        assert (camera.width, camera.height, camera.fov_deg) == (width, height, fov)
+
+
+def test_fit_cameras_take_one_azimuth_and_pad_for_all() -> None:
+    points = np.stack([_walk_clip(steps=5).reshape(-1, 3), _walk_clip(steps=7)[:5].reshape(-1, 3)])
+    both = fit_cameras(points, 96, 64, 45.0, 30.0, 12.0, 0.2, 80.0)
+    for camera, alone in zip(
+        both, [fit_camera(p, 96, 64, 45.0, 30.0, 12.0, 0.2, 80.0) for p in points], strict=True
+    ):
+        np.testing.assert_array_equal(camera.position, alone.position)
+    assert fit_cameras(np.zeros((0, 4, 3)), 64, 64, 50.0, []) == []
+
+
+def test_fit_cameras_bad_arguments() -> None:
+    points = np.stack([_walk_clip(steps=5).reshape(-1, 3)] * 3)
+    with pytest.raises(ValueError, match=r"\(E, M > 0, 3\)"):
+        fit_cameras(points[0], 64, 64, 50.0, 0.0)
+    with pytest.raises(ValueError, match=r"\(E, M > 0, 3\)"):
+        fit_cameras(np.zeros((2, 0, 3)), 64, 64, 50.0, 0.0)
+    with pytest.raises(ValueError, match="one number or 3"):
+        fit_cameras(points, 64, 64, 50.0, [0.0, 1.0])
+    with pytest.raises(ValueError, match="one number or 3"):
+        fit_cameras(points, 64, 64, 50.0, 0.0, pads_mm=[1.0, 2.0])
+    with pytest.raises(ValueError, match="azimuths_deg must be finite"):
+        fit_cameras(points, 64, 64, 50.0, [0.0, np.nan, 1.0])
+    with pytest.raises(ValueError, match="pads_mm must be >= 0"):
+        fit_cameras(points, 64, 64, 50.0, 0.0, pads_mm=[1.0, -1.0, 2.0])
+    with pytest.raises(ValueError, match="margin"):
+        fit_cameras(points, 64, 64, 50.0, 0.0, margin=0.95)
+    with pytest.raises(ValueError, match="elevation"):
+        fit_cameras(points, 64, 64, 50.0, 0.0, elevation_deg=-90.0)
+    with pytest.raises(ValueError, match="fov"):
+        fit_cameras(points, 64, 64, 0.5, 0.0)
+    for bad in (np.nan, np.inf):
+        broken = points.copy()
+        broken[2, 11, 1] = bad
+        with pytest.raises(ValueError, match="finite"):
+            fit_cameras(broken, 64, 64, 50.0, 0.0)

@@ -105,7 +105,8 @@ RESET_OPTIONS: tuple[str, ...] = ("clip_id", "file", "motion", "start")
 # What a reset assigns: restored when a reset fails, so a reset is all-or-nothing.
 _EPISODE_STATE: tuple[str, ...] = (
     "_motion", "_t0", "_root0", "_bounds", "_episode_seed", "_noise", "_background",
-    "_noise_rng", "_episode_params", "_geometry", "_truth_keypoints", "_cameras", "_figures",
+    "_noise_rng", "_episode_params", "_geometry", "_truth_keypoints", "_camera_targets",
+    "_cameras", "_figures",
     "_lost_run", "_last_estimate", "_estimate_keypoints", "_k", "_frame", "_done",
     "_np_random", "_np_random_seed",
 )  # fmt: skip
@@ -466,6 +467,20 @@ class PoseTrackingEnv(gym.Env):
         the task gives the agent anyway.
         """
         spec = self.task.camera
+        points, azimuth, pad = self._camera_request()
+        size = (self.scene.width, self.scene.height, spec.fov_deg)
+        self._set_cameras(fit_camera(points, *size, azimuth, spec.elevation_deg, spec.margin, pad))
+
+    def _camera_request(self) -> tuple[FloatArray, float, float]:
+        """The episode's tables, then what its camera is fitted to (see :meth:`_place_camera`).
+
+        Sets the episode's poses, geometry and scored keypoints. Returns the
+        points to keep in view ``(M, 3)``, the azimuth and the pad of
+        :func:`~humotion_gym.camera.fit_camera` (the vector environment fits
+        the cameras of the episodes it starts together, then hands each to
+        :meth:`_set_cameras`).
+        """
+        spec = self.task.camera
         m = self._motion
         assert m is not None
         idx = self._t0 + np.arange(self.episode_frames + 1) * self.frame_skip
@@ -479,29 +494,29 @@ class PoseTrackingEnv(gym.Env):
         heading = float(m.params[idx[0], PARAM_INDEX["root_yaw"]])
         # camera.view_direction turns counter-clockwise; the spec's azimuth
         # turns towards the subject's right, i.e. clockwise.
-        azimuth = np.rad2deg(heading) - spec.azimuth_deg
-        size = (self.scene.width, self.scene.height, spec.fov_deg)
+        azimuth = float(np.rad2deg(heading) - spec.azimuth_deg)
         corners = spec.travel_corners(heading)
         if spec.follow is None:
             swept = first[None] + corners[:, None]
-            pad = float(m.shape.radii.max())
-            cam = fit_camera(swept, *size, azimuth, spec.elevation_deg, spec.margin, pad)
-            self._cameras = [cam] * len(idx)
-            return
+            return swept.reshape(-1, 3), azimuth, float(m.shape.radii.max())
         if spec.follow == "r_shoulder":
             targets = kp[:, KEYPOINT_INDEX["r_shoulder"]]
         else:  # "pelvis_xy"
             targets = kp[:, KEYPOINT_INDEX["pelvis"]] * np.array([1.0, 1.0, 0.0])
+        self._camera_targets = targets
         if spec.frame_arm:
             # the sphere the arm can reach, so any pose of it stays in view
             reach = m.shape.upper_arm_length + m.shape.forearm_length
-            local = _sphere(reach)
-            pad = float(m.shape.radii[_ARM_CONES].max())
+            return _sphere(reach), azimuth, float(m.shape.radii[_ARM_CONES].max())
+        local = (first - targets[0])[None] + corners[:, None]
+        return local.reshape(-1, 3), azimuth, float(m.shape.radii.max())
+
+    def _set_cameras(self, camera: Camera) -> None:
+        """Every frame's camera from the fitted one: itself, or moved with the followed point."""
+        if self.task.camera.follow is None:
+            self._cameras = [camera] * len(self._episode_params)
         else:
-            local = (first - targets[0])[None] + corners[:, None]
-            pad = float(m.shape.radii.max())
-        base = fit_camera(local, *size, azimuth, spec.elevation_deg, spec.margin, pad)
-        self._cameras = base.shifted(targets)
+            self._cameras = camera.shifted(self._camera_targets)
 
     def _episode_geometry(self, motion: Motion, idx: NDArray[np.intp]) -> FloatArray:
         """``(len(idx), 35, 3)`` keypoints and cone axes of the clip's frames ``idx``.
@@ -588,12 +603,15 @@ class PoseTrackingEnv(gym.Env):
         )
         return self._first_frame()
 
-    def _begin_episode(self, seed: int | None, options: dict[str, Any]) -> None:
+    def _begin_episode(
+        self, seed: int | None, options: dict[str, Any], cameras: bool = True
+    ) -> None:
         """A reset up to the figures: clip, start, background, noise, cameras.
 
         :meth:`_reset` then prepares the episode's figures and shows the first
         frame (:meth:`_first_frame`); the vector environment prepares the
-        figures of several episodes in one pass between the two.
+        figures of several episodes in one pass between the two, and fits
+        their cameras together (``cameras=False`` leaves them to it).
         """
         super().reset(seed=seed)
         self._done = False
@@ -615,7 +633,8 @@ class PoseTrackingEnv(gym.Env):
         # Per-frame sensor noise comes from one generator per episode, advanced
         # frame by frame: the same seed and steps give the same frames.
         self._noise_rng = _kernels.generator([self._episode_seed, 1])
-        self._place_camera()
+        if cameras:
+            self._place_camera()
 
     def _first_frame(
         self, out: NDArray[np.uint8] | None = None

@@ -46,6 +46,7 @@ from numpy.typing import NDArray
 
 from humotion_gym import _kernels
 from humotion_gym.body import KEYPOINT_INDEX, N_KEYPOINTS, N_PARAMS, BodyShape
+from humotion_gym.camera import fit_camera, fit_cameras
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 from humotion_gym.metrics import aligned_point_errors, point_errors
 from humotion_gym.render import FigureSequence, _compose, figure_sequences
@@ -172,7 +173,8 @@ class PoseTrackingVectorEnv(VectorEnv):
         """
         envs = [self.envs[i] for i in rows]
         for env, seed in zip(envs, seeds, strict=True):
-            env._begin_episode(seed, env._check_options(options))
+            env._begin_episode(seed, env._check_options(options), cameras=False)
+        self._place_cameras(envs)
         figures = self._figures(envs, 0, self._first_figures)
         infos = {}
         for i, env, figure in zip(rows, envs, figures, strict=True):
@@ -193,6 +195,30 @@ class PoseTrackingVectorEnv(VectorEnv):
             self._lost_run[i] = 0
             self._started[i] = True
         return infos
+
+    def _place_cameras(self, envs: list[PoseTrackingEnv]) -> None:
+        """Each episode's ``_place_camera``, the camera fits done together.
+
+        :func:`~humotion_gym.camera.fit_cameras` gives each episode the camera
+        :func:`~humotion_gym.camera.fit_camera` gives it alone, bit for bit,
+        in two thirds of the time.
+        """
+        spec = self.task.camera
+        size = (self._scene.width, self._scene.height, spec.fov_deg)
+        requests = [env._camera_request() for env in envs]
+        if len({points.shape for points, _, _ in requests}) == 1:
+            cameras = fit_cameras(
+                np.stack([points for points, _, _ in requests]), *size,
+                [azimuth for _, azimuth, _ in requests], spec.elevation_deg, spec.margin,
+                [pad for _, _, pad in requests],
+            )  # fmt: skip
+        else:  # sets of points of different sizes: one at a time
+            cameras = [
+                fit_camera(points, *size, azimuth, spec.elevation_deg, spec.margin, pad)
+                for points, azimuth, pad in requests
+            ]
+        for env, camera in zip(envs, cameras, strict=True):
+            env._set_cameras(camera)
 
     def _figures(self, envs: list[PoseTrackingEnv], start: int, stop: int) -> list[FigureSequence]:
         """The figures of frames ``start:stop`` of the episodes of ``envs``, in one pass."""
