@@ -10,18 +10,20 @@ with its ``_key`` masks; ``tests/envs/test_vector_env.py``), with Gymnasium
 
 * the step's action mapping, kinematics (the single environment's formulas
   in the same order, so the same bits), errors, rewards, lost-track counts
-  and info are computed for the N episodes at once;
-* an episode's start (clip, start frame, background, camera) is the single
-  environment's own reset, but the figures of the episodes a step starts are
-  prepared in one pass (:func:`~humotion_gym.render.figure_sequences`), for
-  their first frames only until they get further (whole, when episodes run
-  their full length: ``terminate_on_lost=False``);
+  and info are computed for the N episodes at once (the first four and the
+  reward's terms each in one compiled pass, where numba is installed);
+* an episode's start (clip, start frame, background) is the single
+  environment's own reset, but the cameras of the episodes a step starts
+  are fitted together (:func:`~humotion_gym.camera.fit_cameras`) and their
+  figures prepared in one pass (:func:`~humotion_gym.render.figure_sequences`),
+  for their first frames only until they get further (whole, when episodes
+  run their full length: ``terminate_on_lost=False``);
 * each frame is drawn by the single environment's own renderer, straight
-  into its row of the batch, which is what is left: about 20 us a frame at
-  128x128 (the figure's fills, then the sensor noise), with the episode's
-  background (its clutter drawn from the episode's seed) about 90 us per
-  episode and the rest of its start (camera fit, clip choice, generators)
-  about as much again.
+  into its row of the batch, which is what is left: about 20-30 us a frame
+  at 128x128 (the figure's fills, then the sensor noise), with the
+  episode's background (its clutter drawn from the episode's seed) about 90
+  us per episode and the rest of its start (clip choice, generators, the
+  camera) about half as much again.
 
 Each of the N episodes is held by a :class:`PoseTrackingEnv` (``envs``), kept
 in step, so its methods (``pose_to_action``, ``action_to_pose``,
