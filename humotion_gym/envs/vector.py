@@ -641,8 +641,8 @@ def _kernel_scores_as_numpy() -> bool:
     :func:`_kernel_keypoints_as_numpy`); its distances and sums copy numpy's
     order (``np.linalg.norm``'s squares, ``sum``'s pairwise blocks), which a
     numpy release could change. So on first use both score 1,024 random
-    episodes (about 2 ms); where any number differs, numpy does, with one
-    ``RuntimeWarning``.
+    episodes (a few milliseconds); where any number differs, numpy does,
+    with one ``RuntimeWarning``.
     """
     rng = np.random.default_rng(20261125)
     n, frames = 1024, 3
