@@ -48,7 +48,7 @@ from numpy.typing import NDArray
 
 from humotion_gym import _kernels
 from humotion_gym.body import KEYPOINT_INDEX, N_KEYPOINTS, N_PARAMS, BodyShape
-from humotion_gym.camera import fit_camera, fit_cameras
+from humotion_gym.camera import fit_cameras
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 from humotion_gym.metrics import aligned_point_errors, point_errors
 from humotion_gym.render import FigureSequence, _compose, figure_sequences
@@ -203,22 +203,17 @@ class PoseTrackingVectorEnv(VectorEnv):
 
         :func:`~humotion_gym.camera.fit_cameras` gives each episode the camera
         :func:`~humotion_gym.camera.fit_camera` gives it alone, bit for bit,
-        in two thirds of the time.
+        in two thirds of the time. The episodes share a task, so each frames
+        as many points (the travel box's corners at every keypoint, or the
+        arm's reach sphere).
         """
         spec = self.task.camera
-        size = (self._scene.width, self._scene.height, spec.fov_deg)
         requests = [env._camera_request() for env in envs]
-        if len({points.shape for points, _, _ in requests}) == 1:
-            cameras = fit_cameras(
-                np.stack([points for points, _, _ in requests]), *size,
-                [azimuth for _, azimuth, _ in requests], spec.elevation_deg, spec.margin,
-                [pad for _, _, pad in requests],
-            )  # fmt: skip
-        else:  # sets of points of different sizes: one at a time
-            cameras = [
-                fit_camera(points, *size, azimuth, spec.elevation_deg, spec.margin, pad)
-                for points, azimuth, pad in requests
-            ]
+        cameras = fit_cameras(
+            np.stack([points for points, _, _ in requests]), self._scene.width,
+            self._scene.height, spec.fov_deg, [azimuth for _, azimuth, _ in requests],
+            spec.elevation_deg, spec.margin, [pad for _, _, pad in requests],
+        )  # fmt: skip
         for env, camera in zip(envs, cameras, strict=True):
             env._set_cameras(camera)
 
