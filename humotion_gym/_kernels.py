@@ -43,7 +43,8 @@ mean's wrapped offsets.
 
 The renderer's: :func:`figure_polygons` and :func:`draw_figure` (the cone
 figure's polygons, and OpenCV's fill of them), :func:`add_noise` (the sensor
-noise, OpenCV's saturating add and subtract in one pass), :func:`clutter_plan` (every
+noise, OpenCV's saturating add and subtract in one pass), :func:`draw_frames`
+(the vector environment's frames, several episodes' in one call), :func:`clutter_plan` (every
 random draw of an episode's background clutter, numba's ports of numpy's
 draws) and :func:`paint_texture` (its stripes and checks); the tree prior's
 :func:`paced_path`, :func:`tree_descend`, :func:`leaf_log_weights`,
@@ -93,6 +94,7 @@ __all__ = [
     "coverage_sums",
     "distance_maps",
     "draw_figure",
+    "draw_frames",
     "env_keypoints",
     "env_scores",
     "figure_polygons",
@@ -866,6 +868,18 @@ def draw_figure(
         False (OpenCV is to draw) when the kernels are off or failed.
     """
     return _run("_draw_figure", img, ellipses, quads, colors, order, wide, shift)
+
+
+def draw_frames(*args: Any) -> bool:
+    """Several episodes' frames in one call (``render.FrameBatch``).
+
+    The arguments are ``_numba_kernels._draw_frames``'. Each frame is ``render._compose``'s, byte
+    for byte (``tests/test_kernels.py``).
+
+    Returns:
+        False (the frames are to be drawn one by one) when the kernels are off or failed.
+    """
+    return _run("_draw_frames", *args)
 
 
 def figure_polygons(*args: Any) -> bool:

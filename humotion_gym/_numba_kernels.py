@@ -1710,6 +1710,59 @@ def _add_noise(
             row[j] = d if d <= s else np.uint8(0)
 
 
+@_njit()
+def _draw_frames(
+    out: NDArray[np.uint8], rows: NDArray[np.intp], ts: NDArray[np.intp],
+    images: NDArray[np.uint8], noise: NDArray[np.int8], offsets: NDArray[np.intp],
+    ellipses: NDArray[np.int32], quads: NDArray[np.int32], colors: NDArray[np.uint8],
+    orders: NDArray[np.intp], counts: NDArray[np.intp], wides: NDArray[np.bool_],
+    shift: int, noisy: bool,
+) -> None:  # fmt: skip
+    """``render._compose`` of several episodes' frames (no occluders, no blur) in one call.
+
+    Frame ``ts[j]`` of episode ``rows[j]`` into ``out[rows[j]]`` (``(N, H, W,
+    C)``): the episode's background ``images[i]``, its figure
+    (:func:`_draw_figure` of the frame's row of the batch tables ``ellipses``
+    ``(N, T, 10, 2K, 2)``, ``quads``, ``colors``, ``orders``, ``counts``,
+    ``wides``), then, when ``noisy``, its sensor noise: the window at row
+    ``offsets[j, 0]``, byte ``offsets[j, 1]`` of ``noise[i]`` ``(2 H, 2 W
+    C)``, the bank's two planes as one signed plane. A byte of the bank is
+    added or subtracted, never both, so one saturating signed addition is
+    ``_add_noise``'s add then subtract, reading half the bytes.
+    """
+    h = out.shape[1]
+    n = out.shape[2] * out.shape[3]
+    for j in range(rows.shape[0]):
+        i = rows[j]
+        t = ts[j]
+        img = out[i]
+        flat = img.reshape(h, n)
+        image = images[i].reshape(h, n)
+        for r in range(h):  # (numba's img[:] = image is a slower, general copy)
+            row, src = flat[r], image[r]
+            for c in range(n):
+                row[c] = src[c]
+        _draw_figure(
+            img, ellipses[i, t], quads[i, t], colors[i, t], orders[i, t, : counts[i, t]],
+            wides[i, t], shift,
+        )  # fmt: skip
+        if not noisy:
+            continue
+        y = offsets[j, 0]
+        x = offsets[j, 1]
+        bank = noise[i]
+        for r in range(h):
+            row = flat[r]
+            signed = bank[y + r, x : x + n]
+            for c in range(n):
+                # a + s clamped to 0..255 is (a - 128) + s clamped to a signed
+                # byte, plus 128 (flipping the top bit): LLVM makes that one
+                # saturating signed addition for 16 or 32 bytes at a time.
+                v = np.int16(np.int8(row[c] ^ np.uint8(128))) + np.int16(signed[c])
+                v = -128 if v < -128 else v
+                row[c] = np.uint8(np.int8(127 if v > 127 else v)) ^ np.uint8(128)
+
+
 # ---------------------------------------------------------------------------
 # The vector environment's scored keypoints
 # ---------------------------------------------------------------------------

@@ -1613,3 +1613,108 @@ def test_noise_is_opencvs_saturating_add_and_subtract(channels: int, numpy_path)
         np.testing.assert_array_equal(fast, slow)
     assert not _kernels.add_noise(img.copy(), bank, h + 1, 0)
     assert not _kernels.add_noise(img.copy(), bank[:, :h], 1, 0)
+
+
+def _batch_episodes(opts: SceneOptions, n: int, frames: int, seed: int):
+    """``n`` episodes' figures (random poses round a standing one) and backgrounds."""
+    from humotion_gym import body
+    from humotion_gym.camera import fit_camera
+    from humotion_gym.render import figure_sequence
+
+    rng = np.random.default_rng(seed)
+    shape = body.default_shape()
+    episodes = []
+    for _ in range(n):
+        poses = np.repeat(body.standing_pose(shape)[None], frames, axis=0)
+        poses[:, 3:] += rng.normal(0.0, 0.3, (frames, poses.shape[1] - 3))
+        kp = body.forward_kinematics(poses[0], shape)[None]
+        camera = fit_camera(kp, opts.width, opts.height, 50.0, azimuth_deg=rng.uniform(0, 360))
+        figures = figure_sequence(poses, shape, camera, opts)
+        episodes.append((figures, make_background(opts, rng)))
+    return episodes
+
+
+@pytest.mark.parametrize(
+    "opts",
+    [
+        SceneOptions(),
+        SceneOptions(width=96, height=80, color="gray", noise_sigma=12.0),
+        SceneOptions(width=64, height=64, noise_sigma=0.0, background="flat"),
+        SceneOptions(noise_sigma=44.0),  # the widest noise a signed byte holds
+    ],
+)
+def test_frame_batch_draws_composes_frames(opts: SceneOptions) -> None:
+    # FrameBatch.draw is _compose of each episode's frame: the same bytes, and
+    # each episode's generator advanced as _compose advances it.
+    from humotion_gym.render import FrameBatch, _compose
+
+    n, frames = 5, 7
+    episodes = _batch_episodes(opts, n, frames, seed=3)
+    batch = FrameBatch(opts, n, frames)
+    for i, (figures, background) in enumerate(episodes):
+        batch.set_background(i, background)
+        # the figures in two parts, as the vector environment prepares them
+        batch.set_figures(i, dataclasses.replace(
+            figures, order=figures.order[:3], ellipses=figures.ellipses[:3],
+            quads=figures.quads[:3], colors=figures.colors[:3], wide=figures.wide[:3],
+        ))  # fmt: skip
+        batch.set_figures(i, dataclasses.replace(
+            figures, order=figures.order[3:], ellipses=figures.ellipses[3:],
+            quads=figures.quads[3:], colors=figures.colors[3:], wide=figures.wide[3:],
+        ), 3)  # fmt: skip
+    rng = np.random.default_rng(4)
+    for step in range(6):
+        rows = sorted(rng.choice(n, rng.integers(1, n + 1), replace=False).tolist())
+        ts = rng.integers(0, frames, len(rows)).tolist()
+        seeds = rng.integers(0, 2**32, len(rows)).tolist()
+        got = np.full((n, *opts.frame_shape), 9, np.uint8)
+        want = got.copy()
+        fast = [np.random.default_rng(s) for s in seeds]
+        assert batch.draw(got, rows, ts, fast)
+        slow = [np.random.default_rng(s) for s in seeds]
+        for i, t, g in zip(rows, ts, slow, strict=True):
+            figures, background = episodes[i]
+            _compose(figures, t, g, background, t, "step", want[i])
+        np.testing.assert_array_equal(got, want)
+        for f, s in zip(fast, slow, strict=True):
+            assert f.bit_generator.state == s.bit_generator.state
+        if opts.noise_sigma > 0 and step == 0:
+            assert not np.array_equal(got[rows[0]], episodes[rows[0]][1].image)
+
+
+def test_frame_batch_leaves_what_it_cannot_draw_untouched(monkeypatch) -> None:
+    # Occluders, blur, a bank beyond a signed byte, the kernels off: draw says
+    # False having drawn nothing and drawn from no generator.
+    from humotion_gym.render import FrameBatch
+
+    cases = [
+        (SceneOptions(occluders=2), {}),
+        (SceneOptions(blur_sigma=1.0), {}),
+        (SceneOptions(noise_sigma=44.5), {}),
+        (SceneOptions(), {"ENABLED": False}),
+    ]
+    for opts, patch in cases:
+        episodes = _batch_episodes(opts, 2, 3, seed=5)
+        batch = FrameBatch(opts, 2, 3)
+        for i, (figures, background) in enumerate(episodes):
+            batch.set_background(i, background)
+            batch.set_figures(i, figures)
+        for name, value in patch.items():
+            monkeypatch.setattr(_kernels, name, value)
+        out = np.zeros((2, *opts.frame_shape), np.uint8)
+        rngs = [np.random.default_rng(0), np.random.default_rng(1)]
+        before = [g.bit_generator.state for g in rngs]
+        assert not batch.draw(out, [0, 1], [1, 2], rngs)
+        assert not out.any()
+        assert [g.bit_generator.state for g in rngs] == before
+        monkeypatch.undo()
+    # A bank reused from row to row is converted once; a new one replaces it.
+    opts = SceneOptions()
+    (figures, background), (_, other) = _batch_episodes(opts, 2, 3, seed=6)
+    batch = FrameBatch(opts, 1, 3)
+    batch.set_background(0, background)
+    plane = batch._noise[0].copy()
+    batch.set_background(0, background)
+    np.testing.assert_array_equal(batch._noise[0], plane)
+    batch.set_background(0, other)
+    assert not np.array_equal(batch._noise[0], plane)

@@ -51,7 +51,7 @@ from humotion_gym.body import KEYPOINT_INDEX, N_KEYPOINTS, N_PARAMS, BodyShape
 from humotion_gym.camera import fit_cameras
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 from humotion_gym.metrics import aligned_point_errors, point_errors
-from humotion_gym.render import FigureSequence, _compose, figure_sequences
+from humotion_gym.render import FigureSequence, FrameBatch, _compose, figure_sequences
 
 FloatArray = NDArray[np.float64]
 
@@ -154,6 +154,9 @@ class PoseTrackingVectorEnv(VectorEnv):
         self._first_figures = (
             min(template.lost_patience + 1, frames) if template.terminate_on_lost else frames
         )
+        # Every episode's background, noise and figures in batch arrays: a
+        # step's frames in one kernel call.
+        self._frame_batch = FrameBatch(self._scene, n, frames)
         # _keypoints' shape tables by id(shape), each with its shape (kept alive:
         # the id stays its own).
         self._shape_tables: dict[int, tuple[BodyShape, FloatArray, float, FloatArray]] = {}
@@ -179,8 +182,11 @@ class PoseTrackingVectorEnv(VectorEnv):
         self._place_cameras(envs)
         figures = self._figures(envs, 0, self._first_figures)
         infos = {}
+        batch = self._frame_batch
         for i, env, figure in zip(rows, envs, figures, strict=True):
             env._figures = figure
+            batch.set_background(i, env._background)
+            batch.set_figures(i, figure)
             # drawn straight into the batch's row, which is then the frame on show
             _, infos[i] = env._first_frame(self._obs[i])
             self._params[i] = env._episode_params
@@ -228,12 +234,26 @@ class PoseTrackingVectorEnv(VectorEnv):
             self._scene,
         )  # fmt: skip
 
+    def _draw(self, observations: NDArray[np.uint8], rows: list[int]) -> None:
+        """The frame each of ``rows`` now shows, into its row of ``observations``.
+
+        In one kernel call where it can (:class:`~humotion_gym.render.FrameBatch`),
+        else frame by frame; the same bytes either way.
+        """
+        envs = [self.envs[i] for i in rows]
+        ts = [env._k for env in envs]
+        if self._frame_batch.draw(observations, rows, ts, [env._noise_rng for env in envs]):
+            return
+        for i, env, t in zip(rows, envs, ts, strict=True):
+            _compose(env._figures, t, env._noise_rng, env._background, t, "step", observations[i])
+
     def _prepare_rest(self, rows: list[int]) -> None:
         """Prepare the figures of the episodes' frames after the first ones (see ``_start``)."""
         envs = [self.envs[i] for i in rows]
         rest = self._figures(envs, self._first_figures, self._params.shape[1])
-        for env, more in zip(envs, rest, strict=True):
+        for i, env, more in zip(rows, envs, rest, strict=True):
             env._figures = _joined(env._figures, more)
+            self._frame_batch.set_figures(i, more, self._first_figures)
 
     def reset(
         self,
@@ -356,6 +376,7 @@ class PoseTrackingVectorEnv(VectorEnv):
         # Python lists and bound locals: this loop is the per-episode part of a step.
         restart_l, done_l = restart.tolist(), done.tolist()
         next_k, lost_run = (k + 1).tolist(), self._lost_run.tolist()
+        drawn: list[int] = []
         for i in range(n):
             env = envs[i]
             if restart_l[i]:
@@ -368,14 +389,15 @@ class PoseTrackingVectorEnv(VectorEnv):
                 env._done = True
                 observations[i] = env._frame
             else:
-                t = env._k = next_k[i]
-                # The single environment's _observe, drawn straight into the
-                # batch's row; the frame on show is that row, as the single
-                # environment's is the array its step returned.
-                frame = observations[i]
-                _compose(env._figures, t, env._noise_rng, env._background, t, "step", frame)
-                env._frame = frame
+                # The single environment's _observe, drawn (below) straight
+                # into the batch's row; the frame on show is that row, as the
+                # single environment's is the array its step returned.
+                env._k = next_k[i]
+                env._frame = observations[i]
+                drawn.append(i)
             cameras[i] = env._cameras[env._k]
+        if drawn:
+            self._draw(observations, drawn)
         shown = k + (active & ~done)  # the frame each stepped episode now shows
         # The info of every stepped episode, batched as SyncVectorEnv batches
         # the single environments' dicts (same keys, dtypes and masks).
