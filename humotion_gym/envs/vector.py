@@ -150,6 +150,9 @@ class PoseTrackingVectorEnv(VectorEnv):
         self._lost_run = np.zeros(n, np.intp)
         self._autoreset = np.zeros(n, np.bool_)
         self._started = np.zeros(n, np.bool_)
+        self._all_started = False
+        self._rows = np.arange(n)
+        self._action_shape = self.action_space.shape
         self._obs = np.zeros((n, *template.observation_space.shape), np.uint8)
         self._first_figures = (
             min(template.lost_patience + 1, frames) if template.terminate_on_lost else frames
@@ -319,15 +322,16 @@ class PoseTrackingVectorEnv(VectorEnv):
             ValueError: If the actions have the wrong shape or are not finite.
             RuntimeError: Before ``reset``.
         """
-        if not self._started.all():
-            raise RuntimeError("step() called before reset()")
+        if not self._all_started:
+            self._all_started = bool(self._started.all())
+            if not self._all_started:
+                raise RuntimeError("step() called before reset()")
         raw = np.asarray(actions)
         if raw.dtype.kind not in "iuf":
             raise ValueError(f"{self.task.name}: actions must hold real numbers, got {raw.dtype}")
-        if raw.shape != self.action_space.shape:
+        if raw.shape != self._action_shape:
             raise ValueError(
-                f"{self.task.name}: actions must have shape {self.action_space.shape}, "
-                f"got {raw.shape}"
+                f"{self.task.name}: actions must have shape {self._action_shape}, got {raw.shape}"
             )
         if not np.isfinite(raw).all():
             raise ValueError(f"{self.task.name}: actions must be finite")
@@ -339,7 +343,7 @@ class PoseTrackingVectorEnv(VectorEnv):
                 "disabled, reset them (options={'reset_mask': ...}) before stepping"
             )
         active = ~restart
-        rows = np.arange(n)
+        rows = self._rows
         k = self._k
         estimate, keypoints, err_all, err, means = _scores(
             self._params, self._truth_kp, k, raw, self._free, self._lo, self._hi,
@@ -363,16 +367,17 @@ class PoseTrackingVectorEnv(VectorEnv):
         reward[restart] = 0.0
 
         observations = np.empty_like(self._obs)
-        restart_rows = np.flatnonzero(restart).tolist()
-        restarted = (
-            self._start(restart_rows, [None] * len(restart_rows), None) if restart_rows else {}
-        )
+        restarted: dict[int, dict[str, Any]] = {}
+        if restart.any():
+            restart_rows = np.flatnonzero(restart).tolist()
+            restarted = self._start(restart_rows, [None] * len(restart_rows), None)
         # Episodes about to show their first unprepared frame get the rest of
         # their figures, together.
-        grow = active & ~done & (k + 1 == self._first_figures)
-        if grow.any():
-            self._prepare_rest(np.flatnonzero(grow).tolist())
-        cameras = np.full(n, None, dtype=object)
+        if self._first_figures < self._params.shape[1]:
+            grow = active & ~done & (k + 1 == self._first_figures)
+            if grow.any():
+                self._prepare_rest(np.flatnonzero(grow).tolist())
+        cameras = np.empty(n, dtype=object)  # (None in every row)
         # Python lists and bound locals: this loop is the per-episode part of a step.
         restart_l, done_l = restart.tolist(), done.tolist()
         next_k, lost_run = (k + 1).tolist(), self._lost_run.tolist()
@@ -414,7 +419,8 @@ class PoseTrackingVectorEnv(VectorEnv):
             **terms,
         }
         final: dict[int, tuple[NDArray[np.uint8], dict[str, Any]]] = {}
-        if self.autoreset_mode == AutoresetMode.SAME_STEP and done.any():
+        same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
+        if same_step and done.any():
             # the finished episodes' last frame and info, then their next episode
             ended = np.flatnonzero(done).tolist()
             for i in ended:
@@ -424,7 +430,8 @@ class PoseTrackingVectorEnv(VectorEnv):
             for i in ended:
                 observations[i] = self._obs[i]
         stepped = active.copy()
-        stepped[list(final)] = False
+        if final:
+            stepped[list(final)] = False
         infos: dict[str, Any] = {}
         if stepped.any():
             skipped = None if stepped.all() else ~stepped
@@ -438,8 +445,11 @@ class PoseTrackingVectorEnv(VectorEnv):
             _add_info(infos, {"final_obs": final_obs, "final_info": final_info}, i, n)
         started_rows = sorted(restarted)
         _add_infos(infos, started_rows, [restarted[i] for i in started_rows], n)
-        self._k = np.array([env._k for env in envs], np.intp)
-        if self.autoreset_mode == AutoresetMode.SAME_STEP:
+        # the frame each episode shows: the stepped ones' next, a started one's first
+        self._k = shown
+        if started_rows:
+            shown[started_rows] = [envs[i]._k for i in started_rows]
+        if same_step:
             self._autoreset[:] = False
         else:
             self._autoreset = (terminated | truncated).copy()
