@@ -637,16 +637,24 @@ class PoseTrackingEnv(gym.Env):
             self._place_camera()
 
     def _first_frame(
-        self, out: NDArray[np.uint8] | None = None
+        self, out: NDArray[np.uint8] | None = None, draw: bool = True
     ) -> tuple[NDArray[np.uint8], dict[str, Any]]:
-        """The end of a reset: the first frame (into ``out`` when given) and the reset's info."""
+        """The end of a reset: the first frame (into ``out`` when given) and the reset's info.
+
+        ``draw=False`` (with ``out``) leaves the drawing of ``out`` to the
+        caller: the vector environment draws the first frames of the
+        episodes it starts together.
+        """
         assert self._motion is not None
         self._lost_run = 0
         self._last_estimate: FloatArray | None = None
         self._estimate_keypoints: FloatArray | None = None
         initial = self._truth(0)
         self._k = 1
-        obs = self._observe(out)
+        if draw or out is None:
+            obs = self._observe(out)
+        else:
+            obs = self._frame = out
         info = self._info()
         info.update(
             {

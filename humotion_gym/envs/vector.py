@@ -190,8 +190,8 @@ class PoseTrackingVectorEnv(VectorEnv):
             env._figures = figure
             batch.set_background(i, env._background)
             batch.set_figures(i, figure)
-            # drawn straight into the batch's row, which is then the frame on show
-            _, infos[i] = env._first_frame(self._obs[i])
+            # drawn (below) straight into the batch's row, which is then the frame on show
+            _, infos[i] = env._first_frame(self._obs[i], draw=False)
             self._params[i] = env._episode_params
             self._truth_kp[i] = env._truth_keypoints
             self._lo[i], self._hi[i] = env._action_bounds()
@@ -205,6 +205,7 @@ class PoseTrackingVectorEnv(VectorEnv):
             self._t0[i] = env._t0
             self._lost_run[i] = 0
             self._started[i] = True
+        self._draw(self._obs, rows)
         return infos
 
     def _place_cameras(self, envs: list[PoseTrackingEnv]) -> None:
