@@ -18,12 +18,16 @@ with its ``_key`` masks; ``tests/envs/test_vector_env.py``), with Gymnasium
   figures prepared in one pass (:func:`~humotion_gym.render.figure_sequences`),
   for their first frames only until they get further (whole, when episodes
   run their full length: ``terminate_on_lost=False``);
-* each frame is drawn by the single environment's own renderer, straight
-  into its row of the batch, which is what is left: about 20-30 us a frame
-  at 128x128 (the figure's fills, then the sensor noise), with the
-  episode's background (its clutter drawn from the episode's seed) about 90
-  us per episode and the rest of its start (clip choice, generators, the
-  camera) about half as much again.
+* a step's frames (and the first frames of the episodes it starts) are
+  drawn in one kernel call (:class:`~humotion_gym.render.FrameBatch`:
+  each episode's background, figures and noise bank held in batch arrays,
+  the bank as one signed plane), straight into their rows of the batch: the
+  single environment's renderer's bytes, about 17-25 us a frame at 128x128
+  (the figure's fills, then the sensor noise); where the kernels are off,
+  or the scene has occluders or blur, the single environment's renderer
+  draws them one by one. What is left is the episodes' starts: the
+  background (its clutter drawn from the episode's seed) about 130 us per
+  episode, its figures and camera about as much again.
 
 Each of the N episodes is held by a :class:`PoseTrackingEnv` (``envs``), kept
 in step, so its methods (``pose_to_action``, ``action_to_pose``,
