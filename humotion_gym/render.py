@@ -1323,8 +1323,8 @@ class FrameBatch:
     Holds each episode's background, its noise bank as one signed plane and its
     prepared figures in batch arrays, so that one kernel call draws a frame of
     every episode (``_numba_kernels._draw_frames``): the same bytes as
-    :func:`_compose` per episode, without its Python calls (about 5 us a
-    frame), and reading half the noise bank's bytes. Scenes with occluders or
+    :func:`_compose` per episode, without its Python calls, and reading half
+    the noise bank's bytes (about 7 us a frame less). Scenes with occluders or
     blur, banks that do not fit a signed byte (``noise_sigma`` above 44) and
     machines without the kernels are drawn frame by frame (:meth:`draw` says
     False).
