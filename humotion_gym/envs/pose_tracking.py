@@ -39,7 +39,6 @@ from humotion_gym.mocap.motion import Motion
 from humotion_gym.observation import ObservationModel
 from humotion_gym.render import (
     SceneOptions,
-    _compose,
     draw_pose_overlay,
     figure_sequence,
     make_background,
@@ -538,15 +537,8 @@ class PoseTrackingEnv(gym.Env):
         assert self._motion is not None, "call reset() first"
         return self._motion.shape
 
-    def _observe(self, out: NDArray[np.uint8] | None = None) -> NDArray[np.uint8]:
-        """Draw the frame on show (into ``out`` when given: a row of the vector env's batch)."""
-        if out is None:
-            frame = render_frame(self._figures, self._k, self._noise_rng, self._background)
-        else:
-            frame = _compose(
-                self._figures, self._k, self._noise_rng, self._background, self._k, "render_frame",
-                out,
-            )  # fmt: skip
+    def _observe(self) -> NDArray[np.uint8]:
+        frame = render_frame(self._figures, self._k, self._noise_rng, self._background)
         self._frame = frame
         return frame
 
@@ -637,13 +629,13 @@ class PoseTrackingEnv(gym.Env):
             self._place_camera()
 
     def _first_frame(
-        self, out: NDArray[np.uint8] | None = None, draw: bool = True
+        self, out: NDArray[np.uint8] | None = None
     ) -> tuple[NDArray[np.uint8], dict[str, Any]]:
-        """The end of a reset: the first frame (into ``out`` when given) and the reset's info.
+        """The end of a reset: the first frame and the reset's info.
 
-        ``draw=False`` (with ``out``) leaves the drawing of ``out`` to the
-        caller: the vector environment draws the first frames of the
-        episodes it starts together.
+        With ``out`` (a row of the vector environment's batch) the frame on
+        show is that row, left for the caller to draw: the vector environment
+        draws the first frames of the episodes it starts together.
         """
         assert self._motion is not None
         self._lost_run = 0
@@ -651,10 +643,8 @@ class PoseTrackingEnv(gym.Env):
         self._estimate_keypoints: FloatArray | None = None
         initial = self._truth(0)
         self._k = 1
-        if draw or out is None:
-            obs = self._observe(out)
-        else:
-            obs = self._frame = out
+        obs = self._observe() if out is None else out
+        self._frame = obs  # (what _observe sets; the given row otherwise)
         info = self._info()
         info.update(
             {

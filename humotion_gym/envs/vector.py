@@ -195,7 +195,7 @@ class PoseTrackingVectorEnv(VectorEnv):
             batch.set_background(i, env._background)
             batch.set_figures(i, figure)
             # drawn (below) straight into the batch's row, which is then the frame on show
-            _, infos[i] = env._first_frame(self._obs[i], draw=False)
+            _, infos[i] = env._first_frame(self._obs[i])
             self._params[i] = env._episode_params
             self._truth_kp[i] = env._truth_keypoints
             self._lo[i], self._hi[i] = env._action_bounds()
