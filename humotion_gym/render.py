@@ -1185,10 +1185,15 @@ def _draw_occluders(img: NDArray[np.uint8], background: Background, frame_index:
             )
 
 
+def _noise_window(rng: np.random.Generator, h: int, w: int) -> tuple[int, int]:
+    """The row and column of a frame's window of the noise bank: one of (H + 1)(W + 1)."""
+    return divmod(int(rng.integers(0, (h + 1) * (w + 1))), w + 1)
+
+
 def _add_noise(img: NDArray[np.uint8], bank: NDArray[np.uint8], rng: np.random.Generator) -> None:
-    """Add the bank's window at a random offset (one of (H + 1)(W + 1))."""
+    """Add the bank's window at a random offset (:func:`_noise_window`)."""
     h, w = img.shape[:2]
-    y, x = divmod(int(rng.integers(0, (h + 1) * (w + 1))), w + 1)
+    y, x = _noise_window(rng, h, w)
     if _kernels.add_noise(img, bank, y, x):  # the same bytes, in one pass
         return
     cv2.add(img, bank[0, y : y + h, x : x + w].reshape(img.shape), dst=img)
@@ -1400,12 +1405,13 @@ class FrameBatch:
         ):  # fmt: skip
             return False
         h, w, c = self.scene.frame_shape
-        offsets = np.zeros((len(rows), 2), np.intp)
         if self._noisy:
-            # _add_noise's draw, one per frame from each episode's generator.
-            cells = (h + 1) * (w + 1)
-            offsets[:, 0], x = np.divmod([int(rng.integers(0, cells)) for rng in rngs], w + 1)
-            offsets[:, 1] = x * c
+            # _add_noise's window, one per frame from each episode's generator
+            # (the kernel takes its column in bytes).
+            offsets = np.array([_noise_window(rng, h, w) for rng in rngs], np.intp)
+            offsets[:, 1] *= c
+        else:
+            offsets = np.zeros((len(rows), 2), np.intp)
         return _kernels.draw_frames(
             out, np.array(rows, np.intp), np.array(ts, np.intp), self._images, self._noise,
             offsets, *self._tables, _SHIFT, self._noisy,
@@ -1423,13 +1429,13 @@ def _frames_kernel_works() -> bool:
     scene = SceneOptions(width=64, height=64, background="flat")
     batch = FrameBatch(scene, 1, 1)
     figures = FigureSequence(
-        scene, [[0]], np.zeros((1, N_CONES, 24, 2), np.int32),
+        scene, [[0]], np.zeros((1, N_CONES, 2 * _ELLIPSE_POINTS, 2), np.int32),
         np.zeros((1, N_CONES, scene.shading_strips, 4, 2), np.int32),
         np.zeros((1, N_CONES, 2 + scene.shading_strips, 3), np.uint8), [[False] * N_CONES],
     )  # fmt: skip
     batch.set_figures(0, figures)
     return _kernels.draw_frames(
-        np.zeros((1, 64, 64, 3), np.uint8), np.zeros(1, np.intp), np.zeros(1, np.intp),
+        np.zeros((1, *scene.frame_shape), np.uint8), np.zeros(1, np.intp), np.zeros(1, np.intp),
         batch._images, batch._noise, np.zeros((1, 2), np.intp), *batch._tables, _SHIFT, False,
     )  # fmt: skip
 
