@@ -44,7 +44,8 @@ mean's wrapped offsets.
 The renderer's: :func:`figure_polygons` and :func:`draw_figure` (the cone
 figure's polygons, and OpenCV's fill of them), :func:`add_noise` (the sensor
 noise, OpenCV's saturating add and subtract in one pass), :func:`draw_frames`
-(the vector environment's frames, several episodes' in one call), :func:`clutter_plan` (every
+(the vector environment's frames, several episodes' in one call), :func:`halve_frames`
+(the learners' half-size frames, OpenCV's area shrink), :func:`clutter_plan` (every
 random draw of an episode's background clutter, numba's ports of numpy's
 draws) and :func:`paint_texture` (its stripes and checks); the tree prior's
 :func:`paced_path`, :func:`tree_descend`, :func:`leaf_log_weights`,
@@ -100,6 +101,7 @@ __all__ = [
     "figure_polygons",
     "foreground_map",
     "generator",
+    "halve_frames",
     "paced_path",
     "enabled",
     "kinematics",
@@ -880,6 +882,27 @@ def draw_frames(*args: Any) -> bool:
         False (the frames are to be drawn one by one) when the kernels are off or failed.
     """
     return _run("_draw_frames", *args)
+
+
+def halve_frames(frames: NDArray[np.uint8], out: NDArray[np.uint8]) -> bool:
+    """Frames ``(N, H, W, C)`` shrunk by two into ``out`` ``(N, C, H / 2, W / 2)``, channels first.
+
+    The bytes of OpenCV's ``resize`` with ``INTER_AREA`` (each 2x2 block's
+    mean, rounded half up), transposed (``_numba_kernels._halve_frames``;
+    ``wrappers.learner_frames`` checks it against the installed OpenCV once).
+
+    Returns:
+        False (OpenCV is to shrink them) when the kernels are off or failed,
+        or the shapes are not a shrink by two of C-contiguous uint8 frames.
+    """
+    if not (ENABLED and frames.ndim == 4 and frames.dtype == np.uint8 and out.dtype == np.uint8):
+        return False
+    n, h, w, c = frames.shape
+    if h % 2 or w % 2 or out.shape != (n, c, h // 2, w // 2):
+        return False
+    if not (frames.flags.c_contiguous and out.flags.c_contiguous):
+        return False
+    return _run("_halve_frames", frames, out)
 
 
 def figure_polygons(*args: Any) -> bool:

@@ -20,7 +20,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-import cv2
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
@@ -34,7 +33,7 @@ from stable_baselines3.common.vec_env.base_vec_env import (
 )
 
 from humotion_gym.envs.vector import PoseTrackingVectorEnv
-from humotion_gym.wrappers import learner_frame
+from humotion_gym.wrappers import learner_frame, learner_frames
 
 # The step's scalar info that each episode's info dict carries (SB3 keeps one
 # dict per episode; the batched arrays stay in ``last_infos``).
@@ -99,25 +98,9 @@ class LearnerVecEnv(VecEnv):
             self._initial[i] = envs[i].pose_to_action(poses[i])
             self._previous[i] = self._initial[i]
 
-    def _frames(self, frames: NDArray[np.uint8]) -> NDArray[np.uint8]:
-        """:func:`~humotion_gym.wrappers.learner_frame` of N frames."""
-        n, h, w, c = frames.shape
-        size = self.frame_size
-        if size is None or (h == size and w == size):
-            return np.ascontiguousarray(frames.transpose(0, 3, 1, 2))
-        if h % size == 0 and w % size == 0:
-            # An integer shrink: INTER_AREA averages aligned blocks that never
-            # straddle two frames, so one resize of the frames stacked
-            # vertically gives each frame's own resize (one OpenCV call).
-            tall = cv2.resize(
-                frames.reshape(n * h, w, c), (size, n * size), interpolation=cv2.INTER_AREA
-            )
-            return np.ascontiguousarray(tall.reshape(n, size, size, c).transpose(0, 3, 1, 2))
-        return np.stack([learner_frame(f, size) for f in frames])
-
     def _observation(self, frames: NDArray[np.uint8]) -> dict[str, NDArray[Any]]:
         return {
-            "frame": self._frames(frames),
+            "frame": learner_frames(frames, self.frame_size),
             "previous": self._previous.copy(),
             "initial": self._initial.copy(),
         }

@@ -16,6 +16,8 @@ its episodes from the training persons (``split="train"``).
 
 from __future__ import annotations
 
+import functools
+import warnings
 from typing import Any
 
 import cv2
@@ -24,6 +26,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from humotion_gym import _kernels
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 
 #: The keys of the learner observation, in the order a policy sees them.
@@ -53,13 +56,76 @@ def learner_frame(frame: NDArray[np.uint8], size: int | None) -> NDArray[np.uint
         raise ValueError(
             f"learner_frame: expected an (H, W, C) uint8 frame, got {f.shape} {f.dtype}"
         )
-    if size is not None and (f.shape[0] != size or f.shape[1] != size):
-        # INTER_AREA averages the pixels a target pixel covers: no aliasing of
-        # the cone edges, which a nearest-pixel subsampling would break up.
-        f = cv2.resize(f, (size, size), interpolation=cv2.INTER_AREA)
-        if f.ndim == 2:
-            f = f[:, :, None]
-    return np.ascontiguousarray(f.transpose(2, 0, 1))
+    return learner_frames(f[None], size)[0]
+
+
+def learner_frames(frames: NDArray[np.uint8], size: int | None) -> NDArray[np.uint8]:
+    """:func:`learner_frame` of N frames at once.
+
+    Args:
+        frames: ``(N, H, W, C)`` uint8.
+        size: As :func:`learner_frame`.
+
+    Returns:
+        ``(N, C, size, size)`` uint8, each frame's :func:`learner_frame`.
+    """
+    f = np.asarray(frames)
+    if f.ndim != 4 or f.dtype != np.uint8:
+        raise ValueError(
+            f"learner_frames: expected (N, H, W, C) uint8 frames, got {f.shape} {f.dtype}"
+        )
+    n, h, w, c = f.shape
+    if size is None or (h == size and w == size):
+        return np.ascontiguousarray(f.transpose(0, 3, 1, 2))
+    if n == 0:  # (OpenCV refuses an empty image)
+        return np.empty((0, c, size, size), np.uint8)
+    if h == 2 * size and w == 2 * size and _kernels.ENABLED and _kernel_halves_as_opencv():
+        # A shrink by two (128-pixel frames for 64-pixel policies): the
+        # compiled kernel writes OpenCV's bytes channels first, in a third of
+        # the time of a resize and a transposed copy.
+        out = np.empty((n, c, size, size), np.uint8)
+        if _kernels.halve_frames(np.ascontiguousarray(f), out):
+            return out
+    # INTER_AREA averages the pixels a target pixel covers: no aliasing of
+    # the cone edges, which a nearest-pixel subsampling would break up.
+    if h % size == 0 and w % size == 0:
+        # A whole-number shrink: INTER_AREA averages aligned blocks that
+        # never straddle two frames, so one resize of the frames stacked
+        # vertically gives each frame's own resize (one OpenCV call).
+        small = cv2.resize(f.reshape(n * h, w, c), (size, n * size), interpolation=cv2.INTER_AREA)
+    else:
+        small = np.stack(
+            [cv2.resize(x, (size, size), interpolation=cv2.INTER_AREA) for x in f]
+        )  # fmt: skip
+    return np.ascontiguousarray(small.reshape(n, size, size, c).transpose(0, 3, 1, 2))
+
+
+@functools.cache
+def _kernel_halves_as_opencv() -> bool:
+    """Whether the halving kernel gives the installed OpenCV's bytes (checked once).
+
+    Its rounding (each block's sum plus two, over four) is OpenCV's for a
+    shrink by two; an OpenCV that rounded otherwise would make a policy's
+    frames depend on whether numba is installed. So on first use both shrink
+    the same random frames, of one and three channels; where any byte
+    differs, OpenCV shrinks them, with one ``RuntimeWarning``.
+    """
+    rng = np.random.default_rng(20261124)
+    for c in (1, 3, 4):
+        frames = rng.integers(0, 256, (3, 16, 24, c), dtype=np.uint8)
+        ours = np.empty((3, c, 8, 12), np.uint8)
+        if not _kernels.halve_frames(frames, ours):
+            return True  # the kernels are off (numba failed and said so): nothing to check
+        tall = cv2.resize(frames.reshape(48, 24, c), (12, 24), interpolation=cv2.INTER_AREA)
+        if not np.array_equal(ours, tall.reshape(3, 8, 12, c).transpose(0, 3, 1, 2)):
+            warnings.warn(
+                f"humotion_gym: this OpenCV ({cv2.__version__}) shrinks frames otherwise than "
+                "the halving kernel; OpenCV shrinks the learners' frames.",
+                RuntimeWarning,
+                stacklevel=4,
+            )
+            return False
+    return True
 
 
 def learner_observation(
@@ -187,5 +253,6 @@ __all__ = [
     "LearnerObservation",
     "Supervision",
     "learner_frame",
+    "learner_frames",
     "learner_observation",
 ]

@@ -1718,3 +1718,71 @@ def test_frame_batch_leaves_what_it_cannot_draw_untouched(monkeypatch) -> None:
     np.testing.assert_array_equal(batch._noise[0], plane)
     batch.set_background(0, other)
     assert not np.array_equal(batch._noise[0], plane)
+
+
+@pytest.mark.parametrize("channels", [1, 3, 4])
+def test_the_halving_kernel_is_opencvs_area_shrink(channels: int) -> None:
+    # Each byte is its 2x2 block's sum plus two, over four (rounded half up),
+    # which is OpenCV's INTER_AREA for a shrink by two; written channels first.
+    rng = np.random.default_rng(channels)
+    frames = rng.integers(0, 256, (5, 32, 48, channels), dtype=np.uint8)
+    frames[0] = 255  # the largest sums
+    frames[1] = 0
+    frames[2, ::2] = 1  # sums of 2 and 6 mod 4, where half up and half even part
+    frames[2, 1::2] = 0
+    out = np.empty((5, channels, 16, 24), np.uint8)
+    assert _kernels.halve_frames(frames, out)
+    blocks = frames.reshape(5, 16, 2, 24, 2, channels).astype(np.int64).sum(axis=(2, 4))
+    np.testing.assert_array_equal(out, ((blocks + 2) // 4).transpose(0, 3, 1, 2))
+    for f, small in zip(frames, out, strict=True):
+        theirs = cv2.resize(f, (24, 16), interpolation=cv2.INTER_AREA).reshape(16, 24, channels)
+        np.testing.assert_array_equal(small, theirs.transpose(2, 0, 1))
+
+
+def test_the_halving_kernel_refuses_what_it_cannot_shrink() -> None:
+    frames = np.full((2, 8, 8, 3), 7, np.uint8)
+    cases = [
+        (np.full((2, 9, 8, 3), 7, np.uint8), (2, 3, 4, 4)),  # an odd side
+        (frames, (2, 3, 4, 5)),  # not half the frame
+        (frames, (2, 4, 4, 3)),  # channels last
+        (frames[:, :, ::-1], (2, 3, 4, 4)),  # not C-contiguous
+        (frames.astype(np.float32), (2, 3, 4, 4)),
+    ]
+    for given, shape in cases:
+        out = np.zeros(shape, np.uint8)
+        assert not _kernels.halve_frames(given, out)
+        assert not out.any()
+
+
+def test_learner_frames_come_from_the_kernel_with_opencvs_bytes(monkeypatch, numpy_path) -> None:
+    from humotion_gym import wrappers
+
+    assert wrappers._kernel_halves_as_opencv()
+    calls = []
+    halve = _kernels.halve_frames
+    monkeypatch.setattr(_kernels, "halve_frames", lambda *a: calls.append(1) or halve(*a))
+    frames = np.random.default_rng(3).integers(0, 256, (8, 128, 128, 3), dtype=np.uint8)
+    ours = wrappers.learner_frames(frames, 64)
+    assert calls  # the kernel ran, and gave the numpy path's (OpenCV's) bytes
+    np.testing.assert_array_equal(ours, numpy_path(wrappers.learner_frames, frames, 64))
+    assert ours.flags.c_contiguous
+    # Not a shrink by two: OpenCV resizes, and the kernel is not asked.
+    calls.clear()
+    wrappers.learner_frames(frames, 32)
+    assert not calls
+
+
+def test_an_opencv_that_shrinks_otherwise_turns_the_halving_kernel_off(monkeypatch) -> None:
+    from humotion_gym import wrappers
+
+    real = cv2.resize
+    monkeypatch.setattr(wrappers.cv2, "resize", lambda *a, **k: real(*a, **k) ^ np.uint8(1))
+    wrappers._kernel_halves_as_opencv.cache_clear()
+    try:
+        with pytest.warns(RuntimeWarning, match="shrinks frames otherwise"):
+            assert not wrappers._kernel_halves_as_opencv()
+        frames = np.zeros((2, 16, 16, 3), np.uint8)
+        # OpenCV (here, the altered one) shrinks the frames: its bytes, not the kernel's.
+        assert (wrappers.learner_frames(frames, 8) == 1).all()
+    finally:
+        wrappers._kernel_halves_as_opencv.cache_clear()

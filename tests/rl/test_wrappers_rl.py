@@ -13,6 +13,7 @@ from humotion_gym.wrappers import (
     LearnerObservation,
     Supervision,
     learner_frame,
+    learner_frames,
     learner_observation,
 )
 
@@ -74,6 +75,22 @@ def test_learner_frame_averages_pixel_blocks() -> None:
     np.testing.assert_array_equal(learner_frame(frame, None), frame.transpose(2, 0, 1))
     with pytest.raises(ValueError, match="uint8"):
         learner_frame(frame.astype(np.float32), 32)
+
+
+@pytest.mark.parametrize(
+    ("shape", "size"),
+    [((4, 64, 64, 3), 32), ((3, 64, 64, 1), 32), ((2, 60, 60, 3), 32), ((2, 64, 64, 3), None),
+     ((0, 64, 64, 3), 32)],
+)  # fmt: skip
+def test_learner_frames_are_each_frames_learner_frame(shape: tuple, size: int | None) -> None:
+    frames = np.random.default_rng(1).integers(0, 256, shape, dtype=np.uint8)
+    batch = learner_frames(frames, size)
+    side = shape[1] if size is None else size
+    assert batch.shape == (shape[0], shape[3], side, side) and batch.flags.c_contiguous
+    for frame, small in zip(frames, batch, strict=True):
+        np.testing.assert_array_equal(small, learner_frame(frame, size))
+    with pytest.raises(ValueError, match=r"learner_frames: expected \(N, H, W, C\) uint8"):
+        learner_frames(frames[..., 0], size)
 
 
 def test_bad_size_is_refused() -> None:
