@@ -107,7 +107,7 @@ def _kernel_halves_as_opencv() -> bool:
     Its rounding (each block's sum plus two, over four) is OpenCV's for a
     shrink by two; an OpenCV that rounded otherwise would make a policy's
     frames depend on whether numba is installed. So on first use both shrink
-    the same random frames, of one and three channels; where any byte
+    the same random frames, of one, three and four channels; where any byte
     differs, OpenCV shrinks them, with one ``RuntimeWarning``.
     """
     rng = np.random.default_rng(20261124)

@@ -1728,7 +1728,7 @@ def test_the_halving_kernel_is_opencvs_area_shrink(channels: int) -> None:
     frames = rng.integers(0, 256, (5, 32, 48, channels), dtype=np.uint8)
     frames[0] = 255  # the largest sums
     frames[1] = 0
-    frames[2, ::2] = 1  # sums of 2 and 6 mod 4, where half up and half even part
+    frames[2, ::2] = 1  # every block sums to 2: half up gives 1, half to even 0
     frames[2, 1::2] = 0
     out = np.empty((5, channels, 16, 24), np.uint8)
     assert _kernels.halve_frames(frames, out)
