@@ -1190,10 +1190,28 @@ def _noise_window(rng: np.random.Generator, h: int, w: int) -> tuple[int, int]:
     return divmod(int(rng.integers(0, (h + 1) * (w + 1))), w + 1)
 
 
-def _add_noise(img: NDArray[np.uint8], bank: NDArray[np.uint8], rng: np.random.Generator) -> None:
-    """Add the bank's window at a random offset (:func:`_noise_window`)."""
+def _noise_windows(rng: np.random.Generator, h: int, w: int, count: int) -> NDArray[np.intp]:
+    """``(count, 2)`` rows and columns: :func:`_noise_window` called ``count`` times.
+
+    One call of ``rng.integers`` with ``size=count`` gives the numbers that
+    ``count`` scalar calls give, in order, and leaves the generator where they
+    leave it (numpy bounds each element alone; ``tests/test_render.py``
+    checks both). The vector environment draws an episode's windows at its
+    start, a frame's draw then costing a table lookup.
+    """
+    rows, cols = np.divmod(rng.integers(0, (h + 1) * (w + 1), size=count), w + 1)
+    return np.stack([rows, cols], axis=1).astype(np.intp)
+
+
+def _add_noise(
+    img: NDArray[np.uint8],
+    bank: NDArray[np.uint8],
+    rng: np.random.Generator,
+    window: tuple[int, int] | None = None,
+) -> None:
+    """Add the bank's window at ``window``, else at a random one (:func:`_noise_window`)."""
     h, w = img.shape[:2]
-    y, x = _noise_window(rng, h, w)
+    y, x = _noise_window(rng, h, w) if window is None else window
     if _kernels.add_noise(img, bank, y, x):  # the same bytes, in one pass
         return
     cv2.add(img, bank[0, y : y + h, x : x + w].reshape(img.shape), dst=img)
@@ -1296,12 +1314,15 @@ def _compose(
     frame_index: int,
     where: str,
     out: NDArray[np.uint8] | None = None,
+    window: tuple[int, int] | None = None,
 ) -> NDArray[np.uint8]:
     """Background, figure, occluders, noise and blur: one frame.
 
     ``out``, when given, is the ``(H, W, C)`` uint8 array to draw into (the
     vector environment draws each frame straight into its row of the batch,
-    saving a copy per frame); otherwise a new array. Returns the frame.
+    saving a copy per frame); otherwise a new array. ``window``, when given,
+    is the noise window drawn beforehand from ``rng`` (:func:`_noise_windows`);
+    otherwise the frame draws it. Returns the frame.
     """
     scene = figures.scene
     if background.scene is not scene and background.scene != scene:
@@ -1316,7 +1337,7 @@ def _compose(
     if scene.occluders:
         _draw_occluders(canvas, background, frame_index)
     if scene.noise_sigma > 0:
-        _add_noise(canvas, background.noise, rng)
+        _add_noise(canvas, background.noise, rng, window)
     if scene.blur_sigma > 0:
         cv2.GaussianBlur(canvas, (0, 0), scene.blur_sigma, dst=canvas)
     return img
@@ -1352,6 +1373,7 @@ class FrameBatch:
         self._usable = scene.occluders == 0 and scene.blur_sigma <= 0
         self._frames = frames
         self._tables: tuple[NDArray[Any], ...] | None = None  # made at the first figures
+        self._window_bytes = np.array([1, c], np.intp)
 
     def set_background(self, i: int, background: Background) -> None:
         """Row ``i``'s episode now shows on ``background``."""
@@ -1388,15 +1410,22 @@ class FrameBatch:
     def draw(
         self,
         out: NDArray[np.uint8],
-        rows: list[int],
-        ts: list[int],
-        rngs: list[np.random.Generator],
+        rows: NDArray[np.intp],
+        ts: NDArray[np.intp],
+        windows: NDArray[np.intp],
     ) -> bool:
-        """Frame ``ts[j]`` of episode ``rows[j]`` into ``out[rows[j]]``, its noise from ``rngs[j]``.
+        """Frame ``ts[j]`` of episode ``rows[j]`` into ``out[rows[j]]``, noise at ``windows[j]``.
+
+        Args:
+            out: ``(N, H, W, C)`` uint8 frames to draw into.
+            rows: ``(M,)`` intp episodes.
+            ts: ``(M,)`` intp frames, one per episode.
+            windows: ``(M, 2)`` intp row and column of each frame's window of
+                its noise bank (:func:`_noise_windows`; ignored without noise).
 
         Returns:
-            False, having drawn nothing and drawn from no generator, where the
-            frames are to be drawn one by one (see the class).
+            False, having drawn nothing, where the frames are to be drawn one
+            by one (see the class).
         """
         if not (
             self._usable and self._tables is not None and _kernels.ENABLED
@@ -1404,17 +1433,10 @@ class FrameBatch:
             and self._signed[rows].all()
         ):  # fmt: skip
             return False
-        h, w, c = self.scene.frame_shape
-        if self._noisy:
-            # _add_noise's window, one per frame from each episode's generator
-            # (the kernel takes its column in bytes).
-            offsets = np.array([_noise_window(rng, h, w) for rng in rngs], np.intp)
-            offsets[:, 1] *= c
-        else:
-            offsets = np.zeros((len(rows), 2), np.intp)
+        # (the kernel takes a window's column in bytes)
+        offsets = windows * self._window_bytes if self._noisy else np.zeros((len(rows), 2), np.intp)
         return _kernels.draw_frames(
-            out, np.array(rows, np.intp), np.array(ts, np.intp), self._images, self._noise,
-            offsets, *self._tables, _SHIFT, self._noisy,
+            out, rows, ts, self._images, self._noise, offsets, *self._tables, _SHIFT, self._noisy,
         )  # fmt: skip
 
 
@@ -1422,9 +1444,8 @@ class FrameBatch:
 def _frames_kernel_works() -> bool:
     """Whether the batched frame kernel runs (compiled once); False turns it off.
 
-    Checked before a batch draws its noise offsets, so that a numba that
-    fails leaves every episode's generator where the frame-by-frame path
-    expects it.
+    A numba that fails here leaves :meth:`FrameBatch.draw` saying False, so
+    the frames are drawn one by one from the start.
     """
     scene = SceneOptions(width=64, height=64, background="flat")
     batch = FrameBatch(scene, 1, 1)

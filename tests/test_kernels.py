@@ -1644,9 +1644,9 @@ def _batch_episodes(opts: SceneOptions, n: int, frames: int, seed: int):
     ],
 )
 def test_frame_batch_draws_composes_frames(opts: SceneOptions) -> None:
-    # FrameBatch.draw is _compose of each episode's frame: the same bytes, and
-    # each episode's generator advanced as _compose advances it.
-    from humotion_gym.render import FrameBatch, _compose
+    # FrameBatch.draw is _compose of each episode's frame: the same bytes, with
+    # the noise windows drawn beforehand from the generators _compose draws from.
+    from humotion_gym.render import FrameBatch, _compose, _noise_windows
 
     n, frames = 5, 7
     episodes = _batch_episodes(opts, n, frames, seed=3)
@@ -1670,7 +1670,11 @@ def test_frame_batch_draws_composes_frames(opts: SceneOptions) -> None:
         got = np.full((n, *opts.frame_shape), 9, np.uint8)
         want = got.copy()
         fast = [np.random.default_rng(s) for s in seeds]
-        assert batch.draw(got, rows, ts, fast)
+        h, w, _ = opts.frame_shape
+        count = int(opts.noise_sigma > 0)  # (a frame without noise draws none)
+        windows = np.concatenate([_noise_windows(g, h, w, count) for g in fast])
+        windows = windows if count else np.zeros((len(rows), 2), np.intp)
+        assert batch.draw(got, np.array(rows, np.intp), np.array(ts, np.intp), windows)
         slow = [np.random.default_rng(s) for s in seeds]
         for i, t, g in zip(rows, ts, slow, strict=True):
             figures, background = episodes[i]
@@ -1684,7 +1688,7 @@ def test_frame_batch_draws_composes_frames(opts: SceneOptions) -> None:
 
 def test_frame_batch_leaves_what_it_cannot_draw_untouched(monkeypatch) -> None:
     # Occluders, blur, a bank beyond a signed byte, the kernels off: draw says
-    # False having drawn nothing and drawn from no generator.
+    # False having drawn nothing.
     from humotion_gym.render import FrameBatch
 
     cases = [
@@ -1702,11 +1706,9 @@ def test_frame_batch_leaves_what_it_cannot_draw_untouched(monkeypatch) -> None:
         for name, value in patch.items():
             monkeypatch.setattr(_kernels, name, value)
         out = np.zeros((2, *opts.frame_shape), np.uint8)
-        rngs = [np.random.default_rng(0), np.random.default_rng(1)]
-        before = [g.bit_generator.state for g in rngs]
-        assert not batch.draw(out, [0, 1], [1, 2], rngs)
+        rows, ts = np.array([0, 1], np.intp), np.array([1, 2], np.intp)
+        assert not batch.draw(out, rows, ts, np.array([[3, 4], [5, 6]], np.intp))
         assert not out.any()
-        assert [g.bit_generator.state for g in rngs] == before
         monkeypatch.undo()
     # A bank reused from row to row is converted once; a new one replaces it.
     opts = SceneOptions()

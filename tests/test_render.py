@@ -347,3 +347,20 @@ def test_a_noise_bank_serves_many_backgrounds() -> None:
         make_background(SceneOptions(width=64, height=64), np.random.default_rng(0), bank)
     with pytest.raises(ValueError, match="noise must be a uint8 bank"):
         make_background(scene, np.random.default_rng(0), bank.astype(np.int16))
+
+
+@pytest.mark.parametrize(("h", "w"), [(128, 128), (80, 96), (1, 1)])
+def test_noise_windows_are_the_frames_draws_in_advance(h: int, w: int) -> None:
+    # The vector environment draws an episode's windows at its start: they
+    # must be the windows its frames would draw one by one, and leave the
+    # generator where those draws leave it (frames drawn after still agree).
+    from humotion_gym.render import _noise_window, _noise_windows
+
+    for seed, count in [(0, 0), (1, 1), (2, 30), (3, 257)]:
+        ahead, one_by_one = np.random.default_rng(seed), np.random.default_rng(seed)
+        windows = _noise_windows(ahead, h, w, count)
+        assert windows.shape == (count, 2) and windows.dtype == np.intp
+        assert windows.tolist() == [list(_noise_window(one_by_one, h, w)) for _ in range(count)]
+        assert ahead.bit_generator.state == one_by_one.bit_generator.state
+        assert ((windows >= 0) & (windows <= [h, w])).all()
+        assert _noise_window(ahead, h, w) == _noise_window(one_by_one, h, w)

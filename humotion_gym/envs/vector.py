@@ -22,8 +22,10 @@ with its ``_key`` masks; ``tests/envs/test_vector_env.py``), with Gymnasium
   drawn in one kernel call (:class:`~humotion_gym.render.FrameBatch`:
   each episode's background, figures and noise bank held in batch arrays,
   the bank as one signed plane), straight into their rows of the batch: the
-  single environment's renderer's bytes, about 17-25 us a frame at 128x128
-  (the figure's fills, then the sensor noise); where the kernels are off,
+  single environment's renderer's bytes, about 10-16 us a frame at 128x128
+  (the figure's fills, then the sensor noise, its windows drawn from the
+  episode's generator at its start, as its frames would draw them one by
+  one: :func:`~humotion_gym.render._noise_windows`); where the kernels are off,
   or the scene has occluders or blur, the single environment's renderer
   draws them one by one. What is left is the episodes' starts: the
   background (its clutter drawn from the episode's seed) about 130 us per
@@ -55,7 +57,13 @@ from humotion_gym.body import KEYPOINT_INDEX, N_KEYPOINTS, N_PARAMS, BodyShape
 from humotion_gym.camera import fit_cameras
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 from humotion_gym.metrics import aligned_point_errors, point_errors
-from humotion_gym.render import FigureSequence, FrameBatch, _compose, figure_sequences
+from humotion_gym.render import (
+    FigureSequence,
+    FrameBatch,
+    _compose,
+    _noise_windows,
+    figure_sequences,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -164,6 +172,9 @@ class PoseTrackingVectorEnv(VectorEnv):
         # Every episode's background, noise and figures in batch arrays: a
         # step's frames in one kernel call.
         self._frame_batch = FrameBatch(self._scene, n, frames)
+        # Each episode's noise windows, frame by frame, drawn at its start
+        # (render._noise_windows: the draws its frames would make one by one).
+        self._windows = np.zeros((n, frames, 2), np.intp)
         # _keypoints' shape tables by id(shape), each with its shape (kept alive:
         # the id stays its own).
         self._shape_tables: dict[int, tuple[BodyShape, FloatArray, float, FloatArray]] = {}
@@ -190,9 +201,13 @@ class PoseTrackingVectorEnv(VectorEnv):
         figures = self._figures(envs, 0, self._first_figures)
         infos = {}
         batch = self._frame_batch
+        h, w, _ = self._scene.frame_shape
+        noisy, shown = self._scene.noise_sigma > 0, self._windows.shape[1] - 1
         for i, env, figure in zip(rows, envs, figures, strict=True):
             env._figures = figure
             batch.set_background(i, env._background)
+            if noisy:  # the windows of frames 1, 2, ..., the order they are shown in
+                self._windows[i, 1:] = _noise_windows(env._noise_rng, h, w, shown)
             batch.set_figures(i, figure)
             # drawn (below) straight into the batch's row, which is then the frame on show
             _, infos[i] = env._first_frame(self._obs[i])
@@ -209,7 +224,8 @@ class PoseTrackingVectorEnv(VectorEnv):
             self._t0[i] = env._t0
             self._lost_run[i] = 0
             self._started[i] = True
-        self._draw(self._obs, rows)
+        where = np.array(rows, np.intp)
+        self._draw(self._obs, where, self._k[where])
         return infos
 
     def _place_cameras(self, envs: list[PoseTrackingEnv]) -> None:
@@ -242,18 +258,24 @@ class PoseTrackingVectorEnv(VectorEnv):
             self._scene,
         )  # fmt: skip
 
-    def _draw(self, observations: NDArray[np.uint8], rows: list[int]) -> None:
-        """The frame each of ``rows`` now shows, into its row of ``observations``.
+    def _draw(
+        self, observations: NDArray[np.uint8], rows: NDArray[np.intp], ts: NDArray[np.intp]
+    ) -> None:
+        """Frame ``ts[j]`` of episode ``rows[j]`` into its row of ``observations``.
 
         In one kernel call where it can (:class:`~humotion_gym.render.FrameBatch`),
-        else frame by frame; the same bytes either way.
+        else frame by frame; the same bytes either way, the noise at the
+        windows drawn at the episodes' starts.
         """
-        envs = [self.envs[i] for i in rows]
-        ts = [env._k for env in envs]
-        if self._frame_batch.draw(observations, rows, ts, [env._noise_rng for env in envs]):
+        windows = self._windows[rows, ts]
+        if self._frame_batch.draw(observations, rows, ts, windows):
             return
-        for i, env, t in zip(rows, envs, ts, strict=True):
-            _compose(env._figures, t, env._noise_rng, env._background, t, "step", observations[i])
+        for i, t, (y, x) in zip(rows.tolist(), ts.tolist(), windows.tolist(), strict=True):
+            env = self.envs[i]
+            _compose(
+                env._figures, t, env._noise_rng, env._background, t, "step", observations[i],
+                (y, x),
+            )  # fmt: skip
 
     def _prepare_rest(self, rows: list[int]) -> None:
         """Prepare the figures of the episodes' frames after the first ones (see ``_start``)."""
@@ -386,7 +408,6 @@ class PoseTrackingVectorEnv(VectorEnv):
         # Python lists and bound locals: this loop is the per-episode part of a step.
         restart_l, done_l = restart.tolist(), done.tolist()
         next_k, lost_run = (k + 1).tolist(), self._lost_run.tolist()
-        drawn: list[int] = []
         for i in range(n):
             env = envs[i]
             if restart_l[i]:
@@ -404,11 +425,12 @@ class PoseTrackingVectorEnv(VectorEnv):
                 # single environment's is the array its step returned.
                 env._k = next_k[i]
                 env._frame = observations[i]
-                drawn.append(i)
             cameras[i] = env._cameras[env._k]
-        if drawn:
-            self._draw(observations, drawn)
-        shown = k + (active & ~done)  # the frame each stepped episode now shows
+        stepped_on = active & ~done
+        if stepped_on.any():
+            drawn = np.flatnonzero(stepped_on)
+            self._draw(observations, drawn, k[drawn] + 1)
+        shown = k + stepped_on  # the frame each stepped episode now shows
         # The info of every stepped episode, batched as SyncVectorEnv batches
         # the single environments' dicts (same keys, dtypes and masks).
         step_info: dict[str, NDArray[Any]] = {
