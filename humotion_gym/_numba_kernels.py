@@ -792,24 +792,12 @@ def _line8(img: NDArray[np.uint8], x1: int, y1: int, x2: int, y2: int, color: ND
 def _span(img: NDArray[np.uint8], y: int, x1: int, x2: int, color: NDArray) -> None:
     """Pixels ``x1..x2`` of row ``y`` set to ``color`` (OpenCV's ``ICV_HLINE``).
 
-    Written per channel count, so that the colour's bytes are loop constants
-    (a span is most of a fill's cost).
+    For any channel count; :func:`_fill_convex` writes the spans of one- and
+    three-channel images itself, the colour's bytes held in locals.
     """
-    channels = img.shape[2]
-    if channels == 3:
-        c0, c1, c2 = color[0], color[1], color[2]
-        for x in range(x1, x2 + 1):
-            img[y, x, 0] = c0
-            img[y, x, 1] = c1
-            img[y, x, 2] = c2
-    elif channels == 1:
-        c0 = color[0]
-        for x in range(x1, x2 + 1):
-            img[y, x, 0] = c0
-    else:
-        for x in range(x1, x2 + 1):
-            for k in range(channels):
-                img[y, x, k] = color[k]
+    for x in range(x1, x2 + 1):
+        for k in range(img.shape[2]):
+            img[y, x, k] = color[k]
 
 
 @_njit(inline="always")
@@ -856,6 +844,11 @@ def _fill_convex(
     right edge each stepped by its rounded fixed-point slope.
     """
     h, w = img.shape[0], img.shape[1]
+    # The colour's bytes read once, as locals, and the spans written here:
+    # through _span the spans took three to four times as long (most of a
+    # cone's spans are a few pixels; measured in docs/speed.md).
+    channels = img.shape[2]
+    c0, c1, c2 = (color[0], color[1], color[2]) if channels == 3 else (color[0], color[0], color[0])
     delta = (1 << shift) >> 1
     up = _XY_SHIFT - shift
     p0x = vx[npts - 1] << up
@@ -909,7 +902,16 @@ def _fill_convex(
             x1 = (lo + _XY_HALF) >> _XY_SHIFT
             x2 = (hi + _XY_HALF) >> _XY_SHIFT
             if x2 >= 0 and x1 < w:
-                _span(img, y, max(x1, 0), min(x2, w - 1), color)
+                if channels == 3:
+                    for x in range(max(x1, 0), min(x2, w - 1) + 1):
+                        img[y, x, 0] = c0
+                        img[y, x, 1] = c1
+                        img[y, x, 2] = c2
+                elif channels == 1:
+                    for x in range(max(x1, 0), min(x2, w - 1) + 1):
+                        img[y, x, 0] = c0
+                else:
+                    _span(img, y, max(x1, 0), min(x2, w - 1), color)
         a_x += a_dx
         b_x += b_dx
         y += 1
