@@ -27,9 +27,10 @@ with its ``_key`` masks; ``tests/envs/test_vector_env.py``), with Gymnasium
   frames would draw them one by one (:func:`~humotion_gym.render._noise_windows`).
   About 10 us a frame at 128x128, 22 in PPO's loop, where the caches are
   cold. Where the kernels are off, or the scene has occluders or blur, the
-  single environment's renderer draws them one by one. What is left is the episodes' starts: the
-  background (its clutter drawn from the episode's seed) about 130 us per
-  episode, its figures and camera about as much again.
+  single environment's renderer draws them one by one, at the same windows.
+  What is left is the episodes' starts: the background (its clutter drawn
+  from the episode's seed) about 130 us per episode, its figures and camera
+  about as much again.
 
 Each of the N episodes is held by a :class:`PoseTrackingEnv` (``envs``), kept
 in step, so its methods (``pose_to_action``, ``action_to_pose``,
@@ -202,12 +203,12 @@ class PoseTrackingVectorEnv(VectorEnv):
         infos = {}
         batch = self._frame_batch
         h, w, _ = self._scene.frame_shape
-        noisy, shown = self._scene.noise_sigma > 0, self._windows.shape[1] - 1
+        noisy, n_shown = self._scene.noise_sigma > 0, self._windows.shape[1] - 1
         for i, env, figure in zip(rows, envs, figures, strict=True):
             env._figures = figure
             batch.set_background(i, env._background)
             if noisy:  # the windows of frames 1, 2, ..., the order they are shown in
-                self._windows[i, 1:] = _noise_windows(env._noise_rng, h, w, shown)
+                self._windows[i, 1:] = _noise_windows(env._noise_rng, h, w, n_shown)
             batch.set_figures(i, figure)
             # drawn (below) straight into the batch's row, which is then the frame on show
             _, infos[i] = env._first_frame(self._obs[i])

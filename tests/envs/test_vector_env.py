@@ -97,6 +97,34 @@ def test_vector_env_equals_sync_vector_env(env_id, mode):
     _assert_same(got[0][mask], want[0][mask], "masked reset")
 
 
+@pytest.mark.parametrize(
+    ("kwargs", "kernels"),
+    [
+        ({"occluders": 2}, True),  # frames the batch kernel does not draw
+        ({"blur": 1.0, "noise": 30.0}, True),
+        ({"color": "gray"}, True),
+        ({}, False),  # no compiled kernels at all
+    ],
+)
+def test_vector_env_frames_drawn_one_by_one_are_the_sync_envs(kwargs, kernels, monkeypatch):
+    # Where the frames are drawn one by one (_compose), their noise still
+    # comes from the windows drawn at each episode's start: the same frames as
+    # the single environments', which draw them frame by frame.
+    from humotion_gym import _kernels
+
+    if not kernels:
+        monkeypatch.setattr(_kernels, "ENABLED", False)
+    n, env_id = 2, "humotion_gym/BodyTrack-v1"
+    kwargs = {"width": 64, "height": 64, "episode_frames": 8, **kwargs}
+    vec = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point", **kwargs)
+    sync = gym.make_vec(env_id, n, vectorization_mode="sync", **kwargs)
+    _assert_same(vec.reset(seed=11), sync.reset(seed=11), "reset")
+    rng = np.random.default_rng(2)
+    for t in range(2 * 8 + 3):  # through two restarts
+        actions = _actions(vec, rng, t)
+        _assert_same(vec.step(actions), sync.step(actions), f"step {t}")
+
+
 def test_vector_env_disabled_autoreset_needs_a_masked_reset():
     vec = PoseTrackingVectorEnv(2, task="BodyTrack-v1", autoreset_mode=AutoresetMode.DISABLED)
     vec.reset(seed=0)
