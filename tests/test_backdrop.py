@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from humotion_gym import body
+from humotion_gym import body, observation
 from humotion_gym.camera import fit_camera
 from humotion_gym.observation import Backdrop, GivenBody, ObservationModel
 from humotion_gym.render import SceneOptions, make_background, render
@@ -151,6 +151,34 @@ def test_coverage_cost_matches_its_definition(episode) -> None:
     np.testing.assert_allclose(
         got, np.array(expected) * model.coverage_weight * model.sharpness, rtol=0.05, atol=0.02
     )
+
+
+def test_coverage_points_are_the_set_pixels_evenly_spread() -> None:
+    """np.nonzero's pixels of the mask, thinned by np.linspace's picks (the definition)."""
+    rng = np.random.default_rng(9)
+    masks = [rng.random((h, w)) < p for h, w, p in ((128, 128, 0.1), (64, 96, 0.5), (7, 5, 0.3))]
+    masks += [np.zeros((32, 32), bool), np.ones((16, 20), bool)]
+    for mask in masks:
+        for most in (1, 2, 7, 96, 10_000):
+            ys, xs = np.nonzero(mask)
+            if xs.size > most:
+                pick = np.linspace(0, xs.size - 1, most).astype(np.intp)
+                ys, xs = ys[pick], xs[pick]
+            want = np.stack([xs, ys]).astype(np.float32) + np.float32(1.5)
+            got = observation._spread_points(mask, most)
+            assert got.dtype == np.float32 and got.shape == want.shape
+            np.testing.assert_array_equal(got, want)
+
+
+def test_evenly_spread_is_linspace() -> None:
+    for n in range(2, 400):
+        for m in {1, 2, 3, 5, 96, n - 1} - {0}:
+            if m < n:
+                want = np.linspace(0, n - 1, m).astype(np.intp)
+                np.testing.assert_array_equal(observation._evenly_spread(n, m), want)
+    for n, m in ((16_384, 96), (10_007, 9_999), (2**20 + 3, 4_097)):
+        want = np.linspace(0, n - 1, m).astype(np.intp)
+        np.testing.assert_array_equal(observation._evenly_spread(n, m), want)
 
 
 def test_coverage_prefers_the_true_pose_to_a_limb_laid_on_the_body(episode) -> None:
