@@ -643,8 +643,10 @@ class PoseTrackingEnv(gym.Env):
         self._estimate_keypoints: FloatArray | None = None
         initial = self._truth(0)
         self._k = 1
-        obs = self._observe() if out is None else out
-        self._frame = obs  # (what _observe sets; the given row otherwise)
+        if out is None:
+            obs = self._observe()  # (which sets the frame on show)
+        else:
+            obs = self._frame = out
         info = self._info()
         info.update(
             {
