@@ -1041,6 +1041,7 @@ def tree_replay(
     relative: NDArray[np.bool_],
     heading: NDArray[np.float64] | None,
     history: NDArray[Any],
+    rows: NDArray[np.intp] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[Any]] | None:
     """``tree.transition`` after the choice of windows: the new poses and shifted histories.
 
@@ -1055,7 +1056,9 @@ def tree_replay(
         noise_std: ``(D,)`` the noise's scale, or None for no noise.
         relative: ``(D,)`` True for the parameters that move relative to the pose.
         heading: ``(N,)`` the poses' headings (with ``root_xy``).
-        history: ``(N, d + 1, D)`` the particles' histories.
+        history: ``(N, d + 1, D)`` the particles' histories, or with ``rows``
+            ``(M, d + 1, D)`` histories of which particle ``p`` has row ``rows[p]``.
+        rows: ``(N,)`` rows of ``history`` (resampled particles), or None.
 
     Returns:
         The numpy path's poses and histories (the generator left where numpy
@@ -1077,7 +1080,8 @@ def tree_replay(
     speeds = empty if speed is None else np.ascontiguousarray(speed, np.float64)
     scale = empty if noise_std is None else np.ascontiguousarray(noise_std, np.float64)
     out_pose = np.empty((n, dim))
-    out_history = np.empty_like(history)
+    out_history = np.empty((n,) + history.shape[1:], history.dtype)
+    index = _NO_ROWS if rows is None else np.ascontiguousarray(rows, np.intp)
     with rng.bit_generator.lock:
         ran = _run(
             "_tree_replay", np.ascontiguousarray(next_step, np.float64),
@@ -1085,9 +1089,13 @@ def tree_replay(
             np.ascontiguousarray(window_end, np.intp), np.ascontiguousarray(absolute, np.bool_),
             velocity is not None, speeds, ix, iy, rng, scale, noise_std is not None,
             np.ascontiguousarray(relative, np.bool_), cos_h, sin_h, np.ascontiguousarray(history),
-            out_pose, out_history,
+            index, out_pose, out_history,
         )  # fmt: skip
     return (out_pose, out_history) if ran else None
+
+
+#: ``tree_replay``'s rows when every particle reads its own history.
+_NO_ROWS = np.zeros(0, np.intp)
 
 
 def angle_offsets(

@@ -1380,7 +1380,7 @@ def _tree_replay(
     velocity: bool, speed: NDArray[np.float64], ix: int, iy: int, rng: np.random.Generator,
     noise_std: NDArray[np.float64], noisy: bool, relative: NDArray[np.bool_],
     cos_h: NDArray[np.float64], sin_h: NDArray[np.float64], history: NDArray[Any],
-    out_pose: NDArray[np.float64], out_history: NDArray[Any],
+    rows: NDArray[np.intp], out_pose: NDArray[np.float64], out_history: NDArray[Any],
 ) -> None:  # fmt: skip
     """``tree.transition`` after the choice of windows: the steps replayed, the history shifted.
 
@@ -1392,12 +1392,15 @@ def _tree_replay(
     then ``tree._advance``: relative parameters plus the pose, root x and y
     turned by the heading (numpy's ``cos``, ``sin`` given; ``ix < 0``: none)
     and added to the pose. The history moves up a frame, the new pose last,
-    in the history's precision.
+    in the history's precision. Particle ``p``'s history is row ``rows[p]``
+    of ``history`` (row ``p`` where ``rows`` is empty): the resampled
+    particles' histories read where they lie, not copied first.
     """
     n, dim = pose.shape
     last = history.shape[1] - 1
     step = np.empty(dim)
     paced = speed.size > 0
+    gathered = rows.size > 0
     for p in range(n):
         w = chosen[p]
         for j in range(dim):
@@ -1419,9 +1422,10 @@ def _tree_replay(
             c, s = cos_h[p], sin_h[p]
             out_pose[p, ix] = pose[p, ix] + (c * step[ix] - s * step[iy])
             out_pose[p, iy] = pose[p, iy] + (s * step[ix] + c * step[iy])
+        h = rows[p] if gathered else p
         for f in range(last):
             for j in range(dim):
-                out_history[p, f, j] = history[p, f + 1, j]
+                out_history[p, f, j] = history[h, f + 1, j]
         for j in range(dim):
             out_history[p, last, j] = out_pose[p, j]
 

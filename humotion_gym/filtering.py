@@ -10,7 +10,7 @@ once; the only loop is over time, one frame per :meth:`ParticleFilter.step`.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -32,7 +32,9 @@ class ParticleState:
             parameters).
         extra: The prior's per-particle arrays (velocities, history windows,
             switch states, phases...), each with leading axis N, so that
-            resampling is one fancy index over all of them.
+            resampling is one fancy index over all of them. After
+            :meth:`take` the arrays are gathered when first read (a prior
+            that can read through the rows asks :func:`deferred_rows`).
     """
 
     pose: FloatArray
@@ -40,6 +42,12 @@ class ParticleState:
 
     def __post_init__(self) -> None:
         n = self.pose.shape[0]
+        if isinstance(self.extra, _Gathered):
+            # The source's arrays were checked when it was made; the rows are one per particle.
+            if self.extra.rows.shape != (n,):
+                rows = self.extra.rows.shape[0]
+                raise ValueError(f"ParticleState.extra: {rows} gathered rows for {n} particles")
+            return
         for key, value in self.extra.items():
             if value.shape[:1] != (n,):
                 raise ValueError(
@@ -55,16 +63,78 @@ class ParticleState:
     def take(self, index: NDArray[np.intp]) -> ParticleState:
         """The particles at ``index`` (with repeats): resampling.
 
+        The poses are copied now; the prior's arrays are gathered when first
+        read, each once, with the same rows (:class:`_Gathered`). A prior
+        that reads its arrays through the rows (:func:`deferred_rows`) never
+        copies them: at 3,000 particles the tree prior's histories (3.3 MB)
+        took about 0.2 ms of a 4.8 ms frame to copy, only to be read once
+        and shifted.
         ``np.take`` along the first axis copies the same rows as fancy
         indexing, a few times faster for the (N, d + 1, D) histories
         (:func:`_rows`).
+
+        Raises:
+            IndexError: If an index is out of range (numpy's, from the poses).
         """
         index = np.asarray(index)
         if index.dtype == bool:  # a mask selects, as fancy indexing would
             index = np.flatnonzero(index)
-        return ParticleState(
-            _rows(self.pose, index), {k: _rows(v, index) for k, v in self.extra.items()}
-        )
+        pose = _rows(self.pose, index)  # numpy checks the index here, before anything is deferred
+        if not self.extra:
+            return ParticleState(pose, {})
+        # Negative rows count from the end, as numpy's indexing reads them.
+        rows = np.asarray(index, dtype=np.intp).reshape(-1) % self.n
+        if isinstance(self.extra, _Gathered):  # rows of rows: one gather from the first source
+            return ParticleState(pose, _Gathered(self.extra.source, self.extra.rows[rows]))
+        return ParticleState(pose, _Gathered(dict(self.extra), rows))  # the mapping as it is now
+
+
+class _Gathered(Mapping[str, NDArray[Any]]):
+    """A prior's per-particle arrays at ``rows`` of ``source``'s, each gathered when first read.
+
+    Reading a key gives the same array as ``source[key][rows]`` (and the same
+    array object on every read); :func:`deferred_rows` gives the source and
+    the rows instead, for a prior that reads through them.
+    """
+
+    def __init__(self, source: Mapping[str, NDArray[Any]], rows: NDArray[np.intp]) -> None:
+        self.source = source
+        self.rows = rows
+        self._taken: dict[str, NDArray[Any]] = {}
+
+    def __getitem__(self, key: str) -> NDArray[Any]:
+        taken = self._taken.get(key)
+        if taken is None:
+            taken = self._taken[key] = _rows(self.source[key], self.rows)
+        return taken
+
+    def __contains__(self, key: object) -> bool:
+        return key in self.source  # without gathering (Mapping's would read the array)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.source)
+
+    def __len__(self) -> int:
+        return len(self.source)
+
+    def __repr__(self) -> str:
+        return f"_Gathered({list(self.source)}, {self.rows.size} rows)"
+
+
+def deferred_rows(
+    extra: Mapping[str, NDArray[Any]], key: str
+) -> tuple[NDArray[Any], NDArray[np.intp] | None]:
+    """``extra[key]`` without gathering it: ``(array, None)`` or ``(source, rows)``.
+
+    After :meth:`ParticleState.take` the particles' values are
+    ``source[rows]``; a prior that reads through ``rows`` spares the copy.
+
+    Raises:
+        KeyError: If ``extra`` has no ``key``.
+    """
+    if isinstance(extra, _Gathered) and key not in extra._taken:
+        return extra.source[key], extra.rows
+    return extra[key], None
 
 
 def _rows(array: NDArray[Any], index: NDArray[np.intp]) -> NDArray[Any]:

@@ -188,3 +188,44 @@ def test_the_compiled_angle_offsets_give_the_numpy_paths_mean(monkeypatch) -> No
                 m.setattr(_kernels, "ENABLED", False)
                 slow = weighted_mean(particles, weights, mask)
         np.testing.assert_array_equal(fast, slow)
+
+
+def test_resampled_arrays_are_gathered_when_read_and_only_once() -> None:
+    # take copies the poses now and the prior's arrays on first read: each read
+    # gives the rows fancy indexing gives, the same object every time, and
+    # deferred_rows gives the source and the rows until then.
+    rng = np.random.default_rng(2)
+    history = rng.normal(size=(40, 4, 3)).astype(np.float32)
+    state = ParticleState(rng.normal(size=(40, 3)), {"history": history, "k": np.arange(40)})
+    index = np.array([3, 3, -1, 0, 17, 39, 3, 8, 8, 2])
+    taken = state.take(index)
+    np.testing.assert_array_equal(taken.pose, state.pose[index])
+    source, rows = filtering.deferred_rows(taken.extra, "history")
+    assert source is history
+    np.testing.assert_array_equal(rows, index % 40)  # numpy's negative rows
+    assert "history" in taken.extra and "nothing" not in taken.extra
+    assert filtering.deferred_rows(taken.extra, "history")[1] is not None  # `in` read nothing
+    assert sorted(taken.extra) == ["history", "k"] and len(taken.extra) == 2
+    read = taken.extra["history"]
+    np.testing.assert_array_equal(read, history[index])
+    assert read.dtype == np.float32 and taken.extra["history"] is read
+    assert filtering.deferred_rows(taken.extra, "history") == (read, None)
+    # Rows of rows: one gather from the first source, the rows composed.
+    again = taken.take(np.array([9, 0, 4]))
+    source, rows = filtering.deferred_rows(again.extra, "k")
+    assert source is state.extra["k"]
+    np.testing.assert_array_equal(again.extra["k"], np.arange(40)[index][[9, 0, 4]])
+    np.testing.assert_array_equal(again.extra["history"], history[index][[9, 0, 4]])
+    # A plain mapping's arrays are the particles' own.
+    assert filtering.deferred_rows(state.extra, "k") == (state.extra["k"], None)
+    with pytest.raises(KeyError):
+        filtering.deferred_rows(taken.extra, "nothing")
+    # Out of range fails at take, as numpy's indexing does, not at a later read.
+    with pytest.raises(IndexError):
+        state.take(np.array([0, 40]))
+    # A state made with another state's gathered arrays must have as many particles.
+    with pytest.raises(ValueError, match="10 gathered rows for 3 particles"):
+        ParticleState(state.pose[:3], taken.extra)
+    assert ParticleState(taken.pose + 1.0, taken.extra).n == 10
+    assert state.take(np.array([], np.intp)).n == 0
+    assert ParticleState(state.pose).take(index).extra == {}

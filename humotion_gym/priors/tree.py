@@ -148,7 +148,7 @@ from scipy.special import log_ndtr, ndtr
 
 from humotion_gym import _kernels
 from humotion_gym.body import N_PARAMS, PARAM_INDEX, PARAM_NAMES
-from humotion_gym.filtering import ParticleState
+from humotion_gym.filtering import ParticleState, deferred_rows
 from humotion_gym.mocap.motion import Motion
 from humotion_gym.priors._io import save_arrays
 from humotion_gym.priors._synthesis import check_request, model_frames, to_motion
@@ -1602,17 +1602,54 @@ def _search_coefficients(
     )
 
 
-def _history_of(fitted: TreeParams, state: ParticleState) -> FloatArray:
+class _Particles(NamedTuple):
+    """What :func:`transition` reads of the particles.
+
+    ``history`` and ``speed`` are the arrays the particles' rows are in: the
+    particles' own, or (with ``rows``) those they were resampled from, read
+    through ``rows`` (:func:`humotion_gym.filtering.deferred_rows`).
+    """
+
+    history: NDArray[Any]
+    speed: FloatArray | None
+    rows: IntArray | None
+
+
+def _particles(fitted: TreeParams, state: ParticleState, lay: _Layout) -> _Particles:
+    """The particles' histories and speeds, checked, where they lie."""
     try:
-        history = state.extra["history"]
+        history, rows = deferred_rows(state.extra, "history")
     except KeyError:
         raise ValueError(
             "tree.transition: the particles carry no 'history'; start them with tree.initial"
         ) from None
-    want = (state.n, fitted.window + 1, fitted.n_free)
+    speed = speed_rows = None
+    if _has_speed(fitted, lay):
+        try:
+            speed, speed_rows = deferred_rows(state.extra, "speed")
+        except KeyError:
+            raise ValueError(
+                "tree.transition: the prior has a speed_spread but the particles carry no "
+                "'speed'; start them with tree.initial of this prior"
+            ) from None
+    if rows is not None and (
+        (speed is not None and speed_rows is not rows) or history.shape[0] > rows.size
+    ):
+        # Read apart, or more rows behind than particles: gather them now.
+        history, rows = state.extra["history"], None
+        if speed is not None:
+            speed = state.extra["speed"]
+    n = state.n if rows is None else history.shape[0]
+    want = (n, fitted.window + 1, fitted.n_free)
     if history.shape != want:
         raise ValueError(f"tree.transition: history has shape {history.shape}, expected {want}")
-    return history
+    if speed is not None:
+        speed = np.asarray(speed, dtype=np.float64)
+        if speed.shape != (n,) or not np.all(speed > 0):
+            raise ValueError(
+                f"tree.transition: 'speed' must be ({n},) positive numbers, got shape {speed.shape}"
+            )
+    return _Particles(history, speed, rows)
 
 
 def transition(fitted: TreeParams, state: ParticleState, rng: np.random.Generator) -> ParticleState:
@@ -1626,14 +1663,20 @@ def transition(fitted: TreeParams, state: ParticleState, rng: np.random.Generato
     Returns:
         The moved particles, history shifted by one frame.
     """
-    history = _history_of(fitted, state)
     lay = _layout(fitted.free)
-    speed = _speed_of(fitted, state, lay)
+    history, speed, rows = _particles(fitted, state, lay)
     # A particle with a speed is searched at the database's pace (its own
     # path slowed or sped up to it), then walks the chosen step at its own.
+    # Resampled particles are searched with the coefficients of the rows they
+    # were drawn from: each row's coefficients are its own (the product's rows
+    # do not mix), so they are the ones the gathered rows would give, and the
+    # histories are never copied (:meth:`ParticleState.take`).
     c = _search_coefficients(fitted, history, speed, lay)
+    if rows is not None:
+        c = c[rows]
+        speed = None if speed is None else speed[rows]
     chosen = sample_windows(fitted, c, rng)
-    pose, new_history = _replay(fitted, state, history, chosen, speed, lay, rng)
+    pose, new_history = _replay(fitted, state, history, rows, chosen, speed, lay, rng)
     extra: dict[str, NDArray[Any]] = {"history": new_history, "window": chosen}
     if speed is not None:
         if fitted.speed_drift > 0:
@@ -1646,6 +1689,7 @@ def _replay(
     fitted: TreeParams,
     state: ParticleState,
     history: NDArray[Any],
+    rows: IntArray | None,
     chosen: IntArray,
     speed: FloatArray | None,
     lay: _Layout,
@@ -1653,13 +1697,18 @@ def _replay(
 ) -> tuple[FloatArray, NDArray[Any]]:
     """What followed the chosen windows, replayed from the particles' poses, and the histories.
 
+    ``history``: the particles' histories, or with ``rows`` the histories
+    particle ``p`` has row ``rows[p]`` of.
+
     Returns:
         ``(N, D)`` the new poses (with the noise) and ``(N, d + 1, D)`` the
         histories moved up a frame, the new pose last.
     """
-    done = _replay_compiled(fitted, state.pose, history, chosen, speed, lay, rng)
+    done = _replay_compiled(fitted, state.pose, history, rows, chosen, speed, lay, rng)
     if done is not None:
         return done
+    if rows is not None:
+        history = _rows(history, rows)
     step = _rows(fitted.next_step, chosen)
     if fitted.replay == "velocity" and lay.absolute.size:
         # Joint angles move by the database's velocity: next = own pose + (next - last).
@@ -1681,8 +1730,8 @@ def _replay(
 
 
 def _replay_compiled(
-    fitted: TreeParams, pose: FloatArray, history: NDArray[Any], chosen: IntArray,
-    speed: FloatArray | None, lay: _Layout, rng: np.random.Generator,
+    fitted: TreeParams, pose: FloatArray, history: NDArray[Any], rows: IntArray | None,
+    chosen: IntArray, speed: FloatArray | None, lay: _Layout, rng: np.random.Generator,
 ) -> tuple[FloatArray, NDArray[Any]] | None:  # fmt: skip
     """:func:`_replay` in one compiled pass (the same numbers), or None where it does not run.
 
@@ -1712,26 +1761,8 @@ def _replay_compiled(
         lay.relative_mask,
         heading,
         history,
+        rows,
     )
-
-
-def _speed_of(fitted: TreeParams, state: ParticleState, lay: _Layout) -> FloatArray | None:
-    """The particles' speeds, or None where the prior gives them none."""
-    if not _has_speed(fitted, lay):
-        return None
-    try:
-        speed = np.asarray(state.extra["speed"], dtype=np.float64)
-    except KeyError:
-        raise ValueError(
-            "tree.transition: the prior has a speed_spread but the particles carry no "
-            "'speed'; start them with tree.initial of this prior"
-        ) from None
-    if speed.shape != (state.n,) or not np.all(speed > 0):
-        raise ValueError(
-            f"tree.transition: 'speed' must be ({state.n},) positive numbers, got shape "
-            f"{speed.shape}"
-        )
-    return speed
 
 
 def synthesize(

@@ -290,3 +290,57 @@ def test_the_compiled_replay_is_the_numpy_paths(walker, variant, n, monkeypatch)
         assert got.extra[key].dtype == want.extra[key].dtype
         np.testing.assert_array_equal(got.extra[key], want.extra[key])
     assert got_rng.random() == want_rng.random()
+
+
+@pytest.mark.parametrize("kernels", [True, False])
+@pytest.mark.parametrize("variant", ["plain", "speed", "float64 history", "arm"])
+def test_resampled_particles_move_as_their_copies_would(walker, variant, kernels, monkeypatch):
+    # After ParticleState.take the transition searches with the coefficients of
+    # the rows the particles were drawn from and reads their histories where
+    # they lie (never copying them): the same particles, bit for bit, as from
+    # histories gathered first, and the generator left at the same place.
+    from humotion_gym import _kernels
+    from humotion_gym.filtering import deferred_rows, systematic_resample
+
+    if kernels and not _kernels.enabled():
+        pytest.skip("the compiled kernels are off (numba missing or HUMOTION_NUMBA=0)")
+    if not kernels:
+        monkeypatch.setattr(_kernels, "ENABLED", False)
+    prior = tree.fit([walker], free=ARM if variant == "arm" else None, noise_scale=0.5)
+    if variant == "speed":
+        prior = prior.with_settings(speed_spread=0.4, speed_drift=0.1)
+    rng = np.random.default_rng(4)
+    n = 700
+    state = tree.initial(prior, prior.frames[60] if variant == "arm" else start_pose(prior), n, rng)
+    state = tree.transition(prior, state, rng)
+    if variant == "float64 history":
+        wide = state.extra["history"].astype(np.float64)
+        state = ParticleState(state.pose, {**state.extra, "history": wide})
+    weights = rng.random(n) ** 8
+    index = systematic_resample(weights / weights.sum(), rng)
+    taken = state.take(index)
+    copied = ParticleState(taken.pose, {k: v[index] for k, v in state.extra.items()})
+    got_rng, want_rng = np.random.default_rng(7), np.random.default_rng(7)
+    got = tree.transition(prior, taken, got_rng)
+    assert deferred_rows(taken.extra, "history")[1] is not None  # read through the rows
+    want = tree.transition(prior, copied, want_rng)
+    np.testing.assert_array_equal(got.pose, want.pose)
+    assert set(got.extra) == set(want.extra)
+    for key in want.extra:
+        assert got.extra[key].dtype == want.extra[key].dtype
+        np.testing.assert_array_equal(got.extra[key], want.extra[key])
+    assert got_rng.random() == want_rng.random()
+    # Fewer particles than rows behind them, or a speed already read: the
+    # histories are gathered first, with the same result.
+    few = state.take(index[:50])
+    np.testing.assert_array_equal(
+        tree.transition(prior, few, np.random.default_rng(7)).pose,
+        tree.transition(prior, copied.take(np.arange(50)), np.random.default_rng(7)).pose,
+    )
+    if variant == "speed":
+        again = state.take(index)
+        np.testing.assert_array_equal(again.extra["speed"], state.extra["speed"][index])
+        np.testing.assert_array_equal(
+            tree.transition(prior, again, np.random.default_rng(7)).pose, want.pose
+        )
+        assert deferred_rows(again.extra, "history")[1] is None
