@@ -318,6 +318,10 @@ def test_resampled_particles_move_as_their_copies_would(walker, variant, kernels
         state = ParticleState(state.pose, {**state.extra, "history": wide})
     weights = rng.random(n) ** 8
     index = systematic_resample(weights / weights.sum(), rng)
+    flat = state.extra["history"].reshape(n, -1)
+    product = flat @ prior.projection.astype(flat.dtype)
+    if not np.array_equal(flat[index] @ prior.projection.astype(flat.dtype), product[index]):
+        pytest.skip("this BLAS gives a row of a product other bits where the row sits elsewhere")
     taken = state.take(index)
     copied = ParticleState(taken.pose, {k: v[index] for k, v in state.extra.items()})
     got_rng, want_rng = np.random.default_rng(7), np.random.default_rng(7)
