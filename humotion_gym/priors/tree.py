@@ -1669,8 +1669,9 @@ def transition(fitted: TreeParams, state: ParticleState, rng: np.random.Generato
     # path slowed or sped up to it), then walks the chosen step at its own.
     # Resampled particles are searched with the coefficients of the rows they
     # were drawn from: each row's coefficients are its own (the product's rows
-    # do not mix), so they are the ones the gathered rows would give, and the
-    # histories are never copied (:meth:`ParticleState.take`).
+    # do not mix; OpenBLAS gives each row the same bits wherever it sits), so
+    # they are the ones the gathered rows would give, and the histories are
+    # never copied (:meth:`ParticleState.take`).
     c = _search_coefficients(fitted, history, speed, lay)
     if rows is not None:
         c = c[rows]
