@@ -121,6 +121,30 @@ class _Gathered(Mapping[str, NDArray[Any]]):
         return f"_Gathered({list(self.source)}, {self.rows.size} rows)"
 
 
+def select(
+    extra: Mapping[str, NDArray[Any]], prefix: str = "", rows: NDArray[np.intp] | None = None
+) -> Mapping[str, NDArray[Any]]:
+    """The arrays whose keys start with ``prefix``, the prefix dropped, at ``rows`` when given.
+
+    ``select(extra, "p/", rows)[key]`` is ``extra["p/" + key][rows]``. A
+    composite prior (one made of others, each keeping its memory under a
+    prefix) hands its parts their arrays this way: what resampling deferred
+    stays deferred, the rows composed, so a part that reads through the rows
+    (:func:`deferred_rows`) never copies them, and one that does not gathers
+    each array once.
+    """
+    cut = len(prefix)
+    if isinstance(extra, _Gathered):
+        source = {k[cut:]: v for k, v in extra.source.items() if k.startswith(prefix)}
+        if rows is None:
+            out = _Gathered(source, extra.rows)
+            out._taken = {k[cut:]: v for k, v in extra._taken.items() if k.startswith(prefix)}
+            return out
+        return _Gathered(source, extra.rows[rows])
+    own = {k[cut:]: v for k, v in extra.items() if k.startswith(prefix)}
+    return own if rows is None else _Gathered(own, np.asarray(rows, dtype=np.intp))
+
+
 def deferred_rows(
     extra: Mapping[str, NDArray[Any]], key: str
 ) -> tuple[NDArray[Any], NDArray[np.intp] | None]:

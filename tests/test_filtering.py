@@ -229,3 +229,30 @@ def test_resampled_arrays_are_gathered_when_read_and_only_once() -> None:
     assert ParticleState(taken.pose + 1.0, taken.extra).n == 10
     assert state.take(np.array([], np.intp)).n == 0
     assert ParticleState(state.pose).take(index).extra == {}
+
+
+def test_a_composite_priors_parts_get_their_arrays_with_the_rows_composed() -> None:
+    rng = np.random.default_rng(3)
+    extra = {"a/h": rng.normal(size=(30, 2, 2)), "a/w": np.arange(30), "b/h": np.arange(30.0)}
+    state = ParticleState(rng.normal(size=(30, 2)), extra)
+    plain = filtering.select(state.extra, "a/")
+    assert sorted(plain) == ["h", "w"] and plain["w"] is extra["a/w"]
+    rows = np.array([5, 5, 0, 29])
+    picked = filtering.select(state.extra, "a/", rows)
+    np.testing.assert_array_equal(picked["h"], extra["a/h"][rows])
+    assert sorted(filtering.select(state.extra, "")) == sorted(extra)
+    # After a resampling the rows compose, nothing is gathered until read,
+    # and what was read already is handed on as it is.
+    index = np.array([29, 3, 3, 7, 0, 12])
+    taken = state.take(index)
+    read = taken.extra["a/w"]
+    part = filtering.select(taken.extra, "a/")
+    assert part["w"] is read
+    source, deferred = filtering.deferred_rows(part, "h")
+    assert source is extra["a/h"]
+    np.testing.assert_array_equal(deferred, index)
+    sub = filtering.select(taken.extra, "a/", np.array([1, 0]))
+    source, deferred = filtering.deferred_rows(sub, "h")
+    np.testing.assert_array_equal(deferred, index[[1, 0]])
+    np.testing.assert_array_equal(sub["w"], np.arange(30)[index][[1, 0]])
+    assert sorted(filtering.select(taken.extra, "b/")) == ["h"]

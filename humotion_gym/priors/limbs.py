@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from humotion_gym.body import PARAM_INDEX
-from humotion_gym.filtering import ParticleState
+from humotion_gym.filtering import ParticleState, select
 from humotion_gym.priors import tree
 from humotion_gym.priors.tree import TreeParams
 
@@ -155,8 +155,7 @@ def _key(name: str, key: str) -> str:
 
 def _part_state(fitted: LimbsParams, g: int, state: ParticleState) -> ParticleState:
     """Part ``g``'s view of the particles: its columns and its own memory, unprefixed."""
-    prefix = f"{fitted.names[g]}/"
-    own = {k[len(prefix) :]: v for k, v in state.extra.items() if k.startswith(prefix)}
+    own = select(state.extra, f"{fitted.names[g]}/")  # what resampling deferred stays deferred
     return ParticleState(state.pose[:, fitted.columns[g]], own)
 
 

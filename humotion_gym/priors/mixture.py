@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from humotion_gym.filtering import ParticleState
+from humotion_gym.filtering import ParticleState, deferred_rows, select
 
 FloatArray = NDArray[np.float64]
 NAME = "mixture"
@@ -145,9 +145,8 @@ def _key(c: int, key: str) -> str:
 
 def _memory(state: ParticleState, c: int, rows: NDArray[np.intp]) -> ParticleState:
     """Component ``c``'s view of the particles at ``rows``: its own memory, unprefixed."""
-    prefix = f"{c}/"
-    own = {k[len(prefix) :]: v[rows] for k, v in state.extra.items() if k.startswith(prefix)}
-    return ParticleState(state.pose[rows], own)
+    # The rows composed with any resampling's: each array gathered once, when read.
+    return ParticleState(state.pose[rows], select(state.extra, f"{c}/", rows))
 
 
 def initial(
@@ -192,7 +191,11 @@ def transition(
     if keep is not None and COMPONENT in state.extra:
         pick = np.where(keep, state.extra[COMPONENT], pick)
     pose = np.empty_like(state.pose)
-    extra = {key: np.empty_like(value) for key, value in state.extra.items() if key != COMPONENT}
+    extra = {}
+    for key in state.extra:
+        if key != COMPONENT:  # the shapes of the arrays, without gathering them
+            value = deferred_rows(state.extra, key)[0]
+            extra[key] = np.empty((state.n,) + value.shape[1:], value.dtype)
     for c, (module, params) in enumerate(zip(fitted.modules, fitted.fitted, strict=True)):
         rows = np.flatnonzero(pick == c)
         if rows.size == 0:

@@ -52,6 +52,17 @@ def test_prior_contract(name, walks, tmp_path):
     # resampling is one fancy index over every per-particle array
     taken = s1.take(np.zeros(64, dtype=np.intp))
     assert np.all(taken.pose == s1.pose[0])
+    # Resampled particles move as copies of their rows would (the arrays the
+    # take deferred read through the rows, or gathered), bit for bit.
+    index = np.sort(np.random.default_rng(9).integers(0, 64, 64))
+    deferred = s1.take(index)
+    copies = ParticleState(s1.pose[index], {k: v[index] for k, v in s1.extra.items()})
+    moved = prior.transition(fitted, deferred, np.random.default_rng(6))
+    want = prior.transition(fitted, copies, np.random.default_rng(6))
+    np.testing.assert_array_equal(moved.pose, want.pose)
+    assert set(moved.extra) == set(want.extra)
+    for key in want.extra:
+        np.testing.assert_array_equal(moved.extra[key], want.extra[key])
     pf = ParticleFilter(prior, fitted, Gaussian(walks[0].params[41, SAGITTAL]), 64)
     pf.reset(pose, np.random.default_rng(0))
     for _ in range(3):
