@@ -1,6 +1,6 @@
 """The batched vector environment against Gymnasium's sync vector env, in the same run.
 
-Run: python benchmarks/bench_vector.py [--num-envs 16] [--task BodyTrack-v1] [--ppo-steps 4096]
+Run: python benchmarks/bench_vector.py [--num-envs 16] [--task BodyTrack-v1] [--ppo-rounds 20]
 
 Both run N episodes of the same task from the same seeds (the two give the
 same results, ``tests/envs/test_vector_env.py``), stepping with actions drawn
@@ -12,8 +12,8 @@ lost (five frames in) and resets are frequent; and the 30-frame episodes of
 
 Then PPO (stable-baselines3, 8 envs, as ``humotion-gym train`` runs it) on the
 vector env through :class:`humotion_gym.sb3.LearnerVecEnv`, against the same
-PPO on a trivial environment with identical spaces, in paired rounds (see
-:func:`ppo_rows`).
+PPO on a trivial environment with identical spaces, taking turns a rollout at a
+time (see :func:`ppo_rows`).
 """
 
 from __future__ import annotations
@@ -79,7 +79,7 @@ def rows(task: str = "BodyTrack-v1", num_envs: int = 16) -> list[tuple[str, floa
 
 
 def ppo_rows(
-    task: str = "BodyTrack-v1", n_envs: int = 8, steps: int = 4096, rounds: int = 5
+    task: str = "BodyTrack-v1", n_envs: int = 8, rounds: int = 20, block: int = 5
 ) -> list[tuple[str, float, str, float]]:
     """PPO env steps per second on the vector env (through :class:`LearnerVecEnv`).
 
@@ -89,14 +89,16 @@ def ppo_rows(
     and, for comparison, on today's ``DummyVecEnv`` of ``LearnerObservation``
     environments.
 
-    PPO's own work is about 95% of a step and moves by several per cent
-    between rounds as the machine's load does, so separate best-of timings of
-    the three scatter their ratios by several hundredths. Here the three run
-    in ``rounds`` rounds of ``steps`` env steps each, one after the other
-    (the order reversed every other round); each round's ratio is taken
-    against the trivial environment's time in the same round, and the row
-    gives the median ratio (its range over the rounds in the label) and the
-    median rate.
+    PPO's own work is about 95% of a step and the machine's speed moves by
+    several per cent over seconds, so timings of the three taken apart scatter
+    their ratios by several hundredths. Here the three take turns a rollout at
+    a time: ``rounds`` rounds, each one PPO iteration per environment (a
+    rollout of ``n_steps`` steps in each of the ``n_envs`` environments and
+    the training on it), the order rotated every round so each environment
+    runs first, second and third equally often. A slow stretch of the machine
+    then falls on all three alike. The ratio is the trivial environment's
+    summed time over the environment's; the label gives its range over blocks
+    of ``block`` consecutive rounds.
     """
     import torch as th
     from bench_rl import TrivialEnv
@@ -119,24 +121,32 @@ def ppo_rows(
     }
     models = {}
     for name, venv in venvs.items():
-        config = TrainConfig("ppo", task, steps, settings={"n_envs": n_envs})
+        config = TrainConfig("ppo", task, rounds * 1024, settings={"n_envs": n_envs})
         models[name] = new_model(config, venv)
         models[name].learn(models[name].n_steps * n_envs)  # warm-up
-    rates: dict[str, list[float]] = {name: [] for name in venvs}
+    iteration = models["trivial"].n_steps * n_envs  # one rollout and its training
+    times: dict[str, list[float]] = {name: [] for name in venvs}
     order = list(models)
     for r in range(rounds):
-        for name in order if r % 2 == 0 else order[::-1]:
+        turn = order[r % len(order) :] + order[: r % len(order)]
+        for name in turn if (r // len(order)) % 2 == 0 else turn[::-1]:
             t0 = time.perf_counter()
-            models[name].learn(steps, reset_num_timesteps=False)
-            rates[name].append(steps / (time.perf_counter() - t0))
+            models[name].learn(iteration, reset_num_timesteps=False)
+            times[name].append(time.perf_counter() - t0)
+    spent = {name: np.array(t) for name, t in times.items()}
     ref = f"PPO on a trivial env with {task}'s learner spaces, {n_envs} envs"
-    out = [(ref, float(np.median(rates["trivial"])), ref, 1.0)]
+    out = [(ref, rounds * iteration / float(spent["trivial"].sum()), ref, 1.0)]
+    blocks = [slice(lo, lo + block) for lo in range(0, rounds - block + 1, block)] or [slice(None)]
     for name, label in (("vector", "the vector env"), ("dummy", "DummyVecEnv")):
-        ratios = np.array(rates[name]) / np.array(rates["trivial"])
-        spread = f"median of {rounds} paired rounds, {ratios.min():.2f}-{ratios.max():.2f}"
+        ratio = float(spent["trivial"].sum() / spent[name].sum())
+        parts = [spent["trivial"][b].sum() / spent[name][b].sum() for b in blocks]
+        spread = (
+            f"{rounds} rotated rounds of one rollout each; blocks of {block}: "
+            f"{min(parts):.2f}-{max(parts):.2f}"
+        )
         out.append((
-            f"PPO on {label}, {n_envs} x {task} ({spread})", float(np.median(rates[name])), ref,
-            float(np.median(ratios)),
+            f"PPO on {label}, {n_envs} x {task} ({spread})",
+            rounds * iteration / float(spent[name].sum()), ref, ratio,
         ))  # fmt: skip
     return out
 
@@ -145,12 +155,14 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--num-envs", type=int, default=16)
     ap.add_argument("--task", default="BodyTrack-v1")
-    ap.add_argument("--ppo-steps", type=int, default=4096, help="PPO env steps timed (0: skip)")
+    ap.add_argument(
+        "--ppo-rounds", type=int, default=20, help="PPO rounds of one rollout each (0: skip)"
+    )
     args = ap.parse_args()
     t0 = time.perf_counter()
     measured = rows(args.task, args.num_envs)
-    if args.ppo_steps:
-        measured += ppo_rows(args.task, 8, args.ppo_steps)
+    if args.ppo_rounds:
+        measured += ppo_rows(args.task, 8, args.ppo_rounds)
     print(f"{'vector environment':78s} {'env steps/s':>11s} {'ratio':>7s}")
     for name, value, _, ratio in measured:
         print(f"{name:78s} {value:11,.0f} {ratio:7.2f}")

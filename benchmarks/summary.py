@@ -248,7 +248,7 @@ BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark(
         "bench_vector",
         _json_rows("env steps/s"),
-        rows_call=("rows() + ppo_rows()", "rows() + ppo_rows(steps=1024, rounds=4)"),
+        rows_call=("rows() + ppo_rows()", "rows() + ppo_rows(rounds=6, block=3)"),
     ),
     Benchmark("bench_render", _read_render),
     Benchmark("bench_observation", _read_observation),
