@@ -1,6 +1,6 @@
 """The batched vector environment against Gymnasium's sync vector env, in the same run.
 
-Run: python benchmarks/bench_vector.py [--num-envs 16] [--task BodyTrack-v1] [--ppo-rounds 20]
+Run: python benchmarks/bench_vector.py [--num-envs 16] [--task BodyTrack-v1] [--ppo-rounds 18]
 
 Both run N episodes of the same task from the same seeds (the two give the
 same results, ``tests/envs/test_vector_env.py``), stepping with actions drawn
@@ -79,7 +79,7 @@ def rows(task: str = "BodyTrack-v1", num_envs: int = 16) -> list[tuple[str, floa
 
 
 def ppo_rows(
-    task: str = "BodyTrack-v1", n_envs: int = 8, rounds: int = 20, block: int = 5
+    task: str = "BodyTrack-v1", n_envs: int = 8, rounds: int = 18, block: int = 6
 ) -> list[tuple[str, float, str, float]]:
     """PPO env steps per second on the vector env (through :class:`LearnerVecEnv`).
 
@@ -94,9 +94,10 @@ def ppo_rows(
     their ratios by several hundredths. Here the three take turns a rollout at
     a time: ``rounds`` rounds, each one PPO iteration per environment (a
     rollout of ``n_steps`` steps in each of the ``n_envs`` environments and
-    the training on it), the order rotated every round so each environment
-    runs first, second and third equally often. A slow stretch of the machine
-    then falls on all three alike. The ratio is the trivial environment's
+    the training on it), the order rotated every round and reversed in every
+    other run of three rounds, so that in six rounds each environment runs
+    first, second and third, after each of the others. A slow stretch of the
+    machine then falls on all three alike. The ratio is the trivial environment's
     summed time over the environment's; the label gives its range over blocks
     of ``block`` consecutive rounds.
     """
@@ -156,7 +157,7 @@ def main() -> None:
     ap.add_argument("--num-envs", type=int, default=16)
     ap.add_argument("--task", default="BodyTrack-v1")
     ap.add_argument(
-        "--ppo-rounds", type=int, default=20, help="PPO rounds of one rollout each (0: skip)"
+        "--ppo-rounds", type=int, default=18, help="PPO rounds of one rollout each (0: skip)"
     )
     args = ap.parse_args()
     t0 = time.perf_counter()
