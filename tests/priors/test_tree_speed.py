@@ -32,6 +32,15 @@ def at_database_pace(history: np.ndarray, speed: np.ndarray) -> np.ndarray:
     return out
 
 
+def assert_same_particles(got: ParticleState, want: ParticleState) -> None:
+    """The same poses and per-particle arrays (keys, dtypes, values), bit for bit."""
+    np.testing.assert_array_equal(got.pose, want.pose)
+    assert set(got.extra) == set(want.extra)
+    for key in want.extra:
+        assert got.extra[key].dtype == want.extra[key].dtype
+        np.testing.assert_array_equal(got.extra[key], want.extra[key])
+
+
 def start_pose(prior: tree.TreeParams) -> np.ndarray:
     pose = prior.frames[60].copy()
     pose[ROOT_X], pose[ROOT_Y] = 1000.0, -2000.0
@@ -284,11 +293,7 @@ def test_the_compiled_replay_is_the_numpy_paths(walker, variant, n, monkeypatch)
     assert sorted(ran) == ["leaf_choice", "tree_descend", "tree_replay"]
     monkeypatch.setattr(_kernels, "ENABLED", False)
     want = tree.transition(prior, state, want_rng)
-    np.testing.assert_array_equal(got.pose, want.pose)
-    assert set(got.extra) == set(want.extra)
-    for key in want.extra:
-        assert got.extra[key].dtype == want.extra[key].dtype
-        np.testing.assert_array_equal(got.extra[key], want.extra[key])
+    assert_same_particles(got, want)
     assert got_rng.random() == want_rng.random()
 
 
@@ -328,11 +333,7 @@ def test_resampled_particles_move_as_their_copies_would(walker, variant, kernels
     got = tree.transition(prior, taken, got_rng)
     assert deferred_rows(taken.extra, "history")[1] is not None  # read through the rows
     want = tree.transition(prior, copied, want_rng)
-    np.testing.assert_array_equal(got.pose, want.pose)
-    assert set(got.extra) == set(want.extra)
-    for key in want.extra:
-        assert got.extra[key].dtype == want.extra[key].dtype
-        np.testing.assert_array_equal(got.extra[key], want.extra[key])
+    assert_same_particles(got, want)
     assert got_rng.random() == want_rng.random()
     # Fewer particles than rows behind them, or a speed already read: the
     # histories are gathered first, with the same result.
