@@ -1632,12 +1632,15 @@ def _particles(fitted: TreeParams, state: ParticleState, lay: _Layout) -> _Parti
                 "tree.transition: the prior has a speed_spread but the particles carry no "
                 "'speed'; start them with tree.initial of this prior"
             ) from None
-    if rows is not None and (
-        (speed is not None and speed_rows is not rows) or history.shape[0] > rows.size
-    ):
-        # Read apart, or more rows behind than particles: gather them now.
-        history, rows = state.extra["history"], None
-        if speed is not None:
+    deferred = (
+        rows is not None and (speed is None or speed_rows is rows) and history.shape[0] <= rows.size
+    )
+    if not deferred:
+        # Not both deferred together, or more rows behind than particles: the
+        # particles' own arrays (gathered now where they were deferred).
+        if rows is not None:
+            history, rows = state.extra["history"], None
+        if speed_rows is not None:
             speed = state.extra["speed"]
     n = state.n if rows is None else history.shape[0]
     want = (n, fitted.window + 1, fitted.n_free)

@@ -349,3 +349,10 @@ def test_resampled_particles_move_as_their_copies_would(walker, variant, kernels
             tree.transition(prior, again, np.random.default_rng(7)).pose, want.pose
         )
         assert deferred_rows(again.extra, "history")[1] is None
+        # The other way round: the histories read, the speeds still deferred.
+        other = state.take(index)
+        np.testing.assert_array_equal(other.extra["history"], state.extra["history"][index])
+        assert deferred_rows(other.extra, "speed")[1] is not None
+        np.testing.assert_array_equal(
+            tree.transition(prior, other, np.random.default_rng(7)).pose, want.pose
+        )
