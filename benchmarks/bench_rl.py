@@ -1,14 +1,17 @@
 """Learned trackers: what the environment costs PPO, and bc against pf-tree.
 
-Run: python benchmarks/bench_rl.py [--data-dir ../shared/mocap] [--steps 4096]
+Run: python benchmarks/bench_rl.py [--data-dir ../shared/mocap] [--rounds 12]
 
 Three ratios, each against a reference measured in the same run:
 
 1. PPO training throughput (env steps per second, rollouts and updates) on
    BodyTrack-v1 through LearnerObservation, over the same PPO on a trivial
    environment with identical spaces (constant observation, zero reward):
-   the share of training time the environment leaves to learning (the issue
-   asks for at least 0.9).
+   the share of training time the environment leaves to learning. An earlier
+   issue asked at least 0.9 of this path; ``humotion-gym train`` now runs
+   PPO on the batched vector environment instead, which ``bench_vector.py``
+   times against the same reference. The two take turns a rollout at a time
+   (:func:`ppo_turns`).
 2. bc training: supervised samples per second (Adam steps on minibatches of
    128, as ``train_bc`` takes them) and rollout steps per second.
 3. Inference: a saved bc policy's milliseconds per frame against pf-tree's at
@@ -64,23 +67,49 @@ class TrivialEnv(gym.Env):
         return {k: v.copy() for k, v in self._obs.items()}, 0.0, False, self._k >= self.frames, {}
 
 
-def ppo_rate(make_env: Any, steps: int, n_envs: int) -> float:
-    from stable_baselines3.common.vec_env import DummyVecEnv
+def ppo_turns(
+    venvs: dict[str, Any], task: str, n_envs: int, rounds: int
+) -> tuple[dict[str, np.ndarray], int]:
+    """Each environment's PPO iteration times, the environments taking turns.
 
-    venv = DummyVecEnv([make_env] * n_envs)
-    config = TrainConfig("ppo", "BodyTrack-v1", steps, settings={"n_envs": n_envs})
-    model = new_model(config, venv)
-    model.learn(model.n_steps * n_envs)  # warm-up: lazy imports, first allocations
-    t0 = time.perf_counter()
-    model.learn(steps, reset_num_timesteps=False)
-    return steps / (time.perf_counter() - t0)
+    The same PPO (``baselines.rl.new_model``: 64x64 frames, one torch thread)
+    on each of ``venvs``. PPO's own work is most of a step, and this machine's
+    speed moves by several per cent over seconds (one environment's iterations
+    took 1.07-1.39 s within a minute), so timings of the environments taken
+    apart scatter their ratios by several hundredths. Here they take turns an
+    iteration at a time (a rollout of ``n_steps`` steps in each of the
+    ``n_envs`` environments and the training on it): ``rounds`` rounds, the
+    order rotated every round and reversed in every other run of as many
+    rounds as there are environments, so that a slow stretch of the machine
+    falls on all of them alike.
+
+    Returns:
+        ``(times, steps)``: each environment's ``(rounds,)`` iteration times in
+        seconds, and the env steps of an iteration.
+    """
+    models = {}
+    for name, venv in venvs.items():
+        config = TrainConfig("ppo", task, rounds * 1024, settings={"n_envs": n_envs})
+        models[name] = new_model(config, venv)
+        models[name].learn(models[name].n_steps * n_envs)  # warm-up: lazy imports, allocations
+    steps = next(iter(models.values())).n_steps * n_envs  # one rollout and its training
+    times: dict[str, list[float]] = {name: [] for name in models}
+    order = list(models)
+    for r in range(rounds):
+        turn = order[r % len(order) :] + order[: r % len(order)]
+        for name in turn if (r // len(order)) % 2 == 0 else turn[::-1]:
+            t0 = time.perf_counter()
+            models[name].learn(steps, reset_num_timesteps=False)
+            times[name].append(time.perf_counter() - t0)
+    return {name: np.array(t) for name, t in times.items()}, steps
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--data-dir", default=None)
-    ap.add_argument("--steps", type=int, default=4096, help="PPO env steps timed per env")
-    ap.add_argument("--repeats", type=int, default=3, help="PPO timings of each, alternated")
+    ap.add_argument(
+        "--rounds", type=int, default=12, help="PPO rounds of one rollout per env, in turns"
+    )
     ap.add_argument("--updates", type=int, default=40, help="bc Adam steps timed")
     ap.add_argument("--episodes", type=int, default=3, help="episodes for inference timing")
     args = ap.parse_args()
@@ -97,13 +126,16 @@ def main() -> None:
     def trivial() -> gym.Env:
         return TrivialEnv(probe.observation_space, probe.action_space, frames)
 
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
     n_envs = 8
-    # alternate the two, best of each: the run least disturbed by other work
-    rate_trivial = rate_env = 0.0
-    for _ in range(args.repeats):
-        rate_trivial = max(rate_trivial, ppo_rate(trivial, args.steps, n_envs))
-        rate_env = max(rate_env, ppo_rate(learner, args.steps, n_envs))
-    print(f"PPO on {task} (n_envs {n_envs}, 64x64 frames, one torch thread)")
+    venvs = {"trivial": DummyVecEnv([trivial] * n_envs), "env": DummyVecEnv([learner] * n_envs)}
+    times, steps = ppo_turns(venvs, task, n_envs, args.rounds)
+    rate_trivial, rate_env = (args.rounds * steps / float(times[k].sum()) for k in venvs)
+    print(
+        f"PPO on {task} (n_envs {n_envs}, 64x64 frames, one torch thread; {args.rounds} "
+        "rounds of one rollout each, in turns)"
+    )
     print(f"  trivial env with identical spaces: {rate_trivial:8.0f} env steps/s (reference)")
     print(f"  {task}:                     {rate_env:8.0f} env steps/s")
     print(f"  ratio: {rate_env / rate_trivial:.2f} (the environment's share: "

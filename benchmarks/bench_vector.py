@@ -89,23 +89,17 @@ def ppo_rows(
     and, for comparison, on today's ``DummyVecEnv`` of ``LearnerObservation``
     environments.
 
-    PPO's own work is about 95% of a step and the machine's speed moves by
-    several per cent over seconds, so timings of the three taken apart scatter
-    their ratios by several hundredths. Here the three take turns a rollout at
-    a time: ``rounds`` rounds, each one PPO iteration per environment (a
-    rollout of ``n_steps`` steps in each of the ``n_envs`` environments and
-    the training on it), the order rotated every round and reversed in every
-    other run of three rounds, so that in six rounds each environment runs
-    first, second and third, after each of the others. A slow stretch of the
-    machine then falls on all three alike. The ratio is the trivial environment's
-    summed time over the environment's; the label gives its range over blocks
-    of ``block`` consecutive rounds.
+    The three take turns a rollout at a time (``bench_rl.ppo_turns``):
+    ``rounds`` rounds of one PPO iteration each; in six rounds each
+    environment runs first, second and third, after each of the others. The
+    ratio is the trivial environment's summed time over the environment's;
+    the label gives its range over blocks of ``block`` consecutive rounds.
     """
     import torch as th
-    from bench_rl import TrivialEnv
+    from bench_rl import TrivialEnv, ppo_turns
     from stable_baselines3.common.vec_env import DummyVecEnv
 
-    from baselines.rl import TrainConfig, make_learner_env, new_model
+    from baselines.rl import make_learner_env
     from humotion_gym.sb3 import learner_vec_env
 
     th.set_num_threads(1)
@@ -120,21 +114,7 @@ def ppo_rows(
         "vector": batched,
         "dummy": DummyVecEnv([lambda: make_learner_env(task, "train", 64)] * n_envs),
     }
-    models = {}
-    for name, venv in venvs.items():
-        config = TrainConfig("ppo", task, rounds * 1024, settings={"n_envs": n_envs})
-        models[name] = new_model(config, venv)
-        models[name].learn(models[name].n_steps * n_envs)  # warm-up
-    iteration = models["trivial"].n_steps * n_envs  # one rollout and its training
-    times: dict[str, list[float]] = {name: [] for name in venvs}
-    order = list(models)
-    for r in range(rounds):
-        turn = order[r % len(order) :] + order[: r % len(order)]
-        for name in turn if (r // len(order)) % 2 == 0 else turn[::-1]:
-            t0 = time.perf_counter()
-            models[name].learn(iteration, reset_num_timesteps=False)
-            times[name].append(time.perf_counter() - t0)
-    spent = {name: np.array(t) for name, t in times.items()}
+    spent, iteration = ppo_turns(venvs, task, n_envs, rounds)
     ref = f"PPO on a trivial env with {task}'s learner spaces, {n_envs} envs"
     out = [(ref, rounds * iteration / float(spent["trivial"].sum()), ref, 1.0)]
     blocks = [slice(lo, lo + block) for lo in range(0, rounds - block + 1, block)] or [slice(None)]

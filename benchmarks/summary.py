@@ -268,7 +268,7 @@ BENCHMARKS: tuple[Benchmark, ...] = (
         "bench_rl",
         _read_rl,
         data_dir=True,
-        quick=("--steps", "1024", "--repeats", "1", "--episodes", "1"),
+        quick=("--rounds", "4", "--episodes", "1"),
     ),  # fmt: skip
     Benchmark(
         "bench_leaderboard",
