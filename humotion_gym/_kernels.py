@@ -13,6 +13,8 @@ themselves off with a ``RuntimeWarning`` and the numpy paths run.
 
 The kernels, in the order the likelihood runs them:
 
+- :func:`pose_rows`: the poses' bounds check and the kinematics' rows of
+  their parameters, in one pass;
 - :func:`kinematics`: the batched forward kinematics after the sines and
   cosines (those stay numpy's: its float32 ``sin`` and ``cos`` are its own
   SIMD code, which libm's would not match);
@@ -110,6 +112,7 @@ __all__ = [
     "leaf_log_weights",
     "paint_texture",
     "point_costs",
+    "pose_rows",
     "region_sums",
     "residual_sums",
     "spaced_rows",
@@ -326,6 +329,32 @@ def cone_basis(
         cone_start, cone_end, radii, vary_cone, vary_axes, vary_aspect, pad, four_bins, plane,
         uvz, basis, normals, outline,
     )  # fmt: skip
+
+
+def pose_rows(
+    params: NDArray, columns: NDArray[np.intp], out: NDArray[np.float32], limit: float
+) -> bool | None:
+    """Check the poses' bounds and fill the kinematics' parameter rows, in one pass.
+
+    ``params`` ``(N, P)`` C-contiguous float64 or float32; ``out`` ``(R, N)``
+    float32 (spaced rows or contiguous), ``out[r] = params[:, columns[r]]``
+    with numpy's rounding cast, bit for bit.
+
+    Returns:
+        Whether every value lies in ``[-limit, limit]`` (a NaN does not);
+        None (nothing written: numpy is to do both) when the kernels are off
+        or failed, or the arrays are not of that kind.
+    """
+    if (
+        not ENABLED
+        or params.dtype not in (np.float32, np.float64)
+        or not params.flags.c_contiguous
+        or out.dtype != np.float32
+        or out.shape != (columns.size, params.shape[0])
+    ):
+        return None
+    answer = _call("_pose_rows", params, columns, padded_rows(out), float(limit))
+    return None if answer is _FAILED else bool(answer)
 
 
 def kinematics(

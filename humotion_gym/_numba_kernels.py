@@ -315,6 +315,30 @@ def _cone_basis(
 
 
 @_njit()
+def _pose_rows(
+    params: NDArray[Any], columns: NDArray[np.intp], out: NDArray[np.float32], limit: float
+) -> bool:
+    """The scorer's bounds check and the kinematics' parameter rows, in one pass.
+
+    Writes ``out[r, i] = float32(params[i, columns[r]])`` (numpy's rounding
+    cast) and answers whether every value lies in ``[-limit, limit]`` (a NaN
+    does not), as ``-limit <= params.min() and params.max() <= limit`` would.
+    Numpy reads the poses three times for these (two reductions, then the
+    strided copies): at 3,000 poses 53 us in cache and 82 out of it, here 45
+    and 52.
+    """
+    bad = 0
+    for i in range(params.shape[0]):
+        row = params[i]
+        for j in range(row.size):
+            v = row[j]
+            bad += not (v >= -limit and v <= limit)
+        for r in range(columns.size):
+            out[r, i] = np.float32(row[columns[r]])
+    return bad == 0
+
+
+@_njit()
 def _kinematics(
     a: NDArray[np.float32],
     trig: NDArray[np.float32],

@@ -427,6 +427,7 @@ def _batch_kinematics(
     dtype: type,
     want_head_axes: bool = False,
     work: dict[str, NDArray] | None = None,
+    rows_ready: bool = False,
 ) -> _BatchPoses:
     """Keypoints of N poses, component-major ``(3, 15, N)`` in the internal order.
 
@@ -437,6 +438,8 @@ def _batch_kinematics(
         want_head_axes: Also return the head cone's x and y axes.
         work: Optional preallocated buffers ``params (25, N)``, ``trig (2, 22, N)``
             and ``keypoints (3, 15, N)`` of ``dtype`` (to spare the allocator).
+        rows_ready: ``work["params"]`` holds the parameter rows already
+            (``_kernels.pose_rows`` filled them).
 
     Returns:
         The keypoints and the torso's (and head's) cone axes.
@@ -449,13 +452,14 @@ def _batch_kinematics(
             "keypoints": _kernels.spaced_rows((3, N_KEYPOINTS), n, dtype),
         }
     a = work["params"]
-    pt = params.T
     # Rows of a: root (0:6), neck (6:9), then the limbs' x, y, z and hinge
     # angles, each group ordered r_shoulder, l_shoulder, r_hip, l_hip (columns
     # 9 + k, 13 + k, 17 + k, 21 + k of the parameter layout).
-    np.copyto(a[0:9], pt[0:9], casting="unsafe")
-    for k in range(4):
-        np.copyto(a[9 + 4 * k : 13 + 4 * k], pt[9 + k :: 4], casting="unsafe")
+    if not rows_ready:
+        pt = params.T
+        np.copyto(a[0:9], pt[0:9], casting="unsafe")
+        for k in range(4):
+            np.copyto(a[9 + 4 * k : 13 + 4 * k], pt[9 + k :: 4], casting="unsafe")
     c, s = work["trig"]
     np.cos(a[3:], out=c)
     np.sin(a[3:], out=s)

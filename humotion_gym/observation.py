@@ -1379,14 +1379,6 @@ class ObservationModel:
         flat = p.reshape(-1, N_PARAMS)
         if flat.dtype not in (np.float32, np.float64):
             flat = flat.astype(np.float64)
-        # Two reductions over all values first (a NaN fails both tests); the
-        # rows are looked at only when a value is out of bounds.
-        if not flat.size or -POSE_LIMIT <= flat.min() and flat.max() <= POSE_LIMIT:
-            finite = None
-        else:
-            finite = (np.abs(flat) <= POSE_LIMIT).all(axis=1)
-        if finite is not None:
-            flat = np.where(finite[:, None], flat, 0.0)
         width = () if prefixes is None else (prefixes.shape[0] + 1,)
         out = np.empty(flat.shape[:1] + width)
         chunk = _chunk_size(flat.shape[0])
@@ -1394,8 +1386,6 @@ class ObservationModel:
             out[lo : lo + chunk] = self._score(
                 feats, flat[lo : lo + chunk], shape, camera, prefixes
             )
-        if finite is not None:
-            out[~finite] = -np.inf
         return out.reshape(lead + width)
 
     def _score(
@@ -1408,15 +1398,48 @@ class ObservationModel:
     ) -> FloatArray:
         """``(n,)`` log-likelihoods; with ``prefixes``, ``(n, G + 1)``.
 
-        The partial figures' columns: see :meth:`log_likelihood_partial`.
+        The partial figures' columns: see :meth:`log_likelihood_partial`. A
+        pose with a value that is not finite or beyond :data:`POSE_LIMIT`
+        gets ``-inf`` (scored as zeros, then overwritten).
         """
         n = params.shape[0]
+        work = _scratch(n, self._coefficients.shape[0] // 2)
+        # One pass over all values first (a NaN fails it); the rows are looked
+        # at only when a value is out of bounds. With the kernels the same
+        # pass writes the kinematics' parameter rows; numpy's path makes two
+        # reductions here and the kinematics copies the rows.
+        inside = _kernels.pose_rows(params, _PARAM_ROWS, work["params"], POSE_LIMIT)
+        rows_ready = bool(inside)
+        if inside is None:
+            inside = not n or bool(-POSE_LIMIT <= params.min() and params.max() <= POSE_LIMIT)
+        if inside:
+            return self._score_rows(feats, params, shape, camera, prefixes, work, rows_ready)
+        finite = (np.abs(params) <= POSE_LIMIT).all(axis=1)
+        zeroed = np.where(finite[:, None], params, 0.0)
+        out = self._score_rows(feats, zeroed, shape, camera, prefixes, work, False)
+        out[~finite] = -np.inf
+        return out
+
+    def _score_rows(
+        self,
+        feats: FrameFeatures,
+        params: NDArray,
+        shape: BodyShape,
+        camera: Camera,
+        prefixes: NDArray[np.bool_] | None,
+        work: dict[str, NDArray],
+        rows_ready: bool,
+    ) -> FloatArray:
+        """:meth:`_score` of poses within bounds (``rows_ready``: ``work["params"]`` filled)."""
+        n = params.shape[0]
         f4 = np.float32
-        coef = self._coefficients
-        n_points = coef.shape[0] // 2
-        work = _scratch(n, n_points)
         poses = _batch_kinematics(
-            params, shape, f4, want_head_axes=shape.aspect[_HEAD] != 1.0, work=work
+            params,
+            shape,
+            f4,
+            want_head_axes=shape.aspect[_HEAD] != 1.0,
+            work=work,
+            rows_ready=rows_ready,
         )
         basis, outline_map = self._cone_basis(feats, poses, shape, camera, work)
         w2, h2 = feats.width + 2, feats.height + 2

@@ -139,6 +139,35 @@ def test_point_rows_skip_only_zero_coefficients() -> None:
         np.testing.assert_array_equal(total, np.arange(500.0) + want.reshape(10, 500).sum(axis=0))
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_the_bounds_check_and_parameter_rows_are_numpys(dtype: type) -> None:
+    # One pass answers -L <= min and max <= L (a NaN fails) and writes the
+    # kinematics' rows of the parameters as numpy's casting copies do.
+    from humotion_gym.observation import _PARAM_ROWS as columns
+    from humotion_gym.observation import POSE_LIMIT
+
+    rng = np.random.default_rng(5)
+    base = (rng.normal(0, 100, (301, 25)) + rng.normal(0, 1e-9, (301, 25))).astype(dtype)
+    for row, col, value in [
+        (None, None, 0.0), (0, 0, POSE_LIMIT), (300, 24, -POSE_LIMIT), (7, 3, 2 * POSE_LIMIT),
+        (9, 9, -2 * POSE_LIMIT), (150, 0, np.nan), (300, 24, np.inf), (0, 0, -np.inf),
+    ]:  # fmt: skip
+        poses = base.copy()
+        if row is not None:
+            poses[row, col] = value
+        want = bool(-POSE_LIMIT <= poses.min() and poses.max() <= POSE_LIMIT)
+        rows = _kernels.spaced_rows((25,), 301)
+        assert _kernels.pose_rows(poses, columns, rows, POSE_LIMIT) is want, (row, col, value)
+        expected = np.empty((25, 301), np.float32)
+        with np.errstate(over="ignore"):
+            np.copyto(expected, poses.T[columns], casting="unsafe")
+        np.testing.assert_array_equal(rows, expected)
+    rows = _kernels.spaced_rows((25,), 151)
+    assert _kernels.pose_rows(base[::2], columns, rows, POSE_LIMIT) is None  # not contiguous
+    assert _kernels.pose_rows(base[:151].astype(np.int64), columns, rows, POSE_LIMIT) is None
+    assert _kernels.pose_rows(base[:150], columns, rows, POSE_LIMIT) is None  # wrong width
+
+
 def test_one_column_and_the_switch_leave_it_to_numpy(monkeypatch: pytest.MonkeyPatch) -> None:
     coef = ObservationModel()._coefficients
     cost = np.zeros(100, np.uint8)
