@@ -1444,18 +1444,21 @@ class ObservationModel:
         basis, outline_map = self._cone_basis(feats, poses, shape, camera, work)
         w2, h2 = feats.width + 2, feats.height + 2
         plane = w2 * h2
-        # The map each cone's axis points read: the foreground map, or a free
-        # cone's own colour map.
-        axis_map = np.full(N_CONES, self.orientation_bins * plane, np.int32)
-        if feats.appearance_cones is not None:
-            for k, cone in enumerate(feats.appearance_cones.tolist()):
-                axis_map[cone] += (1 + k) * plane
         # A cone whose parameters are the same in every pose (the body a task
         # gives) costs the same for all: worked out on the first pose only.
         # The others go in runs of consecutive cones. Every step is per point
         # and the matrix product's columns do not depend on their neighbours,
         # so the costs are those of one pass over all points.
         fixed = _fixed_cones(work["params"]) if n >= _SHARED_MIN_POSES else None
+        # The map each cone's axis points read: the foreground map, or a free
+        # cone's own colour map. One offset for all where every cone reads the
+        # foreground and all are scored in one pass (the whole-body tasks).
+        foreground = np.int32(self.orientation_bins * plane)
+        axis_map = np.full(N_CONES, foreground, np.int32) if fixed is not None else None
+        if feats.appearance_cones is not None:
+            axis_map = np.full(N_CONES, foreground, np.int32)
+            for k, cone in enumerate(feats.appearance_cones.tolist()):
+                axis_map[cone] += (1 + k) * plane
         # Each cone's summed point costs, kept only for the partial figures.
         per_cone = None if prefixes is None else np.empty((N_CONES, n))
         # Each pose's summed costs: whole numbers, so exact in any order.
@@ -1465,13 +1468,14 @@ class ObservationModel:
                 feats,
                 basis.reshape(8, -1),
                 None if outline_map is None else outline_map.reshape(-1),
-                axis_map[0] if feats.appearance_cones is None else np.repeat(axis_map, n),
+                foreground if axis_map is None else np.repeat(axis_map, n),
                 work,
                 total,
             )
             if per_cone is not None:
                 per_cone[:] = sums.reshape(N_CONES, n)
         else:
+            assert axis_map is not None
             for c0, c1 in _runs(np.flatnonzero(~fixed)):
                 sums = self._point_costs(
                     feats,
@@ -2107,6 +2111,12 @@ def _fixed_cones(rows: NDArray) -> NDArray[np.bool_] | None:
     pass over N. Otherwise each parameter's row is compared bit for bit with
     its first value (so ``-0.0`` and ``0.0`` differ).
     """
+    if rows.shape[1] >= 2 and rows[0, 0] != rows[0, 1]:
+        # The first two poses' root x differ (nearly always, on the whole-body
+        # tasks): known from two numbers, where the bit test below reads six
+        # rows of a buffer the previous scoring pushed out of cache (1.5 us in
+        # cache, 15 out of it).
+        return None
     bits = rows.view(np.uint32 if rows.dtype.itemsize == 4 else np.uint64)
     if bits.shape[1] < 2 or (bits[:6, 1] != bits[:6, 0]).any():
         return None
