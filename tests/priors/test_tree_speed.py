@@ -356,3 +356,19 @@ def test_resampled_particles_move_as_their_copies_would(walker, variant, kernels
         np.testing.assert_array_equal(
             tree.transition(prior, other, np.random.default_rng(7)).pose, want.pose
         )
+
+
+def test_distinct_rows_are_numpys_unique() -> None:
+    rng = np.random.default_rng(3)
+    for rows in (
+        np.sort(rng.integers(0, 50, 200)),  # sorted, as systematic resampling gives them
+        rng.integers(0, 50, 200),  # any order
+        np.array([7]),
+        np.arange(5),
+        np.zeros(0, np.intp),
+    ):
+        kept, place = tree._distinct(rows.astype(np.intp))
+        want_kept, want_place = np.unique(rows, return_inverse=True)
+        np.testing.assert_array_equal(kept, want_kept)
+        np.testing.assert_array_equal(place, want_place.reshape(-1))
+        np.testing.assert_array_equal(kept[place], rows)
