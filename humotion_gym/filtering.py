@@ -65,10 +65,10 @@ class ParticleState:
 
         The poses are copied now; the prior's arrays are gathered when first
         read, each once, with the same rows (:class:`_Gathered`). A prior
-        that reads its arrays through the rows (:func:`deferred_rows`) never
-        copies them: at 3,000 particles the tree prior's histories (3.3 MB)
-        took about 0.2 ms of a 4.8 ms frame to copy, only to be read once
-        and shifted.
+        that reads its arrays through the rows (:func:`deferred_rows`) need
+        not copy them per particle: at 3,000 particles the tree prior's
+        histories (3.3 MB) took about 0.2 ms of a 4.8 ms frame to copy, only
+        to be read once and shifted; it now reads each distinct row once.
         ``np.take`` along the first axis copies the same rows as fancy
         indexing, a few times faster for the (N, d + 1, D) histories
         (:func:`_rows`).
