@@ -1417,8 +1417,8 @@ def _tree_replay(
     turned by the heading (numpy's ``cos``, ``sin`` given; ``ix < 0``: none)
     and added to the pose. The history moves up a frame, the new pose last,
     in the history's precision. Particle ``p``'s history is row ``rows[p]``
-    of ``history`` (row ``p`` where ``rows`` is empty): the resampled
-    particles' histories read where they lie, not copied first.
+    of ``history`` (row ``p`` where ``rows`` is empty): resampled particles
+    read the distinct histories they were drawn from, not a copy each.
     """
     n, dim = pose.shape
     last = history.shape[1] - 1

@@ -1454,11 +1454,12 @@ class ObservationModel:
         # cone's own colour map. One offset for all where every cone reads the
         # foreground and all are scored in one pass (the whole-body tasks).
         foreground = np.int32(self.orientation_bins * plane)
-        axis_map = np.full(N_CONES, foreground, np.int32) if fixed is not None else None
-        if feats.appearance_cones is not None:
+        axis_map = None
+        if fixed is not None or feats.appearance_cones is not None:
             axis_map = np.full(N_CONES, foreground, np.int32)
-            for k, cone in enumerate(feats.appearance_cones.tolist()):
-                axis_map[cone] += (1 + k) * plane
+            if feats.appearance_cones is not None:
+                for k, cone in enumerate(feats.appearance_cones.tolist()):
+                    axis_map[cone] += (1 + k) * plane
         # Each cone's summed point costs, kept only for the partial figures.
         per_cone = None if prefixes is None else np.empty((N_CONES, n))
         # Each pose's summed costs: whole numbers, so exact in any order.
