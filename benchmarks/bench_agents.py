@@ -18,6 +18,9 @@ reference, measured in the same run at each particle count, is a plain numpy
 scorer of the same frame (``bench_observation.reference_scores``: forward
 kinematics, projection and 150 nearest-pixel lookups per pose; best of three
 calls), less than any filter does per frame; ``x ref`` is ms/frame over it.
+``start ms`` is the episode's first frame, which the frames above leave out:
+the prior's particles drawn at the given pose (for the tree, section 6's
+search of every window's last pose), then the frame tracked.
 These machines are shared and noisy: compare ratios, and take the best of
 ``--repeats`` passes over the episode (``--clock cpu`` counts the process's
 own CPU time, which other work on the machine inflates less).
@@ -72,7 +75,7 @@ def main() -> None:
     )
     print(
         f"{'agent':10s} {'particles':>9s} {'ms/frame':>9s} {'transition':>11s} "
-        f"{'likelihood':>11s} {'prepare':>8s} {'ref ms':>8s} {'x ref':>6s}"
+        f"{'likelihood':>11s} {'prepare':>8s} {'ref ms':>8s} {'x ref':>6s} {'start ms':>8s}"
     )
     for name in args.agents:
         for n in args.particles:
@@ -81,14 +84,16 @@ def main() -> None:
             poses = info["initial_pose"] + rng.normal(0.0, 0.05, (n, 25))
             camera = steps[0][4]["camera"]
             ref = best = np.inf
-            trans = lik = prep = np.inf
+            trans = lik = prep = start = np.inf
             for _ in range(args.repeats):
                 for _ in range(3):  # its large temporaries make single calls jumpy
                     t = clock()
                     reference_scores(distance, poses, base.shape, camera)
                     ref = min(ref, clock() - t)
                 agent.observe_info(info)
+                t = clock()
                 agent.predict(obs, episode_start=True)
+                start = min(start, clock() - t)
                 total = trans_sum = lik_sum = prep_sum = 0.0
                 for frame, _, _, _, step_info in steps:
                     agent.observe_info(step_info)
@@ -114,7 +119,8 @@ def main() -> None:
             k = 1000 / args.frames
             print(
                 f"{name:10s} {n:9,d} {best * k:9.2f} {trans * k:11.2f} {lik * k:11.2f} "
-                f"{prep * k:8.2f} {1000 * ref:8.2f} {best / args.frames / ref:6.2f}"
+                f"{prep * k:8.2f} {1000 * ref:8.2f} {best / args.frames / ref:6.2f} "
+                f"{1000 * start:8.2f}"
             )
 
 

@@ -175,15 +175,23 @@ def _read_tree(out: str) -> list[Row]:
 
 
 def _read_agents(out: str) -> list[Row]:
-    # columns: agent, particles, ms/frame, transition, likelihood, prepare, ref ms, x ref
-    return [
-        (f"{m[0]}, {m[1]} particles, per frame", f"{m[2]} ms",
-         f"a plain numpy scorer of the same frame ({m[3]} ms)", f"{m[4]}x the time")
-        for m in re.findall(
-            r"^(\S+)\s+([\d,]+)\s+([\d.]+)\s+[\d.]+\s+[\d.]+\s+[\d.]+\s+([\d.]+)\s+([\d.]+)$",
-            out, re.M,
+    # columns: agent, particles, ms/frame, transition, likelihood, prepare, ref ms, x ref,
+    # start ms (the episode's first frame)
+    rows: list[Row] = []
+    for m in re.findall(
+        r"^(\S+)\s+([\d,]+)\s+([\d.]+)\s+[\d.]+\s+[\d.]+\s+[\d.]+\s+([\d.]+)\s+([\d.]+)"
+        r"(?:\s+([\d.]+))?$",
+        out, re.M,
+    ):  # fmt: skip
+        ref = f"a plain numpy scorer of the same frame ({m[3]} ms)"
+        rows.append(
+            (f"{m[0]}, {m[1]} particles, per frame", f"{m[2]} ms", ref, f"{m[4]}x the time")
         )
-    ]  # fmt: skip
+        if m[5]:
+            ratio = float(m[5]) / float(m[3])
+            rows.append((f"{m[0]}, {m[1]} particles, episode start (first frame)", f"{m[5]} ms",
+                         ref, f"{ratio:.2f}x the time"))  # fmt: skip
+    return rows
 
 
 def _read_rl(out: str) -> list[Row]:

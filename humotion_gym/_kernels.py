@@ -53,7 +53,9 @@ draws) and :func:`paint_texture` (its stripes and checks); the tree prior's
 :func:`paced_path`, :func:`tree_descend`, :func:`leaf_log_weights`,
 :func:`leaf_draws`, :func:`leaf_choice` and :func:`tree_replay` (the descent,
 the choice and the replay draw from the generator as numpy would, in numpy's
-order).
+order), and at an episode's start :func:`last_pose_distances` and
+:func:`initial_histories` (section 6's search of the windows' last poses, and
+the chosen windows placed at the pose).
 
 Why the results match: every step the numpy paths take elementwise is one
 IEEE float32 operation (add, multiply, divide, square root, comparison), and
@@ -965,6 +967,94 @@ def paced_path(
     ):  # fmt: skip
         return None
     return turned
+
+
+def last_pose_distances(
+    frames: NDArray[Any],
+    window_end: NDArray[np.intp],
+    columns: NDArray[np.intp],
+    pose: NDArray[np.float64],
+    scale: NDArray[np.float64],
+) -> NDArray[np.float64] | None:
+    """``tree._last_pose_distances``: each window's last pose's scaled squared distance.
+
+    Args:
+        frames: ``(M, D)`` the database's poses (either memory order).
+        window_end: ``(W,)`` each window's last frame.
+        columns: ``(K,)`` the parameters compared, in the order summed.
+        pose: ``(K,)`` their values in the pose.
+        scale: ``(K,)`` their scales.
+
+    Returns:
+        ``(W,)`` the numpy path's numbers; None when the kernels are off or failed.
+    """
+    if not ENABLED:
+        return None
+    dist2 = np.zeros(window_end.shape[0])
+    if not _run(
+        "_last_pose_distances", frames, np.ascontiguousarray(window_end, np.intp),
+        np.ascontiguousarray(columns, np.intp), np.ascontiguousarray(pose, np.float64),
+        np.ascontiguousarray(scale, np.float64), dist2,
+    ):  # fmt: skip
+        return None
+    return dist2
+
+
+def initial_histories(
+    frames: NDArray[np.float64],
+    ends: NDArray[np.intp],
+    d: int,
+    relative: NDArray[np.intp],
+    root_xy: tuple[int, int] | None,
+    anchor_heading: NDArray[np.float64] | None,
+    speed: NDArray[np.float64] | None,
+    pose: NDArray[np.float64],
+    place_heading: NDArray[np.float64] | None,
+    dtype: type[np.floating],
+) -> NDArray[Any] | None:
+    """``tree.initial``'s histories: windows gathered, anchored, paced and placed at a pose.
+
+    Args:
+        frames: ``(M, D)`` the database's poses, double precision.
+        ends: ``(N,)`` each particle's window's last frame.
+        d: Frames before the last in a window.
+        relative: Positions of the relative parameters.
+        root_xy: Positions of root x and y, turned by the headings (None: not turned).
+        anchor_heading: Minus each window's last heading (what
+            ``tree._anchor`` turns by), as numpy gives it.
+        speed: ``(N,)`` each particle's speed, or None.
+        pose: ``(D,)`` the pose the histories end at.
+        place_heading: The pose's heading per particle (what ``tree._place``
+            turns by), as numpy gives it.
+        dtype: The histories' precision.
+
+    Returns:
+        ``(N, d + 1, D)`` the numpy path's histories; None when the kernels
+        are off or failed.
+    """
+    if not ENABLED or frames.dtype != np.float64:
+        return None
+    n = ends.shape[0]
+    out = np.empty((n, d + 1, frames.shape[1]), dtype)
+    ix, iy = root_xy if root_xy is not None else (-1, -1)
+    none = np.empty(0)
+    trig = []
+    for angle in (anchor_heading, place_heading):
+        if root_xy is None or angle is None:
+            trig += [none, none]
+        else:
+            trig += [
+                np.ascontiguousarray(np.cos(angle).reshape(n)),
+                np.ascontiguousarray(np.sin(angle).reshape(n)),
+            ]
+    if not _run(
+        "_initial_histories", frames, np.ascontiguousarray(ends, np.intp),
+        np.ascontiguousarray(relative, np.intp), ix, iy, trig[0], trig[1],
+        none if speed is None else np.ascontiguousarray(speed, np.float64),
+        np.ascontiguousarray(pose, np.float64), trig[2], trig[3], out,
+    ):  # fmt: skip
+        return None
+    return out
 
 
 def leaf_log_weights(

@@ -1183,6 +1183,87 @@ def _paced_path(
             turned[p, f, 1] = s * x + c * y
 
 
+@_njit()
+def _last_pose_distances(
+    frames: NDArray[Any], window_end: NDArray[np.intp], columns: NDArray[np.intp],
+    pose: NDArray[np.float64], scale: NDArray[np.float64], dist2: NDArray[np.float64],
+) -> None:  # fmt: skip
+    """``tree._last_pose_distances``: each window's scaled distance to the pose, a pass a column.
+
+    ``dist2`` ``(W,)``, zeros on entry, gets ``sum_k ((frames[window_end[i],
+    columns[k]] - pose[k]) / scale[k])^2``, the columns added in order, each
+    term as numpy makes it (the value widened to double, less the pose, over
+    the scale, squared): the numpy path's five passes over the windows for
+    each column, one here.
+    """
+    for k in range(columns.shape[0]):
+        column = columns[k]
+        p = pose[k]
+        s = scale[k]
+        for i in range(window_end.shape[0]):
+            term = (np.float64(frames[window_end[i], column]) - p) / s
+            dist2[i] += term * term
+
+
+@_njit()
+def _initial_histories(
+    frames: NDArray[Any], ends: NDArray[np.intp], relative: NDArray[np.intp], ix: int, iy: int,
+    cos_a: NDArray[np.float64], sin_a: NDArray[np.float64], speed: NDArray[np.float64],
+    pose: NDArray[np.float64], cos_p: NDArray[np.float64], sin_p: NDArray[np.float64],
+    out: NDArray[Any],
+) -> None:  # fmt: skip
+    """``tree.initial``'s histories: the windows gathered, anchored, paced and placed, in one pass.
+
+    Particle ``p``'s history ``out[p]`` ``(d + 1, D)`` is the window of
+    ``frames`` ending at ``ends[p]``, in double precision: its relative
+    parameters (``relative``) less their last value; root x and y
+    (``ix``, ``iy``; ``ix < 0``: none) turned by ``cos_a``, ``sin_a`` (of
+    minus the window's last heading); both times ``speed[p]`` (where
+    ``speed`` is not empty); then every parameter less its last value plus
+    ``pose``, root x and y instead turned by ``cos_p``, ``sin_p`` (of the
+    pose's heading) plus the pose's; stored in ``out``'s precision. The
+    numpy path's operations (``tree._anchor``, ``tree._place``), in its order,
+    with numpy's sines and cosines given.
+    """
+    n, length, dim = out.shape
+    d = length - 1
+    a = np.empty((length, dim))
+    last = np.empty(dim)
+    paced = speed.size > 0
+    for p in range(n):
+        first = ends[p] - d
+        for j in range(dim):  # (the fitted frames are in Fortran order)
+            for f in range(length):
+                a[f, j] = np.float64(frames[first + f, j])
+        for r in range(relative.shape[0]):
+            j = relative[r]
+            top = a[d, j]
+            for f in range(length):
+                a[f, j] = a[f, j] - top
+        if ix >= 0:
+            c, s = cos_a[p], sin_a[p]
+            for f in range(length):
+                x, y = a[f, ix], a[f, iy]
+                a[f, ix] = c * x - s * y
+                a[f, iy] = s * x + c * y
+            if paced:
+                v = speed[p]
+                for f in range(length):
+                    a[f, ix] *= v
+                    a[f, iy] *= v
+        for j in range(dim):
+            last[j] = a[d, j]
+        for f in range(length):
+            for j in range(dim):
+                out[p, f, j] = (a[f, j] - last[j]) + pose[j]
+        if ix >= 0:
+            c, s = cos_p[p], sin_p[p]
+            for f in range(length):
+                x, y = a[f, ix], a[f, iy]
+                out[p, f, ix] = (c * x - s * y) + pose[ix]
+                out[p, f, iy] = (s * x + c * y) + pose[iy]
+
+
 @_njit(inline="always")
 def _leaf_exponents(
     database: NDArray[np.float64], probes: NDArray[np.float64], p: int, lo: int, size: int,

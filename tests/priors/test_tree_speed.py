@@ -6,7 +6,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from test_tree import ARM, walking_along_y
+from test_tree import ARM, make_motion, walking_along_y
 
 from humotion_gym import body
 from humotion_gym.filtering import ParticleState
@@ -372,3 +372,53 @@ def test_distinct_rows_are_numpys_unique() -> None:
         np.testing.assert_array_equal(kept, want_kept)
         np.testing.assert_array_equal(place, want_place.reshape(-1))
         np.testing.assert_array_equal(kept[place], rows)
+
+
+@pytest.mark.parametrize("n", [1, 7, 2085])
+@pytest.mark.parametrize("variant", ["speed", "plain", "arm", "root without yaw", "float32 frames"])
+def test_the_compiled_start_is_the_numpy_paths(walker, variant, n, monkeypatch):
+    # With the `fast` extra section 6's start (the windows' distances to the
+    # pose, then the chosen windows anchored, paced and placed) is two
+    # kernels: the same windows, speeds and histories, bit for bit, and the
+    # generator left where the numpy path leaves it.
+    from humotion_gym import _kernels
+
+    if not _kernels.enabled():
+        pytest.skip("the compiled kernels are off (numba missing or HUMOTION_NUMBA=0)")
+    free = None
+    if variant == "arm":
+        free = ARM
+    elif variant == "root without yaw":
+        free = [ROOT_X, ROOT_Y] + ARM
+    # The walk turning as it goes, so every window is turned by its own heading.
+    params = walker.params.copy()
+    params[:, YAW] = np.linspace(-2.5, 2.5, params.shape[0])
+    params[:, ROOT_X] = 300.0 * np.sin(np.linspace(0.0, 4.0, params.shape[0]))
+    prior = tree.fit([make_motion("test/turning", params)], free=free, noise_scale=0.5)
+    if variant == "speed":
+        prior = prior.with_settings(speed_spread=0.4)
+    if variant == "float32 frames":  # (the histories' kernel takes double frames only)
+        prior = dataclasses.replace(prior, frames=prior.frames.astype(np.float32))
+    rng = np.random.default_rng(5)
+    pose = start_pose(prior) if free is None else prior.frames[60].astype(np.float64)
+    pose = pose + rng.normal(0.0, 0.05, pose.shape)
+    if YAW in prior.free.tolist():  # a heading the windows do not have
+        pose[prior.free.tolist().index(YAW)] += 2.0
+    ran: list[str] = []
+    for name in ("last_pose_distances", "initial_histories"):
+        real = getattr(_kernels, name)
+
+        def spy(*a, _real=real, _name=name):
+            done = _real(*a)
+            ran.append(_name if done is not None else "")
+            return done
+
+        monkeypatch.setattr(_kernels, name, spy)
+    got_rng, want_rng = np.random.default_rng(8), np.random.default_rng(8)
+    got = tree.initial(prior, pose, n, got_rng)
+    want_ran = ["initial_histories", "last_pose_distances"]
+    assert sorted(ran) == (["", "last_pose_distances"] if variant == "float32 frames" else want_ran)
+    monkeypatch.setattr(_kernels, "ENABLED", False)
+    want = tree.initial(prior, pose, n, want_rng)
+    assert_same_particles(got, want)
+    assert got_rng.random() == want_rng.random()
