@@ -216,10 +216,7 @@ def test_the_compiled_pacing_gives_the_numpy_paths_coefficients(walker, n, monke
     # With the `fast` extra the paced root path, turned, comes from one
     # kernel: the search's coefficients are the numpy path's, bit for bit
     # (particles turned every way, each at its own speed).
-    from humotion_gym import _kernels
-
-    if not _kernels.enabled():
-        pytest.skip("the compiled kernels are off (numba missing or HUMOTION_NUMBA=0)")
+    _kernels = compiled_kernels()
     prior = tree.fit([walker], noise_scale=0.5).with_settings(speed_spread=0.4, speed_drift=0.1)
     rng = np.random.default_rng(3)
     state = tree.initial(prior, start_pose(prior), n, rng)
@@ -238,6 +235,39 @@ def test_the_compiled_pacing_gives_the_numpy_paths_coefficients(walker, n, monke
     np.testing.assert_array_equal(got, want)
 
 
+def compiled_kernels():
+    """The kernels' module, or a skip where they are off."""
+    from humotion_gym import _kernels
+
+    if not _kernels.enabled():
+        pytest.skip("the compiled kernels are off (numba missing or HUMOTION_NUMBA=0)")
+    return _kernels
+
+
+def free_of(variant: str) -> list[int] | None:
+    """The free parameters of a test variant: an arm, a root without its heading, or all."""
+    if variant == "arm":
+        return ARM
+    if variant == "root without yaw":
+        return [ROOT_X, ROOT_Y] + ARM
+    return None
+
+
+def spy_on(monkeypatch, kernels, names: tuple[str, ...]) -> list[str]:
+    """Wrap the kernels' functions ``names``: the list gets each one's name when it ran."""
+    ran: list[str] = []
+    for name in names:
+        real = getattr(kernels, name)
+
+        def spy(*a, _real=real, _name=name):
+            done = _real(*a)
+            ran.append(_name if done is not None else "")
+            return done
+
+        monkeypatch.setattr(kernels, name, spy)
+    return ran
+
+
 @pytest.mark.parametrize("n", [5, 2085])
 @pytest.mark.parametrize(
     "variant", ["speed", "velocity", "no noise", "float64 history", "arm", "root without yaw"]
@@ -248,15 +278,8 @@ def test_the_compiled_replay_is_the_numpy_paths(walker, variant, n, monkeypatch)
     # choice in the leaves others:
     # the same poses, histories, windows and speeds, bit for bit, and the
     # generator left where the numpy path leaves it.
-    from humotion_gym import _kernels
-
-    if not _kernels.enabled():
-        pytest.skip("the compiled kernels are off (numba missing or HUMOTION_NUMBA=0)")
-    free = None
-    if variant == "arm":
-        free = ARM
-    elif variant == "root without yaw":
-        free = [ROOT_X, ROOT_Y] + ARM
+    _kernels = compiled_kernels()
+    free = free_of(variant)
     prior = tree.fit([walker], free=free, noise_scale=0.5)
     if variant == "speed":
         prior = prior.with_settings(speed_spread=0.4, speed_drift=0.1)
@@ -278,16 +301,7 @@ def test_the_compiled_replay_is_the_numpy_paths(walker, variant, n, monkeypatch)
         pose = state.pose.copy()
         pose[:, column] += rng.uniform(-np.pi, np.pi, n)
         state = ParticleState(pose, state.extra)
-    ran: list[str] = []
-    for name in ("tree_replay", "tree_descend", "leaf_choice"):
-        real = getattr(_kernels, name)
-
-        def spy(*a, _real=real, _name=name):
-            done = _real(*a)
-            ran.append(_name if done is not None else "")
-            return done
-
-        monkeypatch.setattr(_kernels, name, spy)
+    ran = spy_on(monkeypatch, _kernels, ("tree_replay", "tree_descend", "leaf_choice"))
     got_rng, want_rng = np.random.default_rng(7), np.random.default_rng(7)
     got = tree.transition(prior, state, got_rng)
     assert sorted(ran) == ["leaf_choice", "tree_descend", "tree_replay"]
@@ -381,15 +395,8 @@ def test_the_compiled_start_is_the_numpy_paths(walker, variant, n, monkeypatch):
     # pose, then the chosen windows anchored, paced and placed) is two
     # kernels: the same windows, speeds and histories, bit for bit, and the
     # generator left where the numpy path leaves it.
-    from humotion_gym import _kernels
-
-    if not _kernels.enabled():
-        pytest.skip("the compiled kernels are off (numba missing or HUMOTION_NUMBA=0)")
-    free = None
-    if variant == "arm":
-        free = ARM
-    elif variant == "root without yaw":
-        free = [ROOT_X, ROOT_Y] + ARM
+    _kernels = compiled_kernels()
+    free = free_of(variant)
     # The walk turning as it goes, so every window is turned by its own heading.
     params = walker.params.copy()
     params[:, YAW] = np.linspace(-2.5, 2.5, params.shape[0])
@@ -404,16 +411,7 @@ def test_the_compiled_start_is_the_numpy_paths(walker, variant, n, monkeypatch):
     pose = pose + rng.normal(0.0, 0.05, pose.shape)
     if YAW in prior.free.tolist():  # a heading the windows do not have
         pose[prior.free.tolist().index(YAW)] += 2.0
-    ran: list[str] = []
-    for name in ("last_pose_distances", "initial_histories"):
-        real = getattr(_kernels, name)
-
-        def spy(*a, _real=real, _name=name):
-            done = _real(*a)
-            ran.append(_name if done is not None else "")
-            return done
-
-        monkeypatch.setattr(_kernels, name, spy)
+    ran = spy_on(monkeypatch, _kernels, ("last_pose_distances", "initial_histories"))
     got_rng, want_rng = np.random.default_rng(8), np.random.default_rng(8)
     got = tree.initial(prior, pose, n, got_rng)
     want_ran = ["initial_histories", "last_pose_distances"]
