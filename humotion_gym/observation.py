@@ -77,6 +77,7 @@ from humotion_gym.kinematics import (
     _batch_kinematics,
     _BatchPoses,
 )
+from humotion_gym.render import gaussian_blur
 
 FloatArray = NDArray[np.float64]
 
@@ -972,7 +973,7 @@ class ObservationModel:
                 f"(H, W, 1), got {img.dtype} {img.shape}"
             )
         img = np.ascontiguousarray(img)
-        smooth = img if self.edge_blur <= 0 else cv2.GaussianBlur(img, (0, 0), self.edge_blur)
+        smooth = img if self.edge_blur <= 0 else gaussian_blur(img, self.edge_blur)
         return smooth.reshape(img.shape)
 
     def _oriented_edges(
