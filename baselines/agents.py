@@ -7,7 +7,7 @@ Two kinds of agent are made by :func:`make`:
   actions, the ceiling of error;
 * **particle filters** (:data:`AGENTS`): a particle filter over a motion prior.
 
-A particle-filter agent is a :class:`~humotion_gym.filtering.ParticleFilter` over one prior,
+A particle-filter agent is a :class:`~baselines.filtering.ParticleFilter` over one prior,
 scoring particles with the environment's own observation model, camera and the
 subject's known shape. It follows stable-baselines3's
 ``predict(observation, state, episode_start, deterministic)`` so one evaluation
@@ -30,6 +30,14 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
+from baselines.filtering import (
+    AnnealedParticleFilter,
+    ParticleFilter,
+    PartitionedParticleFilter,
+    Stage,
+)
+from baselines.observation import Backdrop, GivenBody, ObservationModel, task_model
+from baselines.priors.fitting import fit_prior as fit_prior_on
 from humotion_gym.body import (
     ANGLE_MASK,
     CONE_NAMES,
@@ -40,17 +48,9 @@ from humotion_gym.body import (
 )
 from humotion_gym.camera import Camera
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
-from humotion_gym.filtering import (
-    AnnealedParticleFilter,
-    ParticleFilter,
-    PartitionedParticleFilter,
-    Stage,
-)
 from humotion_gym.mocap.library import (
     MotionLibrary,
 )
-from humotion_gym.observation import Backdrop, GivenBody, ObservationModel
-from humotion_gym.priors.fitting import fit_prior as fit_prior_on
 
 FloatArray = NDArray[np.float64]
 
@@ -99,7 +99,7 @@ class TaskLikelihood:
     def read_first_frame(self, frame: Any, initial_pose: FloatArray) -> None:
         """What the model keeps of the episode's first frame, from the given initial pose.
 
-        :meth:`~humotion_gym.observation.ObservationModel.read_first_frame`:
+        :meth:`~baselines.observation.ObservationModel.read_first_frame`:
         each cone's colour, the backdrop and the floor height, where the model
         uses them.
         """
@@ -126,7 +126,7 @@ class TaskLikelihood:
     ) -> FloatArray:
         """``(N, G + 1)`` log-likelihoods of the figure built up group by group of cones.
 
-        :meth:`~humotion_gym.observation.ObservationModel.log_likelihood_partial`.
+        :meth:`~baselines.observation.ObservationModel.log_likelihood_partial`.
         """
         assert self.shape is not None and self.camera is not None
         return self.model.log_likelihood_partial(
@@ -134,7 +134,7 @@ class TaskLikelihood:
         )
 
 
-#: The cones each body part of :data:`humotion_gym.priors.limbs.PARTS` places
+#: The cones each body part of :data:`baselines.priors.limbs.PARTS` places
 #: (with the parts before it: a limb's cones hang from the root).
 PART_CONES: dict[str, tuple[str, ...]] = {
     "torso": ("torso", "head"),
@@ -149,13 +149,13 @@ def body_part_stages(free: NDArray[np.intp]) -> list[Stage]:
     """Partitioned sampling's stages for a task: the torso with the root, then each limb.
 
     Each stage searches one body part's free parameters (columns of the free
-    vector, :func:`humotion_gym.priors.limbs.part_columns`) and adds the cones
+    vector, :func:`baselines.priors.limbs.part_columns`) and adds the cones
     that part places to the partial figure
     (:meth:`TaskLikelihood.log_likelihood_partial`). A part with no free
     parameter has no stage; its cones weigh the particles at the end, with
     the whole figure.
     """
-    from humotion_gym.priors.limbs import part_columns
+    from baselines.priors.limbs import part_columns
 
     stages = []
     for name, cols in part_columns(free):
@@ -179,12 +179,14 @@ class ParticleFilterAgent:
             filter with that many layers per frame (``n_particles`` per layer;
             particles outside the joint limits never survive a layer).
         partitioned: Partitioned sampling instead
-            (:class:`~humotion_gym.filtering.PartitionedParticleFilter`): the
+            (:class:`~baselines.filtering.PartitionedParticleFilter`): the
             torso, then each limb (:func:`body_part_stages`), ``n_particles``
             per stage; particles outside the joint limits never survive a stage.
         diffusion: The annealed or partitioned filter's diffusion scale.
         alpha: The annealed filter's survival rate per layer.
         beta_max: Cap on the annealed filter's exponents.
+        observation_model: The likelihood (default: the task's,
+            :func:`~baselines.observation.task_model`).
     """
 
     def __init__(
@@ -201,15 +203,17 @@ class ParticleFilterAgent:
         diffusion: float = 1.0,
         alpha: float = 0.5,
         beta_max: float = float("inf"),
+        observation_model: ObservationModel | None = None,
     ) -> None:
         self.env: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
         task = self.env.task
+        self.observation_model = observation_model or task_model(task)
         self.name = name
         self.prior = prior
         self.fitted = fitted
         self.n_particles = int(n_particles)
         self.free = task.free_indices
-        self.likelihood = TaskLikelihood(self.env.observation_model, self.free, task.fixed_indices)
+        self.likelihood = TaskLikelihood(self.observation_model, self.free, task.fixed_indices)
         self.layers = int(layers)
         self.filter: ParticleFilter
         if partitioned:
@@ -297,7 +301,7 @@ class ParticleFilterAgent:
         self.likelihood.update(np.asarray(info["fixed_params"]), self.shape, info["camera"])
         if first:
             self.likelihood.read_first_frame(observation, np.asarray(info["initial_pose"]))
-        features = self.env.observation_model.prepare(observation, self.likelihood.given())
+        features = self.observation_model.prepare(observation, self.likelihood.given())
         estimate = self.filter.step(features)
         pose = self.likelihood.full_pose(estimate[None])[0]
         action = self.env.pose_to_action(pose)
@@ -389,28 +393,28 @@ class AgentSpec:
     """A registered agent: a prior module and its settings.
 
     Attributes:
-        prior: Dotted module path of the prior (``humotion_gym.priors.tree``).
+        prior: Dotted module path of the prior (``baselines.priors.tree``).
         fit_settings: Keyword arguments of the prior's ``fit``.
         description: One line for listings.
         tasks: Task names the agent supports (None for every task).
         layers: Annealing layers per frame: 1 is the plain particle filter
             (CONDENSATION), more the annealed particle filter
-            (:class:`~humotion_gym.filtering.AnnealedParticleFilter`), which
+            (:class:`~baselines.filtering.AnnealedParticleFilter`), which
             then evaluates ``layers`` times the particle count per frame.
         task_fit_settings: Per task name, fit settings chosen for that task
             by cross-validation on training persons (``humotion-gym select
             --grid fit.NAME=...``); they override ``fit_settings``.
         components: For a mixture prior (``prior`` is
-            :mod:`humotion_gym.priors.mixture`): ``(label, spec)`` per
+            :mod:`baselines.priors.mixture`): ``(label, spec)`` per
             component, each fitted (and cached) as its own agent would be; the
             settings ``weight.LABEL`` (a component's probability; the first
             takes the rest) and ``LABEL.NAME`` (a component's fit setting)
             apply.
         per_part: The prior is one tree prior per body part
-            (:mod:`humotion_gym.priors.limbs`), each fitted (and cached) on its
+            (:mod:`baselines.priors.limbs`), each fitted (and cached) on its
             part's free parameters with the same settings (the tree's).
         partitioned: Partitioned sampling
-            (:class:`~humotion_gym.filtering.PartitionedParticleFilter`), the
+            (:class:`~baselines.filtering.PartitionedParticleFilter`), the
             torso then each limb: one likelihood evaluation per particle per
             stage (five per frame for the whole body).
         diffusion: The annealed or partitioned filter's diffusion: the
@@ -522,7 +526,7 @@ def fit_prior(
 
     The env's training clips (:meth:`PoseTrackingEnv.training_motions`, never
     a test person) and the task's free parameters, fitted by
-    :func:`humotion_gym.priors.fitting.fit_prior` with the spec's settings
+    :func:`baselines.priors.fitting.fit_prior` with the spec's settings
     overridden by ``settings`` (and the env's frame skip); see there for the
     cache.
     """
@@ -573,7 +577,7 @@ def _fit_mixture(
     use_cache: bool,
 ) -> tuple[ModuleType, Any]:
     """Fit (or read from the cache) each component, then compose the mixture."""
-    from humotion_gym.priors import mixture
+    from baselines.priors import mixture
 
     labels = [label for label, _ in spec.components]
     weights = np.array([float(settings.get(MIXTURE_WEIGHT + label, 0.0)) for label in labels])
@@ -592,7 +596,7 @@ def _fit_mixture(
     return mixture, mixture.compose(fits, weights, persistence=persistence)
 
 
-TREE = "humotion_gym.priors.tree"
+TREE = "baselines.priors.tree"
 
 
 def _fit_per_part(
@@ -603,7 +607,7 @@ def _fit_per_part(
     use_cache: bool,
 ) -> tuple[ModuleType, Any]:
     """Fit (or read from the cache) one tree per body part, then compose them."""
-    from humotion_gym.priors import limbs
+    from baselines.priors import limbs
 
     free = np.asarray(env.task.free_indices, dtype=np.intp)
     motions = training_motions(env)
@@ -630,7 +634,7 @@ def _fit_per_part(
 # noise on the pose itself.
 CV_SETTINGS: dict[str, float] = {"multiplier": 0.5, "damping": 0.3, "position_noise": 1.5}
 
-CONSTANT_VELOCITY = "humotion_gym.priors.constant_velocity"
+CONSTANT_VELOCITY = "baselines.priors.constant_velocity"
 #: pf-follow: pf-cv's dynamics on the root alone, the articulation held (see
 #: ``constant_velocity.fit``'s ``moving``). Its pose noise and damping chosen on
 #: the validation persons (multiplier left at pf-cv's 0.5): ``humotion-gym select
@@ -866,7 +870,7 @@ CV_STILL_TASK_SETTINGS: dict[str, dict[str, float]] = {
 
 AGENTS: dict[str, AgentSpec] = {
     "pf-cv": AgentSpec(
-        "humotion_gym.priors.constant_velocity",
+        "baselines.priors.constant_velocity",
         fit_settings=CV_SETTINGS,
         description="constant velocity with damped velocity and pose noise (settings chosen "
         "by cross-validation on training persons)",
@@ -880,7 +884,7 @@ AGENTS: dict[str, AgentSpec] = {
         tasks=("BodyTrack-v1", "WalkTrack-v1"),
     ),
     "pf-tree": AgentSpec(
-        "humotion_gym.priors.tree",
+        "baselines.priors.tree",
         task_fit_settings=TREE_TASK_SETTINGS,
         description="implicit PCA-tree prior (Sidenbladh, Black & Sigal 2002), the paper's "
         "absolute replay of the database's next pose; its temperature and noise chosen per "
@@ -888,7 +892,7 @@ AGENTS: dict[str, AgentSpec] = {
         "speed",
     ),
     "pf-tree-vel": AgentSpec(
-        "humotion_gym.priors.tree",
+        "baselines.priors.tree",
         fit_settings={"replay": "velocity"},
         task_fit_settings=TREE_VEL_TASK_SETTINGS,
         description="the tree prior replaying the database's velocities from each particle's "
@@ -896,7 +900,7 @@ AGENTS: dict[str, AgentSpec] = {
         "on BodyTrack and WalkTrack each particle walks at its own speed",
     ),
     "apf-cv": AgentSpec(
-        "humotion_gym.priors.constant_velocity",
+        "baselines.priors.constant_velocity",
         fit_settings=CV_SETTINGS,
         description="annealed particle filter (Deutscher, Blake & Reid 2000), 10 layers, "
         "constant-velocity proposals; survival rate and diffusion chosen per task",
@@ -904,14 +908,14 @@ AGENTS: dict[str, AgentSpec] = {
         task_filter_settings=APF_CV_SETTINGS,
     ),
     "apf-tree": AgentSpec(
-        "humotion_gym.priors.tree",
+        "baselines.priors.tree",
         description="annealed particle filter, 10 layers, proposals from the tree prior; "
         "survival rate and diffusion chosen per task",
         layers=10,
         task_filter_settings=APF_TREE_SETTINGS,
     ),
     "apf-tree-vel": AgentSpec(
-        "humotion_gym.priors.tree",
+        "baselines.priors.tree",
         fit_settings={"replay": "velocity"},
         description="annealed particle filter, 10 layers, proposals from pf-tree-vel's prior; "
         "survival rate and diffusion chosen per task",
@@ -919,11 +923,11 @@ AGENTS: dict[str, AgentSpec] = {
         task_filter_settings=APF_TREE_VEL_SETTINGS,
     ),
     "pf-mix": AgentSpec(
-        "humotion_gym.priors.mixture",
+        "baselines.priors.mixture",
         fit_settings=MIX_WEIGHTS,
         task_fit_settings=MIX_TASK_SETTINGS,
         components=(
-            ("tree", AgentSpec("humotion_gym.priors.tree")),
+            ("tree", AgentSpec("baselines.priors.tree")),
             ("cv", AgentSpec(CONSTANT_VELOCITY, fit_settings=CV_SETTINGS)),
             ("still", AgentSpec(CONSTANT_VELOCITY, fit_settings=STILL_SETTINGS)),
         ),
@@ -931,25 +935,25 @@ AGENTS: dict[str, AgentSpec] = {
         "(Sidenbladh, Black & Sigal 2002, section 7): each particle, each frame, moves by one",
     ),
     "pf-limbs": AgentSpec(
-        "humotion_gym.priors.limbs",
+        "baselines.priors.limbs",
         per_part=True,
         description="one tree prior per body part (torso with the root, each arm, each leg; "
         "Sidenbladh, Black & Sigal 2002, section 7), searched independently",
     ),
     "pf-limbs-vel": AgentSpec(
-        "humotion_gym.priors.limbs",
+        "baselines.priors.limbs",
         fit_settings={"replay": "velocity"},
         per_part=True,
         description="one tree prior per body part, each replaying the database's velocities",
     ),
     "pf-slds": AgentSpec(
-        "humotion_gym.priors.slds",
+        "baselines.priors.slds",
         description="switching linear dynamic system (Pavlovic, Rehg, Cham & Murphy 1999), "
         "one model per activity joined by a block transition matrix",
         tasks=("ArmTrack-v1", "SideWalk-v1"),
     ),
     "pf-pca": AgentSpec(
-        "humotion_gym.priors.cyclic_pca",
+        "baselines.priors.cyclic_pca",
         # Mean-reverting walks of the coefficients, speed and root velocity, chosen by
         # cross-validation on the training persons: ``humotion-gym select --task
         # WalkTrack-v1 --agent pf-pca --grid fit.reversion=0,0.5,1,2,4 --data-dir
@@ -964,7 +968,7 @@ AGENTS: dict[str, AgentSpec] = {
 #: particle in one regime (moving or still) that it keeps from frame to frame
 #: with probability ``persistence``. Settings: see CV_STILL_TASK_SETTINGS.
 AGENTS["pf-cv-still"] = AgentSpec(
-    "humotion_gym.priors.mixture",
+    "baselines.priors.mixture",
     fit_settings=CV_STILL_SETTINGS,
     task_fit_settings=CV_STILL_TASK_SETTINGS,
     components=(
@@ -1009,6 +1013,7 @@ def make(
     fit_settings: Mapping[str, Any] | None = None,
     use_cache: bool = True,
     filter_settings: Mapping[str, float] | None = None,
+    observation_model: ObservationModel | None = None,
 ) -> ParticleFilterAgent | HoldAgent | RandomAgent:
     """A registered agent for an environment: a reference or a particle filter.
 
@@ -1025,6 +1030,8 @@ def make(
         use_cache: Read and write fitted priors in the cache.
         filter_settings: Overrides of the filter's settings (names in
             :data:`FILTER_SETTINGS`; the annealed or partitioned filter's).
+        observation_model: A particle filter's likelihood (default: the
+            task's, :func:`~baselines.observation.task_model`).
 
     Raises:
         KeyError: If the name is unknown.
@@ -1056,8 +1063,9 @@ def make(
     spec.filter_settings_for(base.task.name, filter_settings)  # checked before the fit
     module, fitted = fit_prior(spec, base, fit_settings, use_cache=use_cache)
     return filter_agent(
-        spec, env, module, fitted, n_particles, seed, estimate, name, filter_settings
-    )
+        spec, env, module, fitted, n_particles, seed, estimate, name, filter_settings,
+        observation_model,
+    )  # fmt: skip
 
 
 def filter_agent(
@@ -1070,6 +1078,7 @@ def filter_agent(
     estimate: str,
     name: str,
     filter_settings: Mapping[str, float] | None = None,
+    observation_model: ObservationModel | None = None,
 ) -> ParticleFilterAgent:
     """The particle-filter agent of a registered spec over a fitted prior.
 
@@ -1080,5 +1089,5 @@ def filter_agent(
     settings = spec.filter_settings_for(base.task.name, filter_settings)
     return ParticleFilterAgent(
         env, module, fitted, n_particles, seed, estimate, name,
-        partitioned=spec.partitioned, **settings,
+        partitioned=spec.partitioned, observation_model=observation_model, **settings,
     )  # fmt: skip

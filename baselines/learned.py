@@ -30,9 +30,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from baselines.agents import TaskNotSupported
+from baselines.filtering import ParticleState
 from humotion_gym.body import ANGLE_MASK, PARAM_LOWER, PARAM_UPPER
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
-from humotion_gym.filtering import ParticleState
 from humotion_gym.wrappers import learner_observation
 
 FloatArray = NDArray[np.float64]

@@ -2,14 +2,14 @@
 
 Run: ``python benchmarks/bench_fpca.py``. The data are 100 walking cycles x 19
 joint angles x 120 samples (the built-in synthetic walks cut into cycles by
-:mod:`humotion_gym.priors.cycles`), with about a tenth of the entries removed
+:mod:`baselines.priors.cycles`), with about a tenth of the entries removed
 in spans of 10-50 samples. Measured in
 the same process (these machines are noisy: compare ratios):
 
 * ``plain SVD``: ``numpy.linalg.svd`` of the centred ``(100, 19 * 39)`` Fourier
   coefficient matrix, the core of one iteration (the reference of the target
   "each iteration within 2x of a plain SVD").
-* ``FPCA iteration``: one iteration of :func:`humotion_gym.priors.fpca.fpca`
+* ``FPCA iteration``: one iteration of :func:`baselines.priors.fpca.fpca`
   (batched rFFT of the segments, rank-q reconstruction, inverse FFT,
   imputation), the mean over 50 iterations with the tolerance off.
 * ``FPCA fit``: the whole fit with imputation to the paper's tolerance (1e-6).
@@ -30,8 +30,8 @@ from __future__ import annotations
 import numpy as np
 from _timing import best_of
 
+from baselines.priors import cycles, fpca
 from humotion_gym.mocap.synthetic import synthetic_motions
-from humotion_gym.priors import cycles, fpca
 from humotion_gym.threads import single_threaded_blas
 
 N_CYCLES, N_SAMPLES, N_HARMONICS, N_COMPONENTS = 100, 120, 20, 5

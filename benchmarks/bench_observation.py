@@ -22,10 +22,10 @@ from __future__ import annotations
 import numpy as np
 from _timing import best_of
 
+from baselines.observation import GivenBody, ObservationModel
 from humotion_gym import _kernels, body
 from humotion_gym.camera import Camera, fit_camera
 from humotion_gym.envs.tasks import get_task
-from humotion_gym.observation import GivenBody, ObservationModel
 from humotion_gym.render import SceneOptions, make_background, render
 
 # The model with the compiled kernel (the `fast` extra, when installed) and

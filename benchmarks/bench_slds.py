@@ -28,9 +28,9 @@ import time
 
 import numpy as np
 
+from baselines.priors import constant_velocity, slds
+from baselines.priors.slds_learning import fit_em
 from humotion_gym.mocap.library import synthetic_library
-from humotion_gym.priors import constant_velocity, slds
-from humotion_gym.priors.slds_learning import fit_em
 from humotion_gym.threads import limit_blas_threads
 
 

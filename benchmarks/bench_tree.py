@@ -8,10 +8,10 @@ is absent), the tree is fitted on the whole body (25 parameters) and, for the
 same held-out probe windows, three samplers are timed in the same run:
 
 * ``tree``: the paper's probabilistic descent (eq. 7) and the leaf, vectorised
-  over the probes (:func:`humotion_gym.priors.tree.sample_windows`), with the
+  over the probes (:func:`baselines.priors.tree.sample_windows`), with the
   eq. 3 choice in the leaf (the default) and with a uniform choice;
 * ``exact``: a scan of all ``n`` windows drawing from eq. 3
-  (:func:`humotion_gym.priors.tree.sample_exact`), the distribution the tree
+  (:func:`baselines.priors.tree.sample_exact`), the distribution the tree
   approximates (target: the tree at least 25x faster at n = 50,000);
 * ``kdtree``: scikit-learn's ``KDTree`` one-nearest-neighbour query on the same
   ``b``-dimensional coefficients scaled by ``sigma`` (eq. 3's metric), the
@@ -24,7 +24,7 @@ ratios are reference time over tree time (above 1: the tree is faster). These
 machines are noisy: compare ratios, not absolute numbers. BLAS threads compete
 with other processes on a shared machine; ``OPENBLAS_NUM_THREADS=1`` gives
 steadier numbers. The end of the report times a whole
-:func:`~humotion_gym.priors.tree.transition` of N particles and the fit.
+:func:`~baselines.priors.tree.transition` of N particles and the fit.
 """
 
 from __future__ import annotations
@@ -37,8 +37,8 @@ from pathlib import Path
 import numpy as np
 from _timing import best_of, require
 
+from baselines.priors import tree
 from humotion_gym.mocap.library import load_library, synthetic_library
-from humotion_gym.priors import tree
 
 SIZES = (1_000, 3_000, 10_000, 30_000, 50_000)
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "mocap"

@@ -8,8 +8,7 @@ BLAS thread: call :func:`limit_blas_threads` once (see :mod:`humotion_gym.thread
 
 from __future__ import annotations
 
-__version__ = "0.1.0"
-
+from humotion_gym._version import __version__
 from humotion_gym.envs import ENV_IDS, register_envs  # noqa: E402
 from humotion_gym.threads import limit_blas_threads  # noqa: E402
 

@@ -248,7 +248,7 @@ def point_costs(
 ) -> NDArray[np.uint16] | None:
     """The observation model's summed point costs per column, or None to use numpy.
 
-    The kernel of :meth:`humotion_gym.observation.ObservationModel._point_costs`
+    The kernel of :meth:`baselines.observation.ObservationModel._point_costs`
     (see there for the arguments, ``total`` included; ``width`` and ``height``
     are the padded table's). None when the kernels are off or there is a
     single column (whose product numpy computes another way; see the module's
@@ -310,7 +310,7 @@ def cone_basis(
     ``four_bins``, ``outline`` ``(10, N)``; ``uvz`` ``(3, 15, N)`` is scratch.
     ``varying``: ``(cone, x axis, y axis, aspect)`` of the cones whose
     silhouette width varies with the pose. See
-    :meth:`humotion_gym.observation.ObservationModel._cone_basis` for the rest.
+    :meth:`baselines.observation.ObservationModel._cone_basis` for the rest.
 
     Returns:
         False (the numpy path is to run) when the kernels are off or failed

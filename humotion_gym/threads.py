@@ -17,8 +17,8 @@ The decision:
   A Python user who tracks with the particle filters should call
   ``humotion_gym.limit_blas_threads()`` once, or set
   ``OPENBLAS_NUM_THREADS=1`` before starting Python.
-* The fits that are slow with threads (:mod:`humotion_gym.priors.cycles`,
-  :mod:`humotion_gym.priors.fpca`) limit BLAS to one thread for their own
+* The fits that are slow with threads (:mod:`baselines.priors.cycles`,
+  :mod:`baselines.priors.fpca`) limit BLAS to one thread for their own
   duration only (:func:`one_blas_thread`), whatever the process does.
 """
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from humotion_gym.filtering import ParticleFilter, ParticleState
+from baselines.filtering import ParticleFilter, ParticleState
 
 
 class RandomWalk:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from filter_toys import RandomWalk, assert_tracks_as_the_particle_filter
 
-from humotion_gym.filtering import (
+from baselines.filtering import (
     AnnealedParticleFilter,
     ParticleFilter,
     effective_sample_size,

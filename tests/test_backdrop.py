@@ -8,9 +8,10 @@ import cv2
 import numpy as np
 import pytest
 
-from humotion_gym import body, observation
+from baselines import observation
+from baselines.observation import Backdrop, GivenBody, ObservationModel
+from humotion_gym import body
 from humotion_gym.camera import fit_camera
-from humotion_gym.observation import Backdrop, GivenBody, ObservationModel
 from humotion_gym.render import SceneOptions, make_background, render
 
 SHAPE = body.default_shape()

@@ -7,7 +7,7 @@ import json
 import pytest
 
 import humotion_gym
-from humotion_gym.cli import main
+from baselines.cli import main
 
 
 @pytest.mark.parametrize(

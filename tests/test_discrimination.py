@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import humotion_gym  # noqa: F401
-from humotion_gym.experiments.discrimination import (
+from baselines.experiments.discrimination import (
     likelihood_depth_profile,
     likelihood_discrimination,
     likelihood_panels,

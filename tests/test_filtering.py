@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from humotion_gym import filtering
-from humotion_gym.filtering import (
+from baselines import filtering
+from baselines.filtering import (
     RESAMPLING,
     ParticleFilter,
     ParticleState,

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from baselines.agents import TaskLikelihood
+from baselines.observation import GivenBody, ObservationModel
 from humotion_gym import body
 from humotion_gym.camera import fit_camera
-from humotion_gym.observation import GivenBody, ObservationModel
 from humotion_gym.render import SceneOptions, make_background, render
 
 SHAPE = body.default_shape()

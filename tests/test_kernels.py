@@ -20,11 +20,11 @@ import cv2
 import numpy as np
 import pytest
 
+from baselines.observation import FrameFeatures, GivenBody, ObservationModel, _scratch
 from humotion_gym import _kernels
 from humotion_gym.camera import Camera
 from humotion_gym.envs.tasks import get_task
 from humotion_gym.kinematics import _HEAD, _batch_kinematics
-from humotion_gym.observation import FrameFeatures, GivenBody, ObservationModel, _scratch
 from humotion_gym.render import SceneOptions, make_background, render
 from tests.test_observation_fast import ARM, SHAPE, random_poses, scene
 
@@ -143,8 +143,8 @@ def test_point_rows_skip_only_zero_coefficients() -> None:
 def test_the_bounds_check_and_parameter_rows_are_numpys(dtype: type) -> None:
     # One pass answers -L <= min and max <= L (a NaN fails) and writes the
     # kinematics' rows of the parameters as numpy's casting copies do.
-    from humotion_gym.observation import _PARAM_ROWS as columns
-    from humotion_gym.observation import POSE_LIMIT
+    from baselines.observation import _PARAM_ROWS as columns
+    from baselines.observation import POSE_LIMIT
 
     rng = np.random.default_rng(5)
     base = (rng.normal(0, 100, (301, 25)) + rng.normal(0, 1e-9, (301, 25))).astype(dtype)
@@ -1142,7 +1142,7 @@ def test_canny_gradients_are_opencvs_sobel_of_the_strongest_channel(size: tuple)
 def test_canny_from_the_kernels_gradients_is_opencvs_colour_canny(task: str) -> None:
     import gymnasium as gym
 
-    from humotion_gym import observation
+    from baselines import observation
 
     env = gym.make(f"humotion_gym/{task}", terminate_on_lost=False)
     frame, _ = env.reset(seed=1)
@@ -1160,7 +1160,7 @@ def test_an_opencv_with_other_canny_edges_keeps_its_own(monkeypatch) -> None:
     # An OpenCV whose Canny from gradients differs from its colour Canny (here:
     # the gradients' edges shifted a pixel) fails the check on first use: it
     # warns once, and OpenCV's own colour Canny finds the edges.
-    from humotion_gym import observation
+    from baselines import observation
 
     real = cv2.Canny
 
@@ -1266,7 +1266,7 @@ def test_the_distance_kernel_stops_where_it_is_not_exact() -> None:
 
 
 def test_prepare_uses_the_distance_kernel_and_opencv_past_its_reach(monkeypatch) -> None:
-    from humotion_gym import observation
+    from baselines import observation
 
     assert observation._kernel_distances_as_opencv()  # (checked once, before the spy)
     calls = []
@@ -1294,7 +1294,7 @@ def test_an_opencv_with_other_distances_keeps_its_own(monkeypatch) -> None:
     # An OpenCV whose distances differ from the kernel's (here: one float32
     # step up everywhere past 1 px) fails the check on first use: it warns
     # once, and OpenCV's own distances go into the table.
-    from humotion_gym import observation
+    from baselines import observation
 
     real = cv2.distanceTransform
 

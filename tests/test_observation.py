@@ -7,9 +7,9 @@ import inspect
 import numpy as np
 import pytest
 
+from baselines.observation import POSE_LIMIT, FrameFeatures, ObservationModel
 from humotion_gym import _kernels, body
 from humotion_gym.camera import fit_camera
-from humotion_gym.observation import POSE_LIMIT, FrameFeatures, ObservationModel
 from humotion_gym.render import SceneOptions, make_background, render
 
 SHAPE = body.default_shape()

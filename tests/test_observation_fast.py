@@ -18,9 +18,7 @@ import numpy as np
 import pytest
 from scipy.special import log_ndtr, logsumexp
 
-from humotion_gym import _kernels, body
-from humotion_gym.camera import Camera, fit_camera
-from humotion_gym.filtering import (
+from baselines.filtering import (
     ParticleFilter,
     ParticleState,
     log_sum_exp,
@@ -28,9 +26,7 @@ from humotion_gym.filtering import (
     temper_for_survival,
     tempered_weights,
 )
-from humotion_gym.kinematics import _HEAD, _batch_kinematics
-from humotion_gym.mocap.library import synthetic_library
-from humotion_gym.observation import (
+from baselines.observation import (
     _CHUNK_POSES,
     _CONE_END,
     _CONE_START,
@@ -45,7 +41,11 @@ from humotion_gym.observation import (
     _orientation_bin,
     _silhouette_factor,
 )
-from humotion_gym.priors import tree
+from baselines.priors import tree
+from humotion_gym import _kernels, body
+from humotion_gym.camera import Camera, fit_camera
+from humotion_gym.kinematics import _HEAD, _batch_kinematics
+from humotion_gym.mocap.library import synthetic_library
 from humotion_gym.render import SceneOptions, render
 
 SHAPE = body.default_shape()

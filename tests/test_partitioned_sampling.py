@@ -7,15 +7,15 @@ import pytest
 from filter_toys import RandomWalk, assert_tracks_as_the_particle_filter
 
 from baselines.agents import PART_CONES, body_part_stages
-from humotion_gym import body
-from humotion_gym.camera import fit_camera
-from humotion_gym.envs.tasks import get_task
-from humotion_gym.filtering import (
+from baselines.filtering import (
     ParticleFilter,
     PartitionedParticleFilter,
     Stage,
 )
-from humotion_gym.observation import GivenBody, ObservationModel
+from baselines.observation import GivenBody, ObservationModel
+from humotion_gym import body
+from humotion_gym.camera import fit_camera
+from humotion_gym.envs.tasks import get_task
 from humotion_gym.render import SceneOptions, make_background, render
 
 SHAPE = body.default_shape()

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 import humotion_gym  # noqa: F401
+from baselines.experiments.discrimination import likelihood_depth_profile
+from baselines.observation import ObservationModel
 from humotion_gym import render
 from humotion_gym.envs.tasks import get_task
-from humotion_gym.experiments.discrimination import likelihood_depth_profile
-from humotion_gym.observation import ObservationModel
 
 
 def _extra_half_width(rng: np.random.Generator, strips: int = 300) -> float:

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from baselines.observation import GivenBody, ObservationModel
 from humotion_gym import body
 from humotion_gym.camera import fit_camera
-from humotion_gym.observation import GivenBody, ObservationModel
 from humotion_gym.render import SceneOptions, make_background, render
 
 SHAPE = body.default_shape()
@@ -226,7 +226,7 @@ def test_free_cones_cache_gives_the_computed_answer(arm_scene) -> None:
     # _free_cones keeps its last answer: the same given pose, free set and
     # shape read it back (read-only), anything else computes afresh, and the
     # answers are those of an empty cache.
-    from humotion_gym import observation
+    from baselines import observation
 
     pose, _frame, cam, given = arm_scene
     model = ObservationModel()

@@ -2,7 +2,7 @@
 
 import pytest
 
-from humotion_gym.experiments.selection import (
+from baselines.experiments.selection import (
     VALIDATION_SUBJECTS,
     select_observation_settings,
     validation_library,
@@ -45,7 +45,7 @@ def test_selection_tracks_the_fold_and_picks_the_lowest_error():
 
 
 def test_cli_select_parses_the_grid(capsys):
-    from humotion_gym.cli import main
+    from baselines.cli import main
 
     code = main(["select", "--task", "SideWalk-v1", "--agent", "pf-cv", "--grid",
                  "sharpness=1,2", "--particles", "20", "--episodes", "1"])  # fmt: skip
@@ -55,7 +55,7 @@ def test_cli_select_parses_the_grid(capsys):
 
 def test_cli_select_reports_a_bad_setting_or_fold_in_one_line(capsys, tmp_path, monkeypatch):
     """A setting the agent lacks, or still episodes the fold has none of: exit 2, no traceback."""
-    from humotion_gym.cli import main
+    from baselines.cli import main
 
     monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
     base = ["select", "--task", "WalkTrack-v1", "--agent", "pf-cv", "--particles", "10",

@@ -3,10 +3,11 @@
 Every command group is one module of this package with a
 ``register(subparsers)`` function that adds its sub-parser(s) and sets
 ``func`` (a function of the parsed ``argparse.Namespace`` returning the exit
-code). :data:`COMMAND_MODULES` lists those modules in the order ``--help``
-shows them; **a new command is one new module here plus one line in that
-list**. Command modules import heavy dependencies inside their command
-functions so that ``humotion-gym --help`` stays fast.
+code). :data:`COMMAND_MODULES` lists the benchmark's modules in the order
+``--help`` shows them, :data:`baselines.cli.COMMAND_MODULES` every module;
+**a new command is one new module plus one line in one of those lists**.
+Command modules import heavy dependencies inside their command functions so
+that ``humotion-gym --help`` stays fast.
 
 Shared argument types (``positive_int``, ``task_name``...), the common flags
 (``--data-dir``, ``--json``, ``--seed``) and the two errors a command raises
@@ -28,27 +29,16 @@ from collections.abc import Sequence
 from humotion_gym.cli._common import CommandError, UsageError
 from humotion_gym.threads import limit_blas_threads
 
-#: The command modules (``humotion_gym.cli.<name>``), in ``--help`` order.
+#: The benchmark's command modules, in ``--help`` order. The trackers' commands
+#: (track, leaderboard, report, train and the papers' experiments) live in
+#: :mod:`baselines.cli`, whose :func:`~baselines.cli.main` is the ``humotion-gym``
+#: console script and adds them after these; this package never imports them.
 COMMAND_MODULES: tuple[str, ...] = (
-    "tasks",  # tasks: the environments
-    "agents",  # agents: the reference agents and particle filters
-    "data",  # data table|info|persons|convert
-    "download",  # download cmu
-    "cache",  # cache info|clear
-    "render",  # render
-    "track",  # track
-    "leaderboard",  # leaderboard
-    "select",  # select
-    "still",  # still (every agent where the person barely moves)
-    "discrimination",  # discrimination
-    "depth",  # depth (each agent's error along and across the line of sight)
-    "synth",  # synth
-    "tree",  # tree figures
-    "pca",  # pca period|figures
-    "slds",  # slds classify|select|splits|interpolate|figures
-    "train",  # train, learning-curve (learned trackers)
-    "report",  # report (tables, figures, videos, index.html of a saved leaderboard)
-    "sweep",  # sweep (difficulty curves over environment settings)
+    "humotion_gym.cli.tasks",  # tasks: the environments
+    "humotion_gym.cli.data",  # data table|info|persons|convert
+    "humotion_gym.cli.download",  # download cmu
+    "humotion_gym.cli.cache",  # cache info|clear
+    "humotion_gym.cli.render",  # render
 )
 
 #: Extras that provide optional modules, for the hint when one is missing.
@@ -64,16 +54,21 @@ def _runtime_errors() -> tuple[type[BaseException], ...]:
     return (CommandError, OSError, MocapFormatError, RigError, DownloadError, SplitError)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of ``humotion-gym``, with every module of :data:`COMMAND_MODULES`."""
+def build_parser(modules: Sequence[str] = COMMAND_MODULES) -> argparse.ArgumentParser:
+    """The argument parser of ``humotion-gym`` over the given command modules.
+
+    Args:
+        modules: Dotted names of modules with a ``register(subparsers)`` function,
+            in ``--help`` order (default: the benchmark's own, :data:`COMMAND_MODULES`).
+    """
     parser = argparse.ArgumentParser(
         prog="humotion-gym",
         description="Gymnasium environments for monocular 3D human pose tracking. "
         "Exit codes: 0 success, 1 runtime error, 2 usage error.",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for name in COMMAND_MODULES:
-        importlib.import_module(f"{__name__}.{name}").register(sub)
+    for name in modules:
+        importlib.import_module(name).register(sub)
     return parser
 
 
@@ -89,9 +84,14 @@ def _error(parser: argparse.ArgumentParser, args: argparse.Namespace, message: s
     print(f"{prog}: error: {message}", file=sys.stderr)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``humotion-gym`` console script; returns the exit code."""
-    parser = build_parser()
+def main(argv: Sequence[str] | None = None, modules: Sequence[str] = COMMAND_MODULES) -> int:
+    """Run one command line over the given command modules; returns the exit code.
+
+    Args:
+        argv: The arguments (default: ``sys.argv[1:]``).
+        modules: The command modules (see :func:`build_parser`).
+    """
+    parser = build_parser(modules)
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help (0) or argparse's usage error (2)

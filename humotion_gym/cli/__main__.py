@@ -1,4 +1,7 @@
-"""``python -m humotion_gym.cli``: the same as the ``humotion-gym`` command."""
+"""``python -m humotion_gym.cli``: the benchmark's own commands.
+
+``humotion-gym`` (:mod:`baselines.cli`) has these and the trackers' commands.
+"""
 
 import sys
 

@@ -108,19 +108,6 @@ def task_name(text: str) -> str:
     return name
 
 
-def agent_name(text: str) -> str:
-    """An argparse ``type`` for a registered agent (``hold``, ``pf-tree``...)."""
-    from baselines.agents import agent_names
-    from baselines.learned import is_learned  # PATH.zip, LABEL=PATH.zip, pf-PRIOR+POLICY
-
-    if text not in agent_names() and not is_learned(text):
-        raise argparse.ArgumentTypeError(
-            f"unknown agent {text}; the agents are {', '.join(agent_names())} "
-            "(see humotion-gym agents)"
-        )
-    return text
-
-
 def add_data_dir(parser: argparse.ArgumentParser) -> None:
     """``--data-dir DIR...``: folders of real mocap (else ``$HUMOTION_MOCAP``, else synthetic)."""
     parser.add_argument(
@@ -152,46 +139,6 @@ def add_task(parser: argparse.ArgumentParser, default: str, what: str = "task id
     parser.add_argument(
         "--task", type=task_name, default=default, help=f"{what} (default: {default})"
     )
-
-
-def add_particles(parser: argparse.ArgumentParser, what: str = "particles") -> None:
-    """``--particles``: one particle count, default 300."""
-    parser.add_argument(
-        "--particles", type=positive_int, default=300, help=f"{what} (default: 300)"
-    )
-
-
-def add_agents(parser: argparse.ArgumentParser, hold: str = "hold always runs") -> None:
-    """``--agents``: registered agent names, default pf-cv pf-tree (``hold`` runs besides)."""
-    parser.add_argument(
-        "--agents", type=agent_name, nargs="+", default=["pf-cv", "pf-tree"], metavar="AGENT",
-        help=f"agents; {hold} (default: pf-cv pf-tree)",
-    )  # fmt: skip
-
-
-def add_engine(parser: argparse.ArgumentParser) -> None:
-    """``--engine``, ``--workers``, ``--address``: where a leaderboard's episodes run."""
-    parser.add_argument(
-        "--engine", choices=["inprocess", "ray"], default="inprocess",
-        help="where episodes run: in this process, or on Ray (the distributed extra) "
-        "(default: inprocess)",
-    )  # fmt: skip
-    parser.add_argument(
-        "--workers", type=positive_int, default=None,
-        help="with --engine ray: workers (one CPU each) of a local Ray started here, or "
-        "actors on the cluster of --address (default: every CPU)",
-    )  # fmt: skip
-    parser.add_argument(
-        "--address", default=None,
-        help="with --engine ray: the Ray cluster to join (default: $RAY_ADDRESS if set, "
-        "else a local Ray)",
-    )  # fmt: skip
-
-
-def check_engine(args: argparse.Namespace) -> None:
-    """Refuse ``--workers``/``--address`` without ``--engine ray`` (see :func:`add_engine`)."""
-    if args.engine != "ray" and (args.workers is not None or args.address is not None):
-        raise UsageError("--workers, --address: only with --engine ray")
 
 
 def env_kwargs(args: argparse.Namespace) -> dict[str, Any]:

@@ -73,7 +73,8 @@ def whole_body_likelihood(task: str) -> str:
     return f"""
     ## Likelihood
 
-    ``observation_model`` is the shared one plus the backdrop read at the
+    The baselines' likelihood (:func:`baselines.observation.task_model`, from
+    the task's ``observation`` settings) is the shared one plus the backdrop read at the
     first frame (``backdrop=True``: pixels the given initial pose leaves
     uncovered show it, so clutter is not foreground and its edges away from
     the figure are dropped) and the coverage term
@@ -82,7 +83,6 @@ def whole_body_likelihood(task: str) -> str:
     leave uncovered costs), chosen by cross-validation on training persons
     (``humotion-gym select``; the commands and numbers are beside the
     settings in ``humotion_gym/envs/tasks.py``).
-    Agents pass ``GivenBody(..., backdrop=observation_model.read_backdrop(
-    first_frame, initial_pose, shape, camera))`` to
-    ``observation_model.prepare``.
+    Agents pass ``GivenBody(..., backdrop=model.read_backdrop(
+    first_frame, initial_pose, shape, camera))`` to ``model.prepare``.
 """

@@ -42,7 +42,8 @@ class ArmTrackEnv(PoseTrackingEnv):
     frame as any of its poses allows; it follows the shoulder, which the
     given parameters place.
 
-    The likelihood (``observation_model``) is the shared one with
+    The baselines' likelihood (:func:`baselines.observation.task_model`) is
+    the shared one with
     ``sharpness=3``, no foreground term, 8 edge-orientation bins, and the two
     terms that use the given body (``residual_weight=1``: edges the given body
     leaves unexplained must lie on the arm's outline; ``appearance_weight=1``:
@@ -53,8 +54,8 @@ class ArmTrackEnv(PoseTrackingEnv):
     well by an arm laid along the torso's side or the clutter. It also reads
     the backdrop at the first frame (``backdrop=True``: the pixels the given
     initial pose leaves uncovered), and drops the clutter's edges away from
-    the figure. Agents pass the given body to ``observation_model.prepare``
-    (``GivenBody``, with the backdrop from ``observation_model.read_backdrop``).
+    the figure. Agents pass the given body to the model's ``prepare``
+    (``GivenBody``, with the backdrop from its ``read_backdrop``).
 
     ## Given Truth
 
@@ -86,6 +87,10 @@ ArmTrackEnv.__doc__ = (
 
     * v1, later still: ``info`` also gives ``error_aligned_mm`` (the error
       with the pelvises put together); frames, spaces and rewards unchanged.
+    * v1, later still: the environment no longer carries ``observation_model``:
+      the baselines build their likelihood from the task's ``observation``
+      settings (:func:`baselines.observation.task_model`); frames, spaces and
+      rewards unchanged.
     * v1, later: ``observation_model`` (the agents' likelihood, not part of the
       environment's spaces, frames or rewards) reads the backdrop at the first
       frame; the baselines' numbers changed

@@ -36,7 +36,6 @@ from humotion_gym.mocap.library import (
     synthetic_library,
 )
 from humotion_gym.mocap.motion import Motion
-from humotion_gym.observation import ObservationModel
 from humotion_gym.render import (
     SceneOptions,
     draw_pose_overlay,
@@ -138,10 +137,10 @@ class PoseTrackingEnv(gym.Env):
     :class:`~humotion_gym.envs.side_walk.SideWalkEnv`): spaces, reward,
     episode end, info and arguments are described there.
 
-    The environment exposes what an agent needs to score particles with exactly
-    its likelihood: ``task``, ``observation_model``, ``camera`` and ``shape``
-    of the episode, and the action mapping :meth:`pose_to_action` /
-    :meth:`action_to_pose`.
+    The environment exposes the task's description (``task``, ``camera`` and
+    ``shape`` of the episode) and the action mapping :meth:`pose_to_action` /
+    :meth:`action_to_pose`; the likelihood that scores poses on its frames is
+    the trackers' own (:mod:`baselines.observation`).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
@@ -167,7 +166,6 @@ class PoseTrackingEnv(gym.Env):
         lost_threshold_mm: float = 150.0,
         lost_patience: int = 5,
         reward_scale_mm: float = 100.0,
-        observation_model: ObservationModel | None = None,
     ) -> None:
         self.task = get_task(task) if isinstance(task, str) else task
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -205,9 +203,6 @@ class PoseTrackingEnv(gym.Env):
         self.lost_threshold_mm = float(lost_threshold_mm)
         self.lost_patience = int(lost_patience)
         self.reward_scale_mm = float(reward_scale_mm)
-        self.observation_model = observation_model or ObservationModel(
-            **dict(self.task.observation)
-        )
         self.metadata = {**self.metadata, "render_fps": fps / self.frame_skip}
 
         if library is None:

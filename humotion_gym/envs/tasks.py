@@ -116,7 +116,7 @@ class TaskSpec:
             within the episode): a task about tracking motion is not scored on
             a limb that rests. 0 keeps every start.
         motion_anchor: The keypoint motion is measured relative to.
-        observation: Overrides of :class:`~humotion_gym.observation.ObservationModel`
+        observation: Overrides of :class:`~baselines.observation.ObservationModel`
             defaults for this task, as ``(name, value)`` pairs, chosen on the
             training persons (see the task's documentation).
     """

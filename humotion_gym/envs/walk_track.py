@@ -57,6 +57,10 @@ WalkTrackEnv.__doc__ = (
 
     * v1, later still: ``info`` also gives ``error_aligned_mm`` (the error
       with the pelvises put together); frames, spaces and rewards unchanged.
+    * v1, later still: the environment no longer carries ``observation_model``:
+      the baselines build their likelihood from the task's ``observation``
+      settings (:func:`baselines.observation.task_model`); frames, spaces and
+      rewards unchanged.
     * v1, later: ``observation_model`` (the agents' likelihood, not part of the
       environment's spaces, frames or rewards) reads the backdrop at the first
       frame and has the coverage term; the baselines' numbers changed

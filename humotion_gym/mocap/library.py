@@ -325,9 +325,9 @@ CACHE_ERRORS: tuple[type[BaseException], ...] = READ_ERRORS
 
 def package_version() -> str:
     """The installed humotion_gym's version (``humotion_gym.__version__``), part of cache keys."""
-    import humotion_gym
+    from humotion_gym._version import __version__
 
-    return str(getattr(humotion_gym, "__version__", "unknown"))
+    return __version__
 
 
 def report_cache_problem(path: Path, problem: str) -> None:

@@ -6,9 +6,9 @@ import pytest
 
 import humotion_gym  # noqa: F401
 from baselines.agents import AGENTS, TaskNotSupported, make
+from baselines.cli import main
 from baselines.evaluation import evaluate, run_episode, summarize
 from baselines.stats import bootstrap_ci, iqm, stratified_bootstrap_ci
-from humotion_gym.cli import main
 
 
 class RandomPolicy:
@@ -167,7 +167,7 @@ def test_the_annealed_filters_settings_come_from_the_spec_the_task_and_the_calle
     import dataclasses
 
     from baselines import agents
-    from humotion_gym.filtering import AnnealedParticleFilter, ParticleFilter
+    from baselines.filtering import AnnealedParticleFilter, ParticleFilter
 
     env = gym.make("humotion_gym/ArmTrack-v1")
     # SideWalk's apf-cv keeps the paper's settings (none chosen for it there)

@@ -8,6 +8,7 @@ import pytest
 
 import humotion_gym  # noqa: F401
 from baselines.agents import make
+from baselines.cli import main
 from baselines.depth import (
     markdown_table,
     run_depth,
@@ -17,7 +18,6 @@ from baselines.depth import (
 )
 from baselines.evaluation import evaluate
 from humotion_gym.body import KEYPOINT_INDEX, forward_kinematics
-from humotion_gym.cli import main
 
 
 class _Oracle:

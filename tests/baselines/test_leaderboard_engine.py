@@ -11,6 +11,7 @@ import pytest
 
 from baselines import agents as agents_module
 from baselines.agents import AgentSpec, ParticleFilterAgent
+from baselines.cli import main
 from baselines.engine import run_cell_episode
 from baselines.leaderboard import (
     EPISODES_FILE,
@@ -21,7 +22,6 @@ from baselines.leaderboard import (
     ResumeError,
     run_leaderboard,
 )
-from humotion_gym.cli import main
 
 # A small leaderboard: hold, a seeded random agent and a particle filter on the
 # built-in synthetic data, 3 short episodes per cell.
@@ -155,7 +155,7 @@ def test_an_agent_that_does_not_cover_a_task_is_a_row_with_its_reason_and_exit_0
 def test_an_agent_whose_prior_fails_to_fit_is_an_error_row_and_exit_1(
     tmp_path, capsys, monkeypatch
 ):
-    broken = AgentSpec("humotion_gym.priors.constant_velocity", {"no_such_setting": 1.0})
+    broken = AgentSpec("baselines.priors.constant_velocity", {"no_such_setting": 1.0})
     monkeypatch.setitem(agents_module.AGENTS, "pf-broken", broken)
     assert main(_cli(tmp_path, "pf-broken", "pf-cv")) == 1
     captured = capsys.readouterr()

@@ -14,6 +14,7 @@ import pytest
 from scipy import stats as sps
 
 from baselines import stats
+from baselines.cli import main
 from baselines.evaluation import EpisodeResult, summarize
 from baselines.report import (
     ReplayMismatch,
@@ -22,7 +23,6 @@ from baselines.report import (
     replay_episodes,
     write_report,
 )
-from humotion_gym.cli import main
 
 # ------------------------------------------------------------------ statistics
 

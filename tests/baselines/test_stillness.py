@@ -75,7 +75,7 @@ def test_mixture_agent_is_seeded_and_checks_its_settings(env, tmp_path, monkeypa
 
 def test_cv_still_keeps_its_regimes_and_checks_its_persistence(env, tmp_path, monkeypatch):
     """pf-cv-still: pf-cv's constant velocity and pf-mix's walk, each particle's regime kept."""
-    from humotion_gym.priors import mixture
+    from baselines.priors import mixture
 
     monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
     spec = AGENTS["pf-cv-still"]
@@ -103,7 +103,7 @@ def test_cv_still_keeps_its_regimes_and_checks_its_persistence(env, tmp_path, mo
 
 
 def test_selection_with_still_episodes_follows_the_declared_rule(tmp_path, monkeypatch):
-    from humotion_gym.experiments.selection import select_observation_settings, validation_library
+    from baselines.experiments.selection import select_observation_settings, validation_library
 
     monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
     fold = validation_library(None)
@@ -127,7 +127,7 @@ def test_selection_with_still_episodes_follows_the_declared_rule(tmp_path, monke
 def test_cli_still_prints_the_table_and_writes_json(tmp_path, capsys):
     import json
 
-    from humotion_gym.cli import main
+    from baselines.cli import main
 
     out = tmp_path / "still.json"
     code = main(["still", "--agents", "random", "--max-hold", "300", "--episodes", "2",

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from baselines import sweep
+from baselines.cli import main
 from baselines.leaderboard import run_leaderboard
 from baselines.stats import iqm
-from humotion_gym.cli import main
 
 #: Tiny episodes so a sweep point costs a fraction of a second.
 BASE = {"episode_frames": 5, "width": 64, "height": 64}

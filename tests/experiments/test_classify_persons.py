@@ -8,8 +8,8 @@ import json
 import numpy as np
 import pytest
 
-from humotion_gym.cli import main
-from humotion_gym.experiments import pavlovic1999 as pav
+from baselines.cli import main
+from baselines.experiments import pavlovic1999 as pav
 from humotion_gym.mocap.library import TEST_SUBJECTS, synthetic_library
 from humotion_gym.mocap.synthetic import synthetic_motions
 

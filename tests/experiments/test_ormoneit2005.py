@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from humotion_gym.cli import main
-from humotion_gym.experiments import ormoneit2005
+from baselines.cli import main
+from baselines.experiments import ormoneit2005
 from humotion_gym.mocap.export import write_motion_bvh
 from humotion_gym.mocap.library import synthetic_library
 

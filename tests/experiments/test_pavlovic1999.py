@@ -9,10 +9,10 @@ import json
 import numpy as np
 import pytest
 
-from humotion_gym.cli import main
-from humotion_gym.experiments import pavlovic1999
+from baselines.cli import main
+from baselines.experiments import pavlovic1999
+from baselines.priors import slds
 from humotion_gym.mocap.library import synthetic_library
-from humotion_gym.priors import slds
 
 
 @pytest.fixture(scope="module")

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from humotion_gym.experiments import sidenbladh2002
+from baselines.experiments import sidenbladh2002
+from baselines.priors import tree
 from humotion_gym.mocap.library import synthetic_library
-from humotion_gym.priors import tree
 
 
 @pytest.fixture(scope="module")
@@ -33,8 +33,8 @@ def test_fig3_spread_grows_with_beta(library, body_prior):
 
 
 def test_make_figures_and_cli(tmp_path, library):
-    from humotion_gym.cli import build_parser
-    from humotion_gym.cli import tree as tree_cli
+    from baselines.cli import build_parser
+    from baselines.cli import tree as tree_cli
 
     small = library.filter(subjects=["synthetic-01", "synthetic-05"])
     paths = sidenbladh2002.make_figures(small, tmp_path, seed=0)
@@ -80,7 +80,7 @@ def test_explained_variance_by_features_is_the_svd_of_each_feature_set(body_prio
 
 
 def test_cli_tree_variance_prints_each_feature_set(capsys):
-    from humotion_gym.cli import main
+    from baselines.cli import main
 
     assert main(["tree", "variance", "--windows", "300"]) == 0
     out = capsys.readouterr().out

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from humotion_gym import cli
+from baselines import cli
 from humotion_gym.mocap import download as dl
 from humotion_gym.mocap.download import (
     MANIFEST_NAME,

@@ -5,7 +5,7 @@ import time
 import numpy as np
 import pytest
 
-from humotion_gym.cli import main
+from baselines.cli import main
 from humotion_gym.mocap import library as lib_mod
 from humotion_gym.mocap.export import write_motion_bvh
 from humotion_gym.mocap.library import (

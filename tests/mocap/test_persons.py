@@ -6,8 +6,8 @@ import json
 import numpy as np
 import pytest
 
+from baselines.cli import main
 from humotion_gym.body import KEYPOINT_INDEX
-from humotion_gym.cli import main
 from humotion_gym.mocap.library import (
     CMU_TEST_SUBJECTS,
     SYNTHETIC_TEST_SUBJECTS,

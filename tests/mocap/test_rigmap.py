@@ -496,7 +496,7 @@ def test_renamed_asf_copy_maps_exactly_like_the_cmu_profile(shared_mocap, tmp_pa
 
 
 def test_data_info_shows_rig_match_person_split_and_tpose(tmp_path, capsys):
-    from humotion_gym.cli import main
+    from baselines.cli import main
 
     out = {"l_upperarm": (81.87, 0.0, 0.0), "r_upperarm": (-81.87, 0.0, 0.0)}
     write_bvh(tmp_path / "16_11.bvh", rig_joints("daz"), [out, {}, {}, {}], (0.0, 1.0, 2.0, 3.0))
@@ -518,7 +518,7 @@ def test_data_info_shows_rig_match_person_split_and_tpose(tmp_path, capsys):
 
 
 def test_one_person_under_two_numbers(tmp_path, capsys):
-    from humotion_gym.cli import main
+    from baselines.cli import main
 
     write_bvh(tmp_path / "78_06.bvh", rig_joints("cmu-bvh"))
     write_bvh(tmp_path / "102_05.bvh", rig_joints("cmu-bvh-joint-names"))

@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from humotion_gym.filtering import ParticleFilter
+from baselines.filtering import ParticleFilter
+from baselines.priors import constant_velocity as cv
 from humotion_gym.mocap.library import synthetic_library
-from humotion_gym.priors import constant_velocity as cv
 
 
 class GaussianOnPose:
@@ -76,8 +76,8 @@ def test_fit_needs_data():
 
 
 def test_damping_position_noise_and_joint_limits():
+    from baselines.filtering import ParticleState
     from humotion_gym.body import PARAM_LOWER, PARAM_UPPER, PERIODIC_MASK
-    from humotion_gym.filtering import ParticleState
 
     motions = synthetic_library().split("train").motions
     free = np.arange(25)

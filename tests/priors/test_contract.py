@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
+from baselines.filtering import ParticleFilter, ParticleState
+from baselines.priors import PRIORS, get_prior
 from humotion_gym.body import PARAM_INDEX, SAGITTAL_PARAMS
-from humotion_gym.filtering import ParticleFilter, ParticleState
 from humotion_gym.mocap.library import synthetic_library
-from humotion_gym.priors import PRIORS, get_prior
 
 SAGITTAL = np.array([PARAM_INDEX[n] for n in SAGITTAL_PARAMS])
 

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from baselines.filtering import ParticleFilter
+from baselines.priors import cycles, cyclic_pca, fpca
 from humotion_gym.body import PARAM_INDEX, default_shape, standing_pose
 from humotion_gym.envs.tasks import SIDE_WALK, WALK_TRACK
-from humotion_gym.filtering import ParticleFilter
 from humotion_gym.mocap.library import synthetic_library
-from humotion_gym.priors import cycles, cyclic_pca, fpca
 
 # ---------------------------------------------------------------------------
 # helpers
@@ -324,7 +324,7 @@ def test_fit_needs_walking_clips():
 def test_reversion_keeps_the_walks_spread_at_the_datas(fitted):
     import dataclasses
 
-    from humotion_gym.filtering import ParticleState
+    from baselines.filtering import ParticleState
 
     n, steps = 4000, 400
     q = fitted.n_components

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
+from baselines.filtering import ParticleState
+from baselines.priors import limbs, tree
 from humotion_gym.body import N_PARAMS, PARAM_INDEX
-from humotion_gym.filtering import ParticleState
 from humotion_gym.mocap.library import synthetic_library
-from humotion_gym.priors import limbs, tree
 
 ALL = np.arange(N_PARAMS)
 ARM = np.array(

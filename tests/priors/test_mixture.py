@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
+from baselines.filtering import ParticleState
+from baselines.priors import constant_velocity, mixture, tree
 from humotion_gym.body import PARAM_INDEX, SAGITTAL_PARAMS
-from humotion_gym.filtering import ParticleState
 from humotion_gym.mocap.library import synthetic_library
-from humotion_gym.priors import constant_velocity, mixture, tree
 
 SAGITTAL = np.array([PARAM_INDEX[n] for n in SAGITTAL_PARAMS])
 
@@ -67,7 +67,7 @@ def test_compose_refuses_what_it_cannot_mix(parts):
         mixture.compose([(tree, t), (constant_velocity, cv)], [0.5, 0.6])
     with pytest.raises(ValueError, match="expected 2 weights"):
         mixture.compose([(tree, t), (constant_velocity, cv)], [1.0])
-    from humotion_gym.priors import cyclic_pca
+    from baselines.priors import cyclic_pca
 
     with pytest.raises(ValueError, match="cannot be a component"):
         mixture.compose([(tree, t), (cyclic_pca, cv)], [0.5, 0.5])

@@ -10,12 +10,10 @@ import os
 import numpy as np
 import pytest
 
-from humotion_gym.body import PARAM_LOWER, PARAM_UPPER
-from humotion_gym.filtering import ParticleFilter
-from humotion_gym.mocap.library import synthetic_library
-from humotion_gym.priors import slds
-from humotion_gym.priors.fitting import fit_prior
-from humotion_gym.priors.slds_inference import (
+from baselines.filtering import ParticleFilter
+from baselines.priors import slds
+from baselines.priors.fitting import fit_prior
+from baselines.priors.slds_inference import (
     COV_RTOL,
     CovarianceTable,
     SLDSParams,
@@ -27,7 +25,9 @@ from humotion_gym.priors.slds_inference import (
     stabilise,
     viterbi,
 )
-from humotion_gym.priors.slds_learning import fit_em
+from baselines.priors.slds_learning import fit_em
+from humotion_gym.body import PARAM_LOWER, PARAM_UPPER
+from humotion_gym.mocap.library import synthetic_library
 
 # ---------------------------------------------------------------------------
 # Small models

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from test_slds import _spd, random_model  # the same small random models
 
-from humotion_gym.priors.slds_inference import (
+from baselines.priors.slds_inference import (
     COV_RTOL,
     CovarianceTable,
     filter_path,
@@ -18,7 +18,7 @@ from humotion_gym.priors.slds_inference import (
     viterbi,
     viterbi_filter,
 )
-from humotion_gym.priors.slds_learning import fit_em
+from baselines.priors.slds_learning import fit_em
 
 
 def reference_smoother(params, path, filt, lengths):

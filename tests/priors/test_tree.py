@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from scipy.special import ndtr
 
+from baselines.filtering import ParticleFilter, ParticleState
+from baselines.priors import tree
 from humotion_gym import body
-from humotion_gym.filtering import ParticleFilter, ParticleState
 from humotion_gym.mocap.library import synthetic_library
 from humotion_gym.mocap.motion import Motion
-from humotion_gym.priors import tree
 
 ARM = [9, 10, 11, 12]  # right shoulder (3) and elbow: the arm task's free parameters
 

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from test_tree import walking_along_y
 
+from baselines.priors import tree
+from baselines.priors._io import save_fitted
 from humotion_gym import body
 from humotion_gym.mocap.library import synthetic_library
-from humotion_gym.priors import tree
-from humotion_gym.priors._io import save_fitted
 
 ARM = [9, 10, 11, 12]
 
@@ -128,7 +128,7 @@ def test_load_refuses_other_files_clearly(tmp_path, prior):
 def test_fit_prior_takes_counts_given_as_whole_floats(tmp_path):
     # The command line gives every setting as a number (--grid fit.window=3,4
     # gives 3.0): a whole one reaches the fit, and the cache key, as an int.
-    from humotion_gym.priors.fitting import fit_prior
+    from baselines.priors.fitting import fit_prior
 
     motions = [walking_along_y(90)]
     free = np.arange(body.N_PARAMS)

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from test_tree import ARM, make_motion, walking_along_y
 
+from baselines.filtering import ParticleState
+from baselines.priors import constant_velocity as cv
+from baselines.priors import mixture, tree
 from humotion_gym import body
-from humotion_gym.filtering import ParticleState
-from humotion_gym.priors import constant_velocity as cv
-from humotion_gym.priors import mixture, tree
 
 ROOT_X, ROOT_Y, YAW = (body.PARAM_INDEX[n] for n in ("root_x", "root_y", "root_yaw"))
 
@@ -318,8 +318,8 @@ def test_resampled_particles_move_as_their_copies_would(walker, variant, kernels
     # the rows the particles were drawn from and reads their histories where
     # they lie (never copying them): the same particles, bit for bit, as from
     # histories gathered first, and the generator left at the same place.
+    from baselines.filtering import deferred_rows, systematic_resample
     from humotion_gym import _kernels
-    from humotion_gym.filtering import deferred_rows, systematic_resample
 
     if kernels and not _kernels.enabled():
         pytest.skip("the compiled kernels are off (numba missing or HUMOTION_NUMBA=0)")

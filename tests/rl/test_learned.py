@@ -192,7 +192,7 @@ def test_bad_configs_are_refused() -> None:
 
 
 def test_cli_train_and_track_a_saved_policy(tmp_path: Path) -> None:
-    from humotion_gym.cli import main
+    from baselines.cli import main
 
     out = tmp_path / "run"
     code = main([
@@ -232,8 +232,8 @@ def test_pretrained_checkpoints_are_small() -> None:
 def test_proposal_prior_redraws_the_chosen_share_and_dimensions() -> None:
     from types import SimpleNamespace
 
+    from baselines.filtering import ParticleState
     from baselines.learned import ProposalPrior
-    from humotion_gym.filtering import ParticleState
 
     still = SimpleNamespace(
         initial=lambda fitted, pose, n, rng: ParticleState(np.tile(pose, (n, 1))),

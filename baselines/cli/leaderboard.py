@@ -1,0 +1,159 @@
+"""``humotion-gym leaderboard``: agents x tasks x particle counts x seeded episodes.
+
+::
+
+    humotion-gym leaderboard --tasks ArmTrack-v1 --agents pf-cv pf-tree --particles 300 3000
+    humotion-gym leaderboard --engine ray --workers 2 --out results/lb   # on a local Ray
+    humotion-gym leaderboard --engine ray --workers 2 --out results/lb --resume
+
+Exit codes: 0 when every cell ran or was skipped (an agent that does not cover
+a task shows as a row with its reason); 1 when a cell failed (its agent could
+not be built, or an episode raised): the table shows it and stderr names it;
+2 on a usage error; 130 when interrupted (``--out`` keeps what finished).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from baselines.cli._args import add_agents, add_engine, check_engine
+from humotion_gym.cli._common import (
+    CommandError,
+    UsageError,
+    add_data_dir,
+    add_seed,
+    env_kwargs,
+    nonnegative_float,
+    positive_int,
+    print_json,
+    task_name,
+    wrote,
+)
+
+#: Printed under the table: what its columns mean.
+LEGEND = (
+    "mean error: keypoint error over the episodes' frames, mm, with a 95% bootstrap "
+    "interval; IQM: interquartile mean over the episodes (the mean of the middle 50%); "
+    "x hold: hold's mean error over the row's (above 1: better than doing nothing); "
+    "beats hold: paired episodes where the row's error is lower; lost track: episodes "
+    "whose error stayed above the task's lost-track threshold long enough to count as lost."
+)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``leaderboard``."""
+    lb = subparsers.add_parser(
+        "leaderboard", help="agents x tasks x particle counts x seeded episodes, with hold"
+    )
+    lb.add_argument(
+        "--tasks", type=task_name, nargs="+", default=["ArmTrack-v1", "BodyTrack-v1"],
+        metavar="TASK", help="task ids (default: ArmTrack-v1 BodyTrack-v1)",
+    )  # fmt: skip
+    add_agents(lb, "hold always runs as the floor")
+    lb.add_argument(
+        "--particles", type=positive_int, nargs="+", default=[300, 3000], metavar="N",
+        help="particle counts of the particle filters (default: 300 3000)",
+    )  # fmt: skip
+    lb.add_argument(
+        "--episodes", type=positive_int, default=20, help="episodes per cell (default: 20)"
+    )
+    add_seed(lb, "seed of the first episode")
+    add_data_dir(lb)
+    lb.add_argument(
+        "--out", type=Path, default=None, metavar="FOLDER",
+        help="results folder: each finished episode is saved as it finishes (episodes.jsonl), "
+        "then results.json, table.md and the report (default: none)",
+    )  # fmt: skip
+    lb.add_argument(
+        "--resume", action="store_true",
+        help="continue the run saved in --out FOLDER, skipping its finished episodes",
+    )  # fmt: skip
+    lb.add_argument(
+        "--videos", action="store_true",
+        help="with --out: also videos of each cell's best, median and worst episode (re-run)",
+    )  # fmt: skip
+    lb.add_argument(
+        "--no-report", action="store_true",
+        help="with --out: results.json and table.md only, no figures or index.html",
+    )  # fmt: skip
+    add_engine(lb)
+    lb.add_argument(
+        "--json", action="store_true", help="print the rows as JSON instead of the table"
+    )
+    lb.add_argument(
+        "--background", choices=["flat", "clutter"], default=None,
+        help="scene background, a difficulty setting (default: the task's)",
+    )  # fmt: skip
+    lb.add_argument(
+        "--noise", type=nonnegative_float, default=None,
+        help="sensor noise, a difficulty setting (default: the task's)",
+    )  # fmt: skip
+    lb.set_defaults(func=_cmd_leaderboard)
+
+
+def _cmd_leaderboard(args: argparse.Namespace) -> int:
+    from baselines.leaderboard import (
+        ResumeError,
+        default_command,
+        markdown_table,
+        run_leaderboard,
+        validity_lines,
+    )
+
+    if args.resume and args.out is None:
+        raise UsageError("--resume: needs --out FOLDER, the run to continue")
+    if (args.videos or args.no_report) and args.out is None:
+        raise UsageError("--videos, --no-report: need --out FOLDER")
+    check_engine(args)
+    if args.out is not None and args.out.suffix == ".json":
+        raise UsageError(
+            f"--out: expected a results folder (it holds results.json), got the file {args.out}"
+        )
+    kwargs = env_kwargs(args)
+    if args.background:
+        kwargs["background"] = args.background
+    if args.noise is not None:
+        kwargs["noise"] = args.noise
+    command = default_command(
+        args.tasks, args.agents, args.particles, args.episodes, args.seed,
+        data_dir=args.data_dir, background=args.background, noise=args.noise,
+        engine=args.engine, workers=args.workers, address=args.address, out=args.out,
+        videos=args.videos, no_report=args.no_report,
+    )  # fmt: skip
+    try:
+        rows = run_leaderboard(
+            args.tasks, args.agents, args.particles, args.episodes, args.seed, kwargs,
+            engine=args.engine, workers=args.workers, address=args.address, out=args.out,
+            resume=args.resume, command=command, report=not args.no_report, videos=args.videos,
+        )  # fmt: skip
+    except ModuleNotFoundError as exc:
+        if exc.name != "ray":
+            raise
+        raise CommandError(f"--engine ray: {exc}") from None
+    except ResumeError as exc:
+        raise CommandError(f"--resume: {exc}") from None
+    except KeyboardInterrupt:
+        where = f"; the finished episodes are saved in {args.out}" if args.out else ""
+        print(f"interrupted{where}", file=sys.stderr)
+        if args.out:
+            print(f"to finish it: {command} --resume", file=sys.stderr)
+        return 130
+    failed = [r for r in rows if "error" in r]
+    if args.json:
+        print_json({"rows": rows, "validity": validity_lines(rows)})
+    else:
+        print(markdown_table(rows))
+        for line in validity_lines(rows):
+            print(line)
+        print(LEGEND)
+        if args.out:
+            report = "" if args.no_report else ", the report (index.html)"
+            wrote(args.out, f"results.json, table.md, episodes.jsonl{report}")
+    for r in failed:
+        print(
+            f"error: {r['agent']} on {r['task']} ({r['particles']} particles): {r['error']}",
+            file=sys.stderr,
+        )
+    return 1 if failed else 0

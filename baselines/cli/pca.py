@@ -1,0 +1,96 @@
+"""``humotion-gym pca``: the cyclic PCA walking model's experiments (Ormoneit et al. 2005).
+
+The experiments are in :mod:`baselines.experiments.ormoneit2005`::
+
+    humotion-gym pca period PATH... [--all-labels] [--json]
+    humotion-gym pca figures [--data-dir DIR...] [--out-dir DIR] [--components Q]
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from humotion_gym.cli._common import (
+    CommandError,
+    add_data_dir,
+    add_fps,
+    add_json,
+    positive_int,
+    print_json,
+    wrote,
+)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``pca period`` and ``pca figures``."""
+    pca = subparsers.add_parser("pca", help="cyclic PCA walking model (Ormoneit et al. 2005)")
+    psub = pca.add_subparsers(dest="pca_command", required=True, metavar="COMMAND")
+    period = psub.add_parser("period", help="cycle length per clip: eq. 3 and the feet")
+    period.add_argument("paths", nargs="+", metavar="PATH", help="mocap files or folders")
+    add_json(period, "JSON lines instead of a table")
+    add_fps(period)
+    period.add_argument(
+        "--all-labels", action="store_true", help="every clip, not only those labelled walk"
+    )
+    period.set_defaults(func=_cmd_period)
+    figs = psub.add_parser("figures", help="figures like the paper's Figs. 5, 7, 9 and 10")
+    add_data_dir(figs)
+    figs.add_argument(
+        "--out-dir", "--out", type=Path, default=Path("pca-figures"), dest="out_dir",
+        help="folder for the PNG files (default: pca-figures)",
+    )  # fmt: skip
+    add_fps(figs)
+    figs.add_argument(
+        "--components", type=positive_int, default=5,
+        help="principal components of the FPCA (default: 5)",
+    )  # fmt: skip
+    figs.set_defaults(func=_cmd_figures)
+
+
+def _cmd_period(args: argparse.Namespace) -> int:
+    from baselines.experiments.ormoneit2005 import cycle_lengths
+    from baselines.priors.cyclic_pca import WALK_LABELS
+    from humotion_gym.mocap.library import load_library
+
+    lib = load_library(args.paths, fps=args.fps, progress=False)
+    clips = list(lib) if args.all_labels else [m for m in lib if m.label in WALK_LABELS]
+    if not clips:
+        raise CommandError("no walking clips among the files (use --all-labels for every clip)")
+    rows = cycle_lengths(clips)
+    if args.json:
+        for r in rows:
+            print_json(r.as_dict())
+        return 0
+    print(f"{'clip':44s} {'eq3 fr':>7s} {'feet fr':>7s} {'eq3 s':>6s} {'feet s':>6s} {'diff':>6s}")
+    for r in rows:
+        diff = f"{100 * r.relative_difference:5.1f}%" if np.isfinite(r.frames_feet) else "   -  "
+        print(
+            f"{r.clip_id[-44:]:44s} {r.frames_snr:7.2f} {r.frames_feet:7.2f} "
+            f"{r.seconds_snr:6.3f} {r.seconds_feet:6.3f} {diff}"
+        )
+    rel = np.array([r.relative_difference for r in rows])
+    rel = rel[np.isfinite(rel)]
+    if rel.size:
+        print(
+            f"{len(rows)} clips; eq. 3 vs feet: median difference {100 * np.median(rel):.1f}%, "
+            f"{100 * np.mean(rel <= 0.1):.0f}% of clips within 10%"
+        )
+    return 0
+
+
+def _cmd_figures(args: argparse.Namespace) -> int:
+    from baselines.experiments.ormoneit2005 import make_figures
+    from humotion_gym.mocap.library import default_library
+
+    lib = default_library(args.data_dir or None, fps=args.fps, progress=False)
+    try:
+        written, about = make_figures(lib, args.out_dir, args.fps, args.components)
+    except ValueError as exc:
+        raise CommandError(str(exc)) from exc
+    print(about)
+    for p in written:
+        wrote(p)
+    return 0

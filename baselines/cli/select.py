@@ -1,0 +1,124 @@
+"""``humotion-gym select``: choose likelihood settings by cross-validation on training persons.
+
+::
+
+    humotion-gym select --task ArmTrack-v1 --agent pf-tree --grid sharpness=1,2,3,5
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+
+from baselines.cli._args import add_particles, agent_name
+from humotion_gym.cli._common import (
+    UsageError,
+    add_data_dir,
+    add_json,
+    add_seed,
+    add_task,
+    positive_int,
+    print_json,
+)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``select``."""
+    sel = subparsers.add_parser(
+        "select",
+        help="choose a likelihood setting by cross-validation on training persons",
+        description="Track the validation persons (training persons held out of the priors' "
+        "data) with each candidate value of likelihood settings (or prior settings, fit.NAME, or "
+        "the annealed filter's settings, filter.NAME) "
+        "and pick the combination with the lowest mean error. Test persons are never loaded.",
+    )
+    add_task(sel, "ArmTrack-v1")
+    sel.add_argument(
+        "--agent", type=agent_name, default="pf-tree",
+        help="particle-filter agent (default: pf-tree)",
+    )  # fmt: skip
+    sel.add_argument(
+        "--grid", nargs="+", default=["sharpness=1,2,3,5"], metavar="NAME=V1,V2",
+        help="candidate values per ObservationModel setting, or per setting of the agent's "
+        "prior written fit.NAME (e.g. fit.damping=1,0.5), or of the annealed filter written "
+        "filter.NAME (layers, alpha, diffusion, beta_max; e.g. filter.alpha=0.5,0.7); every "
+        "combination is tried "
+        "(default: sharpness=1,2,3,5)",
+    )  # fmt: skip
+    add_particles(sel)
+    sel.add_argument(
+        "--episodes", type=positive_int, default=20, help="episodes per value (default: 20)"
+    )
+    add_seed(sel, "first episode seed")
+    sel.add_argument(
+        "--validation", nargs="+", default=None, metavar="SUBJECT",
+        help="training subjects to hold out (default: experiments.selection.VALIDATION_SUBJECTS)",
+    )  # fmt: skip
+    sel.add_argument(
+        "--still", type=int, default=0, metavar="N",
+        help="also track up to N still episodes of the validation persons (where hold scores "
+        "lowest) and choose the lowest mean error among the settings within 2x hold there "
+        "(default: 0, mean error only)",
+    )  # fmt: skip
+    add_data_dir(sel)
+    add_json(sel)
+    sel.set_defaults(func=_cmd_select)
+
+
+def parse_grid(items: Sequence[str]) -> dict[str, list[float]]:
+    """``NAME=V1,V2,...`` items as ``{name: [values]}``.
+
+    Raises:
+        UsageError: Naming ``--grid`` and the item, if one is malformed.
+    """
+    grid: dict[str, list[float]] = {}
+    for item in items:
+        name, sep, values = item.partition("=")
+        try:
+            grid[name.strip()] = [float(v) for v in values.split(",") if v.strip()]
+        except ValueError:
+            sep = ""
+        if not sep or not name.strip() or not grid.get(name.strip()):
+            raise UsageError(f"--grid: expected NAME=V1,V2,... with numbers, got {item}")
+    return grid
+
+
+def _cmd_select(args: argparse.Namespace) -> int:
+    from baselines.experiments.selection import select_observation_settings, validation_library
+
+    grid = parse_grid(args.grid)
+    lib = validation_library(args.data_dir or None, args.validation)
+    try:
+        out = select_observation_settings(
+            args.task, args.agent, grid, lib, args.particles, args.episodes, args.seed,
+            still=args.still,
+        )  # fmt: skip
+    except ValueError as exc:  # a setting, agent or fold these arguments name
+        raise UsageError(str(exc)) from exc
+    if args.json:
+        print_json(out)
+        return 0
+    print(
+        f"{out['task']}: {args.agent} at {args.particles} particles, {args.episodes} episodes "
+        f"of the validation persons {', '.join(out['validation_subjects'])} "
+        f"(priors fitted on the other {out['train_clips']} training clips)"
+    )
+    still = "still_hold_mm" in out
+    print(
+        f"{'settings':44s} {'mean error mm':>14s} {'x hold':>7s}"
+        + (f" {'still mm':>9s} {'/ hold':>7s}" if still else "")
+    )
+    for row in out["rows"]:
+        text = " ".join(f"{k}={v:g}" for k, v in row["settings"].items())
+        line = f"{text:44s} {row['mean_error_mm']:14.1f} {row['hold_ratio']:7.2f}"
+        if still:
+            line += f" {row['still_error_mm']:9.1f} {row['still_ratio']:7.2f}"
+        print(line)
+    chosen = " ".join(f"{k}={v:g}" for k, v in out["chosen"].items())
+    print(f"hold: {out['hold_mm']:.1f} mm; chosen: {chosen}")
+    if still:
+        print(
+            f"still episodes: {out['still_episodes']}, hold {out['still_hold_mm']:.1f} mm there; "
+            "chosen among the settings within 2x hold on them (if any)"
+        )
+    return 0

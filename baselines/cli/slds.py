@@ -1,0 +1,395 @@
+"""``humotion-gym slds``: the SLDS experiments of Pavlovic, Rehg, Cham & Murphy (1999).
+
+The experiments are in :mod:`baselines.experiments.pavlovic1999`::
+
+    humotion-gym slds classify --train PATH... --test PATH... [--seed S] [--json] [--figure F]
+    humotion-gym slds select [--data-dir DIR] [--features F...] [--extra-noise-degs DEG...]
+                             [--criterion kinds|frames] [--jobs N] [--json]
+    humotion-gym slds splits [--data-dir DIR] [--features F] [--extra-noise-deg DEG]
+                             [--training-persons] [--jobs N] [--seed S] [--json]
+    humotion-gym slds interpolate [--data-dir DIR] [--json] [--figure F]
+    humotion-gym slds figures [--data-dir DIR] [--out-dir DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from humotion_gym.body import PARAM_NAMES
+from humotion_gym.cli._common import (
+    UsageError,
+    add_data_dir,
+    add_json,
+    add_seed,
+    nonnegative_float,
+    positive_int,
+    print_json,
+    probability,
+)
+from humotion_gym.mocap.motion import Motion
+
+
+def _add_model_args(p: argparse.ArgumentParser, figure: bool = True) -> None:
+    from baselines.priors import slds
+
+    add_seed(p, "seed of EM and of the test sequences")
+    p.add_argument(
+        "--states", type=positive_int, default=slds.N_STATES,
+        help=f"switch states per activity (default: {slds.N_STATES})",
+    )  # fmt: skip
+    p.add_argument(
+        "--iters", type=positive_int, default=slds.CLASSIFY_N_ITER,
+        help=f"EM iterations per activity (default: {slds.CLASSIFY_N_ITER})",
+    )  # fmt: skip
+    p.add_argument(
+        "--max-train-clips", type=positive_int, default=None,
+        help="training clips per activity (default: all)",
+    )  # fmt: skip
+    if figure:
+        add_json(p)
+        p.add_argument(
+            "--figure", type=Path, default=None,
+            help="also write the figure here, .png (default: none)",
+        )  # fmt: skip
+
+
+def features_arg(text: str) -> str:
+    """An argparse ``type`` for a feature name (``pavlovic1999.parse_features``)."""
+    from baselines.experiments import pavlovic1999 as pav
+
+    try:
+        pav.parse_features(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+def _add_variant_args(p: argparse.ArgumentParser) -> None:
+    """``--features`` and ``--extra-noise-deg`` of one classifier setting."""
+    from baselines.experiments import pavlovic1999 as pav
+
+    p.add_argument(
+        "--features", type=features_arg, default=pav.CLASSIFY_FEATURES,
+        help=f"what the models see: {pav.FEATURES_HELP} (default: {pav.CLASSIFY_FEATURES})",
+    )  # fmt: skip
+    p.add_argument(
+        "--extra-noise-deg", type=nonnegative_float, default=pav.CLASSIFY_EXTRA_NOISE_DEG,
+        help="measurement noise the decoder assumes on top of the test noise, degrees "
+        f"(default: {pav.CLASSIFY_EXTRA_NOISE_DEG:g})",
+    )  # fmt: skip
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``slds classify|select|splits|interpolate|figures``."""
+    from baselines.experiments import pavlovic1999 as pav
+
+    p = subparsers.add_parser(
+        "slds", help="switching linear dynamic system experiments (Pavlovic et al. 1999)"
+    )
+    sub = p.add_subparsers(dest="slds_command", required=True, metavar="COMMAND")
+
+    c = sub.add_parser("classify", help="walk/run classification (section 4.1, Fig. 3)")
+    c.add_argument(
+        "--train", nargs="+", required=True, metavar="PATH", help="training mocap files or folders"
+    )
+    c.add_argument(
+        "--test", nargs="+", required=True, metavar="PATH", help="test mocap files or folders"
+    )
+    c.add_argument(
+        "--labels", nargs="+", default=None,
+        help="activities (default: walk and run, with dash counted as run)",
+    )  # fmt: skip
+    c.add_argument(
+        "--switch-prob", type=probability, default=pav.CLASSIFY_SWITCH_PROB,
+        help=f"probability of leaving a switch state (default: {pav.CLASSIFY_SWITCH_PROB:g})",
+    )  # fmt: skip
+    c.add_argument(
+        "--free", nargs="+", default=None, metavar="PARAM",
+        help=f"parameter names to model (default: {' '.join(pav.CLASSIFY_PARAMS)})",
+    )  # fmt: skip
+    noise = float(np.degrees(pav.NOISE_STD))
+    c.add_argument(
+        "--noise-deg", type=nonnegative_float, default=noise,
+        help=f"noise added to the test sequences, degrees (default: {noise:g})",
+    )  # fmt: skip
+    _add_variant_args(c)
+    _add_model_args(c)
+    c.set_defaults(func=_cmd_classify)
+
+    sel = sub.add_parser(
+        "select", help="choose the classifier's settings by cross-validation on the train split"
+    )
+    add_data_dir(sel)
+    sel.add_argument(
+        "--param-sets", nargs="+", default=None, metavar="NAME",
+        help=f"candidate parameter subsets (default: all of {', '.join(pav.CANDIDATE_PARAMS)})",
+    )  # fmt: skip
+    probs = list(pav.CANDIDATE_SWITCH_PROBS)
+    sel.add_argument(
+        "--switch-probs", nargs="+", type=probability, default=probs, metavar="P",
+        help=f"candidate switch probabilities (default: {' '.join(f'{v:g}' for v in probs)})",
+    )  # fmt: skip
+    sel.add_argument(
+        "--features", nargs="+", type=features_arg, default=["angles"], metavar="F",
+        help=f"candidate features: {pav.FEATURES_HELP} (default: angles; the variant grid: "
+        f"{' '.join(pav.CANDIDATE_FEATURES)})",
+    )  # fmt: skip
+    sel.add_argument(
+        "--extra-noise-degs", nargs="+", type=nonnegative_float, default=[0.0], metavar="DEG",
+        help="candidate extra measurement noise the decoder assumes, degrees (default: 0; the "
+        f"variant grid: {' '.join(f'{v:g}' for v in pav.CANDIDATE_EXTRA_NOISE_DEG)})",
+    )  # fmt: skip
+    sel.add_argument(
+        "--person-folds", action=argparse.BooleanOptionalAction, default=True,
+        help="hold out every training person outside Bandai-Namco as a CV fold "
+        "(leave-one-person-out; default: on)",
+    )  # fmt: skip
+    sel.add_argument(
+        "--criterion", choices=pav.CV_CRITERIA, default="kinds",
+        help="kinds: mean of the style folds' and the person folds' pooled errors; frames: "
+        "every held-out frame weighs the same (default: kinds)",
+    )  # fmt: skip
+    _add_model_args(sel, figure=False)
+    sel.add_argument(
+        "--jobs", type=positive_int, default=1, help="folds run in parallel processes (default: 1)"
+    )
+    sel.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_json(sel)
+    sel.set_defaults(func=_cmd_select, max_train_clips=None)
+
+    spl = sub.add_parser(
+        "splits", help="classification error per held-out style and per held-out person"
+    )
+    add_data_dir(spl)
+    spl.add_argument(
+        "--params", nargs="+", default=None, metavar="PARAM",
+        help="also score these parameters as 'given' (default: only the CV-chosen and old ones)",
+    )  # fmt: skip
+    spl.add_argument(
+        "--switch-prob", type=probability, default=None,
+        help="also score this switch probability as 'given' (default: none)",
+    )  # fmt: skip
+    spl.add_argument(
+        "--features", type=features_arg, default=None,
+        help=f"also score these features as 'given': {pav.FEATURES_HELP} (default: none)",
+    )  # fmt: skip
+    spl.add_argument(
+        "--extra-noise-deg", type=nonnegative_float, default=None,
+        help="also score this extra assumed noise (degrees) as 'given' (default: none)",
+    )  # fmt: skip
+    spl.add_argument(
+        "--training-persons", action="store_true",
+        help="also hold out each training person outside Bandai-Namco (CMU 5, 7) in turn "
+        "(default: off)",
+    )  # fmt: skip
+    _add_model_args(spl, figure=False)
+    spl.add_argument(
+        "--jobs", type=positive_int, default=1, help="fits run in parallel processes (default: 1)"
+    )
+    spl.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_json(spl)
+    spl.set_defaults(func=_cmd_splits)
+
+    i = sub.add_parser("interpolate", help="fill a gap of held-out walking (Fig. 6)")
+    add_data_dir(i)
+    i.add_argument("--label", default="walk", help="activity of the clips (default: walk)")
+    _add_model_args(i)
+    i.set_defaults(func=_cmd_interpolate)
+
+    f = sub.add_parser("figures", help="Figs. 3, 5 and 6 on walk/run data; prints a JSON summary")
+    add_data_dir(f)
+    f.add_argument(
+        "--out-dir", type=Path, default=Path("slds_figures"),
+        help="folder for the PNG files (default: slds_figures)",
+    )  # fmt: skip
+    _add_model_args(f, figure=False)
+    f.set_defaults(func=_cmd_figures)
+
+
+def _cmd_classify(args: argparse.Namespace) -> int:
+    from baselines.experiments import pavlovic1999 as pav
+
+    train, test = pav.split_train_test(pav.load_motions(args.train), pav.load_motions(args.test))
+    if args.labels is None:  # walk and run, Bandai-Namco set 1's dash as run
+        train, test = pav.activity_clips(train), pav.activity_clips(test)
+    result = pav.run_classification(
+        train, test, np.random.default_rng(args.seed), free=pav.param_indices(args.free),
+        labels=args.labels, n_states=args.states, n_iter=args.iters,
+        switch_prob=args.switch_prob, noise_std=float(np.radians(args.noise_deg)),
+        max_train_clips=args.max_train_clips, features=args.features,
+        extra_noise_deg=args.extra_noise_deg,
+    )  # fmt: skip
+    out = result.summary()
+    out.update(
+        train_clips=len(train), test_clips=len(test), seed=args.seed,
+        params=[PARAM_NAMES[i] for i in result.model.free], features=args.features,
+        extra_noise_deg=args.extra_noise_deg,
+    )  # fmt: skip
+    if args.figure:
+        pav.plot_segmentation(result, args.figure)
+    if args.json:
+        print_json(out)
+    else:
+        print(
+            f"SLDS classification: error {100 * result.error:.2f}% over {result.n_points} points "
+            f"in {result.n_sequences} sequences (paper: 2.9% over 8,312 points)"
+        )
+        for lab, err in result.per_label_error.items():
+            print(f"  {lab:8s} error {100 * err:.2f}%")
+        print(
+            f"  {len(train)} training clips, {len(test)} test clips, "
+            f"{result.model.n_states} switch states, fit {result.seconds_fit:.1f} s"
+        )
+    return 0
+
+
+def _train_motions(data_dir: Sequence[str] | None) -> list[Motion]:
+    """The training split of the configured library (never a test person)."""
+    from baselines.experiments import pavlovic1999 as pav
+    from humotion_gym.mocap.library import MotionLibrary
+
+    return list(MotionLibrary(tuple(pav.default_motions(data_dir))).split("train"))
+
+
+def _param_sets_arg(names: Sequence[str] | None) -> dict[str, Sequence[str]]:
+    from baselines.experiments import pavlovic1999 as pav
+
+    if names is None:
+        return dict(pav.CANDIDATE_PARAMS)
+    unknown = [n for n in names if n not in pav.CANDIDATE_PARAMS]
+    if unknown:
+        raise UsageError(
+            f"--param-sets: unknown {', '.join(unknown)}; "
+            f"choose from {', '.join(pav.CANDIDATE_PARAMS)}"
+        )
+    return {n: pav.CANDIDATE_PARAMS[n] for n in names}
+
+
+def _log(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
+def _cmd_select(args: argparse.Namespace) -> int:
+    from baselines.experiments import pavlovic1999 as pav
+
+    train = _train_motions(args.data_dir)
+    result = pav.select_classifier_settings(
+        train, np.random.default_rng(args.seed), param_sets=_param_sets_arg(args.param_sets),
+        switch_probs=args.switch_probs, n_states=args.states, n_iter=args.iters,
+        jobs=args.jobs, log=None if args.quiet else _log, features=args.features,
+        extra_noise_degs=args.extra_noise_degs, person_folds=args.person_folds,
+        criterion=args.criterion,
+    )  # fmt: skip
+    if args.json:
+        print_json({**result.summary(), "seed": args.seed, "states": args.states,
+                          "iters": args.iters})  # fmt: skip
+    else:
+        print(result.table())
+        best = result.best
+        print(
+            f"chosen: {' '.join(best.params)} ({best.name}), features {best.features}, switch "
+            f"probability {best.switch_prob:g}, extra noise {best.extra_noise_deg:g} deg; "
+            f"{args.criterion} score {100 * result.scores[result.chosen]:.2f}%, CV error "
+            f"{100 * result.cv_error[result.chosen]:.2f}%"
+        )
+    return 0
+
+
+def _cmd_splits(args: argparse.Namespace) -> int:
+    from baselines.experiments import pavlovic1999 as pav
+
+    settings = pav.default_settings()
+    given = (args.params, args.switch_prob, args.features, args.extra_noise_deg)
+    if any(v is not None for v in given):
+        params = tuple(args.params) if args.params is not None else pav.CLASSIFY_PARAMS
+        pav.param_indices(params)
+        prob = args.switch_prob if args.switch_prob is not None else pav.CLASSIFY_SWITCH_PROB
+        feats = args.features if args.features is not None else pav.CLASSIFY_FEATURES
+        extra = (
+            args.extra_noise_deg if args.extra_noise_deg is not None
+            else pav.CLASSIFY_EXTRA_NOISE_DEG
+        )  # fmt: skip
+        settings["given"] = pav.ClassifierSetting(
+            params, prob, pav.setting_name(params), feats, extra
+        )
+    rows = pav.evaluate_splits(
+        pav.default_motions(args.data_dir), np.random.default_rng(args.seed), settings,
+        n_states=args.states, n_iter=args.iters, jobs=args.jobs,
+        log=None if args.quiet else _log, training_persons=args.training_persons,
+    )  # fmt: skip
+    if args.json:
+        print_json({"rows": [r.summary() for r in rows], "seed": args.seed,
+                          "states": args.states, "iters": args.iters})  # fmt: skip
+    else:
+        print(pav.splits_table(rows))
+        print(
+            "CV-chosen: the defaults CLASSIFY_PARAMS/CLASSIFY_SWITCH_PROB (from "
+            "`humotion-gym slds select`); old fixed: picked after seeing held-out results"
+        )
+    return 0
+
+
+def _cmd_interpolate(args: argparse.Namespace) -> int:
+    from baselines.experiments import pavlovic1999 as pav
+
+    motions = pav.default_motions(args.data_dir)
+    train, test = pav.person_split(motions)
+    results, mean, _ = pav.run_interpolation(
+        train, test, np.random.default_rng(args.seed), label=args.label,
+        n_states=args.states, n_iter=args.iters, max_train_clips=args.max_train_clips,
+    )  # fmt: skip
+    if args.figure:
+        pav.plot_interpolation(results[0], pav.slds.SAGITTAL_INDEX, args.figure)
+    out = {
+        "clips": len(results),
+        "gap": list(pav.GAP),
+        "mean_abs_error_deg": {k: round(v, 3) for k, v in mean.items()},
+        "per_clip": [
+            {"clip": r.clip, **{k: round(v, 3) for k, v in r.errors.items()}} for r in results
+        ],
+    }
+    if args.json:
+        print_json(out)
+    else:
+        print(
+            f"gap frames {pav.GAP[0]}-{pav.GAP[1] - 1} of {len(results)} held-out "
+            f"{args.label} clips, "
+            "mean absolute joint-angle error (deg):"
+        )
+        for k, v in mean.items():
+            print(f"  {k:9s} {v:6.2f}")
+    return 0
+
+
+def _cmd_figures(args: argparse.Namespace) -> int:
+    from baselines.experiments import pavlovic1999 as pav
+
+    out = args.out_dir
+    out.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(args.seed)
+    train, test = pav.person_split(pav.default_motions(args.data_dir))
+    result = pav.run_classification(
+        pav.activity_clips(train), pav.activity_clips(test), rng, labels=pav.CLASSIFY_LABELS,
+        n_states=args.states, n_iter=args.iters,
+        max_train_clips=args.max_train_clips,
+    )  # fmt: skip
+    pav.plot_segmentation(result, out / "slds_fig3_classification.png")
+    results, mean, walk = pav.run_interpolation(
+        train, test, rng, n_states=args.states, n_iter=args.iters,
+        max_train_clips=args.max_train_clips,
+    )  # fmt: skip
+    pav.plot_interpolation(results[0], walk.free, out / "slds_fig6_interpolation.png")
+    poses, switches = pav.slds.synthesize(walk, 300, rng)
+    pav.plot_synthesis(poses, switches, walk.free, out / "slds_fig5_synthesis.png", walk.fps)
+    summary = {
+        "classification": result.summary(),
+        "interpolation_mean_abs_error_deg": mean,
+        "figures": sorted(str(p) for p in out.glob("slds_fig*.png")),
+    }
+    print_json(summary)
+    return 0

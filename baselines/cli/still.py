@@ -1,0 +1,62 @@
+"""``humotion-gym still``: every agent on the episodes where the person barely moves.
+
+::
+
+    humotion-gym still --task BodyTrack-v1 --agents pf-cv pf-tree pf-mix --data-dir ../shared/mocap
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from baselines.cli._args import add_agents, add_particles
+from humotion_gym.cli._common import (
+    add_data_dir,
+    add_json,
+    add_seed,
+    add_task,
+    env_kwargs,
+    positive_float,
+    positive_int,
+    report,
+)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``still``."""
+    st = subparsers.add_parser(
+        "still",
+        help="every agent on the test persons' still episodes, against hold",
+        description="Find the episodes of the task's test clips where the person barely moves "
+        "(hold's mean error at most --max-hold mm, lowest first, none overlapping) and track "
+        "them with every agent; an agent stands still when its error is within 2x hold's.",
+    )
+    add_task(st, "BodyTrack-v1")
+    add_agents(st)
+    add_particles(st)
+    st.add_argument(
+        "--max-hold", type=positive_float, default=50.0, metavar="MM",
+        help="keep episodes whose hold error is at most this (default: 50 mm)",
+    )  # fmt: skip
+    st.add_argument(
+        "--episodes", type=positive_int, default=20, help="at most this many episodes (default: 20)"
+    )
+    add_seed(st, "the agents' seed")
+    add_data_dir(st)
+    st.add_argument(
+        "--out", type=Path, default=None,
+        help="also write the result as JSON to this file (default: none)",
+    )  # fmt: skip
+    add_json(st)
+    st.set_defaults(func=_cmd_still)
+
+
+def _cmd_still(args: argparse.Namespace) -> int:
+    from baselines.stillness import markdown_table, run_still
+
+    out = run_still(
+        args.task, args.agents, args.particles, seed=args.seed, env_kwargs=env_kwargs(args),
+        max_hold_mm=args.max_hold, count=args.episodes,
+    )  # fmt: skip
+    return report(args, out, "still episodes", lambda: markdown_table(out))

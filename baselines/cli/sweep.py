@@ -1,0 +1,129 @@
+"""``humotion-gym sweep``: difficulty curves, the leaderboard over environment settings.
+
+::
+
+    humotion-gym sweep --tasks BodyTrack-v1 --agents pf-cv pf-tree --particles 300
+        --noise 0 4 8 16 --occluders 0 1 2 4 --episodes 5 --out runs/sweep
+
+Each setting is varied on its own from the task's defaults; every value runs
+the leaderboard (``hold`` included). Writes ``sweep.json`` (every episode),
+``sweep.md`` (the curves as a table) and ``sweep.png`` (the curves).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from baselines.cli._args import add_agents, add_engine, check_engine
+from humotion_gym.cli._common import (
+    UsageError,
+    add_data_dir,
+    add_seed,
+    env_kwargs,
+    nonnegative_float,
+    nonnegative_int,
+    positive_int,
+    task_name,
+    wrote,
+)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``sweep``."""
+    sw = subparsers.add_parser(
+        "sweep", help="difficulty curves: the leaderboard over a grid of environment settings"
+    )
+    sw.add_argument(
+        "--tasks", type=task_name, nargs="+", default=["BodyTrack-v1"], metavar="TASK",
+        help="task ids (default: BodyTrack-v1)",
+    )  # fmt: skip
+    add_agents(sw)
+    sw.add_argument(
+        "--particles", type=positive_int, nargs="+", default=[300], metavar="N",
+        help="particle counts of the particle filters (default: 300)",
+    )  # fmt: skip
+    sw.add_argument(
+        "--episodes", type=positive_int, default=5, help="episodes per cell and value (default: 5)"
+    )
+    grid = sw.add_argument_group("settings (each one given is swept on its own)")
+    grid.add_argument(
+        "--size", type=positive_int, nargs="+", default=None, metavar="PIXELS",
+        help="image sizes, width = height (default: not swept)",
+    )  # fmt: skip
+    grid.add_argument(
+        "--background", choices=["flat", "clutter"], nargs="+", default=None,
+        help="backgrounds (default: not swept)",
+    )  # fmt: skip
+    grid.add_argument(
+        "--noise", type=nonnegative_float, nargs="+", default=None, metavar="SIGMA",
+        help="sensor noise levels, grey levels (default: not swept)",
+    )  # fmt: skip
+    grid.add_argument(
+        "--occluders", type=nonnegative_int, nargs="+", default=None, metavar="N",
+        help="numbers of occluders (default: not swept)",
+    )  # fmt: skip
+    grid.add_argument(
+        "--blur", type=nonnegative_float, nargs="+", default=None, metavar="SIGMA",
+        help="blur levels, pixels (default: not swept)",
+    )  # fmt: skip
+    grid.add_argument(
+        "--frame-skip", type=positive_int, nargs="+", default=None, metavar="K",
+        help="frame skips (default: not swept)",
+    )  # fmt: skip
+    add_engine(sw)
+    add_seed(sw, "seed of the first episode")
+    add_data_dir(sw)
+    sw.add_argument(
+        "--out", type=Path, required=True,
+        help="folder for sweep.json, sweep.md and sweep.png (created if needed)",
+    )  # fmt: skip
+    sw.add_argument(
+        "--figure", type=Path, default=None,
+        help="also write the figure here (e.g. docs/img/sweep_noise_occluders.png; default: none)",
+    )  # fmt: skip
+    sw.set_defaults(func=_cmd_sweep)
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    import importlib.util
+
+    from baselines import sweep
+
+    grid = {
+        name: values
+        for name, values in (
+            ("size", args.size), ("background", args.background), ("noise", args.noise),
+            ("occluders", args.occluders), ("blur", args.blur), ("frame_skip", args.frame_skip),
+        )
+        if values
+    }  # fmt: skip
+    if not grid:
+        raise UsageError(
+            "nothing to sweep: give at least one of --size, --background, --noise, "
+            "--occluders, --blur, --frame-skip"
+        )
+    check_engine(args)
+    engine = None
+    if args.engine != "inprocess":
+        engine = {"engine": args.engine, "workers": args.workers, "address": args.address}
+    result = sweep.run_sweep(
+        args.tasks, args.agents, args.particles, grid, args.episodes, args.seed,
+        env_kwargs(args), engine_options=engine,
+    )  # fmt: skip
+    args.out.mkdir(parents=True, exist_ok=True)
+    wrote(sweep.save(result, args.out / "sweep.json"), "every episode at every setting")
+    table = sweep.markdown(result)
+    (args.out / "sweep.md").write_text(table + "\n")
+    print(table)
+    wrote(args.out / "sweep.md", "the curves as a table")
+    if importlib.util.find_spec("matplotlib") is None:
+        print("no figure: matplotlib is not installed (pip install -e '.[plots]' adds it)")
+        return 0
+    title = (
+        f"{', '.join(args.tasks)}; {args.episodes} episodes per point; "
+        f"particles {', '.join(map(str, args.particles))}"
+    )
+    for path in [args.out / "sweep.png"] + ([args.figure] if args.figure else []):
+        wrote(sweep.figure(result, path, title), "difficulty curves")
+    return 0

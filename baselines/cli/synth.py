@@ -1,0 +1,145 @@
+"""``humotion-gym synth``: synthesise motion from a fitted prior, as BVH (and video).
+
+Every prior is fitted the same way (:func:`baselines.priors.fitting.fit_prior`,
+cached) on the training persons' clips and sampled through the signature every
+prior shares, ``synthesize_motion(fitted, base_pose, frames, fps, rng)``::
+
+    humotion-gym synth --prior tree --seconds 2 --out synth.bvh [--video synth.mp4]
+    humotion-gym synth --prior tree --setting beta=0.05 --out faithful.bvh
+"""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from humotion_gym.cli._common import (
+    CommandError,
+    UsageError,
+    add_data_dir,
+    add_fps,
+    add_seed,
+    positive_float,
+    positive_int,
+    wrote,
+)
+
+#: Shorter names accepted by ``--prior``.
+ALIASES = {"pca": "cyclic_pca", "cv": "constant_velocity"}
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``synth``."""
+    from baselines.priors import PRIORS
+
+    syn = subparsers.add_parser("synth", help="synthesise motion from a fitted prior, as BVH")
+    names = sorted(PRIORS) + sorted(ALIASES)
+    syn.add_argument(
+        "--prior", choices=names, default="tree", metavar="PRIOR",
+        help=f"the prior to fit and sample: {', '.join(sorted(PRIORS))} "
+        "(pca and cv are short for cyclic_pca and constant_velocity; default: tree)",
+    )  # fmt: skip
+    syn.add_argument(
+        "--seconds", type=positive_float, default=2.0, help="length of the motion (default: 2)"
+    )
+    syn.add_argument(
+        "--labels", nargs="+", default=["walk"], metavar="LABEL",
+        help="activities of the training clips the prior is fitted on (default: walk)",
+    )  # fmt: skip
+    syn.add_argument(
+        "--max-clips", type=positive_int, default=40,
+        help="fit on at most this many training clips, a random subset (default: 40)",
+    )  # fmt: skip
+    syn.add_argument(
+        "--start", default=None,
+        help="clip id whose first pose starts the motion (default: the first training clip)",
+    )  # fmt: skip
+    syn.add_argument(
+        "--setting", nargs="+", default=[], metavar="NAME=VALUE",
+        help="settings of the prior's fit, e.g. beta=0.05 for a faithful tree (default: none)",
+    )  # fmt: skip
+    syn.add_argument(
+        "--beta", type=positive_float, default=None,
+        help="short for --setting beta=BETA, the tree's temperature (default: the fit's)",
+    )  # fmt: skip
+    add_seed(syn)
+    syn.add_argument(
+        "--out", type=Path, default=Path("synth.bvh"), help="the BVH to write (default: synth.bvh)"
+    )
+    syn.add_argument(
+        "--video", type=Path, default=None, help="also write a video here (default: none)"
+    )
+    add_data_dir(syn)
+    add_fps(syn)
+    syn.set_defaults(func=_cmd_synth)
+
+
+def _value(text: str) -> Any:
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return {"true": True, "false": False}.get(text.lower(), text)
+
+
+def fit_settings(module: Any, items: list[str], beta: float | None) -> dict[str, Any]:
+    """``NAME=VALUE`` items (and ``--beta``) as keyword arguments of ``module.fit``.
+
+    Raises:
+        UsageError: Naming the flag, for a malformed item or a setting the fit lacks.
+    """
+    accepted = set(inspect.signature(module.fit).parameters) - {"motions", "free", "rng"}
+    settings: dict[str, Any] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip() or not value.strip():
+            raise UsageError(f"--setting: expected NAME=VALUE, got {item}")
+        settings[name.strip()] = _value(value.strip())
+    if beta is not None:
+        settings["beta"] = beta
+    unknown = sorted(set(settings) - accepted)
+    if unknown:
+        flag = "--beta" if unknown == ["beta"] and beta is not None else "--setting"
+        raise UsageError(
+            f"{flag}: the {module.NAME} prior's fit has no setting {', '.join(unknown)}; "
+            f"its settings are {', '.join(sorted(accepted))}"
+        )
+    return settings
+
+
+def _cmd_synth(args: argparse.Namespace) -> int:
+    from baselines.priors.fitting import fit_prior, prior_module
+    from humotion_gym.mocap.export import write_motion_bvh
+    from humotion_gym.mocap.library import default_library
+    from humotion_gym.video import render_motion, write_video
+
+    name = ALIASES.get(args.prior, args.prior)
+    module = prior_module(name)
+    settings = fit_settings(module, args.setting, args.beta)
+    lib = default_library(args.data_dir or None, fps=args.fps)
+    clips = list(lib.split("train").filter(labels=args.labels))
+    if not clips:
+        raise CommandError(f"--labels: no training clip has the labels {', '.join(args.labels)}")
+    rng = np.random.default_rng(args.seed)
+    if len(clips) > args.max_clips:
+        pick = np.sort(rng.choice(len(clips), args.max_clips, replace=False))
+        clips = [clips[k] for k in pick]
+    if args.start and args.start not in lib.clip_ids:
+        raise CommandError(
+            f"--start: no clip {args.start} in the library (see humotion-gym data table)"
+        )
+    start = lib[args.start] if args.start else clips[0]
+    frames = max(2, int(round(args.seconds * args.fps)))
+    _, fitted = fit_prior(module, clips, None, settings)
+    params = module.synthesize_motion(fitted, start.params[0], frames, args.fps, rng)
+    write_motion_bvh(args.out, params, start.shape, args.fps)
+    wrote(args.out, f"{params.shape[0]} frames from the {name} prior, starting at {start.clip_id}")
+    if args.video:
+        write_video(args.video, render_motion(params, start.shape), fps=args.fps, scale=1)
+        wrote(args.video)
+    return 0

@@ -1,0 +1,247 @@
+"""Choosing settings on training persons only (cross-validation).
+
+A setting a published number depends on (a likelihood parameter of a task, a
+prior's hyperparameter) is chosen here, on a *validation fold* of the training
+split: the training persons :data:`VALIDATION_SUBJECTS` are held out, priors
+fit on the remaining training clips, and an environment tracks the held-out
+training persons. The test persons are never loaded into a fold (see
+:meth:`~humotion_gym.mocap.library.MotionLibrary.validation_fold`), so no
+setting is chosen after looking at a test number.
+
+``humotion-gym select --task ArmTrack-v1 --grid sharpness=1,2,3 foreground_weight=0,0.5``
+prints the table this module computes.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from baselines.observation import ObservationModel
+from humotion_gym.envs.tasks import get_task
+from humotion_gym.mocap.library import (
+    TEST_SUBJECTS,
+    MotionLibrary,
+    configured_data_dirs,
+    load_library,
+)
+
+#: Training persons held out to choose settings on real data: CMU subject 1
+#: (jumps) and CMU subjects 5 and 7 (dance and walks on one converted
+#: skeleton, so they are held out together). The priors of a fold fit on the
+#: Bandai-Namco clips.
+VALIDATION_SUBJECTS: tuple[str, ...] = ("cmu-01", "cmu-05", "cmu-07")
+#: The synthetic set's validation persons (its training persons 3 and 4).
+SYNTHETIC_VALIDATION_SUBJECTS: tuple[str, ...] = ("synthetic-03", "synthetic-04")
+
+
+def validation_library(
+    data_dir: str | Path | Sequence[str | Path] | None = None,
+    subjects: Sequence[str] | None = None,
+) -> MotionLibrary:
+    """The validation fold of the configured data (the synthetic set when none).
+
+    Args:
+        data_dir: Folders of mocap (else ``$HUMOTION_MOCAP``, else synthetic).
+        subjects: The training persons to hold out (the module's defaults when None).
+    """
+    from humotion_gym.mocap.library import synthetic_library
+
+    dirs = configured_data_dirs(data_dir)
+    lib = load_library(dirs, progress=False) if dirs else synthetic_library()
+    if subjects is None:
+        subjects = SYNTHETIC_VALIDATION_SUBJECTS if lib.is_synthetic else VALIDATION_SUBJECTS
+    return lib.validation_fold(subjects)
+
+
+#: Prefix of a grid name that is a setting of the agent's prior (its ``fit`` keyword).
+FIT_PREFIX = "fit."
+#: Prefix of a grid name that is a setting of the agent's filter (the annealed
+#: filter's ``layers``, ``alpha``, ``diffusion``, ``beta_max``).
+FILTER_PREFIX = "filter."
+
+
+def _observation_fields() -> set[str]:
+    return set(ObservationModel.__dataclass_fields__)
+
+
+def select_observation_settings(
+    task: str,
+    agent: str,
+    grid: Mapping[str, Sequence[float]],
+    library: MotionLibrary,
+    particles: int = 300,
+    episodes: int = 20,
+    seed: int = 0,
+    env_kwargs: dict[str, Any] | None = None,
+    still: int = 0,
+    still_max_hold_mm: float = 50.0,
+) -> dict[str, Any]:
+    """Track the validation persons with every combination of likelihood settings.
+
+    Args:
+        task: Task id.
+        agent: Agent name (a particle filter of :data:`baselines.agents.AGENTS`).
+        grid: Candidate values per :class:`ObservationModel` field
+            (``{"sharpness": [1, 2], "foreground_weight": [0, 0.5]}``), or per
+            setting of the agent's prior with a ``fit.`` prefix
+            (``{"fit.damping": [1, 0.5]}``: a keyword of the prior's ``fit``),
+            or per setting of the annealed filter with a ``filter.`` prefix
+            (``{"filter.alpha": [0.5, 0.8]}``,
+            :data:`baselines.agents.FILTER_SETTINGS`); every combination is
+            tried, starting from the task's own settings and the agent's
+            registered fit and filter settings.
+        library: A validation fold (:func:`validation_library`).
+        particles: Particles of the agent.
+        episodes: Seeded episodes per combination (the same for every one).
+        seed: First episode seed.
+        env_kwargs: Other environment keywords (difficulty).
+        still: When > 0, also track up to this many *still* episodes of the
+            validation persons (:func:`baselines.stillness.still_windows`:
+            where ``hold`` scores lowest), and choose by the rule declared
+            before any result is seen: among the combinations whose still
+            error is within :data:`baselines.stillness.STILL_RATIO` times
+            ``hold``'s, the lowest mean error; when none is, the lowest still
+            error.
+        still_max_hold_mm: The still episodes' bound on ``hold``'s error.
+
+    Returns:
+        ``{"rows": [{"settings", "mean_error_mm", "hold_ratio"}...], "hold_mm",
+        "chosen", "validation_subjects", "train_clips"}`` (with ``still``: each
+        row's ``still_error_mm`` and ``still_ratio``, and ``still_hold_mm``,
+        ``still_episodes``); without ``still`` the chosen settings have the
+        lowest mean error (ties: the first in grid order).
+
+    Raises:
+        ValueError: If a name is neither a likelihood setting, a ``fit.``
+            keyword of the prior nor a ``filter.`` setting of an annealed
+            agent, a value list is empty, or ``library`` is not a validation
+            fold of training persons.
+    """
+    from baselines.agents import AGENTS, FILTER_SETTINGS, make
+    from baselines.evaluation import evaluate, run_episode
+
+    fields = _observation_fields()
+    fit_names = [n for n in grid if n.startswith(FIT_PREFIX)]
+    filter_names = [n for n in grid if n.startswith(FILTER_PREFIX)]
+    unknown = sorted(set(grid) - fields - set(fit_names) - set(filter_names))
+    if unknown:
+        raise ValueError(
+            f"grid: {unknown} are not ObservationModel settings (they are {sorted(fields)}) "
+            f"nor prior settings written {FIT_PREFIX}NAME nor filter settings written "
+            f"{FILTER_PREFIX}NAME"
+        )
+    if filter_names:
+        if agent not in AGENTS or AGENTS[agent].layers == 1:
+            raise ValueError(f"grid: {filter_names} need an annealed agent (apf-...), not {agent}")
+        bad = sorted(n for n in filter_names if n[len(FILTER_PREFIX) :] not in FILTER_SETTINGS)
+        if bad:
+            raise ValueError(
+                f"grid: {bad} are not filter settings (they are "
+                f"{[FILTER_PREFIX + n for n in FILTER_SETTINGS]})"
+            )
+    if fit_names:
+        if agent not in AGENTS:
+            raise ValueError(f"grid: {fit_names} need a particle-filter agent, not {agent}")
+        known = AGENTS[agent].setting_names()
+        bad = sorted(n for n in fit_names if n[len(FIT_PREFIX) :] not in known)
+        if bad:
+            raise ValueError(
+                f"grid: {bad} are not settings of {agent}'s prior {AGENTS[agent].prior} "
+                f"(they are {sorted(known)})"
+            )
+    if not grid or any(len(v) == 0 for v in grid.values()):
+        raise ValueError("grid: expected at least one setting, each with at least one value")
+    if library.test_subjects is None or library.held_out & TEST_SUBJECTS:
+        raise ValueError("library: expected a validation fold of training persons")
+    spec = get_task(task)
+    kwargs = {"terminate_on_lost": False, **(env_kwargs or {})}
+
+    default = ObservationModel(**dict(spec.observation))
+    windows: list[Any] = []
+    if still > 0:
+        from baselines.stillness import still_windows
+
+        probe = gym.make(f"humotion_gym/{spec.name}", library=library, **kwargs)
+        windows = still_windows(probe, still_max_hold_mm, count=still)
+        probe.close()
+        if not windows:
+            raise ValueError(
+                f"still: {spec.name}'s validation persons have no still episode (hold at most "
+                f"{still_max_hold_mm:g} mm); choose on their ordinary episodes (still=0, --still 0)"
+            )
+
+    def errors(
+        agent_name: str,
+        model: ObservationModel,
+        fit: dict[str, float] | None = None,
+        search: dict[str, float] | None = None,
+    ) -> tuple[list[float], list[float]]:
+        env = gym.make(f"humotion_gym/{spec.name}", library=library, **kwargs)
+        runner = make(agent_name, env, n_particles=particles, seed=seed, fit_settings=fit,
+                      filter_settings=search, observation_model=model)  # fmt: skip
+        out = [r.mean_error_mm for r in evaluate(runner, env, episodes, seed=seed)]
+        quiet = [
+            run_episode(runner, env, seed + k, w.options).mean_error_mm
+            for k, w in enumerate(windows)
+        ]
+        env.close()
+        return out, quiet
+
+    hold_errors, hold_still = errors("hold", default)
+    hold = float(np.mean(hold_errors))
+    names = list(grid)
+    rows = []
+    base_fit = AGENTS[agent].settings_for(spec.name) if agent in AGENTS else {}
+    for combo in itertools.product(*(grid[n] for n in names)):
+        settings = {
+            n: type(getattr(default, n))(v) if n in fields else v
+            for n, v in zip(names, combo, strict=True)
+        }
+        model = replace(default, **{n: v for n, v in settings.items() if n in fields})
+        fit = {n[len(FIT_PREFIX) :]: v for n, v in settings.items() if n.startswith(FIT_PREFIX)}
+        search = {
+            n[len(FILTER_PREFIX) :]: v for n, v in settings.items() if n.startswith(FILTER_PREFIX)
+        }
+        regular, quiet = errors(agent, model, {**base_fit, **fit} if fit else None, search or None)
+        mean = float(np.mean(regular))
+        row = {"settings": settings, "mean_error_mm": mean, "hold_ratio": hold / mean}
+        if windows:
+            row["still_error_mm"] = float(np.mean(quiet))
+            row["still_ratio"] = row["still_error_mm"] / float(np.mean(hold_still))
+        rows.append(row)
+    best = _chosen(rows)
+    extra = {}
+    if windows:
+        extra = {"still_hold_mm": float(np.mean(hold_still)), "still_episodes": len(windows)}
+    return {
+        **extra,
+        "task": spec.name,
+        "agent": agent,
+        "particles": particles,
+        "episodes": episodes,
+        "rows": rows,
+        "hold_mm": hold,
+        "chosen": rows[best]["settings"],
+        "validation_subjects": sorted(library.held_out),
+        "train_clips": len(library.split("train")),
+    }
+
+
+def _chosen(rows: Sequence[Mapping[str, Any]]) -> int:
+    """The row the declared rule picks (see :func:`select_observation_settings`)."""
+    from baselines.stillness import STILL_RATIO
+
+    order = range(len(rows))
+    if rows and "still_ratio" in rows[0]:
+        standing = [i for i in order if rows[i]["still_ratio"] <= STILL_RATIO]
+        if not standing:
+            return min(order, key=lambda i: rows[i]["still_error_mm"])
+        order = standing  # type: ignore[assignment]
+    return min(order, key=lambda i: rows[i]["mean_error_mm"])

@@ -1,0 +1,32 @@
+"""Motion priors for the particle filter: one module per prior, named in a plain dict.
+
+Each module has ``fit(motions, free=None, rng=None, **settings)`` returning a
+frozen dataclass of arrays (saved as ``.npz`` without pickle by ``save`` and
+read by ``load``), and ``initial(fitted, pose, n, rng)`` and
+``transition(fitted, state, rng)`` acting on all N particles at once
+(:class:`baselines.filtering.ParticleState`).
+"""
+
+from __future__ import annotations
+
+import importlib
+from types import ModuleType
+
+#: Prior name -> module path. Modules load on first use.
+PRIORS: dict[str, str] = {
+    "constant_velocity": "baselines.priors.constant_velocity",
+    "tree": "baselines.priors.tree",
+    "cyclic_pca": "baselines.priors.cyclic_pca",
+    "slds": "baselines.priors.slds",
+}
+
+
+def get_prior(name: str) -> ModuleType:
+    """The module of a prior by name.
+
+    Raises:
+        KeyError: If no prior has that name.
+    """
+    if name not in PRIORS:
+        raise KeyError(f"unknown prior {name!r}; the priors are {sorted(PRIORS)}")
+    return importlib.import_module(PRIORS[name])
