@@ -5,7 +5,7 @@ depth row (``| Task-v1 | agent | particles | ...``) must appear verbatim in a
 table the runs wrote (``results/*/table.md``, ``results/*/tables.md``,
 ``results/depth/README.md``), every verdict line under the README's tables
 ("best filter at 300 particles is ...") in a ``table.md`` or ``tables.md``, and
-every standing-still row in ``results/still_*.json`` as ``humotion-gym still``
+every standing-still row in ``results/still_*.json.gz`` as ``humotion-gym still``
 prints it: a number copied by hand, or left behind when the runs were made
 again, fails here.
 """
@@ -13,6 +13,7 @@ again, fails here.
 from __future__ import annotations
 
 import functools
+import gzip
 import json
 import re
 from pathlib import Path
@@ -94,13 +95,13 @@ def test_every_verdict_of_the_readme_is_a_recorded_verdict():
 
 
 def test_every_still_row_of_the_readme_is_a_recorded_row():
-    """The standing-still tables: rows of ``results/still_*.json`` as ``humotion-gym still`` prints them."""
+    """The standing-still tables: rows of ``results/still_*.json.gz`` as ``humotion-gym still`` prints them."""
     recorded = {
         line
-        for f in ROOT.glob("results/still_*.json")
-        for line in markdown_table(json.loads(f.read_text(encoding="utf-8"))).splitlines()
+        for f in ROOT.glob("results/still_*.json.gz")
+        for line in markdown_table(json.loads(gzip.decompress(f.read_bytes()))).splitlines()
     }
     rows = [line for line in _lines(ROOT / "README.md") if STILL_ROW.match(line)]
     assert len(rows) > 10
     stray = [line for line in rows if line not in recorded]
-    assert not stray, "still rows not in results/still_*.json:\n" + "\n".join(stray)
+    assert not stray, "still rows not in results/still_*.json.gz:\n" + "\n".join(stray)
