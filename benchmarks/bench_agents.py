@@ -69,7 +69,7 @@ def main() -> None:
     action = np.zeros(env.action_space.shape, np.float32)
     obs, info = env.reset(seed=0)
     steps = [env.step(action) for _ in range(args.frames)]
-    distance = base.observation_model.prepare(steps[0][0]).distance.min(axis=0)
+    distance = None
     print(
         f"{args.task}, {args.frames} frames, {args.clock} clock, best of {args.repeats}, "
         f"OpenCV threads {cv2.getNumThreads()}"
@@ -81,6 +81,8 @@ def main() -> None:
     for name in args.agents:
         for n in args.particles:
             agent = make(name, env, n_particles=n, seed=0)
+            if distance is None:  # the reference's distance map, from the first frame
+                distance = agent.observation_model.prepare(steps[0][0]).distance.min(axis=0)
             rng = np.random.default_rng(1)
             poses = info["initial_pose"] + rng.normal(0.0, 0.05, (n, 25))
             camera = steps[0][4]["camera"]
@@ -110,7 +112,7 @@ def main() -> None:
                         np.asarray(step_info["fixed_params"]), base.shape, step_info["camera"]
                     )
                     # The given body (backdrop, coverage points) as the agent prepares it.
-                    feats = base.observation_model.prepare(frame, agent.likelihood.given())
+                    feats = agent.observation_model.prepare(frame, agent.likelihood.given())
                     prep_sum += clock() - t
                     agent.likelihood.log_likelihood(feats, state.pose)
                     lik_sum += clock() - t

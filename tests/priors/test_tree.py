@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy import stats
 from scipy.special import ndtr
 
 from baselines.filtering import ParticleFilter, ParticleState
@@ -244,15 +245,28 @@ def test_codes_and_tree_arrays(body_prior):
 # -- the search -----------------------------------------------------------------------
 
 
-def brute_force_tree(prior, probe, beta):
-    """Eq. 7 applied node by node, recursively (leaf: uniform)."""
+def eq3_oracle(prior, probe, beta):
+    """Eq. 3 over every window, as the paper writes it."""
+    d2 = (((prior.coefficients - probe) / prior.sigma) ** 2).sum(axis=1)
+    w = np.exp(-(d2 - d2.min()) / (2.0 * beta))
+    return w / w.sum()
+
+
+def brute_force_tree(prior, probe, beta, leaf="uniform"):
+    """The tree sampler's distribution over windows: eq. 7 applied node by node, recursively.
+
+    An empty child is never entered (its sibling gets the whole mass); in the
+    leaf, uniform or eq. 3 among its windows.
+    """
     b, codes = prior.depth, prior.codes
     p_plus = ndtr(probe / (np.sqrt(beta) * prior.sigma))
+    eq3 = eq3_oracle(prior, probe, beta)
     probs = np.zeros(prior.n_windows)
 
     def visit(members, level, mass):
         if level == b:
-            probs[members] = mass / members.size
+            within = eq3[members] if leaf == "weighted" else np.ones(members.size)
+            probs[members] = mass * within / within.sum()
             return
         bit = (codes[members] >> (b - level - 1)) & 1
         pos, neg = members[bit == 1], members[bit == 0]
@@ -266,20 +280,66 @@ def brute_force_tree(prior, probe, beta):
     return probs
 
 
+def chi_square_p(counts, expected, least=5.0):
+    """Pearson's chi-square p-value, the bins expected to hold fewer than ``least`` pooled."""
+    small = expected < least
+    obs = np.append(counts[~small], counts[small].sum())
+    exp = np.append(expected[~small], expected[small].sum())
+    keep = exp > 0
+    return stats.chisquare(obs[keep], exp[keep] * obs[keep].sum() / exp[keep].sum()).pvalue
+
+
 @pytest.mark.parametrize("beta", [0.1, 1.0])
-def test_descent_probabilities_follow_eq7(library, body_prior, beta):
-    probes = tree.window_coefficients(body_prior, held_out_histories(library, body_prior, 3))
+def test_descent_reaches_each_leaf_with_eq7s_probability(library, arm_prior, beta):
+    """The compiled descent against eq. 7 enumerated over the whole tree (b = 10).
+
+    Leaf counts of 200,000 descents against the enumerated probabilities by a
+    chi-square test (p > 1e-4 at a fixed seed: a wrong branch rule, e.g. the
+    sign or the sqrt(beta) flipped, gives p ~ 0), and each leaf's log
+    probability, which the descent sums for importance weights, against the
+    enumeration's to 1e-9 (float rounding of ten factors).
+    """
+    probes = tree.window_coefficients(arm_prior, held_out_histories(library, arm_prior, 2))
     rng = np.random.default_rng(3)
-    b = body_prior.depth
+    leaves = arm_prior.offsets.size - 1
     for probe in probes:
-        exact = tree.tree_probabilities(body_prior, probe, beta, leaf="uniform")
-        np.testing.assert_allclose(exact, brute_force_tree(body_prior, probe, beta), atol=1e-12)
-        # Sampled first split against Phi(c_t,0 / (sqrt(beta) sigma_0)).
-        n = 20000
-        chosen = tree.sample_windows(body_prior, np.repeat(probe[None], n, 0), rng, beta, "uniform")
-        first = body_prior.codes[chosen] >> (b - 1)
-        p0 = ndtr(probe[0] / (np.sqrt(beta) * body_prior.sigma[0]))
-        assert abs(first.mean() - p0) < 4 * np.sqrt(p0 * (1 - p0) / n) + 1e-3
+        exact = brute_force_tree(arm_prior, probe, beta)
+        leaf_p = np.bincount(arm_prior.codes, exact, minlength=leaves)
+        n = 200_000
+        lo, hi, log_p = tree.descend(arm_prior, np.repeat(probe[None], n, 0), rng, beta, True)
+        code = arm_prior.codes[lo]
+        assert np.all(hi > lo) and np.all(arm_prior.codes[hi - 1] == code)
+        assert chi_square_p(np.bincount(code, minlength=leaves), n * leaf_p) > 1e-4
+        np.testing.assert_allclose(np.exp(log_p), leaf_p[code], rtol=1e-9)
+
+
+def test_the_leaf_choice_and_the_exact_scan_draw_eq3(arm_prior):
+    """Within a leaf the draw is eq. 3's; the exact scan draws eq. 3 over every window.
+
+    Chi-square tests (p > 1e-4, fixed seeds) of the windows drawn against the
+    oracle's probabilities, and eq. 3's probabilities to 1e-12.
+    """
+    rng = np.random.default_rng(11)
+    probe = arm_prior.coefficients[200] + 0.5 * arm_prior.sigma
+    eq3 = eq3_oracle(arm_prior, probe, 1.0)
+    np.testing.assert_allclose(tree.exact_probabilities(arm_prior, probe, 1.0), eq3, atol=1e-12)
+    got = tree.sample_exact(arm_prior, np.repeat(probe[None], 20_000, 0), rng, 1.0)
+    assert chi_square_p(np.bincount(got, minlength=eq3.size), 20_000 * eq3) > 1e-4
+    weighted = brute_force_tree(arm_prior, probe, 1.0, "weighted")
+    got = tree.sample_windows(arm_prior, np.repeat(probe[None], 100_000, 0), rng, 1.0, "weighted")
+    assert chi_square_p(np.bincount(got, minlength=eq3.size), 100_000 * weighted) > 1e-4
+
+
+def test_same_seed_same_windows(arm_prior):
+    """Determinism: the same seed gives the same windows, another seed others."""
+    probes = arm_prior.coefficients[:500]
+    runs = [
+        tree.sample_windows(arm_prior, probes, np.random.default_rng(seed), proposals=k)
+        for seed, k in ((1, 1), (1, 1), (2, 1), (1, 3), (1, 3))
+    ]
+    np.testing.assert_array_equal(runs[0], runs[1])
+    np.testing.assert_array_equal(runs[3], runs[4])
+    assert not np.array_equal(runs[0], runs[2])
 
 
 def test_tree_sampler_against_exact_eq3(library, body_prior):
@@ -289,13 +349,13 @@ def test_tree_sampler_against_exact_eq3(library, body_prior):
     tv = {"weighted": [], "uniform": []}
     first_split = []
     for probe in probes:
-        eq3 = tree.exact_probabilities(body_prior, probe, 1.0)
+        eq3 = eq3_oracle(body_prior, probe, 1.0)
         for leaf in tv:
-            p_tree = tree.tree_probabilities(body_prior, probe, 1.0, leaf)
+            p_tree = brute_force_tree(body_prior, probe, 1.0, leaf)
             assert abs(p_tree.sum() - 1) < 1e-9
             tv[leaf].append(0.5 * np.abs(p_tree - eq3).sum())
         top = body_prior.codes >> (body_prior.depth - 1)
-        p_tree = tree.tree_probabilities(body_prior, probe, 1.0, "weighted")
+        p_tree = brute_force_tree(body_prior, probe, 1.0, "weighted")
         first_split.append(
             0.5 * np.abs(np.bincount(top, p_tree, 2) - np.bincount(top, eq3, 2)).sum()
         )
@@ -305,9 +365,9 @@ def test_tree_sampler_against_exact_eq3(library, body_prior):
     many = np.repeat(probe[None], draws, 0)
     for sampler, p in [
         (lambda: tree.sample_windows(body_prior, many, rng, 1.0, "weighted"),
-         tree.tree_probabilities(body_prior, probe, 1.0, "weighted")),
+         brute_force_tree(body_prior, probe, 1.0, "weighted")),
         (lambda: tree.sample_exact(body_prior, many[:20000], rng, 1.0),
-         tree.exact_probabilities(body_prior, probe, 1.0)),
+         eq3_oracle(body_prior, probe, 1.0)),
     ]:  # fmt: skip
         got = sampler()
         freq = np.bincount(got, minlength=n) / got.size

@@ -1,0 +1,311 @@
+"""The tree prior's sequential loops, compiled: eq. 3, eq. 7's descent, the leaf, the replay.
+
+Each particle's descent (Sidenbladh, Black & Sigal 2002, eq. 7) depends on
+the branches it took before, and the leaf's draw (eq. 3) and the replay run
+over ragged leaves and per-particle steps: loops that numpy would have to
+turn into many passes over arrays. numba compiles each once (``cache=True``);
+random numbers come from the caller's :class:`numpy.random.Generator`, which
+numba draws from directly.
+
+Eq. 3 is written once (:func:`_eq3_exponent`) and so is eq. 7
+(:func:`_eq7_branch`); everything else here calls them.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.intp]
+
+_SQRT2 = math.sqrt(2.0)
+_LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
+
+
+def _njit(**options: Any) -> Any:
+    # nogil: filters on several threads run in parallel.
+    return numba.njit(cache=True, nogil=True, **options)
+
+
+@_njit(inline="always")
+def _eq3_exponent(
+    database: FloatArray, window: int, probes: FloatArray, p: int, sigma: FloatArray, beta: float
+) -> float:
+    """Eq. 3's exponent ``-sum_l (c_i,l - c_t,l)^2 / (2 beta sigma_l^2)`` of window ``i``."""
+    acc = 0.0
+    for level in range(sigma.size):
+        d = (database[window, level] - probes[p, level]) / sigma[level]
+        acc += d * d
+    return -0.5 * acc / beta
+
+
+@_njit(inline="always")
+def _log_phi(x: float) -> float:
+    """``log Phi(x)``, the standard normal CDF; its asymptotic series far in the left tail."""
+    if x > -30.0:
+        return math.log(0.5 * math.erfc(-x / _SQRT2))
+    inv2 = 1.0 / (x * x)  # Phi(x) ~ phi(x) / -x (1 - 1/x^2 + 3/x^4)
+    return -0.5 * x * x - math.log(-x) - _LOG_SQRT_2PI + math.log1p(-inv2 + 3.0 * inv2 * inv2)
+
+
+@_njit(inline="always")
+def _eq7_branch(
+    c: float, sigma: float, beta: float, rng: np.random.Generator, want_log: bool
+) -> tuple[int, float]:
+    """Eq. 7: the ``+`` child with probability ``Phi(c_t,l / (sqrt(beta) sigma_l))``.
+
+    ``z = c_t,l + sqrt(beta) sigma_l e`` with ``e ~ N(0, 1)`` is positive with
+    exactly that probability, so the sign of ``z`` is the branch.
+
+    Returns:
+        1 for ``+`` (0 for ``-``) and, when asked, the log probability of the
+        branch taken (0 otherwise).
+    """
+    x = c / (math.sqrt(beta) * sigma)
+    plus = 1 if rng.standard_normal() > -x else 0
+    log_p = 0.0
+    if want_log:
+        log_p = _log_phi(x if plus else -x)
+    return plus, log_p
+
+
+@_njit()
+def descend(
+    coefficients: FloatArray,
+    sigma: FloatArray,
+    beta: float,
+    node_flags: NDArray[np.uint8],
+    offsets: IntArray,
+    rng: np.random.Generator,
+    want_log_prob: bool,
+) -> tuple[IntArray, IntArray, FloatArray]:
+    """The probabilistic descent of every probe, level by level (eq. 7).
+
+    Level ``l`` splits on the sign of coefficient ``l``; a node whose one
+    child is empty sends every probe to the other (no draw), one with both
+    children draws eq. 7's branch.
+
+    Args:
+        coefficients: ``(N, b)`` the probes ``c_t``.
+        sigma: ``(b,)`` each coefficient's standard deviation.
+        beta: The temperature.
+        node_flags: ``(2**b - 1,)`` per inner node (heap order): bit 0 set
+            when its ``-`` child holds windows, bit 1 the ``+`` one.
+        offsets: ``(2**b + 1,)`` each leaf's first window.
+        rng: The draws.
+        want_log_prob: Also sum the log probabilities of the branches taken.
+
+    Returns:
+        ``[lo, hi)`` each probe's leaf and the log probability of reaching it
+        (zeros unless asked).
+    """
+    n, b = coefficients.shape
+    lo = np.empty(n, np.intp)
+    hi = np.empty(n, np.intp)
+    log_prob = np.zeros(n)
+    for p in range(n):
+        prefix = 0
+        for level in range(b):
+            flags = node_flags[prefix + (1 << level) - 1]
+            if flags == 3:
+                plus, log_p = _eq7_branch(
+                    coefficients[p, level], sigma[level], beta, rng, want_log_prob
+                )
+                log_prob[p] += log_p
+            else:
+                plus = 1 if flags == 2 else 0
+            prefix = 2 * prefix + plus
+        lo[p] = offsets[prefix]
+        hi[p] = offsets[prefix + 1]
+    return lo, hi, log_prob
+
+
+@_njit(inline="always")
+def _draw(cum: FloatArray, size: int, u: float) -> int:
+    """The first ``k < size`` whose running sum ``cum[k]`` exceeds ``u``, else ``size - 1``."""
+    a, z = 0, size - 1
+    while a < z:
+        mid = (a + z) // 2
+        if cum[mid] > u:
+            z = mid
+        else:
+            a = mid + 1
+    return a
+
+
+@_njit(inline="always")
+def _running_weights(
+    database: FloatArray,
+    first: int,
+    size: int,
+    probes: FloatArray,
+    p: int,
+    sigma: FloatArray,
+    beta: float,
+    cum: FloatArray,
+) -> float:
+    """``cum[:size]``: the running sum of eq. 3's weights of windows ``first..first+size``.
+
+    The weights are taken relative to the largest (no underflow of all of
+    them); returns that largest exponent.
+    """
+    peak = -np.inf
+    for k in range(size):
+        e = _eq3_exponent(database, first + k, probes, p, sigma, beta)
+        cum[k] = e
+        peak = max(peak, e)
+    total = 0.0
+    for k in range(size):
+        total += math.exp(cum[k] - peak)
+        cum[k] = total
+    return peak
+
+
+@_njit()
+def choose_weighted(
+    database: FloatArray,
+    probes: FloatArray,
+    lo: IntArray,
+    hi: IntArray,
+    sigma: FloatArray,
+    beta: float,
+    rng: np.random.Generator,
+    want_log_mass: bool,
+) -> tuple[IntArray, FloatArray]:
+    """One window of each leaf ``[lo, hi)`` drawn by eq. 3, by the inverse of its CDF.
+
+    Returns:
+        ``(N,)`` the chosen windows and, when asked, each leaf's log eq. 3
+        mass ``log sum_{i in leaf} k(c_i)`` (zeros otherwise).
+    """
+    n = lo.size
+    chosen = lo.copy()
+    log_mass = np.zeros(n)
+    widest = 1
+    for p in range(n):
+        widest = max(widest, hi[p] - lo[p])
+    cum = np.empty(widest)
+    for p in range(n):
+        size = hi[p] - lo[p]
+        if size == 1 and not want_log_mass:
+            continue  # a leaf of one window: nothing to draw
+        peak = _running_weights(database, lo[p], size, probes, p, sigma, beta, cum)
+        if size > 1:
+            chosen[p] = lo[p] + _draw(cum, size, rng.random() * cum[size - 1])
+        log_mass[p] = peak + math.log(cum[size - 1])
+    return chosen, log_mass
+
+
+@_njit()
+def eq3_log_weights(
+    database: FloatArray, windows: IntArray, probes: FloatArray, sigma: FloatArray, beta: float
+) -> FloatArray:
+    """Eq. 3's exponents of ``windows[k]`` against ``probes[k]`` (rows of ``(K, b)``)."""
+    out = np.empty(windows.size)
+    for k in range(windows.size):
+        out[k] = _eq3_exponent(database, windows[k], probes, k, sigma, beta)
+    return out
+
+
+@_njit()
+def sample_exact(
+    database: FloatArray,
+    probes: FloatArray,
+    sigma: FloatArray,
+    beta: float,
+    rng: np.random.Generator,
+) -> IntArray:
+    """One window per probe drawn from eq. 3 over the whole database (``O(n b)`` each)."""
+    n = database.shape[0]
+    out = np.empty(probes.shape[0], np.intp)
+    cum = np.empty(n)
+    for p in range(probes.shape[0]):
+        _running_weights(database, 0, n, probes, p, sigma, beta, cum)
+        out[p] = _draw(cum, n, rng.random() * cum[n - 1])
+    return out
+
+
+@_njit()
+def replay(
+    next_step: FloatArray,
+    chosen: IntArray,
+    pose: FloatArray,
+    velocity: NDArray[np.bool_],
+    frames: NDArray[Any],
+    window_end: IntArray,
+    speed: FloatArray,
+    root: NDArray[np.intp],
+    noise_std: FloatArray,
+    relative: NDArray[np.bool_],
+    history: NDArray[Any],
+    rows: IntArray,
+    rng: np.random.Generator,
+) -> tuple[FloatArray, NDArray[Any]]:
+    """The chosen windows' next steps replayed from the particles' poses; histories shifted.
+
+    Per particle ``p``: the step ``next_step[chosen[p]]``; where
+    ``velocity[j]``, plus ``pose[p, j] - frames[window_end[chosen[p]], j]``
+    (the parameter moves by the database's velocity from the particle's own
+    pose);
+    root x and y (``root = [x, y, yaw]`` columns; empty: not turned) times the
+    particle's speed (``speed`` empty: none); plus ``noise_std * N(0, 1)``
+    (``noise_std`` empty: no noise). Then the relative parameters move by the
+    step from the pose, root x and y turned by the pose's heading, and the
+    absolute ones take it. The history moves up a frame, the new pose last.
+
+    Args:
+        next_step: ``(n, D)`` the state that followed each window.
+        chosen: ``(N,)`` each particle's window.
+        pose: ``(N, D)`` the particles' poses.
+        velocity: ``(D,)`` the parameters replayed by velocity.
+        frames: ``(M, D)`` the database's poses.
+        window_end: ``(n,)`` each window's last frame in ``frames``.
+        speed: ``(N,)`` the particles' speeds, or empty.
+        root: Root x, y and heading columns, or empty.
+        noise_std: ``(D,)`` the noise's standard deviations, or empty.
+        relative: ``(D,)`` the parameters that move relative to the pose.
+        history: ``(M, d + 1, D)`` histories; particle ``p`` reads row
+            ``rows[p]`` (row ``p`` where ``rows`` is empty).
+        rows: ``(N,)`` or empty.
+        rng: The noise's draws.
+
+    Returns:
+        ``(N, D)`` the new poses and ``(N, d + 1, D)`` the new histories (in
+        ``history``'s precision).
+    """
+    n, dim = pose.shape
+    last = history.shape[1] - 1
+    out_pose = np.empty((n, dim))
+    out_history = np.empty((n, last + 1, dim), history.dtype)
+    step = np.empty(dim)
+    for p in range(n):
+        w = chosen[p]
+        for j in range(dim):
+            step[j] = next_step[w, j]
+            if velocity[j]:
+                step[j] += pose[p, j] - frames[window_end[w], j]
+        if speed.size:
+            step[root[0]] *= speed[p]
+            step[root[1]] *= speed[p]
+        if noise_std.size:
+            for j in range(dim):
+                step[j] += rng.standard_normal() * noise_std[j]
+        for j in range(dim):
+            out_pose[p, j] = step[j] + pose[p, j] if relative[j] else step[j]
+        if root.size:
+            ix, iy = root[0], root[1]
+            c, s = math.cos(pose[p, root[2]]), math.sin(pose[p, root[2]])
+            out_pose[p, ix] = pose[p, ix] + (c * step[ix] - s * step[iy])
+            out_pose[p, iy] = pose[p, iy] + (s * step[ix] + c * step[iy])
+        h = rows[p] if rows.size else p
+        for f in range(last):
+            for j in range(dim):
+                out_history[p, f, j] = history[h, f + 1, j]
+        for j in range(dim):
+            out_history[p, last, j] = out_pose[p, j]
+    return out_pose, out_history
