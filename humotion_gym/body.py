@@ -40,6 +40,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from humotion_gym import _compiled
+
 FloatArray = NDArray[np.float64]
 
 # ---------------------------------------------------------------------------
@@ -195,6 +197,7 @@ _SHAPE_SCALARS: tuple[str, ...] = (
     "shin_length",
 )
 SHAPE_VECTOR_SIZE = len(_SHAPE_SCALARS) + 2 * N_CONES + N_CONES
+SHAPE_TABLE_SIZE = _compiled.SHAPE_TABLE_SIZE
 
 
 @dataclass(frozen=True, eq=False)
@@ -240,6 +243,7 @@ class BodyShape:
     shin_length: float
     radii: FloatArray
     aspect: FloatArray
+    _table: FloatArray = dataclasses.field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         radii = np.array(self.radii, dtype=np.float64)
@@ -262,6 +266,11 @@ class BodyShape:
         object.__setattr__(self, "aspect", aspect)
         for name in _SHAPE_SCALARS:
             object.__setattr__(self, name, float(getattr(self, name)))
+        limbs = [self.upper_arm_length, self.forearm_length] * 2
+        limbs += [self.thigh_length, self.shin_length] * 2
+        table = np.concatenate([self.torso_points().ravel(), [self.head_length], limbs])
+        table.setflags(write=False)
+        object.__setattr__(self, "_table", table)
 
     def to_vector(self) -> FloatArray:
         """The shape as one flat float vector (for ``.npz`` files)."""
@@ -477,65 +486,59 @@ def _check_params(params: ArrayLike) -> FloatArray:
     return p
 
 
-def _kinematic_chain(p: FloatArray, shape: BodyShape, want_frames: bool):
-    root_rot = euler_zxy_to_matrix(p[..., ROOT_ROTATION])
-    # Torso points: neck, shoulders, hips (body frame) -> world.
-    torso = np.einsum("...ij,kj->...ki", root_rot, shape.torso_points())
-    torso += p[..., None, ROOT_POSITION]
-    neck, r_sh, l_sh, r_hip, l_hip = (torso[..., i, :] for i in range(5))
+def shape_table(shape: BodyShape) -> FloatArray:
+    """A shape's numbers as the kinematics reads them: ``(24,)`` float64 (read-only).
 
-    neck_rot = root_rot @ euler_xyz_to_matrix(p[..., NECK])
-    head_top = neck + shape.head_length * neck_rot[..., :, 2]
+    The five torso offsets (neck, right and left shoulder, right and left
+    hip; :meth:`BodyShape.torso_points`), the head's length, then the upper
+    and lower lengths of the right arm, left arm, right leg and left leg.
+    Stack several to give each pose of :func:`pose_geometry_of` its own shape.
+    """
+    return shape._table
 
-    def limb(base, rot_local, bend, upper_len, lower_len, sign):
-        # Upper segment hangs along -z of the joint frame; the hinge turns the
-        # lower segment about x: forward for the elbow (sign +1), backward for
-        # the knee (sign -1). Lower direction = sign*sin(k)*y - cos(k)*z.
-        rot = root_rot @ euler_xyz_to_matrix(rot_local)
-        y_axis, z_axis = rot[..., :, 1], rot[..., :, 2]
-        mid = base - upper_len * z_axis
-        s, c = np.sin(bend)[..., None], np.cos(bend)[..., None]
-        tip = mid + lower_len * (sign * s * y_axis - c * z_axis)
-        return mid, tip, rot
 
-    r_el, r_wr, r_sh_rot = limb(
-        r_sh, p[..., R_SHOULDER], p[..., R_ELBOW], shape.upper_arm_length,
-        shape.forearm_length, 1.0,
-    )  # fmt: skip
-    l_el, l_wr, l_sh_rot = limb(
-        l_sh, p[..., L_SHOULDER], p[..., L_ELBOW], shape.upper_arm_length,
-        shape.forearm_length, 1.0,
-    )  # fmt: skip
-    r_kn, r_an, r_hip_rot = limb(
-        r_hip, p[..., R_HIP], p[..., R_KNEE], shape.thigh_length, shape.shin_length, -1.0
-    )
-    l_kn, l_an, l_hip_rot = limb(
-        l_hip, p[..., L_HIP], p[..., L_KNEE], shape.thigh_length, shape.shin_length, -1.0
-    )
-    pelvis = p[..., ROOT_POSITION]
-    keypoints = np.stack(
-        [pelvis, r_hip, r_kn, r_an, l_hip, l_kn, l_an, neck, head_top,
-         r_sh, r_el, r_wr, l_sh, l_el, l_wr],
-        axis=-2,
-    )  # fmt: skip
-    if not want_frames:
-        return keypoints, None
-    rots = np.stack(
-        [
-            root_rot,
-            neck_rot,
-            r_sh_rot,
-            r_sh_rot @ rotation_x(p[..., R_ELBOW]),
-            l_sh_rot,
-            l_sh_rot @ rotation_x(p[..., L_ELBOW]),
-            r_hip_rot,
-            r_hip_rot @ rotation_x(-p[..., R_KNEE]),
-            l_hip_rot,
-            l_hip_rot @ rotation_x(-p[..., L_KNEE]),
-        ],
-        axis=-3,
-    )
-    return keypoints, rots
+def pose_geometry_of(params: ArrayLike, tables: ArrayLike) -> FloatArray:
+    """:func:`pose_geometry` with one shape table per pose (the vector env's episodes).
+
+    Args:
+        params: ``(N, 25)`` poses.
+        tables: ``(N, 24)`` their shapes' :func:`shape_table`, or ``(24,)`` one for all.
+
+    Returns:
+        ``(N, 35, 3)`` keypoints and cone axes (see :func:`pose_geometry`).
+    """
+    p = np.ascontiguousarray(_check_params(params).reshape(-1, N_PARAMS))
+    t = np.ascontiguousarray(np.asarray(tables, dtype=np.float64).reshape(-1, SHAPE_TABLE_SIZE))
+    if t.shape[0] not in (1, p.shape[0]):
+        raise ValueError(
+            f"pose_geometry_of: expected 1 or {p.shape[0]} shape tables, got {t.shape[0]}"
+        )
+    return _compiled.geometry(p, t)
+
+
+def pose_geometry(params: ArrayLike, shape: BodyShape) -> FloatArray:
+    """Keypoints and cone axes of poses, batched over any leading axes: the one kinematics.
+
+    Every keypoint, cone end and cone frame of the package comes from here
+    (one compiled pass per pose, :mod:`humotion_gym._compiled`).
+
+    Args:
+        params: ``(..., 25)`` pose parameters (``PARAM_NAMES`` order).
+        shape: The subject's shape.
+
+    Returns:
+        ``(..., 35, 3)`` float64 in the world frame: rows 0-14 the keypoints
+        (``KEYPOINT_NAMES`` order), rows ``15 + 2 c`` and ``16 + 2 c`` the x
+        (width) and y (depth) axes of cone ``c`` (``CONE_NAMES`` order): columns
+        0 and 1 of :attr:`ConeGeometry.rotations`.
+
+    Raises:
+        ValueError: If the last axis of ``params`` is not 25 long.
+    """
+    p = _check_params(params)
+    flat = np.ascontiguousarray(p.reshape(-1, N_PARAMS))
+    out = _compiled.geometry(flat, shape._table[None])
+    return out.reshape(p.shape[:-1] + (_compiled.GEOMETRY_ROWS, 3))
 
 
 def forward_kinematics(params: ArrayLike, shape: BodyShape) -> FloatArray:
@@ -558,8 +561,7 @@ def forward_kinematics(params: ArrayLike, shape: BodyShape) -> FloatArray:
         >>> kp.shape
         (4, 15, 3)
     """
-    keypoints, _ = _kinematic_chain(_check_params(params), shape, want_frames=False)
-    return keypoints
+    return pose_geometry(params, shape)[..., :N_KEYPOINTS, :]
 
 
 def cone_geometry(params: ArrayLike, shape: BodyShape) -> ConeGeometry:
@@ -570,12 +572,17 @@ def cone_geometry(params: ArrayLike, shape: BodyShape) -> ConeGeometry:
         shape: The subject's shape.
 
     Returns:
-        The :class:`ConeGeometry` of the poses.
+        The :class:`ConeGeometry` of the poses (each cone's frame is right
+        handed: its z axis is the cross product of its x and y axes).
     """
-    keypoints, rots = _kinematic_chain(_check_params(params), shape, want_frames=True)
+    geometry = pose_geometry(params, shape)
+    keypoints = geometry[..., :N_KEYPOINTS, :]
+    axes = geometry[..., N_KEYPOINTS:, :].reshape(geometry.shape[:-2] + (N_CONES, 2, 3))
+    x, y = axes[..., 0, :], axes[..., 1, :]
+    rotations = np.stack([x, y, np.cross(x, y)], axis=-1)
     starts = keypoints[..., CONE_KEYPOINTS[:, 0], :]
     ends = keypoints[..., CONE_KEYPOINTS[:, 1], :]
-    return ConeGeometry(keypoints, starts, ends, rots)
+    return ConeGeometry(keypoints, starts, ends, rotations)
 
 
 def wrap_angles(params: ArrayLike) -> FloatArray:

@@ -2,8 +2,8 @@
 
 The one implementation of each measure: the environment
 (:mod:`humotion_gym.envs.pose_tracking`, and the vector environment batched)
-scores every step with :func:`point_errors`, :func:`aligned_point_errors` and
-:func:`update_lost_run`, and the evaluation
+scores every step with :func:`step_scores` and :func:`update_lost_run`, and
+the evaluation
 (:mod:`baselines.evaluation`) finds where an episode lost track with
 :func:`lost_track_frame`, the same rule read over a whole episode.
 
@@ -14,6 +14,9 @@ human motion*, IJCV 2010.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -56,6 +59,65 @@ def aligned_point_errors(
     """
     diff = np.asarray(estimate_points, dtype=np.float64) - np.asarray(truth_points, np.float64)
     return np.linalg.norm(diff - diff[..., anchor : anchor + 1, :], axis=-1)
+
+
+class StepScores(NamedTuple):
+    """What a step scores, batched over the leading axes of the keypoints given.
+
+    Attributes:
+        keypoint_errors: ``(..., 15)`` each keypoint's error, mm.
+        error_mm: ``(...)`` the mean error over the scored keypoints.
+        error_all_mm: ``(...)`` the mean error over all keypoints.
+        error_aligned_mm: ``(...)`` the mean scored error with the two
+            pelvises put together (:func:`aligned_point_errors`).
+        terms: ``{"reward_<region>": (...)}`` the reward's share of each region.
+        reward: ``(...)`` the reward, in [0, 1]: the sum of the terms.
+    """
+
+    keypoint_errors: FloatArray
+    error_mm: FloatArray
+    error_all_mm: FloatArray
+    error_aligned_mm: FloatArray
+    terms: dict[str, FloatArray]
+    reward: FloatArray
+
+
+def step_scores(
+    estimate_points: ArrayLike,
+    truth_points: ArrayLike,
+    scored: ArrayLike,
+    regions: Sequence[tuple[str, ArrayLike]],
+    scale_mm: float,
+) -> StepScores:
+    """The environments' errors and reward of a step: the one reward function.
+
+    The reward is the mean over the scored keypoints of ``exp(-e_k / scale)``
+    (1 for a perfect estimate, falling smoothly with the error, never
+    negative), split by body region so that the terms add up to it.
+
+    Args:
+        estimate_points: ``(..., 15, 3)`` the estimate's keypoints.
+        truth_points: ``(..., 15, 3)`` the true keypoints.
+        scored: ``(K,)`` indices of the scored keypoints.
+        regions: ``(name, positions in scored)`` of each region; together they
+            hold every scored keypoint once.
+        scale_mm: The error at which a keypoint's share falls to ``1/e``.
+
+    Returns:
+        The :class:`StepScores`.
+    """
+    estimate = np.asarray(estimate_points, dtype=np.float64)
+    truth = np.asarray(truth_points, dtype=np.float64)
+    idx = np.asarray(scored, dtype=np.intp)
+    errors = point_errors(estimate, truth)
+    err = errors[..., idx]
+    aligned = aligned_point_errors(estimate, truth)[..., idx]
+    per_kp = np.exp(err * (-1.0 / scale_mm)) / idx.size
+    terms = {name: per_kp[..., np.asarray(cols, np.intp)].sum(axis=-1) for name, cols in regions}
+    reward = sum(terms.values(), np.zeros(per_kp.shape[:-1]))
+    return StepScores(
+        errors, err.mean(axis=-1), errors.mean(axis=-1), aligned.mean(axis=-1), terms, reward
+    )
 
 
 def keypoint_errors(estimate: ArrayLike, truth: ArrayLike, shape: BodyShape) -> FloatArray:
@@ -104,21 +166,22 @@ def angle_errors(estimate: ArrayLike, truth: ArrayLike) -> FloatArray:
     return d
 
 
-def update_lost_run(run: int, error_mm: float, threshold_mm: float) -> int:
+def update_lost_run(run: ArrayLike, error_mm: ArrayLike, threshold_mm: float) -> NDArray[np.intp]:
     """The count of consecutive frames above the threshold, after one more frame.
 
     Track is lost at a frame once this count reaches the patience (the rule of
-    :func:`lost_track_frame`, applied online by the environment).
+    :func:`lost_track_frame`, applied online by the environments).
 
     Args:
-        run: The count before this frame (0 at the start of an episode).
-        error_mm: This frame's error.
+        run: The count before this frame (0 at the start of an episode), or
+            one count per episode.
+        error_mm: This frame's error (one per episode).
         threshold_mm: The error that counts as off track (strictly above it).
 
     Returns:
-        ``run + 1`` if the error is above the threshold, else 0.
+        ``run + 1`` where the error is above the threshold, else 0.
     """
-    return run + 1 if error_mm > threshold_mm else 0
+    return np.where(np.asarray(error_mm) > threshold_mm, np.asarray(run, np.intp) + 1, 0)
 
 
 def lost_track_frame(errors_mm: ArrayLike, threshold_mm: float, patience: int) -> int | None:

@@ -26,6 +26,13 @@ COMMON_SECTIONS = """
        so. ``terminate_on_lost=False`` keeps the episode going.
     2. Truncation: after the task's number of scored frames.
 
+    A ``step`` after the end (before the next ``reset``) follows Gymnasium's
+    convention: it warns once per episode and returns the last frame again,
+    reward 0, ``terminated``/``truncated`` as the episode ended and
+    ``info["after_end"] = True``; the clip does not advance. A ``step`` before
+    the first ``reset`` raises ``RuntimeError``. Actions outside [-1, 1] act
+    as the clipped action (``tests/envs/test_action_bounds.py``).
+
     ## Info
 
     ``reset`` gives ``initial_pose`` (25,), the true pose of the frame before

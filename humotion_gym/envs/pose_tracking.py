@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import warnings
 import weakref
 from collections import OrderedDict
 from collections.abc import Sequence
@@ -14,7 +15,6 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from humotion_gym import _kernels
 from humotion_gym.body import (
     ANGLE_MASK,
     CONE_NAMES,
@@ -24,11 +24,12 @@ from humotion_gym.body import (
     PARAM_LOWER,
     PARAM_UPPER,
     BodyShape,
+    forward_kinematics,
 )
 from humotion_gym.camera import Camera, fit_camera
 from humotion_gym.envs.tasks import TaskSpec, get_task
-from humotion_gym.kinematics import batch_pose_geometry, single_pose_geometry
-from humotion_gym.metrics import aligned_point_errors, point_errors, update_lost_run
+from humotion_gym.kinematics import batch_pose_geometry
+from humotion_gym.metrics import StepScores, step_scores, update_lost_run
 from humotion_gym.mocap.library import (
     MotionLibrary,
     configured_data_dirs,
@@ -105,7 +106,8 @@ _EPISODE_STATE: tuple[str, ...] = (
     "_motion", "_t0", "_root0", "_bounds", "_episode_seed", "_noise", "_background",
     "_noise_rng", "_episode_params", "_geometry", "_truth_keypoints", "_camera_targets",
     "_cameras", "_figures",
-    "_lost_run", "_last_estimate", "_estimate_keypoints", "_k", "_frame", "_done",
+    "_lost_run", "_last_estimate", "_estimate_keypoints", "_k", "_frame", "_done", "_ended",
+    "_warned_after_end",
     "_np_random", "_np_random_seed",
 )  # fmt: skip
 
@@ -607,19 +609,16 @@ class PoseTrackingEnv(gym.Env):
         self._root0 = self._motion.params[self._t0, :3].copy()
         self._bounds = None
         self._episode_seed = int(self.np_random.integers(2**63 - 1))
-        # _kernels.generator: np.random.default_rng's generators, made faster
-        # (numpy's seed hashing cost more than an episode's draws).
         if seed is not None or self._noise is None:
             # The sensor-noise bank is drawn at a seeded (or the first) reset
             # and serves the episodes that follow: a third of a background's
             # cost saved per episode, and frames still read random windows.
-            self._noise = noise_bank(self.scene, _kernels.generator([self._episode_seed, 2]))
-        self._background = make_background(
-            self.scene, _kernels.generator(self._episode_seed), self._noise
-        )
-        # Per-frame sensor noise comes from one generator per episode, advanced
-        # frame by frame: the same seed and steps give the same frames.
-        self._noise_rng = _kernels.generator([self._episode_seed, 1])
+            self._noise = noise_bank(self.scene, np.random.default_rng([self._episode_seed, 2]))
+        # One generator per episode: the background's draws, then each frame's
+        # sensor noise in turn, so the same seed and steps give the same frames.
+        episode_rng = np.random.default_rng(self._episode_seed)
+        self._background = make_background(self.scene, episode_rng, self._noise)
+        self._noise_rng = episode_rng
         if cameras:
             self._place_camera()
 
@@ -634,6 +633,8 @@ class PoseTrackingEnv(gym.Env):
         """
         assert self._motion is not None
         self._lost_run = 0
+        self._ended: tuple[bool, bool] | None = None
+        self._warned_after_end = False
         self._last_estimate: FloatArray | None = None
         self._estimate_keypoints: FloatArray | None = None
         initial = self._truth(0)
@@ -658,6 +659,11 @@ class PoseTrackingEnv(gym.Env):
     def step(self, action: NDArray) -> tuple[NDArray[np.uint8], float, bool, bool, dict[str, Any]]:
         """Score the estimate of the frame on show, then show the next frame.
 
+        After the episode has ended (until the next ``reset``), a step follows
+        Gymnasium's convention: it warns once per episode and returns the last
+        frame again, reward 0, ``terminated`` and ``truncated`` as the episode
+        ended and ``info["after_end"] = True``; the clip does not advance.
+
         Args:
             action: ``(n_free,)`` the estimate of the free parameters, normalised
                 to [-1, 1] (values outside are clipped).
@@ -667,12 +673,37 @@ class PoseTrackingEnv(gym.Env):
 
         Raises:
             ValueError: If the action has the wrong shape or is not finite.
-            RuntimeError: If called before ``reset`` or after the episode ended.
+            RuntimeError: If called before the first ``reset``.
         """
         if self._motion is None:
             raise RuntimeError("step() called before reset()")
+        a = self._checked_action(action)
         if self._done:
-            raise RuntimeError("step() called after the episode ended; call reset()")
+            return self._after_end()
+        estimate = self.action_to_pose(a, self._truth())
+        self._last_estimate = estimate
+        # Kept for render(), which draws these keypoints.
+        self._estimate_keypoints = forward_kinematics(estimate, self.shape)
+        scores = self._scores(self._estimate_keypoints, self._truth_keypoints[self._k])
+        self._lost_run = int(
+            update_lost_run(self._lost_run, scores.error_mm, self.lost_threshold_mm)
+        )
+        lost = self._lost_run >= self.lost_patience
+        terminated = bool(lost and self.terminate_on_lost)
+        truncated = bool(self._k >= self.episode_frames and not terminated)
+        self._done = terminated or truncated
+        if not self._done:
+            self._k += 1
+            obs = self._observe()
+        else:
+            self._ended = (terminated, truncated)
+            obs = self._frame.copy()
+        info = self._info()
+        info.update(_scored_info(scores, bool(lost)))
+        return obs, float(scores.reward), terminated, truncated, info
+
+    def _checked_action(self, action: NDArray) -> FloatArray:
+        """The action as float64, refused with a clear ``ValueError`` when malformed."""
         raw = np.asarray(action)
         if raw.dtype.kind not in "iuf":
             raise ValueError(
@@ -686,47 +717,29 @@ class PoseTrackingEnv(gym.Env):
             )
         if not np.isfinite(a).all():
             raise ValueError(f"{self.task.name}: action must be finite, got {a.tolist()}")
-        truth = self._truth()
-        estimate = self.action_to_pose(a, truth)
-        self._last_estimate = estimate
-        # One pose: the unrolled scalar kinematics is several times faster than
-        # numpy on 3-vectors (tested to agree with body.forward_kinematics).
-        # Kept for render(), which draws these keypoints.
-        self._estimate_keypoints = single_pose_geometry(estimate, self.shape)[:N_KEYPOINTS]
-        truth = self._truth_keypoints[self._k]
-        err_all = point_errors(self._estimate_keypoints, truth)
-        err = err_all[self._err_kp]
-        n_scored = len(err)
-        error_mm = float(err.sum()) / n_scored
-        # The same keypoints with both poses' pelvises put together: the pose
-        # itself, wherever the body is (depth is what one camera barely shows).
-        aligned = aligned_point_errors(self._estimate_keypoints, truth)[self._err_kp]
-        # Reward: the mean over scored keypoints of exp(-e_k / scale), split by
-        # body region so the terms add up to the reward.
-        per_kp = (np.exp(err * (-1.0 / self.reward_scale_mm)) / n_scored).tolist()
-        terms = {key: sum([per_kp[i] for i in idx]) for key, idx in self._reward_terms}
-        reward = sum(terms.values())
-        self._lost_run = update_lost_run(self._lost_run, error_mm, self.lost_threshold_mm)
-        lost = self._lost_run >= self.lost_patience
-        terminated = bool(lost and self.terminate_on_lost)
-        truncated = bool(self._k >= self.episode_frames and not terminated)
-        scored = {
-            "error_mm": error_mm,
-            "error_all_mm": float(err_all.sum()) / N_KEYPOINTS,
-            "error_aligned_mm": float(aligned.sum()) / n_scored,
-            "keypoint_errors_mm": err_all,
-            "lost": bool(lost),
-            **terms,
-        }
-        self._done = terminated or truncated
-        if not self._done:
-            self._k += 1
-            obs = self._observe()
-        else:
-            obs = self._frame.copy()
+        return a
+
+    def _scores(self, estimate_keypoints: FloatArray, truth_keypoints: FloatArray) -> StepScores:
+        """The step's errors and reward (:func:`~humotion_gym.metrics.step_scores`)."""
+        return step_scores(
+            estimate_keypoints, truth_keypoints, self._err_kp, self._reward_terms,
+            self.reward_scale_mm,
+        )  # fmt: skip
+
+    def _after_end(self) -> tuple[NDArray[np.uint8], float, bool, bool, dict[str, Any]]:
+        """A step after the episode ended: the terminal transition again (see :meth:`step`)."""
+        if not self._warned_after_end:
+            self._warned_after_end = True
+            warnings.warn(
+                f"{self.task.name}: step() called after the episode ended "
+                "(terminated or truncated); call reset(). Returning the last frame, reward 0.",
+                UserWarning,
+                stacklevel=3,
+            )
+        terminated, truncated = self._ended if self._ended is not None else (False, True)
         info = self._info()
-        info.update(scored)
-        return obs, reward, terminated, truncated, info
+        info["after_end"] = True
+        return self._frame.copy(), 0.0, terminated, truncated, info
 
     def render(self) -> NDArray[np.uint8] | None:
         """The frame on show with the last estimate drawn over it as a wire figure.
@@ -750,3 +763,15 @@ class PoseTrackingEnv(gym.Env):
             self.camera,
             keypoints=self._estimate_keypoints,
         )
+
+
+def _scored_info(scores: StepScores, lost: bool) -> dict[str, Any]:
+    """A step's scores as its ``info`` holds them."""
+    return {
+        "error_mm": float(scores.error_mm),
+        "error_all_mm": float(scores.error_all_mm),
+        "error_aligned_mm": float(scores.error_aligned_mm),
+        "keypoint_errors_mm": scores.keypoint_errors,
+        "lost": lost,
+        **{key: float(value) for key, value in scores.terms.items()},
+    }

@@ -55,6 +55,11 @@ WalkTrackEnv.__doc__ = (
     + """
     ## Version History
 
+    * v1, later still: a ``step`` after the episode's end warns and returns the
+      terminal transition again (reward 0, ``info["after_end"]``) instead of
+      raising; frames may differ from earlier releases by a vertex's rounding
+      and the sensor noise's draws (the seeds give other, equally random
+      scenes); spaces and rewards unchanged.
     * v1, later still: ``info`` also gives ``error_aligned_mm`` (the error
       with the pelvises put together); frames, spaces and rewards unchanged.
     * v1, later still: the environment no longer carries ``observation_model``:

@@ -1,4 +1,4 @@
-"""The environment's contract is strict: bad calls are refused clearly, resets are atomic."""
+"""The environment's contract: bad calls refused clearly, atomic resets, Gymnasium's end of episode."""
 
 import gymnasium as gym
 import numpy as np
@@ -19,16 +19,33 @@ def _truth_action(env):
     return env.pose_to_action(env.library[env._motion.clip_id].params[env._frame_index()])
 
 
-def test_step_after_the_end_raises(env):
+def _steps_after_the_end(env, action, terminated, truncated):
+    """Two steps after the end: one warning, the terminal transition again, nothing advances."""
+    last = env._frame.copy()
+    k, t0 = env._k, env._frame_index()
+    with pytest.warns(UserWarning, match="after the episode ended") as record:
+        first = env.step(action)
+        second = env.step(action)
+    assert len([w for w in record if "after the episode ended" in str(w.message)]) == 1
+    for obs, reward, term, trunc, info in (first, second):
+        np.testing.assert_array_equal(obs, last)
+        assert reward == 0.0 and (term, trunc) == (terminated, truncated)
+        assert info["after_end"] is True and info["frame"] == t0
+    assert env._k == k
+    # a new episode warns again
+    env.reset(seed=1)
+    assert "after_end" not in env.step(action)[4]
+
+
+def test_step_after_the_end_returns_the_terminal_transition(env):
     env.reset(seed=0)
     for _ in range(env.episode_frames):
         *_, terminated, truncated, _ = env.step(_truth_action(env))
-    assert truncated
-    with pytest.raises(RuntimeError, match="after the episode ended"):
-        env.step(_truth_action(env))
+    assert truncated and not terminated
+    _steps_after_the_end(env, _truth_action(env), False, True)
 
 
-def test_step_after_a_lost_track_raises():
+def test_step_after_a_lost_track_returns_the_terminal_transition():
     env = gym.make("humotion_gym/BodyTrack-v1").unwrapped
     env.reset(seed=0)
     far = np.ones(env.action_space.shape, np.float32)
@@ -37,8 +54,8 @@ def test_step_after_a_lost_track_raises():
         if terminated:
             break
     assert terminated
-    with pytest.raises(RuntimeError, match="after the episode ended"):
-        env.step(far)
+    _steps_after_the_end(env, far, True, False)
+    env.close()
 
 
 def test_step_before_reset_raises(env):

@@ -1,0 +1,175 @@
+"""The package's one compiled kernel: the cone body's forward kinematics.
+
+numba compiles it because a pose's kinematics is some two hundred scalar
+operations on 25 numbers: numpy pays its per-call cost for each of them (one
+pose, as the environment's step scores, costs more in numpy calls than in
+arithmetic) and makes a temporary array per operation for many poses (the
+particles of a filter). One fused pass per pose does neither
+(``benchmarks/bench_env.py``, ``bench_vector.py``). The formulas are those
+of :mod:`humotion_gym.body`'s docstring; ``tests/test_kinematics.py`` checks
+them against a per-joint chain of rotation matrices.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+#: Rows of a pose's geometry: 15 keypoints, then the x and y axes of 10 cones.
+GEOMETRY_ROWS = 35
+#: Numbers of a shape's table (:func:`humotion_gym.body.shape_table`): the five
+#: torso offsets (neck, right and left shoulder, right and left hip), the head's
+#: length, then each limb's upper and lower length (right arm, left arm, right
+#: leg, left leg).
+SHAPE_TABLE_SIZE = 24
+
+# Keypoint rows (body.KEYPOINT_NAMES order) of each limb's base, middle and tip,
+# and the cone rows of its upper and lower segments (body.CONE_NAMES order), in
+# the order of the parameters: right shoulder, left shoulder, right hip, left hip.
+_LIMB_KEYPOINTS = ((9, 10, 11), (12, 13, 14), (1, 2, 3), (4, 5, 6))
+_LIMB_CONES = ((2, 3), (4, 5), (6, 7), (8, 9))
+# Elbows bend the forearm forward, knees the shin backward.
+_LIMB_SIGNS = (1.0, 1.0, -1.0, -1.0)
+
+
+@numba.njit(cache=True, nogil=True)
+def _write(out: NDArray[np.float64], row: int, x: float, y: float, z: float) -> None:
+    out[row, 0] = x
+    out[row, 1] = y
+    out[row, 2] = z
+
+
+@numba.njit(cache=True, nogil=True)
+def pose_geometry(
+    params: NDArray[np.float64], shapes: NDArray[np.float64], out: NDArray[np.float64]
+) -> None:
+    """Keypoints and cone axes of N poses, written into ``out``.
+
+    Args:
+        params: ``(N, 25)`` poses (``body.PARAM_NAMES`` order).
+        shapes: ``(1, 24)`` one shape table for every pose, or ``(N, 24)`` one
+            per pose.
+        out: ``(N, 35, 3)``: rows 0-14 the keypoints (``body.KEYPOINT_NAMES``
+            order), rows ``15 + 2 c`` and ``16 + 2 c`` the x (width) and y
+            (depth) axes of cone ``c``, in the world frame.
+    """
+    per_pose = shapes.shape[0] > 1
+    for n in range(params.shape[0]):
+        p = params[n]
+        s = shapes[n if per_pose else 0]
+        # Root: R = Rz(yaw) Rx(pitch) Ry(roll), by rows.
+        cy, sy = math.cos(p[3]), math.sin(p[3])
+        cp, sp = math.cos(p[4]), math.sin(p[4])
+        cr, sr = math.cos(p[5]), math.sin(p[5])
+        r00, r01, r02 = cy * cr - sy * sp * sr, -sy * cp, cy * sr + sy * sp * cr
+        r10, r11, r12 = sy * cr + cy * sp * sr, cy * cp, sy * sr - cy * sp * cr
+        r20, r21, r22 = -cp * sr, sp, cp * cr
+        px, py, pz = p[0], p[1], p[2]
+        g = out[n]
+        _write(g, 0, px, py, pz)  # pelvis
+        _write(g, 15, r00, r10, r20)  # torso cone: the root frame's x and y
+        _write(g, 16, r01, r11, r21)
+        # The neck base: R o + p.
+        nx = r00 * s[0] + r01 * s[1] + r02 * s[2] + px
+        ny = r10 * s[0] + r11 * s[1] + r12 * s[2] + py
+        nz = r20 * s[0] + r21 * s[1] + r22 * s[2] + pz
+        _write(g, 7, nx, ny, nz)
+        # Neck ball joint: columns of Rx(a) Ry(b) Rz(c), rotated by the root.
+        ca, sa = math.cos(p[6]), math.sin(p[6])
+        cb, sb = math.cos(p[7]), math.sin(p[7])
+        cc, sc = math.cos(p[8]), math.sin(p[8])
+        ex0, ex1, ex2 = cb * cc, ca * sc + sa * sb * cc, sa * sc - ca * sb * cc
+        ey0, ey1, ey2 = -cb * sc, ca * cc - sa * sb * sc, sa * cc + ca * sb * sc
+        ez0, ez1, ez2 = sb, -sa * cb, ca * cb
+        head = s[15]
+        _write(
+            g, 8,
+            nx + head * (r00 * ez0 + r01 * ez1 + r02 * ez2),
+            ny + head * (r10 * ez0 + r11 * ez1 + r12 * ez2),
+            nz + head * (r20 * ez0 + r21 * ez1 + r22 * ez2),
+        )  # fmt: skip
+        _write(
+            g, 17,
+            r00 * ex0 + r01 * ex1 + r02 * ex2,
+            r10 * ex0 + r11 * ex1 + r12 * ex2,
+            r20 * ex0 + r21 * ex1 + r22 * ex2,
+        )  # fmt: skip
+        _write(
+            g, 18,
+            r00 * ey0 + r01 * ey1 + r02 * ey2,
+            r10 * ey0 + r11 * ey1 + r12 * ey2,
+            r20 * ey0 + r21 * ey1 + r22 * ey2,
+        )  # fmt: skip
+        for i in range(4):
+            _limb(g, p, s, i, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz)
+
+
+@numba.njit(cache=True, nogil=True)
+def _limb(
+    g: NDArray[np.float64],
+    p: NDArray[np.float64],
+    s: NDArray[np.float64],
+    i: int,
+    r00: float, r01: float, r02: float,
+    r10: float, r11: float, r12: float,
+    r20: float, r21: float, r22: float,
+    px: float, py: float, pz: float,
+) -> None:  # fmt: skip
+    """Limb ``i``: its base, middle and tip keypoints and its two cones' axes.
+
+    The joint frame is ``R Rx(a) Ry(b) Rz(c)``; the upper segment hangs along
+    its ``-z``, the hinge turns the lower one about its ``x``, so the lower
+    segment points along ``sign sin(k) y - cos(k) z`` and the lower cone's
+    depth axis is column y of ``(joint frame) Rx(sign k)``.
+    """
+    base, mid, tip = _LIMB_KEYPOINTS[i]
+    upper_cone, lower_cone = _LIMB_CONES[i]
+    sign = _LIMB_SIGNS[i]
+    j = 9 + 4 * i  # the limb's x, y, z angles and hinge
+    ca, sa = math.cos(p[j]), math.sin(p[j])
+    cb, sb = math.cos(p[j + 1]), math.sin(p[j + 1])
+    cc, sc = math.cos(p[j + 2]), math.sin(p[j + 2])
+    ck, sk = math.cos(p[j + 3]), math.sin(p[j + 3])
+    lx0, ly0, lz0 = cb * cc, -cb * sc, sb
+    lx1, ly1, lz1 = ca * sc + sa * sb * cc, ca * cc - sa * sb * sc, -sa * cb
+    lx2, ly2, lz2 = sa * sc - ca * sb * cc, sa * cc + ca * sb * sc, ca * cb
+    x0 = r00 * lx0 + r01 * lx1 + r02 * lx2
+    x1 = r10 * lx0 + r11 * lx1 + r12 * lx2
+    x2 = r20 * lx0 + r21 * lx1 + r22 * lx2
+    y0 = r00 * ly0 + r01 * ly1 + r02 * ly2
+    y1 = r10 * ly0 + r11 * ly1 + r12 * ly2
+    y2 = r20 * ly0 + r21 * ly1 + r22 * ly2
+    z0 = r00 * lz0 + r01 * lz1 + r02 * lz2
+    z1 = r10 * lz0 + r11 * lz1 + r12 * lz2
+    z2 = r20 * lz0 + r21 * lz1 + r22 * lz2
+    o = 3 * (i + 1)  # the limb's base offset in the shape table
+    bx = r00 * s[o] + r01 * s[o + 1] + r02 * s[o + 2] + px
+    by = r10 * s[o] + r11 * s[o + 1] + r12 * s[o + 2] + py
+    bz = r20 * s[o] + r21 * s[o + 1] + r22 * s[o + 2] + pz
+    upper, lower = s[16 + 2 * i], s[17 + 2 * i]
+    mx, my, mz = bx - upper * z0, by - upper * z1, bz - upper * z2
+    ssk = sign * sk
+    ls, lk = lower * ssk, lower * ck
+    _write(g, base, bx, by, bz)
+    _write(g, mid, mx, my, mz)
+    _write(g, tip, mx + ls * y0 - lk * z0, my + ls * y1 - lk * z1, mz + ls * y2 - lk * z2)
+    _write(g, 15 + 2 * upper_cone, x0, x1, x2)
+    _write(g, 16 + 2 * upper_cone, y0, y1, y2)
+    _write(g, 15 + 2 * lower_cone, x0, x1, x2)
+    _write(g, 16 + 2 * lower_cone, ck * y0 + ssk * z0, ck * y1 + ssk * z1, ck * y2 + ssk * z2)
+
+
+def geometry(params: NDArray[Any], shapes: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`pose_geometry` into a new ``(N, 35, 3)`` array.
+
+    Args:
+        params: ``(N, 25)`` poses, C-contiguous float64.
+        shapes: ``(1, 24)`` or ``(N, 24)`` shape tables.
+    """
+    out = np.empty((params.shape[0], GEOMETRY_ROWS, 3))
+    pose_geometry(params, shapes, out)
+    return out
