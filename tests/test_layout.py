@@ -51,7 +51,10 @@ def test_every_command_module_registers_and_every_option_says_its_default():
     missing = []
     for command, parser in _subparsers(build_parser()):
         for action in parser._actions:
-            if isinstance(action, (argparse._HelpAction, argparse._SubParsersAction)):
+            if isinstance(
+                action,
+                (argparse._HelpAction, argparse._SubParsersAction, argparse._VersionAction),
+            ):
                 continue
             flag = "/".join(action.option_strings) or action.dest
             if not action.help:
@@ -65,3 +68,31 @@ def test_every_command_module_registers_and_every_option_says_its_default():
             ):
                 missing.append(f"{command} {flag}: help does not give the default")
     assert not missing, "\n".join(missing)
+
+
+def test_every_command_opens_with_a_sentence_and_gives_one_example():
+    bad = []
+    for command, parser in _subparsers(build_parser()):
+        if not command:
+            continue
+        text = parser.description or ""
+        if not (text[:1].isupper() and "." in text.split("\n\n")[0]):
+            bad.append(f"{command}: help does not open with a sentence")
+        example = (parser.epilog or "").splitlines()
+        if not (example[:1] == ["example:"] and len(example) == 2):
+            bad.append(f"{command}: no example (or more than one)")
+        elif not example[1].strip().startswith(f"humotion-gym {command.split()[0]}"):
+            bad.append(f"{command}: the example does not run humotion-gym {command}")
+    assert not bad, "\n".join(bad)
+
+
+def test_help_groups_every_command_once():
+    from humotion_gym.cli import COMMAND_GROUPS
+
+    text = build_parser().format_help()
+    listed = [line.split()[0] for line in text.splitlines() if line.startswith("  ")]
+    listed = [n for n in listed if not n.startswith("-")]
+    commands = [c for c, _ in _subparsers(build_parser()) if c and " " not in c]
+    assert sorted(listed) == sorted(commands)
+    for title in COMMAND_GROUPS:
+        assert f"{title}:" in text

@@ -3,28 +3,33 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
-from humotion_gym.cli._common import UsageError, positive_int
+from humotion_gym.cli._common import MAX_PARTICLES, UsageError, int_at_least, particle_count
 
 
 def agent_name(text: str) -> str:
     """An argparse ``type`` for a registered agent (``hold``, ``pf-tree``...)."""
-    from baselines.agents import agent_names
-    from baselines.learned import is_learned  # PATH.zip, LABEL=PATH.zip, pf-PRIOR+POLICY
+    # learned: PATH.zip, LABEL=PATH.zip, pf-PRIOR+POLICY
+    from baselines.agents import agent_names, is_learned
 
     if text not in agent_names() and not is_learned(text):
         raise argparse.ArgumentTypeError(
-            f"unknown agent {text}; the agents are {', '.join(agent_names())} "
+            f"unknown agent {text[:80]}; the agents are {', '.join(agent_names())} "
             "(see humotion-gym agents)"
         )
+    path = Path(text.partition("=")[2] or text) if text.endswith(".zip") else None
+    if path is not None and not path.is_file():
+        raise argparse.ArgumentTypeError(f"{text[:80]}: no such policy file {str(path)[:80]}")
     return text
 
 
 def add_particles(parser: argparse.ArgumentParser, what: str = "particles") -> None:
     """``--particles``: one particle count, default 300."""
     parser.add_argument(
-        "--particles", type=positive_int, default=300, help=f"{what} (default: 300)"
-    )
+        "--particles", type=particle_count, default=300,
+        help=f"{what}, 1 to {MAX_PARTICLES:,} (default: 300)",
+    )  # fmt: skip
 
 
 def add_agents(parser: argparse.ArgumentParser, hold: str = "hold always runs") -> None:
@@ -43,7 +48,7 @@ def add_engine(parser: argparse.ArgumentParser) -> None:
         "(default: inprocess)",
     )  # fmt: skip
     parser.add_argument(
-        "--workers", type=positive_int, default=None,
+        "--workers", type=int_at_least(1, 4096), default=None,
         help="with --engine ray: workers (one CPU each) of a local Ray started here, or "
         "actors on the cluster of --address (default: every CPU)",
     )  # fmt: skip

@@ -12,15 +12,17 @@ import argparse
 import math
 from typing import Any
 
-from humotion_gym.cli._common import add_json, print_json, task_name
+from humotion_gym.cli._common import add_command, add_json, print_json, task_name
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``agents``."""
-    cmd = subparsers.add_parser(
+    cmd = add_command(
+        subparsers,
         "agents",
-        help="list the agents (references, particle filters)",
-        description="List the agents. With --task, each particle filter's settings on that "
+        "list the agents (references, particle filters, learned policies)",
+        "humotion-gym agents --task BodyTrack-v1",
+        details="With --task, each particle filter's settings on that "
         "task: those its registration sets for the prior's fit (the rest are the prior's "
         "defaults) and the filter's own (layers, survival rate alpha, diffusion, exponent "
         "cap beta_max; those of the annealed filter).",
@@ -53,8 +55,7 @@ def _settings_text(settings: dict[str, Any]) -> str:
 
 
 def _cmd_agents(args: argparse.Namespace) -> int:
-    from baselines.agents import AGENTS, REFERENCES, agent_names
-    from baselines.learned import LEARNED
+    from baselines.agents import AGENTS, LEARNED, REFERENCES, agent_names
 
     rows: list[dict[str, Any]] = []
     for name in agent_names():

@@ -8,26 +8,29 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from baselines.cli._args import add_agents, add_particles
 from humotion_gym.cli._common import (
+    add_command,
     add_data_dir,
     add_json,
     add_seed,
     add_task,
     env_kwargs,
-    positive_int,
+    episode_count,
+    output_file,
     report,
 )
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``depth``."""
-    dp = subparsers.add_parser(
+    dp = add_command(
+        subparsers,
         "depth",
-        help="each agent's error split along the camera's line of sight and across it",
-        description="Track seeded episodes (the leaderboard's) with every agent and split each "
+        "each agent's error split along the camera's line of sight and across it",
+        "humotion-gym depth --task BodyTrack-v1 --agents pf-cv pf-tree --episodes 20",
+        details="Track seeded episodes (the leaderboard's) with every agent and split each "
         "scored keypoint's error into its component along the camera ray through the true "
         "keypoint (signed: + is farther from the camera) and the rest, across it, which the "
         "image shows; where the root's position is the agent's, also how far the pelvis "
@@ -37,7 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_agents(dp)
     add_particles(dp)
     dp.add_argument(
-        "--episodes", type=positive_int, default=20, help="seeded episodes per agent (default: 20)"
+        "--episodes", type=episode_count, default=20, help="seeded episodes per agent (default: 20)"
     )
     add_seed(dp, "the first episode's seed and the agents' seed")
     dp.add_argument(
@@ -47,7 +50,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     add_data_dir(dp)
     dp.add_argument(
-        "--out", type=Path, default=None,
+        "--out", type=output_file(".json"), default=None,
         help="also write the result, with every frame, as JSON to this file (default: none)",
     )  # fmt: skip
     add_json(dp)

@@ -8,16 +8,17 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from humotion_gym.cli._common import (
+    add_command,
     add_data_dir,
     add_json,
     add_seed,
     add_task,
     env_kwargs,
-    positive_float,
-    positive_int,
+    episode_count,
+    float_between,
+    output_file,
     print_json,
     wrote,
 )
@@ -25,21 +26,23 @@ from humotion_gym.cli._common import (
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``discrimination``."""
-    dis = subparsers.add_parser(
-        "discrimination",
-        help="how far the likelihood separates the true pose from poses a few cm off",
-    )
+    dis = add_command(
+        subparsers, "discrimination",
+        "how far the likelihood separates the true pose from poses a few cm off",
+        "humotion-gym discrimination --task ArmTrack-v1 --episodes 20",
+    )  # fmt: skip
     add_task(dis, "ArmTrack-v1")
     dis.add_argument(
-        "--episodes", type=positive_int, default=20, help="seeded episodes (default: 20)"
+        "--episodes", type=episode_count, default=20, help="seeded episodes (default: 20)"
     )
     add_seed(dis, "first episode seed")
     dis.add_argument(
-        "--distances", type=positive_float, nargs="+", default=[50.0, 100.0, 200.0],
-        metavar="MM", help="error bins' centres in mm (default: 50 100 200)",
+        "--distances", type=float_between(0.0, 5000.0, open_low=True), nargs="+",
+        default=[50.0, 100.0, 200.0], metavar="MM",
+        help="error bins' centres in mm, up to 5000 (default: 50 100 200)",
     )  # fmt: skip
     dis.add_argument(
-        "--figure", type=Path, default=None, metavar="PNG",
+        "--figure", type=output_file(".png"), default=None, metavar="PNG",
         help="also write a picture of what the likelihood reads in one frame (frame, "
         "foreground by the border rule and by the task's model, edges before and after, "
         "coverage points; default: none)",

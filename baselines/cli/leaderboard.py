@@ -16,17 +16,19 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 from baselines.cli._args import add_agents, add_engine, check_engine
 from humotion_gym.cli._common import (
     CommandError,
     UsageError,
+    add_command,
     add_data_dir,
     add_seed,
     env_kwargs,
-    nonnegative_float,
-    positive_int,
+    episode_count,
+    float_between,
+    output_dir,
+    particle_count,
     print_json,
     task_name,
     wrote,
@@ -44,25 +46,30 @@ LEGEND = (
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``leaderboard``."""
-    lb = subparsers.add_parser(
-        "leaderboard", help="agents x tasks x particle counts x seeded episodes, with hold"
-    )
+    lb = add_command(
+        subparsers, "leaderboard", "agents x tasks x particle counts x seeded episodes, with hold",
+        "humotion-gym leaderboard --tasks ArmTrack-v1 --agents pf-cv pf-tree --out runs/lb",
+        details="Exit codes: 0 when every cell ran or was skipped; 1 when a cell failed (the "
+        "table shows it, stderr names it); 2 on a usage error (an --out holding a run without "
+        "--resume, or --resume with another grid); 130 when interrupted (--out keeps what "
+        "finished).",
+    )  # fmt: skip
     lb.add_argument(
         "--tasks", type=task_name, nargs="+", default=["ArmTrack-v1", "BodyTrack-v1"],
         metavar="TASK", help="task ids (default: ArmTrack-v1 BodyTrack-v1)",
     )  # fmt: skip
     add_agents(lb, "hold always runs as the floor")
     lb.add_argument(
-        "--particles", type=positive_int, nargs="+", default=[300, 3000], metavar="N",
+        "--particles", type=particle_count, nargs="+", default=[300, 3000], metavar="N",
         help="particle counts of the particle filters (default: 300 3000)",
     )  # fmt: skip
     lb.add_argument(
-        "--episodes", type=positive_int, default=20, help="episodes per cell (default: 20)"
+        "--episodes", type=episode_count, default=20, help="episodes per cell (default: 20)"
     )
     add_seed(lb, "seed of the first episode")
     add_data_dir(lb)
     lb.add_argument(
-        "--out", type=Path, default=None, metavar="FOLDER",
+        "--out", type=output_dir, default=None, metavar="FOLDER",
         help="results folder: each finished episode is saved as it finishes (episodes.jsonl), "
         "then results.json, table.md and the report (default: none)",
     )  # fmt: skip
@@ -87,10 +94,53 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="scene background, a difficulty setting (default: the task's)",
     )  # fmt: skip
     lb.add_argument(
-        "--noise", type=nonnegative_float, default=None,
+        "--noise", type=float_between(0.0, 255.0), default=None,
         help="sensor noise, a difficulty setting (default: the task's)",
     )  # fmt: skip
     lb.set_defaults(func=_cmd_leaderboard)
+
+
+def _check_results_folder(args: argparse.Namespace) -> None:
+    """Refuse ``--out`` holding a run without ``--resume``, and a resume on another grid.
+
+    A resumed run keeps the saved episodes of its own cells only; one whose
+    tasks, agents, particle counts or seeds leave out saved episodes would
+    drop them from the table, so it is refused (a grid that adds cells is fine).
+
+    Raises:
+        UsageError: Naming ``--out`` or ``--resume``.
+    """
+    from baselines.leaderboard import EPISODES_FILE, RUN_FILE, ResultsFolder, _cells
+
+    folder = ResultsFolder(args.out)
+    holds_run = (args.out / RUN_FILE).is_file() or (
+        (args.out / EPISODES_FILE).is_file() and (args.out / EPISODES_FILE).stat().st_size > 0
+    )
+    if not args.resume:
+        if holds_run:
+            raise UsageError(
+                f"--out: {args.out} already holds a run; add --resume to continue it or "
+                "choose another folder"
+            )
+        return
+    if not holds_run:
+        raise UsageError(f"--resume: {args.out} holds no run to continue (start one without it)")
+    cells = set(_cells(args.tasks, args.agents, args.particles))
+    seeds = range(args.seed, args.seed + args.episodes)
+    try:
+        saved = [
+            (r["task"], r["agent"], int(r["particles"]), int(r["seed"])) for r in folder.read()
+        ]
+    except (KeyError, TypeError, ValueError) as exc:  # ResumeError: a line that is not JSON
+        raise CommandError(f"--resume: {args.out}: unreadable episodes ({exc})") from None
+    left_out = sorted({k[:3] for k in saved if k[:3] not in cells or k[3] not in seeds})
+    if left_out:
+        shown = ", ".join(f"{a} on {t} ({n} particles)" for t, a, n in left_out[:3])
+        raise UsageError(
+            f"--resume: {args.out} holds episodes outside this grid ({shown}"
+            f"{' ...' if len(left_out) > 3 else ''}); give the run's --tasks, --agents, "
+            "--particles, --episodes and --seed"
+        )
 
 
 def _cmd_leaderboard(args: argparse.Namespace) -> int:
@@ -111,6 +161,8 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         raise UsageError(
             f"--out: expected a results folder (it holds results.json), got the file {args.out}"
         )
+    if args.out is not None:
+        _check_results_folder(args)
     kwargs = env_kwargs(args)
     if args.background:
         kwargs["background"] = args.background

@@ -9,16 +9,17 @@ The experiments are in :mod:`baselines.experiments.ormoneit2005`::
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 import numpy as np
 
 from humotion_gym.cli._common import (
     CommandError,
+    add_command,
     add_data_dir,
     add_fps,
     add_json,
-    positive_int,
+    int_at_least,
+    output_dir,
     print_json,
     wrote,
 )
@@ -26,9 +27,15 @@ from humotion_gym.cli._common import (
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``pca period`` and ``pca figures``."""
-    pca = subparsers.add_parser("pca", help="cyclic PCA walking model (Ormoneit et al. 2005)")
+    pca = add_command(
+        subparsers, "pca", "cyclic PCA walking model (Ormoneit et al. 2005)",
+        "humotion-gym pca period ../shared/mocap/cmu",
+    )  # fmt: skip
     psub = pca.add_subparsers(dest="pca_command", required=True, metavar="COMMAND")
-    period = psub.add_parser("period", help="cycle length per clip: eq. 3 and the feet")
+    period = add_command(
+        psub, "period", "cycle length per clip: eq. 3 and the feet",
+        "humotion-gym pca period ../shared/mocap/cmu --json",
+    )  # fmt: skip
     period.add_argument("paths", nargs="+", metavar="PATH", help="mocap files or folders")
     add_json(period, "JSON lines instead of a table")
     add_fps(period)
@@ -36,16 +43,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--all-labels", action="store_true", help="every clip, not only those labelled walk"
     )
     period.set_defaults(func=_cmd_period)
-    figs = psub.add_parser("figures", help="figures like the paper's Figs. 5, 7, 9 and 10")
+    figs = add_command(
+        psub, "figures", "figures like the paper's Figs. 5, 7, 9 and 10",
+        "humotion-gym pca figures --data-dir ../shared/mocap --out-dir pca-figures",
+    )  # fmt: skip
     add_data_dir(figs)
     figs.add_argument(
-        "--out-dir", "--out", type=Path, default=Path("pca-figures"), dest="out_dir",
+        "--out-dir", "--out", type=output_dir, default="pca-figures", dest="out_dir",
         help="folder for the PNG files (default: pca-figures)",
     )  # fmt: skip
     add_fps(figs)
     figs.add_argument(
-        "--components", type=positive_int, default=5,
-        help="principal components of the FPCA (default: 5)",
+        "--components", type=int_at_least(1, 64), default=5,
+        help="principal components of the FPCA, 1 to 64 (default: 5)",
     )  # fmt: skip
     figs.set_defaults(func=_cmd_figures)
 

@@ -14,19 +14,30 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from humotion_gym.cli._common import CommandError, add_data_dir, add_seed, wrote
+from humotion_gym.cli._common import (
+    CommandError,
+    UsageError,
+    add_command,
+    add_data_dir,
+    add_seed,
+    output_dir,
+    wrote,
+)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``report``."""
-    rp = subparsers.add_parser(
-        "report", help="tables, figures, videos and index.html of a saved leaderboard"
-    )
+    rp = add_command(
+        subparsers, "report", "tables, figures, videos and index.html of a saved leaderboard",
+        "humotion-gym report runs/lb/results.json --out runs/lb-report --videos",
+    )  # fmt: skip
     rp.add_argument(
         "results", type=Path,
         help="leaderboard JSON: the rows list of leaderboard --out, or an object with 'rows'",
     )  # fmt: skip
-    rp.add_argument("--out", type=Path, required=True, help="the report folder (created if needed)")
+    rp.add_argument(
+        "--out", type=output_dir, required=True, help="the report folder (created if needed)"
+    )
     rp.add_argument(
         "--videos", action="store_true",
         help="re-run each cell's best, median and worst episode and write videos of them "
@@ -34,7 +45,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     rp.add_argument(
         "--video-agents", nargs="+", default=None, metavar="AGENT",
-        help="only these agents get videos (default: every agent)",
+        help="with --videos: only these agents get videos (default: every agent)",
     )  # fmt: skip
     add_data_dir(rp)
     add_seed(rp, "seed of the bootstrap resampling")
@@ -50,10 +61,21 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
     from baselines.report import ReplayMismatch, load_rows, write_report
 
+    if args.video_agents and not args.videos:
+        raise UsageError("--video-agents: only with --videos")
+    if not args.results.is_file():
+        raise FileNotFoundError(f"{args.results}: no such leaderboard file")
     try:
         rows, settings = load_rows(args.results)
-    except ValueError as exc:
+    except (ValueError, UnicodeDecodeError) as exc:
         raise CommandError(str(exc)) from None
+    unknown = sorted(set(args.video_agents or []) - {r.get("agent") for r in rows})
+    if unknown:
+        agents = sorted({str(r.get("agent")) for r in rows})
+        raise UsageError(
+            f"--video-agents: no agent {', '.join(unknown)} in {args.results}; its agents are "
+            f"{', '.join(agents)}"
+        )
     env_kwargs = dict(settings.get("env_kwargs") or {})
     if args.data_dir:
         env_kwargs["data_dir"] = args.data_dir

@@ -8,26 +8,32 @@
 from __future__ import annotations
 
 import argparse
+import math
 from collections.abc import Sequence
 
 from baselines.cli._args import add_particles, agent_name
 from humotion_gym.cli._common import (
+    MAX_EPISODES,
     UsageError,
+    add_command,
     add_data_dir,
     add_json,
     add_seed,
     add_task,
-    positive_int,
+    episode_count,
+    int_at_least,
     print_json,
 )
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``select``."""
-    sel = subparsers.add_parser(
+    sel = add_command(
+        subparsers,
         "select",
-        help="choose a likelihood setting by cross-validation on training persons",
-        description="Track the validation persons (training persons held out of the priors' "
+        "choose a likelihood setting by cross-validation on training persons",
+        "humotion-gym select --task ArmTrack-v1 --agent pf-tree --grid sharpness=1,2,3,5",
+        details="Track the validation persons (training persons held out of the priors' "
         "data) with each candidate value of likelihood settings (or prior settings, fit.NAME, or "
         "the annealed filter's settings, filter.NAME) "
         "and pick the combination with the lowest mean error. Test persons are never loaded.",
@@ -47,7 +53,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     add_particles(sel)
     sel.add_argument(
-        "--episodes", type=positive_int, default=20, help="episodes per value (default: 20)"
+        "--episodes", type=episode_count, default=20, help="episodes per value (default: 20)"
     )
     add_seed(sel, "first episode seed")
     sel.add_argument(
@@ -55,7 +61,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="training subjects to hold out (default: experiments.selection.VALIDATION_SUBJECTS)",
     )  # fmt: skip
     sel.add_argument(
-        "--still", type=int, default=0, metavar="N",
+        "--still", type=int_at_least(0, MAX_EPISODES), default=0, metavar="N",
         help="also track up to N still episodes of the validation persons (where hold scores "
         "lowest) and choose the lowest mean error among the settings within 2x hold there "
         "(default: 0, mean error only)",
@@ -78,16 +84,24 @@ def parse_grid(items: Sequence[str]) -> dict[str, list[float]]:
             grid[name.strip()] = [float(v) for v in values.split(",") if v.strip()]
         except ValueError:
             sep = ""
+        if not all(math.isfinite(v) for v in grid.get(name.strip(), [])):
+            sep = ""
         if not sep or not name.strip() or not grid.get(name.strip()):
-            raise UsageError(f"--grid: expected NAME=V1,V2,... with numbers, got {item}")
+            raise UsageError(f"--grid: expected NAME=V1,V2,... of finite numbers, got {item[:80]}")
     return grid
 
 
 def _cmd_select(args: argparse.Namespace) -> int:
     from baselines.experiments.selection import select_observation_settings, validation_library
+    from humotion_gym.errors import MocapFormatError, RigError
 
     grid = parse_grid(args.grid)
-    lib = validation_library(args.data_dir or None, args.validation)
+    try:
+        lib = validation_library(args.data_dir or None, args.validation)
+    except ValueError as exc:  # a subject absent from the training split, or a test person
+        if args.validation is None or isinstance(exc, (MocapFormatError, RigError)):
+            raise
+        raise UsageError(f"--validation: {str(exc).removeprefix('validation_fold: ')}") from None
     try:
         out = select_observation_settings(
             args.task, args.agent, grid, lib, args.particles, args.episodes, args.seed,

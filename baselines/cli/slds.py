@@ -16,22 +16,27 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 
 from humotion_gym.body import PARAM_NAMES
 from humotion_gym.cli._common import (
     UsageError,
+    add_command,
     add_data_dir,
     add_json,
     add_seed,
-    nonnegative_float,
-    positive_int,
+    float_between,
+    int_at_least,
+    output_dir,
+    output_file,
     print_json,
     probability,
 )
 from humotion_gym.mocap.motion import Motion
+
+#: Degrees a noise flag accepts (a joint angle's noise beyond a half turn means nothing).
+_DEGREES = float_between(0.0, 180.0)
 
 
 def _add_model_args(p: argparse.ArgumentParser, figure: bool = True) -> None:
@@ -39,21 +44,21 @@ def _add_model_args(p: argparse.ArgumentParser, figure: bool = True) -> None:
 
     add_seed(p, "seed of EM and of the test sequences")
     p.add_argument(
-        "--states", type=positive_int, default=slds.N_STATES,
+        "--states", type=int_at_least(1, 64), default=slds.N_STATES,
         help=f"switch states per activity (default: {slds.N_STATES})",
     )  # fmt: skip
     p.add_argument(
-        "--iters", type=positive_int, default=slds.CLASSIFY_N_ITER,
+        "--iters", type=int_at_least(1, 10_000), default=slds.CLASSIFY_N_ITER,
         help=f"EM iterations per activity (default: {slds.CLASSIFY_N_ITER})",
     )  # fmt: skip
     p.add_argument(
-        "--max-train-clips", type=positive_int, default=None,
+        "--max-train-clips", type=int_at_least(1), default=None,
         help="training clips per activity (default: all)",
     )  # fmt: skip
     if figure:
         add_json(p)
         p.add_argument(
-            "--figure", type=Path, default=None,
+            "--figure", type=output_file(".png"), default=None,
             help="also write the figure here, .png (default: none)",
         )  # fmt: skip
 
@@ -78,7 +83,7 @@ def _add_variant_args(p: argparse.ArgumentParser) -> None:
         help=f"what the models see: {pav.FEATURES_HELP} (default: {pav.CLASSIFY_FEATURES})",
     )  # fmt: skip
     p.add_argument(
-        "--extra-noise-deg", type=nonnegative_float, default=pav.CLASSIFY_EXTRA_NOISE_DEG,
+        "--extra-noise-deg", type=_DEGREES, default=pav.CLASSIFY_EXTRA_NOISE_DEG,
         help="measurement noise the decoder assumes on top of the test noise, degrees "
         f"(default: {pav.CLASSIFY_EXTRA_NOISE_DEG:g})",
     )  # fmt: skip
@@ -88,18 +93,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``slds classify|select|splits|interpolate|figures``."""
     from baselines.experiments import pavlovic1999 as pav
 
-    p = subparsers.add_parser(
-        "slds", help="switching linear dynamic system experiments (Pavlovic et al. 1999)"
-    )
+    p = add_command(
+        subparsers, "slds", "switching linear dynamic system experiments (Pavlovic et al. 1999)",
+        "humotion-gym slds figures --data-dir ../shared/mocap --out-dir slds_figures",
+    )  # fmt: skip
     sub = p.add_subparsers(dest="slds_command", required=True, metavar="COMMAND")
 
-    c = sub.add_parser("classify", help="walk/run classification (section 4.1, Fig. 3)")
+    c = add_command(
+        sub, "classify", "walk/run classification (section 4.1, Fig. 3)",
+        "humotion-gym slds classify --train ../shared/mocap/cmu --test ../shared/mocap/bandai",
+    )  # fmt: skip
     c.add_argument(
         "--train", nargs="+", required=True, metavar="PATH", help="training mocap files or folders"
     )
     c.add_argument(
-        "--test", nargs="+", required=True, metavar="PATH", help="test mocap files or folders"
-    )
+        "--test", nargs="+", required=True, metavar="PATH", dest="test_paths",
+        help="test mocap files or folders, none of them also in --train",
+    )  # fmt: skip
     c.add_argument(
         "--labels", nargs="+", default=None,
         help="activities (default: walk and run, with dash counted as run)",
@@ -114,16 +124,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     noise = float(np.degrees(pav.NOISE_STD))
     c.add_argument(
-        "--noise-deg", type=nonnegative_float, default=noise,
+        "--noise-deg", type=_DEGREES, default=noise,
         help=f"noise added to the test sequences, degrees (default: {noise:g})",
     )  # fmt: skip
     _add_variant_args(c)
     _add_model_args(c)
     c.set_defaults(func=_cmd_classify)
 
-    sel = sub.add_parser(
-        "select", help="choose the classifier's settings by cross-validation on the train split"
-    )
+    sel = add_command(
+        sub, "select", "choose the classifier's settings by cross-validation on the train split",
+        "humotion-gym slds select --data-dir ../shared/mocap --jobs 2",
+    )  # fmt: skip
     add_data_dir(sel)
     sel.add_argument(
         "--param-sets", nargs="+", default=None, metavar="NAME",
@@ -140,7 +151,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         f"{' '.join(pav.CANDIDATE_FEATURES)})",
     )  # fmt: skip
     sel.add_argument(
-        "--extra-noise-degs", nargs="+", type=nonnegative_float, default=[0.0], metavar="DEG",
+        "--extra-noise-degs", nargs="+", type=_DEGREES, default=[0.0], metavar="DEG",
         help="candidate extra measurement noise the decoder assumes, degrees (default: 0; the "
         f"variant grid: {' '.join(f'{v:g}' for v in pav.CANDIDATE_EXTRA_NOISE_DEG)})",
     )  # fmt: skip
@@ -156,15 +167,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     _add_model_args(sel, figure=False)
     sel.add_argument(
-        "--jobs", type=positive_int, default=1, help="folds run in parallel processes (default: 1)"
+        "--jobs",
+        type=int_at_least(1, 256),
+        default=1,
+        help="folds run in parallel processes (default: 1)",
     )
     sel.add_argument("--quiet", action="store_true", help="no progress on stderr")
     add_json(sel)
     sel.set_defaults(func=_cmd_select, max_train_clips=None)
 
-    spl = sub.add_parser(
-        "splits", help="classification error per held-out style and per held-out person"
-    )
+    spl = add_command(
+        sub, "splits", "classification error per held-out style and per held-out person",
+        "humotion-gym slds splits --data-dir ../shared/mocap --training-persons",
+    )  # fmt: skip
     add_data_dir(spl)
     spl.add_argument(
         "--params", nargs="+", default=None, metavar="PARAM",
@@ -179,7 +194,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help=f"also score these features as 'given': {pav.FEATURES_HELP} (default: none)",
     )  # fmt: skip
     spl.add_argument(
-        "--extra-noise-deg", type=nonnegative_float, default=None,
+        "--extra-noise-deg", type=_DEGREES, default=None,
         help="also score this extra assumed noise (degrees) as 'given' (default: none)",
     )  # fmt: skip
     spl.add_argument(
@@ -189,22 +204,31 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     _add_model_args(spl, figure=False)
     spl.add_argument(
-        "--jobs", type=positive_int, default=1, help="fits run in parallel processes (default: 1)"
+        "--jobs",
+        type=int_at_least(1, 256),
+        default=1,
+        help="fits run in parallel processes (default: 1)",
     )
     spl.add_argument("--quiet", action="store_true", help="no progress on stderr")
     add_json(spl)
     spl.set_defaults(func=_cmd_splits)
 
-    i = sub.add_parser("interpolate", help="fill a gap of held-out walking (Fig. 6)")
+    i = add_command(
+        sub, "interpolate", "fill a gap of held-out walking (Fig. 6)",
+        "humotion-gym slds interpolate --data-dir ../shared/mocap --label walk",
+    )  # fmt: skip
     add_data_dir(i)
     i.add_argument("--label", default="walk", help="activity of the clips (default: walk)")
     _add_model_args(i)
     i.set_defaults(func=_cmd_interpolate)
 
-    f = sub.add_parser("figures", help="Figs. 3, 5 and 6 on walk/run data; prints a JSON summary")
+    f = add_command(
+        sub, "figures", "Figs. 3, 5 and 6 on walk/run data; prints a JSON summary",
+        "humotion-gym slds figures --data-dir ../shared/mocap --out-dir slds_figures",
+    )  # fmt: skip
     add_data_dir(f)
     f.add_argument(
-        "--out-dir", type=Path, default=Path("slds_figures"),
+        "--out-dir", type=output_dir, default="slds_figures",
         help="folder for the PNG files (default: slds_figures)",
     )  # fmt: skip
     _add_model_args(f, figure=False)
@@ -214,7 +238,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _cmd_classify(args: argparse.Namespace) -> int:
     from baselines.experiments import pavlovic1999 as pav
 
-    train, test = pav.split_train_test(pav.load_motions(args.train), pav.load_motions(args.test))
+    _check_disjoint(args.train, args.test_paths)
+    train, test = pav.split_train_test(
+        pav.load_motions(args.train), pav.load_motions(args.test_paths)
+    )
     if args.labels is None:  # walk and run, Bandai-Namco set 1's dash as run
         train, test = pav.activity_clips(train), pav.activity_clips(test)
     result = pav.run_classification(
@@ -246,6 +273,20 @@ def _cmd_classify(args: argparse.Namespace) -> int:
             f"{result.model.n_states} switch states, fit {result.seconds_fit:.1f} s"
         )
     return 0
+
+
+def _check_disjoint(train: Sequence[str], test: Sequence[str]) -> None:
+    """Refuse a clip in both ``--train`` and ``--test`` (it would be scored on its own fit)."""
+    from humotion_gym.mocap.library import find_clips
+
+    both = sorted(
+        {s.path.resolve() for s in find_clips(train)} & {s.path.resolve() for s in find_clips(test)}
+    )
+    if both:
+        raise UsageError(
+            f"--test: {len(both)} clip(s) also in --train (e.g. {both[0]}); the test clips "
+            "must be others"
+        )
 
 
 def _train_motions(data_dir: Sequence[str] | None) -> list[Motion]:
@@ -338,6 +379,10 @@ def _cmd_interpolate(args: argparse.Namespace) -> int:
     from baselines.experiments import pavlovic1999 as pav
 
     motions = pav.default_motions(args.data_dir)
+    labels = sorted({m.label for m in motions})
+    if args.label not in labels:
+        raise UsageError(f"--label: no clip labelled {args.label[:40]}; the labels are "
+                         f"{', '.join(labels)}")  # fmt: skip
     train, test = pav.person_split(motions)
     results, mean, _ = pav.run_interpolation(
         train, test, np.random.default_rng(args.seed), label=args.label,

@@ -8,27 +8,30 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from baselines.cli._args import add_agents, add_particles
 from humotion_gym.cli._common import (
+    add_command,
     add_data_dir,
     add_json,
     add_seed,
     add_task,
     env_kwargs,
+    episode_count,
+    output_file,
     positive_float,
-    positive_int,
     report,
 )
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``still``."""
-    st = subparsers.add_parser(
+    st = add_command(
+        subparsers,
         "still",
-        help="every agent on the test persons' still episodes, against hold",
-        description="Find the episodes of the task's test clips where the person barely moves "
+        "every agent on the test persons' still episodes, against hold",
+        "humotion-gym still --task BodyTrack-v1 --agents pf-cv pf-tree --out still.json",
+        details="Find the episodes of the task's test clips where the person barely moves "
         "(hold's mean error at most --max-hold mm, lowest first, none overlapping) and track "
         "them with every agent; an agent stands still when its error is within 2x hold's.",
     )
@@ -40,12 +43,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="keep episodes whose hold error is at most this (default: 50 mm)",
     )  # fmt: skip
     st.add_argument(
-        "--episodes", type=positive_int, default=20, help="at most this many episodes (default: 20)"
-    )
+        "--episodes", type=episode_count, default=20,
+        help="at most this many episodes (default: 20)",
+    )  # fmt: skip
     add_seed(st, "the agents' seed")
     add_data_dir(st)
     st.add_argument(
-        "--out", type=Path, default=None,
+        "--out", type=output_file(".json"), default=None,
         help="also write the result as JSON to this file (default: none)",
     )  # fmt: skip
     add_json(st)

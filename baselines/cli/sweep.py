@@ -13,17 +13,21 @@ the leaderboard (``hold`` included). Writes ``sweep.json`` (every episode),
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from baselines.cli._args import add_agents, add_engine, check_engine
 from humotion_gym.cli._common import (
+    MAX_IMAGE_SIDE,
     UsageError,
+    add_command,
     add_data_dir,
     add_seed,
     env_kwargs,
-    nonnegative_float,
-    nonnegative_int,
-    positive_int,
+    episode_count,
+    float_between,
+    int_at_least,
+    output_dir,
+    output_file,
+    particle_count,
     task_name,
     wrote,
 )
@@ -31,55 +35,64 @@ from humotion_gym.cli._common import (
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``sweep``."""
-    sw = subparsers.add_parser(
-        "sweep", help="difficulty curves: the leaderboard over a grid of environment settings"
-    )
+    sw = add_command(
+        subparsers, "sweep",
+        "difficulty curves: the leaderboard over a grid of environment settings",
+        "humotion-gym sweep --tasks BodyTrack-v1 --noise 0 4 8 16 --episodes 5 --out runs/sweep",
+        details="Each setting is varied on its own from the task's defaults; every value runs "
+        "the leaderboard (hold included). Writes sweep.json (every episode), sweep.md (the "
+        "curves as a table) and sweep.png (the curves).",
+    )  # fmt: skip
     sw.add_argument(
         "--tasks", type=task_name, nargs="+", default=["BodyTrack-v1"], metavar="TASK",
         help="task ids (default: BodyTrack-v1)",
     )  # fmt: skip
     add_agents(sw)
     sw.add_argument(
-        "--particles", type=positive_int, nargs="+", default=[300], metavar="N",
+        "--particles", type=particle_count, nargs="+", default=[300], metavar="N",
         help="particle counts of the particle filters (default: 300)",
     )  # fmt: skip
     sw.add_argument(
-        "--episodes", type=positive_int, default=5, help="episodes per cell and value (default: 5)"
+        "--episodes",
+        type=episode_count,
+        default=5,
+        help="episodes per cell and value (default: 5)",
     )
     grid = sw.add_argument_group("settings (each one given is swept on its own)")
     grid.add_argument(
-        "--size", type=positive_int, nargs="+", default=None, metavar="PIXELS",
-        help="image sizes, width = height (default: not swept)",
+        "--size", type=int_at_least(8, MAX_IMAGE_SIDE), nargs="+", default=None,
+        metavar="PIXELS", dest="sweep_size",
+        help=f"image sizes, width = height, 8 to {MAX_IMAGE_SIDE} (default: not swept)",
     )  # fmt: skip
     grid.add_argument(
         "--background", choices=["flat", "clutter"], nargs="+", default=None,
         help="backgrounds (default: not swept)",
     )  # fmt: skip
     grid.add_argument(
-        "--noise", type=nonnegative_float, nargs="+", default=None, metavar="SIGMA",
+        "--noise", type=float_between(0.0, 255.0), nargs="+", default=None, metavar="SIGMA",
         help="sensor noise levels, grey levels (default: not swept)",
     )  # fmt: skip
     grid.add_argument(
-        "--occluders", type=nonnegative_int, nargs="+", default=None, metavar="N",
+        "--occluders", type=int_at_least(0, 64), nargs="+", default=None, metavar="N",
         help="numbers of occluders (default: not swept)",
     )  # fmt: skip
     grid.add_argument(
-        "--blur", type=nonnegative_float, nargs="+", default=None, metavar="SIGMA",
+        "--blur", type=float_between(0.0, 64.0), nargs="+", default=None, metavar="SIGMA",
         help="blur levels, pixels (default: not swept)",
     )  # fmt: skip
     grid.add_argument(
-        "--frame-skip", type=positive_int, nargs="+", default=None, metavar="K",
+        "--frame-skip", type=int_at_least(1, 100), nargs="+", default=None, metavar="K",
         help="frame skips (default: not swept)",
     )  # fmt: skip
     add_engine(sw)
     add_seed(sw, "seed of the first episode")
     add_data_dir(sw)
     sw.add_argument(
-        "--out", type=Path, required=True,
+        "--out", type=output_dir, required=True,
         help="folder for sweep.json, sweep.md and sweep.png (created if needed)",
     )  # fmt: skip
     sw.add_argument(
-        "--figure", type=Path, default=None,
+        "--figure", type=output_file(".png"), default=None,
         help="also write the figure here (e.g. docs/img/sweep_noise_occluders.png; default: none)",
     )  # fmt: skip
     sw.set_defaults(func=_cmd_sweep)
@@ -93,7 +106,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     grid = {
         name: values
         for name, values in (
-            ("size", args.size), ("background", args.background), ("noise", args.noise),
+            ("size", args.sweep_size), ("background", args.background), ("noise", args.noise),
             ("occluders", args.occluders), ("blur", args.blur), ("frame_skip", args.frame_skip),
         )
         if values

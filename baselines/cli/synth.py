@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import inspect
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -20,13 +19,22 @@ import numpy as np
 from humotion_gym.cli._common import (
     CommandError,
     UsageError,
+    add_command,
     add_data_dir,
     add_fps,
     add_seed,
-    positive_float,
+    check_memory,
+    float_between,
+    output_file,
     positive_int,
     wrote,
 )
+
+#: The longest motion ``--seconds`` asks for (an hour).
+MAX_SECONDS = 3600.0
+#: Bytes a synthesised frame takes while sampled and written (the pose, its
+#: keypoints and the prior's state, a few hundred float64 values, with margin).
+BYTES_PER_FRAME = 8192
 
 #: Shorter names accepted by ``--prior``.
 ALIASES = {"pca": "cyclic_pca", "cv": "constant_velocity"}
@@ -36,7 +44,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``synth``."""
     from baselines.priors import PRIORS
 
-    syn = subparsers.add_parser("synth", help="synthesise motion from a fitted prior, as BVH")
+    syn = add_command(
+        subparsers, "synth", "synthesise motion from a fitted prior, as BVH (and video)",
+        "humotion-gym synth --prior tree --seconds 2 --out synth.bvh --video synth.mp4",
+    )  # fmt: skip
     names = sorted(PRIORS) + sorted(ALIASES)
     syn.add_argument(
         "--prior", choices=names, default="tree", metavar="PRIOR",
@@ -44,8 +55,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "(pca and cv are short for cyclic_pca and constant_velocity; default: tree)",
     )  # fmt: skip
     syn.add_argument(
-        "--seconds", type=positive_float, default=2.0, help="length of the motion (default: 2)"
-    )
+        "--seconds", type=float_between(0.0, MAX_SECONDS, open_low=True), default=2.0,
+        help=f"length of the motion, s, at most {MAX_SECONDS:g} (default: 2)",
+    )  # fmt: skip
     syn.add_argument(
         "--labels", nargs="+", default=["walk"], metavar="LABEL",
         help="activities of the training clips the prior is fitted on (default: walk)",
@@ -63,28 +75,45 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="settings of the prior's fit, e.g. beta=0.05 for a faithful tree (default: none)",
     )  # fmt: skip
     syn.add_argument(
-        "--beta", type=positive_float, default=None,
+        "--beta", type=float_between(0.0, 1e6, open_low=True), default=None,
         help="short for --setting beta=BETA, the tree's temperature (default: the fit's)",
     )  # fmt: skip
     add_seed(syn)
     syn.add_argument(
-        "--out", type=Path, default=Path("synth.bvh"), help="the BVH to write (default: synth.bvh)"
-    )
+        "--out", type=output_file(".bvh"), default="synth.bvh",
+        help="the BVH to write (default: synth.bvh)",
+    )  # fmt: skip
     syn.add_argument(
-        "--video", type=Path, default=None, help="also write a video here (default: none)"
-    )
+        "--video", type=output_file(".mp4", ".avi"), default=None,
+        help="also write a video here, .mp4 or .avi (default: none)",
+    )  # fmt: skip
     add_data_dir(syn)
     add_fps(syn)
     syn.set_defaults(func=_cmd_synth)
 
 
-def _value(text: str) -> Any:
-    for kind in (int, float):
-        try:
-            return kind(text)
-        except ValueError:
-            pass
-    return {"true": True, "false": False}.get(text.lower(), text)
+def _value(name: str, text: str, default: Any) -> Any:
+    """A setting's value, of the kind its default is: a boolean, else a finite number >= 0.
+
+    Every numeric setting of the priors' fits is a count, a length or a scale,
+    so a negative, infinite or NaN value is refused rather than passed on.
+    """
+    if isinstance(default, bool):
+        flag = {"true": True, "false": False}.get(text.lower())
+        if flag is None:
+            raise UsageError(f"--setting: {name} is true or false, got {text[:40]!r}")
+        return flag
+    try:
+        value = float(text)
+    except ValueError:
+        raise UsageError(f"--setting: {name} is a number, got {text[:40]!r}") from None
+    if not np.isfinite(value) or value < 0:
+        raise UsageError(f"--setting: {name} is a finite number >= 0, got {text[:40]!r}")
+    if isinstance(default, int) or (default is None and value.is_integer()):
+        if not value.is_integer():
+            raise UsageError(f"--setting: {name} is a whole number, got {text[:40]!r}")
+        return int(value)
+    return value
 
 
 def fit_settings(module: Any, items: list[str], beta: float | None) -> dict[str, Any]:
@@ -93,13 +122,16 @@ def fit_settings(module: Any, items: list[str], beta: float | None) -> dict[str,
     Raises:
         UsageError: Naming the flag, for a malformed item or a setting the fit lacks.
     """
-    accepted = set(inspect.signature(module.fit).parameters) - {"motions", "free", "rng"}
+    params = inspect.signature(module.fit).parameters
+    accepted = set(params) - {"motions", "free", "rng"}
     settings: dict[str, Any] = {}
     for item in items:
         name, sep, value = item.partition("=")
-        if not sep or not name.strip() or not value.strip():
-            raise UsageError(f"--setting: expected NAME=VALUE, got {item}")
-        settings[name.strip()] = _value(value.strip())
+        name = name.strip()
+        if not sep or not name or not value.strip():
+            raise UsageError(f"--setting: expected NAME=VALUE, got {item[:80]}")
+        default = params[name].default if name in accepted else None
+        settings[name] = _value(name, value.strip(), default) if name in accepted else value
     if beta is not None:
         settings["beta"] = beta
     unknown = sorted(set(settings) - accepted)
@@ -121,6 +153,10 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     name = ALIASES.get(args.prior, args.prior)
     module = prior_module(name)
     settings = fit_settings(module, args.setting, args.beta)
+    frames = max(2, int(round(args.seconds * args.fps)))
+    check_memory("--seconds", frames, BYTES_PER_FRAME, "frames")
+    if args.video:  # the rendered frames are held, then written
+        check_memory("--seconds", frames, 128 * 128 * 3, "video frames")
     lib = default_library(args.data_dir or None, fps=args.fps)
     clips = list(lib.split("train").filter(labels=args.labels))
     if not clips:
@@ -134,7 +170,6 @@ def _cmd_synth(args: argparse.Namespace) -> int:
             f"--start: no clip {args.start} in the library (see humotion-gym data table)"
         )
     start = lib[args.start] if args.start else clips[0]
-    frames = max(2, int(round(args.seconds * args.fps)))
     _, fitted = fit_prior(module, clips, None, settings)
     params = module.synthesize_motion(fitted, start.params[0], frames, args.fps, rng)
     write_motion_bvh(args.out, params, start.shape, args.fps)

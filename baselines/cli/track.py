@@ -11,14 +11,22 @@ import argparse
 import json
 from pathlib import Path
 
+import numpy as np
+
 from baselines.cli._args import add_particles, agent_name
 from humotion_gym.cli._common import (
+    CommandError,
+    UsageError,
+    add_command,
     add_data_dir,
     add_json,
     add_seed,
     add_task,
+    check_memory,
+    check_mocap_paths,
     env_kwargs,
-    positive_int,
+    episode_count,
+    output_file,
     wrote,
 )
 
@@ -34,7 +42,10 @@ LEGEND = (
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``track``."""
-    track = subparsers.add_parser("track", help="track seeded episodes with an agent")
+    track = add_command(
+        subparsers, "track", "track seeded episodes with an agent; errors and timing",
+        "humotion-gym track --task ArmTrack-v1 --agent pf-tree --particles 300 --episodes 20",
+    )  # fmt: skip
     add_task(track, "ArmTrack-v1", "task id, see humotion-gym tasks")
     track.add_argument(
         "--agent", type=agent_name, default="pf-cv",
@@ -42,19 +53,51 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     add_particles(track, "particles of a particle-filter agent")
     track.add_argument(
-        "--episodes", type=positive_int, default=20, help="episodes to track (default: 20)"
+        "--episodes", type=episode_count, default=20, help="episodes to track (default: 20)"
     )
     add_seed(track, "seed of the first episode and of the agent")
     track.add_argument(
-        "--clip", default=None, help="a mocap file or clip id to track (default: the task's draw)"
-    )
+        "--clip", default=None,
+        help="a clip id of the library (synthetic/walk-01, cmu/02_01; see humotion-gym data "
+        "table) or a BVH/AMC file, which needs --data-dir for the priors' training clips "
+        "(default: the task's draw)",
+    )  # fmt: skip
     track.add_argument(
-        "--video", type=Path, default=None,
+        "--video", type=output_file(".mp4", ".avi"), default=None,
         help="also write a video of the first episode here (default: none)",
     )  # fmt: skip
     add_json(track, "print one JSON object with every episode instead of a table")
     add_data_dir(track)
     track.set_defaults(func=_cmd_track)
+
+
+def _clip_options(args: argparse.Namespace) -> dict[str, str] | None:
+    """The reset options of ``--clip``: a clip id, or a mocap file (checked here).
+
+    A file's clip is tracked by priors fitted on the library's training
+    persons; without ``--data-dir`` (or ``$HUMOTION_MOCAP``) that library is
+    the synthetic one, so a file needs one.
+
+    Raises:
+        FileNotFoundError: If ``--clip`` names a missing ``.bvh``/``.amc`` file.
+        UsageError: If a file is given without a folder of real mocap.
+    """
+    from humotion_gym.mocap.library import MOCAP_ENV, configured_data_dirs
+
+    if not args.clip:
+        return None
+    path = Path(args.clip)
+    if path.suffix.lower() not in (".bvh", ".amc") and not path.is_file():
+        return {"clip_id": args.clip}
+    if not path.is_file():
+        raise FileNotFoundError(f"--clip: {args.clip}: no such file")
+    check_mocap_paths([path], "--clip")
+    if not configured_data_dirs(args.data_dir):
+        raise UsageError(
+            f"--clip {args.clip}: give --data-dir DIR (or set ${MOCAP_ENV}) with real mocap; "
+            "the priors are fitted on its training persons, else on synthetic motion"
+        )
+    return {"file": str(path)}
 
 
 def _cmd_track(args: argparse.Namespace) -> int:
@@ -64,15 +107,27 @@ def _cmd_track(args: argparse.Namespace) -> int:
     from baselines.evaluation import evaluate, run_episode, summarize
     from humotion_gym.video import write_video
 
+    options = _clip_options(args)
     render_mode = "rgb_array" if args.video else None
     env = gym.make(
         f"humotion_gym/{args.task}", terminate_on_lost=False, render_mode=render_mode,
         **env_kwargs(args),
     )  # fmt: skip
-    agent = make(args.agent, env, n_particles=args.particles, seed=args.seed)
-    options = None
-    if args.clip:
-        options = {"file": args.clip} if Path(args.clip).exists() else {"clip_id": args.clip}
+    if options and "clip_id" in options:
+        library = env.unwrapped.library  # type: ignore[attr-defined]
+        if options["clip_id"] not in library.clip_ids:
+            near = [c for c in library.clip_ids if c.endswith("/" + options["clip_id"])]
+            hint = f"; did you mean {near[0]}?" if near else " (see humotion-gym data table)"
+            raise UsageError(f"--clip: no clip {args.clip} in the task's library{hint}")
+    if args.video:
+        shape = env.observation_space.shape or (1,)
+        size = int(np.prod(shape[:2])) * 3  # RGB frames of the observation's size
+        frames_per_episode = env.unwrapped.episode_frames  # type: ignore[attr-defined]
+        check_memory("--video", frames_per_episode, size, "frames of the first episode")
+    try:
+        agent = make(args.agent, env, n_particles=args.particles, seed=args.seed)
+    except ValueError as exc:  # a policy file that is not one, an agent that cannot run here
+        raise CommandError(f"--agent: {exc}") from None
     results = evaluate(agent, env, args.episodes, seed=args.seed, options=options, progress=True)
     if args.video:
         frames: list = []

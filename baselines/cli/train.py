@@ -17,6 +17,7 @@ from pathlib import Path
 from humotion_gym.cli._common import (
     CommandError,
     UsageError,
+    add_command,
     add_data_dir,
     add_json,
     add_seed,
@@ -44,9 +45,10 @@ def _setting(text: str) -> tuple[str, float]:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``train`` and ``learning-curve``."""
-    tr = subparsers.add_parser(
-        "train", help="train a learned tracker (ppo or bc) on the training persons"
-    )
+    tr = add_command(
+        subparsers, "train", "train a learned tracker (ppo or bc) on the training persons",
+        "humotion-gym train --algo bc --task BodyTrack-v1 --steps 100000 --out runs/bc-body",
+    )  # fmt: skip
     tr.add_argument("--algo", choices=["ppo", "bc"], required=True, help="ppo or bc (required)")
     add_task(tr, "BodyTrack-v1")
     tr.add_argument(
@@ -89,10 +91,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_json(tr, "print the run's config.json at the end")
     tr.set_defaults(func=_cmd_train)
 
-    lc = subparsers.add_parser(
-        "learning-curve",
-        help="test-split error against env steps for learned trackers (IQM over seeds)",
-    )
+    lc = add_command(
+        subparsers, "learning-curve",
+        "test-split error against env steps for learned trackers (IQM over seeds)",
+        "humotion-gym learning-curve --task BodyTrack-v1 --algos ppo bc --seeds 0 1 2",
+    )  # fmt: skip
     add_task(lc, "BodyTrack-v1")
     lc.add_argument(
         "--algos", nargs="+", choices=["ppo", "bc"], default=["ppo", "bc"],

@@ -9,15 +9,16 @@ The experiments are in :mod:`baselines.experiments.sidenbladh2002`::
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from humotion_gym.cli._common import (
+    add_command,
     add_data_dir,
     add_json,
     add_seed,
     add_task,
     env_kwargs,
-    positive_int,
+    int_at_least,
+    output_dir,
     print_json,
     wrote,
 )
@@ -25,25 +26,33 @@ from humotion_gym.cli._common import (
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``tree figures``."""
-    tree = subparsers.add_parser(
-        "tree", help="tree prior of motion (Sidenbladh, Black & Sigal 2002)"
-    )
+    tree = add_command(
+        subparsers, "tree", "tree prior of motion (Sidenbladh, Black & Sigal 2002)",
+        "humotion-gym tree figures --out-dir tree-figures",
+    )  # fmt: skip
     tsub = tree.add_subparsers(dest="tree_command", required=True, metavar="COMMAND")
-    figs = tsub.add_parser("figures", help="Figs. 3 and 4 of Sidenbladh et al. (2002)")
+    figs = add_command(
+        tsub, "figures", "Figs. 3 and 4 of Sidenbladh et al. (2002)",
+        "humotion-gym tree figures --data-dir ../shared/mocap --out-dir tree-figures",
+    )  # fmt: skip
     figs.add_argument(
-        "--out-dir", "--out", type=Path, default=Path("tree-figures"), dest="out_dir",
+        "--out-dir", "--out", type=output_dir, default="tree-figures", dest="out_dir",
         help="folder for the PNG files (default: tree-figures)",
     )  # fmt: skip
     add_data_dir(figs)
     add_seed(figs)
     figs.set_defaults(func=_cmd_figures)
-    var = tsub.add_parser(
-        "variance",
-        help="the share of variance the tree's components hold, by feature set and scaling",
-    )
+    var = add_command(
+        tsub, "variance",
+        "the share of variance the tree's components hold, by feature set and scaling",
+        "humotion-gym tree variance --task BodyTrack-v1 --windows 15000",
+    )  # fmt: skip
     add_task(var, "BodyTrack-v1", "the task whose pf-tree prior to read")
     var.add_argument(
-        "--windows", type=positive_int, default=15000, help="windows sampled (default: 15000)"
+        "--windows",
+        type=int_at_least(1, 1_000_000),
+        default=15000,
+        help="windows sampled, at most 1,000,000 (default: 15000)",
     )
     add_data_dir(var)
     add_seed(var)

@@ -24,9 +24,11 @@ import argparse
 import importlib
 import os
 import sys
+import textwrap
 from collections.abc import Sequence
+from typing import NoReturn
 
-from humotion_gym.cli._common import CommandError, UsageError
+from humotion_gym.cli._common import CommandError, UsageError, check_mocap_paths
 from humotion_gym.threads import limit_blas_threads
 
 #: The benchmark's command modules, in ``--help`` order. The trackers' commands
@@ -41,8 +43,33 @@ COMMAND_MODULES: tuple[str, ...] = (
     "humotion_gym.cli.render",  # render
 )
 
+#: ``humotion-gym --help`` lists the commands in these groups, in this order;
+#: a command in none of them is listed last, under "other commands".
+COMMAND_GROUPS: dict[str, tuple[str, ...]] = {
+    "everyday commands": (
+        "tasks", "agents", "track", "leaderboard", "report", "train", "data", "download",
+        "cache", "render",
+    ),
+    "research commands (the papers' experiments)": (
+        "select", "still", "depth", "discrimination", "tree", "pca", "slds", "synth", "sweep",
+        "learning-curve",
+    ),
+}  # fmt: skip
+
 #: Extras that provide optional modules, for the hint when one is missing.
 _EXTRAS = {"matplotlib": "plots", "stable_baselines3": "rl", "torch": "rl"}
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line on stderr (exit 2).
+
+    argparse prints the usage block before the error; the README promises one
+    line, so the usage is replaced by a pointer to ``--help``.
+    """
+
+    def error(self, message: str) -> NoReturn:  # noqa: D102 (argparse's)
+        print(f"{self.prog}: error: {message} (see {self.prog} --help)", file=sys.stderr)
+        sys.exit(2)
 
 
 def _runtime_errors() -> tuple[type[BaseException], ...]:
@@ -54,6 +81,22 @@ def _runtime_errors() -> tuple[type[BaseException], ...]:
     return (CommandError, OSError, MocapFormatError, RigError, DownloadError, SplitError)
 
 
+def _grouped_listing(sub: argparse._SubParsersAction) -> str:
+    """The commands with their one-line help, under :data:`COMMAND_GROUPS`' headings."""
+    helps = {a.dest: a.help or "" for a in sub._choices_actions}
+    width = max(map(len, helps), default=0) + 2
+    listed: set[str] = set()
+    blocks = []
+    groups = dict(COMMAND_GROUPS)
+    groups["other commands"] = tuple(n for n in helps if not any(n in g for g in groups.values()))
+    for title, names in groups.items():
+        rows = [f"  {n:{width}s}{helps[n]}" for n in names if n in helps and n not in listed]
+        listed.update(names)
+        if rows:
+            blocks.append(f"{title}:\n" + "\n".join(rows))
+    return "\n\n".join(blocks)
+
+
 def build_parser(modules: Sequence[str] = COMMAND_MODULES) -> argparse.ArgumentParser:
     """The argument parser of ``humotion-gym`` over the given command modules.
 
@@ -61,14 +104,27 @@ def build_parser(modules: Sequence[str] = COMMAND_MODULES) -> argparse.ArgumentP
         modules: Dotted names of modules with a ``register(subparsers)`` function,
             in ``--help`` order (default: the benchmark's own, :data:`COMMAND_MODULES`).
     """
-    parser = argparse.ArgumentParser(
+    from humotion_gym import __version__
+
+    parser = OneLineParser(
         prog="humotion-gym",
-        description="Gymnasium environments for monocular 3D human pose tracking. "
-        "Exit codes: 0 success, 1 runtime error, 2 usage error.",
+        usage="humotion-gym [-h] [--version] COMMAND ...",
+        description=textwrap.fill(
+            "Gymnasium environments for monocular 3D human pose tracking, and the trackers "
+            "that score on them. Exit codes: 0 success, 1 runtime error, 2 usage error (each "
+            "error is one line on stderr). Run humotion-gym COMMAND --help for a command's "
+            "flags and an example.",
+            78,
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(
+        dest="command", required=True, metavar="COMMAND", help=argparse.SUPPRESS
+    )
     for name in modules:
         importlib.import_module(name).register(sub)
+    parser.epilog = _grouped_listing(sub)
     return parser
 
 
@@ -81,23 +137,51 @@ def _error(parser: argparse.ArgumentParser, args: argparse.Namespace, message: s
             if k == "command" or (k.endswith("_command") and v) or (k == "source" and v)
         ]
     )
-    print(f"{prog}: error: {message}", file=sys.stderr)
+    print(f"{prog}: error: {' '.join(message.split())}", file=sys.stderr)
+
+
+def _check_inputs(args: argparse.Namespace) -> None:
+    """Refuse mocap paths that hold no motion capture before any command starts its work.
+
+    One place for every command: ``--data-dir`` (else ``$HUMOTION_MOCAP``, which
+    the command would read), the ``PATH`` arguments and ``slds classify``'s
+    ``--train``/``--test``.
+    """
+    from humotion_gym.mocap.library import MOCAP_ENV, configured_data_dirs
+
+    if getattr(args, "data_dir", None):
+        check_mocap_paths(args.data_dir, "--data-dir")
+    elif hasattr(args, "data_dir") and configured_data_dirs(None):
+        check_mocap_paths(configured_data_dirs(None), f"${MOCAP_ENV}")
+    for attr, flag in (("paths", "PATH"), ("train", "--train"), ("test_paths", "--test")):
+        value = getattr(args, attr, None)
+        if value:
+            check_mocap_paths(value, flag)
 
 
 def main(argv: Sequence[str] | None = None, modules: Sequence[str] = COMMAND_MODULES) -> int:
     """Run one command line over the given command modules; returns the exit code.
+
+    The bare command (no arguments) prints the help on stdout and exits 0, as
+    ``pip`` and ``docker`` do: it is how one discovers the commands, and it
+    writes nothing.
 
     Args:
         argv: The arguments (default: ``sys.argv[1:]``).
         modules: The command modules (see :func:`build_parser`).
     """
     parser = build_parser(modules)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv:
+        parser.print_help()
+        return 0
     try:
         args = parser.parse_args(argv)
-    except SystemExit as exc:  # --help (0) or argparse's usage error (2)
+    except SystemExit as exc:  # --help, --version (0) or a usage error (2)
         return exc.code if isinstance(exc.code, int) else 2
     limit_blas_threads()  # see humotion_gym.threads for why and for Python users
     try:
+        _check_inputs(args)
         return int(args.func(args) or 0)
     except BrokenPipeError:  # the output was piped into a reader that stopped (head)
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

@@ -17,7 +17,11 @@ from __future__ import annotations
 
 import argparse
 import json
-from collections.abc import Callable
+import math
+import os
+import tempfile
+import textwrap
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -30,37 +34,77 @@ class CommandError(RuntimeError):
     """A command could not do its work for a reason the user can fix (exit 1)."""
 
 
+#: The most memory a command may plan to hold for frames it renders or synthesises
+#: (``check_memory``); a request beyond it is refused before anything is allocated.
+MEMORY_BUDGET_BYTES: int = 2 << 30
+#: Frame rates ``--fps`` accepts, Hz: the data sets capture at 30 to 120 Hz
+#: (some rigs at 240); resampling finer only multiplies every clip's memory.
+FPS_RANGE: tuple[float, float] = (1.0, 240.0)
+#: The most particles of one filter: about 10 kB of state, proposals and
+#: rendered keypoints each, so 100,000 hold about 1 GiB.
+MAX_PARTICLES: int = 100_000
+#: The most episodes per cell or run (each is seconds of tracking at least).
+MAX_EPISODES: int = 10_000
+#: The largest image side, pixels.
+MAX_IMAGE_SIDE: int = 2048
+
+
 def _number(kind: type, text: str) -> Any:
     try:
-        return kind(text)
-    except ValueError:
+        value = kind(text)
+    except (ValueError, OverflowError):
         what = "an integer" if kind is int else "a number"
-        raise argparse.ArgumentTypeError(f"expected {what}, got {text}") from None
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text[:40]!r}") from None
+    if kind is float and not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text[:40]!r}")
+    return value
 
 
-def int_at_least(low: int) -> Callable[[str], int]:
-    """An argparse ``type`` accepting integers ``>= low`` (argparse names the flag)."""
+def int_at_least(low: int, high: int | None = None) -> Callable[[str], int]:
+    """An argparse ``type`` accepting integers ``>= low`` (and ``<= high`` when given)."""
 
     def parse(text: str) -> int:
         value = _number(int, text)
-        if value < low:
-            raise argparse.ArgumentTypeError(f"expected an integer >= {low}, got {text}")
+        if value < low or (high is not None and value > high):
+            bound = f"between {low} and {high:,}" if high is not None else f">= {low}"
+            raise argparse.ArgumentTypeError(f"expected an integer {bound}, got {text}")
         return value
 
     parse.__name__ = f"integer >= {low}"
     return parse
 
 
+def float_between(low: float, high: float, *, open_low: bool = False) -> Callable[[str], float]:
+    """An argparse ``type`` accepting finite numbers in ``[low, high]`` (``(low, high]``)."""
+
+    def parse(text: str) -> float:
+        value = _number(float, text)
+        if value < low or value > high or (open_low and value == low):
+            left = "(" if open_low else "["
+            raise argparse.ArgumentTypeError(
+                f"expected a number in {left}{low:g}, {high:g}], got {text}"
+            )
+        return value
+
+    parse.__name__ = "number"
+    return parse
+
+
 #: ``type=`` for counts that must be at least one (episodes, particles, frames...).
 positive_int = int_at_least(1)
-#: ``type=`` for seeds and other counts that may be zero.
+#: ``type=`` for seeds and other counts that may be zero (seeds: numpy's 32-bit range
+#: is not the limit, numpy takes any non-negative integer).
 nonnegative_int = int_at_least(0)
+#: ``type=`` for particle counts.
+particle_count = int_at_least(1, MAX_PARTICLES)
+#: ``type=`` for episode counts.
+episode_count = int_at_least(1, MAX_EPISODES)
 
 
 def positive_float(text: str) -> float:
     """An argparse ``type`` accepting finite numbers ``> 0``."""
     value = _number(float, text)
-    if not (value > 0 and value < float("inf")):
+    if not value > 0:
         raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text}")
     return value
 
@@ -68,7 +112,7 @@ def positive_float(text: str) -> float:
 def nonnegative_float(text: str) -> float:
     """An argparse ``type`` accepting finite numbers ``>= 0``."""
     value = _number(float, text)
-    if not (value >= 0 and value < float("inf")):
+    if not value >= 0:
         raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text}")
     return value
 
@@ -82,17 +126,119 @@ def probability(text: str) -> float:
 
 
 def image_size(text: str) -> tuple[int, int]:
-    """An argparse ``type`` for ``WIDTHxHEIGHT`` (e.g. ``256x256``), both positive."""
+    """An argparse ``type`` for ``WIDTHxHEIGHT`` (e.g. ``256x256``), each 1 to 2048."""
     parts = text.lower().split("x")
     try:
         width, height = (int(p) for p in parts)
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f"expected WIDTHxHEIGHT, e.g. 256x256, got {text}"
+            f"expected WIDTHxHEIGHT, e.g. 256x256, got {text[:40]!r}"
         ) from None
-    if width < 1 or height < 1:
-        raise argparse.ArgumentTypeError(f"expected positive WIDTHxHEIGHT, got {text}")
+    if not (1 <= width <= MAX_IMAGE_SIDE and 1 <= height <= MAX_IMAGE_SIDE):
+        raise argparse.ArgumentTypeError(
+            f"expected WIDTHxHEIGHT with each side 1 to {MAX_IMAGE_SIDE}, got {text}"
+        )
     return width, height
+
+
+def check_memory(flag: str, count: int, bytes_each: int, what: str) -> None:
+    """Refuse a request whose ``count x bytes_each`` exceeds :data:`MEMORY_BUDGET_BYTES`.
+
+    Raises:
+        UsageError: Naming ``flag``, the bytes asked for and the largest count that fits.
+    """
+    if count * bytes_each > MEMORY_BUDGET_BYTES:
+        most = MEMORY_BUDGET_BYTES // max(bytes_each, 1)
+        raise UsageError(
+            f"{flag}: {count:,} {what} would take {count * bytes_each / 2**30:.1f} GiB "
+            f"(the limit is {MEMORY_BUDGET_BYTES / 2**30:g} GiB: at most {most:,})"
+        )
+
+
+def _writable_folder(folder: Path) -> str | None:
+    """Why files cannot be created in ``folder`` or the folder it would be made in, or None."""
+    probe = folder
+    while not probe.exists():
+        if probe.is_symlink() or probe.parent == probe:
+            return f"{probe} cannot be created"
+        probe = probe.parent
+    if not probe.is_dir():
+        return f"{probe} is a file, not a folder"
+    try:
+        with tempfile.TemporaryFile(dir=probe):
+            pass
+    except OSError as exc:
+        return f"{probe} is not writable ({exc.strerror or exc})"
+    return None
+
+
+def output_file(*suffixes: str) -> Callable[[str], Path]:
+    """An argparse ``type`` for a file to write: checked before any work is done.
+
+    Refuses a folder, a suffix other than ``suffixes`` (when given) and a
+    place where the file cannot be created (a file in the way, no permission,
+    a read-only file system). Nothing is created.
+    """
+
+    def parse(text: str) -> Path:
+        path = Path(text)
+        if not text.strip():
+            raise argparse.ArgumentTypeError("expected a file name, got an empty one")
+        if suffixes and path.suffix.lower() not in suffixes:
+            raise argparse.ArgumentTypeError(
+                f"expected a {' or '.join(suffixes)} file, got {text[:80]}"
+            )
+        if path.is_dir():
+            raise argparse.ArgumentTypeError(f"{text}: is a folder, expected a file")
+        problem = _writable_folder(path.parent)
+        if problem is None and path.exists() and not os.access(path, os.W_OK):
+            problem = f"{path} is not writable"
+        if problem:
+            raise argparse.ArgumentTypeError(f"cannot write {text[:80]}: {problem}")
+        return path
+
+    parse.__name__ = "output file"
+    return parse
+
+
+def check_output_file(path: Path, flag: str, *suffixes: str) -> Path:
+    """:func:`output_file`'s check of a path a command derived itself (a default).
+
+    Raises:
+        UsageError: Naming ``flag``, if the file cannot be written there.
+    """
+    try:
+        return output_file(*suffixes)(str(path))
+    except argparse.ArgumentTypeError as exc:
+        raise UsageError(f"{flag}: {exc}") from None
+
+
+def output_dir(text: str) -> Path:
+    """An argparse ``type`` for a folder to write into (made if needed), checked first."""
+    path = Path(text)
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected a folder name, got an empty one")
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text}: is a file, expected a folder")
+    problem = _writable_folder(path)
+    if problem:
+        raise argparse.ArgumentTypeError(f"cannot write into {text[:80]}: {problem}")
+    return path
+
+
+def check_mocap_paths(paths: Sequence[str | Path], flag: str) -> None:
+    """Refuse paths that hold no motion capture before a command starts its work.
+
+    Raises:
+        FileNotFoundError: If a path does not exist.
+        MocapFormatError: If a file is not BVH or AMC, or two would be one clip.
+        CommandError: If the paths hold no clip at all, naming ``flag``.
+    """
+    from humotion_gym.mocap.library import find_clips
+
+    if not find_clips(paths):
+        shown = ", ".join(str(p) for p in paths)
+        raise CommandError(f"{flag}: no BVH or ASF/AMC motion capture under {shown[:200]}")
 
 
 def task_name(text: str) -> str:
@@ -109,9 +255,14 @@ def task_name(text: str) -> str:
 
 
 def add_data_dir(parser: argparse.ArgumentParser) -> None:
-    """``--data-dir DIR...``: folders of real mocap (else ``$HUMOTION_MOCAP``, else synthetic)."""
+    """``--data-dir DIR...``: folders of real mocap (else ``$HUMOTION_MOCAP``, else synthetic).
+
+    At least one folder follows the flag: a bare ``--data-dir`` is a usage
+    error, never the synthetic set. ``humotion-gym`` checks the folders hold
+    mocap before the command runs (:func:`check_mocap_paths`).
+    """
     parser.add_argument(
-        "--data-dir", nargs="*", default=None, metavar="DIR",
+        "--data-dir", nargs="+", default=None, metavar="DIR",
         help="folders of real mocap (default: $HUMOTION_MOCAP if set, else the synthetic library)",
     )  # fmt: skip
 
@@ -119,8 +270,9 @@ def add_data_dir(parser: argparse.ArgumentParser) -> None:
 def add_fps(parser: argparse.ArgumentParser) -> None:
     """``--fps``: the frame rate clips are resampled to."""
     parser.add_argument(
-        "--fps", type=positive_float, default=30.0,
-        help="frame rate the clips are resampled to, Hz (default: 30)",
+        "--fps", type=float_between(*FPS_RANGE), default=30.0,
+        help=f"frame rate the clips are resampled to, {FPS_RANGE[0]:g} to {FPS_RANGE[1]:g} Hz "
+        "(default: 30)",
     )  # fmt: skip
 
 
@@ -190,3 +342,33 @@ def _plain(value: Any) -> Any:
 def print_json(obj: Any) -> None:
     """Print one JSON document (numpy values and paths become plain JSON)."""
     print(json.dumps(obj, default=_plain))
+
+
+def add_command(
+    subparsers: argparse._SubParsersAction,
+    name: str,
+    summary: str,
+    example: str,
+    details: str = "",
+    **kwargs: Any,
+) -> argparse.ArgumentParser:
+    """Add a sub-command whose help opens with a sentence and ends with one example.
+
+    Args:
+        subparsers: From ``add_subparsers``.
+        name: The command's name.
+        summary: One line, lower case, no full stop: the listing's help, and (as a
+            sentence) the first line of the command's own ``--help``.
+        example: One command line, from ``humotion-gym`` on.
+        details: More paragraphs for the command's ``--help`` (default: none).
+        **kwargs: Passed on to ``add_parser``.
+
+    Returns:
+        The command's parser.
+    """
+    sentence = summary[:1].upper() + summary[1:] + ("" if summary.endswith(".") else ".")
+    text = "\n\n".join(textwrap.fill(p, 78) for p in (sentence, details) if p)
+    return subparsers.add_parser(
+        name, help=summary, description=text, epilog=f"example:\n  {example}",
+        formatter_class=argparse.RawDescriptionHelpFormatter, **kwargs,
+    )  # fmt: skip

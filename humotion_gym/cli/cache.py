@@ -17,7 +17,7 @@ import argparse
 import shutil
 from pathlib import Path
 
-from humotion_gym.cli._common import add_json, print_json
+from humotion_gym.cli._common import CommandError, add_command, add_json, print_json
 
 #: Sub-folders rebuilt on demand (``cache clear`` removes them).
 REBUILT = ("clips", "priors")
@@ -27,16 +27,21 @@ DOWNLOADS = ("cmu",)
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``cache info`` and ``cache clear``."""
-    cache = subparsers.add_parser(
-        "cache", help="the cache of parsed clips, fitted priors and downloads"
-    )
+    cache = add_command(
+        subparsers, "cache", "the cache of parsed clips, fitted priors and downloads",
+        "humotion-gym cache info",
+    )  # fmt: skip
     csub = cache.add_subparsers(dest="cache_command", required=True, metavar="COMMAND")
-    info = csub.add_parser("info", help="where the cache is and the size of each part")
+    info = add_command(
+        csub, "info", "where the cache is and the size of each part",
+        "humotion-gym cache info --json",
+    )  # fmt: skip
     add_json(info, "one JSON object instead of lines")
     info.set_defaults(func=_cmd_info)
-    clear = csub.add_parser(
-        "clear", help="remove parsed clips and fitted priors (rebuilt on demand)"
-    )
+    clear = add_command(
+        csub, "clear", "remove parsed clips and fitted priors (rebuilt on demand)",
+        "humotion-gym cache clear",
+    )  # fmt: skip
     clear.add_argument(
         "--downloads", action="store_true", help="also remove downloaded mocap (cmu/)"
     )
@@ -51,10 +56,25 @@ def _size(path: Path) -> tuple[int, int]:
     return len(files), sum(p.stat().st_size for p in files)
 
 
-def _cmd_info(args: argparse.Namespace) -> int:
+def _cache_root() -> Path:
+    """The cache folder; refused when a file stands where it should be.
+
+    Raises:
+        CommandError: Naming ``$HUMOTION_CACHE`` when it was set to a file.
+    """
     from humotion_gym.mocap.library import CACHE_ENV, default_cache_dir
 
     root = default_cache_dir()
+    if root.exists() and not root.is_dir():
+        where = f"${CACHE_ENV}" if _from_env() else "the default cache folder"
+        raise CommandError(f"{where}: {root} is a file, expected a folder")
+    return root
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    from humotion_gym.mocap.library import CACHE_ENV
+
+    root = _cache_root()
     parts = {name: _size(root / name) for name in REBUILT + DOWNLOADS}
     if args.json:
         print_json({
@@ -79,9 +99,7 @@ def _from_env() -> bool:
 
 
 def _cmd_clear(args: argparse.Namespace) -> int:
-    from humotion_gym.mocap.library import default_cache_dir
-
-    root = default_cache_dir()
+    root = _cache_root()
     names = REBUILT + (DOWNLOADS if args.downloads else ())
     freed = 0
     for name in names:

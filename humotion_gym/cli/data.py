@@ -19,18 +19,27 @@ import numpy as np
 
 from humotion_gym.cli._common import (
     CommandError,
+    UsageError,
+    add_command,
     add_data_dir,
     add_fps,
     add_json,
+    output_file,
 )
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``data table|info|persons|convert``."""
-    data = subparsers.add_parser("data", help="motion data: list, inspect, check, convert")
+    data = add_command(
+        subparsers, "data", "motion data: list, inspect, check, convert",
+        "humotion-gym data info ../shared/mocap --summary",
+    )  # fmt: skip
     dsub = data.add_subparsers(dest="data_command", required=True, metavar="COMMAND")
 
-    table = dsub.add_parser("table", help="the default motion library, one row per clip")
+    table = add_command(
+        dsub, "table", "the default motion library, one row per clip",
+        "humotion-gym data table --data-dir ../shared/mocap --split test",
+    )  # fmt: skip
     add_data_dir(table)
     add_fps(table)
     table.add_argument(
@@ -40,11 +49,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_json(table, "JSON lines, one per clip, instead of the table")
     table.set_defaults(func=_cmd_data_table)
 
-    info = dsub.add_parser(
-        "info",
-        help="per clip: rig and how it was matched, person, split, label, frames, fps, "
+    info = add_command(
+        dsub, "info",
+        "per clip: rig and how it was matched, person, split, label, frames, fps, "
         "seconds, retargeting error, T-pose dropped",
-    )
+        "humotion-gym data info ../shared/mocap/cmu/02_01.amc",
+    )  # fmt: skip
     info.add_argument("paths", nargs="+", metavar="PATH", help="mocap files or folders")
     add_json(info, "JSON lines instead of a table")
     add_fps(info)
@@ -52,10 +62,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     info.add_argument("--no-cache", action="store_true", help="parse again, ignore the cache")
     info.set_defaults(func=_cmd_data_info)
 
-    persons = dsub.add_parser(
-        "persons",
-        help="one row per subject with its skeleton; checks that no test person trains (exit 1)",
-    )
+    persons = add_command(
+        dsub, "persons",
+        "one row per subject with its skeleton; checks that no test person trains (exit 1)",
+        "humotion-gym data persons ../shared/mocap",
+    )  # fmt: skip
     persons.add_argument(
         "paths", nargs="*", metavar="PATH",
         help="mocap files or folders (default: $HUMOTION_MOCAP, else synthetic)",
@@ -68,9 +79,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     persons.set_defaults(func=_cmd_data_persons)
 
-    conv = dsub.add_parser("convert", help="write a motion as BVH on the cone-body skeleton")
-    conv.add_argument("input", help="a BVH or AMC file (or 'synthetic/<clip>')")
-    conv.add_argument("output", help="the .bvh to write")
+    conv = add_command(
+        dsub, "convert", "write a motion as BVH on the cone-body skeleton",
+        "humotion-gym data convert synthetic/walk-01 walk.bvh",
+    )  # fmt: skip
+    conv.add_argument(
+        "input", help="a BVH or AMC file, or synthetic/<clip> (see humotion-gym data table)"
+    )
+    conv.add_argument("output", type=output_file(".bvh"), help="the .bvh to write")
     add_fps(conv)
     conv.set_defaults(func=_cmd_data_convert)
 
@@ -159,10 +175,14 @@ def _cmd_data_info(args: argparse.Namespace) -> int:
     for r in rows:
         name = r["file"] if len(r["file"]) <= 40 else "..." + r["file"][-37:]
         matched = f"{r['rig_match']} {r['rig_confidence']:.2f}" if r["rig_match"] else ""
+        err_cols = " ".join(
+            f"{e:6.1f}" if e is not None else f"{'-':>6s}"
+            for e in (r["error_mean_mm"], r["error_max_mm"])
+        )
         print(
             f"{name:40s} {r['rig']:19s} {matched:14s} {r['person']:16s} {r['split']:5s} "
             f"{r['label']:10s} {r['frames']:6d} {r['fps']:4.0f} {r['seconds']:6.1f} "
-            f"{r['error_mean_mm']:6.1f} {r['error_max_mm']:6.1f}  {r['tpose'] or '-'}"
+            f"{err_cols}  {r['tpose'] or '-'}"
         )
     weak = [r for r in rows if r["rig_match"] not in ("", "profile")]
     for r in weak:
@@ -188,6 +208,13 @@ def _cmd_data_persons(args: argparse.Namespace) -> int:
         lib = load_library(args.paths, fps=args.fps, progress=not args.json)
     else:
         lib = default_library(None, fps=args.fps, progress=not args.json)
+    if args.test:
+        unknown = sorted(set(args.test) - set(lib.subjects))
+        if unknown:
+            raise UsageError(
+                f"--test: no subject {', '.join(unknown)} in the data; its subjects are "
+                f"{', '.join(lib.subjects[:12])}{' ...' if len(lib.subjects) > 12 else ''}"
+            )
     test = frozenset(args.test) if args.test else held_out_subjects(lib)
     groups = skeleton_groups(lib)
     person_of = {m.subject: m.meta.get("person", m.subject) for m in lib}
@@ -252,7 +279,13 @@ def _cmd_data_convert(args: argparse.Namespace) -> int:
     from humotion_gym.mocap.library import load_library, synthetic_library
 
     if args.input.startswith("synthetic/"):
-        motion = synthetic_library(fps=args.fps)[args.input]
+        lib = synthetic_library(fps=args.fps)
+        if args.input not in lib.clip_ids:
+            raise UsageError(
+                f"input: no clip {args.input}; the synthetic clips are "
+                f"{', '.join(lib.clip_ids[:6])} ... (see humotion-gym data table)"
+            )
+        motion = lib[args.input]
     else:
         lib = load_library([args.input], fps=args.fps, progress=False)
         motion = lib[0]

@@ -12,16 +12,32 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from humotion_gym.cli._common import UsageError, nonnegative_int, positive_float, positive_int
+from humotion_gym.cli._common import (
+    UsageError,
+    add_command,
+    float_between,
+    int_at_least,
+    output_dir,
+    positive_int,
+)
+
+#: URL schemes ``--base-url`` accepts (a mirror on a web server or a local folder).
+URL_SCHEMES = ("http", "https", "file")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``download cmu``."""
-    dl = subparsers.add_parser("download", help="fetch public motion capture into the cache")
+    dl = add_command(
+        subparsers, "download", "fetch public motion capture into the cache",
+        "humotion-gym download cmu --subjects 2 7 35",
+    )  # fmt: skip
     dsub = dl.add_subparsers(dest="source", required=True, metavar="SOURCE")
-    cmu = dsub.add_parser("cmu", help="CMU Graphics Lab Motion Capture Database (ASF/AMC)")
+    cmu = add_command(
+        dsub, "cmu", "CMU Graphics Lab Motion Capture Database (ASF/AMC)",
+        "humotion-gym download cmu --activity walk --persons 10 --dry-run",
+    )  # fmt: skip
     cmu.add_argument(
-        "--subjects", type=nonnegative_int, nargs="+", default=None, metavar="N",
+        "--subjects", type=int_at_least(1, 999), nargs="+", default=None, metavar="N",
         help="CMU subject numbers (required unless --activity or --verify)",
     )  # fmt: skip
     cmu.add_argument(
@@ -44,38 +60,43 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="print the chosen subjects with their labels and persons, download nothing",
     )
     cmu.add_argument(
-        "--dest", type=Path, default=None,
+        "--dest", type=output_dir, default=None,
         help="folder to download into (default: the download cache, see humotion-gym cache info)",
     )  # fmt: skip
     cmu.add_argument(
-        "--base-url", default=None, help="mirror of the CMU site (default: the CMU site)"
+        "--base-url",
+        default=None,
+        help="mirror of the CMU site, an http(s):// or file:// URL (default: the CMU site)",
     )
     cmu.add_argument("--quiet", action="store_true", help="no progress bar")
     cmu.add_argument(
-        "--retries", type=positive_int, default=3, help="attempts per file (default: 3)"
+        "--retries",
+        type=int_at_least(1, 100),
+        default=3,
+        help="attempts per file, 1 to 100 (default: 3)",
     )
     cmu.add_argument(
-        "--timeout", type=positive_float, default=30.0,
+        "--timeout", type=float_between(0.0, 3600.0, open_low=True), default=30.0,
         help="socket timeout per connect and per read, s (default: 30)",
     )  # fmt: skip
     cmu.add_argument(
-        "--file-deadline", type=positive_float, default=600.0,
+        "--file-deadline", type=float_between(0.0, 86400.0, open_low=True), default=600.0,
         help="deadline per file or listing, all attempts, s (default: 600)",
     )  # fmt: skip
     cmu.add_argument(
-        "--deadline", type=positive_float, default=7200.0,
+        "--deadline", type=float_between(0.0, 604800.0, open_low=True), default=7200.0,
         help="deadline for the whole run, s (default: 7200)",
     )  # fmt: skip
     cmu.add_argument(
-        "--max-asf-mib", type=positive_float, default=1.0,
+        "--max-asf-mib", type=float_between(0.0, 64.0, open_low=True), default=1.0,
         help="cap on an .asf file, MiB (default: 1)",
     )  # fmt: skip
     cmu.add_argument(
-        "--max-amc-mib", type=positive_float, default=64.0,
+        "--max-amc-mib", type=float_between(0.0, 4096.0, open_low=True), default=64.0,
         help="cap on an .amc file, MiB (default: 64)",
     )  # fmt: skip
     cmu.add_argument(
-        "--max-listing-kib", type=positive_float, default=1024.0,
+        "--max-listing-kib", type=float_between(0.0, 65536.0, open_low=True), default=1024.0,
         help="cap on a subject's HTML listing, KiB (default: 1024)",
     )  # fmt: skip
     cmu.add_argument(
@@ -96,7 +117,19 @@ def _cmd_download_cmu(args: argparse.Namespace) -> int:
         report = download.verify_cache(args.dest, registry=args.registry)
         print(report.summary())
         return 0 if report.ok else 1
+    if args.base_url is not None:
+        _check_url(args.base_url)
     subjects = list(args.subjects or [])
+    if subjects:
+        from humotion_gym.mocap.cmu import cmu_index
+
+        known = set(cmu_index().subjects)
+        unknown = [s for s in subjects if s not in known]
+        if unknown:
+            raise UsageError(
+                f"--subjects: CMU has no subject {', '.join(map(str, unknown))} "
+                f"(its subjects are {min(known)} to {max(known)}, with gaps)"
+            )
     if args.activity:
         from humotion_gym.mocap.labels import ACTIVITY_LABELS
 
@@ -133,6 +166,17 @@ def _cmd_download_cmu(args: argparse.Namespace) -> int:
     files = download.download_cmu(subjects, **kwargs)
     print(f"{len(files)} files in {files[0].parent.parent if files else args.dest}")
     return 0
+
+
+def _check_url(url: str) -> None:
+    """Refuse a ``--base-url`` that is not an absolute http(s) or file URL."""
+    from urllib.parse import urlsplit
+
+    parts = urlsplit(url)
+    if parts.scheme not in URL_SCHEMES or (parts.scheme != "file" and not parts.netloc):
+        raise UsageError(
+            f"--base-url: expected an http://, https:// or file:// URL, got {url[:80]!r}"
+        )
 
 
 def _print_choice(subjects: list[int], activities: list[str] | None) -> None:

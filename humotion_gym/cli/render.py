@@ -8,39 +8,51 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from humotion_gym.cli._common import (
+    add_command,
     add_data_dir,
     add_seed,
     add_task,
+    check_memory,
+    check_output_file,
     env_kwargs,
     image_size,
     int_at_least,
-    positive_int,
+    output_file,
     wrote,
 )
+
+#: Video suffixes OpenCV writes here.
+VIDEO_SUFFIXES = (".mp4", ".avi")
+#: The largest pixel scale of the video.
+MAX_SCALE = 16
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``render``."""
-    rend = subparsers.add_parser(
-        "render", help="render an episode of a task as video and contact sheet"
-    )
+    rend = add_command(
+        subparsers, "render", "render an episode of a task as video and contact sheet",
+        "humotion-gym render --task BodyTrack-v1 --frames 90 --out body.mp4",
+    )  # fmt: skip
     add_task(rend, "BodyTrack-v1", "task id, see humotion-gym tasks")
     add_seed(rend, "episode seed")
     rend.add_argument(
-        "--frames", type=int_at_least(2), default=90, help="frames to render (default: 90)"
-    )
+        "--frames", type=int_at_least(2), default=90,
+        help="frames to render, held in memory (default: 90)",
+    )  # fmt: skip
     rend.add_argument(
-        "--out", type=Path, required=True, help="the video to write, .mp4 or .avi (required)"
-    )
+        "--out", type=output_file(*VIDEO_SUFFIXES), required=True,
+        help="the video to write, .mp4 or .avi (required)",
+    )  # fmt: skip
     rend.add_argument(
-        "--sheet", type=Path, default=None, help="contact sheet PNG (default: OUT with .png)"
-    )
+        "--sheet", type=output_file(".png"), default=None,
+        help="contact sheet PNG (default: OUT with .png)",
+    )  # fmt: skip
     rend.add_argument(
-        "--scale", type=positive_int, default=2, help="pixel scale of the video (default: 2)"
-    )
+        "--scale", type=int_at_least(1, MAX_SCALE), default=2,
+        help=f"pixel scale of the video, 1 to {MAX_SCALE} (default: 2)",
+    )  # fmt: skip
     add_data_dir(rend)
     rend.add_argument(
         "--size", type=image_size, default=None, metavar="WxH",
@@ -56,6 +68,10 @@ def _cmd_render(args: argparse.Namespace) -> int:
     from humotion_gym.envs.pose_tracking import PoseTrackingEnv
     from humotion_gym.video import contact_sheet, write_png, write_video
 
+    width, height = args.size or (128, 128)
+    # the frames are held, then scaled for the video one at a time
+    check_memory("--frames", args.frames, width * height * 3, "frames")
+    sheet = args.sheet or check_output_file(args.out.with_suffix(".png"), "--sheet", ".png")
     env = gym.make(
         f"humotion_gym/{args.task}", episode_frames=args.frames, terminate_on_lost=False,
         **env_kwargs(args),
@@ -67,7 +83,6 @@ def _cmd_render(args: argparse.Namespace) -> int:
         obs, *_ = env.step(base.pose_to_action(base.true_pose()))
         frames.append(obs)
     write_video(args.out, frames, fps=info["fps"], scale=args.scale)
-    sheet = args.sheet or args.out.with_suffix(".png")
     write_png(sheet, contact_sheet(frames, columns=6, count=6))
     wrote(args.out, f"{len(frames)} frames of {info['clip_id']}")
     wrote(sheet, "contact sheet")

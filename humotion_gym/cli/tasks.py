@@ -10,12 +10,15 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from humotion_gym.cli._common import add_json, print_json
+from humotion_gym.cli._common import add_command, add_json, print_json
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``tasks``."""
-    cmd = subparsers.add_parser("tasks", help="list the tasks (environment ids)")
+    cmd = add_command(
+        subparsers, "tasks", "list the tasks (environment ids) and what each scores",
+        "humotion-gym tasks --json",
+    )  # fmt: skip
     add_json(cmd, "one JSON object per task instead of a table")
     cmd.set_defaults(func=_cmd_tasks)
 

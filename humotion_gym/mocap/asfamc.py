@@ -75,6 +75,7 @@ from humotion_gym.errors import MocapFormatError
 
 # Shared low-level helpers: the bulk number scan and batched Euler rotations.
 from humotion_gym.mocap.bvh import (
+    MAX_NAME_LENGTH,
     _count,
     _euler_matrices,
     _line_token_counts,
@@ -537,7 +538,13 @@ class _AsfReader:
             bone["id"] = toks[1] if len(toks) > 1 else ""
         elif key == "name":
             if len(toks) != 2:
-                raise self._error(ln, f"expected 'name <bone>', found {line!r}")
+                raise self._error(ln, f"expected 'name <bone>', found {_short(line)}")
+            if len(toks[1]) > MAX_NAME_LENGTH:
+                raise self._error(
+                    ln, f"expected a bone name of at most {MAX_NAME_LENGTH} characters "
+                    "(humotion_gym.mocap.bvh.MAX_NAME_LENGTH), "
+                    f"found {len(toks[1])}: {_short(toks[1])}",
+                )  # fmt: skip
             if toks[1] == "root" or toks[1] in self.bone_names:
                 raise self._error(ln, f"bone name {toks[1]!r} is used twice")
             self.bone_names.add(toks[1])

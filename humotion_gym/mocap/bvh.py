@@ -76,6 +76,7 @@ __all__ = [
     "MAX_FRAME_TIME",
     "MAX_JOINTS",
     "MAX_JOINT_CHANNELS",
+    "MAX_NAME_LENGTH",
     "MIN_FRAME_TIME",
     "BvhClip",
     "load_bvh",
@@ -98,6 +99,9 @@ MAX_JOINT_CHANNELS: int = 64
 MAX_FRAME_POINTS: int = 20_000_000
 #: The largest magnitude of an ``OFFSET`` component or a motion value.
 MAX_ABS_VALUE: float = 1e9
+#: The longest joint name, in characters: the rig matcher's regular expressions
+#: scan every name, and no rig names a joint with more than a few dozen.
+MAX_NAME_LENGTH: int = 256
 
 # A count: ASCII digits only (str.isdigit also takes superscripts such as "²").
 _COUNT = re.compile(r"[0-9]+", re.ASCII)
@@ -653,6 +657,11 @@ class _HierarchyParser:
         name = " ".join(rest)
         if not name:
             raise self._error(ln, f"expected a joint name after {tok}")
+        if len(name) > MAX_NAME_LENGTH:
+            raise self._error(
+                ln, f"expected a joint name of at most {MAX_NAME_LENGTH} characters, "
+                f"found {len(name)}: {_short(name)}",
+            )  # fmt: skip
         if name in hdr.name_set:
             raise self._error(ln, f"joint name {name!r} is used twice")
         parent = stack[-1].index if stack else -1

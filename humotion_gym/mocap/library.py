@@ -279,12 +279,19 @@ def _asf_for(amc: Path) -> Path | None:
 def find_clips(paths: Iterable[str | Path]) -> list[ClipSource]:
     """Every BVH and AMC clip under the given files and folders (recursively).
 
-    Partial downloads (``*.part``) are never clips.
+    Partial downloads (``*.part``) are never clips. One trial saved in both
+    formats beside each other (CMU's ``16_15.amc`` and its conversion
+    ``16_15.bvh``) is one clip: the AMC, CMU's original, is kept and a
+    :class:`DuplicateTrialWarning` says how many BVH files were left out.
 
     Raises:
         FileNotFoundError: If a path does not exist.
-        ValueError: If an AMC file has no ASF skeleton beside it.
+        MocapFormatError: If a file given is not ``.bvh`` or ``.amc``, an AMC
+            file has no ASF skeleton beside it, or two other files would be
+            the same clip (their ids, ``dataset/stem``, are equal).
     """
+    from humotion_gym.errors import MocapFormatError
+
     files: list[Path] = []
     for p in paths:
         path = Path(p)
@@ -294,19 +301,43 @@ def find_clips(paths: Iterable[str | Path]) -> list[ClipSource]:
             files.append(path)
         else:
             raise FileNotFoundError(f"{path}: no such file or folder of motion capture")
-    out = []
+    out: dict[str, ClipSource] = {}
+    converted: list[Path] = []
     for f in sorted(set(files)):
         suffix = f.suffix.lower()
         if suffix == ".amc":
             asf = _asf_for(f)
             if asf is None:
-                raise ValueError(f"{f}: no ASF skeleton found beside this AMC file")
-            out.append(describe_file(f, asf))
+                raise MocapFormatError(f, None, "no ASF skeleton found beside this AMC file")
+            src = describe_file(f, asf)
         elif suffix == ".bvh":
-            out.append(describe_file(f))
+            src = describe_file(f)
         else:
-            raise ValueError(f"{f}: not a motion file (expected .bvh or .amc)")
-    return out
+            raise MocapFormatError(f, None, "not a motion file (expected .bvh or .amc)")
+        seen = out.get(src.clip_id)
+        if seen is None:
+            out[src.clip_id] = src
+        elif seen.path.with_suffix("") == f.with_suffix("") and seen.path.suffix.lower() != suffix:
+            amc, bvh = (seen, src) if src.path.suffix.lower() == ".bvh" else (src, seen)
+            out[src.clip_id] = amc
+            converted.append(bvh.path)
+        else:
+            raise MocapFormatError(
+                f, None, f"the same clip id {src.clip_id} as {seen.path}; rename one or give "
+                "only one of their folders",
+            )  # fmt: skip
+    if converted:
+        warnings.warn(
+            f"{len(converted)} trial(s) are both .amc and .bvh (e.g. {converted[0]}); "
+            "the .amc files, CMU's originals, are used",
+            DuplicateTrialWarning,
+            stacklevel=2,
+        )
+    return sorted(out.values(), key=lambda s: s.path)
+
+
+class DuplicateTrialWarning(UserWarning):
+    """A trial is in a folder twice, as ASF/AMC and as BVH; the AMC is used."""
 
 
 class CacheWarning(UserWarning):
