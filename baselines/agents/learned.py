@@ -20,6 +20,7 @@ Importing this module does not import torch; loading a policy does.
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Mapping
 from pathlib import Path
@@ -29,10 +30,10 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from baselines.agents import TaskNotSupported
+from baselines.agents.base import TaskNotSupported, tracking_env
+from baselines.agents.specs import make_filter
 from baselines.filtering import ParticleState
 from humotion_gym.body import ANGLE_MASK, PARAM_LOWER, PARAM_UPPER
-from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 from humotion_gym.wrappers import learner_observation
 
 FloatArray = NDArray[np.float64]
@@ -108,8 +109,6 @@ def load_policy(path: str | Path) -> Any:
             f"{p}: no saved policy; train one with `humotion-gym train --algo bc --task TASK "
             f"--steps N --out runs/NAME` (it writes runs/NAME/model.zip)"
         )
-    import os
-
     import torch
     from stable_baselines3 import PPO
 
@@ -152,7 +151,7 @@ class LearnedAgent:
     n_particles = 0
 
     def __init__(self, env: gym.Env, model: Any, name: str = "learned", source: str = "") -> None:
-        self.env: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
+        self.env = tracking_env(env)
         self.model = model
         self.name = name
         space = model.observation_space
@@ -327,7 +326,7 @@ class HybridAgent:
         spread: float = HYBRID_SPREAD,
         name: str = "pf+learned",
     ) -> None:
-        self.env: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
+        self.env = tracking_env(env)
         self.pf = pf
         self.policy = policy
         self.name = name
@@ -395,11 +394,9 @@ def make_learned(name: str, env: gym.Env, n_particles: int = 300, seed: int = 0)
         ValueError: If the policy does not fit the task.
         FileNotFoundError: If a named ``.zip`` does not exist.
     """
-    base: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
+    base = tracking_env(env)
     task = base.task.name
     if takes_particles(name):
-        from baselines.agents import make
-
         pf_name, policy_spec = name.split("+", 1)
         label, path = _policy_for(policy_spec, task)
         if policy_spec in ("bc", "ppo") and not Path(path).is_file():
@@ -407,7 +404,7 @@ def make_learned(name: str, env: gym.Env, n_particles: int = 300, seed: int = 0)
                 f"{name}: no pretrained {policy_spec} checkpoint for {task} ({path})"
             )
         policy = LearnedAgent(env, load_policy(path), label, path)
-        pf = make(pf_name, env, n_particles=n_particles, seed=seed)
+        pf = make_filter(pf_name, env, n_particles=n_particles, seed=seed)
         return HybridAgent(env, pf, policy, name=f"{pf_name}+{label}")
     label, path = _policy_for(name, task)
     if name in ("bc", "ppo") and not Path(path).is_file():

@@ -6,6 +6,7 @@ import pytest
 
 import humotion_gym  # noqa: F401
 from baselines.agents import AGENTS, TaskNotSupported, make
+from baselines.agents.settings import load as load_settings
 from baselines.cli import main
 from baselines.evaluation import evaluate, run_episode, summarize
 from baselines.stats import bootstrap_ci, iqm, stratified_bootstrap_ci
@@ -119,16 +120,15 @@ def test_every_agent_is_made_or_refuses_with_a_reason():
 
 def test_the_backdrop_is_read_at_each_episodes_first_frame_only():
     env = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
-    base = env.unwrapped
-    assert base.observation_model.backdrop
     agent = make("pf-cv", env, n_particles=50, seed=0)
+    assert agent.observation_model.backdrop
     for seed in (0, 1):
         obs, info = env.reset(seed=seed)
         agent.observe_info(info)
         agent.predict(obs, episode_start=np.array([True]))
         first = agent.likelihood.backdrop
         assert first is not None
-        expected = base.observation_model.read_backdrop(
+        expected = agent.observation_model.read_backdrop(
             obs, info["initial_pose"], info["shape"], info["camera"]
         )
         np.testing.assert_array_equal(first.image, expected.image)
@@ -176,9 +176,10 @@ def test_the_annealed_filters_settings_come_from_the_spec_the_task_and_the_calle
     assert (default.filter.layers, default.filter.alpha) == (10, 0.5)
     assert (default.filter.diffusion, default.filter.beta_max) == (1.0, np.inf)
     registered = make("apf-cv", env, n_particles=10)
+    chosen_in_file = load_settings()["apf-cv"].task_filter["ArmTrack-v1"]
     assert (registered.filter.alpha, registered.filter.diffusion) == (
-        agents.APF_CV_SETTINGS["ArmTrack-v1"]["alpha"],
-        agents.APF_CV_SETTINGS["ArmTrack-v1"]["diffusion"],
+        chosen_in_file["alpha"],
+        chosen_in_file["diffusion"],
     )
     # A task's own settings override the spec's; the caller's override both.
     spec = dataclasses.replace(

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import importlib
 import json
 import shutil
 import warnings
@@ -20,7 +21,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import humotion_gym
+import humotion_gym._version
 from baselines import agents as agents_mod
 from baselines.agents import AGENTS, fit_prior
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
@@ -58,7 +59,7 @@ def _assert_same(got: Any, want: Any) -> None:
 
 def _no_warning_fit(env: PoseTrackingEnv, cache: Path, monkeypatch) -> Any:
     """Fit with every CacheWarning an error, checking that the cache answers."""
-    module = agents_mod._import(SPEC.prior)
+    module = importlib.import_module(SPEC.prior)
     calls: list[object] = []
     real = module.fit
 
@@ -169,7 +170,7 @@ def _other_version(path: Path, ctx: dict) -> None:
     """An entry written by another package version, copied over this version's name."""
     mp: pytest.MonkeyPatch = ctx["monkeypatch"]
     old_cache = ctx["cache"].parent / "old-cache"
-    mp.setattr(humotion_gym, "__version__", "0.0.0-old")
+    mp.setattr(humotion_gym._version, "__version__", "0.0.0-old")
     _fit(ctx["env"], old_cache)
     mp.undo()
     (old_entry,) = _entries(old_cache)
@@ -226,13 +227,13 @@ def test_a_good_entry_is_read_without_refitting(env, fresh, tmp_path, monkeypatc
 def test_the_key_holds_the_package_version_and_the_fit_defaults(env, tmp_path, monkeypatch):
     cache = tmp_path / "cache"
     _fit(env, cache)
-    monkeypatch.setattr(humotion_gym, "__version__", "99.0")
+    monkeypatch.setattr(humotion_gym._version, "__version__", "99.0")
     _fit(env, cache)
     monkeypatch.undo()
     assert len(_entries(cache)) == 2  # an upgrade refits instead of reusing
 
     # A fit whose default changes (a new release of the fitting code) refits too.
-    module = agents_mod._import(SPEC.prior)
+    module = importlib.import_module(SPEC.prior)
     real = module.fit
 
     def fit_with_new_default(motions, free=None, rng=None, multiplier=1.5, frame_skip=1):

@@ -11,9 +11,7 @@ import pytest
 
 import humotion_gym  # noqa: F401  (registers the tasks)
 from baselines.agents import HoldAgent, agent_names, make
-from baselines.evaluation import evaluate, run_episode
-from baselines.leaderboard import run_leaderboard
-from baselines.learned import (
+from baselines.agents.learned import (
     CHECKPOINT_DIR,
     LEARNED,
     HybridAgent,
@@ -23,6 +21,8 @@ from baselines.learned import (
     load_policy,
     takes_particles,
 )
+from baselines.evaluation import evaluate, run_episode
+from baselines.leaderboard import run_leaderboard
 from baselines.rl import (
     PPO_DEFAULTS,
     TrainConfig,
@@ -149,7 +149,7 @@ def test_names_and_errors() -> None:
 def test_a_missing_pretrained_checkpoint_is_skipped_by_the_leaderboard(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
-    monkeypatch.setattr("baselines.learned.CHECKPOINT_DIR", tmp_path)
+    monkeypatch.setattr("baselines.agents.learned.CHECKPOINT_DIR", tmp_path)
     env = gym.make("humotion_gym/ArmTrack-v1")
     with pytest.raises(NoCheckpointError, match="no pretrained"):
         make("ppo", env)
@@ -232,8 +232,8 @@ def test_pretrained_checkpoints_are_small() -> None:
 def test_proposal_prior_redraws_the_chosen_share_and_dimensions() -> None:
     from types import SimpleNamespace
 
+    from baselines.agents.learned import ProposalPrior
     from baselines.filtering import ParticleState
-    from baselines.learned import ProposalPrior
 
     still = SimpleNamespace(
         initial=lambda fitted, pose, n, rng: ParticleState(np.tile(pose, (n, 1))),

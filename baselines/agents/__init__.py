@@ -1,0 +1,129 @@
+"""The agent table: references, particle filters and learned policies, answering like SB3.
+
+Three kinds of agent are made by :func:`make`:
+
+* **references** (:data:`REFERENCES`, :mod:`baselines.agents.references`):
+  ``hold`` answers the initial pose every frame, the floor every tracker must
+  beat clearly; ``random`` answers uniform actions, the ceiling of error;
+* **particle filters** (:data:`AGENTS`, :mod:`baselines.agents.specs`): a
+  particle filter over a motion prior (:mod:`baselines.agents.filters`), its
+  settings per task read from ``hyperparams/pf.yml``
+  (:mod:`baselines.agents.settings`);
+* **learned policies** (:data:`LEARNED`, :mod:`baselines.agents.learned`):
+  ``bc``, ``ppo``, a saved ``PATH.zip`` or ``LABEL=PATH.zip``, and the hybrids
+  ``pf-PRIOR+POLICY``.
+
+Every agent has stable-baselines3's ``predict(observation, state,
+episode_start, deterministic)``, so one evaluation loop
+(:func:`baselines.evaluation.run_episode`) scores them all.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import gymnasium as gym
+
+from baselines.agents.base import TaskNotSupported, tracking_env
+from baselines.agents.filters import (
+    PART_CONES,
+    ParticleFilterAgent,
+    TaskLikelihood,
+    body_part_stages,
+)
+from baselines.agents.learned import LEARNED, is_learned, make_learned
+from baselines.agents.references import REFERENCES, HoldAgent, RandomAgent
+from baselines.agents.settings import FILTER_SETTINGS, PF_SETTINGS_FILE
+from baselines.agents.specs import (
+    AGENTS,
+    MIXTURE_PERSISTENCE,
+    MIXTURE_WEIGHT,
+    AgentSpec,
+    filter_agent,
+    fit_prior,
+    make_filter,
+    register_agent,
+    training_motions,
+)
+from baselines.observation import ObservationModel
+
+
+def agent_names() -> list[str]:
+    """Every agent :func:`make` knows: the references, the particle filters, the learned."""
+    return list(REFERENCES) + sorted(AGENTS) + list(LEARNED)
+
+
+def make(
+    name: str,
+    env: gym.Env,
+    n_particles: int = 300,
+    seed: int = 0,
+    estimate: str = "mean",
+    fit_settings: Mapping[str, Any] | None = None,
+    use_cache: bool = True,
+    filter_settings: Mapping[str, float] | None = None,
+    observation_model: ObservationModel | None = None,
+) -> Any:
+    """A registered agent for an environment: a reference, a particle filter or a policy.
+
+    Args:
+        name: A key of :data:`REFERENCES` (``"hold"``, ``"random"``; they take
+            no particles) or of :data:`AGENTS` (``"pf-cv"``, ``"pf-tree"``...),
+            or a learned agent (:mod:`baselines.agents.learned`: ``"bc"``,
+            ``"ppo"``, ``"PATH.zip"``, ``"LABEL=PATH.zip"``, ``"pf-tree+bc"``).
+        env: The environment it will act in.
+        n_particles: Particles.
+        seed: The agent's seed.
+        estimate: ``"mean"`` or ``"map"``.
+        fit_settings: Overrides of the prior's fit settings.
+        use_cache: Read and write fitted priors in the cache.
+        filter_settings: Overrides of the filter's settings (names in
+            :data:`FILTER_SETTINGS`; the annealed or partitioned filter's).
+        observation_model: A particle filter's likelihood (default: the
+            task's, :func:`~baselines.observation.task_model`).
+
+    Raises:
+        KeyError: If the name is unknown.
+        TaskNotSupported: If the agent does not cover the env's task (a
+            ``ValueError``).
+        ValueError: If a fit or filter setting is unknown or out of range, or
+            a filter setting is not the agent's filter's.
+    """
+    if name in REFERENCES:
+        return REFERENCES[name][0](env, seed=seed)
+    if is_learned(name):  # bc, ppo, a saved PATH.zip or LABEL=PATH.zip, pf-PRIOR+POLICY
+        return make_learned(name, env, n_particles=n_particles, seed=seed)
+    if name not in AGENTS:
+        raise KeyError(f"unknown agent {name!r}; the agents are {agent_names()}")
+    return make_filter(
+        name, env, n_particles, seed, estimate, fit_settings, use_cache, filter_settings,
+        observation_model,
+    )  # fmt: skip
+
+
+__all__ = [
+    "AGENTS",
+    "FILTER_SETTINGS",
+    "LEARNED",
+    "MIXTURE_PERSISTENCE",
+    "MIXTURE_WEIGHT",
+    "PART_CONES",
+    "PF_SETTINGS_FILE",
+    "REFERENCES",
+    "AgentSpec",
+    "HoldAgent",
+    "ParticleFilterAgent",
+    "RandomAgent",
+    "TaskLikelihood",
+    "TaskNotSupported",
+    "agent_names",
+    "body_part_stages",
+    "filter_agent",
+    "fit_prior",
+    "make",
+    "make_filter",
+    "register_agent",
+    "tracking_env",
+    "training_motions",
+]

@@ -1,0 +1,474 @@
+"""The particle-filter agents by name: each one's prior, filter and fitted prior.
+
+:data:`AGENTS` maps a name (``pf-cv``, ``pf-tree``, ``apf-mix``...) to an
+:class:`AgentSpec`: what the agent is (its prior module, the kind of filter,
+the tasks it covers) is written here; the settings chosen for it on each task
+are data, read from ``hyperparams/pf.yml`` (:mod:`baselines.agents.settings`)
+and checked against the prior's ``fit`` when this module is imported.
+:func:`make_filter` builds one for an environment: the prior fitted on the
+environment's training persons (cached on disk), then the filter.
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from baselines.agents.base import TaskNotSupported, tracking_env
+from baselines.agents.filters import ParticleFilterAgent
+from baselines.agents.settings import (
+    FILTER_SETTINGS,
+    PF_SETTINGS_FILE,
+    AgentSettings,
+    SettingsError,
+    load,
+)
+from baselines.observation import ObservationModel
+from baselines.priors import limbs, mixture
+from baselines.priors.fitting import fit_prior as fit_prior_on
+from humotion_gym.envs.pose_tracking import PoseTrackingEnv
+from humotion_gym.mocap.library import MotionLibrary
+
+
+@dataclass(frozen=True)
+class AgentSpec:
+    """A registered agent: a prior module and its settings.
+
+    Attributes:
+        prior: Dotted module path of the prior (``baselines.priors.tree``).
+        fit_settings: Keyword arguments of the prior's ``fit``.
+        description: One line for listings.
+        tasks: Task names the agent supports (None for every task).
+        layers: Annealing layers per frame: 1 is the plain particle filter
+            (CONDENSATION), more the annealed particle filter
+            (:class:`~baselines.filtering.AnnealedParticleFilter`), which
+            then evaluates ``layers`` times the particle count per frame.
+        task_fit_settings: Per task name, fit settings chosen for that task
+            by cross-validation on training persons (``humotion-gym select
+            --grid fit.NAME=...``); they override ``fit_settings``.
+        components: For a mixture prior (``prior`` is
+            :mod:`baselines.priors.mixture`): ``(label, spec)`` per
+            component, each fitted (and cached) as its own agent would be; the
+            settings ``weight.LABEL`` (a component's probability; the first
+            takes the rest) and ``LABEL.NAME`` (a component's fit setting)
+            apply.
+        per_part: The prior is one tree prior per body part
+            (:mod:`baselines.priors.limbs`), each fitted (and cached) on its
+            part's free parameters with the same settings (the tree's).
+        partitioned: Partitioned sampling
+            (:class:`~baselines.filtering.PartitionedParticleFilter`), the
+            torso then each limb: one likelihood evaluation per particle per
+            stage (five per frame for the whole body).
+        diffusion: The annealed or partitioned filter's diffusion: the
+            standard deviation of its search, as a multiple of the spread of
+            the prior's proposal.
+        alpha: The annealed filter's survival rate per layer (ESS / N).
+        beta_max: Cap on the annealed filter's exponents (inf: none).
+        task_filter_settings: Per task name, the filter's own settings (the
+            names of :data:`FILTER_SETTINGS`) chosen for that task by
+            cross-validation on training persons (``humotion-gym select --grid
+            filter.NAME=...``); they override the fields above.
+    """
+
+    prior: str
+    fit_settings: Mapping[str, Any] = field(default_factory=dict)
+    description: str = ""
+    tasks: tuple[str, ...] | None = None
+    layers: int = 1
+    task_fit_settings: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    components: tuple[tuple[str, AgentSpec], ...] = ()
+    per_part: bool = False
+    partitioned: bool = False
+    diffusion: float = 1.0
+    alpha: float = 0.5
+    beta_max: float = float("inf")
+    task_filter_settings: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+
+    def settings_for(self, task: str) -> dict[str, Any]:
+        """The fit settings of this agent on a task."""
+        return {**self.fit_settings, **self.task_fit_settings.get(task, {})}
+
+    def filter_settings_for(
+        self, task: str, overrides: Mapping[str, float] | None = None
+    ) -> dict[str, Any]:
+        """The filter's settings on a task (:data:`FILTER_SETTINGS`), with ``overrides``.
+
+        Raises:
+            ValueError: If a name is not one of :data:`FILTER_SETTINGS`, or a
+                search setting is given to a plain particle filter.
+        """
+        chosen = {**self.task_filter_settings.get(task, {}), **(overrides or {})}
+        unknown = sorted(set(chosen) - set(FILTER_SETTINGS))
+        if unknown:
+            raise ValueError(
+                f"filter settings {unknown} are not the filter's (they are {list(FILTER_SETTINGS)})"
+            )
+        if chosen and self.layers == 1 and not self.partitioned:
+            raise ValueError(
+                f"filter settings {sorted(chosen)} are the annealed or partitioned filter's; "
+                f"this agent is a plain particle filter"
+            )
+        out: dict[str, Any] = {
+            "layers": self.layers,
+            "alpha": self.alpha,
+            "diffusion": self.diffusion,
+            "beta_max": self.beta_max,
+        }
+        out.update(chosen)
+        out["layers"] = int(out["layers"])
+        return out
+
+    def setting_names(self) -> set[str]:
+        """The names its fit settings may take (``humotion-gym select --grid fit.NAME``).
+
+        A prior's ``fit`` keywords; for a mixture (``components``),
+        ``weight.LABEL`` (the probability of the component labelled ``LABEL``;
+        the first takes the rest), ``persistence`` (the probability that a
+        particle keeps its component from one frame to the next) and
+        ``LABEL.NAME`` for a keyword of that component's prior.
+        """
+        if not self.components:
+            fit = importlib.import_module(TREE if self.per_part else self.prior).fit
+            return set(inspect.signature(fit).parameters) - {"motions", "free", "rng"}
+        names = {MIXTURE_WEIGHT + label for label, _ in self.components[1:]}
+        names.add(MIXTURE_PERSISTENCE)
+        for label, spec in self.components:
+            names |= {f"{label}.{n}" for n in spec.setting_names()}
+        return names
+
+
+def training_motions(env: PoseTrackingEnv) -> MotionLibrary:
+    """The prior's training data: :meth:`PoseTrackingEnv.training_motions` of the env."""
+    return env.training_motions()
+
+
+def fit_prior(
+    spec: AgentSpec,
+    env: PoseTrackingEnv,
+    settings: Mapping[str, Any] | None = None,
+    cache_dir: str | Path | None = None,
+    use_cache: bool = True,
+) -> tuple[ModuleType, Any]:
+    """The prior module and its fitted parameters for an env's task, cached on disk.
+
+    The env's training clips (:meth:`PoseTrackingEnv.training_motions`, never
+    a test person) and the task's free parameters, fitted by
+    :func:`baselines.priors.fitting.fit_prior` with the spec's settings
+    overridden by ``settings`` (and the env's frame skip); see there for the
+    cache.
+    """
+    kwargs = {**spec.settings_for(env.task.name), **(settings or {})}
+    _check_settings(spec, kwargs)
+    if spec.components:
+        return _fit_mixture(spec, env, kwargs, cache_dir, use_cache)
+    if env.frame_skip != 1:  # (a mixture's components each pass here)
+        kwargs.setdefault("frame_skip", env.frame_skip)
+    if spec.per_part:
+        return _fit_per_part(spec, env, kwargs, cache_dir, use_cache)
+    return fit_prior_on(
+        spec.prior, training_motions(env), env.task.free_indices, kwargs,
+        use_cache=use_cache, cache_dir=cache_dir,
+    )  # fmt: skip
+
+
+#: A mixture agent's setting ``weight.LABEL``: the probability of the
+#: component labelled ``LABEL`` (the first component has what the others leave).
+MIXTURE_WEIGHT = "weight."
+#: A mixture agent's setting: the probability that a particle keeps the
+#: component that moved it the frame before (``mixture.compose``).
+MIXTURE_PERSISTENCE = "persistence"
+
+
+def _check_settings(spec: AgentSpec, settings: Mapping[str, Any]) -> None:
+    """Raise naming the settings the agent's prior does not take, and those it does."""
+    unknown = sorted(set(settings) - spec.setting_names())
+    if unknown:
+        raise ValueError(
+            f"{spec.prior}: unknown settings {unknown}; they are {sorted(spec.setting_names())}"
+        )
+
+
+def _fit_mixture(
+    spec: AgentSpec,
+    env: PoseTrackingEnv,
+    settings: Mapping[str, Any],
+    cache_dir: str | Path | None,
+    use_cache: bool,
+) -> tuple[ModuleType, Any]:
+    """Fit (or read from the cache) each component, then compose the mixture."""
+    labels = [label for label, _ in spec.components]
+    weights = np.array([float(settings.get(MIXTURE_WEIGHT + label, 0.0)) for label in labels])
+    weights[0] = 1.0 - weights[1:].sum()
+    if np.any(weights < 0) or np.any(weights > 1):
+        raise ValueError(
+            f"mixture weights: expected probabilities summing to at most 1 for "
+            f"{labels[1:]}, got {weights[1:].tolist()}"
+        )
+    fits = []
+    for label, component in spec.components:
+        prefix = f"{label}."
+        own = {n[len(prefix) :]: v for n, v in settings.items() if n.startswith(prefix)}
+        fits.append(fit_prior(component, env, own, cache_dir=cache_dir, use_cache=use_cache))
+    persistence = settings.get(MIXTURE_PERSISTENCE, 0.0)
+    return mixture, mixture.compose(fits, weights, persistence=persistence)
+
+
+TREE = "baselines.priors.tree"
+
+
+def _fit_per_part(
+    spec: AgentSpec,
+    env: PoseTrackingEnv,
+    settings: Mapping[str, Any],
+    cache_dir: str | Path | None,
+    use_cache: bool,
+) -> tuple[ModuleType, Any]:
+    """Fit (or read from the cache) one tree per body part, then compose them."""
+    free = np.asarray(env.task.free_indices, dtype=np.intp)
+    motions = training_motions(env)
+    parts = []
+    for name, cols in limbs.part_columns(free):
+        _, fitted = fit_prior_on(
+            TREE, motions, free[cols], settings, use_cache=use_cache, cache_dir=cache_dir
+        )
+        parts.append((name, fitted))
+    return limbs, limbs.compose(free, parts)
+
+
+CONSTANT_VELOCITY = "baselines.priors.constant_velocity"
+MIXTURE = "baselines.priors.mixture"
+
+#: What each particle-filter agent is, by name: ``AgentSpec`` keywords other
+#: than its settings (those come from ``hyperparams/pf.yml``). A mixture's
+#: ``components`` are ``(label, prior)`` pairs, the first taking the weight the
+#: others leave.
+STRUCTURE: dict[str, dict[str, Any]] = {
+    "pf-cv": dict(
+        prior=CONSTANT_VELOCITY,
+        description="constant velocity with damped velocity and pose noise (settings chosen "
+        "by cross-validation on training persons)",
+    ),
+    "pf-follow": dict(
+        prior=CONSTANT_VELOCITY,
+        description="a reference: follows where the body goes (constant velocity on the "
+        "root's position and orientation) and holds the first frame's articulation",
+        tasks=("BodyTrack-v1", "WalkTrack-v1"),
+    ),
+    "pf-tree": dict(
+        prior=TREE,
+        description="implicit PCA-tree prior (Sidenbladh, Black & Sigal 2002), the paper's "
+        "absolute replay of the database's next pose; its temperature and noise chosen per "
+        "task on training persons; on BodyTrack and WalkTrack each particle walks at its own "
+        "speed",
+    ),
+    "pf-tree-vel": dict(
+        prior=TREE,
+        description="the tree prior replaying the database's velocities from each particle's "
+        "own pose (transfers better to a new subject); temperature and noise chosen per task; "
+        "on BodyTrack and WalkTrack each particle walks at its own speed",
+    ),
+    "apf-cv": dict(
+        prior=CONSTANT_VELOCITY,
+        description="annealed particle filter (Deutscher, Blake & Reid 2000), 10 layers, "
+        "constant-velocity proposals; survival rate and diffusion chosen per task",
+        layers=10,
+    ),
+    "apf-tree": dict(
+        prior=TREE,
+        description="annealed particle filter, 10 layers, proposals from the tree prior; "
+        "survival rate and diffusion chosen per task",
+        layers=10,
+    ),
+    "apf-tree-vel": dict(
+        prior=TREE,
+        description="annealed particle filter, 10 layers, proposals from pf-tree-vel's prior; "
+        "survival rate and diffusion chosen per task",
+        layers=10,
+    ),
+    "pf-mix": dict(
+        prior=MIXTURE,
+        components=(("tree", TREE), ("cv", CONSTANT_VELOCITY), ("still", CONSTANT_VELOCITY)),
+        description="a mixture of the tree prior, constant velocity and a small random walk "
+        "(Sidenbladh, Black & Sigal 2002, section 7): each particle, each frame, moves by one",
+    ),
+    "pf-limbs": dict(
+        prior="baselines.priors.limbs",
+        per_part=True,
+        description="one tree prior per body part (torso with the root, each arm, each leg; "
+        "Sidenbladh, Black & Sigal 2002, section 7), searched independently",
+    ),
+    "pf-limbs-vel": dict(
+        prior="baselines.priors.limbs",
+        per_part=True,
+        description="one tree prior per body part, each replaying the database's velocities",
+    ),
+    "pf-slds": dict(
+        prior="baselines.priors.slds",
+        description="switching linear dynamic system (Pavlovic, Rehg, Cham & Murphy 1999), "
+        "one model per activity joined by a block transition matrix",
+        tasks=("ArmTrack-v1", "SideWalk-v1"),
+    ),
+    "pf-pca": dict(
+        prior="baselines.priors.cyclic_pca",
+        description="cyclic functional PCA of walking (Ormoneit, Black, Hastie & Kjellström "
+        "2005), its coefficients, speed and root velocity mean-reverting",
+        tasks=("WalkTrack-v1", "SideWalk-v1"),
+    ),
+    "pf-cv-still": dict(
+        prior=MIXTURE,
+        components=(("cv", CONSTANT_VELOCITY), ("still", CONSTANT_VELOCITY)),
+        description="constant velocity that can stand still: each particle moves at constant "
+        "velocity (pf-cv's) or takes a small random walk, and keeps its regime from frame to "
+        "frame with a probability chosen on training persons",
+    ),
+    "apf-mix": dict(
+        prior=MIXTURE,
+        components=(("tree", TREE), ("cv", CONSTANT_VELOCITY), ("still", CONSTANT_VELOCITY)),
+        layers=10,
+        description="annealed particle filter, 10 layers, proposals from pf-mix's mixture; "
+        "survival rate and diffusion chosen per task",
+    ),
+}
+
+
+def build_spec(name: str, settings: AgentSettings, path: Path = PF_SETTINGS_FILE) -> AgentSpec:
+    """The spec of the agent ``name`` of :data:`STRUCTURE` with its settings from the file.
+
+    Raises:
+        SettingsError: Naming the file and key, if a component label is not the
+            agent's, or a fit setting is not one its prior (or the component's)
+            takes.
+    """
+    kind = dict(STRUCTURE[name])
+    labels = [label for label, _ in kind.get("components", ())]
+    unknown = sorted(set(settings.components) - set(labels))
+    if unknown:
+        raise SettingsError(
+            path, f"{name}.components.{unknown[0]}",
+            f"not a component of {name}; its components are {labels}",
+        )  # fmt: skip
+    kind["components"] = tuple(
+        (label, AgentSpec(prior, fit_settings=settings.components.get(label, {})))
+        for label, prior in kind.get("components", ())
+    )
+    spec = AgentSpec(
+        **kind,
+        fit_settings=settings.fit,
+        task_fit_settings=settings.task_fit,
+        task_filter_settings=settings.task_filter,
+    )
+    names = spec.setting_names()
+    for key, chosen in [("fit", settings.fit)] + [
+        (f"task_fit.{task}", s) for task, s in settings.task_fit.items()
+    ]:
+        for setting in chosen:
+            if setting not in names:
+                raise SettingsError(
+                    path, f"{name}.{key}.{setting}",
+                    f"not a setting of {name}'s prior; they are {sorted(names)}",
+                )  # fmt: skip
+    if settings.task_filter and spec.layers == 1 and not spec.partitioned:
+        raise SettingsError(
+            path, f"{name}.task_filter", f"{name} is a plain particle filter (no filter settings)"
+        )
+    return spec
+
+
+def specs_from_file(path: str | Path = PF_SETTINGS_FILE) -> dict[str, AgentSpec]:
+    """Every agent of :data:`STRUCTURE` with its settings from a settings file.
+
+    Raises:
+        SettingsError: Naming the file and key, if the file names an agent that
+            does not exist or a setting its prior does not take (and see
+            :func:`baselines.agents.settings.load`).
+    """
+    p = Path(path)
+    loaded = load(p)
+    unknown = sorted(set(loaded) - set(STRUCTURE))
+    if unknown:
+        raise SettingsError(p, unknown[0], f"unknown agent; the agents are {sorted(STRUCTURE)}")
+    return {name: build_spec(name, loaded.get(name, AgentSettings()), p) for name in STRUCTURE}
+
+
+#: The particle-filter agents by name.
+AGENTS: dict[str, AgentSpec] = specs_from_file()
+
+
+def register_agent(name: str, spec: AgentSpec) -> None:
+    """Add an agent to :data:`AGENTS`."""
+    AGENTS[name] = spec
+
+
+def make_filter(
+    name: str,
+    env: gym.Env,
+    n_particles: int = 300,
+    seed: int = 0,
+    estimate: str = "mean",
+    fit_settings: Mapping[str, Any] | None = None,
+    use_cache: bool = True,
+    filter_settings: Mapping[str, float] | None = None,
+    observation_model: ObservationModel | None = None,
+) -> ParticleFilterAgent:
+    """The particle-filter agent of :data:`AGENTS` named ``name`` for an environment.
+
+    See :func:`baselines.agents.make` for the arguments.
+
+    Raises:
+        KeyError: If the name is not one of :data:`AGENTS`.
+        TaskNotSupported: If the agent does not cover the env's task.
+        ValueError: If a fit or filter setting is unknown or out of range.
+    """
+    if name not in AGENTS:
+        raise KeyError(f"unknown particle-filter agent {name!r}; they are {sorted(AGENTS)}")
+    spec = AGENTS[name]
+    base = tracking_env(env)
+    if spec.tasks is not None and base.task.name not in spec.tasks:
+        module = importlib.import_module(spec.prior)
+        if hasattr(module, "check_task"):
+            try:
+                module.check_task(base.task.name)  # the prior's own explanation
+            except ValueError as exc:
+                raise TaskNotSupported(str(exc)) from exc
+        raise TaskNotSupported(
+            f"{name} supports the tasks {list(spec.tasks)} only, not {base.task.name}"
+        )
+    spec.filter_settings_for(base.task.name, filter_settings)  # checked before the fit
+    module, fitted = fit_prior(spec, base, fit_settings, use_cache=use_cache)
+    return filter_agent(
+        spec, env, module, fitted, n_particles, seed, estimate, name, filter_settings,
+        observation_model,
+    )  # fmt: skip
+
+
+def filter_agent(
+    spec: AgentSpec,
+    env: gym.Env,
+    module: ModuleType,
+    fitted: Any,
+    n_particles: int,
+    seed: int,
+    estimate: str,
+    name: str,
+    filter_settings: Mapping[str, float] | None = None,
+    observation_model: ObservationModel | None = None,
+) -> ParticleFilterAgent:
+    """The particle-filter agent of a registered spec over a fitted prior.
+
+    The filter takes the spec's settings for the env's task
+    (:meth:`AgentSpec.filter_settings_for`), overridden by ``filter_settings``.
+    """
+    base = tracking_env(env)
+    settings = spec.filter_settings_for(base.task.name, filter_settings)
+    return ParticleFilterAgent(
+        env, module, fitted, n_particles, seed, estimate, name,
+        partitioned=spec.partitioned, observation_model=observation_model, **settings,
+    )  # fmt: skip

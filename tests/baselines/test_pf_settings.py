@@ -1,0 +1,144 @@
+"""The particle filters' settings file (hyperparams/pf.yml): read, checked, applied."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from baselines.agents import AGENTS
+from baselines.agents.settings import PF_SETTINGS_FILE, SettingsError, load
+from baselines.agents.specs import STRUCTURE, specs_from_file
+
+
+def test_every_agent_takes_its_settings_from_the_file():
+    loaded = load()
+    assert set(loaded) <= set(AGENTS) == set(STRUCTURE)
+    for name, settings in loaded.items():
+        spec = AGENTS[name]
+        assert dict(spec.fit_settings) == dict(settings.fit)
+        assert {t: dict(s) for t, s in spec.task_fit_settings.items()} == settings.task_fit
+        assert {t: dict(s) for t, s in spec.task_filter_settings.items()} == settings.task_filter
+        for label, component in spec.components:
+            assert dict(component.fit_settings) == dict(settings.components.get(label, {}))
+
+
+def test_the_settings_are_those_chosen_on_the_validation_persons():
+    # values recorded from `humotion-gym agents --task TASK` before the settings
+    # moved from code to the file; the anchors and merge keys of the file apply
+    cv = {"multiplier": 0.5, "damping": 0.3, "position_noise": 1.5}
+    assert AGENTS["pf-cv"].settings_for("BodyTrack-v1") == cv
+    assert AGENTS["pf-follow"].settings_for("BodyTrack-v1") == {
+        **cv,
+        "moving": "root",
+        "position_noise": 1.0,
+    }
+    assert list(AGENTS["pf-follow"].settings_for("WalkTrack-v1")) == [*cv, "moving"]
+    assert AGENTS["pf-tree"].settings_for("WalkTrack-v1") == {
+        "speed_spread": 1.0,
+        "speed_drift": 0.1,
+        "beta": 10.0,
+        "noise_scale": 0.3,
+    }
+    assert AGENTS["pf-tree-vel"].settings_for("SideWalk-v1") == {
+        "replay": "velocity",
+        "beta": 0.03,
+        "noise_scale": 0.3,
+    }
+    mix, apf_mix = AGENTS["pf-mix"], AGENTS["apf-mix"]
+    assert apf_mix.settings_for("SideWalk-v1") == mix.settings_for("SideWalk-v1")
+    assert apf_mix.components == mix.components
+    assert dict(mix.components[2][1].fit_settings) == {
+        "multiplier": 0.0,
+        "damping": 0.0,
+        "position_noise": 0.15,
+    }
+    assert AGENTS["apf-mix"].filter_settings_for("WalkTrack-v1") == {
+        "layers": 10,
+        "alpha": 0.9,
+        "diffusion": 0.1,
+        "beta_max": math.inf,
+    }
+    assert AGENTS["apf-cv"].filter_settings_for("SideWalk-v1")["alpha"] == 0.5  # none chosen
+    assert AGENTS["pf-cv-still"].settings_for("SideWalk-v1") == {
+        "weight.still": 0.3,
+        "still.position_noise": 0.02,
+        "persistence": 0.99,
+    }
+    assert AGENTS["pf-pca"].settings_for("WalkTrack-v1") == {"reversion": 1.0}
+
+
+def _edited(tmp_path: Path, old: str, new: str) -> Path:
+    text = PF_SETTINGS_FILE.read_text()
+    assert old in text
+    path = tmp_path / "pf.yml"
+    path.write_text(text.replace(old, new, 1))
+    return path
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "key"),
+    [
+        ("pf-tree-vel:\n", "pf-tree-fast:\n", "pf-tree-fast"),  # an agent that does not exist
+        (
+            "    ArmTrack-v1:\n      beta: 10.0",
+            "    ArmTrak-v1:\n      beta: 10.0",
+            "pf-tree.task_fit.ArmTrak-v1",
+        ),
+        (
+            "      beta: 10.0\n      noise_scale: 0.6",
+            "      betta: 10.0\n      noise_scale: 0.6",
+            "pf-tree.task_fit.ArmTrack-v1.betta",
+        ),
+        ("    reversion: 1.0", "    reversal: 1.0", "pf-pca.fit.reversal"),
+        (
+            "      alpha: 0.7\n      diffusion: 1.0",
+            "      alfa: 0.7\n      diffusion: 1.0",
+            "apf-cv.task_filter.ArmTrack-v1.alfa",
+        ),
+        (
+            "      alpha: 0.7\n      diffusion: 1.0",
+            "      alpha: fast\n      diffusion: 1.0",
+            "apf-cv.task_filter.ArmTrack-v1.alpha",
+        ),
+        (
+            "  task_fit:\n    BodyTrack-v1:\n      position_noise: 1.0",
+            "  task_fits:\n    BodyTrack-v1:\n      position_noise: 1.0",
+            "pf-follow.task_fits",
+        ),
+        ("    tree: {}", "    forest: {}", "pf-mix.components.forest"),
+        (
+            "      weight.still: 0.7",
+            "      weight.stil: 0.7",
+            "pf-cv-still.task_fit.ArmTrack-v1.weight.stil",
+        ),
+    ],
+)
+def test_a_wrong_name_in_the_file_is_refused_naming_the_file_and_the_key(tmp_path, old, new, key):
+    path = _edited(tmp_path, old, new)
+    with pytest.raises(SettingsError) as caught:
+        specs_from_file(path)
+    assert str(path) in str(caught.value)
+    assert caught.value.key == key
+    specs_from_file(_edited(tmp_path, old, old))  # mutation: the file itself passes
+
+
+def test_filter_settings_on_a_plain_filter_and_bad_files_are_refused(tmp_path):
+    plain = tmp_path / "plain.yml"
+    plain.write_text("pf-cv:\n  task_filter:\n    ArmTrack-v1:\n      alpha: 0.7\n")
+    with pytest.raises(SettingsError, match="plain particle filter"):
+        specs_from_file(plain)
+    broken = tmp_path / "broken.yml"
+    broken.write_text("pf-cv: [1, 2\n")
+    with pytest.raises(SettingsError, match="not valid YAML"):
+        load(broken)
+    listed = tmp_path / "list.yml"
+    listed.write_text("- pf-cv\n")
+    with pytest.raises(SettingsError, match="expected a mapping"):
+        load(listed)
+    with pytest.raises(FileNotFoundError, match="nope.yml"):
+        load(tmp_path / "nope.yml")
+    empty = tmp_path / "empty.yml"
+    empty.write_text("")
+    assert all(not s.fit_settings for s in specs_from_file(empty).values())
