@@ -8,8 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from baselines import observation
-from baselines.observation import Backdrop, GivenBody, ObservationModel
+from baselines.observation import Backdrop, GivenBody, ObservationModel, features
 from humotion_gym import body
 from humotion_gym.camera import fit_camera
 from humotion_gym.render import SceneOptions, make_background, render
@@ -166,20 +165,9 @@ def test_coverage_points_are_the_set_pixels_evenly_spread() -> None:
                 pick = np.linspace(0, xs.size - 1, most).astype(np.intp)
                 ys, xs = ys[pick], xs[pick]
             want = np.stack([xs, ys]).astype(np.float32) + np.float32(1.5)
-            got = observation._spread_points(mask, most)
+            got = features.spread_points(mask, most)
             assert got.dtype == np.float32 and got.shape == want.shape
             np.testing.assert_array_equal(got, want)
-
-
-def test_evenly_spread_is_linspace() -> None:
-    for n in range(2, 400):
-        for m in {1, 2, 3, 5, 96, n - 1}:
-            if m < n:
-                want = np.linspace(0, n - 1, m).astype(np.intp)
-                np.testing.assert_array_equal(observation._evenly_spread(n, m), want)
-    for n, m in ((16_384, 96), (10_007, 9_999), (2**20 + 3, 4_097)):
-        want = np.linspace(0, n - 1, m).astype(np.intp)
-        np.testing.assert_array_equal(observation._evenly_spread(n, m), want)
 
 
 def test_coverage_prefers_the_true_pose_to_a_limb_laid_on_the_body(episode) -> None:

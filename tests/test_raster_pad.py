@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import humotion_gym  # noqa: F401
+from baselines.experiments import discrimination
 from baselines.experiments.discrimination import likelihood_depth_profile
 from baselines.observation import ObservationModel
 from humotion_gym import render
@@ -54,16 +55,21 @@ def _model(task: str, pad: float) -> ObservationModel:
     return ObservationModel(**{**dict(get_task(task).observation), "raster_pad_px": pad})
 
 
-def test_without_the_pad_the_model_leans_towards_the_camera() -> None:
+def test_without_the_pad_the_model_leans_towards_the_camera(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     # Clean frames (flat wall, no noise) of the built-in synthetic motion: the
     # truth slid along the camera ray scores best well in front of the truth
     # without the pad, near it with the pad.
     peaks = {}
     for pad in (0.0, 0.5):
+        # The profile scores with the task's model: here the task's with this pad.
+        monkeypatch.setattr(
+            discrimination, "task_model", lambda task, pad=pad: _model(task.name, pad)
+        )
         env = gym.make(
-            "humotion_gym/BodyTrack-v1", observation_model=_model("BodyTrack-v1", pad),
-            background="flat", noise=0.0, terminate_on_lost=False,
-        )  # fmt: skip
+            "humotion_gym/BodyTrack-v1", background="flat", noise=0.0, terminate_on_lost=False
+        )
         out = likelihood_depth_profile(env, episodes=2, reach_mm=300.0, steps=13, frame_stride=5)
         assert out is not None
         peaks[pad] = out["peak_offset_mm"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from baselines.observation import GivenBody, ObservationModel
+from baselines.observation import GivenBody, ObservationModel, geometry
 from humotion_gym import body
 from humotion_gym.camera import fit_camera
 from humotion_gym.render import SceneOptions, make_background, render
@@ -223,17 +223,14 @@ def test_appearance_needs_colors_of_the_right_shape(arm_scene) -> None:
 
 
 def test_free_cones_cache_gives_the_computed_answer(arm_scene) -> None:
-    # _free_cones keeps its last answer: the same given pose, free set and
+    # free_cones keeps its last answer: the same given pose, free set and
     # shape read it back (read-only), anything else computes afresh, and the
     # answers are those of an empty cache.
-    from baselines import observation
-
     pose, _frame, cam, given = arm_scene
-    model = ObservationModel()
 
     def fresh(g: GivenBody):
-        observation._FREE_CONES_CACHE.clear()
-        return model._free_cones(g)
+        geometry._FREE_CONES_CACHE.clear()
+        return geometry.free_cones(g.pose, g.free, g.shape)
 
     def same(a, b) -> None:
         np.testing.assert_array_equal(a[0], b[0])
@@ -241,20 +238,20 @@ def test_free_cones_cache_gives_the_computed_answer(arm_scene) -> None:
             np.testing.assert_array_equal(x, y)
 
     first = fresh(given)
-    again = model._free_cones(GivenBody(pose.copy(), ARM.copy(), SHAPE, cam))
+    again = geometry.free_cones(pose.copy(), ARM.copy(), SHAPE)
     assert again is first  # a hit: equal bytes, the same shape object
     with pytest.raises(ValueError, match="read-only"):
         again[1][2][0, 0] = True
     moved = pose.copy()
     moved[0] += 100.0  # another given pose
     same(
-        model._free_cones(GivenBody(moved, ARM, SHAPE, cam)),
+        geometry.free_cones(moved, ARM, SHAPE),
         fresh(GivenBody(moved, ARM, SHAPE, cam)),
     )
     legs = np.arange(16, 20)  # another free set
-    got = model._free_cones(GivenBody(pose, legs, SHAPE, cam))
+    got = geometry.free_cones(pose, legs, SHAPE)
     same(got, fresh(GivenBody(pose, legs, SHAPE, cam)))
     assert set(got[0].tolist()) != set(first[0].tolist())
     other = body.default_shape()  # an equal shape, another object: computed again
-    assert model._free_cones(GivenBody(pose, ARM, other, cam)) is not first
-    same(model._free_cones(GivenBody(pose, ARM, SHAPE, cam)), first)
+    assert geometry.free_cones(pose, ARM, other) is not first
+    same(geometry.free_cones(pose, ARM, SHAPE), first)

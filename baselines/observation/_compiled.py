@@ -1,0 +1,287 @@
+"""The likelihood's fused passes over poses, compiled by numba.
+
+Each loops over N poses (times cones, times points) once, where numpy would
+make a dozen temporaries of that size: the cones' image bases
+(:func:`cone_bases`), the table lookups of their sample points
+(:func:`point_costs`), and the two image-to-model terms (:func:`residual_sums`,
+:func:`coverage_sums`). Their oracles, plain per-pose loops, are in
+``tests/test_likelihood_oracle.py``.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+_ZERO = np.float32(0.0)
+_ONE = np.float32(1.0)
+_HALF = np.float32(0.5)
+_TINY = np.float32(1e-12)
+_MIN_LENGTH = np.float32(1e-3)
+#: A keypoint behind the camera goes this far right of the image (every point off it).
+_BEHIND = np.float32(1e7)
+
+#: Poses per block of :func:`coverage_sums`: its scratch stays in the L1 cache.
+_BLOCK = 128
+
+
+@numba.njit(cache=True, nogil=True)
+def cone_bases(
+    geometry: NDArray[np.float64],
+    rot: NDArray[np.float64],
+    trans: NDArray[np.float64],
+    intrinsics: NDArray[np.float64],
+    cones: NDArray[np.intp],
+    radii: NDArray[np.float64],
+    aspect: NDArray[np.float64],
+    bin_axes: NDArray[np.float32],
+    plane: int,
+    basis: NDArray[np.float32],
+    outline: NDArray[np.int32],
+) -> None:
+    """Each cone's image basis and outline map of every pose.
+
+    Args:
+        geometry: ``(n, 35, 3)`` keypoints and cone axes of the poses
+            (:func:`humotion_gym.body.pose_geometry`).
+        rot: ``(3, 3)`` the camera's rotation.
+        trans: ``(3,)`` the camera's translation.
+        intrinsics: ``(near, focal, u0, v0, pad)``: the nearest depth (mm),
+            the focal length, the principal point plus the table's offset, and
+            the pixels added to every projected radius.
+        cones: ``(10, 2)`` each cone's two keypoints.
+        radii: ``(10, 2)`` the cones' silhouette radii (mm) at their two ends.
+        aspect: ``(10,)`` each cone's section aspect (1: round). An elliptical
+            section with semi-axes ``r`` (cone x) and ``aspect r`` (cone y) has
+            the half-width ``r sqrt((x.m)^2 + (aspect y.m)^2)`` along the
+            image normal ``m`` (orthographic approximation).
+        bin_axes: ``(B, 2)`` each orientation bin's doubled-angle direction.
+        plane: Entries of one map of the cost table.
+        basis: Out, ``(8, 10, n)``: rows ``(s_u, s_v, e_u, e_v)`` the
+            projected cone ends, ``(a_u, a_v, b_u, b_v)`` the outline's offsets
+            at the two ends (the unit image normal times the projected radius).
+        outline: Out, ``(10, n)``: the offset in the cost table of the map each
+            outline reads (``plane`` times its orientation bin).
+    """
+    near, focal = intrinsics[0], intrinsics[1]
+    u0, v0, pad = intrinsics[2], intrinsics[3], intrinsics[4]
+    n, n_kp = geometry.shape[0], cones.max() + 1
+    u = np.empty(n_kp)
+    v = np.empty(n_kp)
+    inv = np.empty(n_kp)
+    for j in range(n):
+        g = geometry[j]
+        for k in range(n_kp):
+            cu = rot[0, 0] * g[k, 0] + rot[0, 1] * g[k, 1] + rot[0, 2] * g[k, 2] + trans[0]
+            cv = rot[1, 0] * g[k, 0] + rot[1, 1] * g[k, 1] + rot[1, 2] * g[k, 2] + trans[1]
+            cz = rot[2, 0] * g[k, 0] + rot[2, 1] * g[k, 1] + rot[2, 2] * g[k, 2] + trans[2]
+            behind = cz < near
+            inv[k] = focal / (near if behind else cz)
+            u[k] = cu * inv[k] + u0 + (_BEHIND if behind else 0.0)
+            v[k] = cv * inv[k] + v0
+        for c in range(cones.shape[0]):
+            s, e = cones[c, 0], cones[c, 1]
+            dx, dy = u[e] - u[s], v[e] - v[s]
+            norm = 1.0 / np.sqrt(dx * dx + dy * dy + 1e-12)
+            nx, ny = dy * norm, -dx * norm
+            width = 1.0
+            if aspect[c] != 1.0:
+                x, y = g[n_kp + 2 * c], g[n_kp + 2 * c + 1]  # the cone's axes in the world
+                xm = (rot[0, 0] * x[0] + rot[0, 1] * x[1] + rot[0, 2] * x[2]) * nx
+                xm += (rot[1, 0] * x[0] + rot[1, 1] * x[1] + rot[1, 2] * x[2]) * ny
+                ym = (rot[0, 0] * y[0] + rot[0, 1] * y[1] + rot[0, 2] * y[2]) * nx
+                ym += (rot[1, 0] * y[0] + rot[1, 1] * y[1] + rot[1, 2] * y[2]) * ny
+                ym *= aspect[c]
+                width = np.sqrt(xm * xm + ym * ym)
+            r_s = inv[s] * radii[c, 0] * width + pad
+            r_e = inv[e] * radii[c, 1] * width + pad
+            basis[0, c, j], basis[1, c, j] = u[s], v[s]
+            basis[2, c, j], basis[3, c, j] = u[e], v[e]
+            basis[4, c, j], basis[5, c, j] = r_s * nx, r_s * ny
+            basis[6, c, j], basis[7, c, j] = r_e * nx, r_e * ny
+            # The bin whose doubled angle is nearest the normal's (n and -n alike).
+            c2, s2 = nx * nx - ny * ny, 2.0 * nx * ny
+            best, score = 0, c2 * bin_axes[0, 0] + s2 * bin_axes[0, 1]
+            for b in range(1, bin_axes.shape[0]):
+                t = c2 * bin_axes[b, 0] + s2 * bin_axes[b, 1]
+                if t > score:
+                    best, score = b, t
+            outline[c, j] = best * plane
+
+
+@numba.njit(cache=True, nogil=True)
+def point_costs(
+    basis: NDArray[np.float32],
+    outline: NDArray[np.int32],
+    cones: NDArray[np.intp],
+    n: int,
+    coef: NDArray[np.float32],
+    n_out: int,
+    axis_map: NDArray[np.int64],
+    cost: NDArray[np.uint8],
+    w2: int,
+    h2: int,
+    out: NDArray[np.int32],
+) -> None:
+    """Summed table costs of the sample points of cones ``cones`` of the first ``n`` poses.
+
+    Args:
+        basis: ``(8, 10, N)`` the cones' image bases (:func:`cone_bases`).
+        outline: ``(10, N)`` the map each cone's outline points read.
+        cones: ``(K,)`` the cones to score.
+        n: How many poses (the first) to score.
+        coef: ``(P, 4)`` each sample point's weights of the cone's start,
+            end, start offset and end offset (``ObservationModel``'s
+            ``sample_weights``).
+        n_out: How many of them (the first) are outline points.
+        axis_map: ``(10,)`` the offset of the map each cone's axis points read.
+        cost: The flat uint8 cost table of padded ``(h2, w2)`` maps.
+        w2: The padded maps' width.
+        h2: Their height.
+        out: Out, ``(K, n)``: each cone's summed point costs, in table units.
+    """
+    xmax, ymax = np.float32(w2 - 1), np.float32(h2 - 1)
+    index = np.empty(n, np.int64)
+    for ci in range(cones.shape[0]):
+        c = cones[ci]
+        for j in range(n):
+            out[ci, j] = 0
+        for p in range(coef.shape[0]):
+            ws, we, wa, wb = coef[p, 0], coef[p, 1], coef[p, 2], coef[p, 3]
+            # The arithmetic of all poses first, then their scattered reads:
+            # the first loop vectorises, the second keeps many reads in flight.
+            for j in range(n):
+                x = ws * basis[0, c, j] + we * basis[2, c, j]
+                x += wa * basis[4, c, j] + wb * basis[6, c, j]
+                y = ws * basis[1, c, j] + we * basis[3, c, j]
+                y += wa * basis[5, c, j] + wb * basis[7, c, j]
+                x = min(max(x, _ZERO), xmax)  # the padding border: off the image
+                y = min(max(y, _ZERO), ymax)
+                index[j] = np.int64(y) * w2 + np.int64(x)  # +0.5 in the basis: rounds
+            if p < n_out:
+                for j in range(n):
+                    out[ci, j] += cost[index[j] + outline[c, j]]
+            else:
+                shift = axis_map[c]
+                for j in range(n):
+                    out[ci, j] += cost[index[j] + shift]
+
+
+@numba.njit(cache=True, nogil=True)
+def residual_sums(
+    segments: NDArray[np.float32],
+    q: NDArray[np.float32],
+    tau2: np.float32,
+    masks: NDArray[np.bool_],
+    out: NDArray[np.float64],
+) -> None:
+    """Per pose and figure, the summed truncated squared distance of points to outlines.
+
+    Args:
+        segments: ``(4, S, N)`` each outline segment's start ``(x, y)`` and
+            direction ``(dx, dy)``.
+        q: ``(2, E)`` the residual points.
+        tau2: The truncation of a squared distance.
+        masks: ``(G, S)`` the segments of each figure.
+        out: Out, ``(N, G)``: ``sum over points of min(tau2, d^2)``, ``d``
+            the distance to the figure's nearest segment.
+    """
+    n_seg, n = segments.shape[1], segments.shape[2]
+    e, g = q.shape[1], masks.shape[0]
+    nearest = np.empty((g, e), np.float32)
+    for j in range(n):
+        nearest[:] = tau2
+        for s in range(n_seg):
+            px, py = segments[0, s, j], segments[1, s, j]
+            dx, dy = segments[2, s, j], segments[3, s, j]
+            il = _ONE / (dx * dx + dy * dy + np.float32(1e-6))
+            for k in range(e):
+                rx, ry = q[0, k] - px, q[1, k] - py
+                t = min(max((rx * dx + ry * dy) * il, _ZERO), _ONE)
+                rx -= t * dx
+                ry -= t * dy
+                d2 = rx * rx + ry * ry
+                for f in range(g):
+                    if masks[f, s] and d2 < nearest[f, k]:
+                        nearest[f, k] = d2
+        for f in range(g):
+            total = 0.0
+            for k in range(e):
+                total += nearest[f, k]
+            out[j, f] = total
+
+
+@numba.njit(cache=True, nogil=True)
+def coverage_sums(
+    basis: NDArray[np.float32],
+    cones: NDArray[np.intp],
+    q: NDArray[np.float32],
+    tau: np.float32,
+    masks: NDArray[np.bool_],
+    out: NDArray[np.float64],
+) -> None:
+    """Per pose and figure, the summed squared distance of points outside the cones.
+
+    A cone's projection is its axis segment widened by the radius, which is
+    interpolated linearly along it, with box ends: a point's distance outside
+    is ``max(|p| - r, |a - L/2| - L/2 - r)``, ``p`` its signed distance across
+    the axis, ``a`` its position along it, ``L`` the axis' length and ``r``
+    the radius at its foot. Each point reads the figure's nearest cone,
+    clipped to ``[0, tau]``.
+
+    Args:
+        basis: ``(8, 10, N)`` the cones' image bases (:func:`cone_bases`).
+        cones: ``(C,)`` the cones the points may lie in.
+        q: ``(2, F)`` the coverage points.
+        tau: The truncation of a distance.
+        masks: ``(G, C)`` the cones of each figure.
+        out: Out, ``(N, G)``: ``sum over points of min(tau, max(0, d))^2``.
+    """
+    n, f, g = basis.shape[2], q.shape[1], masks.shape[0]
+    nearest = np.empty((g, f, _BLOCK), np.float32)
+    co = np.empty((7, _BLOCK), np.float32)
+    d = np.empty(_BLOCK, np.float32)
+    # Blocks of poses innermost: a frame has few coverage points (6-32 on
+    # BodyTrack), too few to fill the vector lanes, and poses are many.
+    for j0 in range(0, n, _BLOCK):
+        m = min(_BLOCK, n - j0)
+        nearest[:] = tau
+        for ci in range(cones.shape[0]):
+            c = cones[ci]
+            for jj in range(m):
+                j = j0 + jj
+                s_x, s_y, e_x, e_y = basis[0, c, j], basis[1, c, j], basis[2, c, j], basis[3, c, j]
+                r_s = np.sqrt(basis[4, c, j] ** 2 + basis[5, c, j] ** 2)
+                r_e = np.sqrt(basis[6, c, j] ** 2 + basis[7, c, j] ** 2)
+                d_x, d_y = e_x - s_x, e_y - s_y
+                length = np.sqrt(d_x * d_x + d_y * d_y)
+                flat = length < _MIN_LENGTH  # seen end-on: any axis direction will do
+                safe = max(length, _MIN_LENGTH)
+                co[0, jj] = _ONE if flat else d_x / safe  # u, the unit axis
+                co[1, jj] = _ZERO if flat else d_y / safe
+                co[2, jj] = s_x
+                co[3, jj] = s_y
+                co[4, jj] = _HALF * length
+                co[5, jj] = r_s
+                co[6, jj] = (r_e - r_s) / safe  # the radius' slope
+            for k in range(f):
+                x, y = q[0, k], q[1, k]
+                for jj in range(m):
+                    rx, ry = x - co[2, jj], y - co[3, jj]
+                    along = rx * co[0, jj] + ry * co[1, jj]
+                    across = ry * co[0, jj] - rx * co[1, jj]
+                    radius = co[5, jj] + co[6, jj] * along
+                    off_end = abs(along - co[4, jj]) - co[4, jj]
+                    d[jj] = max(abs(across), off_end) - radius
+                for h in range(g):
+                    if masks[h, ci]:
+                        for jj in range(m):
+                            nearest[h, k, jj] = min(nearest[h, k, jj], d[jj])
+        for jj in range(m):
+            for h in range(g):
+                total = 0.0
+                for k in range(f):
+                    v = max(nearest[h, k, jj], _ZERO)
+                    total += v * v
+                out[j0 + jj, h] = total

@@ -1,0 +1,521 @@
+"""Image features of a frame: edges, their distance maps, foreground, backdrop.
+
+Computed once per frame by OpenCV and numpy (``cv2.Canny``, ``cv2.Sobel``,
+``cv2.distanceTransform``), then turned into the flat byte table of costs
+that the likelihood's terms read for every pose (:mod:`.terms`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import cv2
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from baselines.observation.geometry import free_cones, grow, projected_cones, silhouette_mask
+from humotion_gym.body import N_CONES, BodyShape, cone_geometry
+from humotion_gym.camera import Camera
+from humotion_gym.render import gaussian_blur
+
+if TYPE_CHECKING:
+    from baselines.observation.model import ObservationModel
+
+#: The distance transform's mask: 5x5 chamfer, within 2% of the exact distance.
+_DIST_MASK = cv2.DIST_MASK_5
+
+
+@dataclass(frozen=True, eq=False)
+class FrameFeatures:
+    """What the observation model keeps of one frame (computed once per frame).
+
+    Attributes:
+        width: Frame width in pixels.
+        height: Frame height in pixels.
+        edges: ``(H, W)`` uint8 edge map (255 on edges).
+        distance: ``(B, H, W)`` float32 distance to the nearest edge of each
+            orientation bin (``B = orientation_bins``), in reference pixels,
+            truncated at the model's ``edge_truncation``.
+        foreground: ``(H, W)`` float32 foreground probability in [0, 1].
+        background_color: The estimated background colour (one value per channel).
+        cost: Flat uint8 lookup table: the ``B`` padded ``(H + 2, W + 2)`` edge
+            cost maps followed by the padded foreground cost map, per point, in
+            units of ``cost_unit``; the 1-pixel border holds the cost of a point
+            outside the image.
+        cost_unit: The cost (nats) of one unit of ``cost``.
+        residual: ``(2, E)`` float32 image coordinates (plus the table's
+            padding offset) of the edge points the given body does not explain
+            (see :class:`GivenBody`), or ``None`` when no body part was given.
+        residual_cones: The cones (indices into ``CONE_NAMES``) whose outline
+            must explain ``residual``: those that move with the free parameters.
+        appearance_cones: The cones whose axis points read their own colour
+            map (the maps after the foreground map in ``cost``, in this
+            order), or ``None``.
+        coverage: ``(2, F)`` float32 image coordinates (plus the padding
+            offset) of foreground pixels the free cones must cover (the
+            coverage term, see ``ObservationModel.coverage_weight``), or
+            ``None``.
+        coverage_cones: The cones that may cover them (those that move with
+            the free parameters).
+        floor: Height (mm, world z) of the lowest ankle in the episode's given
+            first pose, for the floor term (``GivenBody.floor``), or ``None``
+            where the model has no floor term.
+    """
+
+    width: int
+    height: int
+    edges: NDArray[np.uint8]
+    distance: NDArray[np.float32]
+    foreground: NDArray[np.float32]
+    background_color: NDArray[np.float64]
+    cost: NDArray[np.uint8]
+    cost_unit: float
+    residual: NDArray[np.float32] | None = None
+    residual_cones: NDArray[np.intp] | None = None
+    appearance_cones: NDArray[np.intp] | None = None
+    coverage: NDArray[np.float32] | None = None
+    coverage_cones: NDArray[np.intp] | None = None
+    floor: float | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Backdrop:
+    """The scene behind the figure, read at an episode's first frame.
+
+    The renderer draws each episode's backdrop once, fixed in the image, and
+    only sensor noise changes it from frame to frame (a static camera's
+    background, as in the background subtraction Deutscher, Blake & Reid, CVPR
+    2000, took their silhouettes from). At the first frame the figure's pose is
+    given, so every pixel its silhouette does not cover shows the backdrop.
+    Nothing after the first frame is used.
+
+    Attributes:
+        image: ``(H, W, C)`` uint8, the first frame blurred by the model's
+            ``edge_blur``.
+        known: ``(H, W)`` bool, the pixels the initial pose's silhouette (grown
+            by ``backdrop_margin``) leaves uncovered, whose backdrop is known.
+    """
+
+    image: NDArray[np.uint8]
+    known: NDArray[np.bool_]
+
+
+@dataclass(frozen=True, eq=False)
+class GivenBody:
+    """The part of the body a task hands out, for the residual-edge and appearance terms.
+
+    Attributes:
+        pose: ``(25,)`` a full pose whose parameters outside ``free`` are the
+            given (true) ones of the frame; the values at ``free`` do not matter.
+        free: Indices of the parameters the agent estimates.
+        shape: The subject's shape.
+        camera: The frame's camera.
+        colors: ``(10, C)`` each cone's colour as seen at the episode's first
+            frame (:meth:`ObservationModel.cone_colors` with the given initial
+            pose), for the appearance term; ``None`` without one.
+        backdrop: The scene behind the figure, read at the first frame
+            (:meth:`ObservationModel.read_backdrop`), for a model with
+            ``backdrop`` on; ``None`` without one.
+        floor: Height (mm) of the lowest ankle in the episode's given first
+            pose (:meth:`ObservationModel.floor_height`), for a model with a
+            floor term; ``None`` without one.
+    """
+
+    pose: NDArray[np.float64]
+    free: NDArray[np.intp]
+    shape: BodyShape
+    camera: Camera
+    colors: NDArray[np.float64] | None = None
+    backdrop: Backdrop | None = None
+    floor: float | None = None
+
+
+class FirstFrame(NamedTuple):
+    """What an observation model keeps of an episode's first frame (see :class:`GivenBody`)."""
+
+    colors: NDArray[np.float64] | None
+    backdrop: Backdrop | None
+    floor: float | None
+
+
+def smoothed(frame: ArrayLike, blur: float, where: str) -> NDArray[np.uint8]:
+    """The frame as ``(H, W, C)`` uint8, blurred by a Gaussian of sigma ``blur``.
+
+    Raises:
+        ValueError: Naming ``where``, if the frame is not a uint8 image of
+            shape ``(H, W, 3)``, ``(H, W, 1)`` or ``(H, W)``.
+    """
+    img = np.asarray(frame)
+    if img.ndim == 2:
+        img = img[:, :, None]
+    if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] not in (1, 3):
+        raise ValueError(
+            f"{where}: expected a uint8 frame of shape (H, W, 3) or "
+            f"(H, W, 1), got {img.dtype} {img.shape}"
+        )
+    img = np.ascontiguousarray(img)
+    out = img if blur <= 0 else gaussian_blur(img, blur)
+    return out.reshape(img.shape)
+
+
+def oriented_edges(
+    smooth: NDArray[np.uint8], low: float, high: float, n_bins: int, keep: NDArray | None = None
+) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+    """Canny edges and their split into orientation bins.
+
+    On colour frames ``cv2.Canny`` takes, per pixel, the strongest channel's
+    gradient; the orientation comes from the same channel's Sobel gradient.
+
+    Args:
+        smooth: ``(H, W, C)`` the blurred frame.
+        low: Canny's lower hysteresis threshold.
+        high: Its upper one.
+        n_bins: Orientation bins.
+        keep: uint8, 255 where edges count (or None: everywhere).
+
+    Returns:
+        The ``(H, W)`` edge map and ``(B, H, W)`` uint8 maps, map ``b`` 255 at
+        the edge pixels whose gradient orientation (modulo pi) lies within
+        ``pi / B`` of ``b pi / B`` (every edge pixel is in its two nearest bins).
+    """
+    h, w, channels = smooth.shape
+    edges = cv2.Canny(smooth if channels == 3 else smooth[:, :, 0], low, high)
+    if keep is not None:
+        cv2.bitwise_and(edges, keep, dst=edges)
+    bins = np.zeros((n_bins, h, w), np.uint8)
+    if n_bins == 1:
+        bins[0] = edges
+        return edges, bins
+    ys, xs = np.nonzero(edges)
+    gx = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=3).reshape(h, w, channels)[ys, xs]
+    gy = cv2.Sobel(smooth, cv2.CV_32F, 0, 1, ksize=3).reshape(h, w, channels)[ys, xs]
+    best = np.argmax(gx * gx + gy * gy, axis=1)  # the strongest channel
+    pick = np.arange(ys.size)
+    # The gradient is the outline's normal (in double precision, as its oracle).
+    theta = np.arctan2(gy[pick, best].astype(np.float64), gx[pick, best].astype(np.float64))
+    lo = np.floor(np.mod(theta, np.pi) * (n_bins / np.pi)).astype(np.intp) % n_bins
+    bins[lo, ys, xs] = 255
+    bins[(lo + 1) % n_bins, ys, xs] = 255
+    return edges, bins
+
+
+def edge_distances(bins: NDArray[np.uint8]) -> NDArray[np.float32]:
+    """``(B, H, W)`` each bin's ``cv2.distanceTransform`` (pixels; inf for a bin without edges)."""
+    dist = np.empty(bins.shape, np.float32)
+    for b in range(bins.shape[0]):
+        if bins[b].any():
+            cv2.distanceTransform(cv2.bitwise_not(bins[b]), cv2.DIST_L2, _DIST_MASK, dst=dist[b])
+        else:
+            dist[b] = np.inf
+    return dist
+
+
+def channel_max(diff: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """``(H, W)`` the largest channel of a ``(H, W, C)`` absolute difference."""
+    if diff.ndim == 3 and diff.shape[2] == 3:
+        d0, d1, d2 = cv2.split(diff)
+        return cv2.max(cv2.max(d0, d1), d2)
+    return np.ascontiguousarray(diff.reshape(diff.shape[0], diff.shape[1], -1)[:, :, 0])
+
+
+def border_color(smooth: NDArray[np.uint8], width: int) -> NDArray[np.float64]:
+    """The median colour of the frame's border ``width`` pixels wide (at most a quarter)."""
+    h, w, channels = smooth.shape
+    b = min(width, h // 4, w // 4)
+    border = np.concatenate(
+        [
+            smooth[:b].reshape(-1, channels),
+            smooth[-b:].reshape(-1, channels),
+            smooth[b:-b, :b].reshape(-1, channels),
+            smooth[b:-b, -b:].reshape(-1, channels),
+        ]
+    )
+    return np.median(border, axis=0)
+
+
+def backdrop_low(model: ObservationModel, counts: NDArray[np.int64]) -> float | None:
+    """How far a pixel must differ from the backdrop, from the known pixels' histogram.
+
+    ``foreground_low`` or 2.5 times the known pixels' median difference (about
+    their 99.5th percentile), whichever is larger; None where that reaches
+    ``foreground_high`` or no pixel is known (the backdrop is then not used).
+    """
+    low = model.foreground_low
+    total = counts.sum()
+    if total:
+        median = int(np.searchsorted(np.cumsum(counts), 0.5 * total))
+        low = max(low, 2.5 * median)
+    return None if low >= model.foreground_high or not total else low
+
+
+def foreground(
+    model: ObservationModel,
+    smooth: NDArray[np.uint8],
+    backdrop: Backdrop | None = None,
+    scale: float = 1.0,
+) -> tuple[NDArray[np.float32], NDArray, NDArray[np.uint8] | None, Backdrop | None]:
+    """Foreground probability from the colour distance to the background.
+
+    The background is the border's median colour, and, where ``backdrop``
+    knows it, the backdrop's pixel; the backdrop's own differences (sensor
+    noise) raise the threshold (:func:`backdrop_low`). Under the initial
+    figure the first frame showed the figure: a pixel still as it was is
+    figure (probability 1), one that changed shows the backdrop the figure
+    left or another part of it (1/2).
+
+    Returns:
+        The ``(H, W)`` float32 probability, the border's median colour, with
+        a backdrop used and a positive ``backdrop_reach`` the uint8 mask of
+        where edges count (within reach of a pixel that differs from the
+        known backdrop, or where it is unknown), else None, and the backdrop
+        if it was used, else None.
+    """
+    channels = smooth.shape[2]
+    bg = border_color(smooth, model.border_width)
+    scalar = tuple(float(v) for v in bg) + (0.0,) * (4 - channels)
+    diff = channel_max(cv2.absdiff(smooth, scalar).reshape(smooth.shape))
+    keep, low = None, None
+    if backdrop is not None:
+        near = channel_max(cv2.absdiff(smooth, backdrop.image).reshape(smooth.shape))
+        low = backdrop_low(model, np.bincount(near[backdrop.known], minlength=256))
+        if low is None:
+            backdrop = None  # noise hides the figure, or nothing of the backdrop is known
+    if backdrop is not None and low is not None:
+        shift = low - model.foreground_low
+        if shift > 0:  # the ramp moved up: the same probabilities from ``low`` on
+            near = cv2.subtract(near, float(shift))
+        changed = near > model.foreground_low
+        lo, hi = model.foreground_low, model.foreground_high
+        unknown = np.where(changed, 0.5 * (lo + hi), hi)
+        np.copyto(diff, near, where=backdrop.known)
+        np.copyto(diff, np.clip(unknown, 0, 255).astype(np.uint8), where=~backdrop.known)
+        if model.backdrop_reach > 0:
+            found = np.where(backdrop.known, near, 0) > model.foreground_low
+            keep = grow(found.astype(np.uint8) * np.uint8(255), model.backdrop_reach * scale)
+            keep[~backdrop.known] = 255
+    fg = cv2.subtract(diff, float(model.foreground_low)).astype(np.float32)
+    fg *= np.float32(1.0 / (model.foreground_high - model.foreground_low))
+    np.minimum(fg, np.float32(1.0), out=fg)
+    return fg, bg, keep, backdrop
+
+
+def cost_table(
+    model: ObservationModel,
+    dist: NDArray[np.float32],
+    fg: NDArray[np.float32],
+    smooth: NDArray[np.uint8],
+    app_colors: NDArray[np.float32],
+) -> tuple[NDArray[np.uint8], float]:
+    """The flat byte table of per-point costs, and its unit (nats).
+
+    Maps, each padded by one pixel holding the cost of a point off the image:
+    per orientation bin the edge cost ``min(d, tau)^2 / (2 sigma^2)`` divided
+    by the outline's points, the foreground cost ``foreground_weight (1 - fg)``
+    divided by the axis points, then each appearance cone's colour mismatch.
+    Quantised to bytes (a gather of bytes is faster than one of floats): 1/255
+    of the largest per-point cost is far below anything that matters.
+
+    ``dist`` (pixels) is rescaled to reference pixels and truncated in place.
+    """
+    n_bins, h, w = dist.shape
+    scale = h / model.reference_height
+    edge_scale = 1.0 / (2.0 * model.edge_sigma**2 * 2 * model.outline_samples)
+    edge_out = model.edge_truncation**2 * edge_scale
+    fg_scale = model.foreground_weight / model.axis_samples
+    n_app = app_colors.shape[0]
+    app_scale = model.appearance_weight / model.axis_samples if n_app else 0.0
+    unit = max(edge_out, fg_scale, app_scale) / 255.0 or 1.0
+    dist *= np.float32(1.0 / scale)
+    np.minimum(dist, np.float32(model.edge_truncation), out=dist)
+    maps = np.empty((n_bins + 1 + n_app, h + 2, w + 2), np.float32)
+    maps[:n_bins] = edge_out
+    maps[:n_bins, 1:-1, 1:-1] = dist * dist * np.float32(edge_scale)
+    maps[n_bins] = fg_scale
+    maps[n_bins, 1:-1, 1:-1] = (1.0 - fg) * np.float32(fg_scale)
+    span = 1.0 / (model.appearance_high - model.appearance_low)
+    for k, color in enumerate(app_colors):
+        mismatch = np.abs(smooth.astype(np.float32) - color).max(axis=2)
+        mismatch = np.clip((mismatch - model.appearance_low) * np.float32(span), 0.0, 1.0)
+        maps[n_bins + 1 + k] = app_scale
+        maps[n_bins + 1 + k, 1:-1, 1:-1] = mismatch * np.float32(app_scale)
+    maps *= np.float32(1.0 / unit)
+    return np.rint(maps).astype(np.uint8).reshape(-1), float(unit)
+
+
+def spread_points(mask: NDArray[np.bool_], most: int) -> NDArray[np.float32]:
+    """At most ``most`` of ``mask``'s set pixels, evenly spread: ``(2, F)`` x then y (+1.5).
+
+    The pixels ``np.nonzero(mask)`` gives, in its order, thinned to
+    ``np.linspace(0, n - 1, most)``'s picks where there are more; 1.5 is the
+    cost table's offset (one pixel of padding, and 0.5 so truncation rounds).
+    """
+    flat = np.flatnonzero(mask)
+    if flat.size > most:
+        flat = flat[np.linspace(0, flat.size - 1, most).astype(np.intp)]
+    points = np.empty((2, flat.size), np.float32)
+    np.divmod(flat, mask.shape[1], out=(points[1], points[0]))  # y, then x
+    points += np.float32(1.5)
+    return points
+
+
+def coverage_points(
+    model: ObservationModel,
+    fg: NDArray[np.float32],
+    backdrop: Backdrop,
+    given: GivenBody,
+    free: tuple[NDArray[np.intp], Any],
+) -> NDArray[np.float32]:
+    """The foreground pixels the free cones must cover: ``(2, F)``, x then y (+1.5).
+
+    Pixels of the known backdrop that differ from it clearly (foreground
+    probability 1), outside the given cones' silhouettes in this frame.
+    """
+    cones, (geo, _ends, moved) = free
+    fixed = np.flatnonzero(~moved.any(axis=1))
+    sure = (fg >= 1.0) & backdrop.known
+    if fixed.size:
+        # The given cones are where free_cones' probe put them (its first pose).
+        covered = silhouette_mask(
+            geo.starts[0], geo.ends[0], given.shape, given.camera, model.near_mm, cones=fixed
+        )
+        covered = grow(covered, model.backdrop_margin * fg.shape[0] / model.reference_height)
+        sure &= covered == 0
+    if cones.size == 0:
+        sure[:] = False
+    return spread_points(sure, model.coverage_points)
+
+
+def residual_edges(
+    model: ObservationModel,
+    edges: NDArray[np.uint8],
+    given: GivenBody,
+    free: tuple[NDArray[np.intp], Any],
+) -> tuple[NDArray[np.float32], NDArray[np.intp]]:
+    """Edge points the given cones do not explain, near the free cones.
+
+    The given cones' outlines and end circles are drawn ``residual_clearance``
+    wide and their edges removed; what remains within reach of the free
+    cones' fixed anchors (the sum of the free cones' lengths, projected at
+    the nearest depth it can reach) is kept.
+
+    Returns:
+        ``(2, E)`` points (x then y, plus the cost table's 1.5 offset) and
+        the free cones' indices.
+    """
+    camera = given.camera
+    cones, (geo, ends, moved) = free
+    h, w = edges.shape
+    if (camera.width, camera.height) != (w, h):
+        raise ValueError("GivenBody.camera: its image size differs from the frame's")
+    if cones.size == 0:
+        return np.zeros((2, 0), np.float32), cones
+    scale = h / model.reference_height
+    mask = np.zeros((h, w), np.uint8)
+    thick = max(1, int(round(2.0 * model.residual_clearance * scale)) + 1)
+    starts, stops = geo.starts[0], geo.ends[0]
+    radii = given.shape.radii * ((1.0 + given.shape.aspect[:, None]) / 2.0)
+    uv_s, uv_e, z, r_s, r_e, normal = projected_cones(starts, stops, radii, camera)
+    for c in np.flatnonzero(~moved.any(axis=1)).tolist():
+        if z[c] < model.near_mm:
+            continue
+        for side in (1.0, -1.0):
+            p0 = np.rint(uv_s[c] + side * r_s[c] * normal[c]).astype(int)
+            p1 = np.rint(uv_e[c] + side * r_e[c] * normal[c]).astype(int)
+            cv2.line(mask, tuple(p0.tolist()), tuple(p1.tolist()), 255, thick)
+        for centre, r in ((uv_s[c], r_s[c]), (uv_e[c], r_e[c])):
+            cv2.circle(mask, tuple(np.rint(centre).astype(int).tolist()),
+                       max(0, int(round(r))), 255, thick)  # fmt: skip
+    ys, xs = np.nonzero((edges > 0) & (mask == 0))
+    anchors = ends[0][cones][~moved[cones]]  # the free cones' ends that do not move
+    if anchors.size:
+        length = np.linalg.norm(stops[cones] - starts[cones], axis=1).sum()
+        near = np.maximum(camera.to_camera(anchors)[:, 2] - length, model.near_mm)
+        reach = camera.focal * length / near
+        centre = camera.project(anchors)
+        d2 = (xs[:, None] - centre[None, :, 0]) ** 2 + (ys[:, None] - centre[None, :, 1]) ** 2
+        keep = (d2 <= reach[None, :] ** 2).any(axis=1)
+        ys, xs = ys[keep], xs[keep]
+    if xs.size > model.residual_points:
+        pick = np.linspace(0, xs.size - 1, model.residual_points).astype(np.intp)
+        ys, xs = ys[pick], xs[pick]
+    points = np.stack([xs, ys]).astype(np.float32)
+    points += np.float32(1.5)
+    return points, cones
+
+
+def frame_features(
+    model: ObservationModel, frame: ArrayLike, given: GivenBody | None = None
+) -> FrameFeatures:
+    """The features of one frame (see :meth:`ObservationModel.prepare`)."""
+    smooth = smoothed(frame, model.edge_blur, "ObservationModel.prepare")
+    h, w, channels = smooth.shape
+    if h < 8 or w < 8:
+        raise ValueError(f"ObservationModel.prepare: frame too small ({w}x{h})")
+    scale = h / model.reference_height
+    backdrop = None
+    if model.backdrop and given is not None and given.backdrop is not None:
+        backdrop = given.backdrop
+        if backdrop.image.shape != smooth.shape or backdrop.known.shape != (h, w):
+            raise ValueError(
+                f"GivenBody.backdrop: expected an image of shape {smooth.shape}, got "
+                f"{backdrop.image.shape} (known {backdrop.known.shape})"
+            )
+    fg, bg, keep, backdrop = foreground(model, smooth, backdrop, scale)
+    edges, bins = oriented_edges(
+        smooth, model.canny_low, model.canny_high, model.orientation_bins, keep
+    )
+    dist = edge_distances(bins)
+    use_appearance = given is not None and model.appearance_weight > 0 and given.colors is not None
+    use_residual = given is not None and model.residual_weight > 0
+    use_coverage = backdrop is not None and model.coverage_weight > 0
+    free = None
+    if given is not None and (use_appearance or use_residual or use_coverage):
+        free = free_cones(given.pose, given.free, given.shape)
+    app_cones = free[0] if use_appearance and free is not None else None
+    app_colors = np.zeros((0, channels), np.float32)
+    if app_cones is not None and app_cones.size and given is not None:
+        colors = np.asarray(given.colors, dtype=np.float64)
+        if colors.shape != (N_CONES, channels):
+            raise ValueError(
+                f"GivenBody.colors: expected shape ({N_CONES}, {channels}), got {colors.shape}"
+            )
+        app_colors = colors[app_cones].astype(np.float32)
+    cost, unit = cost_table(model, dist, fg, smooth, app_colors)
+    residual, residual_cones = None, None
+    if use_residual and given is not None and free is not None:
+        residual, residual_cones = residual_edges(model, edges, given, free)
+    coverage, coverage_cones = None, None
+    if use_coverage and given is not None and backdrop is not None and free is not None:
+        coverage_cones = free[0]
+        coverage = coverage_points(model, fg, backdrop, given, free)
+    floor = None
+    if model.has_floor_term and given is not None and given.floor is not None:
+        floor = float(given.floor)
+        if not math.isfinite(floor):
+            raise ValueError(f"GivenBody.floor: expected a finite height in mm, got {floor}")
+    return FrameFeatures(
+        w, h, edges, dist, fg, bg, cost, unit, residual, residual_cones, app_cones,
+        coverage, coverage_cones, floor,
+    )  # fmt: skip
+
+
+def cone_colors(
+    model: ObservationModel, frame: ArrayLike, pose: ArrayLike, shape: BodyShape, camera: Camera
+) -> NDArray[np.float64]:
+    """Each cone's colour in a frame where its pose is known: ``(10, C)``.
+
+    The median of the (blurred) pixels at the middle of each cone's projected
+    axis (fractions 0.3-0.7 of its length); a cone off the image gets its
+    nearest pixels.
+    """
+    smooth = smoothed(frame, model.edge_blur, "ObservationModel.cone_colors")
+    h, w, _ = smooth.shape
+    geo = cone_geometry(np.asarray(pose, dtype=np.float64), shape)
+    t = np.linspace(0.3, 0.7, 5)[:, None, None]
+    points = geo.starts[None] * (1.0 - t) + geo.ends[None] * t  # (5, 10, 3)
+    uv = np.nan_to_num(camera.project(points), nan=-1.0)
+    x = np.clip(np.rint(uv[..., 0]), 0, w - 1).astype(np.intp)
+    y = np.clip(np.rint(uv[..., 1]), 0, h - 1).astype(np.intp)
+    return np.median(smooth[y, x].astype(np.float64), axis=0)

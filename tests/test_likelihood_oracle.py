@@ -1,0 +1,364 @@
+"""The likelihood against slow, plainly written oracles.
+
+The oracle scores one pose at a time in double precision, a loop over the
+cones: project each cone's ends (the reference kinematics,
+:func:`humotion_gym.body.cone_geometry`), sample its outline and axis, look
+each point up in the frame's distance and foreground maps, and sum the
+model's formula; the residual and coverage terms loop over their points and
+the cones. The frame's features are checked against the OpenCV calls they
+are defined by.
+
+Tolerances. The model keeps each point's cost as a byte (the nearest multiple
+of ``cost_unit``, 1/255 of the largest per-point cost), so a pose's point
+costs differ from the oracle's by at most half a unit per point. It places
+the points in single precision (about 1e-5 px from the double-precision
+oracle on a 128-pixel frame), so a point within that of a pixel boundary may
+read the neighbouring pixel: such poses are rare, and at most 2% of them may
+differ by more than the quantisation bound. The residual and coverage terms
+are single-precision sums of squared distances: relative 1e-3.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from baselines.observation import FrameFeatures, GivenBody, ObservationModel
+from humotion_gym import body
+from humotion_gym.camera import Camera, fit_camera
+from humotion_gym.render import SceneOptions, make_background, render
+
+SHAPE = body.default_shape()
+ARM = np.array([9, 10, 11, 12])  # right shoulder and elbow: the arm task's free parameters
+
+
+# -- the oracles ------------------------------------------------------------------
+
+
+def project(model: ObservationModel, camera: Camera, point: np.ndarray) -> tuple:
+    """Image ``(u, v)`` and inverse depth of a world point (off the image when too near)."""
+    x, y, z = camera.to_camera(point[None])[0]
+    behind = z < model.near_mm
+    inv = camera.focal / max(z, model.near_mm)
+    cx, cy = camera.principal_point
+    return x * inv + cx + (1e7 if behind else 0.0), y * inv + cy, inv
+
+
+def cone_outlines(model: ObservationModel, pose: np.ndarray, camera: Camera) -> list:
+    """Per cone: image ends ``s``, ``e``, offsets ``a``, ``b`` and its unit normal."""
+    geo = body.cone_geometry(pose, SHAPE)
+    cones = []
+    for c in range(body.N_CONES):
+        u_s, v_s, inv_s = project(model, camera, geo.starts[c])
+        u_e, v_e, inv_e = project(model, camera, geo.ends[c])
+        d = np.array([u_e - u_s, v_e - v_s])
+        normal = np.array([d[1], -d[0]]) / math.sqrt(d @ d + 1e-12)
+        aspect = SHAPE.aspect[c]
+        if aspect == 1.0:
+            width, radii = 1.0, SHAPE.radii[c]
+        else:  # an elliptical section: r sqrt((x.m)^2 + (aspect y.m)^2), orthographic
+            rows = camera.rotation[:2]
+            x_m = (rows @ geo.rotations[c][:, 0]) @ normal
+            y_m = (rows @ geo.rotations[c][:, 1]) @ normal
+            width, radii = math.hypot(x_m, aspect * y_m), SHAPE.radii[c]
+        r_s = inv_s * radii[0] * width + model.raster_pad_px
+        r_e = inv_e * radii[1] * width + model.raster_pad_px
+        cones.append((np.array([u_s, v_s]), np.array([u_e, v_e]), r_s * normal, r_e * normal))
+    return cones
+
+
+def lookup(image: np.ndarray, point: np.ndarray, outside: float) -> float:
+    """The pixel nearest ``point`` (image coordinates), or ``outside`` off the image."""
+    x, y = math.floor(point[0] + 0.5), math.floor(point[1] + 0.5)
+    h, w = image.shape[:2]
+    return float(image[y, x]) if 0 <= x < w and 0 <= y < h else outside
+
+
+def outline_bin(normal: np.ndarray, n_bins: int) -> int:
+    """The bin whose centre ``b pi / B`` is nearest the normal's angle (modulo pi)."""
+    theta = math.atan2(normal[1], normal[0]) % math.pi
+    return round(theta * n_bins / math.pi) % n_bins
+
+
+def oracle_point_costs(
+    model: ObservationModel,
+    feats: FrameFeatures,
+    pose: np.ndarray,
+    camera: Camera,
+    smooth: np.ndarray,
+    colors: dict[int, np.ndarray],
+) -> np.ndarray:
+    """``(10,)`` each cone's summed point costs (nats), one point at a time."""
+    m, k = model.outline_samples, model.axis_samples
+    tau, sigma = model.edge_truncation, model.edge_sigma
+    costs = np.zeros(body.N_CONES)
+    for c, (s, e, a, b) in enumerate(cone_outlines(model, pose, camera)):
+        distance = feats.distance[
+            outline_bin(a / (np.linalg.norm(a) + 1e-30), model.orientation_bins)
+        ]
+        for side in (1.0, -1.0):
+            for i in range(m):
+                t = (i + 0.5) / m
+                point = (1 - t) * (s + side * a) + t * (e + side * b)
+                d = lookup(distance, point, tau)
+                costs[c] += min(d, tau) ** 2 / (2 * sigma**2) / (2 * m)
+        for i in range(k):
+            t = (i + 0.5) / k
+            point = (1 - t) * s + t * e
+            if c in colors:  # the appearance term replaces the foreground term
+                diff = np.abs(smooth.astype(np.float64) - colors[c]).max(axis=2)
+                span = model.appearance_high - model.appearance_low
+                mismatch = np.clip((diff - model.appearance_low) / span, 0.0, 1.0)
+                costs[c] += model.appearance_weight / k * lookup(mismatch, point, 1.0)
+            else:
+                fg = lookup(feats.foreground, point, 0.0)
+                costs[c] += model.foreground_weight / k * (1.0 - fg)
+    return costs
+
+
+def segment_distance(q: np.ndarray, p0: np.ndarray, p1: np.ndarray) -> float:
+    d = p1 - p0
+    t = min(max(((q - p0) @ d) / (d @ d + 1e-6), 0.0), 1.0)
+    return float(np.linalg.norm(q - p0 - t * d))
+
+
+def oracle_residual(model, feats, outlines, cones) -> float:
+    """The residual-edge term (nats) of one figure: its free cones ``cones``."""
+    scale = feats.height / model.reference_height
+    tau = model.residual_truncation * scale
+    total = 0.0
+    for q in feats.residual.T - 1.5:
+        d = tau
+        for c in cones:
+            s, e, a, b = outlines[c]
+            d = min(d, segment_distance(q, s + a, e + b), segment_distance(q, s - a, e - b))
+        total += d * d
+    n = feats.residual.shape[1]
+    return model.residual_weight * total / (2 * (model.edge_sigma * scale) ** 2 * n)
+
+
+def oracle_coverage(model, feats, outlines, cones) -> float:
+    """The coverage term (nats) of one figure: its free cones ``cones``."""
+    scale = feats.height / model.reference_height
+    tau = model.coverage_truncation * scale
+    total = 0.0
+    for q in feats.coverage.T - 1.5:
+        d = tau
+        for c in cones:
+            s, e, a, b = outlines[c]
+            r_s, r_e = np.linalg.norm(a), np.linalg.norm(b)
+            length = np.linalg.norm(e - s)
+            u = (e - s) / length if length >= 1e-3 else np.array([1.0, 0.0])
+            along = (q - s) @ u
+            across = abs((q - s) @ np.array([-u[1], u[0]]))
+            radius = r_s + (r_e - r_s) / max(length, 1e-3) * along
+            outside = max(across - radius, abs(along - length / 2) - length / 2 - radius)
+            d = min(d, max(outside, 0.0))
+        total += d * d
+    n = feats.coverage.shape[1]
+    return model.coverage_weight * total / (2 * (model.edge_sigma * scale) ** 2 * n)
+
+
+def oracle_log_likelihood(model, feats, pose, camera, smooth, colors=None, cones=None) -> float:
+    """The log-likelihood of one pose, or of the figure of ``cones`` alone."""
+    cones = list(range(body.N_CONES)) if cones is None else list(cones)
+    colors = colors or {}
+    costs = oracle_point_costs(model, feats, pose, camera, smooth, colors)[cones].sum()
+    outlines = cone_outlines(model, pose, camera)
+    if feats.residual is not None and feats.residual.shape[1] and model.residual_weight > 0:
+        free = [c for c in feats.residual_cones.tolist() if c in cones]
+        costs += oracle_residual(model, feats, outlines, free)
+    if feats.coverage is not None and feats.coverage.shape[1] and model.coverage_weight > 0:
+        free = [c for c in feats.coverage_cones.tolist() if c in cones]
+        costs += oracle_coverage(model, feats, outlines, free)
+    return -model.sharpness * costs
+
+
+def quantisation_bound(model: ObservationModel, feats: FrameFeatures) -> float:
+    """Half a table unit per point: the most a pose's byte costs differ from the exact ones."""
+    points = body.N_CONES * (2 * model.outline_samples + model.axis_samples)
+    return model.sharpness * points * feats.cost_unit / 2 + 1e-9
+
+
+# -- the scenes -------------------------------------------------------------------
+
+
+def scene(seed: int, size: int = 128):
+    rng = np.random.default_rng(seed)
+    truth = body.standing_pose(SHAPE)
+    truth[3] = rng.uniform(-np.pi, np.pi)
+    truth[6:] += rng.normal(0.0, 0.3, 19)
+    truth = np.clip(truth, body.PARAM_LOWER, body.PARAM_UPPER)
+    options = SceneOptions(width=size, height=size)
+    camera = fit_camera(body.forward_kinematics(truth, SHAPE)[None], size, size, 50.0, 30.0, 10.0)
+    background = make_background(options, rng)
+    first = render(truth, SHAPE, camera, options, rng, background)
+    frame = render(truth, SHAPE, camera, options, rng, background)
+    poses = truth + rng.normal(0.0, 0.1, (60, body.N_PARAMS))
+    poses[:, :3] = truth[:3] + rng.normal(0.0, 60.0, (60, 3))
+    return truth, camera, first, frame, poses
+
+
+def check_against_oracle(model, frame, camera, poses, given=None, colors=None) -> None:
+    feats = model.prepare(frame, given)
+    got = model.log_likelihood(feats, poses, SHAPE, camera)
+    smooth = cv2.GaussianBlur(frame, (0, 0), model.edge_blur)
+    want = np.array([oracle_log_likelihood(model, feats, p, camera, smooth, colors) for p in poses])
+    off = np.abs(got - want) > quantisation_bound(model, feats) + 1e-3 * np.abs(want)
+    assert off.mean() <= 0.02, (np.flatnonzero(off), got[off], want[off])
+
+
+# -- the likelihood ---------------------------------------------------------------
+
+
+@pytest.mark.parametrize("seed, size", [(0, 128), (1, 96)])
+def test_log_likelihood_is_the_oracles(seed: int, size: int) -> None:
+    _, camera, _, frame, poses = scene(seed, size)
+    check_against_oracle(ObservationModel(), frame, camera, poses)
+
+
+@pytest.mark.parametrize("bins, pad", [(1, 0.0), (8, 0.5)])
+def test_other_settings_are_the_oracles(bins: int, pad: float) -> None:
+    _, camera, _, frame, poses = scene(2)
+    model = ObservationModel(orientation_bins=bins, raster_pad_px=pad, outline_samples=4)
+    check_against_oracle(model, frame, camera, poses)
+
+
+def test_whole_body_task_terms_are_the_oracles() -> None:
+    truth, camera, first, frame, poses = scene(3)
+    model = ObservationModel(backdrop=True, coverage_weight=4.0, coverage_points=32)
+    start = truth.copy()
+    given = GivenBody(
+        truth, np.arange(body.N_PARAMS), SHAPE, camera,
+        backdrop=model.read_backdrop(first, start, SHAPE, camera),
+    )  # fmt: skip
+    assert model.prepare(frame, given).coverage is not None
+    check_against_oracle(model, frame, camera, poses, given)
+
+
+def arm_case():
+    truth, camera, first, frame, _ = scene(4)
+    rng = np.random.default_rng(5)
+    poses = np.tile(truth, (60, 1))
+    poses[:, ARM] += rng.normal(0.0, 0.3, (60, ARM.size))
+    model = ObservationModel(
+        sharpness=3.0, foreground_weight=0.0, orientation_bins=8, residual_weight=1.0,
+        appearance_weight=1.0, backdrop=True, coverage_weight=2.0,
+    )  # fmt: skip
+    kept = model.read_first_frame(first, truth, SHAPE, camera)
+    given = GivenBody(truth, ARM, SHAPE, camera, kept.colors, kept.backdrop)
+    return model, camera, frame, poses, given
+
+
+def test_arm_task_terms_are_the_oracles() -> None:
+    model, camera, frame, poses, given = arm_case()
+    feats = model.prepare(frame, given)
+    assert feats.residual is not None and feats.residual.shape[1] > 0
+    assert feats.appearance_cones is not None and feats.appearance_cones.size
+    colors = {int(c): given.colors[c] for c in feats.appearance_cones}
+    check_against_oracle(model, frame, camera, poses, given, colors)
+
+
+def test_partial_figures_are_the_oracles() -> None:
+    model, camera, frame, poses, given = arm_case()
+    feats = model.prepare(frame, given)
+    groups = [[0, 1], [2, 4], [3, 5, 6, 7, 8, 9]]
+    got = model.log_likelihood_partial(feats, poses[:20], SHAPE, camera, groups)
+    smooth = cv2.GaussianBlur(frame, (0, 0), model.edge_blur)
+    colors = {int(c): given.colors[c] for c in feats.appearance_cones}
+    np.testing.assert_array_equal(
+        got[:, -1], model.log_likelihood(feats, poses[:20], SHAPE, camera)
+    )
+    for g in range(len(groups)):
+        cones = [c for group in groups[: g + 1] for c in group]
+        want = [
+            oracle_log_likelihood(model, feats, p, camera, smooth, colors, cones)
+            for p in poses[:20]
+        ]
+        off = np.abs(got[:, g] - want) > quantisation_bound(model, feats) + 1e-3 * np.abs(want)
+        assert off.mean() <= 0.05, (g, got[off, g], np.array(want)[off])
+
+
+def test_the_oracle_check_catches_a_wrong_orientation() -> None:
+    # A mutation: outlines reading the map of the bin next to theirs.
+    _, camera, _, frame, poses = scene(0)
+    model = ObservationModel()
+    feats = model.prepare(frame)
+    turned = FrameFeatures(**{**feats.__dict__, "distance": np.roll(feats.distance, 1, axis=0)})
+    smooth = cv2.GaussianBlur(frame, (0, 0), model.edge_blur)
+    got = model.log_likelihood(feats, poses, SHAPE, camera)
+    want = np.array([oracle_log_likelihood(model, turned, p, camera, smooth) for p in poses])
+    assert (np.abs(got - want) > quantisation_bound(model, feats)).mean() > 0.5
+
+
+def test_scores_are_deterministic_and_do_not_depend_on_the_split() -> None:
+    _, camera, _, frame, poses = scene(6)
+    model = ObservationModel()
+    many = np.repeat(poses, 60, axis=0)  # 3,600 poses: two passes
+    whole = model.log_likelihood(frame, many, SHAPE, camera)
+    np.testing.assert_array_equal(whole, model.log_likelihood(frame, many, SHAPE, camera))
+    parts = np.concatenate(
+        [model.log_likelihood(frame, part, SHAPE, camera) for part in np.array_split(many, 7)]
+    )
+    np.testing.assert_array_equal(whole, parts)
+
+
+def test_shared_cones_are_scored_as_the_rest() -> None:
+    # Many poses that differ only in the arm: the given cones are scored once.
+    model, camera, frame, poses, given = arm_case()
+    many = np.repeat(poses, 20, axis=0)  # 1,200 poses
+    feats = model.prepare(frame, given)
+    together = model.log_likelihood(feats, many, SHAPE, camera)
+    alone = np.concatenate([model.log_likelihood(feats, p[None], SHAPE, camera) for p in poses])
+    np.testing.assert_array_equal(together, np.repeat(alone, 20))
+
+
+# -- the frame's features against OpenCV -----------------------------------------
+
+
+@pytest.mark.parametrize("seed, size", [(0, 128), (7, 96)])
+def test_features_are_opencvs(seed: int, size: int) -> None:
+    _, _, _, frame, _ = scene(seed, size)
+    model = ObservationModel()
+    feats = model.prepare(frame)
+    smooth = cv2.GaussianBlur(frame, (0, 0), model.edge_blur)
+    edges = cv2.Canny(smooth, model.canny_low, model.canny_high)
+    np.testing.assert_array_equal(feats.edges, edges)
+    # Each edge pixel in the two bins nearest its strongest channel's gradient.
+    gx = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=3)
+    gy = cv2.Sobel(smooth, cv2.CV_32F, 0, 1, ksize=3)
+    scale = size / model.reference_height
+    n_bins = model.orientation_bins
+    bins = np.full((n_bins, size, size), 255, np.uint8)
+    for y, x in zip(*np.nonzero(edges), strict=True):
+        best = int(np.argmax(gx[y, x] ** 2 + gy[y, x] ** 2))
+        theta = math.atan2(gy[y, x, best], gx[y, x, best]) % math.pi  # np.mod's
+        lo = math.floor(theta * (n_bins / math.pi)) % n_bins
+        bins[lo, y, x] = bins[(lo + 1) % n_bins, y, x] = 0
+    for b in range(n_bins):
+        want = cv2.distanceTransform(bins[b], cv2.DIST_L2, cv2.DIST_MASK_5) / np.float32(scale)
+        np.testing.assert_allclose(
+            feats.distance[b], np.minimum(want, model.edge_truncation), rtol=1e-6
+        )
+    # Foreground: the colour distance to the border's median colour, ramped.
+    border = np.concatenate([smooth[:2].reshape(-1, 3), smooth[-2:].reshape(-1, 3),
+                             smooth[2:-2, :2].reshape(-1, 3), smooth[2:-2, -2:].reshape(-1, 3)])  # fmt: skip
+    background = np.median(border, axis=0)
+    diff = np.abs(smooth.astype(np.float64) - np.rint(background)).max(axis=2)
+    span = model.foreground_high - model.foreground_low
+    fg = np.clip((diff - model.foreground_low) / span, 0.0, 1.0)
+    np.testing.assert_allclose(feats.foreground, fg, atol=1e-6)
+    # The cost table: each map's exact cost, to half a unit.
+    w2, h2 = size + 2, size + 2
+    table = feats.cost.reshape(n_bins + 1, h2, w2) * feats.cost_unit
+    sigma, tau, m = model.edge_sigma, model.edge_truncation, 2 * model.outline_samples
+    for b in range(n_bins):
+        exact = np.full((h2, w2), tau**2 / (2 * sigma**2 * m))
+        exact[1:-1, 1:-1] = feats.distance[b] ** 2 / (2 * sigma**2 * m)
+        assert np.abs(table[b] - exact).max() <= feats.cost_unit / 2 + 1e-7
+    exact = np.full((h2, w2), model.foreground_weight / model.axis_samples)
+    exact[1:-1, 1:-1] = (1 - feats.foreground) * model.foreground_weight / model.axis_samples
+    assert np.abs(table[n_bins] - exact).max() <= feats.cost_unit / 2 + 1e-7
