@@ -88,7 +88,8 @@ class LearnerVecEnv(VecEnv):
         # The keys each episode's info carries: the scalar ones, the reward's
         # terms, and whether it was cut short.
         self._info_keys = (
-            *_SCALAR_INFO, *sorted(name for name, _ in venv._regions), "TimeLimit.truncated"
+            *_SCALAR_INFO, *sorted(name for name, _ in venv.envs[0]._reward_terms),
+            "TimeLimit.truncated",
         )  # fmt: skip
         self.last_infos: dict[str, Any] = {}
 

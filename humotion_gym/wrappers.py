@@ -16,8 +16,6 @@ its episodes from the training persons (``split="train"``).
 
 from __future__ import annotations
 
-import functools
-import warnings
 from typing import Any
 
 import cv2
@@ -26,7 +24,6 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from humotion_gym import _kernels
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 
 #: The keys of the learner observation, in the order a policy sees them.
@@ -79,13 +76,6 @@ def learner_frames(frames: NDArray[np.uint8], size: int | None) -> NDArray[np.ui
         return np.ascontiguousarray(f.transpose(0, 3, 1, 2))
     if n == 0:  # (OpenCV refuses an empty image)
         return np.empty((0, c, size, size), np.uint8)
-    if h == 2 * size and w == 2 * size and _kernels.ENABLED and _kernel_halves_as_opencv():
-        # A shrink by two (128-pixel frames for 64-pixel policies): the
-        # compiled kernel writes OpenCV's bytes channels first, in a third of
-        # the time of a resize and a transposed copy.
-        out = np.empty((n, c, size, size), np.uint8)
-        if _kernels.halve_frames(np.ascontiguousarray(f), out):
-            return out
     # INTER_AREA averages the pixels a target pixel covers: no aliasing of
     # the cone edges, which a nearest-pixel subsampling would break up.
     if h % size == 0 and w % size == 0:
@@ -98,34 +88,6 @@ def learner_frames(frames: NDArray[np.uint8], size: int | None) -> NDArray[np.ui
             [cv2.resize(x, (size, size), interpolation=cv2.INTER_AREA) for x in f]
         )  # fmt: skip
     return np.ascontiguousarray(small.reshape(n, size, size, c).transpose(0, 3, 1, 2))
-
-
-@functools.cache
-def _kernel_halves_as_opencv() -> bool:
-    """Whether the halving kernel gives the installed OpenCV's bytes (checked once).
-
-    Its rounding (each block's sum plus two, over four) is OpenCV's for a
-    shrink by two; an OpenCV that rounded otherwise would make a policy's
-    frames depend on whether numba is installed. So on first use both shrink
-    the same random frames, of one, three and four channels; where any byte
-    differs, OpenCV shrinks them, with one ``RuntimeWarning``.
-    """
-    rng = np.random.default_rng(20261124)
-    for c in (1, 3, 4):
-        frames = rng.integers(0, 256, (3, 16, 24, c), dtype=np.uint8)
-        ours = np.empty((3, c, 8, 12), np.uint8)
-        if not _kernels.halve_frames(frames, ours):
-            return True  # the kernels are off (numba failed and said so): nothing to check
-        tall = cv2.resize(frames.reshape(48, 24, c), (12, 24), interpolation=cv2.INTER_AREA)
-        if not np.array_equal(ours, tall.reshape(3, 8, 12, c).transpose(0, 3, 1, 2)):
-            warnings.warn(
-                f"humotion_gym: this OpenCV ({cv2.__version__}) shrinks frames otherwise than "
-                "the halving kernel; OpenCV shrinks the learners' frames.",
-                RuntimeWarning,
-                stacklevel=4,
-            )
-            return False
-    return True
 
 
 def learner_observation(

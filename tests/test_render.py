@@ -364,28 +364,3 @@ def test_noise_windows_are_the_frames_draws_in_advance(h: int, w: int) -> None:
         assert ahead.bit_generator.state == one_by_one.bit_generator.state
         assert ((windows >= 0) & (windows <= [h, w])).all()
         assert _noise_window(ahead, h, w) == _noise_window(one_by_one, h, w)
-
-
-@pytest.mark.parametrize("sigma", [0.5, 0.8, 1.0, 1.5, 3.0])
-def test_the_blur_gives_opencvs_bytes_by_a_kernel_no_larger(sigma):
-    # gaussian_blur asks OpenCV for the smallest kernel that gives the bytes
-    # of its own choice (the observation model blurs every frame at 0.8); new
-    # frames, in and out of place, grey and colour, give those bytes.
-    import cv2
-
-    from humotion_gym.render import _blur_size, gaussian_blur
-
-    size = _blur_size(sigma)
-    assert size == 0 or (size % 2 == 1 and size <= (round(6 * sigma + 1) | 1))
-    rng = np.random.default_rng(7)
-    for h, w, c in ((128, 128, 3), (96, 160, 1), (7, 3, 3)):
-        img = rng.integers(0, 256, (h, w, c)).astype(np.uint8)
-        smooth = cv2.GaussianBlur(img, (0, 0), 4.0).reshape(img.shape)
-        img[: h // 2] = smooth[: h // 2]  # smooth and sharp halves
-        want = cv2.GaussianBlur(img, (0, 0), sigma).reshape(img.shape)
-        np.testing.assert_array_equal(gaussian_blur(img, sigma).reshape(img.shape), want)
-        inplace = img.copy()
-        assert gaussian_blur(inplace, sigma, dst=inplace) is inplace
-        np.testing.assert_array_equal(inplace, want)
-    wide = rng.random((20, 30, 3)).astype(np.float32)  # other dtypes: OpenCV's own choice
-    np.testing.assert_array_equal(gaussian_blur(wide, sigma), cv2.GaussianBlur(wide, (0, 0), sigma))

@@ -765,13 +765,19 @@ class PoseTrackingEnv(gym.Env):
         )
 
 
-def _scored_info(scores: StepScores, lost: bool) -> dict[str, Any]:
-    """A step's scores as its ``info`` holds them."""
-    return {
-        "error_mm": float(scores.error_mm),
-        "error_all_mm": float(scores.error_all_mm),
-        "error_aligned_mm": float(scores.error_aligned_mm),
+def _scored_info(scores: StepScores, lost: Any) -> dict[str, Any]:
+    """A step's scores as its ``info`` holds them: one episode's as Python numbers, or batched."""
+    info = {
+        "error_mm": scores.error_mm,
+        "error_all_mm": scores.error_all_mm,
+        "error_aligned_mm": scores.error_aligned_mm,
         "keypoint_errors_mm": scores.keypoint_errors,
         "lost": lost,
-        **{key: float(value) for key, value in scores.terms.items()},
+        **scores.terms,
+    }
+    return {
+        key: value.item()
+        if isinstance(value, np.generic | np.ndarray) and value.ndim == 0
+        else value
+        for key, value in info.items()
     }

@@ -21,7 +21,7 @@ from humotion_gym import body
 from humotion_gym.body import N_KEYPOINTS
 from humotion_gym.envs import ENV_IDS
 from humotion_gym.kinematics import batch_pose_geometry, single_pose_geometry
-from humotion_gym.render import figure_sequence, render_frame
+from humotion_gym.render import figure_sequence, make_background, render_frame
 
 
 def _reference_render(frame, estimate, shape, camera):
@@ -91,7 +91,10 @@ def test_episode_frames_equal_the_per_episode_path(env_id):
         geometry = batch_pose_geometry(env._episode_params, env.shape)
         assert np.array_equal(env._geometry, geometry)
         figures = figure_sequence(env._episode_params, env.shape, env._cameras, env.scene, geometry)
-        rng = np.random.default_rng([env._episode_seed, 1])
+        # the episode's generator: its background's draws, then the frames' noise
+        rng = np.random.default_rng(env._episode_seed)
+        background = make_background(env.scene, rng, env._noise)
+        assert np.array_equal(background.image, env._background.image)
         frames = [obs] + [env.step(action)[0] for _ in range(env.episode_frames - 1)]
         for k, frame in enumerate(frames, start=1):
             assert np.array_equal(frame, render_frame(figures, k, rng, env._background)), k

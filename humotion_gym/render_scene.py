@@ -1,0 +1,555 @@
+"""The scene of the frames: their options, and each episode's background.
+
+:class:`SceneOptions` says how frames look; :func:`make_background` draws an
+episode's :class:`Background` once from the episode's generator: a flat wall
+colour, or ``clutter``: random textured shapes and lines whose edges compete
+with the figure's, as the furniture of a real room would; the occluders that
+will cross the image; and a bank of sensor noise (:func:`noise_bank`) from
+which each frame reads a random window. Every draw goes through an explicit
+``numpy.random.Generator`` and every pixel is OpenCV's: the same generator
+state gives the same background.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import statistics
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple
+
+import cv2
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from humotion_gym.body import N_CONES
+
+Color = tuple[int, int, int]
+
+_SHIRT: Color = (170, 40, 40)
+
+_SKIN: Color = (230, 180, 150)
+
+_TROUSERS: Color = (40, 55, 120)
+
+#: Default colour (RGB) of each cone, in ``body.CONE_NAMES`` order: a red shirt,
+#: skin-coloured head and forearms, dark blue trousers.
+DEFAULT_FIGURE_COLORS: tuple[Color, ...] = (
+    _SHIRT,  # torso
+    _SKIN,  # head
+    _SHIRT,  # r_upper_arm
+    _SKIN,  # r_forearm
+    _SHIRT,  # l_upper_arm
+    _SKIN,  # l_forearm
+    _TROUSERS,  # r_thigh
+    _TROUSERS,  # r_shin
+    _TROUSERS,  # l_thigh
+    _TROUSERS,  # l_shin
+)
+
+_MIN_SIZE = (64, 64)
+
+_MAX_SIZE = (640, 480)
+
+_ELLIPSE_POINTS = 12
+
+_UNIT_CIRCLE = np.stack(
+    [
+        np.cos(2 * np.pi * np.arange(_ELLIPSE_POINTS) / _ELLIPSE_POINTS),
+        np.sin(2 * np.pi * np.arange(_ELLIPSE_POINTS) / _ELLIPSE_POINTS),
+    ]
+)  # (2, K)
+
+_LUMA = np.array([0.299, 0.587, 0.114])  # ITU-R BT.601, as cv2.cvtColor
+
+
+@dataclass(frozen=True)
+class SceneOptions:
+    """How frames look: size, colour, background, noise, blur, occluders, figure.
+
+    The defaults are the leaderboard's default difficulty.
+
+    Attributes:
+        width: Image width in pixels (default 128; 64 to 640). Small frames keep
+            the environment fast (the papers' frames were 320x240 and larger).
+        height: Image height in pixels (default 128; 64 to 480).
+        color: ``"rgb"`` (default; frames ``(H, W, 3)``) or ``"gray"`` (frames
+            ``(H, W, 1)``, the luminance of the same scene).
+        background: ``"clutter"`` (default: random textured shapes and lines, a
+            room-like scene whose edges compete with the figure's) or ``"flat"``
+            (one wall colour; the easy setting).
+        clutter_density: Clutter amount (default 1.0): on average
+            ``8 * density`` shapes and ``4 * density`` lines per square of the
+            image's short side (shapes are sized relative to it, so the clutter
+            looks the same at every size). 0 gives a flat background.
+        background_color: RGB wall colour (default (150, 150, 145), a mid grey
+            that differs from all three figure colours in luminance). Each
+            cluttered episode jitters it by up to 20 grey levels.
+        noise_sigma: Standard deviation of the per-pixel Gaussian sensor noise in
+            grey levels (default 4.0, a typical well-lit webcam); 0 turns it off.
+        blur_sigma: Gaussian blur of every frame in pixels (default 0.0: off;
+            about 0.7 mimics a slightly soft lens at twice the cost of a frame).
+        occluders: Number of bars and blobs that sweep across the image in
+            front of the figure, through its middle third (default 0).
+        occluder_period: Frames an occluder takes to cross the image (default
+            150, five seconds at 30 fps).
+        figure_colors: RGB colour of each cone in ``body.CONE_NAMES`` order
+            (default :data:`DEFAULT_FIGURE_COLORS`).
+        light_direction: Direction towards the light in the camera frame
+            (x right, y down, z forward; default (-0.4, -0.7, -0.6): above, left
+            and behind the camera, so fronts are lit).
+        ambient: Shade of a surface facing away from the light (default 0.45).
+        diffuse: Added shade of a surface facing the light (default 0.6); a
+            strip's colour is ``color * (ambient + diffuse * max(0, n.l))``.
+        shading_strips: Strips per cone showing the shading across the limb
+            (default 3; 1 gives flat per-cone shading). Each costs one filled
+            polygon per cone.
+    """
+
+    width: int = 128
+    height: int = 128
+    color: str = "rgb"
+    background: str = "clutter"
+    clutter_density: float = 1.0
+    background_color: Color = (150, 150, 145)
+    noise_sigma: float = 4.0
+    blur_sigma: float = 0.0
+    occluders: int = 0
+    occluder_period: float = 150.0
+    figure_colors: tuple[Color, ...] = DEFAULT_FIGURE_COLORS
+    light_direction: tuple[float, float, float] = (-0.4, -0.7, -0.6)
+    ambient: float = 0.45
+    diffuse: float = 0.6
+    shading_strips: int = 3
+
+    def __post_init__(self) -> None:
+        w, h = self.width, self.height
+        if not (isinstance(w, (int, np.integer)) and isinstance(h, (int, np.integer))):
+            raise ValueError(f"SceneOptions: width and height must be integers, got {w!r}, {h!r}")
+        if not (_MIN_SIZE[0] <= w <= _MAX_SIZE[0] and _MIN_SIZE[1] <= h <= _MAX_SIZE[1]):
+            raise ValueError(
+                f"SceneOptions: image size must be between {_MIN_SIZE[0]}x{_MIN_SIZE[1]} and "
+                f"{_MAX_SIZE[0]}x{_MAX_SIZE[1]}, got {w}x{h}"
+            )
+        if self.color not in ("rgb", "gray"):
+            raise ValueError(f"SceneOptions.color: expected 'rgb' or 'gray', got {self.color!r}")
+        if self.background not in ("flat", "clutter"):
+            raise ValueError(
+                f"SceneOptions.background: expected 'flat' or 'clutter', got {self.background!r}"
+            )
+        for name in ("clutter_density", "noise_sigma", "blur_sigma", "ambient", "diffuse"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"SceneOptions.{name}: expected a finite number >= 0")
+        if not (isinstance(self.occluders, (int, np.integer)) and self.occluders >= 0):
+            raise ValueError("SceneOptions.occluders: expected an integer >= 0")
+        if not self.occluder_period > 0:
+            raise ValueError("SceneOptions.occluder_period: expected a positive number of frames")
+        if not (isinstance(self.shading_strips, (int, np.integer)) and self.shading_strips >= 1):
+            raise ValueError("SceneOptions.shading_strips: expected an integer >= 1")
+        colors = np.asarray(self.figure_colors)
+        if colors.shape != (N_CONES, 3) or colors.min() < 0 or colors.max() > 255:
+            raise ValueError("SceneOptions.figure_colors: expected 10 RGB triples in [0, 255]")
+        bg = np.asarray(self.background_color)
+        if bg.shape != (3,) or bg.min() < 0 or bg.max() > 255:
+            raise ValueError("SceneOptions.background_color: expected an RGB triple in [0, 255]")
+        light = np.asarray(self.light_direction, dtype=np.float64)
+        if light.shape != (3,) or not np.all(np.isfinite(light)) or np.linalg.norm(light) == 0:
+            raise ValueError("SceneOptions.light_direction: expected a non-zero 3-vector")
+        object.__setattr__(self, "figure_colors", tuple(tuple(int(v) for v in c) for c in colors))
+        object.__setattr__(self, "background_color", tuple(int(v) for v in bg))
+        object.__setattr__(self, "light_direction", tuple(float(v) for v in light))
+        object.__setattr__(self, "_drawing", _drawing_constants(self))
+
+    @property
+    def channels(self) -> int:
+        """3 for ``"rgb"``, 1 for ``"gray"``."""
+        return 3 if self.color == "rgb" else 1
+
+    @property
+    def frame_shape(self) -> tuple[int, int, int]:
+        """``(height, width, channels)`` of the frames."""
+        return (self.height, self.width, self.channels)
+
+
+@dataclass(frozen=True, eq=False)
+class Background:
+    """The per-episode part of the scene, drawn once from the episode's generator.
+
+    Attributes:
+        scene: The options it was made for.
+        image: ``(H, W, C)`` uint8 background (read-only).
+        occluders: ``(K, 7)`` occluder parameters: kind (0 bar, 1 blob), the
+            frame at which it crosses the middle, heading of its motion
+            (radians), sideways offset of its path from the image centre
+            (pixels), speed (pixels per frame), size (pixels) and orientation
+            (radians). Each sweeps across the image once per
+            ``scene.occluder_period`` frames.
+        occluder_colors: ``(K, C)`` occluder colours.
+        noise: ``(2, 2H, 2W, C)`` uint8 bank of Gaussian sensor noise (rounded
+            to grey levels, tails cut at 2.89 sigma), split into its positive
+            and negative parts. Each frame adds the ``(H, W)`` window of the bank
+            at an offset drawn from the frame's generator: within a frame the
+            noise is i.i.d. per pixel, and a pixel's noise in two frames is
+            independent unless their offsets coincide (one chance in
+            ``(H + 1)(W + 1)``), though the two frames' noise fields are shifted
+            copies of parts of one bank. Drawing fresh Gaussian noise per frame
+            would cost more than the rest of the frame. A bank may serve many
+            episodes (:func:`noise_bank`): the environments draw one per
+            seeded reset.
+    """
+
+    scene: SceneOptions
+    image: NDArray[np.uint8]
+    occluders: NDArray[np.float64]
+    occluder_colors: NDArray[np.uint8]
+    noise: NDArray[np.uint8] = field(repr=False)
+
+
+def _to_channels(rgb: ArrayLike, channels: int) -> NDArray[np.float64]:
+    c = np.asarray(rgb, dtype=np.float64)
+    return c if channels == 3 else (c @ _LUMA)[..., None]
+
+
+def _bank_shape(scene: SceneOptions) -> tuple[int, int, int, int]:
+    """Shape of a scene's noise bank: ``(2, 2H, 2W, C)``, or ``(2, 1, 1, C)`` without noise."""
+    h, w, c = scene.frame_shape
+    return (2, 2 * h, 2 * w, c) if scene.noise_sigma > 0 else (2, 1, 1, c)
+
+
+@functools.lru_cache(maxsize=16)
+def _noise_tables(sigma: float) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+    """Byte -> positive and negative part of the Gaussian quantile (grey levels)."""
+    normal = statistics.NormalDist(0.0, sigma)
+    levels = np.array([normal.inv_cdf((k + 0.5) / 256.0) for k in range(256)])
+    levels = np.clip(np.rint(levels), -255, 255)
+    return np.maximum(levels, 0).astype(np.uint8), np.maximum(-levels, 0).astype(np.uint8)
+
+
+def _paint_texture(
+    region: NDArray[np.uint8],
+    inside: NDArray[np.uint8],
+    palette: NDArray[np.uint8],
+    period: float,
+    angle: float,
+    checker: bool,
+) -> None:
+    """Paint a stripe or checker texture of two colours where ``inside``.
+
+    ``region`` is a view of the image (written in place), ``inside`` a uint8
+    mask of its size (non-zero inside); ``palette`` the two colours ``(2,
+    C)``, ``period`` (pixels) and ``angle`` the stripes', ``checker`` adds
+    the stripes across them.
+    """
+    h, w, channels = region.shape
+    # The texture's axes scaled to stripes, in float32 as the pixels' steps are.
+    cos_a = np.float32(math.cos(angle) / period)
+    sin_a = np.float32(math.sin(angle) / period)
+    x = np.arange(w, dtype=np.float32)
+    y = np.arange(h, dtype=np.float32)[:, None]
+    # Stripe (or checker) index along the texture's axes, as a sum of a row
+    # and a column term: (h, w) at the cost of one broadcast.
+    parity = np.floor(x * cos_a + y * sin_a)
+    if checker:
+        parity += np.floor(y * cos_a - x * sin_a)
+    odd = parity.astype(np.int32)
+    odd &= 1
+    texture = palette.take(odd, axis=0)  # (h, w, C): the two-colour palette
+    cv2.copyTo(texture, inside, region)  # in place, where inside
+
+
+class ClutterPlan(NamedTuple):
+    """A background's clutter, drawn from its generator before any pixel is.
+
+    Attributes:
+        shapes: ``(S, 19)`` int64, a row per shape: its kind (0 box, 1 ellipse,
+            2 convex polygon); 0 for a plain colour, 1 textured, -1 textured but
+            off the image (not drawn); the textured shape's window ``x0, y0,
+            x1, y1``; then its geometry: a box's corners ``x0, y0, x1, y1``, an
+            ellipse's centre and half-axes, a polygon's vertex count and up to
+            six vertices.
+        shape_floats: ``(S, 10)`` float64: an ellipse's angle (degrees); the
+            plain colour's three draws or the texture's six (two colours); the
+            texture's period draw, angle and checker draw.
+        lines: ``(L, 9)`` float64, a row per line: start ``x, y``, two normal
+            draws (the direction), length, three colour draws, thickness.
+    """
+
+    shapes: NDArray[np.int64]
+    shape_floats: NDArray[np.float64]
+    lines: NDArray[np.float64]
+
+
+def _clutter_sizes(h: int, w: int, density: float) -> tuple[int, float, float, int]:
+    """The short side, the mean numbers of shapes and of lines, and the lines' thickness unit."""
+    size = min(h, w)
+    # Shapes are sized relative to the short side, so their number grows with
+    # the aspect ratio only: the clutter covers the same fraction at any size.
+    area = (h * w) / float(size * size)
+    return size, 8.0 * density * area, 4.0 * density * area, max(1, size // 128)
+
+
+def _clutter_plan(rng: np.random.Generator, h: int, w: int, density: float) -> ClutterPlan:
+    """Every random draw of a background's clutter, in the generator's order."""
+    size, shape_rate, line_rate, unit = _clutter_sizes(h, w, density)
+    n_shapes = int(rng.poisson(shape_rate))
+    n_lines = int(rng.poisson(line_rate))
+    shapes = np.zeros((n_shapes, 19), np.int64)
+    floats = np.zeros((n_shapes, 10))
+    for i in range(n_shapes):
+        kind = int(rng.integers(0, 3))
+        # One draw of two for the centre: the same doubles as two scalar draws.
+        ux, uy = rng.uniform(-0.1, 1.1, 2).tolist()
+        cx, cy = ux * w, uy * h
+        rx, ry = rng.uniform(0.05, 0.3, 2).tolist()
+        rx, ry = rx * size, ry * size
+        # Each kind's geometry and bounding box (lo_x, lo_y, hi_x, hi_y), in
+        # Python numbers: the box is only needed for a textured shape.
+        shapes[i, 0] = kind
+        if kind == 0:
+            geometry = [int(cx - rx), int(cy - ry), int(cx + rx), int(cy + ry)]
+            box: tuple = tuple(geometry)
+        elif kind == 1:
+            axes = (int(rx) + 1, int(ry) + 1)
+            geometry = [int(cx), int(cy), *axes]
+            floats[i, 0] = float(rng.uniform(0, 180))
+            reach = axes[0] + axes[1]
+            box = (cx - reach, cy - reach, cx + reach, cy + reach)
+        else:
+            angles = np.sort(rng.uniform(0, 2 * np.pi, int(rng.integers(3, 7))))
+            pts = np.stack([cx + rx * np.cos(angles), cy + ry * np.sin(angles)], axis=1)
+            polygon = pts.astype(np.int32)
+            geometry = [len(polygon), *polygon.reshape(-1).tolist()]
+            box = (*polygon.min(axis=0).tolist(), *polygon.max(axis=0).tolist())
+        shapes[i, 6 : 6 + len(geometry)] = geometry
+        if rng.random() >= 0.4:  # a plain colour
+            floats[i, 1:4] = rng.uniform(25, 235, 3)
+            continue
+        # A textured shape, drawn only over its bounding box.
+        x0, y0 = max(math.floor(box[0]) - 1, 0), max(math.floor(box[1]) - 1, 0)
+        x1, y1 = min(math.ceil(box[2]) + 2, w), min(math.ceil(box[3]) + 2, h)
+        if x1 <= x0 or y1 <= y0:
+            shapes[i, 1] = -1
+            continue
+        shapes[i, 1:6] = (1, x0, y0, x1, y1)
+        # The two colours in one draw of six (the same doubles as two draws of
+        # three: uniform is elementwise over the generator's stream).
+        floats[i, 1:7] = rng.uniform(25, 235, 6)
+        floats[i, 7] = rng.uniform(3.0, 12.0)
+        floats[i, 8] = rng.uniform(0, np.pi)
+        floats[i, 9] = rng.random()
+    lines = np.empty((n_lines, 9))
+    for i in range(n_lines):
+        x0f, y0f = rng.uniform(0, 1, 2).tolist()
+        lines[i, :2] = x0f * w, y0f * h
+        lines[i, 2:4] = rng.normal(size=2)
+        lines[i, 4] = rng.uniform(0.2, 1.0) * size
+        lines[i, 5:8] = rng.uniform(20, 240, 3)
+        lines[i, 8] = int(rng.integers(1, 3)) * unit
+    return ClutterPlan(shapes, floats, lines)
+
+
+def _clutter_shape(target: NDArray[np.uint8], row: list[int], angle: float, color: Any) -> None:
+    """Draw one filled clutter shape (a plan's row: box, ellipse or polygon) on ``target``.
+
+    A textured shape's ``target`` is its window's mask, its geometry moved by
+    the window's corner.
+    """
+    kind, textured, ox, oy = row[0], row[1], row[2], row[3]
+    if not textured:
+        ox = oy = 0
+    if kind == 0:  # axis-aligned box (furniture, frames, doors)
+        x0, y0, x1, y1 = row[6:10]
+        cv2.rectangle(target, (x0 - ox, y0 - oy), (x1 - ox, y1 - oy), color, -1)
+    elif kind == 1:  # ellipse
+        cx, cy, ax, ay = row[6:10]
+        cv2.ellipse(target, (cx - ox, cy - oy), (ax, ay), angle, 0, 360, color, -1)
+    else:  # random convex polygon
+        n = row[6]
+        polygon = np.array(row[7 : 7 + 2 * n], np.int32).reshape(n, 2)
+        if textured:
+            polygon -= np.array([ox, oy], np.int32)
+        cv2.fillConvexPoly(target, polygon, color)
+
+
+def _clutter_colors(draws: NDArray[np.float64], channels: int) -> list[list[float]]:
+    """Each row of RGB draws as the frame's channels, rounded (as OpenCV is given a colour)."""
+    if channels == 3:
+        return draws.round().tolist()
+    # each colour's luminance on its own, as _to_channels gives it
+    return [_to_channels(rgb, 1).round().tolist() for rgb in draws]
+
+
+def _draw_clutter(img: NDArray[np.uint8], scene: SceneOptions, rng: np.random.Generator) -> None:
+    h, w, channels = img.shape
+    shapes, floats, lines = _clutter_plan(rng, h, w, scene.clutter_density)
+    # Every shape's colours at once: a plain shape's one, a textured shape's two.
+    colors = _clutter_colors(floats[:, 1:7].reshape(-1, 3), channels)
+    _draw_clutter_shapes(img, shapes, floats, colors)
+    line_colors = _clutter_colors(lines[:, 5:8], channels)
+    for (x0f, y0f, dx, dy, length, *_, thickness), color in zip(
+        lines.tolist(), line_colors, strict=True
+    ):
+        direction = np.array([dx, dy])
+        # np.linalg.norm of a real vector is sqrt(x . x): the same bits, without its wrapper.
+        norm = math.sqrt(direction.dot(direction)) + 1e-12
+        dx, dy = dx / norm, dy / norm
+        cv2.line(
+            img,
+            (int(x0f), int(y0f)),
+            (int(x0f + length * dx), int(y0f + length * dy)),
+            color,
+            int(thickness),
+            cv2.LINE_AA,
+        )
+
+
+def _draw_clutter_shapes(
+    img: NDArray[np.uint8],
+    shapes: NDArray[np.int64],
+    floats: NDArray[np.float64],
+    colors: list[list[float]],
+) -> None:
+    """A clutter plan's shapes drawn by OpenCV, in plan order.
+
+    A plain shape is filled in its colour; a textured one is filled into a
+    mask of its window, then painted with its two colours where the mask is
+    set. ``colors`` holds two rows per shape (:func:`_clutter_colors`).
+    """
+    for i, (row, f) in enumerate(zip(shapes.tolist(), floats.tolist(), strict=True)):
+        if row[1] < 0:
+            continue
+        if row[1] == 0:  # a plain colour, drawn directly
+            _clutter_shape(img, row, f[0], colors[2 * i])
+            continue
+        x0, y0, x1, y1 = row[2:6]
+        mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        _clutter_shape(mask, row, f[0], 255)
+        # Pixels per stripe, in proportion to the shape's window.
+        period = f[7] * max(y1 - y0, x1 - x0) / 128.0 + 2.0
+        palette = np.array(colors[2 * i : 2 * i + 2], np.uint8)
+        _paint_texture(img[y0:y1, x0:x1], mask, palette, period, f[8], f[9] >= 0.5)
+
+
+def noise_bank(scene: SceneOptions, rng: np.random.Generator) -> NDArray[np.uint8]:
+    """A bank of sensor noise for :func:`make_background` (see :class:`Background`).
+
+    Drawing it is a third of the cost of a background; the environments draw
+    one per seeded reset and reuse it for the episodes that follow (each frame
+    still reads its own random window of it).
+
+    Args:
+        scene: Scene options (their size, channels and ``noise_sigma``).
+        rng: Generator to draw it from (advanced by this call).
+
+    Returns:
+        The ``(2, 2H, 2W, C)`` uint8 bank: the positive and negative parts of
+        Gaussian noise drawn by inverse transform (each uniform random byte
+        ``k`` maps to the quantile at ``(k + 0.5) / 256``, rounded to a grey
+        level, so the tails are cut at 2.89 sigma); ``(2, 1, 1, C)`` zeros
+        without noise.
+    """
+    shape = _bank_shape(scene)
+    if scene.noise_sigma <= 0:
+        return np.zeros(shape, np.uint8)
+    _, h2, w2, c = shape
+    positive, negative = _noise_tables(scene.noise_sigma)
+    raw = np.frombuffer(rng.bytes(h2 * w2 * c), dtype=np.uint8).reshape(h2, w2, c)
+    bank = np.empty(shape, np.uint8)
+    bank[0] = cv2.LUT(raw, positive).reshape(h2, w2, c)
+    bank[1] = cv2.LUT(raw, negative).reshape(h2, w2, c)
+    return bank
+
+
+def make_background(
+    scene: SceneOptions, rng: np.random.Generator, noise: NDArray[np.uint8] | None = None
+) -> Background:
+    """The background of one episode, drawn from the episode's generator.
+
+    Args:
+        scene: Scene options.
+        rng: The episode's random generator (advanced by this call).
+        noise: A bank from :func:`noise_bank` for the same scene options to
+            reuse; when None a new one is drawn from ``rng``.
+
+    Returns:
+        The :class:`Background` to pass to every :func:`render` call of the
+        episode.
+
+    Raises:
+        ValueError: If ``noise`` is not a bank of these scene options.
+    """
+    h, w, channels = scene.frame_shape
+    if noise is not None:
+        want = _bank_shape(scene)
+        if noise.dtype != np.uint8 or noise.shape != want:
+            raise ValueError(
+                f"make_background: noise must be a uint8 bank of shape {want} for these scene "
+                f"options, got {noise.dtype} {noise.shape}"
+            )
+    base = np.asarray(scene.background_color, dtype=np.float64)
+    clutter = scene.background == "clutter" and scene.clutter_density > 0
+    if clutter:
+        # np.clip's per-call cost is ten times its work on three numbers.
+        base = np.minimum(np.maximum(base + rng.uniform(-20, 20), 0.0), 255.0)
+    img = np.empty((h, w, channels), np.uint8)
+    # Fill one row, then the image from it: broadcasting a colour over every
+    # pixel at once is 20 times slower.
+    img[0] = _to_channels(base, channels).round().astype(np.uint8)
+    img[1:] = img[0]
+    if clutter:
+        _draw_clutter(img, scene, rng)
+    k = scene.occluders
+    occ = np.zeros((k, 7))
+    if k:
+        # Each occluder sweeps across the image along a line through the middle
+        # third (where fitted cameras put the figure), once per period.
+        size = min(h, w)
+        heading = rng.uniform(0, 2 * np.pi, k)
+        occ[:, 0] = rng.integers(0, 2, k)
+        occ[:, 1] = rng.uniform(0, scene.occluder_period, k)
+        occ[:, 2] = heading
+        occ[:, 3] = rng.uniform(-1 / 6, 1 / 6, k) * size
+        occ[:, 4] = math.hypot(w, h) / scene.occluder_period
+        occ[:, 5] = rng.uniform(0.06, 0.15, k) * size
+        # Bars lie roughly across their motion (a pole passing by); blobs anyhow.
+        across = heading + np.pi / 2 + rng.uniform(-0.35, 0.35, k)
+        occ[:, 6] = np.where(occ[:, 0] == 0, across, rng.uniform(0, np.pi, k))
+    if k:
+        occ_colors = _to_channels(rng.uniform(20, 235, (k, 3)), channels).round().astype(np.uint8)
+    else:  # (no draw is made for no occluder: the generator is where it was)
+        occ_colors = np.zeros((0, channels), np.uint8)
+    img.setflags(write=False)
+    if noise is None:
+        noise = noise_bank(scene, rng)
+    return Background(scene, img, occ, occ_colors, noise)
+
+
+def _drawing_constants(scene: SceneOptions) -> dict[str, NDArray]:
+    """Per-scene arrays of the drawing code (stored on the SceneOptions)."""
+    strips = scene.shading_strips
+    edges = np.linspace(-1.0, 1.0, strips + 1)
+    across = 0.5 * (edges[1:] + edges[:-1])  # lateral position of each strip's centre
+    light = np.asarray(scene.light_direction, dtype=np.float64)
+    light = light / np.linalg.norm(light)
+    # Lambert factors from the cone's (cap . l, m . l, w . l): column 0 the
+    # visible cap, column 1 the flat shade of a narrow cone (normal w, facing
+    # the camera), then one column per strip: normal = s m + sqrt(1 - s^2) w.
+    shading = np.zeros((3, 2 + strips))
+    shading[0, 0] = 1.0
+    shading[2, 1] = 1.0
+    shading[1, 2:] = across
+    shading[2, 2:] = np.sqrt(1.0 - across**2)
+    # Strip b joins corners (b, start), (b, end), (b + 1, end), (b + 1, start)
+    # of each cone's (S + 1) x 2 corner grid.
+    quad = np.array([[2 * b, 2 * b + 1, 2 * b + 3, 2 * b + 2] for b in range(strips)])
+    quad = quad[None] + (2 * strips + 2) * np.arange(N_CONES)[:, None, None]
+    return {
+        "edges": edges[:, None],  # (S + 1, 1): broadcast over a cone's two ends
+        "shading": shading,
+        "light": light,
+        "base": _to_channels(scene.figure_colors, scene.channels)[:, None, :],
+        "quad_index": quad,
+        "cos": _UNIT_CIRCLE[0],
+        "sin": _UNIT_CIRCLE[1],
+    }
