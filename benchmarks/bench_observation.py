@@ -9,8 +9,8 @@ projection of the keypoints, 15 points along each of the 10 projected cone
 axes (150 per pose) and a nearest-pixel lookup of each in a distance map. The
 ratio (reference time / model time) is the figure of merit: these machines are
 noisy, so compare ratios, not absolute numbers. The time of ``prepare`` (once
-per frame) is printed too. With the `fast` extra (numba) installed, the model
-is timed with its compiled kernel and without (the numpy path), same numbers.
+per frame) and of the poses' kinematics alone (:func:`body.pose_geometry`,
+part of every scoring) are printed too.
 
 Then the same for the whole-body tasks' likelihood (BodyTrack-v1's settings:
 the backdrop read at a first frame where the figure stood 30 cm to the side,
@@ -23,15 +23,10 @@ import numpy as np
 from _timing import best_of
 
 from baselines.observation import GivenBody, ObservationModel
-from humotion_gym import _kernels, body
+from humotion_gym import body
 from humotion_gym.camera import Camera, fit_camera
 from humotion_gym.envs.tasks import get_task
 from humotion_gym.render import SceneOptions, make_background, render
-
-# The model with the compiled kernel (the `fast` extra, when installed) and
-# without: the same numbers (tests/test_kernels.py), timed in the same run.
-KERNELS = _kernels.enabled()
-PATHS = ([("compiled kernel", True)] if KERNELS else []) + [("numpy path", False)]
 
 
 def reference_scores(
@@ -84,19 +79,18 @@ def main() -> None:
             ref = best_of(
                 lambda poses=poses: reference_scores(distance, poses, shape, camera), calls
             )
-            for path, on in PATHS:
-                _kernels.ENABLED = on
-                ours = best_of(
-                    lambda poses=poses, model=model, features=features: model.log_likelihood(
-                        features, poses, shape, camera
-                    ),
-                    calls,
-                )
-                print(
-                    f"N={n:6d}{label}, {path}: log_likelihood {1e3 * ours:7.3f} ms, numpy "
-                    f"reference {1e3 * ref:7.3f} ms, ratio {ref / ours:4.1f}x"
-                )
-            _kernels.ENABLED = KERNELS
+            kinematics = best_of(lambda poses=poses: body.pose_geometry(poses, shape), calls)
+            ours = best_of(
+                lambda poses=poses, model=model, features=features: model.log_likelihood(
+                    features, poses, shape, camera
+                ),
+                calls,
+            )
+            print(
+                f"N={n:6d}{label}: log_likelihood {1e3 * ours:7.3f} ms (kinematics "
+                f"{1e3 * kinematics:6.3f}), numpy reference {1e3 * ref:7.3f} ms, "
+                f"ratio {ref / ours:4.1f}x"
+            )
 
 
 if __name__ == "__main__":

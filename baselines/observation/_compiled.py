@@ -67,47 +67,78 @@ def cone_bases(
     near, focal = intrinsics[0], intrinsics[1]
     u0, v0, pad = intrinsics[2], intrinsics[3], intrinsics[4]
     n, n_kp = geometry.shape[0], cones.max() + 1
-    u = np.empty(n_kp)
-    v = np.empty(n_kp)
-    inv = np.empty(n_kp)
-    for j in range(n):
-        g = geometry[j]
-        for k in range(n_kp):
-            cu = rot[0, 0] * g[k, 0] + rot[0, 1] * g[k, 1] + rot[0, 2] * g[k, 2] + trans[0]
-            cv = rot[1, 0] * g[k, 0] + rot[1, 1] * g[k, 1] + rot[1, 2] * g[k, 2] + trans[1]
-            cz = rot[2, 0] * g[k, 0] + rot[2, 1] * g[k, 1] + rot[2, 2] * g[k, 2] + trans[2]
-            behind = cz < near
-            inv[k] = focal / (near if behind else cz)
-            u[k] = cu * inv[k] + u0 + (_BEHIND if behind else 0.0)
-            v[k] = cv * inv[k] + v0
-        for c in range(cones.shape[0]):
-            s, e = cones[c, 0], cones[c, 1]
-            dx, dy = u[e] - u[s], v[e] - v[s]
-            norm = 1.0 / np.sqrt(dx * dx + dy * dy + 1e-12)
+    # Loops over poses innermost (they vectorise): the keypoints' projections,
+    # then each cone's basis from its two ends.
+    uv = np.empty((3, n_kp, n), np.float32)  # u, v, inverse depth
+    for k in range(n_kp):
+        for j in range(n):
+            x, y, z = geometry[j, k, 0], geometry[j, k, 1], geometry[j, k, 2]
+            cu = rot[0, 0] * x + rot[0, 1] * y + rot[0, 2] * z + trans[0]
+            cv = rot[1, 0] * x + rot[1, 1] * y + rot[1, 2] * z + trans[1]
+            cz = rot[2, 0] * x + rot[2, 1] * y + rot[2, 2] * z + trans[2]
+            inv = focal / max(cz, near)
+            uv[0, k, j] = cu * inv + u0 + (_BEHIND if cz < near else 0.0)
+            uv[1, k, j] = cv * inv + v0
+            uv[2, k, j] = inv
+    width = np.ones(n, np.float32)
+    doubled = np.empty((3, n), np.float32)  # cos 2t, sin 2t of the normal, the best bin's score
+    for c in range(cones.shape[0]):
+        s, e = cones[c, 0], cones[c, 1]
+        if aspect[c] != 1.0:
+            _section_widths(geometry, n_kp + 2 * c, rot, uv, s, e, aspect[c], width)
+        r0, r1 = np.float32(radii[c, 0]), np.float32(radii[c, 1])
+        for j in range(n):
+            su, sv, eu, ev = uv[0, s, j], uv[1, s, j], uv[0, e, j], uv[1, e, j]
+            dx, dy = eu - su, ev - sv
+            norm = _ONE / np.sqrt(dx * dx + dy * dy + _TINY)
             nx, ny = dy * norm, -dx * norm
-            width = 1.0
-            if aspect[c] != 1.0:
-                x, y = g[n_kp + 2 * c], g[n_kp + 2 * c + 1]  # the cone's axes in the world
-                xm = (rot[0, 0] * x[0] + rot[0, 1] * x[1] + rot[0, 2] * x[2]) * nx
-                xm += (rot[1, 0] * x[0] + rot[1, 1] * x[1] + rot[1, 2] * x[2]) * ny
-                ym = (rot[0, 0] * y[0] + rot[0, 1] * y[1] + rot[0, 2] * y[2]) * nx
-                ym += (rot[1, 0] * y[0] + rot[1, 1] * y[1] + rot[1, 2] * y[2]) * ny
-                ym *= aspect[c]
-                width = np.sqrt(xm * xm + ym * ym)
-            r_s = inv[s] * radii[c, 0] * width + pad
-            r_e = inv[e] * radii[c, 1] * width + pad
-            basis[0, c, j], basis[1, c, j] = u[s], v[s]
-            basis[2, c, j], basis[3, c, j] = u[e], v[e]
+            r_s = uv[2, s, j] * r0 * width[j] + pad
+            r_e = uv[2, e, j] * r1 * width[j] + pad
+            basis[0, c, j], basis[1, c, j] = su, sv
+            basis[2, c, j], basis[3, c, j] = eu, ev
             basis[4, c, j], basis[5, c, j] = r_s * nx, r_s * ny
             basis[6, c, j], basis[7, c, j] = r_e * nx, r_e * ny
-            # The bin whose doubled angle is nearest the normal's (n and -n alike).
-            c2, s2 = nx * nx - ny * ny, 2.0 * nx * ny
-            best, score = 0, c2 * bin_axes[0, 0] + s2 * bin_axes[0, 1]
-            for b in range(1, bin_axes.shape[0]):
-                t = c2 * bin_axes[b, 0] + s2 * bin_axes[b, 1]
-                if t > score:
-                    best, score = b, t
-            outline[c, j] = best * plane
+            doubled[0, j] = nx * nx - ny * ny
+            doubled[1, j] = (nx + nx) * ny
+            doubled[2, j] = doubled[0, j] * bin_axes[0, 0] + doubled[1, j] * bin_axes[0, 1]
+            outline[c, j] = 0
+        # The bin whose doubled angle is nearest the normal's (n and -n alike).
+        for b in range(1, bin_axes.shape[0]):
+            for j in range(n):
+                t = doubled[0, j] * bin_axes[b, 0] + doubled[1, j] * bin_axes[b, 1]
+                better = t > doubled[2, j]
+                outline[c, j] = b * plane if better else outline[c, j]
+                doubled[2, j] = t if better else doubled[2, j]
+        width[:] = _ONE
+
+
+@numba.njit(cache=True, nogil=True)
+def _section_widths(
+    geometry: NDArray[np.float64],
+    row: int,
+    rot: NDArray[np.float64],
+    uv: NDArray[np.float32],
+    s: int,
+    e: int,
+    aspect: float,
+    out: NDArray[np.float32],
+) -> None:
+    """``sqrt((x.m)^2 + (aspect y.m)^2)`` of a cone of every pose (see :func:`cone_bases`).
+
+    ``geometry[:, row]`` and ``geometry[:, row + 1]`` are the cone's x and y
+    axes, ``s`` and ``e`` its keypoints, ``m`` their projections' unit normal.
+    """
+    for j in range(geometry.shape[0]):
+        dx, dy = uv[0, e, j] - uv[0, s, j], uv[1, e, j] - uv[1, s, j]
+        norm = _ONE / np.sqrt(dx * dx + dy * dy + _TINY)
+        nx, ny = dy * norm, -dx * norm
+        x, y = geometry[j, row], geometry[j, row + 1]
+        xm = (rot[0, 0] * x[0] + rot[0, 1] * x[1] + rot[0, 2] * x[2]) * nx
+        xm += (rot[1, 0] * x[0] + rot[1, 1] * x[1] + rot[1, 2] * x[2]) * ny
+        ym = (rot[0, 0] * y[0] + rot[0, 1] * y[1] + rot[0, 2] * y[2]) * nx
+        ym += (rot[1, 0] * y[0] + rot[1, 1] * y[1] + rot[1, 2] * y[2]) * ny
+        ym *= aspect
+        out[j] = np.sqrt(xm * xm + ym * ym)
 
 
 @numba.njit(cache=True, nogil=True)
