@@ -2,12 +2,14 @@
 
 import pytest
 
+from baselines.experiments import selection
 from baselines.experiments.selection import (
     VALIDATION_SUBJECTS,
+    check_validation_fold,
     select_observation_settings,
     validation_library,
 )
-from humotion_gym.mocap.library import TEST_SUBJECTS, synthetic_library
+from humotion_gym.mocap.library import TEST_SUBJECTS, MotionLibrary, synthetic_library
 
 
 def test_a_fold_never_holds_a_test_person():
@@ -20,6 +22,28 @@ def test_a_fold_never_holds_a_test_person():
         lib.validation_fold(sorted(TEST_SUBJECTS)[:1])
     with pytest.raises(ValueError, match="not in the training split"):
         lib.validation_fold(["nobody"])
+
+
+def test_selection_refuses_a_library_with_test_persons_before_tracking(monkeypatch):
+    """Mutation: each way a test person can reach a fold is refused, and by the check alone."""
+    lib = synthetic_library()
+    fold = validation_library(None)
+    test_clip = lib.split("test").motions[0]
+    assert test_clip.subject in TEST_SUBJECTS
+    leaked_clip = MotionLibrary((*fold.motions, test_clip), test_subjects=fold.held_out)
+    leaked_held_out = MotionLibrary(fold.motions, test_subjects=fold.held_out | {test_clip.subject})
+    check_validation_fold(fold)  # the true fold passes: the check is not always-raise
+    for bad in (lib, leaked_clip, leaked_held_out):
+        with pytest.raises(ValueError, match="validation fold"):
+            check_validation_fold(bad)
+
+    def no_tracking(*args, **kwargs):
+        raise AssertionError("a library with a test person reached the tracking")
+
+    monkeypatch.setattr(selection.gym, "make", no_tracking)
+    for bad in (leaked_clip, leaked_held_out):
+        with pytest.raises(ValueError, match=f"test persons \\['{test_clip.subject}'\\]"):
+            select_observation_settings("SideWalk-v1", "pf-cv", {"sharpness": [1.0]}, bad)
 
 
 def test_the_real_validation_persons_are_training_persons():

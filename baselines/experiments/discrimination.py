@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from baselines.observation import FirstFrame, GivenBody, task_model
-from humotion_gym.body import ANGLE_MASK, forward_kinematics
+from humotion_gym.body import ANGLE_MASK, BodyShape, forward_kinematics
 
 FloatArray = NDArray[np.float64]
 
@@ -78,6 +78,25 @@ def _given(
     return GivenBody(pose, base.task.free_indices, base.shape, info["camera"], *first)
 
 
+def _around(truth: FloatArray, free: NDArray[np.intp], offsets: FloatArray) -> FloatArray:
+    """``(N + 1, P)``: the true pose, then the true pose with ``offsets[k]`` added to ``free``."""
+    poses = np.broadcast_to(truth, (offsets.shape[0] + 1, truth.size)).copy()
+    poses[1:, free] += offsets
+    return poses
+
+
+def _keypoint_errors(
+    poses: FloatArray, shape: BodyShape, scored: NDArray[np.intp]
+) -> tuple[FloatArray, FloatArray]:
+    """The scored keypoints of ``poses`` and each later pose's mean distance (mm) from the first's.
+
+    Returns:
+        ``(N + 1, K, 3)`` keypoints and ``(N,)`` errors.
+    """
+    kp = forward_kinematics(poses, shape)[:, scored]
+    return kp, np.linalg.norm(kp[1:] - kp[:1], axis=-1).mean(axis=1)
+
+
 def likelihood_discrimination(
     env: gym.Env,
     episodes: int = 20,
@@ -114,6 +133,7 @@ def likelihood_discrimination(
     free = task.free_indices
     scored = task.error_keypoint_indices
     angle = ANGLE_MASK[free]
+    model = task_model(task)
     rng = np.random.default_rng([seed, 7])
     gaps: list[FloatArray] = []
     errors: list[FloatArray] = []
@@ -123,12 +143,9 @@ def likelihood_discrimination(
         # 20-1000 mm on a free root position.
         size = np.exp(rng.uniform(np.log(0.02), np.log(1.0), (perturbations, 1)))
         step_size = np.where(angle, size, size * 1000.0)
-        poses = np.broadcast_to(truth, (perturbations + 1, truth.size)).copy()
-        poses[1:, free] += step_size * rng.standard_normal((perturbations, free.size))
-        kp = forward_kinematics(poses, base.shape)[:, scored]
-        err = np.linalg.norm(kp[1:] - kp[:1], axis=-1).mean(axis=1)
-        feats = task_model(base.task).prepare(obs, given)
-        loglik = task_model(base.task).log_likelihood(feats, poses, base.shape, info["camera"])
+        poses = _around(truth, free, step_size * rng.standard_normal((perturbations, free.size)))
+        kp, err = _keypoint_errors(poses, base.shape, scored)
+        loglik = model.log_likelihood(model.prepare(obs, given), poses, base.shape, info["camera"])
         gaps.append(loglik[0] - loglik[1:])
         errors.append(err)
         frames += 1
@@ -180,15 +197,14 @@ def likelihood_peak_error(
     free = task.free_indices
     scored = task.error_keypoint_indices
     scale = np.where(ANGLE_MASK[free], spread, spread * 1000.0)
+    model = task_model(task)
     rng = np.random.default_rng([seed, 8])
     typical, peak, weighted = [], [], []
     for obs, info, truth, given in _scored_frames(env, episodes, seed, frame_stride):
-        poses = np.broadcast_to(truth, (candidates + 1, truth.size)).copy()
-        poses[1:, free] += scale * rng.uniform(-1.0, 1.0, (candidates, free.size))
-        kp = forward_kinematics(poses, base.shape)[:, scored]
-        err = np.linalg.norm(kp[1:] - kp[:1], axis=-1).mean(axis=1)
-        feats = task_model(base.task).prepare(obs, given)
-        loglik = task_model(base.task).log_likelihood(feats, poses[1:], base.shape, info["camera"])
+        poses = _around(truth, free, scale * rng.uniform(-1.0, 1.0, (candidates, free.size)))
+        kp, err = _keypoint_errors(poses, base.shape, scored)
+        feats = model.prepare(obs, given)
+        loglik = model.log_likelihood(feats, poses[1:], base.shape, info["camera"])
         w = np.exp(loglik - loglik.max())
         w /= w.sum()
         mean_kp = np.tensordot(w, kp[1:], axes=1)
@@ -241,8 +257,7 @@ def likelihood_depth_profile(
         camera = info["camera"]
         ray = truth[:3] - np.asarray(camera.position, dtype=np.float64)
         ray /= np.linalg.norm(ray)
-        poses = np.broadcast_to(truth, (steps + 1, truth.size)).copy()
-        poses[1:, :3] += offsets[:, None] * ray
+        poses = _around(truth, np.arange(3), offsets[:, None] * ray)
         loglik = model.log_likelihood(model.prepare(obs, given), poses, base.shape, camera)
         profiles.append(loglik[1:] - loglik[0])
         peaks.append(float(offsets[np.argmax(loglik[1:])]))

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from baselines.experiments._plotting import pyplot, save
 from baselines.priors import cycles, fpca
 from baselines.priors.cyclic_pca import WALK_LABELS, joint_series
 from humotion_gym.body import KEYPOINT_INDEX, PARAM_NAMES
@@ -153,10 +154,7 @@ def plot_snr(
     Returns:
         ``(P,)`` the candidate periods plotted, in frames.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     x = np.asarray(series, dtype=np.float64)
     periods = cycles.candidate_periods(fps, x.shape[0])
@@ -183,9 +181,7 @@ def plot_snr(
     ax2.legend(fontsize=8)
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save(fig, path, dpi=120)
     return periods
 
 
@@ -208,10 +204,7 @@ def plot_aligned(
             curves swing the most).
         angle_names: Names of all angle columns.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     xs, ws = cycles.check_sequences(sequences, observed)
     n_angles = xs[0].shape[1]
@@ -235,9 +228,7 @@ def plot_aligned(
     for ax in axes.ravel()[len(angles) :]:
         ax.axis("off")
     fig.suptitle(f"{len(xs)} sequences aligned over the reference curves (Fig. 7)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save(fig, path, dpi=120)
 
 
 # ---------------------------------------------------------------------------
@@ -267,10 +258,7 @@ def plot_components(
         title: Figure title.
         show_groups: Draw the group means too (Fig. 10).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     j, s = result.mean.shape
     cols = 5
@@ -297,9 +285,7 @@ def plot_components(
     axes.ravel()[0].legend(fontsize=5)
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path)
 
 
 # ---------------------------------------------------------------------------

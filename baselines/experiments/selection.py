@@ -16,13 +16,15 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Mapping, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
+from baselines.agents import AGENTS, FILTER_SETTINGS, make
+from baselines.leaderboard.evaluation import evaluate, run_episode
 from baselines.observation import ObservationModel
 from humotion_gym.envs.tasks import get_task
 from humotion_gym.mocap.library import (
@@ -30,6 +32,7 @@ from humotion_gym.mocap.library import (
     MotionLibrary,
     configured_data_dirs,
     load_library,
+    synthetic_library,
 )
 
 #: Training persons held out to choose settings on real data: CMU subject 1
@@ -51,8 +54,6 @@ def validation_library(
         data_dir: Folders of mocap (else ``$HUMOTION_MOCAP``, else synthetic).
         subjects: The training persons to hold out (the module's defaults when None).
     """
-    from humotion_gym.mocap.library import synthetic_library
-
     dirs = configured_data_dirs(data_dir)
     lib = load_library(dirs, progress=False) if dirs else synthetic_library()
     if subjects is None:
@@ -69,6 +70,136 @@ FILTER_PREFIX = "filter."
 
 def _observation_fields() -> set[str]:
     return set(ObservationModel.__dataclass_fields__)
+
+
+def check_validation_fold(library: MotionLibrary) -> None:
+    """Refuse a library that is not a validation fold of training persons.
+
+    A fold names its own held-out persons (:meth:`MotionLibrary.validation_fold`),
+    none of them a test person, and holds no clip of a test person: a setting
+    chosen on it never saw a test number.
+
+    Raises:
+        ValueError: Naming the test persons it holds, or saying it is no fold.
+    """
+    if library.test_subjects is None:
+        raise ValueError(
+            "library: expected a validation fold of training persons "
+            "(MotionLibrary.validation_fold), got a library split by the test persons"
+        )
+    leaked = sorted((set(library.subjects) | library.held_out) & TEST_SUBJECTS)
+    if leaked:
+        raise ValueError(
+            f"library: expected a validation fold of training persons; it holds the test "
+            f"persons {leaked}"
+        )
+
+
+def _check_grid(grid: Mapping[str, Sequence[float]], agent: str) -> None:
+    """Refuse a grid name that is no setting of the likelihood, the prior or the filter.
+
+    Raises:
+        ValueError: Naming the unknown settings, or an empty grid or value list.
+    """
+    fields = _observation_fields()
+    fit_names = [n for n in grid if n.startswith(FIT_PREFIX)]
+    filter_names = [n for n in grid if n.startswith(FILTER_PREFIX)]
+    unknown = sorted(set(grid) - fields - set(fit_names) - set(filter_names))
+    if unknown:
+        raise ValueError(
+            f"grid: {unknown} are not ObservationModel settings (they are {sorted(fields)}) "
+            f"nor prior settings written {FIT_PREFIX}NAME nor filter settings written "
+            f"{FILTER_PREFIX}NAME"
+        )
+    if filter_names:
+        if agent not in AGENTS or AGENTS[agent].layers == 1:
+            raise ValueError(f"grid: {filter_names} need an annealed agent (apf-...), not {agent}")
+        bad = sorted(n for n in filter_names if n[len(FILTER_PREFIX) :] not in FILTER_SETTINGS)
+        if bad:
+            raise ValueError(
+                f"grid: {bad} are not filter settings (they are "
+                f"{[FILTER_PREFIX + n for n in FILTER_SETTINGS]})"
+            )
+    if fit_names:
+        if agent not in AGENTS:
+            raise ValueError(f"grid: {fit_names} need a particle-filter agent, not {agent}")
+        known = AGENTS[agent].setting_names()
+        bad = sorted(n for n in fit_names if n[len(FIT_PREFIX) :] not in known)
+        if bad:
+            raise ValueError(
+                f"grid: {bad} are not settings of {agent}'s prior {AGENTS[agent].prior} "
+                f"(they are {sorted(known)})"
+            )
+    if not grid or any(len(v) == 0 for v in grid.values()):
+        raise ValueError("grid: expected at least one setting, each with at least one value")
+
+
+@dataclass(frozen=True)
+class _Runs:
+    """How every combination is tracked: the task, the fold, the episodes."""
+
+    task: str
+    library: MotionLibrary
+    env_kwargs: dict[str, Any]
+    particles: int
+    episodes: int
+    seed: int
+    windows: list[Any]
+
+    def errors(
+        self,
+        agent: str,
+        model: ObservationModel,
+        fit: dict[str, float] | None = None,
+        search: dict[str, float] | None = None,
+    ) -> tuple[list[float], list[float]]:
+        """Each seeded episode's mean error (mm), and each still episode's."""
+        env = gym.make(f"humotion_gym/{self.task}", library=self.library, **self.env_kwargs)
+        runner = make(agent, env, n_particles=self.particles, seed=self.seed, fit_settings=fit,
+                      filter_settings=search, observation_model=model)  # fmt: skip
+        out = [r.mean_error_mm for r in evaluate(runner, env, self.episodes, seed=self.seed)]
+        quiet = [
+            run_episode(runner, env, self.seed + k, w.options).mean_error_mm
+            for k, w in enumerate(self.windows)
+        ]
+        env.close()
+        return out, quiet
+
+
+def _still_episodes(
+    task: str, library: MotionLibrary, env_kwargs: dict[str, Any], count: int, max_hold_mm: float
+) -> list[Any]:
+    """Up to ``count`` still episodes of the fold's held-out persons (none for 0).
+
+    Raises:
+        ValueError: If ``count`` > 0 and the persons have no still episode.
+    """
+    if count <= 0:
+        return []
+    from baselines.stillness import still_windows
+
+    probe = gym.make(f"humotion_gym/{task}", library=library, **env_kwargs)
+    windows = still_windows(probe, max_hold_mm, count=count)
+    probe.close()
+    if not windows:
+        raise ValueError(
+            f"still: {task}'s validation persons have no still episode (hold at most "
+            f"{max_hold_mm:g} mm); choose on their ordinary episodes (still=0, --still 0)"
+        )
+    return windows
+
+
+def _split_settings(
+    settings: Mapping[str, Any], default: ObservationModel
+) -> tuple[ObservationModel, dict[str, float], dict[str, float]]:
+    """A combination's likelihood, its prior's ``fit.`` settings and its ``filter.`` settings."""
+    fields = _observation_fields()
+    model = replace(default, **{n: v for n, v in settings.items() if n in fields})
+    fit = {n[len(FIT_PREFIX) :]: v for n, v in settings.items() if n.startswith(FIT_PREFIX)}
+    search = {
+        n[len(FILTER_PREFIX) :]: v for n, v in settings.items() if n.startswith(FILTER_PREFIX)
+    }
+    return model, fit, search
 
 
 def select_observation_settings(
@@ -122,80 +253,18 @@ def select_observation_settings(
         ValueError: If a name is neither a likelihood setting, a ``fit.``
             keyword of the prior nor a ``filter.`` setting of an annealed
             agent, a value list is empty, or ``library`` is not a validation
-            fold of training persons.
+            fold of training persons (:func:`check_validation_fold`).
     """
-    from baselines.agents import AGENTS, FILTER_SETTINGS, make
-    from baselines.evaluation import evaluate, run_episode
-
-    fields = _observation_fields()
-    fit_names = [n for n in grid if n.startswith(FIT_PREFIX)]
-    filter_names = [n for n in grid if n.startswith(FILTER_PREFIX)]
-    unknown = sorted(set(grid) - fields - set(fit_names) - set(filter_names))
-    if unknown:
-        raise ValueError(
-            f"grid: {unknown} are not ObservationModel settings (they are {sorted(fields)}) "
-            f"nor prior settings written {FIT_PREFIX}NAME nor filter settings written "
-            f"{FILTER_PREFIX}NAME"
-        )
-    if filter_names:
-        if agent not in AGENTS or AGENTS[agent].layers == 1:
-            raise ValueError(f"grid: {filter_names} need an annealed agent (apf-...), not {agent}")
-        bad = sorted(n for n in filter_names if n[len(FILTER_PREFIX) :] not in FILTER_SETTINGS)
-        if bad:
-            raise ValueError(
-                f"grid: {bad} are not filter settings (they are "
-                f"{[FILTER_PREFIX + n for n in FILTER_SETTINGS]})"
-            )
-    if fit_names:
-        if agent not in AGENTS:
-            raise ValueError(f"grid: {fit_names} need a particle-filter agent, not {agent}")
-        known = AGENTS[agent].setting_names()
-        bad = sorted(n for n in fit_names if n[len(FIT_PREFIX) :] not in known)
-        if bad:
-            raise ValueError(
-                f"grid: {bad} are not settings of {agent}'s prior {AGENTS[agent].prior} "
-                f"(they are {sorted(known)})"
-            )
-    if not grid or any(len(v) == 0 for v in grid.values()):
-        raise ValueError("grid: expected at least one setting, each with at least one value")
-    if library.test_subjects is None or library.held_out & TEST_SUBJECTS:
-        raise ValueError("library: expected a validation fold of training persons")
+    _check_grid(grid, agent)
+    check_validation_fold(library)
     spec = get_task(task)
     kwargs = {"terminate_on_lost": False, **(env_kwargs or {})}
-
     default = ObservationModel(**dict(spec.observation))
-    windows: list[Any] = []
-    if still > 0:
-        from baselines.stillness import still_windows
-
-        probe = gym.make(f"humotion_gym/{spec.name}", library=library, **kwargs)
-        windows = still_windows(probe, still_max_hold_mm, count=still)
-        probe.close()
-        if not windows:
-            raise ValueError(
-                f"still: {spec.name}'s validation persons have no still episode (hold at most "
-                f"{still_max_hold_mm:g} mm); choose on their ordinary episodes (still=0, --still 0)"
-            )
-
-    def errors(
-        agent_name: str,
-        model: ObservationModel,
-        fit: dict[str, float] | None = None,
-        search: dict[str, float] | None = None,
-    ) -> tuple[list[float], list[float]]:
-        env = gym.make(f"humotion_gym/{spec.name}", library=library, **kwargs)
-        runner = make(agent_name, env, n_particles=particles, seed=seed, fit_settings=fit,
-                      filter_settings=search, observation_model=model)  # fmt: skip
-        out = [r.mean_error_mm for r in evaluate(runner, env, episodes, seed=seed)]
-        quiet = [
-            run_episode(runner, env, seed + k, w.options).mean_error_mm
-            for k, w in enumerate(windows)
-        ]
-        env.close()
-        return out, quiet
-
-    hold_errors, hold_still = errors("hold", default)
+    windows = _still_episodes(spec.name, library, kwargs, still, still_max_hold_mm)
+    runs = _Runs(spec.name, library, kwargs, particles, episodes, seed, windows)
+    hold_errors, hold_still = runs.errors("hold", default)
     hold = float(np.mean(hold_errors))
+    fields = _observation_fields()
     names = list(grid)
     rows = []
     base_fit = AGENTS[agent].settings_for(spec.name) if agent in AGENTS else {}
@@ -204,19 +273,15 @@ def select_observation_settings(
             n: type(getattr(default, n))(v) if n in fields else v
             for n, v in zip(names, combo, strict=True)
         }
-        model = replace(default, **{n: v for n, v in settings.items() if n in fields})
-        fit = {n[len(FIT_PREFIX) :]: v for n, v in settings.items() if n.startswith(FIT_PREFIX)}
-        search = {
-            n[len(FILTER_PREFIX) :]: v for n, v in settings.items() if n.startswith(FILTER_PREFIX)
-        }
-        regular, quiet = errors(agent, model, {**base_fit, **fit} if fit else None, search or None)
+        model, fit, search = _split_settings(settings, default)
+        regular, quiet = runs.errors(agent, model, {**base_fit, **fit} if fit else None,
+                                     search or None)  # fmt: skip
         mean = float(np.mean(regular))
         row = {"settings": settings, "mean_error_mm": mean, "hold_ratio": hold / mean}
         if windows:
             row["still_error_mm"] = float(np.mean(quiet))
             row["still_ratio"] = row["still_error_mm"] / float(np.mean(hold_still))
         rows.append(row)
-    best = _chosen(rows)
     extra = {}
     if windows:
         extra = {"still_hold_mm": float(np.mean(hold_still)), "still_episodes": len(windows)}
@@ -228,7 +293,7 @@ def select_observation_settings(
         "episodes": episodes,
         "rows": rows,
         "hold_mm": hold,
-        "chosen": rows[best]["settings"],
+        "chosen": rows[_chosen(rows)]["settings"],
         "validation_subjects": sorted(library.held_out),
         "train_clips": len(library.split("train")),
     }

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from baselines.experiments._plotting import pyplot, save
 from baselines.filtering import ParticleState
 from baselines.priors import tree
 from humotion_gym import body
@@ -116,10 +117,7 @@ def figure3(
     betas: Sequence[float] = FIG3_BETAS,
 ) -> FloatArray:
     """Fig. 3: sampled next poses against ``beta``; returns the spread per ``beta`` (mm)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     rng = np.random.default_rng(seed)
     histories, nexts, shapes = _probe_histories(fitted, motions, 24, seed)
@@ -151,9 +149,7 @@ def figure3(
     ax.set_ylabel("spread of 10 next poses (mm)")
     ax.set_title("spread grows with beta")
     fig.suptitle("Fig. 3: 10 sampled next poses (blue) and the true next pose (black)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path)
     return spread
 
 
@@ -166,10 +162,7 @@ def figure4(
     draws: int = 20000,
 ) -> None:
     """Fig. 4: the tree's sampled coefficients beside eq. 3's Gaussian and exact draws."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     rng = np.random.default_rng(seed)
     histories, _, _ = _probe_histories(fitted, motions, 1, seed)
@@ -197,9 +190,7 @@ def figure4(
         ax.set_title(f"coefficient {level + 1}")
     axes[0][0].legend(fontsize=7)
     fig.suptitle(f"Fig. 4: coefficients of sampled windows, beta = {beta:g}")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path)
 
 
 def make_figures(library: MotionLibrary, out_dir: str | Path, seed: int = 0) -> dict[str, Path]:

@@ -10,6 +10,7 @@ import pytest
 
 from baselines.cli import main
 from baselines.experiments import pavlovic1999 as pav
+from baselines.experiments.pavlovic1999 import scoring
 from humotion_gym.mocap.library import TEST_SUBJECTS, synthetic_library
 from humotion_gym.mocap.synthetic import synthetic_motions
 
@@ -118,7 +119,7 @@ def test_decoder_assumes_test_noise_plus_extra(small_train, monkeypatch):
         seen.append(noise_std)
         return real(model, sequences, noise_std)
 
-    monkeypatch.setattr(pav, "classify", spy)
+    monkeypatch.setattr(scoring, "classify", spy)  # where score_fits looks it up
     train, test = small_train[2:], small_train[:2]
     fits = [(pav.LEG_PARAMS, "angles"), (pav.LEG_PARAMS, "velocity")]
     decodes = [(1e-3, 0.0), (1e-3, 8.0)]
@@ -153,7 +154,7 @@ def test_cv_folds_never_see_a_test_person(small_train, monkeypatch):
         calls.append(([m.subject for m in train], [[m.subject for m in t] for t in tests]))
         return real(train, tests, *args, **kwargs)
 
-    monkeypatch.setattr(pav, "score_fits", spy)
+    monkeypatch.setattr(scoring, "score_fits", spy)  # where the folds look it up
     walker = [dataclasses.replace(m, subject="cmu-07", clip_id=f"cmu/07_{k:02d}", dataset="cmu")
               for k, m in enumerate(small_train) if m.label == "walk"][:1]  # fmt: skip
     result = pav.select_classifier_settings(
