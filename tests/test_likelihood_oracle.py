@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 import pytest
 
-from baselines.observation import FrameFeatures, GivenBody, ObservationModel
+from baselines.observation import FrameFeatures, GivenBody, ObservationModel, geometry
 from humotion_gym import body
 from humotion_gym.camera import Camera, fit_camera
 from humotion_gym.render import SceneOptions, make_background, render
@@ -186,7 +186,8 @@ def quantisation_bound(model: ObservationModel, feats: FrameFeatures) -> float:
 # -- the scenes -------------------------------------------------------------------
 
 
-def scene(seed: int, size: int = 128):
+def scene(seed: int, size: int = 128, shift_mm: float = 0.0):
+    """A frame of a random pose, a first frame where the figure stood ``shift_mm`` aside, poses."""
     rng = np.random.default_rng(seed)
     truth = body.standing_pose(SHAPE)
     truth[3] = rng.uniform(-np.pi, np.pi)
@@ -195,11 +196,13 @@ def scene(seed: int, size: int = 128):
     options = SceneOptions(width=size, height=size)
     camera = fit_camera(body.forward_kinematics(truth, SHAPE)[None], size, size, 50.0, 30.0, 10.0)
     background = make_background(options, rng)
-    first = render(truth, SHAPE, camera, options, rng, background)
+    start = truth.copy()
+    start[0] -= shift_mm
+    first = render(start, SHAPE, camera, options, rng, background)
     frame = render(truth, SHAPE, camera, options, rng, background)
     poses = truth + rng.normal(0.0, 0.1, (60, body.N_PARAMS))
     poses[:, :3] = truth[:3] + rng.normal(0.0, 60.0, (60, 3))
-    return truth, camera, first, frame, poses
+    return start, camera, first, frame, poses
 
 
 def check_against_oracle(model, frame, camera, poses, given=None, colors=None) -> None:
@@ -228,14 +231,9 @@ def test_other_settings_are_the_oracles(bins: int, pad: float) -> None:
 
 
 def test_whole_body_task_terms_are_the_oracles() -> None:
-    truth, camera, first, frame, poses = scene(3)
-    model = ObservationModel(backdrop=True, coverage_weight=4.0, coverage_points=32)
-    start = truth.copy()
-    given = GivenBody(
-        truth, np.arange(body.N_PARAMS), SHAPE, camera,
-        backdrop=model.read_backdrop(first, start, SHAPE, camera),
-    )  # fmt: skip
-    assert model.prepare(frame, given).coverage is not None
+    model, camera, frame, poses, given = whole_body_case()
+    coverage = model.prepare(frame, given).coverage
+    assert coverage is not None and coverage.shape[1] >= 20
     check_against_oracle(model, frame, camera, poses, given)
 
 
@@ -294,16 +292,39 @@ def test_the_oracle_check_catches_a_wrong_orientation() -> None:
     assert (np.abs(got - want) > quantisation_bound(model, feats)).mean() > 0.5
 
 
-def test_scores_are_deterministic_and_do_not_depend_on_the_split() -> None:
-    _, camera, _, frame, poses = scene(6)
-    model = ObservationModel()
+def whole_body_case():
+    start, camera, first, frame, poses = scene(3, shift_mm=300.0)
+    model = ObservationModel(backdrop=True, coverage_weight=4.0, coverage_points=32)
+    given = GivenBody(
+        start, np.arange(body.N_PARAMS), SHAPE, camera,
+        backdrop=model.read_backdrop(first, start, SHAPE, camera),
+    )  # fmt: skip
+    return model, camera, frame, poses, given
+
+
+@pytest.mark.parametrize("terms", ["plain", "whole body"])
+def test_scores_are_deterministic_and_do_not_depend_on_the_split(terms: str) -> None:
+    model, camera, frame, poses, given = whole_body_case()
+    if terms == "plain":
+        model, given = ObservationModel(), None
+    feats = model.prepare(frame, given)
     many = np.repeat(poses, 60, axis=0)  # 3,600 poses: two passes
-    whole = model.log_likelihood(frame, many, SHAPE, camera)
-    np.testing.assert_array_equal(whole, model.log_likelihood(frame, many, SHAPE, camera))
-    parts = np.concatenate(
-        [model.log_likelihood(frame, part, SHAPE, camera) for part in np.array_split(many, 7)]
-    )
-    np.testing.assert_array_equal(whole, parts)
+    many += np.random.default_rng(8).normal(0.0, 0.01, many.shape)
+    whole = model.log_likelihood(feats, many, SHAPE, camera)
+    assert np.unique(whole).size > 1000
+    np.testing.assert_array_equal(whole, model.log_likelihood(feats, many, SHAPE, camera))
+    parts = [model.log_likelihood(feats, part, SHAPE, camera) for part in np.split(many, [1, 1500])]
+    np.testing.assert_array_equal(whole, np.concatenate(parts))
+
+
+def test_cone_parameters_follow_the_kinematic_tree() -> None:
+    moves = geometry.cone_parameters()
+    names = body.CONE_NAMES
+    assert moves[:, :6].all()  # the root moves every cone
+    assert moves.sum(axis=0)[6:9].tolist() == [1, 1, 1]  # the neck only the head
+    assert moves[names.index("head"), 6:9].all()
+    elbow = body.PARAM_NAMES.index("r_elbow")
+    assert np.flatnonzero(moves[:, elbow]).tolist() == [names.index("r_forearm")]
 
 
 def test_shared_cones_are_scored_as_the_rest() -> None:
