@@ -156,7 +156,6 @@ from baselines.priors.tree_model import (
     _anchor,
     _coefficients,
     _features,  # noqa: F401  (the experiments read windows' features)
-    _heading_frame,
     _Layout,
     _layout,
     _place,
@@ -317,11 +316,7 @@ def _paced_path(history: NDArray[Any], speed: FloatArray, lay: _Layout) -> Float
     (``_coefficients``' ``turned``), in double precision.
     """
     ix, iy = _root_xy(lay)
-    yaw = int(lay.relative[lay.rel_yaw])
-    xy = history[..., [ix, iy]].astype(np.float64)
-    last = xy[:, -1:]
-    paced = last + (xy - last) * (1.0 / speed)[:, None, None]
-    return _heading_frame(paced, np.asarray(history[:, -1:, yaw], dtype=np.float64))
+    return compiled.paced_path(history, speed, ix, iy, int(lay.relative[lay.rel_yaw]))
 
 
 def _search_coefficients(
@@ -475,9 +470,11 @@ def _replay(
         histories moved up a frame, the new pose last.
     """
     velocity = lay.absolute_mask & (fitted.replay == "velocity")
-    root = np.zeros(0, np.intp)
+    root, cos_sin = np.zeros(0, np.intp), np.zeros((2, 0))
     if lay.relative.size and lay.rel_xy is not None:
-        root = np.array([*_root_xy(lay), lay.relative[lay.rel_yaw]], dtype=np.intp)
+        root = np.array(_root_xy(lay), dtype=np.intp)
+        heading = state.pose[:, lay.relative[lay.rel_yaw]]
+        cos_sin = np.stack([np.cos(heading), np.sin(heading)])
     none = np.zeros(0)
     return compiled.replay(
         fitted.next_step,
@@ -488,6 +485,7 @@ def _replay(
         fitted.window_end,
         none if speed is None else speed,
         root,
+        cos_sin,
         fitted.noise_std if fitted.noise_scale > 0 else none,
         lay.relative_mask,
         history,
