@@ -173,3 +173,131 @@ def geometry(params: NDArray[Any], shapes: NDArray[np.float64]) -> NDArray[np.fl
     out = np.empty((params.shape[0], GEOMETRY_ROWS, 3))
     pose_geometry(params, shapes, out)
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _fixed(value: float, far: float) -> np.int32:
+    """A fixed-point coordinate clipped to +-far, truncated as numpy's cast to int32."""
+    return np.int32(min(max(value, -far), far))
+
+
+@numba.njit(cache=True, nogil=True)
+def figure_polygons(
+    g: NDArray[np.float64], cone_rows: NDArray[np.intp], radii: NDArray[np.float64],
+    aspect: NDArray[np.float64], ring: NDArray[np.float64], camera: NDArray[np.float64],
+    edges: NDArray[np.float64], light: NDArray[np.float64], shading: NDArray[np.float64],
+    base: NDArray[np.float64], lighting: NDArray[np.float64],
+    ellipses: NDArray[np.int32], quads: NDArray[np.int32], colors: NDArray[np.uint8],
+    order: NDArray[np.int64], counts: NDArray[np.int64], wide: NDArray[np.bool_],
+) -> None:  # fmt: skip
+    """The drawing of T frames' cones: polygons in fixed point, colours, depth order.
+
+    Args:
+        g: ``(T, 35, 3)`` keypoints and cone axes in each frame's camera frame.
+        cone_rows: ``(10, 2)`` each cone's start and end keypoint rows.
+        radii: ``(10, 2)`` the cones' radii at their ends (mm).
+        aspect: ``(10,)`` their depth-to-width ratios.
+        ring: ``(2, K)`` cosines and sines of the K points of an end ellipse.
+        camera: ``fx, cu, cv, near, far``: the focal length and principal
+            point in fixed point, the near plane (mm), the coordinate limit.
+        edges: ``(S + 1,)`` the strips' edges across the cone, in [-1, 1].
+        light: ``(3,)`` unit direction towards the light (camera frame).
+        shading: ``(3, 2 + S)`` Lambert weights of (cap, image normal, camera
+            normal) for the cap, the flat shade and each strip.
+        base: ``(10, C)`` the cones' colours.
+        lighting: ``ambient, diffuse, strip_min`` (the last in fixed point).
+        ellipses: out ``(T, 10, 2K, 2)`` int32 end-ellipse points.
+        quads: out ``(T, 10, S, 4, 2)`` int32 strip corners.
+        colors: out ``(T, 10, 2 + S, C)`` uint8 cap, flat and strip colours.
+        order: out ``(T, 10)`` cones far first; the first ``counts[t]`` drawn.
+        counts: out ``(T,)``.
+        wide: out ``(T, 10)`` whether a cone is wide enough for strips.
+    """
+    n_c = cone_rows.shape[0]
+    n_kp = g.shape[1] - 2 * n_c
+    depth = np.empty(n_c)
+    for t in range(g.shape[0]):
+        for c in range(n_c):
+            depth[c] = _cone(
+                g[t], n_kp, c, cone_rows, radii, aspect, ring, camera, edges, light, shading,
+                base, lighting, ellipses[t, c], quads[t, c], colors[t, c], wide[t],
+            )  # fmt: skip
+        # Painter's order, far first (a stable insertion sort), cones whose
+        # end spheres reach behind the near plane left out.
+        count = 0
+        for c in range(n_c):
+            z0, z1 = g[t, cone_rows[c, 0], 2], g[t, cone_rows[c, 1], 2]
+            if min(z0 - radii[c, 0], z1 - radii[c, 1]) <= camera[3]:
+                continue
+            j = count
+            while j > 0 and depth[order[t, j - 1]] < depth[c]:
+                order[t, j] = order[t, j - 1]
+                j -= 1
+            order[t, j] = c
+            count += 1
+        counts[t] = count
+
+
+@numba.njit(cache=True, nogil=True)
+def _cone(
+    g: NDArray[np.float64], n_kp: int, c: int, cone_rows: NDArray[np.intp],
+    radii: NDArray[np.float64], aspect: NDArray[np.float64], ring: NDArray[np.float64],
+    camera: NDArray[np.float64], edges: NDArray[np.float64], light: NDArray[np.float64],
+    shading: NDArray[np.float64], base: NDArray[np.float64], lighting: NDArray[np.float64],
+    ellipses: NDArray[np.int32], quads: NDArray[np.int32], colors: NDArray[np.uint8],
+    wide: NDArray[np.bool_],
+) -> float:  # fmt: skip
+    """One cone of one frame (see :func:`figure_polygons`); returns its depth.
+
+    The silhouette is the hull of the two projected end ellipses
+    ``end + r (cos t x + aspect sin t y)``; its strips join the ends pushed
+    along the unit image normal of the projected axis by the silhouette's
+    half-width ``r |(x.m, aspect y.m)|`` times each edge. A strip's shade is
+    Lambert's law for the normal ``s m + sqrt(1 - s^2) w`` at its position
+    ``s`` across the limb, ``w`` the normal facing the camera,
+    ``(a_z a - e_z) / sqrt(1 - a_z^2)`` for the unit axis ``a``.
+    """
+    fx, cu, cv, near, far = camera[0], camera[1], camera[2], camera[3], camera[4]
+    xr = n_kp + 2 * c  # the cone's width axis, then its depth axis
+    ax0, ax1, ax2 = g[xr, 0], g[xr, 1], g[xr, 2]
+    ay0, ay1, ay2 = g[xr + 1, 0] * aspect[c], g[xr + 1, 1] * aspect[c], g[xr + 1, 2] * aspect[c]
+    n_k = ring.shape[1]
+    for e in range(2):
+        row = cone_rows[c, e]
+        r = radii[c, e]
+        for k in range(n_k):
+            cs, sn = ring[0, k], ring[1, k]
+            px = (ax0 * cs + ay0 * sn) * r + g[row, 0]
+            py = (ax1 * cs + ay1 * sn) * r + g[row, 1]
+            pz = (ax2 * cs + ay2 * sn) * r + g[row, 2]
+            scale = fx / max(pz, near)
+            ellipses[e * n_k + k, 0] = _fixed(px * scale + cu, far)
+            ellipses[e * n_k + k, 1] = _fixed(py * scale + cv, far)
+    s0, s1 = cone_rows[c, 0], cone_rows[c, 1]
+    scale0, scale1 = fx / max(g[s0, 2], near), fx / max(g[s1, 2], near)
+    u0, v0 = g[s0, 0] * scale0 + cu, g[s0, 1] * scale0 + cv
+    u1, v1 = g[s1, 0] * scale1 + cu, g[s1, 1] * scale1 + cv
+    length = math.hypot(v1 - v0, u0 - u1) + 1e-12
+    nx, ny = (v1 - v0) / length, (u0 - u1) / length
+    half = math.hypot(ax0 * nx + ax1 * ny, ay0 * nx + ay1 * ny)
+    w0, w1 = radii[c, 0] * scale0 * half, radii[c, 1] * scale1 * half
+    for b in range(edges.shape[0] - 1):
+        # corners (b, start), (b, end), (b + 1, end), (b + 1, start)
+        for q, (j, at_end) in enumerate(((b, 0), (b, 1), (b + 1, 1), (b + 1, 0))):
+            w, u, v = (w1, u1, v1) if at_end else (w0, u0, v0)
+            quads[b, q, 0] = _fixed(edges[j] * (w * nx) + u, far)
+            quads[b, q, 1] = _fixed(edges[j] * (w * ny) + v, far)
+    a0, a1, a2 = g[s1, 0] - g[s0, 0], g[s1, 1] - g[s0, 1], g[s1, 2] - g[s0, 2]
+    norm = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2) + 1e-12
+    a0, a1, a2 = a0 / norm, a1 / norm, a2 / norm
+    a_l = a0 * light[0] + a1 * light[1] + a2 * light[2]
+    cap = -a_l * np.sign(a2)  # the cap that faces the camera
+    across = nx * light[0] + ny * light[1]
+    facing = (a2 * a_l - light[2]) / math.sqrt(1.0 - a2 * a2 + 1e-9)
+    for m in range(shading.shape[1]):
+        lam = cap * shading[0, m] + across * shading[1, m] + facing * shading[2, m]
+        lam = max(lam, 0.0) * lighting[1] + lighting[0]
+        for ch in range(base.shape[1]):
+            colors[m, ch] = np.uint8(min(np.rint(base[c, ch] * lam), 255.0))
+    wide[c] = max(w0, w1) >= lighting[2]
+    return g[s0, 2] + g[s1, 2]

@@ -16,6 +16,7 @@ human motion*, IJCV 2010.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -82,41 +83,82 @@ class StepScores(NamedTuple):
     reward: FloatArray
 
 
+@dataclass(frozen=True, eq=False)
+class Scoring:
+    """How a task scores a step: which keypoints, their regions, the reward's scale.
+
+    Attributes:
+        scored: ``(K,)`` indices of the scored keypoints.
+        names: The reward's terms, one per region (``"reward_<region>"``).
+        membership: ``(K, R)`` 1 where a scored keypoint is in a region; each
+            keypoint is in one region.
+        scale_mm: The error at which a keypoint's share falls to ``1/e``.
+    """
+
+    scored: NDArray[np.intp]
+    names: tuple[str, ...]
+    membership: FloatArray
+    scale_mm: float
+
+    @classmethod
+    def of(
+        cls, scored: ArrayLike, regions: Sequence[tuple[str, ArrayLike]], scale_mm: float
+    ) -> Scoring:
+        """From the scored keypoints and each region's positions among them.
+
+        Raises:
+            ValueError: If the regions do not hold every scored keypoint once.
+        """
+        idx = np.asarray(scored, dtype=np.intp)
+        membership = np.zeros((idx.size, len(regions)))
+        for r, (_, cols) in enumerate(regions):
+            membership[np.asarray(cols, dtype=np.intp), r] = 1.0
+        if not np.array_equal(membership.sum(axis=1), np.ones(idx.size)):
+            raise ValueError("Scoring: the regions must hold every scored keypoint exactly once")
+        return cls(idx, tuple(name for name, _ in regions), membership, float(scale_mm))
+
+
+def _distances(diff: FloatArray) -> FloatArray:
+    """Euclidean norms along the last axis (what ``np.linalg.norm`` gives, in fewer calls)."""
+    return np.sqrt(np.einsum("...i,...i->...", diff, diff))
+
+
 def step_scores(
-    estimate_points: ArrayLike,
-    truth_points: ArrayLike,
-    scored: ArrayLike,
-    regions: Sequence[tuple[str, ArrayLike]],
-    scale_mm: float,
+    estimate_points: ArrayLike, truth_points: ArrayLike, scoring: Scoring
 ) -> StepScores:
     """The environments' errors and reward of a step: the one reward function.
 
     The reward is the mean over the scored keypoints of ``exp(-e_k / scale)``
     (1 for a perfect estimate, falling smoothly with the error, never
-    negative), split by body region so that the terms add up to it.
+    negative), split by body region so that the terms add up to it. The
+    single environment scores one step, the vector environment N at once.
 
     Args:
         estimate_points: ``(..., 15, 3)`` the estimate's keypoints.
         truth_points: ``(..., 15, 3)`` the true keypoints.
-        scored: ``(K,)`` indices of the scored keypoints.
-        regions: ``(name, positions in scored)`` of each region; together they
-            hold every scored keypoint once.
-        scale_mm: The error at which a keypoint's share falls to ``1/e``.
+        scoring: The task's :class:`Scoring`.
 
     Returns:
         The :class:`StepScores`.
     """
-    estimate = np.asarray(estimate_points, dtype=np.float64)
-    truth = np.asarray(truth_points, dtype=np.float64)
-    idx = np.asarray(scored, dtype=np.intp)
-    errors = point_errors(estimate, truth)
+    diff = np.asarray(estimate_points, dtype=np.float64) - truth_points
+    errors = _distances(diff)
+    idx = scoring.scored
+    k = 1.0 / idx.size
     err = errors[..., idx]
-    aligned = aligned_point_errors(estimate, truth)[..., idx]
-    per_kp = np.exp(err * (-1.0 / scale_mm)) / idx.size
-    terms = {name: per_kp[..., np.asarray(cols, np.intp)].sum(axis=-1) for name, cols in regions}
-    reward = sum(terms.values(), np.zeros(per_kp.shape[:-1]))
+    # the same with the pelvises put together (aligned_point_errors)
+    anchor = KEYPOINT_INDEX["pelvis"]
+    aligned = _distances(diff[..., idx, :] - diff[..., anchor : anchor + 1, :])
+    per_kp = np.exp(err * (-1.0 / scoring.scale_mm)) * k
+    by_region = per_kp @ scoring.membership
+    terms = {name: by_region[..., r] for r, name in enumerate(scoring.names)}
     return StepScores(
-        errors, err.mean(axis=-1), errors.mean(axis=-1), aligned.mean(axis=-1), terms, reward
+        errors,
+        err.sum(axis=-1) * k,
+        errors.sum(axis=-1) * (1.0 / errors.shape[-1]),
+        aligned.sum(axis=-1) * k,
+        terms,
+        by_region.sum(axis=-1),
     )
 
 

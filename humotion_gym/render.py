@@ -38,7 +38,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from humotion_gym import body
+from humotion_gym import _compiled, body
 from humotion_gym.body import CONE_KEYPOINTS, N_CONES, N_KEYPOINTS, BodyShape
 from humotion_gym.camera import Camera
 from humotion_gym.kinematics import batch_pose_geometry, single_pose_geometry
@@ -103,28 +103,20 @@ def _check_inputs(params: ArrayLike, camera: Camera, scene: SceneOptions) -> NDA
     return p
 
 
-def _clip_far(coords: NDArray[np.float64]) -> None:
-    """Clip fixed-point coordinates to +-_FAR_PX pixels in place (valid int32).
-
-    Two ufunc calls: ``np.clip``'s Python wrapper costs more than the work here.
-    """
-    np.minimum(coords, _FAR_PX * _ONE, out=coords)
-    np.maximum(coords, -_FAR_PX * _ONE, out=coords)
-
-
 def _figure_polygons(
     geometry: NDArray[np.float64], shape: BodyShape, camera: Camera, scene: SceneOptions
 ) -> tuple[list[list[int]], NDArray[np.int32], NDArray[np.int32], NDArray[np.uint8], list]:
-    """Everything the drawing loop needs, for T frames and all ten cones at once.
+    """Everything the drawing loop needs, for T frames and all ten cones.
 
-    Vectorised over frames, cones and ellipse points, component by component
-    (every array below is contiguous): a few dozen numpy calls in all, so a
-    whole episode costs a few times what one frame does. Pixel coordinates are
-    kept in OpenCV's fixed point (``_SHIFT`` fractional bits) throughout.
+    One compiled pass over frames and cones
+    (:func:`humotion_gym._compiled.figure_polygons`, where the geometry of the
+    silhouettes and the shading is written out): the same work in numpy, some
+    sixty calls on small arrays per episode, costs ten times more. Pixel
+    coordinates are in OpenCV's fixed point (``_SHIFT`` fractional bits).
 
     Args:
         geometry: ``(T, 35, 3)`` keypoints and cone axes in each frame's camera
-            frame (the layout of :func:`~humotion_gym.kinematics.single_pose_geometry`).
+            frame (the layout of :func:`~humotion_gym.body.pose_geometry`).
         shape: The subject's shape.
         camera: The cameras' intrinsics (every frame's camera has the same).
         scene: Scene options.
@@ -138,96 +130,25 @@ def _figure_polygons(
     """
     const: dict[str, NDArray] = scene._drawing  # type: ignore[attr-defined]
     n = geometry.shape[0]
-    g = geometry.transpose(2, 0, 1)  # (3, T, 35): x, y, z components
-    ends = g[:, :, _CONE_ROWS]  # (3, T, 10, 2): start and end of each cone
-    ax = g[:, :, N_KEYPOINTS:].reshape(3, n, N_CONES, 2)
-    ax_x = ax[..., 0]  # (3, T, 10): the cone's width axis
-    ax_y = ax[..., 1] * shape.aspect  # its depth axis, scaled to the ellipse's
-    # End ellipses: centre + r (cos t x + aspect sin t y), (3, T, 10, 2, K).
-    ring = ax_x[..., None] * const["cos"]
-    ring += ax_y[..., None] * const["sin"]
-    points = ring[:, :, :, None, :] * shape.radii[:, :, None]
-    points += ends[..., None]
-    # Pinhole projection in fixed point: u = (f x / z + cx) * 2^shift.
-    fx, (cx, cy) = camera.focal * _ONE, camera.principal_point
-    scale = np.maximum(points[2], _NEAR_MM)
-    np.divide(fx, scale, out=scale)
-    ellipse_px = np.empty((n, N_CONES, 2, _ELLIPSE_POINTS, 2), np.int32)
-    for i, centre in enumerate((cx, cy)):
-        coord = points[i] * scale
-        coord += centre * _ONE
-        _clip_far(coord)
-        np.copyto(ellipse_px[..., i], coord, casting="unsafe")  # truncates, as astype
-    ellipse_px = ellipse_px.reshape(n, N_CONES, 2 * _ELLIPSE_POINTS, 2)
-    # The cone ends' image points, and the unit image normal (dy, -dx) of the
-    # projected axis.
-    end_scale = fx / np.maximum(ends[2], _NEAR_MM)  # (T, 10, 2)
-    end_u = ends[0] * end_scale + cx * _ONE
-    end_v = ends[1] * end_scale + cy * _ONE
-    nx = end_v[..., 1] - end_v[..., 0]
-    ny = end_u[..., 0] - end_u[..., 1]
-    length = np.hypot(nx, ny)
-    length += 1e-12
-    nx /= length
-    ny /= length
-    # Silhouette half-width along the normal: r |(x.m, aspect y.m)| in pixels
-    # for an elliptical section.
-    half = np.hypot(ax_x[0] * nx + ax_x[1] * ny, ax_y[0] * nx + ax_y[1] * ny)
-    width = shape.radii * end_scale
-    width *= half[..., None]  # (T, 10, 2), fixed point
-    # Strip corners: the ends pushed along the normal by the strips' edges,
-    # a (S + 1) x 2 grid per cone.
-    corners = np.empty((n, N_CONES, len(const["edges"]), 2, 2))
-    np.multiply(const["edges"], (width * nx[..., None])[:, :, None], out=corners[..., 0])
-    np.multiply(const["edges"], (width * ny[..., None])[:, :, None], out=corners[..., 1])
-    corners[..., 0] += end_u[:, :, None]
-    corners[..., 1] += end_v[:, :, None]
-    _clip_far(corners)
-    quads = np.take(corners.astype(np.int32).reshape(n, -1, 2), const["quad_index"], axis=1)
-    colors = _shade(ends, nx, ny, scene)
-    wide = (width.max(axis=-1) >= _STRIP_MIN_HALF_WIDTH_PX * _ONE).tolist()
-    # Painter's order, far first; cones whose end spheres reach behind the near
-    # plane are skipped (rare: only frames that have one are filtered).
-    order = np.argsort(-ends[2].sum(axis=-1), axis=-1, kind="stable").tolist()
-    visible = (ends[2] - shape.radii).min(axis=-1) > _NEAR_MM  # (T, 10)
-    if not visible.all():
-        for t in np.flatnonzero(~visible.all(axis=1)).tolist():
-            order[t] = [c for c in order[t] if visible[t, c]]
-    return order, ellipse_px, quads, colors, wide
-
-
-def _shade(
-    ends: NDArray[np.float64], nx: NDArray[np.float64], ny: NDArray[np.float64], scene: SceneOptions
-) -> NDArray[np.uint8]:
-    """Each cone's colours ``(T, 10, 2 + S, C)``: its cap, its flat shade, its strips.
-
-    Args:
-        ends: ``(3, T, 10, 2)`` the cones' end points in the camera frame.
-        nx: ``(T, 10)`` x of the unit image normal of each cone's projected axis.
-        ny: ``(T, 10)`` its y.
-        scene: Scene options (light, ambient and diffuse shares, colours).
-    """
-    const: dict[str, NDArray] = scene._drawing  # type: ignore[attr-defined]
-    n = ends.shape[1]
-    # Lambert shading: the cone axis a, the image normal m and the normal w
-    # facing the camera across the limb (w = (a_z a - e_z) / sqrt(1 - a_z^2)).
-    axis = ends[..., 1] - ends[..., 0]  # (3, T, 10)
-    axis /= np.sqrt((axis * axis).sum(axis=0)) + 1e-12
-    lx, ly, lz = const["light"].tolist()
-    a_l = axis[0] * lx + axis[1] * ly + axis[2] * lz
-    a_z = axis[2]
-    dots = np.empty((n, N_CONES, 3))
-    np.multiply(a_l, -np.sign(a_z), out=dots[..., 0])  # the cap that faces the camera
-    dots[..., 1] = nx * lx + ny * ly
-    dots[..., 2] = (a_z * a_l - lz) / np.sqrt(1.0 - a_z * a_z + 1e-9)
-    lambert = dots @ const["shading"]
-    np.maximum(lambert, 0.0, out=lambert)
-    lambert *= scene.diffuse
-    lambert += scene.ambient
-    # Rounded and saturated here as OpenCV would when drawing.
-    colors = np.rint(const["base"] * lambert[..., None])
-    colors = np.minimum(colors, 255.0, out=colors).astype(np.uint8)
-    return colors
+    n_strips = scene.shading_strips
+    ellipses = np.empty((n, N_CONES, 2 * _ELLIPSE_POINTS, 2), np.int32)
+    quads = np.empty((n, N_CONES, n_strips, 4, 2), np.int32)
+    colors = np.empty((n, N_CONES, n_strips + 2, scene.channels), np.uint8)
+    order = np.empty((n, N_CONES), np.int64)
+    counts = np.empty(n, np.int64)
+    wide = np.empty((n, N_CONES), np.bool_)
+    (cx, cy), fx = camera.principal_point, camera.focal * _ONE
+    intrinsics = np.array([fx, cx * _ONE, cy * _ONE, _NEAR_MM, _FAR_PX * _ONE])
+    lighting = np.array([scene.ambient, scene.diffuse, _STRIP_MIN_HALF_WIDTH_PX * _ONE])
+    _compiled.figure_polygons(
+        np.ascontiguousarray(geometry, np.float64), _CONE_ROWS, shape.radii, shape.aspect,
+        const["ring"], intrinsics, const["edges"], const["light"], const["shading"],
+        const["base"], lighting, ellipses, quads, colors, order, counts, wide,
+    )  # fmt: skip
+    rows = order.tolist()
+    if counts.min() < N_CONES:
+        rows = [row[:k] for row, k in zip(rows, counts.tolist(), strict=True)]
+    return rows, ellipses, quads, colors, wide.tolist()
 
 
 @dataclass(frozen=True, eq=False)
@@ -517,7 +438,7 @@ def render(
 
     Example:
         >>> import numpy as np
-        >>> from humotion_gym import body
+        >>> from humotion_gym import _compiled, body
         >>> from humotion_gym.camera import fit_camera
         >>> from humotion_gym.render import SceneOptions, make_background, render
         >>> shape = body.default_shape()

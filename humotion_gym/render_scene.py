@@ -269,8 +269,8 @@ class ClutterPlan(NamedTuple):
             ellipse's centre and half-axes, a polygon's vertex count and up to
             six vertices.
         shape_floats: ``(S, 10)`` float64: an ellipse's angle (degrees); the
-            plain colour's three draws or the texture's six (two colours); the
-            texture's period draw, angle and checker draw.
+            colour draws (a plain shape's first three, a texture's two
+            colours); the texture's period draw, angle and checker draw.
         lines: ``(L, 9)`` float64, a row per line: start ``x, y``, two normal
             draws (the direction), length, three colour draws, thickness.
     """
@@ -290,62 +290,59 @@ def _clutter_sizes(h: int, w: int, density: float) -> tuple[int, float, float, i
 
 
 def _clutter_plan(rng: np.random.Generator, h: int, w: int, density: float) -> ClutterPlan:
-    """Every random draw of a background's clutter, in the generator's order."""
+    """Every random draw of a background's clutter, made in a few array draws.
+
+    Each draw is made for every shape (or line) at once, whether its kind
+    uses it or not: a dozen generator calls per background instead of some
+    seventy scalar ones.
+    """
     size, shape_rate, line_rate, unit = _clutter_sizes(h, w, density)
     n_shapes = int(rng.poisson(shape_rate))
     n_lines = int(rng.poisson(line_rate))
-    shapes = np.zeros((n_shapes, 19), np.int64)
+    kinds = rng.integers(0, 3, n_shapes).tolist()
+    centres = (rng.uniform(-0.1, 1.1, (n_shapes, 2)) * (w, h)).tolist()
+    half_axes = (rng.uniform(0.05, 0.3, (n_shapes, 2)) * size).tolist()
     floats = np.zeros((n_shapes, 10))
+    floats[:, 0] = rng.uniform(0, 180, n_shapes)  # an ellipse's angle
+    # A polygon's k vertices: the first k of six angle draws, sorted.
+    n_vertices = rng.integers(3, 7, n_shapes)
+    angles = rng.uniform(0, 2 * np.pi, (n_shapes, 6))
+    angles = np.sort(np.where(np.arange(6) < n_vertices[:, None], angles, np.inf), axis=1)
+    textured = (rng.random(n_shapes) < 0.4).tolist()
+    floats[:, 1:7] = rng.uniform(25, 235, (n_shapes, 6))  # one colour, or a texture's two
+    floats[:, 7] = rng.uniform(3.0, 12.0, n_shapes)  # the texture's period,
+    floats[:, 8] = rng.uniform(0, np.pi, n_shapes)  # its angle
+    floats[:, 9] = rng.random(n_shapes)  # and whether it is a checker
+    shapes = np.zeros((n_shapes, 19), np.int64)
     for i in range(n_shapes):
-        kind = int(rng.integers(0, 3))
-        # One draw of two for the centre: the same doubles as two scalar draws.
-        ux, uy = rng.uniform(-0.1, 1.1, 2).tolist()
-        cx, cy = ux * w, uy * h
-        rx, ry = rng.uniform(0.05, 0.3, 2).tolist()
-        rx, ry = rx * size, ry * size
-        # Each kind's geometry and bounding box (lo_x, lo_y, hi_x, hi_y), in
-        # Python numbers: the box is only needed for a textured shape.
-        shapes[i, 0] = kind
+        (cx, cy), (rx, ry), kind = centres[i], half_axes[i], kinds[i]
+        # Each kind's geometry and bounding box (lo_x, lo_y, hi_x, hi_y): the
+        # box is only needed for a textured shape.
         if kind == 0:
             geometry = [int(cx - rx), int(cy - ry), int(cx + rx), int(cy + ry)]
             box: tuple = tuple(geometry)
         elif kind == 1:
             axes = (int(rx) + 1, int(ry) + 1)
             geometry = [int(cx), int(cy), *axes]
-            floats[i, 0] = float(rng.uniform(0, 180))
             reach = axes[0] + axes[1]
             box = (cx - reach, cy - reach, cx + reach, cy + reach)
         else:
-            angles = np.sort(rng.uniform(0, 2 * np.pi, int(rng.integers(3, 7))))
-            pts = np.stack([cx + rx * np.cos(angles), cy + ry * np.sin(angles)], axis=1)
-            polygon = pts.astype(np.int32)
+            a = angles[i, : n_vertices[i]]
+            polygon = np.stack([cx + rx * np.cos(a), cy + ry * np.sin(a)], axis=1).astype(np.int32)
             geometry = [len(polygon), *polygon.reshape(-1).tolist()]
             box = (*polygon.min(axis=0).tolist(), *polygon.max(axis=0).tolist())
+        shapes[i, 0] = kind
         shapes[i, 6 : 6 + len(geometry)] = geometry
-        if rng.random() >= 0.4:  # a plain colour
-            floats[i, 1:4] = rng.uniform(25, 235, 3)
-            continue
-        # A textured shape, drawn only over its bounding box.
-        x0, y0 = max(math.floor(box[0]) - 1, 0), max(math.floor(box[1]) - 1, 0)
-        x1, y1 = min(math.ceil(box[2]) + 2, w), min(math.ceil(box[3]) + 2, h)
-        if x1 <= x0 or y1 <= y0:
-            shapes[i, 1] = -1
-            continue
-        shapes[i, 1:6] = (1, x0, y0, x1, y1)
-        # The two colours in one draw of six (the same doubles as two draws of
-        # three: uniform is elementwise over the generator's stream).
-        floats[i, 1:7] = rng.uniform(25, 235, 6)
-        floats[i, 7] = rng.uniform(3.0, 12.0)
-        floats[i, 8] = rng.uniform(0, np.pi)
-        floats[i, 9] = rng.random()
+        if textured[i]:  # drawn only over its bounding box
+            x0, y0 = max(math.floor(box[0]) - 1, 0), max(math.floor(box[1]) - 1, 0)
+            x1, y1 = min(math.ceil(box[2]) + 2, w), min(math.ceil(box[3]) + 2, h)
+            shapes[i, 1:6] = (1, x0, y0, x1, y1) if x1 > x0 and y1 > y0 else (-1, 0, 0, 0, 0)
     lines = np.empty((n_lines, 9))
-    for i in range(n_lines):
-        x0f, y0f = rng.uniform(0, 1, 2).tolist()
-        lines[i, :2] = x0f * w, y0f * h
-        lines[i, 2:4] = rng.normal(size=2)
-        lines[i, 4] = rng.uniform(0.2, 1.0) * size
-        lines[i, 5:8] = rng.uniform(20, 240, 3)
-        lines[i, 8] = int(rng.integers(1, 3)) * unit
+    lines[:, :2] = rng.uniform(0, 1, (n_lines, 2)) * (w, h)
+    lines[:, 2:4] = rng.normal(size=(n_lines, 2))
+    lines[:, 4] = rng.uniform(0.2, 1.0, n_lines) * size
+    lines[:, 5:8] = rng.uniform(20, 240, (n_lines, 3))
+    lines[:, 8] = rng.integers(1, 3, n_lines) * unit
     return ClutterPlan(shapes, floats, lines)
 
 
@@ -540,16 +537,10 @@ def _drawing_constants(scene: SceneOptions) -> dict[str, NDArray]:
     shading[2, 1] = 1.0
     shading[1, 2:] = across
     shading[2, 2:] = np.sqrt(1.0 - across**2)
-    # Strip b joins corners (b, start), (b, end), (b + 1, end), (b + 1, start)
-    # of each cone's (S + 1) x 2 corner grid.
-    quad = np.array([[2 * b, 2 * b + 1, 2 * b + 3, 2 * b + 2] for b in range(strips)])
-    quad = quad[None] + (2 * strips + 2) * np.arange(N_CONES)[:, None, None]
     return {
-        "edges": edges[:, None],  # (S + 1, 1): broadcast over a cone's two ends
+        "edges": edges,
         "shading": shading,
         "light": light,
-        "base": _to_channels(scene.figure_colors, scene.channels)[:, None, :],
-        "quad_index": quad,
-        "cos": _UNIT_CIRCLE[0],
-        "sin": _UNIT_CIRCLE[1],
+        "base": np.ascontiguousarray(_to_channels(scene.figure_colors, scene.channels)),
+        "ring": _UNIT_CIRCLE,
     }

@@ -153,7 +153,9 @@ def test_layouts_of_the_same_geometry() -> None:
     assert f32.dtype == np.float32
     np.testing.assert_allclose(f32, world[:, :15], atol=2e-2)
     batched = _batch_kinematics(poses, shape, np.float64, want_head_axes=True)
-    np.testing.assert_array_equal(batched.keypoints[:, _TO_INTERNAL].transpose(2, 1, 0), world[:, :15])
+    np.testing.assert_array_equal(
+        batched.keypoints[:, _TO_INTERNAL].transpose(2, 1, 0), world[:, :15]
+    )
     np.testing.assert_array_equal(np.array(batched.head_x).T, world[:, 17])
     with pytest.raises(ValueError, match=r"\(T, 25\)"):
         batch_pose_geometry(poses[0], shape)

@@ -85,3 +85,42 @@ def test_lost_track_frame_exact_cases():
     assert lost_track_frame([], 150, 1) is None
     with pytest.raises(ValueError, match="patience"):
         lost_track_frame([1.0], 0.0, 0)
+
+
+def test_step_scores_against_a_loop_over_keypoints() -> None:
+    """The one reward function: a plain loop's numbers, batched or not (rounding: 1e-12)."""
+    from humotion_gym.metrics import Scoring, step_scores
+
+    rng = np.random.default_rng(3)
+    scored = [0, 2, 3, 5, 9, 10, 11]
+    regions = [
+        ("reward_a", [0, 1, 2]),
+        ("reward_b", [3]),
+        ("reward_c", []),
+        ("reward_d", [4, 5, 6]),
+    ]
+    scoring = Scoring.of(scored, regions, 80.0)
+    est = rng.normal(0.0, 300.0, (4, 6, 15, 3))
+    truth = est + rng.normal(0.0, 60.0, est.shape)
+    batched = step_scores(est, truth, scoring)
+    for n in np.ndindex(4, 6):
+        one = step_scores(est[n], truth[n], scoring)
+        e = [float(np.sqrt(((est[n][k] - truth[n][k]) ** 2).sum())) for k in range(15)]
+        shift = est[n][0] - truth[n][0]  # the pelvis's error, taken off for the aligned one
+        aligned = [float(np.linalg.norm(est[n][k] - truth[n][k] - shift)) for k in scored]
+        share = [np.exp(-e[k] / 80.0) / len(scored) for k in scored]
+        want_terms = {name: sum(share[j] for j in cols) for name, cols in regions}
+        for got in (one, type(one)(*(x[n] if np.ndim(x) else x for x in batched[:4]),
+                                   {k: v[n] for k, v in batched.terms.items()},
+                                   batched.reward[n])):  # fmt: skip
+            np.testing.assert_allclose(got.keypoint_errors, e, rtol=1e-12)
+            assert got.error_mm == pytest.approx(np.mean([e[k] for k in scored]), rel=1e-12)
+            assert got.error_all_mm == pytest.approx(np.mean(e), rel=1e-12)
+            assert got.error_aligned_mm == pytest.approx(np.mean(aligned), rel=1e-12)
+            for name, value in want_terms.items():
+                assert got.terms[name] == pytest.approx(value, rel=1e-12, abs=1e-15)
+            assert got.reward == pytest.approx(sum(want_terms.values()), rel=1e-12)
+    perfect = step_scores(truth, truth, scoring)
+    np.testing.assert_allclose(perfect.reward, 1.0, rtol=1e-12)
+    with pytest.raises(ValueError, match="exactly once"):
+        Scoring.of(scored, [("reward_a", [0, 1, 2]), ("reward_b", [2, 3, 4, 5, 6])], 80.0)

@@ -29,7 +29,7 @@ from humotion_gym.body import (
 from humotion_gym.camera import Camera, fit_camera
 from humotion_gym.envs.tasks import TaskSpec, get_task
 from humotion_gym.kinematics import batch_pose_geometry
-from humotion_gym.metrics import StepScores, step_scores, update_lost_run
+from humotion_gym.metrics import Scoring, StepScores, step_scores, update_lost_run
 from humotion_gym.mocap.library import (
     MotionLibrary,
     configured_data_dirs,
@@ -237,6 +237,7 @@ class PoseTrackingEnv(gym.Env):
             for name, members in _REGIONS.items()
         }
         self._reward_terms = [(f"reward_{name}", idx) for name, idx in self._region_of.items()]
+        self._scoring = Scoring.of(self._err_kp, self._reward_terms, self.reward_scale_mm)
         self._motion: Motion | None = None
         self._done = False
         self._starts: dict[str, tuple[Motion, NDArray[np.intp]]] = {}
@@ -721,10 +722,7 @@ class PoseTrackingEnv(gym.Env):
 
     def _scores(self, estimate_keypoints: FloatArray, truth_keypoints: FloatArray) -> StepScores:
         """The step's errors and reward (:func:`~humotion_gym.metrics.step_scores`)."""
-        return step_scores(
-            estimate_keypoints, truth_keypoints, self._err_kp, self._reward_terms,
-            self.reward_scale_mm,
-        )  # fmt: skip
+        return step_scores(estimate_keypoints, truth_keypoints, self._scoring)
 
     def _after_end(self) -> tuple[NDArray[np.uint8], float, bool, bool, dict[str, Any]]:
         """A step after the episode ended: the terminal transition again (see :meth:`step`)."""
