@@ -26,6 +26,7 @@ import numpy as np
 from baselines.agents import AGENTS, FILTER_SETTINGS, make
 from baselines.leaderboard.evaluation import evaluate, run_episode
 from baselines.observation import ObservationModel
+from baselines.stillness import STILL_RATIO, still_windows
 from humotion_gym.envs.tasks import get_task
 from humotion_gym.mocap.library import (
     TEST_SUBJECTS,
@@ -176,8 +177,6 @@ def _still_episodes(
     """
     if count <= 0:
         return []
-    from baselines.stillness import still_windows
-
     probe = gym.make(f"humotion_gym/{task}", library=library, **env_kwargs)
     windows = still_windows(probe, max_hold_mm, count=count)
     probe.close()
@@ -301,8 +300,6 @@ def select_observation_settings(
 
 def _chosen(rows: Sequence[Mapping[str, Any]]) -> int:
     """The row the declared rule picks (see :func:`select_observation_settings`)."""
-    from baselines.stillness import STILL_RATIO
-
     order = range(len(rows))
     if rows and "still_ratio" in rows[0]:
         standing = [i for i in order if rows[i]["still_ratio"] <= STILL_RATIO]

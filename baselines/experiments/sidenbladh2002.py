@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from baselines.experiments._plotting import pyplot, save
 from baselines.filtering import ParticleState
-from baselines.priors import tree
+from baselines.priors import tree, tree_model
 from humotion_gym import body
 from humotion_gym.mocap.library import MotionLibrary
 from humotion_gym.mocap.motion import Motion
@@ -35,7 +35,9 @@ FloatArray = NDArray[np.float64]
 FIG3_BETAS: tuple[float, ...] = (0.01, 0.1, 1.0, 10.0)
 
 
-def _probe_histories(fitted: tree.TreeParams, motions: Sequence[Motion], count: int, seed: int):
+def _probe_histories(
+    fitted: tree.TreeParams, motions: Sequence[Motion], count: int, seed: int
+) -> tuple[FloatArray, FloatArray, list[body.BodyShape]]:
     """``count`` held-out histories (and the clips' shapes), walking clips first."""
     walks = [m for m in motions if m.label == "walk"] or list(motions)
     rng = np.random.default_rng(seed)
@@ -254,8 +256,9 @@ def explained_variance_by_features(
         raise ValueError(f"components and windows: expected at least 1, got {b} and {windows}")
     rng = np.random.default_rng(seed)
     pick = np.sort(rng.choice(fitted.n_windows, min(windows, fitted.n_windows), replace=False))
-    lay = tree._layout(fitted.free)
-    feats = tree._features(tree._anchor(tree.window_histories(fitted, pick), lay), lay)
+    # the windows as the prior's search sees them (section 4): anchored, with velocities
+    lay = tree_model._layout(fitted.free)
+    feats = tree_model._features(tree_model._anchor(tree.window_histories(fitted, pick), lay), lay)
     n_abs = lay.absolute.size
     parts = {
         "pose+velocity": feats,

@@ -198,6 +198,22 @@ def pavlovic_test_subjects():
     return set(TEST_SUBJECTS)
 
 
+def test_one_fit_per_activity_names_a_missing_label_and_draws_its_clips(small_train):
+    rng = np.random.default_rng(0)
+    with pytest.raises(ValueError, match="'jump'"):
+        pavlovic1999.fit_activity_models(small_train, ["jump", "walk"], None, [rng, rng])
+    # max_clips: the model of one drawn clip equals that clip's own fit, drawn the same way
+    walks = [m for m in small_train if m.label == "walk"]
+    (fit,) = pavlovic1999.fit_activity_models(
+        small_train, ["walk"], None, [np.random.default_rng(4)], n_states=2, n_iter=2, max_clips=1
+    )
+    draw = np.random.default_rng(4)
+    pick = int(draw.choice(len(walks), 1, replace=False)[0])
+    alone = slds.fit_activity([walks[pick]], None, draw, n_states=2, n_iter=2, label="walk")
+    np.testing.assert_array_equal(fit.params.A, alone.params.A)
+    np.testing.assert_array_equal(fit.costs, alone.costs)
+
+
 def test_selection_rejects_bad_candidates(small_train):
     with pytest.raises(ValueError, match="switch_probs"):
         _select(small_train, switch_probs=(0.0,))

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.interpolate import make_interp_spline
 
 from baselines.experiments.pavlovic1999.features import (
     assumed_noise,
@@ -78,8 +79,6 @@ def _bridge(before: FloatArray, after: FloatArray, blend: int) -> FloatArray:
         [np.arange(n_a - blend - ctx, n_a - blend), n_a + blend + np.arange(ctx)]
     ).astype(np.float64)
     knots_y = np.concatenate([before[n_a - blend - ctx : n_a - blend], after[blend : blend + ctx]])
-    from scipy.interpolate import make_interp_spline  # scipy takes a second to import
-
     spline = make_interp_spline(knots_t, knots_y, k=3)
     out = np.concatenate([before, after])
     gap = np.arange(n_a - blend, n_a + blend)

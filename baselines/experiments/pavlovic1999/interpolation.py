@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.interpolate import CubicSpline
 
 from baselines.experiments.pavlovic1999.classification import fit_activity_models
 from baselines.experiments.pavlovic1999.settings import GAP
@@ -60,8 +61,6 @@ def _limits(model: SLDSParams) -> tuple[FloatArray, FloatArray]:
 
 def _classic_fills(y: FloatArray, start: int, stop: int) -> tuple[FloatArray, FloatArray]:
     """The gap filled by a straight line between its neighbours, and by a cubic spline."""
-    from scipy.interpolate import CubicSpline  # scipy takes a second to import
-
     t = np.arange(y.shape[0], dtype=np.float64)
     observed = np.ones(y.shape[0], dtype=bool)
     observed[start:stop] = False

@@ -8,8 +8,10 @@ such scorings (cross-validation folds, train/test splits) in processes.
 
 from __future__ import annotations
 
+import multiprocessing
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -266,9 +268,6 @@ def run_jobs(
             for a in jobs_args:
                 done(_score_job(*a))
         else:
-            import multiprocessing
-            from concurrent.futures import ProcessPoolExecutor
-
             ctx = multiprocessing.get_context("fork")
             with ProcessPoolExecutor(jobs, ctx, _set_pool_motions, (motions,)) as pool:
                 for fut in [pool.submit(_score_job, *a) for a in jobs_args]:
