@@ -66,7 +66,7 @@ def cone_bases(
     """
     near, focal = intrinsics[0], intrinsics[1]
     u0, v0, pad = intrinsics[2], intrinsics[3], intrinsics[4]
-    n, n_kp = geometry.shape[0], cones.max() + 1
+    n, n_kp = geometry.shape[0], geometry.shape[1] - 2 * cones.shape[0]  # keypoints, then axes
     # Loops over poses innermost (they vectorise): the keypoints' projections,
     # then each cone's basis from its two ends.
     uv = np.empty((3, n_kp, n), np.float32)  # u, v, inverse depth
@@ -187,8 +187,11 @@ def point_costs(
                 x += wa * basis[4, c, j] + wb * basis[6, c, j]
                 y = ws * basis[1, c, j] + we * basis[3, c, j]
                 y += wa * basis[5, c, j] + wb * basis[7, c, j]
-                x = min(max(x, _ZERO), xmax)  # the padding border: off the image
-                y = min(max(y, _ZERO), ymax)
+                # Clipped to the padding border (off the image); a NaN to pixel 0.
+                x = x if x > _ZERO else _ZERO
+                x = x if x < xmax else xmax
+                y = y if y > _ZERO else _ZERO
+                y = y if y < ymax else ymax
                 index[j] = np.int64(y) * w2 + np.int64(x)  # +0.5 in the basis: rounds
             if p < n_out:
                 for j in range(n):
