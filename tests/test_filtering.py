@@ -7,9 +7,25 @@ from baselines.filtering import (
     ParticleFilter,
     ParticleState,
     effective_sample_size,
+    log_sum_exp,
+    multinomial_resample,
+    stratified_resample,
+    systematic_resample,
     weighted_mean,
-    weighted_mean_reference,
 )
+from baselines.filtering import weights as filter_weights
+
+
+def weighted_mean_reference(particles, weights, angle_mask):
+    """The oracle: the weighted mean, angles by atan2 of the mean sine and cosine, in
+    double precision, put on the branch nearest the linear mean."""
+    mean = weights @ particles
+    if np.any(angle_mask):
+        ang = particles[:, angle_mask]
+        circ = np.arctan2(weights @ np.sin(ang), weights @ np.cos(ang))
+        lin = mean[angle_mask]
+        mean[angle_mask] = circ + 2 * np.pi * np.round((lin - circ) / (2 * np.pi))
+    return mean
 
 
 class LinearGaussianPrior:
@@ -156,38 +172,81 @@ def test_circular_mean_does_not_depend_on_its_row_blocks(monkeypatch, rows: int)
     weights /= weights.sum()
     masks = [np.arange(25) >= 3, rng.random(25) < 0.6, np.arange(25) == 4]
     expected = [weighted_mean(particles, weights, mask) for mask in masks]
-    monkeypatch.setattr(filtering, "_MEAN_ROWS", rows)
+    monkeypatch.setattr(filter_weights, "_MEAN_ROWS", rows)
     for mask, want in zip(masks, expected, strict=True):
         assert np.array_equal(weighted_mean(particles, weights, mask), want)
 
 
-def test_the_compiled_angle_offsets_give_the_numpy_paths_mean(monkeypatch) -> None:
-    # With the `fast` extra the circular mean's wrapped offsets come from one
-    # kernel: the same means, bit for bit, for clouds narrow and wide (many
-    # offsets wrapped, some exactly half a turn), contiguous and scattered
-    # angle columns, and particles holding a NaN or an infinity.
-    from humotion_gym import _kernels
+def systematic_counts_oracle(weights, u):
+    """Kitagawa's systematic resampling by its definition: particle ``i`` is drawn
+    once for each pointer ``(u + k) / N`` in ``[W_{i-1}, W_i)``, ``W`` the
+    running sum of the weights."""
+    n = weights.size
+    edges = np.concatenate([[0.0], np.cumsum(weights)])
+    edges[-1] = 1.0
+    counts = np.zeros(n, dtype=int)
+    for k in range(n):
+        pointer = (u + k) / n
+        i = 0
+        while not edges[i] <= pointer < edges[i + 1]:
+            i += 1
+        counts[i] += 1
+    return counts
 
-    if not _kernels.enabled():
-        pytest.skip("the compiled kernels are off (numba missing or HUMOTION_NUMBA=0)")
-    rng = np.random.default_rng(11)
-    for trial in range(60):
-        n = int(rng.integers(1, 3000))
-        spread = float(rng.choice([0.01, 1.0, 10.0]))
-        particles = rng.uniform(-30.0, 30.0, 25) + rng.normal(0.0, spread, (n, 25))
+
+def test_systematic_resampling_counts_follow_its_definition() -> None:
+    # The counts of every particle against the pointer-by-pointer oracle (exact:
+    # the same comparisons of the same sums), sorted indices, and each count
+    # within one of N w_i (the scheme's defining property).
+    rng = np.random.default_rng(6)
+    for n in (1, 2, 7, 300, 3000):
+        for _ in range(5):
+            weights = rng.random(n) ** rng.choice([1, 8])
+            weights /= weights.sum()
+            seed = int(rng.integers(2**32))
+            u = np.random.default_rng(seed).random()
+            index = systematic_resample(weights, np.random.default_rng(seed))
+            counts = np.bincount(index, minlength=n)
+            np.testing.assert_array_equal(counts, systematic_counts_oracle(weights, u))
+            assert np.all(np.diff(index) >= 0)
+            assert np.all(np.abs(counts - n * weights) < 1 + 1e-9)
+
+
+@pytest.mark.parametrize("scheme", [multinomial_resample, stratified_resample])
+def test_random_resampling_counts_are_unbiased(scheme) -> None:
+    # E[count_i] = N w_i: mean counts over 400 resamplings within 5 standard
+    # errors (multinomial's variance N w (1 - w) bounds stratified's).
+    rng = np.random.default_rng(7)
+    n = 50
+    weights = rng.random(n) ** 3
+    weights /= weights.sum()
+    counts = np.mean([np.bincount(scheme(weights, rng), minlength=n) for _ in range(400)], axis=0)
+    se = np.sqrt(n * weights * (1 - weights) / 400)
+    assert np.all(np.abs(counts - n * weights) <= 5 * se + 1e-12)
+
+
+def test_log_sum_exp_against_scipy() -> None:
+    # Against scipy.special.logsumexp to 1e-12 relative (sums in another order),
+    # ties at the maximum, -inf entries, all -inf (-inf) and a NaN (NaN).
+    from scipy.special import logsumexp
+
+    rng = np.random.default_rng(0)
+    for trial in range(300):
+        n = int(rng.choice([1, 2, 3, 17, 300, 3000]))
+        a = rng.normal(rng.uniform(-50, 50), rng.uniform(0.01, 30), n)
+        if trial % 3 == 0:
+            a = np.round(a)
         if trial % 5 == 0:
-            particles[rng.integers(n), rng.integers(25)] = rng.choice([np.nan, np.inf])
-        if trial % 7 == 0:
-            particles[: n // 2, 5] = particles[0, 5] + np.pi * rng.choice([-1, 1], n // 2)
-        weights = rng.random(n)
-        weights /= weights.sum()
-        mask = np.arange(25) >= 3 if trial % 2 else rng.random(25) < 0.7
-        with np.errstate(invalid="ignore"):
-            fast = weighted_mean(particles, weights, mask)
-            with monkeypatch.context() as m:
-                m.setattr(_kernels, "ENABLED", False)
-                slow = weighted_mean(particles, weights, mask)
-        np.testing.assert_array_equal(fast, slow)
+            a[rng.random(n) < 0.3] = -np.inf
+        if trial % 97 == 0:
+            a[:] = -np.inf
+        if trial % 89 == 0:
+            a[rng.integers(n)] = np.nan
+        want, got = logsumexp(a), log_sum_exp(a)
+        if np.isnan(want) or np.isinf(want):
+            assert got == want or (np.isnan(got) and np.isnan(want))
+        else:
+            assert got == pytest.approx(want, rel=1e-12, abs=1e-12)
 
 
 def test_resampled_arrays_are_gathered_when_read_and_only_once() -> None:

@@ -40,7 +40,6 @@ from numpy.typing import ArrayLike, NDArray
 from baselines.filtering import ParticleState
 from baselines.priors._io import load_fitted, save_fitted
 from baselines.priors._synthesis import check_request, model_frames, to_motion
-from humotion_gym import _kernels
 from humotion_gym.body import N_PARAMS, VALID_LOWER, VALID_UPPER
 from humotion_gym.mocap.motion import Motion
 
@@ -167,7 +166,7 @@ def initial(
 ) -> ParticleState:
     """N particles at the known pose with velocities drawn from the data's spread."""
     p = np.asarray(pose, dtype=np.float64)
-    velocity = _kernels.standard_normal(rng, (n, p.shape[-1])) * fitted.velocity_std
+    velocity = rng.standard_normal((n, p.shape[-1])) * fitted.velocity_std
     return ParticleState(np.repeat(p[None], n, axis=0), {"velocity": velocity})
 
 
@@ -175,16 +174,14 @@ def transition(
     fitted: ConstantVelocityParams, state: ParticleState, rng: np.random.Generator
 ) -> ParticleState:
     """One step: the velocity decays and takes a random kick, the pose moves by it."""
-    noise = _kernels.standard_normal(rng, state.pose.shape) * (fitted.multiplier * fitted.accel_std)
+    noise = rng.standard_normal(state.pose.shape) * (fitted.multiplier * fitted.accel_std)
     velocity = state.extra["velocity"]
     if fitted.damping != 1.0:
         velocity = velocity * fitted.damping
     velocity = velocity + noise
     pose = state.pose + velocity
     if fitted.position_noise > 0:
-        pose += _kernels.standard_normal(rng, pose.shape) * (
-            fitted.position_noise * fitted.velocity_std
-        )
+        pose += rng.standard_normal(pose.shape) * (fitted.position_noise * fitted.velocity_std)
     lower, upper = VALID_LOWER[fitted.free], VALID_UPPER[fitted.free]
     outside = (pose < lower) | (pose > upper)
     if outside.any():

@@ -57,7 +57,6 @@ from numpy.typing import ArrayLike, NDArray
 from baselines.filtering import ParticleState
 from baselines.priors import cycles, fpca
 from baselines.priors._io import load_fitted, save_fitted
-from humotion_gym import _kernels
 from humotion_gym.body import (
     N_PARAMS,
     PARAM_INDEX,
@@ -542,9 +541,7 @@ def initial(
     step = fitted.n_samples / phases.size
     phase = np.mod(phases[cell] + (rng.random(n) - 0.5) * step, fitted.n_samples)
     chol = np.linalg.cholesky(cov[cell])  # (N, q, q)
-    coef = coefs[cell] + np.einsum(
-        "nqk,nk->nq", chol, _kernels.standard_normal(rng, (n, cov.shape[1]))
-    )
+    coef = coefs[cell] + np.einsum("nqk,nk->nq", chol, rng.standard_normal((n, cov.shape[1])))
     best = int(np.argmax(log_post))
     if fitted.keep_offset:
         offset = y - curves(fitted, phases[best : best + 1], coefs[best : best + 1])[0]
@@ -552,18 +549,16 @@ def initial(
         offset = turns
     offset = np.repeat(offset[None], n, axis=0)
     speed = np.clip(
-        fitted.speed_mean + fitted.speed_std * _kernels.standard_normal(rng, n),
+        fitted.speed_mean + fitted.speed_std * rng.standard_normal(n),
         fitted.speed_min,
         fitted.speed_max,
     )
-    velocity = fitted.root_velocity_mean + fitted.root_velocity_std * _kernels.standard_normal(
-        rng, (n, 3)
-    )
+    velocity = fitted.root_velocity_mean + fitted.root_velocity_std * rng.standard_normal((n, 3))
     if rot_slots[0] < 0:
         # Heading unknown to the prior: the velocity is in the world frame, of
         # the walking speed but in no particular horizontal direction.
         speed_xy = float(np.hypot(*fitted.root_velocity_mean[:2]))
-        velocity[:, :2] = speed_xy * _kernels.standard_normal(rng, (n, 2)) / np.sqrt(2.0)
+        velocity[:, :2] = speed_xy * rng.standard_normal((n, 2)) / np.sqrt(2.0)
     out = np.repeat(p[None], n, axis=0)
     out[:, angle_slots] = curves(fitted, phase, coef) + offset
     extra = _particle_extra(phase, speed, coef, offset, velocity)
@@ -604,24 +599,24 @@ def transition(
         accel = fitted.global_noise * fitted.root_accel_std
         velocity = _revert(velocity, fitted.root_velocity_mean, accel, fitted.root_velocity_std, k)
     speed = np.clip(
-        speed + fitted.speed_noise * fitted.speed_step_std * _kernels.standard_normal(rng, n),
+        speed + fitted.speed_noise * fitted.speed_step_std * rng.standard_normal(n),
         fitted.speed_min,
         fitted.speed_max,
     )
-    coef = coef + fitted.coef_noise * fitted.coef_step_std * _kernels.standard_normal(
-        rng, (n, fitted.n_components)
+    coef = coef + fitted.coef_noise * fitted.coef_step_std * rng.standard_normal(
+        (n, fitted.n_components)
     )
     offset = state.extra[OFFSET]
     pose = state.pose.copy()
     pose[:, angle_slots] = curves(fitted, phase, coef) + offset
     # Global pose (section 5): random walks with the fitted scales.
     velocity = velocity + fitted.global_noise * fitted.root_accel_std * (
-        _kernels.standard_normal(rng, (n, 3))
+        rng.standard_normal((n, 3))
     )
     for axis, slot in enumerate(rot_slots):
         if slot >= 0:
             step = fitted.global_noise * fitted.rotation_step_std[axis]
-            pose[:, slot] += step * _kernels.standard_normal(rng, n)
+            pose[:, slot] += step * rng.standard_normal(n)
     if np.any(pos_slots >= 0):
         if rot_slots[0] >= 0:  # body-frame velocity turned by each particle's heading
             yaw = pose[:, rot_slots[0]]

@@ -87,7 +87,6 @@ from baselines.priors.slds_learning import (
     run_em,
     start_em,
 )
-from humotion_gym import _kernels
 from humotion_gym.body import N_PARAMS, PARAM_INDEX, PARAM_LOWER, PARAM_UPPER, SAGITTAL_PARAMS
 from humotion_gym.mocap.motion import Motion
 from humotion_gym.threads import available_cores, limit_blas_threads
@@ -503,12 +502,10 @@ def initial(fitted: SLDSParams, pose: ArrayLike, n: int, rng: np.random.Generato
     root = psd_sqrt(cond)
     if fitted.emission == "identity":
         mean = np.tile(y, fitted.order)
-        state = mean + np.einsum(
-            "nij,nj->ni", root[switch], _kernels.standard_normal(rng, (n, mean.size))
-        )
+        state = mean + np.einsum("nij,nj->ni", root[switch], rng.standard_normal((n, mean.size)))
     else:
         mean = fitted.x0 + (gain @ resid[..., None])[..., 0]  # (S, dx)
-        eps = _kernels.standard_normal(rng, (n, fitted.latent_dim))
+        eps = rng.standard_normal((n, fitted.latent_dim))
         state = mean[switch] + np.einsum("nij,nj->ni", root[switch], eps)
     poses = _clip(fitted, state @ c.T + fitted.d)
     if fitted.emission == "identity":
@@ -520,7 +517,7 @@ def transition(fitted: SLDSParams, state: ParticleState, rng: np.random.Generato
     """One step of every particle: ``s' ~ Pi[s]``, ``x' ~ N(A(s') x + b(s'), Q(s'))``."""
     switch = sample_switches(fitted.Pi, state.extra["switch"], rng)
     x = state.extra["state"]
-    noise = _kernels.standard_normal(rng, x.shape)
+    noise = rng.standard_normal(x.shape)
     root = psd_sqrt(fitted.Q)
     out = np.empty_like(x)
     # Loop over the S models (not the particles): each moves its own particles.

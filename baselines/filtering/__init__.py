@@ -1,0 +1,57 @@
+"""The particle filter: CONDENSATION / sampling-importance-resampling.
+
+Isard & Blake, *CONDENSATION: conditional density propagation for visual
+tracking*, IJCV 1998. One generic filter runs any prior: the prior draws the
+initial particles and moves them on (:class:`Prior`), the observation model
+weights them, and the filter normalises the weights in the log domain,
+estimates the pose and resamples. Every operation acts on all N particles at
+once; the only loop is over time, one frame per :meth:`ParticleFilter.step`.
+"""
+
+from baselines.filtering.filters import (
+    AnnealedParticleFilter,
+    ParticleFilter,
+    PartitionedParticleFilter,
+    PartLikelihood,
+    Stage,
+)
+from baselines.filtering.state import (
+    Likelihood,
+    ParticleState,
+    Prior,
+    deferred_rows,
+    select,
+)
+from baselines.filtering.weights import (
+    RESAMPLING,
+    effective_sample_size,
+    log_sum_exp,
+    multinomial_resample,
+    stratified_resample,
+    systematic_resample,
+    temper_for_survival,
+    tempered_weights,
+    weighted_mean,
+)
+
+__all__ = [
+    "RESAMPLING",
+    "AnnealedParticleFilter",
+    "Likelihood",
+    "ParticleFilter",
+    "ParticleState",
+    "PartLikelihood",
+    "PartitionedParticleFilter",
+    "Prior",
+    "Stage",
+    "deferred_rows",
+    "effective_sample_size",
+    "log_sum_exp",
+    "multinomial_resample",
+    "select",
+    "stratified_resample",
+    "systematic_resample",
+    "temper_for_survival",
+    "tempered_weights",
+    "weighted_mean",
+]

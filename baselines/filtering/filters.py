@@ -1,0 +1,486 @@
+"""The filters: CONDENSATION, the annealed particle filter and partitioned sampling.
+
+See :mod:`baselines.filtering`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from baselines.filtering.state import Likelihood, ParticleState, Prior
+from baselines.filtering.weights import (
+    RESAMPLING,
+    effective_sample_size,
+    log_sum_exp,
+    temper_for_survival,
+    tempered_weights,
+    weighted_mean,
+)
+
+FloatArray = NDArray[np.float64]
+
+
+class ParticleFilter:
+    """CONDENSATION over any prior that follows the interface.
+
+    Args:
+        prior: The prior's functions (``initial``, ``transition``).
+        fitted: The prior's fitted parameters.
+        observation_model: Gives ``log_likelihood(frame, poses)``.
+        n: Number of particles.
+        angle_mask: ``(D,)`` True for angle dimensions (circular mean); all
+            False when None.
+        resampling: A name in :data:`RESAMPLING`.
+        ess_threshold: Resample when the effective sample size falls below
+            this fraction of N; 1.0 (the default) resamples every frame, as
+            CONDENSATION does.
+        estimate: ``"mean"`` (posterior mean) or ``"map"`` (the heaviest particle).
+    """
+
+    def __init__(
+        self,
+        prior: Prior,
+        fitted: Any,
+        observation_model: Likelihood,
+        n: int,
+        angle_mask: ArrayLike | None = None,
+        resampling: str = "systematic",
+        ess_threshold: float = 1.0,
+        estimate: str = "mean",
+    ) -> None:
+        if n < 1:
+            raise ValueError(f"ParticleFilter: n must be >= 1, got {n}")
+        if resampling not in RESAMPLING:
+            raise ValueError(f"ParticleFilter: resampling must be one of {sorted(RESAMPLING)}")
+        if estimate not in ("mean", "map"):
+            raise ValueError(f"ParticleFilter: estimate must be 'mean' or 'map', got {estimate!r}")
+        if not 0.0 <= ess_threshold <= 1.0:
+            raise ValueError(
+                f"ParticleFilter: ess_threshold must be in [0, 1], got {ess_threshold}"
+            )
+        self.prior = prior
+        self.fitted = fitted
+        self.observation_model = observation_model
+        self.n = int(n)
+        self.angle_mask = None if angle_mask is None else np.asarray(angle_mask, dtype=bool)
+        self.resample_fn = RESAMPLING[resampling]
+        self.ess_threshold = float(ess_threshold)
+        self.estimate_kind = estimate
+        self.state: ParticleState | None = None
+        self.log_weights: FloatArray | None = None
+        self.ess: float = float("nan")
+        self.log_evidence: float = 0.0
+        self._rng: np.random.Generator | None = None
+
+    def reset(self, initial_pose: ArrayLike, rng: np.random.Generator) -> None:
+        """Draw the initial particles from the prior around a known pose.
+
+        Args:
+            initial_pose: ``(D,)`` the pose at the first frame (set by hand in
+                the papers, given by the environment here).
+            rng: The filter's generator; the same seed gives the same run.
+        """
+        pose = np.asarray(initial_pose, dtype=np.float64)
+        self._rng = rng
+        self.state = self.prior.initial(self.fitted, pose, self.n, rng)
+        if self.state.n != self.n:
+            raise ValueError(f"prior.initial returned {self.state.n} particles, expected {self.n}")
+        self.log_weights = np.full(self.n, -np.log(self.n))
+        self.ess = float(self.n)
+        self.log_evidence = 0.0
+        if self.angle_mask is None:
+            self.angle_mask = np.zeros(pose.shape[-1], dtype=bool)
+
+    def _estimate(
+        self, pose: FloatArray, weights: FloatArray, rank: FloatArray | None = None
+    ) -> FloatArray:
+        """``(D,)`` the weighted particles' estimate: their mean, or the MAP particle.
+
+        ``rank``: what the MAP particle maximises (the weights when None; the
+        filter passes their logarithms, which keep apart weights that
+        underflow alike).
+        """
+        if self.estimate_kind == "map":
+            return pose[int(np.argmax(weights if rank is None else rank))].copy()
+        return weighted_mean(pose, weights, self.angle_mask)
+
+    def step(self, frame: Any) -> FloatArray:
+        """Advance one frame: predict, weight, estimate, resample.
+
+        Args:
+            frame: The observation, passed to the observation model unchanged.
+
+        Returns:
+            ``(D,)`` the estimate (posterior mean or MAP particle).
+        """
+        if self.state is None or self.log_weights is None or self._rng is None:
+            raise RuntimeError("ParticleFilter.step() called before reset()")
+        self.state = self.prior.transition(self.fitted, self.state, self._rng)
+        loglik = np.asarray(
+            self.observation_model.log_likelihood(frame, self.state.pose), dtype=np.float64
+        )
+        if loglik.shape != (self.n,):
+            raise ValueError(f"log_likelihood returned shape {loglik.shape}, expected ({self.n},)")
+        loglik = np.where(np.isnan(loglik), -np.inf, loglik)
+        log_w = self.log_weights + loglik
+        norm = log_sum_exp(log_w)
+        if not np.isfinite(norm):
+            # Every particle impossible: keep the predicted cloud with equal weights
+            # rather than divide by zero; the estimate then follows the prior.
+            log_w = np.full(self.n, -np.log(self.n))
+            norm = 0.0
+        self.log_evidence += float(norm)
+        log_w = log_w - norm
+        weights = np.exp(log_w)
+        self.ess = effective_sample_size(weights)
+        estimate = self._estimate(self.state.pose, weights, log_w)
+        if self.ess < self.ess_threshold * self.n or self.ess_threshold >= 1.0:
+            index = self.resample_fn(weights, self._rng)
+            self.state = self.state.take(index)
+            self.log_weights = np.full(self.n, -np.log(self.n))
+        else:
+            self.log_weights = log_w
+        return estimate
+
+    @property
+    def weights(self) -> FloatArray:
+        """Current normalised weights ``(N,)``."""
+        if self.log_weights is None:
+            raise RuntimeError("ParticleFilter: no weights before reset()")
+        return np.exp(self.log_weights)
+
+
+def _within(
+    pose: FloatArray, lower: FloatArray | None, upper: FloatArray | None
+) -> NDArray[np.bool_]:
+    """``(N,)`` True for poses with finite parameters inside the bounds (None: unbounded)."""
+    ok = np.isfinite(pose).all(axis=1)
+    if lower is not None:
+        ok &= (pose >= lower).all(axis=1)
+    if upper is not None:
+        ok &= (pose <= upper).all(axis=1)
+    return ok
+
+
+def _search_settings(
+    owner: str,
+    diffusion: float,
+    min_std: ArrayLike,
+    lower: ArrayLike | None,
+    upper: ArrayLike | None,
+) -> tuple[float, FloatArray, FloatArray | None, FloatArray | None]:
+    """The diffusion scale, its floor and the valid poses' bounds, checked."""
+    if not (np.isfinite(diffusion) and diffusion >= 0):
+        raise ValueError(f"{owner}: diffusion must be >= 0, got {diffusion}")
+    floor = np.asarray(min_std, dtype=np.float64)
+    if np.any(floor < 0) or not np.all(np.isfinite(floor)):
+        raise ValueError(f"{owner}: min_std must be finite and >= 0")
+    return (
+        float(diffusion),
+        floor,
+        None if lower is None else np.asarray(lower, dtype=np.float64),
+        None if upper is None else np.asarray(upper, dtype=np.float64),
+    )
+
+
+class AnnealedParticleFilter(ParticleFilter):
+    """The annealed particle filter over any prior.
+
+    Deutscher, Blake & Reid, CVPR 2000 (the HumanEva baseline of Sigal, Balan &
+    Black, IJCV 2010). Per frame: the prior moves the particles on (so the first
+    layer proposes from the motion prior and any prior works), then ``layers``
+    times the particles are weighted by the likelihood raised to ``beta_m``,
+    chosen so that the survival rate ``ESS / N`` is ``alpha``
+    (:func:`temper_for_survival`; a fixed schedule with ``betas``), resampled and
+    diffused by a Gaussian whose covariance is ``alpha^m`` times the
+    per-dimension variance of the prior's proposal (section 3: the search
+    narrows as the layers concentrate). The estimate is the weighted mean (or
+    heaviest particle) of the last layer, whose resampled set carries over to
+    the next frame. Each frame costs ``layers * n`` likelihood evaluations.
+
+    Args:
+        prior, fitted, observation_model, n, angle_mask, resampling, estimate:
+            As :class:`ParticleFilter`.
+        layers: Annealing layers per frame (``M``, default 10).
+        alpha: Survival rate per layer (default 0.5, the paper's).
+        betas: A fixed exponent per layer instead of the adaptive ones (length
+            ``layers``); ``layers=1, betas=(1.0,), diffusion=0`` is
+            :class:`ParticleFilter` with ``ess_threshold=1``.
+        diffusion: Scale on the diffusion's standard deviation (default 1; 0
+            turns diffusion off).
+        min_std: ``(D,)`` or scalar floor on the diffusion's base standard
+            deviation, so a collapsed proposal still searches (default 0).
+        lower, upper: ``(D,)`` bounds of valid poses (e.g. joint limits):
+            particles outside get weight 0 in every layer, so none survives.
+        beta_max: Cap on the adaptive exponents (default: none). 1 never
+            sharpens the weights beyond the likelihood's own.
+    """
+
+    def __init__(
+        self,
+        prior: Prior,
+        fitted: Any,
+        observation_model: Likelihood,
+        n: int,
+        angle_mask: ArrayLike | None = None,
+        resampling: str = "systematic",
+        estimate: str = "mean",
+        layers: int = 10,
+        alpha: float = 0.5,
+        betas: ArrayLike | None = None,
+        diffusion: float = 1.0,
+        min_std: ArrayLike = 0.0,
+        lower: ArrayLike | None = None,
+        upper: ArrayLike | None = None,
+        beta_max: float = np.inf,
+    ) -> None:
+        super().__init__(prior, fitted, observation_model, n, angle_mask, resampling, 1.0, estimate)
+        if not isinstance(layers, (int, np.integer)) or layers < 1:
+            raise ValueError(
+                f"AnnealedParticleFilter: layers must be an integer >= 1, got {layers}"
+            )
+        if not 0.0 < alpha < 1.0:
+            raise ValueError(f"AnnealedParticleFilter: alpha must be in (0, 1), got {alpha}")
+        self.diffusion, self.min_std, self.lower, self.upper = _search_settings(
+            "AnnealedParticleFilter", diffusion, min_std, lower, upper
+        )
+        self.layers = int(layers)
+        self.alpha = float(alpha)
+        self.betas: FloatArray | None = None
+        if betas is not None:
+            b = np.asarray(betas, dtype=np.float64).reshape(-1)
+            if b.shape != (self.layers,) or not np.all(np.isfinite(b) & (b > 0)):
+                raise ValueError(
+                    f"AnnealedParticleFilter: betas must be {self.layers} positive numbers"
+                )
+            self.betas = b
+        if not beta_max > 0:
+            raise ValueError(f"AnnealedParticleFilter: beta_max must be > 0, got {beta_max}")
+        self.beta_max = float(beta_max)
+        #: Per layer of the last frame: the exponent and the survival rate.
+        self.layer_betas: list[float] = []
+        self.layer_survival: list[float] = []
+
+    def _valid(self, pose: FloatArray) -> NDArray[np.bool_]:
+        return _within(pose, self.lower, self.upper)
+
+    def step(self, frame: Any) -> FloatArray:
+        """Advance one frame: propose from the prior, then anneal through the layers.
+
+        Args:
+            frame: The observation, passed to the observation model unchanged.
+
+        Returns:
+            ``(D,)`` the estimate of the last layer.
+        """
+        if self.state is None or self.log_weights is None or self._rng is None:
+            raise RuntimeError("AnnealedParticleFilter.step() called before reset()")
+        rng = self._rng
+        state = self.prior.transition(self.fitted, self.state, rng)
+        base_std = np.maximum(state.pose.std(axis=0), self.min_std) * self.diffusion
+        self.layer_betas, self.layer_survival = [], []
+        estimate = state.pose[0]
+        for m in range(self.layers):
+            loglik = np.asarray(
+                self.observation_model.log_likelihood(frame, state.pose), dtype=np.float64
+            )
+            if loglik.shape != (self.n,):
+                raise ValueError(
+                    f"log_likelihood returned shape {loglik.shape}, expected ({self.n},)"
+                )
+            loglik = np.where(np.isnan(loglik) | ~self._valid(state.pose), -np.inf, loglik)
+            if self.betas is not None:
+                beta = float(self.betas[m])
+                weights = tempered_weights(loglik, beta)
+            else:
+                beta, weights = temper_for_survival(loglik, self.alpha)
+                if beta > self.beta_max:
+                    beta = self.beta_max
+                    weights = tempered_weights(loglik, beta)
+            self.layer_betas.append(beta)
+            self.ess = effective_sample_size(weights)
+            self.layer_survival.append(self.ess / self.n)
+            if m == self.layers - 1:
+                estimate = self._estimate(state.pose, weights)
+            state = state.take(self.resample_fn(weights, rng))
+            if m < self.layers - 1 and self.diffusion > 0:
+                # Covariance alpha^(m+1) times the proposal's: the search narrows.
+                std = base_std * self.alpha ** (0.5 * (m + 1))
+                pose = state.pose + std * rng.standard_normal(state.pose.shape)
+                state = ParticleState(pose, state.extra)
+        self.state = state
+        self.log_weights = np.full(self.n, -np.log(self.n))
+        return estimate
+
+
+class PartLikelihood(Likelihood, Protocol):
+    """What partitioned sampling needs of an observation model: partial likelihoods too."""
+
+    def log_likelihood_partial(
+        self, frame: Any, poses: FloatArray, groups: Sequence[Sequence[int]]
+    ) -> FloatArray:
+        """``(N, G + 1)``: log-likelihoods of the model built up one group at a time.
+
+        Column ``g`` depends only on the dimensions of the stages up to ``g``;
+        the last column is log p(frame | pose).
+        """
+        ...
+
+
+@dataclass(frozen=True, eq=False)
+class Stage:
+    """One stage of partitioned sampling.
+
+    Attributes:
+        dims: Indices of the state dimensions the stage searches.
+        group: What the stage adds to the partial model, passed to the
+            likelihood's ``log_likelihood_partial`` (for the figure: the cones
+            the stage's dimensions place).
+        name: Shown in errors and diagnostics.
+    """
+
+    dims: NDArray[np.intp]
+    group: Sequence[int]
+    name: str = ""
+
+
+class PartitionedParticleFilter(ParticleFilter):
+    """Partitioned sampling over any prior.
+
+    MacCormick & Isard, *Partitioned sampling, articulated objects, and
+    interface-quality hand tracking*, ECCV 2000. The state is searched one
+    part at a time: stage ``k`` (of ``0..K-1``) moves its own dimensions,
+    then the particles are weighed by ``g_k / g_{k-1}`` and resampled
+    (section 3's weighted resampling), where ``g_k`` is the likelihood of the
+    partial model built from the groups of stages ``0..k`` and depends on no
+    dimension a later stage moves. For the figure: the root and torso first
+    (their cones' likelihood, with the coverage of the foreground by those
+    cones alone), then each limb, whose cones hang from the root. The last
+    stage weighs by ``L / g_{K-2}``: its own ``g_{K-1} / g_{K-2}`` and the
+    whole likelihood's ``L / g_{K-1}`` (the floor term, and the cones no stage
+    places) in one, so the estimate is the weighted mean of its particles and
+    one stage is the plain filter; a last resampling leaves equal weights for
+    the next frame. Each stage thus searches a few dimensions against the
+    part of the image they explain, instead of the whole body at once.
+
+    The prior moves every dimension once per frame, before the first stage.
+    A later stage's particles are then copies of the few that survived the
+    stages before it, so its dimensions are first diffused by a Gaussian of
+    ``diffusion`` times the per-dimension spread of the prior's proposal
+    (floored by ``min_std``): the search within the stage, as the annealed
+    filter's diffusion (:class:`AnnealedParticleFilter`). With ``diffusion =
+    0`` the stages only split one weighting into several. Each frame costs
+    ``len(stages) * n`` likelihood evaluations.
+
+    Args:
+        prior, fitted, n, angle_mask, resampling, estimate: As
+            :class:`ParticleFilter`.
+        observation_model: Gives ``log_likelihood_partial(frame, poses, groups)``.
+        stages: The stages in order; their ``dims`` must not overlap.
+        diffusion: Scale on the diffusion's standard deviation (>= 0).
+        min_std: ``(D,)`` or scalar floor on the proposal's spread.
+        lower, upper: ``(D,)`` bounds of valid poses (joint limits): particles
+            outside get weight 0 at every stage, so none survives.
+    """
+
+    def __init__(
+        self,
+        prior: Prior,
+        fitted: Any,
+        observation_model: PartLikelihood,
+        n: int,
+        stages: Sequence[Stage],
+        angle_mask: ArrayLike | None = None,
+        resampling: str = "systematic",
+        estimate: str = "mean",
+        diffusion: float = 1.0,
+        min_std: ArrayLike = 0.0,
+        lower: ArrayLike | None = None,
+        upper: ArrayLike | None = None,
+    ) -> None:
+        super().__init__(prior, fitted, observation_model, n, angle_mask, resampling, 1.0, estimate)
+        self.parts_model = observation_model
+        if not stages:
+            raise ValueError("PartitionedParticleFilter: expected at least one stage")
+        seen: set[int] = set()
+        for stage in stages:
+            dims = set(np.asarray(stage.dims, dtype=np.intp).tolist())
+            if not dims or dims & seen:
+                raise ValueError(
+                    f"PartitionedParticleFilter: stage {stage.name!r} must search at least one "
+                    f"dimension, none searched by an earlier stage; got {sorted(dims)}"
+                )
+            seen |= dims
+        self.stages = tuple(stages)
+        self.diffusion, self.min_std, self.lower, self.upper = _search_settings(
+            "PartitionedParticleFilter", diffusion, min_std, lower, upper
+        )
+        #: Per stage of the last frame, then the final weighing: ESS / N.
+        self.stage_survival: list[float] = []
+
+    def step(self, frame: Any) -> FloatArray:
+        """Advance one frame: propose from the prior, then weigh and resample stage by stage.
+
+        Args:
+            frame: The observation, passed to the observation model unchanged.
+
+        Returns:
+            ``(D,)`` the estimate (after the final weighing).
+        """
+        if self.state is None or self.log_weights is None or self._rng is None:
+            raise RuntimeError("PartitionedParticleFilter.step() called before reset()")
+        rng = self._rng
+        state = self.prior.transition(self.fitted, self.state, rng)
+        base_std = np.maximum(state.pose.std(axis=0), self.min_std) * self.diffusion
+        self.stage_survival = []
+        groups = [stage.group for stage in self.stages]
+        partial = np.empty((0, 0))
+        for k, stage in enumerate(self.stages):
+            if k > 0 and self.diffusion > 0:
+                pose = state.pose.copy()
+                pose[:, stage.dims] += base_std[stage.dims] * rng.standard_normal(
+                    (self.n, len(stage.dims))
+                )
+                state = ParticleState(pose, state.extra)
+            partial = np.asarray(
+                self.parts_model.log_likelihood_partial(frame, state.pose, groups),
+                dtype=np.float64,
+            )
+            if partial.shape != (self.n, len(groups) + 1):
+                raise ValueError(
+                    f"log_likelihood_partial returned shape {partial.shape}, expected "
+                    f"({self.n}, {len(groups) + 1})"
+                )
+            partial[~_within(state.pose, self.lower, self.upper)] = -np.inf
+            if k == len(groups) - 1:
+                break
+            weights = tempered_weights(_increment(partial, k, k), 1.0)
+            self.stage_survival.append(effective_sample_size(weights) / self.n)
+            index = self.resample_fn(weights, rng)
+            state = state.take(index)
+        # The last stage's g_{K-1} / g_{K-2} and the whole figure's L / g_{K-1}
+        # in one, L / g_{K-2}: the estimate is the weighted mean of the last
+        # stage's particles (with one stage, the plain filter's).
+        weights = tempered_weights(_increment(partial, len(groups) - 1, len(groups)), 1.0)
+        self.ess = effective_sample_size(weights)
+        self.stage_survival.append(self.ess / self.n)
+        estimate = self._estimate(state.pose, weights)
+        self.state = state.take(self.resample_fn(weights, rng))
+        self.log_weights = np.full(self.n, -np.log(self.n))
+        return estimate
+
+
+def _increment(partial: FloatArray, k: int, to: int) -> FloatArray:
+    """``log g_to - log g_{k-1}`` of ``(N, G + 1)`` partial log-likelihoods (``g_{-1} = 1``).
+
+    An impossible particle (``-inf`` or NaN in a column up to ``to``) gets ``-inf``.
+    """
+    with np.errstate(invalid="ignore"):  # -inf - -inf: caught below
+        step = partial[:, to] if k == 0 else partial[:, to] - partial[:, k - 1]
+    bad = ~np.isfinite(partial[:, : to + 1]).all(axis=1)
+    return np.where(bad, -np.inf, step)
