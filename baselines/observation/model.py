@@ -301,8 +301,6 @@ class ObservationModel:
             value = getattr(self, name)
             if not isinstance(value, (int, np.integer)) or value < 1:
                 raise ValueError(f"ObservationModel.{name}: expected a positive integer")
-        if 2 * self.outline_samples + self.axis_samples > 257:
-            raise ValueError("ObservationModel: at most 257 points per cone (uint16 sums)")
 
     def prepare(self, frame: ArrayLike, given: GivenBody | None = None) -> FrameFeatures:
         """Edge distance maps, foreground map and cost table of one frame.
