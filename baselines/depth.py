@@ -35,9 +35,9 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm.auto import tqdm
 
-from baselines.agents import make
-from baselines.evaluation import EpisodeResult, run_episode
-from baselines.stats import bootstrap_ci
+from baselines.agents import make, tracking_env
+from baselines.leaderboard.evaluation import EpisodeResult, run_episode
+from baselines.leaderboard.stats import bootstrap_ci
 from humotion_gym.body import KEYPOINT_INDEX, PARAM_INDEX, forward_kinematics
 
 _PELVIS = KEYPOINT_INDEX["pelvis"]
@@ -122,7 +122,7 @@ class _Recorder:
     """``on_step`` of the evaluation loop: splits each answered frame's error."""
 
     def __init__(self, env: gym.Env, episode: DepthEpisode) -> None:
-        self.base = env.unwrapped
+        self.base = tracking_env(env)
         self.episode = episode
         self.scored = np.asarray(self.base.task.error_keypoint_indices, dtype=np.intp)
         free = set(np.asarray(self.base.task.free_indices).tolist())

@@ -35,29 +35,41 @@ import importlib.util
 import json
 import math
 import platform
+import re
 import subprocess
 import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
+import stable_baselines3
 import torch as th
+import yaml
 from gymnasium import spaces
 from numpy.typing import NDArray
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
-from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
-from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor
+from stable_baselines3.common.logger import Logger, configure
+from stable_baselines3.common.vec_env import VecMonitor
 from torch import nn
 
+from baselines.agents import HoldAgent, tracking_env
+from baselines.agents.learned import LearnedAgent
+from baselines.agents.policy import (
+    policy_kwargs,
+    root_indices,
+    start_as_hold,
+)
+from baselines.experiments.selection import validation_library
+from baselines.leaderboard.evaluation import evaluate
 from humotion_gym.body import N_KEYPOINTS
 from humotion_gym.envs import get_task
-from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 from humotion_gym.kinematics import batch_pose_geometry
+from humotion_gym.mocap.library import MotionLibrary, package_version
 from humotion_gym.sb3 import learner_vec_env
 from humotion_gym.wrappers import LearnerObservation, Supervision
 
@@ -97,131 +109,6 @@ BC_DEFAULTS: dict[str, Any] = {
 }
 
 
-class TrackingExtractor(BaseFeaturesExtractor):
-    """A small CNN that estimates the pose relative to the initial pose, in its heading's frame.
-
-    Three strided convolutions (16, 32, 32 channels) read the frame; their
-    features and the two pose vectors go through one ReLU layer of
-    ``features_dim`` units, and a linear head gives an offset from the
-    initial pose. The offset of the root's horizontal position is read in the
-    frame of the initial heading (right, forward) and turned into world axes
-    by that heading: every task places its camera relative to the initial
-    heading, so a figure that moved forward looks the same whatever the
-    heading, while the action's world axes do not. The output is
-    ``[joint layer, previous estimate, initial + offset]``; the last block is
-    an estimate of the whole action, which :func:`start_as_hold` makes the
-    action layer copy. The head starts at zero, so an untrained policy holds
-    the initial pose.
-
-    Frames stacked by Gymnasium's ``FrameStackObservation`` (``(k, C, H, W)``)
-    are read as ``k * C`` channels. Pixels are scaled to [0, 1] here (the
-    policy is built with ``normalize_images=False``, which also covers stacked
-    frames that SB3 would not recognise as images).
-
-    Args:
-        observation_space: The ``Dict`` space of :class:`LearnerObservation`.
-        features_dim: Units of the joint layer.
-        root: Indices in the action of the root's x, y and yaw when the task
-            estimates them (BodyTrack, WalkTrack), else None. Actions of the
-            root position are displacements over the task's root range, the
-            same for x and y, so a rotation of the action is a rotation of the
-            displacement; a yaw action of a is a * pi radians.
-    """
-
-    def __init__(
-        self,
-        observation_space: spaces.Dict,
-        features_dim: int = 128,
-        root: tuple[int, int, int] | None = None,
-    ) -> None:
-        frame = observation_space["frame"].shape
-        previous = observation_space["previous"].shape
-        n_free = int(previous[-1])
-        super().__init__(observation_space, features_dim + 2 * n_free)
-        channels = int(np.prod(frame[:-2]))
-        self.n_free = n_free
-        self.root = None if root is None else tuple(int(i) for i in root)
-        self.cnn = nn.Sequential(
-            nn.Conv2d(channels, 16, kernel_size=5, stride=2),
-            nn.ReLU(),
-            nn.Conv2d(16, 32, kernel_size=3, stride=2),
-            nn.ReLU(),
-            nn.Conv2d(32, 32, kernel_size=3, stride=2),
-            nn.ReLU(),
-            nn.Flatten(),
-        )
-        with th.no_grad():
-            n_flat = int(self.cnn(th.zeros(1, channels, *frame[-2:])).shape[1])
-        n_vectors = int(np.prod(previous)) + int(np.prod(observation_space["initial"].shape))
-        self.joint = nn.Sequential(nn.Linear(n_flat + n_vectors, features_dim), nn.ReLU())
-        self.offset = nn.Linear(features_dim, n_free)
-        nn.init.zeros_(self.offset.weight)
-        nn.init.zeros_(self.offset.bias)
-
-    def forward(self, observations: dict[str, th.Tensor]) -> th.Tensor:
-        """``(B, features_dim + 2 n_free)``: joint layer, previous estimate, estimate."""
-        frame = observations["frame"].float() / 255.0
-        batch = frame.shape[0]
-        frame = frame.reshape(batch, -1, *frame.shape[-2:])
-        previous = observations["previous"].reshape(batch, -1)
-        initial = observations["initial"].reshape(batch, -1)
-        joint = self.joint(th.cat([self.cnn(frame), previous, initial], dim=1))
-        offset = self.offset(joint)
-        last = initial[:, -self.n_free :]
-        if self.root is not None:
-            ix, iy, iyaw = self.root
-            heading = last[:, iyaw] * np.pi
-            cos, sin = th.cos(heading), th.sin(heading)
-            right, forward = offset[:, ix], offset[:, iy]
-            world = offset.clone()
-            world[:, ix] = cos * right - sin * forward
-            world[:, iy] = sin * right + cos * forward
-            offset = world
-        return th.cat([joint, previous[:, -self.n_free :], last + offset], dim=1)
-
-
-def root_indices(task: str) -> tuple[int, int, int] | None:
-    """Where the root's x, y and yaw sit in a task's action, if it estimates all three."""
-    free = list(get_task(task).free)
-    if all(n in free for n in ("root_x", "root_y", "root_yaw")):
-        return free.index("root_x"), free.index("root_y"), free.index("root_yaw")
-    return None
-
-
-def policy_kwargs(
-    features_dim: int, log_std_init: float, root: tuple[int, int, int] | None = None
-) -> dict[str, Any]:
-    """The ``policy_kwargs`` of every learned tracker (PPO and BC alike)."""
-    return {
-        "features_extractor_class": TrackingExtractor,
-        "features_extractor_kwargs": {"features_dim": int(features_dim), "root": root},
-        # an empty policy net: the action layer reads the features directly,
-        # so it can copy the estimate that the extractor passes on
-        "net_arch": {"pi": [], "vf": [64]},
-        "normalize_images": False,
-        "log_std_init": float(log_std_init),
-    }
-
-
-def start_as_hold(model: PPO) -> None:
-    """Make the policy's mean action copy the extractor's estimate: ``hold`` at the start.
-
-    The action layer's weights are zero except an identity on the estimate
-    that :class:`TrackingExtractor` appends to its features, whose offset
-    from the initial pose starts at zero.
-    """
-    net = model.policy.action_net
-    n_free = net.out_features
-    with th.no_grad():
-        # SB3 re-initialises the extractor orthogonally after building it
-        offset = model.policy.features_extractor.offset
-        offset.weight.zero_()
-        offset.bias.zero_()
-        net.weight.zero_()
-        net.bias.zero_()
-        net.weight[:, -n_free:] = th.eye(n_free)
-
-
 def make_learner_env(
     task: str,
     split: str = "train",
@@ -255,21 +142,19 @@ def keypoint_sensitivity(
     keypoints is divided by ``eps``. Squared and summed over dimensions, the
     weighted action error is a first-order estimate of the squared keypoint error.
     """
-    base: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
+    base = tracking_env(env)
     kp = base.task.error_keypoint_indices
     rows = []
     for k in range(episodes):
         env.reset(seed=seed + k)
         truth = base._truth()
         action = base.pose_to_action(truth).astype(np.float64)
-        n = action.size
         step = np.where(action > 0, -eps, eps)
         moved = action[None] + np.diag(step)  # (n, n)
         poses = base.action_to_pose(np.concatenate([action[None], moved]), fixed=truth)
         geometry = batch_pose_geometry(poses, base.shape)[:, :N_KEYPOINTS][:, kp]
         shift = np.linalg.norm(geometry[1:] - geometry[:1], axis=-1).mean(axis=1)
         rows.append(shift / eps)
-        del n
     return np.mean(rows, axis=0)
 
 
@@ -289,6 +174,13 @@ class TrainConfig:
         init: A saved policy to start from (PPO fine-tuning from ``bc``).
         checkpoint_every: Save a checkpoint every this many env steps.
         threads: Torch threads.
+        validation: Hold the validation persons out of training
+            (:func:`baselines.experiments.selection.validation_library`) and
+            track them every ``eval_every`` env steps and at the end (the
+            error is logged as ``eval/mean_error_mm``); False trains on every
+            training person and evaluates nothing.
+        eval_every: Env steps between two validation runs.
+        eval_episodes: Validation episodes per run.
     """
 
     algo: str
@@ -301,6 +193,9 @@ class TrainConfig:
     init: str | None = None
     checkpoint_every: int = 10_000
     threads: int = 1
+    validation: bool = True
+    eval_every: int = 10_000
+    eval_episodes: int = 5
 
     def __post_init__(self) -> None:
         if self.algo not in ALGOS:
@@ -308,8 +203,9 @@ class TrainConfig:
         self.task = get_task(self.task).name
         if isinstance(self.steps, bool) or not isinstance(self.steps, int) or self.steps < 1:
             raise ValueError(f"steps: expected an integer >= 1, got {self.steps!r}")
-        if self.checkpoint_every < 1:
-            raise ValueError(f"checkpoint_every: expected >= 1, got {self.checkpoint_every}")
+        for name in ("checkpoint_every", "eval_every", "eval_episodes"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name}: expected >= 1, got {getattr(self, name)}")
         defaults = PPO_DEFAULTS if self.algo == "ppo" else BC_DEFAULTS
         unknown = sorted(set(self.settings) - set(defaults))
         if unknown:
@@ -331,8 +227,6 @@ def load_hyperparams(path: str | Path, task: str) -> dict[str, Any]:
     Raises:
         ValueError: If the file has no entry for the task.
     """
-    import re
-
     name = get_task(task).name
     data = _read_zoo_yaml(Path(path))
     entry = data.get(f"humotion_gym/{name}") or data.get(name)
@@ -355,66 +249,17 @@ def load_hyperparams(path: str | Path, task: str) -> dict[str, Any]:
     return out
 
 
-def _scalar(text: str) -> Any:
-    text = text.strip().removeprefix("!!float").strip()
-    if len(text) >= 2 and text[0] == text[-1] and text[0] in "'\"":
-        return text[1:-1]
-    for kind in (int, float):
-        try:
-            return kind(text)
-        except ValueError:
-            pass
-    return {"true": True, "false": False, "null": None}.get(text, text)
-
-
 def _read_zoo_yaml(path: Path) -> dict[str, Any]:
     """The entries of a zoo hyperparameter file.
 
-    PyYAML reads it when installed; else a reader of the subset that
-    ``hyperparams/ppo.yml`` uses: entries of ``key: scalar`` lines, mappings
-    of ``key: scalar`` lines (``env_kwargs``) and an ``env_wrapper`` list of
-    ``- module.Class:`` items with ``key: scalar`` arguments.
+    Raises:
+        ValueError: If it is not YAML (the message names the file).
     """
-    text = path.read_text()
-    if importlib.util.find_spec("yaml") is not None:
-        import yaml
-
-        data = yaml.safe_load(text)
-        return data if isinstance(data, dict) else {}
-    data: dict[str, Any] = {}
-    entry: dict[str, Any] | None = None
-    wrapper: dict[str, Any] | None = None
-    section: dict[str, Any] | None = None
-    for number, raw in enumerate(text.splitlines(), 1):
-        line = raw.split(" #")[0].rstrip() if not raw.lstrip().startswith("#") else ""
-        if not line.strip():
-            continue
-        indent = len(line) - len(line.lstrip())
-        key, sep, value = line.strip().partition(":")
-        if indent == 0:
-            if not sep or value.strip():
-                raise ValueError(f"{path}:{number}: expected an entry 'ENV_ID:', got {raw!r}")
-            entry = data[key.strip()] = {}
-            wrapper = section = None
-        elif entry is None:
-            raise ValueError(f"{path}:{number}: a setting outside any entry")
-        elif key.startswith("- "):
-            wrapper = {}
-            entry.setdefault("env_wrapper", []).append({key[2:].strip(): wrapper})
-        elif indent > 2 and (wrapper if wrapper is not None else section) is not None:
-            target = wrapper if wrapper is not None else section
-            assert target is not None
-            target[key.strip()] = _scalar(value)
-        elif value.strip():
-            entry[key.strip()] = _scalar(value)
-            wrapper = section = None
-        elif key.strip() == "env_wrapper":
-            entry["env_wrapper"] = []
-            wrapper = section = None
-        else:
-            section = entry[key.strip()] = {}
-            wrapper = None
-    return data
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{path}: not a YAML hyperparameter file ({exc})") from None
+    return data if isinstance(data, dict) else {}
 
 
 def _git_commit() -> str:
@@ -428,10 +273,6 @@ def _git_commit() -> str:
 
 
 def _provenance(config: TrainConfig, command: str | None) -> dict[str, Any]:
-    import stable_baselines3
-
-    from humotion_gym.mocap.library import package_version
-
     return {
         **asdict(config),
         "command": command or " ".join(sys.argv),
@@ -447,67 +288,124 @@ def _provenance(config: TrainConfig, command: str | None) -> dict[str, Any]:
     }
 
 
-class _Progress(BaseCallback):
-    """A tqdm bar over env steps (SB3's own bar needs ``rich``)."""
-
-    def __init__(self, total: int, done: int = 0) -> None:
-        super().__init__()
-        self.total, self.done = total, done
-        self.bar: Any = None
-
-    def _on_training_start(self) -> None:
-        from tqdm.auto import tqdm
-
-        self.bar = tqdm(total=self.total, initial=self.done, desc="ppo", unit="step")
-
-    def _on_step(self) -> bool:
-        self.bar.update(self.training_env.num_envs)
-        return True
-
-    def _on_training_end(self) -> None:
-        self.bar.close()
-
-
-def _latest_checkpoint(folder: Path) -> tuple[Path, int] | None:
-    best: tuple[Path, int] | None = None
+def checkpoints(folder: Path) -> list[tuple[int, Path]]:
+    """The run's checkpoints ``model_N_steps.zip`` as ``(N, path)``, fewest steps first."""
+    found = []
     for path in folder.glob("model_*_steps.zip"):
         try:
-            steps = int(path.stem.split("_")[1])
+            found.append((int(path.stem.split("_")[1]), path))
         except (IndexError, ValueError):
             continue
-        if best is None or steps > best[1]:
-            best = (path, steps)
-    return best
+    return sorted(found)
 
 
 def _tensorboard_dir(out: Path) -> str | None:
     return str(out / "tb") if importlib.util.find_spec("tensorboard") else None
 
 
-def _vec_env(config: TrainConfig, supervised: bool = False) -> VecMonitor:
+def training_logger(out: Path) -> Logger:
+    """SB3's logger of a run: a table on stdout, ``progress.csv`` and TensorBoard if installed.
+
+    Each table shows the training reward and losses as the run goes (PPO's
+    ``rollout/ep_rew_mean``, ``train/loss``...; behaviour cloning's
+    ``train/kp_err_mm``), and the validation error (``eval/mean_error_mm``).
+    """
+    formats = ["stdout", "csv"] + (["tensorboard"] if _tensorboard_dir(out) else [])
+    return configure(str(out / "logs"), formats)
+
+
+def validation_fold(config: TrainConfig) -> MotionLibrary | None:
+    """The library whose train split trains and whose test split validates (None: no validation).
+
+    Raises:
+        ValueError: If the data has not the validation persons.
+    """
+    if not config.validation:
+        return None
+    try:
+        return validation_library(config.data_dir)
+    except ValueError as exc:
+        raise ValueError(
+            f"validation: {exc}; hold out other persons or train without validation "
+            "(validation=False)"
+        ) from None
+
+
+def _data(config: TrainConfig, fold: MotionLibrary | None) -> dict[str, Any]:
+    """The environments' data keywords: the validation fold, else the run's folders."""
+    if fold is not None:
+        return {"library": fold}
+    return {} if config.data_dir is None else {"data_dir": config.data_dir}
+
+
+class Validation:
+    """Tracks the validation persons with the policy being trained, and logs its error.
+
+    Args:
+        config: The run (its task, frame size, episodes per validation run).
+        fold: The validation fold (:func:`validation_fold`).
+        logger: Where ``eval/mean_error_mm`` and ``eval/hold_mm`` go.
+    """
+
+    def __init__(self, config: TrainConfig, fold: MotionLibrary, logger: Logger) -> None:
+        self.env = gym.make(
+            f"humotion_gym/{config.task}", split="test", library=fold, terminate_on_lost=False
+        )
+        self.episodes = int(config.eval_episodes)
+        self.every = int(config.eval_every)
+        self.logger = logger
+        self.subjects = sorted(fold.held_out)
+        hold = evaluate(HoldAgent(self.env), self.env, self.episodes, seed=0)
+        self.hold_mm = float(np.mean([r.mean_error_mm for r in hold]))
+        self.last_mm: float | None = None
+        self.last_steps: int | None = None
+        self.next = self.every
+
+    def due(self, steps: int) -> bool:
+        """Whether ``steps`` env steps have passed the next validation point."""
+        return steps >= self.next
+
+    def run(self, model: PPO, steps: int) -> float:
+        """The policy's mean error (mm) on the validation episodes; logged, not dumped."""
+        agent = LearnedAgent(self.env, model, "validation")
+        results = evaluate(agent, self.env, self.episodes, seed=0)
+        self.last_mm = float(np.mean([r.mean_error_mm for r in results]))
+        self.logger.record("eval/mean_error_mm", self.last_mm)
+        self.logger.record("eval/hold_mm", self.hold_mm)
+        self.last_steps = steps
+        self.next = (steps // self.every + 1) * self.every
+        return self.last_mm
+
+    def close(self) -> None:
+        """Close the validation environment."""
+        self.env.close()
+
+
+class _ValidationCallback(BaseCallback):
+    """PPO's validation runs (:class:`Validation`) every ``eval_every`` env steps."""
+
+    def __init__(self, validation: Validation) -> None:
+        super().__init__()
+        self.validation = validation
+
+    def _on_step(self) -> bool:
+        if self.validation.due(self.num_timesteps):
+            assert isinstance(self.model, PPO)
+            self.validation.run(self.model, self.num_timesteps)
+        return True
+
+
+def _vec_env(config: TrainConfig, fold: MotionLibrary | None) -> VecMonitor:
+    # The episodes stepped as one batch (humotion_gym.sb3.LearnerVecEnv): the
+    # same observations, rewards and episode ends as a DummyVecEnv of
+    # make_learner_env environments with the same seeds
+    # (tests/envs/test_vector_env.py), cheaper.
     s = config.settings
-    if not supervised:
-        # The episodes stepped as one batch (humotion_gym.sb3.LearnerVecEnv):
-        # the same observations, rewards and episode ends as the DummyVecEnv
-        # below with the same seeds (tests/envs/test_vector_env.py), cheaper.
-        kwargs = {} if config.data_dir is None else {"data_dir": config.data_dir}
-        batched = learner_vec_env(config.task, int(s["n_envs"]), "train", s["frame_size"], **kwargs)
-        batched.seed(config.seed)
-        return VecMonitor(batched)
-
-    def factory(i: int) -> Callable[[], gym.Env]:
-        def make() -> gym.Env:
-            env = make_learner_env(
-                config.task, "train", s["frame_size"], supervised, config.data_dir
-            )
-            env.reset(seed=config.seed * 1000 + i)
-            return env
-
-        return make
-
-    venv = DummyVecEnv([factory(i) for i in range(int(s["n_envs"]))])
-    venv.seed(config.seed)
-    return VecMonitor(venv)
+    batched = learner_vec_env(
+        config.task, int(s["n_envs"]), "train", s["frame_size"], **_data(config, fold)
+    )
+    batched.seed(config.seed)
+    return VecMonitor(batched)
 
 
 def new_model(config: TrainConfig, env: Any) -> PPO:
@@ -549,62 +447,136 @@ def _save(model: PPO, path: Path) -> None:
     # The optimizer's moment estimates would triple the file; a loaded policy
     # that is trained on starts them afresh (as a new optimizer would).
     policy = model.policy
-    policy.optimizer = policy.optimizer_class(
+    # a torch optimizer class: its constructor takes the parameters and ``lr``
+    make_optimizer = cast(Callable[..., th.optim.Optimizer], policy.optimizer_class)
+    policy.optimizer = make_optimizer(
         policy.parameters(), lr=model.lr_schedule(1.0), **policy.optimizer_kwargs
     )
     path.parent.mkdir(parents=True, exist_ok=True)
     model.save(path)
 
 
-def train(config: TrainConfig, resume: bool = True, command: str | None = None) -> Path:
+def prepare_output(out: Path, resume: bool, force: bool) -> None:
+    """Refuse to overwrite an earlier run's model unless asked to resume or to start afresh.
+
+    With ``force`` the earlier run's ``model.zip`` and checkpoints are deleted
+    (a later resume would otherwise continue from them).
+
+    Raises:
+        FileExistsError: If ``out`` holds a model or checkpoints and neither
+            ``resume`` nor ``force`` is set.
+        ValueError: If both are set.
+    """
+    if resume and force:
+        raise ValueError("resume and force: choose one (continue the run, or start afresh)")
+    earlier = [p for p in (out / "model.zip",) if p.is_file()]
+    earlier += [p for _, p in checkpoints(out / "checkpoints")]
+    if not earlier or resume:
+        return
+    if not force:
+        raise FileExistsError(
+            f"{out} holds an earlier run's model ({earlier[0]}); resume it (--resume) or "
+            "overwrite it (--force)"
+        )
+    for path in earlier:
+        path.unlink()
+
+
+def train(
+    config: TrainConfig, resume: bool = False, command: str | None = None, force: bool = False
+) -> Path:
     """Train a policy as the config says; the path of the saved ``model.zip``.
 
     The run writes ``config.json`` (the config, command, commit and versions),
-    checkpoints under ``checkpoints/`` every ``checkpoint_every`` env steps and
-    ``model.zip`` at the end. With ``resume`` a run whose ``checkpoints/``
-    holds a checkpoint continues from the latest one.
+    checkpoints under ``checkpoints/`` every ``checkpoint_every`` env steps,
+    SB3's log (:func:`training_logger`: the reward, the losses and the
+    validation error as it goes, on stdout, in ``logs/progress.csv`` and for
+    TensorBoard when installed) and ``model.zip`` at the end.
+
+    Args:
+        config: The run.
+        resume: Continue from the latest checkpoint in ``checkpoints/`` (from
+            the start when there is none).
+        command: The command line, kept in ``config.json``.
+        force: Start afresh over an earlier run's model (deleting it).
+
+    Raises:
+        FileExistsError: If the output folder holds an earlier run's model and
+            neither ``resume`` nor ``force`` is set (:func:`prepare_output`).
+        ValueError: If the data lacks the validation persons (:func:`validation_fold`).
     """
+    out = Path(config.out)
+    prepare_output(out, resume, force)
     th.set_num_threads(max(1, int(config.threads)))
-    if config.algo == "ppo":
-        return train_ppo(config, resume, command)
-    return train_bc(config, resume, command)
+    fold = validation_fold(config)
+    logger = training_logger(out)
+    validation = Validation(config, fold, logger) if fold is not None else None
+    try:
+        if config.algo == "ppo":
+            return train_ppo(config, resume, command, fold, logger, validation)
+        return train_bc(config, resume, command, fold, logger, validation)
+    finally:
+        if validation is not None:
+            validation.close()
+        logger.close()
 
 
-def train_ppo(config: TrainConfig, resume: bool = True, command: str | None = None) -> Path:
+def _final_validation(
+    validation: Validation | None, model: PPO, steps: int, logger: Logger
+) -> dict[str, Any]:
+    """The end of a run: a last validation run, logged; what ``config.json`` records of it."""
+    if validation is None:
+        return {"validation_subjects": None}
+    if validation.last_steps != steps:
+        validation.run(model, steps)
+        logger.dump(steps)
+    return {
+        "validation_subjects": validation.subjects,
+        "validation_mm": validation.last_mm,
+        "validation_hold_mm": validation.hold_mm,
+    }
+
+
+def train_ppo(
+    config: TrainConfig,
+    resume: bool,
+    command: str | None,
+    fold: MotionLibrary | None,
+    logger: Logger,
+    validation: Validation | None,
+) -> Path:
     """PPO on the environment's reward (see :func:`train`)."""
     out = Path(config.out)
     folder = out / "checkpoints"
-    venv = _vec_env(config)
-    latest = _latest_checkpoint(folder) if resume else None
-    done = 0
-    if latest is not None:
-        model = PPO.load(latest[0], env=venv, device="cpu")
-        done = latest[1]
-    elif config.init is not None:
-        model = new_model(config, venv)
-        source = PPO.load(config.init, device="cpu")
-        model.policy.load_state_dict(source.policy.state_dict(), strict=False)
+    venv = _vec_env(config, fold)
+    found = checkpoints(folder) if resume else []
+    done = found[-1][0] if found else 0
+    if found:
+        model = PPO.load(found[-1][1], env=venv, device="cpu")
     else:
         model = new_model(config, venv)
+        if config.init is not None:
+            source = PPO.load(config.init, device="cpu")
+            model.policy.load_state_dict(source.policy.state_dict(), strict=False)
+    model.set_logger(logger)
     _write_config(config, command, {"resumed_from": done})
     t0 = time.perf_counter()
     remaining = max(0, config.steps - done)
-    n_envs = venv.num_envs
-    callbacks = CallbackList(
-        [
-            CheckpointCallback(
-                max(1, config.checkpoint_every // n_envs), str(folder), name_prefix="model"
-            ),
-            _Progress(config.steps, done),
-        ]
+    saving = CheckpointCallback(
+        max(1, config.checkpoint_every // venv.num_envs), str(folder), name_prefix="model"
     )
+    callbacks: list[BaseCallback] = [saving]
+    if validation is not None:
+        callbacks.append(_ValidationCallback(validation))
     if remaining:
-        model.learn(remaining, callback=callbacks, reset_num_timesteps=latest is None)
+        model.learn(remaining, callback=CallbackList(callbacks), reset_num_timesteps=not found)
     path = out / "model.zip"
     _save(model, path)
+    steps = int(model.num_timesteps)
+    record = _final_validation(validation, model, steps, logger)
     _write_config(
-        config, command, {"resumed_from": done, "wall_s": time.perf_counter() - t0,
-                          "env_steps": int(model.num_timesteps)}
+        config, command,
+        {"resumed_from": done, "wall_s": time.perf_counter() - t0, "env_steps": steps, **record},
     )  # fmt: skip
     venv.close()
     return path
@@ -636,11 +608,111 @@ class _Buffer:
 
 
 def _policy_mean(model: PPO, obs: dict[str, Any]) -> th.Tensor:
+    """The policy's mean action (its Gaussian's mean) for a batch of observations."""
     tensors, _ = model.policy.obs_to_tensor(obs)
-    return model.policy.get_distribution(tensors).distribution.mean
+    distribution = model.policy.get_distribution(tensors).distribution
+    if not isinstance(distribution, th.distributions.Distribution):
+        raise TypeError(f"model: expected one Gaussian action distribution, got {distribution}")
+    return distribution.mean
 
 
-def train_bc(config: TrainConfig, resume: bool = True, command: str | None = None) -> Path:
+class _Rollouts:
+    """Behaviour cloning's environments and their current observations and true actions."""
+
+    def __init__(
+        self, config: TrainConfig, fold: MotionLibrary | None, rng: np.random.Generator
+    ) -> None:
+        s = config.settings
+        self.envs = [
+            make_learner_env(config.task, "train", s["frame_size"], True, **_data(config, fold))
+            for _ in range(int(s["n_envs"]))
+        ]
+        self.rng = rng
+        self.noise = float(s["expert_noise"])
+        self.obs: list[dict[str, NDArray[Any]]] = []
+        self.labels: list[NDArray[np.float32]] = []
+        for i, env in enumerate(self.envs):
+            obs, info = env.reset(seed=int(rng.integers(2**31)) + i)
+            self.obs.append(obs)
+            self.labels.append(info["true_action"])
+
+    def collect(self, model: PPO, buffer: _Buffer, n: int, beta: float) -> list[float]:
+        """``n`` steps into the buffer, acting as the expert with probability ``beta``.
+
+        Returns:
+            The rewards of the steps taken.
+        """
+        rewards: list[float] = []
+        while len(rewards) < n:
+            batch = {k: np.stack([o[k] for o in self.obs]) for k in self.obs[0]}
+            with th.no_grad():
+                mean = _policy_mean(model, batch).numpy()
+            for i, env in enumerate(self.envs):
+                if len(rewards) >= n:
+                    break
+                buffer.add(self.obs[i], self.labels[i])
+                if self.rng.random() < beta:
+                    action = self.labels[i] + self.rng.normal(0.0, self.noise, self.labels[i].shape)
+                else:
+                    action = mean[i]
+                action = np.clip(action, -1.0, 1.0).astype(np.float32)
+                obs, reward, terminated, truncated, info = env.step(action)
+                if terminated or truncated:
+                    obs, info = env.reset(seed=int(self.rng.integers(2**31)))
+                self.obs[i], self.labels[i] = obs, info["true_action"]
+                rewards.append(float(reward))
+        return rewards
+
+    def close(self) -> None:
+        """Close the environments."""
+        for env in self.envs:
+            env.close()
+
+
+def _bc_updates(
+    model: PPO,
+    params: list[nn.Parameter],
+    optimizer: th.optim.Optimizer,
+    buffer: _Buffer,
+    weights: th.Tensor,
+    updates: int,
+    batch_size: int,
+    rng: np.random.Generator,
+) -> list[float]:
+    """Adam steps on minibatches of the buffer; each step's weighted squared action error."""
+    losses = []
+    for _ in range(updates):
+        obs, target = buffer.sample(batch_size, rng)
+        diff = (_policy_mean(model, obs) - th.as_tensor(target)) * weights
+        loss = (diff**2).sum(dim=1).mean()
+        optimizer.zero_grad()
+        loss.backward()
+        nn.utils.clip_grad_norm_(params, 1.0)
+        optimizer.step()
+        losses.append(float(loss.detach()))
+    return losses
+
+
+def _bc_model(config: TrainConfig, env: gym.Env, resume: bool) -> tuple[PPO, int]:
+    """The policy to train and the env steps already done: a checkpoint's, or a new one."""
+    found = checkpoints(Path(config.out) / "checkpoints") if resume else []
+    if found:
+        return PPO.load(found[-1][1], device="cpu"), found[-1][0]
+    model = new_model(config, env)
+    if config.init is not None:
+        source = PPO.load(config.init, device="cpu")
+        model.policy.load_state_dict(source.policy.state_dict(), strict=False)
+    return model, 0
+
+
+def train_bc(
+    config: TrainConfig,
+    resume: bool,
+    command: str | None,
+    fold: MotionLibrary | None,
+    logger: Logger,
+    validation: Validation | None,
+) -> Path:
     """Behaviour cloning with DAgger-style rollouts (see the module docstring).
 
     The budget ``steps`` is split into ``rounds`` rounds of rollouts. Round r
@@ -651,235 +723,58 @@ def train_bc(config: TrainConfig, resume: bool = True, command: str | None = Non
     policy takes ``passes * new pairs / batch_size`` Adam steps on minibatches
     drawn from the whole buffer, minimising the squared action error weighted
     by :func:`keypoint_sensitivity`. A checkpoint is written after each round
-    (and resumed from: the buffer is refilled by the rounds that follow).
+    (and resumed from: the buffer is refilled by the rounds that follow), and
+    each round's reward, loss and (when due) validation error are logged.
     """
     s = config.settings
     out = Path(config.out)
-    folder = out / "checkpoints"
     rng = np.random.default_rng(config.seed)
     th.manual_seed(config.seed)
-    envs = [
-        make_learner_env(config.task, "train", s["frame_size"], True, config.data_dir)
-        for _ in range(int(s["n_envs"]))
-    ]
-    weights_env = make_learner_env(config.task, "train", s["frame_size"], True, config.data_dir)
+    rollouts = _Rollouts(config, fold, rng)
+    weights_env = make_learner_env(
+        config.task, "train", s["frame_size"], True, **_data(config, fold)
+    )
     weights = keypoint_sensitivity(weights_env, seed=10_000 + config.seed)
     weights_env.close()
-    latest = _latest_checkpoint(folder) if resume else None
-    done = 0
-    if latest is not None:
-        model = PPO.load(latest[0], device="cpu")
-        done = latest[1]
-    else:
-        model = new_model(config, envs[0])
-        if config.init is not None:
-            source = PPO.load(config.init, device="cpu")
-            model.policy.load_state_dict(source.policy.state_dict(), strict=False)
-    policy = model.policy
-    params = [p for name, p in policy.named_parameters() if not name.startswith(("value", "mlp"))]
+    model, done = _bc_model(config, rollouts.envs[0], resume)
+    resumed_from = done
+    params = [p for n, p in model.policy.named_parameters() if not n.startswith(("value", "mlp"))]
     optimizer = th.optim.Adam(params, lr=float(s["learning_rate"]))
-    w = th.as_tensor(weights, dtype=th.float32)
-    buffer = _Buffer(envs[0].observation_space, int(s["buffer_size"]))
-    rounds = max(1, int(s["rounds"]))
-    per_round = math.ceil(config.steps / rounds)
+    buffer = _Buffer(rollouts.envs[0].observation_space, int(s["buffer_size"]))
+    per_round = math.ceil(config.steps / max(1, int(s["rounds"])))
     _write_config(config, command, {"resumed_from": done, "sensitivity_mm": weights.tolist()})
     t0 = time.perf_counter()
-    obs_list, labels = [], []
-    for i, env in enumerate(envs):
-        obs, info = env.reset(seed=int(rng.integers(2**31)) + i)
-        obs_list.append(obs)
-        labels.append(info["true_action"])
     losses: list[float] = []
-    from tqdm.auto import tqdm
-
-    bar = tqdm(total=config.steps, initial=done, desc="bc", unit="step")
     while done < config.steps:
         r = done // per_round
-        beta = 0.5**r
-        n_new = min(per_round, config.steps - done)
-        collected = 0
-        policy.set_training_mode(False)
-        while collected < n_new:
-            batch = {k: np.stack([o[k] for o in obs_list]) for k in obs_list[0]}
-            with th.no_grad():
-                mean = _policy_mean(model, batch).numpy()
-            for i, env in enumerate(envs):
-                if collected >= n_new:
-                    break
-                buffer.add(obs_list[i], labels[i])
-                if rng.random() < beta:
-                    noise = rng.normal(0.0, float(s["expert_noise"]), labels[i].shape)
-                    action = labels[i] + noise
-                else:
-                    action = mean[i]
-                action = np.clip(action, -1.0, 1.0).astype(np.float32)
-                obs, _, terminated, truncated, info = env.step(action)
-                if terminated or truncated:
-                    obs, info = env.reset(seed=int(rng.integers(2**31)))
-                obs_list[i], labels[i] = obs, info["true_action"]
-                collected += 1
-                bar.update(1)
-        done += collected
-        policy.set_training_mode(True)
-        updates = max(1, math.ceil(float(s["passes"]) * collected / int(s["batch_size"])))
-        for _ in range(updates):
-            obs, target = buffer.sample(int(s["batch_size"]), rng)
-            mean = _policy_mean(model, obs)
-            diff = (mean - th.as_tensor(target)) * w
-            loss = (diff**2).sum(dim=1).mean()
-            optimizer.zero_grad()
-            loss.backward()
-            nn.utils.clip_grad_norm_(params, 1.0)
-            optimizer.step()
-            losses.append(float(loss.detach()))
-        recent = float(np.sqrt(np.mean(losses[-updates:])))
-        bar.set_postfix(round=r, beta=f"{beta:.2f}", kp_err_mm=f"{recent:.0f}")
+        model.policy.set_training_mode(False)
+        rewards = rollouts.collect(model, buffer, min(per_round, config.steps - done), 0.5**r)
+        done += len(rewards)
+        model.policy.set_training_mode(True)
+        updates = max(1, math.ceil(float(s["passes"]) * len(rewards) / int(s["batch_size"])))
+        losses += _bc_updates(
+            model, params, optimizer, buffer, th.as_tensor(weights, dtype=th.float32), updates,
+            int(s["batch_size"]), rng,
+        )  # fmt: skip
         model.num_timesteps = done
-        _save(model, folder / f"model_{done}_steps.zip")
-    bar.close()
+        _save(model, out / "checkpoints" / f"model_{done}_steps.zip")
+        for key, value in (("rollout/round", r), ("rollout/expert_share", 0.5**r),
+                           ("rollout/reward_mean", float(np.mean(rewards))),
+                           ("train/kp_err_mm", float(np.sqrt(np.mean(losses[-updates:])))),
+                           ("time/total_timesteps", done)):  # fmt: skip
+            logger.record(key, value)
+        if validation is not None and validation.due(done):
+            validation.run(model, done)
+        logger.dump(done)
+    rollouts.close()
     path = out / "model.zip"
     _save(model, path)
+    record = _final_validation(validation, model, done, logger)
     _write_config(
         config, command,
-        {"resumed_from": latest[1] if latest else 0, "wall_s": time.perf_counter() - t0,
-         "env_steps": done, "sensitivity_mm": weights.tolist(),
-         "final_loss_rms_mm": float(np.sqrt(np.mean(losses[-50:]))) if losses else None},
+        {"resumed_from": resumed_from, "wall_s": time.perf_counter() - t0, "env_steps": done,
+         "sensitivity_mm": weights.tolist(),
+         "final_loss_rms_mm": float(np.sqrt(np.mean(losses[-50:]))) if losses else None,
+         **record},
     )  # fmt: skip
-    for env in envs:
-        env.close()
     return path
-
-
-def _checkpoints(folder: Path) -> list[tuple[int, Path]]:
-    found = []
-    for path in folder.glob("model_*_steps.zip"):
-        try:
-            found.append((int(path.stem.split("_")[1]), path))
-        except (IndexError, ValueError):
-            continue
-    return sorted(found)
-
-
-def checkpoint_errors(
-    path: str | Path, task: str, episodes: int, data_dir: list[str] | None = None
-) -> list[float]:
-    """Mean error (mm) of each of ``episodes`` seeded test episodes of a saved policy."""
-    from baselines.evaluation import evaluate
-    from baselines.learned import LearnedAgent, load_policy
-
-    kwargs: dict[str, Any] = {"terminate_on_lost": False}
-    if data_dir is not None:
-        kwargs["data_dir"] = data_dir
-    env = gym.make(f"humotion_gym/{get_task(task).name}", split="test", **kwargs)
-    agent = LearnedAgent(env, load_policy(path), "policy", str(path))
-    errors = [r.mean_error_mm for r in evaluate(agent, env, episodes, seed=0)]
-    env.close()
-    return errors
-
-
-def learning_curve(
-    task: str,
-    algos: Sequence[str],
-    seeds: Sequence[int],
-    steps: int,
-    points: int,
-    episodes: int,
-    runs_dir: str | Path,
-    out: str | Path,
-    data_dir: list[str] | None = None,
-    settings: dict[str, Any] | None = None,
-) -> dict[str, Any]:
-    """Test-split error against env steps: train, evaluate every checkpoint, plot.
-
-    Each (algorithm, seed) run trains on the training persons for ``steps``
-    env steps with ``points`` evenly spaced checkpoints (a ``bc`` round per
-    point), resuming a run found under ``runs_dir``. Each checkpoint tracks
-    the same ``episodes`` seeded test episodes. A point of the curve is the
-    interquartile mean of the (seed, episode) mean errors with a 95%
-    stratified bootstrap interval (seeds resampled within each episode;
-    Agarwal et al., *Deep reinforcement learning at the edge of the
-    statistical precipice*, NeurIPS 2021); step 0 is the untrained policy,
-    which is ``hold`` (:func:`start_as_hold`). Writes the figure to ``out``
-    and the numbers to ``out`` with the suffix ``.json``.
-    """
-    from baselines.stats import iqm, stratified_bootstrap_ci
-
-    every = max(1, steps // points)
-    curves: dict[str, list[dict[str, Any]]] = {}
-    hold = None
-    for algo in algos:
-        per_seed: list[dict[int, list[float]]] = []
-        for seed in seeds:
-            extra = dict(settings or {})
-            if algo == "bc":
-                extra.setdefault("rounds", points)
-            config = TrainConfig(
-                algo, task, steps, int(seed), str(Path(runs_dir) / f"{algo}-s{seed}"),
-                data_dir=data_dir, settings=extra, checkpoint_every=every,
-            )  # fmt: skip
-            train(config)
-            found = {0: None, **dict(_checkpoints(Path(config.out) / "checkpoints"))}
-            errors: dict[int, list[float]] = {}
-            for n, path in found.items():
-                if path is None:
-                    if hold is None:
-                        hold = _hold_errors(task, episodes, data_dir)
-                    errors[0] = hold
-                else:
-                    errors[n] = checkpoint_errors(path, task, episodes, data_dir)
-            per_seed.append(errors)
-        # the checkpoints' step counts agree across seeds; keep those all seeds have
-        common = sorted(set.intersection(*(set(e) for e in per_seed)))
-        rows = []
-        for n in common:
-            matrix = np.array([e[n] for e in per_seed])  # (seeds, episodes)
-            lo, hi = stratified_bootstrap_ci(matrix, iqm)
-            rows.append({"steps": int(n), "iqm_mm": iqm(matrix), "iqm_ci": [lo, hi],
-                         "per_seed_mean_mm": matrix.mean(axis=1).tolist()})  # fmt: skip
-        curves[algo] = rows
-    # the same statistic as the curve's points (step 0 is hold's episodes)
-    hold_mm = iqm(hold) if hold is not None else float("nan")
-    result = {"task": get_task(task).name, "seeds": list(seeds), "episodes": episodes,
-              "steps": steps, "hold_mm": hold_mm, "curves": curves}  # fmt: skip
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.with_suffix(".json").write_text(json.dumps(result, indent=1))
-    _plot_curve(result, out)
-    return result
-
-
-def _hold_errors(task: str, episodes: int, data_dir: list[str] | None) -> list[float]:
-    from baselines.agents import HoldAgent
-    from baselines.evaluation import evaluate
-
-    kwargs: dict[str, Any] = {"terminate_on_lost": False}
-    if data_dir is not None:
-        kwargs["data_dir"] = data_dir
-    env = gym.make(f"humotion_gym/{get_task(task).name}", split="test", **kwargs)
-    return [r.mean_error_mm for r in evaluate(HoldAgent(env), env, episodes, seed=0)]
-
-
-def _plot_curve(result: dict[str, Any], out: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(5.5, 3.6))
-    for algo, rows in result["curves"].items():
-        x = [r["steps"] for r in rows]
-        y = [r["iqm_mm"] for r in rows]
-        lo = [r["iqm_ci"][0] for r in rows]
-        hi = [r["iqm_ci"][1] for r in rows]
-        ax.plot(x, y, marker="o", label=algo)
-        ax.fill_between(x, lo, hi, alpha=0.2)
-    ax.axhline(result["hold_mm"], color="gray", linestyle="--", label="hold (IQM)")
-    ax.set_xlabel("environment steps (training persons)")
-    ax.set_ylabel("test-person mean error, mm (IQM)")
-    ax.set_title(
-        f"{result['task']}: {len(result['seeds'])} seeds x {result['episodes']} test episodes"
-    )
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(out, dpi=120)
-    plt.close(fig)

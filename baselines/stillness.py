@@ -28,9 +28,9 @@ import gymnasium as gym
 import numpy as np
 from tqdm.auto import tqdm
 
-from baselines.agents import make
-from baselines.evaluation import EpisodeResult, run_episode
-from baselines.stats import bootstrap_ci
+from baselines.agents import make, tracking_env
+from baselines.leaderboard.evaluation import EpisodeResult, run_episode
+from baselines.leaderboard.stats import bootstrap_ci
 
 #: An agent "stands still" when its mean error on still windows is at most this
 #: many times ``hold``'s.
@@ -78,7 +78,7 @@ def still_windows(
         raise ValueError(f"max_hold_mm: expected a positive error in mm, got {max_hold_mm}")
     if count < 1 or stride < 1:
         raise ValueError(f"count and stride: expected at least 1, got {count} and {stride}")
-    base = env.unwrapped
+    base = tracking_env(env)
     hold = make("hold", env)
     span = base.episode_frames * base.frame_skip
     found: list[StillWindow] = []

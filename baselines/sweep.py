@@ -19,7 +19,9 @@ from typing import Any
 import numpy as np
 from tqdm.auto import tqdm
 
-from baselines.stats import cell_label
+from baselines.leaderboard.evaluation import summarize
+from baselines.leaderboard.run import run_leaderboard
+from baselines.leaderboard.stats import bootstrap_ci, cell_label, iqm, normalised_scores
 
 #: Sweep format version (``sweep.json``'s ``version``).
 VERSION = 1
@@ -89,8 +91,6 @@ def run_sweep(
     Raises:
         ValueError: If the grid is empty or names an unknown setting.
     """
-    from baselines.leaderboard import run_leaderboard
-
     points = [(name, v) for name, values in grid.items() for v in values]
     if not points:
         raise ValueError("grid: expected at least one setting with at least one value")
@@ -166,9 +166,6 @@ def curves(sweep: Mapping[str, Any], metric: str = "error") -> list[dict[str, An
     Raises:
         ValueError: If the metric is unknown.
     """
-    from baselines.evaluation import summarize
-    from baselines.stats import bootstrap_ci, iqm, normalised_scores
-
     if metric not in METRICS:
         raise ValueError(f"metric: expected one of {', '.join(METRICS)}, got {metric!r}")
     seed = int(sweep.get("seed", 0))

@@ -41,7 +41,7 @@ import _timing  # one BLAS thread, as the command line
 import numpy as np
 
 import humotion_gym  # noqa: F401
-from baselines.engine import (
+from baselines.leaderboard.engine import (
     Cell,
     Episode,
     InProcessEngine,
@@ -49,7 +49,7 @@ from baselines.engine import (
     make_engine,
     prepare_cells,
 )
-from baselines.leaderboard import _cells, run_leaderboard
+from baselines.leaderboard.run import grid_cells, run_leaderboard
 
 
 def _numbers(value: Any) -> Any:
@@ -104,7 +104,7 @@ def main() -> None:
 
     # fit every prior once, untimed (both runs then read the cache)
     run_leaderboard(**grid, episodes=1, env_kwargs=kwargs, progress=False)
-    cells = [Cell(*c) for c in _cells(args.tasks, args.agents, args.particles)]
+    cells = [Cell(*c) for c in grid_cells(args.tasks, args.agents, args.particles)]
     todo = [Episode(c, s) for c in cells for s in range(args.episodes)]
 
     def timed(engine: str) -> tuple[list[dict[str, Any]], float, float]:

@@ -36,7 +36,7 @@ from gymnasium import spaces
 
 import humotion_gym  # noqa: F401
 from baselines.agents import make
-from baselines.learned import LearnedAgent
+from baselines.agents.learned import LearnedAgent
 from baselines.rl import (
     BC_DEFAULTS,
     TrainConfig,
@@ -186,7 +186,7 @@ def main() -> None:
         model.save(path)
         test = gym.make(f"humotion_gym/{task}", terminate_on_lost=False,
                         **({"data_dir": data_dir} if data_dir else {}))  # fmt: skip
-        from baselines.learned import load_policy
+        from baselines.agents.learned import load_policy
 
         policy = LearnedAgent(test, load_policy(path), "bc")
         pf = make("pf-tree", test, n_particles=300, seed=0)

@@ -15,7 +15,7 @@ Three kinds of agent are made by :func:`make`:
 
 Every agent has stable-baselines3's ``predict(observation, state,
 episode_start, deterministic)``, so one evaluation loop
-(:func:`baselines.evaluation.run_episode`) scores them all.
+(:func:`baselines.leaderboard.evaluation.run_episode`) scores them all.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from baselines.agents.filters import (
     TaskLikelihood,
     body_part_stages,
 )
-from baselines.agents.learned import LEARNED, is_learned, make_learned
+from baselines.agents.learned import LEARNED, is_learned, make_learned, takes_particles
 from baselines.agents.references import REFERENCES, HoldAgent, RandomAgent
 from baselines.agents.settings import FILTER_SETTINGS, PF_SETTINGS_FILE
 from baselines.agents.specs import (
@@ -124,6 +124,7 @@ __all__ = [
     "make",
     "make_filter",
     "register_agent",
+    "takes_particles",
     "tracking_env",
     "training_motions",
 ]

@@ -12,7 +12,7 @@ Three kinds of name reach :func:`make_learned` through :func:`baselines.agents.m
   around the policy's estimate (:class:`ProposalPrior`).
 
 A learned agent answers ``predict`` like every agent and is scored by the same
-:func:`baselines.evaluation.evaluate` loop on the plain environment: it builds
+:func:`baselines.leaderboard.evaluation.evaluate` loop on the plain environment: it builds
 the observation the policy was trained on (:func:`humotion_gym.wrappers.learner_observation`)
 from the frame, its own previous estimate and ``info["initial_pose"]``.
 Importing this module does not import torch; loading a policy does.

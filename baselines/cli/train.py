@@ -188,7 +188,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 
 def _cmd_curve(args: argparse.Namespace) -> int:
-    from baselines.rl import learning_curve
+    from baselines.leaderboard.learning_curve import learning_curve
 
     data_dir = [str(d) for d in args.data_dir] if args.data_dir else None
     result = learning_curve(

@@ -16,7 +16,7 @@ cell), so an episode costs its tracking alone. Two engines drive runners:
 
 **Same numbers on any engine and any number of workers.** An episode's result
 depends on its cell, its seed and the run's settings alone:
-:func:`baselines.evaluation.run_episode` reseeds the agent from (agent seed,
+:func:`baselines.leaderboard.evaluation.run_episode` reseeds the agent from (agent seed,
 episode seed) before each episode and the environment's seeded reset draws
 everything else, and every runner tracks with one BLAS thread. Only the
 timings (``ms_per_frame``, ``wall_s``) differ between runs.
@@ -31,7 +31,7 @@ policy read their filter's prior from the on-disk cache.
 Every finished episode comes back as a **record**, a plain-JSON dict: the
 cell's ``task``, ``agent`` and ``particles``, the episode ``seed``, ``wall_s``
 (the episode's wall time in its worker), and either ``result``
-(:meth:`~baselines.evaluation.EpisodeResult.to_dict`) or ``error`` (``"Type:
+(:meth:`~baselines.leaderboard.evaluation.EpisodeResult.to_dict`) or ``error`` (``"Type:
 message"``) with ``traceback``.
 """
 
@@ -54,8 +54,15 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm.auto import tqdm
 
-from baselines.evaluation import EpisodeResult, run_episode
-from humotion_gym.threads import single_threaded_blas
+from baselines.agents import (
+    AGENTS,
+    ParticleFilterAgent,
+    TaskNotSupported,
+    filter_agent,
+    make,
+)
+from baselines.leaderboard.evaluation import EpisodeResult, run_episode
+from humotion_gym.threads import limit_blas_threads, single_threaded_blas
 
 #: The engines by name (``--engine``).
 ENGINES: tuple[str, ...] = ("inprocess", "ray")
@@ -122,8 +129,6 @@ def build_agent(cell: Cell, env: gym.Env, seed: int, fits: Fits | None = None) -
             :func:`baselines.agents.make` builds the agent (reading or writing
             the on-disk prior cache).
     """
-    from baselines.agents import AGENTS, filter_agent, make
-
     fit = (fits or {}).get((cell.task, cell.agent))
     n = max(cell.particles, 1)
     if fit is None:
@@ -256,8 +261,6 @@ def prepare_cells(
         ``("error", reason)`` where building it failed otherwise (a fit that
         raised).
     """
-    from baselines.agents import ParticleFilterAgent, TaskNotSupported, make
-
     first: dict[tuple[str, str], Cell] = {}
     for cell in cells:
         first.setdefault((cell.task, cell.agent), cell)
@@ -327,7 +330,6 @@ class _RayWorker:
 
     def __init__(self, seed: int, env_kwargs: Mapping[str, Any], tasks: Sequence[str]) -> None:
         import humotion_gym  # registers the environment ids in this process
-        from humotion_gym.threads import limit_blas_threads
 
         limit_blas_threads()
         # one CPU per actor: OpenCV's own pool (rendering; one thread per core by

@@ -10,8 +10,10 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
+from tqdm.auto import tqdm
 
-from baselines.stats import bootstrap_ci, iqm, median_lost_frame, proportion_ci
+from baselines.agents.base import tracking_env
+from baselines.leaderboard.stats import bootstrap_ci, iqm, median_lost_frame, proportion_ci
 from humotion_gym.metrics import lost_track_frame
 
 
@@ -69,7 +71,7 @@ def run_episode(
     Args:
         agent: Has ``predict(obs, state, episode_start, deterministic)``; if it
             also has ``observe_info(info)``, it is given each info first.
-        env: The environment.
+        env: A pose-tracking environment, or a wrapper of one.
         seed: Reset seed; also seeds the agent's randomness for this episode
             (with the agent's own seed) where it has ``seed_episode``.
         options: Reset options (clip, start frame).
@@ -79,13 +81,16 @@ def run_episode(
             pose of the frame it answers and that frame's ``info`` (for
             analyses of the estimate itself, e.g. :mod:`baselines.depth`; the
             agent never sees the truth).
+
+    Raises:
+        TypeError: If ``env`` is not a pose-tracking environment.
     """
     if hasattr(agent, "seed_episode"):
         # the agent's randomness from (its seed, this episode's seed) alone: an
         # episode's numbers do not depend on the episodes run before it
         agent.seed_episode(seed)
+    base = tracking_env(env)
     obs, info = env.reset(seed=seed, options=options)
-    base = env.unwrapped
     clip_id, start = info.get("clip_id", ""), int(info.get("start_frame", 0))
     state, episode_start = None, np.array([True])
     errors, rewards, times = [], [], []
@@ -105,7 +110,7 @@ def run_episode(
         errors.append(float(info["error_mm"]))
         if aligned is not None and "error_aligned_mm" in info:
             aligned.append(float(info["error_aligned_mm"]))
-        else:  # an environment without it (a user's own): none for the episode
+        else:  # an environment without it: none for the episode
             aligned = None
         rewards.append(float(reward))
         if on_frame is not None:
@@ -135,8 +140,6 @@ def evaluate(
     progress: bool = False,
 ) -> list[EpisodeResult]:  # fmt: skip
     """Run ``episodes`` seeded episodes (seeds ``seed``, ``seed + 1``...)."""
-    from tqdm.auto import tqdm
-
     results = []
     for k in tqdm(range(episodes), desc="episodes", disable=not progress, leave=False):
         results.append(run_episode(agent, env, seed + k, options))
@@ -146,7 +149,7 @@ def evaluate(
 def summarize(
     results: Sequence[EpisodeResult | Mapping[str, Any]], seed: int = 0
 ) -> dict[str, Any]:
-    """One cell's statistics over its episodes (see :mod:`baselines.stats`).
+    """One cell's statistics over its episodes (see :mod:`baselines.leaderboard.stats`).
 
     Args:
         results: The episodes, as :class:`EpisodeResult` or its ``to_dict()``

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable, Sequence
+from pathlib import PurePath
 from typing import Any
 
 import numpy as np
@@ -332,9 +333,32 @@ def probability_of_improvement_ci(
 # ---------------------------------------------------------------- leaderboard rows
 
 
+def agent_label(agent: str) -> str:
+    """An agent's name as tables and figures show it.
+
+    ``LABEL`` of ``LABEL=PATH.zip``; a bare saved policy's file name without
+    ``.zip`` (its folder's name for the ``model.zip`` that ``humotion-gym
+    train`` writes); a hybrid ``pf-PRIOR+POLICY`` as ``pf-PRIOR+`` the
+    policy's label; any other name as it is.
+    """
+    if agent.startswith("pf-") and "+" in agent:
+        prior, policy = agent.split("+", 1)
+        return f"{prior}+{agent_label(policy)}"
+    if "=" in agent:
+        return agent.split("=", 1)[0]
+    if agent.endswith(".zip"):
+        path = PurePath(agent)
+        return path.parent.name if path.stem == "model" and path.parent.name else path.stem
+    return agent
+
+
 def cell_label(row: dict[str, Any]) -> str:
-    """``agent`` for references and learned policies, ``agent@particles`` for filters."""
-    return f"{row['agent']}@{row['particles']}" if row.get("particles") else str(row["agent"])
+    """``agent`` for references and learned policies, ``agent@particles`` for filters.
+
+    The agent by its short label (:func:`agent_label`).
+    """
+    agent = agent_label(str(row["agent"]))
+    return f"{agent}@{row['particles']}" if row.get("particles") else agent
 
 
 def normalised_scores(

@@ -8,8 +8,8 @@ import humotion_gym  # noqa: F401
 from baselines.agents import AGENTS, TaskNotSupported, make
 from baselines.agents.settings import load as load_settings
 from baselines.cli import main
-from baselines.evaluation import evaluate, run_episode, summarize
-from baselines.stats import bootstrap_ci, iqm, stratified_bootstrap_ci
+from baselines.leaderboard.evaluation import evaluate, run_episode, summarize
+from baselines.leaderboard.stats import bootstrap_ci, iqm, stratified_bootstrap_ci
 
 
 class RandomPolicy:

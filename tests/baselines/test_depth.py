@@ -16,7 +16,7 @@ from baselines.depth import (
     summarize_depth,
     track_with_depth,
 )
-from baselines.evaluation import evaluate
+from baselines.leaderboard.evaluation import evaluate
 from humotion_gym.body import KEYPOINT_INDEX, forward_kinematics
 
 

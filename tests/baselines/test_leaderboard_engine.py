@@ -12,7 +12,6 @@ import pytest
 from baselines import agents as agents_module
 from baselines.agents import AgentSpec, ParticleFilterAgent
 from baselines.cli import main
-from baselines.engine import run_cell_episode
 from baselines.leaderboard import (
     EPISODES_FILE,
     RESULTS_FILE,
@@ -22,6 +21,7 @@ from baselines.leaderboard import (
     ResumeError,
     run_leaderboard,
 )
+from baselines.leaderboard.engine import run_cell_episode
 
 # A small leaderboard: hold, a seeded random agent and a particle filter on the
 # built-in synthetic data, 3 short episodes per cell.
@@ -202,7 +202,7 @@ def test_engine_flags_used_wrongly_are_usage_errors(extra, flag, capsys):
 
 
 def test_the_ray_schedule_hands_out_every_episode_once_keeping_workers_on_their_cells():
-    from baselines.engine import Cell, Episode, _Schedule
+    from baselines.leaderboard.engine import Cell, Episode, _Schedule
 
     cells = [Cell("BodyTrack-v1", a, 10) for a in ("a", "b", "c")]
     episodes = [Episode(c, s) for c in cells for s in range(4)]
@@ -222,7 +222,7 @@ def test_the_ray_schedule_hands_out_every_episode_once_keeping_workers_on_their_
 
 
 def test_an_interrupted_run_exits_130_keeps_its_episodes_and_resumes(tmp_path, capsys, monkeypatch):
-    import baselines.engine as engine
+    import baselines.leaderboard.engine as engine
 
     real, calls = engine.run_episode, []
 

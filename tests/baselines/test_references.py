@@ -6,7 +6,6 @@ import pytest
 
 import humotion_gym  # noqa: F401
 from baselines.agents import REFERENCES, agent_names, make
-from baselines.evaluation import run_episode
 from baselines.leaderboard import (
     FOLLOW,
     VALID_RATIO,
@@ -15,6 +14,7 @@ from baselines.leaderboard import (
     run_leaderboard,
     validity_lines,
 )
+from baselines.leaderboard.evaluation import run_episode
 from humotion_gym.body import PARAM_INDEX
 
 

@@ -13,16 +13,11 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from baselines import stats
 from baselines.cli import main
-from baselines.evaluation import EpisodeResult, summarize
-from baselines.report import (
-    ReplayMismatch,
-    choose_episodes,
-    load_rows,
-    replay_episodes,
-    write_report,
-)
+from baselines.leaderboard import stats
+from baselines.leaderboard.evaluation import EpisodeResult, summarize
+from baselines.leaderboard.report import load_rows, write_report
+from baselines.leaderboard.videos import ReplayMismatch, choose_episodes, replay_episodes
 
 # ------------------------------------------------------------------ statistics
 
@@ -167,7 +162,7 @@ def test_summarize_takes_results_or_their_dicts_and_is_seeded():
 
 
 def test_the_pelvis_aligned_error_is_summarised_where_every_episode_has_it():
-    from baselines.leaderboard import markdown_table
+    from baselines.leaderboard.tables import markdown_table
 
     rows = _rows({"pf-cv": 0.5})
     eps = rows[1]["episodes"]
@@ -260,7 +255,7 @@ def test_report_writes_tables_figures_and_a_page_whose_links_exist(tmp_path):
         page.links
     )
     # the README's leaderboard columns, as leaderboard.markdown_table writes them
-    from baselines.leaderboard import markdown_table
+    from baselines.leaderboard.tables import markdown_table
 
     md = (tmp_path / "rep" / "tables.md").read_text()
     assert markdown_table([r for r in rows if "error" not in r]).splitlines()[0] in md
@@ -274,12 +269,9 @@ def test_report_writes_tables_figures_and_a_page_whose_links_exist(tmp_path):
 
 
 def test_report_without_matplotlib_says_so_and_writes_the_rest(tmp_path, monkeypatch):
-    import baselines.report as report
+    import baselines.leaderboard.report as report
 
-    def missing() -> None:
-        raise ModuleNotFoundError("No module named 'matplotlib'", name="matplotlib")
-
-    monkeypatch.setattr(report, "_pyplot", missing)
+    monkeypatch.setattr(report, "figures_available", lambda: False)
     index = write_report(_rows({"pf-cv": 0.5}), tmp_path, progress=False)
     assert "matplotlib is not installed" in index.read_text()
     assert not list(tmp_path.glob("*.png"))
@@ -420,7 +412,7 @@ console.log(JSON.stringify(out));
 
 @pytest.mark.skipif(shutil.which("node") is None, reason="no node on PATH to run the page's script")
 def test_page_script_sorts_numbers_as_numbers():
-    import baselines.report as report
+    import baselines.leaderboard.report as report
 
     column = ["3,000", "300", "-", "1,000", "25"]
     payload = {

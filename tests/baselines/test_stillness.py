@@ -6,7 +6,7 @@ import pytest
 
 import humotion_gym  # noqa: F401
 from baselines.agents import AGENTS, make
-from baselines.evaluation import run_episode
+from baselines.leaderboard.evaluation import run_episode
 from baselines.stillness import STILL_RATIO, markdown_table, run_still, still_windows
 
 

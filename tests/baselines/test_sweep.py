@@ -10,7 +10,7 @@ import pytest
 from baselines import sweep
 from baselines.cli import main
 from baselines.leaderboard import run_leaderboard
-from baselines.stats import iqm
+from baselines.leaderboard.stats import iqm
 
 #: Tiny episodes so a sweep point costs a fraction of a second.
 BASE = {"episode_frames": 5, "width": 64, "height": 64}
@@ -98,7 +98,7 @@ def test_sweep_command(tmp_path, capsys, monkeypatch):
         seen.append((env_kwargs, engine))
         return run_leaderboard(tasks, agents, particles, episodes, seed, {**env_kwargs, **BASE})
 
-    monkeypatch.setattr("baselines.leaderboard.run_leaderboard", fake_leaderboard)
+    monkeypatch.setattr("baselines.sweep.run_leaderboard", fake_leaderboard)
     out = tmp_path / "sw"
     code = main(
         ["sweep", "--tasks", "ArmTrack-v1", "--agents", "hold", "--episodes", "1",

@@ -21,8 +21,8 @@ from baselines.agents.learned import (
     load_policy,
     takes_particles,
 )
-from baselines.evaluation import evaluate, run_episode
 from baselines.leaderboard import run_leaderboard
+from baselines.leaderboard.evaluation import evaluate, run_episode
 from baselines.rl import (
     PPO_DEFAULTS,
     TrainConfig,
@@ -30,6 +30,7 @@ from baselines.rl import (
     load_hyperparams,
     make_learner_env,
     new_model,
+    prepare_output,
     train,
 )
 from humotion_gym.envs import TASKS
@@ -44,6 +45,7 @@ def bc_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     config = TrainConfig(
         "bc", "ArmTrack-v1", steps=240, seed=0, out=str(out),
         settings={"n_envs": 2, "rounds": 2, "buffer_size": 500, "frame_size": 32},
+        eval_every=200, eval_episodes=1,
     )  # fmt: skip
     train(config, command="test smoke bc")
     return out
@@ -62,25 +64,60 @@ def test_smoke_bc_writes_a_policy_ppo_load_reads(bc_run: Path) -> None:
         "model_120_steps.zip",
         "model_240_steps.zip",
     ]
+    # the validation persons were held out of training and tracked at the end
+    assert config["validation_subjects"] == ["synthetic-03", "synthetic-04"]
+    assert np.isfinite(config["validation_mm"]) and np.isfinite(config["validation_hold_mm"])
+
+
+def test_a_run_logs_reward_loss_and_validation_error_as_it_goes(bc_run: Path) -> None:
+    import csv
+
+    with open(bc_run / "logs" / "progress.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [int(float(r["time/total_timesteps"])) for r in rows] == [120, 240]
+    assert all(np.isfinite(float(r["train/kp_err_mm"])) for r in rows)
+    assert all(np.isfinite(float(r["rollout/reward_mean"])) for r in rows)
+    # validated at 200 steps (logged with the round that passed it) only: 240 is that round
+    assert rows[0]["eval/mean_error_mm"] == "" and np.isfinite(float(rows[1]["eval/mean_error_mm"]))
+
+
+def test_an_earlier_runs_model_is_kept_without_resume_or_force(tmp_path: Path) -> None:
+    (tmp_path / "checkpoints").mkdir()
+    (tmp_path / "checkpoints" / "model_10_steps.zip").write_bytes(b"x")
+    (tmp_path / "model.zip").write_bytes(b"x")
+    config = TrainConfig("bc", "ArmTrack-v1", steps=10, out=str(tmp_path))
+    with pytest.raises(FileExistsError, match="--resume.*--force"):
+        train(config)  # refused before any work
+    with pytest.raises(ValueError, match="choose one"):
+        prepare_output(tmp_path, resume=True, force=True)
+    prepare_output(tmp_path, resume=True, force=False)  # resuming keeps them
+    assert (tmp_path / "model.zip").is_file()
+    prepare_output(tmp_path, resume=False, force=True)  # starting afresh removes them
+    assert not (tmp_path / "model.zip").exists()
+    assert not list((tmp_path / "checkpoints").iterdir())
+    prepare_output(tmp_path, resume=False, force=False)  # nothing left to overwrite
 
 
 def test_smoke_ppo_trains_checkpoints_and_resumes(tmp_path: Path) -> None:
     settings = {"n_envs": 2, "n_steps": 64, "batch_size": 64, "n_epochs": 1, "frame_size": 32}
     config = TrainConfig(
         "ppo", "BodyTrack-v1", steps=256, seed=1, out=str(tmp_path), settings=settings,
-        checkpoint_every=128,
+        checkpoint_every=128, eval_every=10_000, eval_episodes=1,
     )  # fmt: skip
     train(config)
     assert (tmp_path / "model.zip").is_file()
     assert (tmp_path / "checkpoints" / "model_256_steps.zip").is_file()
     more = TrainConfig(
         "ppo", "BodyTrack-v1", steps=384, seed=1, out=str(tmp_path), settings=settings,
-        checkpoint_every=128,
+        checkpoint_every=128, validation=False,
     )  # fmt: skip
-    train(more)
+    train(more, resume=True)
     config = json.loads((tmp_path / "config.json").read_text())
     assert config["resumed_from"] == 256
     assert config["env_steps"] >= 384
+    assert config["validation_subjects"] is None
+    header = (tmp_path / "logs" / "progress.csv").read_text().splitlines()[0].split(",")
+    assert {"train/loss", "train/value_loss", "time/total_timesteps"} <= set(header)
 
 
 def test_bc_resumes_from_its_last_checkpoint(bc_run: Path, tmp_path: Path) -> None:
@@ -91,8 +128,9 @@ def test_bc_resumes_from_its_last_checkpoint(bc_run: Path, tmp_path: Path) -> No
     config = TrainConfig(
         "bc", "ArmTrack-v1", steps=360, seed=0, out=str(run),
         settings={"n_envs": 2, "rounds": 3, "buffer_size": 500, "frame_size": 32},
+        eval_episodes=1,
     )  # fmt: skip
-    train(config)
+    train(config, resume=True)
     saved = json.loads((run / "config.json").read_text())
     assert saved["resumed_from"] == 240 and saved["env_steps"] == 360
 
@@ -189,6 +227,8 @@ def test_bad_configs_are_refused() -> None:
         TrainConfig("bc", "BodyTrack-v1", 0)
     with pytest.raises(ValueError, match="unknown"):
         TrainConfig("bc", "BodyTrack-v1", 10, settings={"n_step": 3})
+    with pytest.raises(ValueError, match="eval_episodes"):
+        TrainConfig("bc", "BodyTrack-v1", 10, eval_episodes=0)
 
 
 def test_cli_train_and_track_a_saved_policy(tmp_path: Path) -> None:

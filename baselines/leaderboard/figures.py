@@ -1,0 +1,142 @@
+"""The report's figures (matplotlib, the ``plots`` extra).
+
+Error over the episode's frames per cell with 95% bands, lost-track survival
+curves (Kaplan-Meier), IQMs with intervals per task and the aggregate scores
+(Agarwal, Schwarzer, Castro, Courville & Bellemare, NeurIPS 2021; see
+:mod:`baselines.leaderboard.stats`). Without matplotlib
+(:func:`figures_available` is False) the report has its tables alone.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from baselines.leaderboard import stats
+
+
+def ran(row: dict[str, Any]) -> bool:
+    """Whether a row has episodes (it was neither skipped nor failed)."""
+    return "summary" in row and "skipped" not in row and "error" not in row
+
+
+def figures_available() -> bool:
+    """Whether matplotlib (the ``plots`` extra) is installed, so the report has figures."""
+    return importlib.util.find_spec("matplotlib") is not None
+
+
+def _pyplot() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _tasks(rows: Sequence[dict[str, Any]]) -> list[str]:
+    return list(dict.fromkeys(r["task"] for r in rows if ran(r)))
+
+
+def _errors_matrix(row: dict[str, Any]) -> NDArray[np.float64]:
+    # episodes may end early when the run terminated on lost track: the common frames
+    length = min(len(e["errors_mm"]) for e in row["episodes"])
+    return np.array([e["errors_mm"][:length] for e in row["episodes"]], dtype=np.float64)
+
+
+def figure_error_over_frames(rows: Sequence[dict[str, Any]], path: Path, seed: int = 0) -> Path:
+    """Mean error at each frame per cell, with 95% bootstrap bands over episodes."""
+    plt = _pyplot()
+    tasks = _tasks(rows)
+    fig, axes = plt.subplots(1, len(tasks), figsize=(5 * len(tasks), 3.6), squeeze=False)
+    for ax, task in zip(axes[0], tasks, strict=True):
+        for r in (r for r in rows if ran(r) and r["task"] == task):
+            mean, lo, hi = stats.mean_band(_errors_matrix(r), seed=seed)
+            frames = np.arange(mean.size)
+            (line,) = ax.plot(frames, mean, lw=1.4, label=stats.cell_label(r))
+            ax.fill_between(frames, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
+        ax.set(title=task, xlabel="frame", ylabel="keypoint error, mm")
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def figure_survival(rows: Sequence[dict[str, Any]], path: Path) -> Path:
+    """Fraction of episodes still tracking after each frame (Kaplan-Meier, 95% band)."""
+    plt = _pyplot()
+    tasks = _tasks(rows)
+    fig, axes = plt.subplots(1, len(tasks), figsize=(5 * len(tasks), 3.6), squeeze=False)
+    for ax, task in zip(axes[0], tasks, strict=True):
+        for r in (r for r in rows if ran(r) and r["task"] == task):
+            eps = r["episodes"]
+            length = max(len(e["errors_mm"]) for e in eps)
+            curve = stats.survival(
+                [e["lost_frame"] for e in eps], [len(e["errors_mm"]) for e in eps]
+            )
+            frames = np.append(curve["frames"], length)
+            step = [np.append(curve[k], curve[k][-1]) for k in ("survival", "low", "high")]
+            (line,) = ax.step(frames, step[0], where="post", lw=1.4, label=stats.cell_label(r))
+            ax.fill_between(frames, step[1], step[2], step="post", color=line.get_color(),
+                            alpha=0.15, lw=0)  # fmt: skip
+        ax.set(title=task, xlabel="frame", ylabel="still tracking", ylim=(-0.02, 1.02))
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def figure_iqm_per_task(rows: Sequence[dict[str, Any]], path: Path, seed: int = 0) -> Path:
+    """Each cell's IQM error with its 95% interval, one panel per task."""
+    plt = _pyplot()
+    tasks = _tasks(rows)
+    n_cells = max(sum(1 for r in rows if ran(r) and r["task"] == t) for t in tasks)
+    height = 0.9 + 0.32 * n_cells
+    fig, axes = plt.subplots(1, len(tasks), figsize=(4.4 * len(tasks), height), squeeze=False)
+    for ax, task in zip(axes[0], tasks, strict=True):
+        cells = [r for r in rows if ran(r) and r["task"] == task]
+        values = [stats.iqm([e["mean_error_mm"] for e in r["episodes"]]) for r in cells]
+        cis = [
+            stats.bootstrap_ci([e["mean_error_mm"] for e in r["episodes"]], stats.iqm, seed=seed)
+            for r in cells
+        ]
+        y = np.arange(len(cells))[::-1]
+        err = np.abs(np.array(cis).T - np.array(values))
+        ax.errorbar(values, y, xerr=err, fmt="o", capsize=3)
+        ax.set_yticks(y, [stats.cell_label(r) for r in cells], fontsize=8)
+        ax.set(title=task, xlabel="IQM keypoint error, mm (95% CI)")
+        ax.grid(axis="x", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def figure_aggregate(aggregates: Sequence[dict[str, Any]], path: Path) -> Path:
+    """IQM normalised score and P(beats hold) per cell, with 95% intervals."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(9, 0.9 + 0.32 * len(aggregates)), squeeze=False)
+    y = np.arange(len(aggregates))[::-1]
+    labels = [a["cell"] for a in aggregates]
+    for ax, key, xlabel, ref in (
+        (axes[0, 0], "iqm_score", "IQM score (error / hold's)", 1.0),
+        (axes[0, 1], "beats_reference", "P(beats hold)", 0.5),
+    ):
+        values = np.array([a[key] for a in aggregates])
+        cis = np.array([a[f"{key}_ci"] for a in aggregates]).T
+        ax.errorbar(values, y, xerr=np.abs(cis - values), fmt="o", capsize=3)
+        ax.axvline(ref, color="grey", ls="--", lw=1)
+        ax.set_yticks(y, labels, fontsize=8)
+        ax.set(xlabel=xlabel)
+        ax.grid(axis="x", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,142 @@
+"""The learned trackers' learning curve: test-person error against training env steps.
+
+Each (algorithm, seed) run trains with :func:`baselines.rl.train`; every
+checkpoint then tracks the same seeded test episodes, and a point of the curve
+is the interquartile mean of the (seed, episode) mean errors with a 95%
+stratified bootstrap interval (Agarwal et al., NeurIPS 2021). Importing this
+module imports torch and stable-baselines3.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from baselines.agents import HoldAgent
+from baselines.agents.learned import LearnedAgent, load_policy
+from baselines.leaderboard.evaluation import evaluate
+from baselines.leaderboard.stats import iqm, stratified_bootstrap_ci
+from baselines.rl import TrainConfig, checkpoints, train
+from humotion_gym.envs import get_task
+
+
+def checkpoint_errors(
+    path: str | Path, task: str, episodes: int, data_dir: list[str] | None = None
+) -> list[float]:
+    """Mean error (mm) of each of ``episodes`` seeded test episodes of a saved policy."""
+    kwargs: dict[str, Any] = {"terminate_on_lost": False}
+    if data_dir is not None:
+        kwargs["data_dir"] = data_dir
+    env = gym.make(f"humotion_gym/{get_task(task).name}", split="test", **kwargs)
+    agent = LearnedAgent(env, load_policy(path), "policy", str(path))
+    errors = [r.mean_error_mm for r in evaluate(agent, env, episodes, seed=0)]
+    env.close()
+    return errors
+
+
+def learning_curve(
+    task: str,
+    algos: Sequence[str],
+    seeds: Sequence[int],
+    steps: int,
+    points: int,
+    episodes: int,
+    runs_dir: str | Path,
+    out: str | Path,
+    data_dir: list[str] | None = None,
+    settings: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Test-split error against env steps: train, evaluate every checkpoint, plot.
+
+    Each (algorithm, seed) run trains on the training persons for ``steps``
+    env steps with ``points`` evenly spaced checkpoints (a ``bc`` round per
+    point), resuming a run found under ``runs_dir``. Each checkpoint tracks
+    the same ``episodes`` seeded test episodes. A point of the curve is the
+    interquartile mean of the (seed, episode) mean errors with a 95%
+    stratified bootstrap interval (seeds resampled within each episode;
+    Agarwal et al., *Deep reinforcement learning at the edge of the
+    statistical precipice*, NeurIPS 2021); step 0 is the untrained policy,
+    which is ``hold`` (:func:`start_as_hold`). Writes the figure to ``out``
+    and the numbers to ``out`` with the suffix ``.json``.
+    """
+    every = max(1, steps // points)
+    curves: dict[str, list[dict[str, Any]]] = {}
+    hold = None
+    for algo in algos:
+        per_seed: list[dict[int, list[float]]] = []
+        for seed in seeds:
+            extra = dict(settings or {})
+            if algo == "bc":
+                extra.setdefault("rounds", points)
+            config = TrainConfig(
+                algo, task, steps, int(seed), str(Path(runs_dir) / f"{algo}-s{seed}"),
+                data_dir=data_dir, settings=extra, checkpoint_every=every,
+            )  # fmt: skip
+            train(config, resume=True)
+            found = {0: None, **dict(checkpoints(Path(config.out) / "checkpoints"))}
+            errors: dict[int, list[float]] = {}
+            for n, path in found.items():
+                if path is None:
+                    if hold is None:
+                        hold = _hold_errors(task, episodes, data_dir)
+                    errors[0] = hold
+                else:
+                    errors[n] = checkpoint_errors(path, task, episodes, data_dir)
+            per_seed.append(errors)
+        # the checkpoints' step counts agree across seeds; keep those all seeds have
+        common = sorted(set.intersection(*(set(e) for e in per_seed)))
+        rows = []
+        for n in common:
+            matrix = np.array([e[n] for e in per_seed])  # (seeds, episodes)
+            lo, hi = stratified_bootstrap_ci(matrix, iqm)
+            rows.append({"steps": int(n), "iqm_mm": iqm(matrix), "iqm_ci": [lo, hi],
+                         "per_seed_mean_mm": matrix.mean(axis=1).tolist()})  # fmt: skip
+        curves[algo] = rows
+    # the same statistic as the curve's points (step 0 is hold's episodes)
+    hold_mm = iqm(hold) if hold is not None else float("nan")
+    result = {"task": get_task(task).name, "seeds": list(seeds), "episodes": episodes,
+              "steps": steps, "hold_mm": hold_mm, "curves": curves}  # fmt: skip
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.with_suffix(".json").write_text(json.dumps(result, indent=1))
+    _plot_curve(result, out)
+    return result
+
+
+def _hold_errors(task: str, episodes: int, data_dir: list[str] | None) -> list[float]:
+    kwargs: dict[str, Any] = {"terminate_on_lost": False}
+    if data_dir is not None:
+        kwargs["data_dir"] = data_dir
+    env = gym.make(f"humotion_gym/{get_task(task).name}", split="test", **kwargs)
+    return [r.mean_error_mm for r in evaluate(HoldAgent(env), env, episodes, seed=0)]
+
+
+def _plot_curve(result: dict[str, Any], out: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5.5, 3.6))
+    for algo, rows in result["curves"].items():
+        x = [r["steps"] for r in rows]
+        y = [r["iqm_mm"] for r in rows]
+        lo = [r["iqm_ci"][0] for r in rows]
+        hi = [r["iqm_ci"][1] for r in rows]
+        ax.plot(x, y, marker="o", label=algo)
+        ax.fill_between(x, lo, hi, alpha=0.2)
+    ax.axhline(result["hold_mm"], color="gray", linestyle="--", label="hold (IQM)")
+    ax.set_xlabel("environment steps (training persons)")
+    ax.set_ylabel("test-person mean error, mm (IQM)")
+    ax.set_title(
+        f"{result['task']}: {len(result['seeds'])} seeds x {result['episodes']} test episodes"
+    )
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(out, dpi=120)
+    plt.close(fig)

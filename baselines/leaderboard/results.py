@@ -1,0 +1,250 @@
+"""A leaderboard's results folder: episodes saved as they finish, then results and tables.
+
+``run.json`` holds the settings that decide the numbers, ``episodes.jsonl``
+one record per finished episode (so an interrupted run resumes where it
+stopped), and at the end ``results.json`` (:data:`SCHEMA_VERSION`;
+docs/leaderboard.md), ``table.md`` and the report
+(:mod:`baselines.leaderboard.report`).
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import os
+import subprocess
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from baselines.leaderboard.figures import figures_available
+from baselines.leaderboard.report import write_report
+from baselines.leaderboard.tables import markdown_table, validity_lines
+from humotion_gym.mocap.library import package_version
+
+#: The version of ``results.json``'s layout (docs/leaderboard.md describes it);
+#: raised whenever a key is renamed, removed or changes meaning.
+SCHEMA_VERSION = 1
+#: The files of a results folder.
+EPISODES_FILE = "episodes.jsonl"
+RUN_FILE = "run.json"
+RESULTS_FILE = "results.json"
+TABLE_FILE = "table.md"
+
+
+class ResumeError(ValueError):
+    """A results folder cannot be resumed with these settings (its episodes would not match)."""
+
+
+class ResultsFolder:
+    """A run's results folder, written as the run goes.
+
+    ``run.json`` holds the settings that decide the numbers (seed, environment
+    settings, package version); ``episodes.jsonl`` one engine record per
+    finished episode (:mod:`baselines.leaderboard.engine`), appended as each finishes with
+    one ``write`` of one line, so an interrupted run loses at most the
+    episodes in flight; ``results.json`` and ``table.md`` are written at the
+    end (:func:`write_results`).
+
+    Args:
+        folder: The folder (made if missing).
+    """
+
+    def __init__(self, folder: str | Path) -> None:
+        self.folder = Path(folder)
+        self.episodes_path = self.folder / EPISODES_FILE
+        self.run_path = self.folder / RUN_FILE
+
+    def start(self, settings: dict[str, Any], resume: bool) -> dict[tuple[str, str, int, int], Any]:
+        """Open the folder for a run; the finished episodes' records when resuming.
+
+        Args:
+            settings: What decides the numbers; a resumed run must have the same.
+            resume: Continue the run saved here (skipping its finished episodes).
+
+        Returns:
+            The finished episodes' records by (task, agent, particles, seed)
+            (empty unless resuming). Failed episodes are not among them: a
+            resumed run retries them.
+
+        Raises:
+            FileExistsError: If the folder holds episodes and ``resume`` is False.
+            FileNotFoundError: If ``resume`` is True and it holds no run.
+            ResumeError: If the saved run's settings differ from ``settings``.
+        """
+        if resume:
+            if not self.run_path.is_file():
+                raise FileNotFoundError(
+                    f"{self.run_path}: no run to resume in {self.folder} "
+                    "(start one without --resume)"
+                )
+            saved = json.loads(self.run_path.read_text())
+            differ = [k for k in settings if saved.get(k) != _jsonable(settings[k])]
+            if differ:
+                shown = "; ".join(
+                    f"{k}: saved {saved.get(k)!r}, now {settings[k]!r}" for k in differ
+                )
+                raise ResumeError(
+                    f"{self.folder}: the saved run has other settings, so its episodes would "
+                    f"not match ({shown}); resume with the same settings or use another folder"
+                )
+            return {episode_key(r): r for r in self.read() if "result" in r}
+        if self.episodes_path.exists() and self.episodes_path.stat().st_size > 0:
+            raise FileExistsError(
+                f"{self.folder} already holds a run's episodes; pass --resume to continue it "
+                "or choose another folder"
+            )
+        self.folder.mkdir(parents=True, exist_ok=True)
+        _write_text(self.run_path, json.dumps(_jsonable(settings), indent=1) + "\n")
+        self.episodes_path.write_bytes(b"")
+        return {}
+
+    def read(self) -> list[dict[str, Any]]:
+        """The records saved so far; a last line cut short by an interruption is dropped.
+
+        The file is cut back to its last whole line, so appending goes on cleanly.
+        """
+        if not self.episodes_path.exists():
+            return []
+        data = self.episodes_path.read_bytes()
+        whole = data[: data.rfind(b"\n") + 1]
+        if len(whole) != len(data):
+            with open(self.episodes_path, "r+b") as fh:
+                fh.truncate(len(whole))
+        records = []
+        for number, line in enumerate(whole.decode().splitlines(), 1):
+            if not line.strip():
+                continue
+            try:
+                records.append(json.loads(line))
+            except json.JSONDecodeError as exc:
+                raise ResumeError(
+                    f"{self.episodes_path}:{number}: not a JSON record ({exc})"
+                ) from None
+        return records
+
+    def append(self, record: dict[str, Any]) -> None:
+        """Append one record as one line, with one ``write`` (a line is whole or absent)."""
+        line = (json.dumps(record, default=_plain) + "\n").encode()
+        fd = os.open(self.episodes_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        try:
+            os.write(fd, line)
+        finally:
+            os.close(fd)
+
+
+def episode_key(record: dict[str, Any]) -> tuple[str, str, int, int]:
+    """An engine record's (task, agent, particles, seed)."""
+    return (record["task"], record["agent"], int(record["particles"]), int(record["seed"]))
+
+
+def write_results(
+    rows: Sequence[dict[str, Any]],
+    folder: str | Path,
+    config: dict[str, Any],
+    command: str | None = None,
+    report: bool = True,
+    videos: bool = False,
+    progress: bool = True,
+) -> None:
+    """Write ``results.json`` and ``table.md``, then the report.
+
+    The report (:func:`baselines.leaderboard.report.write_report`: tables,
+    figures, ``index.html``, with ``videos`` the best, median and worst episode
+    of each cell) draws its figures with the ``plots`` extra; without it the
+    page has the tables alone, and a line on stderr says so.
+
+    ``results.json`` (schema :data:`SCHEMA_VERSION`, docs/leaderboard.md):
+    ``schema_version``, ``kind``, ``created`` (UTC), ``package_version``,
+    ``commit`` (the checkout's git commit, None outside one), ``command``,
+    ``config`` (the run's arguments), ``seed`` and ``env_kwargs`` (as in
+    ``config``), ``data`` (the motion capture folders, empty for the built-in
+    synthetic motion), ``rows`` (as :func:`~baselines.leaderboard.run.run_leaderboard`
+    returns them, with every episode) and ``validity`` (:func:`validity_lines`).
+    """
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    env_kwargs = config.get("env_kwargs", {})
+    document = {
+        "schema_version": SCHEMA_VERSION,
+        "kind": "humotion_gym.leaderboard",
+        "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "package_version": package_version(),
+        "commit": source_commit(),
+        "command": command,
+        "config": config,
+        "seed": config.get("seed", 0),
+        "env_kwargs": env_kwargs,
+        "data": data_folders(env_kwargs),
+        "rows": list(rows),
+        "validity": validity_lines(rows),
+    }
+    _write_text(out / RESULTS_FILE, json.dumps(_jsonable(document), indent=1) + "\n")
+    table = markdown_table(rows) + "\n\n" + "\n".join(validity_lines(rows)) + "\n"
+    _write_text(out / TABLE_FILE, table)
+    if not report:
+        return
+    if not any("summary" in r for r in rows):
+        print(f"{out}: no figures or index.html (no cell ran)", file=sys.stderr)
+        return
+    run = {k: v for k, v in document.items() if k not in ("rows", "validity")}
+    write_report(
+        list(rows), out, videos=videos, env_kwargs=env_kwargs, seed=document["seed"],
+        progress=progress, run=run,
+    )  # fmt: skip
+    if not figures_available():
+        print(
+            f"{out}: index.html has the tables but no figures: matplotlib is not installed "
+            "(pip install -e '.[plots]' adds it)",
+            file=sys.stderr,
+        )
+
+
+def data_folders(env_kwargs: dict[str, Any]) -> list[str]:
+    """The motion capture folders of a run: ``data_dir``, else ``$HUMOTION_MOCAP``.
+
+    Empty where the run used the built-in synthetic motion.
+    """
+    given = env_kwargs.get("data_dir")
+    if given:
+        return [str(d) for d in given] if isinstance(given, (list, tuple)) else [str(given)]
+    from_env = os.environ.get("HUMOTION_MOCAP")
+    return [from_env] if from_env else []
+
+
+def source_commit() -> str | None:
+    """The git commit of the checkout the package runs from (None outside a git checkout)."""
+    try:
+        done = subprocess.run(
+            ["git", "rev-parse", "HEAD"], capture_output=True, text=True, timeout=5,
+            cwd=Path(__file__).resolve().parent,
+        )  # fmt: skip
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return done.stdout.strip() or None if done.returncode == 0 else None
+
+
+def _write_text(path: Path, text: str) -> None:
+    """Write a file whole or not at all (a temporary file renamed over it)."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def _jsonable(value: Any) -> Any:
+    """Plain JSON values (tuples to lists, numpy scalars to numbers) for comparison and writing."""
+    return json.loads(json.dumps(value, default=_plain))
+
+
+def save(rows: Sequence[dict[str, Any]], path: str | Path) -> None:
+    """Write the rows as JSON."""
+    Path(path).write_text(json.dumps(list(rows), indent=1, default=_plain))
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    raise TypeError(f"not JSON-serialisable: {type(value).__name__}")

@@ -1,0 +1,163 @@
+"""The leaderboard's tables: each cell against ``hold``, and each task's verdict.
+
+:func:`markdown_table` is the table the README pastes: per cell the mean error
+with its interval, the IQM, the pelvis-aligned error, the ratio ``x hold`` (the
+ratio of ``hold``'s mean error to the row's: above 1 better than doing nothing)
+and the paired episodes it beats ``hold`` on. :func:`validity_lines` says per
+task whether the best particle filter beats ``hold`` clearly
+(:data:`VALID_RATIO`). Agents are shown by their short label
+(:func:`~baselines.leaderboard.stats.agent_label`: ``mine`` for
+``mine=runs/x/model.zip``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from baselines.leaderboard.stats import agent_label
+
+#: The reference every table shows.
+FLOOR = "hold"
+#: A task measures tracking when its best particle filter's mean error is at
+#: least this many times lower than ``hold``'s (at the smallest particle count).
+VALID_RATIO = 2.0
+#: The harder reference of the whole-body tasks: the body followed, the first
+#: frame's articulation held. Where a table has it, :func:`validity_lines` also
+#: says how far the best motion prior is ahead of it.
+FOLLOW = "pf-follow"
+
+
+def _floor_of(rows: Sequence[dict[str, Any]], task: str) -> dict[str, Any] | None:
+    for r in rows:
+        if r["task"] == task and r["agent"] == FLOOR and "summary" in r:
+            return r
+    return None
+
+
+def compare_to_hold(row: dict[str, Any], hold: dict[str, Any]) -> tuple[float, int, int]:
+    """``hold``'s mean error over the row's, and the paired episodes the row wins.
+
+    Episodes are paired by seed (every cell runs the same seeds). Any other
+    reference row (``pf-follow``'s) is compared the same way.
+
+    Returns:
+        ``(ratio, wins, paired)``.
+    """
+    ratio = hold["summary"]["mean_error_mm"] / row["summary"]["mean_error_mm"]
+    held = {e["seed"]: e["mean_error_mm"] for e in hold["episodes"]}
+    paired = [(e["mean_error_mm"], held[e["seed"]]) for e in row["episodes"] if e["seed"] in held]
+    wins = sum(1 for mine, theirs in paired if mine < theirs)
+    return float(ratio), wins, len(paired)
+
+
+def interval(pair: Sequence[float], episodes: int, digits: int = 0) -> str:
+    """`` (lo-hi)`` of a 95% interval, or nothing where one episode gives no interval."""
+    if episodes < 2:
+        return ""
+    return f" ({pair[0]:.{digits}f}-{pair[1]:.{digits}f})"
+
+
+def ratio_text(ratio: float, reference: str = FLOOR) -> str:
+    """A ratio of the reference's mean error to a row's, said as what it is.
+
+    ``2.10x better than hold``; below 1, ``0.70x hold: worse than hold`` (the
+    row's error is 1/0.70 of the reference's).
+    """
+    if ratio >= 1.0:
+        return f"{ratio:.2f}x better than {reference}"
+    return f"{ratio:.2f}x {reference}: worse than {reference}"
+
+
+def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
+    """The leaderboard as a Markdown table, with each row's ratio to ``hold``.
+
+    A cell that did not run shows its reason: ``skipped: ...`` (the agent does
+    not cover the task) or ``ERROR: ...`` (it failed). A cell of one episode
+    has no interval.
+    """
+    lines = [
+        "| task | agent | particles | mean error mm (95% CI) | IQM mm | pelvis-aligned mm "
+        "| x hold | beats hold | lost track | ms/frame |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        particles = f"{r['particles']:,}" if r["particles"] else "-"
+        agent = agent_label(r["agent"])
+        if "summary" not in r:  # a cell that did not run: its reason, in the table
+            what = f"skipped: {r['skipped']}" if "skipped" in r else f"ERROR: {r.get('error')}"
+            what = what.replace("|", "/").replace("\n", " ")
+            lines.append(f"| {r['task']} | {agent} | {particles} | {what} |  |  |  |  |  |  |")
+            continue
+        s = r["summary"]
+        hold = _floor_of(rows, r["task"])
+        if hold is None or r is hold:
+            ratio, wins = "1.00" if r is hold else "-", "-"
+        else:
+            x, won, paired = compare_to_hold(r, hold)
+            ratio, wins = f"{x:.2f}", f"{won}/{paired}"
+        aligned = s.get("aligned_error_mm")
+        aligned_text = "-" if aligned is None else f"{aligned:.0f}"
+        mean = f"{s['mean_error_mm']:.0f}{interval(s['mean_error_ci'], s['episodes'])}"
+        lines.append(
+            f"| {r['task']} | {agent} | {particles} | {mean} | {s['iqm_error_mm']:.0f} | "
+            f"{aligned_text} | {ratio} | {wins} | "
+            f"{round(s['lost_fraction'] * s['episodes'])}/{s['episodes']} | "
+            f"{s['ms_per_frame']:.1f} |"
+        )
+    return "\n".join(lines)
+
+
+def validity_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
+    """Per task: does the best particle filter beat ``hold`` by :data:`VALID_RATIO`?
+
+    Judged at the smallest particle count run, where the papers' claims are made.
+    Where :data:`FOLLOW` ran at that count too, a second line compares the best
+    other filter with it: what the motion prior adds to following the body.
+    """
+    out = []
+    for task in dict.fromkeys(r["task"] for r in rows):
+        hold = _floor_of(rows, task)
+        filters = [
+            r for r in rows
+            if r["task"] == task and "summary" in r and r["particles"] > 0
+        ]  # fmt: skip
+        if hold is None or not filters:
+            continue
+        fewest = min(r["particles"] for r in filters)
+        best = min(
+            (r for r in filters if r["particles"] == fewest),
+            key=lambda r: r["summary"]["mean_error_mm"],
+        )
+        ratio, wins, paired = compare_to_hold(best, hold)
+        verdict = "valid" if ratio >= VALID_RATIO else f"NOT valid (below {VALID_RATIO:g}x)"
+        out.append(
+            f"{task}: best filter at {fewest:,} particles is {agent_label(best['agent'])}, "
+            f"{ratio_text(ratio)} in mean error "
+            f"({best['summary']['mean_error_mm']:.0f} vs {hold['summary']['mean_error_mm']:.0f} "
+            f"mm), better in {wins}/{paired} paired episodes: {verdict}"
+        )
+        at_fewest = [r for r in filters if r["particles"] == fewest]
+        follow = next((r for r in at_fewest if r["agent"] == FOLLOW), None)
+        priors = [r for r in at_fewest if r["agent"] != FOLLOW]
+        if follow is None or not priors:
+            continue
+        prior = min(priors, key=lambda r: r["summary"]["mean_error_mm"])
+        ratio, wins, paired = compare_to_hold(prior, follow)
+        means = (
+            f"{prior['summary']['mean_error_mm']:.0f} vs "
+            f"{follow['summary']['mean_error_mm']:.0f} mm"
+        )
+        won = f"better in {wins}/{paired} paired episodes"
+        if ratio > 1.0:
+            out.append(
+                f"{task}: against {FOLLOW} (the body followed, its first articulation held), "
+                f"the best other filter at {fewest:,} particles is {agent_label(prior['agent'])}, "
+                f"{ratio:.2f}x better in mean error ({means}), {won}"
+            )
+        else:
+            out.append(
+                f"{task}: no other filter at {fewest:,} particles beats {FOLLOW} in mean "
+                f"error: the best, {agent_label(prior['agent'])}, {means}, {won}"
+            )
+    return out

@@ -1,0 +1,195 @@
+"""The report's videos: each cell's best, median and worst episode, re-run and drawn.
+
+Each chosen episode is re-run with rendering (the estimate drawn over the
+frame) by :func:`baselines.leaderboard.engine.run_cell_episode`, and must
+reproduce its recorded errors (:class:`ReplayMismatch`); it is written as a
+WebM (VP8, which browsers play) with a contact sheet (JPEG).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Callable, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+from tqdm.auto import tqdm
+
+from baselines.leaderboard import stats
+from baselines.leaderboard.engine import run_cell_episode
+from baselines.leaderboard.evaluation import EpisodeResult
+from baselines.leaderboard.figures import ran
+from humotion_gym.video import contact_sheet
+
+
+class ReplayMismatch(RuntimeError):
+    """A re-run episode did not reproduce the errors recorded for it."""
+
+
+def choose_episodes(row: dict[str, Any]) -> dict[str, int]:
+    """The seeds of a cell's best, median and worst episode by mean error.
+
+    The median is the lower middle of the sorted episodes; ties go to the
+    smaller seed. A choice may share a seed with another (few episodes).
+    """
+    ranked = sorted(row["episodes"], key=lambda e: (e["mean_error_mm"], e["seed"]))
+    return {
+        "best": int(ranked[0]["seed"]),
+        "median": int(ranked[(len(ranked) - 1) // 2]["seed"]),
+        "worst": int(ranked[-1]["seed"]),
+    }
+
+
+def replay_episodes(
+    row: dict[str, Any],
+    seeds: Sequence[int],
+    env_kwargs: dict[str, Any] | None = None,
+) -> dict[int, tuple[EpisodeResult, list[NDArray[np.uint8]]]]:
+    """Re-run a cell's episodes with rendering; check they reproduce the recorded errors.
+
+    Each episode is re-run on its own with
+    :func:`~baselines.leaderboard.engine.run_cell_episode`, with the agent
+    seeded by the cell's first episode seed (the leaderboard's seed).
+
+    Args:
+        row: A leaderboard row that ran.
+        seeds: Episode seeds to record.
+        env_kwargs: The environment's keyword arguments of the run (difficulty, data).
+
+    Returns:
+        ``{seed: (result, frames)}``; each frame is the rendered frame with
+        the estimate drawn over it.
+
+    Raises:
+        ValueError: If a seed is not one of the row's episodes.
+        ReplayMismatch: If a re-run's per-frame errors differ from the recorded ones.
+    """
+    recorded = {int(e["seed"]): e for e in row["episodes"]}
+    missing = [s for s in seeds if s not in recorded]
+    if missing:
+        raise ValueError(f"seeds: {missing} are not episodes of {stats.cell_label(row)}")
+    first = min(recorded)
+    settings = {**(env_kwargs or {}), "render_mode": "rgb_array"}
+    out: dict[int, tuple[EpisodeResult, list[NDArray[np.uint8]]]] = {}
+    for s in sorted(set(int(s) for s in seeds)):
+        frames: list[NDArray[np.uint8]] = []
+        result = run_cell_episode(
+            row["task"], row["agent"], row["particles"], s, first, settings,
+            on_frame=lambda f, i, frames=frames: frames.append(f),
+        )  # fmt: skip
+        out[s] = (result, frames)
+    for s, (result, _) in out.items():
+        expected = np.asarray(recorded[s]["errors_mm"], dtype=np.float64)
+        got = np.asarray(result.errors_mm, dtype=np.float64)
+        if got.shape != expected.shape or not np.allclose(got, expected, rtol=1e-9, atol=1e-6):
+            raise ReplayMismatch(
+                f"{row['task']} {stats.cell_label(row)} seed {s}: the re-run's errors differ "
+                f"from the recorded ones (mean {got.mean():.3f} vs {expected.mean():.3f} mm); "
+                "were the environment settings (--data-dir, difficulty) the run's?"
+            )
+    return out
+
+
+@contextmanager
+def _quiet_stderr() -> Any:
+    # OpenCV's FFmpeg backend prints a harmless tag warning for VP8 in WebM
+    saved = os.dup(2)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
+
+
+def write_webm(path: Path, frames: Sequence[NDArray[np.uint8]], fps: float, scale: int = 2) -> Path:
+    """Write RGB frames as a WebM (VP8) video, which browsers play.
+
+    Raises:
+        ValueError: If there are no frames.
+        OSError: If OpenCV cannot write the file.
+    """
+    if not frames:
+        raise ValueError("write_webm: no frames")
+    big = [
+        cv2.cvtColor(
+            cv2.resize(f, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST),
+            cv2.COLOR_RGB2BGR,
+        )
+        for f in frames
+    ]
+    h, w = big[0].shape[:2]
+    with _quiet_stderr():
+        writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"VP80"), float(fps), (w, h))
+    if not writer.isOpened():
+        raise OSError(f"{path}: OpenCV could not open a WebM (VP8) writer")
+    try:
+        for frame in big:
+            writer.write(frame)
+    finally:
+        writer.release()
+    return path
+
+
+def _caption(frames: list[NDArray[np.uint8]], errors: Sequence[float]) -> list[NDArray[np.uint8]]:
+    out = []
+    for k, (frame, err) in enumerate(zip(frames, errors, strict=True)):
+        img = np.ascontiguousarray(frame)
+        cv2.putText(img, f"{k} {err:.0f}mm", (2, 10), cv2.FONT_HERSHEY_PLAIN, 0.7,
+                    (255, 255, 0), 1, cv2.LINE_AA)  # fmt: skip
+        out.append(img)
+    return out
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text)
+
+
+def write_videos(
+    rows: Sequence[dict[str, Any]],
+    folder: Path,
+    env_kwargs: dict[str, Any] | None = None,
+    cells: Callable[[dict[str, Any]], bool] | None = None,
+    progress: bool = True,
+) -> list[dict[str, Any]]:
+    """Videos and contact sheets of each cell's best, median and worst episode.
+
+    Returns:
+        One dict per video: task, cell, choice, seed, mean_error_mm, video and
+        sheet (paths relative to ``folder``).
+    """
+    (folder / "videos").mkdir(parents=True, exist_ok=True)
+    chosen = [r for r in rows if ran(r) and (cells is None or cells(r))]
+    out = []
+    for r in tqdm(chosen, desc="videos", disable=not progress):
+        picks = choose_episodes(r)
+        replayed = replay_episodes(r, sorted(set(picks.values())), env_kwargs)
+        fps = float((env_kwargs or {}).get("fps", 30.0)) / int(
+            (env_kwargs or {}).get("frame_skip", 1)
+        )
+        for choice, s in picks.items():
+            result, frames = replayed[s]
+            stem = _slug(f"{r['task']}_{stats.cell_label(r)}_{choice}_seed{s}")
+            video = folder / "videos" / f"{stem}.webm"
+            sheet = folder / "videos" / f"{stem}.jpg"
+            if not video.exists():
+                write_webm(video, _caption(frames, result.errors_mm), fps)
+                # JPEG: the sensor noise makes a PNG of the sheet five times larger
+                sheet_rgb = contact_sheet(frames, columns=6, count=12)
+                image = cv2.cvtColor(sheet_rgb, cv2.COLOR_RGB2BGR)
+                if not cv2.imwrite(str(sheet), image, [cv2.IMWRITE_JPEG_QUALITY, 90]):
+                    raise OSError(f"{sheet}: could not write the contact sheet")
+            out.append(
+                {"task": r["task"], "cell": stats.cell_label(r), "choice": choice, "seed": s,
+                 "mean_error_mm": result.mean_error_mm,
+                 "video": video.relative_to(folder).as_posix(),
+                 "sheet": sheet.relative_to(folder).as_posix()}
+            )  # fmt: skip
+    return out
