@@ -9,19 +9,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import Any, NamedTuple
 
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from baselines.observation.geometry import free_cones, grow, projected_cones, silhouette_mask
+from baselines.observation.settings import ObservationSettings
 from humotion_gym.body import N_CONES, BodyShape, cone_geometry
 from humotion_gym.camera import Camera
 from humotion_gym.render import gaussian_blur
-
-if TYPE_CHECKING:
-    from baselines.observation.model import ObservationModel
 
 #: The distance transform's mask: 5x5 chamfer, within 2% of the exact distance.
 _DIST_MASK = cv2.DIST_MASK_5
@@ -244,7 +242,7 @@ def border_color(smooth: NDArray[np.uint8], width: int) -> NDArray[np.float64]:
     return np.median(border, axis=0)
 
 
-def backdrop_low(model: ObservationModel, counts: NDArray[np.int64]) -> float | None:
+def backdrop_low(model: ObservationSettings, counts: NDArray[np.int64]) -> float | None:
     """How far a pixel must differ from the backdrop, from the known pixels' histogram.
 
     ``foreground_low`` or 2.5 times the known pixels' median difference (about
@@ -260,7 +258,7 @@ def backdrop_low(model: ObservationModel, counts: NDArray[np.int64]) -> float | 
 
 
 def foreground(
-    model: ObservationModel,
+    model: ObservationSettings,
     smooth: NDArray[np.uint8],
     backdrop: Backdrop | None = None,
     scale: float = 1.0,
@@ -311,7 +309,7 @@ def foreground(
 
 
 def cost_table(
-    model: ObservationModel,
+    model: ObservationSettings,
     dist: NDArray[np.float32],
     fg: NDArray[np.float32],
     smooth: NDArray[np.uint8],
@@ -370,7 +368,7 @@ def spread_points(mask: NDArray[np.bool_], most: int) -> NDArray[np.float32]:
 
 
 def coverage_points(
-    model: ObservationModel,
+    model: ObservationSettings,
     fg: NDArray[np.float32],
     backdrop: Backdrop,
     given: GivenBody,
@@ -397,7 +395,7 @@ def coverage_points(
 
 
 def residual_edges(
-    model: ObservationModel,
+    model: ObservationSettings,
     edges: NDArray[np.uint8],
     given: GivenBody,
     free: tuple[NDArray[np.intp], Any],
@@ -455,7 +453,7 @@ def residual_edges(
 
 
 def frame_features(
-    model: ObservationModel, frame: ArrayLike, given: GivenBody | None = None
+    model: ObservationSettings, frame: ArrayLike, given: GivenBody | None = None
 ) -> FrameFeatures:
     """The features of one frame (see :meth:`ObservationModel.prepare`)."""
     smooth = smoothed(frame, model.edge_blur, "ObservationModel.prepare")
@@ -511,7 +509,7 @@ def frame_features(
 
 
 def cone_colors(
-    model: ObservationModel, frame: ArrayLike, pose: ArrayLike, shape: BodyShape, camera: Camera
+    model: ObservationSettings, frame: ArrayLike, pose: ArrayLike, shape: BodyShape, camera: Camera
 ) -> NDArray[np.float64]:
     """Each cone's colour in a frame where its pose is known: ``(10, C)``.
 

@@ -14,19 +14,15 @@ coverage terms go the other way, from image points to the nearest cone.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 from numpy.typing import NDArray
 
 from baselines.observation import _compiled
 from baselines.observation.features import FrameFeatures
 from baselines.observation.geometry import cone_bases, fixed_cones
+from baselines.observation.settings import ObservationSettings
 from humotion_gym.body import KEYPOINT_NAMES, N_CONES, BodyShape, pose_geometry
 from humotion_gym.camera import Camera
-
-if TYPE_CHECKING:
-    from baselines.observation.model import ObservationModel
 
 FloatArray = NDArray[np.float64]
 
@@ -39,7 +35,7 @@ _SHARED_MIN_POSES = 1000
 
 
 def score(
-    model: ObservationModel,
+    model: ObservationSettings,
     feats: FrameFeatures,
     params: NDArray,
     shape: BodyShape,
@@ -74,7 +70,7 @@ def score(
 
 
 def point_costs(
-    model: ObservationModel,
+    model: ObservationSettings,
     feats: FrameFeatures,
     basis: NDArray[np.float32],
     outline: NDArray[np.int32],
@@ -113,7 +109,7 @@ def point_costs(
 
 
 def residual_cost(
-    model: ObservationModel, feats: FrameFeatures, basis: NDArray[np.float32], rows: NDArray
+    model: ObservationSettings, feats: FrameFeatures, basis: NDArray[np.float32], rows: NDArray
 ) -> FloatArray:
     """``(n, G)`` the residual-edge term of each figure (``rows`` ``(G, 10)`` its cones).
 
@@ -137,7 +133,7 @@ def residual_cost(
 
 
 def coverage_cost(
-    model: ObservationModel, feats: FrameFeatures, basis: NDArray[np.float32], rows: NDArray
+    model: ObservationSettings, feats: FrameFeatures, basis: NDArray[np.float32], rows: NDArray
 ) -> FloatArray:
     """``(n, G)`` the coverage term of each figure (``rows`` ``(G, 10)`` its cones).
 
@@ -157,7 +153,7 @@ def coverage_cost(
     return out
 
 
-def floor_cost(model: ObservationModel, geometry: FloatArray, floor: float) -> FloatArray:
+def floor_cost(model: ObservationSettings, geometry: FloatArray, floor: float) -> FloatArray:
     """The floor term (nats) of poses' ``(N, 35, 3)`` geometry (keypoints first)."""
     lowest = geometry[:, ANKLES, 2].min(axis=1)
     height = lowest - floor

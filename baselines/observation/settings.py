@@ -1,0 +1,290 @@
+"""The observation model's settings: one frozen dataclass, checked on creation.
+
+The image features (:mod:`.features`) and the terms that score poses
+(:mod:`.terms`) read them; :class:`~baselines.observation.ObservationModel`
+adds the methods that compose those.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from baselines.observation.geometry import sample_weights
+
+
+@dataclass(frozen=True)
+class ObservationSettings:
+    """The settings of the observation model (:class:`~baselines.observation.ObservationModel`).
+
+    One model serves every task and agent; the defaults are tuned on the
+    renderer's default scene (clutter, noise) and are what the leaderboard uses.
+    Distances are in *reference pixels*: pixels of a frame ``reference_height``
+    pixels high, so the same parameters fit every image size.
+
+    The log-likelihood is in nats up to a constant; its scale is set by
+    ``edge_sigma`` (per cone, the edge term lies in
+    ``[0, edge_truncation**2 / (2 edge_sigma**2)]`` = [0, 2] by default, the
+    foreground term in ``[0, foreground_weight]``), so a pose whose whole outline
+    is off by ``edge_truncation`` scores about 20 nats below one that fits.
+    Particle filters may temper it further.
+
+    Attributes:
+        edge_sigma: Standard deviation (reference px, default 1.5) of the
+            distance between a model outline point and the image edge it
+            explains: the pixel quantisation of edges and of the cone outline
+            plus the blur. It sets the likelihood's sharpness (see above).
+        edge_truncation: Distance (reference px, default 3.0) beyond which an
+            outline point costs no more. The robust truncation of the chamfer
+            cost: outline points with no edge (an outline hidden behind another
+            limb, a low-contrast edge, a point off the image) cost a bounded
+            amount, so the score counts how much of the outline is explained.
+            Three reference pixels is 50-100 mm on a body filling a 128-pixel
+            frame: tuned on the test of ``tests/test_observation.py`` (true
+            pose against poses 5-10 cm off), where 6 px gave 95-97% and 3 px
+            99%.
+        foreground_weight: Weight (default 0.5) of the foreground term: the
+            cost, per cone, of its axis lying wholly on background; a quarter of
+            the edge term's range. It holds a pose on the figure where edges are
+            missing (low contrast, occluders) without letting the crude border
+            colour model (clutter counts as foreground) override the edges.
+        foreground_low: Colour distance (grey levels, default 25) from the
+            background colour below which a pixel counts as background; above
+            the renderer's default noise (sigma 4) after ``edge_blur``.
+        foreground_high: Colour distance (grey levels, default 70) above which a
+            pixel counts as certain foreground; between the two the probability
+            rises linearly.
+        border_width: Width in pixels (default 2) of the frame border whose
+            median colour estimates the background colour. The figure rarely
+            touches the border (cameras are fitted with a margin).
+        canny_low: Lower hysteresis threshold of ``cv2.Canny`` (default 40).
+        canny_high: Upper hysteresis threshold of ``cv2.Canny`` (default 100):
+            well above the gradient of the renderer's noise after ``edge_blur``,
+            below the contrast of the figure's colours against a mid-grey wall.
+        edge_blur: Gaussian sigma in pixels (default 0.8) of the blur applied
+            before edge detection and foreground estimation, to suppress sensor
+            noise; 0 turns it off.
+        outline_samples: Points per silhouette line of each cone (default 5, at
+            the centres of equal parts of the cone's length): 10 outline points
+            per cone, 100 per pose. Time grows linearly with the points.
+        axis_samples: Points along each cone's projected axis for the foreground
+            term (default 3).
+        reference_height: Image height (default 128) whose pixels are the unit
+            of ``edge_sigma`` and ``edge_truncation``.
+        near_mm: Keypoints closer to the camera plane than this (default 10 mm),
+            or behind it, are treated as outside the image.
+        orientation_bins: Number of edge orientation bins (default 4: 0, 45, 90
+            and 135 degrees; every edge pixel counts for its two nearest bins,
+            so an outline matches edges within 45 degrees of its own
+            orientation). 1 gives plain (unoriented) chamfer matching; 6 and 8
+            scored the same as 4 on the tests and cost more distance transforms.
+        sharpness: Multiplier of the whole log-likelihood (an inverse
+            temperature; default 1). Per-cone costs are means over the cone's
+            points, so the default treats each cone, not each point, as one
+            observation; ``outline_samples * 2`` would treat points as
+            independent. Left at 1 for every agent: a truth-centred particle
+            cloud is estimated best at 0.3-1 (BodyTrack: 13 mm at 1, 25 mm at 3,
+            54 mm at 10), i.e. sharper weights are overconfident.
+        residual_weight: Weight (default 0: off) of the *residual-edge* term,
+            the image-to-model direction of the chamfer cost, used where a task
+            gives part of the body (:class:`GivenBody`). The given cones'
+            outlines are drawn once per frame; the edge pixels they leave
+            unexplained within reach of the free cones (the free limbs' own
+            edges, and clutter) should lie on a free cone's outline, and each
+            such point costs ``min(d, residual_truncation)^2 / (2 sigma^2)``,
+            averaged over the points and multiplied by this weight. The
+            model-to-image term alone is maximised by any limb laid along edges
+            that are there anyway (the torso's side, the other side of the
+            limb, clutter); this term asks that the limb explain the edges
+            only it can explain. On ArmTrack, a greedy search over arm poses on
+            flat-background validation frames went from 264 mm (worse than not
+            moving, 191 mm) without it to 87 mm with it.
+        residual_truncation: Distance (reference px, default 6) beyond which a
+            residual point costs no more.
+        residual_points: At most this many residual points per frame (default
+            128, an evenly strided subset in raster order: deterministic).
+        residual_clearance: Half-width (reference px, default 2) of the band
+            around the given cones' outlines whose edges count as explained.
+        appearance_weight: Weight (default 0: off) of the *appearance* term,
+            used where a task gives part of the body and the colours of the
+            cones were read at the first frame (``GivenBody.colors``): the
+            axis points of each free cone cost, per cone, up to this weight
+            where the pixel's colour differs from that cone's (between
+            ``appearance_low`` and ``appearance_high`` grey levels of the
+            largest channel difference the cost rises linearly). Clutter and
+            the torso rarely share a forearm's colour.
+        appearance_low: Colour difference (default 20) below which a pixel
+            matches the cone's colour.
+        appearance_high: Colour difference (default 60) above which it does
+            not match at all.
+        backdrop: Whether to use the backdrop read at the first frame
+            (default False; :class:`Backdrop`, handed in ``GivenBody.backdrop``).
+            Where it is known, a pixel's foreground probability comes from its
+            colour distance to the backdrop's pixel instead of to the border's
+            median (clutter is backdrop, not figure), and edges farther than
+            ``backdrop_reach`` from any foreground pixel are dropped (the
+            clutter's edges: the figure's outline borders its foreground).
+            Elsewhere (under the initial figure, or without a backdrop) the
+            border rule and every edge remain. The threshold rises with the
+            frame's sensor noise (measured on the known pixels); where the
+            noise hides ``foreground_high`` the border rule is used alone.
+        backdrop_margin: Reference pixels (default 2) the initial pose's
+            silhouette is grown by before the rest counts as known backdrop:
+            the blur and the cones' rounded ends spill past their outline.
+        backdrop_reach: Reference pixels (default 3) around the foreground
+            within which edges are kept; 0 keeps every edge.
+        coverage_weight: Weight (default 0: off) of the *coverage* term, the
+            image-to-model direction of the foreground cue (the silhouette
+            explained, as in Deutscher, Blake & Reid's silhouette cue and
+            Sidenbladh & Black's foreground likelihood, which both count
+            foreground the model leaves unexplained). It needs the backdrop:
+            the pixels that differ clearly from the known backdrop
+            (``foreground_high``) and that the given body's cones do not
+            cover are the free limbs' own; each should lie inside a free
+            cone's projection, and costs ``min(d, coverage_truncation)^2 /
+            (2 sigma^2)`` for ``d`` its distance outside the nearest one,
+            averaged over the points and multiplied by this weight. The
+            model-to-image foreground term alone is as happy with both legs on
+            one leg's pixels as with each on its own.
+        coverage_truncation: Distance (reference px, default 4) beyond which
+            a coverage point costs no more.
+        coverage_points: At most this many coverage points per frame
+            (default 96, an evenly strided subset in raster order).
+        floor_below_mm: Scale (mm; default ``inf``: off) of the *floor term*'s
+            cost for a pose whose lowest ankle is below the height it had in
+            the episode's given first pose (``GivenBody.floor``): ``d`` mm below
+            costs ``(d / floor_below_mm)^2 / 2`` nats. Not an image cue but
+            the scene's: the floor is flat and feet do not sink into it. The
+            image barely shows depth (a figure 5 m away grows one pixel in 128
+            per 100 mm nearer; on BodyTrack's validation frames the
+            log-likelihood of the true pose slid along the camera ray varies
+            by under 1.5 nats over +-400 mm), while sliding a figure along its
+            ray moves it up or down (the cameras look down on it), so the floor
+            was meant to pin the depth; on the validation persons it did not
+            help (off on every task; numbers in ``humotion_gym/envs/tasks.py``).
+            Added to the log-likelihood after ``sharpness``.
+        floor_above_mm: Scale (mm; default ``inf``: off) of the floor term's
+            cost for a lowest ankle *above* that height (a person jumps, so it
+            is looser than ``floor_below_mm`` where used).
+        raster_pad_px: Image pixels (not reference pixels; default 0) added to
+            every cone's projected half-width. The renderer fills each cone
+            with ``cv2.fillConvexPoly`` (8-connected), which paints every
+            pixel its outline passes through: the drawn figure is about half a
+            pixel wider on each side than the cone's exact projection (0.48
+            px, measured over random strips in ``tests/test_raster_pad.py``).
+            A model without it finds the drawn limbs too thick for the true
+            depth and prefers the figure nearer the camera (on BodyTrack's test
+            frames the true pose slid along the camera ray scores best 151 mm
+            in front of the truth; with 0.5, 22 mm behind it). Off by default:
+            on the validation persons it tracked no better (worse on the walks;
+            numbers in ``humotion_gym/envs/tasks.py``).
+    """
+
+    edge_sigma: float = 1.5
+    edge_truncation: float = 3.0
+    foreground_weight: float = 0.5
+    foreground_low: float = 25.0
+    foreground_high: float = 70.0
+    border_width: int = 2
+    canny_low: float = 40.0
+    canny_high: float = 100.0
+    edge_blur: float = 0.8
+    outline_samples: int = 5
+    axis_samples: int = 3
+    reference_height: int = 128
+    near_mm: float = 10.0
+    orientation_bins: int = 4
+    sharpness: float = 1.0
+    residual_weight: float = 0.0
+    residual_truncation: float = 6.0
+    residual_points: int = 128
+    residual_clearance: float = 2.0
+    appearance_weight: float = 0.0
+    appearance_low: float = 20.0
+    appearance_high: float = 60.0
+    backdrop: bool = False
+    backdrop_margin: float = 2.0
+    backdrop_reach: float = 3.0
+    coverage_weight: float = 0.0
+    coverage_truncation: float = 4.0
+    coverage_points: int = 96
+    floor_below_mm: float = math.inf
+    floor_above_mm: float = math.inf
+    raster_pad_px: float = 0.0
+
+    def __post_init__(self) -> None:
+        positive = (
+            "edge_sigma",
+            "edge_truncation",
+            "near_mm",
+            "residual_truncation",
+            "coverage_truncation",
+        )
+        for name in positive:
+            value = float(getattr(self, name))
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"ObservationModel.{name}: expected a positive number")
+        if not (math.isfinite(self.sharpness) and self.sharpness > 0):
+            raise ValueError("ObservationModel.sharpness: expected a positive number")
+        if not (self.foreground_weight >= 0 and math.isfinite(self.foreground_weight)):
+            raise ValueError("ObservationModel.foreground_weight: expected a number >= 0")
+        if not 0 <= self.foreground_low < self.foreground_high:
+            raise ValueError("ObservationModel: expected 0 <= foreground_low < foreground_high")
+        if not 0 < self.canny_low <= self.canny_high:
+            raise ValueError("ObservationModel: expected 0 < canny_low <= canny_high")
+        if not 0 <= self.appearance_low < self.appearance_high:
+            raise ValueError("ObservationModel: expected 0 <= appearance_low < appearance_high")
+        if not isinstance(self.backdrop, (bool, np.bool_)):
+            raise ValueError(f"ObservationModel.backdrop: expected a bool, got {self.backdrop!r}")
+        for name in (
+            "residual_weight",
+            "residual_clearance",
+            "appearance_weight",
+            "backdrop_margin",
+            "backdrop_reach",
+            "coverage_weight",
+            "raster_pad_px",
+        ):
+            value = float(getattr(self, name))
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"ObservationModel.{name}: expected a number >= 0")
+        for name in ("floor_below_mm", "floor_above_mm"):
+            value = float(getattr(self, name))
+            if not value > 0:  # inf (off) allowed; NaN and <= 0 refused
+                raise ValueError(
+                    f"ObservationModel.{name}: expected a positive number (inf: off), got {value}"
+                )
+        if self.edge_blur < 0:
+            raise ValueError("ObservationModel.edge_blur: expected a number >= 0")
+        for name in (
+            "outline_samples",
+            "axis_samples",
+            "border_width",
+            "reference_height",
+            "orientation_bins",
+            "residual_points",
+            "coverage_points",
+        ):
+            value = getattr(self, name)
+            if not isinstance(value, (int, np.integer)) or value < 1:
+                raise ValueError(f"ObservationModel.{name}: expected a positive integer")
+
+    @property
+    def has_floor_term(self) -> bool:
+        """Whether the floor term is on (either of its scales finite)."""
+        return math.isfinite(self.floor_below_mm) or math.isfinite(self.floor_above_mm)
+
+    @functools.cached_property
+    def sample_weights(self) -> NDArray[np.float32]:
+        """``(P, 4)`` each sample point's weights of a cone's ``s``, ``e``, ``a``, ``b``.
+
+        The outline points first (both sides), then the axis points
+        (:func:`~baselines.observation.geometry.sample_weights`).
+        """
+        weights = sample_weights(self.outline_samples, self.axis_samples)
+        weights.setflags(write=False)
+        return weights
