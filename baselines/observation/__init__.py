@@ -30,8 +30,10 @@ cost the truncation value (and count as background).
 
 The package: :mod:`.features` (a frame's image features and its cost
 table), :mod:`.geometry` (the cones' image geometry), :mod:`.terms` (the
-terms that score poses), :mod:`.model` (:class:`ObservationModel`, the
-settings composing them) and :mod:`._compiled` (the fused passes over poses).
+terms that score poses), :mod:`.settings` (the model's settings),
+:mod:`.model` (:class:`ObservationModel`: the settings and the methods that
+compose features and terms) and :mod:`._compiled` (the fused passes over
+poses).
 The model uses the frame, the camera and the subject's known shape only; it
 has no access to the ground truth.
 """
