@@ -128,14 +128,7 @@ def run_leaderboard(
         FileExistsError: If ``out`` holds a run and ``resume`` is False.
         FileNotFoundError: If ``resume`` is True and ``out`` holds no run.
     """
-    if episodes < 1:
-        raise ValueError(f"episodes: expected at least 1, got {episodes}")
-    if any(n < 1 for n in particles):
-        raise ValueError(f"particles: expected counts >= 1, got {list(particles)}")
-    if engine not in ENGINES:
-        raise ValueError(f"engine: expected one of {list(ENGINES)}, got {engine!r}")
-    if resume and out is None:
-        raise ValueError("resume: needs a results folder (out)")
+    _check_run(episodes, particles, engine, resume, out)
     kwargs = resolve_env_kwargs(env_kwargs)
     cells = [Cell(*c) for c in grid_cells(tasks, agents, particles)]
     seeds = list(range(seed, seed + episodes))
@@ -170,6 +163,20 @@ def run_leaderboard(
         }  # fmt: skip
         write_results(rows, folder.folder, config, command, report, videos, progress)
     return rows
+
+
+def _check_run(
+    episodes: int, particles: Sequence[int], engine: str, resume: bool, out: str | Path | None
+) -> None:
+    """Refuse a run's arguments before any work (see :func:`run_leaderboard`)."""
+    if episodes < 1:
+        raise ValueError(f"episodes: expected at least 1, got {episodes}")
+    if any(n < 1 for n in particles):
+        raise ValueError(f"particles: expected counts >= 1, got {list(particles)}")
+    if engine not in ENGINES:
+        raise ValueError(f"engine: expected one of {list(ENGINES)}, got {engine!r}")
+    if resume and out is None:
+        raise ValueError("resume: needs a results folder (out)")
 
 
 def _run_episodes(

@@ -426,3 +426,88 @@ def test_page_script_sorts_numbers_as_numbers():
     up, down = json.loads(done.stdout)
     assert up == ["25", "300", "1,000", "3,000", "-"]  # numbers by value, text after
     assert down == up[::-1]
+
+
+# ------------------------------------------------------------------ labels, verdicts, page head
+
+
+def test_agents_are_shown_by_short_labels():
+    from baselines.leaderboard.stats import agent_label, cell_label
+    from baselines.leaderboard.tables import markdown_table
+
+    assert agent_label("mine=runs/x/model.zip") == "mine"
+    assert agent_label("runs/bc-body/model.zip") == "bc-body"  # what `train` writes
+    assert agent_label("policies/fast.zip") == "fast"
+    assert agent_label("pf-tree+runs/x/model.zip") == "pf-tree+x"
+    assert agent_label("pf-tree+bc") == "pf-tree+bc"
+    assert agent_label("pf-tree") == "pf-tree" and agent_label("hold") == "hold"
+    assert cell_label({"agent": "mine=a/b.zip", "particles": 0}) == "mine"
+    assert cell_label({"agent": "pf-tree+mine=a/b.zip", "particles": 300}) == "pf-tree+mine@300"
+    rows = _rows({"pf-cv": 0.5})
+    rows[1] = {**rows[1], "agent": "mine=runs/x/model.zip", "particles": 0}
+    table = markdown_table(rows)
+    assert "| mine |" in table and "model.zip" not in table
+
+
+def test_a_one_episode_cell_prints_no_interval():
+    from baselines.leaderboard.report import statistics_table
+    from baselines.leaderboard.tables import markdown_table
+
+    one = _rows({"pf-cv": 0.5}, tasks=("ArmTrack-v1",), n=1)
+    mean = one[1]["summary"]["mean_error_mm"]
+    line = markdown_table(one).splitlines()[3]
+    assert f"| {mean:.0f} |" in line and "(" not in line
+    assert statistics_table(one)[2][4] == f"{mean:,.0f}"
+    two = _rows({"pf-cv": 0.5}, tasks=("ArmTrack-v1",), n=2)
+    lo, hi = two[1]["summary"]["mean_error_ci"]
+    assert f"({lo:.0f}-{hi:.0f})" in markdown_table(two)  # mutation: more episodes keep it
+
+
+def test_a_verdict_reads_as_what_the_ratio_is():
+    from baselines.leaderboard.tables import ratio_text, validity_lines
+
+    assert ratio_text(2.1) == "2.10x better than hold"
+    assert ratio_text(0.7) == "0.70x hold: worse than hold"
+    worse = validity_lines(_rows({"pf-cv": 1 / 0.7}, tasks=("ArmTrack-v1",)))
+    assert "0.70x hold: worse than hold in mean error" in worse[0]
+    assert "better than hold" not in worse[0] and "NOT valid" in worse[0]
+    better = validity_lines(_rows({"pf-cv": 0.4}, tasks=("ArmTrack-v1",)))
+    assert "2.50x better than hold in mean error" in better[0] and better[0].endswith("valid")
+
+
+def test_the_page_opens_with_what_made_the_numbers_and_each_verdict(tmp_path):
+    run = {
+        "command": "humotion-gym leaderboard --tasks ArmTrack-v1", "commit": "abc123",
+        "package_version": "0.1.0", "data": ["/data/mocap"], "created": "2026-12-01T22:00:00+00:00",
+    }  # fmt: skip
+    page = write_report(_rows({"pf-cv": 0.5}), tmp_path / "a", progress=False, run=run)
+    text = page.read_text()
+    for shown in ("humotion-gym leaderboard --tasks ArmTrack-v1", "commit abc123, package 0.1.0",
+                  "/data/mocap", "2026-12-01T22:00:00+00:00", "Verdicts",
+                  "ArmTrack-v1: best filter at 100 particles is pf-cv, 2.00x better than hold"):  # fmt: skip
+        assert shown in text
+    _check_page(page)
+    bare = write_report(_rows({"pf-cv": 0.5}), tmp_path / "b", progress=False).read_text()
+    assert bare.count("not recorded") == 4  # a bare list of rows says what it lacks
+    synthetic = write_report(_rows({"pf-cv": 0.5}), tmp_path / "c", progress=False,
+                             run={**run, "data": []}).read_text()  # fmt: skip
+    assert "none: the built-in synthetic motion" in synthetic
+
+
+def test_results_record_commit_and_data_and_say_when_figures_are_missing(
+    tmp_path, monkeypatch, capsys
+):
+    from baselines.leaderboard import results
+
+    monkeypatch.setattr(results, "figures_available", lambda: False)
+    monkeypatch.setattr(results, "source_commit", lambda: "abc123")
+    rows = _rows({"pf-cv": 0.5})
+    results.write_results(rows, tmp_path, {"seed": 0, "env_kwargs": {"data_dir": ["/m"]}},
+                          command="cmd", progress=False)  # fmt: skip
+    document = json.loads((tmp_path / "results.json").read_text())
+    assert document["commit"] == "abc123" and document["data"] == ["/m"]
+    assert "index.html has the tables but no figures" in capsys.readouterr().err
+    assert "commit abc123" in (tmp_path / "index.html").read_text()
+    monkeypatch.setattr(results, "figures_available", lambda: True)
+    results.write_results(rows, tmp_path / "b", {"seed": 0}, progress=False)
+    assert "no figures" not in capsys.readouterr().err  # mutation: with matplotlib, silent
