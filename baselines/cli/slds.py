@@ -415,7 +415,6 @@ def _cmd_figures(args: argparse.Namespace) -> int:
     from baselines.experiments import pavlovic1999 as pav
 
     out = args.out_dir
-    out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(args.seed)
     train, test = pav.person_split(pav.default_motions(args.data_dir))
     result = pav.run_classification(
@@ -423,6 +422,7 @@ def _cmd_figures(args: argparse.Namespace) -> int:
         n_states=args.states, n_iter=args.iters,
         max_train_clips=args.max_train_clips,
     )  # fmt: skip
+    out.mkdir(parents=True, exist_ok=True)  # checked writable when parsed
     pav.plot_segmentation(result, out / "slds_fig3_classification.png")
     results, mean, walk = pav.run_interpolation(
         train, test, rng, n_states=args.states, n_iter=args.iters,

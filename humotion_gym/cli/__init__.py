@@ -141,18 +141,24 @@ def _error(parser: argparse.ArgumentParser, args: argparse.Namespace, message: s
 
 
 def _check_inputs(args: argparse.Namespace) -> None:
-    """Refuse mocap paths that hold no motion capture before any command starts its work.
+    """Refuse mocap that a command cannot use before it starts any work.
 
     One place for every command: ``--data-dir`` (else ``$HUMOTION_MOCAP``, which
-    the command would read), the ``PATH`` arguments and ``slds classify``'s
-    ``--train``/``--test``.
+    the command would read) is loaded here, so a file that does not parse, a
+    folder without mocap or one trial twice ends the command in one line
+    before progress bars, fits or outputs begin; the clips are cached, so the
+    command's own load reads them back. The ``PATH`` arguments and ``slds
+    classify``'s ``--train``/``--test``, which their commands load first
+    thing, are checked for files of motion capture.
     """
-    from humotion_gym.mocap.library import MOCAP_ENV, configured_data_dirs
+    from humotion_gym.mocap.library import MOCAP_ENV, configured_data_dirs, load_library
 
-    if getattr(args, "data_dir", None):
-        check_mocap_paths(args.data_dir, "--data-dir")
-    elif hasattr(args, "data_dir") and configured_data_dirs(None):
-        check_mocap_paths(configured_data_dirs(None), f"${MOCAP_ENV}")
+    dirs, flag = getattr(args, "data_dir", None), "--data-dir"
+    if not dirs and hasattr(args, "data_dir"):
+        dirs, flag = configured_data_dirs(None), f"${MOCAP_ENV}"
+    if dirs:
+        check_mocap_paths(dirs, flag)
+        load_library(dirs, fps=getattr(args, "fps", 30.0), progress=True)
     for attr, flag in (("paths", "PATH"), ("train", "--train"), ("test_paths", "--test")):
         value = getattr(args, attr, None)
         if value:
