@@ -340,24 +340,31 @@ def test_shared_cones_are_scored_as_the_rest() -> None:
 # -- the frame's features against OpenCV -----------------------------------------
 
 
-@pytest.mark.parametrize("seed, size", [(0, 128), (7, 96)])
-def test_features_are_opencvs(seed: int, size: int) -> None:
+@pytest.mark.parametrize("seed, size, bins", [(0, 128, 4), (7, 96, 4), (4, 128, 8)])
+def test_features_are_opencvs(seed: int, size: int, bins: int) -> None:
     _, _, _, frame, _ = scene(seed, size)
-    model = ObservationModel()
+    model = ObservationModel(orientation_bins=bins)
     feats = model.prepare(frame)
     smooth = cv2.GaussianBlur(frame, (0, 0), model.edge_blur)
     edges = cv2.Canny(smooth, model.canny_low, model.canny_high)
     np.testing.assert_array_equal(feats.edges, edges)
-    # Each edge pixel in the two bins nearest its strongest channel's gradient.
+    # Each edge pixel in the two bins nearest its strongest channel's gradient
+    # (the angle in single precision, as the gradients: a pixel on a bin's
+    # boundary goes where the model's float32 arithmetic puts it).
     gx = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=3)
     gy = cv2.Sobel(smooth, cv2.CV_32F, 0, 1, ksize=3)
     scale = size / model.reference_height
     n_bins = model.orientation_bins
     bins = np.full((n_bins, size, size), 255, np.uint8)
-    for y, x in zip(*np.nonzero(edges), strict=True):
-        best = int(np.argmax(gx[y, x] ** 2 + gy[y, x] ** 2))
-        theta = math.atan2(gy[y, x, best], gx[y, x, best]) % math.pi  # np.mod's
-        lo = math.floor(theta * (n_bins / math.pi)) % n_bins
+    pixels = list(zip(*np.nonzero(edges), strict=True))
+    strongest = [int(np.argmax(gx[y, x] ** 2 + gy[y, x] ** 2)) for y, x in pixels]
+    theta = np.arctan2(
+        np.array([gy[y, x, c] for (y, x), c in zip(pixels, strongest, strict=True)]),
+        np.array([gx[y, x, c] for (y, x), c in zip(pixels, strongest, strict=True)]),
+    )
+    assert theta.dtype == np.float32
+    for (y, x), angle in zip(pixels, np.mod(theta, np.pi) * (n_bins / np.pi), strict=True):
+        lo = math.floor(angle) % n_bins
         bins[lo, y, x] = bins[(lo + 1) % n_bins, y, x] = 0
     for b in range(n_bins):
         want = cv2.distanceTransform(bins[b], cv2.DIST_L2, cv2.DIST_MASK_5) / np.float32(scale)

@@ -198,8 +198,7 @@ def oriented_edges(
     gy = cv2.Sobel(smooth, cv2.CV_32F, 0, 1, ksize=3).reshape(h, w, channels)[ys, xs]
     best = np.argmax(gx * gx + gy * gy, axis=1)  # the strongest channel
     pick = np.arange(ys.size)
-    # The gradient is the outline's normal (in double precision, as its oracle).
-    theta = np.arctan2(gy[pick, best].astype(np.float64), gx[pick, best].astype(np.float64))
+    theta = np.arctan2(gy[pick, best], gx[pick, best])  # float32: the gradient = outline normal
     lo = np.floor(np.mod(theta, np.pi) * (n_bins / np.pi)).astype(np.intp) % n_bins
     hi = (lo + 1) % n_bins
     bins[lo, ys, xs] = 0
