@@ -159,7 +159,6 @@ from baselines.experiments.pavlovic1999.scoring import (
     SettingScores,
     run_jobs,
     score_fits,
-    score_settings,
 )
 from baselines.experiments.pavlovic1999.settings import (
     BLEND_FRAMES,
@@ -250,7 +249,6 @@ __all__ = [
     "run_jobs",
     "running_mean",
     "score_fits",
-    "score_settings",
     "select_classifier_settings",
     "sequence_features",
     "setting_name",

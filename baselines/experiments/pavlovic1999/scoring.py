@@ -90,59 +90,6 @@ def _test_sequences_all_params(
     )  # fmt: skip
 
 
-def score_settings(
-    train: Sequence[Motion],
-    tests: Sequence[Sequence[Motion]],
-    param_sets: Sequence[Sequence[str]],
-    switch_probs: Sequence[float],
-    seed: int,
-    labels: Sequence[str] = CLASSIFY_LABELS,
-    n_states: int = slds.N_STATES,
-    n_iter: int = slds.CLASSIFY_N_ITER,
-    noise_std: float = NOISE_STD,
-    clips_per_sequence: tuple[int, int] = CLIPS_PER_SEQUENCE,
-    features: Sequence[str] = ("angles",),
-    extra_noise_degs: Sequence[float] = (0.0,),
-) -> list[SettingScores]:
-    """Learn once per parameter subset and features, decode every test set at every decode option.
-
-    Each activity's SLDS is fitted once per parameter subset and features
-    (EM seeded by ``[seed, 1]``, the same for every one); the switch
-    probability and the extra assumed noise only change the decoding
-    (:func:`~baselines.priors.slds_inference.combine`, ``R``), so they cost
-    a decode, not a fit. Each test set's footnote-4 sequences are drawn once
-    (seeded by ``[seed, 2, k]``) and shared by every setting; the features of a
-    sequence are computed from its noisy angles, causally from its first frame.
-
-    Args:
-        train: Training clips with the activity labels.
-        tests: Test sets; clips whose label is not in ``labels`` are dropped.
-        param_sets: Parameter subsets (names of ``humotion_gym.body.PARAM_NAMES``).
-        switch_probs: Switching probabilities.
-        seed: Seed of the fits and test sequences.
-        labels: The activities.
-        n_states: Switch states per activity.
-        n_iter: EM iterations per activity.
-        noise_std: Test noise (rad), known to the decoder.
-        clips_per_sequence: Clips per test sequence (inclusive range).
-        features: Features (:func:`parse_features`), each fitted with every subset.
-        extra_noise_degs: Extra assumed noise (deg), each decoded with every
-            switch probability.
-
-    Returns:
-        One :class:`SettingScores` per test set: ``wrong`` is ``(P * F, W * N,
-        L)``, the subsets outer and the features inner on the first axis, the
-        switch probabilities outer and the extra noises inner on the second.
-
-    Raises:
-        ValueError: If a test set has no clip of the labels or a feature name is unknown.
-    """
-    fits = [(tuple(p), f) for p in param_sets for f in features]
-    decodes = [(float(w), float(n)) for w in switch_probs for n in extra_noise_degs]
-    return score_fits(train, tests, fits, decodes, seed, labels, n_states, n_iter, noise_std,
-                      clips_per_sequence)  # fmt: skip
-
-
 def score_fits(
     train: Sequence[Motion],
     tests: Sequence[Sequence[Motion]],
@@ -155,7 +102,16 @@ def score_fits(
     noise_std: float = NOISE_STD,
     clips_per_sequence: tuple[int, int] = CLIPS_PER_SEQUENCE,
 ) -> list[SettingScores]:
-    """:func:`score_settings` over explicit lists of fits and decodes.
+    """Learn once per fit, decode every test set at every decode option.
+
+    Each activity's SLDS is fitted once per ``(params, features)`` pair (EM
+    seeded by ``[seed, 1]``, the same for every one); the switch probability
+    and the extra assumed noise only change the decoding
+    (:func:`~baselines.priors.slds_inference.combine`, ``R``), so they cost a
+    decode, not a fit. Each test set's footnote-4 sequences are drawn once
+    (seeded by ``[seed, 2, k]``) and shared by every setting; the features of
+    a sequence are computed from its noisy angles, causally from its first
+    frame. Clips whose label is not in ``labels`` are dropped.
 
     Args:
         train: Training clips with the activity labels.
@@ -172,6 +128,10 @@ def score_fits(
     Returns:
         One :class:`SettingScores` per test set, ``wrong`` ``(len(fits),
         len(decodes), L)``.
+
+    Raises:
+        ValueError: If a test set has no clip of the labels, a feature name is
+            unknown or no training clip has a label.
     """
     labels = tuple(labels)
     for _, feat in fits:
@@ -179,7 +139,7 @@ def score_fits(
     test_sets = [[m for m in t if m.label in labels] for t in tests]
     for k, t in enumerate(test_sets):
         if not t:
-            raise ValueError(f"score_settings: test set {k} has no clip labelled {labels}")
+            raise ValueError(f"score_fits: test set {k} has no clip labelled {labels}")
     fps = float(train[0].fps) if train else 30.0
     seqs = [
         _test_sequences_all_params(t, np.random.default_rng([seed, 2, k]), noise_std,
