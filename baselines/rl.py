@@ -303,15 +303,18 @@ def _tensorboard_dir(out: Path) -> str | None:
     return str(out / "tb") if importlib.util.find_spec("tensorboard") else None
 
 
-def training_logger(out: Path) -> Logger:
+def training_logger(out: Path, start: int = 0) -> Logger:
     """SB3's logger of a run: a table on stdout, ``progress.csv`` and TensorBoard if installed.
 
     Each table shows the training reward and losses as the run goes (PPO's
     ``rollout/ep_rew_mean``, ``train/loss``...; behaviour cloning's
     ``train/kp_err_mm``), and the validation error (``eval/mean_error_mm``).
+    A fresh run logs into ``logs/``, a run resumed at env step N into
+    ``logs/from-N/`` (the earlier log stays whole; TensorBoard shows both).
     """
+    folder = out / "logs" if start == 0 else out / "logs" / f"from-{start}"
     formats = ["stdout", "csv"] + (["tensorboard"] if _tensorboard_dir(out) else [])
-    return configure(str(out / "logs"), formats)
+    return configure(str(folder), formats)
 
 
 def validation_fold(config: TrainConfig) -> MotionLibrary | None:
@@ -509,7 +512,8 @@ def train(
     prepare_output(out, resume, force)
     th.set_num_threads(max(1, int(config.threads)))
     fold = validation_fold(config)
-    logger = training_logger(out)
+    found = checkpoints(out / "checkpoints") if resume else []
+    logger = training_logger(out, found[-1][0] if found else 0)
     validation = Validation(config, fold, logger) if fold is not None else None
     try:
         if config.algo == "ppo":

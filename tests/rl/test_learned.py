@@ -118,6 +118,7 @@ def test_smoke_ppo_trains_checkpoints_and_resumes(tmp_path: Path) -> None:
     assert config["validation_subjects"] is None
     header = (tmp_path / "logs" / "progress.csv").read_text().splitlines()[0].split(",")
     assert {"train/loss", "train/value_loss", "time/total_timesteps"} <= set(header)
+    assert (tmp_path / "logs" / "from-256" / "progress.csv").is_file()  # the first log kept
 
 
 def test_bc_resumes_from_its_last_checkpoint(bc_run: Path, tmp_path: Path) -> None:
