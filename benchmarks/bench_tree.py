@@ -30,12 +30,13 @@ steadier numbers. The end of the report times a whole
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import os
 from functools import partial
 from pathlib import Path
 
 import numpy as np
-from _timing import best_of, require
+from _timing import best_of
 
 from baselines.priors import tree
 from humotion_gym.mocap.library import load_library, synthetic_library
@@ -74,9 +75,6 @@ def main() -> None:
     parser.add_argument("--data-dir", type=Path, default=None)
     parser.add_argument("--particles", type=int, default=3000)
     args = parser.parse_args()
-    require("sklearn", "scikit-learn's KDTree")
-    from sklearn.neighbors import KDTree
-
     train, test, what = load_data(args.data_dir)
     rng = np.random.default_rng(0)
     order = rng.permutation(len(train))  # mix activities in every prefix
@@ -91,12 +89,27 @@ def main() -> None:
     probe_hist = tree.window_histories(
         held_out, rng.choice(held_out.n_windows, args.particles, replace=True)
     )
+    if importlib.util.find_spec("sklearn") is not None:
+        sampler_table(train, sizes, probe_hist, rng)
+    else:
+        print("(the samplers' table needs scikit-learn's KDTree: pip install -e '.[bench]')")
+    motions = prefix_with_windows(train, total)
+    t_fit = best_of(lambda: tree.fit(motions), repeats=1)
+    fitted = tree.fit(motions)
+    frames = sum(m.n_frames for m in motions)
+    print(f"\nfit, whole body, {frames} frames ({fitted.n_windows} windows): {t_fit:.2f} s")
+    transition_times(fitted, motions, test, args.particles, rng)
+
+
+def sampler_table(train: list, sizes: list[int], probe_hist: np.ndarray, rng) -> None:
+    """Microseconds per probe of the tree, the exact scan and a k-d tree, per database size."""
+    from sklearn.neighbors import KDTree
+
     head = (f"{'n':>7s} {'b':>3s} {'var':>5s} {'tree':>6s} {'uniform':>7s} {'exact':>7s} "
             f"{'kdtree':>7s} {'kd-in':>6s} {'exact/tree':>10s} {'kdtree/tree':>11s} "
             f"{'kd-in/tree':>10s}")  # fmt: skip
     print(head + "   (microseconds per probe)")
     print("-" * len(head))
-    fitted = None
     for n in sizes:
         fitted = tree.fit(prefix_with_windows(train, n))
         probes = tree.window_coefficients(fitted, probe_hist)
@@ -123,16 +136,14 @@ def main() -> None:
             f"{t_kd_in / t_tree:10.1f}"
         )
 
-    assert fitted is not None
-    motions = prefix_with_windows(train, total)
-    t_fit = best_of(lambda: tree.fit(motions), repeats=1)
-    frames = sum(m.n_frames for m in motions)
-    print(f"\nfit, whole body, {frames} frames ({fitted.n_windows} windows): {t_fit:.2f} s")
+
+def transition_times(fitted, motions: list, test: list, particles: int, rng) -> None:
+    """Milliseconds of one transition of ``particles`` particles, per setting."""
     pose = test[0].params[40]
     for free, name in ((None, "whole body, D=25"), ([9, 10, 11, 12], "right arm, D=4")):
         prior = fitted if free is None else tree.fit(motions, free=free)
         p = pose if free is None else pose[free]
-        state = tree.initial(prior, p, args.particles, rng)
+        state = tree.initial(prior, p, particles, rng)
         for _ in range(3):
             state = tree.transition(prior, state, rng)
         for label, model in (
@@ -141,7 +152,7 @@ def main() -> None:
             ("4 proposals", prior.with_settings(proposals=4)),
         ):
             t = best_of(partial(tree.transition, model, state, rng), repeats=10)
-            print(f"transition, {args.particles} particles, {name}, {label}: {t * 1e3:.2f} ms")
+            print(f"transition, {particles} particles, {name}, {label}: {t * 1e3:.2f} ms")
 
 
 if __name__ == "__main__":

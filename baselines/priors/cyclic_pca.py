@@ -290,6 +290,101 @@ def joint_series(
     return xs, ws
 
 
+def _coefficient_steps(
+    seg: cycles.Segmentation,
+    columns: NDArray[np.intp],
+    scores: FloatArray,
+    component_std: FloatArray,
+    period: float,
+) -> FloatArray:
+    """The coefficients' random-walk scale: their change between consecutive whole cycles.
+
+    Per frame (the change over a cycle divided by the mean period), clipped to
+    ``[1e-6, 1]`` times each component's spread; the spread over a period
+    where no two consecutive cycles are whole.
+    """
+    whole = seg.observed[:, columns].all(axis=(1, 2))
+    pairs = [
+        (a, a + 1)
+        for a in range(seg.n_cycles - 1)
+        if whole[a]
+        and whole[a + 1]
+        and seg.sequence[a] == seg.sequence[a + 1]
+        and seg.cycle[a + 1] == seg.cycle[a] + 1
+    ]
+    if pairs:
+        a, b = np.array(pairs).T
+        step = np.sqrt(np.mean((scores[b] - scores[a]) ** 2, axis=0) / period)
+    else:
+        step = component_std / np.sqrt(period)
+    return np.clip(step, 1e-6 * component_std, component_std)
+
+
+def _speed_fields(
+    alignment: cycles.Alignment,
+    xs: list[FloatArray],
+    ws: list[NDArray[np.bool_]],
+    periods: FloatArray,
+    n_samples: int,
+) -> dict[str, float]:
+    """The speed's spread over the clips, its range and its random walk per frame.
+
+    The walk's scale comes from the drift of whole cycles' lengths; where too
+    few cycles show a drift, from the spread of the clips' speeds over the
+    square root of a clip's length; at least 1e-4 of the mean speed.
+
+    Returns:
+        :class:`CyclicPCAParams`' speed fields.
+    """
+    speeds = n_samples / periods
+    local = []
+    for shifts, p in zip(cycles.cycle_shifts(alignment, xs, ws), periods, strict=True):
+        if shifts.size >= 3:
+            lengths = p * (1.0 + np.diff(shifts))
+            local.append(np.diff(n_samples / lengths) / np.sqrt(p))
+    if local and np.concatenate(local).size >= 2:
+        step = float(np.sqrt(np.mean(np.concatenate(local) ** 2)))
+    else:
+        step = float(np.std(speeds) / np.sqrt(np.mean([x.shape[0] for x in xs])))
+    return {
+        "speed_mean": float(np.mean(speeds)),
+        "speed_std": float(max(np.std(speeds), 1e-3 * np.mean(speeds))),
+        "speed_step_std": max(step, 1e-4 * float(np.mean(speeds))),
+        "speed_min": float(0.7 * speeds.min()),
+        "speed_max": float(1.3 * speeds.max()),
+    }
+
+
+def _check_fit_settings(free: ArrayLike | None, reversion: float) -> NDArray[np.intp]:
+    """The free parameters' indices (all 25 when None), checked with ``reversion``.
+
+    Raises:
+        ValueError: If ``reversion`` is negative or ``free`` not distinct indices.
+    """
+    if not (np.isfinite(reversion) and reversion >= 0):
+        raise ValueError(f"cyclic_pca.fit: reversion must be >= 0, got {reversion}")
+    idx = np.arange(N_PARAMS, dtype=np.intp) if free is None else np.asarray(free, np.intp)
+    if idx.ndim != 1 or np.any((idx < 0) | (idx >= N_PARAMS)) or np.unique(idx).size != idx.size:
+        raise ValueError(f"cyclic_pca.fit: free must be distinct indices in [0, 25), got {idx}")
+    return idx
+
+
+def _cycling_clips(
+    series: list[FloatArray], observed: list[NDArray[np.bool_]], fps: float
+) -> tuple[NDArray[np.intp], list[FloatArray], list[NDArray[np.bool_]], FloatArray]:
+    """The clips that show two cycles: their indices, joint angles, masks and periods (eq. 3).
+
+    Raises:
+        ValueError: If none does.
+    """
+    xs, ws = joint_series(series, observed)
+    periods = np.array([cycles.estimate_period(x, w, fps) for x, w in zip(xs, ws, strict=True)])
+    keep = np.flatnonzero(np.isfinite(periods))
+    if keep.size == 0:
+        raise ValueError("cyclic_pca.fit: no walking clip is long enough to show two cycles")
+    return keep, [xs[i] for i in keep], [ws[i] for i in keep], periods[keep]
+
+
 def fit(
     motions: Sequence[Motion],
     free: ArrayLike | None = None,
@@ -337,29 +432,20 @@ def fit(
         ValueError: If there are no walking clips, or none shows two cycles.
     """
     del rng
-    if not (np.isfinite(reversion) and reversion >= 0):
-        raise ValueError(f"cyclic_pca.fit: reversion must be >= 0, got {reversion}")
-    idx = np.arange(N_PARAMS, dtype=np.intp) if free is None else np.asarray(free, np.intp)
-    if idx.ndim != 1 or np.any((idx < 0) | (idx >= N_PARAMS)) or np.unique(idx).size != idx.size:
-        raise ValueError(f"cyclic_pca.fit: free must be distinct indices in [0, 25), got {idx}")
+    idx = _check_fit_settings(free, reversion)
     clips = _walking_clips(motions, labels)
     fps = float(clips[0].fps) / frame_skip
     series = [m.params[::frame_skip] for m in clips]
     observed = [m.observed[::frame_skip] for m in clips]
     joint = cycles.JOINT_ANGLES
-    xs, ws = joint_series(series, observed)
-    periods = np.array([cycles.estimate_period(x, w, fps) for x, w in zip(xs, ws, strict=True)])
-    keep = np.flatnonzero(np.isfinite(periods))
-    if keep.size == 0:
-        raise ValueError("cyclic_pca.fit: no walking clip is long enough to show two cycles")
-    xs, ws, periods = [xs[i] for i in keep], [ws[i] for i in keep], periods[keep]
+    keep, xs, ws, periods = _cycling_clips(series, observed, fps)
     alignment = cycles.align_offsets(xs, periods, ws, tol=tol)
     seg = cycles.segment(xs, periods, alignment.offsets, ws, n_samples=n_samples)
 
     angles = np.array([i for i in idx if i in set(joint.tolist())], dtype=np.intp)
     if angles.size == 0:
         raise ValueError("cyclic_pca.fit: the free parameters include no joint angle")
-    columns = np.searchsorted(joint, angles)
+    columns = np.searchsorted(joint, angles)  # the free angles among the 19
     result = fpca.fpca(
         seg.values[:, columns],
         seg.observed[:, columns],
@@ -370,37 +456,7 @@ def fit(
     q = result.n_components
     component_std = np.maximum(result.component_std, 1e-9)
 
-    # Coefficient random walk: change between consecutive whole cycles, per frame.
-    whole = seg.observed[:, columns].all(axis=(1, 2))
-    pairs = [
-        (a, a + 1)
-        for a in range(seg.n_cycles - 1)
-        if whole[a]
-        and whole[a + 1]
-        and seg.sequence[a] == seg.sequence[a + 1]
-        and seg.cycle[a + 1] == seg.cycle[a] + 1
-    ]
-    mean_period = float(np.mean(periods))
-    if pairs:
-        a, b = np.array(pairs).T
-        step = result.scores[b] - result.scores[a]
-        coef_step = np.sqrt(np.mean(step**2, axis=0) / mean_period)
-    else:
-        coef_step = component_std / np.sqrt(mean_period)
-    coef_step = np.clip(coef_step, 1e-6 * component_std, component_std)
-
-    # Speed: spread over the clips; random walk from the drift of whole cycles.
-    speeds = n_samples / periods
-    local = []
-    for shifts, p in zip(cycles.cycle_shifts(alignment, xs, ws), periods, strict=True):
-        if shifts.size >= 3:
-            lengths = p * (1.0 + np.diff(shifts))
-            local.append(np.diff(n_samples / lengths) / np.sqrt(p))
-    if local and np.concatenate(local).size >= 2:
-        speed_step = float(np.sqrt(np.mean(np.concatenate(local) ** 2)))
-    else:
-        speed_step = float(np.std(speeds) / np.sqrt(np.mean([x.shape[0] for x in xs])))
-    speed_step = max(speed_step, 1e-4 * float(np.mean(speeds)))
+    coef_step = _coefficient_steps(seg, columns, result.scores, component_std, np.mean(periods))
 
     glob = _global_scales([series[i] for i in keep], [observed[i].all(axis=1) for i in keep])
     return CyclicPCAParams(
@@ -415,11 +471,7 @@ def fit(
         # Floor at half a degree: an angle the training rigs never move (neck
         # twist in some) must not dominate the fit of a pose that does move it.
         residual_std=np.maximum(np.sqrt(result.residual_var), np.radians(0.5)),
-        speed_mean=float(np.mean(speeds)),
-        speed_std=float(max(np.std(speeds), 1e-3 * np.mean(speeds))),
-        speed_step_std=speed_step,
-        speed_min=float(0.7 * speeds.min()),
-        speed_max=float(1.3 * speeds.max()),
+        **_speed_fields(alignment, xs, ws, periods, n_samples),
         root_velocity_mean=glob["mean"],
         root_velocity_std=glob["std"],
         root_accel_std=glob["acc"],

@@ -215,6 +215,103 @@ def _top_eigen(
 
 
 @one_blas_thread
+def _result(
+    z: FloatArray,
+    residual_z: FloatArray,
+    means: FloatArray,
+    v: FloatArray,
+    vals: FloatArray,
+    scores: FloatArray,
+    group_of: NDArray[np.intp],
+    completed: FloatArray,
+    mask: NDArray[np.bool_],
+    data: FloatArray,
+    errors: list[float],
+    converged: bool,
+) -> FPCAResult:
+    """The :class:`FPCAResult` of :func:`fpca`'s last iteration (curves from coefficients)."""
+    c, j, s = data.shape
+    h2 = z.shape[1] // j
+    means_coef = means.reshape(means.shape[0], j, h2)
+    mean_coef = means_coef.mean(axis=0)
+    component_coef = v.T.reshape(-1, j, h2)
+    recon = to_curves((z - residual_z).reshape(c, j, h2), s)
+    resid = np.where(mask, data - recon, 0.0) ** 2
+    residual_var = resid.sum(axis=(0, 2)) / np.maximum(mask.sum(axis=(0, 2)), 1)
+    return FPCAResult(
+        mean=to_curves(mean_coef, s),
+        components=to_curves(component_coef, s),
+        singular_values=np.sqrt(np.maximum(vals, 0.0)),
+        scores=scores,
+        mean_coef=mean_coef,
+        component_coef=component_coef,
+        group_means=to_curves(means_coef, s),
+        group_of=group_of,
+        completed=completed,
+        reconstruction=recon,
+        errors=np.array(errors),
+        residual_var=residual_var,
+        converged=converged,
+    )
+
+
+def _best_rank(
+    centred: FloatArray, gram: FloatArray | None, q: int, block: FloatArray | None
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray | None]:
+    """The best rank-``q`` part of the centred rows ``(C, F)``: eigenvalues, components, scores.
+
+    From the eigenvectors of the ``F x F`` covariance ``gram`` where it is
+    given (more cycles than coefficients), else of the ``C x C`` Gram matrix
+    (its eigenvectors are the normalised scores). ``block``: the previous
+    eigenvectors, which start :func:`_top_eigen`'s iteration.
+    """
+    if gram is not None:
+        vals, v, block = _top_eigen(gram, q, block)
+        return vals, v, centred @ v, block
+    vals, u, block = _top_eigen(centred @ centred.T, q, block)
+    v = (centred.T @ u) / np.sqrt(np.maximum(vals, 1e-300))
+    return vals, v, u * np.sqrt(np.maximum(vals, 0.0)), block
+
+
+def _checked_inputs(
+    values: ArrayLike,
+    observed: ArrayLike | None,
+    groups: ArrayLike | None,
+    n_components: int,
+    n_harmonics: int,
+) -> tuple[FloatArray, NDArray[np.bool_], NDArray[np.intp], int]:
+    """:func:`fpca`'s inputs, checked.
+
+    Returns:
+        The cycles, the mask of what is observed and finite, each cycle's
+        group and the rank ``q``.
+
+    Raises:
+        ValueError: On shapes that do not match, no observed entry or a rank below 1.
+    """
+    x = np.asarray(values, dtype=np.float64)
+    if x.ndim != 3:
+        raise ValueError(f"fpca: values must be (cycles, angles, samples), got {x.shape}")
+    c, j, _ = x.shape
+    mask = np.ones(x.shape, dtype=bool) if observed is None else np.asarray(observed, dtype=bool)
+    if mask.shape != x.shape:
+        raise ValueError(f"fpca: observed has shape {mask.shape}, values {x.shape}")
+    mask = mask & np.isfinite(x)
+    if not mask.any():
+        raise ValueError("fpca: no observed entries")
+    if groups is None:
+        group_of = np.zeros(c, dtype=np.intp)
+    else:
+        labels = np.asarray(groups).ravel()
+        if labels.shape != (c,):
+            raise ValueError(f"fpca: groups must have one label per cycle ({c})")
+        group_of = np.unique(labels, return_inverse=True)[1].astype(np.intp).ravel()
+    q = min(int(n_components), c, j * (2 * n_harmonics - 1))
+    if q < 1:
+        raise ValueError(f"fpca: n_components must be >= 1, got {n_components}")
+    return x, mask, group_of, q
+
+
 def fpca(
     values: ArrayLike,
     observed: ArrayLike | None = None,
@@ -252,31 +349,13 @@ def fpca(
         >>> bool(fit.errors[-1] < 1e-6)
         True
     """
-    x = np.asarray(values, dtype=np.float64)
-    if x.ndim != 3:
-        raise ValueError(f"fpca: values must be (cycles, angles, samples), got {x.shape}")
+    x, mask, group_of, q = _checked_inputs(values, observed, groups, n_components, n_harmonics)
     c, j, s = x.shape
-    mask = np.ones(x.shape, dtype=bool) if observed is None else np.asarray(observed, dtype=bool)
-    if mask.shape != x.shape:
-        raise ValueError(f"fpca: observed has shape {mask.shape}, values {x.shape}")
-    mask = mask & np.isfinite(x)
     n_obs = int(mask.sum())
-    if n_obs == 0:
-        raise ValueError("fpca: no observed entries")
-    if groups is None:
-        group_of = np.zeros(c, dtype=np.intp)
-    else:
-        labels = np.asarray(groups).ravel()
-        if labels.shape != (c,):
-            raise ValueError(f"fpca: groups must have one label per cycle ({c})")
-        group_of = np.unique(labels, return_inverse=True)[1].astype(np.intp).ravel()
     n_groups = int(group_of.max()) + 1
     onehot = np.zeros((n_groups, c))
     onehot[group_of, np.arange(c)] = 1.0
     group_size = onehot.sum(axis=1)
-    q = min(int(n_components), c, j * (2 * n_harmonics - 1))
-    if q < 1:
-        raise ValueError(f"fpca: n_components must be >= 1, got {n_components}")
 
     data = np.where(mask, x, 0.0)
     # (1) Missing entries start at the row mean (the mean curve over the
@@ -302,16 +381,11 @@ def fpca(
             z[gappy] = to_coefficients(filled_g, n_harmonics).reshape(gappy.size, f)
         # (3) Row (group) means and the best rank-q part of the centred rows.
         means = (onehot @ z) / group_size[:, None]
-        centred = z - means[group_of]
-        if c > f:  # eigenvectors of the F x F covariance: the components
+        gram = None
+        if gram_whole is not None:
             gram = gram_whole + z[gappy].T @ z[gappy] - (means.T * group_size) @ means
-            vals, v, block = _top_eigen(gram, q, block)
-            scores = centred @ v
-        else:  # eigenvectors of the C x C Gram matrix: the normalised scores
-            vals, u, block = _top_eigen(centred @ centred.T, q, block)
-            v = (centred.T @ u) / np.sqrt(np.maximum(vals, 1e-300))
-            scores = u * np.sqrt(np.maximum(vals, 0.0))
-        residual_z = centred - scores @ v.T
+        vals, v, scores, block = _best_rank(z - means[group_of], gram, q, block)
+        residual_z = z - means[group_of] - scores @ v.T
         # (4) Back to curves for the cycles with gaps; impute their missing entries.
         err_sum = float(np.sum(residual_z[whole] ** 2)) + out_of_band
         if gappy.size:
@@ -330,28 +404,8 @@ def fpca(
             break
     completed[gappy] = filled_g
 
-    h2 = 2 * n_harmonics - 1
-    means_coef = means.reshape(n_groups, j, h2)
-    mean_coef = means_coef.mean(axis=0)
-    component_coef = v.T.reshape(-1, j, h2)
-    recon = to_curves((z - residual_z).reshape(c, j, h2), s)
-    resid = np.where(mask, data - recon, 0.0) ** 2
-    residual_var = resid.sum(axis=(0, 2)) / np.maximum(mask.sum(axis=(0, 2)), 1)
-    return FPCAResult(
-        mean=to_curves(mean_coef, s),
-        components=to_curves(component_coef, s),
-        singular_values=np.sqrt(np.maximum(vals, 0.0)),
-        scores=scores,
-        mean_coef=mean_coef,
-        component_coef=component_coef,
-        group_means=to_curves(means_coef, s),
-        group_of=group_of,
-        completed=completed,
-        reconstruction=recon,
-        errors=np.array(errors),
-        residual_var=residual_var,
-        converged=converged,
-    )
+    return _result(z, residual_z, means, v, vals, scores, group_of, completed, mask, data,
+                   errors, converged)  # fmt: skip
 
 
 @dataclass(frozen=True, eq=False)

@@ -282,6 +282,22 @@ def fit_workers(starts: Sequence[EMStart], workers: int | None) -> int:
     return max(1, min(wanted, len(starts)))
 
 
+def _activities(motions: Sequence[Motion], per_label: bool) -> dict[str, list[Motion]]:
+    """The clips of each activity label (one group of all with ``per_label`` False)."""
+    groups: dict[str, list[Motion]] = {}
+    for m in motions:
+        groups.setdefault(m.label if per_label else "all", []).append(m)
+    return groups
+
+
+def _subset(clips: list[Motion], most: int | None, rng: np.random.Generator) -> list[Motion]:
+    """At most ``most`` of the clips, a random subset in their order (all when None)."""
+    if most is None or len(clips) <= most:
+        return clips
+    pick = np.sort(rng.choice(len(clips), most, replace=False))
+    return [clips[k] for k in pick]
+
+
 def fit(
     motions: Sequence[Motion],
     free: ArrayLike | None = None,
@@ -341,16 +357,11 @@ def fit(
         if not _is_count(value, least):
             raise ValueError(f"slds.fit: {name} must be a whole number >= {least}, got {value!r}")
     cov_rtol = check_cov_rtol(cov_rtol, "slds.fit")
-    groups: dict[str, list[Motion]] = {}
-    for m in motions:
-        groups.setdefault(m.label if per_label else "all", []).append(m)
+    groups = _activities(motions, per_label)
     labels = sorted(groups)
     starts: list[EMStart] = []
-    for label in labels:
-        clips = groups[label]
-        if max_clips_per_label is not None and len(clips) > max_clips_per_label:
-            pick = np.sort(rng.choice(len(clips), max_clips_per_label, replace=False))
-            clips = [clips[k] for k in pick]
+    for label in labels:  # each label's subset, then its start, from one generator
+        clips = _subset(groups[label], max_clips_per_label, rng)
         starts.append(_start_activity(clips, free, rng, n_states, order, frame_skip, label))
     n_workers = fit_workers(starts, workers)
     # A bar over every model's EM iterations when the progress messages are shown

@@ -326,37 +326,7 @@ def fit(
     d = int(window)
     lay = _layout(idx)
     frames, frame_clip, ends = _database(motions, idx, d, frame_skip)
-    n = ends.size
-    if n < 2:
-        raise ValueError(
-            f"tree.fit: only {n} window(s) of {d + 2} observed frames in a row in "
-            f"{len(motions)} clip(s); need at least 2"
-        )
-    n_feat = _n_features(lay, idx.size, search)
-    width = d * n_feat
-    b = int(np.floor(np.log2(n))) if depth is None else int(depth)
-    # The leaf offsets take 2**b entries: at most 16 per window.
-    max_depth = min(width, int(np.floor(np.log2(n))) + 4)
-    if not 1 <= b <= max_depth:
-        raise ValueError(f"tree.fit: depth must be in 1..{max_depth} for {n} windows, got {b}")
-
-    mean, gamma, inv_sd, components, singular, explained, sigma = _window_pca(
-        frames, ends, lay, d, idx.size, b, search
-    )
-    if search == "pose+velocity":
-        step_var = gamma[lay.absolute.size :].copy()
-    else:
-        step_var = _step_variance(frames, ends, lay, d, idx.size)
-
-    # The same linear map for database windows and particles: history -> c.
-    projection, projection_heading, offset = _history_projection(
-        lay, d, idx.size, components, inv_sd, mean, search
-    )
-    coefficients = _database_coefficients(
-        frames, ends, lay, d, projection, projection_heading, offset
-    )
-    order, _, _, _ = _tree_arrays(coefficients)
-    tree = _tree_order(frames, ends[order], lay, d, projection, projection_heading, offset)
+    b = _depth(ends.size, d * _n_features(lay, idx.size, search), depth, len(motions), d)
     return TreeParams(
         free=idx,
         window=d,
@@ -371,25 +341,64 @@ def fit(
         search=str(search),
         frames=frames,
         frame_clip=frame_clip,
-        window_end=tree.window_end,
-        next_step=tree.next_step,
-        feature_mean=mean,
-        feature_var=gamma,
-        step_var=step_var,
-        components=components,
-        singular_values=singular,
-        sigma=sigma,
-        explained_variance=explained,
-        projection=projection,
-        projection_heading=projection_heading,
-        projection_offset=offset,
-        coefficients=tree.coefficients,
-        codes=tree.codes,
-        offsets=tree.offsets,
-        node_flags=tree.node_flags,
         speed_spread=float(speed_spread),
         speed_drift=float(speed_drift),
+        **_fitted_arrays(frames, ends, lay, d, idx.size, b, search),
     )
+
+
+def _depth(n: int, width: int, depth: int | None, clips: int, d: int) -> int:
+    """``b``: ``floor(log2 n)`` when ``depth`` is None, else ``depth``, checked.
+
+    Raises:
+        ValueError: If fewer than two windows fit, or ``depth`` is out of range.
+    """
+    if n < 2:
+        raise ValueError(
+            f"tree.fit: only {n} window(s) of {d + 2} observed frames in a row in "
+            f"{clips} clip(s); need at least 2"
+        )
+    b = int(np.floor(np.log2(n))) if depth is None else int(depth)
+    # The leaf offsets take 2**b entries: at most 16 per window.
+    max_depth = min(width, int(np.floor(np.log2(n))) + 4)
+    if not 1 <= b <= max_depth:
+        raise ValueError(f"tree.fit: depth must be in 1..{max_depth} for {n} windows, got {b}")
+    return b
+
+
+def _fitted_arrays(
+    frames: FloatArray, ends: IntArray, lay: _Layout, d: int, n_free: int, b: int, search: str
+) -> dict[str, Any]:
+    """The PCA of the windows, the projection of histories and the tree, as TreeParams fields."""
+    mean, gamma, inv_sd, components, singular, explained, sigma = _window_pca(
+        frames, ends, lay, d, n_free, b, search
+    )
+    if search == "pose+velocity":
+        step_var = gamma[lay.absolute.size :].copy()
+    else:
+        step_var = _step_variance(frames, ends, lay, d, n_free)
+    # The same linear map for database windows and particles: history -> c.
+    projection, projection_heading, offset = _history_projection(
+        lay, d, n_free, components, inv_sd, mean, search
+    )
+    coefficients = _database_coefficients(
+        frames, ends, lay, d, projection, projection_heading, offset
+    )
+    order, _, _, _ = _tree_arrays(coefficients)
+    tree = _tree_order(frames, ends[order], lay, d, projection, projection_heading, offset)
+    return {
+        "feature_mean": mean,
+        "feature_var": gamma,
+        "step_var": step_var,
+        "components": components,
+        "singular_values": singular,
+        "sigma": sigma,
+        "explained_variance": explained,
+        "projection": projection,
+        "projection_heading": projection_heading,
+        "projection_offset": offset,
+        **tree._asdict(),
+    }
 
 
 # ---------------------------------------------------------------------------

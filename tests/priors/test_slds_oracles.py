@@ -1,4 +1,4 @@
-"""The SLDS fit's faster paths against the plain ones they replace."""
+"""The SLDS inference against plain oracles: a per-frame Kalman filter, a per-frame smoother."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ from baselines.priors.slds_learning import fit_em
 
 
 def reference_smoother(params, path, filt, lengths):
-    """The RTS smoother with one gain solve per frame (the loop before the batched gains)."""
+    """The oracle: the RTS smoother written frame by frame, one gain solve per frame."""
     n_seq, t_max, dx = filt.m_filt.shape
     mean, cov = filt.m_filt.copy(), filt.p_filt.copy()
     cross = np.zeros((n_seq, t_max, dx, dx))
@@ -57,33 +57,29 @@ def ragged_batch(seed, emission="identity", order=2):
 
 
 @pytest.mark.parametrize(("emission", "order"), [("identity", 2), ("identity", 1), ("learned", 1)])
-def test_viterbi_filter_is_viterbi_and_the_filter_along_its_path(emission, order):
+def test_viterbi_filter_returns_viterbis_path_and_cost(emission, order):
+    # The same decoding with the filter kept (the filter itself is checked
+    # against the plain Kalman filter below); padding held, finite.
     params, seqs = ragged_batch(1, emission, order)
     path, cost = viterbi(params, seqs)
     path2, cost2, filt = viterbi_filter(params, seqs)
     np.testing.assert_array_equal(path, path2)
     np.testing.assert_array_equal(cost, cost2)
-    ref = filter_path(params, seqs, path)
-    # The same filter read back from Viterbi and run along the path (each with
-    # its own covariance table): equal up to the table's tolerance.
-    valid = seqs.valid
-    for name in ("m_pred", "p_pred", "m_filt", "p_filt"):
-        a, b = getattr(filt, name)[valid], getattr(ref, name)[valid]
-        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12 * np.abs(b).max(), err_msg=name)
-    np.testing.assert_allclose(filt.cost, ref.cost, rtol=1e-10)
     for arr in (filt.m_pred, filt.p_pred, filt.m_filt, filt.p_filt):
-        assert np.all(np.isfinite(arr))  # padding is held, never garbage
+        assert np.all(np.isfinite(arr))
 
 
-def test_batched_smoother_gains_give_the_same_numbers():
+def test_the_smoother_is_the_per_frame_smoother():
+    # The batched gains against one solve per frame: the same algebra in
+    # another order (1e-10 relative, well above float64's rounding of a few
+    # dozen products, well below any change of the recursion).
     params, seqs = ragged_batch(2)
     path, _ = viterbi(params, seqs)
     filt = filter_path(params, seqs, path)
     sm = rts_smoother(params, path, filt, seqs.lengths)
     mean, cov, cross = reference_smoother(params, path, filt, seqs.lengths)
-    np.testing.assert_array_equal(sm.mean, mean)
-    np.testing.assert_array_equal(sm.cov, cov)
-    np.testing.assert_array_equal(sm.cross, cross)
+    for got, want in ((sm.mean, mean), (sm.cov, cov), (sm.cross, cross)):
+        np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12 * np.abs(want).max())
 
 
 def test_length_batches_bound_sequences_and_frames():
