@@ -182,6 +182,40 @@ def _fixed(value: float, far: float) -> np.int32:
 
 
 @numba.njit(cache=True, nogil=True)
+def _cross(o: NDArray[np.int64], a: NDArray[np.int64], b: NDArray[np.int64]) -> int:
+    """The z of ``(a - o) x (b - o)``: positive for a left turn (exact in int64)."""
+    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+
+@numba.njit(cache=True, nogil=True)
+def _hull_in_place(points: NDArray[np.int32]) -> None:
+    """Replace ``(M, 2)`` points by their convex hull, padded with its first vertex.
+
+    Andrew's monotone chain on the integer coordinates (exact): the points
+    sorted by x then y, the lower and the upper chain kept turning left.
+    The padding repeats a vertex, which adds nothing to a filled polygon.
+    """
+    m = points.shape[0]
+    pts = points.astype(np.int64)
+    order = np.argsort(pts[:, 0] * (1 << 32) + pts[:, 1])
+    hull = np.empty((2 * m, 2), np.int64)
+    size = 0
+    for step in range(2):  # the lower chain, then the upper one back
+        start = size
+        for j in range(m):
+            p = pts[order[j if step == 0 else m - 1 - j]]
+            while size >= start + 2 and _cross(hull[size - 2], hull[size - 1], p) <= 0:
+                size -= 1
+            hull[size] = p
+            size += 1
+        size -= 1  # each chain's last point starts the other
+    size = max(size, 1)
+    for j in range(m):
+        points[j, 0] = hull[j if j < size else 0, 0]
+        points[j, 1] = hull[j if j < size else 0, 1]
+
+
+@numba.njit(cache=True, nogil=True)
 def figure_polygons(
     g: NDArray[np.float64], cone_rows: NDArray[np.intp], radii: NDArray[np.float64],
     aspect: NDArray[np.float64], ring: NDArray[np.float64], camera: NDArray[np.float64],
@@ -206,7 +240,8 @@ def figure_polygons(
             normal) for the cap, the flat shade and each strip.
         base: ``(10, C)`` the cones' colours.
         lighting: ``ambient, diffuse, strip_min`` (the last in fixed point).
-        ellipses: out ``(T, 10, 2K, 2)`` int32 end-ellipse points.
+        ellipses: out ``(T, 10, 2K, 2)`` int32 silhouettes: the convex hull of
+            the two end ellipses' points, padded with its first vertex.
         quads: out ``(T, 10, S, 4, 2)`` int32 strip corners.
         colors: out ``(T, 10, 2 + S, C)`` uint8 cap, flat and strip colours.
         order: out ``(T, 10)`` cones far first; the first ``counts[t]`` drawn.
@@ -273,6 +308,7 @@ def _cone(
             scale = fx / max(pz, near)
             ellipses[e * n_k + k, 0] = _fixed(px * scale + cu, far)
             ellipses[e * n_k + k, 1] = _fixed(py * scale + cv, far)
+    _hull_in_place(ellipses)
     s0, s1 = cone_rows[c, 0], cone_rows[c, 1]
     scale0, scale1 = fx / max(g[s0, 2], near), fx / max(g[s1, 2], near)
     u0, v0 = g[s0, 0] * scale0 + cu, g[s0, 1] * scale0 + cv

@@ -123,7 +123,8 @@ def _figure_polygons(
 
     Returns:
         Per frame, the drawing order (far first, only cones in front of the
-        camera); end-ellipse points ``(T, 10, 2K, 2)`` and strip quads
+        camera); silhouettes ``(T, 10, 2K, 2)`` (the hulls of the end
+        ellipses, padded) and strip quads
         ``(T, 10, S, 4, 2)`` in fixed point; uint8 colours ``(T, 10, 2 + S, C)``
         (cap, flat, strips); whether each cone is wide enough for strips
         (``T x 10`` lists).
@@ -158,7 +159,9 @@ class FigureSequence:
     Attributes:
         scene: The scene options it was prepared for.
         order: Per frame, the cones to draw, far first.
-        ellipses: ``(T, 10, 2K, 2)`` int32 end-ellipse points (fixed point).
+        ellipses: ``(T, 10, 2K, 2)`` int32 silhouettes (fixed point): the
+            convex hull of the cone's two end ellipses, padded with its first
+            vertex.
         quads: ``(T, 10, S, 4, 2)`` int32 shading-strip corners (fixed point).
         colors: ``(T, 10, 2 + S, C)`` uint8 colours of each cone's cap, flat
             shade and strips.
@@ -330,23 +333,23 @@ def _in_camera(
 def _draw_figure(img: NDArray[np.uint8], figures: FigureSequence, t: int) -> None:
     """Draw frame ``t``'s cones, far first, into ``img`` (``(H, W, C)``, or ``(H, W)``).
 
-    Each cone's hull is filled in the cap's colour with its strips over it (a
-    wide cone) or in the flat shade.
+    Each cone's silhouette is filled in the cap's colour with its strips over
+    it (a wide cone) or in the flat shade.
     """
     colors_l = figures.colors[t].tolist()  # lists of ints, for OpenCV
     ellipses, quads, wide = figures.ellipses[t], figures.quads[t], figures.wide[t]
     # Local names: this loop runs some twenty OpenCV calls per frame, and the
     # attribute look-ups would be a tenth of its Python time.
-    fill, hull_of, line8 = cv2.fillConvexPoly, cv2.convexHull, cv2.LINE_8
+    fill, line8 = cv2.fillConvexPoly, cv2.LINE_8
     for c in figures.order[t]:
         color = colors_l[c]
         if wide[c]:
-            fill(img, hull_of(ellipses[c]), color[0], line8, _SHIFT)
+            fill(img, ellipses[c], color[0], line8, _SHIFT)
             cone_quads = quads[c]
             for b in range(len(color) - 2):
                 fill(img, cone_quads[b], color[b + 2], line8, _SHIFT)
         else:
-            fill(img, hull_of(ellipses[c]), color[1], line8, _SHIFT)
+            fill(img, ellipses[c], color[1], line8, _SHIFT)
 
 
 def _draw_occluders(img: NDArray[np.uint8], background: Background, frame_index: int) -> None:

@@ -305,18 +305,18 @@ def _clutter_plan(rng: np.random.Generator, h: int, w: int, density: float) -> C
     floats = np.zeros((n_shapes, 10))
     floats[:, 0] = rng.uniform(0, 180, n_shapes)  # an ellipse's angle
     # A polygon's k vertices: the first k of six angle draws, sorted.
-    n_vertices = rng.integers(3, 7, n_shapes)
-    angles = rng.uniform(0, 2 * np.pi, (n_shapes, 6))
-    angles = np.sort(np.where(np.arange(6) < n_vertices[:, None], angles, np.inf), axis=1)
+    n_vertices = rng.integers(3, 7, n_shapes).tolist()
+    angles = rng.uniform(0, 2 * np.pi, (n_shapes, 6)).tolist()
     textured = (rng.random(n_shapes) < 0.4).tolist()
     floats[:, 1:7] = rng.uniform(25, 235, (n_shapes, 6))  # one colour, or a texture's two
     floats[:, 7] = rng.uniform(3.0, 12.0, n_shapes)  # the texture's period,
     floats[:, 8] = rng.uniform(0, np.pi, n_shapes)  # its angle
     floats[:, 9] = rng.random(n_shapes)  # and whether it is a checker
-    shapes = np.zeros((n_shapes, 19), np.int64)
+    rows = []
     for i in range(n_shapes):
         (cx, cy), (rx, ry), kind = centres[i], half_axes[i], kinds[i]
-        # Each kind's geometry and bounding box (lo_x, lo_y, hi_x, hi_y): the
+        # Each kind's geometry and bounding box (lo_x, lo_y, hi_x, hi_y), in
+        # Python numbers (int() truncates as OpenCV is given integers): the
         # box is only needed for a textured shape.
         if kind == 0:
             geometry = [int(cx - rx), int(cy - ry), int(cx + rx), int(cy + ry)]
@@ -327,16 +327,18 @@ def _clutter_plan(rng: np.random.Generator, h: int, w: int, density: float) -> C
             reach = axes[0] + axes[1]
             box = (cx - reach, cy - reach, cx + reach, cy + reach)
         else:
-            a = angles[i, : n_vertices[i]]
-            polygon = np.stack([cx + rx * np.cos(a), cy + ry * np.sin(a)], axis=1).astype(np.int32)
-            geometry = [len(polygon), *polygon.reshape(-1).tolist()]
-            box = (*polygon.min(axis=0).tolist(), *polygon.max(axis=0).tolist())
-        shapes[i, 0] = kind
-        shapes[i, 6 : 6 + len(geometry)] = geometry
-        if textured[i]:  # drawn only over its bounding box
+            turn = sorted(angles[i][: n_vertices[i]])
+            xs = [int(cx + rx * math.cos(a)) for a in turn]
+            ys = [int(cy + ry * math.sin(a)) for a in turn]
+            geometry = [len(turn)] + [v for xy in zip(xs, ys, strict=True) for v in xy]
+            box = (min(xs), min(ys), max(xs), max(ys))
+        window = [0, 0, 0, 0, 0]
+        if textured[i]:  # drawn only over its bounding box, where it meets the image
             x0, y0 = max(math.floor(box[0]) - 1, 0), max(math.floor(box[1]) - 1, 0)
             x1, y1 = min(math.ceil(box[2]) + 2, w), min(math.ceil(box[3]) + 2, h)
-            shapes[i, 1:6] = (1, x0, y0, x1, y1) if x1 > x0 and y1 > y0 else (-1, 0, 0, 0, 0)
+            window = [1, x0, y0, x1, y1] if x1 > x0 and y1 > y0 else [-1, 0, 0, 0, 0]
+        rows.append([kind, *window, *geometry] + [0] * (13 - len(geometry)))
+    shapes = np.array(rows, np.int64).reshape(n_shapes, 19)
     lines = np.empty((n_lines, 9))
     lines[:, :2] = rng.uniform(0, 1, (n_lines, 2)) * (w, h)
     lines[:, 2:4] = rng.normal(size=(n_lines, 2))
