@@ -11,6 +11,7 @@ product of settings grows too fast to run on one machine.
 
 from __future__ import annotations
 
+import inspect
 import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -22,6 +23,8 @@ from tqdm.auto import tqdm
 from baselines.leaderboard.evaluation import summarize
 from baselines.leaderboard.run import run_leaderboard
 from baselines.leaderboard.stats import bootstrap_ci, cell_label, iqm, normalised_scores
+from humotion_gym.envs.pose_tracking import PoseTrackingEnv
+from humotion_gym.render import SceneOptions
 
 #: Sweep format version (``sweep.json``'s ``version``).
 VERSION = 1
@@ -123,11 +126,6 @@ def run_sweep(
 
 def default_value(name: str) -> Any:
     """The environment's default of a setting (the leaderboard's difficulty)."""
-    import inspect
-
-    from humotion_gym.envs.pose_tracking import PoseTrackingEnv
-    from humotion_gym.render import SceneOptions
-
     scene = SceneOptions()
     env_defaults = inspect.signature(PoseTrackingEnv.__init__).parameters
     return {

@@ -49,11 +49,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import cv2
 import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 from tqdm.auto import tqdm
 
+import humotion_gym  # noqa: F401  (registers the environment ids, in Ray workers too)
 from baselines.agents import (
     AGENTS,
     ParticleFilterAgent,
@@ -62,6 +64,7 @@ from baselines.agents import (
     make,
 )
 from baselines.leaderboard.evaluation import EpisodeResult, run_episode
+from humotion_gym.mocap.library import package_version
 from humotion_gym.threads import limit_blas_threads, single_threaded_blas
 
 #: The engines by name (``--engine``).
@@ -329,15 +332,11 @@ class _RayWorker:
     """
 
     def __init__(self, seed: int, env_kwargs: Mapping[str, Any], tasks: Sequence[str]) -> None:
-        import humotion_gym  # registers the environment ids in this process
-
         limit_blas_threads()
         # one CPU per actor: OpenCV's own pool (rendering; one thread per core by
         # default) would have N workers run N threads per core
-        import cv2
-
         cv2.setNumThreads(1)
-        self.version = str(getattr(humotion_gym, "__version__", "unknown"))
+        self.version = package_version()
         self.runner = EpisodeRunner(seed, env_kwargs)
         for task in tasks:  # load the clips while the driver fits (about 1 s on real data)
             try:
@@ -462,10 +461,8 @@ class RayEngine:
         Raises:
             RuntimeError: If a worker runs another version of the package.
         """
-        import humotion_gym
-
         self._fits = self.ray.put(dict(fits))
-        mine = str(getattr(humotion_gym, "__version__", "unknown"))
+        mine = package_version()
         for version, pid in self.ray.get([a.start.remote(self._fits) for a in self.actors]):
             if version != mine:
                 raise RuntimeError(
