@@ -188,25 +188,32 @@ def _cross(o: NDArray[np.int64], a: NDArray[np.int64], b: NDArray[np.int64]) -> 
 
 
 @numba.njit(cache=True, nogil=True)
-def _hull_in_place(points: NDArray[np.int32]) -> None:
+def _hull_in_place(
+    points: NDArray[np.int32], pts: NDArray[np.int64], hull: NDArray[np.int64]
+) -> None:
     """Replace ``(M, 2)`` points by their convex hull, padded with its first vertex.
 
     Andrew's monotone chain on the integer coordinates (exact): the points
-    sorted by x then y, the lower and the upper chain kept turning left.
-    The padding repeats a vertex, which adds nothing to a filled polygon.
+    sorted by x then y (an insertion sort: M is 24), the lower and the upper
+    chain kept turning left. The padding repeats a vertex, which adds nothing
+    to a filled polygon. ``pts`` ``(M, 2)`` and ``hull`` ``(2M, 2)`` are scratch.
     """
     m = points.shape[0]
-    pts = points.astype(np.int64)
-    order = np.argsort(pts[:, 0] * (1 << 32) + pts[:, 1])
-    hull = np.empty((2 * m, 2), np.int64)
+    for j in range(m):
+        x, y = np.int64(points[j, 0]), np.int64(points[j, 1])
+        k = j
+        while k > 0 and (pts[k - 1, 0] > x or (pts[k - 1, 0] == x and pts[k - 1, 1] > y)):
+            pts[k, 0], pts[k, 1] = pts[k - 1, 0], pts[k - 1, 1]
+            k -= 1
+        pts[k, 0], pts[k, 1] = x, y
     size = 0
     for step in range(2):  # the lower chain, then the upper one back
         start = size
         for j in range(m):
-            p = pts[order[j if step == 0 else m - 1 - j]]
+            p = pts[j if step == 0 else m - 1 - j]
             while size >= start + 2 and _cross(hull[size - 2], hull[size - 1], p) <= 0:
                 size -= 1
-            hull[size] = p
+            hull[size, 0], hull[size, 1] = p[0], p[1]
             size += 1
         size -= 1  # each chain's last point starts the other
     size = max(size, 1)
@@ -251,11 +258,13 @@ def figure_polygons(
     n_c = cone_rows.shape[0]
     n_kp = g.shape[1] - 2 * n_c
     depth = np.empty(n_c)
+    m = ellipses.shape[2]
+    scratch = (np.empty((m, 2), np.int64), np.empty((2 * m, 2), np.int64))
     for t in range(g.shape[0]):
         for c in range(n_c):
             depth[c] = _cone(
                 g[t], n_kp, c, cone_rows, radii, aspect, ring, camera, edges, light, shading,
-                base, lighting, ellipses[t, c], quads[t, c], colors[t, c], wide[t],
+                base, lighting, ellipses[t, c], quads[t, c], colors[t, c], wide[t], scratch,
             )  # fmt: skip
         # Painter's order, far first (a stable insertion sort), cones whose
         # end spheres reach behind the near plane left out.
@@ -280,7 +289,7 @@ def _cone(
     camera: NDArray[np.float64], edges: NDArray[np.float64], light: NDArray[np.float64],
     shading: NDArray[np.float64], base: NDArray[np.float64], lighting: NDArray[np.float64],
     ellipses: NDArray[np.int32], quads: NDArray[np.int32], colors: NDArray[np.uint8],
-    wide: NDArray[np.bool_],
+    wide: NDArray[np.bool_], scratch: tuple[NDArray[np.int64], NDArray[np.int64]],
 ) -> float:  # fmt: skip
     """One cone of one frame (see :func:`figure_polygons`); returns its depth.
 
@@ -308,7 +317,7 @@ def _cone(
             scale = fx / max(pz, near)
             ellipses[e * n_k + k, 0] = _fixed(px * scale + cu, far)
             ellipses[e * n_k + k, 1] = _fixed(py * scale + cv, far)
-    _hull_in_place(ellipses)
+    _hull_in_place(ellipses, scratch[0], scratch[1])
     s0, s1 = cone_rows[c, 0], cone_rows[c, 1]
     scale0, scale1 = fx / max(g[s0, 2], near), fx / max(g[s1, 2], near)
     u0, v0 = g[s0, 0] * scale0 + cu, g[s0, 1] * scale0 + cv
