@@ -452,14 +452,18 @@ def test_every_shared_asf_amc_loads(shared_mocap):
 
 
 @pytest.mark.mocap
-def test_largest_amc_parses_in_well_under_a_second(shared_mocap):
+def test_largest_amc_is_read_in_bulk(shared_mocap, tmp_path, count_calls):
     amc = max((shared_mocap / "cmu-asfamc").rglob("*.amc"), key=lambda p: p.stat().st_size)
     sk = load_asf(amc.parent / f"{amc.parent.name}.asf")
-    t0 = time.perf_counter()
     clip = load_amc(amc, sk)
-    elapsed = time.perf_counter() - t0
     assert clip.n_frames > 4000
-    assert elapsed < 1.0, f"{amc.name} ({amc.stat().st_size / 1e6:.1f} MB) took {elapsed:.2f} s"
+    # Twice the frames, hardly more Python calls: the frames are read in bulk.
+    lines = amc.read_text().splitlines(keepends=True)
+    cut = next(i for i in range(len(lines) // 2, len(lines)) if lines[i].strip().isdigit())
+    half = tmp_path / amc.name
+    half.write_text("".join(lines[:cut]))
+    assert load_amc(half, sk).n_frames < 0.6 * clip.n_frames
+    assert count_calls(load_amc, amc, sk) < 1.1 * count_calls(load_amc, half, sk)
 
 
 @pytest.mark.mocap
@@ -532,13 +536,11 @@ def test_frame_gaps_and_spans_are_bounded_before_allocating(write_text, monkeypa
     # The 66-byte file of the campaign: refused at once, without the 3.5 GB.
     tiny = write_text("d.amc", "1\nroot 0 0 0 0 0 0\n1000000\nroot 0 0 0 0 0 0\n")
     tracemalloc.start()
-    t0 = time.perf_counter()
     with pytest.raises(MocapFormatError, match="line 3: "):
         load_amc(tiny, sk)
-    elapsed = time.perf_counter() - t0
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
-    assert elapsed < 1.0 and peak < 10 * 2**20
+    assert peak < 10 * 2**20
 
 
 def test_both_readers_refuse_the_same_frame_numbers(write_text, monkeypatch):
@@ -556,7 +558,7 @@ def test_both_readers_refuse_the_same_frame_numbers(write_text, monkeypatch):
         assert str(fast.value) == str(general.value)
 
 
-def test_bone_count_and_depth_are_bounded(write_text):
+def test_bone_count_and_depth_are_bounded(write_text, count_calls):
     def chain(n: int, deep: bool) -> str:
         bones = "".join(
             f"  begin\n    name x{i}\n    direction 0 1 0\n    length 1\n"
@@ -578,10 +580,12 @@ def test_bone_count_and_depth_are_bounded(write_text):
     assert len(load_asf(write_text("ok.asf", chain(256, deep=True))).bone_names) == 256
     with pytest.raises(MocapFormatError, match="chains of at most 256 bones .* 257 down to 'x256'"):
         load_asf(write_text("deep.asf", chain(257, deep=True)))
-    t0 = time.perf_counter()
     with pytest.raises(MocapFormatError, match=r"line 6004: expected at most 1000 bones"):
         load_asf(write_text("many.asf", chain(20_000, deep=False)))
-    assert time.perf_counter() - t0 < 2.0
+    # Refused with work at most linear in the file (here: far less than the bones).
+    small, big = (write_text(f"{n}.asf", chain(n, deep=False)) for n in (2_000, 20_000))
+    lines = big.read_text().count("\n") / small.read_text().count("\n")
+    assert count_calls(load_asf, big) / count_calls(load_asf, small) < 1.2 * lines
 
 
 def test_limits_lines_are_matched_in_linear_time(write_text):

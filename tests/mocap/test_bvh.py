@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
@@ -460,26 +459,35 @@ def flat_joints(n: int, close: bool = True) -> str:
     return f"HIERARCHY\nROOT r\n{{\n  OFFSET 0 0 0\n  CHANNELS 1 Zrotation\n{body}{tail}"
 
 
-def test_many_joints_are_refused_fast_and_parsed_in_linear_time(write_text, monkeypatch):
+def test_many_joints_are_refused_fast_and_parsed_in_linear_time(
+    write_text, monkeypatch, count_calls
+):
     from humotion_gym.mocap import bvh
 
     # 50,000 joints once took 15 s (a list scan per name); 100,000 unclosed, 84 s.
     path = write_text("many.bvh", flat_joints(50_000))
-    t0 = time.perf_counter()
     with pytest.raises(MocapFormatError, match=r"line 4002: expected at most 1000 joints"):
         load_bvh(path)
     deep = write_text("deep.bvh", flat_joints(100_000, close=False))
     with pytest.raises(MocapFormatError, match=r"line 772: expected blocks nested at most 256"):
         load_bvh(deep)
-    assert time.perf_counter() - t0 < 5.0
-    # Raised limits: both still take about a second (linear in the joints).
+    # Refused with work at most linear in the file (the lines are split once).
+    for close in (True, False):
+        small, big = (write_text(f"{n}.bvh", flat_joints(n, close)) for n in (2_000, 8_000))
+        lines = big.read_text().count("\n") / small.read_text().count("\n")
+        assert count_calls(load_bvh, big) / count_calls(load_bvh, small) < 1.2 * lines
+    # Raised limits: twice the joints, about twice the work (linear, not quadratic).
     monkeypatch.setattr(bvh, "MAX_JOINTS", 200_000)
     monkeypatch.setattr(bvh, "MAX_DEPTH", 200_000)
-    t0 = time.perf_counter()
-    assert len(load_bvh(path).joint_names) == 50_001
-    with pytest.raises(MocapFormatError, match="expected '}' closing 'j99999'"):
-        load_bvh(deep)
-    assert time.perf_counter() - t0 < 10.0
+    for close in (True, False):
+        small, large = (write_text(f"{n}.bvh", flat_joints(n, close)) for n in (5_000, 10_000))
+        ratio = count_calls(load_bvh, large) / count_calls(load_bvh, small)
+        assert 1.5 < ratio < 2.3, ratio
+        if close:
+            assert len(load_bvh(large).joint_names) == 10_001
+        else:
+            with pytest.raises(MocapFormatError, match="expected '}' closing 'j9999'"):
+                load_bvh(large)
 
 
 def test_frame_limits_can_be_raised(write_text, monkeypatch):
@@ -617,7 +625,7 @@ def test_write_rejects_what_bvh_cannot_hold(tmp_path, kwargs, match):
         write_bvh(path, **args)
 
 
-def test_four_megabyte_motion_parses_fast(tmp_path):
+def test_four_megabyte_motion_is_read_in_bulk(tmp_path, count_calls):
     rng = np.random.default_rng(0)
     n_j, n_t = 30, 4000
     channels = [("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")] + [
@@ -636,11 +644,16 @@ def test_four_megabyte_motion_parses_fast(tmp_path):
         decimals=6,
     )
     assert path.stat().st_size > 4e6
-    t0 = time.perf_counter()
     clip = load_bvh(path)
-    elapsed = time.perf_counter() - t0
     assert clip.n_frames == n_t
-    assert elapsed < 1.0, f"parsing 4 MB took {elapsed:.2f} s"
+    # The frames are read in bulk: twice the frames, hardly more Python calls.
+    half = tmp_path / "half.bvh"
+    lines = path.read_text().splitlines(keepends=True)
+    at = next(i for i, line in enumerate(lines) if line.startswith("Frames:"))
+    lines[at] = f"Frames: {n_t // 2}\n"
+    half.write_text("".join(lines[: at + 2 + n_t // 2]))
+    assert load_bvh(half).n_frames == n_t // 2
+    assert count_calls(load_bvh, path) < 1.1 * count_calls(load_bvh, half)
 
 
 # ---------------------------------------------------------------- real data
@@ -668,7 +681,6 @@ def rigid_bone_lengths(clip: BvhClip) -> tuple[np.ndarray, np.ndarray]:
 def test_every_shared_bvh_loads(shared_mocap):
     files = sorted(shared_mocap.rglob("*.bvh"))
     assert len(files) > 500
-    t0 = time.perf_counter()
     rigs: dict[str, set[str]] = {}
     for f in files:
         clip = load_bvh(f)
@@ -683,10 +695,8 @@ def test_every_shared_bvh_loads(shared_mocap):
         assert len(keep) >= len(clip.point_names) - 3, f  # at most the root and hips move
         rel = np.abs(d - d[0]) / np.maximum(d[0], 1e-9)
         assert rel[:, d[0] > 1e-6].max(initial=0.0) < 1e-6, f
-    elapsed = time.perf_counter() - t0
     # Bandai keys every joint's whole translation; the CC exports add to offsets.
     assert rigs == {"bandai-1": {"replace"}, "bandai-2": {"replace"}, "cc": {"add"}}
-    assert elapsed < 40, f"loading {len(files)} BVH files took {elapsed:.1f} s"
 
 
 @pytest.mark.mocap

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import humotion_gym
+import humotion_gym._version
 from humotion_gym.mocap import library as lib_mod
 from humotion_gym.mocap.export import write_motion_bvh
 from humotion_gym.mocap.library import (
@@ -161,7 +161,7 @@ def _other_version(path: Path, ctx: dict) -> None:
     """An entry written by another package version, copied over this version's name."""
     mp: pytest.MonkeyPatch = ctx["monkeypatch"]
     old_cache = ctx["cache"].parent / "old-cache"
-    mp.setattr(humotion_gym, "__version__", "0.0.0-old")
+    mp.setattr(humotion_gym._version, "__version__", "0.0.0-old")
     _load(ctx["data"], old_cache)
     old_entry = _entry(ctx["data"], old_cache)
     mp.undo()
@@ -224,7 +224,7 @@ def test_the_key_holds_the_package_version(data, tmp_path, monkeypatch):
     cache = tmp_path / "cache"
     src = find_clips([data])[0]
     key = lib_mod._cache_key(src, 30.0)
-    monkeypatch.setattr(humotion_gym, "__version__", "99.0")
+    monkeypatch.setattr(humotion_gym._version, "__version__", "99.0")
     assert lib_mod._cache_key(src, 30.0) != key
     _load(data, cache)
     monkeypatch.undo()
