@@ -36,7 +36,6 @@ import json
 import math
 import platform
 import re
-import subprocess
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -66,6 +65,7 @@ from baselines.agents.policy import (
 )
 from baselines.experiments.selection import validation_library
 from baselines.leaderboard.evaluation import evaluate
+from baselines.leaderboard.results import source_commit
 from humotion_gym.body import N_KEYPOINTS
 from humotion_gym.envs import get_task
 from humotion_gym.kinematics import batch_pose_geometry
@@ -262,21 +262,11 @@ def _read_zoo_yaml(path: Path) -> dict[str, Any]:
     return data if isinstance(data, dict) else {}
 
 
-def _git_commit() -> str:
-    try:
-        return subprocess.run(
-            ["git", "rev-parse", "HEAD"], capture_output=True, text=True, timeout=5,
-            cwd=Path(__file__).resolve().parent,
-        ).stdout.strip() or "unknown"  # fmt: skip
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-
-
 def _provenance(config: TrainConfig, command: str | None) -> dict[str, Any]:
     return {
         **asdict(config),
         "command": command or " ".join(sys.argv),
-        "commit": _git_commit(),
+        "commit": source_commit() or "unknown",
         "split": "train",
         "versions": {
             "humotion_gym": package_version(),

@@ -216,15 +216,24 @@ def data_folders(env_kwargs: dict[str, Any]) -> list[str]:
 
 
 def source_commit() -> str | None:
-    """The git commit of the checkout the package runs from (None outside a git checkout)."""
+    """The git commit of the checkout the package runs from, ``-dirty`` if it has changes.
+
+    None outside a git checkout (an installed wheel) or without git.
+    """
+    here = Path(__file__).resolve().parent
     try:
-        done = subprocess.run(
-            ["git", "rev-parse", "HEAD"], capture_output=True, text=True, timeout=5,
-            cwd=Path(__file__).resolve().parent,
+        head = subprocess.run(
+            ["git", "rev-parse", "HEAD"], capture_output=True, text=True, timeout=5, cwd=here
+        )
+        changed = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True, text=True, timeout=5, cwd=here,
         )  # fmt: skip
     except (OSError, subprocess.SubprocessError):
         return None
-    return done.stdout.strip() or None if done.returncode == 0 else None
+    if head.returncode != 0 or not head.stdout.strip():
+        return None
+    return head.stdout.strip() + ("-dirty" if changed.stdout.strip() else "")
 
 
 def _write_text(path: Path, text: str) -> None:

@@ -511,3 +511,22 @@ def test_results_record_commit_and_data_and_say_when_figures_are_missing(
     monkeypatch.setattr(results, "figures_available", lambda: True)
     results.write_results(rows, tmp_path / "b", {"seed": 0}, progress=False)
     assert "no figures" not in capsys.readouterr().err  # mutation: with matplotlib, silent
+
+
+def test_the_source_commit_is_heads_and_says_when_the_checkout_has_changes(monkeypatch):
+    import subprocess
+
+    from baselines.leaderboard import results
+
+    head = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
+                          cwd=Path(results.__file__).parent)  # fmt: skip
+    if head.returncode != 0:
+        pytest.skip("not a git checkout")
+    commit = results.source_commit()
+    assert commit is not None and commit.removesuffix("-dirty") == head.stdout.strip()
+
+    def no_git(*args, **kwargs):
+        raise FileNotFoundError("git")
+
+    monkeypatch.setattr(results.subprocess, "run", no_git)
+    assert results.source_commit() is None
