@@ -176,7 +176,7 @@ def _batch_kinematics(
     geometry = body.pose_geometry(poses, shape)  # (N, 35, 3)
     component_major = geometry.transpose(2, 1, 0)  # (3, 35, N)
     if work is None or "keypoints" not in work:
-        kp = np.empty((3, N_KEYPOINTS, n), dtype)
+        kp: NDArray = np.empty((3, N_KEYPOINTS, n), dtype)
     else:
         kp = work["keypoints"][..., :n]
     np.copyto(kp, component_major[:, _INTERNAL_ORDER], casting="unsafe")

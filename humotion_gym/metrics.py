@@ -141,7 +141,7 @@ def step_scores(
     Returns:
         The :class:`StepScores`.
     """
-    diff = np.asarray(estimate_points, dtype=np.float64) - truth_points
+    diff: FloatArray = np.subtract(estimate_points, truth_points, dtype=np.float64)
     errors = _distances(diff)
     idx = scoring.scored
     k = 1.0 / idx.size

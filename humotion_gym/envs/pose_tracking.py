@@ -214,15 +214,6 @@ class PoseTrackingEnv(gym.Env):
             raise ValueError(f"split: expected 'train' or 'test', got {split!r}")
         self.split = split
         self.library = library
-        clips = library.split(split).filter(labels=self.task.labels)
-        need = self.episode_frames * self.frame_skip + 1
-        self.clips = clips.filter(min_frames=need)
-        if len(self.clips) == 0:
-            raise ValueError(
-                f"{self.task.name}: no {split} clip with labels {self.task.labels} and at least "
-                f"{need} frames in the library ({len(library)} clips)"
-            )
-
         channels = 3 if self.scene.color == "rgb" else 1
         self.observation_space = spaces.Box(
             0, 255, shape=(self.scene.height, self.scene.width, channels), dtype=np.uint8
@@ -241,20 +232,37 @@ class PoseTrackingEnv(gym.Env):
         self._motion: Motion | None = None
         self._done = False
         self._starts: dict[str, tuple[Motion, NDArray[np.intp]]] = {}
+        self.clips = self._episode_clips()
+        self._noise: NDArray[np.uint8] | None = None
+        self._bounds: tuple[FloatArray, FloatArray] | None = None
+
+    def _episode_clips(self) -> MotionLibrary:
+        """The split's clips an episode can be drawn from: the task's labels, long enough.
+
+        Raises:
+            ValueError: If no clip qualifies (the message says why).
+        """
+        library, split = self.library, self.split
+        clips = library.split(split).filter(labels=self.task.labels)
+        need = self.episode_frames * self.frame_skip + 1
+        clips = clips.filter(min_frames=need)
+        if len(clips) == 0:
+            raise ValueError(
+                f"{self.task.name}: no {split} clip with labels {self.task.labels} and at least "
+                f"{need} frames in the library ({len(library)} clips)"
+            )
         if self.task.min_motion_mm > 0:
             # only clips with at least one start that moves enough
-            self.clips = MotionLibrary(
-                tuple(m for m in self.clips if self._good_starts(m).size),
-                self.clips.test_subjects,
+            clips = MotionLibrary(
+                tuple(m for m in clips if self._good_starts(m).size), clips.test_subjects
             )
-            if len(self.clips) == 0:
+            if len(clips) == 0:
                 raise ValueError(
                     f"{self.task.name}: no {split} clip moves its "
                     f"{list(self.task.error_keypoints)} "
                     f"by {self.task.min_motion_mm:g} mm within an episode"
                 )
-        self._noise: NDArray[np.uint8] | None = None
-        self._bounds: tuple[FloatArray, FloatArray] | None = None
+        return clips
 
     # -- pose <-> action ---------------------------------------------------------
 
