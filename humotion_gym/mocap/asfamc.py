@@ -72,16 +72,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from humotion_gym.errors import MocapFormatError
-
-# Shared low-level helpers: the bulk number scan and batched Euler rotations.
-from humotion_gym.mocap.bvh import (
-    MAX_NAME_LENGTH,
+from humotion_gym.mocap._scan import (
     _count,
     _euler_matrices,
     _line_token_counts,
     _short,
     _to_floats,
 )
+
+# Shared low-level helpers: the bulk number scan and batched Euler rotations.
+from humotion_gym.mocap.bvh import MAX_NAME_LENGTH
 from humotion_gym.mocap.skeleton import select_points
 
 __all__ = [

@@ -54,17 +54,31 @@ unreadable file still raises :class:`OSError`).
 from __future__ import annotations
 
 import io
-import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from humotion_gym.errors import MocapFormatError
+from humotion_gym.mocap._bvh_hierarchy import (
+    _CHANNEL_KIND,
+    CHANNEL_NAMES,
+    HierarchyLimits,
+    _Header,
+    _parse_hierarchy,
+)
+from humotion_gym.mocap._bvh_write import write_bvh
+from humotion_gym.mocap._scan import (
+    _count,
+    _euler_matrices,
+    _line_token_counts,
+    _short,
+    _to_floats,
+)
 from humotion_gym.mocap.skeleton import select_points
 
 __all__ = [
@@ -103,163 +117,9 @@ MAX_ABS_VALUE: float = 1e9
 #: scan every name, and no rig names a joint with more than a few dozen.
 MAX_NAME_LENGTH: int = 256
 
-# A count: ASCII digits only (str.isdigit also takes superscripts such as "²").
-_COUNT = re.compile(r"[0-9]+", re.ASCII)
 
 OnNan = Literal["mask", "raise"]
 PositionMode = Literal["auto", "add", "replace"]
-
-#: The channel names BVH defines, as they are usually spelled.
-CHANNEL_NAMES: tuple[str, ...] = (
-    "Xposition",
-    "Yposition",
-    "Zposition",
-    "Xrotation",
-    "Yrotation",
-    "Zrotation",
-)
-
-# Lower-cased channel name -> (is a rotation, axis index). Files vary in case.
-_CHANNEL_KIND: dict[str, tuple[bool, int]] = {
-    name.lower(): (name.endswith("rotation"), "XYZ".index(name[0])) for name in CHANNEL_NAMES
-}
-
-# bytes.split() splits on exactly these; the vectorised line counts must agree.
-_WHITESPACE = np.zeros(256, dtype=bool)
-_WHITESPACE[[9, 10, 11, 12, 13, 32]] = True
-
-
-# --------------------------------------------------------------------------
-# Helpers shared with the ASF/AMC parser (humotion_gym.mocap.asfamc).
-# --------------------------------------------------------------------------
-
-
-def _line_token_counts(buf: bytes) -> NDArray[np.intp]:
-    """Number of whitespace-separated tokens on each line of ``buf``.
-
-    Args:
-        buf: Text as bytes.
-
-    Returns:
-        One count per line (lines end at newline bytes, the last may be
-        empty); they sum to ``len(buf.split())``.
-    """
-    n_lines = buf.count(b"\n") + 1
-    if not buf:
-        return np.zeros(n_lines, dtype=np.intp)
-    b = np.frombuffer(buf, dtype=np.uint8)
-    ws = _WHITESPACE[b]
-    # A token starts at a non-blank byte that follows a blank one (or the start).
-    starts = np.flatnonzero(~ws & np.concatenate(([True], ws[:-1])))
-    newlines = np.flatnonzero(b == 10)
-    line_of_token = np.searchsorted(newlines, starts)
-    return np.bincount(line_of_token, minlength=n_lines).astype(np.intp)
-
-
-def _to_floats(
-    tokens: list[bytes], path: str | Path, line_of: NDArray[np.intp], what: str = "a number"
-) -> NDArray[np.float64]:
-    """Convert tokens to float64 in one call, naming the first bad token's line on failure.
-
-    Args:
-        tokens: The tokens, as from ``bytes.split()``.
-        path: The file, for the error message.
-        line_of: ``(len(tokens),)`` 1-based line of each token.
-        what: What a token should have been, for the error message.
-
-    Returns:
-        ``(len(tokens),)`` values (NaN and inf are kept; callers decide).
-
-    Raises:
-        MocapFormatError: If a token is not a number.
-    """
-    try:
-        return np.array(tokens, dtype=np.float64)
-    except ValueError:
-        pass
-    # Error path only: bisect for the first token numpy refuses, with numpy's
-    # own parser so the culprit is exactly the token that failed above.
-    lo, hi = 0, len(tokens)
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        try:
-            np.array(tokens[lo:mid], dtype=np.float64)
-            lo = mid
-        except ValueError:
-            hi = mid
-    bad = tokens[lo].decode("utf-8", "replace")
-    raise MocapFormatError(path, int(line_of[lo]), f"expected {what}, found {bad!r}")
-
-
-def _elementary_rotations(axis: int, angles: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Rotation matrices about one coordinate axis, batched.
-
-    Args:
-        axis: 0, 1 or 2 for x, y, z.
-        angles: ``(T,)`` angles in radians (right-handed, counter-clockwise).
-
-    Returns:
-        ``(T, 3, 3)`` matrices.
-    """
-    c = np.cos(angles)
-    s = np.sin(angles)
-    out = np.zeros((*angles.shape, 3, 3))
-    i, j = [(1, 2), (2, 0), (0, 1)][axis]
-    out[..., axis, axis] = 1.0
-    out[..., i, i] = c
-    out[..., j, j] = c
-    out[..., i, j] = -s
-    out[..., j, i] = s
-    return out
-
-
-def _euler_matrices(
-    axes: Sequence[int], angles: NDArray[np.float64], intrinsic: bool = True
-) -> NDArray[np.float64]:
-    """Compose rotations about coordinate axes, batched over frames.
-
-    Args:
-        axes: The axis (0, 1, 2) of each rotation, in the order listed.
-        angles: ``(T, len(axes))`` angles in radians.
-        intrinsic: True for ``R_1 @ R_2 @ ...`` (BVH: each rotation about the
-            axes the previous ones produced); False for ``... @ R_2 @ R_1``
-            (Acclaim: each rotation about the fixed axes).
-
-    Returns:
-        ``(T, 3, 3)`` matrices (identity when ``axes`` is empty).
-    """
-    if not len(axes):
-        return np.broadcast_to(np.eye(3), (angles.shape[0], 3, 3)).copy()
-    mats = [_elementary_rotations(a, angles[:, k]) for k, a in enumerate(axes)]
-    if not intrinsic:
-        mats.reverse()
-    out = mats[0]
-    for m in mats[1:]:
-        out = out @ m
-    return out
-
-
-def _short(token: str | bytes, limit: int = 40) -> str:
-    """``repr`` of a token for an error message, cut to about ``limit`` characters."""
-    text = token.decode("utf-8", "replace") if isinstance(token, bytes) else token
-    return repr(text) if len(text) <= limit else repr(text[:limit]) + f"... ({len(text)} chars)"
-
-
-def _count(token: str | bytes) -> int | None:
-    """A whole number written in ASCII digits, or None when ``token`` is not one.
-
-    Args:
-        token: The text, e.g. ``"120"``; ``"²"``, ``"-1"`` and ``"1.0"`` are not counts.
-
-    Returns:
-        The value; values of more than 18 digits (above any limit) come back
-        as ``10**18`` without converting the whole text.
-    """
-    text = token.decode("ascii", "replace") if isinstance(token, bytes) else token
-    if not _COUNT.fullmatch(text):
-        return None
-    text = text.lstrip("0") or "0"
-    return 10**18 if len(text) > 18 else int(text)
 
 
 def _check_frame_time(path: str, line: int, token: str) -> float:
@@ -512,274 +372,6 @@ class BvhClip:
 # --------------------------------------------------------------------------
 # Reading.
 # --------------------------------------------------------------------------
-
-
-@dataclass
-class _Block:
-    """A ``{ }`` block being parsed: a joint or an end site."""
-
-    is_joint: bool
-    index: int
-    name: str
-    line: int
-    has_offset: bool = False
-    has_channels: bool = False
-
-
-class _Header:
-    """The hierarchy as it is read, joint by joint."""
-
-    def __init__(self) -> None:
-        self.names: list[str] = []
-        self.parents: list[int] = []
-        self.offsets: list[tuple[float, float, float]] = []
-        self.channels: list[tuple[str, ...]] = []
-        self.end_parents: list[int] = []
-        self.end_offsets: list[tuple[float, float, float]] = []
-        self.points: list[tuple[bool, int]] = []  # (is a joint, joint or end-site index)
-        self.joint_lines: list[int] = []
-        self.end_lines: list[int] = []
-        self.name_set: set[str] = set()
-
-
-def _header_tokens(lines: list[tuple[int, str]]) -> list[tuple[str, int, int]]:
-    """Flatten header lines to ``(token, line, index of the token on its line)``."""
-    out: list[tuple[str, int, int]] = []
-    for lineno, text in lines:
-        out.extend((tok, lineno, k) for k, tok in enumerate(text.split()))
-    return out
-
-
-class _HierarchyParser:
-    """The state of parsing ``HIERARCHY`` token by token (one method per keyword).
-
-    Each method consumes its keyword's tokens (advancing :attr:`i`) and records
-    what it read in :attr:`hdr`; every failure is a :class:`MocapFormatError`
-    naming the file and line.
-    """
-
-    def __init__(self, path: str, lines: list[tuple[int, str]]) -> None:
-        self.path = path
-        self.toks = _header_tokens(lines)
-        self.line_tokens = {ln: text.split() for ln, text in lines}
-        self.hdr = _Header()
-        self.stack: list[_Block] = []
-        self.pending: _Block | None = None
-        self.i = 1
-        self.n = len(self.toks)
-
-    def _error(self, ln: int, reason: str) -> MocapFormatError:
-        return MocapFormatError(self.path, ln, reason)
-
-    def parse(self, last_line: int) -> _Header:
-        """Every token up to ``MOTION``, then the end checks."""
-        toks = self.toks
-        if not toks or toks[0][0].upper() != "HIERARCHY":
-            ln = toks[0][1] if toks else 1
-            found = repr(toks[0][0]) if toks else "nothing"
-            raise self._error(ln, f"expected HIERARCHY, found {found}")
-        while self.i < self.n:
-            tok, ln, k = toks[self.i]
-            up = tok.upper()
-            if self.pending is not None:
-                self._open(tok, ln, self.pending)
-                continue
-            if up in ("ROOT", "JOINT", "END") and len(self.hdr.points) >= MAX_JOINTS:
-                raise self._error(
-                    ln,
-                    f"expected at most {MAX_JOINTS} joints and end sites, found more "
-                    "(raise humotion_gym.mocap.bvh.MAX_JOINTS for such a file)",
-                )
-            if up in ("ROOT", "JOINT"):
-                self._joint(tok, up, ln, k)
-            elif up == "END":
-                self._end_site(ln)
-            elif up == "OFFSET":
-                self._offset(ln)
-            elif up == "CHANNELS":
-                self._channels(ln)
-            elif tok == "}":
-                self._close(ln)
-            elif up == "MOTION":
-                break
-            elif not self.stack:
-                raise self._error(ln, f"expected ROOT or MOTION, found {tok!r}")
-            else:
-                raise self._error(
-                    ln, f"expected OFFSET, CHANNELS, JOINT, End Site or '}}', found {tok!r}"
-                )
-        return self._finish(last_line)
-
-    def _numbers(self, start: int, count: int, what: str, ln: int) -> list[float]:
-        got = self.toks[start : start + count]
-        if len(got) < count:
-            raise self._error(ln, f"expected {what}, found end of file")
-        vals = []
-        for tok, tok_ln, _ in got:
-            try:
-                v = float(tok)
-            except ValueError:
-                raise self._error(tok_ln, f"expected {what}, found {tok!r}") from None
-            if not (np.isfinite(v) and abs(v) <= MAX_ABS_VALUE):
-                raise self._error(
-                    tok_ln, f"expected {what} (at most {MAX_ABS_VALUE:g}), found {tok!r}"
-                )
-            vals.append(v)
-        return vals
-
-    def _open(self, tok: str, ln: int, pending: _Block) -> None:
-        if tok != "{":
-            what = f"joint {pending.name!r}" if pending.is_joint else "End Site"
-            raise self._error(ln, f"expected '{{' opening {what}, found {tok!r}")
-        if len(self.stack) >= MAX_DEPTH:
-            raise self._error(
-                ln,
-                f"expected blocks nested at most {MAX_DEPTH} deep, found deeper "
-                "(raise humotion_gym.mocap.bvh.MAX_DEPTH for such a file)",
-            )
-        self.stack.append(pending)
-        self.pending = None
-        self.i += 1
-
-    def _joint(self, tok: str, up: str, ln: int, k: int) -> None:
-        stack, hdr = self.stack, self.hdr
-        if up == "ROOT" and stack:
-            raise self._error(
-                ln,
-                f"expected '}}' closing joint {stack[-1].name!r} (opened at line "
-                f"{stack[-1].line}), found ROOT",
-            )
-        if up == "JOINT" and (not stack or not stack[-1].is_joint):
-            raise self._error(ln, "expected JOINT inside a joint's braces")
-        rest = self.line_tokens[ln][k + 1 :]
-        if rest and rest[-1] == "{":
-            rest = rest[:-1]
-        name = " ".join(rest)
-        if not name:
-            raise self._error(ln, f"expected a joint name after {tok}")
-        if len(name) > MAX_NAME_LENGTH:
-            raise self._error(
-                ln, f"expected a joint name of at most {MAX_NAME_LENGTH} characters, "
-                f"found {len(name)}: {_short(name)}",
-            )  # fmt: skip
-        if name in hdr.name_set:
-            raise self._error(ln, f"joint name {name!r} is used twice")
-        parent = stack[-1].index if stack else -1
-        hdr.name_set.add(name)
-        hdr.joint_lines.append(ln)
-        hdr.names.append(name)
-        hdr.parents.append(parent)
-        hdr.offsets.append((0.0, 0.0, 0.0))
-        hdr.channels.append(())
-        hdr.points.append((True, len(hdr.names) - 1))
-        self.pending = _Block(True, len(hdr.names) - 1, name, ln)
-        self.i += 1 + len(rest)
-
-    def _end_site(self, ln: int) -> None:
-        stack, hdr = self.stack, self.hdr
-        nxt = self.toks[self.i + 1] if self.i + 1 < self.n else None
-        if nxt is None or nxt[0].upper() != "SITE":
-            raise self._error(ln, "expected 'End Site'")
-        if not stack or not stack[-1].is_joint:
-            raise self._error(ln, "expected End Site inside a joint's braces")
-        hdr.end_lines.append(ln)
-        hdr.end_parents.append(stack[-1].index)
-        hdr.end_offsets.append((0.0, 0.0, 0.0))
-        hdr.points.append((False, len(hdr.end_parents) - 1))
-        self.pending = _Block(False, len(hdr.end_parents) - 1, "End Site", ln)
-        self.i += 2
-
-    def _offset(self, ln: int) -> None:
-        if not self.stack:
-            raise self._error(ln, "expected OFFSET inside a joint's braces")
-        top = self.stack[-1]
-        if top.has_offset:
-            raise self._error(ln, f"second OFFSET in {top.name!r}")
-        off = self._numbers(self.i + 1, 3, "three finite OFFSET values", ln)
-        if top.is_joint:
-            self.hdr.offsets[top.index] = (off[0], off[1], off[2])
-        else:
-            self.hdr.end_offsets[top.index] = (off[0], off[1], off[2])
-        top.has_offset = True
-        self.i += 4
-
-    def _channels(self, ln: int) -> None:
-        toks, i, n = self.toks, self.i, self.n
-        if not self.stack or not self.stack[-1].is_joint:
-            raise self._error(ln, "expected CHANNELS inside a joint's braces")
-        top = self.stack[-1]
-        if top.has_channels:
-            raise self._error(ln, f"second CHANNELS in joint {top.name!r}")
-        count_tok = toks[i + 1][0] if i + 1 < n else "end of file"
-        count_or_none = _count(count_tok)
-        if count_or_none is None:
-            raise self._error(
-                ln, f"expected the number of channels after CHANNELS, found {_short(count_tok)}"
-            )
-        count = count_or_none
-        if count > MAX_JOINT_CHANNELS:
-            raise self._error(
-                ln,
-                f"expected at most {MAX_JOINT_CHANNELS} channels in joint {top.name!r}, "
-                f"found CHANNELS {_short(count_tok)[1:-1]}",
-            )
-        names = toks[i + 2 : i + 2 + count]
-        for name, name_ln, _ in names:
-            if name.lower() not in _CHANNEL_KIND:
-                raise self._error(
-                    name_ln,
-                    f"expected a channel name ({', '.join(CHANNEL_NAMES)}), found {name!r}",
-                )
-        if len(names) < count:
-            raise self._error(ln, f"expected {count} channel names, found end of file")
-        self.hdr.channels[top.index] = tuple(t for t, _, _ in names)
-        top.has_channels = True
-        self.i += 2 + count
-
-    def _close(self, ln: int) -> None:
-        if not self.stack:
-            raise self._error(ln, "unbalanced '}': no joint is open here")
-        top = self.stack.pop()
-        if not top.has_offset:
-            what = f"joint {top.name!r}" if top.is_joint else "End Site"
-            raise self._error(ln, f"expected OFFSET in {what} (opened at line {top.line})")
-        self.i += 1
-
-    def _finish(self, last_line: int) -> _Header:
-        at_end = self.i >= self.n
-        where = last_line if at_end else self.toks[self.i][1]
-        found = "end of file" if at_end else "MOTION"
-        if self.pending is not None:
-            raise self._error(where, f"expected '{{' opening {self.pending.name!r}, found {found}")
-        if self.stack:
-            top = self.stack[-1]
-            raise self._error(
-                where,
-                f"expected '}}' closing {top.name!r} (opened at line {top.line}), found {found}",
-            )
-        if not self.hdr.names:
-            raise self._error(where, f"expected ROOT, found {found}")
-        if at_end:
-            raise self._error(where, "expected MOTION after the hierarchy, found end of file")
-        return self.hdr
-
-
-def _parse_hierarchy(path: str, lines: list[tuple[int, str]], last_line: int) -> _Header:
-    """Parse ``HIERARCHY`` up to (not including) ``MOTION``.
-
-    Args:
-        path: The file, for errors.
-        lines: ``(line number, text)`` of the header lines; the last is ``MOTION``
-            when the file has one.
-        last_line: The file's last line, named when the file ends early.
-
-    Returns:
-        The joints and end sites.
-
-    Raises:
-        MocapFormatError: On any deviation from the grammar.
-    """
-    return _HierarchyParser(path, lines).parse(last_line)
 
 
 def _infer_position_mode(
@@ -1084,7 +676,10 @@ def load_bvh(
         raise MocapFormatError(spath, 1, "the file is empty (expected HIERARCHY)")
 
     reader = _LineReader(spath, data)
-    hdr = _parse_hierarchy(spath, reader.header_lines(), reader.lineno)
+    limits = HierarchyLimits(
+        MAX_JOINTS, MAX_DEPTH, MAX_JOINT_CHANNELS, MAX_NAME_LENGTH, MAX_ABS_VALUE
+    )  # read at each call, so that raising one of them takes effect
+    hdr = _parse_hierarchy(spath, reader.header_lines(), reader.lineno, limits)
     motion_line = reader.lineno
     n_declared, frames_line = _declared_frames(reader, motion_line, limit, len(hdr.points))
     ft_tok, ft_line = reader.header_value("Frame Time", motion_line)
@@ -1138,141 +733,3 @@ def load_bvh(
         units_to_mm=None,
         _point_joint=tuple(hdr.points),
     )
-
-
-# --------------------------------------------------------------------------
-# Writing.
-# --------------------------------------------------------------------------
-
-
-def write_bvh(
-    path: str | Path,
-    names: Sequence[str],
-    parents: ArrayLike,
-    offsets: ArrayLike,
-    channels: Sequence[Sequence[str]],
-    values: ArrayLike,
-    frame_time: float,
-    end_sites: Mapping[int, ArrayLike] | None = None,
-    decimals: int | None = None,
-) -> None:
-    """Write a BVH file that :func:`load_bvh` reads back to the same numbers.
-
-    Joints are written depth first, children in index order; when that order
-    differs from ``names``, the value columns are permuted to match, so a
-    re-read clip may list the joints in a different order (never with different
-    data).
-
-    Args:
-        path: The file to write.
-        names: ``(J,)`` joint names.
-        parents: ``(J,)`` parent joint index, -1 for a root (several roots are allowed).
-        offsets: ``(J, 3)`` each joint's offset from its parent.
-        channels: Each joint's channel names (from :data:`CHANNEL_NAMES`, any
-            case), e.g. ``("Xposition", "Yposition", "Zposition", "Zrotation",
-            "Xrotation", "Yrotation")`` or ``()``.
-        values: ``(T, C)`` channel values, the columns of joint 0 first;
-            rotations in degrees.
-        frame_time: Seconds per frame.
-        end_sites: ``{joint index: offset}``: an end site's ``(3,)`` offset, or
-            ``(k, 3)`` for several end sites on one joint.
-        decimals: Digits after the point for every number; None (the default)
-            writes the shortest text that reads back to the identical float.
-
-    Raises:
-        ValueError: If the shapes disagree, a channel name is unknown, the
-            parents do not form a forest, a name is empty or holds whitespace,
-            a value is not finite, or ``frame_time`` is not positive.
-    """
-    names = [str(n) for n in names]
-    n_j = len(names)
-    par = np.asarray(parents, dtype=np.intp).reshape(-1)
-    off = np.asarray(offsets, dtype=np.float64)
-    vals = np.asarray(values, dtype=np.float64)
-    if par.shape != (n_j,) or off.shape != (n_j, 3) or len(channels) != n_j:
-        raise ValueError(
-            f"write_bvh: {n_j} names need {n_j} parents, ({n_j}, 3) offsets and {n_j} channel "
-            f"tuples; got {par.shape}, {off.shape} and {len(channels)}"
-        )
-    for n in names:
-        if not n or n != n.strip() or any(c in n for c in "{}\n\r\t"):
-            raise ValueError(f"write_bvh: joint name {n!r} cannot be written to a BVH")
-    if len(set(names)) != n_j:
-        raise ValueError("write_bvh: joint names must be unique")
-    for chans in channels:
-        for c in chans:
-            if str(c).lower() not in _CHANNEL_KIND:
-                raise ValueError(f"write_bvh: unknown channel {c!r} (expected {CHANNEL_NAMES})")
-    widths = [len(c) for c in channels]
-    n_c = sum(widths)
-    if vals.ndim != 2 or vals.shape[1] != n_c:
-        raise ValueError(f"write_bvh: values must be (T, {n_c}), got {vals.shape}")
-    if n_c == 0 and len(vals):
-        raise ValueError("write_bvh: frames need at least one channel (a BVH frame is a line)")
-    if not np.isfinite(vals).all() or not np.isfinite(off).all():
-        raise ValueError("write_bvh: offsets and values must be finite (BVH has no missing marker)")
-    if not (np.isfinite(frame_time) and frame_time > 0):
-        raise ValueError(f"write_bvh: frame_time must be positive, got {frame_time!r}")
-    ends: dict[int, NDArray[np.float64]] = {}
-    for j, e in (end_sites or {}).items():
-        arr = np.asarray(e, dtype=np.float64).reshape(-1, 3)
-        if not 0 <= int(j) < n_j or not np.isfinite(arr).all():
-            raise ValueError(f"write_bvh: bad end site for joint {j!r}")
-        ends[int(j)] = arr
-
-    children: list[list[int]] = [[] for _ in range(n_j)]
-    roots = []
-    for j, p in enumerate(par):
-        if p < 0:
-            roots.append(j)
-        elif p >= n_j:
-            raise ValueError(f"write_bvh: parent {p} of joint {names[j]!r} is out of range")
-        else:
-            children[p].append(j)
-
-    def fmt(x: float) -> str:
-        return repr(float(x)) if decimals is None else f"{x:.{decimals}f}"
-
-    out: list[str] = ["HIERARCHY"]
-    order: list[int] = []
-
-    def emit(j: int, depth: int) -> None:
-        pad = "\t" * depth
-        kw = "ROOT" if par[j] < 0 else "JOINT"
-        out.append(f"{pad}{kw} {names[j]}")
-        out.append(f"{pad}{{")
-        out.append(f"{pad}\tOFFSET {' '.join(fmt(v) for v in off[j])}")
-        chans = " ".join(str(c) for c in channels[j])
-        out.append(f"{pad}\tCHANNELS {len(channels[j])}{' ' + chans if chans else ''}")
-        order.append(j)
-        for e in ends.get(j, np.empty((0, 3))):
-            out.append(f"{pad}\tEnd Site")
-            out.append(f"{pad}\t{{")
-            out.append(f"{pad}\t\tOFFSET {' '.join(fmt(v) for v in e)}")
-            out.append(f"{pad}\t}}")
-        for c in children[j]:
-            emit(c, depth + 1)
-        out.append(f"{pad}}}")
-
-    for r in roots:
-        emit(r, 0)
-    if len(order) != n_j:
-        raise ValueError("write_bvh: the parents hold a cycle (some joints reach no root)")
-    starts = np.concatenate(([0], np.cumsum(widths))).astype(np.intp)
-    cols = np.concatenate([np.arange(starts[j], starts[j + 1]) for j in order] + [[]]).astype(
-        np.intp
-    )
-    out.append("MOTION")
-    out.append(f"Frames: {vals.shape[0]}")
-    out.append(f"Frame Time: {fmt(frame_time) if decimals is None else repr(float(frame_time))}")
-    if decimals is None:
-        # str() of a Python float is its shortest exact text (the repr).
-        rows = (" ".join(map(str, row)) for row in vals[:, cols].tolist())
-    else:
-        rows = (" ".join(f"{v:.{decimals}f}" for v in row) for row in vals[:, cols].tolist())
-    text = "\n".join(out) + "\n"
-    with open(path, "w", encoding="utf-8", newline="\n") as fh:
-        fh.write(text)
-        for row in rows:
-            fh.write(row)
-            fh.write("\n")

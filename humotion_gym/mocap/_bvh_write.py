@@ -1,0 +1,144 @@
+"""Writing BVH files: :func:`write_bvh`, the counterpart of ``bvh.load_bvh``."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from humotion_gym.mocap._bvh_hierarchy import _CHANNEL_KIND, CHANNEL_NAMES
+
+
+def write_bvh(
+    path: str | Path,
+    names: Sequence[str],
+    parents: ArrayLike,
+    offsets: ArrayLike,
+    channels: Sequence[Sequence[str]],
+    values: ArrayLike,
+    frame_time: float,
+    end_sites: Mapping[int, ArrayLike] | None = None,
+    decimals: int | None = None,
+) -> None:
+    """Write a BVH file that :func:`load_bvh` reads back to the same numbers.
+
+    Joints are written depth first, children in index order; when that order
+    differs from ``names``, the value columns are permuted to match, so a
+    re-read clip may list the joints in a different order (never with different
+    data).
+
+    Args:
+        path: The file to write.
+        names: ``(J,)`` joint names.
+        parents: ``(J,)`` parent joint index, -1 for a root (several roots are allowed).
+        offsets: ``(J, 3)`` each joint's offset from its parent.
+        channels: Each joint's channel names (from :data:`CHANNEL_NAMES`, any
+            case), e.g. ``("Xposition", "Yposition", "Zposition", "Zrotation",
+            "Xrotation", "Yrotation")`` or ``()``.
+        values: ``(T, C)`` channel values, the columns of joint 0 first;
+            rotations in degrees.
+        frame_time: Seconds per frame.
+        end_sites: ``{joint index: offset}``: an end site's ``(3,)`` offset, or
+            ``(k, 3)`` for several end sites on one joint.
+        decimals: Digits after the point for every number; None (the default)
+            writes the shortest text that reads back to the identical float.
+
+    Raises:
+        ValueError: If the shapes disagree, a channel name is unknown, the
+            parents do not form a forest, a name is empty or holds whitespace,
+            a value is not finite, or ``frame_time`` is not positive.
+    """
+    names = [str(n) for n in names]
+    n_j = len(names)
+    par = np.asarray(parents, dtype=np.intp).reshape(-1)
+    off = np.asarray(offsets, dtype=np.float64)
+    vals = np.asarray(values, dtype=np.float64)
+    if par.shape != (n_j,) or off.shape != (n_j, 3) or len(channels) != n_j:
+        raise ValueError(
+            f"write_bvh: {n_j} names need {n_j} parents, ({n_j}, 3) offsets and {n_j} channel "
+            f"tuples; got {par.shape}, {off.shape} and {len(channels)}"
+        )
+    for n in names:
+        if not n or n != n.strip() or any(c in n for c in "{}\n\r\t"):
+            raise ValueError(f"write_bvh: joint name {n!r} cannot be written to a BVH")
+    if len(set(names)) != n_j:
+        raise ValueError("write_bvh: joint names must be unique")
+    for chans in channels:
+        for c in chans:
+            if str(c).lower() not in _CHANNEL_KIND:
+                raise ValueError(f"write_bvh: unknown channel {c!r} (expected {CHANNEL_NAMES})")
+    widths = [len(c) for c in channels]
+    n_c = sum(widths)
+    if vals.ndim != 2 or vals.shape[1] != n_c:
+        raise ValueError(f"write_bvh: values must be (T, {n_c}), got {vals.shape}")
+    if n_c == 0 and len(vals):
+        raise ValueError("write_bvh: frames need at least one channel (a BVH frame is a line)")
+    if not np.isfinite(vals).all() or not np.isfinite(off).all():
+        raise ValueError("write_bvh: offsets and values must be finite (BVH has no missing marker)")
+    if not (np.isfinite(frame_time) and frame_time > 0):
+        raise ValueError(f"write_bvh: frame_time must be positive, got {frame_time!r}")
+    ends: dict[int, NDArray[np.float64]] = {}
+    for j, e in (end_sites or {}).items():
+        arr = np.asarray(e, dtype=np.float64).reshape(-1, 3)
+        if not 0 <= int(j) < n_j or not np.isfinite(arr).all():
+            raise ValueError(f"write_bvh: bad end site for joint {j!r}")
+        ends[int(j)] = arr
+
+    children: list[list[int]] = [[] for _ in range(n_j)]
+    roots = []
+    for j, p in enumerate(par):
+        if p < 0:
+            roots.append(j)
+        elif p >= n_j:
+            raise ValueError(f"write_bvh: parent {p} of joint {names[j]!r} is out of range")
+        else:
+            children[p].append(j)
+
+    def fmt(x: float) -> str:
+        return repr(float(x)) if decimals is None else f"{x:.{decimals}f}"
+
+    out: list[str] = ["HIERARCHY"]
+    order: list[int] = []
+
+    def emit(j: int, depth: int) -> None:
+        pad = "\t" * depth
+        kw = "ROOT" if par[j] < 0 else "JOINT"
+        out.append(f"{pad}{kw} {names[j]}")
+        out.append(f"{pad}{{")
+        out.append(f"{pad}\tOFFSET {' '.join(fmt(v) for v in off[j])}")
+        chans = " ".join(str(c) for c in channels[j])
+        out.append(f"{pad}\tCHANNELS {len(channels[j])}{' ' + chans if chans else ''}")
+        order.append(j)
+        for e in ends.get(j, np.empty((0, 3))):
+            out.append(f"{pad}\tEnd Site")
+            out.append(f"{pad}\t{{")
+            out.append(f"{pad}\t\tOFFSET {' '.join(fmt(v) for v in e)}")
+            out.append(f"{pad}\t}}")
+        for c in children[j]:
+            emit(c, depth + 1)
+        out.append(f"{pad}}}")
+
+    for r in roots:
+        emit(r, 0)
+    if len(order) != n_j:
+        raise ValueError("write_bvh: the parents hold a cycle (some joints reach no root)")
+    starts = np.concatenate(([0], np.cumsum(widths))).astype(np.intp)
+    cols = np.concatenate([np.arange(starts[j], starts[j + 1]) for j in order] + [[]]).astype(
+        np.intp
+    )
+    out.append("MOTION")
+    out.append(f"Frames: {vals.shape[0]}")
+    out.append(f"Frame Time: {fmt(frame_time) if decimals is None else repr(float(frame_time))}")
+    if decimals is None:
+        # str() of a Python float is its shortest exact text (the repr).
+        rows = (" ".join(map(str, row)) for row in vals[:, cols].tolist())
+    else:
+        rows = (" ".join(f"{v:.{decimals}f}" for v in row) for row in vals[:, cols].tolist())
+    text = "\n".join(out) + "\n"
+    with open(path, "w", encoding="utf-8", newline="\n") as fh:
+        fh.write(text)
+        for row in rows:
+            fh.write(row)
+            fh.write("\n")

@@ -1,0 +1,154 @@
+"""Text scanning shared by the BVH and ASF/AMC readers.
+
+Token counts per line (vectorised over the bytes), the bulk conversion of a
+block of numbers, batched Euler rotations, whole-number tokens and the short
+form of a token in an error message. The readers are
+:mod:`humotion_gym.mocap.bvh` and :mod:`humotion_gym.mocap.asfamc`.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from humotion_gym.errors import MocapFormatError
+
+# A count: ASCII digits only (str.isdigit also takes superscripts such as "²").
+_COUNT = re.compile(r"[0-9]+", re.ASCII)
+
+
+# bytes.split() splits on exactly these; the vectorised line counts must agree.
+_WHITESPACE = np.zeros(256, dtype=bool)
+_WHITESPACE[[9, 10, 11, 12, 13, 32]] = True
+
+
+def _line_token_counts(buf: bytes) -> NDArray[np.intp]:
+    """Number of whitespace-separated tokens on each line of ``buf``.
+
+    Args:
+        buf: Text as bytes.
+
+    Returns:
+        One count per line (lines end at newline bytes, the last may be
+        empty); they sum to ``len(buf.split())``.
+    """
+    n_lines = buf.count(b"\n") + 1
+    if not buf:
+        return np.zeros(n_lines, dtype=np.intp)
+    b = np.frombuffer(buf, dtype=np.uint8)
+    ws = _WHITESPACE[b]
+    # A token starts at a non-blank byte that follows a blank one (or the start).
+    starts = np.flatnonzero(~ws & np.concatenate(([True], ws[:-1])))
+    newlines = np.flatnonzero(b == 10)
+    line_of_token = np.searchsorted(newlines, starts)
+    return np.bincount(line_of_token, minlength=n_lines).astype(np.intp)
+
+
+def _to_floats(
+    tokens: list[bytes], path: str | Path, line_of: NDArray[np.intp], what: str = "a number"
+) -> NDArray[np.float64]:
+    """Convert tokens to float64 in one call, naming the first bad token's line on failure.
+
+    Args:
+        tokens: The tokens, as from ``bytes.split()``.
+        path: The file, for the error message.
+        line_of: ``(len(tokens),)`` 1-based line of each token.
+        what: What a token should have been, for the error message.
+
+    Returns:
+        ``(len(tokens),)`` values (NaN and inf are kept; callers decide).
+
+    Raises:
+        MocapFormatError: If a token is not a number.
+    """
+    try:
+        return np.array(tokens, dtype=np.float64)
+    except ValueError:
+        pass
+    # Error path only: bisect for the first token numpy refuses, with numpy's
+    # own parser so the culprit is exactly the token that failed above.
+    lo, hi = 0, len(tokens)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        try:
+            np.array(tokens[lo:mid], dtype=np.float64)
+            lo = mid
+        except ValueError:
+            hi = mid
+    bad = tokens[lo].decode("utf-8", "replace")
+    raise MocapFormatError(path, int(line_of[lo]), f"expected {what}, found {bad!r}")
+
+
+def _elementary_rotations(axis: int, angles: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Rotation matrices about one coordinate axis, batched.
+
+    Args:
+        axis: 0, 1 or 2 for x, y, z.
+        angles: ``(T,)`` angles in radians (right-handed, counter-clockwise).
+
+    Returns:
+        ``(T, 3, 3)`` matrices.
+    """
+    c = np.cos(angles)
+    s = np.sin(angles)
+    out = np.zeros((*angles.shape, 3, 3))
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    out[..., axis, axis] = 1.0
+    out[..., i, i] = c
+    out[..., j, j] = c
+    out[..., i, j] = -s
+    out[..., j, i] = s
+    return out
+
+
+def _euler_matrices(
+    axes: Sequence[int], angles: NDArray[np.float64], intrinsic: bool = True
+) -> NDArray[np.float64]:
+    """Compose rotations about coordinate axes, batched over frames.
+
+    Args:
+        axes: The axis (0, 1, 2) of each rotation, in the order listed.
+        angles: ``(T, len(axes))`` angles in radians.
+        intrinsic: True for ``R_1 @ R_2 @ ...`` (BVH: each rotation about the
+            axes the previous ones produced); False for ``... @ R_2 @ R_1``
+            (Acclaim: each rotation about the fixed axes).
+
+    Returns:
+        ``(T, 3, 3)`` matrices (identity when ``axes`` is empty).
+    """
+    if not len(axes):
+        return np.broadcast_to(np.eye(3), (angles.shape[0], 3, 3)).copy()
+    mats = [_elementary_rotations(a, angles[:, k]) for k, a in enumerate(axes)]
+    if not intrinsic:
+        mats.reverse()
+    out = mats[0]
+    for m in mats[1:]:
+        out = out @ m
+    return out
+
+
+def _short(token: str | bytes, limit: int = 40) -> str:
+    """``repr`` of a token for an error message, cut to about ``limit`` characters."""
+    text = token.decode("utf-8", "replace") if isinstance(token, bytes) else token
+    return repr(text) if len(text) <= limit else repr(text[:limit]) + f"... ({len(text)} chars)"
+
+
+def _count(token: str | bytes) -> int | None:
+    """A whole number written in ASCII digits, or None when ``token`` is not one.
+
+    Args:
+        token: The text, e.g. ``"120"``; ``"²"``, ``"-1"`` and ``"1.0"`` are not counts.
+
+    Returns:
+        The value; values of more than 18 digits (above any limit) come back
+        as ``10**18`` without converting the whole text.
+    """
+    text = token.decode("ascii", "replace") if isinstance(token, bytes) else token
+    if not _COUNT.fullmatch(text):
+        return None
+    text = text.lstrip("0") or "0"
+    return 10**18 if len(text) > 18 else int(text)
