@@ -1,13 +1,14 @@
-"""The package's one compiled kernel: the cone body's forward kinematics.
+"""The package's compiled passes: the body's forward kinematics and the figures' polygons.
 
-numba compiles it because a pose's kinematics is some two hundred scalar
-operations on 25 numbers: numpy pays its per-call cost for each of them (one
-pose, as the environment's step scores, costs more in numpy calls than in
-arithmetic) and makes a temporary array per operation for many poses (the
-particles of a filter). One fused pass per pose does neither
-(``benchmarks/bench_env.py``, ``bench_vector.py``). The formulas are those
-of :mod:`humotion_gym.body`'s docstring; ``tests/test_kinematics.py`` checks
-them against a per-joint chain of rotation matrices.
+numba compiles them because each is a few hundred scalar operations per pose
+(or per cone of a frame): numpy pays its per-call cost for every one of them
+(for one pose, as the environment's step scores, more than the arithmetic)
+and makes a temporary array per operation for many. One fused pass per pose
+does neither (``benchmarks/bench_env.py``, ``bench_vector.py``,
+``bench_render.py``). The kinematics' formulas are those of
+:mod:`humotion_gym.body`'s docstring, checked against a per-joint chain of
+rotation matrices (``tests/test_kinematics.py``); the figures' against the
+cones projected one by one (``tests/test_render.py``).
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ _LIMB_CONES = ((2, 3), (4, 5), (6, 7), (8, 9))
 _LIMB_SIGNS = (1.0, 1.0, -1.0, -1.0)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _write(out: NDArray[np.float64], row: int, x: float, y: float, z: float) -> None:
     out[row, 0] = x
     out[row, 1] = y
@@ -45,12 +46,16 @@ def _write(out: NDArray[np.float64], row: int, x: float, y: float, z: float) -> 
 
 @numba.njit(cache=True, nogil=True)
 def pose_geometry(
-    params: NDArray[np.float64], shapes: NDArray[np.float64], out: NDArray[np.float64]
-) -> None:
+    params: NDArray[Any], cos: NDArray[Any], sin: NDArray[Any], shapes: NDArray[Any],
+    out: NDArray[Any],
+) -> None:  # fmt: skip
     """Keypoints and cone axes of N poses, written into ``out``.
 
     Args:
         params: ``(N, 25)`` poses (``body.PARAM_NAMES`` order).
+        cos: ``(N, 25)`` the cosines of the parameters (those of the angles,
+            columns 3 on, are read), computed by numpy over all poses at once.
+        sin: ``(N, 25)`` their sines.
         shapes: ``(1, 24)`` one shape table for every pose, or ``(N, 24)`` one
             per pose.
         out: ``(N, 35, 3)``: rows 0-14 the keypoints (``body.KEYPOINT_NAMES``
@@ -59,12 +64,10 @@ def pose_geometry(
     """
     per_pose = shapes.shape[0] > 1
     for n in range(params.shape[0]):
-        p = params[n]
+        p, pc, ps = params[n], cos[n], sin[n]
         s = shapes[n if per_pose else 0]
         # Root: R = Rz(yaw) Rx(pitch) Ry(roll), by rows.
-        cy, sy = math.cos(p[3]), math.sin(p[3])
-        cp, sp = math.cos(p[4]), math.sin(p[4])
-        cr, sr = math.cos(p[5]), math.sin(p[5])
+        cy, sy, cp, sp, cr, sr = pc[3], ps[3], pc[4], ps[4], pc[5], ps[5]
         r00, r01, r02 = cy * cr - sy * sp * sr, -sy * cp, cy * sr + sy * sp * cr
         r10, r11, r12 = sy * cr + cy * sp * sr, cy * cp, sy * sr - cy * sp * cr
         r20, r21, r22 = -cp * sr, sp, cp * cr
@@ -79,9 +82,7 @@ def pose_geometry(
         nz = r20 * s[0] + r21 * s[1] + r22 * s[2] + pz
         _write(g, 7, nx, ny, nz)
         # Neck ball joint: columns of Rx(a) Ry(b) Rz(c), rotated by the root.
-        ca, sa = math.cos(p[6]), math.sin(p[6])
-        cb, sb = math.cos(p[7]), math.sin(p[7])
-        cc, sc = math.cos(p[8]), math.sin(p[8])
+        ca, sa, cb, sb, cc, sc = pc[6], ps[6], pc[7], ps[7], pc[8], ps[8]
         ex0, ex1, ex2 = cb * cc, ca * sc + sa * sb * cc, sa * sc - ca * sb * cc
         ey0, ey1, ey2 = -cb * sc, ca * cc - sa * sb * sc, sa * cc + ca * sb * sc
         ez0, ez1, ez2 = sb, -sa * cb, ca * cb
@@ -105,14 +106,15 @@ def pose_geometry(
             r20 * ey0 + r21 * ey1 + r22 * ey2,
         )  # fmt: skip
         for i in range(4):
-            _limb(g, p, s, i, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz)
+            _limb(g, pc, ps, s, i, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _limb(
-    g: NDArray[np.float64],
-    p: NDArray[np.float64],
-    s: NDArray[np.float64],
+    g: NDArray[Any],
+    pc: NDArray[Any],
+    ps: NDArray[Any],
+    s: NDArray[Any],
     i: int,
     r00: float, r01: float, r02: float,
     r10: float, r11: float, r12: float,
@@ -130,10 +132,8 @@ def _limb(
     upper_cone, lower_cone = _LIMB_CONES[i]
     sign = _LIMB_SIGNS[i]
     j = 9 + 4 * i  # the limb's x, y, z angles and hinge
-    ca, sa = math.cos(p[j]), math.sin(p[j])
-    cb, sb = math.cos(p[j + 1]), math.sin(p[j + 1])
-    cc, sc = math.cos(p[j + 2]), math.sin(p[j + 2])
-    ck, sk = math.cos(p[j + 3]), math.sin(p[j + 3])
+    ca, sa, cb, sb = pc[j], ps[j], pc[j + 1], ps[j + 1]
+    cc, sc, ck, sk = pc[j + 2], ps[j + 2], pc[j + 3], ps[j + 3]
     lx0, ly0, lz0 = cb * cc, -cb * sc, sb
     lx1, ly1, lz1 = ca * sc + sa * sb * cc, ca * cc - sa * sb * sc, -sa * cb
     lx2, ly2, lz2 = sa * sc - ca * sb * cc, sa * cc + ca * sb * sc, ca * cb
@@ -163,15 +163,22 @@ def _limb(
     _write(g, 16 + 2 * lower_cone, ck * y0 + ssk * z0, ck * y1 + ssk * z1, ck * y2 + ssk * z2)
 
 
-def geometry(params: NDArray[Any], shapes: NDArray[np.float64]) -> NDArray[np.float64]:
-    """:func:`pose_geometry` into a new ``(N, 35, 3)`` array.
+def geometry(params: NDArray[Any], shapes: NDArray[Any], dtype: type = np.float64) -> NDArray[Any]:
+    """:func:`pose_geometry` into a new ``(N, 35, 3)`` array of ``dtype``.
+
+    The sines and cosines are numpy's, over every pose at once: in float32
+    its vectorised ones cost a fortieth of the C library's float64 ones, which
+    would be most of the kinematics' time.
 
     Args:
-        params: ``(N, 25)`` poses, C-contiguous float64.
+        params: ``(N, 25)`` poses.
         shapes: ``(1, 24)`` or ``(N, 24)`` shape tables.
+        dtype: ``np.float64`` or ``np.float32`` (a thousandth of a millimetre
+            from the float64 keypoints).
     """
-    out = np.empty((params.shape[0], GEOMETRY_ROWS, 3))
-    pose_geometry(params, shapes, out)
+    p: NDArray[Any] = np.ascontiguousarray(params, dtype=dtype)
+    out: NDArray[Any] = np.empty((p.shape[0], GEOMETRY_ROWS, 3), dtype)
+    pose_geometry(p, np.cos(p), np.sin(p), np.ascontiguousarray(shapes, dtype=dtype), out)
     return out
 
 

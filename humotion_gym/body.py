@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -507,8 +507,8 @@ def pose_geometry_of(params: ArrayLike, tables: ArrayLike) -> FloatArray:
     Returns:
         ``(N, 35, 3)`` keypoints and cone axes (see :func:`pose_geometry`).
     """
-    p = np.ascontiguousarray(_check_params(params).reshape(-1, N_PARAMS))
-    t = np.ascontiguousarray(np.asarray(tables, dtype=np.float64).reshape(-1, SHAPE_TABLE_SIZE))
+    p = _check_params(params).reshape(-1, N_PARAMS)
+    t = np.asarray(tables, dtype=np.float64).reshape(-1, SHAPE_TABLE_SIZE)
     if t.shape[0] not in (1, p.shape[0]):
         raise ValueError(
             f"pose_geometry_of: expected 1 or {p.shape[0]} shape tables, got {t.shape[0]}"
@@ -516,7 +516,7 @@ def pose_geometry_of(params: ArrayLike, tables: ArrayLike) -> FloatArray:
     return _compiled.geometry(p, t)
 
 
-def pose_geometry(params: ArrayLike, shape: BodyShape) -> FloatArray:
+def pose_geometry(params: ArrayLike, shape: BodyShape, dtype: type = np.float64) -> NDArray[Any]:
     """Keypoints and cone axes of poses, batched over any leading axes: the one kinematics.
 
     Every keypoint, cone end and cone frame of the package comes from here
@@ -525,9 +525,13 @@ def pose_geometry(params: ArrayLike, shape: BodyShape) -> FloatArray:
     Args:
         params: ``(..., 25)`` pose parameters (``PARAM_NAMES`` order).
         shape: The subject's shape.
+        dtype: ``np.float64`` (default) or ``np.float32``: everything in
+            single precision, about a thousandth of a millimetre off, for the
+            many poses of a particle filter (numpy's float32 sines and cosines
+            are vectorised, its float64 ones are not).
 
     Returns:
-        ``(..., 35, 3)`` float64 in the world frame: rows 0-14 the keypoints
+        ``(..., 35, 3)`` of ``dtype``, in the world frame: rows 0-14 the keypoints
         (``KEYPOINT_NAMES`` order), rows ``15 + 2 c`` and ``16 + 2 c`` the x
         (width) and y (depth) axes of cone ``c`` (``CONE_NAMES`` order): columns
         0 and 1 of :attr:`ConeGeometry.rotations`.
@@ -536,8 +540,7 @@ def pose_geometry(params: ArrayLike, shape: BodyShape) -> FloatArray:
         ValueError: If the last axis of ``params`` is not 25 long.
     """
     p = _check_params(params)
-    flat = np.ascontiguousarray(p.reshape(-1, N_PARAMS))
-    out = _compiled.geometry(flat, shape._table[None])
+    out = _compiled.geometry(p.reshape(-1, N_PARAMS), shape._table[None], dtype)
     return out.reshape(p.shape[:-1] + (_compiled.GEOMETRY_ROWS, 3))
 
 

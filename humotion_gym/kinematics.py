@@ -173,7 +173,7 @@ def _batch_kinematics(
         poses = _params_from_rows(work["params"][:, :n])
     else:
         poses = np.asarray(params, dtype=np.float64)
-    geometry = body.pose_geometry(poses, shape)  # (N, 35, 3)
+    geometry = body.pose_geometry(poses, shape, dtype)  # (N, 35, 3)
     component_major = geometry.transpose(2, 1, 0)  # (3, 35, N)
     if work is None or "keypoints" not in work:
         kp: NDArray = np.empty((3, N_KEYPOINTS, n), dtype)
@@ -182,7 +182,7 @@ def _batch_kinematics(
     np.copyto(kp, component_major[:, _INTERNAL_ORDER], casting="unsafe")
 
     def axis(row: int) -> tuple:
-        values = component_major[:, row].astype(dtype)
+        values = component_major[:, row]
         return (values[0], values[1], values[2])
 
     torso = N_KEYPOINTS + 2 * _TORSO
@@ -208,7 +208,7 @@ def fast_forward_kinematics(
     p = np.asarray(params, dtype=np.float64)
     if p.ndim < 1 or p.shape[-1] != N_PARAMS:
         raise ValueError(f"fast_forward_kinematics: expected (..., 25) poses, got {p.shape}")
-    return body.forward_kinematics(p, shape).astype(dtype, copy=False)
+    return body.pose_geometry(p, shape, dtype)[..., :N_KEYPOINTS, :]
 
 
 def fast_cone_axes(params: ArrayLike, shape: BodyShape) -> tuple[FloatArray, FloatArray]:
