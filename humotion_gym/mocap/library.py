@@ -27,8 +27,6 @@ import dataclasses
 import hashlib
 import os
 import re
-import threading
-import uuid
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -38,6 +36,14 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from humotion_gym.body import KEYPOINT_INDEX as _K
+from humotion_gym.mocap._cache_files import (  # CacheWarning: re-exported, part of the API
+    CACHE_ERRORS,
+    CacheWarning,  # noqa: F401
+    cache_entry_path,
+    package_version,
+    report_cache_problem,
+    write_atomically,
+)
 from humotion_gym.mocap.cmu import (
     CMU_TEST_PERSONS,
     cmu_description,
@@ -47,7 +53,7 @@ from humotion_gym.mocap.cmu import (
     cmu_test_subjects,
 )
 from humotion_gym.mocap.labels import activity_label
-from humotion_gym.mocap.motion import READ_ERRORS, Motion
+from humotion_gym.mocap.motion import Motion
 
 #: Version of the cached clip format and retargeting; bump to invalidate caches.
 #: 2: rigs matched by :func:`humotion_gym.mocap.rigmap.match_rig`, leading T-pose dropped.
@@ -338,79 +344,6 @@ def find_clips(paths: Iterable[str | Path]) -> list[ClipSource]:
 
 class DuplicateTrialWarning(UserWarning):
     """A trial is in a folder twice, as ASF/AMC and as BVH; the AMC is used."""
-
-
-class CacheWarning(UserWarning):
-    """A cache entry was unreadable, inconsistent or foreign, or could not be written.
-
-    Raised through :func:`warnings.warn` once per damaged entry, naming the
-    file and what was wrong; the entry is rebuilt and overwritten, so loading
-    carries on. Filter it like any warning (``warnings.simplefilter("error",
-    CacheWarning)`` turns it into an exception, ``pytest.warns`` catches it).
-    """
-
-
-#: What reading or writing a cache entry can raise (the same as reading a saved clip).
-CACHE_ERRORS: tuple[type[BaseException], ...] = READ_ERRORS
-
-
-def package_version() -> str:
-    """The installed humotion_gym's version (``humotion_gym.__version__``), part of cache keys."""
-    from humotion_gym._version import __version__
-
-    return __version__
-
-
-def report_cache_problem(path: Path, problem: str) -> None:
-    """Report a cache entry that is being rebuilt: one :class:`CacheWarning` naming it."""
-    warnings.warn(f"humotion_gym cache: {path}: {problem}", CacheWarning, stacklevel=3)
-
-
-def cache_entry_path(folder: Path, stem: str) -> tuple[Path | None, str | None]:
-    """Where the cache entry ``stem`` lives in ``folder``, and what blocked its natural name.
-
-    The natural name is ``folder/stem.npz``. A stray empty directory there is
-    removed; a non-empty one is left alone and the entry moves to
-    ``stem.1.npz`` (``stem.2.npz``... if those are directories too).
-
-    Returns:
-        The file to read and write (None when no name is free), and a line to
-        report if the entry must be rebuilt (None when the natural name was free).
-    """
-    path = folder / f"{stem}.npz"
-    if not path.is_dir():
-        return path, None
-    try:
-        path.rmdir()
-    except OSError:
-        pass
-    else:
-        return path, "a stray empty directory stood at the entry's path; removed it"
-    for i in range(1, 10):
-        alt = folder / f"{stem}.{i}.npz"
-        if not alt.is_dir():
-            return alt, f"a non-empty directory stands at {path.name}; using {alt.name}"
-    return None, f"directories stand at {path.name} and its alternatives; not caching it"
-
-
-def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
-    """Write a file through ``write(temporary path)`` then rename it onto ``path``.
-
-    The temporary file lies in the same folder with a name unique to the
-    process, the thread and the call, so concurrent writers never share one
-    and a reader never sees half a file. It is removed if writing fails.
-
-    Raises:
-        OSError: If the folder cannot be made or the file written.
-    """
-    path.parent.mkdir(parents=True, exist_ok=True)
-    token = f"{os.getpid()}.{threading.get_ident()}.{uuid.uuid4().hex[:12]}"
-    tmp = path.with_name(f".{path.name}.{token}.tmp")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def _cache_key(src: ClipSource, fps: float | None) -> str:

@@ -1,0 +1,90 @@
+"""Files of the on-disk cache: atomic writes, entry paths, problems reported once.
+
+Used for parsed clips (:func:`humotion_gym.mocap.library.load_library`) and
+fitted priors; everything here is re-exported by
+:mod:`humotion_gym.mocap.library`.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import uuid
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+
+from humotion_gym.mocap.motion import READ_ERRORS
+
+
+class CacheWarning(UserWarning):
+    """A cache entry was unreadable, inconsistent or foreign, or could not be written.
+
+    Raised through :func:`warnings.warn` once per damaged entry, naming the
+    file and what was wrong; the entry is rebuilt and overwritten, so loading
+    carries on. Filter it like any warning (``warnings.simplefilter("error",
+    CacheWarning)`` turns it into an exception, ``pytest.warns`` catches it).
+    """
+
+
+#: What reading or writing a cache entry can raise (the same as reading a saved clip).
+CACHE_ERRORS: tuple[type[BaseException], ...] = READ_ERRORS
+
+
+def package_version() -> str:
+    """The installed humotion_gym's version (``humotion_gym.__version__``), part of cache keys."""
+    from humotion_gym._version import __version__
+
+    return __version__
+
+
+def report_cache_problem(path: Path, problem: str) -> None:
+    """Report a cache entry that is being rebuilt: one :class:`CacheWarning` naming it."""
+    warnings.warn(f"humotion_gym cache: {path}: {problem}", CacheWarning, stacklevel=3)
+
+
+def cache_entry_path(folder: Path, stem: str) -> tuple[Path | None, str | None]:
+    """Where the cache entry ``stem`` lives in ``folder``, and what blocked its natural name.
+
+    The natural name is ``folder/stem.npz``. A stray empty directory there is
+    removed; a non-empty one is left alone and the entry moves to
+    ``stem.1.npz`` (``stem.2.npz``... if those are directories too).
+
+    Returns:
+        The file to read and write (None when no name is free), and a line to
+        report if the entry must be rebuilt (None when the natural name was free).
+    """
+    path = folder / f"{stem}.npz"
+    if not path.is_dir():
+        return path, None
+    try:
+        path.rmdir()
+    except OSError:
+        pass
+    else:
+        return path, "a stray empty directory stood at the entry's path; removed it"
+    for i in range(1, 10):
+        alt = folder / f"{stem}.{i}.npz"
+        if not alt.is_dir():
+            return alt, f"a non-empty directory stands at {path.name}; using {alt.name}"
+    return None, f"directories stand at {path.name} and its alternatives; not caching it"
+
+
+def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
+    """Write a file through ``write(temporary path)`` then rename it onto ``path``.
+
+    The temporary file lies in the same folder with a name unique to the
+    process, the thread and the call, so concurrent writers never share one
+    and a reader never sees half a file. It is removed if writing fails.
+
+    Raises:
+        OSError: If the folder cannot be made or the file written.
+    """
+    path.parent.mkdir(parents=True, exist_ok=True)
+    token = f"{os.getpid()}.{threading.get_ident()}.{uuid.uuid4().hex[:12]}"
+    tmp = path.with_name(f".{path.name}.{token}.tmp")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
