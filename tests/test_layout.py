@@ -75,6 +75,7 @@ def test_every_command_opens_with_a_sentence_and_gives_one_example():
     for command, parser in _subparsers(build_parser()):
         if not command:
             continue
+        assert parser.prog == f"humotion-gym {command}", parser.prog
         text = parser.description or ""
         if not (text[:1].isupper() and "." in text.split("\n\n")[0]):
             bad.append(f"{command}: help does not open with a sentence")

@@ -91,13 +91,21 @@ def _add_variant_args(p: argparse.ArgumentParser) -> None:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``slds classify|select|splits|interpolate|figures``."""
-    from baselines.experiments import pavlovic1999 as pav
-
     p = add_command(
         subparsers, "slds", "switching linear dynamic system experiments (Pavlovic et al. 1999)",
         "humotion-gym slds figures --data-dir ../shared/mocap --out-dir slds_figures",
     )  # fmt: skip
     sub = p.add_subparsers(dest="slds_command", required=True, metavar="COMMAND")
+    _register_classify(sub)
+    _register_select(sub)
+    _register_splits(sub)
+    _register_interpolate(sub)
+    _register_figures(sub)
+
+
+def _register_classify(sub: argparse._SubParsersAction) -> None:
+    """Add ``slds classify``."""
+    from baselines.experiments import pavlovic1999 as pav
 
     c = add_command(
         sub, "classify", "walk/run classification (section 4.1, Fig. 3)",
@@ -130,6 +138,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     _add_variant_args(c)
     _add_model_args(c)
     c.set_defaults(func=_cmd_classify)
+
+
+def _register_select(sub: argparse._SubParsersAction) -> None:
+    """Add ``slds select``."""
+    from baselines.experiments import pavlovic1999 as pav
 
     sel = add_command(
         sub, "select", "choose the classifier's settings by cross-validation on the train split",
@@ -176,6 +189,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_json(sel)
     sel.set_defaults(func=_cmd_select, max_train_clips=None)
 
+
+def _register_splits(sub: argparse._SubParsersAction) -> None:
+    """Add ``slds splits``."""
+    from baselines.experiments import pavlovic1999 as pav
+
     spl = add_command(
         sub, "splits", "classification error per held-out style and per held-out person",
         "humotion-gym slds splits --data-dir ../shared/mocap --training-persons",
@@ -213,6 +231,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_json(spl)
     spl.set_defaults(func=_cmd_splits)
 
+
+def _register_interpolate(sub: argparse._SubParsersAction) -> None:
+    """Add ``slds interpolate``."""
     i = add_command(
         sub, "interpolate", "fill a gap of held-out walking (Fig. 6)",
         "humotion-gym slds interpolate --data-dir ../shared/mocap --label walk",
@@ -222,6 +243,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     _add_model_args(i)
     i.set_defaults(func=_cmd_interpolate)
 
+
+def _register_figures(sub: argparse._SubParsersAction) -> None:
+    """Add ``slds figures``."""
     f = add_command(
         sub, "figures", "Figs. 3, 5 and 6 on walk/run data; prints a JSON summary",
         "humotion-gym slds figures --data-dir ../shared/mocap --out-dir slds_figures",

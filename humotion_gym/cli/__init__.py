@@ -108,7 +108,6 @@ def build_parser(modules: Sequence[str] = COMMAND_MODULES) -> argparse.ArgumentP
 
     parser = OneLineParser(
         prog="humotion-gym",
-        usage="humotion-gym [-h] [--version] COMMAND ...",
         description=textwrap.fill(
             "Gymnasium environments for monocular 3D human pose tracking, and the trackers "
             "that score on them. Exit codes: 0 success, 1 runtime error, 2 usage error (each "
@@ -122,6 +121,8 @@ def build_parser(modules: Sequence[str] = COMMAND_MODULES) -> argparse.ArgumentP
     sub = parser.add_subparsers(
         dest="command", required=True, metavar="COMMAND", help=argparse.SUPPRESS
     )
+    # set after add_subparsers, which builds the commands' prog from the usage
+    parser.usage = "humotion-gym [-h] [--version] COMMAND ..."
     for name in modules:
         importlib.import_module(name).register(sub)
     parser.epilog = _grouped_listing(sub)
