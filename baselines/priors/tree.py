@@ -76,8 +76,8 @@ What the tree approximates (derived): following the signs of
     where the database is denser on one side of a split (the tree follows the
     probe, eq. 3 also follows the data). With ``leaf="weighted"`` the choice
     within a leaf is exactly eq. 3's, so the whole difference is in the leaves'
-    masses; :func:`tree_probabilities` gives the tree's exact distribution over
-    windows and the tests bound its total-variation distance from eq. 3. For
+    masses; the tests enumerate the tree's exact distribution over windows
+    and bound its total-variation distance from eq. 3. For
     coefficients spread as ``N(0, sigma^2)`` eq. 3 takes the ``+`` side of a
     split with probability ``Phi(c_t,l / (sqrt(beta) sigma_l sqrt(1 + beta)))``,
     so at ``beta = 1`` the tree is more decisive at every level, and the
@@ -101,11 +101,11 @@ Transition: the chosen window's following state plus Gaussian noise,
     database's poses. Each particle carries its last ``d + 1`` poses in
     ``ParticleState.extra["history"]`` (``(N, d + 1, D)``, the last row its
     current pose, single precision) and the window it followed in
-    ``extra["window"]``, so resampling is one fancy index. Everything is
-    vectorised over particles: one matrix product for the coefficients, a
-    descent through the ``b`` tree levels eight at a time by lookup tables
-    made once per tree, then the leaf; ``O(log n)`` per particle plus the
-    leaf.
+    ``extra["window"]``, so resampling is one fancy index. The coefficients
+    are one matrix product over the particles; the descent (``O(log n)`` per
+    particle), the choice in the leaf and the replay are sequential per
+    particle and compiled (:mod:`baselines.priors._tree_compiled`, where eq. 3
+    and eq. 7 are written once each).
 
 Walking speed (beyond the paper): the database walks at its actors' speeds,
     so a subject who walks faster or slower is given the database's speed,
