@@ -119,7 +119,7 @@ def descend(
         for p in range(n):
             c, e = coefficients[p, level], rng.standard_normal()
             # want_log as a constant in each call: the draws' loop stays free
-            # of the log's code (about 3x faster at 3,000 probes).
+            # of the log's code, which would otherwise slow every draw.
             if want_log_prob:
                 plus, log_p[level, p] = _eq7_branch(c, sigma[level], beta, e, True)
             else:
