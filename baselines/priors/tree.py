@@ -299,8 +299,7 @@ def _initial_histories(
         ix, iy = _root_xy(lay)
         anchored[..., ix] *= speed[:, None]  # anchored: zero at the last frame
         anchored[..., iy] *= speed[:, None]
-    placed = np.broadcast_to(pose, (chosen.size, pose.size))
-    return _place(anchored, placed, lay).astype(HISTORY_DTYPE)
+    return _place(anchored, pose, lay).astype(HISTORY_DTYPE)  # one pose for all
 
 
 def _has_speed(fitted: TreeParams, lay: _Layout) -> bool:
