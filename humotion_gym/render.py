@@ -183,11 +183,6 @@ class FigureSequence:
         """Per frame, how many cones are drawn."""
         return [len(cones) for cones in self.order]
 
-    @functools.cached_property
-    def color_lists(self) -> list:
-        """:attr:`colors` as nested lists of ints, the colours OpenCV is given."""
-        return self.colors.tolist()
-
 
 def figure_sequence(
     params: ArrayLike,
@@ -341,7 +336,7 @@ def _draw_figure(img: NDArray[np.uint8], figures: FigureSequence, t: int) -> Non
     Each cone's silhouette is filled in the cap's colour with its strips over
     it (a wide cone) or in the flat shade.
     """
-    colors_l = figures.color_lists[t]
+    colors_l = figures.colors[t].tolist()  # lists of ints, for OpenCV
     ellipses, quads, wide = figures.ellipses[t], figures.quads[t], figures.wide[t]
     # Local names: this loop runs some twenty OpenCV calls per frame, and the
     # attribute look-ups would be a tenth of its Python time.
