@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -51,6 +51,55 @@ def write_bvh(
             a value is not finite, or ``frame_time`` is not positive.
     """
     names = [str(n) for n in names]
+    par, off, vals, widths, ends = _checked(
+        names, parents, offsets, channels, values, frame_time, end_sites
+    )
+
+    def fmt(x: float) -> str:
+        return repr(float(x)) if decimals is None else f"{x:.{decimals}f}"
+
+    out, order = _hierarchy_lines(names, par, off, channels, ends, fmt)
+    starts = np.concatenate(([0], np.cumsum(widths))).astype(np.intp)
+    cols = np.concatenate([np.arange(starts[j], starts[j + 1]) for j in order] + [[]]).astype(
+        np.intp
+    )
+    out.append("MOTION")
+    out.append(f"Frames: {vals.shape[0]}")
+    out.append(f"Frame Time: {fmt(frame_time) if decimals is None else repr(float(frame_time))}")
+    if decimals is None:
+        # str() of a Python float is its shortest exact text (the repr).
+        rows = (" ".join(map(str, row)) for row in vals[:, cols].tolist())
+    else:
+        rows = (" ".join(f"{v:.{decimals}f}" for v in row) for row in vals[:, cols].tolist())
+    text = "\n".join(out) + "\n"
+    with open(path, "w", encoding="utf-8", newline="\n") as fh:
+        fh.write(text)
+        for row in rows:
+            fh.write(row)
+            fh.write("\n")
+
+
+def _checked(
+    names: list[str],
+    parents: ArrayLike,
+    offsets: ArrayLike,
+    channels: Sequence[Sequence[str]],
+    values: ArrayLike,
+    frame_time: float,
+    end_sites: Mapping[int, ArrayLike] | None,
+) -> tuple[
+    NDArray[np.intp],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    list[int],
+    dict[int, NDArray[np.float64]],
+]:
+    """:func:`write_bvh`'s arguments as arrays: parents, offsets, values, widths, end sites.
+
+    Raises:
+        ValueError: As :func:`write_bvh` documents.
+    """
+    names = [str(n) for n in names]
     n_j = len(names)
     par = np.asarray(parents, dtype=np.intp).reshape(-1)
     off = np.asarray(offsets, dtype=np.float64)
@@ -86,6 +135,23 @@ def write_bvh(
             raise ValueError(f"write_bvh: bad end site for joint {j!r}")
         ends[int(j)] = arr
 
+    return par, off, vals, widths, ends
+
+
+def _hierarchy_lines(
+    names: list[str],
+    par: NDArray[np.intp],
+    off: NDArray[np.float64],
+    channels: Sequence[Sequence[str]],
+    ends: dict[int, NDArray[np.float64]],
+    fmt: Callable[[float], str],
+) -> tuple[list[str], list[int]]:
+    """The ``HIERARCHY`` lines, depth first, and the joints in the order written.
+
+    Raises:
+        ValueError: If a parent is out of range or the parents hold a cycle.
+    """
+    n_j = len(names)
     children: list[list[int]] = [[] for _ in range(n_j)]
     roots = []
     for j, p in enumerate(par):
@@ -95,9 +161,6 @@ def write_bvh(
             raise ValueError(f"write_bvh: parent {p} of joint {names[j]!r} is out of range")
         else:
             children[p].append(j)
-
-    def fmt(x: float) -> str:
-        return repr(float(x)) if decimals is None else f"{x:.{decimals}f}"
 
     out: list[str] = ["HIERARCHY"]
     order: list[int] = []
@@ -124,21 +187,4 @@ def write_bvh(
         emit(r, 0)
     if len(order) != n_j:
         raise ValueError("write_bvh: the parents hold a cycle (some joints reach no root)")
-    starts = np.concatenate(([0], np.cumsum(widths))).astype(np.intp)
-    cols = np.concatenate([np.arange(starts[j], starts[j + 1]) for j in order] + [[]]).astype(
-        np.intp
-    )
-    out.append("MOTION")
-    out.append(f"Frames: {vals.shape[0]}")
-    out.append(f"Frame Time: {fmt(frame_time) if decimals is None else repr(float(frame_time))}")
-    if decimals is None:
-        # str() of a Python float is its shortest exact text (the repr).
-        rows = (" ".join(map(str, row)) for row in vals[:, cols].tolist())
-    else:
-        rows = (" ".join(f"{v:.{decimals}f}" for v in row) for row in vals[:, cols].tolist())
-    text = "\n".join(out) + "\n"
-    with open(path, "w", encoding="utf-8", newline="\n") as fh:
-        fh.write(text)
-        for row in rows:
-            fh.write(row)
-            fh.write("\n")
+    return out, order
