@@ -518,43 +518,63 @@ def download_cmu(
     out: list[Path] = []
     try:
         for code in codes:
-            subject_url = _subject_url(base_url, code)
-            try:
-                path, _ = _download_one(
-                    subject_url + f"{code}.asf", dest, f"{code}/{code}.asf", manifest, **opts
-                )
-            except DownloadError as e:
-                if e.status == 404:
-                    raise DownloadError(
-                        e.url, f"CMU subject {int(code)} not found (HTTP 404)", status=404
-                    ) from None
-                raise
-            out.append(path)
-            listing_deadline = run_deadline
-            if file_deadline_s < run_deadline.left():
-                listing_deadline = _Deadline(
-                    time.monotonic() + file_deadline_s,
-                    f"the per-file deadline of {file_deadline_s:g} s "
-                    "(file_deadline_s=, --file-deadline)",
-                )
-            trials = _read_listing(
-                subject_url, code, timeout, listing_deadline, max_listing_bytes, max_listing_entries
+            out += _download_subject(
+                code, base_url, dest, manifest, opts, max_listing_bytes, max_listing_entries
             )
-            if trials:
-                for t in trials:
-                    name = f"{code}_{t:02d}.amc"
-                    path, _ = _download_one(
-                        subject_url + name, dest, f"{code}/{name}", manifest, **opts
-                    )
-                    out.append(path)
-            else:
-                out.extend(_probe_trials(code, subject_url, dest, manifest, opts))
             _label_entries(manifest, code)
             # Saved per subject (not per file) to keep rewrites of a large
             # manifest cheap; the finally below covers an interruption.
             _write_manifest(dest, manifest)
     finally:
         _write_manifest(dest, manifest)
+    return out
+
+
+def _download_subject(
+    code: str,
+    base_url: str,
+    dest: Path,
+    manifest: dict[str, dict[str, Any]],
+    opts: dict[str, Any],
+    max_listing_bytes: int,
+    max_listing_entries: int,
+) -> list[Path]:
+    """One subject's skeleton and trials (from its listing, else probed) into ``dest``.
+
+    Raises:
+        DownloadError: As :func:`download_cmu` documents (a missing subject is a 404).
+    """
+    timeout, file_deadline_s = opts["timeout"], opts["file_deadline_s"]
+    run_deadline: _Deadline = opts["run_deadline"]
+    out: list[Path] = []
+    subject_url = _subject_url(base_url, code)
+    try:
+        path, _ = _download_one(
+            subject_url + f"{code}.asf", dest, f"{code}/{code}.asf", manifest, **opts
+        )
+    except DownloadError as e:
+        if e.status == 404:
+            raise DownloadError(
+                e.url, f"CMU subject {int(code)} not found (HTTP 404)", status=404
+            ) from None
+        raise
+    out.append(path)
+    listing_deadline = run_deadline
+    if file_deadline_s < run_deadline.left():
+        listing_deadline = _Deadline(
+            time.monotonic() + file_deadline_s,
+            f"the per-file deadline of {file_deadline_s:g} s (file_deadline_s=, --file-deadline)",
+        )
+    trials = _read_listing(
+        subject_url, code, timeout, listing_deadline, max_listing_bytes, max_listing_entries
+    )
+    if trials:
+        for t in trials:
+            name = f"{code}_{t:02d}.amc"
+            path, _ = _download_one(subject_url + name, dest, f"{code}/{name}", manifest, **opts)
+            out.append(path)
+    else:
+        out.extend(_probe_trials(code, subject_url, dest, manifest, opts))
     return out
 
 
