@@ -48,21 +48,23 @@ def steps_per_second(env: gym.Env, steps: int, render: bool = False) -> float:
 
 
 def paired_rates(
-    measured: Callable[[], None], n: int, reference: Callable[[], None], n_ref: int, rounds: int = 5
-) -> tuple[float, float]:
-    """Calls per second of ``measured`` and ``reference``, timed in alternation.
+    measured: Callable[[], None], n: int, reference: Callable[[], None], n_ref: int, rounds: int = 7
+) -> tuple[float, float, float]:
+    """Calls per second of ``measured`` and ``reference``, timed in alternation, and their ratio.
 
     Each round times ``n`` calls of one, then ``n_ref`` of the other; the best
-    round of each counts. On a shared machine the two then see the same load,
+    round of each gives the rates, the median over rounds of the two rounds'
+    ratio the ratio. On a shared machine the two then see the same load,
     which one reference timed once at the start would not.
     """
     measured()
     reference()
-    best, best_ref = float("inf"), float("inf")
+    times, ref_times = [], []
     for _ in range(rounds):
-        best = min(best, best_of(measured, n, repeats=1, warmup=False))
-        best_ref = min(best_ref, best_of(reference, n_ref, repeats=1, warmup=False))
-    return 1.0 / best, 1.0 / best_ref
+        times.append(best_of(measured, n, repeats=1, warmup=False))
+        ref_times.append(best_of(reference, n_ref, repeats=1, warmup=False))
+    ratio = float(np.median(np.array(ref_times) / np.array(times)))
+    return 1.0 / min(times), 1.0 / min(ref_times), ratio
 
 
 ENV_IDS = ("humotion_gym/ArmTrack-v1", "humotion_gym/BodyTrack-v1", "humotion_gym/WalkTrack-v1",
@@ -93,18 +95,18 @@ def rows(quick: bool = False) -> list[tuple[str, float, str, float]]:
             ).unwrapped
             label = f"{env_id.split('/')[-1]} {size}x{size}"
             for render in (False, True):
-                sps, ref = paired_rates(stepper(env, render), 600, cart, 100)
+                sps, ref, ratio = paired_rates(stepper(env, render), 600, cart, 100)
                 refs.append(ref)
                 what = "step + render()" if render else "step"
-                out.append((f"{label} {what}", sps, ref_name, sps / ref))
+                out.append((f"{label} {what}", sps, ref_name, ratio))
             if size == 128:
                 # Starting an episode (clip, background, cameras, figures, first
                 # frame): what an env pays per episode, and what bounds the
                 # vector env where episodes end after a few frames.
                 env.reset(seed=0)
-                rps, ref = paired_rates(env.reset, 100, cart, 100)
+                rps, ref, ratio = paired_rates(env.reset, 100, cart, 100)
                 refs.append(ref)
-                out.append((f"{label} reset()", rps, ref_name, rps / ref))
+                out.append((f"{label} reset()", rps, ref_name, ratio))
     out.insert(0, (ref_name, max(refs), ref_name, 1.0))
     return out
 
