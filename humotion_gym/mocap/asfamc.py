@@ -60,8 +60,6 @@ parsing (an unreadable file still raises :class:`OSError`).
 
 from __future__ import annotations
 
-import itertools
-import operator
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -71,13 +69,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from humotion_gym.errors import MocapFormatError
+from humotion_gym.mocap._amc_frames import AmcLimits, OnNan, _amc_general, _amc_regular
 from humotion_gym.mocap._asf_reader import AsfLimits, _AsfReader, _topological
 from humotion_gym.mocap._scan import (
-    _count,
     _euler_matrices,
     _line_token_counts,
-    _short,
-    _to_floats,
 )
 from humotion_gym.mocap.bvh import MAX_NAME_LENGTH  # one bound on names for both formats
 from humotion_gym.mocap.skeleton import select_points
@@ -126,7 +122,6 @@ MAX_ABS_VALUE: float = 1e9
 # The frame rates ``load_amc`` accepts (the BVH reader's frame-time range).
 _MIN_FPS, _MAX_FPS = 1.0, 1e4
 
-OnNan = Literal["mask", "raise"]
 
 _AXIS = {"x": 0, "y": 1, "z": 2}
 
@@ -381,283 +376,6 @@ def load_asf(path: str | Path) -> AsfSkeleton:
 # --------------------------------------------------------------------------
 
 
-def _frame_span_problem(
-    numbers: NDArray[np.int64], n_points: int, max_frames: int
-) -> tuple[int, str] | None:
-    """Check increasing AMC frame numbers against the limits before any allocation.
-
-    Args:
-        numbers: ``(N,)`` the frame numbers, in file order (N >= 1).
-        n_points: Points of the skeleton (root and bones).
-        max_frames: The most frames from the first number to the last.
-
-    Returns:
-        None when they pass, else the index of the frame at fault and what was
-        expected there.
-    """
-    steps = np.diff(numbers)
-    down = np.flatnonzero(steps <= 0)
-    if len(down):
-        k = int(down[0]) + 1
-        return k, f"expected a frame number above {numbers[k - 1]}, found {numbers[k]}"
-    gaps = np.flatnonzero(steps > MAX_FRAME_GAP + 1)
-    if len(gaps):
-        k = int(gaps[0]) + 1
-        return k, (
-            f"expected a frame number at most {numbers[k - 1] + MAX_FRAME_GAP + 1} after "
-            f"{numbers[k - 1]} (at most {MAX_FRAME_GAP} skipped; raise "
-            f"humotion_gym.mocap.asfamc.MAX_FRAME_GAP for such a file), found {numbers[k]}"
-        )
-    span = numbers - numbers[0] + 1
-    over = np.flatnonzero(span > max_frames)
-    if len(over):
-        k = int(over[0])
-        return k, (
-            f"expected at most {max_frames} frames from frame number {numbers[0]}, found "
-            f"frame number {numbers[k]} (pass max_frames= or raise "
-            "humotion_gym.mocap.asfamc.MAX_FRAMES for such a file)"
-        )
-    bound = FRAME_SPAN_FACTOR * len(numbers) + MAX_FRAME_GAP
-    if span[-1] > bound:
-        return len(numbers) - 1, (
-            f"expected frame numbers spanning at most {bound} frames ({FRAME_SPAN_FACTOR} "
-            f"per frame present, {len(numbers)} present, plus {MAX_FRAME_GAP}), found "
-            f"{numbers[0]} to {numbers[-1]} (raise humotion_gym.mocap.asfamc."
-            "FRAME_SPAN_FACTOR for such a file)"
-        )
-    if int(span[-1]) * n_points > MAX_FRAME_POINTS:
-        return len(numbers) - 1, (
-            f"expected at most {MAX_FRAME_POINTS} frames times points, found {span[-1]} "
-            f"frames of {n_points} points (raise humotion_gym.mocap.asfamc.MAX_FRAME_POINTS "
-            "for such a file)"
-        )
-    return None
-
-
-def _out_of_range(values: NDArray[np.float64]) -> NDArray[np.intp]:
-    """Indices of the finite values beyond :data:`MAX_ABS_VALUE`."""
-    with np.errstate(invalid="ignore"):
-        big = np.abs(values) > MAX_ABS_VALUE
-    return np.flatnonzero(big & np.isfinite(values))
-
-
-def _amc_regular(
-    sk: AsfSkeleton,
-    widths: NDArray[np.intp],
-    counts: NDArray[np.intp],
-    tokens: list[bytes],
-    on_nan: OnNan,
-    max_frames: int,
-) -> tuple[NDArray[np.float64], NDArray[np.int64]] | None:
-    """Fast path for files whose every frame has the same lines in the same order.
-
-    CMU's files do; then every name and frame number sits at a fixed stride in
-    the token list, so whole columns are checked by list slicing. Returns None
-    at the least irregularity (or any error), leaving :func:`_amc_general` to
-    read the file and name the line at fault.
-
-    Returns:
-        The ``(T, C)`` channels and the ``(frames,)`` frame numbers, or None.
-    """
-    c_used = counts[counts > 0]
-    if not len(c_used) or c_used[0] != 1:
-        return None
-    n_lines = 1
-    while n_lines < len(c_used) and c_used[n_lines] != 1:
-        n_lines += 1
-    if len(c_used) % n_lines:
-        return None
-    n_t = len(c_used) // n_lines
-    pattern = c_used[:n_lines]
-    if not (c_used.reshape(n_t, n_lines) == pattern).all():
-        return None
-    stride = int(pattern.sum())
-    offs = (np.cumsum(pattern) - pattern).tolist()  # token offset of each line in a frame
-    point_of = {n.encode(): i for i, n in enumerate(sk.point_names)}
-    points = [point_of.get(tokens[o], -1) for o in offs[1:]]
-    if min(points, default=0) < 0 or len(set(points)) != len(points):
-        return None
-    if (pattern[1:] != widths[points] + 1).any():
-        return None
-    for o in offs[1:]:
-        if tokens[o::stride] != [tokens[o]] * n_t:
-            return None
-    frame_tokens = tokens[0::stride]
-    if not all(map(bytes.isdigit, frame_tokens)) or max(map(len, frame_tokens)) > 16:
-        return None
-    numbers = np.array(list(map(int, frame_tokens)), dtype=np.int64)
-    if numbers.max() > MAX_FRAME_NUMBER:
-        return None
-    if _frame_span_problem(numbers, len(sk.point_names), max_frames) is not None:
-        return None
-    is_value = np.ones(stride, dtype=bool)
-    is_value[offs] = False
-    index = np.flatnonzero(np.tile(is_value, n_t)).tolist()
-    if len(index) < 2:
-        return None
-    try:
-        values = np.array(operator.itemgetter(*index)(tokens), dtype=np.float64)
-    except ValueError:
-        return None
-    if on_nan == "raise" and not np.isfinite(values).all():
-        return None
-    if len(_out_of_range(values)):
-        return None
-    col0 = np.concatenate(([0], np.cumsum(widths)[:-1])).astype(np.intp)
-    cols = np.concatenate([col0[p] + np.arange(widths[p]) for p in points])
-    channels = np.full((int(numbers[-1] - numbers[0]) + 1, int(widths.sum())), np.nan)
-    channels[(numbers - numbers[0])[:, None], cols[None, :]] = values.reshape(n_t, len(cols))
-    return channels, numbers
-
-
-def _amc_general(
-    spath: str,
-    sk: AsfSkeleton,
-    widths: NDArray[np.intp],
-    counts: NDArray[np.intp],
-    tokens: list[bytes],
-    first: int,
-    on_nan: OnNan,
-    max_frames: int,
-) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Read frames of any layout (bones in any order, some missing), checking everything.
-
-    Args:
-        spath: The file, for errors.
-        sk: The skeleton.
-        widths: ``(1 + B,)`` values per line of the root and each bone.
-        counts: Tokens on each body line.
-        tokens: The body's tokens.
-        first: The file line of the body's first line.
-        on_nan: As :func:`load_amc`.
-        max_frames: As :func:`load_amc`.
-
-    Returns:
-        The ``(T, C)`` channels (NaN where nothing was read) and the frame numbers.
-
-    Raises:
-        MocapFormatError: As :func:`load_amc`.
-    """
-    n_tok = len(tokens)
-    line_start = np.cumsum(counts) - counts
-    used = np.flatnonzero(counts)
-    # map() over C-level callables: per line, but without a Python frame per line.
-    firsts: list[bytes] = list(map(tokens.__getitem__, line_start[used].tolist()))
-    is_frame = (counts[used] == 1) & np.fromiter(map(bytes.isdigit, firsts), bool, len(firsts))
-    is_comment = np.fromiter(
-        map(operator.methodcaller("startswith", b"#"), firsts), bool, len(firsts)
-    )
-    is_bone = ~is_frame & ~is_comment
-    bone_lines = used[is_bone]
-    frame_lines = used[is_frame]
-    if not len(frame_lines):
-        raise MocapFormatError(spath, first + int(used[0]), "expected a frame number")
-    if len(bone_lines) and bone_lines[0] < frame_lines[0]:
-        raise MocapFormatError(
-            spath, first + int(bone_lines[0]), "expected a frame number before the bone lines"
-        )
-
-    # Which point each bone line is for, and that its value count fits the dof.
-    point_of = {n.encode(): i for i, n in enumerate(sk.point_names)}
-    col0 = np.concatenate(([0], np.cumsum(widths)[:-1])).astype(np.intp)
-    bone_names_b = list(itertools.compress(firsts, is_bone))
-    point = np.fromiter(
-        map(point_of.get, bone_names_b, itertools.repeat(-1)), np.intp, len(bone_names_b)
-    )
-    unknown = np.flatnonzero(point < 0)
-    if len(unknown):
-        k = int(unknown[0])
-        raise MocapFormatError(
-            spath,
-            first + int(bone_lines[k]),
-            f"bone {bone_names_b[k].decode('utf-8', 'replace')!r} is not defined in the "
-            f"skeleton {sk.path}",
-        )
-    got = counts[bone_lines] - 1
-    want = widths[point]
-    wrong = np.flatnonzero(got != want)
-    if len(wrong):
-        k = int(wrong[0])
-        pname = sk.point_names[point[k]]
-        dof = sk.root_order if point[k] == 0 else sk.dofs[point[k] - 1]
-        raise MocapFormatError(
-            spath,
-            first + int(bone_lines[k]),
-            f"expected {want[k]} values for {pname!r} (dof {' '.join(dof) or 'none'}), "
-            f"found {got[k]}",
-        )
-
-    # Frame numbers: increasing, small gaps (they become invalid frames), all
-    # checked against the limits before the channels are allocated.
-    frame_tokens = list(itertools.compress(firsts, is_frame))
-    parsed = list(map(_count, frame_tokens))
-    too_big = [k for k, v in enumerate(parsed) if v is None or v > MAX_FRAME_NUMBER]
-    if too_big:
-        k = too_big[0]
-        raise MocapFormatError(
-            spath,
-            first + int(frame_lines[k]),
-            f"expected a frame number of at most {MAX_FRAME_NUMBER}, found "
-            f"{_short(frame_tokens[k])}",
-        )
-    numbers = np.array(parsed, dtype=np.int64)
-    problem = _frame_span_problem(numbers, len(sk.point_names), max_frames)
-    if problem is not None:
-        k, reason = problem
-        raise MocapFormatError(spath, first + int(frame_lines[k]), reason)
-    n_frames = int(numbers[-1] - numbers[0] + 1)
-    frame_flag = np.zeros(len(counts), dtype=np.intp)
-    frame_flag[frame_lines] = 1
-    ordinal = np.cumsum(frame_flag) - 1  # per body line: the frame it belongs to
-    row_of_bone_line = numbers[ordinal[bone_lines]] - numbers[0]
-
-    key = row_of_bone_line * len(sk.point_names) + point
-    order = np.argsort(key, kind="stable")
-    dup = np.flatnonzero(key[order][1:] == key[order][:-1])
-    if len(dup):
-        k = int(np.min(order[dup + 1]))
-        raise MocapFormatError(
-            spath,
-            first + int(bone_lines[k]),
-            f"{sk.point_names[point[k]]!r} appears twice in frame "
-            f"{numbers[ordinal[bone_lines[k]]]}",
-        )
-
-    # The values: every token of a bone line but its name, converted at once.
-    line_of_token = np.repeat(np.arange(len(counts)), counts)
-    pos_in_line = np.arange(n_tok) - line_start[line_of_token]
-    bone_line_flag = np.zeros(len(counts), dtype=bool)
-    bone_line_flag[bone_lines] = True
-    is_value = bone_line_flag[line_of_token] & (pos_in_line > 0)
-    value_lines = line_of_token[is_value]
-    values = _to_floats(
-        list(itertools.compress(tokens, is_value)), spath, first + value_lines, "a number"
-    )
-    big = _out_of_range(values)
-    if len(big):
-        raise MocapFormatError(
-            spath,
-            first + int(value_lines[big[0]]),
-            f"expected values of magnitude at most {MAX_ABS_VALUE:g}, found "
-            f"{float(values[big[0]])!r}",
-        )
-    if on_nan == "raise":
-        bad = np.flatnonzero(~np.isfinite(values))
-        if len(bad):
-            raise MocapFormatError(
-                spath,
-                first + int(value_lines[bad[0]]),
-                f"expected finite values, found {float(values[bad[0]])!r}",
-            )
-    line_row = np.zeros(len(counts), dtype=np.intp)
-    line_row[bone_lines] = row_of_bone_line
-    line_col = np.zeros(len(counts), dtype=np.intp)
-    line_col[bone_lines] = col0[point]
-    channels = np.full((n_frames, int(widths.sum())), np.nan)
-    channels[line_row[value_lines], line_col[value_lines] + pos_in_line[is_value] - 1] = values
-    return channels, numbers
-
-
 def load_amc(
     path: str | Path,
     skeleton: AsfSkeleton | str | Path,
@@ -730,9 +448,12 @@ def load_amc(
     if not tokens:
         raise MocapFormatError(spath, max(lineno, 1), "expected AMC frames, found end of file")
     widths = np.array([len(sk.root_order)] + [len(d) for d in sk.dofs], dtype=np.intp)
-    regular = _amc_regular(sk, widths, counts, tokens, on_nan, limit)
+    limits = AmcLimits(
+        limit, MAX_FRAME_GAP, FRAME_SPAN_FACTOR, MAX_FRAME_NUMBER, MAX_FRAME_POINTS, MAX_ABS_VALUE
+    )  # read at each call, so that raising one of them takes effect
+    regular = _amc_regular(sk, widths, counts, tokens, on_nan, limits)
     if regular is None:
-        channels, numbers = _amc_general(spath, sk, widths, counts, tokens, first, on_nan, limit)
+        channels, numbers = _amc_general(spath, sk, widths, counts, tokens, first, on_nan, limits)
     else:
         channels, numbers = regular
     # Missing frames, missing bone lines and NaN values all leave NaN here.

@@ -1,0 +1,388 @@
+"""Reading an AMC file's frames: the fast path for regular files, the general path.
+
+:func:`humotion_gym.mocap.asfamc.load_amc` splits the body into tokens and
+calls :func:`_amc_regular` (every frame the same lines in the same order, as
+CMU writes them), else :func:`_amc_general`, which reads any layout and names
+the line at fault. The bounds are :mod:`humotion_gym.mocap.asfamc`'s
+constants, passed as :class:`AmcLimits` at each call.
+"""
+
+from __future__ import annotations
+
+import itertools
+import operator
+from dataclasses import dataclass
+from typing import Literal, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from humotion_gym.errors import MocapFormatError
+from humotion_gym.mocap._scan import _count, _short, _to_floats
+
+OnNan = Literal["mask", "raise"]
+
+
+class _Skeleton(Protocol):
+    """What the frame readers use of an :class:`~humotion_gym.mocap.asfamc.AsfSkeleton`."""
+
+    @property
+    def path(self) -> str: ...  # noqa: D102
+
+    @property
+    def point_names(self) -> tuple[str, ...]: ...  # noqa: D102
+
+    @property
+    def root_order(self) -> tuple[str, ...]: ...  # noqa: D102
+
+    @property
+    def dofs(self) -> tuple[tuple[str, ...], ...]: ...  # noqa: D102
+
+
+@dataclass(frozen=True)
+class AmcLimits:
+    """The bounds an AMC file's frames are read under (see :mod:`humotion_gym.mocap.asfamc`)."""
+
+    max_frames: int
+    max_frame_gap: int
+    frame_span_factor: int
+    max_frame_number: int
+    max_frame_points: int
+    max_abs_value: float
+
+
+def _frame_span_problem(
+    numbers: NDArray[np.int64], n_points: int, limits: AmcLimits
+) -> tuple[int, str] | None:
+    """Check increasing AMC frame numbers against the limits before any allocation.
+
+    Args:
+        numbers: ``(N,)`` the frame numbers, in file order (N >= 1).
+        n_points: Points of the skeleton (root and bones).
+        limits: The bounds in force (``max_frames``: from the first number to the last).
+
+    Returns:
+        None when they pass, else the index of the frame at fault and what was
+        expected there.
+    """
+    steps = np.diff(numbers)
+    down = np.flatnonzero(steps <= 0)
+    if len(down):
+        k = int(down[0]) + 1
+        return k, f"expected a frame number above {numbers[k - 1]}, found {numbers[k]}"
+    gaps = np.flatnonzero(steps > limits.max_frame_gap + 1)
+    if len(gaps):
+        k = int(gaps[0]) + 1
+        return k, (
+            f"expected a frame number at most {numbers[k - 1] + limits.max_frame_gap + 1} after "
+            f"{numbers[k - 1]} (at most {limits.max_frame_gap} skipped; raise "
+            f"humotion_gym.mocap.asfamc.MAX_FRAME_GAP for such a file), found {numbers[k]}"
+        )
+    span = numbers - numbers[0] + 1
+    over = np.flatnonzero(span > limits.max_frames)
+    if len(over):
+        k = int(over[0])
+        return k, (
+            f"expected at most {limits.max_frames} frames from frame number {numbers[0]}, found "
+            f"frame number {numbers[k]} (pass max_frames= or raise "
+            "humotion_gym.mocap.asfamc.MAX_FRAMES for such a file)"
+        )
+    bound = limits.frame_span_factor * len(numbers) + limits.max_frame_gap
+    if span[-1] > bound:
+        return len(numbers) - 1, (
+            f"expected frame numbers spanning at most {bound} frames ({limits.frame_span_factor} "
+            f"per frame present, {len(numbers)} present, plus {limits.max_frame_gap}), found "
+            f"{numbers[0]} to {numbers[-1]} (raise humotion_gym.mocap.asfamc."
+            "FRAME_SPAN_FACTOR for such a file)"
+        )
+    if int(span[-1]) * n_points > limits.max_frame_points:
+        return len(numbers) - 1, (
+            f"expected at most {limits.max_frame_points} frames times points, found {span[-1]} "
+            f"frames of {n_points} points (raise humotion_gym.mocap.asfamc.MAX_FRAME_POINTS "
+            "for such a file)"
+        )
+    return None
+
+
+def _out_of_range(values: NDArray[np.float64], bound: float) -> NDArray[np.intp]:
+    """Indices of the finite values beyond ``bound`` in magnitude."""
+    with np.errstate(invalid="ignore"):
+        big = np.abs(values) > bound
+    return np.flatnonzero(big & np.isfinite(values))
+
+
+def _amc_regular(
+    sk: _Skeleton,
+    widths: NDArray[np.intp],
+    counts: NDArray[np.intp],
+    tokens: list[bytes],
+    on_nan: OnNan,
+    limits: AmcLimits,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]] | None:
+    """Fast path for files whose every frame has the same lines in the same order.
+
+    CMU's files do; then every name and frame number sits at a fixed stride in
+    the token list, so whole columns are checked by list slicing. Returns None
+    at the least irregularity (or any error), leaving :func:`_amc_general` to
+    read the file and name the line at fault.
+
+    Returns:
+        The ``(T, C)`` channels and the ``(frames,)`` frame numbers, or None.
+    """
+    c_used = counts[counts > 0]
+    if not len(c_used) or c_used[0] != 1:
+        return None
+    n_lines = 1
+    while n_lines < len(c_used) and c_used[n_lines] != 1:
+        n_lines += 1
+    if len(c_used) % n_lines:
+        return None
+    n_t = len(c_used) // n_lines
+    pattern = c_used[:n_lines]
+    if not (c_used.reshape(n_t, n_lines) == pattern).all():
+        return None
+    stride = int(pattern.sum())
+    offs = (np.cumsum(pattern) - pattern).tolist()  # token offset of each line in a frame
+    point_of = {n.encode(): i for i, n in enumerate(sk.point_names)}
+    points = [point_of.get(tokens[o], -1) for o in offs[1:]]
+    if min(points, default=0) < 0 or len(set(points)) != len(points):
+        return None
+    if (pattern[1:] != widths[points] + 1).any():
+        return None
+    for o in offs[1:]:
+        if tokens[o::stride] != [tokens[o]] * n_t:
+            return None
+    frame_tokens = tokens[0::stride]
+    if not all(map(bytes.isdigit, frame_tokens)) or max(map(len, frame_tokens)) > 16:
+        return None
+    numbers = np.array(list(map(int, frame_tokens)), dtype=np.int64)
+    if numbers.max() > limits.max_frame_number:
+        return None
+    if _frame_span_problem(numbers, len(sk.point_names), limits) is not None:
+        return None
+    is_value = np.ones(stride, dtype=bool)
+    is_value[offs] = False
+    index = np.flatnonzero(np.tile(is_value, n_t)).tolist()
+    if len(index) < 2:
+        return None
+    try:
+        values = np.array(operator.itemgetter(*index)(tokens), dtype=np.float64)
+    except ValueError:
+        return None
+    if on_nan == "raise" and not np.isfinite(values).all():
+        return None
+    if len(_out_of_range(values, limits.max_abs_value)):
+        return None
+    col0 = np.concatenate(([0], np.cumsum(widths)[:-1])).astype(np.intp)
+    cols = np.concatenate([col0[p] + np.arange(widths[p]) for p in points])
+    channels = np.full((int(numbers[-1] - numbers[0]) + 1, int(widths.sum())), np.nan)
+    channels[(numbers - numbers[0])[:, None], cols[None, :]] = values.reshape(n_t, len(cols))
+    return channels, numbers
+
+
+def _bone_points(
+    spath: str,
+    sk: _Skeleton,
+    widths: NDArray[np.intp],
+    counts: NDArray[np.intp],
+    firsts: list[bytes],
+    is_bone: NDArray[np.bool_],
+    bone_lines: NDArray[np.intp],
+    first: int,
+) -> NDArray[np.intp]:
+    """The skeleton point of each bone line, each line's value count checked against its dof.
+
+    Raises:
+        MocapFormatError: Naming the first line whose bone is unknown or whose
+            values do not fit its dof.
+    """
+    point_of = {n.encode(): i for i, n in enumerate(sk.point_names)}
+    bone_names_b = list(itertools.compress(firsts, is_bone))
+    point = np.fromiter(
+        map(point_of.get, bone_names_b, itertools.repeat(-1)), np.intp, len(bone_names_b)
+    )
+    unknown = np.flatnonzero(point < 0)
+    if len(unknown):
+        k = int(unknown[0])
+        raise MocapFormatError(
+            spath,
+            first + int(bone_lines[k]),
+            f"bone {bone_names_b[k].decode('utf-8', 'replace')!r} is not defined in the "
+            f"skeleton {sk.path}",
+        )
+    got = counts[bone_lines] - 1
+    want = widths[point]
+    wrong = np.flatnonzero(got != want)
+    if len(wrong):
+        k = int(wrong[0])
+        pname = sk.point_names[point[k]]
+        dof = sk.root_order if point[k] == 0 else sk.dofs[point[k] - 1]
+        raise MocapFormatError(
+            spath,
+            first + int(bone_lines[k]),
+            f"expected {want[k]} values for {pname!r} (dof {' '.join(dof) or 'none'}), "
+            f"found {got[k]}",
+        )
+    return point
+
+
+def _frame_numbers(
+    spath: str,
+    sk: _Skeleton,
+    firsts: list[bytes],
+    is_frame: NDArray[np.bool_],
+    frame_lines: NDArray[np.intp],
+    first: int,
+    limits: AmcLimits,
+) -> NDArray[np.int64]:
+    """The frame numbers, checked against the limits before any channel is allocated.
+
+    They must increase with small gaps (which become invalid frames).
+
+    Raises:
+        MocapFormatError: Naming the first frame line at fault.
+    """
+    frame_tokens = list(itertools.compress(firsts, is_frame))
+    parsed = list(map(_count, frame_tokens))
+    too_big = [k for k, v in enumerate(parsed) if v is None or v > limits.max_frame_number]
+    if too_big:
+        k = too_big[0]
+        raise MocapFormatError(
+            spath,
+            first + int(frame_lines[k]),
+            f"expected a frame number of at most {limits.max_frame_number}, found "
+            f"{_short(frame_tokens[k])}",
+        )
+    numbers = np.array(parsed, dtype=np.int64)
+    problem = _frame_span_problem(numbers, len(sk.point_names), limits)
+    if problem is not None:
+        k, reason = problem
+        raise MocapFormatError(spath, first + int(frame_lines[k]), reason)
+    return numbers
+
+
+def _bone_values(
+    spath: str,
+    tokens: list[bytes],
+    counts: NDArray[np.intp],
+    line_start: NDArray[np.intp],
+    bone_lines: NDArray[np.intp],
+    first: int,
+    on_nan: OnNan,
+    limits: AmcLimits,
+) -> tuple[NDArray[np.float64], NDArray[np.intp], NDArray[np.intp]]:
+    """Every token of the bone lines but their names, converted at once and checked.
+
+    Returns:
+        The values, the body line of each and its column among its line's values.
+
+    Raises:
+        MocapFormatError: Naming the line of the first value that is not a
+            number, too large, or (``on_nan="raise"``) not finite.
+    """
+    n_tok = len(tokens)
+    line_of_token = np.repeat(np.arange(len(counts)), counts)
+    pos_in_line = np.arange(n_tok) - line_start[line_of_token]
+    bone_line_flag = np.zeros(len(counts), dtype=bool)
+    bone_line_flag[bone_lines] = True
+    is_value = bone_line_flag[line_of_token] & (pos_in_line > 0)
+    value_lines = line_of_token[is_value]
+    values = _to_floats(
+        list(itertools.compress(tokens, is_value)), spath, first + value_lines, "a number"
+    )
+    big = _out_of_range(values, limits.max_abs_value)
+    if len(big):
+        raise MocapFormatError(
+            spath,
+            first + int(value_lines[big[0]]),
+            f"expected values of magnitude at most {limits.max_abs_value:g}, found "
+            f"{float(values[big[0]])!r}",
+        )
+    if on_nan == "raise":
+        bad = np.flatnonzero(~np.isfinite(values))
+        if len(bad):
+            raise MocapFormatError(
+                spath,
+                first + int(value_lines[bad[0]]),
+                f"expected finite values, found {float(values[bad[0]])!r}",
+            )
+    return values, value_lines, pos_in_line[is_value] - 1
+
+
+def _amc_general(
+    spath: str,
+    sk: _Skeleton,
+    widths: NDArray[np.intp],
+    counts: NDArray[np.intp],
+    tokens: list[bytes],
+    first: int,
+    on_nan: OnNan,
+    limits: AmcLimits,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Read frames of any layout (bones in any order, some missing), checking everything.
+
+    Args:
+        spath: The file, for errors.
+        sk: The skeleton.
+        widths: ``(1 + B,)`` values per line of the root and each bone.
+        counts: Tokens on each body line.
+        tokens: The body's tokens.
+        first: The file line of the body's first line.
+        on_nan: As :func:`load_amc`.
+        limits: The bounds in force (:func:`load_amc`'s).
+
+    Returns:
+        The ``(T, C)`` channels (NaN where nothing was read) and the frame numbers.
+
+    Raises:
+        MocapFormatError: As :func:`load_amc`.
+    """
+    line_start = np.cumsum(counts) - counts
+    used = np.flatnonzero(counts)
+    # map() over C-level callables: per line, but without a Python frame per line.
+    firsts: list[bytes] = list(map(tokens.__getitem__, line_start[used].tolist()))
+    is_frame = (counts[used] == 1) & np.fromiter(map(bytes.isdigit, firsts), bool, len(firsts))
+    is_comment = np.fromiter(
+        map(operator.methodcaller("startswith", b"#"), firsts), bool, len(firsts)
+    )
+    is_bone = ~is_frame & ~is_comment
+    bone_lines = used[is_bone]
+    frame_lines = used[is_frame]
+    if not len(frame_lines):
+        raise MocapFormatError(spath, first + int(used[0]), "expected a frame number")
+    if len(bone_lines) and bone_lines[0] < frame_lines[0]:
+        raise MocapFormatError(
+            spath, first + int(bone_lines[0]), "expected a frame number before the bone lines"
+        )
+
+    point = _bone_points(spath, sk, widths, counts, firsts, is_bone, bone_lines, first)
+    col0 = np.concatenate(([0], np.cumsum(widths)[:-1])).astype(np.intp)
+    numbers = _frame_numbers(spath, sk, firsts, is_frame, frame_lines, first, limits)
+    n_frames = int(numbers[-1] - numbers[0] + 1)
+    frame_flag = np.zeros(len(counts), dtype=np.intp)
+    frame_flag[frame_lines] = 1
+    ordinal = np.cumsum(frame_flag) - 1  # per body line: the frame it belongs to
+    row_of_bone_line = numbers[ordinal[bone_lines]] - numbers[0]
+
+    key = row_of_bone_line * len(sk.point_names) + point
+    order = np.argsort(key, kind="stable")
+    dup = np.flatnonzero(key[order][1:] == key[order][:-1])
+    if len(dup):
+        k = int(np.min(order[dup + 1]))
+        raise MocapFormatError(
+            spath,
+            first + int(bone_lines[k]),
+            f"{sk.point_names[point[k]]!r} appears twice in frame "
+            f"{numbers[ordinal[bone_lines[k]]]}",
+        )
+
+    values, line_of_value, column_in_line = _bone_values(
+        spath, tokens, counts, line_start, bone_lines, first, on_nan, limits
+    )
+    line_row = np.zeros(len(counts), dtype=np.intp)
+    line_row[bone_lines] = row_of_bone_line
+    line_col = np.zeros(len(counts), dtype=np.intp)
+    line_col[bone_lines] = col0[point]
+    channels = np.full((n_frames, int(widths.sum())), np.nan)
+    channels[line_row[line_of_value], line_col[line_of_value] + column_in_line] = values
+    return channels, numbers
