@@ -486,17 +486,11 @@ def download_cmu(
         subjects = [subjects]  # a lone subject number is an easy slip to forgive
     # Validate everything before the first request so a typo fails fast.
     codes = list(dict.fromkeys(cmu_subject_code(s) for s in subjects))
-    if retries < 1:
-        raise ValueError(f"retries: need at least 1 attempt, got {retries}")
-    for name, value in (
-        ("timeout", timeout),
-        ("file_deadline_s", file_deadline_s),
-        ("deadline_s", deadline_s),
-        ("max_listing_bytes", max_listing_bytes),
-        ("max_listing_entries", max_listing_entries),
-    ):
-        if not value > 0 or math.isnan(value):
-            raise ValueError(f"{name}: must be positive, got {value!r}")
+    _check_positive(
+        retries=retries, timeout=timeout, file_deadline_s=file_deadline_s,
+        deadline_s=deadline_s, max_listing_bytes=max_listing_bytes,
+        max_listing_entries=max_listing_entries,
+    )  # fmt: skip
     caps = _resolve_caps(max_bytes)
     reg = _resolve_registry(registry)
     run_deadline = _Deadline(
@@ -528,6 +522,19 @@ def download_cmu(
     finally:
         _write_manifest(dest, manifest)
     return out
+
+
+def _check_positive(**values: float) -> None:
+    """Refuse an argument of :func:`download_cmu` that is not a positive number.
+
+    Raises:
+        ValueError: Naming the argument (``retries`` needs at least one attempt).
+    """
+    for name, value in values.items():
+        if name == "retries" and value < 1:
+            raise ValueError(f"retries: need at least 1 attempt, got {value}")
+        if not value > 0 or math.isnan(value):
+            raise ValueError(f"{name}: must be positive, got {value!r}")
 
 
 def _download_subject(
