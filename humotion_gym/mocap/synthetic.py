@@ -66,6 +66,7 @@ from humotion_gym.mocap._synthetic_curves import (
     FloatArray,
     _cycle,
     _cycle_mean,
+    _Gait,
     _keypose_knots,
     _minimum_jerk,
     _prefix_fits,
@@ -226,6 +227,49 @@ _SUPPORT_RAMP = 0.05
 _SUPPORT_EDGE = 0.03
 
 
+def _set_trunk(
+    params: FloatArray, gait: _Gait, q: FloatArray, lean: FloatArray, noise: FloatArray
+) -> None:
+    """Write the pelvis's (and rigid trunk's) rotations and the head's into ``params``.
+
+    Args:
+        params: ``(T, 25)`` parameters, written in place.
+        gait: The kind of locomotion.
+        q: The right leg's phase in its cycle.
+        lean: The forward lean of the torso.
+        noise: :func:`_locomotion`'s smooth noise (columns 18-20: the neck).
+    """
+    # Pelvis (and, the torso being rigid, trunk): transverse rotation that brings
+    # the side of the swinging leg forward, list that drops the swing side in
+    # single support, forward tilt twice a stride (Perry & Burnfield 2010, ch. 6).
+    yaw = gait.yaw * np.cos(_TWO_PI * (q - 0.95))
+    roll = -gait.roll * np.cos(_TWO_PI * (q - 0.2))
+    pitch = -lean - gait.pitch * np.cos(2.0 * _TWO_PI * (q - 0.1))
+    params[:, _P["root_yaw"]] = yaw
+    params[:, _P["root_pitch"]] = pitch
+    params[:, _P["root_roll"]] = roll
+    # The head keeps the gaze level and forward against the trunk's motion.
+    params[:, _P["neck_x"]] = 0.8 * lean + 0.03 * noise[:, 18]
+    params[:, _P["neck_y"]] = -0.6 * roll + 0.02 * noise[:, 19]
+    params[:, _P["neck_z"]] = -0.7 * yaw + 0.05 * noise[:, 20]
+
+
+def _aerial_lift(
+    gait: _Gait, phase: dict[str, FloatArray], rng: np.random.Generator, noise: FloatArray
+) -> FloatArray:
+    """The ankle's lift in the aerial phases, one smooth arc per window and leg, mm.
+
+    Longer strides fly higher: ``noise`` scales each window's drawn height.
+    """
+    lift = np.zeros(noise.shape[0])
+    for start, end, lo, hi in gait.lifts:
+        height = rng.uniform(lo, hi) * (1.0 + 0.1 * noise)
+        for side in "rl":
+            s = np.mod(phase[side] - start, 1.0) / (end - start)
+            lift += np.where(s < 1.0, height * np.sin(np.pi * np.minimum(s, 1.0)) ** 1.5, 0.0)
+    return lift
+
+
 def _locomotion(
     label: str, style: _Style, shape: BodyShape, rng: np.random.Generator, t: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
@@ -318,29 +362,8 @@ def _locomotion(
         sh_z = arm_twist + 0.08 * swing + 0.05 * noise[:, j + 5]
         _set_side(params, side, "shoulder", (sh_x, -out * sh_y, out * sh_z))
         _set_side(params, side, "elbow", (elbow + 0.03 * noise[:, j + 6],))
-    # Pelvis (and, the torso being rigid, trunk): transverse rotation that brings
-    # the side of the swinging leg forward, list that drops the swing side in
-    # single support, forward tilt twice a stride (Perry & Burnfield 2010, ch. 6).
-    q = phase["r"]
-    yaw = gait.yaw * np.cos(_TWO_PI * (q - 0.95))
-    roll = -gait.roll * np.cos(_TWO_PI * (q - 0.2))
-    pitch = -lean - gait.pitch * np.cos(2.0 * _TWO_PI * (q - 0.1))
-    params[:, _P["root_yaw"]] = yaw
-    params[:, _P["root_pitch"]] = pitch
-    params[:, _P["root_roll"]] = roll
-    # The head keeps the gaze level and forward against the trunk's motion.
-    params[:, _P["neck_x"]] = 0.8 * lean + 0.03 * noise[:, 18]
-    params[:, _P["neck_y"]] = -0.6 * roll + 0.02 * noise[:, 19]
-    params[:, _P["neck_z"]] = -0.7 * yaw + 0.05 * noise[:, 20]
-
-    # The ankle's lift in the aerial phases, one smooth arc per window and leg
-    # (longer strides fly higher).
-    lift = np.zeros(n)
-    for start, end, lo, hi in gait.lifts:
-        height = rng.uniform(lo, hi) * (1.0 + 0.1 * noise[:, 0])
-        for side in "rl":
-            s = np.mod(phase[side] - start, 1.0) / (end - start)
-            lift += np.where(s < 1.0, height * np.sin(np.pi * np.minimum(s, 1.0)) ** 1.5, 0.0)
+    _set_trunk(params, gait, phase["r"], lean, noise)
+    lift = _aerial_lift(gait, phase, rng, noise[:, 0])
     # Gentle turning: a steady drift of the heading plus slow wiggles.
     wiggle = _smooth_noise(rng, t, 3.0)[:, 0]
     turn = style.turn_rate * (t - t[0]) + style.wiggle * (wiggle - wiggle[0])
