@@ -1,0 +1,125 @@
+"""The particle filter's step, resampling and annealing against plain references.
+
+Each reference is written out here with scipy and fancy indexing; the filter's
+own code must give the same numbers within the stated tolerances. The tree
+prior's oracles are in ``tests/priors/``, the likelihood's in
+``tests/test_likelihood_oracle.py``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.special import logsumexp
+
+from baselines.filtering import (
+    ParticleFilter,
+    ParticleState,
+    systematic_resample,
+    temper_for_survival,
+)
+from baselines.priors import tree
+from humotion_gym.mocap.library import synthetic_library
+
+ARM = np.array([9, 10, 11, 12])  # right shoulder and elbow: the arm task's free parameters
+
+
+@pytest.fixture(scope="module")
+def fitted_arm() -> tree.TreeParams:
+    return tree.fit(synthetic_library().split("train").motions[:6], free=ARM)
+
+
+def test_resampling_copies_the_same_rows() -> None:
+    rng = np.random.default_rng(1)
+    state = ParticleState(
+        rng.normal(size=(500, 25)),
+        {
+            "history": rng.normal(size=(500, 11, 25)).astype(np.float32),
+            "window": rng.integers(0, 100, 500),
+            "fortran": np.asfortranarray(rng.normal(size=(500, 3))),
+        },
+    )
+    weights = rng.random(500)
+    index = systematic_resample(weights / weights.sum(), rng)
+    moved = state.take(index)
+    np.testing.assert_array_equal(moved.pose, state.pose[index])
+    for key, value in state.extra.items():
+        np.testing.assert_array_equal(moved.extra[key], value[index])
+        assert moved.extra[key].dtype == value.dtype
+    mask = rng.random(500) < 0.5  # a mask selects rows, as fancy indexing does
+    np.testing.assert_array_equal(state.take(mask).pose, state.pose[mask])
+
+
+def test_filter_step_matches_a_plain_step(fitted_arm) -> None:
+    # One CONDENSATION step written out with scipy's logsumexp and fancy indexing.
+    fitted = fitted_arm
+
+    class Quadratic:
+        def log_likelihood(self, frame, poses):
+            return -0.5 * np.sum((poses - frame) ** 2, axis=1) / 0.01
+
+    start = fitted.frames[fitted.window_end[50]]
+    pf = ParticleFilter(tree, fitted, Quadratic(), 400, np.ones(ARM.size, bool))
+    pf.reset(start, np.random.default_rng(3))
+    state, log_w = pf.state, pf.log_weights
+    estimate = pf.step(start + 0.05)
+    rng = np.random.default_rng(3)
+    tree.initial(fitted, start, 400, rng)
+    moved = tree.transition(fitted, state, rng)
+    log_w = log_w + Quadratic().log_likelihood(start + 0.05, moved.pose)
+    log_w = log_w - logsumexp(log_w)
+    weights = np.exp(log_w)
+    ang = moved.pose[:, np.ones(ARM.size, bool)]  # a mask's copy: its layout sets BLAS's order
+    circ = np.arctan2(weights @ np.sin(ang), weights @ np.cos(ang))
+    lin = weights @ moved.pose
+    expected = circ + 2 * np.pi * np.round((lin - circ) / (2 * np.pi))
+    # The filter's circular mean takes single-precision sines of the offsets
+    # from the linear mean (weighted_mean): the same angle to 1e-6 of the spread.
+    spread = float(np.sqrt(weights @ (moved.pose - lin) ** 2).max())
+    np.testing.assert_allclose(estimate, expected, rtol=0, atol=1e-6 * spread)
+    index = systematic_resample(weights, rng)
+    np.testing.assert_array_equal(pf.state.pose, moved.pose[index])
+    np.testing.assert_array_equal(pf.state.extra["history"], moved.extra["history"][index])
+
+
+def reference_temper(loglik: np.ndarray, alpha: float, iterations: int = 60):
+    """temper_for_survival's bisection written with a fresh array per round."""
+    n = loglik.shape[0]
+    ok = np.isfinite(loglik)
+    if not ok.any():
+        return 1.0, np.full(n, 1.0 / n)
+    centred = np.where(ok, loglik - loglik[ok].max(), -np.inf)
+
+    def weights(beta):
+        w = np.exp(beta * centred)
+        return w / w.sum()
+
+    spread = float(-centred[ok].min())
+    if spread <= 0.0 or ok.sum() <= alpha * n:
+        return 1.0, weights(1.0)
+    lo, hi = np.log(1e-8 / spread), np.log(1e8 / spread)
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        if float(1.0 / np.sum(np.square(weights(float(np.exp(mid)))))) > alpha * n:
+            lo = mid
+        else:
+            hi = mid
+    beta = float(np.exp(0.5 * (lo + hi)))
+    return beta, weights(beta)
+
+
+def test_annealing_exponents_match_the_reference() -> None:
+    rng = np.random.default_rng(4)
+    for trial in range(300):
+        n = int(rng.choice([1, 5, 300, 3000]))
+        loglik = rng.normal(-10.0, rng.uniform(0.01, 20.0), n)
+        if trial % 4 == 0:
+            loglik[rng.random(n) < 0.3] = -np.inf
+        if trial % 25 == 0:
+            loglik[:] = -3.0
+        alpha = float(rng.uniform(0.05, 0.95))
+        beta, weights = temper_for_survival(loglik, alpha)
+        ref_beta, ref_weights = reference_temper(loglik, alpha)
+        # the same bisection: equal up to the last bits of exp and the sums
+        np.testing.assert_allclose(beta, ref_beta, rtol=1e-12)
+        np.testing.assert_allclose(weights, ref_weights, rtol=1e-9, atol=1e-300)
