@@ -9,8 +9,8 @@ projection of the keypoints, 15 points along each of the 10 projected cone
 axes (150 per pose) and a nearest-pixel lookup of each in a distance map. The
 ratio (reference time / model time) is the figure of merit: these machines are
 noisy, so compare ratios, not absolute numbers. The time of ``prepare`` (once
-per frame) and of the poses' kinematics alone (:func:`body.pose_geometry`,
-part of every scoring) are printed too.
+per frame) and of the poses' kinematics alone (:func:`body.pose_geometry` in
+float32, as the likelihood asks for it: part of every scoring) are printed too.
 
 Then the same for the whole-body tasks' likelihood (BodyTrack-v1's settings:
 the backdrop read at a first frame where the figure stood 30 cm to the side,
@@ -79,7 +79,9 @@ def main() -> None:
             ref = best_of(
                 lambda poses=poses: reference_scores(distance, poses, shape, camera), calls
             )
-            kinematics = best_of(lambda poses=poses: body.pose_geometry(poses, shape), calls)
+            kinematics = best_of(
+                lambda poses=poses: body.pose_geometry(poses, shape, np.float32), calls
+            )
             ours = best_of(
                 lambda poses=poses, model=model, features=features: model.log_likelihood(
                     features, poses, shape, camera

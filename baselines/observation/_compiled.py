@@ -28,7 +28,7 @@ _BLOCK = 128
 
 @numba.njit(cache=True, nogil=True)
 def cone_bases(
-    geometry: NDArray[np.float64],
+    geometry: NDArray[np.floating],
     rot: NDArray[np.float64],
     trans: NDArray[np.float64],
     intrinsics: NDArray[np.float64],
@@ -114,7 +114,7 @@ def cone_bases(
 
 @numba.njit(cache=True, nogil=True)
 def _section_widths(
-    geometry: NDArray[np.float64],
+    geometry: NDArray[np.floating],
     row: int,
     rot: NDArray[np.float64],
     uv: NDArray[np.float32],

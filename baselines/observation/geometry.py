@@ -83,7 +83,7 @@ def cone_bases(
 
     Args:
         geometry: ``(N, 35, 3)`` the poses' keypoints and cone axes
-            (:func:`humotion_gym.body.pose_geometry`).
+            (:func:`humotion_gym.body.pose_geometry`), float32 or float64.
         shape: The subject's shape.
         camera: The frame's camera.
         near_mm: Keypoints nearer the camera plane than this are off the image.
@@ -108,7 +108,7 @@ def cone_bases(
     basis = np.empty((8, N_CONES, n), np.float32)
     outline = np.empty((N_CONES, n), np.int32)
     _compiled.cone_bases(
-        np.ascontiguousarray(geometry, np.float64), np.asarray(camera.rotation, np.float64),
+        np.ascontiguousarray(geometry), np.asarray(camera.rotation, np.float64),
         np.asarray(camera.translation, np.float64), intrinsics, CONE_ENDS, radii, aspect,
         bin_axes(n_bins), plane, basis, outline,
     )  # fmt: skip

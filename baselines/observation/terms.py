@@ -48,7 +48,9 @@ def score(
     :meth:`ObservationModel.log_likelihood_partial`); the last column is the
     whole figure's.
     """
-    geometry = pose_geometry(params, shape)
+    # Single precision: the points are placed in float32 anyway, and numpy's
+    # float32 sines and cosines are vectorised (a fifth of the float64 time).
+    geometry = pose_geometry(params, shape, np.float32)
     plane = (feats.width + 2) * (feats.height + 2)
     basis, outline = cone_bases(
         geometry, shape, camera, model.near_mm, model.raster_pad_px, model.orientation_bins, plane
@@ -154,8 +156,8 @@ def coverage_cost(
 
 
 def floor_cost(model: ObservationSettings, geometry: FloatArray, floor: float) -> FloatArray:
-    """The floor term (nats) of poses' ``(N, 35, 3)`` geometry (keypoints first)."""
-    lowest = geometry[:, ANKLES, 2].min(axis=1)
+    """The floor term (nats) of poses' ``(N, 35, 3)`` geometry (keypoints first, any float)."""
+    lowest = geometry[:, ANKLES, 2].min(axis=1).astype(np.float64)
     height = lowest - floor
     below = np.minimum(height, 0.0) / model.floor_below_mm
     above = np.maximum(height, 0.0) / model.floor_above_mm
