@@ -383,17 +383,17 @@ def _noise_window(rng: np.random.Generator, h: int, w: int) -> tuple[int, int]:
     return divmod(int(rng.integers(0, (h + 1) * (w + 1))), w + 1)
 
 
-def _noise_windows(rng: np.random.Generator, h: int, w: int, count: int) -> NDArray[np.intp]:
-    """``(count, 2)`` rows and columns: :func:`_noise_window` called ``count`` times.
+def _noise_windows(rng: np.random.Generator, h: int, w: int, count: int) -> NDArray[np.int64]:
+    """``(count,)`` windows as flat indices: :func:`_noise_window` called ``count`` times.
 
-    One call of ``rng.integers`` with ``size=count`` gives the numbers that
+    Window ``v`` is at row ``v // (W + 1)`` and column ``v % (W + 1)``. One
+    call of ``rng.integers`` with ``size=count`` gives the numbers that
     ``count`` scalar calls give, in order, and leaves the generator where they
     leave it (numpy bounds each element alone; ``tests/test_render.py``
     checks both). The vector environment draws an episode's windows at its
-    start, a frame's draw then costing a table lookup.
+    start, and splits those of a step's frames into rows and columns at once.
     """
-    rows, cols = np.divmod(rng.integers(0, (h + 1) * (w + 1), size=count), w + 1)
-    return np.stack([rows, cols], axis=1).astype(np.intp)
+    return rng.integers(0, (h + 1) * (w + 1), size=count)
 
 
 def _add_noise(

@@ -289,6 +289,17 @@ def _clutter_sizes(h: int, w: int, density: float) -> tuple[int, float, float, i
     return size, 8.0 * density * area, 4.0 * density * area, max(1, size // 128)
 
 
+def _clutter_box(kind: int, geometry: list[int], cx: float, cy: float) -> tuple[float, ...]:
+    """A clutter shape's bounding box ``(lo_x, lo_y, hi_x, hi_y)`` from its plan geometry."""
+    if kind == 0:
+        return tuple(geometry)
+    if kind == 1:
+        reach = geometry[2] + geometry[3]
+        return (cx - reach, cy - reach, cx + reach, cy + reach)
+    xs, ys = geometry[1::2], geometry[2::2]
+    return (min(xs), min(ys), max(xs), max(ys))
+
+
 def _clutter_plan(rng: np.random.Generator, h: int, w: int, density: float) -> ClutterPlan:
     """Every random draw of a background's clutter, made in a few array draws.
 
@@ -315,28 +326,23 @@ def _clutter_plan(rng: np.random.Generator, h: int, w: int, density: float) -> C
     rows = []
     for i in range(n_shapes):
         (cx, cy), (rx, ry), kind = centres[i], half_axes[i], kinds[i]
-        # Each kind's geometry and bounding box (lo_x, lo_y, hi_x, hi_y), in
-        # Python numbers (int() truncates as OpenCV is given integers): the
-        # box is only needed for a textured shape.
+        # Each kind's geometry, in Python numbers (int() truncates as OpenCV
+        # is given integers).
         if kind == 0:
             geometry = [int(cx - rx), int(cy - ry), int(cx + rx), int(cy + ry)]
-            box: tuple = tuple(geometry)
         elif kind == 1:
-            axes = (int(rx) + 1, int(ry) + 1)
-            geometry = [int(cx), int(cy), *axes]
-            reach = axes[0] + axes[1]
-            box = (cx - reach, cy - reach, cx + reach, cy + reach)
+            geometry = [int(cx), int(cy), int(rx) + 1, int(ry) + 1]
         else:
-            turn = sorted(angles[i][: n_vertices[i]])
-            xs = [int(cx + rx * math.cos(a)) for a in turn]
-            ys = [int(cy + ry * math.sin(a)) for a in turn]
-            geometry = [len(turn)] + [v for xy in zip(xs, ys, strict=True) for v in xy]
-            box = (min(xs), min(ys), max(xs), max(ys))
-        window = [0, 0, 0, 0, 0]
+            geometry = [n_vertices[i]]
+            for a in sorted(angles[i][: n_vertices[i]]):
+                geometry += (int(cx + rx * math.cos(a)), int(cy + ry * math.sin(a)))
         if textured[i]:  # drawn only over its bounding box, where it meets the image
-            x0, y0 = max(math.floor(box[0]) - 1, 0), max(math.floor(box[1]) - 1, 0)
-            x1, y1 = min(math.ceil(box[2]) + 2, w), min(math.ceil(box[3]) + 2, h)
+            x0, y0, x1, y1 = _clutter_box(kind, geometry, cx, cy)
+            x0, y0 = max(math.floor(x0) - 1, 0), max(math.floor(y0) - 1, 0)
+            x1, y1 = min(math.ceil(x1) + 2, w), min(math.ceil(y1) + 2, h)
             window = [1, x0, y0, x1, y1] if x1 > x0 and y1 > y0 else [-1, 0, 0, 0, 0]
+        else:
+            window = [0, 0, 0, 0, 0]
         rows.append([kind, *window, *geometry] + [0] * (13 - len(geometry)))
     shapes = np.array(rows, np.int64).reshape(n_shapes, 19)
     lines = np.empty((n_lines, 9))
@@ -389,9 +395,7 @@ def _draw_clutter(img: NDArray[np.uint8], scene: SceneOptions, rng: np.random.Ge
     for (x0f, y0f, dx, dy, length, *_, thickness), color in zip(
         lines.tolist(), line_colors, strict=True
     ):
-        direction = np.array([dx, dy])
-        # np.linalg.norm of a real vector is sqrt(x . x): the same bits, without its wrapper.
-        norm = math.sqrt(direction.dot(direction)) + 1e-12
+        norm = math.sqrt(dx * dx + dy * dy) + 1e-12
         dx, dy = dx / norm, dy / norm
         cv2.line(
             img,

@@ -359,10 +359,11 @@ def test_noise_windows_are_the_frames_draws_in_advance(h: int, w: int) -> None:
     for seed, count in [(0, 0), (1, 1), (2, 30), (3, 257)]:
         ahead, one_by_one = np.random.default_rng(seed), np.random.default_rng(seed)
         windows = _noise_windows(ahead, h, w, count)
-        assert windows.shape == (count, 2) and windows.dtype == np.intp
-        assert windows.tolist() == [list(_noise_window(one_by_one, h, w)) for _ in range(count)]
+        assert windows.shape == (count,) and windows.dtype == np.int64
+        split = [list(divmod(v, w + 1)) for v in windows.tolist()]
+        assert split == [list(_noise_window(one_by_one, h, w)) for _ in range(count)]
         assert ahead.bit_generator.state == one_by_one.bit_generator.state
-        assert ((windows >= 0) & (windows <= [h, w])).all()
+        assert ((windows >= 0) & (windows < (h + 1) * (w + 1))).all()
         assert _noise_window(ahead, h, w) == _noise_window(one_by_one, h, w)
 
 

@@ -144,7 +144,7 @@ class PoseTrackingVectorEnv(VectorEnv):
         )
         # Each episode's noise windows, frame by frame, drawn at its start
         # (render._noise_windows: the draws its frames would make one by one).
-        self._windows = np.zeros((n, frames, 2), np.intp)
+        self._windows = np.zeros((n, frames), np.int64)
 
     # -- episodes ----------------------------------------------------------------
 
@@ -225,8 +225,8 @@ class PoseTrackingVectorEnv(VectorEnv):
         The single environment's renderer, its noise at the windows drawn at
         the episodes' starts.
         """
-        windows = self._windows[rows, ts].tolist()
-        for i, t, (y, x) in zip(rows.tolist(), ts.tolist(), windows, strict=True):
+        ys, xs = np.divmod(self._windows[rows, ts], self._scene.width + 1)
+        for i, t, y, x in zip(rows.tolist(), ts.tolist(), ys.tolist(), xs.tolist(), strict=True):
             env = self.envs[i]
             _compose(
                 env._figures, t, env._noise_rng, env._background, t, "step", observations[i],
