@@ -226,6 +226,11 @@ def channel_max(diff: NDArray[np.uint8]) -> NDArray[np.uint8]:
     return np.ascontiguousarray(diff.reshape(diff.shape[0], diff.shape[1], -1)[:, :, 0])
 
 
+def _grey(level: float) -> np.uint8:
+    """A grey level clipped to 0-255 and truncated, as numpy's cast of a float to uint8."""
+    return np.uint8(int(min(max(level, 0.0), 255.0)))
+
+
 def border_color(smooth: NDArray[np.uint8], width: int) -> NDArray[np.float64]:
     """The median colour of the frame's border ``width`` pixels wide (at most a quarter)."""
     h, w, channels = smooth.shape
@@ -280,8 +285,6 @@ def foreground(
     """
     channels = smooth.shape[2]
     bg = border_color(smooth, model.border_width)
-    scalar = tuple(float(v) for v in bg) + (0.0,) * (4 - channels)
-    diff = channel_max(cv2.absdiff(smooth, scalar).reshape(smooth.shape))
     keep, low = None, None
     if backdrop is not None:
         near = channel_max(cv2.absdiff(smooth, backdrop.image).reshape(smooth.shape))
@@ -294,13 +297,15 @@ def foreground(
             near = cv2.subtract(near, float(shift))
         changed = near > model.foreground_low
         lo, hi = model.foreground_low, model.foreground_high
-        unknown = np.where(changed, 0.5 * (lo + hi), hi)
-        np.copyto(diff, near, where=backdrop.known)
-        np.copyto(diff, np.clip(unknown, 0, 255).astype(np.uint8), where=~backdrop.known)
+        unknown = np.where(changed, _grey(0.5 * (lo + hi)), _grey(hi))
+        diff = np.where(backdrop.known, near, unknown)
         if model.backdrop_reach > 0:
-            found = np.where(backdrop.known, near, 0) > model.foreground_low
-            keep = grow(found.astype(np.uint8) * np.uint8(255), model.backdrop_reach * scale)
-            keep[~backdrop.known] = 255
+            found = changed & backdrop.known
+            keep = grow(found.view(np.uint8) * np.uint8(255), model.backdrop_reach * scale)
+            np.copyto(keep, np.uint8(255), where=~backdrop.known)
+    else:  # the border's colour alone
+        scalar = tuple(float(v) for v in bg) + (0.0,) * (4 - channels)
+        diff = channel_max(cv2.absdiff(smooth, scalar).reshape(smooth.shape))
     fg = cv2.subtract(diff, float(model.foreground_low)).astype(np.float32)
     fg *= np.float32(1.0 / (model.foreground_high - model.foreground_low))
     np.minimum(fg, np.float32(1.0), out=fg)
