@@ -22,11 +22,14 @@ _MIN_LENGTH = np.float32(1e-3)
 #: A keypoint behind the camera goes this far right of the image (every point off it).
 _BEHIND = np.float32(1e7)
 
+#: LLVM may reorder and fuse float arithmetic (not assume finite values): the
+#: projection's rounding moves by about 1e-6 px, far below the float32 placement.
+_REASSOCIATE = {"nsz", "arcp", "contract", "afn", "reassoc"}
 #: Poses per block of :func:`coverage_sums`: its scratch stays in the L1 cache.
 _BLOCK = 128
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, fastmath=_REASSOCIATE)
 def cone_bases(
     geometry: NDArray[np.floating],
     rot: NDArray[np.float64],
