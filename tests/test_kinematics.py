@@ -127,6 +127,32 @@ def test_per_pose_shapes() -> None:
         body.pose_geometry_of(poses, tables[:2])
 
 
+def test_single_precision_geometry_is_within_rounding() -> None:
+    """float32 geometry (the likelihood's) against float64.
+
+    A keypoint is the root position (rounded once to float32) plus a chain of
+    rotated segments under 2 m long, each product and sum rounded at 2^-24
+    relative: a few float32 epsilons of ``|x| + 2000 mm``; 2 of them bound it.
+    Within 2 m of the origin that is under 1e-3 mm (the likelihood's
+    placement needs 1e-2). Unit axes: a few epsilons, 1e-6.
+    """
+    rng = np.random.default_rng(7)
+    shape = body.default_shape(1700.0)
+    poses = _random_poses(rng, 2000)
+    want = body.pose_geometry(poses, shape)
+    got = body.pose_geometry(poses, shape, np.float32)
+    assert got.dtype == np.float32
+    eps = float(np.finfo(np.float32).eps)
+    bound = 2.0 * eps * (np.abs(want[:, :15]) + 2000.0)
+    assert np.all(np.abs(got[:, :15] - want[:, :15]) <= bound)
+    np.testing.assert_allclose(got[:, 15:], want[:, 15:], atol=1e-6, rtol=0)
+    poses[:, :3] = rng.uniform(-1150.0, 1150.0, (2000, 3))  # |root| < 2 m
+    near = body.pose_geometry(poses, shape)
+    np.testing.assert_allclose(
+        body.pose_geometry(poses, shape, np.float32)[:, :15], near[:, :15], atol=1e-3, rtol=0
+    )
+
+
 def test_layouts_of_the_same_geometry() -> None:
     rng = np.random.default_rng(5)
     poses = _random_poses(rng, 12)
