@@ -34,6 +34,7 @@ reinforcement learning at the edge of the statistical precipice*, NeurIPS 2021
 
 from __future__ import annotations
 
+import gzip
 import html
 import json
 from collections.abc import Callable, Mapping, Sequence
@@ -79,7 +80,8 @@ def load_rows(path: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
 
     Accepts the bare list of rows that ``humotion-gym leaderboard --out``
     writes, or a JSON object with a ``rows`` list (a results file), whose
-    other keys (e.g. ``env_kwargs``, ``seed``) are returned as the settings.
+    other keys (e.g. ``env_kwargs``, ``seed``) are returned as the settings;
+    gzipped when the name ends in ``.gz`` (the repository's ``results/``).
 
     Raises:
         OSError: If the file cannot be read.
@@ -87,9 +89,12 @@ def load_rows(path: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """
     path = Path(path)
     try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
+        raw = gzip.decompress(path.read_bytes()) if path.suffix == ".gz" else path.read_bytes()
+        data = json.loads(raw)
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ValueError(f"{path}: not JSON ({exc})") from None
+    except gzip.BadGzipFile as exc:
+        raise ValueError(f"{path}: not gzipped JSON ({exc})") from None
     settings: dict[str, Any] = {}
     if isinstance(data, dict):
         if not isinstance(data.get("rows"), list):
