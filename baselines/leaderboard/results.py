@@ -10,6 +10,7 @@ docs/leaderboard.md), ``table.md`` and the report
 from __future__ import annotations
 
 import datetime
+import gzip
 import json
 import os
 import subprocess
@@ -257,3 +258,32 @@ def _plain(value: Any) -> Any:
     if isinstance(value, np.generic):
         return value.item()
     raise TypeError(f"not JSON-serialisable: {type(value).__name__}")
+
+
+def compact(source: str | Path, target: str | Path, digits: int = 7) -> None:
+    """Write a results document as the repository keeps it: gzipped, rounded, minified.
+
+    ``results/`` in the repository holds each table's ``table.md`` and this file,
+    from which ``humotion-gym report`` rebuilds the figures and the page. Seven
+    significant digits keep every printed number and the video replay's check.
+
+    Args:
+        source: A ``results.json`` (or an already compact ``.json.gz``).
+        target: The ``.json.gz`` to write (the gzip header carries no time, so
+            the same document gives the same bytes).
+        digits: Significant digits kept of every float.
+    """
+    raw = Path(source).read_bytes()
+    document = json.loads(gzip.decompress(raw) if str(source).endswith(".gz") else raw)
+
+    def rounded(value: Any) -> Any:
+        if isinstance(value, float):
+            return float(f"{value:.{digits}g}")
+        if isinstance(value, list):
+            return [rounded(v) for v in value]
+        if isinstance(value, dict):
+            return {k: rounded(v) for k, v in value.items()}
+        return value
+
+    text = json.dumps(rounded(document), separators=(",", ":"))
+    Path(target).write_bytes(gzip.compress(text.encode(), compresslevel=9, mtime=0))
