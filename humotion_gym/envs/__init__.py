@@ -43,7 +43,13 @@ ENV_IDS: tuple[str, ...] = tuple(f"{NAMESPACE}/{name}" for name, _ in ENVIRONMEN
 
 
 def register_envs() -> None:
-    """Register every environment (idempotent)."""
+    """Register every environment (idempotent).
+
+    Each spec's ``max_episode_steps`` is its task's episode length, as tools
+    that read the spec (the RL Zoo, Gymnasium's ``TimeLimit``) expect; the
+    environment truncates there by itself too. A longer episode needs both:
+    ``gym.make(id, episode_frames=N, max_episode_steps=N)``.
+    """
     for name, entry_point in ENVIRONMENTS:
         for env_id in (f"{NAMESPACE}/{name}", name):
             if env_id not in registry:
@@ -51,6 +57,7 @@ def register_envs() -> None:
                     id=env_id,
                     entry_point=entry_point,
                     vector_entry_point=VECTOR_ENTRY_POINTS[name],
+                    max_episode_steps=get_task(name).episode_frames,
                 )
 
 

@@ -150,3 +150,21 @@ def test_constructor_arguments_are_range_checked(kwargs):
     name = next(iter(kwargs))
     with pytest.raises(ValueError, match=name):
         gym.make("humotion_gym/ArmTrack-v1", **kwargs)
+
+
+@pytest.mark.parametrize("env_id", humotion_gym.ENV_IDS)
+def test_every_spec_states_its_episode_length(env_id):
+    from humotion_gym.envs import get_task
+
+    spec = gym.spec(env_id)
+    frames = get_task(env_id.split("/")[-1]).episode_frames
+    assert spec.max_episode_steps == frames
+    env = gym.make(env_id, terminate_on_lost=False)
+    env.reset(seed=0)
+    steps, truncated = 0, False
+    while not truncated:
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample() * 0)
+        assert not terminated
+        steps += 1
+    assert steps == frames  # the wrapper and the environment end the episode together
+    env.close()
