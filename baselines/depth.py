@@ -20,7 +20,7 @@ how much of the true travel the estimate followed, the least-squares slope
 it; 0 for ``hold``, which never moves).
 
 These are measurements of the estimates against the truth, made by the
-evaluation loop (:func:`baselines.evaluation.run_episode`'s ``on_step``) after
+evaluation loop (:func:`baselines.leaderboard.evaluation.run_episode`'s ``on_step``) after
 the agent has answered; the agent never sees them.
 """
 
@@ -154,7 +154,7 @@ class _Recorder:
 def track_with_depth(
     agent: Any, env: gym.Env, seed: int, options: dict[str, Any] | None = None
 ) -> tuple[EpisodeResult, DepthEpisode]:
-    """One episode of :func:`baselines.evaluation.run_episode`, its error split by the ray.
+    """One episode of :func:`~baselines.leaderboard.evaluation.run_episode`, split by the ray.
 
     Args:
         agent: Any agent with SB3's ``predict``.
@@ -163,7 +163,7 @@ def track_with_depth(
         options: Reset options.
 
     Returns:
-        The loop's :class:`~baselines.evaluation.EpisodeResult` and the
+        The loop's :class:`~baselines.leaderboard.evaluation.EpisodeResult` and the
         :class:`DepthEpisode`.
     """
     episode = DepthEpisode(seed=seed, clip_id="", start_frame=0)

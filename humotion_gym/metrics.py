@@ -4,7 +4,7 @@ The one implementation of each measure: the environment
 (:mod:`humotion_gym.envs.pose_tracking`, and the vector environment batched)
 scores every step with :func:`step_scores` and :func:`update_lost_run`, and
 the evaluation
-(:mod:`baselines.evaluation`) finds where an episode lost track with
+(:mod:`baselines.leaderboard.evaluation`) finds where an episode lost track with
 :func:`lost_track_frame`, the same rule read over a whole episode.
 
 The keypoint error is the mean Euclidean distance over keypoints, in mm: the

@@ -99,7 +99,7 @@ def learner_observation(
     """The ``Dict`` observation of :class:`LearnerObservation` from its parts.
 
     One function serves the wrapper (training) and the agent that runs a saved
-    policy in the plain environment (:mod:`baselines.learned`), so the two
+    policy in the plain environment (:mod:`baselines.agents.learned`), so the two
     cannot drift apart.
     """
     return {
@@ -172,7 +172,7 @@ class Supervision(gym.Wrapper):
     The value is the frame's true pose normalised like the action
     (``pose_to_action``), the action that scores best; after the episode's
     last step it is the last frame's. Behaviour cloning regresses a policy
-    onto it (:mod:`baselines.learned`).
+    onto it (:mod:`baselines.agents.learned`).
 
     Args:
         env: A tracking environment made with ``split="train"`` (any wrapper

@@ -199,7 +199,7 @@ def test_a_partitioned_agent_tracks_end_to_end_and_by_seed(monkeypatch) -> None:
     import gymnasium as gym
 
     from baselines import agents
-    from baselines.evaluation import run_episode
+    from baselines.leaderboard.evaluation import run_episode
 
     spec = dataclasses.replace(agents.AGENTS["pf-cv"], partitioned=True, diffusion=0.3)
     monkeypatch.setitem(agents.AGENTS, "ppf-cv", spec)

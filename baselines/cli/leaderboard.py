@@ -110,7 +110,7 @@ def _check_results_folder(args: argparse.Namespace) -> None:
     Raises:
         UsageError: Naming ``--out`` or ``--resume``.
     """
-    from baselines.leaderboard import EPISODES_FILE, RUN_FILE, ResultsFolder, _cells
+    from baselines.leaderboard import EPISODES_FILE, RUN_FILE, ResultsFolder, grid_cells
 
     folder = ResultsFolder(args.out)
     holds_run = (args.out / RUN_FILE).is_file() or (
@@ -125,7 +125,7 @@ def _check_results_folder(args: argparse.Namespace) -> None:
         return
     if not holds_run:
         raise UsageError(f"--resume: {args.out} holds no run to continue (start one without it)")
-    cells = set(_cells(args.tasks, args.agents, args.particles))
+    cells = set(grid_cells(args.tasks, args.agents, args.particles))
     seeds = range(args.seed, args.seed + args.episodes)
     try:
         saved = [

@@ -57,9 +57,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    import importlib.util
-
-    from baselines.report import ReplayMismatch, load_rows, write_report
+    from baselines.leaderboard.figures import figures_available
+    from baselines.leaderboard.report import load_rows, write_report
+    from baselines.leaderboard.videos import ReplayMismatch
 
     if args.video_agents and not args.videos:
         raise UsageError("--video-agents: only with --videos")
@@ -84,12 +84,14 @@ def _cmd_report(args: argparse.Namespace) -> int:
         index = write_report(
             rows, args.out, videos=args.videos, env_kwargs=env_kwargs, seed=args.seed,
             video_cells=(lambda r: r["agent"] in agents) if agents else None, title=args.title,
+            run=settings,
         )  # fmt: skip
     except (ValueError, ReplayMismatch) as exc:
         raise CommandError(str(exc)) from None
-    if importlib.util.find_spec("matplotlib") is None:
-        print("no figures: matplotlib is not installed (pip install -e '.[plots]' adds it)")
     wrote(args.out / "tables.md", "Markdown tables")
     wrote(args.out / "stats.json", "every statistic")
-    wrote(index, "open it in a browser")
+    if figures_available():
+        wrote(index, "open it in a browser")
+    else:
+        wrote(index, "the tables but no figures: install the plots extra for them")
     return 0

@@ -104,7 +104,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
     import gymnasium as gym
 
     from baselines.agents import make
-    from baselines.evaluation import evaluate, run_episode, summarize
+    from baselines.leaderboard.evaluation import evaluate, run_episode, summarize
     from humotion_gym.video import write_video
 
     options = _clip_options(args)

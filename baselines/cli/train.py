@@ -22,6 +22,9 @@ from humotion_gym.cli._common import (
     add_json,
     add_seed,
     add_task,
+    int_at_least,
+    output_dir,
+    output_file,
     positive_int,
     print_json,
     wrote,
@@ -57,8 +60,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     add_seed(tr, "seed of the policy, the episodes and the rollouts")
     tr.add_argument(
-        "--out", type=Path, default=None,
-        help="output folder: model.zip, config.json, checkpoints/ (default: runs/ALGO-TASK-sSEED)",
+        "--out", type=output_dir, default=None,
+        help="output folder: model.zip, config.json, checkpoints/, logs/ "
+        "(default: runs/ALGO-TASK-sSEED)",
     )  # fmt: skip
     tr.add_argument(
         "--hyperparams", type=Path, default=None,
@@ -77,9 +81,29 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--checkpoint-every", type=positive_int, default=10_000,
         help="save a checkpoint every this many env steps (default: 10000)",
     )  # fmt: skip
+    again = tr.add_mutually_exclusive_group()
+    again.add_argument(
+        "--resume", action="store_true",
+        help="continue the run in OUT from its latest checkpoint (default: an OUT holding "
+        "an earlier run's model is refused)",
+    )  # fmt: skip
+    again.add_argument(
+        "--force", action="store_true",
+        help="start afresh over the earlier run in OUT, deleting its model and checkpoints "
+        "(default: refused)",
+    )  # fmt: skip
     tr.add_argument(
-        "--no-resume", action="store_true",
-        help="start afresh even if OUT/checkpoints holds a checkpoint (default: resume)",
+        "--no-validation", action="store_true",
+        help="train on every training person, tracking none for validation (default: the "
+        "validation persons are held out and tracked every --eval-every steps)",
+    )  # fmt: skip
+    tr.add_argument(
+        "--eval-every", type=positive_int, default=10_000,
+        help="env steps between two validation runs (default: 10000)",
+    )  # fmt: skip
+    tr.add_argument(
+        "--eval-episodes", type=positive_int, default=5,
+        help="validation episodes per run (default: 5)",
     )  # fmt: skip
     tr.add_argument("--threads", type=positive_int, default=1, help="torch threads (default: 1)")
     tr.add_argument(
@@ -102,8 +126,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="algorithms (default: ppo bc)",
     )  # fmt: skip
     lc.add_argument(
-        "--seeds", type=int, nargs="+", default=[0, 1, 2], help="training seeds (default: 0 1 2)"
-    )
+        "--seeds", type=int_at_least(0), nargs="+", default=[0, 1, 2],
+        help="training seeds (default: 0 1 2)",
+    )  # fmt: skip
     lc.add_argument(
         "--steps", type=positive_int, default=100_000,
         help="env steps per run (default: 100000)",
@@ -117,11 +142,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="test episodes per evaluated checkpoint (default: 10)",
     )  # fmt: skip
     lc.add_argument(
-        "--runs-dir", type=Path, default=Path("runs/curve"),
+        "--runs-dir", type=output_dir, default=Path("runs/curve"),
         help="where the runs are trained, and resumed from (default: runs/curve)",
     )  # fmt: skip
     lc.add_argument(
-        "--out", type=Path, default=Path("docs/img/rl_learning_curve.png"),
+        "--out", type=output_file(".png"), default=Path("docs/img/rl_learning_curve.png"),
         help="figure (PNG); the numbers go beside it as JSON "
         "(default: docs/img/rl_learning_curve.png)",
     )  # fmt: skip
@@ -156,19 +181,29 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from baselines.rl import TrainConfig, train
 
     out = args.out or Path("runs") / f"{args.algo}-{args.task}-s{args.seed}"
+    if args.out is None:  # the default folder, checked before training as --out is
+        try:
+            output_dir(str(out))
+        except argparse.ArgumentTypeError as exc:
+            raise UsageError(f"--out: {exc}") from None
     try:
         config = TrainConfig(
             args.algo, args.task, args.steps, args.seed, str(out),
             data_dir=[str(d) for d in args.data_dir] if args.data_dir else None,
             settings=_settings(args), init=str(args.init) if args.init else None,
             checkpoint_every=args.checkpoint_every, threads=args.threads,
+            validation=not args.no_validation, eval_every=args.eval_every,
+            eval_episodes=args.eval_episodes,
         )  # fmt: skip
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     if args.init is not None and not args.init.is_file():
         raise CommandError(f"--init: {args.init} does not exist")
     command = "humotion-gym " + " ".join(sys.argv[1:]) if sys.argv[1:] else None
-    path = train(config, resume=not args.no_resume, command=command)
+    try:
+        path = train(config, resume=args.resume, force=args.force, command=command)
+    except FileExistsError as exc:
+        raise UsageError(str(exc)) from None
     run_config = json.loads((out / "config.json").read_text())
     if args.export is not None:
         args.export.mkdir(parents=True, exist_ok=True)

@@ -35,9 +35,6 @@ from baselines.leaderboard.tables import (
     validity_lines,
 )
 
-#: The name ``humotion-gym leaderboard`` imports :func:`grid_cells` by.
-_cells = grid_cells
-
 __all__ = [
     "EPISODES_FILE",
     "FLOOR",

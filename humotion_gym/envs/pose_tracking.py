@@ -127,6 +127,20 @@ def _wrap(angles: FloatArray) -> FloatArray:
     return (angles + np.pi) % (2 * np.pi) - np.pi
 
 
+def action_array(action: Any, what: str, shape: tuple[int, ...]) -> NDArray[Any]:
+    """``np.asarray(action)``, with a ragged nested sequence refused in the env's words.
+
+    Raises:
+        ValueError: Naming ``what`` and the expected ``shape``.
+    """
+    try:
+        return np.asarray(action)
+    except ValueError:
+        raise ValueError(
+            f"{what} must be an array of shape {shape}, got a ragged sequence"
+        ) from None
+
+
 class PoseTrackingEnv(gym.Env):
     """Track a cone figure's 3D pose from rendered frames: the one environment class.
 
@@ -713,7 +727,7 @@ class PoseTrackingEnv(gym.Env):
 
     def _checked_action(self, action: NDArray) -> FloatArray:
         """The action as float64, refused with a clear ``ValueError`` when malformed."""
-        raw = np.asarray(action)
+        raw = action_array(action, f"{self.task.name}: action", self.action_space.shape)
         if raw.dtype.kind not in "iuf":
             raise ValueError(
                 f"{self.task.name}: action must hold real numbers, got dtype {raw.dtype}"

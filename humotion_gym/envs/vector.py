@@ -45,7 +45,8 @@ from numpy.typing import NDArray
 
 from humotion_gym.body import N_KEYPOINTS, N_PARAMS, SHAPE_TABLE_SIZE, pose_geometry_of
 from humotion_gym.camera import fit_cameras
-from humotion_gym.envs.pose_tracking import PoseTrackingEnv, _scored_info
+from humotion_gym.envs.pose_tracking import PoseTrackingEnv, _scored_info, action_array
+from humotion_gym.envs.tasks import get_task
 from humotion_gym.metrics import StepScores, update_lost_run
 from humotion_gym.render import FigureSequence, _compose, _noise_windows, figure_sequences
 
@@ -80,6 +81,9 @@ class PoseTrackingVectorEnv(VectorEnv):
             ``SAME_STEP``: the next episode starts at once and the finished
             one's last observation and info are in ``info["final_obs"]`` and
             ``info["final_info"]``; ``DISABLED``: call ``reset`` with a mask).
+        max_episode_steps: Episodes end after at most this many steps, as
+            Gymnasium's ``TimeLimit`` ends a single env's (``make_vec`` passes
+            the spec's, the task's length; default: the task's).
         **kwargs: Keyword arguments of :class:`PoseTrackingEnv`.
     """
 
@@ -94,12 +98,17 @@ class PoseTrackingVectorEnv(VectorEnv):
         num_envs: int = 1,
         task: str = "BodyTrack-v1",
         autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+        max_episode_steps: int | None = None,
         **kwargs: Any,
     ) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)):
             raise ValueError(f"num_envs: expected an integer >= 1, got {num_envs!r}")
         if num_envs < 1:
             raise ValueError(f"num_envs: expected an integer >= 1, got {num_envs!r}")
+        if max_episode_steps is not None:
+            # What TimeLimit does to a single env: the episode ends at the shorter length.
+            frames = kwargs.get("episode_frames") or get_task(task).episode_frames
+            kwargs["episode_frames"] = min(int(frames), int(max_episode_steps))
         template = PoseTrackingEnv(task=task, **kwargs)
         # The episodes share the template's library, clip table and caches
         # (shallow copies): constructing one env filters the clips once.
@@ -370,7 +379,7 @@ class PoseTrackingVectorEnv(VectorEnv):
             self._all_started = bool(self._started.all())
             if not self._all_started:
                 raise RuntimeError("step() called before reset()")
-        raw = np.asarray(actions)
+        raw = action_array(actions, f"{self.task.name}: actions", self._action_shape)
         if raw.dtype.kind not in "iuf":
             raise ValueError(f"{self.task.name}: actions must hold real numbers, got {raw.dtype}")
         if raw.shape != self._action_shape:

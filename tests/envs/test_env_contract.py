@@ -127,6 +127,22 @@ def test_actions_of_non_real_dtypes_are_refused(env, action):
         env.step(action)
 
 
+def test_a_ragged_action_is_refused_in_the_envs_words(env):
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"action must be an array of shape \(25,\)"):
+        env.step([[0.0] * 24, [0.0]])
+
+
+def test_ragged_actions_are_refused_by_the_vector_env():
+    envs = gym.make_vec(
+        "humotion_gym/ArmTrack-v1", num_envs=2, vectorization_mode="vector_entry_point"
+    )
+    envs.reset(seed=0)
+    with pytest.raises(ValueError, match=r"actions must be an array of shape \(2, 4\)"):
+        envs.step([[0.0] * 4, [0.0]])
+    envs.close()
+
+
 def test_integer_actions_are_accepted(env):
     env.reset(seed=0)
     env.step(np.zeros(25, dtype=np.int64))
@@ -168,3 +184,16 @@ def test_every_spec_states_its_episode_length(env_id):
         steps += 1
     assert steps == frames  # the wrapper and the environment end the episode together
     env.close()
+
+
+def test_the_vector_env_ends_episodes_at_max_episode_steps_as_time_limit_does():
+    envs = gym.make_vec(
+        "humotion_gym/SideWalk-v1", num_envs=2, vectorization_mode="vector_entry_point",
+        max_episode_steps=7, terminate_on_lost=False,
+    )  # fmt: skip
+    envs.reset(seed=0)
+    for step in range(1, 8):
+        _, _, terminated, truncated, _ = envs.step(np.zeros(envs.action_space.shape))
+        assert not terminated.any()
+        assert truncated.all() == (step == 7)
+    envs.close()
