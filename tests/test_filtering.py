@@ -1,3 +1,5 @@
+import math
+
 import numpy as np
 import pytest
 
@@ -13,7 +15,7 @@ from baselines.filtering import (
     systematic_resample,
     weighted_mean,
 )
-from baselines.filtering import weights as filter_weights
+from baselines.filtering._compiled import wrapped_offsets
 
 
 def weighted_mean_reference(particles, weights, angle_mask):
@@ -162,19 +164,29 @@ def test_ess_and_state_validation():
         pf.step(None)
 
 
-@pytest.mark.parametrize("rows", [1, 7, 1024, 10**6])
-def test_circular_mean_does_not_depend_on_its_row_blocks(monkeypatch, rows: int) -> None:
-    # The elementwise steps run in blocks of rows; any blocks give the same bits
-    # (a run of angle columns read through a view, others through an index).
-    rng = np.random.default_rng(rows)
-    particles = rng.normal(0.0, 2.0, (3001, 25))
-    weights = rng.random(3001)
-    weights /= weights.sum()
-    masks = [np.arange(25) >= 3, rng.random(25) < 0.6, np.arange(25) == 4]
-    expected = [weighted_mean(particles, weights, mask) for mask in masks]
-    monkeypatch.setattr(filter_weights, "_MEAN_ROWS", rows)
-    for mask, want in zip(masks, expected, strict=True):
-        assert np.array_equal(weighted_mean(particles, weights, mask), want)
+def test_wrapped_offsets_follow_their_definition() -> None:
+    # Each element by the definition, in double precision then rounded to single:
+    # the same operations in the same order, so equal bits (strided and float32
+    # particles included, as weighted_mean may pass them).
+    rng = np.random.default_rng(5)
+    for particles in (
+        rng.normal(0.0, 20.0, (301, 9)),
+        np.asfortranarray(rng.normal(0.0, 3.0, (64, 7))),
+        rng.normal(0.0, 3.0, (50, 25))[:, ::2],
+    ):
+        columns = np.flatnonzero(rng.random(particles.shape[1]) < 0.6)
+        centre = rng.normal(0.0, 5.0, columns.size)
+        out = np.empty((particles.shape[0], columns.size), np.float32)
+        wrapped_offsets(particles, columns, centre, out)
+        want = np.empty_like(out)
+        for p in range(particles.shape[0]):
+            for i, j in enumerate(columns):
+                offset = float(particles[p, j]) - float(centre[i])
+                want[p, i] = np.float32(
+                    offset - round(offset * (1.0 / (2.0 * math.pi))) * (2.0 * math.pi)
+                )
+        assert np.array_equal(out, want)
+        assert np.all(np.abs(out) <= np.float32(math.pi))
 
 
 def systematic_counts_oracle(weights, u):

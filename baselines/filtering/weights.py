@@ -10,6 +10,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
+from baselines.filtering._compiled import wrapped_offsets
+
 FloatArray = NDArray[np.float64]
 
 
@@ -105,29 +107,13 @@ def weighted_mean(
         return mean
     lin = mean[angle_mask]
     index = np.flatnonzero(angle_mask)
-    n, k = particles.shape[0], index.size
-    columns: NDArray[np.intp] | slice = index
-    if index[-1] - index[0] == k - 1:  # a run of columns: read through a view
-        columns = slice(int(index[0]), int(index[-1]) + 1)
-    sin, cos = np.empty((n, k)), np.empty((n, k))
-    # Row blocks that stay in cache for the elementwise steps; the weighted
-    # sums then run over all rows at once.
-    for lo in range(0, n, _MEAN_ROWS):
-        hi = min(n, lo + _MEAN_ROWS)
-        offset = np.subtract(particles[lo:hi, columns], lin)
-        turns = np.multiply(offset, 1.0 / (2.0 * np.pi))
-        np.rint(turns, out=turns)
-        turns *= 2.0 * np.pi
-        offset -= turns
-        small = offset.astype(np.float32)
-        np.copyto(sin[lo:hi], np.sin(small))
-        np.copyto(cos[lo:hi], np.cos(small, out=small))
+    small = np.empty((particles.shape[0], index.size), np.float32)
+    wrapped_offsets(np.asarray(particles, dtype=np.float64), index, lin, small)
+    # float32 sines and cosines (numpy's vectorised loops), kept in double for the sums.
+    sin = np.sin(small, out=np.empty(small.shape))
+    cos = np.cos(small, out=np.empty(small.shape))
     mean[angle_mask] = lin + np.arctan2(weights @ sin, weights @ cos)
     return mean
-
-
-#: Rows per block of :func:`weighted_mean`'s elementwise steps.
-_MEAN_ROWS = 1024
 
 
 def tempered_weights(loglik: FloatArray, beta: float) -> FloatArray:
