@@ -37,7 +37,8 @@ class FrameFeatures:
             orientation bin (``B = orientation_bins``), in reference pixels,
             truncated at the model's ``edge_truncation``.
         foreground: ``(H, W)`` float32 foreground probability in [0, 1].
-        background_color: The estimated background colour (one value per channel).
+        background_color: The estimated background colour (one value per
+            channel), or None where the known backdrop was used instead.
         cost: Flat uint8 lookup table: the ``B`` padded ``(H + 2, W + 2)`` edge
             cost maps followed by the padded foreground cost map, per point, in
             units of ``cost_unit``; the 1-pixel border holds the cost of a point
@@ -67,7 +68,7 @@ class FrameFeatures:
     edges: NDArray[np.uint8]
     distance: NDArray[np.float32]
     foreground: NDArray[np.float32]
-    background_color: NDArray[np.float64]
+    background_color: NDArray[np.float64] | None
     cost: NDArray[np.uint8]
     cost_unit: float
     residual: NDArray[np.float32] | None = None
@@ -200,8 +201,11 @@ def oriented_edges(
     if n_bins == 1:
         bins[0, ys, xs] = 0
         return edges, bins, np.ones(1, bool)
-    gx = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=3).reshape(h, w, channels)[ys, xs]
-    gy = cv2.Sobel(smooth, cv2.CV_32F, 0, 1, ksize=3).reshape(h, w, channels)[ys, xs]
+    # A 3x3 Sobel of bytes is an integer below 2**10: int16 holds it exactly,
+    # in half the memory of float32, which it becomes at the edge pixels only.
+    gx = cv2.Sobel(smooth, cv2.CV_16S, 1, 0, ksize=3).reshape(h, w, channels)[ys, xs]
+    gy = cv2.Sobel(smooth, cv2.CV_16S, 0, 1, ksize=3).reshape(h, w, channels)[ys, xs]
+    gx, gy = gx.astype(np.float32), gy.astype(np.float32)
     best = np.argmax(gx * gx + gy * gy, axis=1)  # the strongest channel
     pick = np.arange(ys.size)
     theta = np.arctan2(gy[pick, best], gx[pick, best])  # float32: the gradient = outline normal
@@ -272,26 +276,26 @@ def foreground(
     smooth: NDArray[np.uint8],
     backdrop: Backdrop | None = None,
     scale: float = 1.0,
-) -> tuple[NDArray[np.float32], NDArray, NDArray[np.uint8] | None, Backdrop | None]:
+) -> tuple[NDArray[np.float32], NDArray | None, NDArray[np.uint8] | None, Backdrop | None]:
     """Foreground probability from the colour distance to the background.
 
-    The background is the border's median colour, and, where ``backdrop``
-    knows it, the backdrop's pixel; the backdrop's own differences (sensor
+    The background is the border's median colour or, with ``backdrop``, the
+    backdrop's pixel where it knows it; the backdrop's own differences (sensor
     noise) raise the threshold (:func:`backdrop_low`). Under the initial
     figure the first frame showed the figure: a pixel still as it was is
     figure (probability 1), one that changed shows the backdrop the figure
     left or another part of it (1/2).
 
     Returns:
-        The ``(H, W)`` float32 probability, the border's median colour, with
-        a backdrop used and a positive ``backdrop_reach`` the uint8 mask of
-        where edges count (within reach of a pixel that differs from the
-        known backdrop, or where it is unknown), else None, and the backdrop
+        The ``(H, W)`` float32 probability, the border's median colour (None
+        where the backdrop was used instead), with a backdrop used and a
+        positive ``backdrop_reach`` the uint8 mask of where edges count
+        (within reach of a pixel that differs from the known backdrop, or
+        where it is unknown), else None, and the backdrop
         if it was used, else None.
     """
     channels = smooth.shape[2]
-    bg = border_color(smooth, model.border_width)
-    keep, low = None, None
+    bg, keep, low = None, None, None
     if backdrop is not None:
         near = channel_max(cv2.absdiff(smooth, backdrop.image).reshape(smooth.shape))
         low = backdrop_low(model, np.bincount(near[backdrop.known], minlength=256))
@@ -310,6 +314,7 @@ def foreground(
             keep = grow(found.view(np.uint8) * np.uint8(255), model.backdrop_reach * scale)
             np.copyto(keep, np.uint8(255), where=~backdrop.known)
     else:  # the border's colour alone
+        bg = border_color(smooth, model.border_width)
         scalar = tuple(float(v) for v in bg) + (0.0,) * (4 - channels)
         diff = channel_max(cv2.absdiff(smooth, scalar).reshape(smooth.shape))
     fg = cv2.subtract(diff, float(model.foreground_low)).astype(np.float32)
