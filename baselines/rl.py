@@ -58,7 +58,12 @@ from torch import nn
 
 from baselines.agents import HoldAgent, tracking_env
 from baselines.agents.learned import LearnedAgent
-from baselines.agents.policy import (
+
+# The shipped checkpoints pickle their features extractor as
+# ``baselines.rl.TrackingExtractor``: this module must keep the name, or SB3
+# silently loads a default extractor and the weights no longer fit.
+from baselines.agents.policy import (  # noqa: F401
+    TrackingExtractor,
     policy_kwargs,
     root_indices,
     start_as_hold,

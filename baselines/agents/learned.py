@@ -39,7 +39,7 @@ from humotion_gym.wrappers import learner_observation
 FloatArray = NDArray[np.float64]
 
 #: Where the pretrained checkpoints live (package data).
-CHECKPOINT_DIR = Path(__file__).resolve().parent / "checkpoints"
+CHECKPOINT_DIR = Path(__file__).resolve().parents[1] / "checkpoints"
 
 #: The learned agents by name: one line each for listings.
 LEARNED: dict[str, str] = {

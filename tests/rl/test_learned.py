@@ -17,6 +17,7 @@ from baselines.agents.learned import (
     HybridAgent,
     LearnedAgent,
     NoCheckpointError,
+    checkpoint_path,
     is_learned,
     load_policy,
     takes_particles,
@@ -263,6 +264,12 @@ def test_pretrained_checkpoint_loads_acts_and_says_how_it_was_made(path: Path) -
     result = run_episode(make(algo, env), env, seed=0)
     assert len(result.errors_mm) == env.unwrapped.episode_frames
     assert np.all(np.isfinite(result.errors_mm))
+
+
+def test_every_task_ships_a_bc_checkpoint_where_the_agents_look() -> None:
+    # An empty glob would leave the parametrized test above with no case at all.
+    for task in TASKS:
+        assert checkpoint_path("bc", task).is_file(), f"no bc checkpoint for {task}"
 
 
 def test_pretrained_checkpoints_are_small() -> None:
