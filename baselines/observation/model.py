@@ -270,9 +270,9 @@ class ObservationModel(ObservationSettings):
         chunk = chunk_size(flat.shape[0])
         for lo in range(0, flat.shape[0], chunk):
             part = flat[lo : lo + chunk]
-            # One pass over all values (a NaN fails it); rows are looked at
-            # only when a value is out of bounds.
-            if not part.size or np.abs(part).max() <= POSE_LIMIT:
+            # Two reductions over all values, no temporary (a NaN fails them);
+            # rows are looked at only when a value is out of bounds.
+            if not part.size or -POSE_LIMIT <= part.min() and part.max() <= POSE_LIMIT:
                 out[lo : lo + chunk] = terms.score(self, feats, part, shape, camera, prefixes)
                 continue
             inside = (np.abs(part) <= POSE_LIMIT).all(axis=1)
