@@ -27,6 +27,7 @@ import numpy as np
 import pytest
 
 from baselines.observation import FrameFeatures, GivenBody, ObservationModel, geometry
+from baselines.observation._compiled import mark_bins, strongest_gradients
 from humotion_gym import body
 from humotion_gym.camera import Camera, fit_camera
 from humotion_gym.render import SceneOptions, make_background, render
@@ -390,3 +391,30 @@ def test_features_are_opencvs(seed: int, size: int, bins: int) -> None:
     exact = np.full((h2, w2), model.foreground_weight / model.axis_samples)
     exact[1:-1, 1:-1] = (1 - feats.foreground) * model.foreground_weight / model.axis_samples
     assert np.abs(table[n_bins] - exact).max() <= feats.cost_unit / 2 + 1e-7
+
+
+def test_strongest_gradients_and_bins_follow_their_definitions() -> None:
+    # Per pixel: the first channel of largest dx^2 + dy^2, and the pixel zeroed
+    # in bins floor(t) mod B and the next. Integers and floor: exact equality.
+    rng = np.random.default_rng(11)
+    h, w, channels, n_bins = 9, 7, 3, 4
+    dx = rng.integers(-1020, 1021, (h, w, channels)).astype(np.int16)
+    dy = rng.integers(-1020, 1021, (h, w, channels)).astype(np.int16)
+    dx[0, 0], dy[0, 0] = (3, 4, 0), (4, 3, 5)  # a tie of three: the first wins, as np.argmax
+    ys, xs = np.nonzero(rng.random((h, w)) < 0.5)
+    ys, xs = np.r_[0, ys].astype(np.int32), np.r_[0, xs].astype(np.int32)
+    gx, gy = strongest_gradients(dx, dy, xs, ys)
+    for i, (y, x) in enumerate(zip(ys, xs, strict=True)):
+        strength = [int(dx[y, x, c]) ** 2 + int(dy[y, x, c]) ** 2 for c in range(channels)]
+        best = strength.index(max(strength))
+        assert (gx[i], gy[i]) == (dx[y, x, best], dy[y, x, best])
+    turns = rng.uniform(0.0, n_bins, ys.size).astype(np.float32)
+    turns[:2] = [0.0, n_bins]  # both ends of the range
+    bins = np.full((n_bins, h, w), 255, np.uint8)
+    held = mark_bins(turns, xs, ys, bins)
+    want = np.full_like(bins, 255)
+    for t, y, x in zip(turns, ys, xs, strict=True):
+        lo = math.floor(t) % n_bins
+        want[lo, y, x] = want[(lo + 1) % n_bins, y, x] = 0
+    assert np.array_equal(bins, want)
+    assert np.array_equal(held, (want == 0).any(axis=(1, 2)))

@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from baselines.observation._compiled import mark_bins, strongest_gradients
 from baselines.observation.geometry import free_cones, grow, projected_cones, silhouette_mask
 from baselines.observation.settings import ObservationSettings
 from humotion_gym.body import N_CONES, BodyShape, cone_geometry
@@ -201,20 +202,12 @@ def oriented_edges(
     if n_bins == 1:
         bins[0, ys, xs] = 0
         return edges, bins, np.ones(1, bool)
-    # A 3x3 Sobel of bytes is an integer below 2**10: int16 holds it exactly,
-    # in half the memory of float32, which it becomes at the edge pixels only.
-    gx = cv2.Sobel(smooth, cv2.CV_16S, 1, 0, ksize=3).reshape(h, w, channels)[ys, xs]
-    gy = cv2.Sobel(smooth, cv2.CV_16S, 0, 1, ksize=3).reshape(h, w, channels)[ys, xs]
-    gx, gy = gx.astype(np.float32), gy.astype(np.float32)
-    best = np.argmax(gx * gx + gy * gy, axis=1)  # the strongest channel
-    pick = np.arange(ys.size)
-    theta = np.arctan2(gy[pick, best], gx[pick, best])  # float32: the gradient = outline normal
-    lo = np.floor(np.mod(theta, np.pi) * (n_bins / np.pi)).astype(np.intp) % n_bins
-    hi = (lo + 1) % n_bins
-    bins[lo, ys, xs] = 0
-    bins[hi, ys, xs] = 0
-    counts = np.bincount(lo, minlength=n_bins) + np.bincount(hi, minlength=n_bins)
-    return edges, bins, counts > 0
+    # A 3x3 Sobel of bytes is an integer below 2**10: int16 holds it exactly.
+    dx = cv2.Sobel(smooth, cv2.CV_16S, 1, 0, ksize=3).reshape(h, w, channels)
+    dy = cv2.Sobel(smooth, cv2.CV_16S, 0, 1, ksize=3).reshape(h, w, channels)
+    gx, gy = strongest_gradients(dx, dy, xs, ys)
+    theta = np.arctan2(gy, gx)  # float32: the gradient = outline normal
+    return edges, bins, mark_bins(np.mod(theta, np.pi) * (n_bins / np.pi), xs, ys, bins)
 
 
 def edge_distances(bins: NDArray[np.uint8], found: NDArray[np.bool_]) -> NDArray[np.float32]:
