@@ -27,6 +27,7 @@ from humotion_gym.body import (
     forward_kinematics,
 )
 from humotion_gym.camera import Camera, fit_camera
+from humotion_gym.envs._checks import action_array, check_count, check_positive
 from humotion_gym.envs.tasks import TaskSpec, get_task
 from humotion_gym.kinematics import batch_pose_geometry
 from humotion_gym.metrics import Scoring, StepScores, step_scores, update_lost_run
@@ -112,33 +113,8 @@ _EPISODE_STATE: tuple[str, ...] = (
 )  # fmt: skip
 
 
-def _check_count(name: str, value: Any) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ValueError(f"{name}: expected an integer >= 1, got {value!r}")
-
-
-def _check_positive(name: str, value: Any) -> None:
-    real = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-    if not (real and np.isfinite(value) and value > 0):
-        raise ValueError(f"{name}: expected a positive finite number, got {value!r}")
-
-
 def _wrap(angles: FloatArray) -> FloatArray:
     return (angles + np.pi) % (2 * np.pi) - np.pi
-
-
-def action_array(action: Any, what: str, shape: tuple[int, ...]) -> NDArray[Any]:
-    """``np.asarray(action)``, with a ragged nested sequence refused in the env's words.
-
-    Raises:
-        ValueError: Naming ``what`` and the expected ``shape``.
-    """
-    try:
-        return np.asarray(action)
-    except ValueError:
-        raise ValueError(
-            f"{what} must be an array of shape {shape}, got a ragged sequence"
-        ) from None
 
 
 class PoseTrackingEnv(gym.Env):
@@ -189,16 +165,16 @@ class PoseTrackingEnv(gym.Env):
                 f"render_mode must be one of {self.metadata['render_modes']} or None, "
                 f"got {render_mode!r}"
             )
-        _check_count("frame_skip", frame_skip)
-        _check_count("lost_patience", lost_patience)
+        check_count("frame_skip", frame_skip)
+        check_count("lost_patience", lost_patience)
         if episode_frames is not None:
-            _check_count("episode_frames", episode_frames)
+            check_count("episode_frames", episode_frames)
         for name, value in (
             ("lost_threshold_mm", lost_threshold_mm),
             ("reward_scale_mm", reward_scale_mm),
             ("fps", fps),
         ):
-            _check_positive(name, value)
+            check_positive(name, value)
         self.render_mode = render_mode
         scene_kwargs: dict[str, Any] = {
             "width": width,

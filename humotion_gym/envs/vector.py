@@ -45,7 +45,8 @@ from numpy.typing import NDArray
 
 from humotion_gym.body import N_KEYPOINTS, N_PARAMS, SHAPE_TABLE_SIZE, pose_geometry_of
 from humotion_gym.camera import fit_cameras
-from humotion_gym.envs.pose_tracking import PoseTrackingEnv, _scored_info, action_array
+from humotion_gym.envs._checks import action_array, check_count
+from humotion_gym.envs.pose_tracking import PoseTrackingEnv, _scored_info
 from humotion_gym.envs.tasks import get_task
 from humotion_gym.metrics import StepScores, update_lost_run
 from humotion_gym.render import FigureSequence, _compose, _noise_windows, figure_sequences
@@ -101,10 +102,7 @@ class PoseTrackingVectorEnv(VectorEnv):
         max_episode_steps: int | None = None,
         **kwargs: Any,
     ) -> None:
-        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)):
-            raise ValueError(f"num_envs: expected an integer >= 1, got {num_envs!r}")
-        if num_envs < 1:
-            raise ValueError(f"num_envs: expected an integer >= 1, got {num_envs!r}")
+        check_count("num_envs", num_envs)
         if max_episode_steps is not None:
             # What TimeLimit does to a single env: the episode ends at the shorter length.
             frames = kwargs.get("episode_frames") or get_task(task).episode_frames
