@@ -49,6 +49,14 @@ def _errors_matrix(row: dict[str, Any]) -> NDArray[np.float64]:
     return np.array([e["errors_mm"][:length] for e in row["episodes"]], dtype=np.float64)
 
 
+def _save(plt: Any, fig: Any, path: Path) -> Path:
+    """Lay the figure out, write it to ``path`` (110 dpi), close it and return ``path``."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def figure_error_over_frames(rows: Sequence[dict[str, Any]], path: Path, seed: int = 0) -> Path:
     """Mean error at each frame per cell, with 95% bootstrap bands over episodes."""
     plt = _pyplot()
@@ -62,10 +70,7 @@ def figure_error_over_frames(rows: Sequence[dict[str, Any]], path: Path, seed: i
             ax.fill_between(frames, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
         ax.set(title=task, xlabel="frame", ylabel="keypoint error, mm")
         ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, path)
 
 
 def figure_survival(rows: Sequence[dict[str, Any]], path: Path) -> Path:
@@ -87,10 +92,7 @@ def figure_survival(rows: Sequence[dict[str, Any]], path: Path) -> Path:
                             alpha=0.15, lw=0)  # fmt: skip
         ax.set(title=task, xlabel="frame", ylabel="still tracking", ylim=(-0.02, 1.02))
         ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, path)
 
 
 def figure_iqm_per_task(rows: Sequence[dict[str, Any]], path: Path, seed: int = 0) -> Path:
@@ -113,10 +115,7 @@ def figure_iqm_per_task(rows: Sequence[dict[str, Any]], path: Path, seed: int = 
         ax.set_yticks(y, [stats.cell_label(r) for r in cells], fontsize=8)
         ax.set(title=task, xlabel="IQM keypoint error, mm (95% CI)")
         ax.grid(axis="x", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, path)
 
 
 def figure_aggregate(aggregates: Sequence[dict[str, Any]], path: Path) -> Path:
@@ -136,7 +135,4 @@ def figure_aggregate(aggregates: Sequence[dict[str, Any]], path: Path) -> Path:
         ax.set_yticks(y, labels, fontsize=8)
         ax.set(xlabel=xlabel)
         ax.grid(axis="x", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, path)
