@@ -13,6 +13,7 @@ the leaderboard (``hold`` included). Writes ``sweep.json`` (every episode),
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 from baselines.cli._args import add_agents, add_engine, check_engine
 from humotion_gym.cli._common import (
@@ -31,6 +32,23 @@ from humotion_gym.cli._common import (
     task_name,
     wrote,
 )
+
+#: The settings a sweep varies, in ``--help`` order: each one's flag (``--NAME``, with
+#: ``-`` for ``_``) takes values ``add_argument`` reads with these keywords.
+_SETTINGS: dict[str, dict[str, Any]] = {
+    "size": {
+        "type": int_at_least(8, MAX_IMAGE_SIDE), "metavar": "PIXELS",
+        "help": f"image sizes, width = height, 8 to {MAX_IMAGE_SIDE}",
+    },
+    "background": {"choices": ["flat", "clutter"], "help": "backgrounds"},
+    "noise": {
+        "type": float_between(0.0, 255.0), "metavar": "SIGMA",
+        "help": "sensor noise levels, grey levels",
+    },
+    "occluders": {"type": int_at_least(0, 64), "metavar": "N", "help": "numbers of occluders"},
+    "blur": {"type": float_between(0.0, 64.0), "metavar": "SIGMA", "help": "blur levels, pixels"},
+    "frame_skip": {"type": int_at_least(1, 100), "metavar": "K", "help": "frame skips"},
+}  # fmt: skip
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -59,31 +77,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="episodes per cell and value (default: 5)",
     )
     grid = sw.add_argument_group("settings (each one given is swept on its own)")
-    grid.add_argument(
-        "--size", type=int_at_least(8, MAX_IMAGE_SIDE), nargs="+", default=None,
-        metavar="PIXELS", dest="sweep_size",
-        help=f"image sizes, width = height, 8 to {MAX_IMAGE_SIDE} (default: not swept)",
-    )  # fmt: skip
-    grid.add_argument(
-        "--background", choices=["flat", "clutter"], nargs="+", default=None,
-        help="backgrounds (default: not swept)",
-    )  # fmt: skip
-    grid.add_argument(
-        "--noise", type=float_between(0.0, 255.0), nargs="+", default=None, metavar="SIGMA",
-        help="sensor noise levels, grey levels (default: not swept)",
-    )  # fmt: skip
-    grid.add_argument(
-        "--occluders", type=int_at_least(0, 64), nargs="+", default=None, metavar="N",
-        help="numbers of occluders (default: not swept)",
-    )  # fmt: skip
-    grid.add_argument(
-        "--blur", type=float_between(0.0, 64.0), nargs="+", default=None, metavar="SIGMA",
-        help="blur levels, pixels (default: not swept)",
-    )  # fmt: skip
-    grid.add_argument(
-        "--frame-skip", type=int_at_least(1, 100), nargs="+", default=None, metavar="K",
-        help="frame skips (default: not swept)",
-    )  # fmt: skip
+    for name, flag in _SETTINGS.items():
+        grid.add_argument(
+            "--" + name.replace("_", "-"), nargs="+", default=None, dest=f"sweep_{name}",
+            **{**flag, "help": flag["help"] + " (default: not swept)"},
+        )  # fmt: skip
     add_engine(sw)
     add_seed(sw, "seed of the first episode")
     add_data_dir(sw)
@@ -103,19 +101,10 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
     from baselines import sweep
 
-    grid = {
-        name: values
-        for name, values in (
-            ("size", args.sweep_size), ("background", args.background), ("noise", args.noise),
-            ("occluders", args.occluders), ("blur", args.blur), ("frame_skip", args.frame_skip),
-        )
-        if values
-    }  # fmt: skip
+    grid = {name: values for name in _SETTINGS if (values := getattr(args, f"sweep_{name}"))}
     if not grid:
-        raise UsageError(
-            "nothing to sweep: give at least one of --size, --background, --noise, "
-            "--occluders, --blur, --frame-skip"
-        )
+        flags = ", ".join("--" + name.replace("_", "-") for name in _SETTINGS)
+        raise UsageError(f"nothing to sweep: give at least one of {flags}")
     check_engine(args)
     engine = None
     if args.engine != "inprocess":
