@@ -27,7 +27,11 @@ import numpy as np
 import pytest
 
 from baselines.observation import FrameFeatures, GivenBody, ObservationModel, geometry
-from baselines.observation._compiled import mark_bins, strongest_gradients
+from baselines.observation._compiled import (
+    edge_foreground_bytes,
+    mark_bins,
+    strongest_gradients,
+)
 from humotion_gym import body
 from humotion_gym.camera import Camera, fit_camera
 from humotion_gym.render import SceneOptions, make_background, render
@@ -418,3 +422,34 @@ def test_strongest_gradients_and_bins_follow_their_definitions() -> None:
         want[lo, y, x] = want[(lo + 1) % n_bins, y, x] = 0
     assert np.array_equal(bins, want)
     assert np.array_equal(held, (want == 0).any(axis=(1, 2)))
+
+
+def test_edge_foreground_bytes_follow_their_definition() -> None:
+    # Per entry of the padded maps, in float32 scalars and the kernel's order:
+    # the same roundings, so equal bytes (and the distances truncated in place).
+    rng = np.random.default_rng(12)
+    n_bins, h, w = 2, 5, 6
+    dist = rng.uniform(0.0, 30.0, (n_bins, h, w)).astype(np.float32)
+    dist[1] = np.inf  # a bin without edges
+    fg = rng.uniform(0.0, 1.0, (h, w)).astype(np.float32)
+    f32 = np.float32
+    s, tau, e, e_out, f, f_out, inv_u = map(f32, (0.5, 8.0, 0.3, 19.2, 2.5, 2.5, 10.0))
+    table = np.empty((n_bins + 1) * (h + 2) * (w + 2), np.uint8)
+    truncated = dist.copy()
+    edge_foreground_bytes(truncated, fg, s, tau, e, e_out, f, f_out, inv_u, table)
+    maps = table.reshape(n_bins + 1, h + 2, w + 2)
+    for m in range(n_bins + 1):
+        for y in range(h + 2):
+            for x in range(w + 2):
+                inside = 0 < y <= h and 0 < x <= w
+                if m < n_bins and inside:
+                    d = min(dist[m, y - 1, x - 1] * s, tau)
+                    assert truncated[m, y - 1, x - 1] == d
+                    v = d * d * e * inv_u
+                elif m < n_bins:
+                    v = e_out * inv_u
+                elif inside:
+                    v = (f32(1.0) - fg[y - 1, x - 1]) * f * inv_u
+                else:
+                    v = f_out * inv_u
+                assert maps[m, y, x] == np.uint8(np.rint(v))

@@ -392,3 +392,63 @@ def mark_bins(
         held[lo] = True
         held[hi] = True
     return held
+
+
+@numba.njit(cache=True, nogil=True)
+def edge_foreground_bytes(
+    dist: NDArray[np.float32],
+    fg: NDArray[np.float32],
+    inv_scale: np.float32,
+    truncation: np.float32,
+    edge_scale: np.float32,
+    edge_out: np.float32,
+    fg_scale: np.float32,
+    fg_out: np.float32,
+    inv_unit: np.float32,
+    out: NDArray[np.uint8],
+) -> None:
+    """The cost table's edge and foreground maps, quantised, in one pass.
+
+    Per orientation bin ``b`` the padded map ``rint(min(d s, tau)^2 e / u)``
+    (``d = dist[b]``, which takes ``min(d s, tau)`` in place), then the
+    foreground's ``rint((1 - fg) f / u)``; the one-pixel border holds
+    ``rint(edge_out / u)`` and ``rint(fg_out / u)``. All in float32, in
+    that order (:func:`baselines.observation.features.cost_table`).
+
+    Args:
+        dist: ``(B, H, W)`` distances to the edges (pixels); rescaled and
+            truncated in place.
+        fg: ``(H, W)`` foreground probabilities.
+        inv_scale: ``s``, reference pixels per pixel.
+        truncation: ``tau``.
+        edge_scale: ``e``.
+        edge_out: The edge cost off the image.
+        fg_scale: ``f``.
+        fg_out: The foreground cost off the image.
+        inv_unit: ``1 / u``, table units per nat.
+        out: Out, the first ``(B + 1) (H + 2) (W + 2)`` bytes of the flat table.
+    """
+    n_bins, h, w = dist.shape
+    w2 = w + 2
+    plane = (h + 2) * w2
+    for m in range(n_bins + 1):
+        off = edge_out if m < n_bins else fg_out
+        fill = np.uint8(np.rint(off * inv_unit))
+        base = m * plane
+        for x in range(w2):
+            out[base + x] = fill
+            out[base + (h + 1) * w2 + x] = fill
+        for y in range(h):
+            row = base + (y + 1) * w2
+            out[row] = fill
+            out[row + w + 1] = fill
+            if m < n_bins:
+                for x in range(w):
+                    d = dist[m, y, x] * inv_scale
+                    d = d if d < truncation else truncation
+                    dist[m, y, x] = d
+                    out[row + 1 + x] = np.uint8(np.rint(d * d * edge_scale * inv_unit))
+            else:
+                for x in range(w):
+                    v = (np.float32(1.0) - fg[y, x]) * fg_scale * inv_unit
+                    out[row + 1 + x] = np.uint8(np.rint(v))

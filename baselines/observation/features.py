@@ -15,7 +15,11 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from baselines.observation._compiled import mark_bins, strongest_gradients
+from baselines.observation._compiled import (
+    edge_foreground_bytes,
+    mark_bins,
+    strongest_gradients,
+)
 from baselines.observation.geometry import free_cones, grow, projected_cones, silhouette_mask
 from baselines.observation.settings import ObservationSettings
 from humotion_gym.body import N_CONES, BodyShape, cone_geometry
@@ -345,27 +349,24 @@ def cost_table(
     n_app = app_colors.shape[0]
     app_scale = model.appearance_weight / model.axis_samples if n_app else 0.0
     unit = max(edge_out, fg_scale, app_scale) / 255.0 or 1.0
-    dist *= np.float32(1.0 / scale)
-    np.minimum(dist, np.float32(model.edge_truncation), out=dist)
-    maps = np.empty((n_bins + 1 + n_app, h + 2, w + 2), np.float32)
-    # Written in place: each temporary would be another pass over the maps.
-    maps[:n_bins] = edge_out
-    inner = maps[:n_bins, 1:-1, 1:-1]
-    np.multiply(dist, dist, out=inner)
-    inner *= np.float32(edge_scale)
-    maps[n_bins] = fg_scale
-    inner = maps[n_bins, 1:-1, 1:-1]
-    np.subtract(1.0, fg, out=inner)
-    inner *= np.float32(fg_scale)
+    inv_unit = np.float32(1.0 / unit)
+    plane = (h + 2) * (w + 2)
+    table = np.empty((n_bins + 1 + n_app) * plane, np.uint8)
+    edge_foreground_bytes(
+        dist, fg, np.float32(1.0 / scale), np.float32(model.edge_truncation),
+        np.float32(edge_scale), np.float32(edge_out), np.float32(fg_scale),
+        np.float32(fg_scale), inv_unit, table,
+    )  # fmt: skip
     span = 1.0 / (model.appearance_high - model.appearance_low)
     for k, color in enumerate(app_colors):
         mismatch = np.abs(smooth.astype(np.float32) - color).max(axis=2)
         mismatch = np.clip((mismatch - model.appearance_low) * np.float32(span), 0.0, 1.0)
-        maps[n_bins + 1 + k] = app_scale
-        maps[n_bins + 1 + k, 1:-1, 1:-1] = mismatch * np.float32(app_scale)
-    maps *= np.float32(1.0 / unit)
-    np.rint(maps, out=maps)
-    return maps.astype(np.uint8).reshape(-1), float(unit)
+        app = np.full((h + 2, w + 2), app_scale, np.float32)
+        app[1:-1, 1:-1] = mismatch * np.float32(app_scale)
+        app *= inv_unit
+        np.rint(app, out=app)
+        table[(n_bins + 1 + k) * plane : (n_bins + 2 + k) * plane] = app.reshape(-1)
+    return table, float(unit)
 
 
 def spread_points(mask: NDArray[np.bool_], most: int) -> NDArray[np.float32]:
