@@ -63,6 +63,16 @@ def _add_model_args(p: argparse.ArgumentParser, figure: bool = True) -> None:
         )  # fmt: skip
 
 
+def _add_run_args(p: argparse.ArgumentParser, what: str) -> None:
+    """``--jobs`` (``what`` run in parallel processes), ``--quiet`` and ``--json``."""
+    p.add_argument(
+        "--jobs", type=int_at_least(1, 256), default=1,
+        help=f"{what} run in parallel processes (default: 1)",
+    )  # fmt: skip
+    p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_json(p)
+
+
 def features_arg(text: str) -> str:
     """An argparse ``type`` for a feature name (``pavlovic1999.parse_features``)."""
     from baselines.experiments import pavlovic1999 as pav
@@ -179,14 +189,7 @@ def _register_select(sub: argparse._SubParsersAction) -> None:
         "every held-out frame weighs the same (default: kinds)",
     )  # fmt: skip
     _add_model_args(sel, figure=False)
-    sel.add_argument(
-        "--jobs",
-        type=int_at_least(1, 256),
-        default=1,
-        help="folds run in parallel processes (default: 1)",
-    )
-    sel.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    add_json(sel)
+    _add_run_args(sel, "folds")
     sel.set_defaults(func=_cmd_select, max_train_clips=None)
 
 
@@ -221,14 +224,7 @@ def _register_splits(sub: argparse._SubParsersAction) -> None:
         "(default: off)",
     )  # fmt: skip
     _add_model_args(spl, figure=False)
-    spl.add_argument(
-        "--jobs",
-        type=int_at_least(1, 256),
-        default=1,
-        help="fits run in parallel processes (default: 1)",
-    )
-    spl.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    add_json(spl)
+    _add_run_args(spl, "fits")
     spl.set_defaults(func=_cmd_splits)
 
 
