@@ -13,12 +13,11 @@ from baselines.cli._args import add_agents, add_particles
 from humotion_gym.cli._common import (
     add_command,
     add_data_dir,
-    add_json,
+    add_report_out,
     add_seed,
     add_task,
     env_kwargs,
     episode_count,
-    output_file,
     report,
 )
 
@@ -49,11 +48,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "the other training clips) instead of the test persons",
     )  # fmt: skip
     add_data_dir(dp)
-    dp.add_argument(
-        "--out", type=output_file(".json"), default=None,
-        help="also write the result, with every frame, as JSON to this file (default: none)",
-    )  # fmt: skip
-    add_json(dp)
+    add_report_out(dp, "the result, with every frame,")
     dp.set_defaults(func=_cmd_depth)
 
 

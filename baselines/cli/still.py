@@ -13,12 +13,11 @@ from baselines.cli._args import add_agents, add_particles
 from humotion_gym.cli._common import (
     add_command,
     add_data_dir,
-    add_json,
+    add_report_out,
     add_seed,
     add_task,
     env_kwargs,
     episode_count,
-    output_file,
     positive_float,
     report,
 )
@@ -48,11 +47,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     add_seed(st, "the agents' seed")
     add_data_dir(st)
-    st.add_argument(
-        "--out", type=output_file(".json"), default=None,
-        help="also write the result as JSON to this file (default: none)",
-    )  # fmt: skip
-    add_json(st)
+    add_report_out(st)
     st.set_defaults(func=_cmd_still)
 
 

@@ -309,6 +309,15 @@ def wrote(path: Path | str, what: str = "") -> None:
     print(f"wrote {path}" + (f" ({what})" if what else ""))
 
 
+def add_report_out(parser: argparse.ArgumentParser, what: str = "the result") -> None:
+    """``--out FILE.json`` and ``--json``: the flags :func:`report` reads."""
+    parser.add_argument(
+        "--out", type=output_file(".json"), default=None,
+        help=f"also write {what} as JSON to this file (default: none)",
+    )  # fmt: skip
+    add_json(parser)
+
+
 def report(args: argparse.Namespace, result: Any, what: str, text: Callable[[], str]) -> int:
     """A command's ending: the result to ``args.out`` as JSON (when given), then JSON or text.
 
