@@ -225,20 +225,7 @@ HAND: list[tuple[str, str, list[str]]] = [
     (
         "wrong-type",
         "leaderboard",
-        [
-            "leaderboard",
-            "--out",
-            "{run}",
-            "--resume",
-            "--tasks",
-            "ArmTrack-v1",
-            "--agents",
-            "pf-cv",
-            "--particles",
-            "10",
-            "--episodes",
-            "1",
-        ],
+        ["leaderboard", "--out", "{run}", "--resume", *BASE["leaderboard"]],
     ),  # fmt: skip
     ("empty", "leaderboard", ["leaderboard", "--data-dir"]),
     ("huge", "data info", ["data", "info", "{long_name}"]),
