@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from baselines.leaderboard.figures import figures_available
+from baselines.leaderboard.platform_info import run_platform
 from baselines.leaderboard.report import write_report
 from baselines.leaderboard.tables import markdown_table, validity_lines
 from humotion_gym.mocap.library import package_version
@@ -160,7 +161,9 @@ def write_results(
 
     ``results.json`` (schema :data:`SCHEMA_VERSION`, docs/leaderboard.md):
     ``schema_version``, ``kind``, ``created`` (UTC), ``package_version``,
-    ``commit`` (the checkout's git commit, None outside one), ``command``,
+    ``commit`` (the checkout's git commit, None outside one), ``platform``
+    (package versions, platform, CPU, BLAS and thread counts:
+    :func:`~baselines.leaderboard.platform_info.run_platform`), ``command``,
     ``config`` (the run's arguments), ``seed`` and ``env_kwargs`` (as in
     ``config``), ``data`` (the motion capture folders, empty for the built-in
     synthetic motion), ``rows`` (as :func:`~baselines.leaderboard.run.run_leaderboard`
@@ -175,6 +178,7 @@ def write_results(
         "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "package_version": package_version(),
         "commit": source_commit(),
+        "platform": run_platform(),
         "command": command,
         "config": config,
         "seed": config.get("seed", 0),

@@ -12,6 +12,7 @@ from baselines.leaderboard import (
     compare_to_hold,
     markdown_table,
     run_leaderboard,
+    tables,
     validity_lines,
 )
 from baselines.leaderboard.evaluation import run_episode
@@ -78,7 +79,42 @@ def test_leaderboard_always_runs_hold_once_per_task_and_compares_to_it():
     assert f"| {rows[0]['summary']['aligned_error_mm']:.0f} | 1.00 |" in table
     (line,) = validity_lines(rows)
     assert line.startswith("SideWalk-v1: best filter at 30 particles")
-    assert ("NOT valid" in line) == (ratio < VALID_RATIO) or "pf-cv" in line
+    check_verdict(line, ratio)
+
+
+def check_verdict(line: str, ratio: float) -> None:
+    """A validity line ends in the verdict the ratio to hold gives against :data:`VALID_RATIO`.
+
+    Args:
+        line: A task's validity line (one agent seed: the best filter's point ratio).
+        ratio: The best filter's ratio to hold (:func:`compare_to_hold`).
+
+    Raises:
+        AssertionError: If the line's verdict is not the one the ratio gives.
+    """
+    expected = "valid" if ratio >= VALID_RATIO else f"NOT valid (below {VALID_RATIO:g}x)"
+    assert f", {tables.ratio_text(ratio)} in mean error" in line, (line, ratio)
+    assert line.endswith(f" paired episodes: {expected}"), (line, ratio)
+
+
+@pytest.mark.parametrize("errors", [[150.0, 220.0, 130.0], [300.0, 250.0, 280.0]])
+def test_the_verdict_check_fails_when_the_rule_is_inverted(monkeypatch, errors):
+    """Mutations: a verdict flipped by hand, or by moving the rule's 2x floor past the ratio."""
+    hold, tree = _row("hold", 0, [400.0] * 3), _row("pf-tree", 300, errors)
+    ratio, _, _ = compare_to_hold(tree, hold)
+    (line,) = validity_lines([hold, tree])
+    check_verdict(line, ratio)  # the rule as it is: the check passes
+    flipped = {"valid": f"NOT valid (below {VALID_RATIO:g}x)"}
+    flipped[flipped["valid"]] = "valid"
+    head, verdict = line.rsplit(": ", 1)
+    with pytest.raises(AssertionError):
+        check_verdict(f"{head}: {flipped[verdict]}", ratio)
+    # the rule inverted: its floor moved to the other side of this ratio
+    monkeypatch.setattr(tables, "VALID_RATIO", ratio * 2 if ratio >= VALID_RATIO else ratio / 2)
+    (mutated,) = validity_lines([hold, tree])
+    assert mutated.rsplit(": ", 1)[1] != verdict
+    with pytest.raises(AssertionError):
+        check_verdict(mutated, ratio)
 
 
 def test_leaderboard_refuses_bad_counts():
