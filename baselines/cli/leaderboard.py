@@ -67,6 +67,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--episodes", type=episode_count, default=20, help="episodes per cell (default: 20)"
     )
     add_seed(lb, "seed of the first episode")
+    lb.add_argument(
+        "--agent-seeds", type=episode_count, default=1, metavar="K",
+        help="agent seeds per cell (SEED ... SEED+K-1), each on the same episodes; above 1 the "
+        "table adds the seeds' spread and an interval to x hold, and each task's verdict "
+        "takes that interval's lower bound (default: 1)",
+    )  # fmt: skip
     add_data_dir(lb)
     lb.add_argument(
         "--out", type=output_dir, default=None, metavar="FOLDER",
@@ -156,6 +162,8 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         raise UsageError("--resume: needs --out FOLDER, the run to continue")
     if (args.videos or args.no_report) and args.out is None:
         raise UsageError("--videos, --no-report: need --out FOLDER")
+    if args.videos and args.agent_seeds > 1:
+        raise UsageError("--videos: a video replays one agent seed; drop --agent-seeds")
     check_engine(args)
     if args.out is not None and args.out.suffix == ".json":
         raise UsageError(
@@ -173,12 +181,14 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         data_dir=args.data_dir, background=args.background, noise=args.noise,
         engine=args.engine, workers=args.workers, address=args.address, out=args.out,
         videos=args.videos, no_report=args.no_report,
+        agent_seeds=args.agent_seeds if args.agent_seeds != 1 else None,
     )  # fmt: skip
     try:
         rows = run_leaderboard(
             args.tasks, args.agents, args.particles, args.episodes, args.seed, kwargs,
             engine=args.engine, workers=args.workers, address=args.address, out=args.out,
             resume=args.resume, command=command, report=not args.no_report, videos=args.videos,
+            agent_seeds=args.agent_seeds,
         )  # fmt: skip
     except ModuleNotFoundError as exc:
         if exc.name != "ray":

@@ -32,7 +32,7 @@ Every finished episode comes back as a **record**, a plain-JSON dict: the
 cell's ``task``, ``agent`` and ``particles``, the episode ``seed``, ``wall_s``
 (the episode's wall time in its worker), and either ``result``
 (:meth:`~baselines.leaderboard.evaluation.EpisodeResult.to_dict`) or ``error`` (``"Type:
-message"``) with ``traceback``.
+message"``) with ``traceback``; and ``agent_seed``, the seed its agent was built with.
 """
 
 from __future__ import annotations
@@ -105,10 +105,18 @@ class Cell:
 
 @dataclass(frozen=True)
 class Episode:
-    """The unit of work: one seeded episode of one cell."""
+    """The unit of work: one seeded episode of one cell, run with one agent seed.
+
+    Attributes:
+        cell: The cell.
+        seed: The episode's seed (the environment's reset).
+        agent_seed: The agent's seed (its filter's generator); None: the
+            runner's seed (the leaderboard's ``seed``).
+    """
 
     cell: Cell
     seed: int
+    agent_seed: int | None = None
 
 
 #: ``(module name, fitted parameters)`` of a particle-filter agent's prior, by
@@ -182,7 +190,7 @@ class EpisodeRunner:
     One per process: the in-process engine's, or one per Ray actor.
 
     Args:
-        seed: Every agent's seed.
+        seed: The agents' seed where an episode names none.
         env_kwargs: The environments' settings.
         fits: Fitted priors shipped by the driver.
         cached_cells: Cells kept (:data:`CACHED_CELLS`).
@@ -200,19 +208,20 @@ class EpisodeRunner:
         self.fits = dict(fits or {})
         self.cached_cells = int(cached_cells)
         self._envs: dict[str, gym.Env] = {}
-        self._agents: OrderedDict[Cell, Any] = OrderedDict()
+        self._agents: OrderedDict[tuple[Cell, int], Any] = OrderedDict()
 
     def _env(self, task: str) -> gym.Env:
         if task not in self._envs:
             self._envs[task] = make_env(task, self.env_kwargs)
         return self._envs[task]
 
-    def _agent(self, cell: Cell) -> Any:
-        if cell in self._agents:
-            self._agents.move_to_end(cell)
-            return self._agents[cell]
-        agent = build_agent(cell, self._env(cell.task), self.seed, self.fits)
-        self._agents[cell] = agent
+    def _agent(self, cell: Cell, agent_seed: int) -> Any:
+        key = (cell, agent_seed)
+        if key in self._agents:
+            self._agents.move_to_end(key)
+            return self._agents[key]
+        agent = build_agent(cell, self._env(cell.task), agent_seed, self.fits)
+        self._agents[key] = agent
         while len(self._agents) > self.cached_cells:
             self._agents.popitem(last=False)
         return agent
@@ -220,20 +229,21 @@ class EpisodeRunner:
     def run(self, episode: Episode) -> dict[str, Any]:
         """Run one episode; its record (``result``, or ``error`` if it raised)."""
         cell = episode.cell
+        agent_seed = self.seed if episode.agent_seed is None else int(episode.agent_seed)
         record: dict[str, Any] = {
             "task": cell.task, "agent": cell.agent, "particles": cell.particles,
-            "seed": episode.seed,
+            "seed": episode.seed, "agent_seed": agent_seed,
         }  # fmt: skip
         t0 = time.perf_counter()
         try:
-            agent = self._agent(cell)
+            agent = self._agent(cell, agent_seed)
             with single_threaded_blas():
                 result = run_episode(agent, self._env(cell.task), episode.seed)
             record["result"] = result.to_dict()
         except Exception as exc:  # an agent that raises is an error row, not a crash
             record["error"] = f"{type(exc).__name__}: {exc}"
             record["traceback"] = traceback.format_exc()
-            self._agents.pop(cell, None)  # a half-run agent is not reused
+            self._agents.pop((cell, agent_seed), None)  # a half-run agent is not reused
         record["wall_s"] = time.perf_counter() - t0
         return record
 
@@ -515,7 +525,8 @@ def _lost(episode: Episode, why: str) -> dict[str, Any]:
     cell = episode.cell
     return {
         "task": cell.task, "agent": cell.agent, "particles": cell.particles,
-        "seed": episode.seed, "error": why, "traceback": "", "wall_s": 0.0,
+        "seed": episode.seed, "agent_seed": episode.agent_seed, "error": why, "traceback": "",
+        "wall_s": 0.0,
     }  # fmt: skip
 
 

@@ -13,7 +13,14 @@ from numpy.typing import NDArray
 from tqdm.auto import tqdm
 
 from baselines.agents.base import tracking_env
-from baselines.leaderboard.stats import bootstrap_ci, iqm, median_lost_frame, proportion_ci
+from baselines.leaderboard.stats import (
+    bootstrap_ci,
+    iqm,
+    median_lost_frame,
+    proportion_ci,
+    seed_matrix,
+    two_level_bootstrap,
+)
 from humotion_gym.metrics import lost_track_frame
 
 
@@ -167,8 +174,18 @@ def summarize(
         put together) with ``aligned_error_ci``, both None unless every
         episode has it.
 
+        Where the episodes carry more than one ``agent_seed`` (the same
+        episode seeds run with each; the leaderboard's ``agent_seeds``), every
+        statistic is over all of them, ``episodes`` counts every run, and
+        ``mean_error_ci`` is the two-level interval of
+        :func:`~baselines.leaderboard.stats.two_level_bootstrap` (episodes,
+        then seeds within each); the summary adds ``agent_seeds`` (how many),
+        ``seed_means_mm`` (each agent seed's mean error, in seed order) and
+        ``seed_spread_mm`` (their minimum and maximum).
+
     Raises:
-        ValueError: If there are no episodes.
+        ValueError: If there are no episodes, or the agent seeds do not cover
+            the same episode seeds.
     """
     if not results:
         raise ValueError("results: expected at least one episode")
@@ -183,7 +200,7 @@ def summarize(
         aligned = np.array([e["mean_aligned_error_mm"] for e in eps], dtype=np.float64)
         aligned_mean = float(aligned.mean())
         aligned_ci = list(bootstrap_ci(aligned, np.mean, seed=seed))
-    return {
+    summary: dict[str, Any] = {
         "episodes": len(eps),
         "mean_error_mm": float(mean_err.mean()),
         "mean_error_ci": list(bootstrap_ci(mean_err, np.mean, seed=seed)),
@@ -199,4 +216,20 @@ def summarize(
         "mean_reward": float(np.mean([e["mean_reward"] for e in eps])),
         "aligned_error_mm": aligned_mean,
         "aligned_error_ci": aligned_ci,
+    }
+    if len({e.get("agent_seed") for e in eps}) > 1:
+        summary.update(_over_seeds(eps, seed))
+    return summary
+
+
+def _over_seeds(eps: Sequence[Mapping[str, Any]], seed: int) -> dict[str, Any]:
+    """The two-level interval of the mean error, and each agent seed's mean."""
+    _, _, values = seed_matrix(eps)
+    means = values.mean(axis=0)
+    mean_ci, _ = two_level_bootstrap(values, seed=seed)
+    return {
+        "mean_error_ci": list(mean_ci),
+        "agent_seeds": int(values.shape[1]),
+        "seed_means_mm": [float(m) for m in means],
+        "seed_spread_mm": [float(means.min()), float(means.max())],
     }

@@ -10,6 +10,12 @@ The ``hold`` reference (the initial pose every frame) runs on every task, once
 (references take no particles), whether or not it was asked for: it is the
 floor every row is read against (:mod:`baselines.leaderboard.tables`).
 
+With ``agent_seeds`` K above 1 every cell runs its episodes K times, with the
+agent seeds ``seed`` ... ``seed + K - 1`` (the episodes stay the same: only
+the agents' generators change); each of the row's episodes then carries its
+``agent_seed`` and its summary the seeds' means and spread
+(:func:`~baselines.leaderboard.evaluation.summarize`).
+
 Episodes are the unit of work, run in-process or on Ray by
 :mod:`baselines.leaderboard.engine` with the same numbers either way. With a
 results folder (:mod:`baselines.leaderboard.results`) each finished episode is
@@ -39,12 +45,7 @@ from baselines.leaderboard.engine import (
     resolve_env_kwargs,
 )
 from baselines.leaderboard.evaluation import EpisodeResult, summarize
-from baselines.leaderboard.results import (
-    SCHEMA_VERSION,
-    ResultsFolder,
-    episode_key,
-    write_results,
-)
+from baselines.leaderboard.results import SCHEMA_VERSION, ResultsFolder, write_results
 from baselines.leaderboard.tables import FLOOR
 from humotion_gym.mocap.library import package_version
 
@@ -85,6 +86,7 @@ def run_leaderboard(
     command: str | None = None,
     report: bool = True,
     videos: bool = False,
+    agent_seeds: int = 1,
 ) -> list[dict[str, Any]]:
     """Run every (task, agent, particle count) cell, and ``hold`` on every task.
 
@@ -114,32 +116,45 @@ def run_leaderboard(
         report: With ``out``, also write the report (figures, ``index.html``).
         videos: With ``out`` and ``report``, also the videos of each cell's
             best, median and worst episode (each re-run).
+        agent_seeds: Agent seeds per cell, ``seed`` ... ``seed + agent_seeds
+            - 1``, each on the same episodes. With 1 (the default) the rows
+            are those of a run without the option.
 
     Returns:
         One dict per cell: ``task``, ``agent``, ``particles`` and either
-        ``summary`` and ``episodes`` (sorted by seed), or ``skipped`` (the
+        ``summary`` and ``episodes`` (sorted by seed; with several agent seeds
+        by agent seed, then seed, each with its ``agent_seed``), or ``skipped`` (the
         agent does not cover the task: why), or ``error`` (its agent could not
         be built, or an episode raised: what happened; with ``failed_seeds``).
 
     Raises:
-        ValueError: If ``episodes`` < 1, a particle count < 1 or the engine is
-            unknown.
+        ValueError: If ``episodes`` < 1, a particle count < 1, ``agent_seeds``
+            < 1, ``videos`` with several agent seeds, or the engine is unknown.
         ResumeError: If a resumed run's settings differ from the saved run's.
         FileExistsError: If ``out`` holds a run and ``resume`` is False.
         FileNotFoundError: If ``resume`` is True and ``out`` holds no run.
     """
     _check_run(episodes, particles, engine, resume, out)
+    if agent_seeds < 1:
+        raise ValueError(f"agent_seeds: expected at least 1, got {agent_seeds}")
+    if videos and agent_seeds > 1:
+        raise ValueError("videos: a video replays one agent seed; run them with agent_seeds=1")
     kwargs = resolve_env_kwargs(env_kwargs)
     cells = [Cell(*c) for c in grid_cells(tasks, agents, particles)]
     seeds = list(range(seed, seed + episodes))
+    agent_seed_list = list(range(seed, seed + agent_seeds))
     folder = ResultsFolder(out) if out is not None else None
     settings = _settings(seed, kwargs)
-    done = folder.start(settings, resume) if folder is not None else {}
+    done: dict[_Key, dict[str, Any]] = {}
+    if folder is not None and folder.start(settings, resume):
+        done = {_key(r, seed): r for r in folder.read() if "result" in r}
+    # one agent at a time: a cell's episodes agent seed by agent seed
     left = [
-        Episode(cell, s)
+        Episode(cell, s, a)
         for cell in cells
+        for a in agent_seed_list
         for s in seeds
-        if (cell.task, cell.agent, cell.particles, s) not in done
+        if (cell.task, cell.agent, cell.particles, s, a) not in done
     ]
     # the engine's workers start (Ray: a process each) while the driver fits
     runner = make_engine(engine, seed, kwargs, workers, address, tasks) if left else None
@@ -150,17 +165,19 @@ def run_leaderboard(
         todo = [e for e in left if (e.cell.task, e.cell.agent) not in problems]
         if runner is not None and todo:
             runner.start(fits)
-            _run_episodes(runner, todo, len(done), records, failures, folder, progress)
+            _run_episodes(runner, todo, len(done), records, failures, folder, progress, seed)
     finally:
         if runner is not None:
             runner.close()
-    rows = _rows(cells, seeds, records, problems, failures, seed)
+    rows = _rows(cells, seeds, agent_seed_list, records, problems, failures, seed)
     if folder is not None:
         config = {
             "tasks": list(tasks), "agents": list(agents), "particles": list(particles),
             "episodes": episodes, "seed": seed, "env_kwargs": kwargs, "engine": engine,
             "workers": workers, "address": address,
         }  # fmt: skip
+        if agent_seeds != 1:
+            config["agent_seeds"] = agent_seeds
         write_results(rows, folder.folder, config, command, report, videos, progress)
     return rows
 
@@ -179,14 +196,28 @@ def _check_run(
         raise ValueError("resume: needs a results folder (out)")
 
 
+#: An episode record's (task, agent, particles, episode seed, agent seed).
+_Key = tuple[str, str, int, int, int]
+
+
+def _key(record: dict[str, Any], seed: int) -> _Key:
+    """A record's key; a record without ``agent_seed`` ran with the run's ``seed``."""
+    agent_seed = record.get("agent_seed")
+    return (
+        record["task"], record["agent"], int(record["particles"]), int(record["seed"]),
+        seed if agent_seed is None else int(agent_seed),
+    )  # fmt: skip
+
+
 def _run_episodes(
     runner: Any,
     todo: list[Episode],
     n_done: int,
-    records: dict[tuple[str, str, int, int], dict[str, Any]],
+    records: dict[_Key, dict[str, Any]],
     failures: dict[Cell, list[dict[str, Any]]],
     folder: ResultsFolder | None,
     progress: bool,
+    seed: int,
 ) -> None:
     """Run the episodes with a progress bar (time left), saving each record as it comes."""
     bar = tqdm(total=len(todo), desc="episodes", unit="episode", disable=not progress)
@@ -196,10 +227,11 @@ def _run_episodes(
     def take(record: dict[str, Any]) -> None:
         if folder is not None:
             folder.append(record)
+        key = _key(record, seed)
         if "result" in record:
-            records[episode_key(record)] = record
+            records[key] = record
         else:
-            failures.setdefault(Cell(*episode_key(record)[:3]), []).append(record)
+            failures.setdefault(Cell(*key[:3]), []).append(record)
             bar.write(
                 f"error: {record['agent']} on {record['task']} ({record['particles']} "
                 f"particles), episode {record['seed']}: {record['error']}",
@@ -230,7 +262,8 @@ def _settings(seed: int, env_kwargs: dict[str, Any]) -> dict[str, Any]:
 def _rows(
     cells: Sequence[Cell],
     seeds: Sequence[int],
-    records: dict[tuple[str, str, int, int], dict[str, Any]],
+    agent_seeds: Sequence[int],
+    records: dict[_Key, dict[str, Any]],
     problems: dict[tuple[str, str], tuple[str, str]],
     failures: dict[Cell, list[dict[str, Any]]],
     seed: int,
@@ -247,12 +280,16 @@ def _rows(
             row["error"] = f"episode {failed[0]['seed']} raised {failed[0]['error']}"
             row["failed_seeds"] = [r["seed"] for r in failed]
         else:
-            results = [
-                EpisodeResult(**records[(cell.task, cell.agent, cell.particles, s)]["result"])
-                for s in seeds
-            ]
-            row["summary"] = summarize(results, seed=seed)
-            row["episodes"] = [r.to_dict() for r in results]
+            episodes = []
+            for a in agent_seeds:
+                for s in seeds:
+                    record = records[(cell.task, cell.agent, cell.particles, s, a)]
+                    done = EpisodeResult(**record["result"]).to_dict()
+                    # several agent seeds: each episode says its own, after its seed
+                    several = len(agent_seeds) > 1
+                    episodes.append({"seed": s, "agent_seed": a, **done} if several else done)
+            row["summary"] = summarize(episodes, seed=seed)
+            row["episodes"] = episodes
         rows.append(row)
     return rows
 

@@ -20,7 +20,7 @@ machine computes them.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import PurePath
 from typing import Any
 
@@ -478,3 +478,90 @@ def pairwise_improvement(
                 }
             )  # fmt: skip
     return out
+
+
+# ---------------------------------------------------------------- agent seeds
+
+
+def seed_matrix(
+    episodes: Sequence[Mapping[str, Any]], key: str = "mean_error_mm"
+) -> tuple[list[int], list[int], FloatArray]:
+    """A cell's episodes as an ``(episode seeds, agent seeds)`` matrix of one value.
+
+    Episodes without ``agent_seed`` (a run of one agent seed) count as agent seed 0.
+
+    Returns:
+        ``(episode_seeds, agent_seeds, values)``, both seed lists sorted and
+        ``values[i, j]`` the value of episode ``episode_seeds[i]`` run with
+        agent seed ``agent_seeds[j]``.
+
+    Raises:
+        ValueError: If an (episode, agent seed) pair is missing or given twice.
+    """
+    cells = {(int(e["seed"]), int(e.get("agent_seed", 0))): float(e[key]) for e in episodes}
+    rows = sorted({s for s, _ in cells})
+    cols = sorted({a for _, a in cells})
+    if len(cells) != len(episodes) or len(cells) != len(rows) * len(cols):
+        raise ValueError(
+            f"episodes: expected every episode seed {rows} run once with every agent seed "
+            f"{cols}, got {len(episodes)} episodes"
+        )
+    values = np.array([[cells[(s, a)] for a in cols] for s in rows], dtype=np.float64)
+    return rows, cols, values
+
+
+def two_level_bootstrap(
+    values: ArrayLike,
+    reference: ArrayLike | None = None,
+    n_resamples: int = N_RESAMPLES,
+    confidence: float = 0.95,
+    seed: int | np.random.Generator = 0,
+) -> tuple[tuple[float, float], tuple[float, float] | None]:
+    """Percentile intervals of a mean over episodes and agent seeds, and of a ratio to it.
+
+    The two-stage bootstrap of a balanced two-level design (Davison & Hinkley,
+    *Bootstrap Methods and their Application*, 1997, section 3.8: resampling at
+    both stages): each resample draws the episodes with replacement, then
+    within each drawn episode its agent seeds with replacement, and takes the
+    mean of what it drew. The seeds' variance enters twice, through each
+    episode's mean over seeds and through the second stage, so the interval
+    errs wide, never narrow. With one agent seed it is the episode bootstrap.
+
+    Args:
+        values: ``(episodes, agent seeds)`` values (a cell's mean errors,
+            :func:`seed_matrix`).
+        reference: ``(episodes, any seeds)`` values of the same episodes, in
+            the same order (``hold``'s): the ratio's numerator is its mean over
+            each resample's episodes (its mean over its own seeds per episode).
+        n_resamples: Bootstrap resamples.
+        confidence: Confidence level of the two-sided intervals.
+        seed: Seed or generator of the resampling.
+
+    Returns:
+        ``((low, high) of the mean, (low, high) of reference mean / mean or
+        None without a reference)``.
+
+    Raises:
+        ValueError: If ``values`` is not a non-empty matrix or ``reference``
+            covers other episodes.
+    """
+    v = np.asarray(values, dtype=np.float64)
+    if v.ndim != 2 or v.size == 0:
+        raise ValueError(f"values: expected an (episodes, seeds) matrix, got shape {v.shape}")
+    n_episodes, n_seeds = v.shape
+    rng = _rng(seed)
+    drawn = rng.integers(n_episodes, size=(n_resamples, n_episodes))
+    seeds = rng.integers(n_seeds, size=(n_resamples, n_episodes, n_seeds))
+    means = v[drawn[..., None], seeds].mean(axis=(1, 2))
+    tail = 50.0 * (1.0 - confidence)
+    mean_ci = np.percentile(means, [tail, 100.0 - tail])
+    if reference is None:
+        return (float(mean_ci[0]), float(mean_ci[1])), None
+    ref = np.asarray(reference, dtype=np.float64)
+    if ref.ndim != 2 or ref.shape[0] != n_episodes:
+        raise ValueError(
+            f"reference: expected ({n_episodes}, seeds) values of the same episodes, "
+            f"got shape {ref.shape}"
+        )
+    ratio_ci = np.percentile(ref.mean(axis=1)[drawn].mean(axis=1) / means, [tail, 100.0 - tail])
+    return (float(mean_ci[0]), float(mean_ci[1])), (float(ratio_ci[0]), float(ratio_ci[1]))

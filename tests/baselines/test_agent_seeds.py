@@ -1,0 +1,251 @@
+"""Agent seeds: the two-level bootstrap, the tables and verdicts of several seeds, the runs."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import numpy as np
+import pytest
+
+from baselines.cli import main
+from baselines.leaderboard import RESULTS_FILE, markdown_table, run_leaderboard, validity_lines
+from baselines.leaderboard.evaluation import summarize
+from baselines.leaderboard.stats import seed_matrix, two_level_bootstrap
+from baselines.leaderboard.tables import REFERENCE_AGENTS, VALID_RATIO, hold_ratio_interval
+
+# ------------------------------------------------------------ synthetic rows
+
+
+def _episodes(values: np.ndarray, several: bool) -> list[dict[str, Any]]:
+    """Episode dicts of an ``(episodes, agent seeds)`` matrix of mean errors."""
+    out = []
+    for a in range(values.shape[1]):
+        for s in range(values.shape[0]):
+            e = float(values[s, a])
+            episode: dict[str, Any] = {"seed": s}
+            if several:
+                episode["agent_seed"] = a
+            episode.update(
+                clip_id="synthetic", start_frame=0, errors_mm=[e], mean_error_mm=e,
+                final_error_mm=e, lost_frame=None, ms_per_frame=1.0, mean_reward=0.0,
+                aligned_errors_mm=[e], mean_aligned_error_mm=e,
+            )  # fmt: skip
+            out.append(episode)
+    return out
+
+
+def _row(agent: str, particles: int, values: Any, several: bool = True) -> dict[str, Any]:
+    v = np.asarray(values, dtype=np.float64)
+    episodes = _episodes(v, several)
+    return {
+        "task": "ArmTrack-v1", "agent": agent, "particles": particles,
+        "summary": summarize(episodes), "episodes": episodes,
+    }  # fmt: skip
+
+
+def _hold(n_episodes: int, seeds: int, error: float = 200.0) -> dict[str, Any]:
+    return _row("hold", 0, np.full((n_episodes, seeds), error), several=seeds > 1)
+
+
+# ------------------------------------------------------------ the bootstrap
+
+
+def _oracle(values: np.ndarray, reference: np.ndarray, n: int, seed: int) -> tuple[Any, Any]:
+    """Resample by resample, episode by episode, from the same draws of the generator."""
+    rng = np.random.default_rng(seed)
+    n_episodes, n_seeds = values.shape
+    drawn = rng.integers(n_episodes, size=(n, n_episodes))
+    picks = rng.integers(n_seeds, size=(n, n_episodes, n_seeds))
+    means, ratios = [], []
+    for b in range(n):
+        total, held = 0.0, 0.0
+        for i in range(n_episodes):
+            episode = drawn[b, i]
+            total += sum(values[episode, picks[b, i, k]] for k in range(n_seeds)) / n_seeds
+            held += reference[episode].mean()
+        means.append(total / n_episodes)
+        ratios.append(held / total)
+    return np.percentile(means, [2.5, 97.5]), np.percentile(ratios, [2.5, 97.5])
+
+
+@pytest.fixture
+def matrix() -> np.ndarray:
+    return np.random.default_rng(1).gamma(4.0, 25.0, size=(12, 4))
+
+
+def test_the_two_level_bootstrap_matches_a_loop_over_resamples(matrix):
+    reference = np.full((12, 1), 220.0) + np.arange(12)[:, None]
+    mean_ci, ratio_ci = two_level_bootstrap(matrix, reference, n_resamples=300, seed=7)
+    want_mean, want_ratio = _oracle(matrix, reference, 300, 7)
+    # the same draws summed in another order: equal to rounding (1e-12 relative)
+    np.testing.assert_allclose(mean_ci, want_mean, rtol=1e-12)
+    np.testing.assert_allclose(ratio_ci, want_ratio, rtol=1e-12)
+
+
+def test_the_two_level_bootstrap_is_deterministic_in_its_generator(matrix):
+    first = two_level_bootstrap(matrix, matrix, seed=np.random.default_rng(3))
+    again = two_level_bootstrap(matrix, matrix, seed=np.random.default_rng(3))
+    other = two_level_bootstrap(matrix, matrix, seed=4)
+    assert first == again
+    assert first != other
+
+
+def test_the_interval_includes_the_seeds_variance():
+    # every episode alike: only the agent seeds vary, so only they can widen it
+    values = np.tile([80.0, 100.0, 120.0], (10, 1))
+    low, high = two_level_bootstrap(values, seed=0)[0]
+    assert low < 100.0 < high and high - low > 5.0
+    assert two_level_bootstrap(np.full((10, 1), 100.0), seed=0)[0] == (100.0, 100.0)
+
+
+def test_the_ratio_of_a_reference_twice_the_values_is_two(matrix):
+    _, ratio = two_level_bootstrap(matrix[:, :1], 2.0 * matrix[:, :1], seed=0)
+    assert ratio == pytest.approx((2.0, 2.0), rel=1e-12)
+
+
+def test_bad_matrices_are_refused(matrix):
+    with pytest.raises(ValueError, match="values"):
+        two_level_bootstrap(np.ones(5))
+    with pytest.raises(ValueError, match="reference"):
+        two_level_bootstrap(matrix, np.ones((3, 1)))
+    with pytest.raises(ValueError, match="episodes"):
+        seed_matrix(_episodes(matrix, True)[:-1])
+
+
+def test_a_summary_of_several_seeds_gives_their_means_and_spread(matrix):
+    summary = summarize(_episodes(matrix, True))
+    means = matrix.mean(axis=0)
+    assert summary["agent_seeds"] == 4 and summary["episodes"] == 48
+    np.testing.assert_allclose(summary["seed_means_mm"], means, rtol=1e-12)
+    assert summary["seed_spread_mm"] == [means.min(), means.max()]
+    assert summary["mean_error_mm"] == pytest.approx(matrix.mean(), rel=1e-12)
+    assert list(summary["mean_error_ci"]) == list(two_level_bootstrap(matrix, seed=0)[0])
+    assert "agent_seeds" not in summarize(_episodes(matrix[:, :1], False))
+
+
+# ------------------------------------------------------------ tables and verdicts
+
+#: One agent seed: today's table and verdict, character for character.
+ONE_SEED_TABLE = """\
+| task | agent | particles | mean error mm (95% CI) | IQM mm | pelvis-aligned mm | x hold | beats hold | lost track | ms/frame |
+|---|---|---|---|---|---|---|---|---|---|
+| ArmTrack-v1 | hold | - | 200 (200-200) | 200 | 200 | 1.00 | - | 0/4 | 1.0 |
+| ArmTrack-v1 | pf-cv | 300 | 90 (85-95) | 90 | 90 | 2.22 | 4/4 | 0/4 | 1.0 |"""  # noqa: E501
+ONE_SEED_VERDICT = (
+    "ArmTrack-v1: best filter at 300 particles is pf-cv, 2.22x better than hold in mean "
+    "error (90 vs 200 mm), better in 4/4 paired episodes: valid"
+)
+
+
+def test_one_agent_seed_prints_todays_table_and_verdict():
+    rows = [_hold(4, 1), _row("pf-cv", 300, [[85.0], [95.0], [85.0], [95.0]], several=False)]
+    assert markdown_table(rows) == ONE_SEED_TABLE
+    assert validity_lines(rows) == [ONE_SEED_VERDICT]
+
+
+def test_several_seeds_add_the_spread_and_the_interval_of_x_hold():
+    rows = [_hold(4, 2), _row("pf-cv", 300, [[85.0, 95.0]] * 4)]
+    lines = markdown_table(rows).splitlines()
+    assert "| mean error mm (95% CI) | seed spread mm | IQM mm |" in lines[0]
+    assert lines[1].count("---") == 11
+    cells = [c.strip() for c in lines[3].strip("|").split("|")]
+    low, high = hold_ratio_interval(rows[1], rows[0])
+    assert cells[4] == "85-95" and cells[7] == f"2.22 ({low:.2f}-{high:.2f})"
+    assert low < 200 / 90 < high
+
+
+def _verdict(agent_values: Any, agent: str = "pf-mix") -> str:
+    values = np.asarray(agent_values, dtype=np.float64)
+    rows = [_hold(values.shape[0], values.shape[1]), _row(agent, 300, values)]
+    (line,) = validity_lines(rows)
+    return line
+
+
+def test_a_point_ratio_above_two_with_a_lower_bound_below_is_not_valid():
+    """The mutation test: judged on the point ratio (2.22x), this cell would be valid."""
+    values = np.array([[30.0, 40.0, 50.0], [130.0, 140.0, 150.0]] * 5)
+    rows = [_hold(10, 3), _row("pf-mix", 300, values)]
+    low, _ = hold_ratio_interval(rows[1], rows[0])
+    assert 200.0 / values.mean() > VALID_RATIO > low
+    line = _verdict(values)
+    assert line.startswith("ArmTrack-v1: best reference filter at 300 particles is pf-mix")
+    assert line.endswith(": NOT valid (interval's lower bound below 2x)")
+
+
+def test_a_lower_bound_above_two_is_valid():
+    values = np.array([[75.0, 80.0, 85.0]] * 10)  # 2.5x, narrow
+    assert _verdict(values).endswith(": valid")
+
+
+def test_the_verdict_is_on_the_reference_agents_alone():
+    assert "pf-mix" in REFERENCE_AGENTS and "pf-slds" not in REFERENCE_AGENTS
+    hold = _hold(6, 2)
+    reference = _row("pf-tree", 300, [[150.0, 160.0]] * 6)
+    other = _row("pf-slds", 300, [[50.0, 55.0]] * 6)  # better, but not a reference
+    (line, *_) = validity_lines([hold, other, reference])
+    assert "is pf-tree," in line and line.endswith("NOT valid (interval's lower bound below 2x)")
+    assert validity_lines([hold, other]) == []
+
+
+# ------------------------------------------------------------ runs
+
+
+def _numbers(value: Any) -> Any:
+    """Everything but the timings (``ms_per_frame``), which differ run to run."""
+    if isinstance(value, dict):
+        return {k: _numbers(v) for k, v in value.items() if k != "ms_per_frame"}
+    if isinstance(value, list):
+        return [_numbers(v) for v in value]
+    return value
+
+
+TINY = {"tasks": ["ArmTrack-v1"], "agents": ["pf-cv"], "particles": [50], "episodes": 2}
+
+
+@pytest.fixture(scope="module")
+def one_seed(tmp_path_factory) -> tuple[list[dict[str, Any]], Any]:
+    out = tmp_path_factory.mktemp("one") / "lb"
+    return run_leaderboard(**TINY, progress=False, out=out, report=False), out
+
+
+def test_one_agent_seed_is_the_run_without_the_option(one_seed):
+    rows, _ = one_seed
+    again = run_leaderboard(**TINY, progress=False, agent_seeds=1)
+    assert _numbers(again) == _numbers(rows)
+    assert all("agent_seed" not in e for r in rows for e in r["episodes"])
+    assert "agent_seeds" not in rows[1]["summary"]
+
+
+def test_three_agent_seeds_run_the_same_episodes(one_seed):
+    rows, out = one_seed
+    # resumed from the one-seed run: only agent seeds 1 and 2 run now
+    three = run_leaderboard(
+        **TINY, progress=False, out=out, resume=True, report=False, agent_seeds=3
+    )
+    hold, pf = three
+    assert [(e["agent_seed"], e["seed"]) for e in pf["episodes"]] == [
+        (a, s) for a in range(3) for s in range(2)
+    ]
+    assert _numbers(pf["episodes"][:2]) == _numbers(
+        [{"seed": e["seed"], "agent_seed": 0, **e} for e in rows[1]["episodes"]]
+    )
+    assert [e["clip_id"] for e in pf["episodes"]] == [e["clip_id"] for e in hold["episodes"]]
+    means = pf["summary"]["seed_means_mm"]
+    assert len(set(means)) == 3  # the agent seed changes the filter's generator
+    assert len({e["mean_error_mm"] for e in hold["episodes"]}) <= 2  # hold has no generator
+    saved = json.loads((out / RESULTS_FILE).read_text())
+    assert saved["config"]["agent_seeds"] == 3
+    (verdict,) = saved["validity"]
+    assert verdict.startswith("ArmTrack-v1: best reference filter at 50 particles is pf-cv")
+    assert "seed spread mm" in markdown_table(three)
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [(["--agent-seeds", "0"], "--agent-seeds"), (["--agent-seeds", "2", "--videos"], "--videos")],
+)
+def test_the_cli_refuses_bad_agent_seeds(tmp_path, capsys, extra, message):
+    argv = ["leaderboard", "--tasks", "ArmTrack-v1", "--agents", "hold", "--episodes", "1"]
+    assert main([*argv, "--out", str(tmp_path / "lb"), *extra]) == 2
+    assert message in capsys.readouterr().err
