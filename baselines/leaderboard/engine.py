@@ -193,7 +193,7 @@ class EpisodeRunner:
         seed: The agents' seed where an episode names none.
         env_kwargs: The environments' settings.
         fits: Fitted priors shipped by the driver.
-        cached_cells: Cells kept (:data:`CACHED_CELLS`).
+        cached_cells: Agents kept, one per (cell, agent seed) (:data:`CACHED_CELLS`).
     """
 
     def __init__(

@@ -45,7 +45,12 @@ from baselines.leaderboard.engine import (
     resolve_env_kwargs,
 )
 from baselines.leaderboard.evaluation import EpisodeResult, summarize
-from baselines.leaderboard.results import SCHEMA_VERSION, ResultsFolder, write_results
+from baselines.leaderboard.results import (
+    SCHEMA_VERSION,
+    ResultsFolder,
+    ResumeError,
+    write_results,
+)
 from baselines.leaderboard.tables import FLOOR
 from humotion_gym.mocap.library import package_version
 
@@ -130,7 +135,8 @@ def run_leaderboard(
     Raises:
         ValueError: If ``episodes`` < 1, a particle count < 1, ``agent_seeds``
             < 1, ``videos`` with several agent seeds, or the engine is unknown.
-        ResumeError: If a resumed run's settings differ from the saved run's.
+        ResumeError: If a resumed run's settings differ from the saved run's,
+            or the saved run has more agent seeds.
         FileExistsError: If ``out`` holds a run and ``resume`` is False.
         FileNotFoundError: If ``resume`` is True and ``out`` holds no run.
     """
@@ -148,6 +154,12 @@ def run_leaderboard(
     done: dict[_Key, dict[str, Any]] = {}
     if folder is not None and folder.start(settings, resume):
         done = {_key(r, seed): r for r in folder.read() if "result" in r}
+        more = sorted({k[4] for k in done} - set(agent_seed_list))
+        if more:  # their episodes would silently leave the table
+            raise ResumeError(
+                f"{folder.folder}: the saved run has agent seeds {more} beyond this run's "
+                f"{agent_seed_list}; resume with agent_seeds={max(more) - seed + 1}"
+            )
     # one agent at a time: a cell's episodes agent seed by agent seed
     left = [
         Episode(cell, s, a)

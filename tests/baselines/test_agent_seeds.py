@@ -9,7 +9,13 @@ import numpy as np
 import pytest
 
 from baselines.cli import main
-from baselines.leaderboard import RESULTS_FILE, markdown_table, run_leaderboard, validity_lines
+from baselines.leaderboard import (
+    RESULTS_FILE,
+    ResumeError,
+    markdown_table,
+    run_leaderboard,
+    validity_lines,
+)
 from baselines.leaderboard.evaluation import summarize
 from baselines.leaderboard.stats import seed_matrix, two_level_bootstrap
 from baselines.leaderboard.tables import REFERENCE_AGENTS, VALID_RATIO, hold_ratio_interval
@@ -239,6 +245,8 @@ def test_three_agent_seeds_run_the_same_episodes(one_seed):
     (verdict,) = saved["validity"]
     assert verdict.startswith("ArmTrack-v1: best reference filter at 50 particles is pf-cv")
     assert "seed spread mm" in markdown_table(three)
+    with pytest.raises(ResumeError, match="agent_seeds=3"):
+        run_leaderboard(**TINY, progress=False, out=out, resume=True, report=False)
 
 
 @pytest.mark.parametrize(
