@@ -28,6 +28,7 @@ import pytest
 
 from baselines.observation import FrameFeatures, GivenBody, ObservationModel, geometry
 from baselines.observation._compiled import (
+    appearance_bytes,
     edge_foreground_bytes,
     mark_bins,
     strongest_gradients,
@@ -453,3 +454,32 @@ def test_edge_foreground_bytes_follow_their_definition() -> None:
                 else:
                     v = f_out * inv_u
                 assert maps[m, y, x] == np.uint8(np.rint(v))
+
+
+@pytest.mark.parametrize("channels", [1, 3])
+def test_appearance_bytes_follow_their_definition(channels: int) -> None:
+    # Per entry of the padded maps, in float32 scalars and the kernel's order:
+    # the same roundings, so equal bytes. Colours on the grid of bytes and
+    # between, differences below, inside and above the ramp.
+    rng = np.random.default_rng(13)
+    h, w = 5, 6
+    smooth = rng.integers(0, 256, (h, w, channels)).astype(np.uint8)
+    colors = rng.uniform(0.0, 255.0, (3, channels)).astype(np.float32)
+    colors[0] = smooth[2, 3]  # a pixel that matches exactly: cost 0
+    f32 = np.float32
+    low, span, a, inv_u = map(f32, (20.0, 1.0 / 60.0, 0.4, 600.0))
+    table = np.empty(3 * (h + 2) * (w + 2), np.uint8)
+    appearance_bytes(smooth, colors, low, span, a, inv_u, table)
+    maps = table.reshape(3, h + 2, w + 2)
+    assert maps[0, 3, 4] == 0
+    for k in range(3):
+        for y in range(h + 2):
+            for x in range(w + 2):
+                if 0 < y <= h and 0 < x <= w:
+                    pixel = smooth[y - 1, x - 1].astype(np.float32)
+                    m = max(abs(pixel[c] - colors[k, c]) for c in range(channels))
+                    v = min(max((m - low) * span, f32(0.0)), f32(1.0)) * a * inv_u
+                else:
+                    v = a * inv_u
+                assert maps[k, y, x] == np.uint8(np.rint(v))
+    assert len(set(maps[1:, 1:-1, 1:-1].ravel().tolist())) > 2  # the ramp is exercised

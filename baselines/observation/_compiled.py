@@ -452,3 +452,55 @@ def edge_foreground_bytes(
                 for x in range(w):
                     v = (np.float32(1.0) - fg[y, x]) * fg_scale * inv_unit
                     out[row + 1 + x] = np.uint8(np.rint(v))
+
+
+@numba.njit(cache=True, nogil=True)
+def appearance_bytes(
+    smooth: NDArray[np.uint8],
+    colors: NDArray[np.float32],
+    low: np.float32,
+    span: np.float32,
+    scale: np.float32,
+    inv_unit: np.float32,
+    out: NDArray[np.uint8],
+) -> None:
+    """The cost table's appearance maps, quantised, in one pass.
+
+    Per colour ``k`` the padded map ``rint(clip((m - low) span, 0, 1) a / u)``
+    of the largest channel difference ``m = max_c |smooth[..., c] - colors[k, c]|``;
+    the one-pixel border holds ``rint(a / u)`` (a point off the image matches
+    no colour). All in float32, in that order
+    (:func:`baselines.observation.features.cost_table`).
+
+    Args:
+        smooth: ``(H, W, C)`` the blurred frame.
+        colors: ``(K, C)`` the colours to match.
+        low: The difference below which a pixel matches (cost 0).
+        span: ``1 / (high - low)``: the difference from ``low`` on, in units of
+            the ramp to the full cost.
+        scale: ``a``, the full cost (nats).
+        inv_unit: ``1 / u``, table units per nat.
+        out: Out, ``(K (H + 2) (W + 2),)`` the table's appearance maps.
+    """
+    h, w, channels = smooth.shape
+    w2 = w + 2
+    plane = (h + 2) * w2
+    fill = np.uint8(np.rint(scale * inv_unit))
+    for k in range(colors.shape[0]):
+        base = k * plane
+        for x in range(w2):
+            out[base + x] = fill
+            out[base + (h + 1) * w2 + x] = fill
+        for y in range(h):
+            row = base + (y + 1) * w2
+            out[row] = fill
+            out[row + w + 1] = fill
+            for x in range(w):
+                m = _ZERO
+                for c in range(channels):
+                    d = abs(np.float32(smooth[y, x, c]) - colors[k, c])
+                    m = d if d > m else m
+                v = (m - low) * span
+                v = v if v > _ZERO else _ZERO
+                v = v if v < _ONE else _ONE
+                out[row + 1 + x] = np.uint8(np.rint(v * scale * inv_unit))

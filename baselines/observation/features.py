@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from baselines.observation._compiled import (
+    appearance_bytes,
     edge_foreground_bytes,
     mark_bins,
     strongest_gradients,
@@ -357,15 +358,12 @@ def cost_table(
         np.float32(edge_scale), np.float32(edge_out), np.float32(fg_scale),
         np.float32(fg_scale), inv_unit, table,
     )  # fmt: skip
-    span = 1.0 / (model.appearance_high - model.appearance_low)
-    for k, color in enumerate(app_colors):
-        mismatch = np.abs(smooth.astype(np.float32) - color).max(axis=2)
-        mismatch = np.clip((mismatch - model.appearance_low) * np.float32(span), 0.0, 1.0)
-        app = np.full((h + 2, w + 2), app_scale, np.float32)
-        app[1:-1, 1:-1] = mismatch * np.float32(app_scale)
-        app *= inv_unit
-        np.rint(app, out=app)
-        table[(n_bins + 1 + k) * plane : (n_bins + 2 + k) * plane] = app.reshape(-1)
+    appearance_bytes(
+        smooth, np.ascontiguousarray(app_colors, np.float32),
+        np.float32(model.appearance_low),
+        np.float32(1.0 / (model.appearance_high - model.appearance_low)),
+        np.float32(app_scale), inv_unit, table[(n_bins + 1) * plane :],
+    )  # fmt: skip
     return table, float(unit)
 
 
