@@ -440,16 +440,22 @@ def residual_edges(
     starts, stops = geo.starts[0], geo.ends[0]
     radii = given.shape.radii * ((1.0 + given.shape.aspect[:, None]) / 2.0)
     uv_s, uv_e, z, r_s, r_e, normal = projected_cones(starts, stops, radii, camera)
-    for c in np.flatnonzero(~moved.any(axis=1)).tolist():
-        if z[c] < model.near_mm:
-            continue
-        for side in (1.0, -1.0):
-            p0 = np.rint(uv_s[c] + side * r_s[c] * normal[c]).astype(int)
-            p1 = np.rint(uv_e[c] + side * r_e[c] * normal[c]).astype(int)
-            cv2.line(mask, tuple(p0.tolist()), tuple(p1.tolist()), 255, thick)
-        for centre, r in ((uv_s[c], r_s[c]), (uv_e[c], r_e[c])):
-            cv2.circle(mask, tuple(np.rint(centre).astype(int).tolist()),
-                       max(0, int(round(r))), 255, thick)  # fmt: skip
+    drawn = np.flatnonzero(~moved.any(axis=1) & (z >= model.near_mm))
+    # Per drawn cone, in pixels: its two outline sides' ends, its end circles'
+    # centres and radii (rounded half to even, as Python's round).
+    side_s, side_e = r_s[drawn, None] * normal[drawn], r_e[drawn, None] * normal[drawn]
+    s_uv, e_uv = uv_s[drawn], uv_e[drawn]
+    pixels = np.rint(
+        np.stack([s_uv + side_s, e_uv + side_e, s_uv - side_s, e_uv - side_e, s_uv, e_uv], 1)
+    )
+    radius = np.maximum(np.rint(np.stack([r_s[drawn], r_e[drawn]], 1)), 0.0)
+    for (a, b, c, d, s, e), (r0, r1) in zip(
+        pixels.astype(int).tolist(), radius.astype(int).tolist(), strict=True
+    ):
+        cv2.line(mask, tuple(a), tuple(b), 255, thick)
+        cv2.line(mask, tuple(c), tuple(d), 255, thick)
+        cv2.circle(mask, tuple(s), r0, 255, thick)
+        cv2.circle(mask, tuple(e), r1, 255, thick)
     ys, xs = np.nonzero((edges > 0) & (mask == 0))
     anchors = ends[0][cones][~moved[cones]]  # the free cones' ends that do not move
     if anchors.size:
