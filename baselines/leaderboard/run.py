@@ -97,16 +97,16 @@ def run_leaderboard(
 
     Reference agents (``hold``, ``random``) and learned policies (``bc``,
     ``ppo``, ``LABEL=PATH.zip``) run once per task with ``particles`` 0. Every
-    cell runs episodes ``seed``, ``seed + 1``... ``seed + episodes - 1``, one
-    unit of work each (:mod:`baselines.leaderboard.engine`); the numbers are the same on
-    every engine and number of workers, only the timings differ.
+    cell runs episodes ``seed`` ... ``seed + episodes - 1``, one unit of work
+    each (:mod:`baselines.leaderboard.engine`): the same numbers on every
+    engine and number of workers, only the timings differ.
 
     Args:
         tasks: Task names.
         agents: Agent names (``hold`` runs whether or not it is named).
         particles: Particle counts of the particle filters.
         episodes: Episodes per cell.
-        seed: The first episode's seed, and every agent's.
+        seed: The first episode's seed, and the first agent seed.
         env_kwargs: Environment settings (``data_dir``, ``noise``...).
         progress: Show progress bars (agents prepared, episodes run with the
             time left).
@@ -121,83 +121,69 @@ def run_leaderboard(
         report: With ``out``, also write the report (figures, ``index.html``).
         videos: With ``out`` and ``report``, also the videos of each cell's
             best, median and worst episode (each re-run).
-        agent_seeds: Agent seeds per cell, ``seed`` ... ``seed + agent_seeds
-            - 1``, each on the same episodes. With 1 (the default) the rows
-            are those of a run without the option.
+        agent_seeds: Agent seeds per cell (``seed``, ``seed + 1``...), each
+            on the same episodes; 1 (the default) gives a run without it.
 
     Returns:
         One dict per cell: ``task``, ``agent``, ``particles`` and either
-        ``summary`` and ``episodes`` (sorted by seed; with several agent seeds
-        by agent seed, then seed, each with its ``agent_seed``), or ``skipped`` (the
-        agent does not cover the task: why), or ``error`` (its agent could not
-        be built, or an episode raised: what happened; with ``failed_seeds``).
+        ``summary`` and ``episodes`` (by seed; where several agent seeds, by
+        agent seed then seed, with ``agent_seed``), or ``skipped`` (why), or
+        ``error`` (the agent could not be built or an episode raised: what
+        happened; with ``failed_seeds``).
 
     Raises:
-        ValueError: If ``episodes`` < 1, a particle count < 1, ``agent_seeds``
-            < 1, ``videos`` with several agent seeds, or the engine is unknown.
-        ResumeError: If a resumed run's settings differ from the saved run's,
-            or the saved run has more agent seeds.
+        ValueError: If ``episodes``, ``agent_seeds`` or a particle count < 1,
+            ``videos`` with several agent seeds, or the engine is unknown.
+        ResumeError: If a resumed run's settings or agent seeds differ from the saved run's.
         FileExistsError: If ``out`` holds a run and ``resume`` is False.
         FileNotFoundError: If ``resume`` is True and ``out`` holds no run.
     """
-    _check_run(episodes, particles, engine, resume, out)
-    if agent_seeds < 1:
-        raise ValueError(f"agent_seeds: expected at least 1, got {agent_seeds}")
-    if videos and agent_seeds > 1:
-        raise ValueError("videos: a video replays one agent seed; run them with agent_seeds=1")
+    _check_run(episodes, particles, engine, resume, out, agent_seeds, videos)
     kwargs = resolve_env_kwargs(env_kwargs)
     cells = [Cell(*c) for c in grid_cells(tasks, agents, particles)]
     seeds = list(range(seed, seed + episodes))
     agent_seed_list = list(range(seed, seed + agent_seeds))
     folder = ResultsFolder(out) if out is not None else None
-    settings = _settings(seed, kwargs)
-    done: dict[_Key, dict[str, Any]] = {}
-    if folder is not None and folder.start(settings, resume):
-        done = {_key(r, seed): r for r in folder.read() if "result" in r}
-        more = sorted({k[4] for k in done} - set(agent_seed_list))
-        if more:  # their episodes would silently leave the table
-            raise ResumeError(
-                f"{folder.folder}: the saved run has agent seeds {more} beyond this run's "
-                f"{agent_seed_list}; resume with agent_seeds={max(more) - seed + 1}"
-            )
-    # one agent at a time: a cell's episodes agent seed by agent seed
-    left = [
-        Episode(cell, s, a)
-        for cell in cells
-        for a in agent_seed_list
-        for s in seeds
-        if (cell.task, cell.agent, cell.particles, s, a) not in done
-    ]
+    done = _saved(folder, _settings(seed, kwargs), resume, seed, agent_seed_list)
+    left = _left(cells, seeds, agent_seed_list, done)
     # the engine's workers start (Ray: a process each) while the driver fits
     runner = make_engine(engine, seed, kwargs, workers, address, tasks) if left else None
-    records = dict(done)
     failures: dict[Cell, list[dict[str, Any]]] = {}
     try:
         fits, problems = prepare_cells(cells, seed, kwargs, progress)
         todo = [e for e in left if (e.cell.task, e.cell.agent) not in problems]
         if runner is not None and todo:
             runner.start(fits)
-            _run_episodes(runner, todo, len(done), records, failures, folder, progress, seed)
+            _run_episodes(runner, todo, len(done), done, failures, folder, progress, seed)
     finally:
         if runner is not None:
             runner.close()
-    rows = _rows(cells, seeds, agent_seed_list, records, problems, failures, seed)
+    rows = _rows(cells, seeds, agent_seed_list, done, problems, failures, seed)
     if folder is not None:
         config = {
             "tasks": list(tasks), "agents": list(agents), "particles": list(particles),
             "episodes": episodes, "seed": seed, "env_kwargs": kwargs, "engine": engine,
             "workers": workers, "address": address,
+            **({"agent_seeds": agent_seeds} if agent_seeds != 1 else {}),
         }  # fmt: skip
-        if agent_seeds != 1:
-            config["agent_seeds"] = agent_seeds
         write_results(rows, folder.folder, config, command, report, videos, progress)
     return rows
 
 
 def _check_run(
-    episodes: int, particles: Sequence[int], engine: str, resume: bool, out: str | Path | None
+    episodes: int,
+    particles: Sequence[int],
+    engine: str,
+    resume: bool,
+    out: str | Path | None,
+    agent_seeds: int = 1,
+    videos: bool = False,
 ) -> None:
     """Refuse a run's arguments before any work (see :func:`run_leaderboard`)."""
+    if agent_seeds < 1:
+        raise ValueError(f"agent_seeds: expected at least 1, got {agent_seeds}")
+    if videos and agent_seeds > 1:
+        raise ValueError("videos: a video replays one agent seed; run them with agent_seeds=1")
     if episodes < 1:
         raise ValueError(f"episodes: expected at least 1, got {episodes}")
     if any(n < 1 for n in particles):
@@ -219,6 +205,47 @@ def _key(record: dict[str, Any], seed: int) -> _Key:
         record["task"], record["agent"], int(record["particles"]), int(record["seed"]),
         seed if agent_seed is None else int(agent_seed),
     )  # fmt: skip
+
+
+def _left(
+    cells: Sequence[Cell],
+    seeds: Sequence[int],
+    agent_seeds: Sequence[int],
+    done: dict[_Key, dict[str, Any]],
+) -> list[Episode]:
+    """The episodes to run: every cell's, agent seed by agent seed (one agent at a time)."""
+    return [
+        Episode(cell, s, a)
+        for cell in cells
+        for a in agent_seeds
+        for s in seeds
+        if (cell.task, cell.agent, cell.particles, s, a) not in done
+    ]
+
+
+def _saved(
+    folder: ResultsFolder | None,
+    settings: dict[str, Any],
+    resume: bool,
+    seed: int,
+    agent_seeds: Sequence[int],
+) -> dict[_Key, dict[str, Any]]:
+    """Start the results folder; the finished episodes' records when resuming.
+
+    Raises:
+        ResumeError: As :meth:`ResultsFolder.start`, or where the saved run has
+            agent seeds this one has not (their episodes would leave the table).
+    """
+    if folder is None or not folder.start(settings, resume):
+        return {}
+    done = {_key(r, seed): r for r in folder.read() if "result" in r}
+    more = sorted({k[4] for k in done} - set(agent_seeds))
+    if more:
+        raise ResumeError(
+            f"{folder.folder}: the saved run has agent seeds {more} beyond this run's "
+            f"{list(agent_seeds)}; resume with agent_seeds={max(more) - seed + 1}"
+        )
+    return done
 
 
 def _run_episodes(
