@@ -227,21 +227,26 @@ def residual_sums(
     n_seg, n = segments.shape[1], segments.shape[2]
     e, g = q.shape[1], masks.shape[0]
     nearest = np.empty((g, e), np.float32)
+    dist2 = np.empty(e, np.float32)
     for j in range(n):
         nearest[:] = tau2
         for s in range(n_seg):
             px, py = segments[0, s, j], segments[1, s, j]
             dx, dy = segments[2, s, j], segments[3, s, j]
             il = _ONE / (dx * dx + dy * dy + np.float32(1e-6))
+            # The distances of all points first, then each figure's minimum:
+            # both loops over points vectorise.
             for k in range(e):
                 rx, ry = q[0, k] - px, q[1, k] - py
                 t = min(max((rx * dx + ry * dy) * il, _ZERO), _ONE)
                 rx -= t * dx
                 ry -= t * dy
-                d2 = rx * rx + ry * ry
-                for f in range(g):
-                    if masks[f, s] and d2 < nearest[f, k]:
-                        nearest[f, k] = d2
+                dist2[k] = rx * rx + ry * ry
+            for f in range(g):
+                if masks[f, s]:
+                    for k in range(e):
+                        d2 = dist2[k]
+                        nearest[f, k] = d2 if d2 < nearest[f, k] else nearest[f, k]
         for f in range(g):
             total = 0.0
             for k in range(e):
