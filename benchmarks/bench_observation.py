@@ -14,7 +14,9 @@ float32, as the likelihood asks for it: part of every scoring) are printed too.
 
 Then the same for the whole-body tasks' likelihood (BodyTrack-v1's settings:
 the backdrop read at a first frame where the figure stood 30 cm to the side,
-and the coverage term), on the frame where it has moved.
+and the coverage term), on the frame where it has moved, and for ArmTrack-v1's
+(the same backdrop, the arm's four parameters free: its residual-edge and
+appearance terms, the cones' colours read at the first frame).
 """
 
 from __future__ import annotations
@@ -67,8 +69,22 @@ def main() -> None:
         camera,
         backdrop=task.read_backdrop(first_frame, first, shape, camera),
     )
+    arm_task = get_task("ArmTrack-v1")
+    arm = ObservationModel(**dict(arm_task.observation))
+    arm_given = GivenBody(
+        truth,
+        arm_task.free_indices,
+        shape,
+        camera,
+        colors=arm.cone_colors(first_frame, first, shape, camera),
+        backdrop=arm.read_backdrop(first_frame, first, shape, camera),
+    )
     distance = plain.prepare(frame).distance.min(axis=0)
-    for label, model, arg in (("", plain, None), (" (BodyTrack-v1's terms)", task, given)):
+    for label, model, arg in (
+        ("", plain, None),
+        (" (BodyTrack-v1's terms)", task, given),
+        (" (ArmTrack-v1's terms)", arm, arm_given),
+    ):
         features = model.prepare(frame, arg)
         prepare = best_of(lambda model=model, arg=arg: model.prepare(frame, arg), 200)
         print(f"prepare{label} (once per frame, 128x128): {1e3 * prepare:6.3f} ms")
