@@ -42,6 +42,13 @@ LEGEND = (
     "beats hold: paired episodes where the row's error is lower; lost track: episodes "
     "whose error stayed above the task's lost-track threshold long enough to count as lost."
 )
+#: Printed after :data:`LEGEND` when a run has several agent seeds.
+SEEDS_LEGEND = (
+    "With several agent seeds: mean error and x hold are over every seed's episodes, their "
+    "intervals resample the episodes and then the agent seeds within each; seed spread: the "
+    "lowest and highest of the seeds' mean errors; the verdict takes the lower bound of the "
+    "best reference filter's x hold interval."
+)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -210,6 +217,8 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         for line in validity_lines(rows):
             print(line)
         print(LEGEND)
+        if args.agent_seeds > 1:
+            print(SEEDS_LEGEND)
         if args.out:
             report = "" if args.no_report else ", the report (index.html)"
             wrote(args.out, f"results.json, table.md, episodes.jsonl{report}")

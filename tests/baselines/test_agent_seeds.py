@@ -257,3 +257,13 @@ def test_the_cli_refuses_bad_agent_seeds(tmp_path, capsys, extra, message):
     argv = ["leaderboard", "--tasks", "ArmTrack-v1", "--agents", "hold", "--episodes", "1"]
     assert main([*argv, "--out", str(tmp_path / "lb"), *extra]) == 2
     assert message in capsys.readouterr().err
+
+
+def test_the_cli_runs_several_agent_seeds(capsys):
+    from baselines.cli.leaderboard import SEEDS_LEGEND
+
+    argv = ["leaderboard", "--tasks", "ArmTrack-v1", "--agents", "pf-cv", "--particles", "20"]
+    assert main([*argv, "--episodes", "1", "--agent-seeds", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "| seed spread mm |" in out and SEEDS_LEGEND in out
+    assert "best reference filter at 20 particles is pf-cv" in out
