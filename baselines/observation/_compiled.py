@@ -491,6 +491,7 @@ def appearance_bytes(
     w2 = w + 2
     plane = (h + 2) * w2
     fill = np.uint8(np.rint(scale * inv_unit))
+    most = np.empty(w, np.float32)
     for k in range(colors.shape[0]):
         base = k * plane
         for x in range(w2):
@@ -500,12 +501,16 @@ def appearance_bytes(
             row = base + (y + 1) * w2
             out[row] = fill
             out[row + w + 1] = fill
+            # A row's channel maxima a channel at a time: the loops over
+            # pixels vectorise (the maximum of the same values, in any order).
+            most[:] = _ZERO
+            for c in range(channels):
+                color = colors[k, c]
+                for x in range(w):
+                    d = abs(np.float32(smooth[y, x, c]) - color)
+                    most[x] = d if d > most[x] else most[x]
             for x in range(w):
-                m = _ZERO
-                for c in range(channels):
-                    d = abs(np.float32(smooth[y, x, c]) - colors[k, c])
-                    m = d if d > m else m
-                v = (m - low) * span
+                v = (most[x] - low) * span
                 v = v if v > _ZERO else _ZERO
                 v = v if v < _ONE else _ONE
                 out[row + 1 + x] = np.uint8(np.rint(v * scale * inv_unit))
