@@ -169,8 +169,8 @@ def run_cell_episode(
         agent: Agent name.
         particles: Particle count (0 for agents that take none).
         episode_seed: The episode's seed.
-        first_seed: The leaderboard's seed (its first episode's, and every
-            agent's seed).
+        first_seed: The agent's seed: the leaderboard's seed (its first
+            episode's), or the episode's ``agent_seed`` where it has one.
         env_kwargs: The run's environment settings (add ``render_mode`` for
             ``on_frame``).
         on_frame: Called with each rendered frame and its info.

@@ -15,6 +15,11 @@ the initial pose. Every bootstrap is :func:`scipy.stats.bootstrap` with the
 percentile method and a seeded :class:`numpy.random.Generator`, so the same
 episodes and seed give the same interval bit for bit, whichever process or
 machine computes them.
+
+A cell run with several agent seeds on the same episodes
+(:func:`seed_matrix`) has its mean's interval, and that of its ratio to
+``hold``, from :func:`two_level_bootstrap`: episodes resampled, then the
+agent seeds within each, so the seeds' variance is in the interval.
 """
 
 from __future__ import annotations
