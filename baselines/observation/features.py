@@ -435,7 +435,7 @@ def residual_edges(
     if cones.size == 0:
         return np.zeros((2, 0), np.float32), cones
     scale = h / model.reference_height
-    mask = np.zeros((h, w), np.uint8)
+    left = edges.copy()  # the edges, less those the given cones' outlines explain
     thick = max(1, int(round(2.0 * model.residual_clearance * scale)) + 1)
     starts, stops = geo.starts[0], geo.ends[0]
     radii = given.shape.radii * ((1.0 + given.shape.aspect[:, None]) / 2.0)
@@ -452,11 +452,12 @@ def residual_edges(
     for (a, b, c, d, s, e), (r0, r1) in zip(
         pixels.astype(int).tolist(), radius.astype(int).tolist(), strict=True
     ):
-        cv2.line(mask, tuple(a), tuple(b), 255, thick)
-        cv2.line(mask, tuple(c), tuple(d), 255, thick)
-        cv2.circle(mask, tuple(s), r0, 255, thick)
-        cv2.circle(mask, tuple(e), r1, 255, thick)
-    ys, xs = np.nonzero((edges > 0) & (mask == 0))
+        cv2.line(left, tuple(a), tuple(b), 0, thick)
+        cv2.line(left, tuple(c), tuple(d), 0, thick)
+        cv2.circle(left, tuple(s), r0, 0, thick)
+        cv2.circle(left, tuple(e), r1, 0, thick)
+    found = cv2.findNonZero(left)  # raster order, as np.nonzero
+    xs, ys = found.reshape(-1, 2).T if found is not None else np.zeros((2, 0), np.int32)
     anchors = ends[0][cones][~moved[cones]]  # the free cones' ends that do not move
     if anchors.size:
         length = np.linalg.norm(stops[cones] - starts[cones], axis=1).sum()
