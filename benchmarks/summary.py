@@ -88,12 +88,21 @@ def _read_render(out: str) -> list[Row]:
 
 
 def _read_observation(out: str) -> list[Row]:
-    pattern = r"N=\s*(\d+)([^:]*): log_likelihood\s+([\d.]+) ms, numpy reference\s+([\d.]+) ms, ratio\s+([\d.]+)x"
-    return [
-        (f"observation model, {int(n):,} poses (128x128){label}", f"{t} ms",
-         f"numpy reference ({ref} ms)", f"{ratio}x faster")
-        for n, label, t, ref, ratio in re.findall(pattern, out)
+    pattern = (
+        r"N=\s*(\d+)([^:]*): log_likelihood\s+([\d.]+) ms \(kinematics\s+([\d.]+)\), "
+        r"numpy reference\s+([\d.]+) ms, ratio\s+([\d.]+)x"
+    )
+    rows: list[Row] = [
+        (f"observation model, {int(n):,} poses (128x128){label} (kinematics {k} ms)",
+         f"{t} ms", f"numpy reference ({ref} ms)", f"{ratio}x faster")
+        for n, label, t, k, ref, ratio in re.findall(pattern, out)
     ]  # fmt: skip
+    prepare = r"^prepare( \(.+?\))? \(once per frame, 128x128\):\s+([\d.]+) ms"
+    rows += [
+        (f"observation model, prepare one frame{label or ''}", f"{t} ms", "", "")
+        for label, t in re.findall(prepare, out, re.M)
+    ]
+    return rows
 
 
 def _read_fpca(out: str) -> list[Row]:
