@@ -114,7 +114,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_data_dir(tr)
     add_json(tr, "print the run's config.json at the end")
     tr.set_defaults(func=_cmd_train)
+    _register_curve(subparsers)
 
+
+def _register_curve(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``learning-curve``."""
     lc = add_command(
         subparsers, "learning-curve",
         "test-split error against env steps for learned trackers (IQM over seeds)",
