@@ -10,6 +10,7 @@ command module has a ``register(subparsers)`` function, as described in
 
 from __future__ import annotations
 
+import argparse
 from collections.abc import Sequence
 
 from humotion_gym import cli as benchmark_cli
@@ -35,7 +36,7 @@ COMMAND_MODULES: tuple[str, ...] = (
 )
 
 
-def build_parser():  # type: ignore[no-untyped-def]
+def build_parser() -> argparse.ArgumentParser:
     """The parser of ``humotion-gym`` with every command."""
     return benchmark_cli.build_parser(COMMAND_MODULES)
 

@@ -399,6 +399,18 @@ def mark_bins(
     return held
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _border(out: NDArray[np.uint8], base: int, h: int, w: int, fill: np.uint8) -> None:
+    """The one-pixel border of the padded ``(h + 2, w + 2)`` map at ``out[base:]``."""
+    w2 = w + 2
+    for x in range(w2):
+        out[base + x] = fill
+        out[base + (h + 1) * w2 + x] = fill
+    for y in range(1, h + 1):
+        out[base + y * w2] = fill
+        out[base + y * w2 + w + 1] = fill
+
+
 @numba.njit(cache=True, nogil=True)
 def edge_foreground_bytes(
     dist: NDArray[np.float32],
@@ -438,15 +450,10 @@ def edge_foreground_bytes(
     plane = (h + 2) * w2
     for m in range(n_bins + 1):
         off = edge_out if m < n_bins else fg_out
-        fill = np.uint8(np.rint(off * inv_unit))
         base = m * plane
-        for x in range(w2):
-            out[base + x] = fill
-            out[base + (h + 1) * w2 + x] = fill
+        _border(out, base, h, w, np.uint8(np.rint(off * inv_unit)))
         for y in range(h):
             row = base + (y + 1) * w2
-            out[row] = fill
-            out[row + w + 1] = fill
             if m < n_bins:
                 for x in range(w):
                     d = dist[m, y, x] * inv_scale
@@ -494,13 +501,9 @@ def appearance_bytes(
     most = np.empty(w, np.float32)
     for k in range(colors.shape[0]):
         base = k * plane
-        for x in range(w2):
-            out[base + x] = fill
-            out[base + (h + 1) * w2 + x] = fill
+        _border(out, base, h, w, fill)
         for y in range(h):
             row = base + (y + 1) * w2
-            out[row] = fill
-            out[row + w + 1] = fill
             # A row's channel maxima a channel at a time: the loops over
             # pixels vectorise (the maximum of the same values, in any order).
             most[:] = _ZERO

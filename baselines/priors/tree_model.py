@@ -207,23 +207,13 @@ class TreeParams:
         speed_drift: float | None = None,
     ) -> TreeParams:
         """A copy with other sampling settings (the database is shared, not copied)."""
-        changes: dict[str, object] = {}
-        if speed_spread is not None:
-            changes["speed_spread"] = float(speed_spread)
-        if speed_drift is not None:
-            changes["speed_drift"] = float(speed_drift)
-        if proposals is not None:
-            changes["proposals"] = int(proposals)
-        if replay is not None:
-            changes["replay"] = str(replay)
-        if beta is not None:
-            changes["beta"] = float(beta)
-        if leaf is not None:
-            changes["leaf"] = str(leaf)
-        if noise_scale is not None:
-            changes["noise_scale"] = float(noise_scale)
-        if init_scale is not None:
-            changes["init_scale"] = float(init_scale)
+        given = {
+            "speed_spread": (speed_spread, float), "speed_drift": (speed_drift, float),
+            "proposals": (proposals, int), "replay": (replay, str), "beta": (beta, float),
+            "leaf": (leaf, str), "noise_scale": (noise_scale, float),
+            "init_scale": (init_scale, float),
+        }  # fmt: skip
+        changes = {k: cast(v) for k, (v, cast) in given.items() if v is not None}
         return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
 
 
