@@ -54,7 +54,12 @@ from baselines.leaderboard.figures import (
     ran,
 )
 from baselines.leaderboard.stats import agent_label
-from baselines.leaderboard.tables import markdown_table, validity_lines
+from baselines.leaderboard.tables import (
+    markdown_table,
+    person_rows,
+    person_table,
+    validity_lines,
+)
 from baselines.leaderboard.videos import write_videos
 
 #: The reference each task's scores are normalised by.
@@ -69,6 +74,12 @@ SCORE_LEGEND = (
     "(episodes resampled within each task; Agarwal et al., NeurIPS 2021). P(beats hold): "
     "probability that a random episode of the cell has a lower error than a random "
     "episode of hold on the same task, averaged over tasks."
+)
+#: Caption of the per-person table.
+PERSON_LEGEND = (
+    "Per person: each cell's mean episode error over the episodes of one tracked person "
+    "(episodes in parentheses). The test set holds few persons; a cell's overall mean "
+    "weights each person by their episodes."
 )
 
 
@@ -202,6 +213,14 @@ def _markdown(table: list[list[str]]) -> str:
     return "\n".join([line(table[0]), "|" + "---|" * len(table[0])] + [line(r) for r in table[1:]])
 
 
+def person_markdown(rows: Sequence[dict[str, Any]]) -> list[str]:
+    """The per-person section of ``tables.md``: its lines, none when no episode names a person."""
+    table = person_table(person_rows(rows))
+    if not table:
+        return []
+    return ["## Per person", "", _markdown(table), "", PERSON_LEGEND, ""]
+
+
 def markdown_report(rows: Sequence[dict[str, Any]], computed: dict[str, Any]) -> str:
     """``tables.md``: the leaderboard table, statistics, aggregate, failures."""
     good = [r for r in rows if ran(r)]
@@ -209,6 +228,7 @@ def markdown_report(rows: Sequence[dict[str, Any]], computed: dict[str, Any]) ->
     parts = ["# Leaderboard", "", markdown_table(rows), ""]
     parts += [f"- {line}" for line in validity_lines(good)] + [""]
     parts += ["## Cell statistics", "", _markdown(statistics_table(rows)), ""]
+    parts += person_markdown(rows)
     if computed["aggregate"]:
         parts += ["## Across tasks (normalised by hold)", ""]
         parts += [_markdown(aggregate_table(computed["aggregate"])), "", SCORE_LEGEND, ""]
@@ -222,7 +242,11 @@ def markdown_report(rows: Sequence[dict[str, Any]], computed: dict[str, Any]) ->
 
 
 def compute(rows: Sequence[dict[str, Any]], seed: int = 0) -> dict[str, Any]:
-    """Every statistic of the report (``stats.json``): cells, aggregate, pairwise."""
+    """Every statistic of the report (``stats.json``): cells, aggregate, pairwise, persons.
+
+    ``persons`` (:func:`~baselines.leaderboard.tables.person_rows`) only where
+    an episode names its person.
+    """
     cells = []
     for r in rows:
         if ran(r):
@@ -230,13 +254,17 @@ def compute(rows: Sequence[dict[str, Any]], seed: int = 0) -> dict[str, Any]:
                 {"task": r["task"], "agent": r["agent"], "particles": r["particles"],
                  "summary": summarize(r["episodes"], seed=seed)}
             )  # fmt: skip
-    return {
+    out = {
         "reference": REFERENCE,
         "seed": seed,
         "cells": cells,
         "aggregate": stats.aggregate(rows, REFERENCE, seed=seed),
         "pairwise": stats.pairwise_improvement(rows, seed=seed),
     }
+    persons = person_rows(rows)
+    if persons:  # rows whose episodes name no person keep the file as it was
+        out["persons"] = persons
+    return out
 
 
 # ------------------------------------------------------------------ HTML
@@ -370,6 +398,10 @@ def html_page(
     parts += [f'<p class="legend">{html.escape(n)}</p>' for n in notes]
     parts += ["<h2>Leaderboard</h2>", _html_table(_leaderboard_table(rows), "leaderboard")]
     parts += ["<h2>Cell statistics</h2>", _html_table(statistics_table(rows), "cells")]
+    persons = person_table(person_rows(rows))
+    if persons:
+        parts += ["<h2>Per person</h2>", _html_table(persons, "persons")]
+        parts += [f'<p class="legend">{html.escape(PERSON_LEGEND)}</p>']
     if computed["aggregate"]:
         parts += ["<h2>Across tasks (normalised by hold)</h2>"]
         parts += [_html_table(aggregate_table(computed["aggregate"]), "aggregate")]

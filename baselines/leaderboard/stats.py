@@ -20,6 +20,14 @@ A cell run with several agent seeds on the same episodes
 (:func:`seed_matrix`) has its mean's interval, and that of its ratio to
 ``hold``, from :func:`two_level_bootstrap`: episodes resampled, then the
 agent seeds within each, so the seeds' variance is in the interval.
+
+Episodes cut from one clip are not independent (one person, one motion, one
+take): where episodes carry their clip, :func:`cluster_bootstrap_ci` and
+:func:`two_level_bootstrap` with ``clusters`` resample whole clips (every
+episode of each drawn clip), the cluster bootstrap of Davison & Hinkley (1997,
+section 3.8) and Field & Welsh, *Bootstrapping clustered data*, JRSS B 2007.
+Resampling episodes instead makes the interval too narrow when clips differ
+more than episodes within a clip.
 """
 
 from __future__ import annotations
@@ -521,6 +529,7 @@ def two_level_bootstrap(
     n_resamples: int = N_RESAMPLES,
     confidence: float = 0.95,
     seed: int | np.random.Generator = 0,
+    clusters: ArrayLike | None = None,
 ) -> tuple[tuple[float, float], tuple[float, float] | None]:
     """Percentile intervals of a mean over episodes and agent seeds, and of a ratio to it.
 
@@ -531,6 +540,9 @@ def two_level_bootstrap(
     mean of what it drew. The seeds' variance enters twice, through each
     episode's mean over seeds and through the second stage, so the interval
     errs wide, never narrow. With one agent seed it is the episode bootstrap.
+    With ``clusters``, the first stage draws clusters (clips) with replacement
+    and takes every episode of each drawn one, then the agent seeds within
+    each episode as before; the mean is over every drawn (episode, seed).
 
     Args:
         values: ``(episodes, agent seeds)`` values (a cell's mean errors,
@@ -541,32 +553,143 @@ def two_level_bootstrap(
         n_resamples: Bootstrap resamples.
         confidence: Confidence level of the two-sided intervals.
         seed: Seed or generator of the resampling.
+        clusters: ``(episodes,)`` the cluster (clip id) of each episode, to
+            resample clusters instead of episodes; None: every episode its own.
 
     Returns:
         ``((low, high) of the mean, (low, high) of reference mean / mean or
         None without a reference)``.
 
     Raises:
-        ValueError: If ``values`` is not a non-empty matrix or ``reference``
-            covers other episodes.
+        ValueError: If ``values`` is not a non-empty matrix, ``reference``
+            covers other episodes or ``clusters`` has another length.
     """
     v = np.asarray(values, dtype=np.float64)
     if v.ndim != 2 or v.size == 0:
         raise ValueError(f"values: expected an (episodes, seeds) matrix, got shape {v.shape}")
     n_episodes, n_seeds = v.shape
-    rng = _rng(seed)
-    drawn = rng.integers(n_episodes, size=(n_resamples, n_episodes))
-    seeds = rng.integers(n_seeds, size=(n_resamples, n_episodes, n_seeds))
-    means = v[drawn[..., None], seeds].mean(axis=(1, 2))
-    tail = 50.0 * (1.0 - confidence)
-    mean_ci = np.percentile(means, [tail, 100.0 - tail])
-    if reference is None:
-        return (float(mean_ci[0]), float(mean_ci[1])), None
-    ref = np.asarray(reference, dtype=np.float64)
-    if ref.ndim != 2 or ref.shape[0] != n_episodes:
+    ref = None if reference is None else np.asarray(reference, dtype=np.float64)
+    if ref is not None and (ref.ndim != 2 or ref.shape[0] != n_episodes):
         raise ValueError(
             f"reference: expected ({n_episodes}, seeds) values of the same episodes, "
             f"got shape {ref.shape}"
         )
-    ratio_ci = np.percentile(ref.mean(axis=1)[drawn].mean(axis=1) / means, [tail, 100.0 - tail])
+    rng = _rng(seed)
+    if clusters is None:
+        drawn = rng.integers(n_episodes, size=(n_resamples, n_episodes))
+        seeds = rng.integers(n_seeds, size=(n_resamples, n_episodes, n_seeds))
+        means = v[drawn[..., None], seeds].mean(axis=(1, 2))
+        held = None if ref is None else ref.mean(axis=1)[drawn].mean(axis=1)
+    else:
+        members, present = _cluster_members(clusters, n_episodes)
+        episodes, taken = _draw_clusters(members, present, n_resamples, rng)
+        seeds = rng.integers(n_seeds, size=episodes.shape + (n_seeds,))
+        drawn_values = np.where(taken[..., None], v[episodes[..., None], seeds], 0.0)
+        counts = taken.sum(axis=(1, 2))
+        means = drawn_values.sum(axis=(1, 2, 3)) / (counts * n_seeds)
+        if ref is not None:
+            held = np.where(taken, ref.mean(axis=1)[episodes], 0.0).sum(axis=(1, 2)) / counts
+    tail = 50.0 * (1.0 - confidence)
+    mean_ci = np.percentile(means, [tail, 100.0 - tail])
+    if ref is None:
+        return (float(mean_ci[0]), float(mean_ci[1])), None
+    ratio_ci = np.percentile(held / means, [tail, 100.0 - tail])
     return (float(mean_ci[0]), float(mean_ci[1])), (float(ratio_ci[0]), float(ratio_ci[1]))
+
+
+# ---------------------------------------------------------------- clusters
+
+
+def _cluster_members(clusters: ArrayLike, n: int) -> tuple[NDArray[np.intp], NDArray[np.bool_]]:
+    """Each cluster's episodes, clusters in order of first appearance.
+
+    Returns:
+        ``(members, present)``: ``(clusters, largest size)`` episode indices,
+        padded with 0 where ``present`` is False.
+
+    Raises:
+        ValueError: If ``clusters`` does not give one cluster per episode.
+    """
+    c = np.asarray(clusters)
+    if c.shape != (n,):
+        raise ValueError(f"clusters: expected one cluster per episode ({n},), got shape {c.shape}")
+    _, first, inverse = np.unique(c, return_index=True, return_inverse=True)
+    rank = np.argsort(np.argsort(first))[inverse.ravel()]  # cluster index by first appearance
+    order = np.argsort(rank, kind="stable")
+    sizes = np.bincount(rank)
+    slot = np.arange(n) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+    members = np.zeros((sizes.size, sizes.max(initial=0)), dtype=np.intp)
+    present = np.zeros(members.shape, dtype=bool)
+    members[rank[order], slot] = order
+    present[rank[order], slot] = True
+    return members, present
+
+
+def _draw_clusters(
+    members: NDArray[np.intp],
+    present: NDArray[np.bool_],
+    n_resamples: int,
+    rng: np.random.Generator,
+) -> tuple[NDArray[np.intp], NDArray[np.bool_]]:
+    """Resampled clusters' episodes: ``(resamples, clusters, largest size)`` indices and mask.
+
+    Each resample draws as many clusters as there are, with replacement; with
+    one episode per cluster the draws are :func:`scipy.stats.bootstrap`'s
+    (the same generator calls), so the two bootstraps agree.
+
+    Args:
+        members: :func:`_cluster_members`' episode indices per cluster.
+        present: Its mask.
+        n_resamples: Resamples.
+        rng: The generator.
+    """
+    drawn = rng.integers(members.shape[0], size=(n_resamples, members.shape[0]))
+    return members[drawn], present[drawn]
+
+
+def cluster_bootstrap_ci(
+    values: ArrayLike,
+    clusters: ArrayLike,
+    statistic: Callable[[FloatArray], float] = np.mean,
+    n_resamples: int = N_RESAMPLES,
+    confidence: float = 0.95,
+    seed: int | np.random.Generator = 0,
+) -> tuple[float, float]:
+    """Percentile bootstrap interval of a statistic, resampling clusters (clips) whole.
+
+    Each resample draws as many clusters as there are, with replacement, and
+    takes every episode of each drawn cluster (a resample's size varies with
+    the clusters drawn); the statistic is of the pooled episodes. With one
+    episode per cluster it is :func:`bootstrap_ci` with the same seed (equal
+    to rounding).
+
+    Args:
+        values: ``(episodes,)`` values (a cell's episode errors).
+        clusters: ``(episodes,)`` each episode's cluster (its clip id).
+        statistic: ``np.mean`` (vectorised) or any function of a 1-D array.
+        n_resamples: Bootstrap resamples.
+        confidence: Confidence level of the two-sided interval.
+        seed: Seed or generator of the resampling.
+
+    Returns:
+        The lower and upper bound: NaN for no values, the statistic twice for
+        one cluster (every resample is that cluster).
+
+    Raises:
+        ValueError: If ``clusters`` does not give one cluster per value.
+    """
+    v = np.asarray(values, dtype=np.float64).ravel()
+    members, present = _cluster_members(clusters, v.size)
+    if v.size == 0:
+        return float("nan"), float("nan")
+    if members.shape[0] == 1:
+        value = float(statistic(v))
+        return value, value
+    episodes, taken = _draw_clusters(members, present, n_resamples, _rng(seed))
+    if statistic is np.mean:
+        theta = np.where(taken, v[episodes], 0.0).sum(axis=(1, 2)) / taken.sum(axis=(1, 2))
+    else:
+        theta = np.array([statistic(v[e[t]]) for e, t in zip(episodes, taken, strict=True)])
+    tail = 50.0 * (1.0 - confidence)
+    low, high = np.percentile(theta, [tail, 100.0 - tail])
+    return float(low), float(high)

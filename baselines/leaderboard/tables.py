@@ -14,14 +14,24 @@ column, the spread of the seeds' mean errors (lowest-highest), give ``x hold``
 its 95% interval (:func:`hold_ratio_interval`), and their task's verdict is
 judged on that interval's lower bound for the agents of
 :data:`REFERENCE_AGENTS`. Rows of one agent seed print as they always have.
+
+:func:`person_rows` and :func:`person_table` break each cell's mean error down
+by the person tracked (an episode's ``person``, else the person its CMU or
+synthetic clip id names): the test set has few persons, and a mean over
+episodes weights each by how many of its clips the list holds.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import re
+from collections.abc import Mapping, Sequence
 from typing import Any
 
+import numpy as np
+
 from baselines.leaderboard.stats import agent_label, seed_matrix, two_level_bootstrap
+from humotion_gym.mocap.cmu import cmu_person
+from humotion_gym.mocap.synthetic import synthetic_subject
 
 #: The reference every table shows.
 FLOOR = "hold"
@@ -37,6 +47,10 @@ FOLLOW = "pf-follow"
 REFERENCE_AGENTS: tuple[str, ...] = ("pf-cv", "pf-tree", "pf-tree-vel", "pf-mix")
 #: Seed of the bootstrap of ``x hold``'s interval (same rows, same interval).
 INTERVAL_SEED = 0
+# Clip ids that name their person: CMU's trials (``cmu/02_05``, as BVH
+# conversions name them too) and the synthetic set's (``synthetic/walk-05``).
+_CMU_CLIP = re.compile(r"^cmu/(?:cmu[_-]?)?(\d{1,3})_\d{1,3}")
+_SYNTHETIC_CLIP = re.compile(r"^synthetic/.+-(\d+)$")
 
 
 def seeds_of(row: dict[str, Any]) -> int:
@@ -239,4 +253,70 @@ def validity_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
                 f"{task}: no other filter at {fewest:,} particles beats {FOLLOW} in mean "
                 f"error: the best, {agent_label(prior['agent'])}, {means}, {won}"
             )
+    return out
+
+
+def episode_person(episode: Mapping[str, Any]) -> str | None:
+    """Who an episode tracked: its ``person``, else the person its clip id names, else None."""
+    person = episode.get("person")
+    if person:
+        return str(person)
+    clip = str(episode.get("clip_id", ""))
+    if m := _CMU_CLIP.match(clip):
+        return cmu_person(int(m[1]))
+    if m := _SYNTHETIC_CLIP.match(clip):
+        return synthetic_subject(int(m[1]))
+    return None
+
+
+def person_rows(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per task, agent and person: the episodes and their mean error.
+
+    Only rows that ran, and only their episodes whose person is known
+    (:func:`episode_person`); none where no episode names one.
+
+    Returns:
+        One dict per (row, person), in the rows' order and persons sorted:
+        ``task``, ``agent`` (short label), ``particles``, ``person``,
+        ``episodes`` and ``mean_error_mm``.
+    """
+    out = []
+    for r in rows:
+        if "summary" not in r or "skipped" in r or "error" in r:
+            continue
+        errors: dict[str, list[float]] = {}
+        for e in r.get("episodes", []):
+            person = episode_person(e)
+            if person is not None:
+                errors.setdefault(person, []).append(float(e["mean_error_mm"]))
+        for person in sorted(errors):
+            out.append(
+                {"task": r["task"], "agent": agent_label(r["agent"]),
+                 "particles": r["particles"], "person": person,
+                 "episodes": len(errors[person]),
+                 "mean_error_mm": float(np.mean(errors[person]))}
+            )  # fmt: skip
+    return out
+
+
+def person_table(per_person: Sequence[dict[str, Any]]) -> list[list[str]]:
+    """:func:`person_rows` as a table: one row per cell, one column per person.
+
+    Each entry is the person's mean error in mm with its episodes in
+    parentheses, ``-`` where the cell has none of that person's episodes.
+
+    Returns:
+        Header then rows (empty when there are no rows).
+    """
+    if not per_person:
+        return []
+    persons = sorted({p["person"] for p in per_person})
+    cells: dict[tuple[str, str, Any], dict[str, str]] = {}
+    for p in per_person:
+        key = (p["task"], p["agent"], p["particles"])
+        cells.setdefault(key, {})[p["person"]] = f"{p['mean_error_mm']:.0f} ({p['episodes']})"
+    out = [["task", "agent", "particles", *(f"{q} mm (episodes)" for q in persons)]]
+    for (task, agent, particles), by in cells.items():
+        shown = f"{particles:,}" if particles else "-"
+        out.append([task, agent, shown, *(by.get(q, "-") for q in persons)])
     return out
