@@ -130,12 +130,13 @@ class _Recorder:
         self.start_distance = 0.0
 
     def __call__(self, action: NDArray[Any], truth: NDArray[np.float64], info: dict) -> None:
-        if "initial_pose" in info:  # the episode's first frame: where the travel starts
-            start = forward_kinematics(np.asarray(info["initial_pose"]), self.base.shape)
-            self.start_distance = float(np.linalg.norm(start[_PELVIS] - info["camera"].position))
+        camera = self.base.camera  # (the frame the action answers)
+        if "clip_id" in info:  # the episode's first frame: where the travel starts
+            start = forward_kinematics(self.base._truth(0), self.base.shape)
+            self.start_distance = float(np.linalg.norm(start[_PELVIS] - camera.position))
         estimate = self.base.action_to_pose(action, truth)
         kp = forward_kinematics(np.stack([estimate, truth]), self.base.shape)
-        centre = np.asarray(info["camera"].position, dtype=np.float64)
+        centre = np.asarray(camera.position, dtype=np.float64)
         est, tru = kp[0, self.scored], kp[1, self.scored]
         along, across = split_along_ray(est, tru, centre)
         ep = self.episode
@@ -235,7 +236,7 @@ def run_depth(
     errors are the leaderboard's for the same command.
 
     Args:
-        task: A task id (``BodyTrack-v1``).
+        task: A task id (``BodyTrack-v2``).
         agents: Agent names (``hold`` always runs first).
         particles: Particles of the particle filters.
         episodes: Seeded episodes per agent.
@@ -248,7 +249,8 @@ def run_depth(
         ``{"task", "particles", "seed", "rows": [{"agent", "particles",
         **summarize_depth(...), "episodes": [...]}]}``.
     """
-    env = gym.make(f"humotion_gym/{task}", terminate_on_lost=False, **(env_kwargs or {}))
+    kwargs = {"split": "test", **(env_kwargs or {})}  # the test persons, as the leaderboard
+    env = gym.make(f"humotion_gym/{task}", terminate_on_lost=False, **kwargs)
     names = ["hold"] + [a for a in agents if a != "hold"]
     rows = []
     bar = tqdm(total=len(names) * episodes, desc="depth: episodes", disable=not progress)

@@ -169,7 +169,7 @@ class TrainConfig:
 
     Attributes:
         algo: ``"ppo"`` or ``"bc"``.
-        task: Task id, e.g. ``"BodyTrack-v1"``.
+        task: Task id, e.g. ``"BodyTrack-v2"``.
         steps: Environment steps to train for.
         seed: Seed of the policy, the episodes and the rollouts.
         out: Output folder (``model.zip``, ``config.json``, ``checkpoints/``).

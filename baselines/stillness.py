@@ -112,7 +112,7 @@ def run_still(
     """Every agent (and ``hold``) on the task's still episodes.
 
     Args:
-        task: A task id (``BodyTrack-v1``).
+        task: A task id (``BodyTrack-v2``).
         agents: Agent names (``hold`` always runs).
         particles: Particles of the particle filters.
         windows: The episodes (found by :func:`still_windows` when None).
@@ -129,7 +129,8 @@ def run_still(
     Raises:
         ValueError: If no still episode is found (raise ``max_hold_mm``).
     """
-    env = gym.make(f"humotion_gym/{task}", terminate_on_lost=False, **(env_kwargs or {}))
+    kwargs = {"split": "test", **(env_kwargs or {})}  # the test persons, as the leaderboard
+    env = gym.make(f"humotion_gym/{task}", terminate_on_lost=False, **kwargs)
     if windows is None:
         windows = still_windows(env, max_hold_mm, count, progress=progress)
     if not windows:

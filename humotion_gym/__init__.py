@@ -1,7 +1,7 @@
 """humotion_gym: Gymnasium environments for monocular 3D human pose tracking.
 
 Importing the package registers the environment ids under the ``humotion_gym/``
-namespace, so ``gymnasium.make("humotion_gym/BodyTrack-v1")`` works.
+namespace, so ``gymnasium.make("humotion_gym/BodyTrack-v2")`` works.
 Tracking with the particle filters from Python is several times faster on one
 BLAS thread: call :func:`limit_blas_threads` once (see :mod:`humotion_gym.threads`).
 """

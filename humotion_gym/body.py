@@ -61,7 +61,7 @@ PARAM_NAMES: tuple[str, ...] = (
 N_PARAMS = len(PARAM_NAMES)
 PARAM_INDEX: dict[str, int] = {name: i for i, name in enumerate(PARAM_NAMES)}
 #: The flexion angles of the hips, knees, shoulders and elbows: what a side view
-#: of walking shows (SideWalk-v1's free parameters, the switching linear model's
+#: of walking shows (SideWalk-v2's free parameters, the switching linear model's
 #: default).
 SAGITTAL_PARAMS: tuple[str, ...] = (
     "r_hip_x", "r_knee", "l_hip_x", "l_knee",

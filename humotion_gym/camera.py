@@ -42,6 +42,10 @@ def _check_size(width: int, height: int, fov_deg: float, where: str) -> None:
         raise ValueError(f"{where}: fov_deg must lie in (1, 179) degrees, got {fov_deg}")
 
 
+#: Length of :meth:`Camera.to_vector`.
+CAMERA_VECTOR_SIZE = 13
+
+
 @dataclass(frozen=True, eq=False)
 class Camera:
     """A pinhole camera with square pixels and the principal point at the centre.
@@ -98,6 +102,29 @@ class Camera:
                 self.position.tobytes(),
             )
         )
+
+    def to_vector(self) -> FloatArray:
+        """``(13,)`` the field of view, the rotation's rows and the position.
+
+        The camera as a plain vector (an observation's ``camera`` entry); the
+        image size is the frame's. :meth:`from_vector` inverts it exactly.
+        """
+        return np.concatenate([[self.fov_deg], self.rotation.ravel(), self.position])
+
+    @classmethod
+    def from_vector(cls, vector: ArrayLike, width: int, height: int) -> Camera:
+        """The camera of :meth:`to_vector`'s output and an image size.
+
+        Raises:
+            ValueError: If the vector does not hold 13 finite numbers or its
+                rotation is not one.
+        """
+        v = np.asarray(vector, dtype=np.float64).ravel()
+        if v.size != CAMERA_VECTOR_SIZE:
+            raise ValueError(
+                f"Camera.from_vector: expected {CAMERA_VECTOR_SIZE} numbers, got {v.size}"
+            )
+        return cls(int(width), int(height), float(v[0]), v[1:10].reshape(3, 3), v[10:13])
 
     # -- constructors -----------------------------------------------------
 

@@ -11,7 +11,7 @@ one batch.
 
 Example:
     >>> from humotion_gym.sb3 import learner_vec_env
-    >>> venv = learner_vec_env("BodyTrack-v1", n_envs=8, split="train")  # doctest: +SKIP
+    >>> venv = learner_vec_env("BodyTrack-v2", n_envs=8, split="train")  # doctest: +SKIP
     >>> PPO("MultiInputPolicy", venv)  # doctest: +SKIP
 """
 
@@ -38,6 +38,13 @@ from humotion_gym.wrappers import learner_frame, learner_frames
 # The step's scalar info that each episode's info dict carries (SB3 keeps one
 # dict per episode; the batched arrays stay in ``last_infos``).
 _SCALAR_INFO = ("error_mm", "error_all_mm", "error_aligned_mm", "lost")
+
+
+def _frames_initial(obs: Any, info: dict[str, Any]) -> tuple[NDArray[np.uint8], Any]:
+    """The batch's frames and initial poses: from a v2 observation, or v1 frames and info."""
+    if isinstance(obs, dict):
+        return obs["frame"], obs["initial_pose"]
+    return obs, info.get("initial_pose")
 
 
 class LearnerVecEnv(VecEnv):
@@ -68,7 +75,9 @@ class LearnerVecEnv(VecEnv):
             )
         self.venv = venv
         self.frame_size = frame_size
-        h, w, c = venv.single_observation_space.shape  # type: ignore[misc]
+        single = venv.single_observation_space
+        frames = single["frame"] if isinstance(single, spaces.Dict) else single
+        h, w, c = frames.shape  # type: ignore[misc]
         side_h, side_w = (h, w) if frame_size is None else (frame_size, frame_size)
         action_space = venv.single_action_space
         assert isinstance(action_space, spaces.Box)
@@ -112,9 +121,10 @@ class LearnerVecEnv(VecEnv):
         options = self._options[0] if self._options and self._options[0] else None
         if any(o != self._options[0] for o in self._options):
             raise ValueError("LearnerVecEnv: every episode must get the same reset options")
-        frames, info = self.venv.reset(seed=seeds, options=options)
+        obs, info = self.venv.reset(seed=seeds, options=options)
+        frames, initial = _frames_initial(obs, info)
         self.last_infos = info
-        self._initial_actions(range(self.num_envs), info["initial_pose"])
+        self._initial_actions(range(self.num_envs), initial)
         self.reset_infos = [
             {"clip_id": info["clip_id"][i], "start_frame": int(info["start_frame"][i])}
             for i in range(self.num_envs)
@@ -129,7 +139,8 @@ class LearnerVecEnv(VecEnv):
 
     def step_wait(self) -> VecEnvStepReturn:
         """Step every episode; restart those that end (their last observation in info)."""
-        frames, rewards, terminated, truncated, info = self.venv.step(self._actions)
+        obs, rewards, terminated, truncated, info = self.venv.step(self._actions)
+        frames, initial = _frames_initial(obs, info)
         self.last_infos = info
         # LearnerObservation: the action becomes the next observation's
         # previous estimate, clipped (np.clip's numbers, in a third of its time).
@@ -157,12 +168,15 @@ class LearnerVecEnv(VecEnv):
         if dones.any():
             ended = np.flatnonzero(dones).tolist()
             for i in ended:
+                last = info["final_obs"][i]
                 infos[i]["terminal_observation"] = {
-                    "frame": learner_frame(info["final_obs"][i], self.frame_size),
+                    "frame": learner_frame(
+                        last["frame"] if isinstance(last, dict) else last, self.frame_size
+                    ),
                     "previous": self._previous[i].copy(),
                     "initial": self._initial[i].copy(),
                 }
-            self._initial_actions(ended, info["initial_pose"])
+            self._initial_actions(ended, initial)
         return self._observation(frames), rewards.astype(np.float32), dones, infos
 
     def close(self) -> None:

@@ -1,12 +1,14 @@
-"""Wrappers for learners: a ``Dict`` observation and a training-only supervision signal.
+"""Wrappers for learners: the frame alone, a learner's ``Dict`` observation, supervision.
 
 The tracking environments show a frame and take a pose estimate; the figure's
 motion comes from motion capture, so an action never changes the next frame.
 Each step is an estimation problem with a reward, and a policy's only temporal
-context is what it is shown of the past. :class:`LearnerObservation` shows it
-what a particle-filter agent has: the frame, its own previous estimate and the
-given initial pose, the two poses normalised like the action. Nothing in it
-depends on the truth (the previous estimate is the agent's own last action).
+context is what it is shown of the past. :class:`FrameObservation` gives a
+pixel-only learner the frame alone. :class:`LearnerObservation` shows a
+policy what a particle-filter agent uses: the frame, its own previous
+estimate and the given initial pose, the two poses normalised like the
+action. Nothing in either depends on the truth (the previous estimate is the
+agent's own last action).
 
 :class:`Supervision` adds the true normalised action to ``info`` for supervised
 training (behaviour cloning). The truth of the tracked parameters is exactly
@@ -35,6 +37,46 @@ def _base(env: gym.Env) -> PoseTrackingEnv:
     if not isinstance(base, PoseTrackingEnv):
         raise TypeError(f"expected a humotion_gym tracking environment, got {type(base).__name__}")
     return base
+
+
+def _frame_and_initial(
+    observation: Any, info: dict[str, Any]
+) -> tuple[NDArray[np.uint8], NDArray[np.float64] | None]:
+    """The frame and (at a reset) the initial pose: from a v2 observation, or a v1 frame and info."""
+    if isinstance(observation, dict):
+        return observation["frame"], np.asarray(observation["initial_pose"], dtype=np.float64)
+    initial = info.get("initial_pose")
+    return observation, None if initial is None else np.asarray(initial, dtype=np.float64)
+
+
+class FrameObservation(gym.ObservationWrapper):
+    """The frame alone, for pixel-only learners: ``Box(0, 255, (H, W, C), uint8)``.
+
+    A version-2 task's observation also holds the initial pose, the given
+    parameters, the camera and the shape; a learner that takes pixels only
+    (SB3's ``CnnPolicy``, an Atari-style pipeline) sees the frame and gives
+    the rest up. Rewards, episode ends and ``info`` pass through unchanged.
+
+    Args:
+        env: A version-2 tracking environment (any wrapper chain around one).
+
+    Raises:
+        ValueError: If the environment's observation is not a ``Dict`` with a frame.
+    """
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        space = env.observation_space
+        if not isinstance(space, spaces.Dict) or "frame" not in space.spaces:
+            raise ValueError(
+                f"FrameObservation: expected a Dict observation with a 'frame' (a -v2 task), "
+                f"got {space}"
+            )
+        self.observation_space = space["frame"]
+
+    def observation(self, observation: dict[str, Any]) -> NDArray[np.uint8]:
+        """The frame."""
+        return observation["frame"]
 
 
 def learner_frame(frame: NDArray[np.uint8], size: int | None) -> NDArray[np.uint8]:
@@ -116,8 +158,8 @@ class LearnerObservation(gym.Wrapper):
     channels first, area-downsampled to ``size`` (None keeps the env's size).
     ``previous``: ``Box(-1, 1, (n_free,), float32)``, the agent's previous
     action (at a reset: the initial pose). ``initial``: the same space, the
-    episode's initial pose (``info["initial_pose"]``) normalised like the
-    action. Actions, rewards, episode ends and ``info`` pass through unchanged.
+    episode's initial pose (``observation["initial_pose"]``) normalised like
+    the action. Actions, rewards, episode ends and ``info`` pass through unchanged.
     Gymnasium's ``FrameStackObservation`` stacks this observation like any other.
 
     Args:
@@ -133,7 +175,8 @@ class LearnerObservation(gym.Wrapper):
                 f"LearnerObservation: size must be an integer >= 8 or None, got {size!r}"
             )
         self.size = size
-        h, w, c = base.observation_space.shape
+        frames = base.observation_space
+        h, w, c = (frames["frame"] if isinstance(frames, spaces.Dict) else frames).shape
         side_h, side_w = (h, w) if size is None else (size, size)
         n_free = base.action_space.shape[0]
         vector = spaces.Box(-1.0, 1.0, shape=(n_free,), dtype=np.float32)
@@ -151,8 +194,10 @@ class LearnerObservation(gym.Wrapper):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, NDArray[Any]], dict[str, Any]]:
         """Reset; the previous estimate starts at the initial pose."""
-        frame, info = self.env.reset(seed=seed, options=options)
-        self._initial = _base(self.env).pose_to_action(info["initial_pose"])
+        obs, info = self.env.reset(seed=seed, options=options)
+        frame, initial = _frame_and_initial(obs, info)
+        assert initial is not None
+        self._initial = _base(self.env).pose_to_action(initial)
         self._previous = self._initial.copy()
         return learner_observation(frame, self._previous, self._initial, self.size), info
 
@@ -160,7 +205,8 @@ class LearnerObservation(gym.Wrapper):
         self, action: NDArray[Any]
     ) -> tuple[dict[str, NDArray[Any]], float, bool, bool, dict[str, Any]]:
         """Step; the action becomes the next observation's previous estimate."""
-        frame, reward, terminated, truncated, info = self.env.step(action)
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        frame, _ = _frame_and_initial(obs, info)
         self._previous = np.clip(np.asarray(action, dtype=np.float32), -1.0, 1.0)
         obs = learner_observation(frame, self._previous, self._initial, self.size)
         return obs, reward, terminated, truncated, info
@@ -179,8 +225,10 @@ class Supervision(gym.Wrapper):
             chain around one).
 
     Raises:
-        ValueError: If the environment draws test episodes: the truth of the
-            test persons is the benchmark's answer and no policy may see it.
+        ValueError: If the environment draws test or validation episodes
+            (the truth of the held-out persons is the benchmark's answer and
+            no policy may see it), and at any reset whose episode shows a
+            held-out person (checked by name and skeleton, every episode).
     """
 
     def __init__(self, env: gym.Env) -> None:
@@ -200,8 +248,15 @@ class Supervision(gym.Wrapper):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[Any, dict[str, Any]]:
-        """Reset, with the first frame's true action in ``info``."""
+        """Reset, with the first frame's true action in ``info``.
+
+        Raises:
+            ValueError: If the episode shows a held-out person.
+        """
         obs, info = self.env.reset(seed=seed, options=options)
+        base = _base(self.env)
+        assert base._motion is not None
+        base._check_person(base._motion, "episode")
         return obs, self._label(info)
 
     def step(self, action: NDArray[Any]) -> tuple[Any, float, bool, bool, dict[str, Any]]:
@@ -212,6 +267,7 @@ class Supervision(gym.Wrapper):
 
 __all__ = [
     "OBSERVATION_KEYS",
+    "FrameObservation",
     "LearnerObservation",
     "Supervision",
     "learner_frame",

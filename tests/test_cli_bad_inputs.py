@@ -40,7 +40,7 @@ BASE: dict[str, list[str]] = {
     "track": ["--episodes", "1", "--particles", "10"],
     "leaderboard": [
         "--tasks",
-        "ArmTrack-v1",
+        "ArmTrack-v2",
         "--agents",
         "pf-cv",
         "--particles",
@@ -268,7 +268,7 @@ def make_workspace(ws: Path) -> dict[str, str]:
     (ws / "adir").mkdir()
     (ws / "afile").write_text("x")
     (ws / "rows.json").write_text(
-        json.dumps([{"task": "ArmTrack-v1", "agent": "hold", "particles": 0}])
+        json.dumps([{"task": "ArmTrack-v2", "agent": "hold", "particles": 0}])
     )
     name = "J" * 2_000_000
     (ws / "long_name.bvh").write_text(
@@ -282,7 +282,7 @@ def make_workspace(ws: Path) -> dict[str, str]:
     run = ws / "run"
     run.mkdir()
     (run / "run.json").write_text("{}\n")
-    record = {"task": "ArmTrack-v1", "agent": "pf-tree", "particles": 300, "seed": 0, "result": {}}
+    record = {"task": "ArmTrack-v2", "agent": "pf-tree", "particles": 300, "seed": 0, "result": {}}
     (run / "episodes.jsonl").write_text(json.dumps(record) + "\n")
     cache_file = ws / "cache-is-a-file"
     cache_file.write_text("x")

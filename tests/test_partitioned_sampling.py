@@ -26,7 +26,7 @@ GROUPS = [
 ]  # torso, right arm, left arm, right leg, left leg
 
 
-def scene(seed: int, task: str = "BodyTrack-v1"):
+def scene(seed: int, task: str = "BodyTrack-v2"):
     """A frame of a perturbed standing pose, the task's model and the prepared features."""
     rng = np.random.default_rng(seed)
     pose = body.standing_pose(SHAPE)
@@ -46,7 +46,7 @@ def scene(seed: int, task: str = "BodyTrack-v1"):
     return model, feats, cam, pose, rng
 
 
-@pytest.mark.parametrize("task", ["BodyTrack-v1", "ArmTrack-v1", "WalkTrack-v1"])
+@pytest.mark.parametrize("task", ["BodyTrack-v2", "ArmTrack-v2", "WalkTrack-v2"])
 @pytest.mark.parametrize("n", [40, 1200])  # 1200: the path that scores shared cones once
 def test_the_last_column_is_the_likelihood(task: str, n: int) -> None:
     model, feats, cam, pose, rng = scene(1, task)
@@ -94,13 +94,13 @@ def test_non_finite_poses_and_bad_groups() -> None:
 
 
 def test_the_stages_of_each_task() -> None:
-    names = [s.name for s in body_part_stages(get_task("BodyTrack-v1").free_indices)]
+    names = [s.name for s in body_part_stages(get_task("BodyTrack-v2").free_indices)]
     assert names == ["torso", "right_arm", "left_arm", "right_leg", "left_leg"]
-    arm = body_part_stages(get_task("ArmTrack-v1").free_indices)
+    arm = body_part_stages(get_task("ArmTrack-v2").free_indices)
     assert [s.name for s in arm] == ["right_arm"] and arm[0].dims.tolist() == [0, 1, 2, 3]
-    side = body_part_stages(get_task("SideWalk-v1").free_indices)
+    side = body_part_stages(get_task("SideWalk-v2").free_indices)
     covered = np.sort(np.concatenate([s.dims for s in side]))
-    assert covered.tolist() == list(range(get_task("SideWalk-v1").free_indices.size))
+    assert covered.tolist() == list(range(get_task("SideWalk-v2").free_indices.size))
 
 
 # -- the filter on a problem whose answer is known ------------------------------------
@@ -203,7 +203,7 @@ def test_a_partitioned_agent_tracks_end_to_end_and_by_seed(monkeypatch) -> None:
 
     spec = dataclasses.replace(agents.AGENTS["pf-cv"], partitioned=True, diffusion=0.3)
     monkeypatch.setitem(agents.AGENTS, "ppf-cv", spec)
-    env = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
+    env = gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False)
     runs = []
     for _ in range(2):
         agent = agents.make("ppf-cv", env, n_particles=60, seed=1)

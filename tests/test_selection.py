@@ -43,7 +43,7 @@ def test_selection_refuses_a_library_with_test_persons_before_tracking(monkeypat
     monkeypatch.setattr(selection.gym, "make", no_tracking)
     for bad in (leaked_clip, leaked_held_out):
         with pytest.raises(ValueError, match=f"test persons \\['{test_clip.subject}'\\]"):
-            select_observation_settings("SideWalk-v1", "pf-cv", {"sharpness": [1.0]}, bad)
+            select_observation_settings("SideWalk-v2", "pf-cv", {"sharpness": [1.0]}, bad)
 
 
 def test_the_real_validation_persons_are_training_persons():
@@ -53,7 +53,7 @@ def test_the_real_validation_persons_are_training_persons():
 def test_selection_tracks_the_fold_and_picks_the_lowest_error():
     fold = validation_library(None)
     grid = {"sharpness": [0.5, 2.0], "foreground_weight": [0.0, 0.5]}
-    out = select_observation_settings("SideWalk-v1", "pf-cv", grid, fold, particles=30, episodes=2)
+    out = select_observation_settings("SideWalk-v2", "pf-cv", grid, fold, particles=30, episodes=2)
     assert [r["settings"] for r in out["rows"]] == [
         {"sharpness": a, "foreground_weight": b} for a in (0.5, 2.0) for b in (0.0, 0.5)
     ]
@@ -61,17 +61,17 @@ def test_selection_tracks_the_fold_and_picks_the_lowest_error():
     assert out["chosen"] == out["rows"][errors.index(min(errors))]["settings"]
     assert out["validation_subjects"] == sorted(fold.held_out)
     with pytest.raises(ValueError, match="not ObservationModel settings"):
-        select_observation_settings("SideWalk-v1", "pf-cv", {"nonsense": [1.0]}, fold)
+        select_observation_settings("SideWalk-v2", "pf-cv", {"nonsense": [1.0]}, fold)
     with pytest.raises(ValueError, match="at least one"):
-        select_observation_settings("SideWalk-v1", "pf-cv", {"sharpness": []}, fold)
+        select_observation_settings("SideWalk-v2", "pf-cv", {"sharpness": []}, fold)
     with pytest.raises(ValueError, match="validation fold"):
-        select_observation_settings("SideWalk-v1", "pf-cv", grid, synthetic_library())
+        select_observation_settings("SideWalk-v2", "pf-cv", grid, synthetic_library())
 
 
 def test_cli_select_parses_the_grid(capsys):
     from baselines.cli import main
 
-    code = main(["select", "--task", "SideWalk-v1", "--agent", "pf-cv", "--grid",
+    code = main(["select", "--task", "SideWalk-v2", "--agent", "pf-cv", "--grid",
                  "sharpness=1,2", "--particles", "20", "--episodes", "1"])  # fmt: skip
     assert code == 0 and "chosen: sharpness=" in capsys.readouterr().out
     assert main(["select", "--grid", "sharpness"]) == 2
@@ -82,7 +82,7 @@ def test_cli_select_reports_a_bad_setting_or_fold_in_one_line(capsys, tmp_path, 
     from baselines.cli import main
 
     monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
-    base = ["select", "--task", "WalkTrack-v1", "--agent", "pf-cv", "--particles", "10",
+    base = ["select", "--task", "WalkTrack-v2", "--agent", "pf-cv", "--particles", "10",
             "--episodes", "1"]  # fmt: skip
     assert main([*base, "--grid", "fit.bogus=0.5"]) == 2
     err = capsys.readouterr().err
@@ -97,7 +97,7 @@ def test_prior_settings_are_selected_like_likelihood_settings(tmp_path, monkeypa
     monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
     fold = validation_library(None)
     grid = {"fit.damping": [1.0, 0.3], "sharpness": [1.0]}
-    out = select_observation_settings("SideWalk-v1", "pf-cv", grid, fold, particles=30, episodes=2)
+    out = select_observation_settings("SideWalk-v2", "pf-cv", grid, fold, particles=30, episodes=2)
     assert [r["settings"] for r in out["rows"]] == [
         {"fit.damping": 1.0, "sharpness": 1.0},
         {"fit.damping": 0.3, "sharpness": 1.0},
@@ -105,16 +105,16 @@ def test_prior_settings_are_selected_like_likelihood_settings(tmp_path, monkeypa
     # The damping reaches the prior: the two runs differ.
     assert out["rows"][0]["mean_error_mm"] != out["rows"][1]["mean_error_mm"]
     with pytest.raises(ValueError, match="not settings of"):
-        select_observation_settings("SideWalk-v1", "pf-cv", {"fit.nonsense": [1.0]}, fold)
+        select_observation_settings("SideWalk-v2", "pf-cv", {"fit.nonsense": [1.0]}, fold)
     with pytest.raises(ValueError, match="particle-filter agent"):
-        select_observation_settings("SideWalk-v1", "hold", {"fit.damping": [1.0]}, fold)
+        select_observation_settings("SideWalk-v2", "hold", {"fit.damping": [1.0]}, fold)
 
 
 def test_the_annealed_filters_settings_are_selected_like_the_priors(tmp_path, monkeypatch):
     monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
     fold = validation_library(None)
     grid = {"filter.alpha": [0.5, 0.9], "filter.layers": [2]}
-    out = select_observation_settings("SideWalk-v1", "apf-cv", grid, fold, particles=20, episodes=2)
+    out = select_observation_settings("SideWalk-v2", "apf-cv", grid, fold, particles=20, episodes=2)
     assert [r["settings"] for r in out["rows"]] == [
         {"filter.alpha": 0.5, "filter.layers": 2},
         {"filter.alpha": 0.9, "filter.layers": 2},
@@ -122,6 +122,6 @@ def test_the_annealed_filters_settings_are_selected_like_the_priors(tmp_path, mo
     # The survival rate reaches the filter: the two runs differ.
     assert out["rows"][0]["mean_error_mm"] != out["rows"][1]["mean_error_mm"]
     with pytest.raises(ValueError, match="not filter settings"):
-        select_observation_settings("SideWalk-v1", "apf-cv", {"filter.nonsense": [1.0]}, fold)
+        select_observation_settings("SideWalk-v2", "apf-cv", {"filter.nonsense": [1.0]}, fold)
     with pytest.raises(ValueError, match="annealed agent"):
-        select_observation_settings("SideWalk-v1", "pf-cv", {"filter.alpha": [0.5]}, fold)
+        select_observation_settings("SideWalk-v2", "pf-cv", {"filter.alpha": [0.5]}, fold)

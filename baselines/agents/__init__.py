@@ -13,9 +13,13 @@ Three kinds of agent are made by :func:`make`:
   ``bc``, ``ppo``, a saved ``PATH.zip`` or ``LABEL=PATH.zip``, and the hybrids
   ``pf-PRIOR+POLICY``.
 
-Every agent has stable-baselines3's ``predict(observation, state,
-episode_start, deterministic)``, so one evaluation loop
-(:func:`baselines.leaderboard.evaluation.run_episode`) scores them all.
+Every agent is built from the task's description
+(:class:`~humotion_gym.envs.description.TaskDescription`; :func:`make` also
+takes an environment and keeps only its description) and has
+stable-baselines3's ``predict(observation, state, episode_start,
+deterministic)``: what it sees of an episode is its observations, so one
+evaluation loop (:func:`baselines.leaderboard.evaluation.run_episode`) scores
+them all and hands them nothing else.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ from typing import Any
 
 import gymnasium as gym
 
-from baselines.agents.base import TaskNotSupported, tracking_env
+from baselines.agents.base import TaskNotSupported, describe, tracking_env
 from baselines.agents.filters import (
     PART_CONES,
     ParticleFilterAgent,
@@ -47,6 +51,7 @@ from baselines.agents.specs import (
     training_motions,
 )
 from baselines.observation import ObservationModel
+from humotion_gym.envs.description import TaskDescription
 
 
 def agent_names() -> list[str]:
@@ -56,7 +61,7 @@ def agent_names() -> list[str]:
 
 def make(
     name: str,
-    env: gym.Env,
+    task: TaskDescription | gym.Env,
     n_particles: int = 300,
     seed: int = 0,
     estimate: str = "mean",
@@ -65,14 +70,16 @@ def make(
     filter_settings: Mapping[str, float] | None = None,
     observation_model: ObservationModel | None = None,
 ) -> Any:
-    """A registered agent for an environment: a reference, a particle filter or a policy.
+    """A registered agent for a task: a reference, a particle filter or a policy.
 
     Args:
         name: A key of :data:`REFERENCES` (``"hold"``, ``"random"``; they take
             no particles) or of :data:`AGENTS` (``"pf-cv"``, ``"pf-tree"``...),
             or a learned agent (:mod:`baselines.agents.learned`: ``"bc"``,
             ``"ppo"``, ``"PATH.zip"``, ``"LABEL=PATH.zip"``, ``"pf-tree+bc"``).
-        env: The environment it will act in.
+        task: The task's description, or an environment (only its
+            :meth:`~humotion_gym.envs.pose_tracking.PoseTrackingEnv.describe`
+            is kept).
         n_particles: Particles.
         seed: The agent's seed.
         estimate: ``"mean"`` or ``"map"``.
@@ -90,14 +97,15 @@ def make(
         ValueError: If a fit or filter setting is unknown or out of range, or
             a filter setting is not the agent's filter's.
     """
-    if name in REFERENCES:
-        return REFERENCES[name][0](env, seed=seed)
-    if is_learned(name):  # bc, ppo, a saved PATH.zip or LABEL=PATH.zip, pf-PRIOR+POLICY
-        return make_learned(name, env, n_particles=n_particles, seed=seed)
-    if name not in AGENTS:
+    if name not in REFERENCES and name not in AGENTS and not is_learned(name):
         raise KeyError(f"unknown agent {name!r}; the agents are {agent_names()}")
+    description = describe(task)
+    if name in REFERENCES:
+        return REFERENCES[name][0](description, seed=seed)
+    if is_learned(name):  # bc, ppo, a saved PATH.zip or LABEL=PATH.zip, pf-PRIOR+POLICY
+        return make_learned(name, description, n_particles=n_particles, seed=seed)
     return make_filter(
-        name, env, n_particles, seed, estimate, fit_settings, use_cache, filter_settings,
+        name, description, n_particles, seed, estimate, fit_settings, use_cache, filter_settings,
         observation_model,
     )  # fmt: skip
 
@@ -119,6 +127,7 @@ __all__ = [
     "TaskNotSupported",
     "agent_names",
     "body_part_stages",
+    "describe",
     "filter_agent",
     "fit_prior",
     "make",

@@ -1,9 +1,14 @@
-"""What every agent module shares: the tracking environment under wrappers, and the skip error."""
+"""What every agent module shares: the task's description, and the skip error."""
 
 from __future__ import annotations
 
-import gymnasium as gym
+from typing import Any
 
+import gymnasium as gym
+import numpy as np
+from numpy.typing import NDArray
+
+from humotion_gym.envs.description import TaskDescription
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 
 
@@ -18,6 +23,9 @@ class TaskNotSupported(ValueError):
 def tracking_env(env: gym.Env) -> PoseTrackingEnv:
     """The :class:`~humotion_gym.envs.pose_tracking.PoseTrackingEnv` under an env's wrappers.
 
+    For the evaluation and the experiments, which score and analyse episodes;
+    agents are built from :func:`describe` and never hold the environment.
+
     Raises:
         TypeError: If ``env`` is not (a wrapper of) a pose-tracking environment.
     """
@@ -28,3 +36,39 @@ def tracking_env(env: gym.Env) -> PoseTrackingEnv:
             f"got {type(base).__name__}"
         )
     return base
+
+
+def describe(task: TaskDescription | gym.Env) -> TaskDescription:
+    """The description an agent is built from: given as is, or an environment's.
+
+    Agents take a :class:`~humotion_gym.envs.description.TaskDescription`
+    (an environment's :meth:`~humotion_gym.envs.pose_tracking.PoseTrackingEnv.describe`)
+    and keep nothing of the environment: what they see of an episode is its
+    observations.
+
+    Raises:
+        TypeError: If ``task`` is neither a description nor a tracking environment.
+        TaskNotSupported: For a version-1 task, whose frame-only observation
+            the agents do not read.
+    """
+    description = task if isinstance(task, TaskDescription) else tracking_env(task).describe()
+    if description.task.version < 2:
+        raise TaskNotSupported(
+            f"{description.name} is deprecated and its observation is the frame alone; the "
+            f"agents track {description.task.family}-v2"
+        )
+    return description
+
+
+def episode_begins(
+    episode_start: Any, initial_pose: NDArray[np.float64], current: NDArray[np.float64] | None
+) -> bool:
+    """Whether an observation starts a new episode for an agent.
+
+    At SB3's ``episode_start``, before the agent's first episode, and where
+    the observation's initial pose is not the one the agent started from (a
+    caller that does not pass ``episode_start`` still starts each episode).
+    """
+    if episode_start is not None and bool(np.any(episode_start)):
+        return True
+    return current is None or not np.array_equal(current, initial_pose)

@@ -5,17 +5,18 @@ A :class:`ParticleFilterAgent` is a :class:`~baselines.filtering.ParticleFilter`
 the task's observation model (:class:`TaskLikelihood`), the camera and the
 subject's known shape. It follows stable-baselines3's
 ``predict(observation, state, episode_start, deterministic)`` so one evaluation
-loop scores particle filters and learned policies alike; the loop also hands it
-each step's ``info`` (:meth:`ParticleFilterAgent.observe_info`), which carries
-the initial pose, the subject's shape, the camera and the parameters the task
-does not track, never the truth of the tracked ones. Which prior and settings
-each named agent uses is :mod:`baselines.agents.specs`.
+loop scores particle filters and learned policies alike. It is built from the
+task's description and reads its observation alone: the frame, the initial
+pose, the subject's shape, the camera and the parameters the task does not
+track (:mod:`humotion_gym.envs.description`), never the truth of the tracked
+ones. Which prior and settings each named agent uses is
+:mod:`baselines.agents.specs`.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from types import ModuleType
 from typing import Any
 
@@ -23,7 +24,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from baselines.agents.base import tracking_env
+from baselines.agents.base import describe, episode_begins
 from baselines.filtering import (
     AnnealedParticleFilter,
     ParticleFilter,
@@ -41,6 +42,13 @@ from humotion_gym.body import (
     BodyShape,
 )
 from humotion_gym.camera import Camera
+from humotion_gym.envs.description import (
+    Given,
+    TaskDescription,
+    action_bounds,
+    pose_to_action,
+    read_observation,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -49,7 +57,7 @@ class TaskLikelihood:
     """The environment's observation model over a task's free parameters.
 
     Particles hold only the free parameters; this fills in the parameters the
-    task gives (``info["fixed_params"]``) and scores full poses with the
+    task gives (``observation["fixed_params"]``) and scores full poses with the
     environment's model, camera and the known shape.
     """
 
@@ -60,7 +68,7 @@ class TaskLikelihood:
         self.base = np.zeros(N_PARAMS)
         # Consecutive free parameters are filled in through a slice: numpy's
         # assignment through an index array is several times slower (at
-        # 10,000 particles, about 1 ms of pf-tree's 19 per BodyTrack-v1 frame).
+        # 10,000 particles, about 1 ms of pf-tree's 19 per BodyTrack-v2 frame).
         cols = np.asarray(free, dtype=np.intp)
         self._columns: slice | NDArray[np.intp] = cols
         if cols.size and np.array_equal(cols, np.arange(cols[0], cols[0] + cols.size)):
@@ -179,7 +187,7 @@ class ParticleFilterAgent:
 
     def __init__(
         self,
-        env: gym.Env,
+        task: TaskDescription | gym.Env,
         prior: ModuleType,
         fitted: Any,
         n_particles: int = 300,
@@ -193,15 +201,15 @@ class ParticleFilterAgent:
         beta_max: float = float("inf"),
         observation_model: ObservationModel | None = None,
     ) -> None:
-        self.env = tracking_env(env)
-        task = self.env.task
-        self.observation_model = observation_model or task_model(task)
+        self.description = describe(task)
+        spec = self.description.task
+        self.observation_model = observation_model or task_model(spec)
         self.name = name
         self.prior = prior
         self.fitted = fitted
         self.n_particles = int(n_particles)
-        self.free = task.free_indices
-        self.likelihood = TaskLikelihood(self.observation_model, self.free, task.fixed_indices)
+        self.free = spec.free_indices
+        self.likelihood = TaskLikelihood(self.observation_model, self.free, spec.fixed_indices)
         self.layers = int(layers)
         self.filter: ParticleFilter
         if partitioned:
@@ -230,8 +238,8 @@ class ParticleFilterAgent:
             )  # fmt: skip
         self.seed = int(seed)
         self._seed_rng = np.random.default_rng(seed)
-        self._info: Mapping[str, Any] | None = None
-        self._started = False
+        self._initial: FloatArray | None = None
+        self._bounds: tuple[FloatArray, FloatArray] | None = None
         self.frame_times: list[float] = []
 
     def seed_episode(self, episode_seed: int) -> None:
@@ -243,24 +251,18 @@ class ParticleFilterAgent:
         """
         self._seed_rng = np.random.default_rng([self.seed, int(episode_seed)])
 
-    def observe_info(self, info: Mapping[str, Any]) -> None:
-        """Take the ``info`` of the last ``reset`` or ``step`` (called by the loop)."""
-        self._info = info
-        if "initial_pose" in info:
-            self._started = False
-
-    def reset(self, info: Mapping[str, Any]) -> None:
-        """Start tracking from an episode's first ``info``."""
-        self.observe_info(info)
-        pose = np.asarray(info["initial_pose"], dtype=np.float64)
-        self.filter.reset(pose[self.free], np.random.default_rng(self._seed_rng.integers(2**63)))
-        self.shape = info["shape"]
-        self._started = True
+    def reset(self, given: Given) -> None:
+        """Start tracking from an episode's first observation (its initial pose)."""
+        self._initial = given.initial_pose
+        self._bounds = action_bounds(self.description.task, given.initial_pose)
+        self.filter.reset(
+            given.initial_pose[self.free], np.random.default_rng(self._seed_rng.integers(2**63))
+        )
         self.frame_times = []
 
     def predict(
         self,
-        observation: NDArray[np.uint8],
+        observation: dict[str, Any],
         state: Any = None,
         episode_start: Any = None,
         deterministic: bool = True,
@@ -268,9 +270,10 @@ class ParticleFilterAgent:
         """Estimate the pose in the frame and return it as an action.
 
         Args:
-            observation: The frame.
+            observation: The task's observation (the frame and what is given).
             state: Unused (stable-baselines3's recurrent state).
-            episode_start: True at the first frame of an episode.
+            episode_start: True at the first frame of an episode (an episode
+                also starts where the observation's initial pose changes).
             deterministic: Unused (the filter's randomness is its own seeded
                 generator).
 
@@ -278,20 +281,17 @@ class ParticleFilterAgent:
             The action (normalised estimate) and ``None``.
         """
         del state, deterministic
-        if self._info is None:
-            raise RuntimeError(f"{self.name}: observe_info(info) must be called before predict()")
-        start = bool(np.any(episode_start)) if episode_start is not None else False
-        first = start or not self._started
+        given = read_observation(observation)
+        first = episode_begins(episode_start, given.initial_pose, self._initial)
         if first:
-            self.reset(self._info)
+            self.reset(given)
         t0 = time.perf_counter()
-        info = self._info
-        self.likelihood.update(np.asarray(info["fixed_params"]), self.shape, info["camera"])
+        self.likelihood.update(given.fixed_params, given.shape, given.camera)
         if first:
-            self.likelihood.read_first_frame(observation, np.asarray(info["initial_pose"]))
-        features = self.observation_model.prepare(observation, self.likelihood.given())
+            self.likelihood.read_first_frame(given.frame, given.initial_pose)
+        features = self.observation_model.prepare(given.frame, self.likelihood.given())
         estimate = self.filter.step(features)
         pose = self.likelihood.full_pose(estimate[None])[0]
-        action = self.env.pose_to_action(pose)
+        action = pose_to_action(self.description.task, pose, bounds=self._bounds)
         self.frame_times.append(time.perf_counter() - t0)
         return action, None

@@ -14,7 +14,7 @@ Three kinds of name reach :func:`make_learned` through :func:`baselines.agents.m
 A learned agent answers ``predict`` like every agent and is scored by the same
 :func:`baselines.leaderboard.evaluation.evaluate` loop on the plain environment: it builds
 the observation the policy was trained on (:func:`humotion_gym.wrappers.learner_observation`)
-from the frame, its own previous estimate and ``info["initial_pose"]``.
+from its observation's frame and initial pose and its own previous estimate.
 Importing this module does not import torch; loading a policy does.
 """
 
@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -30,10 +29,11 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from baselines.agents.base import TaskNotSupported, tracking_env
+from baselines.agents.base import TaskNotSupported, describe, episode_begins
 from baselines.agents.specs import make_filter
 from baselines.filtering import ParticleState
 from humotion_gym.body import ANGLE_MASK, PARAM_LOWER, PARAM_UPPER
+from humotion_gym.envs.description import TaskDescription, read_observation
 from humotion_gym.wrappers import learner_observation
 
 FloatArray = NDArray[np.float64]
@@ -133,13 +133,13 @@ def load_policy(path: str | Path) -> Any:
 class LearnedAgent:
     """A saved SB3 policy acting in the plain environment, answering like every agent.
 
-    It keeps what the policy's observation needs besides the frame: the
-    initial pose (from the reset's ``info``) and its own previous action, and
-    stacks observations when the policy was trained on stacked frames
-    (Gymnasium's ``FrameStackObservation``, padded with the first one).
+    It builds the policy's observation from its own: the frame, the initial
+    pose and its own previous action, and stacks observations when the
+    policy was trained on stacked frames (Gymnasium's
+    ``FrameStackObservation``, padded with the first one).
 
     Args:
-        env: The environment.
+        task: The task's description (or an environment, whose description is taken).
         model: The policy (see :func:`load_policy`).
         name: Shown in tables.
         source: Where it was loaded from (for messages).
@@ -150,19 +150,21 @@ class LearnedAgent:
 
     n_particles = 0
 
-    def __init__(self, env: gym.Env, model: Any, name: str = "learned", source: str = "") -> None:
-        self.env = tracking_env(env)
+    def __init__(
+        self, task: TaskDescription | gym.Env, model: Any, name: str = "learned", source: str = ""
+    ) -> None:
+        self.description = describe(task)
         self.model = model
         self.name = name
         space = model.observation_space
         frame_shape = space["frame"].shape
-        n_free = self.env.action_space.shape[0]
+        n_free = self.description.action_space.shape[0]
         if space["previous"].shape[-1] != n_free:
             raise TaskNotSupported(
                 f"{source or name}: a policy for {space['previous'].shape[-1]} free parameters; "
-                f"{self.env.task.name} has {n_free}"
+                f"{self.description.name} has {n_free}"
             )
-        channels = self.env.observation_space.shape[-1]
+        channels = self.description.observation_space["frame"].shape[-1]
         if frame_shape[-3] != channels:
             raise TaskNotSupported(
                 f"{source or name}: a policy for {frame_shape[-3]}-channel frames; the "
@@ -171,20 +173,15 @@ class LearnedAgent:
         self.size = int(frame_shape[-1])
         self.stack = int(frame_shape[0]) if len(frame_shape) == 4 else 0
         self._history: list[dict[str, NDArray[Any]]] = []
-        self._info: Mapping[str, Any] | None = None
+        self._initial_pose: FloatArray | None = None
         self.initial: NDArray[np.float32] | None = None
         self.previous: NDArray[np.float32] | None = None
         self.frame_times: list[float] = []
 
-    def observe_info(self, info: Mapping[str, Any]) -> None:
-        """Take an ``info``; a reset's starts a new episode at its initial pose."""
-        self._info = info
-        if "initial_pose" in info:
-            self.start(np.asarray(info["initial_pose"], dtype=np.float64))
-
     def start(self, initial_pose: FloatArray) -> None:
         """Start an episode: the previous estimate is the initial pose."""
-        self.initial = self.env.pose_to_action(initial_pose)
+        self._initial_pose = initial_pose
+        self.initial = self.description.pose_to_action(initial_pose, initial_pose)
         self.previous = self.initial.copy()
         self._history = []
         self.frame_times = []
@@ -192,7 +189,7 @@ class LearnedAgent:
     def observation(self, frame: NDArray[np.uint8]) -> dict[str, NDArray[Any]]:
         """The policy's observation of a frame (stacked if the policy stacks)."""
         if self.initial is None or self.previous is None:
-            raise RuntimeError(f"{self.name}: observe_info(reset info) must come before predict()")
+            raise RuntimeError(f"{self.name}: start(initial_pose) must come before observation()")
         obs = learner_observation(frame, self.previous, self.initial, self.size)
         if not self.stack:
             return obs
@@ -204,16 +201,19 @@ class LearnedAgent:
 
     def predict(
         self,
-        observation: NDArray[np.uint8],
+        observation: dict[str, Any],
         state: Any = None,
         episode_start: Any = None,
         deterministic: bool = True,
     ) -> tuple[NDArray[np.float32], Any]:
         """The policy's action for the frame (its mean when ``deterministic``)."""
-        del state, episode_start
+        del state
+        given = read_observation(observation)
+        if episode_begins(episode_start, given.initial_pose, self._initial_pose):
+            self.start(given.initial_pose)
         t0 = time.perf_counter()
-        action, _ = self.model.predict(self.observation(observation), deterministic=deterministic)
-        action = np.asarray(action, dtype=np.float32).reshape(self.env.action_space.shape)
+        action, _ = self.model.predict(self.observation(given.frame), deterministic=deterministic)
+        action = np.asarray(action, dtype=np.float32).reshape(self.description.action_space.shape)
         self.previous = np.clip(action, -1.0, 1.0)
         self.frame_times.append(time.perf_counter() - t0)
         return action, None
@@ -307,7 +307,7 @@ class HybridAgent:
     policy's next previous estimate.
 
     Args:
-        env: The environment.
+        task: The task's description (or an environment, whose description is taken).
         pf: The particle-filter agent (its prior is wrapped in place).
         policy: The learned agent.
         fraction: Share of particles redrawn around the policy's estimate
@@ -319,23 +319,23 @@ class HybridAgent:
 
     def __init__(
         self,
-        env: gym.Env,
+        task: TaskDescription | gym.Env,
         pf: Any,
         policy: LearnedAgent,
         fraction: float | None = None,
         spread: float = HYBRID_SPREAD,
         name: str = "pf+learned",
     ) -> None:
-        self.env = tracking_env(env)
+        self.description = describe(task)
         self.pf = pf
         self.policy = policy
         self.name = name
         self.n_particles = pf.n_particles
-        free = self.env.task.free_indices
+        free = self.description.task.free_indices
         # half the width of each free parameter's action range (the root's is
         # the task's root range around the episode's start)
         half = 0.5 * (PARAM_UPPER - PARAM_LOWER)
-        half[:3] = self.env.task.root_range_mm
+        half[:3] = self.description.task.root_range_mm
         root = np.flatnonzero(np.isin(free, np.arange(3)))
         dims = root if root.size == 3 else None
         if fraction is None:
@@ -351,28 +351,22 @@ class HybridAgent:
         """Seed the filter's next episode from its seed and ``episode_seed`` alone."""
         self.pf.seed_episode(episode_seed)
 
-    def observe_info(self, info: Mapping[str, Any]) -> None:
-        """Pass the ``info`` to the filter and the policy."""
-        self.pf.observe_info(info)
-        self.policy.observe_info(info)
-
     def predict(
         self,
-        observation: NDArray[np.uint8],
+        observation: dict[str, Any],
         state: Any = None,
         episode_start: Any = None,
         deterministic: bool = True,
     ) -> tuple[NDArray[np.float32], Any]:
         """The filter's estimate with the policy's estimate as part of its proposal."""
         t0 = time.perf_counter()
-        start = bool(np.any(episode_start)) if episode_start is not None else False
-        guess, _ = self.policy.predict(observation, deterministic=True)
-        fixed = np.zeros(25)
-        info = self.pf._info
-        if info is not None and len(self.env.task.fixed_indices):
-            fixed[self.env.task.fixed_indices] = np.asarray(info["fixed_params"])
+        given = read_observation(observation)
+        start = episode_begins(episode_start, given.initial_pose, self.pf._initial)
+        guess, _ = self.policy.predict(observation, None, np.array([start]), deterministic=True)
+        base = self.description.base_pose(given)
         # this frame's proposal; the filter (re)starts itself at an episode start
-        self.proposal_prior.proposal = self.env.action_to_pose(guess, fixed=fixed)[self.free]
+        pose = self.description.action_to_pose(guess, base, given.initial_pose)
+        self.proposal_prior.proposal = pose[self.free]
         action, _ = self.pf.predict(observation, None, np.array([start]), deterministic)
         self.policy.previous = np.clip(action, -1.0, 1.0).astype(np.float32)
         self.frame_times.append(time.perf_counter() - t0)
@@ -386,7 +380,9 @@ def _policy_for(spec: str, task: str) -> tuple[str, str]:
     return _split_label(spec)
 
 
-def make_learned(name: str, env: gym.Env, n_particles: int = 300, seed: int = 0) -> Any:
+def make_learned(
+    name: str, task: TaskDescription | gym.Env, n_particles: int = 300, seed: int = 0
+) -> Any:
     """A learned agent by name (see the module docstring).
 
     Raises:
@@ -394,23 +390,23 @@ def make_learned(name: str, env: gym.Env, n_particles: int = 300, seed: int = 0)
         ValueError: If the policy does not fit the task.
         FileNotFoundError: If a named ``.zip`` does not exist.
     """
-    base = tracking_env(env)
-    task = base.task.name
+    env = describe(task)
+    task_name = env.task.name
     if takes_particles(name):
         pf_name, policy_spec = name.split("+", 1)
-        label, path = _policy_for(policy_spec, task)
+        label, path = _policy_for(policy_spec, task_name)
         if policy_spec in ("bc", "ppo") and not Path(path).is_file():
             raise NoCheckpointError(
-                f"{name}: no pretrained {policy_spec} checkpoint for {task} ({path})"
+                f"{name}: no pretrained {policy_spec} checkpoint for {task_name} ({path})"
             )
         policy = LearnedAgent(env, load_policy(path), label, path)
         pf = make_filter(pf_name, env, n_particles=n_particles, seed=seed)
         return HybridAgent(env, pf, policy, name=f"{pf_name}+{label}")
-    label, path = _policy_for(name, task)
+    label, path = _policy_for(name, task_name)
     if name in ("bc", "ppo") and not Path(path).is_file():
         raise NoCheckpointError(
-            f"{name}: no pretrained checkpoint for {task} ({path}); train one with "
-            f"`humotion-gym train --algo {name} --task {task} --steps N --out runs/NAME` and "
+            f"{name}: no pretrained checkpoint for {task_name} ({path}); train one with "
+            f"`humotion-gym train --algo {name} --task {task_name} --steps N --out runs/NAME` and "
             f"pass {name}=runs/NAME/model.zip"
         )
     return LearnedAgent(env, load_policy(path), label, path)

@@ -22,7 +22,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from baselines.agents.base import TaskNotSupported, tracking_env
+from baselines.agents.base import TaskNotSupported, describe
 from baselines.agents.filters import ParticleFilterAgent
 from baselines.agents.settings import (
     FILTER_SETTINGS,
@@ -34,7 +34,7 @@ from baselines.agents.settings import (
 from baselines.observation import ObservationModel
 from baselines.priors import limbs, mixture
 from baselines.priors.fitting import fit_prior as fit_prior_on
-from humotion_gym.envs.pose_tracking import PoseTrackingEnv
+from humotion_gym.envs.description import TaskDescription
 from humotion_gym.mocap.library import MotionLibrary
 
 
@@ -145,26 +145,26 @@ class AgentSpec:
         return names
 
 
-def training_motions(env: PoseTrackingEnv) -> MotionLibrary:
-    """The prior's training data: :meth:`PoseTrackingEnv.training_motions` of the env."""
-    return env.training_motions()
+def training_motions(task: TaskDescription) -> MotionLibrary:
+    """The prior's training data: the description's training persons' clips."""
+    return task.training
 
 
 def fit_prior(
     spec: AgentSpec,
-    env: PoseTrackingEnv,
+    task: TaskDescription | gym.Env,
     settings: Mapping[str, Any] | None = None,
     cache_dir: str | Path | None = None,
     use_cache: bool = True,
 ) -> tuple[ModuleType, Any]:
-    """The prior module and its fitted parameters for an env's task, cached on disk.
+    """The prior module and its fitted parameters for a task, cached on disk.
 
-    The env's training clips (:meth:`PoseTrackingEnv.training_motions`, never
-    a test person) and the task's free parameters, fitted by
-    :func:`baselines.priors.fitting.fit_prior` with the spec's settings
-    overridden by ``settings`` (and the env's frame skip); see there for the
-    cache.
+    The description's training clips (never a test person) and the task's
+    free parameters, fitted by :func:`baselines.priors.fitting.fit_prior`
+    with the spec's settings overridden by ``settings`` (and the task's frame
+    skip); see there for the cache.
     """
+    env = describe(task)
     kwargs = {**spec.settings_for(env.task.name), **(settings or {})}
     _check_settings(spec, kwargs)
     if spec.components:
@@ -198,7 +198,7 @@ def _check_settings(spec: AgentSpec, settings: Mapping[str, Any]) -> None:
 
 def _fit_mixture(
     spec: AgentSpec,
-    env: PoseTrackingEnv,
+    env: TaskDescription,
     settings: Mapping[str, Any],
     cache_dir: str | Path | None,
     use_cache: bool,
@@ -226,7 +226,7 @@ TREE = "baselines.priors.tree"
 
 def _fit_per_part(
     spec: AgentSpec,
-    env: PoseTrackingEnv,
+    env: TaskDescription,
     settings: Mapping[str, Any],
     cache_dir: str | Path | None,
     use_cache: bool,
@@ -260,7 +260,7 @@ STRUCTURE: dict[str, dict[str, Any]] = {
         prior=CONSTANT_VELOCITY,
         description="a reference: follows where the body goes (constant velocity on the "
         "root's position and orientation) and holds the first frame's articulation",
-        tasks=("BodyTrack-v1", "WalkTrack-v1"),
+        tasks=("BodyTrack-v2", "WalkTrack-v2"),
     ),
     "pf-tree": dict(
         prior=TREE,
@@ -314,13 +314,13 @@ STRUCTURE: dict[str, dict[str, Any]] = {
         prior="baselines.priors.slds",
         description="switching linear dynamic system (Pavlovic, Rehg, Cham & Murphy 1999), "
         "one model per activity joined by a block transition matrix",
-        tasks=("ArmTrack-v1", "SideWalk-v1"),
+        tasks=("ArmTrack-v2", "SideWalk-v2"),
     ),
     "pf-pca": dict(
         prior="baselines.priors.cyclic_pca",
         description="cyclic functional PCA of walking (Ormoneit, Black, Hastie & Kjellström "
         "2005), its coefficients, speed and root velocity mean-reverting",
-        tasks=("WalkTrack-v1", "SideWalk-v1"),
+        tasks=("WalkTrack-v2", "SideWalk-v2"),
     ),
     "pf-cv-still": dict(
         prior=MIXTURE,
@@ -409,7 +409,7 @@ def register_agent(name: str, spec: AgentSpec) -> None:
 
 def make_filter(
     name: str,
-    env: gym.Env,
+    task: TaskDescription | gym.Env,
     n_particles: int = 300,
     seed: int = 0,
     estimate: str = "mean",
@@ -430,7 +430,7 @@ def make_filter(
     if name not in AGENTS:
         raise KeyError(f"unknown particle-filter agent {name!r}; they are {sorted(AGENTS)}")
     spec = AGENTS[name]
-    base = tracking_env(env)
+    base = describe(task)
     if spec.tasks is not None and base.task.name not in spec.tasks:
         module = importlib.import_module(spec.prior)
         if hasattr(module, "check_task"):
@@ -444,14 +444,14 @@ def make_filter(
     spec.filter_settings_for(base.task.name, filter_settings)  # checked before the fit
     module, fitted = fit_prior(spec, base, fit_settings, use_cache=use_cache)
     return filter_agent(
-        spec, env, module, fitted, n_particles, seed, estimate, name, filter_settings,
+        spec, base, module, fitted, n_particles, seed, estimate, name, filter_settings,
         observation_model,
     )  # fmt: skip
 
 
 def filter_agent(
     spec: AgentSpec,
-    env: gym.Env,
+    task: TaskDescription | gym.Env,
     module: ModuleType,
     fitted: Any,
     n_particles: int,
@@ -466,9 +466,9 @@ def filter_agent(
     The filter takes the spec's settings for the env's task
     (:meth:`AgentSpec.filter_settings_for`), overridden by ``filter_settings``.
     """
-    base = tracking_env(env)
+    base = describe(task)
     settings = spec.filter_settings_for(base.task.name, filter_settings)
     return ParticleFilterAgent(
-        env, module, fitted, n_particles, seed, estimate, name,
+        base, module, fitted, n_particles, seed, estimate, name,
         partitioned=spec.partitioned, observation_model=observation_model, **settings,
     )  # fmt: skip

@@ -3,7 +3,7 @@
 ::
 
     humotion-gym agents [--json]
-    humotion-gym agents --task BodyTrack-v1   # with each filter's settings on the task
+    humotion-gym agents --task BodyTrack-v2   # with each filter's settings on the task
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         subparsers,
         "agents",
         "list the agents (references, particle filters, learned policies)",
-        "humotion-gym agents --task BodyTrack-v1",
+        "humotion-gym agents --task BodyTrack-v2",
         details="With --task, each particle filter's settings on that "
         "task: those its registration sets for the prior's fit (the rest are the prior's "
         "defaults) and the filter's own (layers, survival rate alpha, diffusion, exponent "

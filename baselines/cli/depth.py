@@ -2,7 +2,7 @@
 
 ::
 
-    humotion-gym depth --task BodyTrack-v1 --agents pf-cv pf-tree --data-dir ../shared/mocap
+    humotion-gym depth --task BodyTrack-v2 --agents pf-cv pf-tree --data-dir ../shared/mocap
 """
 
 from __future__ import annotations
@@ -28,14 +28,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         subparsers,
         "depth",
         "each agent's error split along the camera's line of sight and across it",
-        "humotion-gym depth --task BodyTrack-v1 --agents pf-cv pf-tree --episodes 20",
+        "humotion-gym depth --task BodyTrack-v2 --agents pf-cv pf-tree --episodes 20",
         details="Track seeded episodes (the leaderboard's) with every agent and split each "
         "scored keypoint's error into its component along the camera ray through the true "
         "keypoint (signed: + is farther from the camera) and the rest, across it, which the "
         "image shows; where the root's position is the agent's, also how far the pelvis "
         "travelled along the line of sight and how much of that the estimate followed.",
     )
-    add_task(dp, "BodyTrack-v1")
+    add_task(dp, "BodyTrack-v2")
     add_agents(dp)
     add_particles(dp)
     dp.add_argument(

@@ -2,7 +2,7 @@
 
 ::
 
-    humotion-gym discrimination --task ArmTrack-v1 --episodes 20
+    humotion-gym discrimination --task ArmTrack-v2 --episodes 20
 """
 
 from __future__ import annotations
@@ -29,9 +29,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     dis = add_command(
         subparsers, "discrimination",
         "how far the likelihood separates the true pose from poses a few cm off",
-        "humotion-gym discrimination --task ArmTrack-v1 --episodes 20",
+        "humotion-gym discrimination --task ArmTrack-v2 --episodes 20",
     )  # fmt: skip
-    add_task(dis, "ArmTrack-v1")
+    add_task(dis, "ArmTrack-v2")
     dis.add_argument(
         "--episodes", type=episode_count, default=20, help="seeded episodes (default: 20)"
     )
@@ -62,7 +62,9 @@ def _cmd_discrimination(args: argparse.Namespace) -> int:
         likelihood_peak_error,
     )
 
-    env = gym.make(f"humotion_gym/{args.task}", terminate_on_lost=False, **env_kwargs(args))
+    env = gym.make(
+        f"humotion_gym/{args.task}", terminate_on_lost=False, **{"split": "test", **env_kwargs(args)}
+    )
     if args.figure is not None:
         import cv2
 

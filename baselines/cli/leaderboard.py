@@ -2,7 +2,7 @@
 
 ::
 
-    humotion-gym leaderboard --tasks ArmTrack-v1 --agents pf-cv pf-tree --particles 300 3000
+    humotion-gym leaderboard --tasks ArmTrack-v2 --agents pf-cv pf-tree --particles 300 3000
     humotion-gym leaderboard --engine ray --workers 2 --out results/lb   # on a local Ray
     humotion-gym leaderboard --engine ray --workers 2 --out results/lb --resume
 
@@ -55,15 +55,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``leaderboard``."""
     lb = add_command(
         subparsers, "leaderboard", "agents x tasks x particle counts x seeded episodes, with hold",
-        "humotion-gym leaderboard --tasks ArmTrack-v1 --agents pf-cv pf-tree --out runs/lb",
+        "humotion-gym leaderboard --tasks ArmTrack-v2 --agents pf-cv pf-tree --out runs/lb",
         details="Exit codes: 0 when every cell ran or was skipped; 1 when a cell failed (the "
         "table shows it, stderr names it); 2 on a usage error (an --out holding a run without "
         "--resume, or --resume with another grid); 130 when interrupted (--out keeps what "
         "finished).",
     )  # fmt: skip
     lb.add_argument(
-        "--tasks", type=task_name, nargs="+", default=["ArmTrack-v1", "BodyTrack-v1"],
-        metavar="TASK", help="task ids (default: ArmTrack-v1 BodyTrack-v1)",
+        "--tasks", type=task_name, nargs="+", default=["ArmTrack-v2", "BodyTrack-v2"],
+        metavar="TASK", help="task ids (default: ArmTrack-v2 BodyTrack-v2)",
     )  # fmt: skip
     add_agents(lb, "hold always runs as the floor")
     lb.add_argument(
@@ -71,8 +71,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="particle counts of the particle filters (default: 300 3000)",
     )  # fmt: skip
     lb.add_argument(
-        "--episodes", type=episode_count, default=20, help="episodes per cell (default: 20)"
-    )
+        "--episodes", type=episode_count, default=20,
+        help="episodes per cell, drawn from the seeds (default: 20; ignored with --declared)",
+    )  # fmt: skip
+    lb.add_argument(
+        "--declared", action="store_true",
+        help="run each task's declared test episodes (fixed windows over every test clip, the "
+        "same for every agent; intervals resample clips) instead of --episodes drawn ones",
+    )  # fmt: skip
     add_seed(lb, "seed of the first episode")
     lb.add_argument(
         "--agent-seeds", type=episode_count, default=1, metavar="K",
@@ -139,7 +145,7 @@ def _check_results_folder(args: argparse.Namespace) -> None:
     if not holds_run:
         raise UsageError(f"--resume: {args.out} holds no run to continue (start one without it)")
     cells = set(grid_cells(args.tasks, args.agents, args.particles))
-    seeds = range(args.seed, args.seed + args.episodes)
+    seeds = range(args.seed, args.seed + (10**6 if args.declared else args.episodes))
     try:
         saved = [
             (r["task"], r["agent"], int(r["particles"]), int(r["seed"])) for r in folder.read()
@@ -189,13 +195,14 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         engine=args.engine, workers=args.workers, address=args.address, out=args.out,
         videos=args.videos, no_report=args.no_report,
         agent_seeds=args.agent_seeds if args.agent_seeds != 1 else None,
+        declared=args.declared,
     )  # fmt: skip
     try:
         rows = run_leaderboard(
             args.tasks, args.agents, args.particles, args.episodes, args.seed, kwargs,
             engine=args.engine, workers=args.workers, address=args.address, out=args.out,
             resume=args.resume, command=command, report=not args.no_report, videos=args.videos,
-            agent_seeds=args.agent_seeds,
+            agent_seeds=args.agent_seeds, declared=args.declared,
         )  # fmt: skip
     except ModuleNotFoundError as exc:
         if exc.name != "ray":

@@ -2,7 +2,7 @@
 
 ::
 
-    humotion-gym leaderboard --tasks ArmTrack-v1 --out runs/lb.json
+    humotion-gym leaderboard --tasks ArmTrack-v2 --out runs/lb.json
     humotion-gym report runs/lb.json --out runs/lb-report --videos
 
 Writes ``index.html`` (sortable tables, figures, videos), ``tables.md`` (the

@@ -2,7 +2,7 @@
 
 ::
 
-    humotion-gym select --task ArmTrack-v1 --agent pf-tree --grid sharpness=1,2,3,5
+    humotion-gym select --task ArmTrack-v2 --agent pf-tree --grid sharpness=1,2,3,5
 """
 
 from __future__ import annotations
@@ -32,13 +32,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         subparsers,
         "select",
         "choose a likelihood setting by cross-validation on training persons",
-        "humotion-gym select --task ArmTrack-v1 --agent pf-tree --grid sharpness=1,2,3,5",
+        "humotion-gym select --task ArmTrack-v2 --agent pf-tree --grid sharpness=1,2,3,5",
         details="Track the validation persons (training persons held out of the priors' "
         "data) with each candidate value of likelihood settings (or prior settings, fit.NAME, or "
         "the annealed filter's settings, filter.NAME) "
         "and pick the combination with the lowest mean error. Test persons are never loaded.",
     )
-    add_task(sel, "ArmTrack-v1")
+    add_task(sel, "ArmTrack-v2")
     sel.add_argument(
         "--agent", type=agent_name, default="pf-tree",
         help="particle-filter agent (default: pf-tree)",

@@ -2,7 +2,7 @@
 
 ::
 
-    humotion-gym still --task BodyTrack-v1 --agents pf-cv pf-tree pf-mix --data-dir ../shared/mocap
+    humotion-gym still --task BodyTrack-v2 --agents pf-cv pf-tree pf-mix --data-dir ../shared/mocap
 """
 
 from __future__ import annotations
@@ -29,12 +29,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         subparsers,
         "still",
         "every agent on the test persons' still episodes, against hold",
-        "humotion-gym still --task BodyTrack-v1 --agents pf-cv pf-tree --out still.json",
+        "humotion-gym still --task BodyTrack-v2 --agents pf-cv pf-tree --out still.json",
         details="Find the episodes of the task's test clips where the person barely moves "
         "(hold's mean error at most --max-hold mm, lowest first, none overlapping) and track "
         "them with every agent; an agent stands still when its error is within 2x hold's.",
     )
-    add_task(st, "BodyTrack-v1")
+    add_task(st, "BodyTrack-v2")
     add_agents(st)
     add_particles(st)
     st.add_argument(

@@ -2,7 +2,7 @@
 
 ::
 
-    humotion-gym sweep --tasks BodyTrack-v1 --agents pf-cv pf-tree --particles 300
+    humotion-gym sweep --tasks BodyTrack-v2 --agents pf-cv pf-tree --particles 300
         --noise 0 4 8 16 --occluders 0 1 2 4 --episodes 5 --out runs/sweep
 
 Each setting is varied on its own from the task's defaults; every value runs
@@ -56,14 +56,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sw = add_command(
         subparsers, "sweep",
         "difficulty curves: the leaderboard over a grid of environment settings",
-        "humotion-gym sweep --tasks BodyTrack-v1 --noise 0 4 8 16 --episodes 5 --out runs/sweep",
+        "humotion-gym sweep --tasks BodyTrack-v2 --noise 0 4 8 16 --episodes 5 --out runs/sweep",
         details="Each setting is varied on its own from the task's defaults; every value runs "
         "the leaderboard (hold included). Writes sweep.json (every episode), sweep.md (the "
         "curves as a table) and sweep.png (the curves).",
     )  # fmt: skip
     sw.add_argument(
-        "--tasks", type=task_name, nargs="+", default=["BodyTrack-v1"], metavar="TASK",
-        help="task ids (default: BodyTrack-v1)",
+        "--tasks", type=task_name, nargs="+", default=["BodyTrack-v2"], metavar="TASK",
+        help="task ids (default: BodyTrack-v2)",
     )  # fmt: skip
     add_agents(sw)
     sw.add_argument(

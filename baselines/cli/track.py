@@ -2,7 +2,7 @@
 
 ::
 
-    humotion-gym track --task ArmTrack-v1 --agent pf-tree --particles 300 --episodes 20
+    humotion-gym track --task ArmTrack-v2 --agent pf-tree --particles 300 --episodes 20
 """
 
 from __future__ import annotations
@@ -44,9 +44,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``track``."""
     track = add_command(
         subparsers, "track", "track seeded episodes with an agent; errors and timing",
-        "humotion-gym track --task ArmTrack-v1 --agent pf-tree --particles 300 --episodes 20",
+        "humotion-gym track --task ArmTrack-v2 --agent pf-tree --particles 300 --episodes 20",
     )  # fmt: skip
-    add_task(track, "ArmTrack-v1", "task id, see humotion-gym tasks")
+    add_task(track, "ArmTrack-v2", "task id, see humotion-gym tasks")
     track.add_argument(
         "--agent", type=agent_name, default="pf-cv",
         help="agent, see humotion-gym agents (default: pf-cv)",
@@ -111,7 +111,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
     render_mode = "rgb_array" if args.video else None
     env = gym.make(
         f"humotion_gym/{args.task}", terminate_on_lost=False, render_mode=render_mode,
-        **env_kwargs(args),
+        **{"split": "test", **env_kwargs(args)},
     )  # fmt: skip
     if options and "clip_id" in options:
         library = env.unwrapped.library  # type: ignore[attr-defined]
@@ -120,7 +120,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
             hint = f"; did you mean {near[0]}?" if near else " (see humotion-gym data table)"
             raise UsageError(f"--clip: no clip {args.clip} in the task's library{hint}")
     if args.video:
-        shape = env.observation_space.shape or (1,)
+        shape = env.observation_space["frame"].shape  # type: ignore[index]
         size = int(np.prod(shape[:2])) * 3  # RGB frames of the observation's size
         frames_per_episode = env.unwrapped.episode_frames  # type: ignore[attr-defined]
         check_memory("--video", frames_per_episode, size, "frames of the first episode")

@@ -2,9 +2,9 @@
 
 ::
 
-    humotion-gym train --algo bc --task BodyTrack-v1 --steps 100000 --seed 0 --out runs/bc-body
-    humotion-gym leaderboard --tasks BodyTrack-v1 --agents bc=runs/bc-body/model.zip pf-tree
-    humotion-gym learning-curve --task BodyTrack-v1 --algos ppo bc --seeds 0 1 2 --steps 100000
+    humotion-gym train --algo bc --task BodyTrack-v2 --steps 100000 --seed 0 --out runs/bc-body
+    humotion-gym leaderboard --tasks BodyTrack-v2 --agents bc=runs/bc-body/model.zip pf-tree
+    humotion-gym learning-curve --task BodyTrack-v2 --algos ppo bc --seeds 0 1 2 --steps 100000
 """
 
 from __future__ import annotations
@@ -50,10 +50,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``train`` and ``learning-curve``."""
     tr = add_command(
         subparsers, "train", "train a learned tracker (ppo or bc) on the training persons",
-        "humotion-gym train --algo bc --task BodyTrack-v1 --steps 100000 --out runs/bc-body",
+        "humotion-gym train --algo bc --task BodyTrack-v2 --steps 100000 --out runs/bc-body",
     )  # fmt: skip
     tr.add_argument("--algo", choices=["ppo", "bc"], required=True, help="ppo or bc (required)")
-    add_task(tr, "BodyTrack-v1")
+    add_task(tr, "BodyTrack-v2")
     tr.add_argument(
         "--steps", type=positive_int, default=100_000,
         help="environment steps to train for (default: 100000)",
@@ -122,9 +122,9 @@ def _register_curve(subparsers: argparse._SubParsersAction) -> None:
     lc = add_command(
         subparsers, "learning-curve",
         "test-split error against env steps for learned trackers (IQM over seeds)",
-        "humotion-gym learning-curve --task BodyTrack-v1 --algos ppo bc --seeds 0 1 2",
+        "humotion-gym learning-curve --task BodyTrack-v2 --algos ppo bc --seeds 0 1 2",
     )  # fmt: skip
-    add_task(lc, "BodyTrack-v1")
+    add_task(lc, "BodyTrack-v2")
     lc.add_argument(
         "--algos", nargs="+", choices=["ppo", "bc"], default=["ppo", "bc"],
         help="algorithms (default: ppo bc)",

@@ -3,7 +3,7 @@
 The experiments are in :mod:`baselines.experiments.sidenbladh2002`::
 
     humotion-gym tree figures --out-dir DIR [--data-dir DIR...] [--seed S]
-    humotion-gym tree variance --task BodyTrack-v1 [--data-dir DIR...]
+    humotion-gym tree variance --task BodyTrack-v2 [--data-dir DIR...]
 """
 
 from __future__ import annotations
@@ -45,9 +45,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     var = add_command(
         tsub, "variance",
         "the share of variance the tree's components hold, by feature set and scaling",
-        "humotion-gym tree variance --task BodyTrack-v1 --windows 15000",
+        "humotion-gym tree variance --task BodyTrack-v2 --windows 15000",
     )  # fmt: skip
-    add_task(var, "BodyTrack-v1", "the task whose pf-tree prior to read")
+    add_task(var, "BodyTrack-v2", "the task whose pf-tree prior to read")
     var.add_argument(
         "--windows",
         type=int_at_least(1, 1_000_000),
@@ -79,7 +79,8 @@ def _cmd_variance(args: argparse.Namespace) -> int:
     from baselines.experiments.sidenbladh2002 import explained_variance_by_features
     from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 
-    env = gym.make(f"humotion_gym/{args.task}", **env_kwargs(args)).unwrapped
+    # the prior the leaderboard fits: a test environment's training persons
+    env = gym.make(f"humotion_gym/{args.task}", **{"split": "test", **env_kwargs(args)}).unwrapped
     assert isinstance(env, PoseTrackingEnv)
     _, fitted = fit_prior(AGENTS["pf-tree"], env)
     rows = explained_variance_by_features(fitted, windows=args.windows, seed=args.seed)

@@ -27,34 +27,39 @@ from numpy.typing import NDArray
 
 from baselines.observation import FirstFrame, GivenBody, task_model
 from humotion_gym.body import ANGLE_MASK, BodyShape, forward_kinematics
+from humotion_gym.camera import Camera
+from humotion_gym.envs.description import Given, read_observation
 
 FloatArray = NDArray[np.float64]
 
 
 def _scored_frames(
     env: gym.Env, episodes: int, seed: int, frame_stride: int
-) -> Iterator[tuple[NDArray[np.uint8], dict[str, Any], FloatArray, GivenBody]]:
+) -> Iterator[tuple[NDArray[np.uint8], Camera, FloatArray, GivenBody]]:
     """Every ``frame_stride``-th frame of seeded episodes tracked with the truth.
 
     Yields:
-        ``(frame, info, true pose, given body)``; the truth is read from the
+        ``(frame, camera, true pose, given body)``; the truth is read from the
         library through the ``clip_id`` and ``frame`` the environment reports;
-        the given body is what an agent has of the frame (:func:`_given`).
+        the frame, camera and given body are what an agent has of the frame
+        (its observation; :func:`_given`).
     """
     base = env.unwrapped
     for k in range(episodes):
         obs, info = env.reset(seed=seed + k)
+        seen = read_observation(obs)
         # What a particle-filter agent keeps of the first frame (cone colours,
         # backdrop, floor height), read once per episode.
         first = task_model(base.task).read_first_frame(
-            obs, np.asarray(info["initial_pose"], dtype=np.float64), base.shape, info["camera"]
+            seen.frame, seen.initial_pose, seen.shape, seen.camera
         )
         motion = base.library[info["clip_id"]]
         step = 0
         while True:
+            seen = read_observation(obs)
             truth = motion.params[info["frame"]]
             if step % frame_stride == 0:
-                yield obs, info, truth, _given(base, truth, info, first)
+                yield seen.frame, seen.camera, truth, _given(base, truth, seen, first)
             obs, _, terminated, truncated, info = env.step(base.pose_to_action(truth))
             step += 1
             if terminated or truncated:
@@ -64,7 +69,7 @@ def _scored_frames(
 def _given(
     base: Any,
     truth: FloatArray,
-    info: dict[str, Any],
+    seen: Given,
     first: FirstFrame,
 ) -> GivenBody:
     """What the task gives of the frame's body (the agent's view, not the truth's free part).
@@ -74,8 +79,8 @@ def _given(
     """
     pose = np.zeros_like(truth)
     fixed = base.task.fixed_indices
-    pose[fixed] = info["fixed_params"]
-    return GivenBody(pose, base.task.free_indices, base.shape, info["camera"], *first)
+    pose[fixed] = seen.fixed_params
+    return GivenBody(pose, base.task.free_indices, seen.shape, seen.camera, *first)
 
 
 def _around(truth: FloatArray, free: NDArray[np.intp], offsets: FloatArray) -> FloatArray:
@@ -138,14 +143,14 @@ def likelihood_discrimination(
     gaps: list[FloatArray] = []
     errors: list[FloatArray] = []
     frames = 0
-    for obs, info, truth, given in _scored_frames(env, episodes, seed, frame_stride):
+    for frame, camera, truth, given in _scored_frames(env, episodes, seed, frame_stride):
         # Gaussian steps whose size is log-uniform: 0.02-1 rad on angles,
         # 20-1000 mm on a free root position.
         size = np.exp(rng.uniform(np.log(0.02), np.log(1.0), (perturbations, 1)))
         step_size = np.where(angle, size, size * 1000.0)
         poses = _around(truth, free, step_size * rng.standard_normal((perturbations, free.size)))
         kp, err = _keypoint_errors(poses, base.shape, scored)
-        loglik = model.log_likelihood(model.prepare(obs, given), poses, base.shape, info["camera"])
+        loglik = model.log_likelihood(model.prepare(frame, given), poses, base.shape, camera)
         gaps.append(loglik[0] - loglik[1:])
         errors.append(err)
         frames += 1
@@ -200,11 +205,11 @@ def likelihood_peak_error(
     model = task_model(task)
     rng = np.random.default_rng([seed, 8])
     typical, peak, weighted = [], [], []
-    for obs, info, truth, given in _scored_frames(env, episodes, seed, frame_stride):
+    for frame, camera, truth, given in _scored_frames(env, episodes, seed, frame_stride):
         poses = _around(truth, free, scale * rng.uniform(-1.0, 1.0, (candidates, free.size)))
         kp, err = _keypoint_errors(poses, base.shape, scored)
-        feats = model.prepare(obs, given)
-        loglik = model.log_likelihood(feats, poses[1:], base.shape, info["camera"])
+        feats = model.prepare(frame, given)
+        loglik = model.log_likelihood(feats, poses[1:], base.shape, camera)
         w = np.exp(loglik - loglik.max())
         w /= w.sum()
         mean_kp = np.tensordot(w, kp[1:], axes=1)
@@ -253,12 +258,11 @@ def likelihood_depth_profile(
     offsets = np.linspace(-reach_mm, reach_mm, steps)
     model = task_model(base.task)
     profiles, peaks = [], []
-    for obs, info, truth, given in _scored_frames(env, episodes, seed, frame_stride):
-        camera = info["camera"]
+    for frame, camera, truth, given in _scored_frames(env, episodes, seed, frame_stride):
         ray = truth[:3] - np.asarray(camera.position, dtype=np.float64)
         ray /= np.linalg.norm(ray)
         poses = _around(truth, np.arange(3), offsets[:, None] * ray)
-        loglik = model.log_likelihood(model.prepare(obs, given), poses, base.shape, camera)
+        loglik = model.log_likelihood(model.prepare(frame, given), poses, base.shape, camera)
         profiles.append(loglik[1:] - loglik[0])
         peaks.append(float(offsets[np.argmax(loglik[1:])]))
     profile = np.array(profiles)

@@ -8,7 +8,7 @@ training persons. The test persons are never loaded into a fold (see
 :meth:`~humotion_gym.mocap.library.MotionLibrary.validation_fold`), so no
 setting is chosen after looking at a test number.
 
-``humotion-gym select --task ArmTrack-v1 --grid sharpness=1,2,3 foreground_weight=0,0.5``
+``humotion-gym select --task ArmTrack-v2 --grid sharpness=1,2,3 foreground_weight=0,0.5``
 prints the table this module computes.
 """
 
@@ -29,6 +29,8 @@ from baselines.observation import ObservationModel
 from baselines.stillness import STILL_RATIO, still_windows
 from humotion_gym.envs.tasks import get_task
 from humotion_gym.mocap.library import (
+    CMU_VALIDATION_SUBJECTS,
+    SYNTHETIC_VALIDATION_SUBJECTS,
     TEST_SUBJECTS,
     MotionLibrary,
     configured_data_dirs,
@@ -36,13 +38,10 @@ from humotion_gym.mocap.library import (
     synthetic_library,
 )
 
-#: Training persons held out to choose settings on real data: CMU subject 1
-#: (jumps) and CMU subjects 5 and 7 (dance and walks on one converted
-#: skeleton, so they are held out together). The priors of a fold fit on the
-#: Bandai-Namco clips.
-VALIDATION_SUBJECTS: tuple[str, ...] = ("cmu-01", "cmu-05", "cmu-07")
-#: The synthetic set's validation persons (its training persons 3 and 4).
-SYNTHETIC_VALIDATION_SUBJECTS: tuple[str, ...] = ("synthetic-03", "synthetic-04")
+#: Training persons held out to choose settings on real data (the priors of a
+#: fold fit on the Bandai-Namco clips); the synthetic set's are
+#: ``SYNTHETIC_VALIDATION_SUBJECTS``.
+VALIDATION_SUBJECTS: tuple[str, ...] = CMU_VALIDATION_SUBJECTS
 
 
 def validation_library(
@@ -155,7 +154,10 @@ class _Runs:
         search: dict[str, float] | None = None,
     ) -> tuple[list[float], list[float]]:
         """Each seeded episode's mean error (mm), and each still episode's."""
-        env = gym.make(f"humotion_gym/{self.task}", library=self.library, **self.env_kwargs)
+        # a validation fold's "test" persons are the validation persons
+        env = gym.make(
+            f"humotion_gym/{self.task}", library=self.library, split="test", **self.env_kwargs
+        )
         runner = make(agent, env, n_particles=self.particles, seed=self.seed, fit_settings=fit,
                       filter_settings=search, observation_model=model)  # fmt: skip
         out = [r.mean_error_mm for r in evaluate(runner, env, self.episodes, seed=self.seed)]
@@ -177,7 +179,7 @@ def _still_episodes(
     """
     if count <= 0:
         return []
-    probe = gym.make(f"humotion_gym/{task}", library=library, **env_kwargs)
+    probe = gym.make(f"humotion_gym/{task}", library=library, split="test", **env_kwargs)
     windows = still_windows(probe, max_hold_mm, count=count)
     probe.close()
     if not windows:

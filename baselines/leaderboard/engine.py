@@ -62,8 +62,10 @@ from baselines.agents import (
     TaskNotSupported,
     filter_agent,
     make,
+    tracking_env,
 )
 from baselines.leaderboard.evaluation import EpisodeResult, run_episode
+from humotion_gym.envs import episodes
 from humotion_gym.mocap.library import package_version
 from humotion_gym.threads import limit_blas_threads, single_threaded_blas
 
@@ -92,7 +94,7 @@ class Cell:
     """One leaderboard cell.
 
     Attributes:
-        task: Task name (``BodyTrack-v1``).
+        task: Task name (``BodyTrack-v2``).
         agent: Agent name (``pf-cv``, ``hold``, ``LABEL=PATH.zip``...).
         particles: Particle count; 0 for agents that take none (references,
             plain learned policies).
@@ -112,11 +114,15 @@ class Episode:
         seed: The episode's seed (the environment's reset).
         agent_seed: The agent's seed (its filter's generator); None: the
             runner's seed (the leaderboard's ``seed``).
+        window: ``(clip_id, start)`` of a declared test episode
+            (:mod:`humotion_gym.envs.episodes`); None: the clip and start the
+            environment draws from ``seed``.
     """
 
     cell: Cell
     seed: int
     agent_seed: int | None = None
+    window: tuple[str, int] | None = None
 
 
 #: ``(module name, fitted parameters)`` of a particle-filter agent's prior, by
@@ -125,8 +131,33 @@ Fits = Mapping[tuple[str, str], tuple[str, Any]]
 
 
 def make_env(task: str, env_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
-    """A task's environment as the leaderboard runs it (every episode to its end)."""
-    return gym.make(f"humotion_gym/{task}", terminate_on_lost=False, **dict(env_kwargs or {}))
+    """A task's environment as the leaderboard runs it: the test persons, every episode to its end."""
+    kwargs = {"split": "test", **dict(env_kwargs or {})}
+    return gym.make(f"humotion_gym/{task}", terminate_on_lost=False, **kwargs)
+
+
+def window_options(window: tuple[str, int] | None) -> dict[str, Any] | None:
+    """The reset options of a declared episode's window (None: a drawn episode)."""
+    return None if window is None else {"clip_id": window[0], "start": int(window[1])}
+
+
+def task_windows(task: str, env_kwargs: Mapping[str, Any] | None) -> list[tuple[str, int]]:
+    """A task's declared test episodes on the run's data, as ``(clip_id, start)``.
+
+    Raises:
+        ValueError: If the data's test clips have no declared list, or the
+            list does not match them (a clip missing or of another length).
+    """
+    env = make_env(task, env_kwargs)
+    try:
+        base = tracking_env(env)
+        source = episodes.source_of(base.library)
+        windows = episodes.declared_episodes(task, source)
+        span = base.episode_frames * base.frame_skip + 1
+        episodes.check_windows(windows, base.library, span=span)
+        return [(w.clip_id, w.start) for w in windows]
+    finally:
+        env.close()
 
 
 def build_agent(cell: Cell, env: gym.Env, seed: int, fits: Fits | None = None) -> Any:
@@ -158,6 +189,7 @@ def run_cell_episode(
     first_seed: int,
     env_kwargs: Mapping[str, Any] | None = None,
     on_frame: Callable[[NDArray[np.uint8], dict[str, Any]], None] | None = None,
+    window: tuple[str, int] | None = None,
 ) -> EpisodeResult:
     """One leaderboard episode on its own: the numbers the leaderboard recorded for it.
 
@@ -174,12 +206,13 @@ def run_cell_episode(
         env_kwargs: The run's environment settings (add ``render_mode`` for
             ``on_frame``).
         on_frame: Called with each rendered frame and its info.
+        window: The declared episode's ``(clip_id, start)``, if it is one.
     """
     env = make_env(task, env_kwargs)
     try:
         built = build_agent(Cell(task, agent, particles), env, first_seed)
         with single_threaded_blas():
-            return run_episode(built, env, episode_seed, on_frame=on_frame)
+            return run_episode(built, env, episode_seed, window_options(window), on_frame=on_frame)
     finally:
         env.close()
 
@@ -238,7 +271,9 @@ class EpisodeRunner:
         try:
             agent = self._agent(cell, agent_seed)
             with single_threaded_blas():
-                result = run_episode(agent, self._env(cell.task), episode.seed)
+                result = run_episode(
+                    agent, self._env(cell.task), episode.seed, window_options(episode.window)
+                )
             record["result"] = result.to_dict()
         except Exception as exc:  # an agent that raises is an error row, not a crash
             record["error"] = f"{type(exc).__name__}: {exc}"

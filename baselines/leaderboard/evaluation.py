@@ -15,6 +15,8 @@ from tqdm.auto import tqdm
 from baselines.agents.base import tracking_env
 from baselines.leaderboard.stats import (
     bootstrap_ci,
+    cluster_bootstrap_ci,
+    episode_clips,
     iqm,
     median_lost_frame,
     proportion_ci,
@@ -43,6 +45,8 @@ class EpisodeResult:
             (``info["error_aligned_mm"]``); None where the environment does
             not report it (and in results saved before it did).
         mean_aligned_error_mm: Their mean (None without them).
+        person: The tracked person (the clip's subject); None in results
+            saved before it was recorded.
     """
 
     seed: int
@@ -56,6 +60,7 @@ class EpisodeResult:
     mean_reward: float
     aligned_errors_mm: list[float] | None = None
     mean_aligned_error_mm: float | None = None
+    person: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-JSON form."""
@@ -72,12 +77,13 @@ def run_episode(
 ) -> EpisodeResult:
     """Track one episode with any agent that has SB3's ``predict``.
 
+    The agent is given its observations and nothing else: never ``info``
+    (scores and diagnostics, read here to score), never the environment.
     The environment should have ``terminate_on_lost=False`` so every episode
     runs its full length; the lost-track frame is found from the errors.
 
     Args:
-        agent: Has ``predict(obs, state, episode_start, deterministic)``; if it
-            also has ``observe_info(info)``, it is given each info first.
+        agent: Has ``predict(obs, state, episode_start, deterministic)``.
         env: A pose-tracking environment, or a wrapper of one.
         seed: Reset seed; also seeds the agent's randomness for this episode
             (with the agent's own seed) where it has ``seed_episode``.
@@ -87,7 +93,7 @@ def run_episode(
         on_step: Called before each step with the action, the true ``(25,)``
             pose of the frame it answers and that frame's ``info`` (for
             analyses of the estimate itself, e.g. :mod:`baselines.depth`; the
-            agent never sees the truth).
+            agent never sees them).
 
     Raises:
         TypeError: If ``env`` is not a pose-tracking environment.
@@ -99,12 +105,11 @@ def run_episode(
     base = tracking_env(env)
     obs, info = env.reset(seed=seed, options=options)
     clip_id, start = info.get("clip_id", ""), int(info.get("start_frame", 0))
+    person = info.get("person")
     state, episode_start = None, np.array([True])
     errors, rewards, times = [], [], []
     aligned: list[float] | None = []
     while True:
-        if hasattr(agent, "observe_info"):
-            agent.observe_info(info)
         t0 = time.perf_counter()
         action, state = agent.predict(
             obs, state=state, episode_start=episode_start, deterministic=True
@@ -139,6 +144,7 @@ def run_episode(
         mean_reward=float(np.mean(rewards)),
         aligned_errors_mm=aligned,
         mean_aligned_error_mm=None if aligned is None else float(np.mean(aligned)),
+        person=person,
     )
 
 
@@ -154,7 +160,7 @@ def evaluate(
 
 
 def summarize(
-    results: Sequence[EpisodeResult | Mapping[str, Any]], seed: int = 0
+    results: Sequence[EpisodeResult | Mapping[str, Any]], seed: int = 0, by_clip: bool = False
 ) -> dict[str, Any]:
     """One cell's statistics over its episodes (see :mod:`baselines.leaderboard.stats`).
 
@@ -162,6 +168,10 @@ def summarize(
         results: The episodes, as :class:`EpisodeResult` or its ``to_dict()``
             (so a saved leaderboard can be summarised again).
         seed: Seeds every bootstrap (same episodes and seed, same numbers).
+        by_clip: The episodes are windows of clips (a declared test list):
+            ``mean_error_ci`` resamples clips whole (a cluster bootstrap:
+            windows of one clip are not independent), then agent seeds
+            within each episode; the summary says ``"intervals": "clip"``.
 
     Returns:
         ``episodes``; ``mean_error_mm`` and ``iqm_error_mm`` (over the episodes'
@@ -218,15 +228,21 @@ def summarize(
         "aligned_error_ci": aligned_ci,
     }
     if len({e.get("agent_seed") for e in eps}) > 1:
-        summary.update(_over_seeds(eps, seed))
+        summary.update(_over_seeds(eps, seed, by_clip))
+    elif by_clip:
+        clips = [e["clip_id"] for e in eps]
+        summary["mean_error_ci"] = list(cluster_bootstrap_ci(mean_err, clips, seed=seed))
+    if by_clip:
+        summary["intervals"] = "clip"
     return summary
 
 
-def _over_seeds(eps: Sequence[Mapping[str, Any]], seed: int) -> dict[str, Any]:
+def _over_seeds(eps: Sequence[Mapping[str, Any]], seed: int, by_clip: bool) -> dict[str, Any]:
     """The two-level interval of the mean error, and each agent seed's mean."""
     _, _, values = seed_matrix(eps)
     means = values.mean(axis=0)
-    mean_ci, _ = two_level_bootstrap(values, seed=seed)
+    clusters = episode_clips(eps) if by_clip else None
+    mean_ci, _ = two_level_bootstrap(values, seed=seed, clusters=clusters)
     return {
         "mean_error_ci": list(mean_ci),
         "agent_seeds": int(values.shape[1]),

@@ -43,6 +43,7 @@ from baselines.leaderboard.engine import (
     make_engine,
     prepare_cells,
     resolve_env_kwargs,
+    task_windows,
 )
 from baselines.leaderboard.evaluation import EpisodeResult, summarize
 from baselines.leaderboard.results import (
@@ -92,6 +93,7 @@ def run_leaderboard(
     report: bool = True,
     videos: bool = False,
     agent_seeds: int = 1,
+    declared: bool = False,
 ) -> list[dict[str, Any]]:
     """Run every (task, agent, particle count) cell, and ``hold`` on every task.
 
@@ -123,6 +125,11 @@ def run_leaderboard(
             best, median and worst episode (each re-run).
         agent_seeds: Agent seeds per cell (``seed``, ``seed + 1``...), each
             on the same episodes; 1 (the default) gives a run without it.
+        declared: Run each task's declared test episodes
+            (:mod:`humotion_gym.envs.episodes`: fixed windows over every test
+            clip, the same for every agent) instead of ``episodes`` drawn
+            ones; episode ``k`` of a task's list has seed ``seed + k`` (its
+            scene's randomness), and the intervals resample clips.
 
     Returns:
         One dict per cell: ``task``, ``agent``, ``particles`` and either
@@ -141,11 +148,11 @@ def run_leaderboard(
     _check_run(episodes, particles, engine, resume, out, agent_seeds, videos)
     kwargs = resolve_env_kwargs(env_kwargs)
     cells = [Cell(*c) for c in grid_cells(tasks, agents, particles)]
-    seeds = list(range(seed, seed + episodes))
+    windows = _windows(tasks, kwargs, seed, episodes, declared)
     agent_seed_list = list(range(seed, seed + agent_seeds))
     folder = ResultsFolder(out) if out is not None else None
     done = _saved(folder, _settings(seed, kwargs), resume, seed, agent_seed_list)
-    left = _left(cells, seeds, agent_seed_list, done)
+    left = _left(cells, windows, agent_seed_list, done)
     # the engine's workers start (Ray: a process each) while the driver fits
     runner = make_engine(engine, seed, kwargs, workers, address, tasks) if left else None
     failures: dict[Cell, list[dict[str, Any]]] = {}
@@ -158,13 +165,14 @@ def run_leaderboard(
     finally:
         if runner is not None:
             runner.close()
-    rows = _rows(cells, seeds, agent_seed_list, done, problems, failures, seed)
+    rows = _rows(cells, windows, agent_seed_list, done, problems, failures, seed, declared)
     if folder is not None:
         config = {
             "tasks": list(tasks), "agents": list(agents), "particles": list(particles),
             "episodes": episodes, "seed": seed, "env_kwargs": kwargs, "engine": engine,
             "workers": workers, "address": address,
             **({"agent_seeds": agent_seeds} if agent_seeds != 1 else {}),
+            **({"declared": True} if declared else {}),
         }  # fmt: skip
         write_results(rows, folder.folder, config, command, report, videos, progress)
     return rows
@@ -207,18 +215,35 @@ def _key(record: dict[str, Any], seed: int) -> _Key:
     )  # fmt: skip
 
 
+#: Per task, each episode's seed and declared window (None: drawn from the seed).
+_Windows = dict[str, dict[int, tuple[str, int] | None]]
+
+
+def _windows(
+    tasks: Sequence[str], env_kwargs: dict[str, Any], seed: int, episodes: int, declared: bool
+) -> _Windows:
+    """Each task's episodes: ``episodes`` drawn ones, or its declared list."""
+    if not declared:
+        return {task: dict.fromkeys(range(seed, seed + episodes)) for task in tasks}
+    out: _Windows = {}
+    for task in tasks:
+        listed = task_windows(task, env_kwargs)
+        out[task] = {seed + k: window for k, window in enumerate(listed)}
+    return out
+
+
 def _left(
     cells: Sequence[Cell],
-    seeds: Sequence[int],
+    windows: _Windows,
     agent_seeds: Sequence[int],
     done: dict[_Key, dict[str, Any]],
 ) -> list[Episode]:
     """The episodes to run: every cell's, agent seed by agent seed (one agent at a time)."""
     return [
-        Episode(cell, s, a)
+        Episode(cell, s, a, window)
         for cell in cells
         for a in agent_seeds
-        for s in seeds
+        for s, window in windows[cell.task].items()
         if (cell.task, cell.agent, cell.particles, s, a) not in done
     ]
 
@@ -300,12 +325,13 @@ def _settings(seed: int, env_kwargs: dict[str, Any]) -> dict[str, Any]:
 
 def _rows(
     cells: Sequence[Cell],
-    seeds: Sequence[int],
+    windows: _Windows,
     agent_seeds: Sequence[int],
     records: dict[_Key, dict[str, Any]],
     problems: dict[tuple[str, str], tuple[str, str]],
     failures: dict[Cell, list[dict[str, Any]]],
     seed: int,
+    declared: bool = False,
 ) -> list[dict[str, Any]]:
     """One row per cell, in the cells' order, from the episodes' records."""
     rows = []
@@ -321,13 +347,13 @@ def _rows(
         else:
             episodes = []
             for a in agent_seeds:
-                for s in seeds:
+                for s in windows[cell.task]:
                     record = records[(cell.task, cell.agent, cell.particles, s, a)]
                     done = EpisodeResult(**record["result"]).to_dict()
                     # several agent seeds: each episode says its own, after its seed
                     several = len(agent_seeds) > 1
                     episodes.append({"seed": s, "agent_seed": a, **done} if several else done)
-            row["summary"] = summarize(episodes, seed=seed)
+            row["summary"] = summarize(episodes, seed=seed, by_clip=declared)
             row["episodes"] = episodes
         rows.append(row)
     return rows

@@ -523,6 +523,12 @@ def seed_matrix(
     return rows, cols, values
 
 
+def episode_clips(episodes: Sequence[Mapping[str, Any]]) -> list[str]:
+    """The clip of each episode seed, in :func:`seed_matrix` order."""
+    clips = {int(e["seed"]): str(e["clip_id"]) for e in episodes}
+    return [clips[s] for s in sorted(clips)]
+
+
 def two_level_bootstrap(
     values: ArrayLike,
     reference: ArrayLike | None = None,

@@ -29,7 +29,12 @@ from typing import Any
 
 import numpy as np
 
-from baselines.leaderboard.stats import agent_label, seed_matrix, two_level_bootstrap
+from baselines.leaderboard.stats import (
+    agent_label,
+    episode_clips,
+    seed_matrix,
+    two_level_bootstrap,
+)
 from humotion_gym.mocap.cmu import cmu_person
 from humotion_gym.mocap.synthetic import synthetic_subject
 
@@ -75,7 +80,10 @@ def hold_ratio_interval(
         raise ValueError(
             f"hold: expected the episode seeds {seeds} of {agent_label(row['agent'])}, got {held}"
         )
-    _, ratio = two_level_bootstrap(values, reference, seed=seed)
+    clusters = None
+    if row.get("summary", {}).get("intervals") == "clip":  # a declared list: resample clips
+        clusters = episode_clips(row["episodes"])
+    _, ratio = two_level_bootstrap(values, reference, seed=seed, clusters=clusters)
     assert ratio is not None  # a reference was given
     return ratio
 

@@ -69,7 +69,7 @@ FloatArray = NDArray[np.float64]
 NAME = "cyclic_pca"
 
 #: The tasks this prior is meant for (cyclic walking).
-SUPPORTED_TASKS: tuple[str, ...] = ("WalkTrack-v1", "SideWalk-v1")
+SUPPORTED_TASKS: tuple[str, ...] = ("WalkTrack-v2", "SideWalk-v2")
 #: Labels of the clips the prior is fitted to.
 WALK_LABELS: tuple[str, ...] = ("walk",)
 
@@ -85,7 +85,7 @@ def check_task(task_name: str) -> None:
         task_name: A task id, with or without the ``humotion_gym/`` namespace.
 
     Raises:
-        ValueError: For any task but ``WalkTrack-v1`` and ``SideWalk-v1``.
+        ValueError: For any task but ``WalkTrack-v2`` and ``SideWalk-v2``.
     """
     key = str(task_name).split("/")[-1].split(":")[-1]
     if key not in SUPPORTED_TASKS:

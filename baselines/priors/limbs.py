@@ -16,7 +16,7 @@ a new combination of familiar part motions can still be proposed.
 
 The root's position and heading stay with the torso (the tree anchors positions
 relative to the heading, so they must be searched together). A part with no free
-parameter in the task is left out, so on ArmTrack-v1 (the right arm only) the
+parameter in the task is left out, so on ArmTrack-v2 (the right arm only) the
 prior is the plain tree.
 
 Like the mixture, the per-part prior has no fitted arrays of its own: it is

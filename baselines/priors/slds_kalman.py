@@ -344,7 +344,7 @@ class CovarianceTable:
     of a power-of-two spacing at most that, for the lookup; the first one
     stored stands for the others), so results differ from the plain recursion
     by about ``rtol`` relative: the recursion contracts, so a substitution's
-    error does not grow. With the default, the fitted SideWalk-v1 model
+    error does not grow. With the default, the fitted SideWalk-v2 model
     differs from the plain recursion's by at most 5e-12 (same switch paths).
 
     One table serves every call with the same model and measurement noise (all

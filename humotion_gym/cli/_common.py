@@ -243,7 +243,7 @@ def check_mocap_paths(paths: Sequence[str | Path], flag: str) -> None:
 
 
 def task_name(text: str) -> str:
-    """An argparse ``type`` for a task id (``ArmTrack-v1``, also with ``humotion_gym/``)."""
+    """An argparse ``type`` for a task id (``ArmTrack-v2``, also with ``humotion_gym/``)."""
     from humotion_gym.envs.tasks import TASKS
 
     name = text.split("/")[-1].split(":")[-1]

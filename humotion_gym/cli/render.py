@@ -2,7 +2,7 @@
 
 ::
 
-    humotion-gym render --out clip.mp4 [--task BodyTrack-v1] [--seed 0] [--frames 90]
+    humotion-gym render --out clip.mp4 [--task BodyTrack-v2] [--seed 0] [--frames 90]
 """
 
 from __future__ import annotations
@@ -33,9 +33,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``render``."""
     rend = add_command(
         subparsers, "render", "render an episode of a task as video and contact sheet",
-        "humotion-gym render --task BodyTrack-v1 --frames 90 --out body.mp4",
+        "humotion-gym render --task BodyTrack-v2 --frames 90 --out body.mp4",
     )  # fmt: skip
-    add_task(rend, "BodyTrack-v1", "task id, see humotion-gym tasks")
+    add_task(rend, "BodyTrack-v2", "task id, see humotion-gym tasks")
     add_seed(rend, "episode seed")
     rend.add_argument(
         "--frames", type=int_at_least(2), default=90,
@@ -78,11 +78,12 @@ def _cmd_render(args: argparse.Namespace) -> int:
     )  # fmt: skip
     base: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
     obs, info = env.reset(seed=args.seed)
-    frames = [obs]
+    # a -v2 task's observation holds the frame; a deprecated -v1 task's is the frame
+    frames = [obs["frame"] if isinstance(obs, dict) else obs]
     for _ in tqdm(range(args.frames - 1), desc=f"rendering {args.task}", unit="frame"):
         obs, *_ = env.step(base.pose_to_action(base.true_pose()))
-        frames.append(obs)
-    write_video(args.out, frames, fps=info["fps"], scale=args.scale)
+        frames.append(obs["frame"] if isinstance(obs, dict) else obs)
+    write_video(args.out, frames, fps=base.metadata["render_fps"], scale=args.scale)
     write_png(sheet, contact_sheet(frames, columns=6, count=6))
     wrote(args.out, f"{len(frames)} frames of {info['clip_id']}")
     wrote(sheet, "contact sheet")

@@ -2,9 +2,10 @@
 
 Importing :mod:`humotion_gym` registers every id below (Gymnasium 1.x has no
 entry-point plugins). Each id exists under the ``humotion_gym/`` namespace,
-and once more without it so that ``gymnasium.make("humotion_gym:ArmTrack-v1")``
+and once more without it so that ``gymnasium.make("humotion_gym:ArmTrack-v2")``
 (the ``module:id`` form, which imports the module first) works from a fresh
-interpreter.
+interpreter. The ``-v1`` ids stay registered for one more release: making one
+warns that it is deprecated (its numbers are frozen in ``docs/v1.md``).
 """
 
 from __future__ import annotations
@@ -15,18 +16,34 @@ from humotion_gym.envs.arm_track import ArmTrackEnv
 from humotion_gym.envs.body_track import BodyTrackEnv
 from humotion_gym.envs.pose_tracking import RESET_OPTIONS, PoseTrackingEnv
 from humotion_gym.envs.side_walk import SideWalkEnv
-from humotion_gym.envs.tasks import TASKS, TaskSpec, get_task
+from humotion_gym.envs.tasks import (
+    CURRENT_TASKS,
+    DEPRECATED_TASKS,
+    TASKS,
+    TaskSpec,
+    get_task,
+)
 from humotion_gym.envs.walk_track import WalkTrackEnv
 
 NAMESPACE = "humotion_gym"
 
-#: (id without namespace, entry point). Everything else about a task (its
-#: episode length, free parameters, camera) is in its :data:`TASKS` spec.
-ENVIRONMENTS: tuple[tuple[str, str], ...] = (
-    ("ArmTrack-v1", "humotion_gym.envs.arm_track:ArmTrackEnv"),
-    ("BodyTrack-v1", "humotion_gym.envs.body_track:BodyTrackEnv"),
-    ("WalkTrack-v1", "humotion_gym.envs.walk_track:WalkTrackEnv"),
-    ("SideWalk-v1", "humotion_gym.envs.side_walk:SideWalkEnv"),
+_ENTRY_POINTS: dict[str, str] = {
+    "ArmTrack": "humotion_gym.envs.arm_track:ArmTrackEnv",
+    "BodyTrack": "humotion_gym.envs.body_track:BodyTrackEnv",
+    "WalkTrack": "humotion_gym.envs.walk_track:WalkTrackEnv",
+    "SideWalk": "humotion_gym.envs.side_walk:SideWalkEnv",
+}
+
+#: (id without namespace, entry point) of the current tasks. Everything else
+#: about a task (its episode length, free parameters, camera) is in its
+#: :data:`TASKS` spec.
+ENVIRONMENTS: tuple[tuple[str, str], ...] = tuple(
+    (t.name, _ENTRY_POINTS[t.family]) for t in CURRENT_TASKS
+)
+
+#: The deprecated ids (version 1), with their entry points.
+DEPRECATED_ENVIRONMENTS: tuple[tuple[str, str], ...] = tuple(
+    (t.name, _ENTRY_POINTS[t.family]) for t in DEPRECATED_TASKS
 )
 
 #: The batched version of each id's environment, for ``gymnasium.make_vec(id,
@@ -35,7 +52,7 @@ ENVIRONMENTS: tuple[tuple[str, str], ...] = (
 #: :mod:`humotion_gym.envs.vector`).
 VECTOR_ENTRY_POINTS: dict[str, str] = {
     name: f"humotion_gym.envs.vector:{entry_point.split(':')[1].replace('Env', 'VectorEnv')}"
-    for name, entry_point in ENVIRONMENTS
+    for name, entry_point in ENVIRONMENTS + DEPRECATED_ENVIRONMENTS
 }
 
 #: The canonical ids, with namespace.
@@ -50,7 +67,7 @@ def register_envs() -> None:
     environment truncates there by itself too. A longer episode needs both:
     ``gym.make(id, episode_frames=N, max_episode_steps=N)``.
     """
-    for name, entry_point in ENVIRONMENTS:
+    for name, entry_point in ENVIRONMENTS + DEPRECATED_ENVIRONMENTS:
         for env_id in (f"{NAMESPACE}/{name}", name):
             if env_id not in registry:
                 register(
@@ -58,10 +75,12 @@ def register_envs() -> None:
                     entry_point=entry_point,
                     vector_entry_point=VECTOR_ENTRY_POINTS[name],
                     max_episode_steps=get_task(name).episode_frames,
+                    kwargs={"task": name},
                 )
 
 
 __all__ = [
+    "DEPRECATED_ENVIRONMENTS",
     "ENVIRONMENTS",
     "ENV_IDS",
     "RESET_OPTIONS",

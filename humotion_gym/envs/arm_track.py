@@ -1,4 +1,4 @@
-"""ArmTrack-v1: the right arm, seen with the shoulder held fixed in the image."""
+"""ArmTrack-v2: the right arm, seen with the shoulder held fixed in the image."""
 
 from __future__ import annotations
 
@@ -75,8 +75,8 @@ class ArmTrackEnv(PoseTrackingEnv):
     motion).
     """
 
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(task="ArmTrack-v1", **kwargs)
+    def __init__(self, task: str = "ArmTrack-v2", **kwargs: Any) -> None:
+        super().__init__(task=task, **kwargs)
 
 
 ArmTrackEnv.__doc__ = (

@@ -1,4 +1,4 @@
-"""BodyTrack-v1: the whole body, mixed activities."""
+"""BodyTrack-v2: the whole body, mixed activities."""
 
 from __future__ import annotations
 
@@ -47,13 +47,13 @@ class BodyTrackEnv(PoseTrackingEnv):
     were all observed; ``options`` may name ``clip_id``, ``file`` or ``start``.
     """
 
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(task="BodyTrack-v1", **kwargs)
+    def __init__(self, task: str = "BodyTrack-v2", **kwargs: Any) -> None:
+        super().__init__(task=task, **kwargs)
 
 
 BodyTrackEnv.__doc__ = (
     (BodyTrackEnv.__doc__ or "")
-    + whole_body_likelihood("BodyTrack-v1")
+    + whole_body_likelihood("BodyTrack-v2")
     + COMMON_SECTIONS
     + """
     ## Version History

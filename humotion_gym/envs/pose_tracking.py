@@ -16,28 +16,29 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from humotion_gym.body import (
-    ANGLE_MASK,
     CONE_NAMES,
     KEYPOINT_INDEX,
     N_KEYPOINTS,
     PARAM_INDEX,
-    PARAM_LOWER,
-    PARAM_UPPER,
     BodyShape,
     forward_kinematics,
 )
 from humotion_gym.camera import Camera, fit_camera
+from humotion_gym.envs import description
 from humotion_gym.envs._checks import action_array, check_count, check_positive
+from humotion_gym.envs.description import TaskDescription
 from humotion_gym.envs.tasks import TaskSpec, get_task
 from humotion_gym.kinematics import batch_pose_geometry
 from humotion_gym.metrics import Scoring, StepScores, step_scores, update_lost_run
 from humotion_gym.mocap.library import (
+    EPISODE_SPLITS,
     MotionLibrary,
     configured_data_dirs,
     load_library,
     synthetic_library,
 )
 from humotion_gym.mocap.motion import Motion
+from humotion_gym.mocap.persons import same_skeleton, skeleton_signature
 from humotion_gym.render import (
     SceneOptions,
     draw_pose_overlay,
@@ -108,13 +109,10 @@ _EPISODE_STATE: tuple[str, ...] = (
     "_noise_rng", "_episode_params", "_geometry", "_truth_keypoints", "_camera_targets",
     "_cameras", "_figures",
     "_lost_run", "_last_estimate", "_estimate_keypoints", "_k", "_frame", "_done", "_ended",
+    "_initial", "_shape_vector", "_camera_vectors",
     "_warned_after_end",
     "_np_random", "_np_random_seed",
 )  # fmt: skip
-
-
-def _wrap(angles: FloatArray) -> FloatArray:
-    return (angles + np.pi) % (2 * np.pi) - np.pi
 
 
 class PoseTrackingEnv(gym.Env):
@@ -129,21 +127,23 @@ class PoseTrackingEnv(gym.Env):
     :class:`~humotion_gym.envs.side_walk.SideWalkEnv`): spaces, reward,
     episode end, info and arguments are described there.
 
-    The environment exposes the task's description (``task``, ``camera`` and
-    ``shape`` of the episode) and the action mapping :meth:`pose_to_action` /
-    :meth:`action_to_pose`; the likelihood that scores poses on its frames is
-    the trackers' own (:mod:`baselines.observation`).
+    A version-2 task's observation is a ``Dict`` holding every input an agent
+    may use (:mod:`humotion_gym.envs.description`); ``info`` holds scores and
+    diagnostics only. :meth:`describe` gives what an agent is built from (the
+    task, its scene, its spaces, the training persons' clips), never the
+    episodes' truth. Version 1 (deprecated) shows the frame alone and gives
+    the initial pose, shape, camera and given parameters in ``info``.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
 
     def __init__(
         self,
-        task: str | TaskSpec = "BodyTrack-v1",
+        task: str | TaskSpec = "BodyTrack-v2",
         render_mode: str | None = None,
         data_dir: str | Path | Sequence[str | Path] | None = None,
         library: MotionLibrary | None = None,
-        split: str = "test",
+        split: str = "train",
         width: int = 128,
         height: int = 128,
         color: str = "rgb",
@@ -160,6 +160,15 @@ class PoseTrackingEnv(gym.Env):
         reward_scale_mm: float = 100.0,
     ) -> None:
         self.task = get_task(task) if isinstance(task, str) else task
+        self.dict_observation = self.task.version >= 2
+        if not self.dict_observation:
+            warnings.warn(
+                f"{self.task.name} is deprecated and will be removed in the next release; use "
+                f"{self.task.family}-v2 (its observation holds everything an agent may use; "
+                "docs/v1.md keeps version 1's numbers)",
+                DeprecationWarning,
+                stacklevel=2,
+            )
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode must be one of {self.metadata['render_modes']} or None, "
@@ -177,6 +186,7 @@ class PoseTrackingEnv(gym.Env):
             check_positive(name, value)
         self.render_mode = render_mode
         scene_kwargs: dict[str, Any] = {
+            **dict(self.task.scene),
             "width": width,
             "height": height,
             "color": color,
@@ -200,13 +210,14 @@ class PoseTrackingEnv(gym.Env):
         if library is None:
             dirs = tuple(str(p) for p in configured_data_dirs(data_dir))
             library = _cached_library(dirs, float(fps))
-        if split not in ("train", "test"):
-            raise ValueError(f"split: expected 'train' or 'test', got {split!r}")
+        if split not in EPISODE_SPLITS:
+            raise ValueError(f"split: expected one of {list(EPISODE_SPLITS)}, got {split!r}")
         self.split = split
         self.library = library
-        channels = 3 if self.scene.color == "rgb" else 1
-        self.observation_space = spaces.Box(
-            0, 255, shape=(self.scene.height, self.scene.width, channels), dtype=np.uint8
+        self.observation_space: spaces.Space[Any] = (
+            description.observation_space(self.task, self.scene)
+            if self.dict_observation
+            else description.frame_space(self.scene)
         )
         n_free = len(self.task.free)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(n_free,), dtype=np.float32)
@@ -225,6 +236,7 @@ class PoseTrackingEnv(gym.Env):
         self.clips = self._episode_clips()
         self._noise: NDArray[np.uint8] | None = None
         self._bounds: tuple[FloatArray, FloatArray] | None = None
+        self._unseen_cache: list[tuple[str, FloatArray]] | None = None
 
     def _episode_clips(self) -> MotionLibrary:
         """The split's clips an episode can be drawn from: the task's labels, long enough.
@@ -233,7 +245,7 @@ class PoseTrackingEnv(gym.Env):
             ValueError: If no clip qualifies (the message says why).
         """
         library, split = self.library, self.split
-        clips = library.split(split).filter(labels=self.task.labels)
+        clips = library.episode_split(split).filter(labels=self.task.labels)
         need = self.episode_frames * self.frame_skip + 1
         clips = clips.filter(min_frames=need)
         if len(clips) == 0:
@@ -259,24 +271,20 @@ class PoseTrackingEnv(gym.Env):
     def _action_bounds(self) -> tuple[FloatArray, FloatArray]:
         if self._bounds is not None:
             return self._bounds
-        lo, hi = PARAM_LOWER.copy(), PARAM_UPPER.copy()
-        if self._motion is not None:
-            r = self.task.root_range_mm
-            lo[:3] = self._root0 - r
-            hi[:3] = self._root0 + r
-            # the bounds hold for the whole episode: computed once per reset
-            self._bounds = (lo[self._free], hi[self._free])
-            return self._bounds
-        return lo[self._free], hi[self._free]
+        if self._motion is None:
+            return description.action_bounds(self.task, None)
+        # the bounds hold for the whole episode: computed once per reset
+        self._bounds = description.action_bounds(self.task, self._motion.params[self._t0])
+        return self._bounds
 
     def pose_to_action(self, pose: FloatArray) -> NDArray[np.float32]:
         """Normalise a pose's free parameters to the action range [-1, 1].
 
-        Angles are first wrapped to [-pi, pi) (every angle is periodic in the
-        forward kinematics), then each free parameter is mapped linearly from
-        its range to [-1, 1] and clipped: joint angles use
-        ``body.PARAM_LOWER``/``PARAM_UPPER``; a free root position uses the
-        episode's initial root position plus or minus ``task.root_range_mm``.
+        :func:`humotion_gym.envs.description.pose_to_action` with the
+        episode's initial pose: angles wrapped to [-pi, pi), then each free
+        parameter mapped linearly from its range to [-1, 1] and clipped (joint
+        angles: ``body.PARAM_LOWER``/``PARAM_UPPER``; a free root position:
+        the initial root position plus or minus ``task.root_range_mm``).
 
         Args:
             pose: ``(..., 25)`` full poses.
@@ -284,11 +292,7 @@ class PoseTrackingEnv(gym.Env):
         Returns:
             ``(..., n_free)`` float32 actions.
         """
-        p = np.array(pose, dtype=np.float64)
-        p[..., ANGLE_MASK] = _wrap(p[..., ANGLE_MASK])
-        lo, hi = self._action_bounds()
-        a = 2.0 * (p[..., self._free] - lo) / (hi - lo) - 1.0
-        return np.clip(a, -1.0, 1.0).astype(np.float32)
+        return description.pose_to_action(self.task, pose, bounds=self._action_bounds())
 
     def action_to_pose(self, action: NDArray, fixed: FloatArray | None = None) -> FloatArray:
         """The full pose an action stands for.
@@ -301,16 +305,8 @@ class PoseTrackingEnv(gym.Env):
         Returns:
             ``(..., 25)`` poses.
         """
-        # np.clip's Python wrapper costs more than the two ufuncs (same values)
-        a = np.maximum(np.minimum(np.asarray(action, dtype=np.float64), 1.0), -1.0)
-        lo, hi = self._action_bounds()
-        base = self._truth() if fixed is None else np.asarray(fixed, dtype=np.float64)
-        if a.ndim == 1:
-            pose = base.copy()
-        else:
-            pose = np.broadcast_to(base, a.shape[:-1] + (base.shape[-1],)).copy()
-        pose[..., self._free] = lo + (a + 1.0) * 0.5 * (hi - lo)
-        return pose
+        base = self._truth() if fixed is None else fixed
+        return description.action_to_pose(self.task, action, base, bounds=self._action_bounds())
 
     # -- episode -----------------------------------------------------------------
 
@@ -321,15 +317,35 @@ class PoseTrackingEnv(gym.Env):
     def training_motions(self) -> MotionLibrary:
         """The clips a prior may learn from for this task.
 
-        The library's train split (never a test person) with the task's
-        labels, or the whole train split when no training clip has them. The
-        agents fit their priors on this, so they never read the library that
-        holds the test persons' truth.
+        The training persons with the task's labels (every training clip
+        where none has them). A ``"test"`` environment's agents learn from
+        every training person, validation persons included; a ``"train"`` or
+        ``"validation"`` environment's from the training persons less the
+        validation persons, so settings chosen on them are chosen on persons
+        the prior never saw. Never a test person.
         """
-        train = self.library.split("train").filter(labels=self.task.labels)
-        if len(train) == 0:
-            train = self.library.split("train")
-        return train
+        pool = self.library.split("train")
+        if self.split != "test":
+            pool = self.library.episode_split("train")
+        train = pool.filter(labels=self.task.labels)
+        return train if len(train) else pool
+
+    def describe(self) -> TaskDescription:
+        """What an agent is built from: the task, its scene and spaces, the training clips.
+
+        Nothing in it reads an episode: an agent built from it and given
+        observations alone sees what the benchmark gives and no more.
+        """
+        return TaskDescription(
+            task=self.task,
+            scene=self.scene,
+            frame_skip=self.frame_skip,
+            fps=float(self.library[0].fps) / self.frame_skip if len(self.library) else 30.0,
+            training=self.training_motions(),
+            observation_space=self.observation_space,
+            action_space=self.action_space,
+            split=self.split,
+        )
 
     def true_pose(self) -> FloatArray:
         """The ground-truth ``(25,)`` pose of the frame on show (a copy).
@@ -383,15 +399,58 @@ class PoseTrackingEnv(gym.Env):
 
     def _pick_clip(self, options: dict[str, Any]) -> Motion:
         if "motion" in options:
-            return options["motion"]
+            return self._check_person(options["motion"], "motion")
         if "clip_id" in options:
-            return self.library[options["clip_id"]]
+            return self._check_person(self.library[options["clip_id"]], "clip_id")
         if "file" in options:
             lib = load_library([options["file"]], fps=self.library[0].fps, progress=False)
             if len(lib) == 0:
                 raise ValueError(f"reset: options['file'] {options['file']!r} holds no clip")
-            return lib[0]
+            return self._check_person(lib[0], "file")
         return self.clips[int(self.np_random.integers(len(self.clips)))]
+
+    def _check_person(self, motion: Motion, option: str) -> Motion:
+        """``motion``, refused where it shows a person this split must not show.
+
+        A ``"train"`` environment never shows a test or validation person, a
+        ``"validation"`` one never a test person, by name and by skeleton
+        (:func:`~humotion_gym.mocap.persons.same_skeleton` against every
+        such person of the library: a held-out person's file under another
+        name is still that person).
+
+        Raises:
+            ValueError: Naming the option, the clip and the person.
+        """
+        unseen = self.library.unseen_by(self.split)
+        if not unseen:
+            return motion
+        person = motion.subject
+        if person not in unseen:
+            signature = skeleton_signature(motion)
+            for other, other_signature in self._unseen_signatures():
+                if same_skeleton(signature, other_signature):
+                    person = f"{other} (same skeleton as {motion.subject!r})"
+                    break
+            else:
+                return motion
+        raise ValueError(
+            f"reset: options[{option!r}] {motion.clip_id!r} shows {person}, a held-out person; "
+            f"a split={self.split!r} environment never shows the persons {sorted(unseen)} "
+            "(make it with split='test' to evaluate)"
+        )
+
+    def _unseen_signatures(self) -> list[tuple[str, FloatArray]]:
+        """A skeleton signature of each person of the library this split must not show."""
+        cached = self._unseen_cache
+        if cached is None:
+            unseen = self.library.unseen_by(self.split)
+            first: dict[str, Motion] = {}
+            for m in self.library:
+                if m.subject in unseen:
+                    first.setdefault(m.subject, m)
+            cached = [(name, skeleton_signature(m)) for name, m in sorted(first.items())]
+            self._unseen_cache = cached
+        return cached
 
     def _pick_start(self, motion: Motion, options: dict[str, Any]) -> int:
         span = self.episode_frames * self.frame_skip
@@ -533,24 +592,34 @@ class PoseTrackingEnv(gym.Env):
         assert self._motion is not None, "call reset() first"
         return self._motion.shape
 
-    def _observe(self) -> NDArray[np.uint8]:
+    def _observe(self) -> Any:
         frame = render_frame(self._figures, self._k, self._noise_rng, self._background)
         self._frame = frame
-        return frame
+        return self._observation(frame)
+
+    def _observation(self, frame: NDArray[np.uint8]) -> Any:
+        """What the agent is shown with ``frame``: the frame (v1), or every given input (v2)."""
+        if not self.dict_observation:
+            return frame
+        return {
+            "frame": frame,
+            "initial_pose": self._initial.copy(),
+            "fixed_params": self._truth()[self._fixed],
+            "camera": self.camera.to_vector(),
+            "shape": self._shape_vector.copy(),
+        }
 
     def _info(self) -> dict[str, Any]:
-        truth = self._truth()
-        return {
-            "fixed_params": truth[self._fixed].copy(),
-            "camera": self.camera,
-            "frame": self._frame_index(),
-            "step": self._k,
-        }
+        info: dict[str, Any] = {"frame": self._frame_index(), "step": self._k}
+        if not self.dict_observation:  # version 1 gave the agent's inputs here
+            info["fixed_params"] = self._truth()[self._fixed]
+            info["camera"] = self.camera
+        return info
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[NDArray[np.uint8], dict[str, Any]]:
-        """Start an episode on a test clip.
+    ) -> tuple[Any, dict[str, Any]]:
+        """Start an episode on a clip of the environment's split.
 
         Args:
             seed: Seeds the environment's generator (clip, start frame, scene).
@@ -563,8 +632,10 @@ class PoseTrackingEnv(gym.Env):
 
         Raises:
             ValueError: For an unknown option or a bad value (the message lists
-                what is valid). The environment is then as it was before the
-                call: a reset is all or nothing.
+                what is valid), or for a clip of a person the split must not
+                show (a ``"train"`` environment: a test or validation person).
+                The environment is then as it was before the call: a reset is
+                all or nothing.
         """
         options = self._check_options(options)
         # All or nothing: a reset that fails leaves the previous episode as it was.
@@ -584,7 +655,7 @@ class PoseTrackingEnv(gym.Env):
 
     def _reset(
         self, seed: int | None, options: dict[str, Any]
-    ) -> tuple[NDArray[np.uint8], dict[str, Any]]:
+    ) -> tuple[Any, dict[str, Any]]:
         self._begin_episode(seed, options)
         self._figures = figure_sequence(
             self._episode_params, self.shape, self._cameras, self.scene, self._geometry
@@ -623,7 +694,7 @@ class PoseTrackingEnv(gym.Env):
 
     def _first_frame(
         self, out: NDArray[np.uint8] | None = None
-    ) -> tuple[NDArray[np.uint8], dict[str, Any]]:
+    ) -> tuple[Any, dict[str, Any]]:
         """The end of a reset: the first frame and the reset's info.
 
         With ``out`` (a row of the vector environment's batch) the frame on
@@ -636,7 +707,8 @@ class PoseTrackingEnv(gym.Env):
         self._warned_after_end = False
         self._last_estimate: FloatArray | None = None
         self._estimate_keypoints: FloatArray | None = None
-        initial = self._truth(0)
+        self._initial = self._truth(0)
+        self._shape_vector = self.shape.to_vector()
         self._k = 1
         if out is None:
             obs = self._observe()  # (which sets the frame on show)
@@ -645,17 +717,23 @@ class PoseTrackingEnv(gym.Env):
         info = self._info()
         info.update(
             {
-                "initial_pose": initial,
-                "shape": self.shape,
                 "clip_id": self._motion.clip_id,
-                "fps": self._motion.fps / self.frame_skip,
+                "person": self._motion.subject,
                 "start_frame": self._t0,
                 "synthetic": self._motion.synthetic,
             }
         )
+        if not self.dict_observation:
+            info.update(
+                {
+                    "initial_pose": self._initial.copy(),
+                    "shape": self.shape,
+                    "fps": self._motion.fps / self.frame_skip,
+                }
+            )
         return obs, info
 
-    def step(self, action: NDArray) -> tuple[NDArray[np.uint8], float, bool, bool, dict[str, Any]]:
+    def step(self, action: NDArray) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         """Score the estimate of the frame on show, then show the next frame.
 
         After the episode has ended (until the next ``reset``), a step follows
@@ -696,7 +774,7 @@ class PoseTrackingEnv(gym.Env):
             obs = self._observe()
         else:
             self._ended = (terminated, truncated)
-            obs = self._frame.copy()
+            obs = self._observation(self._frame.copy())
         info = self._info()
         info.update(_scored_info(scores, bool(lost)))
         return obs, float(scores.reward), terminated, truncated, info
@@ -722,7 +800,7 @@ class PoseTrackingEnv(gym.Env):
         """The step's errors and reward (:func:`~humotion_gym.metrics.step_scores`)."""
         return step_scores(estimate_keypoints, truth_keypoints, self._scoring)
 
-    def _after_end(self) -> tuple[NDArray[np.uint8], float, bool, bool, dict[str, Any]]:
+    def _after_end(self) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         """A step after the episode ended: the terminal transition again (see :meth:`step`)."""
         if not self._warned_after_end:
             self._warned_after_end = True
@@ -735,7 +813,7 @@ class PoseTrackingEnv(gym.Env):
         terminated, truncated = self._ended if self._ended is not None else (False, True)
         info = self._info()
         info["after_end"] = True
-        return self._frame.copy(), 0.0, terminated, truncated, info
+        return self._observation(self._frame.copy()), 0.0, terminated, truncated, info
 
     def render(self) -> NDArray[np.uint8] | None:
         """The frame on show with the last estimate drawn over it as a wire figure.

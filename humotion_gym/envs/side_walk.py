@@ -1,4 +1,4 @@
-"""SideWalk-v1: fronto-parallel walking and jogging seen from the side."""
+"""SideWalk-v2: fronto-parallel walking and jogging seen from the side."""
 
 from __future__ import annotations
 
@@ -56,13 +56,13 @@ class SideWalkEnv(PoseTrackingEnv):
     enough for 61 frames, and a start frame whose frames were all observed.
     """
 
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(task="SideWalk-v1", **kwargs)
+    def __init__(self, task: str = "SideWalk-v2", **kwargs: Any) -> None:
+        super().__init__(task=task, **kwargs)
 
 
 SideWalkEnv.__doc__ = (
     (SideWalkEnv.__doc__ or "")
-    + whole_body_likelihood("SideWalk-v1")
+    + whole_body_likelihood("SideWalk-v2")
     + COMMON_SECTIONS
     + """
     ## Version History

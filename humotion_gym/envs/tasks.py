@@ -10,7 +10,8 @@ ones the leaderboard reports.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -119,6 +120,9 @@ class TaskSpec:
         observation: Overrides of :class:`~baselines.observation.ObservationModel`
             defaults for this task, as ``(name, value)`` pairs, chosen on the
             training persons (see the task's documentation).
+        scene: Overrides of :class:`~humotion_gym.render.SceneOptions` defaults
+            for this task (how its frames look), as ``(name, value)`` pairs;
+            the environment's keyword arguments override them in turn.
     """
 
     name: str
@@ -132,6 +136,7 @@ class TaskSpec:
     min_motion_mm: float = 0.0
     motion_anchor: str = "pelvis"
     observation: tuple[tuple[str, float | int | bool], ...] = ()
+    scene: tuple[tuple[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
         unknown = [n for n in self.free if n not in PARAM_INDEX]
@@ -144,6 +149,16 @@ class TaskSpec:
             raise ValueError(f"task {self.name}: episode_frames must be >= 1")
         if not self.min_motion_mm >= 0.0:
             raise ValueError(f"task {self.name}: min_motion_mm must be >= 0")
+
+    @property
+    def family(self) -> str:
+        """The task's name without its version (``"ArmTrack"``): what settings are keyed by."""
+        return self.name.rsplit("-v", 1)[0]
+
+    @property
+    def version(self) -> int:
+        """The task's version (the ``N`` of ``-vN``)."""
+        return int(self.name.rsplit("-v", 1)[1])
 
     @property
     def free_indices(self) -> NDArray[np.intp]:
@@ -373,17 +388,42 @@ SIDE_WALK = TaskSpec(
     description="fronto-parallel walking and jogging, side view (Pavlovic et al. 1999, Fig. 4)",
 )
 
+#: The benchmark's current tasks (version 2). What changed from version 1:
+#: the observation is a ``Dict`` holding every input an agent may use (the
+#: frame, the initial pose, the given parameters, the camera, the shape) and
+#: ``info`` holds scores and diagnostics only; ``gym.make`` draws training
+#: persons by default; ArmTrack no longer keeps only starts where the arm
+#: moves (its test episodes are the declared list of
+#: :mod:`humotion_gym.envs.episodes`, and its ``hold`` floor does not depend on
+#: a selection of moving arms).
+CURRENT_TASKS: tuple[TaskSpec, ...] = (
+    replace(ARM_TRACK, name="ArmTrack-v2", min_motion_mm=0.0),
+    replace(BODY_TRACK, name="BodyTrack-v2"),
+    replace(WALK_TRACK, name="WalkTrack-v2"),
+    replace(SIDE_WALK, name="SideWalk-v2"),
+)
+
+#: Version 1: registered for one more release with a deprecation warning, its
+#: numbers frozen in ``docs/v1.md``.
+DEPRECATED_TASKS: tuple[TaskSpec, ...] = (ARM_TRACK, BODY_TRACK, WALK_TRACK, SIDE_WALK)
+
 #: Every task, by id (without namespace).
-TASKS: dict[str, TaskSpec] = {t.name: t for t in (ARM_TRACK, BODY_TRACK, WALK_TRACK, SIDE_WALK)}
+TASKS: dict[str, TaskSpec] = {t.name: t for t in CURRENT_TASKS + DEPRECATED_TASKS}
+
+#: The current version of each task family (``"ArmTrack"`` -> ``"ArmTrack-v2"``).
+CURRENT: dict[str, str] = {t.family: t.name for t in CURRENT_TASKS}
 
 
 def get_task(name: str) -> TaskSpec:
     """The task spec of an id, with or without the ``humotion_gym/`` namespace.
 
+    A name without a version (``"ArmTrack"``) is the current version.
+
     Raises:
         KeyError: If no task has that id.
     """
     key = name.split("/")[-1].split(":")[-1]
+    key = CURRENT.get(key, key)
     if key not in TASKS:
         raise KeyError(f"unknown task {name!r}; the tasks are {sorted(TASKS)}")
     return TASKS[key]

@@ -43,8 +43,14 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
-from humotion_gym.body import N_KEYPOINTS, N_PARAMS, SHAPE_TABLE_SIZE, pose_geometry_of
-from humotion_gym.camera import fit_cameras
+from humotion_gym.body import (
+    N_KEYPOINTS,
+    N_PARAMS,
+    SHAPE_TABLE_SIZE,
+    SHAPE_VECTOR_SIZE,
+    pose_geometry_of,
+)
+from humotion_gym.camera import CAMERA_VECTOR_SIZE, fit_cameras
 from humotion_gym.envs._checks import action_array, check_count
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv, _scored_info
 from humotion_gym.envs.tasks import get_task
@@ -97,7 +103,7 @@ class PoseTrackingVectorEnv(VectorEnv):
     def __init__(
         self,
         num_envs: int = 1,
-        task: str = "BodyTrack-v1",
+        task: str = "BodyTrack-v2",
         autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
         max_episode_steps: int | None = None,
         **kwargs: Any,
@@ -145,7 +151,10 @@ class PoseTrackingVectorEnv(VectorEnv):
         self._all_started = False
         self._rows = np.arange(n)
         self._action_shape = self.action_space.shape
-        self._obs = np.zeros((n, *template.observation_space.shape), np.uint8)
+        self._dict = template.dict_observation
+        self._obs = np.zeros((n, *self._scene.frame_shape), np.uint8)
+        self._camera_vectors = np.zeros((n, frames, CAMERA_VECTOR_SIZE))
+        self._shape_vectors = np.zeros((n, SHAPE_VECTOR_SIZE))
         self._first_figures = (
             min(template.lost_patience + 1, frames) if template.terminate_on_lost else frames
         )
@@ -186,6 +195,8 @@ class PoseTrackingVectorEnv(VectorEnv):
             self._truth_kp[i] = env._truth_keypoints
             self._lo[i], self._hi[i] = env._action_bounds()
             self._shape_tables[i] = env.shape._table
+            self._shape_vectors[i] = env._shape_vector
+            self._camera_vectors[i] = [camera.to_vector() for camera in env._cameras]
             self._k[i] = env._k
             self._t0[i] = env._t0
             self._lost_run[i] = 0
@@ -290,7 +301,20 @@ class PoseTrackingVectorEnv(VectorEnv):
         infos: dict[str, Any] = {}
         _add_infos(infos, rows, [started[i] for i in rows], n)
         self._autoreset[mask] = False
-        return self._obs.copy(), infos
+        return self._observations(self._obs.copy()), infos
+
+    def _observations(self, frames: NDArray[np.uint8]) -> Any:
+        """The batch of what each episode is shown with its frame (see the single environment)."""
+        if not self._dict:
+            return frames
+        rows = self._rows
+        return {
+            "frame": frames,
+            "initial_pose": self._params[:, 0].copy(),
+            "fixed_params": self._params[rows, self._k][:, self._fixed],
+            "camera": self._camera_vectors[rows, self._k],
+            "shape": self._shape_vectors.copy(),
+        }
 
     # -- step ----------------------------------------------------------------------
 
@@ -344,7 +368,7 @@ class PoseTrackingVectorEnv(VectorEnv):
         after_end = ended & disabled
         for i in np.flatnonzero(after_end).tolist():
             obs_i, _, terminated[i], truncated[i], info_i = self.envs[i]._after_end()
-            observations[i] = obs_i
+            observations[i] = obs_i["frame"] if self._dict else obs_i
             _add_info(infos, info_i, i, n)
         final: dict[int, tuple[NDArray[np.uint8], dict[str, Any]]] = {}
         same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
@@ -353,7 +377,7 @@ class PoseTrackingVectorEnv(VectorEnv):
             finished = np.flatnonzero(done).tolist()
             for i in finished:
                 info = {key: _item(value, i) for key, value in step_info.items()}
-                final[i] = (observations[i].copy(), info)
+                final[i] = (self.envs[i]._observation(observations[i].copy()), info)
             restarted = self._start(finished, [None] * len(finished), None)
             observations[finished] = self._obs[finished]
         stepped = active.copy()
@@ -369,7 +393,7 @@ class PoseTrackingVectorEnv(VectorEnv):
         if started_rows:
             shown[started_rows] = [self.envs[i]._k for i in started_rows]
         self._autoreset = np.zeros(n, np.bool_) if same_step else terminated | truncated
-        return observations, reward, terminated, truncated, infos
+        return self._observations(observations), reward, terminated, truncated, infos
 
     def _checked_actions(self, actions: NDArray[Any]) -> NDArray[Any]:
         """The actions, refused with a clear error before ``reset`` or when malformed."""
@@ -464,9 +488,12 @@ class PoseTrackingVectorEnv(VectorEnv):
     ) -> dict[str, NDArray[Any]]:
         """The info of every episode's step, batched (the single environment's keys and types)."""
         template = self.envs[0]
-        return {
+        given = {} if self._dict else {  # version 1 gave the agent's inputs here
             "fixed_params": self._params[self._rows, shown][:, self._fixed],
             "camera": cameras,
+        }
+        return {
+            **given,
             "frame": (self._t0 + shown * template.frame_skip).astype(np.int64),
             "step": shown.astype(np.int64),
             **_scored_info(scores, lost),
@@ -603,26 +630,26 @@ def _store(infos: dict[str, Any], key: str, array: Any, where: int | list[int], 
 class ArmTrackVectorEnv(PoseTrackingVectorEnv):
     """:class:`~humotion_gym.envs.arm_track.ArmTrackEnv`, N episodes at once."""
 
-    def __init__(self, num_envs: int = 1, **kwargs: Any) -> None:
-        super().__init__(num_envs, task="ArmTrack-v1", **kwargs)
+    def __init__(self, num_envs: int = 1, task: str = "ArmTrack-v2", **kwargs: Any) -> None:
+        super().__init__(num_envs, task=task, **kwargs)
 
 
 class BodyTrackVectorEnv(PoseTrackingVectorEnv):
     """:class:`~humotion_gym.envs.body_track.BodyTrackEnv`, N episodes at once."""
 
-    def __init__(self, num_envs: int = 1, **kwargs: Any) -> None:
-        super().__init__(num_envs, task="BodyTrack-v1", **kwargs)
+    def __init__(self, num_envs: int = 1, task: str = "BodyTrack-v2", **kwargs: Any) -> None:
+        super().__init__(num_envs, task=task, **kwargs)
 
 
 class WalkTrackVectorEnv(PoseTrackingVectorEnv):
     """:class:`~humotion_gym.envs.walk_track.WalkTrackEnv`, N episodes at once."""
 
-    def __init__(self, num_envs: int = 1, **kwargs: Any) -> None:
-        super().__init__(num_envs, task="WalkTrack-v1", **kwargs)
+    def __init__(self, num_envs: int = 1, task: str = "WalkTrack-v2", **kwargs: Any) -> None:
+        super().__init__(num_envs, task=task, **kwargs)
 
 
 class SideWalkVectorEnv(PoseTrackingVectorEnv):
     """:class:`~humotion_gym.envs.side_walk.SideWalkEnv`, N episodes at once."""
 
-    def __init__(self, num_envs: int = 1, **kwargs: Any) -> None:
-        super().__init__(num_envs, task="SideWalk-v1", **kwargs)
+    def __init__(self, num_envs: int = 1, task: str = "SideWalk-v2", **kwargs: Any) -> None:
+        super().__init__(num_envs, task=task, **kwargs)

@@ -1,4 +1,4 @@
-"""WalkTrack-v1: walking, longer episodes."""
+"""WalkTrack-v2: walking, longer episodes."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ class WalkTrackEnv(PoseTrackingEnv):
     ## Action Space
 
     ``Box(-1, 1, (25,), float32)`` in ``body.PARAM_NAMES`` order; joint angles
-    as in BodyTrack-v1, the root position over the episode's initial root
+    as in BodyTrack-v2, the root position over the episode's initial root
     position plus or minus 5,000 mm (a walk covers several metres).
 
     ## Observation Space
@@ -44,13 +44,13 @@ class WalkTrackEnv(PoseTrackingEnv):
     a start frame whose episode frames were all observed.
     """
 
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(task="WalkTrack-v1", **kwargs)
+    def __init__(self, task: str = "WalkTrack-v2", **kwargs: Any) -> None:
+        super().__init__(task=task, **kwargs)
 
 
 WalkTrackEnv.__doc__ = (
     (WalkTrackEnv.__doc__ or "")
-    + whole_body_likelihood("WalkTrack-v1")
+    + whole_body_likelihood("WalkTrack-v2")
     + COMMON_SECTIONS
     + """
     ## Version History

@@ -83,6 +83,20 @@ SYNTHETIC_TEST_SUBJECTS: tuple[str, ...] = ("synthetic-05", "synthetic-06")
 #: clips train. A style held out of them is "style held out, same performers".
 TEST_SUBJECTS: frozenset[str] = frozenset(CMU_TEST_SUBJECTS + SYNTHETIC_TEST_SUBJECTS)
 
+#: Training persons held out to choose settings on real data (an environment's
+#: ``split="validation"``): CMU subject 1 (jumps) and CMU subjects 5 and 7
+#: (dance and walks on one converted skeleton, so they are held out together).
+CMU_VALIDATION_SUBJECTS: tuple[str, ...] = ("cmu-01", "cmu-05", "cmu-07")
+#: The synthetic set's validation persons (its training persons 3 and 4).
+SYNTHETIC_VALIDATION_SUBJECTS: tuple[str, ...] = ("synthetic-03", "synthetic-04")
+#: Every validation person, whatever the data set.
+VALIDATION_SUBJECTS: frozenset[str] = frozenset(
+    CMU_VALIDATION_SUBJECTS + SYNTHETIC_VALIDATION_SUBJECTS
+)
+
+#: An environment's splits: whose episodes it shows.
+EPISODE_SPLITS: tuple[str, ...] = ("train", "validation", "test")
+
 #: The split rule of each known data set, as the library reports it.
 SPLIT_RULES: Mapping[str, str] = {
     "cmu": f"cmu-persons (test persons {', '.join(CMU_TEST_PERSONS)})",
@@ -581,6 +595,49 @@ class MotionLibrary:
         return MotionLibrary(
             tuple(m for m in self.motions if (m.subject in held) == test), self.test_subjects
         )
+
+    def episode_split(self, which: str) -> MotionLibrary:
+        """The clips an environment of split ``which`` draws its episodes from.
+
+        ``"train"``: the training persons less the validation persons
+        (:data:`VALIDATION_SUBJECTS`); ``"validation"``: the validation persons
+        (settings are chosen on them); ``"test"``: the held-out persons
+        (:attr:`held_out`), for the leaderboard.
+
+        Raises:
+            ValueError: For another split, or ``"validation"`` on a library
+                without a validation person.
+        """
+        if which not in EPISODE_SPLITS:
+            raise ValueError(f"split: expected one of {list(EPISODE_SPLITS)}, got {which!r}")
+        if which == "test":
+            return self.split("test")
+        train = self.split("train")
+        if which == "train":
+            return MotionLibrary(
+                tuple(m for m in train if m.subject not in VALIDATION_SUBJECTS), self.test_subjects
+            )
+        chosen = MotionLibrary(
+            tuple(m for m in train if m.subject in VALIDATION_SUBJECTS), self.test_subjects
+        )
+        if len(chosen) == 0:
+            raise ValueError(
+                "split='validation': the library holds none of the validation persons "
+                f"{sorted(VALIDATION_SUBJECTS)} (its training persons: {train.subjects})"
+            )
+        return chosen
+
+    def unseen_by(self, which: str) -> frozenset[str]:
+        """The persons an environment of split ``which`` must never show.
+
+        ``"train"``: the test and validation persons; ``"validation"``: the
+        test persons; ``"test"``: none.
+        """
+        if which == "train":
+            return self.held_out | VALIDATION_SUBJECTS
+        if which == "validation":
+            return self.held_out
+        return frozenset()
 
     def validation_fold(self, subjects: Sequence[str]) -> MotionLibrary:
         """The training split with ``subjects`` held out as its own test split.

@@ -45,7 +45,7 @@ def _row(agent: str, particles: int, values: Any, several: bool = True) -> dict[
     v = np.asarray(values, dtype=np.float64)
     episodes = _episodes(v, several)
     return {
-        "task": "ArmTrack-v1", "agent": agent, "particles": particles,
+        "task": "ArmTrack-v2", "agent": agent, "particles": particles,
         "summary": summarize(episodes), "episodes": episodes,
     }  # fmt: skip
 
@@ -136,10 +136,10 @@ def test_a_summary_of_several_seeds_gives_their_means_and_spread(matrix):
 ONE_SEED_TABLE = """\
 | task | agent | particles | mean error mm (95% CI) | IQM mm | pelvis-aligned mm | x hold | beats hold | lost track | ms/frame |
 |---|---|---|---|---|---|---|---|---|---|
-| ArmTrack-v1 | hold | - | 200 (200-200) | 200 | 200 | 1.00 | - | 0/4 | 1.0 |
-| ArmTrack-v1 | pf-cv | 300 | 90 (85-95) | 90 | 90 | 2.22 | 4/4 | 0/4 | 1.0 |"""  # noqa: E501
+| ArmTrack-v2 | hold | - | 200 (200-200) | 200 | 200 | 1.00 | - | 0/4 | 1.0 |
+| ArmTrack-v2 | pf-cv | 300 | 90 (85-95) | 90 | 90 | 2.22 | 4/4 | 0/4 | 1.0 |"""  # noqa: E501
 ONE_SEED_VERDICT = (
-    "ArmTrack-v1: best filter at 300 particles is pf-cv, 2.22x better than hold in mean "
+    "ArmTrack-v2: best filter at 300 particles is pf-cv, 2.22x better than hold in mean "
     "error (90 vs 200 mm), better in 4/4 paired episodes: valid"
 )
 
@@ -175,7 +175,7 @@ def test_a_point_ratio_above_two_with_a_lower_bound_below_is_not_valid():
     low, _ = hold_ratio_interval(rows[1], rows[0])
     assert 200.0 / values.mean() > VALID_RATIO > low
     line = _verdict(values)
-    assert line.startswith("ArmTrack-v1: best reference filter at 300 particles is pf-mix")
+    assert line.startswith("ArmTrack-v2: best reference filter at 300 particles is pf-mix")
     assert line.endswith(": NOT valid (interval's lower bound below 2x)")
 
 
@@ -206,7 +206,7 @@ def _numbers(value: Any) -> Any:
     return value
 
 
-TINY = {"tasks": ["ArmTrack-v1"], "agents": ["pf-cv"], "particles": [50], "episodes": 2}
+TINY = {"tasks": ["ArmTrack-v2"], "agents": ["pf-cv"], "particles": [50], "episodes": 2}
 
 
 @pytest.fixture(scope="module")
@@ -243,7 +243,7 @@ def test_three_agent_seeds_run_the_same_episodes(one_seed):
     saved = json.loads((out / RESULTS_FILE).read_text())
     assert saved["config"]["agent_seeds"] == 3
     (verdict,) = saved["validity"]
-    assert verdict.startswith("ArmTrack-v1: best reference filter at 50 particles is pf-cv")
+    assert verdict.startswith("ArmTrack-v2: best reference filter at 50 particles is pf-cv")
     assert "seed spread mm" in markdown_table(three)
     with pytest.raises(ResumeError, match="agent_seeds=3"):
         run_leaderboard(**TINY, progress=False, out=out, resume=True, report=False)
@@ -254,7 +254,7 @@ def test_three_agent_seeds_run_the_same_episodes(one_seed):
     [(["--agent-seeds", "0"], "--agent-seeds"), (["--agent-seeds", "2", "--videos"], "--videos")],
 )
 def test_the_cli_refuses_bad_agent_seeds(tmp_path, capsys, extra, message):
-    argv = ["leaderboard", "--tasks", "ArmTrack-v1", "--agents", "hold", "--episodes", "1"]
+    argv = ["leaderboard", "--tasks", "ArmTrack-v2", "--agents", "hold", "--episodes", "1"]
     assert main([*argv, "--out", str(tmp_path / "lb"), *extra]) == 2
     assert message in capsys.readouterr().err
 
@@ -262,7 +262,7 @@ def test_the_cli_refuses_bad_agent_seeds(tmp_path, capsys, extra, message):
 def test_the_cli_runs_several_agent_seeds(capsys):
     from baselines.cli.leaderboard import SEEDS_LEGEND
 
-    argv = ["leaderboard", "--tasks", "ArmTrack-v1", "--agents", "pf-cv", "--particles", "20"]
+    argv = ["leaderboard", "--tasks", "ArmTrack-v2", "--agents", "pf-cv", "--particles", "20"]
     assert main([*argv, "--episodes", "1", "--agent-seeds", "2"]) == 0
     out = capsys.readouterr().out
     assert "| seed spread mm |" in out and SEEDS_LEGEND in out

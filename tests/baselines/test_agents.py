@@ -10,10 +10,11 @@ from baselines.agents.settings import load as load_settings
 from baselines.cli import main
 from baselines.leaderboard.evaluation import evaluate, run_episode, summarize
 from baselines.leaderboard.stats import bootstrap_ci, iqm, stratified_bootstrap_ci
+from humotion_gym.envs.description import read_observation
 
 
 class RandomPolicy:
-    """An SB3-shaped policy with no observe_info: the loop must still work."""
+    """An SB3-shaped policy: the loop gives it observations and nothing else."""
 
     def __init__(self, space, seed=0):
         self.space, self.rng = space, np.random.default_rng(seed)
@@ -24,13 +25,13 @@ class RandomPolicy:
 
 def test_registry_and_unknown_agent():
     assert "pf-cv" in AGENTS
-    env = gym.make("humotion_gym/ArmTrack-v1")
+    env = gym.make("humotion_gym/ArmTrack-v2")
     with pytest.raises(KeyError, match="unknown agent"):
         make("pf-nothing", env)
 
 
 def test_particle_filter_agent_tracks_end_to_end_on_synthetic_data():
-    env = gym.make("humotion_gym/SideWalk-v1", terminate_on_lost=False)
+    env = gym.make("humotion_gym/SideWalk-v2", terminate_on_lost=False)
     agent = make("pf-cv", env, n_particles=200, seed=0)
     result = run_episode(agent, env, seed=0)
     assert len(result.errors_mm) == 60 and np.isfinite(result.mean_error_mm)
@@ -40,22 +41,24 @@ def test_particle_filter_agent_tracks_end_to_end_on_synthetic_data():
 
 
 def test_agent_runs_are_deterministic_by_seed():
-    env = gym.make("humotion_gym/ArmTrack-v1", terminate_on_lost=False)
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
     a = evaluate(make("pf-cv", env, n_particles=100, seed=3), env, 2, seed=5)
     b = evaluate(make("pf-cv", env, n_particles=100, seed=3), env, 2, seed=5)
     assert [r.errors_mm for r in a] == [r.errors_mm for r in b]
 
 
-def test_agent_predict_needs_info_first():
-    env = gym.make("humotion_gym/ArmTrack-v1")
+def test_agent_refuses_what_is_not_a_v2_observation():
+    env = gym.make("humotion_gym/ArmTrack-v2")
     agent = make("pf-cv", env, n_particles=10)
     obs, _ = env.reset(seed=0)
-    with pytest.raises(RuntimeError, match="observe_info"):
-        agent.predict(obs)
+    with pytest.raises(ValueError, match="version-2"):
+        agent.predict(obs["frame"])
+    with pytest.raises(ValueError, match="version-2"):
+        agent.predict({k: v for k, v in obs.items() if k != "camera"})
 
 
 def test_summary_and_statistics():
-    env = gym.make("humotion_gym/ArmTrack-v1", terminate_on_lost=False)
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
     results = evaluate(RandomPolicy(env.action_space), env, 3, seed=0)
     s = summarize(results)
     assert (
@@ -74,7 +77,7 @@ def test_cli_track_and_render(tmp_path, capsys):
             [
                 "track",
                 "--task",
-                "ArmTrack-v1",
+                "ArmTrack-v2",
                 "--agent",
                 "pf-cv",
                 "--particles",
@@ -89,7 +92,7 @@ def test_cli_track_and_render(tmp_path, capsys):
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["summary"]["episodes"] == 2 and len(out["episodes"][0]["errors_mm"]) == 30
     video = tmp_path / "clip.mp4"
-    assert main(["render", "--task", "BodyTrack-v1", "--frames", "12", "--out", str(video)]) == 0
+    assert main(["render", "--task", "BodyTrack-v2", "--frames", "12", "--out", str(video)]) == 0
     assert video.stat().st_size > 0 and video.with_suffix(".png").is_file()
 
 
@@ -105,7 +108,7 @@ def test_cli_synth_writes_a_bvh_the_parser_reads_back(tmp_path, prior):
 
 def test_every_agent_is_made_or_refuses_with_a_reason():
     for name in AGENTS:
-        for task in ("ArmTrack-v1", "SideWalk-v1"):
+        for task in ("ArmTrack-v2", "SideWalk-v2"):
             env = gym.make(f"humotion_gym/{task}")
             try:
                 agent = make(name, env, n_particles=20)
@@ -113,40 +116,37 @@ def test_every_agent_is_made_or_refuses_with_a_reason():
                 assert "walking" in str(exc) or "supports" in str(exc)
                 continue
             obs, info = env.reset(seed=0)
-            agent.observe_info(info)
             action, _ = agent.predict(obs, episode_start=np.array([True]))
             assert env.action_space.contains(action)
 
 
 def test_the_backdrop_is_read_at_each_episodes_first_frame_only():
-    env = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
+    env = gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False)
     agent = make("pf-cv", env, n_particles=50, seed=0)
     assert agent.observation_model.backdrop
     for seed in (0, 1):
         obs, info = env.reset(seed=seed)
-        agent.observe_info(info)
         agent.predict(obs, episode_start=np.array([True]))
         first = agent.likelihood.backdrop
         assert first is not None
+        seen = read_observation(obs)
         expected = agent.observation_model.read_backdrop(
-            obs, info["initial_pose"], info["shape"], info["camera"]
+            seen.frame, seen.initial_pose, seen.shape, seen.camera
         )
         np.testing.assert_array_equal(first.image, expected.image)
         np.testing.assert_array_equal(first.known, expected.known)
         for _ in range(3):  # later frames leave it as it was
             obs, _, _, _, info = env.step(agent.predict(obs)[0])
-            agent.observe_info(info)
         agent.predict(obs)
         assert agent.likelihood.backdrop is first
 
 
 def test_pf_follow_moves_the_body_and_holds_the_first_articulation():
-    env = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
+    env = gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False)
     base = env.unwrapped
     agent = make("pf-follow", env, n_particles=100, seed=0)
     obs, info = env.reset(seed=2)
-    first = np.asarray(info["initial_pose"])
-    agent.observe_info(info)
+    first = np.asarray(obs["initial_pose"])
     estimates = []
     start = np.array([True])
     for _ in range(6):
@@ -154,13 +154,12 @@ def test_pf_follow_moves_the_body_and_holds_the_first_articulation():
         start = np.array([False])
         estimates.append(base.action_to_pose(action, first))
         obs, _, _, _, info = env.step(action)
-        agent.observe_info(info)
     estimates = np.array(estimates)
     # float32 actions: the articulation within their rounding of the first pose's
     np.testing.assert_allclose(estimates[:, 6:], np.broadcast_to(first[6:], (6, 19)), atol=1e-3)
     assert np.ptp(estimates[:, :3], axis=0).max() > 1.0  # the root moves
     with pytest.raises(ValueError, match="supports"):
-        make("pf-follow", gym.make("humotion_gym/ArmTrack-v1"), n_particles=10)
+        make("pf-follow", gym.make("humotion_gym/ArmTrack-v2"), n_particles=10)
 
 
 def test_the_annealed_filters_settings_come_from_the_spec_the_task_and_the_caller(monkeypatch):
@@ -169,28 +168,28 @@ def test_the_annealed_filters_settings_come_from_the_spec_the_task_and_the_calle
     from baselines import agents
     from baselines.filtering import AnnealedParticleFilter, ParticleFilter
 
-    env = gym.make("humotion_gym/ArmTrack-v1")
+    env = gym.make("humotion_gym/ArmTrack-v2")
     # SideWalk's apf-cv keeps the paper's settings (none chosen for it there)
-    default = make("apf-cv", gym.make("humotion_gym/SideWalk-v1"), n_particles=10)
+    default = make("apf-cv", gym.make("humotion_gym/SideWalk-v2"), n_particles=10)
     assert isinstance(default.filter, AnnealedParticleFilter)
     assert (default.filter.layers, default.filter.alpha) == (10, 0.5)
     assert (default.filter.diffusion, default.filter.beta_max) == (1.0, np.inf)
     registered = make("apf-cv", env, n_particles=10)
-    chosen_in_file = load_settings()["apf-cv"].task_filter["ArmTrack-v1"]
+    chosen_in_file = load_settings()["apf-cv"].task_filter["ArmTrack-v2"]
     assert (registered.filter.alpha, registered.filter.diffusion) == (
         chosen_in_file["alpha"],
         chosen_in_file["diffusion"],
     )
     # A task's own settings override the spec's; the caller's override both.
     spec = dataclasses.replace(
-        AGENTS["apf-cv"], task_filter_settings={"ArmTrack-v1": {"alpha": 0.7, "diffusion": 0.3}}
+        AGENTS["apf-cv"], task_filter_settings={"ArmTrack-v2": {"alpha": 0.7, "diffusion": 0.3}}
     )
     monkeypatch.setitem(agents.AGENTS, "apf-test", spec)
     chosen = make("apf-test", env, n_particles=10)
     assert (chosen.filter.alpha, chosen.filter.diffusion, chosen.filter.layers) == (0.7, 0.3, 10)
     called = make("apf-test", env, n_particles=10, filter_settings={"layers": 3.0, "beta_max": 1})
     assert (called.filter.layers, called.filter.beta_max, called.filter.alpha) == (3, 1.0, 0.7)
-    body = make("apf-test", gym.make("humotion_gym/BodyTrack-v1"), n_particles=10)
+    body = make("apf-test", gym.make("humotion_gym/BodyTrack-v2"), n_particles=10)
     assert (body.filter.alpha, body.filter.diffusion) == (0.5, 1.0)  # ArmTrack's alone
     one = make("apf-test", env, n_particles=10, filter_settings={"layers": 1})
     assert type(one.filter) is ParticleFilter

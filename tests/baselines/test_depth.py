@@ -18,6 +18,7 @@ from baselines.depth import (
 )
 from baselines.leaderboard.evaluation import evaluate
 from humotion_gym.body import KEYPOINT_INDEX, forward_kinematics
+from humotion_gym.envs.description import read_observation
 
 
 class _Oracle:
@@ -26,22 +27,19 @@ class _Oracle:
     def __init__(self, env: gym.Env, shift: float = 0.0) -> None:
         self.base = env.unwrapped
         self.shift = shift
-        self.camera = None
-
-    def observe_info(self, info):
-        self.camera = info["camera"]
 
     def predict(self, obs, state=None, episode_start=None, deterministic=True):
         pose = self.base.true_pose()
         pelvis = forward_kinematics(pose, self.base.shape)[KEYPOINT_INDEX["pelvis"]]
-        ray = pelvis - self.camera.position
+        camera = read_observation(obs).camera
+        ray = pelvis - camera.position
         pose[:3] += self.shift * ray / np.linalg.norm(ray)
         return self.base.pose_to_action(pose), None
 
 
 @pytest.fixture(scope="module")
 def body_env():
-    return gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
+    return gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False)
 
 
 def test_split_along_ray_is_exact_and_adds_up():
@@ -99,7 +97,7 @@ def test_hold_never_travels_and_the_errors_are_the_loops(body_env):
 
 
 def test_a_given_root_has_no_travel_columns():
-    env = gym.make("humotion_gym/ArmTrack-v1", terminate_on_lost=False)
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
     _, ep = track_with_depth(make("hold", env), env, seed=0)
     assert ep.true_travel_mm == [] and ep.estimate_travel_mm == []
     out = summarize_depth([ep])
@@ -108,7 +106,7 @@ def test_a_given_root_has_no_travel_columns():
 
 
 def test_run_depth_gives_the_leaderboards_errors(body_env):
-    out = run_depth("BodyTrack-v1", ["pf-cv"], particles=20, episodes=2, seed=5, progress=False)
+    out = run_depth("BodyTrack-v2", ["pf-cv"], particles=20, episodes=2, seed=5, progress=False)
     rows = {r["agent"]: r for r in out["rows"]}
     assert list(rows) == ["hold", "pf-cv"]
     agent = make("pf-cv", body_env, n_particles=20, seed=5)
@@ -120,7 +118,7 @@ def test_run_depth_gives_the_leaderboards_errors(body_env):
 
 
 def test_cli_depth_prints_json(capsys):
-    code = main(["depth", "--task", "ArmTrack-v1", "--agents", "pf-cv", "--particles", "10",
+    code = main(["depth", "--task", "ArmTrack-v2", "--agents", "pf-cv", "--particles", "10",
                  "--episodes", "1", "--json"])  # fmt: skip
     assert code == 0
     out = json.loads(capsys.readouterr().out)
@@ -130,7 +128,7 @@ def test_cli_depth_prints_json(capsys):
 
 def test_cli_depth_on_the_validation_persons(capsys, tmp_path):
     path = tmp_path / "depth.json"
-    code = main(["depth", "--task", "BodyTrack-v1", "--agents", "hold", "--episodes", "1",
+    code = main(["depth", "--task", "BodyTrack-v2", "--agents", "hold", "--episodes", "1",
                  "--validation", "--out", str(path)])  # fmt: skip
     assert code == 0
     text = capsys.readouterr().out
@@ -139,10 +137,10 @@ def test_cli_depth_on_the_validation_persons(capsys, tmp_path):
 
 
 def test_real_bodytrack_hold_matches_the_published_table(shared_mocap):
-    out = run_depth("BodyTrack-v1", [], episodes=20, seed=0, progress=False,
+    out = run_depth("BodyTrack-v2", [], episodes=20, seed=0, progress=False,
                     env_kwargs={"data_dir": [str(shared_mocap)]})  # fmt: skip
     hold = out["rows"][0]
-    # the README's tables: hold 374 mm on BodyTrack-v1's test persons (seed 0, 20 episodes)
+    # the README's tables: hold 374 mm on BodyTrack-v2's test persons (seed 0, 20 episodes)
     assert hold["mean_error_mm"] == pytest.approx(373.7, abs=0.1)
     assert hold["followed"] == pytest.approx(0.0, abs=1e-9)
     assert hold["true_travel_mm"] < 0  # on average the test persons come nearer the camera

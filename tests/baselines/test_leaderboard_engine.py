@@ -25,7 +25,7 @@ from baselines.leaderboard.engine import run_cell_episode
 
 # A small leaderboard: hold, a seeded random agent and a particle filter on the
 # built-in synthetic data, 3 short episodes per cell.
-TASKS = ["BodyTrack-v1"]
+TASKS = ["BodyTrack-v2"]
 AGENTS = ["pf-cv", "random"]
 PARTICLES = [20]
 EPISODES = 3
@@ -54,9 +54,9 @@ def inprocess_rows() -> list[dict[str, Any]]:
 
 def test_the_small_leaderboard_runs_every_cell(inprocess_rows):
     assert [(r["task"], r["agent"], r["particles"]) for r in inprocess_rows] == [
-        ("BodyTrack-v1", "hold", 0),
-        ("BodyTrack-v1", "pf-cv", 20),
-        ("BodyTrack-v1", "random", 0),
+        ("BodyTrack-v2", "hold", 0),
+        ("BodyTrack-v2", "pf-cv", 20),
+        ("BodyTrack-v2", "random", 0),
     ]
     for row in inprocess_rows:
         assert [e["seed"] for e in row["episodes"]] == list(range(SEED, SEED + EPISODES))
@@ -105,7 +105,7 @@ def test_resume_runs_only_the_missing_episodes_and_ends_with_the_same_results(
     assert len(_lines(out)) == 2 * len(inprocess_rows)
     # an interruption mid-write leaves a cut line: it is dropped and its episode rerun
     with open(out / EPISODES_FILE, "ab") as fh:
-        fh.write(b'{"task": "BodyTrack-v1", "agent": "pf-cv", "partic')
+        fh.write(b'{"task": "BodyTrack-v2", "agent": "pf-cv", "partic')
     rows = _run(out=out, resume=True)
     records = _lines(out)
     assert len(records) == EPISODES * len(inprocess_rows)  # each missing episode ran once
@@ -125,12 +125,12 @@ def test_resume_runs_only_the_missing_episodes_and_ends_with_the_same_results(
 
 def test_a_results_folder_is_not_overwritten_nor_resumed_with_other_settings(tmp_path):
     out = tmp_path / "lb"
-    run_leaderboard(["BodyTrack-v1"], ["hold"], [1], episodes=1, progress=False, out=out)
+    run_leaderboard(["BodyTrack-v2"], ["hold"], [1], episodes=1, progress=False, out=out)
     with pytest.raises(FileExistsError, match="--resume"):
-        run_leaderboard(["BodyTrack-v1"], ["hold"], [1], episodes=1, progress=False, out=out)
+        run_leaderboard(["BodyTrack-v2"], ["hold"], [1], episodes=1, progress=False, out=out)
     with pytest.raises(ResumeError, match="seed"):
         run_leaderboard(
-            ["BodyTrack-v1"], ["hold"], [1], episodes=1, seed=1, progress=False, out=out,
+            ["BodyTrack-v2"], ["hold"], [1], episodes=1, seed=1, progress=False, out=out,
             resume=True,
         )  # fmt: skip
     with pytest.raises(FileNotFoundError, match="no run to resume"):
@@ -139,7 +139,7 @@ def test_a_results_folder_is_not_overwritten_nor_resumed_with_other_settings(tmp
 
 def _cli(tmp_path: Path, *agents: str) -> list[str]:
     return [
-        "leaderboard", "--tasks", "BodyTrack-v1", "--agents", *agents, "--particles", "10",
+        "leaderboard", "--tasks", "BodyTrack-v2", "--agents", *agents, "--particles", "10",
         "--episodes", "1", "--out", str(tmp_path / "lb"),
     ]  # fmt: skip
 
@@ -160,7 +160,7 @@ def test_an_agent_whose_prior_fails_to_fit_is_an_error_row_and_exit_1(
     assert main(_cli(tmp_path, "pf-broken", "pf-cv")) == 1
     captured = capsys.readouterr()
     assert "| pf-broken | 10 | ERROR: building it failed: ValueError" in captured.out
-    assert "error: pf-broken on BodyTrack-v1" in captured.err
+    assert "error: pf-broken on BodyTrack-v2" in captured.err
     rows = json.loads((tmp_path / "lb" / RESULTS_FILE).read_text())["rows"]
     assert {r["agent"]: ("error" in r) for r in rows} == {
         "hold": False, "pf-broken": True, "pf-cv": False,
@@ -196,7 +196,7 @@ def test_an_agent_that_raises_in_an_episode_is_an_error_row_and_exit_1(
     ],
 )
 def test_engine_flags_used_wrongly_are_usage_errors(extra, flag, capsys):
-    argv = ["leaderboard", "--tasks", "BodyTrack-v1", "--agents", "hold", "--episodes", "1"]
+    argv = ["leaderboard", "--tasks", "BodyTrack-v2", "--agents", "hold", "--episodes", "1"]
     assert main(argv + extra) == 2
     assert flag in capsys.readouterr().err
 
@@ -204,7 +204,7 @@ def test_engine_flags_used_wrongly_are_usage_errors(extra, flag, capsys):
 def test_the_ray_schedule_hands_out_every_episode_once_keeping_workers_on_their_cells():
     from baselines.leaderboard.engine import Cell, Episode, _Schedule
 
-    cells = [Cell("BodyTrack-v1", a, 10) for a in ("a", "b", "c")]
+    cells = [Cell("BodyTrack-v2", a, 10) for a in ("a", "b", "c")]
     episodes = [Episode(c, s) for c in cells for s in range(4)]
     schedule = _Schedule(episodes)
     given: dict[int, list[Episode]] = {0: [], 1: []}

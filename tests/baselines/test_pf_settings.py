@@ -28,45 +28,45 @@ def test_the_settings_are_those_chosen_on_the_validation_persons():
     # values recorded from `humotion-gym agents --task TASK` before the settings
     # moved from code to the file; the anchors and merge keys of the file apply
     cv = {"multiplier": 0.5, "damping": 0.3, "position_noise": 1.5}
-    assert AGENTS["pf-cv"].settings_for("BodyTrack-v1") == cv
-    assert AGENTS["pf-follow"].settings_for("BodyTrack-v1") == {
+    assert AGENTS["pf-cv"].settings_for("BodyTrack-v2") == cv
+    assert AGENTS["pf-follow"].settings_for("BodyTrack-v2") == {
         **cv,
         "moving": "root",
         "position_noise": 1.0,
     }
-    assert list(AGENTS["pf-follow"].settings_for("WalkTrack-v1")) == [*cv, "moving"]
-    assert AGENTS["pf-tree"].settings_for("WalkTrack-v1") == {
+    assert list(AGENTS["pf-follow"].settings_for("WalkTrack-v2")) == [*cv, "moving"]
+    assert AGENTS["pf-tree"].settings_for("WalkTrack-v2") == {
         "speed_spread": 1.0,
         "speed_drift": 0.1,
         "beta": 10.0,
         "noise_scale": 0.3,
     }
-    assert AGENTS["pf-tree-vel"].settings_for("SideWalk-v1") == {
+    assert AGENTS["pf-tree-vel"].settings_for("SideWalk-v2") == {
         "replay": "velocity",
         "beta": 0.03,
         "noise_scale": 0.3,
     }
     mix, apf_mix = AGENTS["pf-mix"], AGENTS["apf-mix"]
-    assert apf_mix.settings_for("SideWalk-v1") == mix.settings_for("SideWalk-v1")
+    assert apf_mix.settings_for("SideWalk-v2") == mix.settings_for("SideWalk-v2")
     assert apf_mix.components == mix.components
     assert dict(mix.components[2][1].fit_settings) == {
         "multiplier": 0.0,
         "damping": 0.0,
         "position_noise": 0.15,
     }
-    assert AGENTS["apf-mix"].filter_settings_for("WalkTrack-v1") == {
+    assert AGENTS["apf-mix"].filter_settings_for("WalkTrack-v2") == {
         "layers": 10,
         "alpha": 0.9,
         "diffusion": 0.1,
         "beta_max": math.inf,
     }
-    assert AGENTS["apf-cv"].filter_settings_for("SideWalk-v1")["alpha"] == 0.5  # none chosen
-    assert AGENTS["pf-cv-still"].settings_for("SideWalk-v1") == {
+    assert AGENTS["apf-cv"].filter_settings_for("SideWalk-v2")["alpha"] == 0.5  # none chosen
+    assert AGENTS["pf-cv-still"].settings_for("SideWalk-v2") == {
         "weight.still": 0.3,
         "still.position_noise": 0.02,
         "persistence": 0.99,
     }
-    assert AGENTS["pf-pca"].settings_for("WalkTrack-v1") == {"reversion": 1.0}
+    assert AGENTS["pf-pca"].settings_for("WalkTrack-v2") == {"reversion": 1.0}
 
 
 def _edited(tmp_path: Path, old: str, new: str) -> Path:
@@ -82,36 +82,36 @@ def _edited(tmp_path: Path, old: str, new: str) -> Path:
     [
         ("pf-tree-vel:\n", "pf-tree-fast:\n", "pf-tree-fast"),  # an agent that does not exist
         (
-            "    ArmTrack-v1:\n      beta: 10.0",
+            "    ArmTrack-v2:\n      beta: 10.0",
             "    ArmTrak-v1:\n      beta: 10.0",
             "pf-tree.task_fit.ArmTrak-v1",
         ),
         (
             "      beta: 10.0\n      noise_scale: 0.6",
             "      betta: 10.0\n      noise_scale: 0.6",
-            "pf-tree.task_fit.ArmTrack-v1.betta",
+            "pf-tree.task_fit.ArmTrack-v2.betta",
         ),
         ("    reversion: 1.0", "    reversal: 1.0", "pf-pca.fit.reversal"),
         (
             "      alpha: 0.7\n      diffusion: 1.0",
             "      alfa: 0.7\n      diffusion: 1.0",
-            "apf-cv.task_filter.ArmTrack-v1.alfa",
+            "apf-cv.task_filter.ArmTrack-v2.alfa",
         ),
         (
             "      alpha: 0.7\n      diffusion: 1.0",
             "      alpha: fast\n      diffusion: 1.0",
-            "apf-cv.task_filter.ArmTrack-v1.alpha",
+            "apf-cv.task_filter.ArmTrack-v2.alpha",
         ),
         (
-            "  task_fit:\n    BodyTrack-v1:\n      position_noise: 1.0",
-            "  task_fits:\n    BodyTrack-v1:\n      position_noise: 1.0",
+            "  task_fit:\n    BodyTrack-v2:\n      position_noise: 1.0",
+            "  task_fits:\n    BodyTrack-v2:\n      position_noise: 1.0",
             "pf-follow.task_fits",
         ),
         ("    tree: {}", "    forest: {}", "pf-mix.components.forest"),
         (
             "      weight.still: 0.7",
             "      weight.stil: 0.7",
-            "pf-cv-still.task_fit.ArmTrack-v1.weight.stil",
+            "pf-cv-still.task_fit.ArmTrack-v2.weight.stil",
         ),
     ],
 )
@@ -126,7 +126,7 @@ def test_a_wrong_name_in_the_file_is_refused_naming_the_file_and_the_key(tmp_pat
 
 def test_filter_settings_on_a_plain_filter_and_bad_files_are_refused(tmp_path):
     plain = tmp_path / "plain.yml"
-    plain.write_text("pf-cv:\n  task_filter:\n    ArmTrack-v1:\n      alpha: 0.7\n")
+    plain.write_text("pf-cv:\n  task_filter:\n    ArmTrack-v2:\n      alpha: 0.7\n")
     with pytest.raises(SettingsError, match="plain particle filter"):
         specs_from_file(plain)
     broken = tmp_path / "broken.yml"

@@ -1,7 +1,7 @@
 """The prior cache heals: every damaged, foreign or misplaced fit is reported once and refitted.
 
 Fits ``pf-cv`` (the constant-velocity prior, well under a second) on the
-synthetic ``SideWalk-v1`` environment.
+synthetic ``SideWalk-v2`` environment.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ SPEC = agents_mod.AgentSpec(AGENTS["pf-cv"].prior)
 
 @pytest.fixture(scope="module")
 def env() -> PoseTrackingEnv:
-    return gym.make("humotion_gym/SideWalk-v1").unwrapped  # type: ignore[return-value]
+    return gym.make("humotion_gym/SideWalk-v2").unwrapped  # type: ignore[return-value]
 
 
 @pytest.fixture(scope="module")

@@ -20,33 +20,31 @@ from humotion_gym.body import PARAM_INDEX
 
 
 def test_hold_answers_the_initial_pose_every_frame():
-    env = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
+    env = gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False)
     base = env.unwrapped
     agent = make("hold", env)
     obs, info = env.reset(seed=3)
-    expected = base.pose_to_action(info["initial_pose"])
+    expected = base.pose_to_action(obs["initial_pose"])
     for k in range(5):
-        agent.observe_info(info)
         action, _ = agent.predict(obs, episode_start=np.array([k == 0]))
         assert np.array_equal(action, expected)
         obs, *_, info = env.step(action)
     # a new episode holds its own initial pose
     obs, info = env.reset(seed=4)
-    agent.observe_info(info)
     action, _ = agent.predict(obs, episode_start=np.array([True]))
-    assert np.array_equal(action, base.pose_to_action(info["initial_pose"]))
+    assert np.array_equal(action, base.pose_to_action(obs["initial_pose"]))
 
 
 def test_hold_scores_what_the_motion_costs():
     """hold's error at each frame is the distance the scored keypoints moved."""
-    env = gym.make("humotion_gym/WalkTrack-v1", terminate_on_lost=False)
+    env = gym.make("humotion_gym/WalkTrack-v2", terminate_on_lost=False)
     result = run_episode(make("hold", env), env, seed=1)
     assert result.errors_mm[0] < result.errors_mm[-1]  # the walker walks away from it
     assert result.errors_mm[-1] > 300.0
 
 
 def test_random_agent_is_seeded_and_in_the_action_space():
-    env = gym.make("humotion_gym/ArmTrack-v1")
+    env = gym.make("humotion_gym/ArmTrack-v2")
     a, b = make("random", env, seed=2), make("random", env, seed=2)
     obs, info = env.reset(seed=0)
     for _ in range(3):
@@ -61,11 +59,11 @@ def test_agent_names_lists_references_first():
 
 
 def test_leaderboard_always_runs_hold_once_per_task_and_compares_to_it():
-    rows = run_leaderboard(["SideWalk-v1"], ["pf-cv"], [30, 60], episodes=2, progress=False)
+    rows = run_leaderboard(["SideWalk-v2"], ["pf-cv"], [30, 60], episodes=2, progress=False)
     agents = [(r["agent"], r["particles"]) for r in rows]
     assert agents == [("hold", 0), ("pf-cv", 30), ("pf-cv", 60)]
     table = markdown_table(rows)
-    assert "| SideWalk-v1 | hold | - |" in table and "x hold" in table
+    assert "| SideWalk-v2 | hold | - |" in table and "x hold" in table
     ratio, wins, paired = compare_to_hold(rows[1], rows[0])
     assert paired == 2 and 0 <= wins <= 2
     hold_mean = rows[0]["summary"]["mean_error_mm"]
@@ -78,7 +76,7 @@ def test_leaderboard_always_runs_hold_once_per_task_and_compares_to_it():
             assert len(episode["aligned_errors_mm"]) == len(episode["errors_mm"])
     assert f"| {rows[0]['summary']['aligned_error_mm']:.0f} | 1.00 |" in table
     (line,) = validity_lines(rows)
-    assert line.startswith("SideWalk-v1: best filter at 30 particles")
+    assert line.startswith("SideWalk-v2: best filter at 30 particles")
     check_verdict(line, ratio)
 
 
@@ -119,28 +117,30 @@ def test_the_verdict_check_fails_when_the_rule_is_inverted(monkeypatch, errors):
 
 def test_leaderboard_refuses_bad_counts():
     with pytest.raises(ValueError, match="episodes"):
-        run_leaderboard(["ArmTrack-v1"], ["hold"], [300], episodes=0, progress=False)
+        run_leaderboard(["ArmTrack-v2"], ["hold"], [300], episodes=0, progress=False)
     with pytest.raises(ValueError, match="particles"):
-        run_leaderboard(["ArmTrack-v1"], ["pf-cv"], [0], episodes=1, progress=False)
+        run_leaderboard(["ArmTrack-v2"], ["pf-cv"], [0], episodes=1, progress=False)
 
 
-def test_arm_episodes_move_the_arm():
-    """ArmTrack-v1 starts only where the elbow and wrist move 150 mm or more."""
-    env = gym.make("humotion_gym/ArmTrack-v1", terminate_on_lost=False)
+def test_arm_episodes_move_the_arm_in_v1_and_are_not_selected_in_v2():
+    """ArmTrack-v1 started only where the elbow and wrist moved 150 mm; v2 keeps every start."""
+    with pytest.warns(DeprecationWarning):
+        env = gym.make("humotion_gym/ArmTrack-v1", terminate_on_lost=False)
     base = env.unwrapped
     minimum = base.task.min_motion_mm
     assert minimum == 150.0
     for seed in range(6):
-        result = run_episode(make("hold", env), env, seed=seed)
-        motion = base.library[result.clip_id]
-        moved = base._episode_motion(motion)[result.start_frame]
+        env.reset(seed=seed)
+        moved = base._episode_motion(base._motion)[base._t0]
         assert moved >= minimum
     assert PARAM_INDEX["r_elbow"] in base.task.free_indices
+    v2 = gym.make("humotion_gym/ArmTrack-v2").unwrapped
+    assert v2.task.min_motion_mm == 0.0
 
 
 def _row(agent: str, particles: int, errors: list[float]) -> dict:
     return {
-        "task": "BodyTrack-v1", "agent": agent, "particles": particles,
+        "task": "BodyTrack-v2", "agent": agent, "particles": particles,
         "summary": {"mean_error_mm": float(np.mean(errors))},
         "episodes": [{"seed": k, "mean_error_mm": e} for k, e in enumerate(errors)],
     }  # fmt: skip
@@ -153,9 +153,9 @@ def test_validity_compares_the_best_prior_with_pf_follow_where_it_ran():
     mix = _row("pf-mix", 300, [180.0, 180.0, 180.0])
     many = _row("pf-tree", 3000, [10.0, 10.0, 10.0])  # only the fewest particles count
     verdict, against = validity_lines([hold, follow, tree, mix, many])
-    assert verdict.startswith("BodyTrack-v1: best filter at 300 particles is pf-tree")
+    assert verdict.startswith("BodyTrack-v2: best filter at 300 particles is pf-tree")
     assert against == (
-        f"BodyTrack-v1: against {FOLLOW} (the body followed, its first articulation held), "
+        f"BodyTrack-v2: against {FOLLOW} (the body followed, its first articulation held), "
         "the best other filter at 300 particles is pf-tree, 1.20x better in mean error "
         "(167 vs 200 mm), better in 2/3 paired episodes"
     )
@@ -163,7 +163,7 @@ def test_validity_compares_the_best_prior_with_pf_follow_where_it_ran():
     worse = _row("pf-tree", 300, [300.0, 300.0, 300.0])
     verdict, against = validity_lines([hold, follow, worse])
     assert "best filter at 300 particles is pf-follow" in verdict
-    assert against.startswith(f"BodyTrack-v1: no other filter at 300 particles beats {FOLLOW}")
+    assert against.startswith(f"BodyTrack-v2: no other filter at 300 particles beats {FOLLOW}")
     assert against.endswith(": the best, pf-tree, 300 vs 200 mm, better in 0/3 paired episodes")
     # Without pf-follow (or with it alone) only the hold verdict.
     assert len(validity_lines([hold, tree])) == 1

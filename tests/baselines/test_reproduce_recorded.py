@@ -2,7 +2,7 @@
 
 ``results/ci_small`` was written by (about 8 s on one core)::
 
-    humotion-gym leaderboard --tasks ArmTrack-v1 SideWalk-v1 --agents hold pf-cv pf-tree \\
+    humotion-gym leaderboard --tasks ArmTrack-v2 SideWalk-v2 --agents hold pf-cv pf-tree \\
         --particles 100 --episodes 8 --seed 0 --out results/ci_small --no-report
 
 on the built-in synthetic motion, then compacted
@@ -24,7 +24,7 @@ compares (docs/leaderboard.md, "The recorded CI table"):
   errors spread by 2.2-3.7% (relative standard deviation), the largest
   distance between two seeds' means was 10%, and from the recorded seed's 9.8%.
   20% is twice the largest distance seen and 3.8 standard deviations of the
-  difference of two paths on the widest cell (SideWalk-v1 pf-cv).
+  difference of two paths on the widest cell (SideWalk-v2 pf-cv).
 """
 
 from __future__ import annotations
@@ -132,10 +132,10 @@ def test_the_comparison_fails_on_perturbed_records():
     rows = _recorded()["rows"]
     assert reproduction_problems(rows, rows) == []
     for factor in (1.3, 0.7):
-        (line,) = reproduction_problems(rows, _scaled(rows, "pf-tree", "SideWalk-v1", factor))
-        assert line.startswith("('SideWalk-v1', 'pf-tree', 100): mean error")
-    (line,) = reproduction_problems(rows, _scaled(rows, FLOOR, "ArmTrack-v1", 1 + 1e-5))
-    assert line.startswith("('ArmTrack-v1', 'hold', 0) episode 0:")
+        (line,) = reproduction_problems(rows, _scaled(rows, "pf-tree", "SideWalk-v2", factor))
+        assert line.startswith("('SideWalk-v2', 'pf-tree', 100): mean error")
+    (line,) = reproduction_problems(rows, _scaled(rows, FLOOR, "ArmTrack-v2", 1 + 1e-5))
+    assert line.startswith("('ArmTrack-v2', 'hold', 0) episode 0:")
     assert reproduction_problems(rows, rows[1:])[0].startswith("cells differ")
 
 

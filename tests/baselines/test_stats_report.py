@@ -132,7 +132,7 @@ def _episode(seed: int, errors: np.ndarray, threshold: float = 150.0) -> dict[st
     ).to_dict()  # fmt: skip
 
 
-def _rows(scale: dict[str, float], tasks=("ArmTrack-v1", "BodyTrack-v1"), n=6) -> list[dict]:
+def _rows(scale: dict[str, float], tasks=("ArmTrack-v2", "BodyTrack-v2"), n=6) -> list[dict]:
     """Rows whose agents' errors are exactly ``scale`` times hold's, episode by episode."""
     rng = np.random.default_rng(11)
     rows = []
@@ -180,16 +180,16 @@ def test_the_pelvis_aligned_error_is_summarised_where_every_episode_has_it():
 
 def test_normalised_scores_aggregate_and_pairwise_on_known_rows():
     rows = _rows({"pf-cv": 0.5, "pf-tree": 0.25})
-    rows.append({"task": "ArmTrack-v1", "agent": "pf-pca", "particles": 100, "skipped": "no"})
-    rows.append({"task": "ArmTrack-v1", "agent": "pf-x", "particles": 100, "error": "boom"})
+    rows.append({"task": "ArmTrack-v2", "agent": "pf-pca", "particles": 100, "skipped": "no"})
+    rows.append({"task": "ArmTrack-v2", "agent": "pf-x", "particles": 100, "error": "boom"})
     scores = stats.normalised_scores(rows)
     assert set(scores) == {"hold", "pf-cv@100", "pf-tree@100"}
-    np.testing.assert_allclose(scores["pf-cv@100"]["BodyTrack-v1"], 0.5)
+    np.testing.assert_allclose(scores["pf-cv@100"]["BodyTrack-v2"], 0.5)
     agg = {a["cell"]: a for a in stats.aggregate(rows)}
     assert agg["pf-tree@100"]["iqm_score"] == pytest.approx(0.25)
     assert agg["pf-tree@100"]["iqm_score_ci"] == pytest.approx([0.25, 0.25])
     assert agg["hold"]["beats_reference"] == 0.5
-    assert agg["pf-cv@100"]["tasks"] == ["ArmTrack-v1", "BodyTrack-v1"]
+    assert agg["pf-cv@100"]["tasks"] == ["ArmTrack-v2", "BodyTrack-v2"]
     pairs = {(p["x"], p["y"]): p for p in stats.pairwise_improvement(rows)}
     # P(beats hold) is the pairwise probability against hold (random episodes, unpaired)
     for cell in ("pf-cv@100", "pf-tree@100"):
@@ -247,7 +247,7 @@ def _check_page(index: Path) -> _Links:
 
 def test_report_writes_tables_figures_and_a_page_whose_links_exist(tmp_path):
     rows = _rows({"pf-cv": 0.5, "random": 3.0})
-    rows.append({"task": "ArmTrack-v1", "agent": "pf-x", "particles": 100, "error": "fit failed"})
+    rows.append({"task": "ArmTrack-v2", "agent": "pf-x", "particles": 100, "error": "fit failed"})
     index = write_report(rows, tmp_path / "rep", videos=False, progress=False)
     assert index == tmp_path / "rep" / "index.html"
     page = _check_page(index)
@@ -305,7 +305,7 @@ def small_run(tmp_path_factory):
     from baselines.leaderboard import run_leaderboard, save
 
     settings = {"episode_frames": 6, "width": 64, "height": 64}
-    rows = run_leaderboard(["ArmTrack-v1"], ["pf-cv"], [20], 3, 5, settings, progress=False)
+    rows = run_leaderboard(["ArmTrack-v2"], ["pf-cv"], [20], 3, 5, settings, progress=False)
     path = tmp_path_factory.mktemp("run") / "results.json"
     save(rows, path)
     return rows, settings, path
@@ -453,12 +453,12 @@ def test_a_one_episode_cell_prints_no_interval():
     from baselines.leaderboard.report import statistics_table
     from baselines.leaderboard.tables import markdown_table
 
-    one = _rows({"pf-cv": 0.5}, tasks=("ArmTrack-v1",), n=1)
+    one = _rows({"pf-cv": 0.5}, tasks=("ArmTrack-v2",), n=1)
     mean = one[1]["summary"]["mean_error_mm"]
     line = markdown_table(one).splitlines()[3]
     assert f"| {mean:.0f} |" in line and "(" not in line
     assert statistics_table(one)[2][4] == f"{mean:,.0f}"
-    two = _rows({"pf-cv": 0.5}, tasks=("ArmTrack-v1",), n=2)
+    two = _rows({"pf-cv": 0.5}, tasks=("ArmTrack-v2",), n=2)
     lo, hi = two[1]["summary"]["mean_error_ci"]
     assert f"({lo:.0f}-{hi:.0f})" in markdown_table(two)  # mutation: more episodes keep it
 
@@ -468,23 +468,23 @@ def test_a_verdict_reads_as_what_the_ratio_is():
 
     assert ratio_text(2.1) == "2.10x better than hold"
     assert ratio_text(0.7) == "0.70x hold: worse than hold"
-    worse = validity_lines(_rows({"pf-cv": 1 / 0.7}, tasks=("ArmTrack-v1",)))
+    worse = validity_lines(_rows({"pf-cv": 1 / 0.7}, tasks=("ArmTrack-v2",)))
     assert "0.70x hold: worse than hold in mean error" in worse[0]
     assert "better than hold" not in worse[0] and "NOT valid" in worse[0]
-    better = validity_lines(_rows({"pf-cv": 0.4}, tasks=("ArmTrack-v1",)))
+    better = validity_lines(_rows({"pf-cv": 0.4}, tasks=("ArmTrack-v2",)))
     assert "2.50x better than hold in mean error" in better[0] and better[0].endswith("valid")
 
 
 def test_the_page_opens_with_what_made_the_numbers_and_each_verdict(tmp_path):
     run = {
-        "command": "humotion-gym leaderboard --tasks ArmTrack-v1", "commit": "abc123",
+        "command": "humotion-gym leaderboard --tasks ArmTrack-v2", "commit": "abc123",
         "package_version": "0.1.0", "data": ["/data/mocap"], "created": "2026-12-01T22:00:00+00:00",
     }  # fmt: skip
     page = write_report(_rows({"pf-cv": 0.5}), tmp_path / "a", progress=False, run=run)
     text = page.read_text()
-    for shown in ("humotion-gym leaderboard --tasks ArmTrack-v1", "commit abc123, package 0.1.0",
+    for shown in ("humotion-gym leaderboard --tasks ArmTrack-v2", "commit abc123, package 0.1.0",
                   "/data/mocap", "2026-12-01T22:00:00+00:00", "Verdicts",
-                  "ArmTrack-v1: best filter at 100 particles is pf-cv, 2.00x better than hold"):  # fmt: skip
+                  "ArmTrack-v2: best filter at 100 particles is pf-cv, 2.00x better than hold"):  # fmt: skip
         assert shown in text
     _check_page(page)
     bare = write_report(_rows({"pf-cv": 0.5}), tmp_path / "b", progress=False).read_text()

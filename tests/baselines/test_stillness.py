@@ -12,7 +12,7 @@ from baselines.stillness import STILL_RATIO, markdown_table, run_still, still_wi
 
 @pytest.fixture(scope="module")
 def env():
-    return gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
+    return gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False)
 
 
 def test_still_windows_are_what_hold_scores_lowest_and_never_overlap(env):
@@ -40,7 +40,7 @@ def test_still_windows_refuse_bad_arguments(env):
 
 def test_run_still_compares_every_agent_to_hold(env):
     windows = still_windows(env, max_hold_mm=200.0, count=2, stride=20)
-    out = run_still("BodyTrack-v1", ["pf-cv"], particles=20, windows=windows, progress=False)
+    out = run_still("BodyTrack-v2", ["pf-cv"], particles=20, windows=windows, progress=False)
     rows = {r["agent"]: r for r in out["rows"]}
     assert list(rows) == ["hold", "pf-cv"]
     assert rows["hold"]["x_hold"] == 1.0 and rows["hold"]["within"]
@@ -50,7 +50,7 @@ def test_run_still_compares_every_agent_to_hold(env):
     assert [e["clip_id"] for e in rows["pf-cv"]["episodes"]] == [w.clip_id for w in windows]
     assert "| pf-cv | 20 |" in markdown_table(out)
     with pytest.raises(ValueError, match="raise max_hold_mm"):
-        run_still("BodyTrack-v1", ["pf-cv"], windows=[], progress=False)
+        run_still("BodyTrack-v2", ["pf-cv"], windows=[], progress=False)
 
 
 def test_mixture_agent_is_seeded_and_checks_its_settings(env, tmp_path, monkeypatch):
@@ -88,11 +88,9 @@ def test_cv_still_keeps_its_regimes_and_checks_its_persistence(env, tmp_path, mo
     cv, still = fitted.fitted
     assert still.multiplier == 0.0 and cv.damping == AGENTS["pf-cv"].fit_settings["damping"]
     obs, info = env.reset(seed=0)
-    agent.observe_info(info)
     agent.predict(obs, episode_start=np.array([True]))
     for _ in range(3):
         obs, *_, info = env.step(agent.predict(obs)[0])
-        agent.observe_info(info)
     labels = agent.filter.state.extra[mixture.COMPONENT]
     assert labels.shape == (40,) and set(np.unique(labels)) <= {0, 1}
     with pytest.raises(ValueError, match="persistence must be in"):
@@ -109,7 +107,7 @@ def test_selection_with_still_episodes_follows_the_declared_rule(tmp_path, monke
     fold = validation_library(None)
     grid = {"fit.position_noise": [0.05, 3.0]}
     out = select_observation_settings(
-        "BodyTrack-v1", "pf-cv", grid, fold, particles=20, episodes=1, still=2,
+        "BodyTrack-v2", "pf-cv", grid, fold, particles=20, episodes=1, still=2,
         still_max_hold_mm=300.0,
     )  # fmt: skip
     assert out["still_episodes"] == 2 and out["still_hold_mm"] > 0

@@ -32,7 +32,7 @@ def test_setting_kwargs_maps_names_to_environment_keywords():
 def small_sweep():
     grid = {"noise": [0.0, 12.0], "occluders": [0, 3]}
     return sweep.run_sweep(
-        ["ArmTrack-v1"], ["pf-cv"], [10], grid, episodes=2, seed=3, env_kwargs=BASE,
+        ["ArmTrack-v2"], ["pf-cv"], [10], grid, episodes=2, seed=3, env_kwargs=BASE,
         progress=False,
     )  # fmt: skip
 
@@ -46,7 +46,7 @@ def test_each_point_is_the_leaderboard_at_that_setting(small_sweep):
     assert [(p["setting"], p["value"]) for p in points] == [
         ("noise", 0.0), ("noise", 12.0), ("occluders", 0), ("occluders", 3),
     ]  # fmt: skip
-    direct = run_leaderboard(["ArmTrack-v1"], ["pf-cv"], [10], 2, 3, {**BASE, "noise": 12.0})
+    direct = run_leaderboard(["ArmTrack-v2"], ["pf-cv"], [10], 2, 3, {**BASE, "noise": 12.0})
     assert _errors(points[1]["rows"], "pf-cv") == _errors(direct, "pf-cv")
     # the setting reaches the frames: the filter sees other pixels at another noise level
     assert _errors(points[0]["rows"], "pf-cv") != _errors(points[1]["rows"], "pf-cv")
@@ -88,7 +88,7 @@ def test_curves_table_and_figure(small_sweep, tmp_path):
     with pytest.raises(ValueError, match="bad.json"):
         sweep.load(tmp_path / "bad.json")
     with pytest.raises(ValueError, match="grid"):
-        sweep.run_sweep(["ArmTrack-v1"], ["pf-cv"], [10], {})
+        sweep.run_sweep(["ArmTrack-v2"], ["pf-cv"], [10], {})
 
 
 def test_sweep_command(tmp_path, capsys, monkeypatch):
@@ -101,7 +101,7 @@ def test_sweep_command(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr("baselines.sweep.run_leaderboard", fake_leaderboard)
     out = tmp_path / "sw"
     code = main(
-        ["sweep", "--tasks", "ArmTrack-v1", "--agents", "hold", "--episodes", "1",
+        ["sweep", "--tasks", "ArmTrack-v2", "--agents", "hold", "--episodes", "1",
          "--size", "64", "80", "--out", str(out), "--figure", str(tmp_path / "fig.png")]
     )  # fmt: skip
     assert code == 0
@@ -109,10 +109,10 @@ def test_sweep_command(tmp_path, capsys, monkeypatch):
     assert {p.name for p in out.iterdir()} == {"sweep.json", "sweep.md", "sweep.png"}
     assert (tmp_path / "fig.png").is_file()
     assert "| size | 64 |" in capsys.readouterr().out
-    assert main(["sweep", "--tasks", "ArmTrack-v1", "--out", str(out)]) == 2  # nothing to sweep
+    assert main(["sweep", "--tasks", "ArmTrack-v2", "--out", str(out)]) == 2  # nothing to sweep
     # the engine options reach the leaderboard (this fake runs it in-process)
     seen.clear()
-    argv = ["sweep", "--tasks", "ArmTrack-v1", "--agents", "hold", "--episodes", "1"]
+    argv = ["sweep", "--tasks", "ArmTrack-v2", "--agents", "hold", "--episodes", "1"]
     assert (
         main([*argv, "--noise", "2", "--engine", "ray", "--workers", "2", "--out", str(out)]) == 0
     )

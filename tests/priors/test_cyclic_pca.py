@@ -308,9 +308,9 @@ def test_synthesis(fitted):
 
 
 def test_check_task_refuses_non_walking_tasks():
-    cyclic_pca.check_task("WalkTrack-v1")
-    cyclic_pca.check_task("humotion_gym/SideWalk-v1")
-    for task in ("ArmTrack-v1", "humotion_gym/BodyTrack-v1", "Nope-v0"):
+    cyclic_pca.check_task("WalkTrack-v2")
+    cyclic_pca.check_task("humotion_gym/SideWalk-v2")
+    for task in ("ArmTrack-v2", "humotion_gym/BodyTrack-v2", "Nope-v0"):
         with pytest.raises(ValueError, match="cyclic walking only"):
             cyclic_pca.check_task(task)
 

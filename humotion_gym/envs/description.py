@@ -1,0 +1,242 @@
+"""What an agent is given: the observation's parts, the task's description, the action's map.
+
+An agent of a version-2 task uses its observation and nothing else. The
+observation is a ``Dict`` (:func:`observation_space`) holding every input
+the benchmark gives:
+
+| key | space | what it is |
+|---|---|---|
+| ``frame`` | ``Box(0, 255, (H, W, C), uint8)`` | the rendered frame |
+| ``initial_pose`` | ``Box(-inf, inf, (25,), float64)`` | the true pose of the frame before the first one shown (the papers set frame 0 by hand) |
+| ``fixed_params`` | ``Box(-inf, inf, (n_fixed,), float64)`` | the true values of the parameters the task does not track, for the frame on show (``task.fixed_indices`` order) |
+| ``camera`` | ``Box(-inf, inf, (13,), float64)`` | the frame's camera (:meth:`~humotion_gym.camera.Camera.to_vector`) |
+| ``shape`` | ``Box(-inf, inf, (43,), float64)`` | the subject's shape (:meth:`~humotion_gym.body.BodyShape.to_vector`) |
+
+:func:`read_observation` turns one into typed parts. A
+:class:`TaskDescription` is what an agent is built from: the task, how its
+frames look, its rate, its spaces and the clips a prior may learn from (the
+training persons only). The action's map (:func:`pose_to_action`,
+:func:`action_to_pose`) is a function of the task and the episode's initial
+pose, both of which the agent is given: the environment uses the same
+functions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+
+from humotion_gym.body import (
+    ANGLE_MASK,
+    N_PARAMS,
+    PARAM_LOWER,
+    PARAM_UPPER,
+    SHAPE_VECTOR_SIZE,
+    BodyShape,
+)
+from humotion_gym.camera import CAMERA_VECTOR_SIZE, Camera
+from humotion_gym.envs.tasks import TaskSpec
+from humotion_gym.mocap.library import MotionLibrary
+from humotion_gym.render import SceneOptions
+
+FloatArray = NDArray[np.float64]
+
+#: The keys of a version-2 observation, in order.
+OBSERVATION_KEYS: tuple[str, ...] = ("frame", "initial_pose", "fixed_params", "camera", "shape")
+
+
+def _vector(n: int) -> spaces.Box:
+    return spaces.Box(-np.inf, np.inf, shape=(n,), dtype=np.float64)
+
+
+def frame_space(scene: SceneOptions) -> spaces.Box:
+    """The frame's space: ``(height, width, channels)`` uint8."""
+    channels = 3 if scene.color == "rgb" else 1
+    return spaces.Box(0, 255, shape=(scene.height, scene.width, channels), dtype=np.uint8)
+
+
+def observation_space(task: TaskSpec, scene: SceneOptions) -> spaces.Dict:
+    """A version-2 task's observation space (the table of the module docstring)."""
+    return spaces.Dict(
+        {
+            "frame": frame_space(scene),
+            "initial_pose": _vector(N_PARAMS),
+            "fixed_params": _vector(len(task.fixed_indices)),
+            "camera": _vector(CAMERA_VECTOR_SIZE),
+            "shape": _vector(SHAPE_VECTOR_SIZE),
+        }
+    )
+
+
+@dataclass(frozen=True)
+class Given:
+    """One observation, typed.
+
+    Attributes:
+        frame: ``(H, W, C)`` uint8.
+        initial_pose: ``(25,)`` the episode's initial pose.
+        fixed_params: ``(n_fixed,)`` the given parameters of the frame on show.
+        camera: The frame's camera.
+        shape: The subject's shape.
+    """
+
+    frame: NDArray[np.uint8]
+    initial_pose: FloatArray
+    fixed_params: FloatArray
+    camera: Camera
+    shape: BodyShape
+
+
+def read_observation(observation: Any) -> Given:
+    """The typed parts of a version-2 observation.
+
+    Raises:
+        ValueError: If ``observation`` is not a dict with the keys of
+            :data:`OBSERVATION_KEYS` (a version-1 frame, say).
+    """
+    if not isinstance(observation, dict) or set(observation) != set(OBSERVATION_KEYS):
+        got = sorted(observation) if isinstance(observation, dict) else type(observation).__name__
+        raise ValueError(
+            f"observation: expected a dict with keys {list(OBSERVATION_KEYS)} "
+            f"(a version-2 task's), got {got}"
+        )
+    frame = np.asarray(observation["frame"])
+    if frame.ndim != 3:
+        raise ValueError(f"observation['frame']: expected (H, W, C), got shape {frame.shape}")
+    h, w = frame.shape[:2]
+    return Given(
+        frame=frame,
+        initial_pose=np.asarray(observation["initial_pose"], dtype=np.float64),
+        fixed_params=np.asarray(observation["fixed_params"], dtype=np.float64),
+        camera=Camera.from_vector(observation["camera"], w, h),
+        shape=BodyShape.from_vector(observation["shape"]),
+    )
+
+
+def _wrap(angles: FloatArray) -> FloatArray:
+    return (angles + np.pi) % (2 * np.pi) - np.pi
+
+
+def action_bounds(task: TaskSpec, initial_pose: FloatArray | None) -> tuple[FloatArray, FloatArray]:
+    """The free parameters' ranges that the action's [-1, 1] maps onto.
+
+    Joint angles use ``body.PARAM_LOWER``/``PARAM_UPPER``; a free root
+    position uses the episode's initial root position plus or minus
+    ``task.root_range_mm`` (without an initial pose: the body's own bounds).
+
+    Returns:
+        ``(lower, upper)``, each ``(n_free,)``.
+    """
+    lo, hi = PARAM_LOWER.copy(), PARAM_UPPER.copy()
+    if initial_pose is not None:
+        root0 = np.asarray(initial_pose, dtype=np.float64)[:3]
+        lo[:3] = root0 - task.root_range_mm
+        hi[:3] = root0 + task.root_range_mm
+    free = task.free_indices
+    return lo[free], hi[free]
+
+
+def pose_to_action(
+    task: TaskSpec, pose: FloatArray, initial_pose: FloatArray | None = None,
+    bounds: tuple[FloatArray, FloatArray] | None = None,
+) -> NDArray[np.float32]:  # fmt: skip
+    """Normalise poses' free parameters to the action range [-1, 1].
+
+    Angles are first wrapped to [-pi, pi) (every angle is periodic in the
+    forward kinematics), then each free parameter is mapped linearly from its
+    range (:func:`action_bounds`) to [-1, 1] and clipped.
+
+    Args:
+        task: The task.
+        pose: ``(..., 25)`` full poses.
+        initial_pose: The episode's initial pose (sets a free root's range).
+        bounds: :func:`action_bounds` already computed (else computed here).
+
+    Returns:
+        ``(..., n_free)`` float32 actions.
+    """
+    p = np.array(pose, dtype=np.float64)
+    p[..., ANGLE_MASK] = _wrap(p[..., ANGLE_MASK])
+    lo, hi = action_bounds(task, initial_pose) if bounds is None else bounds
+    a = 2.0 * (p[..., task.free_indices] - lo) / (hi - lo) - 1.0
+    return np.clip(a, -1.0, 1.0).astype(np.float32)
+
+
+def action_to_pose(
+    task: TaskSpec, action: NDArray[Any], base: FloatArray,
+    initial_pose: FloatArray | None = None, bounds: tuple[FloatArray, FloatArray] | None = None,
+) -> FloatArray:  # fmt: skip
+    """The full poses actions stand for.
+
+    Args:
+        task: The task.
+        action: ``(..., n_free)`` values in [-1, 1] (clipped).
+        base: ``(25,)`` pose whose other parameters fill the rest (for an
+            agent: the initial pose with the frame's ``fixed_params`` put in).
+        initial_pose: The episode's initial pose (sets a free root's range).
+        bounds: :func:`action_bounds` already computed (else computed here).
+
+    Returns:
+        ``(..., 25)`` poses.
+    """
+    # np.clip's Python wrapper costs more than the two ufuncs (same values)
+    a = np.maximum(np.minimum(np.asarray(action, dtype=np.float64), 1.0), -1.0)
+    lo, hi = action_bounds(task, initial_pose) if bounds is None else bounds
+    b = np.asarray(base, dtype=np.float64)
+    pose = b.copy() if a.ndim == 1 else np.broadcast_to(b, a.shape[:-1] + (b.shape[-1],)).copy()
+    pose[..., task.free_indices] = lo + (a + 1.0) * 0.5 * (hi - lo)
+    return pose
+
+
+@dataclass(frozen=True, eq=False)
+class TaskDescription:
+    """What an agent is built from: everything about a task but its episodes' truth.
+
+    Attributes:
+        task: The task spec (free parameters, scored keypoints, camera rules,
+            likelihood settings).
+        scene: How the frames look (size, colours, clutter, noise).
+        frame_skip: Clip frames per step.
+        fps: Steps per second of the episodes shown.
+        training: The clips a prior may learn from: the training persons with
+            the task's labels (all training clips where none has them). Never
+            a test person; never a validation person when the environment
+            draws validation episodes.
+        observation_space: The environment's observation space.
+        action_space: The environment's action space.
+        split: Which persons the environment's episodes come from.
+    """
+
+    task: TaskSpec
+    scene: SceneOptions
+    frame_skip: int
+    fps: float
+    training: MotionLibrary
+    observation_space: spaces.Space[Any]
+    action_space: spaces.Box
+    split: str
+
+    @property
+    def name(self) -> str:
+        """The task's id (``"ArmTrack-v2"``)."""
+        return self.task.name
+
+    def base_pose(self, given: Given) -> FloatArray:
+        """``(25,)`` the initial pose with the frame's given parameters put in."""
+        base = given.initial_pose.copy()
+        base[self.task.fixed_indices] = given.fixed_params
+        return base
+
+    def pose_to_action(self, pose: FloatArray, initial_pose: FloatArray) -> NDArray[np.float32]:
+        """:func:`pose_to_action` for this task."""
+        return pose_to_action(self.task, pose, initial_pose)
+
+    def action_to_pose(
+        self, action: NDArray[Any], base: FloatArray, initial_pose: FloatArray
+    ) -> FloatArray:
+        """:func:`action_to_pose` for this task."""
+        return action_to_pose(self.task, action, base, initial_pose)
