@@ -49,7 +49,7 @@ def _frame_and_initial(
     return observation, None if initial is None else np.asarray(initial, dtype=np.float64)
 
 
-class FrameObservation(gym.ObservationWrapper):
+class FrameObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
     """The frame alone, for pixel-only learners: ``Box(0, 255, (H, W, C), uint8)``.
 
     A version-2 task's observation also holds the initial pose, the given
@@ -65,6 +65,7 @@ class FrameObservation(gym.ObservationWrapper):
     """
 
     def __init__(self, env: gym.Env) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self)
         super().__init__(env)
         space = env.observation_space
         if not isinstance(space, spaces.Dict) or "frame" not in space.spaces:

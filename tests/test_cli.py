@@ -55,7 +55,13 @@ def test_help_exits_0(capsys):
 def test_tasks_and_agents_list_what_exists(capsys):
     assert main(["tasks", "--json"]) == 0
     rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
-    assert [r["id"] for r in rows] == list(humotion_gym.ENV_IDS)
+    ids = [r["id"] for r in rows]
+    # the current tasks first, then the deprecated -v1 ids, still registered
+    from humotion_gym.envs.tasks import DEPRECATED_TASKS
+
+    current = list(humotion_gym.ENV_IDS)
+    assert ids[: len(current)] == current
+    assert ids[len(current) :] == [f"humotion_gym/{t.name}" for t in DEPRECATED_TASKS]
     assert main(["agents", "--json"]) == 0
     names = {json.loads(line)["agent"] for line in capsys.readouterr().out.splitlines()}
     assert {"hold", "random", "pf-cv", "pf-tree"} <= names
@@ -64,21 +70,21 @@ def test_tasks_and_agents_list_what_exists(capsys):
 def test_agents_show_each_filters_settings_on_a_task(capsys):
     from baselines.agents import AGENTS
 
-    assert main(["agents", "--task", "humotion_gym/BodyTrack-v1", "--json"]) == 0
+    assert main(["agents", "--task", "humotion_gym/BodyTrack-v2", "--json"]) == 0
     rows = {r["agent"]: r for r in map(json.loads, capsys.readouterr().out.splitlines())}
     apf = rows["apf-tree"]["settings"]
-    assert apf["task"] == "BodyTrack-v1"
-    expected = AGENTS["apf-tree"].filter_settings_for("BodyTrack-v1")
+    assert apf["task"] == "BodyTrack-v2"
+    expected = AGENTS["apf-tree"].filter_settings_for("BodyTrack-v2")
     assert apf["filter"] == {**expected, "beta_max": None}  # no cap: JSON null
     assert rows["pf-tree-vel"]["settings"]["fit"] == AGENTS["pf-tree-vel"].settings_for(
-        "BodyTrack-v1"
+        "BodyTrack-v2"
     )
     assert rows["pf-cv"]["settings"]["filter"] == {"layers": 1}
     assert "settings" not in rows["pf-slds"]  # not a BodyTrack agent
     assert "settings" not in rows["hold"]
-    assert main(["agents", "--task", "ArmTrack-v1"]) == 0
+    assert main(["agents", "--task", "ArmTrack-v2"]) == 0
     out = capsys.readouterr().out
-    assert "on ArmTrack-v1: fit" in out and "filter layers=10, alpha=" in out
+    assert "on ArmTrack-v2: fit" in out and "filter layers=10, alpha=" in out
     assert main(["agents", "--task", "NoTask-v1"]) == 2
 
 
@@ -104,7 +110,7 @@ def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
 
 def test_discrimination_writes_its_figure(tmp_path, capsys):
     out = tmp_path / "panels.png"
-    argv = ["discrimination", "--task", "ArmTrack-v1", "--episodes", "1", "--figure", str(out)]
+    argv = ["discrimination", "--task", "ArmTrack-v2", "--episodes", "1", "--figure", str(out)]
     assert main(argv) == 0
     assert f"wrote {out}" in capsys.readouterr().out
     import cv2

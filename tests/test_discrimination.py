@@ -14,7 +14,7 @@ from baselines.experiments.discrimination import (
 
 
 def test_the_truth_scores_higher_the_further_off_a_pose_is():
-    env = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
+    env = gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False)
     out = likelihood_discrimination(env, episodes=2, perturbations=300, frame_stride=10)
     gaps = [b["mean_gap_nats"] for b in out["bins"]]
     assert all(b["pairs"] > 0 for b in out["bins"]) and out["frames"] == 6
@@ -25,7 +25,7 @@ def test_the_truth_scores_higher_the_further_off_a_pose_is():
 
 
 def test_peak_error_is_measured_from_candidates_around_the_truth():
-    env = gym.make("humotion_gym/ArmTrack-v1", terminate_on_lost=False)
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
     out = likelihood_peak_error(env, episodes=1, candidates=200, frame_stride=10)
     assert out["frames"] == 3
     assert 0 < out["weighted_mm"] < out["typical_mm"]
@@ -34,7 +34,7 @@ def test_peak_error_is_measured_from_candidates_around_the_truth():
 
 
 def test_panels_show_what_the_likelihood_reads():
-    env = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
+    env = gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False)
     h, w = env.unwrapped.scene.height, env.unwrapped.scene.width
     image = likelihood_panels(env, seed=1, frame=12)
     assert image.shape == (h, 6 * w, 3) and image.dtype == np.uint8
@@ -50,7 +50,7 @@ def test_panels_show_what_the_likelihood_reads():
 
 
 def test_depth_profile_slides_the_truth_along_the_camera_ray():
-    env = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
+    env = gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False)
     out = likelihood_depth_profile(env, episodes=1, reach_mm=300.0, steps=7, frame_stride=10)
     assert out is not None and out["frames"] == 3
     assert out["offsets_mm"] == [-300.0, -200.0, -100.0, 0.0, 100.0, 200.0, 300.0]
@@ -59,6 +59,6 @@ def test_depth_profile_slides_the_truth_along_the_camera_ray():
     assert out["contrast_nats"] >= max(out["profile_nats"]) - min(out["profile_nats"]) >= 0
     assert 0 <= out["abs_peak_offset_mm"] <= 300 and abs(out["peak_offset_mm"]) <= 300
     # Tasks that give the root have no depth to estimate.
-    assert likelihood_depth_profile(gym.make("humotion_gym/ArmTrack-v1")) is None
+    assert likelihood_depth_profile(gym.make("humotion_gym/ArmTrack-v2")) is None
     with pytest.raises(ValueError, match="steps >= 2"):
         likelihood_depth_profile(env, steps=1)

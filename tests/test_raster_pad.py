@@ -67,8 +67,13 @@ def test_without_the_pad_the_model_leans_towards_the_camera(
         monkeypatch.setattr(
             discrimination, "task_model", lambda task, pad=pad: _model(task.name, pad)
         )
+        # the held-out persons' episodes the depth profile is measured on
         env = gym.make(
-            "humotion_gym/BodyTrack-v1", background="flat", noise=0.0, terminate_on_lost=False
+            "humotion_gym/BodyTrack-v2",
+            background="flat",
+            noise=0.0,
+            terminate_on_lost=False,
+            split="test",
         )
         out = likelihood_depth_profile(env, episodes=2, reach_mm=300.0, steps=13, frame_stride=5)
         assert out is not None
@@ -78,16 +83,19 @@ def test_without_the_pad_the_model_leans_towards_the_camera(
 
 
 def test_the_pad_widens_the_cones_and_zero_is_the_plain_model() -> None:
-    env = gym.make("humotion_gym/BodyTrack-v1", background="flat", noise=0.0)
+    env = gym.make("humotion_gym/BodyTrack-v2", background="flat", noise=0.0)
     obs, info = env.reset(seed=3)
     base = env.unwrapped
-    pose = np.asarray(info["initial_pose"])
+    # the truth of the frame on show (the initial pose is the frame before it)
+    pose = base.true_pose()
     poses = pose + np.random.default_rng(0).normal(0.0, 0.05, (64, 25))
     poses[0] = pose
     scores = {}
     for pad in (None, 0.0, 0.5):
         model = ObservationModel() if pad is None else ObservationModel(raster_pad_px=pad)
-        scores[pad] = model.log_likelihood(model.prepare(obs), poses, base.shape, base.camera)
+        scores[pad] = model.log_likelihood(
+            model.prepare(obs["frame"]), poses, base.shape, base.camera
+        )
     np.testing.assert_array_equal(scores[None], scores[0.0])
     assert not np.array_equal(scores[0.0], scores[0.5])
     # The drawn figure is explained better by cones as wide as they are drawn.

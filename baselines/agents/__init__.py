@@ -37,7 +37,12 @@ from baselines.agents.filters import (
     body_part_stages,
 )
 from baselines.agents.learned import LEARNED, is_learned, make_learned, takes_particles
-from baselines.agents.references import REFERENCES, HoldAgent, RandomAgent
+from baselines.agents.references import (
+    REFERENCES,
+    HoldAgent,
+    RandomAgent,
+    register_reference,
+)
 from baselines.agents.settings import FILTER_SETTINGS, PF_SETTINGS_FILE
 from baselines.agents.specs import (
     AGENTS,
@@ -133,6 +138,7 @@ __all__ = [
     "make",
     "make_filter",
     "register_agent",
+    "register_reference",
     "takes_particles",
     "tracking_env",
     "training_motions",

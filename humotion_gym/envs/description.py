@@ -7,10 +7,10 @@ the benchmark gives:
 | key | space | what it is |
 |---|---|---|
 | ``frame`` | ``Box(0, 255, (H, W, C), uint8)`` | the rendered frame |
-| ``initial_pose`` | ``Box(-inf, inf, (25,), float64)`` | the true pose of the frame before the first one shown (the papers set frame 0 by hand) |
-| ``fixed_params`` | ``Box(-inf, inf, (n_fixed,), float64)`` | the true values of the parameters the task does not track, for the frame on show (``task.fixed_indices`` order) |
-| ``camera`` | ``Box(-inf, inf, (13,), float64)`` | the frame's camera (:meth:`~humotion_gym.camera.Camera.to_vector`) |
-| ``shape`` | ``Box(-inf, inf, (43,), float64)`` | the subject's shape (:meth:`~humotion_gym.body.BodyShape.to_vector`) |
+| ``initial_pose`` | ``Box(-1e9, 1e9, (25,), float64)`` | the true pose of the frame before the first one shown (the papers set frame 0 by hand) |
+| ``fixed_params`` | ``Box(-1e9, 1e9, (n_fixed,), float64)`` | the true values of the parameters the task does not track, for the frame on show (``task.fixed_indices`` order) |
+| ``camera`` | ``Box(-1e9, 1e9, (13,), float64)`` | the frame's camera (:meth:`~humotion_gym.camera.Camera.to_vector`) |
+| ``shape`` | ``Box(-1e9, 1e9, (43,), float64)`` | the subject's shape (:meth:`~humotion_gym.body.BodyShape.to_vector`) |
 
 :func:`read_observation` turns one into typed parts. A
 :class:`TaskDescription` is what an agent is built from: the task, how its
@@ -45,12 +45,17 @@ from humotion_gym.render import SceneOptions
 
 FloatArray = NDArray[np.float64]
 
-#: The keys of a version-2 observation, in order.
+#: The keys of a version-2 observation (``spaces.Dict`` lists them sorted).
 OBSERVATION_KEYS: tuple[str, ...] = ("frame", "initial_pose", "fixed_params", "camera", "shape")
 
 
+#: The bound of the observation's vectors: far beyond any angle, length or
+#: position in mm (finite, as Gymnasium's checker asks).
+VECTOR_BOUND = 1e9
+
+
 def _vector(n: int) -> spaces.Box:
-    return spaces.Box(-np.inf, np.inf, shape=(n,), dtype=np.float64)
+    return spaces.Box(-VECTOR_BOUND, VECTOR_BOUND, shape=(n,), dtype=np.float64)
 
 
 def frame_space(scene: SceneOptions) -> spaces.Box:

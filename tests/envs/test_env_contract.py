@@ -10,7 +10,7 @@ from humotion_gym.envs import RESET_OPTIONS
 
 @pytest.fixture
 def env():
-    e = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False).unwrapped
+    e = gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False).unwrapped
     yield e
     e.close()
 
@@ -19,16 +19,19 @@ def _truth_action(env):
     return env.pose_to_action(env.library[env._motion.clip_id].params[env._frame_index()])
 
 
-def _steps_after_the_end(env, action, terminated, truncated):
+def _steps_after_the_end(env, action, terminated, truncated, last_obs):
     """Two steps after the end: one warning, the terminal transition again, nothing advances."""
-    last = env._frame.copy()
+    last = {key: np.array(value, copy=True) for key, value in last_obs.items()}
+    np.testing.assert_array_equal(last["frame"], env._frame)
     k, t0 = env._k, env._frame_index()
     with pytest.warns(UserWarning, match="after the episode ended") as record:
         first = env.step(action)
         second = env.step(action)
     assert len([w for w in record if "after the episode ended" in str(w.message)]) == 1
     for obs, reward, term, trunc, info in (first, second):
-        np.testing.assert_array_equal(obs, last)
+        assert obs.keys() == last.keys()
+        for key in last:  # every key of the last observation again
+            np.testing.assert_array_equal(obs[key], last[key], err_msg=key)
         assert reward == 0.0 and (term, trunc) == (terminated, truncated)
         assert info["after_end"] is True and info["frame"] == t0
     assert env._k == k
@@ -40,21 +43,21 @@ def _steps_after_the_end(env, action, terminated, truncated):
 def test_step_after_the_end_returns_the_terminal_transition(env):
     env.reset(seed=0)
     for _ in range(env.episode_frames):
-        *_, terminated, truncated, _ = env.step(_truth_action(env))
+        obs, _, terminated, truncated, _ = env.step(_truth_action(env))
     assert truncated and not terminated
-    _steps_after_the_end(env, _truth_action(env), False, True)
+    _steps_after_the_end(env, _truth_action(env), False, True, obs)
 
 
 def test_step_after_a_lost_track_returns_the_terminal_transition():
-    env = gym.make("humotion_gym/BodyTrack-v1").unwrapped
+    env = gym.make("humotion_gym/BodyTrack-v2").unwrapped
     env.reset(seed=0)
     far = np.ones(env.action_space.shape, np.float32)
     for _ in range(env.episode_frames):
-        *_, terminated, truncated, _ = env.step(far)
+        obs, _, terminated, truncated, _ = env.step(far)
         if terminated:
             break
     assert terminated
-    _steps_after_the_end(env, far, True, False)
+    _steps_after_the_end(env, far, True, False, obs)
     env.close()
 
 
@@ -135,7 +138,7 @@ def test_a_ragged_action_is_refused_in_the_envs_words(env):
 
 def test_ragged_actions_are_refused_by_the_vector_env():
     envs = gym.make_vec(
-        "humotion_gym/ArmTrack-v1", num_envs=2, vectorization_mode="vector_entry_point"
+        "humotion_gym/ArmTrack-v2", num_envs=2, vectorization_mode="vector_entry_point"
     )
     envs.reset(seed=0)
     with pytest.raises(ValueError, match=r"actions must be an array of shape \(2, 4\)"):
@@ -159,13 +162,13 @@ def test_integer_actions_are_accepted(env):
         {"lost_patience": 0},
         {"frame_skip": 0},
         {"fps": 0.0},
-        {"split": "validation"},
+        {"split": "dev"},  # the splits are train, validation and test
     ],
 )
 def test_constructor_arguments_are_range_checked(kwargs):
     name = next(iter(kwargs))
     with pytest.raises(ValueError, match=name):
-        gym.make("humotion_gym/ArmTrack-v1", **kwargs)
+        gym.make("humotion_gym/ArmTrack-v2", **kwargs)
 
 
 @pytest.mark.parametrize("env_id", humotion_gym.ENV_IDS)
@@ -188,7 +191,7 @@ def test_every_spec_states_its_episode_length(env_id):
 
 def test_the_vector_env_ends_episodes_at_max_episode_steps_as_time_limit_does():
     envs = gym.make_vec(
-        "humotion_gym/SideWalk-v1", num_envs=2, vectorization_mode="vector_entry_point",
+        "humotion_gym/SideWalk-v2", num_envs=2, vectorization_mode="vector_entry_point",
         max_episode_steps=7, terminate_on_lost=False,
     )  # fmt: skip
     envs.reset(seed=0)

@@ -1,5 +1,6 @@
 """Suite-wide checks over every registered environment."""
 
+import dataclasses
 import pickle
 import subprocess
 import sys
@@ -12,8 +13,26 @@ from gymnasium.utils.env_checker import check_env
 
 import humotion_gym
 from humotion_gym.envs import ENV_IDS, get_task
+from humotion_gym.envs.description import OBSERVATION_KEYS, read_observation
+from humotion_gym.wrappers import FrameObservation
 
 IDS = list(ENV_IDS)
+
+
+def assert_obs_equal(a, b):
+    """Two observations (v2: Dict) are equal, key by key."""
+    if isinstance(a, dict):
+        assert a.keys() == b.keys()
+        for k in a:
+            assert np.array_equal(a[k], b[k]), k
+    else:
+        assert np.array_equal(a, b)
+
+
+def obs_equal(a, b):
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+    return np.array_equal(a, b)
 
 
 def rollout(env_id, seed, steps=8, actions_seed=0, **kwargs):
@@ -36,14 +55,14 @@ def rollout(env_id, seed, steps=8, actions_seed=0, **kwargs):
 
 def test_all_four_tasks_are_registered():
     assert IDS == [
-        f"humotion_gym/{n}" for n in ("ArmTrack-v1", "BodyTrack-v1", "WalkTrack-v1", "SideWalk-v1")
+        f"humotion_gym/{n}" for n in ("ArmTrack-v2", "BodyTrack-v2", "WalkTrack-v2", "SideWalk-v2")
     ]
     for env_id in IDS:
         assert gym.spec(env_id).entry_point == gym.spec(env_id.split("/")[1]).entry_point
 
 
 def test_module_colon_id_works_from_a_fresh_interpreter():
-    code = "import gymnasium as gym; e = gym.make('humotion_gym:ArmTrack-v1'); print(e.reset(seed=0)[0].shape)"
+    code = "import gymnasium as gym; e = gym.make('humotion_gym:ArmTrack-v2'); print(e.reset(seed=0)[0]['frame'].shape)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "(128, 128, 3)"
 
@@ -70,7 +89,7 @@ def test_determinism(env_id):
     a = rollout(env_id, seed=3)
     b = rollout(env_id, seed=3)
     for fa, fb in zip(a[0], b[0], strict=True):
-        assert np.array_equal(fa, fb)
+        assert_obs_equal(fa, fb)
     assert a[1] == b[1]
     for ia, ib in zip(a[2], b[2], strict=True):
         assert ia.keys() == ib.keys()
@@ -85,26 +104,26 @@ def test_determinism(env_id):
 def test_seeded_reset_after_other_episodes_repeats_a_fresh_env():
     # The noise bank (and everything else) is redrawn at a seeded reset: an env
     # that has run other episodes replays a fresh env's episode exactly.
-    used = gym.make("humotion_gym/BodyTrack-v1").unwrapped
+    used = gym.make("humotion_gym/BodyTrack-v2").unwrapped
     used.reset(seed=11)
     for _ in range(3):
         used.reset()
-    fresh = gym.make("humotion_gym/BodyTrack-v1").unwrapped
+    fresh = gym.make("humotion_gym/BodyTrack-v2").unwrapped
     action = np.zeros(used.action_space.shape, np.float32)
     for env in (used, fresh):
         env.reset(seed=5)
     for _ in range(4):
-        assert np.array_equal(used.step(action)[0], fresh.step(action)[0])
+        assert_obs_equal(used.step(action)[0], fresh.step(action)[0])
     # Episodes after a seeded one differ from each other (their rooms and noise windows).
     first = fresh.reset()[0]
-    assert not np.array_equal(first, fresh.reset()[0])
+    assert not np.array_equal(first["frame"], fresh.reset()[0]["frame"])
 
 
 @pytest.mark.parametrize("env_id", IDS)
 def test_different_seeds_give_different_episodes(env_id):
     a = rollout(env_id, seed=1, steps=2)
     b = rollout(env_id, seed=2, steps=2)
-    assert not np.array_equal(a[0][0], b[0][0])
+    assert not np.array_equal(a[0][0]["frame"], b[0][0]["frame"])
 
 
 @pytest.mark.parametrize("env_id", IDS)
@@ -120,7 +139,8 @@ def test_reward_range_terms_and_no_shared_memory(env_id):
         assert 0.0 <= reward <= 1.0
         terms = sum(v for k, v in info.items() if k.startswith("reward_"))
         assert terms == pytest.approx(reward, abs=1e-12)
-        assert not np.shares_memory(obs, previous)
+        for k in obs:  # no key of an observation shares memory with the last one's
+            assert not np.shares_memory(obs[k], previous[k]), k
         previous = obs
         if term or trunc:
             break
@@ -167,7 +187,7 @@ def test_aligned_error_is_the_pose_wherever_the_body_is(env_id):
 
 
 def test_track_lost_terminates_and_can_be_switched_off():
-    env = gym.make("humotion_gym/BodyTrack-v1").unwrapped
+    env = gym.make("humotion_gym/BodyTrack-v2").unwrapped
     env.reset(seed=0)
     bad = np.ones(env.action_space.shape, dtype=np.float32)
     for k in range(1, 10):  # noqa: B007  (k is read after the loop)
@@ -175,7 +195,7 @@ def test_track_lost_terminates_and_can_be_switched_off():
         if term:
             break
     assert term and info["lost"] and k == env.lost_patience
-    env = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False).unwrapped
+    env = gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False).unwrapped
     env.reset(seed=0)
     for _ in range(10):
         _, _, term, _, info = env.step(bad)
@@ -187,31 +207,137 @@ def test_track_lost_terminates_and_can_be_switched_off():
     [(np.full(4, np.nan), "finite"), (np.full(4, np.inf), "finite"), (np.zeros(5), "shape")],
 )
 def test_bad_actions_raise_value_errors(bad, match):
-    env = gym.make("humotion_gym/ArmTrack-v1").unwrapped
+    env = gym.make("humotion_gym/ArmTrack-v2").unwrapped
     env.reset(seed=0)
     with pytest.raises(ValueError, match=match):
         env.step(bad)
 
 
-def test_info_gives_what_the_agent_needs_and_never_the_truth():
-    env = gym.make("humotion_gym/ArmTrack-v1").unwrapped
+def test_observation_gives_what_the_agent_needs_and_never_the_truth():
+    env = gym.make("humotion_gym/ArmTrack-v2").unwrapped
     obs, info = env.reset(seed=0)
-    assert info["initial_pose"].shape == (25,) and info["fps"] == 30.0
-    assert info["fixed_params"].shape == (21,)
+    given = read_observation(obs)
+    assert given.initial_pose.shape == (25,) and env.describe().fps == 30.0
+    assert given.fixed_params.shape == (21,)
     truth = env.true_pose()
     # the fixed parameters are the truth of the frame on show; the free ones are absent
-    assert np.array_equal(info["fixed_params"], truth[env.task.fixed_indices])
-    for value in info.values():
-        if (
-            isinstance(value, np.ndarray)
-            and value.shape == (25,)
-            and value is not info["initial_pose"]
-        ):
-            assert not np.array_equal(value, truth)
+    assert np.array_equal(obs["fixed_params"], truth[env.task.fixed_indices])
+    # the initial pose is the truth of the frame before the first one shown
+    assert np.array_equal(obs["initial_pose"], env._motion.params[info["start_frame"]])
+    assert np.array_equal(obs["camera"], env.camera.to_vector())
+    assert np.array_equal(obs["shape"], env.shape.to_vector())
+    for part in (obs, info):
+        for key, value in part.items():
+            if isinstance(value, np.ndarray) and value.shape == (25,) and key != "initial_pose":
+                assert not np.array_equal(value, truth), key
+
+
+_GIVENS = ("initial_pose", "shape", "camera", "fixed_params", "fps")
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_info_holds_no_given_and_the_space_contains_every_observation(env_id):
+    env = gym.make(env_id, terminate_on_lost=False).unwrapped
+    space = env.observation_space
+    assert isinstance(space, gym.spaces.Dict)
+    assert set(space.spaces) == set(OBSERVATION_KEYS)
+    obs, info = env.reset(seed=2)
+    seen = [(obs, info)]
+    rng = np.random.default_rng(0)
+
+    def step():
+        action = rng.uniform(-1, 1, env.action_space.shape).astype(np.float32)
+        obs, _, _, _, info = env.step(action)
+        seen.append((obs, info))
+
+    for _ in range(env.episode_frames):
+        step()
+    with pytest.warns(UserWarning, match="after the episode ended"):
+        step()  # one step past the end: the terminal transition again
+    assert seen[-1][1]["after_end"]
+    for obs, info in seen:
+        assert not set(_GIVENS) & set(info), sorted(set(_GIVENS) & set(info))
+        assert obs.keys() == space.spaces.keys()
+        assert space.contains(obs), {k: space[k].contains(v) for k, v in obs.items()}
+
+
+def test_the_space_check_catches_a_wrong_observation():
+    # mutation: a frame of the wrong dtype, or a missing key, is not in the space
+    env = gym.make("humotion_gym/ArmTrack-v2").unwrapped
+    obs, _ = env.reset(seed=0)
+    assert not env.observation_space.contains({**obs, "frame": obs["frame"].astype(np.float32)})
+    assert not env.observation_space.contains({k: v for k, v in obs.items() if k != "camera"})
+
+
+def test_a_v1_id_still_works_and_warns_that_it_is_deprecated():
+    with pytest.warns(DeprecationWarning, match="ArmTrack-v2"):
+        env = gym.make("humotion_gym/ArmTrack-v1").unwrapped
+    obs, info = env.reset(seed=0)
+    assert isinstance(obs, np.ndarray) and obs.shape == (128, 128, 3) and obs.dtype == np.uint8
+    assert env.observation_space.contains(obs)
+    assert info["initial_pose"].shape == (25,) and info["fps"] == 30.0
+    assert info["fixed_params"].shape == (21,)
+    obs, reward, *_ = env.step(env.pose_to_action(env.true_pose()))
+    assert obs.shape == (128, 128, 3) and reward > 0.999
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_frame_observation_gives_the_frame_and_passes_the_env_checker(env_id):
+    env = FrameObservation(gym.make(env_id))
+    assert env.observation_space == env.unwrapped.observation_space["frame"]
+    twin = gym.make(env_id)
+    obs, _ = env.reset(seed=4)
+    full, _ = twin.reset(seed=4)
+    assert isinstance(obs, np.ndarray) and np.array_equal(obs, full["frame"])
+    action = np.zeros(env.action_space.shape, np.float32)
+    obs, reward, *_ = env.step(action)
+    full, twin_reward, *_ = twin.step(action)
+    assert np.array_equal(obs, full["frame"]) and reward == twin_reward
+    with pytest.raises(ValueError, match="Dict"):
+        FrameObservation(env)  # a frame alone is no Dict to take the frame from
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        # check_env warns of any wrapper as such; every other warning still fails
+        warnings.filterwarnings("ignore", message=".*different from the unwrapped version")
+        check_env(FrameObservation(gym.make(env_id).unwrapped), skip_render_check=True)
+
+
+def _clip_of(library, person):
+    return next(m for m in library if m.subject == person)
+
+
+@pytest.mark.parametrize("person", ["synthetic-05", "synthetic-06", "synthetic-03", "synthetic-04"])
+def test_a_train_env_refuses_a_held_out_persons_clip_and_stays_as_it_was(person):
+    env = gym.make("humotion_gym/BodyTrack-v2").unwrapped
+    twin = gym.make("humotion_gym/BodyTrack-v2").unwrapped
+    assert env.split == "train" and env.describe().split == "train"
+    assert all(m.subject not in (person,) for m in env.clips)
+    action = np.zeros(env.action_space.shape, np.float32)
+    for e in (env, twin):
+        e.reset(seed=3)
+        e.step(action)
+    clip = _clip_of(env.library, person)
+    with pytest.raises(ValueError, match=person):
+        env.reset(seed=9, options={"clip_id": clip.clip_id})
+    # by skeleton: the same person's clip under another name
+    renamed = dataclasses.replace(clip, subject="someone-else", clip_id="elsewhere/x")
+    with pytest.raises(ValueError, match=person):
+        env.reset(seed=9, options={"motion": renamed})
+    # the refused resets changed nothing: the episode goes on as its twin's
+    for _ in range(3):
+        a, b = env.step(action), twin.step(action)
+        assert_obs_equal(a[0], b[0])
+        assert a[1:4] == b[1:4] and a[4]["error_mm"] == b[4]["error_mm"]
+    assert_obs_equal(env.reset()[0], twin.reset()[0])
+    # a test env shows the test persons' clips
+    if person in ("synthetic-05", "synthetic-06"):
+        test_env = gym.make("humotion_gym/BodyTrack-v2", split="test").unwrapped
+        _, info = test_env.reset(seed=0, options={"clip_id": clip.clip_id})
+        assert info["person"] == person
 
 
 def test_pose_action_round_trip():
-    env = gym.make("humotion_gym/BodyTrack-v1").unwrapped
+    env = gym.make("humotion_gym/BodyTrack-v2").unwrapped
     env.reset(seed=4)
     truth = env.true_pose()
     pose = env.action_to_pose(env.pose_to_action(truth))
@@ -223,7 +349,7 @@ def test_pose_action_round_trip():
 
 
 def test_options_choose_clip_and_start():
-    env = gym.make("humotion_gym/WalkTrack-v1").unwrapped
+    env = gym.make("humotion_gym/WalkTrack-v2", split="test").unwrapped
     _, info = env.reset(seed=0, options={"clip_id": "synthetic/walk-06", "start": 7})
     assert info["clip_id"] == "synthetic/walk-06" and info["start_frame"] == 7
     with pytest.raises(ValueError, match="start"):
@@ -231,19 +357,19 @@ def test_options_choose_clip_and_start():
 
 
 def test_render_overlays_the_estimate():
-    env = gym.make("humotion_gym/BodyTrack-v1", render_mode="rgb_array")
+    env = gym.make("humotion_gym/BodyTrack-v2", render_mode="rgb_array")
     obs, _ = env.reset(seed=0)
     before = env.render()
-    assert np.array_equal(before, obs)
+    assert np.array_equal(before, obs["frame"])
     env.step(np.zeros(25, dtype=np.float32))
     after = env.render()
     assert after.shape == (128, 128, 3) and not np.array_equal(after, env.unwrapped._frame)
 
 
 def test_vector_env_async_runs():
-    envs = gym.make_vec("humotion_gym/ArmTrack-v1", num_envs=4, vectorization_mode="async")
+    envs = gym.make_vec("humotion_gym/ArmTrack-v2", num_envs=4, vectorization_mode="async")
     obs, _ = envs.reset(seed=0)
-    assert obs.shape == (4, 128, 128, 3)
+    assert obs["frame"].shape == (4, 128, 128, 3) and obs["initial_pose"].shape == (4, 25)
     for _ in range(3):
         obs, r, term, trunc, _ = envs.step(envs.action_space.sample())
     assert r.shape == (4,)
@@ -255,7 +381,7 @@ def test_record_video_writes_a_file(tmp_path):
     from gymnasium.wrappers import RecordVideo
 
     folder = tmp_path / "videos"  # a new folder: RecordVideo warns about an existing one
-    env = RecordVideo(gym.make("humotion_gym/ArmTrack-v1", render_mode="rgb_array"), str(folder))
+    env = RecordVideo(gym.make("humotion_gym/ArmTrack-v2", render_mode="rgb_array"), str(folder))
     env.reset(seed=0)
     for _ in range(5):
         env.step(env.action_space.sample())
@@ -264,24 +390,24 @@ def test_record_video_writes_a_file(tmp_path):
 
 
 def test_env_pickles():
-    env = gym.make("humotion_gym/SideWalk-v1").unwrapped
+    env = gym.make("humotion_gym/SideWalk-v2").unwrapped
     env.reset(seed=0)
     clone = pickle.loads(pickle.dumps(env))
     a = np.zeros(8, dtype=np.float32)
-    assert np.array_equal(clone.step(a)[0], env.step(a)[0])
+    assert_obs_equal(clone.step(a)[0], env.step(a)[0])
 
 
 @pytest.mark.mocap
 def test_envs_run_on_real_data(shared_mocap):
     for env_id in IDS:
-        env = gym.make(env_id, data_dir=str(shared_mocap)).unwrapped
+        env = gym.make(env_id, data_dir=str(shared_mocap), split="test").unwrapped
         _, info = env.reset(seed=0)
         assert not info["synthetic"] and env.clips.split("test") is not None
         assert all(m.subject in humotion_gym.mocap.library.TEST_SUBJECTS for m in env.clips)
         env.step(env.pose_to_action(env.true_pose()))
 
 
-@pytest.mark.parametrize("task", ["BodyTrack-v1", "WalkTrack-v1", "SideWalk-v1"])
+@pytest.mark.parametrize("task", ["BodyTrack-v2", "WalkTrack-v2", "SideWalk-v2"])
 def test_the_travel_box_corners_are_the_eight_combinations(task: str) -> None:
     # Every corner of the box the static camera frames: back or forward along
     # the heading, left or right across it, down or up; read again for every

@@ -2,7 +2,8 @@
 
 For every registered task: two motions identical up to a frame and different
 after it must give bit-identical observations, infos, cameras and action
-mappings up to that frame. The second motion moves everything after the cut
+mappings up to that frame: every key of the observation (frame, initial
+pose, given parameters, camera, shape), the info and the action bounds. The second motion moves everything after the cut
 (root, heading, every angle), so a camera fitted to the whole episode, a
 heading taken from the total travel or bounds from later frames would show.
 """
@@ -17,6 +18,7 @@ import pytest
 
 from humotion_gym.body import PARAM_INDEX
 from humotion_gym.envs import ENV_IDS
+from humotion_gym.envs.description import OBSERVATION_KEYS
 
 CUT = 6  # frames shown identically: the initial pose, then frames 1..CUT
 
@@ -43,6 +45,13 @@ def _equal(a, b) -> bool:
     return a == b
 
 
+def _copy(obs):
+    """A copy of an observation (a version-2 ``Dict``: every key)."""
+    if isinstance(obs, dict):
+        return {k: np.array(v, copy=True) for k, v in obs.items()}
+    return np.array(obs, copy=True)
+
+
 def _camera_state(camera) -> tuple:
     return (camera.rotation.tobytes(), camera.translation.tobytes(), camera.focal,
             camera.principal_point)  # fmt: skip
@@ -52,7 +61,8 @@ def _run(env_id: str, motion, start: int, steps: int):
     env = gym.make(env_id, terminate_on_lost=False)
     base = env.unwrapped
     obs, info = env.reset(seed=11, options={"motion": motion, "start": start})
-    seen = [(obs.copy(), info, _camera_state(base.camera))]
+    assert isinstance(obs, dict) and set(obs) == set(OBSERVATION_KEYS)
+    seen = [(_copy(obs), info, _camera_state(base.camera))]
     bounds = [np.array(base._action_bounds())]
     actions = np.random.default_rng(5).uniform(-1, 1, (steps, *env.action_space.shape))
     for a in actions:
@@ -61,7 +71,7 @@ def _run(env_id: str, motion, start: int, steps: int):
         # the scores of the estimate it already gave, the camera, the mapping.
         given = {k: v for k, v in info.items() if not k.startswith(("error", "reward", "keypoint"))}
         given.pop("lost", None)
-        seen.append((obs.copy(), given, _camera_state(base.camera)))
+        seen.append((_copy(obs), given, _camera_state(base.camera)))
         bounds.append(np.array(base._action_bounds()))
     env.close()
     return seen, bounds
@@ -81,7 +91,11 @@ def test_nothing_given_depends_on_the_future(env_id):
     a, bounds_a = _run(env_id, motion, start, CUT - 1)
     b, bounds_b = _run(env_id, changed, start, CUT - 1)
     for t, ((obs_a, info_a, cam_a), (obs_b, info_b, cam_b)) in enumerate(zip(a, b, strict=True)):
-        assert np.array_equal(obs_a, obs_b), f"{env_id}: frame {t} depends on later frames"
+        assert obs_a.keys() == obs_b.keys()
+        for key in obs_a:
+            assert np.array_equal(obs_a[key], obs_b[key]), (
+                f"{env_id}: observation[{key!r}] at step {t} depends on later frames"
+            )
         assert cam_a == cam_b, f"{env_id}: the camera at step {t} depends on later frames"
         assert _equal(info_a, info_b), f"{env_id}: info at step {t} depends on later frames"
     for t, (ba, bb) in enumerate(zip(bounds_a, bounds_b, strict=True)):
@@ -109,6 +123,27 @@ def test_the_test_detects_a_leak(env_id, monkeypatch):
         test_nothing_given_depends_on_the_future(env_id)
 
 
+@pytest.mark.parametrize("key", ["fixed_params", "camera"])
+def test_the_test_detects_a_leak_in_any_observation_key(key, monkeypatch):
+    """An observation key read one frame ahead (the frame itself honest) fails the check."""
+    from humotion_gym.envs import pose_tracking
+
+    original = pose_tracking.PoseTrackingEnv._observation
+
+    def leaky_observation(self, frame):
+        obs = original(self, frame)
+        ahead = min(self._k + 1, self.episode_frames)
+        if key == "fixed_params":
+            obs[key] = self._truth(ahead)[self._fixed]
+        else:
+            obs[key] = self._cameras[ahead].to_vector()
+        return obs
+
+    monkeypatch.setattr(pose_tracking.PoseTrackingEnv, "_observation", leaky_observation)
+    with pytest.raises(AssertionError, match=f"observation\\[{key!r}\\]"):
+        test_nothing_given_depends_on_the_future("humotion_gym/ArmTrack-v2")
+
+
 @pytest.mark.mocap
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_nothing_given_depends_on_the_future_on_real_data(env_id, shared_mocap, monkeypatch):
@@ -125,17 +160,17 @@ def _run_vector(env_id: str, motion, start: int, steps: int, n: int = 2):
 
     def given(info):
         skip = ("error", "reward", "keypoint", "_error", "_reward", "_keypoint", "lost", "_lost")
-        drop = ("camera", "_camera", "shape", "_shape")
-        return {k: v for k, v in info.items() if not k.startswith(skip) and k not in drop}
+        return {k: v for k, v in info.items() if not k.startswith(skip)}
 
     def state():
         return [(_camera_state(e.camera), np.array(e._action_bounds()).tobytes()) for e in envs]
 
-    seen = [(obs.copy(), given(info), state())]
+    assert isinstance(obs, dict) and set(obs) == set(OBSERVATION_KEYS)
+    seen = [(_copy(obs), given(info), state())]
     actions = np.random.default_rng(5).uniform(-1, 1, (steps, *venv.action_space.shape))
     for a in actions:
         obs, reward, term, trunc, info = venv.step(a.astype(np.float32))
-        seen.append((obs.copy(), given(info), state()))
+        seen.append((_copy(obs), given(info), state()))
     venv.close()
     return seen
 
@@ -152,6 +187,10 @@ def test_nothing_the_vector_env_gives_depends_on_the_future(env_id):
     a = _run_vector(env_id, motion, start, CUT - 1)
     b = _run_vector(env_id, changed, start, CUT - 1)
     for t, ((obs_a, info_a, st_a), (obs_b, info_b, st_b)) in enumerate(zip(a, b, strict=True)):
-        assert np.array_equal(obs_a, obs_b), f"{env_id}: frame {t} depends on later frames"
+        assert obs_a.keys() == obs_b.keys()
+        for key in obs_a:
+            assert np.array_equal(obs_a[key], obs_b[key]), (
+                f"{env_id}: observation[{key!r}] at step {t} depends on later frames"
+            )
         assert st_a == st_b, f"{env_id}: camera or bounds at step {t} depend on later frames"
         assert _equal(info_a, info_b), f"{env_id}: info at step {t} depends on later frames"

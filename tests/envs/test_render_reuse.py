@@ -42,9 +42,9 @@ def _reference_render(frame, estimate, shape, camera):
 @pytest.mark.parametrize(
     ("env_id", "kwargs"),
     [
-        ("humotion_gym/BodyTrack-v1", {}),
-        ("humotion_gym/ArmTrack-v1", {"color": "gray"}),  # a following camera, one channel
-        ("humotion_gym/SideWalk-v1", {"width": 96, "height": 64}),
+        ("humotion_gym/BodyTrack-v2", {}),
+        ("humotion_gym/ArmTrack-v2", {"color": "gray"}),  # a following camera, one channel
+        ("humotion_gym/SideWalk-v2", {"width": 96, "height": 64}),
     ],
 )
 def test_render_equals_the_reference_overlay(env_id, kwargs):
@@ -53,6 +53,7 @@ def test_render_equals_the_reference_overlay(env_id, kwargs):
     rng = np.random.default_rng(3)
     for seed in (0, 1, 2):
         obs, _ = env.reset(seed=seed)
+        obs = obs["frame"]
         first = env.render()
         expected = np.repeat(obs, 3, axis=-1) if obs.shape[-1] == 1 else obs
         assert np.array_equal(first, expected)
@@ -62,7 +63,7 @@ def test_render_equals_the_reference_overlay(env_id, kwargs):
             truth = base.pose_to_action(base.true_pose())
             action = np.clip(truth + rng.normal(0, scale, truth.shape), -1, 1).astype(np.float32)
             estimate = base.action_to_pose(action)
-            obs, *_ = env.step(action)
+            obs = env.step(action)[0]["frame"]
             image = env.render()
             assert image.dtype == np.uint8 and image.shape == obs.shape[:2] + (3,)
             reference = _reference_render(obs, estimate, base.shape, base.camera)
@@ -70,13 +71,14 @@ def test_render_equals_the_reference_overlay(env_id, kwargs):
 
 
 def test_render_does_not_touch_the_observation():
-    env = gym.make("humotion_gym/BodyTrack-v1", render_mode="rgb_array")
+    env = gym.make("humotion_gym/BodyTrack-v2", render_mode="rgb_array")
     env.reset(seed=4)
     obs, *_ = env.step(env.action_space.sample())
-    kept = obs.copy()
+    kept = {key: value.copy() for key, value in obs.items()}
     image = env.render()
-    assert np.array_equal(obs, kept)
-    assert not np.shares_memory(image, obs)
+    for key in obs:  # every key of the observation, the frame first
+        assert np.array_equal(obs[key], kept[key]), key
+        assert not np.shares_memory(image, obs[key]), key
     # a second call draws the same image
     assert np.array_equal(env.render(), image)
 
@@ -95,6 +97,7 @@ def test_episode_frames_equal_the_per_episode_path(env_id):
         rng = np.random.default_rng(env._episode_seed)
         background = make_background(env.scene, rng, env._noise)
         assert np.array_equal(background.image, env._background.image)
-        frames = [obs] + [env.step(action)[0] for _ in range(env.episode_frames - 1)]
+        frames = [obs["frame"]]
+        frames += [env.step(action)[0]["frame"] for _ in range(env.episode_frames - 1)]
         for k, frame in enumerate(frames, start=1):
             assert np.array_equal(frame, render_frame(figures, k, rng, env._background)), k

@@ -67,6 +67,24 @@ def _assert_same(a, b, where: str = "") -> None:
         assert type(a) is type(b) and a == b, (where, a, b)
 
 
+def _rows(obs, index):
+    """Rows ``index`` of a batched observation (a version-2 ``Dict``: of every key)."""
+    if isinstance(obs, dict):
+        return {key: value[index] for key, value in obs.items()}
+    return obs[index]
+
+
+def _assert_row(obs, i: int, single, where: str = "") -> None:
+    """Row ``i`` of a batched observation is a single env's observation, key by key."""
+    row = _rows(obs, i)
+    if isinstance(single, dict):
+        assert isinstance(row, dict) and row.keys() == single.keys(), where
+        for key in single:
+            np.testing.assert_array_equal(row[key], single[key], err_msg=f"{where}/{key}")
+    else:
+        np.testing.assert_array_equal(row, single, err_msg=where)
+
+
 def _actions(venv, rng: np.random.Generator, t: int) -> np.ndarray:
     """Near the truth (episodes run to their end), but far from it for six steps (lost)."""
     if 40 <= t < 46:
@@ -105,7 +123,7 @@ def test_vector_env_equals_sync_vector_env(env_id, mode):
     got = vec.reset(seed=[3, 4, 5], options={"reset_mask": mask})
     want = sync.reset(seed=[3, 4, 5], options={"reset_mask": mask.copy()})
     _assert_same(got[1], want[1], "masked reset")
-    _assert_same(got[0][mask], want[0][mask], "masked reset")
+    _assert_same(_rows(got[0], mask), _rows(want[0], mask), "masked reset")
 
 
 @pytest.mark.parametrize("kwargs", [{"occluders": 2}, {"blur": 1.0, "noise": 30.0},
@@ -113,7 +131,7 @@ def test_vector_env_equals_sync_vector_env(env_id, mode):
 def test_vector_env_scenes_are_the_sync_envs(kwargs):
     # The frames' noise comes from the windows drawn at each episode's start:
     # the same frames as the single environments', which draw them frame by frame.
-    n, env_id = 2, "humotion_gym/BodyTrack-v1"
+    n, env_id = 2, "humotion_gym/BodyTrack-v2"
     kwargs = {"width": 64, "height": 64, "episode_frames": 8, **kwargs}
     vec = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point", **kwargs)
     sync = gym.make_vec(env_id, n, vectorization_mode="sync", **kwargs)
@@ -129,13 +147,13 @@ def test_vector_env_disabled_autoreset_steps_after_the_end_as_the_single_env():
 
     (SyncVectorEnv refuses such a step, so the reference is the single envs.)
     """
-    n, env_id = 2, "humotion_gym/BodyTrack-v1"
+    n, env_id = 2, "humotion_gym/BodyTrack-v2"
     mode = AutoresetMode.DISABLED
     vec = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point", autoreset_mode=mode)
     singles = [gym.make(env_id).unwrapped for _ in range(n)]
     obs, _ = vec.reset(seed=0)
     for i, env in enumerate(singles):
-        np.testing.assert_array_equal(obs[i], env.reset(seed=i)[0])
+        _assert_row(obs, i, env.reset(seed=i)[0], "reset")
     far = np.ones(vec.action_space.shape, np.float32)
 
     def both_step(where: str) -> tuple:
@@ -143,7 +161,7 @@ def test_vector_env_disabled_autoreset_steps_after_the_end_as_the_single_env():
         obs, reward, term, trunc, info = got
         for i, env in enumerate(singles):
             w_obs, w_reward, w_term, w_trunc, w_info = env.step(far[i])
-            np.testing.assert_array_equal(obs[i], w_obs, err_msg=where)
+            _assert_row(obs, i, w_obs, where)
             assert reward[i] == pytest.approx(w_reward, rel=RTOL, abs=0), where
             assert (term[i], trunc[i]) == (w_term, w_trunc), where
             after = info.get("after_end", np.zeros(n, bool))[i]
@@ -165,16 +183,16 @@ def test_vector_env_disabled_autoreset_steps_after_the_end_as_the_single_env():
         both_step("after the end, again")
     obs, _ = vec.reset(seed=[5, 6], options={"reset_mask": done})
     for i, env in enumerate(singles):
-        np.testing.assert_array_equal(obs[i], env.reset(seed=5 + i)[0])
+        _assert_row(obs, i, env.reset(seed=5 + i)[0], "masked reset")
     obs, reward, *_ = vec.step(far)
     for i, env in enumerate(singles):
-        np.testing.assert_array_equal(obs[i], env.step(far[i])[0])
+        _assert_row(obs, i, env.step(far[i])[0], "step after the masked reset")
 
 
 def test_vector_env_refuses_bad_calls():
     with pytest.raises(ValueError, match="num_envs"):
         PoseTrackingVectorEnv(0)
-    vec = PoseTrackingVectorEnv(2, task="SideWalk-v1")
+    vec = PoseTrackingVectorEnv(2, task="SideWalk-v2")
     with pytest.raises(RuntimeError, match="reset"):
         vec.step(np.zeros(vec.action_space.shape, np.float32))
     vec.reset(seed=0)
@@ -187,7 +205,7 @@ def test_vector_env_refuses_bad_calls():
 
 
 def test_vector_env_render_is_each_episodes_render():
-    vec = gym.make_vec("humotion_gym/BodyTrack-v1", 2, vectorization_mode="vector_entry_point",
+    vec = gym.make_vec("humotion_gym/BodyTrack-v2", 2, vectorization_mode="vector_entry_point",
                        render_mode="rgb_array")  # fmt: skip
     vec.reset(seed=0)
     vec.step(vec.action_space.sample())
@@ -205,7 +223,7 @@ def test_learner_vec_env_equals_dummy_vec_env_of_learner_envs():
     from baselines.rl import make_learner_env
     from humotion_gym.sb3 import learner_vec_env
 
-    n, task = 3, "ArmTrack-v1"
+    n, task = 3, "ArmTrack-v2"
     dummy = DummyVecEnv([lambda: make_learner_env(task, "train", 32)] * n)
     ours = learner_vec_env(task, n, "train", 32)
     dummy.seed(5)

@@ -34,7 +34,7 @@ from baselines.rl import (
     prepare_output,
     train,
 )
-from humotion_gym.envs import TASKS
+from humotion_gym.envs import CURRENT_TASKS, TASKS
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -44,7 +44,7 @@ def bc_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A smoke behaviour-cloning run on the synthetic library (a few hundred steps)."""
     out = tmp_path_factory.mktemp("bc") / "run"
     config = TrainConfig(
-        "bc", "ArmTrack-v1", steps=240, seed=0, out=str(out),
+        "bc", "ArmTrack-v2", steps=240, seed=0, out=str(out),
         settings={"n_envs": 2, "rounds": 2, "buffer_size": 500, "frame_size": 32},
         eval_every=200, eval_episodes=1,
     )  # fmt: skip
@@ -86,7 +86,7 @@ def test_an_earlier_runs_model_is_kept_without_resume_or_force(tmp_path: Path) -
     (tmp_path / "checkpoints").mkdir()
     (tmp_path / "checkpoints" / "model_10_steps.zip").write_bytes(b"x")
     (tmp_path / "model.zip").write_bytes(b"x")
-    config = TrainConfig("bc", "ArmTrack-v1", steps=10, out=str(tmp_path))
+    config = TrainConfig("bc", "ArmTrack-v2", steps=10, out=str(tmp_path))
     with pytest.raises(FileExistsError, match="--resume.*--force"):
         train(config)  # refused before any work
     with pytest.raises(ValueError, match="choose one"):
@@ -102,14 +102,14 @@ def test_an_earlier_runs_model_is_kept_without_resume_or_force(tmp_path: Path) -
 def test_smoke_ppo_trains_checkpoints_and_resumes(tmp_path: Path) -> None:
     settings = {"n_envs": 2, "n_steps": 64, "batch_size": 64, "n_epochs": 1, "frame_size": 32}
     config = TrainConfig(
-        "ppo", "BodyTrack-v1", steps=256, seed=1, out=str(tmp_path), settings=settings,
+        "ppo", "BodyTrack-v2", steps=256, seed=1, out=str(tmp_path), settings=settings,
         checkpoint_every=128, eval_every=10_000, eval_episodes=1,
     )  # fmt: skip
     train(config)
     assert (tmp_path / "model.zip").is_file()
     assert (tmp_path / "checkpoints" / "model_256_steps.zip").is_file()
     more = TrainConfig(
-        "ppo", "BodyTrack-v1", steps=384, seed=1, out=str(tmp_path), settings=settings,
+        "ppo", "BodyTrack-v2", steps=384, seed=1, out=str(tmp_path), settings=settings,
         checkpoint_every=128, validation=False,
     )  # fmt: skip
     train(more, resume=True)
@@ -128,7 +128,7 @@ def test_bc_resumes_from_its_last_checkpoint(bc_run: Path, tmp_path: Path) -> No
     run = tmp_path / "run"
     shutil.copytree(bc_run, run)
     config = TrainConfig(
-        "bc", "ArmTrack-v1", steps=360, seed=0, out=str(run),
+        "bc", "ArmTrack-v2", steps=360, seed=0, out=str(run),
         settings={"n_envs": 2, "rounds": 3, "buffer_size": 500, "frame_size": 32},
         eval_episodes=1,
     )  # fmt: skip
@@ -139,7 +139,7 @@ def test_bc_resumes_from_its_last_checkpoint(bc_run: Path, tmp_path: Path) -> No
 
 def test_a_saved_policy_scores_through_evaluate_and_round_trips(bc_run: Path) -> None:
     path = str(bc_run / "model.zip")
-    env = gym.make("humotion_gym/ArmTrack-v1", terminate_on_lost=False)
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
     first = make(f"mine={path}", env, seed=0)
     assert isinstance(first, LearnedAgent) and first.name == "mine"
     results = evaluate(first, env, 2, seed=0)
@@ -150,10 +150,10 @@ def test_a_saved_policy_scores_through_evaluate_and_round_trips(bc_run: Path) ->
 
 def test_an_untrained_policy_is_hold() -> None:
     """The policy starts as hold: its action layer copies the previous estimate."""
-    config = TrainConfig("bc", "BodyTrack-v1", steps=1, settings={"frame_size": 32})
-    learner = make_learner_env("BodyTrack-v1", "train", 32)
+    config = TrainConfig("bc", "BodyTrack-v2", steps=1, settings={"frame_size": 32})
+    learner = make_learner_env("BodyTrack-v2", "train", 32)
     model = new_model(config, learner)
-    env = gym.make("humotion_gym/BodyTrack-v1", terminate_on_lost=False)
+    env = gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False)
     policy = run_episode(LearnedAgent(env, model, "untrained"), env, seed=4)
     hold = run_episode(HoldAgent(env), env, seed=4)
     np.testing.assert_allclose(policy.errors_mm, hold.errors_mm, atol=1e-3)
@@ -161,7 +161,7 @@ def test_an_untrained_policy_is_hold() -> None:
 
 def test_the_hybrid_without_proposals_is_the_particle_filter(bc_run: Path) -> None:
     path = str(bc_run / "model.zip")
-    env = gym.make("humotion_gym/ArmTrack-v1", terminate_on_lost=False)
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
     hybrid = make(f"pf-tree+{path}", env, n_particles=60, seed=3)
     assert isinstance(hybrid, HybridAgent)
     hybrid.proposal_prior.fraction = 0.0
@@ -179,7 +179,7 @@ def test_names_and_errors() -> None:
     assert is_learned("bc") and is_learned("x=runs/a/model.zip") and is_learned("pf-tree+bc")
     assert not is_learned("pf-tree") and not is_learned("hold")
     assert takes_particles("pf-tree+bc") and not takes_particles("bc")
-    env = gym.make("humotion_gym/ArmTrack-v1")
+    env = gym.make("humotion_gym/ArmTrack-v2")
     with pytest.raises(FileNotFoundError, match="humotion-gym train"):
         make("nothing/here.zip", env)
     with pytest.raises(ValueError, match="not a readable"):
@@ -190,47 +190,47 @@ def test_a_missing_pretrained_checkpoint_is_skipped_by_the_leaderboard(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
     monkeypatch.setattr("baselines.agents.learned.CHECKPOINT_DIR", tmp_path)
-    env = gym.make("humotion_gym/ArmTrack-v1")
+    env = gym.make("humotion_gym/ArmTrack-v2")
     with pytest.raises(NoCheckpointError, match="no pretrained"):
         make("ppo", env)
-    rows = run_leaderboard(["ArmTrack-v1"], ["ppo"], [10], episodes=1, progress=False)
+    rows = run_leaderboard(["ArmTrack-v2"], ["ppo"], [10], episodes=1, progress=False)
     assert [r["agent"] for r in rows] == ["hold", "ppo"] and "skipped" in rows[1]
 
 
 def test_a_policy_for_another_task_is_refused(bc_run: Path) -> None:
-    env = gym.make("humotion_gym/BodyTrack-v1")
-    with pytest.raises(ValueError, match="4 free parameters; BodyTrack-v1 has 25"):
+    env = gym.make("humotion_gym/BodyTrack-v2")
+    with pytest.raises(ValueError, match="4 free parameters; BodyTrack-v2 has 25"):
         make(str(bc_run / "model.zip"), env)
 
 
 def test_leaderboard_runs_a_saved_policy_once_per_task(bc_run: Path) -> None:
     name = f"bc={bc_run / 'model.zip'}"
-    rows = run_leaderboard(["ArmTrack-v1"], [name], [10, 20], episodes=2, progress=False)
+    rows = run_leaderboard(["ArmTrack-v2"], [name], [10, 20], episodes=2, progress=False)
     assert [(r["agent"], r["particles"]) for r in rows] == [("hold", 0), (name, 0)]
 
 
 def test_keypoint_sensitivity_of_the_root_is_its_range() -> None:
     """A unit of a root-position action moves every keypoint by the root range (mm)."""
-    env = make_learner_env("BodyTrack-v1", "train", 32)
+    env = make_learner_env("BodyTrack-v2", "train", 32)
     w = keypoint_sensitivity(env, episodes=2)
-    np.testing.assert_allclose(w[:3], TASKS["BodyTrack-v1"].root_range_mm, rtol=1e-6)
+    np.testing.assert_allclose(w[:3], TASKS["BodyTrack-v2"].root_range_mm, rtol=1e-6)
     assert np.all(w >= 0) and np.all(w[3:6] > 50)
 
 
 def test_hyperparams_file_matches_the_built_in_defaults() -> None:
-    for task in TASKS:
+    for task in (t.name for t in CURRENT_TASKS):  # the deprecated -v1 ids are not trained
         assert load_hyperparams(REPO / "hyperparams" / "ppo.yml", task) == PPO_DEFAULTS
 
 
 def test_bad_configs_are_refused() -> None:
     with pytest.raises(ValueError, match="algo"):
-        TrainConfig("sac", "BodyTrack-v1", 10)
+        TrainConfig("sac", "BodyTrack-v2", 10)
     with pytest.raises(ValueError, match="steps"):
-        TrainConfig("bc", "BodyTrack-v1", 0)
+        TrainConfig("bc", "BodyTrack-v2", 0)
     with pytest.raises(ValueError, match="unknown"):
-        TrainConfig("bc", "BodyTrack-v1", 10, settings={"n_step": 3})
+        TrainConfig("bc", "BodyTrack-v2", 10, settings={"n_step": 3})
     with pytest.raises(ValueError, match="eval_episodes"):
-        TrainConfig("bc", "BodyTrack-v1", 10, eval_episodes=0)
+        TrainConfig("bc", "BodyTrack-v2", 10, eval_episodes=0)
 
 
 def test_cli_train_and_track_a_saved_policy(tmp_path: Path) -> None:
@@ -238,14 +238,14 @@ def test_cli_train_and_track_a_saved_policy(tmp_path: Path) -> None:
 
     out = tmp_path / "run"
     code = main([
-        "train", "--algo", "bc", "--task", "SideWalk-v1", "--steps", "100", "--out", str(out),
+        "train", "--algo", "bc", "--task", "SideWalk-v2", "--steps", "100", "--out", str(out),
         "--set", "n_envs=2", "rounds=1", "frame_size=32", "--export", str(tmp_path / "ck"),
     ])  # fmt: skip
     assert code == 0
-    assert (tmp_path / "ck" / "bc-SideWalk-v1.zip").is_file()
-    assert (tmp_path / "ck" / "bc-SideWalk-v1.json").is_file()
+    assert (tmp_path / "ck" / "bc-SideWalk-v2.zip").is_file()
+    assert (tmp_path / "ck" / "bc-SideWalk-v2.json").is_file()
     model = out / "model.zip"
-    assert main(["track", "--task", "SideWalk-v1", "--agent", str(model), "--episodes", "1"]) == 0
+    assert main(["track", "--task", "SideWalk-v2", "--agent", str(model), "--episodes", "1"]) == 0
     assert main(["train", "--algo", "bc", "--set", "bogus=1", "--out", str(out)]) == 2
 
 
@@ -268,7 +268,7 @@ def test_pretrained_checkpoint_loads_acts_and_says_how_it_was_made(path: Path) -
 
 def test_every_task_ships_a_bc_checkpoint_where_the_agents_look() -> None:
     # An empty glob would leave the parametrized test above with no case at all.
-    for task in TASKS:
+    for task in (t.name for t in CURRENT_TASKS):
         assert checkpoint_path("bc", task).is_file(), f"no bc checkpoint for {task}"
 
 
@@ -309,7 +309,7 @@ def test_ppo_fine_tunes_from_a_bc_policy(bc_run: Path, tmp_path: Path) -> None:
 
     settings = {"n_envs": 2, "n_steps": 32, "batch_size": 64, "n_epochs": 1, "frame_size": 32}
     config = TrainConfig(
-        "ppo", "ArmTrack-v1", steps=64, seed=0, out=str(tmp_path), settings=settings,
+        "ppo", "ArmTrack-v2", steps=64, seed=0, out=str(tmp_path), settings=settings,
         init=str(bc_run / "model.zip"), checkpoint_every=64,
     )  # fmt: skip
     train(config)

@@ -32,10 +32,12 @@ def test_learner_observation_passes_the_sb3_checker(env_id: str) -> None:
 
 
 def test_previous_is_the_last_action_and_starts_at_the_initial_pose() -> None:
-    env = LearnerObservation(gym.make("humotion_gym/BodyTrack-v1"), size=32)
+    env = LearnerObservation(gym.make("humotion_gym/BodyTrack-v2"), size=32)
     base = env.unwrapped
     obs, info = env.reset(seed=1)
-    initial = base.pose_to_action(info["initial_pose"])
+    plain_obs, _ = gym.make("humotion_gym/BodyTrack-v2").reset(seed=1)
+    assert np.array_equal(plain_obs["initial_pose"], base._motion.params[info["start_frame"]])
+    initial = base.pose_to_action(plain_obs["initial_pose"])
     np.testing.assert_array_equal(obs["initial"], initial)
     np.testing.assert_array_equal(obs["previous"], initial)
     rng = np.random.default_rng(0)
@@ -49,16 +51,17 @@ def test_previous_is_the_last_action_and_starts_at_the_initial_pose() -> None:
 def test_the_observation_is_the_frame_and_the_agents_own_actions_only() -> None:
     """No truth enters: the wrapper's observation is a function of the plain env's frame,
     the actions taken and the reset's initial pose."""
-    plain = gym.make("humotion_gym/WalkTrack-v1")
-    wrapped = LearnerObservation(gym.make("humotion_gym/WalkTrack-v1"), size=40)
-    frame, info = plain.reset(seed=5)
+    plain = gym.make("humotion_gym/WalkTrack-v2")
+    wrapped = LearnerObservation(gym.make("humotion_gym/WalkTrack-v2"), size=40)
+    given, _ = plain.reset(seed=5)
+    frame = given["frame"]
     obs, _ = wrapped.reset(seed=5)
-    initial = plain.unwrapped.pose_to_action(info["initial_pose"])
+    initial = plain.unwrapped.pose_to_action(given["initial_pose"])
     expected = learner_observation(frame, initial, initial, 40)
     for key in expected:
         np.testing.assert_array_equal(obs[key], expected[key])
     action = np.zeros(plain.action_space.shape, np.float32)
-    frame, *_ = plain.step(action)
+    frame = plain.step(action)[0]["frame"]
     obs, *_ = wrapped.step(action)
     expected = learner_observation(frame, action, initial, 40)
     for key in expected:
@@ -95,11 +98,11 @@ def test_learner_frames_are_each_frames_learner_frame(shape: tuple, size: int | 
 
 def test_bad_size_is_refused() -> None:
     with pytest.raises(ValueError, match="size"):
-        LearnerObservation(gym.make("humotion_gym/ArmTrack-v1"), size=2)
+        LearnerObservation(gym.make("humotion_gym/ArmTrack-v2"), size=2)
 
 
 def test_frame_stacking_through_gymnasium() -> None:
-    env = FrameStackObservation(LearnerObservation(gym.make("humotion_gym/ArmTrack-v1"), 32), 3)
+    env = FrameStackObservation(LearnerObservation(gym.make("humotion_gym/ArmTrack-v2"), 32), 3)
     obs, _ = env.reset(seed=0)
     assert obs["frame"].shape == (3, 3, 32, 32)
     assert obs["previous"].shape == (3, 4)
@@ -107,10 +110,28 @@ def test_frame_stacking_through_gymnasium() -> None:
 
 
 def test_supervision_refuses_a_test_split_env() -> None:
-    with pytest.raises(ValueError, match="split='train'"):
-        Supervision(gym.make("humotion_gym/BodyTrack-v1"))
+    for split in ("test", "validation"):
+        with pytest.raises(ValueError, match="split='train'"):
+            Supervision(gym.make("humotion_gym/BodyTrack-v2", split=split))
     with pytest.raises(ValueError, match="test"):
-        Supervision(LearnerObservation(gym.make("humotion_gym/ArmTrack-v1", split="test")))
+        Supervision(LearnerObservation(gym.make("humotion_gym/ArmTrack-v2", split="test")))
+    Supervision(gym.make("humotion_gym/BodyTrack-v2"))  # the default split is train
+
+
+@pytest.mark.parametrize("person", ["synthetic-05", "synthetic-03"])
+def test_supervision_checks_the_person_of_every_episode(person: str) -> None:
+    # A train env whose clips were (wrongly) given a held-out person's clip:
+    # the env alone shows it, Supervision refuses the episode.
+    from humotion_gym.mocap.library import MotionLibrary
+
+    env = Supervision(gym.make("humotion_gym/BodyTrack-v2"))
+    base = env.unwrapped
+    env.reset(seed=0)  # a training person's episode is labelled
+    held = tuple(m for m in base.library if m.subject == person)
+    base.clips = MotionLibrary(held, base.clips.test_subjects)
+    assert base.reset(seed=1)[1]["person"] == person
+    with pytest.raises(ValueError, match=person):
+        env.reset(seed=1)
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
