@@ -42,7 +42,7 @@ def _base(env: gym.Env) -> PoseTrackingEnv:
 def _frame_and_initial(
     observation: Any, info: dict[str, Any]
 ) -> tuple[NDArray[np.uint8], NDArray[np.float64] | None]:
-    """The frame and (at a reset) the initial pose: from a v2 observation, or a v1 frame and info."""
+    """The frame and (at a reset) the initial pose: of a v2 observation, or a v1 frame and info."""
     if isinstance(observation, dict):
         return observation["frame"], np.asarray(observation["initial_pose"], dtype=np.float64)
     initial = info.get("initial_pose")

@@ -62,9 +62,8 @@ def _cmd_discrimination(args: argparse.Namespace) -> int:
         likelihood_peak_error,
     )
 
-    env = gym.make(
-        f"humotion_gym/{args.task}", terminate_on_lost=False, **{"split": "test", **env_kwargs(args)}
-    )
+    kwargs = {"split": "test", **env_kwargs(args)}
+    env = gym.make(f"humotion_gym/{args.task}", terminate_on_lost=False, **kwargs)
     if args.figure is not None:
         import cv2
 

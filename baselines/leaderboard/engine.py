@@ -131,7 +131,7 @@ Fits = Mapping[tuple[str, str], tuple[str, Any]]
 
 
 def make_env(task: str, env_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
-    """A task's environment as the leaderboard runs it: the test persons, every episode to its end."""
+    """A task's environment as the leaderboard runs it: test persons, every episode to its end."""
     kwargs = {"split": "test", **dict(env_kwargs or {})}
     return gym.make(f"humotion_gym/{task}", terminate_on_lost=False, **kwargs)
 

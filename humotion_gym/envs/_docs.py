@@ -33,18 +33,30 @@ COMMON_SECTIONS = """
     the first ``reset`` raises ``RuntimeError``. Actions outside [-1, 1] act
     as the clipped action (``tests/envs/test_action_bounds.py``).
 
+    ## Observation
+
+    A ``Dict`` holding every input an agent may use
+    (:mod:`humotion_gym.envs.description`): ``frame`` (the rendered frame,
+    described above), ``initial_pose`` (25,), the true pose of the frame
+    before the first one shown (the papers set frame 0 by hand),
+    ``fixed_params``, the true values of the parameters the task does not
+    track for the frame on show (``task.fixed_indices`` order), ``camera``
+    (13,), that frame's camera (:meth:`~humotion_gym.camera.Camera.to_vector`),
+    and ``shape`` (43,), the subject's
+    :class:`~humotion_gym.body.BodyShape` (``to_vector``);
+    :func:`~humotion_gym.envs.description.read_observation` gives them typed.
+    :class:`~humotion_gym.wrappers.FrameObservation` gives a pixel-only
+    learner the frame alone. The ground truth of the free parameters never
+    appears, and nothing given at a step (observation, action bounds)
+    depends on the episode after the frame on show
+    (``tests/envs/test_no_future_leak.py`` checks every task).
+
     ## Info
 
-    ``reset`` gives ``initial_pose`` (25,), the true pose of the frame before
-    the first one shown (the papers set frame 0 by hand), ``shape`` (the
-    subject's :class:`~humotion_gym.body.BodyShape`), ``camera``,
-    ``clip_id``, ``fps``, ``start_frame`` and ``synthetic``. Every ``reset``
-    and ``step`` gives ``fixed_params``: the true values of the parameters the
-    task does not track (``task.fixed_indices`` order) for the frame in the
-    returned observation, and that frame's ``camera``. The ground truth of the
-    free parameters never appears, and nothing given at a step (observation,
-    info, camera, action bounds) depends on the episode after the frame on
-    show (``tests/envs/test_no_future_leak.py`` checks every task).
+    Scores and diagnostics only, for the evaluation; an agent never reads it
+    (the baselines' evaluation loop does not hand it over): the step's scores
+    (above), ``frame`` and ``step``, and at ``reset`` the episode's
+    ``clip_id``, ``person``, ``start_frame`` and ``synthetic``.
 
     ## Arguments
 
@@ -55,7 +67,7 @@ COMMON_SECTIONS = """
     | ``render_mode`` | None | ``"rgb_array"``: ``render()`` returns the frame with the last estimate drawn as a wire figure |
     | ``data_dir`` | None | folders of real mocap (else ``$HUMOTION_MOCAP``, else the built-in synthetic set) |
     | ``library`` | None | a ready :class:`~humotion_gym.mocap.library.MotionLibrary` instead of ``data_dir`` (e.g. a validation fold) |
-    | ``split`` | ``"test"`` | ``"test"``: the held-out persons (CMU subjects 2 and 3 on the shared data); ``"train"``: the training persons, for training learned policies |
+    | ``split`` | ``"train"`` | ``"train"``: the training persons less the validation persons (a reset option naming another person's clip, file or motion is refused, by name and skeleton); ``"validation"``: CMU subjects 1, 5 and 7 (synthetic 3 and 4), where settings are chosen; ``"test"``: the held-out persons (CMU subjects 2 and 3), for the leaderboard |
     | ``width``, ``height`` | 128, 128 | frame size (64x64 to 640x480) |
     | ``color`` | ``"rgb"`` | or ``"gray"`` (one channel) |
     | ``background`` | ``"clutter"`` | or ``"flat"`` |

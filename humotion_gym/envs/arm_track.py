@@ -34,8 +34,9 @@ class ArmTrackEnv(PoseTrackingEnv):
 
     ## Observation Space
 
-    ``Box(0, 255, (height, width, 3), uint8)``: the rendered frame (one channel
-    with ``color="gray"``). The camera looks at the subject's front-right
+    A ``Dict`` (see Observation below) whose ``frame`` is
+    ``Box(0, 255, (height, width, 3), uint8)``, the rendered frame (one
+    channel with ``color="gray"``). The camera looks at the subject's front-right
     (20 degrees off the initial heading, 5 up, 50 degree field of view) and
     frames, close up, the sphere the arm can reach about the shoulder (4%
     margin, the arm's own radius as padding), so the arm is as large in the
@@ -59,20 +60,21 @@ class ArmTrackEnv(PoseTrackingEnv):
 
     ## Given Truth
 
-    ``info["fixed_params"]`` gives, for the frame on show, the true values of
+    ``observation["fixed_params"]`` gives, for the frame on show, the true values of
     the 21 parameters the task does not track: the root position (3) and
     orientation (3), the neck (3), the left arm (4) and the legs (8), as the
     paper's stabilised sequence gave the shoulder.
 
     ## Starting State
 
-    A test-split clip of any activity and a start frame whose episode frames
-    were all observed and in which the elbow and wrist move at least 150 mm
-    relative to the shoulder (``task.min_motion_mm``: the largest distance
-    from their first position, averaged over the two), drawn with the
-    environment's generator; ``options={"clip_id": ...}``, ``{"file": path}``
-    or ``{"start": k}`` choose them (a chosen start is not checked for
-    motion).
+    A clip of the split's persons, of any activity, and a start frame whose
+    episode frames were all observed, drawn with the environment's
+    generator; ``options={"clip_id": ...}``, ``{"file": path}`` or
+    ``{"start": k}`` choose them. The leaderboard scores the declared test
+    episodes (:mod:`humotion_gym.envs.episodes`). v1 kept only starts where
+    the elbow and wrist move at least 150 mm relative to the shoulder
+    (``task.min_motion_mm``), which set its ``hold`` floor high by
+    construction; v2 keeps every start.
     """
 
     def __init__(self, task: str = "ArmTrack-v2", **kwargs: Any) -> None:
@@ -84,6 +86,14 @@ ArmTrackEnv.__doc__ = (
     + COMMON_SECTIONS
     + """
     ## Version History
+
+    * v2: the observation is a ``Dict`` holding every input an agent may use
+      (frame, initial pose, given parameters, camera, shape); ``info`` holds
+      scores and diagnostics only; ``gym.make`` draws the training persons
+      (``split="train"``), the test persons only with ``split="test"``; the
+      leaderboard scores the declared test episodes
+      (:mod:`humotion_gym.envs.episodes`). Frames, actions and rewards as v1.
+      v1 stays registered for one release with a ``DeprecationWarning``.
 
     * v1, later still: a ``step`` after the episode's end warns and returns the
       terminal transition again (reward 0, ``info["after_end"]``) instead of

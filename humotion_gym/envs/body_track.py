@@ -28,7 +28,8 @@ class BodyTrackEnv(PoseTrackingEnv):
 
     ## Observation Space
 
-    ``Box(0, 255, (height, width, 3), uint8)``: a static camera 30 degrees to
+    A ``Dict`` (see Observation below) whose ``frame``, ``Box(0, 255, (height,
+    width, 3), uint8)``, is seen by a static camera 30 degrees to
     the subject's right of its initial heading, 10 degrees up, 45 degree field
     of view, placed from the first frame only: it frames the initial pose swept
     through a box of root travel along the initial heading (0.3 m back, 1.5 m
@@ -38,8 +39,8 @@ class BodyTrackEnv(PoseTrackingEnv):
 
     ## Given Truth
 
-    None: every parameter is free, so ``info["fixed_params"]`` is empty. The
-    initial pose (``info["initial_pose"]``) and the subject's shape are given.
+    None: every parameter is free, so ``observation["fixed_params"]`` is empty. The
+    initial pose (``observation["initial_pose"]``) and the subject's shape are given.
 
     ## Starting State
 
@@ -57,6 +58,14 @@ BodyTrackEnv.__doc__ = (
     + COMMON_SECTIONS
     + """
     ## Version History
+
+    * v2: the observation is a ``Dict`` holding every input an agent may use
+      (frame, initial pose, given parameters, camera, shape); ``info`` holds
+      scores and diagnostics only; ``gym.make`` draws the training persons
+      (``split="train"``), the test persons only with ``split="test"``; the
+      leaderboard scores the declared test episodes
+      (:mod:`humotion_gym.envs.episodes`). Frames, actions and rewards as v1.
+      v1 stays registered for one release with a ``DeprecationWarning``.
 
     * v1, later still: a ``step`` after the episode's end warns and returns the
       terminal transition again (reward 0, ``info["after_end"]``) instead of

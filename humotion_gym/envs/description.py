@@ -4,13 +4,16 @@ An agent of a version-2 task uses its observation and nothing else. The
 observation is a ``Dict`` (:func:`observation_space`) holding every input
 the benchmark gives:
 
-| key | space | what it is |
-|---|---|---|
-| ``frame`` | ``Box(0, 255, (H, W, C), uint8)`` | the rendered frame |
-| ``initial_pose`` | ``Box(-1e9, 1e9, (25,), float64)`` | the true pose of the frame before the first one shown (the papers set frame 0 by hand) |
-| ``fixed_params`` | ``Box(-1e9, 1e9, (n_fixed,), float64)`` | the true values of the parameters the task does not track, for the frame on show (``task.fixed_indices`` order) |
-| ``camera`` | ``Box(-1e9, 1e9, (13,), float64)`` | the frame's camera (:meth:`~humotion_gym.camera.Camera.to_vector`) |
-| ``shape`` | ``Box(-1e9, 1e9, (43,), float64)`` | the subject's shape (:meth:`~humotion_gym.body.BodyShape.to_vector`) |
+* ``frame``: ``Box(0, 255, (H, W, C), uint8)``, the rendered frame;
+* ``initial_pose``: ``Box(-1e9, 1e9, (25,), float64)``, the true pose of the
+  frame before the first one shown (the papers set frame 0 by hand);
+* ``fixed_params``: ``Box(-1e9, 1e9, (n_fixed,), float64)``, the true values
+  of the parameters the task does not track, for the frame on show
+  (``task.fixed_indices`` order);
+* ``camera``: ``Box(-1e9, 1e9, (13,), float64)``, the frame's camera
+  (:meth:`~humotion_gym.camera.Camera.to_vector`);
+* ``shape``: ``Box(-1e9, 1e9, (43,), float64)``, the subject's shape
+  (:meth:`~humotion_gym.body.BodyShape.to_vector`).
 
 :func:`read_observation` turns one into typed parts. A
 :class:`TaskDescription` is what an agent is built from: the task, how its

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import functools
 import warnings
-import weakref
-from collections import OrderedDict
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -26,9 +24,9 @@ from humotion_gym.body import (
 from humotion_gym.camera import Camera, fit_camera
 from humotion_gym.envs import description
 from humotion_gym.envs._checks import action_array, check_count, check_positive
+from humotion_gym.envs._episode_choice import EpisodeChoice, clip_geometry
 from humotion_gym.envs.description import TaskDescription
 from humotion_gym.envs.tasks import TaskSpec, get_task
-from humotion_gym.kinematics import batch_pose_geometry
 from humotion_gym.metrics import Scoring, StepScores, step_scores, update_lost_run
 from humotion_gym.mocap.library import (
     EPISODE_SPLITS,
@@ -38,7 +36,6 @@ from humotion_gym.mocap.library import (
     synthetic_library,
 )
 from humotion_gym.mocap.motion import Motion
-from humotion_gym.mocap.persons import same_skeleton, skeleton_signature
 from humotion_gym.render import (
     SceneOptions,
     draw_pose_overlay,
@@ -64,30 +61,6 @@ def _cached_library(dirs: tuple[str, ...], fps: float) -> MotionLibrary:
     return load_library(list(dirs), fps=fps, progress=False)
 
 
-# Keypoints and cone axes of every frame of the clips episodes were drawn from,
-# computed once per clip and shared by every environment of the process (a
-# reset then indexes its frames instead of running the kinematics). Least
-# recently used clips go beyond _CLIP_GEOMETRY_FRAMES frames (~840 bytes each).
-_CLIP_GEOMETRY: OrderedDict[int, tuple[weakref.ref[Motion], FloatArray]] = OrderedDict()
-_CLIP_GEOMETRY_FRAMES = 60_000
-
-
-def _clip_geometry(motion: Motion) -> FloatArray:
-    """``(T, 35, 3)`` :func:`batch_pose_geometry` of a clip's frames (cached)."""
-    key = id(motion)
-    entry = _CLIP_GEOMETRY.get(key)
-    if entry is not None and entry[0]() is motion:
-        _CLIP_GEOMETRY.move_to_end(key)
-        return entry[1]
-    geometry = batch_pose_geometry(motion.params, motion.shape)
-    _CLIP_GEOMETRY[key] = (weakref.ref(motion), geometry)
-    total = sum(g.shape[0] for _, g in _CLIP_GEOMETRY.values())
-    while total > _CLIP_GEOMETRY_FRAMES and len(_CLIP_GEOMETRY) > 1:
-        _, (_, dropped) = _CLIP_GEOMETRY.popitem(last=False)
-        total -= dropped.shape[0]
-    return geometry
-
-
 def _sphere(radius: float, n: int = 26) -> FloatArray:
     """Points on a sphere (the 26 directions of a cube's faces, edges, corners)."""
     grid = np.stack(np.meshgrid(*[np.array([-1.0, 0.0, 1.0])] * 3, indexing="ij"), -1).reshape(
@@ -101,8 +74,6 @@ def _sphere(radius: float, n: int = 26) -> FloatArray:
 _ARM_CONES = [CONE_NAMES.index("r_upper_arm"), CONE_NAMES.index("r_forearm")]
 
 
-#: The keys ``reset(options=...)`` understands.
-RESET_OPTIONS: tuple[str, ...] = ("clip_id", "file", "motion", "start")
 # What a reset assigns: restored when a reset fails, so a reset is all-or-nothing.
 _EPISODE_STATE: tuple[str, ...] = (
     "_motion", "_t0", "_root0", "_bounds", "_episode_seed", "_noise", "_background",
@@ -115,7 +86,7 @@ _EPISODE_STATE: tuple[str, ...] = (
 )  # fmt: skip
 
 
-class PoseTrackingEnv(gym.Env):
+class PoseTrackingEnv(EpisodeChoice, gym.Env):
     """Track a cone figure's 3D pose from rendered frames: the one environment class.
 
     A :class:`~humotion_gym.envs.tasks.TaskSpec` says which parameters are free,
@@ -364,151 +335,6 @@ class PoseTrackingEnv(gym.Env):
         assert self._motion is not None, "call reset() first"
         return np.array(self._motion.params[self._frame_index(k)])
 
-    def _check_options(self, options: dict[str, Any] | None) -> dict[str, Any]:
-        """The reset options, refused with a clear ``ValueError`` when wrong."""
-        if options is None:
-            return {}
-        if not isinstance(options, dict):
-            raise ValueError(f"reset: options must be a dict, got {type(options).__name__}")
-        unknown = sorted(set(options) - set(RESET_OPTIONS))
-        if unknown:
-            raise ValueError(
-                f"reset: unknown options {unknown}; the options are {list(RESET_OPTIONS)}"
-            )
-        chosen = [k for k in ("clip_id", "file", "motion") if k in options]
-        if len(chosen) > 1:
-            raise ValueError(f"reset: give at most one of clip_id, file, motion; got {chosen}")
-        if "motion" in options and not isinstance(options["motion"], Motion):
-            raise ValueError(
-                "reset: options['motion'] must be a humotion_gym Motion, got "
-                f"{type(options['motion']).__name__}"
-            )
-        if "clip_id" in options:
-            clip_id = options["clip_id"]
-            if not isinstance(clip_id, str) or clip_id not in self.library.clip_ids:
-                ids = self.library.clip_ids
-                raise ValueError(
-                    f"reset: options['clip_id'] {clip_id!r} is not in the library; its "
-                    f"{len(ids)} clips include {ids[:8]}"
-                )
-        if "start" in options:
-            start = options["start"]
-            if isinstance(start, bool) or not isinstance(start, (int, np.integer)):
-                raise ValueError(f"reset: options['start'] must be an integer frame, got {start!r}")
-        return dict(options)
-
-    def _pick_clip(self, options: dict[str, Any]) -> Motion:
-        if "motion" in options:
-            return self._check_person(options["motion"], "motion")
-        if "clip_id" in options:
-            return self._check_person(self.library[options["clip_id"]], "clip_id")
-        if "file" in options:
-            lib = load_library([options["file"]], fps=self.library[0].fps, progress=False)
-            if len(lib) == 0:
-                raise ValueError(f"reset: options['file'] {options['file']!r} holds no clip")
-            return self._check_person(lib[0], "file")
-        return self.clips[int(self.np_random.integers(len(self.clips)))]
-
-    def _check_person(self, motion: Motion, option: str) -> Motion:
-        """``motion``, refused where it shows a person this split must not show.
-
-        A ``"train"`` environment never shows a test or validation person, a
-        ``"validation"`` one never a test person, by name and by skeleton
-        (:func:`~humotion_gym.mocap.persons.same_skeleton` against every
-        such person of the library: a held-out person's file under another
-        name is still that person).
-
-        Raises:
-            ValueError: Naming the option, the clip and the person.
-        """
-        unseen = self.library.unseen_by(self.split)
-        if not unseen:
-            return motion
-        person = motion.subject
-        if person not in unseen:
-            signature = skeleton_signature(motion)
-            for other, other_signature in self._unseen_signatures():
-                if same_skeleton(signature, other_signature):
-                    person = f"{other} (same skeleton as {motion.subject!r})"
-                    break
-            else:
-                return motion
-        raise ValueError(
-            f"reset: options[{option!r}] {motion.clip_id!r} shows {person}, a held-out person; "
-            f"a split={self.split!r} environment never shows the persons {sorted(unseen)} "
-            "(make it with split='test' to evaluate)"
-        )
-
-    def _unseen_signatures(self) -> list[tuple[str, FloatArray]]:
-        """A skeleton signature of each person of the library this split must not show."""
-        cached = self._unseen_cache
-        if cached is None:
-            unseen = self.library.unseen_by(self.split)
-            first: dict[str, Motion] = {}
-            for m in self.library:
-                if m.subject in unseen:
-                    first.setdefault(m.subject, m)
-            cached = [(name, skeleton_signature(m)) for name, m in sorted(first.items())]
-            self._unseen_cache = cached
-        return cached
-
-    def _pick_start(self, motion: Motion, options: dict[str, Any]) -> int:
-        span = self.episode_frames * self.frame_skip
-        if motion.n_frames <= span:
-            raise ValueError(
-                f"{motion.clip_id}: {motion.n_frames} frames, an episode needs {span + 1}"
-            )
-        if "start" in options:
-            start = int(options["start"])
-            if not 0 <= start < motion.n_frames - span:
-                raise ValueError(f"options['start'] must be in [0, {motion.n_frames - span})")
-            return start
-        good = self._good_starts(motion)
-        if good.size == 0:
-            good = np.arange(motion.n_frames - span)
-        return int(good[self.np_random.integers(good.size)])
-
-    def _good_starts(self, motion: Motion) -> NDArray[np.intp]:
-        """Start frames whose episode was observed throughout and moves enough.
-
-        A start is good when every frame of its episode was observed and, for a
-        task with ``min_motion_mm``, its scored keypoints (relative to the
-        task's anchor) move at least that far within the episode. Selection
-        only: what a start's episode shows is still a function of its frames.
-        Cached per clip.
-        """
-        cached = self._starts.get(motion.clip_id)
-        if cached is not None and cached[0] is motion:
-            return cached[1]
-        span = self.episode_frames * self.frame_skip
-        n_starts = motion.n_frames - span
-        if n_starts < 1:
-            good = np.zeros(0, np.intp)
-        else:
-            # count the observed frames of each window from a running sum
-            count = np.concatenate([[0], np.cumsum(motion.frame_observed)])
-            ok = count[span + 1 :] - count[: -span - 1] == span + 1
-            if self.task.min_motion_mm > 0:
-                ok &= self._episode_motion(motion) >= self.task.min_motion_mm
-            good = np.flatnonzero(ok)
-        self._starts[motion.clip_id] = (motion, good)
-        return good
-
-    def _episode_motion(self, motion: Motion) -> FloatArray:
-        """``(n_starts,)`` how far the scored keypoints move in each start's episode.
-
-        The mean over the scored keypoints, relative to ``task.motion_anchor``, of
-        the largest distance from their position at the start frame.
-        """
-        span = self.episode_frames * self.frame_skip
-        kp = _clip_geometry(motion)[:, :N_KEYPOINTS]
-        anchor = KEYPOINT_INDEX[self.task.motion_anchor]
-        rel = kp[:, self._err_kp] - kp[:, anchor : anchor + 1]  # (T, K, 3)
-        steps = np.arange(0, span + 1, self.frame_skip)
-        starts = np.arange(motion.n_frames - span)
-        moved = rel[starts[:, None] + steps[None]] - rel[starts][:, None]  # (S, F, K, 3)
-        return np.linalg.norm(moved, axis=-1).max(axis=1).mean(axis=1)
-
     def _place_camera(self) -> None:
         """Cameras for every frame of the episode, from the first frame only.
 
@@ -575,11 +401,12 @@ class PoseTrackingEnv(gym.Env):
     def _episode_geometry(self, motion: Motion, idx: NDArray[np.intp]) -> FloatArray:
         """``(len(idx), 35, 3)`` keypoints and cone axes of the clip's frames ``idx``.
 
-        Read from the clip's table (:func:`_clip_geometry`), which gives the
-        same numbers as computing the episode's frames alone (the kinematics
-        is elementwise over frames; ``tests/envs/test_render_reuse.py``).
+        Read from the clip's table
+        (:func:`~humotion_gym.envs._episode_choice.clip_geometry`), which gives
+        the same numbers as computing the episode's frames alone (the
+        kinematics is elementwise over frames; ``tests/envs/test_render_reuse.py``).
         """
-        return _clip_geometry(motion)[idx]
+        return clip_geometry(motion)[idx]
 
     @property
     def camera(self) -> Camera:
@@ -653,9 +480,7 @@ class PoseTrackingEnv(gym.Env):
                 self._np_random.bit_generator.state = rng_state
             raise
 
-    def _reset(
-        self, seed: int | None, options: dict[str, Any]
-    ) -> tuple[Any, dict[str, Any]]:
+    def _reset(self, seed: int | None, options: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
         self._begin_episode(seed, options)
         self._figures = figure_sequence(
             self._episode_params, self.shape, self._cameras, self.scene, self._geometry
@@ -692,9 +517,7 @@ class PoseTrackingEnv(gym.Env):
         if cameras:
             self._place_camera()
 
-    def _first_frame(
-        self, out: NDArray[np.uint8] | None = None
-    ) -> tuple[Any, dict[str, Any]]:
+    def _first_frame(self, out: NDArray[np.uint8] | None = None) -> tuple[Any, dict[str, Any]]:
         """The end of a reset: the first frame and the reset's info.
 
         With ``out`` (a row of the vector environment's batch) the frame on

@@ -37,14 +37,15 @@ class SideWalkEnv(PoseTrackingEnv):
 
     ## Observation Space
 
-    ``Box(0, 255, (height, width, 3), uint8)``: the side view (90 degrees
+    A ``Dict`` (see Observation below) whose ``frame``, ``Box(0, 255, (height,
+    width, 3), uint8)``, is the side view (90 degrees
     from the initial heading, at hip height), following the pelvis
     horizontally. The framing is set from the first frame: the initial pose
     about the pelvis, grown by 0.45 m forward and back for the limbs' swing.
 
     ## Given Truth
 
-    ``info["fixed_params"]`` gives, for the frame on show, the true values of
+    ``observation["fixed_params"]`` gives, for the frame on show, the true values of
     the 17 parameters the task does not track: the root position (3; the
     camera follows it anyway) and orientation (3), the neck (3), the
     shoulders' swing and twist (2 per side) and the hips' abduction and
@@ -66,6 +67,14 @@ SideWalkEnv.__doc__ = (
     + COMMON_SECTIONS
     + """
     ## Version History
+
+    * v2: the observation is a ``Dict`` holding every input an agent may use
+      (frame, initial pose, given parameters, camera, shape); ``info`` holds
+      scores and diagnostics only; ``gym.make`` draws the training persons
+      (``split="train"``), the test persons only with ``split="test"``; the
+      leaderboard scores the declared test episodes
+      (:mod:`humotion_gym.envs.episodes`). Frames, actions and rewards as v1.
+      v1 stays registered for one release with a ``DeprecationWarning``.
 
     * v1, later still: a ``step`` after the episode's end warns and returns the
       terminal transition again (reward 0, ``info["after_end"]``) instead of

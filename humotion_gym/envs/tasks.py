@@ -102,7 +102,7 @@ class TaskSpec:
     Attributes:
         name: The id without namespace, e.g. ``"ArmTrack-v1"``.
         free: The parameters the agent estimates; the rest follow the ground
-            truth and are given to the agent in ``info["fixed_params"]``.
+            truth and are given to the agent in ``observation["fixed_params"]``.
         error_keypoints: The keypoints the free parameters move; the error,
             reward and lost-track test average over these.
         labels: Clip labels the task draws from (None for every clip).

@@ -488,10 +488,14 @@ class PoseTrackingVectorEnv(VectorEnv):
     ) -> dict[str, NDArray[Any]]:
         """The info of every episode's step, batched (the single environment's keys and types)."""
         template = self.envs[0]
-        given = {} if self._dict else {  # version 1 gave the agent's inputs here
-            "fixed_params": self._params[self._rows, shown][:, self._fixed],
-            "camera": cameras,
-        }
+        given = (
+            {}
+            if self._dict
+            else {  # version 1 gave the agent's inputs here
+                "fixed_params": self._params[self._rows, shown][:, self._fixed],
+                "camera": cameras,
+            }
+        )
         return {
             **given,
             "frame": (self._t0 + shown * template.frame_skip).astype(np.int64),
