@@ -185,10 +185,11 @@ def test_a_lower_bound_above_two_is_valid():
 
 
 def test_the_verdict_is_on_the_reference_agents_alone():
-    assert "pf-mix" in REFERENCE_AGENTS and "pf-slds" not in REFERENCE_AGENTS
+    assert {"pf-mix", "pf-slds", "pf-pca"} <= set(REFERENCE_AGENTS)
+    assert "apf-mix" not in REFERENCE_AGENTS
     hold = _hold(6, 2)
     reference = _row("pf-tree", 300, [[150.0, 160.0]] * 6)
-    other = _row("pf-slds", 300, [[50.0, 55.0]] * 6)  # better, but not a reference
+    other = _row("apf-mix", 300, [[50.0, 55.0]] * 6)  # better, but not a reference
     (line, *_) = validity_lines([hold, other, reference])
     assert "is pf-tree," in line and line.endswith("NOT valid (interval's lower bound below 2x)")
     assert validity_lines([hold, other]) == []

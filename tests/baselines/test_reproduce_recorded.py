@@ -189,3 +189,13 @@ def test_cpu_model_reads_cpuinfo_else_the_platform(tmp_path):
     cpuinfo.write_text("processor\t: 0\nHardware\t: Example SoC\n")
     assert platform_info.cpu_model(cpuinfo) == "Example SoC"
     assert isinstance(platform_info.cpu_model(tmp_path / "missing"), str)
+
+
+def test_the_numbers_do_not_depend_on_the_callers_blas_threads():
+    """The engine runs every episode on one BLAS thread: 1 or 2 outside give the same numbers."""
+    runs = []
+    for limit in (1, 2):
+        with threadpool_limits(limits=limit, user_api="blas"):
+            rows = run_leaderboard(["ArmTrack-v2"], ["pf-cv"], [50], episodes=2, progress=False)
+        runs.append({r["agent"]: [e["errors_mm"] for e in r["episodes"]] for r in rows})
+    assert runs[0] == runs[1]
