@@ -52,12 +52,16 @@ DEFAULT_FIGURE_COLORS: tuple[Color, ...] = (
     _TROUSERS,  # l_shin
 )
 
-_SLEEVE: Color = (240, 240, 230)
+_SLEEVE: Color = (0, 60, 20)
 
-#: v2's palette: :data:`DEFAULT_FIGURE_COLORS` with white sleeves, so that the
-#: upper arms stand apart from the torso in hue and in luminance (about 239
-#: grey levels against the shirt's 79 and the forearms' 192: gray frames
-#: show them too) while left and right limbs stay alike.
+#: v2's palette: :data:`DEFAULT_FIGURE_COLORS` with dark green sleeves, so
+#: that the upper arms stand apart from the torso in hue and in luminance
+#: (about 38 grey levels against the shirt's 79 and the forearms' 192: gray
+#: frames show them too) while left and right limbs stay alike. Dark and
+#: saturated, they stay far from the grey wall at every shade; white sleeves
+#: shade into the wall's grey on their dark side, and on validation persons
+#: cost a tracker 26 mm on WalkTrack-v1 where these gained 11
+#: (docs/v2_limbs.md).
 SHADED_FIGURE_COLORS: tuple[Color, ...] = (
     _SHIRT,  # torso
     _SKIN,  # head
