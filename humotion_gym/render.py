@@ -12,7 +12,9 @@ pixels get one flat shade instead).
 The background is made once per episode (:func:`make_background`, in
 :mod:`humotion_gym.render_scene`) from the episode's random generator and
 reused every frame. Occluders (bars and blobs) move across the image over the
-episode. Each frame gets sensor noise (and an optional blur) from the
+episode. With ``SceneOptions.floor`` the ground plane's grid lines, seen from
+each frame's camera, are drawn over the background and behind the figure.
+Each frame gets sensor noise (and an optional blur) from the
 generator passed to :func:`render`. Every pixel is drawn by OpenCV.
 
 Every random draw goes through an explicit ``numpy.random.Generator``: the same
@@ -45,15 +47,20 @@ from humotion_gym.kinematics import batch_pose_geometry, single_pose_geometry
 from humotion_gym.render_scene import (
     _ELLIPSE_POINTS,
     DEFAULT_FIGURE_COLORS,
+    FIGURE_PALETTES,
+    FLOOR_COLOR,
     Background,
     Color,
     SceneOptions,
+    _to_channels,
+    floor_segments,
     make_background,
     noise_bank,
 )
 
 __all__ = [
     "DEFAULT_FIGURE_COLORS",
+    "FIGURE_PALETTES",
     "Background",
     "FigureSequence",
     "SceneOptions",
@@ -166,6 +173,9 @@ class FigureSequence:
         colors: ``(T, 10, 2 + S, C)`` uint8 colours of each cone's cap, flat
             shade and strips.
         wide: ``T x 10`` booleans: whether a cone is drawn with strips.
+        floor: Per frame, the ``(M, 2, 2)`` int32 end points (fixed point) of
+            the floor's grid lines to draw when the scene has a floor
+            (:func:`~humotion_gym.render_scene.floor_segments`); None without.
     """
 
     scene: SceneOptions
@@ -174,9 +184,23 @@ class FigureSequence:
     quads: NDArray[np.int32] = field(repr=False)
     colors: NDArray[np.uint8] = field(repr=False)
     wide: list = field(repr=False)
+    floor: list | None = field(default=None, repr=False)
 
     def __len__(self) -> int:
         return len(self.order)
+
+    def concatenated(self, rest: FigureSequence) -> FigureSequence:
+        """The figures of this sequence's frames followed by ``rest``'s (same scene)."""
+        floor = None if self.floor is None or rest.floor is None else self.floor + rest.floor
+        return FigureSequence(
+            self.scene,
+            self.order + rest.order,
+            np.concatenate([self.ellipses, rest.ellipses]),
+            np.concatenate([self.quads, rest.quads]),
+            np.concatenate([self.colors, rest.colors]),
+            self.wide + rest.wide,
+            floor,
+        )
 
     @functools.cached_property
     def counts(self) -> list[int]:
@@ -215,9 +239,24 @@ def figure_sequence(
         ValueError: For malformed poses, cameras of another size or field of
             view, or a sequence of cameras of the wrong length.
     """
-    in_camera, first = _in_camera(params, shape, cameras, scene, geometry)
+    in_camera, first, pose = _in_camera(params, shape, cameras, scene, geometry)
     order, ellipses, quads, colors, wide = _figure_polygons(in_camera, shape, first, scene)
-    return FigureSequence(scene, order, ellipses, quads, colors, wide)
+    floor = _floor_lines(pose, first, scene, in_camera.shape[0])
+    return FigureSequence(scene, order, ellipses, quads, colors, wide, floor)
+
+
+def _floor_lines(
+    pose: tuple[NDArray[np.float64], NDArray[np.float64]],
+    camera: Camera,
+    scene: SceneOptions,
+    n: int,
+) -> list[NDArray[np.int32]] | None:
+    """Each of ``n`` frames' floor segments to draw (``pose``: the cameras' R and t), or None."""
+    if not scene.floor:
+        return None
+    segments, shown = floor_segments(*pose, camera.focal, camera.principal_point, _SHIFT)
+    lines = [segs[keep] for segs, keep in zip(segments, shown, strict=True)]
+    return lines * n if len(lines) == 1 else lines
 
 
 def figure_sequences(
@@ -245,7 +284,7 @@ def figure_sequences(
     """
     prepared = [_in_camera(p, shape, cams, scene, g) for p, shape, cams, g in sequences]
     groups: dict[tuple, list[int]] = {}
-    for i, ((_, shape, _, _), (_, cam)) in enumerate(zip(sequences, prepared, strict=True)):
+    for i, ((_, shape, _, _), (_, cam, _)) in enumerate(zip(sequences, prepared, strict=True)):
         key = (shape.radii.tobytes(), shape.aspect.tobytes(), cam.focal, cam.principal_point)
         groups.setdefault(key, []).append(i)
     # Each group is prepared in chunks of whole sequences of at most
@@ -279,6 +318,7 @@ def figure_sequences(
                 quads[start:stop],
                 colors[start:stop],
                 wide[start:stop],
+                _floor_lines(prepared[i][2], camera, scene, stop - start),
             )
             start = stop
     return [seq for seq in out if seq is not None]
@@ -290,8 +330,11 @@ def _in_camera(
     cameras: Camera | Sequence[Camera],
     scene: SceneOptions,
     geometry: ArrayLike | None,
-) -> tuple[NDArray[np.float64], Camera]:
-    """The checked poses' geometry in each frame's camera frame, and the first camera."""
+) -> tuple[NDArray[np.float64], Camera, tuple[NDArray[np.float64], NDArray[np.float64]]]:
+    """Checked poses' geometry in each frame's camera frame, the first camera, and the R, t.
+
+    The cameras' rotation and translation: one, or one per frame.
+    """
     p = np.asarray(params, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != body.N_PARAMS or p.shape[0] == 0:
         raise ValueError(f"figure_sequence: expected poses of shape (T, 25), got {p.shape}")
@@ -327,7 +370,20 @@ def _in_camera(
     # x_cam = R x + t for the keypoints, R a for the cone axes.
     in_camera = world @ np.swapaxes(rotation, -1, -2)
     in_camera[:, :N_KEYPOINTS] += translation[:, None] if translation.ndim == 2 else translation
-    return in_camera, first
+    return in_camera, first, (rotation, translation)
+
+
+def _draw_floor(img: NDArray[np.uint8], figures: FigureSequence, t: int) -> None:
+    """Draw frame ``t``'s floor lines into ``img`` (anti-aliased, one pixel wide)."""
+    if figures.floor is None:
+        raise ValueError(
+            "render: the scene draws a floor but its figures were prepared without one "
+            "(prepare them with figure_sequence; join sequences with FigureSequence.concatenated)"
+        )
+    lines = figures.floor[t]
+    if len(lines):
+        color = _to_channels(FLOOR_COLOR, figures.scene.channels).round().tolist()
+        cv2.polylines(img, list(lines), False, color, 1, cv2.LINE_AA, _SHIFT)
 
 
 def _draw_figure(img: NDArray[np.uint8], figures: FigureSequence, t: int) -> None:
@@ -457,7 +513,8 @@ def render(
     if background is None:
         background = make_background(scene, rng)
     geometry = single_pose_geometry(p, shape, camera.rotation, camera.translation)[None]
-    figures = FigureSequence(scene, *_figure_polygons(geometry, shape, camera, scene))
+    floor = _floor_lines((camera.rotation, camera.translation), camera, scene, 1)
+    figures = FigureSequence(scene, *_figure_polygons(geometry, shape, camera, scene), floor)
     return _compose(figures, 0, rng, background, frame_index, "render")
 
 
@@ -523,6 +580,8 @@ def _compose(
         img = out
         np.copyto(img, background.image)
     canvas = img if scene.channels == 3 else img.reshape(scene.height, scene.width)
+    if scene.floor:
+        _draw_floor(canvas, figures, t)
     _draw_figure(canvas, figures, t)
     if scene.occluders:
         _draw_occluders(canvas, background, frame_index)

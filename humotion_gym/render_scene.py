@@ -8,6 +8,11 @@ will cross the image; and a bank of sensor noise (:func:`noise_bank`) from
 which each frame reads a random window. Every draw goes through an explicit
 ``numpy.random.Generator`` and every pixel is OpenCV's: the same generator
 state gives the same background.
+
+The figure's colours are data: :data:`FIGURE_PALETTES` names the palettes
+(v1's, v2's ``"shaded"`` with sleeves apart from the torso, and the easier
+``"sided"``), and :func:`floor_segments` gives the optional floor's grid
+lines in the image of each frame's camera.
 """
 
 from __future__ import annotations
@@ -46,6 +51,72 @@ DEFAULT_FIGURE_COLORS: tuple[Color, ...] = (
     _TROUSERS,  # l_thigh
     _TROUSERS,  # l_shin
 )
+
+_SLEEVE: Color = (0, 60, 20)
+
+#: v2's palette: :data:`DEFAULT_FIGURE_COLORS` with dark green sleeves, so
+#: that the upper arms stand apart from the torso in hue and in luminance
+#: (about 38 grey levels against the shirt's 79 and the forearms' 192: gray
+#: frames show them too) while left and right limbs stay alike. Dark and
+#: saturated, they stay far from the grey wall at every shade; white sleeves
+#: shade into the wall's grey on their dark side, and on validation persons
+#: cost a tracker 26 mm on WalkTrack-v1 where these gained 11
+#: (docs/v2_limbs.md).
+SHADED_FIGURE_COLORS: tuple[Color, ...] = (
+    _SHIRT,  # torso
+    _SKIN,  # head
+    _SLEEVE,  # r_upper_arm
+    _SKIN,  # r_forearm
+    _SLEEVE,  # l_upper_arm
+    _SKIN,  # l_forearm
+    _TROUSERS,  # r_thigh
+    _TROUSERS,  # r_shin
+    _TROUSERS,  # l_thigh
+    _TROUSERS,  # l_shin
+)
+
+#: The opt-in easier palette: left and right limbs differ, the right ones warm
+#: and light, the left ones cool, in luminance as well (grey levels: sleeves
+#: 226 against 37, forearms 192 against 243, legs 206 against 58), so gray
+#: frames tell the sides apart too. A tracker no longer has to resolve the
+#: left-right ambiguity of a silhouette (Sminchisescu and Triggs, "Kinematic
+#: jump processes for monocular 3D human tracking", 2003) from motion alone.
+SIDED_FIGURE_COLORS: tuple[Color, ...] = (
+    _SHIRT,  # torso
+    _SKIN,  # head
+    (255, 240, 200),  # r_upper_arm: a cream sleeve
+    _SKIN,  # r_forearm
+    (20, 35, 90),  # l_upper_arm: a navy sleeve
+    (235, 245, 255),  # l_forearm: a pale blue glove
+    (230, 205, 150),  # r_thigh: khaki
+    (230, 205, 150),  # r_shin
+    _TROUSERS,  # l_thigh
+    _TROUSERS,  # l_shin
+)
+
+#: The figure palettes by name (:attr:`SceneOptions.palette`): ``"v1"`` the
+#: benchmark's first, ``"shaded"`` v2's (sleeves apart from the torso),
+#: ``"sided"`` the easier one (left and right apart).
+FIGURE_PALETTES: dict[str, tuple[Color, ...]] = {
+    "v1": DEFAULT_FIGURE_COLORS,
+    "shaded": SHADED_FIGURE_COLORS,
+    "sided": SIDED_FIGURE_COLORS,
+}
+
+#: RGB colour of the floor's grid lines: a darker grey than the wall (about
+#: 110 grey levels against 150), lighter than the shirt and trousers.
+FLOOR_COLOR: Color = (112, 112, 108)
+
+#: Spacing of the floor's grid lines (mm): half a metre, a large tile.
+FLOOR_SPACING_MM = 500.0
+
+#: The floor is drawn within this distance (mm) of the point under the camera:
+#: farther lines would crowd the horizon.
+FLOOR_RADIUS_MM = 10000.0
+
+#: Floor lines are cut where they come nearer than this (mm) to the camera
+#: plane, so their projections stay finite.
+FLOOR_NEAR_MM = 100.0
 
 _MIN_SIZE = (64, 64)
 
@@ -95,6 +166,18 @@ class SceneOptions:
             150, five seconds at 30 fps).
         figure_colors: RGB colour of each cone in ``body.CONE_NAMES`` order
             (default :data:`DEFAULT_FIGURE_COLORS`).
+        palette: A name in :data:`FIGURE_PALETTES` (``"v1"``, ``"shaded"``,
+            ``"sided"``), or None (default) to keep ``figure_colors``. A
+            palette sets ``figure_colors`` to its colours, whatever was given
+            for them (so ``dataclasses.replace(scene, palette="sided")``
+            switches palettes; pass ``palette=None`` with ``figure_colors``
+            for colours of one's own).
+        floor: Draw the ground plane ``z = 0`` as a grid of lines
+            (:data:`FLOOR_SPACING_MM` apart, within :data:`FLOOR_RADIUS_MM` of
+            the point under the camera, in :data:`FLOOR_COLOR`), seen from
+            each frame's camera, over the background and behind the figure:
+            where a foot meets the floor, and the perspective of the plane,
+            cue the figure's depth (default False).
         light_direction: Direction towards the light in the camera frame
             (x right, y down, z forward; default (-0.4, -0.7, -0.6): above, left
             and behind the camera, so fronts are lit).
@@ -121,6 +204,8 @@ class SceneOptions:
     ambient: float = 0.45
     diffuse: float = 0.6
     shading_strips: int = 3
+    palette: str | None = None
+    floor: bool = False
 
     def __post_init__(self) -> None:
         w, h = self.width, self.height
@@ -147,6 +232,15 @@ class SceneOptions:
             raise ValueError("SceneOptions.occluder_period: expected a positive number of frames")
         if not (isinstance(self.shading_strips, (int, np.integer)) and self.shading_strips >= 1):
             raise ValueError("SceneOptions.shading_strips: expected an integer >= 1")
+        if self.palette is not None:
+            if self.palette not in FIGURE_PALETTES:
+                raise ValueError(
+                    f"SceneOptions.palette: expected one of {sorted(FIGURE_PALETTES)} or None, "
+                    f"got {self.palette!r}"
+                )
+            object.__setattr__(self, "figure_colors", FIGURE_PALETTES[self.palette])
+        if not isinstance(self.floor, (bool, np.bool_)):
+            raise ValueError(f"SceneOptions.floor: expected a bool, got {self.floor!r}")
         colors = np.asarray(self.figure_colors)
         if colors.shape != (N_CONES, 3) or colors.min() < 0 or colors.max() > 255:
             raise ValueError("SceneOptions.figure_colors: expected 10 RGB triples in [0, 255]")
@@ -526,6 +620,73 @@ def make_background(
     if noise is None:
         noise = noise_bank(scene, rng)
     return Background(scene, img, occ, occ_colors, noise)
+
+
+def floor_segments(
+    rotation: NDArray[np.float64],
+    translation: NDArray[np.float64],
+    focal: float,
+    principal_point: tuple[float, float],
+    shift: int,
+) -> tuple[NDArray[np.int32], NDArray[np.bool_]]:
+    """The floor's grid lines (:attr:`SceneOptions.floor`) in the image of each of T cameras.
+
+    The lines ``x = k s`` and ``y = k s`` of the plane ``z = 0`` (``s`` =
+    :data:`FLOOR_SPACING_MM`) are fixed in the world, so the grid slides
+    under a following camera as the ground does; each is cut to the disc of
+    radius :data:`FLOOR_RADIUS_MM` about the point under its frame's camera
+    (the cut ends move continuously with the camera), then to the half-space
+    at least :data:`FLOOR_NEAR_MM` in front of the camera, and projected.
+    Every point drawn is a projected point of the floor, so none lies above
+    the horizon. Vectorised over cameras and lines.
+
+    Args:
+        rotation: ``(3, 3)`` or ``(T, 3, 3)`` world-to-camera rotations.
+        translation: ``(3,)`` or ``(T, 3)`` translations (``x_cam = R x + t``).
+        focal: Focal length in pixels.
+        principal_point: ``(cx, cy)`` in pixels.
+        shift: Fractional bits of the fixed-point pixel coordinates.
+
+    Returns:
+        Segment end points ``(T, L, 2, 2)`` int32 in fixed point, and
+        ``(T, L)`` whether each is drawn (T is 1 for one camera).
+    """
+    rot = np.asarray(rotation, dtype=np.float64).reshape(-1, 3, 3)
+    trans = np.asarray(translation, dtype=np.float64).reshape(-1, 3)
+    n = max(rot.shape[0], trans.shape[0])
+    rot, trans = np.broadcast_to(rot, (n, 3, 3)), np.broadcast_to(trans, (n, 3))
+    centre = -np.einsum("tji,tj->ti", rot, trans)[:, :2]  # (T, 2): under the camera
+    spacing, radius = FLOOR_SPACING_MM, FLOOR_RADIUS_MM
+    reach = math.ceil(radius / spacing)
+    # Per frame and axis, the 2 * reach + 1 grid lines nearest the centre.
+    k = np.floor(centre / spacing)[:, :, None] + np.arange(-reach, reach + 1)  # (T, 2, K)
+    across = k * spacing - centre[:, :, None]  # the line's offset from the centre
+    half = np.sqrt(np.maximum(radius**2 - across**2, 0.0))  # half its chord in the disc
+    along = centre[:, ::-1, None]  # lines x = ks run along y, and y = ks along x
+    world = np.zeros(k.shape + (2, 3))  # (T, 2, K, 2 ends, 3)
+    ends = np.stack([along - half, along + half], axis=-1)  # (T, 2, K, 2)
+    world[:, 0, :, :, 0] = (k * spacing)[:, 0, :, None]
+    world[:, 0, :, :, 1] = ends[:, 0]
+    world[:, 1, :, :, 1] = (k * spacing)[:, 1, :, None]
+    world[:, 1, :, :, 0] = ends[:, 1]
+    world = world.reshape(n, -1, 2, 3)
+    cam = world @ np.swapaxes(rot, -1, -2)[:, None] + trans[:, None, None]
+    z = cam[..., 2]
+    near = FLOOR_NEAR_MM
+    shown = (np.abs(across) < radius).reshape(n, -1) & (z.max(axis=-1) > near)
+    # Cut each segment where it crosses the near plane: its end behind moves
+    # along the segment to depth ``near``.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        frac = np.clip((near - z) / (z[..., ::-1] - z), 0.0, 1.0)[..., None]
+    cam = np.where((z < near)[..., None], cam + frac * (cam[..., ::-1, :] - cam), cam)
+    cx, cy = principal_point
+    scale = float(1 << shift)
+    z = np.maximum(cam[..., 2], near)
+    pixels = np.empty(cam.shape[:-1] + (2,))
+    pixels[..., 0] = (focal * cam[..., 0] / z + cx) * scale
+    pixels[..., 1] = (focal * cam[..., 1] / z + cy) * scale
+    pixels[~shown] = 0.0
+    return np.rint(pixels).astype(np.int32), shown
 
 
 def _drawing_constants(scene: SceneOptions) -> dict[str, NDArray]:
