@@ -12,9 +12,9 @@ from __future__ import annotations
 
 from gymnasium.envs.registration import register, registry
 
+from humotion_gym.envs._episode_choice import RESET_OPTIONS
 from humotion_gym.envs.arm_track import ArmTrackEnv
 from humotion_gym.envs.body_track import BodyTrackEnv
-from humotion_gym.envs._episode_choice import RESET_OPTIONS
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 from humotion_gym.envs.side_walk import SideWalkEnv
 from humotion_gym.envs.tasks import (

@@ -30,7 +30,7 @@ class BodyTrackEnv(PoseTrackingEnv):
 
     A ``Dict`` (see Observation below) whose ``frame``, ``Box(0, 255, (height,
     width, 3), uint8)``, is seen by a static camera 30 degrees to
-    the subject's right of its initial heading, 10 degrees up, 45 degree field
+    the subject's right of its initial heading, 40 degrees up (v1: 10), 45 degree field
     of view, placed from the first frame only: it frames the initial pose swept
     through a box of root travel along the initial heading (0.3 m back, 1.5 m
     forward, 0.3 m to each side, 0.2 m down, 0.3 m up; about the 75th
@@ -64,7 +64,10 @@ BodyTrackEnv.__doc__ = (
       scores and diagnostics only; ``gym.make`` draws the training persons
       (``split="train"``), the test persons only with ``split="test"``; the
       leaderboard scores the declared test episodes
-      (:mod:`humotion_gym.envs.episodes`). Frames, actions and rewards as v1.
+      (:mod:`humotion_gym.envs.episodes`). The upper arms are shaded apart
+      from the torso (dark green sleeves) and the camera stands 30 degrees
+      higher (40 degrees), chosen on the validation persons
+      (``tasks.V2_SCENE``, ``tasks.V2_ELEVATION_DEG``); actions and rewards as v1.
       v1 stays registered for one release with a ``DeprecationWarning``.
 
     * v1, later still: a ``step`` after the episode's end warns and returns the

@@ -256,7 +256,7 @@ class PoseTrackingVectorEnv(VectorEnv):
         envs = [self.envs[i] for i in rows]
         rest = self._figures(envs, self._first_figures, self._params.shape[1])
         for env, more in zip(envs, rest, strict=True):
-            env._figures = _joined(env._figures, more)
+            env._figures = env._figures.concatenated(more)
 
     def reset(
         self,
@@ -514,18 +514,6 @@ class PoseTrackingVectorEnv(VectorEnv):
         """Close the episodes' environments."""
         for env in self.envs:
             env.close()
-
-
-def _joined(first: FigureSequence, rest: FigureSequence) -> FigureSequence:
-    """The figures of ``first``'s frames followed by ``rest``'s."""
-    return FigureSequence(
-        first.scene,
-        first.order + rest.order,
-        np.concatenate([first.ellipses, rest.ellipses]),
-        np.concatenate([first.quads, rest.quads]),
-        np.concatenate([first.colors, rest.colors]),
-        first.wide + rest.wide,
-    )
 
 
 def _item(value: NDArray[Any], i: int) -> Any:

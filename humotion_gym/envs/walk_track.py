@@ -29,7 +29,7 @@ class WalkTrackEnv(PoseTrackingEnv):
 
     A ``Dict`` (see Observation below) whose ``frame``, ``Box(0, 255, (height,
     width, 3), uint8)``, is seen by a static camera 30 degrees to
-    the right of the initial heading, 10 degrees up, placed from the first
+    the right of the initial heading, 40 degrees up (v1: 10), placed from the first
     frame only: it frames the initial pose swept along the initial heading by
     up to 2.8 m (about the 80th percentile of a 60-frame walk on the training
     persons), 0.3 m to each side and 0.1 m up and down.
@@ -61,7 +61,10 @@ WalkTrackEnv.__doc__ = (
       scores and diagnostics only; ``gym.make`` draws the training persons
       (``split="train"``), the test persons only with ``split="test"``; the
       leaderboard scores the declared test episodes
-      (:mod:`humotion_gym.envs.episodes`). Frames, actions and rewards as v1.
+      (:mod:`humotion_gym.envs.episodes`). The upper arms are shaded apart
+      from the torso (dark green sleeves) and the camera stands 30 degrees
+      higher (40 degrees), chosen on the validation persons
+      (``tasks.V2_SCENE``, ``tasks.V2_ELEVATION_DEG``); actions and rewards as v1.
       v1 stays registered for one release with a ``DeprecationWarning``.
 
     * v1, later still: a ``step`` after the episode's end warns and returns the

@@ -39,7 +39,7 @@ class _Oracle:
 
 @pytest.fixture(scope="module")
 def body_env():
-    return gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False)
+    return gym.make("humotion_gym/BodyTrack-v2", split="test", terminate_on_lost=False)
 
 
 def test_split_along_ray_is_exact_and_adds_up():
