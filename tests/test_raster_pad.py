@@ -70,7 +70,7 @@ def test_without_the_pad_the_model_leans_towards_the_camera(
         monkeypatch.setattr(
             discrimination, "task_model", lambda task, pad=pad: _model(task.name, pad)
         )
-        # the held-out persons' episodes the depth profile is measured on, seen
+        # the held-out persons' episodes the depth profile is measured on, with
         # v1's look (camera 10 degrees up, v1 palette), where the pad was chosen: from
         # v2's 40 degrees the lean is smaller and the pad takes 40% of it
         spec = get_task("BodyTrack-v2")
