@@ -297,7 +297,7 @@ def likelihood_panels(env: gym.Env, seed: int = 0, frame: int = 10) -> NDArray[n
     base = env.unwrapped
     model = task_model(base.task)
     border = replace(model, backdrop=False)
-    for k, (obs, _info, _truth, given) in enumerate(_scored_frames(env, 1, seed, 1)):
+    for k, (obs, _camera, _truth, given) in enumerate(_scored_frames(env, 1, seed, 1)):
         if k < frame:
             continue
         plain = border.prepare(obs, None)
