@@ -50,8 +50,9 @@ from humotion_gym.mocap.motion import Motion, content_digest
 #: Version of the prior cache's entries (part of the key, beside the library's
 #: :data:`~humotion_gym.mocap.library.CACHE_VERSION`): raised when a prior's file
 #: format changes, so that older entries are refitted instead of read (2: the
-#: tree prior's database saved once, in single precision).
-PRIOR_CACHE_VERSION = "2"
+#: tree prior's database saved once, in single precision; 3: cyclic PCA's
+#: components signed so that each one's largest entry is positive).
+PRIOR_CACHE_VERSION = "3"
 
 
 def prior_module(prior: str | ModuleType) -> ModuleType:

@@ -267,10 +267,17 @@ def _best_rank(
     """
     if gram is not None:
         vals, v, block = _top_eigen(gram, q, block)
-        return vals, v, centred @ v, block
-    vals, u, block = _top_eigen(centred @ centred.T, q, block)
-    v = (centred.T @ u) / np.sqrt(np.maximum(vals, 1e-300))
-    return vals, v, u * np.sqrt(np.maximum(vals, 0.0)), block
+        scores = centred @ v
+    else:
+        vals, u, block = _top_eigen(centred @ centred.T, q, block)
+        v = (centred.T @ u) / np.sqrt(np.maximum(vals, 1e-300))
+        scores = u * np.sqrt(np.maximum(vals, 0.0))
+    # An eigenvector's sign is arbitrary, and LAPACK's choice changes with the
+    # BLAS's thread count; a flipped component draws other sample paths from
+    # the same seed. Each component's largest entry is made positive, so the
+    # model is the same on any machine.
+    sign = np.where(v[np.argmax(np.abs(v), axis=0), np.arange(v.shape[1])] < 0, -1.0, 1.0)
+    return vals, v * sign, scores * sign, block
 
 
 def _checked_inputs(
