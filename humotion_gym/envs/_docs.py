@@ -105,3 +105,30 @@ def whole_body_likelihood(task: str) -> str:
     Agents pass ``GivenBody(..., backdrop=model.read_backdrop(
     first_frame, initial_pose, shape, camera))`` to ``model.prepare``.
 """
+
+
+def v2_history(look: str = "Frames, actions and rewards as v1.") -> str:
+    """The ``## Version History`` heading and the v2 entry every task's page shares.
+
+    Args:
+        look: What v2 changed in the task's frames (wrapped to the page's indent).
+    """
+    return f"""
+    ## Version History
+
+    * v2: the observation is a ``Dict`` holding every input an agent may use
+      (frame, initial pose, given parameters, camera, shape); ``info`` holds
+      scores and diagnostics only; ``gym.make`` draws the training persons
+      (``split="train"``), the test persons only with ``split="test"``; the
+      leaderboard scores the declared test episodes
+      (:mod:`humotion_gym.envs.episodes`). {look}
+      v1 stays registered for one release with a ``DeprecationWarning``.
+"""
+
+
+#: What v2 changed in the whole-body tasks' frames (their pages' history),
+#: wrapped to the pages' indent.
+V2_LOOK = """The upper arms are shaded apart
+      from the torso (dark green sleeves) and the camera stands 30 degrees
+      higher (40 degrees), chosen on the validation persons
+      (``tasks.V2_SCENE``, ``tasks.V2_ELEVATION_DEG``); actions and rewards as v1."""

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from humotion_gym.envs._docs import COMMON_SECTIONS, whole_body_likelihood
+from humotion_gym.envs._docs import COMMON_SECTIONS, V2_LOOK, v2_history, whole_body_likelihood
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 
 
@@ -53,20 +53,8 @@ WalkTrackEnv.__doc__ = (
     (WalkTrackEnv.__doc__ or "")
     + whole_body_likelihood("WalkTrack-v2")
     + COMMON_SECTIONS
+    + v2_history(V2_LOOK)
     + """
-    ## Version History
-
-    * v2: the observation is a ``Dict`` holding every input an agent may use
-      (frame, initial pose, given parameters, camera, shape); ``info`` holds
-      scores and diagnostics only; ``gym.make`` draws the training persons
-      (``split="train"``), the test persons only with ``split="test"``; the
-      leaderboard scores the declared test episodes
-      (:mod:`humotion_gym.envs.episodes`). The upper arms are shaded apart
-      from the torso (dark green sleeves) and the camera stands 30 degrees
-      higher (40 degrees), chosen on the validation persons
-      (``tasks.V2_SCENE``, ``tasks.V2_ELEVATION_DEG``); actions and rewards as v1.
-      v1 stays registered for one release with a ``DeprecationWarning``.
-
     * v1, later still: a ``step`` after the episode's end warns and returns the
       terminal transition again (reward 0, ``info["after_end"]``) instead of
       raising; frames may differ from earlier releases by a vertex's rounding
