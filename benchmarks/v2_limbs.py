@@ -1,6 +1,6 @@
 """Benchmark v2's figure: palettes, floor, elevation and framing, on validation persons.
 
-Each variant of the scene or camera is run on BodyTrack-v1 and WalkTrack-v1
+Each variant of version 1's scene or camera is run on BodyTrack-v2 and WalkTrack-v2
 with a particle filter (``pf-mix``, 300 particles, two agent seeds) and with
 ``hold`` (the initial pose every frame: the floor any tracker must beat), on a
 validation fold of the training persons (never the test persons): the priors
@@ -89,15 +89,19 @@ VARIANTS: dict[str, Variant] = {
 def variant_env(task: str, library: MotionLibrary, variant: str) -> PoseTrackingEnv:
     """The task's environment on ``library`` with a variant's scene and camera."""
     palette, elevation, floor, margin, _, sleeves = VARIANTS[variant]
-    spec = get_task(task)
+    # the variants are changes of version 1's look (its camera and palette)
+    v1 = get_task(f"{get_task(task).family}-v1")
+    spec = dataclasses.replace(get_task(task), camera=v1.camera, scene=v1.scene)
     camera = dataclasses.replace(
         spec.camera,
         elevation_deg=spec.camera.elevation_deg + elevation,
         margin=spec.camera.margin if margin is None else margin,
     )
+    # a validation fold's "test" persons are the validation persons
     env = PoseTrackingEnv(
-        task=dataclasses.replace(spec, camera=camera), library=library, terminate_on_lost=False
-    )
+        task=dataclasses.replace(spec, camera=camera), library=library, split="test",
+        terminate_on_lost=False,
+    )  # fmt: skip
     if sleeves is None:
         env.scene = dataclasses.replace(env.scene, palette=palette, floor=floor)
     else:
@@ -235,7 +239,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--episodes", type=int, default=12)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
     parser.add_argument("--agent", default="pf-mix")
-    parser.add_argument("--tasks", nargs="+", default=["BodyTrack-v1", "WalkTrack-v1"])
+    parser.add_argument("--tasks", nargs="+", default=["BodyTrack-v2", "WalkTrack-v2"])
     parser.add_argument("--variants", nargs="+", default=list(VARIANTS))
     parser.add_argument("--out", type=Path, default=Path("/tmp/v2_limbs.json"))
     parser.add_argument(
