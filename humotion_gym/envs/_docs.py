@@ -74,6 +74,9 @@ COMMON_SECTIONS = """
     | ``noise`` | 4.0 | sensor noise, grey levels |
     | ``blur`` | 0.0 | Gaussian blur, pixels |
     | ``occluders`` | 0 | bars and blobs crossing the figure |
+    | ``palette`` | task's | the figure's colours: ``"v1"``, ``"shaded"`` (upper arms apart from the torso; BodyTrack's and WalkTrack's default) or ``"sided"`` (left and right limbs apart: an easier, opt-in variant) |
+    | ``floor`` | False | a ground grid at z = 0, drawn from each frame's camera (a ground-contact depth cue) |
+    | ``camera_elevation_deg`` | task's | the camera's height above the horizontal, degrees (BodyTrack and WalkTrack 40, ArmTrack 5, SideWalk 0) |
     | ``fps`` | 30 | the library's rate; ``frame_skip`` shows every k-th frame |
     | ``episode_frames`` | task's | scored frames per episode |
     | ``terminate_on_lost`` | True | end the episode when track is lost |

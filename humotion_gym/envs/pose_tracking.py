@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import warnings
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -122,6 +123,9 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
         noise: float | None = None,
         blur: float | None = None,
         occluders: int | None = None,
+        palette: str | None = None,
+        floor: bool | None = None,
+        camera_elevation_deg: float | None = None,
         fps: float = 30.0,
         frame_skip: int = 1,
         episode_frames: int | None = None,
@@ -131,6 +135,14 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
         reward_scale_mm: float = 100.0,
     ) -> None:
         self.task = get_task(task) if isinstance(task, str) else task
+        if camera_elevation_deg is not None:
+            if not -89.0 <= float(camera_elevation_deg) <= 89.0:
+                raise ValueError(
+                    f"camera_elevation_deg: expected degrees in [-89, 89], "
+                    f"got {camera_elevation_deg!r}"
+                )
+            camera = replace(self.task.camera, elevation_deg=float(camera_elevation_deg))
+            self.task = replace(self.task, camera=camera)
         self.dict_observation = self.task.version >= 2
         if not self.dict_observation:
             warnings.warn(
@@ -169,6 +181,10 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
             scene_kwargs["blur_sigma"] = blur
         if occluders is not None:
             scene_kwargs["occluders"] = occluders
+        if palette is not None:
+            scene_kwargs["palette"] = palette
+        if floor is not None:
+            scene_kwargs["floor"] = bool(floor)
         self.scene = SceneOptions(**scene_kwargs)
         self.frame_skip = int(frame_skip)
         self.episode_frames = int(episode_frames or self.task.episode_frames)

@@ -424,3 +424,26 @@ def test_the_travel_box_corners_are_the_eight_combinations(task: str) -> None:
             for v in (-down, up)
         ]
         np.testing.assert_array_equal(spec.travel_corners(heading), np.array(want))
+
+
+def test_the_look_options_change_the_frames_and_refuse_bad_values():
+    """palette, floor and camera_elevation_deg: opt-in variants of a task's look."""
+    plain = gym.make("humotion_gym/SideWalk-v2", split="test")
+    varied = gym.make(
+        "humotion_gym/SideWalk-v2", split="test", palette="sided", floor=True,
+        camera_elevation_deg=30.0,
+    )  # fmt: skip
+    assert varied.unwrapped.task.camera.elevation_deg == 30.0
+    assert plain.unwrapped.task.camera.elevation_deg == 0.0
+    assert varied.unwrapped.scene.floor and not plain.unwrapped.scene.floor
+    a, _ = plain.reset(seed=0)
+    b, _ = varied.reset(seed=0)
+    assert np.array_equal(a["initial_pose"], b["initial_pose"])  # the same episode
+    assert not np.array_equal(a["frame"], b["frame"])  # seen otherwise
+    assert not np.array_equal(a["camera"], b["camera"])
+    body = gym.make("humotion_gym/BodyTrack-v2").unwrapped
+    assert body.scene.palette == "shaded" and body.task.camera.elevation_deg == 40.0
+    with pytest.raises(ValueError, match="palette"):
+        gym.make("humotion_gym/SideWalk-v2", palette="pink")
+    with pytest.raises(ValueError, match="camera_elevation_deg"):
+        gym.make("humotion_gym/SideWalk-v2", camera_elevation_deg=95.0)
