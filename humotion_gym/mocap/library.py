@@ -8,9 +8,10 @@ clip is rebuilt when its source file changes, and a damaged or foreign entry is
 reported (:class:`CacheWarning`) and rebuilt. With no data configured,
 :func:`default_library` gives the built-in synthetic motions.
 
-Train and test are split by person (named constants below), checked from the
-skeletons: the CMU database by person (:mod:`humotion_gym.mocap.cmu`: subject
-numbers grouped into persons, :data:`CMU_TEST_SUBJECTS` every number of a test
+Train and test are split by person (named in :mod:`humotion_gym.mocap.splits`),
+checked from the skeletons: the CMU database by person
+(:mod:`humotion_gym.mocap.cmu`: subject numbers grouped into persons,
+:data:`~humotion_gym.mocap.splits.CMU_TEST_SUBJECTS` every number of a test
 person), where the held-out subjects' ASF skeletons differ from every training
 skeleton; the Bandai-Namco sets, whose files do not name their actor and share
 one skeleton across every style, train whole; a user's folders by the rule in
@@ -45,15 +46,25 @@ from humotion_gym.mocap._cache_files import (  # CacheWarning: re-exported, part
     write_atomically,
 )
 from humotion_gym.mocap.cmu import (
-    CMU_TEST_PERSONS,
     cmu_description,
     cmu_label,
     cmu_person,
     cmu_subject_id,
-    cmu_test_subjects,
 )
 from humotion_gym.mocap.labels import activity_label
 from humotion_gym.mocap.motion import Motion
+from humotion_gym.mocap.splits import (  # the split's names, re-exported as before
+    CMU_TEST_SUBJECTS,  # noqa: F401
+    CMU_VALIDATION_SUBJECTS,  # noqa: F401
+    EPISODE_SPLITS,
+    SPLIT_RULES,
+    SYNTHETIC_TEST_SUBJECTS,  # noqa: F401
+    SYNTHETIC_VALIDATION_SUBJECTS,  # noqa: F401
+    TEST_SUBJECTS,
+    USER_SPLIT_RULE,
+    VALIDATION_SUBJECTS,
+    user_split,
+)
 
 #: Version of the cached clip format and retargeting; bump to invalidate caches.
 #: 2: rigs matched by :func:`humotion_gym.mocap.rigmap.match_rig`, leading T-pose dropped.
@@ -64,67 +75,10 @@ MOCAP_ENV = "HUMOTION_MOCAP"
 #: Environment variable overriding the cache folder.
 CACHE_ENV = "HUMOTION_CACHE"
 
-#: CMU subjects held out for testing: every subject number of a test person
-#: (:data:`humotion_gym.mocap.cmu.CMU_TEST_PERSONS`). Subject 2 walks, runs,
-#: jumps, punches, swings a sword and bends (a bit of everything the tasks
-#: track); subject 3 walks on uneven terrain (long walks for the walking tasks);
-#: 16 walks and runs straight, veering and turning; 141 and 143 are CMU's
-#: "General Subject Capture" sessions (walk, run, jump, everyday motion). Of
-#: the shared data (CMU 1, 2, 3, 5, 7) only 2 and 3 are test persons. Their ASF
-#: skeletons differ from every training skeleton (checked by
-#: :func:`humotion_gym.mocap.persons.check_person_split`).
-CMU_TEST_SUBJECTS: tuple[str, ...] = cmu_test_subjects()
-#: Synthetic subjects held out for testing.
-SYNTHETIC_TEST_SUBJECTS: tuple[str, ...] = ("synthetic-05", "synthetic-06")
-
-#: Every held-out person, whatever the data set. The Bandai-Namco sets are not
-#: split: their files do not name the actor and every style of both sets shares
-#: one skeleton, so no style can be shown to be another person; all of their
-#: clips train. A style held out of them is "style held out, same performers".
-TEST_SUBJECTS: frozenset[str] = frozenset(CMU_TEST_SUBJECTS + SYNTHETIC_TEST_SUBJECTS)
-
-#: Training persons held out to choose settings on real data (an environment's
-#: ``split="validation"``): CMU subject 1 (jumps) and CMU subjects 5 and 7
-#: (dance and walks on one converted skeleton, so they are held out together).
-CMU_VALIDATION_SUBJECTS: tuple[str, ...] = ("cmu-01", "cmu-05", "cmu-07")
-#: The synthetic set's validation persons (its training persons 3 and 4).
-SYNTHETIC_VALIDATION_SUBJECTS: tuple[str, ...] = ("synthetic-03", "synthetic-04")
-#: Every validation person, whatever the data set.
-VALIDATION_SUBJECTS: frozenset[str] = frozenset(
-    CMU_VALIDATION_SUBJECTS + SYNTHETIC_VALIDATION_SUBJECTS
-)
-
-#: An environment's splits: whose episodes it shows.
-EPISODE_SPLITS: tuple[str, ...] = ("train", "validation", "test")
-
-#: The split rule of each known data set, as the library reports it.
-SPLIT_RULES: Mapping[str, str] = {
-    "cmu": f"cmu-persons (test persons {', '.join(CMU_TEST_PERSONS)})",
-    "bandai-1": "bandai (all train: one skeleton, actors unnamed)",
-    "bandai-2": "bandai (all train: one skeleton, actors unnamed)",
-    "synthetic": "synthetic (test subjects 05, 06)",
-}
 #: What ``load_library(split_by=...)`` accepts for a user's clips: a function of
 #: a clip's :class:`ClipSource` returning ``"train"`` or ``"test"``, or a mapping
 #: from clip ids, subject ids or person ids to ``"train"``/``"test"``.
 SplitBy = Callable[["ClipSource"], str] | Mapping[str, str]
-#: The default rule for a user's folders (:func:`user_split`).
-USER_SPLIT_RULE = "user-hash (1 person in 5 to test, by SHA-256 of the person id)"
-
-
-def user_split(person: str) -> str:
-    """The default split of a user's person: ``"test"`` for one in five, by hash.
-
-    The person's id (its folder name) is hashed with SHA-256 and the person is
-    a test person when the hash is 0 modulo 5: stable across runs, machines
-    and added folders, and independent of load order.
-
-    Example:
-        >>> sorted({user_split(f"actor-{i}") for i in range(20)})
-        ['test', 'train']
-    """
-    digest = int(hashlib.sha256(person.encode("utf-8")).hexdigest(), 16)
-    return "test" if digest % 5 == 0 else "train"
 
 
 def default_cache_dir() -> Path:

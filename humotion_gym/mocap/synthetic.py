@@ -75,14 +75,12 @@ from humotion_gym.mocap._synthetic_curves import (
     _warp,
 )
 from humotion_gym.mocap.motion import Motion
+from humotion_gym.mocap.splits import SYNTHETIC_TEST_SUBJECTS  # noqa: F401  (its test persons)
 
 #: Activity labels of the synthetic set, in clip order within a subject.
 SYNTHETIC_LABELS: tuple[str, ...] = ("walk", "run", "skip", "arm_swing", "reach", "wave")
 #: Labels of the clips in which the subject travels (walks, runs, skips).
 LOCOMOTION_LABELS: tuple[str, ...] = ("walk", "run", "skip")
-#: Synthetic subjects held out for testing: the last two of the default six
-#: (the same constant as ``humotion_gym.mocap.library.SYNTHETIC_TEST_SUBJECTS``).
-SYNTHETIC_TEST_SUBJECTS: tuple[str, ...] = ("synthetic-05", "synthetic-06")
 #: Height of the ankle keypoint above the ground when the foot is down, in mm.
 #: The cone body has no feet; like ``body.standing_pose`` the ankle is put on
 #: the ground plane.
