@@ -33,18 +33,11 @@ from stable_baselines3.common.vec_env.base_vec_env import (
 )
 
 from humotion_gym.envs.vector import PoseTrackingVectorEnv
-from humotion_gym.wrappers import learner_frame, learner_frames
+from humotion_gym.wrappers import frame_and_initial, learner_frame, learner_frames
 
 # The step's scalar info that each episode's info dict carries (SB3 keeps one
 # dict per episode; the batched arrays stay in ``last_infos``).
 _SCALAR_INFO = ("error_mm", "error_all_mm", "error_aligned_mm", "lost")
-
-
-def _frames_initial(obs: Any, info: dict[str, Any]) -> tuple[NDArray[np.uint8], Any]:
-    """The batch's frames and initial poses: from a v2 observation, or v1 frames and info."""
-    if isinstance(obs, dict):
-        return obs["frame"], obs["initial_pose"]
-    return obs, info.get("initial_pose")
 
 
 class LearnerVecEnv(VecEnv):
@@ -122,7 +115,7 @@ class LearnerVecEnv(VecEnv):
         if any(o != self._options[0] for o in self._options):
             raise ValueError("LearnerVecEnv: every episode must get the same reset options")
         obs, info = self.venv.reset(seed=seeds, options=options)
-        frames, initial = _frames_initial(obs, info)
+        frames, initial = frame_and_initial(obs, info)
         self.last_infos = info
         self._initial_actions(range(self.num_envs), initial)
         self.reset_infos = [
@@ -140,7 +133,7 @@ class LearnerVecEnv(VecEnv):
     def step_wait(self) -> VecEnvStepReturn:
         """Step every episode; restart those that end (their last observation in info)."""
         obs, rewards, terminated, truncated, info = self.venv.step(self._actions)
-        frames, initial = _frames_initial(obs, info)
+        frames, initial = frame_and_initial(obs, info)
         self.last_infos = info
         # LearnerObservation: the action becomes the next observation's
         # previous estimate, clipped (np.clip's numbers, in a third of its time).

@@ -39,10 +39,14 @@ def _base(env: gym.Env) -> PoseTrackingEnv:
     return base
 
 
-def _frame_and_initial(
+def frame_and_initial(
     observation: Any, info: dict[str, Any]
 ) -> tuple[NDArray[np.uint8], NDArray[np.float64] | None]:
-    """The frame and (at a reset) the initial pose: of a v2 observation, or a v1 frame and info."""
+    """The frame and (at a reset) the initial pose: of a v2 observation, or a v1 frame and info.
+
+    The same for one environment's step and a vector environment's batch (its
+    frames and initial poses stacked).
+    """
     if isinstance(observation, dict):
         return observation["frame"], np.asarray(observation["initial_pose"], dtype=np.float64)
     initial = info.get("initial_pose")
@@ -196,7 +200,7 @@ class LearnerObservation(gym.Wrapper):
     ) -> tuple[dict[str, NDArray[Any]], dict[str, Any]]:
         """Reset; the previous estimate starts at the initial pose."""
         obs, info = self.env.reset(seed=seed, options=options)
-        frame, initial = _frame_and_initial(obs, info)
+        frame, initial = frame_and_initial(obs, info)
         assert initial is not None
         self._initial = _base(self.env).pose_to_action(initial)
         self._previous = self._initial.copy()
@@ -207,7 +211,7 @@ class LearnerObservation(gym.Wrapper):
     ) -> tuple[dict[str, NDArray[Any]], float, bool, bool, dict[str, Any]]:
         """Step; the action becomes the next observation's previous estimate."""
         obs, reward, terminated, truncated, info = self.env.step(action)
-        frame, _ = _frame_and_initial(obs, info)
+        frame, _ = frame_and_initial(obs, info)
         self._previous = np.clip(np.asarray(action, dtype=np.float32), -1.0, 1.0)
         obs = learner_observation(frame, self._previous, self._initial, self.size)
         return obs, reward, terminated, truncated, info
@@ -271,6 +275,7 @@ __all__ = [
     "FrameObservation",
     "LearnerObservation",
     "Supervision",
+    "frame_and_initial",
     "learner_frame",
     "learner_frames",
     "learner_observation",

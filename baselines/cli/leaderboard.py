@@ -145,14 +145,17 @@ def _check_results_folder(args: argparse.Namespace) -> None:
     if not holds_run:
         raise UsageError(f"--resume: {args.out} holds no run to continue (start one without it)")
     cells = set(grid_cells(args.tasks, args.agents, args.particles))
-    seeds = range(args.seed, args.seed + (10**6 if args.declared else args.episodes))
+    # a declared run's episode seeds follow its lists: only its cells are checked
+    seeds = None if args.declared else range(args.seed, args.seed + args.episodes)
     try:
         saved = [
             (r["task"], r["agent"], int(r["particles"]), int(r["seed"])) for r in folder.read()
         ]
     except (KeyError, TypeError, ValueError) as exc:  # ResumeError: a line that is not JSON
         raise CommandError(f"--resume: {args.out}: unreadable episodes ({exc})") from None
-    left_out = sorted({k[:3] for k in saved if k[:3] not in cells or k[3] not in seeds})
+    left_out = sorted(
+        {k[:3] for k in saved if k[:3] not in cells or (seeds is not None and k[3] not in seeds)}
+    )
     if left_out:
         shown = ", ".join(f"{a} on {t} ({n} particles)" for t, a, n in left_out[:3])
         raise UsageError(
