@@ -264,29 +264,42 @@ def _plain(value: Any) -> Any:
     raise TypeError(f"not JSON-serialisable: {type(value).__name__}")
 
 
+#: Per-frame series the repository keeps to :data:`SERIES_DECIMALS` decimals of a
+#: millimetre: figures draw them and a video replay checks them
+#: (:data:`baselines.leaderboard.videos.SERIES_ATOL_MM`); every number a table
+#: prints, and every episode's mean, keeps its significant digits.
+SERIES_KEYS = frozenset({"errors_mm", "aligned_errors_mm", "along_mm", "across_mm", "along_abs_mm"})
+SERIES_DECIMALS = 1
+
+
 def compact(source: str | Path, target: str | Path, digits: int = 7) -> None:
     """Write a results document as the repository keeps it: gzipped, rounded, minified.
 
     ``results/`` in the repository holds each table's ``table.md`` and this file,
     from which ``humotion-gym report`` rebuilds the figures and the page. Seven
-    significant digits keep every printed number and the video replay's check.
+    significant digits keep every printed number and each episode's mean
+    error to its recorded precision; the per-frame series (:data:`SERIES_KEYS`)
+    keep a tenth of a millimetre, which a figure cannot show and which halves
+    the file.
 
     Args:
         source: A ``results.json`` (or an already compact ``.json.gz``).
         target: The ``.json.gz`` to write (the gzip header carries no time, so
             the same document gives the same bytes).
-        digits: Significant digits kept of every float.
+        digits: Significant digits kept of every float outside the series.
     """
     raw = Path(source).read_bytes()
     document = json.loads(gzip.decompress(raw) if str(source).endswith(".gz") else raw)
 
-    def rounded(value: Any) -> Any:
+    def rounded(value: Any, key: str = "") -> Any:
         if isinstance(value, float):
             return float(f"{value:.{digits}g}")
         if isinstance(value, list):
+            if key in SERIES_KEYS:
+                return [round(v, SERIES_DECIMALS) if isinstance(v, float) else v for v in value]
             return [rounded(v) for v in value]
         if isinstance(value, dict):
-            return {k: rounded(v) for k, v in value.items()}
+            return {k: rounded(v, k) for k, v in value.items()}
         return value
 
     text = json.dumps(rounded(document), separators=(",", ":"))

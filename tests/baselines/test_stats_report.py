@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gzip
 import json
 import shutil
 import subprocess
@@ -324,6 +325,29 @@ def test_replayed_episodes_reproduce_the_recorded_errors(small_run):
     tampered["episodes"][1]["errors_mm"] = [e + 1.0 for e in tampered["episodes"][1]["errors_mm"]]
     with pytest.raises(ReplayMismatch, match="seed 6"):
         replay_episodes(tampered, [6], settings)
+
+
+def test_compact_results_keep_means_and_still_replay(small_run, tmp_path):
+    from baselines.leaderboard.results import SERIES_DECIMALS, compact
+    from baselines.leaderboard.videos import SERIES_ATOL_MM
+
+    rows, settings, path = small_run
+    document = {"rows": rows}
+    source = tmp_path / "results.json"
+    source.write_text(json.dumps(document))
+    compact(source, tmp_path / "results.json.gz")
+    kept = json.loads(gzip.decompress((tmp_path / "results.json.gz").read_bytes()))
+    pf = next(r for r in kept["rows"] if r["agent"] == "pf-cv")
+    full = next(r for r in rows if r["agent"] == "pf-cv")
+    for got, want in zip(pf["episodes"], full["episodes"], strict=True):
+        assert got["mean_error_mm"] == pytest.approx(want["mean_error_mm"], rel=5e-7)
+        assert got["errors_mm"] == [round(e, SERIES_DECIMALS) for e in want["errors_mm"]]
+    assert SERIES_ATOL_MM >= 0.5 * 10.0**-SERIES_DECIMALS
+    replay_episodes(pf, [pf["episodes"][1]["seed"]], settings)  # the compact record replays
+    off = {**pf, "episodes": [dict(e) for e in pf["episodes"]]}
+    off["episodes"][1]["errors_mm"] = [e + 0.2 for e in off["episodes"][1]["errors_mm"]]
+    with pytest.raises(ReplayMismatch):
+        replay_episodes(off, [off["episodes"][1]["seed"]], settings)
 
 
 def test_report_command_with_videos(small_run, tmp_path, capsys):
