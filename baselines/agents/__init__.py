@@ -7,7 +7,7 @@ Three kinds of agent are made by :func:`make`:
   beat clearly; ``random`` answers uniform actions, the ceiling of error;
 * **particle filters** (:data:`AGENTS`, :mod:`baselines.agents.specs`): a
   particle filter over a motion prior (:mod:`baselines.agents.filters`), its
-  settings per task read from ``hyperparams/pf.yml``
+  settings per task read from ``baselines/agents/pf.yml``
   (:mod:`baselines.agents.settings`);
 * **learned policies** (:data:`LEARNED`, :mod:`baselines.agents.learned`):
   ``bc``, ``ppo``, a saved ``PATH.zip`` or ``LABEL=PATH.zip``, and the hybrids

@@ -1,4 +1,4 @@
-"""The particle filters' settings per task, read from ``hyperparams/pf.yml``.
+"""The particle filters' settings per task, read from ``baselines/agents/pf.yml``.
 
 The file holds, per agent, the settings chosen by cross-validation on the
 training persons (its comments say how each was chosen): ``fit`` (the prior's
@@ -21,8 +21,10 @@ import yaml
 
 from humotion_gym.envs.tasks import TASKS
 
-#: The settings file of the repository (beside ``hyperparams/ppo.yml``).
-PF_SETTINGS_FILE = Path(__file__).resolve().parents[2] / "hyperparams" / "pf.yml"
+#: The settings file, shipped in the package (an installed copy of baselines
+#: finds it as an editable one does); ``hyperparams/ppo.yml`` beside the
+#: repository is the RL Zoo's, read by the Zoo's own command line.
+PF_SETTINGS_FILE = Path(__file__).resolve().parent / "pf.yml"
 
 _SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
@@ -150,7 +152,7 @@ def load(path: str | Path = PF_SETTINGS_FILE) -> dict[str, AgentSettings]:
     """
     p = Path(path)
     if not p.is_file():
-        raise FileNotFoundError(f"{p}: no particle-filter settings file (hyperparams/pf.yml)")
+        raise FileNotFoundError(f"{p}: no particle-filter settings file (baselines/agents/pf.yml)")
     try:
         # libyaml's safe loader where PyYAML was built with it: 2 ms against 21 (pure Python)
         data = yaml.load(p.read_text(encoding="utf-8"), Loader=_SAFE_LOADER)

@@ -3,7 +3,7 @@
 :data:`AGENTS` maps a name (``pf-cv``, ``pf-tree``, ``apf-mix``...) to an
 :class:`AgentSpec`: what the agent is (its prior module, the kind of filter,
 the tasks it covers) is written here; the settings chosen for it on each task
-are data, read from ``hyperparams/pf.yml`` (:mod:`baselines.agents.settings`)
+are data, read from ``baselines/agents/pf.yml`` (:mod:`baselines.agents.settings`)
 and checked against the prior's ``fit`` when this module is imported.
 :func:`make_filter` builds one for an environment: the prior fitted on the
 environment's training persons (cached on disk), then the filter.
@@ -247,7 +247,7 @@ CONSTANT_VELOCITY = "baselines.priors.constant_velocity"
 MIXTURE = "baselines.priors.mixture"
 
 #: What each particle-filter agent is, by name: ``AgentSpec`` keywords other
-#: than its settings (those come from ``hyperparams/pf.yml``). A mixture's
+#: than its settings (those come from ``baselines/agents/pf.yml``). A mixture's
 #: ``components`` are ``(label, prior)`` pairs, the first taking the weight the
 #: others leave.
 STRUCTURE: dict[str, dict[str, Any]] = {

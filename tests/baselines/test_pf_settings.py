@@ -1,4 +1,4 @@
-"""The particle filters' settings file (hyperparams/pf.yml): read, checked, applied."""
+"""The particle filters' settings file (baselines/agents/pf.yml): read, checked, applied."""
 
 from __future__ import annotations
 
@@ -142,3 +142,19 @@ def test_filter_settings_on_a_plain_filter_and_bad_files_are_refused(tmp_path):
     empty = tmp_path / "empty.yml"
     empty.write_text("")
     assert all(not s.fit_settings for s in specs_from_file(empty).values())
+
+
+def test_settings_file_ships_in_the_package():
+    """An installed (non-editable) baselines finds its settings: the file is package data."""
+    from pathlib import Path
+
+    tomllib = pytest.importorskip("tomllib", reason="tomllib is Python 3.11's")
+
+    import baselines
+    from baselines.agents.settings import PF_SETTINGS_FILE
+
+    package = Path(baselines.__file__).resolve().parent
+    assert PF_SETTINGS_FILE.is_file() and package in PF_SETTINGS_FILE.parents
+    pyproject = tomllib.loads((package.parent / "pyproject.toml").read_text())
+    shipped = pyproject["tool"]["setuptools"]["package-data"]["baselines"]
+    assert PF_SETTINGS_FILE.relative_to(package).as_posix() in shipped
