@@ -20,6 +20,27 @@ class TaskNotSupported(ValueError):
     """
 
 
+#: The attribute that marks an object reading the truth (the oracles of
+#: :mod:`baselines.diagnostics`): such an object is analysis only, never an
+#: agent, and every way of registering or building an agent refuses it.
+READS_TRUTH = "reads_truth"
+
+
+def refuse_truth(thing: Any, argument: str) -> None:
+    """Refuse an object that reads the truth where an agent or its likelihood belongs.
+
+    Raises:
+        ValueError: Naming ``argument``, if ``thing`` (an object or a class)
+            has a true :data:`READS_TRUTH` attribute.
+    """
+    if getattr(thing, READS_TRUTH, False) is True:
+        name = getattr(thing, "__name__", type(thing).__name__)
+        raise ValueError(
+            f"{argument}: {name} reads the truth; oracles are analysis only "
+            "(baselines.diagnostics), never agents or their likelihoods"
+        )
+
+
 def tracking_env(env: gym.Env) -> PoseTrackingEnv:
     """The :class:`~humotion_gym.envs.pose_tracking.PoseTrackingEnv` under an env's wrappers.
 

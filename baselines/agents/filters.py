@@ -24,14 +24,14 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from baselines.agents.base import describe, episode_begins
+from baselines.agents.base import describe, episode_begins, refuse_truth
 from baselines.filtering import (
     AnnealedParticleFilter,
     ParticleFilter,
     PartitionedParticleFilter,
     Stage,
 )
-from baselines.observation import Backdrop, GivenBody, ObservationModel, task_model
+from baselines.observation import Backdrop, FrameModel, GivenBody, ObservationModel, task_model
 from baselines.priors.limbs import part_columns
 from humotion_gym.body import (
     ANGLE_MASK,
@@ -61,7 +61,7 @@ class TaskLikelihood:
     environment's model, camera and the known shape.
     """
 
-    def __init__(self, model: ObservationModel, free: NDArray[np.intp], fixed: NDArray[np.intp]):
+    def __init__(self, model: FrameModel, free: NDArray[np.intp], fixed: NDArray[np.intp]):
         self.model = model
         self.free = free
         self.fixed = fixed
@@ -183,6 +183,11 @@ class ParticleFilterAgent:
         beta_max: Cap on the annealed filter's exponents.
         observation_model: The likelihood (default: the task's,
             :func:`~baselines.observation.task_model`).
+
+    Raises:
+        ValueError: If ``observation_model`` reads the truth (an oracle of
+            :mod:`baselines.diagnostics` is analysis only), or the settings
+            do not go together.
     """
 
     def __init__(
@@ -201,9 +206,10 @@ class ParticleFilterAgent:
         beta_max: float = float("inf"),
         observation_model: ObservationModel | None = None,
     ) -> None:
+        refuse_truth(observation_model, "observation_model")
         self.description = describe(task)
         spec = self.description.task
-        self.observation_model = observation_model or task_model(spec)
+        self.observation_model: FrameModel = observation_model or task_model(spec)
         self.name = name
         self.prior = prior
         self.fitted = fitted

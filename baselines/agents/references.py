@@ -15,7 +15,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from baselines.agents.base import describe, episode_begins
+from baselines.agents.base import describe, episode_begins, refuse_truth
 from humotion_gym.envs.description import TaskDescription, read_observation
 
 
@@ -96,8 +96,10 @@ def register_reference(name: str, agent_class: type, description: str = "") -> N
     from the task's description only, and hand it observations only.
 
     Raises:
-        ValueError: If the name is taken.
+        ValueError: If the name is taken, or the class reads the truth (an
+            oracle of :mod:`baselines.diagnostics`).
     """
+    refuse_truth(agent_class, "register_reference")
     if name in REFERENCES:
         raise ValueError(f"register_reference: {name!r} is already an agent")
     REFERENCES[name] = (agent_class, description)

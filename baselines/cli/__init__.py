@@ -26,6 +26,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "baselines.cli.still",  # still (every agent where the person barely moves)
     "baselines.cli.discrimination",  # discrimination
     "baselines.cli.depth",  # depth (each agent's error along and across the line of sight)
+    "baselines.cli.oracle",  # oracle (each agent's error with truth oracles in its likelihood)
     "baselines.cli.synth",  # synth
     "baselines.cli.tree",  # tree figures
     "baselines.cli.pca",  # pca period|figures

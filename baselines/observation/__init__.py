@@ -39,12 +39,13 @@ has no access to the ground truth.
 """
 
 from baselines.observation.features import Backdrop, FirstFrame, FrameFeatures, GivenBody
-from baselines.observation.model import POSE_LIMIT, ObservationModel, task_model
+from baselines.observation.model import POSE_LIMIT, FrameModel, ObservationModel, task_model
 
 __all__ = [
     "POSE_LIMIT",
     "Backdrop",
     "FirstFrame",
+    "FrameModel",
     "FrameFeatures",
     "GivenBody",
     "ObservationModel",

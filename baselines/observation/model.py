@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -281,6 +282,44 @@ class ObservationModel(ObservationSettings):
             scores[~inside] = -np.inf
             out[lo : lo + chunk] = scores
         return out.reshape(lead + width)
+
+
+class FrameModel(Protocol):
+    """What a particle-filter agent needs of its likelihood (:class:`ObservationModel` has it).
+
+    The agent reads each frame's features once (:meth:`prepare`), what it
+    keeps of an episode's first frame (:meth:`read_first_frame`), then scores
+    any number of full poses. The registered agents use
+    :class:`ObservationModel` alone; the truth oracles of
+    :mod:`baselines.diagnostics` follow this protocol too, for analysis only.
+    """
+
+    def prepare(self, frame: Any, given: GivenBody | None = None) -> Any:
+        """The frame's features, handed back to the scoring methods."""
+        ...
+
+    def read_first_frame(
+        self, frame: Any, pose: ArrayLike, shape: BodyShape, camera: Camera
+    ) -> FirstFrame:
+        """What the model keeps of an episode's first frame, with the given initial pose."""
+        ...
+
+    def log_likelihood(
+        self, frame: Any, params: ArrayLike, shape: BodyShape, camera: Camera
+    ) -> FloatArray:
+        """``(N,)`` log p(frame | pose) of ``(N, 25)`` poses, up to a constant."""
+        ...
+
+    def log_likelihood_partial(
+        self,
+        frame: Any,
+        params: ArrayLike,
+        shape: BodyShape,
+        camera: Camera,
+        groups: Sequence[Sequence[int]],
+    ) -> FloatArray:
+        """``(N, G + 1)`` log-likelihoods of the figure built up one group of cones at a time."""
+        ...
 
 
 def task_model(task: TaskSpec) -> ObservationModel:

@@ -1,0 +1,182 @@
+r"""``humotion-gym oracle``: each agent's error with its image likelihood and with truth oracles.
+
+::
+
+    humotion-gym oracle --task BodyTrack-v2 --agents pf-cv pf-mix --declared --episodes 12 \\
+        --noise-mm 10 --data-dir ../shared/mocap --out results/oracle
+"""
+
+from __future__ import annotations
+
+import argparse
+import gzip
+import json
+
+from baselines.cli._args import add_particles
+from humotion_gym.cli._common import (
+    UsageError,
+    add_command,
+    add_data_dir,
+    add_seed,
+    env_kwargs,
+    episode_count,
+    output_dir,
+    positive_float,
+    task_name,
+    wrote,
+)
+
+#: The likelihoods by default: the agents' own and each oracle at its default noise.
+DEFAULT_ORACLES = ("image", "2d", "2d-unlabelled", "3d")
+
+
+def _filter_agent(text: str) -> str:
+    """An argparse ``type``: a registered particle-filter agent (or ``hold``)."""
+    from baselines.agents import AGENTS
+
+    if text != "hold" and text not in AGENTS:
+        raise argparse.ArgumentTypeError(
+            f"{text[:80]} is not a particle-filter agent (one has a likelihood to replace); "
+            f"they are {', '.join(sorted(AGENTS))}"
+        )
+    return text
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``oracle``."""
+    op = add_command(
+        subparsers,
+        "oracle",
+        "each agent's error with its image likelihood and with truth oracles, split",
+        "humotion-gym oracle --task BodyTrack-v2 --agents pf-cv pf-mix --declared --episodes 12",
+        details="Track each task's episodes with every particle-filter agent, once with its "
+        "image likelihood and once with each oracle in its place (the true 2D keypoints with "
+        "pixel noise, the same without left/right identity, the true 3D keypoints with noise; "
+        "same prior, filter, particles and seeds), and hold once; then split the error into "
+        "what better 2D evidence removes, what depth along the ray costs and what the search "
+        "loses. Oracles read the truth: this is analysis, never a leaderboard entry "
+        "(docs/diagnostics.md).",
+    )
+    op.add_argument(
+        "--task", type=task_name, nargs="+", default=["BodyTrack-v2"], metavar="TASK",
+        help="task ids (default: BodyTrack-v2)",
+    )  # fmt: skip
+    op.add_argument(
+        "--agents", type=_filter_agent, nargs="+", default=["pf-cv", "pf-tree", "pf-mix"],
+        metavar="AGENT", help="particle-filter agents; hold always runs (default: pf-cv pf-tree "
+        "pf-mix)",
+    )  # fmt: skip
+    add_particles(op)
+    op.add_argument(
+        "--oracles", nargs="+", default=list(DEFAULT_ORACLES), metavar="LIKELIHOOD",
+        help="image (the agent's own), 2d, 2d-unlabelled, 3d; a suffix sets one's noise: "
+        "2d:2 (pixels), 3d:10mm (mm per axis) (default: image 2d 2d-unlabelled 3d)",
+    )  # fmt: skip
+    op.add_argument(
+        "--noise-px", type=positive_float, default=None, metavar="PX",
+        help="noise in pixels of every oracle given without its own (default: 2d 1, "
+        "2d-unlabelled 3, 3d 1 at the body's depth)",
+    )  # fmt: skip
+    op.add_argument(
+        "--noise-mm", type=positive_float, nargs="+", default=[], metavar="MM",
+        help="also a 3d oracle with this noise per axis in mm, for each value (default: none)",
+    )  # fmt: skip
+    op.add_argument(
+        "--declared", action="store_true",
+        help="track each task's declared test windows (the leaderboard's --declared; "
+        "--episodes then takes the first N)",
+    )  # fmt: skip
+    op.add_argument(
+        "--episodes", type=episode_count, default=None,
+        help="seeded episodes per agent and likelihood, or with --declared the first N windows "
+        "(default: 20 seeded, or every declared window)",
+    )  # fmt: skip
+    op.add_argument(
+        "--agent-seeds", type=episode_count, default=1, metavar="K",
+        help="agent seeds per agent and likelihood (default: 1)",
+    )  # fmt: skip
+    op.add_argument(
+        "--split", choices=["test", "validation"], default="test",
+        help="the test persons, or the validation persons (training persons held out) "
+        "(default: test)",
+    )  # fmt: skip
+    add_seed(op, "the first episode's seed, the agents' first seed and the oracles' noise seed")
+    add_data_dir(op)
+    op.add_argument(
+        "--out", type=output_dir, default=None, metavar="FOLDER",
+        help="write results.json.gz (every episode's numbers) and table.md here (default: "
+        "print the table only)",
+    )  # fmt: skip
+    op.set_defaults(func=_cmd_oracle)
+
+
+def _oracles(args: argparse.Namespace) -> list:
+    """The likelihoods to run, checked: a usage error names the bad one."""
+    from baselines.diagnostics.oracle import OracleSettings
+    from baselines.diagnostics.split import parse_oracle
+
+    out = []
+    for text in args.oracles:
+        try:
+            oracle = parse_oracle(text)
+            if oracle is not None and args.noise_px is not None and ":" not in text:
+                oracle = OracleSettings(oracle.kind, noise_px=args.noise_px)
+        except ValueError as exc:
+            raise UsageError(f"--oracles: {exc}") from exc
+        out.append(oracle)
+    out += [OracleSettings("3d", noise_mm=mm) for mm in args.noise_mm]
+    labels = ["image" if o is None else o.label for o in out]
+    twice = sorted({x for x in labels if labels.count(x) > 1})
+    if twice:
+        raise UsageError(f"--oracles, --noise-mm: {', '.join(twice)} given twice")
+    return out
+
+
+def run_settings(args: argparse.Namespace) -> dict:
+    """The command's settings as plain JSON (what the results file records)."""
+    return {
+        "command": "humotion-gym oracle", "task": list(args.task), "agents": list(args.agents),
+        "particles": args.particles, "oracles": list(args.oracles), "noise_px": args.noise_px,
+        "noise_mm": list(args.noise_mm), "declared": args.declared, "episodes": args.episodes,
+        "agent_seeds": args.agent_seeds, "split": args.split, "seed": args.seed,
+        "data_dir": [str(d) for d in args.data_dir or []],
+    }  # fmt: skip
+
+
+def _cmd_oracle(args: argparse.Namespace) -> int:
+    from baselines.diagnostics.split import compact, markdown_report, run_split
+
+    if args.declared and args.split == "validation":
+        raise UsageError("--declared: the declared windows are the test persons'; drop --split")
+    oracles = _oracles(args)
+    kwargs = env_kwargs(args)
+    if args.split == "validation":
+        from baselines.experiments.selection import validation_library
+
+        kwargs["library"] = validation_library(kwargs.pop("data_dir", None))
+    results = []
+    for task in args.task:
+        results.append(
+            run_split(
+                task,
+                args.agents,
+                oracles,
+                args.particles,
+                episodes=args.episodes,
+                declared=args.declared,
+                seed=args.seed,
+                agent_seeds=args.agent_seeds,
+                env_kwargs=kwargs,
+            )  # fmt: skip
+        )
+    table = markdown_report(results)
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        data = {"settings": run_settings(args), "results": [compact(r) for r in results]}
+        text = json.dumps(data, separators=(",", ":")).encode()
+        (args.out / "results.json.gz").write_bytes(gzip.compress(text, mtime=0))
+        (args.out / "table.md").write_text(table)
+        wrote(args.out / "results.json.gz", "every episode's numbers")
+        wrote(args.out / "table.md")
+    print(table, end="")
+    return 0

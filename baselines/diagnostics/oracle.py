@@ -1,0 +1,413 @@
+"""Truth oracles: likelihoods that ignore the frame and read the true keypoints.
+
+An oracle replaces a particle-filter agent's image likelihood with what a
+perfect detector would give, less some noise, so a run with it says what the
+agent's search and prior make of near-perfect evidence:
+
+* ``2d``: the scored keypoints of the true pose projected by the frame's
+  camera, each coordinate plus Gaussian noise of ``noise_px`` pixels (default
+  1); ``log L(x) = -sum_k |pi(k(x)) - y_k|^2 / (2 sigma^2)``, ``pi`` the
+  camera's projection and ``k(x)`` a pose's keypoints
+  (:func:`humotion_gym.body.forward_kinematics`).
+* ``2d-unlabelled``: the same detections with the left/right identity
+  unknown (default 3 px). Each left/right pair of keypoints (the hips,
+  knees, ankles, shoulders, elbows, wrists) scores the better of its two
+  assignments, ``min(d(a, A) + d(b, B), d(a, B) + d(b, A))``, pair by pair:
+  a detector that finds "an elbow" twice says nothing about which limb holds
+  it, and assigning limbs whole would claim a grouping it does not give
+  (every limb-wise assignment is one of the pair-wise ones, so the pair-wise
+  score is the weaker evidence of the two).
+* ``3d``: the true keypoints in the world frame, each axis plus Gaussian
+  noise of ``noise_mm`` mm, or by default of ``noise_px`` (1) pixels at the
+  true pelvis' depth (``noise_px * depth / focal``: about 34 mm at the
+  BodyTrack-v2 camera's 5 m); ``log L(x) = -sum_k |k(x) - y_k|^2 / (2 sigma^2)``.
+
+The likelihood's sigma is the noise's. Noise is drawn once per frame from a
+:class:`numpy.random.Generator` seeded with ``(seed, episode seed)``: the same
+run, the same detections, whichever agent reads them.
+
+**Analysis only.** An oracle reads the truth of the frame on show, handed to
+it by the diagnostics loop (:class:`OracleFeed`, a wrapper of the environment
+that calls :meth:`TruthOracle.show` after each reset and step); it is never
+an agent and never an agent's likelihood as built by the registries: it has
+no ``predict``, carries :data:`~baselines.agents.base.READS_TRUTH`, and
+:func:`~baselines.agents.register_reference` and
+:class:`~baselines.agents.ParticleFilterAgent` refuse it. :func:`with_oracle`
+puts it into an agent built for the purpose.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from baselines.agents.base import tracking_env
+from baselines.agents.filters import ParticleFilterAgent
+from baselines.observation import FirstFrame, GivenBody
+from humotion_gym.body import (
+    CONE_KEYPOINTS,
+    KEYPOINT_INDEX,
+    KEYPOINT_NAMES,
+    N_CONES,
+    N_PARAMS,
+    BodyShape,
+    forward_kinematics,
+)
+from humotion_gym.camera import Camera
+
+FloatArray = NDArray[np.float64]
+
+#: The oracles by name, with the default noise (pixels) of each.
+ORACLE_KINDS: dict[str, float] = {"2d": 1.0, "2d-unlabelled": 3.0, "3d": 1.0}
+_PELVIS = KEYPOINT_INDEX["pelvis"]
+
+
+@dataclass(frozen=True)
+class OracleSettings:
+    """One oracle: its kind and noise.
+
+    Attributes:
+        kind: ``"2d"``, ``"2d-unlabelled"`` or ``"3d"`` (:data:`ORACLE_KINDS`).
+        noise_px: Noise in pixels (2D: per coordinate; 3D: per axis, at the
+            true pelvis' depth); None: the kind's default.
+        noise_mm: 3D only: noise per axis in mm instead of ``noise_px``.
+
+    Raises:
+        ValueError: If the kind is unknown, a noise is not positive and
+            finite, or ``noise_mm`` is given for a 2D oracle.
+    """
+
+    kind: str
+    noise_px: float | None = None
+    noise_mm: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in ORACLE_KINDS:
+            raise ValueError(
+                f"OracleSettings.kind: expected one of {list(ORACLE_KINDS)}, got {self.kind!r}"
+            )
+        for name in ("noise_px", "noise_mm"):
+            value = getattr(self, name)
+            if value is not None and not (np.isfinite(value) and value > 0):
+                raise ValueError(f"OracleSettings.{name}: expected a positive number, got {value}")
+        if self.noise_mm is not None and self.kind != "3d":
+            raise ValueError(
+                f"OracleSettings.noise_mm: only the 3d oracle takes it, not {self.kind}"
+            )
+
+    @property
+    def pixels(self) -> float:
+        """The noise in pixels (the kind's default where none is given)."""
+        return ORACLE_KINDS[self.kind] if self.noise_px is None else float(self.noise_px)
+
+    @property
+    def label(self) -> str:
+        """A short name for tables: ``2d 1px``, ``3d 1px@depth``, ``3d 10mm``..."""
+        if self.noise_mm is not None:
+            return f"{self.kind} {self.noise_mm:g}mm"
+        return f"{self.kind} {self.pixels:g}px" + ("@depth" if self.kind == "3d" else "")
+
+
+@dataclass(frozen=True)
+class OracleObservation:
+    """What an oracle shows for one frame: the noisy true keypoints.
+
+    Attributes:
+        points: ``(K, 2)`` pixels or ``(K, 3)`` world mm, the scored keypoints'.
+        sigma: The noise's standard deviation (pixels or mm), the likelihood's.
+    """
+
+    points: FloatArray
+    sigma: float
+
+
+def left_right_partners(keypoints: Sequence[int]) -> NDArray[np.intp]:
+    """Each keypoint's left/right partner, as positions in ``keypoints`` (itself if none).
+
+    Args:
+        keypoints: Keypoint indices (:data:`~humotion_gym.body.KEYPOINT_NAMES`).
+
+    Returns:
+        ``(K,)`` positions: ``r_elbow``'s is ``l_elbow``'s position and back;
+        a keypoint without a side, or whose partner is not in ``keypoints``,
+        is its own.
+    """
+    names = [KEYPOINT_NAMES[int(k)] for k in keypoints]
+    flip = {"r_": "l_", "l_": "r_"}
+    out = np.arange(len(names), dtype=np.intp)
+    for i, name in enumerate(names):
+        other = flip.get(name[:2], "") + name[2:] if name[:2] in flip else name
+        if other in names:
+            out[i] = names.index(other)
+    return out
+
+
+class TruthOracle:
+    """A likelihood that reads the truth of the frame on show (analysis only).
+
+    It follows :class:`~baselines.observation.FrameModel`, so a
+    :class:`~baselines.agents.ParticleFilterAgent` can score with it once
+    :func:`with_oracle` has put it in; :meth:`show` hands it each frame's
+    truth.
+
+    Args:
+        settings: The oracle's kind and noise.
+        keypoints: The scored keypoints (the task's ``error_keypoint_indices``).
+        seed: With each episode's seed, seeds the noise.
+
+    Raises:
+        ValueError: If ``keypoints`` is empty or names no keypoint.
+    """
+
+    reads_truth: ClassVar[bool] = True
+
+    def __init__(self, settings: OracleSettings, keypoints: ArrayLike, seed: int = 0) -> None:
+        kp = np.asarray(keypoints, dtype=np.intp).reshape(-1)
+        if kp.size == 0 or kp.min() < 0 or kp.max() >= len(KEYPOINT_NAMES):
+            raise ValueError(
+                f"TruthOracle.keypoints: expected indices in 0..{len(KEYPOINT_NAMES) - 1}, "
+                f"got {kp.tolist()}"
+            )
+        self.settings = settings
+        self.keypoints = kp
+        self.seed = int(seed)
+        self.dims = 3 if settings.kind == "3d" else 2
+        # The position of each keypoint's partner: itself unless unlabelled.
+        self.partners = (
+            left_right_partners(kp.tolist())
+            if settings.kind == "2d-unlabelled"
+            else np.arange(kp.size, dtype=np.intp)
+        )
+        # Each pair once: its first member's position, its second's, and
+        # whether it is a pair at all (a keypoint without a partner is alone).
+        positions = np.arange(kp.size, dtype=np.intp)
+        self._firsts = positions[positions <= self.partners]
+        self._seconds = self.partners[self._firsts]
+        self._paired = self._seconds != self._firsts
+        self._rng = np.random.default_rng([self.seed, 0])
+        self._shown: OracleObservation | None = None
+
+    def start_episode(self, episode_seed: int) -> None:
+        """Draw the next episode's noise from ``(seed, episode_seed)`` alone."""
+        self._rng = np.random.default_rng([self.seed, int(episode_seed)])
+        self._shown = None
+
+    def show(self, pose: ArrayLike, shape: BodyShape, camera: Camera) -> OracleObservation:
+        """Take the truth of the frame on show: its noisy keypoints become the observation.
+
+        Args:
+            pose: The frame's true ``(25,)`` pose.
+            shape: The subject's shape.
+            camera: The frame's camera.
+
+        Returns:
+            The observation (also what :meth:`prepare` gives until the next call).
+        """
+        truth = forward_kinematics(np.asarray(pose, dtype=np.float64), shape)
+        points = truth[self.keypoints]
+        if self.dims == 2:
+            points = camera.project(points)
+            sigma = self.settings.pixels
+        elif self.settings.noise_mm is not None:
+            sigma = float(self.settings.noise_mm)
+        else:  # noise_px pixels seen at the body's depth
+            sigma = self.settings.pixels * float(camera.depth(truth[_PELVIS])) / camera.focal
+        points = points + self._rng.normal(0.0, sigma, points.shape)
+        self._shown = OracleObservation(points, sigma)
+        return self._shown
+
+    def prepare(self, frame: Any, given: GivenBody | None = None) -> OracleObservation:
+        """The frame's observation: the truth last shown (the frame itself is ignored).
+
+        Raises:
+            RuntimeError: If no truth was shown since the episode began.
+        """
+        del frame, given
+        if self._shown is None:
+            raise RuntimeError(
+                "TruthOracle.prepare: no truth shown for this frame (run the episode through "
+                "OracleFeed)"
+            )
+        return self._shown
+
+    def read_first_frame(
+        self, frame: Any, pose: ArrayLike, shape: BodyShape, camera: Camera
+    ) -> FirstFrame:
+        """Nothing: an oracle keeps no colours, backdrop or floor."""
+        del frame, pose, shape, camera
+        return FirstFrame(None, None, None)
+
+    def log_likelihood(
+        self, frame: Any, params: ArrayLike, shape: BodyShape, camera: Camera
+    ) -> FloatArray:
+        """``(N,)`` log-likelihoods of ``(N, 25)`` poses given the observation.
+
+        Args:
+            frame: The :class:`OracleObservation` (:meth:`prepare`'s).
+            params: ``(N, 25)`` poses.
+            shape: The subject's shape.
+            camera: The frame's camera (2D oracles project with it).
+
+        Returns:
+            ``(N,)``; ``-inf`` for a pose with a keypoint at or behind the
+            camera (2D) or a parameter that is not finite.
+
+        Raises:
+            TypeError: If ``frame`` is not an :class:`OracleObservation`.
+            ValueError: If ``params`` is not ``(N, 25)``.
+        """
+        full = np.ones((1, self.keypoints.size), dtype=bool)
+        return self._scores(frame, params, shape, camera, full, "log_likelihood")[:, 0]
+
+    def log_likelihood_partial(
+        self,
+        frame: Any,
+        params: ArrayLike,
+        shape: BodyShape,
+        camera: Camera,
+        groups: Sequence[Sequence[int]],
+    ) -> FloatArray:
+        """``(N, G + 1)``: the log-likelihood of the figure built up one group of cones at a time.
+
+        Column ``g`` scores the keypoints that the cones of groups ``0..g``
+        end on (:data:`~humotion_gym.body.CONE_KEYPOINTS`); the last column
+        every scored keypoint (:meth:`log_likelihood`). An unlabelled
+        keypoint whose partner is not yet placed scores the nearer of the
+        pair's two detections.
+
+        Raises:
+            ValueError: As :meth:`log_likelihood`, or if a group names a cone
+                that does not exist or one an earlier group has.
+        """
+        seen: set[int] = set()
+        masks = np.zeros((len(groups) + 1, self.keypoints.size), dtype=bool)
+        placed: set[int] = set()
+        for g, group in enumerate(groups):
+            cones = [int(c) for c in group]
+            if any(not 0 <= c < N_CONES for c in cones) or seen & set(cones):
+                raise ValueError(
+                    f"TruthOracle.log_likelihood_partial: groups[{g}] = {cones}: expected cone "
+                    f"indices in 0..{N_CONES - 1}, each in one group"
+                )
+            seen |= set(cones)
+            placed |= {int(k) for c in cones for k in CONE_KEYPOINTS[c]}
+            masks[g] = np.isin(self.keypoints, sorted(placed))
+        masks[-1] = True
+        return self._scores(frame, params, shape, camera, masks, "log_likelihood_partial")
+
+    def _scores(
+        self,
+        frame: Any,
+        params: ArrayLike,
+        shape: BodyShape,
+        camera: Camera,
+        masks: NDArray[np.bool_],
+        caller: str,
+    ) -> FloatArray:
+        """``(N, M)``: ``-cost / (2 sigma^2)`` over each mask's keypoints (``masks`` ``(M, K)``)."""
+        if not isinstance(frame, OracleObservation):
+            raise TypeError(
+                f"TruthOracle.{caller}: expected the OracleObservation of prepare(), "
+                f"got {type(frame).__name__}"
+            )
+        p = np.asarray(params, dtype=np.float64)
+        if p.ndim != 2 or p.shape[1] != N_PARAMS:
+            raise ValueError(
+                f"TruthOracle.{caller}: expected poses of shape (N, 25), got {p.shape}"
+            )
+        points = forward_kinematics(p, shape)[:, self.keypoints]  # (N, K, 3)
+        if self.dims == 2:
+            points = camera.project(points)  # NaN at or behind the camera
+        # d2[n, k, j]: squared distance of pose n's keypoint k to detection
+        # partners[k] if j else k (the same for a labelled oracle).
+        obs = frame.points
+        d2 = np.stack(
+            [
+                np.sum((points - obs) ** 2, axis=-1),
+                np.sum((points - obs[self.partners]) ** 2, axis=-1),
+            ],
+            axis=-1,
+        )
+        d2 = np.where(np.isnan(d2), np.inf, d2)
+        # Per mask: the straight and the swapped assignment of each pair,
+        # summed over the pair's placed members (a keypoint without a partner
+        # is its own pair and its two assignments are one).
+        each = np.where(masks[None, :, :, None], d2[:, None], 0.0)  # (N, M, K, 2)
+        sums = each[:, :, self._firsts] + np.where(
+            self._paired[:, None], each[:, :, self._seconds], 0.0
+        )  # (N, M, pairs, 2)
+        cost = sums.min(axis=-1).sum(axis=-1)  # (N, M)
+        return -cost / (2.0 * frame.sigma**2)
+
+
+class OracleFeed(gym.Wrapper):
+    """The diagnostics loop's wrapper: shows the oracle each frame's truth, nothing later.
+
+    After each ``reset`` and each ``step`` that leaves the episode running it
+    reads the environment's truth of the frame now on show
+    (:meth:`~humotion_gym.envs.pose_tracking.PoseTrackingEnv.true_pose`, the
+    subject's shape, the frame's camera) and hands it to the oracle, before
+    the agent is asked about that frame. The agent sees the observations
+    unchanged.
+
+    Args:
+        env: A pose-tracking environment (or a wrapper of one).
+        oracle: The oracle to feed.
+    """
+
+    def __init__(self, env: gym.Env, oracle: TruthOracle) -> None:
+        super().__init__(env)
+        self.oracle = oracle
+        self._base = tracking_env(env)
+
+    def _show(self) -> None:
+        base = self._base
+        self.oracle.show(base.true_pose(), base.shape, base.camera)
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Any, dict[str, Any]]:
+        """Reset, start the oracle's episode from ``seed`` and show it the first frame.
+
+        Raises:
+            ValueError: If ``seed`` is None (the noise is drawn from it).
+        """
+        if seed is None:
+            raise ValueError("OracleFeed.reset: seed: expected an episode seed, got None")
+        obs, info = self.env.reset(seed=seed, options=options)
+        self.oracle.start_episode(seed)
+        self._show()
+        return obs, info
+
+    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
+        """Step, then show the oracle the new frame (while the episode runs)."""
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if not (terminated or truncated):
+            self._show()
+        return obs, reward, terminated, truncated, info
+
+
+def with_oracle(agent: Any, oracle: TruthOracle) -> ParticleFilterAgent:
+    """Put an oracle in place of a particle-filter agent's image likelihood.
+
+    The agent keeps its prior, filter, particle count and seed; only the
+    model its likelihood scores with changes (for partitioned sampling, the
+    partial likelihoods too). The agent is then analysis only: it tracks only
+    through :class:`OracleFeed`.
+
+    Raises:
+        TypeError: If the agent is not a :class:`~baselines.agents.ParticleFilterAgent`.
+    """
+    if not isinstance(agent, ParticleFilterAgent):
+        raise TypeError(
+            f"with_oracle: agent: expected a particle-filter agent, got {type(agent).__name__} "
+            "(it has no likelihood to replace)"
+        )
+    agent.observation_model = oracle
+    agent.likelihood.model = oracle
+    return agent

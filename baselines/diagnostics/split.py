@@ -1,0 +1,330 @@
+"""Where an agent's error comes from: its image likelihood against truth oracles.
+
+Each particle-filter agent tracks the same episodes several times, once with
+its own image likelihood and once with each oracle of
+:mod:`baselines.diagnostics.oracle` in its place (same prior, filter,
+particle count and seeds), and ``hold`` once. The differences split the
+error:
+
+* **evidence**: image error less the 2D oracle's: what a perfect 2D keypoint
+  detector would remove;
+* **depth**: the 2D oracle's error split along the camera ray through each
+  true keypoint and across it (:func:`baselines.depth.split_along_ray`), raw
+  and with the pelvises put together: what one view leaves unknown;
+* **search**: the 3D oracle's error: what the prior and filter lose when the
+  evidence pins every keypoint (its noise sets a floor).
+
+Per episode it records the mean error, the pelvis-aligned error, the
+along/across split (raw and aligned), the estimate's reprojection error in
+pixels and, where the agent's filter has weights, the mean effective sample
+size after weighting. The episodes are a task's declared test list
+(:func:`baselines.leaderboard.engine.task_windows`, episode seeds ``seed``,
+``seed + 1``... as the leaderboard's ``--declared``) or seeded draws, so the
+image rows are the leaderboard's numbers for the same settings.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from numpy.typing import NDArray
+from tqdm.auto import tqdm
+
+from baselines.agents import make, tracking_env
+from baselines.depth import split_along_ray
+from baselines.diagnostics.oracle import OracleFeed, OracleSettings, TruthOracle, with_oracle
+from baselines.leaderboard.engine import make_env, task_windows, window_options
+from baselines.leaderboard.evaluation import run_episode
+from humotion_gym.body import KEYPOINT_INDEX, forward_kinematics
+from humotion_gym.threads import single_threaded_blas
+
+_PELVIS = KEYPOINT_INDEX["pelvis"]
+#: Per-episode numbers kept in the results (means over the episode's frames).
+EPISODE_FIELDS: tuple[str, ...] = (
+    "error_mm", "aligned_mm", "along_abs_mm", "across_mm", "aligned_along_abs_mm",
+    "aligned_across_mm", "reprojection_px", "ess",
+)  # fmt: skip
+
+
+class _FrameRecorder:
+    """``on_step`` of the loop: each answered frame's split, reprojection and ESS."""
+
+    def __init__(self, env: gym.Env, agent: Any) -> None:
+        self.base = tracking_env(env)
+        self.agent = agent
+        self.scored = np.asarray(self.base.task.error_keypoint_indices, dtype=np.intp)
+        self.rows: dict[str, list[float]] = {name: [] for name in EPISODE_FIELDS[2:]}
+
+    def __call__(self, action: NDArray[Any], truth: NDArray[np.float64], info: dict) -> None:
+        camera = self.base.camera  # (the frame the action answers)
+        estimate = self.base.action_to_pose(action, truth)
+        kp = forward_kinematics(np.stack([estimate, truth]), self.base.shape)
+        est, tru = kp[0, self.scored], kp[1, self.scored]
+        centre = np.asarray(camera.position, dtype=np.float64)
+        along, across = split_along_ray(est, tru, centre)
+        aligned = est - (kp[0, _PELVIS] - kp[1, _PELVIS])
+        al_along, al_across = split_along_ray(aligned, tru, centre)
+        pixels = camera.project(np.stack([est, tru]))
+        rows = self.rows
+        rows["along_abs_mm"].append(float(np.abs(along).mean()))
+        rows["across_mm"].append(float(across.mean()))
+        rows["aligned_along_abs_mm"].append(float(np.abs(al_along).mean()))
+        rows["aligned_across_mm"].append(float(al_across.mean()))
+        rows["reprojection_px"].append(float(np.linalg.norm(pixels[0] - pixels[1], axis=-1).mean()))
+        filt = getattr(self.agent, "filter", None)
+        rows["ess"].append(float(filt.ess) if filt is not None else float("nan"))
+
+
+def diagnose_episode(
+    agent: Any, env: gym.Env, seed: int, options: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """One episode of the evaluation loop with its diagnostics.
+
+    Args:
+        agent: The agent (with an oracle in it, ``env`` is an :class:`OracleFeed`).
+        env: The environment (``terminate_on_lost=False``).
+        seed: The episode's seed.
+        options: Reset options (a declared window).
+
+    Returns:
+        ``seed``, ``clip_id``, ``start_frame``, ``lost_frame`` and the
+        episode means of :data:`EPISODE_FIELDS` (``ess`` None without a filter).
+    """
+    recorder = _FrameRecorder(env, agent)
+    result = run_episode(agent, env, seed, options, on_step=recorder)
+    out: dict[str, Any] = {
+        "seed": seed, "clip_id": result.clip_id, "start_frame": result.start_frame,
+        "lost_frame": result.lost_frame, "error_mm": result.mean_error_mm,
+        "aligned_mm": result.mean_aligned_error_mm,
+    }  # fmt: skip
+    for name, values in recorder.rows.items():
+        mean = float(np.mean(values))
+        out[name] = None if np.isnan(mean) else mean
+    return out
+
+
+def parse_oracle(text: str) -> OracleSettings | None:
+    """A likelihood by name: ``image`` (None), ``2d``, ``2d-unlabelled``, ``3d``.
+
+    A suffix sets the noise: ``2d:2`` (pixels), ``3d:10mm`` (mm per axis).
+
+    Raises:
+        ValueError: If the name or the noise is not one of those.
+    """
+    if text == "image":
+        return None
+    kind, _, noise = text.partition(":")
+    try:
+        if noise.endswith("mm"):
+            return OracleSettings(kind, noise_mm=float(noise[:-2]))
+        return OracleSettings(kind, noise_px=float(noise) if noise else None)
+    except ValueError as exc:
+        raise ValueError(
+            f"likelihood {text!r}: expected image, 2d, 2d-unlabelled or 3d, optionally with "
+            f"a noise such as 2d:1 (pixels) or 3d:10mm ({exc})"
+        ) from exc
+
+
+def _label(oracle: OracleSettings | None) -> str:
+    return "image" if oracle is None else oracle.label
+
+
+def _summary(episodes: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """Means over the episodes (and agent seeds) of each per-episode number."""
+    out: dict[str, Any] = {"episodes": len(episodes)}
+    for name in EPISODE_FIELDS:
+        values = [e[name] for e in episodes if e.get(name) is not None]
+        out[name] = float(np.mean(values)) if len(values) == len(episodes) else None
+    out["lost_episodes"] = sum(e["lost_frame"] is not None for e in episodes)
+    return out
+
+
+def run_split(
+    task: str,
+    agents: Sequence[str],
+    oracles: Sequence[OracleSettings | None],
+    particles: int = 300,
+    episodes: int | None = None,
+    declared: bool = True,
+    seed: int = 0,
+    agent_seeds: int = 1,
+    env_kwargs: Mapping[str, Any] | None = None,
+    progress: bool = True,
+    on_row: Callable[[dict[str, Any]], None] | None = None,
+) -> dict[str, Any]:
+    """Every agent with every likelihood on one task's episodes, and ``hold``.
+
+    Args:
+        task: A task id (``BodyTrack-v2``).
+        agents: Particle-filter agents (``hold`` always runs, once).
+        oracles: The likelihoods: None for the agent's own (image), else an oracle.
+        particles: Particles per filter.
+        episodes: With ``declared``, the first this many windows (None: all);
+            otherwise this many seeded draws (None: 20).
+        declared: Track the task's declared test windows.
+        seed: First episode seed, first agent seed and the oracles' noise seed.
+        agent_seeds: Agent seeds ``seed``, ``seed + 1``... per agent and likelihood.
+        env_kwargs: Keyword arguments of ``gym.make`` (``data_dir``, ``split``...).
+        progress: Show a progress bar.
+        on_row: Called with each finished row (to save partial results).
+
+    Returns:
+        ``{"task", "particles", "seed", "agent_seeds", "declared", "windows",
+        "rows"}``; each row ``{"agent", "likelihood", "oracle"`` (its
+        settings or None), summary numbers (:func:`_summary`), ``"x_hold"``
+        (hold's mean error over the row's) and ``"episodes"``.
+
+    Raises:
+        ValueError: If a count is below 1, or an agent is not a particle filter.
+    """
+    if agent_seeds < 1 or (episodes is not None and episodes < 1) or particles < 1:
+        raise ValueError(
+            f"episodes, agent_seeds, particles: expected at least 1, got {episodes}, "
+            f"{agent_seeds}, {particles}"
+        )
+    env = make_env(task, env_kwargs)
+    listed = 0
+    if declared:
+        windows: list[tuple[str, int] | None] = list(task_windows(task, env_kwargs))
+        listed = len(windows)
+        windows = windows[: episodes or listed]
+    else:
+        windows = [None] * (episodes or 20)
+    base = tracking_env(env)
+    names = [a for a in agents if a != "hold"]
+    runs = [("hold", None)] + [(a, o) for a in names for o in oracles]
+    rows: list[dict[str, Any]] = []
+    total = len(windows) * (1 + len(names) * len(oracles) * agent_seeds)
+    bar = tqdm(total=total, desc=f"oracle {task}: episodes", disable=not progress)
+    with bar, single_threaded_blas():
+        for name, oracle in runs:
+            eps = []
+            for agent_seed in range(seed, seed + (1 if name == "hold" else agent_seeds)):
+                agent = make(name, env, n_particles=particles, seed=agent_seed)
+                run_env: gym.Env = env
+                if oracle is not None:
+                    truth = TruthOracle(oracle, base.task.error_keypoint_indices, seed=seed)
+                    agent = with_oracle(agent, truth)
+                    run_env = OracleFeed(env, truth)
+                for k, window in enumerate(windows):
+                    record = diagnose_episode(agent, run_env, seed + k, window_options(window))
+                    eps.append({"agent_seed": agent_seed, **record})
+                    bar.update()
+            row = {
+                "agent": name, "likelihood": "none" if name == "hold" else _label(oracle),
+                "oracle": None if oracle is None else vars(oracle), **_summary(eps),
+                "episodes": eps,
+            }  # fmt: skip
+            row["x_hold"] = rows[0]["error_mm"] / row["error_mm"] if rows else 1.0
+            rows.append(row)
+            if on_row is not None:
+                on_row(row)
+    env.close()
+    return {
+        "task": task, "particles": particles, "seed": seed, "agent_seeds": agent_seeds,
+        "declared": declared, "windows": len(windows), "declared_windows": listed, "rows": rows,
+    }  # fmt: skip
+
+
+def compact(result: Mapping[str, Any]) -> dict[str, Any]:
+    """The result with each episode's numbers rounded (0.1 mm, 0.01 px, 0.1 ESS)."""
+    out = dict(result)
+    rows = []
+    for row in result["rows"]:
+        eps = []
+        for e in row["episodes"]:
+            eps.append({k: round(v, 2) if isinstance(v, float) else v for k, v in e.items()})
+        rows.append({**row, "episodes": eps})
+    out["rows"] = rows
+    return out
+
+
+def _num(value: float | None, fmt: str = ".0f") -> str:
+    return "-" if value is None else format(value, fmt)
+
+
+def rows_table(result: Mapping[str, Any]) -> str:
+    """Every row: error, aligned error, x hold, the depth split, reprojection, ESS."""
+    lines = [
+        "| agent | likelihood | mm | aligned mm | x hold | along / across mm "
+        "| aligned along / across mm | reprojection px | ESS |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in result["rows"]:
+        lines.append(
+            f"| {r['agent']} | {r['likelihood']} | {_num(r['error_mm'])} | "
+            f"{_num(r['aligned_mm'])} | {r['x_hold']:.2f} | "
+            f"{_num(r['along_abs_mm'])} / {_num(r['across_mm'])} | "
+            f"{_num(r['aligned_along_abs_mm'])} / {_num(r['aligned_across_mm'])} | "
+            f"{_num(r['reprojection_px'], '.1f')} | {_num(r['ess'], '.1f')} |"
+        )
+    return "\n".join(lines)
+
+
+def split_table(result: Mapping[str, Any]) -> str:
+    """Per agent, the split: evidence (image - 2D), depth (the 2D run's), identity, search.
+
+    Columns are left empty (``-``) where the run had no such likelihood; the
+    first oracle of each kind is the one read (every 3D oracle gets a column).
+    """
+    by_agent: dict[str, dict[str, Mapping[str, Any]]] = {}
+    three_d: list[str] = []
+    for r in result["rows"]:
+        if r["agent"] == "hold":
+            continue
+        kind = "image" if r["oracle"] is None else r["oracle"]["kind"]
+        cells = by_agent.setdefault(r["agent"], {})
+        key = r["likelihood"] if kind == "3d" else kind
+        cells.setdefault(key, r)
+        if kind == "3d" and key not in three_d:
+            three_d.append(key)
+    columns = [
+        "agent", "image mm", "2D oracle mm", "evidence: image - 2D",
+        "depth: 2D run along / across (aligned)", "2D unlabelled - 2D",
+        *(f"search: {k} mm" for k in three_d),
+    ]  # fmt: skip
+    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    for agent, cells in by_agent.items():
+        img, two, unl = cells.get("image"), cells.get("2d"), cells.get("2d-unlabelled")
+
+        def gap(a: Mapping[str, Any] | None, b: Mapping[str, Any] | None) -> str:
+            return "-" if a is None or b is None else f"{a['error_mm'] - b['error_mm']:+.0f}"
+
+        depth = "-"
+        if two is not None:
+            depth = (
+                f"{_num(two['along_abs_mm'])} / {_num(two['across_mm'])} "
+                f"({_num(two['aligned_along_abs_mm'])} / {_num(two['aligned_across_mm'])})"
+            )
+        row = [
+            agent, _num(img and img["error_mm"]), _num(two and two["error_mm"]), gap(img, two),
+            depth, gap(unl, two), *(_num(cells[k]["error_mm"]) if k in cells else "-"
+                                    for k in three_d),
+        ]  # fmt: skip
+        lines.append("| " + " | ".join(row) + " |")
+    return "\n".join(lines)
+
+
+def markdown_report(results: Sequence[Mapping[str, Any]]) -> str:
+    """Both tables for each task's result."""
+    parts = []
+    for res in results:
+        n, listed = res["windows"], res.get("declared_windows", 0)
+        what = f"{n} seeded episodes"
+        if res["declared"]:
+            what = (
+                f"the first {n} of {listed} declared test windows"
+                if n < listed
+                else (f"the {n} declared test windows")
+            )
+        parts.append(
+            f"## {res['task']}: {what}, {res['particles']} particles, "
+            f"{res['agent_seeds']} agent seed(s) from {res['seed']}\n\n"
+            + rows_table(res)
+            + "\n\n"
+            + split_table(res)
+        )
+    return "\n\n".join(parts) + "\n"

@@ -1,0 +1,277 @@
+"""Truth oracles and the error split (``baselines.diagnostics``, ``humotion-gym oracle``)."""
+
+import gzip
+import itertools
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import humotion_gym  # noqa: F401
+from baselines.agents import (
+    ParticleFilterAgent,
+    agent_names,
+    make,
+    register_reference,
+    tracking_env,
+)
+from baselines.cli import main
+from baselines.diagnostics.oracle import (
+    OracleFeed,
+    OracleObservation,
+    OracleSettings,
+    TruthOracle,
+    left_right_partners,
+    with_oracle,
+)
+from baselines.diagnostics.split import markdown_report, parse_oracle, run_split
+from baselines.leaderboard.evaluation import run_episode
+from humotion_gym.body import CONE_KEYPOINTS, KEYPOINT_NAMES, forward_kinematics
+
+SCORED = np.arange(15)
+
+
+@pytest.fixture(scope="module")
+def env():
+    e = gym.make("humotion_gym/BodyTrack-v2", split="test", terminate_on_lost=False)
+    e.reset(seed=4)
+    yield e
+    e.close()
+
+
+def _poses(env, n=12, spread=0.1, seed=0):
+    base = tracking_env(env)
+    rng = np.random.default_rng(seed)
+    truth = base.true_pose()
+    poses = truth + rng.normal(0.0, spread, (n, 25)) * np.r_[np.full(3, 300.0), np.ones(22)]
+    return truth, np.vstack([truth, poses])
+
+
+def _slow(oracle, obs, poses, shape, camera, placed=None):
+    """The definition, one pose and one keypoint (or left/right pair) at a time."""
+    names = [KEYPOINT_NAMES[k] for k in oracle.keypoints]
+    placed = set(range(len(names))) if placed is None else placed
+    units = [[i] for i in range(len(names))]  # labelled: each keypoint alone
+    if oracle.settings.kind == "2d-unlabelled":
+        units = [[i] for i, n in enumerate(names) if n[:2] not in ("r_", "l_")]
+        units += [[i, names.index("l_" + n[2:])] for i, n in enumerate(names) if n[:2] == "r_"]
+    out = []
+    for pose in poses:
+        kp = forward_kinematics(pose, shape)
+        pts = [camera.project(kp[k]) if oracle.dims == 2 else kp[k] for k in oracle.keypoints]
+        cost = 0.0
+        for unit in units:
+            other = {unit[0]: unit[-1], unit[-1]: unit[0]}
+            members = [k for k in unit if k in placed]
+            if members:
+                straight = sum(float(np.sum((pts[k] - obs.points[k]) ** 2)) for k in members)
+                swapped = sum(float(np.sum((pts[k] - obs.points[other[k]]) ** 2)) for k in members)
+                cost += min(straight, swapped)
+        out.append(-cost / (2 * obs.sigma**2))
+    return np.array(out)
+
+
+@pytest.mark.parametrize(
+    "settings",
+    [
+        OracleSettings("2d"),
+        OracleSettings("2d-unlabelled"),
+        OracleSettings("3d"),
+        OracleSettings("3d", noise_mm=10.0),
+    ],  # fmt: skip
+    ids=lambda s: s.label,
+)
+def test_log_likelihood_matches_the_slow_definition(env, settings):
+    base = tracking_env(env)
+    oracle = TruthOracle(settings, SCORED, seed=3)
+    oracle.start_episode(4)
+    obs = oracle.show(base.true_pose(), base.shape, base.camera)
+    _, poses = _poses(env)
+    fast = oracle.log_likelihood(oracle.prepare(None), poses, base.shape, base.camera)
+    np.testing.assert_allclose(fast, _slow(oracle, obs, poses, base.shape, base.camera), rtol=1e-9)
+    # partial figures: the torso, then the right arm, then the left leg
+    groups = [[0, 1], [2, 3], [8, 9]]
+    part = oracle.log_likelihood_partial(obs, poses, base.shape, base.camera, groups)
+    assert part.shape == (poses.shape[0], 4)
+    np.testing.assert_allclose(part[:, -1], fast, rtol=1e-12)
+    placed: set[int] = set()
+    for g, group in enumerate(groups):
+        placed |= {int(k) for c in group for k in CONE_KEYPOINTS[c]}
+        slow = _slow(oracle, obs, poses, base.shape, base.camera, placed)
+        np.testing.assert_allclose(part[:, g], slow, rtol=1e-9)
+
+
+def test_the_truth_scores_highest_without_noise(env):
+    base = tracking_env(env)
+    truth, poses = _poses(env, n=40, spread=0.02)
+    kp = forward_kinematics(truth, base.shape)
+    for kind in ("2d", "2d-unlabelled", "3d"):
+        oracle = TruthOracle(OracleSettings(kind), SCORED)
+        points = kp if kind == "3d" else base.camera.project(kp)
+        scores = oracle.log_likelihood(OracleObservation(points, 1.0), poses, base.shape,
+                                       base.camera)  # fmt: skip
+        assert scores[0] == pytest.approx(0.0, abs=1e-9) and np.all(scores[1:] < scores[0])
+    bad = poses[:2].copy()
+    bad[1, 5] = np.nan
+    oracle = TruthOracle(OracleSettings("2d"), SCORED)
+    out = oracle.log_likelihood(OracleObservation(base.camera.project(kp), 1.0), bad,
+                                base.shape, base.camera)  # fmt: skip
+    assert np.isfinite(out[0]) and out[1] == -np.inf
+
+
+def test_noise_is_the_seeds_alone(env):
+    base = tracking_env(env)
+
+    def shown(seed, episode):
+        oracle = TruthOracle(OracleSettings("3d"), SCORED, seed=seed)
+        oracle.start_episode(episode)
+        return [oracle.show(base.true_pose(), base.shape, base.camera).points for _ in range(3)]
+
+    a, b = shown(0, 7), shown(0, 7)
+    for x, y in zip(a, b, strict=True):
+        np.testing.assert_array_equal(x, y)
+    assert not np.array_equal(a[1], a[0])  # a fresh draw every frame
+    assert not np.array_equal(shown(0, 8)[0], a[0]) and not np.array_equal(shown(1, 7)[0], a[0])
+    # 1 px at the body's depth, in mm
+    oracle = TruthOracle(OracleSettings("3d", noise_px=2.0), SCORED)
+    sigma = oracle.show(base.true_pose(), base.shape, base.camera).sigma
+    pelvis = forward_kinematics(base.true_pose(), base.shape)[0]
+    assert sigma == pytest.approx(2.0 * base.camera.depth(pelvis) / base.camera.focal)
+
+
+def test_unlabelled_scores_the_left_right_swapped_truth_as_the_truth(env):
+    base = tracking_env(env)
+    truth, _ = _poses(env)
+    points = base.camera.project(forward_kinematics(truth, base.shape))
+    swap = left_right_partners(range(15))
+    assert [KEYPOINT_NAMES[i] for i in swap[[2, 10]]] == ["l_knee", "l_elbow"]
+    poses = truth[None]
+    for kind, same in (("2d-unlabelled", True), ("2d", False)):
+        oracle = TruthOracle(OracleSettings(kind), SCORED)
+        straight = oracle.log_likelihood(OracleObservation(points, 3.0), poses, base.shape,
+                                         base.camera)  # fmt: skip
+        swapped = oracle.log_likelihood(OracleObservation(points[swap], 3.0), poses, base.shape,
+                                        base.camera)  # fmt: skip
+        # the labelled oracle is the mutation: the same check fails on it
+        assert bool(swapped[0] == pytest.approx(straight[0], abs=1e-9)) is same
+    # one pair swapped alone, too: pair by pair, not limb by limb
+    one = np.arange(15)
+    one[[3, 6]] = [6, 3]  # the ankles only
+    oracle = TruthOracle(OracleSettings("2d-unlabelled"), SCORED)
+    assert oracle.log_likelihood(OracleObservation(points[one], 3.0), poses, base.shape,
+                                 base.camera)[0] == pytest.approx(0.0, abs=1e-9)  # fmt: skip
+
+
+def test_oracles_are_never_agents(env):
+    oracle = TruthOracle(OracleSettings("2d"), SCORED)
+    assert not hasattr(oracle, "predict")
+    assert not any(name in agent_names() for name in ("2d", "2d-unlabelled", "3d", "oracle"))
+    with pytest.raises(ValueError, match="reads the truth"):
+        register_reference("oracle-2d", TruthOracle)
+    assert "oracle-2d" not in agent_names()
+    with pytest.raises(ValueError, match="observation_model: TruthOracle reads the truth"):
+        make("pf-cv", env, n_particles=5, observation_model=oracle)
+    with pytest.raises(TypeError, match="no likelihood to replace"):
+        with_oracle(make("hold", env), oracle)
+    # the leaderboard takes registered names only
+    assert main(["leaderboard", "--agents", "2d", "--episodes", "1"]) == 2
+
+
+def test_the_feed_shows_the_frame_on_show_and_the_agent_tracks_with_it(env):
+    oracle = TruthOracle(OracleSettings("2d", noise_px=1e-6), SCORED)
+    feed = OracleFeed(env, oracle)
+    base = tracking_env(env)
+    agent = with_oracle(make("pf-cv", env, n_particles=30, seed=1), oracle)
+    assert isinstance(agent, ParticleFilterAgent)
+    seen = []
+
+    class Watch:
+        def predict(self, obs, state=None, episode_start=None, deterministic=True):
+            truth = base.camera.project(forward_kinematics(base.true_pose(), base.shape))
+            seen.append(float(np.abs(oracle.prepare(None).points - truth).max()))
+            return agent.predict(obs, state, episode_start, deterministic)
+
+    result = run_episode(Watch(), feed, seed=2)
+    assert len(seen) == len(result.errors_mm) and max(seen) < 1e-4
+    with pytest.raises(ValueError, match="seed"):
+        feed.reset()
+
+
+def test_run_split_end_to_end_on_the_synthetic_data():
+    kwargs = {"episode_frames": 3}
+    oracles = [None, parse_oracle("2d"), parse_oracle("2d-unlabelled"), parse_oracle("3d:10mm")]
+    out = run_split("BodyTrack-v2", ["pf-cv"], oracles, particles=10, episodes=2,
+                    declared=False, seed=5, env_kwargs=kwargs, progress=False)  # fmt: skip
+    rows = {(r["agent"], r["likelihood"]): r for r in out["rows"]}
+    assert list(rows) == [("hold", "none"), ("pf-cv", "image"), ("pf-cv", "2d 1px"),
+                          ("pf-cv", "2d-unlabelled 3px"), ("pf-cv", "3d 10mm")]  # fmt: skip
+    assert rows[("hold", "none")]["ess"] is None and rows[("pf-cv", "2d 1px")]["ess"] >= 1.0
+    # the image row is the leaderboard's loop with the same agent and seeds
+    env = gym.make("humotion_gym/BodyTrack-v2", split="test", terminate_on_lost=False, **kwargs)
+    agent = make("pf-cv", env, n_particles=10, seed=5)
+    loop = [run_episode(agent, env, s).mean_error_mm for s in (5, 6)]
+    assert rows[("pf-cv", "image")]["error_mm"] == pytest.approx(np.mean(loop), rel=1e-12)
+    hold = rows[("hold", "none")]["error_mm"]
+    assert rows[("pf-cv", "3d 10mm")]["x_hold"] == pytest.approx(
+        hold / rows[("pf-cv", "3d 10mm")]["error_mm"]
+    )
+    text = markdown_report([out])
+    assert "| pf-cv | 2d 1px |" in text and "search: 3d 10mm mm" in text
+    # every table's rows have its header's columns, with or without 3D oracles
+    without = {**out, "rows": [r for r in out["rows"] if r["likelihood"] != "3d 10mm"]}
+    for report in (text, markdown_report([without])):
+        for block in report.split("\n\n"):
+            widths = {line.count("|") for line in block.splitlines() if line.startswith("|")}
+            assert len(widths) <= 1, block
+    # again: the same numbers
+    again = run_split("BodyTrack-v2", ["pf-cv"], oracles[2:3], particles=10, episodes=2,
+                      declared=False, seed=5, env_kwargs=kwargs, progress=False)  # fmt: skip
+    assert again["rows"][1]["episodes"] == rows[("pf-cv", "2d-unlabelled 3px")]["episodes"]
+
+
+def test_cli_oracle_writes_results_and_table(tmp_path, capsys):
+    code = main(["oracle", "--agents", "pf-cv", "--particles", "5", "--declared",
+                 "--episodes", "1", "--oracles", "image", "3d", "--out", str(tmp_path)])  # fmt: skip
+    assert code == 0
+    text = (tmp_path / "table.md").read_text()
+    assert "the first 1 of 36 declared test windows" in text and "| pf-cv | 3d 1px@depth |" in text
+    data = json.loads(gzip.decompress((tmp_path / "results.json.gz").read_bytes()))
+    assert [r["likelihood"] for r in data["results"][0]["rows"]] == ["none", "image",
+                                                                     "3d 1px@depth"]  # fmt: skip
+    assert "wrote" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["--oracles", "4d"],
+        ["--oracles", "2d:-1"],
+        ["--oracles", "2d", "2d:1"],
+        ["--oracles", "2d:3mm"],
+        ["--agents", "random"],
+        ["--noise-mm", "0"],
+        ["--declared", "--split", "validation"],
+        ["--episodes", "0"],
+    ],
+    ids=lambda a: " ".join(a),
+)
+def test_cli_oracle_bad_arguments_are_one_line_exit_2(argv, capsys):
+    assert main(["oracle", "--particles", "5", *argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "error" in err
+
+
+def test_settings_refuse_what_they_cannot_be():
+    with pytest.raises(ValueError, match="kind"):
+        OracleSettings("depth")
+    with pytest.raises(ValueError, match="noise_px"):
+        OracleSettings("2d", noise_px=0.0)
+    with pytest.raises(ValueError, match="noise_mm"):
+        OracleSettings("2d", noise_mm=10.0)
+    with pytest.raises(ValueError, match="keypoints"):
+        TruthOracle(OracleSettings("2d"), [])
+    oracle = TruthOracle(OracleSettings("2d"), SCORED)
+    with pytest.raises(RuntimeError, match="no truth shown"):
+        oracle.prepare(None)
+    assert list(itertools.islice(left_right_partners([0, 7, 8]), 3)) == [0, 1, 2]
