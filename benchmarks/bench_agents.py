@@ -1,7 +1,7 @@
-"""Particle-filter agents: milliseconds per frame (BodyTrack-v1 at 128x128 by default).
+"""Particle-filter agents: milliseconds per frame (BodyTrack-v2 at 128x128 by default).
 
 Run: python benchmarks/bench_agents.py [--data-dir ../shared/mocap]
-     python benchmarks/bench_agents.py --task SideWalk-v1 --agents pf-cv pf-slds
+     python benchmarks/bench_agents.py --task SideWalk-v2 --agents pf-cv pf-slds
      python benchmarks/bench_agents.py --agents apf-tree --particles 300
      python benchmarks/bench_agents.py --clock cpu --repeats 3   # steadier on a shared machine
 
@@ -44,6 +44,7 @@ from bench_observation import reference_scores
 
 import humotion_gym  # noqa: F401
 from baselines.agents import make
+from humotion_gym.envs.description import read_observation
 from humotion_gym.threads import limit_blas_threads
 
 CLOCKS: dict[str, Callable[[], float]] = {"wall": time.perf_counter, "cpu": time.thread_time}
@@ -54,7 +55,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data-dir", default=None)
     ap.add_argument("--frames", type=int, default=30)
-    ap.add_argument("--task", default="BodyTrack-v1")
+    ap.add_argument("--task", default="BodyTrack-v2")
     ap.add_argument("--agents", nargs="+", default=["pf-cv", "pf-tree"])
     ap.add_argument("--particles", type=int, nargs="+", default=[300, 3000, 10000])
     ap.add_argument("--repeats", type=int, default=1, help="passes over the episode; best kept")
@@ -65,9 +66,8 @@ def main() -> None:
     clock = CLOCKS[args.clock]
     kwargs = {"data_dir": args.data_dir} if args.data_dir else {}
     env = gym.make(f"humotion_gym/{args.task}", terminate_on_lost=False, **kwargs)
-    base = env.unwrapped
     action = np.zeros(env.action_space.shape, np.float32)
-    obs, info = env.reset(seed=0)
+    obs, _ = env.reset(seed=0)
     steps = [env.step(action) for _ in range(args.frames)]
     distance = None
     print(
@@ -78,46 +78,42 @@ def main() -> None:
         f"{'agent':10s} {'particles':>9s} {'ms/frame':>9s} {'transition':>11s} "
         f"{'likelihood':>11s} {'prepare':>8s} {'ref ms':>8s} {'x ref':>6s} {'start ms':>8s}"
     )
+    first = read_observation(obs)
+    observed = [read_observation(step[0]) for step in steps]
     for name in args.agents:
         for n in args.particles:
             agent = make(name, env, n_particles=n, seed=0)
             if distance is None:  # the reference's distance map, from the first frame
-                distance = agent.observation_model.prepare(steps[0][0]).distance.min(axis=0)
+                distance = agent.observation_model.prepare(observed[0].frame).distance.min(axis=0)
             rng = np.random.default_rng(1)
-            poses = info["initial_pose"] + rng.normal(0.0, 0.05, (n, 25))
-            camera = steps[0][4]["camera"]
+            poses = first.initial_pose + rng.normal(0.0, 0.05, (n, 25))
             ref = best = np.inf
             trans = lik = prep = start = np.inf
             # One start untimed: the first one also loads what every later one reuses.
-            agent.observe_info(info)
             agent.predict(obs, episode_start=True)
             for _ in range(args.repeats):
                 for _ in range(3):  # its large temporaries make single calls jumpy
                     t = clock()
-                    reference_scores(distance, poses, base.shape, camera)
+                    reference_scores(distance, poses, first.shape, observed[0].camera)
                     ref = min(ref, clock() - t)
-                agent.observe_info(info)
                 t = clock()
                 agent.predict(obs, episode_start=True)
                 start = min(start, clock() - t)
                 total = trans_sum = lik_sum = prep_sum = 0.0
-                for frame, _, _, _, step_info in steps:
-                    agent.observe_info(step_info)
+                for (observation, *_), given in zip(steps, observed, strict=True):
                     state = agent.filter.state
                     t = clock()
                     agent.prior.transition(agent.fitted, state, np.random.default_rng(0))
                     trans_sum += clock() - t
                     t = clock()
-                    agent.likelihood.update(
-                        np.asarray(step_info["fixed_params"]), base.shape, step_info["camera"]
-                    )
+                    agent.likelihood.update(given.fixed_params, given.shape, given.camera)
                     # The given body (backdrop, coverage points) as the agent prepares it.
-                    feats = agent.observation_model.prepare(frame, agent.likelihood.given())
+                    feats = agent.observation_model.prepare(given.frame, agent.likelihood.given())
                     prep_sum += clock() - t
                     agent.likelihood.log_likelihood(feats, state.pose)
                     lik_sum += clock() - t
                     t = clock()
-                    agent.predict(frame)
+                    agent.predict(observation)
                     total += clock() - t
                 best = min(best, total)
                 trans, lik = min(trans, trans_sum), min(lik, lik_sum)

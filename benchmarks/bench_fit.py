@@ -1,7 +1,7 @@
 """Fitting every particle-filter agent's prior on first use: seconds and file size.
 
 Run: python benchmarks/bench_fit.py --data-dir ../shared/mocap
-     python benchmarks/bench_fit.py --data-dir ../shared/mocap --tasks SideWalk-v1 --agents pf-slds
+     python benchmarks/bench_fit.py --data-dir ../shared/mocap --tasks SideWalk-v2 --agents pf-slds
 
 For every task and every agent that supports it, the prior is fitted on the
 task's training clips (:func:`baselines.agents.fit_prior`, the agent's own
@@ -33,7 +33,7 @@ import humotion_gym  # noqa: F401
 from baselines.agents import AGENTS, fit_prior
 from humotion_gym.threads import available_cores
 
-TASKS = ("ArmTrack-v1", "BodyTrack-v1", "WalkTrack-v1", "SideWalk-v1")
+TASKS = ("ArmTrack-v2", "BodyTrack-v2", "WalkTrack-v2", "SideWalk-v2")
 PRIOR_AGENTS = ("pf-cv", "pf-tree", "pf-tree-vel", "pf-slds", "pf-pca")
 
 

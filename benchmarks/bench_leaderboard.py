@@ -5,8 +5,8 @@ Run: python benchmarks/bench_leaderboard.py [--data-dir ../shared/mocap] [--work
 
 Two measurements, each against a reference taken in the same run:
 
-1. **Speed-up.** A reduced grid of the README's tables (ArmTrack-v1 and
-   BodyTrack-v1; hold, pf-cv and pf-tree at 300 particles; a few episodes per
+1. **Speed-up.** A reduced grid of the README's tables (ArmTrack-v2 and
+   BodyTrack-v2; hold, pf-cv and pf-tree at 300 particles; a few episodes per
    cell) runs in-process, then with ``--engine ray --workers N`` on a local Ray
    started here. The numbers of the two runs are checked to be the same (every
    number but the timings). Each run is timed in two phases, as
@@ -16,7 +16,7 @@ Two measurements, each against a reference taken in the same run:
    the episodes alone (what a run of the README's size, minutes to hours,
    tends to: the start is paid once) and with ``ray.init`` (also once per run).
    The target on 2 cores with 2 workers is 1.8x.
-2. **Overhead per episode.** One worker runs K 300-particle BodyTrack-v1
+2. **Overhead per episode.** One worker runs K 300-particle BodyTrack-v2
    episodes of pf-cv (its cell built by a first episode, untimed); Ray's cost
    per episode is the driver's wall time less the time the episodes took in the
    worker, over K, and is reported as a share of one episode (target: below 5%).
@@ -89,7 +89,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--data-dir", nargs="*", default=None)
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--tasks", nargs="+", default=["ArmTrack-v1", "BodyTrack-v1"])
+    ap.add_argument("--tasks", nargs="+", default=["ArmTrack-v2", "BodyTrack-v2"])
     ap.add_argument("--agents", nargs="+", default=["pf-cv", "pf-tree"])
     ap.add_argument("--particles", type=int, nargs="+", default=[300, 3000])
     ap.add_argument("--episodes", type=int, default=10, help="episodes per cell of the grid")
@@ -160,8 +160,8 @@ def main() -> None:
             f"episodes' speed-up is {100 * in_eps / ray_eps / scaling:.0f}% of their mean"
         )
 
-        # Ray's cost per episode: one worker, K 300-particle BodyTrack-v1 episodes of pf-cv
-        cell = Cell("BodyTrack-v1", "pf-cv", 300)
+        # Ray's cost per episode: one worker, K 300-particle BodyTrack-v2 episodes of pf-cv
+        cell = Cell("BodyTrack-v2", "pf-cv", 300)
         fits, _ = prepare_cells([cell], 0, kwargs, progress=False)
         episodes = [Episode(cell, s) for s in range(1, args.overhead_episodes + 1)]
         records: list[dict[str, Any]] = []
@@ -188,7 +188,7 @@ def main() -> None:
     worker = sum(r["wall_s"] for r in records)
     per_episode = worker / k
     overhead = (t_ray1 - worker) / k
-    print(f"overhead: {k} BodyTrack-v1 episodes of pf-cv at 300 particles, 1 Ray worker")
+    print(f"overhead: {k} BodyTrack-v2 episodes of pf-cv at 300 particles, 1 Ray worker")
     print(f"  episode in the worker:   {1000 * per_episode:7.1f} ms")
     print(f"  episode in-process:      {1000 * t_local / k:7.1f} ms")
     print(

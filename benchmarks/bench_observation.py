@@ -12,9 +12,9 @@ noisy, so compare ratios, not absolute numbers. The time of ``prepare`` (once
 per frame) and of the poses' kinematics alone (:func:`body.pose_geometry` in
 float32, as the likelihood asks for it: part of every scoring) are printed too.
 
-Then the same for the whole-body tasks' likelihood (BodyTrack-v1's settings:
+Then the same for the whole-body tasks' likelihood (BodyTrack-v2's settings:
 the backdrop read at a first frame where the figure stood 30 cm to the side,
-and the coverage term), on the frame where it has moved, and for ArmTrack-v1's
+and the coverage term), on the frame where it has moved, and for ArmTrack-v2's
 (the same backdrop, the arm's four parameters free: its residual-edge and
 appearance terms, the cones' colours read at the first frame).
 """
@@ -61,7 +61,7 @@ def main() -> None:
     first_frame = render(first, shape, camera, scene, rng, background)
     frame = render(truth, shape, camera, scene, rng, background)
     plain = ObservationModel()
-    task = ObservationModel(**dict(get_task("BodyTrack-v1").observation))
+    task = ObservationModel(**dict(get_task("BodyTrack-v2").observation))
     given = GivenBody(
         truth,
         np.arange(body.N_PARAMS),
@@ -69,7 +69,7 @@ def main() -> None:
         camera,
         backdrop=task.read_backdrop(first_frame, first, shape, camera),
     )
-    arm_task = get_task("ArmTrack-v1")
+    arm_task = get_task("ArmTrack-v2")
     arm = ObservationModel(**dict(arm_task.observation))
     arm_given = GivenBody(
         truth,
@@ -82,8 +82,8 @@ def main() -> None:
     distance = plain.prepare(frame).distance.min(axis=0)
     for label, model, arg in (
         ("", plain, None),
-        (" (BodyTrack-v1's terms)", task, given),
-        (" (ArmTrack-v1's terms)", arm, arm_given),
+        (" (BodyTrack-v2's terms)", task, given),
+        (" (ArmTrack-v2's terms)", arm, arm_given),
     ):
         features = model.prepare(frame, arg)
         prepare = best_of(lambda model=model, arg=arg: model.prepare(frame, arg), 200)

@@ -5,7 +5,7 @@ Run: python benchmarks/bench_rl.py [--data-dir ../shared/mocap] [--rounds 12]
 Three ratios, each against a reference measured in the same run:
 
 1. PPO training throughput (env steps per second, rollouts and updates) on
-   BodyTrack-v1 through LearnerObservation, over the same PPO on a trivial
+   BodyTrack-v2 through LearnerObservation, over the same PPO on a trivial
    environment with identical spaces (constant observation, zero reward):
    the share of training time the environment leaves to learning. An earlier
    issue asked at least 0.9 of this path; ``humotion-gym train`` now runs
@@ -115,7 +115,7 @@ def main() -> None:
     args = ap.parse_args()
     th.set_num_threads(1)
     data_dir = [args.data_dir] if args.data_dir else None
-    task = "BodyTrack-v1"
+    task = "BodyTrack-v2"
 
     def learner() -> gym.Env:
         return make_learner_env(task, "train", 64, False, data_dir)
@@ -196,7 +196,6 @@ def main() -> None:
                 obs, info = test.reset(seed=ep)
                 start = True
                 while True:
-                    agent.observe_info(info)
                     t = time.perf_counter()
                     action, _ = agent.predict(obs, episode_start=np.array([start]))
                     times[name].append(time.perf_counter() - t)

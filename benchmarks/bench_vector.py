@@ -1,6 +1,6 @@
 """The batched vector environment against Gymnasium's sync vector env, in the same run.
 
-Run: python benchmarks/bench_vector.py [--num-envs 16] [--task BodyTrack-v1] [--ppo-rounds 18]
+Run: python benchmarks/bench_vector.py [--num-envs 16] [--task BodyTrack-v2] [--ppo-rounds 18]
 
 Both run N episodes of the same task from the same seeds (the two give the
 same results, ``tests/envs/test_vector_env.py``), stepping with actions drawn
@@ -69,7 +69,7 @@ def rates(
     return num_envs / min(vec_times), num_envs / min(sync_times), ratio
 
 
-def rows(task: str = "BodyTrack-v1", num_envs: int = 16) -> list[tuple[str, float, str, float]]:
+def rows(task: str = "BodyTrack-v2", num_envs: int = 16) -> list[tuple[str, float, str, float]]:
     """``(figure, env steps/s, reference, ratio)`` for the two settings."""
     out = []
     for label, kwargs in (
@@ -84,7 +84,7 @@ def rows(task: str = "BodyTrack-v1", num_envs: int = 16) -> list[tuple[str, floa
 
 
 def ppo_rows(
-    task: str = "BodyTrack-v1", n_envs: int = 8, rounds: int = 18, block: int = 6
+    task: str = "BodyTrack-v2", n_envs: int = 8, rounds: int = 18, block: int = 6
 ) -> list[tuple[str, float, str, float]]:
     """PPO env steps per second on the vector env (through :class:`LearnerVecEnv`).
 
@@ -140,7 +140,7 @@ def ppo_rows(
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--num-envs", type=int, default=16)
-    ap.add_argument("--task", default="BodyTrack-v1")
+    ap.add_argument("--task", default="BodyTrack-v2")
     ap.add_argument(
         "--ppo-rounds", type=int, default=18, help="PPO rounds of one rollout each (0: skip)"
     )

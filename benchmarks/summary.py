@@ -235,7 +235,7 @@ def _read_leaderboard(out: str) -> list[Row]:
     episode = re.search(r"episode in the worker:\s+([\d.]+) ms", out)
     cost = re.search(r"Ray per episode:\s+(-?[\d.]+) ms = (-?[\d.]+)% of an episode", out)
     if episode and cost:
-        rows.append(("Ray's cost per BodyTrack-v1 episode (pf-cv, 300 particles)",
+        rows.append(("Ray's cost per BodyTrack-v2 episode (pf-cv, 300 particles)",
                      f"{cost[1]} ms", f"the episode in the worker ({episode[1]} ms)",
                      f"{cost[2]}% of it"))  # fmt: skip
     return rows
@@ -276,7 +276,7 @@ BENCHMARKS: tuple[Benchmark, ...] = (
         quick=("--particles", "300", "3000", "--frames", "10"),
     ),  # fmt: skip
     Benchmark("bench_tree", _read_tree, data_dir=True),
-    Benchmark("bench_fit", _read_fit, data_dir=True, quick=("--tasks", "BodyTrack-v1")),
+    Benchmark("bench_fit", _read_fit, data_dir=True, quick=("--tasks", "BodyTrack-v2")),
     Benchmark("bench_slds", _read_slds, args=("--json",), quick=("--json", "--repeats", "1")),
     Benchmark("bench_fpca", _read_fpca),
     Benchmark("bench_parse", _read_parse),
