@@ -264,12 +264,11 @@ def _plain(value: Any) -> Any:
     raise TypeError(f"not JSON-serialisable: {type(value).__name__}")
 
 
-#: Per-frame series the repository keeps to :data:`SERIES_DECIMALS` decimals of a
-#: millimetre: figures draw them and a video replay checks them
-#: (:data:`baselines.leaderboard.videos.SERIES_ATOL_MM`); every number a table
-#: prints, and every episode's mean, keeps its significant digits.
+#: Per-frame series the repository keeps to the whole millimetre: figures draw
+#: them (a millimetre is below a pixel of any of them) and a video replay checks
+#: them (:data:`baselines.leaderboard.videos.SERIES_ATOL_MM`); every number a
+#: table prints, and every episode's mean, keeps its significant digits.
 SERIES_KEYS = frozenset({"errors_mm", "aligned_errors_mm", "along_mm", "across_mm", "along_abs_mm"})
-SERIES_DECIMALS = 1
 
 
 def compact(source: str | Path, target: str | Path, digits: int = 7) -> None:
@@ -279,8 +278,7 @@ def compact(source: str | Path, target: str | Path, digits: int = 7) -> None:
     from which ``humotion-gym report`` rebuilds the figures and the page. Seven
     significant digits keep every printed number and each episode's mean
     error to its recorded precision; the per-frame series (:data:`SERIES_KEYS`)
-    keep a tenth of a millimetre, which a figure cannot show and which halves
-    the file.
+    keep whole millimetres, which takes the file to about a third.
 
     Args:
         source: A ``results.json`` (or an already compact ``.json.gz``).
@@ -296,7 +294,7 @@ def compact(source: str | Path, target: str | Path, digits: int = 7) -> None:
             return float(f"{value:.{digits}g}")
         if isinstance(value, list):
             if key in SERIES_KEYS:
-                return [round(v, SERIES_DECIMALS) if isinstance(v, float) else v for v in value]
+                return [round(v) if isinstance(v, float) else v for v in value]
             return [rounded(v) for v in value]
         if isinstance(value, dict):
             return {k: rounded(v, k) for k, v in value.items()}
