@@ -11,12 +11,14 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import gymnasium as gym
 import numpy as np
 import pytest
 
 import humotion_gym  # noqa: F401
 from humotion_gym.camera import Camera, cameras_around, fit_camera
+from humotion_gym.cli import main
 from humotion_gym.envs import get_task
 from humotion_gym.envs.description import read_observation
 
@@ -149,3 +151,13 @@ def test_read_observation_refuses_cameras_that_do_not_match_the_views():
     obs["camera"] = obs["camera"][0]
     with pytest.raises(ValueError, match=r"observation\['camera'\]: expected shape \(2, 13\)"):
         read_observation(obs)
+
+
+def test_the_render_command_shows_every_view_side_by_side(tmp_path):
+    out = tmp_path / "views.mp4"
+    assert main(["render", "--task", "WalkTrack2Views-v2", "--frames", "3", "--out", str(out)]) == 0
+    sheet = cv2.imread(str(out.with_suffix(".png")))
+    single = tmp_path / "one.mp4"
+    assert main(["render", "--task", "WalkTrack-v2", "--frames", "3", "--out", str(single)]) == 0
+    one = cv2.imread(str(single.with_suffix(".png")))
+    assert sheet.shape[0] == one.shape[0] and sheet.shape[1] == 2 * one.shape[1]
