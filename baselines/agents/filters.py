@@ -93,7 +93,7 @@ class TaskLikelihood:
     @property
     def floor(self) -> float | None:
         """The floor height read at the first frame (from the given pose: every view's)."""
-        return self.first[0][2] if self.first else None
+        return self.first[0].floor if self.first else None
 
     def update(
         self, fixed_values: FloatArray, shape: BodyShape, cameras: Camera | Sequence[Camera]

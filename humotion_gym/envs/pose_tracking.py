@@ -720,11 +720,11 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
         """The frame on show with the last estimate drawn over it as a wire figure.
 
         With several views, every view's image side by side, view 0 on the
-        left: ``(H, views * W, 3)``. Nothing is rendered again: the frame is
-        the observation that ``reset`` or ``step`` drew from the episode's
-        prepared figures, and the wire
-        figure joins the keypoints ``step`` scored (only their projection and
-        the lines are drawn here).
+        left: ``(H, views * W, 3)``, the estimate drawn from each view's
+        camera. Nothing is rendered again: the frame is the observation that
+        ``reset`` or ``step`` drew from the episode's prepared figures, and the
+        wire figure joins the keypoints ``step`` scored (only their projection
+        and the lines are drawn here).
         """
         if self.render_mode is None or self._motion is None:
             return None
