@@ -67,8 +67,8 @@ def paired_rates(
     return 1.0 / min(times), 1.0 / min(ref_times), ratio
 
 
-ENV_IDS = ("humotion_gym/ArmTrack-v1", "humotion_gym/BodyTrack-v1", "humotion_gym/WalkTrack-v1",
-           "humotion_gym/SideWalk-v1")  # fmt: skip
+ENV_IDS = ("humotion_gym/ArmTrack-v2", "humotion_gym/BodyTrack-v2", "humotion_gym/WalkTrack-v2",
+           "humotion_gym/SideWalk-v2")  # fmt: skip
 
 
 def rows(quick: bool = False) -> list[tuple[str, float, str, float]]:

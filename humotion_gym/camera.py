@@ -558,6 +558,47 @@ def fit_cameras(
     ]  # fmt: skip
 
 
+def cameras_around(camera: Camera, target: ArrayLike, views: int) -> list[Camera]:
+    """``views`` cameras in a ring about the vertical through ``target``, the first ``camera``.
+
+    Camera ``k`` is ``camera`` turned ``360 k / views`` degrees
+    counter-clockwise (seen from above) about the vertical line through
+    ``target``: the same distance to ``target``, the same height and
+    elevation, the same intrinsics, looking at ``target`` (the point
+    ``camera`` looks at, e.g. :func:`fit_camera`'s, the centre of the
+    points' bounding box). A ring of calibrated cameras around the subject,
+    as in HumanEva's 4-7 camera studio (Sigal, Balan & Black, *HumanEva*,
+    IJCV 2010).
+
+    Args:
+        camera: View 0.
+        target: ``(3,)`` the point on ``camera``'s optical axis the ring turns about, mm.
+        views: Number of cameras (>= 1).
+
+    Returns:
+        The ``views`` cameras; the first is ``camera`` itself.
+
+    Raises:
+        ValueError: If ``views`` is not a positive integer or ``target`` is not
+            3 finite numbers.
+    """
+    if isinstance(views, bool) or not isinstance(views, (int, np.integer)) or views < 1:
+        raise ValueError(f"cameras_around: views must be an integer >= 1, got {views!r}")
+    centre = np.asarray(target, dtype=np.float64).reshape(-1)
+    if centre.shape != (3,) or not np.all(np.isfinite(centre)):
+        raise ValueError(f"cameras_around: target must be 3 finite numbers, got {centre.shape}")
+    out = [camera]
+    offset = camera.position - centre
+    for k in range(1, int(views)):
+        angle = 2.0 * math.pi * k / int(views)
+        c, s = math.cos(angle), math.sin(angle)
+        turned = np.array([c * offset[0] - s * offset[1], s * offset[0] + c * offset[1], offset[2]])
+        out.append(
+            Camera.look_at(centre + turned, centre, camera.width, camera.height, camera.fov_deg)
+        )
+    return out
+
+
 def side_view_azimuth(pelvis: ArrayLike) -> float:
     """Azimuth of a side view perpendicular to the main horizontal travel direction.
 

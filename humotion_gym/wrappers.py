@@ -59,7 +59,10 @@ class FrameObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
     A version-2 task's observation also holds the initial pose, the given
     parameters, the camera and the shape; a learner that takes pixels only
     (SB3's ``CnnPolicy``, an Atari-style pipeline) sees the frame and gives
-    the rest up. Rewards, episode ends and ``info`` pass through unchanged.
+    the rest up. With ``views=N`` cameras (``frame`` ``(N, H, W, C)``) it
+    sees the views side by side, view 0 on the left: ``Box(0, 255, (H, N * W,
+    C), uint8)``, one image as a CNN takes it. Rewards, episode ends and
+    ``info`` pass through unchanged.
 
     Args:
         env: A version-2 tracking environment (any wrapper chain around one).
@@ -77,11 +80,20 @@ class FrameObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
                 f"FrameObservation: expected a Dict observation with a 'frame' (a -v2 task), "
                 f"got {space}"
             )
-        self.observation_space = space["frame"]
+        frame = space["frame"]
+        assert isinstance(frame, spaces.Box)
+        self._tiled = len(frame.shape) == 4
+        if self._tiled:
+            views, h, w, c = frame.shape
+            frame = spaces.Box(0, 255, shape=(h, views * w, c), dtype=np.uint8)
+        self.observation_space = frame
 
     def observation(self, observation: dict[str, Any]) -> NDArray[np.uint8]:
-        """The frame."""
-        return observation["frame"]
+        """The frame (several views side by side)."""
+        frame = observation["frame"]
+        if not self._tiled:
+            return frame
+        return np.concatenate(list(frame), axis=1)
 
 
 def learner_frame(frame: NDArray[np.uint8], size: int | None) -> NDArray[np.uint8]:

@@ -23,7 +23,7 @@ import pytest
 from baselines.stillness import markdown_table
 
 ROOT = Path(__file__).resolve().parents[1]
-TASK = r"(?:ArmTrack|BodyTrack|WalkTrack|SideWalk)-v\d+"
+TASK = r"(?:ArmTrack|BodyTrack|WalkTrack|SideWalk)(?:\dViews)?-v\d+"
 ROW = re.compile(rf"^\| {TASK} \| [a-z][a-z0-9+\-=._/]* \| (?:-|[0-9,]+) \| ")
 #: ``results/depth/README.md``'s sections, one per task (their rows lack the task column).
 DEPTH_SECTION = re.compile(rf"^## ({TASK}), test persons")

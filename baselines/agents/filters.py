@@ -31,7 +31,13 @@ from baselines.filtering import (
     PartitionedParticleFilter,
     Stage,
 )
-from baselines.observation import Backdrop, FrameModel, GivenBody, ObservationModel, task_model
+from baselines.observation import (
+    FirstFrame,
+    FrameModel,
+    GivenBody,
+    ObservationModel,
+    task_model,
+)
 from baselines.priors.limbs import part_columns
 from humotion_gym.body import (
     ANGLE_MASK,
@@ -58,7 +64,13 @@ class TaskLikelihood:
 
     Particles hold only the free parameters; this fills in the parameters the
     task gives (``observation["fixed_params"]``) and scores full poses with the
-    environment's model, camera and the known shape.
+    environment's model, camera and the known shape. With several views the
+    log-likelihood is the sum of each view's, the views' images being
+    independent given the pose (each with its own clutter and noise), as in
+    multi-camera trackers (Deutscher & Reid, *Articulated body motion capture
+    by stochastic search*, IJCV 2005): each view keeps its own camera and
+    first-frame reading, and its frame's features are prepared on their own
+    (:meth:`prepare`).
     """
 
     def __init__(self, model: FrameModel, free: NDArray[np.intp], fixed: NDArray[np.intp]):
@@ -75,36 +87,59 @@ class TaskLikelihood:
             self._columns = slice(int(cols[0]), int(cols[0]) + cols.size)
         self._every = cols.size == N_PARAMS and isinstance(self._columns, slice)
         self.shape: BodyShape | None = None
-        self.camera: Camera | None = None
-        self.colors: FloatArray | None = None
-        self.backdrop: Backdrop | None = None
-        self.floor: float | None = None
+        self.cameras: tuple[Camera, ...] = ()
+        # what each view's first frame gave (colours, backdrop, floor height)
+        self.first: list[FirstFrame] = []
 
-    def update(self, fixed_values: FloatArray, shape: BodyShape, camera: Camera) -> None:
-        """The given parameters, shape and camera of the frame on show."""
+    @property
+    def camera(self) -> Camera | None:
+        """View 0's camera (the only one of a monocular task)."""
+        return self.cameras[0] if self.cameras else None
+
+    @property
+    def floor(self) -> float | None:
+        """The floor height read at the first frame (from the given pose: every view's)."""
+        return self.first[0].floor if self.first else None
+
+    def update(
+        self, fixed_values: FloatArray, shape: BodyShape, cameras: Camera | Sequence[Camera]
+    ) -> None:
+        """The given parameters, shape and camera (or every view's) of the frame on show."""
         self.base[self.fixed] = fixed_values
         self.shape = shape
-        self.camera = camera
+        self.cameras = (cameras,) if isinstance(cameras, Camera) else tuple(cameras)
+        if len(self.first) != len(self.cameras):
+            self.first = [FirstFrame(None, None, None)] * len(self.cameras)
 
-    def given(self) -> GivenBody:
-        """The given part of the body in the frame on show (for ``prepare``)."""
-        assert self.shape is not None and self.camera is not None
+    def given(self, view: int = 0) -> GivenBody:
+        """The given part of the body in view ``view`` of the frame on show (for ``prepare``)."""
+        assert self.shape is not None and self.cameras
+        colors, backdrop, floor = self.first[view]
         return GivenBody(
-            self.base.copy(), self.free, self.shape, self.camera, self.colors, self.backdrop,
-            self.floor,
-        )  # fmt: skip
+            self.base.copy(), self.free, self.shape, self.cameras[view], colors, backdrop, floor
+        )
 
-    def read_first_frame(self, frame: Any, initial_pose: FloatArray) -> None:
+    def read_first_frame(self, frames: Any, initial_pose: FloatArray) -> None:
         """What the model keeps of the episode's first frame, from the given initial pose.
 
-        :meth:`~baselines.observation.ObservationModel.read_first_frame`:
-        each cone's colour, the backdrop and the floor height, where the model
-        uses them.
+        :meth:`~baselines.observation.ObservationModel.read_first_frame` of
+        each view (``frames``: one ``(H, W, C)`` frame, or ``(views, H, W, C)``
+        / a sequence of them, in :meth:`update`'s camera order): each cone's
+        colour, the backdrop and the floor height, where the model uses them.
         """
-        assert self.shape is not None and self.camera is not None
-        self.colors, self.backdrop, self.floor = self.model.read_first_frame(
-            frame, initial_pose, self.shape, self.camera
-        )
+        assert self.shape is not None and self.cameras
+        shape = self.shape
+        self.first = [
+            self.model.read_first_frame(frame, initial_pose, shape, camera)
+            for frame, camera in zip(_views(frames, len(self.cameras)), self.cameras, strict=True)
+        ]
+
+    def prepare(self, frames: Any) -> list[Any]:
+        """Each view's features of the frame on show (:meth:`ObservationModel.prepare`)."""
+        return [
+            self.model.prepare(frame, self.given(view))
+            for view, frame in enumerate(_views(frames, len(self.cameras)))
+        ]
 
     def full_pose(self, particles: FloatArray) -> FloatArray:
         """``(N, 25)`` poses from ``(N, D)`` free parameters."""
@@ -115,21 +150,65 @@ class TaskLikelihood:
         return poses
 
     def log_likelihood(self, frame: Any, particles: FloatArray) -> FloatArray:
-        """``(N,)`` log p(frame | pose) of the particles."""
-        assert self.shape is not None and self.camera is not None
-        return self.model.log_likelihood(frame, self.full_pose(particles), self.shape, self.camera)
+        """``(N,)`` log p(frames | pose) of the particles: the sum over the views.
+
+        Args:
+            frame: The frame on show or its features (one view), or a list of
+                each view's (:meth:`prepare`), in camera order.
+            particles: ``(N, D)`` free parameters.
+        """
+        assert self.shape is not None and self.cameras
+        poses, shape = self.full_pose(particles), self.shape
+        views = _views(frame, len(self.cameras))
+        return _view_sum(
+            self.model.log_likelihood(seen, poses, shape, camera)
+            for seen, camera in zip(views, self.cameras, strict=True)
+        )
 
     def log_likelihood_partial(
         self, frame: Any, particles: FloatArray, groups: Sequence[Sequence[int]]
     ) -> FloatArray:
         """``(N, G + 1)`` log-likelihoods of the figure built up group by group of cones.
 
-        :meth:`~baselines.observation.ObservationModel.log_likelihood_partial`.
+        :meth:`~baselines.observation.ObservationModel.log_likelihood_partial`
+        of each view, summed (``frame`` as :meth:`log_likelihood`'s).
         """
-        assert self.shape is not None and self.camera is not None
-        return self.model.log_likelihood_partial(
-            frame, self.full_pose(particles), self.shape, self.camera, groups
+        assert self.shape is not None and self.cameras
+        poses, shape = self.full_pose(particles), self.shape
+        views = _views(frame, len(self.cameras))
+        return _view_sum(
+            self.model.log_likelihood_partial(seen, poses, shape, camera, groups)
+            for seen, camera in zip(views, self.cameras, strict=True)
         )
+
+
+def _views(frames: Any, count: int) -> list[Any]:
+    """Each view's frame or features: a list as given, or the views of an array.
+
+    A single frame (``(H, W, C)``) or features object is one view; a
+    ``(views, H, W, C)`` array or a list holds one per view.
+
+    Raises:
+        ValueError: If the number of views is not ``count``.
+    """
+    if isinstance(frames, (list, tuple)):
+        views = list(frames)
+    elif isinstance(frames, np.ndarray) and frames.ndim == 4:
+        views = list(frames)
+    else:
+        views = [frames]
+    if len(views) != count:
+        raise ValueError(f"frames: expected {count} views (one per camera), got {len(views)}")
+    return views
+
+
+def _view_sum(terms: Any) -> FloatArray:
+    """The sum of the views' log-likelihoods, view 0 first (one view: its own array)."""
+    total: FloatArray | None = None
+    for term in terms:
+        total = term if total is None else total + term
+    assert total is not None
+    return total
 
 
 #: The cones each body part of :data:`baselines.priors.limbs.PARTS` places
@@ -292,11 +371,10 @@ class ParticleFilterAgent:
         if first:
             self.reset(given)
         t0 = time.perf_counter()
-        self.likelihood.update(given.fixed_params, given.shape, given.camera)
+        self.likelihood.update(given.fixed_params, given.shape, given.cameras)
         if first:
-            self.likelihood.read_first_frame(given.frame, given.initial_pose)
-        features = self.observation_model.prepare(given.frame, self.likelihood.given())
-        estimate = self.filter.step(features)
+            self.likelihood.read_first_frame(given.frames, given.initial_pose)
+        estimate = self.filter.step(self.likelihood.prepare(given.frames))
         pose = self.likelihood.full_pose(estimate[None])[0]
         action = pose_to_action(self.description.task, pose, bounds=self._bounds)
         self.frame_times.append(time.perf_counter() - t0)

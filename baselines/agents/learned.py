@@ -387,11 +387,17 @@ def make_learned(
 
     Raises:
         NoCheckpointError: If the task has no pretrained checkpoint of that name.
+        TaskNotSupported: If the task has several views (``views > 1``).
         ValueError: If the policy does not fit the task.
         FileNotFoundError: If a named ``.zip`` does not exist.
     """
     env = describe(task)
     task_name = env.task.name
+    if env.views > 1:
+        raise TaskNotSupported(
+            f"{name}: the learned policies read one view; {task_name} is shown with "
+            f"views={env.views} (track it with a particle filter, or make it with views=1)"
+        )
     if takes_particles(name):
         pf_name, policy_spec = name.split("+", 1)
         label, path = _policy_for(policy_spec, task_name)

@@ -244,13 +244,13 @@ def check_mocap_paths(paths: Sequence[str | Path], flag: str) -> None:
 
 def task_name(text: str) -> str:
     """An argparse ``type`` for a task id (``ArmTrack-v2``, also with ``humotion_gym/``)."""
-    from humotion_gym.envs.tasks import TASKS
+    from humotion_gym.envs.tasks import TASKS, VIEW_VARIANTS
 
     name = text.split("/")[-1].split(":")[-1]
-    if name not in TASKS:
+    if name not in TASKS and name not in VIEW_VARIANTS:
         raise argparse.ArgumentTypeError(
-            f"unknown task {text}; the tasks are {', '.join(sorted(TASKS))} "
-            "(see humotion-gym tasks)"
+            f"unknown task {text}; the tasks are "
+            f"{', '.join(sorted(TASKS) + sorted(VIEW_VARIANTS))} (see humotion-gym tasks)"
         )
     return name
 

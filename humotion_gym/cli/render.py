@@ -67,6 +67,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
 
     from humotion_gym.envs.pose_tracking import PoseTrackingEnv
     from humotion_gym.video import contact_sheet, write_png, write_video
+    from humotion_gym.wrappers import FrameObservation
 
     width, height = args.size or (128, 128)
     # the frames are held, then scaled for the video one at a time
@@ -77,12 +78,15 @@ def _cmd_render(args: argparse.Namespace) -> int:
         **env_kwargs(args),
     )  # fmt: skip
     base: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
+    # a -v2 task's observation holds the frame (several views side by side);
+    # a deprecated -v1 task's is the frame
+    if base.dict_observation:
+        env = FrameObservation(env)
     obs, info = env.reset(seed=args.seed)
-    # a -v2 task's observation holds the frame; a deprecated -v1 task's is the frame
-    frames = [obs["frame"] if isinstance(obs, dict) else obs]
+    frames = [obs]
     for _ in tqdm(range(args.frames - 1), desc=f"rendering {args.task}", unit="frame"):
         obs, *_ = env.step(base.pose_to_action(base.true_pose()))
-        frames.append(obs["frame"] if isinstance(obs, dict) else obs)
+        frames.append(obs)
     write_video(args.out, frames, fps=base.metadata["render_fps"], scale=args.scale)
     write_png(sheet, contact_sheet(frames, columns=6, count=6))
     wrote(args.out, f"{len(frames)} frames of {info['clip_id']}")

@@ -24,28 +24,41 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_tasks(args: argparse.Namespace) -> int:
-    from humotion_gym.envs import NAMESPACE, TASKS
+    from humotion_gym.envs import (
+        CURRENT_TASKS,
+        DEPRECATED_TASKS,
+        NAMESPACE,
+        VIEW_VARIANTS,
+        get_task,
+    )
 
-    rows: list[dict[str, Any]] = [
-        {
-            "task": t.name,
-            "id": f"{NAMESPACE}/{t.name}",
-            "episode_frames": t.episode_frames,
-            "free_params": len(t.free),
-            "labels": list(t.labels) if t.labels is not None else None,
-            "description": t.description,
-        }
-        for t in TASKS.values()
-    ]
+    # the current tasks, their multi-view variants, then the deprecated ones
+    names = [t.name for t in CURRENT_TASKS] + list(VIEW_VARIANTS)
+    names += [t.name for t in DEPRECATED_TASKS]
+    rows: list[dict[str, Any]] = []
+    for name in names:
+        t = get_task(name)
+        views = f", {t.views} views" if t.views > 1 else ""
+        rows.append(
+            {
+                "task": name,
+                "id": f"{NAMESPACE}/{name}",
+                "episode_frames": t.episode_frames,
+                "free_params": len(t.free),
+                "labels": list(t.labels) if t.labels is not None else None,
+                "description": t.description + views,
+                "views": t.views,
+            }
+        )
     if args.json:
         for r in rows:
             print_json(r)
         return 0
-    print(f"{'task':14s} {'frames':>6s} {'free':>4s} {'clips':12s} description")
+    print(f"{'task':18s} {'frames':>6s} {'free':>4s} {'clips':12s} description")
     for r in rows:
         labels = ",".join(r["labels"]) if r["labels"] else "every clip"
         print(
-            f"{r['task']:14s} {r['episode_frames']:6d} {r['free_params']:4d} {labels:12s} "
+            f"{r['task']:18s} {r['episode_frames']:6d} {r['free_params']:4d} {labels:12s} "
             f"{r['description']}"
         )
     print(f"gymnasium.make('{NAMESPACE}/<task>'); frames: scored frames per episode")

@@ -6,6 +6,8 @@ and once more without it so that ``gymnasium.make("humotion_gym:ArmTrack-v2")``
 (the ``module:id`` form, which imports the module first) works from a fresh
 interpreter. The ``-v1`` ids stay registered for one more release: making one
 warns that it is deprecated (its numbers are frozen in ``docs/v1.md``).
+The multi-view ids (``BodyTrack4Views-v2``...; :data:`VIEW_ENVIRONMENTS`)
+are their task with ``views`` cameras (``docs/views.md``).
 """
 
 from __future__ import annotations
@@ -21,9 +23,11 @@ from humotion_gym.envs.tasks import (
     CURRENT_TASKS,
     DEPRECATED_TASKS,
     TASKS,
+    VIEW_VARIANTS,
     TaskSpec,
     get_task,
 )
+from humotion_gym.envs.views import BodyTrackViewsEnv, WalkTrackViewsEnv
 from humotion_gym.envs.walk_track import WalkTrackEnv
 
 NAMESPACE = "humotion_gym"
@@ -47,6 +51,12 @@ DEPRECATED_ENVIRONMENTS: tuple[tuple[str, str], ...] = tuple(
     (t.name, _ENTRY_POINTS[t.family]) for t in DEPRECATED_TASKS
 )
 
+#: (id without namespace, entry point) of the multi-view variants
+#: (:data:`~humotion_gym.envs.tasks.VIEW_VARIANTS`): their task with ``views`` set.
+VIEW_ENVIRONMENTS: tuple[tuple[str, str], ...] = tuple(
+    (name, f"humotion_gym.envs.views:{get_task(name).family}ViewsEnv") for name in VIEW_VARIANTS
+)
+
 #: The batched version of each id's environment, for ``gymnasium.make_vec(id,
 #: num_envs=N, vectorization_mode="vector_entry_point")`` (N episodes stepped
 #: as one batch, the same results as N single environments; see
@@ -54,10 +64,16 @@ DEPRECATED_ENVIRONMENTS: tuple[tuple[str, str], ...] = tuple(
 VECTOR_ENTRY_POINTS: dict[str, str] = {
     name: f"humotion_gym.envs.vector:{entry_point.split(':')[1].replace('Env', 'VectorEnv')}"
     for name, entry_point in ENVIRONMENTS + DEPRECATED_ENVIRONMENTS
+} | {
+    # the task's vector environment, which refuses views > 1 with a clear error
+    name: f"humotion_gym.envs.vector:{get_task(name).family}VectorEnv"
+    for name in VIEW_VARIANTS
 }
 
-#: The canonical ids, with namespace.
-ENV_IDS: tuple[str, ...] = tuple(f"{NAMESPACE}/{name}" for name, _ in ENVIRONMENTS)
+#: The canonical ids, with namespace: the current tasks, then their multi-view variants.
+ENV_IDS: tuple[str, ...] = tuple(
+    f"{NAMESPACE}/{name}" for name, _ in ENVIRONMENTS + VIEW_ENVIRONMENTS
+)
 
 
 def register_envs() -> None:
@@ -68,15 +84,19 @@ def register_envs() -> None:
     environment truncates there by itself too. A longer episode needs both:
     ``gym.make(id, episode_frames=N, max_episode_steps=N)``.
     """
-    for name, entry_point in ENVIRONMENTS + DEPRECATED_ENVIRONMENTS:
+    for name, entry_point in ENVIRONMENTS + DEPRECATED_ENVIRONMENTS + VIEW_ENVIRONMENTS:
+        spec = get_task(name)
+        kwargs: dict[str, object] = {"task": spec.name}
+        if name in VIEW_VARIANTS:
+            kwargs["views"] = spec.views
         for env_id in (f"{NAMESPACE}/{name}", name):
             if env_id not in registry:
                 register(
                     id=env_id,
                     entry_point=entry_point,
                     vector_entry_point=VECTOR_ENTRY_POINTS[name],
-                    max_episode_steps=get_task(name).episode_frames,
-                    kwargs={"task": name},
+                    max_episode_steps=spec.episode_frames,
+                    kwargs=kwargs,
                 )
 
 
@@ -87,12 +107,16 @@ __all__ = [
     "RESET_OPTIONS",
     "TASKS",
     "VECTOR_ENTRY_POINTS",
+    "VIEW_ENVIRONMENTS",
+    "VIEW_VARIANTS",
     "ArmTrackEnv",
     "BodyTrackEnv",
+    "BodyTrackViewsEnv",
     "PoseTrackingEnv",
     "SideWalkEnv",
     "TaskSpec",
     "WalkTrackEnv",
+    "WalkTrackViewsEnv",
     "get_task",
     "register_envs",
 ]

@@ -77,6 +77,7 @@ COMMON_SECTIONS = """
     | ``palette`` | task's | the figure's colours: ``"v1"``, ``"shaded"`` (upper arms apart from the torso; BodyTrack's and WalkTrack's default) or ``"sided"`` (left and right limbs apart: an easier, opt-in variant) |
     | ``floor`` | False | a ground grid at z = 0, drawn from each frame's camera (a ground-contact depth cue) |
     | ``camera_elevation_deg`` | task's | the camera's height above the horizontal, degrees (BodyTrack and WalkTrack 40, ArmTrack 5, SideWalk 0) |
+    | ``views`` | task's (1) | cameras around the subject placed from the first frame: the task's camera and ``views - 1`` more at equal azimuth steps, same distance and elevation; ``frame`` is then ``(views, H, W, C)`` and ``camera`` ``(views, 13)`` (``docs/views.md``) |
     | ``fps`` | 30 | the library's rate; ``frame_skip`` shows every k-th frame |
     | ``episode_frames`` | task's | scored frames per episode |
     | ``terminate_on_lost`` | True | end the episode when track is lost |

@@ -15,6 +15,10 @@ the benchmark gives:
 * ``shape``: ``Box(-1e9, 1e9, (43,), float64)``, the subject's shape
   (:meth:`~humotion_gym.body.BodyShape.to_vector`).
 
+With ``views=N`` cameras (``N > 1``; :attr:`~humotion_gym.envs.tasks.TaskSpec.views`)
+the frame is ``(N, H, W, C)``, one image per view, and the camera ``(N, 13)``,
+one row per view; view 0 is the task's own camera.
+
 :func:`read_observation` turns one into typed parts. A
 :class:`TaskDescription` is what an agent is built from: the task, how its
 frames look, its rate, its spaces and the clips a prior may learn from (the
@@ -61,20 +65,30 @@ def _vector(n: int) -> spaces.Box:
     return spaces.Box(-VECTOR_BOUND, VECTOR_BOUND, shape=(n,), dtype=np.float64)
 
 
-def frame_space(scene: SceneOptions) -> spaces.Box:
-    """The frame's space: ``(height, width, channels)`` uint8."""
+def _views_shape(views: int) -> tuple[int, ...]:
+    """The leading axis of the frame and camera: none for one view, ``(views,)`` for more."""
+    return () if views == 1 else (views,)
+
+
+def frame_space(scene: SceneOptions, views: int = 1) -> spaces.Box:
+    """The frame's space: ``(height, width, channels)`` uint8, ``(views, ...)`` for more views."""
     channels = 3 if scene.color == "rgb" else 1
-    return spaces.Box(0, 255, shape=(scene.height, scene.width, channels), dtype=np.uint8)
+    shape = (*_views_shape(views), scene.height, scene.width, channels)
+    return spaces.Box(0, 255, shape=shape, dtype=np.uint8)
 
 
 def observation_space(task: TaskSpec, scene: SceneOptions) -> spaces.Dict:
     """A version-2 task's observation space (the table of the module docstring)."""
+    camera = spaces.Box(
+        -VECTOR_BOUND, VECTOR_BOUND, shape=(*_views_shape(task.views), CAMERA_VECTOR_SIZE),
+        dtype=np.float64,
+    )  # fmt: skip
     return spaces.Dict(
         {
-            "frame": frame_space(scene),
+            "frame": frame_space(scene, task.views),
             "initial_pose": _vector(N_PARAMS),
             "fixed_params": _vector(len(task.fixed_indices)),
-            "camera": _vector(CAMERA_VECTOR_SIZE),
+            "camera": camera,
             "shape": _vector(SHAPE_VECTOR_SIZE),
         }
     )
@@ -85,11 +99,12 @@ class Given:
     """One observation, typed.
 
     Attributes:
-        frame: ``(H, W, C)`` uint8.
+        frame: ``(H, W, C)`` uint8, ``(N, H, W, C)`` with N views.
         initial_pose: ``(25,)`` the episode's initial pose.
         fixed_params: ``(n_fixed,)`` the given parameters of the frame on show.
-        camera: The frame's camera.
+        camera: The frame's camera (view 0's with several views).
         shape: The subject's shape.
+        cameras: Every view's camera, view 0 first (one for a monocular task).
     """
 
     frame: NDArray[np.uint8]
@@ -97,6 +112,12 @@ class Given:
     fixed_params: FloatArray
     camera: Camera
     shape: BodyShape
+    cameras: tuple[Camera, ...]
+
+    @property
+    def frames(self) -> list[NDArray[np.uint8]]:
+        """Every view's ``(H, W, C)`` frame, view 0 first (views of ``frame``, not copies)."""
+        return [self.frame] if self.frame.ndim == 3 else list(self.frame)
 
 
 def read_observation(observation: Any) -> Given:
@@ -113,15 +134,26 @@ def read_observation(observation: Any) -> Given:
             f"(a version-2 task's), got {got}"
         )
     frame = np.asarray(observation["frame"])
-    if frame.ndim != 3:
-        raise ValueError(f"observation['frame']: expected (H, W, C), got shape {frame.shape}")
-    h, w = frame.shape[:2]
+    if frame.ndim not in (3, 4):
+        raise ValueError(
+            f"observation['frame']: expected (H, W, C) or (views, H, W, C), got shape {frame.shape}"
+        )
+    h, w = frame.shape[-3:-1]
+    vectors = np.asarray(observation["camera"], dtype=np.float64)
+    expected = (frame.shape[0], CAMERA_VECTOR_SIZE) if frame.ndim == 4 else (CAMERA_VECTOR_SIZE,)
+    if vectors.shape != expected:
+        raise ValueError(
+            f"observation['camera']: expected shape {expected} for a frame of shape "
+            f"{frame.shape}, got {vectors.shape}"
+        )
+    cameras = tuple(Camera.from_vector(v, w, h) for v in vectors.reshape(-1, CAMERA_VECTOR_SIZE))
     return Given(
         frame=frame,
         initial_pose=np.asarray(observation["initial_pose"], dtype=np.float64),
         fixed_params=np.asarray(observation["fixed_params"], dtype=np.float64),
-        camera=Camera.from_vector(observation["camera"], w, h),
+        camera=cameras[0],
         shape=BodyShape.from_vector(observation["shape"]),
+        cameras=cameras,
     )
 
 
@@ -232,6 +264,11 @@ class TaskDescription:
     def name(self) -> str:
         """The task's id (``"ArmTrack-v2"``)."""
         return self.task.name
+
+    @property
+    def views(self) -> int:
+        """How many cameras see each frame (1: monocular; ``task.views``)."""
+        return self.task.views
 
     def base_pose(self, given: Given) -> FloatArray:
         """``(25,)`` the initial pose with the frame's given parameters put in."""

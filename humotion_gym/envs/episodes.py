@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from humotion_gym.envs.tasks import TASKS, TaskSpec
+from humotion_gym.envs.tasks import TASKS, VIEW_VARIANTS, TaskSpec
 from humotion_gym.mocap.library import MotionLibrary, default_library, synthetic_library
 from humotion_gym.mocap.motion import Motion
 
@@ -97,7 +97,10 @@ def task_base(task: str) -> str:
     Raises:
         KeyError: If no registered task has that base name.
     """
-    base = task.split("/")[-1].split(":")[-1].split("-v")[0]
+    name = task.split("/")[-1].split(":")[-1]
+    # a multi-view id shows its task's episodes
+    base = VIEW_VARIANTS[name][0] if name in VIEW_VARIANTS else name
+    base = base.split("-v")[0]
     if base not in PER_CLIP:
         raise KeyError(f"task: unknown task {task!r}; the tasks are {sorted(PER_CLIP)}")
     return base

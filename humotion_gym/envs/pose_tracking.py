@@ -22,7 +22,7 @@ from humotion_gym.body import (
     BodyShape,
     forward_kinematics,
 )
-from humotion_gym.camera import Camera, fit_camera
+from humotion_gym.camera import Camera, cameras_around, fit_camera
 from humotion_gym.envs import description
 from humotion_gym.envs._checks import action_array, check_count, check_positive
 from humotion_gym.envs._episode_choice import EpisodeChoice, clip_geometry
@@ -38,9 +38,10 @@ from humotion_gym.mocap.library import (
 )
 from humotion_gym.mocap.motion import Motion
 from humotion_gym.render import (
+    FigureSequence,
     SceneOptions,
     draw_pose_overlay,
-    figure_sequence,
+    figure_sequences,
     make_background,
     noise_bank,
     render_frame,
@@ -77,9 +78,9 @@ _ARM_CONES = [CONE_NAMES.index("r_upper_arm"), CONE_NAMES.index("r_forearm")]
 
 # What a reset assigns: restored when a reset fails, so a reset is all-or-nothing.
 _EPISODE_STATE: tuple[str, ...] = (
-    "_motion", "_t0", "_root0", "_bounds", "_episode_seed", "_noise", "_background",
-    "_noise_rng", "_episode_params", "_geometry", "_truth_keypoints", "_camera_targets",
-    "_cameras", "_figures",
+    "_motion", "_t0", "_root0", "_bounds", "_episode_seed", "_noise", "_backgrounds",
+    "_noise_rngs", "_episode_params", "_geometry", "_truth_keypoints", "_camera_targets",
+    "_view_cameras", "_view_figures",
     "_lost_run", "_last_estimate", "_estimate_keypoints", "_k", "_frame", "_done", "_ended",
     "_initial", "_shape_vector", "_camera_vectors",
     "_warned_after_end",
@@ -126,6 +127,7 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
         palette: str | None = None,
         floor: bool | None = None,
         camera_elevation_deg: float | None = None,
+        views: int | None = None,
         fps: float = 30.0,
         frame_skip: int = 1,
         episode_frames: int | None = None,
@@ -143,6 +145,11 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
                 )
             camera = replace(self.task.camera, elevation_deg=float(camera_elevation_deg))
             self.task = replace(self.task, camera=camera)
+        if views is not None:
+            check_count("views", views)
+            self.task = replace(self.task, views=int(views))
+        #: Cameras that see each frame (``task.views``; 1: monocular).
+        self.views = self.task.views
         self.dict_observation = self.task.version >= 2
         if not self.dict_observation:
             warnings.warn(
@@ -204,7 +211,7 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
         self.observation_space: spaces.Space[Any] = (
             description.observation_space(self.task, self.scene)
             if self.dict_observation
-            else description.frame_space(self.scene)
+            else description.frame_space(self.scene, self.views)
         )
         n_free = len(self.task.free)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(n_free,), dtype=np.float32)
@@ -360,12 +367,16 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
         initial pose swept through the task's travel box, oriented by the
         initial heading; a following camera frames the initial pose about the
         followed point (or the arm's reach) and moves with that point, which
-        the task gives the agent anyway.
+        the task gives the agent anyway. With several views the task's camera
+        is view 0, the others turned about the vertical through the point it
+        looks at (:func:`~humotion_gym.camera.cameras_around`), placed from
+        the same first frame and moving with the same followed point.
         """
         spec = self.task.camera
         points, azimuth, pad = self._camera_request()
         size = (self.scene.width, self.scene.height, spec.fov_deg)
-        self._set_cameras(fit_camera(points, *size, azimuth, spec.elevation_deg, spec.margin, pad))
+        camera = fit_camera(points, *size, azimuth, spec.elevation_deg, spec.margin, pad)
+        self._set_cameras(camera, points)
 
     def _camera_request(self) -> tuple[FloatArray, float, float]:
         """The episode's tables, then what its camera is fitted to (see :meth:`_place_camera`).
@@ -407,12 +418,46 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
         local = (first - targets[0])[None] + corners[:, None]
         return local.reshape(-1, 3), azimuth, float(m.shape.radii.max())
 
-    def _set_cameras(self, camera: Camera) -> None:
-        """Every frame's camera from the fitted one: itself, or moved with the followed point."""
+    def _set_cameras(self, camera: Camera, points: FloatArray) -> None:
+        """Every view's camera of every frame from the fitted one and the points it frames.
+
+        The views stand around the centre of the points' bounding box (what
+        :func:`~humotion_gym.camera.fit_camera` looks at); each camera is
+        itself on every frame, or moved with the followed point.
+        """
+        ring = [camera]
+        if self.views > 1:
+            centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
+            ring = cameras_around(camera, centre, self.views)
         if self.task.camera.follow is None:
-            self._cameras = [camera] * len(self._episode_params)
+            self._view_cameras = [[view] * len(self._episode_params) for view in ring]
         else:
-            self._cameras = camera.shifted(self._camera_targets)
+            self._view_cameras = [view.shifted(self._camera_targets) for view in ring]
+
+    # View 0's tables: the task's own camera, figures, background and noise.
+    @property
+    def _cameras(self) -> list[Camera]:
+        return self._view_cameras[0]
+
+    @_cameras.setter
+    def _cameras(self, cameras: list[Camera]) -> None:
+        self._view_cameras[0] = cameras
+
+    @property
+    def _figures(self) -> FigureSequence:
+        return self._view_figures[0]
+
+    @_figures.setter
+    def _figures(self, figures: FigureSequence) -> None:
+        self._view_figures[0] = figures
+
+    @property
+    def _background(self) -> Any:
+        return self._backgrounds[0]
+
+    @property
+    def _noise_rng(self) -> np.random.Generator:
+        return self._noise_rngs[0]
 
     def _episode_geometry(self, motion: Motion, idx: NDArray[np.intp]) -> FloatArray:
         """``(len(idx), 35, 3)`` keypoints and cone axes of the clip's frames ``idx``.
@@ -436,7 +481,14 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
         return self._motion.shape
 
     def _observe(self) -> Any:
-        frame = render_frame(self._figures, self._k, self._noise_rng, self._background)
+        """Draw the frame on show in every view (``(N, H, W, C)`` with N > 1 views)."""
+        frames = [
+            render_frame(figures, self._k, rng, background)
+            for figures, rng, background in zip(
+                self._view_figures, self._noise_rngs, self._backgrounds, strict=True
+            )
+        ]
+        frame = frames[0] if self.views == 1 else np.stack(frames)
         self._frame = frame
         return self._observation(frame)
 
@@ -444,11 +496,12 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
         """What the agent is shown with ``frame``: the frame (v1), or every given input (v2)."""
         if not self.dict_observation:
             return frame
+        cameras = np.stack([view[self._k].to_vector() for view in self._view_cameras])
         return {
             "frame": frame,
             "initial_pose": self._initial.copy(),
             "fixed_params": self._truth()[self._fixed],
-            "camera": self.camera.to_vector(),
+            "camera": cameras[0] if self.views == 1 else cameras,
             "shape": self._shape_vector.copy(),
         }
 
@@ -498,8 +551,12 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
 
     def _reset(self, seed: int | None, options: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
         self._begin_episode(seed, options)
-        self._figures = figure_sequence(
-            self._episode_params, self.shape, self._cameras, self.scene, self._geometry
+        self._view_figures = figure_sequences(
+            [
+                (self._episode_params, self.shape, cameras, self._geometry)
+                for cameras in self._view_cameras
+            ],
+            self.scene,
         )
         return self._first_frame()
 
@@ -528,8 +585,13 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
         # One generator per episode: the background's draws, then each frame's
         # sensor noise in turn, so the same seed and steps give the same frames.
         episode_rng = np.random.default_rng(self._episode_seed)
-        self._background = make_background(self.scene, episode_rng, self._noise)
-        self._noise_rng = episode_rng
+        # Each further view its own generator (its backdrop, then its noise),
+        # so view 0 draws what the monocular task draws.
+        rngs = [episode_rng] + [
+            np.random.default_rng([self._episode_seed, 3, view]) for view in range(1, self.views)
+        ]
+        self._backgrounds = [make_background(self.scene, rng, self._noise) for rng in rngs]
+        self._noise_rngs = rngs
         if cameras:
             self._place_camera()
 
@@ -657,25 +719,30 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
     def render(self) -> NDArray[np.uint8] | None:
         """The frame on show with the last estimate drawn over it as a wire figure.
 
-        Nothing is rendered again: the frame is the observation that ``reset``
-        or ``step`` drew from the episode's prepared figures, and the wire
-        figure joins the keypoints ``step`` scored (only their projection and
-        the lines are drawn here).
+        With several views, every view's image side by side, view 0 on the
+        left: ``(H, views * W, 3)``, the estimate drawn from each view's
+        camera. Nothing is rendered again: the frame is the observation that
+        ``reset`` or ``step`` drew from the episode's prepared figures, and the
+        wire figure joins the keypoints ``step`` scored (only their projection
+        and the lines are drawn here).
         """
         if self.render_mode is None or self._motion is None:
             return None
-        frame = self._frame
-        if frame.shape[-1] == 1:
-            frame = np.repeat(frame, 3, axis=-1)
-        if self._last_estimate is None:
-            return frame.copy()
-        return draw_pose_overlay(
-            frame,
-            self._last_estimate,
-            self.shape,
-            self.camera,
-            keypoints=self._estimate_keypoints,
-        )
+        frames = [self._frame] if self.views == 1 else list(self._frame)
+        drawn = []
+        for frame, cameras in zip(frames, self._view_cameras, strict=True):
+            if frame.shape[-1] == 1:
+                frame = np.repeat(frame, 3, axis=-1)
+            if self._last_estimate is None:
+                drawn.append(frame.copy())
+                continue
+            drawn.append(
+                draw_pose_overlay(
+                    frame, self._last_estimate, self.shape, cameras[self._k],
+                    keypoints=self._estimate_keypoints,
+                )
+            )  # fmt: skip
+        return drawn[0] if self.views == 1 else np.concatenate(drawn, axis=1)
 
 
 def _scored_info(scores: StepScores, lost: Any) -> dict[str, Any]:

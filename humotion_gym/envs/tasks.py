@@ -123,6 +123,10 @@ class TaskSpec:
         scene: Overrides of :class:`~humotion_gym.render.SceneOptions` defaults
             for this task (how its frames look), as ``(name, value)`` pairs;
             the environment's keyword arguments override them in turn.
+        views: Cameras placed around the subject (1: the papers' monocular
+            setting). View 0 is the camera of ``camera``; the others stand at
+            equal steps of azimuth around it (see
+            :func:`~humotion_gym.camera.cameras_around`).
     """
 
     name: str
@@ -137,6 +141,7 @@ class TaskSpec:
     motion_anchor: str = "pelvis"
     observation: tuple[tuple[str, float | int | bool], ...] = ()
     scene: tuple[tuple[str, Any], ...] = ()
+    views: int = 1
 
     def __post_init__(self) -> None:
         unknown = [n for n in self.free if n not in PARAM_INDEX]
@@ -149,6 +154,8 @@ class TaskSpec:
             raise ValueError(f"task {self.name}: episode_frames must be >= 1")
         if not self.min_motion_mm >= 0.0:
             raise ValueError(f"task {self.name}: min_motion_mm must be >= 0")
+        if isinstance(self.views, bool) or not isinstance(self.views, int) or self.views < 1:
+            raise ValueError(f"task {self.name}: views must be an integer >= 1, got {self.views!r}")
 
     @property
     def family(self) -> str:
@@ -431,17 +438,33 @@ TASKS: dict[str, TaskSpec] = {t.name: t for t in CURRENT_TASKS + DEPRECATED_TASK
 #: The current version of each task family (``"ArmTrack"`` -> ``"ArmTrack-v2"``).
 CURRENT: dict[str, str] = {t.family: t.name for t in CURRENT_TASKS}
 
+#: The multi-view variants of the whole-body tasks: ``id -> (task, views)``.
+#: A variant is its task seen by more cameras placed from the first frame
+#: (as HumanEva's 4-7 calibrated cameras; Sigal, Balan & Black, *HumanEva*,
+#: IJCV 2010): the same spec, name and settings, ``views`` set.
+VIEW_VARIANTS: dict[str, tuple[str, int]] = {
+    f"{family}{n}Views-v2": (f"{family}-v2", n)
+    for family in ("BodyTrack", "WalkTrack")
+    for n in (2, 4)
+}
+
 
 def get_task(name: str) -> TaskSpec:
     """The task spec of an id, with or without the ``humotion_gym/`` namespace.
 
-    A name without a version (``"ArmTrack"``) is the current version.
+    A name without a version (``"ArmTrack"``) is the current version; a
+    multi-view id (:data:`VIEW_VARIANTS`) is its task's spec with ``views``
+    set (its name is the task's: agents keep the task's settings).
 
     Raises:
         KeyError: If no task has that id.
     """
     key = name.split("/")[-1].split(":")[-1]
+    if key in VIEW_VARIANTS:
+        task, views = VIEW_VARIANTS[key]
+        return replace(TASKS[task], views=views)
     key = CURRENT.get(key, key)
     if key not in TASKS:
-        raise KeyError(f"unknown task {name!r}; the tasks are {sorted(TASKS)}")
+        known = sorted(TASKS) + sorted(VIEW_VARIANTS)
+        raise KeyError(f"unknown task {name!r}; the tasks are {known}")
     return TASKS[key]

@@ -74,7 +74,8 @@ class PoseTrackingVectorEnv(VectorEnv):
     The spaces are the single environment's batched: observations
     ``(N, H, W, C)`` uint8, actions ``(N, n_free)`` float32 in [-1, 1]. Every
     keyword argument of :class:`PoseTrackingEnv` is accepted and applies to
-    every episode.
+    every episode, but ``views`` must be 1: multi-view episodes are stepped
+    by ``SyncVectorEnv`` (``vectorization_mode="sync"``).
 
     ``reset(seed=s)`` seeds episode ``i`` with ``s + i`` (a list gives one seed
     per episode), as ``SyncVectorEnv`` does; ``options`` go to every episode,
@@ -114,6 +115,12 @@ class PoseTrackingVectorEnv(VectorEnv):
             frames = kwargs.get("episode_frames") or get_task(task).episode_frames
             kwargs["episode_frames"] = min(int(frames), int(max_episode_steps))
         template = PoseTrackingEnv(task=task, **kwargs)
+        if template.views != 1:
+            raise ValueError(
+                f"views: the vector environment batches monocular episodes only (views=1), "
+                f"got views={template.views}; step multi-view episodes with "
+                "gymnasium.make_vec(..., vectorization_mode='sync')"
+            )
         # The episodes share the template's library, clip table and caches
         # (shallow copies): constructing one env filters the clips once.
         self.envs: list[PoseTrackingEnv] = [template] + [
@@ -186,7 +193,7 @@ class PoseTrackingVectorEnv(VectorEnv):
         h, w, _ = self._scene.frame_shape
         noisy, n_shown = self._scene.noise_sigma > 0, self._windows.shape[1] - 1
         for i, env, figure in zip(rows, envs, figures, strict=True):
-            env._figures = figure
+            env._view_figures = [figure]
             if noisy:  # the windows of frames 1, 2, ..., the order they are shown in
                 self._windows[i, 1:] = _noise_windows(env._noise_rng, h, w, n_shown)
             # drawn (below) straight into the batch's row, which is then the frame on show
@@ -221,8 +228,8 @@ class PoseTrackingVectorEnv(VectorEnv):
             self._scene.height, spec.fov_deg, [azimuth for _, azimuth, _ in requests],
             spec.elevation_deg, spec.margin, [pad for _, _, pad in requests],
         )  # fmt: skip
-        for env, camera in zip(envs, cameras, strict=True):
-            env._set_cameras(camera)
+        for env, camera, (points, _, _) in zip(envs, cameras, requests, strict=True):
+            env._set_cameras(camera, points)
 
     def _figures(self, envs: list[PoseTrackingEnv], start: int, stop: int) -> list[FigureSequence]:
         """The figures of frames ``start:stop`` of the episodes of ``envs``, in one pass."""

@@ -120,25 +120,28 @@ def test_every_agent_is_made_or_refuses_with_a_reason():
             assert env.action_space.contains(action)
 
 
-def test_the_backdrop_is_read_at_each_episodes_first_frame_only():
-    env = gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False)
+@pytest.mark.parametrize("views", [1, 2])
+def test_the_backdrop_is_read_at_each_episodes_first_frame_only(views):
+    env = gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False, views=views)
     agent = make("pf-cv", env, n_particles=50, seed=0)
     assert agent.observation_model.backdrop
     for seed in (0, 1):
         obs, info = env.reset(seed=seed)
         agent.predict(obs, episode_start=np.array([True]))
-        first = agent.likelihood.backdrop
-        assert first is not None
+        first = [seen.backdrop for seen in agent.likelihood.first]
+        assert len(first) == views and all(b is not None for b in first)
         seen = read_observation(obs)
-        expected = agent.observation_model.read_backdrop(
-            seen.frame, seen.initial_pose, seen.shape, seen.camera
-        )
-        np.testing.assert_array_equal(first.image, expected.image)
-        np.testing.assert_array_equal(first.known, expected.known)
+        for view, (frame, camera) in enumerate(zip(seen.frames, seen.cameras, strict=True)):
+            # each view's backdrop from its own frame and camera
+            expected = agent.observation_model.read_backdrop(
+                frame, seen.initial_pose, seen.shape, camera
+            )
+            np.testing.assert_array_equal(first[view].image, expected.image)
+            np.testing.assert_array_equal(first[view].known, expected.known)
         for _ in range(3):  # later frames leave it as it was
             obs, _, _, _, info = env.step(agent.predict(obs)[0])
         agent.predict(obs)
-        assert agent.likelihood.backdrop is first
+        assert all(a.backdrop is b for a, b in zip(agent.likelihood.first, first, strict=True))
 
 
 def test_pf_follow_moves_the_body_and_holds_the_first_articulation():

@@ -53,10 +53,10 @@ def rollout(env_id, seed, steps=8, actions_seed=0, **kwargs):
     return frames, rewards, infos
 
 
-def test_all_four_tasks_are_registered():
-    assert IDS == [
-        f"humotion_gym/{n}" for n in ("ArmTrack-v2", "BodyTrack-v2", "WalkTrack-v2", "SideWalk-v2")
-    ]
+def test_all_four_tasks_and_their_view_variants_are_registered():
+    tasks = ("ArmTrack-v2", "BodyTrack-v2", "WalkTrack-v2", "SideWalk-v2")
+    views = ("BodyTrack2Views-v2", "BodyTrack4Views-v2", "WalkTrack2Views-v2", "WalkTrack4Views-v2")
+    assert IDS == [f"humotion_gym/{n}" for n in tasks + views]
     for env_id in IDS:
         assert gym.spec(env_id).entry_point == gym.spec(env_id.split("/")[1]).entry_point
 
@@ -79,9 +79,24 @@ def test_gymnasium_env_checker_passes_without_warnings(env_id):
 def test_stable_baselines3_checker_passes_without_warnings(env_id):
     sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
     env = gym.make(env_id)
+    if get_task(env_id).views == 1:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            sb3_checker.check_env(env, warn=True)
+        return
+    # Several views: the checker passes; it only remarks that the stacked
+    # frames (views, H, W, 3) and cameras (views, 13) are neither an image
+    # nor a flat vector (SB3's MultiInputPolicy would need a custom
+    # extractor). A pixel-only learner takes the views side by side, a
+    # conventional image, without a remark.
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        sb3_checker.check_env(env, warn=True)
+    remarks = {str(w.message).split(" has an unconventional shape")[0] for w in caught}
+    assert remarks == {"Your observation frame", "Your observation camera"}, remarks
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        sb3_checker.check_env(env, warn=True)
+        sb3_checker.check_env(FrameObservation(gym.make(env_id)), warn=True)
 
 
 @pytest.mark.parametrize("env_id", IDS)
@@ -284,15 +299,24 @@ def test_a_v1_id_still_works_and_warns_that_it_is_deprecated():
 @pytest.mark.parametrize("env_id", IDS)
 def test_frame_observation_gives_the_frame_and_passes_the_env_checker(env_id):
     env = FrameObservation(gym.make(env_id))
-    assert env.observation_space == env.unwrapped.observation_space["frame"]
+    frame_space = env.unwrapped.observation_space["frame"]
+    views = get_task(env_id).views
+
+    def seen(frame):  # several views side by side (an oracle: one view after another)
+        return frame if views == 1 else np.hstack([frame[v] for v in range(views)])
+
+    h, w, c = frame_space.shape[-3:]
+    assert env.observation_space.shape == (h, views * w, c)
+    if views == 1:
+        assert env.observation_space == frame_space
     twin = gym.make(env_id)
     obs, _ = env.reset(seed=4)
     full, _ = twin.reset(seed=4)
-    assert isinstance(obs, np.ndarray) and np.array_equal(obs, full["frame"])
+    assert isinstance(obs, np.ndarray) and np.array_equal(obs, seen(full["frame"]))
     action = np.zeros(env.action_space.shape, np.float32)
     obs, reward, *_ = env.step(action)
     full, twin_reward, *_ = twin.step(action)
-    assert np.array_equal(obs, full["frame"]) and reward == twin_reward
+    assert np.array_equal(obs, seen(full["frame"])) and reward == twin_reward
     with pytest.raises(ValueError, match="Dict"):
         FrameObservation(env)  # a frame alone is no Dict to take the frame from
     with warnings.catch_warnings():

@@ -92,12 +92,20 @@ def test_episode_frames_equal_the_per_episode_path(env_id):
         obs, _ = env.reset(seed=seed)
         geometry = batch_pose_geometry(env._episode_params, env.shape)
         assert np.array_equal(env._geometry, geometry)
-        figures = figure_sequence(env._episode_params, env.shape, env._cameras, env.scene, geometry)
-        # the episode's generator: its background's draws, then the frames' noise
-        rng = np.random.default_rng(env._episode_seed)
-        background = make_background(env.scene, rng, env._noise)
-        assert np.array_equal(background.image, env._background.image)
         frames = [obs["frame"]]
         frames += [env.step(action)[0]["frame"] for _ in range(env.episode_frames - 1)]
-        for k, frame in enumerate(frames, start=1):
-            assert np.array_equal(frame, render_frame(figures, k, rng, env._background)), k
+        if env.views == 1:
+            frames = [frame[None] for frame in frames]
+        assert len(env._view_cameras) == env.views
+        for view, cameras in enumerate(env._view_cameras):
+            # each view on its own: its sequence's figures; the episode's
+            # generator (view 0) or the view's own: its background's draws,
+            # then the frames' noise
+            figures = figure_sequence(env._episode_params, env.shape, cameras, env.scene, geometry)
+            seed = env._episode_seed if view == 0 else [env._episode_seed, 3, view]
+            rng = np.random.default_rng(seed)
+            background = make_background(env.scene, rng, env._noise)
+            assert np.array_equal(background.image, env._backgrounds[view].image)
+            for k, frame in enumerate(frames, start=1):
+                expected = render_frame(figures, k, rng, background)
+                assert np.array_equal(frame[view], expected), (view, k)

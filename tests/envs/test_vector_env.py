@@ -23,7 +23,7 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 from humotion_gym.camera import Camera
-from humotion_gym.envs import ENV_IDS
+from humotion_gym.envs import ENV_IDS, get_task
 from humotion_gym.envs.vector import PoseTrackingVectorEnv
 
 RTOL = 1e-12
@@ -93,7 +93,23 @@ def _actions(venv, rng: np.random.Generator, t: int) -> np.ndarray:
     return np.clip(truth + rng.normal(0, 0.01, truth.shape), -1, 1).astype(np.float32)
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+MONOCULAR_IDS = [env_id for env_id in ENV_IDS if get_task(env_id).views == 1]
+
+
+@pytest.mark.parametrize("env_id", [i for i in ENV_IDS if i not in MONOCULAR_IDS])
+def test_the_vector_env_refuses_several_views_naming_the_argument(env_id):
+    with pytest.raises(ValueError, match=r"views: .*views=1.*got views=[24].*sync"):
+        gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point")
+    with pytest.raises(ValueError, match="views"):
+        PoseTrackingVectorEnv(2, task="BodyTrack-v2", views=2)
+    # what the error points to works: single environments stepped in sync
+    envs = gym.make_vec(env_id, num_envs=2, vectorization_mode="sync")
+    obs, _ = envs.reset(seed=0)
+    assert obs["frame"].shape == (2, get_task(env_id).views, 128, 128, 3)
+    envs.close()
+
+
+@pytest.mark.parametrize("env_id", MONOCULAR_IDS)
 @pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
 def test_vector_env_equals_sync_vector_env(env_id, mode):
     n = 3
