@@ -39,7 +39,7 @@ puts it into an agent built for the purpose.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -120,10 +120,14 @@ class OracleObservation:
     Attributes:
         points: ``(K, 2)`` pixels or ``(K, 3)`` world mm, the scored keypoints'.
         sigma: The noise's standard deviation (pixels or mm), the likelihood's.
+        counts: False for a view that adds no evidence (a 3D oracle's views
+            after the first: the keypoints are one measurement however many
+            cameras film them), which then scores every pose 0.
     """
 
     points: FloatArray
     sigma: float
+    counts: bool = True
 
 
 def left_right_partners(keypoints: Sequence[int]) -> NDArray[np.intp]:
@@ -190,36 +194,53 @@ class TruthOracle:
         self._seconds = self.partners[self._firsts]
         self._paired = self._seconds != self._firsts
         self._rng = np.random.default_rng([self.seed, 0])
-        self._shown: OracleObservation | None = None
+        self._shown: list[OracleObservation] = []
+        self._view = 0
 
     def start_episode(self, episode_seed: int) -> None:
         """Draw the next episode's noise from ``(seed, episode_seed)`` alone."""
         self._rng = np.random.default_rng([self.seed, int(episode_seed)])
-        self._shown = None
+        self._shown = []
 
-    def show(self, pose: ArrayLike, shape: BodyShape, camera: Camera) -> OracleObservation:
+    def show(
+        self, pose: ArrayLike, shape: BodyShape, camera: Camera | Sequence[Camera]
+    ) -> OracleObservation:
         """Take the truth of the frame on show: its noisy keypoints become the observation.
 
         Args:
             pose: The frame's true ``(25,)`` pose.
             shape: The subject's shape.
-            camera: The frame's camera.
+            camera: The frame's camera, or every view's (view 0 first): a 2D
+                oracle detects the keypoints in each view with noise of its
+                own; a 3D oracle measures them once (the later views add
+                nothing, :attr:`OracleObservation.counts`).
 
         Returns:
-            The observation (also what :meth:`prepare` gives until the next call).
+            View 0's observation (:meth:`prepare` gives each view's in turn
+            until the next call).
         """
+        cameras = (camera,) if isinstance(camera, Camera) else tuple(camera)
         truth = forward_kinematics(np.asarray(pose, dtype=np.float64), shape)
         points = truth[self.keypoints]
         if self.dims == 2:
-            points = camera.project(points)
             sigma = self.settings.pixels
-        elif self.settings.noise_mm is not None:
-            sigma = float(self.settings.noise_mm)
-        else:  # noise_px pixels seen at the body's depth
-            sigma = self.settings.pixels * float(camera.depth(truth[_PELVIS])) / camera.focal
-        points = points + self._rng.normal(0.0, sigma, points.shape)
-        self._shown = OracleObservation(points, sigma)
-        return self._shown
+            self._shown = [
+                OracleObservation(
+                    view.project(points) + self._rng.normal(0.0, sigma, (points.shape[0], 2)),
+                    sigma,
+                )
+                for view in cameras
+            ]
+        else:
+            first = cameras[0]
+            if self.settings.noise_mm is not None:
+                sigma = float(self.settings.noise_mm)
+            else:  # noise_px pixels seen at the body's depth in view 0
+                sigma = self.settings.pixels * float(first.depth(truth[_PELVIS])) / first.focal
+            seen = OracleObservation(points + self._rng.normal(0.0, sigma, points.shape), sigma)
+            self._shown = [seen] + [replace(seen, counts=False)] * (len(cameras) - 1)
+        self._view = 0
+        return self._shown[0]
 
     def prepare(self, frame: Any, given: GivenBody | None = None) -> OracleObservation:
         """The frame's observation: the truth last shown (the frame itself is ignored).
@@ -228,12 +249,15 @@ class TruthOracle:
             RuntimeError: If no truth was shown since the episode began.
         """
         del frame, given
-        if self._shown is None:
+        if not self._shown:
             raise RuntimeError(
                 "TruthOracle.prepare: no truth shown for this frame (run the episode through "
                 "OracleFeed)"
             )
-        return self._shown
+        # The agent's likelihood prepares each view once a frame, in camera order.
+        seen = self._shown[self._view % len(self._shown)]
+        self._view += 1
+        return seen
 
     def read_first_frame(
         self, frame: Any, pose: ArrayLike, shape: BodyShape, camera: Camera
@@ -320,6 +344,8 @@ class TruthOracle:
             raise ValueError(
                 f"TruthOracle.{caller}: expected poses of shape (N, 25), got {p.shape}"
             )
+        if not frame.counts:
+            return np.zeros((p.shape[0], masks.shape[0]))
         points = forward_kinematics(p, shape)[:, self.keypoints]  # (N, K, 3)
         if self.dims == 2:
             points = camera.project(points)  # NaN at or behind the camera
@@ -367,7 +393,7 @@ class OracleFeed(gym.Wrapper):
 
     def _show(self) -> None:
         base = self._base
-        self.oracle.show(base.true_pose(), base.shape, base.camera)
+        self.oracle.show(base.true_pose(), base.shape, base.cameras)
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None

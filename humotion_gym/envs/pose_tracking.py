@@ -475,6 +475,11 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
         return self._cameras[self._k]
 
     @property
+    def cameras(self) -> tuple[Camera, ...]:
+        """Every view's camera of the frame on show, view 0 (:attr:`camera`) first."""
+        return tuple(view[self._k] for view in self._view_cameras)
+
+    @property
     def shape(self) -> BodyShape:
         """The episode subject's shape."""
         assert self._motion is not None, "call reset() first"

@@ -275,3 +275,37 @@ def test_settings_refuse_what_they_cannot_be():
     with pytest.raises(RuntimeError, match="no truth shown"):
         oracle.prepare(None)
     assert list(itertools.islice(left_right_partners([0, 7, 8]), 3)) == [0, 1, 2]
+
+
+def test_a_2d_oracle_detects_in_every_view_and_a_3d_oracle_measures_once():
+    env = gym.make("humotion_gym/BodyTrack2Views-v2", split="test", terminate_on_lost=False)
+    env.reset(seed=4)
+    base = tracking_env(env)
+    truth, poses = _poses(env)
+    cams = base.cameras
+    assert len(cams) == 2 and cams[0] is base.camera
+    flat = OracleSettings("2d", noise_px=1e-9)
+    two = TruthOracle(flat, SCORED)
+    two.show(truth, base.shape, cams)
+    seen = [two.prepare(None), two.prepare(None)]  # each view once, in camera order
+    for obs, cam in zip(seen, cams, strict=True):
+        want = cam.project(forward_kinematics(truth, base.shape)[SCORED])
+        np.testing.assert_allclose(obs.points, want, atol=1e-6)
+        np.testing.assert_allclose(
+            two.log_likelihood(obs, poses, base.shape, cam),
+            _slow(two, obs, poses, base.shape, cam),
+            rtol=1e-5,  # sigma 1e-9 px: the truth's own float rounding is a few nats
+        )
+    assert not np.allclose(seen[0].points, seen[1].points)  # the views differ
+    three = TruthOracle(OracleSettings("3d", noise_mm=10.0), SCORED, seed=1)
+    three.show(truth, base.shape, cams)
+    first, second = three.prepare(None), three.prepare(None)
+    assert first.counts and not second.counts
+    assert np.all(three.log_likelihood(second, poses, base.shape, cams[1]) == 0.0)
+    assert three.log_likelihood(first, poses, base.shape, cams[0])[1:].max() < 0.0
+    # one view: the observation the monocular oracle always drew
+    one, alone = TruthOracle(flat, SCORED), TruthOracle(flat, SCORED)
+    np.testing.assert_array_equal(
+        one.show(truth, base.shape, cams[:1]).points, alone.show(truth, base.shape, cams[0]).points
+    )
+    env.close()
