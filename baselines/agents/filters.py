@@ -31,6 +31,7 @@ from baselines.filtering import (
     PartitionedParticleFilter,
     Stage,
 )
+from baselines.filtering.search import LocalSearch, SearchParticleFilter
 from baselines.observation import (
     FirstFrame,
     FrameModel,
@@ -43,6 +44,8 @@ from humotion_gym.body import (
     ANGLE_MASK,
     CONE_NAMES,
     N_PARAMS,
+    PARAM_NAMES,
+    PARAM_UNITS,
     VALID_LOWER,
     VALID_UPPER,
     BodyShape,
@@ -239,6 +242,41 @@ def body_part_stages(free: NDArray[np.intp]) -> list[Stage]:
     return stages
 
 
+#: The floor of the local search's base step (:class:`SearchParticleFilter`'s
+#: ``min_std``) per unit of a parameter: where the prior's proposal has
+#: collapsed, the climb still starts from a step this size.
+SEARCH_FLOOR: dict[str, float] = {"mm": 5.0, "rad": 0.02}
+
+
+def search_floor(free: NDArray[np.intp]) -> FloatArray:
+    """``(D,)`` the local search's step floor of each free parameter (:data:`SEARCH_FLOOR`)."""
+    return np.array([SEARCH_FLOOR.get(PARAM_UNITS[int(i)], 0.02) for i in free])
+
+
+def search_blocks(free: NDArray[np.intp], kind: str) -> list[NDArray[np.intp]]:
+    """The local search's blocks (columns of the free vector) for a task.
+
+    Args:
+        free: The task's free parameters.
+        kind: ``"parts"``: the body parts of :func:`body_part_stages`;
+            ``"joints"``: the root's position, the root's rotation, then each
+            joint's angles (the neck, each shoulder, elbow, hip and knee).
+
+    Raises:
+        ValueError: If ``kind`` is neither.
+    """
+    if kind == "parts":
+        return [stage.dims for stage in body_part_stages(free)]
+    if kind != "joints":
+        raise ValueError(f"LocalSearch.blocks: expected 'parts' or 'joints', got {kind!r}")
+    names = [PARAM_NAMES[int(i)] for i in free]
+    keys = ["root_pos" if n in ("root_x", "root_y", "root_z") else n.rsplit("_", 1)[0]
+            if n.startswith(("root", "neck", "r_sh", "l_sh", "r_hip", "l_hip")) else n
+            for n in names]  # fmt: skip
+    order = list(dict.fromkeys(keys))
+    return [np.flatnonzero(np.array(keys) == key) for key in order]
+
+
 class ParticleFilterAgent:
     """A particle filter over one motion prior, answering like an SB3 policy.
 
@@ -260,6 +298,10 @@ class ParticleFilterAgent:
         diffusion: The annealed or partitioned filter's diffusion scale.
         alpha: The annealed filter's survival rate per layer.
         beta_max: Cap on the annealed filter's exponents.
+        search: A local search of the best particles on the likelihood each
+            frame (:class:`~baselines.filtering.search.SearchParticleFilter`),
+            block by block along the body parts (:func:`body_part_stages`),
+            within the joint limits; None: none.
         observation_model: The likelihood (default: the task's,
             :func:`~baselines.observation.task_model`).
 
@@ -284,6 +326,7 @@ class ParticleFilterAgent:
         alpha: float = 0.5,
         beta_max: float = float("inf"),
         observation_model: ObservationModel | None = None,
+        search: LocalSearch | None = None,
     ) -> None:
         refuse_truth(observation_model, "observation_model")
         self.description = describe(task)
@@ -297,7 +340,16 @@ class ParticleFilterAgent:
         self.likelihood = TaskLikelihood(self.observation_model, self.free, spec.fixed_indices)
         self.layers = int(layers)
         self.filter: ParticleFilter
-        if partitioned:
+        if search is not None:
+            if self.layers != 1 or partitioned:
+                raise ValueError(f"{name}: the local search runs in the plain particle filter")
+            self.filter = SearchParticleFilter(
+                prior, fitted, self.likelihood, self.n_particles, search, ANGLE_MASK[self.free],
+                estimate=estimate, blocks=search_blocks(self.free, search.blocks),
+                min_std=search_floor(self.free), lower=VALID_LOWER[self.free],
+                upper=VALID_UPPER[self.free],
+            )  # fmt: skip
+        elif partitioned:
             if self.layers != 1:
                 raise ValueError(f"{name}: partitioned sampling has no annealing layers")
             self.filter = PartitionedParticleFilter(

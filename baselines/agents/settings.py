@@ -31,8 +31,12 @@ _SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 #: The filter's settings an agent may set per task and ``humotion-gym select
 #: --grid filter.NAME=...`` may try: the annealed filter's layers per frame,
 #: survival rate per layer, diffusion scale and cap on its exponents (the
-#: partitioned filter takes the diffusion alone).
-FILTER_SETTINGS: tuple[str, ...] = ("layers", "alpha", "diffusion", "beta_max")
+#: partitioned filter takes the diffusion alone); a local search's
+#: (:class:`~baselines.filtering.search.LocalSearch`) ``search_NAME``.
+FILTER_SETTINGS: tuple[str, ...] = (
+    "layers", "alpha", "diffusion", "beta_max",
+    "search_top", "search_steps", "search_scale", "search_survival",
+)  # fmt: skip
 
 #: The keys of one agent's entry.
 ENTRY_KEYS: tuple[str, ...] = ("fit", "components", "task_fit", "task_filter")

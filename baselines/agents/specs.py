@@ -11,6 +11,7 @@ environment's training persons (cached on disk), then the filter.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import inspect
 from collections.abc import Mapping
@@ -31,6 +32,7 @@ from baselines.agents.settings import (
     SettingsError,
     load,
 )
+from baselines.filtering.search import LocalSearch
 from baselines.observation import ObservationModel
 from baselines.priors import limbs, mixture
 from baselines.priors.fitting import fit_prior as fit_prior_on
@@ -76,6 +78,9 @@ class AgentSpec:
             names of :data:`FILTER_SETTINGS`) chosen for that task by
             cross-validation on training persons (``humotion-gym select --grid
             filter.NAME=...``); they override the fields above.
+        search: A local search of the best particles on the likelihood each
+            frame (:class:`~baselines.filtering.search.SearchParticleFilter`);
+            its fields are the filter settings ``search_NAME``.
     """
 
     prior: str
@@ -91,6 +96,7 @@ class AgentSpec:
     alpha: float = 0.5
     beta_max: float = float("inf")
     task_filter_settings: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    search: LocalSearch | None = None
 
     def settings_for(self, task: str) -> dict[str, Any]:
         """The fit settings of this agent on a task."""
@@ -111,7 +117,15 @@ class AgentSpec:
             raise ValueError(
                 f"filter settings {unknown} are not the filter's (they are {list(FILTER_SETTINGS)})"
             )
-        if chosen and self.layers == 1 and not self.partitioned:
+        own = {
+            n[len(SEARCH_SETTING) :]: v for n, v in chosen.items() if n.startswith(SEARCH_SETTING)
+        }
+        if own and self.search is None:
+            raise ValueError(
+                f"filter settings {sorted(SEARCH_SETTING + n for n in own)} are a local "
+                f"search's; this agent has none"
+            )
+        if chosen and self.layers == 1 and not self.partitioned and self.search is None:
             raise ValueError(
                 f"filter settings {sorted(chosen)} are the annealed or partitioned filter's; "
                 f"this agent is a plain particle filter"
@@ -122,8 +136,11 @@ class AgentSpec:
             "diffusion": self.diffusion,
             "beta_max": self.beta_max,
         }
-        out.update(chosen)
+        out.update({n: v for n, v in chosen.items() if not n.startswith(SEARCH_SETTING)})
         out["layers"] = int(out["layers"])
+        if self.search is not None:
+            counts = {n: int(v) for n, v in own.items() if n in ("top", "steps")}
+            out["search"] = dataclasses.replace(self.search, **{**own, **counts})
         return out
 
     def setting_names(self) -> set[str]:
@@ -143,6 +160,10 @@ class AgentSpec:
         for label, spec in self.components:
             names |= {f"{label}.{n}" for n in spec.setting_names()}
         return names
+
+
+#: The prefix of a local search's filter settings (``search_top``...).
+SEARCH_SETTING = "search_"
 
 
 def training_motions(task: TaskDescription) -> MotionLibrary:
@@ -329,6 +350,26 @@ STRUCTURE: dict[str, dict[str, Any]] = {
         "velocity (pf-cv's) or takes a small random walk, and keeps its regime from frame to "
         "frame with a probability chosen on training persons",
     ),
+    "spf-cv": dict(
+        prior=CONSTANT_VELOCITY,
+        search=LocalSearch(),
+        description="pf-cv's prior and particles; each frame its best particles climb the "
+        "likelihood, body part by body part (smart particle filtering, Bray, Koller-Meier & "
+        "Van Gool 2004)",
+    ),
+    "spf-tree": dict(
+        prior=TREE,
+        search=LocalSearch(),
+        description="pf-tree's prior and particles; each frame its best particles climb the "
+        "likelihood, body part by body part, off the database's poses",
+    ),
+    "spf-mix": dict(
+        prior=MIXTURE,
+        components=(("tree", TREE), ("cv", CONSTANT_VELOCITY), ("still", CONSTANT_VELOCITY)),
+        search=LocalSearch(),
+        description="pf-mix's mixture and particles; each frame its best particles climb the "
+        "likelihood, body part by body part",
+    ),
     "apf-mix": dict(
         prior=MIXTURE,
         components=(("tree", TREE), ("cv", CONSTANT_VELOCITY), ("still", CONSTANT_VELOCITY)),
@@ -375,7 +416,7 @@ def build_spec(name: str, settings: AgentSettings, path: Path = PF_SETTINGS_FILE
                     path, f"{name}.{key}.{setting}",
                     f"not a setting of {name}'s prior; they are {sorted(names)}",
                 )  # fmt: skip
-    if settings.task_filter and spec.layers == 1 and not spec.partitioned:
+    if settings.task_filter and spec.layers == 1 and not spec.partitioned and spec.search is None:
         raise SettingsError(
             path, f"{name}.task_filter", f"{name} is a plain particle filter (no filter settings)"
         )

@@ -15,6 +15,7 @@ from baselines.filtering.filters import (
     PartLikelihood,
     Stage,
 )
+from baselines.filtering.search import LocalSearch, SearchParticleFilter, climb
 from baselines.filtering.state import (
     Likelihood,
     ParticleState,
@@ -38,12 +39,15 @@ __all__ = [
     "RESAMPLING",
     "AnnealedParticleFilter",
     "Likelihood",
+    "LocalSearch",
     "ParticleFilter",
     "ParticleState",
     "PartLikelihood",
     "PartitionedParticleFilter",
     "Prior",
+    "SearchParticleFilter",
     "Stage",
+    "climb",
     "deferred_rows",
     "effective_sample_size",
     "log_sum_exp",
