@@ -176,6 +176,10 @@ def test_search_settings_are_the_search_agents_alone():
     assert got["search"] == dataclasses.replace(spec.search, top=2, scale=0.5)
     with pytest.raises(ValueError, match="local search"):
         AGENTS["pf-cv"].filter_settings_for("BodyTrack-v2", {"search_top": 2})
+    # a grid's 5.0 is 5 steps; 2.5 climbers is no count at all
+    assert spec.filter_settings_for("BodyTrack-v2", {"search_steps": 5.0})["search"].steps == 5
+    with pytest.raises(ValueError, match="search_top: expected a whole number, got 2.5"):
+        spec.filter_settings_for("BodyTrack-v2", {"search_top": 2.5})
 
 
 def test_spf_agent_end_to_end_on_the_synthetic_data():

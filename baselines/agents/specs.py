@@ -137,9 +137,11 @@ class AgentSpec:
             "beta_max": self.beta_max,
         }
         out.update({n: v for n, v in chosen.items() if not n.startswith(SEARCH_SETTING)})
-        out["layers"] = int(out["layers"])
+        out["layers"] = _whole("layers", out["layers"])
         if self.search is not None:
-            counts = {n: int(v) for n, v in own.items() if n in ("top", "steps")}
+            counts = {
+                n: _whole(SEARCH_SETTING + n, v) for n, v in own.items() if n in ("top", "steps")
+            }
             out["search"] = dataclasses.replace(self.search, **{**own, **counts})
         return out
 
@@ -164,6 +166,21 @@ class AgentSpec:
 
 #: The prefix of a local search's filter settings (``search_top``...).
 SEARCH_SETTING = "search_"
+
+
+def _whole(name: str, value: Any) -> int:
+    """A count given as a number (a grid may give ``5.0``): refused unless whole.
+
+    Raises:
+        ValueError: Naming the setting, if ``value`` is not a whole number.
+    """
+    try:
+        whole = float(value).is_integer()
+    except (TypeError, ValueError):
+        whole = False
+    if isinstance(value, bool) or not whole:
+        raise ValueError(f"filter setting {name}: expected a whole number, got {value!r}")
+    return int(value)
 
 
 def training_motions(task: TaskDescription) -> MotionLibrary:
