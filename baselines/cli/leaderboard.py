@@ -34,6 +34,9 @@ from humotion_gym.cli._common import (
     wrote,
 )
 
+#: Episodes per cell drawn from the seeds when ``--episodes`` is not given.
+DEFAULT_EPISODES = 20
+
 #: Printed under the table: what its columns mean.
 LEGEND = (
     "mean error: keypoint error over the episodes' frames, mm, with a 95% bootstrap "
@@ -71,8 +74,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="particle counts of the particle filters (default: 300 3000)",
     )  # fmt: skip
     lb.add_argument(
-        "--episodes", type=episode_count, default=20,
-        help="episodes per cell, drawn from the seeds (default: 20; ignored with --declared)",
+        "--episodes", type=episode_count, default=None,
+        help=f"episodes per cell, drawn from the seeds (default: {DEFAULT_EPISODES}; not with "
+        "--declared, whose lists fix them)",
     )  # fmt: skip
     lb.add_argument(
         "--declared", action="store_true",
@@ -180,6 +184,13 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         raise UsageError("--videos, --no-report: need --out FOLDER")
     if args.videos and args.agent_seeds > 1:
         raise UsageError("--videos: a video replays one agent seed; drop --agent-seeds")
+    if args.declared and args.episodes is not None:
+        raise UsageError(
+            "--episodes: the declared test lists fix each task's episodes; leave it out with "
+            "--declared"
+        )
+    if args.episodes is None:
+        args.episodes = DEFAULT_EPISODES
     check_engine(args)
     if args.out is not None and args.out.suffix == ".json":
         raise UsageError(

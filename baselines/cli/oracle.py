@@ -119,12 +119,19 @@ def _oracles(args: argparse.Namespace) -> list:
     for text in args.oracles:
         try:
             oracle = parse_oracle(text)
-            if oracle is not None and args.noise_px is not None and ":" not in text:
-                oracle = OracleSettings(oracle.kind, noise_px=args.noise_px)
         except ValueError as exc:
             raise UsageError(f"--oracles: {exc}") from exc
+        if oracle is not None and args.noise_px is not None and ":" not in text:
+            try:
+                oracle = OracleSettings(oracle.kind, noise_px=args.noise_px)
+            except ValueError as exc:
+                raise UsageError(f"--noise-px: {exc}") from exc
         out.append(oracle)
-    out += [OracleSettings("3d", noise_mm=mm) for mm in args.noise_mm]
+    for mm in args.noise_mm:
+        try:
+            out.append(OracleSettings("3d", noise_mm=mm))
+        except ValueError as exc:
+            raise UsageError(f"--noise-mm: {exc}") from exc
     labels = ["image" if o is None else o.label for o in out]
     twice = sorted({x for x in labels if labels.count(x) > 1})
     if twice:

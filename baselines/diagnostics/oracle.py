@@ -65,6 +65,9 @@ FloatArray = NDArray[np.float64]
 #: The oracles by name, with the default noise (pixels) of each.
 ORACLE_KINDS: dict[str, float] = {"2d": 1.0, "2d-unlabelled": 3.0, "3d": 1.0}
 _PELVIS = KEYPOINT_INDEX["pelvis"]
+#: The largest noise an oracle takes: beyond a frame's width in pixels, or 10 m,
+#: the oracle says nothing about the pose and would only spend the run.
+NOISE_LIMITS: dict[str, float] = {"noise_px": 1000.0, "noise_mm": 10_000.0}
 
 
 @dataclass(frozen=True)
@@ -78,8 +81,8 @@ class OracleSettings:
         noise_mm: 3D only: noise per axis in mm instead of ``noise_px``.
 
     Raises:
-        ValueError: If the kind is unknown, a noise is not positive and
-            finite, or ``noise_mm`` is given for a 2D oracle.
+        ValueError: If the kind is unknown, a noise is not in ``(0, limit]``
+            (:data:`NOISE_LIMITS`), or ``noise_mm`` is given for a 2D oracle.
     """
 
     kind: str
@@ -91,10 +94,12 @@ class OracleSettings:
             raise ValueError(
                 f"OracleSettings.kind: expected one of {list(ORACLE_KINDS)}, got {self.kind!r}"
             )
-        for name in ("noise_px", "noise_mm"):
+        for name, limit in NOISE_LIMITS.items():
             value = getattr(self, name)
-            if value is not None and not (np.isfinite(value) and value > 0):
-                raise ValueError(f"OracleSettings.{name}: expected a positive number, got {value}")
+            if value is not None and not (np.isfinite(value) and 0 < value <= limit):
+                raise ValueError(
+                    f"OracleSettings.{name}: expected a number in (0, {limit:g}], got {value}"
+                )
         if self.noise_mm is not None and self.kind != "3d":
             raise ValueError(
                 f"OracleSettings.noise_mm: only the 3d oracle takes it, not {self.kind}"

@@ -169,7 +169,8 @@ def run_leaderboard(
     if folder is not None:
         config = {
             "tasks": list(tasks), "agents": list(agents), "particles": list(particles),
-            "episodes": episodes, "seed": seed, "env_kwargs": kwargs, "engine": engine,
+            "episodes": None if declared else episodes, "seed": seed, "env_kwargs": kwargs,
+            "engine": engine,
             "workers": workers, "address": address,
             **({"agent_seeds": agent_seeds} if agent_seeds != 1 else {}),
             **({"declared": True} if declared else {}),
@@ -369,7 +370,9 @@ def default_command(
 ) -> str:
     """The ``humotion-gym leaderboard`` command line of a run (kept in ``results.json``)."""
     words = ["humotion-gym", "leaderboard", "--tasks", *tasks, "--agents", *agents]
-    words += ["--particles", *map(str, particles), "--episodes", str(episodes)]
+    words += ["--particles", *map(str, particles)]
+    if not flags.get("declared"):  # the declared lists fix the episodes
+        words += ["--episodes", str(episodes)]
     words += ["--seed", str(seed)]
     for name, value in flags.items():
         if value is None or value is False:

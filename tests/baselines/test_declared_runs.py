@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -52,3 +54,16 @@ def test_the_cli_runs_a_declared_table(capsys):
     assert code == 0
     out = capsys.readouterr().out
     assert "| SideWalk-v2 | hold | - |" in out
+
+
+def test_a_declared_run_takes_no_episode_count_and_records_none(capsys, tmp_path):
+    code = main(["leaderboard", "--tasks", "SideWalk-v2", "--agents", "hold", "--declared",
+                 "--episodes", "5"])  # fmt: skip
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--episodes: the declared test lists fix" in err
+    out = tmp_path / "run"
+    assert main(["leaderboard", "--tasks", "SideWalk-v2", "--agents", "hold", "--declared",
+                 "--out", str(out), "--no-report"]) == 0  # fmt: skip
+    saved = json.loads((out / "results.json").read_text())
+    assert saved["config"]["episodes"] is None and "--episodes" not in saved["command"]
