@@ -180,8 +180,12 @@ class LearnerObservation(gym.Wrapper):
     Gymnasium's ``FrameStackObservation`` stacks this observation like any other.
 
     Args:
-        env: A tracking environment (any wrapper chain around one).
+        env: A tracking environment of one view (any wrapper chain around one).
         size: Side of the frame shown, in pixels (default 64).
+
+    Raises:
+        ValueError: If ``size`` is not an integer >= 8 or None, or the task has
+            several views (``views=N``: :class:`FrameObservation` shows them all).
     """
 
     def __init__(self, env: gym.Env, size: int | None = 64) -> None:
@@ -193,7 +197,14 @@ class LearnerObservation(gym.Wrapper):
             )
         self.size = size
         frames = base.observation_space
-        h, w, c = (frames["frame"] if isinstance(frames, spaces.Dict) else frames).shape
+        shape = (frames["frame"] if isinstance(frames, spaces.Dict) else frames).shape
+        if len(shape) != 3:
+            raise ValueError(
+                f"LearnerObservation: expected one view's (H, W, C) frames, got {shape} "
+                "(a views=N task); its learners take one camera, FrameObservation gives "
+                "every view side by side"
+            )
+        h, w, c = shape
         side_h, side_w = (h, w) if size is None else (size, size)
         n_free = base.action_space.shape[0]
         vector = spaces.Box(-1.0, 1.0, shape=(n_free,), dtype=np.float32)
