@@ -326,7 +326,7 @@ def test_reversion_keeps_the_walks_spread_at_the_datas(fitted):
 
     from baselines.filtering import ParticleState
 
-    n, steps = 4000, 400
+    n, steps = 1500, 400  # the spreads within 2% (1 / sqrt(2n)) of their expectations
     q = fitted.n_components
     rng0 = np.random.default_rng(0)
     start = cyclic_pca.initial(fitted, np.zeros(fitted.free.size) + 0.0, 4, rng0)
