@@ -1,0 +1,54 @@
+"""``humotion-gym compare``: does a rerun reproduce a recorded leaderboard, episode by episode.
+
+::
+
+    humotion-gym compare /tmp/rerun/results.json results/v2_body/results.json.gz
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from humotion_gym.cli._common import CommandError, add_command, float_between
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``compare``."""
+    cp = add_command(
+        subparsers,
+        "compare",
+        "compare a rerun of the leaderboard with a recorded run, episode by episode",
+        "humotion-gym compare /tmp/rerun/results.json results/v2_body/results.json.gz",
+        details="Each episode both runs hold (task, agent, particles, agent seed, episode "
+        "seed) must have the record's mean error to --rtol (default: the record's 7 "
+        "significant digits). Prints the counts and every episode that differs; exits 1 "
+        "if any differs or none is compared.",
+    )
+    cp.add_argument("rerun", type=Path, help="the rerun's results.json (or .json.gz)")
+    cp.add_argument("recorded", type=Path, help="the record's results.json.gz (or .json)")
+    cp.add_argument(
+        "--rtol", type=float_between(0.0, 1.0), default=5e-7,
+        help="relative tolerance on each episode's mean error (default: 5e-7)",
+    )  # fmt: skip
+    cp.set_defaults(func=_cmd_compare)
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from baselines.leaderboard.compare import compare_runs
+    from baselines.leaderboard.report import load_rows
+
+    runs = []
+    for path in (args.rerun, args.recorded):
+        try:
+            runs.append(load_rows(path)[0])
+        except (OSError, ValueError) as exc:
+            raise CommandError(f"{path}: {exc}") from None
+    try:
+        result = compare_runs(runs[0], runs[1], args.rtol)
+    except ValueError as exc:
+        raise CommandError(str(exc)) from None
+    print(result.summary())
+    for key, got, want in result.differ:
+        print(f"  {' '.join(map(str, key))}: {got!r} vs recorded {want!r} mm")
+    return 0 if result.compared and not result.differ else 1

@@ -1,0 +1,83 @@
+"""Two leaderboard runs compared episode by episode: does a rerun reproduce a record?
+
+An episode is known by its cell (task, agent, particles), its agent seed and its
+episode seed; it reproduces when its mean keypoint error equals the record's to
+``rtol`` (the repository's records keep 7 significant digits, so ``5e-7``
+asks for the same number). A rerun may hold a subset of the record's episodes
+(one agent seed, say): only the episodes both hold are compared, and the
+counts say how many each holds. ``humotion-gym compare`` is the command.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+#: An episode: task, agent, particles, agent seed, episode seed.
+EpisodeKey = tuple[str, str, int, int, int]
+
+#: The relative difference two records of one number to 7 significant digits can show.
+SAME_RTOL = 5e-7
+
+
+def episode_means(rows: Sequence[dict[str, Any]]) -> dict[EpisodeKey, float]:
+    """Each episode's mean error (mm) of a run's rows, by :data:`EpisodeKey`.
+
+    Raises:
+        ValueError: If an episode appears twice.
+    """
+    out: dict[EpisodeKey, float] = {}
+    for row in rows:
+        for e in row.get("episodes", []):
+            key = (
+                str(row["task"]), str(row["agent"]), int(row["particles"] or 0),
+                int(e.get("agent_seed", 0)), int(e["seed"]),
+            )  # fmt: skip
+            if key in out:
+                raise ValueError(f"episode {key} appears twice")
+            out[key] = float(e["mean_error_mm"])
+    return out
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """What of a rerun reproduces a record.
+
+    Attributes:
+        rerun: Episodes the rerun holds.
+        recorded: Episodes the record holds.
+        compared: Episodes both hold.
+        differ: ``(episode, rerun's mm, record's mm)`` of each compared episode
+            whose mean error is not the record's.
+    """
+
+    rerun: int
+    recorded: int
+    compared: int
+    differ: tuple[tuple[EpisodeKey, float, float], ...]
+
+    def summary(self) -> str:
+        """One line: the counts and how many differ."""
+        return (
+            f"rerun {self.rerun} episodes, record {self.recorded}, compared {self.compared}: "
+            f"{len(self.differ)} differ"
+        )
+
+
+def compare_runs(
+    rerun: Sequence[dict[str, Any]], recorded: Sequence[dict[str, Any]], rtol: float = SAME_RTOL
+) -> Comparison:
+    """Compare a rerun's episodes with a record's (:func:`episode_means` of each).
+
+    Raises:
+        ValueError: If ``rtol`` is negative or not finite, or a run repeats an episode.
+    """
+    if not (0.0 <= rtol < float("inf")):
+        raise ValueError(f"rtol: expected a number >= 0, got {rtol}")
+    got, want = episode_means(rerun), episode_means(recorded)
+    both = sorted(got.keys() & want.keys())
+    differ = tuple(
+        (k, got[k], want[k]) for k in both if abs(got[k] - want[k]) > rtol * abs(want[k])
+    )
+    return Comparison(len(got), len(want), len(both), differ)

@@ -1,0 +1,52 @@
+"""``humotion-gym compare``: a rerun against a record, episode by episode."""
+
+import gzip
+import json
+from pathlib import Path
+
+import pytest
+
+from baselines.cli import main
+from baselines.leaderboard.compare import compare_runs, episode_means
+
+RECORDED = Path(__file__).resolve().parents[2] / "results" / "ci_small" / "results.json.gz"
+
+
+def _rows():
+    return json.loads(gzip.decompress(RECORDED.read_bytes()))["rows"]
+
+
+def test_a_record_reproduces_itself_and_a_changed_episode_is_caught():
+    rows = _rows()
+    same = compare_runs(rows, rows)
+    assert same.compared == same.rerun == same.recorded == len(episode_means(rows)) > 0
+    assert same.differ == ()
+    changed = json.loads(json.dumps(rows))
+    pf = next(r for r in changed if r["agent"] == "pf-cv")
+    pf["episodes"][2]["mean_error_mm"] *= 1 + 2e-6  # past the record's 7 digits
+    got = compare_runs(changed, rows)
+    assert [k[1] for k, *_ in got.differ] == ["pf-cv"]
+    assert compare_runs(changed, rows, rtol=1e-5).differ == ()
+
+
+def test_a_subset_rerun_compares_what_both_hold():
+    rows = _rows()
+    part = [dict(r, episodes=r["episodes"][:3]) for r in rows if "episodes" in r]
+    got = compare_runs(part, rows)
+    assert got.compared == got.rerun == 3 * len(part) < got.recorded and got.differ == ()
+    with pytest.raises(ValueError, match="appears twice"):
+        episode_means([dict(part[0], episodes=part[0]["episodes"] * 2)])
+
+
+def test_the_command_exits_0_when_it_reproduces_and_1_when_not(tmp_path, capsys):
+    assert main(["compare", str(RECORDED), str(RECORDED)]) == 0
+    assert "0 differ" in capsys.readouterr().out
+    rows = _rows()
+    rows[1]["episodes"][0]["mean_error_mm"] += 1.0
+    rerun = tmp_path / "results.json"
+    rerun.write_text(json.dumps({"rows": rows}))
+    assert main(["compare", str(rerun), str(RECORDED)]) == 1
+    assert "1 differ" in capsys.readouterr().out
+    assert main(["compare", str(tmp_path / "none.json"), str(RECORDED)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "none.json" in err
