@@ -36,7 +36,6 @@ from baselines.observation import (
     FirstFrame,
     FrameModel,
     GivenBody,
-    ObservationModel,
     task_model,
 )
 from baselines.priors.limbs import part_columns
@@ -325,7 +324,7 @@ class ParticleFilterAgent:
         diffusion: float = 1.0,
         alpha: float = 0.5,
         beta_max: float = float("inf"),
-        observation_model: ObservationModel | None = None,
+        observation_model: FrameModel | None = None,
         search: LocalSearch | None = None,
     ) -> None:
         refuse_truth(observation_model, "observation_model")

@@ -32,8 +32,9 @@ from baselines.agents.settings import (
     SettingsError,
     load,
 )
+from baselines.detector.settings import DetectorTerm
 from baselines.filtering.search import LocalSearch
-from baselines.observation import ObservationModel
+from baselines.observation import FrameModel, ObservationModel
 from baselines.priors import limbs, mixture
 from baselines.priors.fitting import fit_prior as fit_prior_on
 from humotion_gym.envs.description import TaskDescription
@@ -81,6 +82,9 @@ class AgentSpec:
         search: A local search of the best particles on the likelihood each
             frame (:class:`~baselines.filtering.search.SearchParticleFilter`);
             its fields are the filter settings ``search_NAME``.
+        detector: The learned 2D keypoint detector's term in the likelihood
+            (:mod:`baselines.detector.term`; the ``+det`` agents); None: the
+            image likelihood alone.
     """
 
     prior: str
@@ -97,6 +101,7 @@ class AgentSpec:
     beta_max: float = float("inf")
     task_filter_settings: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     search: LocalSearch | None = None
+    detector: DetectorTerm | None = None
 
     def settings_for(self, task: str) -> dict[str, Any]:
         """The fit settings of this agent on a task."""
@@ -284,6 +289,9 @@ def _fit_per_part(
 CONSTANT_VELOCITY = "baselines.priors.constant_velocity"
 MIXTURE = "baselines.priors.mixture"
 
+#: How the ``-det`` agents weigh the detector's keypoints (docs/detector.md).
+DETECTOR_TERM = DetectorTerm()
+
 #: What each particle-filter agent is, by name: ``AgentSpec`` keywords other
 #: than its settings (those come from ``baselines/agents/pf.yml``). A mixture's
 #: ``components`` are ``(label, prior)`` pairs, the first taking the weight the
@@ -386,6 +394,27 @@ STRUCTURE: dict[str, dict[str, Any]] = {
         search=LocalSearch(),
         description="pf-mix's mixture and particles; each frame its best particles climb the "
         "likelihood, body part by body part",
+    ),
+    "pf-cv-det": dict(
+        prior=CONSTANT_VELOCITY,
+        detector=DETECTOR_TERM,
+        description="pf-cv with the learned 2D keypoint detector's term added to the image "
+        "likelihood in every view (baselines.detector; docs/detector.md)",
+    ),
+    "pf-mix-det": dict(
+        prior=MIXTURE,
+        components=(("tree", TREE), ("cv", CONSTANT_VELOCITY), ("still", CONSTANT_VELOCITY)),
+        detector=DETECTOR_TERM,
+        description="pf-mix with the learned 2D keypoint detector's term added to the image "
+        "likelihood in every view",
+    ),
+    "spf-mix-det": dict(
+        prior=MIXTURE,
+        components=(("tree", TREE), ("cv", CONSTANT_VELOCITY), ("still", CONSTANT_VELOCITY)),
+        search=LocalSearch(),
+        detector=DETECTOR_TERM,
+        description="spf-mix (pf-mix with the local climb) with the learned 2D keypoint "
+        "detector's term added to the image likelihood in every view",
     ),
     "apf-mix": dict(
         prior=MIXTURE,
@@ -526,7 +555,14 @@ def filter_agent(
     """
     base = describe(task)
     settings = spec.filter_settings_for(base.task.name, filter_settings)
+    model: FrameModel | None = observation_model
+    if spec.detector is not None and model is None:
+        # The detector's network runs on torch (the rl extra): imported only
+        # when an agent that uses it is built, so the other agents need none.
+        from baselines.detector.term import detector_model
+
+        model = detector_model(base.task, spec.detector)
     return ParticleFilterAgent(
         base, module, fitted, n_particles, seed, estimate, name,
-        partitioned=spec.partitioned, observation_model=observation_model, **settings,
+        partitioned=spec.partitioned, observation_model=model, **settings,
     )  # fmt: skip

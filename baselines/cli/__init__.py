@@ -32,6 +32,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "baselines.cli.pca",  # pca period|figures
     "baselines.cli.slds",  # slds classify|select|splits|interpolate|figures
     "baselines.cli.train",  # train, learning-curve (learned trackers)
+    "baselines.cli.detector",  # detector train (the learned 2D keypoint detector)
     "baselines.cli.report",  # report (tables, figures, videos of a saved leaderboard)
     "baselines.cli.compare",  # compare (a rerun against a recorded run, episode by episode)
     "baselines.cli.sweep",  # sweep (difficulty curves over environment settings)

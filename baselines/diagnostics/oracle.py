@@ -49,18 +49,21 @@ from numpy.typing import ArrayLike, NDArray
 from baselines.agents.base import tracking_env
 from baselines.agents.filters import ParticleFilterAgent
 from baselines.observation import FirstFrame, GivenBody
-from humotion_gym.body import (
-    CONE_KEYPOINTS,
-    KEYPOINT_INDEX,
-    KEYPOINT_NAMES,
-    N_CONES,
-    N_PARAMS,
-    BodyShape,
-    forward_kinematics,
-)
+from baselines.observation.keypoints import KeypointScorer, left_right_partners
+from humotion_gym.body import KEYPOINT_INDEX, N_PARAMS, BodyShape, forward_kinematics
 from humotion_gym.camera import Camera
 
 FloatArray = NDArray[np.float64]
+
+__all__ = [
+    "ORACLE_KINDS",
+    "OracleFeed",
+    "OracleObservation",
+    "OracleSettings",
+    "TruthOracle",
+    "left_right_partners",
+    "with_oracle",
+]
 
 #: The oracles by name, with the default noise (pixels) of each.
 ORACLE_KINDS: dict[str, float] = {"2d": 1.0, "2d-unlabelled": 3.0, "3d": 1.0}
@@ -135,27 +138,6 @@ class OracleObservation:
     counts: bool = True
 
 
-def left_right_partners(keypoints: Sequence[int]) -> NDArray[np.intp]:
-    """Each keypoint's left/right partner, as positions in ``keypoints`` (itself if none).
-
-    Args:
-        keypoints: Keypoint indices (:data:`~humotion_gym.body.KEYPOINT_NAMES`).
-
-    Returns:
-        ``(K,)`` positions: ``r_elbow``'s is ``l_elbow``'s position and back;
-        a keypoint without a side, or whose partner is not in ``keypoints``,
-        is its own.
-    """
-    names = [KEYPOINT_NAMES[int(k)] for k in keypoints]
-    flip = {"r_": "l_", "l_": "r_"}
-    out = np.arange(len(names), dtype=np.intp)
-    for i, name in enumerate(names):
-        other = flip.get(name[:2], "") + name[2:] if name[:2] in flip else name
-        if other in names:
-            out[i] = names.index(other)
-    return out
-
-
 class TruthOracle:
     """A likelihood that reads the truth of the frame on show (analysis only).
 
@@ -176,28 +158,11 @@ class TruthOracle:
     reads_truth: ClassVar[bool] = True
 
     def __init__(self, settings: OracleSettings, keypoints: ArrayLike, seed: int = 0) -> None:
-        kp = np.asarray(keypoints, dtype=np.intp).reshape(-1)
-        if kp.size == 0 or kp.min() < 0 or kp.max() >= len(KEYPOINT_NAMES):
-            raise ValueError(
-                f"TruthOracle.keypoints: expected indices in 0..{len(KEYPOINT_NAMES) - 1}, "
-                f"got {kp.tolist()}"
-            )
         self.settings = settings
-        self.keypoints = kp
+        self.scorer = KeypointScorer(keypoints, settings.kind == "2d-unlabelled", "TruthOracle")
+        self.keypoints = self.scorer.keypoints
         self.seed = int(seed)
         self.dims = 3 if settings.kind == "3d" else 2
-        # The position of each keypoint's partner: itself unless unlabelled.
-        self.partners = (
-            left_right_partners(kp.tolist())
-            if settings.kind == "2d-unlabelled"
-            else np.arange(kp.size, dtype=np.intp)
-        )
-        # Each pair once: its first member's position, its second's, and
-        # whether it is a pair at all (a keypoint without a partner is alone).
-        positions = np.arange(kp.size, dtype=np.intp)
-        self._firsts = positions[positions <= self.partners]
-        self._seconds = self.partners[self._firsts]
-        self._paired = self._seconds != self._firsts
         self._rng = np.random.default_rng([self.seed, 0])
         self._shown: list[OracleObservation] = []
         self._view = 0
@@ -290,8 +255,8 @@ class TruthOracle:
             TypeError: If ``frame`` is not an :class:`OracleObservation`.
             ValueError: If ``params`` is not ``(N, 25)``.
         """
-        full = np.ones((1, self.keypoints.size), dtype=bool)
-        return self._scores(frame, params, shape, camera, full, "log_likelihood")[:, 0]
+        whole = self.scorer.whole()
+        return self._scores(frame, params, shape, camera, whole, "log_likelihood")[:, 0]
 
     def log_likelihood_partial(
         self,
@@ -313,20 +278,7 @@ class TruthOracle:
             ValueError: As :meth:`log_likelihood`, or if a group names a cone
                 that does not exist or one an earlier group has.
         """
-        seen: set[int] = set()
-        masks = np.zeros((len(groups) + 1, self.keypoints.size), dtype=bool)
-        placed: set[int] = set()
-        for g, group in enumerate(groups):
-            cones = [int(c) for c in group]
-            if any(not 0 <= c < N_CONES for c in cones) or seen & set(cones):
-                raise ValueError(
-                    f"TruthOracle.log_likelihood_partial: groups[{g}] = {cones}: expected cone "
-                    f"indices in 0..{N_CONES - 1}, each in one group"
-                )
-            seen |= set(cones)
-            placed |= {int(k) for c in cones for k in CONE_KEYPOINTS[c]}
-            masks[g] = np.isin(self.keypoints, sorted(placed))
-        masks[-1] = True
+        masks = self.scorer.partial_masks(groups)
         return self._scores(frame, params, shape, camera, masks, "log_likelihood_partial")
 
     def _scores(
@@ -354,26 +306,7 @@ class TruthOracle:
         points = forward_kinematics(p, shape)[:, self.keypoints]  # (N, K, 3)
         if self.dims == 2:
             points = camera.project(points)  # NaN at or behind the camera
-        # d2[n, k, j]: squared distance of pose n's keypoint k to detection
-        # partners[k] if j else k (the same for a labelled oracle).
-        obs = frame.points
-        d2 = np.stack(
-            [
-                np.sum((points - obs) ** 2, axis=-1),
-                np.sum((points - obs[self.partners]) ** 2, axis=-1),
-            ],
-            axis=-1,
-        )
-        d2 = np.where(np.isnan(d2), np.inf, d2)
-        # Per mask: the straight and the swapped assignment of each pair,
-        # summed over the pair's placed members (a keypoint without a partner
-        # is its own pair and its two assignments are one).
-        each = np.where(masks[None, :, :, None], d2[:, None], 0.0)  # (N, M, K, 2)
-        sums = each[:, :, self._firsts] + np.where(
-            self._paired[:, None], each[:, :, self._seconds], 0.0
-        )  # (N, M, pairs, 2)
-        cost = sums.min(axis=-1).sum(axis=-1)  # (N, M)
-        return -cost / (2.0 * frame.sigma**2)
+        return -self.scorer.cost(points, frame.points, masks) / (2.0 * frame.sigma**2)
 
 
 class OracleFeed(gym.Wrapper):

@@ -1,0 +1,170 @@
+"""The keypoint term: poses' keypoints scored against observed points.
+
+One scorer serves every likelihood that compares a pose's keypoints with
+points seen in a frame: the 2D and 3D truth oracles of
+:mod:`baselines.diagnostics.oracle` (analysis only) and the learned 2D
+detector's term of :mod:`baselines.detector.term`. For a pose ``x`` with
+keypoints ``k(x)`` (:func:`humotion_gym.body.forward_kinematics`, projected by
+the camera for 2D points) and observed points ``y``::
+
+    cost(x) = sum over keypoints k of  w_k |k(x) - y_k|^2
+
+with ``w_k`` a weight per keypoint (``1 / (2 sigma_k^2)`` for a Gaussian of
+standard deviation ``sigma_k``; the caller may instead scale a plain sum), each
+term optionally capped at ``cap`` (an outlier process: a detection further
+than the cap allows costs the same however far it lies, as the truncated
+quadratic of robust estimation, Black & Rangarajan, *On the unification of
+line processes, outlier rejection, and robust statistics*, IJCV 1996).
+
+With the left/right identity unknown, each left/right pair of keypoints
+(the hips, knees, ankles, shoulders, elbows, wrists) scores the better of its
+two assignments, ``min(d(a, A) + d(b, B), d(a, B) + d(b, A))``, pair by pair.
+
+Partial figures (partitioned sampling) score the keypoints placed so far
+(``masks``), an unlabelled keypoint whose partner is not yet placed taking the
+nearer of the pair's two points.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from humotion_gym.body import CONE_KEYPOINTS, KEYPOINT_NAMES, N_CONES
+
+FloatArray = NDArray[np.float64]
+
+
+def left_right_partners(keypoints: Sequence[int]) -> NDArray[np.intp]:
+    """Each keypoint's left/right partner, as positions in ``keypoints`` (itself if none).
+
+    Args:
+        keypoints: Keypoint indices (:data:`~humotion_gym.body.KEYPOINT_NAMES`).
+
+    Returns:
+        ``(K,)`` positions: ``r_elbow``'s is ``l_elbow``'s position and back;
+        a keypoint without a side, or whose partner is not in ``keypoints``,
+        is its own.
+    """
+    names = [KEYPOINT_NAMES[int(k)] for k in keypoints]
+    flip = {"r_": "l_", "l_": "r_"}
+    out = np.arange(len(names), dtype=np.intp)
+    for i, name in enumerate(names):
+        other = flip.get(name[:2], "") + name[2:] if name[:2] in flip else name
+        if other in names:
+            out[i] = names.index(other)
+    return out
+
+
+class KeypointScorer:
+    """Scores poses' keypoints against observed points (the module's cost).
+
+    Args:
+        keypoints: The scored keypoints' indices
+            (:data:`~humotion_gym.body.KEYPOINT_NAMES`).
+        unlabelled: The left/right identity of the observed points is
+            unknown: each pair scores the better of its two assignments.
+        caller: Names the owner in error messages.
+
+    Raises:
+        ValueError: If ``keypoints`` is empty or names no keypoint.
+    """
+
+    def __init__(self, keypoints: ArrayLike, unlabelled: bool, caller: str) -> None:
+        kp = np.asarray(keypoints, dtype=np.intp).reshape(-1)
+        if kp.size == 0 or kp.min() < 0 or kp.max() >= len(KEYPOINT_NAMES):
+            raise ValueError(
+                f"{caller}.keypoints: expected indices in 0..{len(KEYPOINT_NAMES) - 1}, "
+                f"got {kp.tolist()}"
+            )
+        self.keypoints = kp
+        self.caller = caller
+        # The position of each keypoint's partner: itself unless unlabelled.
+        self.partners = (
+            left_right_partners(kp.tolist()) if unlabelled else np.arange(kp.size, dtype=np.intp)
+        )
+        # Each pair once: its first member's position, its second's, and
+        # whether it is a pair at all (a keypoint without a partner is alone).
+        positions = np.arange(kp.size, dtype=np.intp)
+        self._firsts = positions[positions <= self.partners]
+        self._seconds = self.partners[self._firsts]
+        self._paired = self._seconds != self._firsts
+
+    def whole(self) -> NDArray[np.bool_]:
+        """``(1, K)``: the mask of the whole figure (every scored keypoint)."""
+        return np.ones((1, self.keypoints.size), dtype=bool)
+
+    def partial_masks(self, groups: Sequence[Sequence[int]]) -> NDArray[np.bool_]:
+        """``(G + 1, K)``: the keypoints placed once groups ``0..g`` of cones are; last: all.
+
+        Column ``g``'s keypoints are those the cones of groups ``0..g`` end on
+        (:data:`~humotion_gym.body.CONE_KEYPOINTS`).
+
+        Raises:
+            ValueError: If a group names a cone that does not exist or one an
+                earlier group has.
+        """
+        seen: set[int] = set()
+        masks = np.zeros((len(groups) + 1, self.keypoints.size), dtype=bool)
+        placed: set[int] = set()
+        for g, group in enumerate(groups):
+            cones = [int(c) for c in group]
+            if any(not 0 <= c < N_CONES for c in cones) or seen & set(cones):
+                raise ValueError(
+                    f"{self.caller}.log_likelihood_partial: groups[{g}] = {cones}: expected cone "
+                    f"indices in 0..{N_CONES - 1}, each in one group"
+                )
+            seen |= set(cones)
+            placed |= {int(k) for c in cones for k in CONE_KEYPOINTS[c]}
+            masks[g] = np.isin(self.keypoints, sorted(placed))
+        masks[-1] = True
+        return masks
+
+    def cost(
+        self,
+        points: FloatArray,
+        observed: FloatArray,
+        masks: NDArray[np.bool_],
+        weights: FloatArray | None = None,
+        cap: float = float("inf"),
+    ) -> FloatArray:
+        """``(N, M)``: each pose's cost over each mask's keypoints.
+
+        Args:
+            points: ``(N, K, D)`` the poses' scored keypoints (pixels or mm);
+                NaN where a point cannot be placed (behind the camera), which
+                then costs ``inf``.
+            observed: ``(K, D)`` the observed points, the scored keypoints'
+                order.
+            masks: ``(M, K)`` the keypoints each figure scores.
+            weights: ``(K,)`` a weight per keypoint (``1 / (2 sigma_k^2)``);
+                None: 1.
+            cap: The most one keypoint's weighted term may cost (inf: none).
+
+        Returns:
+            ``(N, M)`` non-negative costs.
+        """
+        # d2[n, k, j]: squared distance of pose n's keypoint k to observed
+        # point partners[k] if j else k (the same for labelled points).
+        d2 = np.stack(
+            [
+                np.sum((points - observed) ** 2, axis=-1),
+                np.sum((points - observed[self.partners]) ** 2, axis=-1),
+            ],
+            axis=-1,
+        )
+        if weights is not None:
+            d2 = d2 * np.asarray(weights, dtype=np.float64)[:, None]
+        if np.isfinite(cap):
+            d2 = np.minimum(d2, cap)  # a NaN stays NaN: no cap behind the camera
+        d2 = np.where(np.isnan(d2), np.inf, d2)
+        # Per mask: the straight and the swapped assignment of each pair,
+        # summed over the pair's placed members (a keypoint without a partner
+        # is its own pair and its two assignments are one).
+        each = np.where(masks[None, :, :, None], d2[:, None], 0.0)  # (N, M, K, 2)
+        sums = each[:, :, self._firsts] + np.where(
+            self._paired[:, None], each[:, :, self._seconds], 0.0
+        )  # (N, M, pairs, 2)
+        return sums.min(axis=-1).sum(axis=-1)  # (N, M)
