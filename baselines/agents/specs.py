@@ -289,8 +289,12 @@ def _fit_per_part(
 CONSTANT_VELOCITY = "baselines.priors.constant_velocity"
 MIXTURE = "baselines.priors.mixture"
 
-#: How the ``-det`` agents weigh the detector's keypoints (docs/detector.md).
-DETECTOR_TERM = DetectorTerm()
+#: How the ``-det`` agents weigh the detector's keypoints, chosen on the
+#: validation persons (docs/detector.md): each keypoint's sigma twice the
+#: detector's validation error, a keypoint's term capped at 2 nats (a
+#: detection more than four of its sigmas off counts as a miss), the image
+#: likelihood kept at full weight.
+DETECTOR_TERM = DetectorTerm(sigma_scale=2.0, cap=2.0)
 
 #: What each particle-filter agent is, by name: ``AgentSpec`` keywords other
 #: than its settings (those come from ``baselines/agents/pf.yml``). A mixture's

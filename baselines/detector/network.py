@@ -11,7 +11,7 @@ upsampled and joined with the 32x32 one, and a 1x1 convolution gives one
 32x32 map of logits per keypoint.
 
 Each map's softmax is read as the keypoint's position distribution
-(integral regression: Sun, Xiao, Liang & Wei, *Integral human pose
+(integral regression: Sun, Xiao, Wei, Liang & Wei, *Integral human pose
 regression*, ECCV 2018); :func:`decode` takes the expectation in a small
 window about the map's peak (sub-pixel, and not pulled to the middle of two
 modes as the whole map's expectation would be).
