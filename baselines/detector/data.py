@@ -109,7 +109,7 @@ def render_frames(
         env = envs[turn % len(envs)]
         turn += 1
         base = tracking_env(env)
-        subjects |= set(base._episode_clips().subjects)
+        subjects |= set(base.library.episode_split(split).subjects)
         obs, _ = env.reset(seed=int(rng.integers(2**31)))
         shape = env.action_space.shape
         assert shape is not None  # a Box

@@ -243,3 +243,49 @@ def test_settings_refuse_nonsense():
     ):
         with pytest.raises(ValueError, match=match):
             DetectorTerm(**kwargs)
+
+
+def test_rendered_labels_are_the_true_keypoints_projected_and_test_persons_are_refused():
+    from baselines.detector.data import render_frames
+
+    frames = render_frames(6, seed=0, sources=[("BodyTrack-v2", 2)], stride=3)
+    assert frames.frames.shape == (6, 128, 128, 3) and frames.points.shape == (6, 15, 2)
+    # views 0 and 1 of a step: one pose, two cameras, two different projections
+    assert not np.allclose(frames.points[0], frames.points[1])
+    assert np.all(np.isfinite(frames.points)) and frames.subjects
+    with pytest.raises(ValueError, match="test persons"):
+        render_frames(4, split="test")
+    with pytest.raises(ValueError, match="n_frames"):
+        render_frames(0)
+
+
+def test_the_loss_prefers_the_true_heatmap():
+    import torch as th
+
+    from baselines.detector.train import loss_of
+
+    points = np.array([[[40.0, 60.0]] * 15, [[100.0, 20.0]] * 15])
+    cells = pixel_to_cell(points)
+    right = np.stack([[_gaussian_logits(*c) for c in frame] for frame in cells])
+    wrong = np.stack([[_gaussian_logits(*(c + 3.0)) for c in frame] for frame in cells])
+    good = float(loss_of(th.from_numpy(right).float(), points))
+    bad = float(loss_of(th.from_numpy(wrong).float(), points))
+    assert good < bad
+    # a keypoint outside the frame carries no loss
+    outside = points.copy()
+    outside[0] = [-50.0, 400.0]  # the first frame's keypoints all out of it
+    only = float(loss_of(th.from_numpy(wrong[1:]).float(), points[1:]))
+    assert float(loss_of(th.from_numpy(wrong).float(), outside)) == pytest.approx(only, rel=1e-6)
+
+
+def test_cli_train_writes_weights_and_their_record(tmp_path):
+    out = tmp_path / "det"
+    argv = ["detector", "train", "--out", str(out), "--frames", "64", "--validation-frames",
+            "16", "--epochs", "1", "--width", "4", "--threads", "1"]  # fmt: skip
+    assert main(argv) == 0
+    meta = json.loads((out / "detector.json").read_text())
+    assert meta["command"].startswith("humotion-gym detector train --out")
+    assert meta["settings"]["seed"] == 0 and meta["frames"] == 64
+    assert set(meta["validation_error_px"]) >= {"pelvis", "l_wrist", "all"}
+    assert not set(meta["training_persons"]) & set(meta["validation_persons"])
+    Detector.load(out / "detector.npz")
