@@ -412,6 +412,13 @@ STRUCTURE: dict[str, dict[str, Any]] = {
         description="pf-mix with the learned 2D keypoint detector's term added to the image "
         "likelihood in every view",
     ),
+    "spf-cv-det": dict(
+        prior=CONSTANT_VELOCITY,
+        search=LocalSearch(),
+        detector=DETECTOR_TERM,
+        description="spf-cv (pf-cv with the local climb) with the learned 2D keypoint "
+        "detector's term added to the image likelihood in every view",
+    ),
     "spf-mix-det": dict(
         prior=MIXTURE,
         components=(("tree", TREE), ("cv", CONSTANT_VELOCITY), ("still", CONSTANT_VELOCITY)),
