@@ -39,8 +39,8 @@ from numpy.typing import ArrayLike, NDArray
 from baselines.detector.network import Detector
 from baselines.detector.settings import DetectorTerm
 from baselines.observation import FirstFrame, GivenBody, ObservationModel, task_model
-from baselines.observation.keypoints import KeypointScorer
-from humotion_gym.body import KEYPOINT_NAMES, N_PARAMS, BodyShape, forward_kinematics
+from baselines.observation.keypoints import KeypointScorer, pose_batch
+from humotion_gym.body import KEYPOINT_NAMES, BodyShape, forward_kinematics
 from humotion_gym.camera import Camera
 from humotion_gym.envs.tasks import TaskSpec
 
@@ -198,12 +198,7 @@ class DetectorLikelihood:
                 f"DetectorLikelihood.{caller}: expected the Detections of prepare(), "
                 f"got {type(frame).__name__}"
             )
-        p = np.asarray(params, dtype=np.float64)
-        if p.ndim != 2 or p.shape[1] != N_PARAMS:
-            raise ValueError(
-                f"DetectorLikelihood.{caller}: expected poses of shape (N, 25), got {p.shape}"
-            )
-        return frame, p
+        return frame, pose_batch(params, f"DetectorLikelihood.{caller}")
 
     def _keypoints(
         self,

@@ -49,8 +49,8 @@ from numpy.typing import ArrayLike, NDArray
 from baselines.agents.base import tracking_env
 from baselines.agents.filters import ParticleFilterAgent
 from baselines.observation import FirstFrame, GivenBody
-from baselines.observation.keypoints import KeypointScorer, left_right_partners
-from humotion_gym.body import KEYPOINT_INDEX, N_PARAMS, BodyShape, forward_kinematics
+from baselines.observation.keypoints import KeypointScorer, left_right_partners, pose_batch
+from humotion_gym.body import KEYPOINT_INDEX, BodyShape, forward_kinematics
 from humotion_gym.camera import Camera
 
 FloatArray = NDArray[np.float64]
@@ -296,11 +296,7 @@ class TruthOracle:
                 f"TruthOracle.{caller}: expected the OracleObservation of prepare(), "
                 f"got {type(frame).__name__}"
             )
-        p = np.asarray(params, dtype=np.float64)
-        if p.ndim != 2 or p.shape[1] != N_PARAMS:
-            raise ValueError(
-                f"TruthOracle.{caller}: expected poses of shape (N, 25), got {p.shape}"
-            )
+        p = pose_batch(params, f"TruthOracle.{caller}")
         if not frame.counts:
             return np.zeros((p.shape[0], masks.shape[0]))
         points = forward_kinematics(p, shape)[:, self.keypoints]  # (N, K, 3)

@@ -32,9 +32,21 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from humotion_gym.body import CONE_KEYPOINTS, KEYPOINT_NAMES, N_CONES
+from humotion_gym.body import CONE_KEYPOINTS, KEYPOINT_NAMES, N_CONES, N_PARAMS
 
 FloatArray = NDArray[np.float64]
+
+
+def pose_batch(params: ArrayLike, where: str) -> NDArray[np.float64]:
+    """``(N, 25)`` float64 poses of ``params``, checked for a keypoint term's scoring.
+
+    Raises:
+        ValueError: Naming ``where``, if ``params`` is not ``(N, 25)``.
+    """
+    p = np.asarray(params, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != N_PARAMS:
+        raise ValueError(f"{where}: expected poses of shape (N, 25), got {p.shape}")
+    return p
 
 
 def left_right_partners(keypoints: Sequence[int]) -> NDArray[np.intp]:
