@@ -155,7 +155,7 @@ class ParticleFilter:
         return np.exp(self.log_weights)
 
 
-def _within(
+def within_bounds(
     pose: FloatArray, lower: FloatArray | None, upper: FloatArray | None
 ) -> NDArray[np.bool_]:
     """``(N,)`` True for poses with finite parameters inside the bounds (None: unbounded)."""
@@ -267,7 +267,7 @@ class AnnealedParticleFilter(ParticleFilter):
         self.layer_survival: list[float] = []
 
     def _valid(self, pose: FloatArray) -> NDArray[np.bool_]:
-        return _within(pose, self.lower, self.upper)
+        return within_bounds(pose, self.lower, self.upper)
 
     def step(self, frame: Any) -> FloatArray:
         """Advance one frame: propose from the prior, then anneal through the layers.
@@ -456,7 +456,7 @@ class PartitionedParticleFilter(ParticleFilter):
                     f"log_likelihood_partial returned shape {partial.shape}, expected "
                     f"({self.n}, {len(groups) + 1})"
                 )
-            partial[~_within(state.pose, self.lower, self.upper)] = -np.inf
+            partial[~within_bounds(state.pose, self.lower, self.upper)] = -np.inf
             if k == len(groups) - 1:
                 break
             weights = tempered_weights(_increment(partial, k, k), 1.0)

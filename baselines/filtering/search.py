@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from baselines.filtering.filters import ParticleFilter
+from baselines.filtering.filters import ParticleFilter, within_bounds
 from baselines.filtering.state import Likelihood, ParticleState, Prior
 from baselines.filtering.weights import (
     effective_sample_size,
@@ -368,12 +368,8 @@ class SearchParticleFilter(ParticleFilter):
             raise ValueError(
                 f"log_likelihood returned shape {loglik.shape}, expected ({pose.shape[0]},)"
             )
-        ok = np.isfinite(pose).all(axis=1)
-        if self.lower is not None:
-            ok &= (pose >= self.lower).all(axis=1)
-        if self.upper is not None:
-            ok &= (pose <= self.upper).all(axis=1)
-        return np.where(np.isnan(loglik) | ~ok, -np.inf, loglik)
+        inside = within_bounds(pose, self.lower, self.upper)
+        return np.where(np.isnan(loglik) | ~inside, -np.inf, loglik)
 
     def step(self, frame: Any) -> FloatArray:
         """Advance one frame: predict, score, climb, weigh, estimate, resample.
