@@ -16,7 +16,7 @@ def env():
 
 
 def test_still_windows_are_what_hold_scores_lowest_and_never_overlap(env):
-    windows = still_windows(env, max_hold_mm=200.0, count=6, stride=10)
+    windows = still_windows(env, max_hold_mm=200.0, count=6, stride=20)
     assert 1 <= len(windows) <= 6
     hold = make("hold", env)
     errors = [run_episode(hold, env, 0, w.options).mean_error_mm for w in windows]
@@ -27,7 +27,7 @@ def test_still_windows_are_what_hold_scores_lowest_and_never_overlap(env):
         for b in windows[i + 1 :]:
             assert a.clip_id != b.clip_id or abs(a.start - b.start) >= span
     # a tighter bound keeps a prefix of the same windows (none may be looser)
-    tight = still_windows(env, max_hold_mm=windows[0].hold_mm + 1e-9, count=6, stride=10)
+    tight = still_windows(env, max_hold_mm=windows[0].hold_mm + 1e-9, count=6, stride=20)
     assert tight[0] == windows[0] and all(w.hold_mm <= windows[0].hold_mm for w in tight)
 
 
