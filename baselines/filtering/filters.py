@@ -167,6 +167,20 @@ def within_bounds(
     return ok
 
 
+def floor_and_bounds(
+    owner: str, min_std: ArrayLike, lower: ArrayLike | None, upper: ArrayLike | None
+) -> tuple[FloatArray, FloatArray | None, FloatArray | None]:
+    """A search's floor on its step (``min_std``) and the valid poses' bounds, checked."""
+    floor = np.asarray(min_std, dtype=np.float64)
+    if np.any(floor < 0) or not np.all(np.isfinite(floor)):
+        raise ValueError(f"{owner}: min_std must be finite and >= 0")
+    return (
+        floor,
+        None if lower is None else np.asarray(lower, dtype=np.float64),
+        None if upper is None else np.asarray(upper, dtype=np.float64),
+    )
+
+
 def _search_settings(
     owner: str,
     diffusion: float,
@@ -177,15 +191,7 @@ def _search_settings(
     """The diffusion scale, its floor and the valid poses' bounds, checked."""
     if not (np.isfinite(diffusion) and diffusion >= 0):
         raise ValueError(f"{owner}: diffusion must be >= 0, got {diffusion}")
-    floor = np.asarray(min_std, dtype=np.float64)
-    if np.any(floor < 0) or not np.all(np.isfinite(floor)):
-        raise ValueError(f"{owner}: min_std must be finite and >= 0")
-    return (
-        float(diffusion),
-        floor,
-        None if lower is None else np.asarray(lower, dtype=np.float64),
-        None if upper is None else np.asarray(upper, dtype=np.float64),
-    )
+    return (float(diffusion), *floor_and_bounds(owner, min_std, lower, upper))
 
 
 class AnnealedParticleFilter(ParticleFilter):

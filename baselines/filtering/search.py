@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from baselines.filtering.filters import ParticleFilter, within_bounds
+from baselines.filtering.filters import ParticleFilter, floor_and_bounds, within_bounds
 from baselines.filtering.state import Likelihood, ParticleState, Prior
 from baselines.filtering.weights import (
     effective_sample_size,
@@ -351,12 +351,9 @@ class SearchParticleFilter(ParticleFilter):
         super().__init__(prior, fitted, observation_model, n, angle_mask, resampling, 1.0, estimate)
         self.search = search
         self.blocks = None if blocks is None else [np.asarray(b, dtype=np.intp) for b in blocks]
-        floor = np.asarray(min_std, dtype=np.float64)
-        if np.any(floor < 0) or not np.all(np.isfinite(floor)):
-            raise ValueError("SearchParticleFilter: min_std must be finite and >= 0")
-        self.min_std = floor
-        self.lower = None if lower is None else np.asarray(lower, dtype=np.float64)
-        self.upper = None if upper is None else np.asarray(upper, dtype=np.float64)
+        self.min_std, self.lower, self.upper = floor_and_bounds(
+            "SearchParticleFilter", min_std, lower, upper
+        )
         #: Likelihood evaluations of the last frame, and the climb's accepted steps.
         self.evaluations = 0
         self.accepted = 0
