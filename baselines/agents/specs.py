@@ -288,6 +288,8 @@ def _fit_per_part(
 
 CONSTANT_VELOCITY = "baselines.priors.constant_velocity"
 MIXTURE = "baselines.priors.mixture"
+#: pf-mix's components, shared by every agent built on its mixture.
+MIX_COMPONENTS = (("tree", TREE), ("cv", CONSTANT_VELOCITY), ("still", CONSTANT_VELOCITY))
 
 #: How the ``-det`` agents weigh the detector's keypoints, chosen on the
 #: validation persons (docs/detector.md): each keypoint's sigma twice the
@@ -345,7 +347,7 @@ STRUCTURE: dict[str, dict[str, Any]] = {
     ),
     "pf-mix": dict(
         prior=MIXTURE,
-        components=(("tree", TREE), ("cv", CONSTANT_VELOCITY), ("still", CONSTANT_VELOCITY)),
+        components=MIX_COMPONENTS,
         description="a mixture of the tree prior, constant velocity and a small random walk "
         "(Sidenbladh, Black & Sigal 2002, section 7): each particle, each frame, moves by one",
     ),
@@ -394,7 +396,7 @@ STRUCTURE: dict[str, dict[str, Any]] = {
     ),
     "spf-mix": dict(
         prior=MIXTURE,
-        components=(("tree", TREE), ("cv", CONSTANT_VELOCITY), ("still", CONSTANT_VELOCITY)),
+        components=MIX_COMPONENTS,
         search=LocalSearch(),
         description="pf-mix's mixture and particles; each frame its best particles climb the "
         "likelihood, body part by body part",
@@ -407,7 +409,7 @@ STRUCTURE: dict[str, dict[str, Any]] = {
     ),
     "pf-mix-det": dict(
         prior=MIXTURE,
-        components=(("tree", TREE), ("cv", CONSTANT_VELOCITY), ("still", CONSTANT_VELOCITY)),
+        components=MIX_COMPONENTS,
         detector=DETECTOR_TERM,
         description="pf-mix with the learned 2D keypoint detector's term added to the image "
         "likelihood in every view",
@@ -421,7 +423,7 @@ STRUCTURE: dict[str, dict[str, Any]] = {
     ),
     "spf-mix-det": dict(
         prior=MIXTURE,
-        components=(("tree", TREE), ("cv", CONSTANT_VELOCITY), ("still", CONSTANT_VELOCITY)),
+        components=MIX_COMPONENTS,
         search=LocalSearch(),
         detector=DETECTOR_TERM,
         description="spf-mix (pf-mix with the local climb) with the learned 2D keypoint "
@@ -429,7 +431,7 @@ STRUCTURE: dict[str, dict[str, Any]] = {
     ),
     "apf-mix": dict(
         prior=MIXTURE,
-        components=(("tree", TREE), ("cv", CONSTANT_VELOCITY), ("still", CONSTANT_VELOCITY)),
+        components=MIX_COMPONENTS,
         layers=10,
         description="annealed particle filter, 10 layers, proposals from pf-mix's mixture; "
         "survival rate and diffusion chosen per task",
