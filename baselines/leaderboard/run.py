@@ -110,8 +110,7 @@ def run_leaderboard(
         episodes: Episodes per cell.
         seed: The first episode's seed, and the first agent seed.
         env_kwargs: Environment settings (``data_dir``, ``noise``...).
-        progress: Show progress bars (agents prepared, episodes run with the
-            time left).
+        progress: Show progress bars (agents prepared, episodes, time left).
         engine: ``"inprocess"`` or ``"ray"`` (:data:`baselines.leaderboard.engine.ENGINES`).
         workers: Ray workers (None: every CPU of the cluster).
         address: A Ray cluster to join (else ``RAY_ADDRESS``, else a local Ray).
@@ -119,12 +118,11 @@ def run_leaderboard(
             ``episodes.jsonl`` as it finishes, and ``results.json``,
             ``table.md`` and the report are written at the end.
         resume: Continue the run saved in ``out``, skipping finished episodes.
-        command: The command line that ran this, kept in ``results.json``.
+        command: The command line that ran this (kept in ``results.json``).
         report: With ``out``, also write the report (figures, ``index.html``).
         videos: With ``out`` and ``report``, also the videos of each cell's
             best, median and worst episode (each re-run).
-        agent_seeds: Agent seeds per cell (``seed``, ``seed + 1``...), each
-            on the same episodes; 1 (the default) gives a run without it.
+        agent_seeds: Agent seeds per cell (``seed``, ``seed + 1``...) on the same episodes.
         declared: Run each task's declared test episodes
             (:mod:`humotion_gym.envs.episodes`: fixed windows over every test
             clip, the same for every agent) instead of ``episodes`` drawn
@@ -170,8 +168,7 @@ def run_leaderboard(
         config = {
             "tasks": list(tasks), "agents": list(agents), "particles": list(particles),
             "episodes": None if declared else episodes, "seed": seed, "env_kwargs": kwargs,
-            "engine": engine,
-            "workers": workers, "address": address,
+            "engine": engine, "workers": workers, "address": address,
             **({"agent_seeds": agent_seeds} if agent_seeds != 1 else {}),
             **({"declared": True} if declared else {}),
         }  # fmt: skip

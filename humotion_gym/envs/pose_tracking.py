@@ -88,6 +88,24 @@ _EPISODE_STATE: tuple[str, ...] = (
 )  # fmt: skip
 
 
+def _task_with(
+    task: str | TaskSpec, camera_elevation_deg: float | None, views: int | None
+) -> TaskSpec:
+    """The task by name or spec, with the camera's elevation and the views overridden if given."""
+    spec = get_task(task) if isinstance(task, str) else task
+    if camera_elevation_deg is not None:
+        if not -89.0 <= float(camera_elevation_deg) <= 89.0:
+            raise ValueError(
+                f"camera_elevation_deg: expected degrees in [-89, 89], got {camera_elevation_deg!r}"
+            )
+        camera = replace(spec.camera, elevation_deg=float(camera_elevation_deg))
+        spec = replace(spec, camera=camera)
+    if views is not None:
+        check_count("views", views)
+        spec = replace(spec, views=int(views))
+    return spec
+
+
 class PoseTrackingEnv(EpisodeChoice, gym.Env):
     """Track a cone figure's 3D pose from rendered frames: the one environment class.
 
@@ -136,18 +154,7 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
         lost_patience: int = 5,
         reward_scale_mm: float = 100.0,
     ) -> None:
-        self.task = get_task(task) if isinstance(task, str) else task
-        if camera_elevation_deg is not None:
-            if not -89.0 <= float(camera_elevation_deg) <= 89.0:
-                raise ValueError(
-                    f"camera_elevation_deg: expected degrees in [-89, 89], "
-                    f"got {camera_elevation_deg!r}"
-                )
-            camera = replace(self.task.camera, elevation_deg=float(camera_elevation_deg))
-            self.task = replace(self.task, camera=camera)
-        if views is not None:
-            check_count("views", views)
-            self.task = replace(self.task, views=int(views))
+        self.task = _task_with(task, camera_elevation_deg, views)
         #: Cameras that see each frame (``task.views``; 1: monocular).
         self.views = self.task.views
         self.dict_observation = self.task.version >= 2
@@ -164,35 +171,21 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
                 f"render_mode must be one of {self.metadata['render_modes']} or None, "
                 f"got {render_mode!r}"
             )
-        check_count("frame_skip", frame_skip)
-        check_count("lost_patience", lost_patience)
+        counts = {"frame_skip": frame_skip, "lost_patience": lost_patience}
         if episode_frames is not None:
-            check_count("episode_frames", episode_frames)
-        for name, value in (
-            ("lost_threshold_mm", lost_threshold_mm),
-            ("reward_scale_mm", reward_scale_mm),
-            ("fps", fps),
-        ):
+            counts["episode_frames"] = episode_frames
+        for name, count in counts.items():
+            check_count(name, count)
+        positive = {"lost_threshold_mm": lost_threshold_mm, "reward_scale_mm": reward_scale_mm}
+        for name, value in (positive | {"fps": fps}).items():
             check_positive(name, value)
         self.render_mode = render_mode
-        scene_kwargs: dict[str, Any] = {
-            **dict(self.task.scene),
-            "width": width,
-            "height": height,
-            "color": color,
-            "background": background,
-        }
-        if noise is not None:
-            scene_kwargs["noise_sigma"] = noise
-        if blur is not None:
-            scene_kwargs["blur_sigma"] = blur
-        if occluders is not None:
-            scene_kwargs["occluders"] = occluders
-        if palette is not None:
-            scene_kwargs["palette"] = palette
-        if floor is not None:
-            scene_kwargs["floor"] = bool(floor)
-        self.scene = SceneOptions(**scene_kwargs)
+        given = {"noise_sigma": noise, "blur_sigma": blur, "occluders": occluders}
+        given |= {"palette": palette, "floor": None if floor is None else bool(floor)}
+        given |= {"width": width, "height": height, "color": color, "background": background}
+        self.scene = SceneOptions(
+            **{**dict(self.task.scene), **{k: v for k, v in given.items() if v is not None}}
+        )
         self.frame_skip = int(frame_skip)
         self.episode_frames = int(episode_frames or self.task.episode_frames)
         self.terminate_on_lost = terminate_on_lost
