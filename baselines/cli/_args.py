@@ -63,3 +63,28 @@ def check_engine(args: argparse.Namespace) -> None:
     """Refuse ``--workers``/``--address`` without ``--engine ray`` (see :func:`add_engine`)."""
     if args.engine != "ray" and (args.workers is not None or args.address is not None):
         raise UsageError("--workers, --address: only with --engine ray")
+
+
+def key_value(text: str) -> tuple[str, float]:
+    """An argparse ``type``: ``KEY=VALUE`` with a numeric value (an int where written as one)."""
+    key, sep, value = text.partition("=")
+    if not sep or not key:
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
+    try:
+        number = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{key}: expected a number, got {value!r}") from None
+    return key, int(number) if number.is_integer() and "." not in value else number
+
+
+def key_setting(text: str) -> tuple[str, float | str]:
+    """An argparse ``type``: ``KEY=VALUE``, a number where the value reads as one, else a word."""
+    key, _, value = text.partition("=")
+    try:
+        return key_value(text)
+    except argparse.ArgumentTypeError:
+        if not key or not value.replace("_", "").isalnum():
+            raise argparse.ArgumentTypeError(
+                f"expected KEY=VALUE (a number or a word), got {text[:80]!r}"
+            ) from None
+    return key, value

@@ -12,7 +12,7 @@ import argparse
 import gzip
 import json
 
-from baselines.cli._args import add_particles
+from baselines.cli._args import add_particles, key_setting
 from humotion_gym.cli._common import (
     UsageError,
     add_command,
@@ -100,6 +100,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="the test persons, or the validation persons (training persons held out) "
         "(default: test)",
     )  # fmt: skip
+    op.add_argument(
+        "--set", type=key_setting, nargs="+", default=[], metavar="NAME=VALUE",
+        help="override a setting of every agent: fit.NAME its prior's, filter.NAME its "
+        "filter's, as humotion-gym select's --grid names them (default: none)",
+    )  # fmt: skip
     add_seed(op, "the first episode's seed, the agents' first seed and the oracles' noise seed")
     add_data_dir(op)
     op.add_argument(
@@ -147,15 +152,17 @@ def run_settings(args: argparse.Namespace) -> dict:
         "noise_mm": list(args.noise_mm), "declared": args.declared, "episodes": args.episodes,
         "agent_seeds": args.agent_seeds, "split": args.split, "seed": args.seed,
         "data_dir": [str(d) for d in args.data_dir or []],
+        **({"set": dict(args.set)} if args.set else {}),
     }  # fmt: skip
 
 
 def _cmd_oracle(args: argparse.Namespace) -> int:
-    from baselines.diagnostics.split import compact, markdown_report, run_split
+    from baselines.diagnostics.split import SettingsError, compact, markdown_report, run_split
 
     if args.declared and args.split == "validation":
         raise UsageError("--declared: the declared windows are the test persons'; drop --split")
     oracles = _oracles(args)
+    settings = dict(args.set)
     kwargs = env_kwargs(args)
     if args.split == "validation":
         from baselines.experiments.selection import validation_library
@@ -163,8 +170,8 @@ def _cmd_oracle(args: argparse.Namespace) -> int:
         kwargs["library"] = validation_library(kwargs.pop("data_dir", None))
     results = []
     for task in args.task:
-        results.append(
-            run_split(
+        try:
+            result = run_split(
                 task,
                 args.agents,
                 oracles,
@@ -174,8 +181,11 @@ def _cmd_oracle(args: argparse.Namespace) -> int:
                 seed=args.seed,
                 agent_seeds=args.agent_seeds,
                 env_kwargs=kwargs,
+                settings=settings,
             )  # fmt: skip
-        )
+        except SettingsError as exc:
+            raise UsageError(f"--set: {exc}") from None
+        results.append(result)
     table = markdown_report(results)
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)

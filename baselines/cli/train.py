@@ -14,6 +14,7 @@ import json
 import shutil
 from pathlib import Path
 
+from baselines.cli._args import key_value
 from humotion_gym.cli._common import (
     CommandError,
     UsageError,
@@ -32,18 +33,6 @@ from humotion_gym.cli._common import (
 
 #: The repository's hyperparameter file (RL Baselines3 Zoo format), when present.
 DEFAULT_HYPERPARAMS = Path(__file__).resolve().parents[2] / "hyperparams" / "ppo.yml"
-
-
-def _setting(text: str) -> tuple[str, float]:
-    """``KEY=VALUE`` with a numeric value."""
-    key, sep, value = text.partition("=")
-    if not sep or not key:
-        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
-    try:
-        number = float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{key}: expected a number, got {value!r}") from None
-    return key, int(number) if number.is_integer() and "." not in value else number
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -70,7 +59,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "(default: the repository's hyperparams/ppo.yml when present, else built-in)",
     )  # fmt: skip
     tr.add_argument(
-        "--set", type=_setting, nargs="*", default=[], metavar="KEY=VALUE",
+        "--set", type=key_value, nargs="*", default=[], metavar="KEY=VALUE",
         help="override settings, e.g. n_envs=4 rounds=10 (default: none)",
     )  # fmt: skip
     tr.add_argument(
@@ -155,7 +144,7 @@ def _register_curve(subparsers: argparse._SubParsersAction) -> None:
         "(default: docs/img/rl_learning_curve.png)",
     )  # fmt: skip
     lc.add_argument(
-        "--set", type=_setting, nargs="*", default=[], metavar="KEY=VALUE",
+        "--set", type=key_value, nargs="*", default=[], metavar="KEY=VALUE",
         help="override settings of every run, e.g. n_envs=4 (default: none)",
     )  # fmt: skip
     add_data_dir(lc)

@@ -36,6 +36,7 @@ from tqdm.auto import tqdm
 from baselines.agents import make, tracking_env
 from baselines.depth import split_along_ray
 from baselines.diagnostics.oracle import OracleFeed, OracleSettings, TruthOracle, with_oracle
+from baselines.experiments.selection import agent_settings
 from baselines.leaderboard.engine import make_env, task_windows, window_options
 from baselines.leaderboard.evaluation import run_episode
 from humotion_gym.body import KEYPOINT_INDEX, forward_kinematics
@@ -76,6 +77,10 @@ class _FrameRecorder:
         rows["reprojection_px"].append(float(np.linalg.norm(pixels[0] - pixels[1], axis=-1).mean()))
         filt = getattr(self.agent, "filter", None)
         rows["ess"].append(float(filt.ess) if filt is not None else float("nan"))
+
+
+class SettingsError(ValueError):
+    """A setting given to :func:`run_split` that is not one of every agent's."""
 
 
 def diagnose_episode(
@@ -154,6 +159,7 @@ def run_split(
     env_kwargs: Mapping[str, Any] | None = None,
     progress: bool = True,
     on_row: Callable[[dict[str, Any]], None] | None = None,
+    settings: Mapping[str, float | str] | None = None,
 ) -> dict[str, Any]:
     """Every agent with every likelihood on one task's episodes, and ``hold``.
 
@@ -170,6 +176,8 @@ def run_split(
         env_kwargs: Keyword arguments of ``gym.make`` (``data_dir``, ``split``...).
         progress: Show a progress bar.
         on_row: Called with each finished row (to save partial results).
+        settings: Overrides of every agent's settings: ``fit.NAME`` its prior's,
+            ``filter.NAME`` its filter's (as ``humotion-gym select``'s grid names them).
 
     Returns:
         ``{"task", "particles", "seed", "agent_seeds", "declared", "windows",
@@ -178,7 +186,9 @@ def run_split(
         (hold's mean error over the row's) and ``"episodes"``.
 
     Raises:
-        ValueError: If a count is below 1, or an agent is not a particle filter.
+        ValueError: If a count is below 1 or an agent is not a particle filter.
+        SettingsError: If a setting is not ``fit.NAME`` or ``filter.NAME`` of every
+            agent (checked before any episode runs).
     """
     if agent_seeds < 1 or (episodes is not None and episodes < 1) or particles < 1:
         raise ValueError(
@@ -195,6 +205,26 @@ def run_split(
         windows = [None] * (episodes or 20)
     base = tracking_env(env)
     names = [a for a in agents if a != "hold"]
+    fit, search = agent_settings(settings or {})
+    unknown = sorted(k for k in settings or {} if not k.startswith(("fit.", "filter.")))
+    if unknown:
+        raise SettingsError(f"settings: expected fit.NAME or filter.NAME, got {', '.join(unknown)}")
+
+    def build(name: str, agent_seed: int) -> Any:
+        if name == "hold":
+            return make(name, env, seed=agent_seed)
+        return make(
+            name, env, n_particles=particles, seed=agent_seed, fit_settings=fit,
+            filter_settings=search,
+        )  # fmt: skip
+
+    for name in names:  # a setting an agent lacks fails here, before any episode
+        try:
+            build(name, seed)
+        except ValueError as exc:
+            if not settings:
+                raise
+            raise SettingsError(f"{name}: {exc}") from None
     runs = [("hold", None)] + [(a, o) for a in names for o in oracles]
     rows: list[dict[str, Any]] = []
     total = len(windows) * (1 + len(names) * len(oracles) * agent_seeds)
@@ -203,7 +233,7 @@ def run_split(
         for name, oracle in runs:
             eps = []
             for agent_seed in range(seed, seed + (1 if name == "hold" else agent_seeds)):
-                agent = make(name, env, n_particles=particles, seed=agent_seed)
+                agent = build(name, agent_seed)
                 run_env: gym.Env = env
                 if oracle is not None:
                     truth = TruthOracle(oracle, base.task.error_keypoint_indices, seed=seed)

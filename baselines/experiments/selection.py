@@ -190,17 +190,22 @@ def _still_episodes(
     return windows
 
 
+def agent_settings(settings: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The ``fit.`` and the ``filter.`` settings of ``settings``, without their prefixes."""
+    fit = {n[len(FIT_PREFIX) :]: v for n, v in settings.items() if n.startswith(FIT_PREFIX)}
+    search = {
+        n[len(FILTER_PREFIX) :]: v for n, v in settings.items() if n.startswith(FILTER_PREFIX)
+    }
+    return fit, search
+
+
 def _split_settings(
     settings: Mapping[str, Any], default: ObservationModel
 ) -> tuple[ObservationModel, dict[str, float], dict[str, float]]:
     """A combination's likelihood, its prior's ``fit.`` settings and its ``filter.`` settings."""
     fields = _observation_fields()
     model = replace(default, **{n: v for n, v in settings.items() if n in fields})
-    fit = {n[len(FIT_PREFIX) :]: v for n, v in settings.items() if n.startswith(FIT_PREFIX)}
-    search = {
-        n[len(FILTER_PREFIX) :]: v for n, v in settings.items() if n.startswith(FILTER_PREFIX)
-    }
-    return model, fit, search
+    return (model, *agent_settings(settings))
 
 
 def select_observation_settings(

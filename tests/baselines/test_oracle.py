@@ -253,6 +253,10 @@ def test_cli_oracle_writes_results_and_table(tmp_path, capsys):
         ["--noise-mm", "0"],
         ["--declared", "--split", "validation"],
         ["--episodes", "0"],
+        ["--set", "steps=3"],
+        ["--set", "fit.steps"],
+        ["--set", "fit.nonsense=1"],
+        ["--agents", "pf-cv", "--set", "filter.search_steps=3"],
     ],
     ids=lambda a: " ".join(a),
 )
@@ -260,6 +264,24 @@ def test_cli_oracle_bad_arguments_are_one_line_exit_2(argv, capsys):
     assert main(["oracle", "--particles", "5", *argv]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "error" in err
+
+
+def test_a_setting_reaches_every_agent_and_the_record(tmp_path):
+    """``--set filter.search_steps=0``: the climb takes no step, so spf-cv is pf-cv."""
+    common = ["oracle", "--particles", "5", "--episodes", "1", "--oracles", "3d", "--seed", "3"]
+    assert main([*common, "--agents", "pf-cv", "--out", str(tmp_path / "cv")]) == 0
+    argv = [*common, "--agents", "spf-cv", "--set", "filter.search_steps=0"]
+    assert main([*argv, "--out", str(tmp_path / "spf")]) == 0
+    assert main([*common, "--agents", "spf-cv", "--out", str(tmp_path / "climb")]) == 0
+
+    def read(name):
+        data = json.loads(gzip.decompress((tmp_path / name / "results.json.gz").read_bytes()))
+        return data["settings"], data["results"][0]["rows"][1]["error_mm"]
+
+    settings, no_steps = read("spf")
+    assert settings["set"] == {"filter.search_steps": 0}
+    assert no_steps == read("cv")[1] != read("climb")[1]
+    assert "set" not in read("cv")[0]
 
 
 def test_settings_refuse_what_they_cannot_be():
