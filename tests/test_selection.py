@@ -121,7 +121,34 @@ def test_the_annealed_filters_settings_are_selected_like_the_priors(tmp_path, mo
     ]
     # The survival rate reaches the filter: the two runs differ.
     assert out["rows"][0]["mean_error_mm"] != out["rows"][1]["mean_error_mm"]
-    with pytest.raises(ValueError, match="not filter settings"):
+    with pytest.raises(ValueError, match="are not the filter's"):
         select_observation_settings("SideWalk-v2", "apf-cv", {"filter.nonsense": [1.0]}, fold)
-    with pytest.raises(ValueError, match="annealed agent"):
+    with pytest.raises(ValueError, match="plain particle filter"):
         select_observation_settings("SideWalk-v2", "pf-cv", {"filter.alpha": [0.5]}, fold)
+    with pytest.raises(ValueError, match="local search's"):
+        select_observation_settings("SideWalk-v2", "apf-cv", {"filter.search_top": [2]}, fold)
+
+
+def test_the_local_searchs_settings_are_selected_too(tmp_path, monkeypatch):
+    """``filter.search_steps`` reaches an spf agent's climb (0 steps: no climb at all)."""
+    monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
+    fold = validation_library(None)
+    grid = {"filter.search_steps": [0, 4]}
+    out = select_observation_settings("SideWalk-v2", "spf-cv", grid, fold, particles=10, episodes=1)
+    assert [r["settings"] for r in out["rows"]] == [
+        {"filter.search_steps": 0},
+        {"filter.search_steps": 4},
+    ]
+    assert out["rows"][0]["mean_error_mm"] != out["rows"][1]["mean_error_mm"]
+
+
+def test_a_multi_view_id_is_tracked_with_its_views(tmp_path, monkeypatch):
+    """Selecting on BodyTrack2Views-v2 tracks two views, with BodyTrack-v2's settings."""
+    monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
+    fold = validation_library(None)
+    grid = {"fit.damping": [0.3]}
+    kwargs = {"env_kwargs": {"episode_frames": 6}, "particles": 10, "episodes": 1}
+    views = select_observation_settings("BodyTrack2Views-v2", "pf-cv", grid, fold, **kwargs)
+    mono = select_observation_settings("BodyTrack-v2", "pf-cv", grid, fold, **kwargs)
+    assert views["task"] == "BodyTrack2Views-v2" and mono["task"] == "BodyTrack-v2"
+    assert views["rows"][0]["mean_error_mm"] != mono["rows"][0]["mean_error_mm"]

@@ -23,7 +23,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from baselines.agents import AGENTS, FILTER_SETTINGS, make
+from baselines.agents import AGENTS, make
 from baselines.leaderboard.evaluation import evaluate, run_episode
 from baselines.observation import ObservationModel
 from baselines.stillness import STILL_RATIO, still_windows
@@ -112,14 +112,14 @@ def _check_grid(grid: Mapping[str, Sequence[float]], agent: str) -> None:
             f"{FILTER_PREFIX}NAME"
         )
     if filter_names:
-        if agent not in AGENTS or AGENTS[agent].layers == 1:
-            raise ValueError(f"grid: {filter_names} need an annealed agent (apf-...), not {agent}")
-        bad = sorted(n for n in filter_names if n[len(FILTER_PREFIX) :] not in FILTER_SETTINGS)
-        if bad:
-            raise ValueError(
-                f"grid: {bad} are not filter settings (they are "
-                f"{[FILTER_PREFIX + n for n in FILTER_SETTINGS]})"
+        if agent not in AGENTS:
+            raise ValueError(f"grid: {filter_names} need a particle-filter agent, not {agent}")
+        try:  # the names (and each first value) as the agent's own filter checks them
+            AGENTS[agent].filter_settings_for(
+                "", {n[len(FILTER_PREFIX) :]: grid[n][0] for n in filter_names}
             )
+        except ValueError as exc:
+            raise ValueError(f"grid: {agent}: {exc}") from None
     if fit_names:
         if agent not in AGENTS:
             raise ValueError(f"grid: {fit_names} need a particle-filter agent, not {agent}")
@@ -266,8 +266,9 @@ def select_observation_settings(
     spec = get_task(task)
     kwargs = {"terminate_on_lost": False, **(env_kwargs or {})}
     default = ObservationModel(**dict(spec.observation))
-    windows = _still_episodes(spec.name, library, kwargs, still, still_max_hold_mm)
-    runs = _Runs(spec.name, library, kwargs, particles, episodes, seed, windows)
+    # The id as given (a multi-view variant's id makes its views; settings are the family's).
+    windows = _still_episodes(task, library, kwargs, still, still_max_hold_mm)
+    runs = _Runs(task, library, kwargs, particles, episodes, seed, windows)
     hold_errors, hold_still = runs.errors("hold", default)
     hold = float(np.mean(hold_errors))
     fields = _observation_fields()
@@ -293,7 +294,7 @@ def select_observation_settings(
         extra = {"still_hold_mm": float(np.mean(hold_still)), "still_episodes": len(windows)}
     return {
         **extra,
-        "task": spec.name,
+        "task": task,
         "agent": agent,
         "particles": particles,
         "episodes": episodes,
