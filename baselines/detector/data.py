@@ -130,20 +130,3 @@ def render_frames(
     return FrameSet(
         np.stack(frames[:n_frames]), np.stack(points[:n_frames]), tuple(sorted(subjects))
     )
-
-
-def save_frames(frames: FrameSet, path: str | Path) -> Path:
-    """Write a frame set as a ``.npz`` (no pickle)."""
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    with p.open("wb") as f:
-        np.savez(f, frames=frames.frames, points=frames.points, subjects=np.array(frames.subjects))
-    return p
-
-
-def load_frames(path: str | Path) -> FrameSet:
-    """A frame set written by :func:`save_frames`."""
-    with np.load(Path(path), allow_pickle=False) as data:
-        return FrameSet(
-            data["frames"], data["points"], tuple(str(s) for s in data["subjects"].tolist())
-        )

@@ -266,43 +266,6 @@ def measurement_terms(params: SLDSParams, seqs: Sequences) -> Measurements:
     return Measurements(z, rz, np.where(seqs.observed, -log_c, 0.0))
 
 
-def _innovation(
-    m_p: FloatArray, p_p: FloatArray, z: FloatArray, r: FloatArray, gain: bool = True
-) -> tuple[FloatArray, FloatArray | None, FloatArray, FloatArray]:
-    """Whitened innovation and gain factor, and the innovation cost (eqs. 4, 6).
-
-    With ``e = z - H m_p`` and ``S = H P_p H' + R = L L'`` this returns
-    ``v = L^-1 e``, ``W = L^-1 H P_p`` (None unless ``gain``), ``L`` and
-    ``0.5 e' S^-1 e + 0.5 log|S| + 0.5 dz log 2 pi``.
-    """
-    dz = r.shape[0]
-    e = z - m_p[..., :dz]
-    chol = _cholesky(p_p[..., :dz, :dz] + r)
-    if gain:
-        sol = _solve_lower(chol, np.concatenate([e[..., None], p_p[..., :dz, :]], axis=-1))
-        v, w = sol[..., :1], sol[..., 1:]
-    else:
-        v, w = _solve_lower(chol, e[..., None]), None
-    cost = (
-        0.5 * np.square(v[..., 0]).sum(-1)
-        + np.log(np.diagonal(chol, axis1=-2, axis2=-1)).sum(-1)
-        + 0.5 * dz * LOG_2PI
-    )
-    return v, w, chol, cost
-
-
-def _update(
-    m_p: FloatArray, p_p: FloatArray, v: FloatArray, w: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    """Kalman measurement update (eq. 5) from the whitened innovation, batched.
-
-    ``m = m_p + W' v`` and ``P = P_p - W' W`` (symmetrised): the gain
-    ``P_p H' S^-1`` written through ``S = L L'``.
-    """
-    w_t = np.swapaxes(w, -1, -2)
-    return m_p + (w_t @ v)[..., 0], symmetrise(p_p - w_t @ w)
-
-
 def _neg_log(p: FloatArray) -> FloatArray:
     with np.errstate(divide="ignore"):
         return -np.log(p)

@@ -110,14 +110,6 @@ def positive_float(text: str) -> float:
     return value
 
 
-def nonnegative_float(text: str) -> float:
-    """An argparse ``type`` accepting finite numbers ``>= 0``."""
-    value = _number(float, text)
-    if not value >= 0:
-        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text}")
-    return value
-
-
 def probability(text: str) -> float:
     """An argparse ``type`` accepting numbers in ``(0, 1)``."""
     value = _number(float, text)
