@@ -131,11 +131,15 @@ class OracleObservation:
         counts: False for a view that adds no evidence (a 3D oracle's views
             after the first: the keypoints are one measurement however many
             cameras film them), which then scores every pose 0.
+        camera: A 2D oracle's: the ``(13,)`` vector of the camera the points
+            were detected in (:meth:`Camera.to_vector`), checked against the
+            camera a pose is scored with.
     """
 
     points: FloatArray
     sigma: float
     counts: bool = True
+    camera: FloatArray | None = None
 
 
 class TruthOracle:
@@ -198,6 +202,7 @@ class TruthOracle:
                 OracleObservation(
                     view.project(points) + self._rng.normal(0.0, sigma, (points.shape[0], 2)),
                     sigma,
+                    camera=view.to_vector(),
                 )
                 for view in cameras
             ]
@@ -224,7 +229,8 @@ class TruthOracle:
                 "TruthOracle.prepare: no truth shown for this frame (run the episode through "
                 "OracleFeed)"
             )
-        # The agent's likelihood prepares each view once a frame, in camera order.
+        # The agent's likelihood prepares each view once a frame, in camera order
+        # (a 2D observation carries its camera, and scoring checks it).
         seen = self._shown[self._view % len(self._shown)]
         self._view += 1
         return seen
@@ -301,6 +307,13 @@ class TruthOracle:
             return np.zeros((p.shape[0], masks.shape[0]))
         points = forward_kinematics(p, shape)[:, self.keypoints]  # (N, K, 3)
         if self.dims == 2:
+            # Views are prepared in camera order; a likelihood that changed its order
+            # would score one view's detections in another's image.
+            if frame.camera is not None and not np.allclose(frame.camera, camera.to_vector()):
+                raise RuntimeError(
+                    f"TruthOracle.{caller}: these keypoints were detected in another view "
+                    "than the camera scoring them (the views were prepared out of order)"
+                )
             points = camera.project(points)  # NaN at or behind the camera
         return -self.scorer.cost(points, frame.points, masks) / (2.0 * frame.sigma**2)
 

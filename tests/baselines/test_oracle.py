@@ -319,6 +319,8 @@ def test_a_2d_oracle_detects_in_every_view_and_a_3d_oracle_measures_once():
             rtol=1e-5,  # sigma 1e-9 px: the truth's own float rounding is a few nats
         )
     assert not np.allclose(seen[0].points, seen[1].points)  # the views differ
+    with pytest.raises(RuntimeError, match="another view"):  # views scored out of order
+        two.log_likelihood(seen[1], poses, base.shape, cams[0])
     three = TruthOracle(OracleSettings("3d", noise_mm=10.0), SCORED, seed=1)
     three.show(truth, base.shape, cams)
     first, second = three.prepare(None), three.prepare(None)
