@@ -121,6 +121,17 @@ def _read_fpca(out: str) -> list[Row]:
     return rows
 
 
+def _read_views(out: str) -> list[Row]:
+    """``bench_views``: each call's ms at 2 and 4 views against the same call at one."""
+    found = re.findall(r"^(\S.+?)\s+(\d+)\s+([\d.]+)\s+([\d.]+)$", out, re.M)
+    return [
+        (f"BodyTrack-v2 128x128 {what.strip()}, {views} views", f"{ms} ms",
+         f"{what.strip()}, one view", f"{cost}x the time")
+        for what, views, ms, cost in found
+        if int(views) > 1
+    ]  # fmt: skip
+
+
 def _read_retarget(out: str) -> list[Row]:
     ref = re.search(r"^forward kinematics \(reference\)\s+([\d,]+)", out, re.M)
     reference = f"forward kinematics ({ref[1]} frames/s)" if ref else "forward kinematics"
@@ -279,6 +290,7 @@ BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark("bench_fit", _read_fit, data_dir=True, quick=("--tasks", "BodyTrack-v2")),
     Benchmark("bench_slds", _read_slds, args=("--json",), quick=("--json", "--repeats", "1")),
     Benchmark("bench_fpca", _read_fpca),
+    Benchmark("bench_views", _read_views),
     Benchmark("bench_parse", _read_parse),
     Benchmark("bench_retarget", _read_retarget),
     Benchmark(
