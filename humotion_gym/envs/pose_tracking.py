@@ -180,7 +180,7 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
         for name, value in (positive | {"fps": fps}).items():
             check_positive(name, value)
         self.render_mode = render_mode
-        given = {"noise_sigma": noise, "blur_sigma": blur, "occluders": occluders}
+        given: dict[str, Any] = {"noise_sigma": noise, "blur_sigma": blur, "occluders": occluders}
         given |= {"palette": palette, "floor": None if floor is None else bool(floor)}
         given |= {"width": width, "height": height, "color": color, "background": background}
         self.scene = SceneOptions(
