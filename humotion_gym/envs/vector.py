@@ -203,7 +203,10 @@ class PoseTrackingVectorEnv(VectorEnv):
             self._lo[i], self._hi[i] = env._action_bounds()
             self._shape_tables[i] = env.shape._table
             self._shape_vectors[i] = env._shape_vector
-            self._camera_vectors[i] = [camera.to_vector() for camera in env._cameras]
+            # A still camera is one object for every frame: its vector is made once.
+            distinct = {id(c): c for c in env._cameras}
+            vectors = {key: camera.to_vector() for key, camera in distinct.items()}
+            self._camera_vectors[i] = [vectors[id(camera)] for camera in env._cameras]
             self._k[i] = env._k
             self._t0[i] = env._t0
             self._lost_run[i] = 0
