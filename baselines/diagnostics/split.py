@@ -205,26 +205,7 @@ def run_split(
         windows = [None] * (episodes or 20)
     base = tracking_env(env)
     names = [a for a in agents if a != "hold"]
-    fit, search = agent_settings(settings or {})
-    unknown = sorted(k for k in settings or {} if not k.startswith(("fit.", "filter.")))
-    if unknown:
-        raise SettingsError(f"settings: expected fit.NAME or filter.NAME, got {', '.join(unknown)}")
-
-    def build(name: str, agent_seed: int) -> Any:
-        if name == "hold":
-            return make(name, env, seed=agent_seed)
-        return make(
-            name, env, n_particles=particles, seed=agent_seed, fit_settings=fit,
-            filter_settings=search,
-        )  # fmt: skip
-
-    for name in names:  # a setting an agent lacks fails here, before any episode
-        try:
-            build(name, seed)
-        except ValueError as exc:
-            if not settings:
-                raise
-            raise SettingsError(f"{name}: {exc}") from None
+    build = _builder(env, names, particles, seed, settings or {})
     runs = [("hold", None)] + [(a, o) for a in names for o in oracles]
     rows: list[dict[str, Any]] = []
     total = len(windows) * (1 + len(names) * len(oracles) * agent_seeds)
@@ -257,6 +238,38 @@ def run_split(
         "task": task, "particles": particles, "seed": seed, "agent_seeds": agent_seeds,
         "declared": declared, "windows": len(windows), "declared_windows": listed, "rows": rows,
     }  # fmt: skip
+
+
+def _builder(
+    env: gym.Env, names: Sequence[str], particles: int, seed: int, settings: Mapping[str, Any]
+) -> Callable[[str, int], Any]:
+    """``build(name, agent_seed)``: an agent with ``settings``, each agent tried once first.
+
+    Raises:
+        SettingsError: If a setting is not ``fit.NAME`` or ``filter.NAME``, or an
+            agent lacks it (before any episode runs).
+    """
+    fit, search = agent_settings(settings)
+    unknown = sorted(k for k in settings if not k.startswith(("fit.", "filter.")))
+    if unknown:
+        raise SettingsError(f"settings: expected fit.NAME or filter.NAME, got {', '.join(unknown)}")
+
+    def build(name: str, agent_seed: int) -> Any:
+        if name == "hold":
+            return make(name, env, seed=agent_seed)
+        return make(
+            name, env, n_particles=particles, seed=agent_seed, fit_settings=fit,
+            filter_settings=search,
+        )  # fmt: skip
+
+    for name in names:
+        try:
+            build(name, seed)
+        except ValueError as exc:
+            if not settings:
+                raise
+            raise SettingsError(f"{name}: {exc}") from None
+    return build
 
 
 def compact(result: Mapping[str, Any]) -> dict[str, Any]:
