@@ -253,6 +253,8 @@ def _builder(
     unknown = sorted(k for k in settings if not k.startswith(("fit.", "filter.")))
     if unknown:
         raise SettingsError(f"settings: expected fit.NAME or filter.NAME, got {', '.join(unknown)}")
+    if settings and not names:
+        raise SettingsError("settings: given, but no particle-filter agent runs (hold takes none)")
 
     def build(name: str, agent_seed: int) -> Any:
         if name == "hold":

@@ -257,6 +257,7 @@ def test_cli_oracle_writes_results_and_table(tmp_path, capsys):
         ["--set", "fit.steps"],
         ["--set", "fit.nonsense=1"],
         ["--agents", "pf-cv", "--set", "filter.search_steps=3"],
+        ["--agents", "hold", "--set", "fit.damping=0.3"],
     ],
     ids=lambda a: " ".join(a),
 )
