@@ -27,12 +27,8 @@ import numpy as np
 import pytest
 
 from baselines.observation import FrameFeatures, GivenBody, ObservationModel, geometry
-from baselines.observation._compiled import (
-    appearance_bytes,
-    edge_foreground_bytes,
-    mark_bins,
-    strongest_gradients,
-)
+from baselines.observation._compiled import appearance_bytes, edge_foreground_bytes
+from baselines.observation.features import mark_bins, strongest_gradients
 from humotion_gym import body
 from humotion_gym.camera import Camera, fit_camera
 from humotion_gym.render import SceneOptions, make_background, render

@@ -4,8 +4,10 @@ Each loops over N poses (times cones, times points) once, where numpy would
 make a dozen temporaries of that size: the cones' image bases
 (:func:`cone_bases`), the table lookups of their sample points
 (:func:`point_costs`), and the two image-to-model terms (:func:`residual_sums`,
-:func:`coverage_sums`). Their oracles, plain per-pose loops, are in
-``tests/test_likelihood_oracle.py``.
+:func:`coverage_sums`). Two more are per frame: the cost table's byte maps
+(:func:`edge_foreground_bytes`, :func:`appearance_bytes`), one pass over the
+pixels where numpy's temporaries double a frame's preparation with colour
+terms. Their oracles, plain loops, are in ``tests/test_likelihood_oracle.py``.
 """
 
 from __future__ import annotations
@@ -327,76 +329,6 @@ def coverage_sums(
                     v = max(nearest[h, k, jj], _ZERO)
                     total += v * v
                 out[j0 + jj, h] = total
-
-
-@numba.njit(cache=True, nogil=True)
-def strongest_gradients(
-    dx: NDArray[np.int16],
-    dy: NDArray[np.int16],
-    xs: NDArray[np.int32],
-    ys: NDArray[np.int32],
-) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
-    """At each pixel ``(xs[i], ys[i])`` the gradient of its strongest channel.
-
-    The first channel of largest ``dx^2 + dy^2`` (exact in integers: a 3x3
-    Sobel of bytes is below ``2**10``).
-
-    Args:
-        dx: ``(H, W, C)`` the x derivatives.
-        dy: ``(H, W, C)`` the y derivatives.
-        xs: ``(K,)`` the pixels' columns.
-        ys: ``(K,)`` their rows.
-
-    Returns:
-        ``(K,)`` float32 x and y components.
-    """
-    k = xs.size
-    gx = np.empty(k, np.float32)
-    gy = np.empty(k, np.float32)
-    for i in range(k):
-        y, x = ys[i], xs[i]
-        best, most = 0, np.int32(-1)
-        for c in range(dx.shape[2]):
-            u, v = np.int32(dx[y, x, c]), np.int32(dy[y, x, c])
-            m = u * u + v * v
-            if m > most:
-                best, most = c, m
-        gx[i] = np.float32(dx[y, x, best])
-        gy[i] = np.float32(dy[y, x, best])
-    return gx, gy
-
-
-@numba.njit(cache=True, nogil=True)
-def mark_bins(
-    turns: NDArray[np.float32],
-    xs: NDArray[np.int32],
-    ys: NDArray[np.int32],
-    bins: NDArray[np.uint8],
-) -> NDArray[np.bool_]:
-    """Each pixel marked (0) in its two nearest orientation bins; which bins hold one.
-
-    Pixel ``i`` at orientation ``turns[i]`` bin widths goes to bins
-    ``floor(turns[i]) mod B`` and the next one (mod ``B``).
-
-    Args:
-        turns: ``(K,)`` the orientations in bin widths, in ``[0, B]``.
-        xs: ``(K,)`` the pixels' columns.
-        ys: ``(K,)`` their rows.
-        bins: In/out, ``(B, H, W)`` the bins' maps.
-
-    Returns:
-        ``(B,)`` whether each bin holds a pixel.
-    """
-    n_bins = bins.shape[0]
-    held = np.zeros(n_bins, np.bool_)
-    for i in range(turns.size):
-        lo = np.int64(np.floor(turns[i])) % n_bins
-        hi = (lo + 1) % n_bins
-        bins[lo, ys[i], xs[i]] = 0
-        bins[hi, ys[i], xs[i]] = 0
-        held[lo] = True
-        held[hi] = True
-    return held
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

@@ -15,12 +15,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from baselines.observation._compiled import (
-    appearance_bytes,
-    edge_foreground_bytes,
-    mark_bins,
-    strongest_gradients,
-)
+from baselines.observation._compiled import appearance_bytes, edge_foreground_bytes
 from baselines.observation.geometry import free_cones, grow, projected_cones, silhouette_mask
 from baselines.observation.settings import ObservationSettings
 from humotion_gym.body import N_CONES, BodyShape, cone_geometry
@@ -213,6 +208,43 @@ def oriented_edges(
     gx, gy = strongest_gradients(dx, dy, xs, ys)
     theta = np.arctan2(gy, gx)  # float32: the gradient = outline normal
     return edges, bins, mark_bins(np.mod(theta, np.pi) * (n_bins / np.pi), xs, ys, bins)
+
+
+def strongest_gradients(
+    dx: NDArray[np.int16], dy: NDArray[np.int16], xs: NDArray[np.int32], ys: NDArray[np.int32]
+) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """``(K,)`` float32 x and y gradients of the strongest channel at pixels ``(xs, ys)``.
+
+    The first channel of largest ``dx^2 + dy^2`` (``np.argmax``'s first; exact
+    in integers: a 3x3 Sobel of bytes is below ``2**10``). ``dx`` and ``dy``
+    are ``(H, W, C)``.
+    """
+    u, v = dx[ys, xs].astype(np.int32), dy[ys, xs].astype(np.int32)
+    best = np.argmax(u * u + v * v, axis=1)
+    rows = np.arange(xs.size)
+    return u[rows, best].astype(np.float32), v[rows, best].astype(np.float32)
+
+
+def mark_bins(
+    turns: NDArray[np.float32],
+    xs: NDArray[np.int32],
+    ys: NDArray[np.int32],
+    bins: NDArray[np.uint8],
+) -> NDArray[np.bool_]:
+    """Each pixel marked (0) in its two nearest orientation bins; which bins hold one.
+
+    Pixel ``i`` at orientation ``turns[i]`` (in bin widths, ``[0, B]``) goes to
+    bins ``floor(turns[i]) mod B`` and the next (mod ``B``) of ``bins``
+    (in/out, ``(B, H, W)``). Returns ``(B,)`` whether each bin holds a pixel.
+    """
+    n_bins = bins.shape[0]
+    lo = np.floor(turns).astype(np.int64) % n_bins
+    hi = (lo + 1) % n_bins
+    bins[lo, ys, xs] = 0
+    bins[hi, ys, xs] = 0
+    held = np.zeros(n_bins, np.bool_)
+    held[lo] = held[hi] = True
+    return held
 
 
 def edge_distances(bins: NDArray[np.uint8], found: NDArray[np.bool_]) -> NDArray[np.float32]:
