@@ -136,3 +136,40 @@ V2_LOOK = """The upper arms are shaded apart
       from the torso (dark green sleeves) and the camera stands 30 degrees
       higher (40 degrees), chosen on the validation persons
       (``tasks.V2_SCENE``, ``tasks.V2_ELEVATION_DEG``); actions and rewards as v1."""
+
+
+def v1_history(first: str, v0: str | None = None, coverage: bool = True) -> str:
+    """The v1 and v0 entries of a task's ``## Version History`` (after :func:`v2_history`).
+
+    Args:
+        first: The task's own v1 entry (what v1 was), at the page's indent.
+        v0: The task's v0 entry (why it was withdrawn; None: the whole-body
+            tasks' cameras).
+        coverage: Whether the v1 likelihood's later change added the coverage term.
+    """
+    added = " and has the coverage term" if coverage else ""
+    v0 = v0 or _V0_CAMERAS
+    return f"""
+    * v1, later still: a ``step`` after the episode's end warns and returns the
+      terminal transition again (reward 0, ``info["after_end"]``) instead of
+      raising; frames may differ from earlier releases by a vertex's rounding
+      and the sensor noise's draws (the seeds give other, equally random
+      scenes); spaces and rewards unchanged.
+    * v1, later still: ``info`` also gives ``error_aligned_mm`` (the error
+      with the pelvises put together); frames, spaces and rewards unchanged.
+    * v1, later still: the environment no longer carries ``observation_model``:
+      the baselines build their likelihood from the task's ``observation``
+      settings (:func:`baselines.observation.task_model`); frames, spaces and
+      rewards unchanged.
+    * v1, later: ``observation_model`` (the agents' likelihood, not part of the
+      environment's spaces, frames or rewards) reads the backdrop at the first
+      frame{added}; the baselines' numbers changed
+      with it (README, "What changed").
+{first}{v0}"""
+
+
+_V0_CAMERAS = """    * v0: withdrawn. Its static cameras were fitted to every frame of the episode
+      (and WalkTrack's and SideWalk's heading to the episode's total travel), so
+      the camera handed to the agent told where the body would go; its test
+      split held out a Bandai-Namco style performed by the training actors.
+"""

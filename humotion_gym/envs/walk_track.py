@@ -4,7 +4,13 @@ from __future__ import annotations
 
 from typing import Any
 
-from humotion_gym.envs._docs import COMMON_SECTIONS, V2_LOOK, v2_history, whole_body_likelihood
+from humotion_gym.envs._docs import (
+    COMMON_SECTIONS,
+    V2_LOOK,
+    v1_history,
+    v2_history,
+    whole_body_likelihood,
+)
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 
 
@@ -54,26 +60,8 @@ WalkTrackEnv.__doc__ = (
     + whole_body_likelihood("WalkTrack-v2")
     + COMMON_SECTIONS
     + v2_history(V2_LOOK)
-    + """
-    * v1, later still: a ``step`` after the episode's end warns and returns the
-      terminal transition again (reward 0, ``info["after_end"]``) instead of
-      raising; frames may differ from earlier releases by a vertex's rounding
-      and the sensor noise's draws (the seeds give other, equally random
-      scenes); spaces and rewards unchanged.
-    * v1, later still: ``info`` also gives ``error_aligned_mm`` (the error
-      with the pelvises put together); frames, spaces and rewards unchanged.
-    * v1, later still: the environment no longer carries ``observation_model``:
-      the baselines build their likelihood from the task's ``observation``
-      settings (:func:`baselines.observation.task_model`); frames, spaces and
-      rewards unchanged.
-    * v1, later: ``observation_model`` (the agents' likelihood, not part of the
-      environment's spaces, frames or rewards) reads the backdrop at the first
-      frame and has the coverage term; the baselines' numbers changed
-      with it (README, "What changed").
-    * v1: the camera is placed from the first frame only; test persons CMU 2 and 3.
-    * v0: withdrawn. Its static cameras were fitted to every frame of the episode
-      (and WalkTrack's and SideWalk's heading to the episode's total travel), so
-      the camera handed to the agent told where the body would go; its test
-      split held out a Bandai-Namco style performed by the training actors.
-"""
+    + v1_history(
+        """    * v1: the camera is placed from the first frame only; test persons CMU 2 and 3.
+""",
+    )
 )
