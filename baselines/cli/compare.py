@@ -1,4 +1,4 @@
-"""``humotion-gym compare``: does a rerun reproduce a recorded leaderboard, episode by episode.
+"""``humotion-gym compare``: does a rerun reproduce a recorded run, episode by episode.
 
 ::
 
@@ -18,12 +18,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     cp = add_command(
         subparsers,
         "compare",
-        "compare a rerun of the leaderboard with a recorded run, episode by episode",
+        "compare a rerun (leaderboard or oracle) with a recorded run, episode by episode",
         "humotion-gym compare /tmp/rerun/results.json results/v2_body/results.json.gz",
         details="Each episode both runs hold (task, agent, particles, agent seed, episode "
         "seed) must have the record's mean error to --rtol (default: the record's 7 "
         "significant digits). Prints the counts and every episode that differs; exits 1 "
-        "if any differs or none is compared.",
+        "if any differs or none is compared. Reads leaderboard runs and oracle runs "
+        "(humotion-gym oracle --out; each likelihood an agent of its own).",
     )
     cp.add_argument("rerun", type=Path, help="the rerun's results.json (or .json.gz)")
     cp.add_argument("recorded", type=Path, help="the record's results.json.gz (or .json)")
@@ -35,6 +36,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
+    from baselines.diagnostics.split import load_episode_rows
     from baselines.leaderboard.compare import compare_runs
     from baselines.leaderboard.report import load_rows
 
@@ -42,7 +44,12 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     for path in (args.rerun, args.recorded):
         try:
             runs.append(load_rows(path)[0])
-        except (OSError, ValueError) as exc:
+        except ValueError as exc:
+            try:  # an oracle run's results (humotion-gym oracle --out)
+                runs.append(load_episode_rows(path))
+            except ValueError:
+                raise CommandError(str(exc)) from None
+        except OSError as exc:
             raise CommandError(f"{path}: {exc}") from None
     try:
         result = compare_runs(runs[0], runs[1], args.rtol)

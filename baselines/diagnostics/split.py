@@ -26,6 +26,7 @@ image rows are the leaderboard's numbers for the same settings.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -39,6 +40,7 @@ from baselines.diagnostics.oracle import OracleFeed, OracleSettings, TruthOracle
 from baselines.experiments.selection import agent_settings
 from baselines.leaderboard.engine import make_env, task_windows, window_options
 from baselines.leaderboard.evaluation import run_episode
+from baselines.leaderboard.report import read_json
 from humotion_gym.body import KEYPOINT_INDEX, forward_kinematics
 from humotion_gym.threads import single_threaded_blas
 
@@ -285,6 +287,40 @@ def compact(result: Mapping[str, Any]) -> dict[str, Any]:
         rows.append({**row, "episodes": eps})
     out["rows"] = rows
     return out
+
+
+def load_episode_rows(path: str | Path) -> list[dict[str, Any]]:
+    """A saved oracle run (``humotion-gym oracle --out``) as leaderboard-like rows.
+
+    One row per task, agent and likelihood, its agent named ``"AGENT LIKELIHOOD"``
+    (``"pf-cv 2d 1px"``; ``hold`` as it is) and each episode's ``mean_error_mm``
+    its error: what :func:`baselines.leaderboard.compare.compare_runs` reads.
+
+    Raises:
+        OSError: If the file cannot be read.
+        ValueError: If it is not an oracle run's results (the message names the file).
+    """
+    data = read_json(path)
+    results = data.get("results") if isinstance(data, dict) else None
+    if not isinstance(results, list) or not all(
+        isinstance(r, dict) and isinstance(r.get("rows"), list) for r in results
+    ):
+        raise ValueError(f"{path}: expected an oracle run's results ('results' with 'rows')")
+    rows = []
+    for result in results:
+        for row in result["rows"]:
+            hold = row["agent"] == "hold"
+            rows.append({
+                "task": result["task"],
+                "agent": row["agent"] if hold else f"{row['agent']} {row['likelihood']}",
+                "particles": 0 if hold else result["particles"],
+                "episodes": [
+                    {"agent_seed": e.get("agent_seed", 0), "seed": e["seed"],
+                     "mean_error_mm": e["error_mm"]}
+                    for e in row["episodes"]
+                ],
+            })  # fmt: skip
+    return rows
 
 
 def _num(value: float | None, fmt: str = ".0f") -> str:

@@ -86,6 +86,23 @@ PERSON_LEGEND = (
 # ------------------------------------------------------------------ input
 
 
+def read_json(path: str | Path) -> Any:
+    """A JSON document, gzipped when the name ends in ``.gz``.
+
+    Raises:
+        OSError: If the file cannot be read.
+        ValueError: If it is not (gzipped) JSON; the message names the file.
+    """
+    path = Path(path)
+    try:
+        raw = gzip.decompress(path.read_bytes()) if path.suffix == ".gz" else path.read_bytes()
+        return json.loads(raw)
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: not JSON ({exc})") from None
+    except gzip.BadGzipFile as exc:
+        raise ValueError(f"{path}: not gzipped JSON ({exc})") from None
+
+
 def load_rows(path: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """Rows and run settings of a saved leaderboard.
 
@@ -99,13 +116,7 @@ def load_rows(path: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
         ValueError: If it is not such a JSON document (the message names the file).
     """
     path = Path(path)
-    try:
-        raw = gzip.decompress(path.read_bytes()) if path.suffix == ".gz" else path.read_bytes()
-        data = json.loads(raw)
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: not JSON ({exc})") from None
-    except gzip.BadGzipFile as exc:
-        raise ValueError(f"{path}: not gzipped JSON ({exc})") from None
+    data = read_json(path)
     settings: dict[str, Any] = {}
     if isinstance(data, dict):
         if not isinstance(data.get("rows"), list):

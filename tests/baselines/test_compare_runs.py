@@ -50,3 +50,23 @@ def test_the_command_exits_0_when_it_reproduces_and_1_when_not(tmp_path, capsys)
     assert main(["compare", str(tmp_path / "none.json"), str(RECORDED)]) == 1
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "none.json" in err
+
+
+def test_an_oracle_run_is_compared_by_agent_and_likelihood(tmp_path, capsys):
+    """A rerun of ``humotion-gym oracle`` against its record: each likelihood a cell."""
+    argv = ["oracle", "--agents", "pf-cv", "--particles", "5", "--episodes", "2",
+            "--oracles", "image", "3d", "--seed", "4"]  # fmt: skip
+    for name in ("a", "b"):
+        assert main([*argv, "--out", str(tmp_path / name)]) == 0
+    a, b = tmp_path / "a" / "results.json.gz", tmp_path / "b" / "results.json.gz"
+    capsys.readouterr()
+    assert main(["compare", str(a), str(b)]) == 0
+    assert "compared 6: 0 differ" in capsys.readouterr().out  # hold + two likelihoods, 2 each
+    data = json.loads(gzip.decompress(b.read_bytes()))
+    data["results"][0]["rows"][2]["episodes"][1]["error_mm"] += 0.5
+    b.write_bytes(gzip.compress(json.dumps(data).encode()))
+    assert main(["compare", str(a), str(b)]) == 1
+    assert "pf-cv 3d 1px@depth" in capsys.readouterr().out
+    (tmp_path / "c.json").write_text('{"results": 3}')
+    assert main(["compare", str(a), str(tmp_path / "c.json")]) == 1
+    assert "expected" in capsys.readouterr().err
