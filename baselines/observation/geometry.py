@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import cv2
@@ -256,3 +257,24 @@ def grow(mask: NDArray[np.uint8], radius: float) -> NDArray[np.uint8]:
         return mask
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
     return cv2.dilate(mask, kernel)
+
+
+def cone_groups(groups: Sequence[Sequence[int]], caller: str) -> list[list[int]]:
+    """The groups of cones a partial likelihood builds the figure from, checked.
+
+    Raises:
+        ValueError: Naming ``caller`` and the group, if a group names a cone
+            that does not exist or one an earlier group has.
+    """
+    seen: set[int] = set()
+    out = []
+    for g, group in enumerate(groups):
+        cones = [int(c) for c in group]
+        if any(not 0 <= c < N_CONES for c in cones) or seen & set(cones):
+            raise ValueError(
+                f"{caller}.log_likelihood_partial: groups[{g}] = {cones}: expected cone "
+                f"indices in 0..{N_CONES - 1}, each in one group"
+            )
+        seen |= set(cones)
+        out.append(cones)
+    return out

@@ -32,7 +32,8 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from humotion_gym.body import CONE_KEYPOINTS, KEYPOINT_NAMES, N_CONES, N_PARAMS
+from baselines.observation.geometry import cone_groups
+from humotion_gym.body import CONE_KEYPOINTS, KEYPOINT_NAMES, N_PARAMS
 
 FloatArray = NDArray[np.float64]
 
@@ -118,17 +119,9 @@ class KeypointScorer:
             ValueError: If a group names a cone that does not exist or one an
                 earlier group has.
         """
-        seen: set[int] = set()
         masks = np.zeros((len(groups) + 1, self.keypoints.size), dtype=bool)
         placed: set[int] = set()
-        for g, group in enumerate(groups):
-            cones = [int(c) for c in group]
-            if any(not 0 <= c < N_CONES for c in cones) or seen & set(cones):
-                raise ValueError(
-                    f"{self.caller}.log_likelihood_partial: groups[{g}] = {cones}: expected cone "
-                    f"indices in 0..{N_CONES - 1}, each in one group"
-                )
-            seen |= set(cones)
+        for g, cones in enumerate(cone_groups(groups, self.caller)):
             placed |= {int(k) for c in cones for k in CONE_KEYPOINTS[c]}
             masks[g] = np.isin(self.keypoints, sorted(placed))
         masks[-1] = True

@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from baselines.observation import features, terms
 from baselines.observation.features import Backdrop, FirstFrame, FrameFeatures, GivenBody
-from baselines.observation.geometry import grow, silhouette_mask
+from baselines.observation.geometry import cone_groups, grow, silhouette_mask
 from baselines.observation.settings import ObservationSettings
 from humotion_gym.body import N_CONES, N_PARAMS, BodyShape, cone_geometry, forward_kinematics
 from humotion_gym.camera import Camera
@@ -226,16 +226,8 @@ class ObservationModel(ObservationSettings):
             ValueError: As :meth:`log_likelihood`, or if a group names a cone
                 that does not exist or one an earlier group has.
         """
-        seen: set[int] = set()
         masks = np.zeros((len(groups), N_CONES), dtype=bool)
-        for g, group in enumerate(groups):
-            cones = [int(c) for c in group]
-            if any(not 0 <= c < N_CONES for c in cones) or seen & set(cones):
-                raise ValueError(
-                    f"ObservationModel.log_likelihood_partial: groups[{g}] = {cones}: expected "
-                    f"cone indices in 0..{N_CONES - 1}, each in one group"
-                )
-            seen |= set(cones)
+        for g, cones in enumerate(cone_groups(groups, "ObservationModel")):
             masks[g, cones] = True
         return self._evaluate(
             frame, params, shape, camera, "log_likelihood_partial", np.cumsum(masks, axis=0) > 0
