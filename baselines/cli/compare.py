@@ -36,19 +36,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from baselines.diagnostics.split import load_episode_rows
+    from baselines.diagnostics.split import episode_rows
     from baselines.leaderboard.compare import compare_runs
-    from baselines.leaderboard.report import load_rows
+    from baselines.leaderboard.report import leaderboard_rows, read_json
 
     runs = []
     for path in (args.rerun, args.recorded):
         try:
-            runs.append(load_rows(path)[0])
+            data = read_json(path)
+            if isinstance(data, dict) and "results" in data:  # humotion-gym oracle --out
+                runs.append(episode_rows(data, path))
+            else:
+                runs.append(leaderboard_rows(data, path)[0])
         except ValueError as exc:
-            try:  # an oracle run's results (humotion-gym oracle --out)
-                runs.append(load_episode_rows(path))
-            except ValueError:
-                raise CommandError(str(exc)) from None
+            raise CommandError(str(exc)) from None
         except OSError as exc:
             raise CommandError(f"{path}: {exc}") from None
     try:

@@ -37,10 +37,9 @@ from tqdm.auto import tqdm
 from baselines.agents import make, tracking_env
 from baselines.depth import split_along_ray
 from baselines.diagnostics.oracle import OracleFeed, OracleSettings, TruthOracle, with_oracle
-from baselines.experiments.selection import agent_settings
+from baselines.experiments.selection import FILTER_PREFIX, FIT_PREFIX, agent_settings
 from baselines.leaderboard.engine import make_env, task_windows, window_options
 from baselines.leaderboard.evaluation import run_episode
-from baselines.leaderboard.report import read_json
 from humotion_gym.body import KEYPOINT_INDEX, forward_kinematics
 from humotion_gym.threads import single_threaded_blas
 
@@ -252,7 +251,7 @@ def _builder(
             agent lacks it (before any episode runs).
     """
     fit, search = agent_settings(settings)
-    unknown = sorted(k for k in settings if not k.startswith(("fit.", "filter.")))
+    unknown = sorted(k for k in settings if not k.startswith((FIT_PREFIX, FILTER_PREFIX)))
     if unknown:
         raise SettingsError(f"settings: expected fit.NAME or filter.NAME, got {', '.join(unknown)}")
     if settings and not names:
@@ -289,18 +288,17 @@ def compact(result: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
-def load_episode_rows(path: str | Path) -> list[dict[str, Any]]:
-    """A saved oracle run (``humotion-gym oracle --out``) as leaderboard-like rows.
+def episode_rows(data: Any, path: str | Path) -> list[dict[str, Any]]:
+    """A saved oracle run (``humotion-gym oracle --out``, read from ``path``) as rows.
 
-    One row per task, agent and likelihood, its agent named ``"AGENT LIKELIHOOD"``
-    (``"pf-cv 2d 1px"``; ``hold`` as it is) and each episode's ``mean_error_mm``
-    its error: what :func:`baselines.leaderboard.compare.compare_runs` reads.
+    One leaderboard-like row per task, agent and likelihood, its agent named
+    ``"AGENT LIKELIHOOD"`` (``"pf-cv 2d 1px"``; ``hold`` as it is) and each
+    episode's ``mean_error_mm`` its error: what
+    :func:`baselines.leaderboard.compare.compare_runs` reads.
 
     Raises:
-        OSError: If the file cannot be read.
-        ValueError: If it is not an oracle run's results (the message names the file).
+        ValueError: If it is not an oracle run's results (the message names ``path``).
     """
-    data = read_json(path)
     results = data.get("results") if isinstance(data, dict) else None
     if not isinstance(results, list) or not all(
         isinstance(r, dict) and isinstance(r.get("rows"), list) for r in results

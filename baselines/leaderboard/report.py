@@ -115,8 +115,15 @@ def load_rows(path: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
         OSError: If the file cannot be read.
         ValueError: If it is not such a JSON document (the message names the file).
     """
-    path = Path(path)
-    data = read_json(path)
+    return leaderboard_rows(read_json(path), path)
+
+
+def leaderboard_rows(data: Any, path: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """:func:`load_rows` of a document already read from ``path`` (named in errors).
+
+    Raises:
+        ValueError: If it is not a saved leaderboard.
+    """
     settings: dict[str, Any] = {}
     if isinstance(data, dict):
         if not isinstance(data.get("rows"), list):
