@@ -239,7 +239,7 @@ def test_free_cones_cache_gives_the_computed_answer(arm_scene) -> None:
 
     first = fresh(given)
     again = geometry.free_cones(pose.copy(), ARM.copy(), SHAPE)
-    assert again is first  # a hit: equal bytes, the same shape object
+    assert again is first  # a hit: equal bytes, the same shape
     with pytest.raises(ValueError, match="read-only"):
         again[1][2][0, 0] = True
     moved = pose.copy()
@@ -252,6 +252,13 @@ def test_free_cones_cache_gives_the_computed_answer(arm_scene) -> None:
     got = geometry.free_cones(pose, legs, SHAPE)
     same(got, fresh(GivenBody(pose, legs, SHAPE, cam)))
     assert set(got[0].tolist()) != set(first[0].tolist())
-    other = body.default_shape()  # an equal shape, another object: computed again
-    assert geometry.free_cones(pose, ARM, other) is not first
+    # An equal shape in another object (as an agent reads one from every
+    # observation) hits; another shape computes afresh.
+    first = geometry.free_cones(pose, ARM, SHAPE)
+    assert geometry.free_cones(pose, ARM, body.BodyShape.from_vector(SHAPE.to_vector())) is first
+    longer = SHAPE.replace(forearm_length=SHAPE.forearm_length + 40.0)
+    got = geometry.free_cones(pose, ARM, longer)
+    assert got is not first
+    same(got, fresh(GivenBody(pose, ARM, longer, cam)))
+    assert not np.array_equal(got[1][1], first[1][1])  # the ends moved with the forearm
     same(geometry.free_cones(pose, ARM, SHAPE), first)

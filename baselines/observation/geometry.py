@@ -34,8 +34,8 @@ FloatArray = NDArray[np.float64]
 #: Each cone's two keypoints (``KEYPOINT_NAMES`` order).
 CONE_ENDS = np.ascontiguousarray(CONE_KEYPOINTS, np.intp)
 
-# The last answer of free_cones: (key, shape, result), per process.
-_FREE_CONES_CACHE: dict[str, tuple[tuple[bytes, bytes], BodyShape, Any]] = {}
+# The last answer of free_cones: (key, result), per process.
+_FREE_CONES_CACHE: dict[str, tuple[tuple[bytes, bytes, bytes], Any]] = {}
 
 
 def sample_weights(outline_samples: int, axis_samples: int) -> NDArray[np.float32]:
@@ -121,7 +121,9 @@ def free_cones(given_pose: Any, given_free: Any, shape: BodyShape) -> tuple[NDAr
 
     Two moves of the free parameters tell which cone ends depend on them. The
     same given pose, free parameters and shape give the same answer: on tasks
-    that give the same thing every frame the probe runs once per episode.
+    that give the same thing every frame the probe runs once per episode. The
+    shape is compared by value: an agent reads a new shape object from every
+    observation.
 
     Returns:
         The free cones' indices and ``(geometry, ends, moved)``: the probe's
@@ -138,10 +140,10 @@ def free_cones(given_pose: Any, given_free: Any, shape: BodyShape) -> tuple[NDAr
         raise ValueError(f"GivenBody.pose: expected shape (25,), got {pose.shape}")
     if free.ndim != 1 or (free.size and not (0 <= free.min() and free.max() < N_PARAMS)):
         raise ValueError("GivenBody.free: expected indices of pose parameters (0-24)")
-    key = (pose.tobytes(), free.tobytes())
+    key = (pose.tobytes(), free.tobytes(), shape.to_vector().tobytes())
     cached = _FREE_CONES_CACHE.get("last")
-    if cached is not None and cached[0] == key and cached[1] is shape:
-        return cached[2]
+    if cached is not None and cached[0] == key:
+        return cached[1]
     probe = np.stack([pose, pose, pose])
     probe[1, free] += 0.5
     probe[2, free] -= 0.7
@@ -151,7 +153,7 @@ def free_cones(given_pose: Any, given_free: Any, shape: BodyShape) -> tuple[NDAr
     result = (np.flatnonzero(moved.any(axis=1)), (geo, ends, moved))
     for array in (result[0], ends, moved, *geo):
         array.setflags(write=False)
-    _FREE_CONES_CACHE["last"] = (key, shape, result)
+    _FREE_CONES_CACHE["last"] = (key, result)
     return result
 
 
