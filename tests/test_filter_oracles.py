@@ -79,7 +79,9 @@ def test_filter_step_matches_a_plain_step(fitted_arm) -> None:
     np.testing.assert_allclose(estimate, expected, rtol=0, atol=1e-6 * spread)
     index = systematic_resample(weights, rng)
     np.testing.assert_array_equal(pf.state.pose, moved.pose[index])
-    np.testing.assert_array_equal(pf.state.extra["history"], moved.extra["history"][index])
+    np.testing.assert_array_equal(
+        tree.histories(pf.state.extra), tree.histories(moved.extra)[index]
+    )
 
 
 def reference_temper(loglik: np.ndarray, alpha: float, iterations: int = 60):

@@ -327,3 +327,42 @@ def test_a_composite_priors_parts_get_their_arrays_with_the_rows_composed() -> N
     np.testing.assert_array_equal(deferred, index[[1, 0]])
     np.testing.assert_array_equal(sub["w"], np.arange(30)[index][[1, 0]])
     assert sorted(filtering.select(taken.extra, "b/")) == ["h"]
+
+
+def test_arrays_given_by_rows_compose_and_stay_deferred() -> None:
+    # gathered: particle p's array is source[rows[p]] (a prior's rows of a
+    # shared array); resampling composes each key's rows, one composed array
+    # for the keys that shared one; replaced and prefixed keep the rest as
+    # they were.
+    rng = np.random.default_rng(5)
+    shared = rng.normal(size=(4, 3, 2))
+    rows = np.array([0, 0, 3, 1, 3])
+    own, other = rng.normal(size=(5, 2)), np.arange(5.0)
+    extra = filtering.gathered({"past": (shared, rows), "last": (own, None), "w": (other, None)})
+    state = ParticleState(rng.normal(size=(5, 2)), extra)
+    np.testing.assert_array_equal(state.extra["past"], shared[rows])
+    assert state.extra["last"] is own and filtering.deferred_rows(state.extra, "w") == (other, None)
+    index = np.array([4, 4, 0, 2, 2])
+    taken = state.take(index)
+    source, past_rows = filtering.deferred_rows(taken.extra, "past")
+    assert source is shared
+    np.testing.assert_array_equal(past_rows, rows[index])
+    last_rows = filtering.deferred_rows(taken.extra, "last")[1]
+    assert last_rows is filtering.deferred_rows(taken.extra, "w")[1]  # one rows array
+    again = taken.take(np.array([1, 3]))
+    assert (
+        filtering.deferred_rows(again.extra, "last")[1]
+        is filtering.deferred_rows(again.extra, "w")[1]
+    )
+    np.testing.assert_array_equal(again.extra["past"], shared[rows[index][[1, 3]]])
+    np.testing.assert_array_equal(again.extra["last"], own[index][[1, 3]])
+    swapped = filtering.replaced(taken.extra, {"w": np.zeros(5)})
+    assert filtering.deferred_rows(swapped, "past")[0] is shared
+    np.testing.assert_array_equal(swapped["w"], np.zeros(5))
+    joined = filtering.prefixed({"a/": taken.extra, "b/": {"v": np.ones(5)}})
+    assert sorted(joined) == ["a/last", "a/past", "a/w", "b/v"]
+    assert filtering.deferred_rows(joined, "a/past")[0] is shared
+    part = filtering.select(joined, "a/", np.array([0]))
+    np.testing.assert_array_equal(part["past"], shared[rows[index][[0]]])
+    with pytest.raises(ValueError, match=r"extra\['past'\]: 5 gathered rows for 3 particles"):
+        ParticleState(state.pose[:3], extra)

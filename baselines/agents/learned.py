@@ -31,7 +31,8 @@ from numpy.typing import NDArray
 
 from baselines.agents.base import TaskNotSupported, describe, episode_begins
 from baselines.agents.specs import make_filter
-from baselines.filtering import ParticleState
+from baselines.filtering import ParticleState, replaced
+from baselines.priors import tree
 from humotion_gym.body import ANGLE_MASK, PARAM_LOWER, PARAM_UPPER
 from humotion_gym.envs.description import TaskDescription, read_observation
 from humotion_gym.wrappers import learner_observation
@@ -289,11 +290,11 @@ class ProposalPrior:
             pose[index] = drawn
         else:
             pose[index[:, None], self.dims[None, :]] = drawn[:, self.dims]
-        extra = dict(moved.extra)
-        if "history" in extra:
-            history = extra["history"].copy()
-            history[index, -1] = pose[index]
-            extra["history"] = history
+        extra = moved.extra
+        if tree.LAST in extra:  # a tree particle's last pose is the redrawn one
+            last = extra[tree.LAST].copy()
+            last[index] = pose[index]
+            extra = replaced(extra, {tree.LAST: last})
         return ParticleState(pose, extra)
 
 

@@ -77,7 +77,7 @@ def sample_next_poses(
     model = fitted.with_settings(beta=beta, noise_scale=0.0)
     state = ParticleState(
         np.repeat(history[None, -1], samples, axis=0),
-        {"history": np.repeat(history[None], samples, axis=0)},
+        tree.memory(np.repeat(history[None], samples, axis=0)),
     )
     return tree.transition(model, state, rng).pose
 

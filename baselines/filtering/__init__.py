@@ -21,6 +21,9 @@ from baselines.filtering.state import (
     ParticleState,
     Prior,
     deferred_rows,
+    gathered,
+    prefixed,
+    replaced,
     select,
 )
 from baselines.filtering.weights import (
@@ -50,8 +53,11 @@ __all__ = [
     "climb",
     "deferred_rows",
     "effective_sample_size",
+    "gathered",
     "log_sum_exp",
     "multinomial_resample",
+    "prefixed",
+    "replaced",
     "select",
     "stratified_resample",
     "systematic_resample",

@@ -35,10 +35,13 @@ class ParticleState:
     def __post_init__(self) -> None:
         n = self.pose.shape[0]
         if isinstance(self.extra, _Gathered):
-            # The source's arrays were checked when it was made; the rows are one per particle.
-            if self.extra.rows.shape != (n,):
-                rows = self.extra.rows.shape[0]
-                raise ValueError(f"ParticleState.extra: {rows} gathered rows for {n} particles")
+            # The sources were checked when they were made; the rows are one per particle.
+            for key, (source, rows) in self.extra.parts.items():
+                got = source.shape[0] if rows is None else rows.shape[0]
+                if got != n:
+                    raise ValueError(
+                        f"ParticleState.extra[{key!r}]: {got} gathered rows for {n} particles"
+                    )
             return
         for key, value in self.extra.items():
             if value.shape[:1] != (n,):
@@ -56,10 +59,9 @@ class ParticleState:
         """The particles at ``index`` (with repeats): resampling.
 
         The poses are copied now; the prior's arrays are gathered when first
-        read, each once, with the same rows (:class:`_Gathered`). A prior
-        that reads its arrays through the rows (:func:`deferred_rows`) need
-        not copy them per particle: the tree prior's histories (3.3 MB at
-        3,000 particles) are read once per distinct row and shifted instead.
+        read, each once (:class:`_Gathered`). A prior that reads its arrays
+        through the rows (:func:`deferred_rows`) need not copy them per
+        particle: the tree prior's histories are read once per distinct row.
 
         Raises:
             IndexError: If an index is out of range (numpy's, from the poses).
@@ -72,41 +74,98 @@ class ParticleState:
             return ParticleState(pose, {})
         # Negative rows count from the end, as numpy's indexing reads them.
         rows = np.asarray(index, dtype=np.intp).reshape(-1) % self.n
-        if isinstance(self.extra, _Gathered):  # rows of rows: one gather from the first source
-            return ParticleState(pose, _Gathered(self.extra.source, self.extra.rows[rows]))
-        return ParticleState(pose, _Gathered(dict(self.extra), rows))  # the mapping as it is now
+        return ParticleState(pose, _parts(self.extra).at(rows))
+
+
+#: A per-particle array as its source and the source's row of each particle
+#: (None: the source's rows are the particles').
+Part = tuple[NDArray[Any], "NDArray[np.intp] | None"]
 
 
 class _Gathered(Mapping[str, NDArray[Any]]):
-    """A prior's per-particle arrays at ``rows`` of ``source``'s, each gathered when first read.
+    """A prior's per-particle arrays, each a source and its rows, gathered when first read.
 
-    Reading a key gives the same array as ``source[key][rows]`` (and the same
-    array object on every read); :func:`deferred_rows` gives the source and
-    the rows instead, for a prior that reads through them.
+    Reading a key gives the same array as ``source[rows]`` (the source itself
+    where the rows are None), the same object on every read;
+    :func:`deferred_rows` gives the source and the rows instead, for a prior
+    that reads through them. The arrays one resampling deferred share one rows
+    array (the same object), so a prior can tell that they go together.
     """
 
-    def __init__(self, source: Mapping[str, NDArray[Any]], rows: NDArray[np.intp]) -> None:
-        self.source = source
-        self.rows = rows
+    def __init__(self, parts: Mapping[str, Part]) -> None:
+        self.parts = dict(parts)
         self._taken: dict[str, NDArray[Any]] = {}
 
     def __getitem__(self, key: str) -> NDArray[Any]:
         taken = self._taken.get(key)
         if taken is None:
-            taken = self._taken[key] = _rows(self.source[key], self.rows)
+            source, rows = self.parts[key]
+            taken = source if rows is None else _rows(source, rows)
+            self._taken[key] = taken
         return taken
 
     def __contains__(self, key: object) -> bool:
-        return key in self.source  # without gathering (Mapping's would read the array)
+        return key in self.parts  # without gathering (Mapping's would read the array)
 
     def __iter__(self) -> Iterator[str]:
-        return iter(self.source)
+        return iter(self.parts)
 
     def __len__(self) -> int:
-        return len(self.source)
+        return len(self.parts)
 
     def __repr__(self) -> str:
-        return f"_Gathered({list(self.source)}, {self.rows.size} rows)"
+        return f"_Gathered({list(self.parts)})"
+
+    def at(self, rows: NDArray[np.intp]) -> _Gathered:
+        """The arrays at ``rows`` of these particles: the rows composed, each rows array once."""
+        composed: dict[int, NDArray[np.intp]] = {}
+        parts: dict[str, Part] = {}
+        for key, (source, own) in self.parts.items():
+            if own is None:
+                parts[key] = (source, rows)
+                continue
+            if id(own) not in composed:
+                composed[id(own)] = own[rows]
+            parts[key] = (source, composed[id(own)])
+        return _Gathered(parts)
+
+
+def _parts(extra: Mapping[str, NDArray[Any]]) -> _Gathered:
+    """``extra`` as a :class:`_Gathered` (a plain mapping's arrays are the particles' own)."""
+    if isinstance(extra, _Gathered):
+        return extra
+    return _Gathered({key: (value, None) for key, value in extra.items()})
+
+
+def gathered(parts: Mapping[str, Part]) -> Mapping[str, NDArray[Any]]:
+    """Per-particle arrays given as ``(source, rows)``: particle ``p``'s is ``source[rows[p]]``.
+
+    For a prior whose particles share rows of an array (the tree prior's
+    histories, one per distinct particle before the move): the mapping reads
+    as the gathered arrays, and :func:`deferred_rows` gives the source and
+    the rows without copying. ``rows`` None: the source is the particles' own.
+    """
+    return _Gathered(
+        {k: (source, None if rows is None else np.asarray(rows, np.intp))
+         for k, (source, rows) in parts.items()}
+    )  # fmt: skip
+
+
+def replaced(
+    extra: Mapping[str, NDArray[Any]], changes: Mapping[str, NDArray[Any]]
+) -> Mapping[str, NDArray[Any]]:
+    """``extra`` with the arrays of ``changes`` put in (the particles' own), the rest as it was."""
+    parts = dict(_parts(extra).parts)
+    parts.update({key: (value, None) for key, value in changes.items()})
+    return _Gathered(parts)
+
+
+def prefixed(extras: Mapping[str, Mapping[str, NDArray[Any]]]) -> Mapping[str, NDArray[Any]]:
+    """Several priors' arrays in one mapping, each key under its prefix; deferred stays deferred."""
+    parts: dict[str, Part] = {}
+    for prefix, extra in extras.items():
+        parts.update({prefix + key: part for key, part in _parts(extra).parts.items()})
+    return _Gathered(parts)
 
 
 def select(
@@ -122,15 +181,13 @@ def select(
     each array once.
     """
     cut = len(prefix)
+    part = _Gathered({k[cut:]: v for k, v in _parts(extra).parts.items() if k.startswith(prefix)})
+    if rows is not None:
+        return part.at(np.asarray(rows, dtype=np.intp))
     if isinstance(extra, _Gathered):
-        source = {k[cut:]: v for k, v in extra.source.items() if k.startswith(prefix)}
-        if rows is None:
-            out = _Gathered(source, extra.rows)
-            out._taken = {k[cut:]: v for k, v in extra._taken.items() if k.startswith(prefix)}
-            return out
-        return _Gathered(source, extra.rows[rows])
-    own = {k[cut:]: v for k, v in extra.items() if k.startswith(prefix)}
-    return own if rows is None else _Gathered(own, np.asarray(rows, dtype=np.intp))
+        part._taken = {k[cut:]: v for k, v in extra._taken.items() if k.startswith(prefix)}
+        return part
+    return {key: source for key, (source, _) in part.parts.items()}
 
 
 def deferred_rows(
@@ -145,7 +202,7 @@ def deferred_rows(
         KeyError: If ``extra`` has no ``key``.
     """
     if isinstance(extra, _Gathered) and key not in extra._taken:
-        return extra.source[key], extra.rows
+        return extra.parts[key]
     return extra[key], None
 
 

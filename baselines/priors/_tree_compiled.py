@@ -264,11 +264,9 @@ def replay(
     cos_sin: FloatArray,
     noise_std: FloatArray,
     relative: NDArray[np.bool_],
-    history: NDArray[Any],
-    rows: IntArray,
     rng: np.random.Generator,
-) -> tuple[FloatArray, NDArray[Any]]:
-    """The chosen windows' next steps replayed from the particles' poses; histories shifted.
+) -> FloatArray:
+    """The chosen windows' next steps replayed from the particles' poses.
 
     Per particle ``p``: the step ``next_step[chosen[p]]``; where
     ``velocity[j]``, plus ``pose[p, j] - frames[window_end[chosen[p]], j]``
@@ -278,7 +276,7 @@ def replay(
     particle's speed (``speed`` empty: none); plus ``noise_std * N(0, 1)``
     (``noise_std`` empty: no noise). Then the relative parameters move by the
     step from the pose, root x and y turned by the pose's heading, and the
-    absolute ones take it. The history moves up a frame, the new pose last.
+    absolute ones take it.
 
     Args:
         next_step: ``(n, D)`` the state that followed each window.
@@ -293,19 +291,13 @@ def replay(
             (with ``root``).
         noise_std: ``(D,)`` the noise's standard deviations, or empty.
         relative: ``(D,)`` the parameters that move relative to the pose.
-        history: ``(M, d + 1, D)`` histories; particle ``p`` reads row
-            ``rows[p]`` (row ``p`` where ``rows`` is empty).
-        rows: ``(N,)`` or empty.
         rng: The noise's draws.
 
     Returns:
-        ``(N, D)`` the new poses and ``(N, d + 1, D)`` the new histories (in
-        ``history``'s precision).
+        ``(N, D)`` the new poses.
     """
     n, dim = pose.shape
-    last = history.shape[1] - 1
     out_pose = np.empty((n, dim))
-    out_history = np.empty((n, last + 1, dim), history.dtype)
     step = np.empty(dim)
     for p in range(n):
         w = chosen[p]
@@ -326,13 +318,28 @@ def replay(
             c, s = cos_sin[0, p], cos_sin[1, p]
             out_pose[p, ix] = pose[p, ix] + (c * step[ix] - s * step[iy])
             out_pose[p, iy] = pose[p, iy] + (s * step[ix] + c * step[iy])
-        h = rows[p] if rows.size else p
-        for f in range(last):
+    return out_pose
+
+
+@_njit()
+def joined(
+    past: NDArray[Any], past_rows: IntArray, last: NDArray[Any], last_rows: IntArray
+) -> NDArray[Any]:
+    """``(K, d + 1, D)``: row ``past_rows[k]`` of ``past``, then ``last_rows[k]`` of ``last``.
+
+    One pass over what resampling kept, where numpy's gather of the strided
+    past and its copy into place would be two.
+    """
+    k, d, dim = last_rows.size, past.shape[1], past.shape[2]
+    out = np.empty((k, d + 1, dim), past.dtype)
+    for i in range(k):
+        r, q = past_rows[i], last_rows[i]
+        for f in range(d):
             for j in range(dim):
-                out_history[p, f, j] = history[h, f + 1, j]
+                out[i, f, j] = past[r, f, j]
         for j in range(dim):
-            out_history[p, last, j] = out_pose[p, j]
-    return out_pose, out_history
+            out[i, d, j] = last[q, j]
+    return out
 
 
 @_njit()

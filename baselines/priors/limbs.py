@@ -26,14 +26,14 @@ and is not saved.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from baselines.filtering import ParticleState, select
+from baselines.filtering import ParticleState, prefixed, select
 from baselines.priors import tree
 from baselines.priors.tree import TreeParams
 from humotion_gym.body import PARAM_INDEX
@@ -172,7 +172,7 @@ def initial(
 
     Returns:
         ``pose (N, D)`` all equal to ``pose``; part ``g``'s tree memory as
-        ``extra["NAME/history"]`` and ``extra["NAME/window"]``.
+        ``extra["NAME/past"]``, ``extra["NAME/last"]`` and ``extra["NAME/window"]``.
 
     Raises:
         ValueError: If ``pose`` is not ``(D,)`` or ``n < 1``.
@@ -201,11 +201,11 @@ def transition(
         The moved particles.
     """
     pose = np.empty_like(state.pose)
-    extra: dict[str, NDArray[Any]] = {}
+    extras: dict[str, Mapping[str, NDArray[Any]]] = {}
     for g, (name, cols, part) in enumerate(
         zip(fitted.names, fitted.columns, fitted.parts, strict=True)
     ):
         moved = tree.transition(part, _part_state(fitted, g, state), rng)
         pose[:, cols] = moved.pose
-        extra.update({_key(name, k): v for k, v in moved.extra.items()})
-    return ParticleState(pose, extra)
+        extras[_key(name, "")] = moved.extra
+    return ParticleState(pose, prefixed(extras))  # each part's rows kept, not gathered

@@ -33,23 +33,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from baselines.filtering import ParticleState, deferred_rows, select
+from baselines.priors import tree
 
 FloatArray = NDArray[np.float64]
 NAME = "mixture"
-
-
-def _follow_tree(old: ParticleState, pose: FloatArray) -> dict[str, NDArray[Any]]:
-    """The tree's memory after another model moved the particles to ``pose``.
-
-    The history shifts in the new pose; the window and (where the tree gives
-    particles one) the speed stay.
-    """
-    history = old.extra["history"]
-    shifted = np.empty_like(history)
-    shifted[:, :-1] = history[:, 1:]
-    shifted[:, -1] = pose
-    kept = {k: old.extra[k] for k in ("window", "speed") if k in old.extra}
-    return {"history": shifted, **kept}
 
 
 def _follow_velocity(old: ParticleState, pose: FloatArray) -> dict[str, NDArray[Any]]:
@@ -60,7 +47,7 @@ def _follow_velocity(old: ParticleState, pose: FloatArray) -> dict[str, NDArray[
 #: Per component prior (its module's ``NAME``): how its per-particle memory
 #: follows a move made by another component.
 FOLLOW: dict[str, Callable[[ParticleState, FloatArray], dict[str, NDArray[Any]]]] = {
-    "tree": _follow_tree,
+    "tree": tree.follow,
     "constant_velocity": _follow_velocity,
 }
 

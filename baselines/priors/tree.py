@@ -98,10 +98,14 @@ Transition: the chosen window's following state plus Gaussian noise,
     database's step (next minus last pose of the window) from the particle's
     own pose: the search is the same, but a subject whose joint angles the
     database does not hold exactly is followed rather than snapped to the
-    database's poses. Each particle carries its last ``d + 1`` poses in
-    ``ParticleState.extra["history"]`` (``(N, d + 1, D)``, the last row its
-    current pose, single precision) and the window it followed in
-    ``extra["window"]``, so resampling is one fancy index. The coefficients
+    database's poses. Each particle carries its last ``d + 1`` poses, single
+    precision: the ``d`` earlier ones in ``ParticleState.extra["past"]``
+    (``(N, d, D)``) and its current pose in ``extra["last"]`` (``(N, D)``;
+    :func:`histories` joins them), and the window it followed in
+    ``extra["window"]``. Resampled particles share their past: a transition
+    joins one history per distinct particle, and the particles it moves keep
+    rows of those (:func:`baselines.filtering.gathered`) instead of a copy
+    each. The coefficients
     are one matrix product over the particles; the descent (``O(log n)`` per
     particle), the choice in the leaf and the replay are sequential per
     particle and compiled (:mod:`baselines.priors._tree_compiled`, where eq. 3
@@ -134,12 +138,13 @@ Initialisation (section 6): windows whose last pose is near the known first
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from baselines.filtering import ParticleState, deferred_rows
+from baselines.filtering import ParticleState, deferred_rows, gathered
 from baselines.priors import _tree_compiled as compiled
 from baselines.priors._synthesis import check_request, model_frames, to_motion
 from baselines.priors.tree_fit import FILE_FORMAT, fit, load, save, summary
@@ -189,9 +194,11 @@ __all__ = [
     "eq3_log_weights",
     "exact_probabilities",
     "fit",
+    "histories",
     "initial",
     "initial_windows",
     "load",
+    "memory",
     "sample_exact",
     "sample_windows",
     "save",
@@ -202,6 +209,33 @@ __all__ = [
     "window_coefficients",
     "window_histories",
 ]
+
+#: ``extra``'s keys of a particle's history: its ``d`` earlier poses, its last one.
+PAST, LAST = "past", "last"
+
+
+def memory(history: ArrayLike) -> dict[str, NDArray[Any]]:
+    """The particles' memory of ``(N, d + 1, D)`` histories: ``extra``'s past and last pose."""
+    h = np.asarray(history)
+    if h.ndim != 3 or h.shape[1] < 2:
+        raise ValueError(f"tree.memory: expected histories (N, d + 1, D), got shape {h.shape}")
+    return {PAST: h[:, :-1], LAST: h[:, -1]}
+
+
+def histories(extra: Mapping[str, NDArray[Any]]) -> NDArray[Any]:
+    """``(N, d + 1, D)`` the particles' histories: their past, then their last pose."""
+    return np.concatenate([extra[PAST], extra[LAST][:, None]], axis=1)
+
+
+def follow(old: ParticleState, pose: FloatArray) -> dict[str, NDArray[Any]]:
+    """The memory of particles that another prior moved to ``pose`` (a mixture's component).
+
+    The history shifts in the new pose; the window and (where the prior
+    gives particles one) the speed stay.
+    """
+    past = np.concatenate([old.extra[PAST][:, 1:], old.extra[LAST][:, None]], axis=1)
+    kept = {k: old.extra[k] for k in ("window", "speed") if k in old.extra}
+    return {PAST: past, LAST: pose.astype(past.dtype), **kept}
 
 
 # ---------------------------------------------------------------------------
@@ -262,10 +296,11 @@ def initial(fitted: TreeParams, pose: ArrayLike, n: int, rng: np.random.Generato
         rng: Random generator.
 
     Returns:
-        The particles: ``pose (N, D)`` all equal to ``pose``; ``extra["history"]``
-        ``(N, d + 1, D)`` re-anchored windows; ``extra["window"]`` ``(N,)`` the
-        windows drawn; with a ``speed_spread`` (and the root's horizontal
-        position free), ``extra["speed"]`` ``(N,)`` each particle's speed, and
+        The particles: ``pose (N, D)`` all equal to ``pose``; ``extra["past"]``
+        and ``extra["last"]`` their ``(N, d + 1, D)`` histories, re-anchored
+        windows (:func:`memory`); ``extra["window"]`` ``(N,)`` the windows
+        drawn; with a ``speed_spread`` (and the root's horizontal position
+        free), ``extra["speed"]`` ``(N,)`` each particle's speed, and
         its history's root path walked at that speed.
 
     Raises:
@@ -282,7 +317,7 @@ def initial(fitted: TreeParams, pose: ArrayLike, n: int, rng: np.random.Generato
         speed = np.exp(fitted.speed_spread * rng.standard_normal(n))
         extra["speed"] = speed
     history = _initial_histories(fitted, chosen, p, speed, lay)
-    return ParticleState(np.repeat(p[None], n, axis=0), {"history": history, **extra})
+    return ParticleState(np.repeat(p[None], n, axis=0), {**memory(history), **extra})
 
 
 def _initial_histories(
@@ -343,12 +378,12 @@ def _search_coefficients(
 
 
 class _Particles(NamedTuple):
-    """What :func:`transition` reads of the particles.
+    """What :func:`transition` reads of the particles: a history per distinct particle.
 
-    ``history`` and ``speed`` are the arrays the particles' rows are in: the
-    particles' own, or (with ``rows``) the distinct rows they were resampled
-    from (:func:`baselines.filtering.deferred_rows`), particle ``p``'s at
-    ``rows[p]``.
+    ``history`` ``(K, d + 1, D)`` and ``speed`` ``(K,)`` hold one row per
+    distinct particle (resampling repeats them: at 3,000 particles about 40%
+    are distinct), particle ``p``'s at ``rows[p]`` (its own row where
+    ``rows`` is None).
     """
 
     history: NDArray[Any]
@@ -356,63 +391,68 @@ class _Particles(NamedTuple):
     rows: IntArray | None
 
 
-def _particles(fitted: TreeParams, state: ParticleState, lay: _Layout) -> _Particles:
-    """The particles' histories and speeds, checked, where they lie."""
+def _read(state: ParticleState, key: str, why: str = "") -> tuple[NDArray[Any], IntArray | None]:
+    """``deferred_rows`` of ``key``, or a ValueError that says the particles lack it."""
     try:
-        history, rows = deferred_rows(state.extra, "history")
+        return deferred_rows(state.extra, key)
     except KeyError:
         raise ValueError(
-            "tree.transition: the particles carry no 'history'; start them with tree.initial"
+            f"tree.transition: {why}the particles carry no {key!r}; start them with "
+            "tree.initial of this prior"
         ) from None
+
+
+def _particles(fitted: TreeParams, state: ParticleState, lay: _Layout) -> _Particles:
+    """The distinct particles' histories (past and last pose joined) and speeds, checked."""
+    past, past_rows = _read(state, PAST, "no history: ")
+    last, last_rows = _read(state, LAST, "no history: ")
     speed = speed_rows = None
     if _has_speed(fitted, lay):
-        try:
-            speed, speed_rows = deferred_rows(state.extra, "speed")
-        except KeyError:
-            raise ValueError(
-                "tree.transition: the prior has a speed_spread but the particles carry no "
-                "'speed'; start them with tree.initial of this prior"
-            ) from None
-    if rows is None or (speed is not None and speed_rows is not rows):
-        # Not both deferred together: the particles' own arrays (gathered now
-        # where they were deferred).
-        if rows is not None:
-            history, rows = state.extra["history"], None
-        if speed_rows is not None:
-            speed = state.extra["speed"]
-    n = state.n if rows is None else history.shape[0]
-    want = (n, fitted.window + 1, fitted.n_free)
-    if history.shape != want:
-        raise ValueError(f"tree.transition: history has shape {history.shape}, expected {want}")
+        speed, speed_rows = _read(state, "speed", "the prior has a speed_spread but ")
+        if speed_rows is not last_rows:  # not deferred together: the particles' own
+            last, last_rows = state.extra[LAST], None
+            speed, speed_rows = state.extra["speed"], None
+    n, d, dim = state.n, fitted.window, fitted.n_free
+    if past.shape[1:] != (d, dim) or last.shape[1:] != (dim,):
+        raise ValueError(
+            f"tree.transition: the histories have shapes past {past.shape} and last "
+            f"{last.shape}, expected (N, {d}, {dim}) and (N, {dim})"
+        )
     if speed is not None:
         speed = np.asarray(speed, dtype=np.float64)
-        if speed.shape != (n,) or not np.all(speed > 0):
+        if speed.shape[:1] != last.shape[:1] or not np.all(speed > 0):
             raise ValueError(
                 f"tree.transition: 'speed' must be ({n},) positive numbers, got shape {speed.shape}"
             )
-    if rows is not None:
-        # Resampling repeats rows (at 3,000 particles about 40% of them are
-        # distinct): the search and the replay read each distinct row once,
-        # from a compact copy of those alone.
-        kept, rows = _distinct(rows)
-        history = np.take(history, kept, axis=0)
+    rows = None
+    kept = past_at = np.arange(last.shape[0])
+    if past_rows is not None:
+        past_at = past_rows
+    if last_rows is not None:
+        # Each distinct particle's history once: the search and the replay
+        # read a compact copy of those alone.
+        kept, rows, first = _distinct(last_rows)
+        past_at = first if past_rows is None else past_rows[first]
         speed = None if speed is None else speed[kept]
-    return _Particles(history, speed, rows)
+    # In the past's precision: single, but for a start history given to synthesize.
+    return _Particles(
+        compiled.joined(past, past_at, last.astype(past.dtype, copy=False), kept), speed, rows
+    )
 
 
-def _distinct(rows: IntArray) -> tuple[IntArray, IntArray]:
-    """The distinct values of ``rows``, increasing, and each row's place among them.
+def _distinct(rows: IntArray) -> tuple[IntArray, IntArray, IntArray]:
+    """The distinct values of ``rows`` (increasing), each row's place among them, their first rows.
 
-    ``np.unique(rows, return_inverse=True)``; without its sort where the rows
-    come sorted, as systematic resampling gives them.
+    ``np.unique(rows, return_index=True, return_inverse=True)``; without its
+    sort where the rows come sorted, as systematic resampling gives them.
     """
     if rows.size and bool(np.all(rows[1:] >= rows[:-1])):
         first = np.empty(rows.size, dtype=bool)
         first[0] = True
         np.not_equal(rows[1:], rows[:-1], out=first[1:])
-        return rows[first], np.cumsum(first, dtype=np.intp) - 1
-    kept, place = np.unique(rows, return_inverse=True)
-    return kept, place.reshape(-1)
+        return rows[first], np.cumsum(first, dtype=np.intp) - 1, np.flatnonzero(first)
+    kept, index, place = np.unique(rows, return_index=True, return_inverse=True)
+    return kept, place.reshape(-1), index
 
 
 def transition(fitted: TreeParams, state: ParticleState, rng: np.random.Generator) -> ParticleState:
@@ -424,7 +464,8 @@ def transition(fitted: TreeParams, state: ParticleState, rng: np.random.Generato
         rng: Random generator.
 
     Returns:
-        The moved particles, history shifted by one frame.
+        The moved particles, history shifted by one frame: their past rows of
+        the distinct particles' histories (:func:`baselines.filtering.gathered`).
     """
     lay = _layout(fitted.free)
     history, speed, rows = _particles(fitted, state, lay)
@@ -437,36 +478,33 @@ def transition(fitted: TreeParams, state: ParticleState, rng: np.random.Generato
         c = c[rows]
         speed = None if speed is None else speed[rows]
     chosen = sample_windows(fitted, c, rng)
-    pose, new_history = _replay(fitted, state, history, rows, chosen, speed, lay, rng)
-    extra: dict[str, NDArray[Any]] = {"history": new_history, "window": chosen}
+    pose = _replay(fitted, state, chosen, speed, lay, rng)
+    parts = {
+        PAST: (history[:, 1:], rows),
+        LAST: (pose.astype(history.dtype), None),
+        "window": (chosen, None),
+    }
     if speed is not None:
         if fitted.speed_drift > 0:
             speed = speed * np.exp(fitted.speed_drift * rng.standard_normal(speed.shape))
-        extra["speed"] = speed
-    return ParticleState(pose, extra)
+        parts["speed"] = (speed, None)
+    return ParticleState(pose, gathered(parts))
 
 
 def _replay(
     fitted: TreeParams,
     state: ParticleState,
-    history: NDArray[Any],
-    rows: IntArray | None,
     chosen: IntArray,
     speed: FloatArray | None,
     lay: _Layout,
     rng: np.random.Generator,
-) -> tuple[FloatArray, NDArray[Any]]:
-    """What followed the chosen windows, replayed from the particles' poses, and the histories.
+) -> FloatArray:
+    """What followed the chosen windows, replayed from the particles' poses: ``(N, D)``.
 
-    ``history``: the particles' histories, or with ``rows`` the histories
-    particle ``p`` has row ``rows[p]`` of. With ``replay="velocity"`` the
-    absolute parameters move by the database's step from the particle's own
-    pose (next = own pose + next - last); the root's horizontal step is the
-    database's times the particle's speed, turned by its heading.
-
-    Returns:
-        ``(N, D)`` the new poses (with the noise) and ``(N, d + 1, D)`` the
-        histories moved up a frame, the new pose last.
+    With ``replay="velocity"`` the absolute parameters move by the database's
+    step from the particle's own pose (next = own pose + next - last); the
+    root's horizontal step is the database's times the particle's speed,
+    turned by its heading. The noise is added.
     """
     velocity = lay.absolute_mask & (fitted.replay == "velocity")
     root, cos_sin = np.zeros(0, np.intp), np.zeros((2, 0))
@@ -487,8 +525,6 @@ def _replay(
         cos_sin,
         fitted.noise_std if fitted.noise_scale > 0 else none,
         lay.relative_mask,
-        history,
-        np.zeros(0, np.intp) if rows is None else rows,
         rng,
     )
 
@@ -523,7 +559,7 @@ def synthesize(
     if s.shape == (fitted.n_free,):
         state = initial(model, s, 1, rng)
     elif s.shape == (fitted.window + 1, fitted.n_free):
-        state = ParticleState(s[-1][None].copy(), {"history": s[None].copy()})
+        state = ParticleState(s[-1][None].copy(), memory(s[None].copy()))
     else:
         raise ValueError(
             f"tree.synthesize: start must be a pose ({fitted.n_free},) or a history "

@@ -40,19 +40,17 @@ def test_transition_is_each_part_searching_its_own_tree(body):
     pose, prior = body
     s0 = limbs.initial(prior, pose, 64, np.random.default_rng(1))
     assert np.array_equal(s0.pose, np.repeat(pose[None], 64, axis=0))
-    assert set(s0.extra) == {f"{n}/{k}" for n in limbs.PARTS for k in ("history", "window")}
+    keys = ("past", "last", "window")
+    assert set(s0.extra) == {f"{n}/{k}" for n in limbs.PARTS for k in keys}
     s1 = limbs.transition(prior, s0, np.random.default_rng(2))
     # oracle: the parts moved one after another by the plain tree, with the same draws
     rng = np.random.default_rng(2)
     for name, cols, part in zip(prior.names, prior.columns, prior.parts, strict=True):
-        own = ParticleState(
-            s0.pose[:, cols],
-            {"history": s0.extra[f"{name}/history"], "window": s0.extra[f"{name}/window"]},
-        )
+        own = ParticleState(s0.pose[:, cols], {k: s0.extra[f"{name}/{k}"] for k in keys})
         ref = tree.transition(part, own, rng)
         assert np.array_equal(s1.pose[:, cols], ref.pose)
-        assert np.array_equal(s1.extra[f"{name}/history"], ref.extra["history"])
-        assert np.array_equal(s1.extra[f"{name}/window"], ref.extra["window"])
+        for k in keys:
+            assert np.array_equal(s1.extra[f"{name}/{k}"], ref.extra[k])
     again = limbs.transition(prior, s0, np.random.default_rng(2))
     assert np.array_equal(s1.pose, again.pose)
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from baselines.filtering import ParticleState
+from baselines.filtering import ParticleState, select
 from baselines.priors import constant_velocity, mixture, tree
 from humotion_gym.body import PARAM_INDEX, SAGITTAL_PARAMS
 from humotion_gym.mocap.library import synthetic_library
@@ -25,7 +25,7 @@ def test_one_component_of_weight_one_is_that_prior(parts):
     pose, t, cv, _ = parts
     mix = mixture.compose([(constant_velocity, cv), (tree, t)], [1.0, 0.0])
     s0 = mixture.initial(mix, pose, 50, np.random.default_rng(3))
-    assert set(s0.extra) == {"0/velocity", "1/history", "1/window"}
+    assert set(s0.extra) == {"0/velocity", "1/past", "1/last", "1/window"}
     rng = np.random.default_rng(4)
     s1 = mixture.transition(mix, s0, rng)
     # the same draws: the mixture picks components first, then the component moves them
@@ -36,7 +36,7 @@ def test_one_component_of_weight_one_is_that_prior(parts):
     assert np.array_equal(s1.pose, ref.pose)
     assert np.array_equal(s1.extra["0/velocity"], ref.extra["velocity"])
     # the tree's history followed the move: shifted, the new pose last
-    h0, h1 = s0.extra["1/history"], s1.extra["1/history"]
+    h0, h1 = (tree.histories(select(s.extra, "1/")) for s in (s0, s1))
     assert np.array_equal(h1[:, :-1], h0[:, 1:])
     assert np.allclose(h1[:, -1], s1.pose, atol=1e-5)
 

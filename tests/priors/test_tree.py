@@ -89,16 +89,16 @@ def test_contract_shapes_determinism_finite(train, body_prior, arm_prior, free):
         rng = np.random.default_rng(7)
         state = tree.initial(prior, pose, 64, rng)
         assert state.pose.shape == (64, d)
-        assert state.extra["history"].shape == (64, prior.window + 1, d)
+        assert tree.histories(state.extra).shape == (64, prior.window + 1, d)
         np.testing.assert_array_equal(state.pose, np.repeat(pose[None], 64, axis=0))
         for _ in range(5):
             state = tree.transition(prior, state, rng)
             assert state.pose.shape == (64, d)
             assert np.all(np.isfinite(state.pose))
-            np.testing.assert_allclose(state.extra["history"][:, -1], state.pose, rtol=1e-6)
+            np.testing.assert_allclose(tree.histories(state.extra)[:, -1], state.pose, rtol=1e-6)
         states.append(state)
     np.testing.assert_array_equal(states[0].pose, states[1].pose)
-    np.testing.assert_array_equal(states[0].extra["history"], states[1].extra["history"])
+    np.testing.assert_array_equal(tree.histories(states[0].extra), tree.histories(states[1].extra))
 
 
 def test_save_load_round_trip(tmp_path, body_prior):
@@ -436,12 +436,12 @@ def test_initial_matches_pose_and_reanchors_windows(library, body_prior):
     rng = np.random.default_rng(6)
     state = tree.initial(body_prior, pose, 300, rng)
     chosen = state.extra["window"]
-    np.testing.assert_allclose(state.extra["history"][:, -1], np.repeat(pose[None], 300, 0),
+    np.testing.assert_allclose(tree.histories(state.extra)[:, -1], np.repeat(pose[None], 300, 0),
                                rtol=1e-6)  # fmt: skip
     # The history is the database window placed at the pose: the same motion
     # (relative root anchored at the last frame), joint angles shifted by a constant.
     lay = tree._layout(body_prior.free)
-    ours = tree._anchor(state.extra["history"].astype(np.float64), lay)
+    ours = tree._anchor(tree.histories(state.extra).astype(np.float64), lay)
     theirs = tree._anchor(tree.window_histories(body_prior, chosen), lay)
     np.testing.assert_allclose(ours[:, :, :4], theirs[:, :, :4], atol=1e-2)  # mm, rad
     np.testing.assert_allclose(np.diff(ours[:, :, 4:], axis=1), np.diff(theirs[:, :, 4:], axis=1),

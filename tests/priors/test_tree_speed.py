@@ -48,7 +48,7 @@ def assert_close_particles(got: ParticleState, want: ParticleState) -> None:
     """The same windows and speeds; poses and histories to float32's rounding of the search."""
     np.testing.assert_array_equal(got.extra["window"], want.extra["window"])
     np.testing.assert_allclose(got.pose, want.pose, rtol=1e-9, atol=1e-9)
-    np.testing.assert_allclose(got.extra["history"], want.extra["history"], rtol=1e-6)
+    np.testing.assert_allclose(tree.histories(got.extra), tree.histories(want.extra), rtol=1e-6)
     if "speed" in want.extra:
         np.testing.assert_allclose(got.extra["speed"], want.extra["speed"], rtol=1e-12)
 
@@ -71,7 +71,7 @@ def test_no_spread_is_the_paper_prior_and_draws_nothing_more(walker):
     a = tree.transition(plain, state, np.random.default_rng(1))
     b = tree.transition(drift, state, np.random.default_rng(1))
     np.testing.assert_array_equal(a.pose, b.pose)
-    assert set(a.extra) == {"history", "window"}
+    assert set(a.extra) == {"past", "last", "window"}
 
 
 def test_each_particle_walks_the_database_gait_at_its_own_speed(walker):
@@ -83,7 +83,7 @@ def test_each_particle_walks_the_database_gait_at_its_own_speed(walker):
     assert speed.shape == (64,) and np.all(speed > 0) and np.ptp(np.log(speed)) > 0.5
     # Its history's path is the database's at its speed: 40 v mm per frame
     # along its heading (+x), ending at the pose.
-    history = state.extra["history"].astype(np.float64)
+    history = tree.histories(state.extra).astype(np.float64)
     per_frame = np.diff(history[:, :, ROOT_X], axis=1)
     np.testing.assert_allclose(per_frame, np.broadcast_to(40.0 * speed[:, None], per_frame.shape),
                                rtol=1e-5)  # fmt: skip
@@ -100,7 +100,7 @@ def test_each_particle_walks_the_database_gait_at_its_own_speed(walker):
     # The limbs replay the database's gait: the same joints as a particle at the
     # database's speed given the same windows (the search sees the same pace).
     paced = at_database_pace(history, speed).astype(tree.HISTORY_DTYPE)
-    slow = ParticleState(state.pose, {"history": paced, "window": state.extra["window"]})
+    slow = ParticleState(state.pose, {**tree.memory(paced), "window": state.extra["window"]})
     a = tree.transition(prior, state, np.random.default_rng(5))
     b = tree.transition(plain, slow, np.random.default_rng(5))
     np.testing.assert_array_equal(a.extra["window"], b.extra["window"])
@@ -187,7 +187,7 @@ def test_the_search_reads_the_stored_histories_and_paces_only_the_root_path(walk
     assert not prior.projection[rows + ROOT_X].any() and not prior.projection[rows + ROOT_Y].any()
     n = 2085
     state = tree.initial(prior, start_pose(prior), n, np.random.default_rng(0))
-    history, speed = state.extra["history"], state.extra["speed"]
+    history, speed = tree.histories(state.extra), state.extra["speed"]
     assert history.dtype == np.float32
     got = tree._search_coefficients(prior, history, speed, lay)
     want = tree.window_coefficients(prior, at_database_pace(history, speed))
@@ -288,8 +288,8 @@ def test_the_replay_is_a_plain_loops(walker, variant):
     for _ in range(2):
         state = tree.transition(prior, state, rng)
     if variant == "float64 history":
-        wide = state.extra["history"].astype(np.float64)
-        state = ParticleState(state.pose, {**state.extra, "history": wide})
+        wide = tree.histories(state.extra).astype(np.float64)
+        state = ParticleState(state.pose, {**state.extra, **tree.memory(wide)})
     if YAW in prior.free.tolist():  # headings every way, so the turn is not the identity
         pose = state.pose.copy()
         pose[:, prior.free.tolist().index(YAW)] += rng.uniform(-np.pi, np.pi, n)
@@ -297,11 +297,11 @@ def test_the_replay_is_a_plain_loops(walker, variant):
     got = tree.transition(prior, state, np.random.default_rng(7))
     speed = state.extra.get("speed")
     pose, history = replay_oracle(
-        prior, state.pose, state.extra["history"], got.extra["window"], speed
+        prior, state.pose, tree.histories(state.extra), got.extra["window"], speed
     )
     np.testing.assert_allclose(got.pose, pose, rtol=1e-12, atol=1e-9)
-    assert got.extra["history"].dtype == state.extra["history"].dtype
-    np.testing.assert_allclose(got.extra["history"], history.astype(history.dtype), rtol=1e-6)
+    assert tree.histories(got.extra).dtype == tree.histories(state.extra).dtype
+    np.testing.assert_allclose(tree.histories(got.extra), history.astype(history.dtype), rtol=1e-6)
     noisy = tree.transition(prior.with_settings(noise_scale=0.5), state, np.random.default_rng(7))
     np.testing.assert_array_equal(noisy.extra["window"], got.extra["window"])
     lay = tree._layout(prior.free)
@@ -326,14 +326,14 @@ def test_resampled_particles_move_as_their_copies_would(walker, variant):
     state = tree.initial(prior, prior.frames[60] if variant == "arm" else start_pose(prior), n, rng)
     state = tree.transition(prior, state, rng)
     if variant == "float64 history":
-        wide = state.extra["history"].astype(np.float64)
-        state = ParticleState(state.pose, {**state.extra, "history": wide})
+        wide = tree.histories(state.extra).astype(np.float64)
+        state = ParticleState(state.pose, {**state.extra, **tree.memory(wide)})
     weights = rng.random(n) ** 8
     index = systematic_resample(weights / weights.sum(), rng)
     taken = state.take(index)
     copied = ParticleState(taken.pose, {k: v[index] for k, v in state.extra.items()})
     got = tree.transition(prior, taken, np.random.default_rng(7))
-    assert deferred_rows(taken.extra, "history")[1] is not None  # read through the rows
+    assert deferred_rows(taken.extra, "past")[1] is not None  # read through the rows
     want = tree.transition(prior, copied, np.random.default_rng(7))
     assert_close_particles(got, want)
     # Fewer particles than rows behind them, or a speed already read: the
@@ -348,10 +348,12 @@ def test_resampled_particles_move_as_their_copies_would(walker, variant):
         again = state.take(index)
         np.testing.assert_array_equal(again.extra["speed"], state.extra["speed"][index])
         assert_close_particles(tree.transition(prior, again, np.random.default_rng(7)), want)
-        assert deferred_rows(again.extra, "history")[1] is None
+        assert deferred_rows(again.extra, "last")[1] is None
         # The other way round: the histories read, the speeds still deferred.
         other = state.take(index)
-        np.testing.assert_array_equal(other.extra["history"], state.extra["history"][index])
+        np.testing.assert_array_equal(
+            tree.histories(other.extra), tree.histories(state.extra)[index]
+        )
         assert deferred_rows(other.extra, "speed")[1] is not None
         assert_close_particles(tree.transition(prior, other, np.random.default_rng(7)), want)
 
@@ -384,8 +386,9 @@ def test_distinct_rows_are_numpys_unique() -> None:
         np.arange(5),
         np.zeros(0, np.intp),
     ):
-        kept, place = tree._distinct(rows.astype(np.intp))
-        want_kept, want_place = np.unique(rows, return_inverse=True)
+        kept, place, first = tree._distinct(rows.astype(np.intp))
+        want_kept, want_first, want_place = np.unique(rows, return_index=True, return_inverse=True)
         np.testing.assert_array_equal(kept, want_kept)
         np.testing.assert_array_equal(place, want_place.reshape(-1))
+        np.testing.assert_array_equal(first, want_first)  # each value's first row
         np.testing.assert_array_equal(kept[place], rows)
