@@ -94,9 +94,10 @@ def descend(
 
     Level ``l`` splits on the sign of coefficient ``l``; a node whose one
     child is empty sends every probe to the other, one with both children
-    takes eq. 7's branch. Every probe's branch is drawn at every level first
-    (level after level, so that the draws do not wait on the walk), then the
-    walk reads which children hold windows.
+    takes eq. 7's branch. Every probe takes level ``l`` before any takes
+    level ``l + 1`` (the draws' order): the probes' reads of the tree are
+    independent of each other, so many are in flight at once, where one
+    probe's walk from the root would wait on each of its own.
 
     Args:
         coefficients: ``(N, b)`` the probes ``c_t``.
@@ -113,32 +114,28 @@ def descend(
         (zeros unless asked).
     """
     n, b = coefficients.shape
-    wanted = np.zeros(n, np.int64)  # bit b - 1 - l: the branch drawn at level l
-    log_p = np.zeros((b, n) if want_log_prob else (0, 0))
+    prefix = np.zeros(n, np.intp)  # each probe's node within its level
+    log_prob = np.zeros(n)
     for level in range(b):
+        first = (1 << level) - 1  # the level's first node in heap order
         for p in range(n):
             c, e = coefficients[p, level], rng.standard_normal()
             # want_log as a constant in each call: the draws' loop stays free
             # of the log's code, which would otherwise slow every draw.
             if want_log_prob:
-                plus, log_p[level, p] = _eq7_branch(c, sigma[level], beta, e, True)
+                plus, log_p = _eq7_branch(c, sigma[level], beta, e, True)
             else:
-                plus, _ = _eq7_branch(c, sigma[level], beta, e, False)
-            wanted[p] = (wanted[p] << 1) | plus
+                plus, log_p = _eq7_branch(c, sigma[level], beta, e, False)
+            flags = np.intp(node_flags[first + prefix[p]])
+            # flags 3 (both children): the branch drawn; 2: the + child; 1: the - child.
+            prefix[p] = 2 * prefix[p] + ((flags >> 1) & (plus | (flags != 3)))
+            if want_log_prob and flags == 3:
+                log_prob[p] += log_p
     lo = np.empty(n, np.intp)
     hi = np.empty(n, np.intp)
-    log_prob = np.zeros(n)
     for p in range(n):
-        prefix = 0
-        for level in range(b):
-            flags = np.intp(node_flags[prefix + (1 << level) - 1])
-            bit = (wanted[p] >> (b - 1 - level)) & 1
-            # flags 3 (both children): the branch drawn; 2: the + child; 1: the - child.
-            prefix = 2 * prefix + ((flags >> 1) & (bit | (flags != 3)))
-            if want_log_prob and flags == 3:
-                log_prob[p] += log_p[level, p]
-        lo[p] = offsets[prefix]
-        hi[p] = offsets[prefix + 1]
+        lo[p] = offsets[prefix[p]]
+        hi[p] = offsets[prefix[p] + 1]
     return lo, hi, log_prob
 
 
