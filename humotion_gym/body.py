@@ -200,6 +200,10 @@ SHAPE_VECTOR_SIZE = len(_SHAPE_SCALARS) + 2 * N_CONES + N_CONES
 SHAPE_TABLE_SIZE = _compiled.SHAPE_TABLE_SIZE
 
 
+# The last shape BodyShape.from_vector made, by its class and vector, per process.
+_LAST_SHAPE: dict[str, tuple[tuple[type, bytes], Any]] = {}
+
+
 @dataclass(frozen=True, eq=False)
 class BodyShape:
     """The subject's shape: where the joints sit on the torso, limb lengths, radii.
@@ -281,6 +285,10 @@ class BodyShape:
     def from_vector(cls, vector: ArrayLike) -> BodyShape:
         """Rebuild a shape from :meth:`to_vector`'s output.
 
+        The same vector as the last call gives the same (immutable) shape
+        object: an agent reads the shape from every observation, and checking
+        a new one costs more than reading the rest of the observation.
+
         Raises:
             ValueError: If the vector does not have ``SHAPE_VECTOR_SIZE`` entries.
         """
@@ -289,11 +297,17 @@ class BodyShape:
             raise ValueError(
                 f"BodyShape.from_vector: expected {SHAPE_VECTOR_SIZE} numbers, got {v.size}"
             )
+        key = (cls, v.tobytes())
+        last = _LAST_SHAPE.get("last")
+        if last is not None and last[0] == key:
+            return last[1]  # type: ignore[no-any-return]
         n = len(_SHAPE_SCALARS)
         kwargs = {name: float(v[i]) for i, name in enumerate(_SHAPE_SCALARS)}
         radii = v[n : n + 2 * N_CONES].reshape(N_CONES, 2)
         aspect = v[n + 2 * N_CONES :]
-        return cls(**kwargs, radii=radii, aspect=aspect)
+        shape = cls(**kwargs, radii=radii, aspect=aspect)
+        _LAST_SHAPE["last"] = (key, shape)
+        return shape
 
     def replace(self, **changes: object) -> BodyShape:
         """A copy with some fields changed."""

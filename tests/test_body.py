@@ -145,6 +145,23 @@ def test_shape_vector_round_trip_and_validation():
         default_shape(-3)
 
 
+def test_shape_from_the_same_vector_is_the_same_object():
+    # An agent reads a shape from every observation: the same vector gives the
+    # last (immutable) object back, another vector a new shape, a bad one raises.
+    s = default_shape(1820)
+    first = BodyShape.from_vector(s.to_vector())
+    assert BodyShape.from_vector(s.to_vector().copy()) is first
+    with pytest.raises(ValueError, match="read-only"):
+        first.radii[0, 0] = 1.0
+    taller = BodyShape.from_vector(default_shape(1900).to_vector())
+    assert taller is not first and taller == default_shape(1900) and taller != first
+    bad = s.to_vector()
+    bad[-1] = -1.0
+    with pytest.raises(ValueError, match="aspect"):
+        BodyShape.from_vector(bad)
+    assert BodyShape.from_vector(default_shape(1900).to_vector()) is taller
+
+
 def test_bad_params_shape_names_what_was_expected():
     with pytest.raises(ValueError, match=r"\(\.\.\., 25\)"):
         forward_kinematics(np.zeros((3, 24)), default_shape())
