@@ -283,7 +283,7 @@ BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark(
         "bench_agents",
         _read_agents,
-        args=("--repeats", "3"),  # the best of three passes: the machine's moment moves one
+        args=("--repeats", "3", "--clock", "cpu"),  # see docs/speed.md: the noise of one pass
         data_dir=True,
         quick=("--particles", "300", "3000", "--frames", "10"),
     ),  # fmt: skip
