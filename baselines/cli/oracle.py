@@ -32,7 +32,10 @@ DEFAULT_ORACLES = ("image", "2d", "2d-unlabelled", "3d")
 
 def _filter_agent(text: str) -> str:
     """An argparse ``type``: a registered particle-filter agent (or ``hold``)."""
-    from baselines.agents import AGENTS
+    try:
+        from baselines.agents import AGENTS
+    except ValueError as err:  # a broken settings file: its message, not argparse's "invalid"
+        raise argparse.ArgumentTypeError(str(err)) from None
 
     if text != "hold" and text not in AGENTS:
         raise argparse.ArgumentTypeError(

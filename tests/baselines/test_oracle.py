@@ -334,3 +334,22 @@ def test_a_2d_oracle_detects_in_every_view_and_a_3d_oracle_measures_once():
         one.show(truth, base.shape, cams[:1]).points, alone.show(truth, base.shape, cams[0]).points
     )
     env.close()
+
+
+def test_cli_oracle_says_what_is_wrong_with_a_broken_settings_file(monkeypatch, capsys):
+    # The agents' settings are read when baselines.agents is imported; a broken
+    # file's message reaches the user (argparse would say "invalid value").
+    import sys
+    import types
+    from pathlib import Path
+
+    from baselines.agents.settings import SettingsError
+
+    class Broken(types.ModuleType):
+        def __getattr__(self, name: str):
+            raise SettingsError(Path("pf.yml"), "pf-cv.fit.damping", "must be a number")
+
+    monkeypatch.setitem(sys.modules, "baselines.agents", Broken("baselines.agents"))
+    assert main(["oracle", "--particles", "5", "--agents", "pf-cv"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "pf.yml: pf-cv.fit.damping: must be a number" in err
