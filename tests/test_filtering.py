@@ -366,3 +366,6 @@ def test_arrays_given_by_rows_compose_and_stay_deferred() -> None:
     np.testing.assert_array_equal(part["past"], shared[rows[index][[0]]])
     with pytest.raises(ValueError, match=r"extra\['past'\]: 5 gathered rows for 3 particles"):
         ParticleState(state.pose[:3], extra)
+    for bad in (np.array([0, 4]), np.array([-1, 0])):  # rows outside the source
+        with pytest.raises(IndexError, match=r"rows of 'past' must lie in \[0, 4\)"):
+            filtering.gathered({"past": (shared, bad)})

@@ -144,11 +144,21 @@ def gathered(parts: Mapping[str, Part]) -> Mapping[str, NDArray[Any]]:
     histories, one per distinct particle before the move): the mapping reads
     as the gathered arrays, and :func:`deferred_rows` gives the source and
     the rows without copying. ``rows`` None: the source is the particles' own.
+
+    Raises:
+        IndexError: If a row is not one of its source's (a prior may read the
+            rows in compiled code, which does not check them).
     """
-    return _Gathered(
-        {k: (source, None if rows is None else np.asarray(rows, np.intp))
-         for k, (source, rows) in parts.items()}
-    )  # fmt: skip
+    out: dict[str, Part] = {}
+    for key, (source, rows) in parts.items():
+        if rows is not None:
+            rows = np.asarray(rows, np.intp)
+            if rows.size and not (0 <= rows.min() and rows.max() < source.shape[0]):
+                raise IndexError(
+                    f"gathered: the rows of {key!r} must lie in [0, {source.shape[0]})"
+                )
+        out[key] = (source, rows)
+    return _Gathered(out)
 
 
 def replaced(

@@ -233,7 +233,7 @@ def follow(old: ParticleState, pose: FloatArray) -> dict[str, NDArray[Any]]:
     The history shifts in the new pose; the window and (where the prior
     gives particles one) the speed stay.
     """
-    past = np.concatenate([old.extra[PAST][:, 1:], old.extra[LAST][:, None]], axis=1)
+    past = histories(old.extra)[:, 1:]
     kept = {k: old.extra[k] for k in ("window", "speed") if k in old.extra}
     return {PAST: past, LAST: pose.astype(past.dtype), **kept}
 
@@ -412,7 +412,7 @@ def _particles(fitted: TreeParams, state: ParticleState, lay: _Layout) -> _Parti
         if speed_rows is not last_rows:  # not deferred together: the particles' own
             last, last_rows = state.extra[LAST], None
             speed, speed_rows = state.extra["speed"], None
-    n, d, dim = state.n, fitted.window, fitted.n_free
+    d, dim = fitted.window, fitted.n_free
     if past.shape[1:] != (d, dim) or last.shape[1:] != (dim,):
         raise ValueError(
             f"tree.transition: the histories have shapes past {past.shape} and last "
@@ -422,12 +422,12 @@ def _particles(fitted: TreeParams, state: ParticleState, lay: _Layout) -> _Parti
         speed = np.asarray(speed, dtype=np.float64)
         if speed.shape[:1] != last.shape[:1] or not np.all(speed > 0):
             raise ValueError(
-                f"tree.transition: 'speed' must be ({n},) positive numbers, got shape {speed.shape}"
+                f"tree.transition: 'speed' must be ({last.shape[0]},) positive numbers, got "
+                f"shape {speed.shape}"
             )
     rows = None
-    kept = past_at = np.arange(last.shape[0])
-    if past_rows is not None:
-        past_at = past_rows
+    kept = np.arange(last.shape[0])
+    past_at = kept if past_rows is None else past_rows
     if last_rows is not None:
         # Each distinct particle's history once: the search and the replay
         # read a compact copy of those alone.
