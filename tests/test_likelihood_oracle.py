@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 import pytest
 
-from baselines.observation import FrameFeatures, GivenBody, ObservationModel, geometry
+from baselines.observation import FrameFeatures, GivenBody, ObservationModel, features, geometry
 from baselines.observation._compiled import appearance_bytes, edge_foreground_bytes
 from baselines.observation.features import mark_bins, strongest_gradients
 from humotion_gym import body
@@ -392,6 +392,60 @@ def test_features_are_opencvs(seed: int, size: int, bins: int) -> None:
     exact = np.full((h2, w2), model.foreground_weight / model.axis_samples)
     exact[1:-1, 1:-1] = (1 - feats.foreground) * model.foreground_weight / model.axis_samples
     assert np.abs(table[n_bins] - exact).max() <= feats.cost_unit / 2 + 1e-7
+
+
+def _clustered_bins(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """A one-bin map of a few edge pixels in a cluster somewhere in a frame, and its edges."""
+    h, w = (int(v) for v in rng.integers(12, 90, 2))
+    bins = np.full((1, h, w), 255, np.uint8)
+    k = int(rng.integers(1, 15))
+    cx, cy = rng.integers(0, w), rng.integers(0, h)
+    xs = np.clip(cx + rng.integers(-10, 11, k), 0, w - 1)
+    ys = np.clip(cy + rng.integers(-10, 11, k), 0, h - 1)
+    bins[0, ys, xs] = 0
+    return bins, np.where(bins[0] == 0, 255, 0).astype(np.uint8)
+
+
+@pytest.mark.parametrize("scale", [0.5, 0.75, 1.0, 2.0])
+def test_cropped_distances_are_opencvs_up_to_the_truncation(scale: float) -> None:
+    # The distance transform runs on the edges' box widened by the truncation's
+    # reach: truncated, exactly OpenCV's transform of the whole map; a reach
+    # two pixels short gives other distances (the check can fail).
+    rng = np.random.default_rng(int(scale * 4))
+    tau = np.float32(3.0)
+    reach = math.floor(3.0 * scale) + 1
+    short = 0
+    for _ in range(400):
+        bins, edges = _clustered_bins(rng)
+        whole = cv2.distanceTransform(bins[0], cv2.DIST_L2, cv2.DIST_MASK_5)
+        want = np.minimum(whole / np.float32(scale), tau)
+        got = features.edge_distances(bins, np.array([True]), edges, reach)[0]
+        np.testing.assert_array_equal(np.minimum(got / np.float32(scale), tau), want)
+        got = features.edge_distances(bins, np.array([True]), edges, math.ceil(3.0 * scale) - 2)[0]
+        short += not np.array_equal(np.minimum(got / np.float32(scale), tau), want)
+    assert short > 0
+    empty = features.edge_distances(bins, np.array([False]), edges, reach)
+    assert np.isinf(empty).all()
+
+
+def test_backdrop_task_distances_are_opencvs() -> None:
+    # With a backdrop the edges lie near the figure and the transform is
+    # cropped; the features' distances are still OpenCV's on the whole map.
+    model, _, frame, _, given = whole_body_case()
+    assert given.backdrop is not None
+    smooth = features.smoothed(frame, model.edge_blur, "test")
+    _, _, keep, _ = features.foreground(model, smooth, given.backdrop)
+    edges, bins, found = features.oriented_edges(
+        smooth, model.canny_low, model.canny_high, model.orientation_bins, keep
+    )
+    x, y, w, h = cv2.boundingRect(edges)
+    assert 0 < (w + 8) * (h + 8) < 128 * 128 * 0.6  # the crop leaves much of the frame
+    feats = model.prepare(frame, given)
+    for b in np.flatnonzero(found):
+        whole = cv2.distanceTransform(bins[b], cv2.DIST_L2, cv2.DIST_MASK_5)
+        np.testing.assert_array_equal(
+            feats.distance[b], np.minimum(whole, np.float32(model.edge_truncation))
+        )
 
 
 def test_strongest_gradients_and_bins_follow_their_definitions() -> None:

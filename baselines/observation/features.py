@@ -247,14 +247,38 @@ def mark_bins(
     return held
 
 
-def edge_distances(bins: NDArray[np.uint8], found: NDArray[np.bool_]) -> NDArray[np.float32]:
-    """``(B, H, W)`` each bin's ``cv2.distanceTransform`` (pixels; inf for a bin without edges)."""
-    dist = np.empty(bins.shape, np.float32)
-    for b in range(bins.shape[0]):
-        if found[b]:
+def edge_distances(
+    bins: NDArray[np.uint8], found: NDArray[np.bool_], edges: NDArray[np.uint8], reach: int
+) -> NDArray[np.float32]:
+    """``(B, H, W)`` each bin's ``cv2.distanceTransform`` (pixels) up to ``reach``.
+
+    Only the edges' bounding box widened by ``reach`` pixels is transformed;
+    pixels outside it, and every pixel of a bin without edges, get inf. A
+    chamfer distance is at least the Chebyshev distance (each mask step costs
+    at least the pixels it crosses), so a pixel outside is more than ``reach``
+    from every edge; inside, a shortest chamfer path runs within the bounding
+    box of its two ends, which the crop holds: the same distances there.
+
+    Args:
+        bins: ``(B, H, W)`` the maps of :func:`oriented_edges`.
+        found: ``(B,)`` whether each bin holds an edge pixel.
+        edges: ``(H, W)`` the edge map (nonzero on every bin's edge pixels).
+        reach: Pixels beyond which distances may read inf (the truncation's).
+    """
+    n_bins, h, w = bins.shape
+    x, y, bw, bh = cv2.boundingRect(edges)
+    x0, y0 = max(x - reach, 0), max(y - reach, 0)
+    x1, y1 = min(x + bw + reach, w), min(y + bh + reach, h)
+    whole = (x1 - x0) * (y1 - y0) == h * w
+    dist = np.empty(bins.shape, np.float32) if whole else np.full(bins.shape, np.inf, np.float32)
+    for b in range(n_bins):
+        if not found[b]:
+            dist[b] = np.inf
+        elif whole:
             cv2.distanceTransform(bins[b], cv2.DIST_L2, _DIST_MASK, dst=dist[b])
         else:
-            dist[b] = np.inf
+            crop = np.ascontiguousarray(bins[b, y0:y1, x0:x1])
+            dist[b, y0:y1, x0:x1] = cv2.distanceTransform(crop, cv2.DIST_L2, _DIST_MASK)
     return dist
 
 
@@ -528,7 +552,8 @@ def frame_features(
     edges, bins, found = oriented_edges(
         smooth, model.canny_low, model.canny_high, model.orientation_bins, keep
     )
-    dist = edge_distances(bins, found)
+    # Beyond the truncation every distance costs the same (cost_table).
+    dist = edge_distances(bins, found, edges, math.floor(model.edge_truncation * scale) + 1)
     use_appearance = given is not None and model.appearance_weight > 0 and given.colors is not None
     use_residual = given is not None and model.residual_weight > 0
     use_coverage = backdrop is not None and model.coverage_weight > 0
