@@ -72,11 +72,13 @@ def cone_bases(
     near, focal = intrinsics[0], intrinsics[1]
     u0, v0, pad = intrinsics[2], intrinsics[3], intrinsics[4]
     n, n_kp = geometry.shape[0], geometry.shape[1] - 2 * cones.shape[0]  # keypoints, then axes
-    # Loops over poses innermost (they vectorise): the keypoints' projections,
-    # then each cone's basis from its two ends.
+    # The keypoints' projections a pose at a time, reading its geometry in
+    # order (a loop over poses innermost would walk all of them once per
+    # keypoint, from beyond the L2 cache in a filter's frame); then each cone's
+    # basis from its two ends, poses innermost (they vectorise).
     uv = np.empty((3, n_kp, n), np.float32)  # u, v, inverse depth
-    for k in range(n_kp):
-        for j in range(n):
+    for j in range(n):
+        for k in range(n_kp):
             x, y, z = geometry[j, k, 0], geometry[j, k, 1], geometry[j, k, 2]
             cu = rot[0, 0] * x + rot[0, 1] * y + rot[0, 2] * z + trans[0]
             cv = rot[1, 0] * x + rot[1, 1] * y + rot[1, 2] * z + trans[1]
