@@ -274,8 +274,8 @@ class Camera:
         """
         cam = self.to_camera(points)
         z = cam[..., 2]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inv = np.where(z > 0.0, self.focal / z, np.nan)
+        inv = np.full(z.shape, np.nan)
+        np.divide(self.focal, z, out=inv, where=z > 0.0)
         cx, cy = self.principal_point
         out = np.empty(cam.shape[:-1] + (2,))
         out[..., 0] = cam[..., 0] * inv + cx

@@ -77,6 +77,8 @@ __all__ = [
 _SHIFT = 4  # fixed-point bits for sub-pixel polygon vertices
 
 _ONE = float(1 << _SHIFT)
+#: The skeleton's edges as rows of keypoint pairs (one fancy index draws them all).
+_EDGES = np.array(body.SKELETON_EDGES, np.intp).reshape(-1, 2)
 
 _NEAR_MM = 1.0  # cones with an end closer to the camera plane are not drawn
 
@@ -671,9 +673,9 @@ def draw_pose_overlay(
     col = tuple(int(v) for v in color)
     # Each edge as its own two-point curve: one OpenCV call draws them one after
     # the other exactly as cv2.line would (the same anti-aliased segments, in order).
-    edges = [edge for edge in body.SKELETON_EDGES if shown[edge[0]] and shown[edge[1]]]
-    if edges:
-        cv2.polylines(out, list(points[edges]), False, col, thickness, cv2.LINE_AA, _SHIFT)
+    edges = _EDGES if all(shown) else _EDGES[ok[_EDGES].all(axis=1)]
+    if edges.size:
+        cv2.polylines(out, points[edges], False, col, thickness, cv2.LINE_AA, _SHIFT)
     radius = int((thickness + 1) * _ONE)
     for k, point in enumerate(fixed):
         if shown[k]:
