@@ -167,14 +167,24 @@ def test_ess_and_state_validation():
 def test_wrapped_offsets_follow_their_definition() -> None:
     # Each element by the definition, in double precision then rounded to single:
     # the same operations in the same order, so equal bits (strided and float32
-    # particles included, as weighted_mean may pass them).
+    # particles included, as weighted_mean may pass them). Scattered columns,
+    # consecutive ones (read as a slice), one and none.
     rng = np.random.default_rng(5)
-    for particles in (
-        rng.normal(0.0, 20.0, (301, 9)),
-        np.asfortranarray(rng.normal(0.0, 3.0, (64, 7))),
-        rng.normal(0.0, 3.0, (50, 25))[:, ::2],
-    ):
-        columns = np.flatnonzero(rng.random(particles.shape[1]) < 0.6)
+    cases = [
+        (particles, columns)
+        for particles in (
+            rng.normal(0.0, 20.0, (301, 9)),
+            np.asfortranarray(rng.normal(0.0, 3.0, (64, 7))),
+            rng.normal(0.0, 3.0, (50, 25))[:, ::2],
+        )
+        for columns in (
+            np.array([0, 2, 3, particles.shape[1] - 1]),
+            np.arange(2, particles.shape[1]),
+            np.array([1]),
+            np.zeros(0, np.intp),
+        )
+    ]
+    for particles, columns in cases:
         centre = rng.normal(0.0, 5.0, columns.size)
         out = np.empty((particles.shape[0], columns.size), np.float32)
         wrapped_offsets(particles, columns, centre, out)

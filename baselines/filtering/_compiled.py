@@ -13,6 +13,13 @@ from numpy.typing import NDArray
 _TURN = 2.0 * np.pi
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _wrapped(angle: float, centre: float) -> np.float32:
+    """``angle - centre`` wrapped to ``[-pi, pi]`` in double precision, then single."""
+    offset = angle - centre
+    return np.float32(offset - np.rint(offset * (1.0 / _TURN)) * _TURN)
+
+
 @numba.njit(cache=True, nogil=True)
 def wrapped_offsets(
     particles: NDArray[np.float64],
@@ -27,13 +34,21 @@ def wrapped_offsets(
 
     Args:
         particles: ``(N, D)``.
-        columns: ``(K,)`` the angle columns.
+        columns: ``(K,)`` the angle columns, ascending.
         centre: ``(K,)`` the angle each column is wrapped about.
         out: Out, ``(N, K)``.
     """
-    inverse = 1.0 / _TURN
+    k = columns.size
+    first = columns[0] if k else 0
+    # Consecutive columns (every task's angles) are read as a slice, whose loop
+    # vectorises; a gather through ``columns`` does not (4x slower at 10,000).
+    consecutive = k == 0 or columns[k - 1] - first == k - 1
     for p in range(particles.shape[0]):
-        for i in range(columns.size):
-            offset = particles[p, columns[i]] - centre[i]
-            turns = np.rint(offset * inverse) * _TURN
-            out[p, i] = np.float32(offset - turns)
+        row, o = particles[p], out[p]
+        if consecutive:
+            block = row[first : first + k]
+            for i in range(k):
+                o[i] = _wrapped(block[i], centre[i])
+        else:
+            for i in range(k):
+                o[i] = _wrapped(row[columns[i]], centre[i])
