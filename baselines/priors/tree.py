@@ -223,8 +223,20 @@ def memory(history: ArrayLike) -> dict[str, NDArray[Any]]:
 
 
 def histories(extra: Mapping[str, NDArray[Any]]) -> NDArray[Any]:
-    """``(N, d + 1, D)`` the particles' histories: their past, then their last pose."""
-    return np.concatenate([extra[PAST], extra[LAST][:, None]], axis=1)
+    """``(N, d + 1, D)`` the particles' histories: their past, then their last pose.
+
+    In the past's precision (the last pose is stored in it); read through
+    deferred rows where resampling left them, without gathering the past.
+    """
+    past, past_rows = deferred_rows(extra, PAST)
+    last, last_rows = deferred_rows(extra, LAST)
+    every = np.arange(last.shape[0] if last_rows is None else last_rows.shape[0])
+    return compiled.joined(
+        past,
+        every if past_rows is None else past_rows,
+        last.astype(past.dtype, copy=False),
+        every if last_rows is None else last_rows,
+    )
 
 
 def follow(old: ParticleState, pose: FloatArray) -> dict[str, NDArray[Any]]:
