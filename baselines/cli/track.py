@@ -104,7 +104,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
     import gymnasium as gym
 
     from baselines.agents import make
-    from baselines.leaderboard.evaluation import evaluate, run_episode, summarize
+    from baselines.leaderboard.evaluation import evaluate, run_episode, summarize, warm_up
     from humotion_gym.video import write_video
 
     options = _clip_options(args)
@@ -128,6 +128,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
         agent = make(args.agent, env, n_particles=args.particles, seed=args.seed)
     except ValueError as exc:  # a policy file that is not one, an agent that cannot run here
         raise CommandError(f"--agent: {exc}") from None
+    first_call_s = warm_up(agent, env, args.seed, options)
     results = evaluate(agent, env, args.episodes, seed=args.seed, options=options, progress=True)
     if args.video:
         frames: list = []
@@ -138,7 +139,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
         print(json.dumps({
             "task": args.task, "agent": args.agent, "particles": args.particles,
             "episodes": [r.to_dict() for r in results], "summary": summary,
-            "video": str(args.video) if args.video else None,
+            "video": str(args.video) if args.video else None, "first_call_s": first_call_s,
         }))  # fmt: skip
         return 0
     # references and learned policies take no particles
@@ -161,6 +162,10 @@ def _cmd_track(args: argparse.Namespace) -> int:
         f"(95% CI {llo:.0%}-{lhi:.0%}), {summary['ms_per_frame']:.2f} ms/frame"
     )
     print(LEGEND)
+    print(
+        f"first call {first_call_s:.2f} s, made before the episodes and not in ms/frame "
+        "(it compiles the numba kernels on a first run, then loads them from a cache)"
+    )
     if args.video:
         wrote(args.video, f"the first episode, seed {args.seed}")
     return 0

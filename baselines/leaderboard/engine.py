@@ -64,7 +64,7 @@ from baselines.agents import (
     make,
     tracking_env,
 )
-from baselines.leaderboard.evaluation import EpisodeResult, run_episode
+from baselines.leaderboard.evaluation import EpisodeResult, run_episode, warm_up
 from humotion_gym.envs import episodes
 from humotion_gym.mocap.library import package_version
 from humotion_gym.threads import limit_blas_threads, single_threaded_blas
@@ -254,6 +254,7 @@ class EpisodeRunner:
             self._agents.move_to_end(key)
             return self._agents[key]
         agent = build_agent(cell, self._env(cell.task), agent_seed, self.fits)
+        warm_up(agent, self._env(cell.task), agent_seed)
         self._agents[key] = agent
         while len(self._agents) > self.cached_cells:
             self._agents.popitem(last=False)

@@ -148,6 +148,24 @@ def run_episode(
     )
 
 
+def warm_up(
+    agent: Any, env: gym.Env, seed: int = 0, options: dict[str, Any] | None = None
+) -> float:
+    """Answer one episode's first frame untimed; the seconds it took.
+
+    An agent's first call in a process pays once what no later frame does:
+    numba compiles its kernels (on the first run after an install; later
+    processes load them from numba's cache in tens of milliseconds) and
+    caches fill. Timed inside an episode it would be charged to that
+    episode's ``ms_per_frame``. Nothing carries over: each episode starts
+    the agent afresh (``episode_start``) and reseeds it (``seed_episode``).
+    """
+    obs, _ = env.reset(seed=seed, options=options)
+    t0 = time.perf_counter()
+    agent.predict(obs, state=None, episode_start=np.array([True]), deterministic=True)
+    return time.perf_counter() - t0
+
+
 def evaluate(
     agent: Any, env: gym.Env, episodes: int, seed: int = 0, options: dict[str, Any] | None = None,
     progress: bool = False,

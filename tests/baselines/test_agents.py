@@ -8,7 +8,8 @@ import humotion_gym  # noqa: F401
 from baselines.agents import AGENTS, TaskNotSupported, make
 from baselines.agents.settings import load as load_settings
 from baselines.cli import main
-from baselines.leaderboard.evaluation import evaluate, run_episode, summarize
+from baselines.leaderboard import evaluation
+from baselines.leaderboard.evaluation import evaluate, run_episode, summarize, warm_up
 from baselines.leaderboard.stats import bootstrap_ci, iqm, stratified_bootstrap_ci
 from humotion_gym.envs.description import read_observation
 
@@ -71,6 +72,30 @@ def test_summary_and_statistics():
     assert lo2 < hi2
 
 
+def test_the_first_call_is_made_before_the_episodes_and_left_out_of_their_timing(monkeypatch):
+    # a fake clock: the agent's first call costs 100 s (numba compiling), every other 1 ms
+    clock = [0.0]
+    monkeypatch.setattr(evaluation, "time", type("Clock", (), {"perf_counter": lambda: clock[0]}))
+
+    class FirstCallCostly:
+        def __init__(self, space):
+            self.space, self.calls = space, 0
+
+        def predict(self, obs, state=None, episode_start=None, deterministic=True):
+            clock[0] += 100.0 if self.calls == 0 else 0.001
+            self.calls += 1
+            return np.zeros(self.space.shape, self.space.dtype), None
+
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
+    agent = FirstCallCostly(env.action_space)
+    assert warm_up(agent, env, seed=0) == pytest.approx(100.0)
+    timed = [r.ms_per_frame for r in evaluate(agent, env, 2, seed=0)]
+    assert timed == pytest.approx([1.0, 1.0])
+    # the check can fail: without the warm-up the first episode carries the 100 s
+    cold = evaluate(FirstCallCostly(env.action_space), env, 1, seed=0)[0]
+    assert cold.ms_per_frame > 1000.0
+
+
 def test_cli_track_and_render(tmp_path, capsys):
     assert (
         main(
@@ -91,6 +116,7 @@ def test_cli_track_and_render(tmp_path, capsys):
     )
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["summary"]["episodes"] == 2 and len(out["episodes"][0]["errors_mm"]) == 30
+    assert out["first_call_s"] >= 0.0
     video = tmp_path / "clip.mp4"
     assert main(["render", "--task", "BodyTrack-v2", "--frames", "12", "--out", str(video)]) == 0
     assert video.stat().st_size > 0 and video.with_suffix(".png").is_file()
