@@ -27,7 +27,6 @@ import numpy as np
 import pytest
 
 from baselines.observation import FrameFeatures, GivenBody, ObservationModel, features, geometry
-from baselines.observation._compiled import appearance_bytes, edge_foreground_bytes
 from baselines.observation.features import mark_bins, strongest_gradients
 from humotion_gym import body
 from humotion_gym.camera import Camera, fit_camera
@@ -419,12 +418,13 @@ def test_cropped_distances_are_opencvs_up_to_the_truncation(scale: float) -> Non
         bins, edges = _clustered_bins(rng)
         whole = cv2.distanceTransform(bins[0], cv2.DIST_L2, cv2.DIST_MASK_5)
         want = np.minimum(whole / np.float32(scale), tau)
-        got = features.edge_distances(bins, np.array([True]), edges, reach)[0]
+        got = features.edge_distances(bins, np.array([True]), edges, reach)[0][0]
         np.testing.assert_array_equal(np.minimum(got / np.float32(scale), tau), want)
-        got = features.edge_distances(bins, np.array([True]), edges, math.ceil(3.0 * scale) - 2)[0]
+        got, _ = features.edge_distances(bins, np.array([True]), edges, math.ceil(3.0 * scale) - 2)
+        got = got[0]
         short += not np.array_equal(np.minimum(got / np.float32(scale), tau), want)
     assert short > 0
-    empty = features.edge_distances(bins, np.array([False]), edges, reach)
+    empty, _ = features.edge_distances(bins, np.array([False]), edges, reach)
     assert np.isinf(empty).all()
 
 
@@ -475,20 +475,22 @@ def test_strongest_gradients_and_bins_follow_their_definitions() -> None:
     assert np.array_equal(held, (want == 0).any(axis=(1, 2)))
 
 
-def test_edge_foreground_bytes_follow_their_definition() -> None:
-    # Per entry of the padded maps, in float32 scalars and the kernel's order:
+@pytest.mark.parametrize("box", [(0, 5, 0, 6), (1, 4, 2, 5), (0, 0, 0, 0)])
+def test_edge_foreground_bytes_follow_their_definition(box: tuple[int, int, int, int]) -> None:
+    # Per entry of the padded maps, in float32 scalars and the formula's order:
     # the same roundings, so equal bytes (and the distances truncated in place).
+    # Outside the box the distances are inf (edge_distances'), costs the truncation's.
     rng = np.random.default_rng(12)
     n_bins, h, w = 2, 5, 6
-    dist = rng.uniform(0.0, 30.0, (n_bins, h, w)).astype(np.float32)
-    dist[1] = np.inf  # a bin without edges
+    dist = np.full((n_bins, h, w), np.inf, np.float32)
+    y0, y1, x0, x1 = box
+    dist[0, y0:y1, x0:x1] = rng.uniform(0.0, 30.0, (y1 - y0, x1 - x0))
     fg = rng.uniform(0.0, 1.0, (h, w)).astype(np.float32)
     f32 = np.float32
     s, tau, e, e_out, f, f_out, inv_u = map(f32, (0.5, 8.0, 0.3, 19.2, 2.5, 2.5, 10.0))
-    table = np.empty((n_bins + 1) * (h + 2) * (w + 2), np.uint8)
+    maps = np.empty((n_bins + 1, h + 2, w + 2), np.uint8)
     truncated = dist.copy()
-    edge_foreground_bytes(truncated, fg, s, tau, e, e_out, f, f_out, inv_u, table)
-    maps = table.reshape(n_bins + 1, h + 2, w + 2)
+    features.edge_foreground_bytes(truncated, box, fg, s, tau, e, e_out, f, f_out, inv_u, maps)
     for m in range(n_bins + 1):
         for y in range(h + 2):
             for x in range(w + 2):
@@ -518,9 +520,8 @@ def test_appearance_bytes_follow_their_definition(channels: int) -> None:
     colors[0] = smooth[2, 3]  # a pixel that matches exactly: cost 0
     f32 = np.float32
     low, span, a, inv_u = map(f32, (20.0, 1.0 / 60.0, 0.4, 600.0))
-    table = np.empty(3 * (h + 2) * (w + 2), np.uint8)
-    appearance_bytes(smooth, colors, low, span, a, inv_u, table)
-    maps = table.reshape(3, h + 2, w + 2)
+    maps = np.empty((3, h + 2, w + 2), np.uint8)
+    features.appearance_bytes(smooth, colors, low, span, a, inv_u, maps)
     assert maps[0, 3, 4] == 0
     for k in range(3):
         for y in range(h + 2):

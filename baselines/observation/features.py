@@ -15,7 +15,6 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from baselines.observation._compiled import appearance_bytes, edge_foreground_bytes
 from baselines.observation.geometry import free_cones, grow, projected_cones, silhouette_mask
 from baselines.observation.settings import ObservationSettings
 from humotion_gym.body import N_CONES, BodyShape, cone_geometry
@@ -24,6 +23,8 @@ from humotion_gym.render import gaussian_blur
 
 #: The distance transform's mask: 5x5 chamfer, within 2% of the exact distance.
 _DIST_MASK = cv2.DIST_MASK_5
+#: Rows ``y0:y1`` and columns ``x0:x1`` of a frame.
+Box = tuple[int, int, int, int]
 
 
 @dataclass(frozen=True, eq=False)
@@ -249,8 +250,8 @@ def mark_bins(
 
 def edge_distances(
     bins: NDArray[np.uint8], found: NDArray[np.bool_], edges: NDArray[np.uint8], reach: int
-) -> NDArray[np.float32]:
-    """``(B, H, W)`` each bin's ``cv2.distanceTransform`` (pixels) up to ``reach``.
+) -> tuple[NDArray[np.float32], Box]:
+    """``(B, H, W)`` each bin's ``cv2.distanceTransform`` (pixels) up to ``reach``; the box.
 
     Only the edges' bounding box widened by ``reach`` pixels is transformed;
     pixels outside it, and every pixel of a bin without edges, get inf. A
@@ -264,6 +265,9 @@ def edge_distances(
         found: ``(B,)`` whether each bin holds an edge pixel.
         edges: ``(H, W)`` the edge map (nonzero on every bin's edge pixels).
         reach: Pixels beyond which distances may read inf (the truncation's).
+
+    Returns:
+        The distances and the transformed box ``(y0, y1, x0, x1)``.
     """
     n_bins, h, w = bins.shape
     x, y, bw, bh = cv2.boundingRect(edges)
@@ -279,7 +283,7 @@ def edge_distances(
         else:
             crop = np.ascontiguousarray(bins[b, y0:y1, x0:x1])
             dist[b, y0:y1, x0:x1] = cv2.distanceTransform(crop, cv2.DIST_L2, _DIST_MASK)
-    return dist
+    return dist, (y0, y1, x0, x1)
 
 
 def channel_max(diff: NDArray[np.uint8]) -> NDArray[np.uint8]:
@@ -383,6 +387,7 @@ def foreground(
 def cost_table(
     model: ObservationSettings,
     dist: NDArray[np.float32],
+    box: Box,
     fg: NDArray[np.float32],
     smooth: NDArray[np.uint8],
     app_colors: NDArray[np.float32],
@@ -396,7 +401,8 @@ def cost_table(
     Quantised to bytes (a gather of bytes is faster than one of floats): 1/255
     of the largest per-point cost is far below anything that matters.
 
-    ``dist`` (pixels) is rescaled to reference pixels and truncated in place.
+    ``dist`` (pixels, finite only inside ``box``: :func:`edge_distances`) is
+    rescaled to reference pixels and truncated in place.
     """
     n_bins, h, w = dist.shape
     scale = h / model.reference_height
@@ -406,21 +412,125 @@ def cost_table(
     n_app = app_colors.shape[0]
     app_scale = model.appearance_weight / model.axis_samples if n_app else 0.0
     unit = max(edge_out, fg_scale, app_scale) / 255.0 or 1.0
-    inv_unit = np.float32(1.0 / unit)
-    plane = (h + 2) * (w + 2)
-    table = np.empty((n_bins + 1 + n_app) * plane, np.uint8)
+    f32, inv_unit = np.float32, np.float32(1.0 / unit)
+    table = np.empty((n_bins + 1 + n_app, h + 2, w + 2), np.uint8)
     edge_foreground_bytes(
-        dist, fg, np.float32(1.0 / scale), np.float32(model.edge_truncation),
-        np.float32(edge_scale), np.float32(edge_out), np.float32(fg_scale),
-        np.float32(fg_scale), inv_unit, table,
+        dist, box, fg, f32(1.0 / scale), f32(model.edge_truncation), f32(edge_scale),
+        f32(edge_out), f32(fg_scale), f32(fg_scale), inv_unit, table[: n_bins + 1],
     )  # fmt: skip
     appearance_bytes(
-        smooth, np.ascontiguousarray(app_colors, np.float32),
-        np.float32(model.appearance_low),
-        np.float32(1.0 / (model.appearance_high - model.appearance_low)),
-        np.float32(app_scale), inv_unit, table[(n_bins + 1) * plane :],
+        smooth, np.asarray(app_colors, f32), f32(model.appearance_low),
+        f32(1.0 / (model.appearance_high - model.appearance_low)), f32(app_scale), inv_unit,
+        table[n_bins + 1 :],
     )  # fmt: skip
-    return table, float(unit)
+    return table.reshape(-1), float(unit)
+
+
+def edge_foreground_bytes(
+    dist: NDArray[np.float32],
+    box: Box,
+    fg: NDArray[np.float32],
+    inv_scale: np.float32,
+    truncation: np.float32,
+    edge_scale: np.float32,
+    edge_out: np.float32,
+    fg_scale: np.float32,
+    fg_out: np.float32,
+    inv_unit: np.float32,
+    out: NDArray[np.uint8],
+) -> None:
+    """The cost table's edge and foreground maps, quantised.
+
+    Per orientation bin ``b`` the padded map ``rint(min(d s, tau)^2 e / u)``
+    (``d = dist[b]``, which takes ``min(d s, tau)`` in place), then the
+    foreground's ``rint((1 - fg) f / u)``; the one-pixel border holds
+    ``rint(edge_out / u)`` and ``rint(fg_out / u)``. All in float32, in
+    that order.
+
+    Args:
+        dist: ``(B, H, W)`` distances to the edges (pixels), inf outside
+            ``box``; rescaled and truncated in place.
+        box: ``(y0, y1, x0, x1)``: outside it every edge cost is the truncation's.
+        fg: ``(H, W)`` foreground probabilities.
+        inv_scale: ``s``, reference pixels per pixel.
+        truncation: ``tau``.
+        edge_scale: ``e``.
+        edge_out: The edge cost off the image.
+        fg_scale: ``f``.
+        fg_out: The foreground cost off the image.
+        inv_unit: ``1 / u``, table units per nat.
+        out: Out, ``(B + 1, H + 2, W + 2)``.
+    """
+    n_bins = dist.shape[0]
+    y0, y1, x0, x1 = box
+    near = dist[:, y0:y1, x0:x1]
+    near *= inv_scale
+    for b in range(n_bins):  # min(d s, tau), in place (np.minimum takes twice as long)
+        cv2.threshold(near[b], float(truncation), 0.0, cv2.THRESH_TRUNC, dst=near[b])
+    costs = np.square(near)
+    costs *= edge_scale
+    costs *= inv_unit
+    edges = out[:n_bins]
+    edges[:] = np.rint(truncation * truncation * edge_scale * inv_unit)
+    edges[:, 1 + y0 : 1 + y1, 1 + x0 : 1 + x1] = np.rint(costs, out=costs)
+    for far in (dist[:, :y0], dist[:, y1:], dist[:, y0:y1, :x0], dist[:, y0:y1, x1:]):
+        far[:] = truncation
+    cover = np.subtract(np.float32(1.0), fg)
+    cover *= fg_scale
+    cover *= inv_unit
+    out[n_bins, 1:-1, 1:-1] = np.rint(cover, out=cover)
+    _border(edges, np.rint(edge_out * inv_unit))
+    _border(out[n_bins:], np.rint(fg_out * inv_unit))
+
+
+def appearance_bytes(
+    smooth: NDArray[np.uint8],
+    colors: NDArray[np.float32],
+    low: np.float32,
+    span: np.float32,
+    scale: np.float32,
+    inv_unit: np.float32,
+    out: NDArray[np.uint8],
+) -> None:
+    """The cost table's appearance maps, quantised.
+
+    Per colour ``k`` the padded map ``rint(clip((m - low) span, 0, 1) a / u)``
+    of the largest channel difference ``m = max_c |smooth[..., c] - colors[k, c]|``;
+    the one-pixel border holds ``rint(a / u)`` (a point off the image matches
+    no colour). All in float32, in that order.
+
+    Args:
+        smooth: ``(H, W, C)`` the blurred frame.
+        colors: ``(K, C)`` the colours to match.
+        low: The difference below which a pixel matches (cost 0).
+        span: ``1 / (high - low)``: the difference from ``low`` on, in units of
+            the ramp to the full cost.
+        scale: ``a``, the full cost (nats).
+        inv_unit: ``1 / u``, table units per nat.
+        out: Out, ``(K, H + 2, W + 2)`` the table's appearance maps.
+    """
+    if not colors.shape[0]:
+        return
+    # The cost never falls as the difference grows, so the cost of the largest
+    # channel difference is the largest of the channels' costs: a 256-entry
+    # table per colour and channel, looked up by OpenCV.
+    grey = np.arange(256, dtype=np.float32)[:, None, None]
+    ramp = (np.abs(grey - colors[None]) - low) * span  # (256, K, C)
+    np.clip(ramp, np.float32(0.0), np.float32(1.0), out=ramp)
+    lookup = np.rint(ramp * scale * inv_unit).astype(np.uint8)
+    channels = cv2.split(smooth)
+    for k in range(colors.shape[0]):
+        worst = cv2.LUT(channels[0], lookup[:, k, 0])
+        for c in range(1, len(channels)):
+            worst = cv2.max(worst, cv2.LUT(channels[c], lookup[:, k, c]))
+        out[k, 1:-1, 1:-1] = worst
+    _border(out, np.rint(scale * inv_unit))
+
+
+def _border(maps: NDArray[np.uint8], value: np.floating) -> None:
+    """The one-pixel border of padded ``(M, H + 2, W + 2)`` maps: ``value``."""
+    maps[:, 0] = maps[:, -1] = value
+    maps[:, :, 0] = maps[:, :, -1] = value
 
 
 def spread_points(mask: NDArray[np.bool_], most: int) -> NDArray[np.float32]:
@@ -553,7 +663,7 @@ def frame_features(
         smooth, model.canny_low, model.canny_high, model.orientation_bins, keep
     )
     # Beyond the truncation every distance costs the same (cost_table).
-    dist = edge_distances(bins, found, edges, math.floor(model.edge_truncation * scale) + 1)
+    dist, box = edge_distances(bins, found, edges, math.floor(model.edge_truncation * scale) + 1)
     use_appearance = given is not None and model.appearance_weight > 0 and given.colors is not None
     use_residual = given is not None and model.residual_weight > 0
     use_coverage = backdrop is not None and model.coverage_weight > 0
@@ -569,7 +679,7 @@ def frame_features(
                 f"GivenBody.colors: expected shape ({N_CONES}, {channels}), got {colors.shape}"
             )
         app_colors = colors[app_cones].astype(np.float32)
-    cost, unit = cost_table(model, dist, fg, smooth, app_colors)
+    cost, unit = cost_table(model, dist, box, fg, smooth, app_colors)
     residual, residual_cones = None, None
     if use_residual and given is not None and free is not None:
         residual, residual_cones = residual_edges(model, edges, given, free)
