@@ -84,13 +84,15 @@ def test_the_probe_is_built_from_the_description_and_sees_observations_only():
         assert isinstance(args[0], TaskDescription) and set(kwargs) <= {"seed"}
     # what it was shown: exactly the environment's observations, nothing else
     env = gym.make(f"humotion_gym/{TASK}", split="test", terminate_on_lost=False)
-    # first the untimed warm-up call (evaluation.warm_up): a first frame, seed 0's
-    warm, shown = Probe.calls[0], Probe.calls[1:]
+    # first the untimed warm-up (evaluation.warm_up): seed 0's first two frames
+    warm, shown = Probe.calls[:2], Probe.calls[2:]
     assert len(shown) == 2 * env.unwrapped.episode_frames
-    first, _ = env.reset(seed=0)
-    assert set(warm[0][0]) == set(OBSERVATION_KEYS) and warm[1]["episode_start"].all()
-    for key in OBSERVATION_KEYS:
-        np.testing.assert_array_equal(warm[0][0][key], first[key])
+    obs, _ = env.reset(seed=0)
+    for (args, kwargs), start in zip(warm, (True, False), strict=True):
+        assert set(args[0]) == set(OBSERVATION_KEYS) and kwargs["episode_start"].all() == start
+        for key in OBSERVATION_KEYS:
+            np.testing.assert_array_equal(args[0][key], obs[key])
+        obs = env.step(REFERENCES["hold"][0](env).predict(obs)[0])[0]
     k = 0
     for seed in (0, 1):
         obs, _ = env.reset(seed=seed)
