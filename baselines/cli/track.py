@@ -163,8 +163,9 @@ def _cmd_track(args: argparse.Namespace) -> int:
     )
     print(LEGEND)
     print(
-        f"first call {first_call_s:.2f} s, made before the episodes and not in ms/frame "
-        "(it compiles the numba kernels on a first run, then loads them from a cache)"
+        f"first calls {first_call_s:.2f} s, before the episodes and not in ms/frame: on a "
+        "first run numba compiles its kernels there (a few later, where first needed), "
+        "then loads them from its cache"
     )
     if args.video:
         wrote(args.video, f"the first episode, seed {args.seed}")
