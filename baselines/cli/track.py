@@ -128,7 +128,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
         agent = make(args.agent, env, n_particles=args.particles, seed=args.seed)
     except ValueError as exc:  # a policy file that is not one, an agent that cannot run here
         raise CommandError(f"--agent: {exc}") from None
-    first_call_s = warm_up(agent, env, args.seed, options)
+    warm_up_s = warm_up(agent, env, args.seed, options)
     results = evaluate(agent, env, args.episodes, seed=args.seed, options=options, progress=True)
     if args.video:
         frames: list = []
@@ -139,7 +139,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
         print(json.dumps({
             "task": args.task, "agent": args.agent, "particles": args.particles,
             "episodes": [r.to_dict() for r in results], "summary": summary,
-            "video": str(args.video) if args.video else None, "first_call_s": first_call_s,
+            "video": str(args.video) if args.video else None, "warm_up_s": warm_up_s,
         }))  # fmt: skip
         return 0
     # references and learned policies take no particles
@@ -163,7 +163,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
     )
     print(LEGEND)
     print(
-        f"first calls {first_call_s:.2f} s, before the episodes and not in ms/frame: on a "
+        f"first calls {warm_up_s:.2f} s, before the episodes and not in ms/frame: on a "
         "first run numba compiles its kernels there (a few later, where first needed), "
         "then loads them from its cache"
     )

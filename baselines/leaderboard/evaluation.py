@@ -161,8 +161,9 @@ def warm_up(
     numba compiles its kernels (on the first run after an install; later
     processes load them from numba's cache in tens of milliseconds) and
     caches fill. A filter's first frame starts its particles and its second
-    is the first to move them, so two frames reach every kernel of a frame.
-    Timed inside an episode that cost would be charged to its
+    is the first to move them, so two frames reach the kernels every frame
+    runs (a term that starts scoring mid-episode compiles there, on a first
+    run only). Timed inside an episode that cost would be charged to its
     ``ms_per_frame``. Nothing carries over: each episode starts the agent
     afresh (``episode_start``) and reseeds it (``seed_episode``).
     """
