@@ -660,7 +660,8 @@ def draw_pose_overlay(
     px = camera.project(kp)
     ok = np.isfinite(px).all(axis=1)
     shown = ok.tolist()
-    if not all(shown):
+    every = all(shown)
+    if not every:
         # Points behind the camera are not drawn; zeros stand in for them so
         # that the conversion to fixed point stays finite.
         px[~ok] = 0.0
@@ -673,7 +674,7 @@ def draw_pose_overlay(
     col = tuple(int(v) for v in color)
     # Each edge as its own two-point curve: one OpenCV call draws them one after
     # the other exactly as cv2.line would (the same anti-aliased segments, in order).
-    edges = _EDGES if all(shown) else _EDGES[ok[_EDGES].all(axis=1)]
+    edges = _EDGES if every else _EDGES[ok[_EDGES].all(axis=1)]
     if edges.size:
         cv2.polylines(out, points[edges], False, col, thickness, cv2.LINE_AA, _SHIFT)
     radius = int((thickness + 1) * _ONE)

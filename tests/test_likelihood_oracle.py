@@ -418,11 +418,10 @@ def test_cropped_distances_are_opencvs_up_to_the_truncation(scale: float) -> Non
         bins, edges = _clustered_bins(rng)
         whole = cv2.distanceTransform(bins[0], cv2.DIST_L2, cv2.DIST_MASK_5)
         want = np.minimum(whole / np.float32(scale), tau)
-        got = features.edge_distances(bins, np.array([True]), edges, reach)[0][0]
-        np.testing.assert_array_equal(np.minimum(got / np.float32(scale), tau), want)
+        got, _ = features.edge_distances(bins, np.array([True]), edges, reach)
+        np.testing.assert_array_equal(np.minimum(got[0] / np.float32(scale), tau), want)
         got, _ = features.edge_distances(bins, np.array([True]), edges, math.ceil(3.0 * scale) - 2)
-        got = got[0]
-        short += not np.array_equal(np.minimum(got / np.float32(scale), tau), want)
+        short += not np.array_equal(np.minimum(got[0] / np.float32(scale), tau), want)
     assert short > 0
     empty, _ = features.edge_distances(bins, np.array([False]), edges, reach)
     assert np.isinf(empty).all()
