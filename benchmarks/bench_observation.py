@@ -10,7 +10,8 @@ axes (150 per pose) and a nearest-pixel lookup of each in a distance map. The
 ratio (reference time / model time) is the figure of merit: these machines are
 noisy, so compare ratios, not absolute numbers. The time of ``prepare`` (once
 per frame) and of the poses' kinematics alone (:func:`body.pose_geometry` in
-float32, as the likelihood asks for it: part of every scoring) are printed too.
+float32; the likelihood runs the same kinematics a block of poses at a time
+inside its projection pass) are printed too.
 
 Then the same for the whole-body tasks' likelihood (BodyTrack-v2's settings:
 the backdrop read at a first frame where the figure stood 30 cm to the side,

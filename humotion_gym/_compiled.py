@@ -3,9 +3,10 @@
 numba compiles them because each is a few hundred scalar operations per pose
 (or per cone of a frame): numpy pays its per-call cost for every one of them
 (for one pose, as the environment's step scores, more than the arithmetic)
-and makes a temporary array per operation for many. One fused pass per pose
-does neither (``benchmarks/bench_env.py``, ``bench_vector.py``,
-``bench_render.py``). The kinematics' formulas are those of
+and makes a temporary array per operation for many. One fused pass does
+neither (``benchmarks/bench_env.py``, ``bench_vector.py``, ``bench_render.py``,
+``bench_observation.py``); the kinematics' runs over blocks of poses, whose
+arithmetic vectorises. The kinematics' formulas are those of
 :mod:`humotion_gym.body`'s docstring, checked against a per-joint chain of
 rotation matrices (``tests/test_kinematics.py``); the figures' against the
 cones projected one by one (``tests/test_render.py``).
@@ -37,11 +38,75 @@ _LIMB_CONES = ((2, 3), (4, 5), (6, 7), (8, 9))
 _LIMB_SIGNS = (1.0, 1.0, -1.0, -1.0)
 
 
+#: Poses per block of :func:`pose_block`: a block's scratch stays in the L1 cache,
+#: and is long enough for the vectorised loops (at 16 or 32 they ran scalar).
+BLOCK = 64
+#: Rows of a block's scratch: ``3 r + k`` coordinate ``k`` of geometry row ``r``
+#: (105 rows), then the 24 numbers of each pose's shape table.
+BLOCK_ROWS = 3 * GEOMETRY_ROWS + SHAPE_TABLE_SIZE
+
+
 @numba.njit(cache=True, nogil=True, inline="always")
-def _write(out: NDArray[np.float64], row: int, x: float, y: float, z: float) -> None:
-    out[row, 0] = x
-    out[row, 1] = y
-    out[row, 2] = z
+def _write(
+    out: NDArray[Any], row: int, pose: int, x: float, y: float, z: float
+) -> None:  # fmt: skip
+    out[3 * row, pose] = x
+    out[3 * row + 1, pose] = y
+    out[3 * row + 2, pose] = z
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _root(cos: NDArray[Any], sin: NDArray[Any], n: int) -> tuple[float, ...]:
+    """Pose ``n``'s root rotation ``R = Rz(yaw) Rx(pitch) Ry(roll)``, by rows."""
+    cy, sy, cp, sp, cr, sr = cos[3, n], sin[3, n], cos[4, n], sin[4, n], cos[5, n], sin[5, n]
+    return (
+        cy * cr - sy * sp * sr, -sy * cp, cy * sr + sy * sp * cr,
+        sy * cr + cy * sp * sr, cy * cp, sy * sr - cy * sp * cr,
+        -cp * sr, sp, cp * cr,
+    )  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def pose_block(
+    params: NDArray[Any], cos: NDArray[Any], sin: NDArray[Any], shapes: NDArray[Any],
+    b0: int, m: int, work: NDArray[Any],
+) -> None:  # fmt: skip
+    """The keypoints and cone axes of poses ``b0..b0+m`` (``m <= BLOCK``), a column each.
+
+    Poses run along the last axis of every array, so that each statement of
+    the chain runs over the block's poses at once: the loops vectorise. The
+    scratch has a fixed size, whose rows the compiler knows apart, and a
+    whole block a fixed count of poses (a count known only at run time, as
+    the last, partial block's, keeps the loops scalar): inlined into a pass
+    that allocates ``work`` itself, so that the compiler sees its shape, and
+    called with the literal ``BLOCK`` for whole blocks, the last block apart
+    (two calls side by side would be merged into one loop of unknown count).
+    A pass over many poses runs it a block at a time and uses each block while
+    it is in the cache. The pass must not allow fast-math, which would round
+    the chain otherwise.
+
+    Args:
+        params: ``(25, N)`` poses (``body.PARAM_NAMES`` order by rows).
+        cos: ``(25, N)`` the cosines of the parameters (those of the angles,
+            rows 3 on, are read), computed by numpy over all poses at once.
+        sin: ``(25, N)`` their sines.
+        shapes: ``(24, 1)`` one shape table for every pose, or ``(24, N)`` one
+            per pose.
+        b0: The block's first pose.
+        m: Its number of poses.
+        work: ``(BLOCK_ROWS, BLOCK)`` scratch; out, rows ``3 r + k`` column
+            ``j``: coordinate ``k`` of row ``r`` of pose ``b0 + j``'s geometry,
+            rows 0-14 the keypoints (``body.KEYPOINT_NAMES`` order), rows
+            ``15 + 2 c`` and ``16 + 2 c`` the x (width) and y (depth) axes of
+            cone ``c``, in the world frame. Rows 105 on hold the shapes, kept
+            from one call to the next when there is one shape.
+    """
+    block, s = work[: 3 * GEOMETRY_ROWS], work[3 * GEOMETRY_ROWS :]
+    if shapes.shape[1] > 1:
+        _fill(s, shapes, b0, m, True)
+    elif b0 == 0:
+        _fill(s, shapes, 0, BLOCK, False)
+    _block(params, cos, sin, s, b0, m, block)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -49,141 +114,166 @@ def pose_geometry(
     params: NDArray[Any], cos: NDArray[Any], sin: NDArray[Any], shapes: NDArray[Any],
     out: NDArray[Any],
 ) -> None:  # fmt: skip
-    """Keypoints and cone axes of N poses, written into ``out``.
+    """Keypoints and cone axes of N poses into ``out`` ``(105, N)`` (see :func:`pose_block`)."""
+    work = np.empty((BLOCK_ROWS, BLOCK), params.dtype)
+    n = params.shape[1]
+    full = n - n % BLOCK
+    for b0 in range(0, full, BLOCK):
+        pose_block(params, cos, sin, shapes, b0, BLOCK, work)
+        _copy_out(work, out, b0, BLOCK)
+    if full < n:
+        pose_block(params, cos, sin, shapes, full, n - full, work)
+        _copy_out(work, out, full, n - full)
 
-    Args:
-        params: ``(N, 25)`` poses (``body.PARAM_NAMES`` order).
-        cos: ``(N, 25)`` the cosines of the parameters (those of the angles,
-            columns 3 on, are read), computed by numpy over all poses at once.
-        sin: ``(N, 25)`` their sines.
-        shapes: ``(1, 24)`` one shape table for every pose, or ``(N, 24)`` one
-            per pose.
-        out: ``(N, 35, 3)``: rows 0-14 the keypoints (``body.KEYPOINT_NAMES``
-            order), rows ``15 + 2 c`` and ``16 + 2 c`` the x (width) and y
-            (depth) axes of cone ``c``, in the world frame.
-    """
-    per_pose = shapes.shape[0] > 1
-    for n in range(params.shape[0]):
-        p, pc, ps = params[n], cos[n], sin[n]
-        s = shapes[n if per_pose else 0]
-        # Root: R = Rz(yaw) Rx(pitch) Ry(roll), by rows.
-        cy, sy, cp, sp, cr, sr = pc[3], ps[3], pc[4], ps[4], pc[5], ps[5]
-        r00, r01, r02 = cy * cr - sy * sp * sr, -sy * cp, cy * sr + sy * sp * cr
-        r10, r11, r12 = sy * cr + cy * sp * sr, cy * cp, sy * sr - cy * sp * cr
-        r20, r21, r22 = -cp * sr, sp, cp * cr
-        px, py, pz = p[0], p[1], p[2]
-        g = out[n]
-        _write(g, 0, px, py, pz)  # pelvis
-        _write(g, 15, r00, r10, r20)  # torso cone: the root frame's x and y
-        _write(g, 16, r01, r11, r21)
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _block(
+    params: NDArray[Any], cos: NDArray[Any], sin: NDArray[Any], s: NDArray[Any], b0: int,
+    m: int, block: NDArray[Any],
+) -> None:  # fmt: skip
+    """Poses ``b0..b0+m`` into ``block``, with their shapes ``s``."""
+    _trunk(params, cos, sin, s, b0, m, block)
+    # One call per limb, each with a literal index: the limb tables' entries
+    # become constants (a loop index reads them from memory, five times slower).
+    _limb(params, cos, sin, s, b0, m, block, 0)
+    _limb(params, cos, sin, s, b0, m, block, 1)
+    _limb(params, cos, sin, s, b0, m, block, 2)
+    _limb(params, cos, sin, s, b0, m, block, 3)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _fill(s: NDArray[Any], shapes: NDArray[Any], b0: int, m: int, per_pose: bool) -> None:
+    """Columns ``0..m`` of ``s``: the shapes of poses ``b0..b0+m`` (or the one shape)."""
+    for i in range(s.shape[0]):
+        for k in range(m):
+            s[i, k] = shapes[i, b0 + k if per_pose else 0]
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _copy_out(work: NDArray[Any], out: NDArray[Any], b0: int, m: int) -> None:
+    """The geometry rows of ``work``'s first ``m`` columns into ``out`` from column ``b0``."""
+    for r in range(3 * GEOMETRY_ROWS):
+        for k in range(m):
+            out[r, b0 + k] = work[r, k]
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _trunk(
+    params: NDArray[Any], cos: NDArray[Any], sin: NDArray[Any], s: NDArray[Any],
+    b0: int, m: int, block: NDArray[Any],
+) -> None:  # fmt: skip
+    """Poses ``b0..b0+m``'s pelvis, neck base and head, the torso's and head's axes."""
+    for q in range(m):
+        n = b0 + q
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = _root(cos, sin, n)
+        px, py, pz = params[0, n], params[1, n], params[2, n]
+        _write(block, 0, q, px, py, pz)  # pelvis
+        _write(block, 15, q, r00, r10, r20)  # torso cone: the root frame's x and y
+        _write(block, 16, q, r01, r11, r21)
         # The neck base: R o + p.
-        nx = r00 * s[0] + r01 * s[1] + r02 * s[2] + px
-        ny = r10 * s[0] + r11 * s[1] + r12 * s[2] + py
-        nz = r20 * s[0] + r21 * s[1] + r22 * s[2] + pz
-        _write(g, 7, nx, ny, nz)
+        nx = r00 * s[0, q] + r01 * s[1, q] + r02 * s[2, q] + px
+        ny = r10 * s[0, q] + r11 * s[1, q] + r12 * s[2, q] + py
+        nz = r20 * s[0, q] + r21 * s[1, q] + r22 * s[2, q] + pz
+        _write(block, 7, q, nx, ny, nz)
         # Neck ball joint: columns of Rx(a) Ry(b) Rz(c), rotated by the root.
-        ca, sa, cb, sb, cc, sc = pc[6], ps[6], pc[7], ps[7], pc[8], ps[8]
+        ca, sa, cb, sb, cc, sc = cos[6, n], sin[6, n], cos[7, n], sin[7, n], cos[8, n], sin[8, n]
         ex0, ex1, ex2 = cb * cc, ca * sc + sa * sb * cc, sa * sc - ca * sb * cc
         ey0, ey1, ey2 = -cb * sc, ca * cc - sa * sb * sc, sa * cc + ca * sb * sc
         ez0, ez1, ez2 = sb, -sa * cb, ca * cb
-        head = s[15]
+        head = s[15, q]
         _write(
-            g, 8,
+            block, 8, q,
             nx + head * (r00 * ez0 + r01 * ez1 + r02 * ez2),
             ny + head * (r10 * ez0 + r11 * ez1 + r12 * ez2),
             nz + head * (r20 * ez0 + r21 * ez1 + r22 * ez2),
         )  # fmt: skip
         _write(
-            g, 17,
+            block, 17, q,
             r00 * ex0 + r01 * ex1 + r02 * ex2,
             r10 * ex0 + r11 * ex1 + r12 * ex2,
             r20 * ex0 + r21 * ex1 + r22 * ex2,
         )  # fmt: skip
         _write(
-            g, 18,
+            block, 18, q,
             r00 * ey0 + r01 * ey1 + r02 * ey2,
             r10 * ey0 + r11 * ey1 + r12 * ey2,
             r20 * ey0 + r21 * ey1 + r22 * ey2,
         )  # fmt: skip
-        # One call per limb, each with a literal index: the limb tables' entries
-        # become constants (a loop index reads them from memory, five times slower).
-        _limb(g, pc, ps, s, 0, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz)
-        _limb(g, pc, ps, s, 1, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz)
-        _limb(g, pc, ps, s, 2, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz)
-        _limb(g, pc, ps, s, 3, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _limb(
-    g: NDArray[Any],
-    pc: NDArray[Any],
-    ps: NDArray[Any],
-    s: NDArray[Any],
-    i: int,
-    r00: float, r01: float, r02: float,
-    r10: float, r11: float, r12: float,
-    r20: float, r21: float, r22: float,
-    px: float, py: float, pz: float,
+    params: NDArray[Any], cos: NDArray[Any], sin: NDArray[Any], s: NDArray[Any],
+    b0: int, m: int, block: NDArray[Any], i: int,
 ) -> None:  # fmt: skip
-    """Limb ``i``: its base, middle and tip keypoints and its two cones' axes.
+    """Limb ``i`` of poses ``b0..b0+m``: base, middle and tip keypoints, two cones' axes.
 
     The joint frame is ``R Rx(a) Ry(b) Rz(c)``; the upper segment hangs along
     its ``-z``, the hinge turns the lower one about its ``x``, so the lower
     segment points along ``sign sin(k) y - cos(k) z`` and the lower cone's
-    depth axis is column y of ``(joint frame) Rx(sign k)``.
+    depth axis is column y of ``(joint frame) Rx(sign k)``. The root's
+    rotation is formed again here (a few products a pose): a loop of the
+    limb alone keeps few enough rows in flight to vectorise.
     """
     base, mid, tip = _LIMB_KEYPOINTS[i]
     upper_cone, lower_cone = _LIMB_CONES[i]
     sign = _LIMB_SIGNS[i]
     j = 9 + 4 * i  # the limb's x, y, z angles and hinge
-    ca, sa, cb, sb = pc[j], ps[j], pc[j + 1], ps[j + 1]
-    cc, sc, ck, sk = pc[j + 2], ps[j + 2], pc[j + 3], ps[j + 3]
-    lx0, ly0, lz0 = cb * cc, -cb * sc, sb
-    lx1, ly1, lz1 = ca * sc + sa * sb * cc, ca * cc - sa * sb * sc, -sa * cb
-    lx2, ly2, lz2 = sa * sc - ca * sb * cc, sa * cc + ca * sb * sc, ca * cb
-    x0 = r00 * lx0 + r01 * lx1 + r02 * lx2
-    x1 = r10 * lx0 + r11 * lx1 + r12 * lx2
-    x2 = r20 * lx0 + r21 * lx1 + r22 * lx2
-    y0 = r00 * ly0 + r01 * ly1 + r02 * ly2
-    y1 = r10 * ly0 + r11 * ly1 + r12 * ly2
-    y2 = r20 * ly0 + r21 * ly1 + r22 * ly2
-    z0 = r00 * lz0 + r01 * lz1 + r02 * lz2
-    z1 = r10 * lz0 + r11 * lz1 + r12 * lz2
-    z2 = r20 * lz0 + r21 * lz1 + r22 * lz2
     o = 3 * (i + 1)  # the limb's base offset in the shape table
-    bx = r00 * s[o] + r01 * s[o + 1] + r02 * s[o + 2] + px
-    by = r10 * s[o] + r11 * s[o + 1] + r12 * s[o + 2] + py
-    bz = r20 * s[o] + r21 * s[o + 1] + r22 * s[o + 2] + pz
-    upper, lower = s[16 + 2 * i], s[17 + 2 * i]
-    mx, my, mz = bx - upper * z0, by - upper * z1, bz - upper * z2
-    ssk = sign * sk
-    ls, lk = lower * ssk, lower * ck
-    _write(g, base, bx, by, bz)
-    _write(g, mid, mx, my, mz)
-    _write(g, tip, mx + ls * y0 - lk * z0, my + ls * y1 - lk * z1, mz + ls * y2 - lk * z2)
-    _write(g, 15 + 2 * upper_cone, x0, x1, x2)
-    _write(g, 16 + 2 * upper_cone, y0, y1, y2)
-    _write(g, 15 + 2 * lower_cone, x0, x1, x2)
-    _write(g, 16 + 2 * lower_cone, ck * y0 + ssk * z0, ck * y1 + ssk * z1, ck * y2 + ssk * z2)
+    for q in range(m):
+        n = b0 + q
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = _root(cos, sin, n)
+        ca, sa, cb, sb = cos[j, n], sin[j, n], cos[j + 1, n], sin[j + 1, n]
+        cc, sc, ck, sk = cos[j + 2, n], sin[j + 2, n], cos[j + 3, n], sin[j + 3, n]
+        lx0, ly0, lz0 = cb * cc, -cb * sc, sb
+        lx1, ly1, lz1 = ca * sc + sa * sb * cc, ca * cc - sa * sb * sc, -sa * cb
+        lx2, ly2, lz2 = sa * sc - ca * sb * cc, sa * cc + ca * sb * sc, ca * cb
+        x0 = r00 * lx0 + r01 * lx1 + r02 * lx2
+        x1 = r10 * lx0 + r11 * lx1 + r12 * lx2
+        x2 = r20 * lx0 + r21 * lx1 + r22 * lx2
+        y0 = r00 * ly0 + r01 * ly1 + r02 * ly2
+        y1 = r10 * ly0 + r11 * ly1 + r12 * ly2
+        y2 = r20 * ly0 + r21 * ly1 + r22 * ly2
+        z0 = r00 * lz0 + r01 * lz1 + r02 * lz2
+        z1 = r10 * lz0 + r11 * lz1 + r12 * lz2
+        z2 = r20 * lz0 + r21 * lz1 + r22 * lz2
+        bx = r00 * s[o, q] + r01 * s[o + 1, q] + r02 * s[o + 2, q] + params[0, n]
+        by = r10 * s[o, q] + r11 * s[o + 1, q] + r12 * s[o + 2, q] + params[1, n]
+        bz = r20 * s[o, q] + r21 * s[o + 1, q] + r22 * s[o + 2, q] + params[2, n]
+        upper, lower = s[16 + 2 * i, q], s[17 + 2 * i, q]
+        mx, my, mz = bx - upper * z0, by - upper * z1, bz - upper * z2
+        ssk = sign * sk
+        ls, lk = lower * ssk, lower * ck
+        _write(block, base, q, bx, by, bz)
+        _write(block, mid, q, mx, my, mz)
+        tx, ty, tz = mx + ls * y0 - lk * z0, my + ls * y1 - lk * z1, mz + ls * y2 - lk * z2
+        _write(block, tip, q, tx, ty, tz)
+        _write(block, 15 + 2 * upper_cone, q, x0, x1, x2)
+        _write(block, 16 + 2 * upper_cone, q, y0, y1, y2)
+        _write(block, 15 + 2 * lower_cone, q, x0, x1, x2)
+        dx, dy, dz = ck * y0 + ssk * z0, ck * y1 + ssk * z1, ck * y2 + ssk * z2
+        _write(block, 16 + 2 * lower_cone, q, dx, dy, dz)
+
+
+def kinematics_inputs(params: NDArray[Any], dtype: type) -> tuple[NDArray[Any], ...]:
+    """``(25, N)`` rows of ``(N, 25)`` poses in ``dtype``, their cosines and their sines."""
+    p: NDArray[Any] = np.ascontiguousarray(np.asarray(params).T, dtype=dtype)
+    return p, np.cos(p), np.sin(p)
 
 
 def geometry(params: NDArray[Any], shapes: NDArray[Any], dtype: type = np.float64) -> NDArray[Any]:
-    """:func:`pose_geometry` into a new ``(N, 35, 3)`` array of ``dtype``.
-
-    The sines and cosines are numpy's, over every pose at once: in float32
-    its vectorised ones cost a fortieth of the C library's float64 ones, which
-    would be most of the kinematics' time.
+    """``(N, 35, 3)`` keypoints and cone axes of ``(N, 25)`` poses.
 
     Args:
         params: ``(N, 25)`` poses.
-        shapes: ``(1, 24)`` or ``(N, 24)`` shape tables.
+        shapes: ``(1, 24)`` one shape table, or ``(N, 24)`` one per pose.
         dtype: ``np.float64`` or ``np.float32`` (a thousandth of a millimetre
             from the float64 keypoints).
     """
-    p: NDArray[Any] = np.ascontiguousarray(params, dtype=dtype)
-    out: NDArray[Any] = np.empty((p.shape[0], GEOMETRY_ROWS, 3), dtype)
-    pose_geometry(p, np.cos(p), np.sin(p), np.ascontiguousarray(shapes, dtype=dtype), out)
-    return out
+    p, cos, sin = kinematics_inputs(params, dtype)
+    out: NDArray[Any] = np.empty((3 * GEOMETRY_ROWS, p.shape[1]), dtype)
+    pose_geometry(p, cos, sin, np.ascontiguousarray(shapes.T, dtype=dtype), out)
+    return np.ascontiguousarray(out.T).reshape(-1, GEOMETRY_ROWS, 3)
 
 
 @numba.njit(cache=True, nogil=True)

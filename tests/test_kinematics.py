@@ -116,15 +116,28 @@ def test_any_leading_axes_and_bad_input() -> None:
         body.forward_kinematics(np.zeros((3, 24)), SHAPE)
 
 
-def test_per_pose_shapes() -> None:
-    poses = _random_poses(np.random.default_rng(2), 6)
-    shapes = [body.default_shape(1400.0 + 100.0 * i) for i in range(6)]
+@pytest.mark.parametrize("n", [6, 150])  # a partial block of poses; whole blocks and one
+def test_per_pose_shapes(n: int) -> None:
+    poses = _random_poses(np.random.default_rng(2), n)
+    shapes = [body.default_shape(1400.0 + 600.0 * i / n) for i in range(n)]
     tables = np.stack([body.shape_table(s) for s in shapes])
     got = body.pose_geometry_of(poses, tables)
     for i, shape in enumerate(shapes):
         np.testing.assert_array_equal(got[i], body.pose_geometry(poses[i], shape))
     with pytest.raises(ValueError, match="shape tables"):
         body.pose_geometry_of(poses, tables[:2])
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_blocks_of_poses_are_the_poses_one_by_one(dtype: type) -> None:
+    """The kinematics works on blocks of poses: every count around a block's size."""
+    rng = np.random.default_rng(3)
+    for n in (0, 1, 63, 64, 65, 129, 300):
+        poses = _random_poses(rng, n)
+        got = body.pose_geometry(poses, SHAPE, dtype)
+        assert got.shape == (n, 35, 3) and got.dtype == dtype
+        want = np.array([body.pose_geometry(pose, SHAPE, dtype) for pose in poses], dtype)
+        np.testing.assert_array_equal(got, want.reshape(n, 35, 3))
 
 
 def test_single_precision_geometry_is_within_rounding() -> None:

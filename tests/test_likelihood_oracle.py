@@ -201,8 +201,9 @@ def scene(seed: int, size: int = 128, shift_mm: float = 0.0):
     start[0] -= shift_mm
     first = render(start, SHAPE, camera, options, rng, background)
     frame = render(truth, SHAPE, camera, options, rng, background)
-    poses = truth + rng.normal(0.0, 0.1, (60, body.N_PARAMS))
-    poses[:, :3] = truth[:3] + rng.normal(0.0, 60.0, (60, 3))
+    # 70 poses: a whole block of the scorer's passes (64) and a partial one.
+    poses = truth + rng.normal(0.0, 0.1, (70, body.N_PARAMS))
+    poses[:, :3] = truth[:3] + rng.normal(0.0, 60.0, (70, 3))
     return start, camera, first, frame, poses
 
 

@@ -14,6 +14,11 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from humotion_gym._compiled import BLOCK, BLOCK_ROWS, GEOMETRY_ROWS, pose_block
+
+_N_CONES = 10
+_N_KEYPOINTS = GEOMETRY_ROWS - 2 * _N_CONES
+
 _ZERO = np.float32(0.0)
 _ONE = np.float32(1.0)
 _HALF = np.float32(0.5)
@@ -29,25 +34,29 @@ _REASSOCIATE = {"nsz", "arcp", "contract", "afn", "reassoc"}
 _BLOCK = 128
 
 
-@numba.njit(cache=True, nogil=True, fastmath=_REASSOCIATE)
+@numba.njit(cache=True, nogil=True)
 def cone_bases(
-    geometry: NDArray[np.floating],
-    rot: NDArray[np.float64],
-    trans: NDArray[np.float64],
-    intrinsics: NDArray[np.float64],
-    cones: NDArray[np.intp],
-    radii: NDArray[np.float64],
-    aspect: NDArray[np.float64],
-    bin_axes: NDArray[np.float32],
-    plane: int,
-    basis: NDArray[np.float32],
-    outline: NDArray[np.int32],
-) -> None:
-    """Each cone's image basis and outline map of every pose.
+    params: NDArray[np.floating], cos: NDArray[np.floating], sin: NDArray[np.floating],
+    shapes: NDArray[np.floating], rot: NDArray[np.float64], trans: NDArray[np.float64],
+    intrinsics: NDArray[np.float64], cones: NDArray[np.intp], radii: NDArray[np.float64],
+    aspect: NDArray[np.float64], bin_axes: NDArray[np.float32], plane: int,
+    ankles: NDArray[np.intp], basis: NDArray[np.float32], outline: NDArray[np.int32],
+    lowest: NDArray[np.float32],
+) -> None:  # fmt: skip
+    """Each cone's image basis and outline map of every pose, from the poses.
+
+    The poses' kinematics runs a block at a time
+    (:func:`humotion_gym._compiled.pose_block`, inlined: this pass keeps its
+    strict arithmetic), and each block's bases are made from it while it is
+    in the cache (:func:`_block_bases`): the geometry of every pose would go
+    to memory and back.
 
     Args:
-        geometry: ``(n, 35, 3)`` keypoints and cone axes of the poses
-            (:func:`humotion_gym.body.pose_geometry`).
+        params: ``(25, n)`` the poses by rows
+            (:func:`humotion_gym._compiled.kinematics_inputs`).
+        cos: ``(25, n)`` their cosines.
+        sin: ``(25, n)`` their sines.
+        shapes: ``(24, 1)`` the shape's table.
         rot: ``(3, 3)`` the camera's rotation.
         trans: ``(3,)`` the camera's translation.
         intrinsics: ``(near, focal, u0, v0, pad)``: the nearest depth (mm),
@@ -61,23 +70,60 @@ def cone_bases(
             image normal ``m`` (orthographic approximation).
         bin_axes: ``(B, 2)`` each orientation bin's doubled-angle direction.
         plane: Entries of one map of the cost table.
+        ankles: ``(2,)`` the two ankles' keypoints.
         basis: Out, ``(8, 10, n)``: rows ``(s_u, s_v, e_u, e_v)`` the
             projected cone ends, ``(a_u, a_v, b_u, b_v)`` the outline's offsets
             at the two ends (the unit image normal times the projected radius).
         outline: Out, ``(10, n)``: the offset in the cost table of the map each
             outline reads (``plane`` times its orientation bin).
+        lowest: Out, ``(n,)``: the lower ankle's height (the floor term's).
+    """
+    n = params.shape[1]
+    work = np.empty((BLOCK_ROWS, BLOCK), params.dtype)
+    full = n - n % BLOCK
+    for b0 in range(0, full, BLOCK):
+        pose_block(params, cos, sin, shapes, b0, BLOCK, work)
+        _block_bases(
+            work, b0, BLOCK, rot, trans, intrinsics, cones, radii, aspect, bin_axes, plane,
+            ankles, basis, outline, lowest,
+        )  # fmt: skip
+    if full < n:
+        pose_block(params, cos, sin, shapes, full, n - full, work)
+        _block_bases(
+            work, full, n - full, rot, trans, intrinsics, cones, radii, aspect, bin_axes,
+            plane, ankles, basis, outline, lowest,
+        )  # fmt: skip
+
+
+# error_model "numpy": a division by zero gives inf rather than raising, which
+# lets the projection's divisions vectorise (its divisors are never zero).
+@numba.njit(cache=True, nogil=True, fastmath=_REASSOCIATE, error_model="numpy")
+def _block_bases(
+    work: NDArray[np.floating], b0: int, m: int, rot: NDArray[np.float64],
+    trans: NDArray[np.float64], intrinsics: NDArray[np.float64], cones: NDArray[np.intp],
+    radii: NDArray[np.float64], aspect: NDArray[np.float64], bin_axes: NDArray[np.float32],
+    plane: int, ankles: NDArray[np.intp], basis: NDArray[np.float32], outline: NDArray[np.int32],
+    lowest: NDArray[np.float32],
+) -> None:  # fmt: skip
+    """The bases of poses ``b0..b0+m`` from their geometry in ``work`` (see :func:`cone_bases`).
+
+    The projections run over the whole block into scratch of a fixed size (a
+    fixed count over arrays of known shape vectorises; columns ``m`` on hold
+    what the kinematics left there and are never read). The bases' loop
+    writes ``basis`` itself, in the shape the tables' numbers come from: under
+    fast-math, how LLVM rounds the outline offsets depends on how it compiles
+    the loop, and through scratch it rounds some of them an ulp apart.
     """
     near, focal = intrinsics[0], intrinsics[1]
     u0, v0, pad = intrinsics[2], intrinsics[3], intrinsics[4]
-    n, n_kp = geometry.shape[0], geometry.shape[1] - 2 * cones.shape[0]  # keypoints, then axes
-    # The keypoints' projections a pose at a time, reading its geometry in
-    # order (a loop over poses innermost would walk all of them once per
-    # keypoint, from beyond the L2 cache in a filter's frame); then each cone's
-    # basis from its two ends, poses innermost (they vectorise).
-    uv = np.empty((3, n_kp, n), np.float32)  # u, v, inverse depth
-    for j in range(n):
-        for k in range(n_kp):
-            x, y, z = geometry[j, k, 0], geometry[j, k, 1], geometry[j, k, 2]
+    uv = np.empty((3, _N_KEYPOINTS, BLOCK), np.float32)  # u, v, inverse depth
+    scratch = np.empty((4, BLOCK), np.float32)  # width, cos 2t, sin 2t, the best bin's score
+    best = np.empty(BLOCK, np.int32)
+    # The keypoints' projections, then each cone's basis from its two ends:
+    # poses innermost (the loops vectorise).
+    for k in range(_N_KEYPOINTS):
+        for j in range(BLOCK):
+            x, y, z = work[3 * k, j], work[3 * k + 1, j], work[3 * k + 2, j]
             cu = rot[0, 0] * x + rot[0, 1] * y + rot[0, 2] * z + trans[0]
             cv = rot[1, 0] * x + rot[1, 1] * y + rot[1, 2] * z + trans[1]
             cz = rot[2, 0] * x + rot[2, 1] * y + rot[2, 2] * z + trans[2]
@@ -85,41 +131,47 @@ def cone_bases(
             uv[0, k, j] = cu * inv + u0 + (_BEHIND if cz < near else 0.0)
             uv[1, k, j] = cv * inv + v0
             uv[2, k, j] = inv
-    width = np.ones(n, np.float32)
-    doubled = np.empty((3, n), np.float32)  # cos 2t, sin 2t of the normal, the best bin's score
-    for c in range(cones.shape[0]):
+    width, doubled = scratch[0], scratch[1:]
+    for c in range(_N_CONES):
         s, e = cones[c, 0], cones[c, 1]
+        width[:] = _ONE
         if aspect[c] != 1.0:
-            _section_widths(geometry, n_kp + 2 * c, rot, uv, s, e, aspect[c], width)
+            _section_widths(work, _N_KEYPOINTS + 2 * c, rot, uv, s, e, aspect[c], width)
         r0, r1 = np.float32(radii[c, 0]), np.float32(radii[c, 1])
-        for j in range(n):
+        for j in range(m):
             su, sv, eu, ev = uv[0, s, j], uv[1, s, j], uv[0, e, j], uv[1, e, j]
             dx, dy = eu - su, ev - sv
             norm = _ONE / np.sqrt(dx * dx + dy * dy + _TINY)
             nx, ny = dy * norm, -dx * norm
             r_s = uv[2, s, j] * r0 * width[j] + pad
             r_e = uv[2, e, j] * r1 * width[j] + pad
-            basis[0, c, j], basis[1, c, j] = su, sv
-            basis[2, c, j], basis[3, c, j] = eu, ev
-            basis[4, c, j], basis[5, c, j] = r_s * nx, r_s * ny
-            basis[6, c, j], basis[7, c, j] = r_e * nx, r_e * ny
+            p = b0 + j
+            basis[0, c, p], basis[1, c, p] = su, sv
+            basis[2, c, p], basis[3, c, p] = eu, ev
+            basis[4, c, p], basis[5, c, p] = r_s * nx, r_s * ny
+            basis[6, c, p], basis[7, c, p] = r_e * nx, r_e * ny
             doubled[0, j] = nx * nx - ny * ny
             doubled[1, j] = (nx + nx) * ny
             doubled[2, j] = doubled[0, j] * bin_axes[0, 0] + doubled[1, j] * bin_axes[0, 1]
-            outline[c, j] = 0
+            best[j] = 0
         # The bin whose doubled angle is nearest the normal's (n and -n alike).
         for b in range(1, bin_axes.shape[0]):
-            for j in range(n):
+            for j in range(m):
                 t = doubled[0, j] * bin_axes[b, 0] + doubled[1, j] * bin_axes[b, 1]
                 better = t > doubled[2, j]
-                outline[c, j] = b * plane if better else outline[c, j]
+                best[j] = b * plane if better else best[j]
                 doubled[2, j] = t if better else doubled[2, j]
-        width[:] = _ONE
+        row = outline[c, b0 : b0 + m]
+        for j in range(m):
+            row[j] = best[j]
+    za, zb, low = work[3 * ankles[0] + 2], work[3 * ankles[1] + 2], lowest[b0 : b0 + m]
+    for j in range(m):
+        low[j] = min(za[j], zb[j])
 
 
 @numba.njit(cache=True, nogil=True)
 def _section_widths(
-    geometry: NDArray[np.floating],
+    work: NDArray[np.floating],
     row: int,
     rot: NDArray[np.float64],
     uv: NDArray[np.float32],
@@ -128,20 +180,21 @@ def _section_widths(
     aspect: float,
     out: NDArray[np.float32],
 ) -> None:
-    """``sqrt((x.m)^2 + (aspect y.m)^2)`` of a cone of every pose (see :func:`cone_bases`).
+    """``sqrt((x.m)^2 + (aspect y.m)^2)`` of a cone of a block's poses (see :func:`cone_bases`).
 
-    ``geometry[:, row]`` and ``geometry[:, row + 1]`` are the cone's x and y
+    Geometry rows ``row`` and ``row + 1`` in ``work`` are the cone's x and y
     axes, ``s`` and ``e`` its keypoints, ``m`` their projections' unit normal.
     """
-    for j in range(geometry.shape[0]):
+    for j in range(out.size):
         dx, dy = uv[0, e, j] - uv[0, s, j], uv[1, e, j] - uv[1, s, j]
         norm = _ONE / np.sqrt(dx * dx + dy * dy + _TINY)
         nx, ny = dy * norm, -dx * norm
-        x, y = geometry[j, row], geometry[j, row + 1]
-        xm = (rot[0, 0] * x[0] + rot[0, 1] * x[1] + rot[0, 2] * x[2]) * nx
-        xm += (rot[1, 0] * x[0] + rot[1, 1] * x[1] + rot[1, 2] * x[2]) * ny
-        ym = (rot[0, 0] * y[0] + rot[0, 1] * y[1] + rot[0, 2] * y[2]) * nx
-        ym += (rot[1, 0] * y[0] + rot[1, 1] * y[1] + rot[1, 2] * y[2]) * ny
+        x0, x1, x2 = work[3 * row, j], work[3 * row + 1, j], work[3 * row + 2, j]
+        y0, y1, y2 = work[3 * row + 3, j], work[3 * row + 4, j], work[3 * row + 5, j]
+        xm = (rot[0, 0] * x0 + rot[0, 1] * x1 + rot[0, 2] * x2) * nx
+        xm += (rot[1, 0] * x0 + rot[1, 1] * x1 + rot[1, 2] * x2) * ny
+        ym = (rot[0, 0] * y0 + rot[0, 1] * y1 + rot[0, 2] * y2) * nx
+        ym += (rot[1, 0] * y0 + rot[1, 1] * y1 + rot[1, 2] * y2) * ny
         ym *= aspect
         out[j] = np.sqrt(xm * xm + ym * ym)
 

@@ -19,13 +19,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from baselines.observation import _compiled
+from humotion_gym._compiled import kinematics_inputs
 from humotion_gym.body import (
     CONE_KEYPOINTS,
+    KEYPOINT_NAMES,
     N_CONES,
     N_PARAMS,
     BodyShape,
     cone_geometry,
     default_shape,
+    shape_table,
 )
 from humotion_gym.camera import Camera
 
@@ -33,6 +36,8 @@ FloatArray = NDArray[np.float64]
 
 #: Each cone's two keypoints (``KEYPOINT_NAMES`` order).
 CONE_ENDS = np.ascontiguousarray(CONE_KEYPOINTS, np.intp)
+#: The two ankles, whose lower one the floor term watches.
+ANKLES = np.array([KEYPOINT_NAMES.index("r_ankle"), KEYPOINT_NAMES.index("l_ankle")], np.intp)
 
 # The last answer of free_cones: (key, result), per process.
 _FREE_CONES_CACHE: dict[str, tuple[tuple[bytes, bytes, bytes], Any]] = {}
@@ -68,23 +73,24 @@ def bin_axes(n_bins: int) -> NDArray[np.float32]:
 
 
 def cone_bases(
-    geometry: FloatArray,
+    params: NDArray,
     shape: BodyShape,
     camera: Camera,
     near_mm: float,
     raster_pad_px: float,
     n_bins: int,
     plane: int,
-) -> tuple[NDArray[np.float32], NDArray[np.int32]]:
+) -> tuple[NDArray[np.float32], NDArray[np.int32], NDArray[np.float32]]:
     """Each cone's image basis and outline map for N poses.
 
     Round cones take the mean of their section's two semi-axes as radius; an
     elliptical one (aspect not 1: the torso) its width across the image
     normal, per pose (:func:`~baselines.observation._compiled.cone_bases`).
+    The poses' geometry is single precision (the points are placed in float32
+    anyway, and numpy's float32 sines and cosines are vectorised).
 
     Args:
-        geometry: ``(N, 35, 3)`` the poses' keypoints and cone axes
-            (:func:`humotion_gym.body.pose_geometry`), float32 or float64.
+        params: ``(N, 25)`` finite poses.
         shape: The subject's shape.
         camera: The frame's camera.
         near_mm: Keypoints nearer the camera plane than this are off the image.
@@ -96,10 +102,12 @@ def cone_bases(
         ``basis`` ``(8, 10, N)`` float32: rows ``(s_u, s_v, e_u, e_v)`` the
         projected axis ends in the cost table's padded pixel coordinates
         (+1.5: one pixel of padding, and 0.5 so that truncation rounds), then
-        ``(a_u, a_v, b_u, b_v)``; and ``(10, N)`` int32 the offset in the cost
-        table of the map each cone's outline reads (its orientation bin's).
+        ``(a_u, a_v, b_u, b_v)``; ``(10, N)`` int32 the offset in the cost
+        table of the map each cone's outline reads (its orientation bin's);
+        and ``(N,)`` float32 each pose's lower ankle height (mm).
     """
-    n = geometry.shape[0]
+    p, cos, sin = kinematics_inputs(params, np.float32)
+    n = p.shape[1]
     aspect = np.asarray(shape.aspect, np.float64)
     radii = np.where(
         aspect[:, None] == 1.0, shape.radii * (1.0 + aspect[:, None]) / 2.0, shape.radii
@@ -108,12 +116,14 @@ def cone_bases(
     intrinsics = np.array([near_mm, camera.focal, cx + 1.5, cy + 1.5, raster_pad_px])
     basis = np.empty((8, N_CONES, n), np.float32)
     outline = np.empty((N_CONES, n), np.int32)
+    lowest = np.empty(n, np.float32)
     _compiled.cone_bases(
-        np.ascontiguousarray(geometry), np.asarray(camera.rotation, np.float64),
-        np.asarray(camera.translation, np.float64), intrinsics, CONE_ENDS, radii, aspect,
-        bin_axes(n_bins), plane, basis, outline,
+        p, cos, sin, np.ascontiguousarray(shape_table(shape)[:, None], np.float32),
+        np.asarray(camera.rotation, np.float64), np.asarray(camera.translation, np.float64),
+        intrinsics, CONE_ENDS, radii, aspect, bin_axes(n_bins), plane, ANKLES, basis, outline,
+        lowest,
     )  # fmt: skip
-    return basis, outline
+    return basis, outline, lowest
 
 
 def free_cones(given_pose: Any, given_free: Any, shape: BodyShape) -> tuple[NDArray[np.intp], Any]:

@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from baselines.observation import features, terms
 from baselines.observation.features import Backdrop, FirstFrame, FrameFeatures, GivenBody
-from baselines.observation.geometry import cone_groups, grow, silhouette_mask
+from baselines.observation.geometry import ANKLES, cone_groups, grow, silhouette_mask
 from baselines.observation.settings import ObservationSettings
 from humotion_gym.body import N_CONES, N_PARAMS, BodyShape, cone_geometry, forward_kinematics
 from humotion_gym.camera import Camera
@@ -117,7 +117,7 @@ class ObservationModel(ObservationSettings):
                 f"got {p.shape}"
             )
         keypoints = forward_kinematics(p, shape)
-        return float(keypoints[list(terms.ANKLES), 2].min())
+        return float(keypoints[ANKLES, 2].min())
 
     def read_backdrop(
         self, frame: ArrayLike, pose: ArrayLike, shape: BodyShape, camera: Camera

@@ -21,13 +21,10 @@ from baselines.observation import _compiled
 from baselines.observation.features import FrameFeatures
 from baselines.observation.geometry import cone_bases, fixed_cones
 from baselines.observation.settings import ObservationSettings
-from humotion_gym.body import KEYPOINT_NAMES, N_CONES, BodyShape, pose_geometry
+from humotion_gym.body import N_CONES, BodyShape
 from humotion_gym.camera import Camera
 
 FloatArray = NDArray[np.float64]
-
-#: The two ankles, whose lower one the floor term watches.
-ANKLES = [KEYPOINT_NAMES.index("r_ankle"), KEYPOINT_NAMES.index("l_ankle")]
 
 # Fewer poses than this are scored in one pass even when some cones are the
 # same in all of them: the bookkeeping would cost about what it saves.
@@ -48,12 +45,9 @@ def score(
     :meth:`ObservationModel.log_likelihood_partial`); the last column is the
     whole figure's.
     """
-    # Single precision: the points are placed in float32 anyway, and numpy's
-    # float32 sines and cosines are vectorised (a fifth of the float64 time).
-    geometry = pose_geometry(params, shape, np.float32)
     plane = (feats.width + 2) * (feats.height + 2)
-    basis, outline = cone_bases(
-        geometry, shape, camera, model.near_mm, model.raster_pad_px, model.orientation_bins, plane
+    basis, outline, lowest = cone_bases(
+        params, shape, camera, model.near_mm, model.raster_pad_px, model.orientation_bins, plane
     )
     per_cone = point_costs(model, feats, basis, outline, params)
     rows = np.ones((1, N_CONES), bool) if prefixes is None else np.vstack(
@@ -67,7 +61,7 @@ def score(
         figures += coverage_cost(model, feats, basis, rows)
     figures *= -model.sharpness
     if feats.floor is not None and model.has_floor_term:
-        figures[:, -1] -= floor_cost(model, geometry, feats.floor)
+        figures[:, -1] -= floor_cost(model, lowest, feats.floor)
     return figures[:, 0] if prefixes is None else figures
 
 
@@ -155,10 +149,9 @@ def coverage_cost(
     return out
 
 
-def floor_cost(model: ObservationSettings, geometry: FloatArray, floor: float) -> FloatArray:
-    """The floor term (nats) of poses' ``(N, 35, 3)`` geometry (keypoints first, any float)."""
-    lowest = geometry[:, ANKLES, 2].min(axis=1).astype(np.float64)
-    height = lowest - floor
+def floor_cost(model: ObservationSettings, lowest: NDArray, floor: float) -> FloatArray:
+    """The floor term (nats) of poses whose lower ankle is at height ``lowest`` ``(N,)``."""
+    height = lowest.astype(np.float64) - floor
     below = np.minimum(height, 0.0) / model.floor_below_mm
     above = np.maximum(height, 0.0) / model.floor_above_mm
     return 0.5 * (below * below + above * above)
