@@ -201,9 +201,9 @@ def scene(seed: int, size: int = 128, shift_mm: float = 0.0):
     start[0] -= shift_mm
     first = render(start, SHAPE, camera, options, rng, background)
     frame = render(truth, SHAPE, camera, options, rng, background)
-    # 70 poses: a whole block of the scorer's passes (64) and a partial one.
-    poses = truth + rng.normal(0.0, 0.1, (70, body.N_PARAMS))
-    poses[:, :3] = truth[:3] + rng.normal(0.0, 60.0, (70, 3))
+    # 140 poses: whole blocks of the scorer's passes (64 and 128 poses) and partial ones.
+    poses = truth + rng.normal(0.0, 0.1, (140, body.N_PARAMS))
+    poses[:, :3] = truth[:3] + rng.normal(0.0, 60.0, (140, 3))
     return start, camera, first, frame, poses
 
 
@@ -310,7 +310,7 @@ def test_scores_are_deterministic_and_do_not_depend_on_the_split(terms: str) -> 
     if terms == "plain":
         model, given = ObservationModel(), None
     feats = model.prepare(frame, given)
-    many = np.repeat(poses, 60, axis=0)  # 3,600 poses: two passes
+    many = np.repeat(poses, 30, axis=0)  # 4,200 poses: two passes
     many += np.random.default_rng(8).normal(0.0, 0.01, many.shape)
     whole = model.log_likelihood(feats, many, SHAPE, camera)
     assert np.unique(whole).size > 1000

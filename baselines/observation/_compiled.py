@@ -340,45 +340,60 @@ def coverage_sums(
     co = np.empty((7, _BLOCK), np.float32)
     d = np.empty(_BLOCK, np.float32)
     # Blocks of poses innermost: a frame has few coverage points (6-32 on
-    # BodyTrack), too few to fill the vector lanes, and poses are many.
-    for j0 in range(0, n, _BLOCK):
-        m = min(_BLOCK, n - j0)
-        nearest[:] = tau
-        for ci in range(cones.shape[0]):
-            c = cones[ci]
-            for jj in range(m):
-                j = j0 + jj
-                s_x, s_y, e_x, e_y = basis[0, c, j], basis[1, c, j], basis[2, c, j], basis[3, c, j]
-                r_s = np.sqrt(basis[4, c, j] ** 2 + basis[5, c, j] ** 2)
-                r_e = np.sqrt(basis[6, c, j] ** 2 + basis[7, c, j] ** 2)
-                d_x, d_y = e_x - s_x, e_y - s_y
-                length = np.sqrt(d_x * d_x + d_y * d_y)
-                flat = length < _MIN_LENGTH  # seen end-on: any axis direction will do
-                safe = max(length, _MIN_LENGTH)
-                co[0, jj] = _ONE if flat else d_x / safe  # u, the unit axis
-                co[1, jj] = _ZERO if flat else d_y / safe
-                co[2, jj] = s_x
-                co[3, jj] = s_y
-                co[4, jj] = _HALF * length
-                co[5, jj] = r_s
-                co[6, jj] = (r_e - r_s) / safe  # the radius' slope
-            for k in range(f):
-                x, y = q[0, k], q[1, k]
-                for jj in range(m):
-                    rx, ry = x - co[2, jj], y - co[3, jj]
-                    along = rx * co[0, jj] + ry * co[1, jj]
-                    across = ry * co[0, jj] - rx * co[1, jj]
-                    radius = co[5, jj] + co[6, jj] * along
-                    off_end = abs(along - co[4, jj]) - co[4, jj]
-                    d[jj] = max(abs(across), off_end) - radius
-                for h in range(g):
-                    if masks[h, ci]:
-                        for jj in range(m):
-                            nearest[h, k, jj] = min(nearest[h, k, jj], d[jj])
+    # BodyTrack), too few to fill the vector lanes, and poses are many. Whole
+    # blocks take the literal count, the last block apart: the loops of a
+    # count known only at run time stay scalar.
+    full = n - n % _BLOCK
+    for j0 in range(0, full, _BLOCK):
+        _coverage_block(basis, cones, q, tau, masks, j0, _BLOCK, nearest, co, d, out)
+    if full < n:
+        _coverage_block(basis, cones, q, tau, masks, full, n - full, nearest, co, d, out)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _coverage_block(
+    basis: NDArray[np.float32], cones: NDArray[np.intp], q: NDArray[np.float32], tau: np.float32,
+    masks: NDArray[np.bool_], j0: int, m: int, nearest: NDArray[np.float32],
+    co: NDArray[np.float32], d: NDArray[np.float32], out: NDArray[np.float64],
+) -> None:  # fmt: skip
+    """Poses ``j0..j0+m`` of :func:`coverage_sums`; ``nearest``, ``co``, ``d`` its scratch."""
+    f, g = q.shape[1], masks.shape[0]
+    nearest[:] = tau
+    for ci in range(cones.shape[0]):
+        c = cones[ci]
         for jj in range(m):
+            j = j0 + jj
+            s_x, s_y, e_x, e_y = basis[0, c, j], basis[1, c, j], basis[2, c, j], basis[3, c, j]
+            r_s = np.sqrt(basis[4, c, j] ** 2 + basis[5, c, j] ** 2)
+            r_e = np.sqrt(basis[6, c, j] ** 2 + basis[7, c, j] ** 2)
+            d_x, d_y = e_x - s_x, e_y - s_y
+            length = np.sqrt(d_x * d_x + d_y * d_y)
+            flat = length < _MIN_LENGTH  # seen end-on: any axis direction will do
+            safe = max(length, _MIN_LENGTH)
+            co[0, jj] = _ONE if flat else d_x / safe  # u, the unit axis
+            co[1, jj] = _ZERO if flat else d_y / safe
+            co[2, jj] = s_x
+            co[3, jj] = s_y
+            co[4, jj] = _HALF * length
+            co[5, jj] = r_s
+            co[6, jj] = (r_e - r_s) / safe  # the radius' slope
+        for k in range(f):
+            x, y = q[0, k], q[1, k]
+            for jj in range(m):
+                rx, ry = x - co[2, jj], y - co[3, jj]
+                along = rx * co[0, jj] + ry * co[1, jj]
+                across = ry * co[0, jj] - rx * co[1, jj]
+                radius = co[5, jj] + co[6, jj] * along
+                off_end = abs(along - co[4, jj]) - co[4, jj]
+                d[jj] = max(abs(across), off_end) - radius
             for h in range(g):
-                total = 0.0
-                for k in range(f):
-                    v = max(nearest[h, k, jj], _ZERO)
-                    total += v * v
-                out[j0 + jj, h] = total
+                if masks[h, ci]:
+                    for jj in range(m):
+                        nearest[h, k, jj] = min(nearest[h, k, jj], d[jj])
+    for jj in range(m):
+        for h in range(g):
+            total = 0.0
+            for k in range(f):
+                v = max(nearest[h, k, jj], _ZERO)
+                total += v * v
+            out[j0 + jj, h] = total
