@@ -28,6 +28,8 @@ GEOMETRY_ROWS = 35
 #: length, then each limb's upper and lower length (right arm, left arm, right
 #: leg, left leg).
 SHAPE_TABLE_SIZE = 24
+#: Angles of a pose (parameters 3-24; 0-2 are the root's position).
+N_ANGLES = 22
 
 # Keypoint rows (body.KEYPOINT_NAMES order) of each limb's base, middle and tip,
 # and the cone rows of its upper and lower segments (body.CONE_NAMES order), in
@@ -38,27 +40,37 @@ _LIMB_CONES = ((2, 3), (4, 5), (6, 7), (8, 9))
 _LIMB_SIGNS = (1.0, 1.0, -1.0, -1.0)
 
 
-#: Poses per block of :func:`pose_block`: a block's scratch stays in the L1 cache,
+#: Poses per block of :func:`pose_block`: a block's scratch stays near the core,
 #: and is long enough for the vectorised loops (at 16 or 32 they ran scalar).
 BLOCK = 64
-#: Rows of a block's scratch: ``3 r + k`` coordinate ``k`` of geometry row ``r``
-#: (105 rows), then the 24 numbers of each pose's shape table.
-BLOCK_ROWS = 3 * GEOMETRY_ROWS + SHAPE_TABLE_SIZE
+# The rows of a block's scratch (each BLOCK long, a pose a column): 105 of
+# geometry (row 3 r + k: coordinate k of geometry row r), then the poses'
+# shape tables, then the inputs: parameter j's value (j < 3, the position)
+# or cosine at row _INPUT + j, its sine at row _SINE + j (j >= 3).
+_SHAPE = 3 * GEOMETRY_ROWS
+_INPUT = _SHAPE + SHAPE_TABLE_SIZE
+_SINE = _INPUT + N_ANGLES
+#: Numbers of a block's scratch (:func:`pose_block`).
+BLOCK_SIZE = (_SINE + 3 + N_ANGLES) * BLOCK
+
+
+# Not inlined by numba (its inlining of many small calls took seconds to
+# compile); LLVM inlines it.
+@numba.njit(cache=True, nogil=True)
+def _write(work: NDArray[Any], row: int, q: int, x: float, y: float, z: float) -> None:
+    """Geometry row ``row`` of pose ``q`` of a block."""
+    work[3 * row * BLOCK + q] = x
+    work[(3 * row + 1) * BLOCK + q] = y
+    work[(3 * row + 2) * BLOCK + q] = z
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _write(
-    out: NDArray[Any], row: int, pose: int, x: float, y: float, z: float
-) -> None:  # fmt: skip
-    out[3 * row, pose] = x
-    out[3 * row + 1, pose] = y
-    out[3 * row + 2, pose] = z
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _root(cos: NDArray[Any], sin: NDArray[Any], n: int) -> tuple[float, ...]:
-    """Pose ``n``'s root rotation ``R = Rz(yaw) Rx(pitch) Ry(roll)``, by rows."""
-    cy, sy, cp, sp, cr, sr = cos[3, n], sin[3, n], cos[4, n], sin[4, n], cos[5, n], sin[5, n]
+def _root(work: NDArray[Any], q: int) -> tuple[float, ...]:
+    """Pose ``q``'s root rotation ``R = Rz(yaw) Rx(pitch) Ry(roll)``, by rows."""
+    c, s = _INPUT * BLOCK + q, _SINE * BLOCK + q
+    cy, sy = work[c + 3 * BLOCK], work[s + 3 * BLOCK]
+    cp, sp = work[c + 4 * BLOCK], work[s + 4 * BLOCK]
+    cr, sr = work[c + 5 * BLOCK], work[s + 5 * BLOCK]
     return (
         cy * cr - sy * sp * sr, -sy * cp, cy * sr + sy * sp * cr,
         sy * cr + cy * sp * sr, cy * cp, sy * sr - cy * sp * cr,
@@ -66,24 +78,22 @@ def _root(cos: NDArray[Any], sin: NDArray[Any], n: int) -> tuple[float, ...]:
     )  # fmt: skip
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def pose_block(
     params: NDArray[Any], cos: NDArray[Any], sin: NDArray[Any], shapes: NDArray[Any],
     b0: int, m: int, work: NDArray[Any],
 ) -> None:  # fmt: skip
     """The keypoints and cone axes of poses ``b0..b0+m`` (``m <= BLOCK``), a column each.
 
-    Poses run along the last axis of every array, so that each statement of
-    the chain runs over the block's poses at once: the loops vectorise. The
-    scratch has a fixed size, whose rows the compiler knows apart, and a
-    whole block a fixed count of poses (a count known only at run time, as
-    the last, partial block's, keeps the loops scalar): inlined into a pass
-    that allocates ``work`` itself, so that the compiler sees its shape, and
-    called with the literal ``BLOCK`` for whole blocks, the last block apart
-    (two calls side by side would be merged into one loop of unknown count).
-    A pass over many poses runs it a block at a time and uses each block while
-    it is in the cache. The pass must not allow fast-math, which would round
-    the chain otherwise.
+    Poses run along the last axis, so that each statement of the chain runs
+    over the block's poses at once: the loops vectorise. They read and write
+    ``work`` alone, at rows a fixed distance apart, over a fixed count of
+    poses (the compiler then needs no run-time checks, which it gives up on
+    for this many rows), so the block's inputs are copied in first; a last,
+    partial block computes on whatever its columns ``m`` on hold and leaves
+    them unread. A pass over many poses runs this a block at a time and uses
+    each block while it is in the cache; compiled once per dtype and called
+    by every such pass (inlined into each, it took seconds more to compile).
 
     Args:
         params: ``(25, N)`` poses (``body.PARAM_NAMES`` order by rows).
@@ -94,19 +104,31 @@ def pose_block(
             per pose.
         b0: The block's first pose.
         m: Its number of poses.
-        work: ``(BLOCK_ROWS, BLOCK)`` scratch; out, rows ``3 r + k`` column
-            ``j``: coordinate ``k`` of row ``r`` of pose ``b0 + j``'s geometry,
-            rows 0-14 the keypoints (``body.KEYPOINT_NAMES`` order), rows
-            ``15 + 2 c`` and ``16 + 2 c`` the x (width) and y (depth) axes of
-            cone ``c``, in the world frame. Rows 105 on hold the shapes, kept
-            from one call to the next when there is one shape.
+        work: ``(BLOCK_SIZE,)`` scratch; out, ``work[(3 r + k) * BLOCK + j]``:
+            coordinate ``k`` of row ``r`` of pose ``b0 + j``'s geometry, rows
+            0-14 the keypoints (``body.KEYPOINT_NAMES`` order), rows ``15 + 2
+            c`` and ``16 + 2 c`` the x (width) and y (depth) axes of cone
+            ``c``, in the world frame.
     """
-    block, s = work[: 3 * GEOMETRY_ROWS], work[3 * GEOMETRY_ROWS :]
-    if shapes.shape[1] > 1:
-        _fill(s, shapes, b0, m, True)
-    elif b0 == 0:
-        _fill(s, shapes, 0, BLOCK, False)
-    _block(params, cos, sin, s, b0, m, block)
+    # Rows through one-dimensional views: their copies vectorise.
+    for i in range(SHAPE_TABLE_SIZE):
+        if shapes.shape[1] > 1:
+            _copy(shapes[i, b0 : b0 + m], work[(_SHAPE + i) * BLOCK :])
+        else:
+            work[(_SHAPE + i) * BLOCK : (_SHAPE + i + 1) * BLOCK] = shapes[i, 0]
+    for j in range(3):
+        _copy(params[j, b0 : b0 + m], work[(_INPUT + j) * BLOCK :])
+    for j in range(3, N_ANGLES + 3):
+        _copy(cos[j, b0 : b0 + m], work[(_INPUT + j) * BLOCK :])
+        _copy(sin[j, b0 : b0 + m], work[(_SINE + j) * BLOCK :])
+    _trunk(work)
+    # One call per limb, each with a literal index: the limb tables' entries
+    # become constants (with a loop index the limb's rows are not known apart
+    # and its loop stays scalar).
+    _limb(work, 0)
+    _limb(work, 1)
+    _limb(work, 2)
+    _limb(work, 3)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -115,86 +137,59 @@ def pose_geometry(
     out: NDArray[Any],
 ) -> None:  # fmt: skip
     """Keypoints and cone axes of N poses into ``out`` ``(105, N)`` (see :func:`pose_block`)."""
-    work = np.empty((BLOCK_ROWS, BLOCK), params.dtype)
-    n = params.shape[1]
-    full = n - n % BLOCK
-    for b0 in range(0, full, BLOCK):
-        pose_block(params, cos, sin, shapes, b0, BLOCK, work)
-        _copy_out(work, out, b0, BLOCK)
-    if full < n:
-        pose_block(params, cos, sin, shapes, full, n - full, work)
-        _copy_out(work, out, full, n - full)
+    work = np.empty(BLOCK_SIZE, params.dtype)
+    for b0 in range(0, params.shape[1], BLOCK):
+        m = min(BLOCK, params.shape[1] - b0)
+        pose_block(params, cos, sin, shapes, b0, m, work)
+        for r in range(3 * GEOMETRY_ROWS):
+            _copy(work[r * BLOCK : r * BLOCK + m], out[r, b0 : b0 + m])
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _block(
-    params: NDArray[Any], cos: NDArray[Any], sin: NDArray[Any], s: NDArray[Any], b0: int,
-    m: int, block: NDArray[Any],
-) -> None:  # fmt: skip
-    """Poses ``b0..b0+m`` into ``block``, with their shapes ``s``."""
-    _trunk(params, cos, sin, s, b0, m, block)
-    # One call per limb, each with a literal index: the limb tables' entries
-    # become constants (a loop index reads them from memory, five times slower).
-    _limb(params, cos, sin, s, b0, m, block, 0)
-    _limb(params, cos, sin, s, b0, m, block, 1)
-    _limb(params, cos, sin, s, b0, m, block, 2)
-    _limb(params, cos, sin, s, b0, m, block, 3)
+def _copy(src: NDArray[Any], dst: NDArray[Any]) -> None:
+    """``dst[:src.size] = src``, one-dimensional."""
+    for q in range(src.size):
+        dst[q] = src[q]
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _fill(s: NDArray[Any], shapes: NDArray[Any], b0: int, m: int, per_pose: bool) -> None:
-    """Columns ``0..m`` of ``s``: the shapes of poses ``b0..b0+m`` (or the one shape)."""
-    for i in range(s.shape[0]):
-        for k in range(m):
-            s[i, k] = shapes[i, b0 + k if per_pose else 0]
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _copy_out(work: NDArray[Any], out: NDArray[Any], b0: int, m: int) -> None:
-    """The geometry rows of ``work``'s first ``m`` columns into ``out`` from column ``b0``."""
-    for r in range(3 * GEOMETRY_ROWS):
-        for k in range(m):
-            out[r, b0 + k] = work[r, k]
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _trunk(
-    params: NDArray[Any], cos: NDArray[Any], sin: NDArray[Any], s: NDArray[Any],
-    b0: int, m: int, block: NDArray[Any],
-) -> None:  # fmt: skip
-    """Poses ``b0..b0+m``'s pelvis, neck base and head, the torso's and head's axes."""
-    for q in range(m):
-        n = b0 + q
-        r00, r01, r02, r10, r11, r12, r20, r21, r22 = _root(cos, sin, n)
-        px, py, pz = params[0, n], params[1, n], params[2, n]
-        _write(block, 0, q, px, py, pz)  # pelvis
-        _write(block, 15, q, r00, r10, r20)  # torso cone: the root frame's x and y
-        _write(block, 16, q, r01, r11, r21)
+def _trunk(work: NDArray[Any]) -> None:
+    """A block's pelvis, neck base and head, and the torso's and head's axes."""
+    for q in range(BLOCK):
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = _root(work, q)
+        c, s, t = _INPUT * BLOCK + q, _SINE * BLOCK + q, _SHAPE * BLOCK + q
+        px, py, pz = work[c], work[c + BLOCK], work[c + 2 * BLOCK]
+        o0, o1, o2 = work[t], work[t + BLOCK], work[t + 2 * BLOCK]
+        _write(work, 0, q, px, py, pz)  # pelvis
+        _write(work, 15, q, r00, r10, r20)  # torso cone: the root frame's x and y
+        _write(work, 16, q, r01, r11, r21)
         # The neck base: R o + p.
-        nx = r00 * s[0, q] + r01 * s[1, q] + r02 * s[2, q] + px
-        ny = r10 * s[0, q] + r11 * s[1, q] + r12 * s[2, q] + py
-        nz = r20 * s[0, q] + r21 * s[1, q] + r22 * s[2, q] + pz
-        _write(block, 7, q, nx, ny, nz)
+        nx = r00 * o0 + r01 * o1 + r02 * o2 + px
+        ny = r10 * o0 + r11 * o1 + r12 * o2 + py
+        nz = r20 * o0 + r21 * o1 + r22 * o2 + pz
+        _write(work, 7, q, nx, ny, nz)
         # Neck ball joint: columns of Rx(a) Ry(b) Rz(c), rotated by the root.
-        ca, sa, cb, sb, cc, sc = cos[6, n], sin[6, n], cos[7, n], sin[7, n], cos[8, n], sin[8, n]
+        ca, sa = work[c + 6 * BLOCK], work[s + 6 * BLOCK]
+        cb, sb = work[c + 7 * BLOCK], work[s + 7 * BLOCK]
+        cc, sc = work[c + 8 * BLOCK], work[s + 8 * BLOCK]
         ex0, ex1, ex2 = cb * cc, ca * sc + sa * sb * cc, sa * sc - ca * sb * cc
         ey0, ey1, ey2 = -cb * sc, ca * cc - sa * sb * sc, sa * cc + ca * sb * sc
         ez0, ez1, ez2 = sb, -sa * cb, ca * cb
-        head = s[15, q]
+        head = work[t + 15 * BLOCK]
         _write(
-            block, 8, q,
+            work, 8, q,
             nx + head * (r00 * ez0 + r01 * ez1 + r02 * ez2),
             ny + head * (r10 * ez0 + r11 * ez1 + r12 * ez2),
             nz + head * (r20 * ez0 + r21 * ez1 + r22 * ez2),
         )  # fmt: skip
         _write(
-            block, 17, q,
+            work, 17, q,
             r00 * ex0 + r01 * ex1 + r02 * ex2,
             r10 * ex0 + r11 * ex1 + r12 * ex2,
             r20 * ex0 + r21 * ex1 + r22 * ex2,
         )  # fmt: skip
         _write(
-            block, 18, q,
+            work, 18, q,
             r00 * ey0 + r01 * ey1 + r02 * ey2,
             r10 * ey0 + r11 * ey1 + r12 * ey2,
             r20 * ey0 + r21 * ey1 + r22 * ey2,
@@ -202,11 +197,8 @@ def _trunk(
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _limb(
-    params: NDArray[Any], cos: NDArray[Any], sin: NDArray[Any], s: NDArray[Any],
-    b0: int, m: int, block: NDArray[Any], i: int,
-) -> None:  # fmt: skip
-    """Limb ``i`` of poses ``b0..b0+m``: base, middle and tip keypoints, two cones' axes.
+def _limb(work: NDArray[Any], i: int) -> None:
+    """Limb ``i`` of a block: base, middle and tip keypoints, two cones' axes.
 
     The joint frame is ``R Rx(a) Ry(b) Rz(c)``; the upper segment hangs along
     its ``-z``, the hinge turns the lower one about its ``x``, so the lower
@@ -219,12 +211,13 @@ def _limb(
     upper_cone, lower_cone = _LIMB_CONES[i]
     sign = _LIMB_SIGNS[i]
     j = 9 + 4 * i  # the limb's x, y, z angles and hinge
-    o = 3 * (i + 1)  # the limb's base offset in the shape table
-    for q in range(m):
-        n = b0 + q
-        r00, r01, r02, r10, r11, r12, r20, r21, r22 = _root(cos, sin, n)
-        ca, sa, cb, sb = cos[j, n], sin[j, n], cos[j + 1, n], sin[j + 1, n]
-        cc, sc, ck, sk = cos[j + 2, n], sin[j + 2, n], cos[j + 3, n], sin[j + 3, n]
+    o = _SHAPE + 3 * (i + 1)  # the limb's base offset in the shape table
+    for q in range(BLOCK):
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = _root(work, q)
+        c, s, t = (_INPUT + j) * BLOCK + q, (_SINE + j) * BLOCK + q, o * BLOCK + q
+        ca, sa, cb, sb = work[c], work[s], work[c + BLOCK], work[s + BLOCK]
+        cc, sc = work[c + 2 * BLOCK], work[s + 2 * BLOCK]
+        ck, sk = work[c + 3 * BLOCK], work[s + 3 * BLOCK]
         lx0, ly0, lz0 = cb * cc, -cb * sc, sb
         lx1, ly1, lz1 = ca * sc + sa * sb * cc, ca * cc - sa * sb * sc, -sa * cb
         lx2, ly2, lz2 = sa * sc - ca * sb * cc, sa * cc + ca * sb * sc, ca * cb
@@ -237,22 +230,25 @@ def _limb(
         z0 = r00 * lz0 + r01 * lz1 + r02 * lz2
         z1 = r10 * lz0 + r11 * lz1 + r12 * lz2
         z2 = r20 * lz0 + r21 * lz1 + r22 * lz2
-        bx = r00 * s[o, q] + r01 * s[o + 1, q] + r02 * s[o + 2, q] + params[0, n]
-        by = r10 * s[o, q] + r11 * s[o + 1, q] + r12 * s[o + 2, q] + params[1, n]
-        bz = r20 * s[o, q] + r21 * s[o + 1, q] + r22 * s[o + 2, q] + params[2, n]
-        upper, lower = s[16 + 2 * i, q], s[17 + 2 * i, q]
+        o0, o1, o2 = work[t], work[t + BLOCK], work[t + 2 * BLOCK]
+        p = _INPUT * BLOCK + q
+        bx = r00 * o0 + r01 * o1 + r02 * o2 + work[p]
+        by = r10 * o0 + r11 * o1 + r12 * o2 + work[p + BLOCK]
+        bz = r20 * o0 + r21 * o1 + r22 * o2 + work[p + 2 * BLOCK]
+        u = (_SHAPE + 16 + 2 * i) * BLOCK + q
+        upper, lower = work[u], work[u + BLOCK]
         mx, my, mz = bx - upper * z0, by - upper * z1, bz - upper * z2
         ssk = sign * sk
         ls, lk = lower * ssk, lower * ck
-        _write(block, base, q, bx, by, bz)
-        _write(block, mid, q, mx, my, mz)
+        _write(work, base, q, bx, by, bz)
+        _write(work, mid, q, mx, my, mz)
         tx, ty, tz = mx + ls * y0 - lk * z0, my + ls * y1 - lk * z1, mz + ls * y2 - lk * z2
-        _write(block, tip, q, tx, ty, tz)
-        _write(block, 15 + 2 * upper_cone, q, x0, x1, x2)
-        _write(block, 16 + 2 * upper_cone, q, y0, y1, y2)
-        _write(block, 15 + 2 * lower_cone, q, x0, x1, x2)
+        _write(work, tip, q, tx, ty, tz)
+        _write(work, 15 + 2 * upper_cone, q, x0, x1, x2)
+        _write(work, 16 + 2 * upper_cone, q, y0, y1, y2)
+        _write(work, 15 + 2 * lower_cone, q, x0, x1, x2)
         dx, dy, dz = ck * y0 + ssk * z0, ck * y1 + ssk * z1, ck * y2 + ssk * z2
-        _write(block, 16 + 2 * lower_cone, q, dx, dy, dz)
+        _write(work, 16 + 2 * lower_cone, q, dx, dy, dz)
 
 
 def kinematics_inputs(params: NDArray[Any], dtype: type) -> tuple[NDArray[Any], ...]:

@@ -14,7 +14,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from humotion_gym._compiled import BLOCK, BLOCK_ROWS, GEOMETRY_ROWS, pose_block
+from humotion_gym._compiled import BLOCK, BLOCK_SIZE, GEOMETRY_ROWS, pose_block
 
 _N_CONES = 10
 _N_KEYPOINTS = GEOMETRY_ROWS - 2 * _N_CONES
@@ -46,10 +46,9 @@ def cone_bases(
     """Each cone's image basis and outline map of every pose, from the poses.
 
     The poses' kinematics runs a block at a time
-    (:func:`humotion_gym._compiled.pose_block`, inlined: this pass keeps its
-    strict arithmetic), and each block's bases are made from it while it is
-    in the cache (:func:`_block_bases`): the geometry of every pose would go
-    to memory and back.
+    (:func:`humotion_gym._compiled.pose_block`), and each block's bases are
+    made from it while it is in the cache (:func:`_block_bases`): the
+    geometry of every pose would go to memory and back.
 
     Args:
         params: ``(25, n)`` the poses by rows
@@ -78,20 +77,13 @@ def cone_bases(
             outline reads (``plane`` times its orientation bin).
         lowest: Out, ``(n,)``: the lower ankle's height (the floor term's).
     """
-    n = params.shape[1]
-    work = np.empty((BLOCK_ROWS, BLOCK), params.dtype)
-    full = n - n % BLOCK
-    for b0 in range(0, full, BLOCK):
-        pose_block(params, cos, sin, shapes, b0, BLOCK, work)
+    work = np.empty(BLOCK_SIZE, params.dtype)
+    for b0 in range(0, params.shape[1], BLOCK):
+        m = min(BLOCK, params.shape[1] - b0)
+        pose_block(params, cos, sin, shapes, b0, m, work)
         _block_bases(
-            work, b0, BLOCK, rot, trans, intrinsics, cones, radii, aspect, bin_axes, plane,
-            ankles, basis, outline, lowest,
-        )  # fmt: skip
-    if full < n:
-        pose_block(params, cos, sin, shapes, full, n - full, work)
-        _block_bases(
-            work, full, n - full, rot, trans, intrinsics, cones, radii, aspect, bin_axes,
-            plane, ankles, basis, outline, lowest,
+            work, b0, m, rot, trans, intrinsics, cones, radii, aspect, bin_axes, plane, ankles,
+            basis, outline, lowest,
         )  # fmt: skip
 
 
@@ -106,6 +98,9 @@ def _block_bases(
     lowest: NDArray[np.float32],
 ) -> None:  # fmt: skip
     """The bases of poses ``b0..b0+m`` from their geometry in ``work`` (see :func:`cone_bases`).
+
+    ``work[r * BLOCK + j]``: geometry row ``r`` (``3 r + k`` coordinate ``k``)
+    of pose ``b0 + j`` (:func:`humotion_gym._compiled.pose_block`).
 
     The projections run over the whole block into scratch of a fixed size (a
     fixed count over arrays of known shape vectorises; columns ``m`` on hold
@@ -122,8 +117,9 @@ def _block_bases(
     # The keypoints' projections, then each cone's basis from its two ends:
     # poses innermost (the loops vectorise).
     for k in range(_N_KEYPOINTS):
+        at = 3 * k * BLOCK
         for j in range(BLOCK):
-            x, y, z = work[3 * k, j], work[3 * k + 1, j], work[3 * k + 2, j]
+            x, y, z = work[at + j], work[at + BLOCK + j], work[at + 2 * BLOCK + j]
             cu = rot[0, 0] * x + rot[0, 1] * y + rot[0, 2] * z + trans[0]
             cv = rot[1, 0] * x + rot[1, 1] * y + rot[1, 2] * z + trans[1]
             cz = rot[2, 0] * x + rot[2, 1] * y + rot[2, 2] * z + trans[2]
@@ -164,9 +160,10 @@ def _block_bases(
         row = outline[c, b0 : b0 + m]
         for j in range(m):
             row[j] = best[j]
-    za, zb, low = work[3 * ankles[0] + 2], work[3 * ankles[1] + 2], lowest[b0 : b0 + m]
+    za, zb = (3 * ankles[0] + 2) * BLOCK, (3 * ankles[1] + 2) * BLOCK
+    low = lowest[b0 : b0 + m]
     for j in range(m):
-        low[j] = min(za[j], zb[j])
+        low[j] = min(work[za + j], work[zb + j])
 
 
 @numba.njit(cache=True, nogil=True)
@@ -182,15 +179,17 @@ def _section_widths(
 ) -> None:
     """``sqrt((x.m)^2 + (aspect y.m)^2)`` of a cone of a block's poses (see :func:`cone_bases`).
 
-    Geometry rows ``row`` and ``row + 1`` in ``work`` are the cone's x and y
-    axes, ``s`` and ``e`` its keypoints, ``m`` their projections' unit normal.
+    Geometry rows ``row`` and ``row + 1`` in ``work`` (:func:`_block_bases`)
+    are the cone's x and y axes, ``s`` and ``e`` its keypoints, ``m`` their
+    projections' unit normal.
     """
     for j in range(out.size):
         dx, dy = uv[0, e, j] - uv[0, s, j], uv[1, e, j] - uv[1, s, j]
         norm = _ONE / np.sqrt(dx * dx + dy * dy + _TINY)
         nx, ny = dy * norm, -dx * norm
-        x0, x1, x2 = work[3 * row, j], work[3 * row + 1, j], work[3 * row + 2, j]
-        y0, y1, y2 = work[3 * row + 3, j], work[3 * row + 4, j], work[3 * row + 5, j]
+        at = 3 * row * BLOCK + j
+        x0, x1, x2 = work[at], work[at + BLOCK], work[at + 2 * BLOCK]
+        y0, y1, y2 = work[at + 3 * BLOCK], work[at + 4 * BLOCK], work[at + 5 * BLOCK]
         xm = (rot[0, 0] * x0 + rot[0, 1] * x1 + rot[0, 2] * x2) * nx
         xm += (rot[1, 0] * x0 + rot[1, 1] * x1 + rot[1, 2] * x2) * ny
         ym = (rot[0, 0] * y0 + rot[0, 1] * y1 + rot[0, 2] * y2) * nx
