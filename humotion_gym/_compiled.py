@@ -136,13 +136,19 @@ def pose_geometry(
     params: NDArray[Any], cos: NDArray[Any], sin: NDArray[Any], shapes: NDArray[Any],
     out: NDArray[Any],
 ) -> None:  # fmt: skip
-    """Keypoints and cone axes of N poses into ``out`` ``(105, N)`` (see :func:`pose_block`)."""
+    """Keypoints and cone axes of N poses into ``out`` ``(N, 105)`` (see :func:`pose_block`).
+
+    Each block is turned a pose a row while it is in the cache: every pose's
+    numbers written in order, read across the block's rows.
+    """
     work = np.empty(BLOCK_SIZE, params.dtype)
     for b0 in range(0, params.shape[1], BLOCK):
         m = min(BLOCK, params.shape[1] - b0)
         pose_block(params, cos, sin, shapes, b0, m, work)
-        for r in range(3 * GEOMETRY_ROWS):
-            _copy(work[r * BLOCK : r * BLOCK + m], out[r, b0 : b0 + m])
+        for q in range(m):
+            row = out[b0 + q]
+            for r in range(3 * GEOMETRY_ROWS):
+                row[r] = work[r * BLOCK + q]
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -267,9 +273,9 @@ def geometry(params: NDArray[Any], shapes: NDArray[Any], dtype: type = np.float6
             from the float64 keypoints).
     """
     p, cos, sin = kinematics_inputs(params, dtype)
-    out: NDArray[Any] = np.empty((3 * GEOMETRY_ROWS, p.shape[1]), dtype)
+    out: NDArray[Any] = np.empty((p.shape[1], 3 * GEOMETRY_ROWS), dtype)
     pose_geometry(p, cos, sin, np.ascontiguousarray(shapes.T, dtype=dtype), out)
-    return np.ascontiguousarray(out.T).reshape(-1, GEOMETRY_ROWS, 3)
+    return out.reshape(-1, GEOMETRY_ROWS, 3)
 
 
 @numba.njit(cache=True, nogil=True)

@@ -17,14 +17,7 @@ import pytest
 
 from humotion_gym import body
 from humotion_gym.camera import Camera, fit_camera
-from humotion_gym.kinematics import (
-    _TO_INTERNAL,
-    _batch_kinematics,
-    batch_pose_geometry,
-    fast_cone_axes,
-    fast_forward_kinematics,
-    single_pose_geometry,
-)
+from humotion_gym.kinematics import batch_pose_geometry, single_pose_geometry
 
 SHAPE = body.default_shape()
 ATOL_MM = 1e-6
@@ -185,17 +178,6 @@ def test_layouts_of_the_same_geometry() -> None:
             single_pose_geometry(poses[t], shape, cam.rotation, cam.translation), moving[t],
             atol=ATOL_MM,
         )  # fmt: skip
-    keypoints, axes = fast_cone_axes(poses[0], shape)
-    np.testing.assert_array_equal(keypoints, world[0, :15])
-    np.testing.assert_array_equal(axes.reshape(20, 3), world[0, 15:])
-    f32 = fast_forward_kinematics(poses, shape, np.float32)
-    assert f32.dtype == np.float32
-    np.testing.assert_allclose(f32, world[:, :15], atol=2e-2)
-    batched = _batch_kinematics(poses, shape, np.float64, want_head_axes=True)
-    np.testing.assert_array_equal(
-        batched.keypoints[:, _TO_INTERNAL].transpose(2, 1, 0), world[:, :15]
-    )
-    np.testing.assert_array_equal(np.array(batched.head_x).T, world[:, 17])
     with pytest.raises(ValueError, match=r"\(T, 25\)"):
         batch_pose_geometry(poses[0], shape)
     with pytest.raises(ValueError, match="rotation"):

@@ -14,10 +14,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from humotion_gym._compiled import BLOCK, BLOCK_SIZE, GEOMETRY_ROWS, pose_block
-
-_N_CONES = 10
-_N_KEYPOINTS = GEOMETRY_ROWS - 2 * _N_CONES
+from humotion_gym.body import N_CONES, N_KEYPOINTS
+from humotion_gym.kinematics import BLOCK, BLOCK_SIZE, pose_block
 
 _ZERO = np.float32(0.0)
 _ONE = np.float32(1.0)
@@ -46,13 +44,13 @@ def cone_bases(
     """Each cone's image basis and outline map of every pose, from the poses.
 
     The poses' kinematics runs a block at a time
-    (:func:`humotion_gym._compiled.pose_block`), and each block's bases are
+    (:func:`humotion_gym.kinematics.pose_block`), and each block's bases are
     made from it while it is in the cache (:func:`_block_bases`): the
     geometry of every pose would go to memory and back.
 
     Args:
         params: ``(25, n)`` the poses by rows
-            (:func:`humotion_gym._compiled.kinematics_inputs`).
+            (:func:`humotion_gym.kinematics.kinematics_inputs`).
         cos: ``(25, n)`` their cosines.
         sin: ``(25, n)`` their sines.
         shapes: ``(24, 1)`` the shape's table.
@@ -100,7 +98,7 @@ def _block_bases(
     """The bases of poses ``b0..b0+m`` from their geometry in ``work`` (see :func:`cone_bases`).
 
     ``work[r * BLOCK + j]``: geometry row ``r`` (``3 r + k`` coordinate ``k``)
-    of pose ``b0 + j`` (:func:`humotion_gym._compiled.pose_block`).
+    of pose ``b0 + j`` (:func:`humotion_gym.kinematics.pose_block`).
 
     The projections run over the whole block into scratch of a fixed size (a
     fixed count over arrays of known shape vectorises; columns ``m`` on hold
@@ -111,12 +109,12 @@ def _block_bases(
     """
     near, focal = intrinsics[0], intrinsics[1]
     u0, v0, pad = intrinsics[2], intrinsics[3], intrinsics[4]
-    uv = np.empty((3, _N_KEYPOINTS, BLOCK), np.float32)  # u, v, inverse depth
+    uv = np.empty((3, N_KEYPOINTS, BLOCK), np.float32)  # u, v, inverse depth
     scratch = np.empty((4, BLOCK), np.float32)  # width, cos 2t, sin 2t, the best bin's score
     best = np.empty(BLOCK, np.int32)
     # The keypoints' projections, then each cone's basis from its two ends:
     # poses innermost (the loops vectorise).
-    for k in range(_N_KEYPOINTS):
+    for k in range(N_KEYPOINTS):
         at = 3 * k * BLOCK
         for j in range(BLOCK):
             x, y, z = work[at + j], work[at + BLOCK + j], work[at + 2 * BLOCK + j]
@@ -128,11 +126,11 @@ def _block_bases(
             uv[1, k, j] = cv * inv + v0
             uv[2, k, j] = inv
     width, doubled = scratch[0], scratch[1:]
-    for c in range(_N_CONES):
+    for c in range(N_CONES):
         s, e = cones[c, 0], cones[c, 1]
         width[:] = _ONE
         if aspect[c] != 1.0:
-            _section_widths(work, _N_KEYPOINTS + 2 * c, rot, uv, s, e, aspect[c], width)
+            _section_widths(work, N_KEYPOINTS + 2 * c, rot, uv, s, e, aspect[c], width)
         r0, r1 = np.float32(radii[c, 0]), np.float32(radii[c, 1])
         for j in range(m):
             su, sv, eu, ev = uv[0, s, j], uv[1, s, j], uv[0, e, j], uv[1, e, j]

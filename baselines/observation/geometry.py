@@ -19,7 +19,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from baselines.observation import _compiled
-from humotion_gym._compiled import kinematics_inputs
 from humotion_gym.body import (
     CONE_KEYPOINTS,
     KEYPOINT_NAMES,
@@ -31,6 +30,7 @@ from humotion_gym.body import (
     shape_table,
 )
 from humotion_gym.camera import Camera
+from humotion_gym.kinematics import kinematics_inputs
 
 FloatArray = NDArray[np.float64]
 
