@@ -209,9 +209,9 @@ def _limb(work: NDArray[Any], i: int) -> None:
     The joint frame is ``R Rx(a) Ry(b) Rz(c)``; the upper segment hangs along
     its ``-z``, the hinge turns the lower one about its ``x``, so the lower
     segment points along ``sign sin(k) y - cos(k) z`` and the lower cone's
-    depth axis is column y of ``(joint frame) Rx(sign k)``. The root's
-    rotation is formed again here (a few products a pose): a loop of the
-    limb alone keeps few enough rows in flight to vectorise.
+    depth axis is column y of ``(joint frame) Rx(sign k)``. Each limb is a
+    loop over the block of its own, and forms the root's rotation again (a
+    few products a pose).
     """
     base, mid, tip = _LIMB_KEYPOINTS[i]
     upper_cone, lower_cone = _LIMB_CONES[i]
