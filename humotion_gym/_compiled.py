@@ -257,10 +257,17 @@ def _limb(work: NDArray[Any], i: int) -> None:
         _write(work, 16 + 2 * lower_cone, q, dx, dy, dz)
 
 
-def kinematics_inputs(params: NDArray[Any], dtype: type) -> tuple[NDArray[Any], ...]:
-    """``(25, N)`` rows of ``(N, 25)`` poses in ``dtype``, their cosines and their sines."""
+def kinematics_inputs(
+    params: NDArray[Any], shapes: NDArray[Any], dtype: type
+) -> tuple[NDArray[Any], ...]:
+    """:func:`pose_block`'s inputs in ``dtype``, from ``(N, 25)`` poses and ``(M, 24)`` shapes.
+
+    Returns:
+        The poses as ``(25, N)`` rows, their cosines, their sines, and the shape
+        tables as ``(24, M)`` columns.
+    """
     p: NDArray[Any] = np.ascontiguousarray(np.asarray(params).T, dtype=dtype)
-    return p, np.cos(p), np.sin(p)
+    return p, np.cos(p), np.sin(p), np.ascontiguousarray(np.asarray(shapes).T, dtype=dtype)
 
 
 def geometry(params: NDArray[Any], shapes: NDArray[Any], dtype: type = np.float64) -> NDArray[Any]:
@@ -272,9 +279,9 @@ def geometry(params: NDArray[Any], shapes: NDArray[Any], dtype: type = np.float6
         dtype: ``np.float64`` or ``np.float32`` (a thousandth of a millimetre
             from the float64 keypoints).
     """
-    p, cos, sin = kinematics_inputs(params, dtype)
+    p, cos, sin, tables = kinematics_inputs(params, shapes, dtype)
     out: NDArray[Any] = np.empty((p.shape[1], 3 * GEOMETRY_ROWS), dtype)
-    pose_geometry(p, cos, sin, np.ascontiguousarray(shapes.T, dtype=dtype), out)
+    pose_geometry(p, cos, sin, tables, out)
     return out.reshape(-1, GEOMETRY_ROWS, 3)
 
 

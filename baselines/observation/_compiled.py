@@ -49,8 +49,8 @@ def cone_bases(
     geometry of every pose would go to memory and back.
 
     Args:
-        params: ``(25, n)`` the poses by rows
-            (:func:`humotion_gym.kinematics.kinematics_inputs`).
+        params: ``(25, n)`` the poses by rows (this and the next three as
+            :func:`humotion_gym.kinematics.kinematics_inputs` gives them).
         cos: ``(25, n)`` their cosines.
         sin: ``(25, n)`` their sines.
         shapes: ``(24, 1)`` the shape's table.

@@ -106,7 +106,7 @@ def cone_bases(
         table of the map each cone's outline reads (its orientation bin's);
         and ``(N,)`` float32 each pose's lower ankle height (mm).
     """
-    p, cos, sin = kinematics_inputs(params, np.float32)
+    p, cos, sin, table = kinematics_inputs(params, shape_table(shape)[None], np.float32)
     n = p.shape[1]
     aspect = np.asarray(shape.aspect, np.float64)
     radii = np.where(
@@ -118,7 +118,7 @@ def cone_bases(
     outline = np.empty((N_CONES, n), np.int32)
     lowest = np.empty(n, np.float32)
     _compiled.cone_bases(
-        p, cos, sin, np.ascontiguousarray(shape_table(shape)[:, None], np.float32),
+        p, cos, sin, table,
         np.asarray(camera.rotation, np.float64), np.asarray(camera.translation, np.float64),
         intrinsics, CONE_ENDS, radii, aspect, bin_axes(n_bins), plane, ANKLES, basis, outline,
         lowest,
