@@ -257,34 +257,6 @@ def _limb(work: NDArray[Any], i: int) -> None:
         _write(work, 16 + 2 * lower_cone, q, dx, dy, dz)
 
 
-def kinematics_inputs(
-    params: NDArray[Any], shapes: NDArray[Any], dtype: type
-) -> tuple[NDArray[Any], ...]:
-    """:func:`pose_block`'s inputs in ``dtype``, from ``(N, 25)`` poses and ``(M, 24)`` shapes.
-
-    Returns:
-        The poses as ``(25, N)`` rows, their cosines, their sines, and the shape
-        tables as ``(24, M)`` columns.
-    """
-    p: NDArray[Any] = np.ascontiguousarray(np.asarray(params).T, dtype=dtype)
-    return p, np.cos(p), np.sin(p), np.ascontiguousarray(np.asarray(shapes).T, dtype=dtype)
-
-
-def geometry(params: NDArray[Any], shapes: NDArray[Any], dtype: type = np.float64) -> NDArray[Any]:
-    """``(N, 35, 3)`` keypoints and cone axes of ``(N, 25)`` poses.
-
-    Args:
-        params: ``(N, 25)`` poses.
-        shapes: ``(1, 24)`` one shape table, or ``(N, 24)`` one per pose.
-        dtype: ``np.float64`` or ``np.float32`` (a thousandth of a millimetre
-            from the float64 keypoints).
-    """
-    p, cos, sin, tables = kinematics_inputs(params, shapes, dtype)
-    out: NDArray[Any] = np.empty((p.shape[1], 3 * GEOMETRY_ROWS), dtype)
-    pose_geometry(p, cos, sin, tables, out)
-    return out.reshape(-1, GEOMETRY_ROWS, 3)
-
-
 @numba.njit(cache=True, nogil=True)
 def _fixed(value: float, far: float) -> np.int32:
     """A fixed-point coordinate clipped to +-far, truncated as numpy's cast to int32."""

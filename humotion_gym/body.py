@@ -511,6 +511,36 @@ def shape_table(shape: BodyShape) -> FloatArray:
     return shape._table
 
 
+def kinematics_inputs(
+    params: NDArray[Any], shapes: NDArray[Any], dtype: type
+) -> tuple[NDArray[Any], ...]:
+    """The kinematics kernels' inputs in ``dtype`` from ``(N, 25)`` poses, ``(M, 24)`` shapes.
+
+    (:func:`humotion_gym.kinematics.pose_block`'s and :func:`pose_geometry`'s.)
+
+    Returns:
+        The poses as ``(25, N)`` rows, their cosines, their sines, and the shape
+        tables as ``(24, M)`` columns.
+    """
+    p: NDArray[Any] = np.ascontiguousarray(np.asarray(params).T, dtype=dtype)
+    return p, np.cos(p), np.sin(p), np.ascontiguousarray(np.asarray(shapes).T, dtype=dtype)
+
+
+def _geometry(params: NDArray[Any], shapes: NDArray[Any], dtype: type = np.float64) -> NDArray[Any]:
+    """``(N, 35, 3)`` keypoints and cone axes of ``(N, 25)`` poses.
+
+    Args:
+        params: ``(N, 25)`` poses.
+        shapes: ``(1, 24)`` one shape table, or ``(N, 24)`` one per pose.
+        dtype: ``np.float64`` or ``np.float32`` (a thousandth of a millimetre
+            from the float64 keypoints).
+    """
+    p, cos, sin, tables = kinematics_inputs(params, shapes, dtype)
+    out: NDArray[Any] = np.empty((p.shape[1], 3 * _compiled.GEOMETRY_ROWS), dtype)
+    _compiled.pose_geometry(p, cos, sin, tables, out)
+    return out.reshape(-1, _compiled.GEOMETRY_ROWS, 3)
+
+
 def pose_geometry_of(params: ArrayLike, tables: ArrayLike) -> FloatArray:
     """:func:`pose_geometry` with one shape table per pose (the vector env's episodes).
 
@@ -527,7 +557,7 @@ def pose_geometry_of(params: ArrayLike, tables: ArrayLike) -> FloatArray:
         raise ValueError(
             f"pose_geometry_of: expected 1 or {p.shape[0]} shape tables, got {t.shape[0]}"
         )
-    return _compiled.geometry(p, t)
+    return _geometry(p, t)
 
 
 def pose_geometry(params: ArrayLike, shape: BodyShape, dtype: type = np.float64) -> NDArray[Any]:
@@ -554,7 +584,7 @@ def pose_geometry(params: ArrayLike, shape: BodyShape, dtype: type = np.float64)
         ValueError: If the last axis of ``params`` is not 25 long.
     """
     p = _check_params(params)
-    out = _compiled.geometry(p.reshape(-1, N_PARAMS), shape._table[None], dtype)
+    out = _geometry(p.reshape(-1, N_PARAMS), shape._table[None], dtype)
     return out.reshape(p.shape[:-1] + (_compiled.GEOMETRY_ROWS, 3))
 
 

@@ -18,8 +18,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from humotion_gym import body
-from humotion_gym._compiled import BLOCK, BLOCK_SIZE, kinematics_inputs, pose_block
-from humotion_gym.body import N_KEYPOINTS, N_PARAMS, BodyShape
+from humotion_gym._compiled import BLOCK, BLOCK_SIZE, pose_block
+from humotion_gym.body import N_KEYPOINTS, N_PARAMS, BodyShape, kinematics_inputs
 
 __all__ = [
     "BLOCK",
