@@ -231,12 +231,15 @@ def point_costs(
     index = np.empty(n, np.int64)
     for ci in range(cones.shape[0]):
         c = cones[ci]
+        shift = axis_map[c]
         for j in range(n):
             out[ci, j] = 0
         for p in range(coef.shape[0]):
             ws, we, wa, wb = coef[p, 0], coef[p, 1], coef[p, 2], coef[p, 3]
+            on_outline = p < n_out
             # The arithmetic of all poses first, then their scattered reads:
-            # the first loop vectorises, the second keeps many reads in flight.
+            # the first loop vectorises (and adds the map's offset, so that
+            # each read is one load), the second keeps many reads in flight.
             for j in range(n):
                 x = ws * basis[0, c, j] + we * basis[2, c, j]
                 x += wa * basis[4, c, j] + wb * basis[6, c, j]
@@ -247,14 +250,11 @@ def point_costs(
                 x = x if x < xmax else xmax
                 y = y if y > _ZERO else _ZERO
                 y = y if y < ymax else ymax
-                index[j] = np.int64(y) * w2 + np.int64(x)  # +0.5 in the basis: rounds
-            if p < n_out:
-                for j in range(n):
-                    out[ci, j] += cost[index[j] + outline[c, j]]
-            else:
-                shift = axis_map[c]
-                for j in range(n):
-                    out[ci, j] += cost[index[j] + shift]
+                # +0.5 in the basis: the truncations round.
+                at = np.int64(y) * w2 + np.int64(x)
+                index[j] = at + (outline[c, j] if on_outline else shift)
+            for j in range(n):
+                out[ci, j] += cost[index[j]]
 
 
 @numba.njit(cache=True, nogil=True)
