@@ -97,9 +97,9 @@ def pose_block(
 
     Args:
         params: ``(25, N)`` poses (``body.PARAM_NAMES`` order by rows).
-        cos: ``(25, N)`` the cosines of the parameters (those of the angles,
-            rows 3 on, are read), computed by numpy over all poses at once.
-        sin: ``(25, N)`` their sines.
+        cos: ``(22, N)`` the cosines of the angles (parameters 3-24),
+            computed by numpy over all poses at once.
+        sin: ``(22, N)`` their sines.
         shapes: ``(24, 1)`` one shape table for every pose, or ``(24, N)`` one
             per pose.
         b0: The block's first pose.
@@ -119,8 +119,8 @@ def pose_block(
     for j in range(3):
         _copy(params[j, b0 : b0 + m], work[(_INPUT + j) * BLOCK :])
     for j in range(3, N_ANGLES + 3):
-        _copy(cos[j, b0 : b0 + m], work[(_INPUT + j) * BLOCK :])
-        _copy(sin[j, b0 : b0 + m], work[(_SINE + j) * BLOCK :])
+        _copy(cos[j - 3, b0 : b0 + m], work[(_INPUT + j) * BLOCK :])
+        _copy(sin[j - 3, b0 : b0 + m], work[(_SINE + j) * BLOCK :])
     _trunk(work)
     # One call per limb, each with a literal index: the limb tables' entries
     # become constants (with a loop index the limb's rows are not known apart

@@ -51,8 +51,8 @@ def cone_bases(
     Args:
         params: ``(25, n)`` the poses by rows (this and the next three as
             :func:`humotion_gym.kinematics.kinematics_inputs` gives them).
-        cos: ``(25, n)`` their cosines.
-        sin: ``(25, n)`` their sines.
+        cos: ``(22, n)`` the cosines of their angles (parameters 3-24).
+        sin: ``(22, n)`` their sines.
         shapes: ``(24, 1)`` the shape's table.
         rot: ``(3, 3)`` the camera's rotation.
         trans: ``(3,)`` the camera's translation.
