@@ -517,7 +517,8 @@ def kinematics_inputs(
 ) -> tuple[NDArray[Any], ...]:
     """The kinematics kernels' inputs in ``dtype`` from ``(N, 25)`` poses, ``(M, 24)`` shapes.
 
-    (:func:`humotion_gym.kinematics.pose_block`'s and :func:`pose_geometry`'s.)
+    Both compiled kinematics passes take them: :func:`humotion_gym.kinematics.pose_block`
+    and the kernel behind :func:`pose_geometry`.
 
     Returns:
         The poses as ``(25, N)`` rows, the cosines and the sines of their angles
