@@ -54,14 +54,19 @@ _SINE = _INPUT + N_ANGLES
 BLOCK_SIZE = (_SINE + 3 + N_ANGLES) * BLOCK
 
 
+#: Numbers of a block's scratch per geometry row (its x, y and z rows).
+_ROW = 3 * BLOCK
+
+
 # Not inlined by numba (its inlining of many small calls took seconds to
-# compile); LLVM inlines it.
+# compile); LLVM inlines it. Callers pass the index ``row * _ROW + q``, not the
+# row: numba compiles a function once per literal argument it is called with.
 @numba.njit(cache=True, nogil=True)
-def _write(work: NDArray[Any], row: int, q: int, x: float, y: float, z: float) -> None:
-    """Geometry row ``row`` of pose ``q`` of a block."""
-    work[3 * row * BLOCK + q] = x
-    work[(3 * row + 1) * BLOCK + q] = y
-    work[(3 * row + 2) * BLOCK + q] = z
+def _write(work: NDArray[Any], at: int, x: float, y: float, z: float) -> None:
+    """A geometry row's x, y and z of one pose of a block, at ``row * _ROW + q``."""
+    work[at] = x
+    work[at + BLOCK] = y
+    work[at + 2 * BLOCK] = z
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -166,14 +171,14 @@ def _trunk(work: NDArray[Any]) -> None:
         c, s, t = _INPUT * BLOCK + q, _SINE * BLOCK + q, _SHAPE * BLOCK + q
         px, py, pz = work[c], work[c + BLOCK], work[c + 2 * BLOCK]
         o0, o1, o2 = work[t], work[t + BLOCK], work[t + 2 * BLOCK]
-        _write(work, 0, q, px, py, pz)  # pelvis
-        _write(work, 15, q, r00, r10, r20)  # torso cone: the root frame's x and y
-        _write(work, 16, q, r01, r11, r21)
+        _write(work, q, px, py, pz)  # pelvis
+        _write(work, 15 * _ROW + q, r00, r10, r20)  # torso cone: the root frame's x and y
+        _write(work, 16 * _ROW + q, r01, r11, r21)
         # The neck base: R o + p.
         nx = r00 * o0 + r01 * o1 + r02 * o2 + px
         ny = r10 * o0 + r11 * o1 + r12 * o2 + py
         nz = r20 * o0 + r21 * o1 + r22 * o2 + pz
-        _write(work, 7, q, nx, ny, nz)
+        _write(work, 7 * _ROW + q, nx, ny, nz)
         # Neck ball joint: columns of Rx(a) Ry(b) Rz(c), rotated by the root.
         ca, sa = work[c + 6 * BLOCK], work[s + 6 * BLOCK]
         cb, sb = work[c + 7 * BLOCK], work[s + 7 * BLOCK]
@@ -183,19 +188,19 @@ def _trunk(work: NDArray[Any]) -> None:
         ez0, ez1, ez2 = sb, -sa * cb, ca * cb
         head = work[t + 15 * BLOCK]
         _write(
-            work, 8, q,
+            work, 8 * _ROW + q,
             nx + head * (r00 * ez0 + r01 * ez1 + r02 * ez2),
             ny + head * (r10 * ez0 + r11 * ez1 + r12 * ez2),
             nz + head * (r20 * ez0 + r21 * ez1 + r22 * ez2),
         )  # fmt: skip
         _write(
-            work, 17, q,
+            work, 17 * _ROW + q,
             r00 * ex0 + r01 * ex1 + r02 * ex2,
             r10 * ex0 + r11 * ex1 + r12 * ex2,
             r20 * ex0 + r21 * ex1 + r22 * ex2,
         )  # fmt: skip
         _write(
-            work, 18, q,
+            work, 18 * _ROW + q,
             r00 * ey0 + r01 * ey1 + r02 * ey2,
             r10 * ey0 + r11 * ey1 + r12 * ey2,
             r20 * ey0 + r21 * ey1 + r22 * ey2,
@@ -246,15 +251,15 @@ def _limb(work: NDArray[Any], i: int) -> None:
         mx, my, mz = bx - upper * z0, by - upper * z1, bz - upper * z2
         ssk = sign * sk
         ls, lk = lower * ssk, lower * ck
-        _write(work, base, q, bx, by, bz)
-        _write(work, mid, q, mx, my, mz)
+        _write(work, base * _ROW + q, bx, by, bz)
+        _write(work, mid * _ROW + q, mx, my, mz)
         tx, ty, tz = mx + ls * y0 - lk * z0, my + ls * y1 - lk * z1, mz + ls * y2 - lk * z2
-        _write(work, tip, q, tx, ty, tz)
-        _write(work, 15 + 2 * upper_cone, q, x0, x1, x2)
-        _write(work, 16 + 2 * upper_cone, q, y0, y1, y2)
-        _write(work, 15 + 2 * lower_cone, q, x0, x1, x2)
+        _write(work, tip * _ROW + q, tx, ty, tz)
+        _write(work, (15 + 2 * upper_cone) * _ROW + q, x0, x1, x2)
+        _write(work, (16 + 2 * upper_cone) * _ROW + q, y0, y1, y2)
+        _write(work, (15 + 2 * lower_cone) * _ROW + q, x0, x1, x2)
         dx, dy, dz = ck * y0 + ssk * z0, ck * y1 + ssk * z1, ck * y2 + ssk * z2
-        _write(work, 16 + 2 * lower_cone, q, dx, dy, dz)
+        _write(work, (16 + 2 * lower_cone) * _ROW + q, dx, dy, dz)
 
 
 @numba.njit(cache=True, nogil=True)
