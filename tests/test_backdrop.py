@@ -153,6 +153,31 @@ def test_coverage_cost_matches_its_definition(episode) -> None:
     )
 
 
+def test_a_term_without_points_scores_as_no_term(episode) -> None:
+    """A frame whose coverage or residual term has no points adds exactly zero.
+
+    The terms are scored whenever the features carry them, points or not (so
+    their kernels compile with the first frame scored); with none, the
+    log-likelihoods must equal those of the model without the term, bit for
+    bit, not NaN from averaging over no points.
+    """
+    first, later, cam, _background, frames = episode
+    model = ObservationModel(backdrop=True, coverage_weight=1.5, residual_weight=0.7)
+    backdrop = model.read_backdrop(frames[0], first, SHAPE, cam)
+    feats = model.prepare(frames[1], GivenBody(later, ALL, SHAPE, cam, backdrop=backdrop))
+    assert feats.coverage is not None and feats.coverage.shape[1] > 0
+    assert feats.residual is not None
+    none = np.zeros((2, 0), np.float32)
+    empty = replace(feats, coverage=none, residual=none)
+    off = replace(model, coverage_weight=0.0, residual_weight=0.0)
+    poses = later + np.random.default_rng(6).normal(0.0, 0.08, (7, body.N_PARAMS)) * body.ANGLE_MASK
+    got = model.log_likelihood(empty, poses, SHAPE, cam)
+    assert np.isfinite(got).all()
+    np.testing.assert_array_equal(got, off.log_likelihood(feats, poses, SHAPE, cam))
+    # and the terms do count where they have points
+    assert not np.array_equal(model.log_likelihood(feats, poses, SHAPE, cam), got)
+
+
 def test_coverage_points_are_the_set_pixels_evenly_spread() -> None:
     """np.nonzero's pixels of the mask, thinned by np.linspace's picks (the definition)."""
     rng = np.random.default_rng(9)

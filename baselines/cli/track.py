@@ -164,8 +164,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
     print(LEGEND)
     print(
         f"first calls {warm_up_s:.2f} s, before the episodes and not in ms/frame: on a "
-        "first run numba compiles its kernels there (a few later, where first needed), "
-        "then loads them from its cache"
+        "first run numba compiles its kernels there, then loads them from its cache"
     )
     if args.video:
         wrote(args.video, f"the first episode, seed {args.seed}")

@@ -162,10 +162,11 @@ def warm_up(
     processes load them from numba's cache in tens of milliseconds) and
     caches fill. A filter's first frame starts its particles and its second
     is the first to move them, so two frames reach the kernels every frame
-    runs (a term that starts scoring mid-episode compiles there, on a first
-    run only). Timed inside an episode that cost would be charged to its
-    ``ms_per_frame``. Nothing carries over: each episode starts the agent
-    afresh (``episode_start``) and reseeds it (``seed_episode``).
+    runs (the likelihood scores each term a frame carries from the first
+    frame scored, before the term has any points). Timed inside an episode
+    that cost would be charged to its ``ms_per_frame``. Nothing carries
+    over: each episode starts the agent afresh (``episode_start``) and
+    reseeds it (``seed_episode``).
     """
     obs, _ = env.reset(seed=seed, options=options)
     spent, start = 0.0, np.array([True])

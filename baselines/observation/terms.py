@@ -55,9 +55,12 @@ def score(
     )  # fmt: skip
     figures = (rows.astype(np.float64) @ per_cone).T  # (n, G + 1)
     figures *= feats.cost_unit
-    if feats.residual is not None and feats.residual.shape[1] and model.residual_weight > 0:
+    # A frame that carries a term scores it even with no points (it adds
+    # zero then): its kernel then compiles with the first frame scored, not
+    # mid-episode where the first points appear.
+    if feats.residual is not None and model.residual_weight > 0:
         figures += residual_cost(model, feats, basis, rows)
-    if feats.coverage is not None and feats.coverage.shape[1] and model.coverage_weight > 0:
+    if feats.coverage is not None and model.coverage_weight > 0:
         figures += coverage_cost(model, feats, basis, rows)
     figures *= -model.sharpness
     if feats.floor is not None and model.has_floor_term:
@@ -124,7 +127,10 @@ def residual_cost(
     masks = np.ascontiguousarray(np.tile(rows[:, cones], 2))
     out = np.empty((basis.shape[2], rows.shape[0]))
     _compiled.residual_sums(np.ascontiguousarray(segments), feats.residual, tau * tau, masks, out)
-    out *= model.residual_weight / (2.0 * (model.edge_sigma * scale) ** 2 * feats.residual.shape[1])
+    if feats.residual.shape[1]:  # no points: every sum is zero
+        out *= model.residual_weight / (
+            2.0 * (model.edge_sigma * scale) ** 2 * feats.residual.shape[1]
+        )
     return out
 
 
@@ -145,7 +151,10 @@ def coverage_cost(
     masks = np.ascontiguousarray(rows[:, cones])
     out = np.empty((basis.shape[2], rows.shape[0]))
     _compiled.coverage_sums(basis, cones, feats.coverage, tau, masks, out)
-    out *= model.coverage_weight / (2.0 * (model.edge_sigma * scale) ** 2 * feats.coverage.shape[1])
+    if feats.coverage.shape[1]:  # no points: every sum is zero
+        out *= model.coverage_weight / (
+            2.0 * (model.edge_sigma * scale) ** 2 * feats.coverage.shape[1]
+        )
     return out
 
 

@@ -96,6 +96,53 @@ def test_the_first_call_is_made_before_the_episodes_and_left_out_of_their_timing
     assert cold.ms_per_frame > 1000.0
 
 
+def test_after_the_warm_up_an_episode_calls_no_kernel_it_did_not(monkeypatch):
+    """The main command's agent and task: no kernel compiles inside an episode.
+
+    On a first run numba compiles a kernel, for each signature, at its first
+    call; one first called mid-episode (the coverage term's, before its
+    points appeared some frames in) charges its seconds to that episode's
+    ms/frame. Every compiled kernel Python calls is recorded with its
+    argument types (what numba dispatches on): those an episode calls must
+    all have been called before it, in the agent's making and the warm-up.
+    """
+    import numba
+    from numba.core.registry import CPUDispatcher
+
+    from baselines.filtering import _compiled as filtering_kernels
+    from baselines.filtering import weights
+    from baselines.observation import _compiled as observation_kernels
+    from baselines.priors import _tree_compiled as tree_kernels
+    from humotion_gym import _compiled as body_kernels
+
+    calls: dict[str, set] = {"before": set(), "episode": set()}
+    phase = ["before"]
+
+    def recording(name, kernel):
+        def call(*args):
+            calls[phase[0]].add((name, tuple(str(numba.typeof(a)) for a in args)))
+            return kernel(*args)
+
+        return call
+
+    for module in (body_kernels, observation_kernels, tree_kernels, filtering_kernels):
+        for name, kernel in list(vars(module).items()):
+            # the kernels Python calls (pose_block is called from compiled code alone)
+            if isinstance(kernel, CPUDispatcher) and not name.startswith("_"):
+                if name != "pose_block":
+                    monkeypatch.setattr(module, name, recording(name, kernel))
+    wrapped = recording("wrapped_offsets", filtering_kernels.wrapped_offsets)
+    monkeypatch.setattr(weights, "wrapped_offsets", wrapped)
+    env = gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False)
+    agent = make("pf-tree", env, n_particles=50, seed=0)
+    warm_up(agent, env, seed=0)
+    phase[0] = "episode"
+    run_episode(agent, env, seed=0)
+    names = {name for name, _ in calls["episode"]}
+    assert {"cone_bases", "point_costs", "coverage_sums", "descend", "replay"} <= names
+    assert calls["episode"] <= calls["before"], sorted(calls["episode"] - calls["before"])
+
+
 def test_cli_track_and_render(tmp_path, capsys):
     assert (
         main(
