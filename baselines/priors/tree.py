@@ -219,7 +219,9 @@ def memory(history: ArrayLike) -> dict[str, NDArray[Any]]:
     h = np.asarray(history)
     if h.ndim != 3 or h.shape[1] < 2:
         raise ValueError(f"tree.memory: expected histories (N, d + 1, D), got shape {h.shape}")
-    return {PAST: h[:, :-1], LAST: h[:, -1]}
+    # The last pose contiguous, as every transition leaves it: the compiled
+    # join then sees one array layout and compiles once.
+    return {PAST: h[:, :-1], LAST: np.ascontiguousarray(h[:, -1])}
 
 
 def histories(extra: Mapping[str, NDArray[Any]]) -> NDArray[Any]:
