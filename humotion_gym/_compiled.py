@@ -171,7 +171,7 @@ def _trunk(work: NDArray[Any]) -> None:
         c, s, t = _INPUT * BLOCK + q, _SINE * BLOCK + q, _SHAPE * BLOCK + q
         px, py, pz = work[c], work[c + BLOCK], work[c + 2 * BLOCK]
         o0, o1, o2 = work[t], work[t + BLOCK], work[t + 2 * BLOCK]
-        _write(work, q, px, py, pz)  # pelvis
+        _write(work, q, px, py, pz)  # pelvis (row 0)
         _write(work, 15 * _ROW + q, r00, r10, r20)  # torso cone: the root frame's x and y
         _write(work, 16 * _ROW + q, r01, r11, r21)
         # The neck base: R o + p.

@@ -278,6 +278,9 @@ def residual_sums(
     """
     n_seg, n = segments.shape[1], segments.shape[2]
     e, g = q.shape[1], masks.shape[0]
+    if e == 0:  # no points: every sum is zero, with no pass over the poses
+        out[:] = 0.0
+        return
     nearest = np.empty((g, e), np.float32)
     dist2 = np.empty(e, np.float32)
     for j in range(n):
@@ -333,6 +336,9 @@ def coverage_sums(
         out: Out, ``(N, G)``: ``sum over points of min(tau, max(0, d))^2``.
     """
     n, f, g = basis.shape[2], q.shape[1], masks.shape[0]
+    if f == 0:  # no points: every sum is zero, with no pass over the poses
+        out[:] = 0.0
+        return
     nearest = np.empty((g, f, _BLOCK), np.float32)
     co = np.empty((7, _BLOCK), np.float32)
     d = np.empty(_BLOCK, np.float32)

@@ -126,15 +126,11 @@ def residual_cost(
     tau = np.float32(model.residual_truncation * scale)
     masks = np.ascontiguousarray(np.tile(rows[:, cones], 2))
     out = np.empty((basis.shape[2], rows.shape[0]))
-    segments = np.ascontiguousarray(segments)
-    if not feats.residual.shape[1]:
-        out.fill(0.0)
-        # No points, every sum zero: the kernel runs on no poses, which
-        # compiles it (see score) at no cost.
-        _compiled.residual_sums(segments[..., :0], feats.residual, tau * tau, masks, out[:0])
-        return out
-    _compiled.residual_sums(segments, feats.residual, tau * tau, masks, out)
-    out *= model.residual_weight / (2.0 * (model.edge_sigma * scale) ** 2 * feats.residual.shape[1])
+    _compiled.residual_sums(np.ascontiguousarray(segments), feats.residual, tau * tau, masks, out)
+    if feats.residual.shape[1]:  # no points: the sums are zeros, not averaged
+        out *= model.residual_weight / (
+            2.0 * (model.edge_sigma * scale) ** 2 * feats.residual.shape[1]
+        )
     return out
 
 
@@ -154,14 +150,11 @@ def coverage_cost(
     tau = np.float32(model.coverage_truncation * scale)
     masks = np.ascontiguousarray(rows[:, cones])
     out = np.empty((basis.shape[2], rows.shape[0]))
-    if not feats.coverage.shape[1]:
-        out.fill(0.0)
-        # No points, every sum zero: the kernel runs on no poses, which
-        # compiles it (see score) at no cost.
-        _compiled.coverage_sums(basis[..., :0], cones, feats.coverage, tau, masks, out[:0])
-        return out
     _compiled.coverage_sums(basis, cones, feats.coverage, tau, masks, out)
-    out *= model.coverage_weight / (2.0 * (model.edge_sigma * scale) ** 2 * feats.coverage.shape[1])
+    if feats.coverage.shape[1]:  # no points: the sums are zeros, not averaged
+        out *= model.coverage_weight / (
+            2.0 * (model.edge_sigma * scale) ** 2 * feats.coverage.shape[1]
+        )
     return out
 
 
