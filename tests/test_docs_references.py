@@ -1,0 +1,139 @@
+"""The README and ``docs/*.md`` name only files, links, names and tasks that exist.
+
+A reader follows ``baselines/observation/terms.py``, ``humotion_gym.body.forward_kinematics``
+or ``[speed](docs/speed.md)`` from a page; after a module moves or a file is renamed the
+page would send them nowhere. Checked here:
+
+- every repository path in backquotes (a token of two or more parts that ends in a
+  file's extension or a ``/``) exists from the repository's root or from one of the
+  two packages (a table row of ``humotion_gym/`` may say ``envs/tasks.py``); a
+  pattern (``results/*/table.md``, ``{A,B}.json``) matches a file; a path with a
+  placeholder in capitals (``results/NAME/table.md``, ``bc-TASK.json``) is skipped;
+- every relative Markdown link's target exists from its page's folder;
+- every dotted ``humotion_gym.`` or ``baselines.`` name in backquotes imports;
+- every ``humotion_gym/Task-vN`` in backquotes is a registered environment.
+
+``CHANGELOG.md`` is left out: it tells what was, and may name what is gone.
+"""
+
+from __future__ import annotations
+
+import importlib
+import re
+from pathlib import Path
+
+import gymnasium as gym
+import pytest
+
+import humotion_gym  # noqa: F401  (registers the environments)
+
+ROOT = Path(__file__).resolve().parents[1]
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+
+CODE = re.compile(r"`([^`\s]+)`")
+LINK = re.compile(r"\]\(([^)\s]+)\)")
+EXTENSION = re.compile(r"\.(?:py|md|yml|yaml|toml|json|jsonl|gz|npz|csv|zip|txt|cfg|sh)$")
+ENV_ID = re.compile(r"^humotion_gym/[A-Z]\w*-v\d+$")
+PLACEHOLDER = re.compile(r"(?:^|[^A-Za-z])[A-Z]{2,}(?:$|[^A-Za-z])")
+BRACES = re.compile(r"\{([^{}]*)\}")
+#: Where a relative path of a page may start: the root, then each package.
+BASES = ("", "humotion_gym/", "baselines/")
+DOTTED = re.compile(r"^(?:humotion_gym|baselines)(?:\.\w+)+(?:\(\))?$")
+
+
+def repository_path(token: str) -> str | None:
+    """The repository path a backquoted token names, or None where it names none."""
+    path = token.split(":", 1)[0].split("#", 1)[0]
+    if "/" not in path or ENV_ID.match(path) or path.startswith(("-", "http", "~", "$", ".")):
+        return None
+    if not (EXTENSION.search(path) or path.endswith("/")):
+        return None
+    if len([part for part in path.split("/") if part]) < 2:
+        return None  # a folder's or file's own name, read in its sentence's context
+    if any(PLACEHOLDER.search(part) for part in path.split("/")):
+        return None
+    return path
+
+
+def expanded(pattern: str) -> list[str]:
+    """``pattern`` with each ``{a,b}`` spelled out: one pattern per choice."""
+    match = BRACES.search(pattern)
+    if match is None:
+        return [pattern]
+    head, tail = pattern[: match.start()], pattern[match.end() :]
+    return [p for choice in match.group(1).split(",") for p in expanded(head + choice + tail)]
+
+
+def exists(path: str, root: Path) -> bool:
+    """Whether ``path`` (maybe a pattern) names something from the root or a package."""
+    for base in BASES:
+        for pattern in expanded(base + path):
+            if any(c in pattern for c in "*?["):
+                if next(iter(root.glob(pattern.rstrip("/"))), None) is not None:
+                    return True
+            elif (root / pattern).exists():
+                return True
+    return False
+
+
+def resolves(name: str) -> bool:
+    """Whether ``package.module.attribute...`` imports (the longest module prefix, then attributes)."""
+    parts = name.removesuffix("()").split(".")
+    for k in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:k]))
+        except ModuleNotFoundError:
+            continue
+        for attribute in parts[k:]:
+            if not hasattr(obj, attribute):
+                return False
+            obj = getattr(obj, attribute)
+        return True
+    return False
+
+
+def broken_references(page: Path, root: Path = ROOT) -> list[str]:
+    """``"page:line: what"`` for each reference of ``page`` that leads nowhere."""
+    found = []
+    registered = set(gym.registry)
+    for number, line in enumerate(page.read_text(encoding="utf-8").splitlines(), 1):
+        where = f"{page.name}:{number}"
+        for token in CODE.findall(line):
+            path = repository_path(token)
+            if path is not None and not exists(path, root):
+                found.append(f"{where}: no file {path}")
+            elif ENV_ID.match(token) and token not in registered:
+                found.append(f"{where}: no environment {token}")
+            elif DOTTED.match(token) and not resolves(token):
+                found.append(f"{where}: {token} does not import")
+        for target in LINK.findall(line):
+            target = target.split("#", 1)[0]
+            if not target or re.match(r"^[a-z]+:", target):
+                continue  # a page's own anchor, or a web address
+            if not (page.parent / target).exists():
+                found.append(f"{where}: link to a missing {target}")
+    return found
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+def test_every_reference_of_a_page_exists(page: Path) -> None:
+    assert broken_references(page) == []
+
+
+def test_the_check_finds_a_moved_file_a_wrong_name_a_dead_link_and_an_unknown_task(
+    tmp_path: Path,
+) -> None:
+    page = tmp_path / "page.md"
+    page.write_text(
+        "Read `baselines/filtering.py` and `results/NAME/table.md`.\n"
+        "Call `humotion_gym.body.forward_kinematic` or `humotion_gym.body.forward_kinematics`.\n"
+        "See [speed](speed.md), [the paper](https://example.org) and [here](#top).\n"
+        "Make `humotion_gym/BodyTrack-v9` or `humotion_gym/BodyTrack-v2`.\n",
+        encoding="utf-8",
+    )
+    assert broken_references(page) == [
+        "page.md:1: no file baselines/filtering.py",
+        "page.md:2: humotion_gym.body.forward_kinematic does not import",
+        "page.md:3: link to a missing speed.md",
+        "page.md:4: no environment humotion_gym/BodyTrack-v9",
+    ]
