@@ -126,15 +126,13 @@ MAX_BATCH = 64
 #: fits the prior (:class:`~baselines.priors.slds_inference.CovarianceTable`;
 #: the library's default, ``COV_RTOL`` = 1e-10, is what :func:`fit_activity` and
 #: the classification experiments use). The prior is fitted on an agent's first
-#: use, where its seconds count: on the shared training data 1e-6 leaves every
-#: decoded path as it was and moves the fitted parameters by at most 1.1e-7
-#: (SideWalk-v2) and 1.3e-6 (ArmTrack-v2) of their largest entry, four orders of
-#: magnitude below what EM's last iteration still changes (its cost falls about
-#: 0.1% an iteration), and takes a quarter (ArmTrack-v2's 18 models) to two
-#: fifths (SideWalk-v2's walking model: 13.2 -> 7.8 s) less time. 1e-4 changed
-#: the walking model's paths. Tracking does not tell them apart: ``humotion-gym
-#: select --task SideWalk-v2 --agent pf-slds --grid fit.cov_rtol=1e-10,1e-8,1e-6
-#: --episodes 60 --data-dir ../shared/mocap`` gave 63.0, 63.0 and 62.1 mm (hold 215.2).
+#: use, where its seconds count. On the training data 1e-6 leaves every decoded
+#: path as it was and moves the fitted parameters orders of magnitude less than
+#: EM's last iteration still changes them, for a quarter to two fifths less
+#: time. 1e-4 changes decoded paths. Tracking does not tell them apart:
+#: ``humotion-gym select --task SideWalk-v2 --agent pf-slds --grid
+#: fit.cov_rtol=1e-10,1e-8,1e-6 --episodes 60 --data-dir ../shared/mocap`` gave
+#: 63.0, 63.0 and 62.1 mm (hold 215.2).
 FIT_COV_RTOL = 1e-6
 #: Settings of :func:`fit` that say how it runs, not what it fits: left out of
 #: the fitted-prior cache's key (:func:`baselines.priors.fitting.fit_prior`).
