@@ -10,7 +10,8 @@ page would send them nowhere. Checked here:
   pattern (``results/*/table.md``, ``{A,B}.json``) matches a file; a path with a
   placeholder in capitals (``results/NAME/table.md``, ``bc-TASK.json``) is skipped;
 - every relative Markdown link's target exists from its page's folder;
-- every dotted ``humotion_gym.`` or ``baselines.`` name in backquotes imports;
+- every dotted ``humotion_gym.`` or ``baselines.`` name in backquotes imports, alone or
+  called (``baselines.agents.make(name, env)``);
 - every ``humotion_gym/Task-vN`` in backquotes is a registered environment.
 
 ``CHANGELOG.md`` is left out: it tells what was, and may name what is gone.
@@ -30,15 +31,18 @@ import humotion_gym  # noqa: F401  (registers the environments)
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 
-CODE = re.compile(r"`([^`\s]+)`")
+CODE = re.compile(r"`([^`]+)`")
 LINK = re.compile(r"\]\(([^)\s]+)\)")
 EXTENSION = re.compile(r"\.(?:py|md|yml|yaml|toml|json|jsonl|gz|npz|csv|zip|txt|cfg|sh)$")
 ENV_ID = re.compile(r"^humotion_gym/[A-Z]\w*-v\d+$")
 PLACEHOLDER = re.compile(r"(?:^|[^A-Za-z])[A-Z]{2,}(?:$|[^A-Za-z])")
 BRACES = re.compile(r"\{([^{}]*)\}")
+#: A command's options whose value is a file it writes.
+OUTPUTS = frozenset({"--out", "--figure", "--video", ">"})
 #: Where a relative path of a page may start: the root, then each package.
 BASES = ("", "humotion_gym/", "baselines/")
-DOTTED = re.compile(r"^(?:humotion_gym|baselines)(?:\.\w+)+(?:\(\))?$")
+#: A dotted name at a span's start, alone or called (``baselines.agents.make(name, env)``).
+DOTTED = re.compile(r"^((?:humotion_gym|baselines)(?:\.\w+)+)(?:$|\()")
 
 
 def repository_path(token: str) -> str | None:
@@ -78,7 +82,7 @@ def exists(path: str, root: Path) -> bool:
 
 def resolves(name: str) -> bool:
     """Whether ``package.module.attribute...`` imports (the longest module prefix, then attributes)."""
-    parts = name.removesuffix("()").split(".")
+    parts = name.split(".")
     for k in range(len(parts), 0, -1):
         try:
             obj = importlib.import_module(".".join(parts[:k]))
@@ -98,14 +102,18 @@ def broken_references(page: Path, root: Path = ROOT) -> list[str]:
     registered = set(gym.registry)
     for number, line in enumerate(page.read_text(encoding="utf-8").splitlines(), 1):
         where = f"{page.name}:{number}"
-        for token in CODE.findall(line):
-            path = repository_path(token)
-            if path is not None and not exists(path, root):
-                found.append(f"{where}: no file {path}")
-            elif ENV_ID.match(token) and token not in registered:
-                found.append(f"{where}: no environment {token}")
-            elif DOTTED.match(token) and not resolves(token):
-                found.append(f"{where}: {token} does not import")
+        for span in CODE.findall(line):
+            if (dotted := DOTTED.match(span)) and not resolves(dotted.group(1)):
+                found.append(f"{where}: {dotted.group(1)} does not import")
+            words = span.split()
+            for before, word in zip(["", *words], words, strict=False):
+                if before in OUTPUTS:
+                    continue  # what a command writes need not exist
+                path = repository_path(word)
+                if path is not None and not exists(path, root):
+                    found.append(f"{where}: no file {path}")
+                elif ENV_ID.match(word) and word not in registered:
+                    found.append(f"{where}: no environment {word}")
         for target in LINK.findall(line):
             target = target.split("#", 1)[0]
             if not target or re.match(r"^[a-z]+:", target):
@@ -125,8 +133,9 @@ def test_the_check_finds_a_moved_file_a_wrong_name_a_dead_link_and_an_unknown_ta
 ) -> None:
     page = tmp_path / "page.md"
     page.write_text(
-        "Read `baselines/filtering.py` and `results/NAME/table.md`.\n"
-        "Call `humotion_gym.body.forward_kinematic` or `humotion_gym.body.forward_kinematics`.\n"
+        "Run `python baselines/filtering.py --help`; see `results/NAME/table.md`.\n"
+        "Call `humotion_gym.body.forward_kinematic` or `humotion_gym.body.forward_kinematics()`.\n"
+        "Or `baselines.make(name, env)`, not `baselines.agents.make(name, env)`.\n"
         "See [speed](speed.md), [the paper](https://example.org) and [here](#top).\n"
         "Make `humotion_gym/BodyTrack-v9` or `humotion_gym/BodyTrack-v2`.\n",
         encoding="utf-8",
@@ -134,6 +143,7 @@ def test_the_check_finds_a_moved_file_a_wrong_name_a_dead_link_and_an_unknown_ta
     assert broken_references(page) == [
         "page.md:1: no file baselines/filtering.py",
         "page.md:2: humotion_gym.body.forward_kinematic does not import",
-        "page.md:3: link to a missing speed.md",
-        "page.md:4: no environment humotion_gym/BodyTrack-v9",
+        "page.md:3: baselines.make does not import",
+        "page.md:4: link to a missing speed.md",
+        "page.md:5: no environment humotion_gym/BodyTrack-v9",
     ]
