@@ -31,7 +31,9 @@ import humotion_gym  # noqa: F401  (registers the environments)
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 
-CODE = re.compile(r"`([^`]+)`")
+#: A span in backquotes, on one line or wrapped onto the next.
+CODE = re.compile(r"`([^`\n]+(?:\n[^`\n]+)?)`")
+FENCE = re.compile(r"^```.*?^```$", re.MULTILINE | re.DOTALL)
 LINK = re.compile(r"\]\(([^)\s]+)\)")
 EXTENSION = re.compile(r"\.(?:py|md|yml|yaml|toml|json|jsonl|gz|npz|csv|zip|txt|cfg|sh)$")
 ENV_ID = re.compile(r"^humotion_gym/[A-Z]\w*-v\d+$")
@@ -96,31 +98,38 @@ def resolves(name: str) -> bool:
     return False
 
 
+def prose(text: str) -> str:
+    """``text`` with its fenced blocks blanked (line numbers kept): spans are read outside them."""
+    return FENCE.sub(lambda m: "\n" * m.group(0).count("\n"), text)
+
+
 def broken_references(page: Path, root: Path = ROOT) -> list[str]:
     """``"page:line: what"`` for each reference of ``page`` that leads nowhere."""
     found = []
     registered = set(gym.registry)
-    for number, line in enumerate(page.read_text(encoding="utf-8").splitlines(), 1):
-        where = f"{page.name}:{number}"
-        for span in CODE.findall(line):
-            if (dotted := DOTTED.match(span)) and not resolves(dotted.group(1)):
-                found.append(f"{where}: {dotted.group(1)} does not import")
-            words = span.split()
-            for before, word in zip(["", *words], words, strict=False):
-                if before in OUTPUTS:
-                    continue  # what a command writes need not exist
-                path = repository_path(word)
-                if path is not None and not exists(path, root):
-                    found.append(f"{where}: no file {path}")
-                elif ENV_ID.match(word) and word not in registered:
-                    found.append(f"{where}: no environment {word}")
+    text = prose(page.read_text(encoding="utf-8"))
+    for match in CODE.finditer(text):
+        where = f"{page.name}:{text.count(chr(10), 0, match.start()) + 1}"
+        span = match.group(1)
+        if (dotted := DOTTED.match(span)) and not resolves(dotted.group(1)):
+            found.append(f"{where}: {dotted.group(1)} does not import")
+        words = span.split()
+        for before, word in zip(["", *words], words, strict=False):
+            if before in OUTPUTS:
+                continue  # what a command writes need not exist
+            path = repository_path(word)
+            if path is not None and not exists(path, root):
+                found.append(f"{where}: no file {path}")
+            elif ENV_ID.match(word) and word not in registered:
+                found.append(f"{where}: no environment {word}")
+    for number, line in enumerate(text.splitlines(), 1):
         for target in LINK.findall(line):
             target = target.split("#", 1)[0]
             if not target or re.match(r"^[a-z]+:", target):
                 continue  # a page's own anchor, or a web address
             if not (page.parent / target).exists():
-                found.append(f"{where}: link to a missing {target}")
-    return found
+                found.append(f"{page.name}:{number}: link to a missing {target}")
+    return sorted(found, key=lambda f: int(f.split(":")[1]))
 
 
 @pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
@@ -135,15 +144,18 @@ def test_the_check_finds_a_moved_file_a_wrong_name_a_dead_link_and_an_unknown_ta
     page.write_text(
         "Run `python baselines/filtering.py --help`; see `results/NAME/table.md`.\n"
         "Call `humotion_gym.body.forward_kinematic` or `humotion_gym.body.forward_kinematics()`.\n"
-        "Or `baselines.make(name, env)`, not `baselines.agents.make(name, env)`.\n"
+        "Or `baselines.make(name,\nenv)`, not `baselines.agents.make(name, env)`.\n"
         "See [speed](speed.md), [the paper](https://example.org) and [here](#top).\n"
-        "Make `humotion_gym/BodyTrack-v9` or `humotion_gym/BodyTrack-v2`.\n",
+        "Make `humotion_gym/BodyTrack-v9` or `humotion_gym/BodyTrack-v2`.\n"
+        "```bash\n`results/skipped.md` in a fenced block is the block's business\n```\n"
+        "and after it `results/missing.md` is read again.\n",
         encoding="utf-8",
     )
     assert broken_references(page) == [
         "page.md:1: no file baselines/filtering.py",
         "page.md:2: humotion_gym.body.forward_kinematic does not import",
         "page.md:3: baselines.make does not import",
-        "page.md:4: link to a missing speed.md",
-        "page.md:5: no environment humotion_gym/BodyTrack-v9",
+        "page.md:5: link to a missing speed.md",
+        "page.md:6: no environment humotion_gym/BodyTrack-v9",
+        "page.md:10: no file results/missing.md",
     ]
