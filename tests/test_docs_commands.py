@@ -1,0 +1,121 @@
+"""Every ``humotion-gym`` command the README and ``docs/*.md`` show parses.
+
+A user copies a command from a page's ``bash`` block; after a flag is renamed or
+a choice dropped, the page's command would fail. Each command (continued lines
+joined, ``# comments`` and what follows ``&&`` or a pipe split off) goes through
+the real command line's parser, which checks every flag, every choice, every task
+and agent name and every file argument, and runs nothing. Skipped: commands with a
+placeholder in capitals (``--task TASK``) or ``...``. A policy file a command reads
+may be one an earlier command of the same page writes (``--out runs/bc-body``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import re
+import shlex
+from pathlib import Path
+
+import pytest
+
+from baselines.cli import build_parser
+
+ROOT = Path(__file__).resolve().parents[1]
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+SHELL_BLOCK = re.compile(r"^```(?:bash|sh)\n(.*?)^```$", re.MULTILINE | re.DOTALL)
+PLACEHOLDER = re.compile(r"\b[A-Z][A-Z_]{2,}\b|\.\.\.")
+MISSING_FILE = re.compile(r"no such policy file (\S+)")
+
+
+def page_commands(text: str) -> list[tuple[int, str]]:
+    """``(line, command)`` for each ``humotion-gym`` command of the page's shell blocks."""
+    found = []
+    for block in SHELL_BLOCK.finditer(text):
+        number = text.count("\n", 0, block.start()) + 2  # the block's first line
+        logical, at = "", number
+        for offset, line in enumerate(block.group(1).splitlines()):
+            if not logical:
+                at = number + offset
+            if line.rstrip().endswith("\\"):  # continued on the next line
+                logical += line.rstrip()[:-1] + " "
+                continue
+            for part in re.split(r"&&|\|\|?|;", logical + line):
+                command = part.split(" #", 1)[0].strip()
+                if command.startswith("humotion-gym "):
+                    found.append((at, command))
+            logical = ""
+    return found
+
+
+def parse_error(parser: argparse.ArgumentParser, command: str) -> str | None:
+    """argparse's message for ``command``, or None where it parses (``--help`` included)."""
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        try:
+            parser.parse_args(shlex.split(command)[1:])
+        except SystemExit as stop:
+            if stop.code not in (0, None):
+                return (err.getvalue().strip().splitlines() or ["exit " + str(stop.code)])[-1]
+    return None
+
+
+def broken_commands(page: Path, parser: argparse.ArgumentParser) -> list[str]:
+    """``"page:line: command: error"`` for each command of ``page`` that does not parse."""
+    commands = page_commands(page.read_text(encoding="utf-8"))
+    written = [
+        words[i + 1]
+        for _, command in commands
+        for words in [shlex.split(command)]
+        for i, word in enumerate(words[:-1])
+        if word == "--out"
+    ]
+    found = []
+    for number, command in commands:
+        if PLACEHOLDER.search(command):
+            continue
+        error = parse_error(parser, command)
+        missing = MISSING_FILE.search(error or "")
+        if missing and any(missing.group(1).startswith(out.rstrip("/") + "/") for out in written):
+            continue  # the policy an earlier command of the page trains
+        if error is not None:
+            found.append(f"{page.name}:{number}: {command}: {error}")
+    return found
+
+
+@pytest.fixture(scope="module")
+def parser() -> argparse.ArgumentParser:
+    return build_parser()
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+def test_every_command_of_a_page_parses(page: Path, parser: argparse.ArgumentParser) -> None:
+    assert broken_commands(page, parser) == []
+
+
+def test_the_check_finds_a_renamed_flag_an_unknown_task_and_a_missing_file(
+    tmp_path: Path, parser: argparse.ArgumentParser
+) -> None:
+    page = tmp_path / "page.md"
+    page.write_text(
+        "```bash\n"
+        "humotion-gym track --task BodyTrack-v2 --agent pf-tree --n-particles 300\n"
+        "humotion-gym tasks && humotion-gym track --task BodyTrack-v9 --agent pf-tree\n"
+        "humotion-gym track --task TASK --agent pf-tree   # a placeholder: skipped\n"
+        "humotion-gym train --algo bc --task BodyTrack-v2 --out runs/a\n"
+        "humotion-gym track --task BodyTrack-v2 --agent runs/a/model.zip \\\n"
+        "    --episodes 2\n"
+        "humotion-gym track --task BodyTrack-v2 --agent runs/b/model.zip\n"
+        "```\n",
+        encoding="utf-8",
+    )
+    found = broken_commands(page, parser)
+    assert [line.split(": humotion-gym")[0] for line in found] == [
+        "page.md:2",
+        "page.md:3",
+        "page.md:8",
+    ]
+    assert "unrecognized arguments: --n-particles 300" in found[0]
+    assert "unknown task BodyTrack-v9" in found[1]
+    assert "no such policy file runs/b/model.zip" in found[2]
