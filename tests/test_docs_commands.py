@@ -1,4 +1,4 @@
-"""Every ``humotion-gym`` command the README and ``docs/*.md`` show parses.
+"""Every ``humotion-gym`` command the README, ``docs/*.md`` and ``--help`` show parses.
 
 A user copies a command from a page's ``bash`` block; after a flag is renamed or
 a choice dropped, the page's command would fail. Each command (continued lines
@@ -7,6 +7,7 @@ the real command line's parser, which checks every flag, every choice, every tas
 and agent name and every file argument, and runs nothing. Skipped: commands with a
 placeholder in capitals (``--task TASK``) or ``...``. A policy file a command reads
 may be one an earlier command of the same page writes (``--out runs/bc-body``).
+Each command's ``--help`` ends with an example, checked the same way.
 """
 
 from __future__ import annotations
@@ -87,6 +88,30 @@ def broken_commands(page: Path, parser: argparse.ArgumentParser) -> list[str]:
 @pytest.fixture(scope="module")
 def parser() -> argparse.ArgumentParser:
     return build_parser()
+
+
+def help_examples(parser: argparse.ArgumentParser) -> list[tuple[str, str]]:
+    """``(command, example)`` for every line of a (sub-)command's epilog that is a command."""
+    found = []
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                for line in (sub.epilog or "").splitlines():
+                    if line.strip().startswith("humotion-gym "):
+                        found.append((f"{parser.prog} {name}", line.strip()))
+                found += help_examples(sub)
+    return found
+
+
+def test_every_help_example_parses(parser: argparse.ArgumentParser) -> None:
+    examples = help_examples(parser)
+    assert len(examples) >= 40  # every command has one
+    broken = [
+        f"{command}: {example}: {error}"
+        for command, example in examples
+        if not PLACEHOLDER.search(example) and (error := parse_error(parser, example))
+    ]
+    assert broken == []
 
 
 @pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
