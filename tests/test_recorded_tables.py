@@ -4,7 +4,8 @@ Every table row of the README and ``docs/*.md`` shaped like a leaderboard or
 depth row (``| Task-v1 | agent | particles | ...``) must appear verbatim in a
 table the runs wrote (``results/*/table.md``, ``results/*/tables.md``,
 ``results/depth/README.md``), every verdict line under the README's tables
-("best filter at 300 particles is ...") in a ``table.md`` or ``tables.md``, and
+("best filter at 300 particles is ...", "pf-tree at 300 particles against pf-cv at
+3,000 ...") in a ``table.md`` or ``tables.md``, and
 every standing-still row in ``results/still_*.json.gz`` as ``humotion-gym still``
 prints it: a number copied by hand, or left behind when the runs were made
 again, fails here.
@@ -27,7 +28,9 @@ TASK = r"(?:ArmTrack|BodyTrack|WalkTrack|SideWalk)(?:\dViews)?-v\d+"
 ROW = re.compile(rf"^\| {TASK} \| [a-z][a-z0-9+\-=._/]* \| (?:-|[0-9,]+) \| ")
 #: ``results/depth/README.md``'s sections, one per task (their rows lack the task column).
 DEPTH_SECTION = re.compile(rf"^## ({TASK}), test persons")
-VERDICT = re.compile(rf"^(?:- )?{TASK}: best (?:reference )?filter at ")
+VERDICT = re.compile(
+    rf"^(?:- )?{TASK}: (?:best (?:reference )?filter at |pf-tree at [0-9,]+ particles against )"
+)
 STILL_ROW = re.compile(
     r"^\| [a-z][a-z0-9+\-]* \| (?:-|[0-9,]+) \| \d+ \(\d+-\d+\) \| \d+\.\d\d \| (?:yes|no) \|$"
 )
@@ -98,6 +101,7 @@ def test_every_verdict_of_the_readme_is_a_recorded_verdict():
     recorded = {line.removeprefix("- ") for line in _table_lines()}
     verdicts = [line for line in _headline_lines() if VERDICT.match(line)]
     assert len(verdicts) > 5
+    assert sum(" against pf-cv at " in line for line in verdicts) == 4  # one per task table
     stray = [line for line in verdicts if line.removeprefix("- ") not in recorded]
     assert not stray, "verdicts not in any results/ table:\n" + "\n".join(stray)
 

@@ -56,6 +56,10 @@ REFERENCE_AGENTS: tuple[str, ...] = (
 )  # fmt: skip
 #: Seed of the bootstrap of ``x hold``'s interval (same rows, same interval).
 INTERVAL_SEED = 0
+#: The classic comparison (Sidenbladh, Black & Sigal 2002): the learned tree
+#: prior at a table's fewest particles against constant velocity at ten times
+#: as many. Where a table has both, :func:`validity_lines` judges it.
+CLASSIC = ("pf-tree", "pf-cv", 10)
 # Clip ids that name their person: CMU's trials (``cmu/02_05``, as BVH
 # conversions name them too) and the synthetic set's (``synthetic/walk-05``).
 _CMU_CLIP = re.compile(r"^cmu/(?:cmu[_-]?)?(\d{1,3})_\d{1,3}")
@@ -204,6 +208,37 @@ def seeds_verdict(best: dict[str, Any], hold: dict[str, Any], particles: int) ->
     )
 
 
+def classic_line(filters: Sequence[dict[str, Any]], fewest: int) -> str | None:
+    """The classic comparison of one task's filter rows (:data:`CLASSIC`), or None.
+
+    The tree prior at ``fewest`` particles against constant velocity at ten
+    times as many, on the same episodes: the ratio of constant velocity's mean
+    error to the tree's (above 1: the tree is better) with its 95% interval
+    (:func:`hold_ratio_interval`, constant velocity in ``hold``'s place), and
+    a verdict from the interval's bounds, not from the means.
+    """
+    learned, plain, factor = CLASSIC
+    tree = next((r for r in filters if r["agent"] == learned and r["particles"] == fewest), None)
+    many = fewest * factor
+    cv = next((r for r in filters if r["agent"] == plain and r["particles"] == many), None)
+    if tree is None or cv is None:
+        return None
+    ratio, _, _ = compare_to_hold(tree, cv)
+    low, high = hold_ratio_interval(tree, cv)
+    if low > 1.0:
+        verdict = f"{learned} better (the interval's lower bound above 1)"
+    elif high < 1.0:
+        verdict = f"{plain} better (the interval's upper bound below 1)"
+    else:
+        verdict = "level within the interval (it spans 1)"
+    return (
+        f"{learned} at {fewest:,} particles against {plain} at {many:,}: {plain}'s mean "
+        f"error is {ratio:.2f}x {learned}'s ({cv['summary']['mean_error_mm']:.0f} vs "
+        f"{tree['summary']['mean_error_mm']:.0f} mm; 95% interval {low:.2f}-{high:.2f}): "
+        f"{verdict}"
+    )
+
+
 def validity_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
     """Per task: does the best particle filter beat ``hold`` by :data:`VALID_RATIO`?
 
@@ -213,8 +248,10 @@ def validity_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
     Where they have several (``agent_seeds`` above 1), on the best of the
     :data:`REFERENCE_AGENTS` that ran, from the lower bound of its ``x hold``
     interval (:func:`seeds_verdict`); no such line where none of them ran.
-    Where :data:`FOLLOW` ran at that count too, a second line compares the best
-    other filter with it: what the motion prior adds to following the body.
+    Where the table has :data:`CLASSIC`'s two cells, a line judges them
+    (:func:`classic_line`). Where :data:`FOLLOW` ran at that count too, a line
+    compares the best other filter with it: what the motion prior adds to
+    following the body.
     """
     out = []
     for task in dict.fromkeys(r["task"] for r in rows):
@@ -243,6 +280,9 @@ def validity_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
                 f"{hold['summary']['mean_error_mm']:.0f} mm), better in {wins}/{paired} paired "
                 f"episodes: {verdict}"
             )
+        classic = classic_line(filters, fewest)
+        if classic is not None:
+            out.append(f"{task}: {classic}")
         follow = next((r for r in at_fewest if r["agent"] == FOLLOW), None)
         priors = [r for r in at_fewest if r["agent"] != FOLLOW]
         if follow is None or not priors:

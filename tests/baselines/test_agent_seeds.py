@@ -195,6 +195,53 @@ def test_the_verdict_is_on_the_reference_agents_alone():
     assert validity_lines([hold, other]) == []
 
 
+def _classic(tree: Any, cv: Any, cv_particles: int = 3000) -> list[str]:
+    """The verdict lines of a table with hold, pf-tree at 300 and pf-cv at ``cv_particles``."""
+    tree_values = np.asarray(tree, dtype=np.float64)
+    rows = [
+        _hold(*tree_values.shape),
+        _row("pf-tree", 300, tree_values),
+        _row("pf-cv", cv_particles, cv),
+    ]
+    return validity_lines(rows)
+
+
+def test_the_classic_comparison_is_judged_on_its_interval():
+    """pf-tree at 300 against pf-cv at 3,000, from the bounds of pf-cv's x pf-tree interval."""
+    tree = np.array([[95.0, 100.0, 105.0]] * 10)
+    best, classic = _classic(tree, tree * 1.5)
+    low, high = hold_ratio_interval(_row("pf-tree", 300, tree), _row("pf-cv", 3000, tree * 1.5))
+    assert best.startswith("ArmTrack-v2: best reference filter at 300 particles is pf-tree")
+    assert classic == (
+        "ArmTrack-v2: pf-tree at 300 particles against pf-cv at 3,000: pf-cv's mean error is "
+        f"1.50x pf-tree's (150 vs 100 mm; 95% interval {low:.2f}-{high:.2f}): pf-tree better "
+        "(the interval's lower bound above 1)"
+    )
+    assert 1.0 < low < 1.5 < high
+    assert _classic(tree, tree * 0.6)[1].endswith(
+        ": pf-cv better (the interval's upper bound below 1)"
+    )
+
+
+def test_a_classic_point_ratio_above_one_spanning_one_is_level():
+    """The mutation test: judged on the means (1.05x), pf-tree would be called better."""
+    tree = np.array([[60.0, 70.0, 80.0], [140.0, 150.0, 160.0]] * 5)
+    cv = np.array([[150.0, 160.0, 170.0], [60.0, 70.0, 80.0]] * 5)
+    low, high = hold_ratio_interval(_row("pf-tree", 300, tree), _row("pf-cv", 3000, cv))
+    assert cv.mean() / tree.mean() > 1.0 and low < 1.0 < high
+    line = _classic(tree, cv)[1]
+    assert f"1.05x pf-tree's (115 vs 110 mm; 95% interval {low:.2f}-{high:.2f})" in line
+    assert line.endswith(": level within the interval (it spans 1)")
+
+
+def test_no_classic_line_without_both_of_its_cells():
+    tree = np.array([[95.0, 100.0, 105.0]] * 4)
+    assert len(_classic(tree, tree * 1.5)) == 2
+    assert len(_classic(tree, tree * 1.5, cv_particles=1000)) == 1  # not ten times as many
+    hold, cv = _hold(4, 3), _row("pf-cv", 3000, tree * 1.5)
+    assert len(validity_lines([hold, _row("pf-mix", 300, tree), cv])) == 1  # no pf-tree
+
+
 # ------------------------------------------------------------ runs
 
 
