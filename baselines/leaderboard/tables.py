@@ -239,6 +239,36 @@ def classic_line(filters: Sequence[dict[str, Any]], fewest: int) -> str | None:
     )
 
 
+def follow_line(priors: Sequence[dict[str, Any]], follow: dict[str, Any], fewest: int) -> str:
+    """How far the best of ``priors`` is ahead of :data:`FOLLOW` at ``fewest`` particles.
+
+    The ratio of the means and the paired episodes won; with several agent
+    seeds also the ratio's 95% interval (:func:`hold_ratio_interval`,
+    :data:`FOLLOW` in ``hold``'s place) and whether its lower bound is above 1.
+    """
+    prior = min(priors, key=lambda r: r["summary"]["mean_error_mm"])
+    ratio, wins, paired = compare_to_hold(prior, follow)
+    means = (
+        f"{prior['summary']['mean_error_mm']:.0f} vs {follow['summary']['mean_error_mm']:.0f} mm"
+    )
+    if seeds_of(prior) > 1:
+        low, high = hold_ratio_interval(prior, follow)
+        ahead = "ahead at the lower bound" if low > 1.0 else "level within the interval"
+        means += f"; 95% interval {low:.2f}-{high:.2f}: {ahead}"
+    won = f"better in {wins}/{paired} paired episodes"
+    label = agent_label(prior["agent"])
+    if ratio > 1.0:
+        return (
+            f"against {FOLLOW} (the body followed, its first articulation held), the best "
+            f"other filter at {fewest:,} particles is {label}, {ratio:.2f}x better in mean "
+            f"error ({means}), {won}"
+        )
+    return (
+        f"no other filter at {fewest:,} particles beats {FOLLOW} in mean error: the best, "
+        f"{label}, {means}, {won}"
+    )
+
+
 def validity_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
     """Per task: does the best particle filter beat ``hold`` by :data:`VALID_RATIO`?
 
@@ -285,26 +315,8 @@ def validity_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
             out.append(f"{task}: {classic}")
         follow = next((r for r in at_fewest if r["agent"] == FOLLOW), None)
         priors = [r for r in at_fewest if r["agent"] != FOLLOW]
-        if follow is None or not priors:
-            continue
-        prior = min(priors, key=lambda r: r["summary"]["mean_error_mm"])
-        ratio, wins, paired = compare_to_hold(prior, follow)
-        means = (
-            f"{prior['summary']['mean_error_mm']:.0f} vs "
-            f"{follow['summary']['mean_error_mm']:.0f} mm"
-        )
-        won = f"better in {wins}/{paired} paired episodes"
-        if ratio > 1.0:
-            out.append(
-                f"{task}: against {FOLLOW} (the body followed, its first articulation held), "
-                f"the best other filter at {fewest:,} particles is {agent_label(prior['agent'])}, "
-                f"{ratio:.2f}x better in mean error ({means}), {won}"
-            )
-        else:
-            out.append(
-                f"{task}: no other filter at {fewest:,} particles beats {FOLLOW} in mean "
-                f"error: the best, {agent_label(prior['agent'])}, {means}, {won}"
-            )
+        if follow is not None and priors:
+            out.append(f"{task}: {follow_line(priors, follow, fewest)}")
     return out
 
 

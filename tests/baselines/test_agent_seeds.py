@@ -242,6 +242,27 @@ def test_no_classic_line_without_both_of_its_cells():
     assert len(validity_lines([hold, _row("pf-mix", 300, tree), cv])) == 1  # no pf-tree
 
 
+def test_several_seeds_give_the_follow_line_its_interval():
+    """pf-follow's line judges the lead at the interval's lower bound, not the means."""
+    hold, mix = _hold(10, 3), _row("pf-mix", 300, [[95.0, 100.0, 105.0]] * 10)
+    clear = _row("pf-follow", 300, [[145.0, 150.0, 155.0]] * 10)
+    spread = np.array([[40.0, 50.0, 60.0], [170.0, 180.0, 190.0]] * 5)  # mean 115: 1.15x
+    noisy = _row("pf-follow", 300, spread)
+    lines = {}
+    for name, follow in (("clear", clear), ("noisy", noisy)):
+        *_, line = validity_lines([hold, mix, follow])
+        low, high = hold_ratio_interval(mix, follow)
+        assert f"; 95% interval {low:.2f}-{high:.2f}: " in line
+        lines[name] = (line, low)
+    assert lines["clear"][1] > 1.0 and lines["clear"][0].endswith(
+        "1.50x better in mean error (100 vs 150 mm; 95% interval "
+        f"{lines['clear'][1]:.2f}-{hold_ratio_interval(mix, clear)[1]:.2f}: ahead at the lower "
+        "bound), better in 30/30 paired episodes"
+    )
+    # The mutation: 1.15x better in the means, but the interval reaches below 1.
+    assert lines["noisy"][1] < 1.0 and ": level within the interval), " in lines["noisy"][0]
+
+
 # ------------------------------------------------------------ runs
 
 
