@@ -106,14 +106,20 @@ def _floor_of(rows: Sequence[dict[str, Any]], task: str) -> dict[str, Any] | Non
 def compare_to_hold(row: dict[str, Any], hold: dict[str, Any]) -> tuple[float, int, int]:
     """``hold``'s mean error over the row's, and the paired episodes the row wins.
 
-    Episodes are paired by seed (every cell runs the same seeds). Any other
-    reference row (``pf-follow``'s) is compared the same way.
+    Episodes are paired by episode seed (every cell runs the same seeds): each
+    of the row's episodes (each agent seed's) against the reference's mean
+    error on that episode over its own agent seeds (``hold``'s are all the
+    same). Any other reference row (``pf-follow``'s) is compared the same way.
 
     Returns:
         ``(ratio, wins, paired)``.
     """
     ratio = hold["summary"]["mean_error_mm"] / row["summary"]["mean_error_mm"]
-    held = {e["seed"]: e["mean_error_mm"] for e in hold["episodes"]}
+    by_seed: dict[Any, list[float]] = {}
+    for e in hold["episodes"]:
+        by_seed.setdefault(e["seed"], []).append(e["mean_error_mm"])
+    held = {seed: values[0] if len(set(values)) == 1 else float(np.mean(values))
+            for seed, values in by_seed.items()}  # fmt: skip
     paired = [(e["mean_error_mm"], held[e["seed"]]) for e in row["episodes"] if e["seed"] in held]
     wins = sum(1 for mine, theirs in paired if mine < theirs)
     return float(ratio), wins, len(paired)

@@ -18,7 +18,12 @@ from baselines.leaderboard import (
 )
 from baselines.leaderboard.evaluation import summarize
 from baselines.leaderboard.stats import seed_matrix, two_level_bootstrap
-from baselines.leaderboard.tables import REFERENCE_AGENTS, VALID_RATIO, hold_ratio_interval
+from baselines.leaderboard.tables import (
+    REFERENCE_AGENTS,
+    VALID_RATIO,
+    compare_to_hold,
+    hold_ratio_interval,
+)
 
 # ------------------------------------------------------------ synthetic rows
 
@@ -261,6 +266,18 @@ def test_several_seeds_give_the_follow_line_its_interval():
     )
     # The mutation: 1.15x better in the means, but the interval reaches below 1.
     assert lines["noisy"][1] < 1.0 and ": level within the interval), " in lines["noisy"][0]
+
+
+def test_paired_wins_take_the_references_mean_over_its_seeds():
+    """Each (episode, seed) against the reference's mean on that episode, not one of its seeds."""
+    follow = _row("pf-follow", 300, [[100.0, 200.0]] * 4)  # 150 on every episode
+    row = _row("pf-mix", 300, [[170.0, 140.0]] * 4)
+    ratio, wins, paired = compare_to_hold(row, follow)
+    assert (wins, paired) == (4, 8)  # 140 < 150 wins, 170 does not
+    # Against the reference's last seed (200) both would win: 8 of 8.
+    assert ratio == pytest.approx(150.0 / 155.0)
+    hold = _hold(4, 2)  # hold's seeds agree: its value itself
+    assert compare_to_hold(row, hold)[1:] == (8, 8)
 
 
 # ------------------------------------------------------------ runs
