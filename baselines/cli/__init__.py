@@ -35,6 +35,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "baselines.cli.detector",  # detector train (the learned 2D keypoint detector)
     "baselines.cli.report",  # report (tables, figures, videos of a saved leaderboard)
     "baselines.cli.compare",  # compare (a rerun against a recorded run, episode by episode)
+    "baselines.cli.ratio",  # ratio (two cells at the interval of their ratio)
     "baselines.cli.sweep",  # sweep (difficulty curves over environment settings)
 )
 

@@ -31,6 +31,7 @@ import numpy as np
 
 from baselines.leaderboard.stats import (
     agent_label,
+    cell_label,
     episode_clips,
     seed_matrix,
     two_level_bootstrap,
@@ -86,7 +87,8 @@ def hold_ratio_interval(
     held, _, reference = seed_matrix(hold["episodes"])
     if held != seeds:
         raise ValueError(
-            f"hold: expected the episode seeds {seeds} of {agent_label(row['agent'])}, got {held}"
+            f"{cell_label(hold)}: expected the episode seeds {seeds} of {cell_label(row)}, "
+            f"got {held}"
         )
     clusters = None
     if row.get("summary", {}).get("intervals") == "clip":  # a declared list: resample clips
@@ -214,6 +216,19 @@ def seeds_verdict(best: dict[str, Any], hold: dict[str, Any], particles: int) ->
     )
 
 
+def ratio_verdict(low: float, high: float, first: str, second: str) -> str:
+    """The verdict on ``second``'s mean error over ``first``'s from its interval's bounds.
+
+    ``first`` is better where the lower bound is above 1, ``second`` where the
+    upper bound is below 1; otherwise the two are level within the interval.
+    """
+    if low > 1.0:
+        return f"{first} better (the interval's lower bound above 1)"
+    if high < 1.0:
+        return f"{second} better (the interval's upper bound below 1)"
+    return "level within the interval (it spans 1)"
+
+
 def classic_line(filters: Sequence[dict[str, Any]], fewest: int) -> str | None:
     """The classic comparison of one task's filter rows (:data:`CLASSIC`), or None.
 
@@ -231,12 +246,7 @@ def classic_line(filters: Sequence[dict[str, Any]], fewest: int) -> str | None:
         return None
     ratio, _, _ = compare_to_hold(tree, cv)
     low, high = hold_ratio_interval(tree, cv)
-    if low > 1.0:
-        verdict = f"{learned} better (the interval's lower bound above 1)"
-    elif high < 1.0:
-        verdict = f"{plain} better (the interval's upper bound below 1)"
-    else:
-        verdict = "level within the interval (it spans 1)"
+    verdict = ratio_verdict(low, high, learned, plain)
     return (
         f"{learned} at {fewest:,} particles against {plain} at {many:,}: {plain}'s mean "
         f"error is {ratio:.2f}x {learned}'s ({cv['summary']['mean_error_mm']:.0f} vs "

@@ -1,0 +1,107 @@
+"""``humotion-gym ratio``: two cells' mean errors compared at the interval of their ratio.
+
+::
+
+    humotion-gym ratio --task ArmTrack-v2 --cells pf-tree+bc@300 pf-tree@300
+        results/v2_learned_arm_side/results.json.gz results/v2_arm/results.json.gz
+
+(one command line).
+
+The cells may come from different saved leaderboards that ran the same episodes
+(the same declared list, or the same episode seeds); their ratio's interval
+resamples those episodes together, as ``x hold``'s does.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from humotion_gym.cli._common import CommandError, add_command, add_json, print_json
+
+CELL_FORMAT = "AGENT@PARTICLES, or AGENT for an agent without particles (hold, bc)"
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``ratio``."""
+    rp = add_command(
+        subparsers,
+        "ratio",
+        "two cells' mean errors compared at the 95% interval of their ratio",
+        "humotion-gym ratio --task BodyTrack-v2 --cells pf-tree@300 pf-cv@3000 "
+        "results/v2_body/results.json.gz",
+        details="Prints the second cell's mean error over the first's (above 1: the first "
+        "is better), its 95% interval (the episodes, or the clips of a declared list, "
+        "resampled together, then each cell's agent seeds within them: the interval of "
+        "x hold with the second cell in hold's place), and the verdict from the "
+        "interval's bounds. The cells may come from several saved leaderboards that ran "
+        "the same episodes.",
+    )
+    rp.add_argument(
+        "results", type=Path, nargs="+",
+        help="saved leaderboards (results.json or .json.gz) holding the two cells",
+    )  # fmt: skip
+    rp.add_argument("--task", required=True, help="the task both cells ran (e.g. BodyTrack-v2)")
+    rp.add_argument(
+        "--cells", nargs=2, required=True, metavar="CELL", help=f"the two cells: {CELL_FORMAT}"
+    )
+    add_json(rp, "print one JSON object instead of the line")
+    rp.set_defaults(func=_cmd_ratio)
+
+
+def _cmd_ratio(args: argparse.Namespace) -> int:
+    from baselines.leaderboard.report import leaderboard_rows, read_json
+    from baselines.leaderboard.stats import cell_label
+    from baselines.leaderboard.tables import compare_to_hold, hold_ratio_interval, ratio_verdict
+
+    cells: dict[str, dict[str, Any]] = {}
+    for path in args.results:
+        try:
+            rows, _ = leaderboard_rows(read_json(path), path)
+        except ValueError as exc:
+            raise CommandError(str(exc)) from None
+        except OSError as exc:
+            raise CommandError(f"{path}: {exc}") from None
+        for row in rows:
+            if row["task"] == args.task and "summary" in row:
+                cells.setdefault(cell_label(row), row)  # the first file that has it
+    missing = [c for c in args.cells if c not in cells]
+    if missing:
+        known = ", ".join(sorted(cells)) or "none"
+        raise CommandError(
+            f"--cells: no cell {missing[0]!r} of {args.task} that ran in the files "
+            f"(expected {CELL_FORMAT}); the cells there: {known}"
+        )
+    first, second = (cells[c] for c in args.cells)
+    shown = [_episodes_shown(row) for row in (first, second)]
+    if shown[0] != shown[1]:
+        raise CommandError(
+            f"--cells: {args.cells[0]} and {args.cells[1]} did not run the same episodes "
+            "(episode seeds with their clips and start frames differ): their ratio pairs "
+            "nothing"
+        )
+    try:
+        ratio, _, _ = compare_to_hold(first, second)
+        low, high = hold_ratio_interval(first, second)
+    except ValueError as exc:
+        raise CommandError(f"--cells: {exc}") from None
+    a, b = args.cells
+    verdict = ratio_verdict(low, high, a, b)
+    means = (first["summary"]["mean_error_mm"], second["summary"]["mean_error_mm"])
+    if args.json:
+        print_json(
+            {"task": args.task, "cells": [a, b], "mean_error_mm": list(means),
+             "ratio": ratio, "interval": [low, high], "verdict": verdict}
+        )  # fmt: skip
+        return 0
+    print(
+        f"{args.task}: {b}'s mean error over {a}'s is {ratio:.2f}x ({means[1]:.0f} vs "
+        f"{means[0]:.0f} mm; 95% interval {low:.2f}-{high:.2f}): {verdict}"
+    )
+    return 0
+
+
+def _episodes_shown(row: dict[str, Any]) -> dict[int, tuple[Any, Any]]:
+    """Each episode seed of a cell with the clip and start frame it showed."""
+    return {int(e["seed"]): (e.get("clip_id"), e.get("start_frame")) for e in row["episodes"]}

@@ -1,0 +1,82 @@
+"""``humotion-gym ratio``: two recorded cells compared at the interval of their ratio.
+
+It must give the leaderboard's own classic line for a table's two cells, compare
+cells of two files that ran the same declared episodes, and refuse, in one line,
+cells it cannot find or cells that ran different episodes.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from baselines.cli import main
+
+RESULTS = Path(__file__).resolve().parents[2] / "results"
+BODY = RESULTS / "v2_body" / "results.json.gz"
+
+
+def test_it_gives_the_tables_classic_line(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["ratio", "--task", "BodyTrack-v2", "--cells", "pf-tree@300", "pf-cv@3000",
+                 str(BODY)]) == 0  # fmt: skip
+    out = capsys.readouterr().out.strip()
+    table = (RESULTS / "v2_body" / "table.md").read_text(encoding="utf-8")
+    (line,) = [x for x in table.splitlines() if " against pf-cv at 3,000: " in x]
+    numbers = re.search(
+        r"is ([0-9.]+)x pf-tree's \((\d+) vs (\d+) mm; 95% interval ([0-9.-]+)\)", line
+    )
+    assert numbers is not None
+    ratio, cv, tree, interval = numbers.groups()
+    assert out == (
+        f"BodyTrack-v2: pf-cv@3000's mean error over pf-tree@300's is {ratio}x ({cv} vs {tree} "
+        f"mm; 95% interval {interval}): level within the interval (it spans 1)"
+    )
+
+
+def test_cells_of_two_files_and_json(capsys: pytest.CaptureFixture[str]) -> None:
+    argv = ["ratio", "--task", "ArmTrack-v2", "--cells", "pf-tree+bc@300", "pf-tree@300",
+            str(RESULTS / "v2_learned_arm_side" / "results.json.gz"),
+            str(RESULTS / "v2_arm" / "results.json.gz")]  # fmt: skip
+    assert main([*argv, "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    low, high = result["interval"]
+    assert result["cells"] == ["pf-tree+bc@300", "pf-tree@300"]
+    assert 1.0 < low < result["ratio"] < high
+    assert result["ratio"] == pytest.approx(result["mean_error_mm"][1] / result["mean_error_mm"][0])
+    assert result["verdict"] == "pf-tree+bc@300 better (the interval's lower bound above 1)"
+
+
+@pytest.mark.parametrize(
+    "cells, files, message",
+    [
+        (["pf-tree@30", "pf-cv@3000"], [BODY], "no cell 'pf-tree@30' of BodyTrack-v2"),
+        (["pf-tree@300", "pf-tree@100"], [BODY, RESULTS / "ci_small" / "results.json.gz"],
+         "no cell 'pf-tree@100' of BodyTrack-v2"),
+        (["pf-tree@300", "pf-cv@3000"], [RESULTS / "missing.json.gz"], "missing.json.gz"),
+    ],
+)  # fmt: skip
+def test_what_it_cannot_compare_is_one_line(
+    cells: list[str], files: list[Path], message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    argv = ["ratio", "--task", "BodyTrack-v2", "--cells", *cells, *map(str, files)]
+    assert main(argv) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("humotion-gym ratio: error:") and message in err
+    assert len(err.splitlines()) == 1
+
+
+def test_cells_that_ran_other_episodes_are_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    argv = ["ratio", "--task", "ArmTrack-v2", "--cells", "pf-tree@300", "pf-tree@100",
+            str(RESULTS / "v2_arm" / "results.json.gz"),
+            str(RESULTS / "ci_small" / "results.json.gz")]  # fmt: skip
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert "did not run the same episodes" in err and "Traceback" not in err
+
+
+def test_it_needs_two_cells(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["ratio", "--task", "BodyTrack-v2", str(BODY), "--cells", "pf-tree@300"]) == 2
+    assert "--cells: expected 2 arguments" in capsys.readouterr().err
