@@ -233,6 +233,10 @@ HAND: list[tuple[str, str, list[str]]] = [
     ("wrong-type", "data info", ["data", "info", "{clash_a}", "{clash_b}"]),
     ("empty", "data", ["data"]),
     ("wrong-type", "(top)", ["nosuch"]),
+    ("missing", "ratio", ["ratio", "--task", "ArmTrack-v2", "--cells", "a", "b", "{ws}/nope.json"]),
+    ("non-mocap", "ratio", ["ratio", "--task", "ArmTrack-v2", "--cells", "a", "b", "{notes}"]),
+    ("missing", "ratio", ["ratio", "--task", "ArmTrack-v2", "--cells", "hold", "x", "{rows}"]),
+    ("empty", "ratio", ["ratio", "--task", "ArmTrack-v2", "{rows}", "--cells", "hold"]),
 ]
 
 CASES = _generated() + HAND
