@@ -236,7 +236,11 @@ def classic_line(filters: Sequence[dict[str, Any]], fewest: int) -> str | None:
     times as many, on the same episodes: the ratio of constant velocity's mean
     error to the tree's (above 1: the tree is better) with its 95% interval
     (:func:`hold_ratio_interval`, constant velocity in ``hold``'s place), and
-    a verdict from the interval's bounds, not from the means.
+    a verdict from the interval's bounds, not from the means. Where constant
+    velocity also ran at ``fewest``, the same against it, and whether the
+    classic result is shown: the tree better than constant velocity at
+    ``fewest`` (lower bound above 1) and not worse than it at ten times as
+    many (upper bound at least 1).
     """
     learned, plain, factor = CLASSIC
     tree = next((r for r in filters if r["agent"] == learned and r["particles"] == fewest), None)
@@ -246,12 +250,23 @@ def classic_line(filters: Sequence[dict[str, Any]], fewest: int) -> str | None:
         return None
     ratio, _, _ = compare_to_hold(tree, cv)
     low, high = hold_ratio_interval(tree, cv)
-    verdict = ratio_verdict(low, high, learned, plain)
-    return (
+    line = (
         f"{learned} at {fewest:,} particles against {plain} at {many:,}: {plain}'s mean "
         f"error is {ratio:.2f}x {learned}'s ({cv['summary']['mean_error_mm']:.0f} vs "
         f"{tree['summary']['mean_error_mm']:.0f} mm; 95% interval {low:.2f}-{high:.2f}): "
-        f"{verdict}"
+        f"{ratio_verdict(low, high, learned, plain)}"
+    )
+    few = next((r for r in filters if r["agent"] == plain and r["particles"] == fewest), None)
+    if few is None:
+        return line
+    ratio2, _, _ = compare_to_hold(tree, few)
+    low2, high2 = hold_ratio_interval(tree, few)
+    shown = "shown" if low2 > 1.0 and high >= 1.0 else "not shown"
+    return (
+        f"{line}; against {plain} at {fewest:,}: {ratio2:.2f}x "
+        f"({few['summary']['mean_error_mm']:.0f} mm; 95% interval {low2:.2f}-{high2:.2f}): "
+        f"{ratio_verdict(low2, high2, learned, plain)}; the classic result ({learned} better "
+        f"than {plain} at {fewest:,} and no worse than at {many:,}): {shown}"
     )
 
 

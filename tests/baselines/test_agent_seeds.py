@@ -239,6 +239,25 @@ def test_a_classic_point_ratio_above_one_spanning_one_is_level():
     assert line.endswith(": level within the interval (it spans 1)")
 
 
+def test_the_classic_result_is_shown_only_at_both_bounds():
+    """Shown where the tree beats pf-cv at 300 at the bound and pf-cv at 3,000 is not better."""
+    tree = np.array([[95.0, 100.0, 105.0]] * 10)
+    hold = _hold(10, 3)
+
+    def line(few: Any, many: Any) -> str:
+        rows = [hold, _row("pf-tree", 300, tree), _row("pf-cv", 300, few),
+                _row("pf-cv", 3000, many)]  # fmt: skip
+        return validity_lines(rows)[1]
+
+    shown = line(tree * 1.5, tree)  # better than 300, level with 3,000
+    assert "; against pf-cv at 300: 1.50x (150 mm; 95% interval " in shown
+    assert shown.endswith(": shown")
+    # The mutations: level with pf-cv at 300, or behind pf-cv at 3,000.
+    spread = np.array([[60.0, 70.0, 80.0], [140.0, 150.0, 160.0]] * 5)
+    assert line(spread, tree).endswith(": not shown")
+    assert line(tree * 1.5, tree * 0.6).endswith(": not shown")
+
+
 def test_no_classic_line_without_both_of_its_cells():
     tree = np.array([[95.0, 100.0, 105.0]] * 4)
     assert len(_classic(tree, tree * 1.5)) == 2
