@@ -5,7 +5,10 @@ with its interval, the IQM, the pelvis-aligned error, the ratio ``x hold`` (the
 ratio of ``hold``'s mean error to the row's: above 1 better than doing nothing)
 and the paired episodes it beats ``hold`` on. :func:`validity_lines` says per
 task whether the best particle filter beats ``hold`` clearly
-(:data:`VALID_RATIO`). Agents are shown by their short label
+(:data:`VALID_RATIO`) and, where the table has the cells, judges the classic
+comparison of the tree prior with constant velocity (:func:`classic_line`) and
+the best prior's lead over ``pf-follow`` (:func:`follow_line`), each from the
+bounds of its ratio's interval (:func:`ratio_verdict`). Agents are shown by their short label
 (:func:`~baselines.leaderboard.stats.agent_label`: ``mine`` for
 ``mine=runs/x/model.zip``).
 
