@@ -114,6 +114,22 @@ def test_every_help_example_parses(parser: argparse.ArgumentParser) -> None:
     assert broken == []
 
 
+def test_the_architecture_page_names_every_command(parser: argparse.ArgumentParser) -> None:
+    """docs/architecture.md's two ``cli`` rows list every top-level command, each once."""
+    rows = [
+        line for line in (ROOT / "docs" / "architecture.md").read_text().splitlines()
+        if line.startswith("| cli |")
+    ]  # fmt: skip
+    # Each row's list ends where its sentence does (before "(" or ". ").
+    lists = [re.split(r" \(|\. ", row.split("|")[3], maxsplit=1)[0] for row in rows]
+    named = [n for text in lists for n in re.findall(r"`([a-z][a-z-]*)`", text)]
+    commands = {
+        name for action in parser._actions
+        if isinstance(action, argparse._SubParsersAction) for name in action.choices
+    }  # fmt: skip
+    assert len(rows) == 2 and sorted(named) == sorted(commands)
+
+
 @pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
 def test_every_command_of_a_page_parses(page: Path, parser: argparse.ArgumentParser) -> None:
     assert broken_commands(page, parser) == []
