@@ -51,14 +51,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_ratio(args: argparse.Namespace) -> int:
-    from baselines.leaderboard.report import leaderboard_rows, read_json
+    from baselines.leaderboard.report import load_rows
     from baselines.leaderboard.stats import cell_label
     from baselines.leaderboard.tables import compare_to_hold, hold_ratio_interval, ratio_verdict
 
     cells: dict[str, dict[str, Any]] = {}
     for path in args.results:
         try:
-            rows, _ = leaderboard_rows(read_json(path), path)
+            rows, _ = load_rows(path)
         except ValueError as exc:
             raise CommandError(str(exc)) from None
         except OSError as exc:
