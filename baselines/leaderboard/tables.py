@@ -278,7 +278,8 @@ def follow_line(priors: Sequence[dict[str, Any]], follow: dict[str, Any], fewest
 
     The ratio of the means and the paired episodes won; with several agent
     seeds also the ratio's 95% interval (:func:`hold_ratio_interval`,
-    :data:`FOLLOW` in ``hold``'s place) and whether its lower bound is above 1.
+    :data:`FOLLOW` in ``hold``'s place): ahead where its lower bound is above 1,
+    behind where its upper bound is below 1, level otherwise.
     """
     prior = min(priors, key=lambda r: r["summary"]["mean_error_mm"])
     ratio, wins, paired = compare_to_hold(prior, follow)
@@ -287,7 +288,12 @@ def follow_line(priors: Sequence[dict[str, Any]], follow: dict[str, Any], fewest
     )
     if seeds_of(prior) > 1:
         low, high = hold_ratio_interval(prior, follow)
-        ahead = "ahead at the lower bound" if low > 1.0 else "level within the interval"
+        # ratio_verdict's three cases, worded for a lead over the reference.
+        ahead = (
+            "ahead at the lower bound" if low > 1.0
+            else "behind at the upper bound" if high < 1.0
+            else "level within the interval"
+        )  # fmt: skip
         means += f"; 95% interval {low:.2f}-{high:.2f}: {ahead}"
     won = f"better in {wins}/{paired} paired episodes"
     label = agent_label(prior["agent"])

@@ -285,6 +285,10 @@ def test_several_seeds_give_the_follow_line_its_interval():
     )
     # The mutation: 1.15x better in the means, but the interval reaches below 1.
     assert lines["noisy"][1] < 1.0 and ": level within the interval), " in lines["noisy"][0]
+    # Behind pf-follow at the interval's upper bound: not "level".
+    (*_, behind) = validity_lines([hold, mix, _row("pf-follow", 300, [[65.0, 70.0, 75.0]] * 10)])
+    assert behind.startswith("ArmTrack-v2: no other filter at 300 particles beats pf-follow")
+    assert ": behind at the upper bound, better in 0/30 paired episodes" in behind
 
 
 def test_paired_wins_take_the_references_mean_over_its_seeds():
