@@ -475,6 +475,57 @@ def test_strongest_gradients_and_bins_follow_their_definitions() -> None:
     assert np.array_equal(held, (want == 0).any(axis=(1, 2)))
 
 
+def _boxes_frame(rng: np.random.Generator, inside: bool) -> np.ndarray:
+    """A blurred 64x80 colour frame of six boxes: all inside, or some cut by the border."""
+    img = np.full((64, 80, 3), 90, np.uint8)
+    for _ in range(6):
+        x0 = int(rng.integers(8, 40) if inside else rng.integers(-20, 70))
+        y0 = int(rng.integers(8, 26) if inside else rng.integers(-20, 56))
+        size = (int(rng.integers(8, 30)), int(rng.integers(8, 30)))
+        color = tuple(int(c) for c in rng.integers(0, 256, 3))
+        cv2.rectangle(img, (x0, y0), (x0 + size[0], y0 + size[1]), color, -1)
+    return cv2.GaussianBlur(img, (0, 0), 1.0)
+
+
+def _orientation_bins(
+    smooth: np.ndarray, edges: np.ndarray, n_bins: int, border: int
+) -> np.ndarray:
+    """Per edge pixel, its Sobel gradient's orientation bins, one pixel at a time."""
+    h, w, c = smooth.shape
+    dx = cv2.Sobel(smooth, cv2.CV_16S, 1, 0, ksize=3, borderType=border).reshape(h, w, c)
+    dy = cv2.Sobel(smooth, cv2.CV_16S, 0, 1, ksize=3, borderType=border).reshape(h, w, c)
+    bins = np.full((n_bins, h, w), 255, np.uint8)
+    for y, x in zip(*np.nonzero(edges), strict=True):
+        strength = [int(dx[y, x, k]) ** 2 + int(dy[y, x, k]) ** 2 for k in range(c)]
+        k = strength.index(max(strength))
+        theta = np.arctan2(np.float32(dy[y, x, k]), np.float32(dx[y, x, k]))
+        lo = math.floor(np.mod(theta, np.float32(np.pi)) * np.float32(n_bins / np.pi)) % n_bins
+        bins[lo, y, x] = bins[(lo + 1) % n_bins, y, x] = 0
+    return bins
+
+
+def test_orientation_bins_read_the_default_border_gradient() -> None:
+    # Each edge pixel's bins come from the strongest channel's Sobel gradient
+    # with OpenCV's default (reflected) border, whether or not an edge lies on
+    # the image's outermost pixels, where Canny's replicated border differs. The
+    # replicated gradient's bins differ on some frames (the check can fail).
+    rng = np.random.default_rng(12)
+    on_border = differs = 0
+    for inside in [True] * 10 + [False] * 10:
+        smooth = _boxes_frame(rng, inside)
+        edges, bins, found = features.oriented_edges(smooth, 20.0, 60.0, 4)
+        ys, xs = np.nonzero(edges)
+        touches = bool(np.any((xs == 0) | (ys == 0) | (xs == 79) | (ys == 63)))
+        assert touches != inside
+        on_border += touches
+        want = _orientation_bins(smooth, edges, 4, cv2.BORDER_REFLECT_101)
+        assert np.array_equal(bins, want)
+        assert np.array_equal(found, (want == 0).any(axis=(1, 2)))
+        replicated = _orientation_bins(smooth, edges, 4, cv2.BORDER_REPLICATE)
+        differs += not np.array_equal(replicated, want)
+    assert on_border == 10 and differs > 0
+
+
 @pytest.mark.parametrize("box", [(0, 5, 0, 6), (1, 4, 2, 5), (0, 0, 0, 0)])
 def test_edge_foreground_bytes_follow_their_definition(box: tuple[int, int, int, int]) -> None:
     # Per entry of the padded maps, in float32 scalars and the formula's order:

@@ -203,10 +203,14 @@ def oriented_edges(
     if n_bins == 1:
         bins[0, ys, xs] = 0
         return edges, bins, np.ones(1, bool)
-    # A 3x3 Sobel of bytes is an integer below 2**10: int16 holds it exactly.
-    dx = cv2.Sobel(smooth, cv2.CV_16S, 1, 0, ksize=3).reshape(h, w, channels)
-    dy = cv2.Sobel(smooth, cv2.CV_16S, 0, 1, ksize=3).reshape(h, w, channels)
-    gx, gy = strongest_gradients(dx, dy, xs, ys)
+    # The orientation reads the gradient with OpenCV's default border
+    # (reflected, not replicated). Only the outermost pixels see the border,
+    # so Canny's derivatives serve unless an edge lies there. A 3x3 Sobel of
+    # bytes is an integer below 2**10: int16 holds it exactly.
+    if xs.min() == 0 or ys.min() == 0 or xs.max() == w - 1 or ys.max() == h - 1:
+        dx = cv2.Sobel(smooth, cv2.CV_16S, 1, 0, ksize=3)
+        dy = cv2.Sobel(smooth, cv2.CV_16S, 0, 1, ksize=3)
+    gx, gy = strongest_gradients(dx.reshape(h, w, channels), dy.reshape(h, w, channels), xs, ys)
     theta = np.arctan2(gy, gx)  # float32: the gradient = outline normal
     return edges, bins, mark_bins(np.mod(theta, np.pi) * (n_bins / np.pi), xs, ys, bins)
 

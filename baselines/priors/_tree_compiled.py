@@ -250,12 +250,10 @@ def sample_exact(
 
 @_njit()
 def replay(
-    next_step: FloatArray,
-    chosen: IntArray,
+    steps: FloatArray,
+    ends: FloatArray,
     pose: FloatArray,
     velocity: NDArray[np.bool_],
-    frames: NDArray[Any],
-    window_end: IntArray,
     speed: FloatArray,
     root: NDArray[np.intp],
     cos_sin: FloatArray,
@@ -265,23 +263,24 @@ def replay(
 ) -> FloatArray:
     """The chosen windows' next steps replayed from the particles' poses.
 
-    Per particle ``p``: the step ``next_step[chosen[p]]``; where
-    ``velocity[j]``, plus ``pose[p, j] - frames[window_end[chosen[p]], j]``
-    (the parameter moves by the database's velocity from the particle's own
-    pose);
-    root x and y (``root = [x, y]`` columns; empty: not turned) times the
-    particle's speed (``speed`` empty: none); plus ``noise_std * N(0, 1)``
-    (``noise_std`` empty: no noise). Then the relative parameters move by the
-    step from the pose, root x and y turned by the pose's heading, and the
-    absolute ones take it.
+    Per particle ``p``: the step ``steps[p]``; where ``velocity[j]``, plus
+    ``pose[p, j] - ends[p, j]`` (the parameter moves by the database's
+    velocity from the particle's own pose); root x and y (``root = [x, y]``
+    columns; empty: not turned) times the particle's speed (``speed`` empty:
+    none); plus ``noise_std * N(0, 1)`` (``noise_std`` empty: no noise). Then
+    the relative parameters move by the step from the pose, root x and y
+    turned by the pose's heading, and the absolute ones take it.
+
+    The caller gathers each particle's rows of the database beforehand
+    (``np.take``): a gather's reads are independent of each other and overlap,
+    where this loop, between its random draws, would wait on each row.
 
     Args:
-        next_step: ``(n, D)`` the state that followed each window.
-        chosen: ``(N,)`` each particle's window.
+        steps: ``(N, D)`` the state that followed each particle's window.
+        ends: ``(N, D)`` the last pose of each particle's window (read only
+            where ``velocity``; may be empty where none is).
         pose: ``(N, D)`` the particles' poses.
         velocity: ``(D,)`` the parameters replayed by velocity.
-        frames: ``(M, D)`` the database's poses.
-        window_end: ``(n,)`` each window's last frame in ``frames``.
         speed: ``(N,)`` the particles' speeds, or empty.
         root: Root x and y columns, or empty.
         cos_sin: ``(2, N)`` the cosines and sines of the particles' headings
@@ -297,11 +296,10 @@ def replay(
     out_pose = np.empty((n, dim))
     step = np.empty(dim)
     for p in range(n):
-        w = chosen[p]
         for j in range(dim):
-            step[j] = next_step[w, j]
+            step[j] = steps[p, j]
             if velocity[j]:
-                step[j] += pose[p, j] - frames[window_end[w], j]
+                step[j] += pose[p, j] - ends[p, j]
         if speed.size:
             step[root[0]] *= speed[p]
             step[root[1]] *= speed[p]

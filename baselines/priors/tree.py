@@ -527,13 +527,15 @@ def _replay(
         heading = state.pose[:, lay.relative[lay.rel_yaw]]
         cos_sin = np.stack([np.cos(heading), np.sin(heading)])
     none = np.zeros(0)
+    steps = np.take(fitted.next_step, chosen, axis=0)
+    ends = none.reshape(0, 0)
+    if velocity.any():
+        ends = np.take(fitted.frames, np.take(fitted.window_end, chosen), axis=0)
     return compiled.replay(
-        fitted.next_step,
-        chosen,
+        steps,
+        ends,
         np.ascontiguousarray(state.pose, dtype=np.float64),
         velocity,
-        fitted.frames,
-        fitted.window_end,
         none if speed is None else speed,
         root,
         cos_sin,
