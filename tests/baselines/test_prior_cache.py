@@ -12,7 +12,6 @@ import importlib
 import json
 import shutil
 import warnings
-import zipfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -26,6 +25,7 @@ from baselines import agents as agents_mod
 from baselines.agents import AGENTS, fit_prior
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 from humotion_gym.mocap.library import CacheWarning
+from tests.cache_corruptions import FILE_CORRUPTIONS, flip_stored_byte
 
 # The plain constant-velocity prior (no registered settings): its fit defaults are the key's.
 SPEC = agents_mod.AgentSpec(AGENTS["pf-cv"].prior)
@@ -80,25 +80,9 @@ def _no_warning_fit(env: PoseTrackingEnv, cache: Path, monkeypatch) -> Any:
 # -- the corruptions ---------------------------------------------------------------------
 
 
-def _truncate(path: Path, ctx: dict) -> None:
-    raw = path.read_bytes()
-    path.write_bytes(raw[: len(raw) // 2])
-
-
-def _zero_length(path: Path, ctx: dict) -> None:
-    path.write_bytes(b"")
-
-
 def _flip_byte(path: Path, ctx: dict) -> None:
     """Flip one byte inside the stored data of the accel_std array."""
-    raw = bytearray(path.read_bytes())
-    with zipfile.ZipFile(path) as zf:
-        info = zf.getinfo("accel_std.npy")
-    offset = info.header_offset
-    name_len = int.from_bytes(raw[offset + 26 : offset + 28], "little")
-    extra_len = int.from_bytes(raw[offset + 28 : offset + 30], "little")
-    raw[offset + 30 + name_len + extra_len + info.compress_size - 3] ^= 0xFF
-    path.write_bytes(bytes(raw))
+    flip_stored_byte(path, "accel_std.npy", -3)
 
 
 def _npy_in_place(path: Path, ctx: dict) -> None:
@@ -147,17 +131,6 @@ def _other_kind(path: Path, ctx: dict) -> None:
     _rewrite(path, change)
 
 
-def _empty_directory(path: Path, ctx: dict) -> None:
-    path.unlink()
-    path.mkdir()
-
-
-def _full_directory(path: Path, ctx: dict) -> None:
-    path.unlink()
-    path.mkdir()
-    (path / "someone's file").write_text("keep me")
-
-
 def _other_settings(path: Path, ctx: dict) -> None:
     """The entry of a fit with other settings, copied over this one's name."""
     _fit(ctx["env"], ctx["cache"], multiplier=2.0)
@@ -179,16 +152,13 @@ def _other_version(path: Path, ctx: dict) -> None:
 
 
 CORRUPTIONS: dict[str, Callable[[Path, dict], None]] = {
-    "truncated": _truncate,
-    "zero-length": _zero_length,
+    **FILE_CORRUPTIONS,
     "flipped-byte": _flip_byte,
     "npy-in-place": _npy_in_place,
     "header-wrong-types": _header_wrong_types,
     "header-not-an-object": _header_not_an_object,
     "arrays-wrong-dtypes": _arrays_wrong_dtypes,
     "other-kind": _other_kind,
-    "empty-directory": _empty_directory,
-    "full-directory": _full_directory,
     "other-settings": _other_settings,
     "other-version": _other_version,
 }

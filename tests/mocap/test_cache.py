@@ -10,7 +10,6 @@ import json
 import shutil
 import threading
 import warnings
-import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -28,6 +27,7 @@ from humotion_gym.mocap.library import (
     synthetic_library,
 )
 from humotion_gym.mocap.motion import Motion
+from tests.cache_corruptions import FILE_CORRUPTIONS, flip_stored_byte
 
 FRAMES = 40
 
@@ -81,26 +81,9 @@ def _no_warning_load(data: Path, cache: Path, monkeypatch) -> MotionLibrary:
 # -- the corruptions: each turns a good entry at ``path`` into a bad one --------------
 
 
-def _truncate(path: Path, ctx: dict) -> None:
-    raw = path.read_bytes()
-    path.write_bytes(raw[: len(raw) // 2])
-
-
-def _zero_length(path: Path, ctx: dict) -> None:
-    path.write_bytes(b"")
-
-
 def _flip_byte(path: Path, ctx: dict) -> None:
     """Flip one byte inside the compressed data of the params array."""
-    raw = bytearray(path.read_bytes())
-    with zipfile.ZipFile(path) as zf:
-        info = zf.getinfo("params.npy")
-    offset = info.header_offset
-    name_len = int.from_bytes(raw[offset + 26 : offset + 28], "little")
-    extra_len = int.from_bytes(raw[offset + 28 : offset + 30], "little")
-    start = offset + 30 + name_len + extra_len
-    raw[start + info.compress_size // 2] ^= 0xFF
-    path.write_bytes(bytes(raw))
+    flip_stored_byte(path, "params.npy")
 
 
 def _npy_in_place(path: Path, ctx: dict) -> None:
@@ -142,17 +125,6 @@ def _arrays_changed_under_header(path: Path, ctx: dict) -> None:
     _rewrite(path, change)
 
 
-def _empty_directory(path: Path, ctx: dict) -> None:
-    path.unlink()
-    path.mkdir()
-
-
-def _full_directory(path: Path, ctx: dict) -> None:
-    path.unlink()
-    path.mkdir()
-    (path / "someone's file").write_text("keep me")
-
-
 def _other_clip(path: Path, ctx: dict) -> None:
     shutil.copyfile(_entry(ctx["data"], ctx["cache"], "take_b"), path)
 
@@ -170,15 +142,12 @@ def _other_version(path: Path, ctx: dict) -> None:
 
 
 CORRUPTIONS: dict[str, Callable[[Path, dict], None]] = {
-    "truncated": _truncate,
-    "zero-length": _zero_length,
+    **FILE_CORRUPTIONS,
     "flipped-byte": _flip_byte,
     "npy-in-place": _npy_in_place,
     "header-wrong-types": _header_wrong_types,
     "arrays-wrong-dtypes": _arrays_wrong_dtypes,
     "arrays-changed": _arrays_changed_under_header,
-    "empty-directory": _empty_directory,
-    "full-directory": _full_directory,
     "other-clip": _other_clip,
     "other-version": _other_version,
 }
