@@ -37,8 +37,17 @@ class TargetHistory(NamedTuple):
     runs: int
 
 
-def read_runs(path: Path) -> list[dict[str, str]]:
-    """The CSV's rows, checked.
+class Run(NamedTuple):
+    """One row of the runs' file: a target's value in one summary run."""
+
+    run: int
+    target: str
+    value: float
+    met: bool
+
+
+def read_runs(path: Path) -> list[Run]:
+    """The CSV's rows, read and checked.
 
     Raises:
         ValueError: Naming the file and line, for a missing column, a run
@@ -51,10 +60,10 @@ def read_runs(path: Path) -> list[dict[str, str]]:
         if missing:
             raise ValueError(f"{path}: expected the columns {list(COLUMNS)}, missing {missing}")
         rows = list(reader)
+    runs = []
     for line, row in enumerate(rows, start=2):
         try:
-            int(row["run"])
-            float(row["value"])
+            run, value = int(row["run"]), float(row["value"])
         except (TypeError, ValueError):
             raise ValueError(
                 f"{path}, line {line}: run must be an integer and value a number, got "
@@ -62,26 +71,24 @@ def read_runs(path: Path) -> list[dict[str, str]]:
             ) from None
         if row["met"] not in ("yes", "no"):
             raise ValueError(f"{path}, line {line}: met must be yes or no, got {row['met']!r}")
-    return rows
+        runs.append(Run(run, row["target"], value, row["met"] == "yes"))
+    return runs
 
 
-def history(rows: list[dict[str, str]], since: int = 0) -> list[TargetHistory]:
+def history(rows: list[Run], since: int = 0) -> list[TargetHistory]:
     """Per target (in the order of its first row), its runs numbered ``since`` or later."""
-    kept: dict[str, list[tuple[int, float, bool]]] = {}
+    kept: dict[str, list[Run]] = {}
     for row in rows:
-        run = int(row["run"])
-        if run >= since:
-            kept.setdefault(row["target"], []).append(
-                (run, float(row["value"]), row["met"] == "yes")
-            )
+        if row.run >= since:
+            kept.setdefault(row.target, []).append(row)
     out = []
     for target, entries in kept.items():
-        values = [value for _, value, _ in entries]
-        runs = [run for run, _, _ in entries]
+        values = [r.value for r in entries]
+        runs = [r.run for r in entries]
         out.append(
             TargetHistory(
                 target, min(runs), max(runs), statistics.median(values), min(values),
-                max(values), sum(met for _, _, met in entries), len(entries),
+                max(values), sum(r.met for r in entries), len(entries),
             )
         )  # fmt: skip
     return out
