@@ -8,14 +8,22 @@ moment (docs/speed.md), so a target is read over runs on the same code: this
 reads the runs' CSV (columns ``date``, ``run``, ``target``, ``value``, ``met``)
 and prints, per target, the runs it covers, the median value, the lowest and
 highest, and the runs that met it.
+
+The targets themselves (:data:`TARGETS`) are read off a summary's rows by
+:func:`target_values`; ``summary.py --record`` adds a run's to the CSV with
+:func:`record`, so that no value is copied by hand.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import datetime
+import io
+import re
 import statistics
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import NamedTuple
 
@@ -44,6 +52,121 @@ class Run(NamedTuple):
     target: str
     value: float
     met: bool
+
+
+class Target(NamedTuple):
+    """A speed target and where a summary shows it.
+
+    Attributes:
+        label: The target as the runs' file names it.
+        figure: A pattern matched at the start of a summary row's figure.
+        column: ``"value"`` or ``"ratio"``: the cell whose leading number is compared.
+        bound: The line to meet.
+        at_most: Met when the number is at most ``bound`` (else at least).
+    """
+
+    label: str
+    figure: str
+    column: str
+    bound: float
+    at_most: bool
+
+
+#: The issue's targets (docs/speed.md, "The targets"), in the runs' file's order.
+TARGETS: tuple[Target, ...] = (
+    Target(
+        "BodyTrack-v2 step() + render(), x CartPole-v1's >= 5",
+        r"BodyTrack-v2 128x128 step \+ render\(\)$", "ratio", 5.0, False,
+    ),
+    Target(
+        "PPO on the vector env, x PPO on a trivial env >= 0.95",
+        r"PPO on the vector env, 8 x BodyTrack-v2 ", "ratio", 0.95, False,
+    ),
+    Target(
+        "pf-slds prior fit on ArmTrack-v2, 2 processes, s <= 10",
+        r"pf-slds prior, first fit on ArmTrack-v2's .*, 2 processes\)$", "value", 10.0, True,
+    ),
+    Target(
+        "pf-slds prior fit on SideWalk-v2, 2 processes, s <= 10",
+        r"pf-slds prior, first fit on SideWalk-v2's .*, 2 processes\)$", "value", 10.0, True,
+    ),
+    Target(
+        "pf-tree BodyTrack-v2, 10,000 particles, ms per frame <= 15",
+        r"pf-tree, 10,000 particles, per frame$", "value", 15.0, True,
+    ),
+    Target(
+        "pf-tree BodyTrack-v2, 3,000 particles, ms per frame <= 5",
+        r"pf-tree, 3,000 particles, per frame$", "value", 5.0, True,
+    ),
+    Target(
+        "scoring 3,000 whole-body poses (128x128), ms <= 0.75",
+        r"observation model, 3,000 poses \(128x128\) \(kinematics ", "value", 0.75, True,
+    ),
+    Target(
+        "vector env, 16 x BodyTrack-v2 random actions, x SyncVectorEnv >= 2",
+        r"vector env, 16 x BodyTrack-v2, random actions \(episodes end when lost\)$",
+        "ratio", 2.0, False,
+    ),
+)  # fmt: skip
+
+_MET = {True: "yes", False: "no"}
+_NUMBER = re.compile(r"\d[\d,]*(?:\.\d+)?")
+
+
+def target_values(
+    rows: Sequence[tuple[str, str, str, str]], targets: Sequence[Target] = TARGETS
+) -> list[tuple[Target, str | None]]:
+    """Each target's number in a summary's rows, as printed (None where no row shows it).
+
+    Args:
+        rows: The summary's rows: ``(figure, value, reference, ratio)``.
+        targets: The targets to read.
+
+    Raises:
+        ValueError: If two rows match one target (its pattern is ambiguous).
+    """
+    out: list[tuple[Target, str | None]] = []
+    for target in targets:
+        cell = 1 if target.column == "value" else 3
+        found = [row for row in rows if re.match(target.figure, row[0])]
+        if len(found) > 1:
+            raise ValueError(
+                f"target {target.label!r}: {len(found)} summary rows match, expected one"
+            )
+        number = _NUMBER.match(found[0][cell]) if found else None
+        out.append((target, number.group().replace(",", "") if number else None))
+    return out
+
+
+def is_met(target: Target, value: str) -> bool:
+    """Whether ``value`` (as printed) meets ``target``; a value on the line meets it."""
+    number = float(value)
+    return number <= target.bound if target.at_most else number >= target.bound
+
+
+def record(path: Path, values: Sequence[tuple[Target, str | None]], date: datetime.date) -> int:
+    """Add one summary run's targets to the runs' file, newest first; return its number.
+
+    The run is numbered one past the file's highest.
+
+    Raises:
+        ValueError: If a target has no value (a benchmark failed or was not
+            run: such a run is not recorded), or the file is malformed.
+    """
+    missing = [t.label for t, v in values if v is None]
+    if missing:
+        raise ValueError(f"the summary shows no value for {missing}; the run is not recorded")
+    run = max((r.run for r in read_runs(path)), default=0) + 1
+    with open(path, newline="") as fh:
+        header, *rest = fh.read().splitlines(keepends=True)
+    new = io.StringIO()
+    writer = csv.writer(new, lineterminator="\n")
+    for target, value in values:
+        assert value is not None
+        writer.writerow([date.isoformat(), run, target.label, value, _MET[is_met(target, value)]])
+    with open(path, "w", newline="") as fh:
+        fh.writelines([header, new.getvalue(), *rest])
+    return run
 
 
 def read_runs(path: Path) -> list[Run]:

@@ -12,11 +12,17 @@ read here line by line (:data:`BENCHMARKS` says how). A benchmark that fails,
 or prints something no reader recognises, gets a row saying so instead of
 stopping the summary. ``--quick`` shortens the slow ones (fewer PPO steps,
 fewer particle counts); ``--markdown`` prints the table for the README.
+
+After the table come the speed targets (``speed_history.TARGETS``), each with
+its value in this run and whether it was met; ``--record`` adds them to
+docs/speed_runs.csv as the next run (a full run only: not with ``--quick``
+or ``--only``).
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import os
 import re
@@ -26,6 +32,8 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+
+import speed_history
 
 HERE = Path(__file__).resolve().parent
 
@@ -355,6 +363,29 @@ def format_table(rows: list[tuple[str, Row]], markdown: bool) -> str:
     return "\n".join(fmt.format(*x) for x in [head, *lines])
 
 
+def format_targets(
+    values: list[tuple[speed_history.Target, str | None]], markdown: bool, quick: bool = False
+) -> str:
+    """The speed targets' lines: each one's value in this run and whether it was met.
+
+    A ``--quick`` run's are marked: its shorter runs are not the targets' measurements.
+    """
+    cells = [
+        (t.label, "no row" if v is None else v,
+         "missing" if v is None else ("met" if speed_history.is_met(t, v) else "not met"))
+        for t, v in values
+    ]  # fmt: skip
+    if markdown:
+        run = "this quick run" if quick else "this run"
+        out = ["", f"| target | {run} | |", "|---|---|---|"]
+        return "\n".join(out + [f"| {a} | {b} | {c} |" for a, b, c in cells])
+    width = max(len(a) for a, _, _ in cells)
+    title = (
+        "targets (a quick run: shorter than the targets' measurements):" if quick else "targets:"
+    )
+    return "\n".join(["", title] + [f"  {a:{width}}  {b:>6}  {c}" for a, b, c in cells])
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="shorter runs of the slow benchmarks")
@@ -362,7 +393,20 @@ def main() -> None:
     ap.add_argument("--data-dir", default=None, help="real mocap for the benchmarks that take it")
     ap.add_argument("--markdown", action="store_true", help="print a Markdown table")
     ap.add_argument("--timeout", type=float, default=1800.0, help="seconds per benchmark")
+    ap.add_argument(
+        "--record", type=Path, metavar="CSV",
+        help="add the targets to this runs' file (docs/speed_runs.csv) as the next run",
+    )  # fmt: skip
     args = ap.parse_args()
+    if args.record:  # checked before the minutes of benchmarks, not after
+        if args.quick or args.only:
+            ap.error("--record takes a full run: not with --quick or --only")
+        try:
+            speed_history.read_runs(args.record)
+            with open(args.record, "a"):
+                pass
+        except (OSError, ValueError) as err:
+            ap.error(f"--record: {err}")
     names = {b.name for b in BENCHMARKS}
     scripts = {path.stem for path in HERE.glob("bench_*.py")}
     unknown = sorted(set(args.only or ()) - names - scripts)
@@ -385,6 +429,17 @@ def main() -> None:
         print(f"  {time.perf_counter() - start:.0f} s", file=sys.stderr, flush=True)
     print(format_table(rows, args.markdown))
     print(f"({len(rows)} rows, {time.perf_counter() - t0:.0f} s)", file=sys.stderr)
+    values = speed_history.target_values([row for _, row in rows])
+    if args.only:  # the targets of the benchmarks run
+        values = [(target, value) for target, value in values if value is not None]
+    if values:
+        print(format_targets(values, args.markdown, args.quick))
+    if args.record:
+        try:
+            number = speed_history.record(args.record, values, datetime.date.today())
+        except (OSError, ValueError) as err:
+            sys.exit(f"summary: {args.record}: {err}")
+        print(f"recorded as run {number} in {args.record}", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import datetime
 import importlib.util
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -66,3 +69,107 @@ def test_a_bad_file_is_one_line_naming_it(
     assert speed_history.main(["--csv", str(path)]) == 1
     err_lines = capsys.readouterr().err.splitlines()
     assert len(err_lines) == 1 and says in err_lines[0]
+
+
+#: Rows as a summary prints them (run 48), with the rows around each target
+#: that a loose pattern would take instead: other sizes, tasks, terms and
+#: process counts.
+SUMMARY_ROWS = [
+    ("BodyTrack-v2 128x128 step", "5,663 steps/s", "CartPole-v1 step + render()", "6.97x"),
+    ("BodyTrack-v2 128x128 step + render()", "4,110 steps/s", "CartPole-v1", "5.04x"),
+    ("BodyTrack-v2 256x256 step + render()", "3,441 steps/s", "CartPole-v1", "4.08x"),
+    ("vector env, 16 x BodyTrack-v2, random actions (episodes end when lost)",
+     "7,403 env steps/s", "SyncVectorEnv", "2.14x"),
+    ("vector env, 16 x BodyTrack-v2, terminate_on_lost=False (30-frame episodes)",
+     "13,403 env steps/s", "SyncVectorEnv", "2.38x"),
+    ("PPO on the vector env, 8 x BodyTrack-v2 (18 rotated rounds of one rollout each; "
+     "blocks of 6: 0.92-0.95)", "524 env steps/s", "PPO on a trivial env", "0.94x"),
+    ("PPO on DummyVecEnv, 8 x BodyTrack-v2 (18 rotated rounds)", "470 env steps/s", "PPO", "0.85x"),
+    ("observation model, 3,000 poses (128x128) (kinematics 0.263 ms)", "0.747 ms", "numpy",
+     "25.7x faster"),
+    ("observation model, 3,000 poses (128x128) (BodyTrack-v2's terms) (kinematics 0.264 ms)",
+     "1.043 ms", "numpy", "13.0x faster"),
+    ("pf-tree, 3,000 particles, per frame", "5.63 ms", "a plain numpy scorer", "0.41x the time"),
+    ("pf-tree, 3,000 particles, episode start (first frame)", "21.57 ms", "scorer", "1.57x"),
+    ("pf-tree, 10,000 particles, per frame", "13.66 ms", "a plain numpy scorer", "0.29x the time"),
+    ("pf-slds prior, first fit on ArmTrack-v2's training clips (74,422 frames; file 0.15 MB, "
+     "2 processes)", "8.40 s", "a numpy Kalman filter pass (0.62 s)", "13.5x the time"),
+    ("pf-slds prior, first fit on ArmTrack-v2's training clips (74,422 frames; file 0.15 MB, "
+     "1 process)", "11.02 s", "a numpy Kalman filter pass (0.62 s)", "17.7x the time"),
+    ("pf-slds prior, first fit on SideWalk-v2's training clips (50,866 frames; file 0.06 MB, "
+     "2 processes)", "8.77 s", "a numpy Kalman filter pass (0.47 s)", "18.7x the time"),
+]  # fmt: skip
+RUN_48 = ["5.04", "0.94", "8.40", "8.77", "13.66", "5.63", "0.747", "2.14"]
+
+
+def test_each_target_is_read_off_its_own_summary_row() -> None:
+    values = speed_history.target_values(SUMMARY_ROWS)
+    assert [t.label for t, _ in values] == [t.label for t in speed_history.TARGETS]
+    assert [v for _, v in values] == RUN_48
+    met = [speed_history.is_met(t, v) for t, v in values if v is not None]
+    assert met == [True, False, True, True, True, False, True, True]
+
+
+def test_a_target_without_its_row_has_no_value_and_two_rows_are_refused() -> None:
+    without = [row for row in SUMMARY_ROWS if not row[0].startswith("pf-tree, 3,000")]
+    values = dict((t.label, v) for t, v in speed_history.target_values(without))
+    assert values["pf-tree BodyTrack-v2, 3,000 particles, ms per frame <= 5"] is None
+    failed = [*without, ("bench_agents", "", "", "failed (exit 1): boom")]
+    assert dict(speed_history.target_values(failed)) == dict(speed_history.target_values(without))
+    with pytest.raises(ValueError, match="2 summary rows match"):
+        speed_history.target_values([*SUMMARY_ROWS, SUMMARY_ROWS[1]])
+
+
+@pytest.mark.parametrize(("value", "met"), [("5", True), ("4.99", True), ("5.01", False)])
+def test_a_value_on_the_line_meets_it_either_way(value: str, met: bool) -> None:
+    at_most = speed_history.Target("t <= 5", "t", "value", 5.0, True)
+    at_least = speed_history.Target("t >= 5", "t", "ratio", 5.0, False)
+    assert speed_history.is_met(at_most, value) is met
+    assert speed_history.is_met(at_least, value) is (value == "5" or not met)
+
+
+def test_a_recorded_run_is_the_next_one_newest_first(tmp_path: Path) -> None:
+    path = _csv(tmp_path, RUNS)
+    values = speed_history.target_values(SUMMARY_ROWS)
+    assert speed_history.record(path, values, datetime.date(2026, 1, 4)) == 4
+    runs = speed_history.read_runs(path)
+    assert [r.run for r in runs[:8]] == [4] * 8 and [r.run for r in runs[8:]] == [3, 3, 2, 2, 1, 1]
+    assert [r.value for r in runs[:8]] == [float(v) for v in RUN_48]
+    assert [r.met for r in runs[:8]] == [True, False, True, True, True, False, True, True]
+    assert path.read_text().splitlines()[1] == (
+        '2026-01-04,4,"BodyTrack-v2 step() + render(), x CartPole-v1\'s >= 5",5.04,yes'
+    )
+
+
+def test_a_run_with_a_target_missing_is_not_recorded(tmp_path: Path) -> None:
+    path = _csv(tmp_path, RUNS)
+    values = speed_history.target_values(SUMMARY_ROWS[:3])
+    with pytest.raises(ValueError, match="no value for .*PPO on the vector env"):
+        speed_history.record(path, values, datetime.date(2026, 1, 4))
+    assert path.read_text() == RUNS
+
+
+def test_the_targets_are_the_runs_files() -> None:
+    runs = speed_history.read_runs(speed_history.RUNS_CSV)
+    latest = [r.target for r in runs if r.run == runs[0].run]
+    assert latest == [t.label for t in speed_history.TARGETS]
+
+
+@pytest.mark.parametrize(
+    ("extra", "says"),
+    [
+        (["--quick"], "--record takes a full run"),
+        (["--only", "bench_env"], "--record takes a full run"),
+        ([], "missing ['met']"),
+    ],
+)
+def test_summary_refuses_a_run_it_cannot_record_before_running_it(
+    tmp_path: Path, extra: list[str], says: str
+) -> None:
+    path = _csv(tmp_path, "date,run,target,value\n")
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks/summary.py"), "--record", str(path), *extra],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert done.returncode == 2 and says in done.stderr
+    assert "running" not in done.stderr and "Traceback" not in done.stderr
