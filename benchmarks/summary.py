@@ -429,7 +429,10 @@ def main() -> None:
         print(f"  {time.perf_counter() - start:.0f} s", file=sys.stderr, flush=True)
     print(format_table(rows, args.markdown))
     print(f"({len(rows)} rows, {time.perf_counter() - t0:.0f} s)", file=sys.stderr)
-    values = speed_history.target_values([row for _, row in rows])
+    try:
+        values = speed_history.target_values([row for _, row in rows])
+    except ValueError as err:  # a benchmark's rows changed under a target's pattern
+        sys.exit(f"summary: {err}; the targets are not read (speed_history.TARGETS)")
     if args.only:  # the targets of the benchmarks run
         values = [(target, value) for target, value in values if value is not None]
     if values:
