@@ -159,6 +159,7 @@ def record(path: Path, values: Sequence[tuple[Target, str | None]], date: dateti
     run = max((r.run for r in read_runs(path)), default=0) + 1
     with open(path, newline="") as fh:
         header, *rest = fh.read().splitlines(keepends=True)
+    header = header.rstrip("\r\n") + "\n"  # a file of the header alone may lack its newline
     new = io.StringIO()
     writer = csv.writer(new, lineterminator="\n")
     for target, value in values:
@@ -192,9 +193,9 @@ def read_runs(path: Path) -> list[Run]:
                 f"{path}, line {line}: run must be an integer and value a number, got "
                 f"{row['run']!r} and {row['value']!r}"
             ) from None
-        if row["met"] not in ("yes", "no"):
+        if row["met"] not in _MET.values():
             raise ValueError(f"{path}, line {line}: met must be yes or no, got {row['met']!r}")
-        runs.append(Run(run, row["target"], value, row["met"] == "yes"))
+        runs.append(Run(run, row["target"], value, row["met"] == _MET[True]))
     return runs
 
 

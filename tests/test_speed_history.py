@@ -141,6 +141,15 @@ def test_a_recorded_run_is_the_next_one_newest_first(tmp_path: Path) -> None:
     )
 
 
+def test_the_first_run_follows_a_header_without_its_newline(tmp_path: Path) -> None:
+    path = _csv(tmp_path, "date,run,target,value,met")
+    values = speed_history.target_values(SUMMARY_ROWS)
+    assert speed_history.record(path, values, datetime.date(2026, 1, 4)) == 1
+    runs = speed_history.read_runs(path)
+    assert [r.run for r in runs] == [1] * 8
+    assert [r.value for r in runs] == [float(v) for v in RUN_48]
+
+
 def test_a_run_with_a_target_missing_is_not_recorded(tmp_path: Path) -> None:
     path = _csv(tmp_path, RUNS)
     values = speed_history.target_values(SUMMARY_ROWS[:3])
