@@ -118,9 +118,9 @@ FLOOR_RADIUS_MM = 10000.0
 #: plane, so their projections stay finite.
 FLOOR_NEAR_MM = 100.0
 
-_MIN_SIZE = (64, 64)
-
-_MAX_SIZE = (640, 480)
+#: The smallest and the largest frame, ``(width, height)`` in pixels.
+MIN_IMAGE_SIZE = (64, 64)
+MAX_IMAGE_SIZE = (640, 480)
 
 _ELLIPSE_POINTS = 12
 
@@ -211,10 +211,10 @@ class SceneOptions:
         w, h = self.width, self.height
         if not (isinstance(w, (int, np.integer)) and isinstance(h, (int, np.integer))):
             raise ValueError(f"SceneOptions: width and height must be integers, got {w!r}, {h!r}")
-        if not (_MIN_SIZE[0] <= w <= _MAX_SIZE[0] and _MIN_SIZE[1] <= h <= _MAX_SIZE[1]):
+        (w0, h0), (w1, h1) = MIN_IMAGE_SIZE, MAX_IMAGE_SIZE
+        if not (w0 <= w <= w1 and h0 <= h <= h1):
             raise ValueError(
-                f"SceneOptions: image size must be between {_MIN_SIZE[0]}x{_MIN_SIZE[1]} and "
-                f"{_MAX_SIZE[0]}x{_MAX_SIZE[1]}, got {w}x{h}"
+                f"SceneOptions: image size must be between {w0}x{h0} and {w1}x{h1}, got {w}x{h}"
             )
         if self.color not in ("rgb", "gray"):
             raise ValueError(f"SceneOptions.color: expected 'rgb' or 'gray', got {self.color!r}")

@@ -33,7 +33,12 @@ from stable_baselines3.common.vec_env.base_vec_env import (
 )
 
 from humotion_gym.envs.vector import PoseTrackingVectorEnv
-from humotion_gym.wrappers import frame_and_initial, learner_frame, learner_frames
+from humotion_gym.wrappers import (
+    check_frame_size,
+    frame_and_initial,
+    learner_frame,
+    learner_frames,
+)
 
 # The step's scalar info that each episode's info dict carries (SB3 keeps one
 # dict per episode; the batched arrays stay in ``last_infos``).
@@ -66,6 +71,7 @@ class LearnerVecEnv(VecEnv):
                 "LearnerVecEnv: the vector env must restart episodes in the same step "
                 f"(autoreset_mode=AutoresetMode.SAME_STEP), got {venv.autoreset_mode}"
             )
+        check_frame_size(frame_size, "LearnerVecEnv: frame_size")
         self.venv = venv
         self.frame_size = frame_size
         single = venv.single_observation_space
@@ -232,6 +238,7 @@ def learner_vec_env(
         frame_size: Side of the frame shown to the policy.
         **env_kwargs: Keyword arguments of the environment.
     """
+    check_frame_size(frame_size, "learner_vec_env: frame_size")
     kwargs = {"terminate_on_lost": False, **env_kwargs}
     venv = PoseTrackingVectorEnv(
         n_envs, task=task.split("/")[-1], split=split,

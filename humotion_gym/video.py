@@ -26,6 +26,8 @@ def write_video(
 ) -> None:
     """Write RGB (or grey) uint8 frames to an ``.mp4`` (MPEG-4 part 2) or ``.avi`` file.
 
+    The file's folder is created if missing.
+
     Raises:
         ValueError: If there are no frames.
         OSError: If OpenCV cannot open the file for writing.
@@ -34,6 +36,7 @@ def write_video(
         raise ValueError("write_video: no frames")
     first = _to_bgr(frames[0], scale)
     h, w = first.shape[:2]
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
     fourcc = cv2.VideoWriter.fourcc(*("mp4v" if str(path).endswith(".mp4") else "MJPG"))
     writer = cv2.VideoWriter(str(path), fourcc, float(fps), (w, h))
     if not writer.isOpened():
@@ -60,7 +63,8 @@ def contact_sheet(
 
 
 def write_png(path: str | Path, image: NDArray[np.uint8]) -> None:
-    """Write an RGB image as PNG."""
+    """Write an RGB image as PNG (its folder created if missing)."""
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
     if not cv2.imwrite(str(path), cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_RGB2BGR)):
         raise OSError(f"{path}: could not write the PNG")
 

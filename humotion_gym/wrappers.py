@@ -96,6 +96,16 @@ class FrameObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         return np.concatenate(list(frame), axis=1)
 
 
+def check_frame_size(size: Any, what: str) -> None:
+    """Refuse a learner's frame side that is not an integer >= 8 or None.
+
+    Raises:
+        ValueError: Naming ``what``.
+    """
+    if size is not None and (isinstance(size, bool) or not isinstance(size, int) or size < 8):
+        raise ValueError(f"{what} must be an integer >= 8 or None, got {size!r}")
+
+
 def learner_frame(frame: NDArray[np.uint8], size: int | None) -> NDArray[np.uint8]:
     """A frame as a policy sees it: channels first, area-downsampled to ``size``.
 
@@ -191,10 +201,7 @@ class LearnerObservation(gym.Wrapper):
     def __init__(self, env: gym.Env, size: int | None = 64) -> None:
         super().__init__(env)
         base = _base(env)
-        if size is not None and (isinstance(size, bool) or not isinstance(size, int) or size < 8):
-            raise ValueError(
-                f"LearnerObservation: size must be an integer >= 8 or None, got {size!r}"
-            )
+        check_frame_size(size, "LearnerObservation: size")
         self.size = size
         frames = base.observation_space
         shape = (frames["frame"] if isinstance(frames, spaces.Dict) else frames).shape

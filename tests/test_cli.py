@@ -18,6 +18,13 @@ from baselines.cli import main
         (["track", "--agent", "nobody"], "--agent"),
         (["leaderboard", "--tasks", "NoTask-v1"], "--tasks"),
         (["render", "--out", "x.mp4", "--size", "12by12"], "--size"),
+        (["render", "--out", "x.mp4", "--size", "64x10"], "--size"),  # the renderer's range
+        (["sweep", "--size", "32", "--out", "x"], "--size"),
+        (["leaderboard", "--tasks", "BodyTrack-v1"], "--tasks"),  # the agents track v2
+        (["track", "--task", "ArmTrack-v1"], "--task"),
+        (["track", "--agent", "pf-nothing+bc"], "--agent"),
+        (["track", "--agent", "pf-tree+nothing"], "--agent"),
+        (["track", "--agent", "pf-tree+runs/none/model.zip"], "--agent"),
         (["select", "--grid", "sharpness"], "--grid"),
         (["synth", "--prior", "cyclic_pca", "--beta", "0.1"], "--beta"),
     ],
@@ -26,6 +33,45 @@ def test_usage_errors_exit_2_and_name_the_flag(argv, flag, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert flag in err and "Traceback" not in err
+
+
+def test_a_hybrid_of_a_saved_policy_parses_and_its_file_is_checked(tmp_path, capsys):
+    from baselines.cli import build_parser
+
+    policy = tmp_path / "run" / "model.zip"
+    policy.parent.mkdir()
+    policy.write_bytes(b"")
+    for agent in (f"pf-tree+{policy}", f"pf-tree+mine={policy}", "pf-tree+bc"):
+        assert build_parser().parse_args(["track", "--agent", agent]).agent == agent
+    assert main(["track", "--agent", f"pf-tree+{tmp_path}/other.zip"]) == 2
+    err = capsys.readouterr().err
+    assert f"no such policy file {tmp_path}/other.zip" in err and len(err.splitlines()) == 1
+
+
+def test_output_files_get_their_folders_before_the_command_runs(tmp_path, capsys):
+    out = tmp_path / "new" / "deeper" / "walk.mp4"
+    assert main(["render", "--task", "WalkTrack-v2", "--frames", "2", "--out", str(out)]) == 0
+    assert out.is_file() and out.with_suffix(".png").is_file()
+    # a refused argument creates nothing
+    refused = tmp_path / "never" / "x.mp4"
+    assert main(["render", "--frames", "0", "--out", str(refused)]) == 2
+    assert not refused.parent.exists()
+
+
+def test_warnings_are_one_line_on_stderr(monkeypatch, capsys):
+    import warnings
+
+    from humotion_gym.cli import tasks as tasks_cli
+
+    def warns(args):
+        warnings.warn("\x1b[33mWARN: careful,\n  twice\x1b[0m", UserWarning, stacklevel=1)
+        return 0
+
+    monkeypatch.setattr(tasks_cli, "_cmd_tasks", warns)
+    shown = warnings.showwarning
+    assert main(["tasks"]) == 0
+    assert capsys.readouterr().err == "humotion-gym: warning: WARN: careful, twice (UserWarning)\n"
+    assert warnings.showwarning is shown  # the caller's display, restored
 
 
 def test_runtime_errors_exit_1_with_one_line(tmp_path, capsys):

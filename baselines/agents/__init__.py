@@ -28,6 +28,7 @@ from collections.abc import Mapping
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 
 from baselines.agents.base import TaskNotSupported, describe, tracking_env
 from baselines.agents.filters import (
@@ -104,6 +105,8 @@ def make(
     """
     if name not in REFERENCES and name not in AGENTS and not is_learned(name):
         raise KeyError(f"unknown agent {name!r}; the agents are {agent_names()}")
+    _check_count("n_particles", n_particles, 1)
+    _check_count("seed", seed, 0)
     description = describe(task)
     if name in REFERENCES:
         return REFERENCES[name][0](description, seed=seed)
@@ -113,6 +116,12 @@ def make(
         name, description, n_particles, seed, estimate, fit_settings, use_cache, filter_settings,
         observation_model,
     )  # fmt: skip
+
+
+def _check_count(name: str, value: Any, low: int) -> None:
+    """Refuse anything but an integer >= ``low`` (numpy's too; not a bool), naming it."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+        raise ValueError(f"agents.make: {name} must be an integer >= {low}, got {value!r}")
 
 
 __all__ = [

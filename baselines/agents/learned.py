@@ -20,8 +20,10 @@ Importing this module does not import torch; loading a policy does.
 
 from __future__ import annotations
 
+import json
 import os
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -63,6 +65,16 @@ HYBRID_FRACTION_WHOLE_POSE = 0.1
 HYBRID_SPREAD = 0.02
 
 
+class OtherDataWarning(UserWarning):
+    """A learned policy trained on real motion capture is scored on the synthetic library.
+
+    Its record (``config.json`` beside a trained ``model.zip``, or a
+    checkpoint's sidecar JSON) names the folders it was trained on; scoring it
+    on the built-in synthetic motion measures another distribution. Pass the
+    same ``data_dir`` (``--data-dir``) to score it on the data it knows.
+    """
+
+
 class NoCheckpointError(FileNotFoundError, TaskNotSupported):
     """No pretrained checkpoint of a learned agent for a task.
 
@@ -95,6 +107,57 @@ def is_learned(name: str) -> bool:
 def takes_particles(name: str) -> bool:
     """Whether a learned agent uses particles (hybrids do; plain policies run once)."""
     return name.startswith("pf-") and "+" in name
+
+
+def policy_spec(name: str) -> str:
+    """The policy a learned agent's name names: ``bc``, ``ppo``, ``PATH.zip`` or ``LABEL=PATH.zip``.
+
+    A hybrid ``pf-PRIOR+POLICY`` names the part after its first ``+``.
+    """
+    return name.split("+", 1)[1] if takes_particles(name) else name
+
+
+def policy_file(name: str) -> Path | None:
+    """The saved policy file a learned agent's name points to; None for a pretrained one."""
+    spec = policy_spec(name)
+    if spec in ("bc", "ppo"):
+        return None
+    path = _split_label(spec)[1]
+    return Path(path) if path.endswith(".zip") else None
+
+
+def trained_data_dirs(path: str | Path) -> list[str] | None:
+    """The motion-capture folders a saved policy's record says it was trained on.
+
+    The record is a checkpoint's sidecar (``bc-TASK.json`` beside
+    ``bc-TASK.zip``) or a training run's ``config.json`` beside its
+    ``model.zip``. None where there is no readable record or it names none
+    (the run read ``$HUMOTION_MOCAP`` or the synthetic library).
+    """
+    p = Path(path)
+    for record in (p.with_suffix(".json"), p.parent / "config.json"):
+        if not record.is_file():
+            continue
+        try:
+            dirs = json.loads(record.read_text(encoding="utf-8")).get("data_dir")
+        except (OSError, ValueError, AttributeError):
+            return None
+        ok = isinstance(dirs, list) and dirs and all(isinstance(d, str) for d in dirs)
+        return list(dirs) if ok else None
+    return None
+
+
+def _check_data(path: str, description: TaskDescription) -> None:
+    """Warn (:class:`OtherDataWarning`) when real-data training meets synthetic episodes."""
+    dirs = trained_data_dirs(path)
+    synthetic = all(c.startswith("synthetic/") for c in description.training.clip_ids)
+    if dirs and synthetic:
+        warnings.warn(
+            f"{path} was trained on motion capture in {', '.join(dirs)}; these episodes come "
+            "from the built-in synthetic library (pass the same --data-dir to score it there)",
+            OtherDataWarning,
+            stacklevel=3,
+        )
 
 
 def load_policy(path: str | Path) -> Any:
@@ -400,12 +463,13 @@ def make_learned(
             f"views={env.views} (track it with a particle filter, or make it with views=1)"
         )
     if takes_particles(name):
-        pf_name, policy_spec = name.split("+", 1)
-        label, path = _policy_for(policy_spec, task_name)
-        if policy_spec in ("bc", "ppo") and not Path(path).is_file():
+        pf_name, spec = name.split("+", 1)[0], policy_spec(name)
+        label, path = _policy_for(spec, task_name)
+        if spec in ("bc", "ppo") and not Path(path).is_file():
             raise NoCheckpointError(
-                f"{name}: no pretrained {policy_spec} checkpoint for {task_name} ({path})"
+                f"{name}: no pretrained {spec} checkpoint for {task_name} ({path})"
             )
+        _check_data(path, env)
         policy = LearnedAgent(env, load_policy(path), label, path)
         pf = make_filter(pf_name, env, n_particles=n_particles, seed=seed)
         return HybridAgent(env, pf, policy, name=f"{pf_name}+{label}")
@@ -416,4 +480,5 @@ def make_learned(
             f"`humotion-gym train --algo {name} --task {task_name} --steps N --out runs/NAME` and "
             f"pass {name}=runs/NAME/model.zip"
         )
+    _check_data(path, env)
     return LearnedAgent(env, load_policy(path), label, path)

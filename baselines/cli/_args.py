@@ -3,22 +3,57 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
-from humotion_gym.cli._common import MAX_PARTICLES, UsageError, int_at_least, particle_count
+from humotion_gym.cli._common import (
+    MAX_PARTICLES,
+    UsageError,
+    int_at_least,
+    particle_count,
+    task_name,
+)
+
+
+def tracked_task(text: str) -> str:
+    """An argparse ``type`` for a task the trackers track: :func:`task_name`, version 2 on.
+
+    A ``-v1`` task is refused here, in one line and before any warning of
+    Gymnasium's: its observation is the frame alone, which no agent reads.
+    """
+    from humotion_gym.envs.tasks import get_task
+
+    name = task_name(text)
+    spec = get_task(name)
+    if spec.version < 2:
+        raise argparse.ArgumentTypeError(
+            f"{name} is deprecated and its observation is the frame alone, which the agents "
+            f"do not track; use {spec.family}-v2 (docs/v1.md keeps version 1's numbers)"
+        )
+    return name
 
 
 def agent_name(text: str) -> str:
     """An argparse ``type`` for a registered agent (``hold``, ``pf-tree``...)."""
     # learned: PATH.zip, LABEL=PATH.zip, pf-PRIOR+POLICY
     from baselines.agents import agent_names, is_learned
+    from baselines.agents.learned import policy_file, policy_spec, takes_particles
 
     if text not in agent_names() and not is_learned(text):
         raise argparse.ArgumentTypeError(
             f"unknown agent {text[:80]}; the agents are {', '.join(agent_names())} "
             "(see humotion-gym agents)"
         )
-    path = Path(text.partition("=")[2] or text) if text.endswith(".zip") else None
+    if takes_particles(text):  # pf-PRIOR+POLICY
+        prior, spec = text.split("+", 1)[0], policy_spec(text)
+        if prior not in agent_names():
+            raise argparse.ArgumentTypeError(
+                f"{text[:80]}: unknown particle filter {prior[:40]} before the '+' "
+                "(see humotion-gym agents)"
+            )
+        if spec not in ("bc", "ppo") and not spec.endswith(".zip"):
+            raise argparse.ArgumentTypeError(
+                f"{text[:80]}: expected bc, ppo or a saved policy PATH.zip after the '+'"
+            )
+    path = policy_file(text)
     if path is not None and not path.is_file():
         raise argparse.ArgumentTypeError(f"{text[:80]}: no such policy file {str(path)[:80]}")
     return text

@@ -12,7 +12,8 @@ import argparse
 import math
 from typing import Any
 
-from humotion_gym.cli._common import add_command, add_json, print_json, task_name
+from baselines.cli._args import tracked_task
+from humotion_gym.cli._common import add_command, add_json, print_json
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -28,7 +29,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "cap beta_max; those of the annealed filter).",
     )
     cmd.add_argument(
-        "--task", type=task_name, default=None,
+        "--task", type=tracked_task, default=None,
         help="show each particle filter's settings on this task (default: none shown)",
     )  # fmt: skip
     add_json(cmd, "one JSON object per agent instead of a table")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 
-from baselines.cli._args import add_agents, add_particles
+from baselines.cli._args import add_agents, add_particles, tracked_task
 from humotion_gym.cli._common import (
     add_command,
     add_data_dir,
@@ -35,7 +35,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "image shows; where the root's position is the agent's, also how far the pelvis "
         "travelled along the line of sight and how much of that the estimate followed.",
     )
-    add_task(dp, "BodyTrack-v2")
+    add_task(dp, "BodyTrack-v2", kind=tracked_task)
     add_agents(dp)
     add_particles(dp)
     dp.add_argument(

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 
+from baselines.cli._args import tracked_task
 from humotion_gym.cli._common import (
     add_command,
     add_data_dir,
@@ -31,7 +32,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "how far the likelihood separates the true pose from poses a few cm off",
         "humotion-gym discrimination --task ArmTrack-v2 --episodes 20",
     )  # fmt: skip
-    add_task(dis, "ArmTrack-v2")
+    add_task(dis, "ArmTrack-v2", kind=tracked_task)
     dis.add_argument(
         "--episodes", type=episode_count, default=20, help="seeded episodes (default: 20)"
     )

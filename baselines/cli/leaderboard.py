@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from baselines.cli._args import add_agents, add_engine, check_engine
+from baselines.cli._args import add_agents, add_engine, check_engine, tracked_task
 from humotion_gym.cli._common import (
     CommandError,
     UsageError,
@@ -30,7 +30,6 @@ from humotion_gym.cli._common import (
     output_dir,
     particle_count,
     print_json,
-    task_name,
     wrote,
 )
 
@@ -65,7 +64,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "finished).",
     )  # fmt: skip
     lb.add_argument(
-        "--tasks", type=task_name, nargs="+", default=["ArmTrack-v2", "BodyTrack-v2"],
+        "--tasks", type=tracked_task, nargs="+", default=["ArmTrack-v2", "BodyTrack-v2"],
         metavar="TASK", help="task ids (default: ArmTrack-v2 BodyTrack-v2)",
     )  # fmt: skip
     add_agents(lb, "hold always runs as the floor")

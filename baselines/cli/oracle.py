@@ -12,7 +12,7 @@ import argparse
 import gzip
 import json
 
-from baselines.cli._args import add_particles, key_setting
+from baselines.cli._args import add_particles, key_setting, tracked_task
 from humotion_gym.cli._common import (
     UsageError,
     add_command,
@@ -22,7 +22,6 @@ from humotion_gym.cli._common import (
     episode_count,
     output_dir,
     positive_float,
-    task_name,
     wrote,
 )
 
@@ -61,7 +60,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "(docs/diagnostics.md).",
     )
     op.add_argument(
-        "--task", type=task_name, nargs="+", default=["BodyTrack-v2"], metavar="TASK",
+        "--task", type=tracked_task, nargs="+", default=["BodyTrack-v2"], metavar="TASK",
         help="task ids (default: BodyTrack-v2)",
     )  # fmt: skip
     op.add_argument(

@@ -11,7 +11,7 @@ import argparse
 import math
 from collections.abc import Sequence
 
-from baselines.cli._args import add_particles, agent_name
+from baselines.cli._args import add_particles, agent_name, tracked_task
 from humotion_gym.cli._common import (
     MAX_EPISODES,
     UsageError,
@@ -38,7 +38,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "the annealed filter's settings, filter.NAME) "
         "and pick the combination with the lowest mean error. Test persons are never loaded.",
     )
-    add_task(sel, "ArmTrack-v2")
+    add_task(sel, "ArmTrack-v2", kind=tracked_task)
     sel.add_argument(
         "--agent", type=agent_name, default="pf-tree",
         help="particle-filter agent (default: pf-tree)",

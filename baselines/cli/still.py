@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 
-from baselines.cli._args import add_agents, add_particles
+from baselines.cli._args import add_agents, add_particles, tracked_task
 from humotion_gym.cli._common import (
     add_command,
     add_data_dir,
@@ -34,7 +34,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "(hold's mean error at most --max-hold mm, lowest first, none overlapping) and track "
         "them with every agent; an agent stands still when its error is within 2x hold's.",
     )
-    add_task(st, "BodyTrack-v2")
+    add_task(st, "BodyTrack-v2", kind=tracked_task)
     add_agents(st)
     add_particles(st)
     st.add_argument(

@@ -15,9 +15,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from baselines.cli._args import add_agents, add_engine, check_engine
+from baselines.cli._args import add_agents, add_engine, check_engine, tracked_task
 from humotion_gym.cli._common import (
-    MAX_IMAGE_SIDE,
     UsageError,
     add_command,
     add_data_dir,
@@ -29,16 +28,16 @@ from humotion_gym.cli._common import (
     output_dir,
     output_file,
     particle_count,
-    task_name,
     wrote,
 )
+from humotion_gym.render_scene import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
 
 #: The settings a sweep varies, in ``--help`` order: each one's flag (``--NAME``, with
 #: ``-`` for ``_``) takes values ``add_argument`` reads with these keywords.
 _SETTINGS: dict[str, dict[str, Any]] = {
     "size": {
-        "type": int_at_least(8, MAX_IMAGE_SIDE), "metavar": "PIXELS",
-        "help": f"image sizes, width = height, 8 to {MAX_IMAGE_SIDE}",
+        "type": int_at_least(MIN_IMAGE_SIZE[1], MAX_IMAGE_SIZE[1]), "metavar": "PIXELS",
+        "help": f"image sizes, width = height, {MIN_IMAGE_SIZE[1]} to {MAX_IMAGE_SIZE[1]}",
     },
     "background": {"choices": ["flat", "clutter"], "help": "backgrounds"},
     "noise": {
@@ -62,7 +61,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "curves as a table) and sweep.png (the curves).",
     )  # fmt: skip
     sw.add_argument(
-        "--tasks", type=task_name, nargs="+", default=["BodyTrack-v2"], metavar="TASK",
+        "--tasks", type=tracked_task, nargs="+", default=["BodyTrack-v2"], metavar="TASK",
         help="task ids (default: BodyTrack-v2)",
     )  # fmt: skip
     add_agents(sw)

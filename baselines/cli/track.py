@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from baselines.cli._args import add_particles, agent_name
+from baselines.cli._args import add_particles, agent_name, tracked_task
 from humotion_gym.cli._common import (
     CommandError,
     UsageError,
@@ -46,7 +46,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         subparsers, "track", "track seeded episodes with an agent; errors and timing",
         "humotion-gym track --task ArmTrack-v2 --agent pf-tree --particles 300 --episodes 20",
     )  # fmt: skip
-    add_task(track, "ArmTrack-v2", "task id, see humotion-gym tasks")
+    add_task(track, "ArmTrack-v2", "task id, see humotion-gym tasks", kind=tracked_task)
     track.add_argument(
         "--agent", type=agent_name, default="pf-cv",
         help="agent, see humotion-gym agents (default: pf-cv)",
@@ -118,6 +118,9 @@ def _cmd_track(args: argparse.Namespace) -> int:
         if options["clip_id"] not in library.clip_ids:
             near = [c for c in library.clip_ids if c.endswith("/" + options["clip_id"])]
             hint = f"; did you mean {near[0]}?" if near else " (see humotion-gym data table)"
+            synthetic = all(c.startswith("synthetic/") for c in library.clip_ids)
+            if not near and synthetic and not args.clip.startswith("synthetic/"):
+                hint = " (the built-in synthetic library; real mocap needs --data-dir)"
             raise UsageError(f"--clip: no clip {args.clip} in the task's library{hint}")
     if args.video:
         shape = env.observation_space["frame"].shape  # type: ignore[index]

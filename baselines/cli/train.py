@@ -14,7 +14,7 @@ import json
 import shutil
 from pathlib import Path
 
-from baselines.cli._args import key_value
+from baselines.cli._args import key_value, tracked_task
 from humotion_gym.cli._common import (
     CommandError,
     UsageError,
@@ -42,7 +42,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "humotion-gym train --algo bc --task BodyTrack-v2 --steps 100000 --out runs/bc-body",
     )  # fmt: skip
     tr.add_argument("--algo", choices=["ppo", "bc"], required=True, help="ppo or bc (required)")
-    add_task(tr, "BodyTrack-v2")
+    add_task(tr, "BodyTrack-v2", kind=tracked_task)
     tr.add_argument(
         "--steps", type=positive_int, default=100_000,
         help="environment steps to train for (default: 100000)",
@@ -113,7 +113,7 @@ def _register_curve(subparsers: argparse._SubParsersAction) -> None:
         "test-split error against env steps for learned trackers (IQM over seeds)",
         "humotion-gym learning-curve --task BodyTrack-v2 --algos ppo bc --seeds 0 1 2",
     )  # fmt: skip
-    add_task(lc, "BodyTrack-v2")
+    add_task(lc, "BodyTrack-v2", kind=tracked_task)
     lc.add_argument(
         "--algos", nargs="+", choices=["ppo", "bc"], default=["ppo", "bc"],
         help="algorithms (default: ppo bc)",
@@ -139,7 +139,7 @@ def _register_curve(subparsers: argparse._SubParsersAction) -> None:
         help="where the runs are trained, and resumed from (default: runs/curve)",
     )  # fmt: skip
     lc.add_argument(
-        "--out", type=output_file(".png"), default=Path("docs/img/rl_learning_curve.png"),
+        "--out", type=output_file(".png"), default="docs/img/rl_learning_curve.png",
         help="figure (PNG); the numbers go beside it as JSON "
         "(default: docs/img/rl_learning_curve.png)",
     )  # fmt: skip

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 
+from baselines.cli._args import tracked_task
 from humotion_gym.cli._common import (
     add_command,
     add_data_dir,
@@ -47,7 +48,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "the share of variance the tree's components hold, by feature set and scaling",
         "humotion-gym tree variance --task BodyTrack-v2 --windows 15000",
     )  # fmt: skip
-    add_task(var, "BodyTrack-v2", "the task whose pf-tree prior to read")
+    add_task(var, "BodyTrack-v2", "the task whose pf-tree prior to read", kind=tracked_task)
     var.add_argument(
         "--windows",
         type=int_at_least(1, 1_000_000),

@@ -23,12 +23,19 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import re
 import sys
 import textwrap
+import warnings
 from collections.abc import Sequence
-from typing import NoReturn
+from typing import NoReturn, TextIO
 
-from humotion_gym.cli._common import CommandError, UsageError, check_mocap_paths
+from humotion_gym.cli._common import (
+    CommandError,
+    UsageError,
+    check_mocap_paths,
+    make_output_folders,
+)
 from humotion_gym.threads import limit_blas_threads
 
 #: The benchmark's command modules, in ``--help`` order. The trackers' commands
@@ -58,6 +65,10 @@ COMMAND_GROUPS: dict[str, tuple[str, ...]] = {
 
 #: Extras that provide optional modules, for the hint when one is missing.
 _EXTRAS = {"matplotlib": "plots", "stable_baselines3": "rl", "torch": "rl"}
+
+
+#: Terminal colour codes, which some libraries put in their warnings' text.
+_ANSI = re.compile(r"\x1b\[[0-9;]*m")
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -187,8 +198,29 @@ def main(argv: Sequence[str] | None = None, modules: Sequence[str] = COMMAND_MOD
     except SystemExit as exc:  # --help, --version (0) or a usage error (2)
         return exc.code if isinstance(exc.code, int) else 2
     limit_blas_threads()  # see humotion_gym.threads for why and for Python users
+    with warnings.catch_warnings():  # restores the caller's warning display on return
+        warnings.showwarning = _one_line_warning
+        return _run(parser, args)
+
+
+def _one_line_warning(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    file: TextIO | None = None,
+    line: str | None = None,
+) -> None:
+    """Show a warning as one line on stderr, like the command's errors (colour codes dropped)."""
+    text = " ".join(_ANSI.sub("", str(message)).split())
+    print(f"humotion-gym: warning: {text} ({category.__name__})", file=file or sys.stderr)
+
+
+def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    """Run the parsed command; its errors as one line and an exit code (see :func:`main`)."""
     try:
         _check_inputs(args)
+        make_output_folders(args)
         return int(args.func(args) or 0)
     except BrokenPipeError:  # the output was piped into a reader that stopped (head)
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

@@ -25,6 +25,9 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from humotion_gym.envs._checks import FPS_RANGE
+from humotion_gym.render_scene import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
+
 
 class UsageError(ValueError):
     """A command's arguments are wrong together (exit 2); the message names the flag."""
@@ -37,17 +40,12 @@ class CommandError(RuntimeError):
 #: The most memory a command may plan to hold for frames it renders or synthesises
 #: (``check_memory``); a request beyond it is refused before anything is allocated.
 MEMORY_BUDGET_BYTES: int = 2 << 30
-#: Frame rates ``--fps`` accepts, Hz: the data sets capture at 30 to 120 Hz
-#: (some rigs at 240); resampling finer only multiplies every clip's memory.
-FPS_RANGE: tuple[float, float] = (1.0, 240.0)
 #: The most particles of one filter: a pf-tree BodyTrack episode peaks at
 #: 0.95 GB resident at 100,000 particles (0.36 GB at 10,000), so this bounds
 #: a run to about a gigabyte.
 MAX_PARTICLES: int = 100_000
 #: The most episodes per cell or run (each is seconds of tracking at least).
 MAX_EPISODES: int = 10_000
-#: The largest image side, pixels.
-MAX_IMAGE_SIDE: int = 2048
 
 
 def _number(kind: type, text: str) -> Any:
@@ -119,7 +117,7 @@ def probability(text: str) -> float:
 
 
 def image_size(text: str) -> tuple[int, int]:
-    """An argparse ``type`` for ``WIDTHxHEIGHT`` (e.g. ``256x256``), each 1 to 2048."""
+    """An argparse ``type`` for ``WIDTHxHEIGHT`` (e.g. ``256x256``) that the renderer draws."""
     parts = text.lower().split("x")
     try:
         width, height = (int(p) for p in parts)
@@ -127,9 +125,10 @@ def image_size(text: str) -> tuple[int, int]:
         raise argparse.ArgumentTypeError(
             f"expected WIDTHxHEIGHT, e.g. 256x256, got {text[:40]!r}"
         ) from None
-    if not (1 <= width <= MAX_IMAGE_SIDE and 1 <= height <= MAX_IMAGE_SIDE):
+    (w0, h0), (w1, h1) = MIN_IMAGE_SIZE, MAX_IMAGE_SIZE
+    if not (w0 <= width <= w1 and h0 <= height <= h1):
         raise argparse.ArgumentTypeError(
-            f"expected WIDTHxHEIGHT with each side 1 to {MAX_IMAGE_SIDE}, got {text}"
+            f"expected WIDTHxHEIGHT from {w0}x{h0} to {w1}x{h1}, got {text[:40]}"
         )
     return width, height
 
@@ -165,12 +164,29 @@ def _writable_folder(folder: Path) -> str | None:
     return None
 
 
+class OutputFile(type(Path())):  # type: ignore[misc]
+    """A file a command will write, checked by :func:`output_file` when parsed.
+
+    The command line creates its missing folders (:func:`make_output_folders`)
+    after every argument has parsed and before the command starts, so that a
+    long job never ends in a folder that is not there.
+    """
+
+
+def make_output_folders(args: argparse.Namespace) -> None:
+    """Create the missing folders of the command's :class:`OutputFile` arguments."""
+    for value in vars(args).values():
+        if isinstance(value, OutputFile):
+            value.parent.mkdir(parents=True, exist_ok=True)
+
+
 def output_file(*suffixes: str) -> Callable[[str], Path]:
     """An argparse ``type`` for a file to write: checked before any work is done.
 
     Refuses a folder, a suffix other than ``suffixes`` (when given) and a
     place where the file cannot be created (a file in the way, no permission,
-    a read-only file system). Nothing is created.
+    a read-only file system). Nothing is created while parsing; the file's
+    missing folders are made before the command starts (an :class:`OutputFile`).
     """
 
     def parse(text: str) -> Path:
@@ -188,7 +204,7 @@ def output_file(*suffixes: str) -> Callable[[str], Path]:
             problem = f"{path} is not writable"
         if problem:
             raise argparse.ArgumentTypeError(f"cannot write {text[:80]}: {problem}")
-        return path
+        return OutputFile(text)
 
     parse.__name__ = "output file"
     return parse
@@ -279,11 +295,14 @@ def add_seed(parser: argparse.ArgumentParser, what: str = "random seed") -> None
     parser.add_argument("--seed", type=nonnegative_int, default=0, help=f"{what} (default: 0)")
 
 
-def add_task(parser: argparse.ArgumentParser, default: str, what: str = "task id") -> None:
-    """``--task``: one registered task's id (with or without its namespace)."""
-    parser.add_argument(
-        "--task", type=task_name, default=default, help=f"{what} (default: {default})"
-    )
+def add_task(
+    parser: argparse.ArgumentParser,
+    default: str,
+    what: str = "task id",
+    kind: Callable[[str], str] = task_name,
+) -> None:
+    """``--task``: one registered task's id (with or without its namespace), read by ``kind``."""
+    parser.add_argument("--task", type=kind, default=default, help=f"{what} (default: {default})")
 
 
 def env_kwargs(args: argparse.Namespace) -> dict[str, Any]:

@@ -53,7 +53,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         dsub, "info",
         "per clip: rig and how it was matched, person, split, label, frames, fps, "
         "seconds, retargeting error, T-pose dropped",
-        "humotion-gym data info ../shared/mocap/cmu/02_01.amc",
+        "humotion-gym data info ../shared/mocap/cmu-asfamc/02/02_01.amc",
     )  # fmt: skip
     info.add_argument("paths", nargs="+", metavar="PATH", help="mocap files or folders")
     add_json(info, "JSON lines instead of a table")

@@ -84,9 +84,11 @@ def _cmd_render(args: argparse.Namespace) -> int:
         env = FrameObservation(env)
     obs, info = env.reset(seed=args.seed)
     frames = [obs]
-    for _ in tqdm(range(args.frames - 1), desc=f"rendering {args.task}", unit="frame"):
-        obs, *_ = env.step(base.pose_to_action(base.true_pose()))
-        frames.append(obs)
+    with tqdm(total=args.frames, initial=1, desc=f"rendering {args.task}", unit="frame") as bar:
+        for _ in range(args.frames - 1):
+            obs, *_ = env.step(base.pose_to_action(base.true_pose()))
+            frames.append(obs)
+            bar.update()
     write_video(args.out, frames, fps=base.metadata["render_fps"], scale=args.scale)
     write_png(sheet, contact_sheet(frames, columns=6, count=6))
     wrote(args.out, f"{len(frames)} frames of {info['clip_id']}")

@@ -89,6 +89,8 @@ def register_envs() -> None:
         kwargs: dict[str, object] = {"task": spec.name}
         if name in VIEW_VARIANTS:
             kwargs["views"] = spec.views
+        if spec.version < 2:  # version 1 drew the held-out persons by default
+            kwargs["split"] = "test"
         for env_id in (f"{NAMESPACE}/{name}", name):
             if env_id not in registry:
                 register(

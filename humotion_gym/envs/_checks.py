@@ -7,6 +7,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+#: The frame rates clips may be resampled to, Hz (the command line's ``--fps`` too):
+#: the data sets capture at 30 to 120 Hz (some rigs at 240); resampling finer only
+#: multiplies every clip's memory.
+FPS_RANGE: tuple[float, float] = (1.0, 240.0)
+
 
 def check_count(name: str, value: Any) -> None:
     """Refuse anything but an integer >= 1 (a bool too), naming the argument."""
@@ -19,6 +24,55 @@ def check_positive(name: str, value: Any) -> None:
     real = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
     if not (real and np.isfinite(value) and value > 0):
         raise ValueError(f"{name}: expected a positive finite number, got {value!r}")
+
+
+def check_at_least_zero(name: str, value: Any) -> None:
+    """Refuse anything but a finite real number >= 0, naming the argument."""
+    real = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+    if not (real and np.isfinite(value) and value >= 0):
+        raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
+
+
+def check_bool(name: str, value: Any) -> None:
+    """Refuse anything but True or False (numpy's too): a string such as "no" is truthy."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name}: expected True or False, got {value!r}")
+
+
+def check_env_arguments(
+    counts: dict[str, Any],
+    positive: dict[str, Any],
+    at_least_zero: dict[str, Any],
+    naturals: dict[str, Any],
+    flags: dict[str, Any],
+    fps: Any,
+) -> None:
+    """An environment's numeric and boolean arguments, each refused in its own name.
+
+    ``counts`` are integers >= 1, ``naturals`` integers >= 0; ``None`` in any
+    but ``positive`` means the task's default and passes. ``fps`` must lie in :data:`FPS_RANGE`.
+
+    Raises:
+        ValueError: Naming the first argument that is not what it should be.
+    """
+    for name, value in counts.items():
+        if value is not None:
+            check_count(name, value)
+    for name, value in positive.items():
+        check_positive(name, value)
+    for name, value in at_least_zero.items():
+        if value is not None:
+            check_at_least_zero(name, value)
+    for name, value in naturals.items():
+        bad = isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0
+        if value is not None and bad:
+            raise ValueError(f"{name}: expected an integer >= 0, got {value!r}")
+    for name, value in flags.items():
+        if value is not None:
+            check_bool(name, value)
+    check_positive("fps", fps)
+    if not FPS_RANGE[0] <= fps <= FPS_RANGE[1]:
+        raise ValueError(f"fps: expected {FPS_RANGE[0]:g} to {FPS_RANGE[1]:g} Hz, got {fps!r}")
 
 
 def action_array(action: Any, what: str, shape: tuple[int, ...]) -> NDArray[Any]:

@@ -50,8 +50,9 @@ class BodyTrackEnv(PoseTrackingEnv):
 
     ## Starting State
 
-    A test-split clip of any activity and a start frame whose episode frames
-    were all observed; ``options`` may name ``clip_id``, ``file`` or ``start``.
+    A clip of the split's persons, of any activity, and a start frame whose
+    episode frames were all observed; ``options`` may name ``clip_id``,
+    ``file`` or ``start``.
     """
 
     def __init__(self, task: str = "BodyTrack-v2", **kwargs: Any) -> None:

@@ -24,7 +24,7 @@ from humotion_gym.body import (
 )
 from humotion_gym.camera import Camera, cameras_around, fit_camera
 from humotion_gym.envs import description
-from humotion_gym.envs._checks import action_array, check_count, check_positive
+from humotion_gym.envs._checks import action_array, check_count, check_env_arguments
 from humotion_gym.envs._episode_choice import EpisodeChoice, clip_geometry
 from humotion_gym.envs.description import TaskDescription
 from humotion_gym.envs.tasks import TaskSpec, get_task
@@ -171,14 +171,17 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
                 f"render_mode must be one of {self.metadata['render_modes']} or None, "
                 f"got {render_mode!r}"
             )
-        counts = {"frame_skip": frame_skip, "lost_patience": lost_patience}
-        if episode_frames is not None:
-            counts["episode_frames"] = episode_frames
-        for name, count in counts.items():
-            check_count(name, count)
-        positive = {"lost_threshold_mm": lost_threshold_mm, "reward_scale_mm": reward_scale_mm}
-        for name, value in (positive | {"fps": fps}).items():
-            check_positive(name, value)
+        check_env_arguments(
+            counts={"frame_skip": frame_skip, "lost_patience": lost_patience,
+                    "episode_frames": episode_frames},
+            positive={"lost_threshold_mm": lost_threshold_mm, "reward_scale_mm": reward_scale_mm},
+            at_least_zero={"noise": noise, "blur": blur},
+            naturals={"occluders": occluders},
+            flags={"terminate_on_lost": terminate_on_lost, "floor": floor},
+            fps=fps,
+        )  # fmt: skip
+        if library is not None and not isinstance(library, MotionLibrary):
+            raise ValueError(f"library: expected a MotionLibrary, got {type(library).__name__}")
         self.render_mode = render_mode
         given: dict[str, Any] = {"noise_sigma": noise, "blur_sigma": blur, "occluders": occluders}
         given |= {"palette": palette, "floor": None if floor is None else bool(floor)}

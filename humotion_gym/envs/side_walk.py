@@ -53,8 +53,9 @@ class SideWalkEnv(PoseTrackingEnv):
 
     ## Starting State
 
-    A test-split walking or running clip (labels ``walk``, ``run``) long
-    enough for 61 frames, and a start frame whose frames were all observed.
+    A walking or running clip (labels ``walk``, ``run``) of the split's
+    persons long enough for 61 frames, and a start frame whose frames were
+    all observed.
     """
 
     def __init__(self, task: str = "SideWalk-v2", **kwargs: Any) -> None:

@@ -47,8 +47,8 @@ class WalkTrackEnv(PoseTrackingEnv):
 
     ## Starting State
 
-    A test-split walking clip (label ``walk``) long enough for 61 frames, and
-    a start frame whose episode frames were all observed.
+    A walking clip (label ``walk``) of the split's persons long enough for 61
+    frames, and a start frame whose episode frames were all observed.
     """
 
     def __init__(self, task: str = "WalkTrack-v2", **kwargs: Any) -> None:

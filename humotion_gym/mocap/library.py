@@ -731,7 +731,13 @@ def load_library(
 def configured_data_dirs(data_dir: str | Path | Sequence[str | Path] | None = None) -> list[Path]:
     """The folders of real mocap: ``data_dir`` if given, else ``$HUMOTION_MOCAP``."""
     if data_dir is not None:
-        items = [data_dir] if isinstance(data_dir, (str, Path)) else list(data_dir)
+        items = [data_dir] if isinstance(data_dir, (str, Path)) else data_dir
+        if not isinstance(items, (list, tuple)) or not all(
+            isinstance(p, (str, Path)) for p in items
+        ):
+            raise ValueError(
+                f"data_dir: expected a folder (str or Path) or a list of them, got {data_dir!r}"
+            )
         return [Path(p) for p in items]
     env = os.environ.get(MOCAP_ENV, "")
     return [Path(p) for p in env.split(os.pathsep) if p]

@@ -31,6 +31,20 @@ def test_registry_and_unknown_agent():
         make("pf-nothing", env)
 
 
+@pytest.mark.parametrize(
+    "kwargs",
+    [{"n_particles": 2.5}, {"n_particles": "300"}, {"n_particles": 0}, {"n_particles": True},
+     {"seed": -1}, {"seed": "a"}, {"seed": 1.0}],
+)  # fmt: skip
+def test_make_refuses_counts_that_are_not_integers_naming_them(kwargs):
+    env = gym.make("humotion_gym/ArmTrack-v2")
+    name = next(iter(kwargs))
+    for agent in ("pf-cv", "hold"):
+        with pytest.raises(ValueError, match=f"agents.make: {name} must be an integer"):
+            make(agent, env, **kwargs)
+    make("pf-cv", env, n_particles=np.int64(10), seed=np.int32(3))
+
+
 def test_particle_filter_agent_tracks_end_to_end_on_synthetic_data():
     env = gym.make("humotion_gym/SideWalk-v2", terminate_on_lost=False)
     agent = make("pf-cv", env, n_particles=200, seed=0)

@@ -163,12 +163,44 @@ def test_integer_actions_are_accepted(env):
         {"frame_skip": 0},
         {"fps": 0.0},
         {"split": "dev"},  # the splits are train, validation and test
+        {"fps": 2000.0},  # above the fastest capture a clip only grows
+        {"terminate_on_lost": "no"},  # a truthy string, not False
+        {"floor": "yes"},
+        {"noise": "x"},
+        {"blur": -1.0},
+        {"occluders": 1.5},
+        {"occluders": -1},
+        {"data_dir": 123},
+        {"data_dir": [1, 2]},
+        {"library": "x"},
     ],
 )
 def test_constructor_arguments_are_range_checked(kwargs):
     name = next(iter(kwargs))
-    with pytest.raises(ValueError, match=name):
+    with pytest.raises(ValueError, match=f"^{name}: expected"):
         gym.make("humotion_gym/ArmTrack-v2", **kwargs)
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"terminate_on_lost": np.bool_(False)},
+        {"floor": True},
+        {"noise": 0},
+        {"occluders": np.int64(2)},
+        {"fps": 240.0},
+    ],
+)
+def test_the_checks_take_what_the_arguments_take(kwargs):
+    gym.make("humotion_gym/ArmTrack-v2", **kwargs).close()
+
+
+def test_version_1_draws_the_held_out_persons_by_default_as_it_did():
+    with pytest.warns(DeprecationWarning):
+        v1 = gym.make("humotion_gym/BodyTrack-v1")
+        chosen = gym.make("humotion_gym/BodyTrack-v1", split="train")
+    assert (v1.unwrapped.split, chosen.unwrapped.split) == ("test", "train")
+    assert gym.make("humotion_gym/BodyTrack-v2").unwrapped.split == "train"
 
 
 @pytest.mark.parametrize("env_id", humotion_gym.ENV_IDS)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 
 import gymnasium as gym
@@ -17,10 +18,12 @@ from baselines.agents.learned import (
     HybridAgent,
     LearnedAgent,
     NoCheckpointError,
+    OtherDataWarning,
     checkpoint_path,
     is_learned,
     load_policy,
     takes_particles,
+    trained_data_dirs,
 )
 from baselines.leaderboard import run_leaderboard
 from baselines.leaderboard.evaluation import evaluate, run_episode
@@ -264,6 +267,30 @@ def test_pretrained_checkpoint_loads_acts_and_says_how_it_was_made(path: Path) -
     result = run_episode(make(algo, env), env, seed=0)
     assert len(result.errors_mm) == env.unwrapped.episode_frames
     assert np.all(np.isfinite(result.errors_mm))
+
+
+def test_a_policy_trained_on_real_mocap_warns_when_scored_on_synthetic(
+    bc_run: Path, tmp_path: Path
+) -> None:
+    synthetic = gym.make("humotion_gym/ArmTrack-v2")
+    with pytest.warns(OtherDataWarning, match="--data-dir"):
+        make("bc", synthetic)  # the shipped checkpoint names ../shared/mocap
+    assert trained_data_dirs(checkpoint_path("bc", "ArmTrack-v2")) == ["../shared/mocap"]
+    # a run on the synthetic library records no folders: no warning
+    assert trained_data_dirs(bc_run / "model.zip") is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", OtherDataWarning)
+        make(str(bc_run / "model.zip"), synthetic)
+    # a run whose record names folders warns, a hybrid too; a damaged record is no record
+    record = json.loads((bc_run / "config.json").read_text())
+    copy = tmp_path / "real"
+    copy.mkdir()
+    (copy / "model.zip").write_bytes((bc_run / "model.zip").read_bytes())
+    (copy / "config.json").write_text(json.dumps({**record, "data_dir": ["/data/mocap"]}))
+    with pytest.warns(OtherDataWarning, match="trained on motion capture in /data/mocap"):
+        make(f"pf-cv+{copy / 'model.zip'}", synthetic, n_particles=20)
+    (copy / "config.json").write_text("{not json")
+    assert trained_data_dirs(copy / "model.zip") is None
 
 
 def test_every_task_ships_a_bc_checkpoint_where_the_agents_look() -> None:

@@ -147,3 +147,16 @@ def test_the_true_action_scores_perfectly(env_id: str) -> None:
         assert info_next["error_mm"] < 1e-3
         assert reward == pytest.approx(1.0, abs=1e-5)
         info = info_next
+
+
+@pytest.mark.parametrize("size", [0, 7, "64", 64.0, True])
+def test_every_learner_env_refuses_the_same_frame_sizes(size) -> None:
+    from humotion_gym.sb3 import LearnerVecEnv, learner_vec_env
+
+    with pytest.raises(ValueError, match="LearnerObservation: size must be an integer >= 8"):
+        LearnerObservation(gym.make("humotion_gym/ArmTrack-v2"), size=size)
+    with pytest.raises(ValueError, match="learner_vec_env: frame_size must be an integer >= 8"):
+        learner_vec_env("ArmTrack-v2", 2, frame_size=size)
+    venv = learner_vec_env("ArmTrack-v2", 2, frame_size=None).venv
+    with pytest.raises(ValueError, match="LearnerVecEnv: frame_size must be an integer >= 8"):
+        LearnerVecEnv(venv, size)
