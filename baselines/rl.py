@@ -35,11 +35,10 @@ import importlib.util
 import json
 import math
 import platform
-import re
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any, cast
 
@@ -47,7 +46,6 @@ import gymnasium as gym
 import numpy as np
 import stable_baselines3
 import torch as th
-import yaml
 from gymnasium import spaces
 from numpy.typing import NDArray
 from stable_baselines3 import PPO
@@ -71,47 +69,23 @@ from baselines.agents.policy import (  # noqa: F401
 from baselines.experiments.selection import validation_library
 from baselines.leaderboard.evaluation import evaluate
 from baselines.leaderboard.results import source_commit
+from baselines.rl_config import (  # noqa: F401  (the training API, re-exported)
+    ALGOS,
+    BC_DEFAULTS,
+    PPO_DEFAULTS,
+    RESUME_KEYS,
+    RESUME_SETTINGS,
+    SETTING_RANGES,
+    TrainConfig,
+    check_resumed,
+    load_hyperparams,
+)
 from humotion_gym.body import N_KEYPOINTS
 from humotion_gym.envs import get_task
 from humotion_gym.kinematics import batch_pose_geometry
 from humotion_gym.mocap.library import MotionLibrary, package_version
 from humotion_gym.sb3 import learner_vec_env
 from humotion_gym.wrappers import LearnerObservation, Supervision
-
-ALGOS: tuple[str, ...] = ("ppo", "bc")
-
-#: PPO settings used when no hyperparameter file is given (``hyperparams/ppo.yml``
-#: holds the same values per task in the RL Baselines3 Zoo format; a test checks
-#: that they agree).
-PPO_DEFAULTS: dict[str, Any] = {
-    "n_envs": 8,
-    "n_steps": 128,
-    "batch_size": 256,
-    "n_epochs": 4,
-    "learning_rate": 3e-4,
-    "gamma": 0.9,
-    "gae_lambda": 0.9,
-    "clip_range": 0.2,
-    "ent_coef": 0.0,
-    "vf_coef": 0.5,
-    "max_grad_norm": 0.5,
-    "log_std_init": -2.5,
-    "features_dim": 128,
-    "frame_size": 64,
-}
-
-#: Behaviour-cloning settings (see :func:`train_bc`).
-BC_DEFAULTS: dict[str, Any] = {
-    "n_envs": 8,
-    "rounds": 8,
-    "batch_size": 128,
-    "learning_rate": 1e-3,
-    "passes": 16.0,
-    "buffer_size": 40_000,
-    "expert_noise": 0.08,
-    "features_dim": 128,
-    "frame_size": 64,
-}
 
 
 def make_learner_env(
@@ -161,110 +135,6 @@ def keypoint_sensitivity(
         shift = np.linalg.norm(geometry[1:] - geometry[:1], axis=-1).mean(axis=1)
         rows.append(shift / eps)
     return np.mean(rows, axis=0)
-
-
-@dataclass
-class TrainConfig:
-    """Everything a training run needs, saved as ``config.json`` beside the model.
-
-    Attributes:
-        algo: ``"ppo"`` or ``"bc"``.
-        task: Task id, e.g. ``"BodyTrack-v2"``.
-        steps: Environment steps to train for.
-        seed: Seed of the policy, the episodes and the rollouts.
-        out: Output folder (``model.zip``, ``config.json``, ``checkpoints/``).
-        data_dir: Motion capture folders (None: the configured data or synthetic).
-        settings: Algorithm settings (:data:`PPO_DEFAULTS`/:data:`BC_DEFAULTS`
-            overridden by the hyperparameter file and the caller).
-        init: A saved policy to start from (PPO fine-tuning from ``bc``).
-        checkpoint_every: Save a checkpoint every this many env steps.
-        threads: Torch threads.
-        validation: Hold the validation persons out of training
-            (:func:`baselines.experiments.selection.validation_library`) and
-            track them every ``eval_every`` env steps and at the end (the
-            error is logged as ``eval/mean_error_mm``); False trains on every
-            training person and evaluates nothing.
-        eval_every: Env steps between two validation runs.
-        eval_episodes: Validation episodes per run.
-    """
-
-    algo: str
-    task: str
-    steps: int
-    seed: int = 0
-    out: str = "runs/run"
-    data_dir: list[str] | None = None
-    settings: dict[str, Any] = field(default_factory=dict)
-    init: str | None = None
-    checkpoint_every: int = 10_000
-    threads: int = 1
-    validation: bool = True
-    eval_every: int = 10_000
-    eval_episodes: int = 5
-
-    def __post_init__(self) -> None:
-        if self.algo not in ALGOS:
-            raise ValueError(f"algo: expected one of {list(ALGOS)}, got {self.algo!r}")
-        self.task = get_task(self.task).name
-        if isinstance(self.steps, bool) or not isinstance(self.steps, int) or self.steps < 1:
-            raise ValueError(f"steps: expected an integer >= 1, got {self.steps!r}")
-        for name in ("checkpoint_every", "eval_every", "eval_episodes"):
-            if getattr(self, name) < 1:
-                raise ValueError(f"{name}: expected >= 1, got {getattr(self, name)}")
-        defaults = PPO_DEFAULTS if self.algo == "ppo" else BC_DEFAULTS
-        unknown = sorted(set(self.settings) - set(defaults))
-        if unknown:
-            raise ValueError(
-                f"{self.algo} settings: unknown {unknown}; the settings are {sorted(defaults)}"
-            )
-        self.settings = {**defaults, **self.settings}
-
-
-def load_hyperparams(path: str | Path, task: str) -> dict[str, Any]:
-    """PPO settings of one task from an RL Baselines3 Zoo YAML file.
-
-    Reads the entry ``humotion_gym/TASK`` (or ``TASK``): ``n_envs``,
-    ``n_steps``, ``batch_size``, ``n_epochs``, ``learning_rate``, ``gamma``,
-    ``gae_lambda``, ``clip_range``, ``ent_coef``, ``vf_coef``,
-    ``max_grad_norm``; ``log_std_init`` and ``features_dim`` from the
-    ``policy_kwargs`` string; ``frame_size`` from the ``env_wrapper``'s ``size``.
-
-    Raises:
-        ValueError: If the file has no entry for the task.
-    """
-    name = get_task(task).name
-    data = _read_zoo_yaml(Path(path))
-    entry = data.get(f"humotion_gym/{name}") or data.get(name)
-    if entry is None:
-        raise ValueError(f"{path}: no entry humotion_gym/{name}")
-    out = {k: entry[k] for k in PPO_DEFAULTS if k in entry}
-    text = str(entry.get("policy_kwargs", ""))
-    for key in ("log_std_init", "features_dim"):
-        match = re.search(rf"{key}\s*=\s*(-?[0-9.e+-]+)", text)
-        if match:
-            out[key] = float(match.group(1)) if key == "log_std_init" else int(match.group(1))
-    for wrapper in entry.get("env_wrapper", []) or []:
-        if isinstance(wrapper, dict):
-            for kwargs in wrapper.values():
-                if isinstance(kwargs, dict) and "size" in kwargs:
-                    out["frame_size"] = kwargs["size"]
-    for key in ("n_envs", "n_steps", "batch_size", "n_epochs"):
-        if key in out:
-            out[key] = int(out[key])
-    return out
-
-
-def _read_zoo_yaml(path: Path) -> dict[str, Any]:
-    """The entries of a zoo hyperparameter file.
-
-    Raises:
-        ValueError: If it is not YAML (the message names the file).
-    """
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise ValueError(f"{path}: not a YAML hyperparameter file ({exc})") from None
-    return data if isinstance(data, dict) else {}
 
 
 def _provenance(config: TrainConfig, command: str | None) -> dict[str, Any]:
@@ -454,19 +324,24 @@ def _save(model: PPO, path: Path) -> None:
     model.save(path)
 
 
-def prepare_output(out: Path, resume: bool, force: bool) -> None:
+def prepare_output(out: Path, resume: bool, force: bool, config: TrainConfig | None = None) -> None:
     """Refuse to overwrite an earlier run's model unless asked to resume or to start afresh.
 
     With ``force`` the earlier run's ``model.zip`` and checkpoints are deleted
-    (a later resume would otherwise continue from them).
+    (a later resume would otherwise continue from them). With ``resume`` and a
+    ``config``, the earlier run's ``config.json`` must name the same
+    :data:`RESUME_KEYS` and :data:`RESUME_SETTINGS`.
 
     Raises:
         FileExistsError: If ``out`` holds a model or checkpoints and neither
             ``resume`` nor ``force`` is set.
-        ValueError: If both are set.
+        ValueError: If both are set, or the run to resume is another
+            algorithm's, task's or network's.
     """
     if resume and force:
         raise ValueError("resume and force: choose one (continue the run, or start afresh)")
+    if resume and config is not None and (out / "config.json").is_file():
+        check_resumed(out / "config.json", config)
     earlier = [p for p in (out / "model.zip",) if p.is_file()]
     earlier += [p for _, p in checkpoints(out / "checkpoints")]
     if not earlier or resume:
@@ -504,7 +379,7 @@ def train(
         ValueError: If the data lacks the validation persons (:func:`validation_fold`).
     """
     out = Path(config.out)
-    prepare_output(out, resume, force)
+    prepare_output(out, resume, force, config)
     th.set_num_threads(max(1, int(config.threads)))
     fold = validation_fold(config)
     found = checkpoints(out / "checkpoints") if resume else []

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 import humotion_gym
@@ -25,6 +26,8 @@ from baselines.cli import main
         (["track", "--agent", "pf-nothing+bc"], "--agent"),
         (["track", "--agent", "pf-tree+nothing"], "--agent"),
         (["track", "--agent", "pf-tree+runs/none/model.zip"], "--agent"),
+        (["tree", "variance", "--windows", "1"], "--windows"),  # a variance needs two
+        (["discrimination", "--task", "BodyTrack4Views-v2"], "--task"),  # one view
         (["select", "--grid", "sharpness"], "--grid"),
         (["synth", "--prior", "cyclic_pca", "--beta", "0.1"], "--beta"),
     ],
@@ -45,7 +48,7 @@ def test_a_hybrid_of_a_saved_policy_parses_and_its_file_is_checked(tmp_path, cap
         assert build_parser().parse_args(["track", "--agent", agent]).agent == agent
     assert main(["track", "--agent", f"pf-tree+{tmp_path}/other.zip"]) == 2
     err = capsys.readouterr().err
-    assert f"no such policy file {tmp_path}/other.zip" in err and len(err.splitlines()) == 1
+    assert "no such policy file" in err and len(err.splitlines()) == 1  # paths cut at 80
 
 
 def test_output_files_get_their_folders_before_the_command_runs(tmp_path, capsys):
@@ -72,6 +75,46 @@ def test_warnings_are_one_line_on_stderr(monkeypatch, capsys):
     assert main(["tasks"]) == 0
     assert capsys.readouterr().err == "humotion-gym: warning: WARN: careful, twice (UserWarning)\n"
     assert warnings.showwarning is shown  # the caller's display, restored
+
+
+def test_a_refused_value_is_one_line_unless_its_traceback_is_asked_for(monkeypatch, capsys):
+    # BodyTrack-v2's synthetic clips are shorter than 300 frames: the env's ValueError
+    argv = ["render", "--task", "BodyTrack-v2", "--frames", "300", "--out", "never.mp4"]
+    assert main(argv) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("humotion-gym render: error: BodyTrack-v2: no train clip")
+    assert len(err.splitlines()) == 1
+    monkeypatch.setenv("HUMOTION_TRACEBACK", "1")
+    with pytest.raises(ValueError, match="no train clip"):
+        main(argv)
+
+
+def test_ctrl_c_ends_in_one_line_and_130(monkeypatch, capsys):
+    from humotion_gym.cli import tasks as tasks_cli
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(tasks_cli, "_cmd_tasks", interrupted)
+    assert main(["tasks"]) == 130
+    assert capsys.readouterr().err == "humotion-gym tasks: interrupted\n"
+
+
+def test_json_output_is_strict_json():
+    from humotion_gym.cli._common import json_text
+
+    text = json_text({"a": float("nan"), "b": [np.inf, np.float32(1.5)], "c": np.arange(2)})
+    assert json.loads(text) == {"a": None, "b": [None, 1.5], "c": [0, 1]}
+    assert "NaN" not in text and "Infinity" not in text
+
+
+def test_data_convert_takes_one_file(tmp_path, capsys):
+    out = str(tmp_path / "x.bvh")
+    for source, why in ((tmp_path, "(a folder)"), (tmp_path / "no.bvh", "(no such file)")):
+        assert main(["data", "convert", str(source), out]) == 2
+        err = capsys.readouterr().err
+        assert "expected one BVH or AMC file" in err and why in err
+    assert main(["data", "convert", "synthetic/walk-01", out]) == 0
 
 
 def test_runtime_errors_exit_1_with_one_line(tmp_path, capsys):

@@ -116,6 +116,20 @@ def test_every_help_example_parses(parser: argparse.ArgumentParser) -> None:
     assert broken == []
 
 
+def test_every_shared_mocap_path_of_an_example_or_a_page_exists(parser, shared_mocap) -> None:
+    """``../shared/mocap/...`` in a help example or a page's command is a real file or folder."""
+    commands = [example for _, example in help_examples(parser)]
+    commands += [c for page in PAGES for _, c in page_commands(page.read_text(encoding="utf-8"))]
+    named = {
+        word for command in commands for word in shlex.split(command)
+        if word.startswith("../shared/mocap/") or word == "../shared/mocap"
+    }  # fmt: skip
+    assert len(named) >= 4
+    inside = {w: w[len("../shared/mocap") :].lstrip("/") for w in named}
+    missing = [w for w in sorted(named) if not (shared_mocap / inside[w]).exists()]
+    assert missing == []
+
+
 def test_the_architecture_page_names_every_command(parser: argparse.ArgumentParser) -> None:
     """docs/architecture.md's two ``cli`` rows list every top-level command, each once."""
     rows = [

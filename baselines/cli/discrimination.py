@@ -11,6 +11,7 @@ import argparse
 
 from baselines.cli._args import tracked_task
 from humotion_gym.cli._common import (
+    UsageError,
     add_command,
     add_data_dir,
     add_json,
@@ -65,12 +66,17 @@ def _cmd_discrimination(args: argparse.Namespace) -> int:
 
     kwargs = {"split": "test", **env_kwargs(args)}
     env = gym.make(f"humotion_gym/{args.task}", terminate_on_lost=False, **kwargs)
+    views = env.unwrapped.views  # type: ignore[attr-defined]
+    if views > 1:
+        raise UsageError(
+            f"--task: {args.task} is seen by {views} cameras; the discrimination reads one "
+            "view (use its single-view task)"
+        )
     if args.figure is not None:
         import cv2
 
         panels = likelihood_panels(env, args.seed)
         big = cv2.resize(panels, None, fx=2, fy=2, interpolation=cv2.INTER_NEAREST)
-        args.figure.parent.mkdir(parents=True, exist_ok=True)
         if not cv2.imwrite(str(args.figure), cv2.cvtColor(big, cv2.COLOR_RGB2BGR)):
             raise OSError(f"--figure: could not write {args.figure}")
         wrote(args.figure)

@@ -60,8 +60,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "humotion-gym leaderboard --tasks ArmTrack-v2 --agents pf-cv pf-tree --out runs/lb",
         details="Exit codes: 0 when every cell ran or was skipped; 1 when a cell failed (the "
         "table shows it, stderr names it); 2 on a usage error (an --out holding a run without "
-        "--resume, or --resume with another grid); 130 when interrupted (--out keeps what "
-        "finished).",
+        "--resume, or --resume with another grid or other settings); 130 when interrupted "
+        "(--out keeps what finished).",
     )  # fmt: skip
     lb.add_argument(
         "--tasks", type=tracked_task, nargs="+", default=["ArmTrack-v2", "BodyTrack-v2"],
@@ -221,8 +221,8 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         if exc.name != "ray":
             raise
         raise CommandError(f"--engine ray: {exc}") from None
-    except ResumeError as exc:
-        raise CommandError(f"--resume: {exc}") from None
+    except ResumeError as exc:  # the saved run's other settings: the arguments conflict
+        raise UsageError(f"--resume: {exc}") from None
     except KeyboardInterrupt:
         where = f"; the finished episodes are saved in {args.out}" if args.out else ""
         print(f"interrupted{where}", file=sys.stderr)

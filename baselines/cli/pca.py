@@ -29,12 +29,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``pca period`` and ``pca figures``."""
     pca = add_command(
         subparsers, "pca", "cyclic PCA walking model (Ormoneit et al. 2005)",
-        "humotion-gym pca period ../shared/mocap/cmu",
+        "humotion-gym pca period ../shared/mocap/cmu-asfamc",
     )  # fmt: skip
     psub = pca.add_subparsers(dest="pca_command", required=True, metavar="COMMAND")
     period = add_command(
         psub, "period", "cycle length per clip: eq. 3 and the feet",
-        "humotion-gym pca period ../shared/mocap/cmu --json",
+        "humotion-gym pca period ../shared/mocap/cmu-asfamc --json",
     )  # fmt: skip
     period.add_argument("paths", nargs="+", metavar="PATH", help="mocap files or folders")
     add_json(period, "JSON lines instead of a table")

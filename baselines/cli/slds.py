@@ -119,7 +119,8 @@ def _register_classify(sub: argparse._SubParsersAction) -> None:
 
     c = add_command(
         sub, "classify", "walk/run classification (section 4.1, Fig. 3)",
-        "humotion-gym slds classify --train ../shared/mocap/cmu --test ../shared/mocap/bandai",
+        "humotion-gym slds classify --train ../shared/mocap/cmu-asfamc "
+        "--test ../shared/mocap/bandai-1",
     )  # fmt: skip
     c.add_argument(
         "--train", nargs="+", required=True, metavar="PATH", help="training mocap files or folders"
@@ -264,6 +265,10 @@ def _cmd_classify(args: argparse.Namespace) -> int:
     )
     if args.labels is None:  # walk and run, Bandai-Namco set 1's dash as run
         train, test = pav.activity_clips(train), pav.activity_clips(test)
+    wanted = args.labels or pav.CLASSIFY_LABELS
+    for flag, clips in (("--train", train), ("--test", test)):
+        if not any(args.labels is None or m.label in wanted for m in clips):
+            raise UsageError(f"{flag}: no clip of the classified activities ({', '.join(wanted)})")
     result = pav.run_classification(
         train, test, np.random.default_rng(args.seed), free=pav.param_indices(args.free),
         labels=args.labels, n_states=args.states, n_iter=args.iters,

@@ -8,7 +8,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +25,7 @@ from humotion_gym.cli._common import (
     check_mocap_paths,
     env_kwargs,
     episode_count,
+    json_text,
     output_file,
     wrote,
 )
@@ -139,7 +139,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
         write_video(args.video, frames, fps=env.unwrapped.metadata["render_fps"])
     summary = summarize(results)
     if args.json:
-        print(json.dumps({
+        print(json_text({
             "task": args.task, "agent": args.agent, "particles": args.particles,
             "episodes": [r.to_dict() for r in results], "summary": summary,
             "video": str(args.video) if args.video else None, "warm_up_s": warm_up_s,

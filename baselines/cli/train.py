@@ -10,8 +10,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import shutil
+import sys
 from pathlib import Path
 
 from baselines.cli._args import key_value, tracked_task
@@ -169,8 +171,6 @@ def _settings(args: argparse.Namespace) -> dict:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
-    import sys
-
     from baselines.rl import TrainConfig, train
 
     out = args.out or Path("runs") / f"{args.algo}-{args.task}-s{args.seed}"
@@ -193,8 +193,11 @@ def _cmd_train(args: argparse.Namespace) -> int:
     if args.init is not None and not args.init.is_file():
         raise CommandError(f"--init: {args.init} does not exist")
     command = "humotion-gym " + " ".join(sys.argv[1:]) if sys.argv[1:] else None
+    # With --json, stdout holds the one JSON object: the training log goes to stderr.
+    log = contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext()
     try:
-        path = train(config, resume=args.resume, force=args.force, command=command)
+        with log:
+            path = train(config, resume=args.resume, force=args.force, command=command)
     except FileExistsError as exc:
         raise UsageError(str(exc)) from None
     run_config = json.loads((out / "config.json").read_text())
@@ -203,7 +206,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
         target = args.export / f"{args.algo}-{config.task}.zip"
         shutil.copyfile(path, target)
         shutil.copyfile(out / "config.json", target.with_suffix(".json"))
-        wrote(target, "the policy (and its config beside it)")
+        if not args.json:
+            wrote(target, "the policy (and its config beside it)")
     if args.json:
         print_json(run_config)
         return 0

@@ -51,9 +51,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_task(var, "BodyTrack-v2", "the task whose pf-tree prior to read", kind=tracked_task)
     var.add_argument(
         "--windows",
-        type=int_at_least(1, 1_000_000),
+        type=int_at_least(2, 1_000_000),
         default=15000,
-        help="windows sampled, at most 1,000,000 (default: 15000)",
+        help="windows sampled (a variance needs two), 2 to 1,000,000 (default: 15000)",
     )
     add_data_dir(var)
     add_seed(var)

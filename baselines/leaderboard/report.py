@@ -37,6 +37,7 @@ from __future__ import annotations
 import gzip
 import html
 import json
+import zlib
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -99,7 +100,7 @@ def read_json(path: str | Path) -> Any:
         return json.loads(raw)
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ValueError(f"{path}: not JSON ({exc})") from None
-    except gzip.BadGzipFile as exc:
+    except (gzip.BadGzipFile, EOFError, zlib.error) as exc:  # EOFError: cut short
         raise ValueError(f"{path}: not gzipped JSON ({exc})") from None
 
 

@@ -79,11 +79,21 @@ class ResultsFolder:
         """
         if resume:
             if not self.run_path.is_file():
+                if self.episodes_path.exists() and self.episodes_path.stat().st_size > 0:
+                    raise FileNotFoundError(
+                        f"{self.run_path}: missing, so the episodes in {self.folder} cannot be "
+                        "matched to their settings; move them away or choose another folder"
+                    )
                 raise FileNotFoundError(
                     f"{self.run_path}: no run to resume in {self.folder} "
                     "(start one without --resume)"
                 )
-            saved = json.loads(self.run_path.read_text())
+            try:
+                saved = json.loads(self.run_path.read_text(encoding="utf-8"))
+            except ValueError as exc:  # damage, not other settings: a runtime error
+                raise ValueError(f"{self.run_path}: not the run's settings ({exc})") from None
+            if not isinstance(saved, dict):
+                raise ValueError(f"{self.run_path}: not the run's settings (a JSON object)")
             differ = [k for k in settings if saved.get(k) != _jsonable(settings[k])]
             if differ:
                 shown = "; ".join(

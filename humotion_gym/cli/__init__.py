@@ -83,13 +83,27 @@ class OneLineParser(argparse.ArgumentParser):
         sys.exit(2)
 
 
+#: Set to 1 to see the traceback of an error the command line reports in one line.
+TRACEBACK_ENV = "HUMOTION_TRACEBACK"
+
+
 def _runtime_errors() -> tuple[type[BaseException], ...]:
-    """Exceptions reported as one line with exit code 1 (the user can act on them)."""
+    """Exceptions reported as one line with exit code 1 (the user can act on them).
+
+    ``ValueError`` is how the packages refuse what they are given (a clip too
+    short for the episode, a setting out of range, a file that does not parse:
+    ``json``'s and Unicode's errors are ValueErrors too), each naming what was
+    wrong; ``EOFError`` is a truncated compressed file. Other exceptions are
+    bugs and keep their traceback.
+    """
     from humotion_gym.errors import MocapFormatError, RigError
     from humotion_gym.mocap.download import DownloadError
     from humotion_gym.mocap.persons import SplitError
 
-    return (CommandError, OSError, MocapFormatError, RigError, DownloadError, SplitError)
+    return (
+        CommandError, OSError, MocapFormatError, RigError, DownloadError, SplitError,
+        ValueError, EOFError,
+    )  # fmt: skip
 
 
 def _grouped_listing(sub: argparse._SubParsersAction) -> str:
@@ -182,7 +196,10 @@ def main(argv: Sequence[str] | None = None, modules: Sequence[str] = COMMAND_MOD
 
     The bare command (no arguments) prints the help on stdout and exits 0, as
     ``pip`` and ``docker`` do: it is how one discovers the commands, and it
-    writes nothing.
+    writes nothing. A usage error ends in one line and exit code 2, an error
+    the user can act on (:func:`_runtime_errors`) in one line and 1 (with
+    ``HUMOTION_TRACEBACK=1``, its traceback instead), Ctrl-C in one line and
+    130; any other exception is a bug and keeps its traceback.
 
     Args:
         argv: The arguments (default: ``sys.argv[1:]``).
@@ -234,6 +251,11 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
             raise
         _error(parser, args, f"{exc}; install the {extra} extra: pip install -e '.[{extra}]'")
         return 1
+    except KeyboardInterrupt:  # Ctrl-C: what was written stays (commands write as they go)
+        print(f"{parser.prog} {args.command}: interrupted", file=sys.stderr)
+        return 130
     except _runtime_errors() as exc:
+        if os.environ.get(TRACEBACK_ENV) == "1":
+            raise
         _error(parser, args, str(exc))
         return 1

@@ -342,7 +342,7 @@ def report(args: argparse.Namespace, result: Any, what: str, text: Callable[[], 
         The exit status, 0.
     """
     if args.out:
-        args.out.write_text(json.dumps(result, indent=1))
+        args.out.write_text(json_text(result, indent=1))
         if not args.json:
             wrote(args.out, what)
     if args.json:
@@ -360,9 +360,31 @@ def _plain(value: Any) -> Any:
     raise TypeError(f"not JSON-serialisable: {type(value).__name__}")
 
 
+def _finite(value: Any) -> Any:
+    """``value`` with numpy values made plain and every NaN or infinity made None (null)."""
+    if hasattr(value, "tolist"):
+        value = value.tolist()
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    return value
+
+
+def json_text(obj: Any, indent: int | None = None) -> str:
+    """One strict JSON document: numpy values and paths plain, NaN and infinities null.
+
+    Python's ``json`` would write ``NaN``, which JSON does not have and strict
+    parsers refuse.
+    """
+    return json.dumps(_finite(obj), default=_plain, indent=indent, allow_nan=False)
+
+
 def print_json(obj: Any) -> None:
-    """Print one JSON document (numpy values and paths become plain JSON)."""
-    print(json.dumps(obj, default=_plain))
+    """Print one JSON document (see :func:`json_text`)."""
+    print(json_text(obj))
 
 
 def add_command(

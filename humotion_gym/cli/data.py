@@ -11,8 +11,8 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -24,6 +24,7 @@ from humotion_gym.cli._common import (
     add_data_dir,
     add_fps,
     add_json,
+    json_text,
     output_file,
 )
 
@@ -99,7 +100,7 @@ def _cmd_data_table(args: argparse.Namespace) -> int:
         lib = lib.split(args.split)
     if args.json:
         for m in lib:
-            print(json.dumps({
+            print(json_text({
                 "clip": m.clip_id, "dataset": m.dataset, "subject": m.subject, "label": m.label,
                 "frames": m.n_frames, "fps": m.fps, "source": m.source,
             }))  # fmt: skip
@@ -148,7 +149,7 @@ def _cmd_data_info(args: argparse.Namespace) -> int:
             for ds, s in library_summary(lib).items()
         }
         if args.json:
-            print(json.dumps(out, indent=2))
+            print(json_text(out, indent=2))
         else:
             cols = ("mean", "median", "p95", "max")
             print(
@@ -166,7 +167,7 @@ def _cmd_data_info(args: argparse.Namespace) -> int:
     rows = [_clip_row(m, lib.held_out) for m in lib]
     if args.json:
         for r in rows:
-            print(json.dumps(r))
+            print(json_text(r))
         return 0
     head = (f"{'file':40s} {'rig':19s} {'matched':14s} {'person':16s} {'split':5s} "
             f"{'label':10s} {'frames':>6s} {'fps':>4s} {'sec':>6s} {'err':>6s} {'max':>6s}  "
@@ -242,7 +243,7 @@ def _cmd_data_persons(args: argparse.Namespace) -> int:
         for s in subject_skeletons(lib)
     ]
     if args.json:
-        print(json.dumps({
+        print(json_text({
             "subjects": rows,
             "groups": {f"G{i + 1}": list(g) for i, g in enumerate(groups)},
             "split_ok": ok, "message": message,
@@ -287,7 +288,14 @@ def _cmd_data_convert(args: argparse.Namespace) -> int:
             )
         motion = lib[args.input]
     else:
+        if not Path(args.input).is_file():
+            raise UsageError(
+                f"input: expected one BVH or AMC file (or synthetic/<clip>), got {args.input}"
+                + (" (a folder)" if Path(args.input).is_dir() else " (no such file)")
+            )
         lib = load_library([args.input], fps=args.fps, progress=False)
+        if len(lib) != 1:
+            raise UsageError(f"input: {args.input} holds {len(lib)} clips; convert one")
         motion = lib[0]
     write_motion_bvh(args.output, motion.params, motion.shape, motion.fps)
     print(f"wrote {args.output}: {motion.n_frames} frames at {motion.fps:g} fps ({motion.clip_id})")

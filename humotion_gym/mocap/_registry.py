@@ -67,7 +67,12 @@ def load_registry(path: str | Path | None = None) -> dict[str, RegistryEntry]:
     """
     path = Path(path) if path is not None else REGISTRY_PATH
     out: dict[str, RegistryEntry] = {}
-    for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        why = f"{exc.reason} at byte {exc.start}"
+        raise ValueError(f"{path}: not a text registry ({why})") from None
+    for n, line in enumerate(text.splitlines(), 1):
         line = line.split("#", 1)[0].strip()
         if not line:
             continue

@@ -660,16 +660,37 @@ def verify_cache(
         A :class:`CacheReport`: verified, unverified, corrupt and missing files.
         A call to :func:`download_cmu` fetches the corrupt and missing ones again.
 
+    A motion file on disk that the manifest does not record (an interrupted
+    or foreign file) is corrupt: :func:`download_cmu` fetches it again.
+
     Raises:
         FileNotFoundError: If ``dest`` has no manifest.
+        ValueError: If the manifest is not a JSON object (damaged outside the
+            package, which writes it atomically): nothing it records can be
+            checked; :func:`download_cmu` records every file again.
     """
     dest = Path(dest) if dest is not None else default_cache_dir() / "cmu"
     path = dest / MANIFEST_NAME
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no download manifest here")
+    try:
+        manifest = json.loads(path.read_text(encoding="utf-8"))
+    except ValueError as exc:  # JSON's and UTF-8's errors
+        manifest = exc
+    if not isinstance(manifest, dict):
+        raise ValueError(
+            f"{path}: damaged download manifest (expected a JSON object); "
+            "`humotion-gym download cmu` checks and records every file again"
+        )
     reg = _resolve_registry(registry)
     report = CacheReport()
-    for rel, entry in sorted(_read_manifest(dest).items()):
+    on_disk = {
+        p.relative_to(dest).as_posix() for p in dest.glob("*/*") if p.suffix in (".asf", ".amc")
+    }
+    for rel in sorted(on_disk - set(manifest)):
+        report.corrupt.append(rel)
+        report.reasons[rel] = f"{dest / rel}: not in the manifest"
+    for rel, entry in sorted(manifest.items()):
         expected = reg.get(rel)
         why = _check_file(dest / rel, entry, expected)
         if why == "missing":
@@ -682,6 +703,7 @@ def verify_cache(
             report.verified.append(rel)
         else:
             report.unverified.append(rel)
+    report.corrupt.sort()
     return report
 
 

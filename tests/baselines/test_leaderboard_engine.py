@@ -135,6 +135,14 @@ def test_a_results_folder_is_not_overwritten_nor_resumed_with_other_settings(tmp
         )  # fmt: skip
     with pytest.raises(FileNotFoundError, match="no run to resume"):
         ResultsFolder(tmp_path / "empty").start({"seed": 0}, resume=True)
+    # damaged settings name their file; episodes without their settings cannot be resumed
+    folder = ResultsFolder(out)
+    folder.run_path.write_text("{cut")
+    with pytest.raises(ValueError, match="run.json: not the run's settings"):
+        folder.start({"seed": 0}, resume=True)
+    folder.run_path.unlink()
+    with pytest.raises(FileNotFoundError, match="missing, so the episodes"):
+        folder.start({"seed": 0}, resume=True)
 
 
 def _cli(tmp_path: Path, *agents: str) -> list[str]:

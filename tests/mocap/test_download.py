@@ -531,6 +531,26 @@ def test_failed_repair_leaves_no_damaged_final_file(tiny):
     assert (dest / "07" / "07.asf").read_bytes() == files["07/07.asf"]  # untouched
 
 
+@pytest.mark.parametrize("damage", ["{}", "{bad", "null", "", "[1]", "\xff"])
+def test_verify_cache_never_passes_a_damaged_manifest(tiny, damage):
+    srv, _, dest = tiny
+    get(srv, dest, subjects=[7])
+    manifest = dest / "manifest.json"
+    if damage == "{}":  # readable, but records none of the files on disk
+        manifest.write_text(damage)
+        report = verify_cache(dest, registry={})
+        assert not report.ok and report.verified == report.unverified == []
+        assert report.corrupt == sorted(report.corrupt) and "07/07_01.amc" in report.corrupt
+        assert report.reasons["07/07_01.amc"].endswith("not in the manifest")
+        srv.requests.clear()
+        get(srv, dest, subjects=[7])  # the download records them again
+        assert verify_cache(dest, registry={}).ok
+        return
+    manifest.write_bytes(damage.encode("latin-1"))
+    with pytest.raises(ValueError, match="manifest.json: damaged download manifest"):
+        verify_cache(dest, registry={})
+
+
 def test_verify_cache_without_manifest(tmp_path):
     with pytest.raises(FileNotFoundError, match="manifest"):
         verify_cache(tmp_path)

@@ -236,20 +236,49 @@ def test_bad_configs_are_refused() -> None:
         TrainConfig("bc", "BodyTrack-v2", 10, eval_episodes=0)
 
 
-def test_cli_train_and_track_a_saved_policy(tmp_path: Path) -> None:
+def test_cli_train_and_track_a_saved_policy(tmp_path: Path, capsys) -> None:
     from baselines.cli import main
 
     out = tmp_path / "run"
     code = main([
         "train", "--algo", "bc", "--task", "SideWalk-v2", "--steps", "100", "--out", str(out),
         "--set", "n_envs=2", "rounds=1", "frame_size=32", "--export", str(tmp_path / "ck"),
+        "--json",
     ])  # fmt: skip
     assert code == 0
+    printed = capsys.readouterr()
+    assert json.loads(printed.out)["env_steps"] >= 100  # stdout: the one JSON object
+    assert "train/" in printed.err  # SB3's log went to stderr
     assert (tmp_path / "ck" / "bc-SideWalk-v2.zip").is_file()
     assert (tmp_path / "ck" / "bc-SideWalk-v2.json").is_file()
     model = out / "model.zip"
     assert main(["track", "--task", "SideWalk-v2", "--agent", str(model), "--episodes", "1"]) == 0
     assert main(["train", "--algo", "bc", "--set", "bogus=1", "--out", str(out)]) == 2
+    # a resume must continue the same algorithm, task and network
+    same = ["--algo", "bc", "--task", "SideWalk-v2", "--set", "rounds=1", "frame_size=32"]
+    changes = (
+        ["--algo", "ppo", "--task", "SideWalk-v2", "--set", "frame_size=32"],
+        ["--algo", "bc", "--task", "ArmTrack-v2", "--set", "rounds=1", "frame_size=32"],
+        ["--algo", "bc", "--task", "SideWalk-v2", "--set", "rounds=1", "frame_size=48"],
+    )
+    for change in changes:
+        capsys.readouterr()
+        argv = ["train", "--steps", "200", "--out", str(out), "--resume", *change]
+        assert change != same and main(argv) == 1
+        err = capsys.readouterr().err
+        assert "holds another run" in err and len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize(
+    "setting",
+    ["n_envs=0", "batch_size=0", "batch_size=1", "learning_rate=nan", "learning_rate=-1",
+     "frame_size=3", "n_envs=2.5", "gamma=1.5"],
+)  # fmt: skip
+def test_training_settings_out_of_range_are_refused_by_name(setting: str) -> None:
+    name, _, value = setting.partition("=")
+    number = float(value) if "." in value or "n" in value else int(value)
+    with pytest.raises(ValueError, match=f"setting {name}: expected"):
+        TrainConfig("ppo" if name == "gamma" else "bc", "ArmTrack-v2", 10, settings={name: number})
 
 
 PRETRAINED = sorted(CHECKPOINT_DIR.glob("*.zip"))

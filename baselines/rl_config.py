@@ -1,0 +1,230 @@
+"""A training run's settings: the algorithms' defaults, their ranges, the run's config.
+
+Settings are data: :data:`PPO_DEFAULTS` and :data:`BC_DEFAULTS` (``hyperparams/ppo.yml``
+holds PPO's per task in the RL Baselines3 Zoo format), each checked against
+:data:`SETTING_RANGES` when a :class:`TrainConfig` is made, so that a bad value is
+refused by name before any network is built. Importing this module does not import
+torch or stable-baselines3 (:mod:`baselines.rl` trains).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from humotion_gym.envs import get_task
+
+ALGOS: tuple[str, ...] = ("ppo", "bc")
+
+#: PPO settings used when no hyperparameter file is given (``hyperparams/ppo.yml``
+#: holds the same values per task in the RL Baselines3 Zoo format; a test checks
+#: that they agree).
+PPO_DEFAULTS: dict[str, Any] = {
+    "n_envs": 8,
+    "n_steps": 128,
+    "batch_size": 256,
+    "n_epochs": 4,
+    "learning_rate": 3e-4,
+    "gamma": 0.9,
+    "gae_lambda": 0.9,
+    "clip_range": 0.2,
+    "ent_coef": 0.0,
+    "vf_coef": 0.5,
+    "max_grad_norm": 0.5,
+    "log_std_init": -2.5,
+    "features_dim": 128,
+    "frame_size": 64,
+}
+
+#: Behaviour-cloning settings (see :func:`train_bc`).
+BC_DEFAULTS: dict[str, Any] = {
+    "n_envs": 8,
+    "rounds": 8,
+    "batch_size": 128,
+    "learning_rate": 1e-3,
+    "passes": 16.0,
+    "buffer_size": 40_000,
+    "expert_noise": 0.08,
+    "features_dim": 128,
+    "frame_size": 64,
+}
+
+
+@dataclass
+class TrainConfig:
+    """Everything a training run needs, saved as ``config.json`` beside the model.
+
+    Attributes:
+        algo: ``"ppo"`` or ``"bc"``.
+        task: Task id, e.g. ``"BodyTrack-v2"``.
+        steps: Environment steps to train for.
+        seed: Seed of the policy, the episodes and the rollouts.
+        out: Output folder (``model.zip``, ``config.json``, ``checkpoints/``).
+        data_dir: Motion capture folders (None: the configured data or synthetic).
+        settings: Algorithm settings (:data:`PPO_DEFAULTS`/:data:`BC_DEFAULTS`
+            overridden by the hyperparameter file and the caller).
+        init: A saved policy to start from (PPO fine-tuning from ``bc``).
+        checkpoint_every: Save a checkpoint every this many env steps.
+        threads: Torch threads.
+        validation: Hold the validation persons out of training
+            (:func:`baselines.experiments.selection.validation_library`) and
+            track them every ``eval_every`` env steps and at the end (the
+            error is logged as ``eval/mean_error_mm``); False trains on every
+            training person and evaluates nothing.
+        eval_every: Env steps between two validation runs.
+        eval_episodes: Validation episodes per run.
+    """
+
+    algo: str
+    task: str
+    steps: int
+    seed: int = 0
+    out: str = "runs/run"
+    data_dir: list[str] | None = None
+    settings: dict[str, Any] = field(default_factory=dict)
+    init: str | None = None
+    checkpoint_every: int = 10_000
+    threads: int = 1
+    validation: bool = True
+    eval_every: int = 10_000
+    eval_episodes: int = 5
+
+    def __post_init__(self) -> None:
+        if self.algo not in ALGOS:
+            raise ValueError(f"algo: expected one of {list(ALGOS)}, got {self.algo!r}")
+        self.task = get_task(self.task).name
+        if isinstance(self.steps, bool) or not isinstance(self.steps, int) or self.steps < 1:
+            raise ValueError(f"steps: expected an integer >= 1, got {self.steps!r}")
+        for name in ("checkpoint_every", "eval_every", "eval_episodes"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name}: expected >= 1, got {getattr(self, name)}")
+        defaults = PPO_DEFAULTS if self.algo == "ppo" else BC_DEFAULTS
+        unknown = sorted(set(self.settings) - set(defaults))
+        if unknown:
+            raise ValueError(
+                f"{self.algo} settings: unknown {unknown}; the settings are {sorted(defaults)}"
+            )
+        self.settings = {**defaults, **self.settings}
+        for name, value in self.settings.items():
+            _check_setting(name, value)
+
+
+#: Each setting's kind and range: ``(integer, lowest, highest)``, both ends
+#: taken; ``lowest`` None: any finite number. A count is at least 1, a rate
+#: above 0; PPO splits ``n_steps * n_envs`` into batches of at least 2.
+SETTING_RANGES: dict[str, tuple[bool, float | None, float]] = {
+    "n_envs": (True, 1, 4096),
+    "n_steps": (True, 2, 1e7),
+    "batch_size": (True, 2, 1e7),
+    "n_epochs": (True, 1, 1e4),
+    "rounds": (True, 1, 1e6),
+    "buffer_size": (True, 1, 1e8),
+    "features_dim": (True, 1, 1e5),
+    "frame_size": (True, 8, 640),
+    "learning_rate": (False, 1e-12, 10.0),
+    "gamma": (False, 0.0, 1.0),
+    "gae_lambda": (False, 0.0, 1.0),
+    "clip_range": (False, 1e-12, 1e6),
+    "ent_coef": (False, 0.0, 1e6),
+    "vf_coef": (False, 0.0, 1e6),
+    "max_grad_norm": (False, 1e-12, 1e6),
+    "log_std_init": (False, None, 1e6),
+    "passes": (False, 1e-12, 1e6),
+    "expert_noise": (False, 0.0, 1e6),
+}
+
+
+def _check_setting(name: str, value: Any) -> None:
+    """Refuse a training setting outside :data:`SETTING_RANGES`, naming it."""
+    integer, low, high = SETTING_RANGES[name]
+    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+        value, bool
+    )
+    ok = number and math.isfinite(value) and (low is None or low <= value) and value <= high
+    if integer:
+        ok = ok and float(value).is_integer()
+    if not ok:
+        kind = "an integer" if integer else "a number"
+        shown = [f"{int(v):,}" if integer else f"{v:g}" for v in (low or 0, high)]
+        where = f"from {shown[0]} to {shown[1]}" if low is not None else f"up to {shown[1]}"
+        raise ValueError(f"setting {name}: expected {kind} {where}, got {value!r}")
+
+
+def load_hyperparams(path: str | Path, task: str) -> dict[str, Any]:
+    """PPO settings of one task from an RL Baselines3 Zoo YAML file.
+
+    Reads the entry ``humotion_gym/TASK`` (or ``TASK``): ``n_envs``,
+    ``n_steps``, ``batch_size``, ``n_epochs``, ``learning_rate``, ``gamma``,
+    ``gae_lambda``, ``clip_range``, ``ent_coef``, ``vf_coef``,
+    ``max_grad_norm``; ``log_std_init`` and ``features_dim`` from the
+    ``policy_kwargs`` string; ``frame_size`` from the ``env_wrapper``'s ``size``.
+
+    Raises:
+        ValueError: If the file has no entry for the task.
+    """
+    name = get_task(task).name
+    data = _read_zoo_yaml(Path(path))
+    entry = data.get(f"humotion_gym/{name}") or data.get(name)
+    if entry is None:
+        raise ValueError(f"{path}: no entry humotion_gym/{name}")
+    out = {k: entry[k] for k in PPO_DEFAULTS if k in entry}
+    text = str(entry.get("policy_kwargs", ""))
+    for key in ("log_std_init", "features_dim"):
+        match = re.search(rf"{key}\s*=\s*(-?[0-9.e+-]+)", text)
+        if match:
+            out[key] = float(match.group(1)) if key == "log_std_init" else int(match.group(1))
+    for wrapper in entry.get("env_wrapper", []) or []:
+        if isinstance(wrapper, dict):
+            for kwargs in wrapper.values():
+                if isinstance(kwargs, dict) and "size" in kwargs:
+                    out["frame_size"] = kwargs["size"]
+    for key in ("n_envs", "n_steps", "batch_size", "n_epochs"):
+        if key in out:
+            out[key] = int(out[key])
+    return out
+
+
+def _read_zoo_yaml(path: Path) -> dict[str, Any]:
+    """The entries of a zoo hyperparameter file.
+
+    Raises:
+        ValueError: If it is not YAML (the message names the file).
+    """
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{path}: not a YAML hyperparameter file ({exc})") from None
+    return data if isinstance(data, dict) else {}
+
+
+#: What a resumed run must share with the run it continues: its checkpoints are
+#: this algorithm's network for this task's spaces.
+RESUME_KEYS: tuple[str, ...] = ("algo", "task")
+RESUME_SETTINGS: tuple[str, ...] = ("features_dim", "frame_size")
+
+
+def check_resumed(path: Path, config: TrainConfig) -> None:
+    """Refuse to resume the run recorded in ``path`` with another algorithm, task or network."""
+    try:
+        saved = json.loads(path.read_text(encoding="utf-8"))
+    except ValueError as exc:
+        raise ValueError(f"{path}: not a run's record ({exc}); --force starts afresh") from None
+    if not isinstance(saved, dict):
+        raise ValueError(f"{path}: not a run's record; --force starts afresh")
+    now = {key: getattr(config, key) for key in RESUME_KEYS}
+    now |= {key: config.settings.get(key) for key in RESUME_SETTINGS}
+    before = {key: saved.get(key) for key in RESUME_KEYS}
+    before |= {key: (saved.get("settings") or {}).get(key) for key in RESUME_SETTINGS}
+    differ = [f"{k}: saved {before[k]!r}, now {now[k]!r}" for k in now if before[k] != now[k]]
+    if differ:
+        raise ValueError(
+            f"--resume: {path.parent} holds another run ({'; '.join(differ)}); resume it with "
+            "the same settings, or start afresh (--force or another --out)"
+        )
