@@ -57,12 +57,20 @@ def limit_blas_threads(threads: int = 1) -> bool:
     return True
 
 
-def single_threaded_blas() -> contextlib.AbstractContextManager:
+def single_threaded_blas(unless_chosen: bool = False) -> contextlib.AbstractContextManager:
     """A context in which BLAS runs on one thread (restored on exit).
 
     The controller (which scans the loaded libraries, a few milliseconds) is
     made once per process.
+
+    Args:
+        unless_chosen: Leave BLAS as it is when the user chose its threads
+            through :data:`THREAD_ENV_VARS`, as :func:`limit_blas_threads`
+            does (so that work done here sums as in worker processes that
+            called it).
     """
+    if unless_chosen and any(os.environ.get(name) for name in THREAD_ENV_VARS):
+        return contextlib.nullcontext()
     if not _CONTROLLER:
         _CONTROLLER.append(ThreadpoolController())
     return _CONTROLLER[0].limit(limits=1, user_api="blas")

@@ -87,8 +87,11 @@ def episode_begins(
     """Whether an observation starts a new episode for an agent.
 
     At SB3's ``episode_start``, before the agent's first episode, and where
-    the observation's initial pose is not the one the agent started from (a
-    caller that does not pass ``episode_start`` still starts each episode).
+    the observation's initial pose is not the one the agent started from. A
+    caller that does not pass ``episode_start`` starts a new episode only where
+    the initial pose changes: an episode reset to the same start (the same
+    seed) continues the last one's filter. Pass ``episode_start=True`` at each
+    reset, as stable-baselines3 and the evaluation do.
     """
     if episode_start is not None and bool(np.any(episode_start)):
         return True

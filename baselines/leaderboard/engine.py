@@ -590,11 +590,15 @@ def make_engine(
 
 
 def resolve_env_kwargs(env_kwargs: Mapping[str, Any] | None) -> dict[str, Any]:
-    """The env settings with ``data_dir`` folders made absolute (workers run elsewhere)."""
+    """The env settings with ``data_dir`` a list of absolute folders (workers run elsewhere).
+
+    One folder given alone becomes a list of one, as the command line gives it,
+    so a run saved by either resumes from the other.
+    """
     kwargs = dict(env_kwargs or {})
     data_dir = kwargs.get("data_dir")
     if isinstance(data_dir, (str, Path)):
-        kwargs["data_dir"] = str(Path(data_dir).resolve())
+        kwargs["data_dir"] = [str(Path(data_dir).resolve())]
     elif isinstance(data_dir, (list, tuple)):
         kwargs["data_dir"] = [str(Path(d).resolve()) for d in data_dir]
     return kwargs

@@ -33,6 +33,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from tqdm.auto import tqdm
 
 from baselines.agents import REFERENCES, is_learned, takes_particles
@@ -143,7 +144,7 @@ def run_leaderboard(
         FileExistsError: If ``out`` holds a run and ``resume`` is False.
         FileNotFoundError: If ``resume`` is True and ``out`` holds no run.
     """
-    _check_run(episodes, particles, engine, resume, out, agent_seeds, videos)
+    _check_run(seed, episodes, particles, engine, resume, out, agent_seeds, videos)
     kwargs = resolve_env_kwargs(env_kwargs)
     cells = [Cell(*c) for c in grid_cells(tasks, agents, particles)]
     windows = _windows(tasks, kwargs, seed, episodes, declared)
@@ -177,6 +178,7 @@ def run_leaderboard(
 
 
 def _check_run(
+    seed: int,
     episodes: int,
     particles: Sequence[int],
     engine: str,
@@ -186,14 +188,13 @@ def _check_run(
     videos: bool = False,
 ) -> None:
     """Refuse a run's arguments before any work (see :func:`run_leaderboard`)."""
-    if agent_seeds < 1:
-        raise ValueError(f"agent_seeds: expected at least 1, got {agent_seeds}")
+    counts = {"agent_seeds": (agent_seeds, 1), "episodes": (episodes, 1), "seed": (seed, 0)}
+    counts |= {f"particles[{i}]": (n, 1) for i, n in enumerate(particles)}
+    for name, (value, low) in counts.items():
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+            raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
     if videos and agent_seeds > 1:
         raise ValueError("videos: a video replays one agent seed; run them with agent_seeds=1")
-    if episodes < 1:
-        raise ValueError(f"episodes: expected at least 1, got {episodes}")
-    if any(n < 1 for n in particles):
-        raise ValueError(f"particles: expected counts >= 1, got {list(particles)}")
     if engine not in ENGINES:
         raise ValueError(f"engine: expected one of {list(ENGINES)}, got {engine!r}")
     if resume and out is None:

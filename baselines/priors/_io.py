@@ -7,8 +7,12 @@ unicode arrays), plus ``__kind__`` naming the dataclass, so files load with
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
+import zipfile
+import zlib
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -59,9 +63,12 @@ def load_fitted(cls: type[T], path: str | Path) -> T:
     """Read a dataclass written by :func:`save_fitted`.
 
     Raises:
-        ValueError: If the file holds another kind of parameters or lacks a field.
+        FileNotFoundError: If there is no such file.
+        ValueError: If the file is not an ``.npz`` of named arrays (see
+            :func:`open_npz`), holds another kind of parameters or lacks a
+            field; the message names the file.
     """
-    with np.load(path, allow_pickle=False) as data:
+    with open_npz(path, cls.__name__) as data:
         kind = str(data["__kind__"]) if "__kind__" in data else "?"
         if kind != cls.__name__:
             raise ValueError(f"{path}: holds {kind} parameters, expected {cls.__name__}")
@@ -76,3 +83,38 @@ def load_fitted(cls: type[T], path: str | Path) -> T:
             else:
                 kwargs[f.name] = arr
     return cls(**kwargs)
+
+
+#: What opening a damaged or foreign file as ``.npz`` raises (a text file reads
+#: as a pickle, which ``allow_pickle=False`` refuses with a ValueError).
+_NOT_NPZ = (OSError, EOFError, ValueError, zipfile.BadZipFile, zlib.error)
+#: What reading a member of a damaged ``.npz`` raises.
+_DAMAGED = (OSError, EOFError, zipfile.BadZipFile, zlib.error)
+
+
+@contextlib.contextmanager
+def open_npz(path: str | Path, what: str) -> Iterator[Any]:
+    """``np.load(path, allow_pickle=False)`` of an ``.npz``, its damage named.
+
+    Args:
+        path: The file.
+        what: What it should hold, for the messages.
+
+    Raises:
+        FileNotFoundError: If there is no such file.
+        ValueError: If it is not an ``.npz`` (empty, cut short, text, a
+            ``.npy`` array) or a member is damaged; the message names the file.
+    """
+    try:
+        data = np.load(path, allow_pickle=False)
+    except FileNotFoundError:
+        raise
+    except _NOT_NPZ as exc:
+        raise ValueError(f"{path}: not saved {what} (an .npz of arrays) ({exc})") from None
+    if not isinstance(data, np.lib.npyio.NpzFile):
+        raise ValueError(f"{path}: not saved {what} (a .npy array, not an .npz of arrays)")
+    with data:
+        try:
+            yield data
+        except _DAMAGED as exc:
+            raise ValueError(f"{path}: damaged {what} file ({exc})") from None

@@ -89,7 +89,7 @@ from baselines.priors.slds_learning import (
 )
 from humotion_gym.body import N_PARAMS, PARAM_INDEX, PARAM_LOWER, PARAM_UPPER, SAGITTAL_PARAMS
 from humotion_gym.mocap.motion import Motion
-from humotion_gym.threads import available_cores, limit_blas_threads
+from humotion_gym.threads import available_cores, limit_blas_threads, single_threaded_blas
 
 FloatArray = NDArray[np.float64]
 NAME = "slds"
@@ -371,7 +371,9 @@ def fit(
     # In processes first; here, one after another, what they did not fit (all of
     # them with one worker, those a dead worker left otherwise).
     models: list[SLDSParams | None] = [None] * len(labels)
-    with bar:
+    # Here as in the workers (limit_blas_threads): one BLAS thread unless the user
+    # chose, so that the models sum alike, and fit alike, on any number of processes.
+    with bar, single_threaded_blas(unless_chosen=True):
         if n_workers > 1:
             models = _fit_in_processes(labels, starts, n_iter, n_workers, bar, cov_rtol)
         for k, (label, start) in enumerate(zip(labels, starts, strict=True)):

@@ -13,7 +13,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from baselines.priors._io import save_arrays
+from baselines.priors._io import open_npz, save_arrays
 from baselines.priors.tree_model import (
     _VARIANCE_FLOOR,
     LEAF_RULES,
@@ -475,7 +475,7 @@ def load(path: str | Path) -> TreeParams:
             release's file: fit the prior again), lacks an array, or its
             windows do not fit its frames.
     """
-    with np.load(path, allow_pickle=False) as data:
+    with open_npz(path, TreeParams.__name__) as data:
         kind = str(data["__kind__"]) if "__kind__" in data.files else "?"
         if kind != TreeParams.__name__:
             raise ValueError(f"{path}: holds {kind} parameters, expected {TreeParams.__name__}")

@@ -133,6 +133,12 @@ def read_observation(observation: Any) -> Given:
             f"observation: expected a dict with keys {list(OBSERVATION_KEYS)} "
             f"(a version-2 task's), got {got}"
         )
+    initial = np.asarray(observation["initial_pose"], dtype=np.float64)
+    if initial.shape != (N_PARAMS,):
+        batch = " (a vector env's batch: one agent per environment)" if initial.ndim == 2 else ""
+        raise ValueError(
+            f"observation['initial_pose']: expected shape ({N_PARAMS},), got {initial.shape}{batch}"
+        )
     frame = np.asarray(observation["frame"])
     if frame.ndim not in (3, 4):
         raise ValueError(
@@ -149,7 +155,7 @@ def read_observation(observation: Any) -> Given:
     cameras = tuple(Camera.from_vector(v, w, h) for v in vectors.reshape(-1, CAMERA_VECTOR_SIZE))
     return Given(
         frame=frame,
-        initial_pose=np.asarray(observation["initial_pose"], dtype=np.float64),
+        initial_pose=initial,
         fixed_params=np.asarray(observation["fixed_params"], dtype=np.float64),
         camera=cameras[0],
         shape=BodyShape.from_vector(observation["shape"]),

@@ -15,6 +15,15 @@ import numpy as np
 from humotion_gym.errors import MocapFormatError
 from humotion_gym.mocap._scan import _count, _short
 
+# Bounds the reader (humotion_gym.mocap.bvh, which re-exports them) and the
+# writer (_bvh_write) share, so that a written file reads back.
+#: The shortest ``Frame Time:`` accepted, in seconds (10 kHz).
+MIN_FRAME_TIME: float = 1e-4
+#: The longest ``Frame Time:`` accepted, in seconds (1 Hz).
+MAX_FRAME_TIME: float = 1.0
+#: The largest magnitude of an ``OFFSET`` component or a motion value.
+MAX_ABS_VALUE: float = 1e9
+
 
 @dataclass(frozen=True)
 class HierarchyLimits:

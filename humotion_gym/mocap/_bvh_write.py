@@ -8,7 +8,13 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from humotion_gym.mocap._bvh_hierarchy import _CHANNEL_KIND, CHANNEL_NAMES
+from humotion_gym.mocap._bvh_hierarchy import (
+    _CHANNEL_KIND,
+    CHANNEL_NAMES,
+    MAX_ABS_VALUE,
+    MAX_FRAME_TIME,
+    MIN_FRAME_TIME,
+)
 
 
 def write_bvh(
@@ -48,7 +54,8 @@ def write_bvh(
     Raises:
         ValueError: If the shapes disagree, a channel name is unknown, the
             parents do not form a forest, a name is empty or holds whitespace,
-            a value is not finite, or ``frame_time`` is not positive.
+            a value is not finite or beyond ``load_bvh``'s magnitude, or
+            ``frame_time`` is outside ``load_bvh``'s range.
     """
     names = [str(n) for n in names]
     par, off, vals, widths, ends = _checked(
@@ -126,8 +133,17 @@ def _checked(
         raise ValueError("write_bvh: frames need at least one channel (a BVH frame is a line)")
     if not np.isfinite(vals).all() or not np.isfinite(off).all():
         raise ValueError("write_bvh: offsets and values must be finite (BVH has no missing marker)")
-    if not (np.isfinite(frame_time) and frame_time > 0):
-        raise ValueError(f"write_bvh: frame_time must be positive, got {frame_time!r}")
+    largest = max(float(np.abs(vals).max(initial=0.0)), float(np.abs(off).max(initial=0.0)))
+    if largest > MAX_ABS_VALUE:
+        raise ValueError(
+            f"write_bvh: offsets and values must be at most {MAX_ABS_VALUE:g} in magnitude "
+            f"(load_bvh's bound), got {largest:g}"
+        )
+    if not (np.isfinite(frame_time) and MIN_FRAME_TIME <= frame_time <= MAX_FRAME_TIME):
+        raise ValueError(
+            f"write_bvh: frame_time must be {MIN_FRAME_TIME:g} to {MAX_FRAME_TIME:g} s "
+            f"(1 to 10,000 fps, what load_bvh reads), got {frame_time!r}"
+        )
     ends: dict[int, NDArray[np.float64]] = {}
     for j, e in (end_sites or {}).items():
         arr = np.asarray(e, dtype=np.float64).reshape(-1, 3)

@@ -67,6 +67,9 @@ from humotion_gym.errors import MocapFormatError
 from humotion_gym.mocap._bvh_hierarchy import (
     _CHANNEL_KIND,
     CHANNEL_NAMES,
+    MAX_ABS_VALUE,
+    MAX_FRAME_TIME,
+    MIN_FRAME_TIME,
     HierarchyLimits,
     _Header,
     _parse_hierarchy,
@@ -99,10 +102,6 @@ __all__ = [
 
 #: The most frames a file may declare or hold (``load_bvh(max_frames=...)`` per call).
 MAX_FRAMES: int = 1_000_000
-#: The shortest ``Frame Time:`` accepted, in seconds (10 kHz).
-MIN_FRAME_TIME: float = 1e-4
-#: The longest ``Frame Time:`` accepted, in seconds (1 Hz).
-MAX_FRAME_TIME: float = 1.0
 #: The most joints plus end sites in a hierarchy.
 MAX_JOINTS: int = 1000
 #: The deepest nesting of ``{ }`` blocks (joints and end sites).
@@ -111,8 +110,6 @@ MAX_DEPTH: int = 256
 MAX_JOINT_CHANNELS: int = 64
 #: The most frames times points (joints and end sites): the forward kinematics' size.
 MAX_FRAME_POINTS: int = 20_000_000
-#: The largest magnitude of an ``OFFSET`` component or a motion value.
-MAX_ABS_VALUE: float = 1e9
 #: The longest joint name, in characters: the rig matcher's regular expressions
 #: scan every name, and no rig names a joint with more than a few dozen.
 MAX_NAME_LENGTH: int = 256

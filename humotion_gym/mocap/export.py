@@ -35,7 +35,7 @@ from humotion_gym.body import (
     BodyShape,
 )
 from humotion_gym.errors import MocapFormatError
-from humotion_gym.mocap.bvh import load_bvh, write_bvh
+from humotion_gym.mocap.bvh import MAX_FRAME_TIME, MIN_FRAME_TIME, load_bvh, write_bvh
 
 FloatArray = NDArray[np.float64]
 
@@ -137,10 +137,15 @@ def write_motion_bvh(path: str | Path, params: ArrayLike, shape: BodyShape, fps:
         fps: Frames per second.
 
     Raises:
-        ValueError: If the parameters are not finite or ``fps`` is not positive.
+        ValueError: If the parameters are not finite or beyond what
+            :func:`~humotion_gym.mocap.bvh.load_bvh` reads back, or ``fps`` is
+            outside its 1 to 10,000.
     """
-    if not fps > 0:
-        raise ValueError(f"write_motion_bvh: fps must be positive, got {fps}")
+    if not (np.isfinite(fps) and 1.0 / MAX_FRAME_TIME <= fps <= 1.0 / MIN_FRAME_TIME):
+        raise ValueError(
+            f"write_motion_bvh: fps must be {1.0 / MAX_FRAME_TIME:g} to "
+            f"{1.0 / MIN_FRAME_TIME:,.0f} (what load_bvh reads back), got {fps}"
+        )
     values = params_to_channels(params)
     end_sites = {
         1: _to_file([0.0, 0.0, shape.head_length]),

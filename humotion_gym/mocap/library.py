@@ -250,7 +250,7 @@ def _asf_for(amc: Path) -> Path | None:
     return asfs[0] if len(asfs) == 1 else None
 
 
-def find_clips(paths: Iterable[str | Path]) -> list[ClipSource]:
+def find_clips(paths: Iterable[str | Path] | str | Path) -> list[ClipSource]:
     """Every BVH and AMC clip under the given files and folders (recursively).
 
     Partial downloads (``*.part``) are never clips. One trial saved in both
@@ -267,10 +267,12 @@ def find_clips(paths: Iterable[str | Path]) -> list[ClipSource]:
     from humotion_gym.errors import MocapFormatError
 
     files: list[Path] = []
-    for p in paths:
+    for p in [paths] if isinstance(paths, (str, Path)) else paths:  # one path, not its letters
         path = Path(p)
         if path.is_dir():
-            files.extend(f for f in path.rglob("*") if f.suffix.lower() in (".bvh", ".amc"))
+            files.extend(
+                f for f in path.rglob("*") if f.suffix.lower() in (".bvh", ".amc") and f.is_file()
+            )
         elif path.is_file():
             files.append(path)
         else:
@@ -405,6 +407,8 @@ def load_clip(
     else:
         clip = load_bvh(src.path)
     match = match_rig(clip)
+    if not np.any(np.asarray(clip.frame_valid, dtype=bool)):  # no frame (Frames: 0) or none whole
+        raise RigError(f"{src.path}: no valid frame to retarget")
     units = clip.units_to_mm
     if units is None:
         # As retarget_clip: the unit from the right leg's length in file units.
@@ -413,7 +417,7 @@ def load_clip(
         leg = np.nanmedian(
             np.linalg.norm(hip - knee, axis=-1) + np.linalg.norm(knee - ankle, axis=-1)
         )
-        units, _ = guess_units_to_mm(float(leg))
+        units, _ = guess_units_to_mm(float(leg), str(src.path))
     keypoints = match.profile.keypoints_from(clip, units)
     valid = np.asarray(clip.frame_valid, dtype=bool)
     tpose = bool(valid[:2].all()) and is_tpose_frame(keypoints[:2])
@@ -643,7 +647,7 @@ class MotionLibrary:
 
 
 def load_library(
-    paths: Iterable[str | Path],
+    paths: Iterable[str | Path] | str | Path,
     fps: float | None = 30.0,
     cache_dir: str | Path | None = None,
     use_cache: bool = True,
@@ -663,7 +667,7 @@ def load_library(
     naming the file, rebuilt and overwritten. Entries are written atomically.
 
     Args:
-        paths: Files or folders of BVH and ASF/AMC.
+        paths: Files or folders of BVH and ASF/AMC (or one of them).
         fps: The library's frame rate (None keeps each file's).
         cache_dir: Where to cache (``default_cache_dir()`` when None).
         use_cache: Read and write the cache.
@@ -683,7 +687,7 @@ def load_library(
     Raises:
         SplitError: If ``split_by`` puts one person on both sides.
     """
-    sources = find_clips(paths)
+    sources = find_clips([paths] if isinstance(paths, (str, Path)) else paths)
     assigned = [(src, assign_split(src, split_by)) for src in sources]
     check_person_sides([(src, split[0]) for src, split in assigned])
     splits = {src.clip_id: split for src, split in assigned}

@@ -473,6 +473,8 @@ def retarget_clip(
         profile = rig
     else:
         profile = make_rig(rig)
+    if not np.any(np.asarray(clip.frame_valid, dtype=bool)):  # no frame, or none whole
+        raise RigError(f"{clip.path}: no valid frame to retarget")
     if units_to_mm is None:
         units_to_mm = clip.units_to_mm
     if units_to_mm is None:
@@ -481,7 +483,7 @@ def retarget_clip(
             np.linalg.norm(raw[:, _K["r_hip"]] - raw[:, _K["r_knee"]], axis=-1)
             + np.linalg.norm(raw[:, _K["r_knee"]] - raw[:, _K["r_ankle"]], axis=-1)
         )
-        units_to_mm, _ = guess_units_to_mm(float(leg))
+        units_to_mm, _ = guess_units_to_mm(float(leg), str(clip.path))
     keypoints = profile.keypoints_from(clip, units_to_mm)
     valid = np.asarray(clip.frame_valid, dtype=bool)
     if not np.any(valid):

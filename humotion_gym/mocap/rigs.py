@@ -495,11 +495,15 @@ _UNITS_MM = {"mm": 1.0, "cm": 10.0, "inch": 25.4, "dm": 100.0, "m": 1000.0}
 _TYPICAL_LEG_MM = 840.0
 
 
-def guess_units_to_mm(leg_length: float) -> tuple[float, str]:
+def guess_units_to_mm(leg_length: float, where: str = "") -> tuple[float, str]:
     """Millimetres per file unit from the median hip-to-ankle length in file units.
 
     The nearest common unit (mm, cm, inch, dm, m) on a log scale is taken, so a
     child or a tall actor still gets the unit the file was written in.
+
+    Args:
+        leg_length: The length, file units.
+        where: The file, named first in the error.
 
     Returns:
         The factor and the unit's name.
@@ -508,7 +512,11 @@ def guess_units_to_mm(leg_length: float) -> tuple[float, str]:
         RigError: If the length is not a positive finite number.
     """
     if not np.isfinite(leg_length) or leg_length <= 0:
-        raise RigError(f"cannot guess the length unit from a leg length of {leg_length}")
+        prefix = f"{where}: " if where else ""
+        raise RigError(
+            f"{prefix}cannot guess the length unit from a leg length of {leg_length} "
+            "(no frame places the right hip, knee and ankle apart)"
+        )
     estimate = _TYPICAL_LEG_MM / leg_length
     name = min(_UNITS_MM, key=lambda n: abs(np.log(_UNITS_MM[n] / estimate)))
     return _UNITS_MM[name], name

@@ -45,6 +45,15 @@ def test_make_refuses_counts_that_are_not_integers_naming_them(kwargs):
     make("pf-cv", env, n_particles=np.int64(10), seed=np.int32(3))
 
 
+def test_a_vector_envs_batch_is_refused_saying_so():
+    env = gym.make("humotion_gym/ArmTrack-v2")
+    obs, _ = env.reset(seed=0)
+    batch = {key: np.stack([value, value]) for key, value in obs.items()}
+    for name in ("hold", "pf-cv"):
+        with pytest.raises(ValueError, match=r"got \(2, 25\) \(a vector env's batch"):
+            make(name, env, n_particles=20).predict(batch, episode_start=True)
+
+
 def test_particle_filter_agent_tracks_end_to_end_on_synthetic_data():
     env = gym.make("humotion_gym/SideWalk-v2", terminate_on_lost=False)
     agent = make("pf-cv", env, n_particles=200, seed=0)

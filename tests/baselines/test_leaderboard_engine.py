@@ -249,3 +249,22 @@ def test_an_interrupted_run_exits_130_keeps_its_episodes_and_resumes(tmp_path, c
     assert main([*argv, "--resume"]) == 0
     assert "resuming: 3 episodes were done, 3 to run" in capsys.readouterr().err
     assert len(_lines(tmp_path / "lb")) == 6
+
+
+def test_one_data_folder_is_saved_as_the_command_line_gives_it(tmp_path):
+    from baselines.leaderboard.engine import resolve_env_kwargs
+
+    one = resolve_env_kwargs({"data_dir": str(tmp_path), "noise": 2.0})
+    assert one == resolve_env_kwargs({"data_dir": [tmp_path], "noise": 2.0})
+    assert one["data_dir"] == [str(tmp_path.resolve())]
+
+
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [({"seed": -1}, "seed"), ({"episodes": 2.5}, "episodes"), ({"episodes": True}, "episodes"),
+     ({"particles": [10, 0]}, r"particles\[1\]"), ({"agent_seeds": 0}, "agent_seeds")],
+)  # fmt: skip
+def test_a_runs_counts_are_refused_by_name_before_any_work(kwargs, name):
+    args = {"episodes": 1, "particles": [10], "progress": False, **kwargs}
+    with pytest.raises(ValueError, match=f"^{name}: expected an integer"):
+        run_leaderboard(["BodyTrack-v2"], ["hold"], **args)

@@ -62,3 +62,39 @@ def test_export_validates_arguments(tmp_path, motion):
         write_motion_bvh(tmp_path / "x.bvh", motion.params, motion.shape, 0)
     with pytest.raises(ValueError, match=r"\(T, 25\)"):
         write_motion_bvh(tmp_path / "x.bvh", motion.params[:, :5], motion.shape, 30)
+
+
+@pytest.mark.parametrize("fps", [0.5, 20_000.0, float("nan")])
+def test_the_writer_refuses_rates_the_reader_would_refuse(tmp_path, motion, fps):
+    path = tmp_path / "x.bvh"
+    with pytest.raises(ValueError, match="fps must be 1 to 10,000"):
+        write_motion_bvh(path, motion.params, motion.shape, fps)
+    assert not path.exists()
+
+
+def test_every_written_extreme_reads_back(tmp_path, motion):
+    for fps in (1.0, 10_000.0):  # the reader's bounds, taken
+        write_motion_bvh(tmp_path / "x.bvh", motion.params, motion.shape, fps)
+        assert read_motion_bvh(tmp_path / "x.bvh")[1] == pytest.approx(fps)
+    names, parents, offsets = ["root"], [-1], np.zeros((1, 3))
+    values = np.array([[1e9, 0.0, -1e9]])
+    write_bvh(
+        tmp_path / "big.bvh",
+        names,
+        parents,
+        offsets,
+        [("Xposition", "Yposition", "Zposition")],
+        values,
+        1 / 30,
+    )
+    assert load_bvh(tmp_path / "big.bvh").channels[0, 0] == 1e9
+    with pytest.raises(ValueError, match="at most 1e\\+09 in magnitude"):
+        write_bvh(
+            tmp_path / "huge.bvh",
+            names,
+            parents,
+            offsets,
+            [("Xposition", "Yposition", "Zposition")],
+            values * 1.5,
+            1 / 30,
+        )

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from baselines.cli import main
+from humotion_gym.errors import RigError
 from humotion_gym.mocap import library as lib_mod
 from humotion_gym.mocap.export import write_motion_bvh
 from humotion_gym.mocap.library import (
@@ -189,3 +190,25 @@ def test_poses_on_real_data_stay_within_the_joint_limits(real_library):
     params[:, ANGLE_MASK] = (params[:, ANGLE_MASK] + np.pi) % (2 * np.pi) - np.pi
     outside = (params < PARAM_LOWER) | (params > PARAM_UPPER)
     assert outside.mean(axis=0).max() < 0.001
+
+
+@pytest.mark.parametrize("frames", ["Frames: 0\nFrame Time: 0.0083333\n", "NAN"])
+def test_a_clip_without_a_whole_frame_is_refused_naming_its_file(shared_mocap, tmp_path, frames):
+    text = (shared_mocap / "cmu-bvh-cc" / "007" / "007_01.bvh").read_text()
+    head, _, motion = text.partition("MOTION\n")
+    if frames == "NAN":  # two frames, every number of them nan
+        width = len(motion.splitlines()[2].split())
+        frames = "Frames: 2\nFrame Time: 0.0083333\n" + ("nan " * width + "\n") * 2
+    (tmp_path / "empty.bvh").write_text(head + "MOTION\n" + frames)
+    with pytest.raises(RigError, match=r"empty\.bvh: no valid frame to retarget"):
+        load_library([tmp_path], progress=False)
+
+
+def test_one_path_alone_is_a_path_and_a_folder_named_like_a_clip_is_not_one(shared_mocap, tmp_path):
+    folder = tmp_path / "data"
+    (folder / "decoy.bvh").mkdir(parents=True)
+    clip = shared_mocap / "cmu-asfamc" / "02" / "02_01.amc"
+    (folder / "02.asf").write_bytes((clip.parent / "02.asf").read_bytes())
+    (folder / "02_01.amc").write_bytes(clip.read_bytes())
+    for given in (str(folder), folder):
+        assert [m.clip_id for m in load_library(given, progress=False)] == ["cmu/02_01"]

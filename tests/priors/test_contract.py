@@ -79,3 +79,20 @@ def test_prior_contract(name, walks, tmp_path):
     assert not np.allclose(motion[:, SAGITTAL], motion[0, SAGITTAL])  # it moves
     with pytest.raises(ValueError, match="base_pose"):
         prior.synthesize_motion(fitted, base[:3], 20, 15.0, np.random.default_rng(3))
+    # a damaged, cut or foreign file is refused by name, never a zip or pickle error
+    saved = (tmp_path / "fitted.npz").read_bytes()
+    damaged = {
+        "empty.npz": b"",
+        "text.npz": b"not an npz\n",
+        "cut.npz": saved[: len(saved) // 2],
+        "body.npz": saved[:60] + bytes(b ^ 0xFF for b in saved[60:-200]) + saved[-200:],
+    }
+    for file, data in damaged.items():
+        (tmp_path / file).write_bytes(data)
+        with pytest.raises(ValueError, match=f"{file}: (not saved|damaged)"):
+            prior.load(tmp_path / file)
+    np.save(tmp_path / "array.npy", np.zeros(3))
+    with pytest.raises(ValueError, match="array.npy: not saved .*a .npy array"):
+        prior.load(tmp_path / "array.npy")
+    with pytest.raises(FileNotFoundError):
+        prior.load(tmp_path / "none.npz")

@@ -467,6 +467,37 @@ def test_fit_in_processes_is_the_one_process_fit(synthetic):
     np.testing.assert_array_equal(one.state_labels, two.state_labels)
 
 
+_FIT_TWICE = """
+import sys, numpy as np
+from baselines.priors import slds
+from humotion_gym.mocap.library import load_library
+names = ["bandai-2/dataset-2_walk_normal_001.bvh", "bandai-2/dataset-2_walk_normal_002.bvh",
+         "bandai-2/dataset-2_run_normal_001.bvh", "bandai-2/dataset-2_run_normal_002.bvh",
+         "cmu-bvh-cc/007/007_01.bvh", "cmu-bvh-cc/007/007_02.bvh"]
+clips = list(load_library([sys.argv[1] + "/" + n for n in names], progress=False).motions)
+fits = [slds.fit(clips, rng=np.random.default_rng(0), n_iter=2, workers=w) for w in (1, 2)]
+fields = ("A", "b", "Q", "R", "x0", "Q0")
+sys.exit(0 if all(np.array_equal(getattr(fits[0], k), getattr(fits[1], k)) for k in fields) else 1)
+"""
+
+
+@needs_fork
+def test_the_fit_is_the_same_on_any_processes_with_the_default_blas_threads(shared_mocap):
+    """The suite runs BLAS on one thread; here a process runs it on its default.
+
+    On these clips two BLAS threads in this process and one in each worker
+    summed differently (relative 1e-11 in ``A``) before the fit limited its own.
+    """
+    import subprocess
+    import sys
+
+    from humotion_gym.threads import THREAD_ENV_VARS
+
+    env = {k: v for k, v in os.environ.items() if k not in THREAD_ENV_VARS}
+    program = [sys.executable, "-c", _FIT_TWICE, str(shared_mocap)]
+    assert subprocess.run(program, env=env, timeout=600).returncode == 0
+
+
 @needs_fork
 def test_a_dead_worker_leaves_its_models_to_this_process(synthetic, monkeypatch):
     train, _ = synthetic
