@@ -29,6 +29,9 @@ from baselines.cli import main
         (["tree", "variance", "--windows", "1"], "--windows"),  # a variance needs two
         (["discrimination", "--task", "BodyTrack4Views-v2"], "--task"),  # one view
         (["select", "--grid", "sharpness"], "--grid"),
+        (["select", "--grid", "sharpness=1", "sharpness=2"], "--grid"),  # given twice
+        (["select", "--agent", "hold"], "--agent"),  # nothing to select
+        (["train", "--export", "/proc/x"], "--export"),
         (["synth", "--prior", "cyclic_pca", "--beta", "0.1"], "--beta"),
     ],
 )

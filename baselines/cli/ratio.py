@@ -18,7 +18,13 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from humotion_gym.cli._common import CommandError, add_command, add_json, print_json
+from humotion_gym.cli._common import (
+    CommandError,
+    add_command,
+    add_json,
+    print_json,
+    task_name,
+)
 
 CELL_FORMAT = "AGENT@PARTICLES, or AGENT for an agent without particles (hold, bc)"
 
@@ -42,7 +48,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "results", type=Path, nargs="+",
         help="saved leaderboards (results.json or .json.gz) holding the two cells",
     )  # fmt: skip
-    rp.add_argument("--task", required=True, help="the task both cells ran (e.g. BodyTrack-v2)")
+    rp.add_argument(
+        "--task", type=task_name, required=True,
+        help="the task both cells ran (e.g. BodyTrack-v2)",
+    )  # fmt: skip
     rp.add_argument(
         "--cells", nargs=2, required=True, metavar="CELL", help=f"the two cells: {CELL_FORMAT}"
     )

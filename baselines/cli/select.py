@@ -80,6 +80,8 @@ def parse_grid(items: Sequence[str]) -> dict[str, list[float]]:
     grid: dict[str, list[float]] = {}
     for item in items:
         name, sep, values = item.partition("=")
+        if name.strip() in grid:
+            raise UsageError(f"--grid: {name.strip()} given twice; list its values once, V1,V2")
         try:
             grid[name.strip()] = [float(v) for v in values.split(",") if v.strip()]
         except ValueError:
@@ -96,6 +98,10 @@ def _cmd_select(args: argparse.Namespace) -> int:
     from humotion_gym.errors import MocapFormatError, RigError
 
     grid = parse_grid(args.grid)
+    from baselines.agents import AGENTS
+
+    if args.agent not in AGENTS:  # hold, random and the learned have nothing to select
+        raise UsageError(f"--agent: {args.agent}: expected a particle-filter agent (pf-tree...)")
     try:
         lib = validation_library(args.data_dir or None, args.validation)
     except ValueError as exc:  # a subject absent from the training split, or a test person

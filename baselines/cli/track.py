@@ -76,7 +76,8 @@ def _clip_options(args: argparse.Namespace) -> dict[str, str] | None:
 
     A file's clip is tracked by priors fitted on the library's training
     persons; without ``--data-dir`` (or ``$HUMOTION_MOCAP``) that library is
-    the synthetic one, so a file needs one.
+    the synthetic one, so a file needs one (``hold`` and ``random``, which
+    fit nothing, do not).
 
     Raises:
         FileNotFoundError: If ``--clip`` names a missing ``.bvh``/``.amc`` file.
@@ -92,7 +93,9 @@ def _clip_options(args: argparse.Namespace) -> dict[str, str] | None:
     if not path.is_file():
         raise FileNotFoundError(f"--clip: {args.clip}: no such file")
     check_mocap_paths([path], "--clip")
-    if not configured_data_dirs(args.data_dir):
+    from baselines.agents import REFERENCES
+
+    if not configured_data_dirs(args.data_dir) and args.agent not in REFERENCES:
         raise UsageError(
             f"--clip {args.clip}: give --data-dir DIR (or set ${MOCAP_ENV}) with real mocap; "
             "the priors are fitted on its training persons, else on synthetic motion"

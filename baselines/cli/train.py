@@ -98,7 +98,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     tr.add_argument("--threads", type=positive_int, default=1, help="torch threads (default: 1)")
     tr.add_argument(
-        "--export", type=Path, default=None,
+        "--export", type=output_dir, default=None, metavar="DIR",
         help="also copy the model and its config to DIR/ALGO-TASK.zip and .json, as the "
         "pretrained checkpoints in baselines/checkpoints are made (default: none)",
     )  # fmt: skip
