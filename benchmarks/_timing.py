@@ -8,6 +8,7 @@ measured in the same run, and refuses to run without it (:func:`require`).
 
 from __future__ import annotations
 
+import argparse
 import importlib.util
 import sys
 import time
@@ -16,6 +17,17 @@ from collections.abc import Callable
 from humotion_gym.threads import limit_blas_threads
 
 limit_blas_threads()
+
+
+def no_arguments(doc: str | None) -> None:
+    """Parse a benchmark's command line that takes no flags: ``--help`` prints ``doc``.
+
+    Anything else given is refused (argparse's one line, exit 2) before any timing.
+    """
+    parser = argparse.ArgumentParser(
+        description=doc, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.parse_args()
 
 
 def require(module: str, reference: str) -> None:

@@ -18,7 +18,7 @@ from collections.abc import Callable
 
 import gymnasium as gym
 import numpy as np
-from _timing import best_of, require
+from _timing import best_of, no_arguments, require
 
 import humotion_gym  # noqa: F401  (registers the envs)
 
@@ -112,6 +112,7 @@ def rows(quick: bool = False) -> list[tuple[str, float, str, float]]:
 
 
 def main() -> None:
+    no_arguments(__doc__)
     measured = rows()
     print(f"{'environment':46s} {'calls/s':>10s} {'x reference':>12s}")
     ref_name, ref, _, _ = measured[0]

@@ -28,7 +28,7 @@ does itself when ``threadpoolctl`` is installed).
 from __future__ import annotations
 
 import numpy as np
-from _timing import best_of
+from _timing import best_of, no_arguments
 
 from baselines.priors import cycles, fpca
 from humotion_gym.mocap.synthetic import synthetic_motions
@@ -83,6 +83,7 @@ def reference_fpca(curves: np.ndarray, n_components: int) -> tuple[np.ndarray, n
 
 
 def main() -> None:
+    no_arguments(__doc__)
     rng = np.random.default_rng(0)
     values, observed, complete = walking_cycles(rng)
     print(

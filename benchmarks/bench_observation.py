@@ -23,7 +23,7 @@ appearance terms, the cones' colours read at the first frame).
 from __future__ import annotations
 
 import numpy as np
-from _timing import best_of
+from _timing import best_of, no_arguments
 
 from baselines.observation import GivenBody, ObservationModel
 from humotion_gym import body
@@ -49,6 +49,7 @@ def reference_scores(
 
 
 def main() -> None:
+    no_arguments(__doc__)
     shape = body.default_shape()
     rng = np.random.default_rng(0)
     truth = body.standing_pose(shape)

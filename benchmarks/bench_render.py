@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
-from _timing import best_of, require
+from _timing import best_of, no_arguments, require
 
 from humotion_gym import body
 from humotion_gym.camera import fit_camera
@@ -52,6 +52,7 @@ def cartpole_seconds_per_frame(n: int = 500) -> tuple[float, str]:
 
 
 def main() -> None:
+    no_arguments(__doc__)
     shape = body.default_shape()
     rng = np.random.default_rng(0)
     poses = np.tile(body.standing_pose(shape), (64, 1))

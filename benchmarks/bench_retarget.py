@@ -10,7 +10,7 @@ ratio is stable on a noisy machine.
 from __future__ import annotations
 
 import numpy as np
-from _timing import best_of
+from _timing import best_of, no_arguments
 
 from humotion_gym.body import default_shape, forward_kinematics
 from humotion_gym.mocap.retarget import retarget_keypoints
@@ -18,6 +18,7 @@ from humotion_gym.mocap.synthetic import synthetic_motions
 
 
 def main() -> None:
+    no_arguments(__doc__)
     motions = synthetic_motions(seed=0, fps=120.0, seconds=8.0)
     keypoints = np.concatenate([m.keypoints for m in motions])
     params = np.concatenate([m.params for m in motions])

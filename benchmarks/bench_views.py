@@ -18,6 +18,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from _timing import no_arguments
 from bench_env import paired_rates, stepper
 
 import humotion_gym  # noqa: F401  (registers the envs)
@@ -83,6 +84,7 @@ def rows() -> list[tuple[str, int, float, float]]:
 
 
 def main() -> None:
+    no_arguments(__doc__)
     print(f"{'call':32s} {'views':>5s} {'ms/call':>9s} {'x one view':>11s}")
     for what, views, rate, cost in rows():
         print(f"{what:32s} {views:5d} {1000.0 / rate:9.2f} {cost:11.2f}")

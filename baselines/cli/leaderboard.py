@@ -176,6 +176,7 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         run_leaderboard,
         validity_lines,
     )
+    from baselines.leaderboard.videos import ReplayMismatch
 
     if args.resume and args.out is None:
         raise UsageError("--resume: needs --out FOLDER, the run to continue")
@@ -223,6 +224,8 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         raise CommandError(f"--engine ray: {exc}") from None
     except ResumeError as exc:  # the saved run's other settings: the arguments conflict
         raise UsageError(f"--resume: {exc}") from None
+    except ReplayMismatch as exc:  # a video's episode did not reproduce: the run is saved
+        raise CommandError(f"--videos: {exc}") from None
     except KeyboardInterrupt:
         where = f"; the finished episodes are saved in {args.out}" if args.out else ""
         print(f"interrupted{where}", file=sys.stderr)

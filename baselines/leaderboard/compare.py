@@ -36,7 +36,9 @@ def episode_means(rows: Sequence[dict[str, Any]]) -> dict[EpisodeKey, float]:
             )  # fmt: skip
             if key in out:
                 raise ValueError(f"episode {key} appears twice")
-            out[key] = float(e["mean_error_mm"])
+            value = e.get("mean_error_mm")
+            # null: the strict JSON of a NaN; a number stays, NaN included, and differs
+            out[key] = float("nan") if value is None else float(value)
     return out
 
 
@@ -77,7 +79,8 @@ def compare_runs(
         raise ValueError(f"rtol: expected a number >= 0, got {rtol}")
     got, want = episode_means(rerun), episode_means(recorded)
     both = sorted(got.keys() & want.keys())
+    # written so that NaN on either side differs (a comparison with NaN is False)
     differ = tuple(
-        (k, got[k], want[k]) for k in both if abs(got[k] - want[k]) > rtol * abs(want[k])
+        (k, got[k], want[k]) for k in both if not abs(got[k] - want[k]) <= rtol * abs(want[k])
     )
     return Comparison(len(got), len(want), len(both), differ)

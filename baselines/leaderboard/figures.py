@@ -43,6 +43,10 @@ def _tasks(rows: Sequence[dict[str, Any]]) -> list[str]:
     return list(dict.fromkeys(r["task"] for r in rows if ran(r)))
 
 
+def _has_series(row: dict[str, Any]) -> bool:
+    return all(e.get("errors_mm") for e in row["episodes"])
+
+
 def _errors_matrix(row: dict[str, Any]) -> NDArray[np.float64]:
     # episodes may end early when the run terminated on lost track: the common frames
     length = min(len(e["errors_mm"]) for e in row["episodes"])
@@ -63,7 +67,9 @@ def figure_error_over_frames(rows: Sequence[dict[str, Any]], path: Path, seed: i
     tasks = _tasks(rows)
     fig, axes = plt.subplots(1, len(tasks), figsize=(5 * len(tasks), 3.6), squeeze=False)
     for ax, task in zip(axes[0], tasks, strict=True):
-        for r in (r for r in rows if ran(r) and r["task"] == task):
+        # a record kept without its per-frame series (a summary of runs) has no curve
+        with_series = (r for r in rows if ran(r) and r["task"] == task and _has_series(r))
+        for r in with_series:
             mean, lo, hi = stats.mean_band(_errors_matrix(r), seed=seed)
             frames = np.arange(mean.size)
             (line,) = ax.plot(frames, mean, lw=1.4, label=stats.cell_label(r))

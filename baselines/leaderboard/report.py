@@ -135,7 +135,31 @@ def leaderboard_rows(data: Any, path: str | Path) -> tuple[list[dict[str, Any]],
         isinstance(r, dict) and {"task", "agent", "particles"} <= r.keys() for r in data
     ):
         raise ValueError(f"{path}: expected rows with task, agent and particles")
+    for k, row in enumerate(data):
+        if "summary" in row and not _ran_row_ok(row):
+            raise ValueError(
+                f"{path}: row {k} ({row['task']} {row['agent']}) ran but lacks its numbers "
+                "(expected a summary with mean_error_mm and episodes with seed and "
+                "mean_error_mm)"
+            )
     return data, settings
+
+
+def _ran_row_ok(row: dict[str, Any]) -> bool:
+    """Whether a row that ran holds the numbers the tables read."""
+    number = (int, float)
+    summary, episodes = row.get("summary"), row.get("episodes")
+    return (
+        isinstance(summary, dict)
+        and isinstance(summary.get("mean_error_mm"), number)
+        and isinstance(episodes, list)
+        and len(episodes) > 0
+        and all(
+            isinstance(e, dict) and isinstance(e.get("seed"), int)
+            and isinstance(e.get("mean_error_mm"), number)
+            for e in episodes
+        )
+    )  # fmt: skip
 
 
 # ------------------------------------------------------------------ tables
@@ -548,7 +572,9 @@ def write_report(
         notes.append("No figures: matplotlib is not installed (pip install -e '.[plots]' adds it).")
     made: list[dict[str, Any]] = []
     if videos:
-        made = write_videos(rows, folder, env_kwargs, video_cells, progress)
+        config = (run or {}).get("config") or {}
+        declared = bool(config.get("declared")) if isinstance(config, Mapping) else False
+        made = write_videos(rows, folder, env_kwargs, video_cells, progress, declared)
         (folder / "videos.json").write_text(json.dumps(made, indent=1))
     index = folder / "index.html"
     # the engine's files of the same results folder, where they are

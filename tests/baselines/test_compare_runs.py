@@ -29,6 +29,15 @@ def test_a_record_reproduces_itself_and_a_changed_episode_is_caught():
     assert compare_runs(changed, rows, rtol=1e-5).differ == ()
 
 
+@pytest.mark.parametrize("value", [float("nan"), None])  # None: strict JSON's NaN
+def test_a_nan_episode_differs_from_its_record(value):
+    rows = _rows()
+    changed = json.loads(json.dumps(rows))
+    next(r for r in changed if r["agent"] == "pf-cv")["episodes"][0]["mean_error_mm"] = value
+    assert len(compare_runs(changed, rows).differ) == 1
+    assert len(compare_runs(rows, changed).differ) == 1
+
+
 def test_a_subset_rerun_compares_what_both_hold():
     rows = _rows()
     part = [dict(r, episodes=r["episodes"][:3]) for r in rows if "episodes" in r]

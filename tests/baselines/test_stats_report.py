@@ -554,3 +554,34 @@ def test_the_source_commit_is_heads_and_says_when_the_checkout_has_changes(monke
 
     monkeypatch.setattr(results.subprocess, "run", no_git)
     assert results.source_commit() is None
+
+
+def test_a_declared_run_with_agent_seeds_replays_its_own_episodes(shared_mocap):
+    """Each episode on its recorded window, its agent seeded as the run seeded it.
+
+    The row is made as the leaderboard records a ``--declared`` run with two
+    agent seeds (``run_cell_episode`` per window and agent seed), three windows.
+    """
+    from baselines.leaderboard.engine import run_cell_episode, task_windows
+
+    settings = {"data_dir": [str(shared_mocap)]}
+    episodes = []
+    for seed, window in enumerate(task_windows("ArmTrack-v2", settings)[:3]):
+        for agent_seed in (0, 1):
+            result = run_cell_episode("ArmTrack-v2", "pf-cv", 20, seed, agent_seed, settings,
+                                      window=window)  # fmt: skip
+            episodes.append({
+                "seed": seed, "agent_seed": agent_seed, "clip_id": window[0],
+                "start_frame": window[1], "errors_mm": [round(e) for e in result.errors_mm],
+                "mean_error_mm": result.mean_error_mm,
+            })  # fmt: skip
+    pf = {"task": "ArmTrack-v2", "agent": "pf-cv", "particles": 20, "episodes": episodes}
+    picks = choose_episodes(pf)
+    assert {e["agent_seed"] for e in episodes} == {0, 1}
+    out = replay_episodes(pf, sorted(set(picks.values())), settings, declared=True)
+    assert set(out) == set(picks.values())
+    with pytest.raises(ReplayMismatch):  # drawn, not on its window: another episode
+        replay_episodes(pf, [max(picks.values())], settings, declared=False)
+    seeded = {**pf, "episodes": [{**e, "agent_seed": 7} for e in episodes[::2]]}
+    with pytest.raises(ReplayMismatch):  # another agent seed: another filter
+        replay_episodes(seeded, [0], settings, declared=True)
