@@ -210,6 +210,10 @@ RESUME_KEYS: tuple[str, ...] = ("algo", "task")
 RESUME_SETTINGS: tuple[str, ...] = ("features_dim", "frame_size")
 
 
+class ResumeMismatch(ValueError):
+    """The run asked to resume is another algorithm's, task's or network's (exit 2 on the CLI)."""
+
+
 def check_resumed(path: Path, config: TrainConfig) -> None:
     """Refuse to resume the run recorded in ``path`` with another algorithm, task or network."""
     try:
@@ -224,7 +228,7 @@ def check_resumed(path: Path, config: TrainConfig) -> None:
     before |= {key: (saved.get("settings") or {}).get(key) for key in RESUME_SETTINGS}
     differ = [f"{k}: saved {before[k]!r}, now {now[k]!r}" for k in now if before[k] != now[k]]
     if differ:
-        raise ValueError(
+        raise ResumeMismatch(
             f"--resume: {path.parent} holds another run ({'; '.join(differ)}); resume it with "
             "the same settings, or start afresh (--force or another --out)"
         )

@@ -43,7 +43,8 @@ import numpy as np
 from bench_observation import reference_scores
 
 import humotion_gym  # noqa: F401
-from baselines.agents import make
+from baselines.agents import AGENTS, make
+from humotion_gym.cli._common import int_at_least
 from humotion_gym.envs.description import read_observation
 from humotion_gym.threads import limit_blas_threads
 
@@ -54,13 +55,15 @@ def main() -> None:
     limit_blas_threads()  # as the command line does
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data-dir", default=None)
-    ap.add_argument("--frames", type=int, default=30)
+    ap.add_argument("--frames", type=int_at_least(2), default=30)
     ap.add_argument("--task", default="BodyTrack-v2")
-    ap.add_argument("--agents", nargs="+", default=["pf-cv", "pf-tree"])
-    ap.add_argument("--particles", type=int, nargs="+", default=[300, 3000, 10000])
-    ap.add_argument("--repeats", type=int, default=1, help="passes over the episode; best kept")
+    ap.add_argument("--agents", nargs="+", choices=sorted(AGENTS), default=["pf-cv", "pf-tree"])
+    ap.add_argument("--particles", type=int_at_least(1), nargs="+", default=[300, 3000, 10000])
+    ap.add_argument(
+        "--repeats", type=int_at_least(1), default=1, help="passes over the episode; best kept"
+    )
     ap.add_argument("--clock", choices=sorted(CLOCKS), default="wall")
-    ap.add_argument("--opencv-threads", type=int, default=1)
+    ap.add_argument("--opencv-threads", type=int_at_least(0), default=1)
     args = ap.parse_args()
     cv2.setNumThreads(args.opencv_threads)
     clock = CLOCKS[args.clock]

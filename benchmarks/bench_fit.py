@@ -55,8 +55,8 @@ def reference_kalman(sequences: list[np.ndarray]) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--data-dir", default=None)
-    ap.add_argument("--tasks", nargs="+", default=list(TASKS))
-    ap.add_argument("--agents", nargs="+", default=list(PRIOR_AGENTS))
+    ap.add_argument("--tasks", nargs="+", choices=list(TASKS), default=list(TASKS))
+    ap.add_argument("--agents", nargs="+", choices=list(PRIOR_AGENTS), default=list(PRIOR_AGENTS))
     args = ap.parse_args()
     kwargs = {"data_dir": args.data_dir} if args.data_dir else {}
     print(f"{'task':14s} {'agent':12s} {'clips':>6s} {'frames':>7s} {'fit s':>7s} "

@@ -50,6 +50,7 @@ from baselines.leaderboard.engine import (
     prepare_cells,
 )
 from baselines.leaderboard.run import grid_cells, run_leaderboard
+from humotion_gym.cli._common import int_at_least
 
 
 def _numbers(value: Any) -> Any:
@@ -88,12 +89,14 @@ def parallel_scaling(workers: int) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--data-dir", nargs="*", default=None)
-    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--workers", type=int_at_least(1), default=2)
     ap.add_argument("--tasks", nargs="+", default=["ArmTrack-v2", "BodyTrack-v2"])
     ap.add_argument("--agents", nargs="+", default=["pf-cv", "pf-tree"])
-    ap.add_argument("--particles", type=int, nargs="+", default=[300, 3000])
-    ap.add_argument("--episodes", type=int, default=10, help="episodes per cell of the grid")
-    ap.add_argument("--overhead-episodes", type=int, default=12)
+    ap.add_argument("--particles", type=int_at_least(1), nargs="+", default=[300, 3000])
+    ap.add_argument(
+        "--episodes", type=int_at_least(1), default=10, help="episodes per cell of the grid"
+    )
+    ap.add_argument("--overhead-episodes", type=int_at_least(1), default=12)
     args = ap.parse_args()
     _timing.require("ray", "the Ray engine (the distributed extra)")
     import ray

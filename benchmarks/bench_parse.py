@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 from _timing import best_of
 
+from humotion_gym.cli._common import int_at_least
 from humotion_gym.mocap.asfamc import load_amc, load_asf
 from humotion_gym.mocap.bvh import load_bvh, write_bvh
 
@@ -139,7 +140,9 @@ def measure(name: str, path: Path, parse: Callable[[], object], block: str, repe
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeat", type=int, default=5, help="timed runs per file (best kept)")
+    parser.add_argument(
+        "--repeat", type=int_at_least(1), default=5, help="timed runs per file (best kept)"
+    )
     parser.add_argument("--megabytes", type=float, default=4.0, help="size of the synthetic files")
     default_shared = os.environ.get("HUMOTION_SHARED_MOCAP") or ROOT.parent / "shared" / "mocap"
     parser.add_argument("--shared", type=Path, default=Path(default_shared))

@@ -45,6 +45,7 @@ from baselines.rl import (
     make_learner_env,
     new_model,
 )
+from humotion_gym.cli._common import int_at_least
 
 
 class TrivialEnv(gym.Env):
@@ -110,8 +111,10 @@ def main() -> None:
     ap.add_argument(
         "--rounds", type=int, default=12, help="PPO rounds of one rollout per env, in turns"
     )
-    ap.add_argument("--updates", type=int, default=40, help="bc Adam steps timed")
-    ap.add_argument("--episodes", type=int, default=3, help="episodes for inference timing")
+    ap.add_argument("--updates", type=int_at_least(1), default=40, help="bc Adam steps timed")
+    ap.add_argument(
+        "--episodes", type=int_at_least(1), default=3, help="episodes for inference timing"
+    )
     args = ap.parse_args()
     th.set_num_threads(1)
     data_dir = [args.data_dir] if args.data_dir else None

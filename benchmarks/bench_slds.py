@@ -30,6 +30,7 @@ import numpy as np
 
 from baselines.priors import constant_velocity, slds
 from baselines.priors.slds_learning import fit_em
+from humotion_gym.cli._common import int_at_least
 from humotion_gym.mocap.library import synthetic_library
 from humotion_gym.threads import limit_blas_threads
 
@@ -137,7 +138,7 @@ def bench_transition(n_particles: int = 3000, steps: int = 50) -> dict[str, floa
 def main() -> None:
     limit_blas_threads()  # as the command line does
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--repeats", type=int_at_least(1), default=3)
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     out = {"fit": bench_fit(args.repeats), "transition": bench_transition()}

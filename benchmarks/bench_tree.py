@@ -39,6 +39,7 @@ import numpy as np
 from _timing import best_of
 
 from baselines.priors import tree
+from humotion_gym.cli._common import int_at_least
 from humotion_gym.mocap.library import load_library, synthetic_library
 
 SIZES = (1_000, 3_000, 10_000, 30_000, 50_000)
@@ -73,7 +74,7 @@ def prefix_with_windows(motions: list, n: int) -> list:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data-dir", type=Path, default=None)
-    parser.add_argument("--particles", type=int, default=3000)
+    parser.add_argument("--particles", type=int_at_least(1), default=3000)
     args = parser.parse_args()
     train, test, what = load_data(args.data_dir)
     rng = np.random.default_rng(0)

@@ -28,6 +28,7 @@ import numpy as np
 from _timing import best_of
 
 import humotion_gym  # noqa: F401  (registers the envs)
+from humotion_gym.cli._common import int_at_least
 
 
 def _stepper(venv: Any, actions: np.ndarray) -> Any:
@@ -139,7 +140,7 @@ def ppo_rows(
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--num-envs", type=int, default=16)
+    ap.add_argument("--num-envs", type=int_at_least(1), default=16)
     ap.add_argument("--task", default="BodyTrack-v2")
     ap.add_argument(
         "--ppo-rounds", type=int, default=18, help="PPO rounds of one rollout each (0: skip)"

@@ -172,6 +172,7 @@ def _settings(args: argparse.Namespace) -> dict:
 
 def _cmd_train(args: argparse.Namespace) -> int:
     from baselines.rl import TrainConfig, train
+    from baselines.rl_config import ResumeMismatch
 
     out = args.out or Path("runs") / f"{args.algo}-{args.task}-s{args.seed}"
     if args.out is None:  # the default folder, checked before training as --out is
@@ -198,7 +199,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     try:
         with log:
             path = train(config, resume=args.resume, force=args.force, command=command)
-    except FileExistsError as exc:
+    except (FileExistsError, ResumeMismatch) as exc:  # the arguments and the folder disagree
         raise UsageError(str(exc)) from None
     run_config = json.loads((out / "config.json").read_text())
     if args.export is not None:

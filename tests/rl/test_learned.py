@@ -264,7 +264,7 @@ def test_cli_train_and_track_a_saved_policy(tmp_path: Path, capsys) -> None:
     for change in changes:
         capsys.readouterr()
         argv = ["train", "--steps", "200", "--out", str(out), "--resume", *change]
-        assert change != same and main(argv) == 1
+        assert change != same and main(argv) == 2  # a usage error, as the leaderboard's
         err = capsys.readouterr().err
         assert "holds another run" in err and len(err.strip().splitlines()) == 1
 
