@@ -43,6 +43,14 @@ def _tasks(rows: Sequence[dict[str, Any]]) -> list[str]:
     return list(dict.fromkeys(r["task"] for r in rows if ran(r)))
 
 
+def _legend_or_note(ax: Any) -> None:
+    """The cells' legend, or a note where no cell kept its per-frame series."""
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=7)
+    else:
+        ax.text(0.5, 0.5, "no per-frame series kept", ha="center", transform=ax.transAxes)
+
+
 def _has_series(row: dict[str, Any]) -> bool:
     return all(e.get("errors_mm") for e in row["episodes"])
 
@@ -75,7 +83,7 @@ def figure_error_over_frames(rows: Sequence[dict[str, Any]], path: Path, seed: i
             (line,) = ax.plot(frames, mean, lw=1.4, label=stats.cell_label(r))
             ax.fill_between(frames, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
         ax.set(title=task, xlabel="frame", ylabel="keypoint error, mm")
-        ax.legend(fontsize=7)
+        _legend_or_note(ax)
     return _save(plt, fig, path)
 
 
@@ -85,7 +93,7 @@ def figure_survival(rows: Sequence[dict[str, Any]], path: Path) -> Path:
     tasks = _tasks(rows)
     fig, axes = plt.subplots(1, len(tasks), figsize=(5 * len(tasks), 3.6), squeeze=False)
     for ax, task in zip(axes[0], tasks, strict=True):
-        for r in (r for r in rows if ran(r) and r["task"] == task):
+        for r in (r for r in rows if ran(r) and r["task"] == task and _has_series(r)):
             eps = r["episodes"]
             length = max(len(e["errors_mm"]) for e in eps)
             curve = stats.survival(
@@ -97,7 +105,7 @@ def figure_survival(rows: Sequence[dict[str, Any]], path: Path) -> Path:
             ax.fill_between(frames, step[1], step[2], step="post", color=line.get_color(),
                             alpha=0.15, lw=0)  # fmt: skip
         ax.set(title=task, xlabel="frame", ylabel="still tracking", ylim=(-0.02, 1.02))
-        ax.legend(fontsize=7)
+        _legend_or_note(ax)
     return _save(plt, fig, path)
 
 

@@ -95,6 +95,25 @@ def test_probability_of_improvement_is_mann_whitney_averaged_over_tasks():
         stats.probability_of_improvement(x, y[:1])
 
 
+def _pairwise_win_rate(a, b, sign):
+    """The definition: every pair of runs, a win 1, a tie one half (the oracle)."""
+    d = sign * (a[..., :, None] - b[..., None, :])
+    return ((d > 0) + 0.5 * (d == 0)).mean(axis=(-2, -1))
+
+
+@pytest.mark.parametrize("sign", [-1.0, 1.0])
+def test_the_ranked_win_rate_is_the_pairs_mean_bit_for_bit(sign):
+    rng = np.random.default_rng(3)
+    # rounded errors tie often, as the compact records' do; batches as bootstrap gives
+    a = np.round(rng.normal(50, 10, (4, 37)))
+    b = np.round(rng.normal(52, 10, (4, 29)))
+    want = np.mean([_pairwise_win_rate(a, b, sign), _pairwise_win_rate(b[:, :5], a, sign)], 0)
+    got = stats._poi(a, b[:, :5], b, a, sign=sign)
+    np.testing.assert_array_equal(got, want)
+    one = stats._poi(a[0], b[0], sign=sign)  # unbatched
+    assert one == _pairwise_win_rate(a[0], b[0], sign)
+
+
 def test_kaplan_meier_by_hand_and_median_lost_frame():
     # five episodes of 10 frames: lost at 3, 5, 3; two never lost (censored at 10)
     curve = stats.survival([3, None, 5, None, 3], [10] * 5)
@@ -267,6 +286,21 @@ def test_report_writes_tables_figures_and_a_page_whose_links_exist(tmp_path):
     assert "ERROR: fit failed" in [c for row in page.tables[0] for c in row]
     computed = json.loads((tmp_path / "rep" / "stats.json").read_text())
     assert {a["cell"] for a in computed["aggregate"]} == {"hold", "pf-cv@100", "random"}
+
+
+def test_a_record_kept_without_its_series_reports_and_a_row_without_numbers_is_refused(
+    tmp_path,
+):
+    rows = _rows({"pf-cv": 0.5})
+    for row in rows:  # a summary of many runs, as results/v2_seed_sets keeps
+        for e in row["episodes"]:
+            del e["errors_mm"]
+    write_report(rows, tmp_path / "rep", videos=False, progress=False)
+    assert "| pf-cv |" in (tmp_path / "rep" / "tables.md").read_text()
+    broken = [{k: v for k, v in rows[0].items() if k != "episodes"}]
+    (tmp_path / "broken.json").write_text(json.dumps({"rows": broken}))
+    with pytest.raises(ValueError, match="row 0 .* ran but lacks its numbers"):
+        load_rows(tmp_path / "broken.json")
 
 
 def test_report_without_matplotlib_says_so_and_writes_the_rest(tmp_path, monkeypatch):
@@ -582,6 +616,8 @@ def test_a_declared_run_with_agent_seeds_replays_its_own_episodes(shared_mocap):
     assert set(out) == set(picks.values())
     with pytest.raises(ReplayMismatch):  # drawn, not on its window: another episode
         replay_episodes(pf, [max(picks.values())], settings, declared=False)
+    bare = {**pf, "episodes": [{k: v for k, v in e.items() if k != "errors_mm"} for e in episodes]}
+    replay_episodes(bare, [0], settings, declared=True)  # a record without series: its mean
     seeded = {**pf, "episodes": [{**e, "agent_seed": 7} for e in episodes[::2]]}
     with pytest.raises(ReplayMismatch):  # another agent seed: another filter
         replay_episodes(seeded, [0], settings, declared=True)
