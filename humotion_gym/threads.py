@@ -40,6 +40,11 @@ _CONTROLLER: list[ThreadpoolController] = []
 F = TypeVar("F", bound=Callable[..., Any])
 
 
+def _chosen_by_user() -> bool:
+    """Whether the user chose the BLAS threads through :data:`THREAD_ENV_VARS`."""
+    return any(os.environ.get(name) for name in THREAD_ENV_VARS)
+
+
 def limit_blas_threads(threads: int = 1) -> bool:
     """Limit BLAS to ``threads`` threads for the rest of the process.
 
@@ -51,7 +56,7 @@ def limit_blas_threads(threads: int = 1) -> bool:
     Returns:
         True if the limit was applied, False if an environment variable decided.
     """
-    if any(os.environ.get(name) for name in THREAD_ENV_VARS):
+    if _chosen_by_user():
         return False
     threadpool_limits(limits=threads, user_api="blas")
     return True
@@ -69,7 +74,7 @@ def single_threaded_blas(unless_chosen: bool = False) -> contextlib.AbstractCont
             does (so that work done here sums as in worker processes that
             called it).
     """
-    if unless_chosen and any(os.environ.get(name) for name in THREAD_ENV_VARS):
+    if unless_chosen and _chosen_by_user():
         return contextlib.nullcontext()
     if not _CONTROLLER:
         _CONTROLLER.append(ThreadpoolController())

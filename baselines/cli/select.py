@@ -94,12 +94,11 @@ def parse_grid(items: Sequence[str]) -> dict[str, list[float]]:
 
 
 def _cmd_select(args: argparse.Namespace) -> int:
+    from baselines.agents import AGENTS
     from baselines.experiments.selection import select_observation_settings, validation_library
     from humotion_gym.errors import MocapFormatError, RigError
 
     grid = parse_grid(args.grid)
-    from baselines.agents import AGENTS
-
     if args.agent not in AGENTS:  # hold, random and the learned have nothing to select
         raise UsageError(f"--agent: {args.agent}: expected a particle-filter agent (pf-tree...)")
     try:

@@ -13,10 +13,10 @@ from numpy.typing import NDArray
 FPS_RANGE: tuple[float, float] = (1.0, 240.0)
 
 
-def check_count(name: str, value: Any) -> None:
-    """Refuse anything but an integer >= 1 (a bool too), naming the argument."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ValueError(f"{name}: expected an integer >= 1, got {value!r}")
+def check_count(name: str, value: Any, least: int = 1) -> None:
+    """Refuse anything but an integer >= ``least`` (a bool too), naming the argument."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+        raise ValueError(f"{name}: expected an integer >= {least}, got {value!r}")
 
 
 def check_positive(name: str, value: Any) -> None:
@@ -64,9 +64,8 @@ def check_env_arguments(
         if value is not None:
             check_at_least_zero(name, value)
     for name, value in naturals.items():
-        bad = isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0
-        if value is not None and bad:
-            raise ValueError(f"{name}: expected an integer >= 0, got {value!r}")
+        if value is not None:
+            check_count(name, value, least=0)
     for name, value in flags.items():
         if value is not None:
             check_bool(name, value)

@@ -253,17 +253,36 @@ def list_cmu_trials(
 # --- files ----------------------------------------------------------------------
 
 
-def _read_manifest(dest: Path) -> dict[str, dict[str, Any]]:
+def _read_manifest(dest: Path, strict: bool = False) -> dict[str, dict[str, Any]]:
+    """The download folder's manifest; ``{}`` where it is missing or damaged.
+
+    The manifest is written atomically, so damage came from outside: a download
+    takes it as empty (every file is fetched and verified again). ``strict``
+    (:func:`verify_cache`, which checks what the manifest records) refuses it.
+
+    Raises:
+        OSError: With ``strict``, if the manifest cannot be read.
+        ValueError: With ``strict``, if the manifest is not a JSON object.
+    """
     path = dest / MANIFEST_NAME
     if not path.is_file():
         return {}
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        # The manifest is written atomically, so this is outside damage; an
-        # empty manifest only means every file is fetched and verified again.
-        return {}
-    return data if isinstance(data, dict) else {}
+    except ValueError:  # JSON's and UTF-8's errors
+        data = None
+    except OSError:  # unreadable: a download refetches; a check says why
+        if strict:
+            raise
+        data = None
+    if isinstance(data, dict):
+        return data
+    if strict:
+        raise ValueError(
+            f"{path}: damaged download manifest (expected a JSON object); "
+            "`humotion-gym download cmu` checks and records every file again"
+        )
+    return {}
 
 
 def _write_manifest(dest: Path, manifest: dict[str, dict[str, Any]]) -> None:
@@ -673,15 +692,7 @@ def verify_cache(
     path = dest / MANIFEST_NAME
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no download manifest here")
-    try:
-        manifest = json.loads(path.read_text(encoding="utf-8"))
-    except ValueError as exc:  # JSON's and UTF-8's errors
-        manifest = exc
-    if not isinstance(manifest, dict):
-        raise ValueError(
-            f"{path}: damaged download manifest (expected a JSON object); "
-            "`humotion-gym download cmu` checks and records every file again"
-        )
+    manifest = _read_manifest(dest, strict=True)
     reg = _resolve_registry(registry)
     report = CacheReport()
     on_disk = {
