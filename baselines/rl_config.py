@@ -16,9 +16,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import yaml
 
+from humotion_gym.checks import is_count, is_real
 from humotion_gym.envs import get_task
 
 ALGOS: tuple[str, ...] = ("ppo", "bc")
@@ -100,7 +100,7 @@ class TrainConfig:
         if self.algo not in ALGOS:
             raise ValueError(f"algo: expected one of {list(ALGOS)}, got {self.algo!r}")
         self.task = get_task(self.task).name
-        if isinstance(self.steps, bool) or not isinstance(self.steps, int) or self.steps < 1:
+        if not is_count(self.steps, 1):
             raise ValueError(f"steps: expected an integer >= 1, got {self.steps!r}")
         for name in ("checkpoint_every", "eval_every", "eval_episodes"):
             if getattr(self, name) < 1:
@@ -144,10 +144,7 @@ SETTING_RANGES: dict[str, tuple[bool, float | None, float]] = {
 def _check_setting(name: str, value: Any) -> None:
     """Refuse a training setting outside :data:`SETTING_RANGES`, naming it."""
     integer, low, high = SETTING_RANGES[name]
-    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
-        value, bool
-    )
-    ok = number and math.isfinite(value) and (low is None or low <= value) and value <= high
+    ok = is_real(value) and math.isfinite(value) and (low is None or low <= value) and value <= high
     if integer:
         ok = ok and float(value).is_integer()
     if not ok:

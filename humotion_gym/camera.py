@@ -28,6 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from humotion_gym.checks import is_count
+
 FloatArray = NDArray[np.float64]
 
 _WORLD_UP = (0.0, 0.0, 1.0)
@@ -582,7 +584,7 @@ def cameras_around(camera: Camera, target: ArrayLike, views: int) -> list[Camera
         ValueError: If ``views`` is not a positive integer or ``target`` is not
             3 finite numbers.
     """
-    if isinstance(views, bool) or not isinstance(views, (int, np.integer)) or views < 1:
+    if not is_count(views, 1):
         raise ValueError(f"cameras_around: views must be an integer >= 1, got {views!r}")
     centre = np.asarray(target, dtype=np.float64).reshape(-1)
     if centre.shape != (3,) or not np.all(np.isfinite(centre)):

@@ -26,6 +26,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from humotion_gym.checks import is_count
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 
 #: The keys of the learner observation, in the order a policy sees them.
@@ -102,7 +103,7 @@ def check_frame_size(size: Any, what: str) -> None:
     Raises:
         ValueError: Naming ``what``.
     """
-    if size is not None and (isinstance(size, bool) or not isinstance(size, int) or size < 8):
+    if size is not None and not is_count(size, 8):
         raise ValueError(f"{what} must be an integer >= 8 or None, got {size!r}")
 
 

@@ -28,7 +28,6 @@ from collections.abc import Mapping
 from typing import Any
 
 import gymnasium as gym
-import numpy as np
 
 from baselines.agents.base import TaskNotSupported, describe, tracking_env
 from baselines.agents.filters import (
@@ -57,6 +56,7 @@ from baselines.agents.specs import (
     training_motions,
 )
 from baselines.observation import ObservationModel
+from humotion_gym.checks import is_count
 from humotion_gym.envs.description import TaskDescription
 
 
@@ -120,7 +120,7 @@ def make(
 
 def _check_count(name: str, value: Any, low: int) -> None:
     """Refuse anything but an integer >= ``low`` (numpy's too; not a bool), naming it."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+    if not is_count(value, low):
         raise ValueError(f"agents.make: {name} must be an integer >= {low}, got {value!r}")
 
 

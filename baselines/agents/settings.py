@@ -19,6 +19,7 @@ from typing import Any
 
 import yaml
 
+from humotion_gym.checks import is_real
 from humotion_gym.envs.tasks import TASKS
 
 #: The settings file, shipped in the package (an installed copy of baselines
@@ -110,7 +111,7 @@ def _filter_settings(value: Any, path: Path, key: str) -> dict[str, dict[str, fl
                     path, f"{key}.{task}.{name}",
                     f"not a filter setting; they are {list(FILTER_SETTINGS)}",
                 )  # fmt: skip
-            if isinstance(v, bool) or not isinstance(v, int | float):
+            if not is_real(v):
                 raise SettingsError(path, f"{key}.{task}.{name}", f"expected a number, got {v!r}")
         out[task] = {name: float(v) for name, v in settings.items()}
     return out

@@ -34,6 +34,7 @@ from baselines.detector.network import (
     save_weights,
 )
 from humotion_gym.body import KEYPOINT_NAMES
+from humotion_gym.checks import is_count
 
 FloatArray = NDArray[np.float64]
 
@@ -66,7 +67,7 @@ class TrainSettings:
     def __post_init__(self) -> None:
         for name in ("epochs", "batch", "width", "threads"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            if not is_count(value, 1):
                 raise ValueError(f"TrainSettings.{name}: expected a whole number >= 1, got {value}")
         if not (np.isfinite(self.lr) and self.lr > 0):
             raise ValueError(f"TrainSettings.lr: expected a positive number, got {self.lr}")

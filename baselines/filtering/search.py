@@ -54,6 +54,7 @@ from baselines.filtering.weights import (
     log_sum_exp,
     temper_for_survival,
 )
+from humotion_gym.checks import is_count
 
 FloatArray = NDArray[np.float64]
 
@@ -100,7 +101,7 @@ class LocalSearch:
     def __post_init__(self) -> None:
         for name in ("top", "steps"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
+            if not is_count(value, 0):
                 raise ValueError(f"LocalSearch.{name}: expected an integer >= 0, got {value!r}")
         if not (np.isfinite(self.scale) and self.scale > 0):
             raise ValueError(f"LocalSearch.scale: expected a positive number, got {self.scale}")

@@ -33,7 +33,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from tqdm.auto import tqdm
 
 from baselines.agents import REFERENCES, is_learned, takes_particles
@@ -54,6 +53,7 @@ from baselines.leaderboard.results import (
     write_results,
 )
 from baselines.leaderboard.tables import FLOOR
+from humotion_gym.checks import is_count
 from humotion_gym.mocap.library import package_version
 
 
@@ -191,7 +191,7 @@ def _check_run(
     counts = {"agent_seeds": (agent_seeds, 1), "episodes": (episodes, 1), "seed": (seed, 0)}
     counts |= {f"particles[{i}]": (n, 1) for i, n in enumerate(particles)}
     for name, (value, low) in counts.items():
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+        if not is_count(value, low):
             raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
     if videos and agent_seeds > 1:
         raise ValueError("videos: a video replays one agent seed; run them with agent_seeds=1")

@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from baselines.priors import get_prior
+from humotion_gym.checks import is_integer
 from humotion_gym.mocap.library import (
     CACHE_ERRORS,
     CACHE_VERSION,
@@ -142,7 +143,7 @@ def _typed_settings(module: ModuleType, settings: Mapping[str, Any]) -> dict[str
     for name, value in settings.items():
         p = params.get(name)
         default = None if p is None else p.default
-        counted = isinstance(default, int) and not isinstance(default, bool)
+        counted = is_integer(default)
         if counted and isinstance(value, (float, np.floating)):
             if not float(value).is_integer():
                 prior = module.__name__.rsplit(".", 1)[-1]

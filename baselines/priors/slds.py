@@ -88,6 +88,7 @@ from baselines.priors.slds_learning import (
     start_em,
 )
 from humotion_gym.body import N_PARAMS, PARAM_INDEX, PARAM_LOWER, PARAM_UPPER, SAGITTAL_PARAMS
+from humotion_gym.checks import is_count
 from humotion_gym.mocap.motion import Motion
 from humotion_gym.threads import available_cores, limit_blas_threads, single_threaded_blas
 
@@ -254,11 +255,6 @@ def _run_activity(start: EMStart, n_iter: int, cov_rtol: float) -> tuple[SLDSPar
     return params, time.perf_counter() - t0
 
 
-def _is_count(value: object, least: int) -> bool:
-    """Whether ``value`` is a whole number (an int, not a bool or a float) >= ``least``."""
-    return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= least
-
-
 def fit_workers(starts: Sequence[EMStart], workers: int | None) -> int:
     """How many processes fit the activity models (see :func:`fit`'s ``workers``).
 
@@ -266,7 +262,7 @@ def fit_workers(starts: Sequence[EMStart], workers: int | None) -> int:
         ValueError: If ``workers`` is not None or a whole number >= 1.
     """
     if workers is not None:
-        if not _is_count(workers, 1):
+        if not is_count(workers, 1):
             raise ValueError(
                 f"slds.fit: workers must be None or a whole number >= 1, got {workers!r}"
             )
@@ -352,7 +348,7 @@ def fit(
         ("n_states", n_states, 1), ("order", order, 1), ("n_iter", n_iter, 0),
         ("frame_skip", frame_skip, 1),
     ):  # fmt: skip
-        if not _is_count(value, least):
+        if not is_count(value, least):
             raise ValueError(f"slds.fit: {name} must be a whole number >= {least}, got {value!r}")
     cov_rtol = check_cov_rtol(cov_rtol, "slds.fit")
     groups = _activities(motions, per_label)

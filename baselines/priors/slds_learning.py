@@ -49,6 +49,7 @@ from baselines.priors.slds_inference import (
     symmetrise,
     viterbi_filter,
 )
+from humotion_gym.checks import is_real
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -65,11 +66,7 @@ def check_cov_rtol(value: object, caller: str) -> float:
         ValueError: If it is not a number in (0, :data:`MAX_COV_RTOL`]
             (the message names ``caller``).
     """
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, (int, float, np.floating))
-        or not 0.0 < float(value) <= MAX_COV_RTOL
-    ):
+    if not (is_real(value) and 0.0 < float(value) <= MAX_COV_RTOL):  # type: ignore[arg-type]
         raise ValueError(
             f"{caller}: cov_rtol must be a number in (0, {MAX_COV_RTOL}], got {value!r}"
         )

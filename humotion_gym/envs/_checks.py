@@ -7,36 +7,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from humotion_gym.checks import check_at_least_zero, check_bool, check_count, check_positive
+
 #: The frame rates clips may be resampled to, Hz (the command line's ``--fps`` too):
 #: the data sets capture at 30 to 120 Hz (some rigs at 240); resampling finer only
 #: multiplies every clip's memory.
 FPS_RANGE: tuple[float, float] = (1.0, 240.0)
-
-
-def check_count(name: str, value: Any, least: int = 1) -> None:
-    """Refuse anything but an integer >= ``least`` (a bool too), naming the argument."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
-        raise ValueError(f"{name}: expected an integer >= {least}, got {value!r}")
-
-
-def check_positive(name: str, value: Any) -> None:
-    """Refuse anything but a positive finite real number, naming the argument."""
-    real = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-    if not (real and np.isfinite(value) and value > 0):
-        raise ValueError(f"{name}: expected a positive finite number, got {value!r}")
-
-
-def check_at_least_zero(name: str, value: Any) -> None:
-    """Refuse anything but a finite real number >= 0, naming the argument."""
-    real = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-    if not (real and np.isfinite(value) and value >= 0):
-        raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
-
-
-def check_bool(name: str, value: Any) -> None:
-    """Refuse anything but True or False (numpy's too): a string such as "no" is truthy."""
-    if not isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"{name}: expected True or False, got {value!r}")
 
 
 def check_env_arguments(

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from humotion_gym.body import KEYPOINT_INDEX, N_KEYPOINTS
+from humotion_gym.checks import is_integer
 from humotion_gym.kinematics import batch_pose_geometry
 from humotion_gym.mocap.library import MotionLibrary, load_library
 from humotion_gym.mocap.motion import Motion
@@ -98,7 +99,7 @@ class EpisodeChoice:
                 )
         if "start" in options:
             start = options["start"]
-            if isinstance(start, bool) or not isinstance(start, (int, np.integer)):
+            if not is_integer(start):
                 raise ValueError(f"reset: options['start'] must be an integer frame, got {start!r}")
         return dict(options)
 

@@ -23,8 +23,9 @@ from humotion_gym.body import (
     forward_kinematics,
 )
 from humotion_gym.camera import Camera, cameras_around, fit_camera
+from humotion_gym.checks import check_count
 from humotion_gym.envs import description
-from humotion_gym.envs._checks import action_array, check_count, check_env_arguments
+from humotion_gym.envs._checks import action_array, check_env_arguments
 from humotion_gym.envs._episode_choice import EpisodeChoice, clip_geometry
 from humotion_gym.envs.description import TaskDescription
 from humotion_gym.envs.tasks import TaskSpec, get_task

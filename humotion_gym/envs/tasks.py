@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from humotion_gym.body import KEYPOINT_INDEX, N_PARAMS, PARAM_INDEX, SAGITTAL_PARAMS
+from humotion_gym.checks import is_count
 
 #: The world's up, for the travel box's vertical corners.
 _UP = np.array([0.0, 0.0, 1.0])
@@ -154,7 +155,7 @@ class TaskSpec:
             raise ValueError(f"task {self.name}: episode_frames must be >= 1")
         if not self.min_motion_mm >= 0.0:
             raise ValueError(f"task {self.name}: min_motion_mm must be >= 0")
-        if isinstance(self.views, bool) or not isinstance(self.views, int) or self.views < 1:
+        if not is_count(self.views, 1):
             raise ValueError(f"task {self.name}: views must be an integer >= 1, got {self.views!r}")
 
     @property

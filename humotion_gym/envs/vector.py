@@ -51,7 +51,8 @@ from humotion_gym.body import (
     pose_geometry_of,
 )
 from humotion_gym.camera import CAMERA_VECTOR_SIZE, fit_cameras
-from humotion_gym.envs._checks import action_array, check_count
+from humotion_gym.checks import check_count, is_integer
+from humotion_gym.envs._checks import action_array
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv, _scored_info
 from humotion_gym.envs.tasks import get_task
 from humotion_gym.metrics import StepScores, update_lost_run
@@ -288,7 +289,7 @@ class PoseTrackingVectorEnv(VectorEnv):
         n = self.num_envs
         if seed is None:
             seeds: list[int | None] = [None] * n
-        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+        elif is_integer(seed):
             seeds = [int(seed) + i for i in range(n)]
         else:
             seeds = list(seed)

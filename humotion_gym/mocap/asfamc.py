@@ -68,6 +68,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from humotion_gym.checks import is_count
 from humotion_gym.errors import MocapFormatError
 from humotion_gym.mocap._amc_frames import AmcLimits, OnNan, _amc_general, _amc_regular
 from humotion_gym.mocap._asf_reader import AsfLimits, _AsfReader, _topological
@@ -412,7 +413,7 @@ def load_amc(
     if on_nan not in ("mask", "raise"):
         raise ValueError(f"on_nan must be 'mask' or 'raise', got {on_nan!r}")
     limit = MAX_FRAMES if max_frames is None else max_frames
-    if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 1:
+    if not is_count(limit, 1):
         raise ValueError(f"max_frames must be a whole number >= 1, got {max_frames!r}")
     if not (isinstance(fps, (int, float, np.number)) and _MIN_FPS <= fps <= _MAX_FPS):
         raise ValueError(f"fps must be between {_MIN_FPS:g} and {_MAX_FPS:g}, got {fps!r}")

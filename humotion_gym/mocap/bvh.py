@@ -63,6 +63,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from humotion_gym.checks import is_count
 from humotion_gym.errors import MocapFormatError
 from humotion_gym.mocap._bvh_hierarchy import (
     _CHANNEL_KIND,
@@ -462,7 +463,7 @@ def _check_load_arguments(max_frames: int | None, on_nan: str, position_channels
         ValueError: If an argument is invalid.
     """
     limit = MAX_FRAMES if max_frames is None else max_frames
-    if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 0:
+    if not is_count(limit, 0):
         raise ValueError(f"max_frames must be a whole number >= 0, got {max_frames!r}")
     if on_nan not in ("mask", "raise"):
         raise ValueError(f"on_nan must be 'mask' or 'raise', got {on_nan!r}")

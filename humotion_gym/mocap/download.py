@@ -72,6 +72,7 @@ from typing import Any
 
 from tqdm.auto import tqdm
 
+from humotion_gym.checks import is_count
 from humotion_gym.mocap._http import (
     _MAX_TRIALS,
     DownloadError,
@@ -383,7 +384,7 @@ def _resolve_caps(max_bytes: int | Mapping[str, int] | None) -> dict[str, int]:
     elif max_bytes is not None:
         caps = dict.fromkeys(caps, max_bytes)
     for suffix, cap in caps.items():
-        if isinstance(cap, bool) or not isinstance(cap, int) or cap < 1:
+        if not is_count(cap, 1):
             raise ValueError(f"max_bytes: caps must be positive integers, got {suffix!r}: {cap!r}")
     return caps
 
