@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import itertools
 import operator
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal, Protocol
 
@@ -18,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from humotion_gym.errors import MocapFormatError
-from humotion_gym.mocap._scan import _count, _short, _to_floats
+from humotion_gym.mocap._scan import _count, _short, _to_floats, decode_text
 
 OnNan = Literal["mask", "raise"]
 
@@ -111,6 +112,17 @@ def _out_of_range(values: NDArray[np.float64], bound: float) -> NDArray[np.intp]
     return np.flatnonzero(big & np.isfinite(values))
 
 
+def _points_by_name(names: Sequence[str]) -> dict[bytes, int]:
+    """Each skeleton point's index by its name as an AMC line writes it.
+
+    An AMC may write a name in UTF-8 or in Latin-1, whatever its ASF used
+    (:func:`~humotion_gym.mocap._scan.decode_text` read the ASF): both
+    spellings are looked up.
+    """
+    out = {n.encode("latin-1"): i for i, n in enumerate(names) if max(map(ord, n), default=0) < 256}
+    return out | {n.encode(): i for i, n in enumerate(names)}
+
+
 def _amc_regular(
     sk: _Skeleton,
     widths: NDArray[np.intp],
@@ -143,7 +155,7 @@ def _amc_regular(
         return None
     stride = int(pattern.sum())
     offs = (np.cumsum(pattern) - pattern).tolist()  # token offset of each line in a frame
-    point_of = {n.encode(): i for i, n in enumerate(sk.point_names)}
+    point_of = _points_by_name(sk.point_names)
     points = [point_of.get(tokens[o], -1) for o in offs[1:]]
     if min(points, default=0) < 0 or len(set(points)) != len(points):
         return None
@@ -196,7 +208,7 @@ def _bone_points(
         MocapFormatError: Naming the first line whose bone is unknown or whose
             values do not fit its dof.
     """
-    point_of = {n.encode(): i for i, n in enumerate(sk.point_names)}
+    point_of = _points_by_name(sk.point_names)
     bone_names_b = list(itertools.compress(firsts, is_bone))
     point = np.fromiter(
         map(point_of.get, bone_names_b, itertools.repeat(-1)), np.intp, len(bone_names_b)
@@ -207,8 +219,7 @@ def _bone_points(
         raise MocapFormatError(
             spath,
             first + int(bone_lines[k]),
-            f"bone {bone_names_b[k].decode('utf-8', 'replace')!r} is not defined in the "
-            f"skeleton {sk.path}",
+            f"bone {decode_text(bone_names_b[k])!r} is not defined in the skeleton {sk.path}",
         )
     got = counts[bone_lines] - 1
     want = widths[point]

@@ -17,6 +17,22 @@ from numpy.typing import NDArray
 
 from humotion_gym.errors import MocapFormatError
 
+
+def decode_text(data: bytes) -> str:
+    """Text of a mocap file or line: UTF-8, else Latin-1.
+
+    Files from older tools name joints in Latin-1. Latin-1 maps each byte to
+    one character, so distinct names stay distinct (a replacement character
+    would make bytes 0xE9 and 0xE8 the same name), and a name reads
+    the same from an ASF skeleton and its AMC motion whichever of the two
+    encodings each file uses.
+    """
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
+
+
 # A count: ASCII digits only (str.isdigit also takes superscripts such as "²").
 _COUNT = re.compile(r"[0-9]+", re.ASCII)
 
@@ -79,7 +95,7 @@ def _to_floats(
             lo = mid
         except ValueError:
             hi = mid
-    bad = tokens[lo].decode("utf-8", "replace")
+    bad = decode_text(tokens[lo])
     raise MocapFormatError(path, int(line_of[lo]), f"expected {what}, found {bad!r}")
 
 
@@ -133,7 +149,7 @@ def _euler_matrices(
 
 def _short(token: str | bytes, limit: int = 40) -> str:
     """``repr`` of a token for an error message, cut to about ``limit`` characters."""
-    text = token.decode("utf-8", "replace") if isinstance(token, bytes) else token
+    text = decode_text(token) if isinstance(token, bytes) else token
     return repr(text) if len(text) <= limit else repr(text[:limit]) + f"... ({len(text)} chars)"
 
 

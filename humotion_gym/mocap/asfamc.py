@@ -75,6 +75,7 @@ from humotion_gym.mocap._asf_reader import AsfLimits, _AsfReader, _topological
 from humotion_gym.mocap._scan import (
     _euler_matrices,
     _line_token_counts,
+    decode_text,
 )
 from humotion_gym.mocap.bvh import MAX_NAME_LENGTH  # one bound on names for both formats
 from humotion_gym.mocap.skeleton import select_points
@@ -331,7 +332,7 @@ def load_asf(path: str | Path) -> AsfSkeleton:
         OSError: If the file cannot be read.
     """
     spath = str(path)
-    text = Path(path).read_bytes().decode("utf-8", "replace").lstrip("\ufeff")
+    text = decode_text(Path(path).read_bytes()).lstrip("\ufeff")
     lines = text.splitlines()
     if not text.strip():
         raise MocapFormatError(spath, 1, "the file is empty (expected an ASF skeleton)")

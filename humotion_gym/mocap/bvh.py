@@ -82,6 +82,7 @@ from humotion_gym.mocap._scan import (
     _line_token_counts,
     _short,
     _to_floats,
+    decode_text,
 )
 from humotion_gym.mocap.skeleton import select_points
 
@@ -489,7 +490,7 @@ class _LineReader:
             return None
         end = self.data.find(b"\n", self.pos)
         end = len(self.data) if end < 0 else end
-        text = self.data[self.pos : end].decode("utf-8", "replace")
+        text = decode_text(self.data[self.pos : end])
         self.pos = end + 1
         self.lineno += 1
         return text

@@ -615,3 +615,20 @@ def test_bad_fps_and_max_frames_arguments(write_text):
     with pytest.raises(ValueError, match="max_frames"):
         load_amc(path, sk, max_frames=0)
     assert load_amc(path, sk, fps=10_000.0, max_frames=4).n_frames == 4
+
+
+@pytest.mark.parametrize(("asf_encoding", "amc_encoding"), [
+    ("latin-1", "latin-1"), ("utf-8", "latin-1"), ("latin-1", "utf-8"), ("utf-8", "utf-8"),
+])  # fmt: skip
+def test_a_bone_named_in_latin1_or_utf8_is_found_in_either_file(
+    tmp_path, asf_encoding, amc_encoding
+):
+    """An ASF and its AMC may each write a non-ASCII bone name in UTF-8 or Latin-1."""
+    frames = random_frames(seed=3, n=2)
+    asf, amc = tmp_path / "s.asf", tmp_path / "m.amc"
+    asf.write_bytes(asf_text().replace("upper", "upp\xe9r").encode(asf_encoding))
+    amc.write_bytes(amc_text(frames).replace("upper ", "upp\xe9r ").encode(amc_encoding))
+    clip = load_asf_amc(asf, amc)
+    assert clip.point_names[1] == "uppér"
+    expected = np.stack([oracle("XYZ", (25.0, -40.0, 60.0), v) for v in frames.values()])
+    np.testing.assert_allclose(clip.point_positions()[:, :4], expected, atol=1e-9)

@@ -716,3 +716,21 @@ def test_real_files_round_trip_through_the_writer(shared_mocap, tmp_path):
     for rel in ["bandai-2/dataset-2_walk_normal_001.bvh", "cmu-bvh-cc/007/007_01.bvh"]:
         clip = load_bvh(shared_mocap / rel)
         assert_same_clip(clip, rewrite(clip, tmp_path / Path(rel).name))
+
+
+def test_latin1_joint_names_stay_distinct(tmp_path):
+    """Names in Latin-1 (older tools) read as Latin-1: two names one byte apart stay two."""
+    text = BASE.replace("ROOT hips", "ROOT j\xe8").replace("JOINT knee", "JOINT j\xe9")
+    path = tmp_path / "latin1.bvh"
+    path.write_bytes(text.encode("latin-1"))
+    clip = load_bvh(path)
+    assert clip.point_names[:2] == ("jè", "jé")
+    np.testing.assert_allclose(clip.point_positions(), BASE_POSITIONS, atol=1e-12)
+    # Written back (as UTF-8) and read again: the same names.
+    assert_same_clip(clip, rewrite(clip, tmp_path / "again.bvh"))
+
+
+def test_utf8_joint_names_read_as_utf8(tmp_path):
+    path = tmp_path / "utf8.bvh"
+    path.write_bytes(BASE.replace("JOINT knee", "JOINT genou_gauche_\u00e9\u4e2d").encode())
+    assert load_bvh(path).point_names[1] == "genou_gauche_é中"
