@@ -76,6 +76,7 @@ from baselines.rl_config import (  # noqa: F401  (the training API, re-exported)
     RESUME_KEYS,
     RESUME_SETTINGS,
     SETTING_RANGES,
+    ResumeMismatch,
     TrainConfig,
     check_resumed,
     load_hyperparams,
@@ -336,14 +337,21 @@ def prepare_output(out: Path, resume: bool, force: bool, config: TrainConfig | N
         FileExistsError: If ``out`` holds a model or checkpoints and neither
             ``resume`` nor ``force`` is set.
         ValueError: If both are set, or the run to resume is another
-            algorithm's, task's or network's.
+            algorithm's, task's or network's, or its model or checkpoints
+            lack the ``config.json`` that would say.
     """
     if resume and force:
         raise ValueError("resume and force: choose one (continue the run, or start afresh)")
-    if resume and config is not None and (out / "config.json").is_file():
-        check_resumed(out / "config.json", config)
     earlier = [p for p in (out / "model.zip",) if p.is_file()]
     earlier += [p for _, p in checkpoints(out / "checkpoints")]
+    if resume and config is not None and (out / "config.json").is_file():
+        check_resumed(out / "config.json", config)
+    elif resume and config is not None and earlier:
+        # Checkpoints whose run is unknown may be another task's network.
+        raise ResumeMismatch(
+            f"--resume: {out} holds {earlier[0].name} but no config.json to check it against; "
+            "start afresh (--force or another --out)"
+        )
     if not earlier or resume:
         return
     if not force:

@@ -340,7 +340,7 @@ def run(bench: Benchmark, quick: bool, data_dir: str | None, timeout: float) -> 
         return [(bench.name, "", "", f"timed out after {timeout:.0f} s")]
     if done.returncode != 0:
         last = (done.stderr.strip() or done.stdout.strip() or "no output").splitlines()[-1]
-        return [(bench.name, "", "", f"failed (exit {done.returncode}): {last[:80]}")]
+        return [(bench.name, "", "", f"failed (exit {done.returncode}): {last}")]
     try:
         rows = bench.read(done.stdout)
     except (ValueError, KeyError, StopIteration, json.JSONDecodeError) as err:
@@ -356,7 +356,8 @@ def format_table(rows: list[tuple[str, Row]], markdown: bool) -> str:
     lines = [(name, *row) for name, row in rows]
     if markdown:
         out = ["| " + " | ".join(head[1:]) + " | script |", "|---|---|---|---|---|"]
-        out += [f"| {f} | {v} | {r} | {x} | `{n}.py` |" for n, f, v, r, x in lines]
+        cells = [[str(c).replace("|", "\\|") for c in line] for line in lines]  # a failure's text
+        out += [f"| {f} | {v} | {r} | {x} | `{n}.py` |" for n, f, v, r, x in cells]
         return "\n".join(out)
     widths = [max(len(str(x[i])) for x in [head, *lines]) for i in range(5)]
     fmt = "  ".join(f"{{:{'>' if i in (2, 4) else '<'}{w}}}" for i, w in enumerate(widths))

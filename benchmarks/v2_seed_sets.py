@@ -22,6 +22,7 @@ from typing import Any
 
 from baselines.leaderboard.evaluation import summarize
 from baselines.leaderboard.tables import validity_lines
+from humotion_gym.cli._common import int_at_least
 
 
 def _load(path: Path) -> dict[str, Any]:
@@ -46,13 +47,30 @@ def seed_set_rows(rows: list[dict[str, Any]], seeds: list[int]) -> list[dict[str
     return out
 
 
+def agent_seeds(rows: list[dict[str, Any]], source: Path, set_size: int) -> list[int]:
+    """The run's agent seeds, or a ValueError naming ``source`` where they cannot be split."""
+    episodes = [e for r in rows for e in r.get("episodes", [])]
+    if not episodes or any("agent_seed" not in e for e in episodes):
+        raise ValueError(
+            f"{source}: its episodes carry no agent_seed (a run with agent_seeds=1); "
+            f"this reads a run with agent_seeds a multiple of {set_size}"
+        )
+    seeds = sorted({int(e["agent_seed"]) for e in episodes})
+    if len(seeds) < set_size:
+        raise ValueError(f"{source}: {len(seeds)} agent seeds, fewer than --set-size {set_size}")
+    return seeds
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("results", type=Path)
-    parser.add_argument("--set-size", type=int, default=5)
+    parser.add_argument("--set-size", type=int_at_least(1), default=5)
     args = parser.parse_args()
-    rows = _load(args.results)["rows"]
-    seeds = sorted({e["agent_seed"] for r in rows for e in r.get("episodes", [])})
+    try:
+        rows = _load(args.results)["rows"]
+        seeds = agent_seeds(rows, args.results, args.set_size)
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        parser.exit(1, f"v2_seed_sets: {exc}\n")
     for k in range(0, len(seeds) - args.set_size + 1, args.set_size):
         chosen = seeds[k : k + args.set_size]
         print(f"agent seeds {chosen[0]}-{chosen[-1]}:")

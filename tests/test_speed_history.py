@@ -182,3 +182,28 @@ def test_summary_refuses_a_run_it_cannot_record_before_running_it(
     )  # fmt: skip
     assert done.returncode == 2 and says in done.stderr
     assert "running" not in done.stderr and "Traceback" not in done.stderr
+
+
+def _summary_module():  # benchmarks/summary.py imports speed_history by its bare name
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        spec = importlib.util.spec_from_file_location("summary", ROOT / "benchmarks/summary.py")
+        assert spec is not None and spec.loader is not None
+        module = importlib.util.module_from_spec(spec)
+        sys.modules["summary"] = module  # its dataclasses look their module up
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    return module
+
+
+def test_a_failed_benchmark_keeps_its_whole_last_line_and_the_table_its_columns() -> None:
+    summary = _summary_module()
+    message = "a | b " + "x" * 120
+    call = f"(_ for _ in ()).throw(SystemExit({message!r}))"
+    bench = summary.Benchmark("speed_history", lambda out: [], rows_call=(call, call))
+    rows = summary.run(bench, quick=False, data_dir=None, timeout=120)
+    assert rows == [("speed_history", "", "", f"failed (exit 1): {message}")]
+    table = summary.format_table([(bench.name, rows[0])], markdown=True).splitlines()
+    assert table[-1].count(" | ") == table[0].count(" | ")  # the message's | is escaped
+    assert "a \\| b" in table[-1]

@@ -303,6 +303,29 @@ def test_a_record_kept_without_its_series_reports_and_a_row_without_numbers_is_r
         load_rows(tmp_path / "broken.json")
 
 
+def test_seed_sets_refuse_a_run_without_agent_seeds_in_one_line(tmp_path, monkeypatch, capsys):
+    """benchmarks/v2_seed_sets.py reads multi-seed runs; others end in one line, exit 1."""
+    import importlib.util
+    import sys
+
+    repo = Path(__file__).resolve().parents[2]
+    spec = importlib.util.spec_from_file_location(
+        "v2_seed_sets", repo / "benchmarks/v2_seed_sets.py"
+    )
+    assert spec is not None and spec.loader is not None
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    one_seed = repo / "results" / "ci_small" / "results.json.gz"
+    (tmp_path / "empty.json").write_text(json.dumps({"rows": []}))
+    for path, says in ((one_seed, "carry no agent_seed"), (tmp_path / "empty.json", "no agent_seed"),
+                       (tmp_path / "missing.json", "No such file")):  # fmt: skip
+        monkeypatch.setattr(sys, "argv", ["v2_seed_sets.py", str(path)])
+        with pytest.raises(SystemExit) as exit_:
+            script.main()
+        err = capsys.readouterr().err
+        assert exit_.value.code == 1 and says in err and len(err.strip().splitlines()) == 1
+
+
 def test_report_without_matplotlib_says_so_and_writes_the_rest(tmp_path, monkeypatch):
     import baselines.leaderboard.report as report
 

@@ -29,6 +29,7 @@ from baselines.leaderboard import run_leaderboard
 from baselines.leaderboard.evaluation import evaluate, run_episode
 from baselines.rl import (
     PPO_DEFAULTS,
+    ResumeMismatch,
     TrainConfig,
     keypoint_sensitivity,
     load_hyperparams,
@@ -95,6 +96,10 @@ def test_an_earlier_runs_model_is_kept_without_resume_or_force(tmp_path: Path) -
     with pytest.raises(ValueError, match="choose one"):
         prepare_output(tmp_path, resume=True, force=True)
     prepare_output(tmp_path, resume=True, force=False)  # resuming keeps them
+    # With a config to check against, checkpoints without their config.json are refused.
+    with pytest.raises(ResumeMismatch, match="model.zip but no config.json"):
+        prepare_output(tmp_path, resume=True, force=False, config=config)
+    assert (tmp_path / "model.zip").is_file()
     assert (tmp_path / "model.zip").is_file()
     prepare_output(tmp_path, resume=False, force=True)  # starting afresh removes them
     assert not (tmp_path / "model.zip").exists()
