@@ -37,6 +37,7 @@ import math
 import platform
 import sys
 import time
+import zipfile
 from collections.abc import Callable, Sequence
 from dataclasses import asdict
 from pathlib import Path
@@ -74,7 +75,6 @@ from baselines.rl_config import (  # noqa: F401  (the training API, re-exported)
     BC_DEFAULTS,
     PPO_DEFAULTS,
     RESUME_KEYS,
-    RESUME_SETTINGS,
     SETTING_RANGES,
     ResumeMismatch,
     TrainConfig,
@@ -163,6 +163,30 @@ def checkpoints(folder: Path) -> list[tuple[int, Path]]:
         except (IndexError, ValueError):
             continue
     return sorted(found)
+
+
+def _model_steps(path: Path) -> int | None:
+    """The env steps a saved model was trained for (its ``num_timesteps``), None if unreadable."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            steps = json.loads(archive.read("data")).get("num_timesteps")
+    except (OSError, KeyError, ValueError, zipfile.BadZipFile, AttributeError):
+        return None
+    return steps if isinstance(steps, int) and steps >= 0 else None
+
+
+def resume_point(out: Path) -> tuple[int, Path] | None:
+    """Where a resumed run continues: ``(env steps, model file)``, None to start afresh.
+
+    The latest of the run's checkpoints and its final ``model.zip`` (which a
+    run that ended after its last checkpoint, or wrote none, holds alone).
+    """
+    found = checkpoints(out / "checkpoints")
+    final = out / "model.zip"
+    steps = _model_steps(final) if final.is_file() else None
+    if steps is not None and (not found or steps > found[-1][0]):
+        return steps, final
+    return found[-1] if found else None
 
 
 def _tensorboard_dir(out: Path) -> str | None:
@@ -330,8 +354,8 @@ def prepare_output(out: Path, resume: bool, force: bool, config: TrainConfig | N
 
     With ``force`` the earlier run's ``model.zip`` and checkpoints are deleted
     (a later resume would otherwise continue from them). With ``resume`` and a
-    ``config``, the earlier run's ``config.json`` must name the same
-    :data:`RESUME_KEYS` and :data:`RESUME_SETTINGS`.
+    ``config``, the earlier run's ``config.json`` must record the same run
+    (:func:`check_resumed`).
 
     Raises:
         FileExistsError: If ``out`` holds a model or checkpoints and neither
@@ -376,8 +400,9 @@ def train(
 
     Args:
         config: The run.
-        resume: Continue from the latest checkpoint in ``checkpoints/`` (from
-            the start when there is none).
+        resume: Continue the run in ``config.out`` from its latest model
+            (:func:`resume_point`; from the start when it has none). The run
+            must be the same but for its length (:func:`check_resumed`).
         command: The command line, kept in ``config.json``.
         force: Start afresh over an earlier run's model (deleting it).
 
@@ -390,13 +415,13 @@ def train(
     prepare_output(out, resume, force, config)
     th.set_num_threads(max(1, int(config.threads)))
     fold = validation_fold(config)
-    found = checkpoints(out / "checkpoints") if resume else []
-    logger = training_logger(out, found[-1][0] if found else 0)
+    start = resume_point(out) if resume else None
+    logger = training_logger(out, start[0] if start else 0)
     validation = Validation(config, fold, logger) if fold is not None else None
     try:
         if config.algo == "ppo":
-            return train_ppo(config, resume, command, fold, logger, validation)
-        return train_bc(config, resume, command, fold, logger, validation)
+            return train_ppo(config, start, command, fold, logger, validation)
+        return train_bc(config, start, command, fold, logger, validation)
     finally:
         if validation is not None:
             validation.close()
@@ -421,20 +446,19 @@ def _final_validation(
 
 def train_ppo(
     config: TrainConfig,
-    resume: bool,
+    start: tuple[int, Path] | None,
     command: str | None,
     fold: MotionLibrary | None,
     logger: Logger,
     validation: Validation | None,
 ) -> Path:
-    """PPO on the environment's reward (see :func:`train`)."""
+    """PPO on the environment's reward, from ``start`` when resumed (see :func:`train`)."""
     out = Path(config.out)
     folder = out / "checkpoints"
     venv = _vec_env(config, fold)
-    found = checkpoints(folder) if resume else []
-    done = found[-1][0] if found else 0
-    if found:
-        model = PPO.load(found[-1][1], env=venv, device="cpu")
+    done = start[0] if start else 0
+    if start:
+        model = PPO.load(start[1], env=venv, device="cpu")
     else:
         model = new_model(config, venv)
         if config.init is not None:
@@ -451,7 +475,7 @@ def train_ppo(
     if validation is not None:
         callbacks.append(_ValidationCallback(validation))
     if remaining:
-        model.learn(remaining, callback=CallbackList(callbacks), reset_num_timesteps=not found)
+        model.learn(remaining, callback=CallbackList(callbacks), reset_num_timesteps=start is None)
     path = out / "model.zip"
     _save(model, path)
     steps = int(model.num_timesteps)
@@ -575,11 +599,10 @@ def _bc_updates(
     return losses
 
 
-def _bc_model(config: TrainConfig, env: gym.Env, resume: bool) -> tuple[PPO, int]:
-    """The policy to train and the env steps already done: a checkpoint's, or a new one."""
-    found = checkpoints(Path(config.out) / "checkpoints") if resume else []
-    if found:
-        return PPO.load(found[-1][1], device="cpu"), found[-1][0]
+def _bc_model(config: TrainConfig, env: gym.Env, start: tuple[int, Path] | None) -> tuple[PPO, int]:
+    """The policy to train and the env steps already done: the resumed model's, or a new one."""
+    if start:
+        return PPO.load(start[1], device="cpu"), start[0]
     model = new_model(config, env)
     if config.init is not None:
         source = PPO.load(config.init, device="cpu")
@@ -589,7 +612,7 @@ def _bc_model(config: TrainConfig, env: gym.Env, resume: bool) -> tuple[PPO, int
 
 def train_bc(
     config: TrainConfig,
-    resume: bool,
+    start: tuple[int, Path] | None,
     command: str | None,
     fold: MotionLibrary | None,
     logger: Logger,
@@ -618,7 +641,7 @@ def train_bc(
     )
     weights = keypoint_sensitivity(weights_env, seed=10_000 + config.seed)
     weights_env.close()
-    model, done = _bc_model(config, rollouts.envs[0], resume)
+    model, done = _bc_model(config, rollouts.envs[0], start)
     resumed_from = done
     params = [p for n, p in model.policy.named_parameters() if not n.startswith(("value", "mlp"))]
     optimizer = th.optim.Adam(params, lr=float(s["learning_rate"]))

@@ -201,28 +201,52 @@ def _read_zoo_yaml(path: Path) -> dict[str, Any]:
     return data if isinstance(data, dict) else {}
 
 
-#: What a resumed run must share with the run it continues: its checkpoints are
-#: this algorithm's network for this task's spaces.
-RESUME_KEYS: tuple[str, ...] = ("algo", "task")
-RESUME_SETTINGS: tuple[str, ...] = ("features_dim", "frame_size")
+#: What a resumed run must share with the run it continues, besides every algorithm
+#: setting: it is the same run, longer (``steps``, the checkpoint and validation
+#: cadence and the threads may change).
+RESUME_KEYS: tuple[str, ...] = ("algo", "task", "seed", "data_dir", "init", "validation")
+
+#: The settings a resumed run may change: ``bc``'s rounds split a longer run anew.
+RESUME_FREE_SETTINGS: tuple[str, ...] = ("rounds",)
 
 
 class ResumeMismatch(ValueError):
-    """The run asked to resume is another algorithm's, task's or network's (exit 2 on the CLI)."""
+    """The run asked to resume is another run, or an unknown one (exit 2 on the CLI)."""
+
+
+def _comparable(key: str, value: Any) -> Any:
+    """A config value as a resume compares it: paths resolved, so that spellings agree."""
+    if key == "data_dir" and isinstance(value, (list, tuple)):
+        return [str(Path(p).expanduser().resolve()) for p in value]
+    if key == "init" and isinstance(value, str):
+        return str(Path(value).expanduser().resolve())
+    return value
 
 
 def check_resumed(path: Path, config: TrainConfig) -> None:
-    """Refuse to resume the run recorded in ``path`` with another algorithm, task or network."""
+    """Refuse to resume the run recorded in ``path`` as another run.
+
+    A resumed run continues the recorded one's model, so it must be that run:
+    the same :data:`RESUME_KEYS` and algorithm settings; only its length (with
+    :data:`RESUME_FREE_SETTINGS`) and how often it checkpoints and validates
+    may differ.
+
+    Raises:
+        ResumeMismatch: Naming every field that differs.
+    """
     try:
         saved = json.loads(path.read_text(encoding="utf-8"))
     except ValueError as exc:
         raise ValueError(f"{path}: not a run's record ({exc}); --force starts afresh") from None
     if not isinstance(saved, dict):
         raise ValueError(f"{path}: not a run's record; --force starts afresh")
-    now = {key: getattr(config, key) for key in RESUME_KEYS}
-    now |= {key: config.settings.get(key) for key in RESUME_SETTINGS}
-    before = {key: saved.get(key) for key in RESUME_KEYS}
-    before |= {key: (saved.get("settings") or {}).get(key) for key in RESUME_SETTINGS}
+    now = {key: _comparable(key, getattr(config, key)) for key in RESUME_KEYS}
+    before = {key: _comparable(key, saved.get(key)) for key in RESUME_KEYS}
+    recorded = saved.get("settings")
+    settings: dict[str, Any] = recorded if isinstance(recorded, dict) else {}
+    for key in sorted((set(config.settings) | set(settings)) - set(RESUME_FREE_SETTINGS)):
+        now[f"setting {key}"] = config.settings.get(key)
+        before[f"setting {key}"] = settings.get(key)
     differ = [f"{k}: saved {before[k]!r}, now {now[k]!r}" for k in now if before[k] != now[k]]
     if differ:
         raise ResumeMismatch(

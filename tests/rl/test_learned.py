@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import warnings
+from dataclasses import asdict
 from pathlib import Path
 
 import gymnasium as gym
@@ -31,11 +32,14 @@ from baselines.rl import (
     PPO_DEFAULTS,
     ResumeMismatch,
     TrainConfig,
+    check_resumed,
+    checkpoints,
     keypoint_sensitivity,
     load_hyperparams,
     make_learner_env,
     new_model,
     prepare_output,
+    resume_point,
     train,
 )
 from humotion_gym.envs import CURRENT_TASKS, TASKS
@@ -111,11 +115,13 @@ def test_smoke_ppo_trains_checkpoints_and_resumes(tmp_path: Path) -> None:
     settings = {"n_envs": 2, "n_steps": 64, "batch_size": 64, "n_epochs": 1, "frame_size": 32}
     config = TrainConfig(
         "ppo", "BodyTrack-v2", steps=256, seed=1, out=str(tmp_path), settings=settings,
-        checkpoint_every=128, eval_every=10_000, eval_episodes=1,
+        checkpoint_every=200, validation=False,
     )  # fmt: skip
     train(config)
     assert (tmp_path / "model.zip").is_file()
-    assert (tmp_path / "checkpoints" / "model_256_steps.zip").is_file()
+    assert [n for n, _ in checkpoints(tmp_path / "checkpoints")] == [200]
+    # The final model (256 steps) is later than the last checkpoint: the resume continues it.
+    assert resume_point(tmp_path) == (256, tmp_path / "model.zip")
     more = TrainConfig(
         "ppo", "BodyTrack-v2", steps=384, seed=1, out=str(tmp_path), settings=settings,
         checkpoint_every=128, validation=False,
@@ -128,6 +134,53 @@ def test_smoke_ppo_trains_checkpoints_and_resumes(tmp_path: Path) -> None:
     header = (tmp_path / "logs" / "progress.csv").read_text().splitlines()[0].split(",")
     assert {"train/loss", "train/value_loss", "time/total_timesteps"} <= set(header)
     assert (tmp_path / "logs" / "from-256" / "progress.csv").is_file()  # the first log kept
+
+
+def test_a_resume_is_the_same_run_longer(tmp_path: Path) -> None:
+    """Only the length, the cadences and bc's rounds may change when a run is resumed."""
+    base = TrainConfig("bc", "ArmTrack-v2", steps=240, seed=3, out=str(tmp_path),
+                       settings={"n_envs": 2, "rounds": 2}, data_dir=["data/../data"])  # fmt: skip
+    (tmp_path / "config.json").write_text(json.dumps({**asdict(base), "env_steps": 240}))
+    same = dict(steps=480, seed=3, out=str(tmp_path), checkpoint_every=50, eval_every=70,
+                eval_episodes=2, threads=2, data_dir=["data"])  # fmt: skip
+    check_resumed(
+        tmp_path / "config.json",
+        TrainConfig("bc", "ArmTrack-v2", settings={"n_envs": 2, "rounds": 4}, **same),
+    )
+    changes = {
+        "seed": dict(same, seed=4), "data_dir": dict(same, data_dir=None),
+        "validation": dict(same, validation=False), "init": dict(same, init="other.zip"),
+    }  # fmt: skip
+    for field_name, kwargs in changes.items():
+        with pytest.raises(ResumeMismatch, match=rf"{field_name}: saved"):
+            check_resumed(
+                tmp_path / "config.json",
+                TrainConfig("bc", "ArmTrack-v2", settings={"n_envs": 2, "rounds": 2}, **kwargs),
+            )
+    with pytest.raises(ResumeMismatch, match=r"setting learning_rate: saved 0.001, now 0.01"):
+        check_resumed(
+            tmp_path / "config.json",
+            TrainConfig("bc", "ArmTrack-v2", settings={"n_envs": 2, "learning_rate": 0.01}, **same),
+        )
+
+
+def test_the_resume_point_is_the_latest_model(tmp_path: Path) -> None:
+    import zipfile
+
+    def model(path: Path, steps: int) -> None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with zipfile.ZipFile(path, "w") as archive:
+            archive.writestr("data", json.dumps({"num_timesteps": steps}))
+
+    assert resume_point(tmp_path) is None
+    model(tmp_path / "checkpoints" / "model_100_steps.zip", 100)
+    assert resume_point(tmp_path) == (100, tmp_path / "checkpoints" / "model_100_steps.zip")
+    model(tmp_path / "model.zip", 150)
+    assert resume_point(tmp_path) == (150, tmp_path / "model.zip")
+    model(tmp_path / "checkpoints" / "model_200_steps.zip", 200)
+    assert resume_point(tmp_path) == (200, tmp_path / "checkpoints" / "model_200_steps.zip")
+    (tmp_path / "model.zip").write_bytes(b"not a zip")  # unreadable: the checkpoints decide
+    assert resume_point(tmp_path)[0] == 200
 
 
 def test_bc_resumes_from_its_last_checkpoint(bc_run: Path, tmp_path: Path) -> None:
