@@ -60,12 +60,20 @@ class ResultsFolder:
         self.episodes_path = self.folder / EPISODES_FILE
         self.run_path = self.folder / RUN_FILE
 
-    def start(self, settings: dict[str, Any], resume: bool) -> dict[tuple[str, str, int, int], Any]:
+    def start(
+        self,
+        settings: dict[str, Any],
+        resume: bool,
+        policies: dict[str, str] | None = None,
+    ) -> dict[tuple[str, str, int, int], Any]:
         """Open the folder for a run; the finished episodes' records when resuming.
 
         Args:
             settings: What decides the numbers; a resumed run must have the same.
             resume: Continue the run saved here (skipping its finished episodes).
+            policies: The SHA-256 of each learned agent's policy file, by agent
+                name: an agent the saved run has must have the same file (a
+                resumed run may add agents).
 
         Returns:
             The finished episodes' records by (task, agent, particles, seed)
@@ -103,6 +111,7 @@ class ResultsFolder:
                     f"{self.folder}: the saved run has other settings, so its episodes would "
                     f"not match ({shown}); resume with the same settings or use another folder"
                 )
+            self._check_policies(saved, policies or {})
             return {episode_key(r): r for r in self.read() if "result" in r}
         if self.episodes_path.exists() and self.episodes_path.stat().st_size > 0:
             raise FileExistsError(
@@ -110,9 +119,25 @@ class ResultsFolder:
                 "or choose another folder"
             )
         self.folder.mkdir(parents=True, exist_ok=True)
-        _write_text(self.run_path, json.dumps(_jsonable(settings), indent=1) + "\n")
+        kept = {**_jsonable(settings), **({"policies": policies} if policies else {})}
+        _write_text(self.run_path, json.dumps(kept, indent=1) + "\n")
         self.episodes_path.write_bytes(b"")
         return {}
+
+    def _check_policies(self, saved: dict[str, Any], policies: dict[str, str]) -> None:
+        """Refuse an agent whose policy file changed since its episodes ran; keep new ones."""
+        recorded = saved.get("policies")
+        before: dict[str, str] = recorded if isinstance(recorded, dict) else {}
+        changed = [name for name in policies if name in before and before[name] != policies[name]]
+        if changed:
+            raise ResumeError(
+                f"{self.folder}: the policy file of {', '.join(changed)} changed since its "
+                "episodes ran (another SHA-256), so its row would mix two policies; resume with "
+                "the same file or use another folder"
+            )
+        if set(policies) - set(before):
+            merged = {**saved, "policies": {**before, **policies}}
+            _write_text(self.run_path, json.dumps(merged, indent=1) + "\n")
 
     def read(self) -> list[dict[str, Any]]:
         """The records saved so far; a last line cut short by an interruption is dropped.

@@ -26,6 +26,7 @@ ends with ``results.json``, ``table.md`` and the report
 
 from __future__ import annotations
 
+import hashlib
 import os
 import shlex
 import sys
@@ -36,6 +37,7 @@ from typing import Any
 from tqdm.auto import tqdm
 
 from baselines.agents import REFERENCES, is_learned, takes_particles
+from baselines.agents.learned import policy_file
 from baselines.leaderboard.engine import (
     ENGINES,
     Cell,
@@ -150,7 +152,8 @@ def run_leaderboard(
     windows = _windows(tasks, kwargs, seed, episodes, declared)
     agent_seed_list = list(range(seed, seed + agent_seeds))
     folder = ResultsFolder(out) if out is not None else None
-    done = _saved(folder, _settings(seed, kwargs), resume, seed, agent_seed_list)
+    policies = policy_hashes(agents)
+    done = _saved(folder, _settings(seed, kwargs), resume, seed, agent_seed_list, policies)
     left = _left(cells, windows, agent_seed_list, done)
     # the engine's workers start (Ray: a process each) while the driver fits
     runner = make_engine(engine, seed, kwargs, workers, address, tasks) if left else None
@@ -171,6 +174,7 @@ def run_leaderboard(
             "episodes": None if declared else episodes, "seed": seed, "env_kwargs": kwargs,
             "engine": engine, "workers": workers, "address": address,
             **({"agent_seeds": agent_seeds} if agent_seeds != 1 else {}),
+            **({"policy_sha256": policies} if policies else {}),
             **({"declared": True} if declared else {}),
         }  # fmt: skip
         write_results(rows, folder.folder, config, command, report, videos, progress)
@@ -247,20 +251,38 @@ def _left(
     ]
 
 
+def policy_hashes(agents: Sequence[str]) -> dict[str, str]:
+    """The SHA-256 of each learned agent's saved policy file, by agent name.
+
+    What a row of a learned agent measured: the file, not its path (a path
+    may be trained over between two runs). Pretrained policies (``bc``,
+    ``ppo``) are the package's own and left out, as are files not found
+    (the agent's making reports those).
+    """
+    out = {}
+    for name in agents:
+        path = policy_file(name)
+        if path is not None and path.is_file():
+            out[name] = hashlib.sha256(path.read_bytes()).hexdigest()
+    return out
+
+
 def _saved(
     folder: ResultsFolder | None,
     settings: dict[str, Any],
     resume: bool,
     seed: int,
     agent_seeds: Sequence[int],
+    policies: dict[str, str] | None = None,
 ) -> dict[_Key, dict[str, Any]]:
     """Start the results folder; the finished episodes' records when resuming.
 
     Raises:
-        ResumeError: As :meth:`ResultsFolder.start`, or where the saved run has
-            agent seeds this one has not (their episodes would leave the table).
+        ResumeError: As :meth:`ResultsFolder.start` (a policy file changed
+            too), or where the saved run has agent seeds this one has not
+            (their episodes would leave the table).
     """
-    if folder is None or not folder.start(settings, resume):
+    if folder is None or not folder.start(settings, resume, policies):
         return {}
     done = {_key(r, seed): r for r in folder.read() if "result" in r}
     more = sorted({k[4] for k in done} - set(agent_seeds))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import warnings
 from dataclasses import asdict
@@ -433,3 +434,28 @@ def test_ppo_fine_tunes_from_a_bc_policy(bc_run: Path, tmp_path: Path) -> None:
     # one epoch of small steps from the bc weights: close to them, not a fresh network
     for a, b in zip(start.parameters(), tuned.parameters(), strict=True):
         assert float((a - b).detach().abs().max()) < 0.05
+
+
+def test_a_resumed_leaderboard_refuses_a_policy_file_that_changed(
+    bc_run: Path, tmp_path: Path
+) -> None:
+    """A row of a learned agent is one file's: a resume over another file is refused."""
+    import shutil
+
+    from baselines.leaderboard.results import ResumeError
+
+    policy = tmp_path / "policy.zip"
+    shutil.copyfile(bc_run / "model.zip", policy)
+    out = tmp_path / "lb"
+    kwargs = dict(progress=False, out=out, report=False)
+    agents = [str(policy), f"pf-cv+{policy}"]
+    run_leaderboard(["ArmTrack-v2"], agents, [10], episodes=1, **kwargs)
+    sha = hashlib.sha256(policy.read_bytes()).hexdigest()
+    saved = json.loads((out / "results.json").read_text())
+    assert saved["config"]["policy_sha256"] == dict.fromkeys(agents, sha)
+    shutil.copyfile(bc_run / "checkpoints" / "model_120_steps.zip", policy)
+    with pytest.raises(ResumeError, match="policy file of .*policy.zip.* changed"):
+        run_leaderboard(["ArmTrack-v2"], agents, [10], episodes=2, resume=True, **kwargs)
+    shutil.copyfile(bc_run / "model.zip", policy)  # the same file again: the run goes on
+    rows = run_leaderboard(["ArmTrack-v2"], agents, [10], episodes=2, resume=True, **kwargs)
+    assert [r["agent"] for r in rows][-2:] == agents and all(len(r["episodes"]) == 2 for r in rows)
