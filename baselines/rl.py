@@ -461,9 +461,7 @@ def train_ppo(
         model = PPO.load(start[1], env=venv, device="cpu")
     else:
         model = new_model(config, venv)
-        if config.init is not None:
-            source = PPO.load(config.init, device="cpu")
-            model.policy.load_state_dict(source.policy.state_dict(), strict=False)
+        _start_from(model, config.init)
     model.set_logger(logger)
     _write_config(config, command, {"resumed_from": done})
     t0 = time.perf_counter()
@@ -604,10 +602,28 @@ def _bc_model(config: TrainConfig, env: gym.Env, start: tuple[int, Path] | None)
     if start:
         return PPO.load(start[1], device="cpu"), start[0]
     model = new_model(config, env)
-    if config.init is not None:
-        source = PPO.load(config.init, device="cpu")
-        model.policy.load_state_dict(source.policy.state_dict(), strict=False)
+    _start_from(model, config.init)
     return model, 0
+
+
+def _start_from(model: PPO, init: str | None) -> None:
+    """Load the policy ``init`` (a saved model) into ``model``'s network, if given.
+
+    Raises:
+        ValueError: If its network is not this run's shape (another task's
+            actions, frame size or ``features_dim``).
+    """
+    if init is None:
+        return
+    source = PPO.load(init, device="cpu")
+    try:
+        model.policy.load_state_dict(source.policy.state_dict(), strict=False)
+    except RuntimeError as exc:
+        first = str(exc).strip().splitlines()[-1].strip()
+        raise ValueError(
+            f"--init {init}: its network does not fit this run's (another task, frame size or "
+            f"features_dim?): {first}"
+        ) from None
 
 
 def train_bc(

@@ -9,9 +9,9 @@ torch or stable-baselines3 (:mod:`baselines.rl` trains).
 
 from __future__ import annotations
 
+import ast
 import json
 import math
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -114,6 +114,11 @@ class TrainConfig:
         self.settings = {**defaults, **self.settings}
         for name, value in self.settings.items():
             _check_setting(name, value)
+        # A count written 64.0 (YAML, --set) is 64: the networks and buffers take ints.
+        self.settings = {
+            name: int(value) if SETTING_RANGES[name][0] else value
+            for name, value in self.settings.items()
+        }
 
 
 #: Each setting's kind and range: ``(integer, lowest, highest)``, both ends
@@ -154,6 +159,20 @@ def _check_setting(name: str, value: Any) -> None:
         raise ValueError(f"setting {name}: expected {kind} {where}, got {value!r}")
 
 
+#: What ``humotion-gym train`` builds whatever a zoo entry says: the entry must say the
+#: same (``policy``, ``env_kwargs``) or leave it out. ``n_timesteps`` is the zoo's;
+#: ``train`` runs ``--steps``.
+ZOO_FIXED: dict[str, Any] = {
+    "policy": "MultiInputPolicy",
+    "env_kwargs": {"split": "train", "terminate_on_lost": False},
+}
+ZOO_IGNORED: tuple[str, ...] = ("n_timesteps",)
+#: The one ``env_wrapper`` of a zoo entry: the learners' observation, its ``size`` read.
+LEARNER_WRAPPER = "humotion_gym.wrappers.LearnerObservation"
+#: ``policy_kwargs`` as ``train`` builds it (:func:`baselines.agents.policy.policy_kwargs`).
+ZOO_POLICY_FIXED: dict[str, Any] = {"net_arch": {"pi": [], "vf": [64]}, "normalize_images": False}
+
+
 def load_hyperparams(path: str | Path, task: str) -> dict[str, Any]:
     """PPO settings of one task from an RL Baselines3 Zoo YAML file.
 
@@ -161,31 +180,101 @@ def load_hyperparams(path: str | Path, task: str) -> dict[str, Any]:
     ``n_steps``, ``batch_size``, ``n_epochs``, ``learning_rate``, ``gamma``,
     ``gae_lambda``, ``clip_range``, ``ent_coef``, ``vf_coef``,
     ``max_grad_norm``; ``log_std_init`` and ``features_dim`` from the
-    ``policy_kwargs`` string; ``frame_size`` from the ``env_wrapper``'s ``size``.
+    ``policy_kwargs`` string; ``frame_size`` from the ``env_wrapper``'s
+    ``size``. Every other key must be one ``train`` honours as the entry
+    says (:data:`ZOO_FIXED`, :data:`ZOO_POLICY_FIXED`) or ignores by design
+    (:data:`ZOO_IGNORED`), so that no setting is dropped in silence.
 
     Raises:
-        ValueError: If the file has no entry for the task.
+        ValueError: Naming the file and entry: no entry for the task, an entry
+            that is not a mapping, a key ``train`` would not honour, or a value
+            out of its range (:data:`SETTING_RANGES`).
     """
     name = get_task(task).name
     data = _read_zoo_yaml(Path(path))
-    entry = data.get(f"humotion_gym/{name}") or data.get(name)
+    key = f"humotion_gym/{name}" if f"humotion_gym/{name}" in data else name
+    entry = data.get(key)
+    where = f"{path}: {key}"
     if entry is None:
         raise ValueError(f"{path}: no entry humotion_gym/{name}")
-    out = {k: entry[k] for k in PPO_DEFAULTS if k in entry}
-    text = str(entry.get("policy_kwargs", ""))
-    for key in ("log_std_init", "features_dim"):
-        match = re.search(rf"{key}\s*=\s*(-?[0-9.e+-]+)", text)
-        if match:
-            out[key] = float(match.group(1)) if key == "log_std_init" else int(match.group(1))
-    for wrapper in entry.get("env_wrapper", []) or []:
-        if isinstance(wrapper, dict):
-            for kwargs in wrapper.values():
-                if isinstance(kwargs, dict) and "size" in kwargs:
-                    out["frame_size"] = kwargs["size"]
-    for key in ("n_envs", "n_steps", "batch_size", "n_epochs"):
-        if key in out:
-            out[key] = int(out[key])
+    if not isinstance(entry, dict):
+        raise ValueError(f"{where}: expected a mapping of settings, got {entry!r}")
+    read = set(PPO_DEFAULTS) - {"log_std_init", "features_dim", "frame_size"}
+    unknown = sorted(set(entry) - read - set(ZOO_FIXED) - set(ZOO_IGNORED)
+                     - {"policy_kwargs", "env_wrapper"})  # fmt: skip
+    if unknown:
+        raise ValueError(
+            f"{where}: humotion-gym train does not use {unknown}; remove them (or train with "
+            f"rl_zoo3); it reads {sorted(read | {'policy_kwargs', 'env_wrapper'})}"
+        )
+    for fixed, value in ZOO_FIXED.items():
+        if fixed in entry and entry[fixed] != value:
+            raise ValueError(f"{where}: {fixed} must be {value!r} (what train builds), got "
+                             f"{entry[fixed]!r}")  # fmt: skip
+    out = {k: entry[k] for k in sorted(read) if k in entry}
+    out |= _zoo_policy_kwargs(entry.get("policy_kwargs"), where)
+    for wrapper in entry.get("env_wrapper") or []:
+        kwargs = wrapper.get(LEARNER_WRAPPER) if isinstance(wrapper, dict) else None
+        if not isinstance(kwargs, dict) or len(wrapper) != 1 or set(kwargs) - {"size"}:
+            raise ValueError(
+                f"{where}: env_wrapper must be [{LEARNER_WRAPPER}: {{size: N}}] (what train "
+                f"builds), got {entry['env_wrapper']!r}"
+            )
+        out["frame_size"] = kwargs.get("size", PPO_DEFAULTS["frame_size"])
+    for setting, value in out.items():
+        try:
+            _check_setting(setting, value)
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc}") from None
     return out
+
+
+def _zoo_policy_kwargs(text: Any, where: str) -> dict[str, Any]:
+    """``log_std_init`` and ``features_dim`` of a zoo ``policy_kwargs`` string, the rest checked.
+
+    The string is read as Python syntax, never run: a ``dict(...)`` call whose
+    keywords are the extractor (:class:`baselines.agents.policy.TrackingExtractor`),
+    its ``features_extractor_kwargs=dict(features_dim=N)``, ``log_std_init``
+    and :data:`ZOO_POLICY_FIXED`.
+    """
+    if text is None:
+        return {}
+    try:
+        call = ast.parse(str(text), mode="eval").body
+        if not (isinstance(call, ast.Call) and ast.unparse(call.func) == "dict" and not call.args):
+            raise SyntaxError("not dict(...)")
+        kwargs = {k.arg: k.value for k in call.keywords if k.arg is not None}
+        out: dict[str, Any] = {}
+        for name, node in kwargs.items():
+            if name == "features_extractor_class":
+                if not ast.unparse(node).endswith("TrackingExtractor"):
+                    raise ValueError(
+                        "features_extractor_class must be baselines.rl.TrackingExtractor"
+                    )
+            elif name == "features_extractor_kwargs":
+                if not (isinstance(node, ast.Call) and ast.unparse(node.func) == "dict"
+                        and [k.arg for k in node.keywords] == ["features_dim"]):  # fmt: skip
+                    raise ValueError("features_extractor_kwargs must be dict(features_dim=N)")
+                out["features_dim"] = ast.literal_eval(node.keywords[0].value)
+            elif name == "log_std_init":
+                out["log_std_init"] = ast.literal_eval(node)
+            elif name in ZOO_POLICY_FIXED:
+                value = _literal(node)
+                if value != ZOO_POLICY_FIXED[name]:
+                    raise ValueError(f"{name} must be {ZOO_POLICY_FIXED[name]!r} (what train "
+                                     f"builds), got {value!r}")  # fmt: skip
+            else:
+                raise ValueError(f"humotion-gym train does not use {name!r}")
+    except (SyntaxError, ValueError) as exc:
+        raise ValueError(f"{where}: policy_kwargs: {exc}") from None
+    return out
+
+
+def _literal(node: ast.expr) -> Any:
+    """A literal, with ``dict(a=...)`` read as ``{"a": ...}``."""
+    if isinstance(node, ast.Call) and ast.unparse(node.func) == "dict" and not node.args:
+        return {k.arg: _literal(k.value) for k in node.keywords}
+    return ast.literal_eval(node)
 
 
 def _read_zoo_yaml(path: Path) -> dict[str, Any]:

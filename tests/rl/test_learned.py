@@ -284,6 +284,63 @@ def test_hyperparams_file_matches_the_built_in_defaults() -> None:
         assert load_hyperparams(REPO / "hyperparams" / "ppo.yml", task) == PPO_DEFAULTS
 
 
+ZOO_ENTRY_CHANGES = {
+    "target_kl: 0.01": "does not use \\['target_kl'\\]",
+    "normalize: true": "does not use \\['normalize'\\]",
+    "n_envs: 2.7": "setting n_envs: expected an integer",
+    "n_envs: abc": "setting n_envs: expected an integer",
+    "n_envs: null": "setting n_envs: expected an integer",
+    "policy: CnnPolicy": "policy must be 'MultiInputPolicy'",
+    "env_kwargs: {split: test}": "env_kwargs must be",
+    "env_wrapper: [gymnasium.wrappers.FlattenObservation]": "env_wrapper must be",
+    "vf=[64]|vf=[32]": "net_arch must be",
+    "normalize_images=False|normalize_images=True": "normalize_images must be",
+    "log_std_init=-2.5|log_std_init=-2.5, ortho_init=False": "does not use 'ortho_init'",
+    "features_dim=128|features_dim=128, root=None": "features_extractor_kwargs must be",
+    "dict(features|lambda: dict(features": "policy_kwargs: ",
+}
+
+
+@pytest.mark.parametrize(("change", "says"), ZOO_ENTRY_CHANGES.items())
+def test_a_zoo_entry_train_would_not_honour_is_refused_naming_it(
+    tmp_path: Path, change: str, says: str
+) -> None:
+    """Every key of a zoo entry is read, fixed as train builds it, or refused: none is dropped."""
+    import yaml
+
+    text = (REPO / "hyperparams" / "ppo.yml").read_text()
+    entry = yaml.safe_load(text)["humotion_gym/ArmTrack-v2"]
+    if "|" in change:
+        old, new = change.split("|")
+        entry["policy_kwargs"] = entry["policy_kwargs"].replace(old, new)
+    else:
+        entry.update(yaml.safe_load(change))
+    path = tmp_path / "hp.yml"
+    path.write_text(yaml.safe_dump({"humotion_gym/ArmTrack-v2": entry}))
+    with pytest.raises(ValueError, match=rf"hp.yml: humotion_gym/ArmTrack-v2: .*{says}"):
+        load_hyperparams(path, "ArmTrack-v2")
+    path.write_text("humotion_gym/ArmTrack-v2: 5\n")
+    with pytest.raises(ValueError, match="expected a mapping of settings, got 5"):
+        load_hyperparams(path, "ArmTrack-v2")
+
+
+def test_whole_numbers_written_as_floats_are_counts() -> None:
+    config = TrainConfig("ppo", "ArmTrack-v2", 10, settings={"n_steps": 64.0, "n_envs": 2.0})
+    assert type(config.settings["n_steps"]) is int and config.settings["n_steps"] == 64
+    assert type(config.settings["n_envs"]) is int and type(config.settings["gamma"]) is float
+
+
+def test_a_starting_policy_of_another_shape_is_refused_in_words(bc_run: Path) -> None:
+    from baselines.rl import _start_from
+
+    config = TrainConfig("bc", "SideWalk-v2", 10, settings={"frame_size": 32})
+    env = make_learner_env("SideWalk-v2", "train", 32, True)
+    model = new_model(config, env)
+    with pytest.raises(ValueError, match=r"--init .*model.zip: its network does not fit"):
+        _start_from(model, str(bc_run / "model.zip"))  # ArmTrack's 4 actions, not SideWalk's 8
+    env.close()
+
+
 def test_bad_configs_are_refused() -> None:
     with pytest.raises(ValueError, match="algo"):
         TrainConfig("sac", "BodyTrack-v2", 10)
