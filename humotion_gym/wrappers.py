@@ -179,7 +179,7 @@ def learner_observation(
     }
 
 
-class LearnerObservation(gym.Wrapper):
+class LearnerObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """A ``Dict`` observation for stable-baselines3's ``MultiInputPolicy``.
 
     ``frame``: ``Box(0, 255, (C, size, size), uint8)``, the rendered frame,
@@ -200,6 +200,7 @@ class LearnerObservation(gym.Wrapper):
     """
 
     def __init__(self, env: gym.Env, size: int | None = 64) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self, size=size)
         super().__init__(env)
         base = _base(env)
         check_frame_size(size, "LearnerObservation: size")
@@ -248,7 +249,7 @@ class LearnerObservation(gym.Wrapper):
         return obs, reward, terminated, truncated, info
 
 
-class Supervision(gym.Wrapper):
+class Supervision(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Training only: ``info["true_action"]``, the true pose of the frame on show.
 
     The value is the frame's true pose normalised like the action
@@ -275,6 +276,7 @@ class Supervision(gym.Wrapper):
                 "the true pose is a training signal only, make the environment with "
                 "split='train'"
             )
+        gym.utils.RecordConstructorArgs.__init__(self)
         super().__init__(env)
 
     def _label(self, info: dict[str, Any]) -> dict[str, Any]:

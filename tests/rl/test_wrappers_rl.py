@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import warnings
+
 import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.wrappers import FrameStackObservation
 
 import humotion_gym  # noqa: F401  (registers the tasks)
-from humotion_gym.envs import ENV_IDS
+from humotion_gym.envs import CURRENT_TASKS, ENV_IDS
 from humotion_gym.wrappers import (
     LearnerObservation,
     Supervision,
@@ -33,6 +35,26 @@ def test_learner_observation_passes_the_sb3_checker(env_id: str) -> None:
     n_free = env.action_space.shape[0]
     assert obs["frame"].shape == (3, 48, 48)
     assert obs["previous"].shape == obs["initial"].shape == (n_free,)
+
+
+@pytest.mark.parametrize("task", [t.name for t in CURRENT_TASKS])
+def test_learner_wrappers_pass_gymnasiums_checker_and_record_their_arguments(task: str) -> None:
+    """Gymnasium's check_env and a spec that remakes the wrapped env (RecordConstructorArgs)."""
+    from gymnasium.utils.env_checker import check_env
+
+    for make_wrapped in (
+        lambda: LearnerObservation(gym.make(f"humotion_gym/{task}", split="train"), size=24),
+        lambda: Supervision(gym.make(f"humotion_gym/{task}", split="train")),
+    ):
+        env = make_wrapped()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # "different from the unwrapped version": meant
+            check_env(env, skip_render_check=True)
+        again = gym.make(env.spec)
+        assert type(again) is type(env)
+        assert getattr(again, "size", None) == getattr(env, "size", None)
+        env.close()
+        again.close()
 
 
 def test_previous_is_the_last_action_and_starts_at_the_initial_pose() -> None:
