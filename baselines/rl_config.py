@@ -99,7 +99,13 @@ class TrainConfig:
     def __post_init__(self) -> None:
         if self.algo not in ALGOS:
             raise ValueError(f"algo: expected one of {list(ALGOS)}, got {self.algo!r}")
-        self.task = get_task(self.task).name
+        spec = get_task(self.task)
+        if spec.views > 1:  # its name is the one-view task's: training would drop the views
+            raise ValueError(
+                f"task: {self.task} shows {spec.views} views; the learned policies read one "
+                f"camera's frame (LearnerObservation), so train on {spec.name}"
+            )
+        self.task = spec.name
         if not is_count(self.steps, 1):
             raise ValueError(f"steps: expected an integer >= 1, got {self.steps!r}")
         for name in ("checkpoint_every", "eval_every", "eval_episodes"):

@@ -80,6 +80,15 @@ def test_warnings_are_one_line_on_stderr(monkeypatch, capsys):
     assert warnings.showwarning is shown  # the caller's display, restored
 
 
+def test_tracking_a_training_persons_clip_says_its_numbers_are_not_held_out(capsys):
+    argv = ["track", "--task", "ArmTrack-v2", "--episodes", "1", "--clip", "synthetic/reach-01"]
+    assert main([*argv, "--agent", "pf-cv", "--particles", "20"]) == 0
+    err = capsys.readouterr().err
+    assert "shows a training person (synthetic-01)" in err and "not held-out numbers" in err
+    assert main([*argv, "--agent", "hold"]) == 0  # hold learned nothing from anyone
+    assert "training person" not in capsys.readouterr().err
+
+
 def test_a_refused_value_is_one_line_unless_its_traceback_is_asked_for(monkeypatch, capsys):
     # BodyTrack-v2's synthetic clips are shorter than 300 frames: the env's ValueError
     argv = ["render", "--task", "BodyTrack-v2", "--frames", "300", "--out", "never.mp4"]

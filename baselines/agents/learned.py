@@ -75,6 +75,14 @@ class OtherDataWarning(UserWarning):
     """
 
 
+class OtherTaskWarning(UserWarning):
+    """A learned policy is scored on another task than the one its record says it learned.
+
+    Tasks whose actions have the same size (BodyTrack and WalkTrack) load each
+    other's policies, but the actions map to each task's own ranges.
+    """
+
+
 class NoCheckpointError(FileNotFoundError, TaskNotSupported):
     """No pretrained checkpoint of a learned agent for a task.
 
@@ -126,29 +134,53 @@ def policy_file(name: str) -> Path | None:
     return Path(path) if path.endswith(".zip") else None
 
 
-def trained_data_dirs(path: str | Path) -> list[str] | None:
-    """The motion-capture folders a saved policy's record says it was trained on.
+def policy_record(path: str | Path) -> dict[str, Any] | None:
+    """The record a saved policy was written with, None where it has none readable.
 
-    The record is a checkpoint's sidecar (``bc-TASK.json`` beside
-    ``bc-TASK.zip``) or a training run's ``config.json`` beside its
-    ``model.zip``. None where there is no readable record or it names none
-    (the run read ``$HUMOTION_MOCAP`` or the synthetic library).
+    A pretrained checkpoint's sidecar (``bc-TASK.json`` beside ``bc-TASK.zip``),
+    or its training run's ``config.json``: beside ``model.zip``, or above the
+    ``checkpoints/`` folder of a checkpoint ``model_N_steps.zip``.
     """
     p = Path(path)
-    for record in (p.with_suffix(".json"), p.parent / "config.json"):
-        if not record.is_file():
-            continue
-        try:
-            dirs = json.loads(record.read_text(encoding="utf-8")).get("data_dir")
-        except (OSError, ValueError, AttributeError):
-            return None
-        ok = isinstance(dirs, list) and dirs and all(isinstance(d, str) for d in dirs)
-        return list(dirs) if ok else None
+    records = [p.with_suffix(".json"), p.parent / "config.json"]
+    if p.parent.name == "checkpoints":
+        records.append(p.parent.parent / "config.json")
+    for record in records:
+        if record.is_file():
+            try:
+                data = json.loads(record.read_text(encoding="utf-8"))
+            except (OSError, ValueError):
+                return None
+            return data if isinstance(data, dict) else None
     return None
 
 
-def _check_data(path: str, description: TaskDescription) -> None:
-    """Warn (:class:`OtherDataWarning`) when real-data training meets synthetic episodes."""
+def trained_data_dirs(path: str | Path) -> list[str] | None:
+    """The motion-capture folders a saved policy's record (:func:`policy_record`) names.
+
+    None where there is no readable record or it names none (the run read
+    ``$HUMOTION_MOCAP`` or the synthetic library).
+    """
+    dirs = (policy_record(path) or {}).get("data_dir")
+    ok = isinstance(dirs, list) and dirs and all(isinstance(d, str) for d in dirs)
+    return list(dirs) if ok else None
+
+
+def _check_record(path: str, description: TaskDescription) -> None:
+    """Warn where the policy's record says it learned another task or other data.
+
+    :class:`OtherTaskWarning` when it was trained on another task whose
+    actions have the same size; :class:`OtherDataWarning` when real-data
+    training meets synthetic episodes.
+    """
+    trained_on = (policy_record(path) or {}).get("task")
+    if isinstance(trained_on, str) and trained_on != description.name:
+        warnings.warn(
+            f"{path} was trained on {trained_on}, not {description.name}: its actions mean "
+            f"that task's parameters and ranges",
+            OtherTaskWarning,
+            stacklevel=3,
+        )
     dirs = trained_data_dirs(path)
     synthetic = all(c.startswith("synthetic/") for c in description.training.clip_ids)
     if dirs and synthetic:
@@ -469,7 +501,7 @@ def make_learned(
             raise NoCheckpointError(
                 f"{name}: no pretrained {spec} checkpoint for {task_name} ({path})"
             )
-        _check_data(path, env)
+        _check_record(path, env)
         policy = LearnedAgent(env, load_policy(path), label, path)
         pf = make_filter(pf_name, env, n_particles=n_particles, seed=seed)
         return HybridAgent(env, pf, policy, name=f"{pf_name}+{label}")
@@ -480,5 +512,5 @@ def make_learned(
             f"`humotion-gym train --algo {name} --task {task_name} --steps N --out runs/NAME` and "
             f"pass {name}=runs/NAME/model.zip"
         )
-    _check_data(path, env)
+    _check_record(path, env)
     return LearnedAgent(env, load_policy(path), label, path)

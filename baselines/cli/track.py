@@ -8,6 +8,7 @@
 from __future__ import annotations
 
 import argparse
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -106,7 +107,7 @@ def _clip_options(args: argparse.Namespace) -> dict[str, str] | None:
 def _cmd_track(args: argparse.Namespace) -> int:
     import gymnasium as gym
 
-    from baselines.agents import make
+    from baselines.agents import REFERENCES, make
     from baselines.leaderboard.evaluation import evaluate, run_episode, summarize, warm_up
     from humotion_gym.video import write_video
 
@@ -125,6 +126,13 @@ def _cmd_track(args: argparse.Namespace) -> int:
             if not near and synthetic and not args.clip.startswith("synthetic/"):
                 hint = " (the built-in synthetic library; real mocap needs --data-dir)"
             raise UsageError(f"--clip: no clip {args.clip} in the task's library{hint}")
+        motion = library[options["clip_id"]]
+        if motion.subject not in library.held_out and args.agent not in REFERENCES:
+            warnings.warn(
+                f"--clip {args.clip} shows a training person ({motion.subject}): the priors and "
+                "policies learned from this person, so its errors are not held-out numbers",
+                stacklevel=1,
+            )
     if args.video:
         shape = env.observation_space["frame"].shape  # type: ignore[index]
         size = int(np.prod(shape[:2])) * 3  # RGB frames of the observation's size

@@ -21,6 +21,7 @@ from baselines.agents.learned import (
     LearnedAgent,
     NoCheckpointError,
     OtherDataWarning,
+    OtherTaskWarning,
     checkpoint_path,
     is_learned,
     load_policy,
@@ -342,6 +343,8 @@ def test_a_starting_policy_of_another_shape_is_refused_in_words(bc_run: Path) ->
 
 
 def test_bad_configs_are_refused() -> None:
+    with pytest.raises(ValueError, match="BodyTrack2Views-v2 shows 2 views.*train on BodyTrack-v2"):
+        TrainConfig("ppo", "BodyTrack2Views-v2", 10)
     with pytest.raises(ValueError, match="algo"):
         TrainConfig("sac", "BodyTrack-v2", 10)
     with pytest.raises(ValueError, match="steps"):
@@ -434,8 +437,25 @@ def test_a_policy_trained_on_real_mocap_warns_when_scored_on_synthetic(
     (copy / "config.json").write_text(json.dumps({**record, "data_dir": ["/data/mocap"]}))
     with pytest.warns(OtherDataWarning, match="trained on motion capture in /data/mocap"):
         make(f"pf-cv+{copy / 'model.zip'}", synthetic, n_particles=20)
+    # a checkpoint of that run reads the run's record, above checkpoints/
+    (copy / "checkpoints").mkdir()
+    (copy / "checkpoints" / "model_120_steps.zip").write_bytes((bc_run / "model.zip").read_bytes())
+    assert trained_data_dirs(copy / "checkpoints" / "model_120_steps.zip") == ["/data/mocap"]
+    with pytest.warns(OtherDataWarning, match="trained on motion capture in /data/mocap"):
+        make(str(copy / "checkpoints" / "model_120_steps.zip"), synthetic)
     (copy / "config.json").write_text("{not json")
     assert trained_data_dirs(copy / "model.zip") is None
+
+
+def test_a_policy_scored_on_another_task_of_its_action_size_warns(tmp_path: Path) -> None:
+    """BodyTrack and WalkTrack policies load each other; the record says which was learned."""
+    body = checkpoint_path("bc", "BodyTrack-v2")
+    with pytest.warns(OtherTaskWarning, match="trained on BodyTrack-v2, not WalkTrack-v2"):
+        make(str(body), gym.make("humotion_gym/WalkTrack-v2"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", OtherTaskWarning)
+        warnings.simplefilter("ignore", OtherDataWarning)
+        make(str(body), gym.make("humotion_gym/BodyTrack-v2"))
 
 
 def test_every_task_ships_a_bc_checkpoint_where_the_agents_look() -> None:
