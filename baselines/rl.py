@@ -220,7 +220,7 @@ def validation_fold(config: TrainConfig) -> MotionLibrary | None:
     except ValueError as exc:
         raise ValueError(
             f"validation: {exc}; hold out other persons or train without validation "
-            "(validation=False)"
+            "(--no-validation; validation=False in TrainConfig)"
         ) from None
 
 

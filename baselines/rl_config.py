@@ -125,6 +125,12 @@ class TrainConfig:
             name: int(value) if SETTING_RANGES[name][0] else value
             for name, value in self.settings.items()
         }
+        s = self.settings
+        if self.algo == "ppo" and s["batch_size"] > s["n_steps"] * s["n_envs"]:
+            raise ValueError(
+                f"setting batch_size: {s['batch_size']} is more than a rollout's "
+                f"n_steps * n_envs = {s['n_steps'] * s['n_envs']} env steps"
+            )
 
 
 #: Each setting's kind and range: ``(integer, lowest, highest)``, both ends

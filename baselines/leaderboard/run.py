@@ -54,6 +54,7 @@ from baselines.leaderboard.results import (
     ResumeError,
     write_results,
 )
+from baselines.leaderboard.stats import agent_label
 from baselines.leaderboard.tables import FLOOR
 from humotion_gym.checks import is_count
 from humotion_gym.mocap.library import package_version
@@ -147,6 +148,7 @@ def run_leaderboard(
         FileNotFoundError: If ``resume`` is True and ``out`` holds no run.
     """
     _check_run(seed, episodes, particles, engine, resume, out, agent_seeds, videos)
+    _check_labels(agents)
     kwargs = resolve_env_kwargs(env_kwargs)
     cells = [Cell(*c) for c in grid_cells(tasks, agents, particles)]
     windows = _windows(tasks, kwargs, seed, episodes, declared)
@@ -203,6 +205,19 @@ def _check_run(
         raise ValueError(f"engine: expected one of {list(ENGINES)}, got {engine!r}")
     if resume and out is None:
         raise ValueError("resume: needs a results folder (out)")
+
+
+def _check_labels(agents: Sequence[str]) -> None:
+    """Refuse two agents the tables would show under one name (:func:`agent_label`)."""
+    shown: dict[str, str] = {}
+    for name in dict.fromkeys(agents):
+        label = agent_label(name)
+        if label in shown:
+            raise ValueError(
+                f"agents: {shown[label]} and {name} would both be shown as {label!r}; give "
+                "them distinct labels (LABEL=PATH.zip)"
+            )
+        shown[label] = name
 
 
 #: An episode record's (task, agent, particles, episode seed, agent seed).

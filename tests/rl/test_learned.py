@@ -325,9 +325,17 @@ def test_a_zoo_entry_train_would_not_honour_is_refused_naming_it(
         load_hyperparams(path, "ArmTrack-v2")
 
 
+def test_ppo_batches_fit_a_rollout_and_table_labels_are_distinct(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="batch_size: 256 is more than a rollout's"):
+        TrainConfig("ppo", "ArmTrack-v2", 10, settings={"n_envs": 1})  # 128 steps a rollout
+    agents = [f"a={tmp_path / 'x.zip'}", f"a={tmp_path / 'y.zip'}"]
+    with pytest.raises(ValueError, match="would both be shown as 'a'"):
+        run_leaderboard(["ArmTrack-v2"], agents, [10], episodes=1, progress=False)
+
+
 def test_whole_numbers_written_as_floats_are_counts() -> None:
-    config = TrainConfig("ppo", "ArmTrack-v2", 10, settings={"n_steps": 64.0, "n_envs": 2.0})
-    assert type(config.settings["n_steps"]) is int and config.settings["n_steps"] == 64
+    config = TrainConfig("ppo", "ArmTrack-v2", 10, settings={"n_steps": 128.0, "n_envs": 2.0})
+    assert type(config.settings["n_steps"]) is int and config.settings["n_steps"] == 128
     assert type(config.settings["n_envs"]) is int and type(config.settings["gamma"]) is float
 
 
