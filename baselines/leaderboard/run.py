@@ -142,8 +142,10 @@ def run_leaderboard(
 
     Raises:
         ValueError: If ``episodes``, ``agent_seeds`` or a particle count < 1,
-            ``videos`` with several agent seeds, or the engine is unknown.
-        ResumeError: If a resumed run's settings or agent seeds differ from the saved run's.
+            ``videos`` with several agent seeds, the engine is unknown or two
+            agents would share a table label.
+        ResumeError: If a resumed run's settings, agent seeds or a learned
+            agent's policy file differ from the saved run's.
         FileExistsError: If ``out`` holds a run and ``resume`` is False.
         FileNotFoundError: If ``resume`` is True and ``out`` holds no run.
     """
@@ -153,22 +155,11 @@ def run_leaderboard(
     cells = [Cell(*c) for c in grid_cells(tasks, agents, particles)]
     windows = _windows(tasks, kwargs, seed, episodes, declared)
     agent_seed_list = list(range(seed, seed + agent_seeds))
-    folder = ResultsFolder(out) if out is not None else None
-    policies = policy_hashes(agents)
+    folder, policies = (ResultsFolder(out) if out is not None else None), policy_hashes(agents)
     done = _saved(folder, _settings(seed, kwargs), resume, seed, agent_seed_list, policies)
     left = _left(cells, windows, agent_seed_list, done)
-    # the engine's workers start (Ray: a process each) while the driver fits
     runner = make_engine(engine, seed, kwargs, workers, address, tasks) if left else None
-    failures: dict[Cell, list[dict[str, Any]]] = {}
-    try:
-        fits, problems = prepare_cells(cells, seed, kwargs, progress)
-        todo = [e for e in left if (e.cell.task, e.cell.agent) not in problems]
-        if runner is not None and todo:
-            runner.start(fits)
-            _run_episodes(runner, todo, len(done), done, failures, folder, progress, seed)
-    finally:
-        if runner is not None:
-            runner.close()
+    problems, failures = _run_left(runner, cells, left, done, folder, seed, kwargs, progress)
     rows = _rows(cells, windows, agent_seed_list, done, problems, failures, seed, declared)
     if folder is not None:
         config = {
@@ -181,6 +172,35 @@ def run_leaderboard(
         }  # fmt: skip
         write_results(rows, folder.folder, config, command, report, videos, progress)
     return rows
+
+
+def _run_left(
+    runner: Any,
+    cells: Sequence[Cell],
+    left: list[Episode],
+    done: dict[_Key, dict[str, Any]],
+    folder: ResultsFolder | None,
+    seed: int,
+    kwargs: dict[str, Any],
+    progress: bool,
+) -> tuple[dict[tuple[str, str], tuple[str, str]], dict[Cell, list[dict[str, Any]]]]:
+    """Prepare the cells and run the episodes left on ``runner`` (closed at the end).
+
+    The engine's workers (Ray: a process each) start while the driver fits
+    the priors. Returns the cells that could not run (by task and agent: why)
+    and the failed episodes' records; finished ones go into ``done``.
+    """
+    failures: dict[Cell, list[dict[str, Any]]] = {}
+    try:
+        fits, problems = prepare_cells(cells, seed, kwargs, progress)
+        todo = [e for e in left if (e.cell.task, e.cell.agent) not in problems]
+        if runner is not None and todo:
+            runner.start(fits)
+            _run_episodes(runner, todo, len(done), done, failures, folder, progress, seed)
+    finally:
+        if runner is not None:
+            runner.close()
+    return problems, failures
 
 
 def _check_run(
