@@ -102,10 +102,16 @@ def _progress_to(log: Callable[[str], None] | None) -> Iterator[None]:
 
 
 def _fingerprint(lib: MotionLibrary | Sequence[Motion]) -> str:
-    """A digest of the clips' ids, lengths, rates and sources (part of the key)."""
+    """A digest of the clips' ids, rates, sources and motion (part of the key).
+
+    The motion itself (its parameters and which were observed) is hashed: a
+    file rewritten with other motion of the same length is another fit.
+    """
     h = hashlib.sha256()
     for m in lib:
         h.update(f"{m.clip_id}:{m.n_frames}:{m.fps}:{m.source};".encode())
+        h.update(np.ascontiguousarray(m.params, dtype=np.float64).tobytes())
+        h.update(np.packbits(np.asarray(m.observed, dtype=bool)).tobytes())
     return h.hexdigest()[:16]
 
 

@@ -96,3 +96,20 @@ def test_prior_contract(name, walks, tmp_path):
         prior.load(tmp_path / "array.npy")
     with pytest.raises(FileNotFoundError):
         prior.load(tmp_path / "none.npz")
+
+
+def test_a_prior_fitted_on_other_motion_of_the_same_clips_is_refitted(tmp_path):
+    """The cache key hashes the motion: a file rewritten with the same length is refitted."""
+    import dataclasses
+
+    from baselines.priors import constant_velocity
+    from baselines.priors.fitting import fit_prior
+
+    clips = synthetic_library().split("train").motions[:3]
+    said: list[str] = []
+    fit_prior(constant_velocity, clips, None, {}, cache_dir=tmp_path, log=said.append)
+    fit_prior(constant_velocity, clips, None, {}, cache_dir=tmp_path, log=said.append)
+    assert sum("fitting" in line for line in said) == 1  # the second came from the cache
+    moved = [dataclasses.replace(clips[0], params=clips[0].params * 1.5), *clips[1:]]
+    fit_prior(constant_velocity, moved, None, {}, cache_dir=tmp_path, log=said.append)
+    assert sum("fitting" in line for line in said) == 2
