@@ -471,3 +471,21 @@ def test_the_look_options_change_the_frames_and_refuse_bad_values():
         gym.make("humotion_gym/SideWalk-v2", palette="pink")
     with pytest.raises(ValueError, match="camera_elevation_deg"):
         gym.make("humotion_gym/SideWalk-v2", camera_elevation_deg=95.0)
+
+
+@pytest.mark.mocap
+def test_data_with_a_test_persons_copy_under_another_name_is_refused(shared_mocap, tmp_path):
+    """A held-out person's files in a training person's folder: gym.make refuses the data."""
+    import shutil
+
+    from humotion_gym.mocap.library import SplitError
+
+    source = shared_mocap / "cmu-asfamc" / "03"
+    copy = tmp_path / "carol"  # a user's person folder, on the training side of the split
+    copy.mkdir()
+    shutil.copyfile(source / "03.asf", copy / "carol.asf")
+    shutil.copyfile(source / "03_01.amc", copy / "walk_a.amc")
+    with pytest.raises(SplitError, match=r"skeleton is also a training person's \(cmu-03 ~ carol"):
+        gym.make("humotion_gym/WalkTrack-v2", data_dir=[str(tmp_path), str(source)])
+    env = gym.make("humotion_gym/WalkTrack-v2", data_dir=[str(source)], split="test")
+    assert {m.subject for m in env.unwrapped.library} == {"cmu-03"}
