@@ -241,13 +241,17 @@ def check_person_sides(assigned: Sequence[tuple[ClipSource, str]]) -> None:
 
 
 def _asf_for(amc: Path) -> Path | None:
+    """An AMC's skeleton: its subject's ``SS.asf``, else the folder's one not named for another."""
     m = _CMU.match(amc.stem)
     if m:
         named = amc.parent / f"{m['subject']}.asf"
         if named.is_file():
             return named
     asfs = sorted(amc.parent.glob("*.asf"))
-    return asfs[0] if len(asfs) == 1 else None
+    other = asfs[0].stem if len(asfs) == 1 else ""
+    if not other or (m and other.isdigit() and int(other) != int(m["subject"])):
+        return None  # none, several, or 02.asf beside 03_01.amc
+    return asfs[0]
 
 
 def find_clips(paths: Iterable[str | Path] | str | Path) -> list[ClipSource]:
@@ -284,7 +288,9 @@ def find_clips(paths: Iterable[str | Path] | str | Path) -> list[ClipSource]:
         if suffix == ".amc":
             asf = _asf_for(f)
             if asf is None:
-                raise MocapFormatError(f, None, "no ASF skeleton found beside this AMC file")
+                raise MocapFormatError(
+                    f, None, "no ASF skeleton of its subject beside this AMC file"
+                )
             src = describe_file(f, asf)
         elif suffix == ".bvh":
             src = describe_file(f)

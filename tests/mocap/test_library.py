@@ -212,3 +212,18 @@ def test_one_path_alone_is_a_path_and_a_folder_named_like_a_clip_is_not_one(shar
     (folder / "02_01.amc").write_bytes(clip.read_bytes())
     for given in (str(folder), folder):
         assert [m.clip_id for m in load_library(given, progress=False)] == ["cmu/02_01"]
+
+
+def test_an_amc_is_never_read_on_another_subjects_lone_asf(shared_mocap, tmp_path):
+    """03_01.amc beside 02.asf alone is refused, not read as subject 3 on subject 2's skeleton."""
+    from humotion_gym.errors import MocapFormatError
+
+    source = shared_mocap / "cmu-asfamc"
+    (tmp_path / "02.asf").write_bytes((source / "02" / "02.asf").read_bytes())
+    (tmp_path / "02_01.amc").write_bytes((source / "02" / "02_01.amc").read_bytes())
+    (tmp_path / "03_01.amc").write_bytes((source / "03" / "03_01.amc").read_bytes())
+    with pytest.raises(MocapFormatError, match=r"03_01\.amc: no ASF skeleton of its subject"):
+        find_clips([tmp_path])
+    (tmp_path / "03_01.amc").unlink()
+    (tmp_path / "walk.amc").write_bytes((source / "02" / "02_02.amc").read_bytes())
+    assert len(find_clips([tmp_path])) == 2  # a name of no subject takes the folder's one ASF
