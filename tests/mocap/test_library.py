@@ -227,3 +227,29 @@ def test_an_amc_is_never_read_on_another_subjects_lone_asf(shared_mocap, tmp_pat
     (tmp_path / "03_01.amc").unlink()
     (tmp_path / "walk.amc").write_bytes((source / "02" / "02_02.amc").read_bytes())
     assert len(find_clips([tmp_path])) == 2  # a name of no subject takes the folder's one ASF
+
+
+def test_linked_folders_are_read_once_and_a_linked_file_is_its_own_clip(shared_mocap, tmp_path):
+    """A symlinked folder's clips are found (a loop is followed once); a link caches apart."""
+    import warnings
+
+    from humotion_gym.mocap.library import CacheWarning
+
+    source = shared_mocap / "cmu-asfamc" / "03"
+    top = tmp_path / "data"
+    top.mkdir()
+    (top / "subj03").symlink_to(source, target_is_directory=True)
+    (top / "subj03again").symlink_to(source, target_is_directory=True)
+    (top / "loop").symlink_to(top, target_is_directory=True)
+    found = [s.clip_id for s in find_clips([top])]
+    assert found == sorted({f"cmu/{p.stem}" for p in source.glob("*.amc")})
+    walk = shared_mocap / "bandai-1" / "dataset-1_walk_normal_001.bvh"
+    alone = tmp_path / "alone"
+    (alone / "dave").mkdir(parents=True)
+    (alone / "dave" / "walk.bvh").symlink_to(walk)
+    cache = tmp_path / "cache"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", CacheWarning)  # the link and its target cache apart
+        for _ in range(2):
+            load_library([walk], progress=False, cache_dir=cache)
+            load_library([alone], progress=False, cache_dir=cache)
