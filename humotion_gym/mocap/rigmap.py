@@ -39,9 +39,11 @@ could not find and the candidates it saw.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -579,6 +581,18 @@ def _clip_format(clip: SkeletonClip) -> str:
     return "asf" if isinstance(clip, AcclaimClip) else "bvh"
 
 
+def _up_axis(clip: SkeletonClip, sources: Mapping[str, KeypointSource], valid: NDArray[Any]) -> str:
+    """``"z"`` where the neck stands above the pelvis along z in most valid frames, else ``"y"``.
+
+    Read over up to 200 frames spread through the clip, so that a clip that
+    starts lying down is still read by how it mostly stands.
+    """
+    points = [keypoints_point(sources[k]) for k in ("neck", "pelvis")]
+    frames = valid[:: max(1, valid.size // 200)]
+    d = np.diff(clip.point_positions(points)[frames], axis=1)[:, 0]
+    return "z" if 2 * np.count_nonzero(np.abs(d[:, 2]) > np.abs(d[:, 1])) > len(d) else "y"
+
+
 def match_rig(clip: SkeletonClip, fmt: str | None = None) -> RigMatch:
     """The profile for a parsed clip: a built-in one if any fits, else :func:`map_humanoid`.
 
@@ -594,16 +608,20 @@ def match_rig(clip: SkeletonClip, fmt: str | None = None) -> RigMatch:
     """
     fmt = fmt or _clip_format(clip)
     names = clip.point_names
+    valid = np.flatnonzero(np.asarray(clip.frame_valid, dtype=bool))
     for rig in RIGS.values():
         if fmt not in rig.formats:
             continue
-        _, missing, fell_back = rig.plan(names)
+        sources, missing, fell_back = rig.plan(names)
         if not missing:
             how = {k: ("fallback" if k in fell_back else "profile") for k in KEYPOINT_NAMES}
             conf = float(np.mean([METHOD_CONFIDENCE[h] for h in how.values()]))
             notes = tuple(f"{k}: {rig.fallbacks[k]}" for k in fell_back)
+            up = _up_axis(clip, sources, valid) if valid.size else rig.up_axis
+            if up != rig.up_axis:  # the profile's rig, exported with another axis up
+                notes += (f"{up}-up: the neck stands above the pelvis along {up}",)
+                rig = dataclasses.replace(rig, up_axis=up)
             return RigMatch(rig, "profile", how, conf, notes)
-    valid = np.flatnonzero(np.asarray(clip.frame_valid, dtype=bool))
     positions = None
     if valid.size:
         positions = clip.point_positions()[valid[0]]

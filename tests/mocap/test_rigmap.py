@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -545,3 +546,30 @@ def test_topology_sides_follow_the_toes_not_a_convention(tmp_path):
     np.testing.assert_allclose(b.keypoints, a.keypoints, atol=1e-6)
     lk, rk = KEYPOINT_INDEX["l_knee"], KEYPOINT_INDEX["r_knee"]
     assert a.keypoints[0, lk, 0] < a.keypoints[0, rk, 0]  # facing -y in the world: left is -x
+
+
+@pytest.mark.mocap
+def test_a_known_rig_exported_z_up_is_read_upright(shared_mocap, tmp_path):
+    """A Bandai-Namco file turned +90 degrees about x (z up) retargets as the original does."""
+    from scipy.spatial.transform import Rotation
+
+    from humotion_gym.mocap.bvh import load_bvh, write_bvh
+
+    name = "dataset-1_walk_normal_001.bvh"
+    clip = load_bvh(shared_mocap / "bandai-1" / name)
+    assert clip.joint_channels[0][3:] == ("Zrotation", "Xrotation", "Yrotation")
+    values = clip.channels.copy()
+    turn = Rotation.from_euler("x", 90, degrees=True)
+    values[:, :3] = turn.apply(values[:, :3])
+    rotation = turn * Rotation.from_euler("ZXY", values[:, 3:6], degrees=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # scipy's gimbal-lock note: the rotation is kept whole
+        values[:, 3:6] = rotation.as_euler("ZXY", degrees=True)
+    turned = tmp_path / "turned" / name
+    turned.parent.mkdir()
+    write_bvh(turned, clip.joint_names, clip.joint_parents, clip.offsets, clip.joint_channels,
+              values, clip.frame_time, end_sites=clip.end_sites)  # fmt: skip
+    original = load_library([shared_mocap / "bandai-1" / name], progress=False)
+    motion = load_library([turned.parent], progress=False)
+    assert match_rig(load_bvh(turned)).profile.up_axis == "z"
+    np.testing.assert_allclose(motion.motions[0].params, original.motions[0].params, atol=1e-6)
