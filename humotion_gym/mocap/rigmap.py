@@ -496,7 +496,7 @@ def map_humanoid(
     if "neck" not in out.joints and "head" in out.joints and tree.parents[out.joints["head"]] >= 0:
         out.joints["neck"] = tree.parents[out.joints["head"]]
         out.how["neck"] = "topology"
-    keypoints, how = _place(tree, fmt, out, cands)
+    keypoints, how = _place(tree, fmt, out, cands, positions)
     missing = [k for k in KEYPOINT_NAMES if k not in keypoints]
     if missing:
         shown = ", ".join(tree.names[:40]) + (" ..." if len(tree.names) > 40 else "")
@@ -532,9 +532,17 @@ def keypoints_point(src: KeypointSource) -> str:
 
 
 def _place(
-    tree: _Tree, fmt: str, m: _Mapping, cands: dict[tuple[str | None, str], list[int]]
+    tree: _Tree,
+    fmt: str,
+    m: _Mapping,
+    cands: dict[tuple[str | None, str], list[int]],
+    positions: NDArray[np.float64] | None = None,
 ) -> tuple[dict[str, KeypointSource], dict[str, str]]:
-    """Keypoint sources from the chosen joints, in the format's sense of a point."""
+    """Keypoint sources from the chosen joints, in the format's sense of a point.
+
+    A BVH head's end site of zero length (``OFFSET 0 0 0``, as Bandai-Namco's
+    files write it) is no head top: the head is extended from the neck instead.
+    """
     names = tree.names
     out: dict[str, KeypointSource] = {}
     how: dict[str, str] = {}
@@ -562,8 +570,16 @@ def _place(
         if fmt == "asf":
             out["head_top"], how["head_top"] = names[head], m.how["head"]
         else:
-            ends = [c for c in tree.children[head] if tree.is_end(c)]
-            tops = [t for t in cands.get((None, "head_top"), []) if head in tree.ancestors(t)]
+
+            def away(t: int) -> bool:  # not where the head joint is
+                return positions is None or bool(np.any(positions[t] != positions[head]))
+
+            ends = [c for c in tree.children[head] if tree.is_end(c) and away(c)]
+            tops = [
+                t
+                for t in cands.get((None, "head_top"), [])
+                if head in tree.ancestors(t) and away(t)
+            ]
             if tops:
                 out["head_top"], how["head_top"] = names[tops[0]], "name"
             elif ends:
