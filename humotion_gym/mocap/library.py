@@ -64,8 +64,9 @@ from humotion_gym.mocap.splits import (  # the split's names, re-exported as bef
 )
 
 #: Version of the cached clip format and retargeting; bump to invalidate caches.
-#: 2: rigs matched by :func:`humotion_gym.mocap.rigmap.match_rig`, leading T-pose dropped.
-CACHE_VERSION = "2"
+#: 2: rigs matched by :func:`humotion_gym.mocap.rigmap.match_rig`, leading T-pose dropped;
+#: 3: a profile's up axis read from the clip, no zero-length head top, units by a human leg.
+CACHE_VERSION = "3"
 
 #: Environment variable naming folders of real mocap (``os.pathsep``-separated).
 MOCAP_ENV = "HUMOTION_MOCAP"

@@ -493,13 +493,18 @@ def make_rig(
 _UNITS_MM = {"mm": 1.0, "cm": 10.0, "inch": 25.4, "dm": 100.0, "m": 1000.0}
 # Thigh plus shin of an adult, mm (Winter 2009: 0.245 H + 0.246 H for H ~ 1.7 m).
 _TYPICAL_LEG_MM = 840.0
+# The legs of people from about 0.8 m (a small child) to 2.3 m tall, mm (0.49 H).
+_PLAUSIBLE_LEG_MM = (390.0, 1130.0)
 
 
 def guess_units_to_mm(leg_length: float, where: str = "") -> tuple[float, str]:
     """Millimetres per file unit from the median hip-to-ankle length in file units.
 
-    The nearest common unit (mm, cm, inch, dm, m) on a log scale is taken, so a
-    child or a tall actor still gets the unit the file was written in.
+    Of the common units (mm, cm, inch, dm, m) that make it a human leg (a
+    person 0.8 to 2.3 m tall), the one nearest an adult's on a log scale is
+    taken; where none does, the nearest of all. So a child in cm (a leg of
+    52 units: 520 mm, where inches would make 1.3 m) gets cm, and an adult
+    in inches (33 units) gets inches.
 
     Args:
         leg_length: The length, file units.
@@ -517,6 +522,9 @@ def guess_units_to_mm(leg_length: float, where: str = "") -> tuple[float, str]:
             f"{prefix}cannot guess the length unit from a leg length of {leg_length} "
             "(no frame places the right hip, knee and ankle apart)"
         )
-    estimate = _TYPICAL_LEG_MM / leg_length
-    name = min(_UNITS_MM, key=lambda n: abs(np.log(_UNITS_MM[n] / estimate)))
+    low, high = _PLAUSIBLE_LEG_MM
+    human = [n for n, mm in _UNITS_MM.items() if low <= leg_length * mm <= high]
+    name = min(
+        human or _UNITS_MM, key=lambda n: abs(np.log(leg_length * _UNITS_MM[n] / _TYPICAL_LEG_MM))
+    )
     return _UNITS_MM[name], name

@@ -170,7 +170,9 @@ def test_custom_rig_must_name_all_keypoints():
 
 
 @pytest.mark.parametrize(
-    "leg, unit", [(84.0, "cm"), (0.84, "m"), (840.0, "mm"), (33.0, "inch"), (70.0, "cm")]
-)
+    "leg, unit",
+    [(84.0, "cm"), (0.84, "m"), (840.0, "mm"), (33.0, "inch"), (70.0, "cm"), (8.4, "dm"),
+     (52.0, "cm"), (45.0, "cm"), (40.0, "inch"), (44.0, "inch"), (2.0, "m"), (5000.0, "mm")],
+)  # fmt: skip
 def test_unit_guess(leg, unit):
     assert rigs.guess_units_to_mm(leg)[1] == unit
