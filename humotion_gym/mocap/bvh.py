@@ -385,9 +385,11 @@ def _infer_position_mode(
     files) write the whole local translation in the channels, repeating the
     offset; adding the two would double every bone. So: among non-root joints
     with position channels and a non-zero offset, if most have channel values
-    whose median equals the offset (to 1 % of its length), the channels replace
-    the offsets. Joints whose channels are near zero, the usual "add" case, do
-    not match, and neither do roots, whose channels carry the whole trajectory.
+    whose median lies within a quarter of the offset's length of it (a file
+    whose offsets were rounded or rescaled a little still repeats them), the
+    channels replace the offsets. Joints whose channels are near zero, the
+    usual "add" case, do not match, and neither do roots, whose channels carry
+    the whole trajectory.
     """
     votes = []
     finite = np.isfinite(values).all(axis=1)
@@ -403,7 +405,7 @@ def _infer_position_mode(
             continue
         med = np.median(values[finite][:, [starts[j] + k for k, _ in p_cols]], axis=0)
         target = offsets[j, [axis for _, axis in p_cols]]
-        votes.append(bool(np.abs(med - target).max() <= 0.01 * norm))
+        votes.append(bool(np.linalg.norm(med - target) <= 0.25 * norm))
     if votes and sum(votes) * 2 > len(votes):
         return "replace"
     return "add"

@@ -271,6 +271,21 @@ def test_position_channels_that_repeat_offsets_replace_them(write_text):
     np.testing.assert_array_equal(forced.point_positions(), auto.point_positions())
 
 
+@pytest.mark.parametrize("scale", [0.98, 1.03, 1.2])
+def test_offsets_a_little_off_their_channels_still_replace(write_text, scale):
+    """Offsets rounded or rescaled a little (up to a quarter) are still repeated, not added."""
+    text, _ = motionbuilder_style()
+    lines = text.split("\n")
+    for i, line in enumerate(lines):
+        if line.strip().startswith("OFFSET") and "Hips" not in lines[i - 2]:
+            values = [float(v) * scale for v in line.split()[1:]]
+            lines[i] = line.split("OFFSET")[0] + "OFFSET " + " ".join(f"{v:.6f}" for v in values)
+    clip = load_bvh(write_text("near.bvh", "\n".join(lines)))
+    assert clip.position_channels == "replace"
+    spine = clip.point_positions(["Hips", "Spine"])
+    np.testing.assert_allclose(np.linalg.norm(spine[:, 1] - spine[:, 0], axis=-1), 10.0)
+
+
 @pytest.mark.parametrize(
     ("token", "fps"),
     [("0.016667", 60.0), ("0.0333333", 30.0), ("0.008333", 120.0), ("0.033367", 1 / 0.033367)],
