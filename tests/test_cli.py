@@ -89,6 +89,18 @@ def test_tracking_a_training_persons_clip_says_its_numbers_are_not_held_out(caps
     assert "training person" not in capsys.readouterr().err
 
 
+@pytest.mark.mocap
+def test_a_training_persons_file_is_known_by_its_skeleton(shared_mocap, capsys):
+    """--clip FILE of a training person warns whatever the file is called; a test person's not."""
+    base = ["track", "--task", "WalkTrack-v2", "--agent", "pf-cv", "--particles", "20",
+            "--episodes", "1", "--data-dir", str(shared_mocap), "--clip"]  # fmt: skip
+    walk = shared_mocap / "bandai-1" / "dataset-1_walk_normal_001.bvh"
+    assert main([*base, str(walk)]) == 0
+    assert "shows a training person (bandai)" in capsys.readouterr().err
+    assert main([*base, str(shared_mocap / "cmu-asfamc" / "02" / "02_01.amc")]) == 0
+    assert "training person" not in capsys.readouterr().err
+
+
 def test_a_refused_value_is_one_line_unless_its_traceback_is_asked_for(monkeypatch, capsys):
     # BodyTrack-v2's synthetic clips are shorter than 300 frames: the env's ValueError
     argv = ["render", "--task", "BodyTrack-v2", "--frames", "300", "--out", "never.mp4"]

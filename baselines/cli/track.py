@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -104,6 +105,27 @@ def _clip_options(args: argparse.Namespace) -> dict[str, str] | None:
     return {"file": str(path)}
 
 
+def _warn_if_trained_on(clip: str, options: dict[str, str], library: Any) -> None:
+    """Warn where ``--clip`` shows a training person: by its name, or a file by its skeleton."""
+    from humotion_gym.mocap.library import load_library
+    from humotion_gym.mocap.persons import skeleton_owner
+
+    if "clip_id" in options:
+        motion = library[options["clip_id"]]
+        person = None if motion.subject in library.held_out else motion.subject
+    else:
+        motion = load_library([options["file"]], fps=library[0].fps, progress=False)[0]
+        train = library.split("train")
+        owner = skeleton_owner(motion, train)
+        person = next((m.meta.get("person", owner) for m in train if m.subject == owner), None)
+    if person is not None:
+        warnings.warn(
+            f"--clip {clip} shows a training person ({person}): the priors and policies "
+            "learned from this person, so its errors are not held-out numbers",
+            stacklevel=1,
+        )
+
+
 def _cmd_track(args: argparse.Namespace) -> int:
     import gymnasium as gym
 
@@ -126,13 +148,8 @@ def _cmd_track(args: argparse.Namespace) -> int:
             if not near and synthetic and not args.clip.startswith("synthetic/"):
                 hint = " (the built-in synthetic library; real mocap needs --data-dir)"
             raise UsageError(f"--clip: no clip {args.clip} in the task's library{hint}")
-        motion = library[options["clip_id"]]
-        if motion.subject not in library.held_out and args.agent not in REFERENCES:
-            warnings.warn(
-                f"--clip {args.clip} shows a training person ({motion.subject}): the priors and "
-                "policies learned from this person, so its errors are not held-out numbers",
-                stacklevel=1,
-            )
+    if options and args.agent not in REFERENCES:
+        _warn_if_trained_on(args.clip, options, env.unwrapped.library)  # type: ignore[attr-defined]
     if args.video:
         shape = env.observation_space["frame"].shape  # type: ignore[index]
         size = int(np.prod(shape[:2])) * 3  # RGB frames of the observation's size

@@ -362,6 +362,24 @@ class PersonSplitReport:
         )
 
 
+def skeleton_owner(
+    motion: Motion,
+    library: MotionLibrary | Sequence[Motion],
+    rtol: float = DEFAULT_RTOL,
+    atol_mm: float = DEFAULT_ATOL_MM,
+) -> str | None:
+    """The subject of ``library`` whose skeleton ``motion`` has (:func:`same_skeleton`), or None.
+
+    A file under any name is its person's: this finds whose, among the subjects
+    of a library (its training persons, say).
+    """
+    sk = _skeletons(library)
+    if not len(sk.reps):
+        return None
+    hits = np.flatnonzero(_matches(skeleton_signature(motion)[None], sk.reps, rtol, atol_mm))
+    return sk.subjects[int(sk.owner[hits[0]])].subject if hits.size else None
+
+
 def held_out_subjects(library: MotionLibrary | Sequence[Motion]) -> frozenset[str]:
     """The subjects a library holds out: its ``held_out`` set, else :data:`TEST_SUBJECTS`."""
     held = getattr(library, "held_out", None)
