@@ -14,7 +14,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeGuard
 
 import yaml
 
@@ -253,8 +253,8 @@ def _zoo_policy_kwargs(text: Any, where: str) -> dict[str, Any]:
         return {}
     try:
         call = ast.parse(str(text), mode="eval").body
-        if not (isinstance(call, ast.Call) and ast.unparse(call.func) == "dict" and not call.args):
-            raise SyntaxError("not dict(...)")
+        if not _is_dict_call(call):
+            raise SyntaxError("not dict(NAME=VALUE, ...)")
         kwargs = {k.arg: k.value for k in call.keywords if k.arg is not None}
         out: dict[str, Any] = {}
         for name, node in kwargs.items():
@@ -264,8 +264,7 @@ def _zoo_policy_kwargs(text: Any, where: str) -> dict[str, Any]:
                         "features_extractor_class must be baselines.rl.TrackingExtractor"
                     )
             elif name == "features_extractor_kwargs":
-                if not (isinstance(node, ast.Call) and ast.unparse(node.func) == "dict"
-                        and [k.arg for k in node.keywords] == ["features_dim"]):  # fmt: skip
+                if not (_is_dict_call(node) and [k.arg for k in node.keywords] == ["features_dim"]):
                     raise ValueError("features_extractor_kwargs must be dict(features_dim=N)")
                 out["features_dim"] = ast.literal_eval(node.keywords[0].value)
             elif name == "log_std_init":
@@ -282,9 +281,17 @@ def _zoo_policy_kwargs(text: Any, where: str) -> dict[str, Any]:
     return out
 
 
+def _is_dict_call(node: ast.expr) -> TypeGuard[ast.Call]:
+    """Whether ``node`` is ``dict(NAME=VALUE, ...)``: keywords only, none of them ``**``."""
+    return (
+        isinstance(node, ast.Call) and ast.unparse(node.func) == "dict" and not node.args
+        and all(k.arg is not None for k in node.keywords)
+    )  # fmt: skip
+
+
 def _literal(node: ast.expr) -> Any:
     """A literal, with ``dict(a=...)`` read as ``{"a": ...}``."""
-    if isinstance(node, ast.Call) and ast.unparse(node.func) == "dict" and not node.args:
+    if _is_dict_call(node):
         return {k.arg: _literal(k.value) for k in node.keywords}
     return ast.literal_eval(node)
 
