@@ -33,6 +33,22 @@ def decode_text(data: bytes) -> str:
         return data.decode("latin-1")
 
 
+def read_motion_bytes(path: str | Path) -> bytes:
+    """A BVH or AMC file's bytes, its UTF-8 byte-order mark dropped.
+
+    A file with carriage returns and no line feed (classic Mac OS line ends)
+    has its carriage returns read as line feeds: the readers split lines on
+    line feeds. CR LF files are read as they are (the readers take CR as
+    space).
+    """
+    data = Path(path).read_bytes()
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    if b"\n" not in data and b"\r" in data:
+        data = data.replace(b"\r", b"\n")
+    return data
+
+
 # A count: ASCII digits only (str.isdigit also takes superscripts such as "²").
 _COUNT = re.compile(r"[0-9]+", re.ASCII)
 

@@ -76,6 +76,7 @@ from humotion_gym.mocap._scan import (
     _euler_matrices,
     _line_token_counts,
     decode_text,
+    read_motion_bytes,
 )
 from humotion_gym.mocap.bvh import MAX_NAME_LENGTH  # one bound on names for both formats
 from humotion_gym.mocap.skeleton import select_points
@@ -420,9 +421,7 @@ def load_amc(
         raise ValueError(f"fps must be between {_MIN_FPS:g} and {_MAX_FPS:g}, got {fps!r}")
     sk = skeleton if isinstance(skeleton, AsfSkeleton) else load_asf(skeleton)
     spath = str(path)
-    data = Path(path).read_bytes()
-    if data.startswith(b"\xef\xbb\xbf"):
-        data = data[3:]
+    data = read_motion_bytes(path)
     if not data.strip():
         raise MocapFormatError(spath, 1, "the file is empty (expected AMC frames)")
 

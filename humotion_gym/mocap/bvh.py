@@ -83,6 +83,7 @@ from humotion_gym.mocap._scan import (
     _short,
     _to_floats,
     decode_text,
+    read_motion_bytes,
 )
 from humotion_gym.mocap.skeleton import select_points
 
@@ -670,9 +671,7 @@ def load_bvh(
     """
     limit = _check_load_arguments(max_frames, on_nan, position_channels)
     spath = str(path)
-    data = Path(path).read_bytes()
-    if data.startswith(b"\xef\xbb\xbf"):
-        data = data[3:]
+    data = read_motion_bytes(path)
     if not data.strip():
         raise MocapFormatError(spath, 1, "the file is empty (expected HIERARCHY)")
 

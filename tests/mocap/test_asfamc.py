@@ -632,3 +632,11 @@ def test_a_bone_named_in_latin1_or_utf8_is_found_in_either_file(
     assert clip.point_names[1] == "uppér"
     expected = np.stack([oracle("XYZ", (25.0, -40.0, 60.0), v) for v in frames.values()])
     np.testing.assert_allclose(clip.point_positions()[:, :4], expected, atol=1e-9)
+
+
+def test_an_amc_with_classic_mac_line_ends_reads_as_its_lf_twin(write_text):
+    asf = write_text("s.asf", asf_text())
+    frames = amc_text(random_frames(seed=5, n=3))
+    lf = load_asf_amc(asf, write_text("lf.amc", frames))
+    cr = load_asf_amc(asf, write_text("cr.amc", frames.replace("\n", "\r")))
+    np.testing.assert_array_equal(cr.point_positions(), lf.point_positions())

@@ -749,3 +749,10 @@ def test_utf8_joint_names_read_as_utf8(tmp_path):
     path = tmp_path / "utf8.bvh"
     path.write_bytes(BASE.replace("JOINT knee", "JOINT genou_gauche_\u00e9\u4e2d").encode())
     assert load_bvh(path).point_names[1] == "genou_gauche_é中"
+
+
+def test_a_file_with_classic_mac_line_ends_reads_as_its_lf_twin(write_text):
+    cr = load_bvh(write_text("cr.bvh", "\ufeff" + BASE.replace("\n", "\r")))
+    np.testing.assert_array_equal(
+        cr.point_positions(), load_bvh(write_text("lf.bvh", BASE)).point_positions()
+    )
