@@ -54,7 +54,6 @@ from humotion_gym.camera import CAMERA_VECTOR_SIZE, fit_cameras
 from humotion_gym.checks import check_count, is_integer
 from humotion_gym.envs._checks import action_array
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv, _scored_info
-from humotion_gym.envs.tasks import get_task
 from humotion_gym.metrics import StepScores, update_lost_run
 from humotion_gym.render import FigureSequence, _compose, _noise_windows, figure_sequences
 
@@ -112,9 +111,10 @@ class PoseTrackingVectorEnv(VectorEnv):
     ) -> None:
         check_count("num_envs", num_envs)
         if max_episode_steps is not None:
-            # What TimeLimit does to a single env: the episode ends at the shorter length.
-            frames = kwargs.get("episode_frames") or get_task(task).episode_frames
-            kwargs["episode_frames"] = min(int(frames), int(max_episode_steps))
+            check_count("max_episode_steps", max_episode_steps)
+        # What TimeLimit does to a single env: the episode is drawn at its own
+        # length and cut after this many steps, showing its next frame.
+        self._max_steps = None if max_episode_steps is None else int(max_episode_steps)
         template = PoseTrackingEnv(task=task, **kwargs)
         if template.views != 1:
             raise ValueError(
@@ -160,7 +160,8 @@ class PoseTrackingVectorEnv(VectorEnv):
         self._rows = np.arange(n)
         self._action_shape = self.action_space.shape
         self._dict = template.dict_observation
-        self._obs = np.zeros((n, *self._scene.frame_shape), np.uint8)
+        self._obs = np.zeros((n, *self._scene.frame_shape), np.uint8)  # the first frames
+        self._shown = self._obs  # the frames on show: each row's last returned frame
         self._camera_vectors = np.zeros((n, frames, CAMERA_VECTOR_SIZE))
         self._shape_vectors = np.zeros((n, SHAPE_VECTOR_SIZE))
         self._first_figures = (
@@ -312,7 +313,10 @@ class PoseTrackingVectorEnv(VectorEnv):
         infos: dict[str, Any] = {}
         _add_infos(infos, rows, [started[i] for i in rows], n)
         self._autoreset[mask] = False
-        return self._observations(self._obs.copy()), infos
+        # A row not reset goes on showing its frame, as SyncVectorEnv's does.
+        frames = np.where(mask[:, None, None, None], self._obs, self._shown)
+        self._shown = frames
+        return self._observations(frames.copy()), infos
 
     def _observations(self, frames: NDArray[np.uint8]) -> Any:
         """The batch of what each episode is shown with its frame (see the single environment)."""
@@ -365,6 +369,9 @@ class PoseTrackingVectorEnv(VectorEnv):
         truncated = (k >= self.envs[0].episode_frames) & ~terminated
         terminated &= active
         truncated &= active
+        # TimeLimit's cut: the episode ends here but shows its next frame.
+        limit = active & ~done & (k >= (self._max_steps or k.max() + 1))
+        truncated |= limit
         reward = np.where(active, scores.reward, 0.0)
         observations = np.empty_like(self._obs)
         restarted: dict[int, dict[str, Any]] = {}
@@ -374,6 +381,9 @@ class PoseTrackingVectorEnv(VectorEnv):
             observations[restart] = self._obs[restart]
         shown, cameras = self._advance(observations, active, done, terminated, truncated,
                                        estimate, keypoints)  # fmt: skip
+        for i in np.flatnonzero(limit).tolist():
+            self.envs[i]._done, self.envs[i]._ended = True, (False, True)
+        done |= limit
         step_info = self._step_info(shown, cameras, scores, lost)
         infos: dict[str, Any] = {}
         after_end = ended & disabled
@@ -404,6 +414,7 @@ class PoseTrackingVectorEnv(VectorEnv):
         if started_rows:
             shown[started_rows] = [self.envs[i]._k for i in started_rows]
         self._autoreset = np.zeros(n, np.bool_) if same_step else terminated | truncated
+        self._shown = observations
         return self._observations(observations), reward, terminated, truncated, infos
 
     def _checked_actions(self, actions: NDArray[Any]) -> NDArray[Any]:

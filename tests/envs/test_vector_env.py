@@ -138,8 +138,30 @@ def test_vector_env_equals_sync_vector_env(env_id, mode):
     mask = np.array([True, False, True])
     got = vec.reset(seed=[3, 4, 5], options={"reset_mask": mask})
     want = sync.reset(seed=[3, 4, 5], options={"reset_mask": mask.copy()})
-    _assert_same(got[1], want[1], "masked reset")
-    _assert_same(_rows(got[0], mask), _rows(want[0], mask), "masked reset")
+    _assert_same(got, want, "masked reset")  # the row not reset goes on showing its frame
+    for t in range(3):
+        actions = _actions(vec, rng, t)
+        _assert_same(vec.step(actions), sync.step(actions), f"step {t} after the masked reset")
+
+
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_a_step_limit_cuts_episodes_as_time_limit_does(mode):
+    """make_vec(max_episode_steps=m): the episodes drawn at the task's length, cut after m steps."""
+    n, env_id = 3, "humotion_gym/BodyTrack-v2"
+    kwargs = {"width": 64, "height": 64, "max_episode_steps": 7, "terminate_on_lost": False}
+    vec = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point", autoreset_mode=mode,
+                       **kwargs)  # fmt: skip
+    sync = gym.make_vec(env_id, n, vectorization_mode="sync",
+                        vector_kwargs={"autoreset_mode": mode}, **kwargs)  # fmt: skip
+    _assert_same(vec.reset(seed=0), sync.reset(seed=0), "reset")
+    rng = np.random.default_rng(2)
+    cut = 0
+    for t in range(17):
+        actions = _actions(vec, rng, t)
+        got, want = vec.step(actions), sync.step(actions)
+        _assert_same(got, want, f"step {t}")
+        cut += int(want[3].sum())
+    assert cut >= n  # every episode was cut at least once
 
 
 @pytest.mark.parametrize("kwargs", [{"occluders": 2}, {"blur": 1.0, "noise": 30.0},
