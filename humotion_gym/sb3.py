@@ -176,6 +176,11 @@ class LearnerVecEnv(VecEnv):
                     "initial": self._initial[i].copy(),
                 }
             self._initial_actions(ended, initial)
+            for i in ended:  # as DummyVecEnv's step_wait: the new episode's reset info
+                self.reset_infos[i] = {
+                    "clip_id": info["clip_id"][i],
+                    "start_frame": int(info["start_frame"][i]),
+                }
         return self._observation(frames), rewards.astype(np.float32), dones, infos
 
     def close(self) -> None:

@@ -525,12 +525,44 @@ class PoseTrackingVectorEnv(VectorEnv):
             **_scored_info(scores, lost),
         }
 
-    def render(self) -> tuple[NDArray[np.uint8], ...] | None:
-        """Every episode's ``render()`` (the frame on show with its estimate drawn over it)."""
+    def render(self) -> tuple[NDArray[np.uint8] | None, ...] | None:  # type: ignore[override]
+        """Every episode's ``render()`` (the frame on show with its estimate drawn over it).
+
+        As ``SyncVectorEnv``'s: one entry per episode, None before its first reset.
+        """
         if self.render_mode is None:
             return None
-        frames = [env.render() for env in self.envs]
-        return tuple(frame for frame in frames if frame is not None)
+        return tuple(env.render() for env in self.envs)
+
+    # -- SyncVectorEnv's access to the episodes ----------------------------------------
+
+    @property
+    def np_random_seed(self) -> tuple[int, ...]:  # type: ignore[override]
+        """Each episode's seed (``reset(seed=s)`` gives episode ``i`` seed ``s + i``)."""
+        return tuple(env.np_random_seed for env in self.envs)
+
+    @property
+    def np_random(self) -> tuple[np.random.Generator, ...]:  # type: ignore[override]
+        """Each episode's generator, as ``SyncVectorEnv``'s ``np_random``."""
+        return tuple(env.np_random for env in self.envs)
+
+    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
+        """Each episode's method ``name`` called with the arguments, or its attribute."""
+        values = [getattr(env, name) for env in self.envs]
+        return tuple(v(*args, **kwargs) if callable(v) else v for v in values)
+
+    def get_attr(self, name: str) -> tuple[Any, ...]:
+        """Each episode's attribute ``name``."""
+        return tuple(getattr(env, name) for env in self.envs)
+
+    def set_attr(self, name: str, values: list[Any] | tuple[Any, ...] | Any) -> None:
+        """Set attribute ``name`` of each episode: one value for all, or one per episode."""
+        if not isinstance(values, (list, tuple)):
+            values = [values] * self.num_envs
+        if len(values) != self.num_envs:
+            raise ValueError(f"set_attr: {len(values)} values for {self.num_envs} episodes")
+        for env, value in zip(self.envs, values, strict=True):
+            setattr(env, name, value)
 
     def close_extras(self, **kwargs: Any) -> None:
         """Close the episodes' environments."""

@@ -253,6 +253,25 @@ def test_vector_env_render_is_each_episodes_render():
         assert np.array_equal(frame, env.render())
 
 
+def test_the_vector_env_answers_what_sync_vector_env_answers():
+    """render before reset, the episodes' seeds and generators, call, get_attr, set_attr."""
+    kwargs = {"width": 64, "height": 64, "render_mode": "rgb_array"}
+    vec = gym.make_vec("humotion_gym/BodyTrack-v2", 2, vectorization_mode="vector_entry_point",
+                       **kwargs).unwrapped  # fmt: skip
+    sync = gym.make_vec("humotion_gym/BodyTrack-v2", 2, vectorization_mode="sync", **kwargs)
+    assert vec.render() == (None, None)  # an entry per episode, as after a reset
+    vec.reset(seed=3)
+    sync.reset(seed=3)
+    assert vec.np_random_seed == sync.np_random_seed == (3, 4)
+    assert [g.random() for g in vec.np_random] == [g.random() for g in sync.np_random]
+    assert vec.get_attr("split") == sync.get_attr("split") == ("train", "train")
+    assert vec.call("pose_to_action", np.zeros(25))[0].shape == (25,)
+    vec.set_attr("lost_patience", [4, 5])
+    assert vec.get_attr("lost_patience") == (4, 5)
+    with pytest.raises(ValueError, match="3 values for 2 episodes"):
+        vec.set_attr("lost_patience", [1, 2, 3])
+
+
 def test_learner_vec_env_equals_dummy_vec_env_of_learner_envs():
     """The SB3 adapter gives what PPO gets today from DummyVecEnv(LearnerObservation envs)."""
     pytest.importorskip("stable_baselines3")
@@ -288,6 +307,9 @@ def test_learner_vec_env_equals_dummy_vec_env_of_learner_envs():
             if "terminal_observation" in want_info:
                 ends += 1
                 _assert_same(got_info["terminal_observation"], want_info["terminal_observation"])
+        for got_start, want_start in zip(ours.reset_infos, dummy.reset_infos, strict=True):
+            assert got_start["clip_id"] == want_start["clip_id"], t  # refreshed at autoreset
+            assert got_start["start_frame"] == want_start["start_frame"], t
     assert ends > 0
 
 
