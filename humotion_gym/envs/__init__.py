@@ -57,17 +57,13 @@ VIEW_ENVIRONMENTS: tuple[tuple[str, str], ...] = tuple(
     (name, f"humotion_gym.envs.views:{get_task(name).family}ViewsEnv") for name in VIEW_VARIANTS
 )
 
-#: The batched version of each id's environment, for ``gymnasium.make_vec(id,
-#: num_envs=N, vectorization_mode="vector_entry_point")`` (N episodes stepped
-#: as one batch, the same results as N single environments; see
-#: :mod:`humotion_gym.envs.vector`).
+#: The batched version of each monocular id's environment, what
+#: ``gymnasium.make_vec(id, num_envs=N)`` makes (N episodes stepped as one batch,
+#: the same results as N single environments; see :mod:`humotion_gym.envs.vector`).
+#: The multi-view ids have none: ``make_vec`` steps their single environments in sync.
 VECTOR_ENTRY_POINTS: dict[str, str] = {
     name: f"humotion_gym.envs.vector:{entry_point.split(':')[1].replace('Env', 'VectorEnv')}"
     for name, entry_point in ENVIRONMENTS + DEPRECATED_ENVIRONMENTS
-} | {
-    # the task's vector environment, which refuses views > 1 with a clear error
-    name: f"humotion_gym.envs.vector:{get_task(name).family}VectorEnv"
-    for name in VIEW_VARIANTS
 }
 
 #: The canonical ids, with namespace: the current tasks, then their multi-view variants.
@@ -96,7 +92,7 @@ def register_envs() -> None:
                 register(
                     id=env_id,
                     entry_point=entry_point,
-                    vector_entry_point=VECTOR_ENTRY_POINTS[name],
+                    vector_entry_point=VECTOR_ENTRY_POINTS.get(name),
                     max_episode_steps=spec.episode_frames,
                     kwargs=kwargs,
                 )

@@ -99,11 +99,10 @@ MONOCULAR_IDS = [env_id for env_id in ENV_IDS if get_task(env_id).views == 1]
 @pytest.mark.parametrize("env_id", [i for i in ENV_IDS if i not in MONOCULAR_IDS])
 def test_the_vector_env_refuses_several_views_naming_the_argument(env_id):
     with pytest.raises(ValueError, match=r"views: .*views=1.*got views=[24].*sync"):
-        gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point")
-    with pytest.raises(ValueError, match="views"):
         PoseTrackingVectorEnv(2, task="BodyTrack-v2", views=2)
-    # what the error points to works: single environments stepped in sync
-    envs = gym.make_vec(env_id, num_envs=2, vectorization_mode="sync")
+    assert gym.spec(env_id).vector_entry_point is None
+    # make_vec's default, and what the error points to: single environments in sync
+    envs = gym.make_vec(env_id, num_envs=2)
     obs, _ = envs.reset(seed=0)
     assert obs["frame"].shape == (2, get_task(env_id).views, 128, 128, 3)
     envs.close()
