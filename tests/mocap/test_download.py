@@ -297,6 +297,16 @@ def get(srv, dest, subjects=(1,), **kw):
     return download_cmu(subjects, dest, base_url=srv.url, **kw)
 
 
+def _all_but(srv, dest, rel: str) -> None:
+    """Download subject 7, then drop ``rel``: a later run fetches ``rel`` alone.
+
+    So that a deadline test times the slow file only, never a quick one that a
+    busy machine happened to hold up past a deadline of one second.
+    """
+    get(srv, dest, subjects=[7])
+    (dest / rel).unlink()
+
+
 def final_files(dest: Path) -> set[str]:
     return {
         p.relative_to(dest).as_posix()
@@ -466,6 +476,7 @@ def test_server_without_validators_is_not_resumed(tiny):
 def test_stalled_server_times_out_and_resumes(tiny):
     srv, files, dest = tiny
     rel = "07/07_01.amc"
+    _all_but(srv, dest, rel)
     srv.stall_s[f"/{rel}"] = 1.5
     get(srv, dest, subjects=[7], timeout=0.3)
     assert (f"/{rel}", f"bytes={len(files[rel]) // 2}-") in srv.requests
@@ -748,6 +759,7 @@ def test_slow_drip_stopped_at_file_deadline(tiny):
     # Fault: no deadline (a 1 byte/s server kept the download running for hours).
     srv, files, dest = tiny
     rel = "07/07_01.amc"
+    _all_but(srv, dest, rel)
     srv.drip_s[f"/{rel}"] = 0.05
     with pytest.raises(DownloadError, match=r"per-file deadline of 1 s") as err:
         get(srv, dest, subjects=[7], file_deadline_s=1.0)
@@ -760,6 +772,7 @@ def test_slow_drip_stopped_at_file_deadline(tiny):
 
 def test_slow_drip_stopped_at_run_deadline(tiny):
     srv, files, dest = tiny
+    _all_but(srv, dest, "07/07_02.amc")
     srv.drip_s["/07/07_02.amc"] = 0.05
     with pytest.raises(DownloadError, match=r"07_02\.amc.*run's deadline of 1 s"):
         get(srv, dest, subjects=[7], deadline_s=1.0)
@@ -770,6 +783,7 @@ def test_headers_dripped_stopped_at_deadline(tiny):
     # A server can drag out its headers too; the deadline's watchdog stops it.
     srv, _, dest = tiny
     rel = "07/07_01.amc"
+    _all_but(srv, dest, rel)
     srv.header_drip_s[f"/{rel}"] = 0.05
     with pytest.raises(DownloadError, match=r"07_01\.amc: stopped at the per-file deadline"):
         get(srv, dest, subjects=[7], file_deadline_s=1.0)
@@ -779,6 +793,7 @@ def test_headers_dripped_stopped_at_deadline(tiny):
 def test_stall_near_deadline_ends_at_deadline(tiny):
     # A stall shorter than the read timeout but past the deadline stops at the deadline.
     srv, _, dest = tiny
+    _all_but(srv, dest, "07/07_01.amc")
     srv.stall_s["/07/07_01.amc"] = 3.0
     with pytest.raises(DownloadError, match="deadline"):
         get(srv, dest, subjects=[7], file_deadline_s=0.5, timeout=TIMEOUT)
