@@ -34,7 +34,7 @@ def decode_text(data: bytes) -> str:
 
 
 def read_motion_bytes(path: str | Path) -> bytes:
-    """A BVH or AMC file's bytes, its UTF-8 byte-order mark dropped.
+    """A BVH, ASF or AMC file's bytes, its UTF-8 byte-order mark dropped.
 
     A file with carriage returns and no line feed (classic Mac OS line ends)
     has its carriage returns read as line feeds: the readers split lines on

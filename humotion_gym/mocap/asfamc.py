@@ -333,7 +333,7 @@ def load_asf(path: str | Path) -> AsfSkeleton:
         OSError: If the file cannot be read.
     """
     spath = str(path)
-    text = decode_text(Path(path).read_bytes()).lstrip("\ufeff")
+    text = decode_text(read_motion_bytes(path))
     lines = text.splitlines()
     if not text.strip():
         raise MocapFormatError(spath, 1, "the file is empty (expected an ASF skeleton)")

@@ -33,7 +33,6 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from humotion_gym.body import KEYPOINT_INDEX as _K
 from humotion_gym.mocap._cache_files import (  # CacheWarning: re-exported, part of the API
     CACHE_ERRORS,
     CacheWarning,  # noqa: F401
@@ -240,9 +239,8 @@ def load_clip(
     from humotion_gym.errors import RigError
     from humotion_gym.mocap.asfamc import load_amc, load_asf
     from humotion_gym.mocap.bvh import load_bvh
-    from humotion_gym.mocap.retarget import retarget_keypoints, velocities
+    from humotion_gym.mocap.retarget import file_units_to_mm, retarget_keypoints, velocities
     from humotion_gym.mocap.rigmap import match_rig
-    from humotion_gym.mocap.rigs import guess_units_to_mm
     from humotion_gym.mocap.tpose import is_tpose_frame
 
     if src.skeleton is not None:
@@ -250,17 +248,7 @@ def load_clip(
     else:
         clip = load_bvh(src.path)
     match = match_rig(clip)
-    if not np.any(np.asarray(clip.frame_valid, dtype=bool)):  # no frame (Frames: 0) or none whole
-        raise RigError(f"{src.path}: no valid frame to retarget")
-    units = clip.units_to_mm
-    if units is None:
-        # As retarget_clip: the unit from the right leg's length in file units.
-        raw = match.profile.keypoints_from(clip, 1.0)
-        hip, knee, ankle = (raw[:, _K[f"r_{j}"]] for j in ("hip", "knee", "ankle"))
-        leg = np.nanmedian(
-            np.linalg.norm(hip - knee, axis=-1) + np.linalg.norm(knee - ankle, axis=-1)
-        )
-        units, _ = guess_units_to_mm(float(leg), str(src.path))
+    units = file_units_to_mm(clip, match.profile)
     keypoints = match.profile.keypoints_from(clip, units)
     valid = np.asarray(clip.frame_valid, dtype=bool)
     tpose = bool(valid[:2].all()) and is_tpose_frame(keypoints[:2])
@@ -530,7 +518,7 @@ def load_library(
     Raises:
         SplitError: If ``split_by`` puts one person on both sides.
     """
-    sources = find_clips([paths] if isinstance(paths, (str, Path)) else paths)
+    sources = find_clips(paths)
     assigned = [(src, assign_split(src, split_by)) for src in sources]
     check_person_sides([(src, split[0]) for src, split in assigned])
     splits = {src.clip_id: split for src, split in assigned}

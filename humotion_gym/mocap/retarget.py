@@ -443,6 +443,25 @@ def retarget_keypoints(
     return params, observed, kp, shape
 
 
+def file_units_to_mm(clip: SkeletonClip, profile: RigProfile) -> float:
+    """Millimetres per unit of the clip's file: its own, else from its right leg's length.
+
+    The leg (hip to knee to ankle, median over frames, in file units) picks the
+    unit (:func:`~humotion_gym.mocap.rigs.guess_units_to_mm`).
+
+    Raises:
+        RigError: If no frame is whole (nothing to measure or retarget), naming the file.
+    """
+    if not np.any(np.asarray(clip.frame_valid, dtype=bool)):  # no frame (Frames: 0) or none whole
+        raise RigError(f"{clip.path}: no valid frame to retarget")
+    if clip.units_to_mm is not None:
+        return float(clip.units_to_mm)
+    raw = profile.keypoints_from(clip, 1.0)
+    hip, knee, ankle = (raw[:, _K[f"r_{j}"]] for j in ("hip", "knee", "ankle"))
+    leg = np.nanmedian(np.linalg.norm(hip - knee, axis=-1) + np.linalg.norm(knee - ankle, axis=-1))
+    return guess_units_to_mm(float(leg), str(clip.path))[0]
+
+
 def retarget_clip(
     clip: SkeletonClip,
     rig: RigProfile | Mapping[str, KeypointSource] | None = None,
@@ -473,17 +492,8 @@ def retarget_clip(
         profile = rig
     else:
         profile = make_rig(rig)
-    if not np.any(np.asarray(clip.frame_valid, dtype=bool)):  # no frame, or none whole
-        raise RigError(f"{clip.path}: no valid frame to retarget")
     if units_to_mm is None:
-        units_to_mm = clip.units_to_mm
-    if units_to_mm is None:
-        raw = profile.keypoints_from(clip, 1.0)
-        leg = np.nanmedian(
-            np.linalg.norm(raw[:, _K["r_hip"]] - raw[:, _K["r_knee"]], axis=-1)
-            + np.linalg.norm(raw[:, _K["r_knee"]] - raw[:, _K["r_ankle"]], axis=-1)
-        )
-        units_to_mm, _ = guess_units_to_mm(float(leg), str(clip.path))
+        units_to_mm = file_units_to_mm(clip, profile)
     keypoints = profile.keypoints_from(clip, units_to_mm)
     valid = np.asarray(clip.frame_valid, dtype=bool)
     if not np.any(valid):
