@@ -181,8 +181,12 @@ ZOO_FIXED: dict[str, Any] = {
 ZOO_IGNORED: tuple[str, ...] = ("n_timesteps",)
 #: The one ``env_wrapper`` of a zoo entry: the learners' observation, its ``size`` read.
 LEARNER_WRAPPER = "humotion_gym.wrappers.LearnerObservation"
+#: Every learned tracker's network heads (:func:`baselines.agents.policy.policy_kwargs`):
+#: an empty policy net, so the action layer reads the features directly and can copy
+#: the estimate the extractor passes on; a value net of 64.
+POLICY_NET_ARCH: dict[str, list[int]] = {"pi": [], "vf": [64]}
 #: ``policy_kwargs`` as ``train`` builds it (:func:`baselines.agents.policy.policy_kwargs`).
-ZOO_POLICY_FIXED: dict[str, Any] = {"net_arch": {"pi": [], "vf": [64]}, "normalize_images": False}
+ZOO_POLICY_FIXED: dict[str, Any] = {"net_arch": POLICY_NET_ARCH, "normalize_images": False}
 
 
 def load_hyperparams(path: str | Path, task: str) -> dict[str, Any]:

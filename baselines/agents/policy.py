@@ -19,6 +19,7 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from torch import nn
 
+from baselines.rl_config import POLICY_NET_ARCH
 from humotion_gym.envs import get_task
 
 
@@ -120,9 +121,7 @@ def policy_kwargs(
     return {
         "features_extractor_class": TrackingExtractor,
         "features_extractor_kwargs": {"features_dim": int(features_dim), "root": root},
-        # an empty policy net: the action layer reads the features directly,
-        # so it can copy the estimate that the extractor passes on
-        "net_arch": {"pi": [], "vf": [64]},
+        "net_arch": {head: list(layers) for head, layers in POLICY_NET_ARCH.items()},
         "normalize_images": False,
         "log_std_init": float(log_std_init),
     }

@@ -112,10 +112,10 @@ class PoseTrackingVectorEnv(VectorEnv):
         check_count("num_envs", num_envs)
         if max_episode_steps is not None:
             check_count("max_episode_steps", max_episode_steps)
+        template = PoseTrackingEnv(task=task, **kwargs)
         # What TimeLimit does to a single env: the episode is drawn at its own
         # length and cut after this many steps, showing its next frame.
-        self._max_steps = None if max_episode_steps is None else int(max_episode_steps)
-        template = PoseTrackingEnv(task=task, **kwargs)
+        self._max_steps = int(max_episode_steps or template.episode_frames)
         if template.views != 1:
             raise ValueError(
                 f"views: the vector environment batches monocular episodes only (views=1), "
@@ -370,7 +370,7 @@ class PoseTrackingVectorEnv(VectorEnv):
         terminated &= active
         truncated &= active
         # TimeLimit's cut: the episode ends here but shows its next frame.
-        limit = active & ~done & (k >= (self._max_steps or k.max() + 1))
+        limit = active & ~done & (k >= self._max_steps)
         truncated |= limit
         reward = np.where(active, scores.reward, 0.0)
         observations = np.empty_like(self._obs)
