@@ -161,7 +161,11 @@ def trained_data_dirs(path: str | Path) -> list[str] | None:
     None where there is no readable record or it names none (the run read
     ``$HUMOTION_MOCAP`` or the synthetic library).
     """
-    dirs = (policy_record(path) or {}).get("data_dir")
+    return _record_data_dirs(policy_record(path) or {})
+
+
+def _record_data_dirs(record: dict[str, Any]) -> list[str] | None:
+    dirs = record.get("data_dir")
     ok = isinstance(dirs, list) and dirs and all(isinstance(d, str) for d in dirs)
     return list(dirs) if ok else None
 
@@ -173,7 +177,8 @@ def _check_record(path: str, description: TaskDescription) -> None:
     actions have the same size; :class:`OtherDataWarning` when real-data
     training meets synthetic episodes.
     """
-    trained_on = (policy_record(path) or {}).get("task")
+    record = policy_record(path) or {}
+    trained_on = record.get("task")
     if isinstance(trained_on, str) and trained_on != description.name:
         warnings.warn(
             f"{path} was trained on {trained_on}, not {description.name}: its actions mean "
@@ -181,7 +186,7 @@ def _check_record(path: str, description: TaskDescription) -> None:
             OtherTaskWarning,
             stacklevel=3,
         )
-    dirs = trained_data_dirs(path)
+    dirs = _record_data_dirs(record)
     synthetic = all(c.startswith("synthetic/") for c in description.training.clip_ids)
     if dirs and synthetic:
         warnings.warn(
