@@ -37,7 +37,8 @@ class ClipSource:
         subject: Subject id (``"cmu-02"``, ``"bandai-2/normal"``...).
         label: Coarse activity label.
         description: Free text.
-        clip_id: ``"{dataset}/{file stem}"``.
+        clip_id: ``"{dataset}/{file stem}"``; a user's clip ``"user/{folder}/{file
+            stem}"``, so that two persons' folders may each hold a ``walk.bvh``.
         person: Who performed it: a CMU person (:func:`~humotion_gym.mocap.cmu.cmu_person`),
             ``"bandai"`` for the Bandai-Namco actors, else the subject id.
     """
@@ -106,7 +107,10 @@ def describe_file(path: Path, skeleton: Path | None = None) -> ClipSource:
         )  # fmt: skip
     label = activity_label(stem)
     subject = path.parent.name or "user"
-    return ClipSource(path, skeleton, "user", subject, label, "", f"user/{stem}", subject)
+    # The folder is the person (docs/data.md), and persons' folders often hold
+    # files of the same names: the id names both.
+    clip_id = f"user/{subject}/{stem}"
+    return ClipSource(path, skeleton, "user", subject, label, "", clip_id, subject)
 
 
 def _asf_for(amc: Path) -> Path | None:

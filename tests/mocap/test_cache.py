@@ -182,10 +182,10 @@ def test_messages_say_what_was_wrong(data, tmp_path):
     _load(data, cache)
     path = _entry(data, cache)
     shutil.copyfile(_entry(data, cache, "take_b"), path)
-    with pytest.warns(CacheWarning, match=r"foreign entry: .*clip_id='user/take_b'"):
+    with pytest.warns(CacheWarning, match=r"foreign entry: .*clip_id='user/data/take_b'"):
         _load(data, cache)
     path.write_bytes(b"")
-    with pytest.warns(CacheWarning, match=r"bad entry of user/take_a: .*EOFError"):
+    with pytest.warns(CacheWarning, match=r"bad entry of user/data/take_a: .*EOFError"):
         _load(data, cache)
 
 

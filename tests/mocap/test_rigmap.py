@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from humotion_gym.body import KEYPOINT_INDEX, KEYPOINT_NAMES
-from humotion_gym.errors import RigError
+from humotion_gym.errors import MocapFormatError, RigError
 from humotion_gym.mocap.library import SplitError, assign_split, describe_file, load_library
 from humotion_gym.mocap.rigmap import map_humanoid, match_rig
 from humotion_gym.mocap.rigs import RIGS, Y_UP_TO_Z_UP, detect_rig
@@ -358,8 +358,8 @@ def test_user_split_rule_and_override(tmp_path):
     chosen = load_library(
         [tmp_path], cache_dir=tmp_path / "cache", progress=False, split_by={"bob": "test"}
     )
-    assert "bob" in chosen.held_out and chosen["user/bob_walk"].meta["split"] == "test"
-    assert chosen["user/bob_walk"].meta["split_rule"] == "split_by mapping (bob)"
+    assert "bob" in chosen.held_out and chosen["user/bob/bob_walk"].meta["split"] == "test"
+    assert chosen["user/bob/bob_walk"].meta["split_rule"] == "split_by mapping (bob)"
     assert any("user-hash" in r for r in chosen.split_rules)
 
     def everyone_trains(src):
@@ -371,14 +371,28 @@ def test_user_split_rule_and_override(tmp_path):
     assert none.split("test").clip_ids == [] and none.split_rules == ["split_by=everyone_trains"]
 
 
+def test_persons_folders_may_hold_files_of_one_name(tmp_path):
+    for actor in ("ann", "bob"):
+        (tmp_path / actor).mkdir()
+        write_bvh(tmp_path / actor / "walk.bvh", rig_joints("cmu-bvh"))
+    lib = load_library([tmp_path], cache_dir=tmp_path / "cache", progress=False)
+    assert lib.clip_ids == ["user/ann/walk", "user/bob/walk"]
+    assert [m.meta["person"] for m in lib] == ["ann", "bob"]
+    # one person's folder given twice from two places is still one id twice: refused
+    (tmp_path / "copy" / "ann").mkdir(parents=True)
+    write_bvh(tmp_path / "copy" / "ann" / "walk.bvh", rig_joints("cmu-bvh"))
+    with pytest.raises(MocapFormatError, match="the same clip id user/ann/walk as"):
+        load_library([tmp_path], cache_dir=tmp_path / "cache", progress=False)
+
+
 def test_a_person_on_both_sides_is_refused(tmp_path):
     (tmp_path / "ann").mkdir()
     for take in ("walk", "run"):
         write_bvh(tmp_path / "ann" / f"{take}.bvh", rig_joints("cmu-bvh"))
-    with pytest.raises(SplitError, match="ann: train user/walk, test user/run"):
+    with pytest.raises(SplitError, match="ann: train user/ann/walk, test user/ann/run"):
         load_library(
             [tmp_path], cache_dir=tmp_path / "c", progress=False,
-            split_by={"user/run": "test", "user/walk": "train"},
+            split_by={"user/ann/run": "test", "user/ann/walk": "train"},
         )  # fmt: skip
     with pytest.raises(ValueError, match="expected 'train' or 'test'"):
         load_library([tmp_path], cache_dir=tmp_path / "c", progress=False, split_by={"ann": "x"})
@@ -504,7 +518,7 @@ def test_data_info_shows_rig_match_person_split_and_tpose(tmp_path, capsys):
     write_bvh(tmp_path / "ann" / "take.bvh", rig_joints("names"))
     assert main(["data", "info", str(tmp_path), "--json"]) == 0
     rows = {r["clip"]: r for r in map(json.loads, capsys.readouterr().out.splitlines())}
-    cmu, user = rows["cmu/16_11"], rows["user/take"]
+    cmu, user = rows["cmu/16_11"], rows["user/ann/take"]
     assert (cmu["rig"], cmu["rig_match"], cmu["person"], cmu["split"]) == (
         "daz", "profile", "cmu-16", "test"
     )  # fmt: skip
