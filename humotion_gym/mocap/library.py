@@ -236,7 +236,6 @@ def load_clip(
         MocapFormatError: If the file is malformed.
         RigError: If its skeleton cannot be mapped onto the cone body.
     """
-    from humotion_gym.errors import RigError
     from humotion_gym.mocap.asfamc import load_amc, load_asf
     from humotion_gym.mocap.bvh import load_bvh
     from humotion_gym.mocap.retarget import file_units_to_mm, retarget_keypoints, velocities
@@ -254,8 +253,8 @@ def load_clip(
     tpose = bool(valid[:2].all()) and is_tpose_frame(keypoints[:2])
     if tpose:
         keypoints, valid = keypoints[1:], valid[1:]
-    if not np.any(valid):
-        raise RigError(f"{src.path}: no valid frame to retarget")
+    # (file_units_to_mm refused a clip without a whole frame; a T-pose is
+    # only found before another whole frame, so one is left)
     params, observed, kp, shape = retarget_keypoints(keypoints, clip.fps, fps, valid)
     out_fps = clip.fps if fps is None else fps
     split, rule = split if split is not None else assign_split(src)

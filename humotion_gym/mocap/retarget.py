@@ -443,6 +443,25 @@ def retarget_keypoints(
     return params, observed, kp, shape
 
 
+def check_some_frame(path: object, valid: NDArray[np.bool_]) -> None:
+    """Refuse a clip with no whole frame to retarget, saying why.
+
+    Args:
+        path: The file, for the message.
+        valid: ``(T,)`` which frames are whole.
+
+    Raises:
+        RigError: If no frame is whole.
+    """
+    if np.any(valid):
+        return
+    if len(valid) == 0:
+        why = "the file holds no frame of motion (Frames: 0)"
+    else:
+        why = f"none of its {len(valid)} frames is whole (each has a missing or unreadable value)"
+    raise RigError(f"{path}: nothing to retarget: {why}")
+
+
 def file_units_to_mm(clip: SkeletonClip, profile: RigProfile) -> float:
     """Millimetres per unit of the clip's file: its own, else from its right leg's length.
 
@@ -452,8 +471,7 @@ def file_units_to_mm(clip: SkeletonClip, profile: RigProfile) -> float:
     Raises:
         RigError: If no frame is whole (nothing to measure or retarget), naming the file.
     """
-    if not np.any(np.asarray(clip.frame_valid, dtype=bool)):  # no frame (Frames: 0) or none whole
-        raise RigError(f"{clip.path}: no valid frame to retarget")
+    check_some_frame(clip.path, np.asarray(clip.frame_valid, dtype=bool))
     if clip.units_to_mm is not None:
         return float(clip.units_to_mm)
     raw = profile.keypoints_from(clip, 1.0)
@@ -496,8 +514,7 @@ def retarget_clip(
         units_to_mm = file_units_to_mm(clip, profile)
     keypoints = profile.keypoints_from(clip, units_to_mm)
     valid = np.asarray(clip.frame_valid, dtype=bool)
-    if not np.any(valid):
-        raise RigError(f"{clip.path}: no valid frame to retarget")
+    check_some_frame(clip.path, valid)
     params, observed, kp, fitted = retarget_keypoints(keypoints, clip.fps, fps, valid, shape)
     out_fps = clip.fps if fps is None else fps
     return Retargeted(

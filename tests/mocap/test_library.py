@@ -8,6 +8,7 @@ import pytest
 from baselines.cli import main
 from humotion_gym.errors import RigError
 from humotion_gym.mocap import library as lib_mod
+from humotion_gym.mocap.bvh import load_bvh
 from humotion_gym.mocap.export import write_motion_bvh
 from humotion_gym.mocap.library import (
     TEST_SUBJECTS,
@@ -19,6 +20,7 @@ from humotion_gym.mocap.library import (
     synthetic_library,
 )
 from humotion_gym.mocap.motion import Motion
+from humotion_gym.mocap.retarget import retarget_clip
 
 
 def test_default_library_is_synthetic_without_data(monkeypatch):
@@ -192,16 +194,27 @@ def test_poses_on_real_data_stay_within_the_joint_limits(real_library):
     assert outside.mean(axis=0).max() < 0.001
 
 
-@pytest.mark.parametrize("frames", ["Frames: 0\nFrame Time: 0.0083333\n", "NAN"])
-def test_a_clip_without_a_whole_frame_is_refused_naming_its_file(shared_mocap, tmp_path, frames):
+@pytest.mark.parametrize(
+    ("frames", "why"),
+    [
+        ("Frames: 0\nFrame Time: 0.0083333\n", r"the file holds no frame of motion \(Frames: 0\)"),
+        ("NAN", "none of its 2 frames is whole"),
+    ],
+)
+def test_a_clip_without_a_whole_frame_is_refused_naming_its_file(
+    shared_mocap, tmp_path, frames, why
+):
     text = (shared_mocap / "cmu-bvh-cc" / "007" / "007_01.bvh").read_text()
     head, _, motion = text.partition("MOTION\n")
     if frames == "NAN":  # two frames, every number of them nan
         width = len(motion.splitlines()[2].split())
         frames = "Frames: 2\nFrame Time: 0.0083333\n" + ("nan " * width + "\n") * 2
     (tmp_path / "empty.bvh").write_text(head + "MOTION\n" + frames)
-    with pytest.raises(RigError, match=r"empty\.bvh: no valid frame to retarget"):
+    with pytest.raises(RigError, match=r"empty\.bvh: nothing to retarget: " + why):
         load_library([tmp_path], progress=False)
+    clip = load_bvh(tmp_path / "empty.bvh")  # retargeting alone says the same
+    with pytest.raises(RigError, match=why):
+        retarget_clip(clip, units_to_mm=10.0)
 
 
 def test_one_path_alone_is_a_path_and_a_folder_named_like_a_clip_is_not_one(shared_mocap, tmp_path):
