@@ -64,7 +64,7 @@ COMMON_SECTIONS = """
 
     | argument | default | meaning |
     |---|---|---|
-    | ``render_mode`` | None | ``"rgb_array"``: ``render()`` returns the frame with the last estimate drawn as a wire figure |
+    | ``render_mode`` | None | ``"rgb_array"``: ``render()`` returns the last estimate drawn as a wire figure over the frame it estimates |
     | ``data_dir`` | None | folders of real mocap (else ``$HUMOTION_MOCAP``, else the built-in synthetic set) |
     | ``library`` | None | a ready :class:`~humotion_gym.mocap.library.MotionLibrary` instead of ``data_dir`` (e.g. a validation fold) |
     | ``split`` | ``"train"`` | ``"train"``: the training persons less the validation persons (a reset option naming another person's clip, file or motion is refused, by name and skeleton); ``"validation"``: CMU subjects 1, 5 and 7 (synthetic 3 and 4), where settings are chosen; ``"test"``: the held-out persons (CMU subjects 2 and 3), for the leaderboard |

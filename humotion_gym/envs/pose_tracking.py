@@ -109,7 +109,8 @@ _EPISODE_STATE: tuple[str, ...] = (
     "_motion", "_t0", "_root0", "_bounds", "_episode_seed", "_noise", "_backgrounds",
     "_noise_rngs", "_episode_params", "_geometry", "_truth_keypoints", "_camera_targets",
     "_view_cameras", "_view_figures",
-    "_lost_run", "_last_estimate", "_estimate_keypoints", "_k", "_frame", "_done", "_ended",
+    "_lost_run", "_last_estimate", "_estimate_keypoints", "_estimated", "_k", "_frame", "_done",
+    "_ended",
     "_initial", "_shape_vector", "_camera_vectors",
     "_warned_after_end",
     "_np_random", "_np_random_seed",
@@ -637,6 +638,8 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
         self._warned_after_end = False
         self._last_estimate: FloatArray | None = None
         self._estimate_keypoints: FloatArray | None = None
+        # The frame (every view's) and step the last estimate was scored on.
+        self._estimated: tuple[NDArray[np.uint8], int] | None = None
         self._initial = self._truth(0)
         self._shape_vector = self.shape.to_vector()
         self._k = 1
@@ -689,8 +692,9 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
             return self._after_end()
         estimate = self.action_to_pose(a, self._truth())
         self._last_estimate = estimate
-        # Kept for render(), which draws these keypoints.
+        # Kept for render(), which draws these keypoints over the frame they estimate.
         self._estimate_keypoints = forward_kinematics(estimate, self.shape)
+        self._estimated = (self._frame, self._k)
         scores = self._scores(self._estimate_keypoints, self._truth_keypoints[self._k])
         self._lost_run = int(
             update_lost_run(self._lost_run, scores.error_mm, self.lost_threshold_mm)
@@ -746,18 +750,21 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
         return self._observation(self._frame.copy()), 0.0, terminated, truncated, info
 
     def render(self) -> NDArray[np.uint8] | None:
-        """The frame on show with the last estimate drawn over it as a wire figure.
+        """The last estimate drawn as a wire figure over the frame it estimates.
 
-        With several views, every view's image side by side, view 0 on the
-        left: ``(H, views * W, 3)``, the estimate drawn from each view's
-        camera. Nothing is rendered again: the frame is the observation that
-        ``reset`` or ``step`` drew from the episode's prepared figures, and the
-        wire figure joins the keypoints ``step`` scored (only their projection
-        and the lines are drawn here).
+        After ``reset``, the first frame as shown. After a ``step``, the frame
+        that step scored (the observation before it) with the step's estimate
+        over it, projected by that frame's camera: a video shows each estimate
+        on its own frame, never on the next (which would make a perfect
+        tracker look one frame late). With several views, every view's image
+        side by side, view 0 on the left: ``(H, views * W, 3)``. Nothing is
+        rendered again: the frame is the observation ``reset`` or ``step``
+        returned, and the wire figure joins the keypoints ``step`` scored.
         """
         if self.render_mode is None or self._motion is None:
             return None
-        frames = [self._frame] if self.views == 1 else list(self._frame)
+        shown, k = (self._frame, self._k) if self._estimated is None else self._estimated
+        frames = [shown] if self.views == 1 else list(shown)
         drawn = []
         for frame, cameras in zip(frames, self._view_cameras, strict=True):
             if frame.shape[-1] == 1:
@@ -767,7 +774,7 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
                 continue
             drawn.append(
                 draw_pose_overlay(
-                    frame, self._last_estimate, self.shape, cameras[self._k],
+                    frame, self._last_estimate, self.shape, cameras[k],
                     keypoints=self._estimate_keypoints,
                 )
             )  # fmt: skip

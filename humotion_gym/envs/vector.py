@@ -488,6 +488,7 @@ class PoseTrackingVectorEnv(VectorEnv):
             env = self.envs[i]
             env._last_estimate = estimate[i]
             env._estimate_keypoints = keypoints[i]
+            env._estimated = (env._frame, env._k)
             env._lost_run = lost_run[i]
             if done_l[i]:
                 env._done, env._ended = True, ends[i]
@@ -526,7 +527,7 @@ class PoseTrackingVectorEnv(VectorEnv):
         }
 
     def render(self) -> tuple[NDArray[np.uint8] | None, ...] | None:  # type: ignore[override]
-        """Every episode's ``render()`` (the frame on show with its estimate drawn over it).
+        """Every episode's ``render()`` (its last estimate drawn over the frame it estimates).
 
         As ``SyncVectorEnv``'s: one entry per episode, None before its first reset.
         """

@@ -2,11 +2,11 @@
 
 The reference below is the overlay as ``render()`` drew it before it reused
 anything: the estimate's keypoints recomputed by ``single_pose_geometry``,
-projected by the camera and drawn over a copy of the frame on show. The
-environment's ``render()`` must give the same image bit for bit, and the frame
-under the overlay must be the observation ``reset``/``step`` returned. The frames themselves, prepared from
-each clip's geometry table, must equal those prepared from the episode's own
-kinematics.
+projected by the scored frame's camera and drawn over a copy of that frame
+(the observation the estimate was for, not the next one). The environment's
+``render()`` must give the same image bit for bit. The frames themselves,
+prepared from each clip's geometry table, must equal those prepared from the
+episode's own kinematics.
 """
 
 from __future__ import annotations
@@ -63,11 +63,13 @@ def test_render_equals_the_reference_overlay(env_id, kwargs):
             truth = base.pose_to_action(base.true_pose())
             action = np.clip(truth + rng.normal(0, scale, truth.shape), -1, 1).astype(np.float32)
             estimate = base.action_to_pose(action)
-            obs = env.step(action)[0]["frame"]
+            camera = base.camera  # the scored frame's: the estimate is drawn over that frame
+            next_obs = env.step(action)[0]["frame"]
             image = env.render()
             assert image.dtype == np.uint8 and image.shape == obs.shape[:2] + (3,)
-            reference = _reference_render(obs, estimate, base.shape, base.camera)
+            reference = _reference_render(obs, estimate, base.shape, camera)
             assert np.array_equal(image, reference), (env_id, seed, k)
+            obs = next_obs
 
 
 def test_render_does_not_touch_the_observation():
