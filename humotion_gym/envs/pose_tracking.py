@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -15,18 +16,15 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from humotion_gym.body import (
-    CONE_NAMES,
-    KEYPOINT_INDEX,
-    N_KEYPOINTS,
-    PARAM_INDEX,
     BodyShape,
     forward_kinematics,
 )
-from humotion_gym.camera import Camera, cameras_around, fit_camera
+from humotion_gym.camera import Camera
 from humotion_gym.checks import check_count
 from humotion_gym.envs import description
+from humotion_gym.envs._cameras import EpisodeCameras
 from humotion_gym.envs._checks import action_array, check_env_arguments
-from humotion_gym.envs._episode_choice import EpisodeChoice, clip_geometry
+from humotion_gym.envs._episode_choice import EpisodeChoice
 from humotion_gym.envs.description import TaskDescription
 from humotion_gym.envs.tasks import TaskSpec, get_task
 from humotion_gym.metrics import Scoring, StepScores, step_scores, update_lost_run
@@ -91,19 +89,6 @@ def _check_held_out(library: MotionLibrary, dirs: tuple[str, ...]) -> None:
         ) from None
 
 
-def _sphere(radius: float, n: int = 26) -> FloatArray:
-    """Points on a sphere (the 26 directions of a cube's faces, edges, corners)."""
-    grid = np.stack(np.meshgrid(*[np.array([-1.0, 0.0, 1.0])] * 3, indexing="ij"), -1).reshape(
-        -1, 3
-    )
-    grid = grid[np.any(grid != 0, axis=1)][:n]
-    return radius * grid / np.linalg.norm(grid, axis=1, keepdims=True)
-
-
-# The right arm's cones (upper arm, forearm), whose radii pad an arm close-up.
-_ARM_CONES = [CONE_NAMES.index("r_upper_arm"), CONE_NAMES.index("r_forearm")]
-
-
 # What a reset assigns: restored when a reset fails, so a reset is all-or-nothing.
 _EPISODE_STATE: tuple[str, ...] = (
     "_motion", "_t0", "_root0", "_bounds", "_episode_seed", "_noise", "_backgrounds",
@@ -135,7 +120,7 @@ def _task_with(
     return spec
 
 
-class PoseTrackingEnv(EpisodeChoice, gym.Env):
+class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
     """Track a cone figure's 3D pose from rendered frames: the one environment class.
 
     A :class:`~humotion_gym.envs.tasks.TaskSpec` says which parameters are free,
@@ -383,82 +368,6 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
         assert self._motion is not None, "call reset() first"
         return np.array(self._motion.params[self._frame_index(k)])
 
-    def _place_camera(self) -> None:
-        """Cameras for every frame of the episode, from the first frame only.
-
-        The camera is handed to the agent, so it may depend on the episode up
-        to the frame on show and nothing later (a camera fitted to the whole
-        episode tells where the body will go). A static camera frames the
-        initial pose swept through the task's travel box, oriented by the
-        initial heading; a following camera frames the initial pose about the
-        followed point (or the arm's reach) and moves with that point, which
-        the task gives the agent anyway. With several views the task's camera
-        is view 0, the others turned about the vertical through the point it
-        looks at (:func:`~humotion_gym.camera.cameras_around`), placed from
-        the same first frame and moving with the same followed point.
-        """
-        spec = self.task.camera
-        points, azimuth, pad = self._camera_request()
-        size = (self.scene.width, self.scene.height, spec.fov_deg)
-        camera = fit_camera(points, *size, azimuth, spec.elevation_deg, spec.margin, pad)
-        self._set_cameras(camera, points)
-
-    def _camera_request(self) -> tuple[FloatArray, float, float]:
-        """The episode's tables, then what its camera is fitted to (see :meth:`_place_camera`).
-
-        Sets the episode's poses, geometry and scored keypoints. Returns the
-        points to keep in view ``(M, 3)``, the azimuth and the pad of
-        :func:`~humotion_gym.camera.fit_camera` (the vector environment fits
-        the cameras of the episodes it starts together, then hands each to
-        :meth:`_set_cameras`).
-        """
-        spec = self.task.camera
-        m = self._motion
-        assert m is not None
-        idx = self._t0 + np.arange(self.episode_frames + 1) * self.frame_skip
-        self._episode_params = m.params[idx]
-        # Keypoints and cone axes of every frame of the episode at once: the
-        # renderer's figures are prepared from them in one vectorised pass.
-        self._geometry = self._episode_geometry(m, idx)
-        kp = self._geometry[:, :N_KEYPOINTS]
-        self._truth_keypoints = kp  # scored against in step()
-        first = kp[0]
-        heading = float(m.params[idx[0], PARAM_INDEX["root_yaw"]])
-        # camera.view_direction turns counter-clockwise; the spec's azimuth
-        # turns towards the subject's right, i.e. clockwise.
-        azimuth = float(np.rad2deg(heading) - spec.azimuth_deg)
-        corners = spec.travel_corners(heading)
-        if spec.follow is None:
-            swept = first[None] + corners[:, None]
-            return swept.reshape(-1, 3), azimuth, float(m.shape.radii.max())
-        if spec.follow == "r_shoulder":
-            targets = kp[:, KEYPOINT_INDEX["r_shoulder"]]
-        else:  # "pelvis_xy"
-            targets = kp[:, KEYPOINT_INDEX["pelvis"]] * np.array([1.0, 1.0, 0.0])
-        self._camera_targets = targets
-        if spec.frame_arm:
-            # the sphere the arm can reach, so any pose of it stays in view
-            reach = m.shape.upper_arm_length + m.shape.forearm_length
-            return _sphere(reach), azimuth, float(m.shape.radii[_ARM_CONES].max())
-        local = (first - targets[0])[None] + corners[:, None]
-        return local.reshape(-1, 3), azimuth, float(m.shape.radii.max())
-
-    def _set_cameras(self, camera: Camera, points: FloatArray) -> None:
-        """Every view's camera of every frame from the fitted one and the points it frames.
-
-        The views stand around the centre of the points' bounding box (what
-        :func:`~humotion_gym.camera.fit_camera` looks at); each camera is
-        itself on every frame, or moved with the followed point.
-        """
-        ring = [camera]
-        if self.views > 1:
-            centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
-            ring = cameras_around(camera, centre, self.views)
-        if self.task.camera.follow is None:
-            self._view_cameras = [[view] * len(self._episode_params) for view in ring]
-        else:
-            self._view_cameras = [view.shifted(self._camera_targets) for view in ring]
-
     # View 0's tables: the task's own camera, figures, background and noise.
     @property
     def _cameras(self) -> list[Camera]:
@@ -484,24 +393,16 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
     def _noise_rng(self) -> np.random.Generator:
         return self._noise_rngs[0]
 
-    def _episode_geometry(self, motion: Motion, idx: NDArray[np.intp]) -> FloatArray:
-        """``(len(idx), 35, 3)`` keypoints and cone axes of the clip's frames ``idx``.
-
-        Read from the clip's table
-        (:func:`~humotion_gym.envs._episode_choice.clip_geometry`), which gives
-        the same numbers as computing the episode's frames alone (the
-        kinematics is elementwise over frames; ``tests/envs/test_render_reuse.py``).
-        """
-        return clip_geometry(motion)[idx]
-
     @property
     def camera(self) -> Camera:
         """The camera of the frame on show."""
-        return self._cameras[self._k]
+        return self.cameras[0]
 
     @property
     def cameras(self) -> tuple[Camera, ...]:
         """Every view's camera of the frame on show, view 0 (:attr:`camera`) first."""
+        if self._motion is None:
+            raise RuntimeError("no frame on show: call reset() first")
         return tuple(view[self._k] for view in self._view_cameras)
 
     @property
@@ -564,11 +465,16 @@ class PoseTrackingEnv(EpisodeChoice, gym.Env):
                 all or nothing.
         """
         options = self._check_options(options)
-        # All or nothing: a reset that fails leaves the previous episode as it was.
+        with self._all_or_nothing():
+            return self._reset(seed, options)
+
+    @contextlib.contextmanager
+    def _all_or_nothing(self) -> Iterator[None]:
+        """If the block raises, the episode and the generator are put back as they were."""
         saved = {name: getattr(self, name) for name in _EPISODE_STATE if hasattr(self, name)}
         rng_state = self._np_random.bit_generator.state if self._np_random is not None else None
         try:
-            return self._reset(seed, options)
+            yield
         except BaseException:
             for name in _EPISODE_STATE:
                 if name in saved:

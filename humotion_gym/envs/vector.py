@@ -34,6 +34,7 @@ environment only (their figures are prepared by it).
 
 from __future__ import annotations
 
+import contextlib
 import copy
 from typing import Any
 
@@ -180,17 +181,20 @@ class PoseTrackingVectorEnv(VectorEnv):
 
         Each episode's reset runs as in the single environment, except that
         the figures of all of them are prepared in one pass
-        (:func:`~humotion_gym.render.figure_sequences`). A reset refused for
-        its options leaves the episodes before it started.
+        (:func:`~humotion_gym.render.figure_sequences`). All or nothing: a
+        reset refused for one episode's seed or options leaves every episode
+        as it was (the batch's tables are written only once all have started).
 
         Returns:
             The reset info of each row.
         """
         envs = [self.envs[i] for i in rows]
-        for env, seed in zip(envs, seeds, strict=True):
-            env._begin_episode(seed, env._check_options(options), cameras=False)
-        self._place_cameras(envs)
-        figures = self._figures(envs, 0, self._first_figures)
+        with contextlib.ExitStack() as restore:
+            for env, seed in zip(envs, seeds, strict=True):
+                restore.enter_context(env._all_or_nothing())
+                env._begin_episode(seed, env._check_options(options), cameras=False)
+            self._place_cameras(envs)
+            figures = self._figures(envs, 0, self._first_figures)
         infos = {}
         h, w, _ = self._scene.frame_shape
         noisy, n_shown = self._scene.noise_sigma > 0, self._windows.shape[1] - 1

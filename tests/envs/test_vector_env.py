@@ -331,3 +331,34 @@ def test_infos_batched_key_by_key_are_infos_added_one_by_one(items):
         for i, item in zip([3, 1], items, strict=True):
             _add_info(want, item, i, 4)
         _assert_same(got, want)
+
+
+@pytest.mark.parametrize(
+    ("seed", "options"),
+    [
+        ([3, -1], None),  # the second episode's seed is refused after the first started
+        (None, {"start": 10_000}),  # every episode refuses its start
+    ],
+)
+def test_a_refused_reset_leaves_every_episode_as_it_was(seed, options):
+    def make():
+        return gym.make_vec(
+            "humotion_gym/BodyTrack-v2", num_envs=2, vectorization_mode="vector_entry_point",
+            terminate_on_lost=False, render_mode="rgb_array",
+        )  # fmt: skip
+
+    vec, twin = make(), make()
+    action = np.zeros(vec.action_space.shape, np.float32)
+    for env in (vec, twin):
+        env.reset(seed=5)
+        env.step(action)
+    with pytest.raises((ValueError, gym.error.Error)):  # Gymnasium's error for a seed
+        vec.reset(seed=seed, options=options)
+    for a, b in zip(vec.unwrapped.envs, twin.unwrapped.envs, strict=True):
+        assert a._motion is b._motion and a._t0 == b._t0 and a._frame_index() == b._frame_index()
+        assert np.array_equal(a.true_pose(), b.true_pose())
+    for _ in range(3):  # the batch goes on with the same episodes, in their own generators
+        _assert_same(vec.step(action), twin.step(action))
+    _assert_same(vec.render(), twin.render())
+    # and a later reset draws what it would have drawn without the refused one
+    _assert_same(vec.reset(), twin.reset())
