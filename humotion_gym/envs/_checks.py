@@ -22,32 +22,36 @@ def check_env_arguments(
     naturals: dict[str, Any],
     flags: dict[str, Any],
     fps: Any,
+    optional: tuple[str, ...] = (),
 ) -> None:
     """An environment's numeric and boolean arguments, each refused in its own name.
 
-    ``counts`` are integers >= 1, ``naturals`` integers >= 0; ``None`` in any
-    but ``positive`` means the task's default and passes. ``fps`` must lie in :data:`FPS_RANGE`.
+    ``counts`` are integers >= 1, ``naturals`` integers >= 0; ``None`` passes
+    for the names in ``optional`` only (it means the task's default there; an
+    argument with a value for its default, ``frame_skip=1`` say, is refused
+    None rather than read as False or 0). ``fps`` must lie in :data:`FPS_RANGE`.
 
     Raises:
         ValueError: Naming the first argument that is not what it should be.
     """
-    for name, value in counts.items():
-        if value is not None:
-            check_count(name, value)
-    for name, value in positive.items():
-        check_positive(name, value)
-    for name, value in at_least_zero.items():
-        if value is not None:
-            check_at_least_zero(name, value)
-    for name, value in naturals.items():
-        if value is not None:
-            check_count(name, value, least=0)
-    for name, value in flags.items():
-        if value is not None:
-            check_bool(name, value)
+    groups = (
+        (counts, check_count), (positive, check_positive),
+        (at_least_zero, check_at_least_zero), (naturals, _check_natural), (flags, check_bool),
+    )  # fmt: skip
+    for values, check in groups:
+        for name, value in values.items():
+            if value is None and name in optional:
+                continue
+            if value is None:
+                raise ValueError(f"{name}: expected a value, got None (leave it out: the default)")
+            check(name, value)
     check_positive("fps", fps)
     if not FPS_RANGE[0] <= fps <= FPS_RANGE[1]:
         raise ValueError(f"fps: expected {FPS_RANGE[0]:g} to {FPS_RANGE[1]:g} Hz, got {fps!r}")
+
+
+def _check_natural(name: str, value: Any) -> None:
+    check_count(name, value, least=0)
 
 
 def action_array(action: Any, what: str, shape: tuple[int, ...]) -> NDArray[Any]:

@@ -66,7 +66,7 @@ COMMON_SECTIONS = """
     |---|---|---|
     | ``render_mode`` | None | ``"rgb_array"``: ``render()`` returns the last estimate drawn as a wire figure over the frame it estimates |
     | ``data_dir`` | None | folders of real mocap (else ``$HUMOTION_MOCAP``, else the built-in synthetic set) |
-    | ``library`` | None | a ready :class:`~humotion_gym.mocap.library.MotionLibrary` instead of ``data_dir`` (e.g. a validation fold) |
+    | ``library`` | None | a ready :class:`~humotion_gym.mocap.library.MotionLibrary` instead of ``data_dir`` (e.g. a validation fold; not both), at its own frame rate |
     | ``split`` | ``"train"`` | ``"train"``: the training persons less the validation persons (a reset option naming another person's clip, file or motion is refused, by name and skeleton); ``"validation"``: CMU subjects 1, 5 and 7 (synthetic 3 and 4), where settings are chosen; ``"test"``: the held-out persons (CMU subjects 2 and 3), for the leaderboard |
     | ``width``, ``height`` | 128, 128 | frame size (64x64 to 640x480) |
     | ``color`` | ``"rgb"`` | or ``"gray"`` (one channel) |
@@ -78,8 +78,8 @@ COMMON_SECTIONS = """
     | ``floor`` | False | a ground grid at z = 0, drawn from each frame's camera (a ground-contact depth cue) |
     | ``camera_elevation_deg`` | task's | the camera's height above the horizontal, degrees (BodyTrack and WalkTrack 40, ArmTrack 5, SideWalk 0) |
     | ``views`` | task's (1) | cameras around the subject placed from the first frame: the task's camera and ``views - 1`` more at equal azimuth steps, same distance and elevation; ``frame`` is then ``(views, H, W, C)`` and ``camera`` ``(views, 13)`` (``docs/views.md``) |
-    | ``fps`` | 30 | the library's rate; ``frame_skip`` shows every k-th frame |
-    | ``episode_frames`` | task's | scored frames per episode |
+    | ``fps`` | 30 | the rate clips are resampled to (a given ``library``'s own: another is refused); ``frame_skip`` shows every k-th frame |
+    | ``episode_frames`` | task's | scored frames per episode; more than the task's needs ``max_episode_steps`` as many too (``gym.make``'s ``TimeLimit`` stops at the task's length) |
     | ``terminate_on_lost`` | True | end the episode when track is lost |
     | ``lost_threshold_mm``, ``lost_patience`` | 150, 5 | the lost-track test |
     | ``reward_scale_mm`` | 100 | the reward's length scale |

@@ -77,6 +77,8 @@ class ArmTrackEnv(PoseTrackingEnv):
     construction; v2 keeps every start.
     """
 
+    family = "ArmTrack"
+
     def __init__(self, task: str = "ArmTrack-v2", **kwargs: Any) -> None:
         super().__init__(task=task, **kwargs)
 

@@ -55,6 +55,8 @@ class BodyTrackEnv(PoseTrackingEnv):
     ``file`` or ``start``.
     """
 
+    family = "BodyTrack"
+
     def __init__(self, task: str = "BodyTrack-v2", **kwargs: Any) -> None:
         super().__init__(task=task, **kwargs)
 

@@ -20,7 +20,7 @@ from humotion_gym.body import (
     forward_kinematics,
 )
 from humotion_gym.camera import Camera
-from humotion_gym.checks import check_count
+from humotion_gym.checks import check_count, is_real
 from humotion_gym.envs import description
 from humotion_gym.envs._cameras import EpisodeCameras
 from humotion_gym.envs._checks import action_array, check_env_arguments
@@ -102,13 +102,40 @@ _EPISODE_STATE: tuple[str, ...] = (
 )  # fmt: skip
 
 
+def _library_fps(library: MotionLibrary | None, data_dir: Any, fps: float | None) -> float:
+    """The episodes' frame rate: ``fps`` (30 Hz by default), or a given library's own.
+
+    Raises:
+        ValueError: If ``library`` is not a library, comes with ``data_dir``
+            (which would be ignored), or holds clips at another rate than ``fps``.
+    """
+    if library is None:
+        return 30.0 if fps is None else float(fps)
+    if not isinstance(library, MotionLibrary):
+        raise ValueError(f"library: expected a MotionLibrary, got {type(library).__name__}")
+    if data_dir is not None:
+        raise ValueError("give library or data_dir, not both (the library is the clips used)")
+    rates = sorted({float(m.fps) for m in library})
+    if len(rates) > 1:
+        raise ValueError(f"library: its clips must share one frame rate, got {rates} Hz")
+    own = rates[0] if rates else 30.0
+    if fps is not None and float(fps) != own:
+        raise ValueError(
+            f"fps={fps!r}, but the library's clips are at {own:g} Hz (load it with "
+            f"load_library(..., fps={fps!r}), or leave fps out)"
+        )
+    return own
+
+
 def _task_with(
     task: str | TaskSpec, camera_elevation_deg: float | None, views: int | None
 ) -> TaskSpec:
     """The task by name or spec, with the camera's elevation and the views overridden if given."""
+    if not isinstance(task, str | TaskSpec):
+        raise ValueError(f"task: expected a task name or TaskSpec, got {task!r}")
     spec = get_task(task) if isinstance(task, str) else task
     if camera_elevation_deg is not None:
-        if not -89.0 <= float(camera_elevation_deg) <= 89.0:
+        if not (is_real(camera_elevation_deg) and -89.0 <= camera_elevation_deg <= 89.0):
             raise ValueError(
                 f"camera_elevation_deg: expected degrees in [-89, 89], got {camera_elevation_deg!r}"
             )
@@ -141,6 +168,8 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
+    #: The task family a registered class tracks (None: any task).
+    family: str | None = None
 
     def __init__(
         self,
@@ -160,7 +189,7 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         floor: bool | None = None,
         camera_elevation_deg: float | None = None,
         views: int | None = None,
-        fps: float = 30.0,
+        fps: float | None = None,
         frame_skip: int = 1,
         episode_frames: int | None = None,
         terminate_on_lost: bool = True,
@@ -169,6 +198,11 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         reward_scale_mm: float = 100.0,
     ) -> None:
         self.task = _task_with(task, camera_elevation_deg, views)
+        if self.family is not None and self.task.family != self.family:
+            raise ValueError(
+                f"task: {type(self).__name__} tracks {self.family} tasks, got "
+                f"{self.task.name} (make humotion_gym/{self.task.name} instead)"
+            )
         #: Cameras that see each frame (``task.views``; 1: monocular).
         self.views = self.task.views
         self.dict_observation = self.task.version >= 2
@@ -192,10 +226,10 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
             at_least_zero={"noise": noise, "blur": blur},
             naturals={"occluders": occluders},
             flags={"terminate_on_lost": terminate_on_lost, "floor": floor},
-            fps=fps,
+            fps=30.0 if fps is None else fps,
+            optional=("episode_frames", "noise", "blur", "occluders", "floor"),
         )  # fmt: skip
-        if library is not None and not isinstance(library, MotionLibrary):
-            raise ValueError(f"library: expected a MotionLibrary, got {type(library).__name__}")
+        fps = _library_fps(library, data_dir, fps)
         self.render_mode = render_mode
         given: dict[str, Any] = {"noise_sigma": noise, "blur_sigma": blur, "occluders": occluders}
         given |= {"palette": palette, "floor": None if floor is None else bool(floor)}
@@ -213,7 +247,7 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
 
         if library is None:
             dirs = tuple(str(p) for p in configured_data_dirs(data_dir))
-            library = _cached_library(dirs, float(fps))
+            library = _cached_library(dirs, fps)
         if split not in EPISODE_SPLITS:
             raise ValueError(f"split: expected one of {list(EPISODE_SPLITS)}, got {split!r}")
         self.split = split

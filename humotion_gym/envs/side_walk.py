@@ -58,6 +58,8 @@ class SideWalkEnv(PoseTrackingEnv):
     all observed.
     """
 
+    family = "SideWalk"
+
     def __init__(self, task: str = "SideWalk-v2", **kwargs: Any) -> None:
         super().__init__(task=task, **kwargs)
 

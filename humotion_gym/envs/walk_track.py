@@ -51,6 +51,8 @@ class WalkTrackEnv(PoseTrackingEnv):
     frames, and a start frame whose episode frames were all observed.
     """
 
+    family = "WalkTrack"
+
     def __init__(self, task: str = "WalkTrack-v2", **kwargs: Any) -> None:
         super().__init__(task=task, **kwargs)
 

@@ -173,6 +173,13 @@ def test_integer_actions_are_accepted(env):
         {"data_dir": 123},
         {"data_dir": [1, 2]},
         {"library": "x"},
+        # None where the default is a value: it was read as False (never lost) or failed in int()
+        {"terminate_on_lost": None},
+        {"frame_skip": None},
+        {"lost_patience": None},
+        {"camera_elevation_deg": "40"},
+        {"camera_elevation_deg": True},
+        {"task": 3},
     ],
 )
 def test_constructor_arguments_are_range_checked(kwargs):
@@ -193,6 +200,28 @@ def test_constructor_arguments_are_range_checked(kwargs):
 )
 def test_the_checks_take_what_the_arguments_take(kwargs):
     gym.make("humotion_gym/ArmTrack-v2", **kwargs).close()
+
+
+def test_a_registered_id_refuses_another_familys_task():
+    with pytest.raises(ValueError, match="^task: BodyTrackEnv tracks BodyTrack tasks, got Wal"):
+        gym.make("humotion_gym/BodyTrack-v2", task="WalkTrack-v2")
+    views = gym.make("humotion_gym/BodyTrack2Views-v2").unwrapped  # its own family's variant
+    assert views.task.family == "BodyTrack" and views.views == 2
+
+
+def test_a_given_library_sets_the_frame_rate_and_is_the_only_data():
+    from humotion_gym.mocap.library import synthetic_library
+
+    library = synthetic_library(fps=60)
+    env = gym.make("humotion_gym/ArmTrack-v2", library=library).unwrapped
+    assert env.metadata["render_fps"] == 60.0 and env.describe().fps == 60.0
+    env = gym.make("humotion_gym/ArmTrack-v2", library=library, frame_skip=2).unwrapped
+    assert env.metadata["render_fps"] == 30.0
+    gym.make("humotion_gym/ArmTrack-v2", library=library, fps=60)  # its own rate, said again
+    with pytest.raises(ValueError, match=r"^fps=30, but the library's clips are at 60 Hz"):
+        gym.make("humotion_gym/ArmTrack-v2", library=library, fps=30)
+    with pytest.raises(ValueError, match="^give library or data_dir, not both"):
+        gym.make("humotion_gym/ArmTrack-v2", library=library, data_dir="/nonexistent")
 
 
 def test_version_1_draws_the_held_out_persons_by_default_as_it_did():
