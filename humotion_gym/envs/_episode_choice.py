@@ -8,8 +8,10 @@ draws the clip and start frame.
 
 from __future__ import annotations
 
+import os
 import weakref
 from collections import OrderedDict
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -84,11 +86,15 @@ class EpisodeChoice:
         chosen = [k for k in ("clip_id", "file", "motion") if k in options]
         if len(chosen) > 1:
             raise ValueError(f"reset: give at most one of clip_id, file, motion; got {chosen}")
-        if "motion" in options and not isinstance(options["motion"], Motion):
-            raise ValueError(
-                "reset: options['motion'] must be a humotion_gym Motion, got "
-                f"{type(options['motion']).__name__}"
-            )
+        if "motion" in options:
+            self._check_motion_option(options["motion"])
+        if "file" in options:
+            file = options["file"]
+            if not isinstance(file, str | os.PathLike) or not Path(file).is_file():
+                raise ValueError(
+                    "reset: options['file'] must be the path of one .bvh or .amc file, "
+                    f"got {file!r}"
+                )
         if "clip_id" in options:
             clip_id = options["clip_id"]
             if not isinstance(clip_id, str) or clip_id not in self.library.clip_ids:
@@ -103,15 +109,28 @@ class EpisodeChoice:
                 raise ValueError(f"reset: options['start'] must be an integer frame, got {start!r}")
         return dict(options)
 
+    def _check_motion_option(self, motion: Any) -> None:
+        """Refuse a ``motion`` option that is no :class:`Motion` or runs at another rate."""
+        if not isinstance(motion, Motion):
+            raise ValueError(
+                "reset: options['motion'] must be a humotion_gym Motion, got "
+                f"{type(motion).__name__}"
+            )
+        fps = float(self.library[0].fps) if len(self.library) else motion.fps
+        if float(motion.fps) != fps:
+            raise ValueError(
+                f"reset: options['motion'] {motion.clip_id!r} is at {motion.fps:g} Hz, the "
+                f"environment's clips at {fps:g} Hz (load it with fps={fps:g})"
+            )
+
     def _pick_clip(self, options: dict[str, Any]) -> Motion:
         if "motion" in options:
             return self._check_person(options["motion"], "motion")
         if "clip_id" in options:
             return self._check_person(self.library[options["clip_id"]], "clip_id")
         if "file" in options:
+            # one motion file (checked in _check_options) is one clip
             lib = load_library([options["file"]], fps=self.library[0].fps, progress=False)
-            if len(lib) == 0:
-                raise ValueError(f"reset: options['file'] {options['file']!r} holds no clip")
             return self._check_person(lib[0], "file")
         return self.clips[int(self.np_random.integers(len(self.clips)))]
 
@@ -142,8 +161,12 @@ class EpisodeChoice:
         raise ValueError(
             f"reset: options[{option!r}] {motion.clip_id!r} shows {person}, a held-out person; "
             f"a split={self.split!r} environment never shows the persons {sorted(unseen)} "
-            "(make it with split='test' to evaluate)"
+            f"(make it with split={self._split_showing(motion.subject)!r})"
         )
+
+    def _split_showing(self, person: str) -> str:
+        """The split whose environments show ``person``'s clips: validation or test."""
+        return "test" if person in self.library.held_out else "validation"
 
     def _unseen_signatures(self) -> list[tuple[str, FloatArray]]:
         """A skeleton signature of each person of the library this split must not show."""
@@ -167,7 +190,16 @@ class EpisodeChoice:
         if "start" in options:
             start = int(options["start"])
             if not 0 <= start < motion.n_frames - span:
-                raise ValueError(f"options['start'] must be in [0, {motion.n_frames - span})")
+                drawn = (
+                    ""
+                    if options.keys() & {"clip_id", "file", "motion"}
+                    else ("; without clip_id the clip is drawn at random, so give it too")
+                )
+                raise ValueError(
+                    f"reset: options['start'] must be in [0, {motion.n_frames - span}) for "
+                    f"{motion.clip_id} ({motion.n_frames} frames, an episode spans {span + 1})"
+                    f"{drawn}"
+                )
             return start
         good = self._good_starts(motion)
         if good.size == 0:

@@ -110,9 +110,32 @@ def test_the_valid_options_are_listed():
     assert RESET_OPTIONS == ("clip_id", "file", "motion", "start")
 
 
-def test_an_empty_folder_is_refused(env, tmp_path):
-    with pytest.raises(ValueError, match="holds no clip"):
-        env.reset(seed=0, options={"file": str(tmp_path)})
+@pytest.mark.parametrize("clips", [0, 2])
+def test_a_folder_or_a_number_is_not_a_file(env, tmp_path, clips):
+    from humotion_gym.mocap.export import write_motion_bvh
+    from humotion_gym.mocap.library import synthetic_library
+
+    for k, motion in enumerate(list(synthetic_library())[:clips]):  # a folder used its first
+        write_motion_bvh(tmp_path / f"c{k}.bvh", motion.params[:40], motion.shape, motion.fps)
+    for file in (str(tmp_path), tmp_path, 123, str(tmp_path / "missing.bvh")):
+        with pytest.raises(ValueError, match=r"^reset: options\['file'\] must be the path of one"):
+            env.reset(seed=0, options={"file": file})
+
+
+def test_a_motion_at_another_rate_is_refused(env):
+    from humotion_gym.mocap.library import synthetic_library
+
+    motion = synthetic_library(fps=60)["synthetic/reach-01"]
+    with pytest.raises(ValueError, match="is at 60 Hz, the environment's clips at 30 Hz"):
+        env.reset(seed=0, options={"motion": motion})
+
+
+def test_a_start_out_of_range_names_the_clip_and_says_to_choose_it(env):
+    with pytest.raises(ValueError, match=r"\) for synthetic/.*; without clip_id the clip is drawn"):
+        env.reset(seed=0, options={"start": 10_000})
+    clip = env.unwrapped.clips[0].clip_id
+    with pytest.raises(ValueError, match=rf"\) for {clip} \(\d+ frames, an episode spans \d+\)$"):
+        env.reset(seed=0, options={"clip_id": clip, "start": 10_000})
 
 
 @pytest.mark.parametrize(
