@@ -107,9 +107,15 @@ class ResultsFolder:
                 shown = "; ".join(
                     f"{k}: saved {saved.get(k)!r}, now {settings[k]!r}" for k in differ
                 )
+                where = (
+                    f" (on the saved commit: git checkout {str(saved['commit']).split('-')[0]})"
+                    if "commit" in differ and saved.get("commit")
+                    else ""
+                )
                 raise ResumeError(
                     f"{self.folder}: the saved run has other settings, so its episodes would "
-                    f"not match ({shown}); resume with the same settings or use another folder"
+                    f"not match ({shown}); resume with the same settings{where} or use another "
+                    "folder"
                 )
             self._check_policies(saved, policies or {})
             return {episode_key(r): r for r in self.read() if "result" in r}

@@ -27,7 +27,6 @@ ends with ``results.json``, ``table.md`` and the report
 from __future__ import annotations
 
 import hashlib
-import os
 import shlex
 import sys
 from collections.abc import Sequence
@@ -52,12 +51,13 @@ from baselines.leaderboard.results import (
     SCHEMA_VERSION,
     ResultsFolder,
     ResumeError,
+    source_commit,
     write_results,
 )
 from baselines.leaderboard.stats import agent_label
 from baselines.leaderboard.tables import FLOOR
 from humotion_gym.checks import is_count
-from humotion_gym.mocap.library import package_version
+from humotion_gym.mocap.library import configured_data_dirs, package_version
 
 
 def grid_cells(
@@ -156,7 +156,9 @@ def run_leaderboard(
     windows = _windows(tasks, kwargs, seed, episodes, declared)
     agent_seed_list = list(range(seed, seed + agent_seeds))
     folder, policies = (ResultsFolder(out) if out is not None else None), policy_hashes(agents)
-    done = _saved(folder, _settings(seed, kwargs), resume, seed, agent_seed_list, policies)
+    done = _saved(
+        folder, _settings(seed, kwargs, declared), resume, seed, agent_seed_list, policies
+    )
     left = _left(cells, windows, agent_seed_list, done)
     runner = make_engine(engine, seed, kwargs, workers, address, tasks) if left else None
     problems, failures = _run_left(runner, cells, left, done, folder, seed, kwargs, progress)
@@ -366,17 +368,25 @@ def _run_episodes(
         bar.close()
 
 
-def _settings(seed: int, env_kwargs: dict[str, Any]) -> dict[str, Any]:
-    """What decides an episode's numbers besides its cell and seed (checked on resume)."""
-    settings = {
+def _settings(seed: int, env_kwargs: dict[str, Any], declared: bool) -> dict[str, Any]:
+    """What decides an episode's numbers besides its cell and seed (checked on resume).
+
+    The data are the absolute folders whichever way they were named
+    (``data_dir`` or ``$HUMOTION_MOCAP``; None: the synthetic set); the code is
+    the package version and the checkout's commit (a run resumed after a pull
+    would mix two versions of the code in one row); ``declared`` says which
+    episodes a seed stands for (a declared window or a drawn one).
+    """
+    data = configured_data_dirs(env_kwargs.get("data_dir"))
+    return {
         "schema_version": SCHEMA_VERSION,
         "seed": seed,
-        "env_kwargs": env_kwargs,
+        "env_kwargs": {k: v for k, v in env_kwargs.items() if k != "data_dir"},
+        "data": [str(d.resolve()) for d in data] or None,
+        "declared": declared,
         "package_version": package_version(),
+        "commit": source_commit(),
     }
-    if "data_dir" not in env_kwargs:  # the clips come from $HUMOTION_MOCAP, else synthetic
-        settings["HUMOTION_MOCAP"] = os.environ.get("HUMOTION_MOCAP") or None
-    return settings
 
 
 def _rows(

@@ -133,6 +133,18 @@ def test_a_results_folder_is_not_overwritten_nor_resumed_with_other_settings(tmp
             ["BodyTrack-v2"], ["hold"], [1], episodes=1, seed=1, progress=False, out=out,
             resume=True,
         )  # fmt: skip
+    # drawn episodes and declared windows share their seeds: never one table
+    with pytest.raises(ResumeError, match="declared: saved False, now True"):
+        run_leaderboard(
+            ["BodyTrack-v2"], ["hold"], [1], episodes=1, progress=False, out=out, resume=True,
+            declared=True,
+        )  # fmt: skip
+    # nor two versions of the code
+    saved = json.loads((out / "run.json").read_text())
+    (out / "run.json").write_text(json.dumps({**saved, "commit": "0123abc-dirty"}))
+    with pytest.raises(ResumeError, match=r"commit: saved '0123abc-dirty'.*git checkout 0123abc\)"):
+        run_leaderboard(["BodyTrack-v2"], ["hold"], [1], episodes=1, progress=False, out=out,
+                        resume=True)  # fmt: skip
     with pytest.raises(FileNotFoundError, match="no run to resume"):
         ResultsFolder(tmp_path / "empty").start({"seed": 0}, resume=True)
     # damaged settings name their file; episodes without their settings cannot be resumed
@@ -143,6 +155,18 @@ def test_a_results_folder_is_not_overwritten_nor_resumed_with_other_settings(tmp
     folder.run_path.unlink()
     with pytest.raises(FileNotFoundError, match="missing, so the episodes"):
         folder.start({"seed": 0}, resume=True)
+
+
+def test_the_data_resume_the_same_named_either_way(tmp_path, monkeypatch, shared_mocap):
+    out = tmp_path / "lb"
+    arm = ["ArmTrack-v2"]
+    run_leaderboard(arm, ["hold"], [1], episodes=1, progress=False, out=out,
+                    env_kwargs={"data_dir": str(shared_mocap)})  # fmt: skip
+    monkeypatch.setenv("HUMOTION_MOCAP", str(shared_mocap))
+    run_leaderboard(arm, ["hold"], [1], episodes=2, progress=False, out=out, resume=True)
+    monkeypatch.delenv("HUMOTION_MOCAP")
+    with pytest.raises(ResumeError, match="data: saved"):  # the synthetic set is other data
+        run_leaderboard(arm, ["hold"], [1], episodes=2, progress=False, out=out, resume=True)
 
 
 def _cli(tmp_path: Path, *agents: str) -> list[str]:
