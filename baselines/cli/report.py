@@ -2,8 +2,8 @@
 
 ::
 
-    humotion-gym leaderboard --tasks ArmTrack-v2 --out runs/lb.json
-    humotion-gym report runs/lb.json --out runs/lb-report --videos
+    humotion-gym leaderboard --tasks ArmTrack-v2 --out runs/lb
+    humotion-gym report runs/lb --out runs/lb-report --videos
 
 Writes ``index.html`` (sortable tables, figures, videos), ``tables.md`` (the
 Markdown tables the README pastes) and ``stats.json`` (every statistic).
@@ -19,7 +19,7 @@ from humotion_gym.cli._common import (
     UsageError,
     add_command,
     add_data_dir,
-    add_seed,
+    nonnegative_int,
     output_dir,
     wrote,
 )
@@ -33,7 +33,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     rp.add_argument(
         "results", type=Path,
-        help="leaderboard JSON: the rows list of leaderboard --out, or an object with 'rows'",
+        help="a leaderboard's results: its --out folder, or the results.json (.gz) in it",
     )  # fmt: skip
     rp.add_argument(
         "--out", type=output_dir, required=True, help="the report folder (created if needed)"
@@ -48,7 +48,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="with --videos: only these agents get videos (default: every agent)",
     )  # fmt: skip
     add_data_dir(rp)
-    add_seed(rp, "seed of the bootstrap resampling")
+    rp.add_argument(
+        "--seed", type=nonnegative_int, default=None,
+        help="seed of the bootstrap resampling (default: the run's, so that the report "
+        "rebuilds the one the run wrote)",
+    )  # fmt: skip
     rp.add_argument(
         "--title", default="humotion_gym leaderboard",
         help="the page's title (default: humotion_gym leaderboard)",
@@ -63,6 +67,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
     if args.video_agents and not args.videos:
         raise UsageError("--video-agents: only with --videos")
+    if args.results.is_dir():
+        args.results = args.results / "results.json"
     if not args.results.is_file():
         raise FileNotFoundError(f"{args.results}: no such leaderboard file")
     try:
@@ -82,7 +88,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
     agents = set(args.video_agents or [])
     try:
         index = write_report(
-            rows, args.out, videos=args.videos, env_kwargs=env_kwargs, seed=args.seed,
+            rows, args.out, videos=args.videos, env_kwargs=env_kwargs,
+            seed=int(settings.get("seed") or 0) if args.seed is None else args.seed,
             video_cells=(lambda r: r["agent"] in agents) if agents else None, title=args.title,
             run=settings,
         )  # fmt: skip

@@ -284,6 +284,11 @@ def markdown_report(rows: Sequence[dict[str, Any]], computed: dict[str, Any]) ->
     return "\n".join(parts)
 
 
+def by_clip(row: dict[str, Any]) -> bool:
+    """Whether a row's intervals resample clips (its episodes are a declared list)."""
+    return (row.get("summary") or {}).get("intervals") == "clip"
+
+
 def compute(rows: Sequence[dict[str, Any]], seed: int = 0) -> dict[str, Any]:
     """Every statistic of the report (``stats.json``): cells, aggregate, pairwise, persons.
 
@@ -295,7 +300,8 @@ def compute(rows: Sequence[dict[str, Any]], seed: int = 0) -> dict[str, Any]:
         if ran(r):
             cells.append(
                 {"task": r["task"], "agent": r["agent"], "particles": r["particles"],
-                 "summary": summarize(r["episodes"], seed=seed)}
+                 # the row's own kind of interval (a declared list resamples clips)
+                 "summary": summarize(r["episodes"], seed=seed, by_clip=by_clip(r))}
             )  # fmt: skip
     out = {
         "reference": REFERENCE,

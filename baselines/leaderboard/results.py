@@ -30,6 +30,8 @@ from humotion_gym.mocap.library import package_version
 #: The version of ``results.json``'s layout (docs/leaderboard.md describes it);
 #: raised whenever a key is renamed, removed or changes meaning.
 SCHEMA_VERSION = 1
+#: The report's own files (:func:`baselines.leaderboard.report.write_report`).
+REPORT_FILES: tuple[str, ...] = ("index.html", "tables.md", "stats.json")
 #: The files of a results folder.
 EPISODES_FILE = "episodes.jsonl"
 RUN_FILE = "run.json"
@@ -232,6 +234,13 @@ def write_results(
     table = markdown_table(rows) + "\n\n" + "\n".join(validity_lines(rows)) + "\n"
     _write_text(out / TABLE_FILE, table)
     if not report:
+        stale = [name for name in REPORT_FILES if (out / name).exists()]
+        if stale:  # a resumed run's earlier report shows the episodes before it
+            print(
+                f"{out}: {', '.join(stale)} show the results before this run; rebuild them "
+                f"with: humotion-gym report {out} --out {out}",
+                file=sys.stderr,
+            )
         return
     if not any("summary" in r for r in rows):
         print(f"{out}: no figures or index.html (no cell ran)", file=sys.stderr)

@@ -644,3 +644,35 @@ def test_a_declared_run_with_agent_seeds_replays_its_own_episodes(shared_mocap):
     seeded = {**pf, "episodes": [{**e, "agent_seed": 7} for e in episodes[::2]]}
     with pytest.raises(ReplayMismatch):  # another agent seed: another filter
         replay_episodes(seeded, [0], settings, declared=True)
+
+
+def test_a_rebuilt_report_is_the_one_the_run_wrote(tmp_path):
+    """``report FOLDER`` takes the run's seed and each row's kind of interval."""
+    from baselines.leaderboard import run_leaderboard
+
+    out = tmp_path / "lb"
+    settings = {"episode_frames": 6, "width": 64, "height": 64}
+    run_leaderboard(["ArmTrack-v2"], ["hold"], [1], seed=3, env_kwargs=settings, declared=True,
+                    progress=False, out=out)  # fmt: skip
+    assert main(["report", str(out), "--out", str(tmp_path / "again")]) == 0
+    for name in ("tables.md", "stats.json"):
+        assert (tmp_path / "again" / name).read_text() == (out / name).read_text(), name
+    recorded = json.loads((out / "results.json").read_text())["rows"][0]["summary"]
+    cell = json.loads((out / "stats.json").read_text())["cells"][0]["summary"]
+    assert recorded["intervals"] == cell["intervals"] == "clip"
+    assert recorded["mean_error_ci"] == cell["mean_error_ci"]
+
+
+def test_a_run_without_its_report_says_the_old_one_is_stale(tmp_path, capsys):
+    from baselines.leaderboard import run_leaderboard
+
+    out = tmp_path / "lb"
+    settings = {"episode_frames": 4, "width": 64, "height": 64}
+    run_leaderboard(["ArmTrack-v2"], ["hold"], [1], 2, env_kwargs=settings, progress=False,
+                    out=out)  # fmt: skip
+    capsys.readouterr()
+    run_leaderboard(["ArmTrack-v2"], ["hold"], [1], 3, env_kwargs=settings, progress=False,
+                    out=out, resume=True, report=False)  # fmt: skip
+    err = capsys.readouterr().err
+    assert "index.html, tables.md, stats.json show the results before this run" in err
+    assert f"humotion-gym report {out} --out {out}" in err
