@@ -280,9 +280,9 @@ def make_workspace(ws: Path) -> dict[str, str]:
         " End Site\n {\n OFFSET 0 1 0\n }\n}\nMOTION\nFrames: 1\nFrame Time: 0.033\n0 0 0\n"
     )
     clash = ws / "clash"
-    for sub in ("a", "b"):
-        (clash / sub).mkdir(parents=True)
-        (clash / sub / "walk_x.bvh").write_bytes(valid.read_bytes())
+    for sub in ("a", "b"):  # one person's folder in two places: one clip id twice
+        (clash / sub / "ann").mkdir(parents=True)
+        (clash / sub / "ann" / "walk_x.bvh").write_bytes(valid.read_bytes())
     run = ws / "run"
     run.mkdir()
     (run / "run.json").write_text("{}\n")

@@ -40,20 +40,23 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     from baselines.leaderboard.compare import compare_runs
     from baselines.leaderboard.report import leaderboard_rows, read_json
 
-    runs = []
+    runs, seeds = [], []
     for path in (args.rerun, args.recorded):
         try:
             data = read_json(path)
             if isinstance(data, dict) and "results" in data:  # humotion-gym oracle --out
                 runs.append(episode_rows(data, path))
+                seeds.append(0)
             else:
-                runs.append(leaderboard_rows(data, path)[0])
+                rows, settings = leaderboard_rows(data, path)
+                runs.append(rows)
+                seeds.append(int(settings.get("seed") or 0))
         except ValueError as exc:
             raise CommandError(str(exc)) from None
         except OSError as exc:
             raise CommandError(f"{path}: {exc}") from None
     try:
-        result = compare_runs(runs[0], runs[1], args.rtol)
+        result = compare_runs(runs[0], runs[1], args.rtol, (seeds[0], seeds[1]))
     except ValueError as exc:
         raise CommandError(str(exc)) from None
     print(result.summary())

@@ -64,17 +64,22 @@ def _cmd_ratio(args: argparse.Namespace) -> int:
     from baselines.leaderboard.stats import cell_label
     from baselines.leaderboard.tables import compare_to_hold, hold_ratio_interval, ratio_verdict
 
+    if args.cells[0] == args.cells[1]:
+        raise CommandError(f"--cells: give two cells, got {args.cells[0]} twice")
     cells: dict[str, dict[str, Any]] = {}
+    ran_with: dict[str, tuple[str, Any]] = {}  # each cell's file and what decided its frames
     for path in args.results:
         try:
-            rows, _ = load_rows(path)
+            rows, settings = load_rows(path)
         except ValueError as exc:
             raise CommandError(str(exc)) from None
         except OSError as exc:
             raise CommandError(f"{path}: {exc}") from None
         for row in rows:
             if row["task"] == args.task and "summary" in row:
-                cells.setdefault(cell_label(row), row)  # the first file that has it
+                if cell_label(row) not in cells:  # the first file that has it
+                    cells[cell_label(row)] = row
+                    ran_with[cell_label(row)] = (str(path), _conditions(settings))
     missing = [c for c in args.cells if c not in cells]
     if missing:
         known = ", ".join(sorted(cells)) or "none"
@@ -89,6 +94,12 @@ def _cmd_ratio(args: argparse.Namespace) -> int:
             f"--cells: {args.cells[0]} and {args.cells[1]} did not run the same episodes "
             "(episode seeds with their clips and start frames differ): their ratio pairs "
             "nothing"
+        )
+    (path_a, ran_a), (path_b, ran_b) = (ran_with[c] for c in args.cells)
+    if ran_a != ran_b:
+        raise CommandError(
+            f"--cells: {args.cells[0]} ({path_a}) and {args.cells[1]} ({path_b}) ran on other "
+            f"settings or data ({ran_a} against {ran_b}): their ratio compares two tasks"
         )
     try:
         ratio, _, _ = compare_to_hold(first, second)
@@ -114,3 +125,9 @@ def _cmd_ratio(args: argparse.Namespace) -> int:
 def _episodes_shown(row: dict[str, Any]) -> dict[int, tuple[Any, Any]]:
     """Each episode seed of a cell with the clip and start frame it showed."""
     return {int(e["seed"]): (e.get("clip_id"), e.get("start_frame")) for e in row["episodes"]}
+
+
+def _conditions(settings: dict[str, Any]) -> dict[str, Any]:
+    """What besides the episode seeds decides a run's frames: its env settings and data."""
+    env_kwargs = {k: v for k, v in (settings.get("env_kwargs") or {}).items() if k != "data_dir"}
+    return {"env_kwargs": env_kwargs, "data": settings.get("data") or None}

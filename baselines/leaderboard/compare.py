@@ -21,8 +21,13 @@ EpisodeKey = tuple[str, str, int, int, int]
 SAME_RTOL = 5e-7
 
 
-def episode_means(rows: Sequence[dict[str, Any]]) -> dict[EpisodeKey, float]:
+def episode_means(rows: Sequence[dict[str, Any]], agent_seed: int = 0) -> dict[EpisodeKey, float]:
     """Each episode's mean error (mm) of a run's rows, by :data:`EpisodeKey`.
+
+    Args:
+        rows: The run's rows.
+        agent_seed: The agent seed of an episode that names none: a run of one
+            agent seed writes none, and its agent seed is the run's ``seed``.
 
     Raises:
         ValueError: If an episode appears twice.
@@ -32,7 +37,7 @@ def episode_means(rows: Sequence[dict[str, Any]]) -> dict[EpisodeKey, float]:
         for e in row.get("episodes", []):
             key = (
                 str(row["task"]), str(row["agent"]), int(row["particles"] or 0),
-                int(e.get("agent_seed", 0)), int(e["seed"]),
+                int(e.get("agent_seed", agent_seed)), int(e["seed"]),
             )  # fmt: skip
             if key in out:
                 raise ValueError(f"episode {key} appears twice")
@@ -68,16 +73,22 @@ class Comparison:
 
 
 def compare_runs(
-    rerun: Sequence[dict[str, Any]], recorded: Sequence[dict[str, Any]], rtol: float = SAME_RTOL
+    rerun: Sequence[dict[str, Any]],
+    recorded: Sequence[dict[str, Any]],
+    rtol: float = SAME_RTOL,
+    agent_seeds: tuple[int, int] = (0, 0),
 ) -> Comparison:
     """Compare a rerun's episodes with a record's (:func:`episode_means` of each).
+
+    ``agent_seeds``: each run's ``seed``, the agent seed of its episodes that
+    name none (see :func:`episode_means`).
 
     Raises:
         ValueError: If ``rtol`` is negative or not finite, or a run repeats an episode.
     """
     if not (0.0 <= rtol < float("inf")):
         raise ValueError(f"rtol: expected a number >= 0, got {rtol}")
-    got, want = episode_means(rerun), episode_means(recorded)
+    got, want = episode_means(rerun, agent_seeds[0]), episode_means(recorded, agent_seeds[1])
     both = sorted(got.keys() & want.keys())
     # written so that NaN on either side differs (a comparison with NaN is False)
     differ = tuple(

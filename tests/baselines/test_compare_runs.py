@@ -79,3 +79,18 @@ def test_an_oracle_run_is_compared_by_agent_and_likelihood(tmp_path, capsys):
     (tmp_path / "c.json").write_text('{"results": 3}')
     assert main(["compare", str(a), str(tmp_path / "c.json")]) == 1
     assert "expected" in capsys.readouterr().err
+
+
+def test_runs_of_other_seeds_compare_nothing(tmp_path, capsys):
+    """One agent seed is written as none: it is the run's seed, so seed 3 is not seed 0."""
+    rows = _rows()
+    seeds = sorted({e["seed"] for r in rows for e in r.get("episodes", [])})
+    shifted = json.loads(json.dumps(rows))
+    for r in shifted:  # seed 3's run on the same episode seeds, other numbers
+        for e in r.get("episodes", []):
+            e["mean_error_mm"] += 1.0
+    (tmp_path / "s3.json").write_text(json.dumps({"seed": 3, "rows": shifted}))
+    (tmp_path / "s0.json").write_text(json.dumps({"seed": 0, "rows": rows}))
+    assert main(["compare", str(tmp_path / "s3.json"), str(tmp_path / "s0.json")]) == 1
+    assert "compared 0: 0 differ" in capsys.readouterr().out
+    assert seeds and compare_runs(shifted, rows, agent_seeds=(3, 3)).compared > 0

@@ -80,3 +80,26 @@ def test_cells_that_ran_other_episodes_are_refused(capsys: pytest.CaptureFixture
 def test_it_needs_two_cells(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["ratio", "--task", "BodyTrack-v2", str(BODY), "--cells", "pf-tree@300"]) == 2
     assert "--cells: expected 2 arguments" in capsys.readouterr().err
+
+
+def test_cells_that_ran_at_other_settings_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import gzip
+
+    arm = RESULTS / "v2_arm" / "results.json.gz"
+    noisier = json.loads(gzip.decompress(arm.read_bytes()))
+    noisier["env_kwargs"] = {**noisier["env_kwargs"], "noise": 60.0}  # same episodes, other frames
+    (tmp_path / "noisy.json").write_text(json.dumps(noisier))
+    argv = ["ratio", "--task", "ArmTrack-v2", "--cells", "pf-tree@300", "pf-cv@3000",
+            str(tmp_path / "noisy.json"), str(arm)]  # fmt: skip
+    assert main(argv) == 0  # both cells from the first file that holds them
+    capsys.readouterr()
+    only_cv = {**noisier, "rows": [r for r in noisier["rows"] if r["agent"] != "pf-tree"]}
+    (tmp_path / "noisy.json").write_text(json.dumps(only_cv))
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert "ran on other settings or data" in err and "'noise': 60.0" in err
+    assert main(["ratio", "--task", "ArmTrack-v2", "--cells", "pf-cv@3000", "pf-cv@3000",
+                 str(arm)]) == 1  # fmt: skip
+    assert "got pf-cv@3000 twice" in capsys.readouterr().err
