@@ -28,7 +28,7 @@ import gymnasium as gym
 import numpy as np
 from tqdm.auto import tqdm
 
-from baselines.agents import make, tracking_env
+from baselines.agents import make, tracking_env, uses_particles
 from baselines.leaderboard.evaluation import EpisodeResult, run_episode
 from baselines.leaderboard.stats import bootstrap_ci
 
@@ -123,7 +123,8 @@ def run_still(
         progress: Show progress bars.
 
     Returns:
-        ``{"task", "windows": [...], "rows": [{"agent", "particles", "mean_error_mm",
+        ``{"task", "max_hold_mm", "settings" (agents, particles, seed,
+        env_kwargs, count), "windows": [...], "rows": [{"agent", "particles", "mean_error_mm",
         "mean_error_ci", "x_hold", "within": bool, "episodes": [...]}]}``.
 
     Raises:
@@ -150,7 +151,7 @@ def run_still(
         rows.append(
             {
                 "agent": name,
-                "particles": 0 if name == "hold" else particles,
+                "particles": particles if uses_particles(name) else 0,
                 "mean_error_mm": float(errors.mean()),
                 "mean_error_ci": [lo, hi],
                 "episodes": [r.to_dict() for r in results],
@@ -164,6 +165,14 @@ def run_still(
     return {
         "task": task,
         "max_hold_mm": max_hold_mm,
+        # what reruns it (the windows below are what it found)
+        "settings": {
+            "agents": list(agents),
+            "particles": particles,
+            "seed": seed,
+            "env_kwargs": kwargs,
+            "count": count,
+        },
         "windows": [dataclasses.asdict(w) for w in windows],
         "rows": rows,
     }

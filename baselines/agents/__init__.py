@@ -65,6 +65,14 @@ def agent_names() -> list[str]:
     return list(REFERENCES) + sorted(AGENTS) + list(LEARNED)
 
 
+def uses_particles(name: str) -> bool:
+    """Whether an agent's particle count matters: a filter's or a hybrid's.
+
+    A reference or a plain policy runs once per task (its cells show particles 0).
+    """
+    return name not in REFERENCES and (not is_learned(name) or takes_particles(name))
+
+
 def make(
     name: str,
     task: TaskDescription | gym.Env,
@@ -148,6 +156,7 @@ __all__ = [
     "make_filter",
     "register_agent",
     "register_reference",
+    "uses_particles",
     "takes_particles",
     "tracking_env",
     "training_motions",

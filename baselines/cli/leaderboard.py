@@ -151,8 +151,10 @@ def _check_results_folder(args: argparse.Namespace) -> None:
     # a declared run's episode seeds follow its lists: only its cells are checked
     seeds = None if args.declared else range(args.seed, args.seed + args.episodes)
     try:
-        saved = [
-            (r["task"], r["agent"], int(r["particles"]), int(r["seed"])) for r in folder.read()
+        saved = [  # finished episodes: a failed one is rerun, or dropped with its agent
+            (r["task"], r["agent"], int(r["particles"]), int(r["seed"]))
+            for r in folder.read()
+            if "result" in r
         ]
     except (KeyError, TypeError, ValueError) as exc:  # ResumeError: a line that is not JSON
         raise CommandError(f"--resume: {args.out}: unreadable episodes ({exc})") from None
@@ -222,6 +224,8 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         if exc.name != "ray":
             raise
         raise CommandError(f"--engine ray: {exc}") from None
+    except ConnectionError as exc:  # --address where no Ray cluster listens
+        raise CommandError(f"--{exc}") from None
     except ResumeError as exc:  # the saved run's other settings: the arguments conflict
         raise UsageError(f"--resume: {exc}") from None
     except ReplayMismatch as exc:  # a video's episode did not reproduce: the run is saved

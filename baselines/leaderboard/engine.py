@@ -40,6 +40,7 @@ from __future__ import annotations
 import importlib
 import logging
 import os
+import socket
 import sys
 import time
 import traceback
@@ -491,6 +492,7 @@ class RayEngine:
             }
             address = address or os.environ.get("RAY_ADDRESS") or None
             if address:
+                check_ray_address(address)
                 ray.init(address=address, **common)
             else:
                 ray.init(num_cpus=workers or os.cpu_count() or 1, include_dashboard=False, **common)
@@ -587,6 +589,26 @@ def make_engine(
     if name == "ray":
         return RayEngine(seed, env_kwargs, workers, address, tasks)
     raise ValueError(f"engine: expected one of {list(ENGINES)}, got {name!r}")
+
+
+def check_ray_address(address: str, timeout: float = 5.0) -> None:
+    """Refuse a ``host:port`` where nothing listens, before Ray retries it for minutes.
+
+    ``auto``, ``local`` and other forms are left to Ray.
+
+    Raises:
+        ConnectionError: Naming the address, when its port takes no connection.
+    """
+    host, sep, port = address.removeprefix("ray://").rpartition(":")
+    if not sep or not host or not port.isdigit():
+        return
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout).close()
+    except (OSError, ValueError) as exc:
+        raise ConnectionError(
+            f"address {address}: no Ray cluster answers there ({exc}); start one with "
+            "`ray start --head` or leave --address out for a local Ray"
+        ) from None
 
 
 def resolve_env_kwargs(env_kwargs: Mapping[str, Any] | None) -> dict[str, Any]:

@@ -35,7 +35,7 @@ from typing import Any
 
 from tqdm.auto import tqdm
 
-from baselines.agents import REFERENCES, is_learned, takes_particles
+from baselines.agents import uses_particles
 from baselines.agents.learned import policy_file
 from baselines.leaderboard.engine import (
     ENGINES,
@@ -73,8 +73,7 @@ def grid_cells(
     for task in tasks:
         for name in names:
             # references and learned policies take no particles: one cell per task
-            once = name in REFERENCES or (is_learned(name) and not takes_particles(name))
-            counts = [0] if once else list(particles)
+            counts = list(particles) if uses_particles(name) else [0]
             cells.extend((task, name, n) for n in counts)
     return list(dict.fromkeys(cells))  # a task or count given twice runs once
 
@@ -322,11 +321,22 @@ def _saved(
     if folder is None or not folder.start(settings, resume, policies):
         return {}
     done = {_key(r, seed): r for r in folder.read() if "result" in r}
+    for key, record in done.items():  # read now, not after every episode left has run
+        try:
+            EpisodeResult(**record["result"])
+        except TypeError as exc:
+            task, agent, particles, episode, _ = key
+            raise ValueError(  # a damaged file, not other settings
+                f"{folder.episodes_path}: the record of {agent} ({particles} particles) on "
+                f"{task}, seed {episode}, is not an episode's result ({exc}); remove its line "
+                "to run that episode again"
+            ) from None
     more = sorted({k[4] for k in done} - set(agent_seeds))
     if more:
+        n = max(more) - seed + 1
         raise ResumeError(
             f"{folder.folder}: the saved run has agent seeds {more} beyond this run's "
-            f"{list(agent_seeds)}; resume with agent_seeds={max(more) - seed + 1}"
+            f"{list(agent_seeds)}; resume with --agent-seeds {n} (agent_seeds={n})"
         )
     return done
 

@@ -128,12 +128,26 @@ def _library_fps(library: MotionLibrary | None, data_dir: Any, fps: float | None
 
 
 def _task_with(
-    task: str | TaskSpec, camera_elevation_deg: float | None, views: int | None
+    task: str | TaskSpec,
+    camera_elevation_deg: float | None,
+    views: int | None,
+    family: str | None = None,
+    cls: type = object,
 ) -> TaskSpec:
-    """The task by name or spec, with the camera's elevation and the views overridden if given."""
+    """The task by name or spec, with the camera's elevation and the views overridden if given.
+
+    Raises:
+        ValueError: If the task is unknown or not of ``family`` (the one ``cls`` tracks),
+            or an override is out of range.
+    """
     if not isinstance(task, str | TaskSpec):
         raise ValueError(f"task: expected a task name or TaskSpec, got {task!r}")
     spec = get_task(task) if isinstance(task, str) else task
+    if family is not None and spec.family != family:
+        raise ValueError(
+            f"task: {cls.__name__} tracks {family} tasks, got {spec.name} (make "
+            f"humotion_gym/{spec.name} instead)"
+        )
     if camera_elevation_deg is not None:
         if not (is_real(camera_elevation_deg) and -89.0 <= camera_elevation_deg <= 89.0):
             raise ValueError(
@@ -197,12 +211,7 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         lost_patience: int = 5,
         reward_scale_mm: float = 100.0,
     ) -> None:
-        self.task = _task_with(task, camera_elevation_deg, views)
-        if self.family is not None and self.task.family != self.family:
-            raise ValueError(
-                f"task: {type(self).__name__} tracks {self.family} tasks, got "
-                f"{self.task.name} (make humotion_gym/{self.task.name} instead)"
-            )
+        self.task = _task_with(task, camera_elevation_deg, views, self.family, type(self))
         #: Cameras that see each frame (``task.views``; 1: monocular).
         self.views = self.task.views
         self.dict_observation = self.task.version >= 2

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import socket
 from pathlib import Path
 from typing import Any
 
@@ -157,6 +158,30 @@ def test_a_results_folder_is_not_overwritten_nor_resumed_with_other_settings(tmp
         folder.start({"seed": 0}, resume=True)
 
 
+def test_a_damaged_record_is_refused_before_any_episode_runs(tmp_path):
+    out = tmp_path / "lb"
+    run_leaderboard(["ArmTrack-v2"], ["hold"], [1], episodes=2, progress=False, out=out)
+    records = _lines(out)
+    records[1]["result"] = {"seed": 1}
+    (out / EPISODES_FILE).write_text("".join(json.dumps(r) + "\n" for r in records))
+    with pytest.raises(ValueError, match=r"episodes.jsonl: the record of hold .* seed 1, is not"):
+        run_leaderboard(["ArmTrack-v2"], ["hold"], [1], episodes=3, progress=False, out=out,
+                        resume=True)  # fmt: skip
+    assert len(_lines(out)) == 2  # nothing ran
+
+
+def test_an_address_where_no_ray_listens_is_one_line(tmp_path, capsys):
+    pytest.importorskip("ray")
+    with socket.socket() as probe:  # a port just freed: nothing listens there
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    argv = [*_cli(tmp_path, "hold"), "--engine", "ray", "--address", f"127.0.0.1:{port}"]
+    assert main(argv) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("humotion-gym leaderboard: error: --address 127.0.0.1:")
+    assert "no Ray cluster answers there" in err and len(err.splitlines()) == 1
+
+
 def test_the_data_resume_the_same_named_either_way(tmp_path, monkeypatch, shared_mocap):
     out = tmp_path / "lb"
     arm = ["ArmTrack-v2"]
@@ -212,6 +237,10 @@ def test_an_agent_that_raises_in_an_episode_is_an_error_row_and_exit_1(
     rows = json.loads((tmp_path / "lb" / RESULTS_FILE).read_text())["rows"]
     assert rows[0]["agent"] == "hold" and "summary" in rows[0]
     assert rows[1]["failed_seeds"] == [0]
+    # an agent that only failed may leave the grid of the resumed run
+    lines = (tmp_path / "lb" / EPISODES_FILE).read_text()
+    assert main([*_cli(tmp_path, "hold"), "--resume", "--no-report"]) == 0
+    (tmp_path / "lb" / EPISODES_FILE).write_text(lines)
     # the failed episode is recorded but not done: a resume retries it
     monkeypatch.undo()
     assert main([*_cli(tmp_path, "pf-cv"), "--resume"]) == 0

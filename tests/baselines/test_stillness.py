@@ -131,8 +131,12 @@ def test_cli_still_prints_the_table_and_writes_json(tmp_path, capsys):
     code = main(["still", "--agents", "random", "--max-hold", "300", "--episodes", "2",
                  "--out", str(out)])  # fmt: skip
     text = capsys.readouterr().out
-    assert code == 0 and "| hold | - |" in text and "| random |" in text
+    # random, a reference, takes no particles: "-", as in the leaderboard
+    assert code == 0 and "| hold | - |" in text and "| random | - |" in text
     saved = json.loads(out.read_text())
     assert [r["agent"] for r in saved["rows"]] == ["hold", "random"]
     assert len(saved["windows"]) == 2
+    # what reruns it is in the file
+    assert saved["settings"] == {"agents": ["random"], "particles": 300, "seed": 0,
+                                 "env_kwargs": {"split": "test"}, "count": 2}  # fmt: skip
     assert main(["still", "--max-hold", "-1"]) == 2
