@@ -21,17 +21,25 @@ import numpy as np
 T = TypeVar("T")
 
 
-def save_fitted(fitted: Any, path: str | Path) -> None:
+def save_fitted(fitted: Any, path: str | Path, cls: type | None = None) -> None:
     """Write a frozen dataclass of arrays and scalars to ``path`` (.npz, no pickle).
 
     The file is written to a temporary name and renamed, so a reader never sees
     half a file.
 
+    Args:
+        fitted: The parameters.
+        path: The file.
+        cls: The class a prior's ``save`` writes (another prior's parameters
+            would be written under its name and refused only when loaded).
+
     Raises:
-        TypeError: If ``fitted`` is not a dataclass or holds a non-array field.
+        TypeError: If ``fitted`` is not a dataclass (of ``cls``) or holds a
+            non-array field.
     """
-    if not dataclasses.is_dataclass(fitted):
-        raise TypeError(f"save_fitted: expected a dataclass instance, got {type(fitted).__name__}")
+    if not dataclasses.is_dataclass(fitted) or (cls is not None and not isinstance(fitted, cls)):
+        want = "a dataclass instance" if cls is None else f"{cls.__name__}"
+        raise TypeError(f"save: expected {want}, got {type(fitted).__name__}")
     arrays: dict[str, np.ndarray] = {"__kind__": np.array(type(fitted).__name__)}
     for f in dataclasses.fields(fitted):
         value = getattr(fitted, f.name)
@@ -54,9 +62,12 @@ def save_arrays(arrays: dict[str, np.ndarray], path: str | Path) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "wb") as fh:
-        np.savez(fh, **arrays)
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+        os.replace(tmp, path)
+    finally:  # a failed write (path a folder, a full disk) leaves nothing behind
+        tmp.unlink(missing_ok=True)
 
 
 def load_fitted(cls: type[T], path: str | Path) -> T:

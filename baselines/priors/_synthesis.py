@@ -6,6 +6,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from humotion_gym.body import N_PARAMS
+from humotion_gym.checks import is_count, is_real
 
 FloatArray = NDArray[np.float64]
 
@@ -14,14 +15,18 @@ def check_request(base_pose: ArrayLike, frames: int, fps: float) -> FloatArray:
     """The base pose as a ``(25,)`` array, after checking the request.
 
     Raises:
-        ValueError: If the pose has another shape or frames/fps are not positive.
+        ValueError: If the pose is not 25 finite numbers, ``frames`` not an
+            integer >= 1 or ``fps`` not a positive number.
     """
     base = np.asarray(base_pose, dtype=np.float64)
     if base.shape != (N_PARAMS,):
         raise ValueError(f"synthesize_motion: base_pose must have shape (25,), got {base.shape}")
-    if int(frames) < 1 or not float(fps) > 0:
+    if not np.all(np.isfinite(base)):
+        raise ValueError("synthesize_motion: base_pose must be finite")
+    if not is_count(frames) or not (is_real(fps) and np.isfinite(fps) and fps > 0):
         raise ValueError(
-            f"synthesize_motion: frames and fps must be positive, got {frames} and {fps}"
+            "synthesize_motion: frames must be an integer >= 1 and fps a positive number, "
+            f"got {frames!r} and {fps!r}"
         )
     return base
 

@@ -38,9 +38,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from baselines.filtering import ParticleState
+from baselines.priors._checks import free_indices, start_pose, training_clips
 from baselines.priors._io import load_fitted, save_fitted
 from baselines.priors._synthesis import check_request, model_frames, to_motion
-from humotion_gym.body import N_PARAMS, VALID_LOWER, VALID_UPPER
+from humotion_gym.body import VALID_LOWER, VALID_UPPER
 from humotion_gym.mocap.motion import Motion
 
 FloatArray = NDArray[np.float64]
@@ -124,9 +125,8 @@ def fit(
         )
     if not (np.isfinite(multiplier) and multiplier >= 0):
         raise ValueError(f"constant_velocity.fit: multiplier must be >= 0, got {multiplier}")
-    idx = np.arange(N_PARAMS) if free is None else np.asarray(free, dtype=np.intp)
-    if not motions:
-        raise ValueError("constant_velocity.fit: no training motions")
+    idx = free_indices(free, "constant_velocity.fit")
+    fps = training_clips(motions, frame_skip, "constant_velocity.fit")
     acc, vel = [], []
     for m in motions:
         p = m.params[::frame_skip, idx]
@@ -142,7 +142,6 @@ def fit(
     if not acc or sum(a.shape[0] for a in acc) == 0:
         raise ValueError("constant_velocity.fit: no clip has three observed frames in a row")
     a, v = np.concatenate(acc), np.concatenate(vel)
-    fps = float(motions[0].fps) / frame_skip
     floor = 1e-9  # a parameter that never moves must still be able to
     accel_std = np.maximum(a.std(axis=0), floor)
     velocity_std = np.maximum(v.std(axis=0), floor)
@@ -165,7 +164,7 @@ def initial(
     fitted: ConstantVelocityParams, pose: ArrayLike, n: int, rng: np.random.Generator
 ) -> ParticleState:
     """N particles at the known pose with velocities drawn from the data's spread."""
-    p = np.asarray(pose, dtype=np.float64)
+    p = start_pose(pose, fitted.free.size, n, rng, "constant_velocity.initial")
     velocity = rng.standard_normal((n, p.shape[-1])) * fitted.velocity_std
     return ParticleState(np.repeat(p[None], n, axis=0), {"velocity": velocity})
 
@@ -228,7 +227,7 @@ def synthesize_motion(
 
 def save(fitted: ConstantVelocityParams, path: str | Path) -> None:
     """Write the fitted parameters as ``.npz`` (no pickle)."""
-    save_fitted(fitted, path)
+    save_fitted(fitted, path, ConstantVelocityParams)
 
 
 def load(path: str | Path) -> ConstantVelocityParams:

@@ -56,7 +56,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from baselines.filtering import ParticleState
 from baselines.priors import cycles, fpca
+from baselines.priors._checks import free_indices, start_pose, training_clips
 from baselines.priors._io import load_fitted, save_fitted
+from baselines.priors._synthesis import check_request
 from humotion_gym.body import (
     N_PARAMS,
     PARAM_INDEX,
@@ -363,10 +365,7 @@ def _check_fit_settings(free: ArrayLike | None, reversion: float) -> NDArray[np.
     """
     if not (np.isfinite(reversion) and reversion >= 0):
         raise ValueError(f"cyclic_pca.fit: reversion must be >= 0, got {reversion}")
-    idx = np.arange(N_PARAMS, dtype=np.intp) if free is None else np.asarray(free, np.intp)
-    if idx.ndim != 1 or np.any((idx < 0) | (idx >= N_PARAMS)) or np.unique(idx).size != idx.size:
-        raise ValueError(f"cyclic_pca.fit: free must be distinct indices in [0, 25), got {idx}")
-    return idx
+    return free_indices(free, "cyclic_pca.fit")
 
 
 def _cycling_clips(
@@ -433,6 +432,7 @@ def fit(
     """
     del rng
     idx = _check_fit_settings(free, reversion)
+    training_clips(motions, frame_skip, "cyclic_pca.fit")
     clips = _walking_clips(motions, labels)
     fps = float(clips[0].fps) / frame_skip
     series = [m.params[::frame_skip] for m in clips]
@@ -576,9 +576,7 @@ def initial(
         The particles; ``extra`` holds ``phase (N,)``, ``speed (N,)``,
         ``coef (N, q)``, ``offset (N, A)`` and ``root_velocity (N, 3)``.
     """
-    p = np.asarray(pose, dtype=np.float64)
-    if p.shape != (fitted.free.size,):
-        raise ValueError(f"cyclic_pca.initial: pose must have shape ({fitted.free.size},)")
+    p = start_pose(pose, fitted.free.size, n, rng, "cyclic_pca.initial")
     angle_slots, pos_slots, rot_slots = _slots(fitted)
     y = p[angle_slots]
     # Unwrapped angles may sit whole turns away from the model's: fit the
@@ -688,7 +686,7 @@ def transition(
 
 def save(fitted: CyclicPCAParams, path: str | Path) -> None:
     """Write the fitted parameters as ``.npz`` (no pickle)."""
-    save_fitted(fitted, path)
+    save_fitted(fitted, path, CyclicPCAParams)
 
 
 def load(path: str | Path) -> CyclicPCAParams:
@@ -769,11 +767,7 @@ def synthesize_motion(
     Returns:
         ``(frames, 25)`` parameters, ready for ``mocap.export.write_motion_bvh``.
     """
-    base = np.asarray(base_pose, dtype=np.float64)
-    if base.shape != (N_PARAMS,):
-        raise ValueError(f"synthesize_motion: base_pose must have shape (25,), got {base.shape}")
-    if frames < 1 or not fps > 0:
-        raise ValueError("synthesize_motion: frames and fps must be positive")
+    base = check_request(base_pose, frames, fps)
     rate = fitted.fps / float(fps)
     angles, _ = _walk(fitted, int(frames), rng, rate)
     out = np.repeat(base[None], int(frames), axis=0)

@@ -69,6 +69,7 @@ from numpy.typing import ArrayLike, NDArray
 from tqdm import tqdm
 
 from baselines.filtering import ParticleState
+from baselines.priors._checks import free_indices, start_pose, training_clips
 from baselines.priors._io import load_fitted, save_fitted
 from baselines.priors._synthesis import check_request, model_frames, to_motion
 from baselines.priors.slds_inference import (
@@ -87,7 +88,7 @@ from baselines.priors.slds_learning import (
     run_em,
     start_em,
 )
-from humotion_gym.body import N_PARAMS, PARAM_INDEX, PARAM_LOWER, PARAM_UPPER, SAGITTAL_PARAMS
+from humotion_gym.body import PARAM_INDEX, PARAM_LOWER, PARAM_UPPER, SAGITTAL_PARAMS
 from humotion_gym.checks import is_count
 from humotion_gym.mocap.motion import Motion
 from humotion_gym.threads import available_cores, limit_blas_threads, single_threaded_blas
@@ -163,15 +164,7 @@ def motion_sequences(
 
 
 def _free_index(free: ArrayLike | None) -> NDArray[np.intp]:
-    idx = SAGITTAL_INDEX if free is None else np.asarray(free, dtype=np.intp).reshape(-1)
-    if (
-        idx.size == 0
-        or idx.min() < 0
-        or idx.max() >= N_PARAMS
-        or len(set(idx.tolist())) != idx.size
-    ):
-        raise ValueError(f"slds: free must be distinct indices in [0, {N_PARAMS}), got {idx}")
-    return idx
+    return free_indices(free, "slds.fit", SAGITTAL_INDEX)
 
 
 def _start_activity(
@@ -342,11 +335,9 @@ def fit(
         ValueError: For no clips or a bad setting.
     """
     rng = np.random.default_rng(0) if rng is None else rng
-    if not motions:
-        raise ValueError("slds.fit: no training motions")
+    training_clips(motions, frame_skip, "slds.fit")
     for name, value, least in (
         ("n_states", n_states, 1), ("order", order, 1), ("n_iter", n_iter, 0),
-        ("frame_skip", frame_skip, 1),
     ):  # fmt: skip
         if not is_count(value, least):
             raise ValueError(f"slds.fit: {name} must be a whole number >= {least}, got {value!r}")
@@ -491,9 +482,7 @@ def initial(fitted: SLDSParams, pose: ArrayLike, n: int, rng: np.random.Generato
         n: Number of particles.
         rng: Generator.
     """
-    y = np.asarray(pose, dtype=np.float64).reshape(-1)
-    if y.shape != (fitted.obs_dim,):
-        raise ValueError(f"slds.initial: pose has shape {y.shape}, expected ({fitted.obs_dim},)")
+    y = start_pose(pose, fitted.obs_dim, n, rng, "slds.initial")
     c, r, q0 = fitted.C, fitted.R, fitted.Q0
     cov_y = c @ q0 @ c.T + r  # (S, D, D)
     resid = y - (fitted.x0 @ c.T + fitted.d)
@@ -614,7 +603,7 @@ def synthesize_motion(
 
 def save(fitted: SLDSParams, path: str | Path) -> None:
     """Write the fitted parameters as ``.npz`` (no pickle)."""
-    save_fitted(fitted, path)
+    save_fitted(fitted, path, SLDSParams)
 
 
 def load(path: str | Path) -> SLDSParams:

@@ -146,6 +146,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from baselines.filtering import ParticleState, deferred_rows, gathered
 from baselines.priors import _tree_compiled as compiled
+from baselines.priors._checks import start_pose
 from baselines.priors._synthesis import check_request, model_frames, to_motion
 from baselines.priors.tree_fit import FILE_FORMAT, fit, load, save, summary
 from baselines.priors.tree_model import (
@@ -255,15 +256,6 @@ def follow(old: ParticleState, pose: FloatArray) -> dict[str, NDArray[Any]]:
 # ---------------------------------------------------------------------------
 
 
-def _check_pose(fitted: TreeParams, pose: ArrayLike) -> FloatArray:
-    p = np.asarray(pose, dtype=np.float64)
-    if p.shape != (fitted.n_free,):
-        raise ValueError(f"tree: expected a pose of shape ({fitted.n_free},), got {p.shape}")
-    if not np.all(np.isfinite(p)):
-        raise ValueError("tree: the pose must be finite")
-    return p
-
-
 def _last_pose_distances(fitted: TreeParams, pose: FloatArray, lay: _Layout) -> FloatArray:
     """``(n_windows,)`` squared scaled distances of each window's last pose to ``pose``.
 
@@ -291,7 +283,7 @@ def initial_windows(
     Weights ``exp(-dist^2 / (2 s^2))`` with ``dist`` the distance over the
     absolute parameters scaled by ``Gamma^-1/2`` and ``s = init_scale``.
     """
-    p = _check_pose(fitted, pose)
+    p = start_pose(pose, fitted.n_free, n, rng, "tree.initial_windows")
     lay = _layout(fitted.free)
     dist2 = _last_pose_distances(fitted, p, lay)
     logw = -(dist2 - dist2.min()) / (2.0 * fitted.init_scale**2)
@@ -318,11 +310,10 @@ def initial(fitted: TreeParams, pose: ArrayLike, n: int, rng: np.random.Generato
         its history's root path walked at that speed.
 
     Raises:
-        ValueError: If ``pose`` has the wrong shape or ``n < 1``.
+        ValueError: If ``pose`` is not ``(D,)`` finite numbers, ``n < 1`` or ``rng`` is
+            not a Generator.
     """
-    if n < 1:
-        raise ValueError(f"tree.initial: n must be >= 1, got {n}")
-    p = _check_pose(fitted, pose)
+    p = start_pose(pose, fitted.n_free, n, rng, "tree.initial")
     lay = _layout(fitted.free)
     chosen = initial_windows(fitted, p, n, rng)
     extra: dict[str, NDArray[Any]] = {"window": chosen}

@@ -113,3 +113,94 @@ def test_a_prior_fitted_on_other_motion_of_the_same_clips_is_refitted(tmp_path):
     moved = [dataclasses.replace(clips[0], params=clips[0].params * 1.5), *clips[1:]]
     fit_prior(constant_velocity, moved, None, {}, cache_dir=tmp_path, log=said.append)
     assert sum("fitting" in line for line in said) == 2
+
+
+@pytest.fixture(scope="module")
+def fitted_priors(walks):
+    return {
+        name: get_prior(name).fit(walks.motions, free=SAGITTAL, rng=np.random.default_rng(0))
+        for name in sorted(PRIORS)
+    }
+
+
+@pytest.mark.parametrize("name", sorted(PRIORS))
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"free": [-1]}, "free must be distinct integer indices"),
+        ({"free": [3, 3]}, "free must be distinct integer indices"),
+        ({"free": [[1, 2]]}, "free must be distinct integer indices"),
+        ({"free": []}, "free must be distinct integer indices"),
+        ({"free": [99]}, "free must be distinct integer indices"),
+        ({"free": [1.5]}, "free must be distinct integer indices"),  # was cut to 1
+        ({"frame_skip": 0}, "frame_skip: expected an integer >= 1"),
+        ({"motions": np.zeros((3, 25))}, "expected a list of Motion clips"),
+        ({"motions": []}, "no training motions"),
+    ],
+)
+def test_every_fit_refuses_bad_arguments_by_name(name, kwargs, match, walks):
+    prior = get_prior(name)
+    args = {"motions": walks.motions, "free": SAGITTAL, **kwargs}
+    with pytest.raises(ValueError, match=rf"^{name}\.fit: .*{match}"):
+        prior.fit(args.pop("motions"), **args)
+
+
+@pytest.mark.parametrize("name", sorted(PRIORS))
+def test_every_fit_refuses_clips_of_two_rates(name, walks):
+    from humotion_gym.mocap.library import synthetic_library
+
+    faster = synthetic_library(fps=60).split("train").filter(labels=["walk", "run"]).motions
+    with pytest.raises(ValueError, match=rf"^{name}\.fit: the clips must share one frame rate"):
+        get_prior(name).fit([*walks.motions, *faster], free=SAGITTAL)
+
+
+@pytest.mark.parametrize("name", sorted(PRIORS))
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"pose": "nan"}, "the pose must be finite"),  # gave particles of NaN
+        ({"pose": "short"}, r"expected a pose of shape \(8,\)"),
+        ({"n": 0}, "n must be an integer >= 1"),
+        ({"n": -1}, "n must be an integer >= 1"),
+        ({"rng": None}, "rng must be a numpy.random.Generator"),
+    ],
+)
+def test_every_initial_refuses_bad_arguments_by_name(name, change, match, walks, fitted_priors):
+    pose = walks[0].params[40, SAGITTAL].copy()
+    args = {"pose": pose, "n": 8, "rng": np.random.default_rng(0), **change}
+    if isinstance(args["pose"], str):
+        args["pose"] = (
+            pose[:4] if args["pose"] == "short" else np.where(np.arange(8) == 2, np.nan, pose)
+        )
+    with pytest.raises(ValueError, match=rf"^{name}\.initial: {match}"):
+        get_prior(name).initial(fitted_priors[name], args["pose"], args["n"], args["rng"])
+
+
+@pytest.mark.parametrize("name", sorted(PRIORS))
+def test_synthesis_refuses_a_fraction_of_a_frame_and_a_nan_pose(name, walks, fitted_priors):
+    prior, base = get_prior(name), walks[0].params[40].copy()
+    with pytest.raises(ValueError, match="frames must be an integer >= 1"):
+        prior.synthesize_motion(fitted_priors[name], base, 2.5, 30.0, np.random.default_rng(0))
+    base[3] = np.nan
+    with pytest.raises(ValueError, match="base_pose must be finite"):
+        prior.synthesize_motion(fitted_priors[name], base, 4, 30.0, np.random.default_rng(0))
+
+
+def test_the_trees_own_depth_fits_one_free_parameter(walks):
+    fitted = get_prior("tree").fit(walks.motions, free=[PARAM_INDEX["r_knee"]])
+    assert fitted.n_free == 1
+
+
+@pytest.mark.parametrize("name", sorted(PRIORS))
+def test_save_refuses_another_priors_parameters_and_leaves_no_file(name, fitted_priors, tmp_path):
+    other = next(n for n in sorted(PRIORS) if n != name)
+    with pytest.raises(
+        TypeError, match=f"^save: expected .*, got {type(fitted_priors[other]).__name__}"
+    ):
+        get_prior(name).save(fitted_priors[other], tmp_path / "x.npz")
+    with pytest.raises(TypeError, match="^save: expected"):
+        get_prior(name).save("x", tmp_path / "x.npz")
+    (tmp_path / "a_folder.npz").mkdir()
+    with pytest.raises(OSError):
+        get_prior(name).save(fitted_priors[name], tmp_path / "a_folder.npz")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_folder.npz"]  # no temporary left

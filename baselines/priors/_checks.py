@@ -1,0 +1,95 @@
+"""The argument checks the priors' ``fit`` and ``initial`` share, raising in their names.
+
+A prior's functions are called directly (``constant_velocity.fit(lib, free=[...])``)
+as often as through :func:`baselines.priors.fitting.fit_prior`, so each checks
+what it is given: bad input is one ``ValueError`` naming the function and the
+argument, never an ``IndexError`` deep in numpy or, worse, particles of NaN.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from humotion_gym.body import N_PARAMS
+from humotion_gym.checks import check_count, is_count
+from humotion_gym.mocap.motion import Motion
+
+
+def free_indices(
+    free: ArrayLike | None, where: str, default: NDArray[np.intp] | None = None
+) -> NDArray[np.intp]:
+    """The modelled parameters' indices: distinct integers in [0, 25), at least one.
+
+    Args:
+        free: The indices given, or None for ``default`` (all 25 when None).
+        where: The function, for the message (``"constant_velocity.fit"``).
+        default: The indices None stands for.
+
+    Raises:
+        ValueError: If ``free`` is not a non-empty 1-D list of distinct
+            integers in range (``1.5`` is refused, not cut to 1).
+    """
+    if free is None:
+        return np.arange(N_PARAMS, dtype=np.intp) if default is None else default
+    given = np.asarray(free)
+    ok = (
+        given.ndim == 1
+        and given.size > 0
+        and given.dtype.kind in "iu"
+        and bool(np.all((given >= 0) & (given < N_PARAMS)))
+        and np.unique(given).size == given.size
+    )
+    if not ok:
+        raise ValueError(
+            f"{where}: free must be distinct integer indices in [0, {N_PARAMS}), "
+            f"got {np.asarray(free).tolist()!r}"
+        )
+    return given.astype(np.intp)
+
+
+def training_clips(motions: Any, frame_skip: Any, where: str) -> float:
+    """Check a fit's clips and ``frame_skip``; the rate the prior runs at (Hz).
+
+    Raises:
+        ValueError: If ``motions`` is not a non-empty sequence of
+            :class:`~humotion_gym.mocap.motion.Motion` of one frame rate, or
+            ``frame_skip`` is not an integer >= 1.
+    """
+    check_count(f"{where}: frame_skip", frame_skip)
+    if isinstance(motions, np.ndarray | str | Motion) or not hasattr(motions, "__iter__"):
+        raise ValueError(f"{where}: expected a list of Motion clips, got {type(motions).__name__}")
+    clips = list(motions)
+    if not clips:
+        raise ValueError(f"{where}: no training motions")
+    if not all(isinstance(m, Motion) for m in clips):
+        kinds = sorted({type(m).__name__ for m in clips if not isinstance(m, Motion)})
+        raise ValueError(f"{where}: expected Motion clips, got {', '.join(kinds)}")
+    rates = sorted({float(m.fps) for m in clips})
+    if len(rates) > 1:
+        raise ValueError(f"{where}: the clips must share one frame rate, got {rates} Hz")
+    return rates[0] / int(frame_skip)
+
+
+def start_pose(pose: ArrayLike, n_free: int, n: Any, rng: Any, where: str) -> NDArray[np.float64]:
+    """Check an ``initial``'s arguments; the pose as a ``(n_free,)`` float array.
+
+    Raises:
+        ValueError: If the pose is not ``(n_free,)`` finite numbers, ``n`` not
+            an integer >= 1 or ``rng`` not a ``numpy.random.Generator``.
+    """
+    p = np.asarray(pose, dtype=np.float64)
+    if p.shape != (n_free,):
+        raise ValueError(f"{where}: expected a pose of shape ({n_free},), got {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError(f"{where}: the pose must be finite, got {p.tolist()}")
+    if not is_count(n):
+        raise ValueError(f"{where}: n must be an integer >= 1, got {n!r}")
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError(
+            f"{where}: rng must be a numpy.random.Generator (np.random.default_rng(seed)), "
+            f"got {type(rng).__name__}"
+        )
+    return p
