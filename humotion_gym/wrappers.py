@@ -204,6 +204,15 @@ class LearnerObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
         super().__init__(env)
         base = _base(env)
         check_frame_size(size, "LearnerObservation: size")
+        given = env.observation_space
+        if base.dict_observation and not (
+            isinstance(given, spaces.Dict) and {"frame", "initial_pose"} <= set(given.spaces)
+        ):
+            raise ValueError(
+                "LearnerObservation: the environment it wraps must show the task's 'frame' "
+                f"and 'initial_pose', got {given} from {type(env).__name__}; wrap the task's "
+                "environment itself (not FrameObservation of it)"
+            )
         self.size = size
         frames = base.observation_space
         shape = (frames["frame"] if isinstance(frames, spaces.Dict) else frames).shape

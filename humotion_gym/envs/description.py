@@ -203,9 +203,14 @@ def pose_to_action(
         bounds: :func:`action_bounds` already computed (else computed here).
 
     Returns:
-        ``(..., n_free)`` float32 actions.
+        ``(..., n_free)`` float32 actions (NaN where a free parameter is NaN).
+
+    Raises:
+        ValueError: If the poses' last axis is not the 25 parameters.
     """
     p = np.array(pose, dtype=np.float64)
+    if p.ndim == 0 or p.shape[-1] != N_PARAMS:
+        raise ValueError(f"pose_to_action: expected poses of shape (..., 25), got {p.shape}")
     p[..., ANGLE_MASK] = _wrap(p[..., ANGLE_MASK])
     lo, hi = action_bounds(task, initial_pose) if bounds is None else bounds
     a = 2.0 * (p[..., task.free_indices] - lo) / (hi - lo) - 1.0

@@ -62,6 +62,8 @@ def _cached_library(dirs: tuple[str, ...], fps: float) -> MotionLibrary:
     if not dirs:
         return synthetic_library(fps=fps)
     library = load_library(list(dirs), fps=fps, progress=False)
+    if len(library) == 0:
+        raise ValueError(f"data_dir {list(dirs)}: no motion capture (.bvh, .amc) found there")
     _check_held_out(library, dirs)
     return library
 

@@ -25,11 +25,11 @@ batched ``info`` with its ``_key`` masks; ``tests/envs/test_vector_env.py``), wi
   episode's generator at its start, as its frames would draw them one by
   one (:func:`~humotion_gym.render._noise_windows`).
 
-Each of the N episodes is held by a :class:`PoseTrackingEnv` (``envs``), kept
-in step, so its methods (``pose_to_action``, ``action_to_pose``,
-``observation_model``, ``camera``, ``shape``, ``render``) serve the agents
-exactly as in the single environment; step them through the vector
-environment only (their figures are prepared by it).
+Each of the N episodes is held by a :class:`PoseTrackingEnv` (``envs``: the
+base class, made with the task), kept in step, so its methods
+(``pose_to_action``, ``action_to_pose``, ``true_pose``, ``camera``, ``shape``,
+``render``) answer exactly as in the single environment; step them through
+the vector environment only (their figures are prepared by it).
 """
 
 from __future__ import annotations
@@ -72,8 +72,10 @@ FloatArray = NDArray[np.float64]
 class PoseTrackingVectorEnv(VectorEnv):
     """``num_envs`` episodes of one tracking task, stepped as one batch.
 
-    The spaces are the single environment's batched: observations
-    ``(N, H, W, C)`` uint8, actions ``(N, n_free)`` float32 in [-1, 1]. Every
+    The spaces are the single environment's batched: observations a
+    ``Dict`` of the task's inputs with ``frame`` ``(N, H, W, C)`` uint8 (a
+    version 1 task: the frames alone), actions ``(N, n_free)`` float32 in
+    [-1, 1]. Every
     keyword argument of :class:`PoseTrackingEnv` is accepted and applies to
     every episode, but ``views`` must be 1: multi-view episodes are stepped
     by ``SyncVectorEnv`` (``vectorization_mode="sync"``).

@@ -567,7 +567,7 @@ def configured_data_dirs(data_dir: str | Path | Sequence[str | Path] | None = No
     if data_dir is not None:
         items = [data_dir] if isinstance(data_dir, (str, Path)) else data_dir
         if not isinstance(items, (list, tuple)) or not all(
-            isinstance(p, (str, Path)) for p in items
+            isinstance(p, (str, Path)) and str(p) != "" for p in items
         ):
             raise ValueError(
                 f"data_dir: expected a folder (str or Path) or a list of them, got {data_dir!r}"

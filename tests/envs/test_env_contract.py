@@ -195,6 +195,7 @@ def test_integer_actions_are_accepted(env):
         {"occluders": -1},
         {"data_dir": 123},
         {"data_dir": [1, 2]},
+        {"data_dir": ""},  # Path("") is the working folder
         {"library": "x"},
         # None where the default is a value: it was read as False (never lost) or failed in int()
         {"terminate_on_lost": None},
@@ -223,6 +224,17 @@ def test_constructor_arguments_are_range_checked(kwargs):
 )
 def test_the_checks_take_what_the_arguments_take(kwargs):
     gym.make("humotion_gym/ArmTrack-v2", **kwargs).close()
+
+
+def test_a_data_dir_without_motion_capture_says_so(tmp_path):
+    with pytest.raises(ValueError, match=r"^data_dir \[.*\]: no motion capture \(.bvh, .amc\)"):
+        gym.make("humotion_gym/ArmTrack-v2", data_dir=str(tmp_path))
+
+
+def test_pose_to_action_refuses_another_length(env):
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"expected poses of shape \(\.\.\., 25\), got \(24,\)"):
+        env.pose_to_action(np.zeros(24))
 
 
 def test_a_registered_id_refuses_another_familys_task():

@@ -37,6 +37,13 @@ def test_learner_observation_passes_the_sb3_checker(env_id: str) -> None:
     assert obs["previous"].shape == obs["initial"].shape == (n_free,)
 
 
+def test_learner_observation_refuses_an_env_that_hides_the_initial_pose() -> None:
+    from humotion_gym.wrappers import FrameObservation
+
+    with pytest.raises(ValueError, match="must show the task's 'frame' and 'initial_pose'"):
+        LearnerObservation(FrameObservation(gym.make("humotion_gym/ArmTrack-v2")), size=32)
+
+
 @pytest.mark.parametrize("task", [t.name for t in CURRENT_TASKS])
 def test_learner_wrappers_pass_gymnasiums_checker_and_record_their_arguments(task: str) -> None:
     """Gymnasium's check_env and a spec that remakes the wrapped env (RecordConstructorArgs)."""
