@@ -178,8 +178,13 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         run_leaderboard,
         validity_lines,
     )
+    from baselines.leaderboard.run import check_labels
     from baselines.leaderboard.videos import ReplayMismatch
 
+    try:  # two agents of one label: the arguments conflict (exit 2)
+        check_labels(args.agents)
+    except ValueError as exc:
+        raise UsageError(f"--{exc}") from None
     if args.resume and args.out is None:
         raise UsageError("--resume: needs --out FOLDER, the run to continue")
     if (args.videos or args.no_report) and args.out is None:

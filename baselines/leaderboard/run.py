@@ -149,7 +149,7 @@ def run_leaderboard(
         FileNotFoundError: If ``resume`` is True and ``out`` holds no run.
     """
     _check_run(seed, episodes, particles, engine, resume, out, agent_seeds, videos)
-    _check_labels(agents)
+    check_labels(agents)
     kwargs = resolve_env_kwargs(env_kwargs)
     cells = [Cell(*c) for c in grid_cells(tasks, agents, particles)]
     windows = _windows(tasks, kwargs, seed, episodes, declared)
@@ -228,7 +228,7 @@ def _check_run(
         raise ValueError("resume: needs a results folder (out)")
 
 
-def _check_labels(agents: Sequence[str]) -> None:
+def check_labels(agents: Sequence[str]) -> None:
     """Refuse two agents the tables would show under one name (:func:`agent_label`)."""
     shown: dict[str, str] = {}
     for name in dict.fromkeys(agents):

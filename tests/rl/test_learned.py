@@ -332,6 +332,10 @@ def test_ppo_batches_fit_a_rollout_and_table_labels_are_distinct(tmp_path: Path)
     agents = [f"a={tmp_path / 'x.zip'}", f"a={tmp_path / 'y.zip'}"]
     with pytest.raises(ValueError, match="would both be shown as 'a'"):
         run_leaderboard(["ArmTrack-v2"], agents, [10], episodes=1, progress=False)
+    from baselines.cli import main
+
+    # on the command line, a usage error: exit 2, before any prior is fitted
+    assert main(["leaderboard", "--tasks", "ArmTrack-v2", "--agents", *agents]) == 2
 
 
 def test_whole_numbers_written_as_floats_are_counts() -> None:
