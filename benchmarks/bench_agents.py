@@ -45,6 +45,7 @@ from bench_observation import reference_scores
 import humotion_gym  # noqa: F401
 from baselines.agents import AGENTS, make
 from humotion_gym.cli._common import int_at_least
+from humotion_gym.envs import CURRENT_TASKS
 from humotion_gym.envs.description import read_observation
 from humotion_gym.threads import limit_blas_threads
 
@@ -56,7 +57,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data-dir", default=None)
     ap.add_argument("--frames", type=int_at_least(2), default=30)
-    ap.add_argument("--task", default="BodyTrack-v2")
+    ap.add_argument(  # the filters read version 2's observations
+        "--task", default="BodyTrack-v2", choices=[t.name for t in CURRENT_TASKS]
+    )
     ap.add_argument("--agents", nargs="+", choices=sorted(AGENTS), default=["pf-cv", "pf-tree"])
     ap.add_argument("--particles", type=int_at_least(1), nargs="+", default=[300, 3000, 10000])
     ap.add_argument(
