@@ -41,6 +41,32 @@ def test_usage_errors_exit_2_and_name_the_flag(argv, flag, capsys):
     assert flag in err and "Traceback" not in err
 
 
+@pytest.mark.parametrize(
+    "setting", [["replay=velocity"], ["--prior", "cv", "moving=root"], ["labels=walk,run"]]
+)
+def test_synth_takes_settings_that_are_words(setting, tmp_path, capsys):
+    *prior, word = setting
+    pca = ["--prior", "pca"] if word.startswith("labels") else []
+    out = tmp_path / "s.bvh"
+    argv = ["synth", *prior, *pca, "--setting", word, "--seconds", "0.2", "--out", str(out)]
+    assert main(argv) == 0 and out.is_file()
+
+
+@pytest.mark.parametrize(
+    ("argv", "says"),
+    [
+        (["--prior", "slds", "--setting", "switch_prob=1.5"], "slds.fit: switch_prob must be"),
+        (["--setting", "replay=bogus"], "tree.fit: replay must be one of"),
+    ],
+)
+def test_synth_refuses_a_bad_setting_in_the_fits_words(argv, says, tmp_path, capsys):
+    out = tmp_path / "s.bvh"
+    assert main(["synth", *argv, "--seconds", "0.2", "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    # after the line saying what is fitted, before any EM iteration: one line of error
+    assert says in err[-1] and "Traceback" not in "".join(err) and not out.exists()
+
+
 def test_a_hybrid_of_a_saved_policy_parses_and_its_file_is_checked(tmp_path, capsys):
     from baselines.cli import build_parser
 

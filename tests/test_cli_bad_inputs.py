@@ -187,6 +187,42 @@ HAND: list[tuple[str, str, list[str]]] = [
     ("negative", "synth", ["synth", "--setting", "beta=-1"]),
     ("NaN", "synth", ["synth", "--setting", "beta=nan"]),
     ("wrong-type", "synth", ["synth", "--setting", "nosuch=1"]),
+    # a word for a number went on to a comparison in the fit or the filter (TypeError)
+    (
+        "wrong-type",
+        "oracle",
+        [
+            "oracle",
+            "--task",
+            "ArmTrack-v2",
+            "--agents",
+            "pf-cv",
+            "--particles",
+            "5",
+            "--episodes",
+            "1",
+            "--set",
+            "fit.damping=abc",
+        ],
+    ),  # fmt: skip
+    (
+        "wrong-type",
+        "oracle",
+        [
+            "oracle",
+            "--task",
+            "ArmTrack-v2",
+            "--agents",
+            "apf-tree",
+            "--particles",
+            "5",
+            "--episodes",
+            "1",
+            "--set",
+            "filter.alpha=abc",
+        ],
+    ),  # fmt: skip
+    ("wrong-type", "pca figures", ["pca", "figures", "--out-dir", "{ws}/pf", "--fps", "1"]),
     ("huge", "synth", ["synth", "--seconds", "1e9"]),
     ("missing", "data convert", ["data", "convert", "synthetic/nosuch", "{ws}/o.bvh"]),
     ("wrong-type", "data convert", ["data", "convert", "{valid}", "{ws}/out.txt"]),

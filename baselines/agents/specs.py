@@ -37,6 +37,7 @@ from baselines.filtering.search import LocalSearch
 from baselines.observation import FrameModel, ObservationModel
 from baselines.priors import limbs, mixture
 from baselines.priors.fitting import fit_prior as fit_prior_on
+from humotion_gym.checks import is_real
 from humotion_gym.envs.description import TaskDescription
 from humotion_gym.mocap.library import MotionLibrary
 
@@ -122,6 +123,10 @@ class AgentSpec:
             raise ValueError(
                 f"filter settings {unknown} are not the filter's (they are {list(FILTER_SETTINGS)})"
             )
+        words = {n: v for n, v in chosen.items() if not is_real(v)}
+        if words:  # every filter setting is a number (filter.alpha=abc)
+            name, value = next(iter(words.items()))
+            raise ValueError(f"filter setting {name}: expected a number, got {value!r}")
         own = {
             n[len(SEARCH_SETTING) :]: v for n, v in chosen.items() if n.startswith(SEARCH_SETTING)
         }

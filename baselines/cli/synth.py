@@ -93,11 +93,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _value(name: str, text: str, default: Any) -> Any:
-    """A setting's value, of the kind its default is: a boolean, else a finite number >= 0.
+    """A setting's value, of the kind its default is: a boolean, a word, else a number >= 0.
 
     Every numeric setting of the priors' fits is a count, a length or a scale,
-    so a negative, infinite or NaN value is refused rather than passed on.
+    so a negative, infinite or NaN value is refused rather than passed on. A
+    word (``replay=velocity``, ``moving=root``) goes to the fit, which names
+    the words it takes.
     """
+    if isinstance(default, str) or (default is None and not _reads_as_number(text)):
+        return text
+    if isinstance(default, (tuple, list)):  # a list of words (labels=walk,run)
+        return tuple(t for t in text.split(",") if t)
     if isinstance(default, bool):
         flag = {"true": True, "false": False}.get(text.lower())
         if flag is None:
@@ -114,6 +120,14 @@ def _value(name: str, text: str, default: Any) -> Any:
             raise UsageError(f"--setting: {name} is a whole number, got {text[:40]!r}")
         return int(value)
     return value
+
+
+def _reads_as_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def fit_settings(module: Any, items: list[str], beta: float | None) -> dict[str, Any]:

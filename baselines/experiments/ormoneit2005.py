@@ -314,14 +314,19 @@ def make_figures(
     if not clips:
         raise ValueError("no walking clips in the library's train split")
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     joint = cycles.JOINT_ANGLES
     names = [PARAM_NAMES[i] for i in joint]
     xs, ws = joint_series([m.params for m in clips], [m.observed for m in clips])
     periods = np.array([cycles.estimate_period(x, w, fps) for x, w in zip(xs, ws, strict=True)])
     keep = np.flatnonzero(np.isfinite(periods))
+    if keep.size == 0:
+        raise ValueError(
+            f"no walking clip of the {len(clips)} shows a gait period at {fps:g} Hz "
+            "(two whole cycles are needed; a rate below a few Hz cannot show one)"
+        )
     xs, ws, periods = [xs[i] for i in keep], [ws[i] for i in keep], periods[keep]
     subjects = [clips[i].subject for i in keep]
+    out.mkdir(parents=True, exist_ok=True)
     written = []
     path = out / "fig5_snr.png"
     plot_snr(xs[0], path, ws[0], fps, names, title=clips[keep[0]].clip_id)

@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from baselines.priors import get_prior
-from humotion_gym.checks import is_integer
+from humotion_gym.checks import is_integer, is_real
 from humotion_gym.mocap.library import (
     CACHE_ERRORS,
     CACHE_VERSION,
@@ -142,13 +142,16 @@ def _typed_settings(module: ModuleType, settings: Mapping[str, Any]) -> dict[str
 
     Raises:
         ValueError: Naming the prior and the setting, for a count that is not
-            a whole number.
+            a whole number, or a word where the default is a number.
     """
     params = inspect.signature(module.fit).parameters
     out = dict(settings)
     for name, value in settings.items():
         p = params.get(name)
         default = None if p is None else p.default
+        if is_real(default) and not is_real(value):  # fit.damping=abc
+            prior = module.__name__.rsplit(".", 1)[-1]
+            raise ValueError(f"{prior} prior: the setting {name} is a number, got {value!r}")
         counted = is_integer(default)
         if counted and isinstance(value, (float, np.floating)):
             if not float(value).is_integer():

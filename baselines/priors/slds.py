@@ -89,7 +89,7 @@ from baselines.priors.slds_learning import (
     start_em,
 )
 from humotion_gym.body import PARAM_INDEX, PARAM_LOWER, PARAM_UPPER, SAGITTAL_PARAMS
-from humotion_gym.checks import is_count
+from humotion_gym.checks import is_count, is_real
 from humotion_gym.mocap.motion import Motion
 from humotion_gym.threads import available_cores, limit_blas_threads, single_threaded_blas
 
@@ -336,6 +336,8 @@ def fit(
     """
     rng = np.random.default_rng(0) if rng is None else rng
     training_clips(motions, frame_skip, "slds.fit")
+    if not (is_real(switch_prob) and 0.0 <= switch_prob < 1.0):  # before the EM, not after
+        raise ValueError(f"slds.fit: switch_prob must be in [0, 1), got {switch_prob!r}")
     for name, value, least in (
         ("n_states", n_states, 1), ("order", order, 1), ("n_iter", n_iter, 0),
     ):  # fmt: skip
