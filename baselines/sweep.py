@@ -197,8 +197,23 @@ def curves(sweep: Mapping[str, Any], metric: str = "error") -> list[dict[str, An
     ]
 
 
+def problems(sweep: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """The cells that did not run at a setting: ``("error" or "skipped", what and why)``."""
+    out = []
+    for point in sweep["points"]:
+        for r in point["rows"]:
+            for kind in ("error", "skipped"):
+                if kind in r:
+                    where = f"{point['setting']}={point['value']}"
+                    out.append((kind, f"{cell_label(r)} on {r['task']} at {where}: {r[kind]}"))
+    return out
+
+
 def markdown(sweep: Mapping[str, Any]) -> str:
-    """The curves as one Markdown table: IQM error (95% CI) per cell and value."""
+    """The curves as one Markdown table: IQM error (95% CI) per cell and value.
+
+    Cells that did not run are listed after it, each with why.
+    """
     lines = [
         "| setting | value | task | agent | IQM error mm (95% CI) | mean mm | lost track |",
         "|---|---|---|---|---|---|---|",
@@ -210,6 +225,9 @@ def markdown(sweep: Mapping[str, Any]) -> str:
                 f"({c['low'][k]:.0f}-{c['high'][k]:.0f}) | {c['mean_mm'][k]:.0f} | "
                 f"{c['lost_fraction'][k]:.0%} |"
             )
+    missing = problems(sweep)
+    if missing:
+        lines += ["", "Not in the table:"] + [f"- {kind.upper()}: {what}" for kind, what in missing]
     return "\n".join(lines)
 
 

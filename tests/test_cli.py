@@ -256,3 +256,18 @@ def test_discrimination_writes_its_figure(tmp_path, capsys):
 
     image = cv2.imread(str(out))
     assert image is not None and image.shape[1] == 6 * image.shape[0]
+
+
+@pytest.mark.parametrize(
+    ("argv", "held"),
+    [
+        (["oracle", "--task", "ArmTrack-v2", "--agents", "pf-cv", "--episodes", "1"],
+         "results.json.gz"),
+        (["detector", "train", "--frames", "64"], "detector.npz"),
+    ],
+)  # fmt: skip
+def test_a_recorded_result_is_never_written_over(argv, held, tmp_path, capsys):
+    (tmp_path / held).write_bytes(b"kept")
+    assert main([*argv, "--out", str(tmp_path)]) == 2
+    assert "already holds" in capsys.readouterr().err
+    assert (tmp_path / held).read_bytes() == b"kept"

@@ -14,6 +14,7 @@ from humotion_gym.cli._common import (
     add_command,
     add_data_dir,
     add_seed,
+    check_fresh_output,
     int_at_least,
     output_dir,
     positive_float,
@@ -66,6 +67,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _cmd_train(args: argparse.Namespace) -> int:
     from baselines.detector.train import TrainSettings, make_detector
 
+    check_fresh_output(args.out, ["detector.npz", "detector.json"], "trained weights")
     settings = TrainSettings(
         epochs=args.epochs, batch=args.batch, lr=args.lr, width=args.width, seed=args.seed,
         threads=args.threads,

@@ -18,6 +18,7 @@ from humotion_gym.cli._common import (
     add_command,
     add_data_dir,
     add_seed,
+    check_fresh_output,
     env_kwargs,
     episode_count,
     output_dir,
@@ -164,6 +165,8 @@ def _cmd_oracle(args: argparse.Namespace) -> int:
     if args.declared and args.split == "validation":
         raise UsageError("--declared: the declared windows are the test persons'; drop --split")
     oracles = _oracles(args)
+    if args.out is not None:
+        check_fresh_output(args.out, ["results.json.gz", "table.md"], "an oracle run")
     settings = dict(args.set)
     kwargs = env_kwargs(args)
     if args.split == "validation":

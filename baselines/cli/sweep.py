@@ -13,6 +13,7 @@ the leaderboard (``hold`` included). Writes ``sweep.json`` (every episode),
 from __future__ import annotations
 
 import argparse
+import sys
 from typing import Any
 
 from baselines.cli._args import add_agents, add_engine, check_engine, tracked_task
@@ -21,6 +22,7 @@ from humotion_gym.cli._common import (
     add_command,
     add_data_dir,
     add_seed,
+    check_fresh_output,
     env_kwargs,
     episode_count,
     float_between,
@@ -105,6 +107,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         flags = ", ".join("--" + name.replace("_", "-") for name in _SETTINGS)
         raise UsageError(f"nothing to sweep: give at least one of {flags}")
     check_engine(args)
+    check_fresh_output(args.out, ["sweep.json"], "a sweep")
     engine = None
     if args.engine != "inprocess":
         engine = {"engine": args.engine, "workers": args.workers, "address": args.address}
@@ -118,13 +121,16 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     (args.out / "sweep.md").write_text(table + "\n")
     print(table)
     wrote(args.out / "sweep.md", "the curves as a table")
+    failed = [what for kind, what in sweep.problems(result) if kind == "error"]
+    for what in failed:
+        print(f"error: {what}", file=sys.stderr)
     if importlib.util.find_spec("matplotlib") is None:
         print("no figure: matplotlib is not installed (pip install -e '.[plots]' adds it)")
-        return 0
+        return 1 if failed else 0
     title = (
         f"{', '.join(args.tasks)}; {args.episodes} episodes per point; "
         f"particles {', '.join(map(str, args.particles))}"
     )
     for path in [args.out / "sweep.png"] + ([args.figure] if args.figure else []):
         wrote(sweep.figure(result, path, title), "difficulty curves")
-    return 0
+    return 1 if failed else 0

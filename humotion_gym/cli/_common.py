@@ -235,6 +235,23 @@ def output_dir(text: str) -> Path:
     return path
 
 
+def check_fresh_output(out: Path, names: Sequence[str], what: str, flag: str = "--out") -> None:
+    """Refuse a folder that already holds a run's results, before the run starts.
+
+    A long run's outputs (a sweep, an oracle run, trained weights) are never
+    written over: a rerun into the folder of a recorded result would replace it.
+
+    Raises:
+        UsageError: Naming the flag, the folder and the file found.
+    """
+    found = [name for name in names if (out / name).exists()]
+    if found:
+        raise UsageError(
+            f"{flag}: {out} already holds {what} ({found[0]}); choose another folder or move "
+            "it away"
+        )
+
+
 def check_mocap_paths(paths: Sequence[str | Path], flag: str) -> None:
     """Refuse paths that hold no motion capture before a command starts its work.
 

@@ -113,7 +113,24 @@ def test_sweep_command(tmp_path, capsys, monkeypatch):
     # the engine options reach the leaderboard (this fake runs it in-process)
     seen.clear()
     argv = ["sweep", "--tasks", "ArmTrack-v2", "--agents", "hold", "--episodes", "1"]
+    assert main([*argv, "--noise", "2", "--out", str(out)]) == 2  # a sweep is never written over
+    assert "already holds a sweep (sweep.json)" in capsys.readouterr().err
+    again = tmp_path / "sw2"
     assert (
-        main([*argv, "--noise", "2", "--engine", "ray", "--workers", "2", "--out", str(out)]) == 0
+        main([*argv, "--noise", "2", "--engine", "ray", "--workers", "2", "--out", str(again)]) == 0
     )
     assert seen == [({"noise": 2.0}, {"engine": "ray", "workers": 2, "address": None})]
+
+
+def test_a_cell_that_fails_or_is_skipped_is_shown_and_fails_the_command(tmp_path, capsys):
+    bad = tmp_path / "bad.zip"
+    bad.write_text("not a policy")
+    out = tmp_path / "sw"
+    argv = ["sweep", "--tasks", "ArmTrack-v2", "--agents", f"mine={bad}", "pf-pca",
+            "--particles", "5", "--episodes", "1", "--size", "64", "--out", str(out)]  # fmt: skip
+    assert main(argv) == 1
+    captured = capsys.readouterr()
+    assert "- ERROR: mine on ArmTrack-v2 at size=64: building it failed" in captured.out
+    assert "- SKIPPED: pf-pca@5 on ArmTrack-v2 at size=64" in captured.out
+    assert "error: mine on ArmTrack-v2" in captured.err
+    assert "Not in the table:" in (out / "sweep.md").read_text()
