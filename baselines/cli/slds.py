@@ -39,7 +39,8 @@ from humotion_gym.mocap.motion import Motion
 _DEGREES = float_between(0.0, 180.0)
 
 
-def _add_model_args(p: argparse.ArgumentParser, figure: bool = True) -> None:
+def _add_model_args(p: argparse.ArgumentParser, figure: bool = True, clips: bool = True) -> None:
+    """``--seed``, ``--states``, ``--iters``; ``--max-train-clips`` where the command uses it."""
     from baselines.priors import slds
 
     add_seed(p, "seed of EM and of the test sequences")
@@ -51,10 +52,11 @@ def _add_model_args(p: argparse.ArgumentParser, figure: bool = True) -> None:
         "--iters", type=int_at_least(1, 10_000), default=slds.CLASSIFY_N_ITER,
         help=f"EM iterations per activity (default: {slds.CLASSIFY_N_ITER})",
     )  # fmt: skip
-    p.add_argument(
-        "--max-train-clips", type=int_at_least(1), default=None,
-        help="training clips per activity (default: all)",
-    )  # fmt: skip
+    if clips:
+        p.add_argument(
+            "--max-train-clips", type=int_at_least(1), default=None,
+            help="training clips per activity (default: all)",
+        )  # fmt: skip
     if figure:
         add_json(p)
         p.add_argument(
@@ -189,9 +191,9 @@ def _register_select(sub: argparse._SubParsersAction) -> None:
         help="kinds: mean of the style folds' and the person folds' pooled errors; frames: "
         "every held-out frame weighs the same (default: kinds)",
     )  # fmt: skip
-    _add_model_args(sel, figure=False)
+    _add_model_args(sel, figure=False, clips=False)  # every fold trains on all its clips
     _add_run_args(sel, "folds")
-    sel.set_defaults(func=_cmd_select, max_train_clips=None)
+    sel.set_defaults(func=_cmd_select)
 
 
 def _register_splits(sub: argparse._SubParsersAction) -> None:
@@ -224,7 +226,7 @@ def _register_splits(sub: argparse._SubParsersAction) -> None:
         help="also hold out each training person outside Bandai-Namco (CMU 5, 7) in turn "
         "(default: off)",
     )  # fmt: skip
-    _add_model_args(spl, figure=False)
+    _add_model_args(spl, figure=False, clips=False)
     _add_run_args(spl, "fits")
     spl.set_defaults(func=_cmd_splits)
 
@@ -280,7 +282,9 @@ def _cmd_classify(args: argparse.Namespace) -> int:
     out.update(
         train_clips=len(train), test_clips=len(test), seed=args.seed,
         params=[PARAM_NAMES[i] for i in result.model.free], features=args.features,
-        extra_noise_deg=args.extra_noise_deg,
+        extra_noise_deg=args.extra_noise_deg, noise_deg=args.noise_deg, n_iter=args.iters,
+        n_states=args.states, switch_prob=args.switch_prob, labels=list(wanted),
+        max_train_clips=args.max_train_clips,
     )  # fmt: skip
     if args.figure:
         pav.plot_segmentation(result, args.figure)
@@ -293,8 +297,10 @@ def _cmd_classify(args: argparse.Namespace) -> int:
         )
         for lab, err in result.per_label_error.items():
             print(f"  {lab:8s} error {100 * err:.2f}%")
+        cap = args.max_train_clips
+        most = f" (at most {cap} per activity used)" if cap else ""
         print(
-            f"  {len(train)} training clips, {len(test)} test clips, "
+            f"  {len(train)} training clips{most}, {len(test)} test clips, "
             f"{result.model.n_states} switch states, fit {result.seconds_fit:.1f} s"
         )
     return 0
