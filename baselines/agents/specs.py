@@ -354,7 +354,8 @@ STRUCTURE: dict[str, dict[str, Any]] = {
         prior=MIXTURE,
         components=MIX_COMPONENTS,
         description="a mixture of the tree prior, constant velocity and a small random walk "
-        "(Sidenbladh, Black & Sigal 2002, section 7): each particle, each frame, moves by one",
+        "(Sidenbladh, Black & Sigal 2002, section 7): each particle, each frame, moves by one "
+        "of them (its component, kept from one frame to the next with probability persistence)",
     ),
     "pf-limbs": dict(
         prior="baselines.priors.limbs",

@@ -462,10 +462,13 @@ def _cmd_figures(args: argparse.Namespace) -> int:
     pav.plot_interpolation(results[0], walk.free, out / "slds_fig6_interpolation.png")
     poses, switches = pav.slds.synthesize(walk, 300, rng)
     pav.plot_synthesis(poses, switches, walk.free, out / "slds_fig5_synthesis.png", walk.fps)
+    names = [f"slds_fig{n}.png" for n in ("3_classification", "5_synthesis", "6_interpolation")]
     summary = {
+        "seed": args.seed, "states": args.states, "iters": args.iters,
+        "max_train_clips": args.max_train_clips,
         "classification": result.summary(),
         "interpolation_mean_abs_error_deg": mean,
-        "figures": sorted(str(p) for p in out.glob("slds_fig*.png")),
-    }
+        "figures": [str(out / name) for name in names],  # these, not whatever the folder holds
+    }  # fmt: skip
     print_json(summary)
     return 0

@@ -66,7 +66,7 @@ def _cmd_figures(args: argparse.Namespace) -> int:
     from humotion_gym.mocap.library import default_library
 
     library = default_library(args.data_dir or None)
-    paths = make_figures(library, args.out_dir, args.seed)
+    paths = make_figures(library, args.out_dir, args.seed, log=print)
     kind = "synthetic" if library.is_synthetic else "real"
     for name, path in paths.items():
         wrote(path, f"{name}, {kind} motion, {library.total_frames} frames")

@@ -16,7 +16,7 @@ the search's alone. Command line: ``humotion-gym tree figures --out-dir DIR``
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -195,7 +195,12 @@ def figure4(
     save(fig, path)
 
 
-def make_figures(library: MotionLibrary, out_dir: str | Path, seed: int = 0) -> dict[str, Path]:
+def make_figures(
+    library: MotionLibrary,
+    out_dir: str | Path,
+    seed: int = 0,
+    log: Callable[[str], None] | None = None,
+) -> dict[str, Path]:
     """Fit the whole-body tree on the training split and draw Figs. 3 and 4.
 
     Args:
@@ -203,6 +208,7 @@ def make_figures(library: MotionLibrary, out_dir: str | Path, seed: int = 0) -> 
             probes come from its ``"test"`` split, walking clips first).
         out_dir: Folder for the PNG files (created).
         seed: Seed of every random choice.
+        log: Told Fig. 3's numbers (the spread at each beta), which docs quote.
 
     Returns:
         ``{"fig3": path, "fig4": path}``.
@@ -217,7 +223,10 @@ def make_figures(library: MotionLibrary, out_dir: str | Path, seed: int = 0) -> 
     out.mkdir(parents=True, exist_ok=True)
     fitted = tree.fit(train.motions)
     paths = {"fig3": out / "tree_fig3_beta_spread.png", "fig4": out / "tree_fig4_coefficients.png"}
-    figure3(fitted, test.motions, paths["fig3"], seed)
+    spread = figure3(fitted, test.motions, paths["fig3"], seed)
+    if log is not None:
+        shown = ", ".join(f"{s:.0f}" for s in spread)
+        log(f"fig3: spread of the sampled next poses {shown} mm for beta = {list(FIG3_BETAS)}")
     figure4(fitted, test.motions, paths["fig4"], seed)
     return paths
 

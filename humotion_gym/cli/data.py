@@ -1,4 +1,4 @@
-"""``humotion-gym data``: list, inspect, check and convert motion data.
+"""``humotion-gym data``: tabulate, inspect, check and convert motion data.
 
 ::
 
@@ -32,7 +32,7 @@ from humotion_gym.cli._common import (
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``data table|info|persons|convert``."""
     data = add_command(
-        subparsers, "data", "motion data: list, inspect, check, convert",
+        subparsers, "data", "motion data: table, info, persons, convert",
         "humotion-gym data info ../shared/mocap --summary",
     )  # fmt: skip
     dsub = data.add_subparsers(dest="data_command", required=True, metavar="COMMAND")
