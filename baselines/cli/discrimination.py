@@ -83,8 +83,8 @@ def _cmd_discrimination(args: argparse.Namespace) -> int:
     out = likelihood_discrimination(env, args.episodes, args.seed, args.distances)
     out["peak"] = likelihood_peak_error(env, args.episodes, args.seed)
     out["depth"] = likelihood_depth_profile(env, args.episodes, args.seed)
-    if args.json:
-        print_json(out)
+    if args.json:  # with what reruns it
+        print_json({**out, "seed": args.seed})
         return 0
     print(
         f"{args.task}: log-likelihood of the true pose minus that of perturbed poses, "

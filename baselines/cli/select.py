@@ -114,8 +114,10 @@ def _cmd_select(args: argparse.Namespace) -> int:
         )  # fmt: skip
     except ValueError as exc:  # a setting, agent or fold these arguments name
         raise UsageError(str(exc)) from exc
-    if args.json:
-        print_json(out)
+    if args.json:  # with what reruns it
+        print_json({**out, "seed": args.seed, "particles": args.particles,
+                    "episodes": args.episodes, "data_dir": args.data_dir or None,
+                    "validation": args.validation})  # fmt: skip
         return 0
     print(
         f"{out['task']}: {args.agent} at {args.particles} particles, {args.episodes} episodes "

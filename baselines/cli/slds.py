@@ -422,6 +422,11 @@ def _cmd_interpolate(args: argparse.Namespace) -> int:
     if args.figure:
         pav.plot_interpolation(results[0], pav.slds.SAGITTAL_INDEX, args.figure)
     out = {
+        "seed": args.seed,
+        "states": args.states,
+        "iters": args.iters,
+        "label": args.label,
+        "max_train_clips": args.max_train_clips,
         "clips": len(results),
         "gap": list(pav.GAP),
         "mean_abs_error_deg": {k: round(v, 3) for k, v in mean.items()},

@@ -85,8 +85,9 @@ def _cmd_variance(args: argparse.Namespace) -> int:
     assert isinstance(env, PoseTrackingEnv)
     _, fitted = fit_prior(AGENTS["pf-tree"], env)
     rows = explained_variance_by_features(fitted, windows=args.windows, seed=args.seed)
-    if args.json:
-        print_json(rows)
+    if args.json:  # with what reruns it
+        print_json({"task": args.task, "windows": args.windows, "seed": args.seed,
+                    "database_windows": fitted.n_windows, "rows": rows})  # fmt: skip
         return 0
     print(
         f"{args.task}: pf-tree's database, {fitted.n_windows:,} windows of {fitted.window} "
