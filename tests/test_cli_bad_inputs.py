@@ -177,6 +177,9 @@ def _generated() -> list[tuple[str, str, list[str]]]:
     return cases
 
 
+#: A one-episode oracle run, its agent and settings to add.
+ORACLE_RUN = ["oracle", "--task", "ArmTrack-v2", "--particles", "5", "--episodes", "1"]
+
 # Reproductions of issue 62's findings that the generator does not reach.
 HAND: list[tuple[str, str, list[str]]] = [
     ("non-mocap", "track", ["track", "--clip", "{notes}", "--data-dir", "{valid_dir}"]),
@@ -188,40 +191,8 @@ HAND: list[tuple[str, str, list[str]]] = [
     ("NaN", "synth", ["synth", "--setting", "beta=nan"]),
     ("wrong-type", "synth", ["synth", "--setting", "nosuch=1"]),
     # a word for a number went on to a comparison in the fit or the filter (TypeError)
-    (
-        "wrong-type",
-        "oracle",
-        [
-            "oracle",
-            "--task",
-            "ArmTrack-v2",
-            "--agents",
-            "pf-cv",
-            "--particles",
-            "5",
-            "--episodes",
-            "1",
-            "--set",
-            "fit.damping=abc",
-        ],
-    ),  # fmt: skip
-    (
-        "wrong-type",
-        "oracle",
-        [
-            "oracle",
-            "--task",
-            "ArmTrack-v2",
-            "--agents",
-            "apf-tree",
-            "--particles",
-            "5",
-            "--episodes",
-            "1",
-            "--set",
-            "filter.alpha=abc",
-        ],
-    ),  # fmt: skip
+    ("wrong-type", "oracle", [*ORACLE_RUN, "--agents", "pf-cv", "--set", "fit.damping=abc"]),
+    ("wrong-type", "oracle", [*ORACLE_RUN, "--agents", "apf-tree", "--set", "filter.alpha=abc"]),
     ("wrong-type", "pca figures", ["pca", "figures", "--out-dir", "{ws}/pf", "--fps", "1"]),
     ("huge", "synth", ["synth", "--seconds", "1e9"]),
     ("missing", "data convert", ["data", "convert", "synthetic/nosuch", "{ws}/o.bvh"]),
