@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm.auto import tqdm
 
-from baselines.agents import make, tracking_env
+from baselines.agents import make, tracking_env, uses_particles
 from baselines.leaderboard.evaluation import EpisodeResult, run_episode
 from baselines.leaderboard.stats import bootstrap_ci
 from humotion_gym.body import KEYPOINT_INDEX, PARAM_INDEX, forward_kinematics
@@ -264,7 +264,7 @@ def run_depth(
             rows.append(
                 {
                     "agent": name,
-                    "particles": 0 if name == "hold" else particles,
+                    "particles": particles if uses_particles(name) else 0,
                     **summarize_depth(eps, seed=seed),
                     "episodes": [e.to_dict() for e in eps],
                 }

@@ -271,3 +271,18 @@ def test_a_recorded_result_is_never_written_over(argv, held, tmp_path, capsys):
     assert main([*argv, "--out", str(tmp_path)]) == 2
     assert "already holds" in capsys.readouterr().err
     assert (tmp_path / held).read_bytes() == b"kept"
+
+
+@pytest.mark.parametrize(
+    ("argv", "dest", "want"),
+    [
+        (["depth", "--agents", "pf-cv", "pf-cv", "bc"], "agents", ["pf-cv", "bc"]),
+        (["sweep", "--noise", "0", "0", "4", "--out", "x"], "sweep_noise", [0.0, 4.0]),
+        (["oracle", "--task", "ArmTrack-v2", "ArmTrack-v2"], "task", ["ArmTrack-v2"]),
+        (["discrimination", "--distances", "50", "50"], "distances", [50.0]),
+    ],
+)
+def test_a_value_given_twice_runs_once(argv, dest, want):
+    from baselines.cli import build_parser
+
+    assert getattr(build_parser().parse_args(argv), dest) == want

@@ -215,6 +215,7 @@ def test_bad_inputs_raise(scene_and_poses) -> None:
         MODEL.prepare(np.zeros((64, 64, 2), np.uint8))
     for kwargs in (
         {"edge_sigma": 0.0},
+        {"edge_sigma": 1e308},  # squared, it overflowed in the cost table
         {"edge_truncation": -1.0},
         {"foreground_weight": -1.0},
         {"foreground_low": 80.0},

@@ -6,6 +6,7 @@ import argparse
 
 from humotion_gym.cli._common import (
     MAX_PARTICLES,
+    Distinct,
     UsageError,
     int_at_least,
     particle_count,
@@ -70,7 +71,8 @@ def add_particles(parser: argparse.ArgumentParser, what: str = "particles") -> N
 def add_agents(parser: argparse.ArgumentParser, hold: str = "hold always runs") -> None:
     """``--agents``: registered agent names, default pf-cv pf-tree (``hold`` runs besides)."""
     parser.add_argument(
-        "--agents", type=agent_name, nargs="+", default=["pf-cv", "pf-tree"], metavar="AGENT",
+        "--agents", type=agent_name, nargs="+", action=Distinct, default=["pf-cv", "pf-tree"],
+        metavar="AGENT",
         help=f"agents; {hold} (default: pf-cv pf-tree)",
     )  # fmt: skip
 

@@ -11,6 +11,7 @@ import argparse
 
 from baselines.cli._args import tracked_task
 from humotion_gym.cli._common import (
+    Distinct,
     UsageError,
     add_command,
     add_data_dir,
@@ -39,7 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     add_seed(dis, "first episode seed")
     dis.add_argument(
-        "--distances", type=float_between(0.0, 5000.0, open_low=True), nargs="+",
+        "--distances", type=float_between(0.0, 5000.0, open_low=True), nargs="+", action=Distinct,
         default=[50.0, 100.0, 200.0], metavar="MM",
         help="error bins' centres in mm, up to 5000 (default: 50 100 200)",
     )  # fmt: skip

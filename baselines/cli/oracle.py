@@ -14,6 +14,7 @@ import json
 
 from baselines.cli._args import add_particles, key_setting, tracked_task
 from humotion_gym.cli._common import (
+    Distinct,
     UsageError,
     add_command,
     add_data_dir,
@@ -61,11 +62,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "(docs/diagnostics.md).",
     )
     op.add_argument(
-        "--task", type=tracked_task, nargs="+", default=["BodyTrack-v2"], metavar="TASK",
+        "--task", type=tracked_task, nargs="+", action=Distinct, default=["BodyTrack-v2"],
+        metavar="TASK",
         help="task ids (default: BodyTrack-v2)",
     )  # fmt: skip
     op.add_argument(
-        "--agents", type=_filter_agent, nargs="+", default=["pf-cv", "pf-tree", "pf-mix"],
+        "--agents", type=_filter_agent, nargs="+", action=Distinct,
+        default=["pf-cv", "pf-tree", "pf-mix"],
         metavar="AGENT", help="particle-filter agents; hold always runs (default: pf-cv pf-tree "
         "pf-mix)",
     )  # fmt: skip

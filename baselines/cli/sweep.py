@@ -18,6 +18,7 @@ from typing import Any
 
 from baselines.cli._args import add_agents, add_engine, check_engine, tracked_task
 from humotion_gym.cli._common import (
+    Distinct,
     UsageError,
     add_command,
     add_data_dir,
@@ -63,7 +64,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "curves as a table) and sweep.png (the curves).",
     )  # fmt: skip
     sw.add_argument(
-        "--tasks", type=tracked_task, nargs="+", default=["BodyTrack-v2"], metavar="TASK",
+        "--tasks", type=tracked_task, nargs="+", action=Distinct, default=["BodyTrack-v2"],
+        metavar="TASK",
         help="task ids (default: BodyTrack-v2)",
     )  # fmt: skip
     add_agents(sw)
@@ -80,7 +82,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     grid = sw.add_argument_group("settings (each one given is swept on its own)")
     for name, flag in _SETTINGS.items():
         grid.add_argument(
-            "--" + name.replace("_", "-"), nargs="+", default=None, dest=f"sweep_{name}",
+            "--" + name.replace("_", "-"), nargs="+", action=Distinct, default=None,
+            dest=f"sweep_{name}",
             **{**flag, "help": flag["help"] + " (default: not swept)"},
         )  # fmt: skip
     add_engine(sw)

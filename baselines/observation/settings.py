@@ -224,10 +224,12 @@ class ObservationSettings:
             "residual_truncation",
             "coverage_truncation",
         )
-        for name in positive:
+        for name in positive:  # lengths in pixels or mm: a million is beyond any frame
             value = float(getattr(self, name))
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"ObservationModel.{name}: expected a positive number")
+            if not (math.isfinite(value) and 0 < value <= 1e6):
+                raise ValueError(
+                    f"ObservationModel.{name}: expected a positive length up to 1e6, got {value:g}"
+                )
         if not (math.isfinite(self.sharpness) and self.sharpness > 0):
             raise ValueError("ObservationModel.sharpness: expected a positive number")
         if not (self.foreground_weight >= 0 and math.isfinite(self.foreground_weight)):

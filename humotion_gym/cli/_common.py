@@ -235,6 +235,19 @@ def output_dir(text: str) -> Path:
     return path
 
 
+class Distinct(argparse.Action):
+    """A list flag's values, each once, in the order given (``--agents a a`` runs ``a`` once)."""
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: Any,
+        option_string: str | None = None,
+    ) -> None:
+        setattr(namespace, self.dest, list(dict.fromkeys(values)))
+
+
 def check_fresh_output(out: Path, names: Sequence[str], what: str, flag: str = "--out") -> None:
     """Refuse a folder that already holds a run's results, before the run starts.
 
