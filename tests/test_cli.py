@@ -229,9 +229,11 @@ def test_agents_show_each_filters_settings_on_a_task(capsys):
 
 def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
-    for part, size in (("clips", 10), ("priors", 20), ("cmu", 30)):
-        (tmp_path / part).mkdir()
-        (tmp_path / part / "entry.npz").write_bytes(b"x" * size)
+    for part, name, size in (
+        ("clips", "entry.npz", 10), ("priors", "entry.npz", 20), ("cmu/02", "02_01.amc", 30)
+    ):  # fmt: skip
+        (tmp_path / part).mkdir(parents=True)
+        (tmp_path / part / name).write_bytes(b"x" * size)
     assert main(["cache", "info", "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["path"] == str(tmp_path) and info["set_by"] == "HUMOTION_CACHE"
@@ -240,9 +242,14 @@ def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
         "priors": 20,
         "cmu": 30,
     }
+    (tmp_path / "priors" / "holiday.mp4").write_bytes(b"mine")  # not the cache's
+    capsys.readouterr()
     assert main(["cache", "clear"]) == 0
-    assert not (tmp_path / "clips").exists() and not (tmp_path / "priors").exists()
-    assert (tmp_path / "cmu" / "entry.npz").is_file()  # downloads are kept
+    out = capsys.readouterr().out
+    assert not (tmp_path / "clips").exists() and not (tmp_path / "priors" / "entry.npz").exists()
+    assert (tmp_path / "priors" / "holiday.mp4").read_bytes() == b"mine"
+    assert "left 1 files in" in out and "holiday.mp4" in out
+    assert (tmp_path / "cmu" / "02" / "02_01.amc").is_file()  # downloads are kept
     assert main(["cache", "clear", "--downloads"]) == 0
     assert not (tmp_path / "cmu").exists()
 

@@ -14,7 +14,6 @@ everything but the downloads is rebuilt on demand.
 from __future__ import annotations
 
 import argparse
-import shutil
 from pathlib import Path
 
 from humotion_gym.cli._common import CommandError, add_command, add_json, print_json
@@ -23,6 +22,13 @@ from humotion_gym.cli._common import CommandError, add_command, add_json, print_
 REBUILT = ("clips", "priors")
 #: Sub-folders of downloaded data (``cache clear --downloads`` removes them too).
 DOWNLOADS = ("cmu",)
+#: What the cache writes in each part: ``cache clear`` removes these files and no
+#: others (a user's file kept there is left, and said so).
+OWN_FILES: dict[str, tuple[str, ...]] = {
+    "clips": ("*.npz", ".*.tmp"),
+    "priors": ("*.npz", ".*.tmp"),
+    "cmu": ("*.amc", "*.asf", "*.bvh", "*.part", "*.part.json", "manifest.json", ".*.tmp"),
+}
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -101,14 +107,40 @@ def _from_env() -> bool:
 def _cmd_clear(args: argparse.Namespace) -> int:
     root = _cache_root()
     names = REBUILT + (DOWNLOADS if args.downloads else ())
-    freed = 0
+    freed = removed = 0
     for name in names:
         folder = root / name
-        n, b = _size(folder)
-        if folder.is_dir():
-            shutil.rmtree(folder)
-            freed += b
-            print(f"removed {folder} ({n} files, {b / 2**20:.1f} MiB)")
-    if not freed:
+        if not folder.is_dir():
+            continue
+        own, foreign = _own_files(folder, OWN_FILES[name])
+        for path in own:
+            freed += path.stat().st_size
+            path.unlink()
+        removed += len(own)
+        _remove_empty_folders(folder)
+        if own:
+            print(f"removed {len(own)} files from {folder}")
+        if foreign:  # the user's files in a folder the cache uses: never removed
+            print(
+                f"left {len(foreign)} files in {folder} that the cache did not write "
+                f"(e.g. {foreign[0].name})"
+            )
+    if not removed:
         print(f"nothing to remove in {root}")
+    else:
+        print(f"freed {freed / 2**20:.1f} MiB")
     return 0
+
+
+def _own_files(folder: Path, patterns: tuple[str, ...]) -> tuple[list[Path], list[Path]]:
+    """The files under ``folder`` the cache wrote (by ``patterns``) and the others."""
+    files = sorted(p for p in folder.rglob("*") if p.is_file() or p.is_symlink())
+    own = [p for p in files if any(p.match(pattern) for pattern in patterns)]
+    return own, [p for p in files if p not in set(own)]
+
+
+def _remove_empty_folders(folder: Path) -> None:
+    """Remove ``folder`` and the folders under it that are left empty, deepest first."""
+    for path in sorted(folder.rglob("*"), key=lambda p: len(p.parts), reverse=True) + [folder]:
+        if path.is_dir() and not path.is_symlink() and not any(path.iterdir()):
+            path.rmdir()
