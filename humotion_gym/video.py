@@ -21,6 +21,23 @@ def _to_bgr(frame: NDArray[np.uint8], scale: int) -> NDArray[np.uint8]:
     return cv2.cvtColor(np.ascontiguousarray(img), cv2.COLOR_RGB2BGR)
 
 
+#: The largest side of an ``.mp4`` frame (MPEG-4 part 2 codes sides below 8192 px).
+MAX_MP4_SIDE = 8191
+
+
+def check_video_size(path: str | Path, width: int, height: int) -> None:
+    """Refuse frames an ``.mp4`` cannot hold, before any is rendered.
+
+    Raises:
+        ValueError: Naming the file, the size and what to do instead.
+    """
+    if Path(path).suffix.lower() == ".mp4" and max(width, height) > MAX_MP4_SIDE:
+        raise ValueError(
+            f"{path}: an .mp4 frame is at most {MAX_MP4_SIDE} px a side, these would be "
+            f"{width}x{height}; write an .avi, or choose a smaller size or scale"
+        )
+
+
 def write_video(
     path: str | Path, frames: Sequence[NDArray[np.uint8]], fps: float, scale: int = 2
 ) -> None:
@@ -29,15 +46,17 @@ def write_video(
     The file's folder is created if missing.
 
     Raises:
-        ValueError: If there are no frames.
+        ValueError: If there are no frames, or they are too large for an ``.mp4``.
         OSError: If OpenCV cannot open the file for writing.
     """
     if not frames:
         raise ValueError("write_video: no frames")
     first = _to_bgr(frames[0], scale)
     h, w = first.shape[:2]
+    check_video_size(path, w, h)
     Path(path).parent.mkdir(parents=True, exist_ok=True)
-    fourcc = cv2.VideoWriter.fourcc(*("mp4v" if str(path).endswith(".mp4") else "MJPG"))
+    mp4 = Path(path).suffix.lower() == ".mp4"  # .MP4 too: MJPG inside an .mp4 plays nowhere
+    fourcc = cv2.VideoWriter.fourcc(*("mp4v" if mp4 else "MJPG"))
     writer = cv2.VideoWriter(str(path), fourcc, float(fps), (w, h))
     if not writer.isOpened():
         raise OSError(f"{path}: OpenCV could not open a video writer")

@@ -28,3 +28,25 @@ def test_render_motion_frames_are_render_frames() -> None:
         expected = render(pose, motion.shape, camera, scene, rng, background, t)
         assert np.array_equal(frames[t], expected), t
     assert not np.array_equal(frames[0], frames[-1])
+
+
+def test_an_mp4_too_large_is_refused_before_rendering(tmp_path, capsys):
+    from baselines.cli import main
+
+    out = tmp_path / "big.mp4"
+    argv = ["render", "--task", "BodyTrack4Views-v2", "--scale", "16", "--frames", "2"]
+    assert main([*argv, "--out", str(out)]) == 2  # 4 views x 128 px x 16 = 8192 px wide
+    err = capsys.readouterr().err
+    assert "an .mp4 frame is at most 8191 px a side, these would be 8192x2048" in err
+    assert not out.exists() and not out.with_suffix(".png").exists()
+
+
+def test_an_upper_case_mp4_is_mpeg4_too(tmp_path):
+    import cv2
+
+    from humotion_gym.video import write_video
+
+    path = tmp_path / "clip.MP4"
+    write_video(path, [np.zeros((64, 64, 3), np.uint8)] * 3, fps=30.0, scale=1)
+    code = int(cv2.VideoCapture(str(path)).get(cv2.CAP_PROP_FOURCC))
+    assert "".join(chr((code >> 8 * i) & 255) for i in range(4)) == "FMP4"  # not MJPG

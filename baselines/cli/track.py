@@ -152,7 +152,8 @@ def _cmd_track(args: argparse.Namespace) -> int:
         _warn_if_trained_on(args.clip, options, env.unwrapped.library)  # type: ignore[attr-defined]
     if args.video:
         shape = env.observation_space["frame"].shape  # type: ignore[index]
-        size = int(np.prod(shape[:2])) * 3  # RGB frames of the observation's size
+        # render() is every view side by side, in RGB: (H, views * W, 3)
+        size = int(np.prod(shape[-3:-1])) * (shape[0] if len(shape) == 4 else 1) * 3
         frames_per_episode = env.unwrapped.episode_frames  # type: ignore[attr-defined]
         check_memory("--video", frames_per_episode, size, "frames of the first episode")
     try:

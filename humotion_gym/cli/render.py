@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 
 from humotion_gym.cli._common import (
+    UsageError,
     add_command,
     add_data_dir,
     add_seed,
@@ -66,12 +67,18 @@ def _cmd_render(args: argparse.Namespace) -> int:
     from tqdm.auto import tqdm
 
     from humotion_gym.envs.pose_tracking import PoseTrackingEnv
-    from humotion_gym.video import contact_sheet, write_png, write_video
+    from humotion_gym.envs.tasks import get_task
+    from humotion_gym.video import check_video_size, contact_sheet, write_png, write_video
     from humotion_gym.wrappers import FrameObservation
 
     width, height = args.size or (128, 128)
+    views = get_task(args.task).views  # side by side in each frame
+    try:
+        check_video_size(args.out, width * views * args.scale, height * args.scale)
+    except ValueError as exc:
+        raise UsageError(f"--out: {exc}") from None
     # the frames are held, then scaled for the video one at a time
-    check_memory("--frames", args.frames, width * height * 3, "frames")
+    check_memory("--frames", args.frames, width * views * height * 3, "frames")
     sheet = args.sheet or check_output_file(args.out.with_suffix(".png"), "--sheet", ".png")
     env = gym.make(
         f"humotion_gym/{args.task}", episode_frames=args.frames, terminate_on_lost=False,
