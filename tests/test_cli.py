@@ -293,3 +293,19 @@ def test_a_value_given_twice_runs_once(argv, dest, want):
     from baselines.cli import build_parser
 
     assert getattr(build_parser().parse_args(argv), dest) == want
+
+
+def test_track_json_says_what_reruns_it(capsys):
+    assert main(["track", "--agent", "hold", "--task", "ArmTrack-v2", "--episodes", "1",
+                 "--seed", "4", "--json"]) == 0  # fmt: skip
+    out = json.loads(capsys.readouterr().out)
+    # hold takes no particles: none reported (the table says so too)
+    assert out["particles"] is None and out["seed"] == 4
+    assert out["clip"] is None and out["data_dir"] is None
+
+
+def test_agents_on_a_multi_view_id_show_its_tasks_settings(capsys):
+    assert main(["agents", "--task", "BodyTrack2Views-v2", "--json"]) == 0
+    rows = {r["agent"]: r for r in map(json.loads, capsys.readouterr().out.splitlines())}
+    follow = rows["pf-follow"]["settings"]  # pf-follow runs there, with BodyTrack-v2's settings
+    assert follow["task"] == "BodyTrack-v2" and follow["fit"]["position_noise"] == 1.0

@@ -57,7 +57,10 @@ def _settings_text(settings: dict[str, Any]) -> str:
 
 def _cmd_agents(args: argparse.Namespace) -> int:
     from baselines.agents import AGENTS, LEARNED, REFERENCES, agent_names
+    from humotion_gym.envs.tasks import get_task
 
+    # a multi-view variant is its task with more cameras: the task's settings
+    task = None if args.task is None else get_task(args.task).name
     rows: list[dict[str, Any]] = []
     for name in agent_names():
         if name in REFERENCES:
@@ -70,11 +73,11 @@ def _cmd_agents(args: argparse.Namespace) -> int:
                 "tasks": list(spec.tasks) if spec.tasks is not None else None,
                 "description": spec.description,
             }  # fmt: skip
-            if args.task is not None and (spec.tasks is None or args.task in spec.tasks):
+            if task is not None and (spec.tasks is None or task in spec.tasks):
                 row["settings"] = {
-                    "task": args.task,
-                    "fit": _plain_settings(spec.settings_for(args.task)),
-                    "filter": _plain_settings(_filter_settings(spec, args.task)),
+                    "task": task,
+                    "fit": _plain_settings(spec.settings_for(task)),
+                    "filter": _plain_settings(_filter_settings(spec, task)),
                 }
             rows.append(row)
         else:

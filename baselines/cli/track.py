@@ -129,7 +129,7 @@ def _warn_if_trained_on(clip: str, options: dict[str, str], library: Any) -> Non
 def _cmd_track(args: argparse.Namespace) -> int:
     import gymnasium as gym
 
-    from baselines.agents import REFERENCES, make
+    from baselines.agents import REFERENCES, make, uses_particles
     from baselines.leaderboard.evaluation import evaluate, run_episode, summarize, warm_up
     from humotion_gym.video import write_video
 
@@ -169,7 +169,10 @@ def _cmd_track(args: argparse.Namespace) -> int:
     summary = summarize(results)
     if args.json:
         print(json_text({
-            "task": args.task, "agent": args.agent, "particles": args.particles,
+            "task": args.task, "agent": args.agent,
+            "particles": args.particles if uses_particles(args.agent) else None,
+            # what reruns it: the first episode's seed (the agent's too), clip, data
+            "seed": args.seed, "clip": args.clip, "data_dir": args.data_dir or None,
             "episodes": [r.to_dict() for r in results], "summary": summary,
             "video": str(args.video) if args.video else None, "warm_up_s": warm_up_s,
         }))  # fmt: skip
