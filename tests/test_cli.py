@@ -309,3 +309,15 @@ def test_agents_on_a_multi_view_id_show_its_tasks_settings(capsys):
     rows = {r["agent"]: r for r in map(json.loads, capsys.readouterr().out.splitlines())}
     follow = rows["pf-follow"]["settings"]  # pf-follow runs there, with BodyTrack-v2's settings
     assert follow["task"] == "BodyTrack-v2" and follow["fit"]["position_noise"] == 1.0
+
+
+def test_a_path_from_the_environment_is_named_as_such(monkeypatch, capsys):
+    monkeypatch.setenv("HUMOTION_MOCAP", "/nonexistent-mocap")
+    assert main(["data", "table"]) in (1, 2)
+    assert "$HUMOTION_MOCAP: /nonexistent-mocap: no such file" in capsys.readouterr().err
+
+
+def test_too_many_frames_says_how_many_a_clip_holds(tmp_path, capsys):
+    assert main(["render", "--frames", "5000", "--out", str(tmp_path / "x.mp4")]) == 1
+    err = capsys.readouterr().err
+    assert "no train clip of any label holds 5001 frames" in err and "the longest has" in err

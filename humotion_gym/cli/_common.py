@@ -275,7 +275,11 @@ def check_mocap_paths(paths: Sequence[str | Path], flag: str) -> None:
     """
     from humotion_gym.mocap.library import find_clips
 
-    if not find_clips(paths):
+    try:
+        found = find_clips(paths)
+    except FileNotFoundError as exc:  # say which flag (or variable) named the path
+        raise CommandError(f"{flag}: {exc}") from None
+    if not found:
         shown = ", ".join(str(p) for p in paths)
         raise CommandError(f"{flag}: no BVH or ASF/AMC motion capture under {shown[:200]}")
 

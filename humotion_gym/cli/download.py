@@ -13,6 +13,7 @@ import argparse
 from pathlib import Path
 
 from humotion_gym.cli._common import (
+    Distinct,
     UsageError,
     add_command,
     float_between,
@@ -37,11 +38,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "humotion-gym download cmu --activity walk --persons 10 --dry-run",
     )  # fmt: skip
     cmu.add_argument(
-        "--subjects", type=int_at_least(1, 999), nargs="+", default=None, metavar="N",
+        "--subjects", type=int_at_least(1, 999), nargs="+", action=Distinct, default=None,
+        metavar="N",
         help="CMU subject numbers (required unless --activity or --verify)",
     )  # fmt: skip
     cmu.add_argument(
-        "--activity", nargs="+", default=None, metavar="LABEL",
+        "--activity", nargs="+", action=Distinct, default=None, metavar="LABEL",
         help="choose subjects who did these activities (walk, run, jump, dance, fight, sports, "
         "acrobatics, reach, everyday, pantomime), most trials first, one per person "
         "(default: none)",

@@ -298,9 +298,12 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         need = self.episode_frames * self.frame_skip + 1
         clips = clips.filter(min_frames=need)
         if len(clips) == 0:
+            labels = "any label" if self.task.labels is None else f"labels {self.task.labels}"
+            longest = max((m.n_frames for m in library.episode_split(split)), default=0)
             raise ValueError(
-                f"{self.task.name}: no {split} clip with labels {self.task.labels} and at least "
-                f"{need} frames in the library ({len(library)} clips)"
+                f"{self.task.name}: no {split} clip of {labels} holds {need} frames "
+                f"({self.episode_frames} frames, every {self.frame_skip}, and the frame "
+                f"before); the longest has {longest} ({len(library)} clips in the library)"
             )
         if self.task.min_motion_mm > 0:
             # only clips with at least one start that moves enough
