@@ -321,3 +321,10 @@ def test_too_many_frames_says_how_many_a_clip_holds(tmp_path, capsys):
     assert main(["render", "--frames", "5000", "--out", str(tmp_path / "x.mp4")]) == 1
     err = capsys.readouterr().err
     assert "no train clip of any label holds 5001 frames" in err and "the longest has" in err
+
+
+def test_data_table_json_has_the_tables_columns(capsys):
+    assert main(["data", "table", "--json"]) == 0
+    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert {"person", "split", "seconds"} <= rows[0].keys()
+    assert {r["split"] for r in rows} == {"train", "test"}  # synthetic 5 and 6 are held out

@@ -98,11 +98,14 @@ def _cmd_data_table(args: argparse.Namespace) -> int:
     lib = default_library(args.data_dir or None, fps=args.fps, progress=not args.json)
     if args.split:
         lib = lib.split(args.split)
-    if args.json:
+    if args.json:  # the table's columns, and where each clip came from
+        held = lib.held_out
         for m in lib:
             print(json_text({
-                "clip": m.clip_id, "dataset": m.dataset, "subject": m.subject, "label": m.label,
-                "frames": m.n_frames, "fps": m.fps, "source": m.source,
+                "clip": m.clip_id, "dataset": m.dataset, "subject": m.subject,
+                "person": m.meta.get("person", m.subject),
+                "split": "test" if m.subject in held else "train", "label": m.label,
+                "frames": m.n_frames, "fps": m.fps, "seconds": m.duration, "source": m.source,
             }))  # fmt: skip
         return 0
     print(lib.table())
