@@ -328,3 +328,10 @@ def test_data_table_json_has_the_tables_columns(capsys):
     rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert {"person", "split", "seconds"} <= rows[0].keys()
     assert {r["split"] for r in rows} == {"train", "test"}  # synthetic 5 and 6 are held out
+
+
+def test_a_clip_of_another_activity_is_tracked_with_a_warning(capsys):
+    argv = ["track", "--task", "WalkTrack-v2", "--clip", "synthetic/wave-05", "--agent", "hold",
+            "--episodes", "1"]  # fmt: skip
+    assert main(argv) == 0
+    assert "is a wave clip; WalkTrack-v2 draws only walk" in capsys.readouterr().err

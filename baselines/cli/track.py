@@ -148,6 +148,12 @@ def _cmd_track(args: argparse.Namespace) -> int:
             if not near and synthetic and not args.clip.startswith("synthetic/"):
                 hint = " (the built-in synthetic library; real mocap needs --data-dir)"
             raise UsageError(f"--clip: no clip {args.clip} in the task's library{hint}")
+        label, wanted = library[options["clip_id"]].label, env.unwrapped.task.labels  # type: ignore[attr-defined]
+        if wanted is not None and label not in wanted:  # tracked, but not the task's motion
+            warnings.warn(
+                f"--clip {args.clip} is a {label} clip; {args.task} draws only {', '.join(wanted)}",
+                stacklevel=1,
+            )
     if options and args.agent not in REFERENCES:
         _warn_if_trained_on(args.clip, options, env.unwrapped.library)  # type: ignore[attr-defined]
     if args.video:
