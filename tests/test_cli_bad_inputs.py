@@ -194,6 +194,12 @@ HAND: list[tuple[str, str, list[str]]] = [
     ("wrong-type", "oracle", [*ORACLE_RUN, "--agents", "pf-cv", "--set", "fit.damping=abc"]),
     ("wrong-type", "oracle", [*ORACLE_RUN, "--agents", "apf-tree", "--set", "filter.alpha=abc"]),
     ("wrong-type", "pca figures", ["pca", "figures", "--out-dir", "{ws}/pf", "--fps", "1"]),
+    # a test person asked for by number with --train-only
+    (
+        "wrong-type",
+        "download cmu",
+        ["download", "cmu", "--subjects", "2", "--activity", "walk", "--train-only", "--dry-run"],
+    ),  # fmt: skip
     ("huge", "synth", ["synth", "--seconds", "1e9"]),
     ("missing", "data convert", ["data", "convert", "synthetic/nosuch", "{ws}/o.bvh"]),
     ("wrong-type", "data convert", ["data", "convert", "{valid}", "{ws}/out.txt"]),

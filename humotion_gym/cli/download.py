@@ -138,6 +138,15 @@ def _cmd_download_cmu(args: argparse.Namespace) -> int:
         unknown = sorted(set(args.activity) - set(ACTIVITY_LABELS))
         if unknown:
             raise UsageError(f"--activity: unknown label(s) {unknown}; use {list(ACTIVITY_LABELS)}")
+        if args.train_only:  # a test person asked for by number would be downloaded anyway
+            from humotion_gym.mocap.cmu import CMU_TEST_PERSONS, cmu_person
+
+            held = [s for s in subjects if cmu_person(s) in CMU_TEST_PERSONS]
+            if held:
+                raise UsageError(
+                    f"--subjects: {', '.join(map(str, held))} is a test person of the "
+                    "benchmark; --train-only leaves test persons out"
+                )
         chosen = download.choose_cmu_subjects(args.activity, args.persons, not args.train_only)
         subjects += [s for s in chosen if s not in subjects]
     elif args.persons is not None or args.train_only:
