@@ -44,6 +44,7 @@ from humotion_gym.mocap.library import (
     default_cache_dir,
     package_version,
     report_cache_problem,
+    report_unwritten,
     write_atomically,
 )
 from humotion_gym.mocap.motion import Motion, content_digest
@@ -298,5 +299,5 @@ def fit_prior(
         try:
             _write_prior_entry(module, fitted, path, info)
         except CACHE_ERRORS as exc:
-            report_cache_problem(path, f"could not write the entry ({exc}); not cached")
+            report_unwritten(path, exc)
     return module, fitted

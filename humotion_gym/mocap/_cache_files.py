@@ -43,6 +43,31 @@ def report_cache_problem(path: Path, problem: str) -> None:
     warnings.warn(f"humotion_gym cache: {path}: {problem}", CacheWarning, stacklevel=3)
 
 
+# Cache folders already reported as unwritable in this process: one warning each,
+# not one per entry (a run over the shared data would print a thousand).
+_UNWRITABLE: set[Path] = set()
+
+
+def report_unwritten(path: Path, exc: BaseException) -> None:
+    """Report an entry that could not be written: once per folder when the folder is the cause.
+
+    A folder that is not one (a file stands there) or cannot be made is reported
+    once for the whole process; any other failure, entry by entry.
+    """
+    folder = path.parent
+    if not folder.is_dir():
+        if folder not in _UNWRITABLE:
+            _UNWRITABLE.add(folder)
+            warnings.warn(
+                f"humotion_gym cache: {folder} cannot be written ({exc}); nothing is cached "
+                "there, so every entry is rebuilt each time",
+                CacheWarning,
+                stacklevel=3,
+            )
+        return
+    report_cache_problem(path, f"could not write the entry ({exc}); not cached")
+
+
 def cache_entry_path(folder: Path, stem: str) -> tuple[Path | None, str | None]:
     """Where the cache entry ``stem`` lives in ``folder``, and what blocked its natural name.
 

@@ -39,6 +39,7 @@ from humotion_gym.mocap._cache_files import (  # CacheWarning: re-exported, part
     cache_entry_path,
     package_version,
     report_cache_problem,
+    report_unwritten,
     write_atomically,
 )
 from humotion_gym.mocap.clip_files import (  # re-exported, part of the API
@@ -555,7 +556,7 @@ def load_library(
             try:
                 write_atomically(target, lambda tmp, m=motion, i=info: m.save(tmp, extra=i))
             except CACHE_ERRORS as exc:
-                report_cache_problem(target, f"could not write the entry ({exc}); not cached")
+                report_unwritten(target, exc)
         motions.append(motion)
     order = {src.clip_id: i for i, src in enumerate(sources)}
     motions.sort(key=lambda m: order.get(m.clip_id, 0))

@@ -210,9 +210,14 @@ def test_an_unwritable_cache_reports_and_loads(data, tmp_path):
     cache.mkdir()
     (cache / "clips").write_text("a file where the folder should be")
     fresh = load_library([data], use_cache=False, progress=False)
-    with pytest.warns(CacheWarning, match="could not write"):
+    with pytest.warns(CacheWarning, match="clips cannot be written") as record:
         got = _load(data, cache)
     _assert_same(got, fresh)
+    # one warning for the folder, not one per clip, and none when loaded again
+    assert len([w for w in record if issubclass(w.category, CacheWarning)]) == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", CacheWarning)
+        _assert_same(_load(data, cache), fresh)
 
 
 def test_concurrent_loads_share_the_cache(data, tmp_path):
