@@ -67,7 +67,7 @@ class ResultsFolder:
         settings: dict[str, Any],
         resume: bool,
         policies: dict[str, str] | None = None,
-    ) -> dict[tuple[str, str, int, int], Any]:
+    ) -> list[dict[str, Any]]:
         """Open the folder for a run; the finished episodes' records when resuming.
 
         Args:
@@ -78,9 +78,8 @@ class ResultsFolder:
                 resumed run may add agents).
 
         Returns:
-            The finished episodes' records by (task, agent, particles, seed)
-            (empty unless resuming). Failed episodes are not among them: a
-            resumed run retries them.
+            The finished episodes' records, read once (empty unless resuming).
+            Failed episodes are not among them: a resumed run retries them.
 
         Raises:
             FileExistsError: If the folder holds episodes and ``resume`` is False.
@@ -120,7 +119,7 @@ class ResultsFolder:
                     "folder"
                 )
             self._check_policies(saved, policies or {})
-            return {episode_key(r): r for r in self.read() if "result" in r}
+            return [r for r in self.read() if "result" in r]
         if self.episodes_path.exists() and self.episodes_path.stat().st_size > 0:
             raise FileExistsError(
                 f"{self.folder} already holds a run's episodes; pass --resume to continue it "
@@ -130,7 +129,7 @@ class ResultsFolder:
         kept = {**_jsonable(settings), **({"policies": policies} if policies else {})}
         _write_text(self.run_path, json.dumps(kept, indent=1) + "\n")
         self.episodes_path.write_bytes(b"")
-        return {}
+        return []
 
     def _check_policies(self, saved: dict[str, Any], policies: dict[str, str]) -> None:
         """Refuse an agent whose policy file changed since its episodes ran; keep new ones."""
@@ -179,11 +178,6 @@ class ResultsFolder:
             os.write(fd, line)
         finally:
             os.close(fd)
-
-
-def episode_key(record: dict[str, Any]) -> tuple[str, str, int, int]:
-    """An engine record's (task, agent, particles, seed)."""
-    return (record["task"], record["agent"], int(record["particles"]), int(record["seed"]))
 
 
 def write_results(

@@ -318,9 +318,9 @@ def _saved(
             too), or where the saved run has agent seeds this one has not
             (their episodes would leave the table).
     """
-    if folder is None or not folder.start(settings, resume, policies):
+    if folder is None:
         return {}
-    done = {_key(r, seed): r for r in folder.read() if "result" in r}
+    done = {_key(r, seed): r for r in folder.start(settings, resume, policies)}
     for key, record in done.items():  # read now, not after every episode left has run
         try:
             EpisodeResult(**record["result"])
