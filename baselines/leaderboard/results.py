@@ -25,7 +25,7 @@ from baselines.leaderboard.figures import figures_available
 from baselines.leaderboard.platform_info import run_platform
 from baselines.leaderboard.report import write_report
 from baselines.leaderboard.tables import markdown_table, validity_lines
-from humotion_gym.mocap.library import package_version
+from humotion_gym.mocap.library import configured_data_dirs, package_version
 
 #: The version of ``results.json``'s layout (docs/leaderboard.md describes it);
 #: raised whenever a key is renamed, removed or changes meaning.
@@ -255,13 +255,11 @@ def write_results(
 def data_folders(env_kwargs: dict[str, Any]) -> list[str]:
     """The motion capture folders of a run: ``data_dir``, else ``$HUMOTION_MOCAP``.
 
-    Empty where the run used the built-in synthetic motion.
+    Absolute, whichever way they were named (so a run saved with one resumes
+    with the other); empty where the run used the built-in synthetic motion.
     """
-    given = env_kwargs.get("data_dir")
-    if given:
-        return [str(d) for d in given] if isinstance(given, (list, tuple)) else [str(given)]
-    from_env = os.environ.get("HUMOTION_MOCAP")
-    return [from_env] if from_env else []
+    given = env_kwargs.get("data_dir") or None
+    return [str(Path(d).resolve()) for d in configured_data_dirs(given)]
 
 
 def source_commit() -> str | None:

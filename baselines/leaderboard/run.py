@@ -51,13 +51,14 @@ from baselines.leaderboard.results import (
     SCHEMA_VERSION,
     ResultsFolder,
     ResumeError,
+    data_folders,
     source_commit,
     write_results,
 )
 from baselines.leaderboard.stats import agent_label
 from baselines.leaderboard.tables import FLOOR
 from humotion_gym.checks import is_count
-from humotion_gym.mocap.library import configured_data_dirs, package_version
+from humotion_gym.mocap.library import package_version
 
 
 def grid_cells(
@@ -387,12 +388,11 @@ def _settings(seed: int, env_kwargs: dict[str, Any], declared: bool) -> dict[str
     would mix two versions of the code in one row); ``declared`` says which
     episodes a seed stands for (a declared window or a drawn one).
     """
-    data = configured_data_dirs(env_kwargs.get("data_dir"))
     return {
         "schema_version": SCHEMA_VERSION,
         "seed": seed,
         "env_kwargs": {k: v for k, v in env_kwargs.items() if k != "data_dir"},
-        "data": [str(d.resolve()) for d in data] or None,
+        "data": data_folders(env_kwargs) or None,
         "declared": declared,
         "package_version": package_version(),
         "commit": source_commit(),
