@@ -163,10 +163,6 @@ def motion_sequences(
     return ys, masks
 
 
-def _free_index(free: ArrayLike | None) -> NDArray[np.intp]:
-    return free_indices(free, "slds.fit", SAGITTAL_INDEX)
-
-
 def _start_activity(
     motions: Sequence[Motion],
     free: ArrayLike | None,
@@ -182,7 +178,7 @@ def _start_activity(
     rates = sorted({float(m.fps) for m in motions})
     if len(rates) > 1:
         raise ValueError(f"slds.fit_activity: the clips mix frame rates {rates}; resample them")
-    idx = _free_index(free)
+    idx = free_indices(free, "slds.fit", SAGITTAL_INDEX)
     ys, masks = motion_sequences(motions, idx, frame_skip)
     keep = [k for k, y in enumerate(ys) if y.shape[0] >= 3]
     if not keep:
