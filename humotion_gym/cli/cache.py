@@ -135,8 +135,11 @@ def _cmd_clear(args: argparse.Namespace) -> int:
 def _own_files(folder: Path, patterns: tuple[str, ...]) -> tuple[list[Path], list[Path]]:
     """The files under ``folder`` the cache wrote (by ``patterns``) and the others."""
     files = sorted(p for p in folder.rglob("*") if p.is_file() or p.is_symlink())
-    own = [p for p in files if any(p.match(pattern) for pattern in patterns)]
-    return own, [p for p in files if p not in set(own)]
+    own: list[Path] = []
+    foreign: list[Path] = []
+    for path in files:
+        (own if any(path.match(pattern) for pattern in patterns) else foreign).append(path)
+    return own, foreign
 
 
 def _remove_empty_folders(folder: Path) -> None:
