@@ -107,16 +107,24 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     cmu.add_argument(
         "--verify", action="store_true",
-        help="download nothing; check DEST: verified / unverified / corrupt (exit 1)",
+        help="download nothing; check DEST's files (only --subjects' if given): verified / "
+        "unverified / corrupt or missing (exit 1)",
     )  # fmt: skip
     cmu.set_defaults(func=_cmd_download_cmu)
+
+
+#: The flags that choose what to download, which ``--verify`` has no use for.
+_CHOICE_FLAGS = ("activity", "persons", "train_only", "dry_run")
 
 
 def _cmd_download_cmu(args: argparse.Namespace) -> int:
     from humotion_gym.mocap import download
 
     if args.verify:
-        report = download.verify_cache(args.dest, registry=args.registry)
+        choosing = [f"--{k.replace('_', '-')}" for k in _CHOICE_FLAGS if getattr(args, k)]
+        if choosing:  # they choose what to download; --verify downloads nothing
+            raise UsageError(f"--verify: checks --subjects or the whole folder; drop {choosing[0]}")
+        report = download.verify_cache(args.dest, registry=args.registry, subjects=args.subjects)
         print(report.summary())
         return 0 if report.ok else 1
     if args.base_url is not None:

@@ -160,6 +160,8 @@ class CacheReport:
             manifest; never counted as verified.
         missing: Files in the manifest that are no longer on disk.
         reasons: For each corrupt or missing file, why.
+        absent: Subjects asked for of which neither the manifest nor the
+            folder holds a file.
     """
 
     verified: list[str] = field(default_factory=list)
@@ -167,11 +169,12 @@ class CacheReport:
     corrupt: list[str] = field(default_factory=list)
     missing: list[str] = field(default_factory=list)
     reasons: dict[str, str] = field(default_factory=dict)
+    absent: list[int] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
-        """True when nothing is corrupt or missing."""
-        return not self.corrupt and not self.missing
+        """True when nothing is corrupt or missing and every subject asked for is there."""
+        return not self.corrupt and not self.missing and not self.absent
 
     def summary(self) -> str:
         """One line of counts, then one line per corrupt or missing file and why."""
@@ -180,6 +183,7 @@ class CacheReport:
             f"{len(self.unverified)} unverified (not in the registry; size and manifest "
             f"checked), {len(self.corrupt)} corrupt, {len(self.missing)} missing"
         ]
+        lines += [f"  subject {s}: nothing of it downloaded here" for s in self.absent]
         return "\n".join(lines + [f"  {self.reasons[rel]}" for rel in self.problems])
 
     @property
@@ -664,7 +668,9 @@ def _probe_trials(
 
 
 def verify_cache(
-    dest: Path | None = None, registry: Mapping[str, RegistryEntry] | str | Path | None = None
+    dest: Path | None = None,
+    registry: Mapping[str, RegistryEntry] | str | Path | None = None,
+    subjects: Sequence[int] | None = None,
 ) -> CacheReport:
     """Re-check the downloaded files against the registry and the manifest.
 
@@ -675,6 +681,8 @@ def verify_cache(
     Args:
         dest: Download folder; ``default_cache_dir() / "cmu"`` when None.
         registry: As for :func:`download_cmu`; the packaged one when None.
+        subjects: Check only these subjects' files (None: every file); a
+            subject with none is ``absent`` in the report.
 
     Returns:
         A :class:`CacheReport`: verified, unverified, corrupt and missing files.
@@ -695,10 +703,17 @@ def verify_cache(
         raise FileNotFoundError(f"{path}: no download manifest here")
     manifest = _read_manifest(dest, strict=True)
     reg = _resolve_registry(registry)
-    report = CacheReport()
     on_disk = {
         p.relative_to(dest).as_posix() for p in dest.glob("*/*") if p.suffix in (".asf", ".amc")
     }
+    absent = []
+    if subjects is not None:
+        folders = {cmu_subject_code(s): s for s in subjects}
+        manifest = {rel: e for rel, e in manifest.items() if rel.split("/")[0] in folders}
+        on_disk = {rel for rel in on_disk if rel.split("/")[0] in folders}
+        seen = {rel.split("/")[0] for rel in [*manifest, *on_disk]}
+        absent = [s for code, s in folders.items() if code not in seen]
+    report = CacheReport(absent=absent)
     for rel in sorted(on_disk - set(manifest)):
         report.corrupt.append(rel)
         report.reasons[rel] = f"{dest / rel}: not in the manifest"

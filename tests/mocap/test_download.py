@@ -1055,3 +1055,28 @@ def test_cli_activity_arguments_are_checked(capsys):
     assert "give --activity" in capsys.readouterr().err
     assert cli.main(["download", "cmu", "--activity", "run", "--persons", "2", "--dry-run"]) == 0
     assert "2 subjects chosen for run" in capsys.readouterr().out
+
+
+def test_cli_verify_checks_only_the_subjects_asked_for(tiny, capsys):
+    srv, files, dest = tiny
+    get(srv, dest, subjects=[1, 7])
+    (dest / "01" / "01_03.amc").unlink()
+    base = ["download", "cmu", "--dest", str(dest), "--verify"]
+    assert cli.main([*base, "--subjects", "7"]) == 0  # subject 1's damage is not 7's
+    out = capsys.readouterr().out
+    assert "3 unverified" in out and "0 missing" in out
+    assert cli.main([*base, "--subjects", "1"]) == 1
+    assert "01_03.amc" in capsys.readouterr().out
+    assert cli.main([*base, "--subjects", "7", "35"]) == 1  # 35 was never downloaded
+    assert "subject 35: nothing of it downloaded here" in capsys.readouterr().out
+    report = verify_cache(dest, registry={}, subjects=[7])
+    assert report.ok and all(rel.startswith("07/") for rel in report.unverified)
+
+
+def test_cli_verify_refuses_the_flags_that_choose_a_download(tiny, capsys):
+    srv, files, dest = tiny
+    get(srv, dest, subjects=[7])
+    base = ["download", "cmu", "--dest", str(dest), "--verify"]
+    assert cli.main([*base, "--activity", "walk"]) == 2
+    assert "drop --activity" in capsys.readouterr().err
+    assert cli.main([*base, "--dry-run"]) == 2
