@@ -143,9 +143,20 @@ class EpisodeChoice:
         such person of the library: a held-out person's file under another
         name is still that person).
 
+        A clip from outside the library carries its own split (``meta``, from
+        its data set's rule): one of a test person is refused too, though the
+        library holds no clip of that person to compare with.
+
         Raises:
             ValueError: Naming the option, the clip and the person.
         """
+        if self.split != "test" and motion.meta.get("split") == "test":
+            raise ValueError(
+                f"reset: options[{option!r}] {motion.clip_id!r} shows "
+                f"{motion.meta.get('person', motion.subject)!r}, a held-out person by its data "
+                f"set's rule ({motion.meta.get('split_rule', 'unnamed')}); a split={self.split!r} "
+                "environment never shows held-out persons (make it with split='test')"
+            )
         unseen = self.library.unseen_by(self.split)
         if not unseen:
             return motion

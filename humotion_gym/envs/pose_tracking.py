@@ -294,12 +294,21 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
             ValueError: If no clip qualifies (the message says why).
         """
         library, split = self.library, self.split
-        clips = library.episode_split(split).filter(labels=self.task.labels)
+        in_split = library.episode_split(split)
+        if len(in_split) == 0:
+            persons = sorted({m.subject for m in library})
+            shown = ", ".join(persons[:5]) + (" ..." if len(persons) > 5 else "")
+            raise ValueError(
+                f"{self.task.name}: the library holds no {split} clip: its {len(library)} "
+                f"clips show {shown}, none a {split} person (see humotion-gym data persons; "
+                "choose another split)"
+            )
+        clips = in_split.filter(labels=self.task.labels)
         need = self.episode_frames * self.frame_skip + 1
         clips = clips.filter(min_frames=need)
         if len(clips) == 0:
             labels = "any label" if self.task.labels is None else f"labels {self.task.labels}"
-            longest = max((m.n_frames for m in library.episode_split(split)), default=0)
+            longest = max((m.n_frames for m in in_split), default=0)
             raise ValueError(
                 f"{self.task.name}: no {split} clip of {labels} holds {need} frames "
                 f"({self.episode_frames} frames, every {self.frame_skip}, and the frame "

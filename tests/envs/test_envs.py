@@ -490,3 +490,29 @@ def test_data_with_a_test_persons_copy_under_another_name_is_refused(shared_moca
         gym.make("humotion_gym/WalkTrack-v2", data_dir=[str(tmp_path), str(source)])
     env = gym.make("humotion_gym/WalkTrack-v2", data_dir=[str(source)], split="test")
     assert {m.subject for m in env.unwrapped.library} == {"cmu-03"}
+
+
+@pytest.mark.mocap
+def test_a_train_env_refuses_a_file_of_a_test_person_from_outside_its_data(
+    shared_mocap, tmp_path
+):
+    """reset(options={"file"}) of a person its library never held: the file's own split."""
+    import shutil
+
+    from humotion_gym.mocap.splits import user_split
+
+    source = shared_mocap / "cmu-asfamc" / "02"
+    for person in ("alice", "carol"):  # alice is a user test person by hash, carol is not
+        folder = tmp_path / person
+        folder.mkdir()
+        shutil.copyfile(source / "02.asf", folder / f"{person}.asf")
+        shutil.copyfile(source / "02_01.amc", folder / "walk.amc")
+    assert (user_split("alice"), user_split("carol")) == ("test", "train")
+    env = gym.make("humotion_gym/BodyTrack-v2", data_dir=str(tmp_path / "carol")).unwrapped
+    with pytest.raises(ValueError, match=r"'alice', a held-out person.*split='test'"):
+        env.reset(seed=0, options={"file": str(tmp_path / "alice" / "walk.amc")})
+    _, info = env.reset(seed=0, options={"file": str(tmp_path / "carol" / "walk.amc")})
+    assert info["clip_id"].endswith("carol/walk")
+    # carol's data holds no test person: the message says so, not "the longest has 0"
+    with pytest.raises(ValueError, match=r"holds no test clip: its 1 clips show .*carol"):
+        gym.make("humotion_gym/BodyTrack-v2", data_dir=str(tmp_path / "carol"), split="test")
