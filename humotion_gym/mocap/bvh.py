@@ -268,6 +268,15 @@ class BvhClip:
             out[int(j)] = self.end_site_offsets[self.end_site_parents == j]
         return out
 
+    @property
+    def zero_end_sites(self) -> frozenset[str]:
+        """The end sites of zero length (``OFFSET 0 0 0``): points that sit on their joint."""
+        return frozenset(
+            name
+            for name, (is_joint, i) in zip(self.point_names, self._point_joint, strict=True)
+            if not is_joint and not np.any(self.end_site_offsets[i])
+        )
+
     def joint_channel_values(self, joint: str) -> NDArray[np.float64]:
         """The ``(T, k)`` channel values of one joint.
 
@@ -390,7 +399,10 @@ def _infer_position_mode(
     whose offsets were rounded or rescaled a little still repeats them), the
     channels replace the offsets. Joints whose channels are near zero, the
     usual "add" case, do not match, and neither do roots, whose channels carry
-    the whole trajectory.
+    the whole trajectory. Only the axes that carry the offset (a quarter of
+    its length or more) are compared: a hip under a static reference root
+    walks far along the others, and its walk would outvote the height it
+    repeats.
     """
     votes = []
     finite = np.isfinite(values).all(axis=1)
@@ -402,10 +414,11 @@ def _infer_position_mode(
         kinds = [(k, _CHANNEL_KIND[c.lower()]) for k, c in enumerate(chans)]
         p_cols = [(k, axis) for k, (rot, axis) in kinds if not rot]
         norm = float(np.linalg.norm(offsets[j]))
-        if not p_cols or norm == 0.0:
+        carried = [(k, axis) for k, axis in p_cols if abs(offsets[j, axis]) >= 0.25 * norm]
+        if norm == 0.0 or not carried:  # nothing to repeat, or no channel on its axes
             continue
-        med = np.median(values[finite][:, [starts[j] + k for k, _ in p_cols]], axis=0)
-        target = offsets[j, [axis for _, axis in p_cols]]
+        med = np.median(values[finite][:, [starts[j] + k for k, _ in carried]], axis=0)
+        target = offsets[j, [axis for _, axis in carried]]
         votes.append(bool(np.linalg.norm(med - target) <= 0.25 * norm))
     if votes and sum(votes) * 2 > len(votes):
         return "replace"

@@ -65,8 +65,10 @@ from humotion_gym.mocap.splits import (  # the split's names, re-exported as bef
 
 #: Version of the cached clip format and retargeting; bump to invalidate caches.
 #: 2: rigs matched by :func:`humotion_gym.mocap.rigmap.match_rig`, leading T-pose dropped;
-#: 3: a profile's up axis read from the clip, no zero-length head top, units by a human leg.
-CACHE_VERSION = "3"
+#: 3: a profile's up axis read from the clip, no zero-length head top, units by a human leg;
+#: 4: BVH position channels judged on the offset's axes, a profile's zero-length head end
+#: site its fallback, a toeless z-up rig facing -y, an ASF of the AMC's own name.
+CACHE_VERSION = "4"
 
 #: Environment variable naming folders of real mocap (``os.pathsep``-separated).
 MOCAP_ENV = "HUMOTION_MOCAP"

@@ -56,6 +56,7 @@ from humotion_gym.mocap.rigs import (
     KeypointSource,
     RigProfile,
     guess_format,
+    placed_points,
 )
 from humotion_gym.mocap.skeleton import SkeletonClip
 
@@ -346,7 +347,9 @@ def _forward(
     """Which way the body faces: its toes (ankle to the next joint), else a convention.
 
     Without toes a y-up skeleton is taken to face +z (the BVH convention), a
-    z-up one +y.
+    z-up one -y: where a y-up skeleton faces once turned z up (the turn
+    :data:`~humotion_gym.mocap.rigs.Y_UP_TO_Z_UP` that the rig profiles apply,
+    and that Blender's exports share).
     """
     steps = []
     for start in legs:
@@ -362,7 +365,7 @@ def _forward(
         if norm > 1e-9:
             return f / norm, "where the toes point"
     if abs(up[2]) > abs(up[1]):
-        return np.array([0.0, 1.0, 0.0]), "+y (no toes; z up)"
+        return np.array([0.0, -1.0, 0.0]), "-y (no toes; z up)"
     return np.array([0.0, 0.0, 1.0]), "+z (no toes; the BVH convention)"
 
 
@@ -628,7 +631,7 @@ def match_rig(clip: SkeletonClip, fmt: str | None = None) -> RigMatch:
     for rig in RIGS.values():
         if fmt not in rig.formats:
             continue
-        sources, missing, fell_back = rig.plan(names)
+        sources, missing, fell_back = rig.plan(placed_points(clip))
         if not missing:
             how = {k: ("fallback" if k in fell_back else "profile") for k in KEYPOINT_NAMES}
             conf = float(np.mean([METHOD_CONFIDENCE[h] for h in how.values()]))

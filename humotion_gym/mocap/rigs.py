@@ -47,6 +47,17 @@ class Extend:
 KeypointSource = str | Extend
 
 
+def placed_points(clip: SkeletonClip) -> tuple[str, ...]:
+    """The clip's points that have a place of their own: less BVH end sites of zero length.
+
+    A head's ``End Site`` at ``OFFSET 0 0 0`` sits on the head joint and is no
+    head top: a profile then takes its fallback (the head pushed on), as the
+    mapper (:mod:`humotion_gym.mocap.rigmap`) does.
+    """
+    zero: frozenset[str] = getattr(clip, "zero_end_sites", frozenset())
+    return tuple(n for n in clip.point_names if n not in zero)
+
+
 @dataclass(frozen=True)
 class RigProfile:
     """How one family of skeletons maps onto the 15 keypoints.
@@ -164,7 +175,7 @@ class RigProfile:
         Raises:
             RigError: If the clip lacks a point the profile needs.
         """
-        sources, missing, _ = self.plan(clip.point_names)
+        sources, missing, _ = self.plan(placed_points(clip))
         if missing:
             raise RigError(
                 f"{clip.path}: rig {self.name!r} cannot find the points for keypoints {missing}"

@@ -756,3 +756,43 @@ def test_a_file_with_classic_mac_line_ends_reads_as_its_lf_twin(write_text):
     np.testing.assert_array_equal(
         cr.point_positions(), load_bvh(write_text("lf.bvh", BASE)).point_positions()
     )
+
+
+@pytest.mark.parametrize("travel", [0.0, 60.0, 300.0])
+def test_a_hip_that_walks_far_still_repeats_its_offset(write_text, travel):
+    """A hip keyed with its whole translation under a static root: its walk is no vote.
+
+    The height it repeats decides, however far it walks along the other axes
+    (the median of its 3D position used to be pulled off the offset by the walk).
+    """
+    six = "CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation"
+    frames = 10
+    rows = [[0] * 6 + [0, 95, travel * t / (frames - 1)] + [0] * 3 + [0] * 3 for t in range(frames)]
+    text = f"""HIERARCHY
+ROOT Reference
+{{
+OFFSET 0 0 0
+{six}
+JOINT Hips
+{{
+OFFSET 0 95 0
+{six}
+JOINT Spine
+{{
+OFFSET 0 10 0
+CHANNELS 3 Zrotation Xrotation Yrotation
+End Site
+{{
+OFFSET 0 20 0
+}}
+}}
+}}
+}}
+MOTION
+Frames: {frames}
+Frame Time: 0.0333333
+""" + "".join(" ".join(f"{v:g}" for v in r) + "\n" for r in rows)
+    clip = load_bvh(write_text("walk.bvh", text))
+    assert clip.position_channels == "replace"
+    np.testing.assert_allclose(clip.point_positions(["Hips"])[:, 0, 1], 95.0)
+    np.testing.assert_allclose(clip.point_positions(["Hips"])[-1, 0, 2], travel)
