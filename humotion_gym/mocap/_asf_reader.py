@@ -269,9 +269,12 @@ class _AsfReader:
             self.bone_names.add(toks[1])
             bone["name"] = toks[1]
         elif key == "direction":
-            bone["direction"] = _numbers(
+            direction = _numbers(
                 spath, ln, toks[1:], 3, "the bone direction", self.limits.max_abs_value
             )
+            if not any(direction):  # a bone has a positive length: it points somewhere
+                raise self._error(ln, f"expected a non-zero bone direction, found {_short(line)}")
+            bone["direction"] = direction
         elif key == "length":
             length = _numbers(spath, ln, toks[1:], 1, "the bone length", np.inf)[0]
             if not 0.0 < length <= self.limits.max_bone_length:

@@ -45,8 +45,9 @@ call, so a program may raise them by assignment (e.g.
 - ASF numbers: a bone ``length`` is finite, positive and at most
   :data:`MAX_BONE_LENGTH` (1e5 file units); ``:units length`` is between
   :data:`MIN_LENGTH_UNIT` and :data:`MAX_LENGTH_UNIT` (1e-3 to 1e3 file units
-  per inch); a ``dof`` lists each of ``rx ry rz`` at most once; directions,
-  axes, the root's position and orientation are finite and of magnitude at most
+  per inch); a ``dof`` lists each of ``rx ry rz`` at most once; a direction is
+  not zero; directions, axes, the root's position and orientation are finite
+  and of magnitude at most
   :data:`MAX_ABS_VALUE` (1e9); limits are ``(min max)`` with ``min <= max``
   (either may be infinite, neither NaN).
 - AMC values: finite values are of magnitude at most :data:`MAX_ABS_VALUE`

@@ -114,7 +114,15 @@ def describe_file(path: Path, skeleton: Path | None = None) -> ClipSource:
 
 
 def _asf_for(amc: Path) -> Path | None:
-    """An AMC's skeleton: its subject's ``SS.asf``, else the folder's one not named for another."""
+    """An AMC's skeleton: the ASF of its own name, its subject's ``SS.asf``, else the folder's one.
+
+    ``walk.asf`` beside ``walk.amc`` (one skeleton per clip), then CMU's
+    ``02.asf`` beside ``02_01.amc``, then the folder's only ASF unless it is
+    named for another subject.
+    """
+    own = amc.with_suffix(".asf")
+    if own.is_file():
+        return own
     m = _CMU.match(amc.stem)
     if m:
         named = amc.parent / f"{m['subject']}.asf"
@@ -159,8 +167,14 @@ def find_clips(paths: Iterable[str | Path] | str | Path) -> list[ClipSource]:
         if suffix == ".amc":
             asf = _asf_for(f)
             if asf is None:
+                cmu = _CMU.match(f.stem)
+                wanted = f"{f.stem}.asf" + (f", {cmu['subject']}.asf" if cmu else "")
+                beside = ", ".join(a.name for a in sorted(f.parent.glob("*.asf"))[:4])
                 raise MocapFormatError(
-                    f, None, "no ASF skeleton of its subject beside this AMC file"
+                    f,
+                    None,
+                    f"no ASF skeleton of its subject beside this AMC file (expected {wanted} "
+                    f"or one ASF alone; found {beside or 'none'})",
                 )
             src = describe_file(f, asf)
         elif suffix == ".bvh":

@@ -339,6 +339,7 @@ ASF_MALFORMED = {
     "bad axis order": (asf_with(21, "     axis 0 0 0 XYQ"), 21, "rotation order such as XYZ"),
     "NaN direction": (asf_with(19, "     direction nan 1 0"), 19, "the bone direction (finite)"),
     "short direction": (asf_with(19, "     direction 0 1"), 19, "the bone direction (3 numbers)"),
+    "zero direction": (asf_with(19, "     direction 0 0 0"), 19, "a non-zero bone direction"),
     "no length": (asf_with(20, "     id 1"), 26, "expected 'length' in the bone begun at line 16"),
     "translation dof": (asf_with(22, "    dof rx ty"), 22, "translation and length dof"),
     "limits count": (asf_with(25, ""), 26, "expected 3 limits for bone 'upper'"),

@@ -235,11 +235,24 @@ def test_an_amc_is_never_read_on_another_subjects_lone_asf(shared_mocap, tmp_pat
     (tmp_path / "02.asf").write_bytes((source / "02" / "02.asf").read_bytes())
     (tmp_path / "02_01.amc").write_bytes((source / "02" / "02_01.amc").read_bytes())
     (tmp_path / "03_01.amc").write_bytes((source / "03" / "03_01.amc").read_bytes())
-    with pytest.raises(MocapFormatError, match=r"03_01\.amc: no ASF skeleton of its subject"):
+    with pytest.raises(MocapFormatError, match=r"03_01\.amc: no ASF skeleton of its subject.*"
+                       r"expected 03_01\.asf, 03\.asf or one ASF alone; found 02\.asf"):  # fmt: skip
         find_clips([tmp_path])
     (tmp_path / "03_01.amc").unlink()
     (tmp_path / "walk.amc").write_bytes((source / "02" / "02_02.amc").read_bytes())
     assert len(find_clips([tmp_path])) == 2  # a name of no subject takes the folder's one ASF
+
+
+def test_each_amc_takes_the_asf_of_its_own_name(shared_mocap, tmp_path):
+    """walk.asf beside walk.amc and run.asf beside run.amc: one skeleton per clip."""
+    source = shared_mocap / "cmu-asfamc"
+    for stem, subject in (("walk", "02"), ("run", "03")):
+        (tmp_path / f"{stem}.asf").write_bytes((source / subject / f"{subject}.asf").read_bytes())
+        (tmp_path / f"{stem}.amc").write_bytes(
+            (source / subject / f"{subject}_01.amc").read_bytes()
+        )
+    found = {src.path.name: src.skeleton.name for src in find_clips([tmp_path])}
+    assert found == {"walk.amc": "walk.asf", "run.amc": "run.asf"}
 
 
 def test_linked_folders_are_read_once_and_a_linked_file_is_its_own_clip(shared_mocap, tmp_path):
