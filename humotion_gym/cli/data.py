@@ -11,7 +11,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -272,9 +271,8 @@ def _cmd_data_persons(args: argparse.Namespace) -> int:
                 print(f"G{i + 1}, one skeleton: {', '.join(g)}")
         if ok:
             print(message)
-    if not ok:
-        print(f"humotion-gym: error: {message}", file=sys.stderr)
-        return 1
+    if not ok:  # after the table, which shows the persons at fault
+        raise CommandError(message)
     return 0
 
 

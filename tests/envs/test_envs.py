@@ -493,9 +493,7 @@ def test_data_with_a_test_persons_copy_under_another_name_is_refused(shared_moca
 
 
 @pytest.mark.mocap
-def test_a_train_env_refuses_a_file_of_a_test_person_from_outside_its_data(
-    shared_mocap, tmp_path
-):
+def test_a_train_env_refuses_a_file_of_a_test_person_from_outside_its_data(shared_mocap, tmp_path):
     """reset(options={"file"}) of a person its library never held: the file's own split."""
     import shutil
 

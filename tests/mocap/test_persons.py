@@ -219,3 +219,5 @@ def test_cli_data_persons_on_the_shared_data(shared_mocap, capsys):
     doc = json.loads(captured.out)
     assert doc["split_ok"] is False and "bandai-2/masculine ~ bandai-1/normal" in doc["message"]
     assert "bandai-2/masculine ~" in captured.err
+    # one line on stderr, as every error of the command line
+    assert captured.err.count("\n") == 1 and captured.err.startswith("humotion-gym data persons:")
