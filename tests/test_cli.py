@@ -295,6 +295,18 @@ def test_a_value_given_twice_runs_once(argv, dest, want):
     assert getattr(build_parser().parse_args(argv), dest) == want
 
 
+@pytest.mark.parametrize("command", [["train", "--algo", "ppo"], ["learning-curve"], ["oracle"]])
+def test_set_gathers_every_use_and_refuses_a_key_twice(command, capsys):
+    from baselines.cli import build_parser
+
+    parser = build_parser()
+    argv = [*command, "--set", "n_envs=2", "--set", "n_steps=8", "batch_size=16"]
+    assert dict(parser.parse_args(argv).set) == {"n_envs": 2, "n_steps": 8, "batch_size": 16}
+    with pytest.raises(SystemExit) as exc:
+        parser.parse_args([*command, "--set", "n_envs=2", "--set", "n_envs=4"])
+    assert exc.value.code == 2 and "--set: n_envs given twice" in capsys.readouterr().err
+
+
 def test_track_json_says_what_reruns_it(capsys):
     assert main(["track", "--agent", "hold", "--task", "ArmTrack-v2", "--episodes", "1",
                  "--seed", "4", "--json"]) == 0  # fmt: skip

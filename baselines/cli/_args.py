@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 from humotion_gym.cli._common import (
     MAX_PARTICLES,
@@ -112,6 +113,28 @@ def key_value(text: str) -> tuple[str, float]:
     except ValueError:
         raise argparse.ArgumentTypeError(f"{key}: expected a number, got {value!r}") from None
     return key, int(number) if number.is_integer() and "." not in value else number
+
+
+class Settings(argparse.Action):
+    """``KEY=VALUE`` pairs gathered over every use of the flag; a key given twice is refused.
+
+    ``--set a=1 --set b=2`` sets both (argparse's own list flags keep only the
+    last use, which would drop ``a`` without a word).
+    """
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: Any,
+        option_string: str | None = None,
+    ) -> None:
+        pairs = [*(getattr(namespace, self.dest, None) or []), *values]
+        keys = [key for key, _ in pairs]
+        twice = sorted({key for key in keys if keys.count(key) > 1})
+        if twice:
+            parser.error(f"{option_string}: {', '.join(twice)} given twice")
+        setattr(namespace, self.dest, pairs)
 
 
 def key_setting(text: str) -> tuple[str, float | str]:

@@ -12,7 +12,7 @@ import argparse
 import gzip
 import json
 
-from baselines.cli._args import add_particles, key_setting, tracked_task
+from baselines.cli._args import Settings, add_particles, key_setting, tracked_task
 from humotion_gym.cli._common import (
     Distinct,
     UsageError,
@@ -107,7 +107,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "(default: test)",
     )  # fmt: skip
     op.add_argument(
-        "--set", type=key_setting, nargs="+", default=[], metavar="NAME=VALUE",
+        "--set", type=key_setting, nargs="+", action=Settings, default=[], metavar="NAME=VALUE",
         help="override a setting of every agent: fit.NAME its prior's, filter.NAME its "
         "filter's, as humotion-gym select's --grid names them (default: none)",
     )  # fmt: skip

@@ -16,7 +16,7 @@ import shutil
 import sys
 from pathlib import Path
 
-from baselines.cli._args import key_value, tracked_task
+from baselines.cli._args import Settings, key_value, tracked_task
 from humotion_gym.cli._common import (
     CommandError,
     UsageError,
@@ -61,7 +61,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "(default: the repository's hyperparams/ppo.yml when present, else built-in)",
     )  # fmt: skip
     tr.add_argument(
-        "--set", type=key_value, nargs="*", default=[], metavar="KEY=VALUE",
+        "--set", type=key_value, nargs="*", action=Settings, default=[], metavar="KEY=VALUE",
         help="override settings, e.g. n_envs=4 rounds=10 (default: none)",
     )  # fmt: skip
     tr.add_argument(
@@ -85,8 +85,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     tr.add_argument(
         "--no-validation", action="store_true",
-        help="train on every training person, tracking none for validation (default: the "
-        "validation persons are held out and tracked every --eval-every steps)",
+        help="track no validation persons (default: tracked every --eval-every steps; they "
+        "are never trained on either way)",
     )  # fmt: skip
     tr.add_argument(
         "--eval-every", type=positive_int, default=10_000,
@@ -146,7 +146,7 @@ def _register_curve(subparsers: argparse._SubParsersAction) -> None:
         "(default: docs/img/rl_learning_curve.png)",
     )  # fmt: skip
     lc.add_argument(
-        "--set", type=key_value, nargs="*", default=[], metavar="KEY=VALUE",
+        "--set", type=key_value, nargs="*", action=Settings, default=[], metavar="KEY=VALUE",
         help="override settings of every run, e.g. n_envs=4 (default: none)",
     )  # fmt: skip
     add_data_dir(lc)
