@@ -37,6 +37,7 @@ import math
 import platform
 import sys
 import time
+import warnings
 import zipfile
 from collections.abc import Callable, Sequence
 from dataclasses import asdict
@@ -50,13 +51,20 @@ import torch as th
 from gymnasium import spaces
 from numpy.typing import NDArray
 from stable_baselines3 import PPO
-from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
+from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Logger, configure
 from stable_baselines3.common.vec_env import VecMonitor
 from torch import nn
 
 from baselines.agents import HoldAgent, tracking_env
-from baselines.agents.learned import LearnedAgent
+from baselines.agents.learned import (
+    LearnedAgent,
+    OtherDataWarning,
+    OtherTaskWarning,
+    load_policy,
+    policy_record,
+    trained_data_dirs,
+)
 
 # The shipped checkpoints pickle their features extractor as
 # ``baselines.rl.TrackingExtractor``: this module must keep the name, or SB3
@@ -84,7 +92,7 @@ from baselines.rl_config import (  # noqa: F401  (the training API, re-exported)
 from humotion_gym.body import N_KEYPOINTS
 from humotion_gym.envs import get_task
 from humotion_gym.kinematics import batch_pose_geometry
-from humotion_gym.mocap.library import MotionLibrary, package_version
+from humotion_gym.mocap.library import MotionLibrary, configured_data_dirs, package_version
 from humotion_gym.sb3 import learner_vec_env
 from humotion_gym.wrappers import LearnerObservation, Supervision
 
@@ -180,12 +188,21 @@ def resume_point(out: Path) -> tuple[int, Path] | None:
 
     The latest of the run's checkpoints and its final ``model.zip`` (which a
     run that ended after its last checkpoint, or wrote none, holds alone).
+
+    Raises:
+        ValueError: If ``model.zip`` is unreadable and there is no checkpoint:
+            a resume would start afresh over it.
     """
     found = checkpoints(out / "checkpoints")
     final = out / "model.zip"
     steps = _model_steps(final) if final.is_file() else None
     if steps is not None and (not found or steps > found[-1][0]):
         return steps, final
+    if final.is_file() and steps is None and not found:
+        raise ValueError(
+            f"--resume: {final} is unreadable and no checkpoint is left to continue from; "
+            "start afresh with --force"
+        )
     return found[-1] if found else None
 
 
@@ -274,18 +291,44 @@ class Validation:
         self.env.close()
 
 
-class _ValidationCallback(BaseCallback):
-    """PPO's validation runs (:class:`Validation`) every ``eval_every`` env steps."""
+class _Milestones(BaseCallback):
+    """PPO's checkpoints (every ``every`` env steps) and validation runs, between its updates.
 
-    def __init__(self, validation: Validation) -> None:
+    SB3 calls ``_on_step`` while it collects a rollout, before the update on
+    that rollout: a model saved or validated there at N steps lacks its last
+    update, and differs from the ``model.zip`` of a run that ends at N. Here
+    both happen where a rollout starts (after the previous update) and where
+    training ends, so a checkpoint of N steps holds the weights of N steps. A
+    checkpoint keeps the optimizer's state (``model.save``), which a resume
+    continues with.
+    """
+
+    def __init__(self, folder: Path, every: int, validation: Validation | None) -> None:
         super().__init__()
-        self.validation = validation
+        self.folder, self.every, self.validation = folder, max(1, every), validation
+        self.next_save = self.every
+
+    def _on_training_start(self) -> None:
+        self.next_save = (self.model.num_timesteps // self.every + 1) * self.every
+
+    def _on_rollout_start(self) -> None:
+        self._milestone()
+
+    def _on_training_end(self) -> None:
+        self._milestone()
 
     def _on_step(self) -> bool:
-        if self.validation.due(self.num_timesteps):
-            assert isinstance(self.model, PPO)
-            self.validation.run(self.model, self.num_timesteps)
         return True
+
+    def _milestone(self) -> None:
+        assert isinstance(self.model, PPO)
+        steps = int(self.model.num_timesteps)
+        if steps >= self.next_save:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            self.model.save(self.folder / f"model_{steps}_steps.zip")
+            self.next_save = (steps // self.every + 1) * self.every
+        if self.validation is not None and self.validation.due(steps):
+            self.validation.run(self.model, steps)
 
 
 def _vec_env(config: TrainConfig, fold: MotionLibrary | None) -> VecMonitor:
@@ -412,6 +455,7 @@ def train(
         ValueError: If the data lacks the validation persons (:func:`validation_fold`).
     """
     out = Path(config.out)
+    check_init(config)
     prepare_output(out, resume, force, config)
     th.set_num_threads(max(1, int(config.threads)))
     fold = validation_fold(config)
@@ -458,7 +502,7 @@ def train_ppo(
     venv = _vec_env(config, fold)
     done = start[0] if start else 0
     if start:
-        model = PPO.load(start[1], env=venv, device="cpu")
+        model = _resumed(start[1], venv)
     else:
         model = new_model(config, venv)
         _start_from(model, config.init)
@@ -466,14 +510,9 @@ def train_ppo(
     _write_config(config, command, {"resumed_from": done})
     t0 = time.perf_counter()
     remaining = max(0, config.steps - done)
-    saving = CheckpointCallback(
-        max(1, config.checkpoint_every // venv.num_envs), str(folder), name_prefix="model"
-    )
-    callbacks: list[BaseCallback] = [saving]
-    if validation is not None:
-        callbacks.append(_ValidationCallback(validation))
+    milestones = _Milestones(folder, config.checkpoint_every, validation)
     if remaining:
-        model.learn(remaining, callback=CallbackList(callbacks), reset_num_timesteps=start is None)
+        model.learn(remaining, callback=milestones, reset_num_timesteps=start is None)
     path = out / "model.zip"
     _save(model, path)
     steps = int(model.num_timesteps)
@@ -600,7 +639,7 @@ def _bc_updates(
 def _bc_model(config: TrainConfig, env: gym.Env, start: tuple[int, Path] | None) -> tuple[PPO, int]:
     """The policy to train and the env steps already done: the resumed model's, or a new one."""
     if start:
-        return PPO.load(start[1], device="cpu"), start[0]
+        return _resumed(start[1]), start[0]
     model = new_model(config, env)
     _start_from(model, config.init)
     return model, 0
@@ -615,7 +654,7 @@ def _start_from(model: PPO, init: str | None) -> None:
     """
     if init is None:
         return
-    source = PPO.load(init, device="cpu")
+    source = _init_policy(init)
     try:
         model.policy.load_state_dict(source.policy.state_dict(), strict=False)
     except RuntimeError as exc:
@@ -624,6 +663,59 @@ def _start_from(model: PPO, init: str | None) -> None:
             f"--init {init}: its network does not fit this run's (another task, frame size or "
             f"features_dim?): {first}"
         ) from None
+
+
+def _resumed(path: Path, env: Any = None) -> PPO:
+    """The model a resumed run continues, or a ValueError that names it."""
+    try:
+        return PPO.load(path, env=env, device="cpu")
+    except Exception as exc:  # SB3 raises many kinds on a foreign or damaged zip
+        raise ValueError(
+            f"--resume: {path}: not a readable stable-baselines3 PPO model ({exc}); move it "
+            "away to continue from the model before it"
+        ) from None
+
+
+def _init_policy(init: str) -> PPO:
+    """The saved policy a run starts from (``--init``), or a ValueError that names the flag."""
+    try:
+        return cast(PPO, load_policy(init))
+    except (FileNotFoundError, ValueError) as exc:
+        raise ValueError(f"--init: {exc}") from None
+
+
+def check_init(config: TrainConfig) -> None:
+    """Check the policy a run starts from before the run writes anything.
+
+    It must be a readable policy (:func:`_init_policy`); where its record
+    says it learned another task, or real motion capture while this run
+    trains on the built-in synthetic library, it warns as scoring does
+    (:class:`~baselines.agents.learned.OtherTaskWarning`,
+    :class:`~baselines.agents.learned.OtherDataWarning`).
+
+    Raises:
+        ValueError: Naming ``--init``, if it is no readable policy.
+    """
+    if config.init is None:
+        return
+    _init_policy(config.init)
+    record = policy_record(config.init) or {}
+    trained_on = record.get("task")
+    if isinstance(trained_on, str) and trained_on != config.task:
+        warnings.warn(
+            f"--init {config.init} was trained on {trained_on}, not {config.task}: its actions "
+            "mean that task's parameters and ranges",
+            OtherTaskWarning,
+            stacklevel=2,
+        )
+    dirs = trained_data_dirs(config.init)
+    if dirs and not configured_data_dirs(config.data_dir):
+        warnings.warn(
+            f"--init {config.init} was trained on motion capture in {', '.join(dirs)}; this "
+            "run trains on the built-in synthetic library (pass the same --data-dir)",
+            OtherDataWarning,
+            stacklevel=2,
+        )
 
 
 def train_bc(

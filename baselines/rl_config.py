@@ -71,13 +71,15 @@ class TrainConfig:
         settings: Algorithm settings (:data:`PPO_DEFAULTS`/:data:`BC_DEFAULTS`
             overridden by the hyperparameter file and the caller).
         init: A saved policy to start from (PPO fine-tuning from ``bc``).
-        checkpoint_every: Save a checkpoint every this many env steps.
+        checkpoint_every: Save a checkpoint every this many env steps (PPO: at
+            the first end of an update at or past each multiple).
         threads: Torch threads.
-        validation: Hold the validation persons out of training
-            (:func:`baselines.experiments.selection.validation_library`) and
-            track them every ``eval_every`` env steps and at the end (the
-            error is logged as ``eval/mean_error_mm``); False trains on every
-            training person and evaluates nothing.
+        validation: Track the validation persons
+            (:func:`baselines.experiments.selection.validation_library`)
+            every ``eval_every`` env steps and at the end (the error is
+            logged as ``eval/mean_error_mm``); False tracks none. Training
+            never shows them either way: a ``"train"`` environment leaves
+            the validation persons out.
         eval_every: Env steps between two validation runs.
         eval_episodes: Validation episodes per run.
     """
@@ -135,7 +137,10 @@ class TrainConfig:
 
 #: Each setting's kind and range: ``(integer, lowest, highest)``, both ends
 #: taken; ``lowest`` None: any finite number. A count is at least 1, a rate
-#: above 0; PPO splits ``n_steps * n_envs`` into batches of at least 2.
+#: above 0; PPO splits ``n_steps * n_envs`` into batches of at least 2. A frame
+#: of at least 17 pixels leaves the policy's three strided convolutions
+#: (:class:`~baselines.agents.policy.TrackingExtractor`: 5x5, 3x3, 3x3, stride
+#: 2) at least one pixel.
 SETTING_RANGES: dict[str, tuple[bool, float | None, float]] = {
     "n_envs": (True, 1, 4096),
     "n_steps": (True, 2, 1e7),
@@ -144,7 +149,7 @@ SETTING_RANGES: dict[str, tuple[bool, float | None, float]] = {
     "rounds": (True, 1, 1e6),
     "buffer_size": (True, 1, 1e8),
     "features_dim": (True, 1, 1e5),
-    "frame_size": (True, 8, 640),
+    "frame_size": (True, 17, 640),
     "learning_rate": (False, 1e-12, 10.0),
     "gamma": (False, 0.0, 1.0),
     "gae_lambda": (False, 0.0, 1.0),

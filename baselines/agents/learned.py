@@ -506,8 +506,8 @@ def make_learned(
             raise NoCheckpointError(
                 f"{name}: no pretrained {spec} checkpoint for {task_name} ({path})"
             )
-        _check_record(path, env)
-        policy = LearnedAgent(env, load_policy(path), label, path)
+        policy = LearnedAgent(env, load_policy(path), label, path)  # refuses another shape
+        _check_record(path, env)  # then warns of a task or data of the same shape
         pf = make_filter(pf_name, env, n_particles=n_particles, seed=seed)
         return HybridAgent(env, pf, policy, name=f"{pf_name}+{label}")
     label, path = _policy_for(name, task_name)
@@ -517,5 +517,6 @@ def make_learned(
             f"`humotion-gym train --algo {name} --task {task_name} --steps N --out runs/NAME` and "
             f"pass {name}=runs/NAME/model.zip"
         )
-    _check_record(path, env)
-    return LearnedAgent(env, load_policy(path), label, path)
+    agent = LearnedAgent(env, load_policy(path), label, path)  # refuses another shape
+    _check_record(path, env)  # then warns of a task or data of the same shape
+    return agent

@@ -65,18 +65,27 @@ def learning_curve(
     and the numbers to ``out`` with the suffix ``.json``.
     """
     every = max(1, steps // points)
+    # Every run's settings are checked before the first one trains.
+    configs = {
+        (algo, seed): TrainConfig(
+            algo,
+            task,
+            steps,
+            int(seed),
+            str(Path(runs_dir) / f"{algo}-s{seed}"),
+            data_dir=data_dir,
+            checkpoint_every=every,
+            settings={**({"rounds": points} if algo == "bc" else {}), **(settings or {})},
+        )  # fmt: skip
+        for algo in algos
+        for seed in seeds
+    }
     curves: dict[str, list[dict[str, Any]]] = {}
     hold = None
     for algo in algos:
         per_seed: list[dict[int, list[float]]] = []
         for seed in seeds:
-            extra = dict(settings or {})
-            if algo == "bc":
-                extra.setdefault("rounds", points)
-            config = TrainConfig(
-                algo, task, steps, int(seed), str(Path(runs_dir) / f"{algo}-s{seed}"),
-                data_dir=data_dir, settings=extra, checkpoint_every=every,
-            )  # fmt: skip
+            config = configs[algo, seed]
             train(config, resume=True)
             found = {0: None, **dict(checkpoints(Path(config.out) / "checkpoints"))}
             errors: dict[int, list[float]] = {}

@@ -114,21 +114,32 @@ def test_an_earlier_runs_model_is_kept_without_resume_or_force(tmp_path: Path) -
 
 
 def test_smoke_ppo_trains_checkpoints_and_resumes(tmp_path: Path) -> None:
+    import torch as th
+    from stable_baselines3 import PPO
+
     settings = {"n_envs": 2, "n_steps": 64, "batch_size": 64, "n_epochs": 1, "frame_size": 32}
     config = TrainConfig(
         "ppo", "BodyTrack-v2", steps=256, seed=1, out=str(tmp_path), settings=settings,
-        checkpoint_every=200, validation=False,
+        checkpoint_every=128, validation=False,
     )  # fmt: skip
     train(config)
     assert (tmp_path / "model.zip").is_file()
-    assert [n for n, _ in checkpoints(tmp_path / "checkpoints")] == [200]
-    # The final model (256 steps) is later than the last checkpoint: the resume continues it.
-    assert resume_point(tmp_path) == (256, tmp_path / "model.zip")
+    assert [n for n, _ in checkpoints(tmp_path / "checkpoints")] == [128, 256]
+    # A checkpoint of N steps holds the weights after the update at N: the final model's
+    # (SB3's step callbacks would save it before its last update).
+    final = PPO.load(tmp_path / "model.zip", device="cpu").policy.state_dict()
+    saved = PPO.load(tmp_path / "checkpoints" / "model_256_steps.zip", device="cpu")
+    for name, value in saved.policy.state_dict().items():
+        assert th.equal(value, final[name]), name
+    # A tie goes to the checkpoint, which keeps the optimizer's state for the resume.
+    assert resume_point(tmp_path) == (256, tmp_path / "checkpoints" / "model_256_steps.zip")
     more = TrainConfig(
         "ppo", "BodyTrack-v2", steps=384, seed=1, out=str(tmp_path), settings=settings,
-        checkpoint_every=128, validation=False,
+        checkpoint_every=1000, validation=False,
     )  # fmt: skip
     train(more, resume=True)
+    # The final model (384 steps) is later than the last checkpoint: a resume continues it.
+    assert resume_point(tmp_path) == (384, tmp_path / "model.zip")
     config = json.loads((tmp_path / "config.json").read_text())
     assert config["resumed_from"] == 256
     assert config["env_steps"] >= 384
@@ -355,6 +366,42 @@ def test_a_starting_policy_of_another_shape_is_refused_in_words(bc_run: Path) ->
     env.close()
 
 
+def test_a_starting_policy_is_checked_before_the_run_writes_anything(
+    bc_run: Path, tmp_path: Path
+) -> None:
+    import shutil
+    import zipfile
+
+    from baselines.rl import check_init
+
+    bad = tmp_path / "notsb3.zip"
+    with zipfile.ZipFile(bad, "w") as archive:
+        archive.writestr("readme.txt", "not a policy")
+    out = tmp_path / "run"
+    with pytest.raises(ValueError, match=r"--init: .*notsb3\.zip: not a readable"):
+        train(TrainConfig("bc", "ArmTrack-v2", 10, out=str(out), init=str(bad)))
+    assert not out.exists()
+    # another task's policy, or one of real data for a synthetic run: warned, as scoring does
+    with pytest.warns(OtherTaskWarning, match="trained on ArmTrack-v2, not SideWalk-v2"):
+        check_init(TrainConfig("bc", "SideWalk-v2", 10, init=str(bc_run / "model.zip")))
+    real = tmp_path / "real"
+    real.mkdir()
+    shutil.copyfile(bc_run / "model.zip", real / "model.zip")
+    record = json.loads((bc_run / "config.json").read_text())
+    (real / "config.json").write_text(json.dumps({**record, "data_dir": ["/data/mocap"]}))
+    with pytest.warns(OtherDataWarning, match="motion capture in /data/mocap"):
+        check_init(TrainConfig("bc", "ArmTrack-v2", 10, init=str(real / "model.zip")))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_init(TrainConfig("bc", "ArmTrack-v2", 10, init=str(bc_run / "model.zip")))
+
+
+def test_a_resume_over_an_unreadable_model_alone_is_refused(tmp_path: Path) -> None:
+    (tmp_path / "model.zip").write_bytes(b"damaged")
+    with pytest.raises(ValueError, match=r"--resume: .*model\.zip is unreadable.*--force"):
+        resume_point(tmp_path)
+
+
 def test_bad_configs_are_refused() -> None:
     with pytest.raises(ValueError, match="BodyTrack2Views-v2 shows 2 views.*train on BodyTrack-v2"):
         TrainConfig("ppo", "BodyTrack2Views-v2", 10)
@@ -404,13 +451,27 @@ def test_cli_train_and_track_a_saved_policy(tmp_path: Path, capsys) -> None:
 @pytest.mark.parametrize(
     "setting",
     ["n_envs=0", "batch_size=0", "batch_size=1", "learning_rate=nan", "learning_rate=-1",
-     "frame_size=3", "n_envs=2.5", "gamma=1.5"],
+     "frame_size=3", "frame_size=16", "n_envs=2.5", "gamma=1.5"],
 )  # fmt: skip
 def test_training_settings_out_of_range_are_refused_by_name(setting: str) -> None:
     name, _, value = setting.partition("=")
     number = float(value) if "." in value or "n" in value else int(value)
     with pytest.raises(ValueError, match=f"setting {name}: expected"):
         TrainConfig("ppo" if name == "gamma" else "bc", "ArmTrack-v2", 10, settings={name: number})
+
+
+def test_the_smallest_frame_size_builds_a_policy_that_acts() -> None:
+    """17 pixels leave the convolutions one: the range's lowest value is a working one."""
+    from baselines.rl_config import SETTING_RANGES
+
+    size = int(SETTING_RANGES["frame_size"][1])
+    settings = {"frame_size": size, "n_envs": 1, "n_steps": 8, "batch_size": 8}
+    config = TrainConfig("ppo", "ArmTrack-v2", 16, settings=settings)
+    env = make_learner_env("ArmTrack-v2", "train", size)
+    model = new_model(config, env)
+    obs, _ = env.reset(seed=0)
+    action, _ = model.predict(obs, deterministic=True)
+    assert env.action_space.contains(action)
 
 
 PRETRAINED = sorted(CHECKPOINT_DIR.glob("*.zip"))
@@ -469,6 +530,12 @@ def test_a_policy_scored_on_another_task_of_its_action_size_warns(tmp_path: Path
         warnings.simplefilter("error", OtherTaskWarning)
         warnings.simplefilter("ignore", OtherDataWarning)
         make(str(body), gym.make("humotion_gym/BodyTrack-v2"))
+    # a policy of another action size is refused without a warning of its task first
+    arm = checkpoint_path("bc", "ArmTrack-v2")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", OtherTaskWarning)
+        with pytest.raises(ValueError):
+            make(str(arm), gym.make("humotion_gym/BodyTrack-v2"))
 
 
 def test_every_task_ships_a_bc_checkpoint_where_the_agents_look() -> None:
@@ -549,3 +616,12 @@ def test_a_resumed_leaderboard_refuses_a_policy_file_that_changed(
     shutil.copyfile(bc_run / "model.zip", policy)  # the same file again: the run goes on
     rows = run_leaderboard(["ArmTrack-v2"], agents, [10], episodes=2, resume=True, **kwargs)
     assert [r["agent"] for r in rows][-2:] == agents and all(len(r["episodes"]) == 2 for r in rows)
+
+
+def test_a_learning_curve_checks_every_runs_settings_before_training(tmp_path: Path) -> None:
+    from baselines.leaderboard.learning_curve import learning_curve
+
+    with pytest.raises(ValueError, match="passes"):  # a bc setting, unknown to ppo
+        learning_curve("ArmTrack-v2", ["bc", "ppo"], [0], 20, 1, 1, tmp_path / "runs",
+                       tmp_path / "curve.png", settings={"passes": 1})  # fmt: skip
+    assert not (tmp_path / "runs").exists()  # bc did not train first
