@@ -29,7 +29,8 @@ from numpy.typing import NDArray
 from humotion_gym.checks import is_count
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 
-#: The keys of the learner observation, in the order a policy sees them.
+#: The keys of the learner observation. ``spaces.Dict`` sorts them (frame,
+#: initial, previous), and that is the order SB3 reads them in.
 OBSERVATION_KEYS: tuple[str, ...] = ("frame", "previous", "initial")
 
 

@@ -30,7 +30,9 @@ COMMON_SECTIONS = """
     convention: it warns once per episode and returns the last frame again,
     reward 0, ``terminated``/``truncated`` as the episode ended and
     ``info["after_end"] = True``; the clip does not advance. A ``step`` before
-    the first ``reset`` raises ``RuntimeError``. Actions outside [-1, 1] act
+    the first ``reset`` raises ``RuntimeError`` (through ``gym.make``,
+    Gymnasium's ``OrderEnforcing`` raises its ``ResetNeeded`` first). Actions
+    outside [-1, 1] act
     as the clipped action (``tests/envs/test_action_bounds.py``).
 
     ## Observation

@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 from gymnasium import spaces
+from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
@@ -94,7 +95,9 @@ class PoseTrackingVectorEnv(VectorEnv):
             ``info["final_info"]``; ``DISABLED``: call ``reset`` with a mask).
         max_episode_steps: Episodes end after at most this many steps, as
             Gymnasium's ``TimeLimit`` ends a single env's (``make_vec`` passes
-            the spec's, the task's length; default: the task's).
+            the spec's, the task's length; default: the task's, as
+            ``gym.make``'s, also with a longer ``episode_frames``; -1: no
+            limit but the episode's own length).
         **kwargs: Keyword arguments of :class:`PoseTrackingEnv`.
     """
 
@@ -113,12 +116,18 @@ class PoseTrackingVectorEnv(VectorEnv):
         **kwargs: Any,
     ) -> None:
         check_count("num_envs", num_envs)
-        if max_episode_steps is not None:
+        if max_episode_steps is not None and max_episode_steps != -1:
             check_count("max_episode_steps", max_episode_steps)
         template = PoseTrackingEnv(task=task, **kwargs)
         # What TimeLimit does to a single env: the episode is drawn at its own
-        # length and cut after this many steps, showing its next frame.
-        self._max_steps = int(max_episode_steps or template.episode_frames)
+        # length and cut after this many steps, showing its next frame. By
+        # default the spec's (the task's length), as gym.make's TimeLimit; -1,
+        # Gymnasium's "no TimeLimit": the episode's own length.
+        if max_episode_steps is None:
+            max_episode_steps = template.task.episode_frames
+        elif max_episode_steps == -1:
+            max_episode_steps = template.episode_frames
+        self._max_steps = int(max_episode_steps)
         if template.views != 1:
             raise ValueError(
                 f"views: the vector environment batches monocular episodes only (views=1), "
@@ -532,13 +541,17 @@ class PoseTrackingVectorEnv(VectorEnv):
             **_scored_info(scores, lost),
         }
 
-    def render(self) -> tuple[NDArray[np.uint8] | None, ...] | None:  # type: ignore[override]
+    def render(self) -> tuple[NDArray[np.uint8] | None, ...]:  # type: ignore[override]
         """Every episode's ``render()`` (its last estimate drawn over the frame it estimates).
 
-        As ``SyncVectorEnv``'s: one entry per episode, None before its first reset.
+        As ``SyncVectorEnv``'s of ``gym.make`` environments: one entry per
+        episode (each None without a ``render_mode``).
+
+        Raises:
+            gymnasium.error.ResetNeeded: Before the first reset.
         """
-        if self.render_mode is None:
-            return None
+        if not self._started.any():
+            raise ResetNeeded("render: call reset() before render()")
         return tuple(env.render() for env in self.envs)
 
     # -- SyncVectorEnv's access to the episodes ----------------------------------------
@@ -563,11 +576,31 @@ class PoseTrackingVectorEnv(VectorEnv):
         return tuple(getattr(env, name) for env in self.envs)
 
     def set_attr(self, name: str, values: list[Any] | tuple[Any, ...] | Any) -> None:
-        """Set attribute ``name`` of each episode: one value for all, or one per episode."""
+        """Set attribute ``name`` of each episode: one value for all, or one per episode.
+
+        The batch applies the first episode's :data:`BATCH_SETTINGS` to every
+        episode: they take one value for all. :data:`FIXED_SETTINGS` size the
+        batch's buffers and spaces: they are set when it is made.
+
+        Raises:
+            ValueError: If the values are not one per episode, differ for a
+                batch setting, or change a fixed one.
+        """
         if not isinstance(values, (list, tuple)):
             values = [values] * self.num_envs
         if len(values) != self.num_envs:
             raise ValueError(f"set_attr: {len(values)} values for {self.num_envs} episodes")
+        if name in FIXED_SETTINGS and any(v != getattr(self.envs[0], name) for v in values):
+            raise ValueError(
+                f"set_attr: {name!r} is set when the vector environment is made (it sizes its "
+                f"buffers and spaces); make one with {name}=..."
+            )
+        if name in BATCH_SETTINGS and any(v != values[0] for v in values[1:]):
+            raise ValueError(
+                f"set_attr: the vector environment applies one {name!r} to all its episodes; "
+                "give one value (gymnasium.make_vec(..., vectorization_mode='sync') takes one "
+                "per episode)"
+            )
         for env, value in zip(self.envs, values, strict=True):
             setattr(env, name, value)
 
@@ -575,6 +608,17 @@ class PoseTrackingVectorEnv(VectorEnv):
         """Close the episodes' environments."""
         for env in self.envs:
             env.close()
+
+
+#: Read from the first episode for the whole batch at every step: one value for all.
+BATCH_SETTINGS: tuple[str, ...] = (
+    "terminate_on_lost", "lost_threshold_mm", "lost_patience", "reward_scale_mm",
+)  # fmt: skip
+#: Read when the batch is made: its buffers' sizes, spaces and scene.
+FIXED_SETTINGS: tuple[str, ...] = (
+    "episode_frames", "frame_skip", "task", "scene", "views", "render_mode",
+    "dict_observation", "observation_space", "action_space",
+)  # fmt: skip
 
 
 def _item(value: NDArray[Any], i: int) -> Any:

@@ -258,17 +258,46 @@ def test_the_vector_env_answers_what_sync_vector_env_answers():
     vec = gym.make_vec("humotion_gym/BodyTrack-v2", 2, vectorization_mode="vector_entry_point",
                        **kwargs).unwrapped  # fmt: skip
     sync = gym.make_vec("humotion_gym/BodyTrack-v2", 2, vectorization_mode="sync", **kwargs)
-    assert vec.render() == (None, None)  # an entry per episode, as after a reset
+    from gymnasium.error import ResetNeeded
+
+    for venv in (vec, sync):  # sync's episodes are gym.make's, which enforce the order
+        with pytest.raises(ResetNeeded):
+            venv.render()
     vec.reset(seed=3)
     sync.reset(seed=3)
     assert vec.np_random_seed == sync.np_random_seed == (3, 4)
     assert [g.random() for g in vec.np_random] == [g.random() for g in sync.np_random]
     assert vec.get_attr("split") == sync.get_attr("split") == ("train", "train")
     assert vec.call("pose_to_action", np.zeros(25))[0].shape == (25,)
-    vec.set_attr("lost_patience", [4, 5])
-    assert vec.get_attr("lost_patience") == (4, 5)
+    vec.set_attr("lost_patience", [4, 4])
+    assert vec.get_attr("lost_patience") == (4, 4)
     with pytest.raises(ValueError, match="3 values for 2 episodes"):
         vec.set_attr("lost_patience", [1, 2, 3])
+    # the batch applies the first episode's: values that differ would be dropped silently
+    with pytest.raises(ValueError, match="one 'terminate_on_lost' to all its episodes"):
+        vec.set_attr("terminate_on_lost", [True, False])
+    with pytest.raises(ValueError, match="'episode_frames' is set when the vector environment"):
+        vec.set_attr("episode_frames", 40)
+    vec.set_attr("episode_frames", vec.envs[0].episode_frames)  # unchanged: nothing to refuse
+    plain = gym.make_vec("humotion_gym/BodyTrack-v2", 2, vectorization_mode="vector_entry_point",
+                         width=64, height=64)  # fmt: skip
+    plain.reset(seed=0)
+    assert plain.render() == (None, None)  # no render_mode: an entry per episode, as sync's
+
+
+@pytest.mark.parametrize("mode", ["vector_entry_point", "sync"])
+def test_a_longer_episode_needs_max_episode_steps_on_every_path(mode):
+    """episode_frames=N alone is cut at the task's length by every path; -1 lifts the limit."""
+    kwargs = {"width": 64, "height": 64, "episode_frames": 40, "terminate_on_lost": False}
+    for limit, steps in ((None, 30), (40, 40), (-1, 40)):
+        extra = {} if limit is None else {"max_episode_steps": limit}
+        venv = gym.make_vec("humotion_gym/ArmTrack-v2", 1, vectorization_mode=mode,
+                            **kwargs, **extra)  # fmt: skip
+        venv.reset(seed=0)
+        action = np.zeros(venv.action_space.shape, np.float32)
+        ends = [any(venv.step(action)[2:4]) for _ in range(steps)]
+        assert ends == [False] * (steps - 1) + [True], (limit, ends.index(True) + 1)
+    assert PoseTrackingVectorEnv(1, "ArmTrack-v2", **kwargs)._max_steps == 30  # the spec's
 
 
 def test_learner_vec_env_equals_dummy_vec_env_of_learner_envs():
