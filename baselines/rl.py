@@ -35,6 +35,7 @@ import importlib.util
 import json
 import math
 import platform
+import shutil
 import sys
 import time
 import warnings
@@ -395,8 +396,8 @@ def _save(model: PPO, path: Path) -> None:
 def prepare_output(out: Path, resume: bool, force: bool, config: TrainConfig | None = None) -> None:
     """Refuse to overwrite an earlier run's model unless asked to resume or to start afresh.
 
-    With ``force`` the earlier run's ``model.zip`` and checkpoints are deleted
-    (a later resume would otherwise continue from them). With ``resume`` and a
+    With ``force`` the earlier run's ``model.zip``, checkpoints and logs are
+    deleted (a later resume would otherwise continue from them). With ``resume`` and a
     ``config``, the earlier run's ``config.json`` must record the same run
     (:func:`check_resumed`).
 
@@ -428,6 +429,7 @@ def prepare_output(out: Path, resume: bool, force: bool, config: TrainConfig | N
         )
     for path in earlier:
         path.unlink()
+    shutil.rmtree(out / "logs", ignore_errors=True)  # the earlier run's, resumed ones' too
 
 
 def train(

@@ -157,6 +157,8 @@ def _settings(args: argparse.Namespace) -> dict:
     from baselines.rl import load_hyperparams
 
     settings: dict = {}
+    if args.hyperparams is not None and not args.hyperparams.is_file():
+        raise UsageError(f"--hyperparams: {args.hyperparams} is not a file")
     if args.algo == "ppo":
         path = args.hyperparams or (DEFAULT_HYPERPARAMS if DEFAULT_HYPERPARAMS.is_file() else None)
         if path is not None:

@@ -106,10 +106,11 @@ def test_an_earlier_runs_model_is_kept_without_resume_or_force(tmp_path: Path) -
     with pytest.raises(ResumeMismatch, match="model.zip but no config.json"):
         prepare_output(tmp_path, resume=True, force=False, config=config)
     assert (tmp_path / "model.zip").is_file()
-    assert (tmp_path / "model.zip").is_file()
+    (tmp_path / "logs" / "from-10").mkdir(parents=True)  # a resumed run's log
     prepare_output(tmp_path, resume=False, force=True)  # starting afresh removes them
     assert not (tmp_path / "model.zip").exists()
     assert not list((tmp_path / "checkpoints").iterdir())
+    assert not (tmp_path / "logs").exists()
     prepare_output(tmp_path, resume=False, force=False)  # nothing left to overwrite
 
 
@@ -625,3 +626,14 @@ def test_a_learning_curve_checks_every_runs_settings_before_training(tmp_path: P
         learning_curve("ArmTrack-v2", ["bc", "ppo"], [0], 20, 1, 1, tmp_path / "runs",
                        tmp_path / "curve.png", settings={"passes": 1})  # fmt: skip
     assert not (tmp_path / "runs").exists()  # bc did not train first
+
+
+def test_a_missing_hyperparams_file_is_named(tmp_path: Path, capsys) -> None:
+    from baselines.cli import main
+
+    argv = ["train", "--algo", "ppo", "--task", "ArmTrack-v2", "--steps", "16",
+            "--hyperparams", str(tmp_path / "nope.yml"), "--out", str(tmp_path / "run")]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "--hyperparams:" in err and "nope.yml is not a file" in err and err.count("\n") == 1
+    assert not (tmp_path / "run").exists()
