@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Sequence
+from typing import Any
 
 from baselines.cli._args import add_agents, add_engine, check_engine, tracked_task
 from humotion_gym.cli._common import (
@@ -170,6 +172,17 @@ def _check_results_folder(args: argparse.Namespace) -> None:
         )
 
 
+def _unless_default(tasks: Sequence[str], field: str, value: Any) -> Any:
+    """``value``, or None where it is every task's own scene ``field``."""
+    from humotion_gym.envs import get_task
+    from humotion_gym.render_scene import SceneOptions
+
+    if value is None:
+        return None
+    own = {getattr(SceneOptions(**dict(get_task(t).scene)), field) for t in tasks}
+    return None if own == {value} else value
+
+
 def _cmd_leaderboard(args: argparse.Namespace) -> int:
     from baselines.leaderboard import (
         ResumeError,
@@ -203,6 +216,10 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         raise UsageError(
             f"--out: expected a results folder (it holds results.json), got the file {args.out}"
         )
+    # A difficulty given at every task's own value is no setting: a run saved
+    # without it resumes with it, and the other way round.
+    args.background = _unless_default(args.tasks, "background", args.background)
+    args.noise = _unless_default(args.tasks, "noise_sigma", args.noise)
     if args.out is not None:
         _check_results_folder(args)
     kwargs = env_kwargs(args)

@@ -321,3 +321,17 @@ def test_a_runs_counts_are_refused_by_name_before_any_work(kwargs, name):
     args = {"episodes": 1, "particles": [10], "progress": False, **kwargs}
     with pytest.raises(ValueError, match=f"^{name}: expected an integer"):
         run_leaderboard(["BodyTrack-v2"], ["hold"], **args)
+
+
+def test_a_difficulty_given_at_the_tasks_own_value_resumes_either_way(tmp_path, capsys):
+    """--noise 4 is every task's own noise: no setting, so a run without it resumes with it."""
+    argv = ["leaderboard", "--tasks", "ArmTrack-v2", "--agents", "hold", "--particles", "1",
+            "--episodes", "1", "--out", str(tmp_path / "lb"), "--no-report"]  # fmt: skip
+    assert main(argv) == 0
+    assert main([*argv, "--episodes", "2", "--noise", "4", "--background", "clutter",
+                 "--resume"]) == 0  # fmt: skip
+    saved = json.loads((tmp_path / "lb" / "run.json").read_text())
+    assert "noise" not in saved["env_kwargs"] and "background" not in saved["env_kwargs"]
+    capsys.readouterr()
+    assert main([*argv, "--episodes", "2", "--noise", "8", "--resume"]) == 2  # another noise
+    assert "noise" in capsys.readouterr().err
