@@ -37,6 +37,7 @@ from humotion_gym.mocap.library import (
     load_library,
     synthetic_library,
 )
+from humotion_gym.mocap.persons import check_data_persons
 
 #: Training persons held out to choose settings on real data (the priors of a
 #: fold fit on the Bandai-Namco clips); the synthetic set's are
@@ -53,9 +54,15 @@ def validation_library(
     Args:
         data_dir: Folders of mocap (else ``$HUMOTION_MOCAP``, else synthetic).
         subjects: The training persons to hold out (the module's defaults when None).
+
+    Raises:
+        SplitError: If a held-out person's skeleton is also a training person's
+            (:func:`~humotion_gym.mocap.persons.check_data_persons`).
     """
     dirs = configured_data_dirs(data_dir)
     lib = load_library(dirs, progress=False) if dirs else synthetic_library()
+    if dirs:  # as an environment on these folders: no test person under another name
+        check_data_persons(lib, dirs)
     if subjects is None:
         subjects = SYNTHETIC_VALIDATION_SUBJECTS if lib.is_synthetic else VALIDATION_SUBJECTS
     return lib.validation_fold(subjects)

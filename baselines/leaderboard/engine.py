@@ -132,9 +132,23 @@ Fits = Mapping[tuple[str, str], tuple[str, Any]]
 
 
 def make_env(task: str, env_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
-    """A task's environment as the leaderboard runs it: test persons, every episode to its end."""
-    kwargs = {"split": "test", **dict(env_kwargs or {})}
-    return gym.make(f"humotion_gym/{task}", terminate_on_lost=False, **kwargs)
+    """A task's environment as the leaderboard runs it: test persons, every episode to its end.
+
+    A ``library`` in ``env_kwargs`` is tracked on its ``"test"`` split: a
+    validation fold's (:func:`~baselines.experiments.selection.validation_library`)
+    is its held-out training persons.
+
+    Raises:
+        ValueError: If ``env_kwargs`` names a ``split``: the leaderboard's
+            episodes are the test split's.
+    """
+    kwargs = dict(env_kwargs or {})
+    if "split" in kwargs:
+        raise ValueError(
+            f"env_kwargs: split={kwargs['split']!r}, but the leaderboard tracks the test "
+            "split (choose the data with data_dir, or a validation fold with library)"
+        )
+    return gym.make(f"humotion_gym/{task}", terminate_on_lost=False, split="test", **kwargs)
 
 
 def window_options(window: tuple[str, int] | None) -> dict[str, Any] | None:

@@ -103,14 +103,16 @@ def _progress_to(log: Callable[[str], None] | None) -> Iterator[None]:
 
 
 def _fingerprint(lib: MotionLibrary | Sequence[Motion]) -> str:
-    """A digest of the clips' ids, rates, sources and motion (part of the key).
+    """A digest of the clips' ids, labels, rates, sources and motion (part of the key).
 
     The motion itself (its parameters and which were observed) is hashed: a
-    file rewritten with other motion of the same length is another fit.
+    file rewritten with other motion of the same length is another fit. The
+    labels too: the cyclic prior fits the walking clips alone and the
+    switching model one model per label.
     """
     h = hashlib.sha256()
     for m in lib:
-        h.update(f"{m.clip_id}:{m.n_frames}:{m.fps}:{m.source};".encode())
+        h.update(f"{m.clip_id}:{m.label}:{m.n_frames}:{m.fps}:{m.source};".encode())
         h.update(np.ascontiguousarray(m.params, dtype=np.float64).tobytes())
         h.update(np.packbits(np.asarray(m.observed, dtype=bool)).tobytes())
     return h.hexdigest()[:16]

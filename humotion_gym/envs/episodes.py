@@ -226,8 +226,9 @@ def check_windows(windows: Iterable[EpisodeWindow], library: MotionLibrary, span
 
     Raises:
         ValueError: Naming the clip, if a clip is missing from the library, has
-            another frame count than the list's fingerprint, or a window does
-            not lie within it.
+            another frame count than the list's fingerprint, shows another
+            person than the list names or one the library does not hold out,
+            or a window does not lie within it.
     """
     clips = {m.clip_id: m for m in library}
     for w in windows:
@@ -240,6 +241,13 @@ def check_windows(windows: Iterable[EpisodeWindow], library: MotionLibrary, span
             raise ValueError(
                 f"declared clip {w.clip_id!r}: expected {w.frames} frames, the library's has "
                 f"{m.n_frames} (another version or frame rate of the clip)"
+            )
+        if m.subject != w.person or m.subject not in library.held_out:
+            # a declared window is a test episode: of the person it names, held out
+            raise ValueError(
+                f"declared clip {w.clip_id!r} shows {m.subject!r} (the list says "
+                f"{w.person!r}), {'a' if m.subject in library.held_out else 'not a'} held-out "
+                "person of this library: declared episodes are test episodes"
             )
         if not 0 <= w.start <= m.n_frames - span:
             raise ValueError(

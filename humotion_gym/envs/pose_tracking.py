@@ -31,13 +31,12 @@ from humotion_gym.metrics import Scoring, StepScores, step_scores, update_lost_r
 from humotion_gym.mocap.library import (
     EPISODE_SPLITS,
     MotionLibrary,
-    SplitError,
     configured_data_dirs,
     load_library,
     synthetic_library,
 )
 from humotion_gym.mocap.motion import Motion
-from humotion_gym.mocap.persons import check_person_split
+from humotion_gym.mocap.persons import check_data_persons
 from humotion_gym.render import (
     FigureSequence,
     SceneOptions,
@@ -64,31 +63,8 @@ def _cached_library(dirs: tuple[str, ...], fps: float) -> MotionLibrary:
     library = load_library(list(dirs), fps=fps, progress=False)
     if len(library) == 0:
         raise ValueError(f"data_dir {list(dirs)}: no motion capture (.bvh, .amc) found there")
-    _check_held_out(library, dirs)
+    check_data_persons(library, dirs)
     return library
-
-
-def _check_held_out(library: MotionLibrary, dirs: tuple[str, ...]) -> None:
-    """Refuse data where a held-out person's skeleton is also a training person's.
-
-    A test person's file copied under another person's folder would otherwise
-    train the priors and policies on the test persons (the split is by person
-    name; :func:`~humotion_gym.mocap.persons.check_person_split` compares the
-    skeletons, about 0.3 s for the shared data, once per library).
-
-    Raises:
-        SplitError: Naming each pair, in one line.
-    """
-    try:
-        check_person_split(library)
-    except SplitError as exc:
-        shown = ", ".join(f"{test} ~ {train}" for test, train in exc.pairs)
-        raise SplitError(
-            f"data_dir {list(dirs)}: a held-out person's skeleton is also a training "
-            f"person's ({shown}), so the test persons would be trained on; move those clips "
-            f"out (humotion-gym data persons {' '.join(dirs)} lists them)",
-            exc.pairs,
-        ) from None
 
 
 # What a reset assigns: restored when a reset fails, so a reset is all-or-nothing.

@@ -60,6 +60,7 @@ from __future__ import annotations
 
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -107,9 +108,9 @@ _DEDUP_DECIMALS = 2
 
 __all__ = [
     "DEFAULT_ATOL_MM", "DEFAULT_RTOL", "SIGNATURE_BONES", "SIGNATURE_NAMES", "SIGNATURE_SIZE",
-    "PersonSplitReport", "SplitError", "SubjectSkeleton", "check_person_split",
-    "held_out_subjects", "same_skeleton", "skeleton_difference", "skeleton_groups",
-    "skeleton_signature", "subject_skeletons",
+    "PersonSplitReport", "SplitError", "SubjectSkeleton", "check_data_persons",
+    "check_person_split", "held_out_subjects", "same_skeleton", "skeleton_difference",
+    "skeleton_groups", "skeleton_signature", "subject_skeletons",
 ]  # fmt: skip
 
 
@@ -451,3 +452,32 @@ def check_person_split(
         rtol,
         atol_mm,
     )
+
+
+def check_data_persons(library: MotionLibrary, dirs: Sequence[str | Path]) -> None:
+    """Refuse data where a held-out person's skeleton is also a training person's.
+
+    A test person's file copied under another person's folder would otherwise
+    train the priors and policies on the test persons (the split is by person
+    name; :func:`check_person_split` compares the skeletons, about 0.3 s for
+    the shared data). Every path that loads a user's folders for training or
+    tracking calls it: the environments (once per library) and the
+    validation folds.
+
+    Args:
+        library: The clips loaded from ``dirs``.
+        dirs: The folders, for the message.
+
+    Raises:
+        SplitError: Naming each pair, in one line.
+    """
+    try:
+        check_person_split(library)
+    except SplitError as exc:
+        shown = ", ".join(f"{test} ~ {train}" for test, train in exc.pairs)
+        raise SplitError(
+            f"data_dir {[str(d) for d in dirs]}: a held-out person's skeleton is also a training "
+            f"person's ({shown}), so the test persons would be trained on; move those clips "
+            f"out (humotion-gym data persons {' '.join(map(str, dirs))} lists them)",
+            exc.pairs,
+        ) from None

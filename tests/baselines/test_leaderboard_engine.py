@@ -335,3 +335,10 @@ def test_a_difficulty_given_at_the_tasks_own_value_resumes_either_way(tmp_path, 
     capsys.readouterr()
     assert main([*argv, "--episodes", "2", "--noise", "8", "--resume"]) == 2  # another noise
     assert "noise" in capsys.readouterr().err
+
+
+def test_the_leaderboard_tracks_the_test_split_only(tmp_path):
+    """A split in env_kwargs would score training persons as a table's test episodes."""
+    with pytest.raises(ValueError, match="split='train', but the leaderboard tracks the test"):
+        run_leaderboard(["ArmTrack-v2"], ["hold"], [1], episodes=1, progress=False,
+                        env_kwargs={"split": "train"})  # fmt: skip

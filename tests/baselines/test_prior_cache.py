@@ -233,3 +233,13 @@ def test_messages_say_what_was_wrong(env, tmp_path):
     _other_settings(path, {"env": env, "cache": cache})
     with pytest.warns(CacheWarning, match=r"foreign entry: .*settings="):
         _fit(env, cache)
+
+
+def test_the_key_holds_the_clips_labels(env):
+    """The cyclic prior fits the walking clips, the switching model one model per label."""
+    from baselines.priors.fitting import _fingerprint
+
+    clips = list(env.describe().training)[:3]
+    relabelled = [dataclasses.replace(m, label=f"not-{m.label}") for m in clips]
+    assert _fingerprint(clips) != _fingerprint(relabelled)
+    assert _fingerprint(clips) == _fingerprint([dataclasses.replace(m) for m in clips])

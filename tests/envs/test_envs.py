@@ -488,6 +488,11 @@ def test_data_with_a_test_persons_copy_under_another_name_is_refused(shared_moca
     shutil.copyfile(source / "03_01.amc", copy / "walk_a.amc")
     with pytest.raises(SplitError, match=r"skeleton is also a training person's \(cmu-03 ~ carol"):
         gym.make("humotion_gym/WalkTrack-v2", data_dir=[str(tmp_path), str(source)])
+    # the validation folds that training and select build refuse it too
+    from baselines.experiments.selection import validation_library
+
+    with pytest.raises(SplitError, match=r"\(cmu-03 ~ carol"):
+        validation_library([str(tmp_path), str(source)])
     env = gym.make("humotion_gym/WalkTrack-v2", data_dir=[str(source)], split="test")
     assert {m.subject for m in env.unwrapped.library} == {"cmu-03"}
 

@@ -134,7 +134,13 @@ def test_check_windows_fails_on_a_tampered_list(synthetic):
         f"expected {w.frames + 1} frames": dataclasses.replace(w, frames=w.frames + 1),
         "outside its": dataclasses.replace(w, start=w.frames - span + 1),
         "not in the library": dataclasses.replace(w, clip_id="synthetic/fly-05"),
-    }
+        # a training clip listed as a test episode, and a clip under another person's name
+        "'synthetic-01' .*not a held-out person": dataclasses.replace(
+            w, clip_id="synthetic/walk-01", person="synthetic-01",
+            frames=synthetic["synthetic/walk-01"].n_frames,
+        ),
+        "the list says 'synthetic-06'": dataclasses.replace(w, person="synthetic-06"),
+    }  # fmt: skip
     for what, bad in tampered.items():
         with pytest.raises(ValueError, match=what) as caught:
             ep.check_windows(windows[1:] + (bad,), synthetic, span)
