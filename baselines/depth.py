@@ -252,11 +252,13 @@ def run_depth(
     kwargs = {"split": "test", **(env_kwargs or {})}  # the test persons, as the leaderboard
     env = gym.make(f"humotion_gym/{task}", terminate_on_lost=False, **kwargs)
     names = ["hold"] + [a for a in agents if a != "hold"]
+    # every agent made before the first episode: one that cannot track the task
+    # is refused before the others have run
+    built = {name: make(name, env, n_particles=particles, seed=seed) for name in names}
     rows = []
     bar = tqdm(total=len(names) * episodes, desc="depth: episodes", disable=not progress)
     with bar:
-        for name in names:
-            agent = make(name, env, n_particles=particles, seed=seed)
+        for name, agent in built.items():
             eps = []
             for k in range(episodes):
                 eps.append(track_with_depth(agent, env, seed + k)[1])

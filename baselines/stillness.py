@@ -132,17 +132,20 @@ def run_still(
     """
     kwargs = {"split": "test", **(env_kwargs or {})}  # the test persons, as the leaderboard
     env = gym.make(f"humotion_gym/{task}", terminate_on_lost=False, **kwargs)
+    names = ["hold"] + [a for a in agents if a != "hold"]
+    # every agent made before the windows are scanned and the first one runs:
+    # one that cannot track the task is refused before the work
+    built = {name: make(name, env, n_particles=particles, seed=seed) for name in names}
     if windows is None:
         windows = still_windows(env, max_hold_mm, count, progress=progress)
     if not windows:
         raise ValueError(
             f"{task}: no episode of the test clips has a hold error of at most "
-            f"{max_hold_mm:g} mm; raise max_hold_mm"
+            f"{max_hold_mm:g} mm; raise max_hold_mm (--max-hold)"
         )
-    names = ["hold"] + [a for a in agents if a != "hold"]
     rows = []
     for name in tqdm(names, desc="still: agents", disable=not progress):
-        agent = make(name, env, n_particles=particles, seed=seed)
+        agent = built[name]
         results: list[EpisodeResult] = [
             run_episode(agent, env, seed + k, w.options) for k, w in enumerate(windows)
         ]

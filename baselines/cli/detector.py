@@ -15,6 +15,7 @@ from humotion_gym.cli._common import (
     add_data_dir,
     add_seed,
     check_fresh_output,
+    check_memory,
     int_at_least,
     output_dir,
     positive_float,
@@ -65,9 +66,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
+    from baselines.detector.network import INPUT_SIZE
     from baselines.detector.train import TrainSettings, make_detector
 
     check_fresh_output(args.out, ["detector.npz", "detector.json"], "trained weights")
+    # every frame is held (RGB bytes) while the training set is rendered
+    frame_bytes = INPUT_SIZE * INPUT_SIZE * 3
+    check_memory("--frames", args.frames + args.validation_frames, frame_bytes, "frames")
     settings = TrainSettings(
         epochs=args.epochs, batch=args.batch, lr=args.lr, width=args.width, seed=args.seed,
         threads=args.threads,

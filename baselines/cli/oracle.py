@@ -163,7 +163,13 @@ def run_settings(args: argparse.Namespace) -> dict:
 
 
 def _cmd_oracle(args: argparse.Namespace) -> int:
-    from baselines.diagnostics.split import SettingsError, compact, markdown_report, run_split
+    from baselines.diagnostics.split import (
+        SettingsError,
+        check_agents,
+        compact,
+        markdown_report,
+        run_split,
+    )
 
     if args.declared and args.split == "validation":
         raise UsageError("--declared: the declared windows are the test persons'; drop --split")
@@ -176,6 +182,11 @@ def _cmd_oracle(args: argparse.Namespace) -> int:
         from baselines.experiments.selection import validation_library
 
         kwargs["library"] = validation_library(kwargs.pop("data_dir", None))
+    try:  # every task's agents made first: one a later task refuses stops the run at once
+        for task in args.task:
+            check_agents(task, args.agents, args.particles, args.seed, kwargs, settings)
+    except SettingsError as exc:
+        raise UsageError(f"--set: {exc}") from None
     results = []
     for task in args.task:
         try:

@@ -23,6 +23,8 @@ architecture's sizes), read back without pickle (:func:`load_weights`).
 from __future__ import annotations
 
 import hashlib
+import zipfile
+import zlib
 from collections import OrderedDict
 from pathlib import Path
 
@@ -168,8 +170,9 @@ def load_weights(path: str | Path) -> HeatmapNet:
 
     Raises:
         FileNotFoundError: If the file does not exist.
-        ValueError: If it is not such a file (unreadable without pickle, made
-            for another input size or keypoint count, or missing weights).
+        ValueError: If it is not such a file (unreadable without pickle,
+            damaged, made for another input size or keypoint count, missing
+            weights or holding non-finite ones).
     """
     p = Path(path)
     if not p.is_file():
@@ -177,10 +180,17 @@ def load_weights(path: str | Path) -> HeatmapNet:
             f"{p}: no detector weights; make them with `humotion-gym detector train --out DIR`"
         )
     try:
+        with zipfile.ZipFile(p) as archive:  # numpy reads a member without checking its CRC
+            damaged = archive.testzip()
+        if damaged is not None:
+            raise ValueError(f"{damaged} fails its CRC check")
         with np.load(p, allow_pickle=False) as data:
             arrays = {k: data[k] for k in data.files}
-    except (OSError, ValueError) as exc:
-        raise ValueError(f"{p}: not a detector weights .npz ({exc})") from exc
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
+        raise ValueError(f"{p}: not a detector weights .npz ({exc})") from None
+    bad = sorted(k for k, v in arrays.items() if v.dtype.kind == "f" and not np.isfinite(v).all())
+    if bad:  # NaN detections would leave every particle unweighted, without a word
+        raise ValueError(f"{p}: non-finite weights in {', '.join(bad[:3])}")
     arch = arrays.pop(_ARCH_KEY, None)
     if arch is None or arch.shape != (4,) or arch[1:].tolist() != [N_KEYPOINTS, INPUT_SIZE, STRIDE]:
         raise ValueError(

@@ -76,7 +76,18 @@ def _load(path: str) -> tuple[Detector, dict[str, Any]]:
         # one frame at a time: torch's thread pool costs more than it saves
         th.set_num_threads(1)
     weights = Path(path)
-    meta = json.loads(weights.with_suffix(".json").read_text())
+    record = weights.with_suffix(".json")
+    try:
+        meta = json.loads(record.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise FileNotFoundError(
+            f"{record}: the detector's record is missing (detector train writes it beside "
+            f"{weights.name}; its validation errors set the likelihood's widths)"
+        ) from None
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{record}: not a detector's JSON record ({exc})") from None
+    if not isinstance(meta, dict):
+        raise ValueError(f"{record}: not a detector's JSON record (expected an object)")
     return Detector.load(weights, memo=MEMO_FRAMES), meta
 
 

@@ -211,6 +211,11 @@ def make_detector(
         log(f"rendered {len(frames)} training and {len(held)} validation frames "
             f"({time.perf_counter() - t0:.0f} s)")  # fmt: skip
     net = train(frames, settings, log)
+    if not all(bool(th.isfinite(v).all()) for v in net.state_dict().values()):
+        raise ValueError(
+            f"the training diverged (non-finite weights at learning rate {settings.lr:g}); "
+            "lower --lr"
+        )
     save_weights(net, folder / WEIGHTS_NAME)
     errors = pixel_errors(Detector(net), held)
     meta: dict[str, Any] = {

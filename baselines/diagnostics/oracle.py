@@ -68,9 +68,15 @@ __all__ = [
 #: The oracles by name, with the default noise (pixels) of each.
 ORACLE_KINDS: dict[str, float] = {"2d": 1.0, "2d-unlabelled": 3.0, "3d": 1.0}
 _PELVIS = KEYPOINT_INDEX["pelvis"]
-#: The largest noise an oracle takes: beyond a frame's width in pixels, or 10 m,
-#: the oracle says nothing about the pose and would only spend the run.
-NOISE_LIMITS: dict[str, float] = {"noise_px": 1000.0, "noise_mm": 10_000.0}
+#: The least and largest noise an oracle takes. Far below 1e-9 (a nanopixel,
+#: a nanometre; the least the tests use for a noise-free oracle) its variance
+#: underflows to zero near 1e-160, every pose then scores -inf and the weights
+#: go uniform: an oracle that says nothing. Beyond a frame's width in pixels,
+#: or 10 m, it says nothing about the pose either.
+NOISE_LIMITS: dict[str, tuple[float, float]] = {
+    "noise_px": (1e-9, 1000.0),
+    "noise_mm": (1e-9, 10_000.0),
+}
 
 
 @dataclass(frozen=True)
@@ -84,8 +90,8 @@ class OracleSettings:
         noise_mm: 3D only: noise per axis in mm instead of ``noise_px``.
 
     Raises:
-        ValueError: If the kind is unknown, a noise is not in ``(0, limit]``
-            (:data:`NOISE_LIMITS`), or ``noise_mm`` is given for a 2D oracle.
+        ValueError: If the kind is unknown, a noise is outside its
+            :data:`NOISE_LIMITS`, or ``noise_mm`` is given for a 2D oracle.
     """
 
     kind: str
@@ -97,11 +103,11 @@ class OracleSettings:
             raise ValueError(
                 f"OracleSettings.kind: expected one of {list(ORACLE_KINDS)}, got {self.kind!r}"
             )
-        for name, limit in NOISE_LIMITS.items():
+        for name, (low, high) in NOISE_LIMITS.items():
             value = getattr(self, name)
-            if value is not None and not (np.isfinite(value) and 0 < value <= limit):
+            if value is not None and not (np.isfinite(value) and low <= value <= high):
                 raise ValueError(
-                    f"OracleSettings.{name}: expected a number in (0, {limit:g}], got {value}"
+                    f"OracleSettings.{name}: expected a number in [{low:g}, {high:g}], got {value}"
                 )
         if self.noise_mm is not None and self.kind != "3d":
             raise ValueError(

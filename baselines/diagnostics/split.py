@@ -241,6 +241,30 @@ def run_split(
     }  # fmt: skip
 
 
+def check_agents(
+    task: str,
+    agents: Sequence[str],
+    particles: int,
+    seed: int = 0,
+    env_kwargs: Mapping[str, Any] | None = None,
+    settings: Mapping[str, Any] | None = None,
+) -> None:
+    """Make each agent once on ``task`` as :func:`run_split` would, running nothing.
+
+    A run over several tasks calls it for every task first, so that an agent
+    that cannot track a later task is refused before the earlier ones run.
+
+    Raises:
+        ValueError: If an agent cannot track the task.
+        SettingsError: As :func:`run_split`.
+    """
+    env = make_env(task, env_kwargs)
+    try:
+        _builder(env, [a for a in agents if a != "hold"], particles, seed, settings or {})
+    finally:
+        env.close()
+
+
 def _builder(
     env: gym.Env, names: Sequence[str], particles: int, seed: int, settings: Mapping[str, Any]
 ) -> Callable[[str, int], Any]:

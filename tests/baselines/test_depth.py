@@ -144,3 +144,13 @@ def test_real_bodytrack_hold_matches_the_published_table(shared_mocap):
     assert hold["mean_error_mm"] == pytest.approx(373.7, abs=0.1)
     assert hold["followed"] == pytest.approx(0.0, abs=1e-9)
     assert hold["true_travel_mm"] < 0  # on average the test persons come nearer the camera
+
+
+def test_an_agent_that_cannot_track_the_task_is_refused_before_any_episode(monkeypatch):
+    import baselines.depth as depth
+
+    ran = []
+    monkeypatch.setattr(depth, "track_with_depth", lambda *args: ran.append(args))
+    with pytest.raises(ValueError, match="cannot track 'BodyTrack-v2'"):
+        depth.run_depth("BodyTrack-v2", ["pf-cv", "pf-pca"], 10, episodes=1)
+    assert not ran  # hold and pf-cv did not run first

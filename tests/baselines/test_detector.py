@@ -114,6 +114,26 @@ def test_weights_round_trip_and_foreign_files_are_refused(tmp_path):
     with pytest.raises(FileNotFoundError, match="detector train"):
         load_weights(tmp_path / "none.npz")
     assert zipfile.is_zipfile(path)
+    # a damaged file, and weights that are not numbers: refused, never tracked with
+    data = path.read_bytes()
+    (tmp_path / "cut.npz").write_bytes(data[: len(data) // 2])
+    with pytest.raises(ValueError, match="not a detector weights"):
+        load_weights(tmp_path / "cut.npz")
+    with zipfile.ZipFile(path) as archive:  # a byte in the middle of the largest array's data
+        info = max(archive.infolist(), key=lambda i: i.compress_size)
+    start = info.header_offset + 30 + len(info.filename.encode()) + len(info.extra)
+    flipped = bytearray(data)
+    flipped[start + info.compress_size // 2] ^= 0xFF
+    (tmp_path / "flipped.npz").write_bytes(bytes(flipped))
+    with pytest.raises(ValueError, match="not a detector weights"):
+        load_weights(tmp_path / "flipped.npz")
+    with np.load(path) as stored:
+        arrays = {k: stored[k] for k in stored.files}
+    first = next(k for k, v in arrays.items() if v.dtype.kind == "f")
+    arrays[first] = np.full_like(arrays[first], np.nan)
+    np.savez(tmp_path / "nan.npz", **arrays)
+    with pytest.raises(ValueError, match=f"non-finite weights in {first}"):
+        load_weights(tmp_path / "nan.npz")
 
 
 @pytest.fixture(scope="module")
@@ -289,3 +309,41 @@ def test_cli_train_writes_weights_and_their_record(tmp_path):
     assert set(meta["validation_error_px"]) >= {"pelvis", "l_wrist", "all"}
     assert not set(meta["training_persons"]) & set(meta["validation_persons"])
     Detector.load(out / "detector.npz")
+
+
+def test_a_detectors_record_missing_or_damaged_is_named(tmp_path):
+    import torch as th
+
+    from baselines.detector.term import _load
+
+    th.manual_seed(0)
+    weights = save_weights(HeatmapNet(8).eval(), tmp_path / "d.npz")
+    with pytest.raises(FileNotFoundError, match=r"d\.json: the detector's record is missing"):
+        _load(str(weights))
+    weights.with_suffix(".json").write_text("{cut")
+    with pytest.raises(ValueError, match=r"d\.json: not a detector's JSON record"):
+        _load(str(weights))
+
+
+def test_detector_train_refuses_frames_beyond_memory_before_rendering(tmp_path, capsys):
+    assert main(["detector", "train", "--out", str(tmp_path / "d"), "--frames", "2000000"]) == 2
+    assert "--frames: 2,001,000 frames would take" in capsys.readouterr().err
+    assert not (tmp_path / "d").exists()
+
+
+def test_a_training_that_diverges_saves_no_weights(tmp_path, monkeypatch):
+    import torch as th
+
+    import baselines.detector.train as training
+
+    def diverged(frames, settings, log=None):
+        net = HeatmapNet(8)
+        with th.no_grad():
+            next(iter(net.parameters())).fill_(float("nan"))
+        return net
+
+    monkeypatch.setattr(training, "train", diverged)
+    settings = training.TrainSettings(epochs=1, width=8, lr=1e8)
+    with pytest.raises(ValueError, match="diverged .*learning rate 1e\\+08.*lower --lr"):
+        training.make_detector(tmp_path / "d", 64, settings, validation_frames=16)
+    assert not (tmp_path / "d" / "detector.npz").exists()

@@ -290,6 +290,12 @@ def test_settings_refuse_what_they_cannot_be():
         OracleSettings("depth")
     with pytest.raises(ValueError, match="noise_px"):
         OracleSettings("2d", noise_px=0.0)
+    # noise so small its variance underflows: every pose -inf, uniform weights, no oracle
+    with pytest.raises(ValueError, match=r"noise_px: expected a number in \[1e-09, 1000\]"):
+        OracleSettings("2d", noise_px=1e-200)
+    with pytest.raises(ValueError, match="noise_mm"):
+        OracleSettings("3d", noise_mm=1e-320)
+    OracleSettings("3d", noise_mm=1e-9)  # the least taken
     with pytest.raises(ValueError, match="noise_mm"):
         OracleSettings("2d", noise_mm=10.0)
     with pytest.raises(ValueError, match="keypoints"):
@@ -353,3 +359,14 @@ def test_cli_oracle_says_what_is_wrong_with_a_broken_settings_file(monkeypatch, 
     assert main(["oracle", "--particles", "5", "--agents", "pf-cv"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "pf.yml: pf-cv.fit.damping: must be a number" in err
+
+
+def test_an_agent_a_later_task_refuses_stops_the_run_before_any_episode(monkeypatch, capsys):
+    import baselines.diagnostics.split as split
+
+    ran = []
+    monkeypatch.setattr(split, "run_split", lambda *args, **kwargs: ran.append(args))
+    argv = ["oracle", "--task", "WalkTrack-v2", "BodyTrack-v2", "--agents", "pf-pca",
+            "--particles", "10", "--episodes", "1"]  # fmt: skip
+    assert main(argv) == 1
+    assert not ran and "cannot track 'BodyTrack-v2'" in capsys.readouterr().err

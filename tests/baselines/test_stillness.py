@@ -140,3 +140,13 @@ def test_cli_still_prints_the_table_and_writes_json(tmp_path, capsys):
     assert saved["settings"] == {"agents": ["random"], "particles": 300, "seed": 0,
                                  "env_kwargs": {"split": "test"}, "count": 2}  # fmt: skip
     assert main(["still", "--max-hold", "-1"]) == 2
+
+
+def test_an_agent_that_cannot_track_the_task_is_refused_before_the_scan(monkeypatch):
+    import baselines.stillness as stillness
+
+    scanned = []
+    monkeypatch.setattr(stillness, "still_windows", lambda *args, **kw: scanned.append(args))
+    with pytest.raises(ValueError, match="cannot track 'BodyTrack-v2'"):
+        stillness.run_still("BodyTrack-v2", ["pf-cv", "pf-pca"], 10)
+    assert not scanned
