@@ -122,8 +122,10 @@ def parse_oracle(text: str) -> OracleSettings | None:
     """
     if text == "image":
         return None
-    kind, _, noise = text.partition(":")
+    kind, colon, noise = text.partition(":")
     try:
+        if colon and not noise:
+            raise ValueError("a colon without a noise")
         if noise.endswith("mm"):
             return OracleSettings(kind, noise_mm=float(noise[:-2]))
         return OracleSettings(kind, noise_px=float(noise) if noise else None)

@@ -370,3 +370,9 @@ def test_an_agent_a_later_task_refuses_stops_the_run_before_any_episode(monkeypa
             "--particles", "10", "--episodes", "1"]  # fmt: skip
     assert main(argv) == 1
     assert not ran and "cannot track 'BodyTrack-v2'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("text", ["2d:", "3d:mm", "depth", "2d:abc"])
+def test_a_likelihood_name_with_a_missing_or_bad_noise_is_refused(text):
+    with pytest.raises(ValueError, match=f"likelihood {text!r}"):
+        parse_oracle(text)
