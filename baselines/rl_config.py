@@ -275,9 +275,9 @@ def _zoo_policy_kwargs(text: Any, where: str) -> dict[str, Any]:
             elif name == "features_extractor_kwargs":
                 if not (_is_dict_call(node) and [k.arg for k in node.keywords] == ["features_dim"]):
                     raise ValueError("features_extractor_kwargs must be dict(features_dim=N)")
-                out["features_dim"] = ast.literal_eval(node.keywords[0].value)
+                out["features_dim"] = _literal(node.keywords[0].value)
             elif name == "log_std_init":
-                out["log_std_init"] = ast.literal_eval(node)
+                out["log_std_init"] = _literal(node)
             elif name in ZOO_POLICY_FIXED:
                 value = _literal(node)
                 if value != ZOO_POLICY_FIXED[name]:
@@ -299,10 +299,17 @@ def _is_dict_call(node: ast.expr) -> TypeGuard[ast.Call]:
 
 
 def _literal(node: ast.expr) -> Any:
-    """A literal, with ``dict(a=...)`` read as ``{"a": ...}``."""
+    """A literal, with ``dict(a=...)`` read as ``{"a": ...}``.
+
+    Raises:
+        ValueError: Quoting the text where it is not a literal (a name, a call).
+    """
     if _is_dict_call(node):
         return {k.arg: _literal(k.value) for k in node.keywords}
-    return ast.literal_eval(node)
+    try:
+        return ast.literal_eval(node)
+    except ValueError:
+        raise ValueError(f"expected a number or other literal, got {ast.unparse(node)!r}") from None
 
 
 def _read_zoo_yaml(path: Path) -> dict[str, Any]:

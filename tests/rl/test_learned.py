@@ -312,6 +312,7 @@ ZOO_ENTRY_CHANGES = {
     "features_dim=128|features_dim=128, root=None": "features_extractor_kwargs must be",
     "dict(features|lambda: dict(features": "policy_kwargs: ",
     "log_std_init=-2.5|log_std_init=-2.5, **extra": "policy_kwargs: not dict",
+    "log_std_init=-2.5|log_std_init=std": "policy_kwargs: expected a number .*got 'std'",
 }
 
 
