@@ -638,3 +638,15 @@ def test_a_missing_hyperparams_file_is_named(tmp_path: Path, capsys) -> None:
     err = capsys.readouterr().err
     assert "--hyperparams:" in err and "nope.yml is not a file" in err and err.count("\n") == 1
     assert not (tmp_path / "run").exists()
+
+
+def test_ppo_says_where_a_run_between_rollouts_ends(tmp_path: Path, capsys) -> None:
+    from baselines.cli import main
+
+    argv = ["train", "--algo", "ppo", "--task", "ArmTrack-v2", "--steps", "20", "--no-validation",
+            "--set", "n_envs=2", "n_steps=8", "batch_size=16", "frame_size=32",
+            "--out", str(tmp_path / "run"), "--json"]  # fmt: skip
+    assert main(argv) == 0
+    captured = capsys.readouterr()
+    assert "rollouts of n_steps x n_envs = 16 env steps: --steps 20 ends at 32" in captured.err
+    assert json.loads(captured.out)["env_steps"] == 32
