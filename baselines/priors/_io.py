@@ -76,24 +76,70 @@ def load_fitted(cls: type[T], path: str | Path) -> T:
     Raises:
         FileNotFoundError: If there is no such file.
         ValueError: If the file is not an ``.npz`` of named arrays (see
-            :func:`open_npz`), holds another kind of parameters or lacks a
-            field; the message names the file.
+            :func:`open_npz`), holds another kind of parameters, lacks a field
+            or has an array of none, a NaN or infinite number, or values the
+            class refuses; the message names the file.
     """
+    names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
     with open_npz(path, cls.__name__) as data:
-        kind = str(data["__kind__"]) if "__kind__" in data else "?"
-        if kind != cls.__name__:
-            raise ValueError(f"{path}: holds {kind} parameters, expected {cls.__name__}")
-        kwargs: dict[str, Any] = {}
-        for f in dataclasses.fields(cls):  # type: ignore[arg-type]
-            if f.name not in data:
-                raise ValueError(f"{path}: field {f.name!r} of {cls.__name__} is missing")
-            arr = data[f.name]
-            if arr.ndim == 0:
-                item = arr.item()
-                kwargs[f.name] = str(item) if arr.dtype.kind == "U" else item
-            else:
-                kwargs[f.name] = arr
-    return cls(**kwargs)
+        check_kind(data, path, cls.__name__)
+        kwargs = read_arrays(data, path, names)
+    try:
+        return cls(**kwargs)
+    except (TypeError, ValueError) as exc:  # the class's own checks of shapes and values
+        raise ValueError(f"{path}: {exc}") from None
+
+
+def check_kind(data: Any, path: str | Path, kind: str) -> None:
+    """Refuse a file that does not say it holds ``kind`` parameters (its ``__kind__``).
+
+    Raises:
+        ValueError: Naming the file and what it holds instead.
+    """
+    if "__kind__" not in data.files:
+        raise ValueError(f"{path}: no __kind__ array: not saved parameters (expected {kind})")
+    held = str(data["__kind__"])
+    if held != kind:
+        raise ValueError(f"{path}: holds {held} parameters, expected {kind}")
+
+
+def read_arrays(
+    data: Any, path: str | Path, names: set[str], optional: frozenset[str] = frozenset()
+) -> dict[str, Any]:
+    """The arrays ``names`` of an open ``.npz`` (0-d arrays as scalars), checked.
+
+    A file with an array of no field (another release's, or an edit; names
+    in double underscores label the file) is refused, and so is one with a
+    NaN or infinite number: no fitted parameter is one, and sampling from it
+    would spread NaN without a word.
+
+    Args:
+        data: The open file.
+        path: The file, for the messages.
+        names: The arrays to read.
+        optional: Those of ``names`` an older file may lack.
+
+    Raises:
+        ValueError: Naming the file and the array.
+    """
+    # __kind__, __format__, the cache's __cache__: the file's own labels, not fields
+    unknown = sorted(n for n in set(data.files) - names if not n.startswith("__"))
+    if unknown:
+        raise ValueError(f"{path}: unknown arrays {unknown} (expected {sorted(names)})")
+    missing = sorted(names - optional - set(data.files))
+    if missing:
+        raise ValueError(f"{path}: the arrays {missing} are missing")
+    out: dict[str, Any] = {}
+    for name in sorted(names & set(data.files)):
+        arr = data[name]
+        if arr.dtype.kind in "fc" and not np.all(np.isfinite(arr)):
+            raise ValueError(f"{path}: {name!r} holds NaN or infinite values")
+        if arr.ndim == 0:
+            item = arr.item()
+            out[name] = str(item) if arr.dtype.kind == "U" else item
+        else:
+            out[name] = arr
+    return out
 
 
 #: What opening a damaged or foreign file as ``.npz`` raises (a text file reads

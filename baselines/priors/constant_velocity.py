@@ -74,6 +74,18 @@ class ConstantVelocityParams:
     damping: float = 1.0
     position_noise: float = 0.0
 
+    def __post_init__(self) -> None:
+        d = np.shape(self.free)
+        for name in ("accel_std", "velocity_std"):
+            value = np.asarray(getattr(self, name))
+            if len(d) != 1 or value.shape != d or value.dtype.kind not in "fiu":
+                raise ValueError(
+                    f"ConstantVelocityParams: {name} must be {d[0] if d else 'D'} numbers, one "
+                    f"per free parameter, got shape {value.shape} of {value.dtype}"
+                )
+            if np.any(value < 0):
+                raise ValueError(f"ConstantVelocityParams: {name} must be >= 0")
+
     def with_multiplier(self, multiplier: float) -> ConstantVelocityParams:
         """A copy with another noise multiplier."""
         return replace(self, multiplier=float(multiplier))

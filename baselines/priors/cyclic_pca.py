@@ -50,6 +50,7 @@ import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -65,6 +66,7 @@ from humotion_gym.body import (
     PARAM_LOWER,
     PARAM_UPPER,
 )
+from humotion_gym.checks import is_count, is_real
 from humotion_gym.mocap.motion import Motion
 
 FloatArray = NDArray[np.float64]
@@ -176,6 +178,24 @@ class CyclicPCAParams:
             elif isinstance(value, (float, int, np.floating, np.integer)):
                 value = float(value)
             object.__setattr__(self, f.name, value)
+        self._check_shapes()
+
+    def _check_shapes(self) -> None:
+        """Each array's size in ``A`` angles, ``q`` components and ``2H - 1`` coefficients."""
+        a, q = self.angles.size, self.singular_values.size
+        k = self.mean_coef.shape[-1] if self.mean_coef.ndim == 2 else -2
+        want = {
+            "mean_coef": (a, k), "component_coef": (q, a, k), "component_std": (q,),
+            "coef_step_std": (q,), "residual_std": (a,), "root_velocity_mean": (3,),
+            "root_velocity_std": (3,), "root_accel_std": (3,), "rotation_step_std": (3,),
+        }  # fmt: skip
+        for name, shape in want.items():
+            got = np.shape(getattr(self, name))
+            if got != shape or k % 2 != 1:
+                raise ValueError(
+                    f"CyclicPCAParams.{name} has shape {got}, expected {shape} (A = {a} angles, "
+                    f"q = {q} components, an odd number of coefficients)"
+                )
 
     @property
     def n_components(self) -> int:
@@ -357,14 +377,31 @@ def _speed_fields(
     }
 
 
-def _check_fit_settings(free: ArrayLike | None, reversion: float) -> NDArray[np.intp]:
-    """The free parameters' indices (all 25 when None), checked with ``reversion``.
+def _check_fit_settings(
+    free: ArrayLike | None, numbers: dict[str, float], counts: dict[str, int], labels: Any
+) -> NDArray[np.intp]:
+    """The free parameters' indices (all 25 when None), the other settings checked.
 
     Raises:
-        ValueError: If ``reversion`` is negative or ``free`` not distinct indices.
+        ValueError: If a noise multiplier, ``reversion`` or ``tol`` is not a
+            number >= 0 (``tol`` > 0), a count not a whole number >= 1
+            (``n_samples`` >= 2), ``labels`` a string, or ``free`` not
+            distinct indices.
     """
-    if not (np.isfinite(reversion) and reversion >= 0):
-        raise ValueError(f"cyclic_pca.fit: reversion must be >= 0, got {reversion}")
+    for name, value in numbers.items():
+        positive = name == "tol"
+        ok = is_real(value) and np.isfinite(value) and (value > 0 if positive else value >= 0)
+        if not ok:
+            bound = "> 0" if positive else ">= 0"
+            raise ValueError(f"cyclic_pca.fit: {name} must be a number {bound}, got {value!r}")
+    for name, value in counts.items():
+        least = 2 if name == "n_samples" else 1
+        if not is_count(value, least):
+            raise ValueError(
+                f"cyclic_pca.fit: {name} must be a whole number >= {least}, got {value!r}"
+            )
+    if isinstance(labels, str):  # a string would be matched letter by letter
+        raise ValueError(f"cyclic_pca.fit: labels must be a list, got the string {labels!r}")
     return free_indices(free, "cyclic_pca.fit")
 
 
@@ -431,7 +468,13 @@ def fit(
         ValueError: If there are no walking clips, or none shows two cycles.
     """
     del rng
-    idx = _check_fit_settings(free, reversion)
+    idx = _check_fit_settings(
+        free,
+        {"coef_noise": coef_noise, "speed_noise": speed_noise, "global_noise": global_noise,
+         "reversion": reversion, "tol": tol},
+        {"n_components": n_components, "n_harmonics": n_harmonics, "n_samples": n_samples},
+        labels,
+    )  # fmt: skip
     training_clips(motions, frame_skip, "cyclic_pca.fit")
     clips = _walking_clips(motions, labels)
     fps = float(clips[0].fps) / frame_skip

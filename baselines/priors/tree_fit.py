@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from baselines.priors._checks import free_indices, training_clips
-from baselines.priors._io import open_npz, save_arrays
+from baselines.priors._io import check_kind, open_npz, read_arrays, save_arrays
 from baselines.priors.tree_model import (
     _VARIANCE_FLOOR,
     LEAF_RULES,
@@ -477,9 +477,7 @@ def load(path: str | Path) -> TreeParams:
             windows do not fit its frames.
     """
     with open_npz(path, TreeParams.__name__) as data:
-        kind = str(data["__kind__"]) if "__kind__" in data.files else "?"
-        if kind != TreeParams.__name__:
-            raise ValueError(f"{path}: holds {kind} parameters, expected {TreeParams.__name__}")
+        check_kind(data, path, TreeParams.__name__)
         version = str(data["__format__"]) if "__format__" in data.files else "1"
         if version != FILE_FORMAT:
             raise ValueError(
@@ -488,20 +486,17 @@ def load(path: str | Path) -> TreeParams:
             )
         stored = {f.name for f in dataclasses.fields(TreeParams)} - set(_DERIVED)
         # Settings added after format 3 take their defaults in older files.
-        stored -= {"speed_spread", "speed_drift"} - set(data.files)
-        missing = sorted((stored | {"clip_lengths", "window_end"}) - set(data.files))
-        if missing:
-            raise ValueError(f"{path}: the tree prior lacks {', '.join(missing)}")
-        kwargs: dict[str, Any] = {}
-        for name in stored:
-            arr = data[name]
-            kwargs[name] = (
-                (str(arr.item()) if arr.dtype.kind == "U" else arr.item()) if arr.ndim == 0 else arr
-            )
-        clips = data["clip_lengths"].astype(np.intp)
-        ends = data["window_end"].astype(np.intp)
-    frames = np.asarray(kwargs["frames"], dtype=np.float64)
-    d = int(kwargs["window"])
+        kwargs = read_arrays(
+            data, path, stored | {"clip_lengths", "window_end"},
+            optional=frozenset({"speed_spread", "speed_drift"}),
+        )  # fmt: skip
+    try:
+        clips = np.asarray(kwargs.pop("clip_lengths")).astype(np.intp)
+        ends = np.asarray(kwargs.pop("window_end")).astype(np.intp)
+        frames = np.asarray(kwargs["frames"], dtype=np.float64)
+        d = int(kwargs["window"])
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{path}: {exc}") from None
     if (
         frames.ndim != 2
         or clips.sum() != frames.shape[0]
@@ -514,13 +509,16 @@ def load(path: str | Path) -> TreeParams:
             f"{path}: its windows (last frames {ends.min(initial=0)}..{ends.max(initial=0)}) "
             f"do not fit its {frames.shape[0]} frames (window {d})"
         )
-    free = np.asarray(kwargs["free"], dtype=np.intp)
-    tree = _tree_order(
-        frames, ends, _layout(free), d, kwargs["projection"], kwargs["projection_heading"],
-        kwargs["projection_offset"],
-    )  # fmt: skip
-    kwargs.update(
-        free=free, frames=frames, frame_clip=np.repeat(np.arange(clips.size), clips),
-        **tree._asdict(),
-    )  # fmt: skip
-    return TreeParams(**kwargs)
+    try:  # a free list or projection of another shape fails in the tree's rebuild
+        free = np.asarray(kwargs["free"], dtype=np.intp)
+        tree = _tree_order(
+            frames, ends, _layout(free), d, kwargs["projection"], kwargs["projection_heading"],
+            kwargs["projection_offset"],
+        )  # fmt: skip
+        kwargs.update(
+            free=free, frames=frames, frame_clip=np.repeat(np.arange(clips.size), clips),
+            **tree._asdict(),
+        )  # fmt: skip
+        return TreeParams(**kwargs)
+    except (TypeError, ValueError, IndexError) as exc:
+        raise ValueError(f"{path}: {exc}") from None

@@ -179,6 +179,24 @@ class TreeParams:
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ValueError(f"TreeParams.{name} must be >= 0, got {value}")
+        self._check_shapes()
+
+    def _check_shapes(self) -> None:
+        """Each array's size in ``b`` (``depth``) and ``D`` (the free parameters) as documented."""
+        b, dim = int(self.depth), int(np.size(self.free))
+        want = {
+            "sigma": (b,), "singular_values": (b,), "projection_offset": (b,),
+            "step_var": (dim,), "components": (-1, b), "projection": (-1, b),
+            "projection_heading": (-1, b), "frames": (-1, dim), "next_step": (-1, dim),
+            "coefficients": (-1, b),
+        }  # fmt: skip
+        for name, shape in want.items():
+            got = np.shape(getattr(self, name))
+            if len(got) != len(shape) or any(
+                w not in (-1, g) for w, g in zip(shape, got, strict=True)
+            ):
+                shown = tuple("n" if w == -1 else w for w in shape)
+                raise ValueError(f"TreeParams.{name} has shape {got}, expected {shown}")
 
     @property
     def n_windows(self) -> int:

@@ -204,3 +204,44 @@ def test_save_refuses_another_priors_parameters_and_leaves_no_file(name, fitted_
     with pytest.raises(OSError):
         get_prior(name).save(fitted_priors[name], tmp_path / "a_folder.npz")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a_folder.npz"]  # no temporary left
+
+
+def _rewrite(src, dst, change):
+    """``src``'s arrays, changed by ``change(arrays)``, written to ``dst``."""
+    with np.load(src) as data:
+        arrays = {k: data[k] for k in data.files}
+    change(arrays)
+    np.savez(dst, **arrays)
+    return dst
+
+
+def _first_float(arrays):
+    return next(k for k, v in sorted(arrays.items()) if v.dtype.kind == "f" and v.size > 1)
+
+
+@pytest.mark.parametrize("name", sorted(PRIORS))
+def test_load_refuses_a_file_a_fit_could_not_have_written(name, fitted_priors, tmp_path):
+    """NaN, an array of no field, a field of another shape, no kind: refused, the file named."""
+    prior = get_prior(name)
+    good = tmp_path / "good.npz"
+    prior.save(fitted_priors[name], good)
+    prior.load(good)  # the round trip itself is the contract test's
+
+    def nan(arrays):
+        arrays[_first_float(arrays)].flat[0] = np.nan
+
+    def extra(arrays):
+        arrays["surprise"] = np.zeros(3)
+
+    def short(arrays):
+        key = _first_float(arrays)
+        arrays[key] = arrays[key].reshape(-1)[:1]
+
+    def no_kind(arrays):
+        del arrays["__kind__"]
+
+    cases = {"NaN or infinite": nan, "unknown arrays": extra, "": short, "no __kind__": no_kind}
+    for says, change in cases.items():
+        bad = _rewrite(good, tmp_path / f"bad_{change.__name__}.npz", change)
+        with pytest.raises(ValueError, match=rf"bad_{change.__name__}\.npz: .*{says}"):
+            prior.load(bad)

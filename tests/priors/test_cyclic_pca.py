@@ -361,3 +361,23 @@ def test_reversion_keeps_the_walks_spread_at_the_datas(fitted):
     assert np.all(held_vel <= walk_vel + 1e-9)
     with pytest.raises(ValueError, match="reversion"):
         cyclic_pca.fit(list(synthetic_library().split("train")), reversion=-1.0)
+
+
+@pytest.mark.parametrize(
+    ("setting", "says"),
+    [
+        ({"coef_noise": float("nan")}, "coef_noise must be a number >= 0"),
+        ({"global_noise": -1.0}, "global_noise must be a number >= 0"),
+        ({"speed_noise": float("inf")}, "speed_noise must be a number >= 0"),
+        ({"tol": 0.0}, "tol must be a number > 0"),
+        ({"n_samples": 1}, "n_samples must be a whole number >= 2"),
+        ({"n_harmonics": 2.5}, "n_harmonics must be a whole number >= 1"),
+        ({"n_components": 0}, "n_components must be a whole number >= 1"),
+        ({"labels": "walk"}, "labels must be a list, got the string 'walk'"),
+    ],
+)
+def test_fit_refuses_settings_that_would_spread_nan_or_fail_later(setting, says):
+    """coef_noise=nan made every particle NaN after one transition; others failed in scipy."""
+    walks = synthetic_library().split("train").filter(labels=["walk"])
+    with pytest.raises(ValueError, match=f"cyclic_pca.fit: {says}"):
+        cyclic_pca.fit(walks.motions, **setting)

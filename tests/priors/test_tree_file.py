@@ -113,7 +113,7 @@ def test_load_refuses_other_files_clearly(tmp_path, prior):
         arrays = {k: data[k] for k in data.files}
     missing = tmp_path / "missing.npz"
     np.savez(missing, **{k: v for k, v in arrays.items() if k != "components"})
-    with pytest.raises(ValueError, match=r"missing\.npz.*lacks components"):
+    with pytest.raises(ValueError, match=r"missing\.npz: the arrays \['components'\] are missing"):
         tree.load(missing)
     outside = tmp_path / "outside.npz"
     np.savez(outside, **{**arrays, "window_end": arrays["window_end"] + prior.frames.shape[0]})
