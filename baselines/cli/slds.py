@@ -271,6 +271,14 @@ def _cmd_classify(args: argparse.Namespace) -> int:
     for flag, clips in (("--train", train), ("--test", test)):
         if not any(args.labels is None or m.label in wanted for m in clips):
             raise UsageError(f"{flag}: no clip of the classified activities ({', '.join(wanted)})")
+    # a test clip of an activity with no model would be dropped and the error read without it
+    shown = {m.label for m in test if args.labels is None or m.label in wanted}
+    untrained = sorted(shown - {m.label for m in train})
+    if untrained:
+        raise UsageError(
+            f"--train: no clip of {', '.join(untrained)}, which --test holds: add such clips to "
+            "--train or leave them out of --test"
+        )
     result = pav.run_classification(
         train, test, np.random.default_rng(args.seed), free=pav.param_indices(args.free),
         labels=args.labels, n_states=args.states, n_iter=args.iters,

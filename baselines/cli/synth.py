@@ -68,7 +68,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     syn.add_argument(
         "--start", default=None,
-        help="clip id whose first pose starts the motion (default: the first training clip)",
+        help="clip id whose first pose the motion starts from: tree and cv continue that pose; "
+        "pca and slds draw their own joint angles from the first frame and keep the rest "
+        "(default: the first training clip)",
     )  # fmt: skip
     syn.add_argument(
         "--setting", nargs="+", default=[], metavar="NAME=VALUE",

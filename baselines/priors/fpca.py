@@ -48,6 +48,7 @@ import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from baselines.priors import cycles
+from humotion_gym.checks import is_count
 from humotion_gym.threads import one_blas_thread
 
 FloatArray = NDArray[np.float64]
@@ -294,7 +295,8 @@ def _checked_inputs(
         group and the rank ``q``.
 
     Raises:
-        ValueError: On shapes that do not match, no observed entry or a rank below 1.
+        ValueError: On shapes that do not match, no observed entry, or a rank
+            or a number of harmonics that is not a whole number >= 1.
     """
     x = np.asarray(values, dtype=np.float64)
     if x.ndim != 3:
@@ -313,9 +315,10 @@ def _checked_inputs(
         if labels.shape != (c,):
             raise ValueError(f"fpca: groups must have one label per cycle ({c})")
         group_of = np.unique(labels, return_inverse=True)[1].astype(np.intp).ravel()
+    for name, value in (("n_components", n_components), ("n_harmonics", n_harmonics)):
+        if not is_count(value, 1):
+            raise ValueError(f"fpca: {name} must be a whole number >= 1, got {value!r}")
     q = min(int(n_components), c, j * (2 * n_harmonics - 1))
-    if q < 1:
-        raise ValueError(f"fpca: n_components must be >= 1, got {n_components}")
     return x, mask, group_of, q
 
 
@@ -357,6 +360,8 @@ def fpca(
         True
     """
     x, mask, group_of, q = _checked_inputs(values, observed, groups, n_components, n_harmonics)
+    if not is_count(max_iter, 1):
+        raise ValueError(f"fpca: max_iter must be a whole number >= 1, got {max_iter!r}")
     c, j, s = x.shape
     n_obs = int(mask.sum())
     n_groups = int(group_of.max()) + 1

@@ -339,6 +339,11 @@ def fit(
     ):  # fmt: skip
         if not is_count(value, least):
             raise ValueError(f"slds.fit: {name} must be a whole number >= {least}, got {value!r}")
+    if max_clips_per_label is not None and not is_count(max_clips_per_label, 1):
+        raise ValueError(
+            f"slds.fit: max_clips_per_label must be a whole number >= 1 or None, got "
+            f"{max_clips_per_label!r}"
+        )
     cov_rtol = check_cov_rtol(cov_rtol, "slds.fit")
     groups = _activities(motions, per_label)
     labels = sorted(groups)

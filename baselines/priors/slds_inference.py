@@ -76,6 +76,7 @@ from baselines.priors.slds_kalman import (
     psd_sqrt,
     symmetrise,
 )
+from humotion_gym.checks import is_real
 
 # The model's names, imported from here by the learning, the prior and the experiments.
 __all__ = [
@@ -578,7 +579,14 @@ def stabilise(params: SLDSParams, max_radius: float = 1.0) -> SLDSParams:
     radius, keeping its phase (frequency) and its eigenvector. For order 2 the
     eigenvectors ``[lambda v; v]`` become ``[lambda' v; v]``, so the matrix
     stays a block companion ``[[A1, A2], [I, 0]]``.
+
+    Raises:
+        ValueError: If ``max_radius`` is not a positive number (0 leaves an
+            order-2 model's eigenvectors singular; a negative one turns every
+            eigenvalue's phase).
     """
+    if not (is_real(max_radius) and np.isfinite(max_radius) and max_radius > 0):
+        raise ValueError(f"stabilise: max_radius must be a positive number, got {max_radius!r}")
     a = params.A.copy()
     dy = params.obs_dim
     for k in range(params.n_states):

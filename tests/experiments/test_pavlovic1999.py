@@ -120,6 +120,12 @@ def test_cli_classify_on_bandai_walk_and_run(shared_mocap, capsys, tmp_path):
     for costs in out["em_costs"].values():
         assert all(b <= a + 1e-6 * abs(a) for a, b in itertools.pairwise(costs))
     assert figure.stat().st_size > 0
+    # run clips to classify and none to train on: refused, not dropped from the error
+    walks = [f for f in files if "_walk_" in f]
+    code = _cli(["slds", "classify", "--train", *walks, "--test", *tests, "--states", "2",
+                 "--iters", "1"])  # fmt: skip
+    assert code == 2
+    assert "--train: no clip of run, which --test holds" in capsys.readouterr().err
 
 
 # ---------------------------------------------------------------------------

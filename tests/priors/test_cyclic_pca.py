@@ -381,3 +381,17 @@ def test_fit_refuses_settings_that_would_spread_nan_or_fail_later(setting, says)
     walks = synthetic_library().split("train").filter(labels=["walk"])
     with pytest.raises(ValueError, match=f"cyclic_pca.fit: {says}"):
         cyclic_pca.fit(walks.motions, **setting)
+
+
+@pytest.mark.parametrize(
+    ("setting", "says"),
+    [
+        ({"max_iter": 0}, "max_iter must be a whole number >= 1"),  # was an UnboundLocalError
+        ({"n_harmonics": 0}, "n_harmonics must be"),  # blamed n_components
+        ({"n_components": 2.5}, "n_components must be a whole number"),  # was cut to 2
+    ],
+)
+def test_fpca_refuses_settings_by_their_own_name(setting, says):
+    x = np.random.default_rng(0).normal(size=(6, 2, 32))
+    with pytest.raises(ValueError, match=f"fpca: {says}"):
+        fpca.fpca(x, **setting)

@@ -348,6 +348,10 @@ def test_stabilise_bounds_the_spectrum_and_keeps_the_companion_form():
     before = np.sort(np.angle(np.linalg.eigvals(params.A[0])))
     after = np.sort(np.angle(np.linalg.eigvals(stable.A[0])))
     np.testing.assert_allclose(before, after, atol=1e-8)
+    # 0 left the eigenvectors singular, -1 turned every phase: a positive radius only
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="max_radius must be a positive number"):
+            stabilise(params, bad)
 
 
 # ---------------------------------------------------------------------------
@@ -545,8 +549,10 @@ def test_workers_is_not_part_of_the_cache_key(synthetic, tmp_path):
 
 
 @pytest.mark.parametrize(
-    ("name", "bad"), [("n_iter", 2.0), ("n_iter", -1), ("n_states", 0), ("order", 2.0)]
-)
+    ("name", "bad"),
+    [("n_iter", 2.0), ("n_iter", -1), ("n_states", 0), ("order", 2.0),
+     ("max_clips_per_label", 2.5), ("max_clips_per_label", -1)],
+)  # fmt: skip
 def test_fit_refuses_counts_that_are_not_whole_numbers(synthetic, name, bad):
     # Before, a float n_iter failed in a worker process with "'float' object
     # cannot be interpreted as an integer".
