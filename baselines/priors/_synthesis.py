@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -11,13 +13,19 @@ from humotion_gym.checks import is_count, is_real
 FloatArray = NDArray[np.float64]
 
 
-def check_request(base_pose: ArrayLike, frames: int, fps: float) -> FloatArray:
+def check_request(base_pose: ArrayLike, frames: int, fps: float, rng: Any) -> FloatArray:
     """The base pose as a ``(25,)`` array, after checking the request.
 
     Raises:
         ValueError: If the pose is not 25 finite numbers, ``frames`` not an
-            integer >= 1 or ``fps`` not a positive number.
+            integer >= 1, ``fps`` not a positive number or ``rng`` not a
+            ``numpy.random.Generator``.
     """
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError(
+            "synthesize_motion: rng must be a numpy.random.Generator "
+            f"(np.random.default_rng(seed)), got {type(rng).__name__}"
+        )
     base = np.asarray(base_pose, dtype=np.float64)
     if base.shape != (N_PARAMS,):
         raise ValueError(f"synthesize_motion: base_pose must have shape (25,), got {base.shape}")

@@ -226,7 +226,7 @@ def synthesize_motion(
     Returns:
         ``(frames, 25)`` parameters.
     """
-    base = check_request(base_pose, frames, fps)
+    base = check_request(base_pose, frames, fps, rng)
     n_model = model_frames(frames, fitted.fps, fps)
     state = initial(fitted, base[fitted.free], 1, rng)
     poses = np.empty((n_model, fitted.free.size))

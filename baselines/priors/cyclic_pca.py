@@ -810,7 +810,7 @@ def synthesize_motion(
     Returns:
         ``(frames, 25)`` parameters, ready for ``mocap.export.write_motion_bvh``.
     """
-    base = check_request(base_pose, frames, fps)
+    base = check_request(base_pose, frames, fps, rng)
     rate = fitted.fps / float(fps)
     angles, _ = _walk(fitted, int(frames), rng, rate)
     out = np.repeat(base[None], int(frames), axis=0)

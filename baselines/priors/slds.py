@@ -597,7 +597,7 @@ def synthesize_motion(
     Returns:
         ``(frames, 25)`` parameters, clipped to the body's limits.
     """
-    base = check_request(base_pose, frames, fps)
+    base = check_request(base_pose, frames, fps, rng)
     n_model = model_frames(frames, fitted.fps, fps)
     poses, _ = synthesize(fitted, n_model, rng, max_radius)
     params = to_motion(base, fitted.free, poses, fitted.fps, frames, fps)

@@ -603,7 +603,7 @@ def synthesize_motion(
     Returns:
         ``(frames, 25)`` parameters.
     """
-    base = check_request(base_pose, frames, fps)
+    base = check_request(base_pose, frames, fps, rng)
     n_model = model_frames(frames, fitted.fps, fps)
     start = base[fitted.free]
     poses = np.vstack([start, synthesize(fitted, start, n_model - 1, fitted.beta, rng)])

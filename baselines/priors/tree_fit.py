@@ -38,6 +38,7 @@ from baselines.priors.tree_model import (
     _tree_arrays,
 )
 from humotion_gym.body import PARAM_NAMES
+from humotion_gym.checks import is_count
 from humotion_gym.mocap.motion import Motion
 
 
@@ -60,14 +61,13 @@ def _check_fit_arguments(
     """
     training_clips(motions, frame_skip, "tree.fit")
     idx = free_indices(free, "tree.fit")
-    if window < 1:
-        raise ValueError(f"tree.fit: window must be >= 1, got {window}")
+    for name, value in (("window", window), ("proposals", proposals)):
+        if not is_count(value, 1):  # 2.5 was cut to 2 without a word
+            raise ValueError(f"tree.fit: {name} must be a whole number >= 1, got {value!r}")
     if leaf not in LEAF_RULES:
         raise ValueError(f"tree.fit: leaf must be one of {LEAF_RULES}, got {leaf!r}")
     if replay not in REPLAY_RULES:
         raise ValueError(f"tree.fit: replay must be one of {REPLAY_RULES}, got {replay!r}")
-    if proposals < 1:
-        raise ValueError(f"tree.fit: proposals must be >= 1, got {proposals}")
     if search not in SEARCH_RULES:
         raise ValueError(f"tree.fit: search must be one of {SEARCH_RULES}, got {search!r}")
     for name, value in (("speed_spread", speed_spread), ("speed_drift", speed_drift)):
@@ -354,6 +354,8 @@ def _depth(n: int, width: int, depth: int | None, clips: int, d: int) -> int:
         )
     # By default as deep as the windows allow, but no deeper than the components
     # the tree splits on (one free parameter has few).
+    if depth is not None and not is_count(depth, 1):
+        raise ValueError(f"tree.fit: depth must be a whole number >= 1 or None, got {depth!r}")
     b = min(int(np.floor(np.log2(n))), width) if depth is None else int(depth)
     # The leaf offsets take 2**b entries: at most 16 per window.
     max_depth = min(width, int(np.floor(np.log2(n))) + 4)

@@ -181,6 +181,8 @@ def test_synthesis_refuses_a_fraction_of_a_frame_and_a_nan_pose(name, walks, fit
     prior, base = get_prior(name), walks[0].params[40].copy()
     with pytest.raises(ValueError, match="frames must be an integer >= 1"):
         prior.synthesize_motion(fitted_priors[name], base, 2.5, 30.0, np.random.default_rng(0))
+    with pytest.raises(ValueError, match="rng must be a numpy.random.Generator"):
+        prior.synthesize_motion(fitted_priors[name], base, 4, 30.0, 0)  # a seed, not a generator
     base[3] = np.nan
     with pytest.raises(ValueError, match="base_pose must be finite"):
         prior.synthesize_motion(fitted_priors[name], base, 4, 30.0, np.random.default_rng(0))

@@ -516,3 +516,18 @@ def test_the_transition_noise_does_not_depend_on_what_the_search_compares():
     pose = tree.fit(motions, search="pose")
     assert np.allclose(pose.step_var, both.step_var, rtol=1e-9)
     assert np.array_equal(both.step_var, both.feature_var[-both.n_free :])
+
+
+@pytest.mark.parametrize(
+    ("setting", "says"),
+    [
+        ({"window": 2.5}, "window must be a whole number >= 1"),  # was cut to 2
+        ({"proposals": 2.5}, "proposals must be a whole number >= 1"),
+        ({"proposals": 0}, "proposals must be a whole number >= 1"),
+        ({"depth": float("nan")}, "depth must be a whole number >= 1 or None"),
+        ({"depth": 3.5}, "depth must be a whole number >= 1 or None"),
+    ],
+)
+def test_fit_refuses_counts_that_are_not_whole_numbers(setting, says):
+    with pytest.raises(ValueError, match=f"tree.fit: {says}"):
+        tree.fit([walking_along_y(90)], np.arange(body.N_PARAMS), **setting)
