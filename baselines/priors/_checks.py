@@ -8,13 +8,14 @@ argument, never an ``IndexError`` deep in numpy or, worse, particles of NaN.
 
 from __future__ import annotations
 
+from collections.abc import Collection, Mapping
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from humotion_gym.body import N_PARAMS
-from humotion_gym.checks import check_count, is_count
+from humotion_gym.checks import check_count, is_count, is_real
 from humotion_gym.mocap.motion import Motion
 
 
@@ -93,3 +94,46 @@ def start_pose(pose: ArrayLike, n_free: int, n: Any, rng: Any, where: str) -> ND
             f"got {type(rng).__name__}"
         )
     return p
+
+
+def check_settings(
+    where: str,
+    numbers: Mapping[str, Any] | None = None,
+    counts: Mapping[str, tuple[Any, int]] | None = None,
+    positive: Collection[str] = (),
+) -> None:
+    """Refuse a fit's settings that would spread NaN or fail later, each by name.
+
+    Args:
+        where: The function, for the message.
+        numbers: Settings that must be finite numbers >= 0 (> 0 for those in
+            ``positive``).
+        counts: ``{name: (value, least)}``: whole numbers >= ``least``.
+        positive: The ``numbers`` that must be above 0.
+
+    Raises:
+        ValueError: Naming the function, the setting and its value.
+    """
+    for name, value in (numbers or {}).items():
+        strict = name in positive
+        if not (is_real(value) and np.isfinite(value) and (value > 0 if strict else value >= 0)):
+            bound = "> 0" if strict else ">= 0"
+            raise ValueError(f"{where}: {name} must be a number {bound}, got {value!r}")
+    for name, (value, least) in (counts or {}).items():
+        if not is_count(value, least):
+            raise ValueError(f"{where}: {name} must be a whole number >= {least}, got {value!r}")
+
+
+def check_shapes(
+    owner: str, arrays: Mapping[str, Any], want: Mapping[str, tuple[int, ...]]
+) -> None:
+    """Refuse a fitted array whose shape is not ``want``'s (-1: any length there).
+
+    Raises:
+        ValueError: Naming the class (``owner``), the array, its shape and the one expected.
+    """
+    for name, shape in want.items():
+        got = np.shape(arrays[name])
+        if len(got) != len(shape) or any(w not in (-1, g) for w, g in zip(shape, got, strict=True)):
+            shown = tuple("n" if w == -1 else w for w in shape)
+            raise ValueError(f"{owner}.{name} has shape {got}, expected {shown}")

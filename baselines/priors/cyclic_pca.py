@@ -50,14 +50,19 @@ import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from baselines.filtering import ParticleState
 from baselines.priors import cycles, fpca
-from baselines.priors._checks import free_indices, start_pose, training_clips
+from baselines.priors._checks import (
+    check_settings,
+    check_shapes,
+    free_indices,
+    start_pose,
+    training_clips,
+)
 from baselines.priors._io import load_fitted, save_fitted
 from baselines.priors._synthesis import check_request
 from humotion_gym.body import (
@@ -66,7 +71,6 @@ from humotion_gym.body import (
     PARAM_LOWER,
     PARAM_UPPER,
 )
-from humotion_gym.checks import is_count, is_real
 from humotion_gym.mocap.motion import Motion
 
 FloatArray = NDArray[np.float64]
@@ -181,21 +185,16 @@ class CyclicPCAParams:
         self._check_shapes()
 
     def _check_shapes(self) -> None:
-        """Each array's size in ``A`` angles, ``q`` components and ``2H - 1`` coefficients."""
+        """Each array's size in ``A`` angles, ``q`` components and ``K = 2H - 1`` coefficients."""
         a, q = self.angles.size, self.singular_values.size
-        k = self.mean_coef.shape[-1] if self.mean_coef.ndim == 2 else -2
-        want = {
+        k = self.mean_coef.shape[-1] if self.mean_coef.ndim == 2 else 0
+        if k % 2 != 1:
+            raise ValueError(f"CyclicPCAParams.mean_coef: {k} coefficients, expected an odd count")
+        three = ("root_velocity_mean", "root_velocity_std", "root_accel_std", "rotation_step_std")
+        check_shapes("CyclicPCAParams", vars(self), {
             "mean_coef": (a, k), "component_coef": (q, a, k), "component_std": (q,),
-            "coef_step_std": (q,), "residual_std": (a,), "root_velocity_mean": (3,),
-            "root_velocity_std": (3,), "root_accel_std": (3,), "rotation_step_std": (3,),
-        }  # fmt: skip
-        for name, shape in want.items():
-            got = np.shape(getattr(self, name))
-            if got != shape or k % 2 != 1:
-                raise ValueError(
-                    f"CyclicPCAParams.{name} has shape {got}, expected {shape} (A = {a} angles, "
-                    f"q = {q} components, an odd number of coefficients)"
-                )
+            "coef_step_std": (q,), "residual_std": (a,), **{name: (3,) for name in three},
+        })  # fmt: skip
 
     @property
     def n_components(self) -> int:
@@ -238,6 +237,8 @@ def curves(fitted: CyclicPCAParams, phase: ArrayLike, coef: ArrayLike | None = N
 
 
 def _walking_clips(motions: Sequence[Motion], labels: Sequence[str]) -> list[Motion]:
+    if isinstance(labels, str):  # a string would be matched letter by letter
+        raise ValueError(f"cyclic_pca.fit: labels must be a list, got the string {labels!r}")
     clips = [m for m in motions if m.label in labels]
     if not clips:
         found = sorted({m.label for m in motions})
@@ -377,32 +378,13 @@ def _speed_fields(
     }
 
 
-def _check_fit_settings(
-    free: ArrayLike | None, numbers: dict[str, float], counts: dict[str, int], labels: Any
-) -> NDArray[np.intp]:
-    """The free parameters' indices (all 25 when None), the other settings checked.
-
-    Raises:
-        ValueError: If a noise multiplier, ``reversion`` or ``tol`` is not a
-            number >= 0 (``tol`` > 0), a count not a whole number >= 1
-            (``n_samples`` >= 2), ``labels`` a string, or ``free`` not
-            distinct indices.
-    """
-    for name, value in numbers.items():
-        positive = name == "tol"
-        ok = is_real(value) and np.isfinite(value) and (value > 0 if positive else value >= 0)
-        if not ok:
-            bound = "> 0" if positive else ">= 0"
-            raise ValueError(f"cyclic_pca.fit: {name} must be a number {bound}, got {value!r}")
-    for name, value in counts.items():
-        least = 2 if name == "n_samples" else 1
-        if not is_count(value, least):
-            raise ValueError(
-                f"cyclic_pca.fit: {name} must be a whole number >= {least}, got {value!r}"
-            )
-    if isinstance(labels, str):  # a string would be matched letter by letter
-        raise ValueError(f"cyclic_pca.fit: labels must be a list, got the string {labels!r}")
-    return free_indices(free, "cyclic_pca.fit")
+def _free_angles(idx: NDArray[np.intp]) -> NDArray[np.intp]:
+    """The free joint angles among the 19 the curves cover (25-vector indices); none: ValueError."""
+    joint = set(cycles.JOINT_ANGLES.tolist())
+    angles = np.array([i for i in idx if i in joint], dtype=np.intp)
+    if angles.size == 0:
+        raise ValueError("cyclic_pca.fit: the free parameters include no joint angle")
+    return angles
 
 
 def _cycling_clips(
@@ -468,27 +450,22 @@ def fit(
         ValueError: If there are no walking clips, or none shows two cycles.
     """
     del rng
-    idx = _check_fit_settings(
-        free,
-        {"coef_noise": coef_noise, "speed_noise": speed_noise, "global_noise": global_noise,
-         "reversion": reversion, "tol": tol},
-        {"n_components": n_components, "n_harmonics": n_harmonics, "n_samples": n_samples},
-        labels,
-    )  # fmt: skip
+    noises = {"coef_noise": coef_noise, "speed_noise": speed_noise,
+              "global_noise": global_noise, "reversion": reversion}  # fmt: skip
+    counts = {"n_components": (n_components, 1), "n_harmonics": (n_harmonics, 1),
+              "n_samples": (n_samples, 2)}  # fmt: skip
+    check_settings("cyclic_pca.fit", {**noises, "tol": tol}, counts, positive=("tol",))
+    idx = free_indices(free, "cyclic_pca.fit")
     training_clips(motions, frame_skip, "cyclic_pca.fit")
     clips = _walking_clips(motions, labels)
     fps = float(clips[0].fps) / frame_skip
     series = [m.params[::frame_skip] for m in clips]
     observed = [m.observed[::frame_skip] for m in clips]
-    joint = cycles.JOINT_ANGLES
     keep, xs, ws, periods = _cycling_clips(series, observed, fps)
     alignment = cycles.align_offsets(xs, periods, ws, tol=tol)
     seg = cycles.segment(xs, periods, alignment.offsets, ws, n_samples=n_samples)
-
-    angles = np.array([i for i in idx if i in set(joint.tolist())], dtype=np.intp)
-    if angles.size == 0:
-        raise ValueError("cyclic_pca.fit: the free parameters include no joint angle")
-    columns = np.searchsorted(joint, angles)  # the free angles among the 19
+    angles = _free_angles(idx)
+    columns = np.searchsorted(cycles.JOINT_ANGLES, angles)  # the free angles among the 19
     result = fpca.fpca(
         seg.values[:, columns],
         seg.observed[:, columns],
@@ -521,11 +498,8 @@ def fit(
         rotation_step_std=glob["rot"],
         periods=periods,
         fps=fps,
-        coef_noise=float(coef_noise),
-        speed_noise=float(speed_noise),
-        global_noise=float(global_noise),
         keep_offset=bool(keep_offset),
-        reversion=float(reversion),
+        **noises,  # as floats (__post_init__)
     )
 
 

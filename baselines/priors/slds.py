@@ -69,7 +69,7 @@ from numpy.typing import ArrayLike, NDArray
 from tqdm import tqdm
 
 from baselines.filtering import ParticleState
-from baselines.priors._checks import free_indices, start_pose, training_clips
+from baselines.priors._checks import check_settings, free_indices, start_pose, training_clips
 from baselines.priors._io import load_fitted, save_fitted
 from baselines.priors._synthesis import check_request, model_frames, to_motion
 from baselines.priors.slds_inference import (
@@ -334,16 +334,10 @@ def fit(
     training_clips(motions, frame_skip, "slds.fit")
     if not (is_real(switch_prob) and 0.0 <= switch_prob < 1.0):  # before the EM, not after
         raise ValueError(f"slds.fit: switch_prob must be in [0, 1), got {switch_prob!r}")
-    for name, value, least in (
-        ("n_states", n_states, 1), ("order", order, 1), ("n_iter", n_iter, 0),
-    ):  # fmt: skip
-        if not is_count(value, least):
-            raise ValueError(f"slds.fit: {name} must be a whole number >= {least}, got {value!r}")
-    if max_clips_per_label is not None and not is_count(max_clips_per_label, 1):
-        raise ValueError(
-            f"slds.fit: max_clips_per_label must be a whole number >= 1 or None, got "
-            f"{max_clips_per_label!r}"
-        )
+    counts = {"n_states": (n_states, 1), "order": (order, 1), "n_iter": (n_iter, 0)}
+    if max_clips_per_label is not None:
+        counts["max_clips_per_label"] = (max_clips_per_label, 1)
+    check_settings("slds.fit", counts=counts)
     cov_rtol = check_cov_rtol(cov_rtol, "slds.fit")
     groups = _activities(motions, per_label)
     labels = sorted(groups)

@@ -16,6 +16,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from baselines.priors._checks import check_shapes
 from humotion_gym.body import PARAM_INDEX
 from humotion_gym.mocap.motion import Motion
 
@@ -184,19 +185,12 @@ class TreeParams:
     def _check_shapes(self) -> None:
         """Each array's size in ``b`` (``depth``) and ``D`` (the free parameters) as documented."""
         b, dim = int(self.depth), int(np.size(self.free))
-        want = {
+        check_shapes("TreeParams", vars(self), {
             "sigma": (b,), "singular_values": (b,), "projection_offset": (b,),
             "step_var": (dim,), "components": (-1, b), "projection": (-1, b),
             "projection_heading": (-1, b), "frames": (-1, dim), "next_step": (-1, dim),
             "coefficients": (-1, b),
-        }  # fmt: skip
-        for name, shape in want.items():
-            got = np.shape(getattr(self, name))
-            if len(got) != len(shape) or any(
-                w not in (-1, g) for w, g in zip(shape, got, strict=True)
-            ):
-                shown = tuple("n" if w == -1 else w for w in shape)
-                raise ValueError(f"TreeParams.{name} has shape {got}, expected {shown}")
+        })  # fmt: skip
 
     @property
     def n_windows(self) -> int:
