@@ -296,12 +296,9 @@ class _Milestones(BaseCallback):
     """PPO's checkpoints (every ``every`` env steps) and validation runs, between its updates.
 
     SB3 calls ``_on_step`` while it collects a rollout, before the update on
-    that rollout: a model saved or validated there at N steps lacks its last
-    update, and differs from the ``model.zip`` of a run that ends at N. Here
-    both happen where a rollout starts (after the previous update) and where
-    training ends, so a checkpoint of N steps holds the weights of N steps. A
-    checkpoint keeps the optimizer's state (``model.save``), which a resume
-    continues with.
+    it: a model saved there at N steps would lack its last update. Here both
+    happen where a rollout starts and where training ends. A checkpoint keeps
+    the optimizer's state (``model.save``) for a resume.
     """
 
     def __init__(self, folder: Path, every: int, validation: Validation | None) -> None:
@@ -513,6 +510,14 @@ def train_ppo(
     t0 = time.perf_counter()
     remaining = max(0, config.steps - done)
     milestones = _Milestones(folder, config.checkpoint_every, validation)
+    rollout = int(model.n_steps) * venv.num_envs
+    if remaining % rollout:  # SB3's PPO stops only between rollouts
+        ends = done + -(-remaining // rollout) * rollout
+        print(
+            f"note: PPO trains in rollouts of n_steps x n_envs = {rollout:,} env steps: "
+            f"--steps {config.steps:,} ends at {ends:,}",
+            flush=True,
+        )
     if remaining:
         model.learn(remaining, callback=milestones, reset_num_timesteps=start is None)
     path = out / "model.zip"
@@ -689,11 +694,9 @@ def _init_policy(init: str) -> PPO:
 def check_init(config: TrainConfig) -> None:
     """Check the policy a run starts from before the run writes anything.
 
-    It must be a readable policy (:func:`_init_policy`); where its record
-    says it learned another task, or real motion capture while this run
-    trains on the built-in synthetic library, it warns as scoring does
-    (:class:`~baselines.agents.learned.OtherTaskWarning`,
-    :class:`~baselines.agents.learned.OtherDataWarning`).
+    It must be a readable policy; where its record says it learned another
+    task, or real data while this run trains on the synthetic library, it
+    warns as scoring does (``OtherTaskWarning``, ``OtherDataWarning``).
 
     Raises:
         ValueError: Naming ``--init``, if it is no readable policy.

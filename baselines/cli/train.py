@@ -195,15 +195,6 @@ def _cmd_train(args: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
     if args.init is not None and not args.init.is_file():
         raise CommandError(f"--init: {args.init} does not exist")
-    if config.algo == "ppo":  # SB3's PPO stops only between rollouts
-        rollout = int(config.settings["n_steps"]) * int(config.settings["n_envs"])
-        if config.steps % rollout:
-            ends = -(-config.steps // rollout) * rollout
-            print(
-                f"note: PPO trains in rollouts of n_steps x n_envs = {rollout:,} env steps: "
-                f"--steps {config.steps:,} ends at {ends:,}",
-                file=sys.stderr,
-            )
     command = "humotion-gym " + " ".join(sys.argv[1:]) if sys.argv[1:] else None
     # With --json, stdout holds the one JSON object: the training log goes to stderr.
     log = contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext()
