@@ -45,6 +45,27 @@ from humotion_gym.wrappers import (
 _SCALAR_INFO = ("error_mm", "error_all_mm", "error_aligned_mm", "lost")
 
 
+def _row_info(info: dict[str, Any], i: int) -> dict[str, Any]:
+    """Episode ``i``'s part of a vector step's or reset's info, as Python values.
+
+    The keys its mask (``_key``) shows for that episode, without the finished
+    episodes' ``final_obs`` and ``final_info``: after a reset (or a restart
+    within a step) what the single environment's ``reset`` gives.
+    """
+    out = {}
+    for key, value in info.items():
+        mask = info.get(f"_{key}")
+        if (
+            key.startswith("_")
+            or key in ("final_obs", "final_info")
+            or (mask is not None and not mask[i])
+        ):
+            continue
+        item = value[i]
+        out[key] = item.item() if isinstance(item, np.generic) else item
+    return out
+
+
 class LearnerVecEnv(VecEnv):
     """A :class:`PoseTrackingVectorEnv` as stable-baselines3 steps it, with learner observations.
 
@@ -124,10 +145,7 @@ class LearnerVecEnv(VecEnv):
         frames, initial = frame_and_initial(obs, info)
         self.last_infos = info
         self._initial_actions(range(self.num_envs), initial)
-        self.reset_infos = [
-            {"clip_id": info["clip_id"][i], "start_frame": int(info["start_frame"][i])}
-            for i in range(self.num_envs)
-        ]
+        self.reset_infos = [_row_info(info, i) for i in range(self.num_envs)]
         self._reset_seeds()
         self._reset_options()
         return self._observation(frames)
@@ -177,10 +195,7 @@ class LearnerVecEnv(VecEnv):
                 }
             self._initial_actions(ended, initial)
             for i in ended:  # as DummyVecEnv's step_wait: the new episode's reset info
-                self.reset_infos[i] = {
-                    "clip_id": info["clip_id"][i],
-                    "start_frame": int(info["start_frame"][i]),
-                }
+                self.reset_infos[i] = _row_info(info, i)
         return self._observation(frames), rewards.astype(np.float32), dones, infos
 
     def close(self) -> None:
