@@ -425,11 +425,11 @@ def markdown_report(results: Sequence[Mapping[str, Any]]) -> str:
                 if n < listed
                 else (f"the {n} declared test windows")
             )
+        filters = any(r["agent"] != "hold" for r in res["rows"])  # hold alone has no split
         parts.append(
             f"## {res['task']}: {what}, {res['particles']} particles, "
             f"{res['agent_seeds']} agent seed(s) from {res['seed']}\n\n"
             + rows_table(res)
-            + "\n\n"
-            + split_table(res)
+            + ("\n\n" + split_table(res) if filters else "")
         )
     return "\n\n".join(parts) + "\n"

@@ -376,3 +376,9 @@ def test_an_agent_a_later_task_refuses_stops_the_run_before_any_episode(monkeypa
 def test_a_likelihood_name_with_a_missing_or_bad_noise_is_refused(text):
     with pytest.raises(ValueError, match=f"likelihood {text!r}"):
         parse_oracle(text)
+
+
+def test_a_run_of_hold_alone_reports_no_empty_split_table():
+    out = run_split("ArmTrack-v2", ["hold"], [None], particles=10, episodes=1, progress=False)
+    report = markdown_report([out])
+    assert "| hold |" in report and "evidence: image - 2D" not in report
