@@ -203,9 +203,12 @@ def summarize(
             (so a saved leaderboard can be summarised again).
         seed: Seeds every bootstrap (same episodes and seed, same numbers).
         by_clip: The episodes are windows of clips (a declared test list):
-            ``mean_error_ci`` resamples clips whole (a cluster bootstrap:
-            windows of one clip are not independent), then agent seeds
-            within each episode; the summary says ``"intervals": "clip"``.
+            the intervals resample clips whole (a cluster bootstrap: windows
+            of one clip are not independent; ``mean_error_ci`` then agent
+            seeds within each episode); the summary says ``"intervals":
+            "clip"``. Without it, several agent seeds of one episode are
+            resampled together. The lost fraction's Wilson interval counts
+            as many trials as clusters.
 
     Returns:
         ``episodes``; ``mean_error_mm`` and ``iqm_error_mm`` (over the episodes'
@@ -234,6 +237,13 @@ def summarize(
     if not results:
         raise ValueError("results: expected at least one episode")
     eps = [r.to_dict() if isinstance(r, EpisodeResult) else r for r in results]
+    clusters = _clusters(eps, by_clip)
+
+    def interval(values: NDArray[np.float64], statistic: Any = np.mean) -> list[float]:
+        if clusters is None:  # independent episodes
+            return list(bootstrap_ci(values, statistic, seed=seed))
+        return list(cluster_bootstrap_ci(values, clusters, statistic, seed=seed))
+
     mean_err = np.array([e["mean_error_mm"] for e in eps], dtype=np.float64)
     final_err = np.array([e["final_error_mm"] for e in eps], dtype=np.float64)
     lost_frames = [e["lost_frame"] for e in eps]
@@ -243,18 +253,20 @@ def summarize(
     if all(e.get("mean_aligned_error_mm") is not None for e in eps):
         aligned = np.array([e["mean_aligned_error_mm"] for e in eps], dtype=np.float64)
         aligned_mean = float(aligned.mean())
-        aligned_ci = list(bootstrap_ci(aligned, np.mean, seed=seed))
+        aligned_ci = interval(aligned)
+    # clustered outcomes: as many independent ones as clusters, at most
+    trials = len(eps) if clusters is None else len(set(clusters))
     summary: dict[str, Any] = {
         "episodes": len(eps),
         "mean_error_mm": float(mean_err.mean()),
-        "mean_error_ci": list(bootstrap_ci(mean_err, np.mean, seed=seed)),
+        "mean_error_ci": interval(mean_err),
         "iqm_error_mm": iqm(mean_err),
-        "iqm_error_ci": list(bootstrap_ci(mean_err, iqm, seed=seed)),
+        "iqm_error_ci": interval(mean_err, iqm),
         "final_error_mm": float(final_err.mean()),
-        "final_error_ci": list(bootstrap_ci(final_err, np.mean, seed=seed)),
+        "final_error_ci": interval(final_err),
         "lost_episodes": n_lost,
         "lost_fraction": n_lost / len(eps),
-        "lost_fraction_ci": list(proportion_ci(n_lost, len(eps))),
+        "lost_fraction_ci": list(proportion_ci(n_lost / len(eps) * trials, trials)),
         "median_lost_frame": median_lost_frame(lost_frames),
         "ms_per_frame": float(np.mean([e["ms_per_frame"] for e in eps])),
         "mean_reward": float(np.mean([e["mean_reward"] for e in eps])),
@@ -263,12 +275,21 @@ def summarize(
     }
     if len({e.get("agent_seed") for e in eps}) > 1:
         summary.update(_over_seeds(eps, seed, by_clip))
-    elif by_clip:
-        clips = [e["clip_id"] for e in eps]
-        summary["mean_error_ci"] = list(cluster_bootstrap_ci(mean_err, clips, seed=seed))
     if by_clip:
         summary["intervals"] = "clip"
     return summary
+
+
+def _clusters(eps: Sequence[Mapping[str, Any]], by_clip: bool) -> list[Any] | None:
+    """What the intervals resample whole (None: nothing, independent episodes).
+
+    Clips for a declared list; else the episodes that several agent seeds repeat.
+    """
+    if by_clip:
+        return [e["clip_id"] for e in eps]
+    if len({e.get("agent_seed") for e in eps}) > 1:
+        return [int(e["seed"]) for e in eps]
+    return None
 
 
 def _over_seeds(eps: Sequence[Mapping[str, Any]], seed: int, by_clip: bool) -> dict[str, Any]:

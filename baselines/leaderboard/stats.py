@@ -50,7 +50,12 @@ _BATCH = 250
 
 
 def iqm(values: ArrayLike) -> float:
-    """Interquartile mean: the mean of the middle 50% of the values (NaN if empty)."""
+    """Interquartile mean: the mean left after ``floor(n / 4)`` values are cut from each end.
+
+    ``scipy.stats.trim_mean(v, 0.25)``, as the rliable library computes it: the
+    middle 50% exactly where ``n`` is a multiple of 4, a little more otherwise
+    (19 of 37 values); NaN if empty.
+    """
     v = np.asarray(values, dtype=np.float64).ravel()
     if v.size == 0:
         return float("nan")
@@ -174,12 +179,15 @@ def _columns(scores: ArrayLike | Sequence[ArrayLike]) -> list[FloatArray]:
     return [c for c in cols if c.size]
 
 
-def proportion_ci(successes: int, trials: int, confidence: float = 0.95) -> tuple[float, float]:
+def proportion_ci(successes: float, trials: float, confidence: float = 0.95) -> tuple[float, float]:
     """Wilson score interval of a binomial proportion (e.g. episodes that lost track).
 
     Wilson's interval (Wilson, *Probable inference, the law of succession, and
     statistical inference*, JASA 1927) stays informative at 0/n and n/n, where
-    a bootstrap of 0/1 outcomes collapses to a point.
+    a bootstrap of 0/1 outcomes collapses to a point. ``trials`` may be an
+    effective sample size: for outcomes in clusters (windows of one clip, one
+    episode's agent seeds) the number of clusters, with ``successes`` the
+    proportion times it, which errs wide (Kish's design effect at its most).
 
     Returns:
         The lower and upper bound (NaN for no trials).
@@ -191,8 +199,12 @@ def proportion_ci(successes: int, trials: int, confidence: float = 0.95) -> tupl
         return float("nan"), float("nan")
     if not 0 <= successes <= trials:
         raise ValueError(f"successes: expected 0..{trials}, got {successes}")
-    ci = stats.binomtest(int(successes), int(trials)).proportion_ci(confidence, method="wilson")
-    return float(ci.low), float(ci.high)
+    z = float(stats.norm.ppf(0.5 + confidence / 2))
+    p, n = successes / trials, float(trials)
+    scale = 1.0 + z * z / n
+    centre = (p + z * z / (2 * n)) / scale
+    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / scale
+    return max(0.0, float(centre - half)), min(1.0, float(centre + half))
 
 
 def median_lost_frame(lost_frames: Sequence[int | None]) -> float | None:
