@@ -273,6 +273,12 @@ def classic_line(filters: Sequence[dict[str, Any]], fewest: int) -> str | None:
     )
 
 
+def _ranked(row: dict[str, Any]) -> float:
+    """A cell's mean error for choosing the best, a NaN mean last (``min`` would keep it first)."""
+    mean = float(row["summary"]["mean_error_mm"])
+    return mean if np.isfinite(mean) else np.inf
+
+
 def follow_line(priors: Sequence[dict[str, Any]], follow: dict[str, Any], fewest: int) -> str:
     """How far the best of ``priors`` is ahead of :data:`FOLLOW` at ``fewest`` particles.
 
@@ -281,7 +287,7 @@ def follow_line(priors: Sequence[dict[str, Any]], follow: dict[str, Any], fewest
     :data:`FOLLOW` in ``hold``'s place): ahead where its lower bound is above 1,
     behind where its upper bound is below 1, level otherwise.
     """
-    prior = min(priors, key=lambda r: r["summary"]["mean_error_mm"])
+    prior = min(priors, key=_ranked)
     ratio, wins, paired = compare_to_hold(prior, follow)
     means = (
         f"{prior['summary']['mean_error_mm']:.0f} vs {follow['summary']['mean_error_mm']:.0f} mm"
@@ -337,10 +343,10 @@ def validity_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
         if any(seeds_of(r) > 1 for r in at_fewest):
             references = [r for r in at_fewest if r["agent"] in REFERENCE_AGENTS]
             if references:
-                best = min(references, key=lambda r: r["summary"]["mean_error_mm"])
+                best = min(references, key=_ranked)
                 out.append(f"{task}: {seeds_verdict(best, hold, fewest)}")
         else:
-            best = min(at_fewest, key=lambda r: r["summary"]["mean_error_mm"])
+            best = min(at_fewest, key=_ranked)
             ratio, wins, paired = compare_to_hold(best, hold)
             verdict = "valid" if ratio >= VALID_RATIO else f"NOT valid (below {VALID_RATIO:g}x)"
             out.append(

@@ -556,6 +556,17 @@ def test_a_verdict_reads_as_what_the_ratio_is():
     assert "2.50x better than hold in mean error" in better[0] and better[0].endswith("valid")
 
 
+def test_a_cell_of_nan_mean_is_never_the_best_filter():
+    """min() keeps a NaN met first: the verdict named it 'nanx hold' above a working filter."""
+    from baselines.leaderboard.tables import validity_lines
+
+    rows = _rows({"pf-bad": 0.5, "pf-cv": 0.2}, tasks=("ArmTrack-v2",))
+    bad = next(r for r in rows if r["agent"] == "pf-bad")
+    bad["summary"] = {**bad["summary"], "mean_error_mm": float("nan")}
+    line = validity_lines(rows)[0]
+    assert "is pf-cv, 5.00x better than hold" in line and line.endswith("valid")
+
+
 def test_the_page_opens_with_what_made_the_numbers_and_each_verdict(tmp_path):
     run = {
         "command": "humotion-gym leaderboard --tasks ArmTrack-v2", "commit": "abc123",
