@@ -152,3 +152,14 @@ def test_a_multi_view_id_is_tracked_with_its_views(tmp_path, monkeypatch):
     mono = select_observation_settings("BodyTrack-v2", "pf-cv", grid, fold, **kwargs)
     assert views["task"] == "BodyTrack2Views-v2" and mono["task"] == "BodyTrack-v2"
     assert views["rows"][0]["mean_error_mm"] != mono["rows"][0]["mean_error_mm"]
+
+
+@pytest.mark.mocap
+def test_a_validation_fold_that_splits_one_skeleton_is_refused(shared_mocap):
+    """cmu-05 held out alone: cmu-07, the same skeleton, would train the priors it is scored by."""
+    from humotion_gym.mocap.library import SplitError
+
+    with pytest.raises(SplitError, match=r"\(cmu-05 ~ cmu-07\); hold them out together"):
+        validation_library(str(shared_mocap), ["cmu-05"])
+    fold = validation_library(str(shared_mocap), ["cmu-05", "cmu-07"])
+    assert sorted(fold.held_out) == ["cmu-05", "cmu-07"]

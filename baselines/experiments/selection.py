@@ -37,7 +37,7 @@ from humotion_gym.mocap.library import (
     load_library,
     synthetic_library,
 )
-from humotion_gym.mocap.persons import check_data_persons
+from humotion_gym.mocap.persons import SplitError, check_data_persons, check_person_split
 
 #: Training persons held out to choose settings on real data (the priors of a
 #: fold fit on the Bandai-Namco clips); the synthetic set's are
@@ -57,7 +57,8 @@ def validation_library(
 
     Raises:
         SplitError: If a held-out person's skeleton is also a training person's
-            (:func:`~humotion_gym.mocap.persons.check_data_persons`).
+            (:func:`~humotion_gym.mocap.persons.check_data_persons`), or a
+            validation person's is one of the fold's training persons'.
     """
     dirs = configured_data_dirs(data_dir)
     lib = load_library(dirs, progress=False) if dirs else synthetic_library()
@@ -65,7 +66,17 @@ def validation_library(
         check_data_persons(lib, dirs)
     if subjects is None:
         subjects = SYNTHETIC_VALIDATION_SUBJECTS if lib.is_synthetic else VALIDATION_SUBJECTS
-    return lib.validation_fold(subjects)
+    fold = lib.validation_fold(subjects)
+    try:  # a validation person's skeleton among the fold's training persons: the same person
+        check_person_split(fold)
+    except SplitError as exc:
+        shown = ", ".join(f"{held} ~ {train}" for held, train in exc.pairs)
+        raise SplitError(
+            f"validation_fold: a held-out person shares a skeleton with a training person "
+            f"({shown}); hold them out together",
+            exc.pairs,
+        ) from None
+    return fold
 
 
 #: Prefix of a grid name that is a setting of the agent's prior (its ``fit`` keyword).
