@@ -20,6 +20,7 @@ from typing import Any
 
 from humotion_gym.cli._common import (
     CommandError,
+    UsageError,
     add_command,
     add_json,
     print_json,
@@ -68,6 +69,7 @@ def _cmd_ratio(args: argparse.Namespace) -> int:
         raise CommandError(f"--cells: give two cells, got {args.cells[0]} twice")
     cells: dict[str, dict[str, Any]] = {}
     ran_with: dict[str, tuple[str, Any]] = {}  # each cell's file and what decided its frames
+    there: set[str] = set()
     for path in args.results:
         try:
             rows, settings = load_rows(path)
@@ -76,13 +78,20 @@ def _cmd_ratio(args: argparse.Namespace) -> int:
         except OSError as exc:
             raise CommandError(f"{path}: {exc}") from None
         for row in rows:
+            label = cell_label(row)
             if row["task"] == args.task and "summary" in row:
-                if cell_label(row) not in cells:  # the first file that has it
-                    cells[cell_label(row)] = row
-                    ran_with[cell_label(row)] = (str(path), _conditions(settings))
+                there.add(label)
+            if row["task"] == args.task and "summary" in row and label in args.cells:
+                if label in cells:  # which file's would be a silent choice
+                    raise UsageError(
+                        f"--cells: {label} ran in {ran_with[label][0]} and in {path}; give "
+                        "one file that holds it"
+                    )
+                cells[label] = row
+                ran_with[label] = (str(path), _conditions(settings))
     missing = [c for c in args.cells if c not in cells]
     if missing:
-        known = ", ".join(sorted(cells)) or "none"
+        known = ", ".join(sorted(there)) or "none"
         raise CommandError(
             f"--cells: no cell {missing[0]!r} of {args.task} that ran in the files "
             f"(expected {CELL_FORMAT}); the cells there: {known}"

@@ -93,10 +93,14 @@ def test_cells_that_ran_at_other_settings_are_refused(
     (tmp_path / "noisy.json").write_text(json.dumps(noisier))
     argv = ["ratio", "--task", "ArmTrack-v2", "--cells", "pf-tree@300", "pf-cv@3000",
             str(tmp_path / "noisy.json"), str(arm)]  # fmt: skip
-    assert main(argv) == 0  # both cells from the first file that holds them
-    capsys.readouterr()
+    assert main(argv) == 2  # both files hold both cells: taking one would be a silent choice
+    assert "ran in" in capsys.readouterr().err
     only_cv = {**noisier, "rows": [r for r in noisier["rows"] if r["agent"] != "pf-tree"]}
     (tmp_path / "noisy.json").write_text(json.dumps(only_cv))
+    recorded = json.loads(gzip.decompress(arm.read_bytes()))
+    only_tree = {**recorded, "rows": [r for r in recorded["rows"] if r["agent"] == "pf-tree"]}
+    (tmp_path / "tree.json").write_text(json.dumps(only_tree))
+    argv[-1] = str(tmp_path / "tree.json")
     assert main(argv) == 1
     err = capsys.readouterr().err
     assert "ran on other settings or data" in err and "'noise': 60.0" in err
