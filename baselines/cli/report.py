@@ -67,8 +67,10 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
     if args.video_agents and not args.videos:
         raise UsageError("--video-agents: only with --videos")
-    if args.results.is_dir():
-        args.results = args.results / "results.json"
+    if args.results.is_dir():  # a run's folder, or a recorded one (results.json.gz)
+        plain = args.results / "results.json"
+        packed = args.results / "results.json.gz"
+        args.results = packed if packed.is_file() and not plain.is_file() else plain
     if not args.results.is_file():
         raise FileNotFoundError(f"{args.results}: no such leaderboard file")
     try:

@@ -706,3 +706,12 @@ def test_agent_seeds_that_repeat_an_episode_add_no_independent_outcomes(by_clip)
     # the IQM of 5 copies each trims otherwise; its interval is as wide as the episodes'
     width = np.diff(repeated["iqm_error_ci"])[0] / np.diff(alone["iqm_error_ci"])[0]
     assert 0.8 < width < 1.25
+
+
+def test_report_reads_a_recorded_results_folder(tmp_path, capsys):
+    """A committed folder holds results.json.gz: the folder form finds it."""
+    from baselines.cli import main
+
+    recorded = Path(__file__).resolve().parents[2] / "results" / "ci_small"
+    assert main(["report", str(recorded), "--out", str(tmp_path / "r")]) == 0
+    assert (tmp_path / "r" / "tables.md").is_file()
