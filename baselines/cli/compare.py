@@ -59,7 +59,12 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         result = compare_runs(runs[0], runs[1], args.rtol, (seeds[0], seeds[1]))
     except ValueError as exc:
         raise CommandError(str(exc)) from None
+    if not result.compared:  # nothing to say differs or agrees: an error, not a count of 0
+        raise CommandError(
+            f"{args.rerun} and {args.recorded} share no episode (the same cell, episode seed "
+            "and agent seed): compare a rerun with the record it reruns"
+        )
     print(result.summary())
     for key, got, want in result.differ:
         print(f"  {' '.join(map(str, key))}: {got!r} vs recorded {want!r} mm")
-    return 0 if result.compared and not result.differ else 1
+    return 0 if not result.differ else 1

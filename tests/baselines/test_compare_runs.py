@@ -92,5 +92,7 @@ def test_runs_of_other_seeds_compare_nothing(tmp_path, capsys):
     (tmp_path / "s3.json").write_text(json.dumps({"seed": 3, "rows": shifted}))
     (tmp_path / "s0.json").write_text(json.dumps({"seed": 0, "rows": rows}))
     assert main(["compare", str(tmp_path / "s3.json"), str(tmp_path / "s0.json")]) == 1
-    assert "compared 0: 0 differ" in capsys.readouterr().out
+    captured = capsys.readouterr()  # one line on stderr, not "compared 0: 0 differ"
+    assert captured.out == "" and "share no episode" in captured.err
+    assert captured.err.count("\n") == 1
     assert seeds and compare_runs(shifted, rows, agent_seeds=(3, 3)).compared > 0
