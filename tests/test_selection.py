@@ -163,3 +163,22 @@ def test_a_validation_fold_that_splits_one_skeleton_is_refused(shared_mocap):
         validation_library(str(shared_mocap), ["cmu-05"])
     fold = validation_library(str(shared_mocap), ["cmu-05", "cmu-07"])
     assert sorted(fold.held_out) == ["cmu-05", "cmu-07"]
+
+
+@pytest.mark.parametrize(
+    ("grid", "says"),
+    [
+        ({"border_width": [1.2, 1.7]}, "border_width is a whole number, got 1.2"),  # ran 1 twice
+        ({"backdrop": [0.5, 2.0]}, "backdrop is on \\(1\\) or off \\(0\\), got 0.5"),
+        ({"sharpness": [1.0, 1.0]}, "list a value twice"),
+        ({"sharpness": [1.0, 2.0, -1.0]}, "sharpness=-1"),  # after two combinations had run
+    ],
+)
+def test_every_grid_value_is_checked_before_any_episode(grid, says, monkeypatch):
+    import baselines.experiments.selection as selection
+
+    ran = []
+    monkeypatch.setattr(selection._Runs, "errors", lambda *args, **kw: ran.append(args))
+    with pytest.raises(ValueError, match=f"grid: .*{says}"):
+        select_observation_settings("ArmTrack-v2", "pf-cv", grid, validation_library(None), 10, 1)
+    assert not ran

@@ -150,6 +150,36 @@ def _check_grid(grid: Mapping[str, Sequence[float]], agent: str) -> None:
             )
     if not grid or any(len(v) == 0 for v in grid.values()):
         raise ValueError("grid: expected at least one setting, each with at least one value")
+    twice = sorted(n for n, values in grid.items() if len(set(values)) < len(values))
+    if twice:
+        raise ValueError(f"grid: {twice} list a value twice")
+    default = ObservationModel()
+    for name in set(grid) & fields:  # every value, before any episode runs
+        for value in grid[name]:
+            try:
+                ObservationModel(**{name: _typed(default, name, value)})
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"grid: {name}={value:g}: {exc}") from None
+    for name in filter_names:
+        for value in grid[name][1:]:
+            try:
+                AGENTS[agent].filter_settings_for("", {name[len(FILTER_PREFIX) :]: value})
+            except ValueError as exc:
+                raise ValueError(f"grid: {agent}: {exc}") from None
+
+
+def _typed(default: ObservationModel, name: str, value: float) -> Any:
+    """A grid's number as the likelihood setting's own type: a whole number, or 0/1 for a switch.
+
+    Raises:
+        ValueError: If the number is not one (1.2 would have run as 1).
+    """
+    kind = type(getattr(default, name))
+    if kind is bool and value not in (0, 1):
+        raise ValueError(f"{name} is on (1) or off (0), got {value:g}")
+    if kind is int and not float(value).is_integer():
+        raise ValueError(f"{name} is a whole number, got {value:g}")
+    return kind(value)
 
 
 @dataclass(frozen=True)
@@ -295,7 +325,7 @@ def select_observation_settings(
     base_fit = AGENTS[agent].settings_for(spec.name) if agent in AGENTS else {}
     for combo in itertools.product(*(grid[n] for n in names)):
         settings = {
-            n: type(getattr(default, n))(v) if n in fields else v
+            n: _typed(default, n, v) if n in fields else v
             for n, v in zip(names, combo, strict=True)
         }
         model, fit, search = _split_settings(settings, default)
