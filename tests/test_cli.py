@@ -287,6 +287,7 @@ def test_a_recorded_result_is_never_written_over(argv, held, tmp_path, capsys):
         (["sweep", "--noise", "0", "0", "4", "--out", "x"], "sweep_noise", [0.0, 4.0]),
         (["oracle", "--task", "ArmTrack-v2", "ArmTrack-v2"], "task", ["ArmTrack-v2"]),
         (["discrimination", "--distances", "50", "50"], "distances", [50.0]),
+        (["sweep", "--particles", "30", "30", "--out", "x"], "particles", [30]),
     ],
 )
 def test_a_value_given_twice_runs_once(argv, dest, want):
@@ -305,6 +306,12 @@ def test_set_gathers_every_use_and_refuses_a_key_twice(command, capsys):
     with pytest.raises(SystemExit) as exc:
         parser.parse_args([*command, "--set", "n_envs=2", "--set", "n_envs=4"])
     assert exc.value.code == 2 and "--set: n_envs given twice" in capsys.readouterr().err
+
+
+def test_synth_refuses_a_setting_given_twice(capsys):
+    assert main(["synth", "--prior", "cv", "--setting", "multiplier=1", "multiplier=2",
+                 "--seconds", "0.1"]) == 2  # fmt: skip
+    assert "--setting: multiplier given twice" in capsys.readouterr().err
 
 
 def test_track_json_says_what_reruns_it(capsys):

@@ -70,8 +70,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     add_agents(sw)
     sw.add_argument(
-        "--particles", type=particle_count, nargs="+", default=[300], metavar="N",
-        help="particle counts of the particle filters (default: 300)",
+        "--particles", type=particle_count, nargs="+", action=Distinct, default=[300],
+        metavar="N", help="particle counts of the particle filters (default: 300)",
     )  # fmt: skip
     sw.add_argument(
         "--episodes",

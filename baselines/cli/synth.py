@@ -70,7 +70,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--start", default=None,
         help="clip id whose first pose the motion starts from: tree and cv continue that pose; "
         "pca and slds draw their own joint angles from the first frame and keep the rest "
-        "(default: the first training clip)",
+        "(default: the first of the training clips the fit uses: with more than --max-clips, "
+        "a subset drawn by --seed)",
     )  # fmt: skip
     syn.add_argument(
         "--setting", nargs="+", default=[], metavar="NAME=VALUE",
@@ -146,9 +147,13 @@ def fit_settings(module: Any, items: list[str], beta: float | None) -> dict[str,
         name = name.strip()
         if not sep or not name or not value.strip():
             raise UsageError(f"--setting: expected NAME=VALUE, got {item[:80]}")
+        if name in settings:  # the later would replace the earlier without a word
+            raise UsageError(f"--setting: {name} given twice")
         default = params[name].default if name in accepted else None
         settings[name] = _value(name, value.strip(), default) if name in accepted else value
     if beta is not None:
+        if "beta" in settings:
+            raise UsageError("--beta, --setting: beta given twice")
         settings["beta"] = beta
     unknown = sorted(set(settings) - accepted)
     if unknown:
