@@ -354,3 +354,11 @@ def test_a_clip_of_another_activity_is_tracked_with_a_warning(capsys):
             "--episodes", "1"]  # fmt: skip
     assert main(argv) == 0
     assert "is a wave clip; WalkTrack-v2 draws only walk" in capsys.readouterr().err
+
+
+def test_tasks_marks_the_deprecated_ids(capsys):
+    assert main(["tasks", "--json"]) == 0
+    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    old = {r["task"] for r in rows if r["deprecated"]}
+    assert old == {"ArmTrack-v1", "BodyTrack-v1", "WalkTrack-v1", "SideWalk-v1"}
+    assert all("deprecated" in r["description"] for r in rows if r["deprecated"])

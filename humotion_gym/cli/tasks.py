@@ -34,11 +34,14 @@ def _cmd_tasks(args: argparse.Namespace) -> int:
 
     # the current tasks, their multi-view variants, then the deprecated ones
     names = [t.name for t in CURRENT_TASKS] + list(VIEW_VARIANTS)
+    deprecated = {t.name for t in DEPRECATED_TASKS}
     names += [t.name for t in DEPRECATED_TASKS]
     rows: list[dict[str, Any]] = []
     for name in names:
         t = get_task(name)
         views = f", {t.views} views" if t.views > 1 else ""
+        # version 1 observes the frame alone: the trackers do not run it (docs/v1.md)
+        old = "; deprecated: its frame alone, not tracked" if name in deprecated else ""
         rows.append(
             {
                 "task": name,
@@ -46,8 +49,9 @@ def _cmd_tasks(args: argparse.Namespace) -> int:
                 "episode_frames": t.episode_frames,
                 "free_params": len(t.free),
                 "labels": list(t.labels) if t.labels is not None else None,
-                "description": t.description + views,
+                "description": t.description + views + old,
                 "views": t.views,
+                "deprecated": name in deprecated,
             }
         )
     if args.json:
