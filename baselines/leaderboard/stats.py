@@ -719,8 +719,14 @@ def cluster_bootstrap_ci(
     episodes, taken = _draw_clusters(members, present, n_resamples, _rng(seed))
     if statistic is np.mean:
         theta = np.where(taken, v[episodes], 0.0).sum(axis=(1, 2)) / taken.sum(axis=(1, 2))
-    else:
-        theta = np.array([statistic(v[e[t]]) for e, t in zip(episodes, taken, strict=True)])
+    else:  # the resamples of one size at a time, as one batch
+        sizes = taken.sum(axis=(1, 2))
+        batched = _vectorised(statistic)
+        theta = np.empty(sizes.size)
+        for size in np.unique(sizes):
+            rows = np.flatnonzero(sizes == size)
+            drawn = v[episodes[rows]][taken[rows]].reshape(rows.size, int(size))
+            theta[rows] = batched(drawn, axis=1)
     tail = 50.0 * (1.0 - confidence)
     low, high = np.percentile(theta, [tail, 100.0 - tail])
     return float(low), float(high)
