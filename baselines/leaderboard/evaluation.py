@@ -237,7 +237,14 @@ def summarize(
     if not results:
         raise ValueError("results: expected at least one episode")
     eps = [r.to_dict() if isinstance(r, EpisodeResult) else r for r in results]
-    clusters = _clusters(eps, by_clip)
+    seeded = len({e.get("agent_seed") for e in eps}) > 1
+    # What the intervals resample whole: clips of a declared list, else the
+    # episodes several agent seeds repeat, else nothing (independent episodes).
+    clusters = (
+        [e["clip_id"] for e in eps] if by_clip
+        else [int(e["seed"]) for e in eps] if seeded
+        else None
+    )  # fmt: skip
 
     def interval(values: NDArray[np.float64], statistic: Any = np.mean) -> list[float]:
         if clusters is None:  # independent episodes
@@ -259,7 +266,8 @@ def summarize(
     summary: dict[str, Any] = {
         "episodes": len(eps),
         "mean_error_mm": float(mean_err.mean()),
-        "mean_error_ci": interval(mean_err),
+        # several agent seeds: the two-level interval (_over_seeds) instead
+        "mean_error_ci": None if seeded else interval(mean_err),
         "iqm_error_mm": iqm(mean_err),
         "iqm_error_ci": interval(mean_err, iqm),
         "final_error_mm": float(final_err.mean()),
@@ -273,23 +281,11 @@ def summarize(
         "aligned_error_mm": aligned_mean,
         "aligned_error_ci": aligned_ci,
     }
-    if len({e.get("agent_seed") for e in eps}) > 1:
+    if seeded:
         summary.update(_over_seeds(eps, seed, by_clip))
     if by_clip:
         summary["intervals"] = "clip"
     return summary
-
-
-def _clusters(eps: Sequence[Mapping[str, Any]], by_clip: bool) -> list[Any] | None:
-    """What the intervals resample whole (None: nothing, independent episodes).
-
-    Clips for a declared list; else the episodes that several agent seeds repeat.
-    """
-    if by_clip:
-        return [e["clip_id"] for e in eps]
-    if len({e.get("agent_seed") for e in eps}) > 1:
-        return [int(e["seed"]) for e in eps]
-    return None
 
 
 def _over_seeds(eps: Sequence[Mapping[str, Any]], seed: int, by_clip: bool) -> dict[str, Any]:
