@@ -48,7 +48,7 @@ import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from baselines.priors import cycles
-from humotion_gym.checks import is_count
+from baselines.priors._checks import check_settings
 from humotion_gym.threads import one_blas_thread
 
 FloatArray = NDArray[np.float64]
@@ -315,9 +315,9 @@ def _checked_inputs(
         if labels.shape != (c,):
             raise ValueError(f"fpca: groups must have one label per cycle ({c})")
         group_of = np.unique(labels, return_inverse=True)[1].astype(np.intp).ravel()
-    for name, value in (("n_components", n_components), ("n_harmonics", n_harmonics)):
-        if not is_count(value, 1):
-            raise ValueError(f"fpca: {name} must be a whole number >= 1, got {value!r}")
+    check_settings(
+        "fpca", counts={"n_components": (n_components, 1), "n_harmonics": (n_harmonics, 1)}
+    )
     q = min(int(n_components), c, j * (2 * n_harmonics - 1))
     return x, mask, group_of, q
 
@@ -360,8 +360,7 @@ def fpca(
         True
     """
     x, mask, group_of, q = _checked_inputs(values, observed, groups, n_components, n_harmonics)
-    if not is_count(max_iter, 1):
-        raise ValueError(f"fpca: max_iter must be a whole number >= 1, got {max_iter!r}")
+    check_settings("fpca", counts={"max_iter": (max_iter, 1)})
     c, j, s = x.shape
     n_obs = int(mask.sum())
     n_groups = int(group_of.max()) + 1

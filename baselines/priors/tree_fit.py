@@ -13,7 +13,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from baselines.priors._checks import free_indices, training_clips
+from baselines.priors._checks import check_settings, free_indices, training_clips
 from baselines.priors._io import check_kind, open_npz, read_arrays, save_arrays
 from baselines.priors.tree_model import (
     _VARIANCE_FLOOR,
@@ -61,9 +61,8 @@ def _check_fit_arguments(
     """
     training_clips(motions, frame_skip, "tree.fit")
     idx = free_indices(free, "tree.fit")
-    for name, value in (("window", window), ("proposals", proposals)):
-        if not is_count(value, 1):  # 2.5 was cut to 2 without a word
-            raise ValueError(f"tree.fit: {name} must be a whole number >= 1, got {value!r}")
+    # whole numbers: int() would cut 2.5 to 2
+    check_settings("tree.fit", counts={"window": (window, 1), "proposals": (proposals, 1)})
     if leaf not in LEAF_RULES:
         raise ValueError(f"tree.fit: leaf must be one of {LEAF_RULES}, got {leaf!r}")
     if replay not in REPLAY_RULES:
