@@ -38,7 +38,6 @@ import platform
 import shutil
 import sys
 import time
-import warnings
 import zipfile
 from collections.abc import Callable, Sequence
 from dataclasses import asdict
@@ -58,14 +57,7 @@ from stable_baselines3.common.vec_env import VecMonitor
 from torch import nn
 
 from baselines.agents import HoldAgent, tracking_env
-from baselines.agents.learned import (
-    LearnedAgent,
-    OtherDataWarning,
-    OtherTaskWarning,
-    load_policy,
-    policy_record,
-    trained_data_dirs,
-)
+from baselines.agents.learned import LearnedAgent, check_record, load_policy
 
 # The shipped checkpoints pickle their features extractor as
 # ``baselines.rl.TrackingExtractor``: this module must keep the name, or SB3
@@ -454,7 +446,7 @@ def train(
         ValueError: If the data lacks the validation persons (:func:`validation_fold`).
     """
     out = Path(config.out)
-    check_init(config)
+    init = check_init(config)
     prepare_output(out, resume, force, config)
     th.set_num_threads(max(1, int(config.threads)))
     fold = validation_fold(config)
@@ -463,8 +455,8 @@ def train(
     validation = Validation(config, fold, logger) if fold is not None else None
     try:
         if config.algo == "ppo":
-            return train_ppo(config, start, command, fold, logger, validation)
-        return train_bc(config, start, command, fold, logger, validation)
+            return train_ppo(config, start, command, fold, logger, validation, init)
+        return train_bc(config, start, command, fold, logger, validation, init)
     finally:
         if validation is not None:
             validation.close()
@@ -494,8 +486,12 @@ def train_ppo(
     fold: MotionLibrary | None,
     logger: Logger,
     validation: Validation | None,
+    init: PPO | None = None,
 ) -> Path:
-    """PPO on the environment's reward, from ``start`` when resumed (see :func:`train`)."""
+    """PPO on the environment's reward, from ``start`` when resumed (see :func:`train`).
+
+    ``init``: the policy ``config.init`` names, read by :func:`check_init`.
+    """
     out = Path(config.out)
     folder = out / "checkpoints"
     venv = _vec_env(config, fold)
@@ -504,7 +500,7 @@ def train_ppo(
         model = _resumed(start[1], venv)
     else:
         model = new_model(config, venv)
-        _start_from(model, config.init)
+        _start_from(model, init, config.init)
     model.set_logger(logger)
     _write_config(config, command, {"resumed_from": done})
     t0 = time.perf_counter()
@@ -643,25 +639,26 @@ def _bc_updates(
     return losses
 
 
-def _bc_model(config: TrainConfig, env: gym.Env, start: tuple[int, Path] | None) -> tuple[PPO, int]:
+def _bc_model(
+    config: TrainConfig, env: gym.Env, start: tuple[int, Path] | None, init: PPO | None
+) -> tuple[PPO, int]:
     """The policy to train and the env steps already done: the resumed model's, or a new one."""
     if start:
         return _resumed(start[1]), start[0]
     model = new_model(config, env)
-    _start_from(model, config.init)
+    _start_from(model, init, config.init)
     return model, 0
 
 
-def _start_from(model: PPO, init: str | None) -> None:
-    """Load the policy ``init`` (a saved model) into ``model``'s network, if given.
+def _start_from(model: PPO, source: PPO | None, init: str | None) -> None:
+    """Load the policy ``source`` (the saved model ``init``) into ``model``'s network, if given.
 
     Raises:
         ValueError: If its network is not this run's shape (another task's
             actions, frame size or ``features_dim``).
     """
-    if init is None:
+    if source is None:
         return
-    source = _init_policy(init)
     try:
         model.policy.load_state_dict(source.policy.state_dict(), strict=False)
     except RuntimeError as exc:
@@ -691,36 +688,25 @@ def _init_policy(init: str) -> PPO:
         raise ValueError(f"--init: {exc}") from None
 
 
-def check_init(config: TrainConfig) -> None:
-    """Check the policy a run starts from before the run writes anything.
+def check_init(config: TrainConfig) -> PPO | None:
+    """The policy a run starts from, read and checked before the run writes anything.
 
     It must be a readable policy; where its record says it learned another
     task, or real data while this run trains on the synthetic library, it
-    warns as scoring does (``OtherTaskWarning``, ``OtherDataWarning``).
+    warns as scoring does (:func:`~baselines.agents.learned.check_record`).
+
+    Returns:
+        The policy (None without ``config.init``), for :func:`train` to start from.
 
     Raises:
         ValueError: Naming ``--init``, if it is no readable policy.
     """
     if config.init is None:
-        return
-    _init_policy(config.init)
-    record = policy_record(config.init) or {}
-    trained_on = record.get("task")
-    if isinstance(trained_on, str) and trained_on != config.task:
-        warnings.warn(
-            f"--init {config.init} was trained on {trained_on}, not {config.task}: its actions "
-            "mean that task's parameters and ranges",
-            OtherTaskWarning,
-            stacklevel=2,
-        )
-    dirs = trained_data_dirs(config.init)
-    if dirs and not configured_data_dirs(config.data_dir):
-        warnings.warn(
-            f"--init {config.init} was trained on motion capture in {', '.join(dirs)}; this "
-            "run trains on the built-in synthetic library (pass the same --data-dir)",
-            OtherDataWarning,
-            stacklevel=2,
-        )
+        return None
+    policy = _init_policy(config.init)
+    synthetic = not configured_data_dirs(config.data_dir)
+    check_record(config.init, config.task, synthetic, "train on it")
+    return policy
 
 
 def train_bc(
@@ -730,6 +716,7 @@ def train_bc(
     fold: MotionLibrary | None,
     logger: Logger,
     validation: Validation | None,
+    init: PPO | None = None,
 ) -> Path:
     """Behaviour cloning with DAgger-style rollouts (see the module docstring).
 
@@ -743,6 +730,7 @@ def train_bc(
     by :func:`keypoint_sensitivity`. A checkpoint is written after each round
     (and resumed from: the buffer is refilled by the rounds that follow), and
     each round's reward, loss and (when due) validation error are logged.
+    ``init`` is the policy ``config.init`` names, read by :func:`check_init`.
     """
     s = config.settings
     out = Path(config.out)
@@ -754,7 +742,7 @@ def train_bc(
     )
     weights = keypoint_sensitivity(weights_env, seed=10_000 + config.seed)
     weights_env.close()
-    model, done = _bc_model(config, rollouts.envs[0], start)
+    model, done = _bc_model(config, rollouts.envs[0], start, init)
     resumed_from = done
     params = [p for n, p in model.policy.named_parameters() if not n.startswith(("value", "mlp"))]
     optimizer = th.optim.Adam(params, lr=float(s["learning_rate"]))

@@ -170,31 +170,43 @@ def _record_data_dirs(record: dict[str, Any]) -> list[str] | None:
     return list(dirs) if ok else None
 
 
-def _check_record(path: str, description: TaskDescription) -> None:
-    """Warn where the policy's record says it learned another task or other data.
+def check_record(path: str, task: str, synthetic: bool, use: str = "score it") -> None:
+    """Warn where a saved policy's record says it learned another task or other data.
 
-    :class:`OtherTaskWarning` when it was trained on another task whose
-    actions have the same size; :class:`OtherDataWarning` when real-data
-    training meets synthetic episodes.
+    :class:`OtherTaskWarning` when it was trained on another task than
+    ``task`` (one whose actions have the same size, or it would not load);
+    :class:`OtherDataWarning` when it learned real motion capture and
+    ``synthetic``: the episodes it meets come from the built-in library.
+
+    Args:
+        path: The saved policy.
+        task: The task it is scored on, or trained on further.
+        synthetic: Those episodes come from the built-in synthetic library.
+        use: What passing the same ``--data-dir`` would let one do.
     """
     record = policy_record(path) or {}
     trained_on = record.get("task")
-    if isinstance(trained_on, str) and trained_on != description.name:
+    if isinstance(trained_on, str) and trained_on != task:
         warnings.warn(
-            f"{path} was trained on {trained_on}, not {description.name}: its actions mean "
+            f"{path} was trained on {trained_on}, not {task}: its actions mean "
             f"that task's parameters and ranges",
             OtherTaskWarning,
             stacklevel=3,
         )
     dirs = _record_data_dirs(record)
-    synthetic = all(c.startswith("synthetic/") for c in description.training.clip_ids)
     if dirs and synthetic:
         warnings.warn(
             f"{path} was trained on motion capture in {', '.join(dirs)}; these episodes come "
-            "from the built-in synthetic library (pass the same --data-dir to score it there)",
+            f"from the built-in synthetic library (pass the same --data-dir to {use} there)",
             OtherDataWarning,
             stacklevel=3,
         )
+
+
+def _check_record(path: str, description: TaskDescription) -> None:
+    """:func:`check_record` of a policy scored on ``description``'s episodes."""
+    synthetic = all(c.startswith("synthetic/") for c in description.training.clip_ids)
+    check_record(path, description.name, synthetic)
 
 
 def load_policy(path: str | Path) -> Any:

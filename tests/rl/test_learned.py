@@ -364,7 +364,8 @@ def test_a_starting_policy_of_another_shape_is_refused_in_words(bc_run: Path) ->
     env = make_learner_env("SideWalk-v2", "train", 32, True)
     model = new_model(config, env)
     with pytest.raises(ValueError, match=r"--init .*model.zip: its network does not fit"):
-        _start_from(model, str(bc_run / "model.zip"))  # ArmTrack's 4 actions, not SideWalk's 8
+        path = str(bc_run / "model.zip")  # ArmTrack's 4 actions, not SideWalk's 8
+        _start_from(model, load_policy(path), path)
     env.close()
 
 
