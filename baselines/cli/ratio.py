@@ -78,17 +78,19 @@ def _cmd_ratio(args: argparse.Namespace) -> int:
         except OSError as exc:
             raise CommandError(f"{path}: {exc}") from None
         for row in rows:
+            if row["task"] != args.task or "summary" not in row:
+                continue
             label = cell_label(row)
-            if row["task"] == args.task and "summary" in row:
-                there.add(label)
-            if row["task"] == args.task and "summary" in row and label in args.cells:
-                if label in cells:  # which file's would be a silent choice
-                    raise UsageError(
-                        f"--cells: {label} ran in {ran_with[label][0]} and in {path}; give "
-                        "one file that holds it"
-                    )
-                cells[label] = row
-                ran_with[label] = (str(path), _conditions(settings))
+            there.add(label)
+            if label not in args.cells:
+                continue
+            if label in cells:  # which file's would be a silent choice
+                raise UsageError(
+                    f"--cells: {label} ran in {ran_with[label][0]} and in {path}; give one "
+                    "file that holds it"
+                )
+            cells[label] = row
+            ran_with[label] = (str(path), _conditions(settings))
     missing = [c for c in args.cells if c not in cells]
     if missing:
         known = ", ".join(sorted(there)) or "none"
