@@ -32,7 +32,7 @@ from stable_baselines3.common.vec_env.base_vec_env import (
     VecEnvStepReturn,
 )
 
-from humotion_gym.envs.vector import PoseTrackingVectorEnv
+from humotion_gym.envs.vector import PoseTrackingVectorEnv, episode_info
 from humotion_gym.wrappers import (
     check_frame_size,
     frame_and_initial,
@@ -43,27 +43,6 @@ from humotion_gym.wrappers import (
 # The step's scalar info that each episode's info dict carries (SB3 keeps one
 # dict per episode; the batched arrays stay in ``last_infos``).
 _SCALAR_INFO = ("error_mm", "error_all_mm", "error_aligned_mm", "lost")
-
-
-def _row_info(info: dict[str, Any], i: int) -> dict[str, Any]:
-    """Episode ``i``'s part of a vector step's or reset's info, as Python values.
-
-    The keys its mask (``_key``) shows for that episode, without the finished
-    episodes' ``final_obs`` and ``final_info``: after a reset (or a restart
-    within a step) what the single environment's ``reset`` gives.
-    """
-    out = {}
-    for key, value in info.items():
-        mask = info.get(f"_{key}")
-        if (
-            key.startswith("_")
-            or key in ("final_obs", "final_info")
-            or (mask is not None and not mask[i])
-        ):
-            continue
-        item = value[i]
-        out[key] = item.item() if isinstance(item, np.generic) else item
-    return out
 
 
 class LearnerVecEnv(VecEnv):
@@ -145,7 +124,7 @@ class LearnerVecEnv(VecEnv):
         frames, initial = frame_and_initial(obs, info)
         self.last_infos = info
         self._initial_actions(range(self.num_envs), initial)
-        self.reset_infos = [_row_info(info, i) for i in range(self.num_envs)]
+        self.reset_infos = [episode_info(info, i) for i in range(self.num_envs)]
         self._reset_seeds()
         self._reset_options()
         return self._observation(frames)
@@ -195,7 +174,7 @@ class LearnerVecEnv(VecEnv):
                 }
             self._initial_actions(ended, initial)
             for i in ended:  # as DummyVecEnv's step_wait: the new episode's reset info
-                self.reset_infos[i] = _row_info(info, i)
+                self.reset_infos[i] = episode_info(info, i)
         return self._observation(frames), rewards.astype(np.float32), dones, infos
 
     def close(self) -> None:

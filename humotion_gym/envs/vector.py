@@ -633,6 +633,22 @@ def _item(value: NDArray[Any], i: int) -> Any:
     return float(row)
 
 
+def episode_info(info: dict[str, Any], i: int) -> dict[str, Any]:
+    """Episode ``i``'s part of a step's or reset's info, as the single environment gives it.
+
+    The keys whose mask (``_key``) shows that episode, without the finished
+    episodes' ``final_obs`` and ``final_info``: after a reset (or a restart
+    within a step), what the single environment's ``reset`` returns.
+    """
+    return {
+        key: _item(value, i)
+        for key, value in info.items()
+        if not key.startswith("_")
+        and key not in ("final_obs", "final_info")
+        and (f"_{key}" not in info or info[f"_{key}"][i])
+    }
+
+
 def _batch_of(value: Any, n: int) -> NDArray[Any]:
     """An empty batch of ``n`` values of ``value``'s kind, as ``SyncVectorEnv`` makes it.
 
