@@ -20,9 +20,10 @@ from typing import Any
 import numpy as np
 from tqdm.auto import tqdm
 
+from baselines.leaderboard.across_tasks import normalised_scores
 from baselines.leaderboard.evaluation import summarize
 from baselines.leaderboard.run import run_leaderboard
-from baselines.leaderboard.stats import bootstrap_ci, cell_label, iqm, normalised_scores
+from baselines.leaderboard.stats import bootstrap_ci, cell_label, iqm
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 from humotion_gym.render import SceneOptions
 

@@ -20,6 +20,7 @@ from baselines.leaderboard.stats import (
     iqm,
     median_lost_frame,
     proportion_ci,
+    run_clusters,
     seed_matrix,
     two_level_bootstrap,
 )
@@ -240,11 +241,7 @@ def summarize(
     seeded = len({e.get("agent_seed") for e in eps}) > 1
     # What the intervals resample whole: clips of a declared list, else the
     # episodes several agent seeds repeat, else nothing (independent episodes).
-    clusters = (
-        [e["clip_id"] for e in eps] if by_clip
-        else [int(e["seed"]) for e in eps] if seeded
-        else None
-    )  # fmt: skip
+    clusters = run_clusters(eps, by_clip)
 
     def interval(values: NDArray[np.float64], statistic: Any = np.mean) -> list[float]:
         if clusters is None:  # independent episodes

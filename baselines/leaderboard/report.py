@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from baselines.leaderboard import stats
+from baselines.leaderboard import across_tasks
 from baselines.leaderboard.evaluation import summarize
 from baselines.leaderboard.figures import (
     figure_aggregate,
@@ -54,7 +54,7 @@ from baselines.leaderboard.figures import (
     figures_available,
     ran,
 )
-from baselines.leaderboard.stats import agent_label
+from baselines.leaderboard.stats import agent_label, by_clip
 from baselines.leaderboard.tables import (
     markdown_table,
     person_rows,
@@ -72,9 +72,11 @@ SCORE_LEGEND = (
     "score: an episode's mean keypoint error over hold's on the same episode (same task, "
     "same seed): below 1 beats holding the initial pose, 0.5 halves its error. IQM: "
     "interquartile mean over all tasks' episodes, 95% stratified bootstrap interval "
-    "(episodes resampled within each task; Agarwal et al., NeurIPS 2021). P(beats hold): "
-    "probability that a random episode of the cell has a lower error than a random "
-    "episode of hold on the same task, averaged over tasks."
+    "(resampled within each task, as the cell's own intervals are: a declared list's "
+    "clips whole, an episode's agent seeds together, else episodes; Agarwal et al., "
+    "NeurIPS 2021). P(beats hold): probability that a random episode of the cell has a "
+    "lower error than a random episode of hold on the same task, averaged over tasks, "
+    "with the same resampling."
 )
 #: Caption of the per-person table.
 PERSON_LEGEND = (
@@ -284,11 +286,6 @@ def markdown_report(rows: Sequence[dict[str, Any]], computed: dict[str, Any]) ->
     return "\n".join(parts)
 
 
-def by_clip(row: dict[str, Any]) -> bool:
-    """Whether a row's intervals resample clips (its episodes are a declared list)."""
-    return (row.get("summary") or {}).get("intervals") == "clip"
-
-
 def compute(rows: Sequence[dict[str, Any]], seed: int = 0) -> dict[str, Any]:
     """Every statistic of the report (``stats.json``): cells, aggregate, pairwise, persons.
 
@@ -307,8 +304,8 @@ def compute(rows: Sequence[dict[str, Any]], seed: int = 0) -> dict[str, Any]:
         "reference": REFERENCE,
         "seed": seed,
         "cells": cells,
-        "aggregate": stats.aggregate(rows, REFERENCE, seed=seed),
-        "pairwise": stats.pairwise_improvement(rows, seed=seed),
+        "aggregate": across_tasks.aggregate(rows, REFERENCE, seed=seed),
+        "pairwise": across_tasks.pairwise_improvement(rows, seed=seed),
     }
     persons = person_rows(rows)
     if persons:  # rows whose episodes name no person keep the file as it was

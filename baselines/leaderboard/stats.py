@@ -399,125 +399,6 @@ def cell_label(row: dict[str, Any]) -> str:
     return f"{agent}@{row['particles']}" if row.get("particles") else agent
 
 
-def normalised_scores(
-    rows: Sequence[dict[str, Any]], reference: str = "hold"
-) -> dict[str, dict[str, FloatArray]]:
-    """Each cell's episode errors over the reference's on the same episode seeds.
-
-    A score of 0.5 halves ``hold``'s error on that episode; 1 is no better
-    than holding the initial pose. Episodes without a reference episode of
-    the same seed on the same task are left out.
-
-    Returns:
-        ``{cell label: {task: scores (episodes,)}}`` in the rows' order, for
-        every cell that ran (not skipped or failed) on a task with a reference.
-    """
-    refs = {
-        r["task"]: {e["seed"]: e["mean_error_mm"] for e in r["episodes"]}
-        for r in rows if r["agent"] == reference and "episodes" in r
-    }  # fmt: skip
-    out: dict[str, dict[str, FloatArray]] = {}
-    for r in rows:
-        held = refs.get(r["task"])
-        if held is None or "episodes" not in r or "skipped" in r or "error" in r:
-            continue
-        s = [e["mean_error_mm"] / held[e["seed"]] for e in r["episodes"] if e["seed"] in held]
-        if s:
-            out.setdefault(cell_label(r), {})[r["task"]] = np.asarray(s, dtype=np.float64)
-    return out
-
-
-def aggregate(
-    rows: Sequence[dict[str, Any]],
-    reference: str = "hold",
-    seed: int = 0,
-    n_resamples: int = N_RESAMPLES,
-) -> list[dict[str, Any]]:
-    """Across tasks: IQM and mean of the normalised scores with stratified intervals.
-
-    Returns:
-        One dict per cell label: ``cell``, ``tasks`` (names), ``episodes``,
-        ``iqm_score`` and ``iqm_score_ci``, ``mean_score`` and
-        ``mean_score_ci``, and ``beats_reference`` (the probability that a
-        random episode of the cell has a lower error than a random episode of
-        the reference on the same task, averaged over tasks, as
-        :func:`pairwise_improvement`; with ``beats_reference_ci``).
-    """
-    scores = normalised_scores(rows, reference)
-    errors = _errors_by_cell(rows)
-    references = {r["task"]: cell_label(r) for r in rows if r["agent"] == reference}
-    out = []
-    for label, per_task in scores.items():
-        cols = list(per_task.values())
-        pooled = np.concatenate(cols)
-        # P(beats the reference) on raw errors, unpaired as rliable (the tasks scored here)
-        x = [errors[label][t] for t in per_task]
-        y = [errors[references[t]][t] for t in per_task]
-        out.append(
-            {
-                "cell": label,
-                "tasks": list(per_task),
-                "episodes": int(pooled.size),
-                "iqm_score": iqm(pooled),
-                "iqm_score_ci": list(stratified_bootstrap_ci(cols, iqm, n_resamples, seed=seed)),
-                "mean_score": float(pooled.mean()),
-                "mean_score_ci": list(
-                    stratified_bootstrap_ci(cols, np.mean, n_resamples, seed=seed)
-                ),
-                "beats_reference": probability_of_improvement(x, y),
-                "beats_reference_ci": list(
-                    probability_of_improvement_ci(x, y, n_resamples=n_resamples, seed=seed)
-                ),
-            }
-        )
-    return out
-
-
-def _errors_by_cell(rows: Sequence[dict[str, Any]]) -> dict[str, dict[str, FloatArray]]:
-    """``{cell label: {task: episode mean errors}}`` of the rows that ran."""
-    out: dict[str, dict[str, FloatArray]] = {}
-    for r in rows:
-        if "episodes" in r and "skipped" not in r and "error" not in r and r["episodes"]:
-            out.setdefault(cell_label(r), {})[r["task"]] = np.array(
-                [e["mean_error_mm"] for e in r["episodes"]], dtype=np.float64
-            )
-    return out
-
-
-def pairwise_improvement(
-    rows: Sequence[dict[str, Any]],
-    seed: int = 0,
-    n_resamples: int = N_RESAMPLES,
-) -> list[dict[str, Any]]:
-    """P(X beats Y) for every ordered pair of cells on the tasks both ran.
-
-    Compared on raw episode errors per task (the probability is invariant to a
-    per-task normalisation), averaged over the shared tasks.
-
-    Returns:
-        One dict per ordered pair: ``x``, ``y``, ``tasks``, ``probability``, ``ci``.
-    """
-    per_cell = _errors_by_cell(rows)
-    out = []
-    for a, xa in per_cell.items():
-        for b, yb in per_cell.items():
-            shared = [t for t in xa if t in yb]
-            if a == b or not shared:
-                continue
-            x, y = [xa[t] for t in shared], [yb[t] for t in shared]
-            out.append(
-                {
-                    "x": a,
-                    "y": b,
-                    "tasks": shared,
-                    "probability": probability_of_improvement(x, y),
-                    "ci": list(probability_of_improvement_ci(x, y, n_resamples=n_resamples,
-                                                             seed=seed)),
-                }
-            )  # fmt: skip
-    return out
-
-
 # ---------------------------------------------------------------- agent seeds
 
 
@@ -692,7 +573,7 @@ def cluster_bootstrap_ci(
     takes every episode of each drawn cluster (a resample's size varies with
     the clusters drawn); the statistic is of the pooled episodes. With one
     episode per cluster it is :func:`bootstrap_ci` with the same seed (equal
-    to rounding).
+    to rounding). It is :func:`stratified_cluster_bootstrap_ci` of one task.
 
     Args:
         values: ``(episodes,)`` values (a cell's episode errors).
@@ -710,23 +591,184 @@ def cluster_bootstrap_ci(
         ValueError: If ``clusters`` does not give one cluster per value.
     """
     v = np.asarray(values, dtype=np.float64).ravel()
-    members, present = _cluster_members(clusters, v.size)
-    if v.size == 0:
+    return stratified_cluster_bootstrap_ci(
+        [v], [clusters], statistic, n_resamples, confidence, seed
+    )
+
+
+def stratified_cluster_bootstrap_ci(
+    columns: Sequence[ArrayLike],
+    clusters: Sequence[ArrayLike | None],
+    statistic: Callable[[FloatArray], float] = np.mean,
+    n_resamples: int = N_RESAMPLES,
+    confidence: float = 0.95,
+    seed: int | np.random.Generator = 0,
+) -> tuple[float, float]:
+    """:func:`stratified_bootstrap_ci` with each task's clusters resampled whole.
+
+    Within each task (stratum) a resample draws as many of its clusters as it
+    has, with replacement, and takes every episode of each; the statistic is
+    of every task's drawn episodes pooled. A task without clusters (None)
+    resamples its episodes one by one. This is the cluster bootstrap
+    (Davison & Hinkley, 1997, section 3.8) done per stratum, as rliable's
+    stratified bootstrap (Agarwal et al., 2021) is done per task.
+
+    Args:
+        columns: One 1-D array of episode values per task.
+        clusters: Per task, ``(episodes,)`` each episode's cluster, or None.
+        statistic: ``np.mean`` (vectorised) or any function of a 1-D array.
+        n_resamples: Bootstrap resamples.
+        confidence: Confidence level of the two-sided interval.
+        seed: Seed or generator of the resampling.
+
+    Returns:
+        The lower and upper bound: NaN for no values, the statistic twice when
+        every task has one cluster.
+
+    Raises:
+        ValueError: If ``clusters`` does not give one list per task, or one
+            cluster per episode of it.
+    """
+    cols = [np.asarray(c, dtype=np.float64).ravel() for c in columns]
+    if len(clusters) != len(cols):
+        raise ValueError(f"clusters: expected one per task ({len(cols)}), got {len(clusters)}")
+    groups = [
+        _cluster_members(np.arange(v.size) if c is None else c, v.size)
+        for v, c in zip(cols, clusters, strict=True)
+    ]
+    pooled = np.concatenate(cols) if cols else np.empty(0)
+    if pooled.size == 0:
         return float("nan"), float("nan")
-    if members.shape[0] == 1:
-        value = float(statistic(v))
+    if all(members.shape[0] <= 1 for members, _ in groups):
+        value = float(statistic(pooled))
         return value, value
-    episodes, taken = _draw_clusters(members, present, n_resamples, _rng(seed))
-    if statistic is np.mean:
-        theta = np.where(taken, v[episodes], 0.0).sum(axis=(1, 2)) / taken.sum(axis=(1, 2))
-    else:  # the resamples of one size at a time, as one batch
-        sizes = taken.sum(axis=(1, 2))
-        batched = _vectorised(statistic)
-        theta = np.empty(sizes.size)
-        for size in np.unique(sizes):
-            rows = np.flatnonzero(sizes == size)
-            drawn = v[episodes[rows]][taken[rows]].reshape(rows.size, int(size))
-            theta[rows] = batched(drawn, axis=1)
+    rng = _rng(seed)
+    drawn, taken = [], []
+    for v, (members, present) in zip(cols, groups, strict=True):
+        if v.size == 0:
+            continue
+        episodes, mask = _draw_clusters(members, present, n_resamples, rng)
+        drawn.append(v[episodes].reshape(n_resamples, -1))
+        taken.append(mask.reshape(n_resamples, -1))
+    theta = _pooled_statistic(
+        np.concatenate(drawn, axis=1), np.concatenate(taken, axis=1), statistic
+    )
     tail = 50.0 * (1.0 - confidence)
     low, high = np.percentile(theta, [tail, 100.0 - tail])
     return float(low), float(high)
+
+
+def _pooled_statistic(
+    drawn: FloatArray, taken: NDArray[np.bool_], statistic: Callable[[FloatArray], float]
+) -> FloatArray:
+    """The statistic of each resample's taken values (row ``r``: ``drawn[r][taken[r]]``)."""
+    if statistic is np.mean:
+        return np.where(taken, drawn, 0.0).sum(axis=1) / taken.sum(axis=1)
+    # the resamples of one size at a time, as one batch
+    sizes = taken.sum(axis=1)
+    batched = _vectorised(statistic)
+    theta = np.empty(sizes.size)
+    for size in np.unique(sizes):
+        rows = np.flatnonzero(sizes == size)
+        theta[rows] = batched(drawn[rows][taken[rows]].reshape(rows.size, int(size)), axis=1)
+    return theta
+
+
+def clustered_improvement_ci(
+    x: Sequence[ArrayLike],
+    y: Sequence[ArrayLike],
+    x_clusters: Sequence[ArrayLike | None],
+    y_clusters: Sequence[ArrayLike | None],
+    lower_is_better: bool = True,
+    n_resamples: int = N_RESAMPLES,
+    confidence: float = 0.95,
+    seed: int | np.random.Generator = 0,
+) -> tuple[float, float]:
+    """:func:`probability_of_improvement_ci` with each task's clusters resampled whole.
+
+    X's and Y's clusters are drawn independently within each task, as their
+    runs are in the unclustered interval; a resample's win rate is over every
+    pair of the runs it drew. A task without clusters (None) resamples its
+    runs one by one.
+
+    Args:
+        x: One 1-D array of X's runs per task.
+        y: Y's runs on the same tasks, in the same order.
+        x_clusters: Per task, each of X's runs' cluster, or None.
+        y_clusters: The same for Y.
+        lower_is_better: True for errors.
+        n_resamples: Bootstrap resamples.
+        confidence: Confidence level of the two-sided interval.
+        seed: Seed or generator of the resampling.
+
+    Raises:
+        ValueError: As :func:`probability_of_improvement`, or if the clusters
+            do not name one cluster per run of each task.
+    """
+    sign = _sign(x, y, lower_is_better)
+    if len(x_clusters) != len(x) or len(y_clusters) != len(y):
+        raise ValueError(
+            f"x_clusters, y_clusters: expected one per task ({len(x)}), "
+            f"got {len(x_clusters)} and {len(y_clusters)}"
+        )
+    rng = _rng(seed)
+    rates = []
+    for a, b, ca, cb in zip(x, y, x_clusters, y_clusters, strict=True):
+        va, vb = (np.asarray(v, dtype=np.float64).ravel() for v in (a, b))
+        wa = _cluster_weights(va.size, ca, n_resamples, rng)
+        wb = _cluster_weights(vb.size, cb, n_resamples, rng)
+        rates.append(_weighted_win_rate(va, vb, wa, wb, sign))
+    tail = 50.0 * (1.0 - confidence)
+    low, high = np.percentile(np.mean(rates, axis=0), [tail, 100.0 - tail])
+    return float(low), float(high)
+
+
+def _cluster_weights(
+    n: int, clusters: ArrayLike | None, n_resamples: int, rng: np.random.Generator
+) -> FloatArray:
+    """``(resamples, n)``: how many times each run is in each cluster resample."""
+    members, present = _cluster_members(np.arange(n) if clusters is None else clusters, n)
+    episodes, taken = _draw_clusters(members, present, n_resamples, rng)
+    rows = np.broadcast_to(np.arange(n_resamples)[:, None, None], episodes.shape)
+    flat = (rows * n + episodes)[taken]
+    return np.bincount(flat, minlength=n_resamples * n).reshape(n_resamples, n).astype(np.float64)
+
+
+def _weighted_win_rate(
+    a: FloatArray, b: FloatArray, wa: FloatArray, wb: FloatArray, sign: float
+) -> FloatArray:
+    """Each resample's share of (X run, Y run) pairs X wins, ties one half, runs weighted.
+
+    With weights the counts of :func:`_cluster_weights`, it is the pairwise
+    win rate of the resample's runs with their repeats; every term is a whole
+    or half number, so it is exact in float64. ``b`` is sorted once: the Y
+    weight below, at and above each X run are differences of cumulative sums.
+    """
+    order = np.argsort(b, kind="stable")
+    cum = np.zeros((wb.shape[0], b.size + 1))
+    np.cumsum(wb[:, order], axis=1, out=cum[:, 1:])
+    lo = np.searchsorted(b[order], a, side="left")
+    hi = np.searchsorted(b[order], a, side="right")
+    total = cum[:, -1:]
+    below, ties = cum[:, lo], cum[:, hi] - cum[:, lo]
+    wins = (total - cum[:, hi] if sign < 0 else below) + 0.5 * ties
+    return (wa * wins).sum(axis=1) / (wa.sum(axis=1) * total[:, 0])
+
+
+def by_clip(row: Mapping[str, Any]) -> bool:
+    """Whether a leaderboard row's intervals resample clips (its episodes are a declared list)."""
+    return (row.get("summary") or {}).get("intervals") == "clip"
+
+
+def run_clusters(episodes: Sequence[Mapping[str, Any]], by_clip: bool) -> list[Any] | None:
+    """What a cell's intervals resample whole, one entry per episode run.
+
+    The clip of each run of a declared list (``by_clip``), else the episode
+    seed where several agent seeds repeat the episodes, else None (every run
+    on its own).
+    """
+    if by_clip:
+        return [str(e["clip_id"]) for e in episodes]
+    if len({e.get("agent_seed") for e in episodes}) > 1:
+        return [int(e["seed"]) for e in episodes]
+    return None

@@ -34,6 +34,7 @@ import numpy as np
 
 from baselines.leaderboard.stats import (
     agent_label,
+    by_clip,
     cell_label,
     episode_clips,
     seed_matrix,
@@ -93,9 +94,7 @@ def hold_ratio_interval(
             f"{cell_label(hold)}: expected the episode seeds {seeds} of {cell_label(row)}, "
             f"got {held}"
         )
-    clusters = None
-    if row.get("summary", {}).get("intervals") == "clip":  # a declared list: resample clips
-        clusters = episode_clips(row["episodes"])
+    clusters = episode_clips(row["episodes"]) if by_clip(row) else None  # a declared list
     _, ratio = two_level_bootstrap(values, reference, seed=seed, clusters=clusters)
     assert ratio is not None  # a reference was given
     return ratio

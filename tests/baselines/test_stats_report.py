@@ -15,7 +15,7 @@ import pytest
 from scipy import stats as sps
 
 from baselines.cli import main
-from baselines.leaderboard import stats
+from baselines.leaderboard import across_tasks, stats
 from baselines.leaderboard.evaluation import EpisodeResult, summarize
 from baselines.leaderboard.report import load_rows, write_report
 from baselines.leaderboard.videos import ReplayMismatch, choose_episodes, replay_episodes
@@ -202,15 +202,15 @@ def test_normalised_scores_aggregate_and_pairwise_on_known_rows():
     rows = _rows({"pf-cv": 0.5, "pf-tree": 0.25})
     rows.append({"task": "ArmTrack-v2", "agent": "pf-pca", "particles": 100, "skipped": "no"})
     rows.append({"task": "ArmTrack-v2", "agent": "pf-x", "particles": 100, "error": "boom"})
-    scores = stats.normalised_scores(rows)
+    scores = across_tasks.normalised_scores(rows)
     assert set(scores) == {"hold", "pf-cv@100", "pf-tree@100"}
     np.testing.assert_allclose(scores["pf-cv@100"]["BodyTrack-v2"], 0.5)
-    agg = {a["cell"]: a for a in stats.aggregate(rows)}
+    agg = {a["cell"]: a for a in across_tasks.aggregate(rows)}
     assert agg["pf-tree@100"]["iqm_score"] == pytest.approx(0.25)
     assert agg["pf-tree@100"]["iqm_score_ci"] == pytest.approx([0.25, 0.25])
     assert agg["hold"]["beats_reference"] == 0.5
     assert agg["pf-cv@100"]["tasks"] == ["ArmTrack-v2", "BodyTrack-v2"]
-    pairs = {(p["x"], p["y"]): p for p in stats.pairwise_improvement(rows)}
+    pairs = {(p["x"], p["y"]): p for p in across_tasks.pairwise_improvement(rows)}
     # P(beats hold) is the pairwise probability against hold (random episodes, unpaired)
     for cell in ("pf-cv@100", "pf-tree@100"):
         assert agg[cell]["beats_reference"] == pairs[(cell, "hold")]["probability"]
