@@ -80,8 +80,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     again.add_argument(
         "--force", action="store_true",
-        help="start afresh over the earlier run in OUT, deleting its model and checkpoints "
-        "(default: refused)",
+        help="start afresh over the earlier run in OUT, deleting its model and checkpoints, "
+        "and replace the policy --export would write (default: refused)",
     )  # fmt: skip
     tr.add_argument(
         "--no-validation", action="store_true",
@@ -195,6 +195,14 @@ def _cmd_train(args: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
     if args.init is not None and not args.init.is_file():
         raise CommandError(f"--init: {args.init} does not exist")
+    export = None if args.export is None else args.export / f"{args.algo}-{config.task}.zip"
+    if export is not None and not args.force:  # refused now, not after the training
+        taken = [p for p in (export, export.with_suffix(".json")) if p.exists()]
+        if taken:
+            raise UsageError(
+                f"--export: {taken[0]} exists (an earlier export, or a pretrained checkpoint); "
+                "give --force to replace it"
+            )
     command = "humotion-gym " + " ".join(sys.argv[1:]) if sys.argv[1:] else None
     # With --json, stdout holds the one JSON object: the training log goes to stderr.
     log = contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext()
@@ -204,13 +212,12 @@ def _cmd_train(args: argparse.Namespace) -> int:
     except (FileExistsError, ResumeMismatch) as exc:  # the arguments and the folder disagree
         raise UsageError(str(exc)) from None
     run_config = json.loads((out / "config.json").read_text())
-    if args.export is not None:
-        args.export.mkdir(parents=True, exist_ok=True)
-        target = args.export / f"{args.algo}-{config.task}.zip"
-        shutil.copyfile(path, target)
-        shutil.copyfile(out / "config.json", target.with_suffix(".json"))
+    if export is not None:
+        export.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(path, export)
+        shutil.copyfile(out / "config.json", export.with_suffix(".json"))
         if not args.json:
-            wrote(target, "the policy (and its config beside it)")
+            wrote(export, "the policy (and its config beside it)")
     if args.json:
         print_json(run_config)
         return 0

@@ -435,6 +435,13 @@ def test_cli_train_and_track_a_saved_policy(tmp_path: Path, capsys) -> None:
     assert (tmp_path / "ck" / "bc-SideWalk-v2.json").is_file()
     model = out / "model.zip"
     assert main(["track", "--task", "SideWalk-v2", "--agent", str(model), "--episodes", "1"]) == 0
+    # an export over an earlier one is refused before any training
+    again = ["train", "--algo", "bc", "--task", "SideWalk-v2", "--steps", "100",
+             "--out", str(tmp_path / "again"), "--export", str(tmp_path / "ck")]  # fmt: skip
+    capsys.readouterr()
+    assert main(again) == 2 and not (tmp_path / "again").exists()
+    err = capsys.readouterr().err
+    assert "bc-SideWalk-v2.zip exists" in err and "--force" in err and len(err.splitlines()) == 1
     assert main(["train", "--algo", "bc", "--set", "bogus=1", "--out", str(out)]) == 2
     # a resume must continue the same algorithm, task and network
     same = ["--algo", "bc", "--task", "SideWalk-v2", "--set", "rounds=1", "frame_size=32"]
