@@ -13,6 +13,30 @@ from humotion_gym.checks import is_count, is_real
 FloatArray = NDArray[np.float64]
 
 
+def check_generator(rng: Any, who: str) -> None:
+    """Refuse anything but a ``numpy.random.Generator``, naming the function."""
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError(
+            f"{who}: rng must be a numpy.random.Generator "
+            f"(np.random.default_rng(seed)), got {type(rng).__name__}"
+        )
+
+
+def check_synthesis(frames: Any, rng: Any, who: str) -> int:
+    """A prior's ``synthesize`` request: ``frames`` an integer >= 1 and ``rng`` a Generator.
+
+    Returns:
+        ``frames`` as an int.
+
+    Raises:
+        ValueError: Naming ``who`` and what was expected.
+    """
+    check_generator(rng, who)
+    if not is_count(frames):
+        raise ValueError(f"{who}: frames must be an integer >= 1, got {frames!r}")
+    return int(frames)
+
+
 def check_request(base_pose: ArrayLike, frames: int, fps: float, rng: Any) -> FloatArray:
     """The base pose as a ``(25,)`` array, after checking the request.
 
@@ -21,11 +45,7 @@ def check_request(base_pose: ArrayLike, frames: int, fps: float, rng: Any) -> Fl
             integer >= 1, ``fps`` not a positive number or ``rng`` not a
             ``numpy.random.Generator``.
     """
-    if not isinstance(rng, np.random.Generator):
-        raise ValueError(
-            "synthesize_motion: rng must be a numpy.random.Generator "
-            f"(np.random.default_rng(seed)), got {type(rng).__name__}"
-        )
+    check_generator(rng, "synthesize_motion")
     base = np.asarray(base_pose, dtype=np.float64)
     if base.shape != (N_PARAMS,):
         raise ValueError(f"synthesize_motion: base_pose must have shape (25,), got {base.shape}")

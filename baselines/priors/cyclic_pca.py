@@ -64,7 +64,7 @@ from baselines.priors._checks import (
     training_clips,
 )
 from baselines.priors._io import load_fitted, save_fitted
-from baselines.priors._synthesis import check_request
+from baselines.priors._synthesis import check_request, check_synthesis
 from humotion_gym.body import (
     N_PARAMS,
     PARAM_INDEX,
@@ -752,10 +752,9 @@ def synthesize(fitted: CyclicPCAParams, frames: int, rng: np.random.Generator) -
         ``(frames, 25)`` parameters: the modelled joint angles from the model,
         every other parameter zero.
     """
-    if frames < 1:
-        raise ValueError(f"synthesize: frames must be >= 1, got {frames}")
-    angles, _ = _walk(fitted, int(frames), rng, 1.0)
-    out = np.zeros((int(frames), N_PARAMS))
+    frames = check_synthesis(frames, rng, "cyclic_pca.synthesize")
+    angles, _ = _walk(fitted, frames, rng, 1.0)
+    out = np.zeros((frames, N_PARAMS))
     out[:, fitted.angles] = angles
     return out
 

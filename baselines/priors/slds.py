@@ -71,7 +71,7 @@ from tqdm import tqdm
 from baselines.filtering import ParticleState
 from baselines.priors._checks import check_settings, free_indices, start_pose, training_clips
 from baselines.priors._io import load_fitted, save_fitted
-from baselines.priors._synthesis import check_request, model_frames, to_motion
+from baselines.priors._synthesis import check_request, check_synthesis, model_frames, to_motion
 from baselines.priors.slds_inference import (
     COV_RTOL,
     SLDSParams,
@@ -547,8 +547,7 @@ def synthesize(
     Returns:
         ``(frames, D)`` angles and ``(frames,)`` switch states.
     """
-    if frames < 1:
-        raise ValueError(f"slds.synthesize: frames must be >= 1, got {frames}")
+    frames = check_synthesis(frames, rng, "slds.synthesize")
     if max_radius is not None:
         fitted = stabilise(fitted, max_radius)
     s0 = sample_switches(fitted.pi0[None, :], np.zeros(1, dtype=np.intp), rng)

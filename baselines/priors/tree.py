@@ -147,7 +147,7 @@ from numpy.typing import ArrayLike, NDArray
 from baselines.filtering import ParticleState, deferred_rows, gathered
 from baselines.priors import _tree_compiled as compiled
 from baselines.priors._checks import start_pose
-from baselines.priors._synthesis import check_request, model_frames, to_motion
+from baselines.priors._synthesis import check_request, check_synthesis, model_frames, to_motion
 from baselines.priors.tree_fit import FILE_FORMAT, fit, load, save, summary
 from baselines.priors.tree_model import (
     DATABASE_DTYPE,
@@ -559,9 +559,13 @@ def synthesize(
         ``(frames, D)`` the synthesised poses (the start not included).
 
     Raises:
-        ValueError: If ``start`` has neither shape.
+        ValueError: If ``start`` has neither shape or is not finite, ``frames``
+            is not an integer >= 1 or ``rng`` not a Generator.
     """
+    n_frames = check_synthesis(frames, rng, "tree.synthesize")
     s = np.asarray(start, dtype=np.float64)
+    if not np.all(np.isfinite(s)):
+        raise ValueError("tree.synthesize: start must be finite")
     model = fitted.with_settings(beta=beta, noise_scale=noise_scale)
     if s.shape == (fitted.n_free,):
         state = initial(model, s, 1, rng)
@@ -572,8 +576,8 @@ def synthesize(
             f"tree.synthesize: start must be a pose ({fitted.n_free},) or a history "
             f"({fitted.window + 1}, {fitted.n_free}), got {s.shape}"
         )
-    out = np.empty((int(frames), fitted.n_free))
-    for t in range(int(frames)):
+    out = np.empty((n_frames, fitted.n_free))
+    for t in range(n_frames):
         state = transition(model, state, rng)
         out[t] = state.pose[0]
     return out

@@ -188,6 +188,42 @@ def test_synthesis_refuses_a_fraction_of_a_frame_and_a_nan_pose(name, walks, fit
         prior.synthesize_motion(fitted_priors[name], base, 4, 30.0, np.random.default_rng(0))
 
 
+@pytest.mark.parametrize("name", ["tree", "slds", "cyclic_pca"])
+@pytest.mark.parametrize(
+    ("frames", "rng", "match"),
+    [
+        (2.5, 0, "frames must be an integer >= 1"),  # numpy's "float object" error before
+        (-3, 0, "frames must be an integer >= 1"),  # np.empty's negative dimensions
+        (4, None, "rng must be a numpy.random.Generator"),
+    ],
+)
+def test_each_priors_own_synthesize_refuses_bad_arguments_by_name(
+    name, frames, rng, match, walks, fitted_priors
+):
+    from baselines.priors import cyclic_pca, slds, tree
+
+    rng = np.random.default_rng(rng) if rng is not None else 7
+    fitted = fitted_priors[name]
+    with pytest.raises(ValueError, match=rf"^{name}\.synthesize: {match}"):
+        if name == "tree":
+            tree.synthesize(fitted, walks[0].params[40, SAGITTAL], frames, 0.05, rng)
+        else:
+            {"slds": slds, "cyclic_pca": cyclic_pca}[name].synthesize(fitted, frames, rng)
+
+
+def test_the_trees_synthesis_refuses_a_nan_start(walks, fitted_priors):
+    from baselines.priors import tree
+
+    fitted = fitted_priors["tree"]
+    history = walks[0].params[40 - fitted.window : 41, SAGITTAL].copy()
+    pose = history[-1].copy()
+    pose[2] = np.nan
+    history[0, 2] = np.nan  # in the past alone: every synthesised frame was NaN
+    for start in (pose, history):
+        with pytest.raises(ValueError, match=r"^tree\.synthesize: start must be finite"):
+            tree.synthesize(fitted, start, 4, 0.05, np.random.default_rng(0))
+
+
 def test_the_trees_own_depth_fits_one_free_parameter(walks):
     fitted = get_prior("tree").fit(walks.motions, free=[PARAM_INDEX["r_knee"]])
     assert fitted.n_free == 1
