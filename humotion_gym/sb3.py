@@ -32,7 +32,13 @@ from stable_baselines3.common.vec_env.base_vec_env import (
     VecEnvStepReturn,
 )
 
-from humotion_gym.envs.vector import PoseTrackingVectorEnv, episode_info
+from humotion_gym.envs.vector import (
+    BATCH_SETTINGS,
+    FIXED_SETTINGS,
+    PoseTrackingVectorEnv,
+    check_episode_method,
+    episode_info,
+)
 from humotion_gym.wrappers import (
     check_frame_size,
     frame_and_initial,
@@ -189,7 +195,18 @@ class LearnerVecEnv(VecEnv):
         return [getattr(env, attr_name) for env in self._targets(indices)]
 
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
-        """Set an attribute of each episode's environment."""
+        """Set an attribute of each episode's environment.
+
+        The vector environment's settings go through its ``set_attr`` and its
+        checks: a fixed one is refused, a batch one must cover every episode.
+        """
+        if attr_name in FIXED_SETTINGS or attr_name in BATCH_SETTINGS:
+            rows = set(self._get_indices(indices))
+            self.venv.set_attr(attr_name, [
+                value if i in rows else getattr(env, attr_name)
+                for i, env in enumerate(self.venv.envs)
+            ])  # fmt: skip
+            return
         for env in self._targets(indices):
             setattr(env, attr_name, value)
 
@@ -200,7 +217,8 @@ class LearnerVecEnv(VecEnv):
         indices: VecEnvIndices = None,
         **method_kwargs: Any,
     ) -> list[Any]:
-        """Call a method of each episode's environment."""
+        """Call a method of each episode's environment (not ``reset`` or ``step``)."""
+        check_episode_method(method_name, "env_method")
         return [
             getattr(env, method_name)(*method_args, **method_kwargs)
             for env in self._targets(indices)

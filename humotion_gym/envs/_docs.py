@@ -48,7 +48,13 @@ COMMON_SECTIONS = """
     :class:`~humotion_gym.body.BodyShape` (``to_vector``);
     :func:`~humotion_gym.envs.description.read_observation` gives them typed.
     :class:`~humotion_gym.wrappers.FrameObservation` gives a pixel-only
-    learner the frame alone. The ground truth of the free parameters never
+    learner the frame alone. Where a task fixes nothing (BodyTrack,
+    WalkTrack), ``fixed_params`` is empty, ``(0,)``: stable-baselines3
+    trains on it but its ``predict`` cannot reshape an empty entry, so give
+    SB3 :class:`~humotion_gym.wrappers.LearnerObservation` (``docs/rl.md``)
+    or drop the key with ``gymnasium.wrappers.FilterObservation``. The
+    frame returned is the one ``render()`` draws over and a vector
+    environment's ``final_obs`` holds: copy it before drawing on it. The ground truth of the free parameters never
     appears, and nothing given at a step (observation, action bounds)
     depends on the episode after the frame on show
     (``tests/envs/test_no_future_leak.py`` checks every task).

@@ -20,7 +20,7 @@ from humotion_gym.body import (
     forward_kinematics,
 )
 from humotion_gym.camera import Camera
-from humotion_gym.checks import check_count, is_real
+from humotion_gym.checks import check_count, check_positive, is_real
 from humotion_gym.envs import description
 from humotion_gym.envs._cameras import EpisodeCameras
 from humotion_gym.envs._checks import action_array, check_env_arguments
@@ -229,7 +229,6 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         self.terminate_on_lost = terminate_on_lost
         self.lost_threshold_mm = float(lost_threshold_mm)
         self.lost_patience = int(lost_patience)
-        self.reward_scale_mm = float(reward_scale_mm)
         self.metadata = {**self.metadata, "render_fps": fps / self.frame_skip}
 
         if library is None:
@@ -254,7 +253,7 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
             for name, members in _REGIONS.items()
         }
         self._reward_terms = [(f"reward_{name}", idx) for name, idx in self._region_of.items()]
-        self._scoring = Scoring.of(self._err_kp, self._reward_terms, self.reward_scale_mm)
+        self._scoring = Scoring.of(self._err_kp, self._reward_terms, float(reward_scale_mm))
         self._motion: Motion | None = None
         self._done = False
         self._starts: dict[str, tuple[Motion, NDArray[np.intp]]] = {}
@@ -688,6 +687,20 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         info["after_end"] = True
         return self._observation(self._frame.copy()), 0.0, terminated, truncated, info
 
+    @property
+    def reward_scale_mm(self) -> float:
+        """The error (mm) at which a keypoint's share of the reward falls to ``1/e``.
+
+        Setting it (``set_attr``, or on ``env.unwrapped``) changes the reward
+        from the next step on.
+        """
+        return self._scoring.scale_mm
+
+    @reward_scale_mm.setter
+    def reward_scale_mm(self, value: float) -> None:
+        check_positive("reward_scale_mm", value)
+        self._scoring = replace(self._scoring, scale_mm=float(value))
+
     def render(self) -> NDArray[np.uint8] | None:
         """The last estimate drawn as a wire figure over the frame it estimates.
 
@@ -700,7 +713,13 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         rendered again: the frame is the observation ``reset`` or ``step``
         returned, and the wire figure joins the keypoints ``step`` scored.
         """
-        if self.render_mode is None or self._motion is None:
+        if self.render_mode is None:
+            gym.logger.warn(
+                f"render() of {self.task.name} made without a render_mode returns None: "
+                'make it with render_mode="rgb_array"'
+            )
+            return None
+        if self._motion is None:
             return None
         shown, k = (self._frame, self._k) if self._estimated is None else self._estimated
         frames = [shown] if self.views == 1 else list(shown)

@@ -567,7 +567,13 @@ class PoseTrackingVectorEnv(VectorEnv):
         return tuple(env.np_random for env in self.envs)
 
     def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
-        """Each episode's method ``name`` called with the arguments, or its attribute."""
+        """Each episode's method ``name`` called with the arguments, or its attribute.
+
+        Raises:
+            ValueError: For :data:`EPISODE_METHODS`, which would move the
+                episodes on without the batch that scores and shows them.
+        """
+        check_episode_method(name, "call")
         values = [getattr(env, name) for env in self.envs]
         return tuple(v(*args, **kwargs) if callable(v) else v for v in values)
 
@@ -614,6 +620,24 @@ class PoseTrackingVectorEnv(VectorEnv):
 BATCH_SETTINGS: tuple[str, ...] = (
     "terminate_on_lost", "lost_threshold_mm", "lost_patience", "reward_scale_mm",
 )  # fmt: skip
+#: Methods that start or advance an episode: the batch's own ``reset`` and ``step`` do.
+EPISODE_METHODS: tuple[str, ...] = ("reset", "step")
+
+
+def check_episode_method(name: str, caller: str) -> None:
+    """Refuse calling an episode's ``reset`` or ``step`` past the batch, naming ``caller``.
+
+    The batch keeps each episode's poses, frame index and bounds in its own
+    arrays, filled when it starts or steps the episode; an episode restarted
+    behind its back would be scored against the episode before.
+    """
+    if name in EPISODE_METHODS:
+        raise ValueError(
+            f"{caller}({name!r}): the vector environment keeps each episode's state in its "
+            f"batch; use its own {name}() (reset(seed=..., options=...) restarts every episode)"
+        )
+
+
 #: Read when the batch is made: its buffers' sizes, spaces and scene.
 FIXED_SETTINGS: tuple[str, ...] = (
     "episode_frames", "frame_skip", "task", "scene", "views", "render_mode",

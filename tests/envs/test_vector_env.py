@@ -282,7 +282,57 @@ def test_the_vector_env_answers_what_sync_vector_env_answers():
     plain = gym.make_vec("humotion_gym/BodyTrack-v2", 2, vectorization_mode="vector_entry_point",
                          width=64, height=64)  # fmt: skip
     plain.reset(seed=0)
-    assert plain.render() == (None, None)  # no render_mode: an entry per episode, as sync's
+    with pytest.warns(UserWarning, match="without a render_mode"):
+        assert plain.render() == (None, None)  # no render_mode: an entry per episode, as sync's
+
+
+@pytest.mark.parametrize("mode", ["vector_entry_point", "sync"])
+def test_a_reward_scale_set_on_the_episodes_is_the_reward_made_with_it(mode):
+    # the scale was baked into the scoring when the env was made: set_attr was
+    # stored, get_attr echoed it, and the reward stayed at the old scale
+    kwargs = {"width": 64, "height": 64}
+    action = np.full(4, 0.3, np.float32)
+    made = gym.make("humotion_gym/ArmTrack-v2", reward_scale_mm=1000.0, **kwargs)
+    made.reset(seed=0)
+    want = made.step(action)[1]
+    venv = gym.make_vec("humotion_gym/ArmTrack-v2", 2, vectorization_mode=mode, **kwargs)
+    venv.set_attr("reward_scale_mm", 1000.0)
+    venv.reset(seed=0)
+    reward = venv.step(np.stack([action, action]))[1]
+    assert reward[0] == pytest.approx(want, rel=1e-12) and want > 0.5
+    with pytest.raises(ValueError, match="reward_scale_mm: expected a positive"):
+        made.unwrapped.reward_scale_mm = 0.0
+
+
+def test_an_episode_is_not_reset_or_stepped_behind_the_batch():
+    vec = PoseTrackingVectorEnv(2, "ArmTrack-v2", width=64, height=64)
+    vec.reset(seed=0)
+    for name in ("reset", "step"):
+        with pytest.raises(ValueError, match=rf"call\('{name}'\): .* use its own {name}\(\)"):
+            vec.call(name)
+    from humotion_gym.sb3 import learner_vec_env
+
+    learner = learner_vec_env("ArmTrack-v2", 2, "train", 32)
+    with pytest.raises(ValueError, match=r"env_method\('reset'\)"):
+        learner.env_method("reset", indices=[1])
+    # SB3's set_attr goes through the batch's checks, per episode too
+    with pytest.raises(ValueError, match="'episode_frames' is set when the vector environment"):
+        learner.set_attr("episode_frames", 40)
+    with pytest.raises(ValueError, match="one 'lost_patience' to all its episodes"):
+        learner.set_attr("lost_patience", 2, indices=[0])
+    learner.set_attr("lost_patience", 2)
+    learner.set_attr("note", "mine", indices=[1])  # not a setting: as SB3's other envs
+    assert learner.get_attr("lost_patience") == [2, 2] and learner.get_attr("note", [1]) == ["mine"]
+
+
+def test_render_without_a_render_mode_says_so():
+    env = gym.make("humotion_gym/ArmTrack-v2", width=64, height=64)
+    env.reset(seed=0)
+    with pytest.warns(
+        UserWarning,
+        match='without a render_mode returns None: make it with render_mode="rgb_array"',
+    ):
+        assert env.render() is None
 
 
 @pytest.mark.parametrize("mode", ["vector_entry_point", "sync"])
