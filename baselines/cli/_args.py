@@ -98,9 +98,17 @@ def add_engine(parser: argparse.ArgumentParser) -> None:
 
 
 def check_engine(args: argparse.Namespace) -> None:
-    """Refuse ``--workers``/``--address`` without ``--engine ray`` (see :func:`add_engine`)."""
-    if args.engine != "ray" and (args.workers is not None or args.address is not None):
-        raise UsageError("--workers, --address: only with --engine ray")
+    """Refuse ``--workers``/``--address`` without ``--engine ray``, and an address of no form."""
+    from baselines.leaderboard.engine import check_ray_address_form
+
+    given = [flag for flag in ("workers", "address") if getattr(args, flag) is not None]
+    if args.engine != "ray" and given:
+        raise UsageError(f"{', '.join('--' + f for f in given)}: only with --engine ray")
+    if args.address is not None:
+        try:
+            check_ray_address_form(args.address)
+        except ValueError as exc:
+            raise UsageError(f"--{exc}") from None
 
 
 def key_value(text: str) -> tuple[str, float]:

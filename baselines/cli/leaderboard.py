@@ -191,6 +191,7 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         run_leaderboard,
         validity_lines,
     )
+    from baselines.leaderboard.engine import BadWorkers, NoRayCluster
     from baselines.leaderboard.run import check_labels
     from baselines.leaderboard.videos import ReplayMismatch
 
@@ -246,8 +247,12 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         if exc.name != "ray":
             raise
         raise CommandError(f"--engine ray: {exc}") from None
-    except ConnectionError as exc:  # --address where no Ray cluster listens
+    except NoRayCluster as exc:  # --address where no Ray cluster listens
         raise CommandError(f"--{exc}") from None
+    except ConnectionError as exc:  # Ray's own: no cluster for auto, a refused token
+        raise CommandError(f"--address: {exc}") from None
+    except BadWorkers as exc:  # more workers than the joined cluster's CPUs
+        raise UsageError(f"--workers: {exc}") from None
     except ResumeError as exc:  # the saved run's other settings: the arguments conflict
         raise UsageError(f"--resume: {exc}") from None
     except ReplayMismatch as exc:  # a video's episode did not reproduce: the run is saved

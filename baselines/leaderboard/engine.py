@@ -481,9 +481,13 @@ class RayEngine:
             A Ray already initialised in this process is used as it is.
         tasks: The run's tasks: each actor makes their environments (loads
             the clips) as it starts.
+        jobs: The episodes to run: no more actors start than there are.
 
     Raises:
         ModuleNotFoundError: If Ray is not installed.
+        NoRayCluster: If nothing answers at ``address``.
+        BadWorkers: If the cluster of ``address`` has fewer CPUs than
+            ``workers`` (the actors beyond would wait for ever).
     """
 
     def __init__(
@@ -493,29 +497,58 @@ class RayEngine:
         workers: int | None = None,
         address: str | None = None,
         tasks: Sequence[str] = (),
+        jobs: int | None = None,
     ) -> None:
         ray = _import_ray()
         self.ray = ray
         self.started = False
-        if not ray.is_initialized():
-            env_vars = {k: os.environ[k] for k in WORKER_ENV_VARS if os.environ.get(k)}
-            common: dict[str, Any] = {
-                "runtime_env": {"env_vars": env_vars} if env_vars else None,
-                "logging_level": logging.WARNING,
-                "log_to_driver": True,
-            }
-            address = address or os.environ.get("RAY_ADDRESS") or None
-            if address:
-                check_ray_address(address)
-                ray.init(address=address, **common)
-            else:
-                ray.init(num_cpus=workers or os.cpu_count() or 1, include_dashboard=False, **common)
+        self.actors: list[Any] = []
+        try:  # an interrupted start stops the Ray it started
+            joined = self._connect(workers, address, jobs)
+            cpus = max(1, int(ray.cluster_resources().get("CPU", 1)))
+            if joined and workers is not None and workers > cpus:
+                raise BadWorkers(
+                    f"{workers} workers of one CPU each, but the Ray cluster has {cpus} CPUs: "
+                    f"the others would wait for ever; give {cpus} or fewer"
+                )
+            wanted = int(workers or cpus)
+            self.workers = min(wanted, jobs) if jobs else wanted
+            self._actor = ray.remote(num_cpus=1)(_RayWorker)
+            self._args = (int(seed), dict(env_kwargs or {}), list(dict.fromkeys(tasks)))
+            self._fits: Any = None
+            self.actors = [self._actor.remote(*self._args) for _ in range(self.workers)]
+        except BaseException:
+            self.close()
+            raise
+
+    def _connect(self, workers: int | None, address: str | None, jobs: int | None) -> bool:
+        """Join the cluster at ``address`` (or ``RAY_ADDRESS``), else start a Ray of our own.
+
+        Returns:
+            Whether the Ray is one this run did not size (joined, or already up).
+        """
+        ray = self.ray
+        if ray.is_initialized():
+            return True
+        env_vars = {k: os.environ[k] for k in WORKER_ENV_VARS if os.environ.get(k)}
+        common: dict[str, Any] = {
+            "runtime_env": {"env_vars": env_vars} if env_vars else None,
+            "logging_level": logging.WARNING,
+            "log_to_driver": True,
+        }
+        address = address or os.environ.get("RAY_ADDRESS") or None
+        # Set first: whatever an interrupted init leaves running is ours to stop.
+        if address:
+            check_ray_address(address)
             self.started = True
-        self.workers = int(workers or max(1, int(ray.cluster_resources().get("CPU", 1))))
-        self._actor = ray.remote(num_cpus=1)(_RayWorker)
-        self._args = (int(seed), dict(env_kwargs or {}), list(dict.fromkeys(tasks)))
-        self._fits: Any = None
-        self.actors = [self._actor.remote(*self._args) for _ in range(self.workers)]
+            ray.init(address=address, **common)
+            return True
+        # "local": a Ray of this run's own, even beside a `ray start` cluster
+        wanted = workers or os.cpu_count() or 1
+        cpus = min(wanted, jobs) if jobs else wanted
+        self.started = True
+        ray.init(address="local", num_cpus=cpus, include_dashboard=False, **common)
+        return False
 
     def start(self, fits: Fits) -> None:
         """Put the fits in the object store once and hand them to every actor.
@@ -570,6 +603,7 @@ class RayEngine:
             self.ray.kill(actor)
         self.actors = []
         if self.started:
+            self.started = False
             self.ray.shutdown()
 
 
@@ -589,6 +623,7 @@ def make_engine(
     workers: int | None = None,
     address: str | None = None,
     tasks: Sequence[str] = (),
+    jobs: int | None = None,
 ) -> InProcessEngine | RayEngine:
     """An engine by name (:data:`ENGINES`); call its ``start(fits)`` before ``run``.
 
@@ -601,25 +636,50 @@ def make_engine(
             raise ValueError("workers, address: the inprocess engine runs one worker, here")
         return InProcessEngine(seed, env_kwargs)
     if name == "ray":
-        return RayEngine(seed, env_kwargs, workers, address, tasks)
+        return RayEngine(seed, env_kwargs, workers, address, tasks, jobs)
     raise ValueError(f"engine: expected one of {list(ENGINES)}, got {name!r}")
 
 
-def check_ray_address(address: str, timeout: float = 5.0) -> None:
-    """Refuse a ``host:port`` where nothing listens, before Ray retries it for minutes.
+class NoRayCluster(ConnectionError):
+    """Nothing answers at the Ray address given."""
 
-    ``auto``, ``local`` and other forms are left to Ray.
+
+class BadWorkers(ValueError):
+    """More workers than the Ray cluster has CPUs for."""
+
+
+def check_ray_address_form(address: str) -> tuple[str, int] | None:
+    """The ``(host, port)`` of a Ray address, None for ``auto`` and ``local``.
 
     Raises:
-        ConnectionError: Naming the address, when its port takes no connection.
+        ValueError: When it has none of Ray's forms (``HOST:PORT``,
+            ``ray://HOST:PORT``, ``auto``, ``local``).
     """
+    if address in ("auto", "local"):
+        return None
     host, sep, port = address.removeprefix("ray://").rpartition(":")
     if not sep or not host or not port.isdigit():
+        raise ValueError(f"address {address!r}: expected HOST:PORT, ray://HOST:PORT, auto or local")
+    return host, int(port)
+
+
+def check_ray_address(address: str, timeout: float = 5.0) -> None:
+    """Refuse an address Ray cannot take, or a ``host:port`` where nothing listens.
+
+    Ray would retry the port for minutes; ``auto`` and ``local`` are left to it.
+
+    Raises:
+        NoRayCluster: Naming the address, when its port takes no connection.
+        ValueError: When it has none of Ray's forms.
+    """
+    where = check_ray_address_form(address)
+    if where is None:
         return
+    host, port = where
     try:
-        socket.create_connection((host, int(port)), timeout=timeout).close()
+        socket.create_connection((host, port), timeout=timeout).close()
     except (OSError, ValueError) as exc:
-        raise ConnectionError(
+        raise NoRayCluster(
             f"address {address}: no Ray cluster answers there ({exc}); start one with "
             "`ray start --head` or leave --address out for a local Ray"
         ) from None

@@ -160,7 +160,7 @@ def run_leaderboard(
         folder, _settings(seed, kwargs, declared), resume, seed, agent_seed_list, policies
     )
     left = _left(cells, windows, agent_seed_list, done)
-    runner = make_engine(engine, seed, kwargs, workers, address, tasks) if left else None
+    runner = make_engine(engine, seed, kwargs, workers, address, tasks, len(left)) if left else None
     problems, failures = _run_left(runner, cells, left, done, folder, seed, kwargs, progress)
     rows = _rows(cells, windows, agent_seed_list, done, problems, failures, seed, declared)
     if folder is not None:

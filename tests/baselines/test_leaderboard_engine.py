@@ -259,7 +259,77 @@ def test_an_agent_that_raises_in_an_episode_is_an_error_row_and_exit_1(
 def test_engine_flags_used_wrongly_are_usage_errors(extra, flag, capsys):
     argv = ["leaderboard", "--tasks", "BodyTrack-v2", "--agents", "hold", "--episodes", "1"]
     assert main(argv + extra) == 2
-    assert flag in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert flag in err and ("--workers" in err) == (flag == "--workers")  # the flag given
+    bad = ["--engine", "ray", "--address", "garbage"]
+    assert main(argv + bad) == 2  # before Ray starts
+    assert "--address 'garbage': expected HOST:PORT, ray://HOST:PORT" in capsys.readouterr().err
+
+
+class _FakeRay:
+    """Just enough of Ray for :class:`RayEngine` to start and stop actors, recording its calls."""
+
+    def __init__(self, cpus: int, up: bool = False, fail_init: bool = False) -> None:
+        self.cpus, self.up, self.fail_init = cpus, up, fail_init
+        self.inits: list[dict] = []
+        self.shutdowns = 0
+        self.actors = 0
+
+    def is_initialized(self) -> bool:
+        return self.up
+
+    def init(self, **kwargs) -> None:
+        self.inits.append(kwargs)
+        self.up = True
+        if self.fail_init:
+            raise KeyboardInterrupt  # Ctrl-C while Ray starts
+
+    def cluster_resources(self) -> dict:
+        return {"CPU": float(self.cpus)}
+
+    def remote(self, num_cpus: int):
+        fake = self
+
+        class Actor:
+            @staticmethod
+            def remote(*args):
+                fake.actors += 1
+                return object()
+
+        return lambda cls: Actor
+
+    def kill(self, actor) -> None:
+        self.actors -= 1
+
+    def shutdown(self) -> None:
+        self.shutdowns += 1
+        self.up = False
+
+
+def test_a_ray_of_its_own_beside_a_cluster_no_more_actors_than_episodes(monkeypatch):
+    from baselines.leaderboard import engine as engine_module
+
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    fake = _FakeRay(cpus=3)
+    monkeypatch.setattr(engine_module, "_import_ray", lambda: fake)
+    runner = engine_module.RayEngine(0, {}, workers=8, jobs=3)
+    # "local" starts a Ray of this run even where `ray start` left a cluster
+    assert fake.inits[0]["address"] == "local" and fake.inits[0]["num_cpus"] == 3
+    assert runner.workers == fake.actors == 3  # 8 asked, 3 episodes to run
+    runner.close()
+    assert fake.actors == 0 and fake.shutdowns == 1
+    # a joined cluster too small for the workers asked: refused, not waited on for ever
+    joined = _FakeRay(cpus=2, up=True)
+    monkeypatch.setattr(engine_module, "_import_ray", lambda: joined)
+    with pytest.raises(engine_module.BadWorkers, match="4 workers .* has 2 CPUs"):
+        engine_module.RayEngine(0, {}, workers=4, jobs=10)
+    assert joined.actors == 0 and joined.shutdowns == 0  # not ours to stop
+    # interrupted while starting: the Ray it started is stopped
+    broken = _FakeRay(cpus=2, fail_init=True)
+    monkeypatch.setattr(engine_module, "_import_ray", lambda: broken)
+    with pytest.raises(KeyboardInterrupt):
+        engine_module.RayEngine(0, {}, workers=2)
+    assert broken.shutdowns == 1
 
 
 def test_the_ray_schedule_hands_out_every_episode_once_keeping_workers_on_their_cells():
