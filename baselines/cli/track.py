@@ -130,6 +130,7 @@ def _cmd_track(args: argparse.Namespace) -> int:
     import gymnasium as gym
 
     from baselines.agents import REFERENCES, make, uses_particles
+    from baselines.agents.base import TaskNotSupported
     from baselines.leaderboard.evaluation import evaluate, run_episode, summarize, warm_up
     from humotion_gym.video import write_video
 
@@ -164,7 +165,9 @@ def _cmd_track(args: argparse.Namespace) -> int:
         check_memory("--video", frames_per_episode, size, "frames of the first episode")
     try:
         agent = make(args.agent, env, n_particles=args.particles, seed=args.seed)
-    except ValueError as exc:  # a policy file that is not one, an agent that cannot run here
+    except TaskNotSupported as exc:  # --agent and --task conflict, as the leaderboard skips
+        raise UsageError(f"--agent: {exc}") from None
+    except ValueError as exc:  # a policy file that is not one
         raise CommandError(f"--agent: {exc}") from None
     warm_up_s = warm_up(agent, env, args.seed, options)
     results = evaluate(agent, env, args.episodes, seed=args.seed, options=options, progress=True)

@@ -61,7 +61,7 @@ from baselines.leaderboard.tables import (
     person_table,
     validity_lines,
 )
-from baselines.leaderboard.videos import write_videos
+from baselines.leaderboard.videos import remove_earlier_videos, write_videos
 
 #: The reference each task's scores are normalised by.
 REFERENCE = "hold"
@@ -564,6 +564,14 @@ def write_report(
         raise ValueError("rows: no cell ran (all skipped or failed); nothing to report")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
+    made: list[dict[str, Any]] = []
+    if videos:  # first: an episode that does not replay stops the report before the rest
+        config = (run or {}).get("config") or {}
+        declared = bool(config.get("declared")) if isinstance(config, Mapping) else False
+        made = write_videos(rows, folder, env_kwargs, video_cells, progress, declared)
+        (folder / "videos.json").write_text(json.dumps(made, indent=1))
+    else:  # an earlier report's videos: no longer on the page
+        remove_earlier_videos(folder)
     computed = compute(rows, seed=seed)
     (folder / "stats.json").write_text(json.dumps(computed, indent=1, default=_plain))
     (folder / "tables.md").write_text(markdown_report(rows, computed))
@@ -573,12 +581,6 @@ def write_report(
         figures = write_figures(rows, computed, folder, seed)
     else:
         notes.append("No figures: matplotlib is not installed (pip install -e '.[plots]' adds it).")
-    made: list[dict[str, Any]] = []
-    if videos:
-        config = (run or {}).get("config") or {}
-        declared = bool(config.get("declared")) if isinstance(config, Mapping) else False
-        made = write_videos(rows, folder, env_kwargs, video_cells, progress, declared)
-        (folder / "videos.json").write_text(json.dumps(made, indent=1))
     index = folder / "index.html"
     # the engine's files of the same results folder, where they are
     files = [f for f in ("results.json", "table.md", "episodes.jsonl") if (folder / f).is_file()]

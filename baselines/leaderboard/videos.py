@@ -8,6 +8,8 @@ WebM (VP8, which browsers play) with a contact sheet (JPEG).
 
 from __future__ import annotations
 
+import contextlib
+import json
 import os
 import re
 from collections.abc import Callable, Sequence
@@ -201,11 +203,14 @@ def write_videos(
     """Videos and contact sheets of each cell's best, median and worst episode.
 
     ``declared``: the run scored the declared episodes (see :func:`replay_episodes`).
+    A video an earlier report left in ``folder`` is kept only where its
+    ``videos.json`` entry is this one's (the same episode, the same error).
 
     Returns:
         One dict per video: task, cell, choice, seed, mean_error_mm, video and
         sheet (paths relative to ``folder``).
     """
+    earlier = {e.get("video"): e for e in earlier_videos(folder)}
     (folder / "videos").mkdir(parents=True, exist_ok=True)
     chosen = [r for r in rows if ran(r) and (cells is None or cells(r))]
     out = []
@@ -220,17 +225,37 @@ def write_videos(
             stem = _slug(f"{r['task']}_{stats.cell_label(r)}_{choice}_seed{s}")
             video = folder / "videos" / f"{stem}.webm"
             sheet = folder / "videos" / f"{stem}.jpg"
-            if not video.exists():
+            entry = {"task": r["task"], "cell": stats.cell_label(r), "choice": choice, "seed": s,
+                     "mean_error_mm": result.mean_error_mm,
+                     "video": video.relative_to(folder).as_posix(),
+                     "sheet": sheet.relative_to(folder).as_posix()}  # fmt: skip
+            if earlier.get(entry["video"]) != entry or not (video.exists() and sheet.exists()):
                 write_webm(video, _caption(frames, result.errors_mm), fps)
                 # JPEG: the sensor noise makes a PNG of the sheet five times larger
                 sheet_rgb = contact_sheet(frames, columns=6, count=12)
                 image = cv2.cvtColor(sheet_rgb, cv2.COLOR_RGB2BGR)
                 if not cv2.imwrite(str(sheet), image, [cv2.IMWRITE_JPEG_QUALITY, 90]):
                     raise OSError(f"{sheet}: could not write the contact sheet")
-            out.append(
-                {"task": r["task"], "cell": stats.cell_label(r), "choice": choice, "seed": s,
-                 "mean_error_mm": result.mean_error_mm,
-                 "video": video.relative_to(folder).as_posix(),
-                 "sheet": sheet.relative_to(folder).as_posix()}
-            )  # fmt: skip
+            out.append(entry)
     return out
+
+
+def earlier_videos(folder: Path) -> list[dict[str, Any]]:
+    """The entries of the ``videos.json`` an earlier report left in ``folder`` (or none)."""
+    try:
+        entries = json.loads((folder / "videos.json").read_text())
+    except (OSError, ValueError):
+        return []
+    return [e for e in entries if isinstance(e, dict)] if isinstance(entries, list) else []
+
+
+def remove_earlier_videos(folder: Path) -> None:
+    """Delete the videos and sheets an earlier report listed, and its ``videos.json``."""
+    for entry in earlier_videos(folder):
+        for key in ("video", "sheet"):
+            name = entry.get(key)
+            if isinstance(name, str) and name.startswith("videos/") and ".." not in name:
+                (folder / name).unlink(missing_ok=True)
+    (folder / "videos.json").unlink(missing_ok=True)
+    with contextlib.suppress(OSError):  # only if nothing else is left in it
+        (folder / "videos").rmdir()

@@ -425,6 +425,28 @@ def test_report_command_with_videos(small_run, tmp_path, capsys):
         frames += 1
     assert frames == 6
     assert main(["report", str(tmp_path / "missing.json"), "--out", str(out)]) == 1
+    # an earlier report's video is not reused for an entry it was not made for
+    listed = json.loads((out / "videos.json").read_text())
+    listed[0]["mean_error_mm"] += 1.0
+    (out / "videos.json").write_text(json.dumps(listed))
+    (out / videos[0]).write_bytes(b"stale")
+    assert main(["report", str(results), "--out", str(out), "--videos"]) == 0
+    assert (out / videos[0]).read_bytes()[:4] == b"\x1aE\xdf\xa3"  # WebM again
+    # a report without videos takes the earlier ones away with their list
+    assert main(["report", str(results), "--out", str(out)]) == 0
+    assert not (out / "videos.json").exists() and not (out / "videos").exists()
+    assert not [link for link in _check_page(out / "index.html").links if ".webm" in link]
+    # an episode that does not replay stops the report before anything is written
+    doc = json.loads(results.read_text())
+    for row in doc["rows"]:
+        for e in row["episodes"]:
+            e["errors_mm"] = [x + 5.0 for x in e["errors_mm"]]
+    results.write_text(json.dumps(doc))
+    capsys.readouterr()
+    fresh = tmp_path / "fresh"
+    assert main(["report", str(results), "--out", str(fresh), "--videos"]) == 1
+    assert "were the environment settings" in capsys.readouterr().err
+    assert not [p.name for p in fresh.iterdir() if p.name != "videos"]
 
 
 def _chromium() -> str | None:
