@@ -664,12 +664,16 @@ def check_ray_address_form(address: str) -> tuple[str, int] | None:
 
 
 def check_ray_address(address: str, timeout: float = 5.0) -> None:
-    """Refuse an address Ray cannot take, or a ``host:port`` where nothing listens.
+    """Refuse an address Ray cannot take, or a ``host:port`` where no Ray listens.
 
-    Ray would retry the port for minutes; ``auto`` and ``local`` are left to it.
+    Ray would retry such a port for minutes; ``auto`` and ``local`` are left to
+    it. Ray's ports speak gRPC; a port that answers a plain HTTP request is a
+    web server (most often Ray's dashboard, 8265, which ``ray start`` prints
+    beside the cluster's address).
 
     Raises:
-        NoRayCluster: Naming the address, when its port takes no connection.
+        NoRayCluster: Naming the address, when its port takes no connection
+            or a web server answers there.
         ValueError: When it has none of Ray's forms.
     """
     where = check_ray_address_form(address)
@@ -677,12 +681,21 @@ def check_ray_address(address: str, timeout: float = 5.0) -> None:
         return
     host, port = where
     try:
-        socket.create_connection((host, port), timeout=timeout).close()
+        with socket.create_connection((host, port), timeout=timeout) as conn:
+            conn.sendall(b"HEAD / HTTP/1.0\r\n\r\n")
+            reply = conn.recv(5)
+    except TimeoutError:  # connected, no answer to HTTP: not a web server
+        return
     except (OSError, ValueError) as exc:
         raise NoRayCluster(
             f"address {address}: no Ray cluster answers there ({exc}); start one with "
             "`ray start --head` or leave --address out for a local Ray"
         ) from None
+    if reply == b"HTTP/":
+        raise NoRayCluster(
+            f"address {address}: a web server answers there (Ray's dashboard?), not a Ray "
+            "cluster: give the address `ray start --head` printed (HOST:6379 by default)"
+        )
 
 
 def resolve_env_kwargs(env_kwargs: Mapping[str, Any] | None) -> dict[str, Any]:

@@ -182,6 +182,27 @@ def test_an_address_where_no_ray_listens_is_one_line(tmp_path, capsys):
     assert "no Ray cluster answers there" in err and len(err.splitlines()) == 1
 
 
+def test_an_address_where_a_web_server_answers_is_no_ray_cluster():
+    import http.server
+    import threading
+
+    from baselines.leaderboard.engine import NoRayCluster, check_ray_address
+
+    # Ray's dashboard (8265), which `ray start` prints beside the cluster's address:
+    # Ray retried it for minutes
+    web = http.server.HTTPServer(("127.0.0.1", 0), http.server.BaseHTTPRequestHandler)
+    threading.Thread(target=web.handle_request, daemon=True).start()
+    with pytest.raises(NoRayCluster, match="a web server answers there"):
+        check_ray_address(f"127.0.0.1:{web.server_address[1]}", timeout=5.0)
+    web.server_close()
+    # a port that takes the connection and says nothing to HTTP (as a gRPC server
+    # waiting for its own preface) is left to Ray
+    with socket.socket() as quiet:
+        quiet.bind(("127.0.0.1", 0))
+        quiet.listen()
+        check_ray_address(f"127.0.0.1:{quiet.getsockname()[1]}", timeout=0.5)
+
+
 def test_the_data_resume_the_same_named_either_way(tmp_path, monkeypatch, shared_mocap):
     out = tmp_path / "lb"
     arm = ["ArmTrack-v2"]
