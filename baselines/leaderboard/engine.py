@@ -511,8 +511,7 @@ class RayEngine:
                     f"{workers} workers of one CPU each, but the Ray cluster has {cpus} CPUs: "
                     f"the others would wait for ever; give {cpus} or fewer"
                 )
-            wanted = int(workers or cpus)
-            self.workers = min(wanted, jobs) if jobs else wanted
+            self.workers = _at_most(int(workers or cpus), jobs)
             self._actor = ray.remote(num_cpus=1)(_RayWorker)
             self._args = (int(seed), dict(env_kwargs or {}), list(dict.fromkeys(tasks)))
             self._fits: Any = None
@@ -544,8 +543,7 @@ class RayEngine:
             ray.init(address=address, **common)
             return True
         # "local": a Ray of this run's own, even beside a `ray start` cluster
-        wanted = workers or os.cpu_count() or 1
-        cpus = min(wanted, jobs) if jobs else wanted
+        cpus = _at_most(workers or os.cpu_count() or 1, jobs)
         self.started = True
         ray.init(address="local", num_cpus=cpus, include_dashboard=False, **common)
         return False
@@ -605,6 +603,11 @@ class RayEngine:
         if self.started:
             self.started = False
             self.ray.shutdown()
+
+
+def _at_most(wanted: int, jobs: int | None) -> int:
+    """``wanted`` workers, no more than ``jobs`` episodes to run (None: no bound)."""
+    return min(wanted, jobs) if jobs else wanted
 
 
 def _lost(episode: Episode, why: str) -> dict[str, Any]:
@@ -681,16 +684,18 @@ def check_ray_address(address: str, timeout: float = 5.0) -> None:
         return
     host, port = where
     try:
-        with socket.create_connection((host, port), timeout=timeout) as conn:
-            conn.sendall(b"HEAD / HTTP/1.0\r\n\r\n")
-            reply = conn.recv(5)
-    except TimeoutError:  # connected, no answer to HTTP: not a web server
-        return
+        conn = socket.create_connection((host, port), timeout=timeout)
     except (OSError, ValueError) as exc:
         raise NoRayCluster(
             f"address {address}: no Ray cluster answers there ({exc}); start one with "
             "`ray start --head` or leave --address out for a local Ray"
         ) from None
+    with conn:
+        try:
+            conn.sendall(b"HEAD / HTTP/1.0\r\n\r\n")
+            reply = conn.recv(5)
+        except OSError:  # connected, no answer to HTTP (a timeout): not a web server
+            return
     if reply == b"HTTP/":
         raise NoRayCluster(
             f"address {address}: a web server answers there (Ray's dashboard?), not a Ray "

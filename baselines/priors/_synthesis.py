@@ -51,11 +51,9 @@ def check_request(base_pose: ArrayLike, frames: int, fps: float, rng: Any) -> Fl
         raise ValueError(f"synthesize_motion: base_pose must have shape (25,), got {base.shape}")
     if not np.all(np.isfinite(base)):
         raise ValueError("synthesize_motion: base_pose must be finite")
-    if not is_count(frames) or not (is_real(fps) and np.isfinite(fps) and fps > 0):
-        raise ValueError(
-            "synthesize_motion: frames must be an integer >= 1 and fps a positive number, "
-            f"got {frames!r} and {fps!r}"
-        )
+    check_synthesis(frames, rng, "synthesize_motion")
+    if not (is_real(fps) and np.isfinite(fps) and fps > 0):
+        raise ValueError(f"synthesize_motion: fps must be a positive number, got {fps!r}")
     return base
 
 

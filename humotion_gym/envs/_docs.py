@@ -54,8 +54,8 @@ COMMON_SECTIONS = """
     SB3 :class:`~humotion_gym.wrappers.LearnerObservation` (``docs/rl.md``)
     or drop the key with ``gymnasium.wrappers.FilterObservation``. The
     frame returned is the one ``render()`` draws over and a vector
-    environment's ``final_obs`` holds: copy it before drawing on it. The ground truth of the free parameters never
-    appears, and nothing given at a step (observation, action bounds)
+    environment's ``final_obs`` holds: copy it before drawing on it. The
+    ground truth of the free parameters never appears, and nothing given at a step (observation, action bounds)
     depends on the episode after the frame on show
     (``tests/envs/test_no_future_leak.py`` checks every task).
 

@@ -182,7 +182,7 @@ def test_an_address_where_no_ray_listens_is_one_line(tmp_path, capsys):
     assert "no Ray cluster answers there" in err and len(err.splitlines()) == 1
 
 
-def test_an_address_where_a_web_server_answers_is_no_ray_cluster():
+def test_an_address_where_a_web_server_answers_is_no_ray_cluster(monkeypatch):
     import http.server
     import threading
 
@@ -201,6 +201,14 @@ def test_an_address_where_a_web_server_answers_is_no_ray_cluster():
         quiet.bind(("127.0.0.1", 0))
         quiet.listen()
         check_ray_address(f"127.0.0.1:{quiet.getsockname()[1]}", timeout=0.5)
+
+    # a connection that times out is no cluster (the HTTP probe's timeout is not it)
+    def unreachable(*args, **kwargs):
+        raise TimeoutError("timed out")
+
+    monkeypatch.setattr(socket, "create_connection", unreachable)
+    with pytest.raises(NoRayCluster, match="no Ray cluster answers there"):
+        check_ray_address("10.0.0.9:6379", timeout=0.5)
 
 
 def test_the_data_resume_the_same_named_either_way(tmp_path, monkeypatch, shared_mocap):
