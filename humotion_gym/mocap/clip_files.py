@@ -106,9 +106,11 @@ def describe_file(path: Path, skeleton: Path | None = None) -> ClipSource:
             desc, f"cmu/{stem}", cmu_person(subject),
         )  # fmt: skip
     label = activity_label(stem)
-    subject = path.parent.name or "user"
     # The folder is the person (docs/data.md), and persons' folders often hold
-    # files of the same names: the id names both.
+    # files of the same names: the id names both. The folder is read from the
+    # absolute path: the same file is the same person (and split) whether it
+    # is named "b.bvh" from its folder or by a longer path.
+    subject = Path(os.path.abspath(path)).parent.name or "user"
     clip_id = f"user/{subject}/{stem}"
     return ClipSource(path, skeleton, "user", subject, label, "", clip_id, subject)
 

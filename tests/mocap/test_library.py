@@ -1,6 +1,7 @@
 import json
 import os
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -85,6 +86,17 @@ def test_file_descriptions(tmp_path, name, dataset, subject, label):
     folder.mkdir()
     src = describe_file(folder / name)
     assert (src.dataset, src.subject, src.label) == (dataset, subject, label)
+
+
+def test_a_users_clip_is_the_same_person_however_its_path_is_written(tmp_path, monkeypatch):
+    # Person and split come from the folder: "take.bvh" named from inside
+    # "anna" is anna's, as "anna/take.bvh" and the absolute path are.
+    folder = tmp_path / "anna"
+    folder.mkdir()
+    monkeypatch.chdir(folder)
+    ways = [Path("take.bvh"), Path("./take.bvh"), folder / "take.bvh", Path("../anna/take.bvh")]
+    described = {(s.subject, s.person, s.clip_id) for s in map(describe_file, ways)}
+    assert described == {("anna", "anna", "user/anna/take")}
 
 
 def test_activity_labels():
