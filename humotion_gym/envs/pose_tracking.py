@@ -67,6 +67,12 @@ def _cached_library(dirs: tuple[str, ...], fps: float) -> MotionLibrary:
     return library
 
 
+@functools.lru_cache(maxsize=4)
+def _checked_library(library: MotionLibrary) -> None:
+    """:func:`check_data_persons` once per given library (the vector env's copies share it)."""
+    check_data_persons(library)
+
+
 # What a reset assigns: restored when a reset fails, so a reset is all-or-nothing.
 _EPISODE_STATE: tuple[str, ...] = (
     "_motion", "_t0", "_root0", "_bounds", "_episode_seed", "_noise", "_backgrounds",
@@ -234,6 +240,8 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         if library is None:
             dirs = tuple(str(p) for p in configured_data_dirs(data_dir))
             library = _cached_library(dirs, fps)
+        else:  # as for folders: no held-out person's skeleton on the training side
+            _checked_library(library)
         if split not in EPISODE_SPLITS:
             raise ValueError(f"split: expected one of {list(EPISODE_SPLITS)}, got {split!r}")
         self.split = split

@@ -454,19 +454,22 @@ def check_person_split(
     )
 
 
-def check_data_persons(library: MotionLibrary, dirs: Sequence[str | Path]) -> None:
+def check_data_persons(library: MotionLibrary, dirs: Sequence[str | Path] | None = None) -> None:
     """Refuse data where a held-out person's skeleton is also a training person's.
 
-    A test person's file copied under another person's folder would otherwise
-    train the priors and policies on the test persons (the split is by person
-    name; :func:`check_person_split` compares the skeletons, about 0.3 s for
-    the shared data). Every path that loads a user's folders for training or
-    tracking calls it: the environments (once per library) and the
-    validation folds.
+    A test person's file copied under another person's folder (or a user's
+    clip put on the test side by ``split_by`` while its skeleton is a training
+    person's) would otherwise train the priors and policies on the test
+    persons (the split is by person name; :func:`check_person_split` compares
+    the skeletons, about 0.1-0.3 s for the shared data). Every path that loads
+    clips for training or tracking calls it: the environments (once per
+    library, whether from folders or given as ``library=``) and the validation
+    folds.
 
     Args:
-        library: The clips loaded from ``dirs``.
-        dirs: The folders, for the message.
+        library: The clips.
+        dirs: The folders they were loaded from, for the message; None for a
+            library given as such.
 
     Raises:
         SplitError: Naming each pair, in one line.
@@ -475,9 +478,11 @@ def check_data_persons(library: MotionLibrary, dirs: Sequence[str | Path]) -> No
         check_person_split(library)
     except SplitError as exc:
         shown = ", ".join(f"{test} ~ {train}" for test, train in exc.pairs)
+        where = "library" if dirs is None else f"data_dir {[str(d) for d in dirs]}"
+        listed = "FOLDER..." if dirs is None else " ".join(map(str, dirs))
         raise SplitError(
-            f"data_dir {[str(d) for d in dirs]}: a held-out person's skeleton is also a training "
-            f"person's ({shown}), so the test persons would be trained on; move those clips "
-            f"out (humotion-gym data persons {' '.join(map(str, dirs))} lists them)",
+            f"{where}: a held-out person's skeleton is also a training person's ({shown}), so "
+            f"the test persons would be trained on; move those clips out or put them on one "
+            f"side (humotion-gym data persons {listed} lists them)",
             exc.pairs,
         ) from None

@@ -495,6 +495,30 @@ def test_data_with_a_test_persons_copy_under_another_name_is_refused(shared_moca
         validation_library([str(tmp_path), str(source)])
     env = gym.make("humotion_gym/WalkTrack-v2", data_dir=[str(source)], split="test")
     assert {m.subject for m in env.unwrapped.library} == {"cmu-03"}
+    # the same clips given as a library: refused as the folders are
+    from humotion_gym.mocap.library import load_library
+
+    mixed = load_library([str(tmp_path), str(source)], progress=False)
+    with pytest.raises(SplitError, match=r"^library: a held-out .*\(cmu-03 ~ carol"):
+        gym.make("humotion_gym/WalkTrack-v2", library=mixed)
+
+
+@pytest.mark.mocap
+def test_a_library_that_tests_a_training_persons_copy_is_refused(shared_mocap, tmp_path):
+    """split_by puts a copy of a training person's clip on the test side: refused."""
+    import shutil
+
+    from humotion_gym.mocap.library import SplitError, load_library
+
+    bandai = shared_mocap / "bandai-1"
+    mine = tmp_path / "myclips"
+    mine.mkdir()
+    shutil.copyfile(bandai / "dataset-1_walk_normal_001.bvh", mine / "mywalk.bvh")
+    lib = load_library([str(bandai), str(mine)], split_by={"myclips": "test"}, progress=False)
+    with pytest.raises(SplitError, match=r"myclips ~ bandai-1/normal"):
+        gym.make("humotion_gym/BodyTrack-v2", split="test", library=lib)
+    apart = load_library([str(mine)], split_by={"myclips": "test"}, progress=False)
+    gym.make("humotion_gym/BodyTrack-v2", split="test", library=apart)  # nothing to compare
 
 
 @pytest.mark.mocap
