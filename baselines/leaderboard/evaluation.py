@@ -80,8 +80,10 @@ def run_episode(
 
     The agent is given its observations and nothing else: never ``info``
     (scores and diagnostics, read here to score), never the environment.
-    The environment should have ``terminate_on_lost=False`` so every episode
-    runs its full length; the lost-track frame is found from the errors.
+    The environment must have ``terminate_on_lost=False``: every episode runs
+    its full length and the lost-track frame is found from the errors (an
+    episode that ended where track was lost would leave its worst frames out
+    of the mean, so a tracker that loses track early would score better).
 
     Args:
         agent: Has ``predict(obs, state, episode_start, deterministic)``.
@@ -98,12 +100,19 @@ def run_episode(
 
     Raises:
         TypeError: If ``env`` is not a pose-tracking environment.
+        ValueError: If it ends episodes where track is lost.
     """
+    base = tracking_env(env)
+    if base.terminate_on_lost:
+        raise ValueError(
+            "env: it ends episodes where track is lost (terminate_on_lost=True), so a mean "
+            "error would leave out the frames after; make it with terminate_on_lost=False "
+            "(the lost frame is found from the errors)"
+        )
     if hasattr(agent, "seed_episode"):
         # the agent's randomness from (its seed, this episode's seed) alone: an
         # episode's numbers do not depend on the episodes run before it
         agent.seed_episode(seed)
-    base = tracking_env(env)
     obs, info = env.reset(seed=seed, options=options)
     clip_id, start = info.get("clip_id", ""), int(info.get("start_frame", 0))
     person = info.get("person")
@@ -187,7 +196,7 @@ def evaluate(
     agent: Any, env: gym.Env, episodes: int, seed: int = 0, options: dict[str, Any] | None = None,
     progress: bool = False,
 ) -> list[EpisodeResult]:  # fmt: skip
-    """Run ``episodes`` seeded episodes (seeds ``seed``, ``seed + 1``...)."""
+    """Run ``episodes`` seeded episodes (seeds ``seed``, ``seed + 1``...) of :func:`run_episode`."""
     results = []
     for k in tqdm(range(episodes), desc="episodes", disable=not progress, leave=False):
         results.append(run_episode(agent, env, seed + k, options))

@@ -43,6 +43,13 @@ def test_hold_scores_what_the_motion_costs():
     assert result.errors_mm[-1] > 300.0
 
 
+def test_an_environment_that_ends_episodes_on_lost_track_is_refused():
+    """Its episodes would stop where track is lost: the mean error would leave out the rest."""
+    env = gym.make("humotion_gym/WalkTrack-v2")  # terminate_on_lost=True by default
+    with pytest.raises(ValueError, match="terminate_on_lost=False"):
+        run_episode(make("hold", env), env, seed=1)
+
+
 def test_random_agent_is_seeded_and_in_the_action_space():
     env = gym.make("humotion_gym/ArmTrack-v2")
     a, b = make("random", env, seed=2), make("random", env, seed=2)
