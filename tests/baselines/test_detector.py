@@ -228,9 +228,7 @@ def test_the_image_weight_adds_the_image_likelihood(env):
 
 def test_det_agents_track_end_to_end_on_the_synthetic_data():
     assert {"pf-cv-det", "pf-mix-det", "spf-mix-det"} <= set(AGENTS)
-    e = gym.make(
-        "humotion_gym/BodyTrack-v2", views=2, episode_frames=4, terminate_on_lost=False
-    )
+    e = gym.make("humotion_gym/BodyTrack-v2", views=2, episode_frames=4, terminate_on_lost=False)
     agent = make("pf-cv-det", e, n_particles=20, seed=1)
     assert isinstance(agent, ParticleFilterAgent)
     assert isinstance(agent.observation_model, DetectorLikelihood)
