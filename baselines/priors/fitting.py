@@ -5,11 +5,12 @@ particle-filter agents (:func:`baselines.agents.fit_prior` picks the task's
 free parameters and training clips and calls it), ``humotion-gym synth`` and
 the experiments that track. A fit is keyed by the prior, its effective
 settings (the ``fit`` signature's defaults overridden by the given ones), the
-modelled parameters, the training clips, :data:`~humotion_gym.mocap.library.CACHE_VERSION`
-and the package version; the entry stores its key and a digest of its arrays,
-checked on read. An unreadable, damaged or foreign entry is reported once
-with a :class:`~humotion_gym.mocap.library.CacheWarning` naming the file,
-refitted and overwritten (atomically), never used.
+modelled parameters, the training clips, :data:`~humotion_gym.mocap.library.CACHE_VERSION`,
+the package version and a digest of the prior's code (:func:`code_digest`); the
+entry stores its key and a digest of its arrays, checked on read. An
+unreadable, damaged or foreign entry is reported once with a
+:class:`~humotion_gym.mocap.library.CacheWarning` naming the file, refitted and
+overwritten (atomically), never used.
 
 Every prior module has the same interface (:class:`~baselines.filtering.Prior`):
 ``fit(motions, free=..., rng=..., **settings)``, ``initial``, ``transition``,
@@ -115,6 +116,28 @@ def _fingerprint(lib: MotionLibrary | Sequence[Motion]) -> str:
         h.update(f"{m.clip_id}:{m.label}:{m.n_frames}:{m.fps}:{m.source};".encode())
         h.update(np.ascontiguousarray(m.params, dtype=np.float64).tobytes())
         h.update(np.packbits(np.asarray(m.observed, dtype=bool)).tobytes())
+    return h.hexdigest()[:16]
+
+
+def code_digest(module: ModuleType) -> str:
+    """A digest of the code a prior fits with: the ``.py`` files beside its module.
+
+    Part of the cache key, so that a fit made by other code is refitted, not
+    read: an edited prior in a checkout (or a user's prior module) keeps its
+    name, settings and package version. For the built-in priors that is every
+    module of :mod:`baselines.priors`; for a user's prior, the files of its
+    module's folder. A module without a file (built in memory) digests as
+    ``"none"``.
+    """
+    file = getattr(module, "__file__", None)
+    if not file or not Path(file).is_file():
+        return "none"
+    # Read on every fit (about a millisecond for baselines/priors): a module
+    # edited and reloaded in a running process is seen.
+    h = hashlib.sha256()
+    for path in sorted(Path(file).resolve().parent.glob("*.py")):
+        h.update(f"{path.name}:".encode())
+        h.update(path.read_bytes())
     return h.hexdigest()[:16]
 
 
@@ -268,6 +291,7 @@ def fit_prior(
         "cache_version": CACHE_VERSION,
         "prior_cache_version": PRIOR_CACHE_VERSION,
         "package_version": package_version(),
+        "code": code_digest(module),
     }
     digest = hashlib.sha256(json.dumps(info, sort_keys=True).encode()).hexdigest()[:24]
     info["key"] = digest

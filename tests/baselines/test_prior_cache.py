@@ -214,6 +214,40 @@ def test_the_key_holds_the_package_version_and_the_fit_defaults(env, tmp_path, m
     assert got.multiplier == 1.5 and len(_entries(cache)) == 3
 
 
+_USER_PRIOR = """
+from baselines.priors import constant_velocity as _cv
+
+SCALE = {scale}
+
+
+def fit(motions, free=None, rng=None, multiplier=1.0):
+    return _cv.fit(motions, free=free, rng=rng, multiplier=multiplier * SCALE)
+
+
+initial, transition, save, load = _cv.initial, _cv.transition, _cv.save, _cv.load
+"""
+
+
+def test_an_edited_prior_is_refitted_not_read(env, tmp_path, monkeypatch):
+    """A user's prior module edited between fits: its name and settings alike, its code not."""
+    from baselines.priors.fitting import fit_prior as fit_module
+
+    package = tmp_path / "mine"
+    package.mkdir()
+    (package / "__init__.py").write_text("")
+    source = package / "edited_prior.py"
+    monkeypatch.syspath_prepend(str(tmp_path))
+    cache, clips = tmp_path / "cache", env.describe().training
+    fits = []
+    for scale in (1.0, 2.0, 2.0):
+        source.write_text(_USER_PRIOR.format(scale=scale))
+        importlib.invalidate_caches()
+        module = importlib.reload(importlib.import_module("mine.edited_prior"))
+        fits.append(fit_module(module, clips, None, cache_dir=cache, log=None)[1])
+    assert [f.multiplier for f in fits] == [1.0, 2.0, 2.0]
+    assert len(_entries(cache)) == 2  # the second edit's fit was read back, not refitted
+
+
 def test_an_unwritable_cache_reports_and_fits(env, fresh, tmp_path):
     cache = tmp_path / "cache"
     cache.mkdir()
