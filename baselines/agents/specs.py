@@ -25,6 +25,7 @@ import numpy as np
 
 from baselines.agents.base import TaskNotSupported, describe
 from baselines.agents.filters import ParticleFilterAgent
+from baselines.agents.references import REFERENCES
 from baselines.agents.settings import (
     FILTER_SETTINGS,
     PF_SETTINGS_FILE,
@@ -35,7 +36,7 @@ from baselines.agents.settings import (
 from baselines.detector.settings import DetectorTerm
 from baselines.filtering.search import LocalSearch
 from baselines.observation import FrameModel, ObservationModel
-from baselines.priors import limbs, mixture
+from baselines.priors import PRIORS, get_prior, limbs, mixture
 from baselines.priors.fitting import fit_prior as fit_prior_on
 from humotion_gym.checks import is_real
 from humotion_gym.envs.description import TaskDescription
@@ -508,8 +509,65 @@ def specs_from_file(path: str | Path = PF_SETTINGS_FILE) -> dict[str, AgentSpec]
 AGENTS: dict[str, AgentSpec] = specs_from_file()
 
 
-def register_agent(name: str, spec: AgentSpec) -> None:
-    """Add an agent to :data:`AGENTS`."""
+#: What a prior module has (docs/priors.md); a mixture's or a per-part prior's
+#: outer module only moves particles, its components fit and are saved.
+PRIOR_FUNCTIONS: tuple[str, ...] = ("fit", "initial", "transition", "save", "load")
+
+
+def _check_prior(spec: AgentSpec, name: str) -> None:
+    """Refuse a spec whose prior module (or a component's) is missing or incomplete."""
+    if not isinstance(spec, AgentSpec):
+        got = type(spec).__name__
+        raise TypeError(f"register_agent {name!r}: expected an AgentSpec, got {got}")
+    try:
+        module = importlib.import_module(spec.prior) if "." in spec.prior else None
+    except ImportError as exc:
+        raise ValueError(
+            f"register_agent {name!r}: the prior module {spec.prior!r} does not import ({exc})"
+        ) from None
+    if module is None:
+        if spec.prior not in PRIORS:
+            raise ValueError(
+                f"register_agent {name!r}: unknown prior {spec.prior!r}; give its module's dotted "
+                f"path (mypackage.myprior) or one of {sorted(PRIORS)}"
+            )
+        module = get_prior(spec.prior)
+    composite = bool(spec.components) or spec.per_part
+    need = ("initial", "transition") if composite else PRIOR_FUNCTIONS
+    missing = [f for f in need if not callable(getattr(module, f, None))]
+    if missing:
+        raise ValueError(
+            f"register_agent {name!r}: the prior module {spec.prior} has no {', '.join(missing)} "
+            f"(a prior has {', '.join(PRIOR_FUNCTIONS)}: see docs/priors.md)"
+        )
+    for label, component in spec.components:
+        _check_prior(component, f"{name}/{label}")
+
+
+def register_agent(name: str, spec: AgentSpec, replace: bool = False) -> None:
+    """Add a particle-filter agent to :data:`AGENTS`, checked before its first fit.
+
+    Args:
+        name: The agent's name (for :func:`baselines.agents.make` and the
+            leaderboard in this process, and its Ray workers).
+        spec: Its prior and settings.
+        replace: Replace an agent of that name (a built-in one too); a
+            reference agent's name is never taken.
+
+    Raises:
+        ValueError: If the name is taken (without ``replace``), or the prior
+            module does not import or lacks a function of a prior
+            (:data:`PRIOR_FUNCTIONS`).
+        TypeError: If ``spec`` is not an :class:`AgentSpec`.
+    """
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"register_agent: expected a non-empty name, got {name!r}")
+    if name in REFERENCES or (name in AGENTS and not replace):
+        raise ValueError(
+            f"register_agent: {name!r} is already an agent"
+            + ("" if name in REFERENCES else " (replace=True replaces it)")
+        )
+    _check_prior(spec, name)
     AGENTS[name] = spec
 
 

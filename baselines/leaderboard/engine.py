@@ -59,6 +59,7 @@ from tqdm.auto import tqdm
 import humotion_gym  # noqa: F401  (registers the environment ids, in Ray workers too)
 from baselines.agents import (
     AGENTS,
+    REFERENCES,
     ParticleFilterAgent,
     TaskNotSupported,
     filter_agent,
@@ -129,6 +130,8 @@ class Episode:
 #: ``(module name, fitted parameters)`` of a particle-filter agent's prior, by
 #: (task, agent): what the driver fitted and the runners build filters from.
 Fits = Mapping[tuple[str, str], tuple[str, Any]]
+#: What a Ray worker takes of the driver's agents: its ``AGENTS`` and ``REFERENCES``.
+Registry = tuple[Mapping[str, Any], Mapping[str, tuple[type, str]]]
 
 
 def make_env(task: str, env_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
@@ -405,8 +408,17 @@ class _RayWorker:
             except Exception:  # the episode that needs it reports the error
                 pass
 
-    def start(self, fits: Fits) -> tuple[str, int]:
-        """Take the fitted priors; the package version and process id of this worker."""
+    def start(self, fits: Fits, registry: Registry) -> tuple[str, int]:
+        """Take the fitted priors and the driver's agents; this worker's version and pid.
+
+        ``registry``: the driver's :data:`~baselines.agents.AGENTS` and
+        :data:`~baselines.agents.REFERENCES`, so that agents registered in the
+        driver's process (``register_agent``, ``register_reference``) are
+        built here by the same names.
+        """
+        agents, references = registry
+        AGENTS.update(agents)
+        REFERENCES.update(references)
         self.runner.fits = dict(fits)
         return self.version, os.getpid()
 
@@ -551,12 +563,26 @@ class RayEngine:
     def start(self, fits: Fits) -> None:
         """Put the fits in the object store once and hand them to every actor.
 
+        The actors take this process's agents too (:meth:`_RayWorker.start`):
+        one registered here runs there by its name.
+
         Raises:
-            RuntimeError: If a worker runs another version of the package.
+            RuntimeError: If a worker runs another version of the package, or
+                cannot take the agents (a class it cannot import).
         """
         self._fits = self.ray.put(dict(fits))
+        registry = self.ray.put((dict(AGENTS), dict(REFERENCES)))
         mine = package_version()
-        for version, pid in self.ray.get([a.start.remote(self._fits) for a in self.actors]):
+        try:
+            started = self.ray.get([a.start.remote(self._fits, registry) for a in self.actors])
+        except self.ray.exceptions.RayError as exc:  # e.g. a class the workers cannot import
+            cause = getattr(exc, "cause", None) or exc
+            raise RuntimeError(
+                f"the Ray workers could not take this process's agents "
+                f"({type(cause).__name__}: {str(cause).splitlines()[0][:200]}); define the "
+                "agents you register in a module the workers can import"
+            ) from None
+        for version, pid in started:
             if version != mine:
                 raise RuntimeError(
                     f"a Ray worker (pid {pid}) runs humotion_gym {version}, this driver "

@@ -68,9 +68,30 @@ def test_the_small_leaderboard_runs_every_cell(inprocess_rows):
     importlib.util.find_spec("ray") is None,
     reason="ray is not installed (the distributed extra: pip install -e '.[distributed]')",
 )
-def test_ray_with_two_workers_gives_the_in_process_numbers_bit_for_bit(inprocess_rows):
-    rows = _run(engine="ray", workers=2)
+def test_ray_with_two_workers_gives_the_in_process_numbers_bit_for_bit(inprocess_rows, monkeypatch):
+    # Agents registered in this process only: the workers build them by name.
+    from baselines.agents import REFERENCES, HoldAgent, register_agent, register_reference
+
+    class StillAgent(HoldAgent):  # a local class: the workers cannot import it by name
+        pass
+
+    monkeypatch.setitem(agents_module.AGENTS, "pf-cv-mine", agents_module.AGENTS["pf-cv"])
+    register_agent("pf-cv-mine", agents_module.AGENTS["pf-cv"])
+    monkeypatch.setitem(REFERENCES, "still-mine", (StillAgent, "hold, by another name"))
+    del REFERENCES["still-mine"]
+    register_reference("still-mine", StillAgent)
+    rows = run_leaderboard(
+        TASKS, [*AGENTS, "pf-cv-mine", "still-mine"], PARTICLES, episodes=EPISODES, seed=SEED,
+        progress=False, engine="ray", workers=2,
+    )  # fmt: skip
+    mine = {r["agent"]: r for r in rows if r["agent"].endswith("-mine")}
+    rows = [r for r in rows if not r["agent"].endswith("-mine")]
     assert _numbers(rows) == _numbers(inprocess_rows)
+    by_agent = {r["agent"]: _numbers(r) for r in inprocess_rows}
+    for name, same in (("pf-cv-mine", "pf-cv"), ("still-mine", "hold")):
+        assert "error" not in mine[name] and mine[name]["summary"]["episodes"] == EPISODES
+        got = [e["errors_mm"] for e in mine[name]["episodes"]]
+        assert got == [e["errors_mm"] for e in by_agent[same]["episodes"]]
     # the timings are real measurements, not copied
     assert all(r["summary"]["ms_per_frame"] > 0 for r in rows if r["agent"] != "hold")
 
