@@ -76,6 +76,7 @@ def test_ray_with_two_workers_gives_the_in_process_numbers_bit_for_bit(inprocess
         pass
 
     monkeypatch.setitem(agents_module.AGENTS, "pf-cv-mine", agents_module.AGENTS["pf-cv"])
+    del agents_module.AGENTS["pf-cv-mine"]  # removed again after the test
     register_agent("pf-cv-mine", agents_module.AGENTS["pf-cv"])
     monkeypatch.setitem(REFERENCES, "still-mine", (StillAgent, "hold, by another name"))
     del REFERENCES["still-mine"]
