@@ -77,6 +77,7 @@ from baselines.rl_config import (  # noqa: F401  (the training API, re-exported)
     PPO_DEFAULTS,
     RESUME_KEYS,
     SETTING_RANGES,
+    InitMismatch,
     ResumeMismatch,
     TrainConfig,
     check_resumed,
@@ -654,7 +655,7 @@ def _start_from(model: PPO, source: PPO | None, init: str | None) -> None:
     """Load the policy ``source`` (the saved model ``init``) into ``model``'s network, if given.
 
     Raises:
-        ValueError: If its network is not this run's shape (another task's
+        InitMismatch: If its network is not this run's shape (another task's
             actions, frame size or ``features_dim``).
     """
     if source is None:
@@ -663,7 +664,7 @@ def _start_from(model: PPO, source: PPO | None, init: str | None) -> None:
         model.policy.load_state_dict(source.policy.state_dict(), strict=False)
     except RuntimeError as exc:
         first = str(exc).strip().splitlines()[-1].strip()
-        raise ValueError(
+        raise InitMismatch(
             f"--init {init}: its network does not fit this run's (another task, frame size or "
             f"features_dim?): {first}"
         ) from None
@@ -691,21 +692,29 @@ def _init_policy(init: str) -> PPO:
 def check_init(config: TrainConfig) -> PPO | None:
     """The policy a run starts from, read and checked before the run writes anything.
 
-    It must be a readable policy; where its record says it learned another
-    task, or real data while this run trains on the synthetic library, it
-    warns as scoring does (:func:`~baselines.agents.learned.check_record`).
+    It must be a readable policy whose network fits this run's (loaded into
+    a model of this run's settings on the task's spaces, which the data does
+    not change); where its record says it learned another task, or real data
+    while this run trains on the synthetic library, it warns as scoring does
+    (:func:`~baselines.agents.learned.check_record`).
 
     Returns:
         The policy (None without ``config.init``), for :func:`train` to start from.
 
     Raises:
         ValueError: Naming ``--init``, if it is no readable policy.
+        InitMismatch: If its network does not fit this run's.
     """
     if config.init is None:
         return None
     policy = _init_policy(config.init)
     synthetic = not configured_data_dirs(config.data_dir)
     check_record(config.init, config.task, synthetic, "train on it")
+    probe = make_learner_env(config.task, "train", config.settings["frame_size"], True)
+    try:
+        _start_from(new_model(config, probe), policy, config.init)
+    finally:
+        probe.close()
     return policy
 
 

@@ -338,6 +338,10 @@ class ResumeMismatch(ValueError):
     """The run asked to resume is another run, or an unknown one (exit 2 on the CLI)."""
 
 
+class InitMismatch(ValueError):
+    """The policy a run starts from (``--init``) has another network (exit 2 on the CLI)."""
+
+
 def _comparable(key: str, value: Any) -> Any:
     """A config value as a resume compares it: paths resolved, so that spellings agree."""
     if key == "data_dir" and isinstance(value, (list, tuple)):

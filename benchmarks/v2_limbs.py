@@ -11,7 +11,7 @@ episode by episode as well as by their intervals.
 
 Usage::
 
-    python benchmarks/v2_limbs.py --data-dir /work/shared/mocap --episodes 80 \\
+    python benchmarks/v2_limbs.py --data-dir ../shared/mocap --episodes 80 \\
         --seeds 0 1 2 --out /tmp/v2_limbs.json
 """
 
@@ -235,7 +235,11 @@ def markdown(rows: list[dict[str, Any]], references: Sequence[str] = ("a v1", "b
 def main(argv: Sequence[str] | None = None) -> None:
     """Run the variants and write the cells and their summary as JSON."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data-dir", default="/work/shared/mocap")
+    parser.add_argument(
+        "--data-dir",
+        required=True,
+        help="the real motion capture (e.g. ../shared/mocap): the validation persons are CMU's",
+    )
     parser.add_argument("--episodes", type=int, default=12)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
     parser.add_argument("--agent", default="pf-mix")

@@ -159,3 +159,35 @@ def test_the_check_finds_a_moved_file_a_wrong_name_a_dead_link_and_an_unknown_ta
         "page.md:6: no environment humotion_gym/BodyTrack-v9",
         "page.md:10: no file results/missing.md",
     ]
+
+
+#: A table's separator row: ``|---|:--:|...``.
+SEPARATOR = re.compile(r"^\|(?:\s*:?-+:?\s*\|)+\s*$")
+
+
+def tables_without_separator(text: str) -> list[int]:
+    """The lines (1-based) where a Markdown table starts without a separator row under it.
+
+    A table is a run of lines that start with ``|`` outside fenced blocks; its
+    second line must be the separator, or a viewer shows it as text.
+    """
+    lines = prose(text).split("\n")
+    return [
+        k + 1
+        for k, line in enumerate(lines)
+        if line.startswith("|")
+        and (k == 0 or not lines[k - 1].startswith("|"))
+        and not (k + 1 < len(lines) and SEPARATOR.match(lines[k + 1]))
+    ]
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+def test_every_table_of_a_page_has_its_separator_row(page: Path) -> None:
+    assert tables_without_separator(page.read_text(encoding="utf-8")) == []
+
+
+def test_the_table_check_finds_a_table_without_its_separator() -> None:
+    good = "text\n\n| a | b |\n|---|:-:|\n| 1 | 2 |\n"
+    assert tables_without_separator(good) == []
+    assert tables_without_separator("text\n\n| a | b |\n| 1 | 2 |\n") == [3]
+    assert tables_without_separator("```\n| a |\n| 1 |\n```\n") == []  # code, not a table

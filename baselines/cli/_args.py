@@ -41,15 +41,15 @@ def agent_name(text: str) -> str:
 
     if text not in agent_names() and not is_learned(text):
         raise argparse.ArgumentTypeError(
-            f"unknown agent {text[:80]}; the agents are {', '.join(agent_names())} "
-            "(see humotion-gym agents)"
+            f"unknown agent {text[:80]}; the agents are {', '.join(agent_names())}, each "
+            "described by humotion-gym agents"
         )
     if takes_particles(text):  # pf-PRIOR+POLICY
         prior, spec = text.split("+", 1)[0], policy_spec(text)
         if prior not in agent_names():
             raise argparse.ArgumentTypeError(
-                f"{text[:80]}: unknown particle filter {prior[:40]} before the '+' "
-                "(see humotion-gym agents)"
+                f"{text[:80]}: unknown particle filter {prior[:40]} before the '+'; "
+                "humotion-gym agents lists them"
             )
         if spec not in ("bc", "ppo") and not spec.endswith(".zip"):
             raise argparse.ArgumentTypeError(

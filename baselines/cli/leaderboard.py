@@ -160,9 +160,17 @@ def _check_results_folder(args: argparse.Namespace) -> None:
         ]
     except (KeyError, TypeError, ValueError) as exc:  # ResumeError: a line that is not JSON
         raise CommandError(f"--resume: {args.out}: unreadable episodes ({exc})") from None
-    left_out = sorted(
-        {k[:3] for k in saved if k[:3] not in cells or (seeds is not None and k[3] not in seeds)}
-    )
+    other_cells = sorted({k[:3] for k in saved if k[:3] not in cells})
+    other_seeds = sorted({k[3] for k in saved if seeds is not None and k[3] not in seeds})
+    if other_seeds and not other_cells:
+        assert seeds is not None
+        shown = ", ".join(map(str, other_seeds[:5])) + (" ..." if len(other_seeds) > 5 else "")
+        raise UsageError(
+            f"--resume: {args.out} holds episodes of seeds {shown}, outside this run's "
+            f"{seeds.start}-{seeds.stop - 1} (--seed {args.seed}, --episodes {args.episodes}); "
+            "give the run's --seed and --episodes"
+        )
+    left_out = other_cells
     if left_out:
         shown = ", ".join(f"{a} on {t} ({n} particles)" for t, a, n in left_out[:3])
         raise UsageError(
@@ -202,7 +210,8 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
     if args.resume and args.out is None:
         raise UsageError("--resume: needs --out FOLDER, the run to continue")
     if (args.videos or args.no_report) and args.out is None:
-        raise UsageError("--videos, --no-report: need --out FOLDER")
+        given = [f for f, on in (("--videos", args.videos), ("--no-report", args.no_report)) if on]
+        raise UsageError(f"{', '.join(given)}: need{'s' * (len(given) == 1)} --out FOLDER")
     if args.videos and args.agent_seeds > 1:
         raise UsageError("--videos: a video replays one agent seed; drop --agent-seeds")
     if args.declared and args.episodes is not None:
@@ -275,7 +284,7 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
             print(SEEDS_LEGEND)
         if args.out:
             report = "" if args.no_report else ", the report (index.html)"
-            wrote(args.out, f"results.json, table.md, episodes.jsonl{report}")
+            wrote(args.out, f"results.json, table.md, run.json, episodes.jsonl{report}")
     for r in failed:
         print(
             f"error: {r['agent']} on {r['task']} ({r['particles']} particles): {r['error']}",

@@ -174,7 +174,7 @@ def _settings(args: argparse.Namespace) -> dict:
 
 def _cmd_train(args: argparse.Namespace) -> int:
     from baselines.rl import TrainConfig, train
-    from baselines.rl_config import ResumeMismatch
+    from baselines.rl_config import InitMismatch, ResumeMismatch
 
     out = args.out or Path("runs") / f"{args.algo}-{args.task}-s{args.seed}"
     if args.out is None:  # the default folder, checked before training as --out is
@@ -209,7 +209,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     try:
         with log:
             path = train(config, resume=args.resume, force=args.force, command=command)
-    except (FileExistsError, ResumeMismatch) as exc:  # the arguments and the folder disagree
+    except (FileExistsError, ResumeMismatch, InitMismatch) as exc:  # the arguments disagree
         raise UsageError(str(exc)) from None
     run_config = json.loads((out / "config.json").read_text())
     if export is not None:

@@ -21,11 +21,11 @@ whose clips differ from the ones the list was made on.
 Rebuild the files (the synthetic lists always, the CMU lists from the shared
 motion capture)::
 
-    python -m humotion_gym.envs.episodes --write --data-dir /work/shared/mocap
+    python -m humotion_gym.envs.episodes --write --data-dir ../shared/mocap
 
 and check the shipped files against the rule without writing::
 
-    python -m humotion_gym.envs.episodes --check --data-dir /work/shared/mocap
+    python -m humotion_gym.envs.episodes --check --data-dir ../shared/mocap
 """
 
 from __future__ import annotations

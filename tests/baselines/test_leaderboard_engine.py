@@ -463,3 +463,17 @@ def test_the_leaderboard_tracks_the_test_split_only(tmp_path):
     with pytest.raises(ValueError, match="split='train', but the leaderboard tracks the test"):
         run_leaderboard(["ArmTrack-v2"], ["hold"], [1], episodes=1, progress=False,
                         env_kwargs={"split": "train"})  # fmt: skip
+
+
+def test_resume_with_other_seeds_and_a_report_flag_without_out_say_what_is_wrong(tmp_path, capsys):
+    argv = [*_cli(tmp_path, "hold"), "--episodes", "2", "--no-report"]
+    assert main(argv) == 0
+    capsys.readouterr()
+    assert main([*argv, "--seed", "7", "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert "holds episodes of seeds 0, 1, outside this run's 7-8 (--seed 7, --episodes 2)" in err
+    no_out = ["leaderboard", "--tasks", "BodyTrack-v2", "--agents", "hold", "--no-report"]
+    assert main(no_out) == 2
+    assert "--no-report: needs --out FOLDER" in capsys.readouterr().err
+    assert main(["leaderboard", "--tasks", "BodyTrack-v2", "--agents", "nope"]) == 2
+    assert "each described by humotion-gym agents (see" in capsys.readouterr().err

@@ -32,6 +32,7 @@ from baselines.leaderboard import run_leaderboard
 from baselines.leaderboard.evaluation import evaluate, run_episode
 from baselines.rl import (
     PPO_DEFAULTS,
+    InitMismatch,
     ResumeMismatch,
     TrainConfig,
     check_resumed,
@@ -384,19 +385,34 @@ def test_a_starting_policy_is_checked_before_the_run_writes_anything(
     with pytest.raises(ValueError, match=r"--init: .*notsb3\.zip: not a readable"):
         train(TrainConfig("bc", "ArmTrack-v2", 10, out=str(out), init=str(bad)))
     assert not out.exists()
-    # another task's policy, or one of real data for a synthetic run: warned, as scoring does
+    # another task's policy: warned, as scoring does; of another network: refused
+    other = TrainConfig("bc", "SideWalk-v2", 10, out=str(out), init=str(bc_run / "model.zip"))
     with pytest.warns(OtherTaskWarning, match="trained on ArmTrack-v2, not SideWalk-v2"):
-        check_init(TrainConfig("bc", "SideWalk-v2", 10, init=str(bc_run / "model.zip")))
+        with pytest.raises(InitMismatch, match=r"--init .*model.zip: its network does not fit"):
+            check_init(other)
+    from baselines.cli import main
+
+    argv = ["train", "--algo", "bc", "--task", "SideWalk-v2", "--steps", "10", "--out", str(out)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", OtherTaskWarning)
+        assert main([*argv, "--init", str(bc_run / "model.zip")]) == 2  # a usage error
+    assert not out.exists()  # nothing written: no folder, no log
+    # one of real data for a synthetic run: warned
+    small = {"frame_size": 32}  # bc_run's network
     real = tmp_path / "real"
     real.mkdir()
     shutil.copyfile(bc_run / "model.zip", real / "model.zip")
     record = json.loads((bc_run / "config.json").read_text())
     (real / "config.json").write_text(json.dumps({**record, "data_dir": ["/data/mocap"]}))
     with pytest.warns(OtherDataWarning, match="motion capture in /data/mocap"):
-        check_init(TrainConfig("bc", "ArmTrack-v2", 10, init=str(real / "model.zip")))
+        check_init(
+            TrainConfig("bc", "ArmTrack-v2", 10, init=str(real / "model.zip"), settings=small)
+        )
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        check_init(TrainConfig("bc", "ArmTrack-v2", 10, init=str(bc_run / "model.zip")))
+        check_init(
+            TrainConfig("bc", "ArmTrack-v2", 10, init=str(bc_run / "model.zip"), settings=small)
+        )
 
 
 def test_a_resume_over_an_unreadable_model_alone_is_refused(tmp_path: Path) -> None:
