@@ -283,19 +283,32 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
             shown = ", ".join(persons[:5]) + (" ..." if len(persons) > 5 else "")
             raise ValueError(
                 f"{self.task.name}: the library holds no {split} clip: its {len(library)} "
-                f"clips show {shown}, none a {split} person (see humotion-gym data persons; "
-                "choose another split)"
+                f"clips show {shown}, none a {split} person (see humotion-gym data persons)"
+                + (
+                    "; to track a clip of your own, name it in reset's options "
+                    "(file=PATH; humotion-gym track --clip PATH)"
+                    if split == "test"
+                    else "; choose another split"
+                )
             )
-        clips = in_split.filter(labels=self.task.labels)
+        labelled = in_split.filter(labels=self.task.labels)
         need = self.episode_frames * self.frame_skip + 1
-        clips = clips.filter(min_frames=need)
+        clips = labelled.filter(min_frames=need)
+        if len(labelled) == 0 and self.task.labels is not None:  # the label rules them out
+            found = sorted({m.label for m in in_split})
+            raise ValueError(
+                f"{self.task.name}: no {split} clip is labelled {' or '.join(self.task.labels)} "
+                f"(its {len(in_split)} {split} clips are labelled {', '.join(found)}; a user's "
+                "clip takes its label from its file name: see humotion-gym data info)"
+            )
         if len(clips) == 0:
             labels = "any label" if self.task.labels is None else f"labels {self.task.labels}"
-            longest = max((m.n_frames for m in in_split), default=0)
+            longest = max(m.n_frames for m in labelled)
             raise ValueError(
                 f"{self.task.name}: no {split} clip of {labels} holds {need} frames "
                 f"({self.episode_frames} frames, every {self.frame_skip}, and the frame "
-                f"before); the longest has {longest} ({len(library)} clips in the library)"
+                f"before); the longest has {longest} ({len(library)} clips in the "
+                "library)"
             )
         if self.task.min_motion_mm > 0:
             # only clips with at least one start that moves enough

@@ -26,6 +26,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import os
+import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -120,6 +121,26 @@ def assign_split(src: ClipSource, split_by: SplitBy | None = None) -> tuple[str,
                 )
             return value, rule
     return user_split(src.who), USER_SPLIT_RULE
+
+
+def _warn_unused_split_keys(split_by: Mapping[str, str], sources: Sequence[ClipSource]) -> None:
+    """Warn of each key of a ``split_by`` mapping that decides no clip's split.
+
+    A key of a known data set's clip, subject or person is ignored (their
+    split is the benchmark's), as is one that names nothing loaded: either
+    way the user's intent is dropped, so it is said.
+    """
+    user = {k for s in sources if s.dataset == "user" for k in (s.clip_id, s.subject, s.who)}
+    known = {k: s for s in sources if s.dataset != "user" for k in (s.clip_id, s.subject, s.who)}
+    for key in split_by:
+        if key in user:
+            continue
+        why = (
+            f"is {known[key].dataset} data, which keeps the benchmark's split"
+            if key in known
+            else "names no clip, subject or person loaded"
+        )
+        warnings.warn(f"split_by: {key!r} {why}; ignored", UserWarning, stacklevel=3)
 
 
 class SplitError(ValueError):
@@ -510,7 +531,8 @@ def load_library(
             ``"test"``, or a mapping from clip, subject or person ids to
             them; :func:`user_split` (one person in five to test, by hash)
             for clips it leaves out. CMU, Bandai-Namco and synthetic clips
-            keep the benchmark's split. Each clip's ``meta["split_rule"]``
+            keep the benchmark's split: a mapping's key of theirs, or one
+            that names nothing loaded, is warned of and ignored. Each clip's ``meta["split_rule"]``
             and :attr:`MotionLibrary.split_rules` say which rule was used.
 
     Returns:
@@ -521,6 +543,8 @@ def load_library(
         SplitError: If ``split_by`` puts one person on both sides.
     """
     sources = find_clips(paths)
+    if split_by is not None and not callable(split_by):
+        _warn_unused_split_keys(split_by, sources)
     assigned = [(src, assign_split(src, split_by)) for src in sources]
     check_person_sides([(src, split[0]) for src, split in assigned])
     splits = {src.clip_id: split for src, split in assigned}

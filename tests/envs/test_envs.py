@@ -541,5 +541,12 @@ def test_a_train_env_refuses_a_file_of_a_test_person_from_outside_its_data(share
     _, info = env.reset(seed=0, options={"file": str(tmp_path / "carol" / "walk.amc")})
     assert info["clip_id"].endswith("carol/walk")
     # carol's data holds no test person: the message says so, not "the longest has 0"
-    with pytest.raises(ValueError, match=r"holds no test clip: its 1 clips show .*carol"):
+    with pytest.raises(ValueError, match=r"holds no test clip: its 1 clips show .*carol.*file="):
         gym.make("humotion_gym/BodyTrack-v2", data_dir=str(tmp_path / "carol"), split="test")
+    # no walking clip: the message names the labels, not "the longest has" some length
+    dancing = tmp_path / "other" / "carol"
+    dancing.mkdir(parents=True)
+    shutil.copyfile(source / "02.asf", dancing / "carol.asf")
+    shutil.copyfile(source / "02_01.amc", dancing / "dance.amc")
+    with pytest.raises(ValueError, match=r"no train clip is labelled walk \(its 1 train clips"):
+        gym.make("humotion_gym/WalkTrack-v2", data_dir=str(dancing)).reset(seed=0)

@@ -369,6 +369,21 @@ def test_user_split_rule_and_override(tmp_path):
         [tmp_path], cache_dir=tmp_path / "cache", progress=False, split_by=everyone_trains
     )
     assert none.split("test").clip_ids == [] and none.split_rules == ["split_by=everyone_trains"]
+    # a key that decides nothing is said, not dropped in silence
+    with pytest.warns(UserWarning, match=r"split_by: 'bobby' names no clip, subject or person"):
+        load_library(
+            [tmp_path], cache_dir=tmp_path / "cache", progress=False, split_by={"bobby": "test"}
+        )
+
+
+@pytest.mark.mocap
+def test_split_by_does_not_move_a_known_data_sets_person(shared_mocap, tmp_path):
+    with pytest.warns(UserWarning, match=r"'cmu-02' is cmu data, which keeps the benchmark's"):
+        lib = load_library(
+            [shared_mocap / "cmu-asfamc" / "02"], cache_dir=tmp_path / "c", progress=False,
+            split_by={"cmu-02": "train"},
+        )  # fmt: skip
+    assert {m.meta["split"] for m in lib} == {"test"}
 
 
 def test_persons_folders_may_hold_files_of_one_name(tmp_path):
