@@ -151,6 +151,8 @@ def make_env(task: str, env_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
             f"env_kwargs: split={kwargs['split']!r}, but the leaderboard tracks the test "
             "split (choose the data with data_dir, or a validation fold with library)"
         )
+    if "episode_frames" in kwargs:  # every episode to its end: no TimeLimit before it
+        kwargs.setdefault("max_episode_steps", kwargs["episode_frames"])
     return gym.make(f"humotion_gym/{task}", terminate_on_lost=False, split="test", **kwargs)
 
 

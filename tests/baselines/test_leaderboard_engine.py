@@ -477,3 +477,12 @@ def test_resume_with_other_seeds_and_a_report_flag_without_out_say_what_is_wrong
     assert "--no-report: needs --out FOLDER" in capsys.readouterr().err
     assert main(["leaderboard", "--tasks", "BodyTrack-v2", "--agents", "nope"]) == 2
     assert "each described by humotion-gym agents (see" in capsys.readouterr().err
+
+
+def test_longer_episodes_than_the_tasks_run_to_their_end():
+    """episode_frames above the task's: gym.make's TimeLimit must not cut them."""
+    rows = run_leaderboard(
+        TASKS, ["hold"], [1], episodes=1, seed=SEED, progress=False,
+        env_kwargs={"episode_frames": 35},
+    )  # fmt: skip
+    assert len(rows[0]["episodes"][0]["errors_mm"]) == 35
