@@ -83,6 +83,15 @@ class OtherTaskWarning(UserWarning):
     """
 
 
+class UnrecordedPolicyWarning(UserWarning):
+    """A saved policy has no training record: what it learned cannot be checked.
+
+    ``humotion-gym train`` writes ``config.json`` beside ``model.zip`` (the
+    task, the data, the training persons); a model saved by other code has
+    none, so nothing shows that it learned training persons only.
+    """
+
+
 class NoCheckpointError(FileNotFoundError, TaskNotSupported):
     """No pretrained checkpoint of a learned agent for a task.
 
@@ -173,6 +182,7 @@ def _record_data_dirs(record: dict[str, Any]) -> list[str] | None:
 def check_record(path: str, task: str, synthetic: bool, use: str = "score it") -> None:
     """Warn where a saved policy's record says it learned another task or other data.
 
+    :class:`UnrecordedPolicyWarning` where it has no record at all;
     :class:`OtherTaskWarning` when it was trained on another task than
     ``task`` (one whose actions have the same size, or it would not load);
     :class:`OtherDataWarning` when it learned real motion capture and
@@ -184,7 +194,16 @@ def check_record(path: str, task: str, synthetic: bool, use: str = "score it") -
         synthetic: Those episodes come from the built-in synthetic library.
         use: What passing the same ``--data-dir`` would let one do.
     """
-    record = policy_record(path) or {}
+    found = policy_record(path)
+    if found is None:
+        warnings.warn(
+            f"{path} has no training record (config.json beside it, as humotion-gym train "
+            "writes): its task, data and training persons cannot be checked, so its numbers "
+            "are held-out numbers only if you know it learned training persons alone",
+            UnrecordedPolicyWarning,
+            stacklevel=3,
+        )
+    record = found or {}
     trained_on = record.get("task")
     if isinstance(trained_on, str) and trained_on != task:
         warnings.warn(

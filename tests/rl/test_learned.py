@@ -22,6 +22,7 @@ from baselines.agents.learned import (
     NoCheckpointError,
     OtherDataWarning,
     OtherTaskWarning,
+    UnrecordedPolicyWarning,
     checkpoint_path,
     is_learned,
     load_policy,
@@ -413,6 +414,12 @@ def test_a_starting_policy_is_checked_before_the_run_writes_anything(
         check_init(
             TrainConfig("bc", "ArmTrack-v2", 10, init=str(bc_run / "model.zip"), settings=small)
         )
+    # a model without any record (saved by other code): its training cannot be checked
+    bare = tmp_path / "bare" / "policy.zip"
+    bare.parent.mkdir()
+    shutil.copyfile(bc_run / "model.zip", bare)
+    with pytest.warns(UnrecordedPolicyWarning, match=r"policy.zip has no training record"):
+        check_init(TrainConfig("bc", "ArmTrack-v2", 10, init=str(bare), settings=small))
 
 
 def test_a_resume_over_an_unreadable_model_alone_is_refused(tmp_path: Path) -> None:
@@ -629,6 +636,7 @@ def test_a_resumed_leaderboard_refuses_a_policy_file_that_changed(
 
     policy = tmp_path / "policy.zip"
     shutil.copyfile(bc_run / "model.zip", policy)
+    shutil.copyfile(bc_run / "config.json", policy.with_suffix(".json"))  # its record
     out = tmp_path / "lb"
     kwargs = dict(progress=False, out=out, report=False)
     agents = [str(policy), f"pf-cv+{policy}"]
