@@ -577,12 +577,23 @@ class RayEngine:
         mine = package_version()
         try:
             started = self.ray.get([a.start.remote(self._fits, registry) for a in self.actors])
-        except self.ray.exceptions.RayError as exc:  # e.g. a class the workers cannot import
-            cause = getattr(exc, "cause", None) or exc
+        except self.ray.exceptions.RayTaskError as exc:  # raised in the worker's start
+            cause: BaseException = exc
+            for _ in range(4):  # Ray wraps the worker's error (RaySystemError.client_exc)
+                inner = getattr(cause, "cause", None) or getattr(cause, "client_exc", None)
+                if not isinstance(inner, BaseException) or inner is cause:
+                    break
+                cause = inner
+            # a registered class the workers cannot import fails to unpickle there
+            unpickled = isinstance(cause, (ImportError, AttributeError))
+            hint = (
+                "; define the agents you register in a module the workers can import"
+                if unpickled or "No module named" in str(cause)
+                else ""
+            )
             raise RuntimeError(
-                f"the Ray workers could not take this process's agents "
-                f"({type(cause).__name__}: {str(cause).splitlines()[0][:200]}); define the "
-                "agents you register in a module the workers can import"
+                f"a Ray worker could not start ({type(cause).__name__}: "
+                f"{(str(cause).strip().splitlines() or [''])[0][:200]}){hint}"
             ) from None
         for version, pid in started:
             if version != mine:

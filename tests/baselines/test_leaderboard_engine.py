@@ -486,3 +486,40 @@ def test_longer_episodes_than_the_tasks_run_to_their_end():
         env_kwargs={"episode_frames": 35},
     )  # fmt: skip
     assert len(rows[0]["episodes"][0]["errors_mm"]) == 35
+
+
+def test_a_worker_that_cannot_take_the_registered_agents_stops_the_run_in_one_line(monkeypatch):
+    from types import SimpleNamespace
+
+    from baselines.leaderboard import engine as engine_module
+
+    class TaskError(Exception):
+        def __init__(self, cause: BaseException) -> None:
+            super().__init__(str(cause))
+            self.cause = cause
+
+    class Unpicklable(_FakeRay):
+        exceptions = SimpleNamespace(RayTaskError=TaskError)
+
+        def remote(self, num_cpus: int):
+            actor = SimpleNamespace(
+                start=SimpleNamespace(remote=lambda *args: None), run=None
+            )  # fmt: skip
+            return lambda cls: SimpleNamespace(remote=lambda *args: actor)
+
+        def put(self, value):
+            return value
+
+        def get(self, refs):
+            raise TaskError(ModuleNotFoundError("No module named 'mine'\nTraceback ..."))
+
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    monkeypatch.setattr(engine_module, "_import_ray", lambda: Unpicklable(cpus=2))
+    runner = engine_module.RayEngine(0, {}, workers=2, jobs=2)
+    with pytest.raises(RuntimeError) as caught:
+        runner.start({})
+    message = str(caught.value)
+    assert message == (
+        "a Ray worker could not start (ModuleNotFoundError: No module named 'mine'); define the "
+        "agents you register in a module the workers can import"
+    )
