@@ -11,6 +11,9 @@ command module has a ``register(subparsers)`` function, as described in
 from __future__ import annotations
 
 import argparse
+import importlib
+import os
+import sys
 from collections.abc import Sequence
 
 from humotion_gym import cli as benchmark_cli
@@ -45,6 +48,45 @@ def build_parser() -> argparse.ArgumentParser:
     return benchmark_cli.build_parser(COMMAND_MODULES)
 
 
+def import_agent_modules(argv: Sequence[str]) -> int | None:
+    """Import each ``--import MODULE`` of ``argv``; an exit code where one fails, else None.
+
+    Done before the arguments are parsed, so that the agents a module
+    registers are known to ``--agents``. The current folder is put on the
+    import path (a console script's is not; the leaderboard's Ray workers take
+    the driver's). A module that is not found is a usage error (2); one that
+    fails while importing, a runtime error (1), its traceback with
+    ``HUMOTION_TRACEBACK=1``.
+    """
+    names = [b for a, b in zip(argv, argv[1:], strict=False) if a == "--import"]
+    names += [a.split("=", 1)[1] for a in argv if a.startswith("--import=")]
+    if names and os.getcwd() not in sys.path:
+        sys.path.append(os.getcwd())
+    for name in names:
+        try:
+            importlib.import_module(name)
+        except Exception as exc:
+            missing = getattr(exc, "name", None) if isinstance(exc, ModuleNotFoundError) else None
+            if missing and (name == missing or name.startswith(f"{missing}.")):
+                print(
+                    f"humotion-gym: error: --import {name}: no module named {missing} (a "
+                    "module on PYTHONPATH or in the current folder)",
+                    file=sys.stderr,
+                )
+                return 2
+            if os.environ.get("HUMOTION_TRACEBACK"):
+                raise
+            text = " ".join(str(exc).split())[:300]
+            print(
+                f"humotion-gym: error: --import {name}: {type(exc).__name__}: {text}",
+                file=sys.stderr,
+            )
+            return 1
+    return None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``humotion-gym`` console script; returns the exit code."""
-    return benchmark_cli.main(argv, COMMAND_MODULES)
+    args = list(sys.argv[1:] if argv is None else argv)
+    failed = import_agent_modules(args)
+    return failed if failed is not None else benchmark_cli.main(args, COMMAND_MODULES)

@@ -42,7 +42,7 @@ def agent_name(text: str) -> str:
     if text not in agent_names() and not is_learned(text):
         raise argparse.ArgumentTypeError(
             f"unknown agent {text[:80]}; the agents are {', '.join(agent_names())}, each "
-            "described by humotion-gym agents"
+            "described by humotion-gym agents (one of yours needs --import MODULE)"
         )
     if takes_particles(text):  # pf-PRIOR+POLICY
         prior, spec = text.split("+", 1)[0], policy_spec(text)
@@ -69,13 +69,30 @@ def add_particles(parser: argparse.ArgumentParser, what: str = "particles") -> N
     )  # fmt: skip
 
 
+def add_imports(parser: argparse.ArgumentParser) -> None:
+    """``--import MODULE``: a module of the user's that registers agents, imported first.
+
+    The import itself happens before the arguments are parsed
+    (:func:`baselines.cli.import_agent_modules`), so that ``--agents`` and
+    ``--agent`` know the names it registers; the flag is declared here for
+    ``--help`` and so that the parser accepts it.
+    """
+    parser.add_argument(
+        "--import", dest="imports", action="append", default=[], metavar="MODULE",
+        help="import MODULE first: yours, registering agents with "
+        "baselines.agents.register_agent or register_reference (from PYTHONPATH or the "
+        "current folder; repeatable)",
+    )  # fmt: skip
+
+
 def add_agents(parser: argparse.ArgumentParser, hold: str = "hold always runs") -> None:
     """``--agents``: registered agent names, default pf-cv pf-tree (``hold`` runs besides)."""
     parser.add_argument(
         "--agents", type=agent_name, nargs="+", action=Distinct, default=["pf-cv", "pf-tree"],
         metavar="AGENT",
-        help=f"agents; {hold} (default: pf-cv pf-tree)",
+        help=f"agents; {hold}; yours with --import (default: pf-cv pf-tree)",
     )  # fmt: skip
+    add_imports(parser)
 
 
 def add_engine(parser: argparse.ArgumentParser) -> None:

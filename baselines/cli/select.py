@@ -11,7 +11,7 @@ import argparse
 import math
 from collections.abc import Sequence
 
-from baselines.cli._args import add_particles, agent_name, tracked_task
+from baselines.cli._args import add_imports, add_particles, agent_name, tracked_task
 from humotion_gym.cli._common import (
     MAX_EPISODES,
     UsageError,
@@ -41,8 +41,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_task(sel, "ArmTrack-v2", kind=tracked_task)
     sel.add_argument(
         "--agent", type=agent_name, default="pf-tree",
-        help="particle-filter agent (default: pf-tree)",
+        help="particle-filter agent; yours with --import (default: pf-tree)",
     )  # fmt: skip
+    add_imports(sel)
     sel.add_argument(
         "--grid", nargs="+", default=["sharpness=1,2,3,5"], metavar="NAME=V1,V2",
         help="candidate values per ObservationModel setting, or per setting of the agent's "

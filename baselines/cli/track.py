@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from baselines.cli._args import add_particles, agent_name, tracked_task
+from baselines.cli._args import add_imports, add_particles, agent_name, tracked_task
 from humotion_gym.cli._common import (
     CommandError,
     UsageError,
@@ -51,8 +51,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_task(track, "ArmTrack-v2", "task id, see humotion-gym tasks", kind=tracked_task)
     track.add_argument(
         "--agent", type=agent_name, default="pf-cv",
-        help="agent, see humotion-gym agents (default: pf-cv)",
+        help="agent, see humotion-gym agents; yours with --import (default: pf-cv)",
     )  # fmt: skip
+    add_imports(track)
     add_particles(track, "particles of a particle-filter agent")
     track.add_argument(
         "--episodes", type=episode_count, default=20, help="episodes to track (default: 20)"

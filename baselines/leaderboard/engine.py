@@ -40,6 +40,7 @@ from __future__ import annotations
 import importlib
 import logging
 import os
+import pickle
 import socket
 import sys
 import time
@@ -130,8 +131,9 @@ class Episode:
 #: ``(module name, fitted parameters)`` of a particle-filter agent's prior, by
 #: (task, agent): what the driver fitted and the runners build filters from.
 Fits = Mapping[tuple[str, str], tuple[str, Any]]
-#: What a Ray worker takes of the driver's agents: its ``AGENTS`` and ``REFERENCES``.
-Registry = tuple[Mapping[str, Any], Mapping[str, tuple[type, str]]]
+#: What a Ray worker takes of the driver's agents: the driver's ``sys.path`` and its
+#: ``AGENTS`` and ``REFERENCES``, pickled (read once that path is the worker's too).
+Registry = tuple[list[str], bytes]
 
 
 def make_env(task: str, env_kwargs: Mapping[str, Any] | None = None) -> gym.Env:
@@ -416,9 +418,12 @@ class _RayWorker:
         ``registry``: the driver's :data:`~baselines.agents.AGENTS` and
         :data:`~baselines.agents.REFERENCES`, so that agents registered in the
         driver's process (``register_agent``, ``register_reference``) are
-        built here by the same names.
+        built here by the same names; their classes' modules are imported
+        from the driver's ``sys.path`` where this worker's lacks a folder.
         """
-        agents, references = registry
+        paths, blob = registry
+        sys.path.extend(p for p in paths if p not in sys.path)
+        agents, references = pickle.loads(blob)  # noqa: S301  (the driver's own objects)
         AGENTS.update(agents)
         REFERENCES.update(references)
         self.runner.fits = dict(fits)
@@ -573,7 +578,10 @@ class RayEngine:
                 cannot take the agents (a class it cannot import).
         """
         self._fits = self.ray.put(dict(fits))
-        registry = self.ray.put((dict(AGENTS), dict(REFERENCES)))
+        # pickled here (Ray's cloudpickle: a class of the driver's __main__ by value),
+        # read in the worker once the driver's import path is its own
+        blob = self.ray.cloudpickle.dumps((dict(AGENTS), dict(REFERENCES)))
+        registry = self.ray.put(([os.path.abspath(p) for p in sys.path], blob))
         mine = package_version()
         try:
             started = self.ray.get([a.start.remote(self._fits, registry) for a in self.actors])

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import pickle
 import socket
 from pathlib import Path
 from typing import Any
@@ -476,7 +477,9 @@ def test_resume_with_other_seeds_and_a_report_flag_without_out_say_what_is_wrong
     assert main(no_out) == 2
     assert "--no-report: needs --out FOLDER" in capsys.readouterr().err
     assert main(["leaderboard", "--tasks", "BodyTrack-v2", "--agents", "nope"]) == 2
-    assert "each described by humotion-gym agents (see" in capsys.readouterr().err
+    assert "described by humotion-gym agents (one of yours needs --import MODULE) (see" in (
+        capsys.readouterr().err
+    )
 
 
 def test_longer_episodes_than_the_tasks_run_to_their_end():
@@ -500,6 +503,7 @@ def test_a_worker_that_cannot_take_the_registered_agents_stops_the_run_in_one_li
 
     class Unpicklable(_FakeRay):
         exceptions = SimpleNamespace(RayTaskError=TaskError)
+        cloudpickle = pickle
 
         def remote(self, num_cpus: int):
             actor = SimpleNamespace(

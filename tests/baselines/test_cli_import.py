@@ -1,0 +1,68 @@
+"""``--import MODULE``: a user's module registers agents that the commands then run."""
+
+from __future__ import annotations
+
+import sys
+
+import pytest
+
+from baselines.agents import AGENTS, REFERENCES
+from baselines.cli import main
+
+MODULE = '''
+from baselines.agents import AgentSpec, HoldAgent, register_agent, register_reference
+
+
+class Still(HoldAgent):
+    """The initial pose, by another name."""
+
+
+register_reference("still-imported", Still, "hold, by another name")
+register_agent("pf-cv-imported", AgentSpec("baselines.priors.constant_velocity"))
+'''
+
+
+@pytest.fixture
+def user_folder(tmp_path, monkeypatch):
+    """A folder holding the user's modules, the current folder; the registries restored."""
+    (tmp_path / "myagents_cli.py").write_text(MODULE)
+    (tmp_path / "broken_cli.py").write_text("raise RuntimeError('oops')\n")
+    (tmp_path / "needs_cli.py").write_text("import no_such_dependency_cli\n")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    saved = dict(AGENTS), dict(REFERENCES)
+    yield tmp_path
+    for name in ("myagents_cli", "broken_cli", "needs_cli"):
+        sys.modules.pop(name, None)
+    AGENTS.clear()
+    AGENTS.update(saved[0])
+    REFERENCES.clear()
+    REFERENCES.update(saved[1])
+
+
+def test_an_imported_modules_agents_run_on_the_command_line(user_folder, capsys):
+    argv = ["leaderboard", "--tasks", "ArmTrack-v2", "--particles", "20", "--episodes", "1"]
+    agents = ["--agents", "still-imported", "pf-cv-imported"]
+    assert main([*argv, *agents, "--import", "myagents_cli"]) == 0
+    out = capsys.readouterr().out
+    assert "| ArmTrack-v2 | still-imported | - |" in out
+    assert "| ArmTrack-v2 | pf-cv-imported | 20 |" in out
+
+
+def test_a_module_that_is_missing_or_fails_is_one_line(user_folder, capsys):
+    track = ["track", "--task", "ArmTrack-v2", "--agent", "hold", "--episodes", "1"]
+    assert main([*track, "--import", "nope_cli"]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == (
+        "humotion-gym: error: --import nope_cli: no module named nope_cli (a module on "
+        "PYTHONPATH or in the current folder)"
+    )
+    assert main([*track, "--import=broken_cli"]) == 1
+    assert capsys.readouterr().err.strip() == (
+        "humotion-gym: error: --import broken_cli: RuntimeError: oops"
+    )
+    # a module of its own that is missing a dependency: its error, a runtime one
+    assert main([*track, "--import", "needs_cli"]) == 1
+    assert "ModuleNotFoundError: No module named 'no_such_dependency_cli'" in (
+        capsys.readouterr().err
+    )
