@@ -136,8 +136,14 @@ def code_digest(module: ModuleType) -> str:
     # edited and reloaded in a running process is seen.
     h = hashlib.sha256()
     for path in sorted(Path(file).resolve().parent.glob("*.py")):
+        if path.name.startswith("."):  # an editor's lock or backup file, not code
+            continue
+        try:
+            data = path.read_bytes()
+        except OSError:  # a dangling link or an unreadable file: not code that runs
+            continue
         h.update(f"{path.name}:".encode())
-        h.update(path.read_bytes())
+        h.update(data)
     return h.hexdigest()[:16]
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import warnings
+import weakref
 from collections.abc import Iterator, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -67,10 +68,21 @@ def _cached_library(dirs: tuple[str, ...], fps: float) -> MotionLibrary:
     return library
 
 
-@functools.lru_cache(maxsize=4)
+# The given libraries checked so far, by id, each with a weak reference that tells
+# whether the id is still that library's (a library need not be hashable: its
+# fields may be lists or sets, and keeping it alive here would hold its clips).
+_CHECKED: dict[int, weakref.ref[MotionLibrary]] = {}
+
+
 def _checked_library(library: MotionLibrary) -> None:
     """:func:`check_data_persons` once per given library (the vector env's copies share it)."""
+    seen = _CHECKED.get(id(library))
+    if seen is not None and seen() is library:
+        return
     check_data_persons(library)
+    for key in [k for k, ref in _CHECKED.items() if ref() is None]:
+        del _CHECKED[key]
+    _CHECKED[id(library)] = weakref.ref(library)
 
 
 # What a reset assigns: restored when a reset fails, so a reset is all-or-nothing.

@@ -11,6 +11,7 @@ import functools
 import importlib
 import json
 import shutil
+import sys
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -232,19 +233,27 @@ def test_an_edited_prior_is_refitted_not_read(env, tmp_path, monkeypatch):
     """A user's prior module edited between fits: its name and settings alike, its code not."""
     from baselines.priors.fitting import fit_prior as fit_module
 
-    package = tmp_path / "mine"
+    package = tmp_path / "mine_edited"
     package.mkdir()
     (package / "__init__.py").write_text("")
     source = package / "edited_prior.py"
+    # an editor's lock file beside it (a dangling link) is no code to digest
+    (package / ".#edited_prior.py").symlink_to(tmp_path / "nowhere")
     monkeypatch.syspath_prepend(str(tmp_path))
+    # the edits are read from source: no bytecode of the first to stand in for the second
+    monkeypatch.setattr(sys, "dont_write_bytecode", True)
     cache, clips = tmp_path / "cache", env.describe().training
     fits = []
-    for scale in (1.0, 2.0, 2.0):
-        source.write_text(_USER_PRIOR.format(scale=scale))
-        importlib.invalidate_caches()
-        module = importlib.reload(importlib.import_module("mine.edited_prior"))
-        fits.append(fit_module(module, clips, None, cache_dir=cache, log=None)[1])
-    assert [f.multiplier for f in fits] == [1.0, 2.0, 2.0]
+    try:
+        for scale in (1.0, 2.25, 2.25):
+            source.write_text(_USER_PRIOR.format(scale=scale))
+            importlib.invalidate_caches()
+            module = importlib.reload(importlib.import_module("mine_edited.edited_prior"))
+            fits.append(fit_module(module, clips, None, cache_dir=cache, log=None)[1])
+    finally:
+        sys.modules.pop("mine_edited.edited_prior", None)
+        sys.modules.pop("mine_edited", None)
+    assert [f.multiplier for f in fits] == [1.0, 2.25, 2.25]
     assert len(_entries(cache)) == 2  # the second edit's fit was read back, not refitted
 
 

@@ -550,3 +550,15 @@ def test_a_train_env_refuses_a_file_of_a_test_person_from_outside_its_data(share
     shutil.copyfile(source / "02_01.amc", dancing / "dance.amc")
     with pytest.raises(ValueError, match=r"no train clip is labelled walk \(its 1 train clips"):
         gym.make("humotion_gym/WalkTrack-v2", data_dir=str(dancing)).reset(seed=0)
+
+
+def test_a_library_of_lists_and_sets_is_checked_and_tracked():
+    """A library need not be hashable: its persons are checked all the same."""
+    from humotion_gym.envs import pose_tracking
+    from humotion_gym.mocap.library import MotionLibrary, synthetic_library
+
+    lib = synthetic_library()
+    loose = MotionLibrary(list(lib.motions), test_subjects=set(lib.held_out))  # type: ignore[arg-type]
+    env = gym.make("humotion_gym/BodyTrack-v2", library=loose)
+    env.reset(seed=0)
+    assert pose_tracking._CHECKED[id(loose)]() is loose
