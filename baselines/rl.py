@@ -38,6 +38,7 @@ import platform
 import shutil
 import sys
 import time
+import warnings
 import zipfile
 from collections.abc import Callable, Sequence
 from dataclasses import asdict
@@ -681,14 +682,6 @@ def _resumed(path: Path, env: Any = None) -> PPO:
         ) from None
 
 
-def _init_policy(init: str) -> PPO:
-    """The saved policy a run starts from (``--init``), or a ValueError that names the flag."""
-    try:
-        return cast(PPO, load_policy(init))
-    except (FileNotFoundError, ValueError) as exc:
-        raise ValueError(f"--init: {exc}") from None
-
-
 def check_init(config: TrainConfig) -> PPO | None:
     """The policy a run starts from, read and checked before the run writes anything.
 
@@ -707,12 +700,21 @@ def check_init(config: TrainConfig) -> PPO | None:
     """
     if config.init is None:
         return None
-    policy = _init_policy(config.init)
+    try:
+        policy = cast(PPO, load_policy(config.init))
+    except (FileNotFoundError, ValueError) as exc:
+        raise ValueError(f"--init: {exc}") from None
     synthetic = not configured_data_dirs(config.data_dir)
     check_record(config.init, config.task, synthetic, "train on it")
-    probe = make_learner_env(config.task, "train", config.settings["frame_size"], True)
+    # the task's spaces (no data changes them: the built-in library, whatever
+    # $HUMOTION_MOCAP says); one env, so PPO's batch-size note does not apply
+    size = config.settings["frame_size"]
+    probe = make_learner_env(config.task, "train", size, True, data_dir=[])
     try:
-        _start_from(new_model(config, probe), policy, config.init)
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message="You have specified a mini-batch size")
+            model = new_model(config, probe)
+        _start_from(model, policy, config.init)
     finally:
         probe.close()
     return policy

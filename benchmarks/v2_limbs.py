@@ -237,8 +237,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
         "--data-dir",
-        required=True,
-        help="the real motion capture (e.g. ../shared/mocap): the validation persons are CMU's",
+        default=None,
+        help="the real motion capture (e.g. ../shared/mocap; the validation persons are "
+        "CMU's): needed unless --table",
     )
     parser.add_argument("--episodes", type=int, default=12)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
@@ -256,6 +257,8 @@ def main(argv: Sequence[str] | None = None) -> None:
     if args.table:
         print(markdown(summarize(json.loads(args.out.read_text())["cells"])))
         return
+    if args.data_dir is None:
+        parser.error("--data-dir: give the real motion capture (e.g. ../shared/mocap)")
     library = load_library([args.data_dir], fps=30.0, progress=False)
     fold = library.validation_fold(list(VALIDATION_SUBJECTS))
     if args.heights:

@@ -18,11 +18,13 @@ import contextlib
 import io
 import re
 import shlex
+import sys
 from pathlib import Path
 
 import pytest
 
-from baselines.cli import build_parser
+from baselines.agents import AGENTS, REFERENCES
+from baselines.cli import build_parser, import_agent_modules
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
@@ -53,14 +55,31 @@ def page_commands(text: str) -> list[tuple[int, str]]:
 
 
 def parse_error(parser: argparse.ArgumentParser, command: str) -> str | None:
-    """argparse's message for ``command``, or None where it parses (``--help`` included)."""
+    """argparse's message for ``command``, or None where it parses (``--help`` included).
+
+    Its ``--import`` modules are imported first, as the command line does, from
+    the repository's root; the agents they register are removed afterwards.
+    """
     err = io.StringIO()
+    argv = shlex.split(command)[1:]
+    saved = dict(AGENTS), dict(REFERENCES), list(sys.path)
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
         try:
-            parser.parse_args(shlex.split(command)[1:])
+            sys.path.insert(0, str(ROOT))
+            failed = import_agent_modules(argv)
+            if failed is not None:
+                return (err.getvalue().strip().splitlines() or ["exit " + str(failed)])[-1]
+            parser.parse_args(argv)
         except SystemExit as stop:
             if stop.code not in (0, None):
                 return (err.getvalue().strip().splitlines() or ["exit " + str(stop.code)])[-1]
+        finally:
+            for registry, before in zip((AGENTS, REFERENCES), saved[:2], strict=True):
+                registry.clear()
+                registry.update(before)  # type: ignore[arg-type]
+            sys.path[:] = saved[2]
+            for name in (b for a, b in zip(argv, argv[1:], strict=False) if a == "--import"):
+                sys.modules.pop(name, None)  # imported afresh, registering, each time
     return None
 
 

@@ -37,12 +37,7 @@ from baselines.agents.filters import (
     body_part_stages,
 )
 from baselines.agents.learned import LEARNED, is_learned, make_learned, takes_particles
-from baselines.agents.references import (
-    REFERENCES,
-    HoldAgent,
-    RandomAgent,
-    register_reference,
-)
+from baselines.agents.references import REFERENCES, HoldAgent, RandomAgent
 from baselines.agents.settings import FILTER_SETTINGS, PF_SETTINGS_FILE
 from baselines.agents.specs import (
     AGENTS,
@@ -53,6 +48,7 @@ from baselines.agents.specs import (
     fit_prior,
     make_filter,
     register_agent,
+    register_reference,
     training_motions,
 )
 from baselines.observation import ObservationModel

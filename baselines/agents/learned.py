@@ -197,9 +197,9 @@ def check_record(path: str, task: str, synthetic: bool, use: str = "score it") -
     found = policy_record(path)
     if found is None:
         warnings.warn(
-            f"{path} has no training record (config.json beside it, as humotion-gym train "
-            "writes): its task, data and training persons cannot be checked, so its numbers "
-            "are held-out numbers only if you know it learned training persons alone",
+            f"{path} has no readable training record (config.json beside it, as humotion-gym "
+            "train writes): what it learned (task, data, persons) cannot be checked, and what "
+            "it scores is a held-out number only if it learned training persons alone",
             UnrecordedPolicyWarning,
             stacklevel=3,
         )

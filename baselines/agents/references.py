@@ -15,7 +15,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from baselines.agents.base import describe, episode_begins, refuse_truth
+from baselines.agents.base import describe, episode_begins
 from humotion_gym.envs.description import TaskDescription, read_observation
 
 
@@ -87,19 +87,3 @@ REFERENCES: dict[str, tuple[type, str]] = {
     "hold": (HoldAgent, "the initial pose every frame: what doing nothing scores"),
     "random": (RandomAgent, "uniform random actions"),
 }
-
-
-def register_reference(name: str, agent_class: type, description: str = "") -> None:
-    """Add an agent class that takes no particles: ``agent_class(task_description, seed=...)``.
-
-    The leaderboard and :func:`baselines.agents.make` then build it by name,
-    from the task's description only, and hand it observations only.
-
-    Raises:
-        ValueError: If the name is taken, or the class reads the truth (an
-            oracle of :mod:`baselines.diagnostics`).
-    """
-    refuse_truth(agent_class, "register_reference")
-    if name in REFERENCES:
-        raise ValueError(f"register_reference: {name!r} is already an agent")
-    REFERENCES[name] = (agent_class, description)

@@ -23,7 +23,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from baselines.agents.base import TaskNotSupported, describe
+from baselines.agents.base import TaskNotSupported, describe, refuse_truth
 from baselines.agents.filters import ParticleFilterAgent
 from baselines.agents.references import REFERENCES
 from baselines.agents.settings import (
@@ -544,6 +544,40 @@ def _check_prior(spec: AgentSpec, name: str) -> None:
         _check_prior(component, f"{name}/{label}")
 
 
+def _check_new_name(name: str, who: str, replace: bool = False) -> None:
+    """Refuse a name that is taken, or that the command line would read as another agent.
+
+    ``pf-NAME+POLICY`` is a hybrid, ``LABEL=PATH`` and ``PATH.zip`` learned
+    policies: a registered name of that form could not be named there.
+    """
+    if not isinstance(name, str) or not name.strip() or name != name.strip():
+        raise ValueError(f"{who}: expected a name without surrounding spaces, got {name!r}")
+    if "+" in name or "=" in name or name.endswith(".zip"):
+        raise ValueError(
+            f"{who}: {name!r}: a name holds no '+' or '=' and does not end in .zip (the command "
+            "line reads those as hybrids and learned policies)"
+        )
+    if name in REFERENCES or (name in AGENTS and not replace):
+        extra = " (replace=True replaces it)" if who == "register_agent" and name in AGENTS else ""
+        raise ValueError(f"{who}: {name!r} is already an agent{extra}")
+
+
+def register_reference(name: str, agent_class: type, description: str = "") -> None:
+    """Add an agent class that takes no particles: ``agent_class(task_description, seed=...)``.
+
+    The leaderboard and :func:`baselines.agents.make` then build it by name,
+    from the task's description only, and hand it observations only.
+
+    Raises:
+        ValueError: If the name is taken (a reference agent's or a particle
+            filter's) or not one the command line can name, or the class reads
+            the truth (an oracle of :mod:`baselines.diagnostics`).
+    """
+    refuse_truth(agent_class, "register_reference")
+    _check_new_name(name, "register_reference")
+    REFERENCES[name] = (agent_class, description)
+
+
 def register_agent(name: str, spec: AgentSpec, replace: bool = False) -> None:
     """Add a particle-filter agent to :data:`AGENTS`, checked before its first fit.
 
@@ -560,13 +594,7 @@ def register_agent(name: str, spec: AgentSpec, replace: bool = False) -> None:
             (:data:`PRIOR_FUNCTIONS`).
         TypeError: If ``spec`` is not an :class:`AgentSpec`.
     """
-    if not isinstance(name, str) or not name:
-        raise ValueError(f"register_agent: expected a non-empty name, got {name!r}")
-    if name in REFERENCES or (name in AGENTS and not replace):
-        raise ValueError(
-            f"register_agent: {name!r} is already an agent"
-            + ("" if name in REFERENCES else " (replace=True replaces it)")
-        )
+    _check_new_name(name, "register_agent", replace)
     _check_prior(spec, name)
     AGENTS[name] = spec
 

@@ -17,6 +17,7 @@ import sys
 from collections.abc import Sequence
 
 from humotion_gym import cli as benchmark_cli
+from humotion_gym.cli import TRACEBACK_ENV
 
 #: Every command module of ``humotion-gym``, in ``--help`` order.
 COMMAND_MODULES: tuple[str, ...] = (
@@ -48,6 +49,12 @@ def build_parser() -> argparse.ArgumentParser:
     return benchmark_cli.build_parser(COMMAND_MODULES)
 
 
+#: The commands that take ``--import MODULE`` (:func:`baselines.cli._args.add_imports`).
+IMPORTING_COMMANDS: frozenset[str] = frozenset(
+    {"agents", "track", "select", "leaderboard", "still", "sweep", "depth"}
+)
+
+
 def import_agent_modules(argv: Sequence[str]) -> int | None:
     """Import each ``--import MODULE`` of ``argv``; an exit code where one fails, else None.
 
@@ -58,8 +65,12 @@ def import_agent_modules(argv: Sequence[str]) -> int | None:
     fails while importing, a runtime error (1), its traceback with
     ``HUMOTION_TRACEBACK=1``.
     """
-    names = [b for a, b in zip(argv, argv[1:], strict=False) if a == "--import"]
-    names += [a.split("=", 1)[1] for a in argv if a.startswith("--import=")]
+    if not argv or argv[0] not in IMPORTING_COMMANDS:
+        return None  # the command has no --import: its parser says so
+    # the flag as the command's parser reads it (abbreviations included)
+    pre = argparse.ArgumentParser(add_help=False)
+    pre.add_argument("--import", dest="imports", action="append", default=[])
+    names = pre.parse_known_args(argv[1:])[0].imports
     if names and os.getcwd() not in sys.path:
         sys.path.append(os.getcwd())
     for name in names:
@@ -74,7 +85,7 @@ def import_agent_modules(argv: Sequence[str]) -> int | None:
                     file=sys.stderr,
                 )
                 return 2
-            if os.environ.get("HUMOTION_TRACEBACK"):
+            if os.environ.get(TRACEBACK_ENV) == "1":
                 raise
             text = " ".join(str(exc).split())[:300]
             print(

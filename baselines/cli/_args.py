@@ -81,7 +81,7 @@ def add_imports(parser: argparse.ArgumentParser) -> None:
         "--import", dest="imports", action="append", default=[], metavar="MODULE",
         help="import MODULE first: yours, registering agents with "
         "baselines.agents.register_agent or register_reference (from PYTHONPATH or the "
-        "current folder; repeatable)",
+        "current folder; repeatable) (default: none)",
     )  # fmt: skip
 
 

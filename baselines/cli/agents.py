@@ -12,7 +12,7 @@ import argparse
 import math
 from typing import Any
 
-from baselines.cli._args import tracked_task
+from baselines.cli._args import add_imports, tracked_task
 from humotion_gym.cli._common import add_command, add_json, print_json
 
 
@@ -32,6 +32,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--task", type=tracked_task, default=None,
         help="show each particle filter's settings on this task (default: none shown)",
     )  # fmt: skip
+    add_imports(cmd)
     add_json(cmd, "one JSON object per agent instead of a table")
     cmd.set_defaults(func=_cmd_agents)
 

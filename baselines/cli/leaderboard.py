@@ -191,17 +191,13 @@ def _unless_default(tasks: Sequence[str], field: str, value: Any) -> Any:
     return None if own == {value} else value
 
 
-def _cmd_leaderboard(args: argparse.Namespace) -> int:
-    from baselines.leaderboard import (
-        ResumeError,
-        default_command,
-        markdown_table,
-        run_leaderboard,
-        validity_lines,
-    )
-    from baselines.leaderboard.engine import BadWorkers, NoRayCluster
+def _check_flags(args: argparse.Namespace) -> None:
+    """The flags that conflict with each other (exit 2); ``--episodes``'s default set.
+
+    Raises:
+        UsageError: Naming the flag.
+    """
     from baselines.leaderboard.run import check_labels
-    from baselines.leaderboard.videos import ReplayMismatch
 
     try:  # two agents of one label: the arguments conflict (exit 2)
         check_labels(args.agents)
@@ -222,6 +218,20 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
     if args.episodes is None:
         args.episodes = DEFAULT_EPISODES
     check_engine(args)
+
+
+def _cmd_leaderboard(args: argparse.Namespace) -> int:
+    from baselines.leaderboard import (
+        ResumeError,
+        default_command,
+        markdown_table,
+        run_leaderboard,
+        validity_lines,
+    )
+    from baselines.leaderboard.engine import BadWorkers, NoRayCluster, WorkerStartError
+    from baselines.leaderboard.videos import ReplayMismatch
+
+    _check_flags(args)
     if args.out is not None and args.out.suffix == ".json":
         raise UsageError(
             f"--out: expected a results folder (it holds results.json), got the file {args.out}"
@@ -243,7 +253,7 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         engine=args.engine, workers=args.workers, address=args.address, out=args.out,
         videos=args.videos, no_report=args.no_report,
         agent_seeds=args.agent_seeds if args.agent_seeds != 1 else None,
-        declared=args.declared,
+        declared=args.declared, imports=args.imports,
     )  # fmt: skip
     try:
         rows = run_leaderboard(
@@ -262,6 +272,8 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         raise CommandError(f"--address: {exc}") from None
     except BadWorkers as exc:  # more workers than the joined cluster's CPUs
         raise UsageError(f"--workers: {exc}") from None
+    except WorkerStartError as exc:  # a worker of another version, or that cannot take an agent
+        raise CommandError(f"--engine ray: {exc}") from None
     except ResumeError as exc:  # the saved run's other settings: the arguments conflict
         raise UsageError(f"--resume: {exc}") from None
     except ReplayMismatch as exc:  # a video's episode did not reproduce: the run is saved

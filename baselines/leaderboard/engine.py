@@ -46,7 +46,7 @@ import sys
 import time
 import traceback
 from collections import OrderedDict, deque
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -378,8 +378,13 @@ class InProcessEngine:
     def __init__(self, seed: int, env_kwargs: Mapping[str, Any] | None) -> None:
         self.runner = EpisodeRunner(seed, env_kwargs)
 
-    def start(self, fits: Fits) -> None:
-        """Hand the runner the driver's fitted priors (before :meth:`run`)."""
+    def start(self, fits: Fits, agents: Collection[str] = ()) -> None:
+        """Hand the runner the driver's fitted priors (before :meth:`run`).
+
+        ``agents``: the run's agent names (the Ray engine's workers take their
+        registrations; this process has them).
+        """
+        del agents
         self.runner.fits = dict(fits)
 
     def run(self, episodes: Iterable[Episode], on_record: Callable[[dict[str, Any]], None]) -> None:
@@ -567,20 +572,34 @@ class RayEngine:
         ray.init(address="local", num_cpus=cpus, include_dashboard=False, **common)
         return False
 
-    def start(self, fits: Fits) -> None:
+    def start(self, fits: Fits, agents: Collection[str] = ()) -> None:
         """Put the fits in the object store once and hand them to every actor.
 
-        The actors take this process's agents too (:meth:`_RayWorker.start`):
-        one registered here runs there by its name.
+        The actors take this process's registrations of the run's ``agents``
+        too (:meth:`_RayWorker.start`): one registered here runs there by its
+        name (a hybrid ``pf-NAME+POLICY`` takes ``pf-NAME``'s).
 
         Raises:
-            RuntimeError: If a worker runs another version of the package, or
-                cannot take the agents (a class it cannot import).
+            WorkerStartError: If a registration cannot be pickled, a worker
+                cannot take it (a class it cannot import) or runs another
+                version of the package.
         """
         self._fits = self.ray.put(dict(fits))
-        # pickled here (Ray's cloudpickle: a class of the driver's __main__ by value),
-        # read in the worker once the driver's import path is its own
-        blob = self.ray.cloudpickle.dumps((dict(AGENTS), dict(REFERENCES)))
+        names = set(agents) | {a.split("+", 1)[0] for a in agents}
+        try:
+            # pickled here (Ray's cloudpickle: a class of the driver's __main__ by
+            # value), read in the worker once the driver's import path is its own
+            blob = self.ray.cloudpickle.dumps(
+                (
+                    {k: v for k, v in AGENTS.items() if k in names},
+                    {k: v for k, v in REFERENCES.items() if k in names},
+                )
+            )
+        except Exception as exc:  # a registered object that does not pickle (a lock, say)
+            raise WorkerStartError(
+                f"the run's registered agents cannot be sent to the workers "
+                f"({type(exc).__name__}: {exc})"
+            ) from None
         registry = self.ray.put(([os.path.abspath(p) for p in sys.path], blob))
         mine = package_version()
         try:
@@ -599,13 +618,13 @@ class RayEngine:
                 if unpickled or "No module named" in str(cause)
                 else ""
             )
-            raise RuntimeError(
+            raise WorkerStartError(
                 f"a Ray worker could not start ({type(cause).__name__}: "
                 f"{(str(cause).strip().splitlines() or [''])[0][:200]}){hint}"
             ) from None
         for version, pid in started:
             if version != mine:
-                raise RuntimeError(
+                raise WorkerStartError(
                     f"a Ray worker (pid {pid}) runs humotion_gym {version}, this driver "
                     f"{mine}: install the same version on every node"
                 )
@@ -696,6 +715,10 @@ class NoRayCluster(ConnectionError):
 
 class BadWorkers(ValueError):
     """More workers than the Ray cluster has CPUs for."""
+
+
+class WorkerStartError(RuntimeError):
+    """A Ray worker could not start the run: another version, or an agent it cannot take."""
 
 
 def check_ray_address_form(address: str) -> tuple[str, int] | None:

@@ -197,7 +197,7 @@ def _run_left(
         fits, problems = prepare_cells(cells, seed, kwargs, progress)
         todo = [e for e in left if (e.cell.task, e.cell.agent) not in problems]
         if runner is not None and todo:
-            runner.start(fits)
+            runner.start(fits, sorted({c.agent for c in cells}))
             _run_episodes(runner, todo, len(done), done, failures, folder, progress, seed)
     finally:
         if runner is not None:
@@ -443,12 +443,18 @@ def default_command(
     seed: int,
     **flags: Any,
 ) -> str:
-    """The ``humotion-gym leaderboard`` command line of a run (kept in ``results.json``)."""
+    """The ``humotion-gym leaderboard`` command line of a run (kept in ``results.json``).
+
+    ``imports``: the ``--import`` modules, each after its own flag; every other
+    flag is written as ``--name value`` (``True``: the flag alone).
+    """
     words = ["humotion-gym", "leaderboard", "--tasks", *tasks, "--agents", *agents]
     words += ["--particles", *map(str, particles)]
     if not flags.get("declared"):  # the declared lists fix the episodes
         words += ["--episodes", str(episodes)]
     words += ["--seed", str(seed)]
+    for module in flags.pop("imports", None) or ():  # the modules that register agents
+        words += ["--import", str(module)]
     for name, value in flags.items():
         if value is None or value is False:
             continue

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 
 import pytest
@@ -43,10 +44,14 @@ def user_folder(tmp_path, monkeypatch):
 def test_an_imported_modules_agents_run_on_the_command_line(user_folder, capsys):
     argv = ["leaderboard", "--tasks", "ArmTrack-v2", "--particles", "20", "--episodes", "1"]
     agents = ["--agents", "still-imported", "pf-cv-imported"]
-    assert main([*argv, *agents, "--import", "myagents_cli"]) == 0
+    folder = ["--out", str(user_folder / "lb"), "--no-report"]
+    assert main([*argv, *agents, "--import", "myagents_cli", *folder]) == 0
     out = capsys.readouterr().out
     assert "| ArmTrack-v2 | still-imported | - |" in out
     assert "| ArmTrack-v2 | pf-cv-imported | 20 |" in out
+    # the recorded command (and so a resume of it) imports the module too
+    command = json.loads((user_folder / "lb" / "results.json").read_text())["command"]
+    assert "--import myagents_cli" in command
 
 
 def test_a_module_that_is_missing_or_fails_is_one_line(user_folder, capsys):
@@ -66,3 +71,13 @@ def test_a_module_that_is_missing_or_fails_is_one_line(user_folder, capsys):
     assert "ModuleNotFoundError: No module named 'no_such_dependency_cli'" in (
         capsys.readouterr().err
     )
+
+
+def test_the_flag_is_read_as_the_commands_parser_reads_it(user_folder, capsys):
+    # an abbreviation, as argparse takes it; the agents command lists what it registers
+    assert main(["agents", "--imp", "myagents_cli"]) == 0
+    out = capsys.readouterr().out
+    assert "still-imported" in out and "pf-cv-imported" in out
+    # a command without the flag imports nothing and says the flag is not its own
+    assert main(["tasks", "--import", "broken_cli"]) == 2
+    assert "unrecognized arguments: --import broken_cli" in capsys.readouterr().err

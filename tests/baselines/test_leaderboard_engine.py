@@ -517,11 +517,26 @@ def test_a_worker_that_cannot_take_the_registered_agents_stops_the_run_in_one_li
         def get(self, refs):
             raise TaskError(ModuleNotFoundError("No module named 'mine'\nTraceback ..."))
 
+    class Started(Unpicklable):
+        def get(self, refs):
+            return [(engine_module.package_version(), 1) for _ in refs]
+
+    from baselines.agents import REFERENCES, HoldAgent
+
+    class Locked(HoldAgent):  # a local class, which pickle (this fake's) cannot send
+        pass
+
+    monkeypatch.setitem(REFERENCES, "locked-x", (Locked, ""))
     monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    monkeypatch.setattr(engine_module, "_import_ray", lambda: Started(cpus=2))
+    # only the run's agents are sent: one that cannot be, registered but not run, is no matter
+    engine_module.RayEngine(0, {}, workers=2, jobs=2).start({}, ["hold", "pf-cv+bc"])
+    with pytest.raises(engine_module.WorkerStartError, match=r"cannot be sent to the workers"):
+        engine_module.RayEngine(0, {}, workers=2, jobs=2).start({}, ["locked-x"])
     monkeypatch.setattr(engine_module, "_import_ray", lambda: Unpicklable(cpus=2))
     runner = engine_module.RayEngine(0, {}, workers=2, jobs=2)
-    with pytest.raises(RuntimeError) as caught:
-        runner.start({})
+    with pytest.raises(engine_module.WorkerStartError) as caught:
+        runner.start({}, ["hold"])
     message = str(caught.value)
     assert message == (
         "a Ray worker could not start (ModuleNotFoundError: No module named 'mine'); define the "

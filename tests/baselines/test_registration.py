@@ -77,8 +77,16 @@ def test_a_prior_without_save_and_a_bad_component_are_refused(registry, monkeypa
         register_agent("dict-mine", {"prior": "tree"})  # type: ignore[arg-type]
 
 
-def test_register_reference_still_refuses_a_taken_name():
-    from baselines.agents import HoldAgent
+def test_register_reference_refuses_a_taken_name_and_one_the_command_line_misreads():
+    from baselines.agents import REFERENCES, HoldAgent
 
-    with pytest.raises(ValueError, match="already an agent"):
+    with pytest.raises(ValueError, match=r"'hold' is already an agent$"):
         register_reference("hold", HoldAgent)
+    with pytest.raises(ValueError, match=r"'pf-cv' is already an agent$"):
+        register_reference("pf-cv", HoldAgent)  # a particle filter's name: never replaced
+    for name in ("pf-cv+mine", "mine=x", "mine.zip", " mine", ""):
+        with pytest.raises(ValueError, match="register_reference"):
+            register_reference(name, HoldAgent)
+        with pytest.raises(ValueError, match="register_agent"):
+            register_agent(name, AGENTS["pf-cv"])
+    assert "pf-cv+mine" not in REFERENCES and "mine.zip" not in AGENTS

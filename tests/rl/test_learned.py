@@ -414,11 +414,18 @@ def test_a_starting_policy_is_checked_before_the_run_writes_anything(
         check_init(
             TrainConfig("bc", "ArmTrack-v2", 10, init=str(bc_run / "model.zip"), settings=small)
         )
+    # the network is checked on the task's spaces: no data is read for it
+    with pytest.MonkeyPatch.context() as mp, warnings.catch_warnings():
+        mp.setenv("HUMOTION_MOCAP", str(tmp_path / "nowhere"))
+        warnings.simplefilter("error")
+        check_init(
+            TrainConfig("bc", "ArmTrack-v2", 10, init=str(bc_run / "model.zip"), settings=small)
+        )
     # a model without any record (saved by other code): its training cannot be checked
     bare = tmp_path / "bare" / "policy.zip"
     bare.parent.mkdir()
     shutil.copyfile(bc_run / "model.zip", bare)
-    with pytest.warns(UnrecordedPolicyWarning, match=r"policy.zip has no training record"):
+    with pytest.warns(UnrecordedPolicyWarning, match=r"policy.zip has no readable training record"):
         check_init(TrainConfig("bc", "ArmTrack-v2", 10, init=str(bare), settings=small))
 
 
