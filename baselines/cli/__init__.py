@@ -14,10 +14,11 @@ import argparse
 import importlib
 import os
 import sys
+import warnings
 from collections.abc import Sequence
 
 from humotion_gym import cli as benchmark_cli
-from humotion_gym.cli import TRACEBACK_ENV
+from humotion_gym.cli import TRACEBACK_ENV, one_line_warning
 
 #: Every command module of ``humotion-gym``, in ``--help`` order.
 COMMAND_MODULES: tuple[str, ...] = (
@@ -75,7 +76,9 @@ def import_agent_modules(argv: Sequence[str]) -> int | None:
         sys.path.append(os.getcwd())
     for name in names:
         try:
-            importlib.import_module(name)
+            with warnings.catch_warnings():  # as the command's own: one line each
+                warnings.showwarning = one_line_warning
+                importlib.import_module(name)
         except Exception as exc:
             missing = getattr(exc, "name", None) if isinstance(exc, ModuleNotFoundError) else None
             if missing and (name == missing or name.startswith(f"{missing}.")):

@@ -216,11 +216,11 @@ def main(argv: Sequence[str] | None = None, modules: Sequence[str] = COMMAND_MOD
         return exc.code if isinstance(exc.code, int) else 2
     limit_blas_threads()  # see humotion_gym.threads for why and for Python users
     with warnings.catch_warnings():  # restores the caller's warning display on return
-        warnings.showwarning = _one_line_warning
+        warnings.showwarning = one_line_warning
         return _run(parser, args)
 
 
-def _one_line_warning(
+def one_line_warning(
     message: Warning | str,
     category: type[Warning],
     filename: str,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+import warnings
 
 import pytest
 
@@ -29,11 +30,14 @@ def user_folder(tmp_path, monkeypatch):
     (tmp_path / "myagents_cli.py").write_text(MODULE)
     (tmp_path / "broken_cli.py").write_text("raise RuntimeError('oops')\n")
     (tmp_path / "needs_cli.py").write_text("import no_such_dependency_cli\n")
+    (tmp_path / "warns_cli.py").write_text(
+        "import warnings\nwarnings.warn('old\\nstyle', DeprecationWarning)\n"
+    )
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(sys, "path", list(sys.path))
     saved = dict(AGENTS), dict(REFERENCES)
     yield tmp_path
-    for name in ("myagents_cli", "broken_cli", "needs_cli"):
+    for name in ("myagents_cli", "broken_cli", "needs_cli", "warns_cli"):
         sys.modules.pop(name, None)
     AGENTS.clear()
     AGENTS.update(saved[0])
@@ -81,3 +85,11 @@ def test_the_flag_is_read_as_the_commands_parser_reads_it(user_folder, capsys):
     # a command without the flag imports nothing and says the flag is not its own
     assert main(["tasks", "--import", "broken_cli"]) == 2
     assert "unrecognized arguments: --import broken_cli" in capsys.readouterr().err
+
+
+def test_a_warning_while_importing_is_one_line(user_folder, capsys):
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        assert main(["agents", "--import", "warns_cli"]) == 0
+    err = capsys.readouterr().err
+    assert "humotion-gym: warning: old style (DeprecationWarning)" in err
