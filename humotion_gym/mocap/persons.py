@@ -58,6 +58,8 @@ Example:
 
 from __future__ import annotations
 
+import functools
+import json
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -454,6 +456,53 @@ def check_person_split(
     )
 
 
+#: The held-out persons' skeletons the package knows: ``mocap/data/test_skeletons.json``,
+#: :func:`held_out_skeletons_of` the shared data and the synthetic library.
+TEST_SKELETONS_FILE = Path(__file__).resolve().parent / "data" / "test_skeletons.json"
+
+
+def held_out_skeletons_of(library: MotionLibrary | Sequence[Motion]) -> dict[str, list[float]]:
+    """Each held-out subject's signature (its clips' median), rounded to 0.01 mm as the file."""
+    held = held_out_subjects(library)
+    return {
+        s.subject: [round(float(v), 2) for v in s.signature]
+        for s in subject_skeletons(library)
+        if s.subject in held
+    }
+
+
+@functools.cache
+def known_test_skeletons() -> dict[str, FloatArray]:
+    """The signatures of :data:`TEST_SKELETONS_FILE`, by held-out subject."""
+    data = json.loads(TEST_SKELETONS_FILE.read_text(encoding="utf-8"))
+    return {name: np.asarray(sig, dtype=np.float64) for name, sig in data["skeletons"].items()}
+
+
+def known_test_pairs(library: MotionLibrary | Sequence[Motion]) -> list[tuple[str, str]]:
+    """``(held-out person, training subject)`` pairs of one skeleton, from the known ones.
+
+    A held-out person the library holds is left to :func:`check_person_split`;
+    one it lacks is compared by its packaged signature (:func:`known_test_skeletons`),
+    so that a test person's clip renamed or converted into data loaded without
+    the test persons' own files is recognised all the same.
+    """
+    sk = _skeletons(library)
+    if not len(sk.reps):
+        return []
+    held = held_out_subjects(library)
+    present = {s.subject for s in sk.subjects}
+    pairs = set()
+    for name, signature in known_test_skeletons().items():
+        if name in present:
+            continue
+        hits = _matches(signature[None], sk.reps, DEFAULT_RTOL, DEFAULT_ATOL_MM)
+        for i in np.flatnonzero(hits):
+            subject = sk.subjects[int(sk.owner[i])].subject
+            if subject not in held:
+                pairs.add((name, subject))
+    return sorted(pairs)
+
+
 def check_data_persons(library: MotionLibrary, dirs: Sequence[str | Path] | None = None) -> None:
     """Refuse data where a held-out person's skeleton is also a training person's.
 
@@ -461,7 +510,9 @@ def check_data_persons(library: MotionLibrary, dirs: Sequence[str | Path] | None
     clip put on the test side by ``split_by`` while its skeleton is a training
     person's) would otherwise train the priors and policies on the test
     persons (the split is by person name; :func:`check_person_split` compares
-    the skeletons, about 0.1-0.3 s for the shared data). Every path that loads
+    the skeletons, about 0.1-0.3 s for the shared data). The held-out persons
+    whose skeletons the package knows (:func:`known_test_pairs`) are compared
+    too, whether or not their own files are loaded. Every path that loads
     clips for training or tracking calls it: the environments (once per
     library, whether from folders or given as ``library=``) and the validation
     folds.
@@ -476,13 +527,16 @@ def check_data_persons(library: MotionLibrary, dirs: Sequence[str | Path] | None
     """
     try:
         check_person_split(library)
+        pairs = known_test_pairs(library)
     except SplitError as exc:
-        shown = ", ".join(f"{test} ~ {train}" for test, train in exc.pairs)
+        pairs = list(exc.pairs)
+    if pairs:
+        shown = ", ".join(f"{test} ~ {train}" for test, train in pairs)
         where = "library" if dirs is None else f"data_dir {[str(d) for d in dirs]}"
         listed = "FOLDER..." if dirs is None else " ".join(map(str, dirs))
         raise SplitError(
             f"{where}: a held-out person's skeleton is also a training person's ({shown}), so "
             f"the test persons would be trained on; move those clips out or put them on one "
             f"side (humotion-gym data persons {listed} lists them)",
-            exc.pairs,
-        ) from None
+            pairs,
+        )

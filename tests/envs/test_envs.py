@@ -528,12 +528,13 @@ def test_a_train_env_refuses_a_file_of_a_test_person_from_outside_its_data(share
 
     from humotion_gym.mocap.splits import user_split
 
-    source = shared_mocap / "cmu-asfamc" / "02"
+    # a training person's files (CMU 1's): a test person's skeleton would refuse the data
+    source = shared_mocap / "cmu-asfamc" / "01"
     for person in ("alice", "carol"):  # alice is a user test person by hash, carol is not
         folder = tmp_path / person
         folder.mkdir()
-        shutil.copyfile(source / "02.asf", folder / f"{person}.asf")
-        shutil.copyfile(source / "02_01.amc", folder / "walk.amc")
+        shutil.copyfile(source / "01.asf", folder / f"{person}.asf")
+        shutil.copyfile(source / "01_01.amc", folder / "walk.amc")
     assert (user_split("alice"), user_split("carol")) == ("test", "train")
     env = gym.make("humotion_gym/BodyTrack-v2", data_dir=str(tmp_path / "carol")).unwrapped
     with pytest.raises(ValueError, match=r"'alice', a held-out person.*split='test'"):
@@ -546,8 +547,8 @@ def test_a_train_env_refuses_a_file_of_a_test_person_from_outside_its_data(share
     # no walking clip: the message names the labels, not "the longest has" some length
     dancing = tmp_path / "other" / "carol"
     dancing.mkdir(parents=True)
-    shutil.copyfile(source / "02.asf", dancing / "carol.asf")
-    shutil.copyfile(source / "02_01.amc", dancing / "dance.amc")
+    shutil.copyfile(source / "01.asf", dancing / "carol.asf")
+    shutil.copyfile(source / "01_01.amc", dancing / "dance.amc")
     with pytest.raises(ValueError, match=r"no train clip is labelled walk \(its 1 train clips"):
         gym.make("humotion_gym/WalkTrack-v2", data_dir=str(dancing)).reset(seed=0)
 

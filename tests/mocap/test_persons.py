@@ -20,8 +20,12 @@ from humotion_gym.mocap.persons import (
     DEFAULT_RTOL,
     SIGNATURE_NAMES,
     SIGNATURE_SIZE,
+    TEST_SKELETONS_FILE,
     SplitError,
+    check_data_persons,
     check_person_split,
+    held_out_skeletons_of,
+    known_test_pairs,
     same_skeleton,
     skeleton_difference,
     skeleton_groups,
@@ -119,6 +123,20 @@ def test_a_copied_motion_under_another_name_is_caught(synth):
     assert ("synthetic-05", "synthetic-99") in skeleton_groups(lib)
 
 
+def test_a_test_persons_copy_is_caught_without_the_test_persons_files(synth):
+    """Only the renamed copy is loaded: the packaged skeletons still know whose it is."""
+    copy = dataclasses.replace(synth["synthetic/walk-05"], subject="dave", clip_id="user/dave/w")
+    alone = MotionLibrary((copy,))
+    assert alone.held_out.isdisjoint({"dave"}) and known_test_pairs(alone) == [
+        ("synthetic-05", "dave")
+    ]
+    with pytest.raises(SplitError, match=r"^library: .*\(synthetic-05 ~ dave\)"):
+        check_data_persons(alone)
+    # the training persons' own clips match no held-out skeleton
+    assert known_test_pairs(synth.split("train")) == []
+    check_data_persons(synth)
+
+
 def test_tolerance_decides_a_rescaled_copy(synth):
     # The same motion on a skeleton 5 % larger is another person at the default
     # tolerance, the same one at a 6 % tolerance.
@@ -170,6 +188,15 @@ def test_current_split_passes_on_the_shared_data(real_library):
         s for s in real_library.subjects if s.startswith("bandai-")
     }
     assert report.min_difference > 0.05
+
+
+@pytest.mark.mocap
+def test_the_packaged_test_skeletons_are_those_of_the_shared_data(real_library, synth):
+    packaged = json.loads(TEST_SKELETONS_FILE.read_text())
+    assert packaged["names"] == list(SIGNATURE_NAMES)
+    made = {**held_out_skeletons_of(real_library), **held_out_skeletons_of(synth)}
+    assert packaged["skeletons"] == made
+    assert known_test_pairs(real_library) == []  # no training person of the data is one
 
 
 @pytest.mark.mocap
