@@ -36,8 +36,9 @@ from baselines.agents.settings import (
 from baselines.detector.settings import DetectorTerm
 from baselines.filtering.search import LocalSearch
 from baselines.observation import FrameModel, ObservationModel
-from baselines.priors import PRIORS, get_prior, limbs, mixture
+from baselines.priors import PRIORS, limbs, mixture
 from baselines.priors.fitting import fit_prior as fit_prior_on
+from baselines.priors.fitting import prior_module
 from humotion_gym.checks import is_real
 from humotion_gym.envs.description import TaskDescription
 from humotion_gym.mocap.library import MotionLibrary
@@ -520,18 +521,16 @@ def _check_prior(spec: AgentSpec, name: str) -> None:
         got = type(spec).__name__
         raise TypeError(f"register_agent {name!r}: expected an AgentSpec, got {got}")
     try:
-        module = importlib.import_module(spec.prior) if "." in spec.prior else None
+        module = prior_module(spec.prior)
+    except KeyError:
+        raise ValueError(
+            f"register_agent {name!r}: unknown prior {spec.prior!r}; give its module's dotted "
+            f"path (mypackage.myprior) or one of {sorted(PRIORS)}"
+        ) from None
     except ImportError as exc:
         raise ValueError(
             f"register_agent {name!r}: the prior module {spec.prior!r} does not import ({exc})"
         ) from None
-    if module is None:
-        if spec.prior not in PRIORS:
-            raise ValueError(
-                f"register_agent {name!r}: unknown prior {spec.prior!r}; give its module's dotted "
-                f"path (mypackage.myprior) or one of {sorted(PRIORS)}"
-            )
-        module = get_prior(spec.prior)
     composite = bool(spec.components) or spec.per_part
     need = ("initial", "transition") if composite else PRIOR_FUNCTIONS
     missing = [f for f in need if not callable(getattr(module, f, None))]
