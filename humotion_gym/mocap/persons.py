@@ -422,7 +422,13 @@ def check_person_split(
         raise ValueError(f"check_person_split: tolerances must be >= 0, got {rtol=}, {atol_mm=}")
     if test_subjects is None:
         test_subjects = held_out_subjects(library)
-    sk = _skeletons(library)
+    return _split_report(_skeletons(library), test_subjects, rtol, atol_mm)
+
+
+def _split_report(
+    sk: _Skeletons, test_subjects: Collection[str], rtol: float, atol_mm: float
+) -> PersonSplitReport:
+    """:func:`check_person_split` of skeletons already measured."""
     names = [s.subject for s in sk.subjects]
     is_test = np.array([s in test_subjects for s in names], dtype=bool)
     test_names = tuple(n for n, t in zip(names, is_test, strict=True) if t)
@@ -486,10 +492,13 @@ def known_test_pairs(library: MotionLibrary | Sequence[Motion]) -> list[tuple[st
     so that a test person's clip renamed or converted into data loaded without
     the test persons' own files is recognised all the same.
     """
-    sk = _skeletons(library)
+    return _known_pairs(_skeletons(library), held_out_subjects(library))
+
+
+def _known_pairs(sk: _Skeletons, held: Collection[str]) -> list[tuple[str, str]]:
+    """:func:`known_test_pairs` of skeletons already measured (``held``: the test subjects)."""
     if not len(sk.reps):
         return []
-    held = held_out_subjects(library)
     present = {s.subject for s in sk.subjects}
     pairs = set()
     for name, signature in known_test_skeletons().items():
@@ -525,9 +534,10 @@ def check_data_persons(library: MotionLibrary, dirs: Sequence[str | Path] | None
     Raises:
         SplitError: Naming each pair, in one line.
     """
+    sk, held = _skeletons(library), held_out_subjects(library)  # measured once for both
     try:
-        check_person_split(library)
-        pairs = known_test_pairs(library)
+        _split_report(sk, held, DEFAULT_RTOL, DEFAULT_ATOL_MM)
+        pairs = _known_pairs(sk, held)
     except SplitError as exc:
         pairs = list(exc.pairs)
     if pairs:
