@@ -39,6 +39,8 @@ EXTENSION = re.compile(r"\.(?:py|md|yml|yaml|toml|json|jsonl|gz|npz|csv|zip|txt|
 ENV_ID = re.compile(r"^humotion_gym/[A-Z]\w*-v\d+$")
 PLACEHOLDER = re.compile(r"(?:^|[^A-Za-z])[A-Z]{2,}(?:$|[^A-Za-z])")
 BRACES = re.compile(r"\{([^{}]*)\}")
+#: The extras' modules: a name under one cannot be checked without it.
+OPTIONAL_MODULES = frozenset({"torch", "stable_baselines3", "ray", "moviepy", "matplotlib"})
 #: A command's options whose value is a file it writes.
 OUTPUTS = frozenset({"--out", "--figure", "--video", ">"})
 #: Where a relative path of a page may start: the root, then each package.
@@ -88,7 +90,9 @@ def resolves(name: str) -> bool:
     for k in range(len(parts), 0, -1):
         try:
             obj = importlib.import_module(".".join(parts[:k]))
-        except ModuleNotFoundError:
+        except ModuleNotFoundError as exc:
+            if str(exc.name).split(".")[0] in OPTIONAL_MODULES:
+                return True  # needs an extra this install lacks (CI has them all)
             continue
         for attribute in parts[k:]:
             if not hasattr(obj, attribute):

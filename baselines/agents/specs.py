@@ -663,8 +663,13 @@ def filter_agent(
     if spec.detector is not None and model is None:
         # The detector's network runs on torch (the rl extra): imported only
         # when an agent that uses it is built, so the other agents need none.
-        from baselines.detector.term import detector_model
-
+        try:
+            from baselines.detector.term import detector_model
+        except ModuleNotFoundError as exc:  # the CLI adds how to install the extra
+            raise ModuleNotFoundError(
+                f"{name} scores poses with the keypoint detector, which runs on torch: {exc}",
+                name=exc.name,
+            ) from exc
         model = detector_model(base.task, spec.detector)
     return ParticleFilterAgent(
         base, module, fitted, n_particles, seed, estimate, name,

@@ -66,10 +66,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
+    check_fresh_output(args.out, ["detector.npz", "detector.json"], "trained weights")
     from baselines.detector.network import INPUT_SIZE
     from baselines.detector.train import TrainSettings, make_detector
 
-    check_fresh_output(args.out, ["detector.npz", "detector.json"], "trained weights")
     # every frame is held (RGB bytes) while the training set is rendered
     frame_bytes = INPUT_SIZE * INPUT_SIZE * 3
     check_memory("--frames", args.frames + args.validation_frames, frame_bytes, "frames")

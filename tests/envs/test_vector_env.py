@@ -310,6 +310,7 @@ def test_an_episode_is_not_reset_or_stepped_behind_the_batch():
     for name in ("reset", "step"):
         with pytest.raises(ValueError, match=rf"call\('{name}'\): .* use its own {name}\(\)"):
             vec.call(name)
+    pytest.importorskip("stable_baselines3")
     from humotion_gym.sb3 import learner_vec_env
 
     learner = learner_vec_env("ArmTrack-v2", 2, "train", 32)

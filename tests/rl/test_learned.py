@@ -12,6 +12,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+pytest.importorskip("stable_baselines3", reason="learned trackers need the rl extra")
+
 import humotion_gym  # noqa: F401  (registers the tasks)
 from baselines.agents import HoldAgent, agent_names, make
 from baselines.agents.learned import (

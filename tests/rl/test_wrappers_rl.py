@@ -22,7 +22,7 @@ from humotion_gym.wrappers import (
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_learner_observation_passes_the_sb3_checker(env_id: str) -> None:
-    from stable_baselines3.common.env_checker import check_env
+    check_env = pytest.importorskip("stable_baselines3.common.env_checker").check_env
 
     if "Views" in env_id:  # several cameras: the learners take one
         with pytest.raises(ValueError, match="LearnerObservation: expected one view"):
@@ -180,6 +180,7 @@ def test_the_true_action_scores_perfectly(env_id: str) -> None:
 
 @pytest.mark.parametrize("size", [0, 7, "64", 64.0, True])
 def test_every_learner_env_refuses_the_same_frame_sizes(size) -> None:
+    pytest.importorskip("stable_baselines3")
     from humotion_gym.sb3 import LearnerVecEnv, learner_vec_env
 
     with pytest.raises(ValueError, match="LearnerObservation: size must be an integer >= 8"):
