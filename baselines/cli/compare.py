@@ -10,7 +10,13 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from humotion_gym.cli._common import CommandError, add_command, float_between
+from humotion_gym.cli._common import (
+    CommandError,
+    add_command,
+    add_json,
+    float_between,
+    print_json,
+)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -32,6 +38,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--rtol", type=float_between(0.0, 1.0), default=5e-7,
         help="relative tolerance on each episode's mean error (default: 5e-7)",
     )  # fmt: skip
+    add_json(cp, "print the counts and the episodes that differ as one JSON object")
     cp.set_defaults(func=_cmd_compare)
 
 
@@ -64,6 +71,16 @@ def _cmd_compare(args: argparse.Namespace) -> int:
             f"{args.rerun} and {args.recorded} share no episode (the same cell, episode seed "
             "and agent seed): compare a rerun with the record it reruns"
         )
+    if args.json:
+        fields = ("task", "agent", "particles", "agent_seed", "seed")
+        print_json({
+            "rerun": result.rerun, "recorded": result.recorded, "compared": result.compared,
+            "differ": [
+                {**dict(zip(fields, key, strict=True)), "rerun_mm": got, "recorded_mm": want}
+                for key, got, want in result.differ
+            ],
+        })  # fmt: skip
+        return 0 if not result.differ else 1
     print(result.summary())
     for key, got, want in result.differ:
         print(f"  {' '.join(map(str, key))}: {got!r} vs recorded {want!r} mm")

@@ -18,12 +18,14 @@ from humotion_gym.cli._common import (
     UsageError,
     add_command,
     add_data_dir,
+    add_json,
     add_seed,
     check_fresh_output,
     env_kwargs,
     episode_count,
     output_dir,
     positive_float,
+    print_json,
     wrote,
 )
 
@@ -118,6 +120,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="write results.json.gz (every episode's numbers) and table.md here (default: "
         "print the table only)",
     )  # fmt: skip
+    add_json(op, "print what results.json.gz holds, as JSON, instead of the table")
     op.set_defaults(func=_cmd_oracle)
 
 
@@ -206,13 +209,17 @@ def _cmd_oracle(args: argparse.Namespace) -> int:
             raise UsageError(f"--set: {exc}") from None
         results.append(result)
     table = markdown_report(results)
+    data = {"settings": run_settings(args), "results": [compact(r) for r in results]}
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
-        data = {"settings": run_settings(args), "results": [compact(r) for r in results]}
         text = json.dumps(data, separators=(",", ":")).encode()
         (args.out / "results.json.gz").write_bytes(gzip.compress(text, mtime=0))
         (args.out / "table.md").write_text(table)
-        wrote(args.out / "results.json.gz", "every episode's numbers")
-        wrote(args.out / "table.md")
-    print(table, end="")
+        if not args.json:
+            wrote(args.out / "results.json.gz", "every episode's numbers")
+            wrote(args.out / "table.md")
+    if args.json:
+        print_json(data)
+    else:
+        print(table, end="")
     return 0

@@ -22,6 +22,7 @@ from humotion_gym.cli._common import (
     UsageError,
     add_command,
     add_data_dir,
+    add_json,
     add_seed,
     check_fresh_output,
     env_kwargs,
@@ -31,6 +32,7 @@ from humotion_gym.cli._common import (
     output_dir,
     output_file,
     particle_count,
+    print_json,
     wrote,
 )
 from humotion_gym.render_scene import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
@@ -97,6 +99,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--figure", type=output_file(".png"), default=None,
         help="also write the figure here (e.g. docs/img/sweep_noise_occluders.png; default: none)",
     )  # fmt: skip
+    add_json(
+        sw,
+        "print the curves (each cell's IQM, interval, mean and lost share per value) "
+        "and what did not run as JSON, instead of the table",
+    )
     sw.set_defaults(func=_cmd_sweep)
 
 
@@ -119,21 +126,29 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         env_kwargs(args), engine_options=engine,
     )  # fmt: skip
     args.out.mkdir(parents=True, exist_ok=True)
-    wrote(sweep.save(result, args.out / "sweep.json"), "every episode at every setting")
+    say = (lambda *_: None) if args.json else wrote  # --json: stdout holds the JSON alone
+    say(sweep.save(result, args.out / "sweep.json"), "every episode at every setting")
     table = sweep.markdown(result)
     (args.out / "sweep.md").write_text(table + "\n")
-    print(table)
-    wrote(args.out / "sweep.md", "the curves as a table")
+    if args.json:
+        problems = [{"kind": kind, "what": what} for kind, what in sweep.problems(result)]
+        print_json({"curves": sweep.curves(result), "not_run": problems})
+    else:
+        print(table)
+    say(args.out / "sweep.md", "the curves as a table")
     failed = [what for kind, what in sweep.problems(result) if kind == "error"]
     for what in failed:
         print(f"error: {what}", file=sys.stderr)
     if importlib.util.find_spec("matplotlib") is None:
-        print("no figure: matplotlib is not installed (pip install -e '.[plots]' adds it)")
+        print(
+            "no figure: matplotlib is not installed (pip install -e '.[plots]' adds it)",
+            file=sys.stderr if args.json else sys.stdout,
+        )
         return 1 if failed else 0
     title = (
         f"{', '.join(args.tasks)}; {args.episodes} episodes per point; "
         f"particles {', '.join(map(str, args.particles))}"
     )
     for path in [args.out / "sweep.png"] + ([args.figure] if args.figure else []):
-        wrote(sweep.figure(result, path, title), "difficulty curves")
+        say(sweep.figure(result, path, title), "difficulty curves")
     return 1 if failed else 0

@@ -56,6 +56,12 @@ def test_the_command_exits_0_when_it_reproduces_and_1_when_not(tmp_path, capsys)
     rerun.write_text(json.dumps({"rows": rows}))
     assert main(["compare", str(rerun), str(RECORDED)]) == 1
     assert "1 differ" in capsys.readouterr().out
+    assert main(["compare", str(rerun), str(RECORDED), "--json"]) == 1
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["compared"] == printed["rerun"] and len(printed["differ"]) == 1
+    (differ,) = printed["differ"]
+    assert differ["rerun_mm"] == pytest.approx(differ["recorded_mm"] + 1.0)
+    assert (differ["task"], differ["agent"]) == (rows[1]["task"], rows[1]["agent"])
     assert main(["compare", str(tmp_path / "none.json"), str(RECORDED)]) == 1
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "none.json" in err
@@ -65,10 +71,11 @@ def test_an_oracle_run_is_compared_by_agent_and_likelihood(tmp_path, capsys):
     """A rerun of ``humotion-gym oracle`` against its record: each likelihood a cell."""
     argv = ["oracle", "--agents", "pf-cv", "--particles", "5", "--episodes", "2",
             "--oracles", "image", "3d", "--seed", "4"]  # fmt: skip
-    for name in ("a", "b"):
-        assert main([*argv, "--out", str(tmp_path / name)]) == 0
-    a, b = tmp_path / "a" / "results.json.gz", tmp_path / "b" / "results.json.gz"
+    assert main([*argv, "--out", str(tmp_path / "a")]) == 0
     capsys.readouterr()
+    assert main([*argv, "--out", str(tmp_path / "b"), "--json"]) == 0
+    a, b = tmp_path / "a" / "results.json.gz", tmp_path / "b" / "results.json.gz"
+    assert json.loads(capsys.readouterr().out) == json.loads(gzip.decompress(b.read_bytes()))
     assert main(["compare", str(a), str(b)]) == 0
     assert "compared 6: 0 differ" in capsys.readouterr().out  # hold + two likelihoods, 2 each
     data = json.loads(gzip.decompress(b.read_bytes()))

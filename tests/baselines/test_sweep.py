@@ -120,6 +120,13 @@ def test_sweep_command(tmp_path, capsys, monkeypatch):
         main([*argv, "--noise", "2", "--engine", "ray", "--workers", "2", "--out", str(again)]) == 0
     )
     assert seen == [({"noise": 2.0}, {"engine": "ray", "workers": 2, "address": None})]
+    capsys.readouterr()
+    assert main([*argv, "--noise", "2", "--json", "--out", str(tmp_path / "sw3")]) == 0
+    printed = json.loads(capsys.readouterr().out)  # the JSON alone: no "wrote" lines
+    assert printed["not_run"] == [] and [c["setting"] for c in printed["curves"]] == ["noise"]
+    assert printed["curves"] == json.loads(
+        json.dumps(sweep.curves(sweep.load(again / "sweep.json")))
+    )
 
 
 def test_a_cell_that_fails_or_is_skipped_is_shown_and_fails_the_command(tmp_path, capsys):
@@ -134,3 +141,6 @@ def test_a_cell_that_fails_or_is_skipped_is_shown_and_fails_the_command(tmp_path
     assert "- SKIPPED: pf-pca@5 on ArmTrack-v2 at size=64" in captured.out
     assert "error: mine on ArmTrack-v2" in captured.err
     assert "Not in the table:" in (out / "sweep.md").read_text()
+    assert main([*argv[:-1], str(tmp_path / "sw2"), "--json"]) == 1
+    printed = json.loads(capsys.readouterr().out)
+    assert [p["kind"] for p in printed["not_run"]] == ["error", "skipped"]
