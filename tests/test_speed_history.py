@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import datetime
 import importlib.util
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -207,3 +208,28 @@ def test_a_failed_benchmark_keeps_its_whole_last_line_and_the_table_its_columns(
     table = summary.format_table([(bench.name, rows[0])], markdown=True).splitlines()
     assert table[-1].count(" | ") == table[0].count(" | ")  # the message's | is escaped
     assert "a \\| b" in table[-1]
+
+
+def test_the_readme_and_the_speed_page_show_the_newest_runs() -> None:
+    """README's speed paragraph and speed.md's table are speed_history's, up to the newest run."""
+    rows = speed_history.read_runs(speed_history.RUNS_CSV)
+    readme = " ".join((ROOT / "README.md").read_text().split())
+    said = re.search(
+        r"Over runs (\d+)-(\d+), pf-tree at 3,000 particles \(median ([\d.]+) ms a frame, "
+        r"target 5; met in (\d+ of \d+)\) and PPO on the vector env \(median ([\d.]+)x .*?; "
+        r"met in (\d+ of \d+)\)",
+        readme,
+    )
+    assert said, "README's speed paragraph is not in the form this test reads"
+    since, last = int(said[1]), int(said[2])
+    assert last == max(r.run for r in rows), "README's speed paragraph misses the newest run"
+    table = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks/speed_history.py"), "--since", str(since),
+         "--markdown"], capture_output=True, text=True, check=True,
+    ).stdout  # fmt: skip
+    cells = {line.split(" | ")[0][2:]: line.split(" | ") for line in table.splitlines()[2:]}
+    tree = cells["pf-tree BodyTrack-v2, 3,000 particles, ms per frame <= 5"]
+    ppo = cells["PPO on the vector env, x PPO on a trivial env >= 0.95"]
+    assert (said[3], said[4]) == (tree[2], tree[4].rstrip(" |"))
+    assert (said[5], said[6]) == (ppo[2], ppo[4].rstrip(" |"))
+    assert table.strip() in (ROOT / "docs/speed.md").read_text(), "speed.md's table is stale"

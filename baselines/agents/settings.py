@@ -7,7 +7,7 @@ settings, by label), ``task_fit`` and ``task_filter`` (per task, fit settings
 that override ``fit``, and the annealed or partitioned filter's own). What an
 agent *is* (its prior, its filter, the tasks it covers) is code
 (:mod:`baselines.agents.specs`), which checks each name here against the
-prior's ``fit`` (:func:`baselines.agents.specs.check_file`).
+prior's ``fit`` (:func:`baselines.agents.specs.build_spec`).
 """
 
 from __future__ import annotations
