@@ -408,14 +408,6 @@ def default_shape(height: float = 1750.0) -> BodyShape:
 # ---------------------------------------------------------------------------
 
 
-def rotation_x(angle: ArrayLike) -> FloatArray:
-    """Rotation matrices about ``x``, shape ``angle.shape + (3, 3)``."""
-    a = np.asarray(angle, dtype=np.float64)
-    c, s = np.cos(a), np.sin(a)
-    one, zero = np.ones_like(a), np.zeros_like(a)
-    return np.stack([one, zero, zero, zero, c, -s, zero, s, c], axis=-1).reshape(a.shape + (3, 3))
-
-
 def euler_xyz_to_matrix(angles: ArrayLike) -> FloatArray:
     """``Rx(a) @ Ry(b) @ Rz(c)`` for ``angles[..., :] = (a, b, c)``; shape (..., 3, 3)."""
     ang = np.asarray(angles, dtype=np.float64)
@@ -638,13 +630,6 @@ def cone_geometry(params: ArrayLike, shape: BodyShape) -> ConeGeometry:
     starts = keypoints[..., CONE_KEYPOINTS[:, 0], :]
     ends = keypoints[..., CONE_KEYPOINTS[:, 1], :]
     return ConeGeometry(keypoints, starts, ends, rotations)
-
-
-def wrap_angles(params: ArrayLike) -> FloatArray:
-    """Wrap the periodic parameters (the heading) into [-pi, pi); others unchanged."""
-    p = np.array(params, dtype=np.float64, copy=True)
-    p[..., PERIODIC_MASK] = (p[..., PERIODIC_MASK] + np.pi) % (2 * np.pi) - np.pi
-    return p
 
 
 def standing_pose(shape: BodyShape, yaw: float = 0.0) -> FloatArray:

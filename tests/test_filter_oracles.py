@@ -125,3 +125,30 @@ def test_annealing_exponents_match_the_reference() -> None:
         # the same bisection: equal up to the last bits of exp and the sums
         np.testing.assert_allclose(beta, ref_beta, rtol=1e-12)
         np.testing.assert_allclose(weights, ref_weights, rtol=1e-9, atol=1e-300)
+
+
+def test_log_evidence_is_the_kalman_filters_marginal_likelihood() -> None:
+    """On a linear-Gaussian model the filter's ``log_evidence`` estimates log p(y_1..T),
+    which a Kalman filter gives exactly."""
+    from filter_toys import RandomWalk
+
+    q, r, s0, m = 0.3, 0.5, 0.2, 1.0
+
+    class Gaussian:  # normalised: log N(y; x, r^2), so the evidence is a density
+        def log_likelihood(self, frame, poses):
+            return -0.5 * ((poses[:, 0] - frame) / r) ** 2 - np.log(r * np.sqrt(2 * np.pi))
+
+    ys = np.random.default_rng(0).normal(m, 1.0, 10).cumsum() * 0.3
+    pf = ParticleFilter(RandomWalk(q, start=s0), None, Gaussian(), 40_000)
+    pf.reset(np.array([m]), np.random.default_rng(1))
+    mean, var, log_z = m, s0**2, 0.0
+    for y in ys:
+        pf.step(y)
+        var += q**2  # predict, then the predictive density of y, then the update
+        log_z += -0.5 * (y - mean) ** 2 / (var + r**2) - 0.5 * np.log(2 * np.pi * (var + r**2))
+        gain = var / (var + r**2)
+        mean, var = mean + gain * (y - mean), (1 - gain) * var
+    # Over 20 filter seeds the estimate's bias was 0.009 and its standard deviation
+    # 0.029 (largest miss 0.068): 0.15 is five deviations.
+    assert pf.log_evidence == pytest.approx(log_z, abs=0.15)
+    assert log_z < -5  # a figure far from 0, so a filter that adds nothing fails

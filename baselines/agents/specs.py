@@ -222,7 +222,7 @@ def fit_prior(
     if env.frame_skip != 1:  # (a mixture's components each pass here)
         kwargs.setdefault("frame_skip", env.frame_skip)
     if spec.per_part:
-        return _fit_per_part(spec, env, kwargs, cache_dir, use_cache)
+        return _fit_per_part(env, kwargs, cache_dir, use_cache)
     return fit_prior_on(
         spec.prior, training_motions(env), env.task.free_indices, kwargs,
         use_cache=use_cache, cache_dir=cache_dir,
@@ -275,7 +275,6 @@ TREE = "baselines.priors.tree"
 
 
 def _fit_per_part(
-    spec: AgentSpec,
     env: TaskDescription,
     settings: Mapping[str, Any],
     cache_dir: str | Path | None,

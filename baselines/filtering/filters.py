@@ -40,6 +40,15 @@ class ParticleFilter:
             this fraction of N; 1.0 (the default) resamples every frame, as
             CONDENSATION does.
         estimate: ``"mean"`` (posterior mean) or ``"map"`` (the heaviest particle).
+
+    Attributes:
+        state: The particles after the last step (resampled where it resampled).
+        log_weights: Their normalised log weights.
+        ess: The effective sample size of the last step's weights.
+        log_evidence: The sum over the episode's frames of the log of the
+            weighted mean likelihood: the particle filter's estimate of
+            ``log p(y_1..t)``, in the likelihood's own units (a likelihood
+            known only up to a constant shifts it by that constant a frame).
     """
 
     def __init__(

@@ -65,8 +65,6 @@ from baselines.leaderboard.videos import remove_earlier_videos, write_videos
 
 #: The reference each task's scores are normalised by.
 REFERENCE = "hold"
-#: Which episodes of a cell get a video.
-VIDEO_CHOICES: tuple[str, ...] = ("best", "median", "worst")
 #: Caption of the normalised score, shown under the aggregate table.
 SCORE_LEGEND = (
     "score: an episode's mean keypoint error over hold's on the same episode (same task, "

@@ -31,7 +31,7 @@ set to zero.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -85,10 +85,6 @@ class ConstantVelocityParams:
                 )
             if np.any(value < 0):
                 raise ValueError(f"ConstantVelocityParams: {name} must be >= 0")
-
-    def with_multiplier(self, multiplier: float) -> ConstantVelocityParams:
-        """A copy with another noise multiplier."""
-        return replace(self, multiplier=float(multiplier))
 
 
 def fit(

@@ -52,7 +52,6 @@ from baselines.priors._checks import check_settings
 from humotion_gym.threads import one_blas_thread
 
 FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
 
 #: Fourier coefficients kept per segment (frequencies 0 .. 19 cycles per cycle).
 DEFAULT_HARMONICS = 20

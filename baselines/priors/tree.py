@@ -161,7 +161,6 @@ from baselines.priors.tree_model import (
     TreeParams,
     _anchor,
     _coefficients,
-    _features,  # noqa: F401  (the experiments read windows' features)
     _Layout,
     _layout,
     _place,

@@ -87,7 +87,7 @@ def _checked_library(library: MotionLibrary) -> None:
 
 # What a reset assigns: restored when a reset fails, so a reset is all-or-nothing.
 _EPISODE_STATE: tuple[str, ...] = (
-    "_motion", "_t0", "_root0", "_bounds", "_episode_seed", "_noise", "_backgrounds",
+    "_motion", "_t0", "_bounds", "_episode_seed", "_noise", "_backgrounds",
     "_noise_rngs", "_episode_params", "_geometry", "_truth_keypoints", "_camera_targets",
     "_view_cameras", "_view_figures",
     "_lost_run", "_last_estimate", "_estimate_keypoints", "_estimated", "_k", "_frame", "_done",
@@ -575,7 +575,6 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         self._done = False
         self._motion = self._pick_clip(options)
         self._t0 = self._pick_start(self._motion, options)
-        self._root0 = self._motion.params[self._t0, :3].copy()
         self._bounds = None
         self._episode_seed = int(self.np_random.integers(2**63 - 1))
         if seed is not None or self._noise is None:

@@ -81,7 +81,6 @@ from humotion_gym.mocap._http import (
     _Part,
     _read_listing,
     _stream,
-    _trials_from_listing,  # noqa: F401 (the listing parser, tested through this module)
 )
 from humotion_gym.mocap._registry import (
     REGISTRY_PATH,

@@ -198,6 +198,11 @@ Frame Time: 0.01
     clip = load_bvh(write_text("counts.bvh", text))
     assert clip.point_names == ("a", "b", "c", "c_End", "c_End2")
     assert clip.joint_channels[1] == () and clip.channels.shape == (1, 5)
+    assert clip.joint_channel_values("a").tolist() == [[30.0]]
+    assert clip.joint_channel_values("b").shape == (1, 0)
+    assert clip.joint_channel_values("c").tolist() == [[10.0, 20.0, 40.0, 0.5]]
+    with pytest.raises(KeyError, match="no joint 'c_End'"):
+        clip.joint_channel_values("c_End")
     ra = euler("Z", 30)
     b = ra @ [1, 0, 0]
     c = b + ra @ [0, 2.5, 0]

@@ -23,6 +23,7 @@ import pytest
 
 from baselines import cli
 from humotion_gym.mocap import download as dl
+from humotion_gym.mocap._http import _trials_from_listing
 from humotion_gym.mocap.download import (
     MANIFEST_NAME,
     REGISTRY_PATH,
@@ -360,7 +361,7 @@ def test_listing_parser_accepts_apache_and_http_server_hrefs():
         " <a href=02_03.amc>y</a> <a href='02_01.amc'>dup</a> <a href=\"02_04.amc.part\">no</a>"
         ' <a href="12_02.amc">other subject</a> <a href="02.asf">asf</a>'
     )
-    assert dl._trials_from_listing(html, "02") == [1, 3, 10]
+    assert _trials_from_listing(html, "02") == [1, 3, 10]
 
 
 # --- tiny mirror built here: the normal path ----------------------------------

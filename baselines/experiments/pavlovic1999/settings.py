@@ -57,17 +57,12 @@ CLASSIFY_PARAMS: tuple[str, ...] = CANDIDATE_PARAMS["legs+shoulders"]
 #: the CV's noise (see the package docstring).
 CLASSIFY_SWITCH_PROB = 1e-8
 CLASSIFY_EXTRA_NOISE_DEG = 4.0
-#: The frames criterion's choice without person folds, kept to compare with.
-PREVIOUS_CLASSIFY_SWITCH_PROB = 1e-5
 CLASSIFY_INDEX: NDArray[np.intp] = np.array([PARAM_INDEX[n] for n in CLASSIFY_PARAMS], np.intp)
 #: Candidate features of ``select_classifier_settings`` (the variant runs).
 CANDIDATE_FEATURES: tuple[str, ...] = ("angles", "centred-4s", "velocity")
 #: Candidate extra measurement noise (deg) the decoder assumes on top of the
 #: test noise (inflating ``R`` tolerates a new person's postures and styles).
 CANDIDATE_EXTRA_NOISE_DEG: tuple[float, ...] = (0.0, 2.0, 4.0, 8.0, 16.0)
-#: Candidate switch probabilities of the variant runs: longer dwells than the
-#: grid of :data:`CANDIDATE_SWITCH_PROBS` (whose smallest value was chosen).
-VARIANT_SWITCH_PROBS: tuple[float, ...] = (1e-4, 1e-5, 1e-6, 1e-8)
 #: The classifier's features by default: the angles (the CV's choice; the
 #: centred and velocity variants scored worse, see the package docstring).
 CLASSIFY_FEATURES = "angles"
