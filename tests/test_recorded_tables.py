@@ -151,3 +151,43 @@ def test_every_leaderboard_table_rebuilds_from_its_episodes(record):
         rows.append(row)
     text = leaderboard_table(rows) + "\n\n" + "\n".join(validity_lines(rows)) + "\n"
     assert text == (record.parent / "table.md").read_text(encoding="utf-8")
+
+
+#: A README results heading's sources: ``results/NAME`` first, then bare ``v2_NAME``s
+#: (each may end in ``*``).
+SOURCE = re.compile(r"`(?:results/)?(v\d_[a-z0-9_]+\*?)`")
+
+
+def _readme_sections() -> list[tuple[str, list[str], list[tuple[int, str]]]]:
+    """The README's ``###`` sections that name their runs: heading, runs, (line, text)."""
+    sections: list[tuple[str, list[str], list[tuple[int, str]]]] = []
+    for number, line in enumerate(_lines(ROOT / "README.md"), 1):
+        if line.startswith("#"):
+            names = SOURCE.findall(line) if line.startswith("### ") else []
+            sections.append((line, names, []))
+        elif sections:
+            sections[-1][2].append((number, line))
+    return [s for s in sections if s[1]]
+
+
+def test_each_readme_row_is_from_a_run_its_heading_names():
+    """A row copied from another run than its section names fails, though recorded."""
+    sections = _readme_sections()
+    assert len(sections) >= 6, "the README's result headings no longer name their runs"
+    stray = []
+    for heading, names, body in sections:
+        folders = [f for name in names for f in sorted(ROOT.glob(f"results/{name}"))]
+        assert folders, f"{heading}: names no run in results/"
+        lines = {
+            line
+            for folder in folders
+            for path in (folder / "table.md", folder / "tables.md")
+            if path.is_file()
+            for line in _lines(path)
+        }
+        stray += [
+            f"README.md:{n}: {text[:80]} (not in {', '.join(names)})"
+            for n, text in body
+            if ROW.match(text) and text not in lines
+        ]
+    assert not stray, "\n".join(stray)
