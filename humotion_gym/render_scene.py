@@ -121,6 +121,12 @@ FLOOR_NEAR_MM = 100.0
 #: The smallest and the largest frame, ``(width, height)`` in pixels.
 MIN_IMAGE_SIZE = (64, 64)
 MAX_IMAGE_SIZE = (640, 480)
+#: The largest of each scene setting taken: more would only make a frame slow (a
+#: million occluders take five seconds a step) or all noise.
+SCENE_MAXIMA: dict[str, float] = {
+    "clutter_density": 16.0, "noise_sigma": 255.0, "blur_sigma": 64.0, "ambient": 1.0,
+    "diffuse": 1.0, "occluders": 64, "shading_strips": 16,
+}  # fmt: skip
 
 _ELLIPSE_POINTS = 12
 
@@ -223,15 +229,20 @@ class SceneOptions:
                 f"SceneOptions.background: expected 'flat' or 'clutter', got {self.background!r}"
             )
         for name in ("clutter_density", "noise_sigma", "blur_sigma", "ambient", "diffuse"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0):
-                raise ValueError(f"SceneOptions.{name}: expected a finite number >= 0")
-        if not (isinstance(self.occluders, (int, np.integer)) and self.occluders >= 0):
-            raise ValueError("SceneOptions.occluders: expected an integer >= 0")
+            value, top = getattr(self, name), SCENE_MAXIMA[name]
+            if not (math.isfinite(value) and 0 <= value <= top):
+                raise ValueError(
+                    f"SceneOptions.{name}: expected a number in [0, {top:g}], got {value}"
+                )
+        for name, low in (("occluders", 0), ("shading_strips", 1)):
+            value, top = getattr(self, name), int(SCENE_MAXIMA[name])
+            if not (isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+                    and low <= value <= top):  # fmt: skip
+                raise ValueError(
+                    f"SceneOptions.{name}: expected an integer in [{low}, {top}], got {value!r}"
+                )
         if not self.occluder_period > 0:
             raise ValueError("SceneOptions.occluder_period: expected a positive number of frames")
-        if not (isinstance(self.shading_strips, (int, np.integer)) and self.shading_strips >= 1):
-            raise ValueError("SceneOptions.shading_strips: expected an integer >= 1")
         if self.palette is not None:
             if self.palette not in FIGURE_PALETTES:
                 raise ValueError(

@@ -34,6 +34,7 @@ from humotion_gym.cli._common import (
     print_json,
     wrote,
 )
+from humotion_gym.render_scene import SCENE_MAXIMA
 
 #: Episodes per cell drawn from the seeds when ``--episodes`` is not given.
 DEFAULT_EPISODES = 20
@@ -118,7 +119,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="scene background, a difficulty setting (default: the task's)",
     )  # fmt: skip
     lb.add_argument(
-        "--noise", type=float_between(0.0, 255.0), default=None,
+        "--noise", type=float_between(0.0, SCENE_MAXIMA["noise_sigma"]), default=None,
         help="sensor noise, a difficulty setting (default: the task's)",
     )  # fmt: skip
     lb.set_defaults(func=_cmd_leaderboard)

@@ -35,7 +35,7 @@ from humotion_gym.cli._common import (
     print_json,
     wrote,
 )
-from humotion_gym.render_scene import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
+from humotion_gym.render_scene import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE, SCENE_MAXIMA
 
 #: The settings a sweep varies, in ``--help`` order: each one's flag (``--NAME``, with
 #: ``-`` for ``_``) takes values ``add_argument`` reads with these keywords.
@@ -46,11 +46,17 @@ _SETTINGS: dict[str, dict[str, Any]] = {
     },
     "background": {"choices": ["flat", "clutter"], "help": "backgrounds"},
     "noise": {
-        "type": float_between(0.0, 255.0), "metavar": "SIGMA",
+        "type": float_between(0.0, SCENE_MAXIMA["noise_sigma"]), "metavar": "SIGMA",
         "help": "sensor noise levels, grey levels",
     },
-    "occluders": {"type": int_at_least(0, 64), "metavar": "N", "help": "numbers of occluders"},
-    "blur": {"type": float_between(0.0, 64.0), "metavar": "SIGMA", "help": "blur levels, pixels"},
+    "occluders": {
+        "type": int_at_least(0, int(SCENE_MAXIMA["occluders"])), "metavar": "N",
+        "help": "numbers of occluders",
+    },
+    "blur": {
+        "type": float_between(0.0, SCENE_MAXIMA["blur_sigma"]), "metavar": "SIGMA",
+        "help": "blur levels, pixels",
+    },
     "frame_skip": {"type": int_at_least(1, 100), "metavar": "K", "help": "frame skips"},
 }  # fmt: skip
 

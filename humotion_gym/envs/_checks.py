@@ -8,11 +8,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from humotion_gym.checks import check_at_least_zero, check_bool, check_count, check_positive
+from humotion_gym.render_scene import SCENE_MAXIMA
 
 #: The frame rates clips may be resampled to, Hz (the command line's ``--fps`` too):
 #: the data sets capture at 30 to 120 Hz (some rigs at 240); resampling finer only
 #: multiplies every clip's memory.
 FPS_RANGE: tuple[float, float] = (1.0, 240.0)
+#: The environments' scene arguments, by the scene setting they set (bounded by
+#: :data:`~humotion_gym.render_scene.SCENE_MAXIMA`).
+SCENE_ARGUMENTS: dict[str, str] = {
+    "noise": "noise_sigma",
+    "blur": "blur_sigma",
+    "occluders": "occluders",
+}
 
 
 def check_env_arguments(
@@ -26,7 +34,8 @@ def check_env_arguments(
 ) -> None:
     """An environment's numeric and boolean arguments, each refused in its own name.
 
-    ``counts`` are integers >= 1, ``naturals`` integers >= 0; ``None`` passes
+    ``counts`` are integers >= 1, ``naturals`` integers >= 0, and the scene's
+    (:data:`SCENE_ARGUMENTS`) at most their scene setting's maximum; ``None`` passes
     for the names in ``optional`` only (it means the task's default there; an
     argument with a value for its default, ``frame_skip=1`` say, is refused
     None rather than read as False or 0). ``fps`` must lie in :data:`FPS_RANGE`.
@@ -45,6 +54,9 @@ def check_env_arguments(
             if value is None:
                 raise ValueError(f"{name}: expected a value, got None (leave it out: the default)")
             check(name, value)
+            top = SCENE_MAXIMA[SCENE_ARGUMENTS[name]] if name in SCENE_ARGUMENTS else None
+            if top is not None and value > top:
+                raise ValueError(f"{name}: expected at most {top:g}, got {value!r}")
     check_positive("fps", fps)
     if not FPS_RANGE[0] <= fps <= FPS_RANGE[1]:
         raise ValueError(f"fps: expected {FPS_RANGE[0]:g} to {FPS_RANGE[1]:g} Hz, got {fps!r}")

@@ -14,6 +14,8 @@ from gymnasium.utils.env_checker import check_env
 import humotion_gym
 from humotion_gym.envs import ENV_IDS, get_task
 from humotion_gym.envs.description import OBSERVATION_KEYS, read_observation
+from humotion_gym.envs.vector import PoseTrackingVectorEnv
+from humotion_gym.render_scene import SCENE_MAXIMA, SceneOptions
 from humotion_gym.wrappers import FrameObservation
 
 IDS = list(ENV_IDS)
@@ -472,6 +474,28 @@ def test_the_look_options_change_the_frames_and_refuse_bad_values():
         gym.make("humotion_gym/SideWalk-v2", palette="pink")
     with pytest.raises(ValueError, match="camera_elevation_deg"):
         gym.make("humotion_gym/SideWalk-v2", camera_elevation_deg=95.0)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"occluders": 65}, "occluders: expected at most 64, got 65"),
+        ({"occluders": 10**7}, "occluders: expected at most 64"),
+        ({"noise": 255.5}, "noise: expected at most 255"),
+        ({"blur": 64.5}, "blur: expected at most 64"),
+    ],
+)
+def test_scene_settings_past_their_maximum_are_refused_in_the_arguments_name(kwargs, match):
+    """A million occluders took five seconds a step: each scene setting has a ceiling."""
+    with pytest.raises(ValueError, match=match):
+        gym.make("humotion_gym/ArmTrack-v2", **kwargs)
+    with pytest.raises(ValueError, match=match):
+        PoseTrackingVectorEnv(2, "ArmTrack-v2", **kwargs)
+    for name, top in SCENE_MAXIMA.items():  # the scene itself, whoever makes it
+        value = int(top) + 1 if name in ("occluders", "shading_strips") else top * 1.01
+        with pytest.raises(ValueError, match=rf"SceneOptions\.{name}: expected"):
+            SceneOptions(**{name: value})
+    gym.make("humotion_gym/ArmTrack-v2", occluders=64, noise=255.0, blur=64.0)
 
 
 @pytest.mark.mocap
