@@ -417,7 +417,7 @@ class ParticleFilterAgent:
             The action (normalised estimate) and ``None``.
         """
         del state, deterministic
-        given = read_observation(observation)
+        given = read_observation(observation, self.description)
         first = episode_begins(episode_start, given.initial_pose, self._initial)
         if first:
             self.reset(given)

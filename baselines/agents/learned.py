@@ -340,7 +340,7 @@ class LearnedAgent:
     ) -> tuple[NDArray[np.float32], Any]:
         """The policy's action for the frame (its mean when ``deterministic``)."""
         del state
-        given = read_observation(observation)
+        given = read_observation(observation, self.description)
         if episode_begins(episode_start, given.initial_pose, self._initial_pose):
             self.start(given.initial_pose)
         t0 = time.perf_counter()
@@ -492,7 +492,7 @@ class HybridAgent:
     ) -> tuple[NDArray[np.float32], Any]:
         """The filter's estimate with the policy's estimate as part of its proposal."""
         t0 = time.perf_counter()
-        given = read_observation(observation)
+        given = read_observation(observation, self.description)
         start = episode_begins(episode_start, given.initial_pose, self.pf._initial)
         guess, _ = self.policy.predict(observation, None, np.array([start]), deterministic=True)
         base = self.description.base_pose(given)

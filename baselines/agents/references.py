@@ -47,7 +47,7 @@ class HoldAgent:
     ) -> tuple[NDArray[np.float32], Any]:
         """The initial pose as an action (the frame is ignored)."""
         del state, deterministic
-        initial = read_observation(observation).initial_pose
+        initial = read_observation(observation, self.description).initial_pose
         if self._action is None or episode_begins(episode_start, initial, self._initial):
             self._initial = initial
             self._action = self.description.pose_to_action(initial, initial)

@@ -120,12 +120,21 @@ class Given:
         return [self.frame] if self.frame.ndim == 3 else list(self.frame)
 
 
-def read_observation(observation: Any) -> Given:
+def read_observation(observation: Any, description: TaskDescription | None = None) -> Given:
     """The typed parts of a version-2 observation.
+
+    Args:
+        observation: The environment's observation.
+        description: The task the reader was built for, whose observation
+            this must be: an agent passes its own, so that a frame of another
+            size or another task's given parameters are refused at once
+            rather than read as something else.
 
     Raises:
         ValueError: If ``observation`` is not a dict with the keys of
-            :data:`OBSERVATION_KEYS` (a version-1 frame, say).
+            :data:`OBSERVATION_KEYS` (a version-1 frame, say), or, with
+            ``description``, if its frame or given parameters are not the
+            task's shape, its frame not uint8, or a number not finite.
     """
     if not isinstance(observation, dict) or set(observation) != set(OBSERVATION_KEYS):
         got = sorted(observation) if isinstance(observation, dict) else type(observation).__name__
@@ -152,6 +161,8 @@ def read_observation(observation: Any) -> Given:
             f"observation['camera']: expected shape {expected} for a frame of shape "
             f"{frame.shape}, got {vectors.shape}"
         )
+    if description is not None:
+        _check_task_observation(observation, description)
     cameras = tuple(Camera.from_vector(v, w, h) for v in vectors.reshape(-1, CAMERA_VECTOR_SIZE))
     return Given(
         frame=frame,
@@ -161,6 +172,23 @@ def read_observation(observation: Any) -> Given:
         shape=BodyShape.from_vector(observation["shape"]),
         cameras=cameras,
     )
+
+
+def _check_task_observation(observation: dict[str, Any], description: TaskDescription) -> None:
+    """Refuse an observation that is not ``description``'s task's (see :func:`read_observation`)."""
+    space = description.observation_space
+    for key in ("frame", "fixed_params"):
+        want, got = space[key].shape, np.shape(observation[key])  # type: ignore[index]
+        if got != want:
+            raise ValueError(
+                f"observation[{key!r}]: expected shape {want}, {description.name}'s, got {got}"
+            )
+    if np.asarray(observation["frame"]).dtype != np.uint8:
+        got_dtype = np.asarray(observation["frame"]).dtype
+        raise ValueError(f"observation['frame']: expected uint8 pixels, got {got_dtype}")
+    for key in ("initial_pose", "camera", "fixed_params", "shape"):
+        if not np.all(np.isfinite(np.asarray(observation[key], dtype=np.float64))):
+            raise ValueError(f"observation[{key!r}]: expected finite numbers, got NaN or infinity")
 
 
 def _wrap(angles: FloatArray) -> FloatArray:

@@ -143,3 +143,32 @@ def test_an_agent_that_reads_the_truth_cannot_beat_hold_through_the_api():
     leaky = Cheat(description, library=env.unwrapped.library)
     leaked = [_leaky_episode(leaky, env, s) for s in seeds]
     assert np.mean(leaked) < 0.1 * np.mean(hold)
+
+
+def _other_observations(obs: dict) -> dict[str, tuple[dict, str]]:
+    arm, _ = gym.make("humotion_gym/ArmTrack-v2").reset(seed=0)
+    nan_pose = obs["initial_pose"].copy()
+    nan_pose[3] = np.nan
+    return {
+        "a smaller frame": ({**obs, "frame": obs["frame"][:64]}, r"'frame'\]: expected shape"),
+        "float pixels": ({**obs, "frame": obs["frame"] / 255.0}, "expected uint8 pixels"),
+        "another task's": (arm, r"'fixed_params'\]: expected shape \(0,\), BodyTrack-v2's"),
+        "a NaN pose": ({**obs, "initial_pose": nan_pose}, r"'initial_pose'\]: expected finite"),
+        "an infinite camera": (
+            {**obs, "camera": np.full_like(obs["camera"], np.inf)},
+            r"'camera'\]: expected finite",
+        ),
+    }
+
+
+@pytest.mark.parametrize("name", ["hold", "pf-cv", "bc"])
+def test_an_agent_refuses_an_observation_of_another_task_or_shape(name):
+    """A frame of another size was read as this task's, and a NaN pose became a NaN action."""
+    env = gym.make("humotion_gym/BodyTrack-v2")
+    obs, _ = env.reset(seed=0)
+    agent = make(name, env, n_particles=20, seed=0)
+    for bad, match in _other_observations(obs).values():
+        with pytest.raises(ValueError, match=match):
+            agent.predict(bad, episode_start=True)
+    action, _ = agent.predict(obs, episode_start=True)
+    assert env.action_space.contains(action)
