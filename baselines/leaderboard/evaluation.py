@@ -24,6 +24,7 @@ from baselines.leaderboard.stats import (
     seed_matrix,
     two_level_bootstrap,
 )
+from humotion_gym.checks import check_count
 from humotion_gym.metrics import lost_track_frame
 
 
@@ -196,7 +197,16 @@ def evaluate(
     agent: Any, env: gym.Env, episodes: int, seed: int = 0, options: dict[str, Any] | None = None,
     progress: bool = False,
 ) -> list[EpisodeResult]:  # fmt: skip
-    """Run ``episodes`` seeded episodes (seeds ``seed``, ``seed + 1``...) of :func:`run_episode`."""
+    """Run ``episodes`` seeded episodes (seeds ``seed``, ``seed + 1``...) of :func:`run_episode`.
+
+    Raises:
+        ValueError: If ``episodes`` is not an integer >= 1 or ``seed`` one >= 0,
+            or the agent has no ``predict``.
+    """
+    check_count("episodes", episodes)
+    check_count("seed", seed, least=0)
+    if not callable(getattr(agent, "predict", None)):
+        raise ValueError(f"agent: expected an agent with predict(observation, ...), got {agent!r}")
     results = []
     for k in tqdm(range(episodes), desc="episodes", disable=not progress, leave=False):
         results.append(run_episode(agent, env, seed + k, options))

@@ -29,7 +29,7 @@ from __future__ import annotations
 import hashlib
 import shlex
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -149,6 +149,7 @@ def run_leaderboard(
         FileExistsError: If ``out`` holds a run and ``resume`` is False.
         FileNotFoundError: If ``resume`` is True and ``out`` holds no run.
     """
+    _check_grid(tasks, agents, particles, env_kwargs)
     _check_run(seed, episodes, particles, engine, resume, out, agent_seeds, videos)
     check_labels(agents)
     kwargs = resolve_env_kwargs(env_kwargs)
@@ -203,6 +204,31 @@ def _run_left(
         if runner is not None:
             runner.close()
     return problems, failures
+
+
+def _check_grid(
+    tasks: Sequence[str],
+    agents: Sequence[str],
+    particles: Sequence[int],
+    env_kwargs: Mapping[str, Any] | None,
+) -> None:
+    """Refuse a grid that is not lists of names and counts, or that would drop an agent."""
+    for name, values in (("tasks", tasks), ("agents", agents), ("particles", particles)):
+        if isinstance(values, (str, bytes)) or not isinstance(values, Sequence):
+            raise TypeError(f"{name}: expected a list, got {values!r}")
+    if not tasks or not agents:
+        raise ValueError(f"{'tasks' if not tasks else 'agents'}: expected at least one")
+    takes = [a for a in agents if uses_particles(a)]
+    if takes and not particles:
+        verb = "takes" if len(takes) == 1 else "take"
+        raise ValueError(f"particles: empty, but {', '.join(takes)} {verb} particles")
+    if env_kwargs is not None and not isinstance(env_kwargs, Mapping):
+        raise TypeError(f"env_kwargs: expected a dict of environment settings, got {env_kwargs!r}")
+    if "terminate_on_lost" in (env_kwargs or {}):
+        raise ValueError(
+            "env_kwargs: terminate_on_lost is the leaderboard's own (False: every episode runs "
+            "its full length, so a tracker that loses track early cannot score better)"
+        )
 
 
 def _check_run(

@@ -15,7 +15,7 @@ from baselines.leaderboard import (
     tables,
     validity_lines,
 )
-from baselines.leaderboard.evaluation import run_episode
+from baselines.leaderboard.evaluation import evaluate, run_episode
 from humotion_gym.body import PARAM_INDEX
 
 
@@ -127,6 +127,38 @@ def test_leaderboard_refuses_bad_counts():
         run_leaderboard(["ArmTrack-v2"], ["hold"], [300], episodes=0, progress=False)
     with pytest.raises(ValueError, match="particles"):
         run_leaderboard(["ArmTrack-v2"], ["pf-cv"], [0], episodes=1, progress=False)
+
+
+@pytest.mark.parametrize(
+    "args, kwargs, error, match",
+    [
+        ((["ArmTrack-v2"], ["pf-cv"], []), {}, ValueError, "particles: empty, but pf-cv takes"),
+        (([], ["hold"], [30]), {}, ValueError, "tasks: expected at least one"),
+        ((["ArmTrack-v2"], [], [30]), {}, ValueError, "agents: expected at least one"),
+        (("ArmTrack-v2", ["hold"], [30]), {}, TypeError, "tasks: expected a list"),
+        ((["ArmTrack-v2"], "hold", [30]), {}, TypeError, "agents: expected a list"),
+        ((["ArmTrack-v2"], ["hold"], 30), {}, TypeError, "particles: expected a list"),
+        ((["ArmTrack-v2"], ["hold"], [30]), {"env_kwargs": "x"}, TypeError, "env_kwargs: expected"),
+        ((["ArmTrack-v2"], ["hold"], [30]), {"env_kwargs": {"terminate_on_lost": True}},
+         ValueError, "terminate_on_lost is the leaderboard's own"),
+    ],
+)  # fmt: skip
+def test_leaderboard_refuses_a_grid_that_would_drop_or_misread_its_cells(
+    args, kwargs, error, match
+):
+    """particles=[] dropped pf-cv in silence; a task given as a string ran its letters."""
+    with pytest.raises(error, match=match):
+        run_leaderboard(*args, episodes=1, progress=False, **kwargs)
+    assert run_leaderboard(["ArmTrack-v2"], ["hold"], [], episodes=1, progress=False)
+
+
+@pytest.mark.parametrize("episodes", [0, -1, 1.5, "2", True])
+def test_evaluate_refuses_what_is_not_a_number_of_episodes(episodes):
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
+    with pytest.raises(ValueError, match="episodes: expected an integer >= 1"):
+        evaluate(make("hold", env), env, episodes)
+    with pytest.raises(ValueError, match="agent: expected an agent with predict"):
+        evaluate(None, env, 1)
 
 
 def test_arm_episodes_move_the_arm_in_v1_and_are_not_selected_in_v2():
