@@ -29,6 +29,7 @@ from typing import Any
 
 import gymnasium as gym
 
+from baselines import MAX_PARTICLES
 from baselines.agents.base import TaskNotSupported, describe, tracking_env
 from baselines.agents.filters import (
     PART_CONES,
@@ -90,7 +91,7 @@ def make(
         task: The task's description, or an environment (only its
             :meth:`~humotion_gym.envs.pose_tracking.PoseTrackingEnv.describe`
             is kept).
-        n_particles: Particles.
+        n_particles: Particles, 1 to :data:`~baselines.MAX_PARTICLES`.
         seed: The agent's seed.
         estimate: ``"mean"`` or ``"map"``.
         fit_settings: Overrides of the prior's fit settings.
@@ -104,13 +105,27 @@ def make(
         KeyError: If the name is unknown.
         TaskNotSupported: If the agent does not cover the env's task (a
             ``ValueError``).
-        ValueError: If a fit or filter setting is unknown or out of range, or
-            a filter setting is not the agent's filter's.
+        ValueError: If a fit or filter setting is unknown or out of range, a
+            filter setting is not the agent's filter's, or ``n_particles`` or
+            ``seed`` is out of range.
+        TypeError: If ``name`` is not a string, ``task`` is neither a
+            description nor a tracking environment, or ``observation_model``
+            lacks a :class:`~baselines.observation.FrameModel` method.
     """
+    if not isinstance(name, str):
+        raise TypeError(f"agents.make: name must be an agent's name, got {name!r}")
     if name not in REFERENCES and name not in AGENTS and not is_learned(name):
         raise KeyError(f"unknown agent {name!r}; the agents are {agent_names()}")
-    _check_count("n_particles", n_particles, 1)
+    _check_count("n_particles", n_particles, 1, MAX_PARTICLES)
     _check_count("seed", seed, 0)
+    frame_model = ("prepare", "read_first_frame", "log_likelihood")
+    if observation_model is not None and not all(
+        callable(getattr(observation_model, method, None)) for method in frame_model
+    ):
+        raise TypeError(
+            f"agents.make: observation_model must have {', '.join(frame_model)} "
+            f"(baselines.observation.FrameModel), got {observation_model!r}"
+        )
     description = describe(task)
     if name in REFERENCES:
         return REFERENCES[name][0](description, seed=seed)
@@ -122,10 +137,11 @@ def make(
     )  # fmt: skip
 
 
-def _check_count(name: str, value: Any, low: int) -> None:
-    """Refuse anything but an integer >= ``low`` (numpy's too; not a bool), naming it."""
-    if not is_count(value, low):
-        raise ValueError(f"agents.make: {name} must be an integer >= {low}, got {value!r}")
+def _check_count(name: str, value: Any, low: int, high: int | None = None) -> None:
+    """Refuse anything but an integer in ``[low, high]`` (numpy's too; not a bool), naming it."""
+    if not is_count(value, low) or (high is not None and value > high):
+        within = f">= {low}" if high is None else f"in [{low}, {high:,}]"
+        raise ValueError(f"agents.make: {name} must be an integer {within}, got {value!r}")
 
 
 __all__ = [

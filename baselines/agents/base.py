@@ -50,7 +50,7 @@ def tracking_env(env: gym.Env) -> PoseTrackingEnv:
     Raises:
         TypeError: If ``env`` is not (a wrapper of) a pose-tracking environment.
     """
-    base = env.unwrapped
+    base = getattr(env, "unwrapped", env)
     if not isinstance(base, PoseTrackingEnv):
         raise TypeError(
             f"env: expected a humotion_gym pose-tracking environment (or a wrapper of one), "

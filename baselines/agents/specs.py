@@ -570,8 +570,14 @@ def register_reference(name: str, agent_class: type, description: str = "") -> N
         ValueError: If the name is taken (a reference agent's or a particle
             filter's) or not one the command line can name, or the class reads
             the truth (an oracle of :mod:`baselines.diagnostics`).
+        TypeError: If ``agent_class`` is not a class with ``predict``.
     """
     refuse_truth(agent_class, "register_reference")
+    if not (isinstance(agent_class, type) and callable(getattr(agent_class, "predict", None))):
+        raise TypeError(
+            "register_reference: agent_class must be a class with predict(observation, ...), "
+            f"got {agent_class!r}"
+        )
     _check_new_name(name, "register_reference")
     REFERENCES[name] = (agent_class, description)
 

@@ -5,14 +5,16 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from baselines import MAX_PARTICLES
 from humotion_gym.cli._common import (
-    MAX_PARTICLES,
     Distinct,
     UsageError,
     int_at_least,
-    particle_count,
     task_name,
 )
+
+#: ``--particles``: 1 to :data:`~baselines.MAX_PARTICLES`.
+particle_count = int_at_least(1, MAX_PARTICLES)
 
 
 def tracked_task(text: str) -> str:

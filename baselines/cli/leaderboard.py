@@ -19,7 +19,13 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from baselines.cli._args import add_agents, add_engine, check_engine, tracked_task
+from baselines.cli._args import (
+    add_agents,
+    add_engine,
+    check_engine,
+    particle_count,
+    tracked_task,
+)
 from humotion_gym.cli._common import (
     CommandError,
     UsageError,
@@ -30,7 +36,6 @@ from humotion_gym.cli._common import (
     episode_count,
     float_between,
     output_dir,
-    particle_count,
     print_json,
     wrote,
 )

@@ -16,7 +16,13 @@ import argparse
 import sys
 from typing import Any
 
-from baselines.cli._args import add_agents, add_engine, check_engine, tracked_task
+from baselines.cli._args import (
+    add_agents,
+    add_engine,
+    check_engine,
+    particle_count,
+    tracked_task,
+)
 from humotion_gym.cli._common import (
     Distinct,
     UsageError,
@@ -31,7 +37,6 @@ from humotion_gym.cli._common import (
     int_at_least,
     output_dir,
     output_file,
-    particle_count,
     print_json,
     wrote,
 )

@@ -40,10 +40,6 @@ class CommandError(RuntimeError):
 #: The most memory a command may plan to hold for frames it renders or synthesises
 #: (``check_memory``); a request beyond it is refused before anything is allocated.
 MEMORY_BUDGET_BYTES: int = 2 << 30
-#: The most particles of one filter: a pf-tree BodyTrack episode peaks at
-#: 0.95 GB resident at 100,000 particles (0.36 GB at 10,000), so this bounds
-#: a run to about a gigabyte.
-MAX_PARTICLES: int = 100_000
 #: The most episodes per cell or run (each is seconds of tracking at least).
 MAX_EPISODES: int = 10_000
 
@@ -95,7 +91,6 @@ positive_int = int_at_least(1)
 #: is not the limit, numpy takes any non-negative integer).
 nonnegative_int = int_at_least(0)
 #: ``type=`` for particle counts.
-particle_count = int_at_least(1, MAX_PARTICLES)
 #: ``type=`` for episode counts.
 episode_count = int_at_least(1, MAX_EPISODES)
 

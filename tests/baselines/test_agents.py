@@ -35,7 +35,7 @@ def test_registry_and_unknown_agent():
 @pytest.mark.parametrize(
     "kwargs",
     [{"n_particles": 2.5}, {"n_particles": "300"}, {"n_particles": 0}, {"n_particles": True},
-     {"seed": -1}, {"seed": "a"}, {"seed": 1.0}],
+     {"seed": -1}, {"seed": "a"}, {"seed": 1.0}, {"n_particles": 100_001}],
 )  # fmt: skip
 def test_make_refuses_counts_that_are_not_integers_naming_them(kwargs):
     env = gym.make("humotion_gym/ArmTrack-v2")
@@ -44,6 +44,18 @@ def test_make_refuses_counts_that_are_not_integers_naming_them(kwargs):
         with pytest.raises(ValueError, match=f"agents.make: {name} must be an integer"):
             make(agent, env, **kwargs)
     make("pf-cv", env, n_particles=np.int64(10), seed=np.int32(3))
+
+
+def test_make_refuses_what_is_not_a_name_a_task_or_a_likelihood():
+    env = gym.make("humotion_gym/ArmTrack-v2")
+    for name in (None, 5):
+        with pytest.raises(TypeError, match="agents.make: name must be an agent's name"):
+            make(name, env)
+    for task in (None, "ArmTrack-v2"):
+        with pytest.raises(TypeError, match="expected a humotion_gym pose-tracking environment"):
+            make("pf-cv", task)
+    with pytest.raises(TypeError, match="observation_model must have prepare"):
+        make("pf-cv", env, observation_model="x")
 
 
 def test_a_vector_envs_batch_is_refused_saying_so():

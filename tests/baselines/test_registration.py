@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import sys
 
+import gymnasium as gym
 import pytest
 
 from baselines.agents import AGENTS, AgentSpec, register_agent, register_reference
@@ -90,3 +91,7 @@ def test_register_reference_refuses_a_taken_name_and_one_the_command_line_misrea
         with pytest.raises(ValueError, match="register_agent"):
             register_agent(name, AGENTS["pf-cv"])
     assert "pf-cv+mine" not in REFERENCES and "mine.zip" not in AGENTS
+    for not_an_agent in ("HoldAgent", int, HoldAgent(gym.make("humotion_gym/ArmTrack-v2"))):
+        with pytest.raises(TypeError, match="agent_class must be a class with predict"):
+            register_reference("mine", not_an_agent)
+    assert "mine" not in REFERENCES
