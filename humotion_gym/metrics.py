@@ -17,14 +17,104 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from humotion_gym.body import ANGLE_MASK, KEYPOINT_INDEX, BodyShape, forward_kinematics
+from humotion_gym.body import (
+    ANGLE_MASK,
+    KEYPOINT_INDEX,
+    N_KEYPOINTS,
+    N_PARAMS,
+    BodyShape,
+    forward_kinematics,
+)
+from humotion_gym.checks import check_positive, is_count, is_integer, is_real
 
 FloatArray = NDArray[np.float64]
+
+# The shapes of the two kinds of pair compared: (last axis, least ndim, as written).
+_POINTS = (3, 2, "(..., K, 3)")
+_PARAMS = (N_PARAMS, 1, f"(..., {N_PARAMS})")
+
+
+def _checked_pair(
+    where: str, names: tuple[str, str], estimate: ArrayLike, truth: ArrayLike,
+    form: tuple[int, int, str],
+) -> tuple[FloatArray, FloatArray]:  # fmt: skip
+    """Both arrays as float64, refused unless each ends in the form's axis and they broadcast."""
+    last, least, text = form
+    try:
+        a = np.asarray(estimate, dtype=np.float64)
+        b = np.asarray(truth, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where}: {names[0]} and {names[1]} must be arrays of numbers") from None
+    ok = all(x.ndim >= 1 and x.shape[-1] == last for x in (a, b))
+    if ok:
+        try:
+            ok = len(np.broadcast_shapes(a.shape, b.shape)) >= least
+        except ValueError:
+            ok = False
+    if not ok:
+        raise ValueError(
+            f"{where}: {names[0]} and {names[1]} must be arrays of shape {text} that "
+            f"broadcast together, got shapes {a.shape} and {b.shape}"
+        )
+    return a, b
+
+
+def _checked_index(where: str, name: str, value: Any, size: int) -> int:
+    """``value`` as an int, refused unless it is an integer (not a bool) in ``[0, size)``."""
+    if not (is_integer(value) and 0 <= value < size):
+        raise ValueError(f"{where}: {name} must be an integer in [0, {size}), got {value!r}")
+    return int(value)
+
+
+def _checked_indices(
+    where: str, name: str, values: ArrayLike, size: int, *, allow_empty: bool = False
+) -> NDArray[np.intp]:
+    """``values`` as ``(n,)`` indices, refused unless 1-D integers (no bools) in ``[0, size)``."""
+    idx = np.asarray(values)
+    ok = idx.ndim == 1 and (idx.size > 0 or allow_empty)
+    if ok and idx.size:
+        ok = idx.dtype.kind in "iu" and 0 <= idx.min() and idx.max() < size
+    if not ok:
+        what = "a 1-D sequence" if allow_empty else "a non-empty 1-D sequence"
+        raise ValueError(
+            f"{where}: {name} must be {what} of integers in [0, {size}), got {values!r}"
+        )
+    return idx.astype(np.intp, copy=False) if idx.size else np.zeros(0, np.intp)
+
+
+def _check_threshold(where: str, threshold_mm: Any) -> None:
+    """Refuse a threshold that is not a real number or is NaN (O(1): on the step path)."""
+    if type(threshold_mm) is not float and not is_real(threshold_mm):
+        raise ValueError(f"{where}: threshold_mm must be a real number, got {threshold_mm!r}")
+    if threshold_mm != threshold_mm:  # NaN: nothing is above it, track never lost
+        raise ValueError(f"{where}: threshold_mm must not be NaN, got {threshold_mm!r}")
+
+
+def _check_run(run: Any) -> None:
+    """Refuse a run that is not a count >= 0 (integer dtype for an array of counts).
+
+    O(1) for what the environments pass (an int, an integer array): an array's
+    counts are not each checked for sign, which would cost a pass over it every
+    step.
+    """
+    if type(run) is int:  # the single environment's, tested first: the cheap test
+        ok = run >= 0
+    elif isinstance(run, np.ndarray):  # the vector environment's
+        ok = run.dtype.kind in "iu"
+    elif is_integer(run):
+        ok = run >= 0
+    else:  # a list or the like: not what the environments pass, checked in full
+        r = np.asarray(run)
+        ok = r.dtype.kind in "iu" and (r.size == 0 or r.min() >= 0)
+    if not ok:
+        raise ValueError(
+            f"update_lost_run: run must be a count >= 0 or an integer array of them, got {run!r}"
+        )
 
 
 def point_errors(estimate_points: ArrayLike, truth_points: ArrayLike) -> FloatArray:
@@ -36,9 +126,14 @@ def point_errors(estimate_points: ArrayLike, truth_points: ArrayLike) -> FloatAr
 
     Returns:
         ``(..., K)`` distances.
+
+    Raises:
+        ValueError: If either is not of shape ``(..., 3)``, or they do not
+            broadcast together to ``(..., K, 3)``.
     """
-    diff = np.asarray(estimate_points, dtype=np.float64) - np.asarray(truth_points, np.float64)
-    return np.linalg.norm(diff, axis=-1)
+    a, b = _checked_pair("point_errors", ("estimate_points", "truth_points"),
+                         estimate_points, truth_points, _POINTS)  # fmt: skip
+    return np.linalg.norm(a - b, axis=-1)
 
 
 def aligned_point_errors(
@@ -57,9 +152,16 @@ def aligned_point_errors(
 
     Returns:
         ``(..., K)`` distances (0 at the anchor).
+
+    Raises:
+        ValueError: If the points are not as :func:`point_errors` takes them,
+            or ``anchor`` is not an integer in ``[0, K)``.
     """
-    diff = np.asarray(estimate_points, dtype=np.float64) - np.asarray(truth_points, np.float64)
-    return np.linalg.norm(diff - diff[..., anchor : anchor + 1, :], axis=-1)
+    a, b = _checked_pair("aligned_point_errors", ("estimate_points", "truth_points"),
+                         estimate_points, truth_points, _POINTS)  # fmt: skip
+    diff = a - b
+    i = _checked_index("aligned_point_errors", "anchor", anchor, diff.shape[-2])
+    return np.linalg.norm(diff - diff[..., i : i + 1, :], axis=-1)
 
 
 class StepScores(NamedTuple):
@@ -107,12 +209,18 @@ class Scoring:
         """From the scored keypoints and each region's positions among them.
 
         Raises:
-            ValueError: If the regions do not hold every scored keypoint once.
+            ValueError: If ``scored`` is not a non-empty sequence of keypoint
+                indices in ``[0, 15)``, a region's positions are not indices
+                into ``scored``, the regions do not hold every scored keypoint
+                once, or ``scale_mm`` is not a positive finite number.
         """
-        idx = np.asarray(scored, dtype=np.intp)
+        idx = _checked_indices("Scoring.of", "scored", scored, N_KEYPOINTS)
+        check_positive("Scoring.of: scale_mm", scale_mm)
         membership = np.zeros((idx.size, len(regions)))
         for r, (_, cols) in enumerate(regions):
-            membership[np.asarray(cols, dtype=np.intp), r] = 1.0
+            where = f"regions[{r}]"
+            cols = _checked_indices("Scoring.of", where, cols, idx.size, allow_empty=True)
+            membership[cols, r] = 1.0
         if not np.array_equal(membership.sum(axis=1), np.ones(idx.size)):
             raise ValueError("Scoring: the regions must hold every scored keypoint exactly once")
         return cls(idx, tuple(name for name, _ in regions), membership, float(scale_mm))
@@ -172,8 +280,20 @@ def keypoint_errors(estimate: ArrayLike, truth: ArrayLike, shape: BodyShape) -> 
 
     Returns:
         ``(..., 15)`` distances in mm.
+
+    Raises:
+        ValueError: If either is not of shape ``(..., 25)``, or they do not
+            broadcast together.
     """
-    return point_errors(forward_kinematics(estimate, shape), forward_kinematics(truth, shape))
+    return _keypoint_errors("keypoint_errors", estimate, truth, shape)
+
+
+def _keypoint_errors(
+    where: str, estimate: ArrayLike, truth: ArrayLike, shape: BodyShape
+) -> FloatArray:
+    """:func:`keypoint_errors`, its inputs refused in the words of ``where``."""
+    a, b = _checked_pair(where, ("estimate", "truth"), estimate, truth, _PARAMS)
+    return point_errors(forward_kinematics(a, shape), forward_kinematics(b, shape))
 
 
 def mean_keypoint_error(
@@ -189,20 +309,35 @@ def mean_keypoint_error(
 
     Returns:
         ``(...)`` mean error in mm.
+
+    Raises:
+        ValueError: If the poses are not as :func:`keypoint_errors` takes them,
+            or ``keypoints`` is not a non-empty 1-D sequence of integers in
+            ``[0, 15)``.
     """
-    err = keypoint_errors(estimate, truth, shape)
-    if keypoints is not None:
-        err = err[..., np.asarray(keypoints)]
-    return err.mean(axis=-1)
+    where = "mean_keypoint_error"
+    if keypoints is None:
+        return _keypoint_errors(where, estimate, truth, shape).mean(axis=-1)
+    idx = _checked_indices(where, "keypoints", keypoints, N_KEYPOINTS)
+    return _keypoint_errors(where, estimate, truth, shape)[..., idx].mean(axis=-1)
 
 
 def angle_errors(estimate: ArrayLike, truth: ArrayLike) -> FloatArray:
     """Absolute angle differences (rad) wrapped to [0, pi]; positions give NaN.
 
+    Args:
+        estimate: ``(..., 25)`` estimated parameters.
+        truth: ``(..., 25)`` true parameters (broadcast against ``estimate``).
+
     Returns:
         ``(..., 25)`` errors; the three root-position entries are NaN.
+
+    Raises:
+        ValueError: If either is not of shape ``(..., 25)``, or they do not
+            broadcast together.
     """
-    d = np.asarray(estimate, dtype=np.float64) - np.asarray(truth, dtype=np.float64)
+    a, b = _checked_pair("angle_errors", ("estimate", "truth"), estimate, truth, _PARAMS)
+    d = a - b
     d = np.abs((d + np.pi) % (2 * np.pi) - np.pi)
     d[..., ~ANGLE_MASK] = np.nan
     return d
@@ -222,7 +357,15 @@ def update_lost_run(run: ArrayLike, error_mm: ArrayLike, threshold_mm: float) ->
 
     Returns:
         ``run + 1`` where the error is above the threshold, else 0.
+
+    Raises:
+        ValueError: If ``run`` is not a count >= 0 (for an array: of an
+            integer dtype; its entries' signs are not checked, to keep this
+            step-path function O(1) in checks), or ``threshold_mm`` is not a
+            real number or is NaN.
     """
+    _check_run(run)
+    _check_threshold("update_lost_run", threshold_mm)
     return np.where(np.asarray(error_mm) > threshold_mm, np.asarray(run, np.intp) + 1, 0)
 
 
@@ -239,10 +382,25 @@ def lost_track_frame(errors_mm: ArrayLike, threshold_mm: float, patience: int) -
 
     Returns:
         The 0-based frame index, or None if track was never lost.
+
+    Raises:
+        ValueError: If ``errors_mm`` is not a 1-D sequence of numbers,
+            ``threshold_mm`` is not a real number or is NaN, or ``patience``
+            is not an integer >= 1.
     """
-    if patience < 1:
-        raise ValueError(f"lost_track_frame: patience must be >= 1, got {patience}")
-    above = np.asarray(errors_mm, dtype=np.float64) > threshold_mm
+    if not is_count(patience):
+        raise ValueError(f"lost_track_frame: patience must be an integer >= 1, got {patience!r}")
+    _check_threshold("lost_track_frame", threshold_mm)
+    try:
+        errors: FloatArray | None = np.asarray(errors_mm, dtype=np.float64)
+    except (TypeError, ValueError):
+        errors = None
+    if errors is None or errors.ndim != 1:
+        got = "values that are not numbers" if errors is None else f"shape {errors.shape}"
+        raise ValueError(
+            f"lost_track_frame: errors_mm must be a 1-D sequence of numbers, got {got}"
+        )
+    above = errors > threshold_mm
     if above.size < patience:
         return None
     # Sum of a sliding window of `patience` frames: a full window is a loss.

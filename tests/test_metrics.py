@@ -7,6 +7,7 @@ import pytest
 
 from humotion_gym.body import N_KEYPOINTS, default_shape, forward_kinematics, standing_pose
 from humotion_gym.metrics import (
+    Scoring,
     aligned_point_errors,
     angle_errors,
     keypoint_errors,
@@ -124,3 +125,74 @@ def test_step_scores_against_a_loop_over_keypoints() -> None:
     np.testing.assert_allclose(perfect.reward, 1.0, rtol=1e-12)
     with pytest.raises(ValueError, match="exactly once"):
         Scoring.of(scored, [("reward_a", [0, 1, 2]), ("reward_b", [2, 3, 4, 5, 6])], 80.0)
+
+
+def _refused_cases():
+    """(call, argument named in the message) for each input the checks refuse."""
+    shape = default_shape()
+    pose = standing_pose(shape)
+    pts = np.zeros((N_KEYPOINTS, 3))
+    regions = [("reward_a", [0, 1])]
+    cases = [
+        *(
+            (lambda kp=kp: mean_keypoint_error(pose, pose, shape, keypoints=kp), "keypoints")
+            for kp in ([-1], [99], [], [0.5], ["pelvis"], [True], 3, [[0, 1]])
+        ),
+        (lambda: mean_keypoint_error(np.stack([pose] * 2), np.stack([pose] * 3), shape), "truth"),
+        (lambda: keypoint_errors(pose[:24], pose[:24], shape), "estimate"),
+        *(
+            (lambda a=a: aligned_point_errors(pts, pts, anchor=a), "anchor")
+            for a in (99, -1, N_KEYPOINTS, 1.5, True, "0")
+        ),
+        (lambda: aligned_point_errors(pts, np.zeros((14, 3))), "truth_points"),
+        (lambda: point_errors(pts, np.zeros((14, 3))), r"\(15, 3\) and \(14, 3\)"),
+        (lambda: point_errors(pts, np.zeros((N_KEYPOINTS, 2))), "truth_points"),
+        (lambda: point_errors(np.zeros(3), np.zeros(3)), "estimate_points"),
+        (lambda: point_errors(pts, [["a", "b", "c"]]), "truth_points"),
+        (lambda: angle_errors(np.zeros(3), np.zeros(3)), "estimate"),
+        (lambda: angle_errors(0.0, 0.0), "truth"),
+        (lambda: angle_errors(np.zeros((2, 25)), np.zeros((3, 25))), "estimate"),
+        (lambda: lost_track_frame(np.zeros((3, 3)), 150.0, 2), "errors_mm"),
+        (lambda: lost_track_frame(["x"], 150.0, 2), "errors_mm"),
+        (lambda: lost_track_frame([1.0, 2.0], 150.0, 2.5), "patience"),
+        (lambda: lost_track_frame([1.0, 2.0], 150.0, "2"), "patience"),
+        (lambda: lost_track_frame([1.0, 2.0], 150.0, True), "patience"),
+        (lambda: lost_track_frame([1.0, 2.0], "150", 2), "threshold_mm"),
+        (lambda: lost_track_frame([1.0, 2.0], float("nan"), 2), "threshold_mm"),
+        (lambda: update_lost_run(-3, 200.0, 150.0), "run"),
+        (lambda: update_lost_run(2.5, 200.0, 150.0), "run"),
+        (lambda: update_lost_run([1, -1], [200.0, 100.0], 150.0), "run"),
+        (lambda: update_lost_run(np.zeros(2), [200.0, 100.0], 150.0), "run"),
+        (lambda: update_lost_run(1, 200.0, "150"), "threshold_mm"),
+        (lambda: update_lost_run(1, 200.0, float("nan")), "threshold_mm"),
+        *(
+            (lambda s=s: Scoring.of([0, 1], regions, s), "scale_mm")
+            for s in (0, -1.0, float("nan"), float("inf"), "80")
+        ),
+        (lambda: Scoring.of([0, 99], regions, 80.0), "scored"),
+        (lambda: Scoring.of([], [], 80.0), "scored"),
+        (lambda: Scoring.of([0, 1], [("reward_a", [0, 1, -1])], 80.0), r"regions\[0\]"),
+    ]
+    return cases
+
+
+@pytest.mark.parametrize(("call", "argument"), _refused_cases())
+def test_bad_input_is_refused_naming_the_argument(call, argument) -> None:
+    """Each refused input raises a ValueError naming the argument (and the function)."""
+    with pytest.raises(ValueError, match=argument) as refused:
+        call()
+    assert str(refused.value).startswith(call.__code__.co_names[0])  # the function called
+
+
+def test_the_checks_keep_the_documented_inputs() -> None:
+    """Broadcasting, numpy integers and the environments' run arrays still pass."""
+    pts = np.ones((2, N_KEYPOINTS, 3))
+    np.testing.assert_array_equal(point_errors(pts, np.zeros(3)), np.full((2, N_KEYPOINTS), 3**0.5))
+    aligned = aligned_point_errors(pts, np.zeros((N_KEYPOINTS, 3)), anchor=np.int64(3))
+    assert aligned.shape == (2, N_KEYPOINTS)
+    assert angle_errors(np.zeros((2, 25)), np.zeros(25)).shape == (2, 25)
+    np.testing.assert_array_equal(
+        update_lost_run(np.array([0, 4], np.intp), np.array([200.0, 100.0]), 150.0), [1, 0]
+    )
+    assert update_lost_run(np.int64(2), 200.0, np.float32(150.0)) == 3
+    assert lost_track_frame(np.array([200.0, 200.0]), np.float64(150.0), np.int64(2)) == 0
