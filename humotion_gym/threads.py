@@ -32,6 +32,8 @@ from typing import Any, TypeVar
 
 from threadpoolctl import ThreadpoolController, threadpool_limits
 
+from humotion_gym.checks import check_count
+
 #: Environment variables by which a user chooses the BLAS threads; each wins.
 THREAD_ENV_VARS: tuple[str, ...] = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 
@@ -51,11 +53,17 @@ def limit_blas_threads(threads: int = 1) -> bool:
     Does nothing when the user set one of :data:`THREAD_ENV_VARS`.
 
     Args:
-        threads: Threads to allow.
+        threads: Threads to allow, an integer >= 1.
 
     Returns:
         True if the limit was applied, False if an environment variable decided.
+
+    Raises:
+        ValueError: If ``threads`` is not an integer >= 1 (threadpoolctl reads
+            0 or None as "no limit", which would leave BLAS as it was while
+            this said it applied).
     """
+    check_count("limit_blas_threads: threads", threads)
     if _chosen_by_user():
         return False
     threadpool_limits(limits=threads, user_api="blas")

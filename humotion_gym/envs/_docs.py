@@ -73,7 +73,7 @@ COMMON_SECTIONS = """
     | argument | default | meaning |
     |---|---|---|
     | ``render_mode`` | None | ``"rgb_array"``: ``render()`` returns the last estimate drawn as a wire figure over the frame it estimates |
-    | ``data_dir`` | None | folders of real mocap (else ``$HUMOTION_MOCAP``, else the built-in synthetic set) |
+    | ``data_dir`` | None | folders of real mocap (else ``$HUMOTION_MOCAP``, else the built-in synthetic set; ``[]``: the synthetic set, whatever ``$HUMOTION_MOCAP`` says) |
     | ``library`` | None | a ready :class:`~humotion_gym.mocap.library.MotionLibrary` instead of ``data_dir`` (e.g. a validation fold; not both), at its own frame rate; refused, as folders are, where a held-out person's skeleton is also a training person's |
     | ``split`` | ``"train"`` | ``"train"``: the training persons less the validation persons (a reset option naming another person's clip, file or motion is refused, by name and skeleton); ``"validation"``: CMU subjects 1, 5 and 7 (synthetic 3 and 4), where settings are chosen; ``"test"``: the held-out persons (CMU subjects 2 and 3), for the leaderboard |
     | ``width``, ``height`` | 128, 128 | frame size (64x64 to 640x480) |

@@ -590,7 +590,11 @@ def load_library(
 
 
 def configured_data_dirs(data_dir: str | Path | Sequence[str | Path] | None = None) -> list[Path]:
-    """The folders of real mocap: ``data_dir`` if given, else ``$HUMOTION_MOCAP``."""
+    """The folders of real mocap: ``data_dir`` if given, else ``$HUMOTION_MOCAP``.
+
+    An empty list is none, whatever ``$HUMOTION_MOCAP`` says: the built-in
+    synthetic motion.
+    """
     if data_dir is not None:
         items = [data_dir] if isinstance(data_dir, (str, Path)) else data_dir
         if not isinstance(items, (list, tuple)) or not all(
