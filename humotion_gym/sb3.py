@@ -32,6 +32,7 @@ from stable_baselines3.common.vec_env.base_vec_env import (
     VecEnvStepReturn,
 )
 
+from humotion_gym.checks import check_count
 from humotion_gym.envs.vector import (
     BATCH_SETTINGS,
     FIXED_SETTINGS,
@@ -255,6 +256,7 @@ def learner_vec_env(
         frame_size: Side of the frame shown to the policy.
         **env_kwargs: Keyword arguments of the environment.
     """
+    check_count("learner_vec_env: n_envs", n_envs)
     check_frame_size(frame_size, "learner_vec_env: frame_size")
     kwargs = {"terminate_on_lost": False, **env_kwargs}
     venv = PoseTrackingVectorEnv(

@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 
 from humotion_gym.checks import is_count
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
+from humotion_gym.render_scene import MAX_IMAGE_SIZE
 
 #: The keys of the learner observation. ``spaces.Dict`` sorts them (frame,
 #: initial, previous), and that is the order SB3 reads them in.
@@ -99,13 +100,17 @@ class FrameObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
 
 
 def check_frame_size(size: Any, what: str) -> None:
-    """Refuse a learner's frame side that is not an integer >= 8 or None.
+    """Refuse a learner's frame side that is not an integer in [8, 640] or None.
+
+    640, the widest frame an environment renders: a larger side would only
+    upsample it (and 100,000 asked for 28 GB).
 
     Raises:
         ValueError: Naming ``what``.
     """
-    if size is not None and not is_count(size, 8):
-        raise ValueError(f"{what} must be an integer >= 8 or None, got {size!r}")
+    top = max(MAX_IMAGE_SIZE)
+    if size is not None and not (is_count(size, 8) and size <= top):
+        raise ValueError(f"{what} must be an integer >= 8 or None, at most {top}, got {size!r}")
 
 
 def learner_frame(frame: NDArray[np.uint8], size: int | None) -> NDArray[np.uint8]:
@@ -119,6 +124,7 @@ def learner_frame(frame: NDArray[np.uint8], size: int | None) -> NDArray[np.uint
         ``(C, size, size)`` uint8 (channels first, the layout SB3's CNNs take
         without transposing).
     """
+    check_frame_size(size, "learner_frame: size")
     f = np.asarray(frame)
     if f.ndim != 3 or f.dtype != np.uint8:
         raise ValueError(
@@ -137,6 +143,7 @@ def learner_frames(frames: NDArray[np.uint8], size: int | None) -> NDArray[np.ui
     Returns:
         ``(N, C, size, size)`` uint8, each frame's :func:`learner_frame`.
     """
+    check_frame_size(size, "learner_frames: size")
     f = np.asarray(frames)
     if f.ndim != 4 or f.dtype != np.uint8:
         raise ValueError(

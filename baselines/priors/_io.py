@@ -55,6 +55,8 @@ def save_arrays(arrays: dict[str, np.ndarray], path: str | Path) -> None:
 
     Raises:
         TypeError: If an array holds Python objects.
+        OSError: If ``path`` cannot be written (the message names ``path``,
+            not the temporary file written first).
     """
     for name, arr in arrays.items():
         if arr.dtype == object:
@@ -66,6 +68,8 @@ def save_arrays(arrays: dict[str, np.ndarray], path: str | Path) -> None:
         with open(tmp, "wb") as fh:
             np.savez(fh, **arrays)
         os.replace(tmp, path)
+    except OSError as exc:
+        raise type(exc)(exc.errno, f"cannot write {path}: {exc.strerror}") from exc
     finally:  # a failed write (path a folder, a full disk) leaves nothing behind
         tmp.unlink(missing_ok=True)
 

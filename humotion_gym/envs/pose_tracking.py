@@ -744,6 +744,9 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         side by side, view 0 on the left: ``(H, views * W, 3)``. Nothing is
         rendered again: the frame is the observation ``reset`` or ``step``
         returned, and the wire figure joins the keypoints ``step`` scored.
+
+        Raises:
+            gymnasium.error.ResetNeeded: Before the first ``reset``.
         """
         if self.render_mode is None:
             gym.logger.warn(
@@ -751,8 +754,8 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
                 'make it with render_mode="rgb_array"'
             )
             return None
-        if self._motion is None:
-            return None
+        if self._motion is None:  # as gym.make's OrderEnforcing says, unwrapped too
+            raise gym.error.ResetNeeded(f"render() of {self.task.name}: call reset() first")
         shown, k = (self._frame, self._k) if self._estimated is None else self._estimated
         frames = [shown] if self.views == 1 else list(shown)
         drawn = []

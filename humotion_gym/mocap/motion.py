@@ -67,8 +67,13 @@ class Motion:
             ("observed", self.observed.shape, (t, N_PARAMS)),
             ("keypoints", self.keypoints.shape, (t, N_KEYPOINTS, 3)),
         ]
+        if t < 1:
+            raise ValueError(
+                f"Motion {self.clip_id!r}: params has shape {self.params.shape}, expected "
+                f"(T, {N_PARAMS}) with at least one frame"
+            )
         for name, got, want in checks:
-            if t < 1 or got != want:
+            if got != want:
                 raise ValueError(
                     f"Motion {self.clip_id!r}: {name} has shape {got}, expected {want}"
                 )

@@ -383,6 +383,15 @@ def test_options_choose_clip_and_start():
         env.reset(seed=0, options={"clip_id": "synthetic/walk-06", "start": 10_000})
 
 
+def test_render_before_reset_says_so_wrapped_or_not():
+    env = gym.make("humotion_gym/ArmTrack-v2", render_mode="rgb_array")
+    for made in (env, env.unwrapped):
+        with pytest.raises(gym.error.ResetNeeded):
+            made.render()
+    env.reset(seed=0)
+    assert env.unwrapped.render().ndim == 3
+
+
 def test_render_overlays_the_estimate():
     env = gym.make("humotion_gym/BodyTrack-v2", render_mode="rgb_array")
     obs, _ = env.reset(seed=0)

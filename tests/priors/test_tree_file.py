@@ -138,3 +138,12 @@ def test_fit_prior_takes_counts_given_as_whole_floats(tmp_path):
     assert len(list((tmp_path / "priors").glob("tree-*.npz"))) == 1  # the same entry
     with pytest.raises(ValueError, match="tree prior: the setting window must be a whole number"):
         fit_prior("tree", motions, free, {"window": 3.5}, use_cache=False, log=None)
+
+
+def test_a_save_that_cannot_write_names_its_path_not_the_temporary_file(tmp_path, prior):
+    with pytest.raises(OSError, match=f"cannot write {tmp_path}: Is a directory"):
+        tree.save(prior, tmp_path)  # a folder where the file should be
+    (tmp_path / "missing").write_text("a file where a folder should be")
+    with pytest.raises(OSError, match="missing/dir"):
+        tree.save(prior, tmp_path / "missing" / "dir" / "x.npz")
+    assert not list(tmp_path.glob(".*.tmp"))

@@ -178,7 +178,7 @@ def test_the_true_action_scores_perfectly(env_id: str) -> None:
         info = info_next
 
 
-@pytest.mark.parametrize("size", [0, 7, "64", 64.0, True])
+@pytest.mark.parametrize("size", [0, 7, "64", 64.0, True, 641, 10**5])
 def test_every_learner_env_refuses_the_same_frame_sizes(size) -> None:
     pytest.importorskip("stable_baselines3")
     from humotion_gym.sb3 import LearnerVecEnv, learner_vec_env
@@ -190,3 +190,9 @@ def test_every_learner_env_refuses_the_same_frame_sizes(size) -> None:
     venv = learner_vec_env("ArmTrack-v2", 2, frame_size=None).venv
     with pytest.raises(ValueError, match="LearnerVecEnv: frame_size must be an integer >= 8"):
         LearnerVecEnv(venv, size)
+    for name, fn, frames in (
+        ("learner_frame", learner_frame, np.zeros((16, 16, 3), np.uint8)),
+        ("learner_frames", learner_frames, np.zeros((1, 16, 16, 3), np.uint8)),
+    ):
+        with pytest.raises(ValueError, match=f"{name}: size must be an integer >= 8"):
+            fn(frames, size)
