@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
+from humotion_gym.checks import is_real
 from humotion_gym.mocap._cache_files import (  # CacheWarning: re-exported, part of the API
     CACHE_ERRORS,
     CacheWarning,  # noqa: F401
@@ -541,7 +542,17 @@ def load_library(
 
     Raises:
         SplitError: If ``split_by`` puts one person on both sides.
+        TypeError: If ``paths`` is not a path or an iterable of them.
+        ValueError: If ``fps`` is neither None nor a positive frame rate.
     """
+    if not isinstance(paths, (str, Path)):
+        if not isinstance(paths, Iterable):
+            raise TypeError(f"load_library: paths must be a path or paths, got {paths!r}")
+        paths = list(paths)  # (an iterator is read once, here)
+        if not all(isinstance(p, (str, Path)) for p in paths):
+            raise TypeError(f"load_library: paths must be a path or paths, got {paths!r}")
+    if fps is not None and not (is_real(fps) and np.isfinite(fps) and fps > 0):
+        raise ValueError(f"load_library: fps must be None or a positive frame rate, got {fps!r}")
     sources = find_clips(paths)
     if split_by is not None and not callable(split_by):
         _warn_unused_split_keys(split_by, sources)

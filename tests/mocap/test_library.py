@@ -291,3 +291,22 @@ def test_linked_folders_are_read_once_and_a_linked_file_is_its_own_clip(shared_m
         for _ in range(2):
             load_library([walk], progress=False, cache_dir=cache)
             load_library([alone], progress=False, cache_dir=cache)
+
+
+@pytest.mark.parametrize(
+    "paths, fps, error, match",
+    [
+        (None, 30.0, TypeError, "paths must be a path or paths, got None"),
+        (5, 30.0, TypeError, "paths must be a path or paths, got 5"),
+        ([1], 30.0, TypeError, r"paths must be a path or paths, got \[1\]"),
+        ([], 0, ValueError, "fps must be None or a positive frame rate, got 0"),
+        ([], float("nan"), ValueError, "fps must be None or a positive frame rate"),
+    ],
+)
+def test_load_library_refuses_what_is_not_paths_or_a_frame_rate(paths, fps, error, match):
+    with pytest.raises(error, match=f"load_library: {match}"):
+        load_library(paths, fps=fps, progress=False)
+
+
+def test_load_library_reads_an_iterator_of_paths_once(tmp_path):
+    assert len(load_library(iter([tmp_path]), progress=False)) == 0
