@@ -10,6 +10,7 @@ curves (Kaplan-Meier), IQMs with intervals per task and the aggregate scores
 from __future__ import annotations
 
 import importlib.util
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -62,10 +63,19 @@ def _errors_matrix(row: dict[str, Any]) -> NDArray[np.float64]:
 
 
 def _save(plt: Any, fig: Any, path: Path) -> Path:
-    """Lay the figure out, write it to ``path`` (110 dpi), close it and return ``path``."""
+    """Lay the figure out, write it to ``path`` (110 dpi), close it and return ``path``.
+
+    Written whole or not at all (a temporary file renamed over it): a Ctrl-C
+    while writing left a cut PNG where the report links one.
+    """
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        fig.savefig(tmp, dpi=110, format=path.suffix.lstrip(".") or "png")
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+        plt.close(fig)
     return path
 
 

@@ -272,8 +272,8 @@ def source_commit() -> str | None:
         head = subprocess.run(
             ["git", "rev-parse", "HEAD"], capture_output=True, text=True, timeout=5, cwd=here
         )
-        changed = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
+        changed = subprocess.run(  # no index.lock: a user's own git command may run meanwhile
+            ["git", "--no-optional-locks", "status", "--porcelain", "--untracked-files=no"],
             capture_output=True, text=True, timeout=5, cwd=here,
         )  # fmt: skip
     except (OSError, subprocess.SubprocessError):

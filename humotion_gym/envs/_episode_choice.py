@@ -53,6 +53,10 @@ def clip_geometry(motion: Motion) -> FloatArray:
     return geometry
 
 
+#: The clips beyond its library's whose good starts an environment remembers.
+STARTS_EXTRA = 64
+
+
 class EpisodeChoice:
     """The episode-choosing part of the tracking environment (see the module docstring).
 
@@ -240,6 +244,11 @@ class EpisodeChoice:
             if self.task.min_motion_mm > 0:
                 ok &= self._episode_motion(motion) >= self.task.min_motion_mm
             good = np.flatnonzero(ok)
+        # At most the library's clips and STARTS_EXTRA others, the oldest
+        # going first: a long run of reset(options={"motion": ...}) with new
+        # clips kept every one alive, some 190 KB an episode.
+        if len(self._starts) >= len(self.library) + STARTS_EXTRA:
+            del self._starts[next(iter(self._starts))]
         self._starts[motion.clip_id] = (motion, good)
         return good
 

@@ -596,3 +596,16 @@ def test_a_library_of_lists_and_sets_is_checked_and_tracked():
     env = gym.make("humotion_gym/BodyTrack-v2", library=loose)
     env.reset(seed=0)
     assert pose_tracking._CHECKED[id(loose)]() is loose
+
+
+def test_clips_given_at_reset_are_not_all_kept_alive():
+    """Each new clip given to reset was remembered with its motion, 190 KB an episode."""
+    from humotion_gym.envs._episode_choice import STARTS_EXTRA
+
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
+    base = env.unwrapped
+    clip = base.library.split("train").motions[0]
+    for k in range(STARTS_EXTRA + len(base.library) + 20):
+        env.reset(seed=k, options={"motion": dataclasses.replace(clip, clip_id=f"mine/{k}")})
+    assert len(base._starts) <= len(base.library) + STARTS_EXTRA
+    assert "mine/0" not in base._starts and f"mine/{k}" in base._starts
