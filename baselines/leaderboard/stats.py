@@ -33,13 +33,20 @@ more than episodes within a clip.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable, Mapping, Sequence
-from pathlib import PurePath
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import stats
+
+from baselines.leaderboard.rows import agent_label as agent_label
+from baselines.leaderboard.rows import by_clip as by_clip
+from baselines.leaderboard.rows import cell_label as cell_label
+from baselines.leaderboard.rows import episode_clips as episode_clips
+from baselines.leaderboard.rows import run_clusters as run_clusters
+from baselines.leaderboard.rows import seed_matrix as seed_matrix
+from humotion_gym.checks import is_count, is_real
 
 FloatArray = NDArray[np.float64]
 
@@ -54,9 +61,12 @@ def iqm(values: ArrayLike) -> float:
 
     ``scipy.stats.trim_mean(v, 0.25)``, as the rliable library computes it: the
     middle 50% exactly where ``n`` is a multiple of 4, a little more otherwise
-    (19 of 37 values); NaN if empty.
+    (19 of 37 values); NaN if empty. A matrix's values are pooled.
+
+    Raises:
+        ValueError: If ``values`` is not a 1-D or 2-D array of finite numbers.
     """
-    v = np.asarray(values, dtype=np.float64).ravel()
+    v = _values("iqm", values, ndim=2).ravel()
     if v.size == 0:
         return float("nan")
     return float(stats.trim_mean(v, proportiontocut=0.25))
@@ -80,6 +90,31 @@ def _rng(seed: int | np.random.Generator) -> np.random.Generator:
     return seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
 
 
+def _values(where: str, values: Any, name: str = "values", ndim: int = 1) -> FloatArray:
+    """``values`` as a finite float array, 1-D (or up to ``ndim``-D), else a ValueError."""
+    v = np.asarray(values, dtype=np.float64)
+    if values is None or not 1 <= v.ndim <= ndim:
+        got = None if values is None else f"shape {v.shape}"
+        raise ValueError(f"{where}: {name} must be 1-D{' or 2-D' * (ndim > 1)}, got {got}")
+    if not np.isfinite(v).all():
+        raise ValueError(f"{where}: {name} must be finite, got NaN or infinity")
+    return v
+
+
+def _check(
+    where: str, confidence: Any, n_resamples: Any = 1, seed: Any = 0, statistic: Any = len
+) -> None:
+    """Refuse an invalid resampling argument of ``where``, with a ValueError naming both."""
+    if not (is_real(confidence) and 0 < confidence < 1):
+        raise ValueError(f"{where}: confidence must be in (0, 1), got {confidence!r}")
+    if not is_count(n_resamples):
+        raise ValueError(f"{where}: n_resamples must be an integer >= 1, got {n_resamples!r}")
+    if not (isinstance(seed, np.random.Generator) or is_count(seed, least=0)):
+        raise ValueError(f"{where}: seed must be an integer >= 0 or a Generator, got {seed!r}")
+    if not callable(statistic):
+        raise ValueError(f"{where}: statistic must be a function of a 1-D array, got {statistic!r}")
+
+
 def bootstrap_ci(
     values: ArrayLike,
     statistic: Callable[[FloatArray], float] = np.mean,
@@ -100,8 +135,12 @@ def bootstrap_ci(
     Returns:
         The lower and upper bound: NaN for an empty sample, the value itself
         twice for a single one (every resample is that value).
+
+    Raises:
+        ValueError: If ``values`` is not 1-D and finite, or another argument is invalid.
     """
-    v = np.asarray(values, dtype=np.float64).ravel()
+    _check("bootstrap_ci", confidence, n_resamples, seed, statistic)
+    v = _values("bootstrap_ci", values)
     if v.size == 0:
         return float("nan"), float("nan")
     if v.size == 1:
@@ -137,8 +176,12 @@ def stratified_bootstrap_ci(
 
     Returns:
         The lower and upper bound (NaN if there are no scores).
+
+    Raises:
+        ValueError: If ``scores`` are not finite or so shaped, or another argument is invalid.
     """
-    columns = _columns(scores)
+    _check("stratified_bootstrap_ci", confidence, n_resamples, seed, statistic)
+    columns = _columns("stratified_bootstrap_ci", scores)
     if not columns:
         return float("nan"), float("nan")
     single = [c for c in columns if c.size == 1]
@@ -165,17 +208,13 @@ def stratified_bootstrap_ci(
     return float(res.confidence_interval.low), float(res.confidence_interval.high)
 
 
-def _columns(scores: ArrayLike | Sequence[ArrayLike]) -> list[FloatArray]:
+def _columns(where: str, scores: ArrayLike | Sequence[ArrayLike]) -> list[FloatArray]:
     """The per-task samples of a ``(runs, tasks)`` matrix or of a list of 1-D arrays."""
     if isinstance(scores, (list, tuple)) and any(np.ndim(s) == 1 for s in scores):
-        cols = [np.asarray(s, dtype=np.float64).ravel() for s in scores]
+        cols = [_values(where, s, "scores") for s in scores]
     else:
-        m = np.asarray(scores, dtype=np.float64)
-        if m.ndim == 1:
-            m = m[:, None]
-        if m.ndim != 2:
-            raise ValueError(f"scores: expected a (runs, tasks) matrix, got shape {m.shape}")
-        cols = [m[:, j] for j in range(m.shape[1])]
+        m = _values(where, scores, "scores", ndim=2)
+        cols = list((m[:, None] if m.ndim == 1 else m).T)
     return [c for c in cols if c.size]
 
 
@@ -193,12 +232,14 @@ def proportion_ci(successes: float, trials: float, confidence: float = 0.95) -> 
         The lower and upper bound (NaN for no trials).
 
     Raises:
-        ValueError: If ``successes`` is not within ``[0, trials]``.
+        ValueError: Unless ``0 <= successes <= trials < inf`` and ``0 < confidence < 1``.
     """
+    _check("proportion_ci", confidence)
+    if not (is_real(successes) and is_real(trials) and 0 <= successes <= trials < np.inf):
+        raise ValueError(f"proportion_ci: successes, trials: expected 0 <= successes <= trials "
+                         f"< inf, got {successes!r}, {trials!r}")  # fmt: skip
     if trials == 0:
         return float("nan"), float("nan")
-    if not 0 <= successes <= trials:
-        raise ValueError(f"successes: expected 0..{trials}, got {successes}")
     z = float(stats.norm.ppf(0.5 + confidence / 2))
     p, n = successes / trials, float(trials)
     scale = 1.0 + z * z / n
@@ -229,9 +270,16 @@ def survival(
     Returns:
         ``frames`` (0 and each event frame), ``survival`` (fraction still
         tracking after that frame), ``low`` and ``high``.
+
+    Raises:
+        ValueError: If a lost frame is not None or in ``[0, length)``, or ``confidence`` invalid.
     """
+    _check("survival", confidence)
     if len(lost_frames) != len(lengths):
-        raise ValueError("lost_frames and lengths: expected one entry per episode each")
+        raise ValueError("survival: lost_frames and lengths: expected one entry per episode each")
+    for f, n in zip(lost_frames, lengths, strict=True):
+        if f is not None and not (is_count(f, least=0) and f < n):
+            raise ValueError(f"survival: lost_frames must be None or in [0, {n!r}), got {f!r}")
     events = np.array([f for f in lost_frames if f is not None], dtype=np.float64)
     censored = np.array(
         [n for f, n in zip(lost_frames, lengths, strict=True) if f is None], dtype=np.float64
@@ -269,10 +317,14 @@ def mean_band(
 
     Returns:
         ``(mean, low, high)``, each ``(frames,)``.
+
+    Raises:
+        ValueError: If ``errors`` is not a finite 2-D array, or another argument is invalid.
     """
-    e = np.asarray(errors, dtype=np.float64)
+    _check("mean_band", confidence, n_resamples, seed)
+    e = _values("mean_band", errors, "errors", ndim=2)
     if e.ndim != 2 or e.shape[0] == 0:
-        raise ValueError(f"errors: expected an (episodes, frames) array, got shape {e.shape}")
+        raise ValueError(f"mean_band: errors must be (episodes, frames), got shape {e.shape}")
     mean = e.mean(axis=0)
     if e.shape[0] == 1:
         return mean, mean.copy(), mean.copy()
@@ -299,18 +351,21 @@ def probability_of_improvement(
         lower_is_better: True for errors (X beats Y when its error is lower).
 
     Raises:
-        ValueError: If ``x`` and ``y`` cover different numbers of tasks or a task is empty.
+        ValueError: If ``x`` and ``y`` cover different numbers of tasks, or a
+            task's runs are empty, not 1-D or not finite.
     """
-    sign = _sign(x, y, lower_is_better)
-    return float(_poi(*[np.asarray(a, dtype=np.float64).ravel() for a in (*x, *y)], sign=sign))
+    sign = -1.0 if lower_is_better else 1.0
+    return float(_poi(*_runs("probability_of_improvement", x, y), sign=sign))
 
 
-def _sign(x: Sequence[ArrayLike], y: Sequence[ArrayLike], lower_is_better: bool) -> float:
-    if len(x) != len(y) or not len(x):
-        raise ValueError(f"x, y: expected runs of the same tasks, got {len(x)} and {len(y)} tasks")
-    if any(np.size(a) == 0 for a in (*x, *y)):
-        raise ValueError("x, y: every task needs at least one run of each")
-    return -1.0 if lower_is_better else 1.0
+def _runs(where: str, x: Sequence[ArrayLike], y: Sequence[ArrayLike]) -> list[FloatArray]:
+    """X's then Y's runs of each task, each refused unless a non-empty finite 1-D array."""
+    runs = [_values(where, a, f"x[{i}]") for i, a in enumerate(x)]
+    runs += [_values(where, b, f"y[{i}]") for i, b in enumerate(y)]
+    if len(x) != len(y) or not len(x) or any(a.size == 0 for a in runs):
+        sizes = [[a.size for a in runs[: len(x)]], [a.size for a in runs[len(x) :]]]
+        raise ValueError(f"{where}: x, y: expected runs of the same tasks, got {sizes} runs")
+    return runs
 
 
 def _poi(*samples: FloatArray, sign: float, axis: int = -1) -> FloatArray:
@@ -348,91 +403,27 @@ def probability_of_improvement_ci(
 
     X's and Y's runs are resampled independently within each task (each is
     one sample of :func:`scipy.stats.bootstrap`), as rliable does.
+
+    Raises:
+        ValueError: As :func:`probability_of_improvement`, or if another argument is invalid.
     """
-    sign = _sign(x, y, lower_is_better)
-    samples = tuple(np.asarray(a, dtype=np.float64).ravel() for a in (*x, *y))
+    _check("probability_of_improvement_ci", confidence, n_resamples, seed)
+    sign, samples = (-1.0 if lower_is_better else 1.0), _runs("probability_of_improvement_ci", x, y)
     if all(s.size == 1 for s in samples):
         value = float(_poi(*samples, sign=sign))
         return value, value
     # bootstrap needs two runs per sample: a single run is repeated (it is
     # constant under resampling anyway, so the interval is unchanged)
-    samples = tuple(np.repeat(s, 2) if s.size == 1 else s for s in samples)
+    samples = [np.repeat(s, 2) if s.size == 1 else s for s in samples]
 
     def statistic(*resampled: FloatArray, axis: int = -1) -> FloatArray:
         return _poi(*resampled, sign=sign)
 
     res = stats.bootstrap(
-        samples, statistic, n_resamples=n_resamples, vectorized=True, axis=-1,
+        tuple(samples), statistic, n_resamples=n_resamples, vectorized=True, axis=-1,
         confidence_level=confidence, method="percentile", rng=_rng(seed), batch=_BATCH,
     )  # fmt: skip
     return float(res.confidence_interval.low), float(res.confidence_interval.high)
-
-
-# ---------------------------------------------------------------- leaderboard rows
-
-
-def agent_label(agent: str) -> str:
-    """An agent's name as tables and figures show it.
-
-    ``LABEL`` of ``LABEL=PATH.zip``; a bare saved policy's file name without
-    ``.zip`` (its folder's name for the ``model.zip`` that ``humotion-gym
-    train`` writes); a hybrid ``pf-PRIOR+POLICY`` as ``pf-PRIOR+`` the
-    policy's label; any other name as it is.
-    """
-    if agent.startswith("pf-") and "+" in agent:
-        prior, policy = agent.split("+", 1)
-        return f"{prior}+{agent_label(policy)}"
-    if "=" in agent:
-        return agent.split("=", 1)[0]
-    if agent.endswith(".zip"):
-        path = PurePath(agent)
-        return path.parent.name if path.stem == "model" and path.parent.name else path.stem
-    return agent
-
-
-def cell_label(row: dict[str, Any]) -> str:
-    """``agent`` for references and learned policies, ``agent@particles`` for filters.
-
-    The agent by its short label (:func:`agent_label`).
-    """
-    agent = agent_label(str(row["agent"]))
-    return f"{agent}@{row['particles']}" if row.get("particles") else agent
-
-
-# ---------------------------------------------------------------- agent seeds
-
-
-def seed_matrix(
-    episodes: Sequence[Mapping[str, Any]], key: str = "mean_error_mm"
-) -> tuple[list[int], list[int], FloatArray]:
-    """A cell's episodes as an ``(episode seeds, agent seeds)`` matrix of one value.
-
-    Episodes without ``agent_seed`` (a run of one agent seed) count as agent seed 0.
-
-    Returns:
-        ``(episode_seeds, agent_seeds, values)``, both seed lists sorted and
-        ``values[i, j]`` the value of episode ``episode_seeds[i]`` run with
-        agent seed ``agent_seeds[j]``.
-
-    Raises:
-        ValueError: If an (episode, agent seed) pair is missing or given twice.
-    """
-    cells = {(int(e["seed"]), int(e.get("agent_seed", 0))): float(e[key]) for e in episodes}
-    rows = sorted({s for s, _ in cells})
-    cols = sorted({a for _, a in cells})
-    if len(cells) != len(episodes) or len(cells) != len(rows) * len(cols):
-        raise ValueError(
-            f"episodes: expected every episode seed {rows} run once with every agent seed "
-            f"{cols}, got {len(episodes)} episodes"
-        )
-    values = np.array([[cells[(s, a)] for a in cols] for s in rows], dtype=np.float64)
-    return rows, cols, values
-
-
-def episode_clips(episodes: Sequence[Mapping[str, Any]]) -> list[str]:
-    """The clip of each episode seed, in :func:`seed_matrix` order."""
-    clips = {int(e["seed"]): str(e["clip_id"]) for e in episodes}
-    return [clips[s] for s in sorted(clips)]
 
 
 def two_level_bootstrap(
@@ -473,19 +464,19 @@ def two_level_bootstrap(
         None without a reference)``.
 
     Raises:
-        ValueError: If ``values`` is not a non-empty matrix, ``reference``
-            covers other episodes or ``clusters`` has another length.
+        ValueError: If ``values`` is not a non-empty finite matrix, ``reference``
+            covers other episodes, ``clusters`` has another length or another
+            argument is invalid.
     """
-    v = np.asarray(values, dtype=np.float64)
+    where = "two_level_bootstrap"
+    _check(where, confidence, n_resamples, seed)
+    v = _values(where, values, ndim=2)
     if v.ndim != 2 or v.size == 0:
-        raise ValueError(f"values: expected an (episodes, seeds) matrix, got shape {v.shape}")
+        raise ValueError(f"{where}: values must be (episodes, seeds), got shape {v.shape}")
     n_episodes, n_seeds = v.shape
-    ref = None if reference is None else np.asarray(reference, dtype=np.float64)
-    if ref is not None and (ref.ndim != 2 or ref.shape[0] != n_episodes):
-        raise ValueError(
-            f"reference: expected ({n_episodes}, seeds) values of the same episodes, "
-            f"got shape {ref.shape}"
-        )
+    ref = None if reference is None else _values(where, reference, "reference", ndim=2)
+    if ref is not None and (ref.ndim != 2 or ref.shape[0] != n_episodes or not ref.size):
+        raise ValueError(f"{where}: reference must be ({n_episodes}, seeds), got {ref.shape}")
     rng = _rng(seed)
     if clusters is None:
         drawn = rng.integers(n_episodes, size=(n_resamples, n_episodes))
@@ -493,7 +484,7 @@ def two_level_bootstrap(
         means = v[drawn[..., None], seeds].mean(axis=(1, 2))
         held = None if ref is None else ref.mean(axis=1)[drawn].mean(axis=1)
     else:
-        members, present = _cluster_members(clusters, n_episodes)
+        members, present = _cluster_members(where, clusters, n_episodes)
         episodes, taken = _draw_clusters(members, present, n_resamples, rng)
         seeds = rng.integers(n_seeds, size=episodes.shape + (n_seeds,))
         drawn_values = np.where(taken[..., None], v[episodes[..., None], seeds], 0.0)
@@ -512,7 +503,9 @@ def two_level_bootstrap(
 # ---------------------------------------------------------------- clusters
 
 
-def _cluster_members(clusters: ArrayLike, n: int) -> tuple[NDArray[np.intp], NDArray[np.bool_]]:
+def _cluster_members(
+    where: str, clusters: ArrayLike, n: int
+) -> tuple[NDArray[np.intp], NDArray[np.bool_]]:
     """Each cluster's episodes, clusters in order of first appearance.
 
     Returns:
@@ -520,11 +513,12 @@ def _cluster_members(clusters: ArrayLike, n: int) -> tuple[NDArray[np.intp], NDA
         padded with 0 where ``present`` is False.
 
     Raises:
-        ValueError: If ``clusters`` does not give one cluster per episode.
+        ValueError: If ``clusters`` does not give one cluster (not None) per episode.
     """
     c = np.asarray(clusters)
-    if c.shape != (n,):
-        raise ValueError(f"clusters: expected one cluster per episode ({n},), got shape {c.shape}")
+    if c.shape != (n,) or None in c.tolist():
+        got = "None" if clusters is None or c.shape == (n,) else f"shape {c.shape}"
+        raise ValueError(f"{where}: clusters: expected one cluster per episode ({n},), got {got}")
     _, first, inverse = np.unique(c, return_index=True, return_inverse=True)
     rank = np.argsort(np.argsort(first))[inverse.ravel()]  # cluster index by first appearance
     order = np.argsort(rank, kind="stable")
@@ -588,9 +582,11 @@ def cluster_bootstrap_ci(
         one cluster (every resample is that cluster).
 
     Raises:
-        ValueError: If ``clusters`` does not give one cluster per value.
+        ValueError: If ``clusters`` does not give one cluster per value, or as :func:`bootstrap_ci`.
     """
-    v = np.asarray(values, dtype=np.float64).ravel()
+    _check("cluster_bootstrap_ci", confidence, n_resamples, seed, statistic)
+    v = _values("cluster_bootstrap_ci", values)
+    _cluster_members("cluster_bootstrap_ci", clusters, v.size)  # refused here by this name
     return stratified_cluster_bootstrap_ci(
         [v], [clusters], statistic, n_resamples, confidence, seed
     )
@@ -627,13 +623,17 @@ def stratified_cluster_bootstrap_ci(
 
     Raises:
         ValueError: If ``clusters`` does not give one list per task, or one
-            cluster per episode of it.
+            cluster per episode of it, or as :func:`bootstrap_ci`.
     """
-    cols = [np.asarray(c, dtype=np.float64).ravel() for c in columns]
+    where = "stratified_cluster_bootstrap_ci"
+    _check(where, confidence, n_resamples, seed, statistic)
+    cols = [_values(where, c, "columns") for c in columns]
     if len(clusters) != len(cols):
-        raise ValueError(f"clusters: expected one per task ({len(cols)}), got {len(clusters)}")
+        raise ValueError(
+            f"{where}: clusters must be one per task ({len(cols)}), got {len(clusters)}"
+        )
     groups = [
-        _cluster_members(np.arange(v.size) if c is None else c, v.size)
+        _cluster_members(where, np.arange(v.size) if c is None else c, v.size)
         for v, c in zip(cols, clusters, strict=True)
     ]
     pooled = np.concatenate(cols) if cols else np.empty(0)
@@ -702,21 +702,20 @@ def clustered_improvement_ci(
         seed: Seed or generator of the resampling.
 
     Raises:
-        ValueError: As :func:`probability_of_improvement`, or if the clusters
+        ValueError: As :func:`probability_of_improvement_ci`, or if the clusters
             do not name one cluster per run of each task.
     """
-    sign = _sign(x, y, lower_is_better)
+    where = "clustered_improvement_ci"
+    _check(where, confidence, n_resamples, seed)
+    sign, runs = (-1.0 if lower_is_better else 1.0), _runs(where, x, y)
     if len(x_clusters) != len(x) or len(y_clusters) != len(y):
-        raise ValueError(
-            f"x_clusters, y_clusters: expected one per task ({len(x)}), "
-            f"got {len(x_clusters)} and {len(y_clusters)}"
-        )
+        raise ValueError(f"{where}: x_clusters, y_clusters: expected one per task ({len(x)}), "
+                         f"got {len(x_clusters)} and {len(y_clusters)}")  # fmt: skip
     rng = _rng(seed)
     rates = []
-    for a, b, ca, cb in zip(x, y, x_clusters, y_clusters, strict=True):
-        va, vb = (np.asarray(v, dtype=np.float64).ravel() for v in (a, b))
-        wa = _cluster_weights(va.size, ca, n_resamples, rng)
-        wb = _cluster_weights(vb.size, cb, n_resamples, rng)
+    for va, vb, ca, cb in zip(runs[: len(x)], runs[len(x) :], x_clusters, y_clusters, strict=True):
+        wa = _cluster_weights(where, va.size, ca, n_resamples, rng)
+        wb = _cluster_weights(where, vb.size, cb, n_resamples, rng)
         rates.append(_weighted_win_rate(va, vb, wa, wb, sign))
     tail = 50.0 * (1.0 - confidence)
     low, high = np.percentile(np.mean(rates, axis=0), [tail, 100.0 - tail])
@@ -724,10 +723,10 @@ def clustered_improvement_ci(
 
 
 def _cluster_weights(
-    n: int, clusters: ArrayLike | None, n_resamples: int, rng: np.random.Generator
+    where: str, n: int, clusters: ArrayLike | None, n_resamples: int, rng: np.random.Generator
 ) -> FloatArray:
     """``(resamples, n)``: how many times each run is in each cluster resample."""
-    members, present = _cluster_members(np.arange(n) if clusters is None else clusters, n)
+    members, present = _cluster_members(where, np.arange(n) if clusters is None else clusters, n)
     episodes, taken = _draw_clusters(members, present, n_resamples, rng)
     rows = np.broadcast_to(np.arange(n_resamples)[:, None, None], episodes.shape)
     flat = (rows * n + episodes)[taken]
@@ -753,22 +752,3 @@ def _weighted_win_rate(
     below, ties = cum[:, lo], cum[:, hi] - cum[:, lo]
     wins = (total - cum[:, hi] if sign < 0 else below) + 0.5 * ties
     return (wa * wins).sum(axis=1) / (wa.sum(axis=1) * total[:, 0])
-
-
-def by_clip(row: Mapping[str, Any]) -> bool:
-    """Whether a leaderboard row's intervals resample clips (its episodes are a declared list)."""
-    return (row.get("summary") or {}).get("intervals") == "clip"
-
-
-def run_clusters(episodes: Sequence[Mapping[str, Any]], by_clip: bool) -> list[Any] | None:
-    """What a cell's intervals resample whole, one entry per episode run.
-
-    The clip of each run of a declared list (``by_clip``), else the episode
-    seed where several agent seeds repeat the episodes, else None (every run
-    on its own).
-    """
-    if by_clip:
-        return [str(e["clip_id"]) for e in episodes]
-    if len({e.get("agent_seed") for e in episodes}) > 1:
-        return [int(e["seed"]) for e in episodes]
-    return None

@@ -139,6 +139,108 @@ def test_mean_band_is_the_per_frame_bootstrap():
     np.testing.assert_allclose(lo, ref.confidence_interval.low, rtol=1e-12)
 
 
+_V = np.arange(8.0)
+_XY = [np.arange(3.0)], [np.arange(3.0) + 1]
+
+
+@pytest.mark.parametrize(
+    "call, match",
+    [
+        # one value per episode: a matrix would treat seeds as episodes
+        (lambda: stats.bootstrap_ci(_V.reshape(4, 2)), r"bootstrap_ci: values must be 1-D, got shape \(4, 2\)"),
+        (lambda: stats.cluster_bootstrap_ci(_V.reshape(4, 2), np.arange(8)), "cluster_bootstrap_ci: values must be 1-D"),
+        (lambda: stats.stratified_bootstrap_ci([_V, np.ones((2, 2))]), "stratified_bootstrap_ci: scores must be 1-D"),
+        (lambda: stats.stratified_bootstrap_ci(np.ones((2, 2, 2))), "stratified_bootstrap_ci: scores must be 1-D or 2-D"),
+        (lambda: stats.stratified_cluster_bootstrap_ci([np.ones((2, 2))], [None]), "stratified_cluster_bootstrap_ci: columns must be 1-D"),
+        (lambda: stats.iqm(np.ones((2, 2, 2))), "iqm: values must be 1-D or 2-D"),
+        (lambda: stats.two_level_bootstrap(_V), r"two_level_bootstrap: values must be \(episodes, seeds\)"),
+        (lambda: stats.two_level_bootstrap(_V.reshape(4, 2), np.ones(4)), r"two_level_bootstrap: reference must be \(4, seeds\), got \(4,\)"),
+        (lambda: stats.two_level_bootstrap(_V.reshape(4, 2), np.ones((3, 1))), r"two_level_bootstrap: reference must be \(4, seeds\)"),
+        (lambda: stats.mean_band(_V), r"mean_band: errors must be \(episodes, frames\)"),
+        # flat arrays: every value its own task
+        (lambda: stats.probability_of_improvement(_V, _V), r"probability_of_improvement: x\[0\] must be 1-D, got shape \(\)"),
+        (lambda: stats.probability_of_improvement_ci([_V], _V), r"probability_of_improvement_ci: y\[0\] must be 1-D"),
+        (lambda: stats.probability_of_improvement([[]], [[1.0]]), "probability_of_improvement: x, y: expected runs of the same tasks"),
+        (lambda: stats.clustered_improvement_ci(_V, _V, [None], [None]), r"clustered_improvement_ci: x\[0\] must be 1-D"),
+        # None, NaN and infinities
+        (lambda: stats.iqm(None), "iqm: values must be 1-D or 2-D, got None"),
+        (lambda: stats.bootstrap_ci(None), "bootstrap_ci: values must be 1-D, got None"),
+        (lambda: stats.iqm([1.0, np.nan]), "iqm: values must be finite"),
+        (lambda: stats.bootstrap_ci([1.0, np.nan, 3.0]), "bootstrap_ci: values must be finite"),
+        (lambda: stats.bootstrap_ci([1.0, np.inf, 3.0]), "bootstrap_ci: values must be finite"),
+        (lambda: stats.stratified_bootstrap_ci([_V, [np.nan, 1.0]]), "stratified_bootstrap_ci: scores must be finite"),
+        (lambda: stats.mean_band([[1.0, np.nan], [2.0, 3.0]]), "mean_band: errors must be finite"),
+        (lambda: stats.probability_of_improvement([[np.nan]], [[1.0]]), r"probability_of_improvement: x\[0\] must be finite"),
+        (lambda: stats.two_level_bootstrap([[1.0, np.inf]]), "two_level_bootstrap: values must be finite"),
+        # confidence outside (0, 1), in every function that takes it
+        (lambda: stats.bootstrap_ci(_V, confidence=1.5), r"bootstrap_ci: confidence must be in \(0, 1\), got 1.5"),
+        (lambda: stats.bootstrap_ci(_V, confidence=0), "bootstrap_ci: confidence must be in"),
+        (lambda: stats.bootstrap_ci(_V, confidence=np.nan), "bootstrap_ci: confidence must be in"),
+        (lambda: stats.bootstrap_ci(_V, confidence="95%"), "bootstrap_ci: confidence must be in"),
+        (lambda: stats.bootstrap_ci([], confidence=1.5), "bootstrap_ci: confidence"),
+        (lambda: stats.stratified_bootstrap_ci([_V], confidence=2), "stratified_bootstrap_ci: confidence"),
+        (lambda: stats.proportion_ci(1, 2, confidence=2), "proportion_ci: confidence"),
+        (lambda: stats.survival([3, None], [10, 10], confidence=0), "survival: confidence"),
+        (lambda: stats.mean_band(np.ones((3, 2)), confidence=1), "mean_band: confidence"),
+        (lambda: stats.probability_of_improvement_ci(*_XY, confidence=-0.5), "probability_of_improvement_ci: confidence"),
+        (lambda: stats.two_level_bootstrap(np.ones((3, 2)), confidence=1.5), "two_level_bootstrap: confidence"),
+        (lambda: stats.cluster_bootstrap_ci(_V, np.arange(8), confidence=1.5), "cluster_bootstrap_ci: confidence"),
+        (lambda: stats.stratified_cluster_bootstrap_ci([_V], [None], confidence=0), "stratified_cluster_bootstrap_ci: confidence"),
+        (lambda: stats.clustered_improvement_ci(*_XY, [None], [None], confidence=2), "clustered_improvement_ci: confidence"),
+        # successes and trials of a proportion
+        (lambda: stats.proportion_ci(1, np.inf), "proportion_ci: successes, trials"),
+        (lambda: stats.proportion_ci(1, -2), "proportion_ci: successes, trials"),
+        (lambda: stats.proportion_ci(-1, 2), "proportion_ci: successes, trials"),
+        (lambda: stats.proportion_ci(np.nan, 2), "proportion_ci: successes, trials"),
+        (lambda: stats.proportion_ci(True, 2), "proportion_ci: successes, trials"),
+        (lambda: stats.proportion_ci(1, 0), "proportion_ci: successes, trials"),
+        # lost frames outside the episode
+        (lambda: stats.survival([-3], [10]), r"survival: lost_frames must be None or in \[0, 10\), got -3"),
+        (lambda: stats.survival([30], [10]), r"survival: lost_frames must be None or in \[0, 10\), got 30"),
+        (lambda: stats.survival([10], [10]), "survival: lost_frames"),
+        (lambda: stats.survival([np.nan], [10]), "survival: lost_frames"),
+        (lambda: stats.survival([2.5], [10]), "survival: lost_frames"),
+        # seed, n_resamples, statistic and cluster ids
+        (lambda: stats.bootstrap_ci(_V, seed=-1), "bootstrap_ci: seed must be an integer >= 0 or a Generator"),
+        (lambda: stats.bootstrap_ci(_V, seed=1.5), "bootstrap_ci: seed"),
+        (lambda: stats.two_level_bootstrap(np.ones((3, 2)), seed=None), "two_level_bootstrap: seed"),
+        (lambda: stats.bootstrap_ci(_V, n_resamples=0), "bootstrap_ci: n_resamples must be an integer >= 1"),
+        (lambda: stats.bootstrap_ci(_V, n_resamples=2.5), "bootstrap_ci: n_resamples"),
+        (lambda: stats.mean_band(np.ones((3, 2)), n_resamples=True), "mean_band: n_resamples"),
+        (lambda: stats.clustered_improvement_ci(*_XY, [None], [None], n_resamples=0), "clustered_improvement_ci: n_resamples"),
+        (lambda: stats.bootstrap_ci(_V, statistic="mean"), "bootstrap_ci: statistic must be a function"),
+        (lambda: stats.stratified_bootstrap_ci([_V], statistic=None), "stratified_bootstrap_ci: statistic"),
+        (lambda: stats.cluster_bootstrap_ci([1.0, 2.0, 3.0], [None, "a", "b"]), "cluster_bootstrap_ci: clusters: .* got None"),
+        (lambda: stats.cluster_bootstrap_ci([1.0, 2.0, 3.0], None), "cluster_bootstrap_ci: clusters: .* got None"),
+        (lambda: stats.cluster_bootstrap_ci([1.0, 2.0, 3.0], ["a", "b"]), r"cluster_bootstrap_ci: clusters: .* got shape \(2,\)"),
+        (lambda: stats.stratified_cluster_bootstrap_ci([[1.0, 2.0]], [[None, "a"]]), "stratified_cluster_bootstrap_ci: clusters"),
+        (lambda: stats.two_level_bootstrap(np.ones((2, 2)), clusters=["a", None]), "two_level_bootstrap: clusters"),
+        (lambda: stats.clustered_improvement_ci(*_XY, [[None, 1, 2]], [None]), "clustered_improvement_ci: clusters"),
+    ],
+)  # fmt: skip
+def test_bad_input_is_refused_by_function_and_argument(call, match):
+    with pytest.raises(ValueError, match=match):
+        call()
+
+
+def test_the_documented_inputs_are_still_taken():
+    # a matrix's values pooled (the learning curve's IQM over seeds and episodes)
+    assert stats.iqm([[1, 2], [3, 400]]) == stats.iqm([1, 2, 3, 400]) == 2.5
+    assert np.isnan(stats.iqm([])) and np.isnan(stats.bootstrap_ci([])).all()
+    # an effective sample size: a proportion of clusters, not whole numbers
+    lo, hi = stats.proportion_ci(0.5, 3)
+    assert 0 < lo < 0.5 / 3 < hi < 1
+    assert np.isnan(stats.proportion_ci(0, 0)).all()  # no trials: no interval
+    assert stats.proportion_ci(np.int64(2), np.float64(4.0)) == stats.proportion_ci(2, 4)
+    # numpy integers and generators for seeds and resamples; the last frame may be lost
+    got = stats.bootstrap_ci(_V, n_resamples=np.int64(300), seed=np.int64(5))
+    assert got == stats.bootstrap_ci(_V, n_resamples=300, seed=np.random.default_rng(5))
+    assert stats.survival([np.int64(9), None], [10, 10])["survival"].tolist()[:2] == [1.0, 0.5]
+    # tasks given as a (tasks, runs) array are its rows; a task without clusters is None
+    assert stats.probability_of_improvement(np.array([[1.0, 2.0]]), [[2.0, 3.0]]) == 0.875
+    assert stats.cluster_bootstrap_ci([1.0, 2.0, 3.0], [1, 1, 2], seed=0)[0] >= 1.0
+
+
 # ------------------------------------------------------------------ leaderboard rows
 
 
