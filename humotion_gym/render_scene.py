@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from humotion_gym.body import N_CONES
+from humotion_gym.checks import is_count
 
 Color = tuple[int, int, int]
 
@@ -236,8 +237,7 @@ class SceneOptions:
                 )
         for name, low in (("occluders", 0), ("shading_strips", 1)):
             value, top = getattr(self, name), int(SCENE_MAXIMA[name])
-            if not (isinstance(value, (int, np.integer)) and not isinstance(value, bool)
-                    and low <= value <= top):  # fmt: skip
+            if not (is_count(value, low) and value <= top):
                 raise ValueError(
                     f"SceneOptions.{name}: expected an integer in [{low}, {top}], got {value!r}"
                 )
