@@ -22,8 +22,9 @@ from tqdm.auto import tqdm
 
 from baselines.leaderboard.across_tasks import normalised_scores
 from baselines.leaderboard.evaluation import summarize
+from baselines.leaderboard.rows import cell_label
 from baselines.leaderboard.run import run_leaderboard
-from baselines.leaderboard.stats import bootstrap_ci, cell_label, iqm
+from baselines.leaderboard.stats import bootstrap_ci, iqm
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 from humotion_gym.render import SceneOptions
 

@@ -138,7 +138,7 @@ def test_every_leaderboard_table_rebuilds_from_its_episodes(record):
     bootstrap or a verdict that would move a recorded table fails here.
     """
     from baselines.leaderboard.evaluation import summarize
-    from baselines.leaderboard.stats import by_clip
+    from baselines.leaderboard.rows import by_clip
     from baselines.leaderboard.tables import markdown_table as leaderboard_table
     from baselines.leaderboard.tables import validity_lines
 

@@ -62,7 +62,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _cmd_ratio(args: argparse.Namespace) -> int:
     from baselines.leaderboard.report import load_rows
-    from baselines.leaderboard.stats import cell_label
+    from baselines.leaderboard.rows import cell_label
     from baselines.leaderboard.tables import compare_to_hold, hold_ratio_interval, ratio_verdict
 
     if args.cells[0] == args.cells[1]:

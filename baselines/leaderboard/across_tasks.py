@@ -9,7 +9,7 @@ another on the same task, averaged over tasks.
 
 Every interval is stratified by task (each task's runs are resampled on their
 own) and resamples what the cell's own intervals resample
-(:func:`~baselines.leaderboard.stats.run_clusters`): the clips of a declared
+(:func:`~baselines.leaderboard.rows.run_clusters`): the clips of a declared
 list whole, an episode's agent seeds together, else the runs one by one.
 Runs of one clip, or one episode's agent seeds, are not independent, and
 resampling them one by one gives intervals that are too narrow.
@@ -23,16 +23,14 @@ from typing import Any
 
 import numpy as np
 
+from baselines.leaderboard.rows import by_clip, cell_label, run_clusters
 from baselines.leaderboard.stats import (
     N_RESAMPLES,
     FloatArray,
-    by_clip,
-    cell_label,
     clustered_improvement_ci,
     iqm,
     probability_of_improvement,
     probability_of_improvement_ci,
-    run_clusters,
     stratified_bootstrap_ci,
     stratified_cluster_bootstrap_ci,
 )
@@ -45,7 +43,7 @@ class Runs:
     Attributes:
         values: ``(runs,)`` each run's value (mean error in mm, or score).
         seeds: Each run's episode seed.
-        clusters: Each run's cluster (:func:`~baselines.leaderboard.stats.run_clusters`),
+        clusters: Each run's cluster (:func:`~baselines.leaderboard.rows.run_clusters`),
             or None where runs are resampled one by one.
     """
 

@@ -13,15 +13,13 @@ from numpy.typing import NDArray
 from tqdm.auto import tqdm
 
 from baselines.agents.base import tracking_env
+from baselines.leaderboard.rows import episode_clips, run_clusters, seed_matrix
 from baselines.leaderboard.stats import (
     bootstrap_ci,
     cluster_bootstrap_ci,
-    episode_clips,
     iqm,
     median_lost_frame,
     proportion_ci,
-    run_clusters,
-    seed_matrix,
     two_level_bootstrap,
 )
 from humotion_gym.checks import check_count

@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from baselines.leaderboard import stats
+from baselines.leaderboard.rows import cell_label
 
 
 def ran(row: dict[str, Any]) -> bool:
@@ -90,7 +91,7 @@ def figure_error_over_frames(rows: Sequence[dict[str, Any]], path: Path, seed: i
         for r in with_series:
             mean, lo, hi = stats.mean_band(_errors_matrix(r), seed=seed)
             frames = np.arange(mean.size)
-            (line,) = ax.plot(frames, mean, lw=1.4, label=stats.cell_label(r))
+            (line,) = ax.plot(frames, mean, lw=1.4, label=cell_label(r))
             ax.fill_between(frames, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
         ax.set(title=task, xlabel="frame", ylabel="keypoint error, mm")
         _legend_or_note(ax)
@@ -111,7 +112,7 @@ def figure_survival(rows: Sequence[dict[str, Any]], path: Path) -> Path:
             )
             frames = np.append(curve["frames"], length)
             step = [np.append(curve[k], curve[k][-1]) for k in ("survival", "low", "high")]
-            (line,) = ax.step(frames, step[0], where="post", lw=1.4, label=stats.cell_label(r))
+            (line,) = ax.step(frames, step[0], where="post", lw=1.4, label=cell_label(r))
             ax.fill_between(frames, step[1], step[2], step="post", color=line.get_color(),
                             alpha=0.15, lw=0)  # fmt: skip
         ax.set(title=task, xlabel="frame", ylabel="still tracking", ylim=(-0.02, 1.02))
@@ -136,7 +137,7 @@ def figure_iqm_per_task(rows: Sequence[dict[str, Any]], path: Path, seed: int = 
         y = np.arange(len(cells))[::-1]
         err = np.abs(np.array(cis).T - np.array(values))
         ax.errorbar(values, y, xerr=err, fmt="o", capsize=3)
-        ax.set_yticks(y, [stats.cell_label(r) for r in cells], fontsize=8)
+        ax.set_yticks(y, [cell_label(r) for r in cells], fontsize=8)
         ax.set(title=task, xlabel="IQM keypoint error, mm (95% CI)")
         ax.grid(axis="x", alpha=0.3)
     return _save(plt, fig, path)

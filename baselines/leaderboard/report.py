@@ -54,7 +54,7 @@ from baselines.leaderboard.figures import (
     figures_available,
     ran,
 )
-from baselines.leaderboard.stats import agent_label, by_clip
+from baselines.leaderboard.rows import agent_label, by_clip
 from baselines.leaderboard.tables import (
     markdown_table,
     person_rows,

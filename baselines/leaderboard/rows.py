@@ -1,9 +1,9 @@
 """Leaderboard rows and their episodes: labels, agent-seed matrices, what intervals resample.
 
-Bookkeeping the statistics of :mod:`baselines.leaderboard.stats` build on
-(which re-exports every name here): how a row's agent and cell are shown, a
-cell's episodes as an ``(episode seeds, agent seeds)`` matrix, and what a
-cell's intervals resample whole (clips, or episodes repeated by agent seeds).
+Bookkeeping the statistics of :mod:`baselines.leaderboard.stats` build on: how
+a row's agent and cell are shown, a cell's episodes as an ``(episode seeds,
+agent seeds)`` matrix, and what a cell's intervals resample whole (clips, or
+episodes repeated by agent seeds).
 """
 
 from __future__ import annotations

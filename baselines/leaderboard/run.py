@@ -55,7 +55,7 @@ from baselines.leaderboard.results import (
     source_commit,
     write_results,
 )
-from baselines.leaderboard.stats import agent_label
+from baselines.leaderboard.rows import agent_label
 from baselines.leaderboard.tables import FLOOR
 from humotion_gym.checks import is_count
 from humotion_gym.mocap.library import package_version

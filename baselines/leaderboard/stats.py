@@ -17,7 +17,7 @@ episodes and seed give the same interval bit for bit, whichever process or
 machine computes them.
 
 A cell run with several agent seeds on the same episodes
-(:func:`seed_matrix`) has its mean's interval, and that of its ratio to
+(:func:`~baselines.leaderboard.rows.seed_matrix`) has its mean's interval, and that of its ratio to
 ``hold``, from :func:`two_level_bootstrap`: episodes resampled, then the
 agent seeds within each, so the seeds' variance is in the interval.
 
@@ -40,12 +40,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import stats
 
-from baselines.leaderboard.rows import agent_label as agent_label
-from baselines.leaderboard.rows import by_clip as by_clip
-from baselines.leaderboard.rows import cell_label as cell_label
-from baselines.leaderboard.rows import episode_clips as episode_clips
-from baselines.leaderboard.rows import run_clusters as run_clusters
-from baselines.leaderboard.rows import seed_matrix as seed_matrix
 from humotion_gym.checks import is_count, is_real
 
 FloatArray = NDArray[np.float64]
@@ -449,7 +443,7 @@ def two_level_bootstrap(
 
     Args:
         values: ``(episodes, agent seeds)`` values (a cell's mean errors,
-            :func:`seed_matrix`).
+            :func:`~baselines.leaderboard.rows.seed_matrix`).
         reference: ``(episodes, any seeds)`` values of the same episodes, in
             the same order (``hold``'s): the ratio's numerator is its mean over
             each resample's episodes (its mean over its own seeds per episode).

@@ -9,7 +9,7 @@ task whether the best particle filter beats ``hold`` clearly
 comparison of the tree prior with constant velocity (:func:`classic_line`) and
 the best prior's lead over ``pf-follow`` (:func:`follow_line`), each from the
 bounds of its ratio's interval (:func:`ratio_verdict`). Agents are shown by their short label
-(:func:`~baselines.leaderboard.stats.agent_label`: ``mine`` for
+(:func:`~baselines.leaderboard.rows.agent_label`: ``mine`` for
 ``mine=runs/x/model.zip``).
 
 Rows of several agent seeds (``run_leaderboard(..., agent_seeds=K)``) add a
@@ -32,14 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from baselines.leaderboard.stats import (
-    agent_label,
-    by_clip,
-    cell_label,
-    episode_clips,
-    seed_matrix,
-    two_level_bootstrap,
-)
+from baselines.leaderboard.rows import agent_label, by_clip, cell_label, episode_clips, seed_matrix
+from baselines.leaderboard.stats import two_level_bootstrap
 from humotion_gym.mocap.cmu import cmu_person
 from humotion_gym.mocap.synthetic import synthetic_subject
 

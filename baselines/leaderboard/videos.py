@@ -22,10 +22,10 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm.auto import tqdm
 
-from baselines.leaderboard import stats
 from baselines.leaderboard.engine import run_cell_episode
 from baselines.leaderboard.evaluation import EpisodeResult
 from baselines.leaderboard.figures import ran
+from baselines.leaderboard.rows import cell_label
 from humotion_gym.video import contact_sheet
 
 #: How far a replay's per-frame error may be from the recorded one: the
@@ -104,7 +104,7 @@ def replay_episodes(
     recorded = {int(e["seed"]): e for e in first_agent_seed(row)}
     missing = [s for s in seeds if s not in recorded]
     if missing:
-        raise ValueError(f"seeds: {missing} are not episodes of {stats.cell_label(row)}")
+        raise ValueError(f"seeds: {missing} are not episodes of {cell_label(row)}")
     first = min(recorded)
     settings = {**(env_kwargs or {}), "render_mode": "rgb_array"}
     out: dict[int, tuple[EpisodeResult, list[NDArray[np.uint8]]]] = {}
@@ -128,7 +128,7 @@ def replay_episodes(
         mean = float(recorded[s]["mean_error_mm"])
         if not (same and np.isclose(float(got.mean()), mean, rtol=MEAN_RTOL, atol=1e-6)):
             raise ReplayMismatch(
-                f"{row['task']} {stats.cell_label(row)} seed {s}: the re-run's errors differ "
+                f"{row['task']} {cell_label(row)} seed {s}: the re-run's errors differ "
                 f"from the recorded ones (mean {got.mean():.3f} vs {mean:.3f} mm); "
                 "were the environment settings (--data-dir, difficulty) the run's?"
             )
@@ -222,10 +222,10 @@ def write_videos(
         )
         for choice, s in picks.items():
             result, frames = replayed[s]
-            stem = _slug(f"{r['task']}_{stats.cell_label(r)}_{choice}_seed{s}")
+            stem = _slug(f"{r['task']}_{cell_label(r)}_{choice}_seed{s}")
             video = folder / "videos" / f"{stem}.webm"
             sheet = folder / "videos" / f"{stem}.jpg"
-            entry = {"task": r["task"], "cell": stats.cell_label(r), "choice": choice, "seed": s,
+            entry = {"task": r["task"], "cell": cell_label(r), "choice": choice, "seed": s,
                      "mean_error_mm": result.mean_error_mm,
                      "video": video.relative_to(folder).as_posix(),
                      "sheet": sheet.relative_to(folder).as_posix()}  # fmt: skip

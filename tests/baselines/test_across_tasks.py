@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from baselines.leaderboard import across_tasks, stats
+from baselines.leaderboard.rows import by_clip, run_clusters
 
 
 def _oracle_pooled(columns, clusters, statistic, n_resamples, seed):
@@ -138,7 +139,7 @@ def test_the_aggregate_of_a_declared_list_resamples_its_clips():
 
 def test_runs_are_clustered_as_the_cells_own_intervals_are():
     eps = [{"seed": s, "agent_seed": a, "clip_id": f"c{s // 2}"} for a in (0, 1) for s in range(4)]
-    assert stats.run_clusters(eps, by_clip=True) == ["c0", "c0", "c1", "c1"] * 2
-    assert stats.run_clusters(eps, by_clip=False) == [0, 1, 2, 3] * 2
-    assert stats.run_clusters(eps[:4], by_clip=False) is None
-    assert stats.by_clip({"summary": {"intervals": "clip"}}) and not stats.by_clip({})
+    assert run_clusters(eps, by_clip=True) == ["c0", "c0", "c1", "c1"] * 2
+    assert run_clusters(eps, by_clip=False) == [0, 1, 2, 3] * 2
+    assert run_clusters(eps[:4], by_clip=False) is None
+    assert by_clip({"summary": {"intervals": "clip"}}) and not by_clip({})

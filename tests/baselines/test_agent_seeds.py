@@ -17,7 +17,8 @@ from baselines.leaderboard import (
     validity_lines,
 )
 from baselines.leaderboard.evaluation import summarize
-from baselines.leaderboard.stats import seed_matrix, two_level_bootstrap
+from baselines.leaderboard.rows import seed_matrix
+from baselines.leaderboard.stats import two_level_bootstrap
 from baselines.leaderboard.tables import (
     REFERENCE_AGENTS,
     VALID_RATIO,

@@ -637,7 +637,7 @@ def test_page_script_sorts_numbers_as_numbers():
 
 
 def test_agents_are_shown_by_short_labels():
-    from baselines.leaderboard.stats import agent_label, cell_label
+    from baselines.leaderboard.rows import agent_label, cell_label
     from baselines.leaderboard.tables import markdown_table
 
     assert agent_label("mine=runs/x/model.zip") == "mine"
