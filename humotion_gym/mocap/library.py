@@ -23,6 +23,7 @@ prior's training data.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import os
@@ -191,6 +192,49 @@ def _cache_key(src: ClipSource, fps: float | None) -> str:
             st = f.stat()
             parts += [str(f.resolve()), str(st.st_size), str(st.st_mtime_ns)]
     return hashlib.sha256("|".join(parts).encode()).hexdigest()[:32]
+
+
+def _cache_stem(src: ClipSource, fps: float | None, key: str) -> tuple[str, str]:
+    """An entry's file name without ``.npz``, ``PLACE-KEY``, and its ``PLACE``.
+
+    The place names the clip at a frame rate (its id, person and files' paths)
+    and not the files' stats or the versions, so the stale entries of a clip
+    whose file changed, or of an earlier version, share it with the new one,
+    which removes them when it is written.
+    """
+    parts = [str(fps), src.clip_id, src.subject]
+    parts += [str(f.resolve()) for f in (src.path, src.skeleton) if f is not None]
+    place = hashlib.sha256("|".join(parts).encode()).hexdigest()[:12]
+    return f"{place}-{key}", place
+
+
+def _clip_entry(
+    clip_dir: Path, src: ClipSource, fps: float | None
+) -> tuple[str, dict[str, str], str, Path | None, str | None]:
+    """A clip's cache key, stored info, place, entry file and what blocked its name.
+
+    An entry under its name before places (``KEY.npz``) is renamed to its
+    place's, so that an upgrade reads it rather than parsing the clip again.
+    """
+    key = _cache_key(src, fps)
+    stem, place = _cache_stem(src, fps, key)
+    target, blocked = cache_entry_path(clip_dir, stem)
+    legacy = clip_dir / f"{key}.npz"
+    if target is not None and not target.exists() and legacy.is_file():
+        with contextlib.suppress(OSError):  # else it is parsed again, as any missing entry
+            os.replace(legacy, target)
+    return key, _clip_entry_info(src, fps, key), place, target, blocked
+
+
+def _remove_stale(clip_dir: Path, place: str, kept: Path, key: str) -> None:
+    """Remove a clip's other entries: its place's other keys, and ``KEY.npz``.
+
+    ``KEY.npz`` was an entry's name before places.
+    """
+    for old in [*clip_dir.glob(f"{place}-*.npz"), clip_dir / f"{key}.npz"]:
+        if old != kept and old.is_file():
+            with contextlib.suppress(OSError):  # another process's, or read-only: left
+                old.unlink(missing_ok=True)
 
 
 def _clip_entry_info(src: ClipSource, fps: float | None, key: str) -> dict[str, str]:
@@ -565,14 +609,12 @@ def load_library(
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     clip_dir = cache / "clips"
     motions: list[Motion] = []
-    todo: list[tuple[ClipSource, Path | None, dict[str, str]]] = []
+    todo: list[tuple[ClipSource, Path | None, dict[str, str], str, str]] = []
     for src in sources:
         if not use_cache:
-            todo.append((src, None, {}))
+            todo.append((src, None, {}, "", ""))
             continue
-        key = _cache_key(src, fps)
-        info = _clip_entry_info(src, fps, key)
-        target, blocked = cache_entry_path(clip_dir, key)
+        key, info, place, target, blocked = _clip_entry(clip_dir, src, fps)
         problem = blocked
         if target is not None and (target.exists() or target.is_symlink()):
             try:
@@ -584,14 +626,17 @@ def load_library(
                 why = str(exc).removeprefix(f"{target}: ")
                 problem = (f"{blocked}; " if blocked else "") + f"bad entry of {src.clip_id}: {why}"
         if problem is not None:
-            report_cache_problem(target or clip_dir / f"{key}.npz", f"{problem}; rebuilding it")
-        todo.append((src, target, info))
+            report_cache_problem(
+                target or clip_dir / f"{place}-{key}.npz", f"{problem}; rebuilding it"
+            )
+        todo.append((src, target, info, place, key))
     bar = tqdm(todo, desc="parsing mocap", unit="clip", disable=not progress or len(todo) < 2)
-    for src, target, info in bar:
+    for src, target, info, place, key in bar:
         motion = load_clip(src, fps, splits[src.clip_id])
         if target is not None:
             try:
                 write_atomically(target, lambda tmp, m=motion, i=info: m.save(tmp, extra=i))
+                _remove_stale(clip_dir, place, target, key)
             except CACHE_ERRORS as exc:
                 report_unwritten(target, exc)
         motions.append(motion)

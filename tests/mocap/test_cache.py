@@ -7,6 +7,7 @@ Clips are small BVH files written from the synthetic motions
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import threading
 import warnings
@@ -51,7 +52,8 @@ def _load(data: Path, cache: Path) -> MotionLibrary:
 def _entry(data: Path, cache: Path, clip: str = "take_a") -> Path:
     """The natural cache file of one clip."""
     src = next(s for s in find_clips([data]) if s.path.stem == clip)
-    return cache / "clips" / f"{lib_mod._cache_key(src, 30.0)}.npz"
+    stem, _ = lib_mod._cache_stem(src, 30.0, lib_mod._cache_key(src, 30.0))
+    return cache / "clips" / f"{stem}.npz"
 
 
 def _assert_same(got: MotionLibrary, want: MotionLibrary) -> None:
@@ -256,3 +258,40 @@ def test_motion_load_rejects_what_is_not_a_motion(tmp_path):
     for bad in (tmp_path / "a.npy", tmp_path / "d.npz", tmp_path / "absent.npz"):
         with pytest.raises(ValueError, match="not a saved Motion"):
             Motion.load(bad)
+
+
+def _parsed_clips(monkeypatch: pytest.MonkeyPatch) -> list[object]:
+    parsed: list[object] = []
+    real = lib_mod.load_clip
+    monkeypatch.setattr(lib_mod, "load_clip", lambda *a, **k: parsed.append(a) or real(*a, **k))
+    return parsed
+
+
+def test_a_changed_file_or_version_leaves_one_entry_per_clip(data, tmp_path, monkeypatch):
+    """Each changed file or new version used to add an entry beside the stale one."""
+    cache = tmp_path / "cache"
+    _load(data, cache)
+    entries = sorted((cache / "clips").glob("*.npz"))
+    assert len(entries) == 2
+    for k, path in enumerate(sorted(data.iterdir())):  # touched, as a copy or download does
+        stat = path.stat()
+        os.utime(path, ns=(stat.st_atime_ns, stat.st_mtime_ns + 10**9 * (k + 1)))
+    _load(data, cache)
+    monkeypatch.setattr(humotion_gym._version, "__version__", "99.0")
+    _load(data, cache)
+    now = sorted((cache / "clips").glob("*.npz"))
+    assert len(now) == 2 and not set(now) & set(entries)  # rebuilt, and the stale gone
+    assert {p.name.split("-")[0] for p in now} == {p.name.split("-")[0] for p in entries}
+
+
+def test_an_entry_under_its_name_before_places_is_read_not_parsed(data, tmp_path, monkeypatch):
+    cache = tmp_path / "cache"
+    _load(data, cache)
+    for src in find_clips([data]):  # back to the old names, KEY.npz
+        key = lib_mod._cache_key(src, 30.0)
+        stem, _ = lib_mod._cache_stem(src, 30.0, key)
+        (cache / "clips" / f"{stem}.npz").rename(cache / "clips" / f"{key}.npz")
+    parsed = _parsed_clips(monkeypatch)
+    _load(data, cache)
+    assert parsed == []
+    assert all("-" in p.name for p in (cache / "clips").glob("*.npz"))
