@@ -41,9 +41,10 @@ from humotion_gym.mocap.library import (
     CACHE_ERRORS,
     CACHE_VERSION,
     MotionLibrary,
-    cache_entry_path,
     default_cache_dir,
     package_version,
+    placed_entry_path,
+    remove_stale_entries,
     report_cache_problem,
     report_unwritten,
     write_atomically,
@@ -301,11 +302,17 @@ def fit_prior(
     }
     digest = hashlib.sha256(json.dumps(info, sort_keys=True).encode()).hexdigest()[:24]
     info["key"] = digest
+    # The fit's place: what it is of (prior, settings, parameters, data), not the
+    # code and versions, whose change leaves a stale entry the new one removes.
+    of_what = {k: info[k] for k in ("prior", "settings", "free", "data")}
+    place = (
+        f"{name}-" + hashlib.sha256(json.dumps(of_what, sort_keys=True).encode()).hexdigest()[:12]
+    )
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     folder = cache / "priors"
     path: Path | None = None
     if use_cache:
-        path, problem = cache_entry_path(folder, f"{name}-{digest}")
+        path, problem = placed_entry_path(folder, place, digest, legacy=f"{name}-{digest}")
         if path is not None and (path.exists() or path.is_symlink()):
             try:
                 return module, _read_prior_entry(module, path, info)
@@ -313,7 +320,7 @@ def fit_prior(
                 why = f"{type(exc).__name__}: {str(exc).removeprefix(f'{path}: ')}"
                 problem = (f"{problem}; " if problem else "") + f"bad {name} entry: {why}"
         if problem is not None:
-            where = path or folder / f"{name}-{digest}.npz"
+            where = path or folder / f"{place}-{digest}.npz"
             report_cache_problem(where, f"{problem}; refitting it")
     if log is not None:
         frames = sum(m.n_frames for m in motions)
@@ -330,6 +337,7 @@ def fit_prior(
     if path is not None:
         try:
             _write_prior_entry(module, fitted, path, info)
+            remove_stale_entries(folder, place, path, legacy=f"{name}-{digest}")
         except CACHE_ERRORS as exc:
             report_unwritten(path, exc)
     return module, fitted

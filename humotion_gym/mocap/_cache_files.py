@@ -7,6 +7,7 @@ fitted priors; everything here is re-exported by
 
 from __future__ import annotations
 
+import contextlib
 import os
 import threading
 import uuid
@@ -93,6 +94,33 @@ def cache_entry_path(folder: Path, stem: str) -> tuple[Path | None, str | None]:
         if not alt.is_dir():
             return alt, f"a non-empty directory stands at {path.name}; using {alt.name}"
     return None, f"directories stand at {path.name} and its alternatives; not caching it"
+
+
+def placed_entry_path(
+    folder: Path, place: str, key: str, legacy: str
+) -> tuple[Path | None, str | None]:
+    """:func:`cache_entry_path` of ``PLACE-KEY``, an entry named by its place and key.
+
+    The place names what an entry is of (a clip at a frame rate, a prior's fit
+    on some data) and the key adds what makes it stale (files' stats, code,
+    versions), so :func:`remove_stale_entries` finds the stale ones by their
+    place. An entry still under its name from before places (``legacy``) is
+    renamed to its place's first, so that it is read, not rebuilt.
+    """
+    path, blocked = cache_entry_path(folder, f"{place}-{key}")
+    old = folder / f"{legacy}.npz"
+    if path is not None and not path.exists() and old.is_file():
+        with contextlib.suppress(OSError):  # else it is rebuilt, as any missing entry
+            os.replace(old, path)
+    return path, blocked
+
+
+def remove_stale_entries(folder: Path, place: str, kept: Path, legacy: str) -> None:
+    """Remove the place's entries but ``kept``, and ``legacy``'s (see :func:`placed_entry_path`)."""
+    for old in [*folder.glob(f"{place}-*.npz"), folder / f"{legacy}.npz"]:
+        if old != kept and old.is_file():
+            with contextlib.suppress(OSError):  # another process's, or read-only: left
+                old.unlink(missing_ok=True)
 
 
 def write_atomically(path: Path, write: Callable[[Path], None]) -> None:

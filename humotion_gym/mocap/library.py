@@ -23,7 +23,6 @@ prior's training data.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import hashlib
 import os
@@ -39,8 +38,9 @@ from humotion_gym.checks import is_real
 from humotion_gym.mocap._cache_files import (  # CacheWarning: re-exported, part of the API
     CACHE_ERRORS,
     CacheWarning,  # noqa: F401
-    cache_entry_path,
     package_version,
+    placed_entry_path,
+    remove_stale_entries,
     report_cache_problem,
     report_unwritten,
     write_atomically,
@@ -194,47 +194,25 @@ def _cache_key(src: ClipSource, fps: float | None) -> str:
     return hashlib.sha256("|".join(parts).encode()).hexdigest()[:32]
 
 
-def _cache_stem(src: ClipSource, fps: float | None, key: str) -> tuple[str, str]:
-    """An entry's file name without ``.npz``, ``PLACE-KEY``, and its ``PLACE``.
+def _cache_place(src: ClipSource, fps: float | None) -> str:
+    """The clip at a frame rate (its id, person and files' paths), not its stats or versions.
 
-    The place names the clip at a frame rate (its id, person and files' paths)
-    and not the files' stats or the versions, so the stale entries of a clip
-    whose file changed, or of an earlier version, share it with the new one,
-    which removes them when it is written.
+    The stale entries of a clip whose file changed, or of an earlier version,
+    share it with the new one, which removes them when it is written
+    (:func:`~humotion_gym.mocap._cache_files.remove_stale_entries`).
     """
     parts = [str(fps), src.clip_id, src.subject]
     parts += [str(f.resolve()) for f in (src.path, src.skeleton) if f is not None]
-    place = hashlib.sha256("|".join(parts).encode()).hexdigest()[:12]
-    return f"{place}-{key}", place
+    return hashlib.sha256("|".join(parts).encode()).hexdigest()[:12]
 
 
 def _clip_entry(
     clip_dir: Path, src: ClipSource, fps: float | None
 ) -> tuple[str, dict[str, str], str, Path | None, str | None]:
-    """A clip's cache key, stored info, place, entry file and what blocked its name.
-
-    An entry under its name before places (``KEY.npz``) is renamed to its
-    place's, so that an upgrade reads it rather than parsing the clip again.
-    """
-    key = _cache_key(src, fps)
-    stem, place = _cache_stem(src, fps, key)
-    target, blocked = cache_entry_path(clip_dir, stem)
-    legacy = clip_dir / f"{key}.npz"
-    if target is not None and not target.exists() and legacy.is_file():
-        with contextlib.suppress(OSError):  # else it is parsed again, as any missing entry
-            os.replace(legacy, target)
+    """A clip's cache key, stored info, place, entry file and what blocked its name."""
+    key, place = _cache_key(src, fps), _cache_place(src, fps)
+    target, blocked = placed_entry_path(clip_dir, place, key, legacy=key)
     return key, _clip_entry_info(src, fps, key), place, target, blocked
-
-
-def _remove_stale(clip_dir: Path, place: str, kept: Path, key: str) -> None:
-    """Remove a clip's other entries: its place's other keys, and ``KEY.npz``.
-
-    ``KEY.npz`` was an entry's name before places.
-    """
-    for old in [*clip_dir.glob(f"{place}-*.npz"), clip_dir / f"{key}.npz"]:
-        if old != kept and old.is_file():
-            with contextlib.suppress(OSError):  # another process's, or read-only: left
-                old.unlink(missing_ok=True)
 
 
 def _clip_entry_info(src: ClipSource, fps: float | None, key: str) -> dict[str, str]:
@@ -636,7 +614,7 @@ def load_library(
         if target is not None:
             try:
                 write_atomically(target, lambda tmp, m=motion, i=info: m.save(tmp, extra=i))
-                _remove_stale(clip_dir, place, target, key)
+                remove_stale_entries(clip_dir, place, target, legacy=key)
             except CACHE_ERRORS as exc:
                 report_unwritten(target, exc)
         motions.append(motion)

@@ -198,10 +198,13 @@ def test_a_good_entry_is_read_without_refitting(env, fresh, tmp_path, monkeypatc
 def test_the_key_holds_the_package_version_and_the_fit_defaults(env, tmp_path, monkeypatch):
     cache = tmp_path / "cache"
     _fit(env, cache)
+    before = _entries(cache)
     monkeypatch.setattr(humotion_gym._version, "__version__", "99.0")
     _fit(env, cache)
     monkeypatch.undo()
-    assert len(_entries(cache)) == 2  # an upgrade refits instead of reusing
+    after = _entries(cache)  # an upgrade refits instead of reusing, and its entry replaces
+    assert len(before) == len(after) == 1 and before != after  # the stale one (same place)
+    assert before[0].name.rsplit("-", 1)[0] == after[0].name.rsplit("-", 1)[0]
 
     # A fit whose default changes (a new release of the fitting code) refits too.
     module = importlib.import_module(SPEC.prior)
@@ -211,8 +214,8 @@ def test_the_key_holds_the_package_version_and_the_fit_defaults(env, tmp_path, m
         return real(motions, free=free, rng=rng, multiplier=multiplier, frame_skip=frame_skip)
 
     monkeypatch.setattr(module, "fit", fit_with_new_default)
-    got = _fit(env, cache)
-    assert got.multiplier == 1.5 and len(_entries(cache)) == 3
+    got = _fit(env, cache)  # other settings: another place, kept beside the first
+    assert got.multiplier == 1.5 and len(_entries(cache)) == 2
 
 
 _USER_PRIOR = """
@@ -243,18 +246,21 @@ def test_an_edited_prior_is_refitted_not_read(env, tmp_path, monkeypatch):
     # the edits are read from source: no bytecode of the first to stand in for the second
     monkeypatch.setattr(sys, "dont_write_bytecode", True)
     cache, clips = tmp_path / "cache", env.describe().training
-    fits = []
+    fits, entries = [], []
     try:
         for scale in (1.0, 2.25, 2.25):
             source.write_text(_USER_PRIOR.format(scale=scale))
             importlib.invalidate_caches()
             module = importlib.reload(importlib.import_module("mine_edited.edited_prior"))
             fits.append(fit_module(module, clips, None, cache_dir=cache, log=None)[1])
+            entries.append([(p, p.stat().st_mtime_ns) for p in _entries(cache)])
     finally:
         sys.modules.pop("mine_edited.edited_prior", None)
         sys.modules.pop("mine_edited", None)
     assert [f.multiplier for f in fits] == [1.0, 2.25, 2.25]
-    assert len(_entries(cache)) == 2  # the second edit's fit was read back, not refitted
+    # the edit's fit replaced the first (the stale entry is gone), and was then read back
+    assert len(entries[0]) == len(entries[1]) == 1 and entries[0] != entries[1]
+    assert entries[2] == entries[1]
 
 
 def test_an_unwritable_cache_reports_and_fits(env, fresh, tmp_path):

@@ -52,8 +52,8 @@ def _load(data: Path, cache: Path) -> MotionLibrary:
 def _entry(data: Path, cache: Path, clip: str = "take_a") -> Path:
     """The natural cache file of one clip."""
     src = next(s for s in find_clips([data]) if s.path.stem == clip)
-    stem, _ = lib_mod._cache_stem(src, 30.0, lib_mod._cache_key(src, 30.0))
-    return cache / "clips" / f"{stem}.npz"
+    place, key = lib_mod._cache_place(src, 30.0), lib_mod._cache_key(src, 30.0)
+    return cache / "clips" / f"{place}-{key}.npz"
 
 
 def _assert_same(got: MotionLibrary, want: MotionLibrary) -> None:
@@ -289,8 +289,8 @@ def test_an_entry_under_its_name_before_places_is_read_not_parsed(data, tmp_path
     _load(data, cache)
     for src in find_clips([data]):  # back to the old names, KEY.npz
         key = lib_mod._cache_key(src, 30.0)
-        stem, _ = lib_mod._cache_stem(src, 30.0, key)
-        (cache / "clips" / f"{stem}.npz").rename(cache / "clips" / f"{key}.npz")
+        place = lib_mod._cache_place(src, 30.0)
+        (cache / "clips" / f"{place}-{key}.npz").rename(cache / "clips" / f"{key}.npz")
     parsed = _parsed_clips(monkeypatch)
     _load(data, cache)
     assert parsed == []
