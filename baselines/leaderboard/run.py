@@ -35,6 +35,7 @@ from typing import Any
 
 from tqdm.auto import tqdm
 
+from baselines import MAX_PARTICLES
 from baselines.agents import uses_particles
 from baselines.agents.learned import policy_file
 from baselines.leaderboard.engine import (
@@ -247,6 +248,9 @@ def _check_run(
     for name, (value, low) in counts.items():
         if not is_count(value, low):
             raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
+    for i, n in enumerate(particles):  # as agents.make and --particles
+        if n > MAX_PARTICLES:
+            raise ValueError(f"particles[{i}]: expected at most {MAX_PARTICLES:,}, got {n:,}")
     if videos and agent_seeds > 1:
         raise ValueError("videos: a video replays one agent seed; run them with agent_seeds=1")
     if engine not in ENGINES:

@@ -302,12 +302,12 @@ def fit_prior(
     }
     digest = hashlib.sha256(json.dumps(info, sort_keys=True).encode()).hexdigest()[:24]
     info["key"] = digest
-    # The fit's place: what it is of (prior, settings, parameters, data), not the
-    # code and versions, whose change leaves a stale entry the new one removes.
-    of_what = {k: info[k] for k in ("prior", "settings", "free", "data")}
-    place = (
-        f"{name}-" + hashlib.sha256(json.dumps(of_what, sort_keys=True).encode()).hexdigest()[:12]
-    )
+    # The fit's place: what it is of (the prior's module and file, its settings,
+    # parameters and data), not the code and versions, whose change leaves a stale
+    # entry the new one removes; two modules of one name in two folders keep both.
+    where = str(getattr(module, "__file__", None) or "")
+    of_what = json.dumps([where, *(info[k] for k in ("prior", "settings", "free", "data"))])
+    place = f"{name}-{hashlib.sha256(of_what.encode()).hexdigest()[:12]}"
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     folder = cache / "priors"
     path: Path | None = None

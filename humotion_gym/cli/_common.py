@@ -90,7 +90,6 @@ positive_int = int_at_least(1)
 #: ``type=`` for seeds and other counts that may be zero (seeds: numpy's 32-bit range
 #: is not the limit, numpy takes any non-negative integer).
 nonnegative_int = int_at_least(0)
-#: ``type=`` for particle counts.
 #: ``type=`` for episode counts.
 episode_count = int_at_least(1, MAX_EPISODES)
 

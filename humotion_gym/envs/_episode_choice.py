@@ -53,7 +53,7 @@ def clip_geometry(motion: Motion) -> FloatArray:
     return geometry
 
 
-#: The clips beyond its library's whose good starts an environment remembers.
+#: The clips not its library's whose good starts an environment remembers.
 STARTS_EXTRA = 64
 
 
@@ -62,7 +62,7 @@ class EpisodeChoice:
 
     The environment provides ``library``, ``split``, ``task``, ``clips``,
     ``episode_frames``, ``frame_skip``, ``np_random`` and the caches
-    ``_starts`` and ``_unseen_cache``.
+    ``_starts``, ``_own_clips`` (the library's clips by id) and ``_unseen_cache``.
     """
 
     library: MotionLibrary
@@ -71,6 +71,7 @@ class EpisodeChoice:
     episode_frames: int
     frame_skip: int
     _starts: dict[str, tuple[Motion, NDArray[np.intp]]]
+    _own_clips: dict[str, Motion]
     _unseen_cache: list[tuple[str, FloatArray]] | None
     _err_kp: NDArray[np.intp]
     task: Any
@@ -244,11 +245,14 @@ class EpisodeChoice:
             if self.task.min_motion_mm > 0:
                 ok &= self._episode_motion(motion) >= self.task.min_motion_mm
             good = np.flatnonzero(ok)
-        # At most the library's clips and STARTS_EXTRA others, the oldest
-        # going first: a long run of reset(options={"motion": ...}) with new
-        # clips kept every one alive, some 190 KB an episode.
-        if len(self._starts) >= len(self.library) + STARTS_EXTRA:
-            del self._starts[next(iter(self._starts))]
+        # The library's clips, and at most STARTS_EXTRA others, the oldest going
+        # first: a long run of reset(options={"motion": ...}) with new clips
+        # kept every one alive, some 190 KB an episode.
+        own = self._own_clips
+        if own.get(motion.clip_id) is not motion and motion.clip_id not in self._starts:
+            given = [k for k, (m, _) in self._starts.items() if own.get(k) is not m]
+            if len(given) >= STARTS_EXTRA:
+                del self._starts[given[0]]
         self._starts[motion.clip_id] = (motion, good)
         return good
 

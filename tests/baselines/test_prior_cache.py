@@ -292,3 +292,15 @@ def test_the_key_holds_the_clips_labels(env):
     relabelled = [dataclasses.replace(m, label=f"not-{m.label}") for m in clips]
     assert _fingerprint(clips) != _fingerprint(relabelled)
     assert _fingerprint(clips) == _fingerprint([dataclasses.replace(m) for m in clips])
+
+
+def test_two_modules_of_one_name_in_two_folders_keep_their_own_fits(env, tmp_path, monkeypatch):
+    """Their fits share prior, settings and data; the place holds each module's file."""
+    from baselines.priors.fitting import fit_prior as fit_module
+
+    module = importlib.import_module(SPEC.prior)
+    cache, clips = tmp_path / "cache", env.describe().training
+    for folder in ("a", "b"):
+        monkeypatch.setattr(module, "__file__", str(tmp_path / folder / "constant_velocity.py"))
+        fit_module(module, clips, None, cache_dir=cache, log=None)
+    assert len(_entries(cache)) == 2

@@ -133,6 +133,8 @@ def test_leaderboard_refuses_bad_counts():
     "args, kwargs, error, match",
     [
         ((["ArmTrack-v2"], ["pf-cv"], []), {}, ValueError, "particles: empty, but pf-cv takes"),
+        ((["ArmTrack-v2"], ["pf-cv"], [300, 200_000]), {}, ValueError,
+         r"particles\[1\]: expected at most 100,000"),
         (([], ["hold"], [30]), {}, ValueError, "tasks: expected at least one"),
         ((["ArmTrack-v2"], [], [30]), {}, ValueError, "agents: expected at least one"),
         (("ArmTrack-v2", ["hold"], [30]), {}, TypeError, "tasks: expected a list"),

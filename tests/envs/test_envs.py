@@ -604,8 +604,16 @@ def test_clips_given_at_reset_are_not_all_kept_alive():
 
     env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
     base = env.unwrapped
+    library_ids = set(base._own_clips)
+    for seed in range(5):  # the library's own clips, remembered
+        env.reset(seed=seed)
+    own = {k for k in base._starts if k in library_ids}
     clip = base.library.split("train").motions[0]
-    for k in range(STARTS_EXTRA + len(base.library) + 20):
+    for k in range(STARTS_EXTRA + 20):
         env.reset(seed=k, options={"motion": dataclasses.replace(clip, clip_id=f"mine/{k}")})
-    assert len(base._starts) <= len(base.library) + STARTS_EXTRA
-    assert "mine/0" not in base._starts and f"mine/{k}" in base._starts
+    given = [k for k in base._starts if k not in library_ids]
+    assert given == [f"mine/{k}" for k in range(20, STARTS_EXTRA + 20)]  # the oldest went
+    assert own <= set(base._starts)  # and none of the library's
+    again = dataclasses.replace(clip, clip_id=f"mine/{STARTS_EXTRA + 19}")
+    env.reset(seed=0, options={"motion": again})  # a clip id again: replaced, nothing evicted
+    assert [k for k in base._starts if k not in library_ids] == given
