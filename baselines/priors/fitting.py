@@ -305,8 +305,8 @@ def fit_prior(
     # The fit's place: what it is of (the prior's module and file, its settings,
     # parameters and data), not the code and versions, whose change leaves a stale
     # entry the new one removes; two modules of one name in two folders keep both.
-    where = str(getattr(module, "__file__", None) or "")
-    of_what = json.dumps([where, *(info[k] for k in ("prior", "settings", "free", "data"))])
+    module_file = str(getattr(module, "__file__", None) or "")
+    of_what = json.dumps([module_file, *(info[k] for k in ("prior", "settings", "free", "data"))])
     place = f"{name}-{hashlib.sha256(of_what.encode()).hexdigest()[:12]}"
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     folder = cache / "priors"

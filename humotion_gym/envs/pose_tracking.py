@@ -276,8 +276,7 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         self._scoring = Scoring.of(self._err_kp, self._reward_terms, float(reward_scale_mm))
         self._motion: Motion | None = None
         self._done = False
-        self._starts: dict[str, tuple[Motion, NDArray[np.intp]]] = {}
-        self._own_clips = {m.clip_id: m for m in self.library.motions}
+        self._starts, self._own_clips = {}, {m.clip_id: m for m in self.library.motions}
         self.clips = self._episode_clips()
         self._noise: NDArray[np.uint8] | None = None
         self._bounds: tuple[FloatArray, FloatArray] | None = None
