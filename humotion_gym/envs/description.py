@@ -30,6 +30,7 @@ functions.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -161,21 +162,32 @@ def read_observation(observation: Any, description: TaskDescription | None = Non
             f"observation['camera']: expected shape {expected} for a frame of shape "
             f"{frame.shape}, got {vectors.shape}"
         )
+    fixed = np.asarray(observation["fixed_params"], dtype=np.float64)
     if description is not None:
-        _check_task_observation(observation, description)
+        numbers = {"initial_pose": initial, "camera": vectors, "fixed_params": fixed}
+        numbers["shape"] = np.asarray(observation["shape"], dtype=np.float64)
+        _check_task_observation(observation, frame, numbers, description)
     cameras = tuple(Camera.from_vector(v, w, h) for v in vectors.reshape(-1, CAMERA_VECTOR_SIZE))
     return Given(
         frame=frame,
         initial_pose=initial,
-        fixed_params=np.asarray(observation["fixed_params"], dtype=np.float64),
+        fixed_params=fixed,
         camera=cameras[0],
         shape=BodyShape.from_vector(observation["shape"]),
         cameras=cameras,
     )
 
 
-def _check_task_observation(observation: dict[str, Any], description: TaskDescription) -> None:
-    """Refuse an observation that is not ``description``'s task's (see :func:`read_observation`)."""
+def _check_task_observation(
+    observation: dict[str, Any],
+    frame: NDArray[Any],
+    numbers: dict[str, FloatArray],
+    description: TaskDescription,
+) -> None:
+    """Refuse an observation that is not ``description``'s task's (see :func:`read_observation`).
+
+    ``numbers`` are its numeric parts as float64 arrays, by key.
+    """
     space = description.observation_space
     for key in ("frame", "fixed_params"):
         want, got = space[key].shape, np.shape(observation[key])  # type: ignore[index]
@@ -183,12 +195,15 @@ def _check_task_observation(observation: dict[str, Any], description: TaskDescri
             raise ValueError(
                 f"observation[{key!r}]: expected shape {want}, {description.name}'s, got {got}"
             )
-    if np.asarray(observation["frame"]).dtype != np.uint8:
-        got_dtype = np.asarray(observation["frame"]).dtype
-        raise ValueError(f"observation['frame']: expected uint8 pixels, got {got_dtype}")
-    for key in ("initial_pose", "camera", "fixed_params", "shape"):
-        if not np.all(np.isfinite(np.asarray(observation[key], dtype=np.float64))):
-            raise ValueError(f"observation[{key!r}]: expected finite numbers, got NaN or infinity")
+    if frame.dtype != np.uint8:
+        raise ValueError(f"observation['frame']: expected uint8 pixels, got {frame.dtype}")
+    # One sum of them all: NaN and infinity carry through it (a frame's check, so cheap)
+    if not math.isfinite(sum(float(v.sum()) for v in numbers.values())):
+        for key, values in numbers.items():
+            if not np.isfinite(values).all():
+                raise ValueError(
+                    f"observation[{key!r}]: expected finite numbers, got NaN or infinity"
+                )
 
 
 def _wrap(angles: FloatArray) -> FloatArray:
