@@ -163,34 +163,31 @@ def read_observation(observation: Any, description: TaskDescription | None = Non
             f"{frame.shape}, got {vectors.shape}"
         )
     fixed = np.asarray(observation["fixed_params"], dtype=np.float64)
+    shape = np.asarray(observation["shape"], dtype=np.float64)
     if description is not None:
         numbers = {"initial_pose": initial, "camera": vectors, "fixed_params": fixed}
-        numbers["shape"] = np.asarray(observation["shape"], dtype=np.float64)
-        _check_task_observation(observation, frame, numbers, description)
+        _check_task_observation(frame, numbers | {"shape": shape}, description)
     cameras = tuple(Camera.from_vector(v, w, h) for v in vectors.reshape(-1, CAMERA_VECTOR_SIZE))
     return Given(
         frame=frame,
         initial_pose=initial,
         fixed_params=fixed,
         camera=cameras[0],
-        shape=BodyShape.from_vector(observation["shape"]),
+        shape=BodyShape.from_vector(shape),
         cameras=cameras,
     )
 
 
 def _check_task_observation(
-    observation: dict[str, Any],
-    frame: NDArray[Any],
-    numbers: dict[str, FloatArray],
-    description: TaskDescription,
+    frame: NDArray[Any], numbers: dict[str, FloatArray], description: TaskDescription
 ) -> None:
     """Refuse an observation that is not ``description``'s task's (see :func:`read_observation`).
 
-    ``numbers`` are its numeric parts as float64 arrays, by key.
+    ``frame`` and ``numbers`` (its numeric parts by key) are its arrays as read.
     """
     space = description.observation_space
-    for key in ("frame", "fixed_params"):
-        want, got = space[key].shape, np.shape(observation[key])  # type: ignore[index]
+    for key, array in (("frame", frame), ("fixed_params", numbers["fixed_params"])):
+        want, got = space[key].shape, array.shape  # type: ignore[index]
         if got != want:
             raise ValueError(
                 f"observation[{key!r}]: expected shape {want}, {description.name}'s, got {got}"
