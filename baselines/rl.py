@@ -86,6 +86,7 @@ from baselines.rl_config import (  # noqa: F401  (the training API, re-exported)
 )
 from humotion_gym.body import N_KEYPOINTS
 from humotion_gym.envs import get_task
+from humotion_gym.files import write_atomically, write_text_atomically
 from humotion_gym.kinematics import batch_pose_geometry
 from humotion_gym.mocap.library import MotionLibrary, configured_data_dirs, package_version
 from humotion_gym.sb3 import learner_vec_env
@@ -316,8 +317,9 @@ class _Milestones(BaseCallback):
         assert isinstance(self.model, PPO)
         steps = int(self.model.num_timesteps)
         if steps >= self.next_save:
-            self.folder.mkdir(parents=True, exist_ok=True)
-            self.model.save(self.folder / f"model_{steps}_steps.zip")
+            write_atomically(
+                self.folder / f"model_{steps}_steps.zip", self.model.save, keep_suffix=True
+            )
             self.next_save = (steps // self.every + 1) * self.every
         if self.validation is not None and self.validation.due(steps):
             self.validation.run(self.model, steps)
@@ -364,11 +366,8 @@ def new_model(config: TrainConfig, env: Any) -> PPO:
 
 
 def _write_config(config: TrainConfig, command: str | None, extra: dict[str, Any]) -> None:
-    out = Path(config.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "config.json").write_text(
-        json.dumps({**_provenance(config, command), **extra}, indent=1, default=str)
-    )
+    text = json.dumps({**_provenance(config, command), **extra}, indent=1, default=str)
+    write_text_atomically(Path(config.out) / "config.json", text)
 
 
 def _save(model: PPO, path: Path) -> None:
@@ -380,8 +379,7 @@ def _save(model: PPO, path: Path) -> None:
     policy.optimizer = make_optimizer(
         policy.parameters(), lr=model.lr_schedule(1.0), **policy.optimizer_kwargs
     )
-    path.parent.mkdir(parents=True, exist_ok=True)
-    model.save(path)
+    write_atomically(path, model.save, keep_suffix=True)  # SB3 adds .zip to a name without
 
 
 def prepare_output(out: Path, resume: bool, force: bool, config: TrainConfig | None = None) -> None:

@@ -26,6 +26,7 @@ from baselines.leaderboard.rows import cell_label
 from baselines.leaderboard.run import run_leaderboard
 from baselines.leaderboard.stats import bootstrap_ci, iqm
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
+from humotion_gym.files import write_atomically, write_text_atomically
 from humotion_gym.render import SceneOptions
 
 #: Sweep format version (``sweep.json``'s ``version``).
@@ -291,15 +292,17 @@ def figure(
         fig.suptitle(title, fontsize=10)
     fig.tight_layout(rect=(0, 0.06, 1, 1))
     path = Path(path)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    try:
+        write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=120), keep_suffix=True)
+    finally:
+        plt.close(fig)
     return path
 
 
 def save(sweep: Mapping[str, Any], path: str | Path) -> Path:
     """Write the sweep as JSON."""
     path = Path(path)
-    path.write_text(json.dumps(sweep, indent=1, default=_plain))
+    write_text_atomically(path, json.dumps(sweep, indent=1, default=_plain))
     return path
 
 

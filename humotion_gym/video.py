@@ -9,6 +9,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from humotion_gym.files import write_atomically
+
 
 def _to_bgr(frame: NDArray[np.uint8], scale: int) -> NDArray[np.uint8]:
     img = (
@@ -43,7 +45,9 @@ def write_video(
 ) -> None:
     """Write RGB (or grey) uint8 frames to an ``.mp4`` (MPEG-4 part 2) or ``.avi`` file.
 
-    The file's folder is created if missing.
+    The file's folder is created if missing. The video is written whole or not
+    at all (:func:`~humotion_gym.files.write_atomically`): an interruption
+    leaves no cut video at ``path``.
 
     Raises:
         ValueError: If there are no frames, or they are too large for an ``.mp4``.
@@ -54,17 +58,21 @@ def write_video(
     first = _to_bgr(frames[0], scale)
     h, w = first.shape[:2]
     check_video_size(path, w, h)
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
     mp4 = Path(path).suffix.lower() == ".mp4"  # .MP4 too: MJPG inside an .mp4 plays nowhere
     fourcc = cv2.VideoWriter.fourcc(*("mp4v" if mp4 else "MJPG"))
-    writer = cv2.VideoWriter(str(path), fourcc, float(fps), (w, h))
-    if not writer.isOpened():
-        raise OSError(f"{path}: OpenCV could not open a video writer")
-    try:
-        for frame in frames:
-            writer.write(_to_bgr(frame, scale))
-    finally:
-        writer.release()
+
+    def write(tmp: Path) -> None:
+        writer = cv2.VideoWriter(str(tmp), fourcc, float(fps), (w, h))
+        if not writer.isOpened():
+            raise OSError(f"{path}: OpenCV could not open a video writer")
+        try:
+            for frame in frames:
+                writer.write(_to_bgr(frame, scale))
+        finally:
+            writer.release()
+
+    # OpenCV picks the container by the file's suffix: the temporary name keeps it.
+    write_atomically(path, write, keep_suffix=True)
 
 
 def contact_sheet(
@@ -82,10 +90,18 @@ def contact_sheet(
 
 
 def write_png(path: str | Path, image: NDArray[np.uint8]) -> None:
-    """Write an RGB image as PNG (its folder created if missing)."""
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_RGB2BGR)):
-        raise OSError(f"{path}: could not write the PNG")
+    """Write an RGB image as PNG, whole or not at all (its folder created if missing)."""
+    bgr = cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_RGB2BGR)
+
+    def write(tmp: Path) -> None:
+        try:
+            written = cv2.imwrite(str(tmp), bgr)
+        except cv2.error as exc:  # OpenCV raises for a suffix it has no writer for
+            raise OSError(f"{path}: OpenCV cannot write an image of this suffix") from exc
+        if not written:
+            raise OSError(f"{path}: could not write the PNG")
+
+    write_atomically(path, write, keep_suffix=True)
 
 
 def render_motion(

@@ -25,6 +25,7 @@ from humotion_gym.cli._common import (
     print_json,
     wrote,
 )
+from humotion_gym.video import write_png
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -78,8 +79,7 @@ def _cmd_discrimination(args: argparse.Namespace) -> int:
 
         panels = likelihood_panels(env, args.seed)
         big = cv2.resize(panels, None, fx=2, fy=2, interpolation=cv2.INTER_NEAREST)
-        if not cv2.imwrite(str(args.figure), cv2.cvtColor(big, cv2.COLOR_RGB2BGR)):
-            raise OSError(f"--figure: could not write {args.figure}")
+        write_png(args.figure, big)
         wrote(args.figure)
     out = likelihood_discrimination(env, args.episodes, args.seed, args.distances)
     out["peak"] = likelihood_peak_error(env, args.episodes, args.seed)

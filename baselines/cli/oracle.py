@@ -28,6 +28,7 @@ from humotion_gym.cli._common import (
     print_json,
     wrote,
 )
+from humotion_gym.files import write_atomically, write_text_atomically
 
 #: The likelihoods by default: the agents' own and each oracle at its default noise.
 DEFAULT_ORACLES = ("image", "2d", "2d-unlabelled", "3d")
@@ -211,10 +212,10 @@ def _cmd_oracle(args: argparse.Namespace) -> int:
     table = markdown_report(results)
     data = {"settings": run_settings(args), "results": [compact(r) for r in results]}
     if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
         text = json.dumps(data, separators=(",", ":")).encode()
-        (args.out / "results.json.gz").write_bytes(gzip.compress(text, mtime=0))
-        (args.out / "table.md").write_text(table)
+        packed = gzip.compress(text, mtime=0)
+        write_atomically(args.out / "results.json.gz", lambda tmp: tmp.write_bytes(packed))
+        write_text_atomically(args.out / "table.md", table)
         if not args.json:
             wrote(args.out / "results.json.gz", "every episode's numbers")
             wrote(args.out / "table.md")

@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 from torch import nn
 
 from humotion_gym.body import KEYPOINT_NAMES
+from humotion_gym.files import write_atomically
 
 FloatArray = NDArray[np.float64]
 
@@ -157,11 +158,14 @@ def decode(logits: NDArray[np.floating], radius: int = DECODE_RADIUS) -> FloatAr
 def save_weights(net: HeatmapNet, path: str | Path) -> Path:
     """Write the network's state dict as a ``.npz`` of plain arrays (no pickle)."""
     p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
     arrays = {k: v.detach().cpu().numpy() for k, v in net.state_dict().items()}
     arrays[_ARCH_KEY] = np.array([net.width, N_KEYPOINTS, INPUT_SIZE, STRIDE], dtype=np.int64)
-    with p.open("wb") as f:
-        np.savez_compressed(f, **arrays)  # type: ignore[arg-type]
+
+    def write(tmp: Path) -> None:
+        with tmp.open("wb") as f:
+            np.savez_compressed(f, **arrays)  # type: ignore[arg-type]
+
+    write_atomically(p, write)
     return p
 
 

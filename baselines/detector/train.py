@@ -35,6 +35,7 @@ from baselines.detector.network import (
 )
 from humotion_gym.body import KEYPOINT_NAMES
 from humotion_gym.checks import is_count
+from humotion_gym.files import write_text_atomically
 
 FloatArray = NDArray[np.float64]
 
@@ -230,5 +231,5 @@ def make_detector(
         "seconds": round(time.perf_counter() - t0, 1),
         "torch": th.__version__,
     }
-    (folder / META_NAME).write_text(json.dumps(meta, indent=1) + "\n")
+    write_text_atomically(folder / META_NAME, json.dumps(meta, indent=1) + "\n")
     return meta

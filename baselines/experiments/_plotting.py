@@ -5,6 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from humotion_gym.files import write_atomically
+
 
 def pyplot() -> Any:
     """``matplotlib.pyplot`` on the Agg backend (figures go to files, never a window).
@@ -21,7 +23,9 @@ def pyplot() -> Any:
 
 
 def save(fig: Any, path: str | Path, dpi: int = 110) -> None:
-    """Lay out ``fig``, write it to ``path`` and free it."""
+    """Lay out ``fig``, write it to ``path`` (whole or not at all) and free it."""
     fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
-    pyplot().close(fig)
+    try:
+        write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=dpi), keep_suffix=True)
+    finally:
+        pyplot().close(fig)

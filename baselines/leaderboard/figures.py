@@ -10,7 +10,6 @@ curves (Kaplan-Meier), IQMs with intervals per task and the aggregate scores
 from __future__ import annotations
 
 import importlib.util
-import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -20,6 +19,7 @@ from numpy.typing import NDArray
 
 from baselines.leaderboard import stats
 from baselines.leaderboard.rows import cell_label
+from humotion_gym.files import write_atomically
 
 
 def ran(row: dict[str, Any]) -> bool:
@@ -70,12 +70,11 @@ def _save(plt: Any, fig: Any, path: Path) -> Path:
     while writing left a cut PNG where the report links one.
     """
     fig.tight_layout()
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
-        fig.savefig(tmp, dpi=110, format=path.suffix.lstrip(".") or "png")
-        os.replace(tmp, path)
+        write_atomically(
+            path, lambda tmp: fig.savefig(tmp, dpi=110, format=path.suffix.lstrip(".") or "png")
+        )
     finally:
-        tmp.unlink(missing_ok=True)
         plt.close(fig)
     return path
 

@@ -62,6 +62,7 @@ from baselines.leaderboard.tables import (
     validity_lines,
 )
 from baselines.leaderboard.videos import remove_earlier_videos, write_videos
+from humotion_gym.files import write_text_atomically
 
 #: The reference each task's scores are normalised by.
 REFERENCE = "hold"
@@ -567,12 +568,12 @@ def write_report(
         config = (run or {}).get("config") or {}
         declared = bool(config.get("declared")) if isinstance(config, Mapping) else False
         made = write_videos(rows, folder, env_kwargs, video_cells, progress, declared)
-        (folder / "videos.json").write_text(json.dumps(made, indent=1))
+        write_text_atomically(folder / "videos.json", json.dumps(made, indent=1))
     else:  # an earlier report's videos: no longer on the page
         remove_earlier_videos(folder)
     computed = compute(rows, seed=seed)
-    (folder / "stats.json").write_text(json.dumps(computed, indent=1, default=_plain))
-    (folder / "tables.md").write_text(markdown_report(rows, computed))
+    write_text_atomically(folder / "stats.json", json.dumps(computed, indent=1, default=_plain))
+    write_text_atomically(folder / "tables.md", markdown_report(rows, computed))
     notes: list[str] = []
     figures: dict[str, str] = {}
     if figures_available():
@@ -582,7 +583,7 @@ def write_report(
     index = folder / "index.html"
     # the engine's files of the same results folder, where they are
     files = [f for f in ("results.json", "table.md", "episodes.jsonl") if (folder / f).is_file()]
-    index.write_text(html_page(rows, computed, figures, made, notes, title, files, run))
+    write_text_atomically(index, html_page(rows, computed, figures, made, notes, title, files, run))
     return index
 
 

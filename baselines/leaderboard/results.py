@@ -25,6 +25,7 @@ from baselines.leaderboard.figures import figures_available
 from baselines.leaderboard.platform_info import run_platform
 from baselines.leaderboard.report import write_report
 from baselines.leaderboard.tables import markdown_table, validity_lines
+from humotion_gym.files import write_text_atomically
 from humotion_gym.mocap.library import configured_data_dirs, package_version
 
 #: The version of ``results.json``'s layout (docs/leaderboard.md describes it);
@@ -127,7 +128,7 @@ class ResultsFolder:
             )
         self.folder.mkdir(parents=True, exist_ok=True)
         kept = {**_jsonable(settings), **({"policies": policies} if policies else {})}
-        _write_text(self.run_path, json.dumps(kept, indent=1) + "\n")
+        write_text_atomically(self.run_path, json.dumps(kept, indent=1) + "\n")
         self.episodes_path.write_bytes(b"")
         return []
 
@@ -144,7 +145,7 @@ class ResultsFolder:
             )
         if set(policies) - set(before):
             merged = {**saved, "policies": {**before, **policies}}
-            _write_text(self.run_path, json.dumps(merged, indent=1) + "\n")
+            write_text_atomically(self.run_path, json.dumps(merged, indent=1) + "\n")
 
     def read(self) -> list[dict[str, Any]]:
         """The records saved so far; a last line cut short by an interruption is dropped.
@@ -224,9 +225,9 @@ def write_results(
         "rows": list(rows),
         "validity": validity_lines(rows),
     }
-    _write_text(out / RESULTS_FILE, json.dumps(_jsonable(document), indent=1) + "\n")
+    write_text_atomically(out / RESULTS_FILE, json.dumps(_jsonable(document), indent=1) + "\n")
     table = markdown_table(rows) + "\n\n" + "\n".join(validity_lines(rows)) + "\n"
-    _write_text(out / TABLE_FILE, table)
+    write_text_atomically(out / TABLE_FILE, table)
     if not report:
         stale = [name for name in REPORT_FILES if (out / name).exists()]
         if stale:  # a resumed run's earlier report shows the episodes before it
@@ -283,13 +284,6 @@ def source_commit() -> str | None:
     return head.stdout.strip() + ("-dirty" if changed.stdout.strip() else "")
 
 
-def _write_text(path: Path, text: str) -> None:
-    """Write a file whole or not at all (a temporary file renamed over it)."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-
-
 def _jsonable(value: Any) -> Any:
     """Plain JSON values (tuples to lists, numpy scalars to numbers) for comparison and writing."""
     return json.loads(json.dumps(value, default=_plain))
@@ -297,7 +291,7 @@ def _jsonable(value: Any) -> Any:
 
 def save(rows: Sequence[dict[str, Any]], path: str | Path) -> None:
     """Write the rows as JSON."""
-    Path(path).write_text(json.dumps(list(rows), indent=1, default=_plain))
+    write_text_atomically(path, json.dumps(list(rows), indent=1, default=_plain))
 
 
 def _plain(value: Any) -> Any:

@@ -26,6 +26,7 @@ from baselines.leaderboard.engine import run_cell_episode
 from baselines.leaderboard.evaluation import EpisodeResult
 from baselines.leaderboard.figures import ran
 from baselines.leaderboard.rows import cell_label
+from humotion_gym.files import write_atomically
 from humotion_gym.video import contact_sheet
 
 #: How far a replay's per-frame error may be from the recorded one: the
@@ -166,16 +167,27 @@ def write_webm(path: Path, frames: Sequence[NDArray[np.uint8]], fps: float, scal
         for f in frames
     ]
     h, w = big[0].shape[:2]
-    with _quiet_stderr():
-        writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"VP80"), float(fps), (w, h))
-    if not writer.isOpened():
-        raise OSError(f"{path}: OpenCV could not open a WebM (VP8) writer")
-    try:
-        for frame in big:
-            writer.write(frame)
-    finally:
-        writer.release()
+
+    def write(tmp: Path) -> None:
+        with _quiet_stderr():
+            writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter.fourcc(*"VP80"), float(fps), (w, h))
+        if not writer.isOpened():
+            raise OSError(f"{path}: OpenCV could not open a WebM (VP8) writer")
+        try:
+            for frame in big:
+                writer.write(frame)
+        finally:
+            writer.release()
+
+    # Whole or not at all: a report reuses the videos it finds beside its videos.json.
+    write_atomically(path, write, keep_suffix=True)
     return path
+
+
+def _write_jpeg(tmp: Path, image: NDArray[np.uint8], path: Path) -> None:
+    """Write a BGR image as JPEG (quality 90) to ``tmp``, where ``path`` is written."""
+    if not cv2.imwrite(str(tmp), image, [cv2.IMWRITE_JPEG_QUALITY, 90]):
+        raise OSError(f"{path}: could not write the contact sheet")
 
 
 def _caption(frames: list[NDArray[np.uint8]], errors: Sequence[float]) -> list[NDArray[np.uint8]]:
@@ -234,8 +246,9 @@ def write_videos(
                 # JPEG: the sensor noise makes a PNG of the sheet five times larger
                 sheet_rgb = contact_sheet(frames, columns=6, count=12)
                 image = cv2.cvtColor(sheet_rgb, cv2.COLOR_RGB2BGR)
-                if not cv2.imwrite(str(sheet), image, [cv2.IMWRITE_JPEG_QUALITY, 90]):
-                    raise OSError(f"{sheet}: could not write the contact sheet")
+                write_atomically(
+                    sheet, lambda tmp, i=image, s=sheet: _write_jpeg(tmp, i, s), keep_suffix=True
+                )
             out.append(entry)
     return out
 

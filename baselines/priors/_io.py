@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import os
 import zipfile
 import zlib
 from collections.abc import Iterator
@@ -17,6 +16,8 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
+
+from humotion_gym.files import write_atomically
 
 T = TypeVar("T")
 
@@ -62,16 +63,15 @@ def save_arrays(arrays: dict[str, np.ndarray], path: str | Path) -> None:
         if arr.dtype == object:
             raise TypeError(f"save_arrays: {name!r} is not an array of numbers or strings")
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
+
+    def write(tmp: Path) -> None:
         with open(tmp, "wb") as fh:
             np.savez(fh, **arrays)
-        os.replace(tmp, path)
+
+    try:  # a failed write (path a folder, a full disk) leaves nothing behind
+        write_atomically(path, write)
     except OSError as exc:
         raise type(exc)(exc.errno, f"cannot write {path}: {exc.strerror}") from exc
-    finally:  # a failed write (path a folder, a full disk) leaves nothing behind
-        tmp.unlink(missing_ok=True)
 
 
 def load_fitted(cls: type[T], path: str | Path) -> T:

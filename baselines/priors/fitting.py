@@ -37,6 +37,7 @@ from numpy.typing import ArrayLike
 
 from baselines.priors import get_prior
 from humotion_gym.checks import is_integer, is_real
+from humotion_gym.files import write_atomically
 from humotion_gym.mocap.library import (
     CACHE_ERRORS,
     CACHE_VERSION,
@@ -47,7 +48,6 @@ from humotion_gym.mocap.library import (
     remove_stale_entries,
     report_cache_problem,
     report_unwritten,
-    write_atomically,
 )
 from humotion_gym.mocap.motion import Motion, content_digest
 

@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from humotion_gym.envs._checks import FPS_RANGE
+from humotion_gym.files import write_text_atomically
 from humotion_gym.render_scene import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
 
 
@@ -370,7 +371,7 @@ def report(args: argparse.Namespace, result: Any, what: str, text: Callable[[], 
         The exit status, 0.
     """
     if args.out:
-        args.out.write_text(json_text(result, indent=1))
+        write_text_atomically(args.out, json_text(result, indent=1))
         if not args.json:
             wrote(args.out, what)
     if args.json:

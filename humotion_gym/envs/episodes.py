@@ -43,6 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from humotion_gym.envs.tasks import TASKS, VIEW_VARIANTS, TaskSpec
+from humotion_gym.files import write_text_atomically
 from humotion_gym.mocap.library import MotionLibrary, default_library, synthetic_library
 from humotion_gym.mocap.motion import Motion
 
@@ -358,8 +359,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         else:
             merged = {s: [EpisodeWindow(**w) for w in old["data"].get(s, [])] for s in SOURCES}
             merged.update(lists)
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(_dumps(_document(base, merged)), encoding="utf-8")
+            write_text_atomically(path, _dumps(_document(base, merged)))
         for s, ws in lists.items():
             n, clips, persons = sizes(ws)
             print(f"{base:10s} {s:10s} {n:3d} windows {clips:3d} clips {persons:2d} persons")

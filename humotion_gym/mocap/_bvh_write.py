@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from humotion_gym.files import write_atomically
 from humotion_gym.mocap._bvh_hierarchy import (
     _CHANNEL_KIND,
     CHANNEL_NAMES,
@@ -79,11 +80,15 @@ def write_bvh(
     else:
         rows = (" ".join(f"{v:.{decimals}f}" for v in row) for row in vals[:, cols].tolist())
     text = "\n".join(out) + "\n"
-    with open(path, "w", encoding="utf-8", newline="\n") as fh:
-        fh.write(text)
-        for row in rows:
-            fh.write(row)
-            fh.write("\n")
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(text)
+            for row in rows:
+                fh.write(row)
+                fh.write("\n")
+
+    write_atomically(path, write)
 
 
 def _checked(

@@ -1,4 +1,4 @@
-"""Files of the on-disk cache: atomic writes, entry paths, problems reported once.
+"""Files of the on-disk cache: entry paths, stale entries, problems reported once.
 
 Used for parsed clips (:func:`humotion_gym.mocap.library.load_library`) and
 fitted priors; everything here is re-exported by
@@ -9,10 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import os
-import threading
-import uuid
 import warnings
-from collections.abc import Callable
 from pathlib import Path
 
 from humotion_gym.mocap.motion import READ_ERRORS
@@ -121,23 +118,3 @@ def remove_stale_entries(folder: Path, place: str, kept: Path, legacy: str) -> N
         if old != kept and old.is_file():
             with contextlib.suppress(OSError):  # another process's, or read-only: left
                 old.unlink(missing_ok=True)
-
-
-def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
-    """Write a file through ``write(temporary path)`` then rename it onto ``path``.
-
-    The temporary file lies in the same folder with a name unique to the
-    process, the thread and the call, so concurrent writers never share one
-    and a reader never sees half a file. It is removed if writing fails.
-
-    Raises:
-        OSError: If the folder cannot be made or the file written.
-    """
-    path.parent.mkdir(parents=True, exist_ok=True)
-    token = f"{os.getpid()}.{threading.get_ident()}.{uuid.uuid4().hex[:12]}"
-    tmp = path.with_name(f".{path.name}.{token}.tmp")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)

@@ -25,7 +25,8 @@ from typing import Any
 
 from tqdm.auto import tqdm
 
-from humotion_gym.mocap._registry import RegistryEntry, _write_atomic
+from humotion_gym.files import write_text_atomically
+from humotion_gym.mocap._registry import RegistryEntry
 
 #: Suffix of a file still being downloaded.
 PART_SUFFIX = ".part"
@@ -242,7 +243,7 @@ class _Part:
         return data if isinstance(data, dict) and data.get("url") == self.url else None
 
     def write_sidecar(self, validator: str | None, total: int) -> None:
-        _write_atomic(
+        write_text_atomically(
             self.sidecar, json.dumps({"url": self.url, "validator": validator, "total": total})
         )
 

@@ -6,32 +6,14 @@ Re-exported by :mod:`humotion_gym.mocap.download`: :class:`RegistryEntry`,
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
-import os
 import re
-import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-
-def _write_atomic(path: Path, text: str) -> None:
-    # Write a sibling temp file then rename: readers see the old or the new
-    # file, never a torn one.
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-
+from humotion_gym.files import write_text_atomically
 
 #: The packaged registry of SHA-256 and sizes of CMU's files.
 REGISTRY_PATH = Path(__file__).resolve().parent / "data" / "cmu_sha256.txt"
@@ -127,7 +109,7 @@ def record_registry(src: str | Path, out: str | Path | None = None) -> dict[str,
     ]
     lines += [f"{e.sha256} {e.bytes} {rel}" for rel, e in sorted(entries.items())]
     out.parent.mkdir(parents=True, exist_ok=True)
-    _write_atomic(out, "\n".join(lines) + "\n")
+    write_text_atomically(out, "\n".join(lines) + "\n")
     return entries
 
 

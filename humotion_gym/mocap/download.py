@@ -73,6 +73,7 @@ from typing import Any
 from tqdm.auto import tqdm
 
 from humotion_gym.checks import is_count
+from humotion_gym.files import write_text_atomically
 from humotion_gym.mocap._http import (
     _MAX_TRIALS,
     DownloadError,
@@ -88,7 +89,6 @@ from humotion_gym.mocap._registry import (
     _check_file,
     _resolve_registry,
     _sha256,
-    _write_atomic,
     load_registry,
     record_registry,
 )
@@ -290,7 +290,8 @@ def _read_manifest(dest: Path, strict: bool = False) -> dict[str, dict[str, Any]
 
 
 def _write_manifest(dest: Path, manifest: dict[str, dict[str, Any]]) -> None:
-    _write_atomic(dest / MANIFEST_NAME, json.dumps(manifest, indent=1, sort_keys=True) + "\n")
+    text = json.dumps(manifest, indent=1, sort_keys=True) + "\n"
+    write_text_atomically(dest / MANIFEST_NAME, text)
 
 
 def _fetch(

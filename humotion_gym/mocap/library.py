@@ -35,6 +35,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from humotion_gym.checks import is_real
+from humotion_gym.files import write_atomically
 from humotion_gym.mocap._cache_files import (  # CacheWarning: re-exported, part of the API
     CACHE_ERRORS,
     CacheWarning,  # noqa: F401
@@ -43,7 +44,6 @@ from humotion_gym.mocap._cache_files import (  # CacheWarning: re-exported, part
     remove_stale_entries,
     report_cache_problem,
     report_unwritten,
-    write_atomically,
 )
 from humotion_gym.mocap.clip_files import (  # re-exported, part of the API
     ClipSource,

@@ -1,0 +1,92 @@
+"""Files are written whole or not at all (:mod:`humotion_gym.files`), videos and figures too."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from humotion_gym import video
+from humotion_gym.files import write_atomically, write_text_atomically
+
+
+def _cut(after: int, exc: BaseException):
+    """A writer that writes ``after`` bytes to its path, then raises ``exc``."""
+
+    def write(tmp: Path) -> None:
+        tmp.write_bytes(b"x" * after)
+        raise exc
+
+    return write
+
+
+def test_a_write_lands_whole_and_leaves_nothing_beside_it(tmp_path: Path) -> None:
+    target = tmp_path / "new" / "folder" / "a.json"
+    write_text_atomically(target, '{"a": 1}\n')
+    assert target.read_text(encoding="utf-8") == '{"a": 1}\n'
+    assert [p.name for p in target.parent.iterdir()] == ["a.json"]
+
+
+@pytest.mark.parametrize("exc", [OSError("disk full"), KeyboardInterrupt()], ids=repr)
+def test_a_failed_or_interrupted_write_keeps_the_old_file(
+    tmp_path: Path, exc: BaseException
+) -> None:
+    target = tmp_path / "a.bin"
+    target.write_bytes(b"old")
+    with pytest.raises(type(exc)):
+        write_atomically(target, _cut(100, exc))
+    assert target.read_bytes() == b"old"
+    assert [p.name for p in tmp_path.iterdir()] == ["a.bin"]
+    with pytest.raises(type(exc)):
+        write_atomically(tmp_path / "b.bin", _cut(100, exc))
+    assert not (tmp_path / "b.bin").exists()
+
+
+def test_the_temporary_name_is_hidden_and_keeps_the_suffix_when_asked(tmp_path: Path) -> None:
+    seen: list[Path] = []
+    for keep in (False, True):
+        write_atomically(
+            tmp_path / "v.mp4",
+            lambda tmp: (seen.append(tmp), tmp.write_bytes(b"")),
+            keep_suffix=keep,
+        )
+    assert [p.parent for p in seen] == [tmp_path, tmp_path]
+    assert all(p.name.startswith(".v.mp4.") for p in seen)
+    assert [p.suffix for p in seen] == [".tmp", ".mp4"]  # `cache clear` removes `.*.tmp`
+    assert seen[0].name != seen[1].name.removesuffix(".mp4")  # unique to the call
+
+
+@pytest.mark.parametrize("name", ["v.mp4", "v.avi"])
+def test_a_video_interrupted_while_written_leaves_none(
+    tmp_path: Path, name: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    frames = [np.full((16, 16, 3), 10 * i, np.uint8) for i in range(6)]
+    path = tmp_path / name
+    video.write_video(path, frames, fps=10)
+    whole = path.read_bytes()
+    assert len(whole) > 0
+    real, calls = video._to_bgr, []
+
+    def interrupted(frame, scale):
+        calls.append(1)
+        if len(calls) == 4:  # the first frame is converted once before writing
+            raise KeyboardInterrupt
+        return real(frame, scale)
+
+    monkeypatch.setattr(video, "_to_bgr", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        video.write_video(path, frames[::-1], fps=10)
+    assert path.read_bytes() == whole
+    with pytest.raises(KeyboardInterrupt):
+        calls.clear()
+        video.write_video(tmp_path / "other" / name, frames, fps=10)
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["other", name]
+
+
+def test_a_png_that_cannot_be_encoded_leaves_nothing(tmp_path: Path) -> None:
+    video.write_png(tmp_path / "a.png", np.zeros((4, 4, 3), np.uint8))
+    assert (tmp_path / "a.png").stat().st_size > 0
+    with pytest.raises(OSError, match="b.nosuchformat"):
+        video.write_png(tmp_path / "b.nosuchformat", np.zeros((4, 4, 3), np.uint8))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png"]
