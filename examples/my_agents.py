@@ -42,7 +42,8 @@ class Still:
         """The action that holds the episode's initial pose."""
         del state, deterministic
         if self._action is None or bool(np.any(episode_start)):
-            given = read_observation(observation)
+            # your description: an observation of another task is refused, not misread
+            given = read_observation(observation, self.description)
             start = given.initial_pose
             self._action = self.description.pose_to_action(start, start)
         return self._action, None

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import sys
 import warnings
+from pathlib import Path
 
 import pytest
 
@@ -93,3 +94,33 @@ def test_a_warning_while_importing_is_one_line(user_folder, capsys):
         assert main(["agents", "--import", "warns_cli"]) == 0
     err = capsys.readouterr().err
     assert "humotion-gym: warning: old style (DeprecationWarning)" in err
+
+
+def test_the_example_modules_agents_run_and_still_is_hold_written_out(monkeypatch, capsys):
+    """examples/my_agents.py, the page's template, runs as the page shows it.
+
+    ``still`` writes ``hold`` out by hand, so its row must be hold's to the
+    digit; ``pf-cv-mine`` is pf-cv's spec under another name, so its row must be
+    pf-cv's at the same particles and seeds.
+    """
+    root = Path(__file__).resolve().parents[2]
+    monkeypatch.chdir(root)
+    monkeypatch.setattr(sys, "path", [str(root), *sys.path])
+    saved = dict(AGENTS), dict(REFERENCES)
+    try:
+        argv = ["leaderboard", "--tasks", "BodyTrack-v2", "--particles", "30", "--episodes", "2"]
+        agents = ["--agents", "hold", "still", "pf-cv", "pf-cv-mine", "--json"]
+        assert main([*argv, *agents, "--import", "examples.my_agents"]) == 0
+    finally:
+        sys.modules.pop("examples.my_agents", None)
+        AGENTS.clear()
+        AGENTS.update(saved[0])
+        REFERENCES.clear()
+        REFERENCES.update(saved[1])
+    rows = {r["agent"]: r for r in json.loads(capsys.readouterr().out)["rows"]}
+    assert set(rows) == {"hold", "still", "pf-cv", "pf-cv-mine"}
+    for mine, theirs in (("still", "hold"), ("pf-cv-mine", "pf-cv")):
+        errors = [[e["errors_mm"] for e in rows[name]["episodes"]] for name in (mine, theirs)]
+        assert errors[0] == errors[1]
+    means = {name: rows[name]["summary"]["mean_error_mm"] for name in ("hold", "pf-cv")}
+    assert means["hold"] != means["pf-cv"]
