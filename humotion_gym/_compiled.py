@@ -17,9 +17,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from humotion_gym._jit import compiled
 
 #: Rows of a pose's geometry: 15 keypoints, then the x and y axes of 10 cones.
 GEOMETRY_ROWS = 35
@@ -61,7 +62,7 @@ _ROW = 3 * BLOCK
 # Not inlined by numba (its inlining of many small calls took seconds to
 # compile); LLVM inlines it. Callers pass the index ``row * _ROW + q``, not the
 # row: numba compiles a function once per literal argument it is called with.
-@numba.njit(cache=True, nogil=True)
+@compiled()
 def _write(work: NDArray[Any], at: int, x: float, y: float, z: float) -> None:
     """A geometry row's x, y and z of one pose of a block, at ``row * _ROW + q``."""
     work[at] = x
@@ -69,7 +70,7 @@ def _write(work: NDArray[Any], at: int, x: float, y: float, z: float) -> None:
     work[at + 2 * BLOCK] = z
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@compiled(inline="always")
 def _root(work: NDArray[Any], q: int) -> tuple[float, ...]:
     """Pose ``q``'s root rotation ``R = Rz(yaw) Rx(pitch) Ry(roll)``, by rows."""
     c, s = _INPUT * BLOCK + q, _SINE * BLOCK + q
@@ -83,7 +84,7 @@ def _root(work: NDArray[Any], q: int) -> tuple[float, ...]:
     )  # fmt: skip
 
 
-@numba.njit(cache=True, nogil=True)
+@compiled()
 def pose_block(
     params: NDArray[Any], cos: NDArray[Any], sin: NDArray[Any], shapes: NDArray[Any],
     b0: int, m: int, work: NDArray[Any],
@@ -136,7 +137,7 @@ def pose_block(
     _limb(work, 3)
 
 
-@numba.njit(cache=True, nogil=True)
+@compiled()
 def pose_geometry(
     params: NDArray[Any], cos: NDArray[Any], sin: NDArray[Any], shapes: NDArray[Any],
     out: NDArray[Any],
@@ -156,14 +157,14 @@ def pose_geometry(
                 row[r] = work[r * BLOCK + q]
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@compiled(inline="always")
 def _copy(src: NDArray[Any], dst: NDArray[Any]) -> None:
     """``dst[:src.size] = src``, one-dimensional."""
     for q in range(src.size):
         dst[q] = src[q]
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@compiled(inline="always")
 def _trunk(work: NDArray[Any]) -> None:
     """A block's pelvis, neck base and head, and the torso's and head's axes."""
     for q in range(BLOCK):
@@ -207,7 +208,7 @@ def _trunk(work: NDArray[Any]) -> None:
         )  # fmt: skip
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@compiled(inline="always")
 def _limb(work: NDArray[Any], i: int) -> None:
     """Limb ``i`` of a block: base, middle and tip keypoints, two cones' axes.
 
@@ -262,19 +263,19 @@ def _limb(work: NDArray[Any], i: int) -> None:
         _write(work, (16 + 2 * lower_cone) * _ROW + q, dx, dy, dz)
 
 
-@numba.njit(cache=True, nogil=True)
+@compiled()
 def _fixed(value: float, far: float) -> np.int32:
     """A fixed-point coordinate clipped to +-far, truncated as numpy's cast to int32."""
     return np.int32(min(max(value, -far), far))
 
 
-@numba.njit(cache=True, nogil=True)
+@compiled()
 def _cross(o: NDArray[np.int64], a: NDArray[np.int64], b: NDArray[np.int64]) -> int:
     """The z of ``(a - o) x (b - o)``: positive for a left turn (exact in int64)."""
     return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
 
 
-@numba.njit(cache=True, nogil=True)
+@compiled()
 def _hull_in_place(
     points: NDArray[np.int32], pts: NDArray[np.int64], hull: NDArray[np.int64]
 ) -> None:
@@ -309,7 +310,7 @@ def _hull_in_place(
         points[j, 1] = hull[j if j < size else 0, 1]
 
 
-@numba.njit(cache=True, nogil=True)
+@compiled()
 def figure_polygons(
     g: NDArray[np.float64], cone_rows: NDArray[np.intp], radii: NDArray[np.float64],
     aspect: NDArray[np.float64], ring: NDArray[np.float64], camera: NDArray[np.float64],
@@ -369,7 +370,7 @@ def figure_polygons(
         counts[t] = count
 
 
-@numba.njit(cache=True, nogil=True)
+@compiled()
 def _cone(
     g: NDArray[np.float64], n_kp: int, c: int, cone_rows: NDArray[np.intp],
     radii: NDArray[np.float64], aspect: NDArray[np.float64], ring: NDArray[np.float64],

@@ -6,21 +6,22 @@ per-element loop, is in ``tests/test_filtering.py``.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from humotion_gym._jit import compiled
 
 _TURN = 2.0 * np.pi
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@compiled(inline="always")
 def _wrapped(angle: float, centre: float) -> np.float32:
     """``angle - centre`` wrapped to ``[-pi, pi]`` in double precision, then single."""
     offset = angle - centre
     return np.float32(offset - np.rint(offset * (1.0 / _TURN)) * _TURN)
 
 
-@numba.njit(cache=True, nogil=True)
+@compiled()
 def wrapped_offsets(
     particles: NDArray[np.float64],
     columns: NDArray[np.intp],

@@ -10,10 +10,10 @@ make a dozen temporaries of that size: the cones' image bases
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from humotion_gym._jit import compiled
 from humotion_gym.body import N_CONES, N_KEYPOINTS
 from humotion_gym.kinematics import BLOCK, BLOCK_SIZE, pose_block
 
@@ -32,7 +32,7 @@ _REASSOCIATE = {"nsz", "arcp", "contract", "afn", "reassoc"}
 _BLOCK = 128
 
 
-@numba.njit(cache=True, nogil=True)
+@compiled()
 def cone_bases(
     params: NDArray[np.floating], cos: NDArray[np.floating], sin: NDArray[np.floating],
     shapes: NDArray[np.floating], rot: NDArray[np.float64], trans: NDArray[np.float64],
@@ -87,7 +87,7 @@ def cone_bases(
 
 # error_model "numpy": a division by zero gives inf rather than raising, which
 # lets the projection's divisions vectorise (its divisors are never zero).
-@numba.njit(cache=True, nogil=True, fastmath=_REASSOCIATE, error_model="numpy")
+@compiled(fastmath=_REASSOCIATE, error_model="numpy")
 def _block_bases(
     work: NDArray[np.floating], b0: int, m: int, rot: NDArray[np.float64],
     trans: NDArray[np.float64], intrinsics: NDArray[np.float64], cones: NDArray[np.intp],
@@ -164,7 +164,7 @@ def _block_bases(
         low[j] = min(work[za + j], work[zb + j])
 
 
-@numba.njit(cache=True, nogil=True)
+@compiled()
 def _section_widths(
     work: NDArray[np.floating],
     row: int,
@@ -196,7 +196,7 @@ def _section_widths(
         out[j] = np.sqrt(xm * xm + ym * ym)
 
 
-@numba.njit(cache=True, nogil=True)
+@compiled()
 def point_costs(
     basis: NDArray[np.float32],
     outline: NDArray[np.int32],
@@ -257,7 +257,7 @@ def point_costs(
                 out[ci, j] += cost[index[j]]
 
 
-@numba.njit(cache=True, nogil=True)
+@compiled()
 def residual_sums(
     segments: NDArray[np.float32],
     q: NDArray[np.float32],
@@ -309,7 +309,7 @@ def residual_sums(
             out[j, f] = total
 
 
-@numba.njit(cache=True, nogil=True)
+@compiled()
 def coverage_sums(
     basis: NDArray[np.float32],
     cones: NDArray[np.intp],
@@ -353,7 +353,7 @@ def coverage_sums(
         _coverage_block(basis, cones, q, tau, masks, full, n - full, nearest, co, d, out)
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@compiled(inline="always")
 def _coverage_block(
     basis: NDArray[np.float32], cones: NDArray[np.intp], q: NDArray[np.float32], tau: np.float32,
     masks: NDArray[np.bool_], j0: int, m: int, nearest: NDArray[np.float32],

@@ -16,9 +16,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from humotion_gym._jit import compiled
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -28,8 +29,7 @@ _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 
 
 def _njit(**options: Any) -> Any:
-    # nogil: filters on several threads run in parallel.
-    return numba.njit(cache=True, nogil=True, error_model="numpy", **options)
+    return compiled(error_model="numpy", **options)
 
 
 @_njit(inline="always")

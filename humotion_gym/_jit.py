@@ -1,0 +1,96 @@
+"""numba's compiler for every compiled pass of both packages, its cache kept where it can be.
+
+numba writes each compiled function to a cache (``__pycache__`` beside the
+module, else ``$NUMBA_CACHE_DIR``, else ``~/.cache/numba``), so that later
+processes load it in milliseconds instead of compiling for seconds. It looks
+for that folder when a function is decorated, on import, and raises where it
+finds none that it can write: an install in a read-only image with a
+read-only home would fail on ``import humotion_gym``. :func:`compiled` then
+points numba's cache at a folder of the user's own under the system's
+temporary folder, once, with a warning naming ``NUMBA_CACHE_DIR``; where even
+that cannot be written, the functions are compiled in every process.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numba
+from numba.core import config as numba_config
+
+#: numba's message where no cache folder can be written for a function.
+_NO_LOCATOR = "cannot cache function"
+#: Empty until a function finds no cache folder; then whether the cache moved to the
+#: temporary folder.
+_moved: list[bool] = []
+
+
+def _own_temporary_folder() -> str | None:
+    """A folder of this user's under the system's temporary folder for numba's cache, or None."""
+    user = os.getuid() if hasattr(os, "getuid") else os.environ.get("USERNAME", "user")
+    folder = Path(tempfile.gettempdir()) / f"numba-cache-{user}"
+    try:
+        folder.mkdir(mode=0o700, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError:
+        return None
+    return str(folder)
+
+
+def _use_temporary_cache() -> bool:
+    """Point numba's cache at :func:`_own_temporary_folder` (and say so); False if none."""
+    folder = _own_temporary_folder()
+    if folder is None:
+        warnings.warn(
+            "numba can write its cache nowhere (beside humotion_gym, in $NUMBA_CACHE_DIR, "
+            "~/.cache or the temporary folder): the compiled passes are compiled again in "
+            "every process (seconds); set NUMBA_CACHE_DIR to a writable folder",
+            stacklevel=3,
+        )
+        return False
+    # The variable too: numba reloads its settings from the environment, and
+    # processes started from this one (Ray's workers, a fit's) inherit it.
+    os.environ["NUMBA_CACHE_DIR"] = folder
+    setattr(numba_config, "CACHE_DIR", folder)  # noqa: B010  (set by numba from the environment)
+    warnings.warn(
+        f"numba cannot write its cache beside humotion_gym or in your home: it is kept in "
+        f"{folder}; set NUMBA_CACHE_DIR to a writable folder to choose where",
+        stacklevel=3,
+    )
+    return True
+
+
+def compiled(**options: Any) -> Callable[[Callable[..., Any]], Any]:
+    """``numba.njit(cache=True, nogil=True, **options)``, with a cache wherever one can be.
+
+    ``nogil``: filters and environments on several threads run in parallel.
+    Where numba finds no folder it can write its cache to, the cache moves to
+    the temporary folder (:func:`_use_temporary_cache`), else is dropped.
+
+    Args:
+        **options: numba's other options (``inline``, ``error_model``...).
+    """
+
+    def decorate(function: Callable[..., Any]) -> Any:
+        try:
+            return numba.njit(cache=True, nogil=True, **options)(function)
+        except RuntimeError as exc:
+            if _NO_LOCATOR not in str(exc):
+                raise
+        if not _moved:  # the first function without a cache: move it, once
+            _moved.append(_use_temporary_cache())
+        if _moved[0]:
+            try:
+                return numba.njit(cache=True, nogil=True, **options)(function)
+            except RuntimeError as exc:
+                if _NO_LOCATOR not in str(exc):
+                    raise
+        return numba.njit(nogil=True, **options)(function)
+
+    return decorate

@@ -1,0 +1,80 @@
+"""numba's cache where none can be written: ``import`` still works (:mod:`humotion_gym._jit`)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numba
+import pytest
+
+from humotion_gym import _jit
+
+ROOT = Path(__file__).resolve().parents[1]
+MODULE = (
+    "from humotion_gym._jit import compiled\n\n\n@compiled()\ndef twice(x):\n    return 2 * x\n"
+)
+
+
+def test_a_module_whose_cache_cannot_be_written_imports_and_caches_in_the_temporary_folder(
+    tmp_path: Path,
+) -> None:
+    # No folder numba would use can be made: __pycache__ beside the module is a
+    # file, and the home lies under a file (so ~/.cache cannot be made either).
+    (tmp_path / "mod").mkdir()
+    (tmp_path / "mod" / "blocked_cache.py").write_text(MODULE)
+    (tmp_path / "mod" / "__pycache__").write_text("a file, not a folder")
+    (tmp_path / "afile").write_text("")
+    (tmp_path / "tmp").mkdir()
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "XDG_CACHE_HOME")}
+    env.update(
+        HOME=str(tmp_path / "afile" / "home"),
+        TMPDIR=str(tmp_path / "tmp"),
+        PYTHONPATH=os.pathsep.join([str(tmp_path / "mod"), str(ROOT)]),
+    )
+    run = [
+        sys.executable,
+        "-W",
+        "always",
+        "-c",
+        "import blocked_cache; print(blocked_cache.twice(21))",
+    ]
+    first = subprocess.run(run, env=env, capture_output=True, text=True, timeout=300)
+    assert first.returncode == 0, first.stderr
+    assert first.stdout.strip() == "42"
+    assert "set NUMBA_CACHE_DIR" in first.stderr and "numba-cache-" in first.stderr
+    caches = list((tmp_path / "tmp").glob("numba-cache-*"))
+    assert len(caches) == 1
+    assert any(p.name.startswith("blocked_cache.twice") for p in caches[0].rglob("*.nbi"))
+    second = subprocess.run(run, env=env, capture_output=True, text=True, timeout=300)
+    assert second.returncode == 0 and second.stdout.strip() == "42"
+
+
+def _refusing_cache(real):
+    def njit(*args, **options):
+        if options.get("cache"):
+            raise RuntimeError("cannot cache function 'f': no locator available for file 'x.py'")
+        return real(*args, **options)
+
+    return njit
+
+
+def test_without_any_writable_folder_the_functions_compile_uncached(monkeypatch) -> None:
+    monkeypatch.setattr(_jit, "_moved", [])
+    monkeypatch.setattr(_jit, "_own_temporary_folder", lambda: None)
+    monkeypatch.setattr(_jit.numba, "njit", _refusing_cache(numba.njit))
+    with pytest.warns(UserWarning, match="compiled again in every process"):
+        twice = _jit.compiled()(lambda x: 2 * x)
+    assert twice(21) == 42
+    assert _jit._moved == [False]
+
+
+def test_another_compile_error_is_not_hidden(monkeypatch) -> None:
+    def broken(*args, **options):
+        raise RuntimeError("something else")
+
+    monkeypatch.setattr(_jit.numba, "njit", broken)
+    with pytest.raises(RuntimeError, match="something else"):
+        _jit.compiled()(lambda x: x)
