@@ -1,9 +1,11 @@
-"""Files written whole or not at all: a temporary file renamed over the target.
+"""Files written whole or not at all, and ``.npz`` archives read without pickle.
 
 Every file the project writes for later reading (cache entries, fitted
 priors, leaderboard results, figures, videos, download manifests) goes
 through :func:`write_atomically`, so that a reader, a second process or a
 Ctrl-C in the middle never leaves a cut file where a whole one is expected.
+Every ``.npz`` it reads back (cache entries, priors, detector weights) is
+opened by :func:`load_npz`.
 """
 
 from __future__ import annotations
@@ -13,6 +15,9 @@ import threading
 import uuid
 from collections.abc import Callable
 from pathlib import Path
+from typing import BinaryIO
+
+import numpy as np
 
 
 def write_atomically(
@@ -60,4 +65,41 @@ def write_text_atomically(path: str | Path, text: str) -> None:
     write_atomically(path, write)
 
 
-__all__ = ["write_atomically", "write_text_atomically"]
+#: The first bytes of a zip archive (an ``.npz``; the second, an empty one) and of a ``.npy``.
+_ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
+_NPY_MAGIC = b"\x93NUMPY"
+
+
+def load_npz(fh: BinaryIO) -> np.lib.npyio.NpzFile:
+    """``np.load(fh, allow_pickle=False)`` of an ``.npz`` archive; anything else refused.
+
+    numpy reads bytes that are neither a zip archive nor a ``.npy`` array as a
+    pickle, which ``allow_pickle=False`` refuses with advice to load it
+    unsafely: for a damaged file, the wrong advice. The first bytes are
+    checked here instead.
+
+    Args:
+        fh: A binary file open for reading, at the archive's start (the
+            caller closes it).
+
+    Returns:
+        The archive (its members read on access).
+
+    Raises:
+        ValueError: If the file is empty, a lone ``.npy`` array or neither.
+        OSError, EOFError, zipfile.BadZipFile: As numpy raises for a damaged archive.
+    """
+    start = fh.tell()
+    magic = fh.read(len(_NPY_MAGIC))
+    fh.seek(start)
+    if not magic.startswith(_ZIP_MAGIC):
+        what = "an empty file" if not magic else "a lone .npy array"
+        if magic and magic != _NPY_MAGIC:
+            what = "neither a zip archive nor a .npy array"
+        raise ValueError(f"not an .npz archive ({what})")
+    loaded = np.load(fh, allow_pickle=False)
+    assert isinstance(loaded, np.lib.npyio.NpzFile)  # a zip's first bytes: numpy's NpzFile
+    return loaded
+
+
+__all__ = ["load_npz", "write_atomically", "write_text_atomically"]

@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 from torch import nn
 
 from humotion_gym.body import KEYPOINT_NAMES
-from humotion_gym.files import write_atomically
+from humotion_gym.files import load_npz, write_atomically
 
 FloatArray = NDArray[np.float64]
 
@@ -184,7 +184,7 @@ def load_weights(path: str | Path) -> HeatmapNet:
             f"{p}: no detector weights; make them with `humotion-gym detector train --out DIR`"
         )
     try:  # reading each member whole checks its CRC: damage is a BadZipFile or zlib.error
-        with np.load(p, allow_pickle=False) as data:
+        with open(p, "rb") as fh, load_npz(fh) as data:
             arrays = {k: data[k] for k in data.files}
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
         raise ValueError(f"{p}: not a detector weights .npz ({exc})") from None

@@ -17,7 +17,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from humotion_gym.files import write_atomically
+from humotion_gym.files import load_npz, write_atomically
 
 T = TypeVar("T")
 
@@ -146,8 +146,7 @@ def read_arrays(
     return out
 
 
-#: What opening a damaged or foreign file as ``.npz`` raises (a text file reads
-#: as a pickle, which ``allow_pickle=False`` refuses with a ValueError).
+#: What opening a damaged or foreign file as ``.npz`` raises.
 _NOT_NPZ = (OSError, EOFError, ValueError, zipfile.BadZipFile, zlib.error)
 #: What reading a member of a damaged ``.npz`` raises.
 _DAMAGED = (OSError, EOFError, zipfile.BadZipFile, zlib.error)
@@ -166,16 +165,13 @@ def open_npz(path: str | Path, what: str) -> Iterator[Any]:
         ValueError: If it is not an ``.npz`` (empty, cut short, text, a
             ``.npy`` array) or a member is damaged; the message names the file.
     """
-    try:
-        data = np.load(path, allow_pickle=False)
-    except FileNotFoundError:
-        raise
-    except _NOT_NPZ as exc:
-        raise ValueError(f"{path}: not saved {what} (an .npz of arrays) ({exc})") from None
-    if not isinstance(data, np.lib.npyio.NpzFile):
-        raise ValueError(f"{path}: not saved {what} (a .npy array, not an .npz of arrays)")
-    with data:
+    with open(path, "rb") as fh:
         try:
-            yield data
-        except _DAMAGED as exc:
-            raise ValueError(f"{path}: damaged {what} file ({exc})") from None
+            data = load_npz(fh)
+        except _NOT_NPZ as exc:
+            raise ValueError(f"{path}: not saved {what} ({exc})") from None
+        with data:
+            try:
+                yield data
+            except _DAMAGED as exc:
+                raise ValueError(f"{path}: damaged {what} file ({exc})") from None

@@ -37,7 +37,7 @@ from numpy.typing import ArrayLike
 
 from baselines.priors import get_prior
 from humotion_gym.checks import is_integer, is_real
-from humotion_gym.files import write_atomically
+from humotion_gym.files import load_npz, write_atomically
 from humotion_gym.mocap.library import (
     CACHE_ERRORS,
     CACHE_VERSION,
@@ -209,10 +209,7 @@ def _read_prior_entry(module: ModuleType, path: Path, info: Mapping[str, str]) -
         Any of :data:`CACHE_ERRORS`: If the file cannot be read.
     """
     with open(path, "rb") as fh:  # closed whatever np.load raises
-        loaded = np.load(fh, allow_pickle=False)
-        if not isinstance(loaded, np.lib.npyio.NpzFile):
-            raise ValueError(f"a lone {type(loaded).__name__} (.npy), not an .npz archive")
-        with loaded as data:
+        with load_npz(fh) as data:
             if "__cache__" not in data.files:
                 raise ValueError("no __cache__ header: not written by the prior cache")
             raw = data["__cache__"]

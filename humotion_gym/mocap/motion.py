@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from humotion_gym.body import N_KEYPOINTS, N_PARAMS, BodyShape, forward_kinematics
+from humotion_gym.files import load_npz
 
 FloatArray = NDArray[np.float64]
 
@@ -197,10 +198,7 @@ class Motion:
         try:
             # Open the file here so that it is closed whatever np.load raises.
             with open(path, "rb") as fh:
-                loaded = np.load(fh, allow_pickle=False)
-                if not isinstance(loaded, np.lib.npyio.NpzFile):
-                    raise ValueError(f"a lone {type(loaded).__name__} (.npy), not an .npz archive")
-                with loaded as data:
+                with load_npz(fh) as data:
                     names = set(data.files)
                     if names != _SAVED_ARRAYS | {"header"}:
                         expected = sorted(_SAVED_ARRAYS | {"header"})

@@ -277,7 +277,7 @@ def test_messages_say_what_was_wrong(env, tmp_path):
     _fit(env, cache)
     (path,) = _entries(cache)
     path.write_bytes(b"")
-    with pytest.warns(CacheWarning, match=r"bad constant_velocity entry: EOFError"):
+    with pytest.warns(CacheWarning, match=r"bad constant_velocity entry: .*an empty file"):
         _fit(env, cache)
     _other_settings(path, {"env": env, "cache": cache})
     with pytest.warns(CacheWarning, match=r"foreign entry: .*settings="):
