@@ -21,13 +21,17 @@ a bug and keeps its traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import re
+import signal
 import sys
 import textwrap
+import threading
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from types import FrameType
 from typing import NoReturn, TextIO
 
 from humotion_gym.cli._common import (
@@ -191,6 +195,49 @@ def _check_inputs(args: argparse.Namespace) -> None:
             check_mocap_paths(value, flag)
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the command is, so that it ends as Ctrl-C does.
+
+    A ``KeyboardInterrupt``: every ``finally`` runs (a file being written is
+    removed, not left cut), the leaderboard saves what it finished, and the
+    command ends in one line, with exit code 143 (128 + SIGTERM) instead of
+    Ctrl-C's 130.
+    """
+
+
+def interruption(exc: KeyboardInterrupt) -> tuple[str, int]:
+    """What an interrupted command says and its exit code: Ctrl-C's, or SIGTERM's."""
+    return ("terminated", 143) if isinstance(exc, Terminated) else ("interrupted", 130)
+
+
+def _raise_terminated(signum: int, frame: FrameType | None) -> NoReturn:
+    raise Terminated
+
+
+def _default_in_child() -> None:
+    # A process forked while a command runs (a fit's workers) dies of SIGTERM as
+    # before: raising in a pool's idle worker would print its traceback.
+    if signal.getsignal(signal.SIGTERM) is _raise_terminated:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_default_in_child)
+
+
+@contextlib.contextmanager
+def terminated_as_interrupt() -> Iterator[None]:
+    """While the block runs, SIGTERM raises :class:`Terminated` (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv: Sequence[str] | None = None, modules: Sequence[str] = COMMAND_MODULES) -> int:
     """Run one command line over the given command modules; returns the exit code.
 
@@ -199,25 +246,32 @@ def main(argv: Sequence[str] | None = None, modules: Sequence[str] = COMMAND_MOD
     writes nothing. A usage error ends in one line and exit code 2, an error
     the user can act on (:func:`_runtime_errors`) in one line and 1 (with
     ``HUMOTION_TRACEBACK=1``, its traceback instead), Ctrl-C in one line and
-    130; any other exception is a bug and keeps its traceback.
+    130 (SIGTERM as Ctrl-C, in one line and 143: :class:`Terminated`); any
+    other exception is a bug and keeps its traceback.
 
     Args:
         argv: The arguments (default: ``sys.argv[1:]``).
         modules: The command modules (see :func:`build_parser`).
     """
-    parser = build_parser(modules)
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if not argv:
-        parser.print_help()
-        return 0
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:  # --help, --version (0) or a usage error (2)
-        return exc.code if isinstance(exc.code, int) else 2
-    limit_blas_threads()  # see humotion_gym.threads for why and for Python users
-    with warnings.catch_warnings():  # restores the caller's warning display on return
-        warnings.showwarning = one_line_warning
-        return _run(parser, args)
+    with terminated_as_interrupt():
+        try:
+            parser = build_parser(modules)
+            argv = list(sys.argv[1:] if argv is None else argv)
+            if not argv:
+                parser.print_help()
+                return 0
+            try:
+                args = parser.parse_args(argv)
+            except SystemExit as exc:  # --help, --version (0) or a usage error (2)
+                return exc.code if isinstance(exc.code, int) else 2
+        except KeyboardInterrupt as exc:  # before the command started: nothing written
+            word, code = interruption(exc)
+            print(f"humotion-gym: {word}", file=sys.stderr)
+            return code
+        limit_blas_threads()  # see humotion_gym.threads for why and for Python users
+        with warnings.catch_warnings():  # restores the caller's warning display on return
+            warnings.showwarning = one_line_warning
+            return _run(parser, args)
 
 
 def one_line_warning(
@@ -251,9 +305,10 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
             raise
         _error(parser, args, f"{exc}; install the {extra} extra: pip install -e '.[{extra}]'")
         return 1
-    except KeyboardInterrupt:  # Ctrl-C: what was written stays (commands write as they go)
-        print(f"{parser.prog} {args.command}: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:  # what was written stays (commands write as they go)
+        word, code = interruption(exc)
+        print(f"{parser.prog} {args.command}: {word}", file=sys.stderr)
+        return code
     except _runtime_errors() as exc:
         if os.environ.get(TRACEBACK_ENV) == "1":
             raise

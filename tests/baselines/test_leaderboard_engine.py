@@ -418,7 +418,10 @@ def test_an_interrupted_run_exits_130_keeps_its_episodes_and_resumes(tmp_path, c
     monkeypatch.setattr(engine, "run_episode", interrupted_after_three)
     argv = [*_cli(tmp_path, "pf-cv", "random"), "--episodes", "2", "--no-report"]
     assert main(argv) == 130
-    assert "--resume" in capsys.readouterr().err
+    err = capsys.readouterr().err  # (the progress bars' lines besides)
+    said = [line for line in err.splitlines() if "interrupted" in line or "--resume" in line]
+    assert len(said) == 1 and said[0].startswith("humotion-gym leaderboard: interrupted; ")
+    assert said[0].endswith(" --resume")
     assert len(_lines(tmp_path / "lb")) == 3
     monkeypatch.undo()
     assert main([*argv, "--resume"]) == 0

@@ -1,0 +1,120 @@
+"""Ctrl-C and SIGTERM end every command in one line, from the command line's first instant.
+
+SIGTERM (a job scheduler's stop, ``kill``, a container's) used to kill a
+command silently, leaving the temporary file of a video being written; a
+Ctrl-C while the command line was still importing printed Python's
+traceback. Now SIGTERM raises :class:`humotion_gym.cli.Terminated` (a
+``KeyboardInterrupt``) where the command is: the same one line, files whole,
+exit code 143.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+
+from baselines.cli import main
+from humotion_gym.cli import Terminated
+
+ROOT = Path(__file__).resolve().parents[1]
+pytestmark = pytest.mark.skipif(
+    threading.current_thread() is not threading.main_thread() or not hasattr(signal, "SIGTERM"),
+    reason="signal handlers are set in the main thread only",
+)
+
+
+def test_sigterm_during_a_command_ends_in_one_line_and_143(monkeypatch, capsys) -> None:
+    from humotion_gym.cli import tasks as tasks_cli
+
+    def terminated(args):
+        os.kill(os.getpid(), signal.SIGTERM)
+        raise AssertionError("SIGTERM did not stop the command")
+
+    before = signal.getsignal(signal.SIGTERM)
+    monkeypatch.setattr(tasks_cli, "_cmd_tasks", terminated)
+    assert main(["tasks"]) == 143
+    assert capsys.readouterr().err == "humotion-gym tasks: terminated\n"
+    assert signal.getsignal(signal.SIGTERM) is before  # the caller's handler is back
+
+
+def test_ctrl_c_while_the_parser_is_built_ends_in_one_line(monkeypatch, capsys) -> None:
+    import humotion_gym.cli as benchmark_cli
+
+    def interrupted(modules):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(benchmark_cli, "build_parser", interrupted)
+    assert main(["tasks"]) == 130
+    assert capsys.readouterr().err == "humotion-gym: interrupted\n"
+
+
+def _run(code: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(cwd), str(ROOT)])}
+    return subprocess.run(
+        [sys.executable, "-c", code], cwd=cwd, env=env, capture_output=True, text=True, timeout=300
+    )
+
+
+def test_a_signal_while_the_command_line_imports_ends_in_one_line(tmp_path: Path) -> None:
+    for sig, word, code in (
+        (signal.SIGINT, "interrupted", 130),
+        (signal.SIGTERM, "terminated", 143),
+    ):
+        # the signal arrives while the console script imports the command line
+        script = (
+            "import builtins, os, signal, sys\n"
+            "real = builtins.__import__\n"
+            "def signalled(name, *args, **kwargs):\n"
+            f"    if name == 'baselines.cli': os.kill(os.getpid(), {int(sig)})\n"
+            "    return real(name, *args, **kwargs)\n"
+            "builtins.__import__ = signalled\n"
+            "from baselines.console import main\n"
+            "sys.exit(main())\n"
+        )
+        done = _run(script, tmp_path)
+        assert (done.returncode, done.stderr) == (code, f"humotion-gym: {word}\n")
+
+
+def test_sigterm_while_a_video_is_written_leaves_no_file_and_one_line(tmp_path: Path) -> None:
+    # A user's --import module stops the command at the video's fifth frame.
+    (tmp_path / "stop_at_frame_five.py").write_text(
+        "import os, signal\n"
+        "from humotion_gym import video\n"
+        "real, calls = video._to_bgr, []\n"
+        "def stopping(frame, scale):\n"
+        "    calls.append(1)\n"
+        "    if len(calls) == 5:\n"
+        "        os.kill(os.getpid(), signal.SIGTERM)\n"
+        "    return real(frame, scale)\n"
+        "video._to_bgr = stopping\n"
+    )
+    argv = [
+        "track", "--task", "ArmTrack-v2", "--agent", "hold", "--episodes", "1",
+        "--video", "out/episode.mp4", "--import", "stop_at_frame_five",
+    ]  # fmt: skip
+    done = _run(
+        f"import sys\nfrom baselines.console import main\nsys.exit(main({argv!r}))", tmp_path
+    )
+    assert done.returncode == 143, done.stderr
+    assert done.stderr.splitlines()[-1] == "humotion-gym track: terminated"
+    assert "Traceback" not in done.stderr
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == []
+
+
+def test_a_fork_made_meanwhile_dies_of_sigterm_as_before() -> None:
+    from humotion_gym.cli import terminated_as_interrupt
+
+    with terminated_as_interrupt():
+        assert signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL
+        pid = os.fork()
+        if pid == 0:  # the child: the default handler, so SIGTERM ends it silently
+            os._exit(0 if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL else 1)
+        _, status = os.waitpid(pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0
+    assert issubclass(Terminated, KeyboardInterrupt)
