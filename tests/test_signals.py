@@ -1,11 +1,13 @@
-"""Ctrl-C and SIGTERM end every command in one line, from the command line's first instant.
+"""Ctrl-C and SIGTERM end every command in one line; one command at a time writes a folder.
 
 SIGTERM (a job scheduler's stop, ``kill``, a container's) used to kill a
 command silently, leaving the temporary file of a video being written; a
 Ctrl-C while the command line was still importing printed Python's
 traceback. Now SIGTERM raises :class:`humotion_gym.cli.Terminated` (a
 ``KeyboardInterrupt``) where the command is: the same one line, files whole,
-exit code 143.
+exit code 143. A command holds each folder it writes into while it runs
+(``humotion_gym.cli._common.hold_output_folders``): a second command into
+the same folder is refused.
 """
 
 from __future__ import annotations
@@ -118,3 +120,25 @@ def test_a_fork_made_meanwhile_dies_of_sigterm_as_before() -> None:
         _, status = os.waitpid(pid, 0)
     assert os.waitstatus_to_exitcode(status) == 0
     assert issubclass(Terminated, KeyboardInterrupt)
+
+
+def test_a_folder_another_command_writes_into_is_refused(tmp_path: Path, capsys) -> None:
+    fcntl = pytest.importorskip("fcntl")
+    out = tmp_path / "lb"
+    out.mkdir()
+    argv = ["leaderboard", "--tasks", "ArmTrack-v2", "--agents", "hold", "--episodes", "1"]
+    fd = os.open(out, os.O_RDONLY)  # as another command holds it
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        assert main([*argv, "--out", str(out), "--no-report"]) == 2
+        err = capsys.readouterr().err
+        assert f"--out: another humotion-gym command is writing into {out}" in err
+        assert list(out.iterdir()) == []
+    finally:
+        os.close(fd)
+    assert main([*argv, "--out", str(out), "--no-report"]) == 0  # released: it runs
+    fd = os.open(out, os.O_RDONLY)  # and the command let go of it when it ended
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    finally:
+        os.close(fd)

@@ -40,6 +40,7 @@ from humotion_gym.cli._common import (
     print_json,
     wrote,
 )
+from humotion_gym.files import write_text_atomically
 from humotion_gym.render_scene import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE, SCENE_MAXIMA
 
 #: The settings a sweep varies, in ``--help`` order: each one's flag (``--NAME``, with
@@ -140,7 +141,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     say = (lambda *_: None) if args.json else wrote  # --json: stdout holds the JSON alone
     say(sweep.save(result, args.out / "sweep.json"), "every episode at every setting")
     table = sweep.markdown(result)
-    (args.out / "sweep.md").write_text(table + "\n")
+    write_text_atomically(args.out / "sweep.md", table + "\n")
     if args.json:
         problems = [{"kind": kind, "what": what} for kind, what in sweep.problems(result)]
         print_json({"curves": sweep.curves(result), "not_run": problems})

@@ -30,8 +30,10 @@ from humotion_gym.cli._common import (
     output_file,
     positive_int,
     print_json,
+    shared_output_dir,
     wrote,
 )
+from humotion_gym.files import write_atomically
 
 #: The repository's hyperparameter file (RL Baselines3 Zoo format), when present.
 DEFAULT_HYPERPARAMS = Path(__file__).resolve().parents[2] / "hyperparams" / "ppo.yml"
@@ -98,7 +100,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     tr.add_argument("--threads", type=positive_int, default=1, help="torch threads (default: 1)")
     tr.add_argument(
-        "--export", type=output_dir, default=None, metavar="DIR",
+        "--export", type=shared_output_dir, default=None, metavar="DIR",
         help="also copy the model and its config to DIR/ALGO-TASK.zip and .json, as the "
         "pretrained checkpoints in baselines/checkpoints are made (default: none)",
     )  # fmt: skip
@@ -213,9 +215,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
     run_config = json.loads((out / "config.json").read_text())
     if export is not None:
-        export.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(path, export)
-        shutil.copyfile(out / "config.json", export.with_suffix(".json"))
+        for source, target in ((path, export), (out / "config.json", export.with_suffix(".json"))):
+            write_atomically(target, lambda tmp, s=source: shutil.copyfile(s, tmp))
         if not args.json:
             wrote(export, "the policy (and its config beside it)")
     if args.json:

@@ -23,6 +23,7 @@ from baselines.leaderboard.evaluation import evaluate
 from baselines.leaderboard.stats import iqm, stratified_bootstrap_ci
 from baselines.rl import TrainConfig, checkpoints, train
 from humotion_gym.envs import get_task
+from humotion_gym.files import write_atomically, write_text_atomically
 
 
 def checkpoint_errors(
@@ -111,8 +112,7 @@ def learning_curve(
     result = {"task": get_task(task).name, "seeds": list(seeds), "episodes": episodes,
               "steps": steps, "hold_mm": hold_mm, "curves": curves}  # fmt: skip
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.with_suffix(".json").write_text(json.dumps(result, indent=1))
+    write_text_atomically(out.with_suffix(".json"), json.dumps(result, indent=1))
     _plot_curve(result, out)
     return result
 
@@ -147,5 +147,7 @@ def _plot_curve(result: dict[str, Any], out: Path) -> None:
     )
     ax.legend()
     fig.tight_layout()
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
+    try:
+        write_atomically(out, lambda tmp: fig.savefig(tmp, dpi=120), keep_suffix=True)
+    finally:
+        plt.close(fig)

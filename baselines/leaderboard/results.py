@@ -25,7 +25,7 @@ from baselines.leaderboard.figures import figures_available
 from baselines.leaderboard.platform_info import run_platform
 from baselines.leaderboard.report import write_report
 from baselines.leaderboard.tables import markdown_table, validity_lines
-from humotion_gym.files import write_text_atomically
+from humotion_gym.files import write_atomically, write_text_atomically
 from humotion_gym.mocap.library import configured_data_dirs, package_version
 
 #: The version of ``results.json``'s layout (docs/leaderboard.md describes it);
@@ -341,4 +341,5 @@ def compact(source: str | Path, target: str | Path, digits: int = 7) -> None:
         return value
 
     text = json.dumps(rounded(document), separators=(",", ":"))
-    Path(target).write_bytes(gzip.compress(text.encode(), compresslevel=9, mtime=0))
+    packed = gzip.compress(text.encode(), compresslevel=9, mtime=0)
+    write_atomically(target, lambda tmp: tmp.write_bytes(packed))

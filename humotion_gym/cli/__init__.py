@@ -38,6 +38,7 @@ from humotion_gym.cli._common import (
     CommandError,
     UsageError,
     check_mocap_paths,
+    hold_output_folders,
     make_output_folders,
 )
 from humotion_gym.threads import limit_blas_threads
@@ -292,7 +293,8 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     try:
         _check_inputs(args)
         make_output_folders(args)
-        return int(args.func(args) or 0)
+        with hold_output_folders(args):
+            return int(args.func(args) or 0)
     except BrokenPipeError:  # the output was piped into a reader that stopped (head)
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1

@@ -16,12 +16,13 @@ Errors and exit codes (``humotion-gym`` exits with):
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
 import tempfile
 import textwrap
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -168,6 +169,61 @@ class OutputFile(type(Path())):  # type: ignore[misc]
     """
 
 
+class OutputFolder(type(Path())):  # type: ignore[misc]
+    """A folder a command writes into, checked by :func:`output_dir` when parsed.
+
+    While the command runs it holds the folder alone (:func:`hold_output_folders`).
+    """
+
+
+@contextlib.contextmanager
+def hold_output_folders(args: argparse.Namespace) -> Iterator[None]:
+    """Make each :class:`OutputFolder` argument and hold it for this command alone meanwhile.
+
+    Two commands writing into one folder at once would interleave their
+    files (a resumed leaderboard run twice recorded every episode twice; two
+    trainings wrote one ``progress.csv``). Each folder is locked with
+    ``flock`` on the folder itself: nothing is written into it, and the lock
+    goes with the process however it ends. (Where ``fcntl`` is missing,
+    Windows, nothing is locked.)
+
+    Raises:
+        UsageError: Naming the flag and the folder another command holds.
+    """
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows
+        yield
+        return
+    with contextlib.ExitStack() as held:
+        seen: set[Path] = set()
+        for name, value in vars(args).items():
+            if not isinstance(value, OutputFolder) or value.resolve() in seen:
+                continue
+            seen.add(value.resolve())
+            missing = [f for f in (value, *value.parents) if not f.exists()]
+            value.mkdir(parents=True, exist_ok=True)
+            held.callback(_remove_empty, missing)  # a command that wrote nothing leaves none
+            fd = os.open(value, os.O_RDONLY)
+            held.callback(os.close, fd)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                flag = "--" + name.replace("_", "-")
+                raise UsageError(
+                    f"{flag}: another humotion-gym command is writing into {value}; wait for "
+                    "it to end or choose another folder"
+                ) from None
+        yield
+
+
+def _remove_empty(folders: Sequence[Path]) -> None:
+    """Remove those of ``folders`` (innermost first) that are still empty."""
+    for folder in folders:
+        with contextlib.suppress(OSError):  # not empty, or gone: left as it is
+            folder.rmdir()
+
+
 def make_output_folders(args: argparse.Namespace) -> None:
     """Create the missing folders of the command's :class:`OutputFile` arguments."""
     for value in vars(args).values():
@@ -227,7 +283,16 @@ def output_dir(text: str) -> Path:
     problem = _writable_folder(path)
     if problem:
         raise argparse.ArgumentTypeError(f"cannot write into {text[:80]}: {problem}")
-    return path
+    return OutputFolder(path)
+
+
+def shared_output_dir(text: str) -> Path:
+    """:func:`output_dir`, for a folder other commands may write their own files into meanwhile.
+
+    Not held while the command runs (``train --export``: two trainings put
+    their policies into one folder of checkpoints, each under its own name).
+    """
+    return Path(output_dir(text))
 
 
 class Distinct(argparse.Action):
