@@ -611,8 +611,8 @@ class PoseTrackingVectorEnv(VectorEnv):
             setattr(env, name, value)
 
     def close_extras(self, **kwargs: Any) -> None:
-        """Close the episodes' environments."""
-        for env in self.envs:
+        """Close the episodes' environments (none where ``__init__`` refused its arguments)."""
+        for env in getattr(self, "envs", ()):
             env.close()
 
 

@@ -368,6 +368,7 @@ def _check_page(index: Path) -> _Links:
 
 
 def test_report_writes_tables_figures_and_a_page_whose_links_exist(tmp_path):
+    pytest.importorskip("matplotlib", reason="its figures need matplotlib")
     rows = _rows({"pf-cv": 0.5, "random": 3.0})
     rows.append({"task": "ArmTrack-v2", "agent": "pf-x", "particles": 100, "error": "fit failed"})
     index = write_report(rows, tmp_path / "rep", videos=False, progress=False)

@@ -54,6 +54,7 @@ def test_each_point_is_the_leaderboard_at_that_setting(small_sweep):
 
 
 def test_curves_table_and_figure(small_sweep, tmp_path):
+    pytest.importorskip("matplotlib", reason="its figures need matplotlib")
     curves = sweep.curves(small_sweep)
     assert {(c["setting"], c["cell"]) for c in curves} == {
         (s, a) for s in ("noise", "occluders") for a in ("hold", "pf-cv@10")
@@ -92,6 +93,7 @@ def test_curves_table_and_figure(small_sweep, tmp_path):
 
 
 def test_sweep_command(tmp_path, capsys, monkeypatch):
+    pytest.importorskip("matplotlib", reason="its figures need matplotlib")
     seen = []
 
     def fake_leaderboard(tasks, agents, particles, episodes, seed, env_kwargs, **engine):

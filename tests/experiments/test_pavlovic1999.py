@@ -83,6 +83,7 @@ def _cli(argv):
 
 
 def test_cli_interpolate_on_the_synthetic_set(capsys, tmp_path):
+    pytest.importorskip("matplotlib", reason="its figures need matplotlib")
     figure = tmp_path / "fig6.png"
     code = _cli(
         ["slds", "interpolate", "--json", "--states", "2", "--iters", "2", "--figure", str(figure)]
@@ -100,6 +101,7 @@ def test_cli_interpolate_on_the_synthetic_set(capsys, tmp_path):
 
 @pytest.mark.mocap
 def test_cli_classify_on_bandai_walk_and_run(shared_mocap, capsys, tmp_path):
+    pytest.importorskip("matplotlib", reason="its figures need matplotlib")
     folder = shared_mocap / "bandai-2"
     if not folder.is_dir():
         pytest.skip("bandai-2 is not in the shared motion capture")

@@ -33,6 +33,7 @@ def test_fig3_spread_grows_with_beta(library, body_prior):
 
 
 def test_make_figures_and_cli(tmp_path, library):
+    pytest.importorskip("matplotlib", reason="its figures need matplotlib")
     from baselines.cli import build_parser
     from baselines.cli import tree as tree_cli
 
