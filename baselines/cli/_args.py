@@ -118,7 +118,7 @@ def add_engine(parser: argparse.ArgumentParser) -> None:
 
 def check_engine(args: argparse.Namespace) -> None:
     """Refuse ``--workers``/``--address`` without ``--engine ray``, and an address of no form."""
-    from baselines.leaderboard.engine import check_ray_address_form
+    from baselines.leaderboard.ray_setup import check_ray_address_form
 
     given = [flag for flag in ("workers", "address") if getattr(args, flag) is not None]
     if args.engine != "ray" and given:

@@ -235,7 +235,8 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         run_leaderboard,
         validity_lines,
     )
-    from baselines.leaderboard.engine import BadWorkers, NoRayCluster, WorkerStartError
+    from baselines.leaderboard.engine import BadWorkers, WorkerStartError
+    from baselines.leaderboard.ray_setup import NoRayCluster
     from baselines.leaderboard.videos import ReplayMismatch
 
     _check_flags(args)

@@ -41,7 +41,6 @@ import importlib
 import logging
 import os
 import pickle
-import socket
 import sys
 import time
 import traceback
@@ -68,6 +67,7 @@ from baselines.agents import (
     tracking_env,
 )
 from baselines.leaderboard.evaluation import EpisodeResult, run_episode, warm_up
+from baselines.leaderboard.ray_setup import check_ray_address, quiet_token_note
 from humotion_gym.envs import episodes
 from humotion_gym.mocap.library import package_version
 from humotion_gym.threads import limit_blas_threads, single_threaded_blas
@@ -560,6 +560,7 @@ class RayEngine:
             "log_to_driver": True,
         }
         address = address or os.environ.get("RAY_ADDRESS") or None
+        quiet_token_note()
         # Set first: whatever an interrupted init leaves running is ours to stop.
         if address:
             check_ray_address(address)
@@ -709,68 +710,12 @@ def make_engine(
     raise ValueError(f"engine: expected one of {list(ENGINES)}, got {name!r}")
 
 
-class NoRayCluster(ConnectionError):
-    """Nothing answers at the Ray address given."""
-
-
 class BadWorkers(ValueError):
     """More workers than the Ray cluster has CPUs for."""
 
 
 class WorkerStartError(RuntimeError):
     """A Ray worker could not start the run: another version, or an agent it cannot take."""
-
-
-def check_ray_address_form(address: str) -> tuple[str, int] | None:
-    """The ``(host, port)`` of a Ray address, None for ``auto`` and ``local``.
-
-    Raises:
-        ValueError: When it has none of Ray's forms (``HOST:PORT``,
-            ``ray://HOST:PORT``, ``auto``, ``local``).
-    """
-    if address in ("auto", "local"):
-        return None
-    host, sep, port = address.removeprefix("ray://").rpartition(":")
-    if not sep or not host or not port.isdigit():
-        raise ValueError(f"address {address!r}: expected HOST:PORT, ray://HOST:PORT, auto or local")
-    return host, int(port)
-
-
-def check_ray_address(address: str, timeout: float = 5.0) -> None:
-    """Refuse an address Ray cannot take, or a ``host:port`` where no Ray listens.
-
-    Ray would retry such a port for minutes; ``auto`` and ``local`` are left to
-    it. Ray's ports speak gRPC; a port that answers a plain HTTP request is a
-    web server (most often Ray's dashboard, 8265, which ``ray start`` prints
-    beside the cluster's address).
-
-    Raises:
-        NoRayCluster: Naming the address, when its port takes no connection
-            or a web server answers there.
-        ValueError: When it has none of Ray's forms.
-    """
-    where = check_ray_address_form(address)
-    if where is None:
-        return
-    host, port = where
-    try:
-        conn = socket.create_connection((host, port), timeout=timeout)
-    except (OSError, ValueError) as exc:
-        raise NoRayCluster(
-            f"address {address}: no Ray cluster answers there ({exc}); start one with "
-            "`ray start --head` or leave --address out for a local Ray"
-        ) from None
-    with conn:
-        try:
-            conn.sendall(b"HEAD / HTTP/1.0\r\n\r\n")
-            reply = conn.recv(5)
-        except OSError:  # connected, no answer to HTTP (a timeout): not a web server
-            return
-    if reply == b"HTTP/":
-        raise NoRayCluster(
-            f"address {address}: a web server answers there (Ray's dashboard?), not a Ray "
-            "cluster: give the address `ray start --head` printed (HOST:6379 by default)"
-        )
 
 
 def resolve_env_kwargs(env_kwargs: Mapping[str, Any] | None) -> dict[str, Any]:

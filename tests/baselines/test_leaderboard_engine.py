@@ -209,7 +209,7 @@ def test_an_address_where_a_web_server_answers_is_no_ray_cluster(monkeypatch):
     import http.server
     import threading
 
-    from baselines.leaderboard.engine import NoRayCluster, check_ray_address
+    from baselines.leaderboard.ray_setup import NoRayCluster, check_ray_address
 
     # Ray's dashboard (8265), which `ray start` prints beside the cluster's address:
     # Ray retried it for minutes
@@ -545,3 +545,20 @@ def test_a_worker_that_cannot_take_the_registered_agents_stops_the_run_in_one_li
         "a Ray worker could not start (ModuleNotFoundError: No module named 'mine'); define the "
         "agents you register in a module the workers can import"
     )
+
+
+def test_rays_token_note_is_kept_out_and_its_warning_that_auth_is_off_kept(caplog):
+    import logging
+
+    from baselines.leaderboard import ray_setup
+
+    ray_setup.quiet_token_note()
+    ray_setup.quiet_token_note()
+    logger = logging.getLogger(ray_setup._TOKEN_LOGGER)
+    assert logger.filters.count(ray_setup._TOKEN_NOTE_FILTER) == 1
+    with caplog.at_level(logging.WARNING, logger=ray_setup._TOKEN_LOGGER):
+        logger.warning("Token authentication is enabled for this Ray cluster. Set ...")
+        logger.warning("Token authentication is disabled for this Ray cluster. Anyone ...")
+    assert [r.getMessage().split(" for ")[0] for r in caplog.records] == [
+        "Token authentication is disabled"
+    ]
