@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 import signal
 import sys
+import warnings
 from types import FrameType
 
 
@@ -29,10 +30,15 @@ def main(argv: list[str] | None = None) -> int:
         sig: signal.signal(sig, _stop_while_importing) for sig in (signal.SIGINT, signal.SIGTERM)
     }
     try:
-        from baselines.cli import main as run
+        # what importing warns (numba's cache moved, say) shown as the command's warnings are
+        with warnings.catch_warnings(record=True) as said:
+            from baselines.cli import main as run
+            from humotion_gym.cli import one_line_warning
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+    for w in said:
+        one_line_warning(w.message, w.category, w.filename, w.lineno)
     return run(argv)
 
 

@@ -142,3 +142,21 @@ def test_a_folder_another_command_writes_into_is_refused(tmp_path: Path, capsys)
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     finally:
         os.close(fd)
+
+
+def test_a_warning_while_the_command_line_imports_is_one_line(tmp_path: Path) -> None:
+    # numba's cache moved to the temporary folder warns on import, before the
+    # command's own warning display is set: the console script shows it as one.
+    script = (
+        "import builtins, sys, warnings\n"
+        "real = builtins.__import__\n"
+        "def warning(name, *args, **kwargs):\n"
+        "    if name == 'baselines.cli': warnings.warn('numba moved its cache', UserWarning)\n"
+        "    return real(name, *args, **kwargs)\n"
+        "builtins.__import__ = warning\n"
+        "from baselines.console import main\n"
+        "sys.exit(main(['tasks']))\n"
+    )
+    done = _run(script, tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert done.stderr == "humotion-gym: warning: numba moved its cache (UserWarning)\n"
