@@ -5,7 +5,7 @@ about a second; a Ctrl-C or SIGTERM in that second would end in Python's
 traceback. This module imports nothing heavy itself: it takes both signals
 over while the command line is imported, so that they end as at any other
 moment, in one line with exit code 130 (Ctrl-C) or 143 (SIGTERM); from then
-on :func:`humotion_gym.cli.main` handles them.
+on the command runs under :func:`humotion_gym.cli.terminated_as_interrupt`.
 """
 
 from __future__ import annotations
@@ -33,13 +33,14 @@ def main(argv: list[str] | None = None) -> int:
         # what importing warns (numba's cache moved, say) shown as the command's warnings are
         with warnings.catch_warnings(record=True) as said:
             from baselines.cli import main as run
-            from humotion_gym.cli import one_line_warning
+            from humotion_gym.cli import one_line_warning, terminated_as_interrupt
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     for w in said:
         one_line_warning(w.message, w.category, w.filename, w.lineno)
-    return run(argv)
+    with terminated_as_interrupt():  # the process's own: SIGTERM ends it as Ctrl-C does
+        return run(argv)
 
 
 if __name__ == "__main__":

@@ -20,13 +20,14 @@ from typing import Any
 import numpy as np
 from tqdm.auto import tqdm
 
+from baselines.experiments._plotting import save as save_figure
 from baselines.leaderboard.across_tasks import normalised_scores
 from baselines.leaderboard.evaluation import summarize
 from baselines.leaderboard.rows import cell_label
 from baselines.leaderboard.run import run_leaderboard
 from baselines.leaderboard.stats import bootstrap_ci, iqm
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
-from humotion_gym.files import write_atomically, write_text_atomically
+from humotion_gym.files import write_text_atomically
 from humotion_gym.render import SceneOptions
 
 #: Sweep format version (``sweep.json``'s ``version``).
@@ -291,12 +292,7 @@ def figure(
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout(rect=(0, 0.06, 1, 1))
-    path = Path(path)
-    try:
-        write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=120), keep_suffix=True)
-    finally:
-        plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=120, layout=False)
 
 
 def save(sweep: Mapping[str, Any], path: str | Path) -> Path:

@@ -14,6 +14,7 @@ that cannot be written, the functions are compiled in every process.
 from __future__ import annotations
 
 import os
+import stat
 import tempfile
 import warnings
 from collections.abc import Callable
@@ -31,11 +32,31 @@ _moved: list[bool] = []
 
 
 def _own_temporary_folder() -> str | None:
-    """A folder of this user's under the system's temporary folder for numba's cache, or None."""
-    user = os.getuid() if hasattr(os, "getuid") else os.environ.get("USERNAME", "user")
-    folder = Path(tempfile.gettempdir()) / f"numba-cache-{user}"
+    """A folder of this user's alone under the system's temporary folder, or None.
+
+    numba unpickles its cache's index files: a folder another user could
+    write into (a shared ``/tmp``, where anyone may make a folder of the
+    expected name first, or a link to one) would run their code here. So the
+    folder must be a real folder (not a link), owned by this user and closed
+    to everyone else; where the usual name is taken by anything else, a new
+    private folder is made for this process (its cache then lasts for it).
+    """
+    base = Path(tempfile.gettempdir())
+    if not hasattr(os, "getuid"):  # Windows: the temporary folder is the user's own
+        folder = base / "numba-cache"
+        try:
+            folder.mkdir(exist_ok=True)
+        except OSError:
+            return None
+        return str(folder)
+    folder = base / f"numba-cache-{os.getuid()}"
     try:
         folder.mkdir(mode=0o700, exist_ok=True)
+        info = os.lstat(folder)
+        if not (
+            stat.S_ISDIR(info.st_mode) and info.st_uid == os.getuid() and info.st_mode & 0o077 == 0
+        ):
+            folder = Path(tempfile.mkdtemp(prefix="numba-cache-"))  # mode 0o700, ours
         with tempfile.TemporaryFile(dir=folder):
             pass
     except OSError:
@@ -54,15 +75,17 @@ def _use_temporary_cache() -> bool:
             stacklevel=3,
         )
         return False
+    given = os.environ.get("NUMBA_CACHE_DIR")
+    yours = f"in your NUMBA_CACHE_DIR ({given}), " if given else ""
+    warnings.warn(
+        f"numba cannot write its cache {yours}beside humotion_gym or in your home: it is "
+        f"kept in {folder}; set NUMBA_CACHE_DIR to a writable folder to choose where",
+        stacklevel=3,
+    )
     # The variable too: numba reloads its settings from the environment, and
     # processes started from this one (Ray's workers, a fit's) inherit it.
     os.environ["NUMBA_CACHE_DIR"] = folder
     setattr(numba_config, "CACHE_DIR", folder)  # noqa: B010  (set by numba from the environment)
-    warnings.warn(
-        f"numba cannot write its cache beside humotion_gym or in your home: it is kept in "
-        f"{folder}; set NUMBA_CACHE_DIR to a writable folder to choose where",
-        stacklevel=3,
-    )
     return True
 
 

@@ -11,7 +11,6 @@ opened by :func:`load_npz`.
 from __future__ import annotations
 
 import os
-import threading
 import uuid
 from collections.abc import Callable
 from pathlib import Path
@@ -26,8 +25,8 @@ def write_atomically(
     """Write a file through ``write(temporary path)`` then rename it onto ``path``.
 
     The temporary file lies in the same folder (the rename is then atomic)
-    with a hidden name unique to the process, the thread and the call, so
-    concurrent writers never share one and a reader never sees half a file.
+    with a hidden name unique to the call, so concurrent writers never share
+    one and a reader never sees half a file.
     It is removed if writing fails or is interrupted. Its folder is created
     if missing.
 
@@ -43,12 +42,17 @@ def write_atomically(
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    token = f"{os.getpid()}.{threading.get_ident()}.{uuid.uuid4().hex[:12]}"
     ending = f".tmp{path.suffix}" if keep_suffix else ".tmp"
-    tmp = path.with_name(f".{path.name}.{token}{ending}")
+    # 48 random bits name it for this call alone; a long name is cut so that
+    # the temporary one stays within the file system's 255 bytes.
+    tmp = path.with_name(f".{path.name[:200]}.{uuid.uuid4().hex[:12]}{ending}")
     try:
         write(tmp)
         os.replace(tmp, path)
+    except OSError as exc:
+        if exc.filename in (str(tmp), tmp):  # the error names the file asked for
+            raise type(exc)(exc.errno, exc.strerror, str(path)) from exc
+        raise
     finally:
         tmp.unlink(missing_ok=True)
 

@@ -90,3 +90,16 @@ def test_a_png_that_cannot_be_encoded_leaves_nothing(tmp_path: Path) -> None:
     with pytest.raises(OSError, match="b.nosuchformat"):
         video.write_png(tmp_path / "b.nosuchformat", np.zeros((4, 4, 3), np.uint8))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png"]
+
+
+def test_a_long_name_is_written_and_errors_name_the_file_asked_for(tmp_path: Path) -> None:
+    long = tmp_path / ("a" * 240 + ".json")
+    write_text_atomically(long, "{}")
+    assert long.read_text() == "{}"
+
+    def refused(tmp: Path) -> None:
+        raise PermissionError(13, "Permission denied", str(tmp))
+
+    with pytest.raises(PermissionError) as caught:
+        write_atomically(tmp_path / "b.json", refused)
+    assert caught.value.filename == str(tmp_path / "b.json")

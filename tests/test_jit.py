@@ -78,3 +78,26 @@ def test_another_compile_error_is_not_hidden(monkeypatch) -> None:
     monkeypatch.setattr(_jit.numba, "njit", broken)
     with pytest.raises(RuntimeError, match="something else"):
         _jit.compiled()(lambda x: x)
+
+
+@pytest.mark.skipif(not hasattr(os, "getuid"), reason="folders' owners and modes: POSIX")
+@pytest.mark.parametrize("taken", ["open to all", "a link"])
+def test_a_cache_folder_others_could_write_is_never_used(tmp_path, monkeypatch, taken) -> None:
+    # numba unpickles its index files: a folder another user made first (or a
+    # link to one) would run their code here.
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    usual = tmp_path / f"numba-cache-{os.getuid()}"
+    if taken == "open to all":
+        usual.mkdir()
+        usual.chmod(0o777)
+    else:
+        (tmp_path / "elsewhere").mkdir(mode=0o700)
+        usual.symlink_to(tmp_path / "elsewhere")
+    folder = Path(_jit._own_temporary_folder())
+    assert folder != usual and folder.parent == tmp_path and not folder.is_symlink()
+    assert folder.stat().st_mode & 0o077 == 0 and folder.stat().st_uid == os.getuid()
+    usual.unlink() if usual.is_symlink() else usual.rmdir()
+    assert Path(_jit._own_temporary_folder()) == usual  # free: the usual name, made private
+    assert usual.stat().st_mode & 0o077 == 0

@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 
 from baselines.cli import main
-from humotion_gym.cli import Terminated
+from humotion_gym.cli import Terminated, terminated_as_interrupt
 
 ROOT = Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.skipif(
@@ -40,9 +40,22 @@ def test_sigterm_during_a_command_ends_in_one_line_and_143(monkeypatch, capsys) 
 
     before = signal.getsignal(signal.SIGTERM)
     monkeypatch.setattr(tasks_cli, "_cmd_tasks", terminated)
-    assert main(["tasks"]) == 143
+    with terminated_as_interrupt():  # as the console scripts run the command line
+        assert main(["tasks"]) == 143
     assert capsys.readouterr().err == "humotion-gym tasks: terminated\n"
     assert signal.getsignal(signal.SIGTERM) is before  # the caller's handler is back
+
+
+def test_main_called_from_a_program_leaves_sigterm_to_it(monkeypatch) -> None:
+    from humotion_gym.cli import tasks as tasks_cli
+
+    during = []
+    monkeypatch.setattr(
+        tasks_cli, "_cmd_tasks", lambda args: during.append(signal.getsignal(signal.SIGTERM))
+    )
+    before = signal.getsignal(signal.SIGTERM)
+    assert main(["tasks"]) == 0
+    assert during == [before]
 
 
 def test_ctrl_c_while_the_parser_is_built_ends_in_one_line(monkeypatch, capsys) -> None:
@@ -110,8 +123,6 @@ def test_sigterm_while_a_video_is_written_leaves_no_file_and_one_line(tmp_path: 
 
 
 def test_a_fork_made_meanwhile_dies_of_sigterm_as_before() -> None:
-    from humotion_gym.cli import terminated_as_interrupt
-
     with terminated_as_interrupt():
         assert signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL
         pid = os.fork()
@@ -160,3 +171,43 @@ def test_a_warning_while_the_command_line_imports_is_one_line(tmp_path: Path) ->
     done = _run(script, tmp_path)
     assert done.returncode == 0, done.stderr
     assert done.stderr == "humotion-gym: warning: numba moved its cache (UserWarning)\n"
+
+
+def test_a_folder_that_cannot_be_locked_runs_unheld_saying_so(tmp_path, monkeypatch, capsys):
+    fcntl = pytest.importorskip("fcntl")
+    import errno
+
+    def no_flock(fd, operation):  # NFS without write access, Lustre without flock
+        raise OSError(errno.EBADF, "Bad file descriptor")
+
+    monkeypatch.setattr(fcntl, "flock", no_flock)
+    out = tmp_path / "lb"
+    argv = ["leaderboard", "--tasks", "ArmTrack-v2", "--agents", "hold", "--episodes", "1"]
+    assert main([*argv, "--out", str(out), "--no-report"]) == 0
+    err = capsys.readouterr().err
+    assert f"{out} cannot be held for this command alone (Bad file descriptor)" in err
+    assert (out / "results.json").is_file()
+
+
+def test_trains_default_folder_is_held_too(tmp_path, monkeypatch) -> None:
+    fcntl = pytest.importorskip("fcntl")
+    from baselines.cli import train as train_cli
+
+    held = []
+
+    def probe(args, out):
+        fd = os.open(out, os.O_RDONLY)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            held.append(False)
+        except BlockingIOError:
+            held.append(True)
+        finally:
+            os.close(fd)
+        return 0
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(train_cli, "_train", probe)
+    assert main(["train", "--algo", "bc", "--task", "ArmTrack-v2"]) == 0
+    assert held == [True]
+    assert not (tmp_path / "runs").exists()  # made for the run, left empty: removed

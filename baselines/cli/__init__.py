@@ -18,12 +18,7 @@ import warnings
 from collections.abc import Sequence
 
 from humotion_gym import cli as benchmark_cli
-from humotion_gym.cli import (
-    TRACEBACK_ENV,
-    interruption,
-    one_line_warning,
-    terminated_as_interrupt,
-)
+from humotion_gym.cli import TRACEBACK_ENV, interruption, one_line_warning
 
 #: Every command module of ``humotion-gym``, in ``--help`` order.
 COMMAND_MODULES: tuple[str, ...] = (
@@ -107,11 +102,10 @@ def import_agent_modules(argv: Sequence[str]) -> int | None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``humotion-gym`` console script; returns the exit code."""
     args = list(sys.argv[1:] if argv is None else argv)
-    with terminated_as_interrupt():
-        try:
-            failed = import_agent_modules(args)
-        except KeyboardInterrupt as exc:  # in a user's module, before the command ran
-            word, code = interruption(exc)
-            print(f"humotion-gym: {word}", file=sys.stderr)
-            return code
-        return failed if failed is not None else benchmark_cli.main(args, COMMAND_MODULES)
+    try:
+        failed = import_agent_modules(args)
+    except KeyboardInterrupt as exc:  # in a user's module, before the command ran
+        word, code = interruption(exc)
+        print(f"humotion-gym: {word}", file=sys.stderr)
+        return code
+    return failed if failed is not None else benchmark_cli.main(args, COMMAND_MODULES)

@@ -2,6 +2,6 @@
 
 import sys
 
-from baselines.cli import main
+from baselines.console import main
 
 sys.exit(main())

@@ -25,6 +25,7 @@ from humotion_gym.cli._common import (
     add_json,
     add_seed,
     add_task,
+    hold_output_folders,
     int_at_least,
     output_dir,
     output_file,
@@ -140,7 +141,7 @@ def _register_curve(subparsers: argparse._SubParsersAction) -> None:
         help="test episodes per evaluated checkpoint (default: 10)",
     )  # fmt: skip
     lc.add_argument(
-        "--runs-dir", type=output_dir, default=Path("runs/curve"),
+        "--runs-dir", type=output_dir, default="runs/curve",
         help="where the runs are trained, and resumed from (default: runs/curve)",
     )  # fmt: skip
     lc.add_argument(
@@ -176,15 +177,22 @@ def _settings(args: argparse.Namespace) -> dict:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
+    if args.out is not None:  # held by the command line while the command runs
+        return _train(args, args.out)
+    out = Path("runs") / f"{args.algo}-{args.task}-s{args.seed}"
+    try:  # the default folder, checked before training and held as --out is
+        held = argparse.Namespace(out=output_dir(str(out)))
+    except argparse.ArgumentTypeError as exc:
+        raise UsageError(f"--out: {exc}") from None
+    with hold_output_folders(held):
+        return _train(args, out)
+
+
+def _train(args: argparse.Namespace, out: Path) -> int:
+    """``train`` into ``out``."""
     from baselines.rl import TrainConfig, train
     from baselines.rl_config import InitMismatch, ResumeMismatch
 
-    out = args.out or Path("runs") / f"{args.algo}-{args.task}-s{args.seed}"
-    if args.out is None:  # the default folder, checked before training as --out is
-        try:
-            output_dir(str(out))
-        except argparse.ArgumentTypeError as exc:
-            raise UsageError(f"--out: {exc}") from None
     try:
         config = TrainConfig(
             args.algo, args.task, args.steps, args.seed, str(out),

@@ -1,4 +1,4 @@
-"""Matplotlib for the papers' figures: the file backend, and writing a figure once."""
+"""Matplotlib for the figures: the file backend, and writing a figure once."""
 
 from __future__ import annotations
 
@@ -22,10 +22,26 @@ def pyplot() -> Any:
     return plt
 
 
-def save(fig: Any, path: str | Path, dpi: int = 110) -> None:
-    """Lay out ``fig``, write it to ``path`` (whole or not at all) and free it."""
-    fig.tight_layout()
+def save(fig: Any, path: str | Path, dpi: int = 110, layout: bool = True) -> Path:
+    """Write ``fig`` to ``path``, whole or not at all, and free it; returns ``path``.
+
+    Every figure of both packages' reports and experiments is written here.
+    The format is ``path``'s suffix (PNG where it has none: the file is
+    written at ``path`` as given), named to matplotlib, since the temporary
+    file written first has another suffix.
+
+    Args:
+        fig: The matplotlib figure.
+        path: The file to write.
+        dpi: Its resolution.
+        layout: Lay it out first (``tight_layout``); False where the caller did.
+    """
+    path = Path(path)
+    if layout:
+        fig.tight_layout()
+    fmt = path.suffix.lstrip(".").lower() or "png"
     try:
-        write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=dpi), keep_suffix=True)
+        write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt))
     finally:
         pyplot().close(fig)
+    return path

@@ -17,9 +17,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from baselines.experiments._plotting import save
 from baselines.leaderboard import stats
 from baselines.leaderboard.rows import cell_label
-from humotion_gym.files import write_atomically
 
 
 def ran(row: dict[str, Any]) -> bool:
@@ -63,22 +63,6 @@ def _errors_matrix(row: dict[str, Any]) -> NDArray[np.float64]:
     return np.array([e["errors_mm"][:length] for e in row["episodes"]], dtype=np.float64)
 
 
-def _save(plt: Any, fig: Any, path: Path) -> Path:
-    """Lay the figure out, write it to ``path`` (110 dpi), close it and return ``path``.
-
-    Written whole or not at all (a temporary file renamed over it): a Ctrl-C
-    while writing left a cut PNG where the report links one.
-    """
-    fig.tight_layout()
-    try:
-        write_atomically(
-            path, lambda tmp: fig.savefig(tmp, dpi=110, format=path.suffix.lstrip(".") or "png")
-        )
-    finally:
-        plt.close(fig)
-    return path
-
-
 def figure_error_over_frames(rows: Sequence[dict[str, Any]], path: Path, seed: int = 0) -> Path:
     """Mean error at each frame per cell, with 95% bootstrap bands over episodes."""
     plt = _pyplot()
@@ -94,7 +78,7 @@ def figure_error_over_frames(rows: Sequence[dict[str, Any]], path: Path, seed: i
             ax.fill_between(frames, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
         ax.set(title=task, xlabel="frame", ylabel="keypoint error, mm")
         _legend_or_note(ax)
-    return _save(plt, fig, path)
+    return save(fig, path)
 
 
 def figure_survival(rows: Sequence[dict[str, Any]], path: Path) -> Path:
@@ -116,7 +100,7 @@ def figure_survival(rows: Sequence[dict[str, Any]], path: Path) -> Path:
                             alpha=0.15, lw=0)  # fmt: skip
         ax.set(title=task, xlabel="frame", ylabel="still tracking", ylim=(-0.02, 1.02))
         _legend_or_note(ax)
-    return _save(plt, fig, path)
+    return save(fig, path)
 
 
 def figure_iqm_per_task(rows: Sequence[dict[str, Any]], path: Path, seed: int = 0) -> Path:
@@ -139,7 +123,7 @@ def figure_iqm_per_task(rows: Sequence[dict[str, Any]], path: Path, seed: int = 
         ax.set_yticks(y, [cell_label(r) for r in cells], fontsize=8)
         ax.set(title=task, xlabel="IQM keypoint error, mm (95% CI)")
         ax.grid(axis="x", alpha=0.3)
-    return _save(plt, fig, path)
+    return save(fig, path)
 
 
 def figure_aggregate(aggregates: Sequence[dict[str, Any]], path: Path) -> Path:
@@ -159,4 +143,4 @@ def figure_aggregate(aggregates: Sequence[dict[str, Any]], path: Path) -> Path:
         ax.set_yticks(y, labels, fontsize=8)
         ax.set(xlabel=xlabel)
         ax.grid(axis="x", alpha=0.3)
-    return _save(plt, fig, path)
+    return save(fig, path)

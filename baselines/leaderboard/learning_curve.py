@@ -19,11 +19,12 @@ import numpy as np
 
 from baselines.agents import HoldAgent
 from baselines.agents.learned import LearnedAgent, load_policy
+from baselines.experiments._plotting import save
 from baselines.leaderboard.evaluation import evaluate
 from baselines.leaderboard.stats import iqm, stratified_bootstrap_ci
 from baselines.rl import TrainConfig, checkpoints, train
 from humotion_gym.envs import get_task
-from humotion_gym.files import write_atomically, write_text_atomically
+from humotion_gym.files import write_text_atomically
 
 
 def checkpoint_errors(
@@ -146,8 +147,4 @@ def _plot_curve(result: dict[str, Any], out: Path) -> None:
         f"{result['task']}: {len(result['seeds'])} seeds x {result['episodes']} test episodes"
     )
     ax.legend()
-    fig.tight_layout()
-    try:
-        write_atomically(out, lambda tmp: fig.savefig(tmp, dpi=120), keep_suffix=True)
-    finally:
-        plt.close(fig)
+    save(fig, out, dpi=120)

@@ -165,7 +165,13 @@ def open_npz(path: str | Path, what: str) -> Iterator[Any]:
         ValueError: If it is not an ``.npz`` (empty, cut short, text, a
             ``.npy`` array) or a member is damaged; the message names the file.
     """
-    with open(path, "rb") as fh:
+    try:
+        fh = open(path, "rb")  # noqa: SIM115  (closed below, however it ends)
+    except FileNotFoundError:
+        raise
+    except OSError as exc:  # a folder, no permission
+        raise ValueError(f"{path}: not saved {what} ({exc.strerror or exc})") from None
+    with fh:
         try:
             data = load_npz(fh)
         except _NOT_NPZ as exc:

@@ -228,7 +228,11 @@ if hasattr(os, "register_at_fork"):
 
 @contextlib.contextmanager
 def terminated_as_interrupt() -> Iterator[None]:
-    """While the block runs, SIGTERM raises :class:`Terminated` (main thread only)."""
+    """While the block runs, SIGTERM raises :class:`Terminated` (main thread only).
+
+    The console scripts run the command line under it; :func:`main` called
+    from a program leaves SIGTERM to the program.
+    """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -247,32 +251,32 @@ def main(argv: Sequence[str] | None = None, modules: Sequence[str] = COMMAND_MOD
     writes nothing. A usage error ends in one line and exit code 2, an error
     the user can act on (:func:`_runtime_errors`) in one line and 1 (with
     ``HUMOTION_TRACEBACK=1``, its traceback instead), Ctrl-C in one line and
-    130 (SIGTERM as Ctrl-C, in one line and 143: :class:`Terminated`); any
-    other exception is a bug and keeps its traceback.
+    130 (under :func:`terminated_as_interrupt`, as the console scripts run it,
+    SIGTERM as Ctrl-C, in one line and 143); any other exception is a bug and
+    keeps its traceback.
 
     Args:
         argv: The arguments (default: ``sys.argv[1:]``).
         modules: The command modules (see :func:`build_parser`).
     """
-    with terminated_as_interrupt():
+    try:
+        parser = build_parser(modules)
+        argv = list(sys.argv[1:] if argv is None else argv)
+        if not argv:
+            parser.print_help()
+            return 0
         try:
-            parser = build_parser(modules)
-            argv = list(sys.argv[1:] if argv is None else argv)
-            if not argv:
-                parser.print_help()
-                return 0
-            try:
-                args = parser.parse_args(argv)
-            except SystemExit as exc:  # --help, --version (0) or a usage error (2)
-                return exc.code if isinstance(exc.code, int) else 2
-        except KeyboardInterrupt as exc:  # before the command started: nothing written
-            word, code = interruption(exc)
-            print(f"humotion-gym: {word}", file=sys.stderr)
-            return code
-        limit_blas_threads()  # see humotion_gym.threads for why and for Python users
-        with warnings.catch_warnings():  # restores the caller's warning display on return
-            warnings.showwarning = one_line_warning
-            return _run(parser, args)
+            args = parser.parse_args(argv)
+        except SystemExit as exc:  # --help, --version (0) or a usage error (2)
+            return exc.code if isinstance(exc.code, int) else 2
+    except KeyboardInterrupt as exc:  # before the command started: nothing written
+        word, code = interruption(exc)
+        print(f"humotion-gym: {word}", file=sys.stderr)
+        return code
+    limit_blas_threads()  # see humotion_gym.threads for why and for Python users
+    with warnings.catch_warnings():  # restores the caller's warning display on return
+        warnings.showwarning = one_line_warning
+        return _run(parser, args)
 
 
 def one_line_warning(

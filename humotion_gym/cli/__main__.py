@@ -5,6 +5,7 @@
 
 import sys
 
-from humotion_gym.cli import main
+from humotion_gym.cli import main, terminated_as_interrupt
 
-sys.exit(main())
+with terminated_as_interrupt():
+    sys.exit(main())

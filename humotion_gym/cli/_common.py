@@ -22,6 +22,7 @@ import math
 import os
 import tempfile
 import textwrap
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -184,8 +185,10 @@ def hold_output_folders(args: argparse.Namespace) -> Iterator[None]:
     files (a resumed leaderboard run twice recorded every episode twice; two
     trainings wrote one ``progress.csv``). Each folder is locked with
     ``flock`` on the folder itself: nothing is written into it, and the lock
-    goes with the process however it ends. (Where ``fcntl`` is missing,
-    Windows, nothing is locked.)
+    goes with the process however it ends. Where it cannot be locked (no
+    ``fcntl`` on Windows; a file system without ``flock``, NFS or Lustre; a
+    folder one may write but not read) the command runs unheld, saying so
+    (but silently on Windows).
 
     Raises:
         UsageError: Naming the flag and the folder another command holds.
@@ -204,7 +207,11 @@ def hold_output_folders(args: argparse.Namespace) -> Iterator[None]:
             missing = [f for f in (value, *value.parents) if not f.exists()]
             value.mkdir(parents=True, exist_ok=True)
             held.callback(_remove_empty, missing)  # a command that wrote nothing leaves none
-            fd = os.open(value, os.O_RDONLY)
+            try:
+                fd = os.open(value, os.O_RDONLY)
+            except OSError as exc:  # a folder one may write into but not read
+                _unheld(value, exc)
+                continue
             held.callback(os.close, fd)
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -214,7 +221,19 @@ def hold_output_folders(args: argparse.Namespace) -> Iterator[None]:
                     f"{flag}: another humotion-gym command is writing into {value}; wait for "
                     "it to end or choose another folder"
                 ) from None
+            except OSError as exc:  # a file system without flock (NFS, Lustre): run unheld
+                _unheld(value, exc)
         yield
+
+
+def _unheld(folder: Path, exc: OSError) -> None:
+    """Say that ``folder`` runs without being held (:func:`hold_output_folders`)."""
+    warnings.warn(
+        f"{folder} cannot be held for this command alone ({exc.strerror or exc}): a second "
+        "command writing into it meanwhile would not be refused",
+        RuntimeWarning,
+        stacklevel=4,
+    )
 
 
 def _remove_empty(folders: Sequence[Path]) -> None:

@@ -92,6 +92,9 @@ def test_prior_contract(name, walks, tmp_path):
         with pytest.raises(ValueError, match=f"{file}: (not saved|damaged)") as refused:
             prior.load(tmp_path / file)
         assert "pickle" not in str(refused.value)
+    (tmp_path / "folder.npz").mkdir()
+    with pytest.raises(ValueError, match="folder.npz: not saved"):
+        prior.load(tmp_path / "folder.npz")
     np.save(tmp_path / "array.npy", np.zeros(3))
     with pytest.raises(ValueError, match="array.npy: not saved .*a lone .npy array"):
         prior.load(tmp_path / "array.npy")
