@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from baselines.experiments._plotting import save
+from baselines.experiments._plotting import pyplot, save
 from baselines.leaderboard import stats
 from baselines.leaderboard.rows import cell_label
 
@@ -30,15 +30,6 @@ def ran(row: dict[str, Any]) -> bool:
 def figures_available() -> bool:
     """Whether matplotlib (the ``plots`` extra) is installed, so the report has figures."""
     return importlib.util.find_spec("matplotlib") is not None
-
-
-def _pyplot() -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def _tasks(rows: Sequence[dict[str, Any]]) -> list[str]:
@@ -65,7 +56,7 @@ def _errors_matrix(row: dict[str, Any]) -> NDArray[np.float64]:
 
 def figure_error_over_frames(rows: Sequence[dict[str, Any]], path: Path, seed: int = 0) -> Path:
     """Mean error at each frame per cell, with 95% bootstrap bands over episodes."""
-    plt = _pyplot()
+    plt = pyplot()
     tasks = _tasks(rows)
     fig, axes = plt.subplots(1, len(tasks), figsize=(5 * len(tasks), 3.6), squeeze=False)
     for ax, task in zip(axes[0], tasks, strict=True):
@@ -83,7 +74,7 @@ def figure_error_over_frames(rows: Sequence[dict[str, Any]], path: Path, seed: i
 
 def figure_survival(rows: Sequence[dict[str, Any]], path: Path) -> Path:
     """Fraction of episodes still tracking after each frame (Kaplan-Meier, 95% band)."""
-    plt = _pyplot()
+    plt = pyplot()
     tasks = _tasks(rows)
     fig, axes = plt.subplots(1, len(tasks), figsize=(5 * len(tasks), 3.6), squeeze=False)
     for ax, task in zip(axes[0], tasks, strict=True):
@@ -105,7 +96,7 @@ def figure_survival(rows: Sequence[dict[str, Any]], path: Path) -> Path:
 
 def figure_iqm_per_task(rows: Sequence[dict[str, Any]], path: Path, seed: int = 0) -> Path:
     """Each cell's IQM error with its 95% interval, one panel per task."""
-    plt = _pyplot()
+    plt = pyplot()
     tasks = _tasks(rows)
     n_cells = max(sum(1 for r in rows if ran(r) and r["task"] == t) for t in tasks)
     height = 0.9 + 0.32 * n_cells
@@ -128,7 +119,7 @@ def figure_iqm_per_task(rows: Sequence[dict[str, Any]], path: Path, seed: int = 
 
 def figure_aggregate(aggregates: Sequence[dict[str, Any]], path: Path) -> Path:
     """IQM normalised score and P(beats hold) per cell, with 95% intervals."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(9, 0.9 + 0.32 * len(aggregates)), squeeze=False)
     y = np.arange(len(aggregates))[::-1]
     labels = [a["cell"] for a in aggregates]
