@@ -13,6 +13,7 @@ that cannot be written, the functions are compiled in every process.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import stat
 import tempfile
@@ -37,9 +38,10 @@ def _own_temporary_folder() -> str | None:
     numba unpickles its cache's index files: a folder another user could
     write into (a shared ``/tmp``, where anyone may make a folder of the
     expected name first, or a link to one) would run their code here. So the
-    folder must be a real folder (not a link), owned by this user and closed
-    to everyone else; where the usual name is taken by anything else, a new
-    private folder is made for this process (its cache then lasts for it).
+    folder must be a real folder (not a link), owned by this user, that no
+    one else could ever write into (one others may only read is closed to
+    them first); where the usual name is taken by anything else (a file, a
+    link, another's folder), a new private folder is made for this process.
     """
     base = Path(tempfile.gettempdir())
     if not hasattr(os, "getuid"):  # Windows: the temporary folder is the user's own
@@ -51,11 +53,14 @@ def _own_temporary_folder() -> str | None:
         return str(folder)
     folder = base / f"numba-cache-{os.getuid()}"
     try:
-        folder.mkdir(mode=0o700, exist_ok=True)
+        with contextlib.suppress(FileExistsError):  # (a file or a link there: checked below)
+            folder.mkdir(mode=0o700)
         info = os.lstat(folder)
-        if not (
-            stat.S_ISDIR(info.st_mode) and info.st_uid == os.getuid() and info.st_mode & 0o077 == 0
-        ):
+        ours = stat.S_ISDIR(info.st_mode) and info.st_uid == os.getuid()
+        if ours and not info.st_mode & 0o022:  # nobody else ever wrote there
+            if info.st_mode & 0o077:  # but others may read: closed
+                os.chmod(folder, 0o700)
+        else:  # a file, a link, another's, or one others could write into
             folder = Path(tempfile.mkdtemp(prefix="numba-cache-"))  # mode 0o700, ours
         with tempfile.TemporaryFile(dir=folder):
             pass

@@ -10,6 +10,7 @@ opened by :func:`load_npz`.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import uuid
 from collections.abc import Callable
@@ -42,19 +43,21 @@ def write_atomically(
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    ending = f".tmp{path.suffix}" if keep_suffix else ".tmp"
-    # 48 random bits name it for this call alone; a long name is cut so that
-    # the temporary one stays within the file system's 255 bytes.
-    tmp = path.with_name(f".{path.name[:200]}.{uuid.uuid4().hex[:12]}{ending}")
+    ending = f".tmp{path.suffix[:16]}" if keep_suffix else ".tmp"
+    # 48 random bits name it for this call alone; a long name is cut (in bytes,
+    # as file systems count them) so that the temporary one stays within 255.
+    stem = os.fsencode(path.name)[:200].decode(errors="ignore")
+    tmp = path.with_name(f".{stem}.{uuid.uuid4().hex[:12]}{ending}")
     try:
         write(tmp)
         os.replace(tmp, path)
     except OSError as exc:
         if exc.filename in (str(tmp), tmp):  # the error names the file asked for
-            raise type(exc)(exc.errno, exc.strerror, str(path)) from exc
+            exc.filename = str(path)
         raise
     finally:
-        tmp.unlink(missing_ok=True)
+        with contextlib.suppress(OSError):  # never hides the error being raised
+            tmp.unlink(missing_ok=True)
 
 
 def write_text_atomically(path: str | Path, text: str) -> None:

@@ -93,9 +93,10 @@ def test_a_png_that_cannot_be_encoded_leaves_nothing(tmp_path: Path) -> None:
 
 
 def test_a_long_name_is_written_and_errors_name_the_file_asked_for(tmp_path: Path) -> None:
-    long = tmp_path / ("a" * 240 + ".json")
-    write_text_atomically(long, "{}")
-    assert long.read_text() == "{}"
+    for name in ("a" * 240 + ".json", "é" * 120 + ".txt", "中" * 80 + ".txt"):  # <= 255 bytes
+        write_text_atomically(tmp_path / name, "{}")
+        assert (tmp_path / name).read_text() == "{}"
+    assert len(list(tmp_path.iterdir())) == 3
 
     def refused(tmp: Path) -> None:
         raise PermissionError(13, "Permission denied", str(tmp))

@@ -81,7 +81,7 @@ def test_another_compile_error_is_not_hidden(monkeypatch) -> None:
 
 
 @pytest.mark.skipif(not hasattr(os, "getuid"), reason="folders' owners and modes: POSIX")
-@pytest.mark.parametrize("taken", ["open to all", "a link"])
+@pytest.mark.parametrize("taken", ["open to all", "a link", "a file", "a dangling link"])
 def test_a_cache_folder_others_could_write_is_never_used(tmp_path, monkeypatch, taken) -> None:
     # numba unpickles its index files: a folder another user made first (or a
     # link to one) would run their code here.
@@ -92,12 +92,19 @@ def test_a_cache_folder_others_could_write_is_never_used(tmp_path, monkeypatch, 
     if taken == "open to all":
         usual.mkdir()
         usual.chmod(0o777)
-    else:
+    elif taken == "a link":
         (tmp_path / "elsewhere").mkdir(mode=0o700)
         usual.symlink_to(tmp_path / "elsewhere")
+    elif taken == "a file":
+        usual.write_text("")
+    else:
+        usual.symlink_to(tmp_path / "nowhere")
     folder = Path(_jit._own_temporary_folder())
     assert folder != usual and folder.parent == tmp_path and not folder.is_symlink()
     assert folder.stat().st_mode & 0o077 == 0 and folder.stat().st_uid == os.getuid()
-    usual.unlink() if usual.is_symlink() else usual.rmdir()
+    usual.rmdir() if usual.is_dir() and not usual.is_symlink() else usual.unlink()
     assert Path(_jit._own_temporary_folder()) == usual  # free: the usual name, made private
+    assert usual.stat().st_mode & 0o077 == 0
+    usual.chmod(0o755)  # ours, others could read only: closed to them and kept
+    assert Path(_jit._own_temporary_folder()) == usual
     assert usual.stat().st_mode & 0o077 == 0
