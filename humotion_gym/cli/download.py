@@ -17,9 +17,11 @@ from humotion_gym.cli._common import (
     UsageError,
     add_command,
     float_between,
+    hold_output_folders,
     int_at_least,
     output_dir,
     positive_int,
+    shared_output_dir,
 )
 
 #: URL schemes ``--base-url`` accepts (a mirror on a web server or a local folder).
@@ -62,7 +64,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="print the chosen subjects with their labels and persons, download nothing",
     )
     cmu.add_argument(
-        "--dest", type=output_dir, default=None,
+        "--dest", type=shared_output_dir, default=None,
         help="folder to download into (default: the download cache, see humotion-gym cache info)",
     )  # fmt: skip
     cmu.add_argument(
@@ -182,7 +184,17 @@ def _cmd_download_cmu(args: argparse.Namespace) -> int:
     }
     if args.base_url:
         kwargs["base_url"] = args.base_url
-    files = download.download_cmu(subjects, **kwargs)
+    # Held while downloading only (--dry-run and --verify write nothing), the
+    # default download folder as --dest: two downloads share one manifest.
+    from humotion_gym.mocap.library import default_cache_dir
+
+    dest = args.dest if args.dest is not None else default_cache_dir() / "cmu"
+    try:
+        folder = output_dir(str(dest))
+    except argparse.ArgumentTypeError as exc:  # the default folder, checked as --dest is
+        raise UsageError(f"--dest: {exc}") from None
+    with hold_output_folders(argparse.Namespace(dest=folder)):
+        files = download.download_cmu(subjects, **kwargs)
     print(f"{len(files)} files in {files[0].parent.parent if files else args.dest}")
     return 0
 

@@ -1081,3 +1081,20 @@ def test_cli_verify_refuses_the_flags_that_choose_a_download(tiny, capsys):
     assert cli.main([*base, "--activity", "walk"]) == 2
     assert "drop --activity" in capsys.readouterr().err
     assert cli.main([*base, "--dry-run"]) == 2
+
+
+def test_a_download_holds_its_folder_while_verify_and_dry_run_only_read(tiny, capsys):
+    fcntl = pytest.importorskip("fcntl")
+    srv, files, dest = tiny
+    base = ["download", "cmu", "--dest", str(dest)]
+    assert cli.main([*base, "--subjects", "7", "--quiet", "--base-url", srv.url]) == 0
+    fd = os.open(dest, os.O_RDONLY)  # as a second download into it holds it
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        assert cli.main([*base, "--verify"]) in (0, 1)  # reads: runs beside it
+        assert cli.main([*base, "--subjects", "7", "--dry-run"]) == 0
+        capsys.readouterr()
+        assert cli.main([*base, "--subjects", "7", "--quiet", "--base-url", srv.url]) == 2
+        assert "--dest: another humotion-gym command is writing into" in capsys.readouterr().err
+    finally:
+        os.close(fd)
