@@ -23,6 +23,7 @@ from tqdm.auto import tqdm
 from baselines.experiments._plotting import save as save_figure
 from baselines.leaderboard.across_tasks import normalised_scores
 from baselines.leaderboard.evaluation import summarize
+from baselines.leaderboard.results import RUN_FILE
 from baselines.leaderboard.rows import cell_label
 from baselines.leaderboard.run import run_leaderboard
 from baselines.leaderboard.stats import bootstrap_ci, iqm
@@ -73,6 +74,8 @@ def run_sweep(
     env_kwargs: Mapping[str, Any] | None = None,
     progress: bool = True,
     engine_options: Mapping[str, Any] | None = None,
+    out: str | Path | None = None,
+    resume: bool = False,
 ) -> dict[str, Any]:
     """Run the leaderboard at every value of every setting of the grid.
 
@@ -89,6 +92,11 @@ def run_sweep(
         engine_options: Keyword arguments of
             :func:`~baselines.leaderboard.run_leaderboard` that choose its
             engine (``engine="ray"``, ``workers``, ``address``); none: in-process.
+        out: A folder for each point's leaderboard results
+            (:func:`point_folder`): every finished episode is kept as it
+            finishes, so an interrupted sweep loses only the episodes in flight.
+        resume: Continue the sweep saved in ``out``: each point's run resumes
+            where it stopped (a point not yet started runs afresh).
 
     Returns:
         The sweep (plain JSON, :data:`VERSION`): ``tasks``, ``agents``,
@@ -104,7 +112,8 @@ def run_sweep(
     base = dict(env_kwargs or {})
     for name, v in points:
         setting_kwargs(name, v)  # every value checked before the first run
-    out: dict[str, Any] = {
+    folder = None if out is None else Path(out)
+    result: dict[str, Any] = {
         "version": VERSION,
         "tasks": list(tasks),
         "agents": list(agents),
@@ -115,17 +124,26 @@ def run_sweep(
         "points": [],
     }
     bar = tqdm(points, desc="sweep", disable=not progress)
-    for name, value in bar:
+    for k, (name, value) in enumerate(bar):
         bar.set_postfix_str(f"{name}={value}")
         settings = {**base, **setting_kwargs(name, value)}
-        if engine_options:
-            rows = run_leaderboard(
-                tasks, agents, particles, episodes, seed, settings, **dict(engine_options)
-            )
-        else:
-            rows = run_leaderboard(tasks, agents, particles, episodes, seed, settings)
-        out["points"].append({"setting": name, "value": value, "rows": rows})
-    return out
+        kept: dict[str, Any] = {}
+        if folder is not None:
+            where = point_folder(folder, k, name, value)
+            kept = {"out": where, "resume": resume and (where / RUN_FILE).is_file()}
+            kept["report"] = False
+        rows = run_leaderboard(
+            tasks, agents, particles, episodes, seed, settings, **dict(engine_options or {}),
+            **kept,
+        )  # fmt: skip
+        result["points"].append({"setting": name, "value": value, "rows": rows})
+    return result
+
+
+def point_folder(folder: str | Path, index: int, name: str, value: Any) -> Path:
+    """The results folder of point ``index`` (``name`` at ``value``) of the sweep in ``folder``."""
+    text = "".join(c if c.isalnum() or c in "._-" else "_" for c in f"{name}-{value}")
+    return Path(folder) / "points" / f"{index:03d}-{text}"
 
 
 def default_value(name: str) -> Any:

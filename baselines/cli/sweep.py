@@ -105,7 +105,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_data_dir(sw)
     sw.add_argument(
         "--out", type=output_dir, required=True,
-        help="folder for sweep.json, sweep.md and sweep.png (created if needed)",
+        help="folder for sweep.json, sweep.md and sweep.png, and each point's episodes as "
+        "they finish, in points/ (created if needed)",
+    )  # fmt: skip
+    sw.add_argument(
+        "--resume", action="store_true",
+        help="continue the sweep saved in OUT: each point's run resumes where it stopped "
+        "(default: an OUT holding a sweep is refused)",
     )  # fmt: skip
     sw.add_argument(
         "--figure", type=output_file(".png"), default=None,
@@ -129,13 +135,16 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         flags = ", ".join("--" + name.replace("_", "-") for name in _SETTINGS)
         raise UsageError(f"nothing to sweep: give at least one of {flags}")
     check_engine(args)
-    check_fresh_output(args.out, ["sweep.json"], "a sweep")
+    if not args.resume:
+        check_fresh_output(args.out, ["sweep.json", "points"], "a sweep")
+    elif not (args.out / "points").is_dir():
+        raise UsageError(f"--resume: no sweep to resume in {args.out} (start one without it)")
     engine = None
     if args.engine != "inprocess":
         engine = {"engine": args.engine, "workers": args.workers, "address": args.address}
     result = sweep.run_sweep(
         args.tasks, args.agents, args.particles, grid, args.episodes, args.seed,
-        env_kwargs(args), engine_options=engine,
+        env_kwargs(args), engine_options=engine, out=args.out, resume=args.resume,
     )  # fmt: skip
     args.out.mkdir(parents=True, exist_ok=True)
     say = (lambda *_: None) if args.json else wrote  # --json: stdout holds the JSON alone

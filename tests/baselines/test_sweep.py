@@ -97,7 +97,8 @@ def test_sweep_command(tmp_path, capsys, monkeypatch):
     seen = []
 
     def fake_leaderboard(tasks, agents, particles, episodes, seed, env_kwargs, **engine):
-        seen.append((env_kwargs, engine))
+        kept = ("out", "resume", "report")  # where each point keeps its episodes
+        seen.append((env_kwargs, {k: v for k, v in engine.items() if k not in kept}))
         return run_leaderboard(tasks, agents, particles, episodes, seed, {**env_kwargs, **BASE})
 
     monkeypatch.setattr("baselines.sweep.run_leaderboard", fake_leaderboard)
@@ -146,3 +147,33 @@ def test_a_cell_that_fails_or_is_skipped_is_shown_and_fails_the_command(tmp_path
     assert main([*argv[:-1], str(tmp_path / "sw2"), "--json"]) == 1
     printed = json.loads(capsys.readouterr().out)
     assert [p["kind"] for p in printed["not_run"]] == ["error", "skipped"]
+
+
+def test_an_interrupted_sweep_resumes_to_the_uninterrupted_numbers(tmp_path, capsys, monkeypatch):
+    import baselines.leaderboard.engine as engine
+
+    argv = ["sweep", "--tasks", "ArmTrack-v2", "--agents", "pf-cv", "--particles", "10",
+            "--episodes", "2", "--noise", "0", "12", "--size", "64"]  # fmt: skip
+    whole = tmp_path / "whole"
+    assert main([*argv, "--out", str(whole)]) == 0
+    real, calls = engine.run_episode, []
+
+    def interrupted_in_the_second_point(*args, **kwargs):
+        calls.append(1)
+        if len(calls) > 5:  # a point runs 4 episodes (hold and pf-cv, 2 each)
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    cut = tmp_path / "cut"
+    monkeypatch.setattr(engine, "run_episode", interrupted_in_the_second_point)
+    assert main([*argv, "--out", str(cut)]) == 130
+    assert not (cut / "sweep.json").exists() and len(list((cut / "points").iterdir())) == 2
+    monkeypatch.undo()
+    assert main([*argv, "--out", str(cut)]) == 2  # not written over
+    assert main([*argv, "--out", str(cut), "--resume"]) == 0
+    capsys.readouterr()
+    done, ref = sweep.load(cut / "sweep.json"), sweep.load(whole / "sweep.json")
+    assert [_errors(p["rows"], "pf-cv") for p in done["points"]] == [
+        _errors(p["rows"], "pf-cv") for p in ref["points"]
+    ]
+    assert main([*argv, "--out", str(tmp_path / "none"), "--resume"]) == 2
