@@ -120,7 +120,7 @@ def _values(command: str, action: argparse.Action) -> dict[str, list[str]]:
         return MOCAP_VALUES
     if name == "output file":
         return OUTPUT_VALUES
-    if kind is _common.output_dir:
+    if kind in (_common.output_dir, _common.shared_output_dir):
         return FOLDER_VALUES
     numeric = _numeric(kind)
     if numeric:
