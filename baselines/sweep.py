@@ -27,6 +27,7 @@ from baselines.leaderboard.results import RUN_FILE
 from baselines.leaderboard.rows import cell_label
 from baselines.leaderboard.run import run_leaderboard
 from baselines.leaderboard.stats import bootstrap_ci, iqm
+from baselines.leaderboard.videos import file_slug
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 from humotion_gym.files import write_text_atomically
 from humotion_gym.render import SceneOptions
@@ -130,8 +131,8 @@ def run_sweep(
         kept: dict[str, Any] = {}
         if folder is not None:
             where = point_folder(folder, k, name, value)
-            kept = {"out": where, "resume": resume and (where / RUN_FILE).is_file()}
-            kept["report"] = False
+            resumed = resume and (where / RUN_FILE).is_file()
+            kept = {"out": where, "resume": resumed, "report": False}
         rows = run_leaderboard(
             tasks, agents, particles, episodes, seed, settings, **dict(engine_options or {}),
             **kept,
@@ -142,8 +143,7 @@ def run_sweep(
 
 def point_folder(folder: str | Path, index: int, name: str, value: Any) -> Path:
     """The results folder of point ``index`` (``name`` at ``value``) of the sweep in ``folder``."""
-    text = "".join(c if c.isalnum() or c in "._-" else "_" for c in f"{name}-{value}")
-    return Path(folder) / "points" / f"{index:03d}-{text}"
+    return Path(folder) / "points" / f"{index:03d}-{file_slug(f'{name}-{value}')}"
 
 
 def default_value(name: str) -> Any:

@@ -1,7 +1,7 @@
 """numba's compiler for every compiled pass of both packages, its cache kept where it can be.
 
-numba writes each compiled function to a cache (``__pycache__`` beside the
-module, else ``$NUMBA_CACHE_DIR``, else ``~/.cache/numba``), so that later
+numba writes each compiled function to a cache (``$NUMBA_CACHE_DIR``, else
+``__pycache__`` beside the module, else ``~/.cache/numba``), so that later
 processes load it in milliseconds instead of compiling for seconds. It looks
 for that folder when a function is decorated, on import, and raises where it
 finds none that it can write: an install in a read-only image with a
@@ -106,19 +106,22 @@ def compiled(**options: Any) -> Callable[[Callable[..., Any]], Any]:
     """
 
     def decorate(function: Callable[..., Any]) -> Any:
-        try:
-            return numba.njit(cache=True, nogil=True, **options)(function)
-        except RuntimeError as exc:
-            if _NO_LOCATOR not in str(exc):
-                raise
-        if not _moved:  # the first function without a cache: move it, once
-            _moved.append(_use_temporary_cache())
-        if _moved[0]:
-            try:
-                return numba.njit(cache=True, nogil=True, **options)(function)
-            except RuntimeError as exc:
-                if _NO_LOCATOR not in str(exc):
-                    raise
-        return numba.njit(nogil=True, **options)(function)
+        made = _cached(function, options)
+        if made is None:
+            if not _moved:  # the first function without a cache: move it, once
+                _moved.append(_use_temporary_cache())
+            if _moved[0]:
+                made = _cached(function, options)
+        return made if made is not None else numba.njit(nogil=True, **options)(function)
 
     return decorate
+
+
+def _cached(function: Callable[..., Any], options: dict[str, Any]) -> Any:
+    """``function`` compiled with a cache; None where numba finds no folder for it."""
+    try:
+        return numba.njit(cache=True, nogil=True, **options)(function)
+    except RuntimeError as exc:
+        if _NO_LOCATOR not in str(exc):
+            raise
+        return None

@@ -18,7 +18,7 @@ import warnings
 from collections.abc import Sequence
 
 from humotion_gym import cli as benchmark_cli
-from humotion_gym.cli import TRACEBACK_ENV, interruption, one_line_warning
+from humotion_gym.cli import TRACEBACK_ENV, interrupted, one_line_warning
 
 #: Every command module of ``humotion-gym``, in ``--help`` order.
 COMMAND_MODULES: tuple[str, ...] = (
@@ -105,7 +105,5 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         failed = import_agent_modules(args)
     except KeyboardInterrupt as exc:  # in a user's module, before the command ran
-        word, code = interruption(exc)
-        print(f"humotion-gym: {word}", file=sys.stderr)
-        return code
+        return interrupted(exc, "humotion-gym")
     return failed if failed is not None else benchmark_cli.main(args, COMMAND_MODULES)

@@ -26,7 +26,7 @@ from baselines.cli._args import (
     particle_count,
     tracked_task,
 )
-from humotion_gym.cli import interruption
+from humotion_gym.cli import interrupted
 from humotion_gym.cli._common import (
     CommandError,
     UsageError,
@@ -287,14 +287,12 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
     except ReplayMismatch as exc:  # a video's episode did not reproduce: the run is saved
         raise CommandError(f"--videos: {exc}") from None
     except KeyboardInterrupt as exc:
-        word, code = interruption(exc)
         where = (
             f"; the finished episodes are saved in {args.out}; to finish it: {command} --resume"
             if args.out
             else ""
         )
-        print(f"humotion-gym leaderboard: {word}{where}", file=sys.stderr)
-        return code
+        return interrupted(exc, "humotion-gym leaderboard", where)
     failed = [r for r in rows if "error" in r]
     if args.json:
         print_json({"rows": rows, "validity": validity_lines(rows)})

@@ -25,7 +25,7 @@ from humotion_gym.cli._common import (
     add_json,
     add_seed,
     add_task,
-    hold_output_folders,
+    hold_default_folder,
     int_at_least,
     output_dir,
     output_file,
@@ -180,11 +180,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     if args.out is not None:  # held by the command line while the command runs
         return _train(args, args.out)
     out = Path("runs") / f"{args.algo}-{args.task}-s{args.seed}"
-    try:  # the default folder, checked before training and held as --out is
-        held = argparse.Namespace(out=output_dir(str(out)))
-    except argparse.ArgumentTypeError as exc:
-        raise UsageError(f"--out: {exc}") from None
-    with hold_output_folders(held):
+    with hold_default_folder(out, "out"):  # checked before training and held as --out is
         return _train(args, out)
 
 

@@ -200,7 +200,8 @@ def _caption(frames: list[NDArray[np.uint8]], errors: Sequence[float]) -> list[N
     return out
 
 
-def _slug(text: str) -> str:
+def file_slug(text: str) -> str:
+    """``text`` as a file name: each run of other characters than ``A-Za-z0-9_.-`` one ``_``."""
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", text)
 
 
@@ -234,7 +235,7 @@ def write_videos(
         )
         for choice, s in picks.items():
             result, frames = replayed[s]
-            stem = _slug(f"{r['task']}_{cell_label(r)}_{choice}_seed{s}")
+            stem = file_slug(f"{r['task']}_{cell_label(r)}_{choice}_seed{s}")
             video = folder / "videos" / f"{stem}.webm"
             sheet = folder / "videos" / f"{stem}.jpg"
             entry = {"task": r["task"], "cell": cell_label(r), "choice": choice, "seed": s,

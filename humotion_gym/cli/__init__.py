@@ -206,9 +206,15 @@ class Terminated(KeyboardInterrupt):
     """
 
 
-def interruption(exc: KeyboardInterrupt) -> tuple[str, int]:
-    """What an interrupted command says and its exit code: Ctrl-C's, or SIGTERM's."""
-    return ("terminated", 143) if isinstance(exc, Terminated) else ("interrupted", 130)
+def interrupted(exc: KeyboardInterrupt, who: str, more: str = "") -> int:
+    """Say on stderr that ``who`` was interrupted (``who: interrupted`` then ``more``).
+
+    Returns:
+        The exit code: 143 for SIGTERM (:class:`Terminated`), 130 for Ctrl-C.
+    """
+    word, code = ("terminated", 143) if isinstance(exc, Terminated) else ("interrupted", 130)
+    print(f"{who}: {word}{more}", file=sys.stderr)
+    return code
 
 
 def _raise_terminated(signum: int, frame: FrameType | None) -> NoReturn:
@@ -270,9 +276,7 @@ def main(argv: Sequence[str] | None = None, modules: Sequence[str] = COMMAND_MOD
         except SystemExit as exc:  # --help, --version (0) or a usage error (2)
             return exc.code if isinstance(exc.code, int) else 2
     except KeyboardInterrupt as exc:  # before the command started: nothing written
-        word, code = interruption(exc)
-        print(f"humotion-gym: {word}", file=sys.stderr)
-        return code
+        return interrupted(exc, "humotion-gym")
     limit_blas_threads()  # see humotion_gym.threads for why and for Python users
     with warnings.catch_warnings():  # restores the caller's warning display on return
         warnings.showwarning = one_line_warning
@@ -312,9 +316,7 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         _error(parser, args, f"{exc}; install the {extra} extra: pip install -e '.[{extra}]'")
         return 1
     except KeyboardInterrupt as exc:  # what was written stays (commands write as they go)
-        word, code = interruption(exc)
-        print(f"{parser.prog} {args.command}: {word}", file=sys.stderr)
-        return code
+        return interrupted(exc, f"{parser.prog} {args.command}")
     except _runtime_errors() as exc:
         if os.environ.get(TRACEBACK_ENV) == "1":
             raise

@@ -226,6 +226,23 @@ def hold_output_folders(args: argparse.Namespace) -> Iterator[None]:
         yield
 
 
+@contextlib.contextmanager
+def hold_default_folder(path: Path, dest: str) -> Iterator[None]:
+    """:func:`hold_output_folders` for the folder a command chooses when flag ``dest`` is not given.
+
+    Checked as :func:`output_dir` checks the flag's value, and refused in its name.
+
+    Raises:
+        UsageError: If the folder cannot be written or another command holds it.
+    """
+    try:
+        folder = output_dir(str(path))
+    except argparse.ArgumentTypeError as exc:
+        raise UsageError(f"--{dest.replace('_', '-')}: {exc}") from None
+    with hold_output_folders(argparse.Namespace(**{dest: folder})):
+        yield
+
+
 def _unheld(folder: Path, exc: OSError) -> None:
     """Say that ``folder`` runs without being held (:func:`hold_output_folders`)."""
     warnings.warn(

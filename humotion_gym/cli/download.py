@@ -17,9 +17,8 @@ from humotion_gym.cli._common import (
     UsageError,
     add_command,
     float_between,
-    hold_output_folders,
+    hold_default_folder,
     int_at_least,
-    output_dir,
     positive_int,
     shared_output_dir,
 )
@@ -186,14 +185,7 @@ def _cmd_download_cmu(args: argparse.Namespace) -> int:
         kwargs["base_url"] = args.base_url
     # Held while downloading only (--dry-run and --verify write nothing), the
     # default download folder as --dest: two downloads share one manifest.
-    from humotion_gym.mocap.library import default_cache_dir
-
-    dest = args.dest if args.dest is not None else default_cache_dir() / "cmu"
-    try:
-        folder = output_dir(str(dest))
-    except argparse.ArgumentTypeError as exc:  # the default folder, checked as --dest is
-        raise UsageError(f"--dest: {exc}") from None
-    with hold_output_folders(argparse.Namespace(dest=folder)):
+    with hold_default_folder(download.cmu_download_dir(args.dest), "dest"):
         files = download.download_cmu(subjects, **kwargs)
     print(f"{len(files)} files in {files[0].parent.parent if files else args.dest}")
     return 0

@@ -108,6 +108,7 @@ __all__ = [
     "DownloadError",
     "RegistryEntry",
     "choose_cmu_subjects",
+    "cmu_download_dir",
     "cmu_subject_code",
     "default_cache_dir",
     "download_cmu",
@@ -189,6 +190,11 @@ class CacheReport:
     def problems(self) -> list[str]:
         """Corrupt and missing files together, sorted; :func:`download_cmu` refetches them."""
         return sorted(self.corrupt + self.missing)
+
+
+def cmu_download_dir(dest: str | Path | None = None) -> Path:
+    """Where CMU's files are downloaded: ``dest``, else ``default_cache_dir() / "cmu"``."""
+    return Path(dest) if dest is not None else default_cache_dir() / "cmu"
 
 
 def cmu_subject_code(subject: int) -> str:
@@ -521,7 +527,7 @@ def download_cmu(
         time.monotonic() + deadline_s,
         f"the run's deadline of {deadline_s:g} s (deadline_s=, --deadline)",
     )
-    dest = Path(dest) if dest is not None else default_cache_dir() / "cmu"
+    dest = cmu_download_dir(dest)
     dest.mkdir(parents=True, exist_ok=True)
     manifest = _read_manifest(dest)
     opts: dict[str, Any] = {
@@ -697,7 +703,7 @@ def verify_cache(
             package, which writes it atomically): nothing it records can be
             checked; :func:`download_cmu` records every file again.
     """
-    dest = Path(dest) if dest is not None else default_cache_dir() / "cmu"
+    dest = cmu_download_dir(dest)
     path = dest / MANIFEST_NAME
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no download manifest here")
