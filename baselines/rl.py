@@ -41,6 +41,7 @@ import time
 import warnings
 import zipfile
 from collections.abc import Callable, Sequence
+from contextlib import closing
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any, cast
@@ -329,11 +330,13 @@ def _vec_env(config: TrainConfig, fold: MotionLibrary | None) -> VecMonitor:
     # The episodes stepped as one batch (humotion_gym.sb3.LearnerVecEnv): the
     # same observations, rewards and episode ends as a DummyVecEnv of
     # make_learner_env environments with the same seeds
-    # (tests/envs/test_vector_env.py), cheaper.
+    # (tests/envs/test_vector_env.py), cheaper; their frames drawn ahead in a
+    # second process, the same frames (tests/envs/test_frame_stream.py).
     s = config.settings
     batched = learner_vec_env(
-        config.task, int(s["n_envs"]), "train", s["frame_size"], **_data(config, fold)
-    )
+        config.task, int(s["n_envs"]), "train", s["frame_size"], draw_ahead=True,
+        **_data(config, fold),
+    )  # fmt: skip
     batched.seed(config.seed)
     return VecMonitor(batched)
 
@@ -494,38 +497,37 @@ def train_ppo(
     """
     out = Path(config.out)
     folder = out / "checkpoints"
-    venv = _vec_env(config, fold)
-    done = start[0] if start else 0
-    if start:
-        model = _resumed(start[1], venv)
-    else:
-        model = new_model(config, venv)
-        _start_from(model, init, config.init)
-    model.set_logger(logger)
-    _write_config(config, command, {"resumed_from": done})
-    t0 = time.perf_counter()
-    remaining = max(0, config.steps - done)
-    milestones = _Milestones(folder, config.checkpoint_every, validation)
-    rollout = int(model.n_steps) * venv.num_envs
-    if remaining % rollout:  # SB3's PPO stops only between rollouts
-        ends = done + -(-remaining // rollout) * rollout
-        print(
-            f"note: PPO trains in rollouts of n_steps x n_envs = {rollout:,} env steps: "
-            f"--steps {config.steps:,} ends at {ends:,}",
-            flush=True,
+    with closing(_vec_env(config, fold)) as venv:  # and its process drawing the frames
+        done = start[0] if start else 0
+        if start:
+            model = _resumed(start[1], venv)
+        else:
+            model = new_model(config, venv)
+            _start_from(model, init, config.init)
+        model.set_logger(logger)
+        _write_config(config, command, {"resumed_from": done})
+        t0 = time.perf_counter()
+        remaining = max(0, config.steps - done)
+        milestones = _Milestones(folder, config.checkpoint_every, validation)
+        rollout = int(model.n_steps) * venv.num_envs
+        if remaining % rollout:  # SB3's PPO stops only between rollouts
+            ends = done + -(-remaining // rollout) * rollout
+            print(
+                f"note: PPO trains in rollouts of n_steps x n_envs = {rollout:,} env steps: "
+                f"--steps {config.steps:,} ends at {ends:,}",
+                flush=True,
+            )
+        if remaining:
+            model.learn(remaining, callback=milestones, reset_num_timesteps=start is None)
+        path = out / "model.zip"
+        _save(model, path)
+        steps = int(model.num_timesteps)
+        record = _final_validation(validation, model, steps, logger)
+        wall_s = time.perf_counter() - t0
+        _write_config(
+            config, command, {"resumed_from": done, "wall_s": wall_s, "env_steps": steps, **record}
         )
-    if remaining:
-        model.learn(remaining, callback=milestones, reset_num_timesteps=start is None)
-    path = out / "model.zip"
-    _save(model, path)
-    steps = int(model.num_timesteps)
-    record = _final_validation(validation, model, steps, logger)
-    _write_config(
-        config, command,
-        {"resumed_from": done, "wall_s": time.perf_counter() - t0, "env_steps": steps, **record},
-    )  # fmt: skip
-    venv.close()
-    return path
+        return path
 
 
 class _Buffer:

@@ -12,9 +12,11 @@ lost (five frames in) and resets are frequent; and the 30-frame episodes of
 ``terminate_on_lost=False`` that the learners train on. One core.
 
 Then PPO (stable-baselines3, 8 envs, as ``humotion-gym train`` runs it) on the
-vector env through :class:`humotion_gym.sb3.LearnerVecEnv`, against the same
-PPO on a trivial environment with identical spaces, taking turns a rollout at a
-time (see :func:`ppo_rows`).
+vector env through :class:`humotion_gym.sb3.LearnerVecEnv`, its frames drawn
+ahead in a second process (``draw_ahead=True``), against the same PPO on a
+trivial environment with identical spaces, and on the same vector env drawing
+its frames in-process, taking turns a rollout at a time (see :func:`ppo_rows`).
+PPO runs on one core; the drawing process on the other.
 """
 
 from __future__ import annotations
@@ -89,27 +91,30 @@ def ppo_rows(
 ) -> list[tuple[str, float, str, float]]:
     """PPO env steps per second on the vector env (through :class:`LearnerVecEnv`).
 
-    Against the same PPO (``baselines.rl.new_model``: 64x64 frames, one torch
-    thread) on a trivial environment with identical spaces (constant
-    observation, zero reward; ``bench_rl.TrivialEnv`` in a ``DummyVecEnv``),
-    and, for comparison, on today's ``DummyVecEnv`` of ``LearnerObservation``
-    environments.
+    The vector env as ``humotion-gym train`` makes it (its frames drawn ahead
+    in a second process), against the same PPO (``baselines.rl.new_model``:
+    64x64 frames, one torch thread) on a trivial environment with identical
+    spaces (constant observation, zero reward; ``bench_rl.TrivialEnv`` in a
+    ``DummyVecEnv``), and, for comparison, on the vector env drawing its
+    frames in its own process.
 
     The three take turns a rollout at a time (``bench_rl.ppo_turns``):
     ``rounds`` rounds of one PPO iteration each; in six rounds each
     environment runs first, second and third, after each of the others. The
     ratio is the trivial environment's summed time over the environment's;
-    the label gives its range over blocks of ``block`` consecutive rounds.
+    the label gives its range over blocks of ``block`` consecutive rounds,
+    and each environment's ``step_wait`` per vector step (of 8 env steps),
+    averaged over every step PPO took, warm-up included: what the environment
+    costs the learner's process.
     """
     import torch as th
     from bench_rl import TrivialEnv, ppo_turns
     from stable_baselines3.common.vec_env import DummyVecEnv
 
-    from baselines.rl import make_learner_env
     from humotion_gym.sb3 import learner_vec_env
 
     th.set_num_threads(1)
-    batched = learner_vec_env(task, n_envs, "train", 64)
+    batched = learner_vec_env(task, n_envs, "train", 64, draw_ahead=True)
     frames = batched.venv.envs[0].episode_frames
 
     def trivial() -> gym.Env:
@@ -118,24 +123,51 @@ def ppo_rows(
     venvs = {
         "trivial": DummyVecEnv([trivial] * n_envs),
         "vector": batched,
-        "dummy": DummyVecEnv([lambda: make_learner_env(task, "train", 64)] * n_envs),
+        "in-process": learner_vec_env(task, n_envs, "train", 64),
     }
-    spent, iteration = ppo_turns(venvs, task, n_envs, rounds)
+    waits = {name: _timed_step_wait(venv) for name, venv in venvs.items()}
+    try:
+        spent, iteration = ppo_turns(venvs, task, n_envs, rounds)
+    finally:
+        batched.close()
     ref = f"PPO on a trivial env with {task}'s learner spaces, {n_envs} envs"
-    out = [(ref, rounds * iteration / float(spent["trivial"].sum()), ref, 1.0)]
+    trivial_label = f"{ref} (step_wait {_mean_ms(waits['trivial'])} ms)"
+    out = [(trivial_label, rounds * iteration / float(spent["trivial"].sum()), ref, 1.0)]
     blocks = [slice(lo, lo + block) for lo in range(0, rounds - block + 1, block)] or [slice(None)]
-    for name, label in (("vector", "the vector env"), ("dummy", "DummyVecEnv")):
+    labels = (("vector", "the vector env"), ("in-process", "the vector env drawing in-process"))
+    for name, label in labels:
         ratio = float(spent["trivial"].sum() / spent[name].sum())
         parts = [spent["trivial"][b].sum() / spent[name][b].sum() for b in blocks]
         spread = (
             f"{rounds} rotated rounds of one rollout each; blocks of {block}: "
-            f"{min(parts):.2f}-{max(parts):.2f}"
+            f"{min(parts):.2f}-{max(parts):.2f}; step_wait {_mean_ms(waits[name])} ms"
         )
         out.append((
             f"PPO on {label}, {n_envs} x {task} ({spread})",
             rounds * iteration / float(spent[name].sum()), ref, ratio,
         ))  # fmt: skip
     return out
+
+
+def _timed_step_wait(venv: Any) -> list[float]:
+    """Time every ``step_wait`` of ``venv`` from now on: ``[seconds, calls]``."""
+    spent = [0.0, 0.0]
+    step_wait = venv.step_wait
+
+    def timed() -> Any:
+        t = time.perf_counter()
+        try:
+            return step_wait()
+        finally:
+            spent[0] += time.perf_counter() - t
+            spent[1] += 1
+
+    venv.step_wait = timed
+    return spent
+
+
+def _mean_ms(spent: list[float]) -> str:
+    return f"{1000 * spent[0] / max(spent[1], 1):.3f}"
 
 
 def main() -> None:

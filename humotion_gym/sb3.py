@@ -33,12 +33,12 @@ from stable_baselines3.common.vec_env.base_vec_env import (
 )
 
 from humotion_gym.checks import check_count
+from humotion_gym.envs._batch_info import episode_info
 from humotion_gym.envs.vector import (
     BATCH_SETTINGS,
     FIXED_SETTINGS,
     PoseTrackingVectorEnv,
     check_episode_method,
-    episode_info,
 )
 from humotion_gym.wrappers import (
     check_frame_size,
@@ -241,6 +241,7 @@ def learner_vec_env(
     n_envs: int,
     split: str = "train",
     frame_size: int | None = 64,
+    draw_ahead: bool = False,
     **env_kwargs: Any,
 ) -> LearnerVecEnv:
     """A task's N learner environments as one batched SB3 ``VecEnv``.
@@ -254,6 +255,10 @@ def learner_vec_env(
         n_envs: Number of episodes stepped together.
         split: ``"train"`` or ``"test"``.
         frame_size: Side of the frame shown to the policy.
+        draw_ahead: Draw the frames in a second process, ahead of the learner
+            (the same observations, rewards and info; see
+            :class:`~humotion_gym.envs.vector.PoseTrackingVectorEnv`). Call
+            ``close()`` when done.
         **env_kwargs: Keyword arguments of the environment.
     """
     check_count("learner_vec_env: n_envs", n_envs)
@@ -261,7 +266,7 @@ def learner_vec_env(
     kwargs = {"terminate_on_lost": False, **env_kwargs}
     venv = PoseTrackingVectorEnv(
         n_envs, task=task.split("/")[-1], split=split,
-        autoreset_mode=AutoresetMode.SAME_STEP, **kwargs,
+        autoreset_mode=AutoresetMode.SAME_STEP, draw_ahead=draw_ahead, **kwargs,
     )  # fmt: skip
     return LearnerVecEnv(venv, frame_size)
 

@@ -562,9 +562,12 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         return self._first_frame()
 
     def _begin_episode(
-        self, seed: int | None, options: dict[str, Any], cameras: bool = True
+        self, seed: int | None, options: dict[str, Any], cameras: bool = True, scene: bool = True
     ) -> None:
         """A reset up to the figures: clip, start, background, noise, cameras.
+
+        ``scene=False`` leaves out the noise bank and backgrounds, which only
+        drawing reads (the vector environment's ``draw_ahead``: another process draws).
 
         :meth:`_reset` then prepares the episode's figures and shows the first
         frame (:meth:`_first_frame`); the vector environment prepares the
@@ -577,7 +580,7 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         self._t0 = self._pick_start(self._motion, options)
         self._bounds = None
         self._episode_seed = int(self.np_random.integers(2**63 - 1))
-        if seed is not None or self._noise is None:
+        if scene and (seed is not None or self._noise is None):
             # The sensor-noise bank is drawn at a seeded (or the first) reset
             # and serves the episodes that follow: a third of a background's
             # cost saved per episode, and frames still read random windows.
@@ -590,7 +593,11 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         rngs = [episode_rng] + [
             np.random.default_rng([self._episode_seed, 3, view]) for view in range(1, self.views)
         ]
-        self._backgrounds = [make_background(self.scene, rng, self._noise) for rng in rngs]
+        self._backgrounds = (
+            [make_background(self.scene, rng, self._noise) for rng in rngs]
+            if scene
+            else [None] * self.views
+        )
         self._noise_rngs = rngs
         if cameras:
             self._place_camera()

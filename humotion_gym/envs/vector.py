@@ -54,7 +54,14 @@ from humotion_gym.body import (
 )
 from humotion_gym.camera import CAMERA_VECTOR_SIZE, fit_cameras
 from humotion_gym.checks import check_count, is_integer
+from humotion_gym.envs._batch_info import (
+    _add_info,
+    _add_infos,
+    _add_step_info,
+    _item,
+)
 from humotion_gym.envs._checks import action_array
+from humotion_gym.envs.frame_stream import FrameStream, episode_marks
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv, _scored_info
 from humotion_gym.metrics import StepScores, update_lost_run
 from humotion_gym.render import FigureSequence, _compose, _noise_windows, figure_sequences
@@ -98,7 +105,18 @@ class PoseTrackingVectorEnv(VectorEnv):
             the spec's, the task's length; default: the task's, as
             ``gym.make``'s, also with a longer ``episode_frames``; -1: no
             limit but the episode's own length).
+        draw_ahead: Draw the frames in a second process, a few steps ahead
+            (:mod:`~humotion_gym.envs.frame_stream`): the same frames,
+            rewards and info, the drawing on another core. Needs episodes
+            that run their full length (``terminate_on_lost=False``) and an
+            autoreset mode other than ``DISABLED``; ``close()`` ends the
+            process.
         **kwargs: Keyword arguments of :class:`PoseTrackingEnv`.
+
+    Raises:
+        ValueError: If ``draw_ahead`` is asked with episodes that end when
+            tracking is lost, with autoreset ``DISABLED``, or with arguments
+            that cannot be sent to the second process.
     """
 
     metadata = {
@@ -113,8 +131,10 @@ class PoseTrackingVectorEnv(VectorEnv):
         task: str = "BodyTrack-v2",
         autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
         max_episode_steps: int | None = None,
+        draw_ahead: bool = False,
         **kwargs: Any,
     ) -> None:
+        self._stream: FrameStream | None = None
         check_count("num_envs", num_envs)
         if max_episode_steps is not None and max_episode_steps != -1:
             check_count("max_episode_steps", max_episode_steps)
@@ -182,6 +202,28 @@ class PoseTrackingVectorEnv(VectorEnv):
         # Each episode's noise windows, frame by frame, drawn at its start
         # (render._noise_windows: the draws its frames would make one by one).
         self._windows = np.zeros((n, frames), np.int64)
+        if draw_ahead:
+            self._stream = self._frame_stream(template, task, kwargs)
+
+    def _frame_stream(
+        self, template: PoseTrackingEnv, task: str, kwargs: dict[str, Any]
+    ) -> FrameStream:
+        """The second process drawing this environment's frames ahead (``draw_ahead``)."""
+        if template.terminate_on_lost:
+            raise ValueError(
+                "draw_ahead: the frames are drawn ahead only where no action can end an "
+                "episode; make the environment with terminate_on_lost=False"
+            )
+        if self.autoreset_mode == AutoresetMode.DISABLED:
+            raise ValueError(
+                "draw_ahead: autoreset_mode DISABLED restarts episodes when the caller says; "
+                "use NEXT_STEP or SAME_STEP"
+            )
+        settings = {
+            "num_envs": self.num_envs, "task": task, "autoreset_mode": self.autoreset_mode,
+            "max_episode_steps": self._max_steps, **kwargs,
+        }  # fmt: skip
+        return FrameStream(settings, self._obs.shape)
 
     # -- episodes ----------------------------------------------------------------
 
@@ -203,14 +245,19 @@ class PoseTrackingVectorEnv(VectorEnv):
         with contextlib.ExitStack() as restore:
             for env, seed in zip(envs, seeds, strict=True):
                 restore.enter_context(env._all_or_nothing())
-                env._begin_episode(seed, env._check_options(options), cameras=False)
+                env._begin_episode(
+                    seed, env._check_options(options), cameras=False, scene=self._stream is None
+                )
             self._place_cameras(envs)
-            figures = self._figures(envs, 0, self._first_figures)
+            figures: list[FigureSequence | None] = [None] * len(envs)
+            if self._stream is None:  # else the frames come drawn from the stream
+                figures = list(self._figures(envs, 0, self._first_figures))
         infos = {}
         h, w, _ = self._scene.frame_shape
-        noisy, n_shown = self._scene.noise_sigma > 0, self._windows.shape[1] - 1
+        noisy = self._scene.noise_sigma > 0 and self._stream is None
+        n_shown = self._windows.shape[1] - 1
         for i, env, figure in zip(rows, envs, figures, strict=True):
-            env._view_figures = [figure]
+            env._view_figures = [figure]  # type: ignore[list-item]
             if noisy:  # the windows of frames 1, 2, ..., the order they are shown in
                 self._windows[i, 1:] = _noise_windows(env._noise_rng, h, w, n_shown)
             # drawn (below) straight into the batch's row, which is then the frame on show
@@ -228,8 +275,9 @@ class PoseTrackingVectorEnv(VectorEnv):
             self._t0[i] = env._t0
             self._lost_run[i] = 0
             self._started[i] = True
-        where = np.array(rows, np.intp)
-        self._draw(self._obs, where, self._k[where])
+        if self._stream is None:
+            where = np.array(rows, np.intp)
+            self._draw(self._obs, where, self._k[where])
         return infos
 
     def _place_cameras(self, envs: list[PoseTrackingEnv]) -> None:
@@ -323,8 +371,18 @@ class PoseTrackingVectorEnv(VectorEnv):
                 )
             if not mask.any():
                 raise ValueError("reset: options['reset_mask'] selects no episode")
+            if self._stream is not None and not mask.all():
+                # The drawing process has moved the other episodes on already.
+                raise ValueError(
+                    "reset: the frames are drawn ahead (draw_ahead=True), so a reset restarts "
+                    "every episode; make the environment without draw_ahead to reset some"
+                )
         rows = np.flatnonzero(mask).tolist()
+        if self._stream is not None:
+            seeds, states = self._twin_seeds(seeds, rows)
         started = self._start(rows, [seeds[i] for i in rows], options or None)
+        if self._stream is not None:
+            self._check_marks(self._stream.reset(seeds, states, options or None, self._obs))
         infos: dict[str, Any] = {}
         _add_infos(infos, rows, [started[i] for i in rows], n)
         self._autoreset[mask] = False
@@ -429,8 +487,42 @@ class PoseTrackingVectorEnv(VectorEnv):
         if started_rows:
             shown[started_rows] = [self.envs[i]._k for i in started_rows]
         self._autoreset = np.zeros(n, np.bool_) if same_step else terminated | truncated
+        if self._stream is not None:
+            self._check_marks(self._stream.next(observations))
+            self._obs[started_rows] = observations[started_rows]
         self._shown = observations
         return self._observations(observations), reward, terminated, truncated, infos
+
+    def _twin_seeds(
+        self, seeds: list[int | None], rows: list[int]
+    ) -> tuple[list[int | None], list[dict[str, Any] | None]]:
+        """What the drawing process's twin needs to start the episodes ``rows`` as these start.
+
+        An unseeded first reset takes its seed from the operating system's
+        entropy, as Gymnasium's does, here, and both use it. An unseeded
+        later one goes on with the episode's generator, which the twin, drawn
+        ahead, has moved further: it gets this one's state.
+
+        Returns:
+            The seeds and, per episode, its generator's state (or None).
+        """
+        out, states = list(seeds), [None] * len(seeds)
+        for i in rows:
+            if out[i] is not None:
+                continue
+            if self.envs[i]._np_random is None:
+                out[i] = int(np.random.SeedSequence().entropy)  # type: ignore[arg-type]
+            else:
+                states[i] = self.envs[i].np_random.bit_generator.state
+        return out, states
+
+    def _check_marks(self, marks: NDArray[np.int64]) -> None:
+        """Refuse frames drawn for other episodes than these (``draw_ahead``)."""
+        if not np.array_equal(marks, episode_marks(self)):
+            raise RuntimeError(
+                "draw_ahead: the drawing process's episodes are out of step with this "
+                "environment's (an episode changed outside reset() and step()?)"
+            )
 
     def _checked_actions(self, actions: NDArray[Any]) -> NDArray[Any]:
         """The actions, refused with a clear error before ``reset`` or when malformed."""
@@ -516,7 +608,7 @@ class PoseTrackingVectorEnv(VectorEnv):
                 env._frame = observations[i]
             cameras[i] = env._cameras[env._k]
         stepped_on = active & ~done
-        if stepped_on.any():
+        if stepped_on.any() and self._stream is None:
             drawn = np.flatnonzero(stepped_on)
             self._draw(observations, drawn, k[drawn] + 1)
         return k + stepped_on, cameras
@@ -601,6 +693,12 @@ class PoseTrackingVectorEnv(VectorEnv):
                 f"set_attr: {name!r} is set when the vector environment is made (it sizes its "
                 f"buffers and spaces); make one with {name}=..."
             )
+        if self._stream is not None and name == "terminate_on_lost" and any(values):
+            raise ValueError(
+                "set_attr: the frames are drawn ahead (draw_ahead=True), so episodes run "
+                "their full length; make the environment without draw_ahead to end them "
+                "when tracking is lost"
+            )
         if name in BATCH_SETTINGS and any(v != values[0] for v in values[1:]):
             raise ValueError(
                 f"set_attr: the vector environment applies one {name!r} to all its episodes; "
@@ -611,7 +709,10 @@ class PoseTrackingVectorEnv(VectorEnv):
             setattr(env, name, value)
 
     def close_extras(self, **kwargs: Any) -> None:
-        """Close the episodes' environments (none where ``__init__`` refused its arguments)."""
+        """Close the episodes' environments and the drawing process (``draw_ahead``)."""
+        stream = getattr(self, "_stream", None)
+        if stream is not None:
+            stream.close()
         for env in getattr(self, "envs", ()):
             env.close()
 
@@ -643,125 +744,6 @@ FIXED_SETTINGS: tuple[str, ...] = (
     "episode_frames", "frame_skip", "task", "scene", "views", "render_mode",
     "dict_observation", "observation_space", "action_space",
 )  # fmt: skip
-
-
-def _item(value: NDArray[Any], i: int) -> Any:
-    """Row ``i`` of a batched value, as the single environment gives it."""
-    row = value[i]
-    if isinstance(row, np.ndarray) or value.dtype == object:
-        return row
-    if value.dtype == np.bool_:
-        return bool(row)
-    if value.dtype.kind in "iu":
-        return int(row)
-    return float(row)
-
-
-def episode_info(info: dict[str, Any], i: int) -> dict[str, Any]:
-    """Episode ``i``'s part of a step's or reset's info, as the single environment gives it.
-
-    The keys whose mask (``_key``) shows that episode, without the finished
-    episodes' ``final_obs`` and ``final_info``: after a reset (or a restart
-    within a step), what the single environment's ``reset`` returns.
-    """
-    return {
-        key: _item(value, i)
-        for key, value in info.items()
-        if not key.startswith("_")
-        and key not in ("final_obs", "final_info")
-        and (f"_{key}" not in info or info[f"_{key}"][i])
-    }
-
-
-def _batch_of(value: Any, n: int) -> NDArray[Any]:
-    """An empty batch of ``n`` values of ``value``'s kind, as ``SyncVectorEnv`` makes it.
-
-    Numbers and bools in a numpy array of their type, arrays stacked, anything
-    else in an object array of None.
-    """
-    if type(value) in (int, float, bool) or isinstance(value, np.number):
-        return np.zeros(n, dtype=type(value))
-    if isinstance(value, np.ndarray):
-        return np.zeros((n, *value.shape), dtype=value.dtype)
-    return np.full(n, None, dtype=object)
-
-
-def _add_step_info(
-    infos: dict[str, Any], step_info: dict[str, NDArray[Any]], stepped: NDArray[np.bool_]
-) -> None:
-    """The stepped episodes' rows of ``step_info`` into ``infos``, masked as SyncVectorEnv does."""
-    if not stepped.any():
-        return
-    skipped = None if stepped.all() else ~stepped
-    for key, value in step_info.items():
-        if skipped is not None:
-            value = value.copy()
-            value[skipped] = None if value.dtype == object else 0
-        infos[key], infos[f"_{key}"] = value, stepped.copy()
-
-
-def _add_infos(infos: dict[str, Any], rows: list[int], items: list[dict[str, Any]], n: int) -> None:
-    """:func:`_add_info` of ``items[j]`` for episode ``rows[j]``, in order, key by key.
-
-    The episodes a step starts give infos with the same keys; each key's
-    array and mask are then looked up once for all of them (a tenth of an
-    episode's start, done one info at a time). Infos with other keys, or
-    with nested ones, go one at a time.
-    """
-    if not items:
-        return
-    keys = list(items[0])
-    if "final_obs" in keys or any(
-        list(item) != keys or any(isinstance(v, dict) for v in item.values()) for item in items
-    ):
-        for i, item in zip(rows, items, strict=True):
-            _add_info(infos, item, i, n)
-        return
-    for key in keys:
-        values = [item[key] for item in items]
-        array = infos.get(key)
-        if array is None:  # the first value seen sets the type, as in _add_info
-            array = _batch_of(values[0], n)
-        if array.dtype == object:  # one by one: a value that is a sequence stays one value
-            for i, value in zip(rows, values, strict=True):
-                array[i] = value
-        else:
-            array[rows] = values
-        _store(infos, key, array, rows, n)
-
-
-def _add_info(infos: dict[str, Any], info: dict[str, Any], i: int, n: int) -> dict[str, Any]:
-    """Add episode ``i``'s info to the batched ``infos`` as ``SyncVectorEnv`` does.
-
-    Each key holds an array over the N episodes (of the type of the first
-    value seen: numbers and bools as numpy arrays, arrays stacked, anything
-    else in an object array) and ``_key`` a mask of the episodes that have it;
-    a dict value is batched the same way, recursively.
-    """
-    for key, value in info.items():
-        if key == "final_obs":
-            array = infos.get(key)
-            if array is None:
-                array = np.full(n, None, dtype=object)
-            array[i] = value
-        elif isinstance(value, dict):
-            array = _add_info(infos.get(key, {}), value, i, n)
-        else:
-            array = infos.get(key)
-            if array is None:
-                array = _batch_of(value, n)
-            array[i] = value
-        _store(infos, key, array, i, n)
-    return infos
-
-
-def _store(infos: dict[str, Any], key: str, array: Any, where: int | list[int], n: int) -> None:
-    """Put ``array`` under ``key`` and mark episodes ``where`` in its mask ``_key``."""
-    mask = infos.get(f"_{key}")
-    if mask is None:
-        mask = np.zeros(n, np.bool_)
-    mask[where] = True
-    infos[key], infos[f"_{key}"] = array, mask
 
 
 class ArmTrackVectorEnv(PoseTrackingVectorEnv):

@@ -402,7 +402,7 @@ def test_learner_vec_env_equals_dummy_vec_env_of_learner_envs():
     ],
 )
 def test_infos_batched_key_by_key_are_infos_added_one_by_one(items):
-    from humotion_gym.envs.vector import _add_info, _add_infos
+    from humotion_gym.envs._batch_info import _add_info, _add_infos
 
     for before in ({}, {"a": np.zeros(4, np.int64), "_a": np.zeros(4, np.bool_)}):
         got = {key: value.copy() for key, value in before.items()}

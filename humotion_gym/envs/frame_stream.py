@@ -1,0 +1,272 @@
+"""A vector environment's frames drawn ahead in a second process (``draw_ahead=True``).
+
+When episodes run their full length (``terminate_on_lost=False``), no action
+changes which episodes start, where, or what their frames show: actions
+change only the scores. A second Python process then runs a twin of the
+vector environment (the same task, settings and seeds) stepped with any
+actions, and draws its frames a few steps ahead of the learner into shared
+memory; the learner's own environment does everything else (episode starts,
+cameras, scores, info) but the drawing, and takes each step's frames from
+the stream. A learner such as PPO, whose own step is its policy's forward
+pass, then spends almost nothing on the frames: drawing, the figures and
+backgrounds run on another core while it trains.
+
+Nothing the agent is given depends on the truth after its step: the frames
+ahead wait in shared memory that only the environment reads, one step's
+frames at a time.
+
+Protocol. Shared memory holds a ring of slots, each one step's frames with
+its epoch and each episode's frame index, start frame and episode seed, and
+a counter of the slots the learner is done with, which the worker may fill
+again. A pipe carries one byte per message: ``s`` (the worker filled the
+next slot), ``z`` + pickled ``(epoch, seeds, states, options)`` (the learner
+reset; the worker resets its twin the same way, from the learner's
+generator states, and its next slot holds the reset's frames), ``e`` + a
+message (the worker failed) and ``x`` (close). The learner checks each
+slot's episodes against its own: a twin out of step is an error, never a
+wrong frame. The learner never writes to the pipe between resets: a message
+wakes the worker, and a woken process is often run on the waker's core for
+a while (tens of microseconds to milliseconds of the learner's time on a
+virtual machine); a worker with no free slot sleeps a little instead.
+"""
+
+from __future__ import annotations
+
+import pickle
+import select
+import socket
+import struct
+import subprocess
+import sys
+import threading
+import weakref
+from multiprocessing.shared_memory import SharedMemory
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+#: Slots of frames the worker may draw ahead of the learner.
+DEPTH = 16
+# Seconds between checks that the worker is still alive while waiting for it.
+_POLL_S = 1.0
+# A message's length, as multiprocessing's Connection frames it.
+_HEADER = struct.Struct("!i")
+# Seconds a worker with no free slot sleeps before it looks again.
+NAP_S = 0.0005
+
+
+def shared_views(
+    buffer: memoryview, depth: int, frame_shape: tuple[int, ...]
+) -> tuple[NDArray[np.uint8], NDArray[np.int64], NDArray[np.int64]]:
+    """The shared memory's frames ``(depth, N, H, W, C)``, marks ``(depth, 1 + 3N)``, counter."""
+    n, frames_end = frame_shape[0], depth * int(np.prod(frame_shape))
+    frames = np.ndarray((depth, *frame_shape), np.uint8, buffer[:frames_end])
+    meta_end = frames_end + 8 * depth * (1 + 3 * n)
+    marks = np.ndarray((depth, 1 + 3 * n), np.int64, buffer[frames_end:meta_end])
+    return frames, marks, np.ndarray((1,), np.int64, buffer[meta_end : meta_end + 8])
+
+
+def _shared_bytes(depth: int, frame_shape: tuple[int, ...]) -> int:
+    return depth * (int(np.prod(frame_shape)) + 8 * (1 + 3 * frame_shape[0])) + 8
+
+
+class FrameStream:
+    """The worker process and its ring of frame slots, from the learner's side.
+
+    Args:
+        settings: The keyword arguments that make the worker's twin
+            :class:`~humotion_gym.envs.vector.PoseTrackingVectorEnv`.
+        frame_shape: ``(N, H, W, C)`` one step's frames.
+        depth: Slots in the ring (steps drawn ahead).
+    """
+
+    def __init__(
+        self, settings: dict[str, Any], frame_shape: tuple[int, ...], depth: int = DEPTH
+    ) -> None:
+        if not hasattr(select, "poll") or sys.platform == "win32":
+            raise ValueError("draw_ahead: needs a POSIX system (Linux, macOS)")
+        try:
+            config = pickle.dumps(settings)
+        except Exception as exc:
+            raise ValueError(
+                "draw_ahead: the environment's arguments must be picklable to make the "
+                f"drawing process's twin ({type(exc).__name__}: {exc})"
+            ) from None
+        self.depth = depth
+        shape = tuple(int(x) for x in frame_shape)
+        self._shm = SharedMemory(create=True, size=_shared_bytes(depth, shape))
+        self._frames, self._meta, self._taken = shared_views(self._shm.buf, depth, shape)
+        self._taken[0] = 0
+        ours, theirs = socket.socketpair()
+        package_root = str(Path(__file__).resolve().parents[2])
+        # Warnings off: the learner's environment already showed every one of
+        # these settings.
+        code = (
+            "import sys, warnings; warnings.simplefilter('ignore'); "
+            f"sys.path.insert(0, {package_root!r}); "
+            f"from humotion_gym.envs._frame_worker import serve; serve({theirs.fileno()})"
+        )
+        try:
+            # Its own session: a Ctrl-C at the terminal interrupts the learner,
+            # which then closes the stream; the worker ends when its pipe does.
+            self._process = subprocess.Popen(
+                [sys.executable, "-c", code],
+                pass_fds=(theirs.fileno(),),
+                start_new_session=True,
+                stdin=subprocess.DEVNULL,
+            )
+        except BaseException:
+            ours.close()
+            self._release()
+            raise
+        finally:
+            theirs.close()
+        # The worker's end is a multiprocessing Connection; this end reads and
+        # writes its frames (a 4-byte big-endian length, then the bytes) on the
+        # socket itself: a Connection's poll builds a selector on every call,
+        # a tenth of what this end is left to do in a step.
+        self._sock = ours
+        self._poller = select.poll()
+        self._poller.register(ours, select.POLLIN)
+        self._received = bytearray()
+        # Sent from a thread: the worker reads it once it has imported the
+        # package, and the settings (a motion library) can be megabytes.
+        self._sending = threading.Thread(
+            target=self._send_config, args=(pickle.dumps((self._shm.name, depth, shape, config)),),
+            daemon=True,
+        )  # fmt: skip
+        self._sending.start()
+        self._read = 0
+        self._epoch = 0
+        self._ready = False
+        self._closer = weakref.finalize(self, _close, self._process, self._sock, self._shm)
+
+    def reset(
+        self,
+        seeds: list[int | None],
+        states: list[dict[str, Any] | None],
+        options: dict[str, Any] | None,
+        out: NDArray[np.uint8],
+    ) -> NDArray[np.int64]:
+        """Reset the twin as the learner's environment was; its first frames into ``out``.
+
+        Args:
+            seeds: Each episode's seed (or None).
+            states: Each episode's generator state to go on from (or None).
+            options: The reset's options.
+            out: ``(N, H, W, C)`` for the frames.
+
+        Returns:
+            ``(3, N)`` the slot's frame indices, start frames and episode seeds.
+        """
+        if not self._ready:
+            self._wait_ready()
+        self._epoch += 1
+        self._send(b"z" + pickle.dumps((self._epoch, seeds, states, options)))
+        while True:  # the slots drawn before the reset are dropped
+            slot = self._take()
+            if self._meta[slot, 0] == self._epoch:
+                return self._copy(slot, out)
+            self._give_back()
+
+    def next(self, out: NDArray[np.uint8]) -> NDArray[np.int64]:
+        """The next step's frames into ``out``; returns the slot's ``(3, N)`` as :meth:`reset`."""
+        slot = self._take()
+        if self._meta[slot, 0] != self._epoch:
+            raise RuntimeError("draw_ahead: the drawing process sent a frame of an earlier reset")
+        return self._copy(slot, out)
+
+    def _copy(self, slot: int, out: NDArray[np.uint8]) -> NDArray[np.int64]:
+        np.copyto(out, self._frames[slot])
+        meta = self._meta[slot, 1:].reshape(3, -1).copy()
+        self._give_back()
+        return meta
+
+    def _give_back(self) -> None:
+        """The oldest slot taken is done with: the worker may fill it again."""
+        self._taken[0] = self._read
+
+    def _send(self, message: bytes) -> None:
+        self._sock.sendall(_HEADER.pack(len(message)) + message)
+
+    def _send_config(self, message: bytes) -> None:
+        try:
+            self._send(message)
+        except OSError:  # the worker ended first: _receive says how
+            pass
+
+    def _receive(self) -> bytes:
+        """The worker's next message; a clear error if it failed or ended."""
+        buffer = self._received
+        while len(buffer) < 4 or len(buffer) < 4 + _HEADER.unpack_from(buffer)[0]:
+            try:  # one system call when the worker is ahead, as it mostly is
+                data = self._sock.recv(1 << 16, socket.MSG_DONTWAIT)
+            except BlockingIOError:
+                if self._poller.poll(_POLL_S * 1000) or self._process.poll() is None:
+                    continue
+                data = b""
+            if not data:
+                code = self._process.wait()
+                raise RuntimeError(f"draw_ahead: the drawing process ended (exit code {code})")
+            buffer += data
+        size = _HEADER.unpack_from(buffer)[0]
+        message = bytes(buffer[4 : 4 + size])
+        del buffer[: 4 + size]
+        if message[:1] == b"e":
+            raise RuntimeError(f"draw_ahead: the drawing process failed: {message[1:].decode()}")
+        return message
+
+    def _wait_ready(self) -> None:
+        self._sending.join()
+        if self._receive() != b"r":
+            raise RuntimeError("draw_ahead: the drawing process did not start as expected")
+        self._ready = True
+
+    def _take(self) -> int:
+        if self._receive() != b"s":
+            raise RuntimeError("draw_ahead: unexpected message from the drawing process")
+        slot = self._read % self.depth
+        self._read += 1
+        return slot
+
+    def _release(self) -> None:
+        self._frames = self._meta = self._taken = None  # type: ignore[assignment]
+        self._shm.close()
+        self._shm.unlink()
+
+    def close(self) -> None:
+        """End the worker and free the shared memory (again: nothing)."""
+        self._frames = self._meta = self._taken = None  # type: ignore[assignment]
+        self._closer()
+
+
+def _close(process: subprocess.Popen[bytes], sock: socket.socket, shm: SharedMemory) -> None:
+    try:
+        sock.sendall(_HEADER.pack(1) + b"x")
+    except OSError:
+        pass
+    sock.close()
+    try:
+        process.wait(timeout=5)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait()
+    try:
+        shm.close()
+    except BufferError:  # a view still held: the mapping goes with the process
+        pass
+    try:
+        shm.unlink()
+    except FileNotFoundError:
+        pass
+
+
+def episode_marks(venv: Any) -> NDArray[np.int64]:
+    """``(3, N)`` each episode's frame on show, start frame and episode seed: what twins share."""
+    marks = np.empty((3, venv.num_envs), np.int64)
+    marks[0], marks[1] = venv._k, venv._t0
+    # -1: not started yet
+    marks[2] = [getattr(env, "_episode_seed", None) or -1 for env in venv.envs]
+    return marks

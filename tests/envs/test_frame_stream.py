@@ -1,0 +1,188 @@
+"""Frames drawn ahead in a second process (``draw_ahead=True``) change nothing but who draws.
+
+The vector environment with ``draw_ahead`` and the same one drawing in its
+own process are reset with the same seeds (given, and unseeded resets that
+go on with each episode's generator) and stepped with the same actions across several episode ends:
+observations, rewards, ends, info and ``render()`` must be the same. Then the
+failures: settings under which an action could change the frames are refused,
+a twin out of step or a worker that died is a clear error, never a wrong frame
+or a hang, and ``close`` ends the process and frees its shared memory.
+"""
+
+from __future__ import annotations
+
+import pickle
+import socket
+import threading
+from multiprocessing.connection import Connection
+from pathlib import Path
+
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode
+from test_vector_env import _assert_same
+
+from humotion_gym.envs._frame_worker import serve
+from humotion_gym.envs.vector import PoseTrackingVectorEnv
+from humotion_gym.mocap.library import MotionLibrary, default_library
+
+TASK = "ArmTrack-v2"
+SETTINGS = {"task": TASK, "terminate_on_lost": False, "render_mode": "rgb_array"}
+
+
+def _pair(mode: AutoresetMode, n: int = 3) -> tuple[PoseTrackingVectorEnv, PoseTrackingVectorEnv]:
+    drawn = PoseTrackingVectorEnv(n, autoreset_mode=mode, **SETTINGS)
+    ahead = PoseTrackingVectorEnv(n, autoreset_mode=mode, draw_ahead=True, **SETTINGS)
+    return drawn, ahead
+
+
+def _steps(a, b, rng: np.random.Generator, count: int) -> None:
+    for k in range(count):
+        actions = rng.uniform(-1, 1, a.action_space.shape).astype(np.float32)
+        _assert_same(a.step(actions), b.step(actions), f"step {k}")
+    _assert_same(a.render(), b.render(), "render")
+
+
+@pytest.mark.parametrize("mode", [AutoresetMode.SAME_STEP, AutoresetMode.NEXT_STEP])
+def test_drawn_ahead_gives_what_drawn_in_process_gives(mode):
+    a, b = _pair(mode)
+    rng = np.random.default_rng(0)
+    try:
+        frames = a.envs[0].episode_frames
+        _assert_same(a.reset(seed=7), b.reset(seed=7), "reset")
+        _steps(a, b, rng, 2 * frames + 5)  # two episode ends in every row
+        # Unseeded: each episode goes on with its generator, which the
+        # worker, drawn ahead, had moved further.
+        _assert_same(a.reset(), b.reset(), "unseeded reset")
+        _steps(a, b, rng, frames // 2)
+        every = {"reset_mask": np.ones(3, bool)}
+        _assert_same(a.reset(seed=3, options=every), b.reset(seed=3, options=every), "mask")
+        _steps(a, b, rng, frames + 3)
+        # Some episodes only: the drawing process has moved the others on.
+        with pytest.raises(ValueError, match="reset: the frames are drawn ahead"):
+            b.reset(options={"reset_mask": np.array([False, True, False])})
+        _steps(a, b, rng, 3)  # refused before anything changed
+    finally:
+        a.close()
+        b.close()
+
+
+def test_first_unseeded_reset_draws_one_seed_for_both():
+    # Entropy from the operating system, drawn once: the worker's twin
+    # starts the same episodes (its marks are checked at every step).
+    venv = PoseTrackingVectorEnv(2, draw_ahead=True, **SETTINGS)
+    try:
+        venv.reset()
+        seeds = venv.np_random_seed
+        for _ in range(40):
+            venv.step(np.zeros(venv.action_space.shape, np.float32))
+        assert venv.np_random_seed == seeds and all(s >= 0 for s in seeds)
+    finally:
+        venv.close()
+
+
+def test_learner_vec_env_drawn_ahead_gives_the_same_rollouts():
+    sb3 = pytest.importorskip("stable_baselines3")
+    del sb3
+    from humotion_gym.sb3 import learner_vec_env
+
+    ours = learner_vec_env(TASK, 2, "train", 32)
+    ahead = learner_vec_env(TASK, 2, "train", 32, draw_ahead=True)
+    try:
+        for venv in (ours, ahead):
+            venv.seed(11)
+        _assert_same(ours.reset(), ahead.reset(), "reset")
+        rng = np.random.default_rng(1)
+        for k in range(70):
+            actions = rng.uniform(-1, 1, (2, ours.action_space.shape[0])).astype(np.float32)
+            ours.step_async(actions)
+            ahead.step_async(actions)
+            got, want = ahead.step_wait(), ours.step_wait()
+            _assert_same(tuple(want[:3]), tuple(got[:3]), f"step {k}")
+            for info_a, info_b in zip(want[3], got[3], strict=True):
+                _assert_same(info_a, info_b, f"info {k}")
+    finally:
+        ours.close()
+        ahead.close()
+
+
+def test_settings_an_action_could_change_are_refused():
+    with pytest.raises(ValueError, match="draw_ahead: .*terminate_on_lost=False"):
+        PoseTrackingVectorEnv(2, task=TASK, draw_ahead=True)
+    with pytest.raises(ValueError, match="draw_ahead: autoreset_mode DISABLED"):
+        PoseTrackingVectorEnv(
+            2, task=TASK, terminate_on_lost=False, autoreset_mode="Disabled", draw_ahead=True
+        )
+    library = _Unpicklable(**vars(default_library(progress=False)))
+    with pytest.raises(ValueError, match="draw_ahead: the environment's arguments must be pick"):
+        PoseTrackingVectorEnv(
+            2, task=TASK, terminate_on_lost=False, draw_ahead=True, library=library
+        )
+    venv = PoseTrackingVectorEnv(2, draw_ahead=True, **SETTINGS)
+    try:
+        with pytest.raises(ValueError, match="set_attr: the frames are drawn ahead"):
+            venv.set_attr("terminate_on_lost", True)
+        venv.set_attr("lost_patience", 4)  # scores only: allowed
+    finally:
+        venv.close()
+
+
+class _Unpicklable(MotionLibrary):
+    def __reduce__(self):
+        raise TypeError("not this one")
+
+
+def test_a_twin_out_of_step_is_an_error_not_a_wrong_frame():
+    venv = PoseTrackingVectorEnv(2, draw_ahead=True, **SETTINGS)
+    try:
+        venv.reset(seed=0)
+        zero = np.zeros(venv.action_space.shape, np.float32)
+        venv.step(zero)
+        venv._t0[1] += 1  # an episode moved behind the batch's back
+        with pytest.raises(RuntimeError, match="draw_ahead: .*out of step"):
+            venv.step(zero)
+    finally:
+        venv.close()
+
+
+def test_a_worker_that_died_is_a_clear_error_and_close_still_works():
+    venv = PoseTrackingVectorEnv(2, draw_ahead=True, **SETTINGS)
+    stream = venv._stream
+    assert stream is not None
+    try:
+        venv.reset(seed=0)
+        stream._process.kill()
+        stream._process.wait()
+        zero = np.zeros(venv.action_space.shape, np.float32)
+        with pytest.raises(RuntimeError, match=r"draw_ahead: the drawing process ended \(exit"):
+            for _ in range(2 * stream.depth):  # the slots drawn already, then none
+                venv.step(zero)
+    finally:
+        venv.close()
+        venv.close()
+
+
+def test_close_ends_the_worker_and_frees_its_memory():
+    venv = PoseTrackingVectorEnv(2, draw_ahead=True, **SETTINGS)
+    stream = venv._stream
+    assert stream is not None
+    venv.reset(seed=0)
+    name = stream._shm.name
+    assert Path("/dev/shm", name.lstrip("/")).exists() or not Path("/dev/shm").is_dir()
+    venv.close()
+    assert stream._process.poll() is not None
+    assert not Path("/dev/shm", name.lstrip("/")).exists()
+
+
+def test_the_worker_reports_what_stopped_it():
+    # The worker's side in this process: a memory name that does not exist.
+    ours, theirs = socket.socketpair()
+    conn = Connection(ours.detach())
+    worker = threading.Thread(target=serve, args=(theirs.detach(),))
+    settings = pickle.dumps({"num_envs": 1, "task": TASK, "terminate_on_lost": False})
+    conn.send_bytes(pickle.dumps(("no-such-memory-here", 2, (1, 8, 8, 3), settings)))
+    worker.start()
+    worker.join(timeout=60)
+    message = conn.recv_bytes()
+    assert message.startswith(b"eFileNotFoundError"), message
+    conn.close()
