@@ -7,9 +7,9 @@ that module's docstring.
 
 from __future__ import annotations
 
+import os
 import pickle
 import sys
-import time
 import traceback
 from multiprocessing import resource_tracker
 from multiprocessing.connection import Connection
@@ -17,9 +17,8 @@ from multiprocessing.shared_memory import SharedMemory
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
-from humotion_gym.envs.frame_stream import NAP_S, episode_marks, shared_views
+from humotion_gym.envs.frame_stream import NAP_S, SharedViews, episode_marks, shared_views
 from humotion_gym.envs.vector import PoseTrackingVectorEnv
 
 
@@ -32,7 +31,8 @@ def serve(fd: int) -> None:
     """
     conn = Connection(fd)
     try:
-        name, depth, shape, config = pickle.loads(conn.recv_bytes())
+        name, depth, shape, path, config = pickle.loads(conn.recv_bytes())
+        sys.path[:0] = [entry for entry in path if entry not in sys.path]
         venv = PoseTrackingVectorEnv(**pickle.loads(config))
         shm = _attach(name)
     except BaseException as exc:
@@ -60,16 +60,13 @@ def _attach(name: str) -> SharedMemory:
     return shm
 
 
-def _draw_ahead(
-    conn: Connection,
-    venv: Any,
-    views: tuple[NDArray[np.uint8], NDArray[np.int64], NDArray[np.int64]],
-) -> None:
-    frames, marks, taken = views
+def _draw_ahead(conn: Connection, venv: Any, views: SharedViews) -> None:
+    frames, finals, marks, taken = views
     depth = frames.shape[0]
     zero = np.zeros(venv.action_space.shape, np.float32)
+    parent = os.getppid()
     conn.send_bytes(b"r")
-    written, epoch, pending = 0, None, None
+    written, epoch, pending, nap = 0, None, None, NAP_S
     while True:
         # Before the first reset there is nothing to draw: wait for a message.
         while (epoch is None and pending is None) or conn.poll(0):
@@ -79,8 +76,13 @@ def _draw_ahead(
             if message[:1] == b"z":
                 pending = pickle.loads(message[1:])
         if written - int(taken[0]) >= depth:  # every slot waits for the learner
-            time.sleep(NAP_S)
+            if os.getppid() != parent:  # the learner is gone (its socket may live on)
+                return
+            conn.poll(nap)  # a reset or close wakes it early
+            nap = min(2 * nap, 8 * NAP_S)
             continue
+        nap = NAP_S
+        slot = written % depth
         if pending is not None:
             epoch, seeds, states, options = pending
             pending = None
@@ -89,8 +91,11 @@ def _draw_ahead(
                     env.np_random.bit_generator.state = state
             shown = venv.reset(seed=seeds, options=options)[0]
         else:
-            shown = venv.step(zero)[0]
-        slot = written % depth
+            shown, _, _, _, info = venv.step(zero)
+            # The last frames of episodes that ended and started again (SAME_STEP)
+            for i in np.flatnonzero(info.get("_final_obs", ())).tolist():
+                last = info["final_obs"][i]
+                finals[slot, i] = last["frame"] if isinstance(last, dict) else last
         frames[slot] = shown["frame"] if isinstance(shown, dict) else shown
         marks[slot, 0] = epoch
         marks[slot, 1:] = episode_marks(venv).ravel()

@@ -61,7 +61,7 @@ from humotion_gym.envs._batch_info import (
     _item,
 )
 from humotion_gym.envs._checks import action_array
-from humotion_gym.envs.frame_stream import FrameStream, episode_marks
+from humotion_gym.envs.frame_stream import FrameStream, episode_marks, twin_seeds
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv, _scored_info
 from humotion_gym.metrics import StepScores, update_lost_run
 from humotion_gym.render import FigureSequence, _compose, _noise_windows, figure_sequences
@@ -109,14 +109,16 @@ class PoseTrackingVectorEnv(VectorEnv):
             (:mod:`~humotion_gym.envs.frame_stream`): the same frames,
             rewards and info, the drawing on another core. Needs episodes
             that run their full length (``terminate_on_lost=False``) and an
-            autoreset mode other than ``DISABLED``; ``close()`` ends the
-            process.
+            autoreset mode other than ``DISABLED``; resets restart every
+            episode and ``set_attr`` takes the batch settings only (the other
+            process has moved on); ``close()`` ends the process.
         **kwargs: Keyword arguments of :class:`PoseTrackingEnv`.
 
     Raises:
         ValueError: If ``draw_ahead`` is asked with episodes that end when
-            tracking is lost, with autoreset ``DISABLED``, or with arguments
-            that cannot be sent to the second process.
+            tracking is lost, with autoreset ``DISABLED``, with arguments
+            that cannot be sent to the second process, or where the shared
+            memory has no room for its frames.
     """
 
     metadata = {
@@ -379,7 +381,7 @@ class PoseTrackingVectorEnv(VectorEnv):
                 )
         rows = np.flatnonzero(mask).tolist()
         if self._stream is not None:
-            seeds, states = self._twin_seeds(seeds, rows)
+            seeds, states = twin_seeds(self.envs, seeds, rows)
         started = self._start(rows, [seeds[i] for i in rows], options or None)
         if self._stream is not None:
             self._check_marks(self._stream.reset(seeds, states, options or None, self._obs))
@@ -488,33 +490,28 @@ class PoseTrackingVectorEnv(VectorEnv):
             shown[started_rows] = [self.envs[i]._k for i in started_rows]
         self._autoreset = np.zeros(n, np.bool_) if same_step else terminated | truncated
         if self._stream is not None:
-            self._check_marks(self._stream.next(observations))
-            self._obs[started_rows] = observations[started_rows]
+            self._frames_ahead(observations, started_rows, final)
         self._shown = observations
         return self._observations(observations), reward, terminated, truncated, infos
 
-    def _twin_seeds(
-        self, seeds: list[int | None], rows: list[int]
-    ) -> tuple[list[int | None], list[dict[str, Any] | None]]:
-        """What the drawing process's twin needs to start the episodes ``rows`` as these start.
+    def _frames_ahead(
+        self,
+        observations: NDArray[np.uint8],
+        started: list[int],
+        final: dict[int, tuple[Any, dict[str, Any]]],
+    ) -> None:
+        """The step's frames from the drawing process (``draw_ahead``), checked.
 
-        An unseeded first reset takes its seed from the operating system's
-        entropy, as Gymnasium's does, here, and both use it. An unseeded
-        later one goes on with the episode's generator, which the twin, drawn
-        ahead, has moved further: it gets this one's state.
-
-        Returns:
-            The seeds and, per episode, its generator's state (or None).
+        Into the batch, the started episodes' first frames (shown until they
+        step) and the last frames of those that ended, in their ``final_obs``
+        (a cut episode's last frame is one only the step draws).
         """
-        out, states = list(seeds), [None] * len(seeds)
-        for i in rows:
-            if out[i] is not None:
-                continue
-            if self.envs[i]._np_random is None:
-                out[i] = int(np.random.SeedSequence().entropy)  # type: ignore[arg-type]
-            else:
-                states[i] = self.envs[i].np_random.bit_generator.state
-        return out, states
+        assert self._stream is not None
+        finals = np.empty_like(observations)
+        self._check_marks(self._stream.next(observations, sorted(final), finals))
+        self._obs[started] = observations[started]
+        for i, (last, _) in final.items():
+            np.copyto(last["frame"] if isinstance(last, dict) else last, finals[i])
 
     def _check_marks(self, marks: NDArray[np.int64]) -> None:
         """Refuse frames drawn for other episodes than these (``draw_ahead``)."""
@@ -698,6 +695,12 @@ class PoseTrackingVectorEnv(VectorEnv):
                 "set_attr: the frames are drawn ahead (draw_ahead=True), so episodes run "
                 "their full length; make the environment without draw_ahead to end them "
                 "when tracking is lost"
+            )
+        if self._stream is not None and name not in BATCH_SETTINGS:
+            raise ValueError(
+                f"set_attr({name!r}): the frames are drawn ahead (draw_ahead=True) by a second "
+                "process that would not see it; set it when the environment is made, or make "
+                "it without draw_ahead"
             )
         if name in BATCH_SETTINGS and any(v != values[0] for v in values[1:]):
             raise ValueError(

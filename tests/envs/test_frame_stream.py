@@ -11,8 +11,12 @@ or a hang, and ``close`` ends the process and frees its shared memory.
 
 from __future__ import annotations
 
+import os
 import pickle
+import signal
 import socket
+import subprocess
+import sys
 import threading
 from multiprocessing.connection import Connection
 from pathlib import Path
@@ -22,6 +26,7 @@ import pytest
 from gymnasium.vector import AutoresetMode
 from test_vector_env import _assert_same
 
+from humotion_gym.envs import frame_stream
 from humotion_gym.envs._frame_worker import serve
 from humotion_gym.envs.vector import PoseTrackingVectorEnv
 from humotion_gym.mocap.library import MotionLibrary, default_library
@@ -180,9 +185,114 @@ def test_the_worker_reports_what_stopped_it():
     conn = Connection(ours.detach())
     worker = threading.Thread(target=serve, args=(theirs.detach(),))
     settings = pickle.dumps({"num_envs": 1, "task": TASK, "terminate_on_lost": False})
-    conn.send_bytes(pickle.dumps(("no-such-memory-here", 2, (1, 8, 8, 3), settings)))
+    conn.send_bytes(pickle.dumps(("no-such-memory-here", 2, (1, 8, 8, 3), [], settings)))
     worker.start()
     worker.join(timeout=60)
     message = conn.recv_bytes()
     assert message.startswith(b"eFileNotFoundError"), message
     conn.close()
+
+
+def test_an_episode_cut_by_the_step_limit_keeps_its_last_frame():
+    # SAME_STEP: a cut episode's last frame is drawn by its step alone; the
+    # worker sends it with the slot, for final_obs (SB3's terminal_observation).
+    kwargs = {**SETTINGS, "max_episode_steps": 3, "autoreset_mode": AutoresetMode.SAME_STEP}
+    a = PoseTrackingVectorEnv(2, **kwargs)
+    b = PoseTrackingVectorEnv(2, draw_ahead=True, **kwargs)
+    try:
+        _assert_same(a.reset(seed=2), b.reset(seed=2), "reset")
+        _steps(a, b, np.random.default_rng(3), 10)
+    finally:
+        a.close()
+        b.close()
+
+
+def test_what_the_drawing_process_would_not_see_is_refused():
+    venv = PoseTrackingVectorEnv(2, draw_ahead=True, **SETTINGS)
+    try:
+        with pytest.raises(ValueError, match=r"set_attr\('clips'\): the frames are drawn ahead"):
+            venv.set_attr("clips", [list(reversed(env.clips)) for env in venv.envs])
+        venv.reset(seed=0)
+        venv.envs[1]._motion = venv.envs[0]._motion  # another clip, behind the batch's back
+        with pytest.raises(RuntimeError, match="draw_ahead: .*out of step"):
+            venv.step(np.zeros(venv.action_space.shape, np.float32))
+    finally:
+        venv.close()
+
+
+def test_a_dead_worker_at_reset_and_a_silent_one_are_clear_errors(monkeypatch):
+    venv = PoseTrackingVectorEnv(2, draw_ahead=True, **SETTINGS)
+    stream = venv._stream
+    try:
+        venv.reset(seed=0)
+        stream._process.kill()
+        stream._process.wait()
+        for _ in range(2):  # and again, the same words
+            with pytest.raises(RuntimeError, match=r"drawing process ended \(exit code -9\)"):
+                venv.reset(seed=1)
+    finally:
+        venv.close()
+    venv = PoseTrackingVectorEnv(2, draw_ahead=True, **SETTINGS)
+    stream = venv._stream
+    try:
+        venv.reset(seed=0)  # (its start is silent for longer than the limit below)
+        monkeypatch.setattr(frame_stream, "_SILENT_S", 0.5)
+        monkeypatch.setattr(frame_stream, "_POLL_S", 0.1)
+        os.kill(stream._process.pid, signal.SIGSTOP)
+        with pytest.raises(RuntimeError, match="drawing process sent nothing for"):
+            for _ in range(2 * stream.depth):
+                venv.step(np.zeros(venv.action_space.shape, np.float32))
+    finally:
+        os.kill(stream._process.pid, signal.SIGCONT)
+        venv.close()
+
+
+def test_a_ring_larger_than_the_free_shared_memory_is_refused(monkeypatch):
+    small = os.statvfs_result((4096, 4096, 100, 10, 10, 100, 10, 10, 0, 255))
+    monkeypatch.setattr(frame_stream.os, "statvfs", lambda path: small)
+    with pytest.raises(ValueError, match=r"draw_ahead: the frames ahead need .* MB of shared"):
+        PoseTrackingVectorEnv(8, draw_ahead=True, **SETTINGS)
+
+
+def test_settings_from_a_module_on_the_learners_path_reach_the_worker(tmp_path, monkeypatch):
+    (tmp_path / "my_library_kind.py").write_text(
+        "from humotion_gym.mocap.library import MotionLibrary\n"
+        "class MyLibrary(MotionLibrary):\n    pass\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    from my_library_kind import MyLibrary
+
+    library = MyLibrary(**vars(default_library(progress=False)))
+    a = PoseTrackingVectorEnv(2, **SETTINGS, library=library)
+    b = PoseTrackingVectorEnv(2, draw_ahead=True, **SETTINGS, library=library)
+    try:
+        _assert_same(a.reset(seed=4), b.reset(seed=4), "reset")
+        _steps(a, b, np.random.default_rng(4), 5)
+    finally:
+        a.close()
+        b.close()
+
+
+def test_a_forked_child_leaves_the_parents_stream_alone():
+    # The child's exit runs its finalizers: detached at the fork, they neither
+    # close the parent's worker nor free its memory.
+    script = """
+import os, sys, atexit
+import numpy as np
+from humotion_gym.envs.vector import PoseTrackingVectorEnv
+venv = PoseTrackingVectorEnv(2, task="ArmTrack-v2", terminate_on_lost=False, draw_ahead=True)
+venv.reset(seed=0)
+pid = os.fork()
+if pid == 0:
+    atexit._run_exitfuncs()
+    os._exit(0)
+os.waitpid(pid, 0)
+for _ in range(40):
+    venv.step(np.zeros(venv.action_space.shape, np.float32))
+venv.close()
+print("stepped on")
+"""
+    done = subprocess.run(
+        [sys.executable, "-W", "ignore", "-c", script], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0 and done.stdout.strip() == "stepped on", done.stderr[-2000:]
