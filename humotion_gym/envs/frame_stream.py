@@ -252,8 +252,8 @@ class FrameStream:
 
     def _send_config(self, message: bytes) -> None:
         try:
-            self._send(message)
-        except OSError:  # the worker ended first: _receive says how
+            self._sock.sendall(_HEADER.pack(len(message)) + message)
+        except OSError:  # the worker ended, or the stream closed, first: _receive says how
             pass
 
     def _ended(self) -> None:

@@ -11,6 +11,7 @@ or a hang, and ``close`` ends the process and frees its shared memory.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import pickle
 import signal
@@ -18,6 +19,7 @@ import socket
 import subprocess
 import sys
 import threading
+from collections.abc import Iterator
 from multiprocessing.connection import Connection
 from pathlib import Path
 
@@ -35,10 +37,19 @@ TASK = "ArmTrack-v2"
 SETTINGS = {"task": TASK, "terminate_on_lost": False, "render_mode": "rgb_array"}
 
 
-def _pair(mode: AutoresetMode, n: int = 3) -> tuple[PoseTrackingVectorEnv, PoseTrackingVectorEnv]:
-    drawn = PoseTrackingVectorEnv(n, autoreset_mode=mode, **SETTINGS)
-    ahead = PoseTrackingVectorEnv(n, autoreset_mode=mode, draw_ahead=True, **SETTINGS)
-    return drawn, ahead
+@contextlib.contextmanager
+def _twins(n: int = 3, **kwargs) -> Iterator[tuple[PoseTrackingVectorEnv, PoseTrackingVectorEnv]]:
+    """The vector env drawing in-process and drawing ahead, with the same settings; closed."""
+    settings = {**SETTINGS, **kwargs}
+    with contextlib.closing(PoseTrackingVectorEnv(n, **settings)) as drawn:
+        with contextlib.closing(PoseTrackingVectorEnv(n, draw_ahead=True, **settings)) as ahead:
+            yield drawn, ahead
+
+
+def _same_run(a, b, seed: int, steps: int) -> None:
+    """Reset both with ``seed`` and step both with the same random actions."""
+    _assert_same(a.reset(seed=seed), b.reset(seed=seed), "reset")
+    _steps(a, b, np.random.default_rng(seed), steps)
 
 
 def _steps(a, b, rng: np.random.Generator, count: int) -> None:
@@ -50,9 +61,8 @@ def _steps(a, b, rng: np.random.Generator, count: int) -> None:
 
 @pytest.mark.parametrize("mode", [AutoresetMode.SAME_STEP, AutoresetMode.NEXT_STEP])
 def test_drawn_ahead_gives_what_drawn_in_process_gives(mode):
-    a, b = _pair(mode)
-    rng = np.random.default_rng(0)
-    try:
+    with _twins(autoreset_mode=mode) as (a, b):
+        rng = np.random.default_rng(0)
         frames = a.envs[0].episode_frames
         _assert_same(a.reset(seed=7), b.reset(seed=7), "reset")
         _steps(a, b, rng, 2 * frames + 5)  # two episode ends in every row
@@ -67,9 +77,6 @@ def test_drawn_ahead_gives_what_drawn_in_process_gives(mode):
         with pytest.raises(ValueError, match="reset: the frames are drawn ahead"):
             b.reset(options={"reset_mask": np.array([False, True, False])})
         _steps(a, b, rng, 3)  # refused before anything changed
-    finally:
-        a.close()
-        b.close()
 
 
 def test_first_unseeded_reset_draws_one_seed_for_both():
@@ -196,15 +203,8 @@ def test_the_worker_reports_what_stopped_it():
 def test_an_episode_cut_by_the_step_limit_keeps_its_last_frame():
     # SAME_STEP: a cut episode's last frame is drawn by its step alone; the
     # worker sends it with the slot, for final_obs (SB3's terminal_observation).
-    kwargs = {**SETTINGS, "max_episode_steps": 3, "autoreset_mode": AutoresetMode.SAME_STEP}
-    a = PoseTrackingVectorEnv(2, **kwargs)
-    b = PoseTrackingVectorEnv(2, draw_ahead=True, **kwargs)
-    try:
-        _assert_same(a.reset(seed=2), b.reset(seed=2), "reset")
-        _steps(a, b, np.random.default_rng(3), 10)
-    finally:
-        a.close()
-        b.close()
+    with _twins(2, max_episode_steps=3, autoreset_mode=AutoresetMode.SAME_STEP) as (a, b):
+        _same_run(a, b, seed=2, steps=10)
 
 
 def test_what_the_drawing_process_would_not_see_is_refused():
@@ -263,14 +263,8 @@ def test_settings_from_a_module_on_the_learners_path_reach_the_worker(tmp_path, 
     from my_library_kind import MyLibrary
 
     library = MyLibrary(**vars(default_library(progress=False)))
-    a = PoseTrackingVectorEnv(2, **SETTINGS, library=library)
-    b = PoseTrackingVectorEnv(2, draw_ahead=True, **SETTINGS, library=library)
-    try:
-        _assert_same(a.reset(seed=4), b.reset(seed=4), "reset")
-        _steps(a, b, np.random.default_rng(4), 5)
-    finally:
-        a.close()
-        b.close()
+    with _twins(2, library=library) as (a, b):
+        _same_run(a, b, seed=4, steps=5)
 
 
 def test_a_forked_child_leaves_the_parents_stream_alone():
