@@ -19,6 +19,7 @@ import socket
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Iterator
 from multiprocessing.connection import Connection
 from pathlib import Path
@@ -290,3 +291,44 @@ print("stepped on")
         [sys.executable, "-W", "ignore", "-c", script], capture_output=True, text=True, timeout=120
     )
     assert done.returncode == 0 and done.stdout.strip() == "stepped on", done.stderr[-2000:]
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads /proc to see the worker")
+def test_the_worker_ends_with_a_killed_learner_whose_child_holds_its_socket(tmp_path):
+    # A forked child would inherit the learner's end of the socket and keep the
+    # worker from seeing its end: the child closes its copy at the fork, and
+    # the worker also watches its parent (with neither, this fails).
+    script = """
+import os, signal, time
+from humotion_gym.envs.vector import PoseTrackingVectorEnv
+venv = PoseTrackingVectorEnv(2, task="ArmTrack-v2", terminate_on_lost=False, draw_ahead=True)
+venv.reset(seed=0)
+child = os.fork()
+if child == 0:
+    time.sleep(30)
+    os._exit(0)
+print(venv._stream._process.pid, child, flush=True)
+os.kill(os.getpid(), signal.SIGKILL)
+"""
+    out = tmp_path / "pids.txt"
+    with open(out, "w") as fh:  # a file: the processes left behind hold no pipe of ours
+        learner = subprocess.Popen(
+            [sys.executable, "-W", "ignore", "-c", script], stdout=fh, stderr=subprocess.DEVNULL
+        )
+        learner.wait(timeout=120)
+    worker, child = (int(pid) for pid in out.read_text().split())
+    try:
+        deadline = time.monotonic() + 5
+        while _running(worker) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert not _running(worker), "the worker outlived its learner"
+    finally:
+        os.kill(child, signal.SIGKILL)
+
+
+def _running(pid: int) -> bool:
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return False
+    return "zombie" not in status.lower()
