@@ -6,9 +6,9 @@ Run: python benchmarks/speed_history.py                 # runs 40 on, from docs/
 One summary run meets or misses a target that sits on its line by the machine's
 moment (docs/speed.md), so a target is read over runs on the same code (from
 ``--since``, or from the run its timed code last changed, :attr:`Target.since`,
-where that is later): this reads the runs' CSV (columns ``date``, ``run``, ``target``, ``value``, ``met``)
-and prints, per target, the runs it covers, the median value, the lowest and
-highest, and the runs that met it.
+where that is later): this reads the runs' CSV (columns ``date``, ``run``,
+``target``, ``value``, ``met``) and prints, per target, the runs it covers,
+the median value, the lowest and highest, and the runs that met it.
 
 The targets themselves (:data:`TARGETS`) are read off a summary's rows by
 :func:`target_values`; ``summary.py --record`` adds a run's to the CSV with

@@ -218,21 +218,23 @@ class FrameStream:
             self._give_back()
 
     def next(
-        self, out: NDArray[np.uint8], ended: list[int], finals: NDArray[np.uint8]
-    ) -> NDArray[np.int64]:
-        """The next step's frames into ``out``; returns the slot's marks as :meth:`reset`.
+        self, out: NDArray[np.uint8], ended: list[int]
+    ) -> tuple[NDArray[np.int64], NDArray[np.uint8]]:
+        """The next step's frames into ``out``.
 
         Args:
             out: ``(N, H, W, C)`` for the frames.
             ended: Rows of the episodes the step ended and started again.
-            finals: ``(N, H, W, C)``: their last frames go into these rows.
+
+        Returns:
+            The slot's marks, as :meth:`reset`, and the last frames of the
+            ``ended`` episodes, ``(len(ended), H, W, C)``.
         """
         slot = self._take()
         if self._meta[slot, 0] != self._epoch:
             raise RuntimeError("draw_ahead: the drawing process sent a frame of an earlier reset")
-        if ended:
-            finals[ended] = self._finals[slot, ended]
-        return self._copy(slot, out)
+        last = self._finals[slot, ended]  # a copy, taken before the slot is given back
+        return self._copy(slot, out), last
 
     def _copy(self, slot: int, out: NDArray[np.uint8]) -> NDArray[np.int64]:
         np.copyto(out, self._frames[slot])

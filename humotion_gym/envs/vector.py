@@ -507,11 +507,13 @@ class PoseTrackingVectorEnv(VectorEnv):
         (a cut episode's last frame is one only the step draws).
         """
         assert self._stream is not None
-        finals = np.empty_like(observations)
-        self._check_marks(self._stream.next(observations, sorted(final), finals))
+        ended = sorted(final)
+        marks, last_frames = self._stream.next(observations, ended)
+        self._check_marks(marks)
         self._obs[started] = observations[started]
-        for i, (last, _) in final.items():
-            np.copyto(last["frame"] if isinstance(last, dict) else last, finals[i])
+        for i, frame in zip(ended, last_frames, strict=True):
+            last = final[i][0]
+            np.copyto(last["frame"] if isinstance(last, dict) else last, frame)
 
     def _check_marks(self, marks: NDArray[np.int64]) -> None:
         """Refuse frames drawn for other episodes than these (``draw_ahead``)."""
