@@ -94,13 +94,15 @@ TARGETS: tuple[Target, ...] = (
         "pf-slds prior fit on SideWalk-v2, 2 processes, s <= 10",
         r"pf-slds prior, first fit on SideWalk-v2's .*, 2 processes\)$", "value", 10.0, True,
     ),
+    # From run 63 the agent reads a frame's features on a second thread while
+    # its prior moves the particles, and the frame is timed by the wall clock.
     Target(
         "pf-tree BodyTrack-v2, 10,000 particles, ms per frame <= 15",
-        r"pf-tree, 10,000 particles, per frame$", "value", 15.0, True,
+        r"pf-tree, 10,000 particles, per frame$", "value", 15.0, True, since=63,
     ),
     Target(
         "pf-tree BodyTrack-v2, 3,000 particles, ms per frame <= 5",
-        r"pf-tree, 3,000 particles, per frame$", "value", 5.0, True,
+        r"pf-tree, 3,000 particles, per frame$", "value", 5.0, True, since=63,
     ),
     Target(
         "scoring 3,000 whole-body poses (128x128), ms <= 0.75",

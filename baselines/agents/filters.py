@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from concurrent.futures import Future
 from types import ModuleType
 from typing import Any
 
@@ -24,6 +25,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
+from baselines.agents.background import in_background, resolved
 from baselines.agents.base import describe, episode_begins, refuse_truth
 from baselines.filtering import (
     AnnealedParticleFilter,
@@ -138,8 +140,22 @@ class TaskLikelihood:
 
     def prepare(self, frames: Any) -> list[Any]:
         """Each view's features of the frame on show (:meth:`ObservationModel.prepare`)."""
+        return _prepared(self.model, self._bodies(frames))
+
+    def prepare_later(self, frames: Any) -> Future[list[Any]]:
+        """:meth:`prepare` on the features thread (:mod:`baselines.agents.background`).
+
+        What it reads of this object (the given parameters, shape, cameras and
+        first frames) is read now, so a later :meth:`update` cannot reach it.
+        :meth:`log_likelihood` and :meth:`log_likelihood_partial` take the
+        returned future as the frame and wait for it.
+        """
+        return in_background(_prepared, self.model, self._bodies(frames))
+
+    def _bodies(self, frames: Any) -> list[tuple[Any, GivenBody]]:
+        """Each view's frame with its given body, in camera order."""
         return [
-            self.model.prepare(frame, self.given(view))
+            (frame, self.given(view))
             for view, frame in enumerate(_views(frames, len(self.cameras)))
         ]
 
@@ -155,13 +171,14 @@ class TaskLikelihood:
         """``(N,)`` log p(frames | pose) of the particles: the sum over the views.
 
         Args:
-            frame: The frame on show or its features (one view), or a list of
-                each view's (:meth:`prepare`), in camera order.
+            frame: The frame on show or its features (one view), a list of
+                each view's (:meth:`prepare`) in camera order, or the future
+                of :meth:`prepare_later` (waited for).
             particles: ``(N, D)`` free parameters.
         """
         assert self.shape is not None and self.cameras
         poses, shape = self.full_pose(particles), self.shape
-        views = _views(frame, len(self.cameras))
+        views = _views(resolved(frame), len(self.cameras))
         return _view_sum(
             self.model.log_likelihood(seen, poses, shape, camera)
             for seen, camera in zip(views, self.cameras, strict=True)
@@ -177,7 +194,7 @@ class TaskLikelihood:
         """
         assert self.shape is not None and self.cameras
         poses, shape = self.full_pose(particles), self.shape
-        views = _views(frame, len(self.cameras))
+        views = _views(resolved(frame), len(self.cameras))
         return _view_sum(
             self.model.log_likelihood_partial(seen, poses, shape, camera, groups)
             for seen, camera in zip(views, self.cameras, strict=True)
@@ -202,6 +219,11 @@ def _views(frames: Any, count: int) -> list[Any]:
     if len(views) != count:
         raise ValueError(f"frames: expected {count} views (one per camera), got {len(views)}")
     return views
+
+
+def _prepared(model: FrameModel, bodies: list[tuple[Any, GivenBody]]) -> list[Any]:
+    """Each view's features: ``model.prepare(frame, given)`` of each ``(frame, given)``."""
+    return [model.prepare(frame, given) for frame, given in bodies]
 
 
 def _view_sum(terms: Any) -> FloatArray:
@@ -425,7 +447,12 @@ class ParticleFilterAgent:
         self.likelihood.update(given.fixed_params, given.shape, given.cameras)
         if first:
             self.likelihood.read_first_frame(given.frames, given.initial_pose)
-        estimate = self.filter.step(self.likelihood.prepare(given.frames))
+        # The frame's features are read on the features thread while the
+        # filter's prior moves the particles (independent halves of the frame);
+        # its likelihood waits for them when it first scores.
+        features = self.likelihood.prepare_later(given.frames)
+        estimate = self.filter.step(features)
+        features.result()  # nothing of this frame's left running past it
         pose = self.likelihood.full_pose(estimate[None])[0]
         action = pose_to_action(self.description.task, pose, bounds=self._bounds)
         self.frame_times.append(time.perf_counter() - t0)
