@@ -220,9 +220,9 @@ def test_the_readme_and_the_speed_page_show_the_newest_runs() -> None:
     rows = speed_history.read_runs(speed_history.RUNS_CSV)
     readme = " ".join((ROOT / "README.md").read_text().split())
     said = re.search(
-        r"Over runs (\d+)-(\d+), pf-tree at 3,000 particles \(median ([\d.]+) ms a frame, "
-        r"target 5; met in (\d+ of \d+)\) and PPO on the vector env \((?:runs (\d+)-(\d+), )?"
-        r"median ([\d.]+)x .*?; met in (\d+ of \d+)\)",
+        r"Over runs (\d+)-(\d+), pf-tree at 3,000 particles \((?:runs (\d+)-(\d+), )?median "
+        r"([\d.]+) ms a frame, target 5; met in (\d+ of \d+)\) and PPO on the vector env "
+        r"\((?:runs (\d+)-(\d+), )?median ([\d.]+)x .*?; met in (\d+ of \d+)\)",
         readme,
     )
     assert said, "README's speed paragraph is not in the form this test reads"
@@ -235,8 +235,31 @@ def test_the_readme_and_the_speed_page_show_the_newest_runs() -> None:
     cells = {line.split(" | ")[0][2:]: line.split(" | ") for line in table.splitlines()[2:]}
     tree = cells["pf-tree BodyTrack-v2, 3,000 particles, ms per frame <= 5"]
     ppo = cells["PPO on the vector env, x PPO on a trivial env >= 0.95"]
-    assert (said[3], said[4]) == (tree[2], tree[4].rstrip(" |"))
-    assert (said[7], said[8]) == (ppo[2], ppo[4].rstrip(" |"))
-    # PPO's runs, where the README names them, are the ones the table reads
-    assert said[5] is None or f"{said[5]}-{said[6]}" == ppo[1]
+    assert (said[5], said[6]) == (tree[2], tree[4].rstrip(" |"))
+    assert (said[9], said[10]) == (ppo[2], ppo[4].rstrip(" |"))
+    # each target's runs, where the README names them, are the ones the table reads
+    assert said[3] is None or f"{said[3]}-{said[4]}" == tree[1]
+    assert said[7] is None or f"{said[7]}-{said[8]}" == ppo[1]
     assert table.strip() in (ROOT / "docs/speed.md").read_text(), "speed.md's table is stale"
+
+
+def test_the_summary_reads_the_agents_wall_and_cpu_times() -> None:
+    summary = _summary_module()
+    out = (
+        "BodyTrack-v2, 30 frames, wall clock, best of 3, OpenCV threads 1\n"
+        "agent      particles  ms/frame  cpu ms  transition  likelihood  prepare   ref ms  "
+        "x ref start ms\n"
+        "pf-tree        3,000      2.49    3.08        1.29        1.37     0.62     8.75   "
+        "0.28    12.73\n"
+    )
+    ref = "a plain numpy scorer of the same frame (8.75 ms)"
+    assert summary._read_agents(out) == [
+        ("pf-tree, 3,000 particles, per frame", "2.49 ms", ref, "0.28x the time"),
+        ("pf-tree, 3,000 particles, CPU time per frame (both threads)", "3.08 ms", ref,
+         "0.35x the time"),
+        ("pf-tree, 3,000 particles, episode start (first frame)", "12.73 ms", ref,
+         "1.45x the time"),
+    ]  # fmt: skip
+    target = "pf-tree BodyTrack-v2, 3,000 particles, ms per frame <= 5"
+    values = dict((t.label, v) for t, v in speed_history.target_values(summary._read_agents(out)))
+    assert values[target] == "2.49"
