@@ -41,13 +41,23 @@ def in_background(function: Callable[..., T], *args: Any) -> Future[T]:
 
     Calls from several threads queue on the one thread: each gets its own
     result. An exception of ``function`` is raised by ``Future.result()``.
+    Where the thread takes no more work (the interpreter is shutting down,
+    as in an ``atexit`` handler), ``function`` runs here and now.
     """
     global _pool
     with _lock:
         if _pool is None:
             _pool = ThreadPoolExecutor(1, thread_name_prefix="humotion-features")
         pool = _pool
-    return pool.submit(function, *args)
+    try:
+        return pool.submit(function, *args)
+    except RuntimeError:  # "cannot schedule new futures after (interpreter) shutdown"
+        done: Future[T] = Future()
+        try:
+            done.set_result(function(*args))
+        except Exception as exc:  # raised by result(), as the thread's would be
+            done.set_exception(exc)
+        return done
 
 
 def resolved(value: Any) -> Any:

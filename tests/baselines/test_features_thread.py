@@ -4,7 +4,8 @@ Oracle: the same agent with the features read in turn, on the calling thread
 before the filter's step, gives the same actions bit for bit (the two halves
 of a frame read nothing of each other). Contracts: the features are read off
 the calling thread; an error reading them reaches the caller; a forked child
-makes its own thread (the parent's does not come along with a fork).
+makes its own thread (the parent's does not come along with a fork); where
+the thread takes no more work, the caller does it.
 """
 
 from __future__ import annotations
@@ -87,6 +88,15 @@ def test_an_error_reading_the_features_reaches_the_caller():
     agent.likelihood.model = _Recording(agent.likelihood.model, fail=True)
     with pytest.raises(ValueError, match="this frame cannot be read"):
         agent.predict(_episode(env, 0)[0], episode_start=True)
+
+
+def test_a_thread_that_takes_no_more_work_leaves_the_work_to_the_caller(monkeypatch):
+    closed = background.ThreadPoolExecutor(1)
+    closed.shutdown()  # as at the interpreter's exit
+    monkeypatch.setattr(background, "_pool", closed)
+    assert background.in_background(threading.get_ident).result() == threading.get_ident()
+    with pytest.raises(ZeroDivisionError):
+        background.in_background(divmod, 1, 0).result()
 
 
 def _child(queue: Any) -> None:
