@@ -10,7 +10,10 @@ task's description and reads its observation alone: the frame, the initial
 pose, the subject's shape, the camera and the parameters the task does not
 track (:mod:`humotion_gym.envs.description`), never the truth of the tracked
 ones. Which prior and settings each named agent uses is
-:mod:`baselines.agents.specs`.
+:mod:`baselines.agents.specs`. Each frame's features are read on a second
+thread while the filter's prior moves the particles
+(:mod:`baselines.agents.background`): the same numbers as in turn, sooner
+where a core is free.
 """
 
 from __future__ import annotations
