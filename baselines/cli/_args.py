@@ -10,6 +10,7 @@ from humotion_gym.cli._common import (
     Distinct,
     UsageError,
     int_at_least,
+    refused_as,
     task_name,
 )
 
@@ -124,10 +125,8 @@ def check_engine(args: argparse.Namespace) -> None:
     if args.engine != "ray" and given:
         raise UsageError(f"{', '.join('--' + f for f in given)}: only with --engine ray")
     if args.address is not None:
-        try:
+        with refused_as(UsageError, ValueError, "--"):
             check_ray_address_form(args.address)
-        except ValueError as exc:
-            raise UsageError(f"--{exc}") from None
 
 
 def key_value(text: str) -> tuple[str, float]:

@@ -16,6 +16,7 @@ from humotion_gym.cli._common import (
     add_json,
     float_between,
     print_json,
+    refused_as,
 )
 
 
@@ -49,7 +50,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
     runs, seeds = [], []
     for path in (args.rerun, args.recorded):
-        try:
+        # ValueError innermost, so checked first (io.UnsupportedOperation is both)
+        with refused_as(CommandError, OSError, f"{path}: "), refused_as(CommandError, ValueError):
             data = read_json(path)
             if isinstance(data, dict) and "results" in data:  # humotion-gym oracle --out
                 runs.append(episode_rows(data, path))
@@ -58,14 +60,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
                 rows, settings = leaderboard_rows(data, path)
                 runs.append(rows)
                 seeds.append(int(settings.get("seed") or 0))
-        except ValueError as exc:
-            raise CommandError(str(exc)) from None
-        except OSError as exc:
-            raise CommandError(f"{path}: {exc}") from None
-    try:
+    with refused_as(CommandError, ValueError):
         result = compare_runs(runs[0], runs[1], args.rtol, (seeds[0], seeds[1]))
-    except ValueError as exc:
-        raise CommandError(str(exc)) from None
     if not result.compared:  # nothing to say differs or agrees: an error, not a count of 0
         raise CommandError(
             f"{args.rerun} and {args.recorded} share no episode (the same cell, episode seed "

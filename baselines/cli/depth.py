@@ -13,6 +13,7 @@ from baselines.cli._args import add_agents, add_particles, tracked_task
 from humotion_gym.cli._common import (
     add_command,
     add_data_dir,
+    add_int,
     add_report_out,
     add_seed,
     add_task,
@@ -38,9 +39,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_task(dp, "BodyTrack-v2", kind=tracked_task)
     add_agents(dp)
     add_particles(dp)
-    dp.add_argument(
-        "--episodes", type=episode_count, default=20, help="seeded episodes per agent (default: 20)"
-    )
+    add_int(dp, "--episodes", 20, "seeded episodes per agent", episode_count)
     add_seed(dp, "the first episode's seed and the agents' seed")
     dp.add_argument(
         "--validation", action="store_true",

@@ -13,6 +13,7 @@ import shlex
 from humotion_gym.cli._common import (
     add_command,
     add_data_dir,
+    add_int,
     add_seed,
     check_fresh_output,
     check_memory,
@@ -41,25 +42,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "the validation persons' pixel error per keypoint).",
     )  # fmt: skip
     tr.add_argument("--out", type=output_dir, required=True, help="folder for the two files")
-    tr.add_argument(
-        "--frames", type=int_at_least(64), default=14000,
-        help="training frames, each view one (default: 14000)",
+    add_int(tr, "--frames", 14000, "training frames, each view one", int_at_least(64))
+    add_int(
+        tr, "--validation-frames", 1000, "validation persons' frames the error is measured on",
+        int_at_least(16),
     )  # fmt: skip
-    tr.add_argument(
-        "--validation-frames", type=int_at_least(16), default=1000,
-        help="validation persons' frames the error is measured on (default: 1000)",
-    )  # fmt: skip
-    tr.add_argument("--epochs", type=int_at_least(1), default=8, help="epochs (default: 8)")
-    tr.add_argument("--batch", type=int_at_least(1), default=32, help="batch (default: 32)")
+    add_int(tr, "--epochs", 8, "epochs")
+    add_int(tr, "--batch", 32, "batch")
     tr.add_argument(
         "--lr", type=positive_float, default=3e-3, help="peak learning rate (default: 0.003)"
     )
-    tr.add_argument(
-        "--width", type=int_at_least(4, 256), default=32, help="network width (default: 32)"
-    )
-    tr.add_argument(
-        "--threads", type=int_at_least(1, 64), default=2, help="torch threads (default: 2)"
-    )
+    add_int(tr, "--width", 32, "network width", int_at_least(4, 256))
+    add_int(tr, "--threads", 2, "torch threads", int_at_least(1, 64))
     add_seed(tr, "seeds the episodes drawn, the weights and the batches")
     add_data_dir(tr)
     tr.set_defaults(func=_cmd_train)

@@ -15,6 +15,7 @@ from humotion_gym.cli._common import (
     UsageError,
     add_command,
     add_data_dir,
+    add_int,
     add_json,
     add_seed,
     add_task,
@@ -36,9 +37,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "humotion-gym discrimination --task ArmTrack-v2 --episodes 20",
     )  # fmt: skip
     add_task(dis, "ArmTrack-v2", kind=tracked_task)
-    dis.add_argument(
-        "--episodes", type=episode_count, default=20, help="seeded episodes (default: 20)"
-    )
+    add_int(dis, "--episodes", 20, "seeded episodes", episode_count)
     add_seed(dis, "first episode seed")
     dis.add_argument(
         "--distances", type=float_between(0.0, 5000.0, open_low=True), nargs="+", action=Distinct,

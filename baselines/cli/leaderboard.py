@@ -32,12 +32,14 @@ from humotion_gym.cli._common import (
     UsageError,
     add_command,
     add_data_dir,
+    add_json,
     add_seed,
     env_kwargs,
     episode_count,
     float_between,
     output_dir,
     print_json,
+    refused_as,
     wrote,
 )
 from humotion_gym.render_scene import SCENE_MAXIMA
@@ -117,9 +119,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="with --out: results.json and table.md only, no figures or index.html",
     )  # fmt: skip
     add_engine(lb)
-    lb.add_argument(
-        "--json", action="store_true", help="print the rows as JSON instead of the table"
-    )
+    add_json(lb, "print the rows as JSON instead of the table")
     lb.add_argument(
         "--background", choices=["flat", "clutter"], default=None,
         help="scene background, a difficulty setting (default: the task's)",
@@ -206,10 +206,9 @@ def _check_flags(args: argparse.Namespace) -> None:
     """
     from baselines.leaderboard.run import check_labels
 
-    try:  # two agents of one label: the arguments conflict (exit 2)
+    # two agents of one label: the arguments conflict (exit 2)
+    with refused_as(UsageError, ValueError, "--"):
         check_labels(args.agents)
-    except ValueError as exc:
-        raise UsageError(f"--{exc}") from None
     if args.resume and args.out is None:
         raise UsageError("--resume: needs --out FOLDER, the run to continue")
     if (args.videos or args.no_report) and args.out is None:

@@ -18,6 +18,7 @@ from humotion_gym.cli._common import (
     UsageError,
     add_command,
     add_data_dir,
+    add_int,
     add_json,
     add_seed,
     check_fresh_output,
@@ -26,6 +27,7 @@ from humotion_gym.cli._common import (
     output_dir,
     positive_float,
     print_json,
+    refused_as,
     wrote,
 )
 from humotion_gym.files import write_atomically, write_text_atomically
@@ -36,10 +38,9 @@ DEFAULT_ORACLES = ("image", "2d", "2d-unlabelled", "3d")
 
 def _filter_agent(text: str) -> str:
     """An argparse ``type``: a registered particle-filter agent (or ``hold``)."""
-    try:
+    # a broken settings file: its message, not argparse's "invalid"
+    with refused_as(argparse.ArgumentTypeError, ValueError):
         from baselines.agents import AGENTS
-    except ValueError as err:  # a broken settings file: its message, not argparse's "invalid"
-        raise argparse.ArgumentTypeError(str(err)) from None
 
     if text != "hold" and text not in AGENTS:
         raise argparse.ArgumentTypeError(
@@ -100,10 +101,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="seeded episodes per agent and likelihood, or with --declared the first N windows "
         "(default: 20 seeded, or every declared window)",
     )  # fmt: skip
-    op.add_argument(
-        "--agent-seeds", type=episode_count, default=1, metavar="K",
-        help="agent seeds per agent and likelihood (default: 1)",
-    )  # fmt: skip
+    add_int(
+        op, "--agent-seeds", 1, "agent seeds per agent and likelihood", episode_count, metavar="K"
+    )
     op.add_argument(
         "--split", choices=["test", "validation"], default="test",
         help="the test persons, or the validation persons (training persons held out) "
@@ -132,21 +132,15 @@ def _oracles(args: argparse.Namespace) -> list:
 
     out = []
     for text in args.oracles:
-        try:
+        with refused_as(UsageError, ValueError, "--oracles: "):
             oracle = parse_oracle(text)
-        except ValueError as exc:
-            raise UsageError(f"--oracles: {exc}") from exc
         if oracle is not None and args.noise_px is not None and ":" not in text:
-            try:
+            with refused_as(UsageError, ValueError, "--noise-px: "):
                 oracle = OracleSettings(oracle.kind, noise_px=args.noise_px)
-            except ValueError as exc:
-                raise UsageError(f"--noise-px: {exc}") from exc
         out.append(oracle)
     for mm in args.noise_mm:
-        try:
+        with refused_as(UsageError, ValueError, "--noise-mm: "):
             out.append(OracleSettings("3d", noise_mm=mm))
-        except ValueError as exc:
-            raise UsageError(f"--noise-mm: {exc}") from exc
     labels = ["image" if o is None else o.label for o in out]
     twice = sorted({x for x in labels if labels.count(x) > 1})
     if twice:
@@ -186,14 +180,12 @@ def _cmd_oracle(args: argparse.Namespace) -> int:
         from baselines.experiments.selection import validation_library
 
         kwargs["library"] = validation_library(kwargs.pop("data_dir", None))
-    try:  # every task's agents made first: one a later task refuses stops the run at once
+    results = []
+    with refused_as(UsageError, SettingsError, "--set: "):
+        # every task's agents made first: one a later task refuses stops the run at once
         for task in args.task:
             check_agents(task, args.agents, args.particles, args.seed, kwargs, settings)
-    except SettingsError as exc:
-        raise UsageError(f"--set: {exc}") from None
-    results = []
-    for task in args.task:
-        try:
+        for task in args.task:
             result = run_split(
                 task,
                 args.agents,
@@ -206,9 +198,7 @@ def _cmd_oracle(args: argparse.Namespace) -> int:
                 env_kwargs=kwargs,
                 settings=settings,
             )  # fmt: skip
-        except SettingsError as exc:
-            raise UsageError(f"--set: {exc}") from None
-        results.append(result)
+            results.append(result)
     table = markdown_report(results)
     data = {"settings": run_settings(args), "results": [compact(r) for r in results]}
     if args.out is not None:

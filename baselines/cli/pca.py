@@ -17,6 +17,7 @@ from humotion_gym.cli._common import (
     add_command,
     add_data_dir,
     add_fps,
+    add_int,
     add_json,
     int_at_least,
     output_dir,
@@ -53,10 +54,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="folder for the PNG files (default: pca-figures)",
     )  # fmt: skip
     add_fps(figs)
-    figs.add_argument(
-        "--components", type=int_at_least(1, 64), default=5,
-        help="principal components of the FPCA, 1 to 64 (default: 5)",
-    )  # fmt: skip
+    add_int(
+        figs, "--components", 5, "principal components of the FPCA, 1 to 64", int_at_least(1, 64)
+    )
     figs.set_defaults(func=_cmd_figures)
 
 

@@ -24,6 +24,7 @@ from humotion_gym.cli._common import (
     add_command,
     add_json,
     print_json,
+    refused_as,
     task_name,
 )
 
@@ -71,12 +72,9 @@ def _cmd_ratio(args: argparse.Namespace) -> int:
     ran_with: dict[str, tuple[str, Any]] = {}  # each cell's file and what decided its frames
     there: set[str] = set()
     for path in args.results:
-        try:
+        # ValueError innermost, so checked first (io.UnsupportedOperation is both)
+        with refused_as(CommandError, OSError, f"{path}: "), refused_as(CommandError, ValueError):
             rows, settings = load_rows(path)
-        except ValueError as exc:
-            raise CommandError(str(exc)) from None
-        except OSError as exc:
-            raise CommandError(f"{path}: {exc}") from None
         for row in rows:
             if row["task"] != args.task or "summary" not in row:
                 continue
@@ -112,11 +110,9 @@ def _cmd_ratio(args: argparse.Namespace) -> int:
             f"--cells: {args.cells[0]} ({path_a}) and {args.cells[1]} ({path_b}) ran on other "
             f"settings or data ({ran_a} against {ran_b}): their ratio compares two tasks"
         )
-    try:
+    with refused_as(CommandError, ValueError, "--cells: "):
         ratio, _, _ = compare_to_hold(first, second)
         low, high = hold_ratio_interval(first, second)
-    except ValueError as exc:
-        raise CommandError(f"--cells: {exc}") from None
     a, b = args.cells
     verdict = ratio_verdict(low, high, a, b)
     means = (first["summary"]["mean_error_mm"], second["summary"]["mean_error_mm"])

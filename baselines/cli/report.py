@@ -21,6 +21,7 @@ from humotion_gym.cli._common import (
     add_data_dir,
     nonnegative_int,
     output_dir,
+    refused_as,
     wrote,
 )
 
@@ -73,10 +74,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
         args.results = packed if packed.is_file() and not plain.is_file() else plain
     if not args.results.is_file():
         raise FileNotFoundError(f"{args.results}: no such leaderboard file")
-    try:
+    with refused_as(CommandError, (ValueError, UnicodeDecodeError)):
         rows, settings = load_rows(args.results)
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise CommandError(str(exc)) from None
     unknown = sorted(set(args.video_agents or []) - {r.get("agent") for r in rows})
     if unknown:
         agents = sorted({str(r.get("agent")) for r in rows})
@@ -88,15 +87,13 @@ def _cmd_report(args: argparse.Namespace) -> int:
     if args.data_dir:
         env_kwargs["data_dir"] = args.data_dir
     agents = set(args.video_agents or [])
-    try:
+    with refused_as(CommandError, (ValueError, ReplayMismatch)):
         index = write_report(
             rows, args.out, videos=args.videos, env_kwargs=env_kwargs,
             seed=int(settings.get("seed") or 0) if args.seed is None else args.seed,
             video_cells=(lambda r: r["agent"] in agents) if agents else None, title=args.title,
             run=settings,
         )  # fmt: skip
-    except (ValueError, ReplayMismatch) as exc:
-        raise CommandError(str(exc)) from None
     wrote(args.out / "tables.md", "Markdown tables")
     wrote(args.out / "stats.json", "every statistic")
     if figures_available():

@@ -17,12 +17,14 @@ from humotion_gym.cli._common import (
     UsageError,
     add_command,
     add_data_dir,
+    add_int,
     add_json,
     add_seed,
     add_task,
     episode_count,
     int_at_least,
     print_json,
+    refused_as,
 )
 
 
@@ -53,9 +55,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "(default: sharpness=1,2,3,5)",
     )  # fmt: skip
     add_particles(sel)
-    sel.add_argument(
-        "--episodes", type=episode_count, default=20, help="episodes per value (default: 20)"
-    )
+    add_int(sel, "--episodes", 20, "episodes per value", episode_count)
     add_seed(sel, "first episode seed")
     sel.add_argument(
         "--validation", nargs="+", default=None, metavar="SUBJECT",
@@ -108,13 +108,11 @@ def _cmd_select(args: argparse.Namespace) -> int:
         if args.validation is None or isinstance(exc, (MocapFormatError, RigError)):
             raise
         raise UsageError(f"--validation: {str(exc).removeprefix('validation_fold: ')}") from None
-    try:
+    with refused_as(UsageError, ValueError):  # a setting, agent or fold these arguments name
         out = select_observation_settings(
             args.task, args.agent, grid, lib, args.particles, args.episodes, args.seed,
             still=args.still,
         )  # fmt: skip
-    except ValueError as exc:  # a setting, agent or fold these arguments name
-        raise UsageError(str(exc)) from exc
     if args.json:  # with what reruns it
         print_json({**out, "seed": args.seed, "particles": args.particles,
                     "episodes": args.episodes, "data_dir": args.data_dir or None,

@@ -24,6 +24,7 @@ from humotion_gym.cli._common import (
     UsageError,
     add_command,
     add_data_dir,
+    add_int,
     add_json,
     add_seed,
     float_between,
@@ -32,6 +33,7 @@ from humotion_gym.cli._common import (
     output_file,
     print_json,
     probability,
+    refused_as,
 )
 from humotion_gym.mocap.motion import Motion
 
@@ -44,14 +46,10 @@ def _add_model_args(p: argparse.ArgumentParser, figure: bool = True, clips: bool
     from baselines.priors import slds
 
     add_seed(p, "seed of EM and of the test sequences")
-    p.add_argument(
-        "--states", type=int_at_least(1, 64), default=slds.N_STATES,
-        help=f"switch states per activity (default: {slds.N_STATES})",
-    )  # fmt: skip
-    p.add_argument(
-        "--iters", type=int_at_least(1, 10_000), default=slds.CLASSIFY_N_ITER,
-        help=f"EM iterations per activity (default: {slds.CLASSIFY_N_ITER})",
-    )  # fmt: skip
+    add_int(p, "--states", slds.N_STATES, "switch states per activity", int_at_least(1, 64))
+    add_int(
+        p, "--iters", slds.CLASSIFY_N_ITER, "EM iterations per activity", int_at_least(1, 10_000)
+    )
     if clips:
         p.add_argument(
             "--max-train-clips", type=int_at_least(1), default=None,
@@ -67,10 +65,7 @@ def _add_model_args(p: argparse.ArgumentParser, figure: bool = True, clips: bool
 
 def _add_run_args(p: argparse.ArgumentParser, what: str) -> None:
     """``--jobs`` (``what`` run in parallel processes), ``--quiet`` and ``--json``."""
-    p.add_argument(
-        "--jobs", type=int_at_least(1, 256), default=1,
-        help=f"{what} run in parallel processes (default: 1)",
-    )  # fmt: skip
+    add_int(p, "--jobs", 1, f"{what} run in parallel processes", int_at_least(1, 256))
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     add_json(p)
 
@@ -79,10 +74,8 @@ def features_arg(text: str) -> str:
     """An argparse ``type`` for a feature name (``pavlovic1999.parse_features``)."""
     from baselines.experiments import pavlovic1999 as pav
 
-    try:
+    with refused_as(argparse.ArgumentTypeError, ValueError):
         pav.parse_features(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
     return text
 
 

@@ -13,6 +13,7 @@ from baselines.cli._args import add_agents, add_particles, tracked_task
 from humotion_gym.cli._common import (
     add_command,
     add_data_dir,
+    add_int,
     add_report_out,
     add_seed,
     add_task,
@@ -41,10 +42,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--max-hold", type=positive_float, default=50.0, metavar="MM",
         help="keep episodes whose hold error is at most this (default: 50 mm)",
     )  # fmt: skip
-    st.add_argument(
-        "--episodes", type=episode_count, default=20,
-        help="at most this many episodes (default: 20)",
-    )  # fmt: skip
+    add_int(st, "--episodes", 20, "at most this many episodes", episode_count)
     add_seed(st, "the agents' seed")
     add_data_dir(st)
     add_report_out(st)

@@ -28,6 +28,7 @@ from humotion_gym.cli._common import (
     UsageError,
     add_command,
     add_data_dir,
+    add_int,
     add_json,
     add_seed,
     check_fresh_output,
@@ -87,12 +88,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--particles", type=particle_count, nargs="+", action=Distinct, default=[300],
         metavar="N", help="particle counts of the particle filters (default: 300)",
     )  # fmt: skip
-    sw.add_argument(
-        "--episodes",
-        type=episode_count,
-        default=5,
-        help="episodes per cell and value (default: 5)",
-    )
+    add_int(sw, "--episodes", 5, "episodes per cell and value", episode_count)
     grid = sw.add_argument_group("settings (each one given is swept on its own)")
     for name, flag in _SETTINGS.items():
         grid.add_argument(

@@ -22,11 +22,11 @@ from humotion_gym.cli._common import (
     add_command,
     add_data_dir,
     add_fps,
+    add_int,
     add_seed,
     check_memory,
     float_between,
     output_file,
-    positive_int,
     wrote,
 )
 
@@ -62,10 +62,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--labels", nargs="+", default=["walk"], metavar="LABEL",
         help="activities of the training clips the prior is fitted on (default: walk)",
     )  # fmt: skip
-    syn.add_argument(
-        "--max-clips", type=positive_int, default=40,
-        help="fit on at most this many training clips, a random subset (default: 40)",
-    )  # fmt: skip
+    add_int(syn, "--max-clips", 40, "fit on at most this many training clips, a random subset")
     syn.add_argument(
         "--start", default=None,
         help="clip id whose first pose the motion starts from: tree and cv continue that pose; "

@@ -20,6 +20,7 @@ from humotion_gym.cli._common import (
     UsageError,
     add_command,
     add_data_dir,
+    add_int,
     add_json,
     add_seed,
     add_task,
@@ -55,9 +56,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     add_imports(track)
     add_particles(track, "particles of a particle-filter agent")
-    track.add_argument(
-        "--episodes", type=episode_count, default=20, help="episodes to track (default: 20)"
-    )
+    add_int(track, "--episodes", 20, "episodes to track", episode_count)
     add_seed(track, "seed of the first episode and of the agent")
     track.add_argument(
         "--clip", default=None,

@@ -22,6 +22,7 @@ from humotion_gym.cli._common import (
     UsageError,
     add_command,
     add_data_dir,
+    add_int,
     add_json,
     add_seed,
     add_task,
@@ -29,8 +30,8 @@ from humotion_gym.cli._common import (
     int_at_least,
     output_dir,
     output_file,
-    positive_int,
     print_json,
+    refused_as,
     shared_output_dir,
     wrote,
 )
@@ -48,10 +49,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     tr.add_argument("--algo", choices=["ppo", "bc"], required=True, help="ppo or bc (required)")
     add_task(tr, "BodyTrack-v2", kind=tracked_task)
-    tr.add_argument(
-        "--steps", type=positive_int, default=100_000,
-        help="environment steps to train for (default: 100000)",
-    )  # fmt: skip
+    add_int(tr, "--steps", 100_000, "environment steps to train for")
     add_seed(tr, "seed of the policy, the episodes and the rollouts")
     tr.add_argument(
         "--out", type=output_dir, default=None,
@@ -71,10 +69,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--init", type=Path, default=None,
         help="start from this saved policy, e.g. PPO fine-tuning from bc (default: none)",
     )  # fmt: skip
-    tr.add_argument(
-        "--checkpoint-every", type=positive_int, default=10_000,
-        help="save a checkpoint every this many env steps (default: 10000)",
-    )  # fmt: skip
+    add_int(tr, "--checkpoint-every", 10_000, "save a checkpoint every this many env steps")
     again = tr.add_mutually_exclusive_group()
     again.add_argument(
         "--resume", action="store_true",
@@ -92,15 +87,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="track no validation persons (default: tracked every --eval-every steps; they "
         "are never trained on either way)",
     )  # fmt: skip
-    tr.add_argument(
-        "--eval-every", type=positive_int, default=10_000,
-        help="env steps between two validation runs (default: 10000)",
-    )  # fmt: skip
-    tr.add_argument(
-        "--eval-episodes", type=positive_int, default=5,
-        help="validation episodes per run (default: 5)",
-    )  # fmt: skip
-    tr.add_argument("--threads", type=positive_int, default=1, help="torch threads (default: 1)")
+    add_int(tr, "--eval-every", 10_000, "env steps between two validation runs")
+    add_int(tr, "--eval-episodes", 5, "validation episodes per run")
+    add_int(tr, "--threads", 1, "torch threads")
     tr.add_argument(
         "--export", type=shared_output_dir, default=None, metavar="DIR",
         help="also copy the model and its config to DIR/ALGO-TASK.zip and .json, as the "
@@ -128,18 +117,9 @@ def _register_curve(subparsers: argparse._SubParsersAction) -> None:
         "--seeds", type=int_at_least(0), nargs="+", default=[0, 1, 2],
         help="training seeds (default: 0 1 2)",
     )  # fmt: skip
-    lc.add_argument(
-        "--steps", type=positive_int, default=100_000,
-        help="env steps per run (default: 100000)",
-    )  # fmt: skip
-    lc.add_argument(
-        "--points", type=positive_int, default=5,
-        help="checkpoints evaluated per run, evenly spaced (default: 5)",
-    )  # fmt: skip
-    lc.add_argument(
-        "--episodes", type=positive_int, default=10,
-        help="test episodes per evaluated checkpoint (default: 10)",
-    )  # fmt: skip
+    add_int(lc, "--steps", 100_000, "env steps per run")
+    add_int(lc, "--points", 5, "checkpoints evaluated per run, evenly spaced")
+    add_int(lc, "--episodes", 10, "test episodes per evaluated checkpoint")
     lc.add_argument(
         "--runs-dir", type=output_dir, default="runs/curve",
         help="where the runs are trained, and resumed from (default: runs/curve)",
@@ -166,10 +146,8 @@ def _settings(args: argparse.Namespace) -> dict:
     if args.algo == "ppo":
         path = args.hyperparams or (DEFAULT_HYPERPARAMS if DEFAULT_HYPERPARAMS.is_file() else None)
         if path is not None:
-            try:
+            with refused_as(CommandError, ValueError):
                 settings.update(load_hyperparams(path, args.task))
-            except ValueError as exc:
-                raise CommandError(str(exc)) from None
     elif args.hyperparams is not None:
         raise UsageError("--hyperparams: PPO settings; bc takes --set KEY=VALUE")
     settings.update(dict(args.set))
@@ -189,7 +167,7 @@ def _train(args: argparse.Namespace, out: Path) -> int:
     from baselines.rl import TrainConfig, train
     from baselines.rl_config import InitMismatch, ResumeMismatch
 
-    try:
+    with refused_as(UsageError, ValueError):
         config = TrainConfig(
             args.algo, args.task, args.steps, args.seed, str(out),
             data_dir=[str(d) for d in args.data_dir] if args.data_dir else None,
@@ -198,8 +176,6 @@ def _train(args: argparse.Namespace, out: Path) -> int:
             validation=not args.no_validation, eval_every=args.eval_every,
             eval_episodes=args.eval_episodes,
         )  # fmt: skip
-    except ValueError as exc:
-        raise UsageError(str(exc)) from None
     if args.init is not None and not args.init.is_file():
         raise CommandError(f"--init: {args.init} does not exist")
     export = None if args.export is None else args.export / f"{args.algo}-{config.task}.zip"
@@ -213,11 +189,9 @@ def _train(args: argparse.Namespace, out: Path) -> int:
     command = "humotion-gym " + " ".join(sys.argv[1:]) if sys.argv[1:] else None
     # With --json, stdout holds the one JSON object: the training log goes to stderr.
     log = contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext()
-    try:
-        with log:
-            path = train(config, resume=args.resume, force=args.force, command=command)
-    except (FileExistsError, ResumeMismatch, InitMismatch) as exc:  # the arguments disagree
-        raise UsageError(str(exc)) from None
+    disagree = (FileExistsError, ResumeMismatch, InitMismatch)  # the arguments disagree
+    with refused_as(UsageError, disagree), log:
+        path = train(config, resume=args.resume, force=args.force, command=command)
     run_config = json.loads((out / "config.json").read_text())
     if export is not None:
         for source, target in ((path, export), (out / "config.json", export.with_suffix(".json"))):

@@ -14,6 +14,7 @@ from baselines.cli._args import tracked_task
 from humotion_gym.cli._common import (
     add_command,
     add_data_dir,
+    add_int,
     add_json,
     add_seed,
     add_task,
@@ -49,12 +50,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "humotion-gym tree variance --task BodyTrack-v2 --windows 15000",
     )  # fmt: skip
     add_task(var, "BodyTrack-v2", "the task whose pf-tree prior to read", kind=tracked_task)
-    var.add_argument(
-        "--windows",
-        type=int_at_least(2, 1_000_000),
-        default=15000,
-        help="windows sampled (a variance needs two), 2 to 1,000,000 (default: 15000)",
-    )
+    add_int(
+        var, "--windows", 15000, "windows sampled (a variance needs two), 2 to 1,000,000",
+        int_at_least(2, 1_000_000),
+    )  # fmt: skip
     add_data_dir(var)
     add_seed(var)
     add_json(var)

@@ -40,6 +40,31 @@ class CommandError(RuntimeError):
     """A command could not do its work for a reason the user can fix (exit 1)."""
 
 
+@contextlib.contextmanager
+def refused_as(
+    error: type[Exception],
+    kinds: type[BaseException] | tuple[type[BaseException], ...],
+    prefix: str = "",
+) -> Iterator[None]:
+    """Raise ``error`` with ``prefix`` and the message of an exception of ``kinds`` in the block.
+
+    How a command turns a refusal of what it called into its own error and
+    exit code (:class:`UsageError` 2, :class:`CommandError` 1, or argparse's
+    ``ArgumentTypeError`` in an argument type), the flag named in ``prefix``.
+    The refusal's traceback is dropped (``from None``): its message says what
+    was wrong.
+
+    Args:
+        error: The exception to raise, made from one message.
+        kinds: The exceptions turned into ``error``; others pass unchanged.
+        prefix: Put before the message, e.g. ``"--agent: "`` (default: none).
+    """
+    try:
+        yield
+    except kinds as exc:
+        raise error(f"{prefix}{exc}") from None
+
+
 #: The most memory a command may plan to hold for frames it renders or synthesises
 #: (``check_memory``); a request beyond it is refused before anything is allocated.
 MEMORY_BUDGET_BYTES: int = 2 << 30
@@ -235,10 +260,8 @@ def hold_default_folder(path: Path, dest: str) -> Iterator[None]:
     Raises:
         UsageError: If the folder cannot be written or another command holds it.
     """
-    try:
+    with refused_as(UsageError, argparse.ArgumentTypeError, f"--{dest.replace('_', '-')}: "):
         folder = output_dir(str(path))
-    except argparse.ArgumentTypeError as exc:
-        raise UsageError(f"--{dest.replace('_', '-')}: {exc}") from None
     with hold_output_folders(argparse.Namespace(**{dest: folder})):
         yield
 
@@ -303,10 +326,8 @@ def check_output_file(path: Path, flag: str, *suffixes: str) -> Path:
     Raises:
         UsageError: Naming ``flag``, if the file cannot be written there.
     """
-    try:
+    with refused_as(UsageError, argparse.ArgumentTypeError, f"{flag}: "):
         return output_file(*suffixes)(str(path))
-    except argparse.ArgumentTypeError as exc:
-        raise UsageError(f"{flag}: {exc}") from None
 
 
 def output_dir(text: str) -> Path:
@@ -371,10 +392,9 @@ def check_mocap_paths(paths: Sequence[str | Path], flag: str) -> None:
     """
     from humotion_gym.mocap.library import find_clips
 
-    try:
+    # say which flag (or variable) named the path
+    with refused_as(CommandError, FileNotFoundError, f"{flag}: "):
         found = find_clips(paths)
-    except FileNotFoundError as exc:  # say which flag (or variable) named the path
-        raise CommandError(f"{flag}: {exc}") from None
     if not found:
         shown = ", ".join(str(p) for p in paths)
         raise CommandError(f"{flag}: no BVH or ASF/AMC motion capture under {shown[:200]}")
@@ -422,7 +442,30 @@ def add_json(parser: argparse.ArgumentParser, what: str = "print JSON instead of
 
 def add_seed(parser: argparse.ArgumentParser, what: str = "random seed") -> None:
     """``--seed``: a non-negative seed, default 0."""
-    parser.add_argument("--seed", type=nonnegative_int, default=0, help=f"{what} (default: 0)")
+    add_int(parser, "--seed", 0, what, nonnegative_int)
+
+
+def add_int(
+    parser: argparse.ArgumentParser,
+    flag: str,
+    default: int,
+    what: str,
+    kind: Callable[[str], int] = positive_int,
+    **kwargs: Any,
+) -> None:
+    """An integer flag, read by ``kind``, whose help is ``what`` and then its default.
+
+    Args:
+        parser: The command's parser.
+        flag: The flag, e.g. ``--episodes``.
+        default: Its default, shown in the help as ``(default: N)``.
+        what: The help before the default.
+        kind: The argparse ``type`` (default: :data:`positive_int`); e.g.
+            :data:`episode_count` for ``--episodes``.
+        **kwargs: Passed on to ``add_argument`` (``metavar``...).
+    """
+    help_text = f"{what} (default: {default})"
+    parser.add_argument(flag, type=kind, default=default, help=help_text, **kwargs)
 
 
 def add_task(
@@ -483,8 +526,7 @@ def report(args: argparse.Namespace, result: Any, what: str, text: Callable[[], 
 
 
 def _plain(value: Any) -> Any:
-    if hasattr(value, "tolist"):  # numpy scalars and arrays
-        return value.tolist()
+    # numpy values never get here: _finite made them plain first
     if isinstance(value, Path):
         return str(value)
     raise TypeError(f"not JSON-serialisable: {type(value).__name__}")

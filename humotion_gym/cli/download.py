@@ -16,6 +16,7 @@ from humotion_gym.cli._common import (
     Distinct,
     UsageError,
     add_command,
+    add_int,
     float_between,
     hold_default_folder,
     int_at_least,
@@ -25,6 +26,16 @@ from humotion_gym.cli._common import (
 
 #: URL schemes ``--base-url`` accepts (a mirror on a web server or a local folder).
 URL_SCHEMES = ("http", "https", "file")
+#: The time limits and size caps of a download, each a number > 0: its flag, the
+#: largest value it takes, its default and what it limits.
+_LIMITS: tuple[tuple[str, float, float, str], ...] = (
+    ("--timeout", 3600.0, 30.0, "socket timeout per connect and per read, s"),
+    ("--file-deadline", 86400.0, 600.0, "deadline per file or listing, all attempts, s"),
+    ("--deadline", 604800.0, 7200.0, "deadline for the whole run, s"),
+    ("--max-asf-mib", 64.0, 1.0, "cap on an .asf file, MiB"),
+    ("--max-amc-mib", 4096.0, 64.0, "cap on an .amc file, MiB"),
+    ("--max-listing-kib", 65536.0, 1024.0, "cap on a subject's HTML listing, KiB"),
+)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -72,36 +83,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="mirror of the CMU site, an http(s):// or file:// URL (default: the CMU site)",
     )
     cmu.add_argument("--quiet", action="store_true", help="no progress bar")
-    cmu.add_argument(
-        "--retries",
-        type=int_at_least(1, 100),
-        default=3,
-        help="attempts per file, 1 to 100 (default: 3)",
-    )
-    cmu.add_argument(
-        "--timeout", type=float_between(0.0, 3600.0, open_low=True), default=30.0,
-        help="socket timeout per connect and per read, s (default: 30)",
-    )  # fmt: skip
-    cmu.add_argument(
-        "--file-deadline", type=float_between(0.0, 86400.0, open_low=True), default=600.0,
-        help="deadline per file or listing, all attempts, s (default: 600)",
-    )  # fmt: skip
-    cmu.add_argument(
-        "--deadline", type=float_between(0.0, 604800.0, open_low=True), default=7200.0,
-        help="deadline for the whole run, s (default: 7200)",
-    )  # fmt: skip
-    cmu.add_argument(
-        "--max-asf-mib", type=float_between(0.0, 64.0, open_low=True), default=1.0,
-        help="cap on an .asf file, MiB (default: 1)",
-    )  # fmt: skip
-    cmu.add_argument(
-        "--max-amc-mib", type=float_between(0.0, 4096.0, open_low=True), default=64.0,
-        help="cap on an .amc file, MiB (default: 64)",
-    )  # fmt: skip
-    cmu.add_argument(
-        "--max-listing-kib", type=float_between(0.0, 65536.0, open_low=True), default=1024.0,
-        help="cap on a subject's HTML listing, KiB (default: 1024)",
-    )  # fmt: skip
+    add_int(cmu, "--retries", 3, "attempts per file, 1 to 100", int_at_least(1, 100))
+    for flag, high, default, what in _LIMITS:
+        cmu.add_argument(
+            flag, type=float_between(0.0, high, open_low=True), default=default,
+            help=f"{what} (default: {default:g})",
+        )  # fmt: skip
     cmu.add_argument(
         "--registry", type=Path, default=None,
         help="SHA-256 registry file (default: the packaged cmu_sha256.txt)",

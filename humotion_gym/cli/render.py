@@ -13,6 +13,7 @@ from humotion_gym.cli._common import (
     UsageError,
     add_command,
     add_data_dir,
+    add_int,
     add_seed,
     add_task,
     check_memory,
@@ -21,6 +22,7 @@ from humotion_gym.cli._common import (
     image_size,
     int_at_least,
     output_file,
+    refused_as,
     wrote,
 )
 
@@ -38,10 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     add_task(rend, "BodyTrack-v2", "task id, see humotion-gym tasks")
     add_seed(rend, "episode seed")
-    rend.add_argument(
-        "--frames", type=int_at_least(2), default=90,
-        help="frames to render, held in memory (default: 90)",
-    )  # fmt: skip
+    add_int(rend, "--frames", 90, "frames to render, held in memory", int_at_least(2))
     rend.add_argument(
         "--out", type=output_file(*VIDEO_SUFFIXES), required=True,
         help="the video to write, .mp4 or .avi (required)",
@@ -50,9 +49,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--sheet", type=output_file(".png"), default=None,
         help="contact sheet PNG (default: OUT with .png)",
     )  # fmt: skip
-    rend.add_argument(
-        "--scale", type=int_at_least(1, MAX_SCALE), default=2,
-        help=f"pixel scale of the video, 1 to {MAX_SCALE} (default: 2)",
+    add_int(
+        rend, "--scale", 2, f"pixel scale of the video, 1 to {MAX_SCALE}",
+        int_at_least(1, MAX_SCALE),
     )  # fmt: skip
     add_data_dir(rend)
     rend.add_argument(
@@ -73,10 +72,8 @@ def _cmd_render(args: argparse.Namespace) -> int:
 
     width, height = args.size or (128, 128)
     views = get_task(args.task).views  # side by side in each frame
-    try:
+    with refused_as(UsageError, ValueError, "--out: "):
         check_video_size(args.out, width * views * args.scale, height * args.scale)
-    except ValueError as exc:
-        raise UsageError(f"--out: {exc}") from None
     # the frames are held, then scaled for the video one at a time
     check_memory("--frames", args.frames, width * views * height * 3, "frames")
     sheet = args.sheet or check_output_file(args.out.with_suffix(".png"), "--sheet", ".png")
