@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from humotion_gym.errors import MocapFormatError
-from humotion_gym.mocap._scan import _count, _short, _to_floats, decode_text
+from humotion_gym.mocap._scan import _count, _first_bad_value, _short, _to_floats, decode_text
 
 OnNan = Literal["mask", "raise"]
 
@@ -105,13 +105,6 @@ def _frame_span_problem(
     return None
 
 
-def _out_of_range(values: NDArray[np.float64], bound: float) -> NDArray[np.intp]:
-    """Indices of the finite values beyond ``bound`` in magnitude."""
-    with np.errstate(invalid="ignore"):
-        big = np.abs(values) > bound
-    return np.flatnonzero(big & np.isfinite(values))
-
-
 def _points_by_name(names: Sequence[str]) -> dict[bytes, int]:
     """Each skeleton point's index by its name as an AMC line writes it.
 
@@ -181,9 +174,7 @@ def _amc_regular(
         values = np.array(operator.itemgetter(*index)(tokens), dtype=np.float64)
     except ValueError:
         return None
-    if on_nan == "raise" and not np.isfinite(values).all():
-        return None
-    if len(_out_of_range(values, limits.max_abs_value)):
+    if _first_bad_value(values, limits.max_abs_value, on_nan) is not None:
         return None
     col0 = np.concatenate(([0], np.cumsum(widths)[:-1])).astype(np.intp)
     cols = np.concatenate([col0[p] + np.arange(widths[p]) for p in points])
@@ -301,22 +292,9 @@ def _bone_values(
     values = _to_floats(
         list(itertools.compress(tokens, is_value)), spath, first + value_lines, "a number"
     )
-    big = _out_of_range(values, limits.max_abs_value)
-    if len(big):
-        raise MocapFormatError(
-            spath,
-            first + int(value_lines[big[0]]),
-            f"expected values of magnitude at most {limits.max_abs_value:g}, found "
-            f"{float(values[big[0]])!r}",
-        )
-    if on_nan == "raise":
-        bad = np.flatnonzero(~np.isfinite(values))
-        if len(bad):
-            raise MocapFormatError(
-                spath,
-                first + int(value_lines[bad[0]]),
-                f"expected finite values, found {float(values[bad[0]])!r}",
-            )
+    problem = _first_bad_value(values, limits.max_abs_value, on_nan)
+    if problem is not None:
+        raise MocapFormatError(spath, first + int(value_lines[problem[0]]), problem[1])
     return values, value_lines, pos_in_line[is_value] - 1
 
 

@@ -147,13 +147,25 @@ class _AsfReader:
             self._hierarchy(ln, line, toks, key)
         # Other sections (:version, :documentation, :skin...) carry nothing we use.
 
-    def _section(self, ln: int, toks: list[str]) -> None:
+    def _check_closed(self, ln: int, found: str = "") -> None:
+        """Refuse a new section or bone, or the file's end, while a bone or :hierarchy is open.
+
+        ``found`` ends the message (``", found end of file"`` at the file's end).
+
+        Raises:
+            MocapFormatError: Naming the line where the open block began.
+        """
         if self.bone is not None:
             raise self._error(
-                ln, f"expected 'end' closing the bone begun at line {self.bone['line']}"
+                ln, f"expected 'end' closing the bone begun at line {self.bone['line']}{found}"
             )
         if self.in_hierarchy:
-            raise self._error(ln, f"expected 'end' closing :hierarchy (line {self.hierarchy_line})")
+            raise self._error(
+                ln, f"expected 'end' closing :hierarchy (line {self.hierarchy_line}){found}"
+            )
+
+    def _section(self, ln: int, toks: list[str]) -> None:
+        self._check_closed(ln)
         self.section = toks[0][1:].lower()
         if self.section == "name":
             self.name = " ".join(toks[1:])
@@ -216,10 +228,7 @@ class _AsfReader:
         self.last_key = key
 
     def _bone_begin(self, ln: int) -> None:
-        if self.bone is not None:
-            raise self._error(
-                ln, f"expected 'end' closing the bone begun at line {self.bone['line']}"
-            )
+        self._check_closed(ln)  # (no :hierarchy is open in :bonedata)
         if len(self.bones) >= self.limits.max_bones:
             raise self._error(
                 ln,
@@ -344,18 +353,7 @@ class _AsfReader:
 
     def finish(self, last: int) -> None:
         """The end-of-file checks: every block closed, :root with its order, a :hierarchy."""
-        if self.bone is not None:
-            raise self._error(
-                last,
-                f"expected 'end' closing the bone begun at line {self.bone['line']}, "
-                "found end of file",
-            )
-        if self.in_hierarchy:
-            raise self._error(
-                last,
-                f"expected 'end' closing :hierarchy (line {self.hierarchy_line}), "
-                "found end of file",
-            )
+        self._check_closed(last, ", found end of file")
         if not self.root_line:
             raise self._error(last, "expected a :root section, found end of file")
         if "order" not in self.root:

@@ -97,10 +97,8 @@ def _opener(socks: list[socket.socket]) -> urllib.request.OpenerDirector:
             super().connect()
             socks.append(self.sock)
 
-    class _SConn(http.client.HTTPSConnection):
-        def connect(self) -> None:
-            super().connect()
-            socks.append(self.sock)
+    class _SConn(_Conn, http.client.HTTPSConnection):
+        """HTTPS, its (TLS) socket recorded by :class:`_Conn`'s ``connect``."""
 
     class _Handler(urllib.request.HTTPHandler):
         def http_open(self, req: urllib.request.Request) -> Any:

@@ -1,9 +1,10 @@
 """Text scanning shared by the BVH and ASF/AMC readers.
 
 Token counts per line (vectorised over the bytes), the bulk conversion of a
-block of numbers, batched Euler rotations, whole-number tokens and the short
-form of a token in an error message. The readers are
-:mod:`humotion_gym.mocap.bvh` and :mod:`humotion_gym.mocap.asfamc`.
+block of numbers, the checks of motion values (magnitude, NaN), batched Euler
+rotations, whole-number tokens and the short form of a token in an error
+message. The readers are :mod:`humotion_gym.mocap.bvh` and
+:mod:`humotion_gym.mocap.asfamc`.
 """
 
 from __future__ import annotations
@@ -113,6 +114,34 @@ def _to_floats(
             hi = mid
     bad = decode_text(tokens[lo])
     raise MocapFormatError(path, int(line_of[lo]), f"expected {what}, found {bad!r}")
+
+
+def _first_bad_value(
+    values: NDArray[np.float64], bound: float, on_nan: str
+) -> tuple[int, str] | None:
+    """The first motion value both readers refuse, and what was expected there.
+
+    Args:
+        values: The values read (any shape; NaN and inf kept).
+        bound: The largest magnitude of a finite value.
+        on_nan: ``"raise"`` refuses NaN and infinite values too (``"mask"``
+            leaves them to mark their frames invalid).
+
+    Returns:
+        None when every value passes, else the flat index of the first value
+        beyond ``bound`` (or, with none, of the first one not finite) and the
+        error's reason.
+    """
+    with np.errstate(invalid="ignore"):  # NaN and inf are on_nan's business, not the bound's
+        big = np.flatnonzero((np.abs(values) > bound) & np.isfinite(values))
+    if len(big):
+        found = float(values.flat[big[0]])
+        return int(big[0]), f"expected values of magnitude at most {bound:g}, found {found!r}"
+    if on_nan == "raise":
+        bad = np.flatnonzero(~np.isfinite(values))
+        if len(bad):
+            return int(bad[0]), f"expected finite values, found {float(values.flat[bad[0]])!r}"
+    return None
 
 
 def _elementary_rotations(axis: int, angles: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -61,7 +61,6 @@ parsing (an unreadable file still raises :class:`OSError`).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -80,7 +79,7 @@ from humotion_gym.mocap._scan import (
     read_motion_bytes,
 )
 from humotion_gym.mocap.bvh import MAX_NAME_LENGTH  # one bound on names for both formats
-from humotion_gym.mocap.skeleton import select_points
+from humotion_gym.mocap.skeleton import PointsOnce
 
 __all__ = [
     "FRAME_SPAN_FACTOR",
@@ -215,7 +214,7 @@ def _axis_rotation(angles: NDArray[np.float64], order: str, unit: str) -> NDArra
 
 
 @dataclass(eq=False)
-class AcclaimClip:
+class AcclaimClip(PointsOnce):
     """A parsed AMC file on its ASF skeleton; a :class:`~.skeleton.SkeletonClip`.
 
     Attributes:
@@ -250,25 +249,13 @@ class AcclaimClip:
     angle_unit: Literal["deg", "rad"]
     _positions: NDArray[np.float64] | None = field(default=None, repr=False)
 
-    def point_positions(self, names: Sequence[str] | None = None) -> NDArray[np.float64]:
-        """Global positions of the root and the bone tips, in the ASF's axes and units.
-
-        Args:
-            names: The points wanted (all of :attr:`point_names` when None).
+    def _all_points(self) -> NDArray[np.float64]:
+        """Acclaim forward kinematics: loop over bones, every frame at once.
 
         Returns:
-            ``(T, len(names), 3)`` positions. Rows of invalid frames are NaN.
-
-        Raises:
-            KeyError: If a name is not one of :attr:`point_names`.
+            ``(T, P, 3)`` positions of the root and the bone tips, in the ASF's
+            axes and units. Rows of invalid frames are NaN.
         """
-        if self._positions is None:
-            with np.errstate(invalid="ignore"):  # invalid frames are masked anyway
-                self._positions = self._kinematics()
-        return select_points(self._positions, self.point_names, names, self.path)
-
-    def _kinematics(self) -> NDArray[np.float64]:
-        """Acclaim forward kinematics: loop over bones, every frame at once."""
         sk = self.skeleton
         n_t = self.n_frames
         pos = np.empty((n_t, len(self.point_names), 3))

@@ -54,7 +54,6 @@ unreadable file still raises :class:`OSError`).
 from __future__ import annotations
 
 import io
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
@@ -79,13 +78,14 @@ from humotion_gym.mocap._bvh_write import write_bvh
 from humotion_gym.mocap._scan import (
     _count,
     _euler_matrices,
+    _first_bad_value,
     _line_token_counts,
     _short,
     _to_floats,
     decode_text,
     read_motion_bytes,
 )
-from humotion_gym.mocap.skeleton import select_points
+from humotion_gym.mocap.skeleton import PointsOnce
 
 __all__ = [
     "CHANNEL_NAMES",
@@ -165,16 +165,6 @@ def _check_frame_time(path: str, line: int, token: str) -> float:
     return frame_time
 
 
-def _first_out_of_range(values: NDArray[np.float64]) -> int | None:
-    """Flat index of the first finite value beyond :data:`MAX_ABS_VALUE`, or None."""
-    with np.errstate(invalid="ignore"):
-        big = np.abs(values) > MAX_ABS_VALUE
-    big &= np.isfinite(values)
-    if not big.any():
-        return None
-    return int(np.argmax(big.reshape(-1)))
-
-
 def _snap_fps(frame_time: float, token: str) -> float:
     """Frames per second, snapped to a whole rate when the file rounded its period.
 
@@ -206,7 +196,7 @@ def _snap_fps(frame_time: float, token: str) -> float:
 
 
 @dataclass(eq=False)
-class BvhClip:
+class BvhClip(PointsOnce):
     """A parsed BVH file; a :class:`~humotion_gym.mocap.skeleton.SkeletonClip`.
 
     Attributes:
@@ -302,27 +292,16 @@ class BvhClip:
         assert rots is not None
         return rots, pos[:, : len(self.joint_names)]
 
-    def point_positions(self, names: Sequence[str] | None = None) -> NDArray[np.float64]:
+    def _all_points(self) -> NDArray[np.float64]:
         """Global positions of joints and end sites, in the file's own axes and units.
 
-        Args:
-            names: The points wanted (all of :attr:`point_names` when None).
-
         Returns:
-            ``(T, len(names), 3)`` positions. Rows of invalid frames are NaN.
-
-        Raises:
-            KeyError: If a name is not one of :attr:`point_names`.
+            ``(T, P, 3)`` positions of :attr:`point_names`. Rows of invalid frames are NaN.
         """
-        if self._positions is None:
-            with np.errstate(invalid="ignore"):  # invalid frames are masked anyway
-                _, pos = self._kinematics(keep_rotations=False)
-            # Reorder from (joints, end sites) to the file order of the points.
-            order = [
-                j if is_joint else len(self.joint_names) + j for is_joint, j in self._point_joint
-            ]
-            self._positions = pos[:, order]
-        return select_points(self._positions, self.point_names, names, self.path)
+        _, pos = self._kinematics(keep_rotations=False)
+        # Reorder from (joints, end sites) to the file order of the points.
+        order = [j if is_joint else len(self.joint_names) + j for is_joint, j in self._point_joint]
+        return pos[:, order]
 
     def _kinematics(
         self, keep_rotations: bool
@@ -587,25 +566,11 @@ def _check_values(
         j = int(np.searchsorted(starts, col, side="right") - 1)
         return f"channel {hdr.channels[j][col - starts[j]]} of joint {hdr.names[j]!r}"
 
-    big = _first_out_of_range(values)
-    if big is not None:
-        t, col = divmod(big, n_chan)
-        raise MocapFormatError(
-            spath,
-            first + t,
-            f"expected values of magnitude at most {MAX_ABS_VALUE:g}, found "
-            f"{float(values[t, col])!r} in {channel_of(col)}",
-        )
-    finite_rows = np.isfinite(values).all(axis=1)
-    if on_nan == "raise" and not finite_rows.all():
-        t = int(np.flatnonzero(~finite_rows)[0])
-        col = int(np.flatnonzero(~np.isfinite(values[t]))[0])
-        raise MocapFormatError(
-            spath,
-            first + t,
-            f"expected finite values, found {float(values[t, col])!r} in {channel_of(col)}",
-        )
-    return finite_rows
+    problem = _first_bad_value(values, MAX_ABS_VALUE, on_nan)
+    if problem is not None:
+        t, col = divmod(problem[0], n_chan)
+        raise MocapFormatError(spath, first + t, f"{problem[1]} in {channel_of(col)}")
+    return np.isfinite(values).all(axis=1)
 
 
 def _point_tree(spath: str, hdr: _Header) -> tuple[list[str], list[int]]:

@@ -215,8 +215,7 @@ def cmu_label(subject: int, trial: int, description: str | None = None) -> str:
     """
     index = cmu_index()
     if description is None:
-        known = index.get(subject, trial)
-        description = known.description if known is not None else ""
+        description = cmu_description(subject, trial)
     label = activity_label(description) if description else "other"
     if says_nothing(description) and subject in index.titles:
         title = activity_label(index.titles[subject])

@@ -424,17 +424,11 @@ def _download_one(
     # does not vouch for (the library would load it as a clip).
     manifest.pop(rel, None)
     target.unlink(missing_ok=True)
-    deadline = run_deadline
-    if file_deadline_s < run_deadline.left():
-        deadline = _Deadline(
-            time.monotonic() + file_deadline_s,
-            f"the per-file deadline of {file_deadline_s:g} s (file_deadline_s=, --file-deadline)",
-        )
     size, sha = _fetch(
         _Part(url, target),
         retries=retries,
         timeout=timeout,
-        deadline=deadline,
+        deadline=_file_deadline(file_deadline_s, run_deadline),
         max_bytes=caps.get(target.suffix.lower(), caps[""]),
         expected=expected,
         progress=progress,
@@ -596,23 +590,33 @@ def _download_subject(
             ) from None
         raise
     out.append(path)
-    listing_deadline = run_deadline
-    if file_deadline_s < run_deadline.left():
-        listing_deadline = _Deadline(
-            time.monotonic() + file_deadline_s,
-            f"the per-file deadline of {file_deadline_s:g} s (file_deadline_s=, --file-deadline)",
-        )
+    listing_deadline = _file_deadline(file_deadline_s, run_deadline)
     trials = _read_listing(
         subject_url, code, timeout, listing_deadline, max_listing_bytes, max_listing_entries
     )
-    if trials:
-        for t in trials:
-            name = f"{code}_{t:02d}.amc"
+    # Without a listing, trial numbers are probed: probing and downloading are
+    # one request, so a trial that exists is fetched right away, complete
+    # trials are skipped without asking the server, and the first 404 ends it.
+    for t in trials or range(1, _MAX_TRIALS + 1):
+        name = f"{code}_{t:02d}.amc"
+        try:
             path, _ = _download_one(subject_url + name, dest, f"{code}/{name}", manifest, **opts)
-            out.append(path)
-    else:
-        out.extend(_probe_trials(code, subject_url, dest, manifest, opts))
+        except DownloadError as e:
+            if e.status == 404 and not trials:
+                break
+            raise
+        out.append(path)
     return out
+
+
+def _file_deadline(file_deadline_s: float, run_deadline: _Deadline) -> _Deadline:
+    """The deadline of one file or listing: its own, unless the run's comes first."""
+    if file_deadline_s < run_deadline.left():
+        return _Deadline(
+            time.monotonic() + file_deadline_s,
+            f"the per-file deadline of {file_deadline_s:g} s (file_deadline_s=, --file-deadline)",
+        )
+    return run_deadline
 
 
 def _label_entries(manifest: dict[str, dict[str, Any]], code: str) -> None:
@@ -649,28 +653,6 @@ def choose_cmu_subjects(
     from humotion_gym.mocap.cmu import subjects_by_activity
 
     return subjects_by_activity(activities, persons, exclude_test=not include_test)
-
-
-def _probe_trials(
-    code: str,
-    subject_url: str,
-    dest: Path,
-    manifest: dict[str, dict[str, Any]],
-    opts: dict[str, Any],
-) -> list[Path]:
-    # Probing and downloading are one request: a trial that exists is fetched
-    # right away, and complete trials are skipped without asking the server.
-    out = []
-    for t in range(1, _MAX_TRIALS + 1):
-        name = f"{code}_{t:02d}.amc"
-        try:
-            path, _ = _download_one(subject_url + name, dest, f"{code}/{name}", manifest, **opts)
-        except DownloadError as e:
-            if e.status == 404:
-                break
-            raise
-        out.append(path)
-    return out
 
 
 def verify_cache(

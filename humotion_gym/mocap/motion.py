@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import zipfile
@@ -117,20 +118,12 @@ class Motion:
             raise ValueError(
                 f"Motion.slice: need 0 <= start < stop <= {self.n_frames}, got {start}:{stop}"
             )
-        return Motion(
-            clip_id=self.clip_id,
+        return dataclasses.replace(
+            self,
             params=self.params[start:stop].copy(),
             velocities=self.velocities[start:stop].copy(),
             observed=self.observed[start:stop].copy(),
-            fps=self.fps,
-            shape=self.shape,
             keypoints=self.keypoints[start:stop].copy(),
-            subject=self.subject,
-            label=self.label,
-            source=self.source,
-            dataset=self.dataset,
-            description=self.description,
-            synthetic=self.synthetic,
             meta=dict(self.meta),
         )
 

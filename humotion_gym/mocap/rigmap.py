@@ -50,7 +50,8 @@ from numpy.typing import NDArray
 
 from humotion_gym.body import KEYPOINT_NAMES
 from humotion_gym.errors import RigError
-from humotion_gym.mocap.rigs import (
+from humotion_gym.mocap.rigs import (  # the head top's extension: the profiles' own
+    _HEAD_EXTENSION_MM,
     RIGS,
     Extend,
     KeypointSource,
@@ -68,9 +69,6 @@ METHOD_CONFIDENCE: Mapping[str, float] = {
     "fallback": 0.8,
     "topology": 0.5,
 }
-
-# Head top extended from the head joint when nothing marks the crown (as rigs.py).
-_HEAD_EXTENSION_MM = 200.0
 
 _LEFT = {"l", "left", "lf", "lft"}
 _RIGHT = {"r", "right", "rt", "rgt"}
@@ -194,11 +192,10 @@ class _Tree:
         return re.search(r"_End\d*$", self.names[i]) is not None
 
     def subtree_height(self, i: int) -> int:
-        kids = [c for c in self.children[i] if not self.is_end(c)]
-        return 1 + max((self.subtree_height(c) for c in kids), default=0)
+        return 1 + max((self.subtree_height(c) for c in _kids(self, i)), default=0)
 
     def subtree_size(self, i: int) -> int:
-        return 1 + sum(self.subtree_size(c) for c in self.children[i] if not self.is_end(c))
+        return 1 + sum(self.subtree_size(c) for c in _kids(self, i))
 
 
 @dataclass
@@ -220,7 +217,7 @@ def _limbs_by_names(tree: _Tree, cands: dict[tuple[str | None, str], list[int]],
                 chain[0] = min(distal_c, key=lambda i: tree.depth[i])
             elif middle_c:
                 m = max(middle_c, key=lambda i: tree.depth[i])
-                kids = [c for c in tree.children[m] if not tree.is_end(c)]
+                kids = _kids(tree, m)
                 if kids:
                     chain[0], how[0] = kids[0], "topology"
             if chain[0] is not None:
@@ -243,7 +240,7 @@ def _chain(tree: _Tree, start: int) -> list[int]:
     """From ``start`` down the child with the tallest subtree."""
     out = [start]
     while True:
-        kids = [c for c in tree.children[out[-1]] if not tree.is_end(c)]
+        kids = _kids(tree, out[-1])
         if not kids:
             return out
         out.append(max(kids, key=tree.subtree_height))
@@ -560,7 +557,7 @@ def _place(
     for kp in KEYPOINT_NAMES:
         if kp == "head_top":
             continue
-        j = m.joints.get("head" if kp == "head_top" else kp)
+        j = m.joints.get(kp)
         if j is None:
             continue
         point = j if kp == "pelvis" else up_one(j)

@@ -241,6 +241,17 @@ CMU_ASF = RigProfile(
     },
 )
 
+# The limbs of the CMU BVH conversions (LeftUpLeg, LeftForeArm...), which
+# Mixamo's rigs name the same way behind their namespace.
+_UPLEG_LIMBS = {
+    "hip": "{S}UpLeg",
+    "knee": "{S}Leg",
+    "ankle": "{S}Foot",
+    "shoulder": "{S}Arm",
+    "elbow": "{S}ForeArm",
+    "wrist": "{S}Hand",
+}
+
 CMU_BVH = RigProfile(
     name="cmu-bvh",
     description="the widely used BVH conversions of the CMU database (Hips, LeftUpLeg, ...)",
@@ -248,18 +259,7 @@ CMU_BVH = RigProfile(
         "pelvis": "Hips",
         "neck": "Neck",
         "head_top": "Head_End",
-        **_sided(
-            {
-                "hip": "{S}UpLeg",
-                "knee": "{S}Leg",
-                "ankle": "{S}Foot",
-                "shoulder": "{S}Arm",
-                "elbow": "{S}ForeArm",
-                "wrist": "{S}Hand",
-            },
-            "Right",
-            "Left",
-        ),
+        **_sided(_UPLEG_LIMBS, "Right", "Left"),
     },
     aliases={"Head_End": ("Head_end", "HeadEnd", "Head_Nub"), "Neck": ("Neck1",)},
     fallbacks={"head_top": Extend("Head", "Neck", _HEAD_EXTENSION_MM)},
@@ -404,18 +404,7 @@ MIXAMO = RigProfile(
         "pelvis": "mixamorig:Hips",
         "neck": "mixamorig:Neck",
         "head_top": "mixamorig:HeadTop_End",
-        **_sided(
-            {
-                "hip": "mixamorig:{S}UpLeg",
-                "knee": "mixamorig:{S}Leg",
-                "ankle": "mixamorig:{S}Foot",
-                "shoulder": "mixamorig:{S}Arm",
-                "elbow": "mixamorig:{S}ForeArm",
-                "wrist": "mixamorig:{S}Hand",
-            },
-            "Right",
-            "Left",
-        ),
+        **_sided({kp: f"mixamorig:{name}" for kp, name in _UPLEG_LIMBS.items()}, "Right", "Left"),
     },
     aliases={"mixamorig:HeadTop_End": ("mixamorig:HeadTop_End_End", "mixamorig:Head_End")},
 )

@@ -2,7 +2,8 @@
 
 Both parsers (:mod:`humotion_gym.mocap.bvh` and :mod:`humotion_gym.mocap.asfamc`)
 give an object that follows :class:`SkeletonClip`. The retargeting step only
-needs the named points' global positions, so that is the whole protocol.
+needs the named points' global positions, so that is the whole protocol; both
+clips inherit it from :class:`PointsOnce`, which computes the positions once.
 """
 
 from __future__ import annotations
@@ -56,30 +57,42 @@ class SkeletonClip(Protocol):
         ...
 
 
-def select_points(
-    positions: NDArray[np.float64],
-    point_names: Sequence[str],
-    names: Sequence[str] | None,
-    path: str,
-) -> NDArray[np.float64]:
-    """The columns of ``positions`` for the named points: both parsers' selection.
+class PointsOnce:
+    """What both parsers' clips share: :meth:`point_positions`, computed once and kept.
 
-    Args:
-        positions: ``(T, P, 3)`` positions of every point, in ``point_names`` order.
-        point_names: The ``P`` point names.
-        names: The points wanted (a copy of all of them when None).
-        path: The clip's file, for the error message.
-
-    Returns:
-        ``(T, len(names), 3)`` positions.
-
-    Raises:
-        KeyError: If a name is not one of ``point_names``.
+    A clip (:class:`~humotion_gym.mocap.bvh.BvhClip`,
+    :class:`~humotion_gym.mocap.asfamc.AcclaimClip`) gives every point's
+    positions in :meth:`_all_points`; the first call computes them, later
+    calls select from what was kept.
     """
-    if names is None:
-        return positions.copy()
-    index = {n: i for i, n in enumerate(point_names)}
-    missing = [n for n in names if n not in index]
-    if missing:
-        raise KeyError(f"{path}: no point(s) {missing} (points: {list(point_names)})")
-    return positions[:, [index[n] for n in names]]
+
+    path: str
+    point_names: tuple[str, ...]
+    _positions: NDArray[np.float64] | None
+
+    def _all_points(self) -> NDArray[np.float64]:
+        """``(T, P, 3)`` every point, in :attr:`point_names` order; invalid frames NaN."""
+        raise NotImplementedError
+
+    def point_positions(self, names: Sequence[str] | None = None) -> NDArray[np.float64]:
+        """Global positions of points, in the file's own axes and units.
+
+        Args:
+            names: The points wanted (all of :attr:`point_names` when None).
+
+        Returns:
+            ``(T, len(names), 3)`` positions. Rows of invalid frames are NaN.
+
+        Raises:
+            KeyError: If a name is not one of :attr:`point_names`.
+        """
+        if self._positions is None:
+            with np.errstate(invalid="ignore"):  # invalid frames are masked anyway
+                self._positions = self._all_points()
+        if names is None:
+            return self._positions.copy()
+        index = {n: i for i, n in enumerate(self.point_names)}
+        missing = [n for n in names if n not in index]
+        if missing:
+            raise KeyError(f"{self.path}: no point(s) {missing} (points: {list(self.point_names)})")
+        return self._positions[:, [index[n] for n in names]]

@@ -404,8 +404,7 @@ def _standing(style: _Style, rng: np.random.Generator, t: FloatArray) -> FloatAr
         _set_side(params, side, "knee", (knee,))
         rest = _rest_arm(side)
         arm = rest[None, :] + noise[:, j + 3 : j + 7] * np.array([0.03, 0.02, 0.05, 0.04])
-        _set_side(params, side, "shoulder", (arm[:, 0], arm[:, 1], arm[:, 2]))
-        _set_side(params, side, "elbow", (arm[:, 3],))
+        _write_arm(params, side, arm)
     params[:, _P["root_yaw"]] = 0.02 * noise[:, 14]
     params[:, _P["root_pitch"]] = -lean + 0.01 * noise[:, 15]
     params[:, _P["root_roll"]] = 0.012 * noise[:, 16]
