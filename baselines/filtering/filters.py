@@ -23,6 +23,8 @@ from baselines.filtering.weights import (
 )
 
 FloatArray = NDArray[np.float64]
+#: Bounds of valid poses, ``(lower, upper)`` (None: unbounded on that side).
+Bounds = tuple[FloatArray | None, FloatArray | None]
 
 
 class ParticleFilter:
@@ -118,25 +120,40 @@ class ParticleFilter:
             return pose[int(np.argmax(weights if rank is None else rank))].copy()
         return weighted_mean(pose, weights, self.angle_mask)
 
-    def step(self, frame: Any) -> FloatArray:
-        """Advance one frame: predict, weight, estimate, resample.
+    def _predict(self) -> tuple[ParticleState, np.random.Generator]:
+        """The particles moved on by the prior, and the filter's generator.
 
-        Args:
-            frame: The observation, passed to the observation model unchanged.
-
-        Returns:
-            ``(D,)`` the estimate (posterior mean or MAP particle).
+        Raises:
+            RuntimeError: Before :meth:`reset`, naming the filter's class.
         """
         if self.state is None or self.log_weights is None or self._rng is None:
-            raise RuntimeError("ParticleFilter.step() called before reset()")
-        self.state = self.prior.transition(self.fitted, self.state, self._rng)
-        loglik = np.asarray(
-            self.observation_model.log_likelihood(frame, self.state.pose), dtype=np.float64
-        )
-        if loglik.shape != (self.n,):
-            raise ValueError(f"log_likelihood returned shape {loglik.shape}, expected ({self.n},)")
-        loglik = np.where(np.isnan(loglik), -np.inf, loglik)
-        log_w = self.log_weights + loglik
+            raise RuntimeError(f"{type(self).__name__}.step() called before reset()")
+        return self.prior.transition(self.fitted, self.state, self._rng), self._rng
+
+    def _scores(self, frame: Any, pose: FloatArray, bounds: Bounds | None = None) -> FloatArray:
+        """``(M,)`` log-likelihoods of ``(M, D)`` poses, ``-inf`` for NaN.
+
+        With ``bounds`` (``(lower, upper)``, see :func:`within_bounds`) also
+        ``-inf`` for poses outside them or not finite.
+        """
+        loglik = np.asarray(self.observation_model.log_likelihood(frame, pose), dtype=np.float64)
+        if loglik.shape != (pose.shape[0],):
+            raise ValueError(
+                f"log_likelihood returned shape {loglik.shape}, expected ({pose.shape[0]},)"
+            )
+        bad = np.isnan(loglik)
+        if bounds is not None:
+            bad |= ~within_bounds(pose, *bounds)
+        return np.where(bad, -np.inf, loglik)
+
+    def _weigh(
+        self, log_w: FloatArray, pose: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Normalise a frame's log weights; add to the log evidence and set the ESS.
+
+        Returns:
+            The normalised log weights, the weights and the estimate of ``pose``.
+        """
         norm = log_sum_exp(log_w)
         if not np.isfinite(norm):
             # Every particle impossible: keep the predicted cloud with equal weights
@@ -147,9 +164,23 @@ class ParticleFilter:
         log_w = log_w - norm
         weights = np.exp(log_w)
         self.ess = effective_sample_size(weights)
-        estimate = self._estimate(self.state.pose, weights, log_w)
+        return log_w, weights, self._estimate(pose, weights, log_w)
+
+    def step(self, frame: Any) -> FloatArray:
+        """Advance one frame: predict, weight, estimate, resample.
+
+        Args:
+            frame: The observation, passed to the observation model unchanged.
+
+        Returns:
+            ``(D,)`` the estimate (posterior mean or MAP particle).
+        """
+        self.state, rng = self._predict()
+        assert self.log_weights is not None  # set with the state by reset()
+        log_w = self.log_weights + self._scores(frame, self.state.pose)
+        log_w, weights, estimate = self._weigh(log_w, self.state.pose)
         if self.ess < self.ess_threshold * self.n or self.ess_threshold >= 1.0:
-            index = self.resample_fn(weights, self._rng)
+            index = self.resample_fn(weights, rng)
             self.state = self.state.take(index)
             self.log_weights = np.full(self.n, -np.log(self.n))
         else:
@@ -281,9 +312,6 @@ class AnnealedParticleFilter(ParticleFilter):
         self.layer_betas: list[float] = []
         self.layer_survival: list[float] = []
 
-    def _valid(self, pose: FloatArray) -> NDArray[np.bool_]:
-        return within_bounds(pose, self.lower, self.upper)
-
     def step(self, frame: Any) -> FloatArray:
         """Advance one frame: propose from the prior, then anneal through the layers.
 
@@ -293,22 +321,12 @@ class AnnealedParticleFilter(ParticleFilter):
         Returns:
             ``(D,)`` the estimate of the last layer.
         """
-        if self.state is None or self.log_weights is None or self._rng is None:
-            raise RuntimeError("AnnealedParticleFilter.step() called before reset()")
-        rng = self._rng
-        state = self.prior.transition(self.fitted, self.state, rng)
+        state, rng = self._predict()
         base_std = np.maximum(state.pose.std(axis=0), self.min_std) * self.diffusion
         self.layer_betas, self.layer_survival = [], []
         estimate = state.pose[0]
         for m in range(self.layers):
-            loglik = np.asarray(
-                self.observation_model.log_likelihood(frame, state.pose), dtype=np.float64
-            )
-            if loglik.shape != (self.n,):
-                raise ValueError(
-                    f"log_likelihood returned shape {loglik.shape}, expected ({self.n},)"
-                )
-            loglik = np.where(np.isnan(loglik) | ~self._valid(state.pose), -np.inf, loglik)
+            loglik = self._scores(frame, state.pose, (self.lower, self.upper))
             if self.betas is not None:
                 beta = float(self.betas[m])
                 weights = tempered_weights(loglik, beta)
@@ -447,10 +465,7 @@ class PartitionedParticleFilter(ParticleFilter):
         Returns:
             ``(D,)`` the estimate (after the final weighing).
         """
-        if self.state is None or self.log_weights is None or self._rng is None:
-            raise RuntimeError("PartitionedParticleFilter.step() called before reset()")
-        rng = self._rng
-        state = self.prior.transition(self.fitted, self.state, rng)
+        state, rng = self._predict()
         base_std = np.maximum(state.pose.std(axis=0), self.min_std) * self.diffusion
         self.stage_survival = []
         groups = [stage.group for stage in self.stages]

@@ -47,13 +47,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from baselines.filtering.filters import ParticleFilter, floor_and_bounds, within_bounds
+from baselines.filtering.filters import ParticleFilter, floor_and_bounds
 from baselines.filtering.state import Likelihood, ParticleState, Prior
-from baselines.filtering.weights import (
-    effective_sample_size,
-    log_sum_exp,
-    temper_for_survival,
-)
+from baselines.filtering.weights import temper_for_survival
 from humotion_gym.checks import is_count
 
 FloatArray = NDArray[np.float64]
@@ -359,16 +355,6 @@ class SearchParticleFilter(ParticleFilter):
         self.evaluations = 0
         self.accepted = 0
 
-    def _scores(self, frame: Any, pose: FloatArray) -> FloatArray:
-        """``(N,)`` log-likelihoods, ``-inf`` for NaN and for poses outside the bounds."""
-        loglik = np.asarray(self.observation_model.log_likelihood(frame, pose), dtype=np.float64)
-        if loglik.shape != (pose.shape[0],):
-            raise ValueError(
-                f"log_likelihood returned shape {loglik.shape}, expected ({pose.shape[0]},)"
-            )
-        inside = within_bounds(pose, self.lower, self.upper)
-        return np.where(np.isnan(loglik) | ~inside, -np.inf, loglik)
-
     def step(self, frame: Any) -> FloatArray:
         """Advance one frame: predict, score, climb, weigh, estimate, resample.
 
@@ -378,12 +364,10 @@ class SearchParticleFilter(ParticleFilter):
         Returns:
             ``(D,)`` the estimate (posterior mean or MAP particle).
         """
-        if self.state is None or self._rng is None:
-            raise RuntimeError("SearchParticleFilter.step() called before reset()")
-        rng = self._rng
-        state = self.prior.transition(self.fitted, self.state, rng)
+        state, rng = self._predict()
         pose = np.array(state.pose, dtype=np.float64)
-        loglik = self._scores(frame, pose)
+        bounds = (self.lower, self.upper)
+        loglik = self._scores(frame, pose, bounds)
         self.evaluations = self.n
         self.accepted = 0
         k = min(self.search.top, int(np.isfinite(loglik).sum()))
@@ -392,23 +376,14 @@ class SearchParticleFilter(ParticleFilter):
             blocks = self.blocks or [np.arange(pose.shape[1])]
             step_std = np.maximum(pose.std(axis=0), self.min_std)
             result = climb(
-                lambda p: self._scores(frame, p), pose[best], loglik[best], step_std, blocks,
-                self.search, rng, self.lower, self.upper,
+                lambda p: self._scores(frame, p, bounds), pose[best], loglik[best], step_std,
+                blocks, self.search, rng, *bounds,
             )  # fmt: skip
             pose[best], loglik[best] = result.pose, result.score
             self.evaluations += result.evaluations
             self.accepted = result.accepted
             state = ParticleState(pose, state.extra)
-        log_w = self._log_weights(loglik)
-        norm = log_sum_exp(log_w)
-        if not np.isfinite(norm):
-            # Every particle impossible: keep the predicted cloud with equal weights.
-            log_w, norm = np.full(self.n, -np.log(self.n)), 0.0
-        self.log_evidence += float(norm)
-        log_w = log_w - norm
-        weights = np.exp(log_w)
-        self.ess = effective_sample_size(weights)
-        estimate = self._estimate(state.pose, weights, log_w)
+        _, weights, estimate = self._weigh(self._log_weights(loglik), state.pose)
         self.state = state.take(self.resample_fn(weights, rng))
         self.log_weights = np.full(self.n, -np.log(self.n))
         return estimate

@@ -22,26 +22,25 @@ def systematic_resample(weights: FloatArray, rng: np.random.Generator) -> NDArra
     space models*, JCGS 1996. Lowest variance of the common schemes, O(N).
     """
     n = weights.shape[0]
-    positions = (rng.random() + np.arange(n)) / n
-    cumulative = np.cumsum(weights)
-    cumulative[-1] = 1.0  # guard against rounding leaving the last pointer out
-    return np.searchsorted(cumulative, positions, side="right").astype(np.intp, copy=False)
+    return _pointed(weights, (rng.random() + np.arange(n)) / n)
 
 
 def multinomial_resample(weights: FloatArray, rng: np.random.Generator) -> NDArray[np.intp]:
     """Multinomial resampling: N independent draws from the weights."""
-    cumulative = np.cumsum(weights)
-    cumulative[-1] = 1.0
-    return np.searchsorted(cumulative, rng.random(weights.shape[0]), side="right").astype(np.intp)
+    return _pointed(weights, rng.random(weights.shape[0]))
 
 
 def stratified_resample(weights: FloatArray, rng: np.random.Generator) -> NDArray[np.intp]:
     """Stratified resampling: one uniform draw in each of N equal strata."""
     n = weights.shape[0]
-    positions = (rng.random(n) + np.arange(n)) / n
+    return _pointed(weights, (rng.random(n) + np.arange(n)) / n)
+
+
+def _pointed(weights: FloatArray, positions: FloatArray) -> NDArray[np.intp]:
+    """The particle each pointer in ``[0, 1)`` falls on (the weights' inverse CDF)."""
     cumulative = np.cumsum(weights)
-    cumulative[-1] = 1.0
-    return np.searchsorted(cumulative, positions, side="right").astype(np.intp)
+    cumulative[-1] = 1.0  # guard against rounding leaving the last pointer out
+    return np.searchsorted(cumulative, positions, side="right").astype(np.intp, copy=False)
 
 
 #: The resampling schemes by name.

@@ -88,12 +88,17 @@ def start_pose(pose: ArrayLike, n_free: int, n: Any, rng: Any, where: str) -> ND
         raise ValueError(f"{where}: the pose must be finite, got {p.tolist()}")
     if not is_count(n):
         raise ValueError(f"{where}: n must be an integer >= 1, got {n!r}")
+    check_generator(rng, where)
+    return p
+
+
+def check_generator(rng: Any, who: str) -> None:
+    """Refuse anything but a ``numpy.random.Generator``, naming the function."""
     if not isinstance(rng, np.random.Generator):
         raise ValueError(
-            f"{where}: rng must be a numpy.random.Generator (np.random.default_rng(seed)), "
-            f"got {type(rng).__name__}"
+            f"{who}: rng must be a numpy.random.Generator "
+            f"(np.random.default_rng(seed)), got {type(rng).__name__}"
         )
-    return p
 
 
 def check_settings(

@@ -7,19 +7,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from baselines.priors._checks import check_generator
 from humotion_gym.body import N_PARAMS
 from humotion_gym.checks import is_count, is_real
 
 FloatArray = NDArray[np.float64]
-
-
-def check_generator(rng: Any, who: str) -> None:
-    """Refuse anything but a ``numpy.random.Generator``, naming the function."""
-    if not isinstance(rng, np.random.Generator):
-        raise ValueError(
-            f"{who}: rng must be a numpy.random.Generator "
-            f"(np.random.default_rng(seed)), got {type(rng).__name__}"
-        )
 
 
 def check_synthesis(frames: Any, rng: Any, who: str) -> int:

@@ -65,6 +65,7 @@ from baselines.priors._checks import (
 )
 from baselines.priors._io import load_fitted, save_fitted
 from baselines.priors._synthesis import check_request, check_synthesis
+from baselines.priors.tree_model import _rotate
 from humotion_gym.body import (
     N_PARAMS,
     PARAM_INDEX,
@@ -246,9 +247,6 @@ def _walking_clips(motions: Sequence[Motion], labels: Sequence[str]) -> list[Mot
             f"cyclic_pca.fit: no clips labelled {list(labels)} among {len(motions)} "
             f"(labels found: {found[:10]}); the cyclic PCA model covers cyclic walking only"
         )
-    fps = {float(m.fps) for m in clips}
-    if len(fps) > 1:
-        raise ValueError(f"cyclic_pca.fit: the walking clips have different frame rates {fps}")
     return clips
 
 
@@ -615,11 +613,7 @@ def initial(
     else:
         offset = turns
     offset = np.repeat(offset[None], n, axis=0)
-    speed = np.clip(
-        fitted.speed_mean + fitted.speed_std * rng.standard_normal(n),
-        fitted.speed_min,
-        fitted.speed_max,
-    )
+    speed = _allowed_speed(fitted, fitted.speed_mean + fitted.speed_std * rng.standard_normal(n))
     velocity = fitted.root_velocity_mean + fitted.root_velocity_std * rng.standard_normal((n, 3))
     if rot_slots[0] < 0:
         # Heading unknown to the prior: the velocity is in the world frame, of
@@ -630,6 +624,11 @@ def initial(
     out[:, angle_slots] = curves(fitted, phase, coef) + offset
     extra = _particle_extra(phase, speed, coef, offset, velocity)
     return ParticleState(out, extra)
+
+
+def _allowed_speed(fitted: CyclicPCAParams, speed: FloatArray | float) -> FloatArray:
+    """``speed`` clipped to the speeds the prior allows (``speed_min`` to ``speed_max``)."""
+    return np.clip(speed, fitted.speed_min, fitted.speed_max)
 
 
 def _revert(
@@ -657,41 +656,30 @@ def transition(
     angle_slots, pos_slots, rot_slots = _slots(fitted)
     phase = np.mod(state.extra[PHASE] + state.extra[SPEED], fitted.n_samples)
     speed, coef, velocity = state.extra[SPEED], state.extra[COEF], state.extra[ROOT_VELOCITY]
+    # The random walks' noise per frame, with the fit's multipliers.
+    speed_step = fitted.speed_noise * fitted.speed_step_std
+    coef_step = fitted.coef_noise * fitted.coef_step_std
+    accel = fitted.global_noise * fitted.root_accel_std
     if fitted.reversion > 0:
         k = fitted.reversion
-        speed_step = fitted.speed_noise * fitted.speed_step_std
         speed = _revert(speed, fitted.speed_mean, speed_step, fitted.speed_std, k)
-        coef_step = fitted.coef_noise * fitted.coef_step_std
         coef = _revert(coef, 0.0, coef_step, fitted.component_std, k)
-        accel = fitted.global_noise * fitted.root_accel_std
         velocity = _revert(velocity, fitted.root_velocity_mean, accel, fitted.root_velocity_std, k)
-    speed = np.clip(
-        speed + fitted.speed_noise * fitted.speed_step_std * rng.standard_normal(n),
-        fitted.speed_min,
-        fitted.speed_max,
-    )
-    coef = coef + fitted.coef_noise * fitted.coef_step_std * rng.standard_normal(
-        (n, fitted.n_components)
-    )
+    speed = _allowed_speed(fitted, speed + speed_step * rng.standard_normal(n))
+    coef = coef + coef_step * rng.standard_normal((n, fitted.n_components))
     offset = state.extra[OFFSET]
     pose = state.pose.copy()
     pose[:, angle_slots] = curves(fitted, phase, coef) + offset
     # Global pose (section 5): random walks with the fitted scales.
-    velocity = velocity + fitted.global_noise * fitted.root_accel_std * (
-        rng.standard_normal((n, 3))
-    )
+    velocity = velocity + accel * rng.standard_normal((n, 3))
     for axis, slot in enumerate(rot_slots):
         if slot >= 0:
             step = fitted.global_noise * fitted.rotation_step_std[axis]
             pose[:, slot] += step * rng.standard_normal(n)
     if np.any(pos_slots >= 0):
         if rot_slots[0] >= 0:  # body-frame velocity turned by each particle's heading
-            yaw = pose[:, rot_slots[0]]
-            c, s = np.cos(yaw), np.sin(yaw)
-            world = np.stack(
-                [c * velocity[:, 0] - s * velocity[:, 1], s * velocity[:, 0] + c * velocity[:, 1],
-                 velocity[:, 2]], axis=1,
-            )  # fmt: skip
+            turned = _rotate(velocity[:, 0], velocity[:, 1], pose[:, rot_slots[0]])
+            world = np.stack([*turned, velocity[:, 2]], axis=1)
         else:
             world = velocity
         for axis, slot in enumerate(pos_slots):
@@ -722,15 +710,16 @@ def _walk(
     """Angles ``(frames, A)`` and speeds of a random walk of the model at ``rate`` x fps."""
     q = fitted.n_components
     coef = fitted.component_std * rng.standard_normal(q)
-    speed = float(np.clip(fitted.speed_mean + fitted.speed_std * rng.standard_normal(),
-                          fitted.speed_min, fitted.speed_max))  # fmt: skip
+    speed = float(
+        _allowed_speed(fitted, fitted.speed_mean + fitted.speed_std * rng.standard_normal())
+    )
     phase = rng.uniform(0, fitted.n_samples)
     phases, coefs = np.empty(frames), np.empty((frames, q))
     for t in range(frames):
         phases[t], coefs[t] = phase, coef
         phase = (phase + speed * rate) % fitted.n_samples
-        speed = float(np.clip(speed + fitted.speed_step_std * np.sqrt(rate) * rng.standard_normal(),
-                              fitted.speed_min, fitted.speed_max))  # fmt: skip
+        step = fitted.speed_step_std * np.sqrt(rate) * rng.standard_normal()
+        speed = float(_allowed_speed(fitted, speed + step))
         coef = coef + fitted.coef_step_std * np.sqrt(rate) * rng.standard_normal(q)
         # Keep the walk inside the training spread (+-3 sd) so long clips stay plausible.
         coef = np.clip(coef, -3 * fitted.component_std, 3 * fitted.component_std)
@@ -788,9 +777,7 @@ def synthesize_motion(
     angles, _ = _walk(fitted, int(frames), rng, rate)
     out = np.repeat(base[None], int(frames), axis=0)
     out[:, fitted.angles] = angles
-    yaw = base[_YAW]
     v = fitted.root_velocity_mean * rate
-    step = np.array([np.cos(yaw) * v[0] - np.sin(yaw) * v[1],
-                     np.sin(yaw) * v[0] + np.cos(yaw) * v[1]])  # fmt: skip
+    step = np.array(_rotate(v[0], v[1], base[_YAW]))
     out[:, :2] = base[:2] + np.arange(int(frames))[:, None] * step
     return out

@@ -178,17 +178,16 @@ def _typed_settings(module: ModuleType, settings: Mapping[str, Any]) -> dict[str
             a whole number, or a word where the default is a number.
     """
     params = inspect.signature(module.fit).parameters
+    prior = module.__name__.rsplit(".", 1)[-1]
     out = dict(settings)
     for name, value in settings.items():
         p = params.get(name)
         default = None if p is None else p.default
         if is_real(default) and not is_real(value):  # fit.damping=abc
-            prior = module.__name__.rsplit(".", 1)[-1]
             raise ValueError(f"{prior} prior: the setting {name} is a number, got {value!r}")
         counted = is_integer(default)
         if counted and isinstance(value, (float, np.floating)):
             if not float(value).is_integer():
-                prior = module.__name__.rsplit(".", 1)[-1]
                 raise ValueError(
                     f"{prior} prior: the setting {name} must be a whole number, got {value!r}"
                 )

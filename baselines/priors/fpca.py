@@ -194,22 +194,21 @@ def _top_eigen(
         ``block`` warm-starts the next call.
     """
     n = gram.shape[0]
-    if n <= 256:
-        vals, vecs = scipy.linalg.eigh(gram, subset_by_index=[n - q, n - 1])
-        return vals[::-1], vecs[:, ::-1], None
-    k = min(n, q + 8)
-    if start is None:
-        start = np.linalg.qr(gram[:, np.argsort(np.diag(gram))[::-1][:k]])[0]
-    v = start
-    for _ in range(200):
-        v, _ = np.linalg.qr(gram @ v)
-        gv = gram @ v
-        vals, rot = np.linalg.eigh(v.T @ gv)
-        vals, rot = vals[::-1], rot[:, ::-1]
-        v, gv = v @ rot, gv @ rot
-        resid = np.linalg.norm(gv[:, :q] - v[:, :q] * vals[:q], axis=0)
-        if np.all(resid <= 1e-10 * max(vals[0], 1e-300)):
-            return vals[:q], v[:, :q], v
+    if n > 256:
+        k = min(n, q + 8)
+        if start is None:
+            start = np.linalg.qr(gram[:, np.argsort(np.diag(gram))[::-1][:k]])[0]
+        v = start
+        for _ in range(200):
+            v, _ = np.linalg.qr(gram @ v)
+            gv = gram @ v
+            vals, rot = np.linalg.eigh(v.T @ gv)
+            vals, rot = vals[::-1], rot[:, ::-1]
+            v, gv = v @ rot, gv @ rot
+            resid = np.linalg.norm(gv[:, :q] - v[:, :q] * vals[:q], axis=0)
+            if np.all(resid <= 1e-10 * max(vals[0], 1e-300)):
+                return vals[:q], v[:, :q], v
+    # A small matrix, or a large one whose iteration did not converge.
     vals, vecs = scipy.linalg.eigh(gram, subset_by_index=[n - q, n - 1])
     return vals[::-1], vecs[:, ::-1], None
 

@@ -450,17 +450,21 @@ def activity_model(fitted: SLDSParams, label: str) -> SLDSParams:
     if k.size == 0:
         labels = sorted(set(fitted.state_labels.tolist()))
         raise ValueError(f"slds: no switch state has the label {label!r} (the model has {labels})")
-    pi = fitted.Pi[np.ix_(k, k)]
-    pi = pi / pi.sum(axis=1, keepdims=True)
-    pi0 = fitted.pi0[k] / fitted.pi0[k].sum()
-    return fitted.replace(
-        state_labels=fitted.state_labels[k], A=fitted.A[k], b=fitted.b[k], Q=fitted.Q[k],
-        x0=fitted.x0[k], Q0=fitted.Q0[k], Pi=pi, pi0=pi0, switch_prob=0.0,
-    )  # fmt: skip
+    return fitted.select(k, switch_prob=0.0)
 
 
-def _clip(fitted: SLDSParams, pose: FloatArray) -> FloatArray:
-    return np.clip(pose, PARAM_LOWER[fitted.free], PARAM_UPPER[fitted.free])
+def _observed(fitted: SLDSParams, state: FloatArray) -> FloatArray:
+    """The poses ``C x + d`` of states ``(N, dx)``, clipped to the body's limits.
+
+    With the identity emission the states' current angles are the poses, so
+    they are clipped too (in place).
+    """
+    poses = np.clip(
+        state @ fitted.C.T + fitted.d, PARAM_LOWER[fitted.free], PARAM_UPPER[fitted.free]
+    )
+    if fitted.emission == "identity":
+        state[:, : fitted.obs_dim] = poses
+    return poses
 
 
 def initial(fitted: SLDSParams, pose: ArrayLike, n: int, rng: np.random.Generator) -> ParticleState:
@@ -500,10 +504,7 @@ def initial(fitted: SLDSParams, pose: ArrayLike, n: int, rng: np.random.Generato
         mean = fitted.x0 + (gain @ resid[..., None])[..., 0]  # (S, dx)
         eps = rng.standard_normal((n, fitted.latent_dim))
         state = mean[switch] + np.einsum("nij,nj->ni", root[switch], eps)
-    poses = _clip(fitted, state @ c.T + fitted.d)
-    if fitted.emission == "identity":
-        state[:, : fitted.obs_dim] = poses
-    return ParticleState(poses, {"switch": switch, "state": state})
+    return ParticleState(_observed(fitted, state), {"switch": switch, "state": state})
 
 
 def transition(fitted: SLDSParams, state: ParticleState, rng: np.random.Generator) -> ParticleState:
@@ -518,10 +519,7 @@ def transition(fitted: SLDSParams, state: ParticleState, rng: np.random.Generato
         sel = switch == k
         if sel.any():
             out[sel] = x[sel] @ fitted.A[k].T + fitted.b[k] + noise[sel] @ root[k]
-    poses = _clip(fitted, out @ fitted.C.T + fitted.d)
-    if fitted.emission == "identity":
-        out[:, : fitted.obs_dim] = poses
-    return ParticleState(poses, {"switch": switch, "state": out})
+    return ParticleState(_observed(fitted, out), {"switch": switch, "state": out})
 
 
 def synthesize(
@@ -552,9 +550,7 @@ def synthesize(
         fitted = stabilise(fitted, max_radius)
     s0 = sample_switches(fitted.pi0[None, :], np.zeros(1, dtype=np.intp), rng)
     x0 = fitted.x0[s0] + rng.standard_normal((1, fitted.latent_dim)) @ psd_sqrt(fitted.Q0[s0[0]])
-    poses = _clip(fitted, x0 @ fitted.C.T + fitted.d)
-    if fitted.emission == "identity":
-        x0[:, : fitted.obs_dim] = poses
+    poses = _observed(fitted, x0)
     state = ParticleState(poses, {"switch": s0, "state": x0})
     out = np.empty((frames, fitted.obs_dim))
     switches = np.empty(frames, dtype=np.intp)

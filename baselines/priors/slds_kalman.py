@@ -116,6 +116,19 @@ class SLDSParams:
         """A copy with some fields changed."""
         return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
 
+    def select(self, keep: IntArray, **changes: object) -> SLDSParams:
+        """The switch states ``keep`` as a model of their own (and ``changes``).
+
+        Their block of ``Pi`` and their part of ``pi0`` are renormalised.
+        """
+        pi = self.Pi[np.ix_(keep, keep)]
+        pi = pi / pi.sum(axis=1, keepdims=True)
+        pi0 = self.pi0[keep] / self.pi0[keep].sum()
+        return self.replace(
+            state_labels=self.state_labels[keep], A=self.A[keep], b=self.b[keep],
+            Q=self.Q[keep], x0=self.x0[keep], Q0=self.Q0[keep], Pi=pi, pi0=pi0, **changes,
+        )  # fmt: skip
+
 
 @dataclass(frozen=True, eq=False)
 class Sequences:

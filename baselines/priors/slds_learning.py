@@ -562,13 +562,7 @@ def prune_states(params: SLDSParams, used: NDArray[np.bool_]) -> SLDSParams:
         return params
     if keep.size == 0:
         raise ValueError("prune_states: no state is used")
-    pi = params.Pi[np.ix_(keep, keep)]
-    pi = pi / pi.sum(axis=1, keepdims=True)
-    pi0 = params.pi0[keep] / params.pi0[keep].sum()
-    return params.replace(
-        state_labels=params.state_labels[keep], A=params.A[keep], b=params.b[keep],
-        Q=params.Q[keep], x0=params.x0[keep], Q0=params.Q0[keep], Pi=pi, pi0=pi0,
-    )  # fmt: skip
+    return params.select(keep)
 
 
 def fit_em(

@@ -63,12 +63,11 @@ def _check_fit_arguments(
     idx = free_indices(free, "tree.fit")
     # whole numbers: int() would cut 2.5 to 2
     check_settings("tree.fit", counts={"window": (window, 1), "proposals": (proposals, 1)})
-    if leaf not in LEAF_RULES:
-        raise ValueError(f"tree.fit: leaf must be one of {LEAF_RULES}, got {leaf!r}")
-    if replay not in REPLAY_RULES:
-        raise ValueError(f"tree.fit: replay must be one of {REPLAY_RULES}, got {replay!r}")
-    if search not in SEARCH_RULES:
-        raise ValueError(f"tree.fit: search must be one of {SEARCH_RULES}, got {search!r}")
+    rules = {"leaf": (leaf, LEAF_RULES), "replay": (replay, REPLAY_RULES),
+             "search": (search, SEARCH_RULES)}  # fmt: skip
+    for name, (value, allowed) in rules.items():
+        if value not in allowed:
+            raise ValueError(f"tree.fit: {name} must be one of {allowed}, got {value!r}")
     for name, value in (("speed_spread", speed_spread), ("speed_drift", speed_drift)):
         if not (np.isfinite(value) and value >= 0):
             raise ValueError(f"tree.fit: {name} must be a number >= 0, got {value}")
@@ -231,13 +230,14 @@ def _tree_order(
     projection_heading: FloatArray,
     offset: FloatArray,
 ) -> _Tree:
-    """The tree of the windows ending at ``ends`` (nearly in tree order already).
+    """The tree of the windows ending at ``ends``.
 
     The coefficients are computed in the order of ``ends``, and the windows
-    re-sorted until that order is the tree's: :func:`fit` and :func:`load` both
-    end here with the same ``ends``, so a loaded prior's coefficients are the
-    fitted ones to the bit (a matrix product's rounding may depend on how its
-    rows are grouped, which could move a coefficient at zero across the split).
+    re-sorted until that order is the tree's: :func:`fit` ends here with the
+    ``ends`` that :func:`save` stores and :func:`load` starts from (in tree
+    order already), so a loaded prior's coefficients are the fitted ones to
+    the bit (a matrix product's rounding may depend on how its rows are
+    grouped, which could move a coefficient at zero across the split).
     """
     for _ in range(8):
         coefficients = _database_coefficients(
@@ -378,11 +378,7 @@ def _fitted_arrays(
     projection, projection_heading, offset = _history_projection(
         lay, d, n_free, components, inv_sd, mean, search
     )
-    coefficients = _database_coefficients(
-        frames, ends, lay, d, projection, projection_heading, offset
-    )
-    order, _, _, _ = _tree_arrays(coefficients)
-    tree = _tree_order(frames, ends[order], lay, d, projection, projection_heading, offset)
+    tree = _tree_order(frames, ends, lay, d, projection, projection_heading, offset)
     return {
         "feature_mean": mean,
         "feature_var": gamma,

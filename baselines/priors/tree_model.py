@@ -168,14 +168,10 @@ class TreeParams:
             raise ValueError(f"TreeParams.init_scale must be positive, got {self.init_scale}")
         if self.proposals < 1:
             raise ValueError(f"TreeParams.proposals must be >= 1, got {self.proposals}")
-        if self.replay not in REPLAY_RULES:
-            raise ValueError(
-                f"TreeParams.replay must be one of {REPLAY_RULES}, got {self.replay!r}"
-            )
-        if self.search not in SEARCH_RULES:
-            raise ValueError(
-                f"TreeParams.search must be one of {SEARCH_RULES}, got {self.search!r}"
-            )
+        for name, rules in (("replay", REPLAY_RULES), ("search", SEARCH_RULES)):
+            value = getattr(self, name)
+            if value not in rules:
+                raise ValueError(f"TreeParams.{name} must be one of {rules}, got {value!r}")
         for name in ("speed_spread", "speed_drift"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
