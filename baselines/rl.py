@@ -498,12 +498,7 @@ def train_ppo(
     out = Path(config.out)
     folder = out / "checkpoints"
     with closing(_vec_env(config, fold)) as venv:  # and its process drawing the frames
-        done = start[0] if start else 0
-        if start:
-            model = _resumed(start[1], venv)
-        else:
-            model = new_model(config, venv)
-            _start_from(model, init, config.init)
+        model, done = _start_model(config, venv, start, init, attach=True)
         model.set_logger(logger)
         _write_config(config, command, {"resumed_from": done})
         t0 = time.perf_counter()
@@ -641,12 +636,16 @@ def _bc_updates(
     return losses
 
 
-def _bc_model(
-    config: TrainConfig, env: gym.Env, start: tuple[int, Path] | None, init: PPO | None
+def _start_model(
+    config: TrainConfig,
+    env: Any,
+    start: tuple[int, Path] | None,
+    init: PPO | None,
+    attach: bool = False,
 ) -> tuple[PPO, int]:
-    """The policy to train and the env steps already done: the resumed model's, or a new one."""
+    """The policy to train and the env steps done: resumed (on ``env`` if ``attach``), or new."""
     if start:
-        return _resumed(start[1]), start[0]
+        return _resumed(start[1], env if attach else None), start[0]
     model = new_model(config, env)
     _start_from(model, init, config.init)
     return model, 0
@@ -753,7 +752,7 @@ def train_bc(
     )
     weights = keypoint_sensitivity(weights_env, seed=10_000 + config.seed)
     weights_env.close()
-    model, done = _bc_model(config, rollouts.envs[0], start, init)
+    model, done = _start_model(config, rollouts.envs[0], start, init)
     resumed_from = done
     params = [p for n, p in model.policy.named_parameters() if not n.startswith(("value", "mlp"))]
     optimizer = th.optim.Adam(params, lr=float(s["learning_rate"]))

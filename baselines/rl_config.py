@@ -18,7 +18,7 @@ from typing import Any, TypeGuard
 
 import yaml
 
-from humotion_gym.checks import is_count, is_real
+from humotion_gym.checks import check_count, is_real
 from humotion_gym.envs import get_task
 
 ALGOS: tuple[str, ...] = ("ppo", "bc")
@@ -108,8 +108,7 @@ class TrainConfig:
                 f"camera's frame (LearnerObservation), so train on {spec.name}"
             )
         self.task = spec.name
-        if not is_count(self.steps, 1):
-            raise ValueError(f"steps: expected an integer >= 1, got {self.steps!r}")
+        check_count("steps", self.steps)
         for name in ("checkpoint_every", "eval_every", "eval_episodes"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name}: expected >= 1, got {getattr(self, name)}")

@@ -18,8 +18,10 @@ where a core is free.
 
 from __future__ import annotations
 
+import functools
+import operator
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import Future
 from types import ModuleType
 from typing import Any
@@ -179,13 +181,7 @@ class TaskLikelihood:
                 of :meth:`prepare_later` (waited for).
             particles: ``(N, D)`` free parameters.
         """
-        assert self.shape is not None and self.cameras
-        poses, shape = self.full_pose(particles), self.shape
-        views = _views(resolved(frame), len(self.cameras))
-        return _view_sum(
-            self.model.log_likelihood(seen, poses, shape, camera)
-            for seen, camera in zip(views, self.cameras, strict=True)
-        )
+        return self._view_sum(self.model.log_likelihood, frame, particles)
 
     def log_likelihood_partial(
         self, frame: Any, particles: FloatArray, groups: Sequence[Sequence[int]]
@@ -195,13 +191,24 @@ class TaskLikelihood:
         :meth:`~baselines.observation.ObservationModel.log_likelihood_partial`
         of each view, summed (``frame`` as :meth:`log_likelihood`'s).
         """
+        return self._view_sum(self.model.log_likelihood_partial, frame, particles, groups)
+
+    def _view_sum(
+        self, score: Callable[..., FloatArray], frame: Any, particles: FloatArray, *extra: Any
+    ) -> FloatArray:
+        """The sum over the views of ``score(seen, poses, shape, camera, *extra)``, view 0 first.
+
+        Each view's term is added to the sum of those before it, in camera
+        order (one view: its own array).
+        """
         assert self.shape is not None and self.cameras
         poses, shape = self.full_pose(particles), self.shape
         views = _views(resolved(frame), len(self.cameras))
-        return _view_sum(
-            self.model.log_likelihood_partial(seen, poses, shape, camera, groups)
+        terms = (
+            score(seen, poses, shape, camera, *extra)
             for seen, camera in zip(views, self.cameras, strict=True)
         )
+        return functools.reduce(operator.add, terms)
 
 
 def _views(frames: Any, count: int) -> list[Any]:
@@ -227,15 +234,6 @@ def _views(frames: Any, count: int) -> list[Any]:
 def _prepared(model: FrameModel, bodies: list[tuple[Any, GivenBody]]) -> list[Any]:
     """Each view's features: ``model.prepare(frame, given)`` of each ``(frame, given)``."""
     return [model.prepare(frame, given) for frame, given in bodies]
-
-
-def _view_sum(terms: Any) -> FloatArray:
-    """The sum of the views' log-likelihoods, view 0 first (one view: its own array)."""
-    total: FloatArray | None = None
-    for term in terms:
-        total = term if total is None else total + term
-    assert total is not None
-    return total
 
 
 #: The cones each body part of :data:`baselines.priors.limbs.PARTS` places

@@ -116,9 +116,7 @@ def _split_label(name: str) -> tuple[str, str]:
 
 def is_learned(name: str) -> bool:
     """Whether :func:`make_learned` makes this agent (a learned name, a .zip, a hybrid)."""
-    if name in LEARNED or _split_label(name)[1].endswith(".zip"):
-        return True
-    return name.startswith("pf-") and "+" in name
+    return name in LEARNED or _split_label(name)[1].endswith(".zip") or takes_particles(name)
 
 
 def takes_particles(name: str) -> bool:
@@ -530,24 +528,22 @@ def make_learned(
             f"{name}: the learned policies read one view; {task_name} is shown with "
             f"views={env.views} (track it with a particle filter, or make it with views=1)"
         )
-    if takes_particles(name):
-        pf_name, spec = name.split("+", 1)[0], policy_spec(name)
-        label, path = _policy_for(spec, task_name)
-        if spec in ("bc", "ppo") and not Path(path).is_file():
+    hybrid, spec = takes_particles(name), policy_spec(name)  # a plain policy's spec: its name
+    label, path = _policy_for(spec, task_name)
+    if spec in ("bc", "ppo") and not Path(path).is_file():
+        if hybrid:
             raise NoCheckpointError(
                 f"{name}: no pretrained {spec} checkpoint for {task_name} ({path})"
             )
-        policy = LearnedAgent(env, load_policy(path), label, path)  # refuses another shape
-        _check_record(path, env)  # then warns of a task or data of the same shape
-        pf = make_filter(pf_name, env, n_particles=n_particles, seed=seed)
-        return HybridAgent(env, pf, policy, name=f"{pf_name}+{label}")
-    label, path = _policy_for(name, task_name)
-    if name in ("bc", "ppo") and not Path(path).is_file():
         raise NoCheckpointError(
             f"{name}: no pretrained checkpoint for {task_name} ({path}); train one with "
             f"`humotion-gym train --algo {name} --task {task_name} --steps N --out runs/NAME` and "
             f"pass {name}=runs/NAME/model.zip"
         )
-    agent = LearnedAgent(env, load_policy(path), label, path)  # refuses another shape
+    policy = LearnedAgent(env, load_policy(path), label, path)  # refuses another shape
     _check_record(path, env)  # then warns of a task or data of the same shape
-    return agent
+    if not hybrid:
+        return policy
+    pf_name = name.split("+", 1)[0]
+    pf = make_filter(pf_name, env, n_particles=n_particles, seed=seed)
+    return HybridAgent(env, pf, policy, name=f"{pf_name}+{label}")

@@ -39,7 +39,7 @@ from numpy.typing import ArrayLike, NDArray
 from baselines.detector.network import Detector
 from baselines.detector.settings import DetectorTerm
 from baselines.observation import FirstFrame, GivenBody, ObservationModel, task_model
-from baselines.observation.keypoints import KeypointScorer, pose_batch
+from baselines.observation.keypoints import KeypointScorer
 from humotion_gym.body import KEYPOINT_NAMES, BodyShape, forward_kinematics
 from humotion_gym.camera import Camera
 from humotion_gym.envs.tasks import TaskSpec
@@ -173,11 +173,11 @@ class DetectorLikelihood:
             TypeError: If ``frame`` is not :meth:`prepare`'s.
             ValueError: If ``params`` is not ``(N, 25)``.
         """
-        seen, p = self._check(frame, params, "log_likelihood")
-        out = self._keypoints(seen, p, shape, camera, self.scorer.whole())[:, 0]
+        p = self.scorer.checked(frame, Detections, params, "log_likelihood")
+        out = self._keypoints(frame, p, shape, camera, self.scorer.whole())[:, 0]
         if self.term.image_weight > 0:
             out += self.term.image_weight * self.image.log_likelihood(
-                seen.features, p, shape, camera
+                frame.features, p, shape, camera
             )
         return out
 
@@ -195,21 +195,13 @@ class DetectorLikelihood:
             ValueError: As :meth:`log_likelihood`, or if a group names a cone
                 that does not exist or one an earlier group has.
         """
-        seen, p = self._check(frame, params, "log_likelihood_partial")
-        out = self._keypoints(seen, p, shape, camera, self.scorer.partial_masks(groups))
+        p = self.scorer.checked(frame, Detections, params, "log_likelihood_partial")
+        out = self._keypoints(frame, p, shape, camera, self.scorer.partial_masks(groups))
         if self.term.image_weight > 0:
             out += self.term.image_weight * self.image.log_likelihood_partial(
-                seen.features, p, shape, camera, groups
+                frame.features, p, shape, camera, groups
             )
         return out
-
-    def _check(self, frame: Any, params: ArrayLike, caller: str) -> tuple[Detections, FloatArray]:
-        if not isinstance(frame, Detections):
-            raise TypeError(
-                f"DetectorLikelihood.{caller}: expected the Detections of prepare(), "
-                f"got {type(frame).__name__}"
-            )
-        return frame, pose_batch(params, f"DetectorLikelihood.{caller}")
 
     def _keypoints(
         self,

@@ -49,7 +49,7 @@ from numpy.typing import ArrayLike, NDArray
 from baselines.agents.base import tracking_env
 from baselines.agents.filters import ParticleFilterAgent
 from baselines.observation import FirstFrame, GivenBody
-from baselines.observation.keypoints import KeypointScorer, left_right_partners, pose_batch
+from baselines.observation.keypoints import KeypointScorer, left_right_partners
 from humotion_gym.body import KEYPOINT_INDEX, BodyShape, forward_kinematics
 from humotion_gym.camera import Camera
 
@@ -303,12 +303,7 @@ class TruthOracle:
         caller: str,
     ) -> FloatArray:
         """``(N, M)``: ``-cost / (2 sigma^2)`` over each mask's keypoints (``masks`` ``(M, K)``)."""
-        if not isinstance(frame, OracleObservation):
-            raise TypeError(
-                f"TruthOracle.{caller}: expected the OracleObservation of prepare(), "
-                f"got {type(frame).__name__}"
-            )
-        p = pose_batch(params, f"TruthOracle.{caller}")
+        p = self.scorer.checked(frame, OracleObservation, params, caller)
         if not frame.counts:
             return np.zeros((p.shape[0], masks.shape[0]))
         points = forward_kinematics(p, shape)[:, self.keypoints]  # (N, K, 3)

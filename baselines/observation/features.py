@@ -594,7 +594,8 @@ def residual_edges(
     the nearest depth it can reach) is kept.
 
     Returns:
-        ``(2, E)`` points (x then y, plus the cost table's 1.5 offset) and
+        ``(2, E)`` points (x then y, plus the cost table's 1.5 offset; at
+        most ``residual_points``, evenly spread: :func:`spread_points`) and
         the free cones' indices.
     """
     camera = given.camera
@@ -636,13 +637,8 @@ def residual_edges(
         centre = camera.project(anchors)
         d2 = (xs[:, None] - centre[None, :, 0]) ** 2 + (ys[:, None] - centre[None, :, 1]) ** 2
         keep = (d2 <= reach[None, :] ** 2).any(axis=1)
-        ys, xs = ys[keep], xs[keep]
-    if xs.size > model.residual_points:
-        pick = np.linspace(0, xs.size - 1, model.residual_points).astype(np.intp)
-        ys, xs = ys[pick], xs[pick]
-    points = np.stack([xs, ys]).astype(np.float32)
-    points += np.float32(1.5)
-    return points, cones
+        left[ys[~keep], xs[~keep]] = 0  # out of the free cones' reach
+    return spread_points(left > 0, model.residual_points), cones
 
 
 def frame_features(

@@ -28,6 +28,7 @@ nearer of the pair's two points.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -104,6 +105,20 @@ class KeypointScorer:
         self._firsts = positions[positions <= self.partners]
         self._seconds = self.partners[self._firsts]
         self._paired = self._seconds != self._firsts
+
+    def checked(self, frame: Any, kind: type, params: ArrayLike, caller: str) -> FloatArray:
+        """``(N, 25)`` float64 poses to score on ``frame``, a ``kind`` of its owner's ``prepare()``.
+
+        Raises:
+            TypeError: Naming the owner's method ``caller``, if ``frame`` is not a ``kind``.
+            ValueError: If ``params`` is not ``(N, 25)`` (:func:`pose_batch`).
+        """
+        where = f"{self.caller}.{caller}"
+        if not isinstance(frame, kind):
+            raise TypeError(
+                f"{where}: expected the {kind.__name__} of prepare(), got {type(frame).__name__}"
+            )
+        return pose_batch(params, where)
 
     def whole(self) -> NDArray[np.bool_]:
         """``(1, K)``: the mask of the whole figure (every scored keypoint)."""
