@@ -327,26 +327,20 @@ def make_figures(
     xs, ws, periods = [xs[i] for i in keep], [ws[i] for i in keep], periods[keep]
     subjects = [clips[i].subject for i in keep]
     out.mkdir(parents=True, exist_ok=True)
-    written = []
-    path = out / "fig5_snr.png"
-    plot_snr(xs[0], path, ws[0], fps, names, title=clips[keep[0]].clip_id)
-    written.append(path)
+    files = ("fig5_snr", "fig7_aligned", "fig9_components", "fig10_per_subject")
+    written = [out / f"{name}.png" for name in files]
+    fig5, fig7, fig9, fig10 = written
+    plot_snr(xs[0], fig5, ws[0], fps, names, title=clips[keep[0]].clip_id)
     alignment = cycles.align_offsets(xs, periods, ws)
-    path = out / "fig7_aligned.png"
-    plot_aligned(alignment, xs, path, ws, angle_names=names)
-    written.append(path)
+    plot_aligned(alignment, xs, fig7, ws, angle_names=names)
     seg = cycles.segment(xs, periods, alignment.offsets, ws)
     across = fpca.fpca(seg.values, seg.observed, n_components=components)
-    path = out / "fig9_components.png"
-    plot_components(across, path, names, title="mean and components across subjects")
-    written.append(path)
+    plot_components(across, fig9, names, title="mean and components across subjects")
     groups = np.array([subjects[i] for i in seg.sequence])
     per_subject = fpca.fpca(seg.values, seg.observed, n_components=components, groups=groups)
-    path = out / "fig10_per_subject.png"
     plot_components(
-        per_subject, path, names, title="components with per-subject means", show_groups=True
+        per_subject, fig10, names, title="components with per-subject means", show_groups=True
     )
-    written.append(path)
     kind = " (synthetic)" if library.is_synthetic else ""
     about = f"{len(xs)} walking clips{kind}, {seg.n_cycles} cycles, {len(set(subjects))} subjects"
     return written, about

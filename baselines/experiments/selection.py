@@ -129,9 +129,10 @@ def _check_grid(grid: Mapping[str, Sequence[float]], agent: str) -> None:
             f"nor prior settings written {FIT_PREFIX}NAME nor filter settings written "
             f"{FILTER_PREFIX}NAME"
         )
+    for names in (filter_names, fit_names):  # the filter's first, as they are checked below
+        if names and agent not in AGENTS:
+            raise ValueError(f"grid: {names} need a particle-filter agent, not {agent}")
     if filter_names:
-        if agent not in AGENTS:
-            raise ValueError(f"grid: {filter_names} need a particle-filter agent, not {agent}")
         try:  # the names (and each first value) as the agent's own filter checks them
             AGENTS[agent].filter_settings_for(
                 "", {n[len(FILTER_PREFIX) :]: grid[n][0] for n in filter_names}
@@ -139,8 +140,6 @@ def _check_grid(grid: Mapping[str, Sequence[float]], agent: str) -> None:
         except ValueError as exc:
             raise ValueError(f"grid: {agent}: {exc}") from None
     if fit_names:
-        if agent not in AGENTS:
-            raise ValueError(f"grid: {fit_names} need a particle-filter agent, not {agent}")
         known = AGENTS[agent].setting_names()
         bad = sorted(n for n in fit_names if n[len(FIT_PREFIX) :] not in known)
         if bad:

@@ -286,10 +286,7 @@ class EpisodeRunner:
         """Run one episode; its record (``result``, or ``error`` if it raised)."""
         cell = episode.cell
         agent_seed = self.seed if episode.agent_seed is None else int(episode.agent_seed)
-        record: dict[str, Any] = {
-            "task": cell.task, "agent": cell.agent, "particles": cell.particles,
-            "seed": episode.seed, "agent_seed": agent_seed,
-        }  # fmt: skip
+        record = _record(episode, agent_seed)
         t0 = time.perf_counter()
         try:
             agent = self._agent(cell, agent_seed)
@@ -337,7 +334,7 @@ def prepare_cells(
         first.setdefault((cell.task, cell.agent), cell)
     fits: dict[tuple[str, str], tuple[str, Any]] = {}
     problems: dict[tuple[str, str], tuple[str, str]] = {}
-    envs: dict[str, gym.Env] = {}
+    runner = EpisodeRunner(seed, env_kwargs)  # its environments: one per task
     bar = tqdm(
         first.items(), desc="agents", unit="agent", disable=not progress, leave=False,
         file=sys.stderr,
@@ -345,12 +342,11 @@ def prepare_cells(
     try:
         for (task, name), cell in bar:
             bar.set_postfix_str(f"{name} on {task}")
-            if task not in envs:
-                envs[task] = make_env(task, env_kwargs)
+            env = runner._env(task)
             try:
                 # a fit prints what it fits and its progress: on lines of their own
                 with tqdm.external_write_mode(file=sys.stderr):
-                    agent = make(name, envs[task], n_particles=max(cell.particles, 1), seed=seed)
+                    agent = build_agent(cell, env, seed)
             except TaskNotSupported as exc:  # the agent does not cover this task
                 problems[(task, name)] = ("skipped", str(exc))
                 continue
@@ -365,8 +361,7 @@ def prepare_cells(
             if type(agent) is ParticleFilterAgent:
                 fits[(task, name)] = (agent.prior.__name__, agent.fitted)
     finally:
-        for env in envs.values():
-            env.close()
+        runner.close()
     return fits, problems
 
 
@@ -677,13 +672,18 @@ def _at_most(wanted: int, jobs: int | None) -> int:
     return min(wanted, jobs) if jobs else wanted
 
 
-def _lost(episode: Episode, why: str) -> dict[str, Any]:
+def _record(episode: Episode, agent_seed: int | None) -> dict[str, Any]:
+    """The head of an episode's record: its cell, its seed and its agent seed."""
     cell = episode.cell
     return {
         "task": cell.task, "agent": cell.agent, "particles": cell.particles,
-        "seed": episode.seed, "agent_seed": episode.agent_seed, "error": why, "traceback": "",
-        "wall_s": 0.0,
+        "seed": episode.seed, "agent_seed": agent_seed,
     }  # fmt: skip
+
+
+def _lost(episode: Episode, why: str) -> dict[str, Any]:
+    """The record of an episode its Ray worker lost (it died or Ray failed)."""
+    return {**_record(episode, episode.agent_seed), "error": why, "traceback": "", "wall_s": 0.0}
 
 
 def make_engine(

@@ -10,7 +10,7 @@ module imports torch and stable-baselines3.
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +19,7 @@ import numpy as np
 
 from baselines.agents import HoldAgent
 from baselines.agents.learned import LearnedAgent, load_policy
-from baselines.experiments._plotting import save
+from baselines.experiments._plotting import pyplot, save
 from baselines.leaderboard.evaluation import evaluate
 from baselines.leaderboard.stats import iqm, stratified_bootstrap_ci
 from baselines.rl import TrainConfig, checkpoints, train
@@ -27,18 +27,29 @@ from humotion_gym.envs import get_task
 from humotion_gym.files import write_text_atomically
 
 
-def checkpoint_errors(
-    path: str | Path, task: str, episodes: int, data_dir: list[str] | None = None
+def _test_errors(
+    task: str, episodes: int, data_dir: list[str] | None, make_agent: Callable[[gym.Env], Any]
 ) -> list[float]:
-    """Mean error (mm) of each of ``episodes`` seeded test episodes of a saved policy."""
+    """Mean error (mm) of each of ``episodes`` seeded test episodes of ``make_agent(env)``."""
     kwargs: dict[str, Any] = {"terminate_on_lost": False}
     if data_dir is not None:
         kwargs["data_dir"] = data_dir
     env = gym.make(f"humotion_gym/{get_task(task).name}", split="test", **kwargs)
-    agent = LearnedAgent(env, load_policy(path), "policy", str(path))
-    errors = [r.mean_error_mm for r in evaluate(agent, env, episodes, seed=0)]
+    errors = [r.mean_error_mm for r in evaluate(make_agent(env), env, episodes, seed=0)]
     env.close()
     return errors
+
+
+def checkpoint_errors(
+    path: str | Path, task: str, episodes: int, data_dir: list[str] | None = None
+) -> list[float]:
+    """Mean error (mm) of each of ``episodes`` seeded test episodes of a saved policy."""
+    return _test_errors(
+        task,
+        episodes,
+        data_dir,
+        lambda env: LearnedAgent(env, load_policy(path), "policy", str(path)),
+    )
 
 
 def learning_curve(
@@ -94,7 +105,7 @@ def learning_curve(
             for n, path in found.items():
                 if path is None:
                     if hold is None:
-                        hold = _hold_errors(task, episodes, data_dir)
+                        hold = _test_errors(task, episodes, data_dir, HoldAgent)
                     errors[0] = hold
                 else:
                     errors[n] = checkpoint_errors(path, task, episodes, data_dir)
@@ -118,21 +129,9 @@ def learning_curve(
     return result
 
 
-def _hold_errors(task: str, episodes: int, data_dir: list[str] | None) -> list[float]:
-    kwargs: dict[str, Any] = {"terminate_on_lost": False}
-    if data_dir is not None:
-        kwargs["data_dir"] = data_dir
-    env = gym.make(f"humotion_gym/{get_task(task).name}", split="test", **kwargs)
-    return [r.mean_error_mm for r in evaluate(HoldAgent(env), env, episodes, seed=0)]
-
-
 def _plot_curve(result: dict[str, Any], out: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(5.5, 3.6))
+    """The curves with their intervals, and ``hold``'s IQM as a line, written to ``out``."""
+    fig, ax = pyplot().subplots(figsize=(5.5, 3.6))
     for algo, rows in result["curves"].items():
         x = [r["steps"] for r in rows]
         y = [r["iqm_mm"] for r in rows]

@@ -257,12 +257,32 @@ def _markdown(table: list[list[str]]) -> str:
     return "\n".join([line(table[0]), "|" + "---|" * len(table[0])] + [line(r) for r in table[1:]])
 
 
-def person_markdown(rows: Sequence[dict[str, Any]]) -> list[str]:
-    """The per-person section of ``tables.md``: its lines, none when no episode names a person."""
-    table = person_table(person_rows(rows))
-    if not table:
-        return []
-    return ["## Per person", "", _markdown(table), "", PERSON_LEGEND, ""]
+#: A section of the report after the leaderboard table: its heading, its table
+#: (header then rows), the HTML table's id and the legend under it (None: none).
+_Section = tuple[str, list[list[str]], str, str | None]
+
+
+def _sections(rows: Sequence[dict[str, Any]], computed: dict[str, Any]) -> list[_Section]:
+    """The sections both ``tables.md`` and ``index.html`` show, in order; empty ones left out.
+
+    The per-person table only where an episode names its person; the aggregate
+    and the probabilities of improvement where computed; the cells that did
+    not run where there are any.
+    """
+    sections: list[_Section] = [("Cell statistics", statistics_table(rows), "cells", None)]
+    persons = person_table(person_rows(rows))
+    if persons:
+        sections.append(("Per person", persons, "persons", PERSON_LEGEND))
+    if computed["aggregate"]:
+        table = aggregate_table(computed["aggregate"])
+        sections.append(("Across tasks (normalised by hold)", table, "aggregate", SCORE_LEGEND))
+    if computed["pairwise"]:
+        table = improvement_table(computed["pairwise"])
+        sections.append(("Probability of improvement", table, "pairwise", None))
+    failures = failures_table(rows)
+    if len(failures) > 1:
+        sections.append(("Cells that did not run", failures, "failures", None))
+    return sections
 
 
 def markdown_report(rows: Sequence[dict[str, Any]], computed: dict[str, Any]) -> str:
@@ -271,17 +291,9 @@ def markdown_report(rows: Sequence[dict[str, Any]], computed: dict[str, Any]) ->
     # every row: markdown_table shows a cell that did not run with its reason
     parts = ["# Leaderboard", "", markdown_table(rows), ""]
     parts += [f"- {line}" for line in validity_lines(good)] + [""]
-    parts += ["## Cell statistics", "", _markdown(statistics_table(rows)), ""]
-    parts += person_markdown(rows)
-    if computed["aggregate"]:
-        parts += ["## Across tasks (normalised by hold)", ""]
-        parts += [_markdown(aggregate_table(computed["aggregate"])), "", SCORE_LEGEND, ""]
-    if computed["pairwise"]:
-        parts += ["## Probability of improvement", ""]
-        parts += [_markdown(improvement_table(computed["pairwise"])), ""]
-    failures = failures_table(rows)
-    if len(failures) > 1:
-        parts += ["## Cells that did not run", "", _markdown(failures), ""]
+    for heading, table, _, legend in _sections(rows, computed):
+        parts += [f"## {heading}", "", _markdown(table), ""]
+        parts += [] if legend is None else [legend, ""]
     return "\n".join(parts)
 
 
@@ -442,21 +454,9 @@ def html_page(
         parts += [f"<li>{html.escape(line)}</li>" for line in verdicts] + ["</ul>"]
     parts += [f'<p class="legend">{html.escape(n)}</p>' for n in notes]
     parts += ["<h2>Leaderboard</h2>", _html_table(_leaderboard_table(rows), "leaderboard")]
-    parts += ["<h2>Cell statistics</h2>", _html_table(statistics_table(rows), "cells")]
-    persons = person_table(person_rows(rows))
-    if persons:
-        parts += ["<h2>Per person</h2>", _html_table(persons, "persons")]
-        parts += [f'<p class="legend">{html.escape(PERSON_LEGEND)}</p>']
-    if computed["aggregate"]:
-        parts += ["<h2>Across tasks (normalised by hold)</h2>"]
-        parts += [_html_table(aggregate_table(computed["aggregate"]), "aggregate")]
-        parts += [f'<p class="legend">{html.escape(SCORE_LEGEND)}</p>']
-    if computed["pairwise"]:
-        parts += ["<h2>Probability of improvement</h2>"]
-        parts += [_html_table(improvement_table(computed["pairwise"]), "pairwise")]
-    failures = failures_table(rows)
-    if len(failures) > 1:
-        parts += ["<h2>Cells that did not run</h2>", _html_table(failures, "failures")]
+    for heading, table, table_id, legend in _sections(rows, computed):
+        parts += [f"<h2>{html.escape(heading)}</h2>", _html_table(table, table_id)]
+        parts += [] if legend is None else [f'<p class="legend">{html.escape(legend)}</p>']
     if figures:
         parts += ["<h2>Figures</h2>"]
         for caption, src in figures.items():
@@ -588,6 +588,7 @@ def write_report(
 
 
 def _plain(value: Any) -> Any:
+    """A numpy scalar or array as plain JSON: ``json.dumps``' default for the leaderboard files."""
     if hasattr(value, "tolist"):
         return value.tolist()
     raise TypeError(f"not JSON-serialisable: {type(value).__name__}")

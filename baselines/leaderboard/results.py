@@ -19,11 +19,9 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from baselines.leaderboard.figures import figures_available
 from baselines.leaderboard.platform_info import run_platform
-from baselines.leaderboard.report import write_report
+from baselines.leaderboard.report import _plain, write_report
 from baselines.leaderboard.tables import markdown_table, validity_lines
 from humotion_gym.files import write_atomically, write_text_atomically
 from humotion_gym.mocap.library import configured_data_dirs, package_version
@@ -292,12 +290,6 @@ def _jsonable(value: Any) -> Any:
 def save(rows: Sequence[dict[str, Any]], path: str | Path) -> None:
     """Write the rows as JSON."""
     write_text_atomically(path, json.dumps(list(rows), indent=1, default=_plain))
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, np.generic):
-        return value.item()
-    raise TypeError(f"not JSON-serialisable: {type(value).__name__}")
 
 
 #: Per-frame series the repository keeps to the whole millimetre: figures draw

@@ -80,10 +80,6 @@ def _vectorised(statistic: Callable[[FloatArray], float]) -> Callable[..., Float
     return lambda x, axis=-1: np.apply_along_axis(statistic, axis, x)
 
 
-def _rng(seed: int | np.random.Generator) -> np.random.Generator:
-    return seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-
-
 def _values(where: str, values: Any, name: str = "values", ndim: int = 1) -> FloatArray:
     """``values`` as a finite float array, 1-D (or up to ``ndim``-D), else a ValueError."""
     v = np.asarray(values, dtype=np.float64)
@@ -141,7 +137,7 @@ def bootstrap_ci(
         return float(v[0]), float(v[0])
     res = stats.bootstrap(
         (v,), _vectorised(statistic), n_resamples=n_resamples, vectorized=True,
-        confidence_level=confidence, method="percentile", rng=_rng(seed),
+        confidence_level=confidence, method="percentile", rng=np.random.default_rng(seed),
     )  # fmt: skip
     return float(res.confidence_interval.low), float(res.confidence_interval.high)
 
@@ -196,8 +192,8 @@ def stratified_bootstrap_ci(
         return along(np.concatenate(parts, axis=-1), -1)
 
     res = stats.bootstrap(
-        varied, statistic_of, n_resamples=n_resamples, vectorized=True, axis=-1,
-        confidence_level=confidence, method="percentile", rng=_rng(seed), batch=_BATCH,
+        varied, statistic_of, n_resamples=n_resamples, vectorized=True, axis=-1, batch=_BATCH,
+        confidence_level=confidence, method="percentile", rng=np.random.default_rng(seed),
     )  # fmt: skip
     return float(res.confidence_interval.low), float(res.confidence_interval.high)
 
@@ -323,8 +319,8 @@ def mean_band(
     if e.shape[0] == 1:
         return mean, mean.copy(), mean.copy()
     res = stats.bootstrap(
-        (e,), np.mean, n_resamples=n_resamples, vectorized=True, axis=0,
-        confidence_level=confidence, method="percentile", rng=_rng(seed), batch=_BATCH,
+        (e,), np.mean, n_resamples=n_resamples, vectorized=True, axis=0, batch=_BATCH,
+        confidence_level=confidence, method="percentile", rng=np.random.default_rng(seed),
     )  # fmt: skip
     return mean, np.asarray(res.confidence_interval.low), np.asarray(res.confidence_interval.high)
 
@@ -414,8 +410,8 @@ def probability_of_improvement_ci(
         return _poi(*resampled, sign=sign)
 
     res = stats.bootstrap(
-        tuple(samples), statistic, n_resamples=n_resamples, vectorized=True, axis=-1,
-        confidence_level=confidence, method="percentile", rng=_rng(seed), batch=_BATCH,
+        tuple(samples), statistic, n_resamples=n_resamples, vectorized=True, axis=-1, batch=_BATCH,
+        confidence_level=confidence, method="percentile", rng=np.random.default_rng(seed),
     )  # fmt: skip
     return float(res.confidence_interval.low), float(res.confidence_interval.high)
 
@@ -471,7 +467,7 @@ def two_level_bootstrap(
     ref = None if reference is None else _values(where, reference, "reference", ndim=2)
     if ref is not None and (ref.ndim != 2 or ref.shape[0] != n_episodes or not ref.size):
         raise ValueError(f"{where}: reference must be ({n_episodes}, seeds), got {ref.shape}")
-    rng = _rng(seed)
+    rng = np.random.default_rng(seed)  # a Generator given is used as it is
     if clusters is None:
         drawn = rng.integers(n_episodes, size=(n_resamples, n_episodes))
         seeds = rng.integers(n_seeds, size=(n_resamples, n_episodes, n_seeds))
@@ -486,12 +482,17 @@ def two_level_bootstrap(
         means = drawn_values.sum(axis=(1, 2, 3)) / (counts * n_seeds)
         if ref is not None:
             held = np.where(taken, ref.mean(axis=1)[episodes], 0.0).sum(axis=(1, 2)) / counts
-    tail = 50.0 * (1.0 - confidence)
-    mean_ci = np.percentile(means, [tail, 100.0 - tail])
+    mean_ci = _percentile_interval(means, confidence)
     if ref is None:
-        return (float(mean_ci[0]), float(mean_ci[1])), None
-    ratio_ci = np.percentile(held / means, [tail, 100.0 - tail])
-    return (float(mean_ci[0]), float(mean_ci[1])), (float(ratio_ci[0]), float(ratio_ci[1]))
+        return mean_ci, None
+    return mean_ci, _percentile_interval(held / means, confidence)
+
+
+def _percentile_interval(theta: FloatArray, confidence: float) -> tuple[float, float]:
+    """The two-sided percentile interval of a statistic's resampled values ``theta``."""
+    tail = 50.0 * (1.0 - confidence)
+    low, high = np.percentile(theta, [tail, 100.0 - tail])
+    return float(low), float(high)
 
 
 # ---------------------------------------------------------------- clusters
@@ -636,7 +637,7 @@ def stratified_cluster_bootstrap_ci(
     if all(members.shape[0] <= 1 for members, _ in groups):
         value = float(statistic(pooled))
         return value, value
-    rng = _rng(seed)
+    rng = np.random.default_rng(seed)
     drawn, taken = [], []
     for v, (members, present) in zip(cols, groups, strict=True):
         if v.size == 0:
@@ -647,9 +648,7 @@ def stratified_cluster_bootstrap_ci(
     theta = _pooled_statistic(
         np.concatenate(drawn, axis=1), np.concatenate(taken, axis=1), statistic
     )
-    tail = 50.0 * (1.0 - confidence)
-    low, high = np.percentile(theta, [tail, 100.0 - tail])
-    return float(low), float(high)
+    return _percentile_interval(theta, confidence)
 
 
 def _pooled_statistic(
@@ -705,15 +704,13 @@ def clustered_improvement_ci(
     if len(x_clusters) != len(x) or len(y_clusters) != len(y):
         raise ValueError(f"{where}: x_clusters, y_clusters: expected one per task ({len(x)}), "
                          f"got {len(x_clusters)} and {len(y_clusters)}")  # fmt: skip
-    rng = _rng(seed)
+    rng = np.random.default_rng(seed)
     rates = []
     for va, vb, ca, cb in zip(runs[: len(x)], runs[len(x) :], x_clusters, y_clusters, strict=True):
         wa = _cluster_weights(where, va.size, ca, n_resamples, rng)
         wb = _cluster_weights(where, vb.size, cb, n_resamples, rng)
         rates.append(_weighted_win_rate(va, vb, wa, wb, sign))
-    tail = 50.0 * (1.0 - confidence)
-    low, high = np.percentile(np.mean(rates, axis=0), [tail, 100.0 - tail])
-    return float(low), float(high)
+    return _percentile_interval(np.mean(rates, axis=0), confidence)
 
 
 def _cluster_weights(
