@@ -445,21 +445,10 @@ def fit_camera(
         raise ValueError(f"fit_camera: elevation_deg must lie in [-89, 89], got {elevation_deg}")
     if not (pad_mm >= 0.0 and min_distance_mm > 0.0):
         raise ValueError("fit_camera: pad_mm must be >= 0 and min_distance_mm > 0")
-    target = 0.5 * (lo + hi)
-    direction = view_direction(azimuth_deg, elevation_deg)
-    # The final camera's rotation: it looks along the same direction.
-    rotation = _look_at_rotation(target + direction, target, _WORLD_UP, "fit_camera")
-    rel = (pts - target) @ rotation.T  # target-centred, camera axes
-    f = _focal(height, fov_deg)
-    half_w = (width - 1) / 2.0 * (1.0 - margin)
-    half_h = (height - 1) / 2.0 * (1.0 - margin)
-    # Depth of a point is rel_z + D; it is in frame when f * (|rel_x| + pad) <=
-    # half_w * (rel_z + D - pad), i.e. D >= f (|x| + pad) / half_w - z + pad.
-    need_x = f * (np.abs(rel[:, 0]) + pad_mm) / half_w - rel[:, 2] + pad_mm
-    need_y = f * (np.abs(rel[:, 1]) + pad_mm) / half_h - rel[:, 2] + pad_mm
-    near = pad_mm + 100.0 - rel[:, 2]  # keep every point well in front
-    distance = float(max(need_x.max(), need_y.max(), near.max(), min_distance_mm))
-    return Camera.look_at(target + distance * direction, target, width, height, fov_deg)
+    return _fit_sets(
+        pts[None], 0.5 * (lo + hi)[None], (width, height, fov_deg), [azimuth_deg],
+        elevation_deg, margin, [pad_mm], min_distance_mm, "fit_camera",
+    )[0]  # fmt: skip
 
 
 def fit_cameras(
@@ -524,32 +513,61 @@ def fit_cameras(
         raise ValueError("fit_cameras: pads_mm must be >= 0 and min_distance_mm > 0")
     if n == 0:
         return []
-    # fit_camera's steps, each for the E sets at once where it is elementwise
-    # (the same roundings per element) and per set where it is not (the
-    # rotation on Python floats, the projection's matrix product).
     columns = np.ascontiguousarray(pts.transpose(0, 2, 1))
     lo, hi = columns.min(axis=2), columns.max(axis=2)
     if not all(math.isfinite(v) for v in lo.ravel().tolist() + hi.ravel().tolist()):
         raise ValueError("fit_cameras: expected points that are all finite")
-    targets = 0.5 * (lo + hi)
+    return _fit_sets(
+        pts, 0.5 * (lo + hi), (width, height, fov_deg), azimuths, elevation_deg, margin, pads,
+        min_distance_mm, "fit_cameras",
+    )  # fmt: skip
+
+
+def _fit_sets(
+    pts: FloatArray,
+    targets: FloatArray,
+    size: tuple[int, int, float],
+    azimuths: list[float],
+    elevation_deg: float,
+    margin: float,
+    pads: list[float],
+    min_distance_mm: float,
+    where: str,
+) -> list[Camera]:
+    """The cameras of :func:`fit_camera` and :func:`fit_cameras`, their arguments checked.
+
+    ``pts`` holds ``(E, M, 3)`` sets of points, ``targets`` the ``(E, 3)``
+    centres of their bounding boxes, ``size`` the image's width, height and
+    field of view; ``azimuths`` and ``pads`` give one per set, and ``where``
+    names the caller in errors.
+    """
+    width, height, fov_deg = size
+    n = pts.shape[0]
+    # Each step for the E sets at once where it is elementwise (the same
+    # roundings per element) and per set where it is not (the rotation on
+    # Python floats, the projection's matrix product).
     rel = np.empty_like(pts)
     directions = []
     for j, azimuth in enumerate(azimuths):
         direction = view_direction(azimuth, elevation_deg)
         target = targets[j]
-        rotation = _look_at_rotation(target + direction, target, _WORLD_UP, "fit_cameras")
-        rel[j] = (pts[j] - target) @ rotation.T
+        # The final camera's rotation: it looks along the same direction.
+        rotation = _look_at_rotation(target + direction, target, _WORLD_UP, where)
+        rel[j] = (pts[j] - target) @ rotation.T  # target-centred, camera axes
         directions.append(direction)
     f = _focal(height, fov_deg)
     half = np.array([(width - 1) / 2.0, (height - 1) / 2.0]) * (1.0 - margin)
     pad = np.array(pads)[:, None, None]
+    # Depth of a point is rel_z + D; it is in frame when f * (|rel_x| + pad) <=
+    # half_w * (rel_z + D - pad), i.e. D >= f (|x| + pad) / half_w - z + pad
+    # (and likewise in y).
     need = np.abs(rel[:, :, :2])
     need += pad
     need *= f
     need /= half
     need -= rel[:, :, 2:]
     need += pad
-    near = np.array([p + 100.0 for p in pads])[:, None] - rel[:, :, 2]
+    near = np.array([p + 100.0 for p in pads])[:, None] - rel[:, :, 2]  # well in front
     far, close = need.reshape(n, -1).max(axis=1).tolist(), near.max(axis=1).tolist()
     return [
         Camera.look_at(

@@ -102,13 +102,13 @@ def _check_camera(camera: Camera, scene: SceneOptions, where: str) -> None:
         )
 
 
-def _check_inputs(params: ArrayLike, camera: Camera, scene: SceneOptions) -> NDArray[np.float64]:
+def _checked_pose(params: ArrayLike, where: str) -> NDArray[np.float64]:
+    """One finite ``(25,)`` pose as float64, refused in the words of ``where``."""
     p = np.asarray(params, dtype=np.float64)
     if p.shape != (body.N_PARAMS,):
-        raise ValueError(f"render: expected one pose of shape (25,), got {p.shape}")
+        raise ValueError(f"{where}: expected one pose of shape (25,), got {p.shape}")
     if not np.all(np.isfinite(p)):
-        raise ValueError("render: the pose has non-finite parameters")
-    _check_camera(camera, scene, "render")
+        raise ValueError(f"{where}: the pose has non-finite parameters")
     return p
 
 
@@ -241,10 +241,7 @@ def figure_sequence(
         ValueError: For malformed poses, cameras of another size or field of
             view, or a sequence of cameras of the wrong length.
     """
-    in_camera, first, pose = _in_camera(params, shape, cameras, scene, geometry)
-    order, ellipses, quads, colors, wide = _figure_polygons(in_camera, shape, first, scene)
-    floor = _floor_lines(pose, first, scene, in_camera.shape[0])
-    return FigureSequence(scene, order, ellipses, quads, colors, wide, floor)
+    return figure_sequences([(params, shape, cameras, geometry)], scene)[0]
 
 
 def _floor_lines(
@@ -511,7 +508,8 @@ def render(
         >>> render(pose, shape, camera, scene, rng, background).shape
         (128, 128, 3)
     """
-    p = _check_inputs(params, camera, scene)
+    p = _checked_pose(params, "render")
+    _check_camera(camera, scene, "render")
     if background is None:
         background = make_background(scene, rng)
     geometry = single_pose_geometry(p, shape, camera.rotation, camera.translation)[None]
@@ -646,11 +644,7 @@ def draw_pose_overlay(
     out = cv2.cvtColor(img, cv2.COLOR_GRAY2RGB) if img.ndim == 2 else img.copy()
     if thickness < 1:
         raise ValueError("draw_pose_overlay: thickness must be >= 1")
-    p = np.asarray(params, dtype=np.float64)
-    if p.shape != (body.N_PARAMS,):
-        raise ValueError(f"draw_pose_overlay: expected one pose of shape (25,), got {p.shape}")
-    if not np.isfinite(p).all():
-        raise ValueError("draw_pose_overlay: the pose has non-finite parameters")
+    p = _checked_pose(params, "draw_pose_overlay")
     if keypoints is None:
         kp = single_pose_geometry(p, shape)[:N_KEYPOINTS]
     else:

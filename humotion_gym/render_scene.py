@@ -27,7 +27,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from humotion_gym.body import N_CONES
+from humotion_gym.body import CONE_NAMES, N_CONES
 from humotion_gym.checks import is_count
 
 Color = tuple[int, int, int]
@@ -53,6 +53,14 @@ DEFAULT_FIGURE_COLORS: tuple[Color, ...] = (
     _TROUSERS,  # l_shin
 )
 
+
+def _recoloured(**colors: Color) -> tuple[Color, ...]:
+    """:data:`DEFAULT_FIGURE_COLORS` with the cones named (``body.CONE_NAMES``) recoloured."""
+    return tuple(
+        colors.get(name, own) for name, own in zip(CONE_NAMES, DEFAULT_FIGURE_COLORS, strict=True)
+    )
+
+
 _SLEEVE: Color = (0, 60, 20)
 
 #: v2's palette: :data:`DEFAULT_FIGURE_COLORS` with dark green sleeves, so
@@ -63,18 +71,7 @@ _SLEEVE: Color = (0, 60, 20)
 #: shade into the wall's grey on their dark side, and on validation persons
 #: cost a tracker 26 mm on WalkTrack-v1 where these gained 11
 #: (docs/v2_limbs.md).
-SHADED_FIGURE_COLORS: tuple[Color, ...] = (
-    _SHIRT,  # torso
-    _SKIN,  # head
-    _SLEEVE,  # r_upper_arm
-    _SKIN,  # r_forearm
-    _SLEEVE,  # l_upper_arm
-    _SKIN,  # l_forearm
-    _TROUSERS,  # r_thigh
-    _TROUSERS,  # r_shin
-    _TROUSERS,  # l_thigh
-    _TROUSERS,  # l_shin
-)
+SHADED_FIGURE_COLORS: tuple[Color, ...] = _recoloured(r_upper_arm=_SLEEVE, l_upper_arm=_SLEEVE)
 
 #: The opt-in easier palette: left and right limbs differ, the right ones warm
 #: and light, the left ones cool, in luminance as well (grey levels: sleeves
@@ -82,17 +79,12 @@ SHADED_FIGURE_COLORS: tuple[Color, ...] = (
 #: frames tell the sides apart too. A tracker no longer has to resolve the
 #: left-right ambiguity of a silhouette (Sminchisescu and Triggs, "Kinematic
 #: jump processes for monocular 3D human tracking", 2003) from motion alone.
-SIDED_FIGURE_COLORS: tuple[Color, ...] = (
-    _SHIRT,  # torso
-    _SKIN,  # head
-    (255, 240, 200),  # r_upper_arm: a cream sleeve
-    _SKIN,  # r_forearm
-    (20, 35, 90),  # l_upper_arm: a navy sleeve
-    (235, 245, 255),  # l_forearm: a pale blue glove
-    (230, 205, 150),  # r_thigh: khaki
-    (230, 205, 150),  # r_shin
-    _TROUSERS,  # l_thigh
-    _TROUSERS,  # l_shin
+SIDED_FIGURE_COLORS: tuple[Color, ...] = _recoloured(
+    r_upper_arm=(255, 240, 200),  # a cream sleeve
+    l_upper_arm=(20, 35, 90),  # a navy sleeve
+    l_forearm=(235, 245, 255),  # a pale blue glove
+    r_thigh=(230, 205, 150),  # khaki
+    r_shin=(230, 205, 150),
 )
 
 #: The figure palettes by name (:attr:`SceneOptions.palette`): ``"v1"`` the

@@ -43,8 +43,9 @@ from humotion_gym.envs.vector import (
 from humotion_gym.wrappers import (
     check_frame_size,
     frame_and_initial,
-    learner_frame,
     learner_frames,
+    learner_observation,
+    learner_observation_space,
 )
 
 # The step's scalar info that each episode's info dict carries (SB3 keeps one
@@ -83,19 +84,10 @@ class LearnerVecEnv(VecEnv):
         self.frame_size = frame_size
         single = venv.single_observation_space
         frames = single["frame"] if isinstance(single, spaces.Dict) else single
-        h, w, c = frames.shape  # type: ignore[misc]
-        side_h, side_w = (h, w) if frame_size is None else (frame_size, frame_size)
         action_space = venv.single_action_space
         assert isinstance(action_space, spaces.Box)
         n_free = action_space.shape[0]
-        vector = spaces.Box(-1.0, 1.0, shape=(n_free,), dtype=np.float32)
-        observation_space = spaces.Dict(
-            {
-                "frame": spaces.Box(0, 255, shape=(c, side_h, side_w), dtype=np.uint8),
-                "previous": vector,
-                "initial": vector,
-            }
-        )
+        observation_space = learner_observation_space(frames.shape, n_free, frame_size)
         super().__init__(venv.num_envs, observation_space, action_space)
         self._previous = np.zeros((venv.num_envs, n_free), np.float32)
         self._initial = np.zeros((venv.num_envs, n_free), np.float32)
@@ -172,13 +164,10 @@ class LearnerVecEnv(VecEnv):
             ended = np.flatnonzero(dones).tolist()
             for i in ended:
                 last = info["final_obs"][i]
-                infos[i]["terminal_observation"] = {
-                    "frame": learner_frame(
-                        last["frame"] if isinstance(last, dict) else last, self.frame_size
-                    ),
-                    "previous": self._previous[i].copy(),
-                    "initial": self._initial[i].copy(),
-                }
+                infos[i]["terminal_observation"] = learner_observation(
+                    last["frame"] if isinstance(last, dict) else last, self._previous[i],
+                    self._initial[i], self.frame_size,
+                )  # fmt: skip
             self._initial_actions(ended, initial)
             for i in ended:  # as DummyVecEnv's step_wait: the new episode's reset info
                 self.reset_infos[i] = episode_info(info, i)

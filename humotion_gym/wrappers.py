@@ -187,6 +187,22 @@ def learner_observation(
     }
 
 
+def learner_observation_space(
+    frame_shape: tuple[int, ...], n_free: int, size: int | None
+) -> spaces.Dict:
+    """The space of :func:`learner_observation` for ``(H, W, C)`` frames and ``n_free`` actions."""
+    h, w, c = frame_shape
+    side_h, side_w = (h, w) if size is None else (size, size)
+    vector = spaces.Box(-1.0, 1.0, shape=(n_free,), dtype=np.float32)
+    return spaces.Dict(
+        {
+            "frame": spaces.Box(0, 255, shape=(c, side_h, side_w), dtype=np.uint8),
+            "previous": vector,
+            "initial": vector,
+        }
+    )
+
+
 class LearnerObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """A ``Dict`` observation for stable-baselines3's ``MultiInputPolicy``.
 
@@ -230,17 +246,8 @@ class LearnerObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
                 "(a views=N task); its learners take one camera, FrameObservation gives "
                 "every view side by side"
             )
-        h, w, c = shape
-        side_h, side_w = (h, w) if size is None else (size, size)
         n_free = base.action_space.shape[0]
-        vector = spaces.Box(-1.0, 1.0, shape=(n_free,), dtype=np.float32)
-        self.observation_space = spaces.Dict(
-            {
-                "frame": spaces.Box(0, 255, shape=(c, side_h, side_w), dtype=np.uint8),
-                "previous": vector,
-                "initial": vector,
-            }
-        )
+        self.observation_space = learner_observation_space(shape, n_free, size)
         self._previous = np.zeros(n_free, np.float32)
         self._initial = np.zeros(n_free, np.float32)
 

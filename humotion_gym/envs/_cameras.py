@@ -9,13 +9,14 @@ around it.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from humotion_gym.body import CONE_NAMES, KEYPOINT_INDEX, N_KEYPOINTS, PARAM_INDEX
-from humotion_gym.camera import Camera, cameras_around, fit_camera
+from humotion_gym.camera import Camera, cameras_around, fit_cameras
 from humotion_gym.envs._episode_choice import clip_geometry
 from humotion_gym.mocap.motion import Motion
 
@@ -56,16 +57,6 @@ class EpisodeCameras:
     _camera_targets: FloatArray
     _view_cameras: list[list[Camera]]
 
-    def _episode_geometry(self, motion: Motion, idx: NDArray[np.intp]) -> FloatArray:
-        """``(len(idx), 35, 3)`` keypoints and cone axes of the clip's frames ``idx``.
-
-        Read from the clip's table
-        (:func:`~humotion_gym.envs._episode_choice.clip_geometry`), which gives
-        the same numbers as computing the episode's frames alone (the
-        kinematics is elementwise over frames; ``tests/envs/test_render_reuse.py``).
-        """
-        return clip_geometry(motion)[idx]
-
     def _place_camera(self) -> None:
         """Cameras for every frame of the episode, from the first frame only.
 
@@ -80,11 +71,7 @@ class EpisodeCameras:
         looks at (:func:`~humotion_gym.camera.cameras_around`), placed from
         the same first frame and moving with the same followed point.
         """
-        spec = self.task.camera
-        points, azimuth, pad = self._camera_request()
-        size = (self.scene.width, self.scene.height, spec.fov_deg)
-        camera = fit_camera(points, *size, azimuth, spec.elevation_deg, spec.margin, pad)
-        self._set_cameras(camera, points)
+        place_cameras([self])
 
     def _camera_request(self) -> tuple[FloatArray, float, float]:
         """The episode's tables, then what its camera is fitted to (see :meth:`_place_camera`).
@@ -102,7 +89,10 @@ class EpisodeCameras:
         self._episode_params = m.params[idx]
         # Keypoints and cone axes of every frame of the episode at once: the
         # renderer's figures are prepared from them in one vectorised pass.
-        self._geometry = self._episode_geometry(m, idx)
+        # Read from the clip's table, which gives the same numbers as computing
+        # the episode's frames alone (the kinematics is elementwise over frames;
+        # tests/envs/test_render_reuse.py).
+        self._geometry = clip_geometry(m)[idx]
         kp = self._geometry[:, :N_KEYPOINTS]
         self._truth_keypoints = kp  # scored against in step()
         first = kp[0]
@@ -141,3 +131,23 @@ class EpisodeCameras:
             self._view_cameras = [[view] * len(self._episode_params) for view in ring]
         else:
             self._view_cameras = [view.shifted(self._camera_targets) for view in ring]
+
+
+def place_cameras(envs: Sequence[EpisodeCameras]) -> None:
+    """Each episode's :meth:`~EpisodeCameras._place_camera`, the camera fits done together.
+
+    :func:`~humotion_gym.camera.fit_cameras` gives each episode the camera
+    :func:`~humotion_gym.camera.fit_camera` gives it alone, bit for bit: the
+    vector environment fits the episodes it starts in one call, in two thirds
+    of the time. The episodes share a task, so each frames as many points
+    (the travel box's corners at every keypoint, or the arm's reach sphere).
+    """
+    spec, scene = envs[0].task.camera, envs[0].scene
+    requests = [env._camera_request() for env in envs]
+    cameras = fit_cameras(
+        np.stack([points for points, _, _ in requests]), scene.width, scene.height,
+        spec.fov_deg, [azimuth for _, azimuth, _ in requests], spec.elevation_deg, spec.margin,
+        [pad for _, _, pad in requests],
+    )  # fmt: skip
+    for env, camera, (points, _, _) in zip(envs, cameras, requests, strict=True):
+        env._set_cameras(camera, points)

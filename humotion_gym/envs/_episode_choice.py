@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from humotion_gym.body import KEYPOINT_INDEX, N_KEYPOINTS
 from humotion_gym.checks import is_integer
+from humotion_gym.envs.episodes import observed_starts
 from humotion_gym.kinematics import batch_pose_geometry
 from humotion_gym.mocap.library import MotionLibrary, load_library
 from humotion_gym.mocap.motion import Motion
@@ -234,17 +235,9 @@ class EpisodeChoice:
         cached = self._starts.get(motion.clip_id)
         if cached is not None and cached[0] is motion:
             return cached[1]
-        span = self.episode_frames * self.frame_skip
-        n_starts = motion.n_frames - span
-        if n_starts < 1:
-            good = np.zeros(0, np.intp)
-        else:
-            # count the observed frames of each window from a running sum
-            count = np.concatenate([[0], np.cumsum(motion.frame_observed)])
-            ok = count[span + 1 :] - count[: -span - 1] == span + 1
-            if self.task.min_motion_mm > 0:
-                ok &= self._episode_motion(motion) >= self.task.min_motion_mm
-            good = np.flatnonzero(ok)
+        good = observed_starts(motion, self.episode_frames * self.frame_skip + 1)
+        if self.task.min_motion_mm > 0 and good.size:
+            good = good[self._episode_motion(motion)[good] >= self.task.min_motion_mm]
         # The library's clips, and at most STARTS_EXTRA others, the oldest going
         # first: a long run of reset(options={"motion": ...}) with new clips
         # kept every one alive, some 190 KB an episode.

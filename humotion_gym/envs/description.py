@@ -62,8 +62,9 @@ OBSERVATION_KEYS: tuple[str, ...] = ("frame", "initial_pose", "fixed_params", "c
 VECTOR_BOUND = 1e9
 
 
-def _vector(n: int) -> spaces.Box:
-    return spaces.Box(-VECTOR_BOUND, VECTOR_BOUND, shape=(n,), dtype=np.float64)
+def _vector(*shape: int) -> spaces.Box:
+    """A float64 ``Box`` of ``shape`` within +-:data:`VECTOR_BOUND`."""
+    return spaces.Box(-VECTOR_BOUND, VECTOR_BOUND, shape=shape, dtype=np.float64)
 
 
 def _views_shape(views: int) -> tuple[int, ...]:
@@ -73,23 +74,18 @@ def _views_shape(views: int) -> tuple[int, ...]:
 
 def frame_space(scene: SceneOptions, views: int = 1) -> spaces.Box:
     """The frame's space: ``(height, width, channels)`` uint8, ``(views, ...)`` for more views."""
-    channels = 3 if scene.color == "rgb" else 1
-    shape = (*_views_shape(views), scene.height, scene.width, channels)
+    shape = (*_views_shape(views), *scene.frame_shape)
     return spaces.Box(0, 255, shape=shape, dtype=np.uint8)
 
 
 def observation_space(task: TaskSpec, scene: SceneOptions) -> spaces.Dict:
     """A version-2 task's observation space (the table of the module docstring)."""
-    camera = spaces.Box(
-        -VECTOR_BOUND, VECTOR_BOUND, shape=(*_views_shape(task.views), CAMERA_VECTOR_SIZE),
-        dtype=np.float64,
-    )  # fmt: skip
     return spaces.Dict(
         {
             "frame": frame_space(scene, task.views),
             "initial_pose": _vector(N_PARAMS),
             "fixed_params": _vector(len(task.fixed_indices)),
-            "camera": camera,
+            "camera": _vector(*_views_shape(task.views), CAMERA_VECTOR_SIZE),
             "shape": _vector(SHAPE_VECTOR_SIZE),
         }
     )

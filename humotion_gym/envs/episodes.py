@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from humotion_gym.envs.tasks import TASKS, VIEW_VARIANTS, TaskSpec
+from humotion_gym.envs.tasks import VIEW_VARIANTS, TaskSpec, get_task
 from humotion_gym.files import write_text_atomically
 from humotion_gym.mocap.library import MotionLibrary, default_library, synthetic_library
 from humotion_gym.mocap.motion import Motion
@@ -109,9 +109,7 @@ def task_base(task: str) -> str:
 
 def task_spec(task: str) -> TaskSpec:
     """The spec a task's list is cut for: the latest version of its base name."""
-    base = task_base(task)
-    versions = [name for name in TASKS if name.split("-v")[0] == base]
-    return TASKS[max(versions, key=lambda name: int(name.split("-v")[1]))]
+    return get_task(task_base(task))  # a family's name is its current version
 
 
 def window_frames(spec: TaskSpec, frame_skip: int = FRAME_SKIP) -> int:

@@ -92,7 +92,7 @@ _EPISODE_STATE: tuple[str, ...] = (
     "_view_cameras", "_view_figures",
     "_lost_run", "_last_estimate", "_estimate_keypoints", "_estimated", "_k", "_frame", "_done",
     "_ended",
-    "_initial", "_shape_vector", "_camera_vectors",
+    "_initial", "_shape_vector",
     "_warned_after_end",
     "_np_random", "_np_random_seed",
 )  # fmt: skip
@@ -265,7 +265,6 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         )
         n_free = len(self.task.free)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(n_free,), dtype=np.float32)
-        self._free = self.task.free_indices
         self._fixed = self.task.fixed_indices
         self._err_kp = self.task.error_keypoint_indices
         self._region_of = {

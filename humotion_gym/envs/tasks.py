@@ -418,13 +418,12 @@ V2_ELEVATION_DEG = 40.0
 #: a selection of moving arms).
 CURRENT_TASKS: tuple[TaskSpec, ...] = (
     replace(ARM_TRACK, name="ArmTrack-v2", min_motion_mm=0.0),
-    replace(
-        BODY_TRACK, name="BodyTrack-v2", scene=V2_SCENE,
-        camera=replace(BODY_TRACK.camera, elevation_deg=V2_ELEVATION_DEG),
-    ),
-    replace(
-        WALK_TRACK, name="WalkTrack-v2", scene=V2_SCENE,
-        camera=replace(WALK_TRACK.camera, elevation_deg=V2_ELEVATION_DEG),
+    *(
+        replace(
+            task, name=f"{task.family}-v2", scene=V2_SCENE,
+            camera=replace(task.camera, elevation_deg=V2_ELEVATION_DEG),
+        )
+        for task in (BODY_TRACK, WALK_TRACK)
     ),
     replace(SIDE_WALK, name="SideWalk-v2"),
 )  # fmt: skip

@@ -52,7 +52,7 @@ from humotion_gym.body import (
     SHAPE_VECTOR_SIZE,
     pose_geometry_of,
 )
-from humotion_gym.camera import CAMERA_VECTOR_SIZE, fit_cameras
+from humotion_gym.camera import CAMERA_VECTOR_SIZE
 from humotion_gym.checks import check_count, is_integer
 from humotion_gym.envs._batch_info import (
     _add_info,
@@ -60,7 +60,9 @@ from humotion_gym.envs._batch_info import (
     _add_step_info,
     _item,
 )
+from humotion_gym.envs._cameras import place_cameras
 from humotion_gym.envs._checks import action_array
+from humotion_gym.envs.description import action_to_pose
 from humotion_gym.envs.frame_stream import FrameStream, episode_marks, twin_seeds
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv, _scored_info
 from humotion_gym.metrics import StepScores, update_lost_run
@@ -176,15 +178,13 @@ class PoseTrackingVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         assert isinstance(self.single_action_space, spaces.Box)
-        self._free = template.task.free_indices
         self._fixed = template.task.fixed_indices
-        self._err_kp = template.task.error_keypoint_indices
         n, frames = self.num_envs, template.episode_frames + 1
         self._params = np.zeros((n, frames, N_PARAMS))
         self._truth_kp = np.zeros((n, frames, N_KEYPOINTS, 3))
         self._shape_tables = np.zeros((n, SHAPE_TABLE_SIZE))
-        self._lo = np.zeros((n, len(self._free)))
-        self._hi = np.ones((n, len(self._free)))
+        self._lo = np.zeros((n, len(self.task.free)))
+        self._hi = np.ones((n, len(self.task.free)))
         self._k = np.zeros(n, np.intp)
         self._t0 = np.zeros(n, np.intp)
         self._lost_run = np.zeros(n, np.intp)
@@ -250,7 +250,7 @@ class PoseTrackingVectorEnv(VectorEnv):
                 env._begin_episode(
                     seed, env._check_options(options), cameras=False, scene=self._stream is None
                 )
-            self._place_cameras(envs)
+            place_cameras(envs)
             figures: list[FigureSequence | None] = [None] * len(envs)
             if self._stream is None:  # else the frames come drawn from the stream
                 figures = list(self._figures(envs, 0, self._first_figures))
@@ -281,25 +281,6 @@ class PoseTrackingVectorEnv(VectorEnv):
             where = np.array(rows, np.intp)
             self._draw(self._obs, where, self._k[where])
         return infos
-
-    def _place_cameras(self, envs: list[PoseTrackingEnv]) -> None:
-        """Each episode's ``_place_camera``, the camera fits done together.
-
-        :func:`~humotion_gym.camera.fit_cameras` gives each episode the camera
-        :func:`~humotion_gym.camera.fit_camera` gives it alone, bit for bit,
-        in two thirds of the time. The episodes share a task, so each frames
-        as many points (the travel box's corners at every keypoint, or the
-        arm's reach sphere).
-        """
-        spec = self.task.camera
-        requests = [env._camera_request() for env in envs]
-        cameras = fit_cameras(
-            np.stack([points for points, _, _ in requests]), self._scene.width,
-            self._scene.height, spec.fov_deg, [azimuth for _, azimuth, _ in requests],
-            spec.elevation_deg, spec.margin, [pad for _, _, pad in requests],
-        )  # fmt: skip
-        for env, camera, (points, _, _) in zip(envs, cameras, requests, strict=True):
-            env._set_cameras(camera, points)
 
     def _figures(self, envs: list[PoseTrackingEnv], start: int, stop: int) -> list[FigureSequence]:
         """The figures of frames ``start:stop`` of the episodes of ``envs``, in one pass."""
@@ -551,9 +532,9 @@ class PoseTrackingVectorEnv(VectorEnv):
         """
         template = self.envs[0]
         k = self._k
-        a = np.clip(raw.astype(np.float64), -1.0, 1.0)
-        estimate = self._params[self._rows, k]
-        estimate[:, self._free] = self._lo + (a + 1.0) * 0.5 * (self._hi - self._lo)
+        estimate = action_to_pose(
+            self.task, raw, self._params[self._rows, k], bounds=(self._lo, self._hi)
+        )
         keypoints = pose_geometry_of(estimate, self._shape_tables)[:, :N_KEYPOINTS]
         scores = template._scores(keypoints, self._truth_kp[self._rows, k])
         self._lost_run = update_lost_run(

@@ -68,15 +68,10 @@ class WalkTrackViewsEnv(WalkTrackEnv):
         super().__init__(task=task, views=views, **kwargs)
 
 
-BodyTrackViewsEnv.__doc__ = (
-    (BodyTrackViewsEnv.__doc__ or "")
-    + "\n"
-    + VIEWS_PAGE.format(task="BodyTrack-v2", family="BodyTrack")
-    + COMMON_SECTIONS
-)
-WalkTrackViewsEnv.__doc__ = (
-    (WalkTrackViewsEnv.__doc__ or "")
-    + "\n"
-    + VIEWS_PAGE.format(task="WalkTrack-v2", family="WalkTrack")
-    + COMMON_SECTIONS
-)
+for _env in (BodyTrackViewsEnv, WalkTrackViewsEnv):
+    _env.__doc__ = (
+        (_env.__doc__ or "")
+        + "\n"
+        + VIEWS_PAGE.format(task=f"{_env.family}-v2", family=_env.family)
+        + COMMON_SECTIONS
+    )
