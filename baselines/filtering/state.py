@@ -247,6 +247,3 @@ class Likelihood(Protocol):
     def log_likelihood(self, frame: Any, poses: FloatArray) -> FloatArray:
         """``(N,)`` log p(frame | pose) for ``(N, D)`` poses."""
         ...
-
-
-# -- resampling schemes: plain functions of (normalised weights, rng) -> indices

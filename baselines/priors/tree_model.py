@@ -50,7 +50,6 @@ _RELATIVE_PARAMS = (_ROOT_X, _ROOT_Y, _ROOT_Z, _YAW)
 _CHUNK_VALUES = 2_000_000
 # Per-feature variance floor (a parameter that never moves in the database).
 _VARIANCE_FLOOR = 1e-12
-# Descent: bit taken from (node_flags * 2 + wanted bit); flags 1 = only the
 
 # ---------------------------------------------------------------------------
 # Fitted parameters
