@@ -11,9 +11,12 @@ from __future__ import annotations
 import argparse
 import gzip
 import json
+from pathlib import Path
 
 from baselines.cli._args import Settings, add_particles, key_setting, tracked_task
+from humotion_gym.cli import interrupted
 from humotion_gym.cli._common import (
+    CommandError,
     Distinct,
     UsageError,
     add_command,
@@ -32,6 +35,8 @@ from humotion_gym.cli._common import (
 )
 from humotion_gym.files import write_atomically, write_text_atomically
 
+#: The unfinished run in ``--out``: its settings and each task's finished rows.
+PARTIAL = "partial.json.gz"
 #: The likelihoods by default: the agents' own and each oracle at its default noise.
 DEFAULT_ORACLES = ("image", "2d", "2d-unlabelled", "3d")
 
@@ -121,6 +126,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="write results.json.gz (every episode's numbers) and table.md here (default: "
         "print the table only)",
     )  # fmt: skip
+    op.add_argument(
+        "--resume", action="store_true",
+        help="continue the run --out holds (partial.json.gz, written after each agent and "
+        "likelihood): its finished rows are kept, the rest run, with the same numbers as one "
+        "run; the arguments must be the run's own",
+    )  # fmt: skip
     add_json(op, "print what results.json.gz holds, as JSON, instead of the table")
     op.set_defaults(func=_cmd_oracle)
 
@@ -160,6 +171,45 @@ def run_settings(args: argparse.Namespace) -> dict:
     }  # fmt: skip
 
 
+def _saved_rows(args: argparse.Namespace) -> dict[str, list]:
+    """The finished rows per task of the run ``--out`` holds, or none for a new run.
+
+    Raises:
+        UsageError: If ``--out`` holds a run and ``--resume`` is not given, or
+            ``--resume`` finds no unfinished run or one of other settings.
+        CommandError: If the saved run cannot be read.
+    """
+    if args.resume and args.out is None:
+        raise UsageError("--resume: needs --out FOLDER, the run to continue")
+    if args.out is None:
+        return {}
+    partial = args.out / PARTIAL
+    if not args.resume:
+        if partial.exists():
+            raise UsageError(
+                f"--out: {args.out} holds an unfinished oracle run ({PARTIAL}); add --resume "
+                "to continue it, or choose another folder"
+            )
+        check_fresh_output(args.out, ["results.json.gz", "table.md"], "an oracle run")
+        return {}
+    if (args.out / "results.json.gz").exists():
+        raise UsageError(f"--resume: {args.out} holds a finished oracle run (results.json.gz)")
+    if not partial.exists():
+        raise UsageError(f"--resume: {args.out} holds no oracle run to continue ({PARTIAL})")
+    unreadable = (OSError, EOFError, ValueError, KeyError, TypeError)
+    with refused_as(CommandError, unreadable, f"--resume: {partial}: "):
+        saved = json.loads(gzip.decompress(partial.read_bytes()))
+        rows, old = dict(saved["rows"]), saved["settings"]
+    new = run_settings(args)
+    differ = sorted(k for k in old.keys() | new.keys() if old.get(k) != new.get(k))
+    if differ:
+        raise UsageError(
+            f"--resume: {args.out} holds a run of other settings ({', '.join(differ)}: "
+            f"{', '.join(repr(old.get(k)) for k in differ)}); give them, or start another --out"
+        )
+    return rows
+
+
 def _cmd_oracle(args: argparse.Namespace) -> int:
     from baselines.diagnostics.split import (
         SettingsError,
@@ -172,8 +222,7 @@ def _cmd_oracle(args: argparse.Namespace) -> int:
     if args.declared and args.split == "validation":
         raise UsageError("--declared: the declared windows are the test persons'; drop --split")
     oracles = _oracles(args)
-    if args.out is not None:
-        check_fresh_output(args.out, ["results.json.gz", "table.md"], "an oracle run")
+    saved = _saved_rows(args)
     settings = dict(args.set)
     kwargs = env_kwargs(args)
     if args.split == "validation":
@@ -185,27 +234,30 @@ def _cmd_oracle(args: argparse.Namespace) -> int:
         # every task's agents made first: one a later task refuses stops the run at once
         for task in args.task:
             check_agents(task, args.agents, args.particles, args.seed, kwargs, settings)
+    try:
         for task in args.task:
+            rows = saved.setdefault(task, [])
             result = run_split(
-                task,
-                args.agents,
-                oracles,
-                args.particles,
-                episodes=args.episodes,
-                declared=args.declared,
-                seed=args.seed,
-                agent_seeds=args.agent_seeds,
-                env_kwargs=kwargs,
-                settings=settings,
+                task, args.agents, oracles, args.particles, episodes=args.episodes,
+                declared=args.declared, seed=args.seed, agent_seeds=args.agent_seeds,
+                env_kwargs=kwargs, settings=settings, done=rows,
+                on_row=lambda row, rows=rows: _save_row(args, saved, rows, row),
             )  # fmt: skip
             results.append(result)
+    except KeyboardInterrupt as exc:
+        where = ""
+        if args.out is not None and saved:
+            where = (
+                f"; the finished rows are saved in {args.out / PARTIAL}; to finish the run, "
+                "give the same command with --resume"
+            )
+        return interrupted(exc, "humotion-gym oracle", where)
     table = markdown_report(results)
     data = {"settings": run_settings(args), "results": [compact(r) for r in results]}
     if args.out is not None:
-        text = json.dumps(data, separators=(",", ":")).encode()
-        packed = gzip.compress(text, mtime=0)
-        write_atomically(args.out / "results.json.gz", lambda tmp: tmp.write_bytes(packed))
+        _write_gzip_json(args.out / "results.json.gz", data)
         write_text_atomically(args.out / "table.md", table)
+        (args.out / PARTIAL).unlink(missing_ok=True)
         if not args.json:
             wrote(args.out / "results.json.gz", "every episode's numbers")
             wrote(args.out / "table.md")
@@ -214,3 +266,20 @@ def _cmd_oracle(args: argparse.Namespace) -> int:
     else:
         print(table, end="")
     return 0
+
+
+def _save_row(args: argparse.Namespace, saved: dict[str, list], rows: list, row: dict) -> None:
+    """Add a finished row to ``saved`` and, with ``--out``, save the unfinished run.
+
+    The rows keep every number at full precision, so a resumed run writes
+    what one uninterrupted run would.
+    """
+    rows.append(row)
+    if args.out is not None:
+        _write_gzip_json(args.out / PARTIAL, {"settings": run_settings(args), "rows": saved})
+
+
+def _write_gzip_json(path: Path, data: dict) -> None:
+    """``data`` as compact JSON, gzipped with no time stamp, written atomically."""
+    packed = gzip.compress(json.dumps(data, separators=(",", ":")).encode(), mtime=0)
+    write_atomically(path, lambda tmp: tmp.write_bytes(packed))

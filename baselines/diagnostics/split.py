@@ -163,6 +163,7 @@ def run_split(
     progress: bool = True,
     on_row: Callable[[dict[str, Any]], None] | None = None,
     settings: Mapping[str, float | str] | None = None,
+    done: Sequence[Mapping[str, Any]] = (),
 ) -> dict[str, Any]:
     """Every agent with every likelihood on one task's episodes, and ``hold``.
 
@@ -181,6 +182,9 @@ def run_split(
         on_row: Called with each finished row (to save partial results).
         settings: Overrides of every agent's settings: ``fit.NAME`` its prior's,
             ``filter.NAME`` its filter's (as ``humotion-gym select``'s grid names them).
+        done: Rows an interrupted run of the same arguments finished (as ``on_row``
+            gave them), kept as they are: every row tracks its episodes with its
+            own agents and oracle seeds, so the rest come out as in one run.
 
     Returns:
         ``{"task", "particles", "seed", "agent_seeds", "declared", "windows",
@@ -189,7 +193,8 @@ def run_split(
         (hold's mean error over the row's) and ``"episodes"``.
 
     Raises:
-        ValueError: If a count is below 1 or an agent is not a particle filter.
+        ValueError: If a count is below 1, an agent is not a particle filter or
+            ``done`` is not the first rows of this run.
         SettingsError: If a setting is not ``fit.NAME`` or ``filter.NAME`` of every
             agent (checked before any episode runs).
     """
@@ -210,11 +215,14 @@ def run_split(
     names = [a for a in agents if a != "hold"]
     build = _builder(env, names, particles, seed, settings or {})
     runs = [("hold", None)] + [(a, o) for a in names for o in oracles]
-    rows: list[dict[str, Any]] = []
+    rows = _done_rows(task, done, runs, len(windows), agent_seeds)
     total = len(windows) * (1 + len(names) * len(oracles) * agent_seeds)
-    bar = tqdm(total=total, desc=f"oracle {task}: episodes", disable=not progress)
+    bar = tqdm(
+        total=total, initial=sum(len(r["episodes"]) for r in rows),
+        desc=f"oracle {task}: episodes", disable=not progress,
+    )  # fmt: skip
     with bar, single_threaded_blas():
-        for name, oracle in runs:
+        for name, oracle in runs[len(rows) :]:
             eps = []
             for agent_seed in range(seed, seed + (1 if name == "hold" else agent_seeds)):
                 agent = build(name, agent_seed)
@@ -241,6 +249,33 @@ def run_split(
         "task": task, "particles": particles, "seed": seed, "agent_seeds": agent_seeds,
         "declared": declared, "windows": len(windows), "declared_windows": listed, "rows": rows,
     }  # fmt: skip
+
+
+def _done_rows(
+    task: str,
+    done: Sequence[Mapping[str, Any]],
+    runs: Sequence[tuple[str, OracleSettings | None]],
+    windows: int,
+    agent_seeds: int,
+) -> list[dict[str, Any]]:
+    """``done`` checked to be the first rows of ``runs``, as fresh dicts.
+
+    Raises:
+        ValueError: Naming the first row that is not this run's.
+    """
+    if len(done) > len(runs):
+        raise ValueError(f"done: {len(done)} rows of {task}, but this run has {len(runs)}")
+    for k, (row, (name, oracle)) in enumerate(zip(done, runs[: len(done)], strict=True)):
+        want = (name, "none" if name == "hold" else _label(oracle))
+        count = windows * (1 if name == "hold" else agent_seeds)
+        got = (row.get("agent"), row.get("likelihood"))
+        if got != want or len(row.get("episodes", ())) != count:
+            raise ValueError(
+                f"done: row {k + 1} of {task} is {got[0]} with {got[1]} "
+                f"({len(row.get('episodes', ()))} episodes), but this run's is {want[0]} "
+                f"with {want[1]} ({count} episodes)"
+            )
+    return [dict(row) for row in done]
 
 
 def check_agents(

@@ -1,0 +1,110 @@
+"""``humotion-gym oracle --resume``: an interrupted run finishes with one run's numbers."""
+
+import gzip
+import json
+
+import pytest
+
+import baselines.diagnostics.split as split
+from baselines.cli import main
+from baselines.cli.oracle import PARTIAL
+from baselines.diagnostics.split import run_split
+
+# Two tasks of three rows each (hold, pf-cv with its image likelihood, pf-cv with the
+# 3D oracle), one declared window per row: six episodes in all.
+ARGS = ["oracle", "--task", "BodyTrack-v2", "ArmTrack-v2", "--agents", "pf-cv",
+        "--particles", "5", "--declared", "--episodes", "1", "--oracles", "image", "3d"]  # fmt: skip
+
+
+def _count_episodes(monkeypatch, stop_at=None):
+    """Count diagnose_episode's calls; raise KeyboardInterrupt at call ``stop_at``."""
+    calls = []
+    real = split.diagnose_episode
+
+    def counted(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == stop_at:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(split, "diagnose_episode", counted)
+    return calls
+
+
+@pytest.fixture(scope="module")
+def one_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("one_run")
+    assert main([*ARGS, "--out", str(out)]) == 0
+    return out
+
+
+def test_an_interrupted_run_resumes_to_the_bytes_of_one_run(one_run, tmp_path, monkeypatch, capsys):
+    out = tmp_path / "run"
+    _count_episodes(monkeypatch, stop_at=5)  # in the second task's second row
+    assert main([*ARGS, "--out", str(out)]) == 130
+    err = capsys.readouterr().err
+    assert "interrupted" in err and "--resume" in err and str(out / PARTIAL) in err
+    assert not (out / "results.json.gz").exists() and (out / PARTIAL).exists()
+    saved = json.loads(gzip.decompress((out / PARTIAL).read_bytes()))
+    assert {task: len(rows) for task, rows in saved["rows"].items()} == {
+        "BodyTrack-v2": 3,
+        "ArmTrack-v2": 1,
+    }
+
+    calls = _count_episodes(monkeypatch)
+    assert main([*ARGS, "--out", str(out), "--resume"]) == 0
+    assert len(calls) == 2  # only the two rows the interrupted run did not finish
+    for name in ("results.json.gz", "table.md"):
+        assert (out / name).read_bytes() == (one_run / name).read_bytes(), name
+    assert not (out / PARTIAL).exists()
+
+
+def _partial(out, argv=ARGS):
+    """A run of ``argv`` into ``out`` interrupted in its first task's second row."""
+    with pytest.MonkeyPatch.context() as mp:
+        _count_episodes(mp, stop_at=2)
+        assert main([*argv, "--out", str(out)]) == 130
+
+
+@pytest.mark.parametrize(
+    ("setup", "extra", "code", "message"),
+    [
+        (None, ["--resume"], 2, "--resume: needs --out FOLDER"),
+        ("empty", ["--resume"], 2, "holds no oracle run to continue"),
+        ("partial", [], 2, "holds an unfinished oracle run (partial.json.gz); add --resume"),
+        ("partial", ["--resume", "--seed", "3"], 2, "holds a run of other settings (seed: 0)"),
+        ("finished", ["--resume"], 2, "holds a finished oracle run"),
+        ("finished", [], 2, "already holds an oracle run"),
+        ("corrupt", ["--resume"], 1, f"--resume: {{out}}/{PARTIAL}: "),
+    ],
+    ids=["no-out", "nothing-saved", "no-resume", "other-settings", "finished", "fresh", "corrupt"],
+)
+def test_what_resume_refuses_is_one_line(tmp_path, capsys, one_run, setup, extra, code, message):
+    out = one_run if setup == "finished" else tmp_path / "run"
+    if setup == "partial":
+        _partial(out)
+    elif setup == "corrupt":
+        out.mkdir()
+        (out / PARTIAL).write_bytes(b"\x1f\x8b not gzip")
+    elif setup == "empty":
+        out.mkdir()
+    capsys.readouterr()
+    argv = [*ARGS, *extra] + ([] if setup is None else ["--out", str(out)])
+    assert main(argv) == code
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and message.format(out=out) in err, err
+
+
+def test_run_split_refuses_rows_of_another_run():
+    kwargs = dict(particles=5, episodes=1, declared=True, progress=False)
+    rows = []
+    run_split("ArmTrack-v2", ["hold"], [None], on_row=rows.append, **kwargs)
+    with pytest.raises(ValueError, match="row 1 of ArmTrack-v2 is pf-cv with none"):
+        run_split("ArmTrack-v2", ["hold"], [None], done=[{**rows[0], "agent": "pf-cv"}], **kwargs)
+    with pytest.raises(ValueError, match=r"\(2 episodes\), but this run's is hold .* \(1 episodes"):
+        doubled = {**rows[0], "episodes": rows[0]["episodes"] * 2}
+        run_split("ArmTrack-v2", ["hold"], [None], done=[doubled], **kwargs)
+    with pytest.raises(ValueError, match="done: 2 rows of ArmTrack-v2, but this run has 1"):
+        run_split("ArmTrack-v2", ["hold"], [None], done=rows * 2, **kwargs)
+    again = run_split("ArmTrack-v2", ["hold"], [None], done=rows, **kwargs)
+    assert again["rows"] == rows
