@@ -29,7 +29,7 @@ from baselines.leaderboard.run import run_leaderboard
 from baselines.leaderboard.stats import bootstrap_ci, iqm
 from baselines.leaderboard.videos import file_slug
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
-from humotion_gym.files import write_text_atomically
+from humotion_gym.files import json_default, write_text_atomically
 from humotion_gym.render import SceneOptions
 
 #: Sweep format version (``sweep.json``'s ``version``).
@@ -316,7 +316,7 @@ def figure(
 def save(sweep: Mapping[str, Any], path: str | Path) -> Path:
     """Write the sweep as JSON."""
     path = Path(path)
-    write_text_atomically(path, json.dumps(sweep, indent=1, default=_plain))
+    write_text_atomically(path, json.dumps(sweep, indent=1, default=json_default))
     return path
 
 
@@ -330,11 +330,3 @@ def load(path: str | Path) -> dict[str, Any]:
     if not isinstance(data, dict) or data.get("version") != VERSION or "points" not in data:
         raise ValueError(f"{path}: not a sweep file of version {VERSION}")
     return data
-
-
-def _plain(value: Any) -> Any:
-    if hasattr(value, "tolist"):
-        return value.tolist()
-    if isinstance(value, Path):
-        return str(value)
-    raise TypeError(f"not JSON-serialisable: {type(value).__name__}")

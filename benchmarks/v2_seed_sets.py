@@ -15,19 +15,13 @@ bound of its ``x hold`` interval is at least 2.
 from __future__ import annotations
 
 import argparse
-import gzip
-import json
 from pathlib import Path
 from typing import Any
 
 from baselines.leaderboard.evaluation import summarize
 from baselines.leaderboard.tables import validity_lines
 from humotion_gym.cli._common import int_at_least
-
-
-def _load(path: Path) -> dict[str, Any]:
-    raw = path.read_bytes()
-    return json.loads(gzip.decompress(raw) if path.suffix == ".gz" else raw)
+from humotion_gym.files import read_json
 
 
 def seed_set_rows(rows: list[dict[str, Any]], seeds: list[int]) -> list[dict[str, Any]]:
@@ -67,7 +61,7 @@ def main() -> None:
     parser.add_argument("--set-size", type=int_at_least(1), default=5)
     args = parser.parse_args()
     try:
-        rows = _load(args.results)["rows"]
+        rows = read_json(args.results)["rows"]
         seeds = agent_seeds(rows, args.results, args.set_size)
     except (OSError, ValueError, KeyError, TypeError) as exc:
         parser.exit(1, f"v2_seed_sets: {exc}\n")

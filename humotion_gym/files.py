@@ -1,21 +1,26 @@
-"""Files written whole or not at all, and ``.npz`` archives read without pickle.
+"""Files written whole or not at all, JSON documents, and ``.npz`` archives read without pickle.
 
 Every file the project writes for later reading (cache entries, fitted
 priors, leaderboard results, figures, videos, download manifests) goes
 through :func:`write_atomically`, so that a reader, a second process or a
 Ctrl-C in the middle never leaves a cut file where a whole one is expected.
-Every ``.npz`` it reads back (cache entries, priors, detector weights) is
-opened by :func:`load_npz`.
+JSON documents, gzipped where the name ends in ``.gz``, are read by
+:func:`read_json` and written gzipped by :func:`write_json_gz`, with numpy
+values and paths made plain by :func:`json_default`. Every ``.npz`` it reads
+back (cache entries, priors, detector weights) is opened by :func:`load_npz`.
 """
 
 from __future__ import annotations
 
 import contextlib
+import gzip
+import json
 import os
 import uuid
+import zlib
 from collections.abc import Callable
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 import numpy as np
 
@@ -70,6 +75,47 @@ def write_text_atomically(path: str | Path, text: str) -> None:
             os.fsync(fh.fileno())
 
     write_atomically(path, write)
+
+
+def json_default(value: Any) -> Any:
+    """``json.dumps``' ``default``: numpy scalars and arrays as lists and numbers, paths as text.
+
+    Raises:
+        TypeError: For any other type, naming it.
+    """
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"not JSON-serialisable: {type(value).__name__}")
+
+
+def read_json(path: str | Path) -> Any:
+    """A JSON document, gzipped when the name ends in ``.gz``.
+
+    Raises:
+        OSError: If the file cannot be read.
+        ValueError: If it is not (gzipped) JSON; the message names the file.
+    """
+    path = Path(path)
+    try:
+        raw = gzip.decompress(path.read_bytes()) if path.suffix == ".gz" else path.read_bytes()
+        return json.loads(raw)
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: not JSON ({exc})") from None
+    except (gzip.BadGzipFile, EOFError, zlib.error) as exc:  # EOFError: cut short
+        raise ValueError(f"{path}: not gzipped JSON ({exc})") from None
+
+
+def write_json_gz(path: str | Path, document: Any) -> None:
+    """``document`` as compact JSON, gzipped, through :func:`write_atomically`.
+
+    The gzip header carries no time, so the same document gives the same
+    bytes (a rerun's file compares equal to the recorded one).
+    """
+    text = json.dumps(document, separators=(",", ":"), default=json_default)
+    packed = gzip.compress(text.encode(), compresslevel=9, mtime=0)
+    write_atomically(path, lambda tmp: tmp.write_bytes(packed))
 
 
 #: The first bytes of a zip archive (an ``.npz``; the second, an empty one) and of a ``.npy``.

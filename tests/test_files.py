@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 
 from humotion_gym import video
-from humotion_gym.files import write_atomically, write_text_atomically
+from humotion_gym.files import (
+    json_default,
+    read_json,
+    write_atomically,
+    write_json_gz,
+    write_text_atomically,
+)
 
 
 def _cut(after: int, exc: BaseException):
@@ -104,3 +110,37 @@ def test_a_long_name_is_written_and_errors_name_the_file_asked_for(tmp_path: Pat
     with pytest.raises(PermissionError) as caught:
         write_atomically(tmp_path / "b.json", refused)
     assert caught.value.filename == str(tmp_path / "b.json")
+
+
+def test_a_json_document_round_trips_gzipped_to_the_same_bytes(tmp_path: Path) -> None:
+    doc = {"a": np.float64(0.1), "b": np.arange(3), "c": tmp_path, "d": [1.5, None]}
+    first, second = tmp_path / "one.json.gz", tmp_path / "two.json.gz"
+    write_json_gz(first, doc)
+    write_json_gz(second, doc)
+    assert first.read_bytes() == second.read_bytes()  # no time in the gzip header
+    assert read_json(first) == {"a": 0.1, "b": [0, 1, 2], "c": str(tmp_path), "d": [1.5, None]}
+    (tmp_path / "plain.json").write_text('{"x": 1}')
+    assert read_json(tmp_path / "plain.json") == {"x": 1}
+
+
+@pytest.mark.parametrize(
+    ("name", "data", "said"),
+    [
+        ("cut.json.gz", b"\x1f\x8b\x08\x00", "not gzipped JSON"),
+        ("text.json.gz", b"{}", "not gzipped JSON"),
+        ("bad.json", b"{nope", "not JSON"),
+        ("latin.json", b"\xff", "not JSON"),
+    ],
+)
+def test_a_file_that_is_not_json_is_a_value_error_naming_it(
+    tmp_path: Path, name: str, data: bytes, said: str
+) -> None:
+    (tmp_path / name).write_bytes(data)
+    with pytest.raises(ValueError, match=f"{name}: {said}"):
+        read_json(tmp_path / name)
+
+
+def test_json_default_names_what_it_cannot_write() -> None:
+    assert json_default(np.int64(3)) == 3 and json_default(Path("a/b")) == "a/b"
+    with pytest.raises(TypeError, match="not JSON-serialisable: set"):
+        json_default({1})

@@ -46,7 +46,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _cmd_compare(args: argparse.Namespace) -> int:
     from baselines.diagnostics.split import episode_rows
     from baselines.leaderboard.compare import compare_runs
-    from baselines.leaderboard.report import leaderboard_rows, read_json
+    from baselines.leaderboard.report import leaderboard_rows
+    from humotion_gym.files import read_json
 
     runs, seeds = [], []
     for path in (args.rerun, args.recorded):

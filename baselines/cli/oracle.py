@@ -9,9 +9,6 @@ r"""``humotion-gym oracle``: each agent's error with its image likelihood and wi
 from __future__ import annotations
 
 import argparse
-import gzip
-import json
-from pathlib import Path
 
 from baselines.cli._args import Settings, add_particles, key_setting, tracked_task
 from humotion_gym.cli import interrupted
@@ -33,7 +30,7 @@ from humotion_gym.cli._common import (
     refused_as,
     wrote,
 )
-from humotion_gym.files import write_atomically, write_text_atomically
+from humotion_gym.files import read_json, write_json_gz, write_text_atomically
 
 #: The unfinished run in ``--out``: its settings and each task's finished rows.
 PARTIAL = "partial.json.gz"
@@ -196,9 +193,8 @@ def _saved_rows(args: argparse.Namespace) -> dict[str, list]:
         raise UsageError(f"--resume: {args.out} holds a finished oracle run (results.json.gz)")
     if not partial.exists():
         raise UsageError(f"--resume: {args.out} holds no oracle run to continue ({PARTIAL})")
-    unreadable = (OSError, EOFError, ValueError, KeyError, TypeError)
-    with refused_as(CommandError, unreadable, f"--resume: {partial}: "):
-        saved = json.loads(gzip.decompress(partial.read_bytes()))
+    with refused_as(CommandError, (OSError, ValueError, KeyError, TypeError), "--resume: "):
+        saved = read_json(partial)
         rows, old = dict(saved["rows"]), saved["settings"]
     new = run_settings(args)
     differ = sorted(k for k in old.keys() | new.keys() if old.get(k) != new.get(k))
@@ -255,7 +251,7 @@ def _cmd_oracle(args: argparse.Namespace) -> int:
     table = markdown_report(results)
     data = {"settings": run_settings(args), "results": [compact(r) for r in results]}
     if args.out is not None:
-        _write_gzip_json(args.out / "results.json.gz", data)
+        write_json_gz(args.out / "results.json.gz", data)
         write_text_atomically(args.out / "table.md", table)
         (args.out / PARTIAL).unlink(missing_ok=True)
         if not args.json:
@@ -276,10 +272,4 @@ def _save_row(args: argparse.Namespace, saved: dict[str, list], rows: list, row:
     """
     rows.append(row)
     if args.out is not None:
-        _write_gzip_json(args.out / PARTIAL, {"settings": run_settings(args), "rows": saved})
-
-
-def _write_gzip_json(path: Path, data: dict) -> None:
-    """``data`` as compact JSON, gzipped with no time stamp, written atomically."""
-    packed = gzip.compress(json.dumps(data, separators=(",", ":")).encode(), mtime=0)
-    write_atomically(path, lambda tmp: tmp.write_bytes(packed))
+        write_json_gz(args.out / PARTIAL, {"settings": run_settings(args), "rows": saved})

@@ -34,10 +34,8 @@ reinforcement learning at the edge of the statistical precipice*, NeurIPS 2021
 
 from __future__ import annotations
 
-import gzip
 import html
 import json
-import zlib
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -62,7 +60,7 @@ from baselines.leaderboard.tables import (
     validity_lines,
 )
 from baselines.leaderboard.videos import remove_earlier_videos, write_videos
-from humotion_gym.files import write_text_atomically
+from humotion_gym.files import json_default, read_json, write_text_atomically
 
 #: The reference each task's scores are normalised by.
 REFERENCE = "hold"
@@ -86,23 +84,6 @@ PERSON_LEGEND = (
 
 
 # ------------------------------------------------------------------ input
-
-
-def read_json(path: str | Path) -> Any:
-    """A JSON document, gzipped when the name ends in ``.gz``.
-
-    Raises:
-        OSError: If the file cannot be read.
-        ValueError: If it is not (gzipped) JSON; the message names the file.
-    """
-    path = Path(path)
-    try:
-        raw = gzip.decompress(path.read_bytes()) if path.suffix == ".gz" else path.read_bytes()
-        return json.loads(raw)
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: not JSON ({exc})") from None
-    except (gzip.BadGzipFile, EOFError, zlib.error) as exc:  # EOFError: cut short
-        raise ValueError(f"{path}: not gzipped JSON ({exc})") from None
 
 
 def load_rows(path: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
@@ -572,7 +553,9 @@ def write_report(
     else:  # an earlier report's videos: no longer on the page
         remove_earlier_videos(folder)
     computed = compute(rows, seed=seed)
-    write_text_atomically(folder / "stats.json", json.dumps(computed, indent=1, default=_plain))
+    write_text_atomically(
+        folder / "stats.json", json.dumps(computed, indent=1, default=json_default)
+    )
     write_text_atomically(folder / "tables.md", markdown_report(rows, computed))
     notes: list[str] = []
     figures: dict[str, str] = {}
@@ -585,10 +568,3 @@ def write_report(
     files = [f for f in ("results.json", "table.md", "episodes.jsonl") if (folder / f).is_file()]
     write_text_atomically(index, html_page(rows, computed, figures, made, notes, title, files, run))
     return index
-
-
-def _plain(value: Any) -> Any:
-    """A numpy scalar or array as plain JSON: ``json.dumps``' default for the leaderboard files."""
-    if hasattr(value, "tolist"):
-        return value.tolist()
-    raise TypeError(f"not JSON-serialisable: {type(value).__name__}")

@@ -10,7 +10,6 @@ docs/leaderboard.md), ``table.md`` and the report
 from __future__ import annotations
 
 import datetime
-import gzip
 import json
 import os
 import subprocess
@@ -21,9 +20,9 @@ from typing import Any
 
 from baselines.leaderboard.figures import figures_available
 from baselines.leaderboard.platform_info import run_platform
-from baselines.leaderboard.report import _plain, write_report
+from baselines.leaderboard.report import write_report
 from baselines.leaderboard.tables import markdown_table, validity_lines
-from humotion_gym.files import write_atomically, write_text_atomically
+from humotion_gym.files import json_default, read_json, write_json_gz, write_text_atomically
 from humotion_gym.mocap.library import configured_data_dirs, package_version
 
 #: The version of ``results.json``'s layout (docs/leaderboard.md describes it);
@@ -171,7 +170,7 @@ class ResultsFolder:
 
     def append(self, record: dict[str, Any]) -> None:
         """Append one record as one line, with one ``write`` (a line is whole or absent)."""
-        line = (json.dumps(record, default=_plain) + "\n").encode()
+        line = (json.dumps(record, default=json_default) + "\n").encode()
         fd = os.open(self.episodes_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
         try:
             os.write(fd, line)
@@ -284,12 +283,12 @@ def source_commit() -> str | None:
 
 def _jsonable(value: Any) -> Any:
     """Plain JSON values (tuples to lists, numpy scalars to numbers) for comparison and writing."""
-    return json.loads(json.dumps(value, default=_plain))
+    return json.loads(json.dumps(value, default=json_default))
 
 
 def save(rows: Sequence[dict[str, Any]], path: str | Path) -> None:
     """Write the rows as JSON."""
-    write_text_atomically(path, json.dumps(list(rows), indent=1, default=_plain))
+    write_text_atomically(path, json.dumps(list(rows), indent=1, default=json_default))
 
 
 #: Per-frame series the repository keeps to the whole millimetre: figures draw
@@ -317,9 +316,11 @@ def compact(source: str | Path, target: str | Path, digits: int = 7) -> None:
         target: The ``.json.gz`` to write (the gzip header carries no time, so
             the same document gives the same bytes).
         digits: Significant digits kept of every float outside the series.
+
+    Raises:
+        ValueError: If ``source`` is not (gzipped) JSON, naming it.
     """
-    raw = Path(source).read_bytes()
-    document = json.loads(gzip.decompress(raw) if str(source).endswith(".gz") else raw)
+    document = read_json(source)
 
     def rounded(value: Any, key: str = "") -> Any:
         if isinstance(value, float):
@@ -332,6 +333,4 @@ def compact(source: str | Path, target: str | Path, digits: int = 7) -> None:
             return {k: rounded(v, k) for k, v in value.items() if k not in DROPPED_KEYS}
         return value
 
-    text = json.dumps(rounded(document), separators=(",", ":"))
-    packed = gzip.compress(text.encode(), compresslevel=9, mtime=0)
-    write_atomically(target, lambda tmp: tmp.write_bytes(packed))
+    write_json_gz(target, rounded(document))

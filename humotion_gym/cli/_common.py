@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from humotion_gym.envs._checks import FPS_RANGE
-from humotion_gym.files import write_text_atomically
+from humotion_gym.files import json_default, write_text_atomically
 from humotion_gym.render_scene import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
 
 
@@ -525,13 +525,6 @@ def report(args: argparse.Namespace, result: Any, what: str, text: Callable[[], 
     return 0
 
 
-def _plain(value: Any) -> Any:
-    # numpy values never get here: _finite made them plain first
-    if isinstance(value, Path):
-        return str(value)
-    raise TypeError(f"not JSON-serialisable: {type(value).__name__}")
-
-
 def _finite(value: Any) -> Any:
     """``value`` with numpy values made plain and every NaN or infinity made None (null)."""
     if hasattr(value, "tolist"):
@@ -551,7 +544,7 @@ def json_text(obj: Any, indent: int | None = None) -> str:
     Python's ``json`` would write ``NaN``, which JSON does not have and strict
     parsers refuse.
     """
-    return json.dumps(_finite(obj), default=_plain, indent=indent, allow_nan=False)
+    return json.dumps(_finite(obj), default=json_default, indent=indent, allow_nan=False)
 
 
 def print_json(obj: Any) -> None:
