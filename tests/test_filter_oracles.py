@@ -13,13 +13,18 @@ import pytest
 from scipy.special import logsumexp
 
 from baselines.filtering import (
+    AnnealedParticleFilter,
     ParticleFilter,
     ParticleState,
+    PartitionedParticleFilter,
+    Stage,
     systematic_resample,
     temper_for_survival,
 )
+from baselines.filtering.search import LocalSearch, SearchParticleFilter
 from baselines.priors import tree
 from humotion_gym.mocap.library import synthetic_library
+from tests.filter_toys import RandomWalk
 
 ARM = np.array([9, 10, 11, 12])  # right shoulder and elbow: the arm task's free parameters
 
@@ -152,3 +157,56 @@ def test_log_evidence_is_the_kalman_filters_marginal_likelihood() -> None:
     # 0.029 (largest miss 0.068): 0.15 is five deviations.
     assert pf.log_evidence == pytest.approx(log_z, abs=0.15)
     assert log_z < -5  # a figure far from 0, so a filter that adds nothing fails
+
+
+class _Flat:
+    """Test-only likelihood: every pose (and part) scores 0; ``n`` scores when ``n`` is set."""
+
+    def __init__(self, n: int | None = None):
+        self.n = n
+
+    def log_likelihood(self, frame, poses):
+        return np.zeros(self.n if self.n is not None else len(poses))
+
+    def log_likelihood_partial(self, frame, poses, groups):
+        return np.zeros((self.n if self.n is not None else len(poses), len(groups) + 1))
+
+
+class _Shrinking(RandomWalk):
+    """Test-only prior whose transition loses a particle."""
+
+    def transition(self, fitted, state, rng):
+        moved = super().transition(fitted, state, rng)
+        return ParticleState(moved.pose[:-1])
+
+
+def _filters(prior, likelihood):
+    stages = [Stage(np.arange(0, 2), (0, 1)), Stage(np.arange(2, 3), (2,))]
+    return [
+        ParticleFilter(prior, None, likelihood, 20),
+        AnnealedParticleFilter(prior, None, likelihood, 20, layers=2),
+        PartitionedParticleFilter(prior, None, likelihood, 20, stages),
+        SearchParticleFilter(prior, None, likelihood, 20, LocalSearch()),
+    ]
+
+
+@pytest.mark.parametrize("k", range(4), ids=["plain", "annealed", "partitioned", "search"])
+def test_every_filter_refuses_a_step_it_cannot_weigh(k: int) -> None:
+    """Before reset, a likelihood of the wrong length, a prior that drops particles:
+    each a clear error naming what was wrong, from every filter's step."""
+    fresh = _filters(RandomWalk(0.1), _Flat())[k]
+    with pytest.raises(RuntimeError, match=rf"{type(fresh).__name__}\.step\(\) called before"):
+        fresh.step(None)
+    cases = [
+        (
+            RandomWalk(0.1),
+            _Flat(n=7),
+            r"log_likelihood(_partial)? returned shape \(7,( 3)?\), expected \(20,",
+        ),
+        (_Shrinking(0.1), _Flat(), "prior.transition returned 19 particles, expected 20"),
+    ]
+    for prior, likelihood, said in cases:
+        f = _filters(prior, likelihood)[k]
+        f.reset(np.zeros(3), np.random.default_rng(0))
+        with pytest.raises(ValueError, match=said):
+            f.step(None)

@@ -125,10 +125,14 @@ class ParticleFilter:
 
         Raises:
             RuntimeError: Before :meth:`reset`, naming the filter's class.
+            ValueError: If the prior returns another number of particles.
         """
         if self.state is None or self.log_weights is None or self._rng is None:
             raise RuntimeError(f"{type(self).__name__}.step() called before reset()")
-        return self.prior.transition(self.fitted, self.state, self._rng), self._rng
+        state = self.prior.transition(self.fitted, self.state, self._rng)
+        if state.n != self.n:
+            raise ValueError(f"prior.transition returned {state.n} particles, expected {self.n}")
+        return state, self._rng
 
     def _scores(self, frame: Any, pose: FloatArray, bounds: Bounds | None = None) -> FloatArray:
         """``(M,)`` log-likelihoods of ``(M, D)`` poses, ``-inf`` for NaN.
