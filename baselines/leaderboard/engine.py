@@ -41,7 +41,9 @@ import importlib
 import logging
 import os
 import pickle
+import signal
 import sys
+import threading
 import time
 import traceback
 from collections import OrderedDict, deque
@@ -481,6 +483,24 @@ class _Schedule:
         return episode
 
 
+def _keeping_sigterm(call: Callable[[], Any]) -> None:
+    """Run ``call`` (``ray.init``, ``ray.shutdown``), then give SIGTERM back to the program.
+
+    ``ray.init`` puts its C++ failure handler on SIGTERM in the driver, which
+    prints a stack dump and kills the process, and ``ray.shutdown`` resets it
+    to the default, which kills it silently: a handler the program set (the
+    console scripts' :class:`~humotion_gym.cli.Terminated`, which saves the
+    run and exits 143 in one line) would never run. Without one, Ray's stays.
+    """
+    main = threading.current_thread() is threading.main_thread()
+    previous = signal.getsignal(signal.SIGTERM) if main else None
+    try:
+        call()
+    finally:
+        if callable(previous):
+            signal.signal(signal.SIGTERM, previous)
+
+
 class RayEngine:
     """Runs episodes on Ray actors, one :class:`EpisodeRunner` each.
 
@@ -560,12 +580,14 @@ class RayEngine:
         if address:
             check_ray_address(address)
             self.started = True
-            ray.init(address=address, **common)
+            _keeping_sigterm(lambda: ray.init(address=address, **common))
             return True
         # "local": a Ray of this run's own, even beside a `ray start` cluster
         cpus = _at_most(workers or os.cpu_count() or 1, jobs)
         self.started = True
-        ray.init(address="local", num_cpus=cpus, include_dashboard=False, **common)
+        _keeping_sigterm(
+            lambda: ray.init(address="local", num_cpus=cpus, include_dashboard=False, **common)
+        )
         return False
 
     def start(self, fits: Fits, agents: Collection[str] = ()) -> None:
@@ -664,7 +686,7 @@ class RayEngine:
         self.actors = []
         if self.started:
             self.started = False
-            self.ray.shutdown()
+            _keeping_sigterm(self.ray.shutdown)
 
 
 def _at_most(wanted: int, jobs: int | None) -> int:

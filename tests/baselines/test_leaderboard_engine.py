@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import pickle
+import signal
 import socket
 from pathlib import Path
 from typing import Any
@@ -24,6 +25,7 @@ from baselines.leaderboard import (
     run_leaderboard,
 )
 from baselines.leaderboard.engine import run_cell_episode
+from humotion_gym.cli import Terminated, terminated_as_interrupt
 
 # A small leaderboard: hold, a seeded random agent and a particle filter on the
 # built-in synthetic data, 3 short episodes per cell.
@@ -82,10 +84,28 @@ def test_ray_with_two_workers_gives_the_in_process_numbers_bit_for_bit(inprocess
     monkeypatch.setitem(REFERENCES, "still-mine", (StillAgent, "hold, by another name"))
     del REFERENCES["still-mine"]
     register_reference("still-mine", StillAgent)
-    rows = run_leaderboard(
-        TASKS, [*AGENTS, "pf-cv-mine", "still-mine"], PARTICLES, episodes=EPISODES, seed=SEED,
-        progress=False, engine="ray", workers=2,
-    )  # fmt: skip
+    import ray
+
+    real_shutdown, checked = ray.shutdown, []
+
+    def shutdown() -> None:  # after the run, before Ray stops: the handler ray.init left
+        with pytest.raises(Terminated):
+            signal.raise_signal(signal.SIGTERM)
+        checked.append(True)
+        real_shutdown()
+
+    monkeypatch.setattr(ray, "shutdown", shutdown)
+    with terminated_as_interrupt():  # as the console scripts run a command
+        rows = run_leaderboard(
+            TASKS, [*AGENTS, "pf-cv-mine", "still-mine"], PARTICLES, episodes=EPISODES,
+            seed=SEED, progress=False, engine="ray", workers=2,
+        )  # fmt: skip
+        # ray.init's C++ handler would dump a stack and kill the process, and
+        # ray.shutdown's default kill it silently; the program's own handler got
+        # SIGTERM back from both (Terminated: the run saved, exit 143)
+        with pytest.raises(Terminated):
+            signal.raise_signal(signal.SIGTERM)
+    assert checked == [True]
     mine = {r["agent"]: r for r in rows if r["agent"].endswith("-mine")}
     rows = [r for r in rows if not r["agent"].endswith("-mine")]
     assert _numbers(rows) == _numbers(inprocess_rows)
