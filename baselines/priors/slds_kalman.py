@@ -16,6 +16,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from baselines.priors._checks import check_shapes
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
 
@@ -77,10 +79,7 @@ class SLDSParams:
             "A": (s, dx, dx), "b": (s, dx), "Q": (s, dx, dx), "C": (dy, dx), "R": (dy, dy),
             "Q0": (s, dx, dx), "Pi": (s, s), "pi0": (s,), "state_labels": (s,),
         }  # fmt: skip
-        for name, shape in want.items():
-            got = np.shape(getattr(self, name))
-            if got != shape:
-                raise ValueError(f"SLDSParams: {name} has shape {got}, expected {shape}")
+        check_shapes("SLDSParams", {name: getattr(self, name) for name in want}, want)
         if self.emission not in EMISSIONS:
             raise ValueError(
                 f"SLDSParams: emission must be one of {EMISSIONS}, got {self.emission!r}"

@@ -315,6 +315,15 @@ def test_em_cost_never_rises(case, two_state_fit):
     assert costs[-1] < costs[0]
 
 
+@pytest.mark.parametrize(
+    ("name", "cut"), [("A", lambda a: a[:, :1]), ("Pi", lambda a: a[:1]), ("pi0", lambda a: a[:1])]
+)
+def test_parameters_of_the_wrong_shape_are_refused_naming_the_array(name, cut):
+    params = random_model(np.random.default_rng(0))
+    with pytest.raises(ValueError, match=rf"SLDSParams\.{name} has shape \("):
+        params.replace(**{name: cut(getattr(params, name))})
+
+
 def test_combine_builds_a_block_transition_matrix():
     rng = np.random.default_rng(0)
     one = random_model(rng, "identity", order=2, dy=2).replace(state_labels=np.array(["walk"] * 2))
