@@ -118,3 +118,18 @@ def remove_stale_entries(folder: Path, place: str, kept: Path, legacy: str) -> N
         if old != kept and old.is_file():
             with contextlib.suppress(OSError):  # another process's, or read-only: left
                 old.unlink(missing_ok=True)
+
+
+def entry_places(folder: Path) -> set[str]:
+    """The places of the entries in ``folder`` and the names of its legacy ones.
+
+    A writer of many entries lists the folder once with this, then calls
+    :func:`remove_stale_entries` only for a place (or legacy name) found here:
+    an entry written after the listing (by another process) is left for its
+    own writer to clean.
+    """
+    try:
+        names = os.listdir(folder)
+    except OSError:  # no folder, or not one: nothing stale in it
+        return set()
+    return {n.split("-", 1)[0] if "-" in n else n[:-4] for n in names if n.endswith(".npz")}

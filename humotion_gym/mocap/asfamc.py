@@ -61,6 +61,7 @@ parsing (an unreadable file still raises :class:`OSError`).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -247,18 +248,30 @@ class AcclaimClip(PointsOnce):
     frame_numbers: NDArray[np.int64]
     channels: NDArray[np.float64]
     angle_unit: Literal["deg", "rad"]
-    _positions: NDArray[np.float64] | None = field(default=None, repr=False)
+    # Each point's positions once computed (a copy of the clip starts afresh).
+    _positions: dict[int, NDArray[np.float64]] = field(default_factory=dict, init=False, repr=False)
 
-    def _all_points(self) -> NDArray[np.float64]:
+    def _points(self, wanted: Sequence[int]) -> NDArray[np.float64]:
         """Acclaim forward kinematics: loop over bones, every frame at once.
 
+        Only the bones that carry the points asked for (and their ancestors)
+        are computed: a rig reads a dozen of the skeleton's points.
+
+        Args:
+            wanted: Indices into :attr:`point_names` (0 the root, ``1 + b`` bone b's tip).
+
         Returns:
-            ``(T, P, 3)`` positions of the root and the bone tips, in the ASF's
-            axes and units. Rows of invalid frames are NaN.
+            ``(T, len(wanted), 3)`` positions of the points, in the ASF's axes
+            and units. Rows of invalid frames are NaN.
         """
         sk = self.skeleton
         n_t = self.n_frames
-        pos = np.empty((n_t, len(self.point_names), 3))
+        needed = np.zeros(len(self.point_names), dtype=bool)
+        for i in wanted:
+            while i >= 0 and not needed[i]:
+                needed[i] = True
+                i = int(self.parents[i])
+        pos = np.full((n_t, len(self.point_names), 3), np.nan)
         starts = np.cumsum([0, len(sk.root_order)] + [len(d) for d in sk.dofs])
 
         # Root: translation, then rotation about the frame of its orientation.
@@ -280,6 +293,8 @@ class AcclaimClip(PointsOnce):
         pos[:, 0] = t
 
         for b in _topological(sk.bone_parents):
+            if not needed[b + 1]:
+                continue
             p = int(sk.bone_parents[b]) + 1
             dofs = sk.dofs[b]
             if dofs:
@@ -295,7 +310,7 @@ class AcclaimClip(PointsOnce):
                 glob_r[b + 1] = glob_r[p]
             pos[:, b + 1] = pos[:, p] + glob_r[b + 1] @ (sk.directions[b] * sk.lengths[b])
         pos[~self.frame_valid] = np.nan
-        return pos
+        return pos[:, wanted]
 
 
 # --------------------------------------------------------------------------

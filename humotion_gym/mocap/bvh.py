@@ -54,6 +54,7 @@ unreadable file still raises :class:`OSError`).
 from __future__ import annotations
 
 import io
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
@@ -241,7 +242,8 @@ class BvhClip(PointsOnce):
     frame_valid: NDArray[np.bool_]
     units_to_mm: float | None = None
     _point_joint: tuple[tuple[bool, int], ...] = field(default=(), repr=False)
-    _positions: NDArray[np.float64] | None = field(default=None, repr=False)
+    # Each point's positions once computed (a copy of the clip starts afresh).
+    _positions: dict[int, NDArray[np.float64]] = field(default_factory=dict, init=False, repr=False)
 
     @property
     def channel_starts(self) -> NDArray[np.intp]:
@@ -261,10 +263,11 @@ class BvhClip(PointsOnce):
     @property
     def zero_end_sites(self) -> frozenset[str]:
         """The end sites of zero length (``OFFSET 0 0 0``): points that sit on their joint."""
+        zero = ~np.any(self.end_site_offsets, axis=1)
         return frozenset(
             name
             for name, (is_joint, i) in zip(self.point_names, self._point_joint, strict=True)
-            if not is_joint and not np.any(self.end_site_offsets[i])
+            if not is_joint and zero[i]
         )
 
     def joint_channel_values(self, joint: str) -> NDArray[np.float64]:
@@ -292,21 +295,40 @@ class BvhClip(PointsOnce):
         assert rots is not None
         return rots, pos[:, : len(self.joint_names)]
 
-    def _all_points(self) -> NDArray[np.float64]:
-        """Global positions of joints and end sites, in the file's own axes and units.
+    def _points(self, wanted: Sequence[int]) -> NDArray[np.float64]:
+        """Global positions of some joints and end sites, in the file's own axes and units.
+
+        Only the joints that carry them (and those joints' ancestors) are computed:
+        a rig reads a dozen points, and a hand's fingers can be most of a file's joints.
+
+        Args:
+            wanted: Indices into :attr:`point_names`.
 
         Returns:
-            ``(T, P, 3)`` positions of :attr:`point_names`. Rows of invalid frames are NaN.
+            ``(T, len(wanted), 3)`` positions. Rows of invalid frames are NaN.
         """
-        _, pos = self._kinematics(keep_rotations=False)
-        # Reorder from (joints, end sites) to the file order of the points.
-        order = [j if is_joint else len(self.joint_names) + j for is_joint, j in self._point_joint]
-        return pos[:, order]
+        n_j = len(self.joint_names)
+        points = [self._point_joint[i] for i in wanted]
+        needed = np.zeros(n_j, dtype=bool)
+        for is_joint, i in points:
+            j = i if is_joint else int(self.end_site_parents[i])
+            while j >= 0 and not needed[j]:
+                needed[j] = True
+                j = int(self.joint_parents[j])
+        _, pos = self._kinematics(keep_rotations=False, needed=needed)
+        # From (joints, end sites) to the points asked for.
+        return pos[:, [i if is_joint else n_j + i for is_joint, i in points]]
 
     def _kinematics(
-        self, keep_rotations: bool
+        self, keep_rotations: bool, needed: NDArray[np.bool_] | None = None
     ) -> tuple[NDArray[np.float64] | None, NDArray[np.float64]]:
         """Forward kinematics: loop over joints, every frame at once.
+
+        Args:
+            keep_rotations: Return the global rotations too.
+            needed: ``(J,)`` the joints to compute (every one when None); a
+                joint's ancestors must be among them. The others, and their
+                end sites, are left NaN.
 
         Returns:
             The ``(T, J, 3, 3)`` global rotations (when asked) and ``(T, J + E, 3)``
@@ -314,10 +336,12 @@ class BvhClip(PointsOnce):
         """
         n_t, n_j = self.n_frames, len(self.joint_names)
         starts = self.channel_starts
-        pos = np.empty((n_t, n_j + len(self.end_site_parents), 3))
-        rots = np.empty((n_t, n_j, 3, 3)) if keep_rotations else None
-        glob_r: list[NDArray[np.float64]] = []
+        pos = np.full((n_t, n_j + len(self.end_site_parents), 3), np.nan)
+        rots = np.full((n_t, n_j, 3, 3), np.nan) if keep_rotations else None
+        glob_r: list[NDArray[np.float64] | None] = [None] * n_j
         for j in range(n_j):
+            if needed is not None and not needed[j]:
+                continue
             vals = self.channels[:, starts[j] : starts[j + 1]]
             kinds = [_CHANNEL_KIND[c.lower()] for c in self.joint_channels[j]]
             p_cols = [k for k, (rot, _) in enumerate(kinds) if not rot]
@@ -338,18 +362,21 @@ class BvhClip(PointsOnce):
             p = int(self.joint_parents[j])
             if p < 0:
                 pos[:, j] = t
-                glob_r.append(local_r)
+                glob_r[j] = local_r
             else:
                 parent_r = glob_r[p]
+                assert parent_r is not None  # (ancestors are needed too)
                 pos[:, j] = pos[:, p] + (parent_r @ t[..., None])[..., 0]
                 # A joint without rotation channels shares its parent's rotation.
-                glob_r.append(parent_r @ local_r if r_cols else parent_r)
+                glob_r[j] = parent_r @ local_r if r_cols else parent_r
             if rots is not None:
                 rots[:, j] = glob_r[j]
         for e, (j, off) in enumerate(
             zip(self.end_site_parents, self.end_site_offsets, strict=True)
         ):
-            pos[:, n_j + e] = pos[:, j] + glob_r[j] @ off
+            joint_r = glob_r[j]
+            if joint_r is not None:
+                pos[:, n_j + e] = pos[:, j] + joint_r @ off
         bad = ~self.frame_valid
         pos[bad] = np.nan
         if rots is not None:
@@ -383,23 +410,35 @@ def _infer_position_mode(
     walks far along the others, and its walk would outvote the height it
     repeats.
     """
-    votes = []
     finite = np.isfinite(values).all(axis=1)
     if not finite.any():
         return "add"
+    voters: list[tuple[int, float, list[int], list[int]]] = []  # joint, |offset|, columns, axes
     for j, chans in enumerate(hdr.channels):
         if hdr.parents[j] < 0:
             continue
         kinds = [(k, _CHANNEL_KIND[c.lower()]) for k, c in enumerate(chans)]
         p_cols = [(k, axis) for k, (rot, axis) in kinds if not rot]
+        if not p_cols:
+            continue
         norm = float(np.linalg.norm(offsets[j]))
         carried = [(k, axis) for k, axis in p_cols if abs(offsets[j, axis]) >= 0.25 * norm]
         if norm == 0.0 or not carried:  # nothing to repeat, or no channel on its axes
             continue
-        med = np.median(values[finite][:, [starts[j] + k for k, _ in carried]], axis=0)
-        target = offsets[j, [axis for _, axis in carried]]
-        votes.append(bool(np.linalg.norm(med - target) <= 0.25 * norm))
-    if votes and sum(votes) * 2 > len(votes):
+        voters.append((j, norm, [starts[j] + k for k, _ in carried], [a for _, a in carried]))
+    if not voters:
+        return "add"
+    # Every voter's medians in one pass (a median is taken column by column).
+    cols = [c for _, _, joint_cols, _ in voters for c in joint_cols]
+    rows = values if finite.all() else values[finite]
+    medians = np.median(rows[:, cols], axis=0)
+    votes = []
+    at = 0
+    for j, norm, joint_cols, axes in voters:
+        med = medians[at : at + len(joint_cols)]
+        at += len(joint_cols)
+        votes.append(bool(np.linalg.norm(med - offsets[j, axes]) <= 0.25 * norm))
+    if sum(votes) * 2 > len(votes):
         return "replace"
     return "add"
 

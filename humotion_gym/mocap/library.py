@@ -39,6 +39,7 @@ from humotion_gym.files import write_atomically
 from humotion_gym.mocap._cache_files import (  # CacheWarning: re-exported, part of the API
     CACHE_ERRORS,
     CacheWarning,  # noqa: F401
+    entry_places,
     package_version,
     placed_entry_path,
     remove_stale_entries,
@@ -608,13 +609,15 @@ def load_library(
                 target or clip_dir / f"{place}-{key}.npz", f"{problem}; rebuilding it"
             )
         todo.append((src, target, info, place, key))
+    held = entry_places(clip_dir) if use_cache and todo else set()
     bar = tqdm(todo, desc="parsing mocap", unit="clip", disable=not progress or len(todo) < 2)
     for src, target, info, place, key in bar:
         motion = load_clip(src, fps, splits[src.clip_id])
         if target is not None:
             try:
                 write_atomically(target, lambda tmp, m=motion, i=info: m.save(tmp, extra=i))
-                remove_stale_entries(clip_dir, place, target, legacy=key)
+                if place in held or key in held:
+                    remove_stale_entries(clip_dir, place, target, legacy=key)
             except CACHE_ERRORS as exc:
                 report_unwritten(target, exc)
         motions.append(motion)

@@ -162,7 +162,9 @@ class Motion:
         if extra is not None:
             header["extra"] = {str(k): str(v) for k, v in extra.items()}
         with open(path, "wb") as fh:
-            np.savez_compressed(fh, header=np.array(json.dumps(header)), **arrays)
+            # Stored, not deflated: the floats shrink by a tenth at most, and
+            # deflating them was a seventh of a library's first load.
+            np.savez(fh, header=np.array(json.dumps(header)), **arrays)
 
     @classmethod
     def load(cls, path: str | Path) -> Motion:

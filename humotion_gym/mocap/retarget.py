@@ -76,6 +76,13 @@ _TORSO = [_K["pelvis"], _K["neck"], _K["r_shoulder"], _K["l_shoulder"], _K["r_hi
 #: A limb counts as straight below this bend (rad); its twist is then held.
 STRAIGHT_BEND = 0.05
 
+# The segments whose lengths the shape takes: each limb's on each side, and the head.
+_SEGMENTS = (
+    *((s + a, s + b) for a, b in (("hip", "knee"), ("knee", "ankle"), ("shoulder", "elbow"),
+                                  ("elbow", "wrist")) for s in ("r_", "l_")),
+    ("neck", "head_top"),
+)  # fmt: skip
+
 
 def _unit(v: FloatArray) -> FloatArray:
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -126,8 +133,14 @@ def fit_shape(
     med = np.median(local, axis=0)
     neck, r_sh, l_sh, r_hip, l_hip = med
 
+    # Each segment's median length over the frames, all in one pass (a median
+    # is taken column by column).
+    starts, ends = ([_K[name] for name in side] for side in zip(*_SEGMENTS, strict=True))
+    lengths = np.median(np.linalg.norm(kp[:, starts] - kp[:, ends], axis=-1), axis=0)
+    median_length = {seg: float(v) for seg, v in zip(_SEGMENTS, lengths, strict=True)}
+
     def seg(a: str, b: str) -> float:
-        return float(np.median(np.linalg.norm(kp[:, _K[a]] - kp[:, _K[b]], axis=-1)))
+        return median_length[(a, b)]
 
     def both(a: str, b: str) -> float:
         return 0.5 * (seg("r_" + a, "r_" + b) + seg("l_" + a, "l_" + b))
@@ -185,44 +198,58 @@ def _hold_where(values: FloatArray, ok: BoolArray) -> FloatArray:
     return values[idx]
 
 
-def _limb(
+def _limbs(
     base: FloatArray,
     mid_src: FloatArray,
     tip_src: FloatArray,
     root: FloatArray,
-    upper_len: float,
-    sign: float,
+    upper_len: FloatArray,
+    sign: FloatArray,
     straight_bend: float,
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Ball-joint angles (T,3), hinge (T,) and the limb's raw twist validity.
+) -> tuple[FloatArray, FloatArray]:
+    """Ball-joint angles and hinges of L limbs at once.
 
     The upper segment hangs along -z of the joint frame, so its direction u in
     the torso frame gives the outer two angles of Rx(a) Ry(b) Rz(c):
     -u = (sin b, -sin a cos b, cos a cos b). The lower segment lies in the plane
     of u and the joint frame's y axis: f = sign*sin(k) y + cos(k) u, which
-    gives the twist c.
+    gives the twist c. The limbs go through numpy together (each limb's
+    arithmetic is its own); only the twist's unwrapping and holding, along
+    each limb's bent frames, loop over them.
+
+    Args:
+        base: ``(L, T, 3)`` the body's joint each limb hangs from.
+        mid_src: ``(L, T, 3)`` the source's elbows or knees.
+        tip_src: ``(L, T, 3)`` the source's wrists or ankles.
+        root: ``(T, 3, 3)`` the torso's rotation.
+        upper_len: ``(L,)`` the upper segments' lengths.
+        sign: ``(L,)`` +1 for an arm, -1 for a leg (which way the hinge bends).
+        straight_bend: Bend (rad) below which a limb keeps its previous twist.
+
+    Returns:
+        ``(L, T, 3)`` each limb's ball-joint angles (a, b, c) and ``(L, T)`` its bend.
     """
     inv = np.swapaxes(root, 1, 2)
-    u = _unit(np.einsum("tij,tj->ti", inv, mid_src - base))
-    mid_body = base + upper_len * np.einsum("tij,tj->ti", root, u)
-    f = _unit(np.einsum("tij,tj->ti", inv, tip_src - mid_body))
+    u = _unit(np.einsum("tij,ltj->lti", inv, mid_src - base))
+    mid_body = base + upper_len[:, None, None] * np.einsum("tij,ltj->lti", root, u)
+    f = _unit(np.einsum("tij,ltj->lti", inv, tip_src - mid_body))
     cos_k = np.clip(np.sum(u * f, axis=-1), -1.0, 1.0)
     # atan2 of sine and cosine keeps full precision near a straight limb,
     # where arccos would lose half the digits.
     bend = np.arctan2(np.linalg.norm(np.cross(u, f), axis=-1), cos_k)
-    a = np.arctan2(u[:, 1], -u[:, 2])
-    b = np.arcsin(np.clip(-u[:, 0], -1.0, 1.0))
+    a = np.arctan2(u[..., 1], -u[..., 2])
+    b = np.arcsin(np.clip(-u[..., 0], -1.0, 1.0))
     r_ab = euler_xyz_to_matrix(np.stack([a, b, np.zeros_like(a)], axis=-1))
     sin_k = np.sin(bend)
     with np.errstate(invalid="ignore", divide="ignore"):
-        y_axis = sign * (f - cos_k[:, None] * u) / sin_k[:, None]
+        y_axis = sign[:, None, None] * (f - cos_k[..., None] * u) / sin_k[..., None]
         c = np.arctan2(
-            -np.sum(y_axis * r_ab[:, :, 0], axis=-1), np.sum(y_axis * r_ab[:, :, 1], axis=-1)
+            -np.sum(y_axis * r_ab[..., :, 0], axis=-1), np.sum(y_axis * r_ab[..., :, 1], axis=-1)
         )
     bent = np.isfinite(c) & (bend > straight_bend)
-    c = _unwrap_valid(c, bent)
-    c = _hold_where(c, bent)
-    return np.stack([a, b, c], axis=-1), bend, mid_body
+    for limb in range(len(c)):
+        c[limb] = _hold_where(_unwrap_valid(c[limb], bent[limb]), bent[limb])
+    return np.stack([a, b, c], axis=-1), bend
 
 
 def _unwrap_valid(values: FloatArray, ok: BoolArray) -> FloatArray:
@@ -279,11 +306,17 @@ def inverse_kinematics(
         (R_HIP, R_KNEE, "r_hip", "r_knee", "r_ankle", shape.thigh_length, -1.0),
         (L_HIP, L_KNEE, "l_hip", "l_knee", "l_ankle", shape.thigh_length, -1.0),
     ]
-    for joint, hinge, base, mid, tip, length, sign in limbs:
-        angles, bend, _ = _limb(
-            body[base], src[:, _K[mid]], src[:, _K[tip]], root, length, sign, straight_bend
-        )
-        params[:, joint] = angles
+    angles, bends = _limbs(
+        np.stack([body[limb[2]] for limb in limbs]),
+        np.moveaxis(src[:, [_K[limb[3]] for limb in limbs]], 1, 0),
+        np.moveaxis(src[:, [_K[limb[4]] for limb in limbs]], 1, 0),
+        root,
+        np.array([limb[5] for limb in limbs]),
+        np.array([limb[6] for limb in limbs]),
+        straight_bend,
+    )
+    for (joint, hinge, *_), limb_angles, bend in zip(limbs, angles, bends, strict=True):
+        params[:, joint] = limb_angles
         params[:, hinge] = bend
 
     d = _unit(np.einsum("tji,tj->ti", root, src[:, _K["head_top"]] - body["neck"]))

@@ -56,6 +56,7 @@ from humotion_gym.mocap.rigs import (  # the head top's extension: the profiles'
     Extend,
     KeypointSource,
     RigProfile,
+    _points_of,
     guess_format,
     placed_points,
 )
@@ -603,9 +604,12 @@ def _up_axis(clip: SkeletonClip, sources: Mapping[str, KeypointSource], valid: N
     Read over up to 200 frames spread through the clip, so that a clip that
     starts lying down is still read by how it mostly stands.
     """
-    points = [keypoints_point(sources[k]) for k in ("neck", "pelvis")]
+    # Every point the profile reads, in one pass of the kinematics (its
+    # keypoints are read from them next, and share their joints' chains).
+    names = list(dict.fromkeys(n for src in sources.values() for n in _points_of(src)))
+    neck, pelvis = (names.index(keypoints_point(sources[k])) for k in ("neck", "pelvis"))
     frames = valid[:: max(1, valid.size // 200)]
-    d = np.diff(clip.point_positions(points)[frames], axis=1)[:, 0]
+    d = np.diff(clip.point_positions(names)[frames][:, [neck, pelvis]], axis=1)[:, 0]
     return "z" if 2 * np.count_nonzero(np.abs(d[:, 2]) > np.abs(d[:, 1])) > len(d) else "y"
 
 
@@ -625,10 +629,11 @@ def match_rig(clip: SkeletonClip, fmt: str | None = None) -> RigMatch:
     fmt = fmt or _clip_format(clip)
     names = clip.point_names
     valid = np.flatnonzero(np.asarray(clip.frame_valid, dtype=bool))
+    placed = placed_points(clip)
     for rig in RIGS.values():
         if fmt not in rig.formats:
             continue
-        sources, missing, fell_back = rig.plan(placed_points(clip))
+        sources, missing, fell_back = rig.plan(placed)
         if not missing:
             how = {k: ("fallback" if k in fell_back else "profile") for k in KEYPOINT_NAMES}
             conf = float(np.mean([METHOD_CONFIDENCE[h] for h in how.values()]))

@@ -10,6 +10,7 @@ picks one from the joint names and a user can pass their own mapping.
 
 from __future__ import annotations
 
+import functools
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -103,6 +104,29 @@ class RigProfile:
                 f"formats be 'bvh' and/or 'asf' (got {self.formats})"
             )
 
+    @functools.cached_property
+    def _tried_names(self) -> tuple[tuple[str, tuple[str, ...]], ...]:
+        """Each source point and the names tried for it, in order.
+
+        Made once per profile: a library's load plans every clip against every profile.
+        """
+        return tuple((name, (name, *self.aliases.get(name, ()))) for name in self.source_points())
+
+    def _found(self, available: Sequence[str]) -> dict[str, str]:
+        """The profile's points found among a skeleton's names: exactly, else ignoring case."""
+        have = set(available)
+        lowered = {n.lower(): n for n in available}
+        found: dict[str, str] = {}
+        for name, tried in self._tried_names:
+            for cand in tried:
+                if cand in have:
+                    found[name] = cand
+                    break
+                if cand.lower() in lowered:
+                    found[name] = lowered[cand.lower()]
+                    break
+        return found
+
     def source_points(self) -> list[str]:
         """Every source point the profile reads (fallbacks' points last)."""
         names: list[str] = []
@@ -122,7 +146,7 @@ class RigProfile:
             :class:`Extend` between two of its names), the keypoints that could
             not be found, and those read from their fallback.
         """
-        found, _ = self.resolve(available)
+        found = self._found(available)
         sources: dict[str, KeypointSource] = {}
         missing: list[str] = []
         fell_back: list[str] = []
@@ -149,17 +173,7 @@ class RigProfile:
             The mapping from profile point names to the skeleton's names, and
             the keypoints that could not be found.
         """
-        have = set(available)
-        lowered = {n.lower(): n for n in available}
-        found: dict[str, str] = {}
-        for name in self.source_points():
-            for cand in (name, *self.aliases.get(name, ())):
-                if cand in have:
-                    found[name] = cand
-                    break
-                if cand.lower() in lowered:
-                    found[name] = lowered[cand.lower()]
-                    break
+        found = self._found(available)
         missing = []
         for kp, src in self.keypoints.items():
             alt = self.fallbacks.get(kp)

@@ -58,20 +58,21 @@ class SkeletonClip(Protocol):
 
 
 class PointsOnce:
-    """What both parsers' clips share: :meth:`point_positions`, computed once and kept.
+    """What both parsers' clips share: :meth:`point_positions`, each point computed once and kept.
 
     A clip (:class:`~humotion_gym.mocap.bvh.BvhClip`,
-    :class:`~humotion_gym.mocap.asfamc.AcclaimClip`) gives every point's
-    positions in :meth:`_all_points`; the first call computes them, later
-    calls select from what was kept.
+    :class:`~humotion_gym.mocap.asfamc.AcclaimClip`) gives the positions of
+    the points asked for in :meth:`_points`, computing only what they hang
+    from; a point already computed is read from what was kept.
     """
 
     path: str
     point_names: tuple[str, ...]
-    _positions: NDArray[np.float64] | None
+    n_frames: int
+    _positions: dict[int, NDArray[np.float64]]
 
-    def _all_points(self) -> NDArray[np.float64]:
-        """``(T, P, 3)`` every point, in :attr:`point_names` order; invalid frames NaN."""
+    def _points(self, wanted: Sequence[int]) -> NDArray[np.float64]:
+        """``(T, len(wanted), 3)`` the points ``wanted`` (indices into :attr:`point_names`)."""
         raise NotImplementedError
 
     def point_positions(self, names: Sequence[str] | None = None) -> NDArray[np.float64]:
@@ -86,13 +87,23 @@ class PointsOnce:
         Raises:
             KeyError: If a name is not one of :attr:`point_names`.
         """
-        if self._positions is None:
-            with np.errstate(invalid="ignore"):  # invalid frames are masked anyway
-                self._positions = self._all_points()
         if names is None:
-            return self._positions.copy()
-        index = {n: i for i, n in enumerate(self.point_names)}
-        missing = [n for n in names if n not in index]
-        if missing:
-            raise KeyError(f"{self.path}: no point(s) {missing} (points: {list(self.point_names)})")
-        return self._positions[:, [index[n] for n in names]]
+            wanted = list(range(len(self.point_names)))
+        else:
+            index = {n: i for i, n in enumerate(self.point_names)}
+            missing = [n for n in names if n not in index]
+            if missing:
+                raise KeyError(
+                    f"{self.path}: no point(s) {missing} (points: {list(self.point_names)})"
+                )
+            wanted = [index[n] for n in names]
+        kept = self._positions
+        todo = list(dict.fromkeys(i for i in wanted if i not in kept))
+        if todo:
+            with np.errstate(invalid="ignore"):  # invalid frames are masked anyway
+                computed = self._points(todo)
+            kept.update((i, computed[:, k]) for k, i in enumerate(todo))
+        out = np.empty((self.n_frames, len(wanted), 3))
+        for k, i in enumerate(wanted):
+            out[:, k] = kept[i]
+        return out

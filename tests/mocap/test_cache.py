@@ -84,7 +84,7 @@ def _no_warning_load(data: Path, cache: Path, monkeypatch) -> MotionLibrary:
 
 
 def _flip_byte(path: Path, ctx: dict) -> None:
-    """Flip one byte inside the compressed data of the params array."""
+    """Flip one byte inside the stored data of the params array."""
     flip_stored_byte(path, "params.npy")
 
 
@@ -99,7 +99,7 @@ def _rewrite(path: Path, change: Callable[[dict, dict], None]) -> None:
     header = json.loads(str(arrays.pop("header")))
     change(header, arrays)
     with open(path, "wb") as fh:
-        np.savez_compressed(fh, header=np.array(json.dumps(header)), **arrays)
+        np.savez(fh, header=np.array(json.dumps(header)), **arrays)
 
 
 def _header_wrong_types(path: Path, ctx: dict) -> None:
