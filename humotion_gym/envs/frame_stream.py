@@ -147,11 +147,13 @@ class FrameStream:
         ours, theirs = socket.socketpair()
         package_root = str(Path(__file__).resolve().parents[2])
         # Warnings off: the learner's environment already showed every one of
-        # these settings.
+        # these settings. Once serve has cleaned up, the worker exits at once:
+        # tearing the interpreter down would hold close(), which waits for it.
         code = (
-            "import sys, warnings; warnings.simplefilter('ignore'); "
+            "import os, sys, warnings; warnings.simplefilter('ignore'); "
             f"sys.path.insert(0, {package_root!r}); "
-            f"from humotion_gym.envs._frame_worker import serve; serve({theirs.fileno()})"
+            f"from humotion_gym.envs._frame_worker import serve; serve({theirs.fileno()}); "
+            "sys.stderr.flush(); os._exit(0)"
         )
         try:
             # Its own session: a Ctrl-C at the terminal interrupts the learner,
