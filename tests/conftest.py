@@ -61,3 +61,29 @@ def real_library(shared_mocap: Path):
     from humotion_gym.mocap.library import load_library
 
     return load_library([shared_mocap], fps=30.0, progress=False)
+
+
+@pytest.fixture
+def shared_loads_are_the_sessions(monkeypatch, shared_mocap: Path, real_library):
+    """Every load of the whole shared folder at 30 Hz gives the session's parse of it.
+
+    A command line loads the folder (an input check, the command, its
+    environment), each time reading the session's cache of the same clips back;
+    with this fixture it takes the session's library instead. Other loads (a
+    ``--clip`` file) are made as they are.
+    """
+    from humotion_gym.mocap import library
+
+    load = library.load_library
+
+    def load_library(paths, fps=30.0, **kwargs):
+        given = [paths] if isinstance(paths, (str, Path)) else list(paths)
+        if (
+            [Path(p) for p in given] == [shared_mocap]
+            and fps == 30.0
+            and set(kwargs) <= {"progress"}
+        ):
+            return real_library
+        return load(paths, fps=fps, **kwargs)
+
+    monkeypatch.setattr(library, "load_library", load_library)

@@ -118,7 +118,9 @@ def test_tracking_a_training_persons_clip_says_its_numbers_are_not_held_out(caps
 
 
 @pytest.mark.mocap
-def test_a_training_persons_file_is_known_by_its_skeleton(shared_mocap, capsys):
+def test_a_training_persons_file_is_known_by_its_skeleton(
+    shared_mocap, shared_loads_are_the_sessions, capsys
+):
     """--clip FILE of a training person warns whatever the file is called; a test person's not."""
     base = ["track", "--task", "WalkTrack-v2", "--agent", "pf-cv", "--particles", "20",
             "--episodes", "1", "--data-dir", str(shared_mocap), "--clip"]  # fmt: skip

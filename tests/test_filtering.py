@@ -202,14 +202,20 @@ def test_wrapped_offsets_follow_their_definition() -> None:
 def systematic_counts_oracle(weights, u):
     """Kitagawa's systematic resampling by its definition: particle ``i`` is drawn
     once for each pointer ``(u + k) / N`` in ``[W_{i-1}, W_i)``, ``W`` the
-    running sum of the weights."""
+    running sum of the weights.
+
+    The pointers rise with ``k`` and the intervals follow one another, so each
+    pointer's interval is looked for from the previous pointer's on: no earlier
+    interval can hold it, and the walk is linear where a scan from the first
+    interval for every pointer was quadratic.
+    """
     n = weights.size
     edges = np.concatenate([[0.0], np.cumsum(weights)])
     edges[-1] = 1.0
     counts = np.zeros(n, dtype=int)
+    i = 0
     for k in range(n):
         pointer = (u + k) / n
-        i = 0
         while not edges[i] <= pointer < edges[i + 1]:
             i += 1
         counts[i] += 1

@@ -50,14 +50,21 @@ def test_the_real_validation_persons_are_training_persons():
     assert not set(VALIDATION_SUBJECTS) & TEST_SUBJECTS
 
 
+#: Shorter episodes than SideWalk's 60 frames: each combination still tracks the fold's persons.
+SHORT = {"episode_frames": 15}
+
+
 def test_selection_tracks_the_fold_and_picks_the_lowest_error():
     fold = validation_library(None)
     grid = {"sharpness": [0.5, 2.0], "foreground_weight": [0.0, 0.5]}
-    out = select_observation_settings("SideWalk-v2", "pf-cv", grid, fold, particles=30, episodes=2)
+    out = select_observation_settings(
+        "SideWalk-v2", "pf-cv", grid, fold, particles=30, episodes=2, env_kwargs=SHORT
+    )
     assert [r["settings"] for r in out["rows"]] == [
         {"sharpness": a, "foreground_weight": b} for a in (0.5, 2.0) for b in (0.0, 0.5)
     ]
     errors = [r["mean_error_mm"] for r in out["rows"]]
+    assert len(set(errors)) == len(errors)  # each row tracked with its own settings
     assert out["chosen"] == out["rows"][errors.index(min(errors))]["settings"]
     assert out["validation_subjects"] == sorted(fold.held_out)
     with pytest.raises(ValueError, match="not ObservationModel settings"):
@@ -82,12 +89,13 @@ def test_cli_select_reports_a_bad_setting_or_fold_in_one_line(capsys, tmp_path, 
     from baselines.cli import main
 
     monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
+    # one validation person: the still search scans every episode of half as many walks
     base = ["select", "--task", "WalkTrack-v2", "--agent", "pf-cv", "--particles", "10",
-            "--episodes", "1"]  # fmt: skip
+            "--episodes", "1", "--validation", "synthetic-04"]  # fmt: skip
     assert main([*base, "--grid", "fit.bogus=0.5"]) == 2
     err = capsys.readouterr().err
     assert "error: grid: ['fit.bogus'] are not settings" in err and "Traceback" not in err
-    # the synthetic fold's walkers stray more than 50 mm from their first pose in every episode
+    # the synthetic walkers stray more than 50 mm from their first pose in every episode
     code = main([*base, "--grid", "fit.multiplier=0.5", "--still", "2"])
     err = capsys.readouterr().err
     assert code == 2 and "have no still episode" in err and "--still 0" in err
@@ -97,7 +105,9 @@ def test_prior_settings_are_selected_like_likelihood_settings(tmp_path, monkeypa
     monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
     fold = validation_library(None)
     grid = {"fit.damping": [1.0, 0.3], "sharpness": [1.0]}
-    out = select_observation_settings("SideWalk-v2", "pf-cv", grid, fold, particles=30, episodes=2)
+    out = select_observation_settings(
+        "SideWalk-v2", "pf-cv", grid, fold, particles=30, episodes=2, env_kwargs=SHORT
+    )
     assert [r["settings"] for r in out["rows"]] == [
         {"fit.damping": 1.0, "sharpness": 1.0},
         {"fit.damping": 0.3, "sharpness": 1.0},
@@ -114,7 +124,9 @@ def test_the_annealed_filters_settings_are_selected_like_the_priors(tmp_path, mo
     monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
     fold = validation_library(None)
     grid = {"filter.alpha": [0.5, 0.9], "filter.layers": [2]}
-    out = select_observation_settings("SideWalk-v2", "apf-cv", grid, fold, particles=20, episodes=2)
+    out = select_observation_settings(
+        "SideWalk-v2", "apf-cv", grid, fold, particles=20, episodes=2, env_kwargs=SHORT
+    )
     assert [r["settings"] for r in out["rows"]] == [
         {"filter.alpha": 0.5, "filter.layers": 2},
         {"filter.alpha": 0.9, "filter.layers": 2},

@@ -96,30 +96,36 @@ def test_a_signal_while_the_command_line_imports_ends_in_one_line(tmp_path: Path
         assert (done.returncode, done.stderr) == (code, f"humotion-gym: {word}\n")
 
 
-def test_sigterm_while_a_video_is_written_leaves_no_file_and_one_line(tmp_path: Path) -> None:
-    # A user's --import module stops the command at the video's fifth frame.
-    (tmp_path / "stop_at_frame_five.py").write_text(
-        "import os, signal\n"
-        "from humotion_gym import video\n"
-        "real, calls = video._to_bgr, []\n"
-        "def stopping(frame, scale):\n"
-        "    calls.append(1)\n"
-        "    if len(calls) == 5:\n"
-        "        os.kill(os.getpid(), signal.SIGTERM)\n"
-        "    return real(frame, scale)\n"
-        "video._to_bgr = stopping\n"
-    )
+def test_sigterm_while_a_video_is_written_leaves_no_file_and_one_line(
+    tmp_path: Path, monkeypatch, capsys
+) -> None:
+    # The console script's main in this process (a fresh process's start is the
+    # test above's), and a real SIGTERM at the video's fifth frame.
+    from baselines.console import main as console_main
+    from humotion_gym import video
+
+    real, calls = video._to_bgr, []
+
+    def stopping(frame, scale):
+        calls.append(1)
+        if len(calls) == 5:
+            os.kill(os.getpid(), signal.SIGTERM)
+        return real(frame, scale)
+
+    monkeypatch.setattr(video, "_to_bgr", stopping)
+    monkeypatch.chdir(tmp_path)
     argv = [
         "track", "--task", "ArmTrack-v2", "--agent", "hold", "--episodes", "1",
-        "--video", "out/episode.mp4", "--import", "stop_at_frame_five",
+        "--video", "out/episode.mp4",
     ]  # fmt: skip
-    done = _run(
-        f"import sys\nfrom baselines.console import main\nsys.exit(main({argv!r}))", tmp_path
-    )
-    assert done.returncode == 143, done.stderr
-    assert done.stderr.splitlines()[-1] == "humotion-gym track: terminated"
-    assert "Traceback" not in done.stderr
+    before = signal.getsignal(signal.SIGTERM)
+    code = console_main(argv)
+    err = capsys.readouterr().err
+    assert code == 143, err
+    assert err.splitlines()[-1] == "humotion-gym track: terminated"
+    assert "Traceback" not in err
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == []
+    assert signal.getsignal(signal.SIGTERM) is before  # this process's handler is back
 
 
 def test_a_fork_made_meanwhile_dies_of_sigterm_as_before() -> None:

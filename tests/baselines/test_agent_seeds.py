@@ -316,7 +316,11 @@ def _numbers(value: Any) -> Any:
     return value
 
 
-TINY = {"tasks": ["ArmTrack-v2"], "agents": ["pf-cv"], "particles": [50], "episodes": 2}
+# Short episodes of small frames: the runs are compared with each other, never with a table.
+TINY = {
+    "tasks": ["ArmTrack-v2"], "agents": ["pf-cv"], "particles": [50], "episodes": 2,
+    "env_kwargs": {"episode_frames": 10, "width": 64, "height": 64},
+}  # fmt: skip
 
 
 @pytest.fixture(scope="module")

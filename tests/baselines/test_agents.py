@@ -215,12 +215,18 @@ def test_cli_synth_writes_a_bvh_the_parser_reads_back(tmp_path, prior):
     assert fps == 30.0 and params.shape[0] >= 15 and np.all(np.isfinite(params))
 
 
+#: Fit settings that keep a prior's fit short where making the agent is what is checked:
+#: the SLDS's EM (10 iterations per activity model, about 4 s on the two tasks) is
+#: checked by tests/priors/test_slds.py.
+QUICK_FITS = {"pf-slds": {"n_iter": 1}}
+
+
 def test_every_agent_is_made_or_refuses_with_a_reason():
     for name in AGENTS:
         for task in ("ArmTrack-v2", "SideWalk-v2"):
             env = gym.make(f"humotion_gym/{task}")
             try:
-                agent = make(name, env, n_particles=20)
+                agent = make(name, env, n_particles=20, fit_settings=QUICK_FITS.get(name))
             except TaskNotSupported as exc:
                 assert "walking" in str(exc) or "supports" in str(exc)
                 continue

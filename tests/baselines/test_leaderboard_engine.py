@@ -145,12 +145,15 @@ def test_resume_runs_only_the_missing_episodes_and_ends_with_the_same_results(
     tmp_path, inprocess_rows
 ):
     out = tmp_path / "lb"
-    run_leaderboard(TASKS, AGENTS, PARTICLES, episodes=2, seed=SEED, progress=False, out=out)
+    # No report (its figures take a second a run; test_stats_report checks it)
+    run_leaderboard(
+        TASKS, AGENTS, PARTICLES, episodes=2, seed=SEED, progress=False, out=out, report=False
+    )
     assert len(_lines(out)) == 2 * len(inprocess_rows)
     # an interruption mid-write leaves a cut line: it is dropped and its episode rerun
     with open(out / EPISODES_FILE, "ab") as fh:
         fh.write(b'{"task": "BodyTrack-v2", "agent": "pf-cv", "partic')
-    rows = _run(out=out, resume=True)
+    rows = _run(out=out, resume=True, report=False)
     records = _lines(out)
     assert len(records) == EPISODES * len(inprocess_rows)  # each missing episode ran once
     assert sorted((r["agent"], r["seed"]) for r in records[-len(inprocess_rows) :]) == sorted(
@@ -163,13 +166,15 @@ def test_resume_runs_only_the_missing_episodes_and_ends_with_the_same_results(
     assert _numbers(saved["rows"]) == _numbers(inprocess_rows)
     assert "| pf-cv | 20 |" in (out / TABLE_FILE).read_text()
     # a second resume has nothing left to run
-    _run(out=out, resume=True)
+    _run(out=out, resume=True, report=False)
     assert len(_lines(out)) == len(records)
 
 
 def test_a_results_folder_is_not_overwritten_nor_resumed_with_other_settings(tmp_path):
     out = tmp_path / "lb"
-    run_leaderboard(["BodyTrack-v2"], ["hold"], [1], episodes=1, progress=False, out=out)
+    run_leaderboard(
+        ["BodyTrack-v2"], ["hold"], [1], episodes=1, progress=False, out=out, report=False
+    )
     with pytest.raises(FileExistsError, match="--resume"):
         run_leaderboard(["BodyTrack-v2"], ["hold"], [1], episodes=1, progress=False, out=out)
     with pytest.raises(ResumeError, match="seed"):
@@ -203,7 +208,9 @@ def test_a_results_folder_is_not_overwritten_nor_resumed_with_other_settings(tmp
 
 def test_a_damaged_record_is_refused_before_any_episode_runs(tmp_path):
     out = tmp_path / "lb"
-    run_leaderboard(["ArmTrack-v2"], ["hold"], [1], episodes=2, progress=False, out=out)
+    run_leaderboard(
+        ["ArmTrack-v2"], ["hold"], [1], episodes=2, progress=False, out=out, report=False
+    )
     records = _lines(out)
     records[1]["result"] = {"seed": 1}
     (out / EPISODES_FILE).write_text("".join(json.dumps(r) + "\n" for r in records))
@@ -257,19 +264,21 @@ def test_an_address_where_a_web_server_answers_is_no_ray_cluster(monkeypatch):
 def test_the_data_resume_the_same_named_either_way(tmp_path, monkeypatch, shared_mocap):
     out = tmp_path / "lb"
     arm = ["ArmTrack-v2"]
-    run_leaderboard(arm, ["hold"], [1], episodes=1, progress=False, out=out,
+    run_leaderboard(arm, ["hold"], [1], episodes=1, progress=False, out=out, report=False,
                     env_kwargs={"data_dir": str(shared_mocap)})  # fmt: skip
     monkeypatch.setenv("HUMOTION_MOCAP", str(shared_mocap))
-    run_leaderboard(arm, ["hold"], [1], episodes=2, progress=False, out=out, resume=True)
+    run_leaderboard(arm, ["hold"], [1], episodes=2, progress=False, out=out, resume=True,
+                    report=False)  # fmt: skip
     monkeypatch.delenv("HUMOTION_MOCAP")
     with pytest.raises(ResumeError, match="data: saved"):  # the synthetic set is other data
         run_leaderboard(arm, ["hold"], [1], episodes=2, progress=False, out=out, resume=True)
 
 
 def _cli(tmp_path: Path, *agents: str) -> list[str]:
+    # No report: its figures take a second a run, and test_stats_report checks it
     return [
         "leaderboard", "--tasks", "BodyTrack-v2", "--agents", *agents, "--particles", "10",
-        "--episodes", "1", "--out", str(tmp_path / "lb"),
+        "--episodes", "1", "--out", str(tmp_path / "lb"), "--no-report",
     ]  # fmt: skip
 
 
@@ -311,7 +320,7 @@ def test_an_agent_that_raises_in_an_episode_is_an_error_row_and_exit_1(
     assert rows[1]["failed_seeds"] == [0]
     # an agent that only failed may leave the grid of the resumed run
     lines = (tmp_path / "lb" / EPISODES_FILE).read_text()
-    assert main([*_cli(tmp_path, "hold"), "--resume", "--no-report"]) == 0
+    assert main([*_cli(tmp_path, "hold"), "--resume"]) == 0
     (tmp_path / "lb" / EPISODES_FILE).write_text(lines)
     # the failed episode is recorded but not done: a resume retries it
     monkeypatch.undo()
@@ -436,7 +445,7 @@ def test_an_interrupted_run_exits_130_keeps_its_episodes_and_resumes(tmp_path, c
         return real(*args, **kwargs)
 
     monkeypatch.setattr(engine, "run_episode", interrupted_after_three)
-    argv = [*_cli(tmp_path, "pf-cv", "random"), "--episodes", "2", "--no-report"]
+    argv = [*_cli(tmp_path, "pf-cv", "random"), "--episodes", "2"]
     assert main(argv) == 130
     err = capsys.readouterr().err  # (the progress bars' lines besides)
     said = [line for line in err.splitlines() if "interrupted" in line or "--resume" in line]
@@ -490,7 +499,7 @@ def test_the_leaderboard_tracks_the_test_split_only(tmp_path):
 
 
 def test_resume_with_other_seeds_and_a_report_flag_without_out_say_what_is_wrong(tmp_path, capsys):
-    argv = [*_cli(tmp_path, "hold"), "--episodes", "2", "--no-report"]
+    argv = [*_cli(tmp_path, "hold"), "--episodes", "2"]
     assert main(argv) == 0
     capsys.readouterr()
     assert main([*argv, "--seed", "7", "--resume"]) == 2

@@ -367,6 +367,20 @@ def _check_page(index: Path) -> _Links:
     return page
 
 
+@pytest.fixture
+def no_figures(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Reports written without their figures (matplotlib's PNGs, about 0.5 s a report).
+
+    For the tests of what a page says, links or rebuilds besides its figures;
+    the figures are checked where they are the subject
+    (test_report_writes_tables_figures_and_a_page_whose_links_exist,
+    test_report_renders_in_headless_chromium).
+    """
+    import baselines.leaderboard.report as report
+
+    monkeypatch.setattr(report, "figures_available", lambda: False)
+
+
 def test_report_writes_tables_figures_and_a_page_whose_links_exist(tmp_path):
     pytest.importorskip("matplotlib", reason="its figures need matplotlib")
     rows = _rows({"pf-cv": 0.5, "random": 3.0})
@@ -510,7 +524,7 @@ def test_compact_results_keep_means_and_still_replay(small_run, tmp_path):
         replay_episodes(off, [off["episodes"][1]["seed"]], settings)
 
 
-def test_report_command_with_videos(small_run, tmp_path, capsys):
+def test_report_command_with_videos(small_run, tmp_path, capsys, no_figures):
     _, settings, path = small_run
     results = tmp_path / "results.json"
     results.write_text(json.dumps({"rows": json.loads(path.read_text()), "env_kwargs": settings}))
@@ -568,20 +582,19 @@ def test_report_renders_in_headless_chromium(tmp_path):
     index = write_report(rows, tmp_path / "rep", progress=False)
     browser = [str(_chromium()), "--headless", "--no-sandbox", "--disable-gpu"]
     shot = tmp_path / "shot.png"
-    subprocess.run(
-        [*browser, f"--screenshot={shot}", "--window-size=1200,1600", index.resolve().as_uri()],
-        check=True, timeout=120, capture_output=True,
-    )  # fmt: skip
+    # one start of the browser (about a second and a half) takes the picture and
+    # prints the page's DOM after its script ran
+    dom = subprocess.run(
+        [*browser, f"--screenshot={shot}", "--window-size=1200,1600", "--dump-dom",
+         index.resolve().as_uri()],
+        check=True, timeout=120, capture_output=True, text=True,
+    ).stdout  # fmt: skip
     import cv2
 
     image = cv2.imread(str(shot))
     assert image is not None and image.shape[:2] == (1600, 1200)
     assert image.std() > 5  # the tables and figures drew something, not a blank page
     # the page's script ran in the browser: it marks how many headers sort
-    dom = subprocess.run(
-        [*browser, "--dump-dom", index.resolve().as_uri()],
-        check=True, timeout=120, capture_output=True, text=True,
-    ).stdout  # fmt: skip
     page = _Links()
     page.feed(index.read_text())
     headers = sum(len(t[0]) for t in page.tables)
@@ -692,7 +705,7 @@ def test_a_cell_of_nan_mean_is_never_the_best_filter():
     assert "is pf-cv, 5.00x better than hold" in line and line.endswith("valid")
 
 
-def test_the_page_opens_with_what_made_the_numbers_and_each_verdict(tmp_path):
+def test_the_page_opens_with_what_made_the_numbers_and_each_verdict(tmp_path, monkeypatch):
     run = {
         "command": "humotion-gym leaderboard --tasks ArmTrack-v2", "commit": "abc123",
         "package_version": "0.1.0", "data": ["/data/mocap"], "created": "2026-12-01T22:00:00+00:00",
@@ -704,6 +717,10 @@ def test_the_page_opens_with_what_made_the_numbers_and_each_verdict(tmp_path):
                   "ArmTrack-v2: best filter at 100 particles is pf-cv, 2.00x better than hold"):  # fmt: skip
         assert shown in text
     _check_page(page)
+    import baselines.leaderboard.report as report
+
+    # the run's lines again, without the figures (checked above) that they do not touch
+    monkeypatch.setattr(report, "figures_available", lambda: False)
     bare = write_report(_rows({"pf-cv": 0.5}), tmp_path / "b", progress=False).read_text()
     assert bare.count("not recorded") == 4  # a bare list of rows says what it lacks
     synthetic = write_report(_rows({"pf-cv": 0.5}), tmp_path / "c", progress=False,
@@ -757,7 +774,10 @@ def test_a_declared_run_with_agent_seeds_replays_its_own_episodes(shared_mocap):
     """
     from baselines.leaderboard.engine import run_cell_episode, task_windows
 
-    settings = {"data_dir": [str(shared_mocap)]}
+    # Short, small episodes on the declared windows (a run's settings, as
+    # test_a_rebuilt_report_is_the_one_the_run_wrote's): which window and which
+    # agent seed an episode replays is what is checked, not how long it runs.
+    settings = {"data_dir": [str(shared_mocap)], "episode_frames": 10, "width": 64, "height": 64}
     episodes = []
     for seed, window in enumerate(task_windows("ArmTrack-v2", settings)[:3]):
         for agent_seed in (0, 1):
@@ -782,7 +802,7 @@ def test_a_declared_run_with_agent_seeds_replays_its_own_episodes(shared_mocap):
         replay_episodes(seeded, [0], settings, declared=True)
 
 
-def test_a_rebuilt_report_is_the_one_the_run_wrote(tmp_path):
+def test_a_rebuilt_report_is_the_one_the_run_wrote(tmp_path, no_figures):
     """``report FOLDER`` takes the run's seed and each row's kind of interval."""
     from baselines.leaderboard import run_leaderboard
 
@@ -799,7 +819,7 @@ def test_a_rebuilt_report_is_the_one_the_run_wrote(tmp_path):
     assert recorded["mean_error_ci"] == cell["mean_error_ci"]
 
 
-def test_a_run_without_its_report_says_the_old_one_is_stale(tmp_path, capsys):
+def test_a_run_without_its_report_says_the_old_one_is_stale(tmp_path, capsys, no_figures):
     from baselines.leaderboard import run_leaderboard
 
     out = tmp_path / "lb"

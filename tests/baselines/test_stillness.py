@@ -15,8 +15,32 @@ def env():
     return gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False)
 
 
-def test_still_windows_are_what_hold_scores_lowest_and_never_overlap(env):
-    windows = still_windows(env, max_hold_mm=200.0, count=6, stride=20)
+@pytest.fixture(scope="module")
+def windows(env):
+    """Up to six still windows of ``env`` (a scan runs ``hold`` on every candidate start)."""
+    return still_windows(env, max_hold_mm=200.0, count=6, stride=20)
+
+
+@pytest.fixture
+def coarse_scan(monkeypatch):
+    """Scans for still windows every 20 frames of the clips, not every 5.
+
+    The scan itself is checked (with stride 20) by
+    test_still_windows_are_what_hold_scores_lowest_and_never_overlap; the
+    commands that scan at the default stride are checked for what they do with
+    the windows found, which a coarser scan finds in a quarter of the time.
+    """
+    import functools
+
+    import baselines.experiments.selection as selection
+    import baselines.stillness as stillness
+
+    coarse = functools.partial(still_windows, stride=20)
+    monkeypatch.setattr(stillness, "still_windows", coarse)
+    monkeypatch.setattr(selection, "still_windows", coarse)
+
+
+def test_still_windows_are_what_hold_scores_lowest_and_never_overlap(env, windows):
     assert 1 <= len(windows) <= 6
     hold = make("hold", env)
     errors = [run_episode(hold, env, 0, w.options).mean_error_mm for w in windows]
@@ -38,8 +62,9 @@ def test_still_windows_refuse_bad_arguments(env):
         still_windows(env, count=0)
 
 
-def test_run_still_compares_every_agent_to_hold(env):
-    windows = still_windows(env, max_hold_mm=200.0, count=2, stride=20)
+def test_run_still_compares_every_agent_to_hold(env, windows):
+    # count=2 would keep the first two of the same windows (lowest first, greedily)
+    windows = windows[:2]
     out = run_still("BodyTrack-v2", ["pf-cv"], particles=20, windows=windows, progress=False)
     rows = {r["agent"]: r for r in out["rows"]}
     assert list(rows) == ["hold", "pf-cv"]
@@ -100,7 +125,9 @@ def test_cv_still_keeps_its_regimes_and_checks_its_persistence(env, tmp_path, mo
         make("pf-cv", env, n_particles=10, fit_settings={"persistence": 0.5})
 
 
-def test_selection_with_still_episodes_follows_the_declared_rule(tmp_path, monkeypatch):
+def test_selection_with_still_episodes_follows_the_declared_rule(
+    tmp_path, monkeypatch, coarse_scan
+):
     from baselines.experiments.selection import select_observation_settings, validation_library
 
     monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
@@ -122,7 +149,7 @@ def test_selection_with_still_episodes_follows_the_declared_rule(tmp_path, monke
     assert out["chosen"] == want["settings"]
 
 
-def test_cli_still_prints_the_table_and_writes_json(tmp_path, capsys):
+def test_cli_still_prints_the_table_and_writes_json(tmp_path, capsys, coarse_scan):
     import json
 
     from baselines.cli import main

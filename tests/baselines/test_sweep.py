@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -39,6 +40,11 @@ def small_sweep():
 
 def _errors(rows, agent):
     return [e["errors_mm"] for r in rows if r["agent"] == agent for e in r["episodes"]]
+
+
+def _no_figures(monkeypatch) -> None:
+    """The command's figures (about a second each) not drawn where they are checked already."""
+    monkeypatch.setattr(sweep, "figure", lambda result, path, *args, **kwargs: Path(path))
 
 
 def test_each_point_is_the_leaderboard_at_that_setting(small_sweep):
@@ -112,6 +118,7 @@ def test_sweep_command(tmp_path, capsys, monkeypatch):
     assert {p.name for p in out.iterdir()} == {"sweep.json", "sweep.md", "sweep.png"}
     assert (tmp_path / "fig.png").is_file()
     assert "| size | 64 |" in capsys.readouterr().out
+    _no_figures(monkeypatch)
     assert main(["sweep", "--tasks", "ArmTrack-v2", "--out", str(out)]) == 2  # nothing to sweep
     # the engine options reach the leaderboard (this fake runs it in-process)
     seen.clear()
@@ -132,7 +139,9 @@ def test_sweep_command(tmp_path, capsys, monkeypatch):
     )
 
 
-def test_a_cell_that_fails_or_is_skipped_is_shown_and_fails_the_command(tmp_path, capsys):
+def test_a_cell_that_fails_or_is_skipped_is_shown_and_fails_the_command(
+    tmp_path, capsys, monkeypatch
+):
     bad = tmp_path / "bad.zip"
     bad.write_text("not a policy")
     out = tmp_path / "sw"
@@ -144,6 +153,7 @@ def test_a_cell_that_fails_or_is_skipped_is_shown_and_fails_the_command(tmp_path
     assert "- SKIPPED: pf-pca@5 on ArmTrack-v2 at size=64" in captured.out
     assert "error: mine on ArmTrack-v2" in captured.err
     assert "Not in the table:" in (out / "sweep.md").read_text()
+    _no_figures(monkeypatch)
     assert main([*argv[:-1], str(tmp_path / "sw2"), "--json"]) == 1
     printed = json.loads(capsys.readouterr().out)
     assert [p["kind"] for p in printed["not_run"]] == ["error", "skipped"]
@@ -151,7 +161,12 @@ def test_a_cell_that_fails_or_is_skipped_is_shown_and_fails_the_command(tmp_path
 
 def test_an_interrupted_sweep_resumes_to_the_uninterrupted_numbers(tmp_path, capsys, monkeypatch):
     import baselines.leaderboard.engine as engine
+    from baselines.cli import sweep as sweep_cli
 
+    # Tiny episodes (BASE, which no flag gives) and no figures: the numbers are what is checked
+    given = sweep_cli.env_kwargs
+    monkeypatch.setattr(sweep_cli, "env_kwargs", lambda args: {**given(args), **BASE})
+    _no_figures(monkeypatch)
     argv = ["sweep", "--tasks", "ArmTrack-v2", "--agents", "pf-cv", "--particles", "10",
             "--episodes", "2", "--noise", "0", "12", "--size", "64"]  # fmt: skip
     whole = tmp_path / "whole"
@@ -165,10 +180,10 @@ def test_an_interrupted_sweep_resumes_to_the_uninterrupted_numbers(tmp_path, cap
         return real(*args, **kwargs)
 
     cut = tmp_path / "cut"
-    monkeypatch.setattr(engine, "run_episode", interrupted_in_the_second_point)
-    assert main([*argv, "--out", str(cut)]) == 130
+    with pytest.MonkeyPatch.context() as interrupting:
+        interrupting.setattr(engine, "run_episode", interrupted_in_the_second_point)
+        assert main([*argv, "--out", str(cut)]) == 130
     assert not (cut / "sweep.json").exists() and len(list((cut / "points").iterdir())) == 2
-    monkeypatch.undo()
     assert main([*argv, "--out", str(cut)]) == 2  # not written over
     assert main([*argv, "--out", str(cut), "--resume"]) == 0
     capsys.readouterr()

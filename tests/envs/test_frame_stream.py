@@ -31,17 +31,63 @@ from test_vector_env import _assert_same
 
 from humotion_gym.envs import frame_stream
 from humotion_gym.envs._frame_worker import serve
+from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 from humotion_gym.envs.vector import PoseTrackingVectorEnv
-from humotion_gym.mocap.library import MotionLibrary, default_library
+from humotion_gym.mocap.library import MotionLibrary
 
 TASK = "ArmTrack-v2"
 SETTINGS = {"task": TASK, "terminate_on_lost": False, "render_mode": "rgb_array"}
 
 
+@pytest.fixture(scope="module")
+def library() -> MotionLibrary:
+    """The synthetic set the environments use by default, given to them explicitly.
+
+    A drawing process given a library unpickles it instead of making the set
+    again (about a second a process); the learner vec env's test leaves the
+    worker to make its own.
+    """
+    return PoseTrackingEnv(task=TASK).library
+
+
+@pytest.fixture(scope="module")
+def library_file(library: MotionLibrary, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``library`` pickled, for the learners run as scripts below (``sys.argv[1]``)."""
+    path = tmp_path_factory.mktemp("library") / "synthetic.pkl"
+    path.write_bytes(pickle.dumps(library))
+    return path
+
+
+def _ahead(library: MotionLibrary, n: int = 2) -> PoseTrackingVectorEnv:
+    return PoseTrackingVectorEnv(n, draw_ahead=True, library=library, **SETTINGS)
+
+
+@pytest.fixture(scope="module")
+def _shared_process(library: MotionLibrary) -> Iterator[PoseTrackingVectorEnv]:
+    venv = _ahead(library)
+    yield venv
+    venv.close()
+
+
+@pytest.fixture
+def shared_ahead(_shared_process: PoseTrackingVectorEnv) -> PoseTrackingVectorEnv:
+    """One drawing process for the tests whose errors leave it running, shown in step first.
+
+    A test before may have left the episodes out of step: the reset starts
+    them all again, and the step shows the twins agree before this test.
+    """
+    venv = _shared_process
+    venv.reset(seed=0)
+    venv.step(np.zeros(venv.action_space.shape, np.float32))
+    return venv
+
+
 @contextlib.contextmanager
-def _twins(n: int = 3, **kwargs) -> Iterator[tuple[PoseTrackingVectorEnv, PoseTrackingVectorEnv]]:
+def _twins(
+    library: MotionLibrary, n: int = 3, **kwargs
+) -> Iterator[tuple[PoseTrackingVectorEnv, PoseTrackingVectorEnv]]:
     """The vector env drawing in-process and drawing ahead, with the same settings; closed."""
-    settings = {**SETTINGS, **kwargs}
+    settings = {"library": library, **SETTINGS, **kwargs}
     with contextlib.closing(PoseTrackingVectorEnv(n, **settings)) as drawn:
         with contextlib.closing(PoseTrackingVectorEnv(n, draw_ahead=True, **settings)) as ahead:
             yield drawn, ahead
@@ -61,8 +107,8 @@ def _steps(a, b, rng: np.random.Generator, count: int) -> None:
 
 
 @pytest.mark.parametrize("mode", [AutoresetMode.SAME_STEP, AutoresetMode.NEXT_STEP])
-def test_drawn_ahead_gives_what_drawn_in_process_gives(mode):
-    with _twins(autoreset_mode=mode) as (a, b):
+def test_drawn_ahead_gives_what_drawn_in_process_gives(mode, library):
+    with _twins(library, autoreset_mode=mode) as (a, b):
         rng = np.random.default_rng(0)
         frames = a.envs[0].episode_frames
         _assert_same(a.reset(seed=7), b.reset(seed=7), "reset")
@@ -80,10 +126,10 @@ def test_drawn_ahead_gives_what_drawn_in_process_gives(mode):
         _steps(a, b, rng, 3)  # refused before anything changed
 
 
-def test_first_unseeded_reset_draws_one_seed_for_both():
+def test_first_unseeded_reset_draws_one_seed_for_both(library):
     # Entropy from the operating system, drawn once: the worker's twin
     # starts the same episodes (its marks are checked at every step).
-    venv = PoseTrackingVectorEnv(2, draw_ahead=True, **SETTINGS)
+    venv = _ahead(library)
     try:
         venv.reset()
         seeds = venv.np_random_seed
@@ -119,25 +165,25 @@ def test_learner_vec_env_drawn_ahead_gives_the_same_rollouts():
         ahead.close()
 
 
-def test_settings_an_action_could_change_are_refused():
+def test_settings_an_action_could_change_are_refused(library, shared_ahead):
     with pytest.raises(ValueError, match="draw_ahead: .*terminate_on_lost=False"):
         PoseTrackingVectorEnv(2, task=TASK, draw_ahead=True)
     with pytest.raises(ValueError, match="draw_ahead: autoreset_mode DISABLED"):
         PoseTrackingVectorEnv(
             2, task=TASK, terminate_on_lost=False, autoreset_mode="Disabled", draw_ahead=True
         )
-    library = _Unpicklable(**vars(default_library(progress=False)))
+    unpicklable = _Unpicklable(**vars(library))
     with pytest.raises(ValueError, match="draw_ahead: the environment's arguments must be pick"):
         PoseTrackingVectorEnv(
-            2, task=TASK, terminate_on_lost=False, draw_ahead=True, library=library
+            2, task=TASK, terminate_on_lost=False, draw_ahead=True, library=unpicklable
         )
-    venv = PoseTrackingVectorEnv(2, draw_ahead=True, **SETTINGS)
-    try:
-        with pytest.raises(ValueError, match="set_attr: the frames are drawn ahead"):
-            venv.set_attr("terminate_on_lost", True)
-        venv.set_attr("lost_patience", 4)  # scores only: allowed
-    finally:
-        venv.close()
+    venv = shared_ahead
+    with pytest.raises(ValueError, match="set_attr: the frames are drawn ahead"):
+        venv.set_attr("terminate_on_lost", True)
+    patience = venv.envs[0].lost_patience
+    venv.set_attr("lost_patience", 4)  # scores only: allowed
+    assert [env.lost_patience for env in venv.envs] == [4, 4]
+    venv.set_attr("lost_patience", patience)  # as it was, for the tests sharing it
 
 
 class _Unpicklable(MotionLibrary):
@@ -145,21 +191,18 @@ class _Unpicklable(MotionLibrary):
         raise TypeError("not this one")
 
 
-def test_a_twin_out_of_step_is_an_error_not_a_wrong_frame():
-    venv = PoseTrackingVectorEnv(2, draw_ahead=True, **SETTINGS)
-    try:
-        venv.reset(seed=0)
-        zero = np.zeros(venv.action_space.shape, np.float32)
+def test_a_twin_out_of_step_is_an_error_not_a_wrong_frame(shared_ahead):
+    venv = shared_ahead
+    venv.reset(seed=0)
+    zero = np.zeros(venv.action_space.shape, np.float32)
+    venv.step(zero)
+    venv._t0[1] += 1  # an episode moved behind the batch's back
+    with pytest.raises(RuntimeError, match="draw_ahead: .*out of step"):
         venv.step(zero)
-        venv._t0[1] += 1  # an episode moved behind the batch's back
-        with pytest.raises(RuntimeError, match="draw_ahead: .*out of step"):
-            venv.step(zero)
-    finally:
-        venv.close()
 
 
-def test_a_worker_that_died_is_a_clear_error_and_close_still_works():
-    venv = PoseTrackingVectorEnv(2, draw_ahead=True, **SETTINGS)
+def test_a_worker_that_died_is_a_clear_error_and_close_still_works(library):
+    venv = _ahead(library)
     stream = venv._stream
     assert stream is not None
     try:
@@ -175,8 +218,8 @@ def test_a_worker_that_died_is_a_clear_error_and_close_still_works():
         venv.close()
 
 
-def test_close_ends_the_worker_and_frees_its_memory():
-    venv = PoseTrackingVectorEnv(2, draw_ahead=True, **SETTINGS)
+def test_close_ends_the_worker_and_frees_its_memory(library):
+    venv = _ahead(library)
     stream = venv._stream
     assert stream is not None
     venv.reset(seed=0)
@@ -201,28 +244,26 @@ def test_the_worker_reports_what_stopped_it():
     conn.close()
 
 
-def test_an_episode_cut_by_the_step_limit_keeps_its_last_frame():
+def test_an_episode_cut_by_the_step_limit_keeps_its_last_frame(library):
     # SAME_STEP: a cut episode's last frame is drawn by its step alone; the
     # worker sends it with the slot, for final_obs (SB3's terminal_observation).
-    with _twins(2, max_episode_steps=3, autoreset_mode=AutoresetMode.SAME_STEP) as (a, b):
+    cut = {"max_episode_steps": 3, "autoreset_mode": AutoresetMode.SAME_STEP}
+    with _twins(library, 2, **cut) as (a, b):
         _same_run(a, b, seed=2, steps=10)
 
 
-def test_what_the_drawing_process_would_not_see_is_refused():
-    venv = PoseTrackingVectorEnv(2, draw_ahead=True, **SETTINGS)
-    try:
-        with pytest.raises(ValueError, match=r"set_attr\('clips'\): the frames are drawn ahead"):
-            venv.set_attr("clips", [list(reversed(env.clips)) for env in venv.envs])
-        venv.reset(seed=0)
-        venv.envs[1]._motion = venv.envs[0]._motion  # another clip, behind the batch's back
-        with pytest.raises(RuntimeError, match="draw_ahead: .*out of step"):
-            venv.step(np.zeros(venv.action_space.shape, np.float32))
-    finally:
-        venv.close()
+def test_what_the_drawing_process_would_not_see_is_refused(shared_ahead):
+    venv = shared_ahead
+    with pytest.raises(ValueError, match=r"set_attr\('clips'\): the frames are drawn ahead"):
+        venv.set_attr("clips", [list(reversed(env.clips)) for env in venv.envs])
+    venv.reset(seed=0)
+    venv.envs[1]._motion = venv.envs[0]._motion  # another clip, behind the batch's back
+    with pytest.raises(RuntimeError, match="draw_ahead: .*out of step"):
+        venv.step(np.zeros(venv.action_space.shape, np.float32))
 
 
-def test_a_dead_worker_at_reset_and_a_silent_one_are_clear_errors(monkeypatch):
-    venv = PoseTrackingVectorEnv(2, draw_ahead=True, **SETTINGS)
+def test_a_dead_worker_at_reset_and_a_silent_one_are_clear_errors(monkeypatch, library):
+    venv = _ahead(library)
     stream = venv._stream
     try:
         venv.reset(seed=0)
@@ -233,12 +274,13 @@ def test_a_dead_worker_at_reset_and_a_silent_one_are_clear_errors(monkeypatch):
                 venv.reset(seed=1)
     finally:
         venv.close()
-    venv = PoseTrackingVectorEnv(2, draw_ahead=True, **SETTINGS)
+    venv = _ahead(library)
     stream = venv._stream
     try:
         venv.reset(seed=0)  # (its start is silent for longer than the limit below)
-        monkeypatch.setattr(frame_stream, "_SILENT_S", 0.5)
-        monkeypatch.setattr(frame_stream, "_POLL_S", 0.1)
+        # Stopped, it sends nothing however long the learner waits.
+        monkeypatch.setattr(frame_stream, "_SILENT_S", 0.2)
+        monkeypatch.setattr(frame_stream, "_POLL_S", 0.05)
         os.kill(stream._process.pid, signal.SIGSTOP)
         with pytest.raises(RuntimeError, match="drawing process sent nothing for"):
             for _ in range(2 * stream.depth):
@@ -255,7 +297,9 @@ def test_a_ring_larger_than_the_free_shared_memory_is_refused(monkeypatch):
         PoseTrackingVectorEnv(8, draw_ahead=True, **SETTINGS)
 
 
-def test_settings_from_a_module_on_the_learners_path_reach_the_worker(tmp_path, monkeypatch):
+def test_settings_from_a_module_on_the_learners_path_reach_the_worker(
+    tmp_path, monkeypatch, library
+):
     (tmp_path / "my_library_kind.py").write_text(
         "from humotion_gym.mocap.library import MotionLibrary\n"
         "class MyLibrary(MotionLibrary):\n    pass\n"
@@ -263,19 +307,22 @@ def test_settings_from_a_module_on_the_learners_path_reach_the_worker(tmp_path, 
     monkeypatch.syspath_prepend(str(tmp_path))
     from my_library_kind import MyLibrary
 
-    library = MyLibrary(**vars(default_library(progress=False)))
-    with _twins(2, library=library) as (a, b):
+    with _twins(MyLibrary(**vars(library)), 2) as (a, b):
         _same_run(a, b, seed=4, steps=5)
 
 
-def test_a_forked_child_leaves_the_parents_stream_alone():
+def test_a_forked_child_leaves_the_parents_stream_alone(library_file):
     # The child's exit runs its finalizers: detached at the fork, they neither
     # close the parent's worker nor free its memory.
     script = """
-import os, sys, atexit
+import os, pickle, sys, atexit
 import numpy as np
 from humotion_gym.envs.vector import PoseTrackingVectorEnv
-venv = PoseTrackingVectorEnv(2, task="ArmTrack-v2", terminate_on_lost=False, draw_ahead=True)
+with open(sys.argv[1], "rb") as fh:
+    library = pickle.load(fh)
+venv = PoseTrackingVectorEnv(
+    2, task="ArmTrack-v2", terminate_on_lost=False, draw_ahead=True, library=library
+)
 venv.reset(seed=0)
 pid = os.fork()
 if pid == 0:
@@ -287,21 +334,24 @@ for _ in range(40):
 venv.close()
 print("stepped on")
 """
-    done = subprocess.run(
-        [sys.executable, "-W", "ignore", "-c", script], capture_output=True, text=True, timeout=120
-    )
+    command = [sys.executable, "-W", "ignore", "-c", script, str(library_file)]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0 and done.stdout.strip() == "stepped on", done.stderr[-2000:]
 
 
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads /proc to see the worker")
-def test_the_worker_ends_with_a_killed_learner_whose_child_holds_its_socket(tmp_path):
+def test_the_worker_ends_with_a_killed_learner_whose_child_holds_its_socket(tmp_path, library_file):
     # A forked child would inherit the learner's end of the socket and keep the
     # worker from seeing its end: the child closes its copy at the fork, and
     # the worker also watches its parent (with neither, this fails).
     script = """
-import os, signal, time
+import os, pickle, signal, sys, time
 from humotion_gym.envs.vector import PoseTrackingVectorEnv
-venv = PoseTrackingVectorEnv(2, task="ArmTrack-v2", terminate_on_lost=False, draw_ahead=True)
+with open(sys.argv[1], "rb") as fh:
+    library = pickle.load(fh)
+venv = PoseTrackingVectorEnv(
+    2, task="ArmTrack-v2", terminate_on_lost=False, draw_ahead=True, library=library
+)
 venv.reset(seed=0)
 child = os.fork()
 if child == 0:
@@ -311,10 +361,9 @@ print(venv._stream._process.pid, child, flush=True)
 os.kill(os.getpid(), signal.SIGKILL)
 """
     out = tmp_path / "pids.txt"
+    command = [sys.executable, "-W", "ignore", "-c", script, str(library_file)]
     with open(out, "w") as fh:  # a file: the processes left behind hold no pipe of ours
-        learner = subprocess.Popen(
-            [sys.executable, "-W", "ignore", "-c", script], stdout=fh, stderr=subprocess.DEVNULL
-        )
+        learner = subprocess.Popen(command, stdout=fh, stderr=subprocess.DEVNULL)
         learner.wait(timeout=120)
     worker, child = (int(pid) for pid in out.read_text().split())
     try:

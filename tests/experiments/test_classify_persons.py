@@ -11,7 +11,8 @@ import pytest
 from baselines.cli import main
 from baselines.experiments import pavlovic1999 as pav
 from baselines.experiments.pavlovic1999 import scoring
-from humotion_gym.mocap.library import TEST_SUBJECTS, synthetic_library
+from humotion_gym.mocap import library
+from humotion_gym.mocap.library import TEST_SUBJECTS, MotionLibrary, synthetic_library
 from humotion_gym.mocap.synthetic import synthetic_motions
 
 FEATURES = ("angles", "centred-4s", "centred-all", "centred-0.5s", "velocity")
@@ -22,6 +23,22 @@ def small_train():
     """Walk and run of three synthetic training subjects, 3 s each (no test person)."""
     motions = synthetic_motions(n_subjects=3, seconds=3.0)
     return [m for m in motions if m.label in ("walk", "run")]
+
+
+#: Clip length of the whole synthetic sets below: the person splits and folds need every
+#: subject, not the default 8 s of each clip, and decoding costs in proportion to the frames.
+SHORT_SECONDS = 2.5
+
+
+@pytest.fixture
+def short_synthetic_library(monkeypatch):
+    """The CLI's default (synthetic) library, with every subject and activity in 2.5 s clips."""
+
+    def short(seed: int = 0, fps: float = 30.0) -> MotionLibrary:
+        return MotionLibrary(tuple(synthetic_motions(seed=seed, fps=fps, seconds=SHORT_SECONDS)))
+
+    # where default_library looks it up when no data folder is configured
+    monkeypatch.setattr(library, "synthetic_library", short)
 
 
 # ---------------------------------------------------------------------------
@@ -157,8 +174,10 @@ def test_cv_folds_never_see_a_test_person(small_train, monkeypatch):
     monkeypatch.setattr(scoring, "score_fits", spy)  # where the folds look it up
     walker = [dataclasses.replace(m, subject="cmu-07", clip_id=f"cmu/07_{k:02d}", dataset="cmu")
               for k, m in enumerate(small_train) if m.label == "walk"][:1]  # fmt: skip
+    # two synthetic persons and the walker: three folds, each of which the others train
+    persons = [m for m in small_train if m.subject != small_train[-1].subject]
     result = pav.select_classifier_settings(
-        [*walker, *small_train], np.random.default_rng(0), param_sets={"legs": pav.LEG_PARAMS},
+        [*walker, *persons], np.random.default_rng(0), param_sets={"legs": pav.LEG_PARAMS},
         switch_probs=(1e-3,), n_states=2, n_iter=2, features=("angles", "centred-4s"),
         extra_noise_degs=(0.0, 8.0),
     )  # fmt: skip
@@ -206,7 +225,7 @@ def test_kinds_criterion_weighs_each_kind_of_fold_the_same():
 
 
 def test_splits_training_persons_leave_the_other_splits_unchanged():
-    motions = list(synthetic_library())
+    motions = synthetic_motions(seconds=SHORT_SECONDS)  # every subject, test persons too
     settings = {"given": pav.ClassifierSetting(pav.LEG_PARAMS, 1e-3, "legs", "centred-4s", 4.0)}
     kw = {"settings": settings, "n_states": 2, "n_iter": 2}
     plain = pav.evaluate_splits(motions, np.random.default_rng(3), **kw)
@@ -223,7 +242,7 @@ def test_splits_training_persons_leave_the_other_splits_unchanged():
 # ---------------------------------------------------------------------------
 
 
-def test_cli_select_and_splits_round_trip_the_variant_options(capsys):
+def test_cli_select_and_splits_round_trip_the_variant_options(short_synthetic_library, capsys):
     code = main(["slds", "select", "--json", "--quiet", "--states", "2", "--iters", "2",
                  "--param-sets", "legs", "--switch-probs", "1e-3", "--features", "angles",
                  "centred-3s", "--extra-noise-degs", "6", "--criterion", "frames",

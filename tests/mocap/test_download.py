@@ -302,7 +302,7 @@ def _all_but(srv, dest, rel: str) -> None:
     """Download subject 7, then drop ``rel``: a later run fetches ``rel`` alone.
 
     So that a deadline test times the slow file only, never a quick one that a
-    busy machine happened to hold up past a deadline of one second.
+    busy machine happened to hold up past a deadline of half a second.
     """
     get(srv, dest, subjects=[7])
     (dest / rel).unlink()
@@ -762,8 +762,8 @@ def test_slow_drip_stopped_at_file_deadline(tiny):
     rel = "07/07_01.amc"
     _all_but(srv, dest, rel)
     srv.drip_s[f"/{rel}"] = 0.05
-    with pytest.raises(DownloadError, match=r"per-file deadline of 1 s") as err:
-        get(srv, dest, subjects=[7], file_deadline_s=1.0)
+    with pytest.raises(DownloadError, match=r"per-file deadline of 0\.5 s") as err:
+        get(srv, dest, subjects=[7], file_deadline_s=0.5)
     assert err.value.url == f"{srv.url}/{rel}"
     # What arrived is kept, resumable, and the message names it.
     assert err.value.path == dest / (rel + ".part") and err.value.path.is_file()
@@ -775,8 +775,8 @@ def test_slow_drip_stopped_at_run_deadline(tiny):
     srv, files, dest = tiny
     _all_but(srv, dest, "07/07_02.amc")
     srv.drip_s["/07/07_02.amc"] = 0.05
-    with pytest.raises(DownloadError, match=r"07_02\.amc.*run's deadline of 1 s"):
-        get(srv, dest, subjects=[7], deadline_s=1.0)
+    with pytest.raises(DownloadError, match=r"07_02\.amc.*run's deadline of 0\.5 s"):
+        get(srv, dest, subjects=[7], deadline_s=0.5)
     assert "07/07_02.amc" not in final_files(dest)
 
 
@@ -787,7 +787,7 @@ def test_headers_dripped_stopped_at_deadline(tiny):
     _all_but(srv, dest, rel)
     srv.header_drip_s[f"/{rel}"] = 0.05
     with pytest.raises(DownloadError, match=r"07_01\.amc: stopped at the per-file deadline"):
-        get(srv, dest, subjects=[7], file_deadline_s=1.0)
+        get(srv, dest, subjects=[7], file_deadline_s=0.5)
     assert rel not in final_files(dest) and leftovers(dest) == set()
 
 

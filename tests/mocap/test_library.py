@@ -13,6 +13,7 @@ from humotion_gym.mocap.bvh import load_bvh
 from humotion_gym.mocap.export import write_motion_bvh
 from humotion_gym.mocap.library import (
     TEST_SUBJECTS,
+    MotionLibrary,
     activity_label,
     default_library,
     describe_file,
@@ -22,6 +23,12 @@ from humotion_gym.mocap.library import (
 )
 from humotion_gym.mocap.motion import Motion
 from humotion_gym.mocap.retarget import retarget_clip
+
+
+@pytest.fixture(scope="module")
+def synth() -> MotionLibrary:
+    """The built-in synthetic library, made once for the module (it is immutable)."""
+    return synthetic_library()
 
 
 def test_default_library_is_synthetic_without_data(monkeypatch):
@@ -34,10 +41,10 @@ def test_default_library_is_synthetic_without_data(monkeypatch):
         assert rows[m.clip_id][3] == ("test" if m.subject in lib.held_out else "train")
 
 
-def test_split_is_by_subject_and_disjoint():
+def test_split_is_by_subject_and_disjoint(synth):
     from humotion_gym.mocap.persons import check_person_split
 
-    lib = synthetic_library()
+    lib = synth
     train, test = lib.split("train"), lib.split("test")
     assert len(train) + len(test) == len(lib)
     assert not set(train.subjects) & set(test.subjects)
@@ -47,8 +54,8 @@ def test_split_is_by_subject_and_disjoint():
         lib.split("validation")
 
 
-def test_lookup_filter_and_errors():
-    lib = synthetic_library()
+def test_lookup_filter_and_errors(synth):
+    lib = synth
     m = lib["synthetic/walk-01"]
     assert m.label == "walk"
     assert all(x.label == "run" for x in lib.filter(labels=["run"]))
@@ -56,8 +63,8 @@ def test_lookup_filter_and_errors():
         lib["nope"]
 
 
-def test_motion_save_load_round_trip(tmp_path):
-    m = synthetic_library()["synthetic/reach-03"]
+def test_motion_save_load_round_trip(tmp_path, synth):
+    m = synth["synthetic/reach-03"]
     m.save(tmp_path / "m.npz")
     back = Motion.load(tmp_path / "m.npz")
     assert back.clip_id == m.clip_id and back.shape == m.shape and back.synthetic
@@ -112,10 +119,10 @@ def _write_clip(folder, name, motion):
     return path
 
 
-def test_cache_is_used_and_rebuilt_when_the_file_changes(tmp_path, monkeypatch):
+def test_cache_is_used_and_rebuilt_when_the_file_changes(tmp_path, monkeypatch, synth):
     data, cache = tmp_path / "data", tmp_path / "cache"
     data.mkdir()
-    walk = synthetic_library()["synthetic/walk-01"]
+    walk = synth["synthetic/walk-01"]
     path = _write_clip(data, "take.bvh", walk)
     (data / "partial.bvh.part").write_text("not a clip")  # partial downloads are ignored
     first = load_library([data], cache_dir=cache, progress=False)
@@ -127,7 +134,7 @@ def test_cache_is_used_and_rebuilt_when_the_file_changes(tmp_path, monkeypatch):
     second = load_library([data], cache_dir=cache, progress=False)
     assert calls == [] and np.array_equal(second[0].params, first[0].params)
 
-    run = synthetic_library()["synthetic/run-01"]
+    run = synth["synthetic/run-01"]
     time.sleep(0.01)
     _write_clip(data, "take.bvh", run)
     os.utime(path, ns=(time.time_ns(), time.time_ns() + 10**9))

@@ -236,7 +236,7 @@ def test_holding_out_cmu_07_alone_fails(real_library):
 
 
 @pytest.mark.mocap
-def test_cli_data_persons_on_the_shared_data(shared_mocap, capsys):
+def test_cli_data_persons_on_the_shared_data(shared_mocap, shared_loads_are_the_sessions, capsys):
     assert main(["data", "persons", str(shared_mocap)]) == 0
     out = capsys.readouterr().out
     assert "person split OK" in out and "G2, one skeleton: cmu-05, cmu-07" in out

@@ -376,10 +376,15 @@ def synthetic():
     return train, test
 
 
+#: The prior the tests below track with, and the one-process, default-tolerance fit that the
+#: fits in several processes and at other tolerances are compared with.
+FIT_KWARGS = {"n_states": 3, "n_iter": 4, "workers": 1}
+
+
 @pytest.fixture(scope="module")
 def fitted(synthetic):
     train, _ = synthetic
-    return slds.fit(list(train), n_states=3, n_iter=4, rng=np.random.default_rng(0))
+    return slds.fit(list(train), rng=np.random.default_rng(0), **FIT_KWARGS)
 
 
 def test_prior_contract(fitted, synthetic, tmp_path):
@@ -470,11 +475,10 @@ def _killed_worker(start, n_iter, cov_rtol):
 
 
 @needs_fork
-def test_fit_in_processes_is_the_one_process_fit(synthetic):
+def test_fit_in_processes_is_the_one_process_fit(synthetic, fitted):
     train, _ = synthetic
-    kwargs = {"n_states": 3, "n_iter": 4}
-    one = slds.fit(list(train), rng=np.random.default_rng(0), workers=1, **kwargs)
-    two = slds.fit(list(train), rng=np.random.default_rng(0), workers=2, **kwargs)
+    one = fitted  # workers=1
+    two = slds.fit(list(train), rng=np.random.default_rng(0), **{**FIT_KWARGS, "workers": 2})
     _assert_same_model(one, two)
     assert set(two.state_labels) == {"walk", "run"}  # the models joined in label order
     np.testing.assert_array_equal(one.state_labels, two.state_labels)
@@ -583,14 +587,13 @@ def _relative_change(model: SLDSParams, ref: SLDSParams, name: str) -> float:
     )
 
 
-def test_the_prior_fit_tolerance_is_the_exact_fit_to_about_its_size(synthetic):
+def test_the_prior_fit_tolerance_is_the_exact_fit_to_about_its_size(synthetic, fitted):
     """FIT_COV_RTOL trades the table's sharing for speed, not the model: the same
     switch states and the same parameters to a few times the tolerance."""
     train, _ = synthetic
-    kwargs = {"n_states": 3, "n_iter": 4, "workers": 1}
-    exact = slds.fit(list(train), rng=np.random.default_rng(0), cov_rtol=COV_RTOL, **kwargs)
-    quick = slds.fit(list(train), rng=np.random.default_rng(0), **kwargs)
-    coarse = slds.fit(list(train), rng=np.random.default_rng(0), cov_rtol=1e-3, **kwargs)
+    exact = slds.fit(list(train), rng=np.random.default_rng(0), cov_rtol=COV_RTOL, **FIT_KWARGS)
+    quick = fitted  # the default tolerance, slds.FIT_COV_RTOL
+    coarse = slds.fit(list(train), rng=np.random.default_rng(0), cov_rtol=1e-3, **FIT_KWARGS)
     np.testing.assert_array_equal(exact.state_labels, quick.state_labels)
     worst = {}
     for name in ("A", "b", "Q", "R", "x0", "Q0", "Pi", "pi0"):

@@ -489,12 +489,16 @@ def test_real_data_arm_and_body(real_library):
     assert np.all(np.isfinite(state.pose))
 
 
-def test_a_pose_search_holds_more_variance_and_projects_like_its_windows():
-    from humotion_gym.mocap.library import synthetic_library
+@pytest.fixture(scope="module")
+def pose_search_prior(train):
+    """The body prior of the same clips whose search compares the poses alone."""
+    return tree.fit(train, search="pose")
 
-    motions = synthetic_library().split("train").motions[:6]
-    both = tree.fit(motions)
-    pose = tree.fit(motions, search="pose")
+
+def test_a_pose_search_holds_more_variance_and_projects_like_its_windows(
+    train, body_prior, pose_search_prior
+):
+    both, pose = body_prior, pose_search_prior
     assert pose.search == "pose" and both.search == "pose+velocity"
     # the features per frame: the absolute parameters alone
     lay = tree._layout(pose.free)
@@ -505,15 +509,13 @@ def test_a_pose_search_holds_more_variance_and_projects_like_its_windows():
     x = tree.database_windows(pose)
     assert np.allclose(x @ pose.components, pose.coefficients, atol=1e-6)
     with pytest.raises(ValueError, match="search must be one of"):
-        tree.fit(motions, search="velocity")
+        tree.fit(train, search="velocity")
 
 
-def test_the_transition_noise_does_not_depend_on_what_the_search_compares():
-    from humotion_gym.mocap.library import synthetic_library
-
-    motions = synthetic_library().split("train").motions[:6]
-    both = tree.fit(motions)
-    pose = tree.fit(motions, search="pose")
+def test_the_transition_noise_does_not_depend_on_what_the_search_compares(
+    body_prior, pose_search_prior
+):
+    both, pose = body_prior, pose_search_prior
     assert np.allclose(pose.step_var, both.step_var, rtol=1e-9)
     assert np.array_equal(both.step_var, both.feature_var[-both.n_free :])
 

@@ -122,36 +122,36 @@ def test_smoke_ppo_trains_checkpoints_and_resumes(tmp_path: Path) -> None:
     import torch as th
     from stable_baselines3 import PPO
 
-    settings = {"n_envs": 2, "n_steps": 64, "batch_size": 64, "n_epochs": 1, "frame_size": 32}
+    settings = {"n_envs": 2, "n_steps": 32, "batch_size": 64, "n_epochs": 1, "frame_size": 32}
     config = TrainConfig(
-        "ppo", "BodyTrack-v2", steps=256, seed=1, out=str(tmp_path), settings=settings,
-        checkpoint_every=128, validation=False,
+        "ppo", "BodyTrack-v2", steps=128, seed=1, out=str(tmp_path), settings=settings,
+        checkpoint_every=64, validation=False,
     )  # fmt: skip
     train(config)
     assert (tmp_path / "model.zip").is_file()
-    assert [n for n, _ in checkpoints(tmp_path / "checkpoints")] == [128, 256]
+    assert [n for n, _ in checkpoints(tmp_path / "checkpoints")] == [64, 128]
     # A checkpoint of N steps holds the weights after the update at N: the final model's
     # (SB3's step callbacks would save it before its last update).
     final = PPO.load(tmp_path / "model.zip", device="cpu").policy.state_dict()
-    saved = PPO.load(tmp_path / "checkpoints" / "model_256_steps.zip", device="cpu")
+    saved = PPO.load(tmp_path / "checkpoints" / "model_128_steps.zip", device="cpu")
     for name, value in saved.policy.state_dict().items():
         assert th.equal(value, final[name]), name
     # A tie goes to the checkpoint, which keeps the optimizer's state for the resume.
-    assert resume_point(tmp_path) == (256, tmp_path / "checkpoints" / "model_256_steps.zip")
+    assert resume_point(tmp_path) == (128, tmp_path / "checkpoints" / "model_128_steps.zip")
     more = TrainConfig(
-        "ppo", "BodyTrack-v2", steps=384, seed=1, out=str(tmp_path), settings=settings,
+        "ppo", "BodyTrack-v2", steps=192, seed=1, out=str(tmp_path), settings=settings,
         checkpoint_every=1000, validation=False,
     )  # fmt: skip
     train(more, resume=True)
-    # The final model (384 steps) is later than the last checkpoint: a resume continues it.
-    assert resume_point(tmp_path) == (384, tmp_path / "model.zip")
+    # The final model (192 steps) is later than the last checkpoint: a resume continues it.
+    assert resume_point(tmp_path) == (192, tmp_path / "model.zip")
     config = json.loads((tmp_path / "config.json").read_text())
-    assert config["resumed_from"] == 256
-    assert config["env_steps"] >= 384
+    assert config["resumed_from"] == 128
+    assert config["env_steps"] >= 192
     assert config["validation_subjects"] is None
     header = (tmp_path / "logs" / "progress.csv").read_text().splitlines()[0].split(",")
     assert {"train/loss", "train/value_loss", "time/total_timesteps"} <= set(header)
-    assert (tmp_path / "logs" / "from-256" / "progress.csv").is_file()  # the first log kept
+    assert (tmp_path / "logs" / "from-128" / "progress.csv").is_file()  # the first log kept
 
 
 def test_a_resume_is_the_same_run_longer(tmp_path: Path) -> None:
