@@ -177,3 +177,33 @@ def test_an_agent_that_cannot_track_the_task_is_refused_before_the_scan(monkeypa
     with pytest.raises(ValueError, match="cannot track 'BodyTrack-v2'"):
         stillness.run_still("BodyTrack-v2", ["pf-cv", "pf-pca"], 10)
     assert not scanned
+
+
+def test_a_window_overlapping_a_lower_one_is_never_taken(env, monkeypatch):
+    """One clip's windows score lowest, rising with their start: neighbours overlap.
+
+    ``hold``'s episodes are replaced by a score of the window alone, so every
+    start of every clip is a candidate and the lowest ones are known.
+    """
+    import types
+
+    import baselines.stillness as stillness
+
+    base = env.unwrapped
+    first = base.clips[0].clip_id
+
+    def scored(agent, env_, seed, options):
+        low = 0.0 if options["clip_id"] == first else 100.0
+        return types.SimpleNamespace(mean_error_mm=low + 1e-3 * options["start"])
+
+    monkeypatch.setattr(stillness, "run_episode", scored)
+    span = base.episode_frames * base.frame_skip
+    starts = [int(s) for s in base._good_starts(base.clips[0])]
+    got = still_windows(env, max_hold_mm=1000.0, count=3, stride=1)
+    # the greedy choice: the lowest start, then the lowest that overlaps none chosen
+    want = [starts[0]]
+    for s in starts:
+        if len(want) < 3 and s - want[-1] >= span:
+            want.append(s)
+    assert len(want) == 3, "the first clip is too short for this test"
+    assert [(w.clip_id, w.start) for w in got] == [(first, s) for s in want]
