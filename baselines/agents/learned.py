@@ -24,6 +24,7 @@ import json
 import os
 import time
 import warnings
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -238,6 +239,17 @@ def load_policy(path: str | Path) -> Any:
         raise FileNotFoundError(
             f"{p}: no saved policy; train one with `humotion-gym train --algo bc --task TASK "
             f"--steps N --out runs/NAME` (it writes runs/NAME/model.zip)"
+        )
+    # Checked before torch is imported (seconds): every SB3 save is a zip with a
+    # "data" member holding its settings.
+    try:
+        with zipfile.ZipFile(p) as archive:
+            saved = "data" in archive.namelist()
+    except (zipfile.BadZipFile, OSError) as exc:
+        raise ValueError(f"{p}: not a readable stable-baselines3 PPO policy ({exc})") from exc
+    if not saved:
+        raise ValueError(
+            f"{p}: not a readable stable-baselines3 PPO policy (a zip without SB3's 'data')"
         )
     import torch
     from stable_baselines3 import PPO
