@@ -139,6 +139,8 @@ def skeleton_signature(motion: Motion) -> FloatArray:
     kp = motion.keypoints
     lengths = np.linalg.norm(kp[:, _BONE_A] - kp[:, _BONE_B], axis=-1)  # (T, 9)
     seen = np.isfinite(lengths)
+    if lengths.size and seen.all():  # the usual clip; nanmedian took two thirds of the time
+        return np.median(lengths, axis=0)
     out = _shape_signature(motion)
     cols = seen.any(axis=0)
     if cols.any():
