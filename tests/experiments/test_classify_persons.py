@@ -11,8 +11,7 @@ import pytest
 from baselines.cli import main
 from baselines.experiments import pavlovic1999 as pav
 from baselines.experiments.pavlovic1999 import scoring
-from humotion_gym.mocap import library
-from humotion_gym.mocap.library import TEST_SUBJECTS, MotionLibrary, synthetic_library
+from humotion_gym.mocap.library import TEST_SUBJECTS, synthetic_library
 from humotion_gym.mocap.synthetic import synthetic_motions
 
 FEATURES = ("angles", "centred-4s", "centred-all", "centred-0.5s", "velocity")
@@ -23,22 +22,6 @@ def small_train():
     """Walk and run of three synthetic training subjects, 3 s each (no test person)."""
     motions = synthetic_motions(n_subjects=3, seconds=3.0)
     return [m for m in motions if m.label in ("walk", "run")]
-
-
-#: Clip length of the whole synthetic sets below: the person splits and folds need every
-#: subject, not the default 8 s of each clip, and decoding costs in proportion to the frames.
-SHORT_SECONDS = 2.5
-
-
-@pytest.fixture
-def short_synthetic_library(monkeypatch):
-    """The CLI's default (synthetic) library, with every subject and activity in 2.5 s clips."""
-
-    def short(seed: int = 0, fps: float = 30.0) -> MotionLibrary:
-        return MotionLibrary(tuple(synthetic_motions(seed=seed, fps=fps, seconds=SHORT_SECONDS)))
-
-    # where default_library looks it up when no data folder is configured
-    monkeypatch.setattr(library, "synthetic_library", short)
 
 
 # ---------------------------------------------------------------------------
@@ -224,8 +207,8 @@ def test_kinds_criterion_weighs_each_kind_of_fold_the_same():
         pav.criterion_scores(groups, folds, "median")
 
 
-def test_splits_training_persons_leave_the_other_splits_unchanged():
-    motions = synthetic_motions(seconds=SHORT_SECONDS)  # every subject, test persons too
+def test_splits_training_persons_leave_the_other_splits_unchanged(short_synthetic_library):
+    motions = synthetic_motions(seconds=short_synthetic_library)  # every subject, test persons too
     settings = {"given": pav.ClassifierSetting(pav.LEG_PARAMS, 1e-3, "legs", "centred-4s", 4.0)}
     kw = {"settings": settings, "n_states": 2, "n_iter": 2}
     plain = pav.evaluate_splits(motions, np.random.default_rng(3), **kw)

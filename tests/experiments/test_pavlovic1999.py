@@ -12,13 +12,8 @@ import pytest
 from baselines.cli import main
 from baselines.experiments import pavlovic1999
 from baselines.priors import slds
-from humotion_gym.mocap import library
-from humotion_gym.mocap.library import MotionLibrary, synthetic_library
+from humotion_gym.mocap.library import synthetic_library
 from humotion_gym.mocap.synthetic import synthetic_motions
-
-#: Clip length of the CLI's synthetic set below: its folds and splits need every subject, not
-#: the default 8 s of each clip, and decoding costs in proportion to the frames.
-SHORT_SECONDS = 2.5
 
 
 @pytest.fixture(scope="module")
@@ -27,17 +22,6 @@ def synthetic():
     train = lib.split("train").filter(labels=["walk", "run"])
     test = lib.split("test").filter(labels=["walk", "run"])
     return train, test
-
-
-@pytest.fixture
-def short_synthetic_library(monkeypatch):
-    """The CLI's default (synthetic) library, with every subject and activity in 2.5 s clips."""
-
-    def short(seed: int = 0, fps: float = 30.0) -> MotionLibrary:
-        return MotionLibrary(tuple(synthetic_motions(seed=seed, fps=fps, seconds=SHORT_SECONDS)))
-
-    # where default_library looks it up when no data folder is configured
-    monkeypatch.setattr(library, "synthetic_library", short)
 
 
 @pytest.fixture(scope="module")
@@ -262,7 +246,10 @@ def test_cli_select_and_splits_on_the_synthetic_set(short_synthetic_library, cap
                                           "synthetic-06"}  # fmt: skip
     together = [r for r in rows if r["split"] == "synthetic-05 + synthetic-06"][0]
     assert together["kind"] == "person held out" and together["train_clips"] == 8
-    assert together["frames"] == 4 * round(SHORT_SECONDS * 30) and 0.0 <= together["error"] <= 1.0
+    assert (
+        together["frames"] == 4 * round(short_synthetic_library * 30)
+        and 0.0 <= together["error"] <= 1.0
+    )
 
 
 @pytest.mark.mocap
