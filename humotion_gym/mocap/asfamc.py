@@ -80,7 +80,7 @@ from humotion_gym.mocap._scan import (
     read_motion_bytes,
 )
 from humotion_gym.mocap.bvh import MAX_NAME_LENGTH  # one bound on names for both formats
-from humotion_gym.mocap.skeleton import PointsOnce
+from humotion_gym.mocap.skeleton import PointsOnce, with_ancestors
 
 __all__ = [
     "FRAME_SPAN_FACTOR",
@@ -266,11 +266,7 @@ class AcclaimClip(PointsOnce):
         """
         sk = self.skeleton
         n_t = self.n_frames
-        needed = np.zeros(len(self.point_names), dtype=bool)
-        for i in wanted:
-            while i >= 0 and not needed[i]:
-                needed[i] = True
-                i = int(self.parents[i])
+        needed = with_ancestors(self.parents, wanted)
         pos = np.full((n_t, len(self.point_names), 3), np.nan)
         starts = np.cumsum([0, len(sk.root_order)] + [len(d) for d in sk.dofs])
 

@@ -86,7 +86,7 @@ from humotion_gym.mocap._scan import (
     decode_text,
     read_motion_bytes,
 )
-from humotion_gym.mocap.skeleton import PointsOnce
+from humotion_gym.mocap.skeleton import PointsOnce, with_ancestors
 
 __all__ = [
     "CHANNEL_NAMES",
@@ -309,12 +309,8 @@ class BvhClip(PointsOnce):
         """
         n_j = len(self.joint_names)
         points = [self._point_joint[i] for i in wanted]
-        needed = np.zeros(n_j, dtype=bool)
-        for is_joint, i in points:
-            j = i if is_joint else int(self.end_site_parents[i])
-            while j >= 0 and not needed[j]:
-                needed[j] = True
-                j = int(self.joint_parents[j])
+        carriers = [i if is_joint else int(self.end_site_parents[i]) for is_joint, i in points]
+        needed = with_ancestors(self.joint_parents, carriers)
         _, pos = self._kinematics(keep_rotations=False, needed=needed)
         # From (joints, end sites) to the points asked for.
         return pos[:, [i if is_joint else n_j + i for is_joint, i in points]]

@@ -56,9 +56,9 @@ from humotion_gym.mocap.rigs import (  # the head top's extension: the profiles'
     Extend,
     KeypointSource,
     RigProfile,
-    _points_of,
     guess_format,
     placed_points,
+    plan_points,
 )
 from humotion_gym.mocap.skeleton import SkeletonClip
 
@@ -606,7 +606,7 @@ def _up_axis(clip: SkeletonClip, sources: Mapping[str, KeypointSource], valid: N
     """
     # Every point the profile reads, in one pass of the kinematics (its
     # keypoints are read from them next, and share their joints' chains).
-    names = list(dict.fromkeys(n for src in sources.values() for n in _points_of(src)))
+    names = plan_points(sources)
     neck, pelvis = (names.index(keypoints_point(sources[k])) for k in ("neck", "pelvis"))
     frames = valid[:: max(1, valid.size // 200)]
     d = np.diff(clip.point_positions(names)[frames][:, [neck, pelvis]], axis=1)[:, 0]

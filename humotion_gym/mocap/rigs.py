@@ -194,7 +194,7 @@ class RigProfile:
             raise RigError(
                 f"{clip.path}: rig {self.name!r} cannot find the points for keypoints {missing}"
             )
-        names = list(dict.fromkeys(n for src in sources.values() for n in _points_of(src)))
+        names = plan_points(sources)
         pos = clip.point_positions(names) * units_to_mm
         if self.up_axis == "y":
             pos = pos @ Y_UP_TO_Z_UP.T
@@ -216,6 +216,11 @@ class RigProfile:
 def _points_of(src: KeypointSource) -> tuple[str, ...]:
     """The source points a keypoint source reads."""
     return (src.point, src.towards) if isinstance(src, Extend) else (src,)
+
+
+def plan_points(sources: Mapping[str, KeypointSource]) -> list[str]:
+    """Every source point a plan's keypoints read (:meth:`RigProfile.plan`), each once."""
+    return list(dict.fromkeys(n for src in sources.values() for n in _points_of(src)))
 
 
 def _sided(template: Mapping[str, str], right: str, left: str) -> dict[str, str]:

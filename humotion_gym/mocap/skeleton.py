@@ -57,6 +57,20 @@ class SkeletonClip(Protocol):
         ...
 
 
+def with_ancestors(parents: NDArray[np.intp], nodes: Sequence[int]) -> NDArray[np.bool_]:
+    """``(N,)`` True for ``nodes`` and every ancestor of them in a tree of ``parents`` (root -1).
+
+    The joints whose kinematics a set of points needs: each chain is walked
+    up only to the first node already marked.
+    """
+    marked = np.zeros(len(parents), dtype=bool)
+    for node in nodes:
+        while node >= 0 and not marked[node]:
+            marked[node] = True
+            node = int(parents[node])
+    return marked
+
+
 class PointsOnce:
     """What both parsers' clips share: :meth:`point_positions`, each point computed once and kept.
 
