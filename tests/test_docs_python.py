@@ -9,7 +9,9 @@ written: their counts are cut by the substitutions in :data:`SCALED`, each of
 which must match its page's text exactly, so a page cannot drift from the code
 run here. A line that shows a value (``obs["frame"].shape  # (4, 128, 128, 3)``)
 is checked to give the value its comment says. Agents and references a block
-registers are removed afterwards, and a block must not warn (``UserWarning``).
+registers are removed afterwards, a block must not warn (``UserWarning``), and
+a leaderboard a page runs must have no failed row: a row whose episodes raised
+(in a Ray worker, say) is a row of the table, not an exception.
 """
 
 from __future__ import annotations
@@ -82,6 +84,17 @@ def shown_values(source: str) -> str:
     return "\n".join(lines) + "\n"
 
 
+def failed_rows(namespace: dict[str, object]) -> list[str]:
+    """The error of every failed leaderboard row held in a page's namespace."""
+    return [
+        str(row["error"])
+        for value in namespace.values()
+        if isinstance(value, list)
+        for row in value
+        if isinstance(row, dict) and "error" in row
+    ]
+
+
 def test_the_pages_have_their_blocks_and_every_scaling_matches() -> None:
     blocks = {page.name: [source for _, source in page_blocks(page)] for page in DOCS}
     assert sum(len(b) for b in blocks.values()) >= 5
@@ -108,6 +121,7 @@ def test_every_block_of_a_page_runs_as_written(
             for line, source in page_blocks(page):
                 code = shown_values(scaled(page.name, source))
                 exec(compile(code, f"{page.name} block at line {line}", "exec"), namespace)
+                assert failed_rows(namespace) == [], f"{page.name} block at line {line}"
     finally:
         AGENTS.clear()
         AGENTS.update(saved[0])
@@ -123,3 +137,9 @@ def test_a_shown_value_that_is_wrong_fails() -> None:
     exec(compile(code.replace("(1, 3)", "(1, 2)", 1), "ok", "exec"), {SHOWN: check_shown})
     with pytest.raises(AssertionError, match=r"x: \(1, 2\), the page says \(1, 3\)"):
         exec(compile(code, "wrong", "exec"), {SHOWN: check_shown})
+
+
+def test_a_failed_leaderboard_row_is_found() -> None:
+    row = {"task": "BodyTrack-v2", "agent": "pf-cv", "error": "episode 3 raised ValueError"}
+    assert failed_rows({"rows": [{"task": "BodyTrack-v2", "agent": "hold"}], "n": 3}) == []
+    assert failed_rows({"rows": [row], "x": [1, "a"]}) == ["episode 3 raised ValueError"]
