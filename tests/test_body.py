@@ -38,6 +38,14 @@ def test_rest_pose_keypoints_are_known():
     assert np.isclose(kp[K["head_top"], 2], s.standing_height())
     # the subject's right is +x
     assert kp[K["r_shoulder"], 0] > 0 > kp[K["l_shoulder"], 0]
+    # mirror symmetric: each left keypoint is its right twin with x negated (also with
+    # shoulders and hips set forward, which the default shape leaves at 0)
+    for shape in (s, s.replace(shoulder_forward=40.0, hip_forward=-25.0)):
+        kp = forward_kinematics(standing_pose(shape), shape)
+        for joint in ("shoulder", "elbow", "wrist", "hip", "knee", "ankle"):
+            mirrored = kp[K[f"r_{joint}"]] * [-1.0, 1.0, 1.0]
+            np.testing.assert_allclose(kp[K[f"l_{joint}"]], mirrored, atol=1e-9, err_msg=joint)
+        assert kp[K["l_shoulder"], 1] == pytest.approx(shape.shoulder_forward)
 
 
 @pytest.mark.parametrize(

@@ -94,6 +94,18 @@ def test_points_behind_camera_are_nan() -> None:
     behind = cam.position - 100.0 * cam.forward
     assert np.all(np.isnan(cam.project(behind)))
     assert not cam.in_image(cam.project(behind))
+    # depth exactly 0 (beside the camera centre, in its image plane) is "at or behind": nan too
+    on_plane = Camera(40, 30, 60.0, np.eye(3), np.zeros(3))
+    assert np.all(np.isnan(on_plane.project(np.array([100.0, 50.0, 0.0]))))
+
+
+def test_in_image_holds_the_edges_of_the_edge_pixels() -> None:
+    """Pixel centres 0..W-1: the image spans [-0.5, W - 0.5] x [-0.5, H - 0.5], edges included."""
+    cam = Camera(40, 30, 60.0, np.eye(3), np.zeros(3))
+    inside = [[-0.5, -0.5], [39.5, 29.5], [-0.5, 29.5], [39.5, -0.5], [19.5, 14.5]]
+    outside = [[-0.51, 0.0], [39.51, 0.0], [0.0, -0.51], [0.0, 29.51], [np.nan, 0.0]]
+    np.testing.assert_array_equal(cam.in_image(np.array(inside)), True)
+    np.testing.assert_array_equal(cam.in_image(np.array(outside)), False)
 
 
 def test_look_at_is_orthonormal_and_upright() -> None:

@@ -210,3 +210,136 @@ def test_every_filter_refuses_a_step_it_cannot_weigh(k: int) -> None:
         f.reset(np.zeros(3), np.random.default_rng(0))
         with pytest.raises(ValueError, match=said):
             f.step(None)
+
+
+class _Broad:
+    """Test-only likelihood: an isotropic Gaussian of standard deviation ``sigma``."""
+
+    def __init__(self, sigma: float):
+        self.sigma = sigma
+
+    def log_likelihood(self, frame, poses):
+        return -0.5 * np.sum((poses - frame) ** 2, axis=1) / self.sigma**2
+
+
+@pytest.mark.parametrize("estimate", ["mean", "map"])
+def test_weights_carry_over_until_the_ess_falls(estimate: str) -> None:
+    """With ``ess_threshold < 1`` the weights carry over to the next frame while the
+    ESS stays above the threshold, and the estimate is of the carried weights: a
+    plain loop with scipy's logsumexp, the same generator draws in the same order."""
+    prior, like, n, threshold = RandomWalk(0.1), _Broad(0.6), 200, 0.5
+    frames = np.cumsum(np.full((12, 2), 0.08), axis=0)
+    pf = ParticleFilter(prior, None, like, n, ess_threshold=threshold, estimate=estimate)
+    pf.reset(np.zeros(2), np.random.default_rng(11))
+    rng = np.random.default_rng(11)
+    pose = prior.initial(None, np.zeros(2), n, rng).pose
+    log_w = np.full(n, -np.log(n))
+    resampled = []
+    for y in frames:
+        got = pf.step(y)
+        pose = prior.transition(None, ParticleState(pose), rng).pose
+        log_w = log_w + like.log_likelihood(y, pose)
+        log_w = log_w - logsumexp(log_w)
+        weights = np.exp(log_w)
+        ess = 1.0 / np.sum(weights**2)
+        want = pose[np.argmax(log_w)] if estimate == "map" else weights @ pose
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+        assert pf.ess == pytest.approx(ess, rel=1e-9)
+        resampled.append(bool(ess < threshold * n))
+        if resampled[-1]:
+            pose = pose[systematic_resample(weights, rng)]
+            log_w = np.full(n, -np.log(n))
+        np.testing.assert_allclose(pf.log_weights, log_w, rtol=1e-9, atol=1e-9)
+        np.testing.assert_array_equal(pf.state.pose, pose)
+    assert any(resampled) and not all(resampled)  # both branches were taken
+
+
+def test_an_annealed_step_matches_a_plain_step() -> None:
+    """One annealed frame written out: fixed exponents per layer, weights by
+    scipy's logsumexp, systematic resampling, diffusion of ``alpha^(m+1)`` times
+    the proposal's variance floored by ``min_std``, the last layer's weighted mean."""
+    prior, like, n = RandomWalk(0.15), _Broad(0.2), 300
+    betas, alpha = np.array([0.1, 0.4, 1.0]), 0.6
+    min_std = np.array([0.0, 0.5, 0.05])  # the middle floor lies above the cloud's spread
+    apf = AnnealedParticleFilter(
+        prior, None, like, n, layers=3, alpha=alpha, betas=betas, min_std=min_std
+    )
+    apf.reset(np.zeros(3), np.random.default_rng(8))
+    rng = np.random.default_rng(8)
+    pose = prior.initial(None, np.zeros(3), n, rng).pose
+    for y in (np.array([0.1, -0.1, 0.2]), np.array([0.2, 0.0, 0.3])):
+        got = apf.step(y)
+        pose = prior.transition(None, ParticleState(pose), rng).pose
+        base = np.maximum(pose.std(axis=0), min_std)
+        assert base[1] == 0.5
+        for m, beta in enumerate(betas):
+            tempered = beta * like.log_likelihood(y, pose)
+            weights = np.exp(tempered - logsumexp(tempered))
+            if m == len(betas) - 1:
+                want = weights @ pose
+            pose = pose[systematic_resample(weights, rng)]
+            if m < len(betas) - 1:
+                std = base * np.sqrt(alpha ** (m + 1))
+                pose = pose + std * rng.standard_normal(pose.shape)
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(apf.state.pose, pose, rtol=1e-9, atol=1e-12)
+        assert apf.layer_betas == betas.tolist()
+
+
+class _StagedPeaks:
+    """Test-only partial likelihood: a Gaussian factor per dimension, each group
+    adds its dimensions' factors; the column of the last group is NaN where the
+    first dimension is above ``cut`` (an impossible partial figure) while the whole
+    likelihood stays finite there."""
+
+    def __init__(self, sigma: float, cut: float):
+        self.sigma, self.cut = sigma, cut
+
+    def log_likelihood(self, frame, poses):
+        return -0.5 * np.sum((poses - frame) ** 2, axis=1) / self.sigma**2
+
+    def log_likelihood_partial(self, frame, poses, groups):
+        terms = -0.5 * (poses - frame) ** 2 / self.sigma**2
+        out = np.cumsum([terms[:, list(g)].sum(axis=1) for g in groups], axis=0).T
+        out[poses[:, 0] > self.cut, -1] = np.nan
+        return np.column_stack([out, terms.sum(axis=1) + 0.3 * poses[:, 0]])
+
+
+def test_a_partitioned_step_matches_a_plain_step() -> None:
+    """One partitioned frame written out: stage k weighs by g_k / g_{k-1} (the last
+    by L / g_{K-2}), a particle with any impossible column up to there gets no
+    weight, and each later stage first diffuses its own dimensions by the
+    proposal's spread floored by ``min_std``."""
+    stages = [
+        Stage(np.array([0, 1]), (0, 1)),
+        Stage(np.array([2]), (2,)),
+        Stage(np.array([3, 4]), (3, 4)),
+    ]
+    prior, like, n = RandomWalk(0.2), _StagedPeaks(0.25, cut=0.05), 400
+    min_std = np.array([0.0, 0.0, 0.6, 0.0, 0.6])
+    ppf = PartitionedParticleFilter(prior, None, like, n, stages, diffusion=0.5, min_std=min_std)
+    ppf.reset(np.zeros(5), np.random.default_rng(12))
+    rng = np.random.default_rng(12)
+    pose = prior.initial(None, np.zeros(5), n, rng).pose
+    groups = [s.group for s in stages]
+    for y in (np.full(5, 0.1), np.full(5, 0.2)):
+        got = ppf.step(y)
+        pose = prior.transition(None, ParticleState(pose), rng).pose
+        base = np.maximum(pose.std(axis=0), min_std) * 0.5
+        for k, stage in enumerate(stages):
+            if k > 0:
+                pose = pose.copy()
+                noise = rng.standard_normal((n, stage.dims.size))
+                pose[:, stage.dims] += base[stage.dims] * noise
+            g = like.log_likelihood_partial(y, pose, groups)
+            upto = len(stages) if k == len(stages) - 1 else k
+            increment = g[:, upto] - (g[:, k - 1] if k > 0 else 0.0)
+            possible = np.isfinite(g[:, : upto + 1]).all(axis=1)
+            assert 0 < possible.sum() < n or k < len(stages) - 1
+            increment = np.where(possible, increment, -np.inf)
+            weights = np.exp(increment - logsumexp(increment))
+            if k == len(stages) - 1:
+                want = weights @ pose
+            pose = pose[systematic_resample(weights, rng)]
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(ppf.state.pose, pose, rtol=1e-9, atol=1e-12)

@@ -13,6 +13,7 @@ from baselines.filtering import (
     multinomial_resample,
     stratified_resample,
     systematic_resample,
+    tempered_weights,
     weighted_mean,
 )
 from baselines.filtering._compiled import wrapped_offsets
@@ -385,3 +386,36 @@ def test_arrays_given_by_rows_compose_and_stay_deferred() -> None:
     for bad in (np.array([0, 4]), np.array([-1, 0])):  # rows outside the source
         with pytest.raises(IndexError, match=r"rows of 'past' must lie in \[0, 4\)"):
             filtering.gathered({"past": (shared, bad)})
+
+
+def test_stratified_pointers_are_drawn_apart_and_systematic_ones_together() -> None:
+    # Weights 1/6, 1/3, 1/2 over three strata of 1/3: pointer 0 falls on particle
+    # 0 or 1 (below or above 1/6), pointer 1 on 1 or 2 (below or above 1/2), pointer
+    # 2 on 2. One offset for all (systematic) always draws particle 1 exactly once;
+    # one per stratum (stratified) draws it 0, 1 or 2 times with probabilities 1/4,
+    # 1/2, 1/4, so 400 draws miss 0 or 2 with probability below 2^-165.
+    weights = np.array([1.0, 2.0, 3.0]) / 6.0
+    rng = np.random.default_rng(8)
+    ones = {
+        name: [int(np.sum(RESAMPLING[name](weights, rng) == 1)) for _ in range(400)]
+        for name in ("systematic", "stratified")
+    }
+    assert set(ones["systematic"]) == {1}
+    assert set(ones["stratified"]) == {0, 1, 2}
+    assert 100 < ones["stratified"].count(1) < 300  # 1/2 of 400, well inside 10 deviations
+
+
+def test_tempered_weights_by_hand() -> None:
+    # w ~ exp(beta loglik): by hand, -inf weighs nothing, all -inf weighs evenly,
+    # and a common shift of the log-likelihoods (even a huge one) changes nothing.
+    loglik = np.array([0.0, -1.0, -np.inf, -2.0])
+    want = np.array([1.0, np.exp(-0.5), 0.0, np.exp(-1.0)])
+    want /= want.sum()
+    np.testing.assert_allclose(tempered_weights(loglik, 0.5), want, rtol=1e-14)
+    np.testing.assert_allclose(tempered_weights(loglik - 1e4, 0.5), want, rtol=1e-9)
+    np.testing.assert_allclose(
+        tempered_weights(loglik, 1.0),
+        [1, np.exp(-1), 0, np.exp(-2)] / (1 + np.exp(-1) + np.exp(-2)),
+        rtol=1e-14,
+    )
+    np.testing.assert_array_equal(tempered_weights(np.full(4, -np.inf), 2.0), np.full(4, 0.25))

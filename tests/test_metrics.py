@@ -57,6 +57,20 @@ def test_keypoint_error_of_a_pure_root_shift_is_the_shift():
     np.testing.assert_array_equal(point_errors(kp, kp), np.zeros(N_KEYPOINTS))
 
 
+def test_mean_keypoint_error_averages_only_the_chosen_keypoints() -> None:
+    """A bent pose's errors differ by keypoint: the mean is over the chosen ones only."""
+    shape = default_shape()
+    pose = standing_pose(shape)
+    bent = pose + np.random.default_rng(4).normal(0.0, 0.3, pose.shape) * (np.arange(25) >= 6)
+    diff = forward_kinematics(bent, shape) - forward_kinematics(pose, shape)
+    errs = np.sqrt((diff**2).sum(axis=-1))  # the oracle: plain Euclidean distances
+    assert errs[0] == 0.0 and errs.max() > 10.0  # the root is unmoved, limbs are not
+    for chosen in ([0], [3, 7], [1, 4, 9, 14]):
+        got = mean_keypoint_error(bent, pose, shape, keypoints=chosen)
+        assert got == pytest.approx(errs[chosen].mean(), rel=1e-12)
+    assert mean_keypoint_error(bent, pose, shape) == pytest.approx(errs.mean(), rel=1e-12)
+
+
 def test_angle_errors_wrap_and_skip_positions():
     est = np.zeros(25)
     truth = np.zeros(25)
@@ -65,6 +79,14 @@ def test_angle_errors_wrap_and_skip_positions():
     d = angle_errors(est, truth)
     assert np.isnan(d[:3]).all()
     assert d[3] == pytest.approx(0.2)
+    # Exact answers over a whole turn either way: the shorter way round, in [0, pi].
+    diffs = [0.0, 0.5, -0.5, 3.0, -3.0, 1.5 * np.pi, 2 * np.pi + 0.3, -2 * np.pi - 0.3]
+    want = [0.0, 0.5, 0.5, 3.0, 3.0, 0.5 * np.pi, 0.3, 0.3]
+    est = np.zeros((len(diffs), 25))
+    est[:, 5] = diffs
+    d = angle_errors(est, np.zeros(25))
+    np.testing.assert_allclose(d[:, 5], want, atol=1e-12)
+    np.testing.assert_array_equal(d[:, 3:5], 0.0)  # equal angles: no error
 
 
 @pytest.mark.parametrize("patience", [1, 2, 5])

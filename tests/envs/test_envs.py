@@ -219,6 +219,78 @@ def test_track_lost_terminates_and_can_be_switched_off():
     assert not term and info["lost"]
 
 
+def _shifted_step(env, shift_mm):
+    """A step with the truth moved ``shift_mm`` along x: every keypoint is off by it."""
+    pose = env.true_pose()
+    pose[0] += shift_mm
+    return env.step(env.pose_to_action(pose))
+
+
+@pytest.mark.parametrize(("shift", "lost_at"), [(140.0, None), (160.0, 5)])
+def test_reward_and_lost_track_at_known_errors(shift, lost_at):
+    """The documented defaults: reward exp(-e / 100 mm); lost once 5 frames are above 150 mm."""
+    env = gym.make("humotion_gym/BodyTrack-v2").unwrapped
+    env.reset(seed=0)
+    for k in range(1, 8):
+        _, reward, term, trunc, info = _shifted_step(env, shift)
+        assert info["error_mm"] == pytest.approx(shift, abs=0.5)
+        assert reward == pytest.approx(np.exp(-info["error_mm"] / 100.0), rel=1e-6)
+        assert info["lost"] == (lost_at is not None and k >= lost_at)
+        assert (term, trunc) == (info["lost"], False)
+        if term:
+            break
+    assert k == (lost_at or 7)
+
+
+def test_a_loss_on_the_last_frame_terminates_and_does_not_truncate():
+    """The last frame lost: terminated alone (truncated only where tracking went on)."""
+    for terminate in (True, False):
+        env = gym.make(
+            "humotion_gym/BodyTrack-v2", episode_frames=3, lost_patience=1,
+            terminate_on_lost=terminate,
+        ).unwrapped  # fmt: skip
+        env.reset(seed=0)
+        for _ in range(2):
+            assert _shifted_step(env, 0.0)[2:4] == (False, False)
+        _, _, term, trunc, info = _shifted_step(env, 200.0)
+        assert info["lost"] and (term, trunc) == (terminate, not terminate)
+
+
+def test_a_new_episode_counts_its_lost_frames_afresh():
+    """Frames above the threshold at one episode's end do not count toward the next's loss."""
+    env = gym.make("humotion_gym/BodyTrack-v2", episode_frames=6, terminate_on_lost=False)
+    env = env.unwrapped
+    env.reset(seed=0)
+    lost = [_shifted_step(env, shift)[4]["lost"] for shift in (0, 0, 0, 160, 160, 160)]
+    assert lost == [False] * 6  # three frames above 150 mm: not yet lost
+    env.reset(seed=1)
+    lost = [_shifted_step(env, 160.0)[4]["lost"] for _ in range(6)]
+    assert lost == [False] * 4 + [True] * 2  # lost at the fifth frame of this episode
+
+
+def test_lost_and_reward_follow_the_scored_keypoints_step_by_step():
+    """ArmTrack scores the right elbow and wrist: the rules read over its info, step by step."""
+    from humotion_gym.body import KEYPOINT_INDEX
+
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False).unwrapped
+    env.reset(seed=0)
+    scored = [KEYPOINT_INDEX["r_elbow"], KEYPOINT_INDEX["r_wrist"]]
+    rng = np.random.default_rng(7)
+    errors, lost = [], []
+    for t in range(30):
+        sigma = 0.5 if (t // 6) % 2 else 0.02  # runs of bad and good estimates
+        a = env.pose_to_action(env.true_pose()) + rng.normal(0.0, sigma, env.action_space.shape)
+        _, reward, _, _, info = env.step(np.clip(a, -1, 1).astype(np.float32))
+        e = info["keypoint_errors_mm"][scored]
+        assert info["error_mm"] == pytest.approx(e.mean(), rel=1e-12)
+        assert reward == pytest.approx(np.exp(-e / 100.0).mean(), rel=1e-12)
+        errors.append(info["error_mm"])
+        lost.append(info["lost"])
+    # the oracle: lost where this and the 4 frames before were all above 150 mm
+    want = [t >= 4 and all(e > 150.0 for e in errors[t - 4 : t + 1]) for t in range(30)]
+    assert lost == want and any(want) and not all(want)
+
+
 @pytest.mark.parametrize(
     "bad, match",
     [(np.full(4, np.nan), "finite"), (np.full(4, np.inf), "finite"), (np.zeros(5), "shape")],
@@ -247,6 +319,20 @@ def test_observation_gives_what_the_agent_needs_and_never_the_truth():
         for key, value in part.items():
             if isinstance(value, np.ndarray) and value.shape == (25,) and key != "initial_pose":
                 assert not np.array_equal(value, truth), key
+
+
+def test_observation_follows_the_frame_on_show_step_by_step():
+    """SideWalk's camera moves and it fixes parameters: both are the frame on show's."""
+    env = gym.make("humotion_gym/SideWalk-v2").unwrapped
+    obs, _ = env.reset(seed=0)
+    initial, cameras = obs["initial_pose"].copy(), [obs["camera"]]
+    for _ in range(3):
+        obs, *_ = env.step(env.pose_to_action(env.true_pose()))
+        assert np.array_equal(obs["fixed_params"], env.true_pose()[env.task.fixed_indices])
+        assert np.array_equal(obs["camera"], env.camera.to_vector())
+        assert np.array_equal(obs["initial_pose"], initial)  # the first frame's, kept
+        cameras.append(obs["camera"])
+    assert not np.array_equal(cameras[0], cameras[-1])  # a camera that moved
 
 
 _GIVENS = ("initial_pose", "shape", "camera", "fixed_params", "fps")

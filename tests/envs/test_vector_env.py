@@ -144,6 +144,30 @@ def test_vector_env_equals_sync_vector_env(env_id, mode):
 
 
 @pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_a_loss_on_the_last_frame_and_a_frame_skip_are_the_sync_envs(mode):
+    """Every other frame shown, and episodes lost on their last frame, before it, or never."""
+    n, env_id = 3, "humotion_gym/BodyTrack-v2"
+    kwargs = {"width": 64, "height": 64, "episode_frames": 4, "lost_patience": 1, "frame_skip": 2}
+    vec = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point", autoreset_mode=mode,
+                       **kwargs)  # fmt: skip
+    sync = gym.make_vec(env_id, n, vectorization_mode="sync",
+                        vector_kwargs={"autoreset_mode": mode}, **kwargs)  # fmt: skip
+    obs, info = vec.reset(seed=2)
+    _assert_same((obs, info), sync.reset(seed=2), "reset")
+    first = info["frame"].copy()
+    bad_at = np.array([4, 2, 0])  # the step each row's estimate is far off (0: never)
+    for t in range(1, 5):
+        truth = np.stack([env.pose_to_action(env.true_pose()) for env in vec.unwrapped.envs])
+        actions = np.where((bad_at == t)[:, None], 1.0, truth).astype(np.float32)
+        got = vec.step(actions)
+        _assert_same(got, sync.step(actions), f"step {t}")
+        if t < 4:  # rows 0 and 2 go on: every frame shown is two on from the last one
+            assert np.array_equal(got[4]["frame"][[0, 2]], first[[0, 2]] + 2 * t)
+    # the last step: row 0 lost (terminated alone), row 2 at its end (truncated)
+    assert got[2].tolist() == [True, False, False] and got[3].tolist() == [False, False, True]
+
+
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
 def test_a_step_limit_cuts_episodes_as_time_limit_does(mode):
     """make_vec(max_episode_steps=m): the episodes drawn at the task's length, cut after m steps."""
     n, env_id = 3, "humotion_gym/BodyTrack-v2"

@@ -127,3 +127,69 @@ def test_moving_root_holds_the_articulation_and_moves_the_root():
     assert np.all(state.pose[:, :3].std(axis=0) > 1.0)
     with pytest.raises(ValueError, match="moving must be one of"):
         cv.fit(motions, moving="limbs")
+
+
+def test_fit_counts_only_observed_steps_at_the_frame_skip():
+    # The spreads by their definition, step by step: at every second frame, a
+    # first difference where both its frames were observed, a second difference
+    # where all three were; the gaps are in one joint, so whole frames drop.
+    import dataclasses
+
+    rng = np.random.default_rng(4)
+    clips = []
+    for m in synthetic_library().split("train").motions[:3]:
+        observed = m.observed.copy()
+        observed[rng.random(m.n_frames) < 0.2, 13] = False
+        clips.append(dataclasses.replace(m, observed=observed))
+    free = np.array([0, 12, 20])
+    fitted = cv.fit(clips, free=free, frame_skip=2)
+    vel, acc = [], []
+    for m in clips:
+        p, ok = m.params[::2, free], m.observed[::2].all(axis=1)
+        for t in range(1, len(p)):
+            if ok[t - 1] and ok[t]:
+                vel.append(p[t] - p[t - 1])
+            if t + 1 < len(p) and ok[t - 1] and ok[t] and ok[t + 1]:
+                acc.append(p[t + 1] - 2 * p[t] + p[t - 1])
+    assert len(acc) < len(vel) < 3 * 120 - 3  # the gaps dropped steps
+    np.testing.assert_allclose(fitted.accel_std, np.std(acc, axis=0), rtol=1e-10)
+    np.testing.assert_allclose(fitted.velocity_std, np.std(vel, axis=0), rtol=1e-10)
+    assert fitted.fps == clips[0].fps / 2
+
+
+def test_initial_and_transition_by_hand():
+    # Each draw written out with a copy of the generator: initial velocities of
+    # the data's first-difference spread; then the velocity damped and kicked by
+    # multiplier * accel_std, the pose moved by the new velocity, position noise
+    # of position_noise * velocity_std, and a coordinate past a joint limit put on
+    # the limit with its velocity zeroed.
+    from baselines.filtering import ParticleState
+    from humotion_gym.body import VALID_LOWER, VALID_UPPER
+
+    fitted = cv.ConstantVelocityParams(
+        free=np.array([12, 20]),  # r_elbow, r_knee: limits [0, 2.9]
+        accel_std=np.array([0.01, 0.02]),
+        velocity_std=np.array([0.3, 0.05]),
+        fps=30.0,
+        multiplier=2.0,
+        damping=0.5,
+        position_noise=0.25,
+    )
+    start = cv.initial(fitted, np.array([1.0, 1.5]), 4, np.random.default_rng(6))
+    np.testing.assert_array_equal(start.pose, np.tile([1.0, 1.5], (4, 1)))
+    np.testing.assert_array_equal(
+        start.extra["velocity"], np.random.default_rng(6).standard_normal((4, 2)) * [0.3, 0.05]
+    )
+    pose = np.array([[1.0, 1.5], [2.0, 0.5], [2.8, 1.0], [1.2, 0.1]])
+    velocity = np.array([[0.02, -0.01], [0.0, 0.03], [1.0, 0.0], [0.0, -1.0]])
+    moved = cv.transition(
+        fitted, ParticleState(pose, {"velocity": velocity}), np.random.default_rng(7)
+    )
+    rng = np.random.default_rng(7)
+    want_v = 0.5 * velocity + rng.standard_normal((4, 2)) * [0.02, 0.04]
+    want_p = pose + want_v + rng.standard_normal((4, 2)) * [0.075, 0.0125]
+    lower, upper = VALID_LOWER[[12, 20]], VALID_UPPER[[12, 20]]
+    outside = (want_p < lower) | (want_p > upper)
+    np.testing.assert_array_equal(outside, [[0, 0], [0, 0], [1, 0], [0, 1]])
+    np.testing.assert_allclose(moved.pose, np.clip(want_p, lower, upper), rtol=1e-14)
+    np.testing.assert_allclose(moved.extra["velocity"], np.where(outside, 0.0, want_v), rtol=1e-14)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from baselines.filtering import ParticleFilter
+from baselines.filtering import ParticleFilter, ParticleState
 from baselines.priors import cycles, cyclic_pca, fpca
 from humotion_gym.body import PARAM_INDEX, default_shape, standing_pose
 from humotion_gym.envs.tasks import SIDE_WALK, WALK_TRACK
@@ -185,6 +185,38 @@ def test_fpca_without_missing_data_is_pca_of_the_coefficients():
     np.testing.assert_allclose(fit.singular_values, sv[:3], rtol=1e-10)
 
 
+def fig8_first_iteration(x, mask, q, h):
+    """One round of Fig. 8 written out: missing entries at the mean curve of the
+    cycles that observe them, the coefficients' mean row plus the rank-q SVD part,
+    back to curves; the observed mean squared error."""
+    c, j, s = x.shape
+    start = np.empty((j, s))
+    for a in range(j):
+        for t in range(s):
+            start[a, t] = x[mask[:, a, t], a, t].mean()
+    z = fpca.to_coefficients(np.where(mask, x, start), h).reshape(c, -1)
+    mean = z.mean(axis=0)
+    u, sv, vt = np.linalg.svd(z - mean, full_matrices=False)
+    recon = fpca.to_curves(((u[:, :q] * sv[:q]) @ vt[:q] + mean).reshape(c, j, -1), s)
+    return recon, float(np.sum((x - recon)[mask] ** 2) / mask.sum()), sv[:q]
+
+
+@pytest.mark.parametrize("cycles_", [10, 40])  # fewer cycles than coefficients, and more
+def test_fpcas_first_iteration_imputes_from_the_row_mean(cycles_):
+    rng = np.random.default_rng(cycles_)
+    x = fpca.to_curves(rng.standard_normal((cycles_, 2, 7)) * np.arange(7, 0, -1), 16)
+    x += 0.05 * rng.standard_normal(x.shape)  # some of it outside the band
+    mask = np.ones(x.shape, bool)
+    mask[: cycles_ // 2] = rng.random((cycles_ // 2, 2, 16)) > 0.3
+    fit = fpca.fpca(x, mask, n_components=3, n_harmonics=4, max_iter=1)
+    recon, error, sv = fig8_first_iteration(x, mask, 3, 4)
+    assert fit.n_iter == 1
+    np.testing.assert_allclose(fit.errors[0], error, rtol=1e-9)
+    np.testing.assert_allclose(fit.singular_values, sv, rtol=1e-9)
+    np.testing.assert_allclose(fit.reconstruction, recon, atol=1e-9)
+    np.testing.assert_allclose(fit.completed, np.where(mask, x, recon), atol=1e-9)
+
+
 def test_theorem_1_on_synthetic_walking_with_spans_removed(synthetic_walks):
     xs, ws, truth, holes = remove_spans(synthetic_walks, np.random.default_rng(5))
     imp = fpca.impute_sequences(xs, ws, fps=30.0, n_components=5)
@@ -250,6 +282,57 @@ def test_prior_contract(task, synthetic_walks):
         nxt.extra[cyclic_pca.PHASE],
         (state.extra[cyclic_pca.PHASE] + state.extra[cyclic_pca.SPEED]) % fitted.n_samples,
     )
+
+
+def test_transition_keeps_each_particles_offset_on_the_new_curves(fitted, synthetic_walks):
+    # The angles after a frame are the model's curves at the advanced phase and the
+    # walked coefficients plus the particle's own fixed offset (set by hand here).
+    state = cyclic_pca.initial(fitted, synthetic_walks[-1].params[20], 50, np.random.default_rng(2))
+    angle_slots = cyclic_pca._slots(fitted)[0]
+    offset = np.random.default_rng(3).normal(0.0, 0.2, state.extra[cyclic_pca.OFFSET].shape)
+    extra = {**state.extra, cyclic_pca.OFFSET: offset}
+    moved = cyclic_pca.transition(
+        fitted, ParticleState(state.pose, extra), np.random.default_rng(4)
+    )
+    np.testing.assert_array_equal(moved.extra[cyclic_pca.OFFSET], offset)
+    want = cyclic_pca.curves(fitted, moved.extra[cyclic_pca.PHASE], moved.extra[cyclic_pca.COEF])
+    np.testing.assert_allclose(moved.pose[:, angle_slots], want + offset, rtol=0, atol=1e-12)
+
+
+def test_fit_phase_is_the_gaussian_marginal_likelihood(fitted, synthetic_walks):
+    # log p(y | phase) of y ~ N(mu(phase), V diag(sd^2) V^T + diag(r^2)) written out
+    # with scipy, up to a constant over the phases; the coefficients its posterior mean.
+    from scipy.stats import multivariate_normal
+
+    y = synthetic_walks[-1].params[20, fitted.angles]
+    phases, coefs, log_post, cov = cyclic_pca.fit_phase(fitted, y, grid=12)
+    basis = fpca.fourier_basis(phases, fitted.n_harmonics, fitted.n_samples)
+    want, means = [], []
+    for g in range(12):
+        mu = fitted.mean_coef @ basis[g]
+        v = (fitted.component_coef @ basis[g]).T  # (A, q)
+        prior = np.diag(fitted.component_std**2)
+        sigma = v @ prior @ v.T + np.diag(fitted.residual_std**2)
+        want.append(multivariate_normal(mu, sigma).logpdf(y))
+        means.append(prior @ v.T @ np.linalg.solve(sigma, y - mu))
+    np.testing.assert_allclose(np.diff(log_post), np.diff(want), rtol=1e-7, atol=1e-7)
+    np.testing.assert_allclose(coefs, means, rtol=1e-7, atol=1e-9)
+
+
+def test_initial_phases_spread_evenly_about_the_posteriors_grid_phases(fitted, synthetic_walks):
+    # Phases are drawn from the posterior over the grid, each jittered uniformly
+    # within its cell, centred on the grid phase: the particles' circular mean
+    # phase is the posterior's (a jitter of [0, step) would move it half a cell).
+    pose = synthetic_walks[-1].params[20]
+    state = cyclic_pca.initial(fitted, pose, 20_000, np.random.default_rng(9))
+    phases, _, log_post, _ = cyclic_pca.fit_phase(fitted, pose[fitted.angles])
+    weights = np.exp(log_post - log_post.max())
+    to_angle = 2 * np.pi / fitted.n_samples
+    want = np.angle(np.sum(weights * np.exp(1j * to_angle * phases)))
+    got = np.angle(np.mean(np.exp(1j * to_angle * state.extra[cyclic_pca.PHASE])))
+    step = fitted.n_samples / phases.size
+    shift = np.angle(np.exp(1j * (got - want))) / to_angle  # in samples, wrapped
+    assert abs(shift) < step / 8, (shift, step)
 
 
 def test_prior_predicts_walking_better_than_standing_still(fitted, synthetic_walks):

@@ -17,6 +17,7 @@ from humotion_gym.wrappers import (
     learner_frame,
     learner_frames,
     learner_observation,
+    learner_observation_space,
 )
 
 
@@ -99,6 +100,16 @@ def test_the_observation_is_the_frame_and_the_agents_own_actions_only() -> None:
     expected = learner_observation(frame, action, initial, 40)
     for key in expected:
         np.testing.assert_array_equal(obs[key], expected[key])
+
+
+def test_learner_observation_clips_the_estimates_into_their_space() -> None:
+    """The saved policy's agent passes its raw last action: both vectors end in [-1, 1]."""
+    frame = np.zeros((16, 16, 3), np.uint8)
+    wild = np.array([-3.0, -1.0, -0.25, 0.5, 1.0, 2.5])
+    obs = learner_observation(frame, wild, wild[::-1], None)
+    np.testing.assert_array_equal(obs["previous"], [-1.0, -1.0, -0.25, 0.5, 1.0, 1.0])
+    np.testing.assert_array_equal(obs["initial"], [1.0, 1.0, 0.5, -0.25, -1.0, -1.0])
+    assert learner_observation_space((16, 16, 3), 6, None).contains(obs)
 
 
 def test_learner_frame_averages_pixel_blocks() -> None:
