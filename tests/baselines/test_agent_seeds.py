@@ -24,6 +24,7 @@ from baselines.leaderboard.tables import (
     VALID_RATIO,
     compare_to_hold,
     hold_ratio_interval,
+    ratio_text,
 )
 
 # ------------------------------------------------------------ synthetic rows
@@ -302,6 +303,40 @@ def test_paired_wins_take_the_references_mean_over_its_seeds():
     assert ratio == pytest.approx(150.0 / 155.0)
     hold = _hold(4, 2)  # hold's seeds agree: its value itself
     assert compare_to_hold(row, hold)[1:] == (8, 8)
+
+
+def test_exactly_twice_better_is_valid_at_the_bound():
+    """At least 2x: a constant 100 mm against hold's 200 is 2.00x, its interval 2.00-2.00."""
+    line = _verdict([[100.0, 100.0, 100.0]] * 6)
+    assert "2.00x better than hold" in line and "x hold 95% interval 2.00-2.00): valid" in line
+    assert line.endswith(": valid")
+    # one agent seed: the point ratio, at least 2x
+    rows = [_hold(6, 1), _row("pf-cv", 300, [[100.0]] * 6, several=False)]
+    (one,) = validity_lines(rows)
+    assert one.endswith("2.00x better than hold in mean error (100 vs 200 mm), better in "
+                        "6/6 paired episodes: valid")  # fmt: skip
+
+
+def test_a_tie_is_level_no_win_and_no_lead():
+    """Equal errors: a ratio of exactly 1 is neither better nor worse, and no episode won."""
+    same = np.array([[100.0, 100.0, 100.0]] * 4)
+    hold, tree = _hold(4, 3), _row("pf-tree", 300, same)
+    # the classic comparison at an interval of exactly 1.00-1.00: level, not the tree better
+    rows = [hold, tree, _row("pf-cv", 300, same * 1.5), _row("pf-cv", 3000, same)]
+    classic = validity_lines(rows)[1]
+    assert "1.00x pf-tree's (100 vs 100 mm; 95% interval 1.00-1.00): level within the " in classic
+    # better than pf-cv at 300, and pf-cv at 3,000 no better (upper bound 1, at least 1): shown
+    assert ": pf-tree better (the interval's lower bound above 1); the classic" in classic
+    assert classic.endswith(": shown")
+    # a tie wins no paired episode, and is no lead over pf-follow
+    assert compare_to_hold(tree, _row("pf-cv", 300, same)) == (1.0, 0, 12)
+    flat = [_hold(4, 1), _row("pf-mix", 300, same[:, :1], several=False),
+            _row("pf-follow", 300, same[:, :1], several=False)]  # fmt: skip
+    assert validity_lines(flat)[-1] == (
+        "ArmTrack-v2: no other filter at 300 particles beats pf-follow in mean error: the "
+        "best, pf-mix, 100 vs 100 mm, better in 0/4 paired episodes"
+    )
+    assert ratio_text(1.0) == "1.00x better than hold"
 
 
 # ------------------------------------------------------------ runs

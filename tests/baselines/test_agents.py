@@ -108,6 +108,51 @@ def test_summary_and_statistics():
     assert lo2 < hi2
 
 
+class _Scores(gym.Wrapper):
+    """Keeps each step's info as the loop reads it; drops the aligned error at ``drop_at``."""
+
+    def __init__(self, env, drop_at=None):
+        super().__init__(env)
+        self.infos, self.rewards, self.drop_at = [], [], drop_at
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if len(self.infos) == self.drop_at:
+            info = {k: v for k, v in info.items() if k != "error_aligned_mm"}
+        self.infos.append(info)
+        self.rewards.append(float(reward))
+        return obs, reward, terminated, truncated, info
+
+
+def _short_arm_env():
+    return gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False, episode_frames=6,
+                    width=64, height=64)  # fmt: skip
+
+
+def test_an_episodes_numbers_are_its_frames_scores():
+    """Every frame's error in order, their mean, the last frame's: read from the steps' infos."""
+    env = _Scores(_short_arm_env())
+    result = run_episode(RandomPolicy(env.action_space), env, seed=3)
+    errors = [float(i["error_mm"]) for i in env.infos]
+    aligned = [float(i["error_aligned_mm"]) for i in env.infos]
+    assert len(errors) == 6 and result.errors_mm == errors
+    assert result.mean_error_mm == float(np.mean(errors))
+    assert result.final_error_mm == errors[-1] != errors[0]
+    assert result.aligned_errors_mm == aligned
+    assert result.mean_aligned_error_mm == float(np.mean(aligned))
+    assert result.mean_reward == float(np.mean(env.rewards))
+    # a frame without the aligned error: none for the whole episode, not a shorter series
+    gap = _Scores(_short_arm_env(), drop_at=3)
+    partial = run_episode(RandomPolicy(gap.action_space), gap, seed=3)
+    assert partial.aligned_errors_mm is None and partial.mean_aligned_error_mm is None
+    assert partial.errors_mm == errors  # the same seeds: the same episode
+    # evaluate runs the seeds seed, seed + 1, ... each as run_episode alone
+    plain = _short_arm_env()
+    runs = evaluate(make("hold", plain), plain, 3, seed=2)
+    assert [r.seed for r in runs] == [2, 3, 4]
+    assert runs[1].errors_mm == run_episode(make("hold", plain), plain, seed=3).errors_mm
+
+
 def test_the_first_call_is_made_before_the_episodes_and_left_out_of_their_timing(monkeypatch):
     # a fake clock: the agent's first call costs 100 s (numba compiling), every other 1 ms
     clock = [0.0]

@@ -91,6 +91,18 @@ def test_two_level_by_clip_is_wider_on_clustered_data_and_is_the_cluster_bootstr
     np.testing.assert_allclose((lo, hi), stats.cluster_bootstrap_ci(v, clusters, seed=3))
 
 
+def test_the_ratios_numerator_is_the_references_mean_over_its_own_seeds():
+    # a reference run with several seeds counts each episode's mean over them:
+    # the same as a one-seed reference holding those means, with and without clips
+    rng = np.random.default_rng(7)
+    values, reference = rng.gamma(2.0, 50.0, size=(10, 3)), rng.gamma(3.0, 80.0, size=(10, 4))
+    averaged = reference.mean(axis=1, keepdims=True)
+    for clusters in (None, np.repeat(np.arange(5), 2)):
+        got = stats.two_level_bootstrap(values, reference, 400, seed=2, clusters=clusters)
+        want = stats.two_level_bootstrap(values, averaged, 400, seed=2, clusters=clusters)
+        np.testing.assert_allclose(np.ravel(got), np.ravel(want), rtol=1e-12)
+
+
 # ------------------------------------------------------------------ per person
 
 
@@ -144,6 +156,11 @@ def test_person_rows_average_each_persons_episodes():
         "cmu-03 mm (episodes)",
     ]
     assert table[1] == ["ArmTrack-v2", "pf-cv", "100", "150 (2)", "50 (2)"]
+    # three episodes of one person: their mean (110), not their median (40)
+    three = [_episode(0, 10.0, "cmu/05_01"), _episode(1, 40.0, "cmu/05_02"),
+             _episode(2, 280.0, "cmu/05_03")]  # fmt: skip
+    (only,) = person_rows([_row("pf-cv", three)])
+    assert (only["person"], only["episodes"], only["mean_error_mm"]) == ("cmu-05", 3, 110.0)
 
 
 def test_the_report_has_a_person_section_only_where_episodes_name_persons():

@@ -12,6 +12,7 @@ from typing import Any
 
 import pytest
 
+from baselines import MAX_PARTICLES
 from baselines import agents as agents_module
 from baselines.agents import AgentSpec, ParticleFilterAgent
 from baselines.cli import main
@@ -204,6 +205,20 @@ def test_a_results_folder_is_not_overwritten_nor_resumed_with_other_settings(tmp
     folder.run_path.unlink()
     with pytest.raises(FileNotFoundError, match="missing, so the episodes"):
         folder.start({"seed": 0}, resume=True)
+
+
+def test_a_setting_the_saved_run_lacks_is_a_difference(tmp_path):
+    """A run.json written without a setting (an older run) is not resumed as if it agreed."""
+    folder = ResultsFolder(tmp_path / "lb")
+    assert folder.start({"seed": 0, "declared": False}, resume=False) == []
+    folder.append({"task": "ArmTrack-v2", "result": {"seed": 0}})
+    folder.append({"task": "ArmTrack-v2", "error": "boom"})  # failed: retried, not returned
+    assert folder.start({"seed": 0, "declared": False}, resume=True) == [
+        {"task": "ArmTrack-v2", "result": {"seed": 0}}
+    ]
+    folder.run_path.write_text(json.dumps({"seed": 0}))
+    with pytest.raises(ResumeError, match="declared: saved None, now False"):
+        folder.start({"seed": 0, "declared": False}, resume=True)
 
 
 def test_a_damaged_record_is_refused_before_any_episode_runs(tmp_path):
@@ -475,6 +490,51 @@ def test_a_runs_counts_are_refused_by_name_before_any_work(kwargs, name):
     args = {"episodes": 1, "particles": [10], "progress": False, **kwargs}
     with pytest.raises(ValueError, match=f"^{name}: expected an integer"):
         run_leaderboard(["BodyTrack-v2"], ["hold"], **args)
+
+
+def test_the_most_particles_are_taken_and_one_more_refused():
+    # at most MAX_PARTICLES: the run gets past the count to the next check, the engine's
+    args = {"episodes": 1, "progress": False, "engine": "no-such-engine"}
+    with pytest.raises(ValueError, match="^engine: expected one of"):
+        run_leaderboard(["BodyTrack-v2"], ["hold"], [MAX_PARTICLES], **args)
+    with pytest.raises(ValueError, match=r"^particles\[0\]: expected at most"):
+        run_leaderboard(["BodyTrack-v2"], ["hold"], [MAX_PARTICLES + 1], **args)
+
+
+#: One short hold episode per seed, on small frames: resumes compared with their records.
+SMALL = {"env_kwargs": {"episode_frames": 4, "width": 64, "height": 64}, "progress": False,
+         "report": False, "seed": 3}  # fmt: skip
+
+
+def test_records_without_their_agent_seed_ran_with_the_runs_seed(tmp_path):
+    """Records saved before they named their agent seed resume as the run's seed's, not 0's."""
+    out = tmp_path / "lb"
+    run_leaderboard(["ArmTrack-v2"], ["hold"], [1], episodes=2, out=out, **SMALL)
+    records = _lines(out)
+    assert [r["agent_seed"] for r in records] == [3, 3]
+    old = [{k: v for k, v in r.items() if k != "agent_seed"} for r in records]
+    (out / EPISODES_FILE).write_text("".join(json.dumps(r) + "\n" for r in old))
+    run_leaderboard(["ArmTrack-v2"], ["hold"], [1], episodes=2, out=out, resume=True, **SMALL)
+    assert _lines(out) == old  # nothing ran again
+
+
+def test_a_resume_with_fewer_agent_seeds_names_the_count_to_resume_with(tmp_path):
+    out = tmp_path / "lb"
+    run_leaderboard(["ArmTrack-v2"], ["hold"], [1], 1, out=out, agent_seeds=2, **SMALL)
+    assert sorted(r["agent_seed"] for r in _lines(out)) == [3, 4]  # from the run's seed
+    with pytest.raises(ResumeError, match=r"agent seeds \[4\] beyond this run's \[3\]; resume "
+                       r"with --agent-seeds 2 \(agent_seeds=2\)"):  # fmt: skip
+        run_leaderboard(["ArmTrack-v2"], ["hold"], [1], 1, out=out, resume=True, **SMALL)
+
+
+def test_an_error_row_names_its_first_failed_episode(monkeypatch):
+    def predict(self, *args, **kwargs):
+        raise FloatingPointError("the filter's weights are all zero")
+
+    monkeypatch.setattr(ParticleFilterAgent, "predict", predict)
+    rows = run_leaderboard(["ArmTrack-v2"], ["pf-cv"], [10], 3, **SMALL)
+    assert rows[1]["failed_seeds"] == [3, 4, 5]
+    assert rows[1]["error"].startswith("episode 3 raised FloatingPointError")
 
 
 def test_a_difficulty_given_at_the_tasks_own_value_resumes_either_way(tmp_path, capsys):

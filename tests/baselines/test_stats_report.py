@@ -53,6 +53,10 @@ def test_stratified_bootstrap_keeps_every_tasks_share():
     # ragged tasks, one with a single run (constant under resampling)
     lo, hi = stats.stratified_bootstrap_ci([np.arange(6.0), [3.0], np.arange(9.0)])
     assert lo <= stats.iqm(np.concatenate([np.arange(6.0), [3.0], np.arange(9.0)])) <= hi
+    # the single run is in every resample: a constant task of four zeros and a
+    # task of one run of 100 pool to a mean of 20 in every resample, not 0
+    assert stats.stratified_bootstrap_ci([np.zeros(4), [100.0]], np.mean) == (20.0, 20.0)
+    assert stats.stratified_bootstrap_ci([[100.0], np.zeros(4), [50.0]], np.mean) == (25.0, 25.0)
 
 
 def test_stratified_bootstrap_of_one_task_is_the_plain_bootstrap():
@@ -126,6 +130,26 @@ def test_kaplan_meier_by_hand_and_median_lost_frame():
     assert stats.median_lost_frame([3, None, 5, None, 3]) == 3.0
     assert stats.median_lost_frame([None, None]) is None
     assert stats.survival([None, None], [10, 10])["survival"].tolist() == [1.0]
+
+
+def test_kaplan_meier_band_is_greenwoods_log_log_interval_by_hand():
+    # the same five episodes: S = 3/5 after frame 3 (5 at risk, 2 lost), 2/5
+    # after frame 5 (3 at risk, 1 lost); Greenwood's sum of d / (n (n - d)),
+    # on the log(-log S) scale, gives S ** exp(+-z se) with se = sqrt(G) / |log S|
+    curve = stats.survival([3, None, 5, None, 3], [10] * 5)
+    z = sps.norm.ppf(0.975)
+    for frame, s, greenwood in ((3.0, 3 / 5, 2 / (5 * 3)), (5.0, 2 / 5, 2 / (5 * 3) + 1 / (3 * 2))):
+        i = curve["frames"].tolist().index(frame)
+        se = np.sqrt(greenwood) / abs(np.log(s))
+        assert curve["low"][i] == pytest.approx(s ** np.exp(z * se), rel=1e-9)
+        assert curve["high"][i] == pytest.approx(s ** np.exp(-z * se), rel=1e-9)
+    # every episode lost: the curve reaches 0, where the interval is undefined
+    # and filled as [0, 1]; it still holds the curve at every step
+    lost = stats.survival([2, 4, 4], [6, 6, 6])
+    assert lost["frames"].tolist() == [0.0, 2.0, 4.0]
+    assert lost["survival"].tolist() == pytest.approx([1.0, 2 / 3, 0.0])
+    assert (lost["low"][-1], lost["high"][-1]) == (0.0, 1.0)
+    assert np.all(lost["low"] <= lost["survival"]) and np.all(lost["survival"] <= lost["high"])
 
 
 def test_mean_band_is_the_per_frame_bootstrap():
@@ -276,6 +300,9 @@ def test_summarize_takes_results_or_their_dicts_and_is_seeded():
     errors = [e["mean_error_mm"] for e in eps]
     assert s["iqm_error_mm"] == pytest.approx(stats.iqm(errors))
     assert s["iqm_error_ci"] == list(stats.bootstrap_ci(errors, stats.iqm, seed=2))
+    finals = [e["final_error_mm"] for e in eps]  # the mean of the last frames, its interval
+    assert s["final_error_mm"] == pytest.approx(np.mean(finals), rel=1e-12)
+    assert s["final_error_ci"] == list(stats.bootstrap_ci(finals, np.mean, seed=2))
     lost = sum(e["lost_frame"] is not None for e in eps)
     assert s["lost_episodes"] == lost
     assert s["lost_fraction_ci"] == list(stats.proportion_ci(lost, len(eps)))
@@ -499,6 +526,31 @@ def test_replayed_episodes_reproduce_the_recorded_errors(small_run):
     tampered["episodes"][1]["errors_mm"] = [e + 1.0 for e in tampered["episodes"][1]["errors_mm"]]
     with pytest.raises(ReplayMismatch, match="seed 6"):
         replay_episodes(tampered, [6], settings)
+
+
+def test_compact_keeps_seven_significant_digits_and_whole_millimetre_series(tmp_path):
+    from baselines.leaderboard.results import compact
+
+    episode = {"seed": 3, "errors_mm": [1.4, 2.6, 7], "along_mm": [-0.6, 10.2],
+               "aligned_errors_mm": [1.0, 2.0], "mean_aligned_error_mm": 0.5123456789,
+               "mean_error_mm": 123.456789123}  # fmt: skip
+    summary = {"lost_fraction": 0.000123456789, "mean_error_ci": [100.123456789, 1234567.891]}
+    source = tmp_path / "results.json"
+    source.write_text(json.dumps({"rows": [{"summary": summary, "episodes": [episode]}]}))
+    compact(source, tmp_path / "a.json.gz")
+    kept = json.loads(gzip.decompress((tmp_path / "a.json.gz").read_bytes()))
+    # significant digits, not decimal places: small and large numbers alike
+    assert kept["rows"][0]["summary"] == {
+        "lost_fraction": 0.0001234568,
+        "mean_error_ci": [100.1235, 1234568.0],
+    }
+    # the series to whole millimetres; the aligned series dropped, its mean kept
+    assert kept["rows"][0]["episodes"] == [
+        {"seed": 3, "errors_mm": [1, 3, 7], "along_mm": [-1, 10],
+         "mean_aligned_error_mm": 0.5123457, "mean_error_mm": 123.4568}
+    ]  # fmt: skip
+    compact(source, tmp_path / "b.json.gz")  # no time in the header: the same bytes
+    assert (tmp_path / "a.json.gz").read_bytes() == (tmp_path / "b.json.gz").read_bytes()
 
 
 def test_compact_results_keep_means_and_still_replay(small_run, tmp_path):
