@@ -10,7 +10,7 @@ import os
 import numpy as np
 import pytest
 
-from baselines.filtering import ParticleFilter
+from baselines.filtering import ParticleFilter, ParticleState
 from baselines.priors import slds
 from baselines.priors.fitting import fit_prior
 from baselines.priors.slds_inference import (
@@ -336,6 +336,9 @@ def test_combine_builds_a_block_transition_matrix():
     np.testing.assert_allclose(joined.Pi[:2, :2], 0.98 * one.Pi)
     np.testing.assert_allclose(joined.Pi[2:, :2].sum(axis=1), 0.02)
     np.testing.assert_allclose(joined.pi0.sum(), 1.0)
+    # Leaving an activity enters the other's states as its initial distribution does.
+    np.testing.assert_allclose(joined.Pi[:2, 2:], 0.02 * np.tile(two.pi0, (2, 1)))
+    np.testing.assert_allclose(joined.Pi[2:, :2], 0.02 * np.tile(one.pi0, (3, 1)))
     assert joined.state_labels.tolist() == ["walk"] * 2 + ["run"] * 3
 
 
@@ -436,6 +439,63 @@ def test_particle_filter_runs_with_the_slds_prior(fitted, synthetic):
         assert estimate.shape == (8,)
         errors.append(np.degrees(np.abs(estimate - truth[t]).mean()))
     assert np.all(np.isfinite(errors)) and np.mean(errors) < 5.0
+
+
+def test_a_transition_draws_pis_row_and_the_process_noise(fitted, synthetic):
+    # Every particle in one state at one continuous state: the next switch
+    # states are Pi's row (an asymmetric Pi, so not its column), and the
+    # learned rows move by A x + b plus noise of covariance Q of the state drawn
+    # (20,000 particles at a mid-stride pose, far from the joints' limits).
+    _, test = synthetic
+    n_states = fitted.n_states
+    pi = np.random.default_rng(18).dirichlet(np.ones(n_states), size=n_states)
+    model = fitted.replace(Pi=pi)
+    pose = test[0].params[10, slds.SAGITTAL_INDEX]
+    x = np.tile(pose, 2)
+    n = 20_000
+    start = ParticleState(np.tile(pose, (n, 1)), {
+        "switch": np.full(n, 1, dtype=np.intp), "state": np.tile(x, (n, 1))})  # fmt: skip
+    step = slds.transition(model, start, np.random.default_rng(19))
+    switch = step.extra["switch"]
+    np.testing.assert_allclose(np.bincount(switch, minlength=n_states) / n, pi[1], atol=0.015)
+    k = int(np.argmax(pi[1]))
+    resid = step.extra["state"][switch == k, :8] - (model.A[k] @ x + model.b[k])[:8]
+    np.testing.assert_allclose(np.cov(resid.T), model.Q[k, :8, :8], rtol=0.15,
+                               atol=0.05 * np.abs(model.Q[k, :8, :8]).max())  # fmt: skip
+
+
+def test_initial_draws_the_switch_from_its_posterior_given_the_pose(fitted, synthetic):
+    # p(s | y0) ~ pi0(s) N(y0; C x0(s) + d, C Q0(s) C' + R), with the states'
+    # initial covariances of different sizes (so the normaliser matters).
+    _, test = synthetic
+    n_states = fitted.n_states
+    pose = test[0].params[10, slds.SAGITTAL_INDEX]
+    rng = np.random.default_rng(20)
+    scales = np.geomspace(1e-3, 1e-1, n_states)
+    x0 = np.tile(pose, 2) + 0.05 * rng.standard_normal((n_states, 16))
+    model = fitted.replace(x0=x0, Q0=scales[:, None, None] * np.eye(16),
+                           pi0=np.full(n_states, 1.0 / n_states))  # fmt: skip
+    log_w = np.empty(n_states)
+    for s in range(n_states):
+        cov = model.C @ model.Q0[s] @ model.C.T + model.R
+        e = pose - model.C @ model.x0[s] - model.d
+        log_w[s] = np.log(model.pi0[s]) - 0.5 * (e @ np.linalg.solve(cov, e)
+                                                 + np.linalg.slogdet(cov)[1])  # fmt: skip
+    want = np.exp(log_w - log_w.max())
+    want /= want.sum()
+    assert want.max() < 0.9  # not one state alone
+    n = 20_000
+    got = slds.initial(model, pose, n, np.random.default_rng(21)).extra["switch"]
+    np.testing.assert_allclose(np.bincount(got, minlength=n_states) / n, want, atol=0.015)
+
+
+def test_synthesis_starts_from_the_initial_state_distribution(fitted):
+    # The first frame is x0(s0) + N(0, Q0(s0)): its spread is sqrt(Q0), not Q0.
+    model = fitted.replace(Q0=np.broadcast_to(1e-2 * np.eye(16), fitted.Q0.shape).copy(),
+                           x0=np.broadcast_to(fitted.x0.mean(axis=0), fitted.x0.shape).copy())  # fmt: skip
+    first = np.array([slds.synthesize(model, 1, np.random.default_rng(seed))[0][0]
+                      for seed in range(80)])  # fmt: skip
+    np.testing.assert_allclose(first.std(axis=0), 0.1, rtol=0.35)
 
 
 def test_synthesis_is_deterministic_and_fills_a_full_pose(fitted):

@@ -11,6 +11,7 @@ from baselines.priors.slds_inference import (
     CovarianceTable,
     filter_path,
     length_batches,
+    measurement_terms,
     pack,
     rts_smoother,
     sample,
@@ -218,3 +219,105 @@ def test_colliding_hashes_never_share_an_id_between_different_covariances():
     # Only the first matrix is indexed (under hash 0): no later id holds its key.
     keys = table.keys[: table.n]
     assert table.n > 1 and not np.any(np.all(keys[1:] == keys[0], axis=1))
+
+
+def reference_m_step(params, reg, seqs, path, sm):
+    """The MAP M-step written frame by frame from the smoothed moments (identity emission).
+
+    ``E[x_t x_t'] = P_t + m_t m_t'``, ``E[x_t x_{t-1}'] = P_{t,t-1} + m_t m_{t-1}'``;
+    each transition ``t-1 -> t`` counts for the state at ``t``, the first frame
+    for the initial state's, and every measured frame for ``R``.
+    """
+    n_states, dx, dy = params.n_states, params.latent_dim, params.obs_dim
+    suu = np.zeros((n_states, dx + 1, dx + 1))
+    syu = np.zeros((n_states, dx, dx + 1))
+    syy = np.zeros((n_states, dx, dx))
+    n = np.zeros(n_states)
+    counts = np.zeros((n_states, n_states))
+    first = [[] for _ in range(n_states)]  # (m_0, E[x_0 x_0']) of each sequence
+    resid, n_obs = np.zeros(dy), 0
+    for k in range(seqs.n):
+        m, cov, cross = sm.mean[k], sm.cov[k], sm.cross[k]
+        s = path[k]
+        first[s[0]].append((m[0], cov[0] + np.outer(m[0], m[0])))
+        for t in range(seqs.lengths[k]):
+            if seqs.observed[k, t]:
+                resid += (seqs.y[k, t] - m[t, :dy]) ** 2 + np.diag(cov[t])[:dy]
+                n_obs += 1
+            if t == 0:
+                continue
+            i = s[t]
+            u = np.append(m[t - 1], 1.0)
+            e_uu = np.outer(u, u)
+            e_uu[:dx, :dx] += cov[t - 1]
+            e_xu = np.outer(m[t], u)
+            e_xu[:, :dx] += cross[t]
+            suu[i] += e_uu
+            syu[i] += e_xu
+            syy[i] += cov[t] + np.outer(m[t], m[t])
+            n[i] += 1
+            counts[s[t - 1], i] += 1
+    want = {k: np.zeros_like(getattr(params, k)) for k in ("A", "b", "Q", "x0", "Q0")}
+    for i in range(n_states):
+        w = syu[i] @ np.linalg.inv(suu[i] + np.diag(reg.ridge))
+        want["A"][i], want["b"][i] = w[:, :dx], w[:, dx]
+        want["Q"][i] = (syy[i] - w @ syu[i].T + np.diag(reg.psi_q)) / (n[i] + reg.kappa_q)
+        n0 = len(first[i])
+        x0 = (sum(f[0] for f in first[i]) + reg.eps0 * reg.m0) / (n0 + reg.eps0)
+        scatter = sum(f[1] - np.outer(f[0], x0) - np.outer(x0, f[0]) + np.outer(x0, x0)
+                      for f in first[i])  # fmt: skip
+        scatter = scatter + reg.eps0 * np.outer(x0 - reg.m0, x0 - reg.m0) + np.diag(reg.psi0)
+        want["x0"][i], want["Q0"][i] = x0, scatter / (n0 + reg.kappa0)
+    want["Pi"] = (counts + reg.alpha) / (counts + reg.alpha).sum(axis=1, keepdims=True)
+    n0 = np.array([len(f) for f in first])
+    want["pi0"] = (n0 + reg.alpha0) / (n0.sum() + n_states * reg.alpha0)
+    want["R"] = np.diag((resid + reg.psi_r) / (n_obs + reg.kappa_r))
+    return want
+
+
+def test_the_m_step_is_the_map_estimate_of_the_smoothed_moments():
+    # The statistics' sums and the MAP formulas against the frame-by-frame
+    # oracle, on a random path (every transition seen) with gaps and a
+    # missing first frame, and a regulariser whose every term counts.
+    from baselines.priors.slds_learning import Regulariser, _accumulate, _Stats, m_step
+
+    params, seqs = ragged_batch(14, "identity", order=1)
+    path = np.random.default_rng(15).integers(0, params.n_states, size=seqs.observed.shape)
+    filt = filter_path(params, seqs, path)
+    sm = rts_smoother(params, path, filt, seqs.lengths)
+    dx, dy = params.latent_dim, params.obs_dim
+    rng = np.random.default_rng(16)
+    reg = Regulariser(
+        psi_q=rng.uniform(0.1, 0.2, dx), kappa_q=2.0, ridge=rng.uniform(0.5, 1.0, dx + 1),
+        psi_r=rng.uniform(0.1, 0.2, dy), kappa_r=3.0, ridge_c=np.ones(dx + 1),
+        m0=rng.standard_normal(dx), eps0=0.7, psi0=rng.uniform(0.1, 0.2, dx), kappa0=1.5,
+        alpha=0.6, alpha0=0.8,
+    )  # fmt: skip
+    stats = _Stats.zeros(params.n_states, dx, dy)
+    _accumulate(stats, params, seqs, measurement_terms(params, seqs), path, sm)
+    got = m_step(params, stats, reg)
+    want = reference_m_step(params, reg, seqs, path, sm)
+    for name, value in want.items():
+        np.testing.assert_allclose(getattr(got, name), value, rtol=1e-9, atol=1e-12, err_msg=name)
+
+
+def test_sample_draws_the_switch_chain_and_the_noises_of_the_model():
+    # Frequencies of a long draw: the switch's transitions are Pi's rows (not
+    # its columns), each state's one-step residual x_t - A x_{t-1} - b has
+    # covariance Q and the measurement's y - C x - d has variance diag(R)
+    # (20,000 frames: a few percent, where the faults are factors).
+    rng = np.random.default_rng(17)
+    params = random_model(rng, "learned", n_states=2, dx=2, dy=3, r_scale=0.3)
+    params = params.replace(Pi=np.array([[0.9, 0.1], [0.4, 0.6]]))
+    y, s, x = sample(params, 20_000, rng, measurement_noise=True)
+    for j in range(2):
+        follows = s[1:][s[:-1] == j]
+        np.testing.assert_allclose(np.bincount(follows, minlength=2) / follows.size,
+                                   params.Pi[j], atol=0.02)  # fmt: skip
+        at = np.flatnonzero(s[1:] == j) + 1
+        resid = x[at] - x[at - 1] @ params.A[j].T - params.b[j]
+        np.testing.assert_allclose(
+            np.cov(resid.T), params.Q[j], rtol=0.08, atol=0.02 * params.Q[j].max()
+        )
+    noise = y - x @ params.C.T - params.d
+    np.testing.assert_allclose(noise.var(axis=0), np.diag(params.R), rtol=0.05)

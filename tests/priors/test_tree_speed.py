@@ -6,7 +6,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from test_tree import ARM, walking_along_y
+from test_tree import ARM, make_motion, walking_along_y
 
 from baselines.filtering import ParticleState
 from baselines.priors import constant_velocity as cv
@@ -306,7 +306,7 @@ def test_the_replay_is_a_plain_loops(walker, variant):
     np.testing.assert_array_equal(noisy.extra["window"], got.extra["window"])
     lay = tree._layout(prior.free)
     spread = (noisy.pose - got.pose)[:, lay.absolute].std(axis=0)
-    want = prior.with_settings(noise_scale=0.5).noise_std[lay.absolute]
+    want = 0.5 * np.sqrt(prior.step_var[lay.absolute])  # noise_scale standard deviations
     np.testing.assert_allclose(spread, want, rtol=0.1)
 
 
@@ -392,3 +392,39 @@ def test_distinct_rows_are_numpys_unique() -> None:
         np.testing.assert_array_equal(place, want_place.reshape(-1))
         np.testing.assert_array_equal(first, want_first)  # each value's first row
         np.testing.assert_array_equal(kept[place], rows)
+
+
+def turning_walk(frames: int = 120):
+    """A walk that turns and changes pace: its path in the heading frame varies."""
+    t = np.arange(frames)
+    yaw = 0.4 * np.sin(2 * np.pi * t / 45)
+    step = 40.0 + 12.0 * np.sin(2 * np.pi * t / 25)
+    params = walking_along_y(frames).params.copy()
+    params[:, YAW] = yaw
+    params[:, ROOT_X] = np.cumsum(-np.sin(yaw) * step)  # yaw turns +y towards -x
+    params[:, ROOT_Y] = np.cumsum(np.cos(yaw) * step)
+    return make_motion("test/turning", params)
+
+
+def test_a_database_window_walked_anywhere_at_its_speed_searches_as_itself():
+    # The invariant of the search's pacing: window i re-anchored at any place
+    # and heading, its path scaled by the particle's speed, has window i's own
+    # coefficients (double precision: to rounding).
+    prior = tree.fit([turning_walk()], noise_scale=0.0).with_settings(speed_spread=0.4)
+    lay = tree._layout(prior.free)
+    assert np.abs(prior.projection_heading).max() > 1e-3  # the path counts in the search
+    rng = np.random.default_rng(22)
+    n = 64
+    chosen = rng.integers(0, prior.n_windows, n)
+    speed = np.exp(0.4 * rng.standard_normal(n))
+    anchored = tree._anchor(tree.window_histories(prior, chosen), lay)
+    anchored[..., ROOT_X] *= speed[:, None]
+    anchored[..., ROOT_Y] *= speed[:, None]
+    pose = anchored[:, -1].copy()
+    pose[:, ROOT_X] = rng.uniform(-3000, 3000, n)
+    pose[:, ROOT_Y] = rng.uniform(-3000, 3000, n)
+    pose[:, YAW] = rng.uniform(-np.pi, np.pi, n)
+    history = tree._place(anchored, pose, lay)
+    got = tree._search_coefficients(prior, history, speed, lay)
+    want = prior.coefficients[chosen]
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-8 * np.abs(want).max())
