@@ -2,15 +2,16 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import cv2
 import numpy as np
 import pytest
 
-from baselines.observation import Backdrop, GivenBody, ObservationModel, features
+from baselines.observation import Backdrop, GivenBody, ObservationModel, features, geometry
 from humotion_gym import body
-from humotion_gym.camera import fit_camera
+from humotion_gym.camera import Camera, fit_camera
 from humotion_gym.render import SceneOptions, make_background, render
 
 SHAPE = body.default_shape()
@@ -195,6 +196,41 @@ def test_coverage_points_are_the_set_pixels_evenly_spread() -> None:
             np.testing.assert_array_equal(got, want)
 
 
+def test_foreground_and_coverage_points_follow_their_definitions(episode) -> None:
+    # Known pixels: the ramp of their difference from the backdrop. Unknown
+    # ones (under the first pose): 1/2 where they changed, else 1. Coverage
+    # points: the sure (probability 1) known pixels outside the given cones'
+    # grown silhouette in this frame.
+    first, later, cam, _background, frames = episode
+    model = ObservationModel(backdrop=True, coverage_weight=1.0, coverage_points=10_000)
+    backdrop = model.read_backdrop(frames[0], first, SHAPE, cam)
+    feats = model.prepare(frames[1], GivenBody(later, ARM, SHAPE, cam, backdrop=backdrop))
+    smooth = features.smoothed(frames[1], model.edge_blur, "test")
+    near = np.abs(smooth.astype(int) - backdrop.image.astype(int)).max(axis=2)
+    known = backdrop.known
+    assert np.median(near[known]) == 0  # no noise: the threshold stays foreground_low
+    lo, hi = model.foreground_low, model.foreground_high
+    changed = near > lo
+    diff = np.where(known, near, np.where(changed, int(0.5 * (lo + hi)), int(hi)))
+    want = np.clip((diff - lo) / (hi - lo), 0.0, 1.0)
+    np.testing.assert_allclose(feats.foreground, want, atol=1e-6)
+    assert (~known & changed).sum() > 20 and (~known & ~changed).sum() > 20
+    sure = (feats.foreground >= 1.0) & known
+    given_cones = np.setdiff1d(np.arange(body.N_CONES), [2, 3])  # all but the right arm
+    geo = body.cone_geometry(later, SHAPE)
+    silhouette = geometry.silhouette_mask(
+        geo.starts, geo.ends, SHAPE, cam, model.near_mm, cones=given_cones
+    )
+    covered = (
+        geometry.grow(silhouette, model.backdrop_margin * cam.height / model.reference_height) > 0
+    )
+    assert (sure & covered).sum() > 20  # the given body moved: it would be covered
+    assert ((feats.foreground > 0.5) & (feats.foreground < 1.0) & known & ~covered).any()
+    np.testing.assert_array_equal(
+        feats.coverage, features.spread_points(sure & ~covered, model.coverage_points)
+    )
+
+
 def test_coverage_prefers_the_true_pose_to_a_limb_laid_on_the_body(episode) -> None:
     first, later, cam, _background, frames = episode
     model = ObservationModel(backdrop=True, coverage_weight=2.0, coverage_points=10_000)
@@ -231,6 +267,37 @@ def test_given_cones_are_not_coverage_points() -> None:
         axis=0,
     )
     assert np.all(near_arm <= 0.0)  # within 60 mm (projected) of the arm's axis
+
+
+def test_first_frame_keeps_what_the_model_uses(episode) -> None:
+    first, _later, cam, _background, frames = episode
+    kept = ObservationModel().read_first_frame(frames[0], first, SHAPE, cam)
+    assert kept.colors is None and kept.backdrop is None and kept.floor is None
+    model = ObservationModel(appearance_weight=1.0, backdrop=True)
+    kept = model.read_first_frame(frames[0], first, SHAPE, cam)
+    np.testing.assert_array_equal(kept.colors, model.cone_colors(frames[0], first, SHAPE, cam))
+    assert kept.backdrop is not None and kept.floor is None
+    np.testing.assert_array_equal(
+        kept.backdrop.known, model.read_backdrop(frames[0], first, SHAPE, cam).known
+    )
+
+
+@pytest.mark.parametrize("height", [128, 192])
+def test_known_pixels_are_outside_the_silhouette_grown_by_the_margin(height: int) -> None:
+    # The margin is in reference pixels: 3 of them are 3 pixels at 128 rows, 4.5 at 192.
+    rng = np.random.default_rng(7)
+    first, _later = walking_poses(rng)
+    scene = SceneOptions(width=height, height=height, noise_sigma=0.0)
+    cam = fit_camera(body.forward_kinematics(first, SHAPE)[None], height, height, 45.0, 30.0, 10.0)
+    frame = render(first, SHAPE, cam, scene, rng, make_background(scene, rng))
+    model = ObservationModel(backdrop=True, backdrop_margin=3.0)
+    known = model.read_backdrop(frame, first, SHAPE, cam).known
+    geo = body.cone_geometry(first, SHAPE)
+    silhouette = geometry.silhouette_mask(geo.starts, geo.ends, SHAPE, cam, model.near_mm)
+    grown = geometry.grow(silhouette, 3.0 * height / 128)
+    np.testing.assert_array_equal(known, grown == 0)
+    if height != 128:  # the margin unscaled is another mask
+        assert not np.array_equal(known, geometry.grow(silhouette, 3.0) == 0)
 
 
 def test_bad_input_is_named(episode) -> None:
@@ -304,3 +371,56 @@ def test_gray_frames_other_sizes_and_a_backdrop_with_nothing_known() -> None:
     none = model.prepare(frames[1], GivenBody(later, ALL, SHAPE, cam, backdrop=blind))
     np.testing.assert_array_equal(none.foreground, border.foreground)
     assert none.coverage is None
+
+
+def front_camera() -> Camera:
+    """95x95 pixels, focal 200 px, looking along world +z from 2.5 m: 0.08 px per mm at z = 0."""
+    return Camera(95, 95, math.degrees(2 * math.atan(47.5 / 200.0)), np.eye(3), [0, 0, -2500.0])
+
+
+def test_silhouette_is_each_cones_quad_and_end_discs() -> None:
+    # The torso (semi-axes 150/165 mm and 0.6 of that: the larger counts) at
+    # u = 27 and the head (55/85 mm) at u = 67, both from v = 27 to v = 67.
+    cam = front_camera()
+    starts, ends = np.zeros((body.N_CONES, 3)), np.zeros((body.N_CONES, 3))
+    starts[0], ends[0] = (-250.0, -250.0, 0.0), (-250.0, 250.0, 0.0)
+    starts[1], ends[1] = (250.0, -250.0, 0.0), (250.0, 250.0, 0.0)
+    mask = geometry.silhouette_mask(starts, ends, SHAPE, cam, 10.0, cones=np.array([0, 1]))
+    assert mask.dtype == np.uint8 and set(np.unique(mask).tolist()) == {0, 255}
+    # The end discs' radii round up: 0.08 * 150 = 12 and 13.2 px (torso), 4.4
+    # and 6.8 px (head), so the columns through the axes end 12, 14, 5 and 7
+    # pixels past the axis ends.
+    assert np.flatnonzero(mask[:, 27]).tolist() == list(range(15, 82))
+    assert np.flatnonzero(mask[:, 67]).tolist() == list(range(22, 75))
+    # Elsewhere, pixel centres clearly in (one pixel inside the quad or a disc)
+    # are set and those clearly out (one pixel outside both) are not.
+    v, u = np.mgrid[0:95, 0:95].astype(np.float64)
+    sure_in, maybe = np.zeros(mask.shape, bool), np.zeros(mask.shape, bool)
+    for u0, (r_s, r_e) in ((27.0, (12.0, 13.2)), (67.0, (4.4, 6.8))):
+        t, k = (v - 27.0) / 40.0, np.abs(u - u0)
+        for margin, out in ((-1.0, sure_in), (1.0, maybe)):
+            quad = (np.abs(t - 0.5) <= 0.5 + margin / 40.0) & (k <= r_s + t * (r_e - r_s) + margin)
+            discs = (np.hypot(u - u0, v - 27.0) <= r_s + margin) | (
+                np.hypot(u - u0, v - 67.0) <= r_e + margin
+            )
+            out |= quad | discs
+    assert sure_in.sum() > 500 and (mask[sure_in] == 255).all()
+    assert (mask[~maybe] == 0).all()
+    # A cone with an end nearer the camera than near_mm (5 mm in front of it,
+    # or 100 mm behind it) covers the whole image, whichever end it is.
+    for start_z, end_z in ((-2495.0, 0.0), (0.0, -2495.0), (-2600.0, 0.0), (0.0, -2600.0)):
+        starts[1, 2], ends[1, 2] = start_z, end_z
+        near = geometry.silhouette_mask(starts, ends, SHAPE, cam, 10.0, np.array([1]))
+        assert (near == 255).all(), (start_z, end_z)
+
+
+def test_grow_dilates_by_a_disc_of_the_radius_rounded_up() -> None:
+    dot = np.zeros((15, 15), np.uint8)
+    dot[7, 7] = 255
+    for radius, reach in ((0.0, 0), (1e-10, 0), (1.0, 1), (2.2, 3), (3.0, 3)):
+        grown = geometry.grow(dot, radius)
+        line = list(range(7 - reach, 8 + reach))
+        assert np.flatnonzero(grown[7]).tolist() == line, radius
+        assert np.flatnonzero(grown[:, 7]).tolist() == line, radius
+        # a disc, not a square: the corners of its box stay clear
+        assert reach < 2 or grown[7 - reach, 7 - reach] == 0

@@ -294,14 +294,38 @@ def test_the_oracle_check_catches_a_wrong_orientation() -> None:
     assert (np.abs(got - want) > quantisation_bound(model, feats)).mean() > 0.5
 
 
-def whole_body_case():
-    start, camera, first, frame, poses = scene(3, shift_mm=300.0)
-    model = ObservationModel(backdrop=True, coverage_weight=4.0, coverage_points=32)
+def whole_body_case(size: int = 128, residual_weight: float = 0.0):
+    start, camera, first, frame, poses = scene(3, size, shift_mm=300.0)
+    model = ObservationModel(
+        backdrop=True, coverage_weight=4.0, coverage_points=32, residual_weight=residual_weight
+    )
     given = GivenBody(
         start, np.arange(body.N_PARAMS), SHAPE, camera,
         backdrop=model.read_backdrop(first, start, SHAPE, camera),
     )  # fmt: skip
     return model, camera, frame, poses, given
+
+
+def test_partial_whole_body_figures_at_another_size_are_the_oracles() -> None:
+    # A 96-pixel frame rescales the truncations; each partial figure's coverage
+    # and residual terms measure its own cones only.
+    model, camera, frame, poses, given = whole_body_case(96, residual_weight=1.0)
+    feats = model.prepare(frame, given)
+    assert feats.coverage is not None and feats.coverage.shape[1] >= 20
+    assert feats.residual is not None and feats.residual.shape[1] >= 20
+    groups = [[0, 1], [2, 4], [3, 5, 6, 7, 8, 9]]
+    got = model.log_likelihood_partial(feats, poses[:10], SHAPE, camera, groups)
+    smooth = cv2.GaussianBlur(frame, (0, 0), model.edge_blur)
+    for g in range(len(groups)):
+        cones = [c for group in groups[: g + 1] for c in group]
+        want = np.array(
+            [
+                oracle_log_likelihood(model, feats, p, camera, smooth, None, cones)
+                for p in poses[:10]
+            ]
+        )
+        off = np.abs(got[:, g] - want) > quantisation_bound(model, feats) + 1e-3 * np.abs(want)
+        assert off.sum() <= 1, (g, got[off, g], want[off])  # one pose may read a pixel apart
 
 
 @pytest.mark.parametrize("terms", ["plain", "whole body"])

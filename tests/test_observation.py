@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from baselines.observation import POSE_LIMIT, FrameFeatures, ObservationModel
+from baselines.observation.features import border_color
 from humotion_gym import body
-from humotion_gym.camera import fit_camera
+from humotion_gym.camera import Camera, fit_camera
 from humotion_gym.render import SceneOptions, make_background, render
 
 SHAPE = body.default_shape()
@@ -157,6 +158,32 @@ def test_off_image_poses_get_the_truncation_cost(scene_and_poses) -> None:
     assert scores[0] > worst + 5.0
 
 
+def test_figures_behind_the_camera_or_off_a_side_read_only_the_border() -> None:
+    # A camera looking straight down from 1 m below the pelvis: every keypoint
+    # is behind it, the torso and head on its optical axis (with the depth's
+    # sign ignored they would fall on the image centre, a bright square).
+    # The same figure 2 m below the camera, far off each side of the image,
+    # has the image's bright bars along each side's middle just inside.
+    pose = body.standing_pose(SHAPE)
+    pelvis = body.forward_kinematics(pose, SHAPE)[0]
+    cam = Camera(64, 64, 50.0, np.diag([1.0, -1.0, -1.0]), pelvis - [0.0, 0.0, 1000.0])
+    frame = np.full((64, 64, 3), 100, np.uint8)
+    frame[16:48, 16:48] = 250
+    frame[20:44, :6] = frame[20:44, -6:] = frame[:6, 20:44] = frame[-6:, 20:44] = 250
+    below = np.tile(pose, (5, 1))
+    below[1:, 2] -= 3000.0
+    below[1:, :2] += [[1e5, 0.0], [-1e5, 0.0], [0.0, 1e5], [0.0, -1e5]]
+    feats = MODEL.prepare(frame)
+    assert feats.foreground[[0, 32, 63, 32], [32, 0, 32, 63]].min() == 1.0
+    plane = (feats.width + 2) * (feats.height + 2)
+    edge_out, fg_out = int(feats.cost[0]), int(feats.cost[MODEL.orientation_bins * plane])
+    assert fg_out > 0 and feats.foreground[32, 32] == 1.0
+    per_cone = 2 * MODEL.outline_samples * edge_out + MODEL.axis_samples * fg_out
+    worst = -MODEL.sharpness * feats.cost_unit * body.N_CONES * per_cone
+    scores = MODEL.log_likelihood(feats, below, SHAPE, cam)
+    np.testing.assert_allclose(scores, np.full(5, worst), rtol=1e-12)
+
+
 def test_non_finite_poses_score_minus_infinity(scene_and_poses) -> None:
     frame, cam, poses = scene_and_poses
     bad = poses[:6].copy()
@@ -202,11 +229,33 @@ def test_features_of_a_frame() -> None:
         assert np.mean(features.distance.min(axis=0)[mids[:, 1], mids[:, 0]] < 3.0) > 0.5
 
 
+def test_border_colour_is_the_median_of_the_border_ring() -> None:
+    # The ring ``min(width, H // 4, W // 4)`` pixels wide along all four sides,
+    # each pixel once; the median per channel. Random pixels: a ring one
+    # pixel off has another median.
+    rng = np.random.default_rng(12)
+    for h, w, channels, width in ((40, 60, 3, 5), (33, 21, 1, 4), (16, 48, 3, 9)):
+        smooth = rng.integers(0, 256, (h, w, channels)).astype(np.uint8)
+        b = min(width, h // 4, w // 4)
+        ring = np.zeros((h, w), bool)
+        ring[:b] = ring[h - b :] = True
+        ring[:, :b] = ring[:, w - b :] = True
+        want = np.median(smooth[ring].astype(np.float64), axis=0)
+        np.testing.assert_array_equal(border_color(smooth, width), want)
+
+
 def test_bad_inputs_raise(scene_and_poses) -> None:
     frame, cam, poses = scene_and_poses
     with pytest.raises(ValueError, match="camera"):
         other = fit_camera(np.zeros((1, 3)) + [0, 0, 900], 64, 64, 50.0)
         MODEL.log_likelihood(frame, poses, SHAPE, other)
+    h, w = frame.shape[:2]
+    for size in ((w, h + 2), (w + 2, h)):  # one side of the size differs
+        other = fit_camera(np.zeros((1, 3)) + [0, 0, 900], *size, 50.0)
+        with pytest.raises(ValueError, match="camera"):
+            MODEL.log_likelihood(frame, poses, SHAPE, other)
+        with pytest.raises(ValueError, match="camera"):
+            ObservationModel(backdrop=True).read_backdrop(frame, poses[0], SHAPE, other)
     with pytest.raises(ValueError, match="shape"):
         MODEL.log_likelihood(frame, poses[:, :24], SHAPE, cam)
     with pytest.raises(ValueError, match="uint8"):

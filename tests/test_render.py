@@ -416,3 +416,209 @@ def test_figure_polygons_against_the_cones_projected_one_by_one() -> None:
             )
             depth.append(cam.to_camera(np.array(ends))[:, 2].sum())
         assert figures.order[t] == list(np.argsort(-np.array(depth), kind="stable"))
+
+
+def _one_occluder(scene: SceneOptions, row: list[float], color: tuple[int, int, int]):
+    """The scene's background with one occluder of the given parameters (Background.occluders)."""
+    from dataclasses import replace
+
+    background = make_background(scene, np.random.default_rng(0))
+    return replace(
+        background, occluders=np.array([row]), occluder_colors=np.array([color], np.uint8)
+    )
+
+
+def test_occluders_are_drawn_where_their_paths_put_them_over_the_figure() -> None:
+    scene = SceneOptions(width=64, height=64, background="flat", noise_sigma=0.0, occluders=1)
+    pose = _pose()
+    cam = _camera(scene, pose)
+    plain = render(pose, SHAPE, cam, SceneOptions(width=64, height=64, background="flat",
+                                                  noise_sigma=0.0), np.random.default_rng(0))  # fmt: skip
+    v, u = np.mgrid[0:64, 0:64]
+    # A blob moving right (heading 0) at 2 px a frame, its path 10 px below
+    # the centre (31.5, 31.5): at frame 5 its centre is (41.5, 41.5); semi-axes
+    # 8 px across and 0.6 of that (4.8 px) up and down.
+    blob = _one_occluder(scene, [1, 0, 0.0, 10.0, 2.0, 8.0, 0.0], (200, 30, 30))
+    frame = render(pose, SHAPE, cam, scene, np.random.default_rng(0), blob, frame_index=5)
+    r = np.hypot((u - 41.5) / 8.0, (v - 41.5) / 4.8)
+    inside, outside = r <= 1.0 - 1.5 / 8.0, r >= 1.0 + 1.5 / 4.8
+    assert inside.sum() > 60
+    assert (frame[inside] == (200, 30, 30)).all()  # over the figure too
+    assert np.any(plain[inside] != plain[0, 0])  # (the figure is there)
+    np.testing.assert_array_equal(frame[outside], plain[outside])
+    # A horizontal bar moving down (heading pi/2) at 3 px a frame: at frame 4
+    # its centre line is at v = 43.5, int(0.6 x 10) = 6 px thick, image-wide.
+    bar = _one_occluder(scene, [0, 0, np.pi / 2, 0.0, 3.0, 10.0, 0.0], (30, 30, 200))
+    frame = render(pose, SHAPE, cam, scene, np.random.default_rng(0), bar, frame_index=4)
+    assert (frame[42:46] == (30, 30, 200)).all()
+    np.testing.assert_array_equal(frame[:40], plain[:40])
+    np.testing.assert_array_equal(frame[48:], plain[48:])
+
+
+@pytest.mark.parametrize(("size", "strips"), [(256, 4), (256, 16), (64, 16)])
+def test_each_cone_is_its_silhouette_in_the_cap_colour_under_its_strips(
+    size: int, strips: int
+) -> None:
+    # The drawing's definition, one cone at a time, far first: a wide cone's
+    # silhouette in the cap's colour with each strip quad in its own colour
+    # over it, a narrow one's in the flat shade.
+    import cv2
+
+    from humotion_gym.render import _SHIFT
+
+    scene = SceneOptions(width=size, height=size, background="flat", noise_sigma=0.0,
+                         shading_strips=strips)  # fmt: skip
+    pose = _pose()
+    pose[PI["l_elbow"]] = 1.2
+    cam = _camera(scene, pose, azimuth=-30.0)
+    figures = figure_sequence(pose[None], SHAPE, cam, scene)
+    background = make_background(scene, np.random.default_rng(0))
+    want = background.image.copy()
+    colors = figures.colors[0].astype(int).tolist()
+    for c in figures.order[0]:
+        if figures.wide[0][c]:
+            cv2.fillConvexPoly(want, figures.ellipses[0, c], colors[c][0], cv2.LINE_8, _SHIFT)
+            for b in range(strips):
+                quad = figures.quads[0, c, b]
+                cv2.fillConvexPoly(want, quad, colors[c][2 + b], cv2.LINE_8, _SHIFT)
+        else:
+            cv2.fillConvexPoly(want, figures.ellipses[0, c], colors[c][1], cv2.LINE_8, _SHIFT)
+    wide = sum(figures.wide[0])
+    assert wide == body.N_CONES if size == 256 else 0 < wide < body.N_CONES
+    got = render_frame(figures, 0, np.random.default_rng(0), background)
+    np.testing.assert_array_equal(got, want)
+    # the cap, flat shade and strips are distinct colours (so a mix-up shows)
+    assert len({tuple(row) for row in colors[0]}) >= 3
+
+
+def test_overlay_leaves_out_edges_to_keypoints_behind_the_camera() -> None:
+    # A wide camera looking straight down from 600 mm above the ground, beside
+    # a standing figure: only the knees and ankles are in front of it, so only
+    # the shins are drawn (and four dots).
+    import cv2
+
+    pose = body.standing_pose(SHAPE)
+    cam = Camera(128, 128, 100.0, np.diag([1.0, -1.0, -1.0]), [0.0, 0.0, 600.0])
+    kp = body.forward_kinematics(pose, SHAPE)
+    px = cam.project(kp)
+    shown = np.isfinite(px).all(axis=1)
+    names = [body.KEYPOINT_NAMES[k] for k in np.flatnonzero(shown)]
+    assert names == ["r_knee", "r_ankle", "l_knee", "l_ankle"]
+    black = np.zeros((128, 128, 3), np.uint8)
+    out = draw_pose_overlay(black, pose, SHAPE, cam, thickness=1)
+    near = np.zeros((128, 128), np.uint8)
+    for a, b in body.SKELETON_EDGES:
+        if shown[a] and shown[b]:
+            cv2.line(near, tuple(np.rint(px[a]).astype(int)), tuple(np.rint(px[b]).astype(int)),
+                     255, 7)  # fmt: skip
+    for k in np.flatnonzero(shown):
+        cv2.circle(near, tuple(np.rint(px[k]).astype(int)), 5, 255, -1)
+    changed = np.any(out != 0, axis=2)
+    assert changed.sum() > 20 and not np.any(changed & (near == 0))
+
+
+@pytest.mark.parametrize("strips", [1, 3, 6])
+def test_flat_and_strip_shades_follow_lamberts_law(strips: int) -> None:
+    """Each strip lit for the normal ``s m + sqrt(1 - s^2) w`` at its centre ``s`` across.
+
+    ``m`` is the projected axis' unit image normal, ``w`` the normal facing the
+    camera, ``(a_z a - e_z) / sqrt(1 - a_z^2)`` for the unit axis ``a`` (camera
+    frame); the strips split ``[-1, 1]`` evenly. The flat shade of a narrow
+    cone is lit for ``w`` alone. Colours within one grey level.
+    """
+    rng = np.random.default_rng(8)
+    scene = SceneOptions(shading_strips=strips, light_direction=(-0.3, -0.5, -0.8))
+    poses = np.tile(_pose(), (4, 1))
+    poses[:, 6:] += rng.normal(0.0, 0.4, (4, 19))
+    cam = _camera(scene, poses[0])
+    figures = figure_sequence(poses, SHAPE, cam, scene)
+    geometry = body.cone_geometry(poses, SHAPE)
+    light = np.array(scene.light_direction) / np.linalg.norm(scene.light_direction)
+    edges = np.linspace(-1.0, 1.0, strips + 1)
+    centres = (edges[1:] + edges[:-1]) / 2
+    for t in range(len(poses)):
+        for c in range(body.N_CONES):
+            ends = np.stack([geometry.starts[t, c], geometry.ends[t, c]])
+            axis = cam.rotation @ (ends[1] - ends[0])
+            axis /= np.linalg.norm(axis)
+            (u0, v0), (u1, v1) = cam.project(ends)
+            m = np.array([v1 - v0, u0 - u1, 0.0]) / np.hypot(v1 - v0, u0 - u1)
+            w = (axis[2] * axis - [0.0, 0.0, 1.0]) / np.sqrt(1.0 - axis[2] ** 2)
+            normals = [w] + [s * m + np.sqrt(1.0 - s * s) * w for s in centres]
+            base = np.array(scene.figure_colors[c], float)
+            for k, normal in enumerate(normals):
+                lam = scene.ambient + scene.diffuse * max(0.0, normal @ light)
+                want = np.minimum(np.rint(base * lam), 255)
+                got = figures.colors[t, c, 1 + k].astype(float)
+                assert np.abs(got - want).max() <= 1, (t, c, k, got, want)
+
+
+@pytest.mark.parametrize("checker", [False, True])
+@pytest.mark.parametrize("angle", [0.0, np.pi / 2])
+def test_textures_are_stripes_or_checkers_of_two_colours_inside_the_mask(
+    angle: float, checker: bool
+) -> None:
+    # Stripes ``period`` pixels wide across the direction ``angle`` (0: columns
+    # 0-3, 4-7, ... alternate; pi/2: rows), a checker adds the stripes across
+    # them; only where the mask is set.
+    from humotion_gym.render_scene import _paint_texture
+
+    region = np.full((12, 16, 3), 7, np.uint8)
+    inside = np.full((12, 16), 255, np.uint8)
+    inside[5:7, 5:9] = 0
+    palette = np.array([[10, 20, 30], [200, 210, 220]], np.uint8)
+    _paint_texture(region, inside, palette, 4.0, angle, checker)
+    for y in range(12):
+        for x in range(16):
+            if not inside[y, x]:
+                want = [7, 7, 7]
+            elif angle == 0.0:
+                want = palette[(x // 4 + (y // 4 if checker else 0)) % 2]
+            else:
+                want = palette[(y // 4 + ((-x) // 4 if checker else 0)) % 2]
+            assert region[y, x].tolist() == list(want), (y, x)
+
+
+def test_a_cluttered_wall_is_jittered_by_at_most_20_grey_levels() -> None:
+    shifts = []
+    for seed in range(24):
+        scene = SceneOptions(noise_sigma=0.0)
+        image = make_background(scene, np.random.default_rng(seed)).image.reshape(-1, 3)
+        values, counts = np.unique(image, axis=0, return_counts=True)
+        wall = values[np.argmax(counts)].astype(int) - scene.background_color  # the most common
+        assert np.ptp(wall) <= 1 and np.abs(wall).max() <= 20, (seed, wall)
+        shifts.append(wall[0])
+    assert np.ptp(shifts) > 20  # the jitter spans the range
+    flat = make_background(SceneOptions(background="flat"), np.random.default_rng(0)).image
+    assert (flat == SceneOptions().background_color).all()
+
+
+def test_about_two_clutter_shapes_in_five_are_textured() -> None:
+    from humotion_gym.render_scene import _clutter_plan
+
+    kinds = []
+    for seed in range(10):
+        plan = _clutter_plan(np.random.default_rng(seed), 128, 128, 1.0)
+        kinds += plan.shapes[:, 1].tolist()
+    textured = np.mean(np.array(kinds) != 0)
+    assert len(kinds) > 50 and 0.25 < textured < 0.55
+
+
+def test_a_clutter_line_runs_its_length_along_its_direction(monkeypatch) -> None:
+    # One line of the plan, from (10, 10) along (3, 4) (its normal draws,
+    # normalised) for 50 px: it ends at (40, 50).
+    from humotion_gym import render_scene
+
+    plan = render_scene.ClutterPlan(
+        np.zeros((0, 19), np.int64), np.zeros((0, 10)),
+        np.array([[10.0, 10.0, 0.3, 0.4, 50.0, 200.0, 0.0, 0.0, 1.0]]),
+    )  # fmt: skip
+    monkeypatch.setattr(render_scene, "_clutter_plan", lambda *args: plan)
+    scene = SceneOptions(width=64, height=64, noise_sigma=0.0)
+    img = np.zeros((64, 64, 3), np.uint8)
+    render_scene._draw_clutter(img, scene, np.random.default_rng(0))
+    v, u = np.nonzero(img[..., 0] > 100)
+    along = np.clip(((u - 10) * 0.6 + (v - 10) * 0.8) / 50.0, 0.0, 1.0)
+    off = np.hypot(u - 10 - 30 * along, v - 10 - 40 * along)
+    assert off.max() <= 1.0 and np.hypot(u - 40, v - 50).min() <= 1.5 and img[10, 10, 0] > 100
+    assert v.size >= 45

@@ -161,6 +161,30 @@ def test_cone_colors_read_the_figure(arm_scene) -> None:
     assert np.all(np.abs(colors[[0, 2, 3]] - wall).max(axis=1) > 25)
 
 
+def test_cone_colors_are_the_median_of_five_axis_pixels(arm_scene) -> None:
+    # Per cone, the median of the pixels nearest the projections of the points
+    # at 0.3, 0.4, ..., 0.7 of its axis (clipped into the image). A random
+    # frame without blur: any other points give another median.
+    pose, _frame, cam, _ = arm_scene
+    rng = np.random.default_rng(31)
+    frame = rng.integers(0, 256, (cam.height, cam.width, 3)).astype(np.uint8)
+    model = ObservationModel(edge_blur=0.0)
+    aside = pose.copy()
+    aside[0] += 1500.0  # partly off the image
+    for p in (pose, aside):
+        geo = body.cone_geometry(p, SHAPE)
+        want = np.empty((body.N_CONES, 3))
+        for c in range(body.N_CONES):
+            pixels = []
+            for t in (0.3, 0.4, 0.5, 0.6, 0.7):
+                u, v = cam.project((1 - t) * geo.starts[c] + t * geo.ends[c])
+                x = min(max(int(np.rint(u)), 0), cam.width - 1)
+                y = min(max(int(np.rint(v)), 0), cam.height - 1)
+                pixels.append(frame[y, x])
+            want[c] = np.median(np.array(pixels, dtype=np.float64), axis=0)
+        np.testing.assert_array_equal(model.cone_colors(frame, p, SHAPE, cam), want)
+
+
 def test_appearance_cost_matches_brute_force(arm_scene) -> None:
     import cv2
 

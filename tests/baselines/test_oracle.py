@@ -27,6 +27,7 @@ from baselines.diagnostics.oracle import (
 )
 from baselines.diagnostics.split import markdown_report, parse_oracle, run_split
 from baselines.leaderboard.evaluation import run_episode
+from baselines.observation.keypoints import KeypointScorer
 from humotion_gym.body import CONE_KEYPOINTS, KEYPOINT_NAMES, forward_kinematics
 
 SCORED = np.arange(15)
@@ -100,6 +101,48 @@ def test_log_likelihood_matches_the_slow_definition(env, settings):
         placed |= {int(k) for c in group for k in CONE_KEYPOINTS[c]}
         slow = _slow(oracle, obs, poses, base.shape, base.camera, placed)
         np.testing.assert_allclose(part[:, g], slow, rtol=1e-9)
+
+
+@pytest.mark.parametrize("unlabelled", [False, True])
+def test_weighted_capped_keypoint_costs_match_the_definition(unlabelled):
+    # Each keypoint's term is its own weight times its squared distance, then
+    # capped; an unlabelled pair takes the cheaper assignment of its placed
+    # members; a point that cannot be placed (NaN) costs inf.
+    rng = np.random.default_rng(21)
+    scorer = KeypointScorer(SCORED, unlabelled, "Test")
+    points = rng.normal(0.0, 2.0, (6, 15, 2))
+    points[5, 4] = np.nan
+    observed = rng.normal(0.0, 2.0, (15, 2))
+    weights = rng.uniform(0.1, 2.0, 15)
+    cap = 3.0
+    masks = scorer.partial_masks([[0, 1], [2, 3], [8, 9]])
+    got = scorer.cost(points, observed, masks, weights, cap)
+    names = [KEYPOINT_NAMES[k] for k in SCORED]
+    partner = [
+        names.index({"r_": "l_", "l_": "r_"}[n[:2]] + n[2:]) if unlabelled and n[:2] in ("r_", "l_")
+        else i
+        for i, n in enumerate(names)
+    ]  # fmt: skip
+    units = [[i] if partner[i] == i else [i, partner[i]] for i in range(15) if i <= partner[i]]
+    for n in range(points.shape[0]):
+        for m, mask in enumerate(masks):
+            want = 0.0
+            for unit in units:
+                members = [k for k in unit if mask[k]]
+                straight = sum(
+                    min(weights[k] * float(np.sum((points[n, k] - observed[k]) ** 2)), cap)
+                    for k in members
+                )
+                swapped = sum(
+                    min(weights[k] * float(np.sum((points[n, k] - observed[partner[k]]) ** 2)), cap)
+                    for k in members
+                )
+                want += min(straight, swapped)
+            if n == 5 and mask[4]:
+                assert got[n, m] == np.inf
+            else:
+                assert got[n, m] == pytest.approx(want, rel=1e-12), (n, m)
+    assert np.all(got[:5, -1] < 15 * cap) and np.any(got[:5, -1] > 3 * cap)
 
 
 def test_the_truth_scores_highest_without_noise(env):
