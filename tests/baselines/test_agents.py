@@ -7,12 +7,15 @@ import pytest
 
 import humotion_gym  # noqa: F401
 from baselines.agents import AGENTS, TaskNotSupported, make
+from baselines.agents.base import describe, episode_begins
+from baselines.agents.filters import body_part_stages
 from baselines.agents.settings import load as load_settings
 from baselines.cli import main
 from baselines.leaderboard import evaluation
 from baselines.leaderboard.evaluation import evaluate, run_episode, summarize, warm_up
 from baselines.leaderboard.stats import bootstrap_ci, iqm, stratified_bootstrap_ci
-from humotion_gym.envs.description import read_observation
+from humotion_gym.body import CONE_NAMES
+from humotion_gym.envs.description import pose_to_action, read_observation
 
 
 class RandomPolicy:
@@ -367,3 +370,65 @@ def test_the_annealed_filters_settings_come_from_the_spec_the_task_and_the_calle
         make("pf-cv", env, n_particles=10, filter_settings={"alpha": 0.7})
     with pytest.raises(ValueError, match="alpha must be in"):
         make("apf-cv", env, n_particles=10, filter_settings={"alpha": 1.5})
+
+
+def test_the_filters_estimate_is_answered_as_its_action_in_the_episodes_range():
+    """The estimate mapped by the task's map with the episode's initial root (BodyTrack's
+    root is free: its range is the initial root +- root_range_mm)."""
+    env = gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False)
+    agent = make("pf-cv", env, n_particles=10, seed=0)
+    obs, _ = env.reset(seed=1)
+    initial = np.asarray(obs["initial_pose"])
+    estimate = initial + np.linspace(-0.2, 0.3, 25)
+    estimate[:3] = initial[:3] + (300.0, -700.0, 50.0)
+    agent.filter.step = lambda features: estimate.copy()
+    action, _ = agent.predict(obs, episode_start=np.array([True]))
+    np.testing.assert_array_equal(action, pose_to_action(env.unwrapped.task, estimate, initial))
+    np.testing.assert_allclose(action[:3], [300 / 2500, -700 / 2500, 50 / 2500], atol=1e-6)
+
+
+def test_a_filters_episode_is_its_seed_and_episode_seed_alone():
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
+    obs, _ = env.reset(seed=0)
+    agent = make("pf-cv", env, n_particles=20, seed=3)
+    answers = []
+    for episode_seed in (1, 2, 1):
+        agent.seed_episode(episode_seed)
+        answers.append(agent.predict(obs, episode_start=np.array([True]))[0])
+    assert np.array_equal(answers[0], answers[2])
+    assert not np.array_equal(answers[0], answers[1])
+    other = make("pf-cv", env, n_particles=20, seed=4)
+    other.seed_episode(1)
+    assert not np.array_equal(other.predict(obs, episode_start=np.array([True]))[0], answers[0])
+
+
+def test_an_episode_begins_at_episode_start_or_where_the_initial_pose_changes():
+    pose = np.zeros(25)
+    moved = pose.copy()
+    moved[5] = 0.1
+    assert episode_begins(None, pose, None)  # before the first episode
+    assert not episode_begins(None, pose, pose.copy())
+    assert episode_begins(None, moved, pose)
+    assert episode_begins(np.array([True]), pose, pose.copy())
+    assert not episode_begins(np.array([False]), pose, pose.copy())
+    assert episode_begins(np.array([False]), moved, pose)
+
+
+def test_a_version_1_task_is_not_described_to_an_agent():
+    with pytest.warns(DeprecationWarning):
+        env = gym.make("humotion_gym/ArmTrack-v1")
+    with pytest.raises(TaskNotSupported, match="ArmTrack-v2"):
+        describe(env)
+    assert describe(gym.make("humotion_gym/ArmTrack-v2")).name == "ArmTrack-v2"
+
+
+def test_each_body_parts_stage_places_that_parts_cones():
+    stages = body_part_stages(np.arange(25))
+    placed = {stage.name: {CONE_NAMES[c] for c in stage.group} for stage in stages}
+    assert placed == {
+        "torso": {"torso", "head"},
+        "right_arm": {"r_upper_arm", "r_forearm"},
+        "left_arm": {"l_upper_arm", "l_forearm"},
+        "right_leg": {"r_thigh", "r_shin"},
+        "left_leg": {"l_thigh", "l_shin"},
+    }

@@ -158,3 +158,38 @@ def test_settings_file_ships_in_the_package():
     pyproject = tomllib.loads((package.parent / "pyproject.toml").read_text())
     shipped = pyproject["tool"]["setuptools"]["package-data"]["baselines"]
     assert PF_SETTINGS_FILE.relative_to(package).as_posix() in shipped
+
+
+def test_each_fit_gets_the_tasks_settings_the_callers_and_the_frame_skip(monkeypatch):
+    """What each prior's fit is given, recorded: the spec's settings for the task, the
+    caller's over them, the task's frame skip; a per-part prior's every part, a mixture's
+    components their own and the mixture its persistence."""
+    import gymnasium as gym
+
+    from baselines.agents import make, specs
+
+    fits, mixtures = [], []
+    real_fit = specs.fit_prior_on
+
+    def record_fit(prior, motions, free, settings, **kwargs):
+        fits.append((prior, [int(i) for i in free], dict(settings)))
+        return real_fit(prior, motions, free, settings, **kwargs)
+
+    monkeypatch.setattr(specs, "fit_prior_on", record_fit)
+    env = gym.make("humotion_gym/BodyTrack-v2", frame_skip=2)
+    cv = AGENTS["pf-cv"].settings_for("BodyTrack-v2")
+    make("pf-cv", env, n_particles=10, fit_settings={"damping": 0.0})
+    assert fits == [
+        (specs.CONSTANT_VELOCITY, list(range(25)), {**cv, "damping": 0.0, "frame_skip": 2})
+    ]
+    fits.clear()
+    monkeypatch.setattr(specs.limbs, "compose", lambda free, parts: parts)
+    specs.fit_prior(AGENTS["pf-limbs"], env)
+    tree = {**AGENTS["pf-limbs"].settings_for("BodyTrack-v2"), "frame_skip": 2}
+    assert [(prior, settings) for prior, _, settings in fits] == [(specs.TREE, tree)] * 5
+    assert sorted(i for _, free, _ in fits for i in free) == list(range(25))
+    monkeypatch.setattr(
+        specs.mixture, "compose", lambda fits, weights, persistence: mixtures.append(persistence)
+    )
+    specs.fit_prior(AGENTS["pf-cv-still"], gym.make("humotion_gym/SideWalk-v2"))
+    assert mixtures == [AGENTS["pf-cv-still"].settings_for("SideWalk-v2")["persistence"]] == [0.99]

@@ -60,6 +60,16 @@ def test_random_agent_is_seeded_and_in_the_action_space():
         assert np.array_equal(x, y) and env.action_space.contains(x)
 
 
+def test_random_agents_episode_is_its_seed_and_episode_seed_alone():
+    env = gym.make("humotion_gym/ArmTrack-v2")
+    obs, _ = env.reset(seed=0)
+    agent = make("random", env, seed=2)
+    for episode_seed in (7, 8, 7):
+        agent.seed_episode(episode_seed)
+        want = np.random.default_rng([2, episode_seed]).uniform(-1.0, 1.0, 4).astype(np.float32)
+        assert np.array_equal(agent.predict(obs)[0], want), episode_seed
+
+
 def test_agent_names_lists_references_first():
     names = agent_names()
     assert names[: len(REFERENCES)] == list(REFERENCES) and "pf-tree" in names

@@ -12,8 +12,15 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import humotion_gym
+from humotion_gym.body import PARAM_LOWER, PARAM_UPPER
 from humotion_gym.envs import ENV_IDS, get_task
-from humotion_gym.envs.description import OBSERVATION_KEYS, read_observation
+from humotion_gym.envs.description import (
+    OBSERVATION_KEYS,
+    action_bounds,
+    action_to_pose,
+    pose_to_action,
+    read_observation,
+)
 from humotion_gym.envs.vector import PoseTrackingVectorEnv
 from humotion_gym.render_scene import SCENE_MAXIMA, SceneOptions
 from humotion_gym.wrappers import FrameObservation
@@ -459,6 +466,51 @@ def test_pose_action_round_trip():
         - humotion_gym.body.forward_kinematics(truth, env.shape)
     )
     assert kp_err.max() < 0.5  # float32 actions
+
+
+def test_an_action_is_its_free_parameters_place_in_their_range():
+    """Hand-computed actions: a free root is the initial root +- root_range_mm, angles their
+    joint limits (wrapped first: a turn more is the same action), in free_indices order."""
+    task = get_task("SideWalk-v2")  # free [17, 20, 21, 24, 9, 12, 13, 16]: not sorted
+    initial = np.zeros(25)
+    pose = np.zeros(25)
+    pose[17] = 2.8 * 0.75  # range [-1.5, 2.8] -> (2.1 + 1.5) / 4.3 * 2 - 1
+    pose[20] = 1.45  # [0, 2.9]: the middle
+    pose[21] = -1.5  # [-1.5, 2.8]: the lower end
+    pose[9] = -np.pi / 2 + 2 * np.pi  # [-pi, pi]: wrapped to -pi/2
+    pose[12] = 2.9  # [0, 2.9]: the upper end
+    want = np.array([3.6 / 4.3 * 2 - 1, 0.0, -1.0, -1.0, -0.5, 1.0, 0.0, -1.0])
+    np.testing.assert_allclose(pose_to_action(task, pose, initial), want, atol=1e-6)
+    # the root of a whole-body task: the initial root +- root_range_mm (2500 mm)
+    body = get_task("BodyTrack-v2")
+    initial = np.zeros(25)
+    initial[:3] = (100.0, -200.0, 900.0)
+    lo, hi = action_bounds(body, initial)
+    np.testing.assert_array_equal(lo[:3], initial[:3] - 2500.0)
+    np.testing.assert_array_equal(hi[:3], initial[:3] + 2500.0)
+    np.testing.assert_array_equal(lo[3:], PARAM_LOWER[3:])
+    np.testing.assert_array_equal(hi[3:], PARAM_UPPER[3:])
+    pose = initial.copy()
+    pose[:3] += (1250.0, -2500.0, 0.0)
+    np.testing.assert_allclose(pose_to_action(body, pose, initial)[:3], [0.5, -1.0, 0.0])
+    np.testing.assert_allclose(pose_to_action(body, initial, initial)[:3], 0.0, atol=1e-7)
+    # and back: the free parameters placed in the base pose, the others the base's
+    action = np.array([0.5, 0.0, -1.0, 1.0, 0.0, 0.5, -0.5, 0.0], np.float32)
+    base = np.arange(25.0)
+    back = action_to_pose(task, action, base, initial)
+    lo, hi = PARAM_LOWER[task.free_indices], PARAM_UPPER[task.free_indices]
+    np.testing.assert_allclose(back[task.free_indices], lo + (action + 1) / 2 * (hi - lo))
+    assert np.array_equal(back[task.fixed_indices], base[task.fixed_indices])
+
+
+def test_the_base_pose_is_the_initial_pose_with_the_given_parameters_put_in():
+    env = gym.make("humotion_gym/ArmTrack-v2").unwrapped
+    obs, _ = env.reset(seed=0)
+    obs = dict(obs, fixed_params=np.arange(21.0) + 0.5)
+    base = env.describe().base_pose(read_observation(obs))
+    assert np.array_equal(base[env.task.fixed_indices], np.arange(21.0) + 0.5)
+    free = env.task.free_indices
+    assert np.array_equal(base[free], obs["initial_pose"][free])
 
 
 def test_options_choose_clip_and_start():

@@ -466,3 +466,43 @@ def test_a_refused_reset_leaves_every_episode_as_it_was(seed, options):
     _assert_same(vec.render(), twin.render())
     # and a later reset draws what it would have drawn without the refused one
     _assert_same(vec.reset(), twin.reset())
+
+
+def test_learner_vec_env_episodes_ending_apart_with_options_are_dummy_vec_envs():
+    """Episodes lost at different steps (one row's info from its final step, the others'
+    from this one), actions beyond the bounds (a lost frame before the end, seen clipped
+    as the previous estimate) and reset options: as DummyVecEnv's."""
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from baselines.rl import make_learner_env
+    from humotion_gym.sb3 import learner_vec_env
+
+    n, task = 3, "BodyTrack-v2"
+    kwargs = {"terminate_on_lost": True, "lost_patience": 2, "episode_frames": 5}
+    kwargs |= {"width": 64, "height": 64}
+    dummy = DummyVecEnv([lambda: make_learner_env(task, "train", 32, **kwargs)] * n)
+    ours = learner_vec_env(task, n, "train", 32, **kwargs)
+    for venv in (dummy, ours):
+        venv.seed(3)
+        venv.set_options({"clip_id": "synthetic/walk-01", "start": 5})
+    _assert_same(dict(dummy.reset()), ours.reset(), "reset")
+    assert [info["start_frame"] for info in ours.reset_infos] == [5] * n
+    bad_from = np.array([2, 3, 9])  # each row's estimate is far off from this step on
+    ended = []
+    for t in range(1, 6):
+        truth = np.stack([env.pose_to_action(env.true_pose()) for env in ours.venv.envs])
+        actions = np.where((bad_from <= t)[:, None], -3.0, truth).astype(np.float32)
+        (obs, rewards, dones, infos), want = ours.step(actions), dummy.step(actions)
+        _assert_same(obs, dict(want[0]), f"step {t}")
+        assert obs["previous"].min() >= -1.0
+        _assert_same(rewards, want[1], f"step {t}")
+        _assert_same(dones, want[2], f"step {t}")
+        for got_info, want_info in zip(infos, want[3], strict=True):
+            for key in ("TimeLimit.truncated", "error_mm", "error_all_mm", "lost"):
+                _assert_same(got_info[key], want_info[key], f"step {t} {key}")
+            assert ("terminal_observation" in got_info) == ("terminal_observation" in want_info)
+            if "terminal_observation" in want_info:  # its previous estimate clipped
+                _assert_same(got_info["terminal_observation"], want_info["terminal_observation"])
+        ended.append(dones.tolist())
+    assert ended[2] == [True, False, False] and ended[3] == [False, True, False]

@@ -691,3 +691,34 @@ def test_ppo_says_where_a_run_between_rollouts_ends(tmp_path: Path, capsys) -> N
     captured = capsys.readouterr()
     assert "rollouts of n_steps x n_envs = 16 env steps: --steps 20 ends at 32" in captured.err
     assert json.loads(captured.out)["env_steps"] == 32
+
+
+class _Recorder:
+    """A policy answering set actions and keeping the observations it was shown."""
+
+    def __init__(self, observation_space, answers) -> None:
+        self.observation_space = observation_space
+        self.answers = iter(answers)
+        self.seen: list[dict] = []
+
+    def predict(self, obs, deterministic=True):
+        self.seen.append({key: np.array(value) for key, value in obs.items()})
+        return next(self.answers), None
+
+
+def test_a_learned_agent_shows_the_initial_pose_then_its_own_clipped_answer() -> None:
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
+    space = make_learner_env("ArmTrack-v2", frame_size=32).observation_space
+    answers = [np.array([0.5, -2.0, 0.1, 3.0], np.float32), np.zeros(4, np.float32)]
+    model = _Recorder(space, answers)
+    agent = LearnedAgent(env, model)
+    obs, _ = env.reset(seed=0)
+    initial = env.unwrapped.pose_to_action(obs["initial_pose"])
+    action, _ = agent.predict(obs, episode_start=np.array([True]))
+    assert np.array_equal(action, answers[0])  # answered as given, unclipped
+    obs, *_ = env.step(action)
+    agent.predict(obs, episode_start=np.array([False]))
+    first, second = model.seen
+    assert np.array_equal(first["initial"], initial) and np.array_equal(first["previous"], initial)
+    assert np.array_equal(second["initial"], initial)
+    assert np.array_equal(second["previous"], np.array([0.5, -1.0, 0.1, 1.0], np.float32))
