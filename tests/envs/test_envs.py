@@ -755,3 +755,16 @@ def test_clips_given_at_reset_are_not_all_kept_alive():
     again = dataclasses.replace(clip, clip_id=f"mine/{STARTS_EXTRA + 19}")
     env.reset(seed=0, options={"motion": again})  # a clip id again: replaced, nothing evicted
     assert [k for k in base._starts if k not in library_ids] == given
+
+
+def test_a_family_name_is_its_current_version_and_arm_v2_keeps_every_start():
+    from humotion_gym.envs.tasks import CURRENT, TASKS
+
+    families = ("ArmTrack", "BodyTrack", "WalkTrack", "SideWalk")
+    assert CURRENT == {f: f"{f}-v2" for f in families}
+    assert get_task("ArmTrack").name == "ArmTrack-v2"
+    assert get_task("humotion_gym/WalkTrack") is TASKS["WalkTrack-v2"]
+    # v2 no longer drops ArmTrack starts where the arm rests; v1 still does
+    assert get_task("ArmTrack-v2").min_motion_mm == 0.0 < get_task("ArmTrack-v1").min_motion_mm
+    with pytest.raises(ValueError, match="episode_frames must be >= 1"):
+        dataclasses.replace(get_task("ArmTrack-v2"), episode_frames=0)

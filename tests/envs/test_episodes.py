@@ -115,6 +115,29 @@ def test_spread_starts_avoids_unobserved_frames_and_keeps_windows_apart():
     assert ep.spread_starts(np.arange(91), 10, 1) == [45]
 
 
+def test_spread_starts_never_lets_two_windows_share_a_frame():
+    # good starts 0 1 4 5 6 8, windows of 2: four fit (0, 4, 6, 8); aiming at
+    # 5.33 the third must not take 5, which shares frame 5 with the window at 4
+    assert ep.spread_starts(np.array([0, 1, 4, 5, 6, 8]), 2, 5) == [0, 4, 6, 8]
+    # 3 5 7 8 13: four fit; the third window may start no later than 8 (13 - 2
+    # leaves 11, the latest good start at or before it is 8), and takes 8 (target 9.67)
+    assert ep.spread_starts(np.array([3, 5, 7, 8, 13]), 2, 5) == [3, 5, 8, 13]
+    rng = np.random.default_rng(7)
+    for _ in range(300):
+        good = np.flatnonzero(rng.random(int(rng.integers(5, 40))) < rng.uniform(0.3, 1.0))
+        span, per_clip = int(rng.integers(2, 8)), int(rng.integers(1, 6))
+        if good.size == 0:
+            continue
+        most, free = 0, -1  # the most disjoint windows: the earliest that fits, greedily
+        for s in good.tolist():
+            if s >= free:
+                most, free = most + 1, s + span
+        starts = ep.spread_starts(good, span, per_clip)
+        assert len(starts) == min(per_clip, most)
+        assert set(starts) <= set(good.tolist())
+        assert np.all(np.diff(starts) >= span), (good, span, starts)
+
+
 def test_source_of_names_what_it_found(synthetic):
     assert ep.source_of(synthetic) == "synthetic"
     user = _motion(np.ones(50, bool))
@@ -133,6 +156,7 @@ def test_check_windows_fails_on_a_tampered_list(synthetic):
     tampered = {
         f"expected {w.frames + 1} frames": dataclasses.replace(w, frames=w.frames + 1),
         "outside its": dataclasses.replace(w, start=w.frames - span + 1),
+        r"window -1\.\.": dataclasses.replace(w, start=-1),  # not counted from the end
         "not in the library": dataclasses.replace(w, clip_id="synthetic/fly-05"),
         # a training clip listed as a test episode, and a clip under another person's name
         "'synthetic-01' .*not a held-out person": dataclasses.replace(

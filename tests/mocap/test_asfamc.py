@@ -185,6 +185,13 @@ def test_units_and_radians(write_text):
     )
     assert rad.angle_unit == "rad" and rad.skeleton.angle_unit == "rad"
     np.testing.assert_allclose(rad.point_positions(), deg.point_positions(), atol=1e-9)
+    # the AMC's own header decides its angles; the ASF's unit, only the ASF's angles
+    mixed = load_asf_amc(
+        write_text("m.asf", asf_text()),
+        write_text("m.amc", amc_text(frames, ":RADIANS", np.pi / 180)),
+    )
+    assert mixed.angle_unit == "rad" and mixed.skeleton.angle_unit == "deg"
+    np.testing.assert_allclose(mixed.point_positions(), deg.point_positions(), atol=1e-9)
     assert deg.units_to_mm == pytest.approx(25.4 / 0.45)
     sk = deg.skeleton
     assert sk.name == "test" and sk.length_unit == 0.45
@@ -646,3 +653,22 @@ def test_an_amc_with_classic_mac_line_ends_reads_as_its_lf_twin(write_text):
     lf = load_asf_amc(asf, write_text("lf.amc", frames))
     cr = load_asf_amc(asf, write_text("cr.amc", frames.replace("\n", "\r")))
     np.testing.assert_array_equal(cr.point_positions(), lf.point_positions())
+
+
+@pytest.mark.mocap
+def test_a_cmu_clip_is_retargeted_in_its_asfs_own_units(shared_mocap):
+    """``:units length 0.45`` makes a unit 25.4 / 0.45 mm, not a guess from the leg."""
+    from humotion_gym.body import KEYPOINT_INDEX
+    from humotion_gym.mocap.retarget import retarget_clip
+
+    folder = shared_mocap / "cmu-asfamc" / "02"
+    sk = load_asf(folder / "02.asf")
+    out = retarget_clip(load_amc(folder / "02_03.amc", sk), fps=None)
+    assert out.units_to_mm == pytest.approx(25.4 / 0.45)
+    # the right thigh is the ASF's rfemur, in mm
+    femur_mm = sk.lengths[sk.bone_names.index("rfemur")] * 25.4 / 0.45
+    kp = out.keypoints
+    thigh = np.linalg.norm(
+        kp[:, KEYPOINT_INDEX["r_hip"]] - kp[:, KEYPOINT_INDEX["r_knee"]], axis=-1
+    )
+    np.testing.assert_allclose(np.nanmedian(thigh), femur_mm, rtol=1e-4)

@@ -276,24 +276,69 @@ def test_position_channels_that_repeat_offsets_replace_them(write_text):
     np.testing.assert_array_equal(forced.point_positions(), auto.point_positions())
 
 
-@pytest.mark.parametrize("scale", [0.98, 1.03, 1.2])
-def test_offsets_a_little_off_their_channels_still_replace(write_text, scale):
-    """Offsets rounded or rescaled a little (up to a quarter) are still repeated, not added."""
-    text, _ = motionbuilder_style()
+def with_rows(text: str, rows: np.ndarray) -> str:
+    """A file's hierarchy with other motion rows."""
+    head, _ = text.split("MOTION\n")
+    frames = f"MOTION\nFrames: {len(rows)}\nFrame Time: 0.0333333\n"
+    return head + frames + "".join(numbers(r) + "\n" for r in rows)
+
+
+def test_a_tied_vote_keeps_the_standard_add(write_text):
+    """Channels replace the offsets only when most voters repeat them: a tie adds."""
+    text, rows = motionbuilder_style()
+    text = text.replace("OFFSET 0 20 0", "OFFSET 0 0 0")  # the Head: no offset, no vote
+    rows[:, 12:15] = 0.0  # the Spine's channels do not repeat its offset; the Hips' do
+    clip = load_bvh(write_text("tie.bvh", with_rows(text, rows)))
+    assert clip.position_channels == "add"
+    spine = clip.point_positions(["Hips", "Spine"])
+    np.testing.assert_allclose(np.linalg.norm(spine[:, 1] - spine[:, 0], axis=-1), 10.0)
+
+
+def rescaled_offsets(text: str, scale: float) -> str:
+    """The file with every offset below the Hips scaled."""
     lines = text.split("\n")
     for i, line in enumerate(lines):
         if line.strip().startswith("OFFSET") and "Hips" not in lines[i - 2]:
             values = [float(v) * scale for v in line.split()[1:]]
             lines[i] = line.split("OFFSET")[0] + "OFFSET " + " ".join(f"{v:.6f}" for v in values)
-    clip = load_bvh(write_text("near.bvh", "\n".join(lines)))
+    return "\n".join(lines)
+
+
+@pytest.mark.parametrize("scale", [0.98, 1.03, 1.2])
+def test_offsets_a_little_off_their_channels_still_replace(write_text, scale):
+    """Offsets rounded or rescaled a little (up to a quarter) are still repeated, not added."""
+    text, _ = motionbuilder_style()
+    clip = load_bvh(write_text("near.bvh", rescaled_offsets(text, scale)))
     assert clip.position_channels == "replace"
     spine = clip.point_positions(["Hips", "Spine"])
     np.testing.assert_allclose(np.linalg.norm(spine[:, 1] - spine[:, 0], axis=-1), 10.0)
 
 
+@pytest.mark.parametrize("scale", [0.7, 1.5])
+def test_offsets_far_off_their_channels_are_added(write_text, scale):
+    """Channels more than a quarter of the offset away from it (here 0.43 and 0.33) add to it."""
+    text, _ = motionbuilder_style()
+    clip = load_bvh(write_text("far.bvh", rescaled_offsets(text, scale)))
+    assert clip.position_channels == "add"
+
+
+def test_a_masked_frame_does_not_change_the_position_mode(write_text):
+    text, rows = motionbuilder_style()
+    rows[1, [13, 19]] = np.nan  # one frame's Spine and Head heights unreadable
+    clip = load_bvh(write_text("gap.bvh", with_rows(text, rows)))
+    assert clip.frame_valid.tolist() == [True, False, True, True]
+    assert clip.position_channels == "replace"
+
+
 @pytest.mark.parametrize(
     ("token", "fps"),
-    [("0.016667", 60.0), ("0.0333333", 30.0), ("0.008333", 120.0), ("0.033367", 1 / 0.033367)],
+    [
+        ("0.016667", 60.0),
+        ("0.0333333", 30.0),
+        ("0.008333", 120.0),
+        ("0.033367", 1 / 0.033367),
+        ("0.0334", 1 / 0.0334),  # 1/30 is 0.67 of the last digit away: 29.94 Hz, not 30
+    ],
 )
 def test_fps_snaps_to_the_rate_the_frame_time_rounds(write_text, token, fps):
     clip = load_bvh(write_text("f.bvh", BASE.replace("Frame Time: 0.5", f"Frame Time: {token}")))

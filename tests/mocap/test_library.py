@@ -63,6 +63,29 @@ def test_lookup_filter_and_errors(synth):
         lib["nope"]
 
 
+def test_filtering_a_fold_keeps_its_held_out_subjects(synth):
+    fold = synth.validation_fold(["synthetic-01"])
+    walks = fold.filter(labels=["walk"])
+    assert walks.held_out == fold.held_out == frozenset({"synthetic-01"})
+    assert walks.split("test").subjects == ["synthetic-01"]
+    assert "synthetic-01" not in walks.split("train").subjects
+    assert fold.filter(subjects=["synthetic-02"]).held_out == frozenset({"synthetic-01"})
+
+
+def test_split_by_mapping_looks_up_clip_then_subject_then_person(tmp_path):
+    from humotion_gym.mocap.library import ClipSource, assign_split
+
+    src = ClipSource(
+        tmp_path / "w.bvh", None, "user", "anna-day2", "walk", "", "user/anna-day2/w", "anna"
+    )
+    assert assign_split(src, {"anna": "test"}) == ("test", "split_by mapping (anna)")
+    assert assign_split(src, {"anna": "test", "anna-day2": "train"}) == (
+        "train",
+        "split_by mapping (anna-day2)",
+    )
+    assert assign_split(src, {"user/anna-day2/w": "test", "anna-day2": "train"})[0] == "test"
+
+
 def test_motion_save_load_round_trip(tmp_path, synth):
     m = synth["synthetic/reach-03"]
     m.save(tmp_path / "m.npz")

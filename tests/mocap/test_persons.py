@@ -25,10 +25,12 @@ from humotion_gym.mocap.persons import (
     check_data_persons,
     check_person_split,
     held_out_skeletons_of,
+    held_out_subjects,
     known_test_pairs,
     same_skeleton,
     skeleton_difference,
     skeleton_groups,
+    skeleton_owner,
     skeleton_signature,
     subject_skeletons,
 )
@@ -90,6 +92,21 @@ def test_same_skeleton_tolerances(synth):
         same_skeleton(sig[:4], sig[:4])
 
 
+def test_same_skeleton_tolerance_is_relative_to_the_longer_bone_and_inclusive():
+    base = np.full(SIGNATURE_SIZE, 100.0)
+    # 2.02 mm on a 100 mm bone: within 2 % of 102.02 mm (2.0404), not of 100 mm (2.0)
+    off = base.copy()
+    off[5] = 102.02
+    assert same_skeleton(base, off, rtol=0.02, atol_mm=0.0)
+    assert same_skeleton(off, base, rtol=0.02, atol_mm=0.0)
+    assert not same_skeleton(base, off, rtol=0.0197, atol_mm=0.0)  # 2.0098 mm
+    # a bone exactly at the tolerance matches (|a - b| <= tol)
+    edge = base.copy()
+    edge[0] = 105.0
+    assert same_skeleton(base, edge, rtol=0.0, atol_mm=5.0)
+    assert not same_skeleton(base, edge, rtol=0.0, atol_mm=4.999)
+
+
 def test_distinct_synthetic_subjects_are_distinct_skeletons(synth):
     # The default tolerance stays well under the closest two synthetic people.
     sigs = {s.subject: s.signature for s in subject_skeletons(synth)}
@@ -123,6 +140,28 @@ def test_a_copied_motion_under_another_name_is_caught(synth):
     assert ("synthetic-05", "synthetic-99") in skeleton_groups(lib)
 
 
+def test_a_copy_among_a_training_subject_s_own_clips_is_caught(synth):
+    """One name over two skeletons: each of its clips is compared, not only the first."""
+    lib = _renamed(synth, "synthetic/walk-05", "synthetic-01", "synthetic/walk-01b")
+    own = {s.subject: s for s in subject_skeletons(lib)}["synthetic-01"]
+    assert own.clips == len(synth.filter(subjects=["synthetic-01"])) + 1 and own.spread_mm > 5
+    with pytest.raises(SplitError, match="synthetic-05 ~ synthetic-01") as info:
+        check_person_split(lib)
+    assert info.value.pairs == (("synthetic-05", "synthetic-01"),)
+
+
+def test_skeleton_owner_names_the_subject_whose_skeleton_a_clip_has(synth):
+    train = synth.split("train")
+    walk = synth["synthetic/walk-03"]
+    renamed = dataclasses.replace(walk, subject="who", clip_id="user/who/w")
+    assert skeleton_owner(renamed, train) == "synthetic-03"
+    bigger = dataclasses.replace(renamed, keypoints=walk.keypoints * 1.05)  # 4.8 % longer bones
+    assert skeleton_owner(bigger, train) is None
+    assert skeleton_owner(bigger, train, rtol=0.06) == "synthetic-03"
+    assert skeleton_owner(synth["synthetic/walk-05"], train) is None  # a test person
+    assert skeleton_owner(walk, MotionLibrary(())) is None
+
+
 def test_a_test_persons_copy_is_caught_without_the_test_persons_files(synth):
     """Only the renamed copy is loaded: the packaged skeletons still know whose it is."""
     copy = dataclasses.replace(synth["synthetic/walk-05"], subject="dave", clip_id="user/dave/w")
@@ -135,6 +174,29 @@ def test_a_test_persons_copy_is_caught_without_the_test_persons_files(synth):
     # the training persons' own clips match no held-out skeleton
     assert known_test_pairs(synth.split("train")) == []
     check_data_persons(synth)
+
+
+def test_a_library_s_own_held_out_subjects_are_checked(synth):
+    """A validation fold holds out its own subjects, not TEST_SUBJECTS."""
+    fold = synth.validation_fold(["synthetic-01"])
+    assert held_out_subjects(fold) == frozenset({"synthetic-01"})
+    report = check_person_split(fold)
+    assert report.test_persons == ("synthetic-01",)
+    assert "synthetic-01" not in report.train_persons
+    # a copy of the fold's held-out subject under a training name is caught
+    copy = dataclasses.replace(synth["synthetic/walk-01"], subject="synthetic-97", clip_id="c/97")
+    leaky = MotionLibrary((*fold.motions, copy), fold.test_subjects)
+    with pytest.raises(SplitError, match="synthetic-01 ~ synthetic-97"):
+        check_person_split(leaky)
+    assert held_out_subjects(MotionLibrary(())) == TEST_SUBJECTS
+
+
+def test_a_test_persons_skeleton_on_the_test_side_is_no_leak(synth):
+    """A known held-out skeleton under a name that is itself held out trains nothing."""
+    copy = dataclasses.replace(synth["synthetic/walk-05"], subject="dave", clip_id="user/dave/w")
+    alone = MotionLibrary((copy,), TEST_SUBJECTS | {"dave"})
+    assert known_test_pairs(alone) == []
+    check_data_persons(alone)
 
 
 def test_tolerance_decides_a_rescaled_copy(synth):

@@ -122,6 +122,34 @@ def test_resample_slerp_is_exact_for_constant_rotation_rate():
     assert np.allclose(out[:, PARAM_INDEX["r_elbow"]], 0.3 + t_out)
 
 
+def test_resample_fractional_ratio_times_mask_and_keypoints():
+    # 11 frames at 60 Hz to 25 Hz: new frames at source times 0, 2.4, 4.8, 7.2, 9.6
+    # (between frames 0|0, 2|3, 4|5, 7|8, 9|10 with weights 0, .4, .8, .2, .6 on the later)
+    n = 11
+    t = np.arange(n, dtype=float)
+    p = np.zeros((n, 25))
+    p[:, :3] = t[:, None] * [1.0, 2.0, 3.0]
+    p[:, PARAM_INDEX["r_elbow"]] = 0.1 * t
+    observed = np.ones(n, bool)
+    observed[[1, 3, 8]] = False  # unobserved source frames carry NaN keypoints
+    kp = t[:, None, None] * np.arange(1.0, 46.0).reshape(15, 3)
+    kp[~observed] = np.nan
+    out, obs, k = resample(p, observed, kp, 60.0, 25.0)
+    t_out = np.array([0.0, 2.4, 4.8, 7.2, 9.6])
+    assert out.shape == (5, 25) and obs.shape == (5,) and k.shape == (5, 15, 3)
+    np.testing.assert_allclose(out[:, :3], t_out[:, None] * [1.0, 2.0, 3.0], atol=1e-9)
+    np.testing.assert_allclose(out[:, PARAM_INDEX["r_elbow"]], 0.1 * t_out, atol=1e-9)
+    # a new frame is observed when the source frames on both sides are (frame 0
+    # falls exactly on source frame 0: unobserved frame 1 does not matter)
+    assert obs.tolist() == [True, False, True, False, True]
+    want = t_out[:, None, None] * np.arange(1.0, 46.0).reshape(15, 3)
+    np.testing.assert_allclose(k[obs], want[obs], atol=1e-9)
+    assert np.isnan(k[~obs]).all()
+    # a (T, 25) mask resamples the same way
+    _, obs2, _ = resample(p, np.repeat(observed[:, None], 25, axis=1), kp, 60.0, 25.0)
+    assert obs2.shape == (5, 25) and (obs2 == obs[:, None]).all()
+
+
 def test_resample_keeps_angles_continuous_across_wraps():
     p = smooth_motion(seed=5, frames=200, fps=60.0)
     p[:, PARAM_INDEX["root_yaw"]] = np.linspace(0, 20, 200)
