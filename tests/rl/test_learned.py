@@ -722,3 +722,25 @@ def test_a_learned_agent_shows_the_initial_pose_then_its_own_clipped_answer() ->
     assert np.array_equal(first["initial"], initial) and np.array_equal(first["previous"], initial)
     assert np.array_equal(second["initial"], initial)
     assert np.array_equal(second["previous"], np.array([0.5, -1.0, 0.1, 1.0], np.float32))
+
+
+def test_the_runs_seed_seeds_its_episodes_and_its_policy(tmp_path: Path) -> None:
+    """PPO's training episodes and initial policy follow ``--seed``: another seed draws
+    others (a run of seeds 0, 1, 2 is three runs, not one three times)."""
+    from baselines.rl import _vec_env
+
+    def start(seed: int, out: Path) -> tuple[np.ndarray, list[np.ndarray]]:
+        config = TrainConfig("ppo", "ArmTrack-v2", steps=16, seed=seed, out=str(out),
+                             settings={"n_envs": 2, "frame_size": 32})  # fmt: skip
+        env = _vec_env(config, None)
+        try:
+            frames = env.reset()["frame"].copy()
+            model = new_model(config, env)
+            return frames, [p.detach().numpy().copy() for p in model.policy.parameters()]
+        finally:
+            env.close()
+
+    frames, weights = start(0, tmp_path / "a")
+    other, others = start(1, tmp_path / "b")
+    assert frames.shape == other.shape and not np.array_equal(frames, other)
+    assert not all(np.array_equal(w, o) for w, o in zip(weights, others, strict=True))
