@@ -744,3 +744,53 @@ def test_the_runs_seed_seeds_its_episodes_and_its_policy(tmp_path: Path) -> None
     other, others = start(1, tmp_path / "b")
     assert frames.shape == other.shape and not np.array_equal(frames, other)
     assert not all(np.array_equal(w, o) for w, o in zip(weights, others, strict=True))
+
+
+def test_a_stacking_policy_sees_its_last_frames_padded_with_the_first() -> None:
+    """Stacks of 3: the episode's first observation repeated until three are seen, then the
+    last three in order; a new episode starts its stack afresh."""
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
+    one = make_learner_env("ArmTrack-v2", frame_size=32).observation_space
+    space = gym.spaces.Dict(
+        {k: gym.spaces.Box(np.stack([s.low] * 3), np.stack([s.high] * 3), dtype=s.dtype)
+         for k, s in one.spaces.items()}
+    )  # fmt: skip
+    answers = [np.full(4, 0.1 * (k + 1), np.float32) for k in range(5)]
+    model = _Recorder(space, answers)
+    agent = LearnedAgent(env, model)
+    obs, _ = env.reset(seed=0)
+    start = env.unwrapped.pose_to_action(obs["initial_pose"])
+    for k in range(4):
+        agent.predict(obs, episode_start=np.array([k == 0]))
+        obs, *_ = env.step(answers[k])
+    shown = [seen["previous"] for seen in model.seen]
+    want = [[start] * 3, [start, start, answers[0]], [start, answers[0], answers[1]],
+            [answers[0], answers[1], answers[2]]]  # fmt: skip
+    for got, expected in zip(shown, want, strict=True):
+        np.testing.assert_array_equal(got, np.array(expected))
+    assert not np.array_equal(model.seen[3]["frame"][0], model.seen[3]["frame"][2])
+    obs, _ = env.reset(seed=1)
+    agent.predict(obs, episode_start=np.array([True]))
+    again = env.unwrapped.pose_to_action(obs["initial_pose"])
+    np.testing.assert_array_equal(model.seen[4]["previous"], np.array([again] * 3))
+    np.testing.assert_array_equal(model.seen[4]["frame"][0], model.seen[4]["frame"][2])
+
+
+def test_the_hybrids_answer_is_its_policys_next_previous_estimate() -> None:
+    """The policy is shown the filter's answer (clipped) as its previous estimate, not its own."""
+    from baselines.agents import make_filter
+
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
+    space = make_learner_env("ArmTrack-v2", frame_size=32).observation_space
+    model = _Recorder(space, [np.full(4, 0.9, np.float32)] * 3)
+    hybrid = HybridAgent(env, make_filter("pf-cv", env, n_particles=50, seed=0),
+                         LearnedAgent(env, model))  # fmt: skip
+    obs, _ = env.reset(seed=0)
+    answers = []
+    for k in range(3):
+        action, _ = hybrid.predict(obs, episode_start=np.array([k == 0]))
+        answers.append(np.clip(action, -1.0, 1.0))
+        obs, *_ = env.step(action)
+    for seen, answer in zip(model.seen[1:], answers, strict=False):
+        np.testing.assert_array_equal(seen["previous"], answer.astype(np.float32))
+        assert not np.allclose(seen["previous"], 0.9)  # the filter's, not the policy's own
