@@ -367,6 +367,16 @@ def test_noise_windows_are_the_frames_draws_in_advance(h: int, w: int) -> None:
         assert _noise_window(ahead, h, w) == _noise_window(one_by_one, h, w)
 
 
+def _bent_figures(scene: SceneOptions, n: int, seed: int) -> tuple:
+    """``n`` poses with random joint angles, their camera, figures, geometry and unit light."""
+    poses = np.tile(_pose(), (n, 1))
+    poses[:, 6:] += np.random.default_rng(seed).normal(0.0, 0.4, (n, 19))
+    cam = _camera(scene, poses[0])
+    figures = figure_sequence(poses, SHAPE, cam, scene)
+    light = np.array(scene.light_direction) / np.linalg.norm(scene.light_direction)
+    return poses, cam, figures, body.cone_geometry(poses, SHAPE), light
+
+
 def test_figure_polygons_against_the_cones_projected_one_by_one() -> None:
     """The compiled figure pass against its definition, cone by cone.
 
@@ -378,16 +388,10 @@ def test_figure_polygons_against_the_cones_projected_one_by_one() -> None:
     """
     import cv2
 
-    from humotion_gym.render import _ONE, figure_sequence
+    from humotion_gym.render import _ONE
 
-    rng = np.random.default_rng(4)
     scene = SceneOptions()
-    poses = np.tile(_pose(), (6, 1))
-    poses[:, 6:] += rng.normal(0.0, 0.4, (6, 19))
-    cam = _camera(scene, poses[0])
-    figures = figure_sequence(poses, SHAPE, cam, scene)
-    geometry = body.cone_geometry(poses, SHAPE)
-    light = np.array(scene.light_direction) / np.linalg.norm(scene.light_direction)
+    poses, cam, figures, geometry, light = _bent_figures(scene, 6, 4)
     t_ring = 2 * np.pi * np.arange(12) / 12
     for t in range(len(poses)):
         depth = []
@@ -526,14 +530,8 @@ def test_flat_and_strip_shades_follow_lamberts_law(strips: int) -> None:
     frame); the strips split ``[-1, 1]`` evenly. The flat shade of a narrow
     cone is lit for ``w`` alone. Colours within one grey level.
     """
-    rng = np.random.default_rng(8)
     scene = SceneOptions(shading_strips=strips, light_direction=(-0.3, -0.5, -0.8))
-    poses = np.tile(_pose(), (4, 1))
-    poses[:, 6:] += rng.normal(0.0, 0.4, (4, 19))
-    cam = _camera(scene, poses[0])
-    figures = figure_sequence(poses, SHAPE, cam, scene)
-    geometry = body.cone_geometry(poses, SHAPE)
-    light = np.array(scene.light_direction) / np.linalg.norm(scene.light_direction)
+    poses, cam, figures, geometry, light = _bent_figures(scene, 4, 8)
     edges = np.linspace(-1.0, 1.0, strips + 1)
     centres = (edges[1:] + edges[:-1]) / 2
     for t in range(len(poses)):
