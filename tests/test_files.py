@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import io
+import os
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +12,7 @@ import pytest
 from humotion_gym import video
 from humotion_gym.files import (
     json_default,
+    load_npz,
     read_json,
     write_atomically,
     write_json_gz,
@@ -47,6 +50,38 @@ def test_a_failed_or_interrupted_write_keeps_the_old_file(
     with pytest.raises(type(exc)):
         write_atomically(tmp_path / "b.bin", _cut(100, exc))
     assert not (tmp_path / "b.bin").exists()
+
+
+def test_a_write_replaces_the_file_and_a_reader_of_the_old_one_reads_it_whole(
+    tmp_path: Path,
+) -> None:
+    target = tmp_path / "a.bin"
+    target.write_bytes(b"old" * 1000)
+    with open(target, "rb") as reader:  # opened before the write, read after it
+        write_atomically(target, lambda tmp: tmp.write_bytes(b"new"))
+        assert reader.read() == b"old" * 1000  # renamed over, not rewritten in place
+    assert target.read_bytes() == b"new"
+
+
+def test_text_is_synced_to_disk_before_the_rename(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    events: list[tuple[str, int]] = []
+    real_fsync, real_replace = os.fsync, os.replace
+
+    def fsync(fd: int) -> None:
+        events.append(("fsync", os.fstat(fd).st_size))  # the bytes written when synced
+        real_fsync(fd)
+
+    def replace(src: Path, dst: Path) -> None:
+        events.append(("replace", Path(src).stat().st_size))
+        real_replace(src, dst)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+    monkeypatch.setattr(os, "replace", replace)
+    write_text_atomically(tmp_path / "a.json", '{"é": 1}')
+    assert events == [("fsync", 9), ("replace", 9)]  # flushed, synced, then renamed
+    assert (tmp_path / "a.json").read_text(encoding="utf-8") == '{"é": 1}'
 
 
 def test_the_temporary_name_is_hidden_and_keeps_the_suffix_when_asked(tmp_path: Path) -> None:
@@ -118,6 +153,7 @@ def test_a_json_document_round_trips_gzipped_to_the_same_bytes(tmp_path: Path) -
     write_json_gz(first, doc)
     write_json_gz(second, doc)
     assert first.read_bytes() == second.read_bytes()  # no time in the gzip header
+    assert first.read_bytes()[4:8] == bytes(4)  # MTIME 0, whatever second the call lands in
     assert read_json(first) == {"a": 0.1, "b": [0, 1, 2], "c": str(tmp_path), "d": [1.5, None]}
     (tmp_path / "plain.json").write_text('{"x": 1}')
     assert read_json(tmp_path / "plain.json") == {"x": 1}
@@ -144,3 +180,42 @@ def test_json_default_names_what_it_cannot_write() -> None:
     assert json_default(np.int64(3)) == 3 and json_default(Path("a/b")) == "a/b"
     with pytest.raises(TypeError, match="not JSON-serialisable: set"):
         json_default({1})
+
+
+def _npz_bytes(**arrays: np.ndarray) -> io.BytesIO:
+    fh = io.BytesIO()
+    np.savez(fh, **arrays)
+    fh.seek(0)
+    return fh
+
+
+def test_load_npz_reads_archives_even_an_empty_one() -> None:
+    with load_npz(_npz_bytes(a=np.arange(3))) as data:
+        assert data.files == ["a"] and data["a"].tolist() == [0, 1, 2]
+    with load_npz(_npz_bytes()) as data:  # starts with the end-of-archive record, PK\x05\x06
+        assert data.files == []
+
+
+def test_load_npz_never_unpickles() -> None:
+    with load_npz(_npz_bytes(a=np.array([{"x": 1}], dtype=object))) as data:
+        with pytest.raises(ValueError, match="allow_pickle=False"):
+            data["a"]
+
+
+@pytest.mark.parametrize(
+    ("data", "said"),
+    [
+        (b"", "an empty file"),
+        (None, "a lone .npy array"),
+        (bytes(range(256)), "neither a zip archive nor a .npy array"),
+    ],
+)
+def test_load_npz_refuses_what_is_not_an_archive(data: bytes | None, said: str) -> None:
+    fh = io.BytesIO()
+    if data is None:
+        np.save(fh, np.zeros(3))
+    else:
+        fh.write(data)
+    fh.seek(0)
+    with pytest.raises(ValueError, match=f"not an .npz archive \\({said}\\)"):
+        load_npz(fh)

@@ -196,6 +196,33 @@ def test_messages_say_what_was_wrong(data, tmp_path):
     assert not any("pickle" in str(w.message) for w in caught)
 
 
+def test_an_entry_of_the_file_before_it_changed_is_not_read_for_it(data, tmp_path):
+    cache = tmp_path / "cache"
+    _load(data, cache)
+    before = _entry(data, cache)
+    clip = data / "take_a.bvh"
+    stat = clip.stat()  # changed in place: same size, later time (a re-export, a fix)
+    os.utime(clip, ns=(stat.st_atime_ns, stat.st_mtime_ns + 10**9))
+    after = _entry(data, cache)
+    assert after.name.split("-")[0] == before.name.split("-")[0]  # the same place
+    assert after != before  # the file's time is part of the key
+    shutil.copyfile(before, after)  # the old entry under the new key's name
+    with pytest.warns(CacheWarning, match=r"foreign entry: key='[0-9a-f]{32}' \(expected"):
+        _load(data, cache)
+
+
+def test_a_legacy_entry_beside_its_placed_one_is_not_moved_over_it(data, tmp_path, monkeypatch):
+    cache = tmp_path / "cache"
+    _load(data, cache)
+    path = _entry(data, cache)
+    src = next(s for s in find_clips([data]) if s.path.stem == "take_a")
+    legacy = cache / "clips" / f"{lib_mod._cache_key(src, 30.0)}.npz"
+    legacy.write_bytes(b"")  # a damaged entry left under the name from before places
+    good = path.read_bytes()
+    _no_warning_load(data, cache, monkeypatch)  # the placed entry is read as it is
+    assert path.read_bytes() == good
+
+
 def test_the_key_holds_the_package_version(data, tmp_path, monkeypatch):
     cache = tmp_path / "cache"
     src = find_clips([data])[0]

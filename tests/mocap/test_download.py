@@ -23,7 +23,7 @@ import pytest
 
 from baselines import cli
 from humotion_gym.mocap import download as dl
-from humotion_gym.mocap._http import _trials_from_listing
+from humotion_gym.mocap._http import _trials_from_listing, _validator
 from humotion_gym.mocap.download import (
     MANIFEST_NAME,
     REGISTRY_PATH,
@@ -63,9 +63,14 @@ class MirrorServer(ThreadingHTTPServer):
         self.listing_body: bytes | None = None  # serve this as every listing instead
         self.listing_length = True  # send Content-Length with listing_body
         self.honour_range = True
+        self.star_total = False  # Content-Range: bytes a-b/* (the file's size not said)
         self.validators: str | None = "etag"  # "etag", "last-modified", "fixed" or None
         self.if_range_412 = False  # answer 412 to any request with If-Range
         self.cuts: dict[str, int] = {}  # URL path -> how many more times to cut (-1: always)
+        self.cut_at: dict[str, int] = {}  # URL path -> send this many bytes of the body, once
+        self.range_shift: dict[str, int] = {}  # URL path -> a 206 this far past the start, once
+        self.drip_ends: dict[str, str] = {}  # URL path -> how its drip ended
+        self.drip_ended = threading.Event()
         self.stall_s: dict[str, float] = {}  # URL path -> sleep this long mid-body, once
         self.no_length: set[str] = set()  # URL paths served without Content-Length
         self.drip_s: dict[str, float] = {}  # URL path -> send one byte per this many seconds
@@ -93,6 +98,11 @@ class MirrorServer(ThreadingHTTPServer):
             elif not isinstance(value, int):
                 del table[path]
             return value
+
+    def _pop(self, table: dict, path: str):
+        """``table[path]`` (None if absent), used once."""
+        with self.lock:
+            return table.pop(path, None)
 
 
 class MirrorHandler(SimpleHTTPRequestHandler):
@@ -161,6 +171,7 @@ class MirrorHandler(SimpleHTTPRequestHandler):
             # If-Range: the range only if the validator still matches, else the whole file.
             if if_range is None or if_range in validators.values():
                 start = int(re.fullmatch(r"bytes=(\d+)-", rng)[1])
+                start += srv._pop(srv.range_shift, self.path) or 0  # a range not asked for
                 partial = True
         if partial and start >= len(data):
             self.send_response(416)
@@ -171,7 +182,8 @@ class MirrorHandler(SimpleHTTPRequestHandler):
         body = data[start:]
         self.send_response(206 if partial else 200)
         if partial:
-            self.send_header("Content-Range", f"bytes {start}-{len(data) - 1}/{len(data)}")
+            total = "*" if srv.star_total else len(data)
+            self.send_header("Content-Range", f"bytes {start}-{len(data) - 1}/{total}")
         for k, v in validators.items():
             self.send_header(k, v)
         self.send_header("Content-Type", "application/octet-stream")
@@ -185,6 +197,13 @@ class MirrorHandler(SimpleHTTPRequestHandler):
         drip = srv.drip_s.get(self.path)
         if drip is not None:
             self._drip(body, drip)
+            return
+        cut_at = srv._pop(srv.cut_at, self.path)
+        if cut_at is not None:
+            with _quiet_disconnect():
+                self.wfile.write(body[:cut_at])
+                self.wfile.flush()
+            self.close_connection = True
             return
         stall = srv._take(srv.stall_s, self.path)
         if srv._take(srv.cuts, self.path) is not None or stall is not None:
@@ -203,13 +222,19 @@ class MirrorHandler(SimpleHTTPRequestHandler):
     def _drip(self, body: bytes, every_s: float) -> None:
         t0 = time.monotonic()
         self.close_connection = True
+        end = "the client hung up"  # unless the loop ends otherwise
         with _quiet_disconnect():
             for i in range(len(body)):
                 if self.server.stopping.is_set() or time.monotonic() - t0 > MAX_HANDLER_S:
-                    return
+                    end = "the server stopped it"
+                    break
                 self.wfile.write(body[i : i + 1])
                 self.wfile.flush()
                 time.sleep(every_s)
+            else:
+                end = "all sent"
+        self.server.drip_ends[self.path] = end
+        self.server.drip_ended.set()
 
 
 class _quiet_disconnect:
@@ -682,7 +707,7 @@ def test_server_ignoring_if_range_with_other_size_is_not_spliced(tiny):
     assert (dest / rel).read_bytes() == new
 
 
-@pytest.mark.parametrize("sidecar", [None, "other-url", "no-validator"])
+@pytest.mark.parametrize("sidecar", [None, "other-url", "no-validator", "past-its-total"])
 def test_stale_part_is_discarded_not_spliced(tiny, sidecar):
     srv, files, dest = tiny
     rel = "01/01_01.amc"
@@ -695,6 +720,8 @@ def test_stale_part_is_discarded_not_spliced(tiny, sidecar):
         side["url"] = url + "?old"
     elif sidecar == "no-validator":
         side["validator"] = None
+    elif sidecar == "past-its-total":  # one byte longer than the file it says it began
+        side["total"] = part.stat().st_size - 1
     if sidecar is not None:
         (dest / (rel + ".part.json")).write_text(json.dumps(side))
     get(srv, dest)
@@ -715,6 +742,54 @@ def test_stale_part_longer_than_file_is_restarted(tiny):
     tries = [r for r in srv.requests if r[0] == f"/{rel}"]
     assert tries == [(f"/{rel}", "bytes=100-"), (f"/{rel}", None)]
     assert (dest / rel).read_bytes() == files[rel]
+
+
+def test_body_one_byte_short_is_resumed_not_kept(tiny):
+    srv, files, dest = tiny
+    rel = "01/01_02.amc"
+    n = len(files[rel])
+    srv.cut_at[f"/{rel}"] = n - 1  # Content-Length says n; the connection closes at n - 1
+    get(srv, dest)
+    tries = [r for r in srv.requests if r[0] == f"/{rel}"]
+    assert tries == [(f"/{rel}", None), (f"/{rel}", f"bytes={n - 1}-")]
+    assert (dest / rel).read_bytes() == files[rel]
+    assert manifest_of(dest)[rel]["bytes"] == n
+
+
+def test_a_range_of_unsaid_total_is_resumed_by_its_length(tiny):
+    # bytes a-b/*: the .part's bytes and the Content-Length make the file's size.
+    srv, files, dest = tiny
+    srv.star_total = True
+    rel = "01/01_02.amc"
+    half = len(files[rel]) // 2
+    srv.cuts[f"/{rel}"] = 1
+    get(srv, dest)
+    tries = [r for r in srv.requests if r[0] == f"/{rel}"]
+    assert tries == [(f"/{rel}", None), (f"/{rel}", f"bytes={half}-")]
+    assert (dest / rel).read_bytes() == files[rel]
+
+
+def test_a_range_not_asked_for_is_restarted_not_appended(tiny):
+    # A 206 whose Content-Range starts elsewhere than the .part ends: appending would splice.
+    srv, files, dest = tiny
+    rel = "01/01_02.amc"
+    half = len(files[rel]) // 2
+    srv.cuts[f"/{rel}"] = 1
+    srv.range_shift[f"/{rel}"] = 100  # bytes half+100- sent, and said so, for bytes=half-
+    get(srv, dest)
+    tries = [r for r in srv.requests if r[0] == f"/{rel}"]
+    assert tries == [(f"/{rel}", None), (f"/{rel}", f"bytes={half}-"), (f"/{rel}", None)]
+    assert (dest / rel).read_bytes() == files[rel]
+    assert leftovers(dest) == set()
+
+
+def test_a_weak_etag_is_no_if_range_validator():
+    # If-Range allows strong validators only: a weak ETag gives way to Last-Modified.
+    when = "Wed, 21 Oct 2015 07:28:00 GMT"
+    assert _validator({"ETag": ' "abc" ', "Last-Modified": when}) == '"abc"'
+    assert _validator({"ETag": 'W/"abc"', "Last-Modified": when}) == when
+    assert _validator({"ETag": 'W/"abc"'}) is None
+    assert _validator({}) is None
 
 
 def test_oversize_file_refused(tiny):
@@ -789,6 +864,9 @@ def test_headers_dripped_stopped_at_deadline(tiny):
     with pytest.raises(DownloadError, match=r"07_01\.amc: stopped at the per-file deadline"):
         get(srv, dest, subjects=[7], file_deadline_s=0.5)
     assert rel not in final_files(dest) and leftovers(dest) == set()
+    # The deadline's watchdog cut the connection: the server did not end it for the client.
+    assert srv.drip_ended.wait(MAX_HANDLER_S + 5)
+    assert srv.drip_ends == {f"/{rel}": "the client hung up"}
 
 
 def test_stall_near_deadline_ends_at_deadline(tiny):
