@@ -69,6 +69,27 @@ def test_checks_name_the_argument_and_what_was_expected() -> None:
     check_bool("z", np.bool_(False))
 
 
+def test_count_checks_keep_their_least():
+    check_count("seed", 0, least=0)
+    check_count("n", 6, least=6)
+    with pytest.raises(ValueError, match=r"n: expected an integer >= 6, got 5"):
+        check_count("n", 5, least=6)
+
+
+@pytest.mark.parametrize("value", [float("inf"), -float("inf"), np.float64("inf"), float("nan")])
+def test_infinities_are_not_finite_numbers(value: object) -> None:
+    with pytest.raises(ValueError, match="finite"):
+        check_positive("x", value)
+    with pytest.raises(ValueError, match="finite"):
+        check_at_least_zero("x", value)
+
+
+@pytest.mark.parametrize("value", [0, 1, np.int64(1), 1.0, "yes", None])
+def test_only_bools_are_bools(value: object) -> None:
+    with pytest.raises(ValueError, match="expected True or False"):
+        check_bool("flag", value)
+
+
 def _isinstance_calls(node: ast.AST) -> list[ast.Call]:
     return [
         c for c in ast.walk(node)

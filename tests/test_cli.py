@@ -366,3 +366,77 @@ def test_tasks_marks_the_deprecated_ids(capsys):
     old = {r["task"] for r in rows if r["deprecated"]}
     assert old == {"ArmTrack-v1", "BodyTrack-v1", "WalkTrack-v1", "SideWalk-v1"}
     assert all("deprecated" in r["description"] for r in rows if r["deprecated"])
+
+
+def _refused(kind, text: str) -> bool:
+    import argparse
+
+    try:
+        kind(text)
+    except argparse.ArgumentTypeError:
+        return True
+    return False
+
+
+def test_argument_types_keep_their_bounds():
+    from baselines import MAX_PARTICLES
+    from baselines.cli._args import particle_count
+    from humotion_gym.cli._common import (
+        float_between,
+        image_size,
+        int_at_least,
+        positive_float,
+        probability,
+    )
+
+    one_to_ten = int_at_least(1, 10)
+    assert one_to_ten("1") == 1 and one_to_ten("10") == 10
+    assert _refused(one_to_ten, "0") and _refused(one_to_ten, "11")
+    assert particle_count(str(MAX_PARTICLES)) == MAX_PARTICLES
+    assert _refused(particle_count, str(MAX_PARTICLES + 1))
+    closed, half_open = float_between(1.0, 5.0), float_between(0.0, 5.0, open_low=True)
+    assert closed("1") == 1.0 and closed("5") == 5.0 and half_open("5") == 5.0
+    assert _refused(closed, "0.999") and _refused(closed, "5.001")
+    assert half_open("1e-9") == 1e-9 and _refused(half_open, "0") and _refused(half_open, "-0")
+    assert probability("0.5") == 0.5
+    assert all(_refused(probability, t) for t in ("0", "1", "nan", "inf"))
+    assert positive_float("1e-9") == 1e-9
+    assert all(_refused(positive_float, t) for t in ("0", "-0", "inf", "nan"))
+    assert image_size("64x64") == (64, 64) and image_size("640X480") == (640, 480)
+    assert all(_refused(image_size, t) for t in ("63x64", "64x63", "641x480", "640x481"))
+
+
+def test_settings_keep_how_their_values_are_written():
+    from baselines.cli._args import key_setting, key_value
+
+    assert key_value("n=3") == ("n", 3) and type(key_value("n=3")[1]) is int
+    assert key_value("x=3.0") == ("x", 3.0) and type(key_value("x=3.0")[1]) is float
+    assert key_setting("replay=run_fast") == ("replay", "run_fast")
+    assert key_setting("beta=0.5") == ("beta", 0.5)
+
+
+def test_memory_is_counted_in_bytes():
+    from humotion_gym.cli._common import MEMORY_BUDGET_BYTES, UsageError, check_memory
+
+    check_memory("--frames", 2, MEMORY_BUDGET_BYTES // 2, "frames")
+    with pytest.raises(UsageError, match=r"--frames: 3 frames would take 3\.0 GiB .*at most 2\)"):
+        check_memory("--frames", 3, MEMORY_BUDGET_BYTES // 2, "frames")
+
+
+def test_an_output_folder_under_a_file_says_so(tmp_path):
+    import argparse
+
+    from humotion_gym.cli._common import output_dir, output_file
+
+    (tmp_path / "afile").write_text("x")
+    with pytest.raises(argparse.ArgumentTypeError, match="afile is a file, not a folder"):
+        output_dir(str(tmp_path / "afile" / "sub"))
+    with pytest.raises(argparse.ArgumentTypeError, match="afile is a file, not a folder"):
+        output_file(".json")(str(tmp_path / "afile" / "out.json"))
+
+
+def test_a_default_output_that_cannot_be_written_is_a_usage_error(tmp_path, capsys):
+    (tmp_path / "walk.png").mkdir()  # where render's contact sheet would go
+    assert main(["render", "--frames", "2", "--out", str(tmp_path / "walk.mp4")]) == 2
+    err = capsys.readouterr().err
+    assert "--sheet: " in err and "is a folder" in err and len(err.splitlines()) == 1

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from humotion_gym import body
 from humotion_gym.camera import fit_camera
@@ -50,3 +51,49 @@ def test_an_upper_case_mp4_is_mpeg4_too(tmp_path):
     write_video(path, [np.zeros((64, 64, 3), np.uint8)] * 3, fps=30.0, scale=1)
     code = int(cv2.VideoCapture(str(path)).get(cv2.CAP_PROP_FOURCC))
     assert "".join(chr((code >> 8 * i) & 255) for i in range(4)) == "FMP4"  # not MJPG
+
+
+def test_a_video_keeps_its_frame_rate_size_and_colours(tmp_path):
+    import cv2
+
+    from humotion_gym.video import write_video
+
+    red = np.zeros((8, 16, 3), np.uint8)
+    red[..., 0] = 255  # RGB
+    grey = np.full((8, 16), 128, np.uint8)
+    path = tmp_path / "clip.avi"
+    write_video(path, [red, red, grey], fps=12.5, scale=2)
+    video = cv2.VideoCapture(str(path))
+    assert video.get(cv2.CAP_PROP_FPS) == 12.5
+    assert (video.get(cv2.CAP_PROP_FRAME_WIDTH), video.get(cv2.CAP_PROP_FRAME_HEIGHT)) == (32, 16)
+    assert video.get(cv2.CAP_PROP_FRAME_COUNT) == 3
+    ok, first = video.read()  # BGR
+    assert ok and first.shape == (16, 32, 3)
+    blue, green, red_channel = (float(first[..., c].mean()) for c in range(3))
+    assert red_channel > 200 and blue < 50 and green < 50
+
+
+def test_a_png_and_a_contact_sheet_keep_rgb(tmp_path):
+    import cv2
+
+    from humotion_gym.video import contact_sheet, write_png
+
+    image = np.zeros((4, 6, 3), np.uint8)
+    image[..., 0] = 200  # RGB red
+    write_png(tmp_path / "red.png", image)
+    assert np.array_equal(cv2.imread(str(tmp_path / "red.png"))[..., ::-1], image)
+    frames = [np.full((4, 6, 3), (k, 2 * k, 3 * k), np.uint8) for k in range(5)]
+    sheet = contact_sheet(frames, columns=2, count=3)
+    assert sheet.shape == (8, 12, 3)
+    assert np.array_equal(sheet[:4, :6], frames[0]) and np.array_equal(sheet[:4, 6:], frames[2])
+    assert np.array_equal(sheet[4:, :6], frames[4]) and not sheet[4:, 6:].any()
+    assert contact_sheet([frames[1]], columns=1, scale=2).shape == (8, 12, 3)
+
+
+def test_an_mp4_side_is_at_most_8191_px():
+    from humotion_gym.video import check_video_size
+
+    check_video_size("a.mp4", 8191, 8191)
+    check_video_size("a.avi", 9000, 64)  # .avi frames may be larger
+    with pytest.raises(ValueError, match="8192x64"):
+        check_video_size("a.MP4", 8192, 64)

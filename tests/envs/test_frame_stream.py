@@ -20,6 +20,7 @@ import subprocess
 import sys
 import threading
 import time
+import types
 from collections.abc import Iterator
 from multiprocessing.connection import Connection
 from pathlib import Path
@@ -216,6 +217,32 @@ def test_a_worker_that_died_is_a_clear_error_and_close_still_works(library):
     finally:
         venv.close()
         venv.close()
+
+
+def test_a_worker_that_fails_says_why_at_the_first_reset(monkeypatch, library):
+    # A library class of a module the drawing process cannot import: pickled
+    # here, the worker's unpickling fails and the learner reports its words.
+    module = types.ModuleType("humotion_gym_test_nowhere")
+    exec(
+        "from humotion_gym.mocap.library import MotionLibrary\nclass Nowhere(MotionLibrary): pass",
+        module.__dict__,
+    )
+    monkeypatch.setitem(sys.modules, module.__name__, module)
+    venv = _ahead(module.Nowhere(**vars(library)))
+    try:
+        for _ in range(2):  # and again, the same words
+            with pytest.raises(RuntimeError, match=r"drawing process failed: ModuleNotFoundError"):
+                venv.reset(seed=0)
+    finally:
+        venv.close()
+
+
+def test_a_frame_of_an_earlier_reset_is_an_error(shared_ahead):
+    venv = shared_ahead
+    venv.reset(seed=0)
+    venv._stream._epoch += 1  # as if the worker sent a slot it drew before the last reset
+    with pytest.raises(RuntimeError, match="draw_ahead: .* a frame of an earlier reset"):
+        venv.step(np.zeros(venv.action_space.shape, np.float32))
 
 
 def test_close_ends_the_worker_and_frees_its_memory(library):
