@@ -193,3 +193,44 @@ def test_every_grid_value_is_checked_before_any_episode(grid, says, monkeypatch)
     with pytest.raises(ValueError, match=f"grid: .*{says}"):
         select_observation_settings("ArmTrack-v2", "pf-cv", grid, validation_library(None), 10, 1)
     assert not ran
+
+
+def test_the_declared_rule_on_set_numbers():
+    """Lowest mean error, ties to the first row; with still rows, among those within
+    STILL_RATIO (the bound itself included), else the lowest still error."""
+    from baselines.stillness import STILL_RATIO
+
+    def rows(*cells):
+        return [
+            dict(zip(("mean_error_mm", "still_error_mm", "still_ratio"), c, strict=True))
+            for c in cells
+        ]
+
+    plain = [{"mean_error_mm": m} for m in (5.0, 3.0, 3.0, 4.0)]
+    assert selection._chosen(plain) == 1
+    # a: lowest mean but not standing; b: on the bound; c: well within it
+    standing = rows((1.0, 9.0, STILL_RATIO + 1), (3.5, 2.0, STILL_RATIO), (4.0, 3.0, 1.0))
+    assert selection._chosen(standing) == 1
+    none_standing = rows((1.0, 9.0, STILL_RATIO + 1), (5.0, 2.0, STILL_RATIO + 0.5))
+    assert selection._chosen(none_standing) == 1
+
+
+def test_every_row_and_hold_score_the_same_episodes(monkeypatch):
+    """Set errors per agent and setting: the table's numbers, the ratio and the seeds."""
+    calls = []
+    table = {("hold", 1.0): 12.0, ("pf-cv", 0.5): 6.0, ("pf-cv", 2.0): 4.0, ("pf-cv", 3.0): 4.0}
+
+    def errors(runs, agent, model, fit=None, search=None):
+        calls.append((agent, runs.seed, runs.episodes, runs.library))
+        return [table[agent, model.sharpness if agent != "hold" else 1.0]] * 2, []
+
+    monkeypatch.setattr(selection._Runs, "errors", errors)
+    fold = validation_library(None)
+    grid = {"sharpness": [0.5, 2.0, 3.0]}
+    out = select_observation_settings("SideWalk-v2", "pf-cv", grid, fold, 10, 2, seed=7)
+    assert out["hold_mm"] == 12.0
+    assert [r["mean_error_mm"] for r in out["rows"]] == [6.0, 4.0, 4.0]
+    assert [r["hold_ratio"] for r in out["rows"]] == [2.0, 3.0, 3.0]
+    assert out["chosen"] == {"sharpness": 2.0}
+    assert [c[0] for c in calls] == ["hold", "pf-cv", "pf-cv", "pf-cv"]
+    assert all(c[1:] == (7, 2, fold) for c in calls)

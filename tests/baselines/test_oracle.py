@@ -25,7 +25,7 @@ from baselines.diagnostics.oracle import (
     left_right_partners,
     with_oracle,
 )
-from baselines.diagnostics.split import markdown_report, parse_oracle, run_split
+from baselines.diagnostics.split import markdown_report, parse_oracle, run_split, split_table
 from baselines.leaderboard.evaluation import run_episode
 from baselines.observation.keypoints import KeypointScorer
 from humotion_gym.body import CONE_KEYPOINTS, KEYPOINT_NAMES, forward_kinematics
@@ -425,3 +425,25 @@ def test_a_run_of_hold_alone_reports_no_empty_split_table():
     out = run_split("ArmTrack-v2", ["hold"], [None], particles=10, episodes=1, progress=False)
     report = markdown_report([out])
     assert "| hold |" in report and "evidence: image - 2D" not in report
+
+
+def test_split_table_on_set_numbers():
+    """Evidence is image - 2D, identity unlabelled - 2D, depth the 2D run's; the first of a kind."""
+
+    def row(agent, kind, likelihood, error, split=(0.0, 0.0, 0.0, 0.0)):
+        names = ("along_abs_mm", "across_mm", "aligned_along_abs_mm", "aligned_across_mm")
+        oracle = None if kind is None else {"kind": kind}
+        return {"agent": agent, "oracle": oracle, "likelihood": likelihood, "error_mm": error,
+                **dict(zip(names, split, strict=True))}  # fmt: skip
+
+    rows = [
+        row("hold", None, "none", 500.0),
+        row("pf-cv", None, "image", 100.0),
+        row("pf-cv", "2d", "2d 1px", 40.0, (30.0, 7.0, 20.0, 5.0)),
+        row("pf-cv", "2d", "2d 4px", 90.0, (80.0, 9.0, 60.0, 8.0)),  # not read: the second 2D
+        row("pf-cv", "2d-unlabelled", "2d-unlabelled 3px", 55.0),
+        row("pf-cv", "3d", "3d 10mm", 12.0),
+    ]
+    lines = split_table({"rows": rows}).splitlines()
+    assert len(lines) == 3  # header, rule, pf-cv (hold has no split)
+    assert lines[2] == "| pf-cv | 100 | 40 | +60 | 30 / 7 (20 / 5) | +15 | 12 |"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import json
 from pathlib import Path
 
@@ -79,6 +80,19 @@ def test_curves_table_and_figure(small_sweep, tmp_path):
     pf = [e["mean_error_mm"] / held[e["seed"]] for r in rows if r["agent"] == "pf-cv"
           for e in r["episodes"]]  # fmt: skip
     assert scores[("noise", "pf-cv@10")]["iqm"][1] == pytest.approx(iqm(pf))
+    # the error curve: each value's own episodes, their IQM and their plain mean
+    errors = {(c["setting"], c["cell"]): c for c in curves}
+    own = [e["mean_error_mm"] for r in rows if r["agent"] == "pf-cv" for e in r["episodes"]]
+    assert errors[("noise", "pf-cv@10")]["iqm"][1] == pytest.approx(iqm(own))
+    assert errors[("noise", "pf-cv@10")]["mean_mm"][1] == pytest.approx(np.mean(own))
+    # four episodes, one far off: the IQM and the mean part (two episodes' are the same)
+    skewed = copy.deepcopy(small_sweep)
+    for r in skewed["points"][1]["rows"]:
+        first = r["episodes"][0]
+        r["episodes"] = [{**first, "seed": k, "mean_error_mm": v}
+                         for k, v in enumerate((10.0, 20.0, 30.0, 1000.0))]  # fmt: skip
+    cell = {(c["setting"], c["cell"]): c for c in sweep.curves(skewed)}[("noise", "pf-cv@10")]
+    assert cell["iqm"][1] == pytest.approx(25.0) and cell["mean_mm"][1] == pytest.approx(265.0)
     with pytest.raises(ValueError, match="metric"):
         sweep.curves(small_sweep, "speed")
     assert sweep.default_value("noise") == 4.0 and sweep.default_value("frame_skip") == 1
@@ -192,3 +206,17 @@ def test_an_interrupted_sweep_resumes_to_the_uninterrupted_numbers(tmp_path, cap
         _errors(p["rows"], "pf-cv") for p in ref["points"]
     ]
     assert main([*argv, "--out", str(tmp_path / "none"), "--resume"]) == 2
+
+
+def test_the_swept_value_wins_over_the_common_settings(monkeypatch):
+    """A setting in ``env_kwargs`` and in the grid: each point runs at its own value."""
+    seen = []
+    monkeypatch.setattr(
+        sweep, "run_leaderboard", lambda tasks, agents, particles, episodes, seed, settings,
+        **kw: seen.append(settings) or [],
+    )  # fmt: skip
+    grid = {"noise": [0.0, 12.0], "size": [96]}
+    sweep.run_sweep(["ArmTrack-v2"], ["pf-cv"], [10], grid, 1, 0, {**BASE, "noise": 4.0}, False)
+    assert [(s["noise"], s["width"], s["height"]) for s in seen] == [
+        (0.0, 64, 64), (12.0, 64, 64), (4.0, 96, 96),
+    ]  # fmt: skip
