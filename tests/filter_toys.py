@@ -20,6 +20,28 @@ class RandomWalk:
         return ParticleState(state.pose + self.step * rng.standard_normal(state.pose.shape))
 
 
+class Peaks:
+    """Test-only likelihood: a Gaussian peak of ``sigma`` around the frame in every dimension.
+
+    For the partitioned filters, :meth:`log_likelihood_partial` gives a column per
+    group (each adds its dimensions' peaks to the groups before it), then the
+    whole; ``calls`` counts its calls.
+    """
+
+    def __init__(self, sigma: float):
+        self.sigma = sigma
+        self.calls = 0
+
+    def log_likelihood(self, frame, poses):
+        return -0.5 * np.sum((poses - frame) ** 2, axis=1) / self.sigma**2
+
+    def log_likelihood_partial(self, frame, poses, groups):
+        self.calls += 1
+        terms = -0.5 * (poses - frame) ** 2 / self.sigma**2
+        out = np.cumsum([terms[:, list(g)].sum(axis=1) for g in groups], axis=0).T
+        return np.column_stack([out, terms.sum(axis=1)])
+
+
 def assert_tracks_as_the_particle_filter(search, prior, likelihood, n: int) -> None:
     """``search`` (a filter over ``prior`` and ``likelihood`` with ``n`` particles, in
     its degenerate setting) gives the plain filter's estimates and particles on a

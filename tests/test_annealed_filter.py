@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from filter_toys import RandomWalk, assert_tracks_as_the_particle_filter
+from filter_toys import Peaks, RandomWalk, assert_tracks_as_the_particle_filter
 
 from baselines.filtering import (
     AnnealedParticleFilter,
@@ -14,24 +14,14 @@ from baselines.filtering import (
 )
 
 
-class Peak:
-    """log p(y | x) of a narrow Gaussian around the frame's value."""
-
-    def __init__(self, sigma: float):
-        self.sigma = sigma
-
-    def log_likelihood(self, frame, poses):
-        return -0.5 * np.sum((poses - frame) ** 2, axis=1) / self.sigma**2
-
-
 def test_one_layer_at_beta_one_is_the_particle_filter() -> None:
-    prior, like = RandomWalk(0.1), Peak(0.2)
+    prior, like = RandomWalk(0.1), Peaks(0.2)
     apf = AnnealedParticleFilter(prior, None, like, 200, layers=1, betas=[1.0], diffusion=0.0)
     assert_tracks_as_the_particle_filter(apf, prior, like, 200)
 
 
 def test_each_layer_keeps_the_survival_rate() -> None:
-    apf = AnnealedParticleFilter(RandomWalk(0.5), None, Peak(0.05), 500, layers=6, alpha=0.5)
+    apf = AnnealedParticleFilter(RandomWalk(0.5), None, Peaks(0.05), 500, layers=6, alpha=0.5)
     apf.reset(np.zeros(4), np.random.default_rng(0))
     for y in np.linspace(0.0, 0.5, 5)[:, None] * np.ones(4):
         apf.step(y)
@@ -60,7 +50,7 @@ def test_invalid_poses_never_survive() -> None:
     lower, upper = np.array([-0.2, -1.0]), np.array([0.2, 1.0])
     # The likelihood peaks outside the limits: the filter must stay inside them.
     apf = AnnealedParticleFilter(
-        RandomWalk(0.3), None, Peak(0.1), 300, layers=5, lower=lower, upper=upper
+        RandomWalk(0.3), None, Peaks(0.1), 300, layers=5, lower=lower, upper=upper
     )
     apf.reset(np.zeros(2), np.random.default_rng(1))
     for _ in range(5):
@@ -75,8 +65,8 @@ def test_annealing_finds_a_narrow_peak_the_filter_misses() -> None:
     truth = np.full(6, 0.3)
     errors = {}
     for name, filt in (
-        ("pf", ParticleFilter(RandomWalk(0.5), None, Peak(0.02), 1000)),
-        ("apf", AnnealedParticleFilter(RandomWalk(0.5), None, Peak(0.02), 100, layers=10)),
+        ("pf", ParticleFilter(RandomWalk(0.5), None, Peaks(0.02), 1000)),
+        ("apf", AnnealedParticleFilter(RandomWalk(0.5), None, Peaks(0.02), 100, layers=10)),
     ):
         err = []
         for seed in range(5):
@@ -88,7 +78,7 @@ def test_annealing_finds_a_narrow_peak_the_filter_misses() -> None:
 
 def test_same_seed_same_run() -> None:
     def run():
-        apf = AnnealedParticleFilter(RandomWalk(0.2), None, Peak(0.1), 100, layers=4)
+        apf = AnnealedParticleFilter(RandomWalk(0.2), None, Peaks(0.1), 100, layers=4)
         apf.reset(np.zeros(3), np.random.default_rng(9))
         return np.array([apf.step(np.full(3, 0.1 * t)) for t in range(4)])
 
@@ -96,7 +86,7 @@ def test_same_seed_same_run() -> None:
 
 
 def test_bad_arguments() -> None:
-    prior, like = RandomWalk(0.1), Peak(0.1)
+    prior, like = RandomWalk(0.1), Peaks(0.1)
     with pytest.raises(ValueError, match="layers"):
         AnnealedParticleFilter(prior, None, like, 10, layers=0)
     with pytest.raises(ValueError, match="alpha"):
@@ -111,10 +101,10 @@ def test_bad_arguments() -> None:
 
 def test_beta_cap() -> None:
     # A broad likelihood would want exponents far above 1 to reach alpha = 0.5.
-    apf = AnnealedParticleFilter(RandomWalk(0.5), None, Peak(5.0), 300, layers=4, beta_max=1.0)
+    apf = AnnealedParticleFilter(RandomWalk(0.5), None, Peaks(5.0), 300, layers=4, beta_max=1.0)
     apf.reset(np.zeros(2), np.random.default_rng(2))
     apf.step(np.full(2, 0.2))
     assert apf.layer_betas == [1.0] * 4
     assert min(apf.layer_survival) > 0.5  # so more particles survive than alpha
     with pytest.raises(ValueError, match="beta_max"):
-        AnnealedParticleFilter(RandomWalk(0.5), None, Peak(0.05), 10, beta_max=0.0)
+        AnnealedParticleFilter(RandomWalk(0.5), None, Peaks(0.05), 10, beta_max=0.0)

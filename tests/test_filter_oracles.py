@@ -24,7 +24,7 @@ from baselines.filtering import (
 from baselines.filtering.search import LocalSearch, SearchParticleFilter
 from baselines.priors import tree
 from humotion_gym.mocap.library import synthetic_library
-from tests.filter_toys import RandomWalk
+from tests.filter_toys import Peaks, RandomWalk
 
 ARM = np.array([9, 10, 11, 12])  # right shoulder and elbow: the arm task's free parameters
 
@@ -212,22 +212,12 @@ def test_every_filter_refuses_a_step_it_cannot_weigh(k: int) -> None:
             f.step(None)
 
 
-class _Broad:
-    """Test-only likelihood: an isotropic Gaussian of standard deviation ``sigma``."""
-
-    def __init__(self, sigma: float):
-        self.sigma = sigma
-
-    def log_likelihood(self, frame, poses):
-        return -0.5 * np.sum((poses - frame) ** 2, axis=1) / self.sigma**2
-
-
 @pytest.mark.parametrize("estimate", ["mean", "map"])
 def test_weights_carry_over_until_the_ess_falls(estimate: str) -> None:
     """With ``ess_threshold < 1`` the weights carry over to the next frame while the
     ESS stays above the threshold, and the estimate is of the carried weights: a
     plain loop with scipy's logsumexp, the same generator draws in the same order."""
-    prior, like, n, threshold = RandomWalk(0.1), _Broad(0.6), 200, 0.5
+    prior, like, n, threshold = RandomWalk(0.1), Peaks(0.6), 200, 0.5
     frames = np.cumsum(np.full((12, 2), 0.08), axis=0)
     pf = ParticleFilter(prior, None, like, n, ess_threshold=threshold, estimate=estimate)
     pf.reset(np.zeros(2), np.random.default_rng(11))
@@ -258,7 +248,7 @@ def test_an_annealed_step_matches_a_plain_step() -> None:
     """One annealed frame written out: fixed exponents per layer, weights by
     scipy's logsumexp, systematic resampling, diffusion of ``alpha^(m+1)`` times
     the proposal's variance floored by ``min_std``, the last layer's weighted mean."""
-    prior, like, n = RandomWalk(0.15), _Broad(0.2), 300
+    prior, like, n = RandomWalk(0.15), Peaks(0.2), 300
     betas, alpha = np.array([0.1, 0.4, 1.0]), 0.6
     min_std = np.array([0.0, 0.5, 0.05])  # the middle floor lies above the cloud's spread
     apf = AnnealedParticleFilter(
@@ -286,23 +276,21 @@ def test_an_annealed_step_matches_a_plain_step() -> None:
         assert apf.layer_betas == betas.tolist()
 
 
-class _StagedPeaks:
-    """Test-only partial likelihood: a Gaussian factor per dimension, each group
-    adds its dimensions' factors; the column of the last group is NaN where the
-    first dimension is above ``cut`` (an impossible partial figure) while the whole
-    likelihood stays finite there."""
+class _StagedPeaks(Peaks):
+    """Peaks whose last group's column is NaN where the first dimension is above
+    ``cut`` (an impossible partial figure) while the whole likelihood stays
+    finite there, and whose whole column adds ``0.3 x_0`` (so that the last
+    stage's weights are not the last group's)."""
 
     def __init__(self, sigma: float, cut: float):
-        self.sigma, self.cut = sigma, cut
-
-    def log_likelihood(self, frame, poses):
-        return -0.5 * np.sum((poses - frame) ** 2, axis=1) / self.sigma**2
+        super().__init__(sigma)
+        self.cut = cut
 
     def log_likelihood_partial(self, frame, poses, groups):
-        terms = -0.5 * (poses - frame) ** 2 / self.sigma**2
-        out = np.cumsum([terms[:, list(g)].sum(axis=1) for g in groups], axis=0).T
-        out[poses[:, 0] > self.cut, -1] = np.nan
-        return np.column_stack([out, terms.sum(axis=1) + 0.3 * poses[:, 0]])
+        out = super().log_likelihood_partial(frame, poses, groups)
+        out[poses[:, 0] > self.cut, -2] = np.nan
+        out[:, -1] += 0.3 * poses[:, 0]
+        return out
 
 
 def test_a_partitioned_step_matches_a_plain_step() -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from filter_toys import RandomWalk, assert_tracks_as_the_particle_filter
+from filter_toys import Peaks, RandomWalk, assert_tracks_as_the_particle_filter
 
 from baselines.agents import PART_CONES, body_part_stages
 from baselines.filtering import (
@@ -104,23 +104,6 @@ def test_the_stages_of_each_task() -> None:
 
 
 # -- the filter on a problem whose answer is known ------------------------------------
-
-
-class Peaks:
-    """A Gaussian peak per dimension; a group is the dimensions it adds."""
-
-    def __init__(self, sigma: float):
-        self.sigma = sigma
-        self.calls = 0
-
-    def log_likelihood(self, frame, poses):
-        return -0.5 * np.sum((poses - frame) ** 2, axis=1) / self.sigma**2
-
-    def log_likelihood_partial(self, frame, poses, groups):
-        self.calls += 1
-        terms = -0.5 * (poses - frame) ** 2 / self.sigma**2
-        out = np.cumsum([terms[:, list(g)].sum(axis=1) for g in groups], axis=0).T
-        return np.column_stack([out, terms.sum(axis=1)])
 
 
 def stages(d: int, size: int) -> list[Stage]:
