@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from filter_toys import Peaks, RandomWalk, assert_tracks_as_the_particle_filter
 
 from baselines.filtering import (
     AnnealedParticleFilter,
@@ -12,6 +11,7 @@ from baselines.filtering import (
     effective_sample_size,
     temper_for_survival,
 )
+from tests.filter_toys import Peaks, RandomWalk, assert_tracks_as_the_particle_filter
 
 
 def test_one_layer_at_beta_one_is_the_particle_filter() -> None:

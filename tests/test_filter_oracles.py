@@ -135,8 +135,6 @@ def test_annealing_exponents_match_the_reference() -> None:
 def test_log_evidence_is_the_kalman_filters_marginal_likelihood() -> None:
     """On a linear-Gaussian model the filter's ``log_evidence`` estimates log p(y_1..T),
     which a Kalman filter gives exactly."""
-    from filter_toys import RandomWalk
-
     q, r, s0, m = 0.3, 0.5, 0.2, 1.0
 
     class Gaussian:  # normalised: log N(y; x, r^2), so the evidence is a density

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from filter_toys import Peaks, RandomWalk, assert_tracks_as_the_particle_filter
 
 from baselines.agents import PART_CONES, body_part_stages
 from baselines.filtering import (
@@ -17,6 +16,7 @@ from humotion_gym import body
 from humotion_gym.camera import fit_camera
 from humotion_gym.envs.tasks import get_task
 from humotion_gym.render import SceneOptions, make_background, render
+from tests.filter_toys import Peaks, RandomWalk, assert_tracks_as_the_particle_filter
 
 SHAPE = body.default_shape()
 ALL = np.arange(body.N_PARAMS)

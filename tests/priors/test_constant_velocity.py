@@ -4,14 +4,7 @@ import pytest
 from baselines.filtering import ParticleFilter
 from baselines.priors import constant_velocity as cv
 from humotion_gym.mocap.library import synthetic_library
-
-
-class GaussianOnPose:
-    def __init__(self, r):
-        self.r = r
-
-    def log_likelihood(self, y, poses):
-        return -0.5 * np.sum((poses - y) ** 2, axis=1) / self.r**2
+from tests.filter_toys import Peaks
 
 
 def kalman_cv(y, p0, accel, vel0, r):
@@ -41,7 +34,7 @@ def test_constant_velocity_filter_matches_the_exact_kalman_filter():
     exact = kalman_cv(y, 0.0, 0.3, 0.5, 1.0)
     errors = []
     for n in (200, 20000):
-        pf = ParticleFilter(cv, fitted, GaussianOnPose(1.0), n)
+        pf = ParticleFilter(cv, fitted, Peaks(1.0), n)
         pf.reset(np.array([0.0]), np.random.default_rng(1))
         est = np.array([pf.step(np.array([obs]))[0] for obs in y])
         errors.append(np.abs(est - exact).mean())

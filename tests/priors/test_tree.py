@@ -12,6 +12,7 @@ from baselines.priors import tree
 from humotion_gym import body
 from humotion_gym.mocap.library import synthetic_library
 from humotion_gym.mocap.motion import Motion
+from tests.filter_toys import Peaks
 
 ARM = [9, 10, 11, 12]  # right shoulder (3) and elbow: the arm task's free parameters
 
@@ -124,17 +125,10 @@ def test_particle_filter_runs(library, arm_prior):
     clip = library.split("test").motions[3]  # a held-out arm swing
     truth = clip.params[:, arm_prior.free]
 
-    class Gaussian:
-        def __init__(self, std):
-            self.std = std
-
-        def log_likelihood(self, frame, poses):
-            return -0.5 * np.sum(((poses - frame) / self.std) ** 2, axis=1)
-
     mean_error = {}
     for replay in tree.REPLAY_RULES:
         prior = arm_prior.with_settings(replay=replay)
-        pf = ParticleFilter(tree, prior, Gaussian(0.05), n=200, angle_mask=np.ones(4, bool))
+        pf = ParticleFilter(tree, prior, Peaks(0.05), n=200, angle_mask=np.ones(4, bool))
         pf.reset(truth[0], np.random.default_rng(0))
         errors = [np.abs(pf.step(truth[t]) - truth[t]).mean() for t in range(1, 16)]
         assert np.all(np.isfinite(errors))
