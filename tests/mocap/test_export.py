@@ -98,3 +98,24 @@ def test_every_written_extreme_reads_back(tmp_path, motion):
             values * 1.5,
             1 / 30,
         )
+
+
+def test_the_cone_body_joints_with_other_channels_are_refused(tmp_path, motion):
+    """Joint names alone do not make a cone-body file: the channels (order) must match too."""
+    from humotion_gym.mocap import export
+
+    channels = list(export.CHANNELS)
+    channels[1] = ("Zrotation", "Xrotation", "Yrotation")  # the neck's channels reordered
+    path = tmp_path / "reordered.bvh"
+    write_bvh(
+        path,
+        export.JOINTS,
+        np.array(export.PARENTS),
+        export._offsets(motion.shape),
+        channels,
+        export.params_to_channels(motion.params[:3]),
+        1 / 30,
+    )
+    assert tuple(load_bvh(path).joint_names) == export.JOINTS
+    with pytest.raises(MocapFormatError, match="not a cone-body skeleton"):
+        read_motion_bvh(path)
