@@ -5,12 +5,14 @@ import numpy as np
 import pytest
 
 import humotion_gym  # noqa: F401
+from baselines.experiments import discrimination
 from baselines.experiments.discrimination import (
     likelihood_depth_profile,
     likelihood_discrimination,
     likelihood_panels,
     likelihood_peak_error,
 )
+from humotion_gym.body import forward_kinematics
 
 
 def test_the_truth_scores_higher_the_further_off_a_pose_is():
@@ -62,3 +64,97 @@ def test_depth_profile_slides_the_truth_along_the_camera_ray():
     assert likelihood_depth_profile(gym.make("humotion_gym/ArmTrack-v2")) is None
     with pytest.raises(ValueError, match="steps >= 2"):
         likelihood_depth_profile(env, steps=1)
+
+
+class _Scored:
+    """The task's model with its log-likelihood replaced by a known function of the poses."""
+
+    def __init__(self, real, loglik) -> None:
+        self._real, self._loglik = real, loglik
+
+    def read_first_frame(self, *args):
+        return self._real.read_first_frame(*args)
+
+    def prepare(self, frame, given):
+        return None
+
+    def log_likelihood(self, feats, poses, shape, camera):
+        return self._loglik(np.asarray(poses), shape, camera)
+
+
+def _replace_loglik(monkeypatch: pytest.MonkeyPatch, loglik) -> None:
+    """Make the measurements use ``loglik(poses, shape, camera)`` as the task's likelihood."""
+    real = discrimination.task_model
+    monkeypatch.setattr(discrimination, "task_model", lambda task: _Scored(real(task), loglik))
+
+
+def _errors_mm(poses: np.ndarray, shape, scored: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """Each pose's mean scored-keypoint distance (mm) from ``truth``'s, keypoint by keypoint."""
+    kp = forward_kinematics(poses, shape)[:, scored]
+    ref = forward_kinematics(truth[None], shape)[0, scored]
+    dist = [np.linalg.norm(kp[:, k] - ref[k], axis=-1) for k in range(len(scored))]
+    return np.mean(dist, axis=0)
+
+
+def test_gaps_are_binned_by_the_perturbed_poses_keypoint_error(monkeypatch):
+    """With the log-likelihood minus the error in mm, each bin's gap is its error: within it."""
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
+    base = env.unwrapped
+    scored = base.task.error_keypoint_indices
+    truths = []
+
+    def loglik(poses, shape, camera):
+        truths.append(poses[0].copy())
+        # the model scores the pose on show: the environment's own truth of the frame
+        np.testing.assert_array_equal(poses[0], base.true_pose())
+        return -_errors_mm(poses, shape, scored, poses[0])
+
+    _replace_loglik(monkeypatch, loglik)
+    out = likelihood_discrimination(env, episodes=2, perturbations=60, frame_stride=10,
+                                    distances_mm=(50.0, 100.0), tolerance=0.3)  # fmt: skip
+    assert out["frames"] == len(truths) == 6
+    assert not np.array_equal(truths[0], truths[3])  # the second episode is another one
+    for b in out["bins"]:
+        d = b["distance_mm"]
+        assert b["pairs"] > 0 and b["truth_wins"] == 1.0
+        assert 0.7 * d <= b["mean_gap_nats"] <= 1.3 * d
+        assert 0.7 * d <= b["median_gap_nats"] <= 1.3 * d
+
+
+def test_peak_error_reads_the_best_scoring_candidate(monkeypatch):
+    """A sharply peaked log-likelihood at the closest candidate: peak = weighted = the least error."""
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
+    base = env.unwrapped
+    scored = base.task.error_keypoint_indices
+    errors = []
+
+    def loglik(poses, shape, camera):
+        err = _errors_mm(poses, shape, scored, base.true_pose())
+        errors.append(err)
+        return -1e3 * err  # candidates 1 mm apart differ by 1,000 nats
+
+    _replace_loglik(monkeypatch, loglik)
+    out = likelihood_peak_error(env, episodes=1, candidates=40, frame_stride=10)
+    assert out["frames"] == len(errors) == 3
+    assert out["peak_mm"] == pytest.approx(np.mean([e.min() for e in errors]), rel=1e-9)
+    assert out["typical_mm"] == pytest.approx(np.mean([np.median(e) for e in errors]), rel=1e-9)
+    assert out["weighted_mm"] == pytest.approx(out["peak_mm"], rel=1e-6)
+
+
+def test_depth_profile_offsets_are_distances_from_the_camera(monkeypatch):
+    """A log-likelihood peaked 100 mm further from the camera than the truth peaks at +100."""
+
+    def loglik(poses, shape, camera):
+        depth = np.linalg.norm(poses[:, :3] - np.asarray(camera.position), axis=1)
+        return -((depth - depth[0] - 100.0) ** 2)
+
+    env = gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False)
+    _replace_loglik(monkeypatch, loglik)
+    out = likelihood_depth_profile(env, episodes=1, reach_mm=300.0, steps=7, frame_stride=10)
+    assert out is not None and out["frames"] == 3
+    offsets = np.array(out["offsets_mm"])
+    # each offset's log-likelihood minus the truth's: -(o - 100)^2 + 100^2
+    np.testing.assert_allclose(out["profile_nats"], 100.0**2 - (offsets - 100.0) ** 2, atol=1e-3)
+    assert out["peak_offset_mm"] == 100.0 and out["abs_peak_offset_mm"] == 100.0
+    # highest (o = 100: 10,000) minus lowest (o = -300: 10,000 - 160,000)
+    assert out["contrast_nats"] == pytest.approx(160_000.0, abs=1e-3)
