@@ -68,6 +68,10 @@ DEFAULT_KNOTS: FloatArray = np.round(np.arange(1, 10) / 10.0, 12)
 #: Number of resampling points per cycle (the reference domain's ``T``).
 DEFAULT_SAMPLES = 120
 
+# Frames by which a cycle's end may miss a frame through rounding alone (the
+# phases are computed in floating point).
+_FRAME_ROUNDING = 1e-9
+
 # ---------------------------------------------------------------------------
 # Appendix A: periodically constrained cubic regression splines
 # ---------------------------------------------------------------------------
@@ -536,12 +540,15 @@ def cycle_shifts(
         cycle = np.floor(u).astype(np.intp)
         phase = u - cycle
         shifts = []
+        period = alignment.periods[i]
         for k in range(int(cycle.min()), int(cycle.max()) + 1):
             sel = cycle == k
-            # Whole cycles only: the cycle's first and last frames are inside the clip.
+            # Whole cycles only: the cycle's first and last frames lie within a frame
+            # of its ends. A gap of exactly one frame counts, however u rounds (with
+            # a whole period, (1 - 29/30) * 30 comes out a hair above 1 in some cycles).
             if (
-                phase[sel].min() * alignment.periods[i] > 1.0
-                or (1.0 - phase[sel].max()) * (alignment.periods[i]) > 1.0
+                phase[sel].min() * period > 1.0 + _FRAME_ROUNDING
+                or (1.0 - phase[sel].max()) * period > 1.0 + _FRAME_ROUNDING
             ):
                 continue
             if w[sel].mean() < 0.5:

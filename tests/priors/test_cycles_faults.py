@@ -260,3 +260,15 @@ def test_a_shift_that_does_not_lower_the_error_is_not_taken() -> None:
     assert min(al.offsets[0], 29.0 - al.offsets[0]) < 1e-6  # frames
     assert np.all(np.diff(al.errors) <= 0.0)
     assert al.errors[-1] < 1e-10  # the ridge's bias only
+
+
+def test_a_whole_period_counts_every_cycle_one_frame_short_of_its_end(gappy_alignment) -> None:
+    """Period 30, offset 28: every cycle's last frame is exactly one frame before its end,
+    so each of the five whole cycles counts, however its phases round."""
+    al, _, _ = gappy_alignment
+    one = dataclasses.replace(al, periods=np.array([30.0]), offsets=np.array([28.0]))
+    t = np.arange(28 + 5 * 30)  # a partial cycle -1, then cycles 0..4 exactly
+    x = one.reference((t - 28.0) / 30.0)
+    (got,) = cycles.cycle_shifts(one, [x], [np.ones(x.shape, dtype=bool)], max_shift=0.125)
+    assert got.size == 5
+    np.testing.assert_allclose(got, 0.0, atol=1e-12)
