@@ -154,3 +154,14 @@ def test_an_agent_that_cannot_track_the_task_is_refused_before_any_episode(monke
     with pytest.raises(ValueError, match="cannot track 'BodyTrack-v2'"):
         depth.run_depth("BodyTrack-v2", ["pf-cv", "pf-pca"], 10, episodes=1)
     assert not ran  # hold and pf-cv did not run first
+
+
+def test_a_root_moved_towards_the_camera_is_a_negative_error_along_it(body_env):
+    """The signed mean is negative, its absolute mean the same size, positive."""
+    shift = -100.0
+    _, ep = track_with_depth(_Oracle(body_env, shift), body_env, seed=3)
+    gap = np.array(ep.estimate_travel_mm) - np.array(ep.true_travel_mm)
+    np.testing.assert_allclose(gap, shift, atol=0.05)
+    # every keypoint moved 100 mm towards the camera along nearly its own ray
+    assert all(-100.05 <= a < -95.0 for a in ep.along_mm)
+    np.testing.assert_allclose(ep.along_abs_mm, -np.array(ep.along_mm), atol=1e-9)

@@ -1,0 +1,183 @@
+"""The report's tables, inputs and seeds (``baselines.leaderboard.report``), checked by hand."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import numpy as np
+import pytest
+
+from baselines.leaderboard import across_tasks
+from baselines.leaderboard.evaluation import EpisodeResult, summarize
+from baselines.leaderboard.report import (
+    aggregate_table,
+    compute,
+    failures_table,
+    improvement_table,
+    leaderboard_rows,
+    run_lines,
+    statistics_table,
+    write_report,
+)
+
+
+def _rows(seed: int = 3, n: int = 5) -> list[dict[str, Any]]:
+    """hold and a filter at about 0.8 of hold's error on two tasks; episodes of 8 frames."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for task in ("ArmTrack-v2", "BodyTrack-v2"):
+        base = {s: np.cumsum(rng.gamma(2.0, 5.0, size=8)) + 20 for s in range(n)}
+        for agent, factor, particles in (("hold", 1.0, 0), ("pf-cv", 0.8, 100)):
+            eps = []
+            for s in range(n):
+                e = factor * base[s] * rng.uniform(0.5, 1.5)
+                eps.append(EpisodeResult(
+                    seed=s, clip_id=f"c{s}", start_frame=0, errors_mm=e.tolist(),
+                    mean_error_mm=float(e.mean()), final_error_mm=float(e[-1]),
+                    lost_frame=None, ms_per_frame=1.0, mean_reward=0.0,
+                ).to_dict())  # fmt: skip
+            rows.append({"task": task, "agent": agent, "particles": particles,
+                         "summary": summarize(eps), "episodes": eps})  # fmt: skip
+    return rows
+
+
+@pytest.fixture
+def no_figures(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Reports without matplotlib's figures (their tests are test_stats_report's)."""
+    import baselines.leaderboard.report as report
+
+    monkeypatch.setattr(report, "figures_available", lambda: False)
+
+
+def _summary(episodes: int) -> dict[str, Any]:
+    return {"episodes": episodes, "mean_error_mm": 1234.4, "mean_error_ci": [1000.2, 1500.7],
+            "iqm_error_mm": 1100.0, "iqm_error_ci": [900.0, 1300.0], "lost_fraction": 0.25,
+            "lost_fraction_ci": [0.1, 0.5], "median_lost_frame": 12.0,
+            "ms_per_frame": 3.14}  # fmt: skip
+
+
+def test_the_statistics_table_by_hand():
+    """Each column from its own field; two episodes keep their intervals, one has none."""
+    rows = [
+        {"task": "T", "agent": "pf-cv", "particles": 1000, "summary": _summary(2), "episodes": []},
+        {"task": "T", "agent": "hold", "particles": 0, "summary": _summary(1), "episodes": []},
+        {"task": "T", "agent": "pf-x", "particles": 10, "error": "boom"},
+    ]
+    table = statistics_table(rows)
+    assert len(table) == 3  # the failed cell has no statistics
+    assert table[1] == ["T", "pf-cv", "1,000", "2", "1,234 (1,000-1,501)", "1,100 (900-1,300)",
+                        "25% (10-50%)", "12", "3.1"]  # fmt: skip
+    assert table[2][:6] == ["T", "hold", "-", "1", "1,234", "1,100"]
+
+
+def test_the_aggregate_and_improvement_tables_by_hand():
+    """IQM, mean and P(beats hold) each with its own interval; X before Y."""
+    agg = {"cell": "pf-cv@100", "tasks": ["A", "B"], "episodes": 12, "iqm_score": 0.5,
+           "iqm_score_ci": [0.4, 0.6], "mean_score": 0.55, "mean_score_ci": [0.45, 0.65],
+           "beats_reference": 0.9, "beats_reference_ci": [0.8, 0.95]}  # fmt: skip
+    assert aggregate_table([agg])[1] == [
+        "pf-cv@100", "2", "12", "0.50 (0.40-0.60)", "0.55 (0.45-0.65)", "0.90 (0.80-0.95)"
+    ]  # fmt: skip
+    pair = {"x": "pf-cv@100", "y": "hold", "tasks": ["A"], "probability": 0.7, "ci": [0.6, 0.8]}
+    assert improvement_table([pair])[1] == ["pf-cv@100", "hold", "1", "0.70 (0.60-0.80)"]
+
+
+def test_the_failures_table_names_each_status_and_reason():
+    """An error row reads "error", a skipped one "skipped"; cells that ran are not listed."""
+    rows = [
+        {"task": "T", "agent": "hold", "particles": 0, "summary": _summary(2), "episodes": []},
+        {"task": "T", "agent": "pf-x", "particles": 10, "error": "fit failed"},
+        {"task": "T", "agent": "pf-slds", "particles": 0, "skipped": "not this task"},
+    ]
+    assert failures_table(rows)[1:] == [
+        ["T", "pf-x", "10", "error", "fit failed"],
+        ["T", "pf-slds", "-", "skipped", "not this task"],
+    ]
+
+
+@pytest.mark.parametrize(
+    "change",
+    [
+        lambda r: r.update(episodes=[]),  # no episodes
+        lambda r: r["episodes"][1].update(seed=1.0),  # a seed that is not an integer
+        lambda r: r["episodes"][0].update(mean_error_mm="12"),  # a mean that is no number
+        lambda r: r.update(summary=[]),  # a summary that is no object
+        lambda r: r["summary"].pop("mean_error_mm"),
+        lambda r: r["summary"].update(mean_error_mm="12"),  # the summary's mean as text
+    ],
+)
+def test_a_row_that_ran_without_its_numbers_is_refused(change):
+    """``leaderboard_rows`` refuses a ran row the tables could not read, naming the row."""
+    rows = _rows()
+    assert leaderboard_rows(rows, "x.json")[0] == rows  # as made: taken
+    change(rows[2])
+    with pytest.raises(ValueError, match=r"x.json: row 2 \(BodyTrack-v2 hold\) ran but lacks"):
+        leaderboard_rows(rows, "x.json")
+
+
+def test_the_statistics_are_the_seeded_ones():
+    """Every statistic of ``compute`` is drawn with its seed: cells, aggregate, pairwise."""
+    rows = _rows()
+    out = compute(rows, seed=7)
+    assert out["seed"] == 7 and out["reference"] == "hold"
+    for cell, row in zip(out["cells"], rows, strict=True):
+        assert cell["summary"] == summarize(row["episodes"], seed=7)
+    assert out["aggregate"] == across_tasks.aggregate(rows, "hold", seed=7)
+    assert out["pairwise"] == across_tasks.pairwise_improvement(rows, seed=7)
+    other = compute(rows, seed=0)  # so that a seed dropped anywhere is seen
+    assert other["cells"][1]["summary"] != out["cells"][1]["summary"]
+    assert other["aggregate"] != out["aggregate"] and other["pairwise"] != out["pairwise"]
+    assert "persons" not in out  # no episode names its person: the file as it was
+
+
+def test_the_written_report_holds_the_seeded_statistics_and_well_formed_tables(
+    tmp_path, no_figures
+):
+    """stats.json is ``compute(rows, seed)``; every Markdown table has one separator cell a column.
+
+    The rows all ran: no section of cells that did not run.
+    """
+    rows = _rows()
+    write_report(rows, tmp_path, seed=7, progress=False)
+    assert json.loads((tmp_path / "stats.json").read_text()) == json.loads(
+        json.dumps(compute(rows, seed=7))
+    )
+    lines = (tmp_path / "tables.md").read_text().splitlines()
+    separators = [k for k, line in enumerate(lines) if line.startswith("|---")]
+    assert len(separators) >= 4  # leaderboard, cells, aggregate, pairwise
+    for k in separators:
+        assert lines[k].count("---") == lines[k - 1].count("|") - 1, lines[k - 1]
+    assert "did not run" not in "\n".join(lines)
+    assert "did not run" not in (tmp_path / "index.html").read_text()
+
+
+def test_a_reason_is_escaped_on_the_page(tmp_path, no_figures):
+    """A failed cell's reason is text on the page, never markup."""
+    rows = [*_rows(), {"task": "ArmTrack-v2", "agent": "pf-x", "particles": 10,
+                       "error": "<b>bad</b> & worse"}]  # fmt: skip
+    page = write_report(rows, tmp_path, progress=False).read_text()
+    assert "<b>bad</b>" not in page and "&lt;b&gt;bad&lt;/b&gt; &amp; worse" in page
+
+
+def test_the_run_lines_of_older_and_partial_documents():
+    """One data folder given alone is one folder; a version without a commit says so."""
+    older = dict(run_lines({"env_kwargs": {"data_dir": "/data/mocap"}}))
+    assert older["data"] == "/data/mocap" and older["command"] == "not recorded"
+    assert dict(run_lines({"env_kwargs": {"data_dir": ["/a", "/b"]}}))["data"] == "/a, /b"
+    assert dict(run_lines({"package_version": "1.2"}))["code"] == "commit unknown, package 1.2"
+    assert dict(run_lines({"commit": "abc"}))["code"] == "commit abc"
+    assert dict(run_lines({"data": ["/m"], "env_kwargs": {"data_dir": "/x"}}))["data"] == "/m"
+
+
+def test_rows_without_hold_have_no_aggregate_section_nor_figure(tmp_path):
+    """Scores are normalised by hold: without it, no aggregate table, figure or pairs."""
+    pytest.importorskip("matplotlib", reason="its figures need matplotlib")
+    rows = [r for r in _rows(n=3) if r["agent"] != "hold" and r["task"] == "ArmTrack-v2"]
+    index = write_report(rows, tmp_path, progress=False)
+    page = index.read_text()
+    pngs = sorted(p.name for p in tmp_path.glob("*.png"))
+    assert pngs == ["error_over_frames.png", "iqm_per_task.png", "survival.png"]
+    assert all(f'src="{name}"' in page for name in pngs)
+    assert "Across tasks" not in page and "Probability of improvement" not in page
+    assert "Across tasks" not in (tmp_path / "tables.md").read_text()

@@ -1,0 +1,132 @@
+"""``baselines.stillness``: the scan's bounds and stride, seeds and the table, by hand.
+
+Episodes are replaced by scores made up from their options or seed, so the
+choices around them are checked without tracking.
+"""
+
+import types
+
+import gymnasium as gym
+import pytest
+
+import humotion_gym  # noqa: F401
+from baselines.leaderboard.evaluation import EpisodeResult
+from baselines.leaderboard.stats import bootstrap_ci
+from baselines.stillness import StillWindow, markdown_table
+
+
+@pytest.fixture(scope="module")
+def env():
+    return gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
+
+
+def test_the_scan_takes_every_strideth_start_and_keeps_a_score_at_the_bound(env, monkeypatch):
+    """Starts ``good_starts[::stride]`` of every clip; "at most max_hold_mm" includes it."""
+    import baselines.stillness as stillness
+
+    base = env.unwrapped
+    scanned = []
+
+    want = [(c.clip_id, int(s)) for c in base.clips for s in base._good_starts(c)[::3]]
+    bound = 7.25  # one window scores exactly the bound, every other one above it
+
+    def scored(agent, env_, seed, options):
+        scanned.append((options["clip_id"], options["start"]))
+        at = (options["clip_id"], options["start"]) == want[1]
+        return types.SimpleNamespace(mean_error_mm=bound if at else bound + 1.0)
+
+    monkeypatch.setattr(stillness, "run_episode", scored)
+    got = stillness.still_windows(env, max_hold_mm=bound, count=50, stride=3)
+    assert scanned == want
+    assert got == [StillWindow(want[1][0], want[1][1], bound)]
+
+
+def test_a_zero_stride_is_refused_by_name(env):
+    """stride < 1 is the caller's mistake, named as count's is."""
+    import baselines.stillness as stillness
+
+    with pytest.raises(ValueError, match="count and stride"):
+        stillness.still_windows(env, stride=0)
+
+
+def _result(seed: int, mean: float) -> EpisodeResult:
+    return EpisodeResult(seed=seed, clip_id="c", start_frame=0, errors_mm=[mean],
+                         mean_error_mm=mean, final_error_mm=mean, lost_frame=None,
+                         ms_per_frame=1.0, mean_reward=0.0)  # fmt: skip
+
+
+def test_run_still_seeds_agents_and_episodes_and_judges_at_the_ratio(monkeypatch):
+    """Agents seeded ``seed``, episode ``k`` reset with ``seed + k``; exactly 2x hold is within."""
+    import baselines.stillness as stillness
+
+    made, ran = [], []
+
+    def fake_make(name, env, n_particles, seed):
+        made.append((name, seed))
+        return name
+
+    def fake_run(agent, env, seed, options):
+        ran.append((agent, seed, options["start"]))
+        hold = float(options["start"])  # each window's hold error: its start
+        return _result(seed, {"hold": 1.0, "pf-cv": 2.0, "random": 2.5}[agent] * hold)
+
+    monkeypatch.setattr(stillness, "make", fake_make)
+    monkeypatch.setattr(stillness, "run_episode", fake_run)
+    windows = [StillWindow("a", s, 0.0) for s in (10, 20, 40, 80, 30)]
+    out = stillness.run_still("ArmTrack-v2", ["pf-cv", "random"], particles=9,
+                              windows=windows, seed=4, progress=False)  # fmt: skip
+    assert made == [("hold", 4), ("pf-cv", 4), ("random", 4)]
+    assert ran == [(a, 4 + k, w.start) for a in ("hold", "pf-cv", "random")
+                   for k, w in enumerate(windows)]  # fmt: skip
+    rows = {r["agent"]: r for r in out["rows"]}
+    assert rows["pf-cv"]["x_hold"] == pytest.approx(2.0) and rows["pf-cv"]["within"]
+    assert rows["random"]["x_hold"] == pytest.approx(2.5) and not rows["random"]["within"]
+    errors = [2.0 * w.start for w in windows]
+    assert rows["pf-cv"]["mean_error_ci"] == list(bootstrap_ci(errors, seed=4))
+    assert bootstrap_ci(errors, seed=4) != bootstrap_ci(errors, seed=0)  # the seed tells
+    assert [r["particles"] for r in out["rows"]] == [0, 9, 0]
+
+
+def test_the_still_table_by_hand():
+    """The heading names the count and the bound; each row its error, interval, ratio, verdict."""
+    result = {
+        "task": "ArmTrack-v2", "windows": [{}, {}, {}], "max_hold_mm": 50.0,
+        "rows": [
+            {"agent": "hold", "particles": 0, "mean_error_mm": 30.4,
+             "mean_error_ci": [20.2, 40.6], "x_hold": 1.0, "within": True},
+            {"agent": "pf-cv", "particles": 1200, "mean_error_mm": 76.0,
+             "mean_error_ci": [60.0, 91.0], "x_hold": 2.5, "within": False},
+        ],
+    }  # fmt: skip
+    lines = markdown_table(result).splitlines()
+    assert lines[0] == (
+        "ArmTrack-v2: 3 still episodes of the test persons (hold mean error at most 50 mm)"
+    )
+    assert lines[2] == "| agent | particles | mean error mm (95% CI) | / hold | within 2x hold |"
+    assert lines[4] == "| hold | - | 30 (20-41) | 1.00 | yes |"
+    assert lines[5] == "| pf-cv | 1,200 | 76 (60-91) | 2.50 | no |"
+
+
+def test_windows_never_overlap_in_clip_frames_when_frames_are_skipped(monkeypatch):
+    """With ``frame_skip`` 2 an episode covers ``episode_frames * 2`` clip frames: no overlap."""
+    import baselines.stillness as stillness
+
+    skipping = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False, frame_skip=2)
+    base = skipping.unwrapped
+    first = base.clips[0].clip_id
+
+    def scored(agent, env_, seed, options):  # the first clip lowest, rising with the start
+        low = 0.0 if options["clip_id"] == first else 100.0
+        return types.SimpleNamespace(mean_error_mm=low + 1e-3 * options["start"])
+
+    monkeypatch.setattr(stillness, "run_episode", scored)
+    got = stillness.still_windows(skipping, max_hold_mm=1000.0, count=3, stride=1)
+    skipping.close()
+    starts = [int(s) for s in base._good_starts(base.clips[0])]
+    span = base.episode_frames * 2  # clip frames from an episode's first to its last
+    want = [starts[0]]
+    for s in starts:
+        if len(want) < 3 and s - want[-1] >= span:
+            want.append(s)
+    assert len(want) == 3, "the first clip is too short for this test"
+    assert [(w.clip_id, w.start) for w in got] == [(first, s) for s in want]
