@@ -553,7 +553,8 @@ class RayEngine:
             self.workers = _at_most(int(workers or cpus), jobs)
             self._actor = ray.remote(num_cpus=1)(_RayWorker)
             self._args = (int(seed), dict(env_kwargs or {}), list(dict.fromkeys(tasks)))
-            self._fits: Any = None
+            # What start() gave every worker, for one that replaces a dead worker.
+            self._started_with: tuple[Any, Any] | None = None
             self.actors = [self._actor.remote(*self._args) for _ in range(self.workers)]
         except BaseException:
             self.close()
@@ -602,7 +603,7 @@ class RayEngine:
                 cannot take it (a class it cannot import) or runs another
                 version of the package.
         """
-        self._fits = self.ray.put(dict(fits))
+        fits_ref = self.ray.put(dict(fits))
         names = set(agents) | {a.split("+", 1)[0] for a in agents}
         try:
             # pickled here (Ray's cloudpickle: a class of the driver's __main__ by
@@ -621,7 +622,7 @@ class RayEngine:
         registry = self.ray.put(([os.path.abspath(p) for p in sys.path], blob))
         mine = package_version()
         try:
-            started = self.ray.get([a.start.remote(self._fits, registry) for a in self.actors])
+            started = self.ray.get([a.start.remote(fits_ref, registry) for a in self.actors])
         except self.ray.exceptions.RayTaskError as exc:  # raised in the worker's start
             cause: BaseException = exc
             for _ in range(4):  # Ray wraps the worker's error (RaySystemError.client_exc)
@@ -646,6 +647,7 @@ class RayEngine:
                     f"a Ray worker (pid {pid}) runs humotion_gym {version}, this driver "
                     f"{mine}: install the same version on every node"
                 )
+        self._started_with = (fits_ref, registry)
 
     def run(self, episodes: Iterable[Episode], on_record: Callable[[dict[str, Any]], None]) -> None:
         """Run the episodes, handing each record to ``on_record`` as it finishes.
@@ -672,8 +674,8 @@ class RayEngine:
             except ray.exceptions.RayActorError as exc:  # the worker died: replace it
                 record = _lost(episode, f"the Ray worker died: {exc}")
                 self.actors[slot] = self._actor.remote(*self._args)
-                if self._fits is not None:
-                    self.actors[slot].start.remote(self._fits)
+                if self._started_with is not None:
+                    self.actors[slot].start.remote(*self._started_with)
             except ray.exceptions.RayError as exc:
                 record = _lost(episode, f"{type(exc).__name__}: {exc}")
             on_record(record)

@@ -252,11 +252,6 @@ def test_ray_runs_every_episode_once_and_a_ray_failure_is_an_error_record(monkey
     assert all(r["result"] == {"seed": r["seed"]} for r in records if "error" not in r)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="source bug: RayEngine.run restarts a dead worker with start.remote(fits), "
-    "without the registry _RayWorker.start requires (engine.py, RayEngine.run)",
-)
 def test_a_dead_ray_worker_is_a_lost_record_and_is_replaced(monkeypatch):
     """The episode of a worker that died is an error record; a new worker takes its place."""
     fake = _Ray(dies={2})
