@@ -179,16 +179,20 @@ def test_an_agent_that_cannot_track_the_task_is_refused_before_the_scan(monkeypa
     assert not scanned
 
 
-def test_a_window_overlapping_a_lower_one_is_never_taken(env, monkeypatch):
+@pytest.mark.parametrize("frame_skip", [1, 2])
+def test_a_window_overlapping_a_lower_one_is_never_taken(env, monkeypatch, frame_skip):
     """One clip's windows score lowest, rising with their start: neighbours overlap.
 
     ``hold``'s episodes are replaced by a score of the window alone, so every
-    start of every clip is a candidate and the lowest ones are known.
+    start of every clip is a candidate and the lowest ones are known. With
+    ``frame_skip`` 2 an episode covers ``episode_frames * 2`` clip frames.
     """
     import types
 
     import baselines.stillness as stillness
 
+    if frame_skip != 1:
+        env = gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False, frame_skip=frame_skip)
     base = env.unwrapped
     first = base.clips[0].clip_id
 

@@ -105,28 +105,3 @@ def test_the_still_table_by_hand():
     assert lines[2] == "| agent | particles | mean error mm (95% CI) | / hold | within 2x hold |"
     assert lines[4] == "| hold | - | 30 (20-41) | 1.00 | yes |"
     assert lines[5] == "| pf-cv | 1,200 | 76 (60-91) | 2.50 | no |"
-
-
-def test_windows_never_overlap_in_clip_frames_when_frames_are_skipped(monkeypatch):
-    """With ``frame_skip`` 2 an episode covers ``episode_frames * 2`` clip frames: no overlap."""
-    import baselines.stillness as stillness
-
-    skipping = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False, frame_skip=2)
-    base = skipping.unwrapped
-    first = base.clips[0].clip_id
-
-    def scored(agent, env_, seed, options):  # the first clip lowest, rising with the start
-        low = 0.0 if options["clip_id"] == first else 100.0
-        return types.SimpleNamespace(mean_error_mm=low + 1e-3 * options["start"])
-
-    monkeypatch.setattr(stillness, "run_episode", scored)
-    got = stillness.still_windows(skipping, max_hold_mm=1000.0, count=3, stride=1)
-    skipping.close()
-    starts = [int(s) for s in base._good_starts(base.clips[0])]
-    span = base.episode_frames * 2  # clip frames from an episode's first to its last
-    want = [starts[0]]
-    for s in starts:
-        if len(want) < 3 and s - want[-1] >= span:
-            want.append(s)
-    assert len(want) == 3, "the first clip is too short for this test"
-    assert [(w.clip_id, w.start) for w in got] == [(first, s) for s in want]

@@ -556,19 +556,24 @@ def test_frame_gaps_and_spans_are_bounded_before_allocating(write_text, monkeypa
     assert peak < 10 * 2**20
 
 
-def test_both_readers_refuse_the_same_frame_numbers(write_text, monkeypatch):
+def refused_by_both(path, sk, monkeypatch) -> str:
+    """The message both AMC readers refuse ``path`` with (the same one)."""
     from humotion_gym.mocap import asfamc
 
+    with pytest.raises(MocapFormatError) as fast:
+        load_amc(path, sk)
+    with monkeypatch.context() as m:
+        m.setattr(asfamc, "_amc_regular", lambda *args: None)  # the general reader only
+        with pytest.raises(MocapFormatError) as general:
+            load_amc(path, sk)
+    assert str(fast.value) == str(general.value)
+    return str(fast.value)
+
+
+def test_both_readers_refuse_the_same_frame_numbers(write_text, monkeypatch):
     sk = load_asf(write_text("t.asf", asf_text()))
     for numbers in ([1, 1003], [1, 1001, 2001, 3001], [1, 2**63]):
-        path = write_text("a.amc", frames_at(numbers))
-        with pytest.raises(MocapFormatError) as fast:
-            load_amc(path, sk)
-        with monkeypatch.context() as m:
-            m.setattr(asfamc, "_amc_regular", lambda *args: None)
-            with pytest.raises(MocapFormatError) as general:
-                load_amc(path, sk)
-        assert str(fast.value) == str(general.value)
+        refused_by_both(write_text("a.amc", frames_at(numbers)), sk, monkeypatch)
 
 
 def test_bone_count_and_depth_are_bounded(write_text, count_calls):

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_asfamc import amc_text, asf_text, asf_with, frames_at, random_frames
+from test_asfamc import amc_text, asf_text, asf_with, frames_at, random_frames, refused_by_both
 
 from humotion_gym.errors import MocapFormatError
 from humotion_gym.mocap import asfamc
@@ -28,18 +28,6 @@ def both_readers(path: Path, sk, monkeypatch: pytest.MonkeyPatch):
         m.setattr(asfamc, "_amc_regular", lambda *args: None)
         general = load_amc(path, sk)
     return fast, general
-
-
-def refused_by_both(path: Path, sk, monkeypatch: pytest.MonkeyPatch) -> str:
-    """The message both readers refuse ``path`` with (the same one)."""
-    with pytest.raises(MocapFormatError) as fast:
-        load_amc(path, sk)
-    with monkeypatch.context() as m:
-        m.setattr(asfamc, "_amc_regular", lambda *args: None)
-        with pytest.raises(MocapFormatError) as general:
-            load_amc(path, sk)
-    assert str(fast.value) == str(general.value)
-    return str(fast.value)
 
 
 @pytest.mark.parametrize(
