@@ -42,14 +42,6 @@ def _rows(seed: int = 3, n: int = 5) -> list[dict[str, Any]]:
     return rows
 
 
-@pytest.fixture
-def no_figures(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Reports without matplotlib's figures (their tests are test_stats_report's)."""
-    import baselines.leaderboard.report as report
-
-    monkeypatch.setattr(report, "figures_available", lambda: False)
-
-
 def _summary(episodes: int) -> dict[str, Any]:
     return {"episodes": episodes, "mean_error_mm": 1234.4, "mean_error_ci": [1000.2, 1500.7],
             "iqm_error_mm": 1100.0, "iqm_error_ci": [900.0, 1300.0], "lost_fraction": 0.25,

@@ -394,20 +394,6 @@ def _check_page(index: Path) -> _Links:
     return page
 
 
-@pytest.fixture
-def no_figures(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Reports written without their figures (matplotlib's PNGs, about 0.5 s a report).
-
-    For the tests of what a page says, links or rebuilds besides its figures;
-    the figures are checked where they are the subject
-    (test_report_writes_tables_figures_and_a_page_whose_links_exist,
-    test_report_renders_in_headless_chromium).
-    """
-    import baselines.leaderboard.report as report
-
-    monkeypatch.setattr(report, "figures_available", lambda: False)
-
-
 def test_report_writes_tables_figures_and_a_page_whose_links_exist(tmp_path):
     pytest.importorskip("matplotlib", reason="its figures need matplotlib")
     rows = _rows({"pf-cv": 0.5, "random": 3.0})
@@ -470,10 +456,7 @@ def test_seed_sets_refuse_a_run_without_agent_seeds_in_one_line(tmp_path, monkey
         assert exit_.value.code == 1 and says in err and len(err.strip().splitlines()) == 1
 
 
-def test_report_without_matplotlib_says_so_and_writes_the_rest(tmp_path, monkeypatch):
-    import baselines.leaderboard.report as report
-
-    monkeypatch.setattr(report, "figures_available", lambda: False)
+def test_report_without_matplotlib_says_so_and_writes_the_rest(tmp_path, no_figures):
     index = write_report(_rows({"pf-cv": 0.5}), tmp_path, progress=False)
     assert "matplotlib is not installed" in index.read_text()
     assert not list(tmp_path.glob("*.png"))
