@@ -471,6 +471,36 @@ MALFORMED = {
         10,
         "expected a joint name unlike the end sites' names, found 'hips_End'",
     ),
+    "second OFFSET": (
+        replace_line(9, "    OFFSET 0 0 0\n    CHANNELS 3 Zrotation Xrotation Yrotation"),
+        9,
+        "second OFFSET in 'knee'",
+    ),
+    "second CHANNELS": (
+        replace_line(9, "    CHANNELS 3 Zrotation Xrotation Yrotation\n    CHANNELS 1 Zrotation"),
+        10,
+        "second CHANNELS in joint 'knee'",
+    ),
+    "ROOT inside a joint": (
+        replace_line(6, "  ROOT knee"),
+        6,
+        "expected '}' closing joint 'hips' (opened at line 2), found ROOT",
+    ),
+    "JOINT inside an End Site": (
+        replace_line(12, "      JOINT toe"),
+        12,
+        "expected JOINT inside a joint's braces",
+    ),
+    "no MOTION after the hierarchy": (
+        "\n".join(BASE_LINES[:15]),
+        15,
+        "expected MOTION after the hierarchy, found end of file",
+    ),
+    "joint name too long": (
+        replace_line(6, "  JOINT " + "k" * 257),
+        6,
+        "expected a joint name of at most 256 characters, found 257",
+    ),
 }
 
 
@@ -563,6 +593,35 @@ def test_many_joints_are_refused_fast_and_parsed_in_linear_time(
         else:
             assert isinstance(read[0], MocapFormatError)
             assert "expected '}' closing 'j5999'" in str(read[0])
+
+
+def test_hierarchy_bounds_are_inclusive(write_text, monkeypatch):
+    """Each hierarchy limit admits a file exactly at it ("at most"), end sites counted as points."""
+    from humotion_gym.mocap import bvh
+
+    # An offset and a motion value of exactly 1e9 are read; just beyond is refused.
+    at = BASE.replace("OFFSET 0 -1 0\n    CHANNELS", "OFFSET 0 1e9 0\n    CHANNELS")
+    at = at.replace("0 1 0 90 0 0 0 0 0", "0 1e9 0 90 0 0 0 0 0")
+    clip = load_bvh(write_text("at.bvh", at))
+    assert clip.offsets[1, 1] == 1e9 and clip.channels[1, 1] == 1e9
+    with pytest.raises(MocapFormatError, match="line 8: .*at most 1e\\+09"):
+        load_bvh(write_text("over.bvh", at.replace("OFFSET 0 1e9 0", "OFFSET 0 1.000001e9 0")))
+    # A name of MAX_NAME_LENGTH (256) characters and 64 channels in one joint.
+    name = "k" * 256
+    knee = "    CHANNELS 64 " + " ".join(["Zrotation"] * 64)
+    text = replace_line(9, knee).replace("JOINT knee", f"JOINT {name}")
+    rows = [[0, 1, 0, 0, 0, 0] + [0] * 64, [0, 1, 0, 90, 0, 0] + [0] * 64]
+    text = text.split("MOTION")[0] + "MOTION\nFrames: 2\nFrame Time: 0.5\n"
+    clip = load_bvh(write_text("wide.bvh", text + "".join(numbers(r) + "\n" for r in rows)))
+    assert clip.joint_names == ("hips", name) and len(clip.joint_channels[1]) == 64
+    np.testing.assert_allclose(clip.point_positions(), BASE_POSITIONS, atol=1e-12)
+    # BASE has 2 joints and 1 end site: 3 points. MAX_JOINTS counts both kinds.
+    path = write_text("base.bvh", BASE)
+    monkeypatch.setattr(bvh, "MAX_JOINTS", 3)
+    assert load_bvh(path).point_names == ("hips", "knee", "knee_End")
+    monkeypatch.setattr(bvh, "MAX_JOINTS", 2)
+    with pytest.raises(MocapFormatError, match="line 10: expected at most 2 joints and end sites"):
+        load_bvh(path)
 
 
 def test_frame_limits_can_be_raised(write_text, monkeypatch):
@@ -666,6 +725,15 @@ def test_write_reorders_joints_depth_first(tmp_path):
     np.testing.assert_allclose(got, np.stack([arm, hand, tip], axis=1), atol=1e-12)
 
 
+def test_fixed_decimals_keep_the_frame_time_exact(tmp_path):
+    """decimals rounds the values, never the frame time (1/120 s at 3 digits would be 0.008)."""
+    path = tmp_path / "d.bvh"
+    write_bvh(path, ["r"], [-1], np.zeros((1, 3)), [("Zrotation",)], [[1 / 3]], 1 / 120, decimals=3)
+    clip = load_bvh(path)
+    assert clip.frame_time == 1 / 120 and clip.fps == pytest.approx(120.0, rel=1e-12)
+    assert clip.channels[0, 0] == 0.333
+
+
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [
@@ -679,6 +747,13 @@ def test_write_reorders_joints_depth_first(tmp_path):
         ({"names": ["root", "my hand", "arm"]}, None),
         ({"names": ["root", "a{", "arm"]}, "cannot be written"),
         ({"frame_time": 0.0}, "frame_time"),
+        ({"offsets": [[0.0, 0, 0], [np.nan, 0, 0], [0, 0, 0]]}, "finite"),
+        ({"parents": [-1, 3, 0]}, "out of range"),
+        ({"names": ["root", "a}", "arm"]}, "cannot be written"),
+        ({"names": ["root", "arm", "arm"]}, "unique"),
+        ({"channels": [(), (), ()], "values": np.zeros((2, 0))}, "at least one channel"),
+        ({"end_sites": {3: [0.0, 1, 0]}}, "bad end site"),
+        ({"end_sites": {1: [0.0, np.nan, 0]}}, "bad end site"),
     ],
 )
 def test_write_rejects_what_bvh_cannot_hold(tmp_path, kwargs, match):
@@ -859,3 +934,23 @@ Frame Time: 0.0333333
     assert clip.position_channels == "replace"
     np.testing.assert_allclose(clip.point_positions(["Hips"])[:, 0, 1], 95.0)
     np.testing.assert_allclose(clip.point_positions(["Hips"])[-1, 0, 2], travel)
+
+
+def test_every_ascii_blank_separates_motion_values(write_text):
+    """Vertical tab and form feed separate values as a space does (bytes.split's blanks).
+
+    A carriage return inside a line (a blank too) sends the read past numpy's fast
+    table reader to the per-line token counts, which must count the same blanks.
+    """
+    rows = "0\x0b1\x0c0\r0 0 0 0 0 0\n0 1 0\x0c90\x0b0 0 0 0 0\n"
+    clip = load_bvh(write_text("vt.bvh", BASE.split("0 1 0 0 0 0")[0] + rows))
+    np.testing.assert_allclose(clip.point_positions(), BASE_POSITIONS, atol=1e-12)
+
+
+def test_an_opening_brace_on_the_joint_line_is_not_part_of_the_name(write_text):
+    """``ROOT hips {`` and ``JOINT knee {`` (brace on the keyword's line) read as BASE does."""
+    text = BASE.replace("ROOT hips\n{", "ROOT hips {").replace("JOINT knee\n  {", "JOINT knee {")
+    text = text.replace("End Site\n    {", "End Site {")
+    clip = load_bvh(write_text("braces.bvh", text))
+    assert clip.point_names == ("hips", "knee", "knee_End")
+    np.testing.assert_allclose(clip.point_positions(), BASE_POSITIONS, atol=1e-12)
