@@ -81,7 +81,9 @@ def test_another_compile_error_is_not_hidden(monkeypatch) -> None:
 
 
 @pytest.mark.skipif(not hasattr(os, "getuid"), reason="folders' owners and modes: POSIX")
-@pytest.mark.parametrize("taken", ["open to all", "a link", "a file", "a dangling link"])
+@pytest.mark.parametrize(
+    "taken", ["open to all", "open to its group", "a link", "a file", "a dangling link"]
+)
 def test_a_cache_folder_others_could_write_is_never_used(tmp_path, monkeypatch, taken) -> None:
     # numba unpickles its index files: a folder another user made first (or a
     # link to one) would run their code here.
@@ -89,9 +91,9 @@ def test_a_cache_folder_others_could_write_is_never_used(tmp_path, monkeypatch, 
 
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     usual = tmp_path / f"numba-cache-{os.getuid()}"
-    if taken == "open to all":
+    if taken.startswith("open to"):
         usual.mkdir()
-        usual.chmod(0o777)
+        usual.chmod(0o777 if taken == "open to all" else 0o770)
     elif taken == "a link":
         (tmp_path / "elsewhere").mkdir(mode=0o700)
         usual.symlink_to(tmp_path / "elsewhere")
@@ -108,3 +110,41 @@ def test_a_cache_folder_others_could_write_is_never_used(tmp_path, monkeypatch, 
     usual.chmod(0o755)  # ours, others could read only: closed to them and kept
     assert Path(_jit._own_temporary_folder()) == usual
     assert usual.stat().st_mode & 0o077 == 0
+
+
+def test_the_moved_cache_is_numbas_setting_and_the_processes_it_starts(
+    tmp_path: Path, monkeypatch
+) -> None:
+    """The temporary folder goes to numba's setting and to NUMBA_CACHE_DIR, for child processes."""
+    from numba.core import config as numba_config
+
+    folder = tmp_path / "private"
+    folder.mkdir(mode=0o700)
+    monkeypatch.setattr(_jit, "_own_temporary_folder", lambda: str(folder))
+    monkeypatch.setattr(numba_config, "CACHE_DIR", numba_config.CACHE_DIR)  # restored after
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "unwritable"))
+    with pytest.warns(UserWarning, match=r"in your NUMBA_CACHE_DIR \(.*unwritable\)"):
+        assert _jit._use_temporary_cache() is True
+    assert os.environ["NUMBA_CACHE_DIR"] == str(folder) == numba_config.CACHE_DIR
+    child = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.environ['NUMBA_CACHE_DIR'])"],
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    assert child.stdout.strip() == str(folder)
+
+
+@pytest.mark.skipif(not hasattr(os, "getuid"), reason="folders' owners and modes: POSIX")
+def test_another_users_private_folder_of_the_usual_name_is_never_used(
+    tmp_path: Path, monkeypatch
+) -> None:
+    """A folder closed to all but its owner, who is another user: a new folder is made."""
+    import tempfile
+
+    me = os.getuid()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    monkeypatch.setattr(os, "getuid", lambda: me + 1)  # the folder's owner is now another
+    usual = tmp_path / f"numba-cache-{me + 1}"
+    usual.mkdir(mode=0o700)
+    folder = Path(_jit._own_temporary_folder())
+    assert folder != usual and folder.parent == tmp_path
+    assert folder.stat().st_mode & 0o077 == 0
