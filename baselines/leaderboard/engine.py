@@ -656,26 +656,29 @@ class RayEngine:
         """
         ray = self.ray
         schedule = _Schedule(episodes)
-        pending: dict[Any, tuple[int, Episode]] = {}
+        pending: dict[Any, tuple[int, Episode, Any]] = {}
 
         def submit(slot: int) -> None:
             episode = schedule.next(slot)
             if episode is not None:
-                pending[self.actors[slot].run.remote(episode)] = (slot, episode)
+                actor = self.actors[slot]
+                pending[actor.run.remote(episode)] = (slot, episode, actor)
 
         for _ in range(QUEUE_DEPTH):
             for slot in range(len(self.actors)):
                 submit(slot)
         while pending:
             (ref,), _ = ray.wait(list(pending), num_returns=1)
-            slot, episode = pending.pop(ref)
+            slot, episode, actor = pending.pop(ref)
             try:
                 record = ray.get(ref)
             except ray.exceptions.RayActorError as exc:  # the worker died: replace it
                 record = _lost(episode, f"the Ray worker died: {exc}")
-                self.actors[slot] = self._actor.remote(*self._args)
-                if self._started_with is not None:
-                    self.actors[slot].start.remote(*self._started_with)
+                # Every episode queued on it fails too: one replacement, at the first.
+                if self.actors[slot] is actor:
+                    self.actors[slot] = self._actor.remote(*self._args)
+                    if self._started_with is not None:
+                        self.actors[slot].start.remote(*self._started_with)
             except ray.exceptions.RayError as exc:
                 record = _lost(episode, f"{type(exc).__name__}: {exc}")
             on_record(record)
