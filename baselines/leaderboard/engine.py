@@ -38,6 +38,7 @@ message"``) with ``traceback``; and ``agent_seed``, the seed its agent was built
 from __future__ import annotations
 
 import importlib
+import itertools
 import logging
 import os
 import pickle
@@ -652,37 +653,63 @@ class RayEngine:
     def run(self, episodes: Iterable[Episode], on_record: Callable[[dict[str, Any]], None]) -> None:
         """Run the episodes, handing each record to ``on_record`` as it finishes.
 
-        Records come in the order episodes finish, not the order given.
+        Records come in the order episodes finish, not the order given. A worker
+        that dies (a node lost, a process killed) is replaced, and the episodes
+        it held run again on the replacement. Ray fails every call queued on a
+        dead worker and runs a worker's calls in the order they were sent, so
+        the earliest was the one it ran; an episode whose worker died as it ran
+        it, twice, is lost (an error record).
         """
         ray = self.ray
         schedule = _Schedule(episodes)
-        pending: dict[Any, tuple[int, Episode, Any]] = {}
+        # Each call in flight: its worker's slot, its episode, the worker, how often
+        # a worker died as it ran the episode, and the order the calls were sent in.
+        pending: dict[Any, tuple[int, Episode, Any, int, int]] = {}
+        sent = itertools.count()
+
+        def send(slot: int, episode: Episode, deaths: int) -> None:
+            actor = self.actors[slot]
+            pending[actor.run.remote(episode)] = (slot, episode, actor, deaths, next(sent))
 
         def submit(slot: int) -> None:
             episode = schedule.next(slot)
             if episode is not None:
-                actor = self.actors[slot]
-                pending[actor.run.remote(episode)] = (slot, episode, actor)
+                send(slot, episode, 0)
 
         for _ in range(QUEUE_DEPTH):
             for slot in range(len(self.actors)):
                 submit(slot)
         while pending:
             (ref,), _ = ray.wait(list(pending), num_returns=1)
-            slot, episode, actor = pending.pop(ref)
+            call = pending.pop(ref)
+            slot, episode = call[0], call[1]
             try:
                 record = ray.get(ref)
-            except ray.exceptions.RayActorError as exc:  # the worker died: replace it
-                record = _lost(episode, f"the Ray worker died: {exc}")
-                # Every episode queued on it fails too: one replacement, at the first.
-                if self.actors[slot] is actor:
-                    self.actors[slot] = self._actor.remote(*self._args)
-                    if self._started_with is not None:
-                        self.actors[slot].start.remote(*self._started_with)
+            except ray.exceptions.RayActorError as exc:  # the worker died
+                dead = call[2]
+                held = [
+                    call,
+                    *(pending.pop(r) for r in [r for r, c in pending.items() if c[2] is dead]),
+                ]
+                held.sort(key=lambda c: c[4])
+                self._replace(slot)
+                ran, queued = held[0], held[1:]
+                for _, waiting, _, deaths, _ in queued:  # they never started: not their fault
+                    send(slot, waiting, deaths)
+                if ran[3] == 0:  # perhaps a node lost: once more, after the others
+                    send(slot, ran[1], 1)
+                    continue
+                record = _lost(ran[1], f"the Ray worker died as it ran it, twice: {exc}")
             except ray.exceptions.RayError as exc:
                 record = _lost(episode, f"{type(exc).__name__}: {exc}")
             on_record(record)
             submit(slot)
+
+    def _replace(self, slot: int) -> None:
+        """A new worker in ``slot``, started as :meth:`start` started the others."""
+        self.actors[slot] = self._actor.remote(*self._args)
+        if self._started_with is not None:
+            self.actors[slot].start.remote(*self._started_with)
 
     def close(self) -> None:
         """Stop the actors, and Ray if this engine started it."""

@@ -157,19 +157,23 @@ class _Ref:
 class _Ray:
     """Ray as RayEngine uses it, in this process: each call checked against the actor's method.
 
-    An episode whose seed is in ``dies`` kills its actor (once), and every call
-    queued on a dead actor fails as Ray's do; one in ``fails`` fails in Ray;
-    every other returns a record naming its episode.
+    An episode whose seed is in ``dies`` kills its actor (once; in ``kills``,
+    every time it runs), and every call queued on a dead actor fails as Ray's
+    do; one in ``fails`` fails in Ray; every other returns a record naming its
+    episode.
     """
 
     exceptions = type("exceptions", (), {"RayActorError": _Died, "RayError": _Failed,
                                          "RayTaskError": _Failed})  # fmt: skip
 
-    def __init__(self, dies: set[int] = frozenset(), fails: set[int] = frozenset()) -> None:
+    def __init__(
+        self, dies: set[int] = frozenset(), fails: set[int] = frozenset(),
+        kills: set[int] = frozenset(),
+    ) -> None:  # fmt: skip
         import pickle
 
         self.cloudpickle = pickle
-        self.dies, self.fails = set(dies), set(fails)
+        self.dies, self.fails, self.kills = set(dies), set(fails), set(kills)
         self.made: list[Any] = []
         self.started: list[Any] = []
 
@@ -213,7 +217,18 @@ class _Ray:
         return value
 
     def wait(self, refs: list[Any], num_returns: int = 1) -> tuple[list[Any], list[Any]]:
-        return refs[:1], refs[1:]
+        """Each actor runs its oldest call; the oldest call is done, but a dead actor's
+        last queued call fails first (Ray's order among a dead actor's calls varies)."""
+        running: dict[int, Any] = {}
+        for r in refs:  # in the order they were sent
+            running.setdefault(id(r.actor), r)
+        for r in running.values():
+            if r.name == "run" and r.args[0].seed in self.dies | self.kills:
+                self.dies.discard(r.args[0].seed)
+                r.actor.dead = True
+        dead = [r for r in refs if getattr(r.actor, "dead", False)]
+        first = dead[-1] if dead else refs[0]
+        return [first], [r for r in refs if r is not first]
 
     def get(self, ref: Any) -> Any:
         if isinstance(ref, list):
@@ -223,10 +238,6 @@ class _Ray:
             return engine.package_version(), 1
         episode = args[0]
         if getattr(ref.actor, "dead", False):
-            raise _Died("the actor died before this call")
-        if episode.seed in self.dies:
-            self.dies.discard(episode.seed)
-            ref.actor.dead = True
             raise _Died("the actor died")
         if episode.seed in self.fails:
             raise _Failed("object lost")
@@ -256,16 +267,25 @@ def test_ray_runs_every_episode_once_and_a_ray_failure_is_an_error_record(monkey
     assert all(r["result"] == {"seed": r["seed"]} for r in records if "error" not in r)
 
 
-def test_a_dead_ray_worker_is_a_lost_record_and_is_replaced(monkeypatch):
-    """The episode of a worker that died is an error record; a new worker takes its place."""
+def test_a_dead_ray_worker_is_replaced_and_its_episodes_run_again(monkeypatch):
+    """A worker dies once: a new one takes its place and runs every episode it held."""
     fake = _Ray(dies={2})
     records = _ray_run(monkeypatch, fake, 6)
     assert sorted(r["seed"] for r in records) == list(range(6))
-    lost = [r for r in records if "error" in r]
-    # the episode that killed it, and the one queued behind it (Ray fails both)
-    assert 2 in [r["seed"] for r in lost] and len(lost) == engine.QUEUE_DEPTH
-    assert all(r["error"].startswith("the Ray worker died") for r in lost)
+    assert all(r["result"] == {"seed": r["seed"]} for r in records)  # none lost
     assert len(fake.made) == 3 and fake.made[-1] in fake.started  # replaced once, started
+
+
+def test_an_episode_that_kills_its_worker_twice_is_a_lost_record(monkeypatch):
+    """Episode 2 kills every worker that runs it: lost after two, the rest all run."""
+    fake = _Ray(kills={2})
+    records = _ray_run(monkeypatch, fake, 6)
+    assert sorted(r["seed"] for r in records) == list(range(6))
+    lost = [r for r in records if "error" in r]
+    assert [r["seed"] for r in lost] == [2]
+    assert lost[0]["error"].startswith("the Ray worker died as it ran it, twice")
+    assert all(r["result"] == {"seed": r["seed"]} for r in records if "error" not in r)
+    assert len(fake.made) == 4 and all(a in fake.started for a in fake.made[2:])  # two replaced
 
 
 def test_a_joined_cluster_takes_as_many_workers_as_it_has_cpus_and_no_more(monkeypatch):
@@ -288,8 +308,8 @@ def test_the_inprocess_engine_takes_one_worker_here_and_nothing_else():
 
 
 def test_a_worker_that_dies_in_real_ray_is_an_error_row_and_the_run_goes_on(monkeypatch):
-    """A real Ray worker exits mid-episode: its agent's row names the lost episode, and the
-    rest of the run (on the replacement worker) comes back whole."""
+    """A real Ray worker exits in an episode, and its replacement too: that agent's row
+    names the lost episode, and the rest of the run (on a new worker) comes back whole."""
     pytest.importorskip("ray", reason="the distributed extra (pip install -e '.[distributed]')")
     import os
 
@@ -313,6 +333,8 @@ def test_a_worker_that_dies_in_real_ray_is_an_error_row_and_the_run_goes_on(monk
         engine="ray", workers=1, env_kwargs=SMALL,
     )  # fmt: skip
     by_agent = {r["agent"]: r for r in rows}
-    assert by_agent["dies-mine"]["error"].startswith("episode 2 raised the Ray worker died")
+    assert by_agent["dies-mine"]["error"].startswith(
+        "episode 2 raised the Ray worker died as it ran it, twice"
+    )
     assert "error" not in by_agent["hold"]
     assert [e["seed"] for e in by_agent["hold"]["episodes"]] == [0, 1, 2, 3]
