@@ -51,7 +51,7 @@ from collections import OrderedDict, deque
 from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import cv2
 import gymnasium as gym
@@ -502,6 +502,16 @@ def _keeping_sigterm(call: Callable[[], Any]) -> None:
             signal.signal(signal.SIGTERM, previous)
 
 
+class _Call(NamedTuple):
+    """An episode sent to a Ray worker and not yet collected."""
+
+    slot: int  # the worker's place in RayEngine.actors
+    episode: Episode
+    actor: Any
+    deaths: int  # how often a worker died as it ran this episode
+    order: int  # when it was sent: a worker runs its calls in this order
+
+
 class RayEngine:
     """Runs episodes on Ray actors, one :class:`EpisodeRunner` each.
 
@@ -662,14 +672,12 @@ class RayEngine:
         """
         ray = self.ray
         schedule = _Schedule(episodes)
-        # Each call in flight: its worker's slot, its episode, the worker, how often
-        # a worker died as it ran the episode, and the order the calls were sent in.
-        pending: dict[Any, tuple[int, Episode, Any, int, int]] = {}
+        pending: dict[Any, _Call] = {}  # by Ray's reference to the call's result
         sent = itertools.count()
 
         def send(slot: int, episode: Episode, deaths: int) -> None:
             actor = self.actors[slot]
-            pending[actor.run.remote(episode)] = (slot, episode, actor, deaths, next(sent))
+            pending[actor.run.remote(episode)] = _Call(slot, episode, actor, deaths, next(sent))
 
         def submit(slot: int) -> None:
             episode = schedule.next(slot)
@@ -682,26 +690,22 @@ class RayEngine:
         while pending:
             (ref,), _ = ray.wait(list(pending), num_returns=1)
             call = pending.pop(ref)
-            slot, episode = call[0], call[1]
+            slot = call.slot
             try:
                 record = ray.get(ref)
             except ray.exceptions.RayActorError as exc:  # the worker died
-                dead = call[2]
-                held = [
-                    call,
-                    *(pending.pop(r) for r in [r for r, c in pending.items() if c[2] is dead]),
-                ]
-                held.sort(key=lambda c: c[4])
+                on_dead = [r for r, c in pending.items() if c.actor is call.actor]
+                held = sorted([call, *(pending.pop(r) for r in on_dead)], key=lambda c: c.order)
                 self._replace(slot)
                 ran, queued = held[0], held[1:]
-                for _, waiting, _, deaths, _ in queued:  # they never started: not their fault
-                    send(slot, waiting, deaths)
-                if ran[3] == 0:  # perhaps a node lost: once more, after the others
-                    send(slot, ran[1], 1)
+                for waiting in queued:  # they never started: not their fault
+                    send(slot, waiting.episode, waiting.deaths)
+                if ran.deaths == 0:  # perhaps a node lost: once more, after the others
+                    send(slot, ran.episode, 1)
                     continue
-                record = _lost(ran[1], f"the Ray worker died as it ran it, twice: {exc}")
+                record = _lost(ran.episode, f"the Ray worker died as it ran it, twice: {exc}")
             except ray.exceptions.RayError as exc:
-                record = _lost(episode, f"{type(exc).__name__}: {exc}")
+                record = _lost(call.episode, f"{type(exc).__name__}: {exc}")
             on_record(record)
             submit(slot)
 
