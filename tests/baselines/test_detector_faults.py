@@ -16,6 +16,7 @@ import pytest
 pytest.importorskip("torch", reason="the detector runs on torch (the rl extra)")
 
 import torch as th
+from test_detector import _Fixed  # a detector that answers given points
 
 import humotion_gym  # noqa: F401
 from baselines.agents import AGENTS, tracking_env
@@ -43,16 +44,6 @@ from humotion_gym.camera import fit_camera
 from humotion_gym.envs.tasks import get_task
 
 FloatArray = np.ndarray
-
-
-class _Fixed(Detector):
-    """A detector that answers given points (the scoring is what is tested)."""
-
-    def __init__(self, points: FloatArray) -> None:
-        self.points = points
-
-    def detect(self, frames: np.ndarray) -> FloatArray:
-        return np.repeat(self.points[None], len(frames), axis=0)
 
 
 def _rendered(seed: int, split: str = "train") -> tuple[np.ndarray, FloatArray]:

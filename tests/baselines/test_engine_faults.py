@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
+from test_leaderboard_engine import _numbers  # a result less its timings
 
 from baselines.agents import tracking_env
 from baselines.leaderboard import engine
@@ -26,11 +27,6 @@ from baselines.leaderboard.engine import (
 
 TASK = "ArmTrack-v2"
 SMALL = {"episode_frames": 4, "width": 64, "height": 64}
-
-
-def _numbers(result: dict[str, Any]) -> dict[str, Any]:
-    """A result less its timing."""
-    return {k: v for k, v in result.items() if k != "ms_per_frame"}
 
 
 def test_a_declared_window_is_the_episode_run():

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 from test_slds import _rot, _spd, random_model  # the same small random models
-from test_slds_oracles import ragged_batch
+from test_slds_oracles import smoothed_on_a_random_path
 
 from baselines.priors.slds_inference import (
     COV_RTOL,
@@ -52,10 +52,7 @@ def reference_emission(
 
 def test_the_learned_emissions_m_step_is_the_map_estimate_frame_by_frame() -> None:
     """``C, d, R`` against the oracle, with the statistics summed over two batches."""
-    params, seqs = ragged_batch(21, "learned", order=1)
-    path = np.random.default_rng(22).integers(0, params.n_states, size=seqs.observed.shape)
-    filt = filter_path(params, seqs, path)
-    sm = rts_smoother(params, path, filt, seqs.lengths)
+    params, seqs, path, sm = smoothed_on_a_random_path(21, "learned")
     dx, dy = params.latent_dim, params.obs_dim
     rng = np.random.default_rng(23)
     reg = Regulariser(

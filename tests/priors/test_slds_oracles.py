@@ -70,6 +70,15 @@ def test_viterbi_filter_returns_viterbis_path_and_cost(emission, order):
         assert np.all(np.isfinite(arr))
 
 
+def smoothed_on_a_random_path(seed, emission):
+    """A ragged batch (:func:`ragged_batch`, order 1), a random path through its states
+    (every transition seen), and the RTS smoother's moments along it."""
+    params, seqs = ragged_batch(seed, emission, order=1)
+    path = np.random.default_rng(seed + 1).integers(0, params.n_states, size=seqs.observed.shape)
+    sm = rts_smoother(params, path, filter_path(params, seqs, path), seqs.lengths)
+    return params, seqs, path, sm
+
+
 def test_the_smoother_is_the_per_frame_smoother():
     # The batched gains against one solve per frame: the same algebra in
     # another order (1e-10 relative, well above float64's rounding of a few
@@ -281,10 +290,7 @@ def test_the_m_step_is_the_map_estimate_of_the_smoothed_moments():
     # missing first frame, and a regulariser whose every term counts.
     from baselines.priors.slds_learning import Regulariser, _accumulate, _Stats, m_step
 
-    params, seqs = ragged_batch(14, "identity", order=1)
-    path = np.random.default_rng(15).integers(0, params.n_states, size=seqs.observed.shape)
-    filt = filter_path(params, seqs, path)
-    sm = rts_smoother(params, path, filt, seqs.lengths)
+    params, seqs, path, sm = smoothed_on_a_random_path(14, "identity")
     dx, dy = params.latent_dim, params.obs_dim
     rng = np.random.default_rng(16)
     reg = Regulariser(
