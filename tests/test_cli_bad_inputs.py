@@ -400,3 +400,20 @@ def test_version_and_bare_command(capsys):
     assert main([]) == 0
     out = capsys.readouterr().out
     assert "everyday commands:" in out and "research commands" in out
+
+
+@pytest.mark.parametrize("command", sorted(c for c, _ in _subparsers(build_parser())))
+def test_an_unknown_flag_is_refused_in_the_words_of_its_command(command, workspace, capsys):
+    """Not ``humotion-gym: error`` with the top's help: the command's name and its help."""
+    required = {  # what the commands BASE leaves out require, so that the flag is the fault
+        "compare": ["{rows}", "{rows}"],
+        "ratio": ["{rows}", "--task", "ArmTrack-v2", "--cells", "hold", "pf-cv@10"],
+        "detector train": ["--out", "{ws}/detector"],
+    }
+    given = BASE.get(command, required.get(command, []))
+    argv = [*command.split(), *(a.format(**workspace) for a in given)]
+    assert main([*argv, "--no-such-flag"]) == 2
+    assert capsys.readouterr().err == (
+        f"humotion-gym {command}: error: unrecognized arguments: --no-such-flag "
+        f"(see humotion-gym {command} --help)\n"
+    )

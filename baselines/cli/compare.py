@@ -33,8 +33,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "if any differs or none is compared. Reads leaderboard runs and oracle runs "
         "(humotion-gym oracle --out; each likelihood an agent of its own).",
     )
-    cp.add_argument("rerun", type=Path, help="the rerun's results.json (or .json.gz)")
-    cp.add_argument("recorded", type=Path, help="the record's results.json.gz (or .json)")
+    cp.add_argument(
+        "rerun", type=Path, help="the rerun: its --out folder, or the results.json (.gz) in it"
+    )
+    cp.add_argument(
+        "recorded", type=Path, help="the record: its folder, or the results.json.gz (.json) in it"
+    )
     cp.add_argument(
         "--rtol", type=float_between(0.0, 1.0), default=5e-7,
         help="relative tolerance on each episode's mean error (default: 5e-7)",
@@ -46,11 +50,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _cmd_compare(args: argparse.Namespace) -> int:
     from baselines.diagnostics.split import episode_rows
     from baselines.leaderboard.compare import compare_runs
-    from baselines.leaderboard.report import leaderboard_rows
+    from baselines.leaderboard.report import leaderboard_rows, results_file
     from humotion_gym.files import read_json
 
     runs, seeds = [], []
-    for path in (args.rerun, args.recorded):
+    for given in (args.rerun, args.recorded):
+        path = results_file(given)  # a folder's file; its error names the folder
         # ValueError innermost, so checked first (io.UnsupportedOperation is both)
         with refused_as(CommandError, OSError, f"{path}: "), refused_as(CommandError, ValueError):
             data = read_json(path)

@@ -48,7 +48,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     rp.add_argument(
         "results", type=Path, nargs="+",
-        help="saved leaderboards (results.json or .json.gz) holding the two cells",
+        help="saved leaderboards holding the two cells: their folders, or the results.json "
+        "(.gz) in them",
     )  # fmt: skip
     rp.add_argument(
         "--task", type=task_name, required=True,
@@ -62,7 +63,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_ratio(args: argparse.Namespace) -> int:
-    from baselines.leaderboard.report import load_rows
+    from baselines.leaderboard.report import load_rows, results_file
     from baselines.leaderboard.rows import cell_label
     from baselines.leaderboard.tables import compare_to_hold, hold_ratio_interval, ratio_verdict
 
@@ -71,7 +72,8 @@ def _cmd_ratio(args: argparse.Namespace) -> int:
     cells: dict[str, dict[str, Any]] = {}
     ran_with: dict[str, tuple[str, Any]] = {}  # each cell's file and what decided its frames
     there: set[str] = set()
-    for path in args.results:
+    for given in args.results:
+        path = results_file(given)  # a folder's file; its error names the folder
         # ValueError innermost, so checked first (io.UnsupportedOperation is both)
         with refused_as(CommandError, OSError, f"{path}: "), refused_as(CommandError, ValueError):
             rows, settings = load_rows(path)

@@ -63,15 +63,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _cmd_report(args: argparse.Namespace) -> int:
     from baselines.leaderboard.figures import figures_available
-    from baselines.leaderboard.report import load_rows, write_report
+    from baselines.leaderboard.report import load_rows, results_file, write_report
     from baselines.leaderboard.videos import ReplayMismatch
 
     if args.video_agents and not args.videos:
         raise UsageError("--video-agents: only with --videos")
-    if args.results.is_dir():  # a run's folder, or a recorded one (results.json.gz)
-        plain = args.results / "results.json"
-        packed = args.results / "results.json.gz"
-        args.results = packed if packed.is_file() and not plain.is_file() else plain
+    args.results = results_file(args.results)
     if not args.results.is_file():
         raise FileNotFoundError(f"{args.results}: no such leaderboard file")
     with refused_as(CommandError, (ValueError, UnicodeDecodeError)):

@@ -86,8 +86,31 @@ PERSON_LEGEND = (
 # ------------------------------------------------------------------ input
 
 
+def results_file(path: str | Path) -> Path:
+    """A saved run's results file: ``path``, or for a run's folder the file in it.
+
+    A folder (a leaderboard's or an oracle's ``--out``, or a recorded run in
+    ``results/``) gives its ``results.json``, else its ``results.json.gz``.
+
+    Raises:
+        FileNotFoundError: If ``path`` is a folder that holds neither (the
+            message says what it holds instead).
+    """
+    path = Path(path)
+    if not path.is_dir():
+        return path
+    for name in ("results.json", "results.json.gz"):
+        if (path / name).is_file():
+            return path / name
+    unfinished = (path / "episodes.jsonl").is_file()
+    raise FileNotFoundError(
+        f"{path}: a folder without results.json or results.json.gz"
+        + (": its run did not finish (--resume finishes it)" if unfinished else "")
+    )
+
+
 def load_rows(path: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
-    """Rows and run settings of a saved leaderboard.
+    """Rows and run settings of a saved leaderboard (a file, or a folder: :func:`results_file`).
 
     Accepts the bare list of rows that ``humotion-gym leaderboard --out``
     writes, or a JSON object with a ``rows`` list (a results file), whose
@@ -98,6 +121,7 @@ def load_rows(path: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
         OSError: If the file cannot be read.
         ValueError: If it is not such a JSON document (the message names the file).
     """
+    path = results_file(path)
     return leaderboard_rows(read_json(path), path)
 
 

@@ -159,6 +159,18 @@ def build_parser(modules: Sequence[str] = COMMAND_MODULES) -> argparse.ArgumentP
     return parser
 
 
+def _command_parser(
+    parser: argparse.ArgumentParser, args: argparse.Namespace
+) -> argparse.ArgumentParser:
+    """The parser of the (sub)command ``args`` were parsed for: ``data info``'s, not the top's."""
+    while True:
+        subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+        chosen = getattr(args, subs[0].dest, None) if subs else None
+        if chosen is None:
+            return parser
+        parser = subs[0].choices[chosen]
+
+
 def _error(parser: argparse.ArgumentParser, args: argparse.Namespace, message: str) -> None:
     prog = " ".join(
         [parser.prog]
@@ -272,7 +284,9 @@ def main(argv: Sequence[str] | None = None, modules: Sequence[str] = COMMAND_MOD
             parser.print_help()
             return 0
         try:
-            args = parser.parse_args(argv)
+            args, extra = parser.parse_known_args(argv)
+            if extra:  # said by the command's own parser, which names the command
+                _command_parser(parser, args).error(f"unrecognized arguments: {' '.join(extra)}")
         except SystemExit as exc:  # --help, --version (0) or a usage error (2)
             return exc.code if isinstance(exc.code, int) else 2
     except KeyboardInterrupt as exc:  # before the command started: nothing written

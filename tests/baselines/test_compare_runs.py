@@ -103,3 +103,19 @@ def test_runs_of_other_seeds_compare_nothing(tmp_path, capsys):
     assert captured.out == "" and "share no episode" in captured.err
     assert captured.err.count("\n") == 1
     assert seeds and compare_runs(shifted, rows, agent_seeds=(3, 3)).compared > 0
+
+
+def test_a_run_is_named_by_its_folder_as_by_its_file(tmp_path, capsys):
+    """A run's --out folder (results.json) and a recorded folder (results.json.gz) both read."""
+    rerun = tmp_path / "rerun"
+    rerun.mkdir()
+    (rerun / "results.json").write_text(json.dumps({"rows": _rows()}))
+    assert main(["compare", str(rerun), str(RECORDED.parent)]) == 0
+    assert "0 differ" in capsys.readouterr().out
+    unfinished = tmp_path / "unfinished"
+    unfinished.mkdir()
+    (unfinished / "episodes.jsonl").write_text("")
+    assert main(["compare", str(unfinished), str(RECORDED.parent)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.count(str(unfinished)) == 1
+    assert "without results.json or results.json.gz: its run did not finish" in err

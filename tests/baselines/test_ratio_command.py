@@ -37,9 +37,9 @@ def test_it_gives_the_tables_classic_line(capsys: pytest.CaptureFixture[str]) ->
 
 
 def test_cells_of_two_files_and_json(capsys: pytest.CaptureFixture[str]) -> None:
+    # a recorded run by its folder, another by its file
     argv = ["ratio", "--task", "ArmTrack-v2", "--cells", "pf-tree+bc@300", "pf-tree@300",
-            str(RESULTS / "v2_learned_arm_side" / "results.json.gz"),
-            str(RESULTS / "v2_arm" / "results.json.gz")]  # fmt: skip
+            str(RESULTS / "v2_learned_arm_side"), str(RESULTS / "v2_arm" / "results.json.gz")]  # fmt: skip
     assert main([*argv, "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
     low, high = result["interval"]
@@ -56,6 +56,7 @@ def test_cells_of_two_files_and_json(capsys: pytest.CaptureFixture[str]) -> None
         (["pf-tree@300", "pf-tree@100"], [BODY, RESULTS / "ci_small" / "results.json.gz"],
          "no cell 'pf-tree@100' of BodyTrack-v2"),
         (["pf-tree@300", "pf-cv@3000"], [RESULTS / "missing.json.gz"], "missing.json.gz"),
+        (["pf-tree@300", "pf-cv@3000"], [RESULTS], "results: a folder without results.json"),
     ],
 )  # fmt: skip
 def test_what_it_cannot_compare_is_one_line(
