@@ -408,7 +408,7 @@ def task_name(text: str) -> str:
     if name not in TASKS and name not in VIEW_VARIANTS:
         raise argparse.ArgumentTypeError(
             f"unknown task {text}; the tasks are "
-            f"{', '.join(sorted(TASKS) + sorted(VIEW_VARIANTS))} (see humotion-gym tasks)"
+            f"{', '.join(sorted(TASKS) + sorted(VIEW_VARIANTS))}, described by humotion-gym tasks"
         )
     return name
 
