@@ -82,6 +82,21 @@ def test_a_hybrid_of_a_saved_policy_parses_and_its_file_is_checked(tmp_path, cap
     assert "no such policy file" in err and len(err.splitlines()) == 1  # paths cut at 80
 
 
+@pytest.mark.parametrize("agent", ["{run}", "{run}/", "{folder}.zip", "pf-tree+{folder}.zip",
+                                   "bc={folder}.zip"])  # fmt: skip
+def test_a_folder_given_as_a_policy_says_so(agent, tmp_path, capsys):
+    """A train run's folder points at its model.zip; not 'unknown agent' or 'no such file'."""
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "model.zip").write_bytes(b"")
+    (tmp_path / "folder.zip").mkdir()
+    argv = ["track", "--agent", agent.format(run=run, folder=tmp_path / "folder")]
+    assert main(argv) == 2
+    (line,) = capsys.readouterr().err.splitlines()
+    assert ": a folder; expected a saved policy file PATH.zip" in line
+    assert (f"(the run's policy is {run / 'model.zip'})" in line) == agent.startswith("{run}")
+
+
 def test_output_files_get_their_folders_before_the_command_runs(tmp_path, capsys):
     out = tmp_path / "new" / "deeper" / "walk.mp4"
     assert main(["render", "--task", "WalkTrack-v2", "--frames", "2", "--out", str(out)]) == 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Any
 
 from baselines import MAX_PARTICLES
@@ -42,6 +43,8 @@ def agent_name(text: str) -> str:
     from baselines.agents import agent_names, is_learned
     from baselines.agents.learned import policy_file, policy_spec, takes_particles
 
+    if text not in agent_names() and Path(text).is_dir():
+        raise argparse.ArgumentTypeError(_folder_for_policy(text, Path(text)))
     if text not in agent_names() and not is_learned(text):
         raise argparse.ArgumentTypeError(
             f"unknown agent {text[:80]}; the agents are {', '.join(agent_names())}, each "
@@ -59,9 +62,18 @@ def agent_name(text: str) -> str:
                 f"{text[:80]}: expected bc, ppo or a saved policy PATH.zip after the '+'"
             )
     path = policy_file(text)
+    if path is not None and path.is_dir():
+        raise argparse.ArgumentTypeError(_folder_for_policy(text, path))
     if path is not None and not path.is_file():
         raise argparse.ArgumentTypeError(f"{text[:80]}: no such policy file {str(path)[:80]}")
     return text
+
+
+def _folder_for_policy(text: str, folder: Path) -> str:
+    """Why a folder is not an agent: a saved policy is a file (a train run's model.zip)."""
+    model = folder / "model.zip"
+    hint = f" (the run's policy is {model})" if model.is_file() else ""
+    return f"{text[:80]}: a folder; expected a saved policy file PATH.zip{hint}"
 
 
 def add_particles(parser: argparse.ArgumentParser, what: str = "particles") -> None:
