@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import inspect
 import json
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -23,17 +23,21 @@ from tqdm.auto import tqdm
 from baselines.experiments._plotting import save as save_figure
 from baselines.leaderboard.across_tasks import normalised_scores
 from baselines.leaderboard.evaluation import summarize
-from baselines.leaderboard.results import RUN_FILE
+from baselines.leaderboard.results import RUN_FILE, ResumeError, _jsonable, data_folders
 from baselines.leaderboard.rows import cell_label
 from baselines.leaderboard.run import run_leaderboard
 from baselines.leaderboard.stats import bootstrap_ci, iqm
 from baselines.leaderboard.videos import file_slug
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
-from humotion_gym.files import json_default, write_text_atomically
+from humotion_gym.files import json_default, read_json, write_text_atomically
 from humotion_gym.render import SceneOptions
 
 #: Sweep format version (``sweep.json``'s ``version``).
 VERSION = 1
+#: The file of a sweep's folder holding what decides its numbers
+#: (:func:`sweep_settings`), written before the first point runs: a resumed
+#: sweep must be the same sweep, or its points would mix two grids.
+SETTINGS_FILE = "sweep-run.json"
 
 #: Settings a sweep can vary: name -> (environment keyword(s), what it is).
 SETTINGS: dict[str, str] = {
@@ -96,8 +100,9 @@ def run_sweep(
         out: A folder for each point's leaderboard results
             (:func:`point_folder`): every finished episode is kept as it
             finishes, so an interrupted sweep loses only the episodes in flight.
-        resume: Continue the sweep saved in ``out``: each point's run resumes
-            where it stopped (a point not yet started runs afresh).
+        resume: Continue the sweep saved in ``out`` (its :data:`SETTINGS_FILE`
+            must hold these settings): each point's run resumes where it
+            stopped (a point not yet started runs afresh).
 
     Returns:
         The sweep (plain JSON, :data:`VERSION`): ``tasks``, ``agents``,
@@ -106,6 +111,10 @@ def run_sweep(
 
     Raises:
         ValueError: If the grid is empty or names an unknown setting.
+        ResumeError: If resuming a sweep saved with other settings
+            (:func:`check_resume`), or a point's saved run cannot be resumed.
+        FileExistsError: If ``out`` holds a sweep and ``resume`` is False.
+        FileNotFoundError: If ``resume`` is True and ``out`` holds no sweep.
     """
     points = [(name, v) for name, values in grid.items() for v in values]
     if not points:
@@ -114,6 +123,9 @@ def run_sweep(
     for name, v in points:
         setting_kwargs(name, v)  # every value checked before the first run
     folder = None if out is None else Path(out)
+    if folder is not None:
+        settings = sweep_settings(tasks, agents, particles, grid, episodes, seed, base)
+        _start(folder, settings, resume)
     result: dict[str, Any] = {
         "version": VERSION,
         "tasks": list(tasks),
@@ -139,6 +151,131 @@ def run_sweep(
         )  # fmt: skip
         result["points"].append({"setting": name, "value": value, "rows": rows})
     return result
+
+
+def sweep_settings(
+    tasks: Sequence[str],
+    agents: Sequence[str],
+    particles: Sequence[int],
+    grid: Mapping[str, Sequence[Any]],
+    episodes: int,
+    seed: int,
+    env_kwargs: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
+    """What decides a sweep's numbers and its points' folders, as plain JSON.
+
+    The motion capture is its absolute folders, whichever way they were named
+    (``data_dir`` relative or with a trailing slash, or ``$HUMOTION_MOCAP``;
+    None: the built-in synthetic set), as a leaderboard's ``run.json`` keeps
+    it. The engine is left out (every engine gives the same numbers), and so
+    is the code's version: each point's own ``run.json`` checks that.
+    """
+    kwargs = dict(env_kwargs or {})
+    settings = {
+        "version": VERSION, "tasks": list(tasks), "agents": list(agents),
+        "particles": list(particles),
+        "grid": {name: list(values) for name, values in grid.items()},
+        "episodes": episodes, "seed": seed,
+        "env_kwargs": {k: v for k, v in kwargs.items() if k != "data_dir"},
+        "data": data_folders(kwargs) or None,
+    }  # fmt: skip
+    return dict(_jsonable(settings))
+
+
+def check_resume(
+    folder: str | Path, settings: Mapping[str, Any], name: Callable[[str], str] = str
+) -> None:
+    """Refuse to resume the sweep saved in ``folder`` with other settings.
+
+    Every setting must be the saved one: another grid would number its
+    points otherwise (a point folder of each grid side by side, and the
+    summary of the new grid alone), other agents or episodes would leave
+    saved episodes out of the table.
+
+    Args:
+        folder: The sweep's folder.
+        settings: The resumed sweep's :func:`sweep_settings`.
+        name: How a setting is named in the message (the command gives its flag).
+
+    Raises:
+        ResumeError: Naming each setting that differs, with its saved value and
+            the given one; or where the folder has points but no :data:`SETTINGS_FILE`.
+        FileNotFoundError: If the folder holds no sweep.
+        ValueError: If the settings file is damaged (naming it).
+    """
+    folder = Path(folder)
+    path = folder / SETTINGS_FILE
+    if not path.is_file():
+        if (folder / "points").is_dir():
+            raise ResumeError(
+                f"{folder}: its points have no {SETTINGS_FILE}, so they cannot be matched to "
+                "these settings; run the sweep afresh in another folder"
+            )
+        raise FileNotFoundError(f"{path}: no sweep to resume in {folder}")
+    saved = read_json(path)
+    if not isinstance(saved, dict):
+        raise ValueError(f"{path}: not a sweep's settings (a JSON object)")
+    differ = _differences(saved, settings)
+    if differ:
+        shown = "; ".join(
+            f"{name(key)}: saved {_shown(key, before)}, now {_shown(key, now)}"
+            for key, before, now in differ
+        )
+        raise ResumeError(
+            f"{folder}: the saved sweep has other settings, so its points would not match "
+            f"({shown}); resume with the same settings or use another folder"
+        )
+
+
+def _differences(
+    saved: Mapping[str, Any], settings: Mapping[str, Any]
+) -> list[tuple[str, Any, Any]]:
+    """``(setting, saved value, given value)`` for each setting that differs; a grid per value."""
+    out = []
+    for key, now in settings.items():
+        before = saved.get(key)
+        if key == "grid" and isinstance(before, dict) and isinstance(now, dict):
+            # a setting swept in one of them only shows as "not swept" in the other
+            values = [
+                (setting, before.get(setting), now.get(setting))
+                for setting in dict.fromkeys([*before, *now])
+                if before.get(setting) != now.get(setting)
+            ]
+            if not values and list(before) != list(now):  # the same grid in another order
+                values = [(key, list(before), list(now))]
+            out += values
+        elif before != now:
+            out.append((key, before, now))
+    return out
+
+
+def _shown(key: str, value: Any) -> str:
+    """A saved or given setting as a message shows it: lists as the command line takes them."""
+    if value is None:  # no data folder; a setting the grid leaves out
+        if key == "data":
+            return "the built-in synthetic motion"
+        return "not swept" if key in SETTINGS else "none"
+    if isinstance(value, list):
+        return " ".join(map(str, value)) or "none"
+    return str(value)
+
+
+def _start(folder: Path, settings: dict[str, Any], resume: bool) -> None:
+    """Check a resumed sweep's settings, or keep a new one's before its first point.
+
+    Raises:
+        FileExistsError: If ``resume`` is False and the folder holds a sweep's settings.
+    """
+    path = folder / SETTINGS_FILE
+    if resume:
+        check_resume(folder, settings)
+        return
+    if path.exists():
+        raise FileExistsError(
+            f"{folder} already holds a sweep ({SETTINGS_FILE}); resume it or choose another folder"
+        )
+    folder.mkdir(parents=True, exist_ok=True)
+    write_text_atomically(path, json.dumps(settings, indent=1) + "\n")
 
 
 def point_folder(folder: str | Path, index: int, name: str, value: Any) -> Path:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from baselines.cli._args import (
@@ -39,6 +40,7 @@ from humotion_gym.cli._common import (
     output_dir,
     output_file,
     print_json,
+    refused_as,
     wrote,
 )
 from humotion_gym.files import write_text_atomically
@@ -106,7 +108,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     sw.add_argument(
         "--resume", action="store_true",
-        help="continue the sweep saved in OUT: each point's run resumes where it stopped "
+        help="continue the sweep saved in OUT, given with the same tasks, agents, particles, "
+        "episodes, seed, settings and data: each point's run resumes where it stopped "
         "(default: an OUT holding a sweep is refused)",
     )  # fmt: skip
     sw.add_argument(
@@ -121,27 +124,56 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sw.set_defaults(func=_cmd_sweep)
 
 
+def _flag(setting: str) -> str:
+    """The flag that gives a setting of :func:`baselines.sweep.sweep_settings`."""
+    if setting in ("version", "env_kwargs", "grid"):  # the file's format, or no flag's
+        return setting
+    return "--data-dir" if setting == "data" else "--" + setting.replace("_", "-")
+
+
+def _check_out(args: argparse.Namespace, grid: Mapping[str, Sequence[Any]]) -> None:
+    """Refuse ``--out`` holding a sweep without ``--resume``, and a resume of another sweep.
+
+    Raises:
+        UsageError: Naming ``--out`` or ``--resume`` (and each flag whose value
+            differs from the saved sweep's, with both values).
+    """
+    from baselines import sweep
+    from baselines.leaderboard.results import ResumeError
+
+    if not args.resume:
+        check_fresh_output(args.out, ["sweep.json", sweep.SETTINGS_FILE, "points"], "a sweep")
+        return
+    if not (args.out / sweep.SETTINGS_FILE).is_file() and not (args.out / "points").is_dir():
+        raise UsageError(f"--resume: no sweep to resume in {args.out} (start one without it)")
+    settings = sweep.sweep_settings(
+        args.tasks, args.agents, args.particles, grid, args.episodes, args.seed, env_kwargs(args)
+    )
+    with refused_as(UsageError, ResumeError, "--resume: "):
+        sweep.check_resume(args.out, settings, _flag)
+
+
 def _cmd_sweep(args: argparse.Namespace) -> int:
     import importlib.util
 
     from baselines import sweep
+    from baselines.leaderboard.results import ResumeError
 
     grid = {name: values for name in _SETTINGS if (values := getattr(args, f"sweep_{name}"))}
     if not grid:
         flags = ", ".join("--" + name.replace("_", "-") for name in _SETTINGS)
         raise UsageError(f"nothing to sweep: give at least one of {flags}")
     check_engine(args)
-    if not args.resume:
-        check_fresh_output(args.out, ["sweep.json", "points"], "a sweep")
-    elif not (args.out / "points").is_dir():
-        raise UsageError(f"--resume: no sweep to resume in {args.out} (start one without it)")
+    _check_out(args, grid)
     engine = None
     if args.engine != "inprocess":
         engine = {"engine": args.engine, "workers": args.workers, "address": args.address}
-    result = sweep.run_sweep(
-        args.tasks, args.agents, args.particles, grid, args.episodes, args.seed,
-        env_kwargs(args), engine_options=engine, out=args.out, resume=args.resume,
-    )  # fmt: skip
+    # a point's saved run of other code or another policy file: the arguments conflict
+    with refused_as(UsageError, ResumeError, "--resume: "):
+        result = sweep.run_sweep(
+            args.tasks, args.agents, args.particles, grid, args.episodes, args.seed,
+            env_kwargs(args), engine_options=engine, out=args.out, resume=args.resume,
+        )  # fmt: skip
     args.out.mkdir(parents=True, exist_ok=True)
     say = (lambda *_: None) if args.json else wrote  # --json: stdout holds the JSON alone
     say(sweep.save(result, args.out / "sweep.json"), "every episode at every setting")

@@ -129,7 +129,9 @@ def test_sweep_command(tmp_path, capsys, monkeypatch):
     )  # fmt: skip
     assert code == 0
     assert seen == [({"width": 64, "height": 64}, {}), ({"width": 80, "height": 80}, {})]
-    assert {p.name for p in out.iterdir()} == {"sweep.json", "sweep.md", "sweep.png"}
+    assert {p.name for p in out.iterdir()} == {
+        "sweep.json", "sweep.md", "sweep.png", sweep.SETTINGS_FILE,
+    }  # fmt: skip
     assert (tmp_path / "fig.png").is_file()
     assert "| size | 64 |" in capsys.readouterr().out
     _no_figures(monkeypatch)
@@ -171,6 +173,65 @@ def test_a_cell_that_fails_or_is_skipped_is_shown_and_fails_the_command(
     assert main([*argv[:-1], str(tmp_path / "sw2"), "--json"]) == 1
     printed = json.loads(capsys.readouterr().out)
     assert [p["kind"] for p in printed["not_run"]] == ["error", "skipped"]
+
+
+def _walk_bvh(folder: Path) -> None:
+    """A twenty-frame BVH of a synthetic walk in ``folder``: real motion capture to name."""
+    from humotion_gym.mocap.export import write_motion_bvh
+    from humotion_gym.mocap.synthetic import synthetic_motions
+
+    motion = synthetic_motions(seed=0, fps=30.0)[0]
+    folder.mkdir()
+    write_motion_bvh(folder / "walk_alice.bvh", motion.params[:20], motion.shape, motion.fps)
+
+
+def test_a_resume_of_another_sweep_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
+    """Each flag that differs is named with its saved value and the given one (exit 2)."""
+    runs = []
+
+    def leaderboard(*args, **kwargs):  # keeps each point's folder, as the real one
+        kwargs["out"].mkdir(parents=True, exist_ok=True)
+        runs.append(args[5])
+        return []
+
+    monkeypatch.setattr(sweep, "run_leaderboard", leaderboard)
+    _no_figures(monkeypatch)
+    _walk_bvh(tmp_path / "mocap")
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "sw"
+
+    def argv(agents="pf-cv", data="mocap/", *grid):
+        return ["sweep", "--tasks", "ArmTrack-v2", "--agents", agents, "--particles", "5",
+                "--episodes", "1", "--data-dir", data, "--out", str(out),
+                *(grid or ("--noise", "0", "4"))]  # fmt: skip
+
+    assert main(argv()) == 0
+    assert [s["noise"] for s in runs] == [0.0, 4.0]
+    saved = (out / "sweep.json").read_bytes()
+    runs.clear()
+    capsys.readouterr()
+    for args, said in [
+        (argv("pf-cv", "mocap", "--noise", "0", "8"), "--noise: saved 0.0 4.0, now 0.0 8.0"),
+        (argv("pf-tree"), "--agents: saved pf-cv, now pf-tree"),
+        (
+            argv("pf-cv", "mocap", "--blur", "1"),
+            "--noise: saved 0.0 4.0, now not swept; --blur: saved not swept, now 1.0",
+        ),
+        ([*argv(), "--seed", "3"], "--seed: saved 0, now 3"),
+    ]:
+        assert main([*args, "--resume"]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"sweep: error: --resume: {out}: the saved sweep" in err
+        assert said in err
+    assert runs == [] and (out / "sweep.json").read_bytes() == saved
+    # the same data named another way (absolute, no trailing slash) is the same sweep
+    assert main([*argv("pf-cv", str(tmp_path / "mocap")), "--resume"]) == 0
+    assert [s["noise"] for s in runs] == [0.0, 4.0]
+    # a sweep folder whose points have no settings file cannot be matched: refused
+    (out / sweep.SETTINGS_FILE).unlink()
+    capsys.readouterr()
+    assert main([*argv(), "--resume"]) == 2
+    assert f"--resume: {out}: its points have no {sweep.SETTINGS_FILE}" in capsys.readouterr().err
 
 
 def test_an_interrupted_sweep_resumes_to_the_uninterrupted_numbers(tmp_path, capsys, monkeypatch):
