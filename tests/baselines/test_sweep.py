@@ -158,21 +158,51 @@ def test_sweep_command(tmp_path, capsys, monkeypatch):
 def test_a_cell_that_fails_or_is_skipped_is_shown_and_fails_the_command(
     tmp_path, capsys, monkeypatch
 ):
-    bad = tmp_path / "bad.zip"
-    bad.write_text("not a policy")
+    from baselines.agents import REFERENCES
+
+    class Unbuildable:
+        def __init__(self, *args, **kwargs):
+            raise RuntimeError("its weights are gone")
+
+    monkeypatch.setitem(REFERENCES, "broken-mine", (Unbuildable, "an agent that cannot be built"))
     out = tmp_path / "sw"
-    argv = ["sweep", "--tasks", "ArmTrack-v2", "--agents", f"mine={bad}", "pf-pca",
+    argv = ["sweep", "--tasks", "ArmTrack-v2", "--agents", "broken-mine", "pf-pca",
             "--particles", "5", "--episodes", "1", "--size", "64", "--out", str(out)]  # fmt: skip
     assert main(argv) == 1
     captured = capsys.readouterr()
-    assert "- ERROR: mine on ArmTrack-v2 at size=64: building it failed" in captured.out
+    assert "- ERROR: broken-mine on ArmTrack-v2 at size=64: building it failed" in captured.out
     assert "- SKIPPED: pf-pca@5 on ArmTrack-v2 at size=64" in captured.out
-    assert "error: mine on ArmTrack-v2" in captured.err
+    assert "error: broken-mine on ArmTrack-v2" in captured.err
     assert "Not in the table:" in (out / "sweep.md").read_text()
     _no_figures(monkeypatch)
     assert main([*argv[:-1], str(tmp_path / "sw2"), "--json"]) == 1
     printed = json.loads(capsys.readouterr().out)
     assert [p["kind"] for p in printed["not_run"]] == ["error", "skipped"]
+
+
+def test_a_file_that_is_no_policy_is_refused_before_the_first_point(tmp_path, capsys, monkeypatch):
+    """As track refuses it: one line naming --agents and the file, and nothing run or written."""
+    runs = []
+
+    def leaderboard(tasks, agents, *args, **kwargs):  # the row the agent's failed making gives
+        runs.append(1)
+        return [
+            {"task": tasks[0], "agent": agents[0], "particles": 0, "error": "building it failed"}
+        ]
+
+    monkeypatch.setattr(sweep, "run_leaderboard", leaderboard)
+    _no_figures(monkeypatch)
+    bad = tmp_path / "model.zip"
+    bad.write_text("not a policy")
+    out = tmp_path / "sw"
+    for agent in (str(bad), f"mine={bad}", f"pf-cv+{bad}"):
+        argv = ["sweep", "--tasks", "ArmTrack-v2", "--agents", agent, "--episodes", "1",
+                "--noise", "0", "--out", str(out)]  # fmt: skip
+        assert main(argv) == 1
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1
+        assert f"sweep: error: --agents: {bad}: not a readable stable-baselines3" in err
+    assert runs == [] and not out.exists()
 
 
 def _walk_bvh(folder: Path) -> None:
