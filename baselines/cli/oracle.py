@@ -9,6 +9,8 @@ r"""``humotion-gym oracle``: each agent's error with its image likelihood and wi
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
+from typing import Any
 
 from baselines.cli._args import Settings, add_particles, key_setting, tracked_task
 from humotion_gym.cli import interrupted
@@ -127,7 +129,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--resume", action="store_true",
         help="continue the run --out holds (partial.json.gz, written after each agent and "
         "likelihood): its finished rows are kept, the rest run, with the same numbers as one "
-        "run; the arguments must be the run's own",
+        "run; the arguments must be the run's own (--data-dir: the same folders, however "
+        "spelt)",
     )  # fmt: skip
     add_json(op, "print what results.json.gz holds, as JSON, instead of the table")
     op.set_defaults(func=_cmd_oracle)
@@ -168,6 +171,19 @@ def run_settings(args: argparse.Namespace) -> dict:
     }  # fmt: skip
 
 
+def _resume_settings(args: argparse.Namespace) -> dict:
+    """What a resumed run must share with the run it continues (``partial.json.gz`` keeps it).
+
+    :func:`run_settings` with the mocap folders as the run reads them
+    (absolute, whichever way they were spelled; ``$HUMOTION_MOCAP``'s when
+    ``--data-dir`` is not given), so that ``/data/``, ``/data`` and
+    ``../data`` resume one run and a changed ``$HUMOTION_MOCAP`` does not.
+    """
+    from baselines.leaderboard.results import data_folders
+
+    return {**run_settings(args), "data_dir": data_folders(env_kwargs(args))}
+
+
 def _saved_rows(args: argparse.Namespace) -> dict[str, list]:
     """The finished rows per task of the run ``--out`` holds, or none for a new run.
 
@@ -193,17 +209,58 @@ def _saved_rows(args: argparse.Namespace) -> dict[str, list]:
         raise UsageError(f"--resume: {args.out} holds a finished oracle run (results.json.gz)")
     if not partial.exists():
         raise UsageError(f"--resume: {args.out} holds no oracle run to continue ({PARTIAL})")
-    with refused_as(CommandError, (OSError, ValueError, KeyError, TypeError), "--resume: "):
-        saved = read_json(partial)
-        rows, old = dict(saved["rows"]), saved["settings"]
-    new = run_settings(args)
+    old, rows = _read_partial(partial)
+    new = _resume_settings(args)
+    if isinstance(old.get("data_dir"), list):  # a run saved with the folders as given
+        old["data_dir"] = [
+            str(Path(d).resolve()) if isinstance(d, str) else d for d in old["data_dir"]
+        ]
     differ = sorted(k for k in old.keys() | new.keys() if old.get(k) != new.get(k))
     if differ:
+        shown = "; ".join(f"{k}: saved {old.get(k)!r}, given {new.get(k)!r}" for k in differ)
         raise UsageError(
-            f"--resume: {args.out} holds a run of other settings ({', '.join(differ)}: "
-            f"{', '.join(repr(old.get(k)) for k in differ)}); give them, or start another --out"
+            f"--resume: {args.out} holds a run of other settings ({shown}); give the saved "
+            "ones, or start another --out"
         )
     return rows
+
+
+def _read_partial(path: Path) -> tuple[dict[str, Any], dict[str, list]]:
+    """The settings and the finished rows per task of the unfinished run saved in ``path``.
+
+    Raises:
+        CommandError: If it cannot be read, or is not what :func:`_save_row` writes.
+    """
+    from baselines.diagnostics.split import EPISODE_FIELDS
+
+    def is_row(row: Any) -> bool:
+        numbers = [row.get(k) for k in (*EPISODE_FIELDS, "x_hold")] if isinstance(row, dict) else []
+        return (
+            isinstance(row, dict)
+            and isinstance(row.get("agent"), str)
+            and isinstance(row.get("likelihood"), str)
+            and isinstance(row.get("episodes"), list)
+            and all(isinstance(e, dict) for e in row["episodes"])
+            and isinstance(row.get("error_mm"), (int, float))
+            and all(x is None or isinstance(x, (int, float)) for x in numbers)
+            and isinstance(row.get("lost_episodes"), int)
+        )
+
+    with refused_as(CommandError, (OSError, ValueError), "--resume: "):
+        saved = read_json(path)
+    settings = saved.get("settings") if isinstance(saved, dict) else None
+    rows = saved.get("rows") if isinstance(saved, dict) else None
+    if not (
+        isinstance(settings, dict)
+        and isinstance(rows, dict)
+        and all(isinstance(r, list) and all(map(is_row, r)) for r in rows.values())
+    ):
+        raise CommandError(
+            f"--resume: {path}: not a partial oracle run: expected an object of 'settings' "
+            "(an object) and 'rows' (each task's list of finished rows, each an object of an "
+            "agent, a likelihood, its summary numbers and its 'episodes')"
+        )
+    return settings, rows
 
 
 def _cmd_oracle(args: argparse.Namespace) -> int:
@@ -272,4 +329,4 @@ def _save_row(args: argparse.Namespace, saved: dict[str, list], rows: list, row:
     """
     rows.append(row)
     if args.out is not None:
-        write_json_gz(args.out / PARTIAL, {"settings": run_settings(args), "rows": saved})
+        write_json_gz(args.out / PARTIAL, {"settings": _resume_settings(args), "rows": saved})

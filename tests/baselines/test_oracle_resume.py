@@ -8,7 +8,8 @@ import pytest
 import baselines.diagnostics.split as split
 from baselines.cli import main
 from baselines.cli.oracle import PARTIAL
-from baselines.diagnostics.split import run_split
+from baselines.diagnostics.split import EPISODE_FIELDS, run_split
+from humotion_gym.files import write_json_gz
 
 # Two tasks of three rows each (hold, pf-cv with its image likelihood, pf-cv with the
 # 3D oracle), one declared window per row: six episodes in all.
@@ -66,19 +67,31 @@ def _partial(out, argv=ARGS):
         assert main([*argv, "--out", str(out)]) == 130
 
 
+#: Partial runs of the wrong shape: a list, a dict of wrong types, a row that is a number.
+MALFORMED = {
+    "list": [1, 2],
+    "rows-list": {"settings": {}, "rows": [["ArmTrack-v2", []]]},
+    "row-number": {"settings": {}, "rows": {"ArmTrack-v2": [1]}},
+}
+
+
 @pytest.mark.parametrize(
     ("setup", "extra", "code", "message"),
     [
         (None, ["--resume"], 2, "--resume: needs --out FOLDER"),
         ("empty", ["--resume"], 2, "holds no oracle run to continue"),
         ("partial", [], 2, "holds an unfinished oracle run (partial.json.gz); add --resume"),
-        ("partial", ["--resume", "--seed", "3"], 2, "holds a run of other settings (seed: 0)"),
+        ("partial", ["--resume", "--seed", "3"], 2, "other settings (seed: saved 0, given 3)"),
         ("finished", ["--resume"], 2, "holds a finished oracle run"),
         ("finished", [], 2, "already holds an oracle run"),
         ("corrupt", ["--resume"], 1, f"--resume: {{out}}/{PARTIAL}: "),
+        ("list", ["--resume"], 1, f"--resume: {{out}}/{PARTIAL}: not a partial oracle run: exp"),
+        ("rows-list", ["--resume"], 1, f"{{out}}/{PARTIAL}: not a partial oracle run: expected"),
+        ("row-number", ["--resume"], 1, f"{{out}}/{PARTIAL}: not a partial oracle run: expected"),
     ],
-    ids=["no-out", "nothing-saved", "no-resume", "other-settings", "finished", "fresh", "corrupt"],
-)
+    ids=["no-out", "nothing-saved", "no-resume", "other-settings", "finished", "fresh", "corrupt",
+         "list", "rows-list", "row-number"],
+)  # fmt: skip
 def test_what_resume_refuses_is_one_line(tmp_path, capsys, one_run, setup, extra, code, message):
     out = one_run if setup == "finished" else tmp_path / "run"
     if setup == "partial":
@@ -86,6 +99,9 @@ def test_what_resume_refuses_is_one_line(tmp_path, capsys, one_run, setup, extra
     elif setup == "corrupt":
         out.mkdir()
         (out / PARTIAL).write_bytes(b"\x1f\x8b not gzip")
+    elif setup in MALFORMED:  # gzipped JSON of another shape
+        out.mkdir()
+        write_json_gz(out / PARTIAL, MALFORMED[setup])
     elif setup == "empty":
         out.mkdir()
     capsys.readouterr()
@@ -108,3 +124,43 @@ def test_run_split_refuses_rows_of_another_run():
         run_split("ArmTrack-v2", ["hold"], [None], done=rows * 2, **kwargs)
     again = run_split("ArmTrack-v2", ["hold"], [None], done=rows, **kwargs)
     assert again["rows"] == rows
+
+
+def _hold_row():
+    """A finished row as run_split gives it (its numbers made up)."""
+    return {"agent": "hold", "likelihood": "none", "oracle": None, "episodes": [{"seed": 0}],
+            **dict.fromkeys(EPISODE_FIELDS, 1.0), "lost_episodes": 0, "x_hold": 1.0}  # fmt: skip
+
+
+def test_the_data_resume_the_same_however_the_folder_is_spelt(tmp_path, monkeypatch, capsys):
+    from humotion_gym.mocap.export import write_motion_bvh
+    from humotion_gym.mocap.synthetic import synthetic_motions
+
+    motion = synthetic_motions(seed=0, fps=30.0)[0]
+    for name in ("mocap", "other"):
+        (tmp_path / name).mkdir()
+        write_motion_bvh(tmp_path / name / "walk_alice.bvh", motion.params[:20], motion.shape, 30)
+    seen = []
+
+    def interrupted_split(task, *args, done=(), on_row=None, **kwargs):
+        """Save one row (a first run), or record the rows a resume keeps; then stop."""
+        seen.append(list(done))
+        if not done:
+            on_row(_hold_row())
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(split, "check_agents", lambda *args, **kwargs: None)
+    monkeypatch.setattr(split, "run_split", interrupted_split)
+    argv = ["oracle", "--task", "ArmTrack-v2", "--agents", "pf-cv", "--episodes", "1",
+            "--oracles", "image", "--out", str(tmp_path / "run")]  # fmt: skip
+    assert main([*argv, "--data-dir", str(tmp_path / "mocap")]) == 130
+    monkeypatch.chdir(tmp_path)
+    for given in (f"{tmp_path / 'mocap'}/", "mocap", "./mocap/"):
+        capsys.readouterr()
+        assert main([*argv, "--data-dir", given, "--resume"]) == 130, capsys.readouterr().err
+        assert seen[-1] == [_hold_row()]
+    capsys.readouterr()
+    assert main([*argv, "--data-dir", "other", "--resume"]) == 2
+    err = capsys.readouterr().err.strip()
+    saved, given = ([str((tmp_path / name).resolve())] for name in ("mocap", "other"))
+    assert len(err.splitlines()) == 1 and f"data_dir: saved {saved!r}, given {given!r}" in err
