@@ -299,6 +299,38 @@ def test_a_recorded_result_is_never_written_over(argv, held, tmp_path, capsys):
     assert (tmp_path / held).read_bytes() == b"kept"
 
 
+_LEADERBOARD = ["leaderboard", "--tasks", "ArmTrack-v2", "--agents", "pf-cv", "--particles", "5",
+                "--episodes", "1", "--no-report"]  # fmt: skip
+_ORACLE_RESULTS = {"settings": {"command": "humotion-gym oracle"}, "results": []}
+_RECORDED_LEADERBOARD = {"kind": "humotion_gym.leaderboard", "rows": []}  # results.json.gz alone
+
+
+@pytest.mark.parametrize(
+    ("argv", "results", "message"),
+    [
+        (_LEADERBOARD, _ORACLE_RESULTS,
+         "holds an oracle run (results.json.gz), not a leaderboard run; give another --out"),
+        ([*_LEADERBOARD, "--resume"], _ORACLE_RESULTS, "holds an oracle run (results.json.gz)"),
+        (_LEADERBOARD, _RECORDED_LEADERBOARD,
+         "already holds a leaderboard run's results (results.json.gz) but no episodes to resume"),
+        (["oracle", "--task", "ArmTrack-v2", "--agents", "pf-cv", "--episodes", "1"],
+         _RECORDED_LEADERBOARD, "already holds a leaderboard run (results.json.gz); choose"),
+    ],
+    ids=["leaderboard-on-oracle", "resume-on-oracle", "leaderboard-on-recorded", "oracle-on-recorded"],
+)  # fmt: skip
+def test_a_folder_of_another_run_is_refused_naming_what_it_holds(
+    argv, results, message, tmp_path, capsys
+):
+    from humotion_gym.files import write_json_gz
+
+    write_json_gz(tmp_path / "results.json.gz", results)
+    (tmp_path / "table.md").write_text("kept")
+    assert main([*argv, "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and message in err, err
+    assert (tmp_path / "table.md").read_text() == "kept"
+
+
 @pytest.mark.parametrize(
     ("argv", "dest", "want"),
     [

@@ -71,7 +71,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "humotion-gym leaderboard --tasks ArmTrack-v2 --agents pf-cv pf-tree --out runs/lb",
         details="Exit codes: 0 when every cell ran or was skipped; 1 when a cell failed (the "
         "table shows it, stderr names it); 2 on a usage error (an --out holding a run without "
-        "--resume, or --resume with another grid or other settings); 130 when interrupted "
+        "--resume or another command's run, or --resume with another grid or other "
+        "settings); 130 when interrupted "
         "(--out keeps what finished).",
     )  # fmt: skip
     lb.add_argument(
@@ -134,6 +135,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _check_results_folder(args: argparse.Namespace) -> None:
     """Refuse ``--out`` holding a run without ``--resume``, and a resume on another grid.
 
+    A folder of another command's run (an oracle run's ``table.md`` would be
+    written over), or of a leaderboard's results without its episodes (a
+    recorded run), is refused with or without ``--resume``.
+
     A resumed run keeps the saved episodes of its own cells only; one whose
     tasks, agents, particle counts or seeds leave out saved episodes would
     drop them from the table, so it is refused (a grid that adds cells is fine).
@@ -141,12 +146,24 @@ def _check_results_folder(args: argparse.Namespace) -> None:
     Raises:
         UsageError: Naming ``--out`` or ``--resume``.
     """
+    from baselines.cli.oracle import LEADERBOARD_RUN, held_run
     from baselines.leaderboard import EPISODES_FILE, RUN_FILE, ResultsFolder, grid_cells
 
+    held = held_run(args.out)
+    if held is not None and held[0] != LEADERBOARD_RUN:
+        raise UsageError(
+            f"--out: {args.out} holds {held[0]} ({held[1]}), not a leaderboard run; give "
+            "another --out"
+        )
     folder = ResultsFolder(args.out)
     holds_run = (args.out / RUN_FILE).is_file() or (
         (args.out / EPISODES_FILE).is_file() and (args.out / EPISODES_FILE).stat().st_size > 0
     )
+    if not holds_run and held is not None and held[1] != EPISODES_FILE:
+        raise UsageError(
+            f"--out: {args.out} already holds a leaderboard run's results ({held[1]}) but no "
+            "episodes to resume; choose another folder or move them away"
+        )
     if not args.resume:
         if holds_run:
             raise UsageError(

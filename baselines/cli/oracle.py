@@ -23,7 +23,6 @@ from humotion_gym.cli._common import (
     add_int,
     add_json,
     add_seed,
-    check_fresh_output,
     env_kwargs,
     episode_count,
     output_dir,
@@ -36,6 +35,11 @@ from humotion_gym.files import read_json, write_json_gz, write_text_atomically
 
 #: The unfinished run in ``--out``: its settings and each task's finished rows.
 PARTIAL = "partial.json.gz"
+#: What the finished run in ``--out`` holds: the settings and every episode's numbers.
+RESULTS = "results.json.gz"
+#: What :func:`held_run` says a folder holds.
+ORACLE_RUN, UNFINISHED_ORACLE_RUN = "an oracle run", "an unfinished oracle run"
+LEADERBOARD_RUN, SOME_RESULTS = "a leaderboard run", "results of another command"
 #: The likelihoods by default: the agents' own and each oracle at its default noise.
 DEFAULT_ORACLES = ("image", "2d", "2d-unlabelled", "3d")
 
@@ -184,32 +188,76 @@ def _resume_settings(args: argparse.Namespace) -> dict:
     return {**run_settings(args), "data_dir": data_folders(env_kwargs(args))}
 
 
+def held_run(folder: Path) -> tuple[str, str] | None:
+    """What run ``folder`` holds and the file that says so, or None for a fresh folder.
+
+    An oracle run and a recorded leaderboard run both keep ``results.json.gz``
+    and ``table.md``, so the results file's content tells them apart; a
+    leaderboard run's own files (``run.json``, ``episodes.jsonl``,
+    ``results.json``) mark it too.
+
+    Returns:
+        ``(what, file)``: what is one of :data:`ORACLE_RUN`,
+        :data:`UNFINISHED_ORACLE_RUN`, :data:`LEADERBOARD_RUN` or
+        :data:`SOME_RESULTS` (results neither command wrote) or ``"unreadable results"``.
+    """
+    from baselines.leaderboard.results import EPISODES_FILE, RESULTS_FILE, RUN_FILE
+
+    for name in (RUN_FILE, EPISODES_FILE, RESULTS_FILE):
+        if (folder / name).exists():
+            return LEADERBOARD_RUN, name
+    if (folder / RESULTS).exists():
+        try:
+            data = read_json(folder / RESULTS)
+        except (OSError, ValueError):
+            return "unreadable results", RESULTS
+        settings = data.get("settings") if isinstance(data, dict) else None
+        if isinstance(data, dict) and data.get("kind") == "humotion_gym.leaderboard":
+            return LEADERBOARD_RUN, RESULTS
+        if isinstance(settings, dict) and settings.get("command") == "humotion-gym oracle":
+            return ORACLE_RUN, RESULTS
+        return SOME_RESULTS, RESULTS
+    if (folder / PARTIAL).exists():
+        return UNFINISHED_ORACLE_RUN, PARTIAL
+    if (folder / "table.md").exists():
+        return SOME_RESULTS, "table.md"
+    return None
+
+
 def _saved_rows(args: argparse.Namespace) -> dict[str, list]:
     """The finished rows per task of the run ``--out`` holds, or none for a new run.
 
     Raises:
-        UsageError: If ``--out`` holds a run and ``--resume`` is not given, or
-            ``--resume`` finds no unfinished run or one of other settings.
+        UsageError: If ``--out`` holds a run (an oracle run without ``--resume``,
+            or another command's), or ``--resume`` finds no unfinished run or
+            one of other settings.
         CommandError: If the saved run cannot be read.
     """
     if args.resume and args.out is None:
         raise UsageError("--resume: needs --out FOLDER, the run to continue")
     if args.out is None:
         return {}
-    partial = args.out / PARTIAL
-    if not args.resume:
-        if partial.exists():
-            raise UsageError(
-                f"--out: {args.out} holds an unfinished oracle run ({PARTIAL}); add --resume "
-                "to continue it, or choose another folder"
-            )
-        check_fresh_output(args.out, ["results.json.gz", "table.md"], "an oracle run")
+    held = held_run(args.out)
+    if held is None:
+        if args.resume:
+            raise UsageError(f"--resume: {args.out} holds no oracle run to continue ({PARTIAL})")
         return {}
-    if (args.out / "results.json.gz").exists():
-        raise UsageError(f"--resume: {args.out} holds a finished oracle run (results.json.gz)")
-    if not partial.exists():
-        raise UsageError(f"--resume: {args.out} holds no oracle run to continue ({PARTIAL})")
-    old, rows = _read_partial(partial)
+    what, name = held
+    if what == UNFINISHED_ORACLE_RUN and not args.resume:
+        raise UsageError(
+            f"--out: {args.out} holds an unfinished oracle run ({PARTIAL}); add --resume to "
+            "continue it, or choose another folder"
+        )
+    if not args.resume:
+        raise UsageError(
+            f"--out: {args.out} already holds {what} ({name}); choose another folder or move "
+            "it away"
+        )
+    if what == ORACLE_RUN:
+        raise UsageError(f"--resume: {args.out} holds a finished oracle run ({name})")
+    if what != UNFINISHED_ORACLE_RUN:
+        raise UsageError(f"--resume: {args.out} holds {what} ({name}), not an oracle run")
+    old, rows = _read_partial(args.out / PARTIAL)
     new = _resume_settings(args)
     if isinstance(old.get("data_dir"), list):  # a run saved with the folders as given
         old["data_dir"] = [
@@ -308,11 +356,11 @@ def _cmd_oracle(args: argparse.Namespace) -> int:
     table = markdown_report(results)
     data = {"settings": run_settings(args), "results": [compact(r) for r in results]}
     if args.out is not None:
-        write_json_gz(args.out / "results.json.gz", data)
+        write_json_gz(args.out / RESULTS, data)
         write_text_atomically(args.out / "table.md", table)
         (args.out / PARTIAL).unlink(missing_ok=True)
         if not args.json:
-            wrote(args.out / "results.json.gz", "every episode's numbers")
+            wrote(args.out / RESULTS, "every episode's numbers")
             wrote(args.out / "table.md")
     if args.json:
         print_json(data)

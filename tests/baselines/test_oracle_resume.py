@@ -88,9 +88,11 @@ MALFORMED = {
         ("list", ["--resume"], 1, f"--resume: {{out}}/{PARTIAL}: not a partial oracle run: exp"),
         ("rows-list", ["--resume"], 1, f"{{out}}/{PARTIAL}: not a partial oracle run: expected"),
         ("row-number", ["--resume"], 1, f"{{out}}/{PARTIAL}: not a partial oracle run: expected"),
+        ("leaderboard", [], 2, "already holds a leaderboard run (run.json); choose another"),
+        ("leaderboard", ["--resume"], 2, "holds a leaderboard run (run.json), not an oracle run"),
     ],
     ids=["no-out", "nothing-saved", "no-resume", "other-settings", "finished", "fresh", "corrupt",
-         "list", "rows-list", "row-number"],
+         "list", "rows-list", "row-number", "leaderboard", "leaderboard-resume"],
 )  # fmt: skip
 def test_what_resume_refuses_is_one_line(tmp_path, capsys, one_run, setup, extra, code, message):
     out = one_run if setup == "finished" else tmp_path / "run"
@@ -102,6 +104,9 @@ def test_what_resume_refuses_is_one_line(tmp_path, capsys, one_run, setup, extra
     elif setup in MALFORMED:  # gzipped JSON of another shape
         out.mkdir()
         write_json_gz(out / PARTIAL, MALFORMED[setup])
+    elif setup == "leaderboard":
+        out.mkdir()
+        (out / "run.json").write_text("{}")
     elif setup == "empty":
         out.mkdir()
     capsys.readouterr()
