@@ -19,8 +19,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from humotion_gym.body import PARAM_NAMES
+from humotion_gym.body import PARAM_INDEX, PARAM_NAMES
 from humotion_gym.cli._common import (
+    CommandError,
+    Distinct,
     UsageError,
     add_command,
     add_data_dir,
@@ -34,6 +36,7 @@ from humotion_gym.cli._common import (
     print_json,
     probability,
     refused_as,
+    wrote,
 )
 from humotion_gym.mocap.motion import Motion
 
@@ -46,7 +49,11 @@ def _add_model_args(p: argparse.ArgumentParser, figure: bool = True, clips: bool
     from baselines.priors import slds
 
     add_seed(p, "seed of EM and of the test sequences")
-    add_int(p, "--states", slds.N_STATES, "switch states per activity", int_at_least(1, 64))
+    add_int(
+        p, "--states", slds.N_STATES, "switch states per activity, the JSON's states (its "
+        "n_states, where given, counts the states fitted in all: every activity's, less any EM "
+        "left unused)", int_at_least(1, 64),
+    )  # fmt: skip
     add_int(
         p, "--iters", slds.CLASSIFY_N_ITER, "EM iterations per activity", int_at_least(1, 10_000)
     )
@@ -76,6 +83,15 @@ def features_arg(text: str) -> str:
 
     with refused_as(argparse.ArgumentTypeError, ValueError):
         pav.parse_features(text)
+    return text
+
+
+def param_name(text: str) -> str:
+    """An argparse ``type`` for a pose parameter's name (``r_knee``...)."""
+    if text not in PARAM_INDEX:
+        raise argparse.ArgumentTypeError(
+            f"unknown parameter {text[:40]!r}; the parameters are {', '.join(PARAM_NAMES)}"
+        )
     return text
 
 
@@ -125,16 +141,16 @@ def _register_classify(sub: argparse._SubParsersAction) -> None:
         help="test mocap files or folders, none of them also in --train",
     )  # fmt: skip
     c.add_argument(
-        "--labels", nargs="+", default=None,
-        help="activities (default: walk and run, with dash counted as run)",
+        "--labels", nargs="+", action=Distinct, default=None,
+        help="activities, two or more (default: walk and run, with dash counted as run)",
     )  # fmt: skip
     c.add_argument(
         "--switch-prob", type=probability, default=pav.CLASSIFY_SWITCH_PROB,
         help=f"probability of leaving a switch state (default: {pav.CLASSIFY_SWITCH_PROB:g})",
     )  # fmt: skip
     c.add_argument(
-        "--free", nargs="+", default=None, metavar="PARAM",
-        help=f"parameter names to model (default: {' '.join(pav.CLASSIFY_PARAMS)})",
+        "--free", nargs="+", type=param_name, action=Distinct, default=None, metavar="PARAM",
+        help=f"parameter names to model, each once (default: {' '.join(pav.CLASSIFY_PARAMS)})",
     )  # fmt: skip
     noise = float(np.degrees(pav.NOISE_STD))
     c.add_argument(
@@ -199,8 +215,9 @@ def _register_splits(sub: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     add_data_dir(spl)
     spl.add_argument(
-        "--params", nargs="+", default=None, metavar="PARAM",
-        help="also score these parameters as 'given' (default: only the CV-chosen and old ones)",
+        "--params", nargs="+", type=param_name, action=Distinct, default=None, metavar="PARAM",
+        help="also score these parameters (each once) as 'given' (default: only the CV-chosen "
+        "and old ones)",
     )  # fmt: skip
     spl.add_argument(
         "--switch-prob", type=probability, default=None,
@@ -272,6 +289,7 @@ def _cmd_classify(args: argparse.Namespace) -> int:
             f"--train: no clip of {', '.join(untrained)}, which --test holds: add such clips to "
             "--train or leave them out of --test"
         )
+    _check_two_activities(args.labels, sorted({m.label for m in train if m.label in wanted}))
     result = pav.run_classification(
         train, test, np.random.default_rng(args.seed), free=pav.param_indices(args.free),
         labels=args.labels, n_states=args.states, n_iter=args.iters,
@@ -284,7 +302,7 @@ def _cmd_classify(args: argparse.Namespace) -> int:
         train_clips=len(train), test_clips=len(test), seed=args.seed,
         params=[PARAM_NAMES[i] for i in result.model.free], features=args.features,
         extra_noise_deg=args.extra_noise_deg, noise_deg=args.noise_deg, n_iter=args.iters,
-        n_states=args.states, switch_prob=args.switch_prob, labels=list(wanted),
+        states=args.states, switch_prob=args.switch_prob, labels=list(wanted),
         max_train_clips=args.max_train_clips,
     )  # fmt: skip
     if args.figure:
@@ -302,9 +320,33 @@ def _cmd_classify(args: argparse.Namespace) -> int:
         most = f" (at most {cap} per activity used)" if cap else ""
         print(
             f"  {len(train)} training clips{most}, {len(test)} test clips, "
-            f"{result.model.n_states} switch states, fit {result.seconds_fit:.1f} s"
+            f"{result.model.n_states} switch states fitted in all ({args.states} per activity "
+            f"asked), fit {result.seconds_fit:.1f} s"
         )
+        if args.figure:
+            wrote(args.figure)
     return 0
+
+
+def _check_two_activities(labels: Sequence[str] | None, trained: Sequence[str]) -> None:
+    """Refuse a classification among fewer than two activities.
+
+    With one activity's model every frame is decoded as that activity: an
+    error of 0% that measures nothing.
+
+    Args:
+        labels: ``--labels`` (None: the default activities).
+        trained: The activities ``--train`` has clips of, among those classified.
+    """
+    why = "with one activity's model every frame is read as it, an error of 0% that says nothing"
+    if labels is not None and len(labels) < 2:
+        raise UsageError(f"--labels: classification needs two or more activities, got only "
+                         f"{labels[0][:40]}; {why}")  # fmt: skip
+    if len(trained) < 2:
+        raise UsageError(
+            f"--train: clips of {', '.join(trained)} only, among the classified activities; "
+            f"classification needs clips of two or more ({why})"
+        )
 
 
 def _check_disjoint(train: Sequence[str], test: Sequence[str]) -> None:
@@ -319,6 +361,15 @@ def _check_disjoint(train: Sequence[str], test: Sequence[str]) -> None:
             f"--test: {len(both)} clip(s) also in --train (e.g. {both[0]}); the test clips "
             "must be others"
         )
+
+
+def _source(data_dir: Sequence[str] | None) -> str:
+    """What the motions came from, for a message: the flag, the variable, or the synthetic set."""
+    from humotion_gym.mocap.library import MOCAP_ENV, configured_data_dirs
+
+    if data_dir:
+        return "--data-dir"
+    return f"${MOCAP_ENV}" if configured_data_dirs(None) else "the synthetic library"
 
 
 def _train_motions(data_dir: Sequence[str] | None) -> list[Motion]:
@@ -351,6 +402,8 @@ def _cmd_select(args: argparse.Namespace) -> int:
     from baselines.experiments import pavlovic1999 as pav
 
     train = _train_motions(args.data_dir)
+    with refused_as(CommandError, ValueError, f"{_source(args.data_dir)}: "):
+        pav.held_out_groups(train, args.person_folds)  # before the folds' fits start
     result = pav.select_classifier_settings(
         train, np.random.default_rng(args.seed), param_sets=_param_sets_arg(args.param_sets),
         switch_probs=args.switch_probs, n_states=args.states, n_iter=args.iters,
@@ -380,7 +433,6 @@ def _cmd_splits(args: argparse.Namespace) -> int:
     given = (args.params, args.switch_prob, args.features, args.extra_noise_deg)
     if any(v is not None for v in given):
         params = tuple(args.params) if args.params is not None else pav.CLASSIFY_PARAMS
-        pav.param_indices(params)
         prob = args.switch_prob if args.switch_prob is not None else pav.CLASSIFY_SWITCH_PROB
         feats = args.features if args.features is not None else pav.CLASSIFY_FEATURES
         extra = (
@@ -390,8 +442,11 @@ def _cmd_splits(args: argparse.Namespace) -> int:
         settings["given"] = pav.ClassifierSetting(
             params, prob, pav.setting_name(params), feats, extra
         )
+    motions = pav.default_motions(args.data_dir)
+    with refused_as(CommandError, ValueError, f"{_source(args.data_dir)}: "):
+        pav.check_splits(motions)  # before the splits' fits start
     rows = pav.evaluate_splits(
-        pav.default_motions(args.data_dir), np.random.default_rng(args.seed), settings,
+        motions, np.random.default_rng(args.seed), settings,
         n_states=args.states, n_iter=args.iters, jobs=args.jobs,
         log=None if args.quiet else _log, training_persons=args.training_persons,
     )  # fmt: skip
@@ -445,6 +500,8 @@ def _cmd_interpolate(args: argparse.Namespace) -> int:
         )
         for k, v in mean.items():
             print(f"  {k:9s} {v:6.2f}")
+        if args.figure:
+            wrote(args.figure)
     return 0
 
 

@@ -272,3 +272,119 @@ def test_selection_on_real_bandai_styles_never_sees_a_test_person(shared_mocap):
     assert result.chosen == int(np.argmin(result.cv_error))
     assert result.summary()["cv_frames"] == sum(m.n_frames for m in train)
     assert np.all(result.cv_error < 0.5)
+
+
+# ---------------------------------------------------------------------------
+# The command line's refusals, counts and messages
+# ---------------------------------------------------------------------------
+
+
+class _Stop(Exception):
+    """Raised by a stand-in for the experiment: the arguments reached it."""
+
+
+def _stop(record):
+    def stand_in(*args, **kwargs):
+        record.append((args, kwargs))
+        raise _Stop
+
+    return stand_in
+
+
+@pytest.fixture
+def walk_run_folders(tmp_path):
+    """Two folders, of the persons ann and bob, each with a synthetic walk and run of 2 s."""
+    from humotion_gym.mocap.export import write_motion_bvh
+
+    motions = synthetic_motions(n_subjects=2, seconds=2.0)
+    folders = []
+    for k, person in enumerate(("ann", "bob")):
+        folder = tmp_path / person
+        folder.mkdir()
+        for label in ("walk", "run"):
+            m = [m for m in motions if m.label == label][k]
+            write_motion_bvh(folder / f"{label}_{person}.bvh", m.params, m.shape, m.fps)
+        folders.append(folder)
+    return folders
+
+
+def test_cli_parameter_flags_take_known_names_each_once(
+    walk_run_folders, short_synthetic_library, capsys, monkeypatch
+):
+    """--free and --params: an unknown name is a usage error naming the flag; repeats count once."""
+    from humotion_gym.body import PARAM_INDEX
+
+    ann, bob = (str(f) for f in walk_run_folders)
+    classify = ["slds", "classify", "--train", ann, "--test", bob]
+    assert _cli([*classify, "--free", "r_knee", "bogus"]) == 2
+    err = capsys.readouterr().err
+    assert "argument --free: unknown parameter 'bogus'" in err and "l_knee" in err
+    assert _cli(["slds", "splits", "--params", "bogus"]) == 2
+    assert "argument --params: unknown parameter 'bogus'" in capsys.readouterr().err
+    record = []
+    monkeypatch.setattr(pavlovic1999, "run_classification", _stop(record))
+    with pytest.raises(_Stop):
+        _cli([*classify, "--free", "r_knee", "l_knee", "r_knee"])
+    np.testing.assert_array_equal(
+        record[0][1]["free"], [PARAM_INDEX["r_knee"], PARAM_INDEX["l_knee"]]
+    )
+    monkeypatch.setattr(pavlovic1999, "evaluate_splits", _stop(record))
+    with pytest.raises(_Stop):
+        _cli(["slds", "splits", "--params", "r_knee", "r_knee"])
+    assert record[1][0][2]["given"].params == ("r_knee",)
+
+
+def test_cli_classify_refuses_fewer_than_two_activities(walk_run_folders, capsys, monkeypatch):
+    """One activity's model reads every frame as it: 0% error, refused before any fit."""
+    monkeypatch.setattr(pavlovic1999, "run_classification", _stop([]))
+    ann, bob = walk_run_folders
+    classify = ["slds", "classify", "--train", str(ann), "--test", str(bob)]
+    for labels in (["walk"], ["walk", "walk"]):
+        assert _cli([*classify, "--labels", *labels]) == 2
+        err = capsys.readouterr().err
+        assert "--labels: classification needs two or more activities, got only walk" in err
+    walks = ["slds", "classify", "--train", str(ann / "walk_ann.bvh"), "--test",
+             str(bob / "walk_bob.bvh")]  # fmt: skip
+    assert _cli(walks) == 2
+    assert "--train: clips of walk only" in capsys.readouterr().err
+
+
+def test_cli_classify_states_per_activity_and_fitted_in_all(walk_run_folders, capsys, tmp_path):
+    """--states counts per activity (JSON states); n_states and the text count the joined model."""
+    pytest.importorskip("matplotlib", reason="its figures need matplotlib")
+    ann, bob = (str(f) for f in walk_run_folders)
+    classify = ["slds", "classify", "--train", ann, "--test", bob, "--states", "1", "--iters", "1"]
+    assert _cli([*classify, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["states"] == 1 and out["n_states"] == 2
+    figure = tmp_path / "fig3.png"
+    assert _cli([*classify, "--figure", str(figure)]) == 0
+    text = capsys.readouterr().out
+    assert "2 switch states fitted in all (1 per activity asked)" in text
+    assert text.splitlines()[-1] == f"wrote {figure}" and figure.stat().st_size > 0
+
+
+def test_cli_interpolate_says_where_its_figure_went(capsys, tmp_path, monkeypatch):
+    pytest.importorskip("matplotlib", reason="its figures need matplotlib")
+    figure = tmp_path / "fig6.png"
+    monkeypatch.setattr(pavlovic1999, "plot_interpolation", lambda *a: figure.write_bytes(b"png"))
+    code = _cli(["slds", "interpolate", "--states", "2", "--iters", "1", "--max-train-clips", "2",
+                 "--figure", str(figure)])  # fmt: skip
+    assert code == 0
+    assert capsys.readouterr().out.splitlines()[-1] == f"wrote {figure}"
+
+
+def test_cli_select_and_splits_say_what_the_data_lacks(walk_run_folders, capsys, monkeypatch):
+    """In the flag's terms, not a function's name, and before any fit."""
+    monkeypatch.setattr(pavlovic1999, "select_classifier_settings", _stop([]))
+    monkeypatch.setattr(pavlovic1999, "evaluate_splits", _stop([]))
+    ann = str(walk_run_folders[0])
+    assert _cli(["slds", "select", "--data-dir", ann]) == 1
+    err = capsys.readouterr().err
+    assert "error: --data-dir: need two CV groups to hold out in turn" in err
+    assert "the 2 walk and run clips of training persons hold only one, ann" in err
+    assert "select_classifier_settings" not in err
+    assert _cli(["slds", "splits", "--data-dir", ann, "--training-persons"]) == 1
+    err = capsys.readouterr().err
+    assert "error: --data-dir: nothing to hold out: no bandai-2 style" in err
+    assert "evaluate_splits" not in err

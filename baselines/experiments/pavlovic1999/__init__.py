@@ -127,6 +127,7 @@ from baselines.experiments.pavlovic1999.cross_validation import (
     criterion_scores,
     cv_groups,
     group_kind,
+    held_out_groups,
     select_classifier_settings,
 )
 from baselines.experiments.pavlovic1999.data import (
@@ -185,7 +186,12 @@ from baselines.experiments.pavlovic1999.settings import (
     param_indices,
     setting_name,
 )
-from baselines.experiments.pavlovic1999.splits import SplitRow, evaluate_splits, splits_table
+from baselines.experiments.pavlovic1999.splits import (
+    SplitRow,
+    check_splits,
+    evaluate_splits,
+    splits_table,
+)
 from baselines.priors import slds
 
 __all__ = [
@@ -219,6 +225,7 @@ __all__ = [
     "activity_clips",
     "assumed_noise",
     "build_test_sequences",
+    "check_splits",
     "check_training_only",
     "classify",
     "criterion_scores",
@@ -231,6 +238,7 @@ __all__ = [
     "fit_activities",
     "fit_activity_models",
     "group_kind",
+    "held_out_groups",
     "interpolate_gap",
     "load_motions",
     "motion_features",

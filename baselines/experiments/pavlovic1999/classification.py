@@ -191,7 +191,11 @@ class ClassificationResult:
     costs: dict[str, list[float]] = field(default_factory=dict)
 
     def summary(self) -> dict[str, Any]:
-        """The numbers as a JSON-ready dict."""
+        """The numbers as a JSON-ready dict.
+
+        ``n_states`` is the joined model's: every activity's switch states as
+        fitted (EM drops a state no frame uses), not the states per activity asked.
+        """
         return {
             "error": round(self.error, 5),
             "n_points": self.n_points,

@@ -22,6 +22,7 @@ from baselines.experiments.pavlovic1999.scoring import ScoreJob, SettingScores, 
 from baselines.experiments.pavlovic1999.settings import (
     CANDIDATE_PARAMS,
     CANDIDATE_SWITCH_PROBS,
+    CLASSIFY_LABELS,
     CV_CRITERIA,
     NOISE_STD,
     ClassifierSetting,
@@ -69,6 +70,28 @@ def cv_groups(motions: Sequence[Motion], every_person: bool = False) -> list[str
         person = every_person or len(labels[m.subject]) > 1
         out.append(m.subject if bandai or person else None)
     return out
+
+
+def held_out_groups(motions: Sequence[Motion], person_folds: bool = True) -> list[str]:
+    """The groups the CV holds out in turn (:func:`cv_groups` of the classified activities' clips).
+
+    Args:
+        motions: Training clips (any labels; the others are ignored).
+        person_folds: Every training person outside Bandai-Namco is a group.
+
+    Raises:
+        ValueError: If there are fewer than two, saying what the clips lack.
+    """
+    clips = activity_clips(motions)
+    held = sorted({g for g in cv_groups(clips, every_person=person_folds) if g is not None})
+    if len(held) < 2:
+        person = "a person" if person_folds else "a person with clips of both activities"
+        found = f"only one, {held[0]}" if held else "none"
+        raise ValueError(
+            f"need two CV groups to hold out in turn, each a Bandai-Namco style or {person}; the "
+            f"{len(clips)} {' and '.join(CLASSIFY_LABELS)} clips of training persons hold {found}"
+        )
+    return held
 
 
 def group_kind(group: str) -> str:
@@ -324,12 +347,10 @@ def select_classifier_settings(
         raise ValueError(f"{what}: jobs must be >= 1, got {jobs}")
     motions = activity_clips(train_motions)
     groups = cv_groups(motions, every_person=person_folds)
-    held = sorted({g for g in groups if g is not None})
-    if len(held) < 2:
-        raise ValueError(
-            f"{what}: need at least two CV groups, got {held} (a Bandai-Namco style, or a "
-            "person with both walking and running)"
-        )
+    try:
+        held = held_out_groups(motions, person_folds)
+    except ValueError as exc:
+        raise ValueError(f"{what}: {exc}") from None
     seeds = rng.integers(0, 2**62, size=len(held))
     options = {"n_states": n_states, "n_iter": n_iter, "noise_std": noise_std}
     folds: list[ScoreJob] = [

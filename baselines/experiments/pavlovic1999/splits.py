@@ -16,6 +16,7 @@ import numpy as np
 from baselines.experiments.pavlovic1999.data import activity_clips
 from baselines.experiments.pavlovic1999.scoring import ScoreJob, SettingScores, run_jobs
 from baselines.experiments.pavlovic1999.settings import (
+    CLASSIFY_LABELS,
     NOISE_STD,
     ClassifierSetting,
     default_settings,
@@ -93,7 +94,9 @@ def _split_plans(
     persons = sorted({m.subject for m in clips if m.subject in TEST_SUBJECTS})
     if not styles and not persons:
         raise ValueError(
-            f"evaluate_splits: no {style_dataset} style and no test person among the motions"
+            f"nothing to hold out: no {style_dataset} style among the training persons' "
+            f"{' and '.join(CLASSIFY_LABELS)} clips and no clip of a test person "
+            f"({', '.join(sorted(TEST_SUBJECTS))})"
         )
     plans: list[_Plan] = []
     for style in styles:
@@ -112,6 +115,15 @@ def _split_plans(
             held, rest = _held_out(train_ids, clips, person)
             plans.append(([person], "training person held out", rest, [held]))
     return plans
+
+
+def check_splits(motions: Sequence[Motion], style_dataset: str = "bandai-2") -> None:
+    """Refuse motions with no split for :func:`evaluate_splits`, before any fit.
+
+    Raises:
+        ValueError: If there is neither a style nor a test person to hold out.
+    """
+    _split_plans(activity_clips(motions), style_dataset, training_persons=False)
 
 
 def _setting_row(
@@ -165,7 +177,10 @@ def evaluate_splits(
     """
     settings = default_settings() if settings is None else dict(settings)
     clips = activity_clips(motions)
-    plans = _split_plans(clips, style_dataset, training_persons)
+    try:
+        plans = _split_plans(clips, style_dataset, training_persons)
+    except ValueError as exc:
+        raise ValueError(f"evaluate_splits: {exc}") from None
     fits = list(dict.fromkeys(s.fit_key for s in settings.values()))
     decodes = list(dict.fromkeys(s.decode_key for s in settings.values()))
     options = {"n_states": n_states, "n_iter": n_iter, "noise_std": noise_std}
