@@ -69,6 +69,24 @@ def test_synth_refuses_a_bad_setting_in_the_fits_words(argv, says, tmp_path, cap
     assert says in err[-1] and "Traceback" not in "".join(err) and not out.exists()
 
 
+@pytest.mark.parametrize(
+    ("value", "says"),
+    [("0", "expected a number in (0, 1e+06], got 0"), ("nan", "expected a finite number")],
+)
+def test_synth_reads_setting_beta_as_the_beta_flag(value, says, tmp_path, capsys, monkeypatch):
+    """beta=0 passed the >= 0 check and failed after the whole fit; refused before it now."""
+    import baselines.priors.fitting as fitting
+
+    def no_fit(*args, **kwargs):
+        raise AssertionError("the prior was fitted")
+
+    monkeypatch.setattr(fitting, "fit_prior", no_fit)
+    out = tmp_path / "s.bvh"
+    assert main(["synth", "--setting", f"beta={value}", "--seconds", "0.2", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"error: --setting: beta: {says}" in err and ">= 0" not in err
+
+
 def test_a_hybrid_of_a_saved_policy_parses_and_its_file_is_checked(tmp_path, capsys):
     from baselines.cli import build_parser
 

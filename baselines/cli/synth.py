@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import inspect
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -27,6 +28,7 @@ from humotion_gym.cli._common import (
     check_memory,
     float_between,
     output_file,
+    refused_as,
     wrote,
 )
 
@@ -38,6 +40,12 @@ BYTES_PER_FRAME = 8192
 
 #: Shorter names accepted by ``--prior``.
 ALIASES = {"pca": "cyclic_pca", "cv": "constant_velocity"}
+#: The tree's temperature (``--beta``): the fit takes any number, but the fitted
+#: model divides by it, so 0 fails only after the whole fit.
+BETA = float_between(0.0, 1e6, open_low=True)
+#: Settings whose values are read by their own argparse type, as ``--setting
+#: NAME=VALUE`` and as their own flag alike; the others by :func:`_value`.
+SETTING_TYPES: dict[str, Callable[[str], Any]] = {"beta": BETA}
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -75,8 +83,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="settings of the prior's fit, e.g. beta=0.05 for a faithful tree (default: none)",
     )  # fmt: skip
     syn.add_argument(
-        "--beta", type=float_between(0.0, 1e6, open_low=True), default=None,
-        help="short for --setting beta=BETA, the tree's temperature (default: the fit's)",
+        "--beta", type=BETA, default=None,
+        help="short for --setting beta=BETA, the tree's temperature, a number > 0 (default: "
+        "the fit's)",
     )  # fmt: skip
     add_seed(syn)
     syn.add_argument(
@@ -100,6 +109,9 @@ def _value(name: str, text: str, default: Any) -> Any:
     word (``replay=velocity``, ``moving=root``) goes to the fit, which names
     the words it takes.
     """
+    if name in SETTING_TYPES:
+        with refused_as(UsageError, argparse.ArgumentTypeError, f"--setting: {name}: "):
+            return SETTING_TYPES[name](text)
     if isinstance(default, str) or (default is None and not _reads_as_number(text)):
         return text
     if isinstance(default, (tuple, list)):  # a list of words (labels=walk,run)
