@@ -9,6 +9,8 @@ The experiments are in :mod:`baselines.experiments.ormoneit2005`::
 from __future__ import annotations
 
 import argparse
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,6 +27,9 @@ from humotion_gym.cli._common import (
     wrote,
 )
 
+if TYPE_CHECKING:
+    from baselines.experiments.ormoneit2005 import CycleLength
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``pca period`` and ``pca figures``."""
@@ -36,6 +41,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     period = add_command(
         psub, "period", "cycle length per clip: eq. 3 and the feet",
         "humotion-gym pca period ../shared/mocap/cmu-asfamc --json",
+        details="Eq. 3 needs two cycles of a period to try it (periods of 0.5 to 2 s: at least "
+        "1 s of motion, and 4 s to tell every period). A clip too short for its cycle is "
+        "listed with how many frames it has and how many are needed, instead of numbers "
+        "(JSON: too_short says so, the lengths are null); when every clip is, the command "
+        "says so in its error (exit 1).",
     )  # fmt: skip
     period.add_argument("paths", nargs="+", metavar="PATH", help="mocap files or folders")
     add_json(period, "JSON lines instead of a table")
@@ -70,25 +80,43 @@ def _cmd_period(args: argparse.Namespace) -> int:
     if not clips:
         raise CommandError("no walking clips among the files (use --all-labels for every clip)")
     rows = cycle_lengths(clips)
+    if rows and all(r.too_short for r in rows):  # nothing measured: no table of blanks
+        k = max(range(len(rows)), key=lambda i: rows[i].n_frames)
+        some = f"none of the {len(rows)} clips is long enough; the longest, " if rows[1:] else ""
+        raise CommandError(f"{some}{clips[k].source or rows[k].clip_id}: {rows[k].too_short}")
     if args.json:
         for r in rows:
             print_json(r.as_dict())
         return 0
     print(f"{'clip':44s} {'eq3 fr':>7s} {'feet fr':>7s} {'eq3 s':>6s} {'feet s':>6s} {'diff':>6s}")
     for r in rows:
-        diff = f"{100 * r.relative_difference:5.1f}%" if np.isfinite(r.frames_feet) else "   -  "
+        if r.too_short:
+            print(f"{r.clip_id[-44:]:44s} {r.too_short}")
+            continue
+        feet = np.isfinite(r.frames_feet)
         print(
-            f"{r.clip_id[-44:]:44s} {r.frames_snr:7.2f} {r.frames_feet:7.2f} "
-            f"{r.seconds_snr:6.3f} {r.seconds_feet:6.3f} {diff}"
-        )
+            f"{r.clip_id[-44:]:44s} {r.frames_snr:7.2f} "
+            + (f"{r.frames_feet:7.2f}" if feet else f"{'-':>7s}")
+            + f" {r.seconds_snr:6.3f} "
+            + (f"{r.seconds_feet:6.3f} {100 * r.relative_difference:5.1f}%" if feet else
+               f"{'-':>6s} {'-':>6s}")
+        )  # fmt: skip
+    print(_period_summary(rows))
+    return 0
+
+
+def _period_summary(rows: Sequence[CycleLength]) -> str:
+    """The table's last line: how many clips, how many too short, eq. 3 against the feet."""
+    short = sum(1 for r in rows if r.too_short)
+    head = f"{len(rows)} clips" + (f", {short} too short for a cycle length" if short else "")
     rel = np.array([r.relative_difference for r in rows])
     rel = rel[np.isfinite(rel)]
-    if rel.size:
-        print(
-            f"{len(rows)} clips; eq. 3 vs feet: median difference {100 * np.median(rel):.1f}%, "
-            f"{100 * np.mean(rel <= 0.1):.0f}% of clips within 10%"
-        )
-    return 0
+    if not rel.size:
+        return f"{head}; no clip has both cycle lengths (the feet need three steps)"
+    return (
+        f"{head}; eq. 3 vs feet over {rel.size} clips: median difference "
+        f"{100 * np.median(rel):.1f}%, {100 * np.mean(rel <= 0.1):.0f}% of them within 10%"
+    )
 
 
 def _cmd_figures(args: argparse.Namespace) -> int:

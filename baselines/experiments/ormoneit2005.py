@@ -46,6 +46,7 @@ class CycleLength:
         frames_feet: Median interval between every other maximum of the ankles'
             separation (one stride = two steps), frames.
         steps: Maxima of the ankles' separation found.
+        n_frames: The clip's frames.
     """
 
     clip_id: str
@@ -53,6 +54,7 @@ class CycleLength:
     frames_snr: float
     frames_feet: float
     steps: int
+    n_frames: int
 
     @property
     def seconds_snr(self) -> float:
@@ -69,16 +71,43 @@ class CycleLength:
         """``|snr - feet| / feet``."""
         return abs(self.frames_snr - self.frames_feet) / self.frames_feet
 
-    def as_dict(self) -> dict[str, float | int | str]:
-        """Plain dict for JSON."""
+    @property
+    def too_short(self) -> str | None:
+        """Why eq. 3 gave no cycle length (the clip is too short), or None when it gave one.
+
+        :func:`~baselines.priors.cycles.estimate_period` tries periods it sees
+        twice in the clip: none when the clip is shorter than two of the
+        shortest period tried, and it gives none when its ratio is highest at
+        the longest period the clip shows twice (the cycle may be longer).
+        """
+        if np.isfinite(self.frames_snr):
+            return None
+        tried = cycles.candidate_periods(self.fps)
+        shortest, longest = float(tried[0]), float(tried[-1])
+        start = f"too short to estimate a cycle length: {self.n_frames} frames"
+        if self.n_frames < 2 * shortest:
+            return (
+                f"{start}, fewer than the {2 * shortest:g} that two cycles of the shortest "
+                f"period tried ({shortest / self.fps:g} s) take"
+            )
+        return (
+            f"{start} show two cycles of at most {self.n_frames / 2:g} frames, where eq. 3 still "
+            f"rises; two cycles of the longest period tried ({longest / self.fps:g} s) take "
+            f"{2 * longest:g} frames"
+        )
+
+    def as_dict(self) -> dict[str, float | int | str | None]:
+        """Plain dict for JSON (NaN where a cycle length was not found)."""
         return {
             "clip": self.clip_id,
             "fps": self.fps,
+            "n_frames": self.n_frames,
             "frames_snr": round(self.frames_snr, 3),
             "frames_feet": round(self.frames_feet, 3),
             "seconds_snr": round(self.seconds_snr, 4),
             "seconds_feet": round(self.seconds_feet, 4),
             "steps": self.steps,
+            "too_short": self.too_short,
         }
 
 
@@ -122,7 +151,7 @@ def cycle_lengths(motions: Sequence[Motion]) -> list[CycleLength]:
         joint = cycles.JOINT_ANGLES
         p = cycles.estimate_period(m.params[:, joint], m.observed[:, joint], m.fps)
         feet, steps = foot_cycle_length(m)
-        out.append(CycleLength(m.clip_id, float(m.fps), p, feet, steps))
+        out.append(CycleLength(m.clip_id, float(m.fps), p, feet, steps, m.n_frames))
     return out
 
 

@@ -43,6 +43,35 @@ def test_cycle_lengths_and_the_period_command(synthetic_walks, tmp_path, capsys)
     assert row["seconds_feet"] == pytest.approx(row["frames_feet"] / 30.0, abs=1e-3)
 
 
+def test_period_of_clips_too_short_says_so_with_the_frames_needed(
+    synthetic_walks, tmp_path, capsys
+):
+    """30 frames: not a row of NaN and no summary, but why, per clip; all of them short: exit 1."""
+    m = synthetic_walks[0]
+    folder = tmp_path / "walks"
+    folder.mkdir()
+    for name, frames in (("walk_long", m.n_frames), ("walk_short", 30), ("walk_tiny", 20)):
+        write_motion_bvh(folder / f"{name}.bvh", m.params[:frames], m.shape, m.fps)
+    assert main(["pca", "period", str(folder)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    short = "too short to estimate a cycle length: 30 frames show two cycles of at most 15 frames"
+    assert short in lines[2] and "(2 s) take 120 frames" in lines[2] and "nan" not in lines[2]
+    assert "20 frames, fewer than the 30 that two cycles of the shortest period" in lines[3]
+    assert lines[4].startswith("3 clips, 2 too short for a cycle length; eq. 3 vs feet over 1 ")
+    assert main(["pca", "period", str(folder), "--json"]) == 0
+    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [r["n_frames"] for r in rows] == [m.n_frames, 30, 20]
+    assert rows[0]["too_short"] is None and rows[1]["frames_snr"] is None
+    assert rows[1]["too_short"].startswith(short)
+    assert main(["pca", "period", str(folder / "walk_short.bvh"), "--all-labels"]) == 1
+    captured = capsys.readouterr()
+    assert not captured.out and captured.err.count("\n") == 1
+    assert f"error: {folder / 'walk_short.bvh'}: {short}" in captured.err
+    argv = ["pca", "period", str(folder / "walk_short.bvh"), str(folder / "walk_tiny.bvh")]
+    assert main(argv) == 1
+    assert "none of the 2 clips is long enough; the longest, " in capsys.readouterr().err
+
+
 def _feet(template, step: float, frames: int = 300):
     """A clip whose ankles are ``300 + 100 cos(2 pi t / step)`` mm apart (peaks every ``step``)."""
     t = np.arange(frames, dtype=np.float64)
@@ -72,7 +101,7 @@ def test_foot_cycle_length_is_two_steps_to_a_fraction_of_a_frame(synthetic_walks
 
 def test_cycle_length_row_in_seconds_and_relative_difference():
     """Hand-computed: 33 against 30 frames at 30 Hz is 1.1 s against 1 s, 10% off the feet."""
-    row = ormoneit2005.CycleLength("c", 30.0, 33.0, 30.0, 5)
+    row = ormoneit2005.CycleLength("c", 30.0, 33.0, 30.0, 5, 300)
     assert row.seconds_snr == pytest.approx(1.1) and row.seconds_feet == pytest.approx(1.0)
     assert row.relative_difference == pytest.approx(0.1)
     assert row.as_dict()["seconds_snr"] == 1.1
