@@ -1,5 +1,7 @@
 """Settings are chosen on validation folds of the training persons only."""
 
+import json
+
 import pytest
 
 from baselines.experiments import selection
@@ -213,6 +215,41 @@ def test_the_declared_rule_on_set_numbers():
     assert selection._chosen(standing) == 1
     none_standing = rows((1.0, 9.0, STILL_RATIO + 1), (5.0, 2.0, STILL_RATIO + 0.5))
     assert selection._chosen(none_standing) == 1
+
+
+@pytest.mark.parametrize(
+    ("still_mm", "says"),
+    [
+        # hold: 10 mm still; neither setting within 2x (30, 25): the lower still error
+        ({1.0: 30.0, 2.0: 25.0}, "sharpness=2 (no setting within 2x hold on the still episodes: "
+         "chosen by the lowest still error instead)"),
+        # sharpness=2 within 2x: the lowest mean error among those within
+        ({1.0: 30.0, 2.0: 15.0}, "sharpness=2 (the lowest mean error among the 1 of 2 settings "
+         "within 2x hold on the still episodes)"),
+    ],
+)  # fmt: skip
+def test_cli_select_says_which_rule_chose(still_mm, says, capsys, monkeypatch):
+    """Set errors: sharpness=1 has the lower mean error, so only the still rule chooses 2."""
+    from baselines.cli import main
+
+    mean_mm = {1.0: 40.0, 2.0: 50.0}
+
+    def errors(runs, agent, model, fit=None, search=None):
+        if agent == "hold":
+            return [100.0], [10.0, 10.0]
+        return [mean_mm[model.sharpness]], [still_mm[model.sharpness]] * 2
+
+    monkeypatch.setattr(selection, "_still_episodes", lambda *args: ["w1", "w2"])
+    monkeypatch.setattr(selection._Runs, "errors", errors)
+    argv = ["select", "--task", "ArmTrack-v2", "--agent", "pf-cv", "--grid", "sharpness=1,2",
+            "--particles", "10", "--episodes", "1", "--still", "2"]  # fmt: skip
+    assert main(argv) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-2] == "hold: 100.0 mm; still episodes: 2, hold 10.0 mm there"
+    assert lines[-1] == f"chosen: {says}"
+    assert main([*argv, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert says == f"sharpness={out['chosen']['sharpness']:g} ({out['chosen_by']})"
 
 
 def test_every_row_and_hold_score_the_same_episodes(monkeypatch):

@@ -64,8 +64,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sel.add_argument(
         "--still", type=int_at_least(0, MAX_EPISODES), default=0, metavar="N",
         help="also track up to N still episodes of the validation persons (where hold scores "
-        "lowest) and choose the lowest mean error among the settings within 2x hold there "
-        "(default: 0, mean error only)",
+        "lowest) and choose the lowest mean error among the settings within 2x hold there; "
+        "when none is, the lowest error on the still episodes (the output says which rule "
+        "chose; default: 0, mean error only)",
     )  # fmt: skip
     add_data_dir(sel)
     add_json(sel)
@@ -135,10 +136,11 @@ def _cmd_select(args: argparse.Namespace) -> int:
             line += f" {row['still_error_mm']:9.1f} {row['still_ratio']:7.2f}"
         print(line)
     chosen = " ".join(f"{k}={v:g}" for k, v in out["chosen"].items())
-    print(f"hold: {out['hold_mm']:.1f} mm; chosen: {chosen}")
+    hold = f"hold: {out['hold_mm']:.1f} mm"
     if still:
-        print(
-            f"still episodes: {out['still_episodes']}, hold {out['still_hold_mm']:.1f} mm there; "
-            "chosen among the settings within 2x hold on them (if any)"
+        hold += (
+            f"; still episodes: {out['still_episodes']}, hold {out['still_hold_mm']:.1f} mm there"
         )
+    print(hold)
+    print(f"chosen: {chosen} ({out['chosen_by']})")
     return 0

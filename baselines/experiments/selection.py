@@ -297,7 +297,8 @@ def select_observation_settings(
 
     Returns:
         ``{"rows": [{"settings", "mean_error_mm", "hold_ratio"}...], "hold_mm",
-        "chosen", "validation_subjects", "train_clips"}`` (with ``still``: each
+        "chosen", "chosen_by", "validation_subjects", "train_clips"}`` (``chosen_by``:
+        which part of the rule chose, in words; with ``still``: each
         row's ``still_error_mm`` and ``still_ratio``, and ``still_hold_mm``,
         ``still_episodes``); without ``still`` the chosen settings have the
         lowest mean error (ties: the first in grid order).
@@ -336,6 +337,7 @@ def select_observation_settings(
             row["still_error_mm"] = float(np.mean(quiet))
             row["still_ratio"] = row["still_error_mm"] / float(np.mean(hold_still))
         rows.append(row)
+    chosen, chosen_by = _choose(rows)
     extra = {}
     if windows:
         extra = {"still_hold_mm": float(np.mean(hold_still)), "still_episodes": len(windows)}
@@ -347,7 +349,8 @@ def select_observation_settings(
         "episodes": episodes,
         "rows": rows,
         "hold_mm": hold,
-        "chosen": rows[_chosen(rows)]["settings"],
+        "chosen": rows[chosen]["settings"],
+        "chosen_by": chosen_by,
         "validation_subjects": sorted(library.held_out),
         "train_clips": len(library.split("train")),
     }
@@ -355,10 +358,24 @@ def select_observation_settings(
 
 def _chosen(rows: Sequence[Mapping[str, Any]]) -> int:
     """The row the declared rule picks (see :func:`select_observation_settings`)."""
+    return _choose(rows)[0]
+
+
+def _choose(rows: Sequence[Mapping[str, Any]]) -> tuple[int, str]:
+    """The row the declared rule picks, and which part of the rule picked it, in words."""
     order = range(len(rows))
+    by = "the lowest mean error"
     if rows and "still_ratio" in rows[0]:
         standing = [i for i in order if rows[i]["still_ratio"] <= STILL_RATIO]
         if not standing:
-            return min(order, key=lambda i: rows[i]["still_error_mm"])
+            best = min(order, key=lambda i: rows[i]["still_error_mm"])
+            return best, (
+                f"no setting within {STILL_RATIO:g}x hold on the still episodes: chosen by the "
+                "lowest still error instead"
+            )
         order = standing  # type: ignore[assignment]
-    return min(order, key=lambda i: rows[i]["mean_error_mm"])
+        by += (
+            f" among the {len(standing)} of {len(rows)} settings within {STILL_RATIO:g}x hold "
+            "on the still episodes"
+        )
+    return min(order, key=lambda i: rows[i]["mean_error_mm"]), by
