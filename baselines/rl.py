@@ -35,11 +35,9 @@ import importlib.util
 import json
 import math
 import platform
-import shutil
 import sys
 import time
 import warnings
-import zipfile
 from collections.abc import Callable, Sequence
 from contextlib import closing
 from dataclasses import asdict
@@ -83,7 +81,10 @@ from baselines.rl_config import (  # noqa: F401  (the training API, re-exported)
     ResumeMismatch,
     TrainConfig,
     check_resumed,
+    checkpoints,
     load_hyperparams,
+    prepare_output,
+    resume_point,
 )
 from humotion_gym.body import N_KEYPOINTS
 from humotion_gym.envs import get_task
@@ -157,50 +158,6 @@ def _provenance(config: TrainConfig, command: str | None) -> dict[str, Any]:
             "python": platform.python_version(),
         },
     }
-
-
-def checkpoints(folder: Path) -> list[tuple[int, Path]]:
-    """The run's checkpoints ``model_N_steps.zip`` as ``(N, path)``, fewest steps first."""
-    found = []
-    for path in folder.glob("model_*_steps.zip"):
-        try:
-            found.append((int(path.stem.split("_")[1]), path))
-        except (IndexError, ValueError):
-            continue
-    return sorted(found)
-
-
-def _model_steps(path: Path) -> int | None:
-    """The env steps a saved model was trained for (its ``num_timesteps``), None if unreadable."""
-    try:
-        with zipfile.ZipFile(path) as archive:
-            steps = json.loads(archive.read("data")).get("num_timesteps")
-    except (OSError, KeyError, ValueError, zipfile.BadZipFile, AttributeError):
-        return None
-    return steps if isinstance(steps, int) and steps >= 0 else None
-
-
-def resume_point(out: Path) -> tuple[int, Path] | None:
-    """Where a resumed run continues: ``(env steps, model file)``, None to start afresh.
-
-    The latest of the run's checkpoints and its final ``model.zip`` (which a
-    run that ended after its last checkpoint, or wrote none, holds alone).
-
-    Raises:
-        ValueError: If ``model.zip`` is unreadable and there is no checkpoint:
-            a resume would start afresh over it.
-    """
-    found = checkpoints(out / "checkpoints")
-    final = out / "model.zip"
-    steps = _model_steps(final) if final.is_file() else None
-    if steps is not None and (not found or steps > found[-1][0]):
-        return steps, final
-    if final.is_file() and steps is None and not found:
-        raise ValueError(
-            f"--resume: {final} is unreadable and no checkpoint is left to continue from; "
-            "start afresh with --force"
-        )
-    return found[-1] if found else None
 
 
 def _tensorboard_dir(out: Path) -> str | None:
@@ -385,45 +342,6 @@ def _save(model: PPO, path: Path) -> None:
     write_atomically(path, model.save, keep_suffix=True)  # SB3 adds .zip to a name without
 
 
-def prepare_output(out: Path, resume: bool, force: bool, config: TrainConfig | None = None) -> None:
-    """Refuse to overwrite an earlier run's model unless asked to resume or to start afresh.
-
-    With ``force`` the earlier run's ``model.zip``, checkpoints and logs are
-    deleted (a later resume would otherwise continue from them). With ``resume`` and a
-    ``config``, the earlier run's ``config.json`` must record the same run
-    (:func:`check_resumed`).
-
-    Raises:
-        FileExistsError: If ``out`` holds a model or checkpoints and neither
-            ``resume`` nor ``force`` is set.
-        ValueError: If both are set, or the run to resume is another
-            algorithm's, task's or network's, or its model or checkpoints
-            lack the ``config.json`` that would say.
-    """
-    if resume and force:
-        raise ValueError("resume and force: choose one (continue the run, or start afresh)")
-    earlier = [p for p in (out / "model.zip",) if p.is_file()]
-    earlier += [p for _, p in checkpoints(out / "checkpoints")]
-    if resume and config is not None and (out / "config.json").is_file():
-        check_resumed(out / "config.json", config)
-    elif resume and config is not None and earlier:
-        # Checkpoints whose run is unknown may be another task's network.
-        raise ResumeMismatch(
-            f"--resume: {out} holds {earlier[0].name} but no config.json to check it against; "
-            "start afresh (--force or another --out)"
-        )
-    if not earlier or resume:
-        return
-    if not force:
-        raise FileExistsError(
-            f"{out} holds an earlier run's model ({earlier[0]}); resume it (--resume) or "
-            "overwrite it (--force)"
-        )
-    for path in earlier:
-        path.unlink()
-    shutil.rmtree(out / "logs", ignore_errors=True)  # the earlier run's, resumed ones' too
-
-
 def train(
     config: TrainConfig, resume: bool = False, command: str | None = None, force: bool = False
 ) -> Path:
@@ -439,21 +357,27 @@ def train(
         config: The run.
         resume: Continue the run in ``config.out`` from its latest model
             (:func:`resume_point`; from the start when it has none). The run
-            must be the same but for its length (:func:`check_resumed`).
+            must be the same but for its length (:func:`check_resumed`), and
+            there must be one (:func:`prepare_output`).
         command: The command line, kept in ``config.json``.
         force: Start afresh over an earlier run's model (deleting it).
 
     Raises:
         FileExistsError: If the output folder holds an earlier run's model and
             neither ``resume`` nor ``force`` is set (:func:`prepare_output`).
-        ValueError: If the data lacks the validation persons (:func:`validation_fold`).
+        ResumeMismatch: If ``resume`` finds no run, or another run (:func:`prepare_output`).
+        ValueError: If the data lacks the validation persons (:func:`validation_fold`),
+            or the run to resume has an unreadable model alone (:func:`resume_point`).
     """
     out = Path(config.out)
     init = check_init(config)
     prepare_output(out, resume, force, config)
+    try:
+        start = resume_point(out) if resume else None
+    except ValueError as exc:
+        raise ValueError(f"--resume: {exc}; start afresh with --force") from None
     th.set_num_threads(max(1, int(config.threads)))
     fold = validation_fold(config)
-    start = resume_point(out) if resume else None
     logger = training_logger(out, start[0] if start else 0)
     validation = Validation(config, fold, logger) if fold is not None else None
     try:

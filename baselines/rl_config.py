@@ -1,10 +1,11 @@
-"""A training run's settings: the algorithms' defaults, their ranges, the run's config.
+"""A training run's settings and folder: the algorithms' defaults, their ranges, the run's config.
 
 Settings are data: :data:`PPO_DEFAULTS` and :data:`BC_DEFAULTS` (``hyperparams/ppo.yml``
 holds PPO's per task in the RL Baselines3 Zoo format), each checked against
 :data:`SETTING_RANGES` when a :class:`TrainConfig` is made, so that a bad value is
-refused by name before any network is built. Importing this module does not import
-torch or stable-baselines3 (:mod:`baselines.rl` trains).
+refused by name before any network is built. A run's folder (its record, models and
+checkpoints) is read here too, to check a resume before anything trains. Importing this
+module does not import torch or stable-baselines3 (:mod:`baselines.rl` trains).
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ from __future__ import annotations
 import ast
 import json
 import math
+import shutil
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeGuard
@@ -334,7 +337,7 @@ RESUME_FREE_SETTINGS: tuple[str, ...] = ("rounds",)
 
 
 class ResumeMismatch(ValueError):
-    """The run asked to resume is another run, or an unknown one (exit 2 on the CLI)."""
+    """The run asked to resume is another run, an unknown one or none (exit 2 on the CLI)."""
 
 
 class InitMismatch(ValueError):
@@ -350,23 +353,32 @@ def _comparable(key: str, value: Any) -> Any:
     return value
 
 
-def check_resumed(path: Path, config: TrainConfig) -> None:
-    """Refuse to resume the run recorded in ``path`` as another run.
+def read_record(path: Path) -> dict[str, Any]:
+    """A run's record, its ``config.json``.
+
+    Raises:
+        ValueError: If it is not a JSON object (the message names the file).
+    """
+    try:
+        saved = json.loads(path.read_text(encoding="utf-8"))
+    except ValueError as exc:
+        raise ValueError(f"{path}: not a run's record ({exc})") from None
+    if not isinstance(saved, dict):
+        raise ValueError(f"{path}: not a run's record (a JSON object)")
+    return saved
+
+
+def resume_differences(saved: dict[str, Any], config: TrainConfig) -> list[str]:
+    """How ``config`` is another run than the recorded one ``saved``; empty if the same.
 
     A resumed run continues the recorded one's model, so it must be that run:
     the same :data:`RESUME_KEYS` and algorithm settings; only its length (with
     :data:`RESUME_FREE_SETTINGS`) and how often it checkpoints and validates
     may differ.
 
-    Raises:
-        ResumeMismatch: Naming every field that differs.
+    Returns:
+        ``"KEY: saved A, now B"`` for each field that differs.
     """
-    try:
-        saved = json.loads(path.read_text(encoding="utf-8"))
-    except ValueError as exc:
-        raise ValueError(f"{path}: not a run's record ({exc}); --force starts afresh") from None
-    if not isinstance(saved, dict):
-        raise ValueError(f"{path}: not a run's record; --force starts afresh")
     now = {key: _comparable(key, getattr(config, key)) for key in RESUME_KEYS}
     before = {key: _comparable(key, saved.get(key)) for key in RESUME_KEYS}
     recorded = saved.get("settings")
@@ -374,9 +386,135 @@ def check_resumed(path: Path, config: TrainConfig) -> None:
     for key in sorted((set(config.settings) | set(settings)) - set(RESUME_FREE_SETTINGS)):
         now[f"setting {key}"] = config.settings.get(key)
         before[f"setting {key}"] = settings.get(key)
-    differ = [f"{k}: saved {before[k]!r}, now {now[k]!r}" for k in now if before[k] != now[k]]
+    return [f"{k}: saved {before[k]!r}, now {now[k]!r}" for k in now if before[k] != now[k]]
+
+
+def check_resumed(path: Path, config: TrainConfig) -> None:
+    """Refuse to resume the run recorded in ``path`` as another run (:func:`resume_differences`).
+
+    Raises:
+        ValueError: If ``path`` is not a run's record.
+        ResumeMismatch: Naming every field that differs.
+    """
+    try:
+        saved = read_record(path)
+    except ValueError as exc:
+        raise ValueError(f"{exc}; --force starts afresh") from None
+    differ = resume_differences(saved, config)
     if differ:
         raise ResumeMismatch(
             f"--resume: {path.parent} holds another run ({'; '.join(differ)}); resume it with "
             "the same settings, or start afresh (--force or another --out)"
         )
+
+
+#: What a training run writes into its folder (:func:`baselines.rl.train`).
+RUN_NAMES: tuple[str, ...] = ("config.json", "model.zip", "checkpoints", "logs", "tb")
+
+
+def checkpoints(folder: Path) -> list[tuple[int, Path]]:
+    """The run's checkpoints ``model_N_steps.zip`` as ``(N, path)``, fewest steps first."""
+    found = []
+    for path in folder.glob("model_*_steps.zip"):
+        try:
+            found.append((int(path.stem.split("_")[1]), path))
+        except (IndexError, ValueError):
+            continue
+    return sorted(found)
+
+
+def earlier_models(out: Path) -> list[Path]:
+    """An earlier run's models in ``out``: its ``model.zip``, then its checkpoints."""
+    final = [out / "model.zip"] if (out / "model.zip").is_file() else []
+    return final + [p for _, p in checkpoints(out / "checkpoints")]
+
+
+def foreign_names(out: Path) -> list[str]:
+    """What ``out`` holds that no training run writes (:data:`RUN_NAMES`), sorted, at most 3."""
+    if not out.is_dir():
+        return []
+    names = sorted(p.name for p in out.iterdir() if p.name not in RUN_NAMES)
+    return names[:3] + ["..."] if len(names) > 3 else names
+
+
+def _model_steps(path: Path) -> int | None:
+    """The env steps a saved model was trained for (its ``num_timesteps``), None if unreadable."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            steps = json.loads(archive.read("data")).get("num_timesteps")
+    except (OSError, KeyError, ValueError, zipfile.BadZipFile, AttributeError):
+        return None
+    return steps if isinstance(steps, int) and steps >= 0 else None
+
+
+def resume_point(out: Path) -> tuple[int, Path] | None:
+    """Where a resumed run continues: ``(env steps, model file)``, None to start afresh.
+
+    The latest of the run's checkpoints and its final ``model.zip`` (which a
+    run that ended after its last checkpoint, or wrote none, holds alone).
+
+    Raises:
+        ValueError: If ``model.zip`` is unreadable and there is no checkpoint:
+            a resume would start afresh over it (the message names no flag:
+            each command says what to do).
+    """
+    found = checkpoints(out / "checkpoints")
+    final = out / "model.zip"
+    steps = _model_steps(final) if final.is_file() else None
+    if steps is not None and (not found or steps > found[-1][0]):
+        return steps, final
+    if final.is_file() and steps is None and not found:
+        raise ValueError(f"{final} is unreadable and no checkpoint is left to continue from")
+    return found[-1] if found else None
+
+
+def _no_run(out: Path, earlier: list[Path]) -> str:
+    """Why ``out`` holds no run to resume (it has no ``config.json``), and what to do."""
+    if earlier:  # checkpoints whose run is unknown may be another task's network
+        return (
+            f"--resume: {out} holds {earlier[0].name} but no config.json to check it against; "
+            "start afresh (--force or another --out)"
+        )
+    found = foreign_names(out)
+    if found:  # another command's output: a run started there would be mixed into it
+        return (
+            f"--resume: no run to resume in {out}: it holds {', '.join(found)}, not a training "
+            "run (no config.json); train into another --out"
+        )
+    return f"--resume: no run to resume in {out} (start one without --resume)"
+
+
+def prepare_output(out: Path, resume: bool, force: bool, config: TrainConfig | None = None) -> None:
+    """Refuse to overwrite an earlier run's model unless asked to resume or to start afresh.
+
+    With ``force`` the earlier run's ``model.zip``, checkpoints and logs are
+    deleted (a later resume would otherwise continue from them). With
+    ``resume`` the folder must hold a run's ``config.json`` (a run stopped
+    before its first model holds it alone, and starts again), and with a
+    ``config`` it must record the same run (:func:`check_resumed`).
+
+    Raises:
+        FileExistsError: If ``out`` holds a model or checkpoints and neither
+            ``resume`` nor ``force`` is set.
+        ResumeMismatch: With ``resume``, if ``out`` holds no run (nothing, or
+            another command's files), a model without the ``config.json`` that
+            would say which run it is, or another run than ``config``.
+        ValueError: If both ``resume`` and ``force`` are set.
+    """
+    if resume and force:
+        raise ValueError("resume and force: choose one (continue the run, or start afresh)")
+    earlier = earlier_models(out)
+    if resume and not (out / "config.json").is_file():
+        raise ResumeMismatch(_no_run(out, earlier))
+    if resume and config is not None:
+        check_resumed(out / "config.json", config)
+    if not earlier or resume:
+        return
+    if not force:
+        raise FileExistsError(
+            f"{out} holds an earlier run's model ({earlier[0]}); resume it (--resume) or "
+            "overwrite it (--force)"
+        )
+    for path in earlier:
+        path.unlink()
+    shutil.rmtree(out / "logs", ignore_errors=True)  # the earlier run's, resumed ones' too

@@ -73,9 +73,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     again = tr.add_mutually_exclusive_group()
     again.add_argument(
         "--resume", action="store_true",
-        help="continue the run in OUT from its latest checkpoint, its weights (its episodes "
-        "start again from the seed: not the uninterrupted run bit for bit; default: an OUT "
-        "holding an earlier run's model is refused)",
+        help="continue the run in OUT (refused where OUT holds none) from its latest "
+        "checkpoint, its weights (its episodes start again from the seed: not the "
+        "uninterrupted run bit for bit; default: an OUT holding an earlier run's model is "
+        "refused)",
     )  # fmt: skip
     again.add_argument(
         "--force", action="store_true",

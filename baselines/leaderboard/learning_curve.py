@@ -99,7 +99,7 @@ def learning_curve(
         per_seed: list[dict[int, list[float]]] = []
         for seed in seeds:
             config = configs[algo, seed]
-            train(config, resume=True)
+            train(config, resume=(Path(config.out) / "config.json").is_file())  # a run to continue
             found = {0: None, **dict(checkpoints(Path(config.out) / "checkpoints"))}
             errors: dict[int, list[float]] = {}
             for n, path in found.items():

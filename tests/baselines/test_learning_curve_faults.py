@@ -20,11 +20,11 @@ HOLD = [1.0, 3.0, 2.0, 100.0]
 
 def _stub(monkeypatch: pytest.MonkeyPatch) -> dict[str, Any]:
     """Training records its configs; each run has checkpoints at 2 and 4 steps; no figure."""
-    seen: dict[str, Any] = {"configs": [], "hold_calls": 0}
+    seen: dict[str, Any] = {"configs": [], "hold_calls": 0, "resumed": []}
 
     def train(config: Any, resume: bool = False) -> None:
-        assert resume
         seen["configs"].append(config)
+        seen["resumed"].append(resume)
 
     def checkpoints(folder: Path) -> list[tuple[int, Path]]:
         return [(2, folder / "model_2_steps.zip"), (4, folder / "model_4_steps.zip")]

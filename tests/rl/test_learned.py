@@ -105,8 +105,7 @@ def test_an_earlier_runs_model_is_kept_without_resume_or_force(tmp_path: Path) -
         train(config)  # refused before any work
     with pytest.raises(ValueError, match="choose one"):
         prepare_output(tmp_path, resume=True, force=True)
-    prepare_output(tmp_path, resume=True, force=False)  # resuming keeps them
-    # With a config to check against, checkpoints without their config.json are refused.
+    # Checkpoints without their config.json are refused: their run is unknown.
     with pytest.raises(ResumeMismatch, match="model.zip but no config.json"):
         prepare_output(tmp_path, resume=True, force=False, config=config)
     assert (tmp_path / "model.zip").is_file()
@@ -433,8 +432,43 @@ def test_a_starting_policy_is_checked_before_the_run_writes_anything(
 
 def test_a_resume_over_an_unreadable_model_alone_is_refused(tmp_path: Path) -> None:
     (tmp_path / "model.zip").write_bytes(b"damaged")
-    with pytest.raises(ValueError, match=r"--resume: .*model\.zip is unreadable.*--force"):
+    with pytest.raises(ValueError, match=r"model\.zip is unreadable and no checkpoint"):
         resume_point(tmp_path)
+    config = TrainConfig("bc", "ArmTrack-v2", steps=10, out=str(tmp_path))
+    (tmp_path / "config.json").write_text(json.dumps(asdict(config)))
+    with pytest.raises(ValueError, match=r"--resume: .*model\.zip is unreadable.*--force"):
+        train(config, resume=True)
+
+
+@pytest.mark.parametrize("holds", ["nothing", "empty", "detector", "sweep"])
+def test_cli_train_resumes_no_run_where_there_is_none(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], holds: str
+) -> None:
+    """--resume in a missing, empty or other command's folder: refused, nothing written.
+
+    It started a new run there (exit 0), mixing model.zip and logs into another
+    command's output.
+    """
+    from baselines.cli import main
+
+    out = tmp_path / "out"
+    files = {"detector": ["detector.json", "detector.npz"], "sweep": ["sweep.json"]}
+    if holds != "nothing":
+        out.mkdir()
+    for name in files.get(holds, []):
+        (out / name).write_text("{}")
+    argv = ["train", "--algo", "bc", "--task", "ArmTrack-v2", "--steps", "16", "--no-validation",
+            "--out", str(out), "--resume"]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"humotion-gym train: error: --resume: no run to resume in {out}")
+    assert len(err.splitlines()) == 1
+    if holds in files:  # named, and not to be trained into
+        assert f"it holds {', '.join(files[holds])}" in err and "another --out" in err
+        assert sorted(p.name for p in out.iterdir()) == files[holds]
+    else:
+        assert "(start one without --resume)" in err
+        assert not out.exists() or not any(out.iterdir())
 
 
 def test_bad_configs_are_refused() -> None:
