@@ -116,14 +116,15 @@ def _register_curve(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     lc.add_argument(
         "--seeds", type=int_at_least(0), nargs="+", default=[0, 1, 2],
-        help="training seeds (default: 0 1 2)",
+        help="training seeds, each once: one run each (default: 0 1 2)",
     )  # fmt: skip
     add_int(lc, "--steps", 100_000, "env steps per run")
     add_int(lc, "--points", 5, "checkpoints evaluated per run, evenly spaced")
     add_int(lc, "--episodes", 10, "test episodes per evaluated checkpoint")
     lc.add_argument(
         "--runs-dir", type=output_dir, default="runs/curve",
-        help="where the runs are trained, and resumed from (default: runs/curve)",
+        help="where the runs are trained, and resumed from: a run found there must be the "
+        "same run, of at most --steps (default: runs/curve)",
     )  # fmt: skip
     lc.add_argument(
         "--out", type=output_file(".png"), default="docs/img/rl_learning_curve.png",
@@ -211,13 +212,14 @@ def _train(args: argparse.Namespace, out: Path) -> int:
 
 
 def _cmd_curve(args: argparse.Namespace) -> int:
-    from baselines.leaderboard.learning_curve import learning_curve
+    from baselines.leaderboard.learning_curve import CurveUsageError, learning_curve
 
     data_dir = [str(d) for d in args.data_dir] if args.data_dir else None
-    result = learning_curve(
-        args.task, args.algos, args.seeds, args.steps, args.points, args.episodes,
-        args.runs_dir, args.out, data_dir=data_dir, settings=dict(args.set),
-    )  # fmt: skip
+    with refused_as(UsageError, CurveUsageError):  # raised before any run trains
+        result = learning_curve(
+            args.task, args.algos, args.seeds, args.steps, args.points, args.episodes,
+            args.runs_dir, args.out, data_dir=data_dir, settings=dict(args.set),
+        )  # fmt: skip
     for algo, rows in result["curves"].items():
         for row in rows:
             lo, hi = row["iqm_ci"]

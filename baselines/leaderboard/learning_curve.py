@@ -23,8 +23,57 @@ from baselines.experiments._plotting import pyplot, save
 from baselines.leaderboard.evaluation import evaluate
 from baselines.leaderboard.stats import iqm, stratified_bootstrap_ci
 from baselines.rl import TrainConfig, checkpoints, train
+from baselines.rl_config import (
+    earlier_models,
+    foreign_names,
+    read_record,
+    resume_differences,
+    resume_point,
+)
 from humotion_gym.envs import get_task
 from humotion_gym.files import write_text_atomically
+
+
+class CurveUsageError(ValueError):
+    """The curve's arguments disagree, or disagree with the runs found (exit 2 on the CLI)."""
+
+
+def _found_run(config: TrainConfig) -> bool:
+    """Whether the folder of ``config`` holds its run to resume (False: none, start it).
+
+    Raises:
+        CurveUsageError: If it holds another run, one longer than ``config.steps``
+            (its points past them would be plotted), models without the run's
+            record, or another command's files.
+        ValueError: If its record or its model is unreadable.
+    """
+    out = Path(config.out)
+    move = f"choose another --runs-dir or move {out} away"
+    if not (out / "config.json").is_file():
+        found = [p.name for p in earlier_models(out)[:1]] + foreign_names(out)
+        if found:
+            raise CurveUsageError(f"--runs-dir: {out} holds {', '.join(found)} but no training "
+                                  f"run's config.json; {move}")  # fmt: skip
+        return False
+    saved = read_record(out / "config.json")
+    differ = resume_differences(saved, config)
+    if differ:
+        raise CurveUsageError(
+            f"--runs-dir: {out} holds another run ({'; '.join(differ)}); learning-curve "
+            f"continues a run only with the same --task, --data-dir and --set: {move}"
+        )
+    longer = saved.get("steps")
+    if isinstance(longer, int) and longer > config.steps:
+        raise CurveUsageError(
+            f"--steps {config.steps}: {out} holds a longer run ({longer:,} env steps), whose "
+            f"checkpoints are not the points of {config.steps:,}; give --steps {longer} or more "
+            "to use it, or another --runs-dir"
+        )
+    try:
+        resume_point(out)
+    except ValueError as exc:
+        raise ValueError(f"--runs-dir: {exc}; {move}") from None
+    return True
 
 
 def _test_errors(
@@ -68,41 +117,58 @@ def learning_curve(
 
     Each (algorithm, seed) run trains on the training persons for ``steps``
     env steps with ``points`` evenly spaced checkpoints (a ``bc`` round per
-    point), resuming a run found under ``runs_dir``. Each checkpoint tracks
-    the same ``episodes`` seeded test episodes. A point of the curve is the
-    interquartile mean of the (seed, episode) mean errors with a 95%
+    point), resuming a run found under ``runs_dir`` (the same run, of at
+    most ``steps``: a longer one's checkpoints are not the points asked for,
+    and its record would be rewritten as a shorter run's). Each checkpoint
+    tracks the same ``episodes`` seeded test episodes. A point of the curve
+    is the interquartile mean of the (seed, episode) mean errors with a 95%
     stratified bootstrap interval (seeds resampled within each episode;
     Agarwal et al., *Deep reinforcement learning at the edge of the
     statistical precipice*, NeurIPS 2021); step 0 is the untrained policy,
     which is ``hold`` (:func:`start_as_hold`). Writes the figure to ``out``
     and the numbers to ``out`` with the suffix ``.json``.
+
+    Raises:
+        CurveUsageError: Before any run trains: a seed given twice, a setting
+            out of range, or a run found that is not the one asked for
+            (:func:`_found_run`).
     """
+    twice = sorted({s for s in seeds if list(seeds).count(s) > 1})
+    if twice:  # one run counted twice would narrow the interval for nothing
+        shown = ", ".join(str(s) for s in twice)
+        raise CurveUsageError(
+            f"--seeds: {shown} given twice; each seed is one run, give distinct seeds"
+        )
     every = max(1, steps // points)
-    # Every run's settings are checked before the first one trains.
-    configs = {
-        (algo, seed): TrainConfig(
-            algo,
-            task,
-            steps,
-            int(seed),
-            str(Path(runs_dir) / f"{algo}-s{seed}"),
-            data_dir=data_dir,
-            checkpoint_every=every,
-            settings={**({"rounds": points} if algo == "bc" else {}), **(settings or {})},
-        )  # fmt: skip
-        for algo in algos
-        for seed in seeds
-    }
+    # Every run's settings, and the runs found, are checked before the first one trains.
+    try:
+        configs = {
+            (algo, seed): TrainConfig(
+                algo,
+                task,
+                steps,
+                int(seed),
+                str(Path(runs_dir) / f"{algo}-s{seed}"),
+                data_dir=data_dir,
+                checkpoint_every=every,
+                settings={**({"rounds": points} if algo == "bc" else {}), **(settings or {})},
+            )  # fmt: skip
+            for algo in dict.fromkeys(algos)
+            for seed in seeds
+        }
+    except ValueError as exc:  # a setting out of range or unknown to an algorithm
+        raise CurveUsageError(str(exc)) from None
+    found = {key: _found_run(config) for key, config in configs.items()}
     curves: dict[str, list[dict[str, Any]]] = {}
     hold = None
-    for algo in algos:
+    for algo in dict.fromkeys(algos):
         per_seed: list[dict[int, list[float]]] = []
         for seed in seeds:
             config = configs[algo, seed]
-            train(config, resume=(Path(config.out) / "config.json").is_file())  # a run to continue
-            found = {0: None, **dict(checkpoints(Path(config.out) / "checkpoints"))}
+            train(config, resume=found[algo, seed])
+            points_of = {0: None, **dict(checkpoints(Path(config.out) / "checkpoints"))}
             errors: dict[int, list[float]] = {}
-            for n, path in found.items():
+            for n, path in points_of.items():
                 if path is None:
                     if hold is None:
                         hold = _test_errors(task, episodes, data_dir, HoldAgent)

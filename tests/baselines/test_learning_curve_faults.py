@@ -3,16 +3,20 @@
 from __future__ import annotations
 
 import json
+from dataclasses import asdict
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
 import pytest
 
+from baselines.cli import main
+
 pytest.importorskip("stable_baselines3", reason="the learning curve needs the rl extra")
 
 import baselines.leaderboard.learning_curve as curve  # noqa: E402
 from baselines.agents import HoldAgent  # noqa: E402
+from baselines.rl_config import TrainConfig  # noqa: E402
 
 #: hold's four test episodes: the IQM cuts one from each end, (2 + 3) / 2 = 2.5; the mean is 26.5
 HOLD = [1.0, 3.0, 2.0, 100.0]
@@ -125,3 +129,101 @@ def test_the_test_episodes_are_the_test_persons_seeded_from_0(
     assert made[2][1] == {"split": "test", "terminate_on_lost": False, "data_dir": ["/data"]}
     assert made[1][0] == made[3][0] == "closed"
     assert calls == [(3, 0), (2, 0)]
+
+
+def _curve_cli(tmp_path: Path, *extra: str, task: str = "ArmTrack-v2") -> list[str]:
+    """``learning-curve`` of bc over 16 steps, its runs under ``tmp_path/runs``."""
+    return ["learning-curve", "--task", task, "--algos", "bc", "--seeds", "0", "--steps", "16",
+            "--points", "2", "--episodes", "4", "--runs-dir", str(tmp_path / "runs"),
+            "--out", str(tmp_path / "c.png"), *extra]  # fmt: skip
+
+
+def _recorded_run(tmp_path: Path, **changes: Any) -> Path:
+    """``runs/bc-s0`` holding the record of the run :func:`_curve_cli` asks for, but ``changes``."""
+    run = tmp_path / "runs" / "bc-s0"
+    run.mkdir(parents=True, exist_ok=True)
+    kwargs: dict[str, Any] = dict(steps=16, seed=0, out=str(run), checkpoint_every=8,
+                                  settings={"rounds": 2})  # fmt: skip
+    config = TrainConfig("bc", "ArmTrack-v2", **{**kwargs, **changes})
+    (run / "config.json").write_text(json.dumps(asdict(config)))
+    return run
+
+
+def test_another_runs_folder_is_refused_in_the_curves_own_terms(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A run of another task under --runs-dir: exit 2 naming --runs-dir, before any training.
+
+    It was refused by train's resume (exit 1), naming --resume and --force, which
+    learning-curve does not have.
+    """
+    seen = _stub(monkeypatch)
+    _recorded_run(tmp_path)
+    assert main(_curve_cli(tmp_path, task="BodyTrack-v2")) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("humotion-gym learning-curve: error: --runs-dir: ")
+    assert "holds another run (task: saved 'ArmTrack-v2', now 'BodyTrack-v2'" in err
+    assert "--resume" not in err and "--force" not in err and len(err.splitlines()) == 1
+    assert seen["configs"] == []
+
+
+@pytest.mark.parametrize("names", [["detector.npz"], ["model.zip"]])
+def test_a_folder_of_another_command_or_an_unrecorded_model_is_refused(
+    monkeypatch: pytest.MonkeyPatch,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    names: list[str],
+) -> None:
+    """A run's folder holding no run's record: refused, not trained into nor resumed."""
+    seen = _stub(monkeypatch)
+    run = tmp_path / "runs" / "bc-s0"
+    run.mkdir(parents=True)
+    for name in names:
+        (run / name).write_bytes(b"x")
+    assert main(_curve_cli(tmp_path)) == 2
+    err = capsys.readouterr().err
+    assert f"--runs-dir: {run} holds {names[0]} but no training run's config.json" in err
+    assert seen["configs"] == []
+
+
+def test_a_seed_given_twice_is_refused(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--seeds 0 0 counted one run twice (two equal per-seed means): a usage error now."""
+    seen = _stub(monkeypatch)
+    argv = _curve_cli(tmp_path)
+    argv[argv.index("--seeds") + 1 : argv.index("--seeds") + 2] = ["0", "1", "0"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "--seeds: 0 given twice" in err and len(err.splitlines()) == 1
+    assert seen["configs"] == []
+
+
+def test_a_run_longer_than_steps_is_refused_and_a_shorter_one_resumed(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A run of 24 steps under --steps 16: refused (its points past 16 were plotted).
+
+    The 24-step run's checkpoints are not the points a 16-step curve asks for
+    (bc splits its steps into rounds anew), so they are not cut at --steps.
+    """
+    seen = _stub(monkeypatch)
+    run = _recorded_run(tmp_path, steps=24)
+    assert main(_curve_cli(tmp_path)) == 2
+    err = capsys.readouterr().err
+    assert f"--steps 16: {run} holds a longer run (24 env steps)" in err
+    assert "--steps 24 or more" in err and seen["configs"] == []
+    _recorded_run(tmp_path, steps=8)
+    assert main(_curve_cli(tmp_path)) == 0
+    assert seen["resumed"] == [True]  # the 8-step run continued to 16
+
+
+def test_a_run_not_found_is_started_not_resumed(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """No folder, or one left by a run stopped before its record: trained afresh."""
+    seen = _stub(monkeypatch)
+    (tmp_path / "runs" / "bc-s1" / "logs").mkdir(parents=True)
+    curve.learning_curve("ArmTrack-v2", ["bc", "bc"], [0, 1], 16, 2, 4, tmp_path / "runs",
+                         tmp_path / "c.png")  # fmt: skip
+    assert seen["resumed"] == [False, False]  # bc given twice is trained once per seed
