@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import filecmp
 import json
 import shutil
 import sys
@@ -94,7 +95,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     tr.add_argument(
         "--export", type=shared_output_dir, default=None, metavar="DIR",
         help="also copy the model and its config to DIR/ALGO-TASK.zip and .json, as the "
-        "pretrained checkpoints in baselines/checkpoints are made (default: none)",
+        "pretrained checkpoints in baselines/checkpoints are made; an earlier file there is "
+        "refused unless --force, or --resume and it is this run's own export (default: none)",
     )  # fmt: skip
     add_data_dir(tr)
     add_json(tr, "print the run's config.json at the end")
@@ -180,14 +182,7 @@ def _train(args: argparse.Namespace, out: Path) -> int:
         )  # fmt: skip
     if args.init is not None and not args.init.is_file():
         raise CommandError(f"--init: {args.init} does not exist")
-    export = None if args.export is None else args.export / f"{args.algo}-{config.task}.zip"
-    if export is not None and not args.force:  # refused now, not after the training
-        taken = [p for p in (export, export.with_suffix(".json")) if p.exists()]
-        if taken:
-            raise UsageError(
-                f"--export: {taken[0]} exists (an earlier export, or a pretrained checkpoint); "
-                "give --force to replace it"
-            )
+    export = _export_path(args, config.task, out)
     command = "humotion-gym " + " ".join(sys.argv[1:]) if sys.argv[1:] else None
     # With --json, stdout holds the one JSON object: the training log goes to stderr.
     log = contextlib.redirect_stdout(sys.stderr) if args.json else contextlib.nullcontext()
@@ -209,6 +204,36 @@ def _train(args: argparse.Namespace, out: Path) -> int:
     )
     wrote(path, f"the policy; score it with --agents {args.algo}={path}")
     return 0
+
+
+def _export_path(args: argparse.Namespace, task: str, out: Path) -> Path | None:
+    """Where ``--export`` copies the policy, checked before the training; None without it.
+
+    An earlier file there is replaced with ``--force``, or, when resuming, if
+    it is this run's own earlier export (a copy of ``OUT/model.zip``): the
+    longer run's policy takes its place. ``--force`` cannot go with ``--resume``.
+
+    Raises:
+        UsageError: If the file is there and may not be replaced.
+    """
+    if args.export is None:
+        return None
+    export = Path(args.export) / f"{args.algo}-{task}.zip"
+    taken = [p for p in (export, export.with_suffix(".json")) if p.exists()]
+    own = out / "model.zip"
+    if not taken or args.force:
+        return export
+    if args.resume and export.is_file() and own.is_file() and filecmp.cmp(export, own, False):
+        return export
+    if args.resume:
+        raise UsageError(
+            f"--export: {taken[0]} exists and is not this run's model (another run's export, "
+            "or a pretrained checkpoint); export into another folder or move it away"
+        )
+    raise UsageError(
+        f"--export: {taken[0]} exists (an earlier export, or a pretrained checkpoint); give "
+        "--force to replace it, or export into another folder"
+    )
 
 
 def _cmd_curve(args: argparse.Namespace) -> int:

@@ -524,6 +524,41 @@ def test_cli_train_and_track_a_saved_policy(tmp_path: Path, capsys) -> None:
         assert "holds another run" in err and len(err.strip().splitlines()) == 1
 
 
+def test_cli_a_resumed_run_replaces_its_own_export_alone(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """train --resume --export over its own earlier export replaces it; over another, refused.
+
+    A resume over any earlier export was refused with "give --force to replace
+    it", which --resume does not allow (and --force would delete the run).
+    """
+    import baselines.rl as rl
+    from baselines.cli import main
+
+    def train(config: TrainConfig, resume: bool = False, **kwargs: object) -> Path:
+        out = Path(config.out)  # a model of as many bytes as steps: each run's its own
+        (out / "model.zip").write_bytes(b"m" * config.steps)
+        (out / "config.json").write_text(json.dumps({"steps": config.steps}))
+        return out / "model.zip"
+
+    monkeypatch.setattr(rl, "train", train)
+    exported = tmp_path / "exp dir" / "bc-ArmTrack-v2.zip"
+    argv = ["train", "--algo", "bc", "--task", "ArmTrack-v2", "--no-validation",
+            "--out", str(tmp_path / "e1"), "--export", str(exported.parent)]  # fmt: skip
+    assert main([*argv, "--steps", "16"]) == 0
+    assert exported.read_bytes() == b"m" * 16
+    assert main([*argv, "--steps", "32", "--resume"]) == 0  # its own export: the longer run's
+    assert exported.read_bytes() == b"m" * 32
+    assert json.loads(exported.with_suffix(".json").read_text()) == {"steps": 32}
+    capsys.readouterr()
+    exported.write_bytes(b"another policy")
+    assert main([*argv, "--steps", "48", "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert f"--export: {exported} exists and is not this run's model" in err
+    assert "--force" not in err and "another folder" in err and len(err.splitlines()) == 1
+    assert exported.read_bytes() == b"another policy"
+
+
 @pytest.mark.parametrize(
     "setting",
     ["n_envs=0", "batch_size=0", "batch_size=1", "learning_rate=nan", "learning_rate=-1",
