@@ -608,32 +608,45 @@ def _resumed(path: Path, env: Any = None) -> PPO:
 def check_init(config: TrainConfig) -> PPO | None:
     """The policy a run starts from, read and checked before the run writes anything.
 
-    It must be a readable policy whose network fits this run's (loaded into
-    a model of this run's settings on the task's spaces, which the data does
-    not change); where its record says it learned another task, or real data
-    while this run trains on the synthetic library, it warns as scoring does
+    It must be a readable policy for the task's actions and frames (what
+    :class:`~baselines.agents.learned.LearnedAgent` checks when it is scored)
+    whose network fits this run's (loaded into a model of this run's settings
+    on the task's spaces, which the data does not change); where its record
+    says it learned another task, or real data while this run trains on the
+    synthetic library, it warns as scoring does
     (:func:`~baselines.agents.learned.check_record`).
 
     Returns:
         The policy (None without ``config.init``), for :func:`train` to start from.
 
     Raises:
-        ValueError: Naming ``--init``, if it is no readable policy.
-        InitMismatch: If its network does not fit this run's.
+        ValueError: Naming ``--init``, if it is no readable policy (a folder: a
+            training run's, whose policy is its ``model.zip``, or another).
+        InitMismatch: If it is another task's policy, or its network does not fit this run's.
     """
     if config.init is None:
         return None
+    folder = Path(config.init)
+    if folder.is_dir():
+        model = folder / "model.zip"
+        run = (folder / "config.json").is_file() and model.is_file()
+        which = f": this training run's is {model}" if run else f" (e.g. {model})"
+        raise ValueError(f"--init: {folder} is a folder; expected a policy .zip file{which}")
     try:
         policy = cast(PPO, load_policy(config.init))
     except (FileNotFoundError, ValueError) as exc:
         raise ValueError(f"--init: {exc}") from None
-    synthetic = not configured_data_dirs(config.data_dir)
-    check_record(config.init, config.task, synthetic, "train on it")
     # the task's spaces (no data changes them: the built-in library, whatever
     # $HUMOTION_MOCAP says); one env, so PPO's batch-size note does not apply
     size = config.settings["frame_size"]
     probe = make_learner_env(config.task, "train", size, True, data_dir=[])
     try:
+        try:  # another task's actions, said as scoring says it, before any warning of its record
+            LearnedAgent(probe, policy, source=config.init)
+        except ValueError as exc:
+            raise InitMismatch(f"--init: {exc}") from None
+        check_record(config.init, config.task, not configured_data_dirs(config.data_dir),
+                     "train on it")  # fmt: skip
         with warnings.catch_warnings():
             warnings.filterwarnings("ignore", message="You have specified a mini-batch size")
             model = new_model(config, probe)

@@ -180,7 +180,7 @@ def _train(args: argparse.Namespace, out: Path) -> int:
             validation=not args.no_validation, eval_every=args.eval_every,
             eval_episodes=args.eval_episodes,
         )  # fmt: skip
-    if args.init is not None and not args.init.is_file():
+    if args.init is not None and not args.init.exists():
         raise CommandError(f"--init: {args.init} does not exist")
     export = _export_path(args, config.task, out)
     command = "humotion-gym " + " ".join(sys.argv[1:]) if sys.argv[1:] else None

@@ -387,17 +387,23 @@ def test_a_starting_policy_is_checked_before_the_run_writes_anything(
     with pytest.raises(ValueError, match=r"--init: .*notsb3\.zip: not a readable"):
         train(TrainConfig("bc", "ArmTrack-v2", 10, out=str(out), init=str(bad)))
     assert not out.exists()
-    # another task's policy: warned, as scoring does; of another network: refused
+    # another task's policy with other actions: refused as scoring says it, before any warning
     other = TrainConfig("bc", "SideWalk-v2", 10, out=str(out), init=str(bc_run / "model.zip"))
-    with pytest.warns(OtherTaskWarning, match="trained on ArmTrack-v2, not SideWalk-v2"):
-        with pytest.raises(InitMismatch, match=r"--init .*model.zip: its network does not fit"):
-            check_init(other)
-    from baselines.cli import main
-
-    argv = ["train", "--algo", "bc", "--task", "SideWalk-v2", "--steps", "10", "--out", str(out)]
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", OtherTaskWarning)
-        assert main([*argv, "--init", str(bc_run / "model.zip")]) == 2  # a usage error
+        warnings.simplefilter("error")
+        with pytest.raises(InitMismatch, match=r"--init: .*model.zip: a policy for 4 free "
+                           r"parameters; SideWalk-v2 has 8$"):  # fmt: skip
+            check_init(other)
+    # of another network (bc_run's 32-pixel frames): refused
+    with pytest.raises(InitMismatch, match=r"--init .*model.zip: its network does not fit"):
+        check_init(TrainConfig("bc", "ArmTrack-v2", 10, init=str(bc_run / "model.zip")))
+    # another task of the same actions (BodyTrack's policy on WalkTrack): warned, as scoring does
+    body = str(CHECKPOINT_DIR / "bc-BodyTrack-v2.zip")
+    with (
+        pytest.warns(OtherDataWarning),  # it learned real motion capture, too
+        pytest.warns(OtherTaskWarning, match="trained on BodyTrack-v2, not WalkTrack-v2"),
+    ):
+        check_init(TrainConfig("bc", "WalkTrack-v2", 10, init=body))
     assert not out.exists()  # nothing written: no folder, no log
     # one of real data for a synthetic run: warned
     small = {"frame_size": 32}  # bc_run's network
@@ -428,6 +434,52 @@ def test_a_starting_policy_is_checked_before_the_run_writes_anything(
     shutil.copyfile(bc_run / "model.zip", bare)
     with pytest.warns(UnrecordedPolicyWarning, match=r"policy.zip has no readable training record"):
         check_init(TrainConfig("bc", "ArmTrack-v2", 10, init=str(bare), settings=small))
+
+
+def test_cli_train_from_another_tasks_policy_says_so_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--init of BodyTrack's policy on ArmTrack: one line, as track says it, not two.
+
+    It printed an OtherTaskWarning, then a torch size mismatch of ``action_net.bias``.
+    """
+    from baselines.cli import main
+
+    out = tmp_path / "run"
+    body = CHECKPOINT_DIR / "bc-BodyTrack-v2.zip"
+    argv = ["train", "--algo", "bc", "--task", "ArmTrack-v2", "--steps", "16", "--out", str(out),
+            "--init", str(body)]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err == (
+        f"humotion-gym train: error: --init: {body}: a policy for 25 free parameters; "
+        "ArmTrack-v2 has 4\n"
+    )
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("run", [False, True])
+def test_cli_train_from_a_folder_says_which_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], run: bool
+) -> None:
+    """--init FOLDER said "does not exist"; a training run's folder: its model.zip is named."""
+    from baselines.cli import main
+
+    folder = tmp_path / "policy.zip"
+    folder.mkdir()
+    if run:
+        (folder / "config.json").write_text("{}")
+        (folder / "model.zip").write_bytes(b"x")
+    argv = ["train", "--algo", "bc", "--task", "ArmTrack-v2", "--steps", "16",
+            "--out", str(tmp_path / "run"), "--init", str(folder)]  # fmt: skip
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    said = f"this training run's is {folder / 'model.zip'}" if run else f"(e.g. {folder}/model.zip)"
+    assert err == (
+        f"humotion-gym train: error: --init: {folder} is a folder; expected a policy .zip file"
+        f"{':' if run else ''} {said}\n"
+    )
+    assert not (tmp_path / "run").exists()
 
 
 def test_a_resume_over_an_unreadable_model_alone_is_refused(tmp_path: Path) -> None:
