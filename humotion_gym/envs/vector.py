@@ -167,7 +167,13 @@ class PoseTrackingVectorEnv(VectorEnv):
         self.task = template.task
         self._scene = template.scene
         self.render_mode = template.render_mode
-        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        try:
+            self.autoreset_mode = AutoresetMode(autoreset_mode)
+        except ValueError:
+            raise ValueError(
+                f"autoreset_mode: expected one of {[m.value for m in AutoresetMode]} (or "
+                f"gymnasium.vector.AutoresetMode), got {autoreset_mode!r}"
+            ) from None
         self.metadata = {
             **self.metadata,
             "render_fps": template.metadata["render_fps"],

@@ -253,6 +253,8 @@ def test_vector_env_disabled_autoreset_steps_after_the_end_as_the_single_env():
 def test_vector_env_refuses_bad_calls():
     with pytest.raises(ValueError, match="num_envs"):
         PoseTrackingVectorEnv(0)
+    with pytest.raises(ValueError, match=r"autoreset_mode: expected one of \['NextStep', "):
+        PoseTrackingVectorEnv(2, autoreset_mode="same_step")
     vec = PoseTrackingVectorEnv(2, task="SideWalk-v2")
     with pytest.raises(RuntimeError, match="reset"):
         vec.step(np.zeros(vec.action_space.shape, np.float32))
