@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from humotion_gym.checks import is_count
+from humotion_gym.checks import is_count, is_integer
 
 FloatArray = NDArray[np.float64]
 
@@ -36,7 +36,7 @@ _WORLD_UP = (0.0, 0.0, 1.0)
 
 
 def _check_size(width: int, height: int, fov_deg: float, where: str) -> None:
-    if not (isinstance(width, (int, np.integer)) and isinstance(height, (int, np.integer))):
+    if not (is_integer(width) and is_integer(height)):  # a bool is no size
         raise ValueError(f"{where}: width and height must be integers, got {width!r}, {height!r}")
     if width <= 0 or height <= 0:
         raise ValueError(f"{where}: image size must be positive, got {width}x{height}")

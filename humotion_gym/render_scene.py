@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from humotion_gym.body import CONE_NAMES, N_CONES
-from humotion_gym.checks import is_count
+from humotion_gym.checks import is_count, is_integer
 
 Color = tuple[int, int, int]
 
@@ -208,7 +208,7 @@ class SceneOptions:
 
     def __post_init__(self) -> None:
         w, h = self.width, self.height
-        if not (isinstance(w, (int, np.integer)) and isinstance(h, (int, np.integer))):
+        if not (is_integer(w) and is_integer(h)):  # a bool is no size
             raise ValueError(f"SceneOptions: width and height must be integers, got {w!r}, {h!r}")
         (w0, h0), (w1, h1) = MIN_IMAGE_SIZE, MAX_IMAGE_SIZE
         if not (w0 <= w <= w1 and h0 <= h <= h1):

@@ -180,6 +180,7 @@ def test_fit_camera_looks_along_the_view_direction_from_the_fitted_distance() ->
         (((0, 0, 0), (0, 1, 0), 64, 64, 0.5), "fov"),
         (((0, 0, 0), (0, 1, 0), 64, 64, 179.0), "fov"),
         (((0, 0, 0), (0, 1, 0), 64.5, 64, 50.0), "integers"),
+        (((0, 0, 0), (0, 1, 0), 64, True, 50.0), "integers"),  # a bool is no size
     ],
 )
 def test_bad_arguments_raise(args: tuple, match: str) -> None:

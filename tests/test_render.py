@@ -256,6 +256,8 @@ def test_bad_inputs_raise() -> None:
     ):
         with pytest.raises(ValueError):
             SceneOptions(**kwargs)
+    with pytest.raises(ValueError, match="must be integers, got True, 128"):
+        SceneOptions(width=True)  # a bool is no size (True would be read as 1)
 
 
 def test_pose_behind_the_camera_is_not_drawn() -> None:
