@@ -7,6 +7,9 @@
 
 Writes ``index.html`` (sortable tables, figures, videos), ``tables.md`` (the
 Markdown tables the README pastes) and ``stats.json`` (every statistic).
+``--out`` is a fresh folder, the run's own folder, or one holding an earlier
+report of the same results file (``report.json`` names it): never another
+run's folder or another run's report, which would leave a mix of two runs.
 """
 
 from __future__ import annotations
@@ -37,8 +40,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="a leaderboard's results: its --out folder, or the results.json (.gz) in it",
     )  # fmt: skip
     rp.add_argument(
-        "--out", type=output_dir, required=True, help="the report folder (created if needed)"
-    )
+        "--out", type=output_dir, required=True,
+        help="the report folder (created if needed): a fresh one, the run's own folder, or one "
+        "holding an earlier report of the same results file",
+    )  # fmt: skip
     rp.add_argument(
         "--videos", action="store_true",
         help="re-run each cell's best, median and worst episode and write videos of them "
@@ -71,6 +76,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     args.results = results_file(args.results)
     if not args.results.is_file():
         raise FileNotFoundError(f"{args.results}: no such leaderboard file")
+    _check_out(args.out, args.results)
     with refused_as(CommandError, (ValueError, UnicodeDecodeError)):
         rows, settings = load_rows(args.results)
     unknown = sorted(set(args.video_agents or []) - {r.get("agent") for r in rows})
@@ -89,7 +95,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
             rows, args.out, videos=args.videos, env_kwargs=env_kwargs,
             seed=int(settings.get("seed") or 0) if args.seed is None else args.seed,
             video_cells=(lambda r: r["agent"] in agents) if agents else None, title=args.title,
-            run=settings,
+            run=settings, source=args.results,
         )  # fmt: skip
     wrote(args.out / "tables.md", "Markdown tables")
     wrote(args.out / "stats.json", "every statistic")
@@ -98,3 +104,33 @@ def _cmd_report(args: argparse.Namespace) -> int:
     else:
         wrote(index, "the tables but no figures: install the plots extra for them")
     return 0
+
+
+def _check_out(out: Path, results: Path) -> None:
+    """Refuse an ``--out`` whose files are another run's: the report would mix two runs.
+
+    The run's own folder is fine (its report is rebuilt), and so is a folder
+    holding an earlier report of the same results file (its ``report.json``
+    names the file; :func:`~baselines.leaderboard.report.reported_run`).
+
+    Raises:
+        UsageError: Naming ``--out`` and what it holds.
+    """
+    from baselines.cli.oracle import held_run
+    from baselines.leaderboard.report import REPORT_SOURCE, reported_run
+
+    results = results.resolve()
+    if out.resolve() == results.parent:
+        return
+    held = held_run(out)
+    if held is not None:
+        raise UsageError(
+            f"--out: {out} holds another run, {held[0]} ({held[1]}); choose another folder"
+        )
+    report = reported_run(out)
+    if report is not None and report[1] != str(results):
+        of = report[1] or f"a run it does not name (no {REPORT_SOURCE})"
+        raise UsageError(
+            f"--out: {out} holds the report ({report[0]}) of another run, {of}; choose "
+            "another folder"
+        )

@@ -22,7 +22,9 @@
 * ``index.html``: all of it on one static page, opening with the command,
   commit, data folders and date of the run and each task's verdict; tables
   sortable by a click on a column (a few lines of inline JavaScript, no
-  external assets).
+  external assets);
+* ``report.json``: the results file the report was made from, so that a
+  folder is never given the report of another run (:func:`reported_run`).
 
 Figures are :mod:`baselines.leaderboard.figures`, videos
 :mod:`baselines.leaderboard.videos`.
@@ -64,6 +66,10 @@ from humotion_gym.files import json_default, read_json, write_text_atomically
 
 #: The reference each task's scores are normalised by.
 REFERENCE = "hold"
+#: The report's own files (:func:`write_report`).
+REPORT_FILES: tuple[str, ...] = ("index.html", "tables.md", "stats.json")
+#: Names the results file a report folder was made from (:func:`reported_run`).
+REPORT_SOURCE = "report.json"
 #: Caption of the normalised score, shown under the aggregate table.
 SCORE_LEGEND = (
     "score: an episode's mean keypoint error over hold's on the same episode (same task, "
@@ -107,6 +113,24 @@ def results_file(path: str | Path) -> Path:
         f"{path}: a folder without results.json or results.json.gz"
         + (": its run did not finish (--resume finishes it)" if unfinished else "")
     )
+
+
+def reported_run(folder: Path) -> tuple[str, str | None] | None:
+    """The report ``folder`` holds: one of its files and the results it reports.
+
+    Returns:
+        None where ``folder`` holds no report, else ``(file, results)``:
+        ``results`` is the absolute path :data:`REPORT_SOURCE` names, or None
+        where it names none (a report written without it, or unreadable).
+    """
+    found = [n for n in (*REPORT_FILES, REPORT_SOURCE) if (folder / n).is_file()]
+    if not found:
+        return None
+    try:
+        source = read_json(folder / REPORT_SOURCE).get("results")
+    except (OSError, ValueError, AttributeError):  # missing, not JSON, not an object
+        source = None
+    return found[0], source if isinstance(source, str) else None
 
 
 def load_rows(path: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
@@ -534,6 +558,7 @@ def write_report(
     title: str = "humotion_gym leaderboard",
     progress: bool = True,
     run: Mapping[str, Any] | None = None,
+    source: str | Path | None = None,
 ) -> Path:
     """Write the whole report of a leaderboard into ``folder``.
 
@@ -556,6 +581,9 @@ def write_report(
         run: What made the numbers, shown at the top of the page
             (:func:`run_lines`): the settings :func:`load_rows` returns, or
             the results document.
+        source: The results file the rows were read from, recorded in
+            :data:`REPORT_SOURCE` (:func:`reported_run`); None removes an
+            earlier one, which would name other rows.
 
     Returns:
         The path of ``index.html``.
@@ -591,4 +619,9 @@ def write_report(
     # the engine's files of the same results folder, where they are
     files = [f for f in ("results.json", "table.md", "episodes.jsonl") if (folder / f).is_file()]
     write_text_atomically(index, html_page(rows, computed, figures, made, notes, title, files, run))
+    if source is not None:
+        marker = {"results": str(Path(source).resolve())}
+        write_text_atomically(folder / REPORT_SOURCE, json.dumps(marker, indent=1) + "\n")
+    else:
+        (folder / REPORT_SOURCE).unlink(missing_ok=True)
     return index

@@ -20,7 +20,7 @@ from typing import Any
 
 from baselines.leaderboard.figures import figures_available
 from baselines.leaderboard.platform_info import run_platform
-from baselines.leaderboard.report import write_report
+from baselines.leaderboard.report import REPORT_FILES, write_report
 from baselines.leaderboard.tables import markdown_table, validity_lines
 from humotion_gym.files import json_default, read_json, write_json_gz, write_text_atomically
 from humotion_gym.mocap.library import configured_data_dirs, package_version
@@ -28,8 +28,6 @@ from humotion_gym.mocap.library import configured_data_dirs, package_version
 #: The version of ``results.json``'s layout (docs/leaderboard.md describes it);
 #: raised whenever a key is renamed, removed or changes meaning.
 SCHEMA_VERSION = 1
-#: The report's own files (:func:`baselines.leaderboard.report.write_report`).
-REPORT_FILES: tuple[str, ...] = ("index.html", "tables.md", "stats.json")
 #: The files of a results folder.
 EPISODES_FILE = "episodes.jsonl"
 RUN_FILE = "run.json"
@@ -240,7 +238,7 @@ def write_results(
     run = {k: v for k, v in document.items() if k not in ("rows", "validity")}
     write_report(
         list(rows), out, videos=videos, env_kwargs=env_kwargs, seed=document["seed"],
-        progress=progress, run=run,
+        progress=progress, run=run, source=out / RESULTS_FILE,
     )  # fmt: skip
     if not figures_available():
         print(

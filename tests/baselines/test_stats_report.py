@@ -895,3 +895,33 @@ def test_report_reads_a_recorded_results_folder(tmp_path, capsys):
     recorded = Path(__file__).resolve().parents[2] / "results" / "ci_small"
     assert main(["report", str(recorded), "--out", str(tmp_path / "r")]) == 0
     assert (tmp_path / "r" / "tables.md").is_file()
+
+
+def test_report_never_mixes_two_runs_in_one_folder(tmp_path, capsys, no_figures):
+    """``report A --out B``: B is fresh, A's own folder, or an earlier report of A's results."""
+    from baselines.leaderboard import run_leaderboard
+
+    settings = {"episode_frames": 4, "width": 64, "height": 64}
+    lb1, lbv, rep = tmp_path / "lb1", tmp_path / "lbv", tmp_path / "rep"
+    for seed, out in ((2, lb1), (3, lbv)):
+        run_leaderboard(["ArmTrack-v2"], ["hold"], [1], 1, seed, settings, progress=False,
+                        out=out)  # fmt: skip
+    kept = (lbv / "stats.json").read_text()
+    capsys.readouterr()
+    assert main(["report", str(lb1), "--out", str(lbv)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert f"--out: {lbv} holds another run, a leaderboard run (run.json)" in err, err
+    assert (lbv / "stats.json").read_text() == kept
+    assert main(["report", str(lb1), "--out", str(lb1)]) == 0  # its own folder
+    assert main(["report", str(lb1), "--out", str(rep)]) == 0  # a fresh folder
+    assert main(["report", str(lb1 / "results.json"), "--out", str(rep)]) == 0  # same results
+    kept = (rep / "stats.json").read_text()
+    capsys.readouterr()
+    assert main(["report", str(lbv), "--out", str(rep)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert f"holds the report (index.html) of another run, {lb1 / 'results.json'}" in err, err
+    assert (rep / "stats.json").read_text() == kept
+    (rep / "report.json").unlink()  # a report that does not say whose it is
+    assert main(["report", str(lb1), "--out", str(rep)]) == 2
+    assert "of another run, a run it does not name (no report.json)" in capsys.readouterr().err
