@@ -505,3 +505,15 @@ def test_a_default_output_that_cannot_be_written_is_a_usage_error(tmp_path, caps
     assert main(["render", "--frames", "2", "--out", str(tmp_path / "walk.mp4")]) == 2
     err = capsys.readouterr().err
     assert "--sheet: " in err and "is a folder" in err and len(err.splitlines()) == 1
+
+
+@pytest.mark.parametrize("files", [["index.html", "stats.json", "report.json"], ["index.html"]])
+def test_leaderboard_refuses_a_folder_holding_a_report(files, tmp_path, capsys):
+    """A ``report --out`` folder holds another run's report: the run would overwrite it."""
+    for name in files:
+        (tmp_path / name).write_text("kept")
+    assert main([*_LEADERBOARD, "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert f"--out: {tmp_path} holds a report of another run (index.html); give another" in err
+    assert all((tmp_path / name).read_text() == "kept" for name in files)

@@ -71,8 +71,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "humotion-gym leaderboard --tasks ArmTrack-v2 --agents pf-cv pf-tree --out runs/lb",
         details="Exit codes: 0 when every cell ran or was skipped; 1 when a cell failed (the "
         "table shows it, stderr names it); 2 on a usage error (an --out holding a run without "
-        "--resume or another command's run, or --resume with another grid or other "
-        "settings); 130 when interrupted "
+        "--resume, another command's run or a report of another run, or --resume with "
+        "another grid or other settings); 130 when interrupted "
         "(--out keeps what finished).",
     )  # fmt: skip
     lb.add_argument(
@@ -136,8 +136,9 @@ def _check_results_folder(args: argparse.Namespace) -> None:
     """Refuse ``--out`` holding a run without ``--resume``, and a resume on another grid.
 
     A folder of another command's run (an oracle run's ``table.md`` would be
-    written over), or of a leaderboard's results without its episodes (a
-    recorded run), is refused with or without ``--resume``.
+    written over), of a leaderboard's results without its episodes (a
+    recorded run), or of a report alone (``humotion-gym report``'s, of another
+    run) is refused with or without ``--resume``.
 
     A resumed run keeps the saved episodes of its own cells only; one whose
     tasks, agents, particle counts or seeds leave out saved episodes would
@@ -148,12 +149,18 @@ def _check_results_folder(args: argparse.Namespace) -> None:
     """
     from baselines.cli.oracle import LEADERBOARD_RUN, held_run
     from baselines.leaderboard import EPISODES_FILE, RUN_FILE, ResultsFolder, grid_cells
+    from baselines.leaderboard.report import reported_run
 
     held = held_run(args.out)
     if held is not None and held[0] != LEADERBOARD_RUN:
         raise UsageError(
             f"--out: {args.out} holds {held[0]} ({held[1]}), not a leaderboard run; give "
             "another --out"
+        )
+    report = reported_run(args.out) if held is None else None
+    if report is not None:  # no run of its own: its report is another run's
+        raise UsageError(
+            f"--out: {args.out} holds a report of another run ({report[0]}); give another --out"
         )
     folder = ResultsFolder(args.out)
     holds_run = (args.out / RUN_FILE).is_file() or (
