@@ -58,6 +58,24 @@ def clip_geometry(motion: Motion) -> FloatArray:
 STARTS_EXTRA = 64
 
 
+def _check_file_option(file: Any) -> None:
+    """Refuse a ``file`` option that is no ``.bvh`` or ``.amc`` file.
+
+    Raises:
+        FileNotFoundError: If it names a motion file that does not exist (as
+            a missing ``data_dir`` or :func:`~humotion_gym.mocap.bvh.load_bvh`).
+        ValueError: If it is no path, names another kind of file, or a folder.
+    """
+    wanted = "reset: options['file'] must be the path of one .bvh or .amc file"
+    path = os.fspath(file) if isinstance(file, str | os.PathLike) else None
+    if not isinstance(path, str) or Path(path).suffix.lower() not in (".bvh", ".amc"):
+        raise ValueError(f"{wanted}, got {file!r}")
+    if not Path(path).exists():
+        raise FileNotFoundError(f"reset: options['file'] {path}: no such file")
+    if not Path(path).is_file():
+        raise ValueError(f"{wanted}, got the folder {path!r}")
+
+
 class EpisodeChoice:
     """The episode-choosing part of the tracking environment (see the module docstring).
 
@@ -95,12 +113,7 @@ class EpisodeChoice:
         if "motion" in options:
             self._check_motion_option(options["motion"])
         if "file" in options:
-            file = options["file"]
-            if not isinstance(file, str | os.PathLike) or not Path(file).is_file():
-                raise ValueError(
-                    "reset: options['file'] must be the path of one .bvh or .amc file, "
-                    f"got {file!r}"
-                )
+            _check_file_option(options["file"])
         if "clip_id" in options:
             clip_id = options["clip_id"]
             if not isinstance(clip_id, str) or clip_id not in self.library.clip_ids:

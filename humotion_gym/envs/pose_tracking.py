@@ -525,8 +525,8 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
             ValueError: For an unknown option or a bad value (the message lists
                 what is valid), or for a clip of a person the split must not
                 show (a ``"train"`` environment: a test or validation person).
-                The environment is then as it was before the call: a reset is
-                all or nothing.
+                A reset is all or nothing (the environment is as before).
+            FileNotFoundError: If ``file`` names a file that does not exist.
         """
         options = self._check_options(options)
         with self._all_or_nothing():

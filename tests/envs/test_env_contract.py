@@ -117,9 +117,19 @@ def test_a_folder_or_a_number_is_not_a_file(env, tmp_path, clips):
 
     for k, motion in enumerate(list(synthetic_library())[:clips]):  # a folder used its first
         write_motion_bvh(tmp_path / f"c{k}.bvh", motion.params[:40], motion.shape, motion.fps)
-    for file in (str(tmp_path), tmp_path, 123, str(tmp_path / "missing.bvh")):
+    (tmp_path / "notes.txt").write_text("walk\n")
+    (tmp_path / "dir.bvh").mkdir()
+    for file in (str(tmp_path), tmp_path, 123, tmp_path / "notes.txt", tmp_path / "dir.bvh"):
         with pytest.raises(ValueError, match=r"^reset: options\['file'\] must be the path of one"):
             env.reset(seed=0, options={"file": file})
+
+
+def test_a_missing_file_is_not_found(env, tmp_path):
+    # It was a ValueError ("must be the path of one .bvh or .amc file"), unlike
+    # a missing data_dir or load_bvh's FileNotFoundError.
+    missing = tmp_path / "missing.bvh"
+    with pytest.raises(FileNotFoundError, match=rf"^reset: options\['file'\] {missing}: no such"):
+        env.reset(seed=0, options={"file": str(missing)})
 
 
 def test_a_motion_at_another_rate_is_refused(env):
