@@ -283,7 +283,15 @@ def load_clip(
     Raises:
         MocapFormatError: If the file is malformed.
         RigError: If its skeleton cannot be mapped onto the cone body.
+        TypeError: If ``src`` is not a :class:`ClipSource` (a path is not: it
+            says nothing of the clip's person or dataset;
+            :func:`~humotion_gym.mocap.clip_files.find_clips` makes them).
     """
+    if not isinstance(src, ClipSource):
+        raise TypeError(
+            f"load_clip: src: expected a ClipSource (humotion_gym.mocap.clip_files.find_clips"
+            f"(path) gives a file's), got {type(src).__name__} {src!r:.200}"
+        )
     from humotion_gym.mocap.asfamc import load_amc, load_asf
     from humotion_gym.mocap.bvh import load_bvh
     from humotion_gym.mocap.retarget import file_units_to_mm, retarget_keypoints, velocities

@@ -174,6 +174,12 @@ def test_missing_paths_and_orphan_amc(tmp_path):
         find_clips([tmp_path])
 
 
+def test_load_clip_names_its_argument_when_given_a_path():
+    # A path failed inside with "'str' object has no attribute 'skeleton'".
+    with pytest.raises(TypeError, match=r"^load_clip: src: expected a ClipSource .*find_clips"):
+        lib_mod.load_clip("empty.bvh")
+
+
 def test_cli_data_table_and_convert(tmp_path, capsys):
     assert main(["data", "table"]) == 0
     assert "synthetic" in capsys.readouterr().out
