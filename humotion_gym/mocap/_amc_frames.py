@@ -154,6 +154,8 @@ def _amc_regular(
         return None
     if (pattern[1:] != widths[points] + 1).any():
         return None
+    if np.count_nonzero(widths[points] > 0) != np.count_nonzero(widths > 0):
+        return None  # a bone with dof missing from every frame: the general path names it
     for o in offs[1:]:
         if tokens[o::stride] != [tokens[o]] * n_t:
             return None
@@ -263,6 +265,55 @@ def _frame_numbers(
     return numbers
 
 
+def _check_complete_frames(
+    spath: str,
+    sk: _Skeleton,
+    widths: NDArray[np.intp],
+    point: NDArray[np.intp],
+    block_of_line: NDArray[np.intp],
+    numbers: NDArray[np.int64],
+    frame_lines: NDArray[np.intp],
+    first: int,
+) -> None:
+    """Check that every frame has a line for the root and each bone with dof.
+
+    The Acclaim format writes these in every frame (a bone without dof has no
+    line); a frame lacking one is a damaged or cut file, whose gaps would
+    otherwise pass as frames. Duplicates are refused before, so a count per
+    frame suffices.
+
+    Args:
+        spath: The file, for errors.
+        sk: The skeleton.
+        widths: ``(1 + B,)`` values per line of the root and each bone.
+        point: The skeleton point of each bone line.
+        block_of_line: The frame (index among the frame lines) of each bone line.
+        numbers: The frame numbers, one per frame line.
+        frame_lines: The body line of each frame number.
+        first: The file line of the body's first line.
+
+    Raises:
+        MocapFormatError: Naming the first incomplete frame, its line and the
+            bones it lacks; for the last frame, that the file ends within it.
+    """
+    required = widths > 0
+    per_frame = np.bincount(block_of_line[required[point]], minlength=len(numbers))
+    short = np.flatnonzero(per_frame != np.count_nonzero(required))
+    if not len(short):
+        return
+    k = int(short[0])
+    present = set(point[block_of_line == k].tolist())
+    missing = [sk.point_names[p] for p in np.flatnonzero(required).tolist() if p not in present]
+    names = ", ".join(missing[:8]) + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
+    found = "found end of file" if k == len(numbers) - 1 else "found the next frame number"
+    raise MocapFormatError(
+        spath,
+        first + int(frame_lines[k]),
+        f"frame {numbers[k]} lacks the lines of {names} (every frame lists the root and each "
+        f"bone with dof), {found}",
+    )
+
+
 def _bone_values(
     spath: str,
     tokens: list[bytes],
@@ -365,6 +416,9 @@ def _amc_general(
             f"{numbers[ordinal[bone_lines[k]]]}",
         )
 
+    _check_complete_frames(
+        spath, sk, widths, point, ordinal[bone_lines], numbers, frame_lines, first
+    )
     values, line_of_value, column_in_line = _bone_values(
         spath, tokens, counts, line_start, bone_lines, first, on_nan, limits
     )

@@ -52,6 +52,9 @@ call, so a program may raise them by assignment (e.g.
   (either may be infinite, neither NaN).
 - AMC values: finite values are of magnitude at most :data:`MAX_ABS_VALUE`
   (NaN and infinite values mark frames invalid, as before).
+- AMC frames: each has one line for the root and for each bone with dof (a
+  bone without dof has none); a frame lacking one, including a last frame
+  cut short, is refused, as a BVH file cut short is.
 - The ``fps`` argument is between 1 and 10,000 (a ``ValueError`` otherwise).
 
 Every violation in a file raises :class:`~humotion_gym.errors.MocapFormatError`
@@ -226,14 +229,13 @@ class AcclaimClip(PointsOnce):
         fps: Frames per second (AMC files do not say; CMU's are 120).
         n_frames: Number of frames ``T``, from the first frame number to the
             last, including numbers the file skips.
-        frame_valid: ``(T,)`` False for a skipped frame, a frame lacking a bone
-            line, or one holding NaN.
+        frame_valid: ``(T,)`` False for a skipped frame or one holding NaN.
         units_to_mm: Millimetres per file length unit (None when the ASF has no
             ``:units length``).
         frame_numbers: ``(T,)`` the AMC frame number of each row.
         channels: ``(T, C)`` the motion values, columns as
-            ``skeleton.channel_names``; NaN where a frame or bone line is
-            missing (nothing is filled).
+            ``skeleton.channel_names``; NaN where a frame number is skipped
+            (nothing is filled).
         angle_unit: The unit of the AMC's angles (``:DEGREES`` or ``:RADIANS``).
     """
 
@@ -398,16 +400,17 @@ def load_amc(
             (:data:`MAX_FRAMES` when None).
 
     Returns:
-        The clip. Frame numbers the file skips become invalid frames; so do
-        frames lacking the line of a bone with dof.
+        The clip. Frame numbers the file skips become invalid frames.
 
     Raises:
         MocapFormatError: If the file is empty or has no frames, a line names a
             bone the ASF does not define, a bone line has the wrong number of
             values, a value is not a number, frame numbers do not increase, a
-            bone appears twice in one frame, or (with ``on_nan="raise"``) a
-            value is NaN; or if the file exceeds a limit (see the module's
-            "Limits on input files": frame numbers, gaps, frames, magnitudes).
+            bone appears twice in one frame, a frame lacks the line of the root
+            or of a bone with dof (a damaged file, or one cut within its last
+            frame), or (with ``on_nan="raise"``) a value is NaN; or if the file
+            exceeds a limit (see the module's "Limits on input files": frame
+            numbers, gaps, frames, magnitudes).
         OSError: If a file cannot be read.
         ValueError: If an argument is invalid.
     """
@@ -456,7 +459,7 @@ def load_amc(
         channels, numbers = _amc_general(spath, sk, widths, counts, tokens, first, on_nan, limits)
     else:
         channels, numbers = regular
-    # Missing frames, missing bone lines and NaN values all leave NaN here.
+    # Skipped frame numbers and NaN values leave NaN here.
     valid = np.isfinite(channels).all(axis=1)
 
     return AcclaimClip(

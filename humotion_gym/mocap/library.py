@@ -71,8 +71,9 @@ from humotion_gym.mocap.splits import (  # the split's names, re-exported as bef
 #: 2: rigs matched by :func:`humotion_gym.mocap.rigmap.match_rig`, leading T-pose dropped;
 #: 3: a profile's up axis read from the clip, no zero-length head top, units by a human leg;
 #: 4: BVH position channels judged on the offset's axes, a profile's zero-length head end
-#: site its fallback, a toeless z-up rig facing -y, an ASF of the AMC's own name.
-CACHE_VERSION = "4"
+#: site its fallback, a toeless z-up rig facing -y, an ASF of the AMC's own name;
+#: 5: an AMC frame lacking the line of a bone with dof refused, not masked.
+CACHE_VERSION = "5"
 
 #: Environment variable naming folders of real mocap (``os.pathsep``-separated).
 MOCAP_ENV = "HUMOTION_MOCAP"

@@ -215,19 +215,60 @@ def test_crlf_tabs_and_trailing_blanks(write_text):
     np.testing.assert_array_equal(dirty.point_positions(), clean.point_positions())
 
 
-def test_skipped_frames_and_missing_bones_are_invalid(write_text):
+def test_skipped_frames_are_invalid(write_text):
     sk = load_asf(write_text("t.asf", asf_text()))
     frames = random_frames(seed=5, n=5)
     del frames[3]  # frame 3 is skipped
-    lines = amc_text(frames).split("\n")
-    del lines[next(i for i, ln in enumerate(lines) if ln.startswith("lower"))]  # frame 1 lacks it
-    clip = load_amc(write_text("t.amc", "\n".join(lines)), sk)
+    clip = load_amc(write_text("t.amc", amc_text(frames)), sk)
     assert list(clip.frame_numbers) == [1, 2, 3, 4, 5]
-    assert list(clip.frame_valid) == [False, True, False, True, True]
+    assert list(clip.frame_valid) == [True, True, False, True, True]
     pos = clip.point_positions()
-    assert np.isnan(pos[[0, 2]]).all() and np.isfinite(pos[[1, 3, 4]]).all()
+    assert np.isnan(pos[2]).all() and np.isfinite(pos[[0, 1, 3, 4]]).all()
     assert np.isnan(clip.channels[2]).all()  # nothing invented for the skipped frame
-    assert np.isfinite(clip.channels[0, :9]).all() and np.isnan(clip.channels[0, 9:]).all()
+
+
+def _amc_lines(n: int = 5) -> list[str]:
+    """An AMC of n frames, as lines: frame k's number is on line 4 * k (root, upper, lower)."""
+    return amc_text(random_frames(seed=5, n=n)).split("\n")
+
+
+def test_a_frame_lacking_a_bone_line_is_refused(write_text):
+    # Such a frame was masked invalid and the file accepted: a damaged file
+    # passed as a clip (bones without dof, like "side", have no line).
+    sk = load_asf(write_text("t.asf", asf_text()))
+    lines = _amc_lines()
+    assert lines[7] == "2" and lines[10].startswith("lower")
+    del lines[9:11]  # frame 2 (line 8) lacks upper and lower
+    with pytest.raises(
+        MocapFormatError,
+        match=r"t\.amc, line 8: frame 2 lacks the lines of upper, lower \(every frame lists the "
+        r"root and each bone with dof\), found the next frame number$",
+    ):
+        load_amc(write_text("t.amc", "\n".join(lines)), sk)
+
+
+def test_a_file_cut_within_its_last_frame_is_refused(write_text):
+    # Refused, as a BVH cut short is: the file was truncated (a copy or
+    # download stopped), and the partial frame would count as a frame.
+    sk = load_asf(write_text("t.asf", asf_text()))
+    lines = _amc_lines()
+    assert lines[19] == "5"
+    text = "\n".join(lines[:21]) + "\nlow"  # frame 5 (line 20): root, then a cut line
+    with pytest.raises(MocapFormatError, match=r"t\.amc, line 22: bone .low. is not defined"):
+        load_amc(write_text("t.amc", text), sk)
+    text = "\n".join(lines[:21]) + "\n"
+    with pytest.raises(
+        MocapFormatError,
+        match=r"line 20: frame 5 lacks the lines of upper, lower .*found end of file$",
+    ):
+        load_amc(write_text("t.amc", text), sk)
+
+
+def test_a_bone_with_dof_missing_from_every_frame_is_refused(write_text):
+    sk = load_asf(write_text("t.asf", asf_text()))
+    lines = [ln for ln in _amc_lines() if not ln.startswith("lower")]
+    with pytest.raises(MocapFormatError, match=r"line 4: frame 1 lacks the lines of lower "):
+        load_amc(write_text("t.amc", "\n".join(lines)), sk)
 
 
 def test_frames_may_start_above_one_and_bones_come_in_any_order(write_text):
