@@ -9,6 +9,7 @@ message. The readers are :mod:`humotion_gym.mocap.bvh` and
 
 from __future__ import annotations
 
+import os
 import re
 from collections.abc import Sequence
 from pathlib import Path
@@ -34,14 +35,24 @@ def decode_text(data: bytes) -> str:
         return data.decode("latin-1")
 
 
-def read_motion_bytes(path: str | Path) -> bytes:
+def read_motion_bytes(path: str | Path, name: str = "path") -> bytes:
     """A BVH, ASF or AMC file's bytes, its UTF-8 byte-order mark dropped.
 
     A file with carriage returns and no line feed (classic Mac OS line ends)
     has its carriage returns read as line feeds: the readers split lines on
     line feeds. CR LF files are read as they are (the readers take CR as
     space).
+
+    Args:
+        path: The file.
+        name: The reader's argument that gave it, for the error.
+
+    Raises:
+        TypeError: If ``path`` is not a str or os.PathLike (naming ``name``).
+        OSError: If the file cannot be read.
     """
+    if not isinstance(path, str | os.PathLike) or not isinstance(os.fspath(path), str):
+        raise TypeError(f"{name}: expected a str or os.PathLike, got {type(path).__name__}")
     data = Path(path).read_bytes()
     if data.startswith(b"\xef\xbb\xbf"):
         data = data[3:]

@@ -64,6 +64,7 @@ parsing (an unreadable file still raises :class:`OSError`).
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -332,6 +333,7 @@ def load_asf(path: str | Path) -> AsfSkeleton:
             ``:hierarchy`` names unknown bones, leaves a bone without a parent
             or is unbalanced.
         OSError: If the file cannot be read.
+        TypeError: If ``path`` is not a str or os.PathLike.
     """
     spath = str(path)
     text = decode_text(read_motion_bytes(path))
@@ -412,6 +414,7 @@ def load_amc(
             exceeds a limit (see the module's "Limits on input files": frame
             numbers, gaps, frames, magnitudes).
         OSError: If a file cannot be read.
+        TypeError: If ``path`` or ``skeleton`` is of another type.
         ValueError: If an argument is invalid.
     """
     if on_nan not in ("mask", "raise"):
@@ -421,6 +424,10 @@ def load_amc(
         raise ValueError(f"max_frames must be a whole number >= 1, got {max_frames!r}")
     if not (isinstance(fps, (int, float, np.number)) and _MIN_FPS <= fps <= _MAX_FPS):
         raise ValueError(f"fps must be between {_MIN_FPS:g} and {_MAX_FPS:g}, got {fps!r}")
+    if not isinstance(skeleton, AsfSkeleton | str | os.PathLike):
+        raise TypeError(
+            f"skeleton: expected an AsfSkeleton, str or os.PathLike, got {type(skeleton).__name__}"
+        )
     sk = skeleton if isinstance(skeleton, AsfSkeleton) else load_asf(skeleton)
     spath = str(path)
     data = read_motion_bytes(path)

@@ -494,8 +494,8 @@ def _check_load_arguments(max_frames: int | None, on_nan: str, position_channels
         ValueError: If an argument is invalid.
     """
     limit = MAX_FRAMES if max_frames is None else max_frames
-    if not is_count(limit, 0):
-        raise ValueError(f"max_frames must be a whole number >= 0, got {max_frames!r}")
+    if not is_count(limit, 1):
+        raise ValueError(f"max_frames must be a whole number >= 1 or None, got {max_frames!r}")
     if on_nan not in ("mask", "raise"):
         raise ValueError(f"on_nan must be 'mask' or 'raise', got {on_nan!r}")
     if position_channels not in ("auto", "add", "replace"):
@@ -666,7 +666,7 @@ def load_bvh(
             channels are the whole translation; ``"auto"``: ``"replace"`` when the
             channels of most animated non-root joints repeat their offsets (see
             :attr:`BvhClip.position_channels`), else ``"add"``.
-        max_frames: The most frames accepted (:data:`MAX_FRAMES` when None).
+        max_frames: The most frames accepted, at least 1 (:data:`MAX_FRAMES` when None).
 
     Returns:
         The clip.
@@ -680,7 +680,8 @@ def load_bvh(
             limit (see the module's "Limits on input files": frames, frame
             time, joints, nesting, channels, magnitudes).
         OSError: If the file cannot be read.
-        ValueError: If an argument is invalid.
+        TypeError: If ``path`` is not a str or os.PathLike.
+        ValueError: If an argument is invalid (``max_frames`` below 1...).
     """
     limit = _check_load_arguments(max_frames, on_nan, position_channels)
     spath = str(path)

@@ -264,6 +264,14 @@ def test_a_file_cut_within_its_last_frame_is_refused(write_text):
         load_amc(write_text("t.amc", text), sk)
 
 
+def test_a_path_of_another_type_is_named(write_text):
+    asf = write_text("t.asf", asf_text())
+    with pytest.raises(TypeError, match=r"^path: expected a str or os\.PathLike, got int$"):
+        load_amc(5, asf)
+    with pytest.raises(TypeError, match=r"^skeleton: expected an AsfSkeleton, str or os\.Path"):
+        load_amc(write_text("t.amc", amc_text(random_frames(seed=5))), 5)
+
+
 def test_a_bone_with_dof_missing_from_every_frame_is_refused(write_text):
     sk = load_asf(write_text("t.asf", asf_text()))
     lines = [ln for ln in _amc_lines() if not ln.startswith("lower")]

@@ -646,6 +646,16 @@ def test_frame_limits_can_be_raised(write_text, monkeypatch):
         load_bvh(path, max_frames=-1)
 
 
+def test_arguments_are_checked_before_the_file(write_text):
+    # max_frames=0 passed the check, then every file failed "expected at most
+    # 0 frames"; a number as the path raised the OS's TypeError, naming nothing.
+    path = write_text("base.bvh", BASE)
+    with pytest.raises(ValueError, match=r"^max_frames must be a whole number >= 1 or None, got 0"):
+        load_bvh(path, max_frames=0)
+    with pytest.raises(TypeError, match=r"^path: expected a str or os\.PathLike, got int$"):
+        load_bvh(5)
+
+
 def test_frame_time_bounds_are_inclusive(write_text):
     for token, fps in [("0.0001", 10_000.0), ("1", 1.0), ("1.0", 1.0)]:
         clip = load_bvh(
