@@ -9,7 +9,9 @@ read by ``load``), and ``initial(fitted, pose, n, rng)`` and
 
 from __future__ import annotations
 
+import copyreg
 import importlib
+import sys
 from types import ModuleType
 
 #: Prior name -> module path. Modules load on first use.
@@ -30,3 +32,24 @@ def get_prior(name: str) -> ModuleType:
     if name not in PRIORS:
         raise KeyError(f"unknown prior {name!r}; the priors are {sorted(PRIORS)}")
     return importlib.import_module(PRIORS[name])
+
+
+def _prior_by_name(module: ModuleType) -> tuple:
+    """Pickle a prior module as its import name: agents and filters hold their prior module.
+
+    A prior is a module of functions over its fitted arrays, so a tracker holds
+    the module itself, which pickle and ``copy.deepcopy`` refuse. Registered for
+    modules, this pickles one that has a prior's functions and is importable by
+    its name (the package's and a user's own); any other module is refused as
+    before.
+    """
+    name = module.__name__
+    prior = callable(getattr(module, "initial", None)) and callable(
+        getattr(module, "transition", None)
+    )
+    if not prior or name == "__main__" or sys.modules.get(name) is not module:
+        raise TypeError(f"cannot pickle 'module' object ({name})")
+    return importlib.import_module, (name,)
+
+
+copyreg.pickle(ModuleType, _prior_by_name)

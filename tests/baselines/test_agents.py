@@ -432,3 +432,22 @@ def test_each_body_parts_stage_places_that_parts_cones():
         "right_leg": {"r_thigh", "r_shin"},
         "left_leg": {"l_thigh", "l_shin"},
     }
+
+
+@pytest.mark.parametrize("name", ["pf-cv", "pf-mix"])  # one prior module, and a mixture's two
+def test_an_agent_pickles_and_deep_copies_to_the_same_tracker(name):
+    """A tracker holds its prior's module: pickled by name, so a copy tracks the same."""
+    import copy
+    import pickle
+
+    env = gym.make("humotion_gym/BodyTrack-v2")
+    agent = make(name, env, n_particles=20, seed=0)
+    obs, _ = env.reset(seed=1)
+    action, _ = agent.predict(obs, episode_start=True)
+    copies = [copy.deepcopy(agent), pickle.loads(pickle.dumps(agent))]
+    obs, *_ = env.step(action)
+    want = agent.predict(obs, episode_start=False)[0]
+    for other in copies:
+        assert np.array_equal(other.predict(obs, episode_start=False)[0], want)
+    with pytest.raises(TypeError, match=r"cannot pickle 'module' object \(json\)"):
+        pickle.dumps(json)  # a module that is no prior is refused as before
