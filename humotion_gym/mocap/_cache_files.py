@@ -57,13 +57,22 @@ def report_unwritten(path: Path, exc: BaseException) -> None:
         if folder not in _UNWRITABLE:
             _UNWRITABLE.add(folder)
             warnings.warn(
-                f"humotion_gym cache: {folder} cannot be written ({exc}); nothing is cached "
-                "there, so every entry is rebuilt each time",
+                f"humotion_gym cache: {folder} cannot be made ({_why_no_folder(folder, exc)}); "
+                "nothing is cached there, so every entry is rebuilt each time",
                 CacheWarning,
                 stacklevel=3,
             )
         return
     report_cache_problem(path, f"could not write the entry ({exc}); not cached")
+
+
+def _why_no_folder(folder: Path, exc: BaseException) -> str:
+    """Why ``folder`` could not be made, in words: a file in its way, else the OS's reason."""
+    blocker = next((p for p in (folder, *folder.parents) if p.exists()), None)
+    if blocker is not None and not blocker.is_dir():
+        return f"{blocker} is a file, not a folder"
+    reason = getattr(exc, "strerror", None) or str(exc)
+    return reason[:1].lower() + reason[1:]
 
 
 def cache_entry_path(folder: Path, stem: str) -> tuple[Path | None, str | None]:

@@ -87,11 +87,15 @@ SplitBy = Callable[["ClipSource"], str] | Mapping[str, str]
 
 
 def default_cache_dir() -> Path:
-    """The cache folder: ``$HUMOTION_CACHE``, else ``$XDG_CACHE_HOME/humotion_gym``."""
+    """The cache folder: ``$HUMOTION_CACHE``, else ``$XDG_CACHE_HOME/humotion_gym``.
+
+    A leading ``~`` is expanded, as a shell would: a quoted ``'~/cache'`` reaches
+    the process unexpanded and would otherwise make a folder named ``~`` here.
+    """
     if os.environ.get(CACHE_ENV):
-        return Path(os.environ[CACHE_ENV])
+        return Path(os.environ[CACHE_ENV]).expanduser()
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "humotion_gym"
+    return Path(base).expanduser() / "humotion_gym"
 
 
 def assign_split(src: ClipSource, split_by: SplitBy | None = None) -> tuple[str, str]:

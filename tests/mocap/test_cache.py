@@ -244,7 +244,9 @@ def test_an_unwritable_cache_reports_and_loads(data, tmp_path):
     cache.mkdir()
     (cache / "clips").write_text("a file where the folder should be")
     fresh = load_library([data], use_cache=False, progress=False)
-    with pytest.warns(CacheWarning, match="clips cannot be written") as record:
+    with pytest.warns(
+        CacheWarning, match=r"clips cannot be made \(.*clips is a file, not a folder\)"
+    ) as record:
         got = _load(data, cache)
     _assert_same(got, fresh)
     # one warning for the folder, not one per clip, and none when loaded again
@@ -252,6 +254,29 @@ def test_an_unwritable_cache_reports_and_loads(data, tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error", CacheWarning)
         _assert_same(_load(data, cache), fresh)
+
+
+def test_a_cache_under_a_file_says_so_in_words(data, tmp_path):
+    """A cache folder set to a file: the warning says so, not ``[Errno 20]``."""
+    cache = tmp_path / "a-file"
+    cache.write_text("a file where the cache folder should be")
+    with pytest.warns(CacheWarning) as record:
+        _load(data, cache)
+    (message,) = [str(w.message) for w in record if issubclass(w.category, CacheWarning)]
+    assert f"{cache} is a file, not a folder" in message and "nothing is cached" in message
+    assert "Errno" not in message
+
+
+def test_a_tilde_in_the_cache_variable_is_the_home_folder(monkeypatch, tmp_path):
+    """``HUMOTION_CACHE='~/x'`` (quoted, so no shell expanded it) is under home, not ``./~``."""
+    from humotion_gym.mocap.library import default_cache_dir
+
+    monkeypatch.setenv("HOME", str(tmp_path))
+    monkeypatch.setenv("HUMOTION_CACHE", "~/foo")
+    assert default_cache_dir() == tmp_path / "foo"
+    monkeypatch.delenv("HUMOTION_CACHE")
+    monkeypatch.setenv("XDG_CACHE_HOME", "~/xdg")
+    assert default_cache_dir() == tmp_path / "xdg" / "humotion_gym"
 
 
 def test_concurrent_loads_share_the_cache(data, tmp_path):
