@@ -405,10 +405,17 @@ def test_a_path_from_the_environment_is_named_as_such(monkeypatch, capsys):
     assert "$HUMOTION_MOCAP: /nonexistent-mocap: no such file" in capsys.readouterr().err
 
 
-def test_too_many_frames_says_how_many_a_clip_holds(tmp_path, capsys):
-    assert main(["render", "--frames", "5000", "--out", str(tmp_path / "x.mp4")]) == 1
+@pytest.mark.parametrize("task", ["BodyTrack-v2", "BodyTrack4Views-v2", "WalkTrack2Views-v2"])
+def test_too_many_frames_names_the_flag_and_its_bound(task, tmp_path, capsys):
+    """``render --frames N`` past the longest clip: a usage error naming --frames and the task."""
+    args = ["render", "--task", task, "--frames", "3000", "--out", str(tmp_path / "x.mp4")]
+    assert main(args) == 2
     err = capsys.readouterr().err
-    assert "no train clip of any label holds 5001 frames" in err and "the longest has" in err
+    assert (
+        err.count("\n") == 1
+        and (f"error: --frames: at most 239 on {task} (its longest training clip has 240 frames)")
+        in err
+    )
 
 
 def test_data_table_json_has_the_tables_columns(capsys):

@@ -40,7 +40,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     add_task(rend, "BodyTrack-v2", "task id, see humotion-gym tasks")
     add_seed(rend, "episode seed")
-    add_int(rend, "--frames", 90, "frames to render, held in memory", int_at_least(2))
+    add_int(
+        rend, "--frames", 90,
+        "frames to render, held in memory (fewer than the longest training clip holds)",
+        int_at_least(2),
+    )  # fmt: skip
     rend.add_argument(
         "--out", type=output_file(*VIDEO_SUFFIXES), required=True,
         help="the video to write, .mp4 or .avi (required)",
@@ -65,6 +69,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
     import gymnasium as gym
     from tqdm.auto import tqdm
 
+    from humotion_gym.envs._episode_choice import TooFewFrames
     from humotion_gym.envs.pose_tracking import PoseTrackingEnv
     from humotion_gym.envs.tasks import get_task
     from humotion_gym.video import check_video_size, contact_sheet, write_png, write_video
@@ -77,10 +82,16 @@ def _cmd_render(args: argparse.Namespace) -> int:
     # the frames are held, then scaled for the video one at a time
     check_memory("--frames", args.frames, width * views * height * 3, "frames")
     sheet = args.sheet or check_output_file(args.out.with_suffix(".png"), "--sheet", ".png")
-    env = gym.make(
-        f"humotion_gym/{args.task}", episode_frames=args.frames, terminate_on_lost=False,
-        **env_kwargs(args),
-    )  # fmt: skip
+    try:
+        env = gym.make(
+            f"humotion_gym/{args.task}", episode_frames=args.frames, terminate_on_lost=False,
+            **env_kwargs(args),
+        )  # fmt: skip
+    except TooFewFrames as exc:  # the env's words name its own argument, not --frames
+        raise UsageError(
+            f"--frames: at most {exc.longest - 1} on {args.task} (its longest training clip "
+            f"has {exc.longest} frames)"
+        ) from exc
     base: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
     # a -v2 task's observation holds the frame (several views side by side);
     # a deprecated -v1 task's is the frame

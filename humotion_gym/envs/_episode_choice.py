@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from humotion_gym.body import KEYPOINT_INDEX, N_KEYPOINTS
 from humotion_gym.checks import is_integer
 from humotion_gym.envs.episodes import observed_starts
+from humotion_gym.envs.tasks import env_id
 from humotion_gym.kinematics import batch_pose_geometry
 from humotion_gym.mocap.library import MotionLibrary, load_library
 from humotion_gym.mocap.motion import Motion
@@ -76,6 +77,19 @@ def _check_file_option(file: Any) -> None:
         raise ValueError(f"{wanted}, got the folder {path!r}")
 
 
+class TooFewFrames(ValueError):
+    """No clip of the split holds an episode of the frames asked for.
+
+    A ``ValueError`` whose message says so; ``longest`` (the longest such
+    clip's frames) and ``env_id`` let a command name its own flag and bound.
+    """
+
+    def __init__(self, message: str, env_id: str, longest: int) -> None:
+        super().__init__(message)
+        self.env_id = env_id
+        self.longest = longest
+
+
 class EpisodeChoice:
     """The episode-choosing part of the tracking environment (see the module docstring).
 
@@ -95,6 +109,58 @@ class EpisodeChoice:
     _err_kp: NDArray[np.intp]
     task: Any
     np_random: np.random.Generator
+
+    def _episode_clips(self) -> MotionLibrary:
+        """The split's clips an episode can be drawn from: the task's labels, long enough.
+
+        Raises:
+            TooFewFrames: If no clip of the task's labels is long enough.
+            ValueError: If no clip qualifies for another reason (the message says why).
+        """
+        library, split, name = self.library, self.split, env_id(self.task)
+        in_split = library.episode_split(split)
+        if len(in_split) == 0:
+            persons = sorted({m.subject for m in library})
+            shown = ", ".join(persons[:5]) + (" ..." if len(persons) > 5 else "")
+            # what the data lacks, and no advice: the same words reach the Python
+            # API and commands with other flags
+            raise ValueError(
+                f"{name}: the data holds no {split} person's clip: its {len(library)} "
+                f"clips show {shown} (see humotion-gym data persons); {split} episodes "
+                f"show {split} persons only"
+            )
+        labels = self.task.labels
+        labelled = in_split.filter(labels=labels)
+        need = self.episode_frames * self.frame_skip + 1
+        clips = labelled.filter(min_frames=need)
+        if len(labelled) == 0 and labels is not None:  # the label rules them out
+            found = sorted({m.label for m in in_split})
+            raise ValueError(
+                f"{name}: no {split} clip is labelled {' or '.join(labels)} "
+                f"(its {len(in_split)} {split} clips are labelled {', '.join(found)}; a user's "
+                "clip takes its label from its file name: see humotion-gym data info)"
+            )
+        if len(clips) == 0:
+            which = "any label" if labels is None else f"label {' or '.join(labels)}"
+            longest = max(m.n_frames for m in labelled)
+            raise TooFewFrames(
+                f"{name}: no {split} clip of {which} holds {need} frames "
+                f"({self.episode_frames} frames, every {self.frame_skip}, and the frame "
+                f"before); the longest has {longest} ({len(library)} clips in the library)",
+                name,
+                longest,
+            )
+        if self.task.min_motion_mm > 0:
+            # only clips with at least one start that moves enough
+            clips = MotionLibrary(
+                tuple(m for m in clips if self._good_starts(m).size), clips.test_subjects
+            )
+            if len(clips) == 0:
+                raise ValueError(
+                    f"{name}: no {split} clip moves its {list(self.task.error_keypoints)} "
+                    f"by {self.task.min_motion_mm:g} mm within an episode"
+                )
+        return clips
 
     def _check_options(self, options: dict[str, Any] | None) -> dict[str, Any]:
         """The reset options, refused with a clear ``ValueError`` when wrong."""

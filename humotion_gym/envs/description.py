@@ -47,7 +47,7 @@ from humotion_gym.body import (
     BodyShape,
 )
 from humotion_gym.camera import CAMERA_VECTOR_SIZE, Camera
-from humotion_gym.envs.tasks import TaskSpec
+from humotion_gym.envs.tasks import TaskSpec, env_id
 from humotion_gym.mocap.library import MotionLibrary
 from humotion_gym.render import SceneOptions
 
@@ -186,7 +186,7 @@ def _check_task_observation(
         want, got = space[key].shape, array.shape  # type: ignore[index]
         if got != want:
             raise ValueError(
-                f"observation[{key!r}]: expected shape {want}, {description.name}'s, got {got}"
+                f"observation[{key!r}]: expected shape {want}, {description.env_id}'s, got {got}"
             )
     if frame.dtype != np.uint8:
         raise ValueError(f"observation['frame']: expected uint8 pixels, got {frame.dtype}")
@@ -311,6 +311,11 @@ class TaskDescription:
     def name(self) -> str:
         """The task's id (``"ArmTrack-v2"``)."""
         return self.task.name
+
+    @property
+    def env_id(self) -> str:
+        """The id the environment was made as (``"BodyTrack4Views-v2"``; see :func:`env_id`)."""
+        return env_id(self.task)
 
     @property
     def views(self) -> int:

@@ -281,59 +281,6 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         self._bounds: tuple[FloatArray, FloatArray] | None = None
         self._unseen_cache: list[tuple[str, FloatArray]] | None = None
 
-    def _episode_clips(self) -> MotionLibrary:
-        """The split's clips an episode can be drawn from: the task's labels, long enough.
-
-        Raises:
-            ValueError: If no clip qualifies (the message says why).
-        """
-        library, split = self.library, self.split
-        in_split = library.episode_split(split)
-        if len(in_split) == 0:
-            persons = sorted({m.subject for m in library})
-            shown = ", ".join(persons[:5]) + (" ..." if len(persons) > 5 else "")
-            raise ValueError(
-                f"{self.task.name}: the library holds no {split} clip: its {len(library)} "
-                f"clips show {shown}, none a {split} person (see humotion-gym data persons)"
-                + (
-                    "; to track a clip of your own, name it in reset's options "
-                    "(file=PATH; humotion-gym track --clip PATH)"
-                    if split == "test"
-                    else "; choose another split"
-                )
-            )
-        labelled = in_split.filter(labels=self.task.labels)
-        need = self.episode_frames * self.frame_skip + 1
-        clips = labelled.filter(min_frames=need)
-        if len(labelled) == 0 and self.task.labels is not None:  # the label rules them out
-            found = sorted({m.label for m in in_split})
-            raise ValueError(
-                f"{self.task.name}: no {split} clip is labelled {' or '.join(self.task.labels)} "
-                f"(its {len(in_split)} {split} clips are labelled {', '.join(found)}; a user's "
-                "clip takes its label from its file name: see humotion-gym data info)"
-            )
-        if len(clips) == 0:
-            labels = "any label" if self.task.labels is None else f"labels {self.task.labels}"
-            longest = max(m.n_frames for m in labelled)
-            raise ValueError(
-                f"{self.task.name}: no {split} clip of {labels} holds {need} frames "
-                f"({self.episode_frames} frames, every {self.frame_skip}, and the frame "
-                f"before); the longest has {longest} ({len(library)} clips in the "
-                "library)"
-            )
-        if self.task.min_motion_mm > 0:
-            # only clips with at least one start that moves enough
-            clips = MotionLibrary(
-                tuple(m for m in clips if self._good_starts(m).size), clips.test_subjects
-            )
-            if len(clips) == 0:
-                raise ValueError(
-                    f"{self.task.name}: no {split} clip moves its "
-                    f"{list(self.task.error_keypoints)} "
-                    f"by {self.task.min_motion_mm:g} mm within an episode"
-                )
-        return clips
-
     # -- pose <-> action ---------------------------------------------------------
 
     def _action_bounds(self) -> tuple[FloatArray, FloatArray]:

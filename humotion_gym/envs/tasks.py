@@ -468,3 +468,22 @@ def get_task(name: str) -> TaskSpec:
         known = sorted(TASKS) + sorted(VIEW_VARIANTS)
         raise KeyError(f"unknown task {name!r}; the tasks are {known}")
     return TASKS[key]
+
+
+def env_id(spec: TaskSpec) -> str:
+    """The id an environment of ``spec`` is made as, for messages.
+
+    A multi-view spec keeps its task's name (:func:`get_task`), so a message
+    naming ``spec.name`` alone would call ``BodyTrack4Views-v2`` ``BodyTrack-v2``.
+
+    Returns:
+        The multi-view variant's id when ``spec`` is one (``"BodyTrack4Views-v2"``),
+        ``"NAME with views=N"`` for another count of views, else ``spec.name``.
+    """
+    variant = next((k for k, v in VIEW_VARIANTS.items() if v == (spec.name, spec.views)), None)
+    if variant is not None:
+        return variant
+    base = TASKS.get(spec.name)
+    if base is not None and base.views != spec.views:
+        return f"{spec.name} with views={spec.views}"
+    return spec.name

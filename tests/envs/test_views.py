@@ -161,3 +161,19 @@ def test_the_render_command_shows_every_view_side_by_side(tmp_path):
     assert main(["render", "--task", "WalkTrack-v2", "--frames", "3", "--out", str(single)]) == 0
     one = cv2.imread(str(single.with_suffix(".png")))
     assert sheet.shape[0] == one.shape[0] and sheet.shape[1] == 2 * one.shape[1]
+
+
+def test_messages_name_the_multi_view_id_the_environment_was_made_as():
+    """A variant keeps its task's name; its messages still say the id it was made as."""
+    from humotion_gym.envs._episode_choice import TooFewFrames
+
+    with pytest.raises(
+        TooFewFrames, match=r"^WalkTrack2Views-v2: no train clip of label walk holds 3001 frames"
+    ):
+        gym.make("humotion_gym/WalkTrack2Views-v2", episode_frames=3000)
+    with pytest.raises(TooFewFrames, match=r"^BodyTrack-v2 with views=3: no train clip of any"):
+        gym.make("humotion_gym/BodyTrack-v2", views=3, episode_frames=3000)
+    description = gym.make("humotion_gym/BodyTrack2Views-v2").unwrapped.describe()
+    _, seen = _episode("humotion_gym/BodyTrack-v2", steps=0)
+    with pytest.raises(ValueError, match=r"\(2, 128, 128, 3\), BodyTrack2Views-v2's, got"):
+        read_observation(seen[0], description)
