@@ -633,7 +633,10 @@ def make_filter(
             try:
                 module.check_task(base.task.name)  # the prior's own explanation
             except ValueError as exc:
-                raise TaskNotSupported(str(exc)) from exc
+                # its words are "PRIOR cannot track TASK: WHY"; the user named the
+                # agent, not its prior, so the agent is named and the WHY kept
+                why = str(exc).partition(": ")[2] or str(exc)
+                raise TaskNotSupported(f"{name} cannot track {base.task.name!r}: {why}") from exc
         raise TaskNotSupported(
             f"{name} supports the tasks {list(spec.tasks)} only, not {base.task.name}"
         )

@@ -451,3 +451,13 @@ def test_an_agent_pickles_and_deep_copies_to_the_same_tracker(name):
         assert np.array_equal(other.predict(obs, episode_start=False)[0], want)
     with pytest.raises(TypeError, match=r"cannot pickle 'module' object \(json\)"):
         pickle.dumps(json)  # a module that is no prior is refused as before
+
+
+def test_an_agent_refusing_a_task_is_named_as_the_user_named_it():
+    """pf-pca on ArmTrack-v2: the agent's name and the prior's reason, not ``cyclic_pca``."""
+    env = gym.make("humotion_gym/ArmTrack-v2")
+    with pytest.raises(TaskNotSupported) as caught:
+        make("pf-pca", env, n_particles=5)
+    message = str(caught.value)
+    assert message.startswith("pf-pca cannot track 'ArmTrack-v2': the cyclic PCA model covers")
+    assert "cyclic_pca" not in message
