@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -524,3 +525,19 @@ def test_leaderboard_refuses_a_folder_holding_a_report(files, tmp_path, capsys):
     assert len(err.splitlines()) == 1, err
     assert f"--out: {tmp_path} holds a report of another run (index.html); give another" in err
     assert all((tmp_path / name).read_text() == "kept" for name in files)
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["download", "cmu", "--subjects", "2", "--dest", "/proc/humotion-x"],
+        ["leaderboard", "--tasks", "ArmTrack-v2", "--agents", "hold", "--out", "/proc/foo"],
+    ],
+)
+def test_a_place_the_system_refuses_is_said_in_its_words(argv, capsys):
+    """/proc refuses new files with ENOENT: not "not writable (No such file or directory)"."""
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "files cannot be created in /proc (the system says: no such file or directory)" in err
+    assert "not writable" not in err and err.count("\n") == 1

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import json
 import math
 import os
@@ -182,7 +183,13 @@ def _writable_folder(folder: Path) -> str | None:
         with tempfile.TemporaryFile(dir=probe):
             pass
     except OSError as exc:
-        return f"{probe} is not writable ({exc.strerror or exc})"
+        reason = str(exc.strerror or exc)
+        reason = reason[:1].lower() + reason[1:]
+        if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+            return f"{probe} is not writable ({reason})"
+        # another refusal (/proc says "no such file or directory"): the OS's
+        # words as its own, since "not writable (no such file)" contradicts itself
+        return f"files cannot be created in {probe} (the system says: {reason})"
     return None
 
 
