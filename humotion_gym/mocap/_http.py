@@ -17,6 +17,7 @@ import socket
 import threading
 import time
 import urllib.error
+import urllib.parse
 import urllib.request
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -285,6 +286,23 @@ class _Part:
             )
         self.discard()
         return DownloadError(self.url, f"{reason}; nothing kept on disk", status=status)
+
+
+def failure_words(exc: BaseException, url: str) -> str:
+    """Why an attempt at ``url`` failed, in words (not ``[Errno -2] ...``).
+
+    A name that does not resolve means no network (or no DNS), the usual case
+    offline; a refused connection, that the host is down or blocked.
+    """
+    reason = getattr(exc, "reason", None) or exc
+    host = urllib.parse.urlsplit(url).hostname or url
+    if isinstance(reason, socket.gaierror):
+        return f"cannot reach {host} (no network or DNS: {reason.strerror or reason})"
+    if isinstance(reason, ConnectionRefusedError):
+        return f"cannot reach {host} (connection refused)"
+    if isinstance(reason, OSError) and reason.strerror:
+        return reason.strerror[:1].lower() + reason.strerror[1:]
+    return str(reason) or type(reason).__name__
 
 
 def _validator(headers: Any) -> str | None:

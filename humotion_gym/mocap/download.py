@@ -43,7 +43,8 @@ what they did (``--activity walk --persons 10``), one subject per person, those
 with the most trials of the activity first.
 
 Every :class:`DownloadError` names the URL and says what was left on disk: the
-path of a ``.part`` kept for a later call to resume, or that nothing was kept.
+path of a ``.part`` kept for a later call to resume, or that nothing was kept
+(a folder or manifest the failed call made and left empty is removed).
 
 Only the standard library speaks HTTP (no extra dependency); tqdm draws the
 progress bars. To re-record the registry from a folder of original files::
@@ -54,6 +55,7 @@ progress bars. To re-record the registry from a folder of original files::
 from __future__ import annotations
 
 import argparse
+import contextlib
 import http.client
 import json
 import math
@@ -82,6 +84,7 @@ from humotion_gym.mocap._http import (
     _Part,
     _read_listing,
     _stream,
+    failure_words,
 )
 from humotion_gym.mocap._registry import (
     REGISTRY_PATH,
@@ -365,7 +368,7 @@ def _fetch(
             except (OSError, http.client.HTTPException) as e:
                 # URLError, timeouts, resets, IncompleteRead and our _Retry all
                 # mean "try again from where we are".
-                last = str(getattr(e, "reason", None) or e) or type(e).__name__
+                last = failure_words(e, url)
             failures += 1
             if deadline.left() <= 0:
                 raise part.give_up(f"stopped at {deadline.what} ({last})")
@@ -522,17 +525,16 @@ def download_cmu(
         f"the run's deadline of {deadline_s:g} s (deadline_s=, --deadline)",
     )
     dest = cmu_download_dir(dest)
+    # what was there before, so that a failed run leaves no empty folder or
+    # empty manifest of its own (its error says nothing is kept)
+    before = {p for p in (dest, dest / MANIFEST_NAME, *(dest / c for c in codes)) if p.exists()}
     dest.mkdir(parents=True, exist_ok=True)
     manifest = _read_manifest(dest)
     opts: dict[str, Any] = {
-        "registry": reg,
-        "caps": caps,
-        "file_deadline_s": file_deadline_s,
-        "run_deadline": run_deadline,
-        "retries": retries,
-        "timeout": timeout,
+        "registry": reg, "caps": caps, "file_deadline_s": file_deadline_s,
+        "run_deadline": run_deadline, "retries": retries, "timeout": timeout,
         "progress": progress,
-    }
+    }  # fmt: skip
     out: list[Path] = []
     try:
         for code in codes:
@@ -544,8 +546,18 @@ def download_cmu(
             # manifest cheap; the finally below covers an interruption.
             _write_manifest(dest, manifest)
     finally:
-        _write_manifest(dest, manifest)
+        _leave(dest, manifest, codes, before)
     return out
+
+
+def _leave(dest: Path, manifest: dict, codes: Sequence[str], before: set[Path]) -> None:
+    """Save the manifest if it holds anything or was there; remove folders made and left empty."""
+    if manifest or dest / MANIFEST_NAME in before:
+        _write_manifest(dest, manifest)
+    for folder in [*(dest / c for c in codes), dest]:
+        if folder not in before and folder.is_dir() and not any(folder.iterdir()):
+            with contextlib.suppress(OSError):  # another process's file came in: kept
+                folder.rmdir()
 
 
 def _check_positive(**values: float) -> None:

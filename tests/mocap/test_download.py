@@ -1176,3 +1176,27 @@ def test_a_download_holds_its_folder_while_verify_and_dry_run_only_read(tiny, ca
         assert "--dest: another humotion-gym command is writing into" in capsys.readouterr().err
     finally:
         os.close(fd)
+
+
+def test_no_network_is_said_in_words_and_leaves_nothing(tmp_path, monkeypatch):
+    """Offline: "cannot reach HOST (no network or DNS: ...)", and no empty folder or manifest."""
+    import socket
+    import urllib.error
+
+    def offline(*args, **kwargs):
+        raise urllib.error.URLError(socket.gaierror(-2, "Name or service not known"))
+
+    monkeypatch.setattr(dl, "_open", offline)
+    dest = tmp_path / "dl1"
+    with pytest.raises(DownloadError) as err:
+        download_cmu([2], dest, base_url="http://mocap.example/", retries=1, progress=False)
+    message = str(err.value)
+    assert "cannot reach mocap.example (no network or DNS: Name or service not known)" in message
+    assert "Errno" not in message and message.endswith("nothing kept on disk")
+    assert not dest.exists()
+    # a folder that was there stays, with what it held, and gets no empty manifest
+    dest.mkdir()
+    (dest / "02").mkdir()
+    with pytest.raises(DownloadError):
+        download_cmu([2, 7], dest, base_url="http://mocap.example/", retries=1, progress=False)
+    assert sorted(p.name for p in dest.iterdir()) == ["02"]
