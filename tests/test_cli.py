@@ -166,8 +166,13 @@ def test_a_training_persons_file_is_known_by_its_skeleton(
 
 
 def test_a_refused_value_is_one_line_unless_its_traceback_is_asked_for(monkeypatch, capsys):
-    # BodyTrack-v2's synthetic clips are shorter than 300 frames: the env's ValueError
-    argv = ["render", "--task", "BodyTrack-v2", "--frames", "300", "--out", "never.mp4"]
+    import gymnasium
+
+    def refuse(*args, **kwargs):  # an environment's ValueError, as any refusal of its own
+        raise ValueError("BodyTrack-v2: no train clip moves enough")
+
+    monkeypatch.setattr(gymnasium, "make", refuse)
+    argv = ["render", "--task", "BodyTrack-v2", "--frames", "30", "--out", "never.mp4"]
     assert main(argv) == 1
     err = capsys.readouterr().err.strip()
     assert err.startswith("humotion-gym render: error: BodyTrack-v2: no train clip")
