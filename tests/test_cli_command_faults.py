@@ -396,7 +396,7 @@ def test_an_import_of_a_missing_package_is_a_usage_error(capsys) -> None:
     """--import PKG.MOD where PKG does not exist: exit 2, naming the missing package."""
     assert main(["agents", "--import", "no_such_package_cli.agents"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("humotion-gym: error: --import no_such_package_cli.agents: no module")
+    assert err.startswith("humotion-gym agents: error: --import no_such_package_cli.agents: no")
     assert "no module named no_such_package_cli " in err and len(err.splitlines()) == 1
 
 

@@ -83,7 +83,7 @@ def import_agent_modules(argv: Sequence[str]) -> int | None:
             missing = getattr(exc, "name", None) if isinstance(exc, ModuleNotFoundError) else None
             if missing and (name == missing or name.startswith(f"{missing}.")):
                 print(
-                    f"humotion-gym: error: --import {name}: no module named {missing} (a "
+                    f"humotion-gym {argv[0]}: error: --import {name}: no module named {missing} (a "
                     "module on PYTHONPATH or in the current folder)",
                     file=sys.stderr,
                 )
@@ -92,7 +92,7 @@ def import_agent_modules(argv: Sequence[str]) -> int | None:
                 raise
             text = " ".join(str(exc).split())[:300]
             print(
-                f"humotion-gym: error: --import {name}: {type(exc).__name__}: {text}",
+                f"humotion-gym {argv[0]}: error: --import {name}: {type(exc).__name__}: {text}",
                 file=sys.stderr,
             )
             return 1

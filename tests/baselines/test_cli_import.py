@@ -64,12 +64,12 @@ def test_a_module_that_is_missing_or_fails_is_one_line(user_folder, capsys):
     assert main([*track, "--import", "nope_cli"]) == 2
     err = capsys.readouterr().err
     assert err.strip() == (
-        "humotion-gym: error: --import nope_cli: no module named nope_cli (a module on "
+        "humotion-gym track: error: --import nope_cli: no module named nope_cli (a module on "
         "PYTHONPATH or in the current folder)"
     )
     assert main([*track, "--import=broken_cli"]) == 1
     assert capsys.readouterr().err.strip() == (
-        "humotion-gym: error: --import broken_cli: RuntimeError: oops"
+        "humotion-gym track: error: --import broken_cli: RuntimeError: oops"
     )
     # a module of its own that is missing a dependency: its error, a runtime one
     assert main([*track, "--import", "needs_cli"]) == 1
