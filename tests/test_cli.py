@@ -546,3 +546,25 @@ def test_a_place_the_system_refuses_is_said_in_its_words(argv, capsys):
     err = capsys.readouterr().err
     assert "files cannot be created in /proc (the system says: no such file or directory)" in err
     assert "not writable" not in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["leaderboard", "--tasks", "ArmTrack-v2", "--episodes", "1", "--particles", "5"],
+        ["still", "--task", "ArmTrack-v2", "--episodes", "1", "--particles", "5"],
+        ["depth", "--task", "ArmTrack-v2", "--episodes", "1", "--particles", "5"],
+    ],
+    ids=["leaderboard", "still", "depth"],
+)
+def test_a_file_that_is_no_policy_in_agents_is_refused_before_any_episode(argv, tmp_path, capsys):
+    """As track refuses it: one line naming --agents, not an error row after every cell."""
+    policy = tmp_path / "model.zip"
+    policy.write_text("not a zip")
+    assert main([*argv, "--agents", "pf-cv", str(policy)]) == 1
+    captured = capsys.readouterr()
+    assert captured.err == (
+        f"humotion-gym {argv[0]}: error: --agents: {policy}: not a readable stable-baselines3 "
+        "PPO policy (File is not a zip file)\n"
+    )
+    assert "pf-cv" not in captured.out  # no cell ran

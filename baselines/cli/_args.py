@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from baselines import MAX_PARTICLES
 from humotion_gym.cli._common import (
+    CommandError,
     Distinct,
     UsageError,
     int_at_least,
@@ -186,3 +188,22 @@ def key_setting(text: str) -> tuple[str, float | str]:
                 f"expected KEY=VALUE (a number or a word), got {text[:80]!r}"
             ) from None
     return key, value
+
+
+def check_policy_files(agents: Sequence[str]) -> None:
+    """Refuse a saved policy in ``--agents`` that is no policy, before any episode runs.
+
+    Each cell would build the agent and fail, and the command say so only
+    after every other cell had run. The check is the load every agent's
+    making does (``track`` refuses the same file as it makes its agent).
+
+    Raises:
+        CommandError: Naming ``--agents`` and the file.
+    """
+    from baselines.agents.learned import load_policy, policy_file
+
+    for name in agents:
+        path = policy_file(name)
+        if path is not None:
+            with refused_as(CommandError, ValueError, "--agents: "):
+                load_policy(path)

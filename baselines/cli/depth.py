@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 
-from baselines.cli._args import add_agents, add_particles, tracked_task
+from baselines.cli._args import add_agents, add_particles, check_policy_files, tracked_task
 from humotion_gym.cli._common import (
     add_command,
     add_data_dir,
@@ -54,6 +54,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _cmd_depth(args: argparse.Namespace) -> int:
     from baselines.depth import markdown_table, run_depth
 
+    check_policy_files(args.agents)
     kwargs = env_kwargs(args)
     who = "test persons"
     if args.validation:

@@ -23,6 +23,7 @@ from baselines.cli._args import (
     add_agents,
     add_engine,
     check_engine,
+    check_policy_files,
     particle_count,
     tracked_task,
 )
@@ -273,6 +274,7 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
     args.noise = _unless_default(args.tasks, "noise_sigma", args.noise)
     if args.out is not None:
         _check_results_folder(args)
+    check_policy_files(args.agents)
     kwargs = env_kwargs(args)
     if args.background:
         kwargs["background"] = args.background

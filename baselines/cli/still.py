@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 
-from baselines.cli._args import add_agents, add_particles, tracked_task
+from baselines.cli._args import add_agents, add_particles, check_policy_files, tracked_task
 from humotion_gym.cli._common import (
     add_command,
     add_data_dir,
@@ -52,6 +52,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _cmd_still(args: argparse.Namespace) -> int:
     from baselines.stillness import markdown_table, run_still
 
+    check_policy_files(args.agents)
     out = run_still(
         args.task, args.agents, args.particles, seed=args.seed, env_kwargs=env_kwargs(args),
         max_hold_mm=args.max_hold, count=args.episodes,

@@ -21,11 +21,11 @@ from baselines.cli._args import (
     add_agents,
     add_engine,
     check_engine,
+    check_policy_files,
     particle_count,
     tracked_task,
 )
 from humotion_gym.cli._common import (
-    CommandError,
     Distinct,
     UsageError,
     add_command,
@@ -154,24 +154,6 @@ def _check_out(args: argparse.Namespace, grid: Mapping[str, Sequence[Any]]) -> N
         sweep.check_resume(args.out, settings, _flag)
 
 
-def _check_policy_files(agents: Sequence[str]) -> None:
-    """Refuse a saved policy file that is not one before the first point, as ``track`` does.
-
-    Each point would build the agent and fail, and the command say so only
-    after every point had run. The check is the load every agent's making does.
-
-    Raises:
-        CommandError: Naming ``--agents`` and the file.
-    """
-    from baselines.agents.learned import load_policy, policy_file
-
-    for name in agents:
-        path = policy_file(name)
-        if path is not None:
-            with refused_as(CommandError, ValueError, "--agents: "):
-                load_policy(path)
-
-
 def _cmd_sweep(args: argparse.Namespace) -> int:
     import importlib.util
 
@@ -184,7 +166,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         raise UsageError(f"nothing to sweep: give at least one of {flags}")
     check_engine(args)
     _check_out(args, grid)
-    _check_policy_files(args.agents)
+    check_policy_files(args.agents)
     engine = None
     if args.engine != "inprocess":
         engine = {"engine": args.engine, "workers": args.workers, "address": args.address}
