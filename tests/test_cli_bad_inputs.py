@@ -244,7 +244,6 @@ HAND: list[tuple[str, str, list[str]]] = [
     ("huge", "data info", ["data", "info", "{long_name}"]),
     ("wrong-type", "sweep", ["sweep", "--out", "{ws}/sw"]),  # nothing to sweep
     ("wrong-type", "data info", ["data", "info", "{clash_a}", "{clash_b}"]),
-    ("empty", "data", ["data"]),
     ("wrong-type", "(top)", ["nosuch"]),
     ("missing", "ratio", ["ratio", "--task", "ArmTrack-v2", "--cells", "a", "b", "{ws}/nope.json"]),
     ("non-mocap", "ratio", ["ratio", "--task", "ArmTrack-v2", "--cells", "a", "b", "{notes}"]),
@@ -400,6 +399,12 @@ def test_version_and_bare_command(capsys):
     assert main([]) == 0
     out = capsys.readouterr().out
     assert "everyday commands:" in out and "research commands" in out
+    for group in (["data"], ["slds"], ["download"], ["cache"], ["detector"]):  # their subcommands
+        assert main(group) == 0
+        out = capsys.readouterr().out
+        assert out.startswith(f"usage: humotion-gym {group[0]} [-h]") and "positional" in out
+    assert main(["data", "info"]) == 2  # a command, not a group: its arguments are wanted
+    assert "required: PATH" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("command", sorted(c for c, _ in _subparsers(build_parser())))

@@ -159,6 +159,23 @@ def build_parser(modules: Sequence[str] = COMMAND_MODULES) -> argparse.ArgumentP
     return parser
 
 
+def _group_named(
+    parser: argparse.ArgumentParser, argv: list[str]
+) -> argparse.ArgumentParser | None:
+    """The parser of a command group that ``argv`` names and nothing more, else None.
+
+    ``[]`` is the top's; ``["data"]`` is ``data``'s, whose subcommands its help
+    lists; ``["track"]`` (a command, not a group) and anything with flags are None.
+    """
+    for name in argv:
+        subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+        if not subs or name not in subs[0].choices:
+            return None
+        parser = subs[0].choices[name]
+    has_subcommands = any(isinstance(a, argparse._SubParsersAction) for a in parser._actions)
+    return parser if has_subcommands else None
+
+
 def _command_parser(
     parser: argparse.ArgumentParser, args: argparse.Namespace
 ) -> argparse.ArgumentParser:
@@ -266,7 +283,8 @@ def main(argv: Sequence[str] | None = None, modules: Sequence[str] = COMMAND_MOD
 
     The bare command (no arguments) prints the help on stdout and exits 0, as
     ``pip`` and ``docker`` do: it is how one discovers the commands, and it
-    writes nothing. A usage error ends in one line and exit code 2, an error
+    writes nothing; so does a bare command group (``data``, ``slds``), with its
+    subcommands. A usage error ends in one line and exit code 2, an error
     the user can act on (:func:`_runtime_errors`) in one line and 1 (with
     ``HUMOTION_TRACEBACK=1``, its traceback instead), Ctrl-C in one line and
     130 (under :func:`terminated_as_interrupt`, as the console scripts run it,
@@ -280,8 +298,9 @@ def main(argv: Sequence[str] | None = None, modules: Sequence[str] = COMMAND_MOD
     try:
         parser = build_parser(modules)
         argv = list(sys.argv[1:] if argv is None else argv)
-        if not argv:
-            parser.print_help()
+        group = _group_named(parser, argv)
+        if group is not None:  # the bare command, or a bare group (data, slds): its help
+            group.print_help()
             return 0
         try:
             args, extra = parser.parse_known_args(argv)

@@ -245,8 +245,7 @@ def test_det_agents_track_end_to_end_on_the_synthetic_data():
         ["detector", "train", "--out", "OUT", "--frames", "10"],
         ["detector", "train", "--out", "OUT", "--epochs", "0"],
         ["detector", "train", "--out", "OUT", "--lr", "-1"],
-        ["detector"],
-    ],
+    ],  # bare "detector" prints its subcommands (test_cli_bad_inputs)
 )
 def test_bad_cli_arguments_exit_2(argv, tmp_path, capsys):
     argv = [str(tmp_path / "o") if a == "OUT" else a for a in argv]
