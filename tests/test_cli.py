@@ -568,3 +568,17 @@ def test_a_file_that_is_no_policy_in_agents_is_refused_before_any_episode(argv, 
         "PPO policy (File is not a zip file)\n"
     )
     assert "pf-cv" not in captured.out  # no cell ran
+
+
+def test_download_activity_names_the_labels_in_words_as_its_help_lists_them(capsys):
+    from humotion_gym.cli import build_parser as benchmark_parser
+    from humotion_gym.mocap.labels import ACTIVITY_LABELS
+
+    assert main(["download", "cmu", "--activity", "walk", "nope", "--dry-run"]) == 2
+    assert capsys.readouterr().err == (
+        "humotion-gym download cmu: error: --activity: no label nope; the labels are "
+        f"{', '.join(ACTIVITY_LABELS)}\n"
+    )
+    cmu = benchmark_parser()._subparsers._group_actions[0].choices["download"]  # type: ignore[union-attr]
+    help_text = " ".join(cmu._subparsers._group_actions[0].choices["cmu"].format_help().split())  # type: ignore[union-attr]
+    assert f"({', '.join(ACTIVITY_LABELS)})" in help_text

@@ -57,8 +57,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     cmu.add_argument(
         "--activity", nargs="+", action=Distinct, default=None, metavar="LABEL",
         help="choose subjects who did these activities (walk, run, jump, dance, fight, sports, "
-        "acrobatics, reach, everyday, pantomime), most trials first, one per person "
-        "(default: none)",
+        "acrobatics, reach, everyday, pantomime, calibration, other), most trials first, one "
+        "per person (default: none)",
     )  # fmt: skip
     cmu.add_argument(
         "--persons", type=positive_int, default=None,
@@ -133,7 +133,10 @@ def _cmd_download_cmu(args: argparse.Namespace) -> int:
 
         unknown = sorted(set(args.activity) - set(ACTIVITY_LABELS))
         if unknown:
-            raise UsageError(f"--activity: unknown label(s) {unknown}; use {list(ACTIVITY_LABELS)}")
+            raise UsageError(
+                f"--activity: no label {', '.join(unknown)}; the labels are "
+                f"{', '.join(ACTIVITY_LABELS)}"
+            )
         if args.train_only:  # a test person asked for by number would be downloaded anyway
             from humotion_gym.mocap.cmu import CMU_TEST_PERSONS, cmu_person
 

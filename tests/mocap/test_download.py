@@ -1129,7 +1129,7 @@ def test_cli_activity_cut_connection_resumes(walk_mirror):
 
 def test_cli_activity_arguments_are_checked(capsys):
     assert cli.main(["download", "cmu", "--activity", "strolling"]) == 2
-    assert "--activity: unknown label" in capsys.readouterr().err
+    assert "--activity: no label strolling; the labels are walk, run" in capsys.readouterr().err
     assert cli.main(["download", "cmu", "--persons", "3"]) == 2
     assert "give --activity" in capsys.readouterr().err
     assert cli.main(["download", "cmu", "--activity", "run", "--persons", "2", "--dry-run"]) == 0
