@@ -242,7 +242,8 @@ def learner_vec_env(
     Args:
         task: The task's id (with or without namespace).
         n_envs: Number of episodes stepped together.
-        split: ``"train"`` or ``"test"``.
+        split: The persons episodes show: ``"train"``, ``"validation"`` or ``"test"``
+            (the environment's ``split``).
         frame_size: Side of the frame shown to the policy.
         draw_ahead: Draw the frames in a second process, ahead of the learner
             (the same observations, rewards and info; see
