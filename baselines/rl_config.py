@@ -406,6 +406,12 @@ def check_resumed(path: Path, config: TrainConfig) -> None:
             f"--resume: {path.parent} holds another run ({'; '.join(differ)}); resume it with "
             "the same settings, or start afresh (--force or another --out)"
         )
+    asked = saved.get("steps")
+    if isinstance(asked, int) and asked > config.steps:  # its record would say it ran fewer
+        raise ResumeMismatch(
+            f"--steps {config.steps}: {path.parent} holds a run of {asked:,} env steps; a "
+            f"resumed run is the same run, longer: give --steps {asked} or more"
+        )
 
 
 #: What a training run writes into its folder (:func:`baselines.rl.train`).

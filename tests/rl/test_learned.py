@@ -179,6 +179,14 @@ def test_a_resume_is_the_same_run_longer(tmp_path: Path) -> None:
             tmp_path / "config.json",
             TrainConfig("bc", "ArmTrack-v2", settings={"n_envs": 2, "learning_rate": 0.01}, **same),
         )
+    # longer or as long (a finished run's command again), never shorter: its record would
+    # say it ran fewer steps than its model holds
+    rounds = {"n_envs": 2, "rounds": 2}
+    check_resumed(tmp_path / "config.json", TrainConfig("bc", "ArmTrack-v2", settings=rounds,
+                                                        **dict(same, steps=240)))  # fmt: skip
+    with pytest.raises(ResumeMismatch, match=r"--steps 120: .* holds a run of 240 env steps; "):
+        check_resumed(tmp_path / "config.json", TrainConfig("bc", "ArmTrack-v2", settings=rounds,
+                                                            **dict(same, steps=120)))  # fmt: skip
 
 
 def test_the_resume_point_is_the_latest_model(tmp_path: Path) -> None:
