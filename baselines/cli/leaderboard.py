@@ -27,6 +27,7 @@ from baselines.cli._args import (
     particle_count,
     tracked_task,
 )
+from baselines.cli._runs import LEADERBOARD_RUN, held_run
 from humotion_gym.cli import interrupted
 from humotion_gym.cli._common import (
     CommandError,
@@ -148,7 +149,6 @@ def _check_results_folder(args: argparse.Namespace) -> None:
     Raises:
         UsageError: Naming ``--out`` or ``--resume``.
     """
-    from baselines.cli.oracle import LEADERBOARD_RUN, held_run
     from baselines.leaderboard import EPISODES_FILE, RUN_FILE, ResultsFolder, grid_cells
     from baselines.leaderboard.report import reported_run
 

@@ -13,6 +13,13 @@ from pathlib import Path
 from typing import Any
 
 from baselines.cli._args import Settings, add_particles, key_setting, tracked_task
+from baselines.cli._runs import (
+    ORACLE_RUN,
+    PARTIAL,
+    RESULTS,
+    UNFINISHED_ORACLE_RUN,
+    held_run,
+)
 from humotion_gym.cli import interrupted
 from humotion_gym.cli._common import (
     CommandError,
@@ -33,13 +40,6 @@ from humotion_gym.cli._common import (
 )
 from humotion_gym.files import read_json, write_json_gz, write_text_atomically
 
-#: The unfinished run in ``--out``: its settings and each task's finished rows.
-PARTIAL = "partial.json.gz"
-#: What the finished run in ``--out`` holds: the settings and every episode's numbers.
-RESULTS = "results.json.gz"
-#: What :func:`held_run` says a folder holds.
-ORACLE_RUN, UNFINISHED_ORACLE_RUN = "an oracle run", "an unfinished oracle run"
-LEADERBOARD_RUN, SOME_RESULTS = "a leaderboard run", "results of another command"
 #: The likelihoods by default: the agents' own and each oracle at its default noise.
 DEFAULT_ORACLES = ("image", "2d", "2d-unlabelled", "3d")
 
@@ -186,42 +186,6 @@ def _resume_settings(args: argparse.Namespace) -> dict:
     from baselines.leaderboard.results import data_folders
 
     return {**run_settings(args), "data_dir": data_folders(env_kwargs(args))}
-
-
-def held_run(folder: Path) -> tuple[str, str] | None:
-    """What run ``folder`` holds and the file that says so, or None for a fresh folder.
-
-    An oracle run and a recorded leaderboard run both keep ``results.json.gz``
-    and ``table.md``, so the results file's content tells them apart; a
-    leaderboard run's own files (``run.json``, ``episodes.jsonl``,
-    ``results.json``) mark it too.
-
-    Returns:
-        ``(what, file)``: what is one of :data:`ORACLE_RUN`,
-        :data:`UNFINISHED_ORACLE_RUN`, :data:`LEADERBOARD_RUN` or
-        :data:`SOME_RESULTS` (results neither command wrote) or ``"unreadable results"``.
-    """
-    from baselines.leaderboard.results import EPISODES_FILE, RESULTS_FILE, RUN_FILE
-
-    for name in (RUN_FILE, EPISODES_FILE, RESULTS_FILE):
-        if (folder / name).exists():
-            return LEADERBOARD_RUN, name
-    if (folder / RESULTS).exists():
-        try:
-            data = read_json(folder / RESULTS)
-        except (OSError, ValueError):
-            return "unreadable results", RESULTS
-        settings = data.get("settings") if isinstance(data, dict) else None
-        if isinstance(data, dict) and data.get("kind") == "humotion_gym.leaderboard":
-            return LEADERBOARD_RUN, RESULTS
-        if isinstance(settings, dict) and settings.get("command") == "humotion-gym oracle":
-            return ORACLE_RUN, RESULTS
-        return SOME_RESULTS, RESULTS
-    if (folder / PARTIAL).exists():
-        return UNFINISHED_ORACLE_RUN, PARTIAL
-    if (folder / "table.md").exists():
-        return SOME_RESULTS, "table.md"
-    return None
 
 
 def _saved_rows(args: argparse.Namespace) -> dict[str, list]:

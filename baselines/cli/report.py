@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from baselines.cli._runs import held_run
 from humotion_gym.cli._common import (
     CommandError,
     UsageError,
@@ -116,7 +117,6 @@ def _check_out(out: Path, results: Path) -> None:
     Raises:
         UsageError: Naming ``--out`` and what it holds.
     """
-    from baselines.cli.oracle import held_run
     from baselines.leaderboard.report import REPORT_SOURCE, reported_run
 
     results = results.resolve()

@@ -7,7 +7,7 @@ import pytest
 
 import baselines.diagnostics.split as split
 from baselines.cli import main
-from baselines.cli.oracle import PARTIAL
+from baselines.cli._runs import PARTIAL
 from baselines.diagnostics.split import EPISODE_FIELDS, run_split
 from humotion_gym.files import write_json_gz
 
