@@ -389,6 +389,16 @@ def resume_differences(saved: dict[str, Any], config: TrainConfig) -> list[str]:
     return [f"{k}: saved {before[k]!r}, now {now[k]!r}" for k in now if before[k] != now[k]]
 
 
+def longer_recorded(saved: dict[str, Any], config: TrainConfig) -> int | None:
+    """The env steps the recorded run ``saved`` asked for, where more than ``config``'s.
+
+    A resumed run is the same run, longer: one given fewer steps than its
+    record would rewrite the record as a shorter run's, its models being longer.
+    """
+    asked = saved.get("steps")
+    return asked if isinstance(asked, int) and asked > config.steps else None
+
+
 def check_resumed(path: Path, config: TrainConfig) -> None:
     """Refuse to resume the run recorded in ``path`` as another run (:func:`resume_differences`).
 
@@ -406,8 +416,8 @@ def check_resumed(path: Path, config: TrainConfig) -> None:
             f"--resume: {path.parent} holds another run ({'; '.join(differ)}); resume it with "
             "the same settings, or start afresh (--force or another --out)"
         )
-    asked = saved.get("steps")
-    if isinstance(asked, int) and asked > config.steps:  # its record would say it ran fewer
+    asked = longer_recorded(saved, config)
+    if asked is not None:  # its record would say it ran fewer
         raise ResumeMismatch(
             f"--steps {config.steps}: {path.parent} holds a run of {asked:,} env steps; a "
             f"resumed run is the same run, longer: give --steps {asked} or more"

@@ -26,6 +26,7 @@ from baselines.rl import TrainConfig, checkpoints, train
 from baselines.rl_config import (
     earlier_models,
     foreign_names,
+    longer_recorded,
     read_record,
     resume_differences,
     resume_point,
@@ -62,8 +63,8 @@ def _found_run(config: TrainConfig) -> bool:
             f"--runs-dir: {out} holds another run ({'; '.join(differ)}); learning-curve "
             f"continues a run only with the same --task, --data-dir and --set: {move}"
         )
-    longer = saved.get("steps")
-    if isinstance(longer, int) and longer > config.steps:
+    longer = longer_recorded(saved, config)
+    if longer is not None:
         raise CurveUsageError(
             f"--steps {config.steps}: {out} holds a longer run ({longer:,} env steps), whose "
             f"checkpoints are not the points of {config.steps:,}; give --steps {longer} or more "

@@ -168,24 +168,26 @@ def _group_named(
     lists; ``["track"]`` (a command, not a group) and anything with flags are None.
     """
     for name in argv:
-        subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
-        if not subs or name not in subs[0].choices:
+        subs = _subcommands(parser)
+        if subs is None or name not in subs.choices:
             return None
-        parser = subs[0].choices[name]
-    has_subcommands = any(isinstance(a, argparse._SubParsersAction) for a in parser._actions)
-    return parser if has_subcommands else None
+        parser = subs.choices[name]
+    return parser if _subcommands(parser) is not None else None
 
 
 def _command_parser(
     parser: argparse.ArgumentParser, args: argparse.Namespace
 ) -> argparse.ArgumentParser:
     """The parser of the (sub)command ``args`` were parsed for: ``data info``'s, not the top's."""
-    while True:
-        subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
-        chosen = getattr(args, subs[0].dest, None) if subs else None
-        if chosen is None:
-            return parser
-        parser = subs[0].choices[chosen]
+    while (subs := _subcommands(parser)) is not None and getattr(args, subs.dest, None):
+        parser = subs.choices[getattr(args, subs.dest)]
+    return parser
+
+
+def _subcommands(parser: argparse.ArgumentParser) -> argparse._SubParsersAction | None:
+    """A (group) parser's subcommands, None for a command without any."""
+    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    return subs[0] if subs else None
 
 
 def _error(parser: argparse.ArgumentParser, args: argparse.Namespace, message: str) -> None:

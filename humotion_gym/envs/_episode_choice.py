@@ -81,12 +81,11 @@ class TooFewFrames(ValueError):
     """No clip of the split holds an episode of the frames asked for.
 
     A ``ValueError`` whose message says so; ``longest`` (the longest such
-    clip's frames) and ``env_id`` let a command name its own flag and bound.
+    clip's frames) lets a command name its own flag and bound.
     """
 
-    def __init__(self, message: str, env_id: str, longest: int) -> None:
+    def __init__(self, message: str, longest: int) -> None:
         super().__init__(message)
-        self.env_id = env_id
         self.longest = longest
 
 
@@ -147,7 +146,6 @@ class EpisodeChoice:
                 f"{name}: no {split} clip of {which} holds {need} frames "
                 f"({self.episode_frames} frames, every {self.frame_skip}, and the frame "
                 f"before); the longest has {longest} ({len(library)} clips in the library)",
-                name,
                 longest,
             )
         if self.task.min_motion_mm > 0:
