@@ -141,35 +141,22 @@ class FrameStream:
         shape = tuple(int(x) for x in frame_shape)
         _check_room(_shared_bytes(depth, shape))
         self._shm = SharedMemory(create=True, size=_shared_bytes(depth, shape))
-        views = shared_views(self._shm.buf, depth, shape)
-        self._frames, self._finals, self._meta, self._taken = views
-        self._taken[0] = 0
-        ours, theirs = socket.socketpair()
-        package_root = str(Path(__file__).resolve().parents[2])
-        # Warnings off: the learner's environment already showed every one of
-        # these settings. Once serve has cleaned up, the worker exits at once:
-        # tearing the interpreter down would hold close(), which waits for it.
-        code = (
-            "import os, sys, warnings; warnings.simplefilter('ignore'); "
-            f"sys.path.insert(0, {package_root!r}); "
-            f"from humotion_gym.envs._frame_worker import serve; serve({theirs.fileno()}); "
-            "sys.stderr.flush(); os._exit(0)"
-        )
-        try:
-            # Its own session: a Ctrl-C at the terminal interrupts the learner,
-            # which then closes the stream; the worker ends when its pipe does.
-            self._process = subprocess.Popen(
-                [sys.executable, "-c", code],
-                pass_fds=(theirs.fileno(),),
-                start_new_session=True,
-                stdin=subprocess.DEVNULL,
-            )
+        ours: socket.socket | None = None
+        try:  # until the finaliser below owns it, an interrupt must not leak the memory
+            views = shared_views(self._shm.buf, depth, shape)
+            self._frames, self._finals, self._meta, self._taken = views
+            self._taken[0] = 0
+            ours, theirs = socket.socketpair()
+            try:
+                self._process = _start_worker(theirs)
+            finally:
+                theirs.close()
         except BaseException:
-            ours.close()
+            if ours is not None:
+                ours.close()
             self._release()
             raise
-        finally:
-            theirs.close()
+        self._closer = weakref.finalize(self, _close, self._process, ours, self._shm)
         # The worker's end is a multiprocessing Connection; this end reads and
         # writes its frames (a 4-byte big-endian length, then the bytes) on the
         # socket itself: a Connection's poll builds a selector on every call,
@@ -188,7 +175,6 @@ class FrameStream:
         self._epoch = 0
         self._ready = False
         self._failure: str | None = None
-        self._closer = weakref.finalize(self, _close, self._process, self._sock, self._shm)
         _LIVE.add(self)
 
     def reset(
@@ -323,25 +309,49 @@ class FrameStream:
         self._closer()
 
 
+def _start_worker(theirs: socket.socket) -> subprocess.Popen[bytes]:
+    """The drawing process, given the socket ``theirs`` (it reads its settings there)."""
+    package_root = str(Path(__file__).resolve().parents[2])
+    # Warnings off: the learner's environment already showed every one of
+    # these settings. Once serve has cleaned up, the worker exits at once:
+    # tearing the interpreter down would hold close(), which waits for it.
+    code = (
+        "import os, sys, warnings; warnings.simplefilter('ignore'); "
+        f"sys.path.insert(0, {package_root!r}); "
+        f"from humotion_gym.envs._frame_worker import serve; serve({theirs.fileno()}); "
+        "sys.stderr.flush(); os._exit(0)"
+    )
+    # Its own session: a Ctrl-C at the terminal interrupts the learner, which
+    # then closes the stream; the worker ends when its pipe does.
+    return subprocess.Popen(
+        [sys.executable, "-c", code],
+        pass_fds=(theirs.fileno(),),
+        start_new_session=True,
+        stdin=subprocess.DEVNULL,
+    )
+
+
 def _close(process: subprocess.Popen[bytes], sock: socket.socket, shm: SharedMemory) -> None:
     try:
-        sock.sendall(_HEADER.pack(1) + b"x")
-    except OSError:
-        pass
-    sock.close()
-    try:
-        process.wait(timeout=5)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        process.wait()
-    try:
-        shm.close()
-    except BufferError:  # a view still held: the mapping goes with the process
-        pass
-    try:
-        shm.unlink()
-    except FileNotFoundError:
-        pass
+        try:
+            sock.sendall(_HEADER.pack(1) + b"x")
+        except OSError:
+            pass
+        sock.close()
+        try:
+            process.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+    finally:  # interrupted while the worker ends: it still ends with its pipe, the memory here
+        try:
+            shm.close()
+        except BufferError:  # a view still held: the mapping goes with the process
+            pass
+        try:
+            shm.unlink()
+        except FileNotFoundError:
+            pass
 
 
 def episode_marks(venv: Any) -> NDArray[np.int64]:

@@ -12,6 +12,7 @@ or a hang, and ``close`` ends the process and frees its shared memory.
 from __future__ import annotations
 
 import contextlib
+import gc
 import os
 import pickle
 import signal
@@ -255,6 +256,52 @@ def test_close_ends_the_worker_and_frees_its_memory(library):
     venv.close()
     assert stream._process.poll() is not None
     assert not Path("/dev/shm", name.lstrip("/")).exists()
+
+
+def _shm_exists(name: str) -> bool:
+    return Path("/dev/shm", name.lstrip("/")).exists()
+
+
+@pytest.mark.skipif(not Path("/dev/shm").is_dir(), reason="no /dev/shm to look in")
+def test_an_interrupt_while_the_stream_starts_frees_its_memory(monkeypatch, library):
+    # A Ctrl-C in the learner after the ring is made, while its settings go out
+    # (megabytes pickled): the memory must still be freed, not left to the
+    # resource tracker's "leaked shared_memory" warning at exit.
+    made: list[str] = []
+
+    class Recorded(frame_stream.SharedMemory):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            made.append(self.name)
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(frame_stream, "SharedMemory", Recorded)
+    monkeypatch.setattr(frame_stream.threading, "Thread", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        _ahead(library)
+    monkeypatch.undo()
+    gc.collect()  # the half-made stream's finaliser ends its worker and frees the ring
+    assert made and not _shm_exists(made[0])
+
+
+@pytest.mark.skipif(not Path("/dev/shm").is_dir(), reason="no /dev/shm to look in")
+def test_an_interrupt_while_closing_still_frees_the_memory(library):
+    venv = _ahead(library)
+    stream = venv._stream
+    assert stream is not None
+    name, process = stream._shm.name, stream._process
+
+    class Interrupted:
+        def wait(self, timeout=None):
+            raise KeyboardInterrupt
+
+    stream._closer.detach()
+    with pytest.raises(KeyboardInterrupt):
+        frame_stream._close(Interrupted(), stream._sock, stream._shm)  # type: ignore[arg-type]
+    assert not _shm_exists(name)
+    assert process.wait(timeout=10) is not None  # its pipe closed: the worker ended too
 
 
 def test_the_worker_reports_what_stopped_it():
