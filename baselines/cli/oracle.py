@@ -299,6 +299,7 @@ def _cmd_oracle(args: argparse.Namespace) -> int:
         # every task's agents made first: one a later task refuses stops the run at once
         for task in args.task:
             check_agents(task, args.agents, args.particles, args.seed, kwargs, settings)
+    _check_saved_rows(args, saved, oracles, kwargs)
     try:
         for task in args.task:
             rows = saved.setdefault(task, [])
@@ -331,6 +332,28 @@ def _cmd_oracle(args: argparse.Namespace) -> int:
     else:
         print(table, end="")
     return 0
+
+
+def _check_saved_rows(
+    args: argparse.Namespace, saved: dict[str, list], oracles: list, kwargs: dict[str, Any]
+) -> None:
+    """Refuse saved rows that are not this run's before any task runs (not when theirs starts).
+
+    Raises:
+        CommandError: Naming the saved file and the first row that does not fit.
+    """
+    from baselines.diagnostics.split import check_done
+
+    for task in saved.keys() - set(args.task):
+        raise CommandError(
+            f"--resume: {args.out / PARTIAL}: holds rows of {task}, which this run does not track"
+        )
+    with refused_as(CommandError, ValueError, f"--resume: {args.out / PARTIAL}: "):
+        for task, rows in saved.items():
+            check_done(
+                task, rows, args.agents, oracles, args.episodes, args.declared,
+                args.agent_seeds, kwargs,
+            )  # fmt: skip
 
 
 def _save_row(args: argparse.Namespace, saved: dict[str, list], rows: list, row: dict) -> None:

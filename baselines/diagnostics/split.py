@@ -204,17 +204,11 @@ def run_split(
             f"{agent_seeds}, {particles}"
         )
     env = make_env(task, env_kwargs)
-    listed = 0
-    if declared:
-        windows: list[tuple[str, int] | None] = list(task_windows(task, env_kwargs))
-        listed = len(windows)
-        windows = windows[: episodes or listed]
-    else:
-        windows = [None] * (episodes or 20)
+    windows, listed = _windows(task, episodes, declared, env_kwargs)
     base = tracking_env(env)
     names = [a for a in agents if a != "hold"]
     build = _builder(env, names, particles, seed, settings or {})
-    runs = [("hold", None)] + [(a, o) for a in names for o in oracles]
+    runs = _runs(names, oracles)
     rows = _done_rows(task, done, runs, len(windows), agent_seeds)
     total = len(windows) * (1 + len(names) * len(oracles) * agent_seeds)
     bar = tqdm(
@@ -249,6 +243,51 @@ def run_split(
         "task": task, "particles": particles, "seed": seed, "agent_seeds": agent_seeds,
         "declared": declared, "windows": len(windows), "declared_windows": listed, "rows": rows,
     }  # fmt: skip
+
+
+def _windows(
+    task: str, episodes: int | None, declared: bool, env_kwargs: Mapping[str, Any] | None
+) -> tuple[list[tuple[str, int] | None], int]:
+    """The episodes :func:`run_split` tracks, and how many windows the task declares.
+
+    Returns:
+        The declared windows tracked (or None per seeded draw), and the
+        task's count of declared windows (0 without ``declared``).
+    """
+    if not declared:
+        return [None] * (episodes or 20), 0
+    listed: list[tuple[str, int] | None] = list(task_windows(task, env_kwargs))
+    return listed[: episodes or len(listed)], len(listed)
+
+
+def _runs(
+    agents: Sequence[str], oracles: Sequence[OracleSettings | None]
+) -> list[tuple[str, OracleSettings | None]]:
+    """The rows of a run in order: ``hold``, then every agent with every likelihood."""
+    names = [a for a in agents if a != "hold"]
+    return [("hold", None)] + [(a, o) for a in names for o in oracles]
+
+
+def check_done(
+    task: str,
+    done: Sequence[Mapping[str, Any]],
+    agents: Sequence[str],
+    oracles: Sequence[OracleSettings | None],
+    episodes: int | None = None,
+    declared: bool = True,
+    agent_seeds: int = 1,
+    env_kwargs: Mapping[str, Any] | None = None,
+) -> None:
+    """Refuse rows ``done`` that :func:`run_split` (same arguments) would refuse, running nothing.
+
+    A resumed run checks every task's saved rows before its first task runs,
+    not when the task they belong to starts.
+
+    Raises:
+        ValueError: Naming the first row that is not this run's.
+    """
+    windows, _ = _windows(task, episodes, declared, env_kwargs)
+    _done_rows(task, done, _runs(agents, oracles), len(windows), agent_seeds)
 
 
 def _done_rows(

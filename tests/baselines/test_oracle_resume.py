@@ -169,3 +169,24 @@ def test_the_data_resume_the_same_however_the_folder_is_spelt(tmp_path, monkeypa
     err = capsys.readouterr().err.strip()
     saved, given = ([str((tmp_path / name).resolve())] for name in ("mocap", "other"))
     assert len(err.splitlines()) == 1 and f"data_dir: saved {saved!r}, given {given!r}" in err
+
+
+@pytest.mark.parametrize("where", ["second-task-row", "untracked-task"])
+def test_a_foreign_saved_row_is_refused_before_any_episode(tmp_path, monkeypatch, capsys, where):
+    out = tmp_path / "run"
+    _partial(out)  # BodyTrack-v2's hold row saved
+    saved = json.loads(gzip.decompress((out / PARTIAL).read_bytes()))
+    if where == "second-task-row":  # well formed, but a row this run does not make first
+        saved["rows"]["ArmTrack-v2"] = [{**_hold_row(), "agent": "pf-tree"}]
+        message = "row 1 of ArmTrack-v2 is pf-tree with none"
+    else:
+        saved["rows"]["WalkTrack-v2"] = [_hold_row()]
+        message = "holds rows of WalkTrack-v2, which this run does not track"
+    write_json_gz(out / PARTIAL, saved)
+    calls = _count_episodes(monkeypatch)
+    capsys.readouterr()
+    assert main([*ARGS, "--out", str(out), "--resume"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"--resume: {out / PARTIAL}: " in err, err
+    assert message in err, err
+    assert calls == []  # refused before the first task's rows ran, not when ArmTrack-v2 starts
