@@ -81,6 +81,7 @@ def run_sweep(
     engine_options: Mapping[str, Any] | None = None,
     out: str | Path | None = None,
     resume: bool = False,
+    setting_name: Callable[[str], str] = str,
 ) -> dict[str, Any]:
     """Run the leaderboard at every value of every setting of the grid.
 
@@ -103,6 +104,8 @@ def run_sweep(
         resume: Continue the sweep saved in ``out`` (its :data:`SETTINGS_FILE`
             must hold these settings): each point's run resumes where it
             stopped (a point not yet started runs afresh).
+        setting_name: How a resume's message names a setting that differs
+            (the command gives its flag).
 
     Returns:
         The sweep (plain JSON, :data:`VERSION`): ``tasks``, ``agents``,
@@ -125,7 +128,7 @@ def run_sweep(
     folder = None if out is None else Path(out)
     if folder is not None:
         settings = sweep_settings(tasks, agents, particles, grid, episodes, seed, base)
-        _start(folder, settings, resume)
+        _start(folder, settings, resume, setting_name)
     result: dict[str, Any] = {
         "version": VERSION,
         "tasks": list(tasks),
@@ -260,7 +263,9 @@ def _shown(key: str, value: Any) -> str:
     return str(value)
 
 
-def _start(folder: Path, settings: dict[str, Any], resume: bool) -> None:
+def _start(
+    folder: Path, settings: dict[str, Any], resume: bool, name: Callable[[str], str]
+) -> None:
     """Check a resumed sweep's settings, or keep a new one's before its first point.
 
     Raises:
@@ -268,7 +273,7 @@ def _start(folder: Path, settings: dict[str, Any], resume: bool) -> None:
     """
     path = folder / SETTINGS_FILE
     if resume:
-        check_resume(folder, settings)
+        check_resume(folder, settings, name)
         return
     if path.exists():
         raise FileExistsError(

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Mapping, Sequence
 from typing import Any
 
 from baselines.cli._args import (
@@ -132,26 +131,22 @@ def _flag(setting: str) -> str:
     return "--data-dir" if setting == "data" else "--" + setting.replace("_", "-")
 
 
-def _check_out(args: argparse.Namespace, grid: Mapping[str, Sequence[Any]]) -> None:
-    """Refuse ``--out`` holding a sweep without ``--resume``, and a resume of another sweep.
+def _check_out(args: argparse.Namespace) -> None:
+    """Refuse ``--out`` holding a sweep without ``--resume``, and ``--resume`` with none there.
+
+    ``run_sweep`` compares a resumed sweep's settings with the saved ones,
+    naming each flag that differs, before its first point runs.
 
     Raises:
-        UsageError: Naming ``--out`` or ``--resume`` (and each flag whose value
-            differs from the saved sweep's, with both values).
+        UsageError: Naming ``--out`` or ``--resume``.
     """
     from baselines import sweep
-    from baselines.leaderboard.results import ResumeError
 
     if not args.resume:
         check_fresh_output(args.out, ["sweep.json", sweep.SETTINGS_FILE, "points"], "a sweep")
         return
     if not (args.out / sweep.SETTINGS_FILE).is_file() and not (args.out / "points").is_dir():
         raise UsageError(f"--resume: no sweep to resume in {args.out} (start one without it)")
-    settings = sweep.sweep_settings(
-        args.tasks, args.agents, args.particles, grid, args.episodes, args.seed, env_kwargs(args)
-    )
-    with refused_as(UsageError, ResumeError, "--resume: "):
-        sweep.check_resume(args.out, settings, _flag)
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
@@ -165,16 +160,18 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         flags = ", ".join("--" + name.replace("_", "-") for name in _SETTINGS)
         raise UsageError(f"nothing to sweep: give at least one of {flags}")
     check_engine(args)
-    _check_out(args, grid)
+    _check_out(args)
     check_policy_files(args.agents)
     engine = None
     if args.engine != "inprocess":
         engine = {"engine": args.engine, "workers": args.workers, "address": args.address}
-    # a point's saved run of other code or another policy file: the arguments conflict
+    # the saved sweep's settings (checked before any point runs), or a point's saved run
+    # of other code or another policy file: the arguments conflict
     with refused_as(UsageError, ResumeError, "--resume: "):
         result = sweep.run_sweep(
             args.tasks, args.agents, args.particles, grid, args.episodes, args.seed,
             env_kwargs(args), engine_options=engine, out=args.out, resume=args.resume,
+            setting_name=_flag,
         )  # fmt: skip
     args.out.mkdir(parents=True, exist_ok=True)
     say = (lambda *_: None) if args.json else wrote  # --json: stdout holds the JSON alone
