@@ -82,7 +82,7 @@ class TaskLikelihood:
     (:meth:`prepare`).
     """
 
-    def __init__(self, model: FrameModel, free: NDArray[np.intp], fixed: NDArray[np.intp]):
+    def __init__(self, model: FrameModel, free: NDArray[np.intp], fixed: NDArray[np.intp]) -> None:
         self.model = model
         self.free = free
         self.fixed = fixed

@@ -330,7 +330,9 @@ def window_ar_features(w: FloatArray, half_window: int, ridge: float = 1e-3) -> 
     return np.concatenate([feats[:1], feats], axis=0)
 
 
-def _state_sequences(ys: Sequence[FloatArray], emission: str, order: int, latent_dim: int):
+def _state_sequences(
+    ys: Sequence[FloatArray], emission: str, order: int, latent_dim: int
+) -> tuple[list[FloatArray], FloatArray, FloatArray]:
     """Initial latent trajectories and emission from the measurements alone."""
     dy = ys[0].shape[1]
     if emission == "identity":

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -26,6 +26,9 @@ from humotion_gym.cli._common import (
     json_text,
     output_file,
 )
+
+if TYPE_CHECKING:
+    from humotion_gym.mocap.motion import Motion
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -111,7 +114,7 @@ def _cmd_data_table(args: argparse.Namespace) -> int:
     return 0
 
 
-def _clip_row(m, held_out: frozenset[str] = frozenset()) -> dict:
+def _clip_row(m: Motion, held_out: frozenset[str] = frozenset()) -> dict:
     err = m.retarget_error()
     err = err[np.isfinite(err)]
     return {

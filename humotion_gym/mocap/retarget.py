@@ -27,7 +27,7 @@ and the shape being one symmetric body per clip, is the retargeting error that
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -345,7 +345,11 @@ def fill_gaps(params: FloatArray, ok: BoolArray) -> FloatArray:
 
 
 def _slerp_group(
-    angles: FloatArray, to_matrix, from_matrix, lo: NDArray[np.intp], w: FloatArray
+    angles: FloatArray,
+    to_matrix: Callable[[FloatArray], FloatArray],
+    from_matrix: Callable[[FloatArray], FloatArray],
+    lo: NDArray[np.intp],
+    w: FloatArray,
 ) -> FloatArray:
     """Interpolate (T,3) Euler angles at fractional times by quaternion slerp."""
     quat = Rotation.from_matrix(to_matrix(angles)).as_quat()

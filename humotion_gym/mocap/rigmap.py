@@ -206,7 +206,10 @@ class _Mapping:
     notes: list[str] = field(default_factory=list)
 
 
-def _limbs_by_names(tree: _Tree, cands: dict[tuple[str | None, str], list[int]], out: _Mapping):
+def _limbs_by_names(
+    tree: _Tree, cands: dict[tuple[str | None, str], list[int]], out: _Mapping
+) -> None:
+    """Each limb's keypoints into ``out``: by its joints' names, else by the tree around them."""
     for side in ("l", "r"):
         for segs, kps in _LIMBS:
             distal_c = [i for i in cands.get((side, segs[0]), [])]
