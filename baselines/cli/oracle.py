@@ -344,6 +344,8 @@ def _check_saved_rows(
     """
     from baselines.diagnostics.split import check_done
 
+    if not saved:  # a new run
+        return
     for task in saved.keys() - set(args.task):
         raise CommandError(
             f"--resume: {args.out / PARTIAL}: holds rows of {task}, which this run does not track"
