@@ -180,10 +180,10 @@ def learner_observation(
     policy in the plain environment (:mod:`baselines.agents.learned`), so the two
     cannot drift apart.
     """
-    return {
+    return {  # in the space's order (spaces.Dict sorts its keys)
         "frame": learner_frame(frame, size),
-        "previous": np.clip(np.asarray(previous, dtype=np.float32), -1.0, 1.0),
         "initial": np.clip(np.asarray(initial, dtype=np.float32), -1.0, 1.0),
+        "previous": np.clip(np.asarray(previous, dtype=np.float32), -1.0, 1.0),
     }
 
 

@@ -439,11 +439,11 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         if not self.dict_observation:
             return frame
         cameras = np.stack([view[self._k].to_vector() for view in self._view_cameras])
-        return {
+        return {  # in the space's order: spaces.Dict sorts its keys
+            "camera": cameras[0] if self.views == 1 else cameras,
+            "fixed_params": self._truth()[self._fixed],
             "frame": frame,
             "initial_pose": self._initial.copy(),
-            "fixed_params": self._truth()[self._fixed],
-            "camera": cameras[0] if self.views == 1 else cameras,
             "shape": self._shape_vector.copy(),
         }
 

@@ -385,11 +385,11 @@ class PoseTrackingVectorEnv(VectorEnv):
         if not self._dict:
             return frames
         rows = self._rows
-        return {
+        return {  # in the space's order, as the single environment's
+            "camera": self._camera_vectors[rows, self._k],
+            "fixed_params": self._params[rows, self._k][:, self._fixed],
             "frame": frames,
             "initial_pose": self._params[:, 0].copy(),
-            "fixed_params": self._params[rows, self._k][:, self._fixed],
-            "camera": self._camera_vectors[rows, self._k],
             "shape": self._shape_vectors.copy(),
         }
 

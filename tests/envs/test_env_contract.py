@@ -6,6 +6,7 @@ import pytest
 
 import humotion_gym  # noqa: F401
 from humotion_gym.envs import RESET_OPTIONS
+from humotion_gym.wrappers import LearnerObservation
 
 
 @pytest.fixture
@@ -306,3 +307,28 @@ def test_the_vector_env_ends_episodes_at_max_episode_steps_as_time_limit_does():
         assert not terminated.any()
         assert truncated.all() == (step == 7)
     envs.close()
+
+
+@pytest.mark.parametrize("env_id", [i for i in humotion_gym.ENV_IDS if "-v1" not in i])
+def test_observations_keep_the_order_of_their_space(env_id):
+    # spaces.Dict sorts its keys; a flattening or a loop over obs.values() reads
+    # the space's order, and the vector envs Gymnasium makes (sync, async) give it.
+    env = gym.make(env_id)
+    order = list(env.observation_space.spaces)
+    obs, _ = env.reset(seed=0)
+    assert list(obs) == order
+    assert list(env.step(env.action_space.sample())[0]) == order
+    env.close()
+    if gym.spec(env_id).vector_entry_point is None:  # the multi-view tasks
+        return
+    learner = LearnerObservation(gym.make(env_id))  # what a learned policy sees (one view)
+    learner_order = list(learner.observation_space.spaces)
+    assert list(learner.reset(seed=0)[0]) == learner_order
+    assert list(learner.step(learner.action_space.sample())[0]) == learner_order
+    learner.close()
+    venv = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point")
+    assert list(venv.observation_space.spaces) == order
+    obs, _ = venv.reset(seed=0)
+    assert list(obs) == order
+    assert list(venv.step(venv.action_space.sample())[0]) == order
+    venv.close()
