@@ -30,7 +30,7 @@ from typing import Any
 import gymnasium as gym
 
 from baselines import MAX_PARTICLES
-from baselines.agents.base import TaskNotSupported, describe, tracking_env
+from baselines.agents.base import AgentBatch, TaskNotSupported, describe, tracking_env
 from baselines.agents.filters import (
     PART_CONES,
     ParticleFilterAgent,
@@ -137,6 +137,33 @@ def make(
     )  # fmt: skip
 
 
+def make_batch(
+    name: str, task: TaskDescription | gym.Env, n_envs: int, **kwargs: Any
+) -> AgentBatch:
+    """One agent per environment of a vector env: :func:`make` ``n_envs`` times.
+
+    Agent ``i`` gets the seed ``seed + i`` (``seed`` from ``kwargs``, else 0),
+    so the environments' episodes are tracked independently. Its ``predict``
+    takes a batch, as stable-baselines3's ``evaluate_policy`` hands it::
+
+        agent = agents.make_batch("pf-tree", env, n_envs=4, n_particles=300)
+        evaluate_policy(agent, vec_env)  # a VecEnv of 4 of the task's environments
+
+    Args:
+        name: The agent's name (as :func:`make`).
+        task: The task's description, or one of its environments.
+        n_envs: Environments in the vector env, at least 1.
+        **kwargs: :func:`make`'s other arguments.
+
+    Raises:
+        ValueError: If ``n_envs`` is not an integer >= 1, or as :func:`make`.
+    """
+    _check_count("n_envs", n_envs, 1)
+    seed = kwargs.pop("seed", 0)
+    _check_count("seed", seed, 0)
+    return AgentBatch([make(name, task, seed=seed + i, **kwargs) for i in range(n_envs)])
+
+
 def _check_count(name: str, value: Any, low: int, high: int | None = None) -> None:
     """Refuse anything but an integer in ``[low, high]`` (numpy's too; not a bool), naming it."""
     if not is_count(value, low) or (high is not None and value > high):
@@ -153,6 +180,7 @@ __all__ = [
     "PART_CONES",
     "PF_SETTINGS_FILE",
     "REFERENCES",
+    "AgentBatch",
     "AgentSpec",
     "HoldAgent",
     "ParticleFilterAgent",
@@ -165,6 +193,7 @@ __all__ = [
     "filter_agent",
     "fit_prior",
     "make",
+    "make_batch",
     "make_filter",
     "register_agent",
     "register_reference",

@@ -1,8 +1,10 @@
-"""What every agent module shares: the task's description, and the skip error."""
+"""What every agent module shares: the task's description, the skip error, SB3's batches."""
 
 from __future__ import annotations
 
-from typing import Any
+import functools
+from collections.abc import Callable, Sequence
+from typing import Any, TypeVar
 
 import gymnasium as gym
 import numpy as np
@@ -96,3 +98,99 @@ def episode_begins(
     if episode_start is not None and bool(np.any(episode_start)):
         return True
     return current is None or not np.array_equal(current, initial_pose)
+
+
+Predict = TypeVar("Predict", bound=Callable[..., tuple[Any, Any]])
+
+
+def batch_size(observation: Any) -> int | None:
+    """The rows of a vector env's batch of observations, or None for one observation.
+
+    A version-2 observation's ``initial_pose`` is ``(25,)``; a batch's is ``(N, 25)``.
+    """
+    if not isinstance(observation, dict) or "initial_pose" not in observation:
+        return None  # not an observation: predict says what it expected
+    initial = np.asarray(observation["initial_pose"])
+    return int(initial.shape[0]) if initial.ndim == 2 else None
+
+
+def accepts_batch_of_one(predict: Predict) -> Predict:
+    """Let an agent's ``predict`` take a batch of one observation, as an SB3 policy does.
+
+    stable-baselines3 wraps a single environment in a vector env of one
+    (``evaluate_policy(agent, env)``), so ``predict`` meets ``(1, ...)``
+    observations and ``episode_start`` of shape ``(1,)``, and must answer
+    ``(1, A)``. One agent tracks one episode: a batch of more is refused,
+    naming :class:`AgentBatch`, which holds one agent per environment.
+    """
+
+    @functools.wraps(predict)
+    def batched(
+        self: Any,
+        observation: Any,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[Any, Any]:
+        n = batch_size(observation)
+        if n is None:
+            return predict(self, observation, state, episode_start, deterministic)
+        if n != 1:
+            raise ValueError(
+                f"observation: a batch of {n} (a vector env's), but an agent tracks one "
+                f"episode; baselines.agents.make_batch(name, task, n_envs={n}) makes one "
+                "agent per environment"
+            )
+        one = {key: np.asarray(value)[0] for key, value in observation.items()}
+        start = None if episode_start is None else bool(np.asarray(episode_start).reshape(-1)[0])
+        action, state = predict(self, one, state, start, deterministic)
+        return np.asarray(action)[None], state
+
+    return batched  # type: ignore[return-value]
+
+
+class AgentBatch:
+    """One agent per environment of a vector env, answering for the batch as an SB3 policy.
+
+    ``predict`` hands row ``i`` of the observations (and of ``episode_start``)
+    to agent ``i`` and stacks their actions, so stable-baselines3's
+    ``evaluate_policy`` and a loop over a vector env score any agent. Made by
+    :func:`baselines.agents.make_batch`.
+
+    Args:
+        agents: One agent per environment, in the vector env's order.
+
+    Raises:
+        ValueError: If ``agents`` is empty.
+    """
+
+    def __init__(self, agents: Sequence[Any]) -> None:
+        if not agents:
+            raise ValueError("AgentBatch: expected at least one agent")
+        self.agents = list(agents)
+
+    def predict(
+        self,
+        observation: dict[str, Any],
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[NDArray[np.float32], None]:
+        """Each agent's action for its row, ``(N, A)``.
+
+        Raises:
+            ValueError: If the observation is not a batch of one row per agent.
+        """
+        del state
+        n = len(self.agents)
+        if batch_size(observation) != n:
+            got = batch_size(observation)
+            what = "one observation" if got is None else f"a batch of {got}"
+            raise ValueError(f"observation: expected a batch of {n} (one per agent), got {what}")
+        starts = [None] * n if episode_start is None else np.broadcast_to(episode_start, (n,))
+        actions = [
+            agent.predict({key: value[i] for key, value in observation.items()}, None,
+                          None if starts[i] is None else bool(starts[i]), deterministic)[0]
+            for i, agent in enumerate(self.agents)
+        ]  # fmt: skip
+        return np.stack(actions), None

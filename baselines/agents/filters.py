@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from baselines.agents.background import in_background, resolved
-from baselines.agents.base import describe, episode_begins, refuse_truth
+from baselines.agents.base import accepts_batch_of_one, describe, episode_begins, refuse_truth
 from baselines.filtering import (
     AnnealedParticleFilter,
     ParticleFilter,
@@ -419,6 +419,7 @@ class ParticleFilterAgent:
         )
         self.frame_times = []
 
+    @accepts_batch_of_one
     def predict(
         self,
         observation: dict[str, Any],

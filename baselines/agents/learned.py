@@ -32,7 +32,12 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from baselines.agents.base import TaskNotSupported, describe, episode_begins
+from baselines.agents.base import (
+    TaskNotSupported,
+    accepts_batch_of_one,
+    describe,
+    episode_begins,
+)
 from baselines.agents.specs import make_filter
 from baselines.filtering import ParticleState, replaced
 from baselines.priors import tree
@@ -341,6 +346,7 @@ class LearnedAgent:
         self._history = recent
         return {k: np.stack([o[k] for o in recent]) for k in obs}
 
+    @accepts_batch_of_one
     def predict(
         self,
         observation: dict[str, Any],
@@ -493,6 +499,7 @@ class HybridAgent:
         """Seed the filter's next episode from its seed and ``episode_seed`` alone."""
         self.pf.seed_episode(episode_seed)
 
+    @accepts_batch_of_one
     def predict(
         self,
         observation: dict[str, Any],

@@ -15,7 +15,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from baselines.agents.base import describe, episode_begins
+from baselines.agents.base import accepts_batch_of_one, describe, episode_begins
 from humotion_gym.envs.description import TaskDescription, read_observation
 
 
@@ -38,6 +38,7 @@ class HoldAgent:
         self._initial: NDArray[np.float64] | None = None
         self._action: NDArray[np.float32] | None = None
 
+    @accepts_batch_of_one
     def predict(
         self,
         observation: dict[str, Any],
@@ -70,6 +71,7 @@ class RandomAgent:
         """Seed the next episode's actions from ``(seed, episode_seed)`` alone."""
         self._rng = np.random.default_rng([self.seed, int(episode_seed)])
 
+    @accepts_batch_of_one
     def predict(
         self,
         observation: dict[str, Any],
