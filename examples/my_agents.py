@@ -16,7 +16,13 @@ from typing import Any
 
 import numpy as np
 
-from baselines.agents import AGENTS, AgentSpec, register_agent, register_reference
+from baselines.agents import (
+    AGENTS,
+    AgentSpec,
+    accepts_batch_of_one,
+    register_agent,
+    register_reference,
+)
 from humotion_gym.envs.description import TaskDescription, read_observation
 
 
@@ -32,6 +38,7 @@ class Still:
         self.description = description
         self._action: np.ndarray | None = None
 
+    @accepts_batch_of_one  # SB3's evaluate_policy hands a batch of one observation
     def predict(
         self,
         observation: dict[str, Any],

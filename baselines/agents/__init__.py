@@ -30,7 +30,13 @@ from typing import Any
 import gymnasium as gym
 
 from baselines import MAX_PARTICLES
-from baselines.agents.base import AgentBatch, TaskNotSupported, describe, tracking_env
+from baselines.agents.base import (
+    AgentBatch,
+    TaskNotSupported,
+    accepts_batch_of_one,
+    describe,
+    tracking_env,
+)
 from baselines.agents.filters import (
     PART_CONES,
     ParticleFilterAgent,
@@ -187,6 +193,7 @@ __all__ = [
     "RandomAgent",
     "TaskLikelihood",
     "TaskNotSupported",
+    "accepts_batch_of_one",
     "agent_names",
     "body_part_stages",
     "describe",
