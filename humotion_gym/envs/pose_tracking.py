@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import functools
 import warnings
@@ -32,6 +33,7 @@ from humotion_gym.metrics import Scoring, StepScores, step_scores, update_lost_r
 from humotion_gym.mocap.library import (
     EPISODE_SPLITS,
     MotionLibrary,
+    clips_fingerprint,
     configured_data_dirs,
     load_library,
     synthetic_library,
@@ -57,14 +59,46 @@ _REGIONS: dict[str, tuple[str, ...]] = {
 }
 
 
+# The libraries loaded from folders, newest last: (the folders as given and resolved,
+# the frame rate) -> (the files' fingerprint, the library). gym.make is called
+# again and again with the same folders (tests, the leaderboard's cells): a hit
+# lists and stats the files (clips_fingerprint) but parses none, and a changed
+# file, a person's folder added or removed, or the same relative name in another
+# working folder loads and checks the data afresh.
+_LOADED: collections.OrderedDict[
+    tuple[tuple[str, ...], tuple[str, ...], float], tuple[str, MotionLibrary]
+] = collections.OrderedDict()
+_LOADED_MAX = 4
+
+
 @functools.lru_cache(maxsize=4)
+def _synthetic(fps: float) -> MotionLibrary:
+    """The built-in synthetic set at ``fps``: made once (no file can change it)."""
+    return synthetic_library(fps=fps)
+
+
 def _cached_library(dirs: tuple[str, ...], fps: float) -> MotionLibrary:
+    """The clips under ``dirs`` at ``fps`` as they are on disk now, person-checked.
+
+    Raises:
+        ValueError: If the folders hold no clip.
+        SplitError: If a held-out person's skeleton is also a training person's.
+    """
     if not dirs:
-        return synthetic_library(fps=fps)
+        return _synthetic(fps)
+    place = (dirs, tuple(str(Path(d).resolve()) for d in dirs), fps)
+    fingerprint = clips_fingerprint(dirs, fps)
+    known = _LOADED.pop(place, None)  # a stale one goes now, not when evicted
+    if known is not None and known[0] == fingerprint:
+        _LOADED[place] = known
+        return known[1]
     library = load_library(list(dirs), fps=fps, progress=False)
     if len(library) == 0:
         raise ValueError(f"data_dir {list(dirs)}: no motion capture (.bvh, .amc) found there")
     check_data_persons(library, dirs)
+    _LOADED[place] = (fingerprint, library)
+    while len(_LOADED) > _LOADED_MAX:
+        _LOADED.popitem(last=False)
     return library
 
 

@@ -729,6 +729,57 @@ def test_a_train_env_refuses_a_file_of_a_test_person_from_outside_its_data(share
         gym.make("humotion_gym/WalkTrack-v2", data_dir=str(dancing)).reset(seed=0)
 
 
+@pytest.mark.mocap
+def test_a_new_env_sees_the_data_as_it_is_on_disk_now(shared_mocap, tmp_path, monkeypatch):
+    """Envs kept the library of the first make with the same data_dir string: a person's
+    folder added or removed, or "data" from another working folder, went unseen."""
+    import os
+    import shutil
+    from pathlib import Path
+
+    from humotion_gym.mocap.library import SplitError, load_library
+    from humotion_gym.mocap.splits import user_split
+
+    walk = shared_mocap / "bandai-1" / "dataset-1_walk_normal_001.bvh"
+
+    def person(root, name):
+        (root / name).mkdir(parents=True)
+        shutil.copyfile(walk, root / name / "walk.bvh")
+
+    assert {user_split(n) for n in ("carol", "dave", "gina")} == {"train"}
+    assert user_split("alice") == "test"
+    for name in ("carol", "dave"):
+        person(tmp_path / "proj1" / "data", name)
+    monkeypatch.chdir(tmp_path / "proj1")
+
+    def clip_ids():
+        env = gym.make("humotion_gym/BodyTrack-v2", data_dir="data").unwrapped
+        return env, env.library.clip_ids
+
+    first, ids = clip_ids()
+    assert ids == ["user/carol/walk", "user/dave/walk"]
+    again, _ = clip_ids()
+    assert again.library is first.library  # nothing changed: the memo's library
+    rewritten = Path("data/carol/walk.bvh")
+    ns = rewritten.stat().st_mtime_ns + 10**9
+    os.utime(rewritten, ns=(ns, ns))  # the file's date changed: loaded again
+    assert clip_ids()[0].library is not first.library
+    person(tmp_path / "proj1" / "data", "gina")
+    shutil.rmtree("data/dave")
+    env, ids = clip_ids()
+    assert ids == ["user/carol/walk", "user/gina/walk"]
+    assert ids == load_library(["data"], progress=False).clip_ids
+    assert {env.reset(seed=s)[1]["clip_id"] for s in range(6)} <= set(ids)
+    # the same relative name in another working folder is other data
+    person(tmp_path / "proj2" / "data", "dave")
+    monkeypatch.chdir(tmp_path / "proj2")
+    assert clip_ids()[1] == ["user/dave/walk"]
+    # a test person's file copied in later is checked (the same skeleton as dave's)
+    person(tmp_path / "proj2" / "data", "alice")
+    with pytest.raises(SplitError, match=r"alice ~ dave"):
+        clip_ids()
+
+
 def test_a_library_of_lists_and_sets_is_checked_and_tracked():
     """A library need not be hashable: its persons are checked all the same."""
     from humotion_gym.envs import pose_tracking
