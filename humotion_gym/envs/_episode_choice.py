@@ -243,19 +243,21 @@ class EpisodeChoice:
         unseen = self.library.unseen_by(self.split)
         if not unseen:
             return motion
-        person = motion.subject
-        if person not in unseen:
+        # the person shown: by name, else the unseen person of the same skeleton,
+        # whose split (not the clip's own name's) is the one to advise
+        shown, person = motion.subject, motion.subject
+        if shown not in unseen:
             signature = skeleton_signature(motion)
             for other, other_signature in self._unseen_signatures():
                 if same_skeleton(signature, other_signature):
-                    person = f"{other} (same skeleton as {motion.subject!r})"
+                    shown, person = other, f"{other} (same skeleton as {motion.subject!r})"
                     break
             else:
                 return motion
         raise ValueError(
             f"reset: options[{option!r}] {motion.clip_id!r} shows {person}, a held-out person; "
             f"a split={self.split!r} environment never shows the persons {sorted(unseen)} "
-            f"(make it with split={self._split_showing(motion.subject)!r})"
+            f"(make it with split={self._split_showing(shown)!r})"
         )
 
     def _split_showing(self, person: str) -> str:

@@ -439,10 +439,16 @@ def test_a_train_env_refuses_a_held_out_persons_clip_and_stays_as_it_was(person)
     shown_by = "test" if person in ("synthetic-05", "synthetic-06") else "validation"
     with pytest.raises(ValueError, match=rf"{person}.*make it with split='{shown_by}'"):
         env.reset(seed=9, options={"clip_id": clip.clip_id})
-    # by skeleton: the same person's clip under another name
+    # by skeleton: the same person's clip under another name, shown by the matched
+    # person's split (not by the name's: someone-else's would be validation)
     renamed = dataclasses.replace(clip, subject="someone-else", clip_id="elsewhere/x")
-    with pytest.raises(ValueError, match=person):
+    same = rf"{person} \(same skeleton as 'someone-else'\).*make it with split='{shown_by}'\)$"
+    with pytest.raises(ValueError, match=same):
         env.reset(seed=9, options={"motion": renamed})
+    if shown_by == "test":  # a validation env refuses it too, and names the test split
+        validation = gym.make("humotion_gym/BodyTrack-v2", split="validation").unwrapped
+        with pytest.raises(ValueError, match=same):
+            validation.reset(seed=9, options={"motion": renamed})
     # the refused resets changed nothing: the episode goes on as its twin's
     for _ in range(3):
         a, b = env.step(action), twin.step(action)
