@@ -115,22 +115,25 @@ def describe_file(path: Path, skeleton: Path | None = None) -> ClipSource:
     return ClipSource(path, skeleton, "user", subject, label, "", clip_id, subject)
 
 
+def _asf_files(folder: Path) -> list[Path]:
+    """The ASF files of a folder, by name; the suffix in any case (``02.ASF``), as motion files."""
+    return sorted(p for p in folder.iterdir() if p.suffix.lower() == ".asf" and p.is_file())
+
+
 def _asf_for(amc: Path) -> Path | None:
     """An AMC's skeleton: the ASF of its own name, its subject's ``SS.asf``, else the folder's one.
 
     ``walk.asf`` beside ``walk.amc`` (one skeleton per clip), then CMU's
     ``02.asf`` beside ``02_01.amc``, then the folder's only ASF unless it is
-    named for another subject.
+    named for another subject. Suffixes match in any case (``02_01.AMC`` and
+    ``02.ASF``, as written by tools that upper-case names).
     """
-    own = amc.with_suffix(".asf")
-    if own.is_file():
-        return own
+    asfs = _asf_files(amc.parent)
+    by_stem = {a.stem: a for a in asfs}
     m = _CMU.match(amc.stem)
-    if m:
-        named = amc.parent / f"{m['subject']}.asf"
-        if named.is_file():
-            return named
-    asfs = sorted(amc.parent.glob("*.asf"))
+    for stem in (amc.stem, m["subject"] if m else None):
+        if stem is not None and stem in by_stem:
+            return by_stem[stem]
     other = asfs[0].stem if len(asfs) == 1 else ""
     if not other or (m and other.isdigit() and int(other) != int(m["subject"])):
         return None  # none, several, or 02.asf beside 03_01.amc
@@ -171,7 +174,7 @@ def find_clips(paths: Iterable[str | Path] | str | Path) -> list[ClipSource]:
             if asf is None:
                 cmu = _CMU.match(f.stem)
                 wanted = f"{f.stem}.asf" + (f", {cmu['subject']}.asf" if cmu else "")
-                beside = ", ".join(a.name for a in sorted(f.parent.glob("*.asf"))[:4])
+                beside = ", ".join(a.name for a in _asf_files(f.parent)[:4])
                 raise MocapFormatError(
                     f,
                     None,

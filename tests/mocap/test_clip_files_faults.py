@@ -78,3 +78,27 @@ def test_a_file_given_that_is_not_motion_is_refused(tmp_path: Path) -> None:
     given = touch(tmp_path / "notes.txt")
     with pytest.raises(MocapFormatError, match=r"notes\.txt: not a motion file"):
         find_clips([given])
+
+
+@pytest.mark.parametrize(
+    ("names", "skeleton"),
+    [
+        (("02.ASF", "02_01.AMC"), "02.ASF"),  # CMU's subject skeleton
+        (("TAKEO.ASF", "WALK1.AMC"), "TAKEO.ASF"),  # the folder's only one
+        (("walk.ASF", "other.asf", "walk.amc"), "walk.ASF"),  # the clip's own
+    ],
+)
+def test_an_asf_is_found_whatever_the_case_of_its_suffix(
+    tmp_path: Path, names: tuple[str, ...], skeleton: str
+) -> None:
+    """02.ASF is 02_01.AMC's skeleton, as 02.asf is 02_01.amc's."""
+    for name in names:
+        touch(tmp_path / name)
+    assert [s.skeleton for s in find_clips([tmp_path])] == [tmp_path / skeleton]
+
+
+def test_the_asfs_beside_an_unpaired_amc_are_listed_in_any_case(tmp_path: Path) -> None:
+    for name in ("a.ASF", "b.Asf", "walk.AMC"):
+        touch(tmp_path / name)
+    with pytest.raises(MocapFormatError, match=r"walk\.AMC: no ASF skeleton.*found a\.ASF, b\.Asf"):
+        find_clips([tmp_path])
