@@ -143,7 +143,9 @@ def _asf_for(amc: Path) -> Path | None:
 def find_clips(paths: Iterable[str | Path] | str | Path) -> list[ClipSource]:
     """Every BVH and AMC clip under the given files and folders (recursively).
 
-    Partial downloads (``*.part``) are never clips. One trial saved in both
+    Partial downloads (``*.part``) are never clips. A file reached twice (a
+    folder given relatively and absolutely, a file and its folder, a link) is
+    one clip, named by the first path given that reaches it. One trial saved in both
     formats beside each other (CMU's ``16_15.amc`` and its conversion
     ``16_15.bvh``) is one clip: the AMC, CMU's original, is kept and a
     :class:`DuplicateTrialWarning` says how many BVH files were left out.
@@ -160,14 +162,20 @@ def find_clips(paths: Iterable[str | Path] | str | Path) -> list[ClipSource]:
     for p in [paths] if isinstance(paths, (str, Path)) else paths:  # one path, not its letters
         path = Path(p)
         if path.is_dir():
-            files.extend(_motion_files(path))
+            files.extend(sorted(_motion_files(path)))
         elif path.is_file():
             files.append(path)
         else:
             raise FileNotFoundError(f"{path}: no such file or folder of motion capture")
+    # One file is one clip however its path is written (relative, absolute, through
+    # a link): the path of the first argument that reaches it, the first by name
+    # within a folder, names it.
+    unique: dict[str, Path] = {}
+    for f in files:
+        unique.setdefault(os.path.realpath(f), f)
     out: dict[str, ClipSource] = {}
     converted: list[Path] = []
-    for f in sorted(set(files)):
+    for f in sorted(unique.values()):
         suffix = f.suffix.lower()
         if suffix == ".amc":
             asf = _asf_for(f)

@@ -102,3 +102,22 @@ def test_the_asfs_beside_an_unpaired_amc_are_listed_in_any_case(tmp_path: Path) 
         touch(tmp_path / name)
     with pytest.raises(MocapFormatError, match=r"walk\.AMC: no ASF skeleton.*found a\.ASF, b\.Asf"):
         find_clips([tmp_path])
+
+
+def test_one_file_under_two_spellings_is_one_clip(tmp_path: Path, monkeypatch) -> None:
+    """v/ref.bvh and its absolute path (or its folder, or a link to it) name one file: one clip."""
+    ref = touch(tmp_path / "v" / "ref.bvh")
+    (tmp_path / "link").symlink_to(tmp_path / "v")
+    monkeypatch.chdir(tmp_path)
+    for given, named in (
+        (["v/ref.bvh", ref], "v/ref.bvh"),
+        (["v", tmp_path / "v"], "v/ref.bvh"),
+        (["./v/ref.bvh", "v", "link"], "v/ref.bvh"),
+        ([ref, "v/../v/ref.bvh"], ref),
+    ):
+        found = find_clips(given)
+        assert [(s.clip_id, s.path) for s in found] == [("user/v/ref", Path(named))], given
+    # two different files of one clip id are still refused
+    touch(tmp_path / "w" / "v" / "ref.bvh")
+    with pytest.raises(MocapFormatError, match="the same clip id user/v/ref as"):
+        find_clips(["v", "w"])
