@@ -297,6 +297,23 @@ def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
     assert not (tmp_path / "cmu").exists()
 
 
+def test_cache_clear_removes_a_broken_link(tmp_path, monkeypatch, capsys):
+    """A link whose file is gone is removed as a link; the clear goes on to every part."""
+    monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))
+    for part, name in (("clips", "entry.npz"), ("cmu/02", "02_01.amc")):
+        (tmp_path / part).mkdir(parents=True)
+        (tmp_path / part / name).write_bytes(b"x" * 10)
+    target = tmp_path / "outside.npz"
+    target.write_bytes(b"kept")
+    (tmp_path / "clips" / "dangling.npz").symlink_to(tmp_path / "gone.npz")
+    (tmp_path / "clips" / "linked.npz").symlink_to(target)
+    assert main(["cache", "clear", "--downloads"]) == 0
+    out = capsys.readouterr().out
+    assert not (tmp_path / "clips").exists() and not (tmp_path / "cmu").exists()
+    assert target.read_bytes() == b"kept"  # what a link points to is not the cache's
+    assert "removed 3 files" in out and "freed 0.0 MiB" in out
+
+
 def test_discrimination_writes_its_figure(tmp_path, capsys):
     out = tmp_path / "panels.png"
     argv = ["discrimination", "--task", "ArmTrack-v2", "--episodes", "1", "--figure", str(out)]

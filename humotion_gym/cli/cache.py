@@ -114,7 +114,8 @@ def _cmd_clear(args: argparse.Namespace) -> int:
             continue
         own, foreign = _own_files(folder, OWN_FILES[name])
         for path in own:
-            freed += path.stat().st_size
+            # a link (even one whose file is gone) is removed, not what it points to
+            freed += 0 if path.is_symlink() else path.stat().st_size
             path.unlink()
         removed += len(own)
         _remove_empty_folders(folder)
