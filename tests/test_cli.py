@@ -210,6 +210,22 @@ def test_data_convert_takes_one_file(tmp_path, capsys):
     assert main(["data", "convert", "synthetic/walk-01", out]) == 0
 
 
+def test_data_convert_refuses_to_write_over_its_input(tmp_path, monkeypatch, capsys):
+    """OUT resolving to IN, however it is written, is refused before the source is read."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "p").mkdir()
+    assert main(["data", "convert", "synthetic/walk-01", "p/bow.bvh"]) == 0
+    (tmp_path / "link.bvh").symlink_to(tmp_path / "p" / "bow.bvh")
+    before = (tmp_path / "p" / "bow.bvh").read_bytes()
+    capsys.readouterr()
+    for out in ("p/bow.bvh", "./p/bow.bvh", str(tmp_path / "p" / "bow.bvh"), "link.bvh"):
+        assert main(["data", "convert", "p/bow.bvh", out]) == 2, out
+        err = capsys.readouterr().err
+        assert f"error: output: {os.path.normpath(out)} is the input file p/bow.bvh" in err
+    assert (tmp_path / "p" / "bow.bvh").read_bytes() == before
+    assert main(["data", "convert", "p/bow.bvh", "p/copy.bvh"]) == 0
+
+
 def test_runtime_errors_exit_1_with_one_line(tmp_path, capsys):
     assert main(["data", "info", str(tmp_path)]) == 1
     err = capsys.readouterr().err.strip()

@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -89,7 +90,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     conv.add_argument(
         "input", help="a BVH or AMC file, or synthetic/<clip> (see humotion-gym data table)"
     )
-    conv.add_argument("output", type=output_file(".bvh"), help="the .bvh to write")
+    conv.add_argument(
+        "output", type=output_file(".bvh"), help="the .bvh to write (another file than input)"
+    )
     add_fps(conv)
     conv.set_defaults(func=_cmd_data_convert)
 
@@ -296,6 +299,12 @@ def _cmd_data_convert(args: argparse.Namespace) -> int:
             raise UsageError(
                 f"input: expected one BVH or AMC file (or synthetic/<clip>), got {args.input}"
                 + (" (a folder)" if Path(args.input).is_dir() else " (no such file)")
+            )
+        if args.output.exists() and os.path.samefile(args.input, args.output):
+            # writing the converted clip over its own source would lose the original
+            raise UsageError(
+                f"output: {args.output} is the input file {args.input}; write the BVH to "
+                "another file"
             )
         lib = load_library([args.input], fps=args.fps, progress=False)
         if len(lib) != 1:
