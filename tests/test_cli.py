@@ -438,10 +438,20 @@ def test_agents_on_a_multi_view_id_show_its_tasks_settings(capsys):
     assert follow["task"] == "BodyTrack-v2" and follow["fit"]["position_noise"] == 1.0
 
 
-def test_a_path_from_the_environment_is_named_as_such(monkeypatch, capsys):
+@pytest.mark.parametrize("command", [["data", "table"], ["data", "persons"]])
+def test_a_path_from_the_environment_is_named_as_such(command, tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("HUMOTION_MOCAP", "/nonexistent-mocap")
-    assert main(["data", "table"]) in (1, 2)
+    assert main(command) in (1, 2)
     assert "$HUMOTION_MOCAP: /nonexistent-mocap: no such file" in capsys.readouterr().err
+    # a folder without mocap: the same refusal, never "nothing to compare"
+    monkeypatch.setenv("HUMOTION_MOCAP", str(tmp_path))
+    assert main(command) == 1
+    captured = capsys.readouterr()
+    assert captured.err == (
+        f"humotion-gym {' '.join(command)}: error: $HUMOTION_MOCAP: no BVH or ASF/AMC motion "
+        f"capture under {tmp_path}\n"
+    )
+    assert captured.out == ""
 
 
 @pytest.mark.parametrize("task", ["BodyTrack-v2", "BodyTrack4Views-v2", "WalkTrack2Views-v2"])

@@ -24,6 +24,7 @@ from humotion_gym.cli._common import (
     add_data_dir,
     add_fps,
     add_json,
+    check_mocap_paths,
     json_text,
     output_file,
 )
@@ -203,7 +204,12 @@ def _cmd_data_info(args: argparse.Namespace) -> int:
 
 
 def _cmd_data_persons(args: argparse.Namespace) -> int:
-    from humotion_gym.mocap.library import default_library, load_library
+    from humotion_gym.mocap.library import (
+        MOCAP_ENV,
+        configured_data_dirs,
+        default_library,
+        load_library,
+    )
     from humotion_gym.mocap.persons import (
         SIGNATURE_NAMES,
         SplitError,
@@ -216,6 +222,9 @@ def _cmd_data_persons(args: argparse.Namespace) -> int:
     if args.paths:
         lib = load_library(args.paths, fps=args.fps, progress=not args.json)
     else:
+        dirs = configured_data_dirs(None)
+        if dirs:  # refused as by the commands with --data-dir: never "nothing to compare"
+            check_mocap_paths(dirs, f"${MOCAP_ENV}")
         lib = default_library(None, fps=args.fps, progress=not args.json)
     if args.test:
         unknown = sorted(set(args.test) - set(lib.subjects))
