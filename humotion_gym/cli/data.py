@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -80,7 +81,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_fps(persons)
     persons.add_argument(
         "--test", nargs="+", default=None, metavar="SUBJECT",
-        help="check this held-out set (default: the library's TEST_SUBJECTS)",
+        help="check this held-out set against the data's skeletons (default: the library's "
+        "held-out persons and the packaged test skeletons, as an environment checks)",
     )  # fmt: skip
     persons.set_defaults(func=_cmd_data_persons)
 
@@ -213,6 +215,7 @@ def _cmd_data_persons(args: argparse.Namespace) -> int:
     from humotion_gym.mocap.persons import (
         SIGNATURE_NAMES,
         SplitError,
+        check_data_persons,
         check_person_split,
         held_out_subjects,
         skeleton_groups,
@@ -238,10 +241,13 @@ def _cmd_data_persons(args: argparse.Namespace) -> int:
     person_of = {m.subject: m.meta.get("person", m.subject) for m in lib}
     group_of = {s: i for i, g in enumerate(groups) for s in g}
     try:
-        report = check_person_split(lib, test)
+        if args.test:  # a held-out set to try: the data's own skeletons, compared
+            report = check_person_split(lib, test)
+        else:  # the check an environment on this data runs, packaged test skeletons included
+            report = check_data_persons(lib)
         ok, message = True, str(report)
     except SplitError as exc:
-        ok, message = False, str(exc)
+        ok, message = False, str(exc) if args.test else _leak_message(exc.pairs, lib.subjects)
     rows: list[dict[str, Any]] = [
         {
             "subject": s.subject,
@@ -289,6 +295,22 @@ def _cmd_data_persons(args: argparse.Namespace) -> int:
     if not ok:  # after the table, which shows the persons at fault
         raise CommandError(message)
     return 0
+
+
+def _leak_message(pairs: Sequence[tuple[str, str]], subjects: Sequence[str]) -> str:
+    """:func:`~humotion_gym.mocap.persons.check_data_persons`'s refusal, said by this command.
+
+    A held-out person absent from the table was matched by the skeleton the
+    package records for it, which the message says.
+    """
+    shown = ", ".join(f"{test} ~ {train}" for test, train in pairs)
+    absent = sorted({test for test, _ in pairs} - set(subjects))
+    known = f"; {', '.join(absent)}: by the package's record of its skeleton" if absent else ""
+    return (
+        f"person split fails: a held-out person's skeleton is also a training person's "
+        f"({shown}{known}), so an environment on this data refuses it (the test persons "
+        "would be trained on); move those clips out or put them on one side"
+    )
 
 
 def _cmd_data_convert(args: argparse.Namespace) -> int:

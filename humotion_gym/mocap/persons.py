@@ -514,7 +514,9 @@ def _known_pairs(sk: _Skeletons, held: Collection[str]) -> list[tuple[str, str]]
     return sorted(pairs)
 
 
-def check_data_persons(library: MotionLibrary, dirs: Sequence[str | Path] | None = None) -> None:
+def check_data_persons(
+    library: MotionLibrary, dirs: Sequence[str | Path] | None = None
+) -> PersonSplitReport:
     """Refuse data where a held-out person's skeleton is also a training person's.
 
     A test person's file copied under another person's folder (or a user's
@@ -526,23 +528,28 @@ def check_data_persons(library: MotionLibrary, dirs: Sequence[str | Path] | None
     too, whether or not their own files are loaded. Every path that loads
     clips for training or tracking calls it: the environments (once per
     library, whether from folders or given as ``library=``) and the validation
-    folds.
+    folds; ``humotion-gym data persons`` reports it.
 
     Args:
         library: The clips.
         dirs: The folders they were loaded from, for the message; None for a
             library given as such.
 
+    Returns:
+        The library's :func:`check_person_split` report, when both checks pass.
+
     Raises:
         SplitError: Naming each pair, in one line.
     """
     sk, held = _skeletons(library), held_out_subjects(library)  # measured once for both
+    report: PersonSplitReport | None
     try:
-        _split_report(sk, held, DEFAULT_RTOL, DEFAULT_ATOL_MM)
-        pairs = _known_pairs(sk, held)
+        report = _split_report(sk, held, DEFAULT_RTOL, DEFAULT_ATOL_MM)
     except SplitError as exc:
-        pairs = list(exc.pairs)
-    if pairs:
+        report, pairs = None, list(exc.pairs)
+    else:
+        pairs = _known_pairs(sk, held)
+    if report is None or pairs:
         shown = ", ".join(f"{test} ~ {train}" for test, train in pairs)
         where = "library" if dirs is None else f"data_dir {[str(d) for d in dirs]}"
         listed = "FOLDER..." if dirs is None else " ".join(map(str, dirs))
@@ -552,3 +559,4 @@ def check_data_persons(library: MotionLibrary, dirs: Sequence[str | Path] | None
             f"side (humotion-gym data persons {listed} lists them)",
             pairs,
         )
+    return report

@@ -13,6 +13,7 @@ from humotion_gym.mocap.library import (
     SYNTHETIC_TEST_SUBJECTS,
     TEST_SUBJECTS,
     MotionLibrary,
+    load_library,
     synthetic_library,
 )
 from humotion_gym.mocap.persons import (
@@ -233,6 +234,37 @@ def test_cli_data_persons_on_synthetic(capsys):
     assert rows["synthetic-05"]["split"] == "test" and rows["synthetic-01"]["split"] == "train"
     assert set(rows["synthetic-01"]["signature_mm"]) == set(SIGNATURE_NAMES)
     assert rows["synthetic-01"]["same_skeleton_as"] == []
+
+
+def test_cli_data_persons_refuses_what_an_environment_refuses(tmp_path, capsys):
+    """A test person's clip converted into a training person's folder: exit 1, as gym.make.
+
+    zed and amy are training persons (user_split); zed's walk is synthetic-05's,
+    a held-out person whose own files are not loaded: only the packaged
+    skeletons know it (check_data_persons, which the environments run).
+    """
+    for clip, person in (("synthetic/walk-05", "zed"), ("synthetic/walk-01", "amy")):
+        (tmp_path / person).mkdir()
+        assert main(["data", "convert", clip, str(tmp_path / person / "walk.bvh")]) == 0
+    capsys.readouterr()
+    with pytest.raises(SplitError, match="synthetic-05 ~ zed"):
+        check_data_persons(load_library([tmp_path], progress=False), [tmp_path])
+    assert main(["data", "persons", str(tmp_path)]) == 1
+    captured = capsys.readouterr()
+    assert "zed" in captured.out and "person split OK" not in captured.out
+    assert (
+        captured.err.count("\n") == 1
+        and (
+            "person split fails: a held-out person's skeleton is also a training person's "
+            "(synthetic-05 ~ zed; synthetic-05: by the package's record of its skeleton)"
+        )
+        in captured.err
+    )
+    assert main(["data", "persons", str(tmp_path), "--json"]) == 1
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["split_ok"] is False and "synthetic-05 ~ zed" in doc["message"]
+    # a held-out set given with --test is that set's check alone
+    assert main(["data", "persons", str(tmp_path), "--test", "amy"]) == 0
 
 
 # -- real data ---------------------------------------------------------------------
