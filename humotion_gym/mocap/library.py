@@ -337,7 +337,8 @@ def load_clip(
         keypoints, valid = keypoints[1:], valid[1:]
     # (file_units_to_mm refused a clip without a whole frame; a T-pose is
     # only found before another whole frame, so one is left)
-    params, observed, kp, shape = retarget_keypoints(keypoints, clip.fps, fps, valid)
+    source = f"{src.path} (rig {match.profile.name}, matched by {match.method})"
+    params, observed, kp, shape = retarget_keypoints(keypoints, clip.fps, fps, valid, source=source)
     out_fps = clip.fps if fps is None else fps
     split, rule = split if split is not None else assign_split(src)
     return Motion(

@@ -37,6 +37,7 @@ from scipy.spatial.transform import Rotation
 from humotion_gym.body import (
     ANGLE_MASK,
     KEYPOINT_INDEX,
+    KEYPOINT_NAMES,
     L_ELBOW,
     L_HIP,
     L_KNEE,
@@ -105,8 +106,24 @@ def _provisional_frames(kp: FloatArray) -> FloatArray:
     return np.stack([x, y, z], axis=-1)
 
 
+def _one_point_groups(kp: FloatArray) -> str:
+    """Keypoints that stand on one point (median distance under 1 um): ``l_hip = r_hip; ...``."""
+    dist = np.median(np.linalg.norm(kp[:, :, None] - kp[:, None, :], axis=-1), axis=0)
+    groups: list[list[str]] = []
+    seen: set[int] = set()
+    for i in range(len(KEYPOINT_NAMES)):
+        same = [j for j in range(i, len(KEYPOINT_NAMES)) if j not in seen and dist[i, j] < 1e-3]
+        if len(same) > 1:
+            groups.append([KEYPOINT_NAMES[j] for j in same])
+        seen.update(same)
+    return "; ".join(" = ".join(g) for g in groups) or "none"
+
+
 def fit_shape(
-    keypoints: FloatArray, valid: BoolArray | None = None, radii_from: BodyShape | None = None
+    keypoints: FloatArray,
+    valid: BoolArray | None = None,
+    radii_from: BodyShape | None = None,
+    source: str | None = None,
 ) -> BodyShape:
     """The subject's cone-body shape from source keypoints.
 
@@ -116,16 +133,21 @@ def fit_shape(
         radii_from: A shape whose radii and aspect ratios to keep; when None,
             :func:`~humotion_gym.body.default_shape` scaled to the fitted height
             gives them (keypoints carry no information about limb thickness).
+        source: What the keypoints come from (a file and its rig), for messages.
 
     Returns:
         The fitted shape.
 
     Raises:
-        ValueError: If no frame is valid.
+        ValueError: If no frame is valid, or if the keypoints give no body to
+            fit (both hips and both shoulders on one point leave the torso
+            no left-right direction); the message names ``source`` and the
+            keypoints that coincide.
     """
+    where = f"{source}: " if source else "fit_shape: "
     ok = _valid_frames(keypoints, valid)
     if not np.any(ok):
-        raise ValueError("fit_shape: no frame has all 15 keypoints")
+        raise ValueError(f"{where}no frame has all 15 keypoints")
     kp = keypoints[ok]
     frames = _provisional_frames(kp)
     rel = kp[:, _TORSO[1:]] - kp[:, None, _K["pelvis"]]
@@ -150,6 +172,13 @@ def fit_shape(
     head = seg("neck", "head_top")
     hip_up = 0.5 * (r_hip[2] + l_hip[2])
     height = thigh + shin - hip_up + neck[2] + head
+    if not np.isfinite(height):
+        raise ValueError(
+            f"{where}the keypoints give no body to fit (height {height} mm): a torso needs "
+            "its hips and its shoulders apart and the neck off the line between them, but "
+            f"these stand on one point: {_one_point_groups(kp)} (the skeleton's joints are "
+            "read as the wrong keypoints, or it has no hip or shoulder width)"
+        )
     if radii_from is None:
         base = default_shape()
         radii_from = default_shape(1750.0 * max(height, 1.0) / base.standing_height())
@@ -461,14 +490,17 @@ def retarget_keypoints(
     valid: BoolArray | None = None,
     shape: BodyShape | None = None,
     straight_bend: float = STRAIGHT_BEND,
+    source: str | None = None,
 ) -> tuple[FloatArray, BoolArray, FloatArray, BodyShape]:
     """Keypoints (world frame, mm) to gap-free parameters, mask and shape at ``fps``.
+
+    ``source`` (a file and its rig) names the keypoints in :func:`fit_shape`'s errors.
 
     Returns:
         ``(params, observed (T, 25), keypoints, shape)`` at the new rate.
     """
     if shape is None:
-        shape = fit_shape(keypoints, valid)
+        shape = fit_shape(keypoints, valid, source=source)
     params, ok = inverse_kinematics(keypoints, shape, valid, straight_bend)
     if not np.any(ok):
         raise ValueError("retarget: no frame has all 15 keypoints")
@@ -552,7 +584,10 @@ def retarget_clip(
     keypoints = profile.keypoints_from(clip, units_to_mm)
     valid = np.asarray(clip.frame_valid, dtype=bool)
     check_some_frame(clip.path, valid)
-    params, observed, kp, fitted = retarget_keypoints(keypoints, clip.fps, fps, valid, shape)
+    source = f"{clip.path} (rig {profile.name})"
+    params, observed, kp, fitted = retarget_keypoints(
+        keypoints, clip.fps, fps, valid, shape, source=source
+    )
     out_fps = clip.fps if fps is None else fps
     return Retargeted(
         params=params,

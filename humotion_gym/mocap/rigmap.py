@@ -21,13 +21,17 @@ when none fits it maps the hierarchy itself (:func:`map_humanoid`):
    arms and the head (the two branches alike in shape are the arms), the
    legs as the largest pair of alike branches elsewhere (so legs and spine
    may leave one joint or two), each limb's three keypoints at the two
-   longest consecutive bones of its chain, the head where the neck's chain
-   first branches, and left and right from the geometry of the first frame
-   (left is ``up x forward`` with forward the toes' direction; without toes
-   +z for a y-up skeleton, the BVH convention, and +y for a z-up one).
+   longest consecutive bones of its chain (a girdle passed over: where both
+   limbs of a pair leave one point, a first bone shorter than the next), the
+   head where the neck's chain first branches, and left and right from the
+   geometry of the first frame (left is ``up x forward`` with forward the
+   toes' direction; without toes +z for a y-up skeleton, the BVH convention,
+   and -y for a z-up one).
 3. **Where points sit.** In BVH a joint's point is where its bone starts
    (``LeftUpLeg`` is the hip); in ASF/AMC a bone's point is its tip (``lfemur``
-   is the knee), so every ASF keypoint is taken one bone higher.
+   is the knee), so every ASF keypoint is taken one bone higher. The shape of
+   an ASF hierarchy is read from where its bones start (their parents' tips),
+   so that the joints it picks are in the same sense as those picked by name.
 
 The result, :class:`RigMatch`, names the profile, how each keypoint was
 found (``profile``, ``name``, ``topology``, ``extended`` or ``fallback``) and
@@ -259,6 +263,32 @@ def _three_on_chain(chain: list[int], pos: NDArray[np.float64]) -> list[int] | N
     return [chain[k], chain[k + 1], chain[k + 2]]
 
 
+def _limb_triples(
+    tree: _Tree, starts: Sequence[int], pos: NDArray[np.float64]
+) -> list[list[int]] | None:
+    """Each limb's (proximal, middle, distal) joints, or None where a chain is too short.
+
+    Where both limbs of the pair leave one point (CMU's collar bones from the
+    thorax's tip, its hip bones from the root), a first bone shorter than the
+    next one is a girdle (a collar or hip bone, shorter than the upper arm or
+    thigh it carries) and is passed over: a body's shoulders and hips stand
+    apart, and CMU's collar bones are longer than its forearms, so the two
+    longest consecutive bones alone would read the collar as the upper arm.
+    """
+    chains = [_chain(tree, s) for s in starts]
+
+    def girdle(chain: list[int]) -> bool:
+        if len(chain) < 4:
+            return False
+        first, second = np.linalg.norm(np.diff(pos[chain[:3]], axis=0), axis=-1)
+        return bool(first < second)
+
+    if np.allclose(pos[chains[0][0]], pos[chains[1][0]]) and all(map(girdle, chains)):
+        chains = [c[1:] for c in chains]
+    triples = [t for t in (_three_on_chain(c, pos) for c in chains) if t is not None]
+    return triples if len(triples) == len(chains) else None
+
+
 def _kids(tree: _Tree, i: int) -> list[int]:
     return [c for c in tree.children[i] if not tree.is_end(c)]
 
@@ -353,11 +383,10 @@ def _forward(
     and that Blender's exports share).
     """
     steps = []
-    for start in legs:
-        chain = _chain(tree, start)
-        triple = _three_on_chain(chain, pos)
-        if triple is not None and chain.index(triple[2]) + 1 < len(chain):
-            toe = chain[chain.index(triple[2]) + 1]
+    for triple in _limb_triples(tree, legs, pos) or []:
+        toes = _kids(tree, triple[2])
+        if toes:
+            toe = max(toes, key=tree.subtree_height)
             steps.append(pos[toe] - pos[triple[2]])
     if steps:
         f = np.mean(steps, axis=0)
@@ -370,8 +399,26 @@ def _forward(
     return np.array([0.0, 0.0, 1.0]), "+z (no toes; the BVH convention)"
 
 
+def _joint_positions(
+    tree: _Tree, fmt: str, positions: NDArray[np.float64] | None
+) -> NDArray[np.float64] | None:
+    """Where each joint starts (the BVH sense of a point), from the points' positions.
+
+    The hierarchy is read in one sense for both formats, so that every joint
+    it picks is then placed as one picked by name (:func:`_place`). An ASF
+    bone starts at its parent's tip; the root, which has none, at its own point.
+    """
+    if positions is None or fmt == "bvh":
+        return positions
+    starts = np.asarray(tree.parents)
+    return positions[np.where(starts >= 0, starts, np.arange(len(starts)))]
+
+
 def _by_topology(tree: _Tree, pos: NDArray[np.float64] | None, out: _Mapping) -> None:
-    """Legs, arms and head from the hierarchy's shape; sides from the first frame."""
+    """Legs, arms and head from the hierarchy's shape; sides from the first frame.
+
+    ``pos`` are where the joints start (:func:`_joint_positions`).
+    """
     if pos is None:
         out.notes.append("no positions to read the hierarchy's shape from")
         return
@@ -388,10 +435,14 @@ def _by_topology(tree: _Tree, pos: NDArray[np.float64] | None, out: _Mapping) ->
     out.notes.append(f"left and right from the first frame, facing {facing}")
     limbs = ((("hip", "knee", "ankle"), legs), (("shoulder", "elbow", "wrist"), list(pair)))
     for kps, starts in limbs:
-        triples = [_three_on_chain(_chain(tree, s), pos) for s in starts]
-        if any(t is None for t in triples):
+        triples = _limb_triples(tree, starts, pos)
+        if triples is None:
             continue
-        sides = [float(np.dot(pos[t[0]] - pos[pelvis], left)) for t in triples]
+        # Each limb's side from its top point, or from the first one below
+        # where the two limbs part (an ASF limb's top point may be where both start).
+        apart = [k for k in range(3) if not np.allclose(*pos[[t[k] for t in triples]])]
+        k = apart[0] if apart else 0
+        sides = [float(np.dot(pos[t[k]] - pos[pelvis], left)) for t in triples]
         order = ("l", "r") if sides[0] > sides[1] else ("r", "l")
         for side, t in zip(order, triples, strict=True):
             for kp, j in zip(kps, t, strict=True):
@@ -496,7 +547,7 @@ def map_humanoid(
     joints = ("hip", "knee", "ankle", "shoulder", "elbow", "wrist")
     limb_keys = [f"{s}_{k}" for s in "lr" for k in joints]
     if any(k not in out.joints for k in (*limb_keys, "pelvis", "head")):
-        _by_topology(tree, positions, out)
+        _by_topology(tree, _joint_positions(tree, fmt, positions), out)
     if "neck" not in out.joints and "head" in out.joints and tree.parents[out.joints["head"]] >= 0:
         out.joints["neck"] = tree.parents[out.joints["head"]]
         out.how["neck"] = "topology"

@@ -173,6 +173,22 @@ def test_fit_shape_needs_a_valid_frame():
         fit_shape(np.full((5, 15, 3), np.nan))
 
 
+def test_fit_shape_names_the_source_and_the_keypoints_on_one_point():
+    # Both hips on the pelvis and both shoulders on the neck leave the torso no
+    # left-right direction: the shape would be NaN (a height of nan mm).
+    kp = forward_kinematics(np.zeros(25), default_shape())[None].repeat(3, axis=0)
+    k = KEYPOINT_NAMES.index
+    kp[:, [k("l_hip"), k("r_hip")]] = kp[:, [k("pelvis")]]
+    kp[:, [k("l_shoulder"), k("r_shoulder")]] = kp[:, [k("neck")]]
+    with pytest.raises(ValueError) as info:
+        retarget_keypoints(kp, 30.0, source="walk.amc (rig auto)")
+    msg = str(info.value)
+    assert msg.startswith("walk.amc (rig auto): the keypoints give no body to fit")
+    assert "pelvis = r_hip = l_hip; neck = r_shoulder = l_shoulder" in msg
+    with pytest.raises(ValueError, match="^fit_shape: the keypoints give no body"):
+        fit_shape(kp)
+
+
 @pytest.mark.parametrize("rig", list(rigs.RIGS.values()), ids=list(rigs.RIGS))
 def test_every_rig_is_detected_from_its_names(rig):
     names = rig.source_points() + ["SomethingElse"]

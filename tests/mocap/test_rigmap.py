@@ -526,6 +526,72 @@ def test_renamed_asf_copy_maps_exactly_like_the_cmu_profile(shared_mocap, tmp_pa
     )
 
 
+_CMU_LEG_BONES = ("lhipjoint", "lfemur", "ltibia", "lfoot", "ltoes",
+                  "rhipjoint", "rfemur", "rtibia", "rfoot", "rtoes")  # fmt: skip
+
+
+@pytest.mark.mocap
+@pytest.mark.parametrize("renamed", ["legs", "all"])
+def test_asf_bones_renamed_to_numbers_map_by_topology_like_the_cmu_profile(
+    shared_mocap, tmp_path, renamed
+):
+    # The leg bones (or every bone) renamed b0, b1...: the hierarchy's shape picks them,
+    # and an ASF point being a bone's tip must not move them a bone up (hips at the root,
+    # knees at the hips), nor a long collar bone be read as the upper arm.
+    from humotion_gym.mocap.asfamc import load_amc, load_asf
+
+    folder = shared_mocap / "cmu-asfamc" / "02"
+    asf_text, amc_text = (folder / "02.asf").read_text(), (folder / "02_01.amc").read_text()
+    bones = re.findall(r"^\s*name\s+(\S+)", asf_text.split(":bonedata", 1)[1], flags=re.M)
+    names = _CMU_LEG_BONES if renamed == "legs" else bones
+    number = {b: f"b{i}" for i, b in enumerate(names)}
+    pattern = re.compile(rf"\b({'|'.join(names)})\b")
+    (tmp_path / "s").mkdir()
+    for name, text in (("02.asf", asf_text), ("02_01.amc", amc_text)):
+        (tmp_path / "s" / name).write_text(pattern.sub(lambda m: number[m[1]], text))
+    original = load_amc(folder / "02_01.amc", load_asf(folder / "02.asf"))
+    copy = load_amc(tmp_path / "s" / "02_01.amc", load_asf(tmp_path / "s" / "02.asf"))
+    match = match_rig(copy)
+    assert match.method == ("names+topology" if renamed == "legs" else "topology")
+    cmu = RIGS["cmu-asf"].keypoints
+    assert dict(match.profile.keypoints) == {k: number.get(v, v) for k, v in cmu.items()}
+    # The same bones, so the same arithmetic: equal up to rounding (inches -> mm).
+    np.testing.assert_allclose(
+        match.profile.keypoints_from(copy, 25.4),
+        RIGS["cmu-asf"].keypoints_from(original, 25.4),
+        atol=1e-9,
+    )
+    (want,) = load_library([folder / "02_01.amc"], use_cache=False, progress=False).motions
+    (got,) = load_library([tmp_path / "s"], use_cache=False, progress=False).motions
+    assert got.shape == want.shape
+    np.testing.assert_allclose(got.params, want.params, atol=1e-9)
+
+
+def test_a_mapping_that_gives_no_body_is_one_line_naming_the_file(tmp_path, capsys, monkeypatch):
+    # Hips on the root and shoulders on the thorax (the mapper's old reading of a
+    # nameless ASF): the torso has no left-right direction to fit a shape to.
+    import dataclasses
+
+    import humotion_gym.mocap.rigmap as rigmap
+    from baselines.cli import main
+
+    amc = write_asf_amc(tmp_path, 35, 17)
+    real = rigmap.match_rig
+
+    def flat(clip, fmt=None):
+        m = real(clip, fmt)
+        flat = {**m.profile.keypoints, "l_hip": "root", "r_hip": "root"}
+        flat.update(l_shoulder="thorax", r_shoulder="thorax")
+        return dataclasses.replace(m, profile=dataclasses.replace(m.profile, keypoints=flat))
+
+    monkeypatch.setattr(rigmap, "match_rig", flat)
+    assert main(["data", "info", "--no-cache", str(tmp_path)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "Traceback" not in err
+    assert err.startswith(f"humotion-gym data info: error: {amc} (rig cmu-asf, matched by profile")
+    assert "pelvis = r_hip = l_hip; neck = r_shoulder = l_shoulder" in err
+
+
 def test_data_info_shows_rig_match_person_split_and_tpose(tmp_path, capsys):
     from baselines.cli import main
 
