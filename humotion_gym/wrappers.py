@@ -42,6 +42,79 @@ def _base(env: gym.Env) -> PoseTrackingEnv:
     return base
 
 
+def _wrappers(env: gym.Env) -> list[gym.Wrapper]:
+    """The wrappers of the chain ``env``, outermost first."""
+    chain = []
+    while isinstance(env, gym.Wrapper):
+        chain.append(env)
+        env = env.env
+    return chain
+
+
+def _check_actions_pass_through(env: gym.Env, who: str, note: str = "") -> PoseTrackingEnv:
+    """The task's environment under ``env``, refusing a wrapper between them that maps actions.
+
+    A learner wrapper reads actions in the task's own coordinates: the
+    previous estimate and the initial pose (:class:`LearnerObservation`), the
+    true action (:class:`Supervision`). Through an action wrapper they would
+    be in two coordinate systems at once, silently. Mapping them through the
+    chain is not exact in general (``ClipAction`` loses what it clips, a
+    ``TransformAction`` has no inverse), so such a chain is refused: the action
+    wrappers go outside, where they see the learner wrapper's actions.
+
+    Args:
+        env: The chain to check.
+        who: The wrapper asking, for the message.
+        note: Added to the message (what the advice means for ``who``).
+
+    Raises:
+        ValueError: Naming the wrapper that maps the actions.
+    """
+    base = _base(env)
+    for wrapper in reversed(_wrappers(env)):  # innermost first: the first to map them
+        if isinstance(wrapper, gym.ActionWrapper) or wrapper.action_space != base.action_space:
+            name = type(wrapper).__name__
+            raise ValueError(
+                f"{who}: the environment it wraps must take the task's actions "
+                f"({base.action_space}), but {name} maps them (to {wrapper.action_space}); "
+                f"put action wrappers outside, e.g. {name}({who}(env), ...){note}"
+            )
+    return base
+
+
+def _check_observations_pass_through(env: gym.Env, base: PoseTrackingEnv, who: str) -> None:
+    """Refuse a wrapper between ``env`` and the task's environment that changes the frame.
+
+    :class:`LearnerObservation` reads one frame and the initial pose as the
+    task shows them (a stacked or flattened frame is not one), so wrappers
+    that change them go outside it, where they see the learner observation.
+
+    Raises:
+        ValueError: Naming the wrapper that changes them.
+    """
+
+    def shows_the_task(space: spaces.Space[Any]) -> bool:
+        task = base.observation_space
+        if not isinstance(task, spaces.Dict):  # version 1: the frame alone
+            return space == task
+        return isinstance(space, spaces.Dict) and all(
+            space.spaces.get(key) == task[key] for key in ("frame", "initial_pose")
+        )
+
+    if shows_the_task(env.observation_space):
+        return
+    changed = next(w for w in reversed(_wrappers(env)) if not shows_the_task(w.observation_space))
+    name, space = type(changed).__name__, changed.observation_space
+    if isinstance(space, spaces.Dict):  # the two that matter (the others' spaces are long)
+        space = {key: space.spaces.get(key) for key in ("frame", "initial_pose")}
+    raise ValueError(
+        f"{who}: the environment it wraps must show the task's 'frame' and 'initial_pose' "
+        f"as the task does, but {name} changes them (to {space}); wrap "
+        f"the task's environment itself, not {name} of it (observation wrappers go outside, "
+        f"e.g. FrameStackObservation({who}(env), 3))"
+    )
+
+
 def frame_and_initial(
     observation: Any, info: dict[str, Any]
 ) -> tuple[NDArray[np.uint8], NDArray[np.float64] | None]:
@@ -215,28 +288,26 @@ class LearnerObservation(gym.Wrapper, gym.utils.RecordConstructorArgs):
     Gymnasium's ``FrameStackObservation`` stacks this observation like any other.
 
     Args:
-        env: A tracking environment of one view (any wrapper chain around one).
+        env: A tracking environment of one view, or a chain of wrappers around
+            one that keep its actions and its frame and initial pose (as
+            ``gym.make``'s own do). Action and observation wrappers go outside:
+            ``RescaleAction(LearnerObservation(env), 0, 1)``,
+            ``FrameStackObservation(LearnerObservation(env), 3)``.
         size: Side of the frame shown, in pixels (default 64).
 
     Raises:
-        ValueError: If ``size`` is not an integer >= 8 or None, or the task has
-            several views (``views=N``: :class:`FrameObservation` shows them all).
+        ValueError: If ``size`` is not an integer >= 8 or None, the task has
+            several views (``views=N``: :class:`FrameObservation` shows them all),
+            or a wrapper in ``env`` maps the actions or changes the frame or
+            the initial pose (the message names it).
     """
 
     def __init__(self, env: gym.Env, size: int | None = 64) -> None:
         gym.utils.RecordConstructorArgs.__init__(self, size=size)
         super().__init__(env)
-        base = _base(env)
         check_frame_size(size, "LearnerObservation: size")
-        given = env.observation_space
-        if base.dict_observation and not (
-            isinstance(given, spaces.Dict) and {"frame", "initial_pose"} <= set(given.spaces)
-        ):
-            raise ValueError(
-                "LearnerObservation: the environment it wraps must show the task's 'frame' "
-                f"and 'initial_pose', got {given} from {type(env).__name__}; wrap the task's "
-                "environment itself (not FrameObservation of it)"
-            )
+        base = _check_actions_pass_through(env, "LearnerObservation")
+        _check_observations_pass_through(env, base, "LearnerObservation")
         self.size = size
         frames = base.observation_space
         shape = (frames["frame"] if isinstance(frames, spaces.Dict) else frames).shape
@@ -282,18 +353,22 @@ class Supervision(gym.Wrapper, gym.utils.RecordConstructorArgs):
     onto it (:mod:`baselines.agents.learned`).
 
     Args:
-        env: A tracking environment made with ``split="train"`` (any wrapper
-            chain around one).
+        env: A tracking environment made with ``split="train"``, or a chain of
+            wrappers around one that keep its actions: the true action is in
+            the task's own actions, so action wrappers go outside.
 
     Raises:
         ValueError: If the environment draws test or validation episodes
             (the truth of the held-out persons is the benchmark's answer and
             no policy may see it), and at any reset whose episode shows a
-            held-out person (checked by name and skeleton, every episode).
+            held-out person (checked by name and skeleton, every episode);
+            if a wrapper in ``env`` maps the actions (the message names it).
     """
 
     def __init__(self, env: gym.Env) -> None:
-        base = _base(env)
+        base = _check_actions_pass_through(
+            env, "Supervision", " (info['true_action'] stays in the task's own actions)"
+        )
         if base.split != "train":
             raise ValueError(
                 f"Supervision: refusing a {base.split!r}-split {base.task.name} environment; "

@@ -207,3 +207,70 @@ def test_every_learner_env_refuses_the_same_frame_sizes(size) -> None:
     ):
         with pytest.raises(ValueError, match=f"{name}: size must be an integer >= 8"):
             fn(frames, size)
+
+
+@pytest.mark.parametrize("wrapper", ["LearnerObservation", "Supervision"])
+def test_an_action_wrapper_inside_a_learner_wrapper_is_refused_naming_it(wrapper: str) -> None:
+    """Inside, it would put the previous estimate (or the true action) in two coordinate
+    systems at once: a previous estimate of [-1, 1] at the reset and [0, 1] after, a true
+    action 480 mm off. Outside, the learner wrapper's actions are the task's."""
+    from gymnasium.wrappers import ClipAction, RescaleAction, TransformAction
+
+    wrap = {"LearnerObservation": LearnerObservation, "Supervision": Supervision}[wrapper]
+
+    def task() -> gym.Env:
+        return gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
+
+    low, high = np.zeros(4, np.float32), np.ones(4, np.float32)
+
+    for inner in (
+        RescaleAction(task(), low, high),
+        ClipAction(task()),
+        TransformAction(task(), lambda a: -a, None),  # the same space, other actions
+    ):
+        name = type(inner).__name__
+        with pytest.raises(ValueError, match=rf"{wrapper}: .*but {name} maps them.*"
+                           rf"outside, e.g. {name}\({wrapper}\(env\), \.\.\.\)"):  # fmt: skip
+            wrap(inner)
+    # outside: the hold action (the initial pose) comes back as the previous estimate ...
+    env = RescaleAction(LearnerObservation(task(), size=16), low, high)
+    obs, _ = env.reset(seed=0)
+    np.testing.assert_array_equal(obs["previous"], obs["initial"])
+    obs, *_ = env.step((obs["initial"] + 1) / 2)
+    np.testing.assert_allclose(obs["previous"], obs["initial"], atol=1e-6)
+    # ... and the true action, in the task's actions, scores 0 mm
+    env = Supervision(task())
+    _, info = env.reset(seed=0)
+    assert env.step(info["true_action"])[-1]["error_mm"] < 1e-3
+
+
+def test_frames_stacked_inside_the_learner_observation_are_refused_at_construction() -> None:
+    """Accepted, it failed at reset deep inside: 'learner_frame: expected an (H, W, C) ...'."""
+    for task in ("ArmTrack-v2", "ArmTrack-v1"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)  # version 1: meant
+            stacked = FrameStackObservation(gym.make(f"humotion_gym/{task}"), 3)
+        with pytest.raises(ValueError, match=r"FrameStackObservation changes them.*"
+                           r"FrameStackObservation\(LearnerObservation\(env\), 3\)"):  # fmt: skip
+            LearnerObservation(stacked, size=16)
+
+
+def test_the_observation_wrapper_refused_is_named_as_it_is() -> None:
+    from gymnasium.wrappers import FilterObservation, FlattenObservation
+
+    from humotion_gym.wrappers import FrameObservation
+
+    for inner, name in (
+        (FlattenObservation(gym.make("humotion_gym/ArmTrack-v2")), "FlattenObservation"),
+        (FrameObservation(gym.make("humotion_gym/ArmTrack-v2")), "FrameObservation"),
+        (FilterObservation(gym.make("humotion_gym/ArmTrack-v2"), ["frame"]), "FilterObservation"),
+    ):
+        with pytest.raises(ValueError) as caught:
+            LearnerObservation(inner, size=16)
+        message = str(caught.value)
+        assert f"but {name} changes them" in message
+        assert f"not {name} of it" in message
+        assert name == "FrameObservation" or "FrameObservation" not in message
+    # a wrapper that keeps the frame and the initial pose is no reason to refuse
+    kept = FilterObservation(gym.make("humotion_gym/ArmTrack-v2"), ["frame", "initial_pose"])
+    assert LearnerObservation(kept, size=16).reset(seed=0)[0]["frame"].shape == (3, 16, 16)
