@@ -56,6 +56,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from gymnasium.error import ClosedEnvironmentError
 from numpy.typing import NDArray
 
 #: Slots of frames the worker may draw ahead of the learner.
@@ -175,6 +176,7 @@ class FrameStream:
         self._epoch = 0
         self._ready = False
         self._failure: str | None = None
+        self._closed = False
         _LIVE.add(self)
 
     def reset(
@@ -253,7 +255,14 @@ class FrameStream:
         raise RuntimeError(f"draw_ahead: the drawing process {self._failure}")
 
     def _receive(self) -> bytes:
-        """The worker's next message; a clear error if it failed, ended or fell silent."""
+        """The worker's next message; a clear error if it failed, ended or fell silent.
+
+        Raises:
+            gymnasium.error.ClosedEnvironmentError: After :meth:`close` (the
+                messages left unread name slots of memory now freed).
+        """
+        if self._closed:
+            raise ClosedEnvironmentError("draw_ahead: the frame stream was closed (close())")
         if self._failure is not None:
             self._ended()
         buffer = self._received
@@ -305,6 +314,7 @@ class FrameStream:
 
     def close(self) -> None:
         """End the worker and free the shared memory (again: nothing)."""
+        self._closed = True
         self._drop_views()
         self._closer()
 

@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 from gymnasium import spaces
-from gymnasium.error import ResetNeeded
+from gymnasium.error import ClosedEnvironmentError, ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
@@ -92,7 +92,8 @@ class PoseTrackingVectorEnv(VectorEnv):
 
     ``reset(seed=s)`` seeds episode ``i`` with ``s + i`` (a list gives one seed
     per episode), as ``SyncVectorEnv`` does; ``options`` go to every episode,
-    and ``options["reset_mask"]`` resets only the masked ones.
+    and ``options["reset_mask"]`` resets only the masked ones. After ``close()``,
+    ``reset`` and ``step`` raise ``ClosedEnvironmentError``, as ``AsyncVectorEnv``'s do.
 
     Args:
         num_envs: Number of episodes N.
@@ -338,7 +339,11 @@ class PoseTrackingVectorEnv(VectorEnv):
 
         Returns:
             The batched first frames and the batched info.
+
+        Raises:
+            gymnasium.error.ClosedEnvironmentError: After ``close()``.
         """
+        self._check_open("reset")
         n = self.num_envs
         if seed is None:
             seeds: list[int | None] = [None] * n
@@ -418,7 +423,9 @@ class PoseTrackingVectorEnv(VectorEnv):
         Raises:
             ValueError: If the actions have the wrong shape or are not finite.
             RuntimeError: Before ``reset``.
+            gymnasium.error.ClosedEnvironmentError: After ``close()``.
         """
+        self._check_open("step")
         raw = self._checked_actions(actions)
         n = self.num_envs
         ended = self._autoreset.copy()
@@ -508,6 +515,17 @@ class PoseTrackingVectorEnv(VectorEnv):
             raise RuntimeError(
                 "draw_ahead: the drawing process's episodes are out of step with this "
                 "environment's (an episode changed outside reset() and step()?)"
+            )
+
+    def _check_open(self, call: str) -> None:
+        """Refuse a call after ``close()``, as ``AsyncVectorEnv`` does.
+
+        Drawing in-process too: with ``draw_ahead`` the drawing process is gone,
+        and a program must not change with where its frames are drawn.
+        """
+        if self.closed:
+            raise ClosedEnvironmentError(
+                f"{call}: the vector environment was closed (close()); make a new one"
             )
 
     def _checked_actions(self, actions: NDArray[Any]) -> NDArray[Any]:

@@ -258,6 +258,26 @@ def test_close_ends_the_worker_and_frees_its_memory(library):
     assert not Path("/dev/shm", name.lstrip("/")).exists()
 
 
+def test_a_closed_environment_says_so_whatever_the_worker_left_unread(library):
+    """After close(), a step whose slot message was read ahead failed with 'NoneType' object
+    is not subscriptable, one whose was not with 'the drawing process ended (exit code 0)'."""
+    from gymnasium.error import ClosedEnvironmentError
+
+    venv = _ahead(library)
+    stream = venv._stream
+    venv.reset(seed=0)
+    zero = np.zeros(venv.action_space.shape, np.float32)
+    venv.step(zero)
+    venv.close()
+    for call in (lambda: venv.step(zero), lambda: venv.reset(seed=0)):
+        with pytest.raises(ClosedEnvironmentError, match="vector environment was closed"):
+            call()
+    # the stream itself, with a slot's message read ahead of the step that takes it
+    stream._received += frame_stream._HEADER.pack(1) + b"s"
+    with pytest.raises(ClosedEnvironmentError, match="draw_ahead: the frame stream was closed"):
+        stream.next(np.zeros(venv._obs.shape, np.uint8), [])
+
+
 def _shm_exists(name: str) -> bool:
     return Path("/dev/shm", name.lstrip("/")).exists()
 

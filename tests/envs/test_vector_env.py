@@ -267,6 +267,23 @@ def test_vector_env_refuses_bad_calls():
         vec.reset(seed=[1, 2, 3])
 
 
+def test_a_closed_vector_env_refuses_reset_and_step_as_async_vector_env_does():
+    """Drawing in-process it went on after close(); drawing ahead it failed obscurely (its
+    worker gone): both now say it was closed (tests/envs/test_frame_stream.py, ahead)."""
+    from gymnasium.error import ClosedEnvironmentError
+
+    vec = PoseTrackingVectorEnv(2, task="ArmTrack-v2")
+    vec.reset(seed=0)
+    zero = np.zeros(vec.action_space.shape, np.float32)
+    vec.step(zero)
+    vec.close()
+    with pytest.raises(ClosedEnvironmentError, match="step: the vector environment was closed"):
+        vec.step(zero)
+    with pytest.raises(ClosedEnvironmentError, match="reset: the vector environment was closed"):
+        vec.reset(seed=0)
+    vec.close()  # again: nothing
+
+
 def test_vector_env_render_is_each_episodes_render():
     vec = gym.make_vec("humotion_gym/BodyTrack-v2", 2, vectorization_mode="vector_entry_point",
                        render_mode="rgb_array")  # fmt: skip
