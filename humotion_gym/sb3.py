@@ -51,6 +51,34 @@ from humotion_gym.wrappers import (
 # The step's scalar info that each episode's info dict carries (SB3 keeps one
 # dict per episode; the batched arrays stay in ``last_infos``).
 _SCALAR_INFO = ("error_mm", "error_all_mm", "error_aligned_mm", "lost")
+# The vector environment's arguments learner_vec_env sets itself, and why.
+_SET_HERE = {
+    "autoreset_mode": "SB3 restarts an episode in the step that ends it (SAME_STEP), "
+    "as LearnerVecEnv needs",
+    "num_envs": "give the number of episodes as n_envs",
+}
+
+
+def _same(a: dict[str, Any], b: dict[str, Any]) -> bool:
+    """Whether two episodes' reset options are the same (arrays compared element-wise).
+
+    A value that cannot be compared (a clip's arrays inside a ``Motion``) is
+    the same only as itself.
+    """
+    if a is b:
+        return True
+    if a.keys() != b.keys():
+        return False
+    for key, x in a.items():
+        y = b[key]
+        if x is y:
+            continue
+        try:
+            if not bool(np.all(x == y)):
+                return False
+        except (TypeError, ValueError):
+            return False
+    return True
 
 
 class LearnerVecEnv(VecEnv):
@@ -65,15 +93,28 @@ class LearnerVecEnv(VecEnv):
     ``error_aligned_mm``, ``lost`` and reward terms; the vector environment's
     batched info of the last step is ``last_infos``.
 
+    Reset options (``set_options``) are one dict for every episode, as the
+    vector environment's ``reset`` takes them.
+
     Args:
         venv: The vector environment, made with ``autoreset_mode=SAME_STEP``.
         frame_size: Side of the frame shown, in pixels (None keeps the env's).
 
     Raises:
+        TypeError: If ``venv`` is not a :class:`PoseTrackingVectorEnv`.
         ValueError: If ``venv`` does not restart episodes in the same step.
     """
 
     def __init__(self, venv: PoseTrackingVectorEnv, frame_size: int | None = 64) -> None:
+        if not isinstance(venv, PoseTrackingVectorEnv):
+            # It reads the batch's episodes (their reward terms, pose_to_action) directly.
+            inner = getattr(venv, "unwrapped", venv)
+            got = type(venv).__name__ + (f" of {type(inner).__name__}" if inner is not venv else "")
+            raise TypeError(
+                "LearnerVecEnv: venv must be a humotion_gym PoseTrackingVectorEnv, itself "
+                "(gymnasium.make_vec(ID, num_envs=N, vectorization_mode='vector_entry_point', "
+                f"autoreset_mode='SameStep'), or learner_vec_env(TASK, N)), got {got}"
+            )
         if venv.autoreset_mode != AutoresetMode.SAME_STEP:
             raise ValueError(
                 "LearnerVecEnv: the vector env must restart episodes in the same step "
@@ -113,12 +154,44 @@ class LearnerVecEnv(VecEnv):
             "initial": self._initial.copy(),
         }
 
+    def set_options(self, options: list[dict[str, Any]] | dict[str, Any] | None = None) -> None:
+        """Set the reset options of the next reset: one dict for every episode.
+
+        A list (SB3's one dict per episode) must give every episode the same
+        options: the vector environment's ``reset`` takes one dict for all.
+
+        Raises:
+            ValueError: If the list's options differ between episodes, or it
+                does not hold one dict per episode (the options set before stay).
+        """
+        if isinstance(options, (list, tuple)):
+            if len(options) != self.num_envs or not all(isinstance(o, dict) for o in options):
+                raise ValueError(
+                    f"LearnerVecEnv.set_options: options must be one dict, or a list of "
+                    f"num_envs={self.num_envs} dicts, got {options!r}"
+                )
+            differs = next((i for i, o in enumerate(options) if not _same(o, options[0])), None)
+            if differs is not None:
+                raise ValueError(
+                    f"LearnerVecEnv.set_options: every episode starts with the same reset "
+                    f"options (the vector environment's reset takes one dict), but episode "
+                    f"{differs}'s differ from episode 0's; give one dict, or use "
+                    "DummyVecEnv of LearnerObservation environments for options per episode"
+                )
+        elif options is not None and not isinstance(options, dict):
+            raise ValueError(
+                f"LearnerVecEnv.set_options: options must be a dict, a list of dicts or None, "
+                f"got {options!r}"
+            )
+        super().set_options(options)
+
     def reset(self) -> VecEnvObs:
-        """Start every episode (with the seeds and options given by ``seed``/``set_options``)."""
+        """Start every episode (with the seeds and options given by ``seed``/``set_options``).
+
+        The options are one dict for every episode (see :meth:`set_options`).
+        """
         seeds = None if all(s is None for s in self._seeds) else list(self._seeds)
         options = self._options[0] if self._options and self._options[0] else None
-        if any(o != self._options[0] for o in self._options):
-            raise ValueError("LearnerVecEnv: every episode must get the same reset options")
         obs, info = self.venv.reset(seed=seeds, options=options)
         frames, initial = frame_and_initial(obs, info)
         self.last_infos = info
@@ -250,12 +323,20 @@ def learner_vec_env(
             :class:`~humotion_gym.envs.vector.PoseTrackingVectorEnv`). Call
             ``close()`` when done.
         **env_kwargs: Keyword arguments of the environment.
+
+    Raises:
+        TypeError: For ``autoreset_mode`` or ``num_envs`` in ``env_kwargs``
+            (set here: SB3's restart in the same step, and ``n_envs``).
+        ValueError: For a bad argument (naming it).
     """
     check_count("learner_vec_env: n_envs", n_envs)
     check_frame_size(frame_size, "learner_vec_env: frame_size")
+    for name, why in _SET_HERE.items():
+        if name in env_kwargs:
+            raise TypeError(f"learner_vec_env: {name} is not an argument here: {why}")
     kwargs = {"terminate_on_lost": False, **env_kwargs}
     venv = PoseTrackingVectorEnv(
-        n_envs, task=task.split("/")[-1], split=split,
+        n_envs, task=task.split("/")[-1] if isinstance(task, str) else task, split=split,
         autoreset_mode=AutoresetMode.SAME_STEP, draw_ahead=draw_ahead, **kwargs,
     )  # fmt: skip
     return LearnerVecEnv(venv, frame_size)

@@ -525,3 +525,56 @@ def test_learner_vec_env_episodes_ending_apart_with_options_are_dummy_vec_envs()
                 _assert_same(got_info["terminal_observation"], want_info["terminal_observation"])
         ended.append(dones.tolist())
     assert ended[2] == [True, False, False] and ended[3] == [False, True, False]
+
+
+def test_learner_vec_env_refuses_options_per_episode_in_set_options_and_keeps_its_own():
+    """They were kept and refused by every reset() after, until set_options again."""
+    pytest.importorskip("stable_baselines3")
+    from humotion_gym.sb3 import learner_vec_env
+
+    venv = learner_vec_env("ArmTrack-v2", n_envs=2, frame_size=16)
+    venv.set_options({"start": 3})
+    for refused, match in (
+        ([{"start": 0}, {"start": 5}], r"same reset options .*episode 1's differ"),
+        ([{"start": 0}], r"a list of num_envs=2 dicts"),
+        ("start=0", r"options must be a dict, a list of dicts or None"),
+    ):
+        with pytest.raises(ValueError, match=rf"LearnerVecEnv\.set_options: .*{match}"):
+            venv.set_options(refused)
+    venv.seed(0)
+    venv.reset()
+    assert [info["start_frame"] for info in venv.reset_infos] == [3, 3]  # the options kept
+    # the same options for every episode, as a list, as SB3's set_options takes them
+    venv.set_options([{"start": 4}, {"start": 4}])
+    venv.reset()
+    assert [info["start_frame"] for info in venv.reset_infos] == [4, 4]
+    venv.close()
+
+
+def test_learner_vec_env_names_what_is_wrong_with_its_arguments():
+    pytest.importorskip("stable_baselines3")
+    from humotion_gym.sb3 import LearnerVecEnv, learner_vec_env
+
+    sync = gym.make_vec(
+        "humotion_gym/ArmTrack-v2", num_envs=2, vectorization_mode="sync",
+        vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP},
+    )  # fmt: skip
+    with pytest.raises(TypeError, match=r"LearnerVecEnv: venv must be a humotion_gym "
+                       r"PoseTrackingVectorEnv.*vector_entry_point.*got SyncVectorEnv"):  # fmt: skip
+        LearnerVecEnv(sync)
+    ours = PoseTrackingVectorEnv(2, task="ArmTrack-v2", autoreset_mode=AutoresetMode.SAME_STEP)
+    with pytest.raises(TypeError, match="got RecordEpisodeStatistics of PoseTrackingVectorEnv$"):
+        LearnerVecEnv(gym.wrappers.vector.RecordEpisodeStatistics(ours))
+    # the advice can be followed
+    made = gym.make_vec(
+        "humotion_gym/ArmTrack-v2", num_envs=2, vectorization_mode="vector_entry_point",
+        autoreset_mode="SameStep",
+    )  # fmt: skip
+    assert LearnerVecEnv(made, 16).num_envs == 2
+    with pytest.raises(TypeError, match="learner_vec_env: autoreset_mode is not an argument"):
+        learner_vec_env("ArmTrack-v2", 2, autoreset_mode="NextStep")
+    with pytest.raises(TypeError, match="learner_vec_env: num_envs is not an argument.*n_envs"):
+        learner_vec_env("ArmTrack-v2", 2, num_envs=3)
+    with pytest.raises(ValueError, match="task: expected a task name or TaskSpec, got 3"):
+        learner_vec_env(3, 2)
+    assert learner_vec_env("humotion_gym/ArmTrack-v2", 2).venv.task.name == "ArmTrack-v2"
