@@ -1,4 +1,4 @@
-"""Argument checks the single and the vector environment share, each raising in the env's words."""
+"""Argument checks of the single and the vector environment, each raising in the env's words."""
 
 from __future__ import annotations
 
@@ -7,7 +7,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from humotion_gym.checks import check_at_least_zero, check_bool, check_count, check_positive
+from humotion_gym.checks import (
+    check_at_least_zero,
+    check_bool,
+    check_count,
+    check_positive,
+    is_count,
+)
 from humotion_gym.render_scene import SCENE_MAXIMA
 
 #: The frame rates clips may be resampled to, Hz (the command line's ``--fps`` too):
@@ -78,3 +84,29 @@ def action_array(action: Any, what: str, shape: tuple[int, ...]) -> NDArray[Any]
         raise ValueError(
             f"{what} must be an array of shape {shape}, got a ragged sequence"
         ) from None
+
+
+def episode_seeds(seed: Any, n: int) -> list[int | None]:
+    """Each of ``n`` episodes' seed from a vector environment's ``reset(seed=...)``.
+
+    As ``SyncVectorEnv`` reads it: None leaves every episode unseeded, an
+    integer ``s`` >= 0 gives episode ``i`` the seed ``s + i``, and a list (a
+    tuple, a 1-D array) gives each episode its own, an integer >= 0 or None.
+
+    Raises:
+        ValueError: Naming ``seed`` and what it takes.
+    """
+    takes = f"an integer >= 0, a list of num_envs={n} seeds (each an integer >= 0 or None), or None"
+    if seed is None:
+        return [None] * n
+    if is_count(seed, 0):
+        return [int(seed) + i for i in range(n)]
+    listed = isinstance(seed, (list, tuple)) or (isinstance(seed, np.ndarray) and seed.ndim == 1)
+    if not listed:
+        raise ValueError(f"reset: seed must be {takes}, got {seed!r}")
+    if len(seed) != n:
+        raise ValueError(f"reset: seed must be {takes}, got a list of {len(seed)} seeds")
+    for one in seed:
+        if not (one is None or is_count(one, 0)):
+            raise ValueError(f"reset: seed must be {takes}, got {one!r} in {seed!r}")
+    return [None if one is None else int(one) for one in seed]

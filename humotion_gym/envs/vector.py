@@ -53,7 +53,7 @@ from humotion_gym.body import (
     pose_geometry_of,
 )
 from humotion_gym.camera import CAMERA_VECTOR_SIZE
-from humotion_gym.checks import check_count, is_integer
+from humotion_gym.checks import check_count
 from humotion_gym.envs._batch_info import (
     _add_info,
     _add_infos,
@@ -61,7 +61,7 @@ from humotion_gym.envs._batch_info import (
     _item,
 )
 from humotion_gym.envs._cameras import place_cameras
-from humotion_gym.envs._checks import action_array
+from humotion_gym.envs._checks import action_array, episode_seeds
 from humotion_gym.envs.description import action_to_pose
 from humotion_gym.envs.frame_stream import FrameStream, episode_marks, twin_seeds
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv, _scored_info
@@ -332,8 +332,8 @@ class PoseTrackingVectorEnv(VectorEnv):
         """Start episodes: all of them, or those in ``options["reset_mask"]``.
 
         Args:
-            seed: None, an int (episode ``i`` gets ``seed + i``) or one seed
-                per episode.
+            seed: None, an int >= 0 (episode ``i`` gets ``seed + i``) or a list
+                of one seed per episode (an int >= 0 or None).
             options: The single environment's reset options, given to every
                 episode reset, plus ``reset_mask`` (a boolean ``(N,)`` array).
 
@@ -341,20 +341,12 @@ class PoseTrackingVectorEnv(VectorEnv):
             The batched first frames and the batched info.
 
         Raises:
+            ValueError: For a ``seed`` or ``options`` refused (naming it).
             gymnasium.error.ClosedEnvironmentError: After ``close()``.
         """
         self._check_open("reset")
         n = self.num_envs
-        if seed is None:
-            seeds: list[int | None] = [None] * n
-        elif is_integer(seed):
-            seeds = [int(seed) + i for i in range(n)]
-        else:
-            seeds = list(seed)
-            if len(seeds) != n:
-                raise ValueError(
-                    f"reset: a list of seeds must have num_envs={n} entries, got {len(seeds)}"
-                )
+        seeds = episode_seeds(seed, n)
         mask = np.ones(n, np.bool_)
         if options is not None and "reset_mask" in options:
             options = dict(options)

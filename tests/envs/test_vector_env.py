@@ -284,6 +284,26 @@ def test_a_closed_vector_env_refuses_reset_and_step_as_async_vector_env_does():
     vec.close()  # again: nothing
 
 
+@pytest.mark.parametrize(
+    ("seed", "got"),
+    [(1.5, "got 1.5"), (True, "got True"), ("0", "got '0'"), (-1, "got -1"),
+     ([1, 2, 3], "got a list of 3 seeds"), ([1.5, 2], r"got 1\.5 in \[1\.5, 2\]"),
+     ([None, False], "got False in"), ({0: 1, 1: 2}, "got {0: 1, 1: 2}")],
+)  # fmt: skip
+def test_a_seed_it_cannot_take_is_refused_naming_seed(seed, got):
+    """'float' object is not iterable, 'bool' object is not iterable, or "0" read as a list."""
+    vec = PoseTrackingVectorEnv(2, task="ArmTrack-v2")
+    takes = r"an integer >= 0, a list of num_envs=2 seeds \(each an integer >= 0 or None\), or None"
+    with pytest.raises(ValueError, match=rf"^reset: seed must be {takes}, {got}"):
+        vec.reset(seed=seed)
+    # what it takes: numpy's integers too, each the seed its int gives
+    first = vec.reset(seed=[np.int64(4), None])[0]["initial_pose"][0]
+    assert np.array_equal(first, vec.reset(seed=4)[0]["initial_pose"][0])
+    assert vec.reset(seed=np.array([4, 5]))[1]["clip_id"].tolist() == (
+        vec.reset(seed=(4, 5))[1]["clip_id"].tolist()
+    )
+
+
 def test_vector_env_render_is_each_episodes_render():
     vec = gym.make_vec("humotion_gym/BodyTrack-v2", 2, vectorization_mode="vector_entry_point",
                        render_mode="rgb_array")  # fmt: skip
@@ -459,7 +479,7 @@ def test_infos_batched_key_by_key_are_infos_added_one_by_one(items):
 @pytest.mark.parametrize(
     ("seed", "options"),
     [
-        ([3, -1], None),  # the second episode's seed is refused after the first started
+        ([3, -1], None),  # the second episode's seed is refused (before any starts)
         (None, {"start": 10_000}),  # every episode refuses its start
     ],
 )
