@@ -1,8 +1,16 @@
-"""Writing frames as videos and contact sheets (OpenCV, no extra dependency)."""
+"""Writing frames as videos and contact sheets (OpenCV, no extra dependency).
+
+Every function checks what it is given before it writes anything: a wrong
+suffix, frame, size, frame rate or count is refused with a ``ValueError``
+(``TypeError`` for something that is not a number or a sequence at all)
+naming the argument and what was expected.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import numbers
+import operator
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import cv2
@@ -10,6 +18,92 @@ import numpy as np
 from numpy.typing import NDArray
 
 from humotion_gym.files import write_atomically
+
+#: The suffixes :func:`write_video` writes (OpenCV picks the container by it).
+VIDEO_SUFFIXES = (".mp4", ".avi")
+
+#: The frame rates both containers keep (to within 0.001 fps, as OpenCV stores
+#: them): OpenCV cannot open a writer at some slower ones, and an ``.avi``
+#: claims 600 fps for any rate above 1000.
+FPS_RANGE = (0.01, 1000.0)
+
+#: The smallest and largest side of an ``.mp4`` frame (MPEG-4 part 2 codes
+#: sides below 8192 px, and FFmpeg rounds a side down to even, 1 px to none).
+MIN_MP4_SIDE, MAX_MP4_SIDE = 2, 8191
+
+
+def _suffix(caller: str, path: str | Path, suffixes: tuple[str, ...]) -> str:
+    """``path``'s suffix in lower case, or a ValueError if it is none of ``suffixes``."""
+    suffix = Path(path).suffix
+    if suffix.lower() not in suffixes:
+        raise ValueError(
+            f"{path}: {caller} writes {' or '.join(suffixes)} files, "
+            f"not {suffix or 'a name without a suffix'}"
+        )
+    return suffix.lower()
+
+
+def _positive_int(caller: str, name: str, value: object) -> int:
+    """``value`` as an int of at least 1, or an error naming ``name``."""
+    try:
+        number = operator.index(value)  # type: ignore[call-overload]
+    except TypeError:
+        raise TypeError(
+            f"{caller}: {name}: expected a whole number of at least 1, got {value!r}"
+        ) from None
+    if number < 1 or isinstance(value, bool):
+        raise ValueError(f"{caller}: {name}: expected a whole number of at least 1, got {value}")
+    return number
+
+
+def _image(caller: str, what: str, value: object) -> NDArray[np.uint8]:
+    """``value`` as an RGB ``(H, W, 3)`` or grey ``(H, W)`` uint8 image, or an error naming it."""
+    try:
+        image = np.asarray(value)
+    except ValueError:  # a ragged nested list
+        image = np.asarray(None)
+    if image.dtype != np.uint8:
+        got = type(value).__name__ if image.dtype == object else f"{image.dtype} values"
+        raise ValueError(f"{caller}: {what}: expected a uint8 image (0 to 255), got {got}")
+    grey_or_rgb = image.ndim == 2 or (image.ndim == 3 and image.shape[-1] in (1, 3))
+    if not grey_or_rgb or 0 in image.shape[:2]:
+        raise ValueError(
+            f"{caller}: {what}: expected an (H, W, 3) RGB or (H, W) grey image, "
+            f"got shape {image.shape}"
+        )
+    return image
+
+
+def _frames(caller: str, frames: object) -> list[NDArray[np.uint8]]:
+    """``frames`` (a sequence of images, or an ``(N, H, W[, 3])`` array) checked, as a list.
+
+    Raises:
+        ValueError: Naming the first frame that is not a uint8 image of the
+            first one's size, or saying there are none.
+        TypeError: If ``frames`` is not a sequence or an array.
+    """
+    if isinstance(frames, np.ndarray):
+        if frames.ndim not in (3, 4) or (frames.ndim == 3 and frames.shape[-1] == 3):
+            raise ValueError(
+                f"{caller}: frames: expected a sequence of images or an (N, H, W, 3) array, "
+                f"got an array of shape {frames.shape}"
+            )
+    elif not isinstance(frames, Iterable) or isinstance(frames, str | bytes):
+        raise TypeError(
+            f"{caller}: frames: expected a sequence of images or an (N, H, W, 3) array, "
+            f"got {type(frames).__name__}"
+        )
+    images = [_image(caller, f"frames[{i}]", frame) for i, frame in enumerate(frames)]
+    if not images:
+        raise ValueError(f"{caller}: no frames")
+    h, w = images[0].shape[:2]
+    for i, image in enumerate(images):
+        if image.shape[:2] != (h, w):
+            raise ValueError(
+                f"{caller}: frames[{i}] is {image.shape[1]}x{image.shape[0]} px, frames[0] "
+                f"is {w}x{h}: every frame must be the same size"
+            )
+    return images
 
 
 def _to_bgr(frame: NDArray[np.uint8], scale: int) -> NDArray[np.uint8]:
@@ -23,51 +117,99 @@ def _to_bgr(frame: NDArray[np.uint8], scale: int) -> NDArray[np.uint8]:
     return cv2.cvtColor(np.ascontiguousarray(img), cv2.COLOR_RGB2BGR)
 
 
-#: The largest side of an ``.mp4`` frame (MPEG-4 part 2 codes sides below 8192 px).
-MAX_MP4_SIDE = 8191
-
-
 def check_video_size(path: str | Path, width: int, height: int) -> None:
     """Refuse frames an ``.mp4`` cannot hold, before any is rendered.
 
     Raises:
         ValueError: Naming the file, the size and what to do instead.
     """
-    if Path(path).suffix.lower() == ".mp4" and max(width, height) > MAX_MP4_SIDE:
+    if Path(path).suffix.lower() != ".mp4":
+        return
+    if max(width, height) > MAX_MP4_SIDE:
         raise ValueError(
             f"{path}: an .mp4 frame is at most {MAX_MP4_SIDE} px a side, these would be "
             f"{width}x{height}; write an .avi, or choose a smaller size or scale"
         )
+    if min(width, height) < MIN_MP4_SIDE:
+        raise ValueError(
+            f"{path}: an .mp4 frame is at least {MIN_MP4_SIDE} px a side, these would be "
+            f"{width}x{height}; write an .avi, or choose a larger size or scale"
+        )
+
+
+def _check_fps(fps: object) -> float:
+    """``fps`` as a float within :data:`FPS_RANGE`, or an error naming it."""
+    if not isinstance(fps, numbers.Real):
+        raise TypeError(f"write_video: fps: expected a number, got {fps!r}")
+    low, high = FPS_RANGE
+    if not low <= float(fps) <= high:  # NaN is refused too
+        raise ValueError(
+            f"write_video: fps: expected a frame rate from {low:g} to {high:g}, got {fps}"
+        )
+    return float(fps)
+
+
+def _mp4_fps(fps: float) -> float:
+    """``fps`` as OpenCV can write it to an ``.mp4``.
+
+    OpenCV counts time in steps of 1/(fps to 3 decimals, as a whole number of
+    thousandths, hundredths, ...), and MPEG-4 part 2 takes no more than 65535
+    steps a second: above 65.535 fps the rate is rounded to the finest decimal
+    that fits (2 decimals up to 655.35 fps), where OpenCV would fail.
+    """
+    if fps * 1000 <= 65535:
+        return fps
+    decimals = 2 if fps * 100 <= 65535 else 1
+    return round(fps, decimals)
 
 
 def write_video(
-    path: str | Path, frames: Sequence[NDArray[np.uint8]], fps: float, scale: int = 2
+    path: str | Path,
+    frames: Sequence[NDArray[np.uint8]] | NDArray[np.uint8],
+    fps: float,
+    scale: int = 2,
 ) -> None:
     """Write RGB (or grey) uint8 frames to an ``.mp4`` (MPEG-4 part 2) or ``.avi`` file.
 
     The file's folder is created if missing. The video is written whole or not
-    at all (:func:`~humotion_gym.files.write_atomically`): an interruption
-    leaves no cut video at ``path``.
+    at all (:func:`~humotion_gym.files.write_atomically`): every argument is
+    checked before anything is written, and an interruption leaves no cut
+    video at ``path``.
+
+    Args:
+        path: The video, ending in ``.mp4`` or ``.avi`` (either case).
+        frames: ``(H, W, 3)`` RGB or ``(H, W)`` grey uint8 images, all of one
+            size, or an ``(N, H, W, 3)`` (or ``(N, H, W)``) array of them.
+        fps: Frames a second, from 0.01 to 1000 (:data:`FPS_RANGE`); OpenCV
+            keeps it to within 0.001, and an ``.mp4`` above 65.535 fps to
+            2 decimals (1 above 655.35).
+        scale: Each pixel becomes ``scale x scale`` pixels.
 
     Raises:
-        ValueError: If there are no frames, or they are too large for an ``.mp4``.
+        ValueError: If the suffix is another, ``fps`` or ``scale`` is out of
+            range, there are no frames, a frame is not a uint8 image of the
+            first one's size, or the frames are too large or small for an ``.mp4``.
+        TypeError: If ``fps`` or ``scale`` is not a number, or ``frames`` not a sequence.
         OSError: If OpenCV cannot open the file for writing.
     """
-    if not frames:
-        raise ValueError("write_video: no frames")
-    first = _to_bgr(frames[0], scale)
-    h, w = first.shape[:2]
+    suffix = _suffix("write_video", path, VIDEO_SUFFIXES)
+    rate = _check_fps(fps)
+    scale = _positive_int("write_video", "scale", scale)
+    images = _frames("write_video", frames)
+    h, w = images[0].shape[0] * scale, images[0].shape[1] * scale
     check_video_size(path, w, h)
-    mp4 = Path(path).suffix.lower() == ".mp4"  # .MP4 too: MJPG inside an .mp4 plays nowhere
+    mp4 = suffix == ".mp4"  # .MP4 too: MJPG inside an .mp4 plays nowhere
     fourcc = cv2.VideoWriter.fourcc(*("mp4v" if mp4 else "MJPG"))
 
     def write(tmp: Path) -> None:
-        writer = cv2.VideoWriter(str(tmp), fourcc, float(fps), (w, h))
+        writer = cv2.VideoWriter(str(tmp), fourcc, _mp4_fps(rate) if mp4 else rate, (w, h))
         if not writer.isOpened():
-            raise OSError(f"{path}: OpenCV could not open a video writer")
+            raise OSError(
+                f"{path}: OpenCV could not open a video writer ({w}x{h} px, {rate:g} fps)"
+            )
         try:
-            for frame in frames:
-                writer.write(_to_bgr(frame, scale))
+            for image in images:
+                writer.write(_to_bgr(image, scale))
         finally:
             writer.release()
 
@@ -76,13 +218,30 @@ def write_video(
 
 
 def contact_sheet(
-    frames: Sequence[NDArray[np.uint8]], columns: int = 6, count: int = 12, scale: int = 1
+    frames: Sequence[NDArray[np.uint8]] | NDArray[np.uint8],
+    columns: int = 6,
+    count: int = 12,
+    scale: int = 1,
 ) -> NDArray[np.uint8]:
-    """Evenly spaced frames tiled in a grid, as one RGB image."""
-    if not frames:
-        raise ValueError("contact_sheet: no frames")
-    pick = np.unique(np.linspace(0, len(frames) - 1, min(count, len(frames))).round().astype(int))
-    tiles = [cv2.cvtColor(_to_bgr(frames[i], scale), cv2.COLOR_BGR2RGB) for i in pick]
+    """Evenly spaced frames tiled in a grid, as one RGB image.
+
+    Args:
+        frames: As :func:`write_video` takes them.
+        columns: Tiles a row (at least 1).
+        count: How many frames to pick (at least 1; all of them if fewer).
+        scale: Each pixel becomes ``scale x scale`` pixels.
+
+    Raises:
+        ValueError: If there are no frames, a frame is not a uint8 image of
+            the first one's size, or ``columns``, ``count`` or ``scale`` is below 1.
+        TypeError: If ``columns``, ``count`` or ``scale`` is not a whole number.
+    """
+    columns = _positive_int("contact_sheet", "columns", columns)
+    count = _positive_int("contact_sheet", "count", count)
+    scale = _positive_int("contact_sheet", "scale", scale)
+    images = _frames("contact_sheet", frames)
+    pick = np.unique(np.linspace(0, len(images) - 1, min(count, len(images))).round().astype(int))
+    tiles = [cv2.cvtColor(_to_bgr(images[i], scale), cv2.COLOR_BGR2RGB) for i in pick]
     rows = int(np.ceil(len(tiles) / columns))
     blank = np.zeros_like(tiles[0])
     tiles += [blank] * (rows * columns - len(tiles))
@@ -90,14 +249,21 @@ def contact_sheet(
 
 
 def write_png(path: str | Path, image: NDArray[np.uint8]) -> None:
-    """Write an RGB image as PNG, whole or not at all (its folder created if missing)."""
-    bgr = cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_RGB2BGR)
+    """Write an RGB (or grey) uint8 image as PNG, whole or not at all (its folder made if missing).
+
+    Raises:
+        ValueError: If ``path`` does not end in ``.png`` (either case), or
+            ``image`` is not an ``(H, W, 3)`` or ``(H, W)`` uint8 image.
+        OSError: If the file cannot be written.
+    """
+    _suffix("write_png", path, (".png",))
+    bgr = _to_bgr(_image("write_png", "image", image), 1)
 
     def write(tmp: Path) -> None:
         try:
             written = cv2.imwrite(str(tmp), bgr)
-        except cv2.error as exc:  # OpenCV raises for a suffix it has no writer for
-            raise OSError(f"{path}: OpenCV cannot write an image of this suffix") from exc
+        except cv2.error as exc:  # OpenCV raises, rather than returns False, for some failures
+            raise OSError(f"{path}: OpenCV could not write the PNG") from exc
         if not written:
             raise OSError(f"{path}: could not write the PNG")
 

@@ -111,7 +111,7 @@ def test_a_video_interrupted_while_written_leaves_none(
 
     def interrupted(frame, scale):
         calls.append(1)
-        if len(calls) == 4:  # the first frame is converted once before writing
+        if len(calls) == 4:  # in the middle of the video
             raise KeyboardInterrupt
         return real(frame, scale)
 
@@ -125,11 +125,21 @@ def test_a_video_interrupted_while_written_leaves_none(
     assert sorted(p.name for p in tmp_path.rglob("*")) == ["other", name]
 
 
-def test_a_png_that_cannot_be_encoded_leaves_nothing(tmp_path: Path) -> None:
+def test_a_png_that_cannot_be_encoded_leaves_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     video.write_png(tmp_path / "a.png", np.zeros((4, 4, 3), np.uint8))
     assert (tmp_path / "a.png").stat().st_size > 0
-    with pytest.raises(OSError, match="b.nosuchformat"):
+    with pytest.raises(ValueError, match=r"b\.nosuchformat: write_png writes \.png files"):
         video.write_png(tmp_path / "b.nosuchformat", np.zeros((4, 4, 3), np.uint8))
+
+    def failing(path: str, image: np.ndarray) -> bool:
+        Path(path).write_bytes(b"half")
+        return False
+
+    monkeypatch.setattr(video.cv2, "imwrite", failing)
+    with pytest.raises(OSError, match=r"c\.png: could not write the PNG"):
+        video.write_png(tmp_path / "c.png", np.zeros((4, 4, 3), np.uint8))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png"]
 
 

@@ -97,3 +97,105 @@ def test_an_mp4_side_is_at_most_8191_px():
     check_video_size("a.avi", 9000, 64)  # .avi frames may be larger
     with pytest.raises(ValueError, match="8192x64"):
         check_video_size("a.MP4", 8192, 64)
+
+
+def _frames(n: int = 5) -> list[np.ndarray]:
+    return [np.full((64, 80, 3), 40 * i, np.uint8) for i in range(n)]
+
+
+@pytest.mark.parametrize("name", ["x.gif", "x.png", "x"])
+def test_a_video_of_another_suffix_is_refused_and_nothing_is_written(tmp_path, name):
+    from humotion_gym.video import write_video
+
+    folder = tmp_path / "videos"
+    expected = name[1:] if "." in name else "a name without a suffix"
+    with pytest.raises(
+        ValueError, match=rf"{name}: write_video writes \.mp4 or \.avi .*{expected}"
+    ):
+        write_video(folder / name, _frames(), 30)
+    assert not folder.exists()  # neither the file, nor a temporary one, nor the folder
+
+
+def test_a_frame_of_another_size_is_refused_before_anything_is_written(tmp_path):
+    from humotion_gym.video import write_video
+
+    frames = _frames()
+    frames.insert(2, np.zeros((32, 32, 3), np.uint8))
+    with pytest.raises(ValueError, match=r"frames\[2\] is 32x32 px, frames\[0\] is 80x64"):
+        write_video(tmp_path / "mixed.mp4", frames, 30)
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "match"),
+    [
+        ({"fps": 0}, ValueError, "fps: expected a frame rate from 0.01 to 1000, got 0"),
+        ({"fps": -5}, ValueError, "fps: expected a frame rate .* got -5"),
+        ({"fps": float("nan")}, ValueError, "fps: expected a frame rate .* got nan"),
+        ({"fps": 1001}, ValueError, "fps: .* got 1001"),  # an .avi would claim 600
+        ({"fps": "30"}, TypeError, "fps: expected a number"),
+        ({"fps": 30, "scale": 0}, ValueError, "scale: expected a whole number of at least 1"),
+        ({"fps": 30, "scale": 1.5}, TypeError, "scale: expected a whole number"),
+    ],
+)
+def test_a_frame_rate_or_scale_out_of_range_is_named(tmp_path, kwargs, error, match):
+    from humotion_gym.video import write_video
+
+    with pytest.raises(error, match=match):
+        write_video(tmp_path / "clip.avi", _frames(), **kwargs)
+    assert not list(tmp_path.iterdir())
+
+
+def test_frames_may_be_one_array_but_not_floats_or_one_frame(tmp_path):
+    import cv2
+
+    from humotion_gym.video import write_video
+
+    write_video(tmp_path / "stack.avi", np.stack(_frames()), 30, scale=1)
+    assert cv2.VideoCapture(str(tmp_path / "stack.avi")).get(cv2.CAP_PROP_FRAME_COUNT) == 5
+    with pytest.raises(ValueError, match=r"frames\[0\]: expected a uint8 image .* float64"):
+        write_video(tmp_path / "float.avi", [f / 255.0 for f in _frames()], 30)
+    with pytest.raises(ValueError, match=r"frames: .* got an array of shape \(64, 80, 3\)"):
+        write_video(tmp_path / "one.avi", _frames()[0], 30)
+    rgba = [np.zeros((4, 4, 3), np.uint8), np.zeros((4, 4, 4), np.uint8)]
+    with pytest.raises(ValueError, match=r"frames\[1\]: expected an \(H, W, 3\) RGB .*4, 4, 4"):
+        write_video(tmp_path / "rgba.avi", rgba, 30)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["stack.avi"]
+
+
+def test_an_mp4_takes_a_fast_odd_frame_rate_and_refuses_a_1_px_side(tmp_path):
+    import cv2
+
+    from humotion_gym.video import write_video
+
+    # 179094/1000 s would need a time step finer than MPEG-4's 1/65535 s
+    write_video(tmp_path / "fast.mp4", _frames(3), 179.094, scale=1)
+    assert cv2.VideoCapture(str(tmp_path / "fast.mp4")).get(cv2.CAP_PROP_FPS) == 179.09
+    with pytest.raises(
+        ValueError, match="an .mp4 frame is at least 2 px a side, these would be 1x1"
+    ):
+        write_video(tmp_path / "dot.mp4", [np.zeros((1, 1, 3), np.uint8)], 30, scale=1)
+
+
+def test_a_contact_sheet_names_a_count_below_one():
+    from humotion_gym.video import contact_sheet
+
+    with pytest.raises(ValueError, match="contact_sheet: columns: expected a whole number"):
+        contact_sheet(_frames(), columns=0)
+    with pytest.raises(ValueError, match="contact_sheet: count: expected a whole number"):
+        contact_sheet(_frames(), count=0)
+    with pytest.raises(ValueError, match=r"contact_sheet: frames\[5\] is 3x3 px"):
+        contact_sheet([*_frames(), np.zeros((3, 3, 3), np.uint8)])
+    assert contact_sheet(np.stack(_frames()), columns=2, count=3).shape == (128, 160, 3)
+
+
+def test_write_png_writes_only_pngs(tmp_path):
+    from humotion_gym.video import write_png
+
+    with pytest.raises(ValueError, match=r"p\.jpg: write_png writes \.png files, not \.jpg"):
+        write_png(tmp_path / "p.jpg", _frames()[1])
+    with pytest.raises(ValueError, match="write_png: image: expected a uint8 image"):
+        write_png(tmp_path / "p.png", _frames()[1] / 255.0)
+    assert not list(tmp_path.iterdir())
+    write_png(tmp_path / "p.PNG", _frames()[1])
+    assert (tmp_path / "p.PNG").read_bytes().startswith(b"\x89PNG")
