@@ -270,6 +270,28 @@ def write_png(path: str | Path, image: NDArray[np.uint8]) -> None:
     write_atomically(path, write, keep_suffix=True)
 
 
+def _motion_poses(params: object) -> NDArray[np.float64]:
+    """``params`` as finite ``(T, 25)`` float poses, ``T >= 1``, or an error naming it."""
+    from humotion_gym.body import N_PARAMS
+
+    expected = f"render_motion: params: expected (T, {N_PARAMS}) poses, T at least 1"
+    try:
+        poses = np.asarray(params, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"{expected}, got a {type(params).__name__} that is no array of numbers"
+        ) from None
+    if poses.ndim != 2 or poses.shape[1] != N_PARAMS or len(poses) == 0:
+        raise ValueError(f"{expected}, got shape {poses.shape}")
+    bad = ~np.isfinite(poses).all(axis=1)
+    if bad.any():
+        raise ValueError(
+            f"render_motion: params: pose {int(np.argmax(bad))} holds NaN or infinity "
+            f"({int(bad.sum())} of {len(poses)} poses do)"
+        )
+    return poses
+
+
 def render_motion(
     params: NDArray[np.float64],
     shape: object,
@@ -281,23 +303,28 @@ def render_motion(
     """Frames of a motion on a flat background, seen by a camera that frames it all.
 
     Args:
-        params: ``(T, 25)`` poses.
+        params: ``(T, 25)`` finite poses, ``T >= 1`` (an array, or anything
+            that converts to one, such as a list of poses).
         shape: The body's :class:`~humotion_gym.body.BodyShape`.
         width: Frame width.
         height: Frame height.
         azimuth_deg: Viewing direction relative to the first frame's heading.
         seed: Seeds the sensor noise.
+
+    Raises:
+        ValueError: If ``params`` is not such poses.
     """
     from humotion_gym.camera import fit_camera
     from humotion_gym.kinematics import batch_pose_geometry
     from humotion_gym.render import SceneOptions, figure_sequence, make_background, render_frame
 
-    geometry = batch_pose_geometry(params, shape)  # type: ignore[arg-type]
-    heading = float(np.rad2deg(params[0, 3]))
+    poses = _motion_poses(params)
+    geometry = batch_pose_geometry(poses, shape)  # type: ignore[arg-type]
+    heading = float(np.rad2deg(poses[0, 3]))
     camera = fit_camera(geometry[:, :15], width, height, 45.0, heading - azimuth_deg, 10.0)
     scene = SceneOptions(width=width, height=height, background="flat")
     rng = np.random.default_rng(seed)
     background = make_background(scene, rng)
     # The whole motion's figures at once, then drawing frame by frame.
-    figures = figure_sequence(params, shape, camera, scene, geometry)  # type: ignore[arg-type]
-    return [render_frame(figures, t, rng, background) for t in range(len(params))]
+    figures = figure_sequence(poses, shape, camera, scene, geometry)  # type: ignore[arg-type]
+    return [render_frame(figures, t, rng, background) for t in range(len(poses))]

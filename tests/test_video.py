@@ -199,3 +199,19 @@ def test_write_png_writes_only_pngs(tmp_path):
     assert not list(tmp_path.iterdir())
     write_png(tmp_path / "p.PNG", _frames()[1])
     assert (tmp_path / "p.PNG").read_bytes().startswith(b"\x89PNG")
+
+
+def test_render_motion_names_poses_it_cannot_draw():
+    motion = synthetic_library()[0]
+    params = motion.params[:4]
+    from_list = render_motion(params.tolist(), motion.shape, width=64, height=64)
+    from_array = render_motion(params, motion.shape, width=64, height=64)
+    assert np.array_equal(np.stack(from_list), np.stack(from_array))
+    broken = params.copy()
+    broken[2, 5] = np.nan
+    with pytest.raises(ValueError, match=r"render_motion: params: pose 2 holds NaN"):
+        render_motion(broken, motion.shape, width=64, height=64)
+    with pytest.raises(ValueError, match=r"params: expected \(T, 25\) poses.* shape \(0, 25\)"):
+        render_motion(np.zeros((0, 25)), motion.shape)
+    with pytest.raises(ValueError, match=r"params: expected \(T, 25\) poses.* shape \(4, 24\)"):
+        render_motion(params[:, :24], motion.shape)
