@@ -493,6 +493,21 @@ def _check_params(params: ArrayLike) -> FloatArray:
     return p
 
 
+def _check_dtype(where: str, dtype: Any) -> type:
+    """``np.float64`` or ``np.float32`` for ``dtype``, refused unless it names one of them.
+
+    The compiled kinematics has no other float type (numba refuses float16
+    deep inside), and an integer type would truncate every angle silently.
+    """
+    try:
+        kind = None if dtype is None else np.dtype(dtype).type
+    except (TypeError, ValueError):
+        kind = None
+    if kind is np.float64 or kind is np.float32:
+        return kind
+    raise ValueError(f"{where}: dtype must be np.float64 or np.float32, got {dtype!r}")
+
+
 def shape_table(shape: BodyShape) -> FloatArray:
     """A shape's numbers as the kinematics reads them: ``(24,)`` float64 (read-only).
 
@@ -512,11 +527,20 @@ def kinematics_inputs(
     Both compiled kinematics passes take them: :func:`humotion_gym.kinematics.pose_block`
     and the kernel behind :func:`pose_geometry`.
 
+    Args:
+        params: ``(N, 25)`` poses.
+        shapes: ``(M, 24)`` shape tables (:func:`shape_table`).
+        dtype: ``np.float64`` or ``np.float32``.
+
     Returns:
         The poses as ``(25, N)`` rows, the cosines and the sines of their angles
         (parameters 3-24) as ``(22, N)`` rows, and the shape tables as ``(24, M)``
         columns.
+
+    Raises:
+        ValueError: If ``dtype`` is neither ``np.float64`` nor ``np.float32``.
     """
+    dtype = _check_dtype("kinematics_inputs", dtype)
     flat: NDArray[Any] = np.ascontiguousarray(params, dtype=dtype)
     # OpenCV's transpose works in tiles: at thousands of poses it takes half
     # the time of numpy's strided copy (it returns None for an empty array).
@@ -581,10 +605,12 @@ def pose_geometry(params: ArrayLike, shape: BodyShape, dtype: type = np.float64)
         0 and 1 of :attr:`ConeGeometry.rotations`.
 
     Raises:
-        ValueError: If the last axis of ``params`` is not 25 long.
+        ValueError: If the last axis of ``params`` is not 25 long, or ``dtype``
+            is neither ``np.float64`` nor ``np.float32``.
     """
+    kind = _check_dtype("pose_geometry", dtype)
     p = _check_params(params)
-    out = _geometry(p.reshape(-1, N_PARAMS), shape._table[None], dtype)
+    out = _geometry(p.reshape(-1, N_PARAMS), shape._table[None], kind)
     return out.reshape(p.shape[:-1] + (_compiled.GEOMETRY_ROWS, 3))
 
 

@@ -17,7 +17,7 @@ import pytest
 
 from humotion_gym import body
 from humotion_gym.camera import Camera, fit_camera
-from humotion_gym.kinematics import batch_pose_geometry, single_pose_geometry
+from humotion_gym.kinematics import batch_pose_geometry, kinematics_inputs, single_pose_geometry
 
 SHAPE = body.default_shape()
 ATOL_MM = 1e-6
@@ -185,6 +185,28 @@ def test_layouts_of_the_same_geometry() -> None:
     with pytest.raises(ValueError, match="translation"):
         batch_pose_geometry(poses, shape, np.eye(3), np.zeros((5, 3)))
     fit_camera(world[:, :15], 64, 64, 50.0)  # the keypoints frame a camera
+
+
+@pytest.mark.parametrize("dtype", [np.int32, np.int64, np.float16, np.complex128, None, "x"])
+def test_a_dtype_the_kinematics_has_not_is_refused(dtype: object) -> None:
+    """An integer type truncated every angle silently; float16 failed deep inside numba."""
+    pose = body.standing_pose(SHAPE)
+    pose[3], pose[9] = 0.3, 0.7
+    with pytest.raises(ValueError, match=r"^pose_geometry: dtype must be np.float64 or np.float32"):
+        body.pose_geometry(pose, SHAPE, dtype=dtype)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"^kinematics_inputs: dtype must be np.float64"):
+        kinematics_inputs(pose[None], body.shape_table(SHAPE)[None], dtype)  # type: ignore[arg-type]
+
+
+def test_the_two_dtypes_in_any_spelling() -> None:
+    poses = _random_poses(np.random.default_rng(4), 5)
+    for kind, spellings in ((np.float32, ["float32", np.dtype(np.float32)]),
+                            (np.float64, ["f8", np.dtype(np.float64), float])):  # fmt: skip
+        want = body.pose_geometry(poses, SHAPE, kind)
+        for dtype in spellings:
+            got = body.pose_geometry(poses, SHAPE, dtype)  # type: ignore[arg-type]
+            assert got.dtype == kind
+            np.testing.assert_array_equal(got, want)
 
 
 def test_mutation_a_wrong_sign_is_caught() -> None:
