@@ -45,7 +45,8 @@ def single_pose_geometry(
     and ``16 + 2 c`` the x (width) and y (depth) axes of cone ``c``. With
     ``rotation`` and ``translation`` everything is given in that frame
     (``x' = rotation @ x + translation``, the axes only rotated), e.g. a
-    camera's.
+    camera's. Either may be left out: no rotation is the identity, no
+    translation is zero (a translation alone moves the keypoints only).
 
     Args:
         params: ``(25,)`` pose parameters.
@@ -55,6 +56,9 @@ def single_pose_geometry(
 
     Returns:
         ``(35, 3)`` keypoints then cone axes.
+
+    Raises:
+        ValueError: If the pose, rotation or translation has the wrong shape.
     """
     p = np.asarray(params, dtype=np.float64)
     if p.shape != (N_PARAMS,):
@@ -69,6 +73,10 @@ def batch_pose_geometry(
     translation: ArrayLike | None = None,
 ) -> FloatArray:
     """Keypoints and cone axes of T poses: :func:`single_pose_geometry` batched.
+
+    Each pose's keypoints are given as ``x' = rotation @ x + translation``
+    and its cone axes as ``rotation @ a``; either transform may be left out
+    (no rotation is the identity, no translation is zero).
 
     Args:
         params: ``(T, 25)`` pose parameters.
@@ -88,21 +96,25 @@ def batch_pose_geometry(
     if p.ndim != 2 or p.shape[1] != N_PARAMS:
         raise ValueError(f"batch_pose_geometry: expected (T, 25) poses, got {p.shape}")
     n = p.shape[0]
+    q = None if rotation is None else _transform("rotation", rotation, (3, 3), n)
+    t = None if translation is None else _transform("translation", translation, (3,), n)
     geometry = body.pose_geometry(p, shape)
-    if rotation is None:
-        return geometry
-    q = np.asarray(rotation, dtype=np.float64)
-    if q.shape not in ((3, 3), (n, 3, 3)):
-        raise ValueError(
-            f"batch_pose_geometry: rotation must be (3, 3) or ({n}, 3, 3), got {q.shape}"
-        )
-    # x' = q x + t for the keypoints, q a for the axes: one batched product.
-    geometry = geometry @ np.swapaxes(q, -1, -2)
-    if translation is not None:
-        t = np.asarray(translation, dtype=np.float64)
-        if t.shape not in ((3,), (n, 3)):
-            raise ValueError(
-                f"batch_pose_geometry: translation must be (3,) or ({n}, 3), got {t.shape}"
-            )
+    if q is not None:
+        # x' = q x + t for the keypoints, q a for the axes: one batched product.
+        geometry = geometry @ np.swapaxes(q, -1, -2)
+    if t is not None:
         geometry[:, :N_KEYPOINTS] += t[..., None, :] if t.ndim == 2 else t
     return geometry
+
+
+def _transform(name: str, value: ArrayLike, shape: tuple[int, ...], n: int) -> FloatArray:
+    """A rotation or translation as float64, refused unless of ``shape`` or ``(n, *shape)``."""
+    try:
+        a: FloatArray | None = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        a = None
+    if a is None or a.shape not in (shape, (n, *shape)):
+        want = " or ".join(str(s) for s in (shape, (n, *shape)))
+        got = "values that are not numbers" if a is None else str(a.shape)
+        raise ValueError(f"batch_pose_geometry: {name} must be {want}, got {got}")
+    return a

@@ -209,6 +209,26 @@ def test_the_two_dtypes_in_any_spelling() -> None:
             np.testing.assert_array_equal(got, want)
 
 
+def test_a_translation_alone_moves_the_keypoints() -> None:
+    """No rotation is the identity: the translation was dropped without one."""
+    poses = _random_poses(np.random.default_rng(6), 4)
+    world = body.pose_geometry(poses, SHAPE)
+    shift = np.array([0.0, 0.0, 1000.0])
+    per_pose = np.arange(12.0).reshape(4, 3)
+    for t in (shift, per_pose):
+        got = batch_pose_geometry(poses, SHAPE, translation=t)
+        np.testing.assert_array_equal(got, batch_pose_geometry(poses, SHAPE, np.eye(3), t))
+        np.testing.assert_allclose(got[:, :15], world[:, :15] + np.reshape(t, (-1, 1, 3)))
+        np.testing.assert_array_equal(got[:, 15:], world[:, 15:])  # axes are not moved
+    np.testing.assert_array_equal(
+        single_pose_geometry(poses[0], SHAPE, translation=shift),
+        single_pose_geometry(poses[0], SHAPE, np.eye(3), shift),
+    )
+    for bad in (np.zeros(2), np.zeros((4, 2)), "abc"):
+        with pytest.raises(ValueError, match=r"translation must be \(3,\) or \(4, 3\)"):
+            batch_pose_geometry(poses, SHAPE, translation=bad)
+
+
 def test_mutation_a_wrong_sign_is_caught() -> None:
     """The oracle would see a knee bent forward (the check is not vacuous)."""
     pose = body.standing_pose(SHAPE)
