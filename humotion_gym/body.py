@@ -42,6 +42,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from humotion_gym import _compiled
+from humotion_gym.checks import is_real
 
 FloatArray = NDArray[np.float64]
 
@@ -201,6 +202,24 @@ SHAPE_VECTOR_SIZE = len(_SHAPE_SCALARS) + 2 * N_CONES + N_CONES
 SHAPE_TABLE_SIZE = _compiled.SHAPE_TABLE_SIZE
 
 
+def _positive_array(name: str, value: ArrayLike, shape: tuple[int, ...]) -> FloatArray:
+    """A shape's ``radii`` or ``aspect`` as float64, refused unless of ``shape``, finite, > 0.
+
+    A NaN or infinite entry would pass a plain ``> 0`` test (or fail it
+    silently) and leave a cone that the renderer cannot draw.
+    """
+    try:
+        a: FloatArray | None = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        a = None
+    if a is None or a.shape != shape:
+        got = "values that are not numbers" if a is None else str(a.shape)
+        raise ValueError(f"BodyShape.{name}: expected shape {shape}, got {got}")
+    if not np.all(np.isfinite(a) & (a > 0)):
+        raise ValueError(f"BodyShape: {name} must be finite and positive, got {a.tolist()}")
+    return a
+
+
 # The last shape BodyShape.from_vector made, by its class and vector, per process.
 _LAST_SHAPE: dict[str, tuple[tuple[type, bytes], Any]] = {}
 
@@ -231,6 +250,11 @@ class BodyShape:
             proximal and distal end.
         aspect: ``(10,)`` depth-to-width ratio of each cone's cross-section
             (1 for round limbs; the torso is flatter front to back).
+
+    Raises:
+        ValueError: If a length is not a finite number (the five limb and head
+            lengths not positive), or ``radii`` or ``aspect`` is not of its
+            shape with every entry finite and positive.
     """
 
     neck_forward: float
@@ -251,20 +275,15 @@ class BodyShape:
     _table: FloatArray = dataclasses.field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        radii = np.array(self.radii, dtype=np.float64)
-        aspect = np.array(self.aspect, dtype=np.float64)
-        if radii.shape != (N_CONES, 2):
-            raise ValueError(f"BodyShape.radii: expected shape (10, 2), got {radii.shape}")
-        if aspect.shape != (N_CONES,):
-            raise ValueError(f"BodyShape.aspect: expected shape (10,), got {aspect.shape}")
-        values = np.array([getattr(self, n) for n in _SHAPE_SCALARS], dtype=np.float64)
-        if not (np.all(np.isfinite(values)) and np.all(np.isfinite(radii))):
-            raise ValueError("BodyShape: every length and radius must be finite")
+        radii = _positive_array("radii", self.radii, (N_CONES, 2))
+        aspect = _positive_array("aspect", self.aspect, (N_CONES,))
+        for name in _SHAPE_SCALARS:
+            value = getattr(self, name)
+            if not (is_real(value) and np.isfinite(value)):
+                raise ValueError(f"BodyShape.{name}: expected a finite number of mm, got {value!r}")
         for name in _SHAPE_SCALARS[8:]:
             if getattr(self, name) <= 0:
                 raise ValueError(f"BodyShape.{name}: expected a positive length in mm")
-        if np.any(radii <= 0) or np.any(aspect <= 0):
-            raise ValueError("BodyShape: radii and aspect ratios must be positive")
         radii.setflags(write=False)
         aspect.setflags(write=False)
         object.__setattr__(self, "radii", radii)
@@ -291,9 +310,15 @@ class BodyShape:
         a new one costs more than reading the rest of the observation.
 
         Raises:
-            ValueError: If the vector does not have ``SHAPE_VECTOR_SIZE`` entries.
+            ValueError: If the vector is not ``SHAPE_VECTOR_SIZE`` numbers, or
+                they are not a valid shape (see :class:`BodyShape`).
         """
-        v = np.asarray(vector, dtype=np.float64).ravel()
+        try:
+            v = np.asarray(vector, dtype=np.float64).ravel()
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"BodyShape.from_vector: expected {SHAPE_VECTOR_SIZE} numbers, got {vector!r:.80}"
+            ) from None
         if v.size != SHAPE_VECTOR_SIZE:
             raise ValueError(
                 f"BodyShape.from_vector: expected {SHAPE_VECTOR_SIZE} numbers, got {v.size}"
@@ -364,9 +389,12 @@ def default_shape(height: float = 1750.0) -> BodyShape:
 
     Returns:
         The shape.
+
+    Raises:
+        ValueError: If ``height`` is not a positive finite number.
     """
-    if not np.isfinite(height) or height <= 0:
-        raise ValueError(f"default_shape: height must be a positive number of mm, got {height}")
+    if not (is_real(height) and np.isfinite(height) and height > 0):
+        raise ValueError(f"default_shape: height must be a positive number of mm, got {height!r}")
     h = height / 1750.0
     radii = np.array(
         [
@@ -493,6 +521,15 @@ def _check_params(params: ArrayLike) -> FloatArray:
     return p
 
 
+def _check_shape(shape: Any) -> None:
+    """Refuse anything but a :class:`BodyShape` before its attributes are read."""
+    if not isinstance(shape, BodyShape):
+        raise TypeError(
+            "shape: expected a BodyShape (e.g. body.default_shape()), "
+            f"got {type(shape).__name__} {shape!r:.60}"
+        )
+
+
 def _check_dtype(where: str, dtype: Any) -> type:
     """``np.float64`` or ``np.float32`` for ``dtype``, refused unless it names one of them.
 
@@ -515,7 +552,11 @@ def shape_table(shape: BodyShape) -> FloatArray:
     hip; :meth:`BodyShape.torso_points`), the head's length, then the upper
     and lower lengths of the right arm, left arm, right leg and left leg.
     Stack several to give each pose of :func:`pose_geometry_of` its own shape.
+
+    Raises:
+        TypeError: If ``shape`` is not a :class:`BodyShape`.
     """
+    _check_shape(shape)
     return shape._table
 
 
@@ -574,9 +615,23 @@ def pose_geometry_of(params: ArrayLike, tables: ArrayLike) -> FloatArray:
 
     Returns:
         ``(N, 35, 3)`` keypoints and cone axes (see :func:`pose_geometry`).
+
+    Raises:
+        ValueError: If the poses are not ``(..., 25)``, or ``tables`` is not
+            ``(24,)``, ``(1, 24)`` or ``(N, 24)`` numbers.
     """
     p = _check_params(params).reshape(-1, N_PARAMS)
-    t = np.asarray(tables, dtype=np.float64).reshape(-1, SHAPE_TABLE_SIZE)
+    try:
+        t: FloatArray | None = np.asarray(tables, dtype=np.float64)
+    except (TypeError, ValueError):
+        t = None
+    if t is None or t.ndim not in (1, 2) or t.shape[-1] != SHAPE_TABLE_SIZE:
+        got = "values that are not numbers" if t is None else f"shape {t.shape}"
+        raise ValueError(
+            f"pose_geometry_of: tables must be ({SHAPE_TABLE_SIZE},) or (N, {SHAPE_TABLE_SIZE}) "
+            f"shape tables (body.shape_table), got {got}"
+        )
+    t = t.reshape(-1, SHAPE_TABLE_SIZE)
     if t.shape[0] not in (1, p.shape[0]):
         raise ValueError(
             f"pose_geometry_of: expected 1 or {p.shape[0]} shape tables, got {t.shape[0]}"
@@ -607,8 +662,10 @@ def pose_geometry(params: ArrayLike, shape: BodyShape, dtype: type = np.float64)
     Raises:
         ValueError: If the last axis of ``params`` is not 25 long, or ``dtype``
             is neither ``np.float64`` nor ``np.float32``.
+        TypeError: If ``shape`` is not a :class:`BodyShape`.
     """
     kind = _check_dtype("pose_geometry", dtype)
+    _check_shape(shape)
     p = _check_params(params)
     out = _geometry(p.reshape(-1, N_PARAMS), shape._table[None], kind)
     return out.reshape(p.shape[:-1] + (_compiled.GEOMETRY_ROWS, 3))
@@ -626,6 +683,7 @@ def forward_kinematics(params: ArrayLike, shape: BodyShape) -> FloatArray:
 
     Raises:
         ValueError: If the last axis of ``params`` is not 25 long.
+        TypeError: If ``shape`` is not a :class:`BodyShape`.
 
     Example:
         >>> import numpy as np
@@ -659,7 +717,12 @@ def cone_geometry(params: ArrayLike, shape: BodyShape) -> ConeGeometry:
 
 
 def standing_pose(shape: BodyShape, yaw: float = 0.0) -> FloatArray:
-    """The rest pose standing on the ground (ankles at z = 0), shape (25,)."""
+    """The rest pose standing on the ground (ankles at z = 0), shape (25,).
+
+    Raises:
+        TypeError: If ``shape`` is not a :class:`BodyShape`.
+    """
+    _check_shape(shape)
     pose = np.zeros(N_PARAMS)
     pose[2] = shape.thigh_length + shape.shin_length - shape.hip_up
     pose[PARAM_INDEX["root_yaw"]] = yaw

@@ -173,3 +173,49 @@ def test_shape_from_the_same_vector_is_the_same_object():
 def test_bad_params_shape_names_what_was_expected():
     with pytest.raises(ValueError, match=r"\(\.\.\., 25\)"):
         forward_kinematics(np.zeros((3, 24)), default_shape())
+
+
+@pytest.mark.parametrize("value", [np.nan, np.inf, -np.inf, 0.0])
+def test_an_aspect_that_is_not_finite_and_positive_is_refused(value):
+    """A NaN aspect passed the ``<= 0`` test and the figure vanished from the frames."""
+    s = default_shape()
+    one = s.aspect.copy()
+    one[3] = value
+    for aspect in (np.full(10, value), one):
+        with pytest.raises(ValueError, match=r"^BodyShape: aspect must be finite and positive"):
+            s.replace(aspect=aspect)
+    bad = s.to_vector()
+    bad[-1] = value
+    with pytest.raises(ValueError, match="aspect must be finite and positive"):
+        BodyShape.from_vector(bad)
+    with pytest.raises(ValueError, match=r"^BodyShape: radii must be finite and positive"):
+        s.replace(radii=np.full((10, 2), value))
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"thigh_length": "430"}, r"^BodyShape.thigh_length: expected a finite number of mm"),
+        ({"hip_up": float("nan")}, r"^BodyShape.hip_up: expected a finite number of mm"),
+        ({"aspect": ["a"] * 10}, r"^BodyShape.aspect: expected shape \(10,\)"),
+        ({"radii": None}, r"^BodyShape.radii: expected shape \(10, 2\)"),
+    ],
+)
+def test_a_shape_field_that_is_not_numbers_is_refused_naming_it(change, message):
+    with pytest.raises(ValueError, match=message):
+        default_shape().replace(**change)
+
+
+@pytest.mark.parametrize("height", ["x", None, "1750", [1750.0], True, float("nan")])
+def test_default_shape_refuses_a_height_that_is_not_a_number(height):
+    with pytest.raises(ValueError, match=r"^default_shape: height must be a positive number"):
+        default_shape(height)
+
+
+def test_default_shape_takes_numpy_numbers():
+    assert default_shape(np.float32(1750.0)) == default_shape(np.int64(1750)) == default_shape()
+
+
+def test_from_vector_refuses_what_is_not_numbers():
+    with pytest.raises(ValueError, match=r"^BodyShape.from_vector: expected 43 numbers"):
+        BodyShape.from_vector("x" * 43)

@@ -229,6 +229,25 @@ def test_a_translation_alone_moves_the_keypoints() -> None:
             batch_pose_geometry(poses, SHAPE, translation=bad)
 
 
+def test_what_is_not_a_shape_or_its_tables_is_refused() -> None:
+    pose = body.standing_pose(SHAPE)
+    for call in (body.forward_kinematics, body.pose_geometry, body.cone_geometry):
+        with pytest.raises(TypeError, match="shape: expected a BodyShape"):
+            call(pose, "x")  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="shape: expected a BodyShape"):
+        body.standing_pose(None)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="shape: expected a BodyShape"):
+        body.shape_table(1750.0)  # type: ignore[arg-type]
+    for tables in (np.zeros(5), np.zeros((2, 2, 24)), np.zeros(48), [["a"] * 24]):
+        with pytest.raises(ValueError, match=r"^pose_geometry_of: tables must be \(24,\) or"):
+            body.pose_geometry_of(pose[None], tables)
+    table = body.shape_table(SHAPE)
+    for tables in (table, table[None]):  # one for all, as documented
+        np.testing.assert_array_equal(
+            body.pose_geometry_of(pose[None], tables)[0], body.pose_geometry(pose, SHAPE)
+        )
+
+
 def test_mutation_a_wrong_sign_is_caught() -> None:
     """The oracle would see a knee bent forward (the check is not vacuous)."""
     pose = body.standing_pose(SHAPE)
