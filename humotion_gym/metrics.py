@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, NoReturn
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -174,7 +174,8 @@ class StepScores(NamedTuple):
         error_aligned_mm: ``(...)`` the mean scored error with the two
             pelvises put together (:func:`aligned_point_errors`).
         terms: ``{"reward_<region>": (...)}`` the reward's share of each region.
-        reward: ``(...)`` the reward, in [0, 1]: the sum of the terms.
+        reward: ``(...)`` the reward, in [0, 1] (to within the last bit,
+            :func:`step_scores`): the sum of the terms.
     """
 
     keypoint_errors: FloatArray
@@ -231,6 +232,25 @@ def _distances(diff: FloatArray) -> FloatArray:
     return np.sqrt(np.einsum("...i,...i->...", diff, diff))
 
 
+_KEYPOINTS = (N_KEYPOINTS, 3)
+
+
+def _refuse_points(estimate_points: Any, truth_points: Any) -> NoReturn:
+    """Raise :func:`step_scores`'s error for keypoints it cannot score, with their shapes."""
+
+    def shape(x: Any) -> str:
+        try:
+            return str(np.shape(x))
+        except ValueError:  # a ragged sequence
+            return "ragged"
+
+    raise ValueError(
+        "step_scores: estimate_points and truth_points must be arrays of numbers of shape "
+        f"(..., {N_KEYPOINTS}, 3) that broadcast together, got shapes "
+        f"{shape(estimate_points)} and {shape(truth_points)}"
+    )
+
+
 def step_scores(
     estimate_points: ArrayLike, truth_points: ArrayLike, scoring: Scoring
 ) -> StepScores:
@@ -240,16 +260,34 @@ def step_scores(
     (1 for a perfect estimate, falling smoothly with the error, never
     negative), split by body region so that the terms add up to it. The
     single environment scores one step, the vector environment N at once.
+    The mean is a sum of shares of ``1 / K`` each, so a perfect estimate's
+    reward is 1 to within the last bit: exactly 1 with every task's
+    scoring, 0.9999999999999999 or 1.0000000000000002 with some others (a
+    correction would cost a pass on every step or move other rewards' bits).
 
     Args:
         estimate_points: ``(..., 15, 3)`` the estimate's keypoints.
-        truth_points: ``(..., 15, 3)`` the true keypoints.
+        truth_points: ``(..., 15, 3)`` the true keypoints (broadcast against
+            the estimate's).
         scoring: The task's :class:`Scoring`.
 
     Returns:
         The :class:`StepScores`.
+
+    Raises:
+        ValueError: If either set of keypoints is not ``(..., 15, 3)``, or
+            they do not broadcast together.
+        TypeError: If ``scoring`` is not a :class:`Scoring`.
     """
-    diff: FloatArray = np.subtract(estimate_points, truth_points, dtype=np.float64)
+    # Shapes only (no pass over the values): this runs at every step.
+    if not isinstance(scoring, Scoring):
+        raise TypeError(f"step_scores: scoring must be a Scoring, got {type(scoring).__name__}")
+    try:
+        diff: FloatArray = np.subtract(estimate_points, truth_points, dtype=np.float64)
+    except (TypeError, ValueError):
+        _refuse_points(estimate_points, truth_points)
+    if np.shape(estimate_points)[-2:] != _KEYPOINTS or np.shape(truth_points)[-2:] != _KEYPOINTS:
+        _refuse_points(estimate_points, truth_points)
     errors = _distances(diff)
     idx = scoring.scored
     k = 1.0 / idx.size
@@ -356,7 +394,8 @@ def update_lost_run(run: ArrayLike, error_mm: ArrayLike, threshold_mm: float) ->
         threshold_mm: The error that counts as off track (strictly above it).
 
     Returns:
-        ``run + 1`` where the error is above the threshold, else 0.
+        ``run + 1`` where the error is above the threshold or NaN (an estimate
+        that has no error is no track), else 0.
 
     Raises:
         ValueError: If ``run`` is not a count >= 0 (for an array: of an
@@ -366,14 +405,17 @@ def update_lost_run(run: ArrayLike, error_mm: ArrayLike, threshold_mm: float) ->
     """
     _check_run(run)
     _check_threshold("update_lost_run", threshold_mm)
-    return np.where(np.asarray(error_mm) > threshold_mm, np.asarray(run, np.intp) + 1, 0)
+    # "Not at or below" rather than "above": a NaN error is off track too.
+    off = ~(np.asarray(error_mm) <= threshold_mm)
+    return np.where(off, np.asarray(run, np.intp) + 1, 0)
 
 
 def lost_track_frame(errors_mm: ArrayLike, threshold_mm: float, patience: int) -> int | None:
     """The first frame of the first run of ``patience`` frames above the threshold.
 
-    Track is lost when the error stays above ``threshold_mm`` for ``patience``
-    consecutive frames; the frame reported is where that run began.
+    Track is lost when the error stays above ``threshold_mm`` (or is NaN: an
+    estimate that has no error is no track) for ``patience`` consecutive
+    frames; the frame reported is where that run began.
 
     Args:
         errors_mm: ``(T,)`` error per frame.
@@ -400,7 +442,7 @@ def lost_track_frame(errors_mm: ArrayLike, threshold_mm: float, patience: int) -
         raise ValueError(
             f"lost_track_frame: errors_mm must be a 1-D sequence of numbers, got {got}"
         )
-    above = errors > threshold_mm
+    above = ~(errors <= threshold_mm)  # NaN counts as above, as in update_lost_run
     if above.size < patience:
         return None
     # Sum of a sliding window of `patience` frames: a full window is a loss.

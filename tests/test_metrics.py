@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
+import humotion_gym  # noqa: F401  (registers the tasks)
 from humotion_gym.body import N_KEYPOINTS, default_shape, forward_kinematics, standing_pose
 from humotion_gym.metrics import (
     Scoring,
@@ -14,6 +16,7 @@ from humotion_gym.metrics import (
     lost_track_frame,
     mean_keypoint_error,
     point_errors,
+    step_scores,
     update_lost_run,
 )
 
@@ -102,6 +105,27 @@ def test_online_run_and_offline_frame_agree(patience):
         assert lost_track_frame(errors, 150.0, patience) == first
 
 
+@pytest.mark.parametrize("patience", [1, 3])
+def test_a_nan_error_is_off_track_in_both_rules(patience):
+    """A NaN error (an estimate with no error is no track) counts as above the threshold."""
+    assert update_lost_run(0, float("nan"), 150.0) == 1
+    assert update_lost_run(4, np.nan, np.inf) == 5
+    np.testing.assert_array_equal(
+        update_lost_run(np.array([2, 2, 2]), np.array([np.nan, 100.0, 200.0]), 150.0), [3, 0, 3]
+    )
+    assert lost_track_frame([np.nan] * 6, 150, 5) == 0
+    assert lost_track_frame([100.0, np.nan, 200.0, np.nan, 100.0], 150.0, 3) == 1
+    rng = np.random.default_rng(10 + patience)
+    for _ in range(100):
+        errors = rng.choice([100.0, np.nan, 200.0], size=int(rng.integers(0, 20)))
+        run, first = 0, None
+        for t, e in enumerate(errors):
+            run = update_lost_run(run, float(e), 150.0)
+            if run >= patience and first is None:
+                first = t - patience + 1
+        assert lost_track_frame(errors, 150.0, patience) == first
+
+
 def test_lost_track_frame_exact_cases():
     assert lost_track_frame([200, 200, 100, 200, 200, 200], 150, 3) == 3
     assert lost_track_frame([150, 150, 150], 150, 1) is None  # strictly above
@@ -155,7 +179,14 @@ def _refused_cases():
     pose = standing_pose(shape)
     pts = np.zeros((N_KEYPOINTS, 3))
     regions = [("reward_a", [0, 1])]
+    scoring = Scoring.of([9, 10, 11], [("reward_a", [0, 1, 2])], 80.0)
     cases = [
+        (lambda: step_scores(pts, np.zeros((14, 3)), scoring), r"\(15, 3\) and \(14, 3\)"),
+        (lambda: step_scores(np.zeros((3, 3)), np.zeros((3, 3)), scoring), "estimate_points"),
+        (lambda: step_scores(pts, np.zeros(3), scoring), "truth_points"),
+        (lambda: step_scores(np.zeros((2, 15, 3)), np.zeros((3, 15, 3)), scoring), "broadcast"),
+        (lambda: step_scores(pts, [["a", "b", "c"]] * 15, scoring), "arrays of numbers"),
+        (lambda: step_scores(pts, [[1.0, 2.0, 3.0], [1.0]], scoring), "ragged"),
         *(
             (lambda kp=kp: mean_keypoint_error(pose, pose, shape, keypoints=kp), "keypoints")
             for kp in ([-1], [99], [], [0.5], ["pelvis"], [True], 3, [[0, 1]])
@@ -204,6 +235,23 @@ def test_bad_input_is_refused_naming_the_argument(call, argument) -> None:
     with pytest.raises(ValueError, match=argument) as refused:
         call()
     assert str(refused.value).startswith(call.__code__.co_names[0])  # the function called
+
+
+def test_step_scores_refuses_a_scoring_that_is_not_one() -> None:
+    pts = np.zeros((N_KEYPOINTS, 3))
+    with pytest.raises(TypeError, match="^step_scores: scoring must be a Scoring"):
+        step_scores(pts, pts, [0, 1])
+
+
+@pytest.mark.filterwarnings("ignore::DeprecationWarning")  # the v1 tasks
+@pytest.mark.parametrize("task", sorted(k for k in gym.registry if k.startswith("humotion_gym/")))
+def test_a_perfect_estimate_scores_exactly_1_with_every_task(task) -> None:
+    """What step_scores' docstring says: exactly 1 with the tasks' scorings (other
+    scorings may be one bit off, a sum of K shares of 1/K)."""
+    env = gym.make(task).unwrapped
+    pts = np.random.default_rng(0).normal(0.0, 500.0, (N_KEYPOINTS, 3))
+    assert float(step_scores(pts, pts, env._scoring).reward) == 1.0
+    env.close()
 
 
 def test_the_checks_keep_the_documented_inputs() -> None:
