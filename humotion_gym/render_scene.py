@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from humotion_gym.body import CONE_NAMES, N_CONES
-from humotion_gym.checks import is_count, is_integer
+from humotion_gym.checks import is_count, is_integer, is_real
 
 Color = tuple[int, int, int]
 
@@ -162,7 +162,7 @@ class SceneOptions:
         occluders: Number of bars and blobs that sweep across the image in
             front of the figure, through its middle third (default 0).
         occluder_period: Frames an occluder takes to cross the image (default
-            150, five seconds at 30 fps).
+            150, five seconds at 30 fps; a finite number >= 1).
         figure_colors: RGB colour of each cone in ``body.CONE_NAMES`` order
             (default :data:`DEFAULT_FIGURE_COLORS`).
         palette: A name in :data:`FIGURE_PALETTES` (``"v1"``, ``"shaded"``,
@@ -215,17 +215,17 @@ class SceneOptions:
             raise ValueError(
                 f"SceneOptions: image size must be between {w0}x{h0} and {w1}x{h1}, got {w}x{h}"
             )
-        if self.color not in ("rgb", "gray"):
+        if not (isinstance(self.color, str) and self.color in ("rgb", "gray")):
             raise ValueError(f"SceneOptions.color: expected 'rgb' or 'gray', got {self.color!r}")
-        if self.background not in ("flat", "clutter"):
+        if not (isinstance(self.background, str) and self.background in ("flat", "clutter")):
             raise ValueError(
                 f"SceneOptions.background: expected 'flat' or 'clutter', got {self.background!r}"
             )
         for name in ("clutter_density", "noise_sigma", "blur_sigma", "ambient", "diffuse"):
             value, top = getattr(self, name), SCENE_MAXIMA[name]
-            if not (math.isfinite(value) and 0 <= value <= top):
+            if not (is_real(value) and math.isfinite(value) and 0 <= value <= top):
                 raise ValueError(
-                    f"SceneOptions.{name}: expected a number in [0, {top:g}], got {value}"
+                    f"SceneOptions.{name}: expected a number in [0, {top:g}], got {value!r}"
                 )
         for name, low in (("occluders", 0), ("shading_strips", 1)):
             value, top = getattr(self, name), int(SCENE_MAXIMA[name])
@@ -233,10 +233,16 @@ class SceneOptions:
                 raise ValueError(
                     f"SceneOptions.{name}: expected an integer in [{low}, {top}], got {value!r}"
                 )
-        if not self.occluder_period > 0:
-            raise ValueError("SceneOptions.occluder_period: expected a positive number of frames")
+        period = self.occluder_period
+        # Under a frame the occluders' speed (the image's diagonal per period)
+        # overflows: a crossing quicker than a frame is never seen moving.
+        if not (is_real(period) and math.isfinite(period) and period >= 1):
+            raise ValueError(
+                f"SceneOptions.occluder_period: expected a finite number of frames >= 1, "
+                f"got {period!r}"
+            )
         if self.palette is not None:
-            if self.palette not in FIGURE_PALETTES:
+            if not (isinstance(self.palette, str) and self.palette in FIGURE_PALETTES):
                 raise ValueError(
                     f"SceneOptions.palette: expected one of {sorted(FIGURE_PALETTES)} or None, "
                     f"got {self.palette!r}"
@@ -244,15 +250,29 @@ class SceneOptions:
             object.__setattr__(self, "figure_colors", FIGURE_PALETTES[self.palette])
         if not isinstance(self.floor, (bool, np.bool_)):
             raise ValueError(f"SceneOptions.floor: expected a bool, got {self.floor!r}")
-        colors = np.asarray(self.figure_colors)
-        if colors.shape != (N_CONES, 3) or colors.min() < 0 or colors.max() > 255:
-            raise ValueError("SceneOptions.figure_colors: expected 10 RGB triples in [0, 255]")
-        bg = np.asarray(self.background_color)
-        if bg.shape != (3,) or bg.min() < 0 or bg.max() > 255:
-            raise ValueError("SceneOptions.background_color: expected an RGB triple in [0, 255]")
-        light = np.asarray(self.light_direction, dtype=np.float64)
-        if light.shape != (3,) or not np.all(np.isfinite(light)) or np.linalg.norm(light) == 0:
-            raise ValueError("SceneOptions.light_direction: expected a non-zero 3-vector")
+        colors = _numbers(self.figure_colors, "iu")
+        if colors is None or colors.shape != (N_CONES, 3) or colors.min() < 0 or colors.max() > 255:
+            raise ValueError(
+                f"SceneOptions.figure_colors: expected {N_CONES} RGB triples of integers in "
+                f"[0, 255], got {self.figure_colors!r}"
+            )
+        bg = _numbers(self.background_color, "iu")
+        if bg is None or bg.shape != (3,) or bg.min() < 0 or bg.max() > 255:
+            raise ValueError(
+                "SceneOptions.background_color: expected an RGB triple of integers in [0, 255], "
+                f"got {self.background_color!r}"
+            )
+        light = _numbers(self.light_direction, "iuf")
+        if (
+            light is None
+            or light.shape != (3,)
+            or not np.all(np.isfinite(light))
+            or np.linalg.norm(light) == 0
+        ):
+            raise ValueError(
+                "SceneOptions.light_direction: expected a non-zero vector of 3 finite numbers, "
+                f"got {self.light_direction!r}"
+            )
         object.__setattr__(self, "figure_colors", tuple(tuple(int(v) for v in c) for c in colors))
         object.__setattr__(self, "background_color", tuple(int(v) for v in bg))
         object.__setattr__(self, "light_direction", tuple(float(v) for v in light))
@@ -301,6 +321,20 @@ class Background:
     occluders: NDArray[np.float64]
     occluder_colors: NDArray[np.uint8]
     noise: NDArray[np.uint8] = field(repr=False)
+
+
+def _numbers(value: Any, kinds: str) -> NDArray[Any] | None:
+    """``value`` as an array if it holds numbers of numpy's dtype ``kinds`` alone, else None.
+
+    ``kinds`` is a string of dtype kinds (``"i"`` and ``"u"`` integers, ``"f"``
+    floats): text, bools and ragged nestings give None, where a conversion to
+    float would read ``"5"`` as 5 or raise in numpy's words.
+    """
+    try:
+        array = np.asarray(value)
+    except (TypeError, ValueError):  # a ragged nesting
+        return None
+    return array if array.dtype.kind in kinds else None
 
 
 def _to_channels(rgb: ArrayLike, channels: int) -> NDArray[np.float64]:

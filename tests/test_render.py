@@ -260,6 +260,31 @@ def test_bad_inputs_raise() -> None:
         SceneOptions(width=True)  # a bool is no size (True would be read as 1)
 
 
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        # an infinite period was taken, then make_background failed in numpy
+        ({"occluders": 2, "occluder_period": float("inf")}, "occluder_period: expected a finite"),
+        ({"occluder_period": "5"}, "occluder_period: expected a finite number of frames >= 1"),
+        ({"occluder_period": 0.5}, "occluder_period: expected a finite number of frames >= 1"),
+        ({"noise_sigma": "4"}, r"noise_sigma: expected a number in \[0, 255\], got '4'"),
+        ({"clutter_density": "1"}, r"clutter_density: expected a number in \[0, 16\], got '1'"),
+        ({"blur_sigma": True}, "blur_sigma: expected a number"),
+        ({"ambient": float("nan")}, "ambient: expected a number"),
+        ({"color": ["rgb"]}, "color: expected 'rgb' or 'gray'"),
+        ({"palette": ["v1"]}, "palette: expected one of"),
+        ({"background_color": ("1", "2", "3")}, "background_color: expected an RGB triple"),
+        ({"background_color": (150.5, 150, 145)}, "background_color: expected an RGB triple"),
+        ({"figure_colors": ((1, 2, 3),) * 9 + ((1, 2),)}, "figure_colors: expected 10 RGB"),
+        ({"light_direction": ("1", "2", "3")}, "light_direction: expected a non-zero vector"),
+        ({"light_direction": (1.0, 2.0)}, "light_direction: expected a non-zero vector"),
+    ],
+)
+def test_scene_options_name_the_field_they_cannot_take(kwargs: dict, message: str) -> None:
+    with pytest.raises(ValueError, match=f"SceneOptions.{message}"):
+        SceneOptions(**kwargs)
+
+
 def test_pose_behind_the_camera_is_not_drawn() -> None:
     scene = SceneOptions(background="flat", noise_sigma=0.0)
     pose = _pose()
