@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from humotion_gym.checks import is_count, is_integer
+from humotion_gym.checks import check_at_least_zero, check_positive, is_count, is_integer, is_real
 
 FloatArray = NDArray[np.float64]
 
@@ -36,12 +36,25 @@ _WORLD_UP = (0.0, 0.0, 1.0)
 
 
 def _check_size(width: int, height: int, fov_deg: float, where: str) -> None:
+    """Refuse an image size or field of view a camera cannot have, naming ``where``."""
     if not (is_integer(width) and is_integer(height)):  # a bool is no size
         raise ValueError(f"{where}: width and height must be integers, got {width!r}, {height!r}")
-    if width <= 0 or height <= 0:
-        raise ValueError(f"{where}: image size must be positive, got {width}x{height}")
-    if not (math.isfinite(fov_deg) and 1.0 < fov_deg < 179.0):
-        raise ValueError(f"{where}: fov_deg must lie in (1, 179) degrees, got {fov_deg}")
+    # One pixel has no half-width from its centre to the border: fit_camera
+    # would divide by zero.
+    if width < 2 or height < 2:
+        raise ValueError(
+            f"{where}: width and height must be at least 2 pixels, got {width}x{height}"
+        )
+    if not (is_real(fov_deg) and math.isfinite(fov_deg) and 1.0 < fov_deg < 179.0):
+        raise ValueError(f"{where}: fov_deg must be a number in (1, 179) degrees, got {fov_deg!r}")
+
+
+def _point(value: ArrayLike, name: str, where: str) -> FloatArray:
+    """``value`` as a ``(3,)`` float array, or an error naming ``where`` and ``name``."""
+    try:
+        return np.asarray(value, dtype=np.float64).reshape(3)
+    except (TypeError, ValueError):  # another size, or no numbers
+        raise ValueError(f"{where}: {name} must be 3 numbers, got {value!r}") from None
 
 
 #: Length of :meth:`Camera.to_vector`.
@@ -53,8 +66,8 @@ class Camera:
     """A pinhole camera with square pixels and the principal point at the centre.
 
     Attributes:
-        width: Image width in pixels.
-        height: Image height in pixels.
+        width: Image width in pixels (>= 2).
+        height: Image height in pixels (>= 2).
         fov_deg: Vertical field of view in degrees, in (1, 179).
         rotation: ``(3, 3)`` rotation from world to camera directions (its rows are
             the camera's ``x``, ``y``, ``z`` axes written in the world frame).
@@ -68,7 +81,7 @@ class Camera:
     position: FloatArray
 
     def __post_init__(self) -> None:
-        _check_size(self.width, self.height, float(self.fov_deg), "Camera")
+        _check_size(self.width, self.height, self.fov_deg, "Camera")
         rot = np.array(self.rotation, dtype=np.float64)
         pos = np.array(self.position, dtype=np.float64)
         if rot.shape != (3, 3) or not np.all(np.isfinite(rot)):
@@ -119,14 +132,16 @@ class Camera:
 
         Raises:
             ValueError: If the vector does not hold 13 finite numbers or its
-                rotation is not one.
+                rotation is not one, or the size is not two integers >= 2.
         """
         v = np.asarray(vector, dtype=np.float64).ravel()
         if v.size != CAMERA_VECTOR_SIZE:
             raise ValueError(
                 f"Camera.from_vector: expected {CAMERA_VECTOR_SIZE} numbers, got {v.size}"
             )
-        return cls(int(width), int(height), float(v[0]), v[1:10].reshape(3, 3), v[10:13])
+        # the size as given: int() would cut a width of 128.7 to 128 and read "12" as 12
+        _check_size(width, height, float(v[0]), "Camera.from_vector")
+        return cls(width, height, float(v[0]), v[1:10].reshape(3, 3), v[10:13])
 
     # -- constructors -----------------------------------------------------
 
@@ -158,11 +173,12 @@ class Camera:
             The camera.
 
         Raises:
-            ValueError: If ``eye == target``, the size is not positive, the field
+            ValueError: If ``eye``, ``target`` or ``up`` is not 3 numbers,
+                ``eye == target``, the size is not two integers >= 2, the field
                 of view is outside (1, 179) or ``up`` is zero.
         """
-        _check_size(width, height, float(fov_deg), "Camera.look_at")
-        eye_v = np.asarray(eye, dtype=np.float64).reshape(3)
+        _check_size(width, height, fov_deg, "Camera.look_at")
+        eye_v = _point(eye, "eye", "Camera.look_at")
         rotation = _look_at_rotation(eye_v, target, up, "Camera.look_at")
         eye_v = eye_v.copy()  # the camera's own, read-only
         eye_v.setflags(write=False)
@@ -322,14 +338,14 @@ def _look_at_rotation(eye: ArrayLike, target: ArrayLike, up: ArrayLike, where: s
             finite, or ``up`` is zero.
     """
     # Three-vectors on Python floats: numpy's per-call cost would dominate.
-    ex, ey, ez = np.asarray(eye, dtype=np.float64).reshape(3).tolist()
-    tx, ty, tz = np.asarray(target, dtype=np.float64).reshape(3).tolist()
+    ex, ey, ez = _point(eye, "eye", where).tolist()
+    tx, ty, tz = _point(target, "target", where).tolist()
     forward = (tx - ex, ty - ey, tz - ez)
     dist = math.hypot(*forward)
     if not math.isfinite(dist) or dist < 1e-9:
         raise ValueError(f"{where}: eye and target must be distinct finite points")
     forward = (forward[0] / dist, forward[1] / dist, forward[2] / dist)
-    up_v = tuple(np.asarray(up, dtype=np.float64).reshape(3).tolist())
+    up_v = tuple(_point(up, "up", where).tolist())
     up_norm = math.hypot(*up_v)
     if not math.isfinite(up_norm) or up_norm < 1e-12:
         raise ValueError(f"{where}: up must be a non-zero finite vector")
@@ -411,23 +427,26 @@ def fit_camera(
     Args:
         keypoints: ``(..., 3)`` points to keep in view, e.g. a clip's keypoints
             ``(T, 15, 3)`` in mm.
-        width: Image width in pixels.
-        height: Image height in pixels.
+        width: Image width in pixels (>= 2).
+        height: Image height in pixels (>= 2).
         fov_deg: Vertical field of view in degrees, in (1, 179).
-        azimuth_deg: Viewing azimuth (see :func:`view_direction`).
+        azimuth_deg: Viewing azimuth (see :func:`view_direction`), finite.
         elevation_deg: Viewing elevation in degrees, in [-89, 89].
         margin: Fraction of the image's half-size left free at each border, in
             [0, 0.9].
-        pad_mm: Radius added around every point, mm (>= 0).
-        min_distance_mm: The camera never stands closer to the target than this.
+        pad_mm: Radius added around every point, mm (finite, >= 0).
+        min_distance_mm: The camera never stands closer to the target than this
+            (finite, > 0).
 
     Returns:
         The camera.
 
     Raises:
-        ValueError: For bad sizes, field of view, margin, elevation or points.
+        ValueError: Naming the argument, for a size under 2x2, a field of view,
+            margin, elevation, azimuth, pad or distance out of range or not a
+            finite number, or points that are not all finite.
     """
-    _check_size(width, height, float(fov_deg), "fit_camera")
+    _check_size(width, height, fov_deg, "fit_camera")
     pts = _check_points(keypoints, "fit_camera").reshape(-1, 3)
     if pts.shape[0] == 0:
         raise ValueError("fit_camera: expected at least one point, all finite")
@@ -439,12 +458,10 @@ def fit_camera(
     # infinite: six numbers tell whether every point is finite.
     if not all(math.isfinite(v) for v in lo.tolist() + hi.tolist()):
         raise ValueError("fit_camera: expected at least one point, all finite")
-    if not 0.0 <= margin <= 0.9:
-        raise ValueError(f"fit_camera: margin must lie in [0, 0.9], got {margin}")
-    if not -89.0 <= elevation_deg <= 89.0:
-        raise ValueError(f"fit_camera: elevation_deg must lie in [-89, 89], got {elevation_deg}")
-    if not (pad_mm >= 0.0 and min_distance_mm > 0.0):
-        raise ValueError("fit_camera: pad_mm must be >= 0 and min_distance_mm > 0")
+    if not (is_real(azimuth_deg) and math.isfinite(azimuth_deg)):
+        raise ValueError(f"fit_camera: azimuth_deg must be a finite number, got {azimuth_deg!r}")
+    check_at_least_zero("fit_camera: pad_mm", pad_mm)
+    _check_view("fit_camera", elevation_deg, margin, min_distance_mm)
     return _fit_sets(
         pts[None], 0.5 * (lo + hi)[None], (width, height, fov_deg), [azimuth_deg],
         elevation_deg, margin, [pad_mm], min_distance_mm, "fit_camera",
@@ -487,30 +504,32 @@ def fit_cameras(
         ..., pads_mm[j])``.
 
     Raises:
-        ValueError: For bad sizes, field of view, margin, elevation, points,
-            azimuths or pads.
+        ValueError: Naming the argument, as :func:`fit_camera` does, or for
+            azimuths or pads neither one number nor E.
     """
-    _check_size(width, height, float(fov_deg), "fit_cameras")
+    _check_size(width, height, fov_deg, "fit_cameras")
     pts = _check_points(points, "fit_cameras")
     if pts.ndim != 3 or pts.shape[1] == 0:
         raise ValueError(f"fit_cameras: expected points of shape (E, M > 0, 3), got {pts.shape}")
     n = pts.shape[0]
     try:
-        azimuths = np.broadcast_to(np.asarray(azimuths_deg, np.float64), (n,)).tolist()
-        pads = np.broadcast_to(np.asarray(pads_mm, np.float64), (n,)).tolist()
+        azimuth_array = np.broadcast_to(np.asarray(azimuths_deg), (n,))
+        pad_array = np.broadcast_to(np.asarray(pads_mm), (n,))
     except ValueError:
         raise ValueError(
             f"fit_cameras: azimuths_deg and pads_mm must be one number or {n}, got shapes "
             f"{np.shape(azimuths_deg)} and {np.shape(pads_mm)}"
         ) from None
-    if not all(math.isfinite(a) for a in azimuths):
-        raise ValueError("fit_cameras: azimuths_deg must be finite")
-    if not 0.0 <= margin <= 0.9:
-        raise ValueError(f"fit_cameras: margin must lie in [0, 0.9], got {margin}")
-    if not -89.0 <= elevation_deg <= 89.0:
-        raise ValueError(f"fit_cameras: elevation_deg must lie in [-89, 89], got {elevation_deg}")
-    if not (all(pad >= 0.0 for pad in pads) and min_distance_mm > 0.0):
-        raise ValueError("fit_cameras: pads_mm must be >= 0 and min_distance_mm > 0")
+    # numbers alone (a conversion to float would read the text "5" as 5), as floats
+    azimuths = (
+        azimuth_array.astype(np.float64).tolist() if azimuth_array.dtype.kind in "iuf" else []
+    )
+    pads = pad_array.astype(np.float64).tolist() if pad_array.dtype.kind in "iuf" else []
+    if len(azimuths) != n or not all(math.isfinite(a) for a in azimuths):
+        raise ValueError(f"fit_cameras: azimuths_deg must be finite numbers, got {azimuths_deg!r}")
+    if len(pads) != n or not all(math.isfinite(pad) and pad >= 0.0 for pad in pads):
+        raise ValueError(f"fit_cameras: pads_mm must be finite numbers >= 0, got {pads_mm!r}")
+    _check_view("fit_cameras", elevation_deg, margin, min_distance_mm)
     if n == 0:
         return []
     columns = np.ascontiguousarray(pts.transpose(0, 2, 1))
@@ -521,6 +540,15 @@ def fit_cameras(
         pts, 0.5 * (lo + hi), (width, height, fov_deg), azimuths, elevation_deg, margin, pads,
         min_distance_mm, "fit_cameras",
     )  # fmt: skip
+
+
+def _check_view(where: str, elevation_deg: float, margin: float, min_distance_mm: float) -> None:
+    """Refuse the viewing arguments :func:`fit_camera` and :func:`fit_cameras` share."""
+    if not (is_real(margin) and 0.0 <= margin <= 0.9):
+        raise ValueError(f"{where}: margin must lie in [0, 0.9], got {margin!r}")
+    if not (is_real(elevation_deg) and -89.0 <= elevation_deg <= 89.0):
+        raise ValueError(f"{where}: elevation_deg must lie in [-89, 89], got {elevation_deg!r}")
+    check_positive(f"{where}: min_distance_mm", min_distance_mm)
 
 
 def _fit_sets(

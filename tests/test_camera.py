@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import cv2
 import numpy as np
@@ -175,8 +176,12 @@ def test_fit_camera_looks_along_the_view_direction_from_the_fitted_distance() ->
     ("args", "match"),
     [
         (((0, 0, 0), (0, 0, 0), 64, 64, 50.0), "distinct"),
-        (((0, 0, 0), (0, 1, 0), 0, 64, 50.0), "positive"),
-        (((0, 0, 0), (0, 1, 0), 64, -1, 50.0), "positive"),
+        (((0, 0, 0), (0, 1, 0), 0, 64, 50.0), "at least 2 pixels, got 0x64"),
+        (((0, 0, 0), (0, 1, 0), 64, -1, 50.0), "at least 2 pixels"),
+        (((0, 0, 0), (0, 1, 0), 1, 64, 50.0), "at least 2 pixels, got 1x64"),  # no half-width
+        (((0, 0), (0, 1, 0), 64, 64, 50.0), r"eye must be 3 numbers, got \(0, 0\)"),
+        (((0, 0, 0), (0, 1), 64, 64, 50.0), "target must be 3 numbers"),
+        (((0, 0, 0), (0, 1, 0), 64, 64, "50"), "fov_deg must be a number"),
         (((0, 0, 0), (0, 1, 0), 64, 64, 0.5), "fov"),
         (((0, 0, 0), (0, 1, 0), 64, 64, 179.0), "fov"),
         (((0, 0, 0), (0, 1, 0), 64.5, 64, 50.0), "integers"),
@@ -346,10 +351,16 @@ def test_fit_cameras_bad_arguments() -> None:
         fit_cameras(points, 64, 64, 50.0, [0.0, 1.0])
     with pytest.raises(ValueError, match="one number or 3"):
         fit_cameras(points, 64, 64, 50.0, 0.0, pads_mm=[1.0, 2.0])
-    with pytest.raises(ValueError, match="azimuths_deg must be finite"):
+    with pytest.raises(ValueError, match="azimuths_deg must be finite numbers"):
         fit_cameras(points, 64, 64, 50.0, [0.0, np.nan, 1.0])
-    with pytest.raises(ValueError, match="pads_mm must be >= 0"):
+    with pytest.raises(ValueError, match="azimuths_deg must be finite numbers"):
+        fit_cameras(points, 64, 64, 50.0, ["5", "6", "7"])  # not read as numbers
+    with pytest.raises(ValueError, match="pads_mm must be finite numbers >= 0"):
         fit_cameras(points, 64, 64, 50.0, 0.0, pads_mm=[1.0, -1.0, 2.0])
+    with pytest.raises(ValueError, match="pads_mm must be finite numbers >= 0"):
+        fit_cameras(points, 64, 64, 50.0, 0.0, pads_mm=np.inf)
+    with pytest.raises(ValueError, match="fit_cameras: min_distance_mm: expected a positive"):
+        fit_cameras(points, 64, 64, 50.0, 0.0, min_distance_mm=np.nan)
     with pytest.raises(ValueError, match="margin"):
         fit_cameras(points, 64, 64, 50.0, 0.0, margin=0.95)
     with pytest.raises(ValueError, match="elevation"):
@@ -361,3 +372,40 @@ def test_fit_cameras_bad_arguments() -> None:
         broken[2, 11, 1] = bad
         with pytest.raises(ValueError, match="finite"):
             fit_cameras(broken, 64, 64, 50.0, 0.0)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        # each failed as "Camera.look_at: eye and target must be distinct finite
+        # points", arguments the caller never gave (a width of 1 dividing by 0)
+        ({"width": 1}, "width and height must be at least 2 pixels, got 1x64"),
+        ({"height": 1}, "width and height must be at least 2 pixels, got 64x1"),
+        ({"azimuth_deg": float("nan")}, "azimuth_deg must be a finite number, got nan"),
+        ({"azimuth_deg": "30"}, "azimuth_deg must be a finite number, got '30'"),
+        ({"min_distance_mm": float("inf")}, "min_distance_mm: expected a positive finite"),
+        ({"min_distance_mm": 0.0}, "min_distance_mm: expected a positive finite"),
+        ({"pad_mm": float("inf")}, "pad_mm: expected a finite number >= 0, got inf"),
+        ({"pad_mm": -1.0}, "pad_mm: expected a finite number >= 0"),
+        ({"elevation_deg": "10"}, r"elevation_deg must lie in \[-89, 89\], got '10'"),
+        ({"margin": "0.1"}, r"margin must lie in \[0, 0.9\], got '0.1'"),
+    ],
+)
+def test_fit_camera_names_the_argument_it_cannot_take(kwargs: dict, message: str) -> None:
+    arguments = {"width": 64, "height": 64, "fov_deg": 50.0} | kwargs
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no division by zero on the way
+        with pytest.raises(ValueError, match=f"^fit_camera: {message}"):
+            fit_camera(_walk_clip(steps=3), **arguments)
+
+
+def test_from_vector_takes_the_size_as_given() -> None:
+    camera = _camera()
+    vector = camera.to_vector()
+    assert Camera.from_vector(vector, np.int64(160), 120) == camera
+    # int() cut 160.7 to 160 and read "12" as 12
+    for width in (160.7, "12", True):
+        with pytest.raises(ValueError, match="Camera.from_vector: width and height must be"):
+            Camera.from_vector(vector, width, 120)
+    with pytest.raises(ValueError, match="at least 2 pixels"):
+        Camera.from_vector(vector, 1, 120)
