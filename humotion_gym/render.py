@@ -43,6 +43,7 @@ from numpy.typing import ArrayLike, NDArray
 from humotion_gym import _compiled, body
 from humotion_gym.body import CONE_KEYPOINTS, N_CONES, N_KEYPOINTS, BodyShape
 from humotion_gym.camera import Camera
+from humotion_gym.checks import is_integer
 from humotion_gym.kinematics import batch_pose_geometry, single_pose_geometry
 from humotion_gym.render_scene import (
     _ELLIPSE_POINTS,
@@ -75,6 +76,8 @@ __all__ = [
 ]
 
 _SHIFT = 4  # fixed-point bits for sub-pixel polygon vertices
+
+_MAX_THICKNESS = 32767  # OpenCV's largest line thickness
 
 _ONE = float(1 << _SHIFT)
 #: The skeleton's edges as rows of keypoint pairs (one fancy index draws them all).
@@ -546,7 +549,7 @@ def render_frame(
         ValueError: If ``t`` is out of range or the background was made for
             other scene options.
     """
-    if not (isinstance(t, (int, np.integer)) and 0 <= t < len(figures)):
+    if not (is_integer(t) and 0 <= t < len(figures)):  # a bool is no frame
         raise ValueError(f"render_frame: t must be an integer in [0, {len(figures)}), got {t!r}")
     return _compose(
         figures, int(t), rng, background, t if frame_index is None else frame_index, "render_frame"
@@ -608,6 +611,25 @@ def gaussian_blur(img: NDArray[Any], sigma: float, dst: NDArray[Any] | None = No
     return cv2.GaussianBlur(img, (0, 0), sigma, dst=dst)
 
 
+def _rgb(color: Any) -> Color:
+    """``color`` as a tuple of three ints, refused unless three integers in [0, 255].
+
+    OpenCV would saturate a channel out of range, or fail in its own words.
+    """
+    try:
+        r, g, b = color
+    except (TypeError, ValueError):  # not three things
+        r = g = b = None
+    # unrolled: this runs on every frame an environment renders
+    if not (is_integer(r) and is_integer(g) and is_integer(b)) or not (
+        0 <= r <= 255 and 0 <= g <= 255 and 0 <= b <= 255
+    ):
+        raise ValueError(
+            f"draw_pose_overlay: color must be three integers in [0, 255], got {color!r}"
+        )
+    return (int(r), int(g), int(b))
+
+
 def draw_pose_overlay(
     frame: ArrayLike,
     params: ArrayLike,
@@ -624,9 +646,9 @@ def draw_pose_overlay(
         params: ``(25,)`` pose to draw.
         shape: The subject's shape.
         camera: The frame's camera.
-        color: RGB colour of the figure.
-        thickness: Line thickness in pixels (joint dots get a radius of
-            ``thickness + 1``).
+        color: RGB colour of the figure: three integers in [0, 255].
+        thickness: Line thickness in pixels, an integer in [1, 32767] (joint
+            dots get a radius of ``thickness + 1``).
         keypoints: The pose's ``(15, 3)`` world keypoints from
             :func:`~humotion_gym.kinematics.single_pose_geometry`, when the
             caller has them already (the environment scored them in ``step``);
@@ -635,15 +657,30 @@ def draw_pose_overlay(
     Returns:
         An ``(H, W, 3)`` copy of the frame with the figure drawn (single-channel
         frames are converted to three channels so the colour shows).
+
+    Raises:
+        ValueError: Naming the argument, for a frame that is not a uint8 image,
+            a camera made for another frame size, a malformed pose or
+            keypoints, a colour that is not three integers in [0, 255] or a
+            thickness that is not an integer in [1, 32767].
     """
     img = np.asarray(frame)
     if img.ndim == 3 and img.shape[2] == 1:
         img = img[:, :, 0]
     if img.dtype != np.uint8 or img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] != 3):
         raise ValueError(f"draw_pose_overlay: expected a uint8 image, got {img.dtype} {img.shape}")
+    h, w = img.shape[:2]
+    if (camera.width, camera.height) != (w, h):  # its pixels would be another frame's
+        raise ValueError(
+            f"draw_pose_overlay: camera is {camera.width}x{camera.height} but the frame is {w}x{h}"
+        )
+    if not (is_integer(thickness) and 1 <= thickness <= _MAX_THICKNESS):
+        raise ValueError(
+            f"draw_pose_overlay: thickness must be an integer in [1, {_MAX_THICKNESS}], "
+            f"got {thickness!r}"
+        )
+    col = _rgb(color)
     out = cv2.cvtColor(img, cv2.COLOR_GRAY2RGB) if img.ndim == 2 else img.copy()
-    if thickness < 1:
-        raise ValueError("draw_pose_overlay: thickness must be >= 1")
     p = _checked_pose(params, "draw_pose_overlay")
     if keypoints is None:
         kp = single_pose_geometry(p, shape)[:N_KEYPOINTS]
@@ -665,7 +702,6 @@ def draw_pose_overlay(
     px *= _ONE
     points = np.rint(px, out=px).astype(np.int32)
     fixed = points.tolist()
-    col = tuple(int(v) for v in color)
     # Each edge as its own two-point curve: one OpenCV call draws them one after
     # the other exactly as cv2.line would (the same anti-aliased segments, in order).
     edges = _EDGES if every else _EDGES[ok[_EDGES].all(axis=1)]

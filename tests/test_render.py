@@ -285,6 +285,36 @@ def test_scene_options_name_the_field_they_cannot_take(kwargs: dict, message: st
         SceneOptions(**kwargs)
 
 
+def test_overlay_refuses_another_frames_camera_and_bad_colours_or_thickness() -> None:
+    pose = _pose()
+    cam = _camera(SceneOptions(), pose)  # 128x128
+    frame = np.zeros((128, 128, 3), np.uint8)
+    # drawn in the wrong places before: the camera's pixels are another frame's
+    with pytest.raises(ValueError, match="camera is 128x128 but the frame is 64x64"):
+        draw_pose_overlay(np.zeros((64, 64, 3), np.uint8), pose, SHAPE, cam)
+    with pytest.raises(ValueError, match="camera is 128x128 but the frame is 128x64"):
+        draw_pose_overlay(np.zeros((64, 128), np.uint8), pose, SHAPE, cam)
+    for thickness in (2.5, 0, True, 40000):
+        with pytest.raises(ValueError, match=r"thickness must be an integer in \[1, 32767\]"):
+            draw_pose_overlay(frame, pose, SHAPE, cam, thickness=thickness)
+    for color in ("red", (300, -1, 0), (0, 255), 5, (0.5, 0, 0)):
+        with pytest.raises(ValueError, match=r"color must be three integers in \[0, 255\]"):
+            draw_pose_overlay(frame, pose, SHAPE, cam, color=color)
+    numpy_color = draw_pose_overlay(frame, pose, SHAPE, cam, np.array([0, 255, 0], np.uint8))
+    np.testing.assert_array_equal(numpy_color, draw_pose_overlay(frame, pose, SHAPE, cam))
+
+
+def test_render_frame_takes_no_bool_for_a_frame() -> None:
+    scene = SceneOptions()
+    pose = _pose()
+    figures = figure_sequence(np.stack([pose, pose]), SHAPE, _camera(scene, pose), scene)
+    rng = np.random.default_rng(0)
+    background = make_background(scene, rng)
+    with pytest.raises(ValueError, match=r"t must be an integer in \[0, 2\), got True"):
+        render_frame(figures, True, rng, background)  # was frame 1
+    assert render_frame(figures, np.int64(1), rng, background).shape == (128, 128, 3)
+
+
 def test_pose_behind_the_camera_is_not_drawn() -> None:
     scene = SceneOptions(background="flat", noise_sigma=0.0)
     pose = _pose()
