@@ -126,6 +126,21 @@ def test_output_files_get_their_folders_before_the_command_runs(tmp_path, capsys
     assert not refused.parent.exists()
 
 
+@pytest.mark.parametrize(
+    "flags",
+    [
+        ["--frames", "240"],  # refused once the task's environment is made
+        ["--size", "640x480", "--scale", "16"],  # too large a frame for an .mp4
+    ],
+)
+def test_a_refused_render_leaves_no_folder(flags, tmp_path, capsys):
+    out = tmp_path / "new" / "deeper" / "y.mp4"
+    sheet = tmp_path / "other" / "y.png"
+    assert main(["render", *flags, "--out", str(out), "--sheet", str(sheet)]) == 2
+    assert len(capsys.readouterr().err.splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []  # new/deeper/ and other/ were left behind
+
+
 def test_warnings_are_one_line_on_stderr(monkeypatch, capsys):
     import warnings
 

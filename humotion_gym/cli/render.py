@@ -8,6 +8,8 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
+from pathlib import Path
 
 from humotion_gym.cli._common import (
     UsageError,
@@ -32,6 +34,23 @@ VIDEO_SUFFIXES = (".mp4", ".avi")
 MAX_SCALE = 16
 
 
+def _file_made_later(*suffixes: str) -> Callable[[str], Path]:
+    """:func:`output_file`'s check, its folders left for :func:`_cmd_render` to make.
+
+    The command line makes an output file's missing folders before a command
+    starts; render refuses some requests only once it has made its
+    environment (too many frames for the task), and a refused run would leave
+    the empty folders behind.
+    """
+    check = output_file(*suffixes)
+
+    def parse(text: str) -> Path:
+        return Path(check(text))  # a plain Path: the command line makes no folder for it
+
+    parse.__name__ = check.__name__
+    return parse
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``render``."""
     rend = add_command(
@@ -46,11 +65,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         int_at_least(2),
     )  # fmt: skip
     rend.add_argument(
-        "--out", type=output_file(*VIDEO_SUFFIXES), required=True,
+        "--out", type=_file_made_later(*VIDEO_SUFFIXES), required=True,
         help="the video to write, .mp4 or .avi (required)",
     )  # fmt: skip
     rend.add_argument(
-        "--sheet", type=output_file(".png"), default=None,
+        "--sheet", type=_file_made_later(".png"), default=None,
         help="contact sheet PNG (default: OUT with .png)",
     )  # fmt: skip
     add_int(
@@ -92,6 +111,8 @@ def _cmd_render(args: argparse.Namespace) -> int:
             f"--frames: at most {exc.longest - 1} on {args.task} (its longest training clip "
             f"has {exc.longest} frames)"
         ) from exc
+    for path in (args.out, sheet):  # every request checked: now the folders to write in
+        path.parent.mkdir(parents=True, exist_ok=True)
     base: PoseTrackingEnv = env.unwrapped  # type: ignore[assignment]
     # a -v2 task's observation holds the frame (several views side by side);
     # a deprecated -v1 task's is the frame
