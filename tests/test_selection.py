@@ -141,6 +141,9 @@ def test_the_annealed_filters_settings_are_selected_like_the_priors(tmp_path, mo
         select_observation_settings("SideWalk-v2", "pf-cv", {"filter.alpha": [0.5]}, fold)
     with pytest.raises(ValueError, match="local search's"):
         select_observation_settings("SideWalk-v2", "apf-cv", {"filter.search_top": [2]}, fold)
+    # a local search reads none of the annealed filter's: its cells would all be one
+    with pytest.raises(ValueError, match=r"grid: spf-cv: .*\['alpha'\] are not read by"):
+        select_observation_settings("SideWalk-v2", "spf-cv", {"filter.alpha": [0.5, 0.9]}, fold)
 
 
 def test_the_local_searchs_settings_are_selected_too(tmp_path, monkeypatch):

@@ -103,7 +103,8 @@ def make(
         fit_settings: Overrides of the prior's fit settings.
         use_cache: Read and write fitted priors in the cache.
         filter_settings: Overrides of the filter's settings (names in
-            :data:`FILTER_SETTINGS`; the annealed or partitioned filter's).
+            :data:`FILTER_SETTINGS`, those the agent's filter reads:
+            :data:`~baselines.agents.settings.FILTER_READS`).
         observation_model: A particle filter's likelihood (default: the
             task's, :func:`~baselines.observation.task_model`).
 
@@ -112,7 +113,7 @@ def make(
         TaskNotSupported: If the agent does not cover the env's task (a
             ``ValueError``).
         ValueError: If a fit or filter setting is unknown or out of range, a
-            filter setting is not the agent's filter's, or ``n_particles`` or
+            filter setting is not one the agent's filter reads, or ``n_particles`` or
             ``seed`` is out of range.
         TypeError: If ``name`` is not a string, ``task`` is neither a
             description nor a tracking environment, or ``observation_model``

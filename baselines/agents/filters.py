@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from baselines.agents.background import in_background, resolved
 from baselines.agents.base import accepts_batch_of_one, describe, episode_begins, refuse_truth
+from baselines.agents.settings import FILTER_READS, filter_kind
 from baselines.filtering import (
     AnnealedParticleFilter,
     ParticleFilter,
@@ -317,9 +318,10 @@ class ParticleFilterAgent:
             (:class:`~baselines.filtering.PartitionedParticleFilter`): the
             torso, then each limb (:func:`body_part_stages`), ``n_particles``
             per stage; particles outside the joint limits never survive a stage.
-        diffusion: The annealed or partitioned filter's diffusion scale.
-        alpha: The annealed filter's survival rate per layer.
-        beta_max: Cap on the annealed filter's exponents.
+        diffusion: The annealed or partitioned filter's diffusion scale
+            (None: 1).
+        alpha: The annealed filter's survival rate per layer (None: 0.5).
+        beta_max: Cap on the annealed filter's exponents (None: none).
         search: A local search of the best particles on the likelihood each
             frame (:class:`~baselines.filtering.search.SearchParticleFilter`),
             block by block along the body parts (:func:`body_part_stages`),
@@ -330,7 +332,8 @@ class ParticleFilterAgent:
     Raises:
         ValueError: If ``observation_model`` reads the truth (an oracle of
             :mod:`baselines.diagnostics` is analysis only), or the settings
-            do not go together.
+            do not go together (a setting its filter does not read among
+            them: :data:`~baselines.agents.settings.FILTER_READS`).
     """
 
     def __init__(
@@ -344,9 +347,9 @@ class ParticleFilterAgent:
         name: str = "pf",
         layers: int = 1,
         partitioned: bool = False,
-        diffusion: float = 1.0,
-        alpha: float = 0.5,
-        beta_max: float = float("inf"),
+        diffusion: float | None = None,
+        alpha: float | None = None,
+        beta_max: float | None = None,
         observation_model: FrameModel | None = None,
         search: LocalSearch | None = None,
     ) -> None:
@@ -362,9 +365,20 @@ class ParticleFilterAgent:
         self.likelihood = TaskLikelihood(self.observation_model, self.free, spec.fixed_indices)
         self.layers = int(layers)
         self.filter: ParticleFilter
+        if search is not None and (self.layers != 1 or partitioned):
+            raise ValueError(f"{name}: the local search runs in the plain particle filter")
+        if partitioned and self.layers != 1:
+            raise ValueError(f"{name}: partitioned sampling has no annealing layers")
+        kind = filter_kind(self.layers, partitioned, search is not None)
+        given = {"alpha": alpha, "diffusion": diffusion, "beta_max": beta_max}
+        unread = sorted(n for n, v in given.items() if v is not None)
+        unread = [n for n in unread if n not in FILTER_READS[kind]]
+        if unread:  # ignored, it would run as if not given
+            raise ValueError(f"{name}: {unread} are not read by its filter, a {kind}")
+        diffusion = 1.0 if diffusion is None else diffusion
+        alpha = 0.5 if alpha is None else alpha
+        beta_max = float("inf") if beta_max is None else beta_max
         if search is not None:
-            if self.layers != 1 or partitioned:
-                raise ValueError(f"{name}: the local search runs in the plain particle filter")
             self.filter = SearchParticleFilter(
                 prior, fitted, self.likelihood, self.n_particles, search, ANGLE_MASK[self.free],
                 estimate=estimate, blocks=search_blocks(self.free, search.blocks),
@@ -372,8 +386,6 @@ class ParticleFilterAgent:
                 upper=VALID_UPPER[self.free],
             )  # fmt: skip
         elif partitioned:
-            if self.layers != 1:
-                raise ValueError(f"{name}: partitioned sampling has no annealing layers")
             self.filter = PartitionedParticleFilter(
                 prior, fitted, self.likelihood, self.n_particles, body_part_stages(self.free),
                 ANGLE_MASK[self.free], estimate=estimate, diffusion=diffusion,

@@ -33,11 +33,41 @@ _SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 #: --grid filter.NAME=...`` may try: the annealed filter's layers per frame,
 #: survival rate per layer, diffusion scale and cap on its exponents (the
 #: partitioned filter takes the diffusion alone); a local search's
-#: (:class:`~baselines.filtering.search.LocalSearch`) ``search_NAME``.
+#: (:class:`~baselines.filtering.search.LocalSearch`) ``search_NAME``. An
+#: agent takes those its filter reads (:data:`FILTER_READS`) alone.
 FILTER_SETTINGS: tuple[str, ...] = (
     "layers", "alpha", "diffusion", "beta_max",
     "search_top", "search_steps", "search_scale", "search_survival",
 )  # fmt: skip
+
+#: The filter settings each kind of filter reads (:func:`filter_kind`): the
+#: plain particle filter none, the annealed filter its layers, survival rate,
+#: diffusion and cap (:class:`~baselines.filtering.AnnealedParticleFilter`), the
+#: partitioned filter its diffusion alone
+#: (:class:`~baselines.filtering.PartitionedParticleFilter`), the local search
+#: its climb's (:class:`~baselines.filtering.search.SearchParticleFilter`).
+FILTER_READS: dict[str, tuple[str, ...]] = {
+    "plain particle filter": (),
+    "annealed particle filter": ("layers", "alpha", "diffusion", "beta_max"),
+    "partitioned particle filter": ("diffusion",),
+    "particle filter with a local search": tuple(
+        n for n in FILTER_SETTINGS if n.startswith("search_")
+    ),
+}
+
+
+def filter_kind(layers: int, partitioned: bool, search: bool) -> str:
+    """Which filter an agent runs (a key of :data:`FILTER_READS`).
+
+    A local search or partitioned sampling runs in a filter without annealing
+    layers; with more than one layer the filter is the annealed one.
+    """
+    if search:
+        return "particle filter with a local search"
+    if partitioned:
+        return "partitioned particle filter"
+    return "annealed particle filter" if layers > 1 else "plain particle filter"
+
 
 #: The keys of one agent's entry.
 ENTRY_KEYS: tuple[str, ...] = ("fit", "components", "task_fit", "task_filter")

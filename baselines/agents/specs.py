@@ -27,12 +27,14 @@ from baselines.agents.base import TaskNotSupported, describe, refuse_truth
 from baselines.agents.filters import ParticleFilterAgent
 from baselines.agents.references import REFERENCES
 from baselines.agents.settings import (
+    FILTER_READS,
     FILTER_SETTINGS,
     PF_SETTINGS_FILE,
     AgentSettings,
     SettingsError,
     load,
 )
+from baselines.agents.settings import filter_kind as kind_of_filter
 from baselines.detector.settings import DetectorTerm
 from baselines.filtering.search import LocalSearch
 from baselines.observation import FrameModel, ObservationModel
@@ -110,14 +112,28 @@ class AgentSpec:
         """The fit settings of this agent on a task."""
         return {**self.fit_settings, **self.task_fit_settings.get(task, {})}
 
+    def filter_kind(self) -> str:
+        """Which filter the agent runs (a key of :data:`FILTER_READS`)."""
+        return kind_of_filter(self.layers, self.partitioned, self.search is not None)
+
     def filter_settings_for(
-        self, task: str, overrides: Mapping[str, float] | None = None
+        self, task: str, overrides: Mapping[str, float] | None = None, agent: str | None = None
     ) -> dict[str, Any]:
         """The filter's settings on a task (:data:`FILTER_SETTINGS`), with ``overrides``.
 
+        Args:
+            task: The task's name (its chosen settings apply).
+            overrides: Settings that override the task's.
+            agent: The agent's name, for the messages.
+
         Raises:
-            ValueError: If a name is not one of :data:`FILTER_SETTINGS`, or a
-                search setting is given to a plain particle filter.
+            ValueError: Naming the setting, the agent and what its filter
+                reads, if a name is not one of :data:`FILTER_SETTINGS` or not
+                one the agent's filter reads (:data:`FILTER_READS`: the plain
+                filter none, the partitioned filter the diffusion alone), or
+                an override of the annealed filter's survival rate, diffusion
+                or cap comes with ``layers`` 1 (the plain filter, which reads
+                none).
         """
         chosen = {**self.task_filter_settings.get(task, {}), **(overrides or {})}
         unknown = sorted(set(chosen) - set(FILTER_SETTINGS))
@@ -129,18 +145,22 @@ class AgentSpec:
         if words:  # every filter setting is a number (filter.alpha=abc)
             name, value = next(iter(words.items()))
             raise ValueError(f"filter setting {name}: expected a number, got {value!r}")
+        who = agent or "this agent"
         own = {
             n[len(SEARCH_SETTING) :]: v for n, v in chosen.items() if n.startswith(SEARCH_SETTING)
         }
         if own and self.search is None:
             raise ValueError(
                 f"filter settings {sorted(SEARCH_SETTING + n for n in own)} are a local "
-                f"search's; this agent has none"
+                f"search's; {who} has none"
             )
-        if chosen and self.layers == 1 and not self.partitioned and self.search is None:
+        kind = self.filter_kind()
+        reads = FILTER_READS[kind]
+        unread = sorted(set(chosen) - set(reads))
+        if unread:  # an ignored setting would run the agent as it is, silently
             raise ValueError(
-                f"filter settings {sorted(chosen)} are the annealed or partitioned filter's; "
-                f"this agent is a plain particle filter"
+                f"filter settings {unread} are not read by {who}'s filter: it is a {kind}, "
+                + (f"which reads {list(reads)}" if reads else "which reads none")
             )
         out: dict[str, Any] = {
             "layers": self.layers,
@@ -149,7 +169,14 @@ class AgentSpec:
             "beta_max": self.beta_max,
         }
         out.update({n: v for n, v in chosen.items() if not n.startswith(SEARCH_SETTING)})
-        out["layers"] = _whole("layers", out["layers"])
+        out["layers"] = _whole("layers", out["layers"], least=1)
+        effective = kind_of_filter(out["layers"], self.partitioned, self.search is not None)
+        annealing = sorted(set(overrides or {}) & set(ANNEALING) - set(FILTER_READS[effective]))
+        if annealing:  # an annealed agent's layers 1 is the plain filter
+            raise ValueError(
+                f"filter settings {annealing} are not read with layers 1: {who}'s filter is "
+                "then a plain particle filter, which reads none"
+            )
         if self.search is not None:
             counts = {
                 n: _whole(SEARCH_SETTING + n, v) for n, v in own.items() if n in ("top", "steps")
@@ -178,20 +205,24 @@ class AgentSpec:
 
 #: The prefix of a local search's filter settings (``search_top``...).
 SEARCH_SETTING = "search_"
+#: The annealed and partitioned filters' settings beside their layers.
+ANNEALING: tuple[str, ...] = ("alpha", "diffusion", "beta_max")
 
 
-def _whole(name: str, value: Any) -> int:
+def _whole(name: str, value: Any, least: int = 0) -> int:
     """A count given as a number (a grid may give ``5.0``): refused unless whole.
 
     Raises:
-        ValueError: Naming the setting, if ``value`` is not a whole number.
+        ValueError: Naming the setting, if ``value`` is not a whole number
+            (or is below ``least``).
     """
     try:
         whole = float(value).is_integer()
     except (TypeError, ValueError):
         whole = False
-    if isinstance(value, bool) or not whole:
-        raise ValueError(f"filter setting {name}: expected a whole number, got {value!r}")
+    if isinstance(value, bool) or not whole or value < least:
+        at_least = f" >= {least}" if least else ""
+        raise ValueError(f"filter setting {name}: expected a whole number{at_least}, got {value!r}")
     return int(value)
 
 
@@ -482,10 +513,11 @@ def build_spec(name: str, settings: AgentSettings, path: Path = PF_SETTINGS_FILE
                     path, f"{name}.{key}.{setting}",
                     f"not a setting of {name}'s prior; they are {sorted(names)}",
                 )  # fmt: skip
-    if settings.task_filter and spec.layers == 1 and not spec.partitioned and spec.search is None:
-        raise SettingsError(
-            path, f"{name}.task_filter", f"{name} is a plain particle filter (no filter settings)"
-        )
+    for task in settings.task_filter:  # each one its filter reads
+        try:
+            spec.filter_settings_for(task, agent=name)
+        except ValueError as exc:
+            raise SettingsError(path, f"{name}.task_filter.{task}", str(exc)) from None
     return spec
 
 
@@ -540,6 +572,33 @@ def _check_prior(spec: AgentSpec, name: str) -> None:
         )
     for label, component in spec.components:
         _check_prior(component, f"{name}/{label}")
+
+
+def _check_filter(spec: AgentSpec, name: str) -> None:
+    """Refuse a spec whose filter cannot be built, or that sets what its filter does not read."""
+    who = f"register_agent {name!r}"
+    if spec.layers != 1 and (spec.partitioned or spec.search is not None):
+        raise ValueError(
+            f"{who}: layers={spec.layers!r}: partitioned sampling and the local search run "
+            "without annealing layers"
+        )
+    if spec.partitioned and spec.search is not None:
+        raise ValueError(f"{who}: the local search runs in the plain particle filter, not "
+                         "in partitioned sampling")  # fmt: skip
+    try:
+        _whole("layers", spec.layers, least=1)
+        reads = FILTER_READS[spec.filter_kind()]
+        defaults = {f.name: f.default for f in dataclasses.fields(AgentSpec) if f.name in ANNEALING}
+        unread = sorted(n for n in ANNEALING if getattr(spec, n) != defaults[n] and n not in reads)
+        if unread:  # an ignored setting would run the agent as if it were not given
+            raise ValueError(
+                f"{unread} are not read by its filter, a {spec.filter_kind()}, which reads "
+                f"{list(reads) or 'none'}"
+            )
+        for task in spec.task_filter_settings:
+            spec.filter_settings_for(task, agent=name)
+    except ValueError as exc:
+        raise ValueError(f"{who}: {exc}") from None
 
 
 def _check_new_name(name: str, who: str, replace: bool = False) -> None:
@@ -600,6 +659,7 @@ def register_agent(name: str, spec: AgentSpec, replace: bool = False) -> None:
     """
     _check_new_name(name, "register_agent", replace)
     _check_prior(spec, name)
+    _check_filter(spec, name)
     AGENTS[name] = spec
 
 
@@ -640,7 +700,7 @@ def make_filter(
         raise TaskNotSupported(
             f"{name} supports the tasks {list(spec.tasks)} only, not {base.task.name}"
         )
-    spec.filter_settings_for(base.task.name, filter_settings)  # checked before the fit
+    spec.filter_settings_for(base.task.name, filter_settings, name)  # checked before the fit
     module, fitted = fit_prior(spec, base, fit_settings, use_cache=use_cache)
     return filter_agent(
         spec, base, module, fitted, n_particles, seed, estimate, name, filter_settings,
@@ -666,7 +726,11 @@ def filter_agent(
     (:meth:`AgentSpec.filter_settings_for`), overridden by ``filter_settings``.
     """
     base = describe(task)
-    settings = spec.filter_settings_for(base.task.name, filter_settings)
+    settings = spec.filter_settings_for(base.task.name, filter_settings, name)
+    # the filter is handed what it reads alone (the annealed filter's at
+    # layers 1, the plain filter's, are the spec's, not given to it)
+    kind = kind_of_filter(settings["layers"], spec.partitioned, spec.search is not None)
+    reads = {n: settings[n] for n in FILTER_READS[kind] if n in ANNEALING}
     model: FrameModel | None = observation_model
     if spec.detector is not None and model is None:
         # The detector's network runs on torch (the rl extra): imported only
@@ -680,6 +744,7 @@ def filter_agent(
             ) from exc
         model = detector_model(base.task, spec.detector)
     return ParticleFilterAgent(
-        base, module, fitted, n_particles, seed, estimate, name,
-        partitioned=spec.partitioned, observation_model=model, **settings,
+        base, module, fitted, n_particles, seed, estimate, name, layers=settings["layers"],
+        partitioned=spec.partitioned, observation_model=model, search=settings.get("search"),
+        **reads,
     )  # fmt: skip

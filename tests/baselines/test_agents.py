@@ -372,6 +372,57 @@ def test_the_annealed_filters_settings_come_from_the_spec_the_task_and_the_calle
         make("apf-cv", env, n_particles=10, filter_settings={"alpha": 1.5})
 
 
+@pytest.mark.parametrize(
+    ("agent", "setting", "reads"),
+    [
+        ("spf-cv", "alpha", "search_top"),
+        ("spf-cv", "diffusion", "search_top"),
+        ("spf-cv", "beta_max", "search_top"),
+        ("spf-cv", "layers", "search_top"),
+        ("ppf-cv", "alpha", r"\['diffusion'\]"),
+        ("ppf-cv", "beta_max", r"\['diffusion'\]"),
+        ("ppf-cv", "layers", r"\['diffusion'\]"),
+    ],
+)
+def test_a_filter_setting_the_agents_filter_does_not_read_is_refused(
+    monkeypatch, agent, setting, reads
+):
+    """A local search reads none of the annealed filter's settings, partitioned sampling
+    the diffusion alone: one of the others would run the agent as it is, silently."""
+    import dataclasses
+
+    from baselines import agents
+
+    spec = dataclasses.replace(AGENTS["pf-cv"], partitioned=True)
+    monkeypatch.setitem(agents.AGENTS, "ppf-cv", spec)
+    env = gym.make("humotion_gym/ArmTrack-v2")
+    with pytest.raises(
+        ValueError, match=rf"\['{setting}'\] are not read by {agent}'s filter.*{reads}"
+    ):
+        make(agent, env, n_particles=3, filter_settings={setting: 2})
+    # an annealed agent at one layer is the plain filter: its survival rate unread
+    with pytest.raises(ValueError, match=r"\['alpha'\] are not read with layers 1: apf-cv"):
+        make("apf-cv", env, n_particles=3, filter_settings={"layers": 1, "alpha": 0.7})
+    # what each filter reads is taken
+    assert spec.filter_settings_for("ArmTrack-v2", {"diffusion": 0.3})["diffusion"] == 0.3
+    assert AGENTS["spf-cv"].filter_settings_for("", {"search_top": 2})["search"].top == 2
+
+
+def test_the_filter_agent_refuses_a_setting_its_filter_does_not_read():
+    from baselines.agents import ParticleFilterAgent
+    from baselines.filtering.search import LocalSearch
+    from baselines.priors import constant_velocity
+
+    env = gym.make("humotion_gym/ArmTrack-v2")
+    build = {"task": env, "prior": constant_velocity, "fitted": None, "n_particles": 3}
+    with pytest.raises(ValueError, match=r"\['alpha'\] are not read by its filter, a particle"):
+        ParticleFilterAgent(**build, search=LocalSearch(), alpha=0.3)
+    with pytest.raises(ValueError, match=r"\['beta_max'\] are not read by its filter, a partit"):
+        ParticleFilterAgent(**build, partitioned=True, diffusion=0.3, beta_max=1.0)
+    with pytest.raises(ValueError, match=r"\['diffusion'\] are not read by its filter, a plain"):
+        ParticleFilterAgent(**build, diffusion=0.3)
+
+
 def test_the_filters_estimate_is_answered_as_its_action_in_the_episodes_range():
     """The estimate mapped by the task's map with the episode's initial root (BodyTrack's
     root is free: its range is the initial root +- root_range_mm)."""

@@ -129,6 +129,10 @@ def test_filter_settings_on_a_plain_filter_and_bad_files_are_refused(tmp_path):
     plain.write_text("pf-cv:\n  task_filter:\n    ArmTrack-v2:\n      alpha: 0.7\n")
     with pytest.raises(SettingsError, match="plain particle filter"):
         specs_from_file(plain)
+    searching = tmp_path / "searching.yml"
+    searching.write_text("spf-cv:\n  task_filter:\n    ArmTrack-v2:\n      alpha: 0.7\n")
+    with pytest.raises(SettingsError, match=r"spf-cv.task_filter.ArmTrack-v2: .*not read by"):
+        specs_from_file(searching)
     broken = tmp_path / "broken.yml"
     broken.write_text("pf-cv: [1, 2\n")
     with pytest.raises(SettingsError, match="not valid YAML"):

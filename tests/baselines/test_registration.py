@@ -95,3 +95,24 @@ def test_register_reference_refuses_a_taken_name_and_one_the_command_line_misrea
         with pytest.raises(TypeError, match="agent_class must be a class with predict"):
             register_reference("mine", not_an_agent)
     assert "mine" not in REFERENCES
+
+
+def test_a_spec_whose_filter_cannot_be_built_or_would_ignore_a_setting_is_refused(registry):
+    cv = AGENTS["pf-cv"]
+    for spec, message in [
+        (dataclasses.replace(cv, partitioned=True, alpha=0.3), r"\['alpha'\] are not read by"),
+        (dataclasses.replace(cv, beta_max=1.0), r"a plain particle filter, which reads none"),
+        (dataclasses.replace(AGENTS["spf-cv"], diffusion=0.3), r"\['diffusion'\] are not read"),
+        (dataclasses.replace(cv, partitioned=True, layers=3), "without annealing layers"),
+        (dataclasses.replace(cv, layers=0), "layers: expected a whole number >= 1"),
+        (
+            dataclasses.replace(
+                AGENTS["spf-cv"], task_filter_settings={"ArmTrack-v2": {"alpha": 0.7}}
+            ),
+            r"spf-mine's filter: it is a particle filter with a local search",
+        ),
+    ]:
+        with pytest.raises(ValueError, match=r"register_agent 'spf-mine': .*" + message):
+            register_agent("spf-mine", spec)
+    assert "spf-mine" not in registry
+    register_agent("spf-mine", dataclasses.replace(cv, partitioned=True, diffusion=0.3))
