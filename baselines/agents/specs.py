@@ -2,9 +2,10 @@
 
 :data:`AGENTS` maps a name (``pf-cv``, ``pf-tree``, ``apf-mix``...) to an
 :class:`AgentSpec`: what the agent is (its prior module, the kind of filter,
-the tasks it covers) is written here; the settings chosen for it on each task
-are data, read from ``baselines/agents/pf.yml`` (:mod:`baselines.agents.settings`)
-and checked against the prior's ``fit`` when this module is imported.
+the tasks it covers) is code (:mod:`baselines.agents.structure`); the
+settings chosen for it on each task are data, read from
+``baselines/agents/pf.yml`` (:mod:`baselines.agents.settings`) and checked
+against the prior's ``fit`` when this module is imported.
 :func:`make_filter` builds one for an environment: the prior fitted on the
 environment's training persons (cached on disk), then the filter.
 """
@@ -13,8 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
-import inspect
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
@@ -25,6 +25,13 @@ import numpy as np
 
 from baselines.agents.base import TaskNotSupported, describe, refuse_truth
 from baselines.agents.filters import ParticleFilterAgent
+from baselines.agents.prior_checks import (
+    PRIOR_FUNCTIONS,
+    check_prior_module,
+    fit_keywords,
+    fit_takes,
+    import_prior,
+)
 from baselines.agents.references import REFERENCES
 from baselines.agents.settings import (
     FILTER_READS,
@@ -35,14 +42,21 @@ from baselines.agents.settings import (
     load,
 )
 from baselines.agents.settings import filter_kind as kind_of_filter
+
+# the built-in agents' structure, named here too (specs.DETECTOR_TERM...)
+from baselines.agents.structure import CONSTANT_VELOCITY as CONSTANT_VELOCITY
+from baselines.agents.structure import DETECTOR_TERM as DETECTOR_TERM
+from baselines.agents.structure import MIX_COMPONENTS as MIX_COMPONENTS
+from baselines.agents.structure import MIXTURE as MIXTURE
+from baselines.agents.structure import STRUCTURE, TREE
 from baselines.detector.settings import DetectorTerm
 from baselines.filtering.search import LocalSearch
 from baselines.observation import FrameModel, ObservationModel
-from baselines.priors import PRIORS, limbs, mixture
+from baselines.priors import limbs, mixture
 from baselines.priors.fitting import fit_prior as fit_prior_on
-from baselines.priors.fitting import prior_module
 from humotion_gym.checks import is_real
 from humotion_gym.envs.description import TaskDescription
+from humotion_gym.envs.tasks import TASKS
 from humotion_gym.mocap.library import MotionLibrary
 
 
@@ -107,6 +121,45 @@ class AgentSpec:
     task_filter_settings: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     search: LocalSearch | None = None
     detector: DetectorTerm | None = None
+
+    def __post_init__(self) -> None:
+        """Refuse fields of the wrong kind, and task names that are no task's.
+
+        Raises:
+            TypeError: Naming the field, if ``prior`` is not a string, a
+                settings field not a mapping of names, ``tasks`` a string, or
+                ``components`` not ``(label, AgentSpec)`` pairs.
+            ValueError: Naming the field and the tasks, for an unknown task
+                name (a registered agent would then never match it).
+        """
+        if not isinstance(self.prior, str) or not self.prior:
+            raise TypeError(
+                f"AgentSpec.prior: expected a prior's name or its module's dotted path "
+                f"(mypackage.myprior), got {self.prior!r}"
+            )
+        _names_of("fit_settings", self.fit_settings)
+        if self.tasks is not None:
+            if isinstance(self.tasks, str) or not isinstance(self.tasks, (tuple, list)):
+                raise TypeError(
+                    f"AgentSpec.tasks: expected a tuple of task names (or None for every "
+                    f"task), got {self.tasks!r}"
+                )
+            object.__setattr__(self, "tasks", tuple(self.tasks))
+            _known_tasks("tasks", self.tasks)
+        for per_task in ("task_fit_settings", "task_filter_settings"):
+            chosen = _names_of(per_task, getattr(self, per_task))
+            _known_tasks(per_task, chosen)
+            for task in chosen:
+                _names_of(f"{per_task}[{task!r}]", chosen[task])
+        if not isinstance(self.components, tuple) or not all(
+            isinstance(c, tuple) and len(c) == 2 and isinstance(c[0], str)
+            and isinstance(c[1], AgentSpec)
+            for c in self.components
+        ):  # fmt: skip
+            raise TypeError(
+                f"AgentSpec.components: expected a tuple of (label, AgentSpec) pairs, "
+                f"got {self.components!r}"
+            )
 
     def settings_for(self, task: str) -> dict[str, Any]:
         """The fit settings of this agent on a task."""
@@ -194,13 +247,57 @@ class AgentSpec:
         ``LABEL.NAME`` for a keyword of that component's prior.
         """
         if not self.components:
-            fit = importlib.import_module(TREE if self.per_part else self.prior).fit
-            return set(inspect.signature(fit).parameters) - {"motions", "free", "rng"}
+            return set(fit_keywords(self.fit_function())[0])
         names = {MIXTURE_WEIGHT + label for label, _ in self.components[1:]}
         names.add(MIXTURE_PERSISTENCE)
         for label, spec in self.components:
             names |= {f"{label}.{n}" for n in spec.setting_names()}
         return names
+
+    def fit_function(self) -> Any:
+        """The ``fit`` of its prior (the tree's for one tree per body part; not a mixture's)."""
+        return importlib.import_module(TREE if self.per_part else self.prior).fit
+
+    def unknown_settings(self, names: Iterable[str]) -> list[str]:
+        """Those of ``names`` its fit settings cannot take (:meth:`setting_names`).
+
+        A prior whose ``fit`` takes ``**settings`` takes any name; a mixture's
+        ``LABEL.NAME`` is asked of its component.
+        """
+        if not self.components:
+            return [n for n in sorted(set(names)) if not fit_takes(self.fit_function(), n)]
+        components = dict(self.components)
+        own = {MIXTURE_PERSISTENCE} | {MIXTURE_WEIGHT + label for label, _ in self.components[1:]}
+        unknown = []
+        for name in sorted(set(names) - own):
+            label, dot, rest = name.partition(".")
+            if not (dot and label in components and not components[label].unknown_settings([rest])):
+                unknown.append(name)
+        return unknown
+
+
+def _names_of(field_name: str, value: Any) -> Mapping[str, Any]:
+    """An AgentSpec field that maps names to values, refused unless it does.
+
+    Raises:
+        TypeError: Naming the field, if it is not a mapping with string keys.
+    """
+    if not isinstance(value, Mapping) or not all(isinstance(k, str) for k in value):
+        raise TypeError(f"AgentSpec.{field_name}: expected a mapping of names, got {value!r}")
+    return value
+
+
+def _known_tasks(field_name: str, names: Iterable[str]) -> None:
+    """Refuse task names that are no task's (``humotion_gym/`` is gymnasium's prefix).
+
+    Raises:
+        ValueError: Naming the field, the name and the tasks.
+    """
+    for name in names:
+        if name not in TASKS:
+            raise ValueError(
+                f"AgentSpec.{field_name}: unknown task {name!r}; the tasks are {list(TASKS)}"
+            )
 
 
 #: The prefix of a local search's filter settings (``search_top``...).
@@ -250,8 +347,15 @@ def fit_prior(
     _check_settings(spec, kwargs)
     if spec.components:
         return _fit_mixture(spec, env, kwargs, cache_dir, use_cache)
-    if env.frame_skip != 1:  # (a mixture's components each pass here)
-        kwargs.setdefault("frame_skip", env.frame_skip)
+    if env.frame_skip != 1 and "frame_skip" not in kwargs:  # (each mixture component too)
+        if not fit_takes(spec.fit_function(), "frame_skip"):  # the prior would model 1 frame
+            raise ValueError(
+                f"{spec.prior}.fit takes no frame_skip keyword, which a task with frame_skip "
+                f"{env.frame_skip} passes (a step is {env.frame_skip} frames of the motion): "
+                "give the fit a frame_skip=1 setting (docs/priors.md), or make the task with "
+                "frame_skip=1"
+            )
+        kwargs["frame_skip"] = env.frame_skip
     if spec.per_part:
         return _fit_per_part(env, kwargs, cache_dir, use_cache)
     return fit_prior_on(
@@ -270,7 +374,7 @@ MIXTURE_PERSISTENCE = "persistence"
 
 def _check_settings(spec: AgentSpec, settings: Mapping[str, Any]) -> None:
     """Raise naming the settings the agent's prior does not take, and those it does."""
-    unknown = sorted(set(settings) - spec.setting_names())
+    unknown = spec.unknown_settings(settings)
     if unknown:
         raise ValueError(
             f"{spec.prior}: unknown settings {unknown}; they are {sorted(spec.setting_names())}"
@@ -302,9 +406,6 @@ def _fit_mixture(
     return mixture, mixture.compose(fits, weights, persistence=persistence)
 
 
-TREE = "baselines.priors.tree"
-
-
 def _fit_per_part(
     env: TaskDescription,
     settings: Mapping[str, Any],
@@ -321,160 +422,6 @@ def _fit_per_part(
         )
         parts.append((name, fitted))
     return limbs, limbs.compose(free, parts)
-
-
-CONSTANT_VELOCITY = "baselines.priors.constant_velocity"
-MIXTURE = "baselines.priors.mixture"
-#: pf-mix's components, shared by every agent built on its mixture.
-MIX_COMPONENTS = (("tree", TREE), ("cv", CONSTANT_VELOCITY), ("still", CONSTANT_VELOCITY))
-
-#: How the ``-det`` agents weigh the detector's keypoints, chosen on the
-#: validation persons (docs/detector.md): each keypoint's sigma twice the
-#: detector's validation error, a keypoint's term capped at 2 nats (a
-#: detection more than four of its sigmas off counts as a miss), the image
-#: likelihood kept at full weight.
-DETECTOR_TERM = DetectorTerm(sigma_scale=2.0, cap=2.0)
-
-#: What each particle-filter agent is, by name: ``AgentSpec`` keywords other
-#: than its settings (those come from ``baselines/agents/pf.yml``). A mixture's
-#: ``components`` are ``(label, prior)`` pairs, the first taking the weight the
-#: others leave.
-STRUCTURE: dict[str, dict[str, Any]] = {
-    "pf-cv": dict(
-        prior=CONSTANT_VELOCITY,
-        description="constant velocity with damped velocity and pose noise (settings chosen "
-        "by cross-validation on training persons)",
-    ),
-    "pf-follow": dict(
-        prior=CONSTANT_VELOCITY,
-        description="a reference: follows where the body goes (constant velocity on the "
-        "root's position and orientation) and holds the first frame's articulation",
-        tasks=("BodyTrack-v2", "WalkTrack-v2"),
-    ),
-    "pf-tree": dict(
-        prior=TREE,
-        description="implicit PCA-tree prior (Sidenbladh, Black & Sigal 2002), the paper's "
-        "absolute replay of the database's next pose; its temperature and noise chosen per "
-        "task on training persons; on BodyTrack and WalkTrack each particle walks at its own "
-        "speed",
-    ),
-    "pf-tree-vel": dict(
-        prior=TREE,
-        description="the tree prior replaying the database's velocities from each particle's "
-        "own pose (transfers better to a new subject); temperature and noise chosen per task; "
-        "on BodyTrack and WalkTrack each particle walks at its own speed",
-    ),
-    "apf-cv": dict(
-        prior=CONSTANT_VELOCITY,
-        description="annealed particle filter (Deutscher, Blake & Reid 2000), 10 layers, "
-        "constant-velocity proposals; survival rate and diffusion chosen per task",
-        layers=10,
-    ),
-    "apf-tree": dict(
-        prior=TREE,
-        description="annealed particle filter, 10 layers, proposals from the tree prior; "
-        "survival rate and diffusion chosen per task",
-        layers=10,
-    ),
-    "apf-tree-vel": dict(
-        prior=TREE,
-        description="annealed particle filter, 10 layers, proposals from pf-tree-vel's prior; "
-        "survival rate and diffusion chosen per task",
-        layers=10,
-    ),
-    "pf-mix": dict(
-        prior=MIXTURE,
-        components=MIX_COMPONENTS,
-        description="a mixture of the tree prior, constant velocity and a small random walk "
-        "(Sidenbladh, Black & Sigal 2002, section 7): each particle, each frame, moves by one "
-        "of them (its component, kept from one frame to the next with probability persistence)",
-    ),
-    "pf-limbs": dict(
-        prior="baselines.priors.limbs",
-        per_part=True,
-        description="one tree prior per body part (torso with the root, each arm, each leg; "
-        "Sidenbladh, Black & Sigal 2002, section 7), searched independently",
-    ),
-    "pf-limbs-vel": dict(
-        prior="baselines.priors.limbs",
-        per_part=True,
-        description="one tree prior per body part, each replaying the database's velocities",
-    ),
-    "pf-slds": dict(
-        prior="baselines.priors.slds",
-        description="switching linear dynamic system (Pavlovic, Rehg, Cham & Murphy 1999), "
-        "one model per activity joined by a block transition matrix",
-        tasks=("ArmTrack-v2", "SideWalk-v2"),
-    ),
-    "pf-pca": dict(
-        prior="baselines.priors.cyclic_pca",
-        description="cyclic functional PCA of walking (Ormoneit, Black, Hastie & Kjellström "
-        "2005), its coefficients, speed and root velocity mean-reverting",
-        tasks=("WalkTrack-v2", "SideWalk-v2"),
-    ),
-    "pf-cv-still": dict(
-        prior=MIXTURE,
-        components=(("cv", CONSTANT_VELOCITY), ("still", CONSTANT_VELOCITY)),
-        description="constant velocity that can stand still: each particle moves at constant "
-        "velocity (pf-cv's) or takes a small random walk, and keeps its regime from frame to "
-        "frame with a probability chosen on training persons",
-    ),
-    "spf-cv": dict(
-        prior=CONSTANT_VELOCITY,
-        search=LocalSearch(),
-        description="pf-cv's prior and particles; each frame its best particles climb the "
-        "likelihood, body part by body part (smart particle filtering, Bray, Koller-Meier & "
-        "Van Gool 2004)",
-    ),
-    "spf-tree": dict(
-        prior=TREE,
-        search=LocalSearch(),
-        description="pf-tree's prior and particles; each frame its best particles climb the "
-        "likelihood, body part by body part, off the database's poses",
-    ),
-    "spf-mix": dict(
-        prior=MIXTURE,
-        components=MIX_COMPONENTS,
-        search=LocalSearch(),
-        description="pf-mix's mixture and particles; each frame its best particles climb the "
-        "likelihood, body part by body part",
-    ),
-    "pf-cv-det": dict(
-        prior=CONSTANT_VELOCITY,
-        detector=DETECTOR_TERM,
-        description="pf-cv with the learned 2D keypoint detector's term added to the image "
-        "likelihood in every view (baselines.detector; docs/detector.md)",
-    ),
-    "pf-mix-det": dict(
-        prior=MIXTURE,
-        components=MIX_COMPONENTS,
-        detector=DETECTOR_TERM,
-        description="pf-mix with the learned 2D keypoint detector's term added to the image "
-        "likelihood in every view",
-    ),
-    "spf-cv-det": dict(
-        prior=CONSTANT_VELOCITY,
-        search=LocalSearch(),
-        detector=DETECTOR_TERM,
-        description="spf-cv (pf-cv with the local climb) with the learned 2D keypoint "
-        "detector's term added to the image likelihood in every view",
-    ),
-    "spf-mix-det": dict(
-        prior=MIXTURE,
-        components=MIX_COMPONENTS,
-        search=LocalSearch(),
-        detector=DETECTOR_TERM,
-        description="spf-mix (pf-mix with the local climb) with the learned 2D keypoint "
-        "detector's term added to the image likelihood in every view",
-    ),
-    "apf-mix": dict(
-        prior=MIXTURE,
-        components=MIX_COMPONENTS,
-        layers=10,
-        description="annealed particle filter, 10 layers, proposals from pf-mix's mixture; "
-        "survival rate and diffusion chosen per task",
-    ),
-}
 
 
 def build_spec(name: str, settings: AgentSettings, path: Path = PF_SETTINGS_FILE) -> AgentSpec:
@@ -541,37 +488,32 @@ def specs_from_file(path: str | Path = PF_SETTINGS_FILE) -> dict[str, AgentSpec]
 AGENTS: dict[str, AgentSpec] = specs_from_file()
 
 
-#: What a prior module has (docs/priors.md); a mixture's or a per-part prior's
-#: outer module only moves particles, its components fit and are saved.
-PRIOR_FUNCTIONS: tuple[str, ...] = ("fit", "initial", "transition", "save", "load")
-
-
 def _check_prior(spec: AgentSpec, name: str) -> None:
-    """Refuse a spec whose prior module (or a component's) is missing or incomplete."""
+    """Refuse a spec whose prior module (or a component's) is missing, or is not a prior.
+
+    Not a prior: a function is missing or cannot be called as the filter and
+    the fit call it, or a fit setting is not one its ``fit`` takes.
+    """
     if not isinstance(spec, AgentSpec):
         got = type(spec).__name__
         raise TypeError(f"register_agent {name!r}: expected an AgentSpec, got {got}")
-    try:
-        module = prior_module(spec.prior)
-    except KeyError:
-        raise ValueError(
-            f"register_agent {name!r}: unknown prior {spec.prior!r}; give its module's dotted "
-            f"path (mypackage.myprior) or one of {sorted(PRIORS)}"
-        ) from None
-    except ImportError as exc:
-        raise ValueError(
-            f"register_agent {name!r}: the prior module {spec.prior!r} does not import ({exc})"
-        ) from None
+    who = f"register_agent {name!r}"
+    module = import_prior(spec.prior, who)
     composite = bool(spec.components) or spec.per_part
     need = ("initial", "transition") if composite else PRIOR_FUNCTIONS
-    missing = [f for f in need if not callable(getattr(module, f, None))]
-    if missing:
-        raise ValueError(
-            f"register_agent {name!r}: the prior module {spec.prior} has no {', '.join(missing)} "
-            f"(a prior has {', '.join(PRIOR_FUNCTIONS)}: see docs/priors.md)"
-        )
+    check_prior_module(module, spec.prior, who, need)
     for label, component in spec.components:
         _check_prior(component, f"{name}/{label}")
+    chosen = [("fit_settings", spec.fit_settings)] + [
+        (f"task_fit_settings[{task!r}]", s) for task, s in spec.task_fit_settings.items()
+    ]
+    for field_name, settings in chosen:
+        unknown = spec.unknown_settings(settings)
+        if unknown:
+            raise ValueError(
+                f"{who}: {field_name}: {spec.prior} takes no setting {unknown}; its settings "
+                f"are {sorted(spec.setting_names())}"
+            )
 
 
 def _check_filter(spec: AgentSpec, name: str) -> None:
@@ -652,9 +594,14 @@ def register_agent(name: str, spec: AgentSpec, replace: bool = False) -> None:
             reference agent's name is never taken.
 
     Raises:
-        ValueError: If the name is taken (without ``replace``), or the prior
-            module does not import or lacks a function of a prior
-            (:data:`PRIOR_FUNCTIONS`).
+        ValueError: If the name is taken (without ``replace``); the prior
+            module (or a component's) does not import, lacks a function of a
+            prior (:data:`PRIOR_FUNCTIONS`) or has one that cannot be called
+            as the filter and the fit call it
+            (:data:`~baselines.agents.prior_checks.PRIOR_CALLS`); a fit
+            setting is not one its ``fit`` takes (any, for ``**settings``);
+            or the filter cannot be built or would not read one of its
+            settings. Each names the agent and the module, function or field.
         TypeError: If ``spec`` is not an :class:`AgentSpec`.
     """
     _check_new_name(name, "register_agent", replace)

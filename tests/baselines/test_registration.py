@@ -116,3 +116,121 @@ def test_a_spec_whose_filter_cannot_be_built_or_would_ignore_a_setting_is_refuse
             register_agent("spf-mine", spec)
     assert "spf-mine" not in registry
     register_agent("spf-mine", dataclasses.replace(cv, partitioned=True, diffusion=0.3))
+
+
+def _package(tmp_path, monkeypatch, name, **modules):
+    """A package ``name`` of prior modules (source by module name) importable in the test."""
+    root = tmp_path / name
+    root.mkdir()
+    (root / "__init__.py").write_text("")
+    for module, source in modules.items():
+        (root / f"{module}.py").write_text(source)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    for module in [name, *(f"{name}.{m}" for m in modules)]:
+        monkeypatch.delitem(sys.modules, module, raising=False)
+    return name
+
+
+CV = "from baselines.priors.constant_velocity import initial, transition, save, load\n"
+
+
+def test_a_prior_whose_functions_are_not_called_as_a_priors_are_is_refused(
+    registry, tmp_path, monkeypatch
+):
+    fit = "from baselines.priors.constant_velocity import fit\n"
+    pkg = _package(
+        tmp_path, monkeypatch, "mine_calls",
+        nofree=CV + "def fit(motions):\n    return None\n",
+        twoargs=fit + "from baselines.priors.constant_velocity import initial, save, load\n"
+        "def transition(fitted, state):\n    return state\n",
+        notfunction=fit + "from baselines.priors.constant_velocity import initial, transition, save\n"
+        "load = 'not a function'\n",
+        anysettings=CV + "def fit(motions, **settings):\n    return None\n",
+    )  # fmt: skip
+    for module, message in [
+        ("nofree", r"nofree.fit\(motions\) cannot be called as fit\(motions, free=..., rng=...\)"),
+        ("twoargs", r"twoargs.transition\(fitted, state\) cannot be called as transition\("),
+        ("notfunction", r"notfunction.load is a str, not a function"),
+    ]:
+        with pytest.raises(ValueError, match=rf"register_agent 'pf-mine': {pkg}\.{message}"):
+            register_agent("pf-mine", AgentSpec(f"{pkg}.{module}"))
+    assert "pf-mine" not in registry
+    register_agent("pf-mine", AgentSpec(f"{pkg}.anysettings", {"damping": 0.3}))  # any setting
+
+
+@pytest.mark.parametrize(
+    ("source", "raised"),
+    [("raise RuntimeError('boom')\n", "RuntimeError: boom"), ("def fit(:\n", "SyntaxError")],
+)
+def test_a_prior_module_that_raises_while_imported_is_refused(
+    registry, tmp_path, monkeypatch, source, raised
+):
+    pkg = _package(tmp_path, monkeypatch, "mine_raises", broken=source)
+    with pytest.raises(
+        ValueError, match=rf"prior module '{pkg}.broken' does not import \({raised}"
+    ):
+        register_agent("pf-mine", AgentSpec(f"{pkg}.broken"))
+    assert "pf-mine" not in registry
+
+
+def test_a_spec_field_of_the_wrong_kind_is_refused_where_it_is_written():
+    cv = "baselines.priors.constant_velocity"
+    with pytest.raises(TypeError, match="AgentSpec.prior: expected a prior's name .* got 42"):
+        AgentSpec(42)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="AgentSpec.fit_settings: expected a mapping of names"):
+        AgentSpec(cv, ["damping"])  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="AgentSpec.tasks: expected a tuple of task names"):
+        AgentSpec(cv, tasks="BodyTrack-v2")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"tasks: unknown task 'humotion_gym/ArmTrack-v2'; the"):
+        AgentSpec(cv, tasks=("humotion_gym/ArmTrack-v2",))
+    with pytest.raises(ValueError, match=r"task_fit_settings: unknown task 'Arm'"):
+        AgentSpec(cv, task_fit_settings={"Arm": {"damping": 0.3}})
+    with pytest.raises(TypeError, match=r"AgentSpec.components: expected a tuple of \(label"):
+        AgentSpec("baselines.priors.mixture", components=(("cv", cv),))  # type: ignore[arg-type]
+    assert AgentSpec(cv, tasks=["ArmTrack-v2"]).tasks == ("ArmTrack-v2",)  # type: ignore[arg-type]
+
+
+def test_a_fit_setting_the_prior_cannot_take_is_refused_when_registered(registry):
+    cv = "baselines.priors.constant_velocity"
+    with pytest.raises(
+        ValueError,
+        match=r"'pf-mine': fit_settings: .*constant_velocity takes no setting \['bogus'\]",
+    ):
+        register_agent("pf-mine", AgentSpec(cv, {"bogus": 1}))
+    with pytest.raises(ValueError, match=r"task_fit_settings\['ArmTrack-v2'\]: .*\['bogus'\]"):
+        register_agent("pf-mine", AgentSpec(cv, task_fit_settings={"ArmTrack-v2": {"bogus": 1}}))
+    mix = AGENTS["pf-mix"]
+    with pytest.raises(
+        ValueError, match=r"fit_settings: .*mixture takes no setting \['cv.bogus'\]"
+    ):
+        register_agent("pf-mine", dataclasses.replace(mix, fit_settings={"cv.bogus": 1}))
+    assert "pf-mine" not in registry
+    register_agent("pf-mine", dataclasses.replace(mix, fit_settings={"cv.damping": 0.5}))
+
+
+def test_frame_skip_reaches_a_fit_that_takes_it_and_one_that_cannot_is_refused(
+    registry, tmp_path, monkeypatch
+):
+    """docs/priors.md's fit(motions, free, rng, **settings) need not take frame_skip: such a
+    prior serves frame_skip 1, and a task that steps more frames is refused naming it."""
+    from baselines import agents
+
+    monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path / "cache"))
+    pkg = _package(
+        tmp_path, monkeypatch, "mine_skip",
+        noskip=CV + "from baselines.priors import constant_velocity as cv\n"
+        "def fit(motions, free=None, rng=None, damping=0.3):\n"
+        "    return cv.fit(motions, free=free, rng=rng, damping=damping)\n",
+        skip=CV + "from baselines.priors import constant_velocity as cv\nSKIPS = []\n"
+        "def fit(motions, free=None, rng=None, frame_skip=1):\n"
+        "    SKIPS.append(frame_skip)\n"
+        "    return cv.fit(motions, free=free, rng=rng, frame_skip=frame_skip)\n",
+    )  # fmt: skip
+    register_agent("pf-noskip", AgentSpec(f"{pkg}.noskip"))
+    register_agent("pf-skip", AgentSpec(f"{pkg}.skip"))
+    skipping = gym.make("humotion_gym/ArmTrack-v2", frame_skip=2)
+    with pytest.raises(ValueError, match=rf"{pkg}.noskip.fit takes no frame_skip keyword"):
+        agents.make("pf-noskip", skipping, n_particles=3, use_cache=False)
+    agents.make("pf-noskip", gym.make("humotion_gym/ArmTrack-v2"), n_particles=3, use_cache=False)
+    agents.make("pf-skip", skipping, n_particles=3, use_cache=False)
+    assert sys.modules[f"{pkg}.skip"].SKIPS == [2]
