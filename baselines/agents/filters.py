@@ -58,6 +58,7 @@ from humotion_gym.body import (
     BodyShape,
 )
 from humotion_gym.camera import Camera
+from humotion_gym.checks import check_count
 from humotion_gym.envs.description import (
     Given,
     TaskDescription,
@@ -419,7 +420,12 @@ class ParticleFilterAgent:
         The evaluation loop calls it before each episode, so an episode's result
         does not depend on which episodes this agent ran before (any order, any
         worker: the same numbers).
+
+        Raises:
+            ValueError: If ``episode_seed`` is not an integer >= 0 (1.7 would
+                have seeded episode 1).
         """
+        check_count("seed_episode: episode_seed", episode_seed, 0)
         self._seed_rng = np.random.default_rng([self.seed, int(episode_seed)])
 
     def reset(self, given: Given) -> None:

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from baselines.agents.base import accepts_batch_of_one, describe, episode_begins
+from humotion_gym.checks import check_count
 from humotion_gym.envs.description import TaskDescription, read_observation
 
 
@@ -68,7 +69,12 @@ class RandomAgent:
         self._shape = self.description.action_space.shape
 
     def seed_episode(self, episode_seed: int) -> None:
-        """Seed the next episode's actions from ``(seed, episode_seed)`` alone."""
+        """Seed the next episode's actions from ``(seed, episode_seed)`` alone.
+
+        Raises:
+            ValueError: If ``episode_seed`` is not an integer >= 0.
+        """
+        check_count("seed_episode: episode_seed", episode_seed, 0)
         self._rng = np.random.default_rng([self.seed, int(episode_seed)])
 
     @accepts_batch_of_one

@@ -219,3 +219,14 @@ def test_validity_compares_the_best_prior_with_pf_follow_where_it_ran():
     # Without pf-follow (or with it alone) only the hold verdict.
     assert len(validity_lines([hold, tree])) == 1
     assert len(validity_lines([hold, follow])) == 1
+
+
+@pytest.mark.parametrize("episode_seed", [-1, 1.7, 1.0, "1", True, None])
+def test_an_episode_seed_that_is_not_a_count_is_refused_naming_it(episode_seed):
+    """-1 reached numpy's own words; 1.7 seeded episode 1, silently."""
+    env = gym.make("humotion_gym/ArmTrack-v2")
+    for name, kwargs in [("random", {}), ("pf-cv", {"n_particles": 3, "use_cache": False})]:
+        agent = make(name, env, seed=2, **kwargs)
+        with pytest.raises(ValueError, match=r"^seed_episode: episode_seed: expected an integer"):
+            agent.seed_episode(episode_seed)
+        agent.seed_episode(np.int64(3))  # numpy's integers are seeds
