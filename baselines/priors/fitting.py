@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from baselines.priors import get_prior
+from baselines.priors._checks import free_indices
 from humotion_gym.checks import is_integer, is_real
 from humotion_gym.files import load_npz, write_atomically
 from humotion_gym.mocap.library import (
@@ -279,12 +280,20 @@ def fit_prior(
 
     Returns:
         ``(module, fitted)``: the prior's module and its fitted parameters.
+
+    Raises:
+        ValueError: Before any fit or cache read, if ``free`` is not distinct
+            integer indices in [0, 25) (``1.5`` or ``True`` is refused, not
+            cut to an index) or a setting is of the wrong kind; then whatever
+            the prior's ``fit`` raises.
     """
     module = prior_module(prior)
-    free = None if free is None else np.asarray(free, dtype=np.intp)
-    kwargs = _typed_settings(module, settings or {})
     dotted = module.__name__
     name = dotted.rsplit(".", 1)[-1]
+    # The priors' own check of free, before the key is made of it: 6.7 or True
+    # is refused in the fit's words, never cut to an index.
+    free = None if free is None else free_indices(free, f"{name}.fit")
+    kwargs = _typed_settings(module, settings or {})
     settings_json = json.dumps(_effective_settings(module, kwargs), sort_keys=True, default=str)
     info = {
         "prior": dotted,

@@ -175,3 +175,25 @@ def test_an_entry_of_other_code_under_the_right_name_is_refitted(clips, tmp_path
     with pytest.warns(CacheWarning, match="foreign entry: code='0123456789abcdef'"):
         _fit(module, clips, tmp_path)
     assert len(module.calls) == 2
+
+
+@pytest.mark.parametrize("free", [[6.7, 7.2], [True, False], ["6"], [2**70], [[6, 7]], [6, 6]])
+def test_free_that_is_not_distinct_indices_is_refused_in_the_fits_words(
+    clips, tmp_path, free
+) -> None:
+    """Floats, bools, words, a number past any index: refused before any fit, never cut."""
+    module = tiny_prior()
+    with pytest.raises(ValueError, match=r"tiny_prior_for_tests\.fit: free must be distinct"):
+        fit_prior(module, clips, free, cache_dir=tmp_path, log=None)
+    assert module.calls == [] and not (tmp_path / "priors").exists()
+
+
+def test_fit_prior_refuses_free_as_the_priors_own_fit_does(clips) -> None:
+    """The same check and the same words as ``constant_velocity.fit``'s."""
+    from baselines.priors import constant_velocity
+
+    with pytest.raises(ValueError) as direct:
+        constant_velocity.fit(clips, free=[6.7, 7.2])
+    with pytest.raises(ValueError) as through:
+        fit_prior("constant_velocity", clips, [6.7, 7.2], use_cache=False, log=None)
+    assert str(through.value) == str(direct.value)
