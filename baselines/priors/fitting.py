@@ -27,9 +27,10 @@ import json
 import logging
 import sys
 import time
+import typing
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
-from types import ModuleType
+from types import ModuleType, UnionType
 from typing import Any
 
 import numpy as np
@@ -167,12 +168,39 @@ def _effective_settings(module: ModuleType, kwargs: Mapping[str, Any]) -> dict[s
     return {**defaults, **{k: v for k, v in kwargs.items() if k not in skip}}
 
 
+#: How a fit's signature writes a count's type in a string annotation (``from
+#: __future__ import annotations``): an int, or an int that may be None.
+_COUNT_ANNOTATIONS = frozenset(
+    {"int", "int|None", "None|int", "Optional[int]", "typing.Optional[int]"}
+)
+
+
+def _is_count_setting(param: inspect.Parameter) -> bool:
+    """Whether a fit's setting is a count: its default an int, or its annotation ``int | None``.
+
+    The one rule of which settings take a whole-number float as an int. A
+    count whose default is None (``tree.fit``'s ``depth``, ``slds.fit``'s
+    ``workers``: "a whole number >= 1 or None") says so in its annotation
+    alone, which is read as written, without evaluating it.
+    """
+    if is_integer(param.default):
+        return True
+    hint = param.annotation
+    if isinstance(hint, str):
+        return hint.replace(" ", "") in _COUNT_ANNOTATIONS
+    if hint is int:
+        return True
+    union = typing.get_origin(hint) in (typing.Union, UnionType)
+    return union and set(typing.get_args(hint)) == {int, type(None)}
+
+
 def _typed_settings(module: ModuleType, settings: Mapping[str, Any]) -> dict[str, Any]:
-    """``settings`` with whole-number floats made ints where the fit's default is an int.
+    """``settings`` with whole-number floats made ints where the setting is a count.
 
     Settings come from the command line as numbers (``--grid fit.n_iter=20,40``
-    gives 20.0): a count must reach the fit as an int, and reach the cache key
-    as the default's type, so that ``n_iter=20`` reuses the default's fit.
+    gives 20.0, ``--grid fit.depth=5`` 5.0): a count (:func:`_is_count_setting`)
+    must reach the fit as an int, and reach the cache key as one, so that
+    ``n_iter=20.0`` reuses the default's fit.
 
     Raises:
         ValueError: Naming the prior and the setting, for a count that is not
@@ -186,7 +214,7 @@ def _typed_settings(module: ModuleType, settings: Mapping[str, Any]) -> dict[str
         default = None if p is None else p.default
         if is_real(default) and not is_real(value):  # fit.damping=abc
             raise ValueError(f"{prior} prior: the setting {name} is a number, got {value!r}")
-        counted = is_integer(default)
+        counted = p is not None and _is_count_setting(p)
         if counted and isinstance(value, (float, np.floating)):
             if not float(value).is_integer():
                 raise ValueError(

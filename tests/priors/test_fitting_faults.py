@@ -197,3 +197,26 @@ def test_fit_prior_refuses_free_as_the_priors_own_fit_does(clips) -> None:
     with pytest.raises(ValueError) as through:
         fit_prior("constant_velocity", clips, [6.7, 7.2], use_cache=False, log=None)
     assert str(through.value) == str(direct.value)
+
+
+def test_a_count_that_may_be_none_takes_a_whole_float_as_an_int(clips, tmp_path) -> None:
+    """``depth: int | None = None`` (as ``tree.fit`` writes it): 5.0 is 5, 5.5 is refused."""
+    module = tiny_prior()
+
+    def fit(motions, free=None, rng=None, depth: int | None = None, scale: float | None = None):
+        module.calls.append({"depth": depth, "scale": scale})
+        return {"depth": np.array(-1 if depth is None else depth)}
+
+    module.fit = fit
+    _fit(module, clips, tmp_path, depth=5)
+    got = _fit(module, clips, tmp_path, depth=5.0)
+    assert len(module.calls) == 1 and int(got["depth"]) == 5  # the same entry, read
+    _fit(module, clips, tmp_path, depth=6.0, scale=2.0)
+    assert module.calls[-1] == {"depth": 6, "scale": 2.0}
+    assert type(module.calls[-1]["depth"]) is int and type(module.calls[-1]["scale"]) is float
+    with pytest.raises(ValueError, match="the setting depth must be a whole number, got 5.5"):
+        _fit(module, clips, tmp_path, depth=5.5)
+    # An annotation that is the type itself (a module without postponed annotations).
+    fit.__annotations__ = {"depth": int | None, "scale": float | None}
+    _fit(module, clips, tmp_path, depth=7.0)
+    assert module.calls[-1]["depth"] == 7 and type(module.calls[-1]["depth"]) is int

@@ -147,3 +147,16 @@ def test_a_save_that_cannot_write_names_its_path_not_the_temporary_file(tmp_path
     with pytest.raises(OSError, match="missing/dir"):
         tree.save(prior, tmp_path / "missing" / "dir" / "x.npz")
     assert not list(tmp_path.glob(".*.tmp"))
+
+
+def test_fit_prior_takes_a_depth_given_as_a_whole_float(tmp_path):
+    # --grid fit.depth=5 gives 5.0; depth's default is None, so only its
+    # annotation (int | None) says it is a count.
+    from baselines.priors.fitting import fit_prior
+
+    motions = [walking_along_y(90)]
+    free = np.arange(body.N_PARAMS)
+    _, as_int = fit_prior("tree", motions, free, {"depth": 5}, cache_dir=tmp_path, log=None)
+    _, as_float = fit_prior("tree", motions, free, {"depth": 5.0}, cache_dir=tmp_path, log=None)
+    assert as_float.depth == as_int.depth == 5
+    assert len(list((tmp_path / "priors").glob("tree-*.npz"))) == 1  # the same entry
