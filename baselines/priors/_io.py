@@ -152,6 +152,35 @@ _NOT_NPZ = (OSError, EOFError, ValueError, zipfile.BadZipFile, zlib.error)
 _DAMAGED = (OSError, EOFError, zipfile.BadZipFile, zlib.error)
 
 
+class _Members:
+    """An open ``.npz`` whose arrays, read by name, fail naming the file and the array.
+
+    numpy raises a ValueError without the file for a member it will not read
+    (an array of Python objects, whose pickle ``allow_pickle=False`` refuses;
+    a ``.npy`` header of another format or damaged), as for a damaged one.
+    """
+
+    def __init__(self, data: Any, path: str | Path, what: str) -> None:
+        self._data, self._path, self._what = data, path, what
+
+    @property
+    def files(self) -> list[str]:
+        """The names of the arrays, as ``NpzFile.files``."""
+        return list(self._data.files)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._data.files
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        try:
+            return self._data[name]
+        except (ValueError, *_DAMAGED) as exc:
+            raise ValueError(
+                f"{self._path}: damaged {self._what} file: its array {name!r} cannot be read "
+                f"({exc})"
+            ) from None
+
+
 @contextlib.contextmanager
 def open_npz(path: str | Path, what: str) -> Iterator[Any]:
     """``np.load(path, allow_pickle=False)`` of an ``.npz``, its damage named.
@@ -160,10 +189,15 @@ def open_npz(path: str | Path, what: str) -> Iterator[Any]:
         path: The file.
         what: What it should hold, for the messages.
 
+    Yields:
+        The file's arrays: ``files`` (their names), ``name in``, ``[name]``.
+
     Raises:
         FileNotFoundError: If there is no such file.
         ValueError: If it is not an ``.npz`` (empty, cut short, text, a
-            ``.npy`` array) or a member is damaged; the message names the file.
+            ``.npy`` array) or a member is damaged or not a plain array (of
+            Python objects, a ``.npy`` header numpy does not read); the
+            message names the file, and the array when one is read.
     """
     try:
         fh = open(path, "rb")  # noqa: SIM115  (closed below, however it ends)
@@ -178,6 +212,6 @@ def open_npz(path: str | Path, what: str) -> Iterator[Any]:
             raise ValueError(f"{path}: not saved {what} ({exc})") from None
         with data:
             try:
-                yield data
+                yield _Members(data, path, what)
             except _DAMAGED as exc:
                 raise ValueError(f"{path}: damaged {what} file ({exc})") from None

@@ -33,15 +33,23 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from baselines.filtering import ParticleState
-from baselines.priors._checks import free_indices, start_pose, training_clips
+from baselines.priors._checks import (
+    check_fitted,
+    check_settings,
+    free_indices,
+    start_pose,
+    training_clips,
+)
 from baselines.priors._io import load_fitted, save_fitted
 from baselines.priors._synthesis import check_request, model_frames, to_motion
 from humotion_gym.body import VALID_LOWER, VALID_UPPER
+from humotion_gym.checks import is_real
 from humotion_gym.mocap.motion import Motion
 
 FloatArray = NDArray[np.float64]
@@ -75,6 +83,10 @@ class ConstantVelocityParams:
     position_noise: float = 0.0
 
     def __post_init__(self) -> None:
+        # What initial and transition rely on (a loaded file is checked here too).
+        where = "ConstantVelocityParams"
+        check_fitted(where, self.free, numbers={"fps": self.fps}, positive={"fps"})
+        _check_scales(where, self.multiplier, self.damping, self.position_noise)
         d = np.shape(self.free)
         for name in ("accel_std", "velocity_std"):
             value = np.asarray(getattr(self, name))
@@ -85,6 +97,20 @@ class ConstantVelocityParams:
                 )
             if np.any(value < 0):
                 raise ValueError(f"ConstantVelocityParams: {name} must be >= 0")
+
+
+def _check_scales(where: str, multiplier: Any, damping: Any, position_noise: Any) -> None:
+    """Refuse the noise settings that :func:`fit` takes and the parameters hold, by name.
+
+    ``multiplier`` and ``position_noise`` finite numbers >= 0, ``damping`` a
+    number in [0, 1].
+
+    Raises:
+        ValueError: Naming ``where`` (the fit or the class) and the setting.
+    """
+    check_settings(where, numbers={"multiplier": multiplier, "position_noise": position_noise})
+    if not (is_real(damping) and 0.0 <= damping <= 1.0):
+        raise ValueError(f"{where}: damping must be a number in [0, 1], got {damping!r}")
 
 
 def fit(
@@ -125,14 +151,7 @@ def fit(
     del rng
     if moving not in MOVING:
         raise ValueError(f"constant_velocity.fit: moving must be one of {MOVING}, got {moving!r}")
-    if not 0.0 <= damping <= 1.0:
-        raise ValueError(f"constant_velocity.fit: damping must be in [0, 1], got {damping}")
-    if not (np.isfinite(position_noise) and position_noise >= 0):
-        raise ValueError(
-            f"constant_velocity.fit: position_noise must be >= 0, got {position_noise}"
-        )
-    if not (np.isfinite(multiplier) and multiplier >= 0):
-        raise ValueError(f"constant_velocity.fit: multiplier must be >= 0, got {multiplier}")
+    _check_scales("constant_velocity.fit", multiplier, damping, position_noise)
     idx = free_indices(free, "constant_velocity.fit")
     fps = training_clips(motions, frame_skip, "constant_velocity.fit")
     acc, vel = [], []

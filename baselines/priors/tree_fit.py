@@ -36,6 +36,7 @@ from baselines.priors.tree_model import (
     _relative_step,
     _root_xy,
     _tree_arrays,
+    check_fields,
 )
 from humotion_gym.body import PARAM_NAMES
 from humotion_gym.checks import is_count
@@ -469,9 +470,13 @@ def load(path: str | Path) -> TreeParams:
     """Read a prior written by :func:`save`, recomputing the tree from the database.
 
     Raises:
-        ValueError: If the file is not a tree prior of this format (an older
-            release's file: fit the prior again), lacks an array, or its
-            windows do not fit its frames.
+        ValueError: Naming the file, and the array where one is at fault: if
+            it is not a tree prior of this format (an older release's file:
+            fit the prior again), lacks an array, holds one numpy will not
+            read, holds what the fit never makes (``free`` not distinct
+            indices in [0, 25), a setting out of the fit's range, an array of
+            another shape than ``window``, ``depth`` and ``free`` give:
+            :func:`check_fields`), or its windows do not fit its frames.
     """
     with open_npz(path, TreeParams.__name__) as data:
         check_kind(data, path, TreeParams.__name__)
@@ -487,17 +492,16 @@ def load(path: str | Path) -> TreeParams:
             data, path, stored | {"clip_lengths", "window_end"},
             optional=frozenset({"speed_spread", "speed_drift"}),
         )  # fmt: skip
-    try:
-        clips = np.asarray(kwargs.pop("clip_lengths")).astype(np.intp)
-        ends = np.asarray(kwargs.pop("window_end")).astype(np.intp)
-        frames = np.asarray(kwargs["frames"], dtype=np.float64)
-        d = int(kwargs["window"])
-    except (TypeError, ValueError) as exc:
+    try:  # the scalars, free and the arrays the rebuild below relies on
+        check_fields("TreeParams", kwargs)
+    except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
+    clips = _whole_numbers(path, "clip_lengths", kwargs.pop("clip_lengths"))
+    ends = _whole_numbers(path, "window_end", kwargs.pop("window_end"))
+    frames = np.asarray(kwargs["frames"], dtype=np.float64)
+    d = int(kwargs["window"])
     if (
-        frames.ndim != 2
-        or clips.sum() != frames.shape[0]
-        or ends.ndim != 1
+        clips.sum() != frames.shape[0]
         or ends.size < 2
         or ends.min() < d
         or ends.max() + 1 >= frames.shape[0]
@@ -506,7 +510,7 @@ def load(path: str | Path) -> TreeParams:
             f"{path}: its windows (last frames {ends.min(initial=0)}..{ends.max(initial=0)}) "
             f"do not fit its {frames.shape[0]} frames (window {d})"
         )
-    try:  # a free list or projection of another shape fails in the tree's rebuild
+    try:  # checked above; whatever else the rebuild meets is still the file's
         free = np.asarray(kwargs["free"], dtype=np.intp)
         tree = _tree_order(
             frames, ends, _layout(free), d, kwargs["projection"], kwargs["projection_heading"],
@@ -519,3 +523,14 @@ def load(path: str | Path) -> TreeParams:
         return TreeParams(**kwargs)
     except (TypeError, ValueError, IndexError) as exc:
         raise ValueError(f"{path}: {exc}") from None
+
+
+def _whole_numbers(path: str | Path, name: str, value: Any) -> IntArray:
+    """A stored list of whole numbers >= 0 (clip lengths, window ends), else a ValueError."""
+    arr = np.asarray(value)
+    if arr.ndim != 1 or arr.dtype.kind not in "iu" or np.any(arr < 0):
+        raise ValueError(
+            f"{path}: {name!r} must be a list of whole numbers >= 0, got shape {arr.shape} of "
+            f"{arr.dtype}"
+        )
+    return arr.astype(np.intp)

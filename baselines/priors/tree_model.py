@@ -9,14 +9,14 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from baselines.priors._checks import check_shapes
+from baselines.priors._checks import check_fitted, check_settings, check_shapes
 from humotion_gym.body import PARAM_INDEX
 from humotion_gym.mocap.motion import Motion
 
@@ -157,35 +157,11 @@ class TreeParams:
     speed_drift: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.leaf not in LEAF_RULES:
-            raise ValueError(f"TreeParams.leaf must be one of {LEAF_RULES}, got {self.leaf!r}")
-        if not (np.isfinite(self.beta) and self.beta > 0):
-            raise ValueError(f"TreeParams.beta must be a positive number, got {self.beta}")
-        if not (np.isfinite(self.noise_scale) and self.noise_scale >= 0):
-            raise ValueError(f"TreeParams.noise_scale must be >= 0, got {self.noise_scale}")
-        if not (np.isfinite(self.init_scale) and self.init_scale > 0):
-            raise ValueError(f"TreeParams.init_scale must be positive, got {self.init_scale}")
-        if self.proposals < 1:
-            raise ValueError(f"TreeParams.proposals must be >= 1, got {self.proposals}")
-        for name, rules in (("replay", REPLAY_RULES), ("search", SEARCH_RULES)):
-            value = getattr(self, name)
-            if value not in rules:
-                raise ValueError(f"TreeParams.{name} must be one of {rules}, got {value!r}")
-        for name in ("speed_spread", "speed_drift"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value >= 0):
-                raise ValueError(f"TreeParams.{name} must be >= 0, got {value}")
-        self._check_shapes()
-
-    def _check_shapes(self) -> None:
-        """Each array's size in ``b`` (``depth``) and ``D`` (the free parameters) as documented."""
-        b, dim = int(self.depth), int(np.size(self.free))
-        check_shapes("TreeParams", vars(self), {
-            "sigma": (b,), "singular_values": (b,), "projection_offset": (b,),
-            "step_var": (dim,), "components": (-1, b), "projection": (-1, b),
-            "projection_heading": (-1, b), "frames": (-1, dim), "next_step": (-1, dim),
-            "coefficients": (-1, b),
-        })  # fmt: skip
+        # What initial and transition rely on: a loaded file is checked here too.
+        check_fields("TreeParams", vars(self))
+        dim, b = int(np.size(self.free)), int(self.depth)
+        want = {"coefficients": (-1, b), "next_step": (-1, dim)}
+        check_shapes("TreeParams", vars(self), want)
 
     @property
     def n_windows(self) -> int:
@@ -222,6 +198,69 @@ class TreeParams:
         }  # fmt: skip
         changes = {k: cast(v) for k, (v, cast) in given.items() if v is not None}
         return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
+
+
+#: The arrays of numbers :func:`check_fields` checks (the others are derived from them).
+_STORED_ARRAYS = (
+    "frames", "feature_mean", "feature_var", "step_var", "components", "singular_values",
+    "sigma", "projection", "projection_heading", "projection_offset",
+)  # fmt: skip
+
+
+def check_sampling(where: str, values: Mapping[str, Any]) -> None:
+    """Refuse the sampling settings that :func:`fit` takes and :class:`TreeParams` holds.
+
+    ``beta`` and ``init_scale`` finite numbers > 0; ``noise_scale``,
+    ``speed_spread`` and ``speed_drift`` >= 0 (the last two 0 when absent);
+    ``proposals`` a whole number >= 1; ``leaf``, ``replay`` and ``search``
+    one of their rules.
+
+    Raises:
+        ValueError: Naming ``where`` (the fit or the class) and the setting.
+    """
+    numbers = {k: values.get(k, 0.0) for k in ("speed_spread", "speed_drift")}
+    numbers.update({k: values[k] for k in ("beta", "init_scale", "noise_scale")})
+    counts = {"proposals": (values["proposals"], 1)}
+    check_settings(where, numbers, counts, positive=("beta", "init_scale"))
+    rules = {"leaf": LEAF_RULES, "replay": REPLAY_RULES, "search": SEARCH_RULES}
+    for name, allowed in rules.items():
+        if not isinstance(values[name], str) or values[name] not in allowed:
+            raise ValueError(f"{where}: {name} must be one of {allowed}, got {values[name]!r}")
+
+
+def check_fields(where: str, values: Mapping[str, Any]) -> None:
+    """Refuse the fields of :class:`TreeParams` that its search and replay would fail on.
+
+    The fields a file stores (``values`` may lack the derived ones):
+    ``free``, the counts ``window`` and ``depth``, ``fps``, the sampling
+    settings (:func:`check_sampling`), and the PCA's and projection's arrays
+    as numbers of the shapes ``window``, ``depth`` and ``free`` give them, the
+    variances and spreads that are divided by above 0.
+
+    Raises:
+        ValueError: Naming ``where`` and the field.
+    """
+    counts = {"window": (values["window"], 1), "depth": (values["depth"], 1)}
+    numbers = {"fps": values["fps"], "explained_variance": values["explained_variance"]}
+    check_fitted(where, values["free"], numbers, counts, positive=("fps",))
+    check_sampling(where, values)
+    for name in _STORED_ARRAYS:
+        if np.asarray(values[name]).dtype.kind not in "fiu":
+            raise ValueError(
+                f"{where}: {name} must be numbers, got {np.asarray(values[name]).dtype}"
+            )
+    d, b, dim = int(values["window"]), int(values["depth"]), int(np.size(values["free"]))
+    width = d * _n_features(_layout(np.asarray(values["free"])), dim, str(values["search"]))
+    check_shapes(where, values, {
+        "sigma": (b,), "singular_values": (b,), "projection_offset": (b,),
+        "step_var": (dim,), "feature_var": (width // d,), "feature_mean": (width,),
+        "components": (width, b), "projection": ((d + 1) * dim, b),
+        "projection_heading": (2 * (d + 1), b), "frames": (-1, dim),
+    })  # fmt: skip
+    for name, least in (("sigma", "> 0"), ("feature_var", "> 0"), ("step_var", ">= 0")):
+        arr = np.asarray(values[name])
+        if not np.all(arr > 0 if least == "> 0" else arr >= 0):
+            raise ValueError(f"{where}: {name} must be {least}, got {arr.min()}")
 
 
 class _Layout(NamedTuple):

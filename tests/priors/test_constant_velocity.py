@@ -186,3 +186,30 @@ def test_initial_and_transition_by_hand():
     np.testing.assert_array_equal(outside, [[0, 0], [0, 0], [1, 0], [0, 1]])
     np.testing.assert_allclose(moved.pose, np.clip(want_p, lower, upper), rtol=1e-14)
     np.testing.assert_allclose(moved.extra["velocity"], np.where(outside, 0.0, want_v), rtol=1e-14)
+
+
+@pytest.mark.parametrize(
+    ("edit", "says"),
+    [
+        ({"free": np.arange(25) + 5}, r"free must be distinct integer indices in \[0, 25\)"),
+        ({"free": np.arange(25) * 1.0}, r"free must be distinct integer indices"),
+        ({"free": np.zeros(25, dtype=np.int64)}, r"free must be distinct integer indices"),
+        ({"damping": np.array(5.0)}, r"damping must be a number in \[0, 1\], got 5.0"),
+        ({"multiplier": np.array(-1.0)}, r"multiplier must be a number >= 0, got -1.0"),
+        ({"position_noise": np.array(-0.5)}, r"position_noise must be a number >= 0"),
+        ({"fps": np.array("abc")}, r"fps must be a number > 0, got 'abc'"),
+        ({"fps": np.array(-3.0)}, r"fps must be a number > 0, got -3.0"),
+    ],
+)
+def test_load_refuses_what_initial_and_transition_would_fail_on(tmp_path, edit, says):
+    """An edited file is refused when loaded, naming the file and the array, not when used."""
+    fitted = cv.fit(synthetic_library().split("train").motions[:2])
+    path = tmp_path / "cv.npz"
+    cv.save(fitted, path)
+    assert cv.load(path).free.tolist() == list(range(25))
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files}
+    edited = tmp_path / "edited.npz"
+    np.savez(edited, **{**arrays, **edit})
+    with pytest.raises(ValueError, match=rf"edited\.npz: ConstantVelocityParams: {says}"):
+        cv.load(edited)

@@ -7,6 +7,7 @@ import io
 import struct
 import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -170,3 +171,57 @@ def test_a_synthesis_request_needs_a_positive_rate(fps: object) -> None:
     """``fps`` must be a finite number above 0."""
     with pytest.raises(ValueError, match="fps must be a positive number"):
         check_request(np.zeros(25), 10, fps, np.random.default_rng(0))  # type: ignore[arg-type]
+
+
+def _prior_members() -> list[Any]:
+    """Each prior's load, the kind its files hold and the arrays it reads."""
+    from baselines.priors import PRIORS, get_prior
+    from baselines.priors.tree_fit import _DERIVED
+    from baselines.priors.tree_model import TreeParams
+
+    out = []
+    for name in PRIORS:
+        module = get_prior(name)
+        cls = next(
+            v for k, v in vars(module).items() if k.endswith("Params") and isinstance(v, type)
+        )
+        names = {f.name for f in dataclasses.fields(cls)}
+        if cls is TreeParams:
+            names = names - set(_DERIVED) | {"clip_lengths", "window_end"}
+        out.append(pytest.param(name, cls.__name__, names, id=name))
+    return out
+
+
+def _npy(array: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, array)
+    return buf.getvalue()
+
+
+@pytest.mark.parametrize(("prior", "kind", "names"), _prior_members())
+@pytest.mark.parametrize(
+    ("member", "says"),
+    [
+        (_npy(np.array([1, "a"], dtype=object)), "Object arrays cannot be loaded"),
+        (b"\x93NUMPY\x09\x00 not a header", "format version"),
+    ],
+    ids=["objects", "header"],
+)
+def test_a_member_numpy_will_not_read_is_named_with_its_file(
+    tmp_path: Path, prior: str, kind: str, names: set[str], member: bytes, says: str
+) -> None:
+    """An array of Python objects or a damaged ``.npy`` header: the file and the array named."""
+    from baselines.priors import get_prior
+
+    path = tmp_path / "edited.npz"
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("__kind__.npy", _npy(np.array(kind)))
+        z.writestr("__format__.npy", _npy(np.array("3")))
+        for name in sorted(names):
+            z.writestr(f"{name}.npy", member)
+    with pytest.raises(ValueError, match=rf"edited\.npz: damaged {kind} file: its array '\w+'"):
+        try:
+            get_prior(prior).load(path)
+        except ValueError as exc:
+            assert says in str(exc)
+            raise

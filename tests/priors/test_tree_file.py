@@ -160,3 +160,40 @@ def test_fit_prior_takes_a_depth_given_as_a_whole_float(tmp_path):
     _, as_float = fit_prior("tree", motions, free, {"depth": 5.0}, cache_dir=tmp_path, log=None)
     assert as_float.depth == as_int.depth == 5
     assert len(list((tmp_path / "priors").glob("tree-*.npz"))) == 1  # the same entry
+
+
+@pytest.mark.parametrize(
+    ("edit", "says"),
+    [
+        ({"free": np.arange(25) + 5}, r"TreeParams: free must be distinct integer indices"),
+        ({"free": np.arange(25) * 1.0}, r"TreeParams: free must be distinct integer indices"),
+        ({"window": np.array(2.5)}, r"TreeParams: window must be a whole number >= 1"),
+        ({"depth": np.array(0)}, r"TreeParams: depth must be a whole number >= 1"),
+        ({"proposals": np.array(2.5)}, r"TreeParams: proposals must be a whole number >= 1"),
+        ({"beta": np.array(0.0)}, r"TreeParams: beta must be a number > 0"),
+        ({"fps": np.array("abc")}, r"TreeParams: fps must be a number > 0, got 'abc'"),
+        ({"leaf": np.array(3)}, r"TreeParams: leaf must be one of"),
+        ({"window": np.array(3)}, r"TreeParams\.feature_mean has shape"),
+        ({"sigma": "zeros"}, r"TreeParams: sigma must be > 0"),
+        ({"projection": "a row short"}, r"TreeParams\.projection has shape"),
+        ({"clip_lengths": "floats"}, r"'clip_lengths' must be a list of whole numbers >= 0"),
+        ({"window_end": "floats"}, r"'window_end' must be a list of whole numbers >= 0"),
+    ],
+)
+def test_load_refuses_what_the_search_and_replay_would_fail_on(tmp_path, prior, edit, says):
+    """An edited file is refused when loaded, naming the file and the array, not when used."""
+    path = tmp_path / "tree.npz"
+    tree.save(prior, path)
+    with np.load(path, allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files}
+    changes = {
+        "zeros": lambda a: np.zeros_like(a),
+        "a row short": lambda a: a[:-1],
+        "floats": lambda a: a.astype(np.float64),
+    }
+    for name, value in edit.items():
+        arrays[name] = changes[value](arrays[name]) if isinstance(value, str) else value
+    edited = tmp_path / "edited.npz"
+    np.savez(edited, **arrays)
+    with pytest.raises(ValueError, match=rf"edited\.npz: .*{says}"):
+        tree.load(edited)

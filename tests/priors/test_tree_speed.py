@@ -138,7 +138,7 @@ def test_bad_speed_settings_and_states_are_refused(walker):
     with pytest.raises(ValueError, match="speed_drift must be a number >= 0"):
         tree.fit([walker], speed_drift=float("nan"))
     prior = tree.fit([walker], speed_spread=0.3)
-    with pytest.raises(ValueError, match="speed_spread must be >= 0"):
+    with pytest.raises(ValueError, match="TreeParams: speed_spread must be a number >= 0"):
         prior.with_settings(speed_spread=-1.0)
     plain = tree.fit([walker])
     state = tree.initial(plain, start_pose(plain), 8, np.random.default_rng(0))
