@@ -41,6 +41,7 @@ from numpy.typing import ArrayLike, NDArray
 from baselines.filtering import ParticleState
 from baselines.priors._checks import (
     check_fitted,
+    check_generator,
     check_settings,
     free_indices,
     start_pose,
@@ -199,7 +200,12 @@ def initial(
 def transition(
     fitted: ConstantVelocityParams, state: ParticleState, rng: np.random.Generator
 ) -> ParticleState:
-    """One step: the velocity decays and takes a random kick, the pose moves by it."""
+    """One step: the velocity decays and takes a random kick, the pose moves by it.
+
+    Raises:
+        ValueError: If ``rng`` is not a ``numpy.random.Generator``.
+    """
+    check_generator(rng, "constant_velocity.transition")
     noise = rng.standard_normal(state.pose.shape) * (fitted.multiplier * fitted.accel_std)
     velocity = state.extra["velocity"]
     if fitted.damping != 1.0:

@@ -146,7 +146,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from baselines.filtering import ParticleState, deferred_rows, gathered
 from baselines.priors import _tree_compiled as compiled
-from baselines.priors._checks import start_pose
+from baselines.priors._checks import check_generator, start_pose
 from baselines.priors._synthesis import check_request, check_synthesis, model_frames, to_motion
 from baselines.priors.tree_fit import FILE_FORMAT, fit, load, save, summary
 from baselines.priors.tree_model import (
@@ -470,7 +470,12 @@ def transition(fitted: TreeParams, state: ParticleState, rng: np.random.Generato
     Returns:
         The moved particles, history shifted by one frame: their past rows of
         the distinct particles' histories (:func:`baselines.filtering.gathered`).
+
+    Raises:
+        ValueError: If ``rng`` is not a ``numpy.random.Generator`` (the compiled
+            search draws from it) or the particles carry no history of this prior.
     """
+    check_generator(rng, "tree.transition")
     lay = _layout(fitted.free)
     history, speed, rows = _particles(fitted, state, lay)
     # A particle with a speed is searched at the database's pace (its own

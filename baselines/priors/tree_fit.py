@@ -6,7 +6,7 @@ Sidenbladh, Black & Sigal, ECCV 2002, section 4 (see :mod:`baselines.priors.tree
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -17,9 +17,6 @@ from baselines.priors._checks import check_settings, free_indices, training_clip
 from baselines.priors._io import check_kind, open_npz, read_arrays, save_arrays
 from baselines.priors.tree_model import (
     _VARIANCE_FLOOR,
-    LEAF_RULES,
-    REPLAY_RULES,
-    SEARCH_RULES,
     WINDOW,
     FloatArray,
     IntArray,
@@ -37,6 +34,7 @@ from baselines.priors.tree_model import (
     _root_xy,
     _tree_arrays,
     check_fields,
+    check_sampling,
 )
 from humotion_gym.body import PARAM_NAMES
 from humotion_gym.checks import is_count
@@ -44,18 +42,13 @@ from humotion_gym.mocap.motion import Motion
 
 
 def _check_fit_arguments(
-    motions: Sequence[Motion],
-    free: ArrayLike | None,
-    window: int,
-    leaf: str,
-    replay: str,
-    proposals: int,
-    frame_skip: int,
-    search: str = "pose+velocity",
-    speed_spread: float = 0.0,
-    speed_drift: float = 0.0,
-) -> NDArray[np.intp]:
+    motions: Sequence[Motion], free: ArrayLike | None, window: int, depth: int | None,
+    frame_skip: int, settings: Mapping[str, Any],
+) -> NDArray[np.intp]:  # fmt: skip
     """The modelled parameters' indices, after checking :func:`fit`'s arguments.
+
+    Every one before the database is built: the sampling ``settings`` by the
+    same check as :class:`TreeParams`'s (:func:`check_sampling`).
 
     Raises:
         ValueError: As documented in :func:`fit`.
@@ -63,15 +56,10 @@ def _check_fit_arguments(
     training_clips(motions, frame_skip, "tree.fit")
     idx = free_indices(free, "tree.fit")
     # whole numbers: int() would cut 2.5 to 2
-    check_settings("tree.fit", counts={"window": (window, 1), "proposals": (proposals, 1)})
-    rules = {"leaf": (leaf, LEAF_RULES), "replay": (replay, REPLAY_RULES),
-             "search": (search, SEARCH_RULES)}  # fmt: skip
-    for name, (value, allowed) in rules.items():
-        if value not in allowed:
-            raise ValueError(f"tree.fit: {name} must be one of {allowed}, got {value!r}")
-    for name, value in (("speed_spread", speed_spread), ("speed_drift", speed_drift)):
-        if not (np.isfinite(value) and value >= 0):
-            raise ValueError(f"tree.fit: {name} must be a number >= 0, got {value}")
+    check_settings("tree.fit", counts={"window": (window, 1)})
+    if depth is not None and not is_count(depth, 1):  # its range needs the database
+        raise ValueError(f"tree.fit: depth must be a whole number >= 1 or None, got {depth!r}")
+    check_sampling("tree.fit", settings)
     rates = {float(m.fps) for m in motions}
     if len(rates) != 1:
         raise ValueError(f"tree.fit: every clip must have the same frame rate, got {sorted(rates)}")
@@ -309,14 +297,16 @@ def fit(
 
     Raises:
         ValueError: If the clips' frame rates differ, ``free`` is not a set of
-            parameter indices, a setting is out of range or fewer than two
-            windows fit in the clips.
+            parameter indices, a setting is out of range (each checked before
+            the database is built) or fewer than two windows fit in the clips.
     """
     del rng
-    idx = _check_fit_arguments(
-        motions, free, window, leaf, replay, proposals, frame_skip, search,
-        speed_spread, speed_drift,
-    )  # fmt: skip
+    settings = {
+        "beta": beta, "leaf": leaf, "noise_scale": noise_scale, "init_scale": init_scale,
+        "replay": replay, "proposals": proposals, "search": search,
+        "speed_spread": speed_spread, "speed_drift": speed_drift,
+    }  # fmt: skip
+    idx = _check_fit_arguments(motions, free, window, depth, frame_skip, settings)
     d = int(window)
     lay = _layout(idx)
     frames, frame_clip, ends = _database(motions, idx, d, frame_skip)
@@ -354,8 +344,6 @@ def _depth(n: int, width: int, depth: int | None, clips: int, d: int) -> int:
         )
     # By default as deep as the windows allow, but no deeper than the components
     # the tree splits on (one free parameter has few).
-    if depth is not None and not is_count(depth, 1):
-        raise ValueError(f"tree.fit: depth must be a whole number >= 1 or None, got {depth!r}")
     b = min(int(np.floor(np.log2(n))), width) if depth is None else int(depth)
     # The leaf offsets take 2**b entries: at most 16 per window.
     max_depth = min(width, int(np.floor(np.log2(n))) + 4)

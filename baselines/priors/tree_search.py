@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from baselines.priors import _tree_compiled as compiled
+from baselines.priors._checks import check_generator
 from baselines.priors.tree_model import LEAF_RULES, FloatArray, IntArray, TreeParams
 
 
@@ -62,6 +63,7 @@ def descend(
         ``[lo, hi)`` each probe's leaf (its windows in tree order) and the log
         probability of reaching it (zeros unless asked).
     """
+    check_generator(rng, "tree.descend")  # the compiled descent draws from it
     t = fitted.beta if beta is None else float(beta)
     return compiled.descend(
         _as_probes(coefficients),
@@ -102,8 +104,10 @@ def sample_windows(
         ``(N,)`` window indices (tree order).
 
     Raises:
-        ValueError: If ``leaf`` is not a rule or ``proposals < 1``.
+        ValueError: If ``leaf`` is not a rule, ``proposals < 1`` or ``rng`` is not
+            a ``numpy.random.Generator``.
     """
+    check_generator(rng, "tree.sample_windows")
     c = _as_probes(coefficients)
     t = fitted.beta if beta is None else float(beta)
     rule = fitted.leaf if leaf is None else leaf
@@ -163,5 +167,6 @@ def sample_exact(
     Returns:
         ``(N,)`` window indices (tree order).
     """
+    check_generator(rng, "tree.sample_exact")
     t = fitted.beta if beta is None else float(beta)
     return compiled.sample_exact(_database(fitted), _as_probes(coefficients), fitted.sigma, t, rng)

@@ -213,3 +213,12 @@ def test_load_refuses_what_initial_and_transition_would_fail_on(tmp_path, edit, 
     np.savez(edited, **{**arrays, **edit})
     with pytest.raises(ValueError, match=rf"edited\.npz: ConstantVelocityParams: {says}"):
         cv.load(edited)
+
+
+def test_transition_refuses_an_rng_that_is_not_a_generator():
+    fitted = cv.ConstantVelocityParams(
+        free=np.array([0]), accel_std=np.array([0.3]), velocity_std=np.array([0.5]), fps=30.0
+    )
+    state = cv.initial(fitted, np.zeros(1), 3, np.random.default_rng(0))
+    with pytest.raises(ValueError, match="constant_velocity.transition: rng must be a numpy"):
+        cv.transition(fitted, state, None)

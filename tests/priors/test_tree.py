@@ -554,3 +554,35 @@ def test_the_uniform_leaf_draws_every_member_and_resamples_to_eq3(arm_prior):
         tv[leaf] = 0.5 * np.abs(freq - eq3).sum()
     # About 0.11 each (one descent: 0.67); without |leaf| in the weights, 0.26.
     assert max(tv.values()) < 0.18, tv
+
+
+@pytest.mark.parametrize(
+    ("setting", "says"),
+    [
+        ({"beta": 0}, "beta must be a number > 0, got 0"),
+        ({"noise_scale": -1.0}, "noise_scale must be a number >= 0"),
+        ({"init_scale": float("nan")}, "init_scale must be a number > 0"),
+        ({"depth": 3.5}, "depth must be a whole number >= 1 or None"),
+    ],
+)
+def test_fit_refuses_settings_before_building_the_database(monkeypatch, setting, says):
+    from baselines.priors import tree_fit
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the database was built before the settings were checked")
+
+    monkeypatch.setattr(tree_fit, "_database", refuse)
+    with pytest.raises(ValueError, match=f"tree.fit: {says}"):
+        tree.fit([walking_along_y(90)], np.arange(body.N_PARAMS), **setting)
+
+
+@pytest.mark.parametrize("rng", [None, np.random.RandomState(0), 7])
+def test_transition_and_the_searches_refuse_an_rng_that_is_not_a_generator(arm_prior, rng):
+    pose = arm_prior.frames[arm_prior.window_end[5]]
+    state = tree.initial(arm_prior, pose, 4, np.random.default_rng(0))
+    with pytest.raises(ValueError, match="tree.transition: rng must be a numpy.random.Generator"):
+        tree.transition(arm_prior, state, rng)
+    probes = arm_prior.coefficients[:3]
+    for search in ("sample_windows", "descend", "sample_exact"):
+        with pytest.raises(ValueError, match=f"tree.{search}: rng must be"):
+            getattr(tree, search)(arm_prior, probes, rng)
