@@ -282,14 +282,17 @@ def estimate_period(
 
     Returns:
         The period in frames; NaN when the series is too short for any candidate,
-        or (default candidates) when the ratio still rises at the longest period
-        that fits twice into the series.
+        when no candidate shows any cycle (the ratio is zero for all: no angle
+        observed often enough, or none moves), or (default candidates) when the
+        ratio still rises at the longest period that fits twice into the series.
     """
     x = np.asarray(series, dtype=np.float64)
     p_all = candidate_periods(fps, x.shape[0]) if periods is None else np.asarray(periods, float)
     if p_all.size == 0:
         return float("nan")
     snr = signal_to_noise(x, observed, p_all).sum(axis=1)
+    if not np.any(snr > 0):  # argmax would pick the shortest candidate for nothing seen
+        return float("nan")
     best = int(np.argmax(snr))
     if periods is None and best == p_all.size - 1 and p_all[-1] < 2.0 * fps - 1e-9:
         # The maximum sits on the longest period the clip can show twice: the

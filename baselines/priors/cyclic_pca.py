@@ -397,7 +397,10 @@ def _cycling_clips(
     periods = np.array([cycles.estimate_period(x, w, fps) for x, w in zip(xs, ws, strict=True)])
     keep = np.flatnonzero(np.isfinite(periods))
     if keep.size == 0:
-        raise ValueError("cyclic_pca.fit: no walking clip is long enough to show two cycles")
+        raise ValueError(
+            f"cyclic_pca.fit: none of the {len(series)} walking clips shows two cycles (each "
+            "is too short, or has no joint angle observed and moving)"
+        )
     return keep, [xs[i] for i in keep], [ws[i] for i in keep], periods[keep]
 
 
@@ -420,8 +423,8 @@ def fit(
     """Fit the cyclic PCA prior to the walking clips among ``motions``.
 
     Cycle lengths (eq. 3) and offsets (Fig. 6) use all 19 joint angles; the
-    functional PCA (Fig. 8) covers the free joint angles. Clips too short to
-    show two cycles are skipped.
+    functional PCA (Fig. 8) covers the free joint angles. Clips that show no
+    two cycles (too short, or no joint angle observed and moving) are skipped.
 
     Args:
         motions: Training clips (the train split); only those labelled

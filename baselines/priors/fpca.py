@@ -467,14 +467,18 @@ def impute_sequences(
         The :class:`Imputation`.
 
     Raises:
-        ValueError: If some sequence is too short to show two cycles.
+        ValueError: If some sequence shows no two cycles (too short, or no
+            angle observed and moving).
     """
     xs = [np.asarray(x, dtype=np.float64) for x in sequences]
     ws = [np.asarray(w, dtype=bool) for w in observed]
     periods = np.array([cycles.estimate_period(x, w, fps) for x, w in zip(xs, ws, strict=True)])
     if not np.all(np.isfinite(periods)):
         bad = np.flatnonzero(~np.isfinite(periods)).tolist()
-        raise ValueError(f"impute_sequences: sequences {bad} are too short to show two cycles")
+        raise ValueError(
+            f"impute_sequences: sequences {bad} show no two cycles (too short, or no angle "
+            "observed and moving)"
+        )
     alignment = cycles.align_offsets(xs, periods, ws, tol=tol)
     seg = cycles.segment(xs, periods, alignment.offsets, ws, n_samples=n_samples)
     result = fpca(seg.values, seg.observed, n_components, n_harmonics, tol=tol)

@@ -98,6 +98,14 @@ def test_estimate_period_gives_nan_when_the_ratio_still_rises_at_the_longest_can
     assert cycles.estimate_period(x, fps=30.0) == 40.0
 
 
+def test_estimate_period_gives_nan_for_a_clip_that_shows_no_cycle() -> None:
+    """Nothing observed, or nothing moving: every ratio is 0, not a cycle of the shortest period."""
+    x = np.sin(2 * np.pi * np.arange(100)[:, None] / 40.0) * np.ones((1, 3))
+    assert np.isnan(cycles.estimate_period(x, np.zeros(x.shape, dtype=bool), fps=30.0))
+    assert np.isnan(cycles.estimate_period(np.full((100, 3), 0.3), fps=30.0))
+    assert np.isnan(cycles.estimate_period(np.full((100, 3), 0.3), periods=[20.0, 25.0]))
+
+
 @pytest.fixture(scope="module")
 def gappy_alignment() -> tuple[cycles.Alignment, list[np.ndarray], list[np.ndarray]]:
     rng = np.random.default_rng(3)

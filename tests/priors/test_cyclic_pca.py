@@ -404,6 +404,23 @@ def test_fit_needs_walking_clips():
         cyclic_pca.fit(others)
 
 
+@pytest.mark.parametrize("damage", ["unobserved", "motionless"])
+def test_a_walking_clip_that_shows_no_cycle_is_skipped(synthetic_walks, damage):
+    """It was taken for a cycle of the shortest period tried (15 frames), skewing the speeds."""
+    import dataclasses
+
+    walks = list(synthetic_walks[:2])
+    bad = walks[0]
+    if damage == "unobserved":
+        bad = dataclasses.replace(bad, observed=np.zeros_like(bad.observed), clip_id="bad")
+    else:
+        still = np.repeat(bad.params[:1], bad.n_frames, axis=0)
+        bad = dataclasses.replace(bad, params=still, clip_id="bad")
+    want, got = cyclic_pca.fit(walks), cyclic_pca.fit([*walks, bad])
+    np.testing.assert_array_equal(got.periods, want.periods)
+    assert (got.speed_mean, got.speed_max) == (want.speed_mean, want.speed_max)
+
+
 def test_reversion_keeps_the_walks_spread_at_the_datas():
     import dataclasses
 
