@@ -163,6 +163,14 @@ def motion_sequences(
     return ys, masks
 
 
+class _TooFewFrames(ValueError):
+    """An activity's clips hold too few usable frames for its states (``frames`` of them)."""
+
+    def __init__(self, message: str, frames: int) -> None:
+        super().__init__(message)
+        self.frames = frames
+
+
 def _start_activity(
     motions: Sequence[Motion],
     free: ArrayLike | None,
@@ -172,7 +180,12 @@ def _start_activity(
     frame_skip: int,
     label: str | None,
 ) -> EMStart:
-    """The random part of :func:`fit_activity`: its EM's start (``start_em``)."""
+    """The random part of :func:`fit_activity`: its EM's start (``start_em``).
+
+    Raises:
+        _TooFewFrames: If the clips of 3 frames or more hold fewer than two
+            observed frames per state (before ``rng`` is drawn from).
+    """
     if not motions:
         raise ValueError("slds.fit_activity: no training motions")
     rates = sorted({float(m.fps) for m in motions})
@@ -181,9 +194,14 @@ def _start_activity(
     idx = free_indices(free, "slds.fit", SAGITTAL_INDEX)
     ys, masks = motion_sequences(motions, idx, frame_skip)
     keep = [k for k, y in enumerate(ys) if y.shape[0] >= 3]
-    if not keep:
-        raise ValueError("slds.fit_activity: every clip is shorter than 3 frames")
     name = label if label is not None else motions[0].label
+    frames = sum(int(masks[k].sum()) for k in keep)
+    if frames < 2 * n_states:  # start_em's own bound, checked here to name the activity
+        raise _TooFewFrames(
+            f"slds.fit_activity: the {name!r} clips hold {frames} observed frames (in clips of "
+            f"3 frames or more), fewer than the {2 * n_states} that {n_states} states need",
+            frames,
+        )
     return start_em(
         [ys[k] for k in keep], [masks[k] for k in keep], n_states=n_states, emission="identity",
         order=order, rng=rng, label=name, free=idx, fps=float(motions[0].fps) / frame_skip,
@@ -281,6 +299,48 @@ def _subset(clips: list[Motion], most: int | None, rng: np.random.Generator) -> 
     return [clips[k] for k in pick]
 
 
+def _start_activities(
+    groups: dict[str, list[Motion]],
+    free: ArrayLike | None,
+    rng: np.random.Generator,
+    n_states: int,
+    order: int,
+    frame_skip: int,
+    most: int | None,
+) -> tuple[list[str], list[EMStart]]:
+    """Each label's subset, then its start, in label order from one generator.
+
+    A label whose clips are too short for ``n_states`` states is skipped with
+    a warning naming it (it draws nothing from ``rng`` but its subset).
+
+    Raises:
+        ValueError: If every label is, naming them and their frames.
+    """
+    labels: list[str] = []
+    starts: list[EMStart] = []
+    short: dict[str, int] = {}
+    for label in sorted(groups):
+        clips = _subset(groups[label], most, rng)
+        try:
+            starts.append(_start_activity(clips, free, rng, n_states, order, frame_skip, label))
+        except _TooFewFrames as exc:
+            short[label] = exc.frames
+            continue
+        labels.append(label)
+    counts = ", ".join(f"{label!r}: {n}" for label, n in short.items())
+    need = f"{n_states} states need {2 * n_states} observed frames in clips of 3 frames or more"
+    if not starts:
+        raise ValueError(f"slds.fit: no activity label has enough frames ({need}; {counts})")
+    if short:
+        names = ", ".join(repr(label) for label in short)
+        plural = "s" if len(short) > 1 else ""
+        warnings.warn(
+            f"slds.fit: skipping the label{plural} {names}: too few frames ({need}; {counts})",
+            stacklevel=3,
+        )
+    return labels, starts
+
+
 def fit(
     motions: Sequence[Motion],
     free: ArrayLike | None = None,
@@ -311,7 +371,9 @@ def fit(
         n_iter: EM iterations per model.
         frame_skip: Use every ``frame_skip``-th frame (the environment's rate).
         per_label: One model per label, joined with a block transition matrix;
-            otherwise one model of every clip.
+            otherwise one model of every clip. A label whose clips hold fewer
+            than two observed frames per state (in clips of 3 frames or more)
+            is skipped with a warning naming it.
         switch_prob: Between-model switching probability per frame.
         max_clips_per_label: Use at most this many clips per label (a random
             subset) to bound the fitting time.
@@ -328,7 +390,7 @@ def fit(
         The fitted parameters.
 
     Raises:
-        ValueError: For no clips or a bad setting.
+        ValueError: For no clips, a bad setting, or no label with enough frames.
     """
     rng = np.random.default_rng(0) if rng is None else rng
     training_clips(motions, frame_skip, "slds.fit")
@@ -339,12 +401,10 @@ def fit(
         counts["max_clips_per_label"] = (max_clips_per_label, 1)
     check_settings("slds.fit", counts=counts)
     cov_rtol = check_cov_rtol(cov_rtol, "slds.fit")
-    groups = _activities(motions, per_label)
-    labels = sorted(groups)
-    starts: list[EMStart] = []
-    for label in labels:  # each label's subset, then its start, from one generator
-        clips = _subset(groups[label], max_clips_per_label, rng)
-        starts.append(_start_activity(clips, free, rng, n_states, order, frame_skip, label))
+    labels, starts = _start_activities(
+        _activities(motions, per_label), free, rng, n_states, order, frame_skip,
+        max_clips_per_label,
+    )  # fmt: skip
     n_workers = fit_workers(starts, workers)
     # A bar over every model's EM iterations when the progress messages are shown
     # (baselines.priors.fitting.fit_prior shows them on stderr).

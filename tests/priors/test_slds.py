@@ -635,6 +635,23 @@ def test_fit_refuses_counts_that_are_not_whole_numbers(synthetic, name, bad):
         slds.fit(list(train)[:4], **settings)
 
 
+@pytest.mark.parametrize("n_frames", [2, 5])
+def test_a_label_too_short_for_its_states_is_skipped_with_a_warning(synthetic, n_frames):
+    """The whole fit failed ("every clip is shorter than 3 frames", "fit_em: 5 observed frames
+    are too few for 4 states"), where the other priors skip the clip."""
+    train, _ = synthetic
+    clips = [m for m in train if m.label == "walk"][:2]
+    short = dataclasses.replace(clips[0].slice(0, n_frames), label="jump", clip_id="short")
+    want = slds.fit(clips, n_states=3, n_iter=1, workers=1)
+    with pytest.warns(UserWarning, match="skipping the label 'jump': too few frames .*'jump': "):
+        got = slds.fit([*clips, short], n_states=3, n_iter=1, workers=1)
+    _assert_same_model(want, got)  # the label drew nothing from the generator
+    counted = n_frames if n_frames >= 3 else 0  # a clip under 3 frames has no dynamics to fit
+    says = r"no activity label has enough frames \(3 states need 6 observed frames .*'jump': "
+    with pytest.raises(ValueError, match=says + rf"{counted}, 'walk': 0\)"):
+        slds.fit([short, dataclasses.replace(clips[0].slice(0, 2), clip_id="w")], n_states=3)
+
+
 # ---------------------------------------------------------------------------
 # The covariance table's tolerance of the prior's fit
 # ---------------------------------------------------------------------------
