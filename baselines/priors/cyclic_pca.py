@@ -65,6 +65,7 @@ from baselines.priors._checks import (
 )
 from baselines.priors._io import load_fitted, save_fitted
 from baselines.priors._synthesis import check_request, check_synthesis
+from baselines.priors._value_checks import check_cyclic
 from baselines.priors.tree_model import _rotate
 from humotion_gym.body import (
     N_PARAMS,
@@ -168,6 +169,7 @@ class CyclicPCAParams:
     reversion: float = 0.0
 
     def __post_init__(self) -> None:
+        check_cyclic(self, cycles.JOINT_ANGLES)  # what initial and transition rely on
         # Contiguous copies, so that a loaded model computes bit for bit like
         # the fitted one (BLAS sums in an order that depends on the layout).
         for f in dataclasses.fields(self):
@@ -311,36 +313,6 @@ def joint_series(
     return xs, ws
 
 
-def _coefficient_steps(
-    seg: cycles.Segmentation,
-    columns: NDArray[np.intp],
-    scores: FloatArray,
-    component_std: FloatArray,
-    period: float,
-) -> FloatArray:
-    """The coefficients' random-walk scale: their change between consecutive whole cycles.
-
-    Per frame (the change over a cycle divided by the mean period), clipped to
-    ``[1e-6, 1]`` times each component's spread; the spread over a period
-    where no two consecutive cycles are whole.
-    """
-    whole = seg.observed[:, columns].all(axis=(1, 2))
-    pairs = [
-        (a, a + 1)
-        for a in range(seg.n_cycles - 1)
-        if whole[a]
-        and whole[a + 1]
-        and seg.sequence[a] == seg.sequence[a + 1]
-        and seg.cycle[a + 1] == seg.cycle[a] + 1
-    ]
-    if pairs:
-        a, b = np.array(pairs).T
-        step = np.sqrt(np.mean((scores[b] - scores[a]) ** 2, axis=0) / period)
-    else:
-        step = component_std / np.sqrt(period)
-    return np.clip(step, 1e-6 * component_std, component_std)
-
-
 def _speed_fields(
     alignment: cycles.Alignment,
     xs: list[FloatArray],
@@ -477,7 +449,7 @@ def fit(
     q = result.n_components
     component_std = np.maximum(result.component_std, 1e-9)
 
-    coef_step = _coefficient_steps(seg, columns, result.scores, component_std, np.mean(periods))
+    coef_step = fpca.coefficient_steps(seg, columns, result.scores, component_std, np.mean(periods))
 
     glob = _global_scales([series[i] for i in keep], [observed[i].all(axis=1) for i in keep])
     return CyclicPCAParams(
@@ -698,7 +670,14 @@ def save(fitted: CyclicPCAParams, path: str | Path) -> None:
 
 
 def load(path: str | Path) -> CyclicPCAParams:
-    """Read parameters written by :func:`save`."""
+    """Read parameters written by :func:`save`.
+
+    Raises:
+        ValueError: If the file is not such parameters, or holds values
+            :func:`initial` and :func:`transition` cannot use (an index out of
+            range, a negative scale, fewer than 2 samples per cycle); the
+            message names the file and the array.
+    """
     return load_fitted(CyclicPCAParams, path)
 
 

@@ -437,6 +437,38 @@ class Imputation:
     result: FPCAResult
 
 
+def coefficient_steps(
+    seg: cycles.Segmentation,
+    columns: NDArray[np.intp],
+    scores: FloatArray,
+    component_std: FloatArray,
+    period: float,
+) -> FloatArray:
+    """The coefficients' random-walk scale: their change between consecutive whole cycles.
+
+    For the cyclic PCA prior (:mod:`~baselines.priors.cyclic_pca`): the
+    ``scores`` of the cycles of ``seg`` on the components fitted to its
+    angles ``columns``, per frame (the change over a cycle divided by the
+    mean ``period``), clipped to ``[1e-6, 1]`` times each component's spread;
+    the spread over a period where no two consecutive cycles are whole.
+    """
+    whole = seg.observed[:, columns].all(axis=(1, 2))
+    pairs = [
+        (a, a + 1)
+        for a in range(seg.n_cycles - 1)
+        if whole[a]
+        and whole[a + 1]
+        and seg.sequence[a] == seg.sequence[a + 1]
+        and seg.cycle[a + 1] == seg.cycle[a] + 1
+    ]
+    if pairs:
+        a, b = np.array(pairs).T
+        step = np.sqrt(np.mean((scores[b] - scores[a]) ** 2, axis=0) / period)
+    else:
+        step = component_std / np.sqrt(period)
+    return np.clip(step, 1e-6 * component_std, component_std)
+
+
 def impute_sequences(
     sequences: Sequence[ArrayLike],
     observed: Sequence[ArrayLike],

@@ -72,6 +72,7 @@ from baselines.filtering import ParticleState
 from baselines.priors._checks import check_settings, free_indices, start_pose, training_clips
 from baselines.priors._io import load_fitted, save_fitted
 from baselines.priors._synthesis import check_request, check_synthesis, model_frames, to_motion
+from baselines.priors._value_checks import check_slds
 from baselines.priors.slds_inference import (
     COV_RTOL,
     SLDSParams,
@@ -659,8 +660,19 @@ def save(fitted: SLDSParams, path: str | Path) -> None:
 
 
 def load(path: str | Path) -> SLDSParams:
-    """Read parameters written by :func:`save`."""
+    """Read parameters written by :func:`save`.
+
+    Raises:
+        ValueError: If the file is not such parameters, or holds values
+            :func:`initial` and :func:`transition` cannot use (indices out of
+            range, probabilities that do not sum to 1, a negative variance);
+            the message names the file and the array.
+    """
     fitted = load_fitted(SLDSParams, path)
+    try:
+        check_slds(fitted)
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
     return fitted.replace(
         free=np.asarray(fitted.free, dtype=np.intp), order=int(fitted.order),
         fps=float(fitted.fps), switch_prob=float(fitted.switch_prob),

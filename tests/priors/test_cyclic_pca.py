@@ -359,6 +359,35 @@ def test_save_load_round_trip(fitted, tmp_path):
     np.testing.assert_array_equal(a.pose, b.pose)
 
 
+@pytest.mark.parametrize(
+    ("member", "value", "says"),
+    [
+        ("n_samples", 0, "n_samples must be a whole number >= 2, got 0"),  # ZeroDivisionError
+        ("free", np.arange(25) + 3, r"free must be distinct integer indices in \[0, 25\)"),
+        ("free", np.arange(25.0), "free must be distinct integer indices"),  # was cut to ints
+        ("angles", np.arange(19), r"angles must be distinct integer indices in \[6, 7,"),
+        ("residual_std", 0.0, "residual_std must be > 0, got a smallest value of 0"),
+        ("root_accel_std", -1.0, "root_accel_std must be >= 0, got a smallest value of -1"),
+        ("coef_noise", -1.0, "coef_noise must be >= 0"),
+        ("speed_min", 1e9, "speed_min must be <= speed_max"),
+    ],
+)
+def test_load_refuses_values_initial_and_transition_cannot_use(
+    fitted, tmp_path, member, value, says
+):
+    """Such a file loaded and failed later (n_samples=0: ZeroDivisionError in fit_phase) or
+    tracked with what no fit gives (a negative scale)."""
+    good, bad = tmp_path / "good.npz", tmp_path / "bad.npz"
+    cyclic_pca.save(fitted, good)
+    with np.load(good) as data:
+        arrays = {k: data[k] for k in data.files}
+    old = arrays[member]
+    arrays[member] = np.full(old.shape, value) if np.ndim(value) == 0 else np.asarray(value)
+    np.savez(bad, **arrays)
+    with pytest.raises(ValueError, match=rf"bad\.npz: CyclicPCAParams\.{says}"):
+        cyclic_pca.load(bad)
+
+
 def test_particle_filter_runs_with_the_prior(fitted, synthetic_walks):
     m = synthetic_walks[-1]
 

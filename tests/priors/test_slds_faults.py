@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
+import pytest
 from test_slds import _rot, _spd, random_model  # the same small random models
 from test_slds_oracles import smoothed_on_a_random_path
 
+from baselines.priors import slds
 from baselines.priors.slds_inference import (
     COV_RTOL,
     CovarianceTable,
@@ -178,3 +182,41 @@ def test_a_reset_table_starts_empty_even_for_the_same_model() -> None:
     ids = table.insert(base)
     np.testing.assert_array_equal(ids, CovarianceTable(params, params.R).insert(base))
     assert table.n == 5 and np.all(ids < table.n)
+
+
+def _flip_first_pair(q: np.ndarray) -> np.ndarray:
+    out = q.copy()
+    out[..., 0, 1] += 1.0  # one entry off its transpose's
+    return out
+
+
+@pytest.mark.parametrize(
+    ("member", "change", "says"),
+    [
+        ("pi0", lambda a: -a, r"pi0 must be probabilities in \[0, 1\] summing to 1, got"),
+        ("Pi", lambda a: 3 * a, r"Pi must be probabilities .* summing to 1 in each row"),
+        ("Q", lambda a: -a, "Q must be covariance matrices with variances >= 0"),
+        ("Q0", _flip_first_pair, "Q0 must be symmetric covariance matrices"),
+        ("R", lambda a: -a, "R must be covariance matrices with variances >= 0"),
+        ("free", lambda a: a + 30, r"free must be distinct integer indices in \[0, 25\)"),
+        ("free", lambda a: a.astype(float), "free must be distinct integer indices"),
+        ("free", lambda a: np.zeros_like(a), "free must be distinct integer indices"),
+        ("fps", lambda a: 0.0 * a, "fps must be > 0"),
+        ("switch_prob", lambda a: a + 1.0, r"switch_prob must be in \[0, 1\)"),
+    ],
+)
+def test_load_refuses_values_initial_and_transition_cannot_use(
+    tmp_path: Path, member, change, says
+) -> None:
+    """A negative pi0 or Q loaded (np.log warned at the first initial), a free index out of
+    range or a float failed with an IndexError in initial or transition."""
+    model = random_model(np.random.default_rng(4), emission="identity", order=2, n_states=3)
+    good, bad = tmp_path / "good.npz", tmp_path / "bad.npz"
+    slds.save(model, good)
+    slds.load(good)  # the model itself is fine
+    with np.load(good) as data:
+        arrays = {k: data[k] for k in data.files}
+    arrays[member] = np.asarray(change(arrays[member]))
+    np.savez(bad, **arrays)
+    with pytest.raises(ValueError, match=rf"bad\.npz: SLDSParams\.{says}"):
+        slds.load(bad)
