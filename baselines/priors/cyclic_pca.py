@@ -376,6 +376,17 @@ def _cycling_clips(
     return keep, [xs[i] for i in keep], [ws[i] for i in keep], periods[keep]
 
 
+def _check_curve_settings(n_harmonics: int, n_samples: int, keep_offset: object) -> None:
+    """Refuse more harmonics than a cycle's samples hold, and a ``keep_offset`` not a bool."""
+    if n_harmonics > n_samples // 2:  # a cycle of S samples holds S // 2 frequencies
+        raise ValueError(
+            f"cyclic_pca.fit: n_harmonics must be at most n_samples // 2 = {n_samples // 2}, "
+            f"got {n_harmonics}"
+        )
+    if not isinstance(keep_offset, bool | np.bool_):  # "no" would count as True
+        raise ValueError(f"cyclic_pca.fit: keep_offset must be True or False, got {keep_offset!r}")
+
+
 def fit(
     motions: Sequence[Motion],
     free: ArrayLike | None = None,
@@ -404,7 +415,8 @@ def fit(
         free: Indices of the tracked parameters (all 25 when None).
         rng: Unused (the fit is deterministic); accepted for the common interface.
         n_components: Principal components ``q``.
-        n_harmonics: Fourier coefficients per curve (20 in the paper).
+        n_harmonics: Fourier coefficients per curve (20 in the paper), at most
+            ``n_samples // 2``.
         n_samples: Samples per reference cycle ``S``.
         labels: Activity labels of the walking clips.
         frame_skip: Use every ``frame_skip``-th frame (the environment's rate).
@@ -428,6 +440,7 @@ def fit(
     counts = {"n_components": (n_components, 1), "n_harmonics": (n_harmonics, 1),
               "n_samples": (n_samples, 2)}  # fmt: skip
     check_settings("cyclic_pca.fit", {**noises, "tol": tol}, counts, positive=("tol",))
+    _check_curve_settings(n_harmonics, n_samples, keep_offset)
     idx = free_indices(free, "cyclic_pca.fit")
     training_clips(motions, frame_skip, "cyclic_pca.fit")
     clips = _walking_clips(motions, labels)
@@ -443,7 +456,7 @@ def fit(
         seg.values[:, columns],
         seg.observed[:, columns],
         n_components=n_components,
-        n_harmonics=min(n_harmonics, n_samples // 2),
+        n_harmonics=n_harmonics,
         tol=tol,
     )
     q = result.n_components

@@ -172,6 +172,12 @@ class _TooFewFrames(ValueError):
         self.frames = frames
 
 
+def _check_order(order: object, where: str) -> None:
+    """Refuse a model order other than 1 or 2, naming the function's argument."""
+    if not (is_count(order) and order in (1, 2)):
+        raise ValueError(f"{where}: order must be 1 or 2, got {order!r}")
+
+
 def _start_activity(
     motions: Sequence[Motion],
     free: ArrayLike | None,
@@ -248,6 +254,7 @@ def fit_activity(
         The fit with its cost per iteration (of EM, before the stabilisation).
     """
     cov_rtol = check_cov_rtol(cov_rtol, "slds.fit_activity")
+    _check_order(order, "slds.fit_activity")
     start = _start_activity(motions, free, rng, n_states, order, frame_skip, label)
     result = run_em(start, n_iter=n_iter, max_batch=max_batch, progress=progress, cov_rtol=cov_rtol)
     if max_radius is None:
@@ -401,6 +408,9 @@ def fit(
     if max_clips_per_label is not None:
         counts["max_clips_per_label"] = (max_clips_per_label, 1)
     check_settings("slds.fit", counts=counts)
+    _check_order(order, "slds.fit")
+    if not isinstance(per_label, bool | np.bool_):  # "no" would count as True
+        raise ValueError(f"slds.fit: per_label must be True or False, got {per_label!r}")
     cov_rtol = check_cov_rtol(cov_rtol, "slds.fit")
     labels, starts = _start_activities(
         _activities(motions, per_label), free, rng, n_states, order, frame_skip,

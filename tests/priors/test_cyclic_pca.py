@@ -506,6 +506,10 @@ def test_reversion_keeps_the_walks_spread_at_the_datas():
         ({"n_harmonics": 2.5}, "n_harmonics must be a whole number >= 1"),
         ({"n_components": 0}, "n_components must be a whole number >= 1"),
         ({"labels": "walk"}, "labels must be a list, got the string 'walk'"),
+        # was cut to 60 without a word
+        ({"n_harmonics": 61}, r"n_harmonics must be at most n_samples // 2 = 60, got 61"),
+        ({"n_samples": 30}, r"n_harmonics must be at most n_samples // 2 = 15, got 20"),
+        ({"keep_offset": "no"}, "keep_offset must be True or False, got 'no'"),  # was True
     ],
 )
 def test_fit_refuses_settings_that_would_spread_nan_or_fail_later(setting, says):

@@ -635,6 +635,20 @@ def test_fit_refuses_counts_that_are_not_whole_numbers(synthetic, name, bad):
         slds.fit(list(train)[:4], **settings)
 
 
+@pytest.mark.parametrize(
+    ("setting", "says"),
+    [({"order": 3}, "slds.fit: order must be 1 or 2, got 3"),  # blamed fit_em
+     ({"per_label": "no"}, "slds.fit: per_label must be True or False, got 'no'")],  # was True
+)  # fmt: skip
+def test_fit_refuses_settings_by_its_own_arguments_name(synthetic, setting, says):
+    train, _ = synthetic
+    with pytest.raises(ValueError, match=says):
+        slds.fit(list(train)[:4], n_states=2, n_iter=1, **setting)
+    if "order" in setting:
+        with pytest.raises(ValueError, match="slds.fit_activity: order must be 1 or 2"):
+            slds.fit_activity(list(train)[:4], n_states=2, n_iter=1, **setting)
+
+
 @pytest.mark.parametrize("n_frames", [2, 5])
 def test_a_label_too_short_for_its_states_is_skipped_with_a_warning(synthetic, n_frames):
     """The whole fit failed ("every clip is shorter than 3 frames", "fit_em: 5 observed frames
