@@ -1,9 +1,11 @@
-"""The argument checks the priors' ``fit`` and ``initial`` share, raising in their names.
+"""The argument checks the priors' ``fit``, ``initial`` and ``load`` share, raising in their names.
 
 A prior's functions are called directly (``constant_velocity.fit(lib, free=[...])``)
 as often as through :func:`baselines.priors.fitting.fit_prior`, so each checks
 what it is given: bad input is one ``ValueError`` naming the function and the
-argument, never an ``IndexError`` deep in numpy or, worse, particles of NaN.
+argument, never an ``IndexError`` deep in numpy or, worse, particles of NaN. A
+saved file that was edited or damaged (a negative noise scale, probabilities that
+do not sum to 1, an index out of range) is refused when loaded, by the same checks.
 """
 
 from __future__ import annotations
@@ -35,20 +37,30 @@ def free_indices(
     """
     if free is None:
         return np.arange(N_PARAMS, dtype=np.intp) if default is None else default
-    given = np.asarray(free)
+    check_indices(where, "free", free)
+    return np.asarray(free).astype(np.intp)
+
+
+def check_indices(where: str, name: str, value: Any, within: Collection[int] | None = None) -> None:
+    """Refuse anything but a non-empty 1-D list of distinct integers in [0, 25) (or ``within``).
+
+    Raises:
+        ValueError: Naming ``where``, ``name``, what it must be and what it holds.
+    """
+    arr = np.asarray(value)
+    allowed = np.arange(N_PARAMS) if within is None else np.asarray(sorted(within), dtype=np.intp)
     ok = (
-        given.ndim == 1
-        and given.size > 0
-        and given.dtype.kind in "iu"
-        and bool(np.all((given >= 0) & (given < N_PARAMS)))
-        and np.unique(given).size == given.size
+        arr.ndim == 1
+        and arr.size > 0
+        and arr.dtype.kind in "iu"
+        and bool(np.all(np.isin(arr, allowed)))
+        and np.unique(arr).size == arr.size
     )
     if not ok:
+        span = f"[0, {N_PARAMS})" if within is None else str(allowed.tolist())
         raise ValueError(
-            f"{where}: free must be distinct integer indices in [0, {N_PARAMS}), "
-            f"got {np.asarray(free).tolist()!r}"
+            f"{where}: {name} must be distinct integer indices in {span}, got {arr.tolist()!r}"
         )
-    return given.astype(np.intp)
 
 
 def training_clips(motions: Any, frame_skip: Any, where: str) -> float:
@@ -171,3 +183,117 @@ def check_shapes(
         if len(got) != len(shape) or any(w not in (-1, g) for w, g in zip(shape, got, strict=True)):
             shown = tuple("n" if w == -1 else w for w in shape)
             raise ValueError(f"{owner}.{name} has shape {got}, expected {shown}")
+
+
+#: How far a row of probabilities may sum from 1 (a file's rounding, not an edit).
+PROBABILITY_ATOL = 1e-6
+#: How far a covariance may be from symmetric, relative to its largest entry.
+SYMMETRY_RTOL = 1e-9
+
+
+def check_nonnegative(
+    owner: str, values: Mapping[str, Any], positive: Collection[str] = ()
+) -> None:
+    """Refuse scales below 0 (at or below 0 for those in ``positive``), naming the array.
+
+    Raises:
+        ValueError: Naming ``owner`` and ``name`` and its smallest value.
+    """
+    for name, value in values.items():
+        arr = np.asarray(value, dtype=np.float64)
+        low = float(arr.min()) if arr.size else 0.0
+        if low < 0 or (name in positive and low <= 0):
+            bound = "> 0" if name in positive else ">= 0"
+            raise ValueError(f"{owner}: {name} must be {bound}, got a smallest value of {low:g}")
+
+
+def check_probabilities(owner: str, name: str, value: Any) -> None:
+    """Refuse a distribution (each row of a matrix) not in [0, 1] or not summing to 1.
+
+    Raises:
+        ValueError: Naming ``owner`` and ``name``, its smallest value and the sum furthest from 1.
+    """
+    arr = np.asarray(value, dtype=np.float64)
+    sums = arr.sum(axis=-1)
+    worst = float(np.ravel(sums)[np.argmax(np.abs(np.ravel(sums) - 1.0))])
+    if arr.min() < 0 or arr.max() > 1 or abs(worst - 1.0) > PROBABILITY_ATOL:
+        rows = " in each row" if arr.ndim > 1 else ""
+        raise ValueError(
+            f"{owner}: {name} must be probabilities in [0, 1] summing to 1{rows}, got values "
+            f"from {arr.min():g} to {arr.max():g} summing to {worst:g}"
+        )
+
+
+def check_covariances(owner: str, name: str, value: Any) -> None:
+    """Refuse covariances ``(..., n, n)`` that are not symmetric or have a negative variance.
+
+    A cheap check (no eigendecomposition): what sampling takes the matrix
+    square root of must at least be symmetric with variances >= 0.
+
+    Raises:
+        ValueError: Naming ``owner`` and ``name`` and what is wrong.
+    """
+    arr = np.asarray(value, dtype=np.float64)
+    scale = float(np.abs(arr).max()) if arr.size else 0.0
+    asymmetry = float(np.abs(arr - np.swapaxes(arr, -1, -2)).max()) if arr.size else 0.0
+    if asymmetry > SYMMETRY_RTOL * scale:
+        raise ValueError(
+            f"{owner}: {name} must be symmetric covariance matrices, got entries {asymmetry:g} "
+            "from their transposes'"
+        )
+    variances = np.diagonal(arr, axis1=-2, axis2=-1)
+    if variances.size and variances.min() < 0:
+        raise ValueError(
+            f"{owner}: {name} must be covariance matrices with variances >= 0, got "
+            f"{variances.min():g} on a diagonal"
+        )
+
+
+#: The cyclic-PCA prior's scales, >= 0; those ``fit_phase`` divides by (and the
+#: rate and cycle lengths) > 0.
+_CYCLIC_SCALES = (
+    "singular_values", "component_std", "coef_step_std", "residual_std", "speed_std",
+    "speed_step_std", "root_velocity_std", "root_accel_std", "rotation_step_std", "periods",
+    "fps", "coef_noise", "speed_noise", "global_noise", "reversion",
+)  # fmt: skip
+_CYCLIC_POSITIVE = ("component_std", "residual_std", "periods", "fps")
+
+
+def check_cyclic(params: Any, joint_angles: Collection[int]) -> None:
+    """Refuse :class:`~baselines.priors.cyclic_pca.CyclicPCAParams` values it cannot track with.
+
+    Run before the class converts its fields (a ``free`` of 1.5 would be cut
+    to 1); ``angles`` must be among the free ``joint_angles`` (those the
+    curves can cover).
+
+    Raises:
+        ValueError: Naming ``CyclicPCAParams`` and the field and what it must be.
+    """
+    owner = "CyclicPCAParams"
+    check_indices(owner, "free", params.free)
+    joint = {int(i) for i in joint_angles} & set(np.asarray(params.free).tolist())
+    check_indices(owner, "angles", params.angles, within=joint)  # the free joint angles
+    check_settings(owner, counts={"n_samples": (params.n_samples, 2)})
+    scales = {name: getattr(params, name) for name in _CYCLIC_SCALES}
+    check_nonnegative(owner, scales, positive=_CYCLIC_POSITIVE)
+    if not params.speed_min <= params.speed_max:
+        raise ValueError(
+            f"{owner}: speed_min must be <= speed_max, got {params.speed_min} > {params.speed_max}"
+        )
+
+
+def check_slds(params: Any) -> None:
+    """Refuse :class:`~baselines.priors.slds_kalman.SLDSParams` values it cannot track with.
+
+    Raises:
+        ValueError: Naming ``SLDSParams`` and the field and what it must be.
+    """
+    owner = "SLDSParams"
+    check_indices(owner, "free", params.free)  # the poses are clipped to the free limits
+    check_probabilities(owner, "Pi", params.Pi)
+    check_probabilities(owner, "pi0", params.pi0)
+    for name in ("Q", "Q0", "R"):
+        check_covariances(owner, name, getattr(params, name))
+    check_nonnegative(owner, {"fps": params.fps}, positive=("fps",))
+    if not 0 <= params.switch_prob < 1:
+        raise ValueError(f"{owner}: switch_prob must be in [0, 1), got {params.switch_prob}")

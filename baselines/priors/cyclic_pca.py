@@ -57,6 +57,7 @@ from numpy.typing import ArrayLike, NDArray
 from baselines.filtering import ParticleState
 from baselines.priors import cycles, fpca
 from baselines.priors._checks import (
+    check_cyclic,
     check_settings,
     check_shapes,
     free_indices,
@@ -65,7 +66,6 @@ from baselines.priors._checks import (
 )
 from baselines.priors._io import load_fitted, save_fitted
 from baselines.priors._synthesis import check_request, check_synthesis
-from baselines.priors._value_checks import check_cyclic
 from baselines.priors.tree_model import _rotate
 from humotion_gym.body import (
     N_PARAMS,

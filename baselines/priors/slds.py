@@ -69,10 +69,15 @@ from numpy.typing import ArrayLike, NDArray
 from tqdm import tqdm
 
 from baselines.filtering import ParticleState
-from baselines.priors._checks import check_settings, free_indices, start_pose, training_clips
+from baselines.priors._checks import (
+    check_settings,
+    check_slds,
+    free_indices,
+    start_pose,
+    training_clips,
+)
 from baselines.priors._io import load_fitted, save_fitted
 from baselines.priors._synthesis import check_request, check_synthesis, model_frames, to_motion
-from baselines.priors._value_checks import check_slds
 from baselines.priors.slds_inference import (
     COV_RTOL,
     SLDSParams,

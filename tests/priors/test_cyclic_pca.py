@@ -384,7 +384,7 @@ def test_load_refuses_values_initial_and_transition_cannot_use(
     old = arrays[member]
     arrays[member] = np.full(old.shape, value) if np.ndim(value) == 0 else np.asarray(value)
     np.savez(bad, **arrays)
-    with pytest.raises(ValueError, match=rf"bad\.npz: CyclicPCAParams\.{says}"):
+    with pytest.raises(ValueError, match=rf"bad\.npz: CyclicPCAParams: {says}"):
         cyclic_pca.load(bad)
 
 

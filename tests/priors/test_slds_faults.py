@@ -218,5 +218,5 @@ def test_load_refuses_values_initial_and_transition_cannot_use(
         arrays = {k: data[k] for k in data.files}
     arrays[member] = np.asarray(change(arrays[member]))
     np.savez(bad, **arrays)
-    with pytest.raises(ValueError, match=rf"bad\.npz: SLDSParams\.{says}"):
+    with pytest.raises(ValueError, match=rf"bad\.npz: SLDSParams: {says}"):
         slds.load(bad)
