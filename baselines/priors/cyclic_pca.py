@@ -58,6 +58,7 @@ from baselines.filtering import ParticleState
 from baselines.priors import cycles, fpca
 from baselines.priors._checks import (
     check_cyclic,
+    check_generator,
     check_settings,
     check_shapes,
     free_indices,
@@ -639,7 +640,12 @@ def _revert(
 def transition(
     fitted: CyclicPCAParams, state: ParticleState, rng: np.random.Generator
 ) -> ParticleState:
-    """One frame: advance the phase by the speed, random-walk speed, coefficients, global pose."""
+    """One frame: advance the phase by the speed, random-walk speed, coefficients, global pose.
+
+    Raises:
+        ValueError: If ``rng`` is not a ``numpy.random.Generator``.
+    """
+    check_generator(rng, "cyclic_pca.transition")
     n = state.n
     angle_slots, pos_slots, rot_slots = _slots(fitted)
     phase = np.mod(state.extra[PHASE] + state.extra[SPEED], fitted.n_samples)

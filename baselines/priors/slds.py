@@ -70,6 +70,7 @@ from tqdm import tqdm
 
 from baselines.filtering import ParticleState
 from baselines.priors._checks import (
+    check_generator,
     check_settings,
     check_slds,
     free_indices,
@@ -584,7 +585,12 @@ def initial(fitted: SLDSParams, pose: ArrayLike, n: int, rng: np.random.Generato
 
 
 def transition(fitted: SLDSParams, state: ParticleState, rng: np.random.Generator) -> ParticleState:
-    """One step of every particle: ``s' ~ Pi[s]``, ``x' ~ N(A(s') x + b(s'), Q(s'))``."""
+    """One step of every particle: ``s' ~ Pi[s]``, ``x' ~ N(A(s') x + b(s'), Q(s'))``.
+
+    Raises:
+        ValueError: If ``rng`` is not a ``numpy.random.Generator``.
+    """
+    check_generator(rng, "slds.transition")
     switch = sample_switches(fitted.Pi, state.extra["switch"], rng)
     x = state.extra["state"]
     noise = rng.standard_normal(x.shape)

@@ -195,6 +195,15 @@ def test_every_initial_refuses_bad_arguments_by_name(name, change, match, walks,
 
 
 @pytest.mark.parametrize("name", sorted(PRIORS))
+@pytest.mark.parametrize("rng", [None, 0])  # no generator, a seed
+def test_every_transition_refuses_what_is_no_generator(name, rng, walks, fitted_priors):
+    prior, fitted = get_prior(name), fitted_priors[name]
+    state = prior.initial(fitted, walks[0].params[40, SAGITTAL], 4, np.random.default_rng(0))
+    with pytest.raises(ValueError, match=rf"^{name}\.transition: rng must be a numpy"):
+        prior.transition(fitted, state, rng)
+
+
+@pytest.mark.parametrize("name", sorted(PRIORS))
 def test_synthesis_refuses_a_fraction_of_a_frame_and_a_nan_pose(name, walks, fitted_priors):
     prior, base = get_prior(name), walks[0].params[40].copy()
     with pytest.raises(ValueError, match="frames must be an integer >= 1"):
