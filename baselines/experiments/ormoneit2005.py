@@ -47,6 +47,8 @@ class CycleLength:
             separation (one stride = two steps), frames.
         steps: Maxima of the ankles' separation found.
         n_frames: The clip's frames.
+        still: Eq. 3 saw no cycle at any period the clip shows twice (no joint
+            angle observed often enough, or none moves).
     """
 
     clip_id: str
@@ -55,6 +57,7 @@ class CycleLength:
     frames_feet: float
     steps: int
     n_frames: int
+    still: bool = False
 
     @property
     def seconds_snr(self) -> float:
@@ -84,6 +87,11 @@ class CycleLength:
             return None
         tried = cycles.candidate_periods(self.fps)
         shortest, longest = float(tried[0]), float(tried[-1])
+        if self.still and self.n_frames >= 2 * shortest:
+            return (
+                "no cycle to measure: no joint angle is observed often enough and moves in its "
+                f"{self.n_frames} frames"
+            )
         start = f"too short to estimate a cycle length: {self.n_frames} frames"
         if self.n_frames < 2 * shortest:
             return (
@@ -149,9 +157,11 @@ def cycle_lengths(motions: Sequence[Motion]) -> list[CycleLength]:
     out = []
     for m in motions:
         joint = cycles.JOINT_ANGLES
-        p = cycles.estimate_period(m.params[:, joint], m.observed[:, joint], m.fps)
+        angles, seen = m.params[:, joint], m.observed[:, joint]
+        p = cycles.estimate_period(angles, seen, m.fps)
+        still = bool(np.isnan(p)) and not np.any(cycles.period_ratios(angles, seen, m.fps)[1] > 0)
         feet, steps = foot_cycle_length(m)
-        out.append(CycleLength(m.clip_id, float(m.fps), p, feet, steps, m.n_frames))
+        out.append(CycleLength(m.clip_id, float(m.fps), p, feet, steps, m.n_frames, still))
     return out
 
 

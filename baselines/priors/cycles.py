@@ -266,6 +266,25 @@ def signal_to_noise(
     return out
 
 
+def period_ratios(
+    series: ArrayLike,
+    observed: ArrayLike | None = None,
+    fps: float = 30.0,
+    periods: ArrayLike | None = None,
+) -> tuple[FloatArray, FloatArray]:
+    """The candidate periods (frames) and eq. 3's ratio summed over the angles at each.
+
+    The candidates are ``periods``, else those of ``fps`` the series shows
+    twice (:func:`candidate_periods`); a ratio of zero at every one means no
+    angle is observed often enough, or none moves.
+    """
+    x = np.asarray(series, dtype=np.float64)
+    p_all = candidate_periods(fps, x.shape[0]) if periods is None else np.asarray(periods, float)
+    if p_all.size == 0:
+        return p_all, np.zeros(0)
+    return p_all, signal_to_noise(x, observed, p_all).sum(axis=1)
+
+
 def estimate_period(
     series: ArrayLike,
     observed: ArrayLike | None = None,
@@ -286,11 +305,9 @@ def estimate_period(
         observed often enough, or none moves), or (default candidates) when the
         ratio still rises at the longest period that fits twice into the series.
     """
-    x = np.asarray(series, dtype=np.float64)
-    p_all = candidate_periods(fps, x.shape[0]) if periods is None else np.asarray(periods, float)
+    p_all, snr = period_ratios(series, observed, fps, periods)
     if p_all.size == 0:
         return float("nan")
-    snr = signal_to_noise(x, observed, p_all).sum(axis=1)
     if not np.any(snr > 0):  # argmax would pick the shortest candidate for nothing seen
         return float("nan")
     best = int(np.argmax(snr))

@@ -118,3 +118,15 @@ def test_figures_use_the_training_split_only(monkeypatch, tmp_path):
     assert about.startswith(f"{len(train)} walking clips (synthetic)")
     assert about.endswith(f"{len({m.subject for m in train})} subjects")
     assert len(drawn) == 4
+
+
+def test_a_long_clip_that_never_moves_says_so_not_too_short(synthetic_walks):
+    """A motionless walk is long enough: its row says no angle moves, not that it is short."""
+    m = synthetic_walks[0]
+    still = dataclasses.replace(m, params=np.broadcast_to(m.params[:1], m.params.shape).copy())
+    unseen = dataclasses.replace(m, observed=np.zeros_like(m.observed))
+    moving, *others = ormoneit2005.cycle_lengths([m, still, unseen])
+    assert moving.too_short is None and not moving.still
+    for row in others:
+        assert row.still and np.isnan(row.frames_snr)
+        assert row.too_short.startswith("no cycle to measure: no joint angle is observed")
