@@ -98,9 +98,13 @@ def run_episode(
             agent never sees them).
 
     Raises:
-        TypeError: If ``env`` is not a pose-tracking environment.
-        ValueError: If it ends episodes where track is lost.
+        TypeError: If ``env`` is not a pose-tracking environment, or the
+            agent's ``predict`` does not return ``(action, state)``.
+        ValueError: If it ends episodes where track is lost, or ``seed`` is
+            not an integer >= 0.
     """
+    check_count("seed", seed, least=0)
+    seed = int(seed)  # a numpy integer too: gymnasium's reset takes Python's alone
     base = tracking_env(env)
     if base.terminate_on_lost:
         raise ValueError(
@@ -120,9 +124,7 @@ def run_episode(
     aligned: list[float] | None = []
     while True:
         t0 = time.perf_counter()
-        action, state = agent.predict(
-            obs, state=state, episode_start=episode_start, deterministic=True
-        )
+        action, state = _predict(agent, obs, state, episode_start)
         times.append(time.perf_counter() - t0)
         episode_start = np.array([False])
         if on_step is not None:
@@ -157,6 +159,22 @@ def run_episode(
     )
 
 
+def _predict(agent: Any, obs: Any, state: Any, episode_start: NDArray[np.bool_]) -> tuple[Any, Any]:
+    """The agent's deterministic ``(action, state)`` for an observation.
+
+    Raises:
+        TypeError: If ``predict`` returns anything but a pair, naming the agent's class.
+    """
+    out = agent.predict(obs, state=state, episode_start=episode_start, deterministic=True)
+    if not (isinstance(out, tuple) and len(out) == 2):
+        raise TypeError(
+            f"agent: {type(agent).__name__}.predict must return (action, state), as "
+            f"stable-baselines3's does (state None for an agent without one), got "
+            f"{type(out).__name__}" + (f" of length {len(out)}" if isinstance(out, tuple) else "")
+        )
+    return out[0], out[1]
+
+
 def warm_up(
     agent: Any,
     env: gym.Env,
@@ -176,12 +194,17 @@ def warm_up(
     that cost would be charged to its ``ms_per_frame``. Nothing carries
     over: each episode starts the agent afresh (``episode_start``) and
     reseeds it (``seed_episode``).
+
+    Raises:
+        TypeError: If the agent's ``predict`` does not return ``(action, state)``.
+        ValueError: If ``seed`` is not an integer >= 0.
     """
-    obs, _ = env.reset(seed=seed, options=options)
+    check_count("seed", seed, least=0)
+    obs, _ = env.reset(seed=int(seed), options=options)
     spent, start = 0.0, np.array([True])
     for k in range(frames):
         t0 = time.perf_counter()
-        action, _ = agent.predict(obs, state=None, episode_start=start, deterministic=True)
+        action, _ = _predict(agent, obs, None, start)
         spent += time.perf_counter() - t0
         start = np.array([False])
         if k + 1 < frames:

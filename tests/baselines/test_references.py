@@ -15,7 +15,7 @@ from baselines.leaderboard import (
     tables,
     validity_lines,
 )
-from baselines.leaderboard.evaluation import evaluate, run_episode
+from baselines.leaderboard.evaluation import evaluate, run_episode, warm_up
 from humotion_gym.body import PARAM_INDEX
 
 
@@ -230,3 +230,30 @@ def test_an_episode_seed_that_is_not_a_count_is_refused_naming_it(episode_seed):
         with pytest.raises(ValueError, match=r"^seed_episode: episode_seed: expected an integer"):
             agent.seed_episode(episode_seed)
         agent.seed_episode(np.int64(3))  # numpy's integers are seeds
+
+
+def test_a_numpy_seed_runs_the_episodes_a_python_seed_does():
+    """np.int64(3) reached gymnasium's reset unconverted: 'Seed must be a python integer'."""
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
+    hold = make("hold", env)
+    want = evaluate(hold, env, 1, seed=3)[0]
+    got = evaluate(hold, env, 1, seed=np.int64(3))[0]
+    assert got.errors_mm == want.errors_mm and type(got.seed) is int
+    assert run_episode(hold, env, np.int64(3)).errors_mm == want.errors_mm
+    with pytest.raises(ValueError, match=r"^seed: expected an integer >= 0, got 1.5"):
+        run_episode(hold, env, 1.5)
+
+
+def test_a_predict_that_returns_the_action_alone_is_named():
+    """It raised 'too many values to unpack (expected 2)' from the evaluation loop."""
+
+    class ActionOnly:
+        def predict(self, obs, state=None, episode_start=None, deterministic=True):
+            return np.zeros(4, np.float32)
+
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
+    match = r"^agent: ActionOnly.predict must return \(action, state\), as stable-baselines3"
+    with pytest.raises(TypeError, match=match + r".*got ndarray$"):
+        evaluate(ActionOnly(), env, 1)
+    with pytest.raises(TypeError, match=match):
+        warm_up(ActionOnly(), env)
