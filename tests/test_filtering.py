@@ -419,3 +419,26 @@ def test_tempered_weights_by_hand() -> None:
         rtol=1e-14,
     )
     np.testing.assert_array_equal(tempered_weights(np.full(4, -np.inf), 2.0), np.full(4, 0.25))
+
+
+class BestIsCertain:
+    """A likelihood giving +inf to its first particle, 0 to the rest."""
+
+    def log_likelihood(self, y, poses):
+        return np.r_[np.inf, np.zeros(len(poses) - 1)]
+
+
+def test_a_likelihood_of_plus_inf_is_refused_naming_it():
+    """+inf made log_sum_exp not finite: the 'every particle impossible' branch gave equal weights."""
+    a, q, r, m0, p0, _ = simulate(steps=1)
+    pf = ParticleFilter(LinearGaussianPrior(a, q, p0), None, BestIsCertain(), 20)
+    pf.reset(m0, np.random.default_rng(0))
+    with pytest.raises(ValueError, match=r"^BestIsCertain.log_likelihood returned \+inf for "):
+        pf.step(None)
+    # every particle impossible still keeps the predicted cloud, equally weighted
+    pf.observation_model = type(
+        "Impossible", (), {"log_likelihood": lambda s, y, p: -np.inf * np.ones(len(p))}
+    )()
+    pf.reset(m0, np.random.default_rng(0))
+    pf.step(None)
+    assert np.allclose(pf.weights, 1 / 20)

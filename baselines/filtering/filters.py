@@ -157,9 +157,21 @@ class ParticleFilter:
 
         Returns:
             The normalised log weights, the weights and the estimate of ``pose``.
+
+        Raises:
+            ValueError: If a log weight is ``+inf`` (the likelihood returned it),
+                naming the likelihood's class.
         """
         norm = log_sum_exp(log_w)
         if not np.isfinite(norm):
+            if np.isposinf(log_w).any():  # checked here alone: the normal path costs nothing
+                # an agent's TaskLikelihood holds the model its user wrote: named
+                model = getattr(self.observation_model, "model", self.observation_model)
+                raise ValueError(
+                    f"{type(model).__name__}.log_likelihood returned +inf for particle "
+                    f"{int(np.argmax(log_w))}: a log-likelihood must be finite, or -inf for an "
+                    "impossible pose (+inf is no probability)"
+                )
             # Every particle impossible: keep the predicted cloud with equal weights
             # rather than divide by zero; the estimate then follows the prior.
             log_w = np.full(self.n, -np.log(self.n))
