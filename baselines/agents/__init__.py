@@ -51,6 +51,7 @@ from baselines.agents.specs import (
     MIXTURE_PERSISTENCE,
     MIXTURE_WEIGHT,
     AgentSpec,
+    check_observation_model,
     filter_agent,
     fit_prior,
     make_filter,
@@ -105,19 +106,28 @@ def make(
         filter_settings: Overrides of the filter's settings (names in
             :data:`FILTER_SETTINGS`, those the agent's filter reads:
             :data:`~baselines.agents.settings.FILTER_READS`).
-        observation_model: A particle filter's likelihood (default: the
-            task's, :func:`~baselines.observation.task_model`).
+        observation_model: A particle filter's likelihood, in place of its
+            default: the task's (:func:`~baselines.observation.task_model`),
+            or for a ``-det`` agent (a spec with a ``detector``) the task's
+            with the keypoint detector's term, which it builds itself and
+            so refuses to have replaced. It needs the
+            :class:`~baselines.observation.FrameModel` methods the agent's
+            filter calls: ``prepare``, ``read_first_frame``,
+            ``log_likelihood``, and ``log_likelihood_partial`` for a
+            partitioned filter (:func:`~baselines.agents.specs.check_observation_model`).
 
     Raises:
         KeyError: If the name is unknown.
         TaskNotSupported: If the agent does not cover the env's task (a
             ``ValueError``).
         ValueError: If a fit or filter setting is unknown or out of range, a
-            filter setting is not one the agent's filter reads, or ``n_particles`` or
-            ``seed`` is out of range.
+            filter setting is not one the agent's filter reads, ``n_particles`` or
+            ``seed`` is out of range, or ``observation_model`` is given to an
+            agent that builds its own likelihood (a ``-det`` agent).
         TypeError: If ``name`` is not a string, ``task`` is neither a
             description nor a tracking environment, or ``observation_model``
-            lacks a :class:`~baselines.observation.FrameModel` method.
+            lacks a :class:`~baselines.observation.FrameModel` method the
+            agent's filter calls.
     """
     if not isinstance(name, str):
         raise TypeError(f"agents.make: name must be an agent's name, got {name!r}")
@@ -125,14 +135,7 @@ def make(
         raise KeyError(f"unknown agent {name!r}; the agents are {agent_names()}")
     _check_count("n_particles", n_particles, 1, MAX_PARTICLES)
     _check_count("seed", seed, 0)
-    frame_model = ("prepare", "read_first_frame", "log_likelihood")
-    if observation_model is not None and not all(
-        callable(getattr(observation_model, method, None)) for method in frame_model
-    ):
-        raise TypeError(
-            f"agents.make: observation_model must have {', '.join(frame_model)} "
-            f"(baselines.observation.FrameModel), got {observation_model!r}"
-        )
+    check_observation_model(name, AGENTS.get(name), observation_model, "agents.make")
     description = describe(task)
     if name in REFERENCES:
         return REFERENCES[name][0](description, seed=seed)

@@ -610,6 +610,57 @@ def register_agent(name: str, spec: AgentSpec, replace: bool = False) -> None:
     AGENTS[name] = spec
 
 
+#: What every filter calls on its observation model (:class:`~baselines.observation.FrameModel`).
+FRAME_MODEL_CALLS = ("prepare", "read_first_frame", "log_likelihood")
+
+
+def check_observation_model(name: str, spec: AgentSpec | None, model: Any, who: str) -> None:
+    """Refuse an observation model the agent cannot use, naming the agent.
+
+    Every filter reads frames with ``prepare`` and ``read_first_frame`` and
+    scores poses with ``log_likelihood`` (the annealed filter and the local
+    search too); a partitioned filter scores its stages with
+    ``log_likelihood_partial`` instead. An agent with a ``detector`` builds
+    its own likelihood (the task's with the keypoint detector's term): a
+    model given would replace it whole and drop the term while the agent
+    still bears the detector's name, so it is refused rather than warned
+    of (a warning is lost in a leaderboard's rows).
+
+    Args:
+        name: The agent's name.
+        spec: Its spec; None for an agent that is no particle filter (the
+            three calls alone are checked).
+        model: The observation model given; None passes.
+        who: The function named in the message.
+
+    Raises:
+        TypeError: If ``model`` lacks a method the agent's filter calls.
+        ValueError: If the agent builds its own likelihood (a ``detector``).
+    """
+    if model is None:
+        return
+    calls = FRAME_MODEL_CALLS
+    if spec is not None and spec.partitioned:
+        calls += ("log_likelihood_partial",)
+    missing = [call for call in calls if not callable(getattr(model, call, None))]
+    if missing:
+        why = "baselines.observation.FrameModel"
+        if "log_likelihood_partial" in missing:
+            why += "; a partitioned filter scores its stages with log_likelihood_partial"
+        raise TypeError(
+            f"{who}: observation_model must have {', '.join(calls)} for {name} ({why}); "
+            f"{type(model).__name__} lacks {', '.join(missing)}"
+        )
+    if spec is not None and spec.detector is not None:
+        plain = name.removesuffix("-det")
+        instead = f" (as {plain}, its prior without the detector)" if plain in AGENTS else ""
+        raise ValueError(
+            f"{who}: observation_model: {name} builds its own likelihood, the task's with the "
+            f"keypoint detector's term; a model given would replace it and drop that term. "
+            f"Give a custom likelihood to an agent without a detector{instead}"
+        )
+
+
 def make_filter(
     name: str,
     task: TaskDescription | gym.Env,
@@ -629,10 +680,12 @@ def make_filter(
         KeyError: If the name is not one of :data:`AGENTS`.
         TaskNotSupported: If the agent does not cover the env's task.
         ValueError: If a fit or filter setting is unknown or out of range.
+        TypeError, ValueError: As :func:`check_observation_model`.
     """
     if name not in AGENTS:
         raise KeyError(f"unknown particle-filter agent {name!r}; they are {sorted(AGENTS)}")
     spec = AGENTS[name]
+    check_observation_model(name, spec, observation_model, "make_filter")
     base = describe(task)
     if spec.tasks is not None and base.task.name not in spec.tasks:
         module = importlib.import_module(spec.prior)
@@ -671,7 +724,11 @@ def filter_agent(
 
     The filter takes the spec's settings for the env's task
     (:meth:`AgentSpec.filter_settings_for`), overridden by ``filter_settings``.
+
+    Raises:
+        TypeError, ValueError: As :func:`check_observation_model`.
     """
+    check_observation_model(name, spec, observation_model, "filter_agent")
     base = describe(task)
     settings = spec.filter_settings_for(base.task.name, filter_settings, name)
     # the filter is handed what it reads alone (the annealed filter's at

@@ -512,3 +512,49 @@ def test_an_agent_refusing_a_task_is_named_as_the_user_named_it():
     message = str(caught.value)
     assert message.startswith("pf-pca cannot track 'ArmTrack-v2': the cyclic PCA model covers")
     assert "cyclic_pca" not in message
+
+
+class WithoutPartial:
+    """A likelihood with the three calls every filter makes, not log_likelihood_partial."""
+
+    def __init__(self, model):
+        self.model = model
+
+    def prepare(self, frame, given=None):
+        return self.model.prepare(frame, given)
+
+    def read_first_frame(self, *args):
+        return self.model.read_first_frame(*args)
+
+    def log_likelihood(self, *args):
+        return self.model.log_likelihood(*args)
+
+
+def test_a_partitioned_agent_refuses_a_likelihood_without_its_stages_call(monkeypatch):
+    """It was accepted and the filter raised AttributeError on its first frame."""
+    from baselines.agents import AgentSpec
+    from baselines.observation import task_model
+
+    spec = AgentSpec("baselines.priors.constant_velocity", AGENTS["pf-cv"].fit_settings,
+                     partitioned=True)  # fmt: skip
+    monkeypatch.setitem(AGENTS, "ppf-cv", spec)
+    env = gym.make("humotion_gym/BodyTrack-v2", terminate_on_lost=False)
+    model = WithoutPartial(task_model(describe(env).task))
+    with pytest.raises(TypeError, match=r"^agents.make: observation_model must have .*"
+                       r"log_likelihood_partial for ppf-cv .*WithoutPartial lacks "
+                       r"log_likelihood_partial$"):  # fmt: skip
+        make("ppf-cv", env, n_particles=20, observation_model=model)
+    # the plain filter calls the three alone
+    assert make("pf-cv", env, n_particles=20, observation_model=model).likelihood.model is model
+
+
+def test_a_detector_agent_refuses_a_likelihood_that_would_drop_its_term():
+    """pf-cv-det with observation_model=task_model(...) silently scored without the detector."""
+    from baselines.observation import task_model
+
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
+    model = task_model(describe(env).task)
+    for name in ("pf-cv-det", "spf-cv-det"):
+        with pytest.raises(ValueError, match=rf"^agents.make: observation_model: {name} builds "
+                           r"its own likelihood.*detector's term.*\(as .*cv, its prior"):  # fmt: skip
+            make(name, env, n_particles=20, observation_model=model)
