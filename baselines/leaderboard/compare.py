@@ -14,6 +14,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from humotion_gym.checks import check_at_least_zero
+
 #: An episode: task, agent, particles, agent seed, episode seed.
 EpisodeKey = tuple[str, str, int, int, int]
 
@@ -84,10 +86,10 @@ def compare_runs(
     name none (see :func:`episode_means`).
 
     Raises:
-        ValueError: If ``rtol`` is negative or not finite, or a run repeats an episode.
+        ValueError: If ``rtol`` is not a finite real number >= 0 (a bool or a
+            string neither), or a run repeats an episode.
     """
-    if not (0.0 <= rtol < float("inf")):
-        raise ValueError(f"rtol: expected a number >= 0, got {rtol}")
+    check_at_least_zero("rtol", rtol)  # a string or a bool too, as a number would not be
     got, want = episode_means(rerun, agent_seeds[0]), episode_means(recorded, agent_seeds[1])
     both = sorted(got.keys() & want.keys())
     # written so that NaN on either side differs (a comparison with NaN is False)

@@ -119,3 +119,11 @@ def test_a_run_is_named_by_its_folder_as_by_its_file(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.count(str(unfinished)) == 1
     assert "without results.json or results.json.gz: its run did not finish" in err
+
+
+@pytest.mark.parametrize("rtol", ["x", True, None, -1e-6, float("nan"), float("inf")])
+def test_an_rtol_that_is_no_tolerance_is_refused_naming_it(rtol):
+    """'x' raised "'<=' not supported" from inside; True compared as a tolerance of 1."""
+    rows = _rows()
+    with pytest.raises(ValueError, match=r"^rtol: expected a finite number >= 0, got "):
+        compare_runs(rows, rows, rtol=rtol)
