@@ -108,3 +108,22 @@ def test_beta_cap() -> None:
     assert min(apf.layer_survival) > 0.5  # so more particles survive than alpha
     with pytest.raises(ValueError, match="beta_max"):
         AnnealedParticleFilter(RandomWalk(0.5), None, Peaks(0.05), 10, beta_max=0.0)
+
+
+@pytest.mark.parametrize("weigh", ["tempered", "survival"])
+def test_a_log_likelihood_of_plus_inf_is_refused_not_dropped(weigh):
+    # +inf is no probability: it used to get weight 0, as an impossible pose does
+    from baselines.filtering.weights import temper_for_survival, tempered_weights
+
+    def run(loglik):
+        loglik = np.array(loglik, dtype=np.float64)
+        return (
+            tempered_weights(loglik, 0.5)
+            if weigh == "tempered"
+            else temper_for_survival(loglik, 0.5)[1]
+        )
+
+    with pytest.raises(ValueError, match=r"\+inf for particle 1: a log-likelihood must be finite"):
+        run([0.0, np.inf, -1.0])
+    w = run([0.0, -np.inf, np.nan, -1.0])  # impossible poses still weigh nothing
+    assert w[1] == w[2] == 0.0 and w[0] > w[3] > 0.0

@@ -115,9 +115,30 @@ def weighted_mean(
     return mean
 
 
-def tempered_weights(loglik: FloatArray, beta: float) -> FloatArray:
-    """Normalised weights ``w ~ exp(beta loglik)``; ``-inf`` gets 0, all ``-inf`` equal weights."""
+def possible(loglik: FloatArray) -> NDArray[np.bool_]:
+    """Which log-likelihoods are finite (``-inf`` and NaN mark impossible poses).
+
+    Raises:
+        ValueError: For a log-likelihood of ``+inf``, which is no probability
+            (checked only where some value is not finite: the usual case costs nothing).
+    """
     ok = np.isfinite(loglik)
+    if not ok.all() and np.isposinf(loglik).any():
+        raise ValueError(
+            f"the likelihood returned +inf for particle {int(np.argmax(loglik))}: a "
+            "log-likelihood must be finite, or -inf for an impossible pose (+inf is no "
+            "probability)"
+        )
+    return ok
+
+
+def tempered_weights(loglik: FloatArray, beta: float) -> FloatArray:
+    """Normalised weights ``w ~ exp(beta loglik)``; ``-inf`` gets 0, all ``-inf`` equal weights.
+
+    Raises:
+        ValueError: For a log-likelihood of ``+inf`` (:func:`possible`).
+    """
+    ok = possible(loglik)
     if not ok.any():
         return np.full(loglik.shape[0], 1.0 / loglik.shape[0])
     log_w = np.where(ok, beta * (loglik - loglik[ok].max()), -np.inf)
@@ -146,9 +167,12 @@ def temper_for_survival(
         particles alone fall below ``alpha N`` (many impossible poses), or the
         log-likelihoods are all equal, ``beta`` is 1 and the weights are those
         of the untempered likelihood.
+
+    Raises:
+        ValueError: For a log-likelihood of ``+inf`` (:func:`possible`).
     """
     n = loglik.shape[0]
-    ok = np.isfinite(loglik)
+    ok = possible(loglik)
     if not ok.any():
         return 1.0, np.full(n, 1.0 / n)
     centred = np.where(ok, loglik - loglik[ok].max(), -np.inf)
