@@ -278,6 +278,46 @@ def test_bad_inputs_raise(scene_and_poses) -> None:
             ObservationModel(**kwargs)
 
 
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        ({"edge_blur": float("inf")}, "edge_blur"),  # prepare hung in cv2.GaussianBlur
+        ({"edge_blur": 1e9}, "edge_blur"),
+        ({"edge_blur": float("nan")}, "edge_blur"),  # failed inside OpenCV
+        ({"edge_blur": -1.0}, "edge_blur"),
+        ({"outline_samples": True}, "outline_samples"),  # a bool is no count
+        ({"orientation_bins": 10**6}, "orientation_bins"),
+        ({"foreground_weight": 1e308}, "foreground_weight"),  # every pose scored -0.
+        ({"residual_weight": float("inf")}, "residual_weight"),
+        ({"sharpness": "1"}, "sharpness"),  # TypeError from math.isfinite
+        ({"sharpness": 1e308}, "sharpness"),
+        ({"edge_sigma": 1e-30}, "edge_sigma"),  # squared ratios overflowed
+        ({"floor_below_mm": 1e-300}, "floor_below_mm"),
+        ({"floor_above_mm": float("nan")}, "floor_above_mm"),
+        ({"foreground_low": "1"}, "foreground_low"),
+        ({"canny_high": float("inf")}, "canny_high"),
+        ({"appearance_low": float("nan")}, "appearance_low"),
+        ({"backdrop_margin": True}, "backdrop_margin"),
+        ({"backdrop": "no"}, "backdrop"),
+    ],
+)
+def test_bad_settings_are_refused_by_name(kwargs: dict, name: str) -> None:
+    with pytest.raises(ValueError, match=rf"ObservationModel\.{name}: expected"):
+        ObservationModel(**kwargs)
+
+
+@pytest.mark.filterwarnings("error")  # 1e308 overflowed, with warnings, to a flat -0.
+def test_settings_at_their_bounds_still_rank_poses(scene_and_poses) -> None:
+    kwargs = {"edge_sigma": 1e-3, "sharpness": 1e6, "foreground_weight": 1e6}
+    frame, cam, poses = scene_and_poses
+    far = perturbations(poses[0], np.random.default_rng(8), 4, 150.0, 250.0)
+    scores = ObservationModel(**kwargs).log_likelihood(
+        frame, np.vstack([poses[:1], far]), SHAPE, cam
+    )
+    assert np.all(np.isfinite(scores))
+    assert scores[0] > scores[1:].max()
+
+
 def test_unoriented_and_other_bin_counts_work(scene_and_poses) -> None:
     frame, cam, poses = scene_and_poses
     for bins in (1, 6):

@@ -15,6 +15,42 @@ import numpy as np
 from numpy.typing import NDArray
 
 from baselines.observation.geometry import sample_weights
+from humotion_gym.checks import is_count, is_real
+
+#: The largest length setting (reference px, px or mm): a million is beyond
+#: any frame or scene.
+MAX_LENGTH = 1e6
+
+#: The smallest scale setting (``edge_sigma``, reference px; the floor's, mm):
+#: a thousandth of a pixel or of a millimetre is far finer than any edge or
+#: any motion capture, and it bounds the squared cost ratios
+#: (``MAX_LENGTH / MIN_SCALE`` squared, 1e18) so that the single-precision
+#: scorer cannot overflow.
+MIN_SCALE = 1e-3
+
+#: The largest weight of a term or of the whole log-likelihood. A weight
+#: multiplies costs of up to 5e17 nats (see :data:`MIN_SCALE`); 1e6 keeps the
+#: product within single precision (3.4e38), where a weight of 1e308 made every
+#: pose score -0. (a flat likelihood).
+MAX_WEIGHT = 1e6
+
+#: The largest ``edge_blur`` (image pixels). The blur suppresses sensor noise
+#: of a pixel or two; a sigma of 100 px spreads each pixel over +-300 px,
+#: flattening a figure in any benchmark frame, and OpenCV's kernel (about
+#: 6 sigma + 1 taps) makes larger ones cost seconds per frame, without end
+#: for an infinite one.
+MAX_EDGE_BLUR = 100.0
+
+#: The largest ``outline_samples`` and ``axis_samples``: a thousand points on a
+#: limb is finer than a pixel on any frame, and time grows linearly with them.
+MAX_SAMPLES = 1000
+
+#: The largest ``orientation_bins``: one-degree bins, finer than the Sobel
+#: gradient's orientation; each bin costs one distance transform per frame.
+MAX_ORIENTATION_BINS = 180
+
+#: The largest of the other counts (pixels, points): a million is beyond any frame.
+MAX_COUNT = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -32,6 +68,12 @@ class ObservationSettings:
     foreground term in ``[0, foreground_weight]``), so a pose whose whole outline
     is off by ``edge_truncation`` scores about 20 nats below one that fits.
     Particle filters may temper it further.
+
+    Each setting is checked on creation (:func:`check_settings`): a number
+    must be a real number (not a bool or a string) within its bounds, e.g.
+    ``edge_blur`` in [0, :data:`MAX_EDGE_BLUR`], weights and ``sharpness`` at
+    most :data:`MAX_WEIGHT`, lengths at most :data:`MAX_LENGTH`; anything else
+    raises a ValueError naming the setting.
 
     Attributes:
         edge_sigma: Standard deviation (reference px, default 1.5) of the
@@ -217,63 +259,7 @@ class ObservationSettings:
     raster_pad_px: float = 0.0
 
     def __post_init__(self) -> None:
-        positive = (
-            "edge_sigma",
-            "edge_truncation",
-            "near_mm",
-            "residual_truncation",
-            "coverage_truncation",
-        )
-        for name in positive:  # lengths in pixels or mm: a million is beyond any frame
-            value = float(getattr(self, name))
-            if not (math.isfinite(value) and 0 < value <= 1e6):
-                raise ValueError(
-                    f"ObservationModel.{name}: expected a positive length up to 1e6, got {value:g}"
-                )
-        if not (math.isfinite(self.sharpness) and self.sharpness > 0):
-            raise ValueError("ObservationModel.sharpness: expected a positive number")
-        if not (self.foreground_weight >= 0 and math.isfinite(self.foreground_weight)):
-            raise ValueError("ObservationModel.foreground_weight: expected a number >= 0")
-        if not 0 <= self.foreground_low < self.foreground_high:
-            raise ValueError("ObservationModel: expected 0 <= foreground_low < foreground_high")
-        if not 0 < self.canny_low <= self.canny_high:
-            raise ValueError("ObservationModel: expected 0 < canny_low <= canny_high")
-        if not 0 <= self.appearance_low < self.appearance_high:
-            raise ValueError("ObservationModel: expected 0 <= appearance_low < appearance_high")
-        if not isinstance(self.backdrop, (bool, np.bool_)):
-            raise ValueError(f"ObservationModel.backdrop: expected a bool, got {self.backdrop!r}")
-        for name in (
-            "residual_weight",
-            "residual_clearance",
-            "appearance_weight",
-            "backdrop_margin",
-            "backdrop_reach",
-            "coverage_weight",
-            "raster_pad_px",
-        ):
-            value = float(getattr(self, name))
-            if not (math.isfinite(value) and value >= 0):
-                raise ValueError(f"ObservationModel.{name}: expected a number >= 0")
-        for name in ("floor_below_mm", "floor_above_mm"):
-            value = float(getattr(self, name))
-            if not value > 0:  # inf (off) allowed; NaN and <= 0 refused
-                raise ValueError(
-                    f"ObservationModel.{name}: expected a positive number (inf: off), got {value}"
-                )
-        if self.edge_blur < 0:
-            raise ValueError("ObservationModel.edge_blur: expected a number >= 0")
-        for name in (
-            "outline_samples",
-            "axis_samples",
-            "border_width",
-            "reference_height",
-            "orientation_bins",
-            "residual_points",
-            "coverage_points",
-        ):
-            value = getattr(self, name)
-            if not isinstance(value, (int, np.integer)) or value < 1:
-                raise ValueError(f"ObservationModel.{name}: expected a positive integer")
+        check_settings(self)
 
     @property
     def has_floor_term(self) -> bool:
@@ -290,3 +276,106 @@ class ObservationSettings:
         weights = sample_weights(self.outline_samples, self.axis_samples)
         weights.setflags(write=False)
         return weights
+
+
+def _real(
+    name: str, value: object, low: float, high: float, what: str, positive: bool = False
+) -> None:
+    """Refuse ``value`` unless a real number in ``[low, high]`` (``> low`` if ``positive``).
+
+    Raises:
+        ValueError: Naming the setting and what was expected.
+    """
+    # NaN fails every comparison; a bool or a string fails is_real
+    if not (is_real(value) and low <= value <= high and (value > low or not positive)):  # type: ignore[operator]
+        raise ValueError(f"ObservationModel.{name}: expected {what}, got {value!r}")
+
+
+def _ordered(low_name: str, high_name: str, settings: ObservationSettings, strict: bool) -> None:
+    """Refuse a pair of thresholds unless ``low < high`` (``<=`` unless ``strict``)."""
+    low, high = getattr(settings, low_name), getattr(settings, high_name)
+    if (low >= high) if strict else (low > high):
+        sign = "<" if strict else "<="
+        raise ValueError(
+            f"ObservationModel: expected {low_name} {sign} {high_name}, got {low!r} and {high!r}"
+        )
+
+
+def check_settings(settings: ObservationSettings) -> None:
+    """Refuse any setting out of its range, naming it and what was expected.
+
+    Every number must be a real number (not a bool, not a string), finite
+    except the floor's scales (``inf``: off), and within the bounds above, so
+    that no setting can hang the model, overflow its single-precision scorer
+    or make it fail deep inside OpenCV.
+
+    Raises:
+        ValueError: Naming the setting.
+    """
+    length = f"a positive length up to {MAX_LENGTH:g}"
+    for name in ("edge_truncation", "near_mm", "residual_truncation", "coverage_truncation"):
+        _real(name, getattr(settings, name), 0.0, MAX_LENGTH, length, positive=True)
+    _real(
+        "edge_sigma", settings.edge_sigma, MIN_SCALE, MAX_LENGTH,
+        f"a length in [{MIN_SCALE:g}, {MAX_LENGTH:g}]",
+    )  # fmt: skip
+    for name in (
+        "residual_clearance", "backdrop_margin", "backdrop_reach", "raster_pad_px",
+    ):  # fmt: skip
+        _real(name, getattr(settings, name), 0.0, MAX_LENGTH, f"a length in [0, {MAX_LENGTH:g}]")
+    _real(
+        "edge_blur", settings.edge_blur, 0.0, MAX_EDGE_BLUR,
+        f"a blur sigma in [0, {MAX_EDGE_BLUR:g}] pixels",
+    )  # fmt: skip
+    weight = f"a weight in [0, {MAX_WEIGHT:g}]"
+    for name in ("foreground_weight", "residual_weight", "appearance_weight", "coverage_weight"):
+        _real(name, getattr(settings, name), 0.0, MAX_WEIGHT, weight)
+    _real(
+        "sharpness",
+        settings.sharpness,
+        0.0,
+        MAX_WEIGHT,
+        f"a weight in (0, {MAX_WEIGHT:g}]",
+        positive=True,
+    )
+    for name in ("floor_below_mm", "floor_above_mm"):
+        _real(
+            name,
+            getattr(settings, name),
+            MIN_SCALE,
+            math.inf,
+            f"a scale >= {MIN_SCALE:g} mm (inf: off)",
+        )
+    level = f"a number of grey levels in [0, {MAX_LENGTH:g}]"
+    for name in (
+        "foreground_low", "foreground_high", "canny_low", "canny_high",
+        "appearance_low", "appearance_high",
+    ):  # fmt: skip
+        _real(name, getattr(settings, name), 0.0, MAX_LENGTH, level)
+    _ordered("foreground_low", "foreground_high", settings, strict=True)
+    _ordered("appearance_low", "appearance_high", settings, strict=True)
+    _ordered("canny_low", "canny_high", settings, strict=False)
+    _real(
+        "canny_low",
+        settings.canny_low,
+        0.0,
+        MAX_LENGTH,
+        f"a number of grey levels in (0, {MAX_LENGTH:g}]",
+        positive=True,
+    )
+    if not isinstance(settings.backdrop, (bool, np.bool_)):
+        raise ValueError(f"ObservationModel.backdrop: expected a bool, got {settings.backdrop!r}")
+    for name, most in (
+        ("outline_samples", MAX_SAMPLES),
+        ("axis_samples", MAX_SAMPLES),
+        ("orientation_bins", MAX_ORIENTATION_BINS),
+        ("border_width", MAX_COUNT),
+        ("reference_height", MAX_COUNT),
+        ("residual_points", MAX_COUNT),
+        ("coverage_points", MAX_COUNT),
+    ):
+        value = getattr(settings, name)
+        if not (is_count(value) and value <= most):
+            raise ValueError(
+                f"ObservationModel.{name}: expected an integer in [1, {most}], got {value!r}"
+            )
