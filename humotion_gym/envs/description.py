@@ -212,10 +212,34 @@ def action_bounds(task: TaskSpec, initial_pose: FloatArray | None) -> tuple[Floa
 
     Returns:
         ``(lower, upper)``, each ``(n_free,)``.
+
+    Raises:
+        ValueError: If ``initial_pose`` is not ``(25,)``.
     """
+    return _bounds("action_bounds", task, initial_pose, None)
+
+
+def _bounds(
+    where: str,
+    task: TaskSpec,
+    initial_pose: FloatArray | None,
+    bounds: tuple[FloatArray, FloatArray] | None,
+) -> tuple[FloatArray, FloatArray]:
+    """``bounds``, or :func:`action_bounds` computed, refusing an initial pose not ``(25,)``.
+
+    ``where`` names the function in the error.
+    """
+    if bounds is not None:
+        return bounds
     lo, hi = PARAM_LOWER.copy(), PARAM_UPPER.copy()
     if initial_pose is not None:
-        root0 = np.asarray(initial_pose, dtype=np.float64)[:3]
+        initial = np.asarray(initial_pose, dtype=np.float64)
+        if initial.shape != (N_PARAMS,):
+            raise ValueError(
+                f"{where}: initial_pose: expected a pose of shape ({N_PARAMS},), "
+                f"got {initial.shape}"
+            )
+        root0 = initial[:3]
         lo[:3] = root0 - task.root_range_mm
         hi[:3] = root0 + task.root_range_mm
     free = task.free_indices
@@ -242,13 +266,14 @@ def pose_to_action(
         ``(..., n_free)`` float32 actions (NaN where a free parameter is NaN).
 
     Raises:
-        ValueError: If the poses' last axis is not the 25 parameters.
+        ValueError: If the poses' last axis is not the 25 parameters, or
+            ``initial_pose`` is not ``(25,)``.
     """
     p = np.array(pose, dtype=np.float64)
     if p.ndim == 0 or p.shape[-1] != N_PARAMS:
         raise ValueError(f"pose_to_action: expected poses of shape (..., 25), got {p.shape}")
     p[..., ANGLE_MASK] = _wrap(p[..., ANGLE_MASK])
-    lo, hi = action_bounds(task, initial_pose) if bounds is None else bounds
+    lo, hi = _bounds("pose_to_action", task, initial_pose, bounds)
     a = 2.0 * (p[..., task.free_indices] - lo) / (hi - lo) - 1.0
     return np.clip(a, -1.0, 1.0).astype(np.float32)
 
@@ -263,19 +288,45 @@ def action_to_pose(
         task: The task.
         action: ``(..., n_free)`` values in [-1, 1] (clipped).
         base: ``(25,)`` pose whose other parameters fill the rest (for an
-            agent: the initial pose with the frame's ``fixed_params`` put in).
-        initial_pose: The episode's initial pose (sets a free root's range).
+            agent: the initial pose with the frame's ``fixed_params`` put in);
+            or ``(..., 25)``, one per action, broadcasting with the actions'
+            leading axes.
+        initial_pose: The episode's ``(25,)`` initial pose (sets a free
+            root's range).
         bounds: :func:`action_bounds` already computed (else computed here).
 
     Returns:
         ``(..., 25)`` poses.
+
+    Raises:
+        ValueError: If the actions' last axis is not the task's ``n_free``,
+            ``base``'s not the 25 parameters (or it does not broadcast with
+            the actions), or ``initial_pose`` is not ``(25,)``.
     """
     # np.clip's Python wrapper costs more than the two ufuncs (same values)
     a = np.maximum(np.minimum(np.asarray(action, dtype=np.float64), 1.0), -1.0)
-    lo, hi = action_bounds(task, initial_pose) if bounds is None else bounds
+    free = task.free_indices
+    # Shape checks only: this runs on every step of every environment
+    if a.ndim == 0 or a.shape[-1] != len(free):
+        raise ValueError(
+            f"action_to_pose: action: expected shape (..., {len(free)}) (the task's free "
+            f"parameters), got {a.shape}"
+        )
     b = np.asarray(base, dtype=np.float64)
-    pose = b.copy() if a.ndim == 1 else np.broadcast_to(b, a.shape[:-1] + (b.shape[-1],)).copy()
-    pose[..., task.free_indices] = lo + (a + 1.0) * 0.5 * (hi - lo)
+    if b.ndim == 0 or b.shape[-1] != N_PARAMS:
+        raise ValueError(f"action_to_pose: base: expected a pose of shape (25,), got {b.shape}")
+    lo, hi = _bounds("action_to_pose", task, initial_pose, bounds)
+    if a.ndim == 1 and b.ndim == 1:
+        pose = b.copy()
+    else:
+        try:
+            pose = np.broadcast_to(b, a.shape[:-1] + (N_PARAMS,)).copy()
+        except ValueError:
+            raise ValueError(
+                f"action_to_pose: base: expected shape (25,) or one pose per action "
+                f"{a.shape[:-1] + (N_PARAMS,)}, got {b.shape}"
+            ) from None
+    pose[..., free] = lo + (a + 1.0) * 0.5 * (hi - lo)
     return pose
 
 

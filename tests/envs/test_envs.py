@@ -509,6 +509,26 @@ def test_an_action_is_its_free_parameters_place_in_their_range():
     assert np.array_equal(back[task.fixed_indices], base[task.fixed_indices])
 
 
+@pytest.mark.parametrize(
+    ("call", "match"),
+    [
+        # a short base gave a (24,) pose silently
+        (lambda t, b: action_to_pose(t, np.zeros(4), np.zeros(24)), r"base: .*\(25,\)"),
+        (lambda t, b: action_to_pose(t, np.zeros(4), np.zeros(())), r"base: "),
+        (lambda t, b: action_to_pose(t, np.zeros((3, 4)), np.zeros((2, 25))), r"base: "),
+        # a wrong width failed in numpy's words
+        (lambda t, b: action_to_pose(t, np.zeros(5), np.zeros(25)), r"action: .*\(\.\.\., 4\)"),
+        (lambda t, b: action_to_pose(t, np.float32(0), np.zeros(25)), r"action: "),
+        (lambda t, b: pose_to_action(b, np.zeros(25), np.zeros(2)), r"initial_pose: .*\(25,\)"),
+        (lambda t, b: action_to_pose(b, np.zeros(25), np.zeros(25), np.zeros(3)), r"initial_pose"),
+    ],
+)
+def test_the_action_map_refuses_wrong_shapes_by_name(call, match):
+    arm, body = get_task("ArmTrack-v2"), get_task("BodyTrack-v2")
+    with pytest.raises(ValueError, match=match):
+        call(arm, body)
+
+
 def test_the_base_pose_is_the_initial_pose_with_the_given_parameters_put_in():
     env = gym.make("humotion_gym/ArmTrack-v2").unwrapped
     obs, _ = env.reset(seed=0)
