@@ -318,6 +318,17 @@ def test_settings_at_their_bounds_still_rank_poses(scene_and_poses) -> None:
     assert scores[0] > scores[1:].max()
 
 
+def test_a_first_pose_that_is_not_finite_says_so(scene_and_poses) -> None:
+    frame, cam, poses = scene_and_poses
+    pose = poses[0].copy()
+    pose[4] = np.nan
+    for model in (MODEL, ObservationModel(backdrop=True)):  # the default read nothing
+        with pytest.raises(ValueError, match="read_first_frame: expected a finite pose"):
+            model.read_first_frame(frame, pose, SHAPE, cam)
+    with pytest.raises(ValueError, match=r"expected a pose of shape \(25,\), got \(24,\)"):
+        MODEL.read_first_frame(frame, pose[:24], SHAPE, cam)
+
+
 def test_unoriented_and_other_bin_counts_work(scene_and_poses) -> None:
     frame, cam, poses = scene_and_poses
     for bins in (1, 6):

@@ -40,6 +40,16 @@ POSE_LIMIT = 2.0**100
 CHUNK_POSES = 3072
 
 
+def _one_pose(pose: ArrayLike, where: str) -> FloatArray:
+    """``pose`` as a ``(25,)`` float64 vector, refused (naming ``where``) unless finite."""
+    p = np.asarray(pose, dtype=np.float64)
+    if p.shape != (N_PARAMS,):
+        raise ValueError(f"{where}: expected a pose of shape ({N_PARAMS},), got {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError(f"{where}: expected a finite pose, got NaN or infinity")
+    return p
+
+
 def chunk_size(n: int) -> int:
     """Poses per pass when scoring ``n``: equal passes of at most :data:`CHUNK_POSES`."""
     passes = -(-n // CHUNK_POSES)
@@ -95,7 +105,13 @@ class ObservationModel(ObservationSettings):
             one, the floor height (:meth:`floor_height`) where it has a floor
             term; ``None`` for what it does not use. They go in
             :class:`GivenBody` for every frame of the episode.
+
+        Raises:
+            ValueError: If the pose is not a finite ``(25,)`` vector, or
+                (where the model reads the frame) the frame is not a uint8
+                image of the camera's size.
         """
+        pose = _one_pose(pose, "ObservationModel.read_first_frame")
         colors = (
             self.cone_colors(frame, pose, shape, camera) if self.appearance_weight > 0 else None
         )
@@ -110,12 +126,7 @@ class ObservationModel(ObservationSettings):
         Raises:
             ValueError: If the pose is not a finite ``(25,)`` vector.
         """
-        p = np.asarray(pose, dtype=np.float64)
-        if p.shape != (N_PARAMS,) or not np.all(np.isfinite(p)):
-            raise ValueError(
-                f"ObservationModel.floor_height: expected a finite pose of shape (25,), "
-                f"got {p.shape}"
-            )
+        p = _one_pose(pose, "ObservationModel.floor_height")
         keypoints = forward_kinematics(p, shape)
         return float(keypoints[ANKLES, 2].min())
 
@@ -145,12 +156,7 @@ class ObservationModel(ObservationSettings):
                 f"ObservationModel.read_backdrop: frame is {w}x{h} but the camera is "
                 f"{camera.width}x{camera.height}"
             )
-        p = np.asarray(pose, dtype=np.float64)
-        if p.shape != (N_PARAMS,) or not np.all(np.isfinite(p)):
-            raise ValueError(
-                f"ObservationModel.read_backdrop: expected a finite pose of shape (25,), "
-                f"got {p.shape}"
-            )
+        p = _one_pose(pose, "ObservationModel.read_backdrop")
         geo = cone_geometry(p, shape)
         covered = grow(
             silhouette_mask(geo.starts, geo.ends, shape, camera, self.near_mm),

@@ -129,7 +129,8 @@ def read_observation(observation: Any, description: TaskDescription | None = Non
 
     Raises:
         ValueError: If ``observation`` is not a dict with the keys of
-            :data:`OBSERVATION_KEYS` (a version-1 frame, say), or, with
+            :data:`OBSERVATION_KEYS` (a version-1 frame, say), its ``shape``
+            not 43 numbers, or, with
             ``description``, if its frame or given parameters are not the
             task's shape, its frame not uint8, or a number not finite.
     """
@@ -150,6 +151,13 @@ def read_observation(observation: Any, description: TaskDescription | None = Non
         raise ValueError(
             f"observation['frame']: expected (H, W, C) or (views, H, W, C), got shape {frame.shape}"
         )
+    if description is not None:  # before the camera's shape, which follows the frame's
+        want = description.observation_space["frame"].shape  # type: ignore[index]
+        if frame.shape != want:
+            raise ValueError(
+                f"observation['frame']: expected shape {want}, {description.env_id}'s, "
+                f"got {frame.shape}"
+            )
     h, w = frame.shape[-3:-1]
     vectors = np.asarray(observation["camera"], dtype=np.float64)
     expected = (frame.shape[0], CAMERA_VECTOR_SIZE) if frame.ndim == 4 else (CAMERA_VECTOR_SIZE,)
@@ -160,6 +168,10 @@ def read_observation(observation: Any, description: TaskDescription | None = Non
         )
     fixed = np.asarray(observation["fixed_params"], dtype=np.float64)
     shape = np.asarray(observation["shape"], dtype=np.float64)
+    if shape.shape != (SHAPE_VECTOR_SIZE,):
+        raise ValueError(
+            f"observation['shape']: expected shape ({SHAPE_VECTOR_SIZE},), got {shape.shape}"
+        )
     if description is not None:
         numbers = {"initial_pose": initial, "camera": vectors, "fixed_params": fixed}
         _check_task_observation(frame, numbers | {"shape": shape}, description)
@@ -181,13 +193,12 @@ def _check_task_observation(
 
     ``frame`` and ``numbers`` (its numeric parts by key) are its arrays as read.
     """
-    space = description.observation_space
-    for key, array in (("frame", frame), ("fixed_params", numbers["fixed_params"])):
-        want, got = space[key].shape, array.shape  # type: ignore[index]
-        if got != want:
-            raise ValueError(
-                f"observation[{key!r}]: expected shape {want}, {description.env_id}'s, got {got}"
-            )
+    want = description.observation_space["fixed_params"].shape  # type: ignore[index]
+    if numbers["fixed_params"].shape != want:
+        raise ValueError(
+            f"observation['fixed_params']: expected shape {want}, {description.env_id}'s, "
+            f"got {numbers['fixed_params'].shape}"
+        )
     if frame.dtype != np.uint8:
         raise ValueError(f"observation['frame']: expected uint8 pixels, got {frame.dtype}")
     # One sum of them all: NaN and infinity carry through it (a frame's check, so cheap)

@@ -529,6 +529,18 @@ def test_the_action_map_refuses_wrong_shapes_by_name(call, match):
         call(arm, body)
 
 
+def test_read_observation_names_the_part_of_a_wrong_shape():
+    env = gym.make("humotion_gym/ArmTrack-v2").unwrapped
+    obs, _ = env.reset(seed=0)
+    description = env.describe()
+    for desc in (None, description):  # BodyShape.from_vector said "expected 43 numbers"
+        with pytest.raises(ValueError, match=r"observation\['shape'\]: expected shape \(43,\)"):
+            read_observation(dict(obs, shape=obs["shape"][:40]), desc)
+    # a one-view task's frame with a views axis: the frame is wrong, not the camera
+    with pytest.raises(ValueError, match=r"observation\['frame'\]: expected shape"):
+        read_observation(dict(obs, frame=obs["frame"][None]), description)
+
+
 def test_the_base_pose_is_the_initial_pose_with_the_given_parameters_put_in():
     env = gym.make("humotion_gym/ArmTrack-v2").unwrapped
     obs, _ = env.reset(seed=0)
