@@ -536,6 +536,8 @@ def _check_dtype(where: str, dtype: Any) -> type:
     The compiled kinematics has no other float type (numba refuses float16
     deep inside), and an integer type would truncate every angle silently.
     """
+    if dtype is np.float64 or dtype is np.float32:  # as the kinematics passes it, every step
+        return dtype
     try:
         kind = None if dtype is None else np.dtype(dtype).type
     except (TypeError, ValueError):

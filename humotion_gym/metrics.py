@@ -286,7 +286,16 @@ def step_scores(
         diff: FloatArray = np.subtract(estimate_points, truth_points, dtype=np.float64)
     except (TypeError, ValueError):
         _refuse_points(estimate_points, truth_points)
-    if np.shape(estimate_points)[-2:] != _KEYPOINTS or np.shape(truth_points)[-2:] != _KEYPOINTS:
+    # an array's own shape: np.shape's dispatch costs as much as the test, every step
+    est_shape = (
+        estimate_points.shape
+        if isinstance(estimate_points, np.ndarray)
+        else np.shape(estimate_points)
+    )
+    truth_shape = (
+        truth_points.shape if isinstance(truth_points, np.ndarray) else np.shape(truth_points)
+    )
+    if est_shape[-2:] != _KEYPOINTS or truth_shape[-2:] != _KEYPOINTS:
         _refuse_points(estimate_points, truth_points)
     errors = _distances(diff)
     idx = scoring.scored

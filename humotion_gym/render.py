@@ -611,23 +611,32 @@ def gaussian_blur(img: NDArray[Any], sigma: float, dst: NDArray[Any] | None = No
     return cv2.GaussianBlur(img, (0, 0), sigma, dst=dst)
 
 
+#: The colour tuple :func:`_rgb` checked last and its ints: an environment passes the
+#: same (immutable) tuple every frame, and the same object needs no second check.
+_LAST_COLOR: list[Any] = [None, None]
+
+
 def _rgb(color: Any) -> Color:
     """``color`` as a tuple of three ints, refused unless three integers in [0, 255].
 
     OpenCV would saturate a channel out of range, or fail in its own words.
     """
+    if color is _LAST_COLOR[0]:
+        return _LAST_COLOR[1]
     try:
         r, g, b = color
     except (TypeError, ValueError):  # not three things
         r = g = b = None
-    # unrolled: this runs on every frame an environment renders
     if not (is_integer(r) and is_integer(g) and is_integer(b)) or not (
         0 <= r <= 255 and 0 <= g <= 255 and 0 <= b <= 255
     ):
         raise ValueError(
             f"draw_pose_overlay: color must be three integers in [0, 255], got {color!r}"
         )
-    return (int(r), int(g), int(b))
+    checked = (int(r), int(g), int(b))
+    if type(color) is tuple:
+        _LAST_COLOR[:] = [color, checked]
+    return checked
 
 
 def draw_pose_overlay(
@@ -674,7 +683,9 @@ def draw_pose_overlay(
         raise ValueError(
             f"draw_pose_overlay: camera is {camera.width}x{camera.height} but the frame is {w}x{h}"
         )
-    if not (is_integer(thickness) and 1 <= thickness <= _MAX_THICKNESS):
+    if not (type(thickness) is int or is_integer(thickness)) or not (
+        1 <= thickness <= _MAX_THICKNESS
+    ):
         raise ValueError(
             f"draw_pose_overlay: thickness must be an integer in [1, {_MAX_THICKNESS}], "
             f"got {thickness!r}"
