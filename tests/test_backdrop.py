@@ -303,8 +303,12 @@ def test_known_pixels_are_outside_the_silhouette_grown_by_the_margin(height: int
 def test_bad_input_is_named(episode) -> None:
     first, later, cam, _background, frames = episode
     model = ObservationModel(backdrop=True)
-    with pytest.raises(ValueError, match="read_backdrop: expected a finite pose"):
+    with pytest.raises(ValueError, match=r"read_backdrop: expected a pose of shape \(25,\)"):
         model.read_backdrop(frames[0], first[:5], SHAPE, cam)
+    with pytest.raises(
+        ValueError, match="read_backdrop: expected a finite pose, got NaN or infinity"
+    ):
+        model.read_backdrop(frames[0], np.where(np.arange(25) == 3, np.nan, first), SHAPE, cam)
     with pytest.raises(ValueError, match="read_backdrop: frame is 64x64"):
         model.read_backdrop(frames[0][:64, :64], first, SHAPE, cam)
     small = Backdrop(np.zeros((8, 8, 3), np.uint8), np.ones((8, 8), bool))

@@ -105,7 +105,7 @@ def test_the_term_is_off_by_default_and_without_a_floor(scene) -> None:
 @pytest.mark.parametrize("name", ["floor_below_mm", "floor_above_mm"])
 @pytest.mark.parametrize("value", [0.0, -5.0, math.nan])
 def test_bad_scales_are_refused(name: str, value: float) -> None:
-    with pytest.raises(ValueError, match=f"ObservationModel.{name}: expected a positive number"):
+    with pytest.raises(ValueError, match=rf"ObservationModel.{name}: expected a scale >= 0.001 mm"):
         ObservationModel(**{name: value})
 
 
