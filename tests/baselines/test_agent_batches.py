@@ -84,7 +84,9 @@ def test_agent_batch_gives_each_row_to_its_own_agent():
 def test_batches_of_the_wrong_size_are_refused_in_words():
     venv = gym.make_vec(TASK, num_envs=3, vectorization_mode="vector_entry_point")
     obs, _ = venv.reset(seed=0)
-    with pytest.raises(ValueError, match=r"a batch of 3 .*agents.make_batch\(name, task, n_envs=3\)"):
+    with pytest.raises(
+        ValueError, match=r"a batch of 3 .*agents.make_batch\(name, task, n_envs=3\)"
+    ):
         _make("hold").predict(obs)
     batch = AgentBatch([_make("hold"), _make("hold")])
     with pytest.raises(ValueError, match="expected a batch of 2 .*got a batch of 3"):
