@@ -144,6 +144,11 @@ def test_the_annealed_filters_settings_are_selected_like_the_priors(tmp_path, mo
     # a local search reads none of the annealed filter's: its cells would all be one
     with pytest.raises(ValueError, match=r"grid: spf-cv: .*\['alpha'\] are not read by"):
         select_observation_settings("SideWalk-v2", "spf-cv", {"filter.alpha": [0.5, 0.9]}, fold)
+    # every combination the grid runs, in either order: layers=1 with alpha is no annealing
+    for layers in ([10, 1], [1, 10]):
+        grid = {"filter.layers": layers, "filter.alpha": [0.3]}
+        with pytest.raises(ValueError, match=r"grid: apf-cv: .*layers"):
+            select_observation_settings("SideWalk-v2", "apf-cv", grid, fold)
 
 
 def test_the_local_searchs_settings_are_selected_too(tmp_path, monkeypatch):

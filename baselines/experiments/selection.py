@@ -132,11 +132,12 @@ def _check_grid(grid: Mapping[str, Sequence[float]], agent: str) -> None:
     for names in (filter_names, fit_names):  # the filter's first, as they are checked below
         if names and agent not in AGENTS:
             raise ValueError(f"grid: {names} need a particle-filter agent, not {agent}")
-    if filter_names:
-        try:  # the names (and each first value) as the agent's own filter checks them
-            AGENTS[agent].filter_settings_for(
-                "", {n[len(FILTER_PREFIX) :]: grid[n][0] for n in filter_names}
-            )
+    # Every combination the grid runs, as the agent's own filter checks it: settings
+    # valid alone may not be together (alpha with layers=1 is the plain filter).
+    bare = [n[len(FILTER_PREFIX) :] for n in filter_names]
+    for values in itertools.product(*(grid[n] for n in filter_names)) if filter_names else ():
+        try:
+            AGENTS[agent].filter_settings_for("", dict(zip(bare, values, strict=True)))
         except ValueError as exc:
             raise ValueError(f"grid: {agent}: {exc}") from None
     if fit_names:
@@ -159,12 +160,6 @@ def _check_grid(grid: Mapping[str, Sequence[float]], agent: str) -> None:
                 ObservationModel(**{name: _typed(default, name, value)})
             except (TypeError, ValueError) as exc:
                 raise ValueError(f"grid: {name}={value:g}: {exc}") from None
-    for name in filter_names:
-        for value in grid[name][1:]:
-            try:
-                AGENTS[agent].filter_settings_for("", {name[len(FILTER_PREFIX) :]: value})
-            except ValueError as exc:
-                raise ValueError(f"grid: {agent}: {exc}") from None
 
 
 def _typed(default: ObservationModel, name: str, value: float) -> Any:
