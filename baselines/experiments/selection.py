@@ -140,9 +140,10 @@ def _check_grid(grid: Mapping[str, Sequence[float]], agent: str) -> None:
             AGENTS[agent].filter_settings_for("", dict(zip(bare, values, strict=True)))
         except ValueError as exc:
             raise ValueError(f"grid: {agent}: {exc}") from None
-    if fit_names:
+    if fit_names:  # as make takes them: a fit of **settings takes any name
         known = AGENTS[agent].setting_names()
-        bad = sorted(n for n in fit_names if n[len(FIT_PREFIX) :] not in known)
+        unknown = set(AGENTS[agent].unknown_settings(n[len(FIT_PREFIX) :] for n in fit_names))
+        bad = sorted(n for n in fit_names if n[len(FIT_PREFIX) :] in unknown)
         if bad:
             raise ValueError(
                 f"grid: {bad} are not settings of {agent}'s prior {AGENTS[agent].prior} "

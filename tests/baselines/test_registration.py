@@ -234,3 +234,15 @@ def test_frame_skip_reaches_a_fit_that_takes_it_and_one_that_cannot_is_refused(
     agents.make("pf-noskip", gym.make("humotion_gym/ArmTrack-v2"), n_particles=3, use_cache=False)
     agents.make("pf-skip", skipping, n_particles=3, use_cache=False)
     assert sys.modules[f"{pkg}.skip"].SKIPS == [2]
+
+
+def test_selects_grid_takes_the_fit_names_make_takes(registry, tmp_path, monkeypatch):
+    """A fit of ``**settings`` takes any name in make, so in ``select --grid fit.NAME`` too."""
+    from baselines.experiments.selection import _check_grid
+
+    fit = "def fit(motions, free=None, rng=None, **settings):\n    return None\n"
+    pkg = _package(tmp_path, monkeypatch, "mine_grid", anysettings=CV + fit)
+    register_agent("pf-any", AgentSpec(f"{pkg}.anysettings"))
+    _check_grid({"fit.damping": [0.2, 0.4]}, "pf-any")  # refused as unknown before
+    with pytest.raises(ValueError, match=r"\['fit.nonsense'\] are not settings of pf-cv's prior"):
+        _check_grid({"fit.nonsense": [1.0]}, "pf-cv")  # a fit of named keywords still says so
