@@ -24,9 +24,12 @@ when none fits it maps the hierarchy itself (:func:`map_humanoid`):
    longest consecutive bones of its chain (a girdle passed over: where both
    limbs of a pair leave one point, a first bone shorter than the next), the
    head where the neck's chain first branches, and left and right from the
-   geometry of the first frame (left is ``up x forward`` with forward the
-   toes' direction; without toes +z for a y-up skeleton, the BVH convention,
-   and -y for a z-up one).
+   geometry of up to 200 frames spread through the clip: the legs' by the
+   median over the frames of which one is on the left (left is ``up x
+   forward`` with forward the toes' direction; without toes +z for a y-up
+   skeleton, the BVH convention, and -y for a z-up one), the arms' by the
+   median of which one is on the left leg's side (a running stride swings
+   the arms across the body; the hips stay on their sides).
 3. **Where points sit.** In BVH a joint's point is where its bone starts
    (``LeftUpLeg`` is the hip); in ASF/AMC a bone's point is its tip (``lfemur``
    is the knee), so every ASF keypoint is taken one bone higher. The shape of
@@ -375,28 +378,47 @@ def _find_body(
 def _forward(
     tree: _Tree, pos: NDArray[np.float64], legs: Sequence[int], up: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], str]:
-    """Which way the body faces: its toes (ankle to the next joint), else a convention.
+    """Which way the body faces in each frame: its toes and knees, else a convention.
 
-    Without toes a y-up skeleton is taken to face +z (the BVH convention), a
-    z-up one -y: where a y-up skeleton faces once turned z up (the turn
-    :data:`~humotion_gym.mocap.rigs.Y_UP_TO_Z_UP` that the rig profiles apply,
-    and that Blender's exports share).
+    ``pos`` is ``(F, P, 3)`` and ``up`` ``(F, 3)``. Each frame's forward is
+    the sum along the ground of the toes' steps (ankle to the next joint) and
+    of the knees' bends (from the hip-ankle line to the knee), not normalized:
+    a running stride's toes point down or back, while its knees bend forward
+    most (a standing pose's the other way round), and a frame where neither
+    says much weighs little. Without either a y-up skeleton is taken to face
+    +z (the BVH convention), a z-up one -y: where a y-up skeleton faces once
+    turned z up (the turn :data:`~humotion_gym.mocap.rigs.Y_UP_TO_Z_UP` that
+    the rig profiles apply, and that Blender's exports share).
     """
-    steps = []
-    for triple in _limb_triples(tree, legs, pos) or []:
-        toes = _kids(tree, triple[2])
+    steps, scale = [], 0.0
+    for hip, knee, ankle in _limb_triples(tree, legs, pos[0]) or []:
+        steps.append(2 * pos[:, knee] - pos[:, hip] - pos[:, ankle])
+        scale = max(scale, float(np.linalg.norm(pos[0, knee] - pos[0, hip])))
+        toes = _kids(tree, ankle)
         if toes:
             toe = max(toes, key=tree.subtree_height)
-            steps.append(pos[toe] - pos[triple[2]])
+            steps.append(pos[:, toe] - pos[:, ankle])
     if steps:
-        f = np.mean(steps, axis=0)
-        f = f - np.dot(f, up) * up
-        norm = np.linalg.norm(f)
-        if norm > 1e-9:
-            return f / norm, "where the toes point"
-    if abs(up[2]) > abs(up[1]):
-        return np.array([0.0, -1.0, 0.0]), "-y (no toes; z up)"
-    return np.array([0.0, 0.0, 1.0]), "+z (no toes; the BVH convention)"
+        f = np.sum(steps, axis=0)
+        f = f - np.sum(f * up, axis=-1, keepdims=True) * up
+        # Straight legs without toes leave rounding alone (relative to a thigh).
+        if np.linalg.norm(f, axis=-1).max() > 1e-6 * scale:
+            return f, "where the toes point and the knees bend"
+    n = len(pos)
+    if abs(up[0, 2]) > abs(up[0, 1]):
+        return np.tile([0.0, -1.0, 0.0], (n, 1)), "-y (no toes or bent knees; z up)"
+    return np.tile([0.0, 0.0, 1.0], (n, 1)), "+z (no toes or bent knees; the BVH convention)"
+
+
+def _pair_axis(pos: NDArray[np.float64], triples: list[list[int]]) -> NDArray[np.float64]:
+    """``(F, 3)`` from the second limb to the first, at the first point where they part.
+
+    Read at the limbs' top points, or the first ones below where the two limbs
+    part (an ASF limb's top point may be where both start), in the first frame.
+    """
+    apart = [k for k in range(3) if not np.allclose(*pos[0][[t[k] for t in triples]])]
+    k = apart[0] if apart else 0
+    return pos[:, triples[0][k]] - pos[:, triples[1][k]]
 
 
 def _joint_positions(
@@ -407,17 +429,29 @@ def _joint_positions(
     The hierarchy is read in one sense for both formats, so that every joint
     it picks is then placed as one picked by name (:func:`_place`). An ASF
     bone starts at its parent's tip; the root, which has none, at its own point.
+    ``positions`` is ``(P, 3)`` or ``(F, P, 3)``.
     """
     if positions is None or fmt == "bvh":
         return positions
     starts = np.asarray(tree.parents)
-    return positions[np.where(starts >= 0, starts, np.arange(len(starts)))]
+    return positions[..., np.where(starts >= 0, starts, np.arange(len(starts))), :]
 
 
-def _by_topology(tree: _Tree, pos: NDArray[np.float64] | None, out: _Mapping) -> None:
-    """Legs, arms and head from the hierarchy's shape; sides from the first frame.
+def _by_topology(
+    tree: _Tree,
+    pos: NDArray[np.float64] | None,
+    out: _Mapping,
+    frames: NDArray[np.float64] | None = None,
+) -> None:
+    """Legs, arms and head from the hierarchy's shape; sides from the frames' geometry.
 
-    ``pos`` are where the joints start (:func:`_joint_positions`).
+    ``pos`` are where the joints start (:func:`_joint_positions`) in the first
+    frame, ``frames`` ``(F, P, 3)`` the same over frames spread through the
+    clip (``pos`` alone when None). The legs' sides are the median over the
+    frames of which one stands on the body's left (``up x forward``); the
+    arms' the median of which one stands on the left leg's side: a running
+    stride can swing the arms across the body, and one frame's toes can point
+    down or sideways, while the hips stay on their sides.
     """
     if pos is None:
         out.notes.append("no positions to read the hierarchy's shape from")
@@ -426,24 +460,24 @@ def _by_topology(tree: _Tree, pos: NDArray[np.float64] | None, out: _Mapping) ->
     if isinstance(found, str):
         out.notes.append(found)
         return
+    frames = pos[None] if frames is None else frames
     pelvis, legs, chest, pair, branches = found
     head_branch = [c for c in branches if c not in pair]
-    up = pos[chest] - pos[pelvis]
-    up /= np.linalg.norm(up) or 1.0
-    forward, facing = _forward(tree, pos, legs, up)
-    left = np.cross(up, forward)
-    out.notes.append(f"left and right from the first frame, facing {facing}")
+    up = frames[:, chest] - frames[:, pelvis]
+    up /= np.where((norm := np.linalg.norm(up, axis=-1, keepdims=True)) > 0, norm, 1.0)
+    forward, facing = _forward(tree, frames, legs, up)
+    across = np.cross(up, forward)  # toward the body's left, in each frame
+    out.notes.append(f"left and right over {len(frames)} frames, facing {facing}")
     limbs = ((("hip", "knee", "ankle"), legs), (("shoulder", "elbow", "wrist"), list(pair)))
     for kps, starts in limbs:
         triples = _limb_triples(tree, starts, pos)
         if triples is None:
             continue
-        # Each limb's side from its top point, or from the first one below
-        # where the two limbs part (an ASF limb's top point may be where both start).
-        apart = [k for k in range(3) if not np.allclose(*pos[[t[k] for t in triples]])]
-        k = apart[0] if apart else 0
-        sides = [float(np.dot(pos[t[k]] - pos[pelvis], left)) for t in triples]
-        order = ("l", "r") if sides[0] > sides[1] else ("r", "l")
+        axis = _pair_axis(frames, triples)
+        first_left = float(np.median(np.sum(axis * across, axis=-1))) > 0
+        order = ("l", "r") if first_left else ("r", "l")
+        if kps[0] == "hip":  # the arms' sides are read against the hips' axis, to the left
+            across = axis if first_left else -axis
         for side, t in zip(order, triples, strict=True):
             for kp, j in zip(kps, t, strict=True):
                 key = f"{side}_{kp}"
@@ -502,6 +536,7 @@ def map_humanoid(
     fmt: str,
     path: str = "<skeleton>",
     positions: NDArray[np.float64] | None = None,
+    frames: NDArray[np.float64] | None = None,
 ) -> RigMatch:
     """Map a humanoid hierarchy by joint names and topology (see the module docstring).
 
@@ -513,6 +548,9 @@ def map_humanoid(
         positions: ``(P, 3)`` positions of every point in one frame (the
             first valid one), for the up axis and for reading a hierarchy
             without names; None skips both (the up axis is then y).
+        frames: ``(F, P, 3)`` positions of every point in frames spread
+            through the clip, for a nameless hierarchy's left and right;
+            None reads them from ``positions`` alone.
 
     Returns:
         The match; its profile names the skeleton's own points.
@@ -547,7 +585,8 @@ def map_humanoid(
     joints = ("hip", "knee", "ankle", "shoulder", "elbow", "wrist")
     limb_keys = [f"{s}_{k}" for s in "lr" for k in joints]
     if any(k not in out.joints for k in (*limb_keys, "pelvis", "head")):
-        _by_topology(tree, _joint_positions(tree, fmt, positions), out)
+        starts = _joint_positions(tree, fmt, positions)
+        _by_topology(tree, starts, out, _joint_positions(tree, fmt, frames))
     if "neck" not in out.joints and "head" in out.joints and tree.parents[out.joints["head"]] >= 0:
         out.joints["neck"] = tree.parents[out.joints["head"]]
         out.how["neck"] = "topology"
@@ -697,10 +736,13 @@ def match_rig(clip: SkeletonClip, fmt: str | None = None) -> RigMatch:
                 notes += (f"{up}-up: the neck stands above the pelvis along {up}",)
                 rig = dataclasses.replace(rig, up_axis=up)
             return RigMatch(rig, "profile", how, conf, notes)
-    positions = None
+    positions = frames = None
     if valid.size:
-        positions = clip.point_positions()[valid[0]]
-    return map_humanoid(names, clip.parents, fmt, clip.path, positions)
+        every = clip.point_positions()
+        positions = every[valid[0]]
+        # Up to 200 frames spread through the clip, as for the up axis above.
+        frames = every[valid[:: max(1, valid.size // 200)]]
+    return map_humanoid(names, clip.parents, fmt, clip.path, positions, frames)
 
 
 __all__ = ["METHOD_CONFIDENCE", "RigMatch", "guess_format", "map_humanoid", "match_rig"]

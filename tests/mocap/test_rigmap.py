@@ -502,6 +502,30 @@ def test_renamed_bandai_copy_by_names_and_by_topology(shared_mocap, tmp_path):
 
 
 @pytest.mark.mocap
+@pytest.mark.parametrize(
+    "name",
+    [
+        # Its first frame crosses the arms: read from it alone, UpperArm_L was r_shoulder.
+        "bandai-2/dataset-2_run_active_011.bvh",
+        # Its first frames' toes point down and back: read from them alone, the legs swapped.
+        "bandai-1/dataset-1_dash_active_001.bvh",
+    ],
+)
+def test_a_nameless_running_bandai_copy_keeps_its_sides(shared_mocap, tmp_path, name):
+    # Sides come from frames spread through the clip (the legs by the toes and knees, the
+    # arms by the hips), not from one stride's pose.
+    from humotion_gym.mocap.bvh import load_bvh
+
+    src = shared_mocap / name
+    want = RIGS["bandai"].keypoints_from(load_bvh(src), 10.0)
+    counter = iter(range(10_000))
+    nameless = load_bvh(_rename_bvh(src, tmp_path / "n.bvh", lambda n: f"J{next(counter)}"))
+    match = match_rig(nameless)
+    assert match.method == "topology"
+    np.testing.assert_allclose(match.profile.keypoints_from(nameless, 10.0), want, atol=1e-6)
+
+
+@pytest.mark.mocap
 def test_renamed_asf_copy_maps_exactly_like_the_cmu_profile(shared_mocap, tmp_path):
     from humotion_gym.mocap.asfamc import load_amc, load_asf
 
@@ -720,7 +744,7 @@ def test_a_toeless_nameless_rig_turned_z_up_keeps_its_sides(tmp_path):
     z_up = load_bvh(turned)
     match, want = match_rig(z_up), match_rig(original)
     assert match.method == "topology" and want.method == "profile"
-    assert "left and right from the first frame, facing -y (no toes; z up)" in match.notes
+    assert "left and right over 3 frames, facing -y (no toes or bent knees; z up)" in match.notes
     np.testing.assert_allclose(
         match.profile.keypoints_from(z_up, 10.0),
         want.profile.keypoints_from(original, 10.0),
