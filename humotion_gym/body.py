@@ -718,6 +718,22 @@ def cone_geometry(params: ArrayLike, shape: BodyShape) -> ConeGeometry:
     return ConeGeometry(keypoints, starts, ends, rotations)
 
 
+def checked_pose(pose: ArrayLike, where: str) -> FloatArray:
+    """``pose`` as one finite ``(25,)`` float64 pose, refused (naming ``where``) otherwise.
+
+    Raises:
+        ValueError: If it is not 25 numbers, or one of them is NaN or infinite.
+    """
+    p = np.asarray(pose, dtype=np.float64)
+    if p.shape != (N_PARAMS,):
+        raise ValueError(f"{where}: expected a pose of shape ({N_PARAMS},), got {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError(
+            f"{where}: expected a finite pose, got NaN or infinity (non-finite parameters)"
+        )
+    return p
+
+
 def standing_pose(shape: BodyShape, yaw: float = 0.0) -> FloatArray:
     """The rest pose standing on the ground (ankles at z = 0), shape (25,).
 

@@ -105,16 +105,6 @@ def _check_camera(camera: Camera, scene: SceneOptions, where: str) -> None:
         )
 
 
-def _checked_pose(params: ArrayLike, where: str) -> NDArray[np.float64]:
-    """One finite ``(25,)`` pose as float64, refused in the words of ``where``."""
-    p = np.asarray(params, dtype=np.float64)
-    if p.shape != (body.N_PARAMS,):
-        raise ValueError(f"{where}: expected one pose of shape (25,), got {p.shape}")
-    if not np.all(np.isfinite(p)):
-        raise ValueError(f"{where}: the pose has non-finite parameters")
-    return p
-
-
 def _figure_polygons(
     geometry: NDArray[np.float64], shape: BodyShape, camera: Camera, scene: SceneOptions
 ) -> tuple[list[list[int]], NDArray[np.int32], NDArray[np.int32], NDArray[np.uint8], list]:
@@ -511,7 +501,7 @@ def render(
         >>> render(pose, shape, camera, scene, rng, background).shape
         (128, 128, 3)
     """
-    p = _checked_pose(params, "render")
+    p = body.checked_pose(params, "render")
     _check_camera(camera, scene, "render")
     if background is None:
         background = make_background(scene, rng)
@@ -692,7 +682,7 @@ def draw_pose_overlay(
         )
     col = _rgb(color)
     out = cv2.cvtColor(img, cv2.COLOR_GRAY2RGB) if img.ndim == 2 else img.copy()
-    p = _checked_pose(params, "draw_pose_overlay")
+    p = body.checked_pose(params, "draw_pose_overlay")
     if keypoints is None:
         kp = single_pose_geometry(p, shape)[:N_KEYPOINTS]
     else:

@@ -22,7 +22,14 @@ from baselines.observation import features, terms
 from baselines.observation.features import Backdrop, FirstFrame, FrameFeatures, GivenBody
 from baselines.observation.geometry import ANKLES, cone_groups, grow, silhouette_mask
 from baselines.observation.settings import ObservationSettings
-from humotion_gym.body import N_CONES, N_PARAMS, BodyShape, cone_geometry, forward_kinematics
+from humotion_gym.body import (
+    N_CONES,
+    N_PARAMS,
+    BodyShape,
+    checked_pose,
+    cone_geometry,
+    forward_kinematics,
+)
 from humotion_gym.camera import Camera
 from humotion_gym.envs.tasks import TaskSpec
 
@@ -38,16 +45,6 @@ POSE_LIMIT = 2.0**100
 #: At most this many poses are scored in one pass: the scratch of a pass (about
 #: 3.4 KB a pose) then stays in the L2 cache.
 CHUNK_POSES = 3072
-
-
-def _one_pose(pose: ArrayLike, where: str) -> FloatArray:
-    """``pose`` as a ``(25,)`` float64 vector, refused (naming ``where``) unless finite."""
-    p = np.asarray(pose, dtype=np.float64)
-    if p.shape != (N_PARAMS,):
-        raise ValueError(f"{where}: expected a pose of shape ({N_PARAMS},), got {p.shape}")
-    if not np.all(np.isfinite(p)):
-        raise ValueError(f"{where}: expected a finite pose, got NaN or infinity")
-    return p
 
 
 def chunk_size(n: int) -> int:
@@ -111,7 +108,7 @@ class ObservationModel(ObservationSettings):
                 (where the model reads the frame) the frame is not a uint8
                 image of the camera's size.
         """
-        pose = _one_pose(pose, "ObservationModel.read_first_frame")
+        pose = checked_pose(pose, "ObservationModel.read_first_frame")
         colors = (
             self.cone_colors(frame, pose, shape, camera) if self.appearance_weight > 0 else None
         )
@@ -126,7 +123,7 @@ class ObservationModel(ObservationSettings):
         Raises:
             ValueError: If the pose is not a finite ``(25,)`` vector.
         """
-        p = _one_pose(pose, "ObservationModel.floor_height")
+        p = checked_pose(pose, "ObservationModel.floor_height")
         keypoints = forward_kinematics(p, shape)
         return float(keypoints[ANKLES, 2].min())
 
@@ -156,7 +153,7 @@ class ObservationModel(ObservationSettings):
                 f"ObservationModel.read_backdrop: frame is {w}x{h} but the camera is "
                 f"{camera.width}x{camera.height}"
             )
-        p = _one_pose(pose, "ObservationModel.read_backdrop")
+        p = checked_pose(pose, "ObservationModel.read_backdrop")
         geo = cone_geometry(p, shape)
         covered = grow(
             silhouette_mask(geo.starts, geo.ends, shape, camera, self.near_mm),
