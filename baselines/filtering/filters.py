@@ -17,6 +17,7 @@ from baselines.filtering.weights import (
     RESAMPLING,
     effective_sample_size,
     log_sum_exp,
+    possible,
     temper_for_survival,
     tempered_weights,
     weighted_mean,
@@ -163,15 +164,10 @@ class ParticleFilter:
                 naming the likelihood's class.
         """
         norm = log_sum_exp(log_w)
-        if not np.isfinite(norm):
-            if np.isposinf(log_w).any():  # checked here alone: the normal path costs nothing
-                # an agent's TaskLikelihood holds the model its user wrote: named
-                model = getattr(self.observation_model, "model", self.observation_model)
-                raise ValueError(
-                    f"{type(model).__name__}.log_likelihood returned +inf for particle "
-                    f"{int(np.argmax(log_w))}: a log-likelihood must be finite, or -inf for an "
-                    "impossible pose (+inf is no probability)"
-                )
+        if not np.isfinite(norm):  # +inf checked here alone: the normal path costs nothing
+            # an agent's TaskLikelihood holds the model its user wrote: named
+            model = getattr(self.observation_model, "model", self.observation_model)
+            possible(log_w, f"{type(model).__name__}.log_likelihood")
             # Every particle impossible: keep the predicted cloud with equal weights
             # rather than divide by zero; the estimate then follows the prior.
             log_w = np.full(self.n, -np.log(self.n))

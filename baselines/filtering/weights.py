@@ -115,19 +115,19 @@ def weighted_mean(
     return mean
 
 
-def possible(loglik: FloatArray) -> NDArray[np.bool_]:
+def possible(loglik: FloatArray, who: str = "the likelihood") -> NDArray[np.bool_]:
     """Which log-likelihoods are finite (``-inf`` and NaN mark impossible poses).
 
     Raises:
-        ValueError: For a log-likelihood of ``+inf``, which is no probability
-            (checked only where some value is not finite: the usual case costs nothing).
+        ValueError: For a log-likelihood of ``+inf``, which is no probability,
+            naming ``who`` returned it (checked only where some value is not
+            finite: the usual case costs nothing).
     """
     ok = np.isfinite(loglik)
     if not ok.all() and np.isposinf(loglik).any():
         raise ValueError(
-            f"the likelihood returned +inf for particle {int(np.argmax(loglik))}: a "
-            "log-likelihood must be finite, or -inf for an impossible pose (+inf is no "
-            "probability)"
+            f"{who} returned +inf for particle {int(np.argmax(loglik))}: a log-likelihood "
+            "must be finite, or -inf for an impossible pose (+inf is no probability)"
         )
     return ok
 
