@@ -8,8 +8,6 @@ naming the argument and what was expected.
 
 from __future__ import annotations
 
-import numbers
-import operator
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
@@ -17,6 +15,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from humotion_gym.checks import is_integer, is_real
 from humotion_gym.files import write_atomically
 
 #: The suffixes :func:`write_video` writes (OpenCV picks the container by it).
@@ -45,15 +44,11 @@ def _suffix(caller: str, path: str | Path, suffixes: tuple[str, ...]) -> str:
 
 def _positive_int(caller: str, name: str, value: object) -> int:
     """``value`` as an int of at least 1, or an error naming ``name``."""
-    try:
-        number = operator.index(value)  # type: ignore[call-overload]
-    except TypeError:
-        raise TypeError(
-            f"{caller}: {name}: expected a whole number of at least 1, got {value!r}"
-        ) from None
-    if number < 1 or isinstance(value, bool):
+    if not is_integer(value):  # a bool is no count of pixels or columns
+        raise TypeError(f"{caller}: {name}: expected a whole number of at least 1, got {value!r}")
+    if value < 1:
         raise ValueError(f"{caller}: {name}: expected a whole number of at least 1, got {value}")
-    return number
+    return int(value)
 
 
 def _image(caller: str, what: str, value: object) -> NDArray[np.uint8]:
@@ -139,7 +134,7 @@ def check_video_size(path: str | Path, width: int, height: int) -> None:
 
 def _check_fps(fps: object) -> float:
     """``fps`` as a float within :data:`FPS_RANGE`, or an error naming it."""
-    if not isinstance(fps, numbers.Real):
+    if not is_real(fps):  # True is no frame rate
         raise TypeError(f"write_video: fps: expected a number, got {fps!r}")
     low, high = FPS_RANGE
     if not low <= float(fps) <= high:  # NaN is refused too

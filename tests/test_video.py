@@ -136,6 +136,9 @@ def test_a_frame_of_another_size_is_refused_before_anything_is_written(tmp_path)
         ({"fps": "30"}, TypeError, "fps: expected a number"),
         ({"fps": 30, "scale": 0}, ValueError, "scale: expected a whole number of at least 1"),
         ({"fps": 30, "scale": 1.5}, TypeError, "scale: expected a whole number"),
+        ({"fps": True}, TypeError, "fps: expected a number, got True"),  # not 1 fps
+        ({"fps": 30, "scale": True}, TypeError, "scale: expected a whole number .* got True"),
+        ({"fps": np.float32(30), "scale": np.int64(0)}, ValueError, "scale: .* got 0"),
     ],
 )
 def test_a_frame_rate_or_scale_out_of_range_is_named(tmp_path, kwargs, error, match):
