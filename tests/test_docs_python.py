@@ -113,6 +113,8 @@ def test_every_block_of_a_page_runs_as_written(
     if page.name in NEEDS:
         pytest.importorskip(NEEDS[page.name], reason=f"{page.name}'s blocks need it")
     monkeypatch.chdir(tmp_path)
+    # a bare model.learn() logs into a new SB3-<time> folder under /tmp, one a run
+    monkeypatch.setenv("SB3_LOGDIR", str(tmp_path / "sb3_log"))
     saved = dict(AGENTS), dict(REFERENCES)
     namespace: dict[str, object] = {"__name__": f"__{page.stem}__", SHOWN: check_shown}
     try:
