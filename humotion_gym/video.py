@@ -26,9 +26,10 @@ VIDEO_SUFFIXES = (".mp4", ".avi")
 #: claims 600 fps for any rate above 1000.
 FPS_RANGE = (0.01, 1000.0)
 
-#: The smallest and largest side of an ``.mp4`` frame (MPEG-4 part 2 codes
-#: sides below 8192 px, and FFmpeg rounds a side down to even, 1 px to none).
-MIN_MP4_SIDE, MAX_MP4_SIDE = 2, 8191
+#: The smallest and largest side of an ``.mp4`` frame: MPEG-4 part 2 codes
+#: sides below 8192 px, and even ones only (FFmpeg would cut an odd side's last
+#: pixel, so :func:`write_video` repeats it instead).
+MIN_MP4_SIDE, MAX_MP4_SIDE = 2, 8190
 
 
 def _suffix(caller: str, path: str | Path, suffixes: tuple[str, ...]) -> str:
@@ -197,14 +198,18 @@ def write_video(
     fourcc = cv2.VideoWriter.fourcc(*("mp4v" if mp4 else "MJPG"))
 
     def write(tmp: Path) -> None:
-        writer = cv2.VideoWriter(str(tmp), fourcc, _mp4_fps(rate) if mp4 else rate, (w, h))
+        size = (w + w % 2, h + h % 2) if mp4 else (w, h)
+        writer = cv2.VideoWriter(str(tmp), fourcc, _mp4_fps(rate) if mp4 else rate, size)
         if not writer.isOpened():
             raise OSError(
                 f"{path}: OpenCV could not open a video writer ({w}x{h} px, {rate:g} fps)"
             )
         try:
             for image in images:
-                writer.write(_to_bgr(image, scale))
+                bgr = _to_bgr(image, scale)
+                if mp4 and (h % 2 or w % 2):
+                    bgr = cv2.copyMakeBorder(bgr, 0, h % 2, 0, w % 2, cv2.BORDER_REPLICATE)
+                writer.write(bgr)
         finally:
             writer.release()
 

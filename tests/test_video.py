@@ -38,7 +38,7 @@ def test_an_mp4_too_large_is_refused_before_rendering(tmp_path, capsys):
     argv = ["render", "--task", "BodyTrack4Views-v2", "--scale", "16", "--frames", "2"]
     assert main([*argv, "--out", str(out)]) == 2  # 4 views x 128 px x 16 = 8192 px wide
     err = capsys.readouterr().err
-    assert "an .mp4 frame is at most 8191 px a side, these would be 8192x2048" in err
+    assert "an .mp4 frame is at most 8190 px a side, these would be 8192x2048" in err
     assert not out.exists() and not out.with_suffix(".png").exists()
 
 
@@ -90,13 +90,30 @@ def test_a_png_and_a_contact_sheet_keep_rgb(tmp_path):
     assert contact_sheet([frames[1]], columns=1, scale=2).shape == (8, 12, 3)
 
 
-def test_an_mp4_side_is_at_most_8191_px():
+def test_an_mp4_side_is_at_most_8190_px():
     from humotion_gym.video import check_video_size
 
-    check_video_size("a.mp4", 8191, 8191)
+    check_video_size("a.mp4", 8190, 8190)
     check_video_size("a.avi", 9000, 64)  # .avi frames may be larger
-    with pytest.raises(ValueError, match="8192x64"):
-        check_video_size("a.MP4", 8192, 64)
+    with pytest.raises(ValueError, match="8191x64"):  # its last pixel repeated: 8192
+        check_video_size("a.MP4", 8191, 64)
+
+
+def test_an_odd_sided_mp4_keeps_every_pixel(tmp_path):
+    import cv2
+
+    from humotion_gym.video import write_video
+
+    rng = np.random.default_rng(0)
+    frames = [np.repeat(rng.integers(0, 256, (63, 65, 1), dtype=np.uint8), 3, -1)] * 2
+    write_video(tmp_path / "odd.mp4", frames, 30, scale=1)
+    ok, first = cv2.VideoCapture(str(tmp_path / "odd.mp4")).read()
+    assert ok and first.shape == (64, 66, 3)  # FFmpeg would have cut it to 62x64
+    grey = first[..., 1].astype(int)
+    # lossy, but far nearer the frame than a frame one pixel off, and the edge repeated
+    assert np.abs(grey[:63, :65] - frames[0][..., 0]).mean() < 20
+    assert np.abs(grey[:63, 1:65] - frames[0][..., 0][:, :64]).mean() > 40
+    assert np.abs(grey[63, :65] - grey[62, :65]).mean() < 20
 
 
 def _frames(n: int = 5) -> list[np.ndarray]:
