@@ -452,7 +452,9 @@ def initialise(
     dy = filled[0].shape[1]
     dx = allx.shape[1]
     p = dy if (emission == "identity" and order == 2) else dx
-    second = np.concatenate([(allx**2).mean(axis=0), [1.0]])
+    # floored as the variances are: a parameter no clip moves from 0 (the neck's
+    # twist in retargeted clips) would leave [A|b]'s normal equations singular
+    second = np.concatenate([np.maximum((allx**2).mean(axis=0), 1e-12), [1.0]])
     if emission == "identity":
         psi_r = 0.1 * dvar[:dy]
         ridge_c = np.zeros(dx + 1)

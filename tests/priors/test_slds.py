@@ -724,3 +724,14 @@ def test_the_covariance_tolerance_is_part_of_the_cache_key(synthetic, tmp_path):
     fit_prior(slds, clips, None, {**settings, "cov_rtol": 1e-10}, cache_dir=tmp_path,
               log=said.append)  # fmt: skip
     assert any("fitted" in line for line in said)
+
+
+def test_a_parameter_no_clip_moves_is_fitted_not_a_singular_matrix(synthetic):
+    # Retargeted clips hold the neck's twist at 0 throughout: with it free, the
+    # ridge on [A|b] scaled by its second moment (0) left the M-step singular.
+    train, _ = synthetic
+    still = [dataclasses.replace(m, params=m.params * (np.arange(25) != 8)) for m in train]
+    free = [8, 17, 20]  # neck_z, r_hip_x, r_knee
+    model = slds.fit(still, free=free, rng=np.random.default_rng(0), **FIT_KWARGS)
+    assert np.isfinite(model.A).all() and np.isfinite(model.Q).all()
+    assert np.allclose(model.A[:, 0, :], 0.0, atol=1e-6)  # the still row predicts 0
