@@ -19,11 +19,10 @@ from numpy.typing import NDArray
 
 from humotion_gym.body import KEYPOINT_INDEX, N_KEYPOINTS
 from humotion_gym.checks import is_integer
-from humotion_gym.envs.episodes import observed_starts
 from humotion_gym.envs.tasks import env_id
 from humotion_gym.kinematics import batch_pose_geometry
 from humotion_gym.mocap.library import MotionLibrary, load_library
-from humotion_gym.mocap.motion import Motion
+from humotion_gym.mocap.motion import Motion, observed_starts
 from humotion_gym.mocap.persons import same_skeleton, skeleton_signature
 
 FloatArray = NDArray[np.float64]

@@ -45,7 +45,7 @@ from numpy.typing import NDArray
 from humotion_gym.envs.tasks import VIEW_VARIANTS, TaskSpec, get_task
 from humotion_gym.files import write_text_atomically
 from humotion_gym.mocap.library import MotionLibrary, default_library, synthetic_library
-from humotion_gym.mocap.motion import Motion
+from humotion_gym.mocap.motion import Motion, observed_starts
 
 #: Format version of the files.
 VERSION = 2
@@ -120,19 +120,6 @@ def window_frames(spec: TaskSpec, frame_skip: int = FRAME_SKIP) -> int:
 def person_of(motion: Motion) -> str:
     """The person of a clip: its ``meta["person"]``, else its subject."""
     return motion.meta.get("person") or motion.subject
-
-
-def observed_starts(motion: Motion, span: int) -> NDArray[np.intp]:
-    """Start frames of the windows of ``span`` frames in which every frame is observed.
-
-    The observed frames of each window are counted from a running sum
-    (:attr:`Motion.frame_observed`), as the environment does for its starts.
-    """
-    n_starts = motion.n_frames - span + 1
-    if n_starts < 1:
-        return np.zeros(0, np.intp)
-    count = np.concatenate([[0], np.cumsum(motion.frame_observed)])
-    return np.flatnonzero(count[span:] - count[:n_starts] == span)
 
 
 def spread_starts(good: NDArray[np.intp], span: int, per_clip: int) -> list[int]:

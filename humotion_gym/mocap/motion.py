@@ -304,3 +304,16 @@ def content_digest(arrays: Mapping[str, NDArray[Any]]) -> str:
         h.update(f"{name}|{arr.dtype.str}|{arr.shape}|".encode())
         h.update(arr.tobytes())
     return h.hexdigest()
+
+
+def observed_starts(motion: Motion, span: int) -> NDArray[np.intp]:
+    """Start frames of the windows of ``span`` frames in which every frame is observed.
+
+    The observed frames of each window are counted from a running sum
+    (:attr:`Motion.frame_observed`), as the environment does for its starts.
+    """
+    n_starts = motion.n_frames - span + 1
+    if n_starts < 1:
+        return np.zeros(0, np.intp)
+    count = np.concatenate([[0], np.cumsum(motion.frame_observed)])
+    return np.flatnonzero(count[span:] - count[:n_starts] == span)

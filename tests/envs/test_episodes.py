@@ -186,3 +186,14 @@ def test_the_rule_ignores_min_motion():
 def test_the_check_command_passes_on_the_shipped_files(capsys):
     assert ep.main(["--check"]) == 0
     assert "ArmTrack" in capsys.readouterr().out
+
+
+def test_the_documented_command_runs_without_runpy_s_warning():
+    # docs/protocol.md runs the module with -m: were it imported by the package
+    # first, runpy would warn of "unpredictable behaviour" on every run
+    import subprocess
+    import sys
+
+    command = [sys.executable, "-W", "error::RuntimeWarning", "-m", ep.__name__, "--help"]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and "--check" in done.stdout, done.stderr
