@@ -263,6 +263,8 @@ def test_help_exits_0(capsys):
     assert main(["--help"]) == 0
     out = capsys.readouterr().out
     assert "tasks" in out and "agents" in out and "cache" in out
+    words = " ".join(out.split())  # the README's exit codes, SIGTERM's too
+    assert "130 interrupted (Ctrl-C), 143 terminated (SIGTERM)" in words
 
 
 def test_tasks_and_agents_list_what_exists(capsys):

@@ -141,8 +141,8 @@ def build_parser(modules: Sequence[str] = COMMAND_MODULES) -> argparse.ArgumentP
         description=textwrap.fill(
             "Gymnasium environments for monocular 3D human pose tracking, and the trackers "
             "that score on them. Exit codes: 0 success, 1 runtime error, 2 usage error (each "
-            "error is one line on stderr), 130 interrupted. Run humotion-gym COMMAND --help "
-            "for a command's flags and an example.",
+            "error is one line on stderr), 130 interrupted (Ctrl-C), 143 terminated "
+            "(SIGTERM). Run humotion-gym COMMAND --help for a command's flags and an example.",
             78,
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,
