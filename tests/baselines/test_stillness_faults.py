@@ -79,8 +79,10 @@ def test_run_still_seeds_agents_and_episodes_and_judges_at_the_ratio(monkeypatch
     assert ran == [(a, 4 + k, w.start) for a in ("hold", "pf-cv", "random")
                    for k, w in enumerate(windows)]  # fmt: skip
     rows = {r["agent"]: r for r in out["rows"]}
-    assert rows["pf-cv"]["x_hold"] == pytest.approx(2.0) and rows["pf-cv"]["within"]
-    assert rows["random"]["x_hold"] == pytest.approx(2.5) and not rows["random"]["within"]
+    # x_hold as the leaderboard's: hold's error over the row's (pf-cv, twice hold's: 0.5)
+    assert rows["hold"]["x_hold"] == 1.0 and rows["hold"]["within"]
+    assert rows["pf-cv"]["x_hold"] == pytest.approx(0.5) and rows["pf-cv"]["within"]
+    assert rows["random"]["x_hold"] == pytest.approx(0.4) and not rows["random"]["within"]
     errors = [2.0 * w.start for w in windows]
     assert rows["pf-cv"]["mean_error_ci"] == list(bootstrap_ci(errors, seed=4))
     assert bootstrap_ci(errors, seed=4) != bootstrap_ci(errors, seed=0)  # the seed tells
@@ -88,14 +90,17 @@ def test_run_still_seeds_agents_and_episodes_and_judges_at_the_ratio(monkeypatch
 
 
 def test_the_still_table_by_hand():
-    """The heading names the count and the bound; each row its error, interval, ratio, verdict."""
+    """The heading names the count and the bound; each row its error, interval, ratio, verdict.
+
+    The ``/ hold`` column is the row's error over hold's (2.50), ``x_hold``'s inverse.
+    """
     result = {
         "task": "ArmTrack-v2", "windows": [{}, {}, {}], "max_hold_mm": 50.0,
         "rows": [
             {"agent": "hold", "particles": 0, "mean_error_mm": 30.4,
              "mean_error_ci": [20.2, 40.6], "x_hold": 1.0, "within": True},
             {"agent": "pf-cv", "particles": 1200, "mean_error_mm": 76.0,
-             "mean_error_ci": [60.0, 91.0], "x_hold": 2.5, "within": False},
+             "mean_error_ci": [60.0, 91.0], "x_hold": 0.4, "within": False},
         ],
     }  # fmt: skip
     lines = markdown_table(result).splitlines()
