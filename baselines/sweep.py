@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import inspect
 import json
+import math
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -22,12 +23,14 @@ from tqdm.auto import tqdm
 
 from baselines.experiments._plotting import save as save_figure
 from baselines.leaderboard.across_tasks import normalised_scores
+from baselines.leaderboard.engine import make_env
 from baselines.leaderboard.evaluation import summarize
 from baselines.leaderboard.results import RUN_FILE, ResumeError, _jsonable, data_folders
 from baselines.leaderboard.rows import cell_label
-from baselines.leaderboard.run import run_leaderboard
+from baselines.leaderboard.run import _check_grid, run_leaderboard
 from baselines.leaderboard.stats import bootstrap_ci, iqm
 from baselines.leaderboard.videos import file_slug
+from humotion_gym.checks import is_real
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv
 from humotion_gym.files import json_default, read_json, write_text_atomically
 from humotion_gym.render import SceneOptions
@@ -53,20 +56,54 @@ SETTINGS: dict[str, str] = {
 def setting_kwargs(name: str, value: Any) -> dict[str, Any]:
     """The environment keyword arguments that set one setting to a value.
 
+    The value's range is the environment's to check (:func:`check_points`).
+
     Raises:
-        ValueError: If the setting is unknown or the value has the wrong type.
+        ValueError: If the setting is unknown or the value has the wrong type
+            (a count, ``size``, ``occluders`` or ``frame_skip``, that is not a
+            whole number: ``int`` would run another value than the one recorded).
     """
     if name not in SETTINGS:
         raise ValueError(f"setting: expected one of {', '.join(SETTINGS)}, got {name!r}")
-    if name == "size":
-        return {"width": int(value), "height": int(value)}
     if name == "background":
         if value not in ("flat", "clutter"):
             raise ValueError(f"background: expected 'flat' or 'clutter', got {value!r}")
         return {"background": value}
-    if name in ("occluders", "frame_skip"):
+    if not (is_real(value) and math.isfinite(value)):
+        raise ValueError(f"{name}: expected a finite number, got {value!r}")
+    if name in ("size", "occluders", "frame_skip"):
+        if value != int(value):
+            raise ValueError(f"{name}: expected a whole number, got {value!r}")
+        if name == "size":
+            return {"width": int(value), "height": int(value)}
         return {name: int(value)}
     return {name: float(value)}
+
+
+def check_points(
+    tasks: Sequence[str], grid: Mapping[str, Sequence[Any]], env_kwargs: Mapping[str, Any]
+) -> None:
+    """Refuse every value of the grid that a task's environment would refuse.
+
+    Each point's environment is built (and closed) on every task, so a value
+    out of the environment's range stops the sweep before its first point runs.
+    The common settings are built first, so what they get wrong is not
+    blamed on a point.
+
+    Raises:
+        ValueError: Naming the setting, its value and what the environment said
+            (or what the environment said of ``env_kwargs``).
+    """
+    for task in tasks:
+        make_env(task, env_kwargs).close()
+    for name, values in grid.items():
+        for value in values:
+            settings = {**env_kwargs, **setting_kwargs(name, value)}
+            for task in tasks:
+                try:
+                    make_env(task, settings).close()
+                except ValueError as exc:
+                    raise ValueError(f"grid: {name}={value!r} on {task}: {exc}") from exc
 
 
 def run_sweep(
@@ -113,7 +150,9 @@ def run_sweep(
         one per (setting, value) with its leaderboard ``rows``.
 
     Raises:
-        ValueError: If the grid is empty or names an unknown setting.
+        ValueError: If the grid is empty, names an unknown setting or holds a
+            value a task's environment refuses (:func:`check_points`: every
+            value, before the first point runs).
         ResumeError: If resuming a sweep saved with other settings
             (:func:`check_resume`), or a point's saved run cannot be resumed.
         FileExistsError: If ``out`` holds a sweep and ``resume`` is False.
@@ -123,8 +162,8 @@ def run_sweep(
     if not points:
         raise ValueError("grid: expected at least one setting with at least one value")
     base = dict(env_kwargs or {})
-    for name, v in points:
-        setting_kwargs(name, v)  # every value checked before the first run
+    _check_grid(tasks, agents, particles, base)  # lists of names before tasks are built
+    check_points(tasks, grid, base)  # every value checked before the first run
     folder = None if out is None else Path(out)
     if folder is not None:
         settings = sweep_settings(tasks, agents, particles, grid, episodes, seed, base)

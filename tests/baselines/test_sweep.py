@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -225,6 +226,8 @@ def test_a_resume_of_another_sweep_is_refused_before_any_work(tmp_path, capsys, 
         return []
 
     monkeypatch.setattr(sweep, "run_leaderboard", leaderboard)
+    # the stand-in data holds no test person: no task's environment could be built on it
+    monkeypatch.setattr(sweep, "check_points", lambda *args: None)
     _no_figures(monkeypatch)
     _walk_bvh(tmp_path / "mocap")
     monkeypatch.chdir(tmp_path)
@@ -311,3 +314,29 @@ def test_the_swept_value_wins_over_the_common_settings(monkeypatch):
     assert [(s["noise"], s["width"], s["height"]) for s in seen] == [
         (0.0, 64, 64), (12.0, 64, 64), (4.0, 96, 96),
     ]  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("grid", "message"),
+    [
+        ({"occluders": [2.7]}, "occluders: expected a whole number, got 2.7"),
+        ({"size": [64.5]}, "size: expected a whole number, got 64.5"),
+        ({"frame_skip": [1.9]}, "frame_skip: expected a whole number, got 1.9"),
+        ({"noise": [float("nan")]}, "noise: expected a finite number, got nan"),
+        # the environment's own range, every value before the first point
+        ({"occluders": [2.0], "noise": [0, -5]},
+         "grid: noise=-5 on ArmTrack-v2: noise: expected a finite number >= 0, got -5.0"),
+        ({"size": [64, 2000]}, "grid: size=2000 on ArmTrack-v2: SceneOptions: image size"),
+    ],
+)  # fmt: skip
+def test_a_value_the_sweep_cannot_run_as_given_stops_it_before_any_point(
+    monkeypatch, grid, message
+):
+    """A fractional count ran as its integer part; a bad value stopped the sweep only when reached."""
+    ran = []
+    monkeypatch.setattr(sweep, "run_leaderboard", lambda *args, **kw: ran.append(args) or [])
+    with pytest.raises(ValueError, match=re.escape(message)):
+        sweep.run_sweep(["ArmTrack-v2"], ["pf-cv"], [10], grid, 1, env_kwargs=BASE)
+    assert not ran
+    # a whole count given as a float is that count
+    assert sweep.setting_kwargs("occluders", 2.0) == {"occluders": 2}
