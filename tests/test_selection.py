@@ -193,11 +193,17 @@ def test_a_validation_fold_that_splits_one_skeleton_is_refused(shared_mocap):
         ({"backdrop": [0.5, 2.0]}, "backdrop is on \\(1\\) or off \\(0\\), got 0.5"),
         ({"sharpness": [1.0, 1.0]}, "list a value twice"),
         ({"sharpness": [1.0, 2.0, -1.0]}, "sharpness=-1"),  # after two combinations had run
+        # a prior's setting, by the prior's own check: after hold and damping=1 had run
+        ({"fit.damping": [1.0, 2.0]},
+         "fit.damping=2.0: constant_velocity.fit: damping must be a number in \\[0, 1\\]"),
+        ({"sharpness": [1.0, 2.0], "fit.multiplier": [0.5, -1.0]},
+         "fit.multiplier=-1.0: constant_velocity.fit: multiplier"),
     ],
-)
-def test_every_grid_value_is_checked_before_any_episode(grid, says, monkeypatch):
+)  # fmt: skip
+def test_every_grid_value_is_checked_before_any_episode(grid, says, monkeypatch, tmp_path):
     import baselines.experiments.selection as selection
 
+    monkeypatch.setenv("HUMOTION_CACHE", str(tmp_path))  # a fit.* grid fits each prior
     ran = []
     monkeypatch.setattr(selection._Runs, "errors", lambda *args, **kw: ran.append(args))
     with pytest.raises(ValueError, match=f"grid: .*{says}"):

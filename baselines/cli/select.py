@@ -38,7 +38,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         details="Track the validation persons (training persons held out of the priors' "
         "data) with each candidate value of likelihood settings (or prior settings, fit.NAME, or "
         "the annealed filter's settings, filter.NAME) "
-        "and pick the combination with the lowest mean error. Test persons are never loaded.",
+        "and pick the combination with the lowest mean error. Every value is checked before "
+        "any episode runs (a fit.NAME by fitting the prior with it). Test persons are never "
+        "loaded.",
     )
     add_task(sel, "ArmTrack-v2", kind=tracked_task)
     sel.add_argument(

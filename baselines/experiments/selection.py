@@ -212,6 +212,37 @@ class _Runs:
         return out, quiet
 
 
+def _check_fits(runs: _Runs, agent: str, grid: Mapping[str, Sequence[float]]) -> None:
+    """Build the agent with every combination of the grid's ``fit.`` values, running nothing.
+
+    Each prior checks its own settings when it fits (on the fold, as the
+    combination will, so the fit is cached for it): a value out of range is
+    refused before ``hold``'s episodes and the first combination run.
+
+    Raises:
+        ValueError: Naming the combination's ``fit.`` values and what the prior said.
+    """
+    names = [n for n in grid if n.startswith(FIT_PREFIX)]
+    if not names:
+        return
+    base_fit = AGENTS[agent].settings_for(get_task(runs.task).name)
+    env = gym.make(
+        f"humotion_gym/{runs.task}", library=runs.library, split="test", **runs.env_kwargs
+    )
+    try:
+        for combo in itertools.product(*(grid[n] for n in names)):
+            given = dict(zip(names, combo, strict=True))
+            fit = agent_settings(given)[0]
+            try:
+                make(agent, env, n_particles=runs.particles, seed=runs.seed,
+                     fit_settings={**base_fit, **fit})  # fmt: skip
+            except (TypeError, ValueError) as exc:
+                shown = " ".join(f"{n}={v!r}" for n, v in given.items())
+                raise ValueError(f"grid: {shown}: {exc}") from None
+    finally:
+        env.close()
+
+
 def _still_episodes(
     task: str, library: MotionLibrary, env_kwargs: dict[str, Any], count: int, max_hold_mm: float
 ) -> list[Any]:
@@ -300,23 +331,23 @@ def select_observation_settings(
         lowest mean error (ties: the first in grid order).
 
     Raises:
-        ValueError: If a name is neither a likelihood setting, a ``fit.``
-            keyword of the prior nor a ``filter.`` setting of an annealed
-            agent, a value list is empty, or ``library`` is not a validation
-            fold of training persons (:func:`check_validation_fold`).
+        ValueError: If a name is neither a likelihood setting, a ``fit.`` keyword of the prior
+            nor a ``filter.`` setting of an annealed agent, a value list is empty, a ``fit.``
+            value the prior refuses (every one, before any episode runs), or ``library`` is not
+            a validation fold of training persons (:func:`check_validation_fold`).
     """
     _check_grid(grid, agent)
     check_validation_fold(library)
     spec = get_task(task)
     kwargs = {"terminate_on_lost": False, **(env_kwargs or {})}
     default = ObservationModel(**dict(spec.observation))
+    _check_fits(_Runs(task, library, kwargs, particles, episodes, seed, []), agent, grid)
     # The id as given (a multi-view variant's id makes its views; settings are the family's).
     windows = _still_episodes(task, library, kwargs, still, still_max_hold_mm)
     runs = _Runs(task, library, kwargs, particles, episodes, seed, windows)
     hold_errors, hold_still = runs.errors("hold", default)
     hold = float(np.mean(hold_errors))
-    fields = _observation_fields()
-    names = list(grid)
+    fields, names = _observation_fields(), list(grid)
     rows = []
     base_fit = AGENTS[agent].settings_for(spec.name) if agent in AGENTS else {}
     for combo in itertools.product(*(grid[n] for n in names)):
