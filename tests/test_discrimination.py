@@ -1,5 +1,7 @@
 """The likelihood-discrimination measurements."""
 
+import re
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -24,6 +26,27 @@ def test_the_truth_scores_higher_the_further_off_a_pose_is():
     assert out["bins"][-1]["truth_wins"] > 0.9
     with pytest.raises(ValueError, match="tolerance"):
         likelihood_discrimination(env, tolerance=1.5)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "says"),
+    [
+        # a bin around -50 mm held no pair: NaN everywhere, no error
+        ({"distances_mm": [-50.0]}, "distances_mm: expected positive finite distances"),
+        ({"distances_mm": [50.0, float("nan")]}, "distances_mm"),
+        ({"distances_mm": []}, "distances_mm"),
+        ({"seed": -1}, "likelihood_discrimination: seed: expected an integer >= 0, got -1"),
+        ({"perturbations": 0}, "likelihood_discrimination: perturbations"),
+        ({"frame_stride": 2.5}, "likelihood_discrimination: frame_stride"),
+    ],
+)
+def test_arguments_that_measure_nothing_are_refused_by_name(kwargs, says):
+    env = gym.make("humotion_gym/ArmTrack-v2", terminate_on_lost=False)
+    with pytest.raises(ValueError, match=re.escape(says)):
+        likelihood_discrimination(env, **{"episodes": 1, "perturbations": 20, **kwargs})
+    for measure in (likelihood_peak_error, likelihood_depth_profile):
+        with pytest.raises(ValueError, match=f"{measure.__name__}: seed"):
+            measure(env, seed=-1)
 
 
 def test_peak_error_is_measured_from_candidates_around_the_truth():

@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 from baselines.observation import FirstFrame, GivenBody, task_model
 from humotion_gym.body import ANGLE_MASK, BodyShape, forward_kinematics
 from humotion_gym.camera import Camera
+from humotion_gym.checks import check_count, is_real
 from humotion_gym.envs.description import Given, read_observation
 
 FloatArray = NDArray[np.float64]
@@ -127,12 +128,23 @@ def likelihood_discrimination(
         "truth_wins"}...], "frames": n}``.
 
     Raises:
-        ValueError: For a non-positive count or tolerance.
+        ValueError: Naming the argument: a count below 1, a negative ``seed``,
+            no distance or one that is not a positive finite number (its bin
+            would hold no pair), or a tolerance outside (0, 1).
     """
-    if episodes < 1 or perturbations < 1 or frame_stride < 1:
-        raise ValueError("episodes, perturbations and frame_stride must be >= 1")
+    where = "likelihood_discrimination"
+    for name, value in (
+        ("episodes", episodes), ("perturbations", perturbations), ("frame_stride", frame_stride),
+    ):  # fmt: skip
+        check_count(f"{where}: {name}", value)
+    check_count(f"{where}: seed", seed, least=0)
+    distances_mm = list(distances_mm)
+    if not distances_mm or not all(is_real(d) and np.isfinite(d) and d > 0 for d in distances_mm):
+        raise ValueError(
+            f"{where}: distances_mm: expected positive finite distances in mm, got {distances_mm}"
+        )
     if not 0.0 < tolerance < 1.0:
-        raise ValueError(f"tolerance: expected a value in (0, 1), got {tolerance}")
+        raise ValueError(f"{where}: tolerance: expected a value in (0, 1), got {tolerance}")
     base = env.unwrapped
     task = base.task
     free = task.free_indices
@@ -197,6 +209,7 @@ def likelihood_peak_error(
     """
     if episodes < 1 or candidates < 1 or frame_stride < 1 or not spread > 0:
         raise ValueError("episodes, candidates, frame_stride and spread must be positive")
+    check_count("likelihood_peak_error: seed", seed, least=0)
     base = env.unwrapped
     task = base.task
     free = task.free_indices
@@ -252,6 +265,7 @@ def likelihood_depth_profile(
     """
     if episodes < 1 or frame_stride < 1 or steps < 2 or not reach_mm > 0:
         raise ValueError("episodes, frame_stride, reach_mm must be positive and steps >= 2")
+    check_count("likelihood_depth_profile: seed", seed, least=0)
     base = env.unwrapped
     if not np.isin(np.arange(3), base.task.free_indices).all():
         return None
