@@ -388,3 +388,21 @@ def test_cli_select_and_splits_say_what_the_data_lacks(walk_run_folders, capsys,
     err = capsys.readouterr().err
     assert "error: --data-dir: nothing to hold out: no bandai-2 style" in err
     assert "evaluate_splits" not in err
+
+
+def test_cli_classify_refuses_a_file_in_both_sets_and_splits_a_copy_by_person(
+    walk_run_folders, capsys, tmp_path, monkeypatch
+):
+    """One folder given twice is refused; a copy of it (the same clip ids) is split by person."""
+    import shutil
+
+    monkeypatch.setattr(pavlovic1999, "run_classification", _stop([]))
+    ann = walk_run_folders[0]
+    classify = ["slds", "classify", "--train", str(ann), "--test"]
+    assert _cli([*classify, str(ann)]) == 2
+    assert "--test: 2 clip(s) also in --train" in capsys.readouterr().err
+    copy = tmp_path / "copy" / "ann"  # the folder names the person: the same clip ids
+    shutil.copytree(ann, copy)
+    assert _cli([*classify, str(copy)]) == 1  # ann is no test person: no test clip is left
+    err = capsys.readouterr().err
+    assert "--train and --test overlap, so they are split by person, but --test has no" in err

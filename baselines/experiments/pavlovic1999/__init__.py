@@ -15,8 +15,8 @@ The modules, each one part of the paper's section 4:
   the training split (``slds select``).
 * :mod:`.splits`: the error of fixed settings per held-out style and person
   (``slds splits``).
-* :mod:`.interpolation` (Fig. 6): a gap of a held-out walking clip filled by
-  smoothing with missing measurements, against linear and cubic-spline
+* :mod:`.interpolation` (Fig. 6): a gap of a test person's walking clip filled
+  by smoothing with missing measurements, against linear and cubic-spline
   interpolation of the same gap.
 * :mod:`.figures`: Figs. 3, 5 (noise-driven sampling of a learned model,
   :func:`baselines.priors.slds.synthesize`) and 6.
@@ -33,15 +33,18 @@ Command line (:mod:`baselines.cli.slds`)::
     humotion-gym slds figures [--data-dir DIR] [--out-dir DIR]
 
 Train/test for ``classify``: the clips under ``--train`` train and those under
-``--test`` test. When the two sets share any clip (for instance the same folder
-given twice) they are split by person with the library's named constants
-(:meth:`~humotion_gym.mocap.library.MotionLibrary.split`): training uses the
+``--test`` test. A file reached by both (the same folder given twice) is
+refused: a test clip would be scored on its own fit. Different files of one
+clip (the same clip id, ``dataset/stem``: a copy of a trial in another
+folder, or ``02_01.amc`` in one and ``02_01.bvh`` in the other) are split by
+person with the library's named constants (:func:`split_train_test`,
+:meth:`~humotion_gym.mocap.library.MotionLibrary.split`): training uses the
 train split of ``--train``, testing the test split of ``--test``, the clips of
 CMU subjects 2 and 3 (``library.TEST_SUBJECTS``). Every Bandai-Namco clip is
-training data (one set of actors performs every style), so a Bandai folder
-given twice leaves no test clip and is refused. Without ``--labels`` the
-activities are walk and run, Bandai-Namco set 1's ``dash`` (a sprint) counted
-as run (:data:`LABEL_ALIASES`).
+training data (one set of actors performs every style), so a copy of a Bandai
+folder given as ``--test`` leaves no test clip and is refused. Without
+``--labels`` the activities are walk and run, Bandai-Namco set 1's ``dash`` (a
+sprint) counted as run (:data:`LABEL_ALIASES`).
 
 Settings chosen by cross-validation (:func:`select_classifier_settings`,
 ``slds select``): the parameter subset (legs ``r_hip_x r_knee l_hip_x
@@ -102,10 +105,13 @@ and by several with the seed:
   Bandai-2 style ``active``, whose walking is read as running (57-60% of
   that fold); the other Bandai-2 styles give 1.1-2.5% with every setting.
   The test persons are few and mostly walking (one 44-frame run).
-* Interpolation of frames 50-99 of the 25 walking clips of the style
-  masculine (that style held out): mean absolute error in degrees for seeds
-  0, 1, 2: the Viterbi fill 21.2, 25.7, 25.6; the posterior mean over switch
-  paths 13.8, 18.3, 20.8; linear 16.4; cubic spline 26.4.
+* ``humotion-gym slds interpolate --data-dir ../shared/mocap`` (seed 0):
+  frames 50-99 of the test persons' walks filled (:func:`person_split`: the
+  models fitted on the training persons), the 3 walks long enough (CMU 3's
+  03_01, 03_03 and 03_04): mean absolute joint-angle error in degrees 18.2
+  for the Viterbi fill (one decoded switch path), 13.2 for the posterior
+  mean over switch paths, 15.6 for linear and 23.3 for cubic-spline
+  interpolation (docs/priors.md).
 """
 
 from __future__ import annotations

@@ -59,11 +59,15 @@ def person_split(motions: Sequence[Motion]) -> tuple[list[Motion], list[Motion]]
 def split_train_test(
     train: Sequence[Motion], test: Sequence[Motion]
 ) -> tuple[list[Motion], list[Motion]]:
-    """Overlapping clip sets are split by person (``slds classify``); disjoint ones are kept.
+    """Clip sets that share a clip id are split by person; disjoint ones are kept.
 
-    When the two sets share a clip (the same folder given twice), training uses
-    the train split of ``train`` and testing the test split of ``test``
-    (:meth:`~humotion_gym.mocap.library.MotionLibrary.split`).
+    When the two sets share a clip id, training uses the train split of
+    ``train`` and testing the test split of ``test``
+    (:meth:`~humotion_gym.mocap.library.MotionLibrary.split`). ``slds
+    classify`` refuses a file reached by both ``--train`` and ``--test``, so
+    there only different files of one clip id reach this split (a copy of a
+    trial in another folder, ``02_01.amc`` and ``02_01.bvh``); the same clips
+    given twice come only from the Python API.
 
     Raises:
         ValueError: If overlapping sets leave no test clip (no test person in ``test``).
