@@ -188,9 +188,11 @@ def run_split(
 
     Returns:
         ``{"task", "particles", "seed", "agent_seeds", "declared", "windows",
-        "rows"}``; each row ``{"agent", "likelihood", "oracle"`` (its
-        settings or None), summary numbers (:func:`_summary`), ``"x_hold"``
-        (hold's mean error over the row's) and ``"episodes"``.
+        "rows"}``, and ``"validation_persons"`` where ``env_kwargs``'s
+        ``library`` is a validation fold (the persons tracked); each row
+        ``{"agent", "likelihood", "oracle"`` (its settings or None), summary
+        numbers (:func:`_summary`), ``"x_hold"`` (hold's mean error over the
+        row's) and ``"episodes"``.
 
     Raises:
         ValueError: If a count is below 1, an agent is not a particle filter or
@@ -239,10 +241,14 @@ def run_split(
             if on_row is not None:
                 on_row(row)
     env.close()
-    return {
+    out = {
         "task": task, "particles": particles, "seed": seed, "agent_seeds": agent_seeds,
         "declared": declared, "windows": len(windows), "declared_windows": listed, "rows": rows,
     }  # fmt: skip
+    library = (env_kwargs or {}).get("library")
+    if library is not None and library.test_subjects is not None:  # a validation fold
+        out["validation_persons"] = sorted(library.held_out)
+    return out
 
 
 def _windows(
@@ -488,11 +494,17 @@ def split_table(result: Mapping[str, Any]) -> str:
 
 
 def markdown_report(results: Sequence[Mapping[str, Any]]) -> str:
-    """Both tables for each task's result."""
+    """Both tables for each task's result, under a heading of what it tracked.
+
+    A run of a validation fold names its persons (``validation_persons``); a
+    run of the test persons says nothing more.
+    """
     parts = []
     for res in results:
         n, listed = res["windows"], res.get("declared_windows", 0)
         what = f"{n} seeded episodes"
+        if res.get("validation_persons"):
+            what += f" of the validation persons {', '.join(res['validation_persons'])}"
         if res["declared"]:
             what = (
                 f"the first {n} of {listed} declared test windows"

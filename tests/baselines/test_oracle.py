@@ -427,6 +427,29 @@ def test_a_run_of_hold_alone_reports_no_empty_split_table():
     assert "| hold |" in report and "evidence: image - 2D" not in report
 
 
+def test_a_run_of_the_validation_persons_names_them_in_its_heading(capsys):
+    """``--split validation`` wrote the heading of a test run: nothing said whose episodes."""
+    from baselines.experiments.selection import validation_library
+
+    fold = validation_library(None)
+    persons = ", ".join(sorted(fold.held_out))
+    kwargs = {"episode_frames": 3}
+    out = run_split("ArmTrack-v2", ["hold"], [None], particles=10, episodes=1, declared=False,
+                    env_kwargs={**kwargs, "library": fold}, progress=False)  # fmt: skip
+    assert out["validation_persons"] == sorted(fold.held_out)
+    assert markdown_report([out]).startswith(
+        f"## ArmTrack-v2: 1 seeded episodes of the validation persons {persons}, 10 particles"
+    )
+    test = run_split("ArmTrack-v2", ["hold"], [None], particles=10, episodes=1, declared=False,
+                     env_kwargs=kwargs, progress=False)  # fmt: skip
+    assert "validation_persons" not in test
+    assert markdown_report([test]).startswith("## ArmTrack-v2: 1 seeded episodes, 10 particles")
+    argv = ["oracle", "--task", "ArmTrack-v2", "--agents", "hold", "--particles", "10",
+            "--episodes", "1", "--split", "validation"]  # fmt: skip
+    assert main(argv) == 0
+    assert f"1 seeded episodes of the validation persons {persons}," in capsys.readouterr().out
+
+
 def test_split_table_on_set_numbers():
     """Evidence is image - 2D, identity unlabelled - 2D, depth the 2D run's; the first of a kind."""
 
