@@ -131,8 +131,14 @@ def run_still(
         ``hold``'s.
 
     Raises:
-        ValueError: If no still episode is found (raise ``max_hold_mm``).
+        ValueError: If ``windows`` is empty, or none was given and no still
+            episode is found (raise ``max_hold_mm``).
     """
+    if windows is not None and len(windows) == 0:  # given, not searched: max_hold_mm is no cure
+        raise ValueError(
+            "run_still: windows: expected at least one still episode, got none "
+            "(None: search the test clips for them)"
+        )
     kwargs = {"split": "test", **(env_kwargs or {})}  # the test persons, as the leaderboard
     env = gym.make(f"humotion_gym/{task}", terminate_on_lost=False, **kwargs)
     names = ["hold"] + [a for a in agents if a != "hold"]

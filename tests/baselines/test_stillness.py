@@ -74,7 +74,8 @@ def test_run_still_compares_every_agent_to_hold(env, windows):
     assert rows["pf-cv"]["within"] == (ratio <= STILL_RATIO)
     assert [e["clip_id"] for e in rows["pf-cv"]["episodes"]] == [w.clip_id for w in windows]
     assert "| pf-cv | 20 |" in markdown_table(out)
-    with pytest.raises(ValueError, match="raise max_hold_mm"):
+    # episodes given, none of them: the windows are refused, not the search's bound
+    with pytest.raises(ValueError, match="run_still: windows: expected at least one"):
         run_still("BodyTrack-v2", ["pf-cv"], windows=[], progress=False)
 
 

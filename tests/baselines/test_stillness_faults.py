@@ -110,3 +110,17 @@ def test_the_still_table_by_hand():
     assert lines[2] == "| agent | particles | mean error mm (95% CI) | / hold | within 2x hold |"
     assert lines[4] == "| hold | - | 30 (20-41) | 1.00 | yes |"
     assert lines[5] == "| pf-cv | 1,200 | 76 (60-91) | 2.50 | no |"
+
+
+def test_empty_windows_are_refused_by_name_and_an_empty_search_by_its_bound(monkeypatch):
+    """windows=[] said "no episode ... raise max_hold_mm", though no search ran."""
+    import baselines.stillness as stillness
+
+    made = []
+    monkeypatch.setattr(stillness, "make", lambda name, *args, **kw: made.append(name))
+    with pytest.raises(ValueError, match="run_still: windows: expected at least one") as info:
+        stillness.run_still("ArmTrack-v2", ["pf-cv"], windows=[], progress=False)
+    assert "max_hold" not in str(info.value) and not made
+    monkeypatch.setattr(stillness, "still_windows", lambda *args, **kw: [])
+    with pytest.raises(ValueError, match="raise max_hold_mm \\(--max-hold\\)"):
+        stillness.run_still("ArmTrack-v2", ["pf-cv"], progress=False)
