@@ -39,6 +39,7 @@ from baselines.agents import make, tracking_env, uses_particles
 from baselines.leaderboard.evaluation import EpisodeResult, run_episode
 from baselines.leaderboard.stats import bootstrap_ci
 from humotion_gym.body import KEYPOINT_INDEX, PARAM_INDEX, forward_kinematics
+from humotion_gym.checks import check_count
 
 _PELVIS = KEYPOINT_INDEX["pelvis"]
 _ROOT_POSITION = (PARAM_INDEX["root_x"], PARAM_INDEX["root_y"], PARAM_INDEX["root_z"])
@@ -248,7 +249,13 @@ def run_depth(
     Returns:
         ``{"task", "particles", "seed", "rows": [{"agent", "particles",
         **summarize_depth(...), "episodes": [...]}]}``.
+
+    Raises:
+        ValueError: If ``episodes`` is not an integer >= 1 or ``seed`` one >= 0
+            (before any prior is fitted).
     """
+    check_count("run_depth: episodes", episodes)
+    check_count("run_depth: seed", seed, least=0)
     kwargs = {"split": "test", **(env_kwargs or {})}  # the test persons, as the leaderboard
     env = gym.make(f"humotion_gym/{task}", terminate_on_lost=False, **kwargs)
     names = ["hold"] + [a for a in agents if a != "hold"]

@@ -1,5 +1,7 @@
 """``baselines.depth``: summaries and the table checked against values worked by hand."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -104,3 +106,23 @@ def test_run_depth_seeds_each_episode_and_agent_as_the_leaderboard(monkeypatch):
     assert pf["along_abs_ci"] == list(bootstrap_ci(means, np.mean, seed=3))
     assert bootstrap_ci(means, np.mean, seed=3) != bootstrap_ci(means, np.mean, seed=0)
     assert [e["seed"] for e in pf["episodes"]] == list(range(3, 10))
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "says"),
+    [
+        ({"episodes": 0}, "run_depth: episodes: expected an integer >= 1, got 0"),
+        ({"episodes": -2}, "run_depth: episodes"),
+        ({"episodes": 1.5}, "run_depth: episodes"),
+        ({"seed": -1}, "run_depth: seed: expected an integer >= 0, got -1"),
+    ],
+)
+def test_run_depth_refuses_no_episodes_before_any_prior_is_fitted(monkeypatch, kwargs, says):
+    """episodes=0 fitted every agent's prior, then summarize_depth named no argument."""
+    import baselines.depth as depth
+
+    made = []
+    monkeypatch.setattr(depth, "make", lambda name, *args, **kw: made.append(name))
+    with pytest.raises(ValueError, match=re.escape(says)):
+        depth.run_depth("ArmTrack-v2", ["pf-cv"], particles=7, progress=False, **kwargs)
+    assert not made
