@@ -243,7 +243,7 @@ def test_step_scores_refuses_a_scoring_that_is_not_one() -> None:
         step_scores(pts, pts, [0, 1])
 
 
-@pytest.mark.filterwarnings("ignore::DeprecationWarning")  # the v1 tasks
+@pytest.mark.filterwarnings("ignore::FutureWarning")  # the v1 tasks
 @pytest.mark.parametrize("task", sorted(k for k in gym.registry if k.startswith("humotion_gym/")))
 def test_a_perfect_estimate_scores_exactly_1_with_every_task(task) -> None:
     """What step_scores' docstring says: exactly 1 with the tasks' scorings (other

@@ -134,7 +134,7 @@ def v2_history(look: str = "Frames, actions and rewards as v1.") -> str:
       (``split="train"``), the test persons only with ``split="test"``; the
       leaderboard scores the declared test episodes
       (:mod:`humotion_gym.envs.episodes`). {look}
-      v1 stays registered for one release with a ``DeprecationWarning``.
+      v1 stays registered for one release with a ``FutureWarning``.
 """
 
 

@@ -187,6 +187,11 @@ def _task_with(
         spec = replace(spec, camera=camera)
     if views is not None:
         check_count("views", views)
+        if views > 1 and spec.version < 2:  # v1's info holds one camera, an agent's only one
+            raise ValueError(
+                f"views: {spec.name} shows one view (its info holds one camera); make "
+                f"humotion_gym/{spec.family}-v2 with views={views}"
+            )
         spec = replace(spec, views=int(views))
     return spec
 
@@ -250,8 +255,8 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
                 f"{self.task.name} is deprecated and will be removed in the next release; use "
                 f"{self.task.family}-v2 (its observation holds everything an agent may use; "
                 "docs/v1.md keeps version 1's numbers)",
-                DeprecationWarning,
-                stacklevel=2,
+                FutureWarning,  # shown by default: a DeprecationWarning raised in the
+                stacklevel=2,  # package (a subclass, the vector env) is hidden from users
             )
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(

@@ -466,7 +466,7 @@ def test_an_episode_begins_at_episode_start_or_where_the_initial_pose_changes():
 
 
 def test_a_version_1_task_is_not_described_to_an_agent():
-    with pytest.warns(DeprecationWarning):
+    with pytest.warns(FutureWarning):
         env = gym.make("humotion_gym/ArmTrack-v1")
     with pytest.raises(TaskNotSupported, match="ArmTrack-v2"):
         describe(env)

@@ -175,7 +175,7 @@ def test_evaluate_refuses_what_is_not_a_number_of_episodes(episodes):
 
 def test_arm_episodes_move_the_arm_in_v1_and_are_not_selected_in_v2():
     """ArmTrack-v1 started only where the elbow and wrist moved 150 mm; v2 keeps every start."""
-    with pytest.warns(DeprecationWarning):
+    with pytest.warns(FutureWarning):
         env = gym.make("humotion_gym/ArmTrack-v1", terminate_on_lost=False)
     base = env.unwrapped
     minimum = base.task.min_motion_mm

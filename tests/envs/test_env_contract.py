@@ -271,7 +271,7 @@ def test_a_given_library_sets_the_frame_rate_and_is_the_only_data():
 
 
 def test_version_1_draws_the_held_out_persons_by_default_as_it_did():
-    with pytest.warns(DeprecationWarning):
+    with pytest.warns(FutureWarning):
         v1 = gym.make("humotion_gym/BodyTrack-v1")
         chosen = gym.make("humotion_gym/BodyTrack-v1", split="train")
     assert (v1.unwrapped.split, chosen.unwrapped.split) == ("test", "train")

@@ -380,7 +380,7 @@ def test_the_space_check_catches_a_wrong_observation():
 
 
 def test_a_v1_id_still_works_and_warns_that_it_is_deprecated():
-    with pytest.warns(DeprecationWarning, match="ArmTrack-v2"):
+    with pytest.warns(FutureWarning, match="ArmTrack-v2"):
         env = gym.make("humotion_gym/ArmTrack-v1").unwrapped
     obs, info = env.reset(seed=0)
     assert isinstance(obs, np.ndarray) and obs.shape == (128, 128, 3) and obs.dtype == np.uint8
@@ -862,3 +862,18 @@ def test_a_family_name_is_its_current_version_and_arm_v2_keeps_every_start():
     assert get_task("ArmTrack-v2").min_motion_mm == 0.0 < get_task("ArmTrack-v1").min_motion_mm
     with pytest.raises(ValueError, match="episode_frames must be >= 1"):
         dataclasses.replace(get_task("ArmTrack-v2"), episode_frames=0)
+
+
+def test_the_v1_warning_is_shown_under_python_s_default_filters():
+    # A DeprecationWarning raised inside the package (a subclass's __init__, the
+    # vector env) is hidden from users by Python's default filters.
+    code = "from humotion_gym.envs import BodyTrackEnv; BodyTrackEnv(task='BodyTrack-v1')"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and "BodyTrack-v1 is deprecated" in done.stderr, done.stderr
+
+
+def test_a_v1_task_refuses_more_than_one_view():
+    with pytest.raises(ValueError, match=r"views: BodyTrack-v1 shows one view .* views=3"):
+        gym.make("humotion_gym/BodyTrack-v1", views=3)
+    with pytest.warns(FutureWarning):
+        gym.make("humotion_gym/BodyTrack-v1", views=1).close()

@@ -96,7 +96,7 @@ def _slow_episode_motion(motion: Motion, span: int, skip: int, scored, anchor: i
     return np.array(out)
 
 
-@pytest.mark.filterwarnings("ignore::DeprecationWarning")  # v1: the task with min_motion_mm
+@pytest.mark.filterwarnings("ignore::FutureWarning")  # v1: the task with min_motion_mm
 def test_episode_motion_and_good_starts_match_a_slow_reference() -> None:
     """ArmTrack-v1 with frame_skip 2: moves measured from the anchor, to the episode's last frame."""
     env = gym.make("humotion_gym/ArmTrack-v1", frame_skip=2, episode_frames=10).unwrapped

@@ -248,7 +248,7 @@ def test_frames_stacked_inside_the_learner_observation_are_refused_at_constructi
     """Accepted, it failed at reset deep inside: 'learner_frame: expected an (H, W, C) ...'."""
     for task in ("ArmTrack-v2", "ArmTrack-v1"):
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore", DeprecationWarning)  # version 1: meant
+            warnings.simplefilter("ignore", FutureWarning)  # version 1: meant
             stacked = FrameStackObservation(gym.make(f"humotion_gym/{task}"), 3)
         with pytest.raises(ValueError, match=r"FrameStackObservation changes them.*"
                            r"FrameStackObservation\(LearnerObservation\(env\), 3\)"):  # fmt: skip
