@@ -44,6 +44,11 @@ def test_temper_for_survival() -> None:
     assert np.all(w[:10] == 0)
     beta, w = temper_for_survival(np.zeros(50), 0.5)
     assert beta == 1.0 and np.allclose(w, 1 / 50)
+    # At most alpha N possible (the documented rule): the likelihood's own weights.
+    loglik[:600] = -np.inf
+    beta, w = temper_for_survival(loglik, 0.5)
+    assert beta == 1.0 and effective_sample_size(w) < 0.4 * 500
+    np.testing.assert_allclose(w[600:], np.exp(loglik[600:]) / np.exp(loglik[600:]).sum())
 
 
 def test_invalid_poses_never_survive() -> None:

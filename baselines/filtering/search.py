@@ -70,8 +70,9 @@ class LocalSearch:
             one-fifth rule (the defaults: 1.5 and 0.9036).
         survival: With ``0 < survival <= 1``, the weights after the climb are
             tempered (``w ~ L^beta``, ``beta <= 1``) so that at least this
-            fraction of the particles survives (``ESS / N``); 0 keeps the
-            likelihood's own weights.
+            fraction of the particles survives (``ESS / N``) where more than
+            that fraction is possible (:func:`temper_for_survival`; else, as at
+            1, the likelihood's own weights); 0 keeps the likelihood's own weights.
         method: ``"random"`` (a Gaussian step per block, one evaluation) or
             ``"parabola"`` (coordinate-wise Newton steps from probes of each
             dimension of the block, ``2 |b| + 2`` evaluations); see :func:`climb`.
