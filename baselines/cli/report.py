@@ -57,8 +57,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_data_dir(rp)
     rp.add_argument(
         "--seed", type=nonnegative_int, default=None,
-        help="seed of the bootstrap resampling (default: the run's, so that the report "
-        "rebuilds the one the run wrote)",
+        help="seed of the bootstrap of the report's statistics: the cell statistics, the "
+        "aggregate across tasks, the probabilities of improvement (stats.json and their "
+        "tables) and the figures' intervals (default: the run's, so that the report rebuilds "
+        "the one the run wrote); the leaderboard table and its verdicts keep the run's seed, "
+        "as its table.md",
     )  # fmt: skip
     rp.add_argument(
         "--title", default="humotion_gym leaderboard",
@@ -91,10 +94,11 @@ def _cmd_report(args: argparse.Namespace) -> int:
     if args.data_dir:
         env_kwargs["data_dir"] = args.data_dir
     agents = set(args.video_agents or [])
+    run_seed = int(settings.get("seed") or 0)
     with refused_as(CommandError, (ValueError, ReplayMismatch)):
         index = write_report(
             rows, args.out, videos=args.videos, env_kwargs=env_kwargs,
-            seed=int(settings.get("seed") or 0) if args.seed is None else args.seed,
+            seed=run_seed if args.seed is None else args.seed, table_seed=run_seed,
             video_cells=(lambda r: r["agent"] in agents) if agents else None, title=args.title,
             run=settings, source=args.results,
         )  # fmt: skip

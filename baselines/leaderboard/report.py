@@ -209,7 +209,11 @@ def _with_ci(value: float, pair: Sequence[float], episodes: int) -> str:
 
 
 def statistics_table(rows: Sequence[dict[str, Any]]) -> list[list[str]]:
-    """Per-cell statistics: header then one list of cells per row that ran."""
+    """Per-cell statistics from each row's summary: header then one list of cells per row that ran.
+
+    The report passes the rows :func:`restated` with :func:`compute`'s
+    summaries, those of ``stats.json``.
+    """
     out = [
         [
             "task", "agent", "particles", "episodes", "mean error mm (95% CI)",
@@ -298,7 +302,9 @@ def _sections(rows: Sequence[dict[str, Any]], computed: dict[str, Any]) -> list[
     and the probabilities of improvement where computed; the cells that did
     not run where there are any.
     """
-    sections: list[_Section] = [("Cell statistics", statistics_table(rows), "cells", None)]
+    # the cells' summaries of stats.json, drawn with the report's seed
+    cells = restated(rows, [c["summary"] for c in computed["cells"]])
+    sections: list[_Section] = [("Cell statistics", statistics_table(cells), "cells", None)]
     persons = person_table(person_rows(rows))
     if persons:
         sections.append(("Per person", persons, "persons", PERSON_LEGEND))
@@ -315,7 +321,11 @@ def _sections(rows: Sequence[dict[str, Any]], computed: dict[str, Any]) -> list[
 
 
 def markdown_report(rows: Sequence[dict[str, Any]], computed: dict[str, Any]) -> str:
-    """``tables.md``: the leaderboard table, statistics, aggregate, failures."""
+    """``tables.md``: the leaderboard table, statistics, aggregate, failures.
+
+    The leaderboard table and the verdicts are of ``rows`` as they are (their
+    summaries); the statistics are ``computed``'s (:func:`compute`).
+    """
     good = [r for r in rows if ran(r)]
     # every row: markdown_table shows a cell that did not run with its reason
     parts = ["# Leaderboard", "", markdown_table(rows), ""]
@@ -326,20 +336,41 @@ def markdown_report(rows: Sequence[dict[str, Any]], computed: dict[str, Any]) ->
     return "\n".join(parts)
 
 
+def summaries(rows: Sequence[dict[str, Any]], seed: int = 0) -> list[dict[str, Any]]:
+    """Each row that ran summarised anew from its episodes, in order (:func:`summarize`).
+
+    The intervals are the row's own kind (a declared list resamples clips
+    whole, then agent seeds within each episode), drawn with ``seed``: what
+    ``stats.json`` holds and ``tests/test_recorded_tables.py`` rebuilds the
+    recorded tables from. A summary stored in a record is never shown: one
+    written by older code holds other intervals.
+    """
+    return [summarize(r["episodes"], seed=seed, by_clip=by_clip(r)) for r in rows if ran(r)]
+
+
+def restated(rows: Sequence[dict[str, Any]], new: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The rows with each ran row's summary replaced by the next of ``new``.
+
+    Raises:
+        ValueError: Unless ``new`` holds one summary per row that ran.
+    """
+    if len(new) != sum(ran(r) for r in rows):
+        raise ValueError(f"restated: new: expected one summary per row that ran, got {len(new)}")
+    given = iter(new)
+    return [dict(r, summary=next(given)) if ran(r) else r for r in rows]
+
+
 def compute(rows: Sequence[dict[str, Any]], seed: int = 0) -> dict[str, Any]:
     """Every statistic of the report (``stats.json``): cells, aggregate, pairwise, persons.
 
+    Each cell's summary is :func:`summaries`' (recomputed from the episodes).
     ``persons`` (:func:`~baselines.leaderboard.tables.person_rows`) only where
     an episode names its person.
     """
-    cells = []
-    for r in rows:
-        if ran(r):
-            cells.append(
-                {"task": r["task"], "agent": r["agent"], "particles": r["particles"],
-                 # the row's own kind of interval (a declared list resamples clips)
-                 "summary": summarize(r["episodes"], seed=seed, by_clip=by_clip(r))}
-            )  # fmt: skip
+    cells = [
+        {"task": r["task"], "agent": r["agent"], "particles": r["particles"], "summary": s}
+        for r, s in zip([r for r in rows if ran(r)], summaries(rows, seed), strict=True)
+    ]
     out = {
         "reference": REFERENCE,
         "seed": seed,
@@ -559,6 +590,7 @@ def write_report(
     progress: bool = True,
     run: Mapping[str, Any] | None = None,
     source: str | Path | None = None,
+    table_seed: int | None = None,
 ) -> Path:
     """Write the whole report of a leaderboard into ``folder``.
 
@@ -575,7 +607,10 @@ def write_report(
         env_kwargs: The environment settings of the run (needed for videos:
             ``data_dir`` and difficulty must be the run's to reproduce it).
         video_cells: Only cells for which this returns True get videos.
-        seed: Seeds every bootstrap.
+        seed: Seeds the bootstrap of the report's statistics: the cells'
+            (recomputed from their episodes, :func:`summaries`), the
+            aggregate, the probabilities of improvement (``stats.json`` and
+            their tables) and the figures' intervals.
         title: The page's title.
         progress: Show a progress bar while making videos.
         run: What made the numbers, shown at the top of the page
@@ -584,6 +619,9 @@ def write_report(
         source: The results file the rows were read from, recorded in
             :data:`REPORT_SOURCE` (:func:`reported_run`); None removes an
             earlier one, which would name other rows.
+        table_seed: Seeds the leaderboard table's and the verdicts' intervals,
+            recomputed from the episodes too: the run's seed gives its
+            ``table.md``, digit for digit. None: ``seed``.
 
     Returns:
         The path of ``index.html``.
@@ -605,6 +643,10 @@ def write_report(
     else:  # an earlier report's videos: no longer on the page
         remove_earlier_videos(folder)
     computed = compute(rows, seed=seed)
+    # the leaderboard table and verdicts: recomputed too, with the run's seed
+    same = table_seed is None or table_seed == seed
+    own = [c["summary"] for c in computed["cells"]] if same else summaries(rows, table_seed)
+    rows = restated(rows, own)
     write_text_atomically(
         folder / "stats.json", json.dumps(computed, indent=1, default=json_default)
     )

@@ -16,10 +16,13 @@ from baselines.leaderboard.report import (
     failures_table,
     improvement_table,
     leaderboard_rows,
+    restated,
     run_lines,
     statistics_table,
+    summaries,
     write_report,
 )
+from baselines.leaderboard.tables import markdown_table
 
 
 def _rows(seed: int = 3, n: int = 5) -> list[dict[str, Any]]:
@@ -173,3 +176,34 @@ def test_rows_without_hold_have_no_aggregate_section_nor_figure(tmp_path):
     assert all(f'src="{name}"' in page for name in pngs)
     assert "Across tasks" not in page and "Probability of improvement" not in page
     assert "Across tasks" not in (tmp_path / "tables.md").read_text()
+
+
+def _markdown_lines(table: list[list[str]]) -> list[str]:
+    return ["| " + " | ".join(cells) + " |" for cells in table[1:]]
+
+
+def test_the_report_shows_the_intervals_recomputed_from_the_episodes(tmp_path, no_figures):
+    """A record's stored intervals (older code's) are never printed; --seed moves the statistics.
+
+    ``results/v2_arm``'s stored hold IQM interval (100-128) and lost-track
+    interval (47-61%) resampled the runs as independent; the Cell statistics
+    printed them while ``stats.json`` held the protocol's (81-148, 30-76%).
+    The leaderboard table keeps the run's seed (``table_seed``): its table.md.
+    """
+    rows = _rows()
+    for r in rows:  # a summary of older code: other intervals than summarize draws
+        r["summary"] = dict(r["summary"], iqm_error_ci=[1.0, 2.0], mean_error_ci=[3.0, 4.0],
+                            lost_fraction_ci=[0.0, 1.0])  # fmt: skip
+    write_report(rows, tmp_path, seed=7, table_seed=0, progress=False)
+    text = (tmp_path / "tables.md").read_text()
+    board, cells = text.split("## Cell statistics")
+    fresh = _markdown_lines(statistics_table(restated(rows, summaries(rows, 7))))
+    assert all(line in cells for line in fresh), cells
+    assert "(1-2)" not in text and "(3-4)" not in text and "(0-100%)" not in text
+    assert board.startswith("# Leaderboard\n\n" + markdown_table(restated(rows, summaries(rows))))
+    stats = json.loads((tmp_path / "stats.json").read_text())
+    assert [c["summary"] for c in stats["cells"]] == json.loads(json.dumps(summaries(rows, 7)))
+    page = (tmp_path / "index.html").read_text()
+    cell = statistics_table(restated(rows, summaries(rows, 7)))[1]
+    assert "".join(f"<td>{c}</td>" for c in cell) in page
+    assert _markdown_lines(statistics_table(restated(rows, summaries(rows)))) != fresh  # seeded
