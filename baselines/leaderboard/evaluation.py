@@ -9,7 +9,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from tqdm.auto import tqdm
 
 from baselines.agents.base import tracking_env
@@ -234,6 +234,24 @@ def evaluate(
     return results
 
 
+def run_interval(
+    values: ArrayLike, clusters: Sequence[Any] | None, statistic: Any = np.mean, seed: int = 0
+) -> list[float]:
+    """A cell's 95% interval of a statistic of its runs, as :func:`summarize` draws it.
+
+    Args:
+        values: One value per run.
+        clusters: What the cell's intervals resample whole, one per run
+            (:func:`~baselines.leaderboard.rows.run_clusters`); None: the
+            runs one by one.
+        statistic: ``np.mean``, :func:`~baselines.leaderboard.stats.iqm`...
+        seed: Seed of the resampling.
+    """
+    if clusters is None:  # independent episodes
+        return list(bootstrap_ci(values, statistic, seed=seed))
+    return list(cluster_bootstrap_ci(values, clusters, statistic, seed=seed))
+
+
 def summarize(
     results: Sequence[EpisodeResult | Mapping[str, Any]], seed: int = 0, by_clip: bool = False
 ) -> dict[str, Any]:
@@ -284,9 +302,7 @@ def summarize(
     clusters = run_clusters(eps, by_clip)
 
     def interval(values: NDArray[np.float64], statistic: Any = np.mean) -> list[float]:
-        if clusters is None:  # independent episodes
-            return list(bootstrap_ci(values, statistic, seed=seed))
-        return list(cluster_bootstrap_ci(values, clusters, statistic, seed=seed))
+        return run_interval(values, clusters, statistic, seed)
 
     mean_err = np.array([e["mean_error_mm"] for e in eps], dtype=np.float64)
     final_err = np.array([e["final_error_mm"] for e in eps], dtype=np.float64)

@@ -19,7 +19,8 @@ from numpy.typing import NDArray
 
 from baselines.experiments._plotting import pyplot, save
 from baselines.leaderboard import stats
-from baselines.leaderboard.rows import cell_label
+from baselines.leaderboard.evaluation import run_interval
+from baselines.leaderboard.rows import by_clip, cell_label, episode_clips, run_clusters, seed_matrix
 
 
 def ran(row: dict[str, Any]) -> bool:
@@ -54,8 +55,31 @@ def _errors_matrix(row: dict[str, Any]) -> NDArray[np.float64]:
     return np.array([e["errors_mm"][:length] for e in row["episodes"]], dtype=np.float64)
 
 
+def error_band(
+    row: dict[str, Any], seed: int = 0
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """A cell's mean error at each frame with its 95% band, over the frames every run has.
+
+    The band resamples what the cell's mean error interval does
+    (:func:`~baselines.leaderboard.evaluation.summarize`): a declared list's
+    clips whole, then each episode's agent seeds; else the episodes, then
+    their agent seeds; with one agent seed, the episodes one by one.
+
+    Returns:
+        ``(mean, low, high)`` (:func:`~baselines.leaderboard.stats.mean_band`).
+    """
+    eps, errors = row["episodes"], _errors_matrix(row)
+    clips = by_clip(row)
+    if run_clusters(eps, clips) is None:  # independent episodes
+        return stats.mean_band(errors, seed=seed)
+    episode_seeds, agent_seeds, _ = seed_matrix(eps)
+    run = {(int(e["seed"]), int(e.get("agent_seed", 0))): k for k, e in enumerate(eps)}
+    cube = errors[[[run[(s, a)] for a in agent_seeds] for s in episode_seeds]]
+    return stats.mean_band(cube, seed=seed, clusters=episode_clips(eps) if clips else None)
+
+
 def figure_error_over_frames(rows: Sequence[dict[str, Any]], path: Path, seed: int = 0) -> Path:
-    """Mean error at each frame per cell, with 95% bootstrap bands over episodes."""
+    """Mean error at each frame per cell, with 95% bands (:func:`error_band`)."""
     plt = pyplot()
     tasks = _tasks(rows)
     fig, axes = plt.subplots(1, len(tasks), figsize=(5 * len(tasks), 3.6), squeeze=False)
@@ -63,7 +87,7 @@ def figure_error_over_frames(rows: Sequence[dict[str, Any]], path: Path, seed: i
         # a record kept without its per-frame series (a summary of runs) has no curve
         with_series = (r for r in rows if ran(r) and r["task"] == task and _has_series(r))
         for r in with_series:
-            mean, lo, hi = stats.mean_band(_errors_matrix(r), seed=seed)
+            mean, lo, hi = error_band(r, seed)
             frames = np.arange(mean.size)
             (line,) = ax.plot(frames, mean, lw=1.4, label=cell_label(r))
             ax.fill_between(frames, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
@@ -94,8 +118,20 @@ def figure_survival(rows: Sequence[dict[str, Any]], path: Path) -> Path:
     return save(fig, path)
 
 
+def iqm_interval(row: dict[str, Any], seed: int = 0) -> list[float]:
+    """A cell's IQM interval as its summary draws it (``iqm_error_ci`` of ``summarize``).
+
+    A declared list's clips resampled whole, else an episode's agent seeds
+    together, else the episodes one by one
+    (:func:`~baselines.leaderboard.evaluation.run_interval`).
+    """
+    eps = row["episodes"]
+    values = [e["mean_error_mm"] for e in eps]
+    return run_interval(values, run_clusters(eps, by_clip(row)), stats.iqm, seed)
+
+
 def figure_iqm_per_task(rows: Sequence[dict[str, Any]], path: Path, seed: int = 0) -> Path:
-    """Each cell's IQM error with its 95% interval, one panel per task."""
+    """Each cell's IQM error with its 95% interval (:func:`iqm_interval`), one panel per task."""
     plt = pyplot()
     tasks = _tasks(rows)
     n_cells = max(sum(1 for r in rows if ran(r) and r["task"] == t) for t in tasks)
@@ -104,10 +140,7 @@ def figure_iqm_per_task(rows: Sequence[dict[str, Any]], path: Path, seed: int = 
     for ax, task in zip(axes[0], tasks, strict=True):
         cells = [r for r in rows if ran(r) and r["task"] == task]
         values = [stats.iqm([e["mean_error_mm"] for e in r["episodes"]]) for r in cells]
-        cis = [
-            stats.bootstrap_ci([e["mean_error_mm"] for e in r["episodes"]], stats.iqm, seed=seed)
-            for r in cells
-        ]
+        cis = [iqm_interval(r, seed) for r in cells]
         y = np.arange(len(cells))[::-1]
         err = np.abs(np.array(cis).T - np.array(values))
         ax.errorbar(values, y, xerr=err, fmt="o", capsize=3)

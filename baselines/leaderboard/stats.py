@@ -85,7 +85,8 @@ def _values(where: str, values: Any, name: str = "values", ndim: int = 1) -> Flo
     v = np.asarray(values, dtype=np.float64)
     if values is None or not 1 <= v.ndim <= ndim:
         got = None if values is None else f"shape {v.shape}"
-        raise ValueError(f"{where}: {name} must be 1-D{' or 2-D' * (ndim > 1)}, got {got}")
+        more = {1: "", 2: " or 2-D"}.get(ndim, f" to {ndim}-D")
+        raise ValueError(f"{where}: {name} must be 1-D{more}, got {got}")
     if not np.isfinite(v).all():
         raise ValueError(f"{where}: {name} must be finite, got NaN or infinity")
     return v
@@ -295,27 +296,41 @@ def mean_band(
     confidence: float = 0.95,
     n_resamples: int = N_RESAMPLES,
     seed: int | np.random.Generator = 0,
+    clusters: ArrayLike | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Mean over episodes at every frame, with a percentile bootstrap band.
 
+    ``(episodes, frames)`` errors without ``clusters``: episodes are resampled
+    one by one, the frames of one episode together. Otherwise the band
+    resamples what :func:`two_level_bootstrap` does: clusters (clips) whole
+    where given, else episodes, then each drawn episode's agent seeds; a
+    resample's mean at a frame is over every (episode, seed) it drew.
+
     Args:
-        errors: ``(episodes, frames)`` errors; episodes are resampled, the
-            frames of one episode stay together.
+        errors: ``(episodes, frames)`` errors, or ``(episodes, agent seeds,
+            frames)``.
         confidence: Confidence level.
         n_resamples: Bootstrap resamples.
         seed: Seed or generator.
+        clusters: ``(episodes,)`` each episode's cluster (its clip id), or None.
 
     Returns:
         ``(mean, low, high)``, each ``(frames,)``.
 
     Raises:
-        ValueError: If ``errors`` is not a finite 2-D array, or another argument is invalid.
+        ValueError: If ``errors`` is not a finite 2-D or 3-D array, ``clusters``
+            does not give one per episode, or another argument is invalid.
     """
-    _check("mean_band", confidence, n_resamples, seed)
-    e = _values("mean_band", errors, "errors", ndim=2)
-    if e.ndim != 2 or e.shape[0] == 0:
-        raise ValueError(f"mean_band: errors must be (episodes, frames), got shape {e.shape}")
-    mean = e.mean(axis=0)
+    where = "mean_band"
+    _check(where, confidence, n_resamples, seed)
+    e = _values(where, errors, "errors", ndim=3)
+    if e.ndim == 1 or 0 in e.shape[:-1]:
+        raise ValueError(f"{where}: errors must be (episodes, frames) or (episodes, seeds, "
+                         f"frames), got shape {e.shape}")  # fmt: skip
+    mean = e.reshape(-1, e.shape[-1]).mean(axis=0)
+    if e.ndim == 3 or clusters is not None:
+        return mean, *_two_level_band(e if e.ndim == 3 else e[:, None], clusters,
+                                      n_resamples, confidence, seed)  # fmt: skip
     if e.shape[0] == 1:
         return mean, mean.copy(), mean.copy()
     res = stats.bootstrap(
@@ -323,6 +338,32 @@ def mean_band(
         confidence_level=confidence, method="percentile", rng=np.random.default_rng(seed),
     )  # fmt: skip
     return mean, np.asarray(res.confidence_interval.low), np.asarray(res.confidence_interval.high)
+
+
+def _two_level_band(
+    e: FloatArray,
+    clusters: ArrayLike | None,
+    n_resamples: int,
+    confidence: float,
+    seed: int | np.random.Generator,
+) -> tuple[FloatArray, FloatArray]:
+    """:func:`mean_band`'s band of ``(episodes, seeds, frames)`` errors, two stages."""
+    n_episodes, n_seeds, n_frames = e.shape
+    given = np.arange(n_episodes) if clusters is None else clusters
+    members, present = _cluster_members("mean_band", given, n_episodes)
+    rng = np.random.default_rng(seed)
+    episodes, taken = _draw_clusters(members, present, n_resamples, rng)
+    seeds = rng.integers(n_seeds, size=episodes.shape + (n_seeds,))
+    # how many times each resample drew each (episode, seed): a weighted mean per frame
+    runs = n_episodes * n_seeds
+    resample = np.arange(n_resamples)[:, None, None, None]
+    drawn = resample * runs + episodes[..., None] * n_seeds + seeds
+    counts = np.bincount(drawn[np.broadcast_to(taken[..., None], seeds.shape)],
+                         minlength=n_resamples * runs).reshape(n_resamples, runs)  # fmt: skip
+    theta = counts @ e.reshape(-1, n_frames) / counts.sum(axis=1, keepdims=True)
+    tail = 50.0 * (1.0 - confidence)
+    low, high = np.percentile(theta, [tail, 100.0 - tail], axis=0)
+    return low, high
 
 
 def probability_of_improvement(

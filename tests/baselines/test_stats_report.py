@@ -163,6 +163,43 @@ def test_mean_band_is_the_per_frame_bootstrap():
     np.testing.assert_allclose(lo, ref.confidence_interval.low, rtol=1e-12)
 
 
+def _declared_row(seeds: int) -> dict[str, Any]:
+    """A declared list's cell: 7 windows of 3 clips, each run with ``seeds`` agent seeds."""
+    rng = np.random.default_rng(4)
+    eps = []
+    for s, clip in enumerate("aaabbcc"):
+        for a in range(seeds):
+            e = _episode(s, np.cumsum(rng.gamma(2.0, 9.0 + 9 * (clip == "a"), size=6)) + 30)
+            eps.append({**e, "clip_id": f"cmu/{clip}", **({"agent_seed": a} if seeds > 1 else {})})
+    return {"task": "ArmTrack-v2", "agent": "pf-cv", "particles": 30, "episodes": eps,
+            "summary": summarize(eps, by_clip=True)}  # fmt: skip
+
+
+@pytest.mark.parametrize("seeds", [1, 3])
+def test_the_figures_resample_what_the_cells_intervals_do(seeds):
+    """A declared cell's band and IQM interval resample its clips whole, then agent seeds.
+
+    The report's figures resampled the runs one by one: on ``results/v2_arm``
+    pf-cv@300's IQM interval read 40.5-46.6 where its summary's is 37.2-51.9.
+    """
+    from baselines.leaderboard.figures import _errors_matrix, error_band, iqm_interval
+
+    row = _declared_row(seeds)
+    eps, clips = row["episodes"], [f"cmu/{c}" for c in "aaabbcc"]
+    assert iqm_interval(row, 2) == summarize(eps, seed=2, by_clip=True)["iqm_error_ci"]
+    mean, lo, hi = error_band(row, 2)
+    values = np.array([e["errors_mm"] for e in eps]).reshape(7, seeds, 6)
+    for frame in range(6):
+        if seeds > 1:
+            ci, _ = stats.two_level_bootstrap(values[..., frame], seed=2, clusters=clips)
+        else:
+            ci = stats.cluster_bootstrap_ci(values[:, 0, frame], clips, seed=2)
+        assert (lo[frame], hi[frame]) == pytest.approx(ci, rel=1e-12), frame
+    plain = stats.mean_band(_errors_matrix(row), seed=2)  # the runs one by one: narrower
+    assert np.mean(hi - lo) > np.mean(plain[2] - plain[1])
+    np.testing.assert_allclose(mean, plain[0])
+
+
 _V = np.arange(8.0)
 _XY = [np.arange(3.0)], [np.arange(3.0) + 1]
 
