@@ -43,7 +43,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "is better), its 95% interval (the episodes, or the clips of a declared list, "
         "resampled together, then each cell's agent seeds within them: the interval of "
         "x hold with the second cell in hold's place), and the verdict from the "
-        "interval's bounds. The cells may come from several saved leaderboards that ran "
+        "interval's bounds; one episode (or clip) of one agent seed has no interval, and "
+        "no verdict. The cells may come from several saved leaderboards that ran "
         "the same episodes.",
     )
     rp.add_argument(
@@ -65,7 +66,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _cmd_ratio(args: argparse.Namespace) -> int:
     from baselines.leaderboard.report import load_rows, results_file
     from baselines.leaderboard.rows import cell_label
-    from baselines.leaderboard.tables import compare_to_hold, hold_ratio_interval, ratio_verdict
+    from baselines.leaderboard.tables import (
+        compare_to_hold,
+        judged_ratio,
+        no_interval,
+        ratio_verdict,
+    )
 
     if args.cells[0] == args.cells[1]:
         raise CommandError(f"--cells: give two cells, got {args.cells[0]} twice")
@@ -112,21 +118,25 @@ def _cmd_ratio(args: argparse.Namespace) -> int:
             f"--cells: {args.cells[0]} ({path_a}) and {args.cells[1]} ({path_b}) ran on other "
             f"settings or data ({ran_a} against {ran_b}): their ratio compares two tasks"
         )
+    a, b = args.cells
     with refused_as(CommandError, ValueError, "--cells: "):
         ratio, _, _ = compare_to_hold(first, second)
-        low, high = hold_ratio_interval(first, second)
-    a, b = args.cells
-    verdict = ratio_verdict(low, high, a, b)
+        # one episode (or clip) of one agent seed: no interval, so no verdict
+        judged, bounds = judged_ratio(first, second, a, b)
     means = (first["summary"]["mean_error_mm"], second["summary"]["mean_error_mm"])
     if args.json:
+        verdict = (
+            ratio_verdict(*bounds, a, b) if bounds is not None
+            else f"no verdict ({no_interval(first)}: no interval)"
+        )  # fmt: skip
         print_json(
-            {"task": args.task, "cells": [a, b], "mean_error_mm": list(means),
-             "ratio": ratio, "interval": [low, high], "verdict": verdict}
+            {"task": args.task, "cells": [a, b], "mean_error_mm": list(means), "ratio": ratio,
+             "interval": None if bounds is None else list(bounds), "verdict": verdict}
         )  # fmt: skip
         return 0
     print(
         f"{args.task}: {b}'s mean error over {a}'s is {ratio:.2f}x ({means[1]:.0f} vs "
-        f"{means[0]:.0f} mm; 95% interval {low:.2f}-{high:.2f}): {verdict}"
+        f"{means[0]:.0f} mm; {judged}"
     )
     return 0
 

@@ -94,6 +94,44 @@ def hold_ratio_interval(
     return ratio
 
 
+def no_interval(row: dict[str, Any]) -> str | None:
+    """Why resampling cannot vary a row's intervals, or None where it can.
+
+    Its intervals (and :func:`hold_ratio_interval`) resample a declared
+    list's clips, else its episodes, then its agent seeds within each: one
+    of them with one agent seed gives every resample the same value, a
+    "interval" of zero width that can decide no verdict.
+
+    Returns:
+        ``"one clip"`` or ``"one episode"``, or None.
+    """
+    episodes, agent_seeds, _ = seed_matrix(row["episodes"])
+    if len(agent_seeds) > 1:
+        return None
+    if by_clip(row):
+        return "one clip" if len(set(episode_clips(row["episodes"]))) < 2 else None
+    return "one episode" if len(episodes) < 2 else None
+
+
+def judged_ratio(
+    row: dict[str, Any], reference: dict[str, Any], first: str, second: str
+) -> tuple[str, tuple[float, float] | None]:
+    """The interval of ``reference``'s mean error over ``row``'s and its verdict, as lines say them.
+
+    Returns:
+        ``("95% interval LO-HI): VERDICT", (low, high))`` (:func:`hold_ratio_interval`,
+        :func:`ratio_verdict` with ``first`` for ``row`` and ``second`` for
+        ``reference``), or where resampling cannot vary (:func:`no_interval`)
+        ``("one episode: no interval): no verdict", None)``.
+    """
+    missing = no_interval(row)
+    if missing is not None:
+        return f"{missing}: no interval): no verdict", None
+    low, high = hold_ratio_interval(row, reference)
+    verdict = ratio_verdict(low, high, first, second)
+    return f"95% interval {low:.2f}-{high:.2f}): {verdict}", (low, high)
+
+
 def _floor_of(rows: Sequence[dict[str, Any]], task: str) -> dict[str, Any] | None:
     for r in rows:
         if r["task"] == task and r["agent"] == FLOOR and "summary" in r:
@@ -195,20 +233,26 @@ def seeds_verdict(best: dict[str, Any], hold: dict[str, Any], particles: int) ->
 
     Valid only where the lower bound of the 95% interval of ``best``'s ``x
     hold`` (:func:`hold_ratio_interval`) is at least :data:`VALID_RATIO`: a
-    point ratio above it whose interval reaches below is NOT valid.
+    point ratio above it whose interval reaches below is NOT valid. Where
+    ``best``'s runs give no interval (:func:`no_interval`), no verdict.
     """
     ratio, _, _ = compare_to_hold(best, hold)
-    low, high = hold_ratio_interval(best, hold)
-    verdict = (
-        "valid"
-        if low >= VALID_RATIO
-        else f"NOT valid (interval's lower bound below {VALID_RATIO:g}x)"
-    )
+    missing = no_interval(best)
+    if missing is not None:
+        judged = f"{missing}: no interval): no verdict"
+    else:
+        low, high = hold_ratio_interval(best, hold)
+        verdict = (
+            "valid"
+            if low >= VALID_RATIO
+            else f"NOT valid (interval's lower bound below {VALID_RATIO:g}x)"
+        )
+        judged = f"x hold 95% interval {low:.2f}-{high:.2f}): {verdict}"
     return (
         f"best reference filter at {particles:,} particles is {agent_label(best['agent'])}, "
         f"{ratio_text(ratio)} in mean error over {seeds_of(best)} agent seeds "
         f"({best['summary']['mean_error_mm']:.0f} vs {hold['summary']['mean_error_mm']:.0f} mm; "
-        f"x hold 95% interval {low:.2f}-{high:.2f}): {verdict}"
+        f"{judged}"
     )
 
 
@@ -236,7 +280,8 @@ def classic_line(filters: Sequence[dict[str, Any]], fewest: int) -> str | None:
     velocity also ran at ``fewest``, the same against it, and whether the
     classic result is shown: the tree better than constant velocity at
     ``fewest`` (lower bound above 1) and not worse than it at ten times as
-    many (upper bound at least 1).
+    many (upper bound at least 1). Where the tree's runs give no interval
+    (:func:`no_interval`), the line says so and judges nothing.
     """
     learned, plain, factor = CLASSIC
     tree = next((r for r in filters if r["agent"] == learned and r["particles"] == fewest), None)
@@ -245,24 +290,25 @@ def classic_line(filters: Sequence[dict[str, Any]], fewest: int) -> str | None:
     if tree is None or cv is None:
         return None
     ratio, _, _ = compare_to_hold(tree, cv)
-    low, high = hold_ratio_interval(tree, cv)
+    judged, bounds = judged_ratio(tree, cv, learned, plain)
     line = (
         f"{learned} at {fewest:,} particles against {plain} at {many:,}: {plain}'s mean "
         f"error is {ratio:.2f}x {learned}'s ({cv['summary']['mean_error_mm']:.0f} vs "
-        f"{tree['summary']['mean_error_mm']:.0f} mm; 95% interval {low:.2f}-{high:.2f}): "
-        f"{ratio_verdict(low, high, learned, plain)}"
+        f"{tree['summary']['mean_error_mm']:.0f} mm; {judged}"
     )
     few = next((r for r in filters if r["agent"] == plain and r["particles"] == fewest), None)
     if few is None:
         return line
     ratio2, _, _ = compare_to_hold(tree, few)
-    low2, high2 = hold_ratio_interval(tree, few)
-    shown = "shown" if low2 > 1.0 and high >= 1.0 else "not shown"
+    judged2, bounds2 = judged_ratio(tree, few, learned, plain)
+    if bounds is None or bounds2 is None:
+        shown = "not judged (no interval)"
+    else:
+        shown = "shown" if bounds2[0] > 1.0 and bounds[1] >= 1.0 else "not shown"
     return (
         f"{line}; against {plain} at {fewest:,}: {ratio2:.2f}x "
-        f"({few['summary']['mean_error_mm']:.0f} mm; 95% interval {low2:.2f}-{high2:.2f}): "
-        f"{ratio_verdict(low2, high2, learned, plain)}; the classic result ({learned} better "
-        f"than {plain} at {fewest:,} and no worse than at {many:,}): {shown}"
+        f"({few['summary']['mean_error_mm']:.0f} mm; {judged2}; the classic result ({learned} "
+        f"better than {plain} at {fewest:,} and no worse than at {many:,}): {shown}"
     )
 
 

@@ -416,3 +416,39 @@ def test_the_cli_runs_several_agent_seeds(capsys):
     out = capsys.readouterr().out
     assert "| seed spread mm |" in out and SEEDS_LEGEND in out
     assert "best reference filter at 20 particles is pf-cv" in out
+
+
+def test_one_episode_or_one_clip_of_one_seed_has_no_interval_and_no_verdict():
+    """Resampling one episode (or a declared list's one clip) of one agent seed cannot vary.
+
+    ``leaderboard --episodes 1`` printed "95% interval 0.20-0.20): pf-cv better (the
+    interval's upper bound below 1)": a verdict from an interval of zero width.
+    """
+    rows = [_hold(1, 1), _row("pf-tree", 30, [[245.0]], several=False),
+            _row("pf-cv", 300, [[49.0]], several=False)]  # fmt: skip
+    assert validity_lines(rows)[1].endswith(
+        "pf-cv's mean error is 0.20x pf-tree's (49 vs 245 mm; one episode: no interval): no verdict"
+    )
+    rows.append(_row("pf-cv", 30, [[25.0]], several=False))
+    assert validity_lines(rows)[1].endswith(
+        "; against pf-cv at 30: 0.10x (25 mm; one episode: no interval): no verdict; the "
+        "classic result (pf-tree better than pf-cv at 30 and no worse than at 300): not "
+        "judged (no interval)"
+    )
+    # three windows of one clip, resampled together: no interval either
+    clip = [_hold(3, 1), _row("pf-tree", 30, [[100.0], [120.0], [90.0]], several=False),
+            _row("pf-cv", 300, [[60.0], [50.0], [80.0]], several=False)]  # fmt: skip
+    for r in clip:
+        r["summary"]["intervals"] = "clip"
+    assert "(63 vs 103 mm; one clip: no interval): no verdict" in validity_lines(clip)[1]
+    # the validity line of several seeds whose best reference ran one episode of one seed
+    mixed = [_hold(1, 1), _row("pf-tree", 30, [[50.0]], several=False),
+             _row("apf-mix", 30, [[150.0, 160.0]])]  # fmt: skip
+    assert validity_lines(mixed)[0].endswith("(50 vs 200 mm; one episode: no interval): no verdict")
+    # one episode of two agent seeds: the seeds are resampled, an interval and a verdict
+    seeded = [
+        _hold(1, 2),
+        _row("pf-tree", 30, [[100.0, 140.0]]),
+        _row("pf-cv", 300, [[60.0, 65.0]]),
+    ]
+    assert "95% interval " in validity_lines(seeded)[1]

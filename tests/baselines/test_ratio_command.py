@@ -108,3 +108,30 @@ def test_cells_that_ran_at_other_settings_are_refused(
     assert main(["ratio", "--task", "ArmTrack-v2", "--cells", "pf-cv@3000", "pf-cv@3000",
                  str(arm)]) == 1  # fmt: skip
     assert "got pf-cv@3000 twice" in capsys.readouterr().err
+
+
+def test_one_episode_gives_no_interval_and_no_verdict(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A cell of one episode and one agent seed: no interval, so no verdict from its bounds.
+
+    It printed "1.00x (...; 95% interval 1.00-1.00): pf-cv@30 better".
+    """
+    import gzip
+
+    from baselines.leaderboard.evaluation import summarize
+
+    doc = json.loads(gzip.decompress((RESULTS / "ci_small" / "results.json.gz").read_bytes()))
+    for row in doc["rows"]:
+        row["episodes"] = row["episodes"][:1]
+        row["summary"] = summarize(row["episodes"])
+    (tmp_path / "one.json").write_text(json.dumps(doc))
+    argv = ["ratio", "--task", "ArmTrack-v2", "--cells", "pf-tree@100", "pf-cv@100",
+            str(tmp_path / "one.json")]  # fmt: skip
+    assert main(argv) == 0
+    out = capsys.readouterr().out.strip()
+    assert out.endswith(" mm; one episode: no interval): no verdict"), out
+    assert main([*argv, "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["interval"] is None
+    assert result["verdict"] == "no verdict (one episode: no interval)"
