@@ -70,6 +70,24 @@ def seeds_of(row: dict[str, Any]) -> int:
     return int(row.get("summary", {}).get("agent_seeds", 1))
 
 
+def same_episodes(row: dict[str, Any], reference: dict[str, Any]) -> None:
+    """Refuse a reference that did not run exactly the row's episode seeds.
+
+    A ratio of means over other episodes, or wins over a few of them, pairs
+    nothing (a row that ran 4 of hold's 8 episodes read 1.10x and "2/4").
+
+    Raises:
+        ValueError: Naming the task, both rows and their episode seeds.
+    """
+    seeds = sorted({int(e["seed"]) for e in row["episodes"]})
+    held = sorted({int(e["seed"]) for e in reference["episodes"]})
+    if held != seeds:
+        raise ValueError(
+            f"{row['task']}: {cell_label(reference)}: expected the episode seeds {seeds} of "
+            f"{cell_label(row)}, got {held}"
+        )
+
+
 def hold_ratio_interval(
     row: dict[str, Any], hold: dict[str, Any], seed: int = INTERVAL_SEED
 ) -> tuple[float, float]:
@@ -81,13 +99,9 @@ def hold_ratio_interval(
     Raises:
         ValueError: If ``hold`` did not run the row's episode seeds.
     """
-    seeds, _, values = seed_matrix(row["episodes"])
-    held, _, reference = seed_matrix(hold["episodes"])
-    if held != seeds:
-        raise ValueError(
-            f"{cell_label(hold)}: expected the episode seeds {seeds} of {cell_label(row)}, "
-            f"got {held}"
-        )
+    same_episodes(row, hold)
+    _, _, values = seed_matrix(row["episodes"])
+    _, _, reference = seed_matrix(hold["episodes"])
     clusters = episode_clips(row["episodes"]) if by_clip(row) else None  # a declared list
     _, ratio = two_level_bootstrap(values, reference, seed=seed, clusters=clusters)
     assert ratio is not None  # a reference was given
@@ -149,7 +163,11 @@ def compare_to_hold(row: dict[str, Any], hold: dict[str, Any]) -> tuple[float, i
 
     Returns:
         ``(ratio, wins, paired)``.
+
+    Raises:
+        ValueError: If ``hold`` did not run the row's episode seeds (:func:`same_episodes`).
     """
+    same_episodes(row, hold)
     ratio = hold["summary"]["mean_error_mm"] / row["summary"]["mean_error_mm"]
     by_seed: dict[Any, list[float]] = {}
     for e in hold["episodes"]:
@@ -187,6 +205,9 @@ def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
     has no interval. Where a row has several agent seeds, a column after the
     mean error gives the spread of the seeds' means and ``x hold`` its 95%
     interval.
+
+    Raises:
+        ValueError: If a row did not run its task's ``hold`` episodes (:func:`same_episodes`).
     """
     several = any(seeds_of(r) > 1 for r in rows)
     spread_head, spread_rule = ("| seed spread mm ", "---|") if several else ("", "")
@@ -367,6 +388,10 @@ def validity_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
     (:func:`classic_line`). Where :data:`FOLLOW` ran at that count too, a line
     compares the best other filter with it: what the motion prior adds to
     following the body.
+
+    Raises:
+        ValueError: If a compared row did not run its reference's episodes
+            (:func:`same_episodes`).
     """
     out = []
     for task in dict.fromkeys(r["task"] for r in rows):

@@ -452,3 +452,24 @@ def test_one_episode_or_one_clip_of_one_seed_has_no_interval_and_no_verdict():
         _row("pf-cv", 300, [[60.0, 65.0]]),
     ]
     assert "95% interval " in validity_lines(seeded)[1]
+
+
+def test_a_row_and_hold_of_other_episodes_are_refused_not_paired(tmp_path, capsys):
+    """One agent seed: ``x hold`` over 4 of hold's 8 episodes divided unpaired means.
+
+    A record keeping 4 of pf-tree's 8 episodes read "1.10 | 2/4"; through
+    markdown_table and validity_lines, 2.78x and "valid" where the paired ratio is 1.11.
+    """
+    errors = np.array([[100.0], [300.0], [100.0], [300.0], [400.0], [500.0], [600.0], [700.0]])
+    hold = _row("hold", 0, errors, several=False)
+    tree = _row("pf-tree", 100, errors[:4] * 0.9, several=False)
+    message = r"ArmTrack-v2: hold: expected the episode seeds \[0, 1, 2, 3\] of pf-tree@100, got "
+    for build in (markdown_table, validity_lines):
+        with pytest.raises(ValueError, match=message):
+            build([hold, tree])
+    path = tmp_path / "results.json"
+    path.write_text(json.dumps({"seed": 0, "rows": [hold, tree]}))
+    assert main(["report", str(path), "--out", str(tmp_path / "report")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("humotion-gym report: error: ArmTrack-v2: hold: expected the episode")
+    assert len(err.splitlines()) == 1
