@@ -62,8 +62,13 @@ from baselines.leaderboard.tables import (
     validity_lines,
 )
 from baselines.leaderboard.videos import remove_earlier_videos, write_videos
+from humotion_gym.checks import is_count, is_real
 from humotion_gym.files import json_default, read_json, write_text_atomically
 
+#: The version of ``results.json``'s layout (docs/leaderboard.md describes it),
+#: which :mod:`baselines.leaderboard.results` writes and :func:`load_rows` reads;
+#: raised whenever a key is renamed, removed or changes meaning.
+SCHEMA_VERSION = 1
 #: The reference each task's scores are normalised by.
 REFERENCE = "hold"
 #: The report's own files (:func:`write_report`).
@@ -159,6 +164,12 @@ def leaderboard_rows(data: Any, path: str | Path) -> tuple[list[dict[str, Any]],
     if isinstance(data, dict):
         if not isinstance(data.get("rows"), list):
             raise ValueError(f"{path}: expected a list of rows or an object with a 'rows' list")
+        version = data.get("schema_version", SCHEMA_VERSION)
+        if version != SCHEMA_VERSION:
+            raise ValueError(
+                f"{path}: schema_version {version!r}: expected {SCHEMA_VERSION}, the results "
+                "this code reads"
+            )
         settings = {k: v for k, v in data.items() if k != "rows"}
         data = data["rows"]
     if not isinstance(data, list) or not all(
@@ -166,30 +177,59 @@ def leaderboard_rows(data: Any, path: str | Path) -> tuple[list[dict[str, Any]],
     ):
         raise ValueError(f"{path}: expected rows with task, agent and particles")
     for k, row in enumerate(data):
-        if "summary" in row and not _ran_row_ok(row):
-            raise ValueError(
-                f"{path}: row {k} ({row['task']} {row['agent']}) ran but lacks its numbers "
-                "(expected a summary with mean_error_mm and episodes with seed and "
-                "mean_error_mm)"
-            )
+        problem = _ran_row_problem(row) if "summary" in row else None
+        if problem is not None:
+            raise ValueError(f"{path}: row {k} ({row['task']} {row['agent']}) ran but {problem}")
     return data, settings
 
 
-def _ran_row_ok(row: dict[str, Any]) -> bool:
-    """Whether a row that ran holds the numbers the tables read."""
-    number = (int, float)
+#: The numbers of an episode the report recomputes its statistics from.
+_EPISODE_NUMBERS = ("mean_error_mm", "final_error_mm", "ms_per_frame", "mean_reward")
+
+
+def _ran_row_problem(row: dict[str, Any]) -> str | None:
+    """What is wrong with the numbers the report reads of a row that ran, or None.
+
+    The report recomputes every statistic from the episodes (:func:`summaries`);
+    of the stored summary it reads the mean (``humotion-gym ratio``) and
+    whether the intervals resample clips.
+    """
     summary, episodes = row.get("summary"), row.get("episodes")
-    return (
-        isinstance(summary, dict)
-        and isinstance(summary.get("mean_error_mm"), number)
-        and isinstance(episodes, list)
-        and len(episodes) > 0
-        and all(
-            isinstance(e, dict) and isinstance(e.get("seed"), int)
-            and isinstance(e.get("mean_error_mm"), number)
-            for e in episodes
-        )
-    )  # fmt: skip
+    if not isinstance(summary, dict) or not is_real(summary.get("mean_error_mm")):
+        return "lacks its numbers (expected a summary with mean_error_mm)"
+    if not isinstance(episodes, list) or not episodes:
+        return "lacks its numbers (expected a list of its episodes)"
+    clips = by_clip(row)
+    for j, e in enumerate(episodes):
+        problem = _episode_problem(e, clips) if isinstance(e, dict) else "is not an object"
+        if problem is not None:
+            return f"episode {j} {problem}"
+    return None
+
+
+def _episode_problem(e: dict[str, Any], clips: bool) -> str | None:
+    """What an episode of a row that ran lacks or holds out of range, or None."""
+    for key in ("seed", "agent_seed"):
+        if (key == "seed" or key in e) and not is_count(e.get(key), least=0):
+            return f"has {key} {e.get(key)!r}, expected an integer >= 0"
+    for key in _EPISODE_NUMBERS:
+        if not (is_real(e.get(key)) and np.isfinite(e[key])):
+            return f"has {key} {e.get(key)!r}, expected a finite number"
+    aligned = e.get("mean_aligned_error_mm")
+    if aligned is not None and not (is_real(aligned) and np.isfinite(aligned)):
+        return f"has mean_aligned_error_mm {aligned!r}, expected None or a finite number"
+    series = e.get("errors_mm")
+    if series is not None and not (
+        isinstance(series, list) and all(is_real(v) and np.isfinite(v) for v in series)
+    ):
+        return "has errors_mm that are not a list of finite numbers"
+    frames = len(series) if series else None
+    lost = e.get("lost_frame")
+    if lost is not None and not (is_count(lost, least=0) and (frames is None or lost < frames)):
+        return f"has lost_frame {lost!r}, expected None or a frame in [0, {frames or 'its length'})"
+    if clips and not isinstance(e.get("clip_id"), str):
+        return "lacks its clip_id (its row's intervals resample clips)"
+    return None
 
 
 # ------------------------------------------------------------------ tables

@@ -20,14 +20,11 @@ from typing import Any
 
 from baselines.leaderboard.figures import figures_available
 from baselines.leaderboard.platform_info import run_platform
-from baselines.leaderboard.report import REPORT_FILES, write_report
+from baselines.leaderboard.report import REPORT_FILES, SCHEMA_VERSION, write_report
 from baselines.leaderboard.tables import markdown_table, validity_lines
 from humotion_gym.files import json_default, read_json, write_json_gz, write_text_atomically
 from humotion_gym.mocap.library import configured_data_dirs, package_version
 
-#: The version of ``results.json``'s layout (docs/leaderboard.md describes it);
-#: raised whenever a key is renamed, removed or changes meaning.
-SCHEMA_VERSION = 1
 #: The files of a results folder.
 EPISODES_FILE = "episodes.jsonl"
 RUN_FILE = "run.json"

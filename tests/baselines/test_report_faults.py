@@ -107,7 +107,7 @@ def test_a_row_that_ran_without_its_numbers_is_refused(change):
     rows = _rows()
     assert leaderboard_rows(rows, "x.json")[0] == rows  # as made: taken
     change(rows[2])
-    with pytest.raises(ValueError, match=r"x.json: row 2 \(BodyTrack-v2 hold\) ran but lacks"):
+    with pytest.raises(ValueError, match=r"x.json: row 2 \(BodyTrack-v2 hold\) ran but "):
         leaderboard_rows(rows, "x.json")
 
 
@@ -207,3 +207,47 @@ def test_the_report_shows_the_intervals_recomputed_from_the_episodes(tmp_path, n
     cell = statistics_table(restated(rows, summaries(rows, 7)))[1]
     assert "".join(f"<td>{c}</td>" for c in cell) in page
     assert _markdown_lines(statistics_table(restated(rows, summaries(rows)))) != fresh  # seeded
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (lambda e: e.update(mean_error_mm=float("nan")),
+         "episode 1 has mean_error_mm nan, expected a finite number"),
+        (lambda e: e.update(lost_frame=8), r"episode 1 has lost_frame 8, expected None or a frame "
+         r"in \[0, 8\)"),
+        (lambda e: e.pop("final_error_mm"), "episode 1 has final_error_mm None, expected a finite"),
+        (lambda e: e.update(agent_seed=-1), "episode 1 has agent_seed -1, expected an integer"),
+        (lambda e: e.update(errors_mm=[1.0, None]), "episode 1 has errors_mm that are not a list"),
+    ],
+)  # fmt: skip
+def test_an_episode_the_statistics_cannot_read_is_refused_naming_it(change, message):
+    """A NaN mean said "iqm: values must be finite", a lost frame out of range "survival:
+    lost_frames must be ...", a missing number raised KeyError: none named the file or row."""
+    rows = _rows()
+    change(rows[1]["episodes"][1])
+    with pytest.raises(ValueError, match=r"x.json: row 1 \(ArmTrack-v2 pf-cv\) ran but " + message):
+        leaderboard_rows(rows, "x.json")
+
+
+def test_a_stored_summary_lacking_a_key_reports_and_another_schema_is_refused(
+    tmp_path, capsys, no_figures
+):
+    """The report recomputes the summaries: a stored one without iqm_error_mm (or
+    mean_error_ci, lost_fraction, ms_per_frame) raised KeyError; now it reports.
+    A results file of another schema_version is refused in one line naming it."""
+    from baselines.cli import main
+
+    rows = _rows()
+    for key in ("iqm_error_mm", "mean_error_ci", "lost_fraction", "ms_per_frame"):
+        del rows[1]["summary"][key]
+    path = tmp_path / "results.json"
+    path.write_text(json.dumps({"schema_version": 1, "seed": 0, "rows": rows}))
+    assert main(["report", str(path), "--out", str(tmp_path / "a")]) == 0
+    assert "| ArmTrack-v2 | pf-cv | 100 |" in (tmp_path / "a" / "tables.md").read_text()
+    path.write_text(json.dumps({"schema_version": 2, "seed": 0, "rows": rows}))
+    capsys.readouterr()
+    assert main(["report", str(path), "--out", str(tmp_path / "b")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == (f"humotion-gym report: error: {path}: schema_version 2: expected 1, the "
+                   "results this code reads")  # fmt: skip
