@@ -570,7 +570,10 @@ def test_cache_info_counts_no_file_outside_the_cache(tmp_path: Path, monkeypatch
 def test_report_takes_the_runs_seed_data_and_video_agents(
     walk_bvh: Path, tmp_path: Path, monkeypatch, capsys
 ) -> None:
-    """The bootstrap seed is the run's unless --seed; --data-dir and --video-agents reach it."""
+    """The bootstrap seed is the run's unless --seed; --data-dir and --video-agents reach it.
+
+    The leaderboard table's intervals keep the run's seed whatever --seed (its table.md).
+    """
     import gzip
 
     import baselines.leaderboard.report as report
@@ -583,8 +586,9 @@ def test_report_takes_the_runs_seed_data_and_video_agents(
     argv = ["report", str(run), "--out", str(tmp_path / "rep")]
     assert main(argv) == 0
     assert write.kwargs["seed"] == 5 and write.kwargs["video_cells"] is None
+    assert write.kwargs["table_seed"] == 5
     assert main([*argv, "--seed", "2"]) == 0
-    assert write.kwargs["seed"] == 2
+    assert write.kwargs["seed"] == 2 and write.kwargs["table_seed"] == 5
     more = ["--videos", "--video-agents", "pf-cv", "--data-dir", str(walk_bvh.parent)]
     assert main([*argv, *more]) == 0
     assert write.kwargs["env_kwargs"]["data_dir"] == [str(walk_bvh.parent)]
