@@ -142,8 +142,8 @@ def judged_ratio(
     if missing is not None:
         return f"{missing}: no interval): no verdict", None
     low, high = hold_ratio_interval(row, reference)
-    verdict = ratio_verdict(low, high, first, second)
-    return f"95% interval {low:.2f}-{high:.2f}): {verdict}", (low, high)
+    bounds = f"{judged_text(low, 1.0)}-{judged_text(high, 1.0)}"
+    return f"95% interval {bounds}): {ratio_verdict(low, high, first, second)}", (low, high)
 
 
 def _floor_of(rows: Sequence[dict[str, Any]], task: str) -> dict[str, Any] | None:
@@ -186,15 +186,30 @@ def interval(pair: Sequence[float], episodes: int, digits: int = 0) -> str:
     return f" ({pair[0]:.{digits}f}-{pair[1]:.{digits}f})"
 
 
-def ratio_text(ratio: float, reference: str = FLOOR) -> str:
+def judged_text(value: float, *thresholds: float) -> str:
+    """``value`` to 2 decimals, or to as many more as show it is not a threshold it rounds to.
+
+    A verdict compares the value itself with its threshold: 1.9990 is below
+    :data:`VALID_RATIO` and prints ``1.999``, never ``2.00`` beside "below 2x".
+    """
+    for digits in range(2, 16):
+        text = f"{value:.{digits}f}"
+        if not any(value != t and text == f"{t:.{digits}f}" for t in thresholds):
+            return text
+    return repr(value)
+
+
+def ratio_text(ratio: float, reference: str = FLOOR, thresholds: Sequence[float] = ()) -> str:
     """A ratio of the reference's mean error to a row's, said as what it is.
 
     ``2.10x better than hold``; below 1, ``0.70x hold: worse than hold`` (the
-    row's error is 1/0.70 of the reference's).
+    row's error is 1/0.70 of the reference's). Printed to 2 decimals, more
+    where that would show 1 or one of ``thresholds`` it is not (:func:`judged_text`).
     """
+    text = judged_text(ratio, 1.0, *thresholds)
     if ratio >= 1.0:
-        return f"{ratio:.2f}x better than {reference}"
-    return f"{ratio:.2f}x {reference}: worse than {reference}"
+        return f"{text}x better than {reference}"
+    return f"{text}x {reference}: worse than {reference}"
 
 
 def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
@@ -268,10 +283,12 @@ def seeds_verdict(best: dict[str, Any], hold: dict[str, Any], particles: int) ->
             if low >= VALID_RATIO
             else f"NOT valid (interval's lower bound below {VALID_RATIO:g}x)"
         )
-        judged = f"x hold 95% interval {low:.2f}-{high:.2f}): {verdict}"
+        bounds = f"{judged_text(low, VALID_RATIO)}-{judged_text(high, VALID_RATIO)}"
+        judged = f"x hold 95% interval {bounds}): {verdict}"
+    said = ratio_text(ratio, thresholds=[VALID_RATIO])
     return (
         f"best reference filter at {particles:,} particles is {agent_label(best['agent'])}, "
-        f"{ratio_text(ratio)} in mean error over {seeds_of(best)} agent seeds "
+        f"{said} in mean error over {seeds_of(best)} agent seeds "
         f"({best['summary']['mean_error_mm']:.0f} vs {hold['summary']['mean_error_mm']:.0f} mm; "
         f"{judged}"
     )
@@ -360,14 +377,14 @@ def follow_line(priors: Sequence[dict[str, Any]], follow: dict[str, Any], fewest
             else "behind at the upper bound" if high < 1.0
             else "level within the interval"
         )  # fmt: skip
-        means += f"; 95% interval {low:.2f}-{high:.2f}: {ahead}"
+        means += f"; 95% interval {judged_text(low, 1.0)}-{judged_text(high, 1.0)}: {ahead}"
     won = f"better in {wins}/{paired} paired episodes"
     label = agent_label(prior["agent"])
     if ratio > 1.0:
         return (
             f"against {FOLLOW} (the body followed, its first articulation held), the best "
-            f"other filter at {fewest:,} particles is {label}, {ratio:.2f}x better in mean "
-            f"error ({means}), {won}"
+            f"other filter at {fewest:,} particles is {label}, {judged_text(ratio, 1.0)}x better "
+            f"in mean error ({means}), {won}"
         )
     return (
         f"no other filter at {fewest:,} particles beats {FOLLOW} in mean error: the best, "
@@ -415,7 +432,7 @@ def validity_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
             verdict = "valid" if ratio >= VALID_RATIO else f"NOT valid (below {VALID_RATIO:g}x)"
             out.append(
                 f"{task}: best filter at {fewest:,} particles is {agent_label(best['agent'])}, "
-                f"{ratio_text(ratio)} in mean error "
+                f"{ratio_text(ratio, thresholds=[VALID_RATIO])} in mean error "
                 f"({best['summary']['mean_error_mm']:.0f} vs "
                 f"{hold['summary']['mean_error_mm']:.0f} mm), better in {wins}/{paired} paired "
                 f"episodes: {verdict}"

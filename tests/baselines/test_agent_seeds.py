@@ -473,3 +473,26 @@ def test_a_row_and_hold_of_other_episodes_are_refused_not_paired(tmp_path, capsy
     err = capsys.readouterr().err.strip()
     assert err.startswith("humotion-gym report: error: ArmTrack-v2: hold: expected the episode")
     assert len(err.splitlines()) == 1
+
+
+def test_a_value_that_rounds_to_its_threshold_prints_the_digits_that_decide():
+    """100.05 mm against hold's 200 is 1.999x: NOT valid, never printed "2.00x ... below 2x".
+
+    The checks compare the values themselves; the lines printed them to 2 decimals, so a
+    bound of 1.999 read "2.00-2.00): NOT valid" and 0.9995 "1.00-1.00 ... below 1".
+    """
+    rows = [_hold(6, 1), _row("pf-cv", 300, [[100.05]] * 6, several=False)]
+    (one,) = validity_lines(rows)
+    assert "is pf-cv, 1.999x better than hold" in one and one.endswith(": NOT valid (below 2x)")
+    seeded = _verdict([[100.05, 100.05]] * 6)
+    assert "1.999x better than hold" in seeded
+    assert seeded.endswith("x hold 95% interval 1.999-1.999): NOT valid (interval's lower bound "
+                           "below 2x)")  # fmt: skip
+    tree = np.array([[100.0, 100.0]] * 4)
+    classic = _classic(tree, tree * 0.9995)[1]
+    assert classic.endswith("(100 vs 100 mm; 95% interval 0.9995-0.9995): pf-cv better (the "
+                            "interval's upper bound below 1)")  # fmt: skip
+    assert ratio_text(0.9996) == "0.9996x hold: worse than hold"
+    assert (
+        ratio_text(2.1) == "2.10x better than hold" and ratio_text(1.0) == "1.00x better than hold"
+    )
