@@ -24,7 +24,12 @@
   sortable by a click on a column (a few lines of inline JavaScript, no
   external assets);
 * ``report.json``: the results file the report was made from, so that a
-  folder is never given the report of another run (:func:`reported_run`).
+  folder is never given the report of another run (:func:`reported_run`);
+  written before the report's other files (after the videos, whose replay
+  stops the report before anything is written), so that a report that stops
+  half-way is rebuilt by its rerun.
+  The tables are made before any other file is written: a row they refuse
+  leaves no statistics of its own.
 
 Figures are :mod:`baselines.leaderboard.figures`, videos
 :mod:`baselines.leaderboard.videos`.
@@ -682,15 +687,23 @@ def write_report(
         write_text_atomically(folder / "videos.json", json.dumps(made, indent=1))
     else:  # an earlier report's videos: no longer on the page
         remove_earlier_videos(folder)
+    # before the report's files: one that stops half-way is still known as this
+    # run's report, so that its rerun is taken
+    if source is not None:
+        marker = {"results": str(Path(source).resolve())}
+        write_text_atomically(folder / REPORT_SOURCE, json.dumps(marker, indent=1) + "\n")
+    else:
+        (folder / REPORT_SOURCE).unlink(missing_ok=True)
     computed = compute(rows, seed=seed)
     # the leaderboard table and verdicts: recomputed too, with the run's seed
     same = table_seed is None or table_seed == seed
     own = [c["summary"] for c in computed["cells"]] if same else summaries(rows, table_seed)
     rows = restated(rows, own)
+    tables = markdown_report(rows, computed)  # before any file: a refused row stops here
     write_text_atomically(
         folder / "stats.json", json.dumps(computed, indent=1, default=json_default)
     )
-    write_text_atomically(folder / "tables.md", markdown_report(rows, computed))
+    write_text_atomically(folder / "tables.md", tables)
     notes: list[str] = []
     figures: dict[str, str] = {}
     if figures_available():
@@ -701,9 +714,4 @@ def write_report(
     # the engine's files of the same results folder, where they are
     files = [f for f in ("results.json", "table.md", "episodes.jsonl") if (folder / f).is_file()]
     write_text_atomically(index, html_page(rows, computed, figures, made, notes, title, files, run))
-    if source is not None:
-        marker = {"results": str(Path(source).resolve())}
-        write_text_atomically(folder / REPORT_SOURCE, json.dumps(marker, indent=1) + "\n")
-    else:
-        (folder / REPORT_SOURCE).unlink(missing_ok=True)
     return index

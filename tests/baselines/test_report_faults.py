@@ -251,3 +251,22 @@ def test_a_stored_summary_lacking_a_key_reports_and_another_schema_is_refused(
     err = capsys.readouterr().err.strip()
     assert err == (f"humotion-gym report: error: {path}: schema_version 2: expected 1, the "
                    "results this code reads")  # fmt: skip
+
+
+def test_a_report_that_failed_does_not_block_its_rerun(tmp_path, capsys, no_figures):
+    """A report refused half-way left stats.json without report.json, so its rerun into the
+    same --out was refused as "the report (stats.json) of another run"."""
+    from baselines.cli import main
+
+    rows = _rows()
+    path, out = tmp_path / "results.json", tmp_path / "report"
+    bad = [*rows[:1], {**rows[1], "episodes": rows[1]["episodes"][:3]}, *rows[2:]]
+    path.write_text(json.dumps({"seed": 0, "rows": bad}))  # pf-cv ran 3 of hold's 5 episodes
+    assert main(["report", str(path), "--out", str(out)]) == 1
+    assert "ArmTrack-v2: hold: expected the episode seeds" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["report.json"]  # no statistics of its own
+    path.write_text(json.dumps({"seed": 0, "rows": rows}))  # mended: its rerun is taken
+    assert main(["report", str(path), "--out", str(out)]) == 0
+    assert {"stats.json", "tables.md", "index.html", "report.json"} <= {
+        p.name for p in out.iterdir()
+    }
