@@ -146,9 +146,10 @@ def reported_run(folder: Path) -> tuple[str, str | None] | None:
 def load_rows(path: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """Rows and run settings of a saved leaderboard (a file, or a folder: :func:`results_file`).
 
-    Accepts the bare list of rows that ``humotion-gym leaderboard --out``
-    writes, or a JSON object with a ``rows`` list (a results file), whose
-    other keys (e.g. ``env_kwargs``, ``seed``) are returned as the settings;
+    Accepts a JSON object with a ``rows`` list (the ``results.json`` that
+    ``humotion-gym leaderboard --out`` writes), whose other keys (e.g.
+    ``env_kwargs``, ``seed``) are returned as the settings, or a bare list
+    of rows (:func:`baselines.leaderboard.results.save`'s; no settings);
     gzipped when the name ends in ``.gz`` (the repository's ``results/``).
 
     Raises:
@@ -683,6 +684,8 @@ def write_report(
     if videos:  # first: an episode that does not replay stops the report before the rest
         config = (run or {}).get("config") or {}
         declared = bool(config.get("declared")) if isinstance(config, Mapping) else False
+        # a bare list of rows has no config: its rows say they are a declared list's
+        declared = declared or any(by_clip(r) for r in rows if ran(r))
         made = write_videos(rows, folder, env_kwargs, video_cells, progress, declared)
         write_text_atomically(folder / "videos.json", json.dumps(made, indent=1))
     else:  # an earlier report's videos: no longer on the page

@@ -270,3 +270,30 @@ def test_a_report_that_failed_does_not_block_its_rerun(tmp_path, capsys, no_figu
     assert {"stats.json", "tables.md", "index.html", "report.json"} <= {
         p.name for p in out.iterdir()
     }
+
+
+def test_videos_of_a_bare_list_of_a_declared_runs_rows_replay_its_windows(
+    tmp_path, monkeypatch, no_figures
+):
+    """A bare list of rows has no config: its rows' intervals say the list was declared.
+
+    Read from ``run["config"]`` alone, the videos replayed drawn episodes and failed with
+    "were the environment settings (--data-dir, difficulty) the run's?".
+    """
+    import baselines.leaderboard.report as report
+
+    seen = []
+
+    def videos(rows, folder, env_kwargs, cells, progress, declared):
+        seen.append(declared)
+        return []
+
+    monkeypatch.setattr(report, "write_videos", videos)
+    rows = _rows()
+    write_report(rows, tmp_path / "drawn", videos=True, progress=False)
+    for r in rows:
+        r["summary"] = {**r["summary"], "intervals": "clip"}
+    write_report(rows, tmp_path / "declared", videos=True, progress=False)
+    write_report(rows, tmp_path / "config", videos=True, progress=False,
+                 run={"config": {"declared": True}})  # fmt: skip
+    assert seen == [False, True, True]
