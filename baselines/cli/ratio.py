@@ -78,8 +78,8 @@ def _cmd_ratio(args: argparse.Namespace) -> int:
     cells: dict[str, dict[str, Any]] = {}
     ran_with: dict[str, tuple[str, Any]] = {}  # each cell's file and what decided its frames
     there: set[str] = set()
-    for given in args.results:
-        path = results_file(given)  # a folder's file; its error names the folder
+    # a file given twice is read once
+    for path in dict.fromkeys(results_file(given) for given in args.results):
         # ValueError innermost, so checked first (io.UnsupportedOperation is both)
         with refused_as(CommandError, OSError, f"{path}: "), refused_as(CommandError, ValueError):
             rows, settings = load_rows(path)
@@ -90,6 +90,11 @@ def _cmd_ratio(args: argparse.Namespace) -> int:
             there.add(label)
             if label not in args.cells:
                 continue
+            if label in cells and ran_with[label][0] == str(path):
+                raise CommandError(
+                    f"--cells: {path} holds {label} of {args.task} twice (two rows); which "
+                    "one to compare would be a silent choice"
+                )
             if label in cells:  # which file's would be a silent choice
                 raise UsageError(
                     f"--cells: {label} ran in {ran_with[label][0]} and in {path}; give one "

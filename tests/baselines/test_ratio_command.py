@@ -135,3 +135,22 @@ def test_one_episode_gives_no_interval_and_no_verdict(
     result = json.loads(capsys.readouterr().out)
     assert result["interval"] is None
     assert result["verdict"] == "no verdict (one episode: no interval)"
+
+
+def test_a_file_holding_a_cell_twice_is_named_as_such(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """It said "pf-cv@100 ran in X and in X; give one file that holds it"."""
+    import gzip
+
+    doc = json.loads(gzip.decompress((RESULTS / "ci_small" / "results.json.gz").read_bytes()))
+    doc["rows"].append(doc["rows"][1])  # ArmTrack-v2 pf-cv@100 twice
+    path = tmp_path / "twice.json"
+    path.write_text(json.dumps(doc))
+    argv = ["ratio", "--task", "ArmTrack-v2", "--cells", "pf-tree@100", "pf-cv@100", str(path)]
+    assert main(argv) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == (f"humotion-gym ratio: error: --cells: {path} holds pf-cv@100 of ArmTrack-v2 "
+                   "twice (two rows); which one to compare would be a silent choice")  # fmt: skip
+    once = RESULTS / "ci_small" / "results.json.gz"  # one file given twice is read once
+    assert main([*argv[:-1], str(once), str(once)]) == 0
