@@ -59,6 +59,7 @@ from baselines.leaderboard.results import (
 from baselines.leaderboard.rows import agent_label
 from baselines.leaderboard.tables import FLOOR
 from humotion_gym.checks import is_count
+from humotion_gym.envs.tasks import TASKS, VIEW_VARIANTS
 from humotion_gym.mocap.library import package_version
 
 
@@ -142,7 +143,8 @@ def run_leaderboard(
         happened; with ``failed_seeds``).
 
     Raises:
-        ValueError: If ``episodes``, ``agent_seeds`` or a particle count < 1,
+        ValueError: If a task is not a registered task id, ``episodes``,
+            ``agent_seeds`` or a particle count < 1,
             ``videos`` with several agent seeds, the engine is unknown or two
             agents would share a table label.
         ResumeError: If a resumed run's settings, agent seeds or a learned
@@ -219,6 +221,12 @@ def _check_grid(
             raise TypeError(f"{name}: expected a list, got {values!r}")
     if not tasks or not agents:
         raise ValueError(f"{'tasks' if not tasks else 'agents'}: expected at least one")
+    known = {*TASKS, *VIEW_VARIANTS}  # before any folder or environment is made
+    for i, task in enumerate(tasks):
+        if not isinstance(task, str) or task not in known:
+            raise ValueError(
+                f"tasks[{i}]: unknown task {task!r}; the tasks are {', '.join(sorted(known))}"
+            )
     takes = [a for a in agents if uses_particles(a)]
     if takes and not particles:
         verb = "takes" if len(takes) == 1 else "take"

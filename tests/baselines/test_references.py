@@ -146,6 +146,8 @@ def test_leaderboard_refuses_bad_counts():
         ((["ArmTrack-v2"], ["pf-cv"], [300, 200_000]), {}, ValueError,
          r"particles\[1\]: expected at most 100,000"),
         (([], ["hold"], [30]), {}, ValueError, "tasks: expected at least one"),
+        ((["ArmTrack-v2", "Nope-v2"], ["hold"], [30]), {}, ValueError,
+         r"tasks\[1\]: unknown task 'Nope-v2'; the tasks are ArmTrack"),
         ((["ArmTrack-v2"], [], [30]), {}, ValueError, "agents: expected at least one"),
         (("ArmTrack-v2", ["hold"], [30]), {}, TypeError, "tasks: expected a list"),
         ((["ArmTrack-v2"], "hold", [30]), {}, TypeError, "agents: expected a list"),
@@ -158,7 +160,11 @@ def test_leaderboard_refuses_bad_counts():
 def test_leaderboard_refuses_a_grid_that_would_drop_or_misread_its_cells(
     args, kwargs, error, match
 ):
-    """particles=[] dropped pf-cv in silence; a task given as a string ran its letters."""
+    """particles=[] dropped pf-cv in silence; a task given as a string ran its letters.
+
+    An unknown task raised gymnasium's NameNotFound, not naming ``tasks``, and with
+    ``out`` after run.json was written.
+    """
     with pytest.raises(error, match=match):
         run_leaderboard(*args, episodes=1, progress=False, **kwargs)
     assert run_leaderboard(["ArmTrack-v2"], ["hold"], [], episodes=1, progress=False)
