@@ -104,6 +104,20 @@ def test_bad_arguments() -> None:
         AnnealedParticleFilter(prior, None, like, 10).step(np.zeros(2))
 
 
+def test_temper_for_survival_refuses_what_it_cannot_temper() -> None:
+    """``alpha`` NaN gave beta 1e-9, 0 or -1 gave 1e7: the bisection's ends."""
+    loglik = -10.0 * np.random.default_rng(0).random(100)
+    for alpha in (float("nan"), 0.0, -1.0, 1.5, "0.5", None):
+        with pytest.raises(ValueError, match=r"^temper_for_survival: alpha must be in \(0, 1\]"):
+            temper_for_survival(loglik, alpha)
+    for bad in (loglik[None], np.zeros(0), list(loglik)):
+        with pytest.raises(ValueError, match=r"^temper_for_survival: loglik must be a non-empty"):
+            temper_for_survival(bad, 0.5)
+    with pytest.raises(ValueError, match=r"^temper_for_survival: iterations: expected an integer"):
+        temper_for_survival(loglik, 0.5, iterations=2.5)
+    assert temper_for_survival(loglik, 1.0)[0] > 0  # the search's survival may be 1
+
+
 def test_beta_cap() -> None:
     # A broad likelihood would want exponents far above 1 to reach alpha = 0.5.
     apf = AnnealedParticleFilter(RandomWalk(0.5), None, Peaks(5.0), 300, layers=4, beta_max=1.0)

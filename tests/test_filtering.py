@@ -442,3 +442,28 @@ def test_a_likelihood_of_plus_inf_is_refused_naming_it():
     pf.reset(m0, np.random.default_rng(0))
     pf.step(None)
     assert np.allclose(pf.weights, 1 / 20)
+
+
+@pytest.mark.parametrize("scheme", sorted(RESAMPLING))
+def test_resampling_refuses_weights_that_are_not_normalised(scheme) -> None:
+    """Weights with NaN, negative, unnormalised, of another shape or empty were
+    resampled anyway (``[0.5, nan, 0.5]`` picked the NaN particle, ``[1, 1]``
+    only particle 0, zeros only the last) or failed deep in numpy; the ESS of
+    such weights was as wrong."""
+    resample, rng = RESAMPLING[scheme], np.random.default_rng(0)
+    said = {
+        "weights must be >= 0": ([0.5, np.nan, 0.5], [-0.5, 1.0, 0.5]),
+        "weights must sum to 1": ([0.1, 0.1], [1.0, 1.0], np.zeros(3), [np.inf, 1.0]),
+        "weights must be a non-empty 1-D array": (np.ones((2, 2)) / 4, np.zeros(0)),
+        "weights must be a 1-D array of numbers": (["a", "b"],),
+    }
+    for message, cases in said.items():
+        for weights in cases:
+            with pytest.raises(ValueError, match=f"^{scheme}_resample: {message}"):
+                resample(weights, rng)
+            with pytest.raises(ValueError, match=f"^effective_sample_size: {message}"):
+                effective_sample_size(weights)
+    # a list of normalised weights, or weights off 1 by rounding, are taken
+    assert resample([0.0, 1.0], rng).tolist() == [1, 1]
+    assert effective_sample_size([0.5, 0.5]) == pytest.approx(2.0)
+    assert resample(np.array([0.5, 0.5 + 1e-9]), rng).shape == (2,)

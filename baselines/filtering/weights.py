@@ -8,11 +8,53 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from baselines.filtering._compiled import wrapped_offsets
+from humotion_gym.checks import check_count, is_real
 
 FloatArray = NDArray[np.float64]
+
+#: How far from 1 the sum of the weights given to a resampling scheme or to
+#: :func:`effective_sample_size` may be. The filters normalise in double
+#: precision, so their N weights sum to 1 within about N machine epsilons
+#: (2e-10 at a million particles); 1e-6 lets weights normalised in single
+#: precision through too, and still refuses weights never normalised.
+WEIGHT_SUM_TOLERANCE = 1e-6
+
+
+def normalised_weights(weights: ArrayLike, who: str) -> FloatArray:
+    """``weights`` as a float array, checked to be normalised weights.
+
+    O(N): a minimum and a sum, nothing copied for a float array.
+
+    Args:
+        weights: ``(N,)`` weights.
+        who: The function, for the message.
+
+    Raises:
+        ValueError: Naming ``who``, if ``weights`` is not a non-empty 1-D
+            array of numbers >= 0 (NaN is refused) summing to 1 within
+            :data:`WEIGHT_SUM_TOLERANCE`.
+    """
+    try:
+        w = np.asarray(weights, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"{who}: weights must be a 1-D array of numbers, got {type(weights).__name__}"
+        ) from None
+    if w.ndim != 1 or w.size == 0:
+        raise ValueError(f"{who}: weights must be a non-empty 1-D array, got shape {w.shape}")
+    if not w.min() >= 0.0:  # NaN fails the comparison too
+        bad = int(np.flatnonzero(~(w >= 0.0))[0])
+        raise ValueError(f"{who}: weights must be >= 0, got {w[bad]} at particle {bad}")
+    total = float(w.sum())
+    if not abs(total - 1.0) <= WEIGHT_SUM_TOLERANCE:
+        raise ValueError(
+            f"{who}: weights must sum to 1 (within {WEIGHT_SUM_TOLERANCE:g}), got a sum of "
+            f"{total!r}; normalise them first"
+        )
+    return w
 
 
 def systematic_resample(weights: FloatArray, rng: np.random.Generator) -> NDArray[np.intp]:
@@ -20,20 +62,34 @@ def systematic_resample(weights: FloatArray, rng: np.random.Generator) -> NDArra
 
     Kitagawa, *Monte Carlo filter and smoother for non-Gaussian nonlinear state
     space models*, JCGS 1996. Lowest variance of the common schemes, O(N).
+
+    Raises:
+        ValueError: If ``weights`` are not normalised (:func:`normalised_weights`).
     """
-    n = weights.shape[0]
-    return _pointed(weights, (rng.random() + np.arange(n)) / n)
+    w = normalised_weights(weights, "systematic_resample")
+    n = w.shape[0]
+    return _pointed(w, (rng.random() + np.arange(n)) / n)
 
 
 def multinomial_resample(weights: FloatArray, rng: np.random.Generator) -> NDArray[np.intp]:
-    """Multinomial resampling: N independent draws from the weights."""
-    return _pointed(weights, rng.random(weights.shape[0]))
+    """Multinomial resampling: N independent draws from the weights.
+
+    Raises:
+        ValueError: If ``weights`` are not normalised (:func:`normalised_weights`).
+    """
+    w = normalised_weights(weights, "multinomial_resample")
+    return _pointed(w, rng.random(w.shape[0]))
 
 
 def stratified_resample(weights: FloatArray, rng: np.random.Generator) -> NDArray[np.intp]:
-    """Stratified resampling: one uniform draw in each of N equal strata."""
-    n = weights.shape[0]
-    return _pointed(weights, (rng.random(n) + np.arange(n)) / n)
+    """Stratified resampling: one uniform draw in each of N equal strata.
+
+    Raises:
+        ValueError: If ``weights`` are not normalised (:func:`normalised_weights`).
+    """
+    w = normalised_weights(weights, "stratified_resample")
+    n = w.shape[0]
+    return _pointed(w, (rng.random(n) + np.arange(n)) / n)
 
 
 def _pointed(weights: FloatArray, positions: FloatArray) -> NDArray[np.intp]:
@@ -74,8 +130,13 @@ def log_sum_exp(values: FloatArray) -> float:
 
 
 def effective_sample_size(weights: FloatArray) -> float:
-    """Kish's effective sample size 1 / sum(w^2) of normalised weights."""
-    return float(1.0 / np.sum(np.square(weights)))
+    """Kish's effective sample size 1 / sum(w^2) of normalised weights.
+
+    Raises:
+        ValueError: If ``weights`` are not normalised (:func:`normalised_weights`).
+    """
+    w = normalised_weights(weights, "effective_sample_size")
+    return float(1.0 / np.sum(np.square(w)))
 
 
 def weighted_mean(
@@ -159,7 +220,7 @@ def temper_for_survival(
     Args:
         loglik: ``(N,)`` log-likelihoods; ``-inf`` marks impossible poses, which
             get weight 0 whatever ``beta``.
-        alpha: Target survival rate in (0, 1).
+        alpha: Target survival rate in (0, 1].
         iterations: Bisection steps (60 reach float precision in ``log beta``).
 
     Returns:
@@ -169,8 +230,16 @@ def temper_for_survival(
         of the untempered likelihood.
 
     Raises:
-        ValueError: For a log-likelihood of ``+inf`` (:func:`possible`).
+        ValueError: If ``loglik`` is not a non-empty 1-D array, ``alpha`` not in
+            (0, 1] or ``iterations`` not an integer >= 1; for a log-likelihood
+            of ``+inf`` (:func:`possible`).
     """
+    if not (is_real(alpha) and 0.0 < alpha <= 1.0):
+        raise ValueError(f"temper_for_survival: alpha must be in (0, 1], got {alpha!r}")
+    check_count("temper_for_survival: iterations", iterations)
+    if not (isinstance(loglik, np.ndarray) and loglik.ndim == 1 and loglik.size > 0):
+        got = loglik.shape if isinstance(loglik, np.ndarray) else type(loglik).__name__
+        raise ValueError(f"temper_for_survival: loglik must be a non-empty 1-D array, got {got}")
     n = loglik.shape[0]
     ok = possible(loglik)
     if not ok.any():
