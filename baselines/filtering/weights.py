@@ -150,8 +150,12 @@ def weighted_mean(
     wrapped to ``[-pi, pi]`` in double precision and their sines and cosines
     taken in single precision, about 20 times faster than in double (NumPy
     vectorises only the single-precision ones): their errors are relative to
-    the offsets, so the mean is within about 1e-7 times the cloud's spread of
-    the double-precision one (tested).
+    the offsets, so the mean is within about 1e-7 times the largest offset
+    of the double-precision one. For a cloud on one branch the offsets are
+    its spread (tested); a cloud whose angles straddle the cut at +-pi as
+    principal values (some near pi, some near -pi) has its linear mean half a
+    turn from its particles, offsets near +-pi, and so an error of up to
+    about 2e-7 rad whatever its spread (tested).
 
     Args:
         particles: ``(N, D)``.
