@@ -104,6 +104,24 @@ def test_bad_arguments() -> None:
         AnnealedParticleFilter(prior, None, like, 10).step(np.zeros(2))
 
 
+def test_settings_of_one_entry_per_dimension_match_the_pose() -> None:
+    """``min_std`` of 3 entries for D = 2 failed with a broadcast error at the
+    first step, as did a bound of 3."""
+    prior, like = RandomWalk(0.1), Peaks(0.1)
+    for setting in ("min_std", "lower"):
+        apf = AnnealedParticleFilter(prior, None, like, 10, **{setting: [0.1, 0.1, 0.1]})
+        with pytest.raises(
+            ValueError,
+            match=rf"^AnnealedParticleFilter: {setting} has 3 entries, expected one per pose "
+            r"dimension: 2 \(the initial pose's\)",
+        ):
+            apf.reset(np.zeros(2), np.random.default_rng(0))
+    with pytest.raises(ValueError, match=r"min_std has 3 entries, .*: 2 \(angle_mask's\)"):
+        AnnealedParticleFilter(prior, None, like, 10, [True, False], min_std=[0.1, 0.1, 0.1])
+    with pytest.raises(ValueError, match=r"min_std must be a number or \(D,\) numbers"):
+        AnnealedParticleFilter(prior, None, like, 10, min_std=np.zeros((2, 2)))
+
+
 def test_temper_for_survival_refuses_what_it_cannot_temper() -> None:
     """``alpha`` NaN gave beta 1e-9, 0 or -1 gave 1e7: the bisection's ends."""
     loglik = -10.0 * np.random.default_rng(0).random(100)

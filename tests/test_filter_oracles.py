@@ -210,6 +210,49 @@ def test_every_filter_refuses_a_step_it_cannot_weigh(k: int) -> None:
             f.step(None)
 
 
+@pytest.mark.parametrize("k", range(1, 4), ids=["annealed", "partitioned", "search"])
+def test_bounds_that_leave_no_pose_valid_are_refused(k: int) -> None:
+    """A NaN bound, or a lower above its upper, made every particle impossible and
+    the weights equal: the likelihood silently unused (the estimate drifted with
+    the prior, ESS N/N). A bound of another length than D failed with a broadcast
+    error at the first step."""
+    like = Peaks(0.2)
+    stages = [Stage(np.array([0]), (0,)), Stage(np.array([1]), (1,))]
+
+    def build(**bounds):
+        return [
+            None,
+            lambda: AnnealedParticleFilter(RandomWalk(0.5), None, like, 50, layers=3, **bounds),
+            lambda: PartitionedParticleFilter(RandomWalk(0.5), None, like, 50, stages, **bounds),
+            lambda: SearchParticleFilter(RandomWalk(0.5), None, like, 50, LocalSearch(), **bounds),
+        ][k]()
+
+    name = type(build()).__name__
+    for bounds, said in [
+        ({"lower": [np.nan, -10.0]}, r"lower must hold no NaN"),
+        ({"upper": np.nan}, r"upper must hold no NaN"),
+        ({"lower": [10.0, 10.0], "upper": [-10.0, -10.0]}, r"lower must not exceed upper"),
+        ({"lower": [0.0, 0.0, 0.0], "upper": [1.0, 1.0]}, r"lower has 3 entries and upper 2"),
+        ({"lower": [[0.0, 0.0]]}, r"lower must be a number or \(D,\) numbers"),
+    ]:
+        with pytest.raises(ValueError, match=rf"^{name}: {said}"):
+            build(**bounds)
+    f = build(lower=[0.0, 0.0, 0.0])  # D is known at reset
+    with pytest.raises(ValueError, match=rf"^{name}: lower has 3 entries, expected one per pose"):
+        f.reset(np.zeros(2), np.random.default_rng(0))
+    with pytest.raises(ValueError, match=rf"^{name}: upper has 3 entries, .*: 2 \(angle_mask's"):
+        type(f)(
+            RandomWalk(0.5), None, like, 50, *([stages] if k == 2 else [LocalSearch()] * (k == 3)),
+            angle_mask=[False, False], upper=np.ones(3),
+        )  # fmt: skip
+    # bounds of -inf and inf, equal or scalar, are taken, and the likelihood weighs
+    f = build(lower=[-np.inf, 0.0], upper=np.inf)
+    f.reset(np.zeros(2), np.random.default_rng(0))
+    for _ in range(3):
+        estimate = f.step(np.ones(2))
+    assert f.ess < 50 and np.abs(estimate - 1.0).max() < 0.3
+
+
 @pytest.mark.parametrize("estimate", ["mean", "map"])
 def test_weights_carry_over_until_the_ess_falls(estimate: str) -> None:
     """With ``ess_threshold < 1`` the weights carry over to the next frame while the

@@ -469,6 +469,86 @@ def test_resampling_refuses_weights_that_are_not_normalised(scheme) -> None:
     assert resample(np.array([0.5, 0.5 + 1e-9]), rng).shape == (2,)
 
 
+def test_a_filter_refuses_a_count_or_setting_it_would_have_cut_or_failed_on() -> None:
+    """``n=2.7`` ran 2 particles; ``n="10"``, None and NaN and an ``ess_threshold``
+    of ``"0.5"`` failed in a comparison or a cast."""
+    for n in (2.7, "10", None, float("nan"), True, 0, 3.0):
+        with pytest.raises(ValueError, match=r"^ParticleFilter: n must be an integer >= 1, got "):
+            ParticleFilter(None, None, None, n)
+    with pytest.raises(ValueError, match=r"^ParticleFilter: ess_threshold must be in \[0, 1\]"):
+        ParticleFilter(None, None, None, 3, ess_threshold="0.5")
+    assert ParticleFilter(None, None, None, np.int64(3)).n == 3
+
+
+class _Returns:
+    """A test-only prior whose ``initial`` or ``transition`` returns ``out(n, d)``."""
+
+    def __init__(self, where, out):
+        self.where, self.out = where, out
+
+    def initial(self, fitted, pose, n, rng):
+        if self.where == "initial":
+            return self.out(n, pose.size)
+        return ParticleState(np.zeros((n, pose.size)))
+
+    def transition(self, fitted, state, rng):
+        return self.out(state.n, state.pose.shape[1])
+
+
+def test_the_prior_s_output_the_initial_pose_and_the_generator_are_checked() -> None:
+    """An ndarray or None from the prior failed with "'numpy.ndarray' object has no
+    attribute 'n'"; poses of another D with a broadcast error in the likelihood;
+    a scalar initial pose with an IndexError, an int generator inside the prior."""
+    like = GaussianObservation(np.eye(2))
+    outs = {
+        r"returned ndarray, expected a ParticleState of \(N, D\) = \(5, 2\) poses": (
+            lambda n, d: np.zeros((n, d))
+        ),
+        r"returned NoneType, expected a ParticleState": lambda n, d: None,
+        r"returned poses of shape \(5, 3\), expected \(N, D\) = \(5, 2\)": (
+            lambda n, d: ParticleState(np.zeros((n, d + 1)))
+        ),
+    }
+    for where in ("initial", "transition"):
+        for said, out in outs.items():
+            pf = ParticleFilter(_Returns(where, out), None, like, 5)
+            with pytest.raises(ValueError, match=rf"^prior\.{where} {said}"):
+                pf.reset(np.zeros(2), np.random.default_rng(0))
+                pf.step(np.zeros(2))
+    pf = ParticleFilter(_Returns("initial", lambda n, d: None), None, like, 5)
+    for pose, said in [
+        (0.0, r"initial_pose must be \(D,\) numbers, got shape \(\)"),
+        (np.zeros((1, 2)), r"initial_pose must be \(D,\) numbers, got shape \(1, 2\)"),
+        ("a", r"initial_pose must be \(D,\) numbers, got str"),
+        ([np.nan, 0.0], "initial_pose must be finite"),
+    ]:
+        with pytest.raises(ValueError, match=rf"^ParticleFilter.reset: {said}"):
+            pf.reset(pose, np.random.default_rng(0))
+    for rng in (0, None):
+        with pytest.raises(ValueError, match=r"^ParticleFilter.reset: rng must be a numpy"):
+            pf.reset(np.zeros(2), rng)
+    for pose in (np.zeros(3), [[0.0]]):
+        with pytest.raises(ValueError, match=r"^ParticleState: pose must be an \(N, D\) numpy"):
+            ParticleState(pose)
+
+
+def test_the_angle_mask_is_a_mask_of_the_pose_s_length() -> None:
+    """``angle_mask=[0, 1]`` read as ``[False, True]``; one of length 3 for D = 2
+    failed with an IndexError at the first step."""
+    prior, like = (
+        LinearGaussianPrior(np.eye(2), np.eye(2), np.eye(2)),
+        GaussianObservation(np.eye(2)),
+    )
+    for mask in ([0, 1], [1], [[True, False]]):
+        with pytest.raises(ValueError, match=r"^ParticleFilter: angle_mask must be a 1-D array"):
+            ParticleFilter(prior, None, like, 5, angle_mask=mask)
+    pf = ParticleFilter(prior, None, like, 5, angle_mask=[True, False, False])
+    with pytest.raises(
+        ValueError, match=r"angle_mask has 3 entries, expected one per pose dimension: 2 \(the"
+    ):
+        pf.reset(np.zeros(2), np.random.default_rng(0))
+
+
 def test_the_circular_mean_of_a_cloud_across_the_cut_is_within_its_absolute_bound() -> None:
     """Principal values straddling +-pi: the linear mean lies half a turn away, and
     the single-precision offsets near pi err absolutely (the docstring said

@@ -174,6 +174,29 @@ def test_bad_arguments() -> None:
         ppf.step(np.zeros(2))
 
 
+def test_stage_dimensions_are_indices_within_the_pose() -> None:
+    """A stage's dimension beyond D failed with an IndexError at the first step; a
+    float one with numpy's "arrays used as indices"; 2-D dims with "unhashable
+    type"; a negative one slipped past the overlap check (-2 is 0 when D = 2)."""
+    prior, like = RandomWalk(0.1), Peaks(0.2)
+    first = Stage(np.array([0]), (0,), "a")
+    for dims in ([1.5], [[1]], [-2], [], np.array([True])):
+        with pytest.raises(
+            ValueError, match=r"^PartitionedParticleFilter: stage 'b': dims must be a non-empty"
+        ):
+            PartitionedParticleFilter(prior, None, like, 10, [first, Stage(dims, (1,), "b")])
+    stages = [first, Stage(np.array([5]), (1,), "b")]
+    ppf = PartitionedParticleFilter(prior, None, like, 10, stages)
+    with pytest.raises(ValueError, match=r"stage 'b' searches dimension 5, expected one in 0\.\.1"):
+        ppf.reset(np.zeros(2), np.random.default_rng(0))
+    with pytest.raises(ValueError, match=r"stage 'b' searches dimension 5, .*\(min_std's D = 2\)"):
+        PartitionedParticleFilter(prior, None, like, 10, stages, min_std=[0.1, 0.1])
+    # a list of indices is taken, as before
+    ppf = PartitionedParticleFilter(prior, None, like, 10, [first, Stage([1], (1,), "b")])
+    ppf.reset(np.zeros(2), np.random.default_rng(0))
+    assert ppf.step(np.zeros(2)).shape == (2,)
+
+
 def test_a_partitioned_agent_tracks_end_to_end_and_by_seed(monkeypatch) -> None:
     # The agent table's hook (AgentSpec.partitioned): the constant-velocity prior
     # searched one body part at a time, on the built-in data.

@@ -331,10 +331,12 @@ class ParticleFilterAgent:
             :func:`~baselines.observation.task_model`).
 
     Raises:
-        ValueError: If ``observation_model`` reads the truth (an oracle of
-            :mod:`baselines.diagnostics` is analysis only), or the settings
-            do not go together (a setting its filter does not read among
-            them: :data:`~baselines.agents.settings.FILTER_READS`).
+        ValueError: If ``n_particles`` or ``layers`` is not an integer >= 1,
+            ``seed`` not an integer >= 0, ``observation_model`` reads the
+            truth (an oracle of :mod:`baselines.diagnostics` is analysis
+            only), or the settings do not go together (a setting its filter
+            does not read among them:
+            :data:`~baselines.agents.settings.FILTER_READS`).
     """
 
     def __init__(
@@ -354,6 +356,10 @@ class ParticleFilterAgent:
         observation_model: FrameModel | None = None,
         search: LocalSearch | None = None,
     ) -> None:
+        # 2.7 particles or layers would have run as 2, a seed of 1.7 failed in numpy
+        check_count("ParticleFilterAgent: n_particles", n_particles)
+        check_count("ParticleFilterAgent: layers", layers)
+        check_count("ParticleFilterAgent: seed", seed, 0)
         refuse_truth(observation_model, "observation_model")
         self.description = describe(task)
         spec = self.description.task

@@ -7,11 +7,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from baselines.filtering._checks import angle_mask_of, initial_pose_of, search_settings
 from baselines.filtering.state import Likelihood, ParticleState, Prior
 from baselines.filtering.weights import (
     RESAMPLING,
@@ -22,6 +23,8 @@ from baselines.filtering.weights import (
     tempered_weights,
     weighted_mean,
 )
+from baselines.priors._checks import check_generator
+from humotion_gym.checks import is_count, is_real
 
 FloatArray = NDArray[np.float64]
 #: Bounds of valid poses, ``(lower, upper)`` (None: unbounded on that side).
@@ -36,8 +39,9 @@ class ParticleFilter:
         fitted: The prior's fitted parameters.
         observation_model: Gives ``log_likelihood(frame, poses)``.
         n: Number of particles.
-        angle_mask: ``(D,)`` True for angle dimensions (circular mean); all
-            False when None.
+        angle_mask: ``(D,)`` True or False per pose dimension, True for angles
+            (circular mean); all False when None. A mask, not indices
+            (``[0, 1]`` is refused: it would read as ``[False, True]``).
         resampling: A name in :data:`RESAMPLING`.
         ess_threshold: Resample when the effective sample size falls below
             this fraction of N; 1.0 (the default) resamples every frame, as
@@ -52,7 +56,15 @@ class ParticleFilter:
             weighted mean likelihood: the particle filter's estimate of
             ``log p(y_1..t)``, in the likelihood's own units (a likelihood
             known only up to a constant shifts it by that constant a frame).
+
+    Raises:
+        ValueError: If ``n`` is not an integer >= 1, a setting is not one
+            listed, or ``angle_mask`` is not a 1-D array of True/False.
     """
+
+    #: The attributes that hold one entry per pose dimension (or a scalar, or
+    #: None), checked against each other and the initial pose's D.
+    _PER_DIMENSION: ClassVar[tuple[str, ...]] = ("angle_mask",)
 
     def __init__(
         self,
@@ -65,21 +77,23 @@ class ParticleFilter:
         ess_threshold: float = 1.0,
         estimate: str = "mean",
     ) -> None:
-        if n < 1:
-            raise ValueError(f"ParticleFilter: n must be >= 1, got {n}")
+        owner = type(self).__name__
+        if not is_count(n):  # 2.7 would have run 2 particles
+            raise ValueError(f"{owner}: n must be an integer >= 1, got {n!r}")
         if resampling not in RESAMPLING:
             raise ValueError(f"ParticleFilter: resampling must be one of {sorted(RESAMPLING)}")
         if estimate not in ("mean", "map"):
             raise ValueError(f"ParticleFilter: estimate must be 'mean' or 'map', got {estimate!r}")
-        if not 0.0 <= ess_threshold <= 1.0:
+        if not (is_real(ess_threshold) and 0.0 <= ess_threshold <= 1.0):
             raise ValueError(
-                f"ParticleFilter: ess_threshold must be in [0, 1], got {ess_threshold}"
+                f"ParticleFilter: ess_threshold must be in [0, 1], got {ess_threshold!r}"
             )
         self.prior = prior
         self.fitted = fitted
         self.observation_model = observation_model
         self.n = int(n)
-        self.angle_mask = None if angle_mask is None else np.asarray(angle_mask, dtype=bool)
+        self.angle_mask = None if angle_mask is None else angle_mask_of(owner, angle_mask)
+        self._mask_given = angle_mask is not None
         self.resample_fn = RESAMPLING[resampling]
         self.ess_threshold = float(ess_threshold)
         self.estimate_kind = estimate
@@ -88,6 +102,8 @@ class ParticleFilter:
         self.ess: float = float("nan")
         self.log_evidence: float = 0.0
         self._rng: np.random.Generator | None = None
+        #: The poses' dimension D, known from the initial pose.
+        self._dims: int | None = None
 
     def reset(self, initial_pose: ArrayLike, rng: np.random.Generator) -> None:
         """Draw the initial particles from the prior around a known pose.
@@ -96,17 +112,79 @@ class ParticleFilter:
             initial_pose: ``(D,)`` the pose at the first frame (set by hand in
                 the papers, given by the environment here).
             rng: The filter's generator; the same seed gives the same run.
+
+        Raises:
+            ValueError: If ``initial_pose`` is not ``(D,)`` finite numbers, a
+                setting of one entry per dimension has another length (or a
+                partitioned stage searches a dimension beyond D), ``rng`` is
+                not a ``numpy.random.Generator``, or ``prior.initial`` returns
+                no :class:`ParticleState` of ``(n, D)`` poses.
         """
-        pose = np.asarray(initial_pose, dtype=np.float64)
+        who = f"{type(self).__name__}.reset"
+        pose = initial_pose_of(who, initial_pose)
+        check_generator(rng, who)
+        self._dims = pose.shape[0]
+        self._check_dimensions(self._dims, "the initial pose's")
+        if not self._mask_given:
+            self.angle_mask = np.zeros(self._dims, dtype=bool)
         self._rng = rng
-        self.state = self.prior.initial(self.fitted, pose, self.n, rng)
-        if self.state.n != self.n:
-            raise ValueError(f"prior.initial returned {self.state.n} particles, expected {self.n}")
+        self.state = self._checked(self.prior.initial(self.fitted, pose, self.n, rng), "initial")
         self.log_weights = np.full(self.n, -np.log(self.n))
         self.ess = float(self.n)
         self.log_evidence = 0.0
-        if self.angle_mask is None:
-            self.angle_mask = np.zeros(pose.shape[-1], dtype=bool)
+
+    def _check_dimensions(self, dims: int | None, source: str = "") -> tuple[int | None, str]:
+        """The pose's dimension D, checked against every setting of one entry per dimension.
+
+        Args:
+            dims: D where known (from the initial pose), else None: the
+                settings are then checked against each other, D taken from
+                the first that has one entry per dimension.
+            source: Where ``dims`` comes from, for the message.
+
+        Returns:
+            D (None where nothing tells it yet) and where it comes from.
+
+        Raises:
+            ValueError: Naming the setting whose length is not D.
+        """
+        owner = type(self).__name__
+        for name in self._PER_DIMENSION:
+            value = getattr(self, name)
+            if value is None or np.ndim(value) == 0:
+                continue
+            if dims is None:
+                dims, source = len(value), f"{name}'s"
+            elif len(value) != dims:
+                raise ValueError(
+                    f"{owner}: {name} has {len(value)} entries, expected one per pose "
+                    f"dimension: {dims} ({source})"
+                )
+        return dims, source
+
+    def _checked(self, state: Any, step: str) -> ParticleState:
+        """``state`` if the prior's ``step`` returned a :class:`ParticleState` of ``(n, D)`` poses.
+
+        A type check and a shape comparison: the prior's output is checked
+        every frame, before the likelihood reads it.
+
+        Raises:
+            ValueError: Naming ``prior.<step>``, what it returned and what was expected.
+        """
+        expected = (self.n, self._dims)
+        if not isinstance(state, ParticleState):
+            raise ValueError(
+                f"prior.{step} returned {type(state).__name__}, expected a ParticleState "
+                f"of (N, D) = {expected} poses"
+            )
+        if state.pose.shape != expected:
+            if state.n != self.n:
+                raise ValueError(f"prior.{step} returned {state.n} particles, expected {self.n}")
+            raise ValueError(
+                f"prior.{step} returned poses of shape {state.pose.shape}, expected "
+                f"(N, D) = {expected}"
+            )
+        return state
 
     def _estimate(
         self, pose: FloatArray, weights: FloatArray, rank: FloatArray | None = None
@@ -126,14 +204,13 @@ class ParticleFilter:
 
         Raises:
             RuntimeError: Before :meth:`reset`, naming the filter's class.
-            ValueError: If the prior returns another number of particles.
+            ValueError: If the prior returns no :class:`ParticleState` of
+                ``(n, D)`` poses.
         """
         if self.state is None or self.log_weights is None or self._rng is None:
             raise RuntimeError(f"{type(self).__name__}.step() called before reset()")
         state = self.prior.transition(self.fitted, self.state, self._rng)
-        if state.n != self.n:
-            raise ValueError(f"prior.transition returned {state.n} particles, expected {self.n}")
-        return state, self._rng
+        return self._checked(state, "transition"), self._rng
 
     def _scores(self, frame: Any, pose: FloatArray, bounds: Bounds | None = None) -> FloatArray:
         """``(M,)`` log-likelihoods of ``(M, D)`` poses, ``-inf`` for NaN.
@@ -219,33 +296,6 @@ def within_bounds(
     return ok
 
 
-def floor_and_bounds(
-    owner: str, min_std: ArrayLike, lower: ArrayLike | None, upper: ArrayLike | None
-) -> tuple[FloatArray, FloatArray | None, FloatArray | None]:
-    """A search's floor on its step (``min_std``) and the valid poses' bounds, checked."""
-    floor = np.asarray(min_std, dtype=np.float64)
-    if np.any(floor < 0) or not np.all(np.isfinite(floor)):
-        raise ValueError(f"{owner}: min_std must be finite and >= 0")
-    return (
-        floor,
-        None if lower is None else np.asarray(lower, dtype=np.float64),
-        None if upper is None else np.asarray(upper, dtype=np.float64),
-    )
-
-
-def _search_settings(
-    owner: str,
-    diffusion: float,
-    min_std: ArrayLike,
-    lower: ArrayLike | None,
-    upper: ArrayLike | None,
-) -> tuple[float, FloatArray, FloatArray | None, FloatArray | None]:
-    """The diffusion scale, its floor and the valid poses' bounds, checked."""
-    if not (np.isfinite(diffusion) and diffusion >= 0):
-        raise ValueError(f"{owner}: diffusion must be >= 0, got {diffusion}")
-    return (float(diffusion), *floor_and_bounds(owner, min_std, lower, upper))
-
-
 class AnnealedParticleFilter(ParticleFilter):
     """The annealed particle filter over any prior.
 
@@ -274,11 +324,19 @@ class AnnealedParticleFilter(ParticleFilter):
             turns diffusion off).
         min_std: ``(D,)`` or scalar floor on the diffusion's base standard
             deviation, so a collapsed proposal still searches (default 0).
-        lower, upper: ``(D,)`` bounds of valid poses (e.g. joint limits):
+        lower, upper: ``(D,)`` or scalar bounds of valid poses (e.g. joint
+            limits; -inf or inf for none, never NaN, lower <= upper):
             particles outside get weight 0 in every layer, so none survives.
         beta_max: Cap on the adaptive exponents (default: none). 1 never
             sharpens the weights beyond the likelihood's own.
+
+    Raises:
+        ValueError: If a setting is out of range, or the settings of one
+            entry per pose dimension (``angle_mask``, ``min_std``, ``lower``,
+            ``upper``) differ in length.
     """
+
+    _PER_DIMENSION = ("angle_mask", "min_std", "lower", "upper")
 
     def __init__(
         self,
@@ -305,7 +363,7 @@ class AnnealedParticleFilter(ParticleFilter):
             )
         if not 0.0 < alpha < 1.0:
             raise ValueError(f"AnnealedParticleFilter: alpha must be in (0, 1), got {alpha}")
-        self.diffusion, self.min_std, self.lower, self.upper = _search_settings(
+        self.diffusion, self.min_std, self.lower, self.upper = search_settings(
             "AnnealedParticleFilter", diffusion, min_std, lower, upper
         )
         self.layers = int(layers)
@@ -324,6 +382,7 @@ class AnnealedParticleFilter(ParticleFilter):
         #: Per layer of the last frame: the exponent and the survival rate.
         self.layer_betas: list[float] = []
         self.layer_survival: list[float] = []
+        self._check_dimensions(None)
 
     def step(self, frame: Any) -> FloatArray:
         """Advance one frame: propose from the prior, then anneal through the layers.
@@ -427,12 +486,22 @@ class PartitionedParticleFilter(ParticleFilter):
         prior, fitted, n, angle_mask, resampling, estimate: As
             :class:`ParticleFilter`.
         observation_model: Gives ``log_likelihood_partial(frame, poses, groups)``.
-        stages: The stages in order; their ``dims`` must not overlap.
+        stages: The stages in order; their ``dims`` (integer indices in
+            ``0..D-1``) must not overlap.
         diffusion: Scale on the diffusion's standard deviation (>= 0).
         min_std: ``(D,)`` or scalar floor on the proposal's spread.
-        lower, upper: ``(D,)`` bounds of valid poses (joint limits): particles
+        lower, upper: ``(D,)`` or scalar bounds of valid poses (joint limits;
+            -inf or inf for none, never NaN, lower <= upper): particles
             outside get weight 0 at every stage, so none survives.
+
+    Raises:
+        ValueError: If a setting is out of range, a stage's ``dims`` are not
+            integer indices >= 0 or overlap an earlier stage's, or the
+            settings of one entry per pose dimension differ in length (or a
+            stage's dimension is beyond theirs).
     """
+
+    _PER_DIMENSION = ("angle_mask", "min_std", "lower", "upper")
 
     def __init__(
         self,
@@ -453,21 +522,26 @@ class PartitionedParticleFilter(ParticleFilter):
         self.parts_model = observation_model
         if not stages:
             raise ValueError("PartitionedParticleFilter: expected at least one stage")
-        seen: set[int] = set()
-        for stage in stages:
-            dims = set(np.asarray(stage.dims, dtype=np.intp).tolist())
-            if not dims or dims & seen:
-                raise ValueError(
-                    f"PartitionedParticleFilter: stage {stage.name!r} must search at least one "
-                    f"dimension, none searched by an earlier stage; got {sorted(dims)}"
-                )
-            seen |= dims
         self.stages = tuple(stages)
-        self.diffusion, self.min_std, self.lower, self.upper = _search_settings(
+        #: Each stage's dimensions as an index array, checked.
+        self._stage_dims = _stage_dims(self.stages)
+        self.diffusion, self.min_std, self.lower, self.upper = search_settings(
             "PartitionedParticleFilter", diffusion, min_std, lower, upper
         )
         #: Per stage of the last frame, then the final weighing: ESS / N.
         self.stage_survival: list[float] = []
+        self._check_dimensions(None)
+
+    def _check_dimensions(self, dims: int | None, source: str = "") -> tuple[int | None, str]:
+        """As :meth:`ParticleFilter._check_dimensions`; each stage's dimensions lie below D too."""
+        dims, source = super()._check_dimensions(dims, source)
+        for stage, own in zip(self.stages, self._stage_dims, strict=True):
+            if dims is not None and own.max() >= dims:
+                raise ValueError(
+                    f"PartitionedParticleFilter: stage {stage.name!r} searches dimension "
+                    f"{int(own.max())}, expected one in 0..{dims - 1} ({source} D = {dims})"
+                )
+        return dims, source
 
     def step(self, frame: Any) -> FloatArray:
         """Advance one frame: propose from the prior, then weigh and resample stage by stage.
@@ -483,12 +557,10 @@ class PartitionedParticleFilter(ParticleFilter):
         self.stage_survival = []
         groups = [stage.group for stage in self.stages]
         partial = np.empty((0, 0))
-        for k, stage in enumerate(self.stages):
+        for k, dims in enumerate(self._stage_dims):
             if k > 0 and self.diffusion > 0:
                 pose = state.pose.copy()
-                pose[:, stage.dims] += base_std[stage.dims] * rng.standard_normal(
-                    (self.n, len(stage.dims))
-                )
+                pose[:, dims] += base_std[dims] * rng.standard_normal((self.n, len(dims)))
                 state = ParticleState(pose, state.extra)
             partial = np.asarray(
                 self.parts_model.log_likelihood_partial(frame, state.pose, groups),
@@ -516,6 +588,32 @@ class PartitionedParticleFilter(ParticleFilter):
         self.state = state.take(self.resample_fn(weights, rng))
         self.log_weights = np.full(self.n, -np.log(self.n))
         return estimate
+
+
+def _stage_dims(stages: Sequence[Stage]) -> tuple[NDArray[np.intp], ...]:
+    """Each stage's dimensions as an index array: non-empty, integers >= 0, no overlap.
+
+    Raises:
+        ValueError: Naming the stage, if its ``dims`` are not such indices.
+    """
+    out: list[NDArray[np.intp]] = []
+    seen: set[int] = set()
+    for stage in stages:
+        dims = np.asarray(stage.dims)
+        if dims.ndim != 1 or dims.size == 0 or dims.dtype.kind not in "iu" or dims.min() < 0:
+            raise ValueError(
+                f"PartitionedParticleFilter: stage {stage.name!r}: dims must be a non-empty "
+                f"1-D array of integer indices >= 0, got {dims.tolist()!r}"
+            )
+        own = set(dims.tolist())
+        if own & seen:
+            raise ValueError(
+                f"PartitionedParticleFilter: stage {stage.name!r} must search at least one "
+                f"dimension, none searched by an earlier stage; got {sorted(own)}"
+            )
+        seen |= own
+        out.append(dims.astype(np.intp, copy=False))
+    return tuple(out)
 
 
 def _increment(partial: FloatArray, k: int, to: int) -> FloatArray:

@@ -47,7 +47,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from baselines.filtering.filters import ParticleFilter, floor_and_bounds
+from baselines.filtering._checks import floor_and_bounds
+from baselines.filtering.filters import ParticleFilter
 from baselines.filtering.state import Likelihood, ParticleState, Prior
 from baselines.filtering.weights import temper_for_survival
 from humotion_gym.checks import is_count
@@ -168,8 +169,9 @@ def climb(
         blocks: Index arrays of the dimensions each block moves (non-empty).
         settings: The climb's settings.
         rng: The generator.
-        lower: ``(D,)`` lower bounds the proposals are clipped into (None: none).
-        upper: ``(D,)`` upper bounds, likewise.
+        lower: ``(D,)`` or scalar lower bounds the proposals are clipped into
+            (None: none).
+        upper: ``(D,)`` or scalar upper bounds, likewise.
 
     Returns:
         The climbed particles, their scores and the evaluations spent.
@@ -186,8 +188,8 @@ def climb(
     dims = [np.asarray(b, dtype=np.intp).reshape(-1) for b in blocks]
     if not dims or any(b.size == 0 or b.min() < 0 or b.max() >= d for b in dims):
         raise ValueError(f"climb: blocks: expected non-empty index arrays in 0..{d - 1}")
-    lo = np.full(d, -np.inf) if lower is None else np.asarray(lower, dtype=np.float64)
-    hi = np.full(d, np.inf) if upper is None else np.asarray(upper, dtype=np.float64)
+    lo = _bound(lower, -np.inf, d, "lower")
+    hi = _bound(upper, np.inf, d, "upper")
     sigma = np.full((k, len(dims)), settings.scale)
     evaluations = accepted = 0
     if k == 0:
@@ -207,6 +209,20 @@ def climb(
         evaluations += g.size
         accepted += int(better.sum())
     return Climb(x, f, evaluations, accepted)
+
+
+def _bound(bound: ArrayLike | None, none: float, d: int, name: str) -> FloatArray:
+    """``(D,)`` a bound given as None (``none`` everywhere), a number or ``(D,)`` numbers.
+
+    Raises:
+        ValueError: If it is neither a number nor ``(D,)``.
+    """
+    if bound is None:
+        return np.full(d, none)
+    value = np.asarray(bound, dtype=np.float64)
+    if value.shape not in ((), (d,)):
+        raise ValueError(f"climb: {name}: expected a number or ({d},) numbers, got {value.shape}")
+    return np.broadcast_to(value, (d,))
 
 
 ProbeFn = Callable[[FloatArray], FloatArray]
@@ -326,10 +342,17 @@ class SearchParticleFilter(ParticleFilter):
         blocks: The dimensions each block of the climb moves (default: one
             block of every dimension).
         min_std: ``(D,)`` or scalar floor on the climb's base step.
-        lower, upper: ``(D,)`` bounds of valid poses (joint limits): the climb
-            stays inside them, and particles the prior moves outside get
-            weight 0.
+        lower, upper: ``(D,)`` or scalar bounds of valid poses (joint limits;
+            -inf or inf for none, never NaN, lower <= upper): the climb stays
+            inside them, and particles the prior moves outside get weight 0.
+
+    Raises:
+        ValueError: If a setting is out of range, or the settings of one
+            entry per pose dimension (``angle_mask``, ``min_std``, ``lower``,
+            ``upper``) differ in length.
     """
+
+    _PER_DIMENSION = ("angle_mask", "min_std", "lower", "upper")
 
     def __init__(
         self,
@@ -355,6 +378,7 @@ class SearchParticleFilter(ParticleFilter):
         #: Likelihood evaluations of the last frame, and the climb's accepted steps.
         self.evaluations = 0
         self.accepted = 0
+        self._check_dimensions(None)
 
     def step(self, frame: Any) -> FloatArray:
         """Advance one frame: predict, score, climb, weigh, estimate, resample.

@@ -21,18 +21,26 @@ class ParticleState:
 
     Attributes:
         pose: ``(N, D)`` the pose part of each particle (the task's free
-            parameters).
+            parameters), a numpy array.
         extra: The prior's per-particle arrays (velocities, history windows,
             switch states, phases...), each with leading axis N, so that
             resampling is one fancy index over all of them. After
             :meth:`take` the arrays are gathered when first read (a prior
             that can read through the rows asks :func:`deferred_rows`).
+
+    Raises:
+        ValueError: If ``pose`` is not a 2-D numpy array, or an array of
+            ``extra`` has another leading axis.
     """
 
     pose: FloatArray
     extra: Mapping[str, NDArray[Any]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        # Every step makes a few states: two attribute reads, no copy.
+        if not (isinstance(self.pose, np.ndarray) and self.pose.ndim == 2):
+            got = self.pose.shape if isinstance(self.pose, np.ndarray) else type(self.pose).__name__
+            raise ValueError(f"ParticleState: pose must be an (N, D) numpy array, got {got}")
         n = self.pose.shape[0]
         if isinstance(self.extra, _Gathered):
             # The sources were checked when they were made; the rows are one per particle.

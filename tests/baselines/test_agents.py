@@ -408,6 +408,27 @@ def test_a_filter_setting_the_agents_filter_does_not_read_is_refused(
     assert AGENTS["spf-cv"].filter_settings_for("", {"search_top": 2})["search"].top == 2
 
 
+def test_the_filter_agent_refuses_counts_and_seeds_it_would_have_cut():
+    """``n_particles=2.7`` ran 2 particles and ``layers=2.5`` a 2-layer annealed
+    filter; a seed of 1.7 or -1 failed inside numpy."""
+    from baselines.agents import ParticleFilterAgent
+    from baselines.priors import constant_velocity
+
+    env = gym.make("humotion_gym/ArmTrack-v2")
+    build = {"task": env, "prior": constant_velocity, "fitted": None}
+    for name, value, least in [
+        ("n_particles", 2.7, 1), ("n_particles", 0, 1), ("n_particles", "30", 1),
+        ("layers", 2.5, 1), ("layers", 0, 1), ("seed", 1.7, 0), ("seed", -1, 0),
+    ]:  # fmt: skip
+        with pytest.raises(
+            ValueError,
+            match=rf"^ParticleFilterAgent: {name}: expected an integer >= {least}, got ",
+        ):
+            ParticleFilterAgent(**{"n_particles": 3, **build, name: value})
+    agent = ParticleFilterAgent(**build, n_particles=np.int64(3), layers=np.int64(2), seed=5)
+    assert agent.filter.n == 3 and agent.filter.layers == 2 and agent.seed == 5
+
+
 def test_the_filter_agent_refuses_a_setting_its_filter_does_not_read():
     from baselines.agents import ParticleFilterAgent
     from baselines.filtering.search import LocalSearch
