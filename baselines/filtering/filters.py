@@ -56,6 +56,8 @@ class ParticleFilter:
             weighted mean likelihood: the particle filter's estimate of
             ``log p(y_1..t)``, in the likelihood's own units (a likelihood
             known only up to a constant shifts it by that constant a frame).
+            A frame where every particle is impossible (every log-likelihood
+            ``-inf`` or NaN) estimates ``p(y_t) = 0``: ``-inf`` from then on.
 
     Raises:
         ValueError: If ``n`` is not an integer >= 1, a setting is not one
@@ -65,6 +67,8 @@ class ParticleFilter:
     #: The attributes that hold one entry per pose dimension (or a scalar, or
     #: None), checked against each other and the initial pose's D.
     _PER_DIMENSION: ClassVar[tuple[str, ...]] = ("angle_mask",)
+    #: Whether the filter estimates ``log p(y_1..t)`` (else ``log_evidence`` is NaN).
+    _evidence = True
 
     def __init__(
         self,
@@ -100,7 +104,7 @@ class ParticleFilter:
         self.state: ParticleState | None = None
         self.log_weights: FloatArray | None = None
         self.ess: float = float("nan")
-        self.log_evidence: float = 0.0
+        self.log_evidence: float = 0.0 if self._evidence else float("nan")
         self._rng: np.random.Generator | None = None
         #: The poses' dimension D, known from the initial pose.
         self._dims: int | None = None
@@ -131,7 +135,7 @@ class ParticleFilter:
         self.state = self._checked(self.prior.initial(self.fitted, pose, self.n, rng), "initial")
         self.log_weights = np.full(self.n, -np.log(self.n))
         self.ess = float(self.n)
-        self.log_evidence = 0.0
+        self.log_evidence = 0.0 if self._evidence else float("nan")
 
     def _check_dimensions(self, dims: int | None, source: str = "") -> tuple[int | None, str]:
         """The pose's dimension D, checked against every setting of one entry per dimension.
@@ -229,9 +233,12 @@ class ParticleFilter:
         return np.where(bad, -np.inf, loglik)
 
     def _weigh(
-        self, log_w: FloatArray, pose: FloatArray
+        self, log_w: FloatArray, pose: FloatArray, evidence: bool = True
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Normalise a frame's log weights; add to the log evidence and set the ESS.
+
+        ``evidence`` False leaves the log evidence to the caller (weights that
+        are not the prior's proposals weighed by the likelihood).
 
         Returns:
             The normalised log weights, the weights and the estimate of ``pose``.
@@ -245,11 +252,14 @@ class ParticleFilter:
             # an agent's TaskLikelihood holds the model its user wrote: named
             model = getattr(self.observation_model, "model", self.observation_model)
             possible(log_w, f"{type(model).__name__}.log_likelihood")
-            # Every particle impossible: keep the predicted cloud with equal weights
-            # rather than divide by zero; the estimate then follows the prior.
+            if evidence:  # every particle impossible: the frame's estimate of p(y_t) is 0
+                self.log_evidence = -np.inf
+            # Keep the predicted cloud with equal weights rather than divide by
+            # zero; the estimate then follows the prior.
             log_w = np.full(self.n, -np.log(self.n))
             norm = 0.0
-        self.log_evidence += float(norm)
+        elif evidence:
+            self.log_evidence += float(norm)
         log_w = log_w - norm
         weights = np.exp(log_w)
         self.ess = effective_sample_size(weights)
@@ -330,6 +340,13 @@ class AnnealedParticleFilter(ParticleFilter):
         beta_max: Cap on the adaptive exponents (default: none). 1 never
             sharpens the weights beyond the likelihood's own.
 
+    Attributes:
+        log_evidence: As :class:`ParticleFilter`'s where the filter is the
+            plain one (``layers=1, betas=(1.0,)``); NaN otherwise: each layer
+            weighs its particles by the likelihood raised to ``beta_m`` afresh,
+            not by an increment over the layer before, and the diffusion moves
+            them off the layer's target, so the weights estimate no ``p(y_t)``.
+
     Raises:
         ValueError: If a setting is out of range, or the settings of one
             entry per pose dimension (``angle_mask``, ``min_std``, ``lower``,
@@ -382,6 +399,8 @@ class AnnealedParticleFilter(ParticleFilter):
         #: Per layer of the last frame: the exponent and the survival rate.
         self.layer_betas: list[float] = []
         self.layer_survival: list[float] = []
+        self._evidence = bool(self.layers == 1 and self.betas is not None and self.betas[0] == 1.0)
+        self.log_evidence = 0.0 if self._evidence else float("nan")
         self._check_dimensions(None)
 
     def step(self, frame: Any) -> FloatArray:
@@ -408,6 +427,8 @@ class AnnealedParticleFilter(ParticleFilter):
                     beta = self.beta_max
                     weights = tempered_weights(loglik, beta)
             self.layer_betas.append(beta)
+            if self._evidence:  # one layer at beta 1: the plain filter's weights
+                self.log_evidence += log_sum_exp(loglik) - np.log(self.n)
             self.ess = effective_sample_size(weights)
             self.layer_survival.append(self.ess / self.n)
             if m == self.layers - 1:
@@ -494,6 +515,14 @@ class PartitionedParticleFilter(ParticleFilter):
             -inf or inf for none, never NaN, lower <= upper): particles
             outside get weight 0 at every stage, so none survives.
 
+    Attributes:
+        log_evidence: As :class:`ParticleFilter`'s with one stage or
+            ``diffusion = 0``: the product of the stages' mean weights
+            ``g_k / g_{k-1}`` then estimates ``p(y_t)`` (a sequential Monte
+            Carlo sampler through the partial figures). NaN with diffusion
+            and several stages: the diffused particles are no sample of the
+            stage before's target, so their weights estimate no ``p(y_t)``.
+
     Raises:
         ValueError: If a setting is out of range, a stage's ``dims`` are not
             integer indices >= 0 or overlap an earlier stage's, or the
@@ -530,6 +559,8 @@ class PartitionedParticleFilter(ParticleFilter):
         )
         #: Per stage of the last frame, then the final weighing: ESS / N.
         self.stage_survival: list[float] = []
+        self._evidence = len(self.stages) == 1 or self.diffusion == 0
+        self.log_evidence = 0.0 if self._evidence else float("nan")
         self._check_dimensions(None)
 
     def _check_dimensions(self, dims: int | None, source: str = "") -> tuple[int | None, str]:
@@ -574,20 +605,27 @@ class PartitionedParticleFilter(ParticleFilter):
             partial[~within_bounds(state.pose, self.lower, self.upper)] = -np.inf
             if k == len(groups) - 1:
                 break
-            weights = tempered_weights(_increment(partial, k, k), 1.0)
+            weights = self._stage_weights(_increment(partial, k, k))
             self.stage_survival.append(effective_sample_size(weights) / self.n)
             index = self.resample_fn(weights, rng)
             state = state.take(index)
         # The last stage's g_{K-1} / g_{K-2} and the whole figure's L / g_{K-1}
         # in one, L / g_{K-2}: the estimate is the weighted mean of the last
         # stage's particles (with one stage, the plain filter's).
-        weights = tempered_weights(_increment(partial, len(groups) - 1, len(groups)), 1.0)
+        weights = self._stage_weights(_increment(partial, len(groups) - 1, len(groups)))
         self.ess = effective_sample_size(weights)
         self.stage_survival.append(self.ess / self.n)
         estimate = self._estimate(state.pose, weights)
         self.state = state.take(self.resample_fn(weights, rng))
         self.log_weights = np.full(self.n, -np.log(self.n))
         return estimate
+
+    def _stage_weights(self, increment: FloatArray) -> FloatArray:
+        """A stage's normalised weights from its log increments; their mean into the evidence."""
+        weights = tempered_weights(increment, 1.0)
+        if self._evidence:  # log of the increments' mean (after +inf was refused)
+            self.log_evidence += log_sum_exp(increment) - np.log(self.n)
+        return weights
 
 
 def _stage_dims(stages: Sequence[Stage]) -> tuple[NDArray[np.intp], ...]:

@@ -50,7 +50,7 @@ from numpy.typing import ArrayLike, NDArray
 from baselines.filtering._checks import floor_and_bounds
 from baselines.filtering.filters import ParticleFilter
 from baselines.filtering.state import Likelihood, ParticleState, Prior
-from baselines.filtering.weights import temper_for_survival
+from baselines.filtering.weights import log_sum_exp, temper_for_survival
 from humotion_gym.checks import is_count
 
 FloatArray = NDArray[np.float64]
@@ -346,6 +346,15 @@ class SearchParticleFilter(ParticleFilter):
             -inf or inf for none, never NaN, lower <= upper): the climb stays
             inside them, and particles the prior moves outside get weight 0.
 
+    Attributes:
+        log_evidence: As :class:`ParticleFilter`'s, from the prior's proposals
+            as the likelihood scores them, before the climb and untempered:
+            the climbed particles and tempered weights are no importance
+            sample, so with a climb (or ``search.survival``) the next frames'
+            particles are not the filtering distribution's and the estimate
+            is an approximation; with ``top = 0`` or ``steps = 0`` (and no
+            survival) it is the plain filter's.
+
     Raises:
         ValueError: If a setting is out of range, or the settings of one
             entry per pose dimension (``angle_mask``, ``min_std``, ``lower``,
@@ -393,6 +402,9 @@ class SearchParticleFilter(ParticleFilter):
         pose = np.array(state.pose, dtype=np.float64)
         bounds = (self.lower, self.upper)
         loglik = self._scores(frame, pose, bounds)
+        # The plain filter's: the log weights (uniform, as it resamples every
+        # frame) plus the scores, before the climb moves any particle.
+        evidence = log_sum_exp(loglik) - np.log(self.n)
         self.evaluations = self.n
         self.accepted = 0
         k = min(self.search.top, int(np.isfinite(loglik).sum()))
@@ -408,7 +420,8 @@ class SearchParticleFilter(ParticleFilter):
             self.evaluations += result.evaluations
             self.accepted = result.accepted
             state = ParticleState(pose, state.extra)
-        _, weights, estimate = self._weigh(self._log_weights(loglik), state.pose)
+        _, weights, estimate = self._weigh(self._log_weights(loglik), state.pose, evidence=False)
+        self.log_evidence += evidence  # after _weigh refused a score of +inf
         self.state = state.take(self.resample_fn(weights, rng))
         self.log_weights = np.full(self.n, -np.log(self.n))
         return estimate
