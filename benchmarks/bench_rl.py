@@ -109,7 +109,10 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--data-dir", default=None)
     ap.add_argument(
-        "--rounds", type=int, default=12, help="PPO rounds of one rollout per env, in turns"
+        "--rounds",
+        type=int_at_least(1),
+        default=12,
+        help="PPO rounds of one rollout per env, in turns",
     )
     ap.add_argument("--updates", type=int_at_least(1), default=40, help="bc Adam steps timed")
     ap.add_argument(

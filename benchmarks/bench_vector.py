@@ -30,6 +30,7 @@ import numpy as np
 from _timing import best_of
 
 import humotion_gym  # noqa: F401  (registers the envs)
+from humotion_gym.checks import check_count
 from humotion_gym.cli._common import int_at_least
 
 
@@ -102,11 +103,17 @@ def ppo_rows(
     ``rounds`` rounds of one PPO iteration each; in six rounds each
     environment runs first, second and third, after each of the others. The
     ratio is the trivial environment's summed time over the environment's;
-    the label gives its range over blocks of ``block`` consecutive rounds,
+    the label gives its range over whole blocks of ``block`` consecutive
+    rounds (naming rounds past the last block, and giving none with fewer),
     and each environment's ``step_wait`` per vector step (of 8 env steps),
     averaged over every step PPO took, warm-up included: what the environment
     costs the learner's process.
+
+    Raises:
+        ValueError: If ``rounds`` or ``block`` is not a whole number >= 1.
     """
+    check_count("ppo_rows: rounds", rounds)  # before the environments' processes start
+    check_count("ppo_rows: block", block)
     import torch as th
     from bench_rl import TrivialEnv, ppo_turns
     from stable_baselines3.common.vec_env import DummyVecEnv
@@ -133,20 +140,41 @@ def ppo_rows(
     ref = f"PPO on a trivial env with {task}'s learner spaces, {n_envs} envs"
     trivial_label = f"{ref} (step_wait {_mean_ms(waits['trivial'])} ms)"
     out = [(trivial_label, rounds * iteration / float(spent["trivial"].sum()), ref, 1.0)]
-    blocks = [slice(lo, lo + block) for lo in range(0, rounds - block + 1, block)] or [slice(None)]
     labels = (("vector", "the vector env"), ("in-process", "the vector env drawing in-process"))
     for name, label in labels:
         ratio = float(spent["trivial"].sum() / spent[name].sum())
-        parts = [spent["trivial"][b].sum() / spent[name][b].sum() for b in blocks]
         spread = (
-            f"{rounds} rotated rounds of one rollout each; blocks of {block}: "
-            f"{min(parts):.2f}-{max(parts):.2f}; step_wait {_mean_ms(waits[name])} ms"
+            f"{rounds} rotated round{'s' if rounds != 1 else ''} of one rollout each"
+            f"{_block_spread(spent['trivial'], spent[name], block)}; "
+            f"step_wait {_mean_ms(waits[name])} ms"
         )
         out.append((
             f"PPO on {label}, {n_envs} x {task} ({spread})",
             rounds * iteration / float(spent[name].sum()), ref, ratio,
         ))  # fmt: skip
     return out
+
+
+def _block_spread(reference: np.ndarray, times: np.ndarray, block: int) -> str:
+    """The ratio's range over whole blocks of ``block`` rounds, as the label says it.
+
+    Rounds past the last whole block are named, not dropped in silence; with
+    fewer rounds than a block there is no spread to give.
+    """
+    whole, left = divmod(len(times), block)
+    if whole == 0:
+        return f"; fewer than a block of {block}: no spread"
+    parts = [
+        reference[lo : lo + block].sum() / times[lo : lo + block].sum()
+        for lo in range(0, whole * block, block)
+    ]
+    spread = (
+        f"blocks of {block}: {min(parts):.2f}-{max(parts):.2f}"
+        if whole > 1
+        else f"one block of {block}: {parts[0]:.2f}"
+    )
+    rest = f" (the last {left} round{'s' if left != 1 else ''} in no block)" if left else ""
+    return f"; {spread}{rest}"
 
 
 def _timed_step_wait(venv: Any) -> list[float]:
@@ -175,7 +203,10 @@ def main() -> None:
     ap.add_argument("--num-envs", type=int_at_least(1), default=16)
     ap.add_argument("--task", default="BodyTrack-v2")
     ap.add_argument(
-        "--ppo-rounds", type=int, default=18, help="PPO rounds of one rollout each (0: skip)"
+        "--ppo-rounds",
+        type=int_at_least(0),
+        default=18,
+        help="PPO rounds of one rollout each (0: skip)",
     )
     args = ap.parse_args()
     t0 = time.perf_counter()

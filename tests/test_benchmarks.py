@@ -1,0 +1,72 @@
+"""The benchmark scripts: their flags, labels and resumed files (no timing is asserted)."""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import subprocess
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+BENCHMARKS = ROOT / "benchmarks"
+
+
+def _module(name: str) -> ModuleType:
+    """A benchmark script as a module (the scripts import their siblings by bare name)."""
+    sys.path.insert(0, str(BENCHMARKS))
+    try:
+        spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
+        assert spec is not None and spec.loader is not None
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+    return module
+
+
+def _script(name: str, *args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    return subprocess.run(
+        [sys.executable, str(BENCHMARKS / f"{name}.py"), *args],
+        capture_output=True, text=True, timeout=timeout, env=env, cwd=ROOT,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("script", "args", "says"),
+    [
+        ("bench_vector", ["--ppo-rounds", "-2"], "--ppo-rounds: expected an integer >= 0"),
+        ("bench_rl", ["--rounds", "0"], "--rounds: expected an integer >= 1"),
+    ],
+)
+def test_a_bad_round_count_is_refused_before_any_timing(
+    script: str, args: list[str], says: str
+) -> None:
+    done = _script(script, *args)
+    assert done.returncode == 2 and says in done.stderr
+    assert "Traceback" not in done.stderr and done.stdout == ""
+
+
+@pytest.mark.parametrize(
+    ("rounds", "label"),
+    [
+        (1, "; fewer than a block of 6: no spread"),
+        (6, "; one block of 6: 0.50"),
+        (18, "; blocks of 6: 0.50-0.50"),
+        (20, "; blocks of 6: 0.50-0.50 (the last 2 rounds in no block)"),
+    ],
+)
+def test_the_ppo_spread_labels_the_blocks_measured(rounds: int, label: str) -> None:
+    bench_vector = _module("bench_vector")
+    assert bench_vector._block_spread(np.ones(rounds), np.full(rounds, 2.0), 6) == label
+
+
+def test_ppo_rows_refuses_a_bad_round_count_by_name() -> None:
+    bench_vector = _module("bench_vector")
+    with pytest.raises(ValueError, match="ppo_rows: rounds: expected an integer >= 1, got -2"):
+        bench_vector.ppo_rows(rounds=-2)
