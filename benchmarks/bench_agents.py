@@ -48,6 +48,7 @@ from bench_observation import reference_scores
 
 import humotion_gym  # noqa: F401
 from baselines.agents import AGENTS, make
+from baselines.observation import task_model
 from humotion_gym.cli._common import int_at_least
 from humotion_gym.envs import CURRENT_TASKS
 from humotion_gym.envs.description import read_observation
@@ -69,6 +70,11 @@ def main() -> None:
     )
     ap.add_argument("--opencv-threads", type=int_at_least(0), default=1)
     args = ap.parse_args()
+    # before the episode is stepped: make would refuse the agent later, in a traceback
+    for name in args.agents:
+        tasks = AGENTS[name].tasks
+        if tasks is not None and args.task not in tasks:
+            ap.error(f"--agents: {name} tracks {', '.join(tasks)} only, not {args.task}")
     cv2.setNumThreads(args.opencv_threads)
     clock = time.perf_counter
     kwargs = {"data_dir": args.data_dir} if args.data_dir else {}
@@ -76,7 +82,6 @@ def main() -> None:
     action = np.zeros(env.action_space.shape, np.float32)
     obs, _ = env.reset(seed=0)
     steps = [env.step(action) for _ in range(args.frames)]
-    distance = None
     print(
         f"{args.task}, {args.frames} frames, wall clock, best of {args.repeats}, "
         f"OpenCV threads {cv2.getNumThreads()}"
@@ -87,11 +92,12 @@ def main() -> None:
     )
     first = read_observation(obs)
     observed = [read_observation(step[0]) for step in steps]
+    # The reference's distance map, from the first frame, by the task's plain image
+    # likelihood (an agent's may be another kind: the detector's has no distance map).
+    distance = task_model(env.unwrapped.task).prepare(observed[0].frame).distance.min(axis=0)
     for name in args.agents:
         for n in args.particles:
             agent = make(name, env, n_particles=n, seed=0)
-            if distance is None:  # the reference's distance map, from the first frame
-                distance = agent.observation_model.prepare(observed[0].frame).distance.min(axis=0)
             rng = np.random.default_rng(1)
             poses = first.initial_pose + rng.normal(0.0, 0.05, (n, 25))
             ref = best = cpu = np.inf

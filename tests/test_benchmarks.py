@@ -38,6 +38,32 @@ def _script(name: str, *args: str, timeout: float = 120) -> subprocess.Completed
 
 
 @pytest.mark.parametrize(
+    ("args", "says"),
+    [
+        (["--agents", "pf-pca"], "--agents: pf-pca tracks WalkTrack-v2, SideWalk-v2 only"),
+        (["--task", "ArmTrack-v2", "--agents", "pf-cv", "pf-follow"], "pf-follow tracks"),
+    ],
+)
+def test_bench_agents_refuses_an_agent_the_task_lacks_in_one_line(
+    args: list[str], says: str
+) -> None:
+    done = _script("bench_agents", "--frames", "2", "--particles", "30", *args)
+    assert done.returncode == 2 and done.stdout == ""  # before the episode is stepped
+    last = done.stderr.splitlines()[-1]
+    assert last.startswith("bench_agents.py: error: ") and says in last
+    assert "Traceback" not in done.stderr
+
+
+def test_bench_agents_times_a_detector_agent_against_the_plain_scorer() -> None:
+    """The reference's distance map is the task's image likelihood's, whatever the agent's."""
+    done = _script(
+        "bench_agents", "--frames", "2", "--particles", "30", "--agents", "pf-cv-det", timeout=300
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.splitlines()[-1].startswith("pf-cv-det ")
+
+
+@pytest.mark.parametrize(
     ("script", "args", "says"),
     [
         ("bench_vector", ["--ppo-rounds", "-2"], "--ppo-rounds: expected an integer >= 0"),
