@@ -14,8 +14,12 @@ random-walk model), the work of one pass of the kind the SLDS fit makes 21 of
 per activity, so ``x ref`` says how many such passes a fit costs.
 
 The SLDS fit runs its activity models' EM in one process per core by default
-(``slds.fit(workers=None)``; the same model for any number); it is timed that
-way (``pf-slds(2p)`` with two cores) and in one process (``pf-slds(1p)``).
+(``slds.fit(workers=None)``; the same model for any number), but in one
+process below ``slds.PARALLEL_MIN_FRAMES`` frames or where the platform cannot
+fork. It is timed that way, labelled with the processes the fit used
+(``pf-slds(2p)`` for two), and then in one process (``pf-slds(1p)``); where
+the default fit already used one, that second fit would repeat it and is
+left out (a line says so).
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from __future__ import annotations
 import argparse
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import _timing  # noqa: F401  (one BLAS thread, as the command line)
@@ -30,8 +35,8 @@ import gymnasium as gym
 import numpy as np
 
 import humotion_gym  # noqa: F401
-from baselines.agents import AGENTS, fit_prior
-from humotion_gym.threads import available_cores
+from baselines.agents import AGENTS, AgentSpec, fit_prior
+from baselines.priors import slds
 
 TASKS = ("ArmTrack-v2", "BodyTrack-v2", "WalkTrack-v2", "SideWalk-v2")
 PRIOR_AGENTS = ("pf-cv", "pf-tree", "pf-tree-vel", "pf-slds", "pf-pca")
@@ -50,6 +55,33 @@ def reference_kalman(sequences: list[np.ndarray]) -> float:
             m = m + k @ (obs - m)
             p = p - k @ p
     return time.perf_counter() - start
+
+
+def timed_fit(
+    spec: AgentSpec, env: gym.Env, settings: dict[str, int]
+) -> tuple[float, float, int | None]:
+    """Seconds and file MB of a first fit, and the processes an SLDS fit used (else None).
+
+    The count is :func:`slds.fit_workers`'s answer within the fit, read by
+    wrapping it for the call: it depends on the fit's own activity starts.
+    """
+    used: list[int] = []
+    count = slds.fit_workers
+
+    def counted(starts: Sequence[slds.EMStart], workers: int | None) -> int:
+        used.append(count(starts, workers))
+        return used[-1]
+
+    slds.fit_workers = counted
+    try:
+        with tempfile.TemporaryDirectory() as cache:
+            t0 = time.perf_counter()
+            fit_prior(spec, env, settings, cache_dir=cache)
+            seconds = time.perf_counter() - t0
+            size = sum(p.stat().st_size for p in Path(cache).rglob("*.npz"))
+    finally:
+        slds.fit_workers = count
+    return seconds, size / 1e6, used[-1] if used else None
 
 
 def main() -> None:
@@ -72,17 +104,21 @@ def main() -> None:
             spec = AGENTS[name]
             if spec.tasks is not None and task not in spec.tasks:
                 continue
-            runs: list[tuple[str, dict[str, int]]] = [(name, {})]
-            if name == "pf-slds":  # across the cores (the default), then in one process
-                runs = [(f"{name}({available_cores()}p)", {}), (f"{name}(1p)", {"workers": 1})]
-            for label, settings in runs:
-                with tempfile.TemporaryDirectory() as cache:
-                    t0 = time.perf_counter()
-                    fit_prior(spec, env, settings, cache_dir=cache)
-                    seconds = time.perf_counter() - t0
-                    size = sum(p.stat().st_size for p in Path(cache).rglob("*.npz"))
+            runs: list[dict[str, int]] = [{}]
+            if name == "pf-slds":  # as it runs by default, then in one process
+                runs.append({"workers": 1})
+            for settings in runs:
+                seconds, size, workers = timed_fit(spec, env, settings)
+                label = name if workers is None else f"{name}({workers}p)"
                 print(f"{task:14s} {label:12s} {len(train):6d} {sum(len(s) for s in seqs):7d} "
-                      f"{seconds:7.2f} {seconds / ref:6.1f} {size / 1e6:8.2f}")  # fmt: skip
+                      f"{seconds:7.2f} {seconds / ref:6.1f} {size:8.2f}")  # fmt: skip
+                if workers == 1 and not settings:
+                    print(
+                        f"  ({name}'s default fit used one process (fewer than "
+                        f"{slds.PARALLEL_MIN_FRAMES:,} frames, one core or no fork): "
+                        "not repeated in one)"
+                    )
+                    break
 
 
 if __name__ == "__main__":

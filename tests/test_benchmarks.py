@@ -37,6 +37,15 @@ def _script(name: str, *args: str, timeout: float = 120) -> subprocess.Completed
     )  # fmt: skip
 
 
+def test_the_slds_fit_is_labelled_with_the_processes_it_used() -> None:
+    """Below slds.PARALLEL_MIN_FRAMES (the synthetic clips) the default fit is one process."""
+    done = _script("bench_fit", "--tasks", "ArmTrack-v2", "--agents", "pf-slds", timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    rows = [line.split()[1] for line in done.stdout.splitlines() if "pf-slds(" in line]
+    assert rows == ["pf-slds(1p)"]  # not "(2p)", and not fitted again in one process
+    assert "default fit used one process" in done.stdout
+
+
 @pytest.mark.parametrize(
     ("args", "says"),
     [

@@ -263,3 +263,20 @@ def test_the_summary_reads_the_agents_wall_and_cpu_times() -> None:
     target = "pf-tree BodyTrack-v2, 3,000 particles, ms per frame <= 5"
     values = dict((t.label, v) for t, v in speed_history.target_values(summary._read_agents(out)))
     assert values[target] == "2.49"
+
+
+def test_the_two_process_slds_target_reads_only_a_fit_in_two_processes() -> None:
+    """A fit that used one process (bench_fit's label) leaves the 2-process targets empty."""
+    summary = _summary_module()
+    out = (
+        "task agent clips frames fit s x ref file MB\n"
+        "ArmTrack-v2    reference        12    2880    0.02    1.0           (numpy pass)\n"
+        "ArmTrack-v2    pf-slds(1p)      12    2880    2.14   89.8     0.05\n"
+        "SideWalk-v2    reference        12    2880    0.02    1.0           (numpy pass)\n"
+        "SideWalk-v2    pf-slds(2p)      12    2880    2.14   89.8     0.05\n"
+    )
+    rows = summary._read_fit(out)
+    assert rows[0][0].endswith("(2,880 frames; file 0.05 MB, 1 process)")
+    values = dict((t.label, v) for t, v in speed_history.target_values(rows))
+    assert values["pf-slds prior fit on ArmTrack-v2, 2 processes, s <= 10"] is None
+    assert values["pf-slds prior fit on SideWalk-v2, 2 processes, s <= 10"] == "2.14"
