@@ -13,6 +13,12 @@ Usage::
 
     python benchmarks/v2_limbs.py --data-dir ../shared/mocap --episodes 80 \\
         --seeds 0 1 2 --out /tmp/v2_limbs.json
+
+``--out`` resumes: the cells already in the file are kept and only the
+missing task and variant cells run, so an interrupted run goes on where it
+stopped. A file whose cells were run with another ``--agent``, ``--episodes``
+or ``--seeds`` is refused (its episodes would not pair with the new ones):
+give another ``--out`` for other settings.
 """
 
 from __future__ import annotations
@@ -132,6 +138,8 @@ def run_cell(
         "task": task,
         "variant": variant,
         "agent": agent,
+        "episodes": episodes,
+        "seeds": list(seeds),
         "subjects": clips,
         "clip_ids": [r.clip_id for r in hold],
         "agent_errors_mm": runs,
@@ -191,6 +199,7 @@ def summarize(
         row = {
             "task": c["task"],
             "variant": c["variant"],
+            "agent": c["agent"],
             "mean_mm": float(per_episode.mean()),
             "ci": bootstrap_ci(per_episode, seed=0),
             "hold_mm": float(hold.mean()),
@@ -211,10 +220,11 @@ def summarize(
 
 
 def markdown(rows: list[dict[str, Any]], references: Sequence[str] = ("a v1", "b shaded")) -> str:
-    """The summary as a Markdown table, sorted by task and variant."""
+    """The summary as a Markdown table, sorted by task and variant; its agent named."""
     head = " | ".join(f"vs {ref}: mm [episodes CI] [clips CI]" for ref in references)
+    agent = " / ".join(sorted({r["agent"] for r in rows}))
     lines = [
-        f"| task | variant | pf-mix mm [95% CI] | hold mm | x-hold | {head} |",
+        f"| task | variant | {agent} mm [95% CI] | hold mm | x-hold | {head} |",
         "|---" * (5 + len(references)) + "|",
     ]
     for r in sorted(rows, key=lambda r: (r["task"], r["variant"])):
@@ -232,6 +242,59 @@ def markdown(rows: list[dict[str, Any]], references: Sequence[str] = ("a v1", "b
     return "\n".join(lines)
 
 
+def read_results(out: Path) -> list[dict[str, Any]]:
+    """The cells of a results file that ``--out`` names.
+
+    Raises:
+        ValueError: Naming the file, if it cannot be read or holds no cells.
+    """
+    try:
+        cells = json.loads(out.read_text())["cells"]
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        why = f"no {err} entry" if isinstance(err, KeyError) else str(err)
+        raise ValueError(f"{out}: not a results file of this script ({why})") from None
+    if not isinstance(cells, list):
+        raise ValueError(f"{out}: not a results file of this script (its cells are no list)")
+    return cells
+
+
+def resumed_cells(
+    out: Path, agent: str, episodes: int, seeds: Sequence[int]
+) -> list[dict[str, Any]]:
+    """The cells already in ``out`` (none where it does not exist), to run the rest.
+
+    Raises:
+        ValueError: Naming the file, the cell and the setting, if a cell was
+            run with another agent, number of episodes or agent seeds (its
+            episodes would not pair with the new cells'), or the file is unreadable.
+    """
+    if not out.exists():
+        return []
+    cells = read_results(out)
+    wanted = {"agent": agent, "episodes": episodes, "seeds": list(seeds)}
+    for c in cells:
+        # a cell written before its episodes and seeds were kept: their counts
+        had = {
+            "agent": c.get("agent"),
+            "episodes": c.get("episodes", len(c.get("hold_errors_mm", []))),
+            "seeds": c.get("seeds"),
+        }
+        if had["seeds"] is None and len(c.get("agent_errors_mm", [])) != len(seeds):
+            had["seeds"] = f"{len(c.get('agent_errors_mm', []))} seeds"
+        differ = [
+            f"{key} {had[key]} (given {wanted[key]})"
+            for key in wanted
+            if had[key] is not None and had[key] != wanted[key]
+        ]
+        if differ:
+            raise ValueError(
+                f"{out}: its {c.get('task')} {c.get('variant')!r} cell was run with "
+                f"{', '.join(differ)}; --out resumes a run of the same --agent, --episodes "
+                "and --seeds only: give another --out"
+            )
+    return cells
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     """Run the variants and write the cells and their summary as JSON."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -246,7 +309,13 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--agent", default="pf-mix")
     parser.add_argument("--tasks", nargs="+", default=["BodyTrack-v2", "WalkTrack-v2"])
     parser.add_argument("--variants", nargs="+", default=list(VARIANTS))
-    parser.add_argument("--out", type=Path, default=Path("/tmp/v2_limbs.json"))
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=Path("/tmp/v2_limbs.json"),
+        help="the results' JSON; an existing one is resumed: its cells are kept and only "
+        "the missing ones run (refused if run with another --agent, --episodes or --seeds)",
+    )
     parser.add_argument(
         "--table", action="store_true", help="only print the table of the results in --out"
     )
@@ -254,9 +323,16 @@ def main(argv: Sequence[str] | None = None) -> None:
         "--heights", action="store_true", help="only print the figure's median height per cell"
     )
     args = parser.parse_args(argv)
-    if args.table:
-        print(markdown(summarize(json.loads(args.out.read_text())["cells"])))
-        return
+    try:
+        if args.table:
+            print(markdown(summarize(read_results(args.out))))
+            return
+        # before the library loads and the first cell runs
+        cells = (
+            [] if args.heights else resumed_cells(args.out, args.agent, args.episodes, args.seeds)
+        )
+    except ValueError as err:
+        parser.error(f"--out: {err}")
     if args.data_dir is None:
         parser.error("--data-dir: give the real motion capture (e.g. ../shared/mocap)")
     library = load_library([args.data_dir], fps=30.0, progress=False)
@@ -267,9 +343,6 @@ def main(argv: Sequence[str] | None = None) -> None:
                 height = figure_heights(task, fold, variant, args.episodes)
                 print(f"{task} {variant}: median figure height {height:.1f} px", flush=True)
         return
-    cells = []
-    if args.out.exists():
-        cells = json.loads(args.out.read_text())["cells"]
     done = {(c["task"], c["variant"]) for c in cells}
     for task in args.tasks:
         for variant in args.variants:

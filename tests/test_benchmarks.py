@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import importlib.util
+import json
 import os
 import subprocess
 import sys
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 import pytest
@@ -105,3 +107,56 @@ def test_ppo_rows_refuses_a_bad_round_count_by_name() -> None:
     bench_vector = _module("bench_vector")
     with pytest.raises(ValueError, match="ppo_rows: rounds: expected an integer >= 1, got -2"):
         bench_vector.ppo_rows(rounds=-2)
+
+
+def _cell(agent: str, episodes: int, seeds: list[int], variant: str = "a v1") -> dict[str, Any]:
+    errors = [float(k) for k in range(episodes)]
+    return {
+        "task": "BodyTrack-v2", "variant": variant, "agent": agent, "episodes": episodes,
+        "seeds": seeds, "subjects": ["cmu-01"], "clip_ids": [f"c{k}" for k in range(episodes)],
+        "agent_errors_mm": [errors for _ in seeds], "hold_errors_mm": [e + 1 for e in errors],
+        "seconds": 1.0,
+    }  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("args", "says"),
+    [
+        (["--agent", "hold"], "agent pf-mix (given hold)"),
+        (["--episodes", "3"], "episodes 2 (given 3)"),
+        (["--seeds", "1"], "seeds [0] (given [1])"),
+    ],
+)
+def test_v2_limbs_refuses_to_resume_a_file_of_other_settings(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], says: str
+) -> None:
+    v2_limbs = _module("v2_limbs")
+    out = tmp_path / "limbs.json"
+    out.write_text(json.dumps({"cells": [_cell("pf-mix", 2, [0])]}))
+    base = ["--data-dir", str(tmp_path / "none"), "--out", str(out), "--episodes", "2"]
+    with pytest.raises(SystemExit) as done:  # before the (missing) library is read
+        v2_limbs.main([*base, "--seeds", "0", "--variants", "a v1", "b shaded", *args])
+    assert done.value.code == 2
+    err = capsys.readouterr().err.splitlines()[-1]
+    assert f"--out: {out}: its BodyTrack-v2 'a v1' cell was run with {says}" in err
+    # the same settings resume it (the file's cells are kept)
+    assert v2_limbs.resumed_cells(out, "pf-mix", 2, [0]) == [_cell("pf-mix", 2, [0])]
+
+
+def test_v2_limbs_reads_an_older_files_settings_off_its_cells(tmp_path: Path) -> None:
+    v2_limbs = _module("v2_limbs")
+    old = {k: v for k, v in _cell("pf-mix", 2, [0, 1]).items() if k not in ("episodes", "seeds")}
+    out = tmp_path / "limbs.json"
+    out.write_text(json.dumps({"cells": [old]}))
+    assert v2_limbs.resumed_cells(out, "pf-mix", 2, [0, 1]) == [old]
+    with pytest.raises(ValueError, match=r"2 seeds \(given \[0\]\)"):
+        v2_limbs.resumed_cells(out, "pf-mix", 2, [0])
+
+
+def test_v2_limbs_table_names_the_agent_that_ran() -> None:
+    v2_limbs = _module("v2_limbs")
+    cells = [_cell("hold", 2, [0]), _cell("hold", 2, [0], variant="b shaded")]
+    table = v2_limbs.markdown(v2_limbs.summarize(cells))
+    assert table.splitlines()[0].startswith("| task | variant | hold mm [95% CI] | hold mm |")
+    pf = v2_limbs.markdown(v2_limbs.summarize([_cell("pf-mix", 2, [0])]))
+    assert "| pf-mix mm [95% CI] |" in pf.splitlines()[0]
