@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import datetime
 import importlib.util
+import json
 import re
 import subprocess
 import sys
@@ -263,6 +264,40 @@ def test_the_summary_reads_the_agents_wall_and_cpu_times() -> None:
     target = "pf-tree BodyTrack-v2, 3,000 particles, ms per frame <= 5"
     values = dict((t.label, v) for t, v in speed_history.target_values(summary._read_agents(out)))
     assert values[target] == "2.49"
+
+
+def test_a_target_is_judged_on_the_unrounded_number_the_benchmark_handed_over(
+    tmp_path: Path,
+) -> None:
+    """0.9496 prints 0.95x and misses >= 0.95; 4.996 prints 5.00x and misses >= 5."""
+    summary = _summary_module()
+    history = summary.speed_history  # the module the summary's cells are made by
+    ppo = SUMMARY_ROWS[5][0]
+    handed = [
+        ["BodyTrack-v2 128x128 step + render()", 4110.2, "CartPole-v1", 4.996],
+        [ppo, 519.4, "PPO on a trivial env", 0.9496],
+        [SUMMARY_ROWS[3][0], 7403.0, "SyncVectorEnv", 2.004],
+    ]
+    rows = summary._json_rows("steps/s")("ROWS " + json.dumps(handed))
+    assert [(r[1], r[3]) for r in rows] == [
+        ("4,110 steps/s", "5.00x"), ("519 steps/s", "0.95x"), ("7,403 steps/s", "2.00x")
+    ]  # fmt: skip
+    values = dict((t.label, v) for t, v in history.target_values(rows))
+    step, vector, fleet = (history.TARGETS[k] for k in (0, 1, 7))
+    printed = (values[step.label], values[vector.label], values[fleet.label])
+    assert printed == ("5.00", "0.95", "2.00")
+    assert [history.is_met(t, values[t.label]) for t in (step, vector, fleet)] == [
+        False, False, True,
+    ]  # fmt: skip
+    # a number read off a printed table has no other: judged as printed
+    assert history.is_met(vector, "0.95") is True
+    lines = summary.format_targets(history.target_values(rows), markdown=False).splitlines()
+    assert any(vector.label in line and line.endswith("0.95  not met") for line in lines)
+    # recorded as printed, with met as judged
+    path = _csv(tmp_path, RUNS)
+    full = [*[r for r in SUMMARY_ROWS if r[0] not in {row[0] for row in rows}], *rows]
+    history.record(path, history.target_values(full), datetime.date(2026, 1, 4))
+    assert f'2026-01-04,4,"{vector.label}",0.95,no' in path.read_text().splitlines()
 
 
 def test_the_two_process_slds_target_reads_only_a_fit_in_two_processes() -> None:
