@@ -10,13 +10,20 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import re
 import sys
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 from humotion_gym.threads import limit_blas_threads
 
 limit_blas_threads()
+
+#: The project's file, whose extras say what installs a missing reference.
+PYPROJECT = Path(__file__).resolve().parent.parent / "pyproject.toml"
+#: Import names whose distribution, as the extras list it, is named otherwise.
+_DISTRIBUTIONS = {"sklearn": "scikit-learn"}
 
 
 def no_arguments(doc: str | None) -> None:
@@ -39,10 +46,38 @@ def require(module: str, reference: str) -> None:
     """
     if importlib.util.find_spec(module) is None:
         script = sys.argv[0] or "this benchmark"
-        sys.exit(
-            f"{script}: the reference ({reference}) needs {module}, which is not installed; "
-            "install the bench extra: pip install -e '.[bench]'"
+        extra = extra_of(module)
+        how = (
+            f"install the {extra} extra: pip install -e '.[{extra}]'"
+            if extra
+            else f"install it: pip install {_DISTRIBUTIONS.get(module, module)}"
         )
+        sys.exit(
+            f"{script}: the reference ({reference}) needs {module}, which is not installed; {how}"
+        )
+
+
+def extra_of(module: str) -> str | None:
+    """The first extra of pyproject.toml that lists ``module``'s distribution, or None.
+
+    None also where the file cannot be read (an installed copy without it, or
+    Python 3.10, which has no TOML reader).
+    """
+    try:
+        import tomllib
+    except ImportError:
+        return None
+    try:
+        extras = tomllib.loads(PYPROJECT.read_text())["project"]["optional-dependencies"]
+    except (OSError, ValueError, KeyError):
+        return None
+    wanted = _normalized(_DISTRIBUTIONS.get(module, module))
+    for extra, requirements in extras.items():
+        # a requirement's name ends where its version or marker begins
+        names = [_normalized(re.split(r"[^A-Za-z0-9_.-]", r, maxsplit=1)[0]) for r in requirements]
+        if wanted in names:
+            return extra
+    return None
 
 
 def best_of(fn: Callable[[], object], n: int = 1, repeats: int = 7, warmup: bool = True) -> float:
@@ -65,3 +100,8 @@ def best_of(fn: Callable[[], object], n: int = 1, repeats: int = 7, warmup: bool
             fn()
         best = min(best, (time.perf_counter() - t0) / n)
     return best
+
+
+def _normalized(name: str) -> str:
+    """A distribution's name as pip compares it: ``stable_baselines3`` is ``stable-baselines3``."""
+    return re.sub(r"[-_.]+", "-", name).lower()

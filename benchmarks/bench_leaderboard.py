@@ -98,7 +98,7 @@ def main() -> None:
     )
     ap.add_argument("--overhead-episodes", type=int_at_least(1), default=12)
     args = ap.parse_args()
-    _timing.require("ray", "the Ray engine (the distributed extra)")
+    _timing.require("ray", "the Ray engine")
     import ray
 
     kwargs: dict[str, Any] = {"data_dir": args.data_dir} if args.data_dir else {}

@@ -109,6 +109,22 @@ def test_ppo_rows_refuses_a_bad_round_count_by_name() -> None:
         bench_vector.ppo_rows(rounds=-2)
 
 
+def test_a_missing_reference_names_the_extra_that_holds_it(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    pytest.importorskip("tomllib", reason="tomllib is Python 3.11's")
+    timing = _module("_timing")
+    assert [timing.extra_of(m) for m in ("ray", "sklearn", "pygame", "torch")] == [
+        "distributed", "bench", "bench", "rl",
+    ]  # fmt: skip
+    monkeypatch.setattr(timing.importlib.util, "find_spec", lambda name: None)
+    with pytest.raises(SystemExit) as done:
+        timing.require("ray", "the Ray engine")
+    assert str(done.value).endswith(
+        "install the distributed extra: pip install -e '.[distributed]'"
+    )
+
+
 def _cell(agent: str, episodes: int, seeds: list[int], variant: str = "a v1") -> dict[str, Any]:
     errors = [float(k) for k in range(episodes)]
     return {
