@@ -6,8 +6,9 @@ Run: python benchmarks/bench_leaderboard.py [--data-dir ../shared/mocap] [--work
 Two measurements, each against a reference taken in the same run:
 
 1. **Speed-up.** A reduced grid of the README's tables (ArmTrack-v2 and
-   BodyTrack-v2; hold, pf-cv and pf-tree at 300 particles; a few episodes per
-   cell) runs in-process, then with ``--engine ray --workers N`` on a local Ray
+   BodyTrack-v2; hold, and pf-cv and pf-tree at 300 and 3,000 particles, as
+   ``--tasks``, ``--agents`` and ``--particles`` give by default; a few
+   episodes per cell) runs in-process, then with ``--engine ray --workers N`` on a local Ray
    started here. The numbers of the two runs are checked to be the same (every
    number but the timings). Each run is timed in two phases, as
    ``run_leaderboard`` does them: the start (engine made, priors read, fits

@@ -21,9 +21,10 @@ same held-out probe windows, three samplers are timed in the same run:
 
 Times are microseconds per probe (per particle), best of several repeats;
 ratios are reference time over tree time (above 1: the tree is faster). These
-machines are noisy: compare ratios, not absolute numbers. BLAS threads compete
-with other processes on a shared machine; ``OPENBLAS_NUM_THREADS=1`` gives
-steadier numbers. The end of the report times a whole
+machines are noisy: compare ratios, not absolute numbers. BLAS runs on one
+thread, as the command line runs it (importing ``_timing`` limits it, unless
+``OPENBLAS_NUM_THREADS`` or ``OMP_NUM_THREADS`` is set, which then decides);
+the report's first line gives the threads BLAS has. The end of the report times a whole
 :func:`~baselines.priors.tree.transition` of N particles and the fit.
 """
 
@@ -31,13 +32,13 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
-import os
 from functools import partial
 from pathlib import Path
 
 import numpy as np
 from _timing import best_of
 
+from baselines.leaderboard.platform_info import thread_counts
 from baselines.priors import tree
 from humotion_gym.cli._common import int_at_least
 from humotion_gym.mocap.library import load_library, synthetic_library
@@ -82,9 +83,12 @@ def main() -> None:
     train = [train[i] for i in order]
     total = sum(max(0, m.n_frames - tree.WINDOW - 1) for m in train)
     sizes = [s for s in SIZES if s < total] + [total]
-    threads = os.environ.get("OPENBLAS_NUM_THREADS", "unset")
+    threads = thread_counts()
+    chosen = ", ".join(f"{k}={v}" for k, v in threads["environment"].items())
+    why = f"set by {chosen}" if chosen else "limited on import of _timing, as the command line"
+    blas = ", ".join(str(n) for n in threads["blas"]) or "none loaded"
     print(f"data: {what}; probes: {args.particles} held-out windows; "
-          f"OPENBLAS_NUM_THREADS={threads}")  # fmt: skip
+          f"BLAS threads {blas} ({why})")  # fmt: skip
 
     held_out = tree.fit(test)
     probe_hist = tree.window_histories(
