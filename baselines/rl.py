@@ -85,6 +85,7 @@ from baselines.rl_config import (  # noqa: F401  (the training API, re-exported)
     load_hyperparams,
     prepare_output,
     resume_point,
+    run_data_dirs,
 )
 from humotion_gym.body import N_KEYPOINTS
 from humotion_gym.envs import get_task
@@ -147,6 +148,7 @@ def keypoint_sensitivity(
 def _provenance(config: TrainConfig, command: str | None) -> dict[str, Any]:
     return {
         **asdict(config),
+        "data_dir": run_data_dirs(config.data_dir),  # read, whichever way they were named
         "command": command or " ".join(sys.argv),
         "commit": source_commit() or "unknown",
         "split": "train",

@@ -15,6 +15,7 @@ import json
 import math
 import shutil
 import zipfile
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeGuard
@@ -23,6 +24,7 @@ import yaml
 
 from humotion_gym.checks import check_count, is_real
 from humotion_gym.envs import get_task
+from humotion_gym.mocap.library import configured_data_dirs
 
 ALGOS: tuple[str, ...] = ("ppo", "bc")
 
@@ -70,7 +72,9 @@ class TrainConfig:
         steps: Environment steps to train for.
         seed: Seed of the policy, the episodes and the rollouts.
         out: Output folder (``model.zip``, ``config.json``, ``checkpoints/``).
-        data_dir: Motion capture folders (None: the configured data or synthetic).
+        data_dir: Motion capture folders (None: ``$HUMOTION_MOCAP``'s, else the
+            synthetic library). ``config.json`` records the folders the run read
+            (:func:`run_data_dirs`), whichever way they were named.
         settings: Algorithm settings (:data:`PPO_DEFAULTS`/:data:`BC_DEFAULTS`
             overridden by the hyperparameter file and the caller).
         init: A saved policy to start from (PPO fine-tuning from ``bc``).
@@ -344,10 +348,28 @@ class InitMismatch(ValueError):
     """The policy a run starts from (``--init``) has another network (exit 2 on the CLI)."""
 
 
+def run_data_dirs(data_dir: Sequence[str | Path] | None) -> list[str]:
+    """The motion capture folders a run given ``data_dir`` reads, absolute; [] for synthetic.
+
+    As the library resolves them
+    (:func:`~humotion_gym.mocap.library.configured_data_dirs`): ``data_dir``
+    where given, else ``$HUMOTION_MOCAP``'s; none is the built-in synthetic
+    library. A run's record keeps these as its ``data_dir``, so that a resume,
+    a learning curve and a score see the data it read, however it was named.
+    """
+    return [str(p.expanduser().resolve()) for p in configured_data_dirs(data_dir)]
+
+
 def _comparable(key: str, value: Any) -> Any:
-    """A config value as a resume compares it: paths resolved, so that spellings agree."""
-    if key == "data_dir" and isinstance(value, (list, tuple)):
-        return [str(Path(p).expanduser().resolve()) for p in value]
+    """A recorded value as a resume compares it: paths resolved, so that spellings agree.
+
+    A ``data_dir`` of null is a record written before the folders read were
+    recorded, when it held only folders given as ``--data-dir``: it is taken
+    for the built-in synthetic library, the data such a run read unless
+    ``$HUMOTION_MOCAP`` was set.
+    """
+    if key == "data_dir":
+        return [] if value is None else run_data_dirs(value)
     if key == "init" and isinstance(value, str):
         return str(Path(value).expanduser().resolve())
     return value
@@ -380,13 +402,21 @@ def resume_differences(saved: dict[str, Any], config: TrainConfig) -> list[str]:
         ``"KEY: saved A, now B"`` for each field that differs.
     """
     now = {key: _comparable(key, getattr(config, key)) for key in RESUME_KEYS}
+    now["data_dir"] = run_data_dirs(config.data_dir)  # what it would read: $HUMOTION_MOCAP too
     before = {key: _comparable(key, saved.get(key)) for key in RESUME_KEYS}
     recorded = saved.get("settings")
     settings: dict[str, Any] = recorded if isinstance(recorded, dict) else {}
     for key in sorted((set(config.settings) | set(settings)) - set(RESUME_FREE_SETTINGS)):
         now[f"setting {key}"] = config.settings.get(key)
         before[f"setting {key}"] = settings.get(key)
-    return [f"{k}: saved {before[k]!r}, now {now[k]!r}" for k in now if before[k] != now[k]]
+    return [
+        f"{k}: saved {_shown(before[k])}, now {_shown(now[k])}" for k in now if before[k] != now[k]
+    ]
+
+
+def _shown(value: Any) -> str:
+    """A compared value as a message shows it, the synthetic library (no folder) in words."""
+    return "[] (the built-in synthetic library)" if value == [] else repr(value)
 
 
 def longer_recorded(saved: dict[str, Any], config: TrainConfig) -> int | None:

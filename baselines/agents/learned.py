@@ -171,8 +171,10 @@ def policy_record(path: str | Path) -> dict[str, Any] | None:
 def trained_data_dirs(path: str | Path) -> list[str] | None:
     """The motion-capture folders a saved policy's record (:func:`policy_record`) names.
 
-    None where there is no readable record or it names none (the run read
-    ``$HUMOTION_MOCAP`` or the synthetic library).
+    None where there is no readable record or it names none: the run read the
+    built-in synthetic library (a record written before the folders read were
+    recorded, whose ``data_dir`` is null, named only ``--data-dir`` folders:
+    it is taken for the synthetic library too).
     """
     return _record_data_dirs(policy_record(path) or {})
 

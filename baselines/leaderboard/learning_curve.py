@@ -61,7 +61,8 @@ def _found_run(config: TrainConfig) -> bool:
     if differ:
         raise CurveUsageError(
             f"--runs-dir: {out} holds another run ({'; '.join(differ)}); learning-curve "
-            f"continues a run only with the same --task, --data-dir and --set: {move}"
+            f"continues a run only with the same --task, data (--data-dir, else $HUMOTION_MOCAP) "
+            f"and --set: {move}"
         )
     longer = longer_recorded(saved, config)
     if longer is not None:

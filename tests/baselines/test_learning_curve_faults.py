@@ -227,3 +227,15 @@ def test_a_run_not_found_is_started_not_resumed(
     curve.learning_curve("ArmTrack-v2", ["bc", "bc"], [0, 1], 16, 2, 4, tmp_path / "runs",
                          tmp_path / "c.png")  # fmt: skip
     assert seen["resumed"] == [False, False]  # bc given twice is trained once per seed
+
+
+def test_a_run_on_other_data_is_refused(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """A run made on the synthetic library was continued on $HUMOTION_MOCAP's data."""
+    seen = _stub(monkeypatch)
+    _recorded_run(tmp_path)  # an older record: data_dir null, the synthetic library
+    monkeypatch.setenv("HUMOTION_MOCAP", str(tmp_path / "mocap"))
+    with pytest.raises(curve.CurveUsageError, match=r"data_dir: saved \[\] \(the built-in "
+                       r"synthetic library\), now \['.*mocap'\]"):  # fmt: skip
+        curve.learning_curve("ArmTrack-v2", ["bc"], [0], 16, 2, 4, tmp_path / "runs",
+                             tmp_path / "c.png")  # fmt: skip
+    assert seen["configs"] == []

@@ -923,3 +923,38 @@ def test_the_hybrids_answer_is_its_policys_next_previous_estimate() -> None:
     for seen, answer in zip(model.seen[1:], answers, strict=False):
         np.testing.assert_array_equal(seen["previous"], answer.astype(np.float32))
         assert not np.allclose(seen["previous"], 0.9)  # the filter's, not the policy's own
+
+
+def test_a_run_records_the_data_it_read_and_resumes_on_that_data_alone(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A run on $HUMOTION_MOCAP recorded data_dir null: a resume on synthetic data went on.
+
+    Its record now names the folders read (absolute), whichever way they were named; a
+    record of before (null, when only --data-dir was recorded) is the synthetic library.
+    """
+    from baselines.rl import _provenance
+
+    mocap = tmp_path / "mocap"
+    mocap.mkdir()
+    run = tmp_path / "run"
+    run.mkdir()
+    config = TrainConfig("bc", "ArmTrack-v2", steps=32, out=str(run))
+    monkeypatch.setenv("HUMOTION_MOCAP", str(mocap))
+    record = _provenance(config, "test")
+    assert record["data_dir"] == [str(mocap.resolve())]
+    (run / "config.json").write_text(json.dumps(record))
+    assert trained_data_dirs(run / "model.zip") == [str(mocap.resolve())]  # scoring warns
+    check_resumed(run / "config.json", config)  # the same variable: the same data
+    named = TrainConfig("bc", "ArmTrack-v2", steps=32, out=str(run), data_dir=[str(mocap)])
+    check_resumed(run / "config.json", named)  # the folder named: the same data too
+    monkeypatch.delenv("HUMOTION_MOCAP")
+    assert _provenance(config, "test")["data_dir"] == []
+    with pytest.raises(ResumeMismatch, match=r"data_dir: saved \['.*mocap'\], now \[\] \(the "):
+        check_resumed(run / "config.json", config)
+    (run / "config.json").write_text(json.dumps({**record, "data_dir": None}))
+    check_resumed(run / "config.json", config)  # an older record: the synthetic library
+    assert trained_data_dirs(run / "model.zip") is None
+    monkeypatch.setenv("HUMOTION_MOCAP", str(mocap))
+    with pytest.raises(ResumeMismatch, match=r"data_dir: saved \[\] \(the built-in synthetic"):
+        check_resumed(run / "config.json", config)
