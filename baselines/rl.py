@@ -580,20 +580,29 @@ def _start_model(
 def _start_from(model: PPO, source: PPO | None, init: str | None) -> None:
     """Load the policy ``source`` (the saved model ``init``) into ``model``'s network, if given.
 
+    Every tensor is loaded or none: a network of other parts (another
+    extractor, other heads) is refused as one of other sizes is.
+
     Raises:
-        InitMismatch: If its network is not this run's shape (another task's
-            actions, frame size or ``features_dim``).
+        InitMismatch: If its network is not this run's (another task's
+            actions, frame size, ``features_dim``, extractor or heads).
     """
     if source is None:
         return
+    why = f"--init {init}: its network does not fit this run's"
+    mine, theirs = model.policy.state_dict(), source.policy.state_dict()
+    missing, unknown = sorted(set(mine) - set(theirs)), sorted(set(theirs) - set(mine))
+    if missing or unknown:  # another extractor or heads: a part loaded would train as it fell
+        parts = [f"{len(names)} {whose} (e.g. {names[0]})" for names, whose in (
+            (missing, "of this run's tensors missing from it"),
+            (unknown, "of its own unknown here"),
+        ) if names]  # fmt: skip
+        raise InitMismatch(f"{why} (another features extractor or heads?): {', '.join(parts)}")
     try:
-        model.policy.load_state_dict(source.policy.state_dict(), strict=False)
+        model.policy.load_state_dict(theirs, strict=True)
     except RuntimeError as exc:
         first = str(exc).strip().splitlines()[-1].strip()
-        raise InitMismatch(
-            f"--init {init}: its network does not fit this run's (another task, frame size or "
-            f"features_dim?): {first}"
-        ) from None
+        raise InitMismatch(f"{why} (another task, frame size or features_dim?): {first}") from None
 
 
 def _resumed(path: Path, env: Any = None) -> PPO:

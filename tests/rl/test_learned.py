@@ -958,3 +958,33 @@ def test_a_run_records_the_data_it_read_and_resumes_on_that_data_alone(
     monkeypatch.setenv("HUMOTION_MOCAP", str(mocap))
     with pytest.raises(ResumeMismatch, match=r"data_dir: saved \[\] \(the built-in synthetic"):
         check_resumed(run / "config.json", config)
+
+
+def test_a_starting_policy_of_other_parts_is_refused_not_loaded_in_part(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A PPO of SB3's own extractor loaded its heads alone (strict=False) and trained on."""
+    from stable_baselines3 import PPO
+
+    from baselines.cli import main
+
+    env = make_learner_env("ArmTrack-v2", "train", 64)
+    kwargs = dict(features_extractor_kwargs=dict(cnn_output_dim=128),
+                  net_arch=dict(pi=[], vf=[64]))  # fmt: skip
+    other = tmp_path / "other.zip"
+    PPO(
+        "MultiInputPolicy", env, policy_kwargs=kwargs, device="cpu", n_steps=16, batch_size=16
+    ).save(other)
+    env.close()
+    out = tmp_path / "run"
+    argv = ["train", "--task", "ArmTrack-v2", "--algo", "ppo", "--steps", "32", "--no-validation",
+            "--set", "n_envs=2", "n_steps=16", "batch_size=16", "--out", str(out),
+            "--init", str(other)]  # fmt: skip
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnrecordedPolicyWarning)
+        assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"humotion-gym train: error: --init {other}: its network does not fit")
+    assert "of this run's tensors missing from it (e.g. features_extractor." in err
+    assert "of its own unknown here" in err and len(err.splitlines()) == 1
+    assert not out.exists()
