@@ -82,6 +82,7 @@ from baselines.rl_config import (  # noqa: F401  (the training API, re-exported)
     TrainConfig,
     check_resumed,
     checkpoints,
+    finished_steps,
     load_hyperparams,
     prepare_output,
     resume_point,
@@ -360,9 +361,11 @@ def train(
         resume: Continue the run in ``config.out`` from its latest model
             (:func:`resume_point`; from the start when it has none). The run
             must be the same but for its length (:func:`check_resumed`), and
-            there must be one (:func:`prepare_output`).
+            there must be one (:func:`prepare_output`). A run that has its
+            ``steps`` already (:func:`finished_steps`) is left as it is.
         command: The command line, kept in ``config.json``.
-        force: Start afresh over an earlier run's model (deleting it).
+        force: Start afresh over an earlier run's model (deleting it, once the
+            run's data and starting policy are checked).
 
     Raises:
         FileExistsError: If the output folder holds an earlier run's model and
@@ -373,13 +376,18 @@ def train(
     """
     out = Path(config.out)
     init = check_init(config)
+    fold = validation_fold(config)  # before --force deletes the earlier run
     prepare_output(out, resume, force, config)
     try:
         start = resume_point(out) if resume else None
     except ValueError as exc:
         raise ValueError(f"--resume: {exc}; start afresh with --force") from None
+    done = finished_steps(out, config.steps) if resume else None
+    if done is not None:  # its record says how it trained: a run of no steps would replace it
+        print(f"note: {out} holds a run of {done:,} env steps, --steps {config.steps:,}: "
+              "nothing to train; the run and its record are kept", flush=True)  # fmt: skip
+        return out / "model.zip"
     th.set_num_threads(max(1, int(config.threads)))
-    fold = validation_fold(config)
     logger = training_logger(out, start[0] if start else 0)
     validation = Validation(config, fold, logger) if fold is not None else None
     try:

@@ -514,6 +514,24 @@ def resume_point(out: Path) -> tuple[int, Path] | None:
     return found[-1] if found else None
 
 
+def finished_steps(out: Path, steps: int) -> int | None:
+    """The env steps of the finished run in ``out`` where they are ``steps`` or more, else None.
+
+    Finished: its final ``model.zip`` is its latest model and its record says
+    it ended there (``env_steps``, written last). Resumed to ``steps``, such a
+    run has nothing left to train.
+    """
+    final = _model_steps(out / "model.zip") if (out / "model.zip").is_file() else None
+    found = checkpoints(out / "checkpoints")
+    if final is None or final < steps or (found and found[-1][0] > final):
+        return None
+    try:
+        ended = read_record(out / "config.json").get("env_steps")
+    except (OSError, ValueError):
+        return None
+    return final if ended == final else None
+
+
 def _no_run(out: Path, earlier: list[Path]) -> str:
     """Why ``out`` holds no run to resume (it has no ``config.json``), and what to do."""
     if earlier:  # checkpoints whose run is unknown may be another task's network

@@ -137,6 +137,11 @@ def _register_curve(subparsers: argparse._SubParsersAction) -> None:
         "--set", type=key_value, nargs="*", action=Settings, default=[], metavar="KEY=VALUE",
         help="override settings of every run, e.g. n_envs=4 (default: none)",
     )  # fmt: skip
+    lc.add_argument(
+        "--no-validation", action="store_true",
+        help="train without tracking the validation persons (the curve's points are the test "
+        "persons' either way; default: tracked every 10,000 env steps, and logged)",
+    )  # fmt: skip
     add_data_dir(lc)
     lc.set_defaults(func=_cmd_curve)
 
@@ -244,6 +249,7 @@ def _cmd_curve(args: argparse.Namespace) -> int:
         result = learning_curve(
             args.task, args.algos, args.seeds, args.steps, args.points, args.episodes,
             args.runs_dir, args.out, data_dir=data_dir, settings=dict(args.set),
+            validation=not args.no_validation,
         )  # fmt: skip
     for algo, rows in result["curves"].items():
         for row in rows:

@@ -10,6 +10,7 @@ module imports torch and stable-baselines3.
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -22,7 +23,7 @@ from baselines.agents.learned import LearnedAgent, load_policy
 from baselines.experiments._plotting import pyplot, save
 from baselines.leaderboard.evaluation import evaluate
 from baselines.leaderboard.stats import iqm, stratified_bootstrap_ci
-from baselines.rl import TrainConfig, checkpoints, train
+from baselines.rl import TrainConfig, checkpoints, train, validation_fold
 from baselines.rl_config import (
     earlier_models,
     foreign_names,
@@ -39,13 +40,14 @@ class CurveUsageError(ValueError):
     """The curve's arguments disagree, or disagree with the runs found (exit 2 on the CLI)."""
 
 
-def _found_run(config: TrainConfig) -> bool:
+def _found_run(config: TrainConfig, points: int) -> bool:
     """Whether the folder of ``config`` holds its run to resume (False: none, start it).
 
     Raises:
-        CurveUsageError: If it holds another run, one longer than ``config.steps``
-            (its points past them would be plotted), models without the run's
-            record, or another command's files.
+        CurveUsageError: If it holds another run, one checkpointed at other
+            steps than the ``points`` asked for (:func:`_check_points`), one
+            longer than ``config.steps`` (its points past them would be
+            plotted), models without the run's record, or another command's files.
         ValueError: If its record or its model is unreadable.
     """
     out = Path(config.out)
@@ -71,11 +73,45 @@ def _found_run(config: TrainConfig) -> bool:
             f"checkpoints are not the points of {config.steps:,}; give --steps {longer} or more "
             "to use it, or another --runs-dir"
         )
+    _check_points(saved, config, points)
     try:
         resume_point(out)
     except ValueError as exc:
         raise ValueError(f"--runs-dir: {exc}; {move}") from None
     return True
+
+
+def _spacing(algo: str, steps: Any, every: Any, rounds: Any) -> int | None:
+    """Env steps between a run's checkpoints (``bc``: a round's), None if unrecorded."""
+    if not all(isinstance(v, int) and v > 0 for v in (steps, every, rounds or 1)):
+        return None
+    return math.ceil(steps / rounds) if algo == "bc" and rounds else int(every)
+
+
+def _check_points(saved: dict[str, Any], config: TrainConfig, points: int) -> None:
+    """Refuse a found run checkpointed at other steps than the curve's points.
+
+    A resume may change ``checkpoint_every`` and ``bc``'s ``rounds``: the run's
+    checkpoints would be plotted as the points asked for, and its record would
+    say it was made so.
+
+    Raises:
+        CurveUsageError: Naming both spacings, the found run's and the one asked.
+    """
+    settings = saved.get("settings")
+    rounds = settings.get("rounds") if isinstance(settings, dict) else None
+    then = _spacing(config.algo, saved.get("steps"), saved.get("checkpoint_every"), rounds)
+    now = _spacing(config.algo, config.steps, config.checkpoint_every,
+                   config.settings.get("rounds"))  # fmt: skip
+    if then == now:
+        return
+    found = f"every {then:,} env steps" if then is not None else "at steps its record lacks"
+    raise CurveUsageError(
+        f"--points {points}: {config.out} holds a run of {saved.get('steps')} env steps "
+        f"checkpointed {found}, not every {now:,} as --steps {config.steps} --points {points} "
+        "asks: its checkpoints are not the curve's points; give the --steps and --points it "
+        "was made with (a longer --steps of the same spacing continues it), or another --runs-dir"
+    )
 
 
 def _test_errors(
@@ -114,6 +150,7 @@ def learning_curve(
     out: str | Path,
     data_dir: list[str] | None = None,
     settings: dict[str, Any] | None = None,
+    validation: bool = True,
 ) -> dict[str, Any]:
     """Test-split error against env steps: train, evaluate every checkpoint, plot.
 
@@ -128,12 +165,16 @@ def learning_curve(
     Agarwal et al., *Deep reinforcement learning at the edge of the
     statistical precipice*, NeurIPS 2021); step 0 is the untrained policy,
     which is ``hold`` (:func:`start_as_hold`). Writes the figure to ``out``
-    and the numbers to ``out`` with the suffix ``.json``.
+    and the numbers to ``out`` with the suffix ``.json``. The runs track the
+    validation persons as they train (``validation``; logged, never plotted:
+    the points are the test persons').
 
     Raises:
         CurveUsageError: Before any run trains: a seed given twice, a setting
             out of range, or a run found that is not the one asked for
             (:func:`_found_run`).
+        ValueError: Before any run trains, if the data lacks the validation
+            persons (unless not ``validation``) or the test persons.
     """
     twice = sorted({s for s in seeds if list(seeds).count(s) > 1})
     if twice:  # one run counted twice would narrow the interval for nothing
@@ -154,15 +195,17 @@ def learning_curve(
                 data_dir=data_dir,
                 checkpoint_every=every,
                 settings={**({"rounds": points} if algo == "bc" else {}), **(settings or {})},
+                validation=validation,
             )  # fmt: skip
             for algo in dict.fromkeys(algos)
             for seed in seeds
         }
     except ValueError as exc:  # a setting out of range or unknown to an algorithm
         raise CurveUsageError(str(exc)) from None
-    found = {key: _found_run(config) for key, config in configs.items()}
+    found = {key: _found_run(config, points) for key, config in configs.items()}
+    hold = _test_errors(task, episodes, data_dir, HoldAgent)  # the data has test persons
+    validation_fold(next(iter(configs.values())))  # and validation persons: every run's data
     curves: dict[str, list[dict[str, Any]]] = {}
-    hold = None
     for algo in dict.fromkeys(algos):
         per_seed: list[dict[int, list[float]]] = []
         for seed in seeds:
@@ -171,12 +214,9 @@ def learning_curve(
             points_of = {0: None, **dict(checkpoints(Path(config.out) / "checkpoints"))}
             errors: dict[int, list[float]] = {}
             for n, path in points_of.items():
-                if path is None:
-                    if hold is None:
-                        hold = _test_errors(task, episodes, data_dir, HoldAgent)
-                    errors[0] = hold
-                else:
-                    errors[n] = checkpoint_errors(path, task, episodes, data_dir)
+                errors[n] = (
+                    hold if path is None else checkpoint_errors(path, task, episodes, data_dir)
+                )
             per_seed.append(errors)
         # the checkpoints' step counts agree across seeds; keep those all seeds have
         common = sorted(set.intersection(*(set(e) for e in per_seed)))
@@ -188,7 +228,7 @@ def learning_curve(
                          "per_seed_mean_mm": matrix.mean(axis=1).tolist()})  # fmt: skip
         curves[algo] = rows
     # the same statistic as the curve's points (step 0 is hold's episodes)
-    hold_mm = iqm(hold) if hold is not None else float("nan")
+    hold_mm = iqm(hold)
     result = {"task": get_task(task).name, "seeds": list(seeds), "episodes": episodes,
               "steps": steps, "hold_mm": hold_mm, "curves": curves}  # fmt: skip
     out = Path(out)

@@ -49,6 +49,7 @@ def _stub(monkeypatch: pytest.MonkeyPatch) -> dict[str, Any]:
     monkeypatch.setattr(curve, "_test_errors", test_errors)
     monkeypatch.setattr(curve, "checkpoint_errors", checkpoint_errors)
     monkeypatch.setattr(curve, "_plot_curve", lambda result, out: None)
+    monkeypatch.setattr(curve, "validation_fold", lambda config: None)
     return seen
 
 
@@ -213,7 +214,7 @@ def test_a_run_longer_than_steps_is_refused_and_a_shorter_one_resumed(
     err = capsys.readouterr().err
     assert f"--steps 16: {run} holds a longer run (24 env steps)" in err
     assert "--steps 24 or more" in err and seen["configs"] == []
-    _recorded_run(tmp_path, steps=8)
+    _recorded_run(tmp_path, steps=8, settings={"rounds": 1})  # a round of 8, as 16 in 2
     assert main(_curve_cli(tmp_path)) == 0
     assert seen["resumed"] == [True]  # the 8-step run continued to 16
 
@@ -229,6 +230,34 @@ def test_a_run_not_found_is_started_not_resumed(
     assert seen["resumed"] == [False, False]  # bc given twice is trained once per seed
 
 
+def test_a_run_of_other_points_is_refused(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--points 4 over a run made with --points 2: its checkpoints were plotted as the 4 points.
+
+    The resume went on with nothing to train, and its record said rounds 4 and
+    checkpoint_every 4 though its models were trained with 2 rounds.
+    """
+    seen = _stub(monkeypatch)
+    run = _recorded_run(tmp_path)  # 16 steps in 2 rounds: a checkpoint every 8
+    argv = _curve_cli(tmp_path)
+    argv[argv.index("--points") + 1] = "4"
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"humotion-gym learning-curve: error: --points 4: {run} holds a run of "
+                          "16 env steps checkpointed every 8 env steps, not every 4 as --steps "
+                          "16 --points 4 asks")  # fmt: skip
+    assert "or another --runs-dir" in err and len(err.splitlines()) == 1
+    assert seen["configs"] == []
+    ppo = TrainConfig("ppo", "ArmTrack-v2", 16, 0, str(tmp_path / "runs" / "ppo-s0"),
+                      checkpoint_every=4)  # fmt: skip
+    Path(ppo.out).mkdir()
+    (Path(ppo.out) / "config.json").write_text(json.dumps(asdict(ppo)))
+    assert main([*_curve_cli(tmp_path), "--algos", "ppo"]) == 2  # PPO's: checkpoint_every
+    assert "checkpointed every 4 env steps, not every 8" in capsys.readouterr().err
+    assert seen["configs"] == []
+
+
 def test_a_run_on_other_data_is_refused(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     """A run made on the synthetic library was continued on $HUMOTION_MOCAP's data."""
     seen = _stub(monkeypatch)
@@ -239,3 +268,24 @@ def test_a_run_on_other_data_is_refused(monkeypatch: pytest.MonkeyPatch, tmp_pat
         curve.learning_curve("ArmTrack-v2", ["bc"], [0], 16, 2, 4, tmp_path / "runs",
                              tmp_path / "c.png")  # fmt: skip
     assert seen["configs"] == []
+
+
+def test_the_runs_may_train_without_validation_and_the_data_is_checked_first(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Data without the validation persons advised --no-validation, which it did not have."""
+    seen = _stub(monkeypatch)
+    assert main(_curve_cli(tmp_path, "--no-validation")) == 0
+    assert [c.validation for c in seen["configs"]] == [False]
+    seen["configs"].clear()
+
+    def no_fold(config: TrainConfig) -> None:
+        assert config.validation
+        raise ValueError("validation: the data holds none; train without validation "
+                         "(--no-validation; validation=False in TrainConfig)")  # fmt: skip
+
+    monkeypatch.setattr(curve, "validation_fold", no_fold)
+    capsys.readouterr()
+    assert main(_curve_cli(tmp_path, "--runs-dir", str(tmp_path / "other"))) == 1
+    assert "--no-validation" in capsys.readouterr().err
+    assert seen["configs"] == [] and seen["hold_calls"] == 2  # the test persons first

@@ -988,3 +988,43 @@ def test_a_starting_policy_of_other_parts_is_refused_not_loaded_in_part(
     assert "of this run's tensors missing from it (e.g. features_extractor." in err
     assert "of its own unknown here" in err and len(err.splitlines()) == 1
     assert not out.exists()
+
+
+def test_a_resume_with_nothing_to_train_keeps_the_run_and_its_record(
+    bc_run: Path, tmp_path: Path
+) -> None:
+    """A finished bc run resumed to its own --steps: final_loss_rms_mm null, wall_s 0.01."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(bc_run, run)
+    before = {p: p.read_bytes() for p in (run / "config.json", run / "model.zip")}
+    config = TrainConfig(
+        "bc", "ArmTrack-v2", steps=240, seed=0, out=str(run),
+        settings={"n_envs": 2, "rounds": 2, "buffer_size": 500, "frame_size": 32},
+        eval_every=200, eval_episodes=1,
+    )  # fmt: skip
+    assert train(config, resume=True) == run / "model.zip"
+    assert {p: p.read_bytes() for p in before} == before
+    assert json.loads(before[run / "config.json"])["final_loss_rms_mm"] is not None
+    assert not (run / "logs" / "from-240").exists()
+
+
+def test_force_checks_the_data_before_it_deletes_the_earlier_run(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """--force deleted the run, then refused data without the validation persons."""
+    import baselines.rl as rl
+
+    def no_fold(config: TrainConfig) -> None:
+        raise ValueError("validation: validation_fold: subjects ['cmu-01'] are not in the data")
+
+    monkeypatch.setattr(rl, "validation_fold", no_fold)
+    (tmp_path / "checkpoints").mkdir()
+    (tmp_path / "checkpoints" / "model_16_steps.zip").write_bytes(b"x")
+    (tmp_path / "model.zip").write_bytes(b"x")
+    config = TrainConfig("bc", "ArmTrack-v2", steps=16, out=str(tmp_path))
+    with pytest.raises(ValueError, match="validation: validation_fold"):
+        train(config, force=True)
+    assert (tmp_path / "model.zip").is_file()
+    assert (tmp_path / "checkpoints" / "model_16_steps.zip").is_file()
