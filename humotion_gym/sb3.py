@@ -261,12 +261,14 @@ class LearnerVecEnv(VecEnv):
         """Set an attribute of each episode's environment.
 
         The vector environment's settings go through its ``set_attr`` and its
-        checks: a fixed one is refused, a batch one must cover every episode.
+        checks: a fixed one (the split, the library, the spaces...) is refused,
+        a batch one must cover every episode; and so does every attribute
+        where the frames are drawn ahead, whose process would not see it.
         """
-        if attr_name in FIXED_SETTINGS or attr_name in BATCH_SETTINGS:
+        if attr_name in FIXED_SETTINGS or attr_name in BATCH_SETTINGS or self.venv.draws_ahead:
             rows = set(self._get_indices(indices))
-            self.venv.set_attr(attr_name, [
-                value if i in rows else getattr(env, attr_name)
+            self.venv.set_attr(attr_name, [  # a name the episodes lack: refused when drawn ahead
+                value if i in rows else getattr(env, attr_name, value)
                 for i, env in enumerate(self.venv.envs)
             ])  # fmt: skip
             return

@@ -645,6 +645,11 @@ class PoseTrackingVectorEnv(VectorEnv):
     # -- SyncVectorEnv's access to the episodes ----------------------------------------
 
     @property
+    def draws_ahead(self) -> bool:
+        """Whether a second process draws the frames (``draw_ahead=True``)."""
+        return self._stream is not None
+
+    @property
     def np_random_seed(self) -> tuple[int, ...]:  # type: ignore[override]
         """Each episode's seed (``reset(seed=s)`` gives episode ``i`` seed ``s + i``)."""
         return tuple(env.np_random_seed for env in self.envs)
@@ -674,7 +679,8 @@ class PoseTrackingVectorEnv(VectorEnv):
 
         The batch applies the first episode's :data:`BATCH_SETTINGS` to every
         episode: they take one value for all. :data:`FIXED_SETTINGS` size the
-        batch's buffers and spaces: they are set when it is made.
+        batch's buffers and spaces, or choose the clips its episodes draw
+        from (``split``, ``library``): they are set when it is made.
 
         Raises:
             ValueError: If the values are not one per episode, differ for a
@@ -684,10 +690,13 @@ class PoseTrackingVectorEnv(VectorEnv):
             values = [values] * self.num_envs
         if len(values) != self.num_envs:
             raise ValueError(f"set_attr: {len(values)} values for {self.num_envs} episodes")
-        if name in FIXED_SETTINGS and any(v != getattr(self.envs[0], name) for v in values):
+        if name in FIXED_SETTINGS and any(
+            v is not getattr(env, name) and v != getattr(env, name)
+            for env, v in zip(self.envs, values, strict=True)
+        ):
             raise ValueError(
-                f"set_attr: {name!r} is set when the vector environment is made (it sizes its "
-                f"buffers and spaces); make one with {name}=..."
+                f"set_attr: {name!r} is set when the vector environment is made (its buffers, "
+                f"spaces and episodes' clips are made from it); make one with {name}=..."
             )
         if self._stream is not None and name == "terminate_on_lost" and any(values):
             raise ValueError(
@@ -741,10 +750,11 @@ def check_episode_method(name: str, caller: str) -> None:
         )
 
 
-#: Read when the batch is made: its buffers' sizes, spaces and scene.
+#: Read when the batch is made: its buffers' sizes, spaces and scene, and the
+#: split and library whose persons each episode's clips are chosen from.
 FIXED_SETTINGS: tuple[str, ...] = (
     "episode_frames", "frame_skip", "task", "scene", "views", "render_mode",
-    "dict_observation", "observation_space", "action_space",
+    "dict_observation", "observation_space", "action_space", "split", "library",
 )  # fmt: skip
 
 

@@ -162,6 +162,9 @@ def test_learner_vec_env_drawn_ahead_gives_the_same_rollouts():
             _assert_same(tuple(want[:3]), tuple(got[:3]), f"step {k}")
             for info_a, info_b in zip(want[3], got[3], strict=True):
                 _assert_same(info_a, info_b, f"info {k}")
+        # as the batch's own set_attr: the drawing process would not see it (it was set)
+        with pytest.raises(ValueError, match=r"set_attr\('clips'\): the frames are drawn ahead"):
+            ahead.set_attr("clips", ahead.get_attr("clips", [0])[0], indices=[0])
     finally:
         ours.close()
         ahead.close()

@@ -25,6 +25,7 @@ from gymnasium.vector import AutoresetMode
 from humotion_gym.camera import Camera
 from humotion_gym.envs import ENV_IDS, get_task
 from humotion_gym.envs.vector import PoseTrackingVectorEnv
+from humotion_gym.mocap.library import synthetic_library
 
 RTOL = 1e-12
 
@@ -387,6 +388,27 @@ def test_an_episode_is_not_reset_or_stepped_behind_the_batch():
     learner.set_attr("lost_patience", 2)
     learner.set_attr("note", "mine", indices=[1])  # not a setting: as SB3's other envs
     assert learner.get_attr("lost_patience") == [2, 2] and learner.get_attr("note", [1]) == ["mine"]
+
+
+@pytest.mark.parametrize("name", ["split", "library"])
+def test_the_persons_episodes_show_are_fixed_when_the_batch_is_made(name):
+    """set_attr("split", "test") was taken, and get_attr said test; the episodes stayed train's.
+
+    Each episode's clips are chosen from its split and library when it is made.
+    """
+    pytest.importorskip("stable_baselines3")
+    from humotion_gym.sb3 import learner_vec_env
+
+    learner = learner_vec_env("ArmTrack-v2", 2, "train", 32)
+    other = {"split": "test", "library": synthetic_library(seed=1)}[name]
+    for setter in (learner.set_attr, learner.venv.set_attr):
+        with pytest.raises(
+            ValueError, match=f"'{name}' is set when the vector environment is made"
+        ):
+            setter(name, other)
+    assert learner.get_attr("split") == ["train", "train"]
+    learner.set_attr(name, learner.get_attr(name)[0])  # the same: nothing to refuse
+    learner.close()
 
 
 def test_render_without_a_render_mode_says_so():
