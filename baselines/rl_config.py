@@ -240,12 +240,15 @@ def load_hyperparams(path: str | Path, task: str) -> dict[str, Any]:
                              f"{entry[fixed]!r}")  # fmt: skip
     out = {k: entry[k] for k in sorted(read) if k in entry}
     out |= _zoo_policy_kwargs(entry.get("policy_kwargs"), where)
-    for wrapper in entry.get("env_wrapper") or []:
+    wrappers = entry.get("env_wrapper") or []
+    for wrapper in wrappers:
         kwargs = wrapper.get(LEARNER_WRAPPER) if isinstance(wrapper, dict) else None
-        if not isinstance(kwargs, dict) or len(wrapper) != 1 or set(kwargs) - {"size"}:
+        # one wrapper: rl_zoo3 would wrap with each one listed (LearnerObservation twice)
+        alone = isinstance(wrapper, dict) and len(wrapper) == len(wrappers) == 1
+        if not (alone and isinstance(kwargs, dict)) or set(kwargs) - {"size"}:
             raise ValueError(
-                f"{where}: env_wrapper must be [{LEARNER_WRAPPER}: {{size: N}}] (what train "
-                f"builds), got {entry['env_wrapper']!r}"
+                f"{where}: env_wrapper must be [{LEARNER_WRAPPER}: {{size: N}}], one wrapper "
+                f"(what train builds), got {entry['env_wrapper']!r}"
             )
         out["frame_size"] = kwargs.get("size", PPO_DEFAULTS["frame_size"])
     for setting, value in out.items():
@@ -322,10 +325,14 @@ def _read_zoo_yaml(path: Path) -> dict[str, Any]:
     """The entries of a zoo hyperparameter file.
 
     Raises:
-        ValueError: If it is not YAML (the message names the file).
+        ValueError: If it is not YAML, or not text (the message names the file).
     """
     try:
-        data = yaml.safe_load(path.read_text())
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise ValueError(
+            f"{path}: not a YAML text file (byte {exc.start} is not UTF-8 text)"
+        ) from None
     except yaml.YAMLError as exc:
         raise ValueError(f"{path}: not a YAML hyperparameter file ({exc})") from None
     return data if isinstance(data, dict) else {}

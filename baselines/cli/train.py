@@ -155,7 +155,8 @@ def _settings(args: argparse.Namespace) -> dict:
     if args.algo == "ppo":
         path = args.hyperparams or (DEFAULT_HYPERPARAMS if DEFAULT_HYPERPARAMS.is_file() else None)
         if path is not None:
-            with refused_as(CommandError, ValueError):
+            flag = "--hyperparams: " if args.hyperparams is not None else ""
+            with refused_as(CommandError, ValueError, flag):
                 settings.update(load_hyperparams(path, args.task))
     elif args.hyperparams is not None:
         raise UsageError("--hyperparams: PPO settings; bc takes --set KEY=VALUE")

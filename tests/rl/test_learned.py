@@ -317,6 +317,9 @@ ZOO_ENTRY_CHANGES = {
     "policy: CnnPolicy": "policy must be 'MultiInputPolicy'",
     "env_kwargs: {split: test}": "env_kwargs must be",
     "env_wrapper: [gymnasium.wrappers.FlattenObservation]": "env_wrapper must be",
+    # rl_zoo3 would wrap with both; train took the last size
+    "env_wrapper: [humotion_gym.wrappers.LearnerObservation: {size: 32}, "
+    "humotion_gym.wrappers.LearnerObservation: {size: 48}]": "env_wrapper must be .*one wrapper",
     "vf=[64]|vf=[32]": "net_arch must be",
     "normalize_images=False|normalize_images=True": "normalize_images must be",
     "log_std_init=-2.5|log_std_init=-2.5, ortho_init=False": "does not use 'ortho_init'",
@@ -1028,3 +1031,20 @@ def test_force_checks_the_data_before_it_deletes_the_earlier_run(
         train(config, force=True)
     assert (tmp_path / "model.zip").is_file()
     assert (tmp_path / "checkpoints" / "model_16_steps.zip").is_file()
+
+
+def test_a_hyperparams_file_that_is_not_text_is_named(tmp_path: Path, capsys) -> None:
+    """Bytes not UTF-8 said "'utf-8' codec can't decode byte 0xff", naming no file."""
+    from baselines.cli import main
+
+    path = tmp_path / "b.yml"
+    path.write_bytes(b"\xff\xfe")
+    argv = ["train", "--algo", "ppo", "--task", "ArmTrack-v2", "--steps", "64",
+            "--hyperparams", str(path), "--out", str(tmp_path / "run")]  # fmt: skip
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert err == (
+        f"humotion-gym train: error: --hyperparams: {path}: not a YAML text file (byte 0 is "
+        "not UTF-8 text)\n"
+    )
+    assert not (tmp_path / "run").exists()
