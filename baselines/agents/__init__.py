@@ -120,7 +120,8 @@ def make(
         KeyError: If the name is unknown.
         TaskNotSupported: If the agent does not cover the env's task (a
             ``ValueError``).
-        ValueError: If a fit or filter setting is unknown or out of range, a
+        ValueError: If a saved policy's label is empty (``=PATH.zip``), a fit
+            or filter setting is unknown or out of range, a
             filter setting is not one the agent's filter reads, ``n_particles`` or
             ``seed`` is out of range, or ``observation_model`` is given to an
             agent that builds its own likelihood (a ``-det`` agent).
@@ -131,7 +132,11 @@ def make(
     """
     if not isinstance(name, str):
         raise TypeError(f"agents.make: name must be an agent's name, got {name!r}")
-    if name not in REFERENCES and name not in AGENTS and not is_learned(name):
+    try:
+        learned = is_learned(name)
+    except ValueError as exc:  # =PATH.zip: a saved policy without a label
+        raise ValueError(f"agents.make: name {exc}") from None
+    if name not in REFERENCES and name not in AGENTS and not learned:
         raise KeyError(f"unknown agent {name!r}; the agents are {agent_names()}")
     _check_count("n_particles", n_particles, 1, MAX_PARTICLES)
     _check_count("seed", seed, 0)
@@ -139,7 +144,7 @@ def make(
     description = describe(task)
     if name in REFERENCES:
         return REFERENCES[name][0](description, seed=seed)
-    if is_learned(name):  # bc, ppo, a saved PATH.zip or LABEL=PATH.zip, pf-PRIOR+POLICY
+    if learned:  # bc, ppo, a saved PATH.zip or LABEL=PATH.zip, pf-PRIOR+POLICY
         return make_learned(name, description, n_particles=n_particles, seed=seed)
     return make_filter(
         name, description, n_particles, seed, estimate, fit_settings, use_cache, filter_settings,

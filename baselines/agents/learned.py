@@ -5,8 +5,8 @@ Three kinds of name reach :func:`make_learned` through :func:`baselines.agents.m
 * ``bc`` and ``ppo``: the pretrained checkpoint of the task shipped in
   ``baselines/checkpoints/`` (:func:`checkpoint_path`), made by the command
   its sidecar JSON records;
-* a saved policy, ``PATH.zip`` or ``LABEL=PATH.zip`` (the label names the row
-  in tables), e.g. ``bc=runs/bc-body/model.zip`` from ``humotion-gym train``;
+* a saved policy, ``PATH.zip`` or ``LABEL=PATH.zip`` (the label, never empty,
+  names the row in tables), e.g. ``bc=runs/bc-body/model.zip`` from ``humotion-gym train``;
 * a hybrid ``pf-PRIOR+POLICY`` (``pf-tree+bc``, ``pf-tree+runs/x/model.zip``):
   the particle filter over the prior whose particles are, in part, drawn
   around the policy's estimate (:class:`ProposalPrior`).
@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import time
 import warnings
 import zipfile
@@ -113,16 +114,33 @@ def checkpoint_path(algo: str, task: str) -> Path:
 
 
 def _split_label(name: str) -> tuple[str, str]:
-    """``(label, path)`` of ``LABEL=PATH.zip`` or ``PATH.zip``."""
+    """``(label, path)`` of ``LABEL=PATH.zip`` or ``PATH.zip``.
+
+    Raises:
+        ValueError: If the label before ``=`` is empty (a row no table could name).
+    """
     if "=" in name:
         label, path = name.split("=", 1)
+        if not label.strip():
+            raise ValueError(
+                f"{name}: an empty label before '='; give LABEL=PATH.zip, or PATH.zip alone "
+                "(named after its file)"
+            )
         return label, path
     return Path(name).stem if name.endswith(".zip") else name, name
 
 
 def is_learned(name: str) -> bool:
-    """Whether :func:`make_learned` makes this agent (a learned name, a .zip, a hybrid)."""
-    return name in LEARNED or _split_label(name)[1].endswith(".zip") or takes_particles(name)
+    """Whether :func:`make_learned` makes this agent (a learned name, a .zip, a hybrid).
+
+    Raises:
+        ValueError: For ``=PATH.zip``, a saved policy with an empty label (a
+            hybrid's too).
+    """
+    if takes_particles(name):
+        _split_label(policy_spec(name))  # its policy's label, if it gives one
+        return True
+    return name in LEARNED or _split_label(name)[1].endswith(".zip")
 
 
 def takes_particles(name: str) -> bool:
@@ -200,6 +218,7 @@ def check_record(path: str, task: str, synthetic: bool, use: str = "score it") -
         synthetic: Those episodes come from the built-in synthetic library.
         use: What passing the same ``--data-dir`` would let one do.
     """
+    level = _callers_level()
     found = policy_record(path)
     if found is None:
         warnings.warn(
@@ -207,7 +226,7 @@ def check_record(path: str, task: str, synthetic: bool, use: str = "score it") -
             "train writes): what it learned (task, data, persons) cannot be checked, and what "
             "it scores is a held-out number only if it learned training persons alone",
             UnrecordedPolicyWarning,
-            stacklevel=3,
+            stacklevel=level,
         )
     record = found or {}
     trained_on = record.get("task")
@@ -216,7 +235,7 @@ def check_record(path: str, task: str, synthetic: bool, use: str = "score it") -
             f"{path} was trained on {trained_on}, not {task}: its actions mean "
             f"that task's parameters and ranges",
             OtherTaskWarning,
-            stacklevel=3,
+            stacklevel=level,
         )
     dirs = _record_data_dirs(record)
     if dirs and synthetic:
@@ -224,8 +243,25 @@ def check_record(path: str, task: str, synthetic: bool, use: str = "score it") -
             f"{path} was trained on motion capture in {', '.join(dirs)}; these episodes come "
             f"from the built-in synthetic library (pass the same --data-dir to {use} there)",
             OtherDataWarning,
-            stacklevel=3,
+            stacklevel=level,
         )
+
+
+#: The package whose frames a warning of :func:`check_record` passes over.
+_PACKAGE = str(Path(__file__).parents[1]) + os.sep
+
+
+def _callers_level() -> int:
+    """The ``stacklevel`` of the first caller outside ``baselines``, for the caller's warnings.
+
+    A warning then points at the user's line (``agents.make(...)``, ``train(...)``)
+    however deep in the package it is raised (``warnings.warn``'s
+    ``skip_file_prefixes``, which Python 3.10 lacks).
+    """
+    frame, level = sys._getframe(1), 1  # the function about to warn: level 1
+    while frame.f_back is not None and frame.f_code.co_filename.startswith(_PACKAGE):
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 def _check_record(path: str, description: TaskDescription) -> None:

@@ -47,7 +47,11 @@ def agent_name(text: str) -> str:
 
     if text not in agent_names() and Path(text).is_dir():
         raise argparse.ArgumentTypeError(_folder_for_policy(text, Path(text)))
-    if text not in agent_names() and not is_learned(text):
+    try:
+        learned = is_learned(text)
+    except ValueError as exc:  # =PATH.zip: a row no table could name
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    if text not in agent_names() and not learned:
         raise argparse.ArgumentTypeError(
             f"unknown agent {text[:80]}; the agents are {', '.join(agent_names())}, each "
             "described by humotion-gym agents (one of yours needs --import MODULE)"

@@ -1048,3 +1048,45 @@ def test_a_hyperparams_file_that_is_not_text_is_named(tmp_path: Path, capsys) ->
         "not UTF-8 text)\n"
     )
     assert not (tmp_path / "run").exists()
+
+
+def test_a_saved_policy_with_an_empty_label_is_refused(tmp_path: Path, capsys) -> None:
+    """``=PATH.zip`` made an agent named "" and a table row with no name."""
+    from baselines.cli import main
+
+    path = str(CHECKPOINT_DIR / "bc-ArmTrack-v2.zip")
+    env = gym.make("humotion_gym/ArmTrack-v2")
+    for name in (f"={path}", f" ={path}", f"pf-tree+={path}"):
+        with pytest.raises(ValueError, match=r"agents.make: name .*: an empty label before '='"):
+            make(name, env)
+    argv = ["leaderboard", "--tasks", "ArmTrack-v2", "--agents", f"={path}", "--episodes", "1",
+            "--out", str(tmp_path / "lb")]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "argument --agents" in err and "an empty label before '='" in err
+    assert not (tmp_path / "lb").exists()
+
+
+def test_a_record_warning_points_at_the_callers_line(tmp_path: Path) -> None:
+    """OtherDataWarning pointed at learned.py's _check_record, not at agents.make's caller."""
+    import shutil
+
+    from baselines.agents.learned import check_record, make_learned
+
+    policy = tmp_path / "model.zip"
+    shutil.copyfile(CHECKPOINT_DIR / "bc-ArmTrack-v2.zip", policy)
+    record = json.loads((CHECKPOINT_DIR / "bc-ArmTrack-v2.json").read_text())
+    (tmp_path / "config.json").write_text(json.dumps({**record, "data_dir": ["/data/mocap"]}))
+    env = gym.make("humotion_gym/ArmTrack-v2")
+    calls = (
+        lambda: make(str(policy), env),
+        lambda: make(f"pf-cv+{policy}", env, n_particles=10),
+        lambda: make_learned(str(policy), env),
+        lambda: check_record(str(policy), "ArmTrack-v2", True),
+    )
+    for call in calls:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            call()
+        data = [w for w in caught if issubclass(w.category, OtherDataWarning)]
+        assert [w.filename for w in data] == [__file__]
