@@ -483,10 +483,15 @@ def earlier_models(out: Path) -> list[Path]:
 
 
 def foreign_names(out: Path) -> list[str]:
-    """What ``out`` holds that no training run writes (:data:`RUN_NAMES`), sorted, at most 3."""
+    """What ``out`` holds that no training run writes (:data:`RUN_NAMES`), sorted, at most 3.
+
+    Hidden names are left out: an interrupted write's temporary file (``.NAME.tmp``)
+    is no other command's output.
+    """
     if not out.is_dir():
         return []
-    names = sorted(p.name for p in out.iterdir() if p.name not in RUN_NAMES)
+    names = sorted(p.name for p in out.iterdir()
+                   if p.name not in RUN_NAMES and not p.name.startswith("."))  # fmt: skip
     return names[:3] + ["..."] if len(names) > 3 else names
 
 
@@ -566,7 +571,8 @@ def prepare_output(out: Path, resume: bool, force: bool, config: TrainConfig | N
 
     Raises:
         FileExistsError: If ``out`` holds a model or checkpoints and neither
-            ``resume`` nor ``force`` is set.
+            ``resume`` nor ``force`` is set, or, unless ``resume``, another
+            command's files (:func:`foreign_names`; ``force`` deletes none of them).
         ResumeMismatch: With ``resume``, if ``out`` holds no run (nothing, or
             another command's files), a model without the ``config.json`` that
             would say which run it is, or another run than ``config``.
@@ -574,6 +580,12 @@ def prepare_output(out: Path, resume: bool, force: bool, config: TrainConfig | N
     """
     if resume and force:
         raise ValueError("resume and force: choose one (continue the run, or start afresh)")
+    found = foreign_names(out)
+    if found and not resume:  # a run there would be mixed into another command's output
+        raise FileExistsError(
+            f"{out} holds {', '.join(found)}: another command's files, not a training run's "
+            "(--force deletes a run's alone); train into another --out"
+        )
     earlier = earlier_models(out)
     if resume and not (out / "config.json").is_file():
         raise ResumeMismatch(_no_run(out, earlier))

@@ -1033,6 +1033,23 @@ def test_force_checks_the_data_before_it_deletes_the_earlier_run(
     assert (tmp_path / "checkpoints" / "model_16_steps.zip").is_file()
 
 
+def test_a_fresh_run_is_refused_in_another_commands_folder(tmp_path: Path) -> None:
+    """train wrote its model and logs among a leaderboard's results.json and table.md."""
+    for name in ("results.json", "episodes.jsonl", "table.md"):
+        (tmp_path / name).write_text("{}")
+    config = TrainConfig("bc", "ArmTrack-v2", steps=16, out=str(tmp_path))
+    for force in (False, True):  # --force deletes a run's files alone
+        with pytest.raises(FileExistsError, match=r"holds episodes.jsonl, results.json, table.md: "
+                           r"another command's files, not a training run's"):  # fmt: skip
+            train(config, force=force)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["episodes.jsonl", "results.json",
+                                                          "table.md"]  # fmt: skip
+    (tmp_path / ".model.0123.tmp.zip").write_bytes(b"x")  # an interrupted write's: no command's
+    for name in ("results.json", "episodes.jsonl", "table.md"):
+        (tmp_path / name).unlink()
+    prepare_output(tmp_path, resume=False, force=False)
+
+
 def test_a_hyperparams_file_that_is_not_text_is_named(tmp_path: Path, capsys) -> None:
     """Bytes not UTF-8 said "'utf-8' codec can't decode byte 0xff", naming no file."""
     from baselines.cli import main
