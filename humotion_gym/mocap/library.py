@@ -611,6 +611,7 @@ def load_library(
             raise TypeError(f"load_library: paths must be a path or paths, got {paths!r}")
     if fps is not None and not (is_real(fps) and np.isfinite(fps) and fps > 0):
         raise ValueError(f"load_library: fps must be None or a positive frame rate, got {fps!r}")
+    fps = None if fps is None else float(fps)  # 30 and 30.0: one cache entry, not two
     sources = find_clips(paths)
     if split_by is not None and not callable(split_by):
         _warn_unused_split_keys(split_by, sources)

@@ -352,3 +352,12 @@ def test_an_entry_under_its_name_before_places_is_read_not_parsed(data, tmp_path
     _load(data, cache)
     assert parsed == []
     assert all("-" in p.name for p in (cache / "clips").glob("*.npz"))
+
+
+def test_a_whole_number_frame_rate_shares_the_float_s_entries(data, tmp_path):
+    cache = tmp_path / "cache"
+    a = load_library([data], fps=30.0, cache_dir=cache, progress=False)
+    entries = sorted((cache / "clips").iterdir())
+    b = load_library([data], fps=30, cache_dir=cache, progress=False)  # not a second copy
+    assert sorted((cache / "clips").iterdir()) == entries
+    _assert_same(b, a)
