@@ -549,6 +549,8 @@ class HybridAgent:
         t0 = time.perf_counter()
         given = read_observation(observation, self.description)
         start = episode_begins(episode_start, given.initial_pose, self.pf._initial)
+        if start:  # this episode's frames, as every agent keeps them
+            self.frame_times = []
         guess, _ = self.policy.predict(observation, None, np.array([start]), deterministic=True)
         base = self.description.base_pose(given)
         # this frame's proposal; the filter (re)starts itself at an episode start

@@ -255,6 +255,8 @@ def test_the_hybrid_without_proposals_is_the_particle_filter(bc_run: Path) -> No
     a = run_episode(hybrid, env, seed=2)
     b = run_episode(pf, env, seed=2)
     assert a.errors_mm == b.errors_mm
+    again = run_episode(hybrid, env, seed=2)  # frame_times: this episode's, as pf's
+    assert len(hybrid.frame_times) == len(again.errors_mm) == len(pf.frame_times)
     # with proposals it is another tracker, still scored by the same loop
     with_proposals = run_episode(make(f"pf-tree+{path}", env, n_particles=60, seed=3), env, 2)
     assert with_proposals.errors_mm != b.errors_mm
