@@ -8,6 +8,7 @@ naming the argument and what was expected.
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
@@ -15,7 +16,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from humotion_gym.checks import is_integer, is_real
+from humotion_gym.checks import is_integer
 from humotion_gym.files import write_atomically
 
 #: The suffixes :func:`write_video` writes (OpenCV picks the container by it).
@@ -135,7 +136,7 @@ def check_video_size(path: str | Path, width: int, height: int) -> None:
 
 def _check_fps(fps: object) -> float:
     """``fps`` as a float within :data:`FPS_RANGE`, or an error naming it."""
-    if not is_real(fps):  # True is no frame rate
+    if isinstance(fps, bool) or not isinstance(fps, numbers.Real):  # True is no frame rate
         raise TypeError(f"write_video: fps: expected a number, got {fps!r}")
     low, high = FPS_RANGE
     if not low <= float(fps) <= high:  # NaN is refused too

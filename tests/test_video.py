@@ -99,6 +99,17 @@ def test_an_mp4_side_is_at_most_8190_px():
         check_video_size("a.MP4", 8191, 64)
 
 
+def test_any_real_frame_rate_is_taken(tmp_path):
+    from fractions import Fraction
+
+    import cv2
+
+    from humotion_gym.video import write_video
+
+    write_video(tmp_path / "ntsc.avi", _frames(), Fraction(30000, 1001), scale=1)
+    assert abs(cv2.VideoCapture(str(tmp_path / "ntsc.avi")).get(cv2.CAP_PROP_FPS) - 29.97) < 0.01
+
+
 def test_an_odd_sided_mp4_keeps_every_pixel(tmp_path):
     import cv2
 
