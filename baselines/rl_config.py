@@ -447,6 +447,14 @@ def check_resumed(path: Path, config: TrainConfig) -> None:
         saved = read_record(path)
     except ValueError as exc:
         raise ValueError(f"{exc}; --force starts afresh") from None
+    # a missing "init" or "data_dir" reads as none and the synthetic library, as before
+    unrecorded = [k for k in RESUME_KEYS if k not in saved and k not in ("init", "data_dir")]
+    if unrecorded:  # a record older than the field: no flag can give "the same" run
+        raise ResumeMismatch(
+            f"--resume: {path.parent}'s record predates {', '.join(unrecorded)}, so no run "
+            "can be told to be the same one; start a new run (--force or another --out), "
+            f"with --init {path.parent / 'model.zip'} to start from its policy"
+        )
     differ = resume_differences(saved, config)
     if differ:
         raise ResumeMismatch(

@@ -5,7 +5,7 @@ from __future__ import annotations
 import hashlib
 import json
 import warnings
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import gymnasium as gym
@@ -187,6 +187,17 @@ def test_a_resume_is_the_same_run_longer(tmp_path: Path) -> None:
     with pytest.raises(ResumeMismatch, match=r"--steps 120: .* holds a run of 240 env steps; "):
         check_resumed(tmp_path / "config.json", TrainConfig("bc", "ArmTrack-v2", settings=rounds,
                                                             **dict(same, steps=120)))  # fmt: skip
+
+
+def test_a_record_older_than_a_compared_field_says_so(tmp_path: Path) -> None:
+    # baselines/checkpoints/bc-ArmTrack-v2.json predates "validation": "saved None, now
+    # True" (and "now False" with --no-validation) advised the same settings no flag gives
+    config = TrainConfig("bc", "ArmTrack-v2", steps=240, seed=3, out=str(tmp_path))
+    record = {k: v for k, v in asdict(config).items() if k != "validation"}
+    (tmp_path / "config.json").write_text(json.dumps(record))
+    for validation in (True, False):
+        with pytest.raises(ResumeMismatch, match=r"record predates validation, .* --init "):
+            check_resumed(tmp_path / "config.json", replace(config, validation=validation))
 
 
 def test_the_resume_point_is_the_latest_model(tmp_path: Path) -> None:
