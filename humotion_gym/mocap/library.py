@@ -559,6 +559,17 @@ class MotionLibrary:
         return "\n".join(lines)
 
 
+def _frame_rate(fps: object) -> float | None:
+    """``fps`` as a float (30 and 30.0: one cache entry, not two), or None.
+
+    Raises:
+        ValueError: If it is neither None nor a positive frame rate.
+    """
+    if fps is not None and not (is_real(fps) and np.isfinite(fps) and fps > 0):
+        raise ValueError(f"load_library: fps must be None or a positive frame rate, got {fps!r}")
+    return None if fps is None else float(fps)  # type: ignore[arg-type]
+
+
 def load_library(
     paths: Iterable[str | Path] | str | Path,
     fps: float | None = 30.0,
@@ -609,9 +620,7 @@ def load_library(
         paths = list(paths)  # (an iterator is read once, here)
         if not all(isinstance(p, (str, Path)) for p in paths):
             raise TypeError(f"load_library: paths must be a path or paths, got {paths!r}")
-    if fps is not None and not (is_real(fps) and np.isfinite(fps) and fps > 0):
-        raise ValueError(f"load_library: fps must be None or a positive frame rate, got {fps!r}")
-    fps = None if fps is None else float(fps)  # 30 and 30.0: one cache entry, not two
+    fps = _frame_rate(fps)
     sources = find_clips(paths)
     if split_by is not None and not callable(split_by):
         _warn_unused_split_keys(split_by, sources)
