@@ -27,7 +27,7 @@ from baselines.leaderboard.engine import make_env
 from baselines.leaderboard.evaluation import summarize
 from baselines.leaderboard.results import RUN_FILE, ResumeError, _jsonable, data_folders
 from baselines.leaderboard.rows import cell_label
-from baselines.leaderboard.run import _check_grid, run_leaderboard
+from baselines.leaderboard.run import check_grid, run_leaderboard
 from baselines.leaderboard.stats import bootstrap_ci, iqm
 from baselines.leaderboard.videos import file_slug
 from humotion_gym.checks import is_real
@@ -162,7 +162,7 @@ def run_sweep(
     if not points:
         raise ValueError("grid: expected at least one setting with at least one value")
     base = dict(env_kwargs or {})
-    _check_grid(tasks, agents, particles, base)  # lists of names before tasks are built
+    check_grid(tasks, agents, particles, base)  # lists of names before tasks are built
     check_points(tasks, grid, base)  # every value checked before the first run
     folder = None if out is None else Path(out)
     if folder is not None:

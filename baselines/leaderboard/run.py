@@ -152,7 +152,7 @@ def run_leaderboard(
         FileExistsError: If ``out`` holds a run and ``resume`` is False.
         FileNotFoundError: If ``resume`` is True and ``out`` holds no run.
     """
-    _check_grid(tasks, agents, particles, env_kwargs)
+    check_grid(tasks, agents, particles, env_kwargs)
     _check_run(seed, episodes, particles, engine, resume, out, agent_seeds, videos)
     check_labels(agents)
     kwargs = resolve_env_kwargs(env_kwargs)
@@ -209,7 +209,7 @@ def _run_left(
     return problems, failures
 
 
-def _check_grid(
+def check_grid(
     tasks: Sequence[str],
     agents: Sequence[str],
     particles: Sequence[int],
