@@ -13,6 +13,7 @@ from __future__ import annotations
 import ast
 import json
 import math
+import re
 import shutil
 import zipfile
 from collections.abc import Sequence
@@ -490,8 +491,23 @@ def earlier_models(out: Path) -> list[Path]:
     return final + [p for _, p in checkpoints(out / "checkpoints")]
 
 
+#: A policy ``train --export`` writes (``bc-ArmTrack-v2.zip`` and its ``.json``).
+EXPORT_NAME = re.compile(rf"(?:{'|'.join(ALGOS)})-[A-Za-z0-9]+-v\d+\.(?:zip|json)")
+
+
+def _training_output(path: Path) -> bool:
+    """Whether ``path`` is a training run's: :data:`RUN_NAMES`, an export or a folder of them."""
+    if path.name in RUN_NAMES or EXPORT_NAME.fullmatch(path.name):
+        return True
+    return (
+        path.is_dir()
+        and any(path.iterdir())
+        and all(EXPORT_NAME.fullmatch(p.name) or p.name.startswith(".") for p in path.iterdir())
+    )
+
+
 def foreign_names(out: Path) -> list[str]:
-    """What ``out`` holds that no training run writes (:data:`RUN_NAMES`), sorted, at most 3.
+    """What ``out`` holds that no training run writes (:func:`_training_output`), at most 3.
 
     Hidden names are left out: an interrupted write's temporary file (``.NAME.tmp``)
     is no other command's output.
@@ -499,7 +515,7 @@ def foreign_names(out: Path) -> list[str]:
     if not out.is_dir():
         return []
     names = sorted(p.name for p in out.iterdir()
-                   if p.name not in RUN_NAMES and not p.name.startswith("."))  # fmt: skip
+                   if not (_training_output(p) or p.name.startswith(".")))  # fmt: skip
     return names[:3] + ["..."] if len(names) > 3 else names
 
 

@@ -1063,6 +1063,21 @@ def test_a_fresh_run_is_refused_in_another_commands_folder(tmp_path: Path) -> No
     prepare_output(tmp_path, resume=False, force=False)
 
 
+def test_a_run_s_own_export_in_its_folder_is_no_other_command_s(tmp_path: Path) -> None:
+    """--export into --out (or a folder in it) made --force say 'another command's files'."""
+    (tmp_path / "model.zip").write_bytes(b"x")
+    (tmp_path / "config.json").write_text("{}")
+    for name in ("bc-ArmTrack-v2.zip", "bc-ArmTrack-v2.json"):
+        (tmp_path / name).write_bytes(b"x")
+    (tmp_path / "policies").mkdir()
+    (tmp_path / "policies" / "ppo-BodyTrack4Views-v2.zip").write_bytes(b"x")
+    prepare_output(tmp_path, resume=False, force=True)
+    assert not (tmp_path / "model.zip").exists()  # the run's own model is deleted, as before
+    (tmp_path / "policies" / "notes.txt").write_text("x")  # a folder of something else
+    with pytest.raises(FileExistsError, match=r"holds policies: another command's files"):
+        prepare_output(tmp_path, resume=False, force=True)
+
+
 def test_a_hyperparams_file_that_is_not_text_is_named(tmp_path: Path, capsys) -> None:
     """Bytes not UTF-8 said "'utf-8' codec can't decode byte 0xff", naming no file."""
     from baselines.cli import main
