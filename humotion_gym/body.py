@@ -42,7 +42,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from humotion_gym import _compiled
-from humotion_gym.checks import is_real
+from humotion_gym.checks import float_array, is_real
 
 FloatArray = NDArray[np.float64]
 
@@ -313,12 +313,12 @@ class BodyShape:
             ValueError: If the vector is not ``SHAPE_VECTOR_SIZE`` numbers, or
                 they are not a valid shape (see :class:`BodyShape`).
         """
-        try:
-            v = np.asarray(vector, dtype=np.float64).ravel()
-        except (TypeError, ValueError):
+        v = float_array(vector)
+        if v is None:
             raise ValueError(
                 f"BodyShape.from_vector: expected {SHAPE_VECTOR_SIZE} numbers, got {vector!r:.80}"
-            ) from None
+            )
+        v = v.ravel()
         if v.size != SHAPE_VECTOR_SIZE:
             raise ValueError(
                 f"BodyShape.from_vector: expected {SHAPE_VECTOR_SIZE} numbers, got {v.size}"
@@ -623,10 +623,7 @@ def pose_geometry_of(params: ArrayLike, tables: ArrayLike) -> FloatArray:
             ``(24,)``, ``(1, 24)`` or ``(N, 24)`` numbers.
     """
     p = _check_params(params).reshape(-1, N_PARAMS)
-    try:
-        t: FloatArray | None = np.asarray(tables, dtype=np.float64)
-    except (TypeError, ValueError):
-        t = None
+    t = float_array(tables)
     if t is None or t.ndim not in (1, 2) or t.shape[-1] != SHAPE_TABLE_SIZE:
         got = "values that are not numbers" if t is None else f"shape {t.shape}"
         raise ValueError(

@@ -10,6 +10,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 
 def is_integer(value: Any) -> bool:
@@ -25,6 +26,14 @@ def is_count(value: Any, least: int = 1) -> bool:
 def is_real(value: Any) -> bool:
     """Whether ``value`` is a real number (Python's or numpy's, not a bool); it may be NaN."""
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+
+
+def float_array(value: Any) -> NDArray[np.float64] | None:
+    """``value`` as a float64 array, or None where it is not numbers (a string, a ragged list)."""
+    try:
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return None
 
 
 def check_count(name: str, value: Any, least: int = 1) -> None:

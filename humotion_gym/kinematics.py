@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 from humotion_gym import body
 from humotion_gym._compiled import BLOCK, BLOCK_SIZE, pose_block
 from humotion_gym.body import N_KEYPOINTS, N_PARAMS, BodyShape, kinematics_inputs
+from humotion_gym.checks import float_array
 
 __all__ = [
     "BLOCK",
@@ -109,10 +110,7 @@ def batch_pose_geometry(
 
 def _transform(name: str, value: ArrayLike, shape: tuple[int, ...], n: int) -> FloatArray:
     """A rotation or translation as float64, refused unless of ``shape`` or ``(n, *shape)``."""
-    try:
-        a: FloatArray | None = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        a = None
+    a = float_array(value)
     if a is None or a.shape not in (shape, (n, *shape)):
         want = " or ".join(str(s) for s in (shape, (n, *shape)))
         got = "values that are not numbers" if a is None else str(a.shape)

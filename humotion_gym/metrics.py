@@ -30,7 +30,7 @@ from humotion_gym.body import (
     BodyShape,
     forward_kinematics,
 )
-from humotion_gym.checks import check_positive, is_count, is_integer, is_real
+from humotion_gym.checks import check_positive, float_array, is_count, is_integer, is_real
 
 FloatArray = NDArray[np.float64]
 
@@ -45,11 +45,9 @@ def _checked_pair(
 ) -> tuple[FloatArray, FloatArray]:  # fmt: skip
     """Both arrays as float64, refused unless each ends in the form's axis and they broadcast."""
     last, least, text = form
-    try:
-        a = np.asarray(estimate, dtype=np.float64)
-        b = np.asarray(truth, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"{where}: {names[0]} and {names[1]} must be arrays of numbers") from None
+    a, b = float_array(estimate), float_array(truth)
+    if a is None or b is None:
+        raise ValueError(f"{where}: {names[0]} and {names[1]} must be arrays of numbers")
     ok = all(x.ndim >= 1 and x.shape[-1] == last for x in (a, b))
     if ok:
         try:
@@ -442,10 +440,7 @@ def lost_track_frame(errors_mm: ArrayLike, threshold_mm: float, patience: int) -
     if not is_count(patience):
         raise ValueError(f"lost_track_frame: patience must be an integer >= 1, got {patience!r}")
     _check_threshold("lost_track_frame", threshold_mm)
-    try:
-        errors: FloatArray | None = np.asarray(errors_mm, dtype=np.float64)
-    except (TypeError, ValueError):
-        errors = None
+    errors = float_array(errors_mm)
     if errors is None or errors.ndim != 1:
         got = "values that are not numbers" if errors is None else f"shape {errors.shape}"
         raise ValueError(

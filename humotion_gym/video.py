@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from humotion_gym.checks import is_integer
+from humotion_gym.checks import float_array, is_integer
 from humotion_gym.files import write_atomically
 
 #: The suffixes :func:`write_video` writes (OpenCV picks the container by it).
@@ -276,12 +276,9 @@ def _motion_poses(params: object) -> NDArray[np.float64]:
     from humotion_gym.body import N_PARAMS
 
     expected = f"render_motion: params: expected (T, {N_PARAMS}) poses, T at least 1"
-    try:
-        poses = np.asarray(params, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(
-            f"{expected}, got a {type(params).__name__} that is no array of numbers"
-        ) from None
+    poses = float_array(params)
+    if poses is None:
+        raise ValueError(f"{expected}, got a {type(params).__name__} that is no array of numbers")
     if poses.ndim != 2 or poses.shape[1] != N_PARAMS or len(poses) == 0:
         raise ValueError(f"{expected}, got shape {poses.shape}")
     bad = ~np.isfinite(poses).all(axis=1)

@@ -147,3 +147,13 @@ def test_the_scan_finds_a_number_test_written_again(source: str) -> None:
 def test_the_scan_passes_other_uses_of_bool() -> None:
     source = "a = isinstance(v, bool) or isinstance(w, int)\nb = isinstance(v, (bool, np.bool_))"
     assert number_tests_outside_checks(source, "<ok>") == []
+
+
+def test_float_array_is_numbers_as_float64_or_none():
+    from humotion_gym.checks import float_array
+
+    got = float_array([[1, 2], [3, 4]])
+    assert got is not None and got.dtype == np.float64 and got.tolist() == [[1, 2], [3, 4]]
+    assert float_array(np.float32(0.5)).shape == ()  # type: ignore[union-attr]
+    for bad in ("a", [1, "b"], [[1, 2], [3]], {"x": 1}, object()):
+        assert float_array(bad) is None, bad

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from humotion_gym.checks import is_real
+from humotion_gym.checks import float_array, is_real
 
 FloatArray = NDArray[np.float64]
 
@@ -60,12 +60,9 @@ def per_dimension(owner: str, name: str, value: ArrayLike) -> FloatArray:
     Raises:
         ValueError: If ``value`` is not numbers, or has more than one axis.
     """
-    try:
-        out = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(
-            f"{owner}: {name} must be a number or (D,) numbers, got {value!r}"
-        ) from None
+    out = float_array(value)
+    if out is None:
+        raise ValueError(f"{owner}: {name} must be a number or (D,) numbers, got {value!r}")
     if out.ndim > 1:
         raise ValueError(f"{owner}: {name} must be a number or (D,) numbers, got shape {out.shape}")
     return out
@@ -93,12 +90,11 @@ def initial_pose_of(who: str, initial_pose: ArrayLike) -> FloatArray:
     Raises:
         ValueError: Naming ``who`` and the argument, if it is not one.
     """
-    try:
-        pose = np.asarray(initial_pose, dtype=np.float64)
-    except (TypeError, ValueError):
+    pose = float_array(initial_pose)
+    if pose is None:
         raise ValueError(
             f"{who}: initial_pose must be (D,) numbers, got {type(initial_pose).__name__}"
-        ) from None
+        )
     if pose.ndim != 1 or pose.size == 0:
         raise ValueError(f"{who}: initial_pose must be (D,) numbers, got shape {pose.shape}")
     if not np.all(np.isfinite(pose)):

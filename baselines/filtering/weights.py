@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from baselines.filtering._compiled import wrapped_offsets
-from humotion_gym.checks import check_count, is_real
+from humotion_gym.checks import check_count, float_array, is_real
 
 FloatArray = NDArray[np.float64]
 
@@ -37,12 +37,11 @@ def normalised_weights(weights: ArrayLike, who: str) -> FloatArray:
             array of numbers >= 0 (NaN is refused) summing to 1 within
             :data:`WEIGHT_SUM_TOLERANCE`.
     """
-    try:
-        w = np.asarray(weights, dtype=np.float64)
-    except (TypeError, ValueError):
+    w = float_array(weights)
+    if w is None:
         raise ValueError(
             f"{who}: weights must be a 1-D array of numbers, got {type(weights).__name__}"
-        ) from None
+        )
     if w.ndim != 1 or w.size == 0:
         raise ValueError(f"{who}: weights must be a non-empty 1-D array, got shape {w.shape}")
     if not w.min() >= 0.0:  # NaN fails the comparison too
