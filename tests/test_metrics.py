@@ -92,17 +92,22 @@ def test_angle_errors_wrap_and_skip_positions():
     np.testing.assert_array_equal(d[:, 3:5], 0.0)  # equal angles: no error
 
 
+def _online_first(errors, patience):
+    """The frame the online rule (update_lost_run, frame by frame) says track was lost."""
+    run, first = 0, None
+    for t, e in enumerate(errors):
+        run = update_lost_run(run, float(e), 150.0)
+        if run >= patience and first is None:
+            first = t - patience + 1
+    return first
+
+
 @pytest.mark.parametrize("patience", [1, 2, 5])
 def test_online_run_and_offline_frame_agree(patience):
     rng = np.random.default_rng(patience)
     for _ in range(200):
         errors = rng.choice([100.0, 150.0, 200.0], size=int(rng.integers(0, 30)))
-        run, first = 0, None
-        for t, e in enumerate(errors):
-            run = update_lost_run(run, float(e), 150.0)
-            if run >= patience and first is None:
-                first = t - patience + 1
-        assert lost_track_frame(errors, 150.0, patience) == first
+        assert lost_track_frame(errors, 150.0, patience) == _online_first(errors, patience)
 
 
 @pytest.mark.parametrize("patience", [1, 3])
@@ -118,12 +123,7 @@ def test_a_nan_error_is_off_track_in_both_rules(patience):
     rng = np.random.default_rng(10 + patience)
     for _ in range(100):
         errors = rng.choice([100.0, np.nan, 200.0], size=int(rng.integers(0, 20)))
-        run, first = 0, None
-        for t, e in enumerate(errors):
-            run = update_lost_run(run, float(e), 150.0)
-            if run >= patience and first is None:
-                first = t - patience + 1
-        assert lost_track_frame(errors, 150.0, patience) == first
+        assert lost_track_frame(errors, 150.0, patience) == _online_first(errors, patience)
 
 
 def test_lost_track_frame_exact_cases():

@@ -125,19 +125,22 @@ def test_load_refuses_other_files_clearly(tmp_path, prior):
         tree.load(other)
 
 
-def test_fit_prior_takes_counts_given_as_whole_floats(tmp_path):
+@pytest.mark.parametrize(("name", "count"), [("window", 3), ("depth", 5)])
+def test_fit_prior_takes_counts_given_as_whole_floats(tmp_path, name, count):
     # The command line gives every setting as a number (--grid fit.window=3,4
-    # gives 3.0): a whole one reaches the fit, and the cache key, as an int.
+    # gives 3.0): a whole one reaches the fit, and the cache key, as an int;
+    # depth's default is None, so only its annotation (int | None) says it is a count.
     from baselines.priors.fitting import fit_prior
 
     motions = [walking_along_y(90)]
     free = np.arange(body.N_PARAMS)
-    _, as_int = fit_prior("tree", motions, free, {"window": 3}, cache_dir=tmp_path, log=None)
-    _, as_float = fit_prior("tree", motions, free, {"window": 3.0}, cache_dir=tmp_path, log=None)
-    assert as_float.window == as_int.window == 3
+    _, as_int = fit_prior("tree", motions, free, {name: count}, cache_dir=tmp_path, log=None)
+    _, as_float = fit_prior("tree", motions, free, {name: float(count)}, cache_dir=tmp_path,
+                            log=None)  # fmt: skip
+    assert getattr(as_float, name) == getattr(as_int, name) == count
     assert len(list((tmp_path / "priors").glob("tree-*.npz"))) == 1  # the same entry
-    with pytest.raises(ValueError, match="tree prior: the setting window must be a whole number"):
-        fit_prior("tree", motions, free, {"window": 3.5}, use_cache=False, log=None)
+    with pytest.raises(ValueError, match=f"tree prior: the setting {name} must be a whole number"):
+        fit_prior("tree", motions, free, {name: count + 0.5}, use_cache=False, log=None)
 
 
 def test_a_save_that_cannot_write_names_its_path_not_the_temporary_file(tmp_path, prior):
@@ -147,19 +150,6 @@ def test_a_save_that_cannot_write_names_its_path_not_the_temporary_file(tmp_path
     with pytest.raises(OSError, match="missing/dir"):
         tree.save(prior, tmp_path / "missing" / "dir" / "x.npz")
     assert not list(tmp_path.glob(".*.tmp"))
-
-
-def test_fit_prior_takes_a_depth_given_as_a_whole_float(tmp_path):
-    # --grid fit.depth=5 gives 5.0; depth's default is None, so only its
-    # annotation (int | None) says it is a count.
-    from baselines.priors.fitting import fit_prior
-
-    motions = [walking_along_y(90)]
-    free = np.arange(body.N_PARAMS)
-    _, as_int = fit_prior("tree", motions, free, {"depth": 5}, cache_dir=tmp_path, log=None)
-    _, as_float = fit_prior("tree", motions, free, {"depth": 5.0}, cache_dir=tmp_path, log=None)
-    assert as_float.depth == as_int.depth == 5
-    assert len(list((tmp_path / "priors").glob("tree-*.npz"))) == 1  # the same entry
 
 
 @pytest.mark.parametrize(
