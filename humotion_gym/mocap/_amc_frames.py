@@ -13,15 +13,20 @@ import itertools
 import operator
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal, Protocol
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from humotion_gym.errors import MocapFormatError
-from humotion_gym.mocap._scan import _count, _first_bad_value, _short, _to_floats, decode_text
-
-OnNan = Literal["mask", "raise"]
+from humotion_gym.mocap._scan import (
+    OnNan,
+    _count,
+    _first_bad_value,
+    _short,
+    _to_floats,
+    decode_text,
+)
 
 
 class _Skeleton(Protocol):
@@ -55,16 +60,11 @@ class AmcLimits:
 def _frame_span_problem(
     numbers: NDArray[np.int64], n_points: int, limits: AmcLimits
 ) -> tuple[int, str] | None:
-    """Check increasing AMC frame numbers against the limits before any allocation.
-
-    Args:
-        numbers: ``(N,)`` the frame numbers, in file order (N >= 1).
-        n_points: Points of the skeleton (root and bones).
-        limits: The bounds in force (``max_frames``: from the first number to the last).
+    """Check the ``(N >= 1,)`` frame numbers against the limits before any allocation.
 
     Returns:
-        None when they pass, else the index of the frame at fault and what was
-        expected there.
+        None when they increase within the limits (``n_points``: the skeleton's),
+        else the index of the frame at fault and what was expected there.
     """
     steps = np.diff(numbers)
     down = np.flatnonzero(steps <= 0)
@@ -124,15 +124,12 @@ def _amc_regular(
     on_nan: OnNan,
     limits: AmcLimits,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]] | None:
-    """Fast path for files whose every frame has the same lines in the same order.
+    """The ``(T, C)`` channels and the frame numbers of a file whose frames repeat one layout.
 
     CMU's files do; then every name and frame number sits at a fixed stride in
-    the token list, so whole columns are checked by list slicing. Returns None
-    at the least irregularity (or any error), leaving :func:`_amc_general` to
-    read the file and name the line at fault.
-
-    Returns:
-        The ``(T, C)`` channels and the ``(frames,)`` frame numbers, or None.
+    the token list, so whole columns are checked by list slicing. None at the
+    least irregularity (or any error): :func:`_amc_general` reads the file and
+    names the line at fault.
     """
     c_used = counts[counts > 0]
     if not len(c_used) or c_used[0] != 1:
@@ -239,9 +236,7 @@ def _frame_numbers(
     first: int,
     limits: AmcLimits,
 ) -> NDArray[np.int64]:
-    """The frame numbers, checked against the limits before any channel is allocated.
-
-    They must increase with small gaps (which become invalid frames).
+    """The frame numbers, increasing with small gaps (invalid frames), checked before allocation.
 
     Raises:
         MocapFormatError: Naming the first frame line at fault.
@@ -280,17 +275,8 @@ def _check_complete_frames(
     The Acclaim format writes these in every frame (a bone without dof has no
     line); a frame lacking one is a damaged or cut file, whose gaps would
     otherwise pass as frames. Duplicates are refused before, so a count per
-    frame suffices.
-
-    Args:
-        spath: The file, for errors.
-        sk: The skeleton.
-        widths: ``(1 + B,)`` values per line of the root and each bone.
-        point: The skeleton point of each bone line.
-        block_of_line: The frame (index among the frame lines) of each bone line.
-        numbers: The frame numbers, one per frame line.
-        frame_lines: The body line of each frame number.
-        first: The file line of the body's first line.
+    frame suffices. ``point`` and ``block_of_line`` give each bone line's
+    skeleton point and frame (index among the frame lines).
 
     Raises:
         MocapFormatError: Naming the first incomplete frame, its line and the
@@ -369,7 +355,7 @@ def _amc_general(
         tokens: The body's tokens.
         first: The file line of the body's first line.
         on_nan: As :func:`load_amc`.
-        limits: The bounds in force (:func:`load_amc`'s).
+        limits: The bounds in force.
 
     Returns:
         The ``(T, C)`` channels (NaN where nothing was read) and the frame numbers.

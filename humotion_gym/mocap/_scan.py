@@ -1,10 +1,8 @@
-"""Text scanning shared by the BVH and ASF/AMC readers.
+"""Text scanning shared by the BVH (:mod:`~humotion_gym.mocap.bvh`) and ASF/AMC readers.
 
-Token counts per line (vectorised over the bytes), the bulk conversion of a
-block of numbers, the checks of motion values (magnitude, NaN), batched Euler
-rotations, whole-number tokens and the short form of a token in an error
-message. The readers are :mod:`humotion_gym.mocap.bvh` and
-:mod:`humotion_gym.mocap.asfamc`.
+Token counts per line, the bulk conversion of numbers, the checks of the
+readers' arguments and motion values, batched Euler rotations, whole-number
+tokens and the short form of a token in an error message.
 """
 
 from __future__ import annotations
@@ -13,11 +11,29 @@ import os
 import re
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
+from humotion_gym.checks import is_count
 from humotion_gym.errors import MocapFormatError
+
+OnNan = Literal["mask", "raise"]
+
+
+def frame_limit(max_frames: int | None, default: int, on_nan: str) -> int:
+    """The most frames a reader accepts (``default`` when None), after checking its arguments.
+
+    Raises:
+        ValueError: If ``max_frames`` is not a whole number >= 1 or ``on_nan`` is unknown.
+    """
+    limit = default if max_frames is None else max_frames
+    if not is_count(limit, 1):
+        raise ValueError(f"max_frames must be a whole number >= 1 or None, got {max_frames!r}")
+    if on_nan not in ("mask", "raise"):
+        raise ValueError(f"on_nan must be 'mask' or 'raise', got {on_nan!r}")
+    return int(limit)
 
 
 def decode_text(data: bytes) -> str:

@@ -19,43 +19,20 @@ Euler angles, unlike BVH's intrinsic ones. The root moves by its ``TX TY TZ``
 Lengths are in the ASF's units: ``:units length 0.45`` means a file length of
 0.45 is one inch, so millimetres are ``25.4 / 0.45`` per unit.
 
-The AMC motion block is converted in bulk: one split and one float conversion.
-When every frame has the same lines in the same order (CMU's files do), names
-and frame numbers sit at a fixed stride among the tokens and are checked by
-slicing; otherwise a general reader checks and places each line's values with
-vectorised per-line counts, and names the line at fault in any error.
-
 Limits on input files
 ---------------------
 A file of a few lines must not cost gigabytes or minutes, nor may nonsense
-numbers pass into the kinematics. The limits are module constants, read at each
-call, so a program may raise them by assignment (e.g.
-``humotion_gym.mocap.asfamc.MAX_FRAME_GAP = 10_000``):
-
-- :data:`MAX_FRAMES` (1,000,000; per call ``load_amc(..., max_frames=...)``):
-  the most frames, counted from the first frame number to the last.
-- :data:`MAX_FRAME_GAP` (1,000): the most frame numbers one step may skip, and
-  :data:`FRAME_SPAN_FACTOR` (4): the frames from first to last may be at most
-  ``FRAME_SPAN_FACTOR * (frame blocks present) + MAX_FRAME_GAP``. The channel
-  array is allocated only after these checks, so its size is bounded by the
-  file's. Frame numbers are ASCII digits, at most :data:`MAX_FRAME_NUMBER`.
-- :data:`MAX_BONES` (1,000) bones, :data:`MAX_DEPTH` (256) bones from the
-  root to the deepest tip, and :data:`MAX_FRAME_POINTS` (20,000,000) frames
-  times points, the size of the forward kinematics' output.
-- ASF numbers: a bone ``length`` is finite, positive and at most
-  :data:`MAX_BONE_LENGTH` (1e5 file units); ``:units length`` is between
-  :data:`MIN_LENGTH_UNIT` and :data:`MAX_LENGTH_UNIT` (1e-3 to 1e3 file units
-  per inch); a ``dof`` lists each of ``rx ry rz`` at most once; a direction is
-  not zero; directions, axes, the root's position and orientation are finite
-  and of magnitude at most
-  :data:`MAX_ABS_VALUE` (1e9); limits are ``(min max)`` with ``min <= max``
-  (either may be infinite, neither NaN).
-- AMC values: finite values are of magnitude at most :data:`MAX_ABS_VALUE`
-  (NaN and infinite values mark frames invalid, as before).
-- AMC frames: each has one line for the root and for each bone with dof (a
-  bone without dof has none); a frame lacking one, including a last frame
-  cut short, is refused, as a BVH file cut short is.
-- The ``fps`` argument is between 1 and 10,000 (a ``ValueError`` otherwise).
+numbers pass into the kinematics: the module constants below bound frames,
+frame numbers and their gaps, bones, depth and magnitudes (see "Limits on input
+files" in ``docs/data.md``). The channel array is allocated only after the frame
+numbers are checked, so its size is bounded by the file's. The constants are
+read at each call, so a program may raise them by assignment
+(``humotion_gym.mocap.asfamc.MAX_FRAME_GAP = 10_000``); ``load_amc(max_frames=...)``
+raises the frame limit per call. In the ASF, a direction is not zero, a ``dof``
+lists each of ``rx ry rz`` at most once and limits are ``(min max)`` with ``min <=
+max`` (either may be infinite, neither NaN). In the AMC, NaN and infinite values
+mark frames invalid, and every frame has one line for the root and for each bone
+with dof: a frame lacking one, including a last frame cut short, is refused.
 
 Every violation in a file raises :class:`~humotion_gym.errors.MocapFormatError`
 naming the file, the line and what was expected; no other exception escapes
@@ -73,14 +50,15 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from humotion_gym.checks import is_count
 from humotion_gym.errors import MocapFormatError
-from humotion_gym.mocap._amc_frames import AmcLimits, OnNan, _amc_general, _amc_regular
+from humotion_gym.mocap._amc_frames import AmcLimits, _amc_general, _amc_regular
 from humotion_gym.mocap._asf_reader import AsfLimits, _AsfReader, _topological
 from humotion_gym.mocap._scan import (
+    OnNan,
     _euler_matrices,
     _line_token_counts,
     decode_text,
+    frame_limit,
     read_motion_bytes,
 )
 from humotion_gym.mocap.bvh import MAX_NAME_LENGTH  # one bound on names for both formats
@@ -255,17 +233,10 @@ class AcclaimClip(PointsOnce):
     _positions: dict[int, NDArray[np.float64]] = field(default_factory=dict, init=False, repr=False)
 
     def _points(self, wanted: Sequence[int]) -> NDArray[np.float64]:
-        """Acclaim forward kinematics: loop over bones, every frame at once.
+        """Acclaim forward kinematics of the points ``wanted``, looping over bones.
 
-        Only the bones that carry the points asked for (and their ancestors)
-        are computed: a rig reads a dozen of the skeleton's points.
-
-        Args:
-            wanted: Indices into :attr:`point_names` (0 the root, ``1 + b`` bone b's tip).
-
-        Returns:
-            ``(T, len(wanted), 3)`` positions of the points, in the ASF's axes
-            and units. Rows of invalid frames are NaN.
+        Only the bones that carry them and their ancestors are computed: a rig
+        reads a dozen of the skeleton's points.
         """
         sk = self.skeleton
         n_t = self.n_frames
@@ -417,11 +388,7 @@ def load_amc(
         TypeError: If ``path`` or ``skeleton`` is of another type.
         ValueError: If an argument is invalid.
     """
-    if on_nan not in ("mask", "raise"):
-        raise ValueError(f"on_nan must be 'mask' or 'raise', got {on_nan!r}")
-    limit = MAX_FRAMES if max_frames is None else max_frames
-    if not is_count(limit, 1):
-        raise ValueError(f"max_frames must be a whole number >= 1, got {max_frames!r}")
+    limit = frame_limit(max_frames, MAX_FRAMES, on_nan)
     if not (isinstance(fps, (int, float, np.number)) and _MIN_FPS <= fps <= _MAX_FPS):
         raise ValueError(f"fps must be between {_MIN_FPS:g} and {_MAX_FPS:g}, got {fps!r}")
     if not isinstance(skeleton, AsfSkeleton | str | os.PathLike):

@@ -14,37 +14,18 @@ whole local translation as MotionBuilder writes them (every joint animated, the
 values repeating the offsets), the position channels alone
 (``position_channels="replace"``); ``"auto"`` tells the two apart.
 
-The motion block is converted in bulk: numpy's C table reader parses it and
-checks that every line holds one value per channel; when it refuses, a
-vectorised count of the values on each line and a bisection for the first
-non-number name the line at fault. A 4 MB file parses in tens of milliseconds.
-Forward kinematics loops over joints only, batched over frames.
-
 Limits on input files
 ---------------------
 A file of a few lines must not cost gigabytes or minutes, so the reader checks
-what it is told against what it holds and against documented maxima (module
-constants, read at each call, so a program may raise them by assignment, e.g.
-``humotion_gym.mocap.bvh.MAX_JOINTS = 5000``):
-
-- :data:`MAX_FRAMES` (1,000,000; per call ``load_bvh(..., max_frames=...)``):
-  the most frames, whether declared by ``Frames:`` or present. ``Frames:``
-  must also equal the frame lines present, so the cost of the motion block is
-  bounded by the file's size.
-- :data:`MIN_FRAME_TIME` and :data:`MAX_FRAME_TIME` (1e-4 s to 1 s, i.e. 1 to
-  10,000 frames per second): ``Frame Time:`` is in seconds; a value between 1
-  and 1000 is refused as one that looks like milliseconds. This also bounds the
-  resampling of :func:`~humotion_gym.mocap.retarget.retarget_clip` to 30 Hz to
-  at most 30 output frames per file frame.
-- :data:`MAX_JOINTS` (1,000): joints plus end sites; :data:`MAX_DEPTH` (256):
-  nesting of ``{ }`` blocks; :data:`MAX_JOINT_CHANNELS` (64): channels of one
-  joint. The hierarchy is parsed in linear time (names kept in sets and dicts).
-- :data:`MAX_FRAME_POINTS` (20,000,000): frames times points (joints and end
-  sites), the size of the forward kinematics' output.
-- :data:`MAX_ABS_VALUE` (1e9): the largest magnitude of an ``OFFSET`` or a
-  motion value; beyond it, or NaN/infinite in the hierarchy, the file is
-  refused (NaN and infinite motion values mark frames invalid, as before).
-- Counts (``Frames:``, ``CHANNELS``) are ASCII digits only.
+what it is told against what it holds (``Frames:`` must equal the frame lines
+present) and against the maxima below (``MAX_*``, :data:`MIN_FRAME_TIME`; see
+"Limits on input files" in ``docs/data.md``). They are read at each call, so a
+program may raise them by assignment (``humotion_gym.mocap.bvh.MAX_JOINTS =
+5000``); ``load_bvh(max_frames=...)`` raises the frame limit per call.
+``Frame Time:`` is in seconds: a value between 1 and 1000 is refused as one that
+looks like milliseconds. NaN or infinite motion values mark frames invalid; in
+the hierarchy they are refused. Counts (``Frames:``, ``CHANNELS``) are ASCII
+digits only.
 
 Every violation raises :class:`~humotion_gym.errors.MocapFormatError` naming the
 file, the line and what was expected; no other exception escapes parsing (an
@@ -63,7 +44,6 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from humotion_gym.checks import is_count
 from humotion_gym.errors import MocapFormatError
 from humotion_gym.mocap._bvh_hierarchy import (
     _CHANNEL_KIND,
@@ -77,6 +57,7 @@ from humotion_gym.mocap._bvh_hierarchy import (
 )
 from humotion_gym.mocap._bvh_write import write_bvh
 from humotion_gym.mocap._scan import (
+    OnNan,
     _count,
     _euler_matrices,
     _first_bad_value,
@@ -84,6 +65,7 @@ from humotion_gym.mocap._scan import (
     _short,
     _to_floats,
     decode_text,
+    frame_limit,
     read_motion_bytes,
 )
 from humotion_gym.mocap.skeleton import PointsOnce, with_ancestors
@@ -118,25 +100,15 @@ MAX_FRAME_POINTS: int = 20_000_000
 #: scan every name, and no rig names a joint with more than a few dozen.
 MAX_NAME_LENGTH: int = 256
 
-
-OnNan = Literal["mask", "raise"]
 PositionMode = Literal["auto", "add", "replace"]
 
 
 def _check_frame_time(path: str, line: int, token: str) -> float:
-    """The ``Frame Time:`` value in seconds, within [MIN_FRAME_TIME, MAX_FRAME_TIME].
-
-    Args:
-        path: The file, for errors.
-        line: The line of ``Frame Time:``.
-        token: The value as written.
-
-    Returns:
-        Seconds per frame.
+    """The ``Frame Time:`` ``token`` (of file ``path``, ``line``) in seconds, within range.
 
     Raises:
-        MocapFormatError: If the value is not a number, not finite, not
-            positive, out of range, or looks like milliseconds.
+        MocapFormatError: If the value is not a positive number, out of range,
+            or looks like milliseconds.
     """
     try:
         frame_time = float(token)
@@ -171,14 +143,7 @@ def _snap_fps(frame_time: float, token: str) -> float:
 
     ``Frame Time: 0.016667`` is 1/60 s written with six decimals; ``1/0.016667``
     would be 59.9988, so an integer rate whose period agrees with the written
-    frame time to the digits written is taken instead.
-
-    Args:
-        frame_time: Seconds per frame.
-        token: The frame time as written, to learn its precision.
-
-    Returns:
-        The rate in Hz.
+    frame time to the digits written (those of ``token``) is taken instead.
     """
     fps = 1.0 / frame_time
     try:
@@ -296,16 +261,9 @@ class BvhClip(PointsOnce):
         return rots, pos[:, : len(self.joint_names)]
 
     def _points(self, wanted: Sequence[int]) -> NDArray[np.float64]:
-        """Global positions of some joints and end sites, in the file's own axes and units.
+        """Positions of the points ``wanted``; only the joints carrying them and their ancestors.
 
-        Only the joints that carry them (and those joints' ancestors) are computed:
-        a rig reads a dozen points, and a hand's fingers can be most of a file's joints.
-
-        Args:
-            wanted: Indices into :attr:`point_names`.
-
-        Returns:
-            ``(T, len(wanted), 3)`` positions. Rows of invalid frames are NaN.
+        A rig reads a dozen points, and a hand's fingers can be most of a file's joints.
         """
         n_j = len(self.joint_names)
         points = [self._point_joint[i] for i in wanted]
@@ -318,17 +276,15 @@ class BvhClip(PointsOnce):
     def _kinematics(
         self, keep_rotations: bool, needed: NDArray[np.bool_] | None = None
     ) -> tuple[NDArray[np.float64] | None, NDArray[np.float64]]:
-        """Forward kinematics: loop over joints, every frame at once.
+        """Forward kinematics, looping over joints: global rotations and positions.
 
         Args:
-            keep_rotations: Return the global rotations too.
-            needed: ``(J,)`` the joints to compute (every one when None); a
-                joint's ancestors must be among them. The others, and their
-                end sites, are left NaN.
+            keep_rotations: Return the ``(T, J, 3, 3)`` global rotations too (else None).
+            needed: ``(J,)`` the joints to compute (every one when None), their
+                ancestors among them; the others and their end sites stay NaN.
 
         Returns:
-            The ``(T, J, 3, 3)`` global rotations (when asked) and ``(T, J + E, 3)``
-            positions of the joints then the end sites.
+            The rotations and the ``(T, J + E, 3)`` positions of the joints then end sites.
         """
         n_t, n_j = self.n_frames, len(self.joint_names)
         starts = self.channel_starts
@@ -442,17 +398,9 @@ def _infer_position_mode(
 def _read_motion(
     path: str, body: bytes, first: int, n_chan: int, n_joints: int
 ) -> NDArray[np.float64]:
-    """The ``(T, n_chan)`` values of the motion block, one frame per line.
+    """The ``(T, n_chan)`` values (NaN kept) of ``body``, the lines after ``Frame Time:``.
 
-    Args:
-        path: The file, for errors.
-        body: The bytes after the ``Frame Time:`` line.
-        first: The file line of the body's first line.
-        n_chan: Values expected on each line.
-        n_joints: Joints in the hierarchy, for the error message.
-
-    Returns:
-        The values (NaN kept). Trailing blank lines are ignored.
+    ``first`` is the body's first file line; trailing blank lines are ignored.
 
     Raises:
         MocapFormatError: If a line does not hold ``n_chan`` values (a blank
@@ -465,9 +413,9 @@ def _read_motion(
             raise MocapFormatError(path, first, "found motion values but no joint has CHANNELS")
         return np.empty((0, n_chan))
     # Fast path: numpy's C table reader parses and checks the column count in
-    # one pass, several times faster than split-then-convert. It skips blank
-    # lines and splits at lone carriage returns, so its row count must equal
-    # our line count; on any failure the checks below find and name the line.
+    # one pass. It skips blank lines and splits at lone carriage returns, so its
+    # row count must equal our line count; on any failure the checks below find
+    # and name the line.
     try:
         values = np.loadtxt(io.BytesIO(trimmed), dtype=np.float64, comments=None, ndmin=2)
     except ValueError:
@@ -485,24 +433,6 @@ def _read_motion(
         )
     line_of = (first + np.arange(n_lines)).repeat(n_chan)
     return _to_floats(trimmed.split(), path, line_of).reshape(n_lines, n_chan)
-
-
-def _check_load_arguments(max_frames: int | None, on_nan: str, position_channels: str) -> int:
-    """The frame limit, after checking :func:`load_bvh`'s arguments.
-
-    Raises:
-        ValueError: If an argument is invalid.
-    """
-    limit = MAX_FRAMES if max_frames is None else max_frames
-    if not is_count(limit, 1):
-        raise ValueError(f"max_frames must be a whole number >= 1 or None, got {max_frames!r}")
-    if on_nan not in ("mask", "raise"):
-        raise ValueError(f"on_nan must be 'mask' or 'raise', got {on_nan!r}")
-    if position_channels not in ("auto", "add", "replace"):
-        raise ValueError(
-            f"position_channels must be 'auto', 'add' or 'replace', got {position_channels!r}"
-        )
-    return int(limit)
 
 
 class _LineReader:
@@ -677,13 +607,16 @@ def load_bvh(
             ``Frame Time:``), a frame line does not hold one value per channel,
             a value is not a number, ``Frames:`` disagrees with the lines, or
             (with ``on_nan="raise"``) a value is NaN; or if the file exceeds a
-            limit (see the module's "Limits on input files": frames, frame
-            time, joints, nesting, channels, magnitudes).
+            limit (the module's "Limits on input files").
         OSError: If the file cannot be read.
         TypeError: If ``path`` is not a str or os.PathLike.
         ValueError: If an argument is invalid (``max_frames`` below 1...).
     """
-    limit = _check_load_arguments(max_frames, on_nan, position_channels)
+    limit = frame_limit(max_frames, MAX_FRAMES, on_nan)
+    if position_channels not in ("auto", "add", "replace"):
+        raise ValueError(
+            f"position_channels must be 'auto', 'add' or 'replace', got {position_channels!r}"
+        )
     spath = str(path)
     data = read_motion_bytes(path)
     if not data.strip():
@@ -721,11 +654,9 @@ def load_bvh(
     finite_rows = _check_values(spath, values, hdr, starts, first, on_nan)
 
     offsets = np.array(hdr.offsets, dtype=np.float64).reshape(n_joints, 3)
-    mode: Literal["add", "replace"]
-    if position_channels == "auto":
+    mode = position_channels
+    if mode == "auto":
         mode = _infer_position_mode(hdr, offsets, values, starts)
-    else:
-        mode = position_channels
     point_names, point_parents = _point_tree(spath, hdr)
 
     return BvhClip(
