@@ -14,6 +14,7 @@ everything but the downloads is rebuilt on demand.
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 from humotion_gym.cli._common import CommandError, add_command, add_json, print_json
@@ -97,8 +98,6 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
 
 def _from_env() -> bool:
-    import os
-
     from humotion_gym.mocap.library import CACHE_ENV
 
     return bool(os.environ.get(CACHE_ENV))

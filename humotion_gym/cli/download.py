@@ -10,7 +10,9 @@
 from __future__ import annotations
 
 import argparse
+from collections import Counter
 from pathlib import Path
+from urllib.parse import urlsplit
 
 from humotion_gym.cli._common import (
     Distinct,
@@ -107,6 +109,8 @@ _CHOICE_FLAGS = ("activity", "persons", "train_only", "dry_run")
 
 def _cmd_download_cmu(args: argparse.Namespace) -> int:
     from humotion_gym.mocap import download
+    from humotion_gym.mocap.cmu import CMU_TEST_PERSONS, cmu_index, cmu_person
+    from humotion_gym.mocap.labels import ACTIVITY_LABELS
 
     if args.verify:
         choosing = [f"--{k.replace('_', '-')}" for k in _CHOICE_FLAGS if getattr(args, k)]
@@ -119,8 +123,6 @@ def _cmd_download_cmu(args: argparse.Namespace) -> int:
         _check_url(args.base_url)
     subjects = list(args.subjects or [])
     if subjects:
-        from humotion_gym.mocap.cmu import cmu_index
-
         known = set(cmu_index().subjects)
         unknown = [s for s in subjects if s not in known]
         if unknown:
@@ -129,8 +131,6 @@ def _cmd_download_cmu(args: argparse.Namespace) -> int:
                 f"(its subjects are {min(known)} to {max(known)}, with gaps)"
             )
     if args.activity:
-        from humotion_gym.mocap.labels import ACTIVITY_LABELS
-
         unknown = sorted(set(args.activity) - set(ACTIVITY_LABELS))
         if unknown:
             raise UsageError(
@@ -138,8 +138,6 @@ def _cmd_download_cmu(args: argparse.Namespace) -> int:
                 f"{', '.join(ACTIVITY_LABELS)}"
             )
         if args.train_only:  # a test person asked for by number would be downloaded anyway
-            from humotion_gym.mocap.cmu import CMU_TEST_PERSONS, cmu_person
-
             held = [s for s in subjects if cmu_person(s) in CMU_TEST_PERSONS]
             if held:
                 raise UsageError(
@@ -183,8 +181,6 @@ def _cmd_download_cmu(args: argparse.Namespace) -> int:
 
 def _check_url(url: str) -> None:
     """Refuse a ``--base-url`` that is not an absolute http(s) or file URL."""
-    from urllib.parse import urlsplit
-
     parts = urlsplit(url)
     if parts.scheme not in URL_SCHEMES or (parts.scheme != "file" and not parts.netloc):
         raise UsageError(
@@ -194,8 +190,6 @@ def _check_url(url: str) -> None:
 
 def _print_choice(subjects: list[int], activities: list[str] | None) -> None:
     """One line per chosen subject: person, split, trials and labels from the index."""
-    from collections import Counter
-
     from humotion_gym.mocap.cmu import cmu_index, cmu_label, cmu_person, cmu_subject_id
     from humotion_gym.mocap.library import TEST_SUBJECTS
 

@@ -31,20 +31,12 @@ from humotion_gym.mocap._registry import RegistryEntry
 
 #: Suffix of a file still being downloaded.
 PART_SUFFIX = ".part"
-
-
 #: Suffix of the sidecar beside a ``.part``: the URL, validator and size it belongs to.
 SIDECAR_SUFFIX = ".part.json"
-
-
 _CHUNK = 1 << 16
-
-
 # Probing stops here even if a server answers every URL (CMU's largest subject
 # has well under a hundred trials).
 _MAX_TRIALS = 999
-
-
 _USER_AGENT = "humotion_gym-download/1 (+urllib)"
 
 

@@ -17,12 +17,8 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from humotion_gym.mocap.cmu import (
-    cmu_description,
-    cmu_label,
-    cmu_person,
-    cmu_subject_id,
-)
+from humotion_gym.errors import MocapFormatError
+from humotion_gym.mocap.cmu import cmu_description, cmu_label, cmu_person, cmu_subject_id
 from humotion_gym.mocap.labels import activity_label
 
 
@@ -156,8 +152,6 @@ def find_clips(paths: Iterable[str | Path] | str | Path) -> list[ClipSource]:
             file has no ASF skeleton beside it, or two other files would be
             the same clip (their ids, ``dataset/stem``, are equal).
     """
-    from humotion_gym.errors import MocapFormatError
-
     files: list[Path] = []
     for p in [paths] if isinstance(paths, (str, Path)) else paths:  # one path, not its letters
         path = Path(p)

@@ -33,7 +33,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from humotion_gym.mocap.labels import activity_label, says_nothing
+from humotion_gym.mocap.labels import ACTIVITY_LABELS, activity_label, says_nothing
 
 #: The packaged trial descriptions.
 CMU_TRIALS_PATH = Path(__file__).resolve().parent / "data" / "cmu_trials.txt"
@@ -250,8 +250,6 @@ def subjects_by_activity(
     Raises:
         ValueError: If an activity is not a known label or ``persons`` < 1.
     """
-    from humotion_gym.mocap.labels import ACTIVITY_LABELS
-
     wanted = set(activities)
     unknown = sorted(wanted - set(ACTIVITY_LABELS))
     if unknown or not wanted:

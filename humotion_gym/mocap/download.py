@@ -3,51 +3,29 @@
 :func:`download_cmu` fetches the skeleton (``SS.asf``) and every trial
 (``SS_TT.amc``) of the requested subjects from CMU's public layout
 (``{base_url}/{SS}/{SS}.asf``, ``{base_url}/{SS}/{SS}_{TT}.amc``) into
-``dest/{SS}/``, the same layout the motion library loads.
+``dest/{SS}/``, the same layout the motion library loads. What a finished
+download guarantees (docs/data.md, "Downloading CMU", says it at length):
 
-What a finished download guarantees:
-
-- **Complete.** The size of every file must be known before its body is
-  trusted: from ``Content-Length`` (or the total of a ``Content-Range``), else
-  from the registry below. A body that ends short is an error, never a file; a
-  server that sends no size for a file the registry does not know is refused.
+- **Complete.** The size of every file is known before its body is trusted
+  (``Content-Length``, a ``Content-Range`` total, else the registry); a body
+  that ends short is an error, never a file.
 - **Atomic and resumable, never spliced.** Bytes stream into ``name.part``
-  beside a small sidecar ``name.part.json`` holding the server's validator
-  (its ``ETag`` if strong, else its ``Last-Modified``) and the file's size. A
-  resume asks for ``Range: bytes=N-`` with ``If-Range: <validator>``: a server
-  whose file changed answers 200 with the whole new file, which is written
-  from zero; a 412 or 416 also restarts from zero. A ``.part`` without a
-  usable sidecar (stale, foreign, or from a server that sent no validator) is
-  discarded, not resumed. Only a complete, checked file is renamed to its
-  final name, so the library (which ignores ``*.part``) never loads half a clip.
-- **Checked against a registry, not against itself.** The package ships
-  ``humotion_gym/mocap/data/cmu_sha256.txt``: SHA-256 and size of CMU files,
-  recorded by :func:`record_registry` from CMU's original files (the shared
-  mirror ``cmu-asfamc``: subjects 1, 2 and 3). A downloaded file the registry
-  names must match it, or it is deleted and refused with both hashes in the
-  error. A file the registry does not name is checked for size and
-  completeness only and recorded in ``dest/manifest.json`` as
-  ``"unverified"``; registry matches are recorded as ``"verified"``.
-  :func:`verify_cache` reports the two apart, and corrupt files separately.
-- **Bounded.** Every file has a size cap (:data:`DEFAULT_MAX_BYTES`: 1 MiB for
-  ``.asf``, 64 MiB for ``.amc``/``.bvh``), the listing has a byte cap and an
-  entry cap, every socket read has a timeout, and each file and the whole run
-  have a deadline (:data:`DEFAULT_FILE_DEADLINE_S`,
-  :data:`DEFAULT_RUN_DEADLINE_S`), so a server that drips one byte a second
-  is stopped at the deadline with an error saying so.
+  beside a sidecar ``name.part.json`` holding the server's validator (a strong
+  ``ETag``, else ``Last-Modified``) and the size; a resume sends ``Range`` with
+  ``If-Range``, and a ``.part`` without a usable sidecar is discarded. Only a
+  complete, checked file gets its final name (the library ignores ``*.part``).
+- **Checked against a registry, not against itself.** A file the packaged
+  ``humotion_gym/mocap/data/cmu_sha256.txt`` names must match its SHA-256 and
+  size, or it is deleted and refused; others are recorded in
+  ``dest/manifest.json`` as ``"unverified"``, registry matches as
+  ``"verified"`` (:func:`verify_cache` tells them apart).
+- **Bounded.** Caps on each file (:data:`DEFAULT_MAX_BYTES`) and on the
+  listing, a timeout on every socket read, and deadlines per file and per run.
 
-**Labelled and chosen by activity.** Each AMC file's manifest entry also
-records its CMU description, activity label and person from the packaged index
-(:mod:`humotion_gym.mocap.cmu`); :func:`choose_cmu_subjects` picks subjects by
-what they did (``--activity walk --persons 10``), one subject per person, those
-with the most trials of the activity first.
-
-Every :class:`DownloadError` names the URL and says what was left on disk: the
-path of a ``.part`` kept for a later call to resume, or that nothing was kept
-(a folder or manifest the failed call made and left empty is removed).
-
-Only the standard library speaks HTTP (no extra dependency); tqdm draws the
-progress bars. To re-record the registry from a folder of original files::
+Each AMC file's manifest entry also records its CMU description, activity
+label and person (:mod:`humotion_gym.mocap.cmu`). Every :class:`DownloadError`
+names the URL and says what was left on disk. Only the standard library speaks
+HTTP; tqdm draws the progress bars. To re-record the registry::
 
     python -m humotion_gym.mocap.download --record-registry ../shared/mocap/cmu-asfamc
 """
@@ -94,6 +72,12 @@ from humotion_gym.mocap._registry import (
     _sha256,
     load_registry,
     record_registry,
+)
+from humotion_gym.mocap.cmu import (
+    cmu_description,
+    cmu_label,
+    cmu_person,
+    subjects_by_activity,
 )
 from humotion_gym.mocap.library import default_cache_dir
 
@@ -217,12 +201,6 @@ def cmu_subject_code(subject: int) -> str:
     if not 1 <= n <= 999:
         raise ValueError(f"subjects: CMU subject numbers are 1..999, got {n}")
     return f"{n:02d}"
-
-
-# --- registry -------------------------------------------------------------------
-
-
-# --- HTTP -----------------------------------------------------------------------
 
 
 def _subject_url(base_url: str, code: str) -> str:
@@ -561,11 +539,7 @@ def _leave(dest: Path, manifest: dict, codes: Sequence[str], before: set[Path]) 
 
 
 def _check_positive(**values: float) -> None:
-    """Refuse an argument of :func:`download_cmu` that is not a positive number.
-
-    Raises:
-        ValueError: Naming the argument (``retries`` needs at least one attempt).
-    """
+    """Refuse an argument of :func:`download_cmu` that is not positive (``retries`` < 1)."""
     for name, value in values.items():
         if name == "retries" and value < 1:
             raise ValueError(f"retries: need at least 1 attempt, got {value}")
@@ -633,8 +607,6 @@ def _file_deadline(file_deadline_s: float, run_deadline: _Deadline) -> _Deadline
 
 def _label_entries(manifest: dict[str, dict[str, Any]], code: str) -> None:
     """Add CMU's description, the activity label and the person to a subject's AMC entries."""
-    from humotion_gym.mocap.cmu import cmu_description, cmu_label, cmu_person
-
     for rel, entry in manifest.items():
         m = re.fullmatch(rf"{code}/{code}_(\d+)\.amc", rel)
         if m:
@@ -662,8 +634,6 @@ def choose_cmu_subjects(
     Raises:
         ValueError: If an activity is not a known label or ``persons`` < 1.
     """
-    from humotion_gym.mocap.cmu import subjects_by_activity
-
     return subjects_by_activity(activities, persons, exclude_test=not include_test)
 
 

@@ -41,14 +41,10 @@ ACTIVITY_LABELS: tuple[str, ...] = (
     "everyday", "pantomime", "calibration", "other",
 )  # fmt: skip
 
-# Bandai-Namco content names (the file name's second field) that are not words
-# the rules below know; the Bandai labels are otherwise the content names.
-_WORDS = r"(?:{})"
-
 
 def _any(*words: str) -> str:
     """A regex matching any of the words (each may be a regex) at word starts."""
-    return r"\b" + _WORDS.format("|".join(words))
+    return r"\b(?:" + "|".join(words) + ")"
 
 
 _CALIBRATION = re.compile(
