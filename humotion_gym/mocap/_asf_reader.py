@@ -65,16 +65,7 @@ def _numbers(
 ) -> list[float]:
     """Exactly ``count`` finite numbers from ``toks``, or a MocapFormatError naming ``what``.
 
-    Args:
-        path: The file, for errors.
-        ln: The line, for errors.
-        toks: The tokens.
-        count: How many numbers there must be.
-        what: What they are, for errors.
-        bound: The largest magnitude (inf: the caller checks its own range).
-
-    Returns:
-        The numbers.
+    ``bound`` is the largest magnitude (inf: the caller checks its own range).
     """
     if len(toks) != count:
         raise MocapFormatError(path, ln, f"expected {what} ({count} numbers), found {len(toks)}")
@@ -150,10 +141,7 @@ class _AsfReader:
     def _check_closed(self, ln: int, found: str = "") -> None:
         """Refuse a new section or bone, or the file's end, while a bone or :hierarchy is open.
 
-        ``found`` ends the message (``", found end of file"`` at the file's end).
-
-        Raises:
-            MocapFormatError: Naming the line where the open block began.
+        The error names the line where the open block began; ``found`` ends it.
         """
         if self.bone is not None:
             raise self._error(

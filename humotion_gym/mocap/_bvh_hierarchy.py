@@ -81,14 +81,6 @@ class _Header:
         self.name_set: set[str] = set()
 
 
-def _header_tokens(lines: list[tuple[int, str]]) -> list[tuple[str, int, int]]:
-    """Flatten header lines to ``(token, line, index of the token on its line)``."""
-    out: list[tuple[str, int, int]] = []
-    for lineno, text in lines:
-        out.extend((tok, lineno, k) for k, tok in enumerate(text.split()))
-    return out
-
-
 class _HierarchyParser:
     """The state of parsing ``HIERARCHY`` token by token (one method per keyword).
 
@@ -100,7 +92,8 @@ class _HierarchyParser:
     def __init__(self, path: str, lines: list[tuple[int, str]], limits: HierarchyLimits) -> None:
         self.path = path
         self.limits = limits
-        self.toks = _header_tokens(lines)
+        # (token, line, index of the token on its line)
+        self.toks = [(tok, ln, k) for ln, text in lines for k, tok in enumerate(text.split())]
         self.line_tokens = {ln: text.split() for ln, text in lines}
         self.hdr = _Header()
         self.stack: list[_Block] = []
@@ -308,17 +301,10 @@ class _HierarchyParser:
 def _parse_hierarchy(
     path: str, lines: list[tuple[int, str]], last_line: int, limits: HierarchyLimits
 ) -> _Header:
-    """Parse ``HIERARCHY`` up to (not including) ``MOTION``.
+    """The joints and end sites of ``HIERARCHY``, from its ``(line number, text)`` ``lines``.
 
-    Args:
-        path: The file, for errors.
-        lines: ``(line number, text)`` of the header lines; the last is ``MOTION``
-            when the file has one.
-        last_line: The file's last line, named when the file ends early.
-        limits: The bounds in force (:mod:`humotion_gym.mocap.bvh`'s constants).
-
-    Returns:
-        The joints and end sites.
+    ``lines`` end with ``MOTION`` when the file has one; ``last_line`` is named
+    when the file ends early.
 
     Raises:
         MocapFormatError: On any deviation from the grammar.

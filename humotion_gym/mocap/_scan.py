@@ -87,14 +87,9 @@ _WHITESPACE[[9, 10, 11, 12, 13, 32]] = True
 
 
 def _line_token_counts(buf: bytes) -> NDArray[np.intp]:
-    """Number of whitespace-separated tokens on each line of ``buf``.
+    """Number of whitespace-separated tokens on each line of ``buf``, which may end empty.
 
-    Args:
-        buf: Text as bytes.
-
-    Returns:
-        One count per line (lines end at newline bytes, the last may be
-        empty); they sum to ``len(buf.split())``.
+    The counts sum to ``len(buf.split())``.
     """
     n_lines = buf.count(b"\n") + 1
     if not buf:
@@ -111,19 +106,11 @@ def _line_token_counts(buf: bytes) -> NDArray[np.intp]:
 def _to_floats(
     tokens: list[bytes], path: str | Path, line_of: NDArray[np.intp], what: str = "a number"
 ) -> NDArray[np.float64]:
-    """Convert tokens to float64 in one call, naming the first bad token's line on failure.
-
-    Args:
-        tokens: The tokens, as from ``bytes.split()``.
-        path: The file, for the error message.
-        line_of: ``(len(tokens),)`` 1-based line of each token.
-        what: What a token should have been, for the error message.
-
-    Returns:
-        ``(len(tokens),)`` values (NaN and inf are kept; callers decide).
+    """Convert tokens to float64 in one call (NaN and inf kept; callers decide).
 
     Raises:
-        MocapFormatError: If a token is not a number.
+        MocapFormatError: If a token is not a number (``what``), naming the
+            file ``path`` and the token's line (``line_of``, one per token).
     """
     try:
         return np.array(tokens, dtype=np.float64)
@@ -146,18 +133,11 @@ def _to_floats(
 def _first_bad_value(
     values: NDArray[np.float64], bound: float, on_nan: str
 ) -> tuple[int, str] | None:
-    """The first motion value both readers refuse, and what was expected there.
+    """The flat index of the first motion value both readers refuse, and why; None if none.
 
-    Args:
-        values: The values read (any shape; NaN and inf kept).
-        bound: The largest magnitude of a finite value.
-        on_nan: ``"raise"`` refuses NaN and infinite values too (``"mask"``
-            leaves them to mark their frames invalid).
-
-    Returns:
-        None when every value passes, else the flat index of the first value
-        beyond ``bound`` (or, with none, of the first one not finite) and the
-        error's reason.
+    A finite value beyond ``bound`` comes first; with ``on_nan="raise"``, NaN
+    and infinite values are refused too (``"mask"`` leaves them to mark their
+    frames invalid).
     """
     with np.errstate(invalid="ignore"):  # NaN and inf are on_nan's business, not the bound's
         big = np.flatnonzero((np.abs(values) > bound) & np.isfinite(values))
@@ -172,15 +152,7 @@ def _first_bad_value(
 
 
 def _elementary_rotations(axis: int, angles: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Rotation matrices about one coordinate axis, batched.
-
-    Args:
-        axis: 0, 1 or 2 for x, y, z.
-        angles: ``(T,)`` angles in radians (right-handed, counter-clockwise).
-
-    Returns:
-        ``(T, 3, 3)`` matrices.
-    """
+    """``(T, 3, 3)`` right-handed rotations about ``axis`` (0, 1, 2: x, y, z) by ``angles``."""
     c = np.cos(angles)
     s = np.sin(angles)
     out = np.zeros((*angles.shape, 3, 3))
@@ -226,14 +198,10 @@ def _short(token: str | bytes, limit: int = 40) -> str:
 
 
 def _count(token: str | bytes) -> int | None:
-    """A whole number written in ASCII digits, or None when ``token`` is not one.
+    """A whole number written in ASCII digits (``"120"``; not ``"²"``, ``"-1"``, ``"1.0"``).
 
-    Args:
-        token: The text, e.g. ``"120"``; ``"²"``, ``"-1"`` and ``"1.0"`` are not counts.
-
-    Returns:
-        The value; values of more than 18 digits (above any limit) come back
-        as ``10**18`` without converting the whole text.
+    None when ``token`` is not one; more than 18 digits (above any limit) come
+    back as ``10**18`` without converting the whole text.
     """
     text = token.decode("ascii", "replace") if isinstance(token, bytes) else token
     if not _COUNT.fullmatch(text):
