@@ -168,9 +168,8 @@ def _cmd_download_cmu(args: argparse.Namespace) -> int:
         },
         "max_listing_bytes": max(int(args.max_listing_kib * 1024), 1),
         "registry": args.registry,
+        "base_url": args.base_url or download.CMU_BASE_URL,
     }
-    if args.base_url:
-        kwargs["base_url"] = args.base_url
     # Held while downloading only (--dry-run and --verify write nothing), the
     # default download folder as --dest: two downloads share one manifest.
     with hold_default_folder(download.cmu_download_dir(args.dest), "dest"):

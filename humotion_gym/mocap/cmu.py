@@ -9,20 +9,12 @@ nothing); :func:`cmu_person` says which person a subject number is, and
 :data:`CMU_TEST_PERSONS` which persons the benchmark holds out.
 
 Persons (evidence in ``docs/data.md``): CMU numbers *sessions*, not people. The
-listing's own notes and trial lists give the groups below, each one person or
-possibly one person, always kept on one side of the split:
-
-- the same session published twice under two numbers, with the same trial
-  list: 78 and 102 (basketball moves), 91 and 105 (walks and turns), 93 and 103
-  (Charleston);
-- one participant recorded pregnant (111, 114) and after (113), as the
-  session titles say.
-
+listing's own notes and trial lists give the groups of :data:`CMU_SAME_PERSON`,
+each one person or possibly one person, always kept on one side of the split.
 Pairs recorded together (18/19, 20/21, 22/23, 33/34: "2 subjects - subject A/B")
-are two *different* people in one session: separate persons. The ASF
-skeletons of subjects 1, 2 and 3 (the shared data) differ by 9 % or more on
-some bone (:mod:`humotion_gym.mocap.persons`): three people. Any downloaded
-subjects can be compared the same way (``humotion-gym data persons``).
+are two *different* people in one session: separate persons. Subjects' ASF
+skeletons tell people apart (:mod:`humotion_gym.mocap.persons`, ``humotion-gym
+data persons``).
 """
 
 from __future__ import annotations
@@ -47,8 +39,8 @@ CMU_SAME_PERSON: tuple[tuple[tuple[int, ...], str], ...] = (
     ((111, 113, 114), "one participant: 'Pregnant Woman' (111, 114), 'Post pregnant woman' (113)"),
 )
 
-#: CMU persons held out for testing. 2 and 3 are the shared data's test persons
-#: (unchanged); 16 walks and runs (straight, veering, turning; 58 trials), 141
+#: CMU persons held out for testing. 2 and 3 are the shared data's test persons;
+#: 16 walks and runs (straight, veering, turning; 58 trials), 141
 #: and 143 are CMU's two "General Subject Capture" sessions (run, jump, walk,
 #: sit, pick up, throw, wave, punch: everyday motion), held out together so
 #: that the split holds whether or not they are one person.

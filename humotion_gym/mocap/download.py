@@ -36,8 +36,6 @@ import argparse
 import contextlib
 import http.client
 import json
-import math
-import operator
 import os
 import re
 import sys
@@ -52,7 +50,7 @@ from typing import Any
 
 from tqdm.auto import tqdm
 
-from humotion_gym.checks import is_count
+from humotion_gym.checks import is_count, is_integer
 from humotion_gym.files import write_text_atomically
 from humotion_gym.mocap._http import (
     _MAX_TRIALS,
@@ -191,13 +189,9 @@ def cmu_subject_code(subject: int) -> str:
         TypeError: If ``subject`` is not an integer.
         ValueError: If ``subject`` is outside 1..999.
     """
-    if isinstance(subject, bool):
-        # bool is an int subclass; True as "subject 1" is almost surely a bug.
+    if not is_integer(subject):  # True as "subject 1" is almost surely a bug
         raise TypeError(f"subjects: expected integers, got {subject!r}")
-    try:
-        n = operator.index(subject)
-    except TypeError:
-        raise TypeError(f"subjects: expected integers, got {subject!r}") from None
+    n = int(subject)
     if not 1 <= n <= 999:
         raise ValueError(f"subjects: CMU subject numbers are 1..999, got {n}")
     return f"{n:02d}"
@@ -543,7 +537,7 @@ def _check_positive(**values: float) -> None:
     for name, value in values.items():
         if name == "retries" and value < 1:
             raise ValueError(f"retries: need at least 1 attempt, got {value}")
-        if not value > 0 or math.isnan(value):
+        if not value > 0:  # NaN too
             raise ValueError(f"{name}: must be positive, got {value!r}")
 
 
