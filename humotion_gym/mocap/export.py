@@ -22,16 +22,15 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from humotion_gym.body import (
-    L_ELBOW,
     L_HIP,
     L_KNEE,
     L_SHOULDER,
     N_PARAMS,
     NECK,
-    R_ELBOW,
     R_HIP,
     R_KNEE,
     R_SHOULDER,
+    ROOT_ROTATION,
     BodyShape,
 )
 from humotion_gym.errors import MocapFormatError
@@ -77,54 +76,31 @@ def _offsets(shape: BodyShape) -> FloatArray:
     return _to_file(np.array(body))
 
 
+# Channel k is parameter _PARAM_OF[k] (the parameters' order, the root's y and z
+# swapped), negated at _NEGATED: world y is the file's -z, so a world ``Ry`` is
+# the file's ``-Rz``, and the file's knees bend the other way. Rotations in degrees.
+_PARAM_OF = np.array([0, 2, 1, *range(3, N_PARAMS)])
+_BALLS = (NECK, R_SHOULDER, L_SHOULDER, R_HIP, L_HIP)
+_NEGATED = np.array([2, ROOT_ROTATION.start + 2, *(j.start + 1 for j in _BALLS), R_KNEE, L_KNEE])
+
+
 def params_to_channels(params: ArrayLike) -> FloatArray:
-    """``(T, 25)`` parameters to the exported skeleton's ``(T, 28)`` channel values."""
+    """``(T, 25)`` parameters to the exported skeleton's ``(T, 25)`` channel values."""
     p = np.asarray(params, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != N_PARAMS:
         raise ValueError(f"params must be (T, {N_PARAMS}), got {p.shape}")
-    deg = np.rad2deg
-
-    def ball(sl: slice) -> FloatArray:
-        a = p[:, sl]
-        return deg(np.stack([a[:, 0], -a[:, 1], a[:, 2]], axis=1))
-
-    cols = [
-        _to_file(p[:, 0:3]),
-        deg(np.stack([p[:, 3], p[:, 4], -p[:, 5]], axis=1)),
-        ball(NECK),
-        ball(R_SHOULDER),
-        deg(p[:, [R_ELBOW]]),
-        ball(L_SHOULDER),
-        deg(p[:, [L_ELBOW]]),
-        ball(R_HIP),
-        -deg(p[:, [R_KNEE]]),
-        ball(L_HIP),
-        -deg(p[:, [L_KNEE]]),
-    ]
-    return np.concatenate(cols, axis=1)
+    c = np.ascontiguousarray(p[:, _PARAM_OF])
+    c[:, _NEGATED] = -c[:, _NEGATED]
+    c[:, 3:] = np.rad2deg(c[:, 3:])
+    return c
 
 
 def channels_to_params(values: ArrayLike) -> FloatArray:
     """Inverse of :func:`params_to_channels`."""
-    c = np.asarray(values, dtype=np.float64)
-    rad = np.deg2rad
-    p = np.empty((c.shape[0], N_PARAMS))
-    p[:, 0:3] = np.stack([c[:, 0], -c[:, 2], c[:, 1]], axis=1)
-    p[:, 3:6] = rad(np.stack([c[:, 3], c[:, 4], -c[:, 5]], axis=1))
-
-    def ball(col: int) -> FloatArray:
-        return rad(np.stack([c[:, col], -c[:, col + 1], c[:, col + 2]], axis=1))
-
-    p[:, NECK] = ball(6)
-    p[:, R_SHOULDER] = ball(9)
-    p[:, R_ELBOW] = rad(c[:, 12])
-    p[:, L_SHOULDER] = ball(13)
-    p[:, L_ELBOW] = rad(c[:, 16])
-    p[:, R_HIP] = ball(17)
-    p[:, R_KNEE] = -rad(c[:, 20])
-    p[:, L_HIP] = ball(21)
-    p[:, L_KNEE] = -rad(c[:, 24])
-    return p
+    c = np.array(values, dtype=np.float64)
+    c[:, _NEGATED] = -c[:, _NEGATED]
+    c[:, 3:] = np.deg2rad(c[:, 3:])
+    return np.ascontiguousarray(c[:, _PARAM_OF])  # the swap of y and z is its own inverse
 
 
 def write_motion_bvh(path: str | Path, params: ArrayLike, shape: BodyShape, fps: float) -> None:
