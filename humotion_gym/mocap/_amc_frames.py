@@ -13,12 +13,12 @@ import itertools
 import operator
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from humotion_gym.errors import MocapFormatError
+from humotion_gym.mocap._asf_reader import AsfSkeleton
 from humotion_gym.mocap._scan import (
     OnNan,
     _count,
@@ -27,22 +27,6 @@ from humotion_gym.mocap._scan import (
     _to_floats,
     decode_text,
 )
-
-
-class _Skeleton(Protocol):
-    """What the frame readers use of an :class:`~humotion_gym.mocap.asfamc.AsfSkeleton`."""
-
-    @property
-    def path(self) -> str: ...  # noqa: D102
-
-    @property
-    def point_names(self) -> tuple[str, ...]: ...  # noqa: D102
-
-    @property
-    def root_order(self) -> tuple[str, ...]: ...  # noqa: D102
-
-    @property
-    def dofs(self) -> tuple[tuple[str, ...], ...]: ...  # noqa: D102
 
 
 @dataclass(frozen=True)
@@ -117,7 +101,7 @@ def _points_by_name(names: Sequence[str]) -> dict[bytes, int]:
 
 
 def _amc_regular(
-    sk: _Skeleton,
+    sk: AsfSkeleton,
     widths: NDArray[np.intp],
     counts: NDArray[np.intp],
     tokens: list[bytes],
@@ -184,7 +168,7 @@ def _amc_regular(
 
 def _bone_points(
     spath: str,
-    sk: _Skeleton,
+    sk: AsfSkeleton,
     widths: NDArray[np.intp],
     counts: NDArray[np.intp],
     firsts: list[bytes],
@@ -229,7 +213,7 @@ def _bone_points(
 
 def _frame_numbers(
     spath: str,
-    sk: _Skeleton,
+    sk: AsfSkeleton,
     firsts: list[bytes],
     is_frame: NDArray[np.bool_],
     frame_lines: NDArray[np.intp],
@@ -262,7 +246,7 @@ def _frame_numbers(
 
 def _check_complete_frames(
     spath: str,
-    sk: _Skeleton,
+    sk: AsfSkeleton,
     widths: NDArray[np.intp],
     point: NDArray[np.intp],
     block_of_line: NDArray[np.intp],
@@ -337,7 +321,7 @@ def _bone_values(
 
 def _amc_general(
     spath: str,
-    sk: _Skeleton,
+    sk: AsfSkeleton,
     widths: NDArray[np.intp],
     counts: NDArray[np.intp],
     tokens: list[bytes],

@@ -1,8 +1,9 @@
-"""Reading an ASF skeleton line by line: :class:`_AsfReader`, under :class:`AsfLimits`.
+"""ASF skeletons: :class:`AsfSkeleton` and :class:`_AsfReader`, which reads one line by line.
 
-:func:`humotion_gym.mocap.asfamc.load_asf` feeds the reader and builds the
-skeleton; the bounds are :mod:`humotion_gym.mocap.asfamc`'s ``MAX_*``
-constants, passed at each call so that raising one there takes effect.
+:func:`humotion_gym.mocap.asfamc.load_asf` (which re-exports :class:`AsfSkeleton`)
+feeds the reader and builds the skeleton; the bounds are
+:mod:`humotion_gym.mocap.asfamc`'s ``MAX_*`` constants, passed at each call as
+:class:`AsfLimits` so that raising one there takes effect.
 """
 
 from __future__ import annotations
@@ -33,11 +34,7 @@ class AsfLimits:
 
 
 _BONE_DOFS = ("rx", "ry", "rz")
-
-
 _ROOT_CHANNELS = ("tx", "ty", "tz", "rx", "ry", "rz")
-
-
 _LIMIT = re.compile(r"\(\s*([^\s()]+)\s+([^\s()]+)\s*\)")
 
 
@@ -53,6 +50,80 @@ def _topological(parents: NDArray[np.intp]) -> list[int]:
         order.append(b)
         todo.extend(reversed(children[b + 1]))
     return order
+
+
+@dataclass(frozen=True, eq=False)
+class AsfSkeleton:
+    """A parsed ASF file.
+
+    Attributes:
+        path: The file.
+        name: The skeleton's ``:name``.
+        length_unit: The ``:units length`` (file lengths per inch), or None
+            when the file does not give one.
+        angle_unit: ``"deg"`` or ``"rad"``, for the ASF's own angles.
+        root_order: The root's AMC channels, lower case, e.g.
+            ``("tx", "ty", "tz", "rx", "ry", "rz")``.
+        root_axis: The order of ``root_orientation``'s angles, e.g. ``"XYZ"``.
+        root_position: ``(3,)`` the root's rest position.
+        root_orientation: ``(3,)`` the root's rest orientation, in ``angle_unit``.
+        bone_names: ``(B,)`` bone names in ``:bonedata`` order.
+        bone_parents: ``(B,)`` the parent bone's index, -1 for the root.
+        directions: ``(B, 3)`` unit direction of each bone at rest.
+        lengths: ``(B,)`` bone lengths.
+        axes: ``(B, 3)`` the axis angles, in ``angle_unit``.
+        axis_orders: The order of each bone's axis angles, e.g. ``"XYZ"``.
+        dofs: Each bone's dof, lower case, in file order (e.g. ``("rx", "rz")``).
+        limits: Each bone's ``(len(dof), 2)`` limits (empty when not given).
+    """
+
+    path: str
+    name: str
+    length_unit: float | None
+    angle_unit: Literal["deg", "rad"]
+    root_order: tuple[str, ...]
+    root_axis: str
+    root_position: NDArray[np.float64]
+    root_orientation: NDArray[np.float64]
+    bone_names: tuple[str, ...]
+    bone_parents: NDArray[np.intp]
+    directions: NDArray[np.float64]
+    lengths: NDArray[np.float64]
+    axes: NDArray[np.float64]
+    axis_orders: tuple[str, ...]
+    dofs: tuple[tuple[str, ...], ...]
+    limits: tuple[NDArray[np.float64], ...]
+
+    @property
+    def units_to_mm(self) -> float | None:
+        """Millimetres per file length unit (``25.4 / length``), None when unknown."""
+        return None if self.length_unit is None else 25.4 / self.length_unit
+
+    @property
+    def point_names(self) -> tuple[str, ...]:
+        """``"root"`` then every bone (whose point is its tip)."""
+        return ("root", *self.bone_names)
+
+    @property
+    def point_parents(self) -> NDArray[np.intp]:
+        """``(1 + B,)`` parent point of each point, -1 for the root."""
+        return np.concatenate(([-1], self.bone_parents + 1)).astype(np.intp)
+
+    @property
+    def channel_names(self) -> tuple[tuple[str, str], ...]:
+        """``(point, dof)`` of each AMC channel: the root's, then each bone's in bone order."""
+        out = [("root", c) for c in self.root_order]
+        for b, dofs in zip(self.bone_names, self.dofs, strict=True):
+            out.extend((b, d) for d in dofs)
+        return tuple(out)
+
+    def rest_positions(self) -> NDArray[np.float64]:
+        """``(1 + B, 3)`` point positions with every dof at zero (the ASF's rest pose)."""
+        pos = np.empty((1 + len(self.bone_names), 3))
+        pos[0] = self.root_position
+        for b in _topological(self.bone_parents):
+            pos[b + 1] = pos[self.bone_parents[b] + 1] + self.directions[b] * self.lengths[b]
+        return pos
 
 
 def _numbers(
