@@ -20,8 +20,7 @@ class CacheWarning(UserWarning):
 
     Raised through :func:`warnings.warn` once per damaged entry, naming the
     file and what was wrong; the entry is rebuilt and overwritten, so loading
-    carries on. Filter it like any warning (``warnings.simplefilter("error",
-    CacheWarning)`` turns it into an exception, ``pytest.warns`` catches it).
+    carries on.
     """
 
 

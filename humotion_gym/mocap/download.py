@@ -399,8 +399,9 @@ def _download_one(
     # does not vouch for (the library would load it as a clip).
     manifest.pop(rel, None)
     target.unlink(missing_ok=True)
+    part = _Part(url, target)
     size, sha = _fetch(
-        _Part(url, target),
+        part,
         retries=retries,
         timeout=timeout,
         deadline=_file_deadline(file_deadline_s, run_deadline),
@@ -408,7 +409,6 @@ def _download_one(
         expected=expected,
         progress=progress,
     )
-    part = _Part(url, target)
     os.replace(part.path, target)
     part.sidecar.unlink(missing_ok=True)
     manifest[rel] = {

@@ -6,26 +6,16 @@ order encodes which activity a mixed description counts as. The text is read as
 words: CamelCase and digits are split (``RunningStraight`` -> ``running
 straight``, ``Walk8`` -> ``walk 8``) and ``_ . -`` become spaces.
 
-Order and reasons (also in ``docs/data.md``):
-
-1. ``calibration``: range of motion, the "motorcycle" calibration pose, T-pose,
-   calibration, static pose. Never tracked as an activity.
-2. ``other`` for texts that describe no motion ("Unknown", "clean", "bad AMC").
-3. A category prefix ``<category> - ...`` decides: ``dance - ...`` is dance,
-   ``basketball - ...``/``soccer - ...``/``football - ...`` sports,
-   ``nursery rhyme - ...`` pantomime, ``acrobatics - ...`` acrobatics.
-4. ``pantomime``: CMU marks acted animals "(human subject)"; checked early so
-   "dancing bear (human subject)" is a pantomime, not a dance.
-5. ``acrobatics`` (cartwheel, flips, handstand...) before jump and dance.
-6. ``dance`` before walk: "dance - Egyptian walk" is a dance.
-7. ``walk`` before run: "walk to run" and "walking, running, jumping" are
-   walks (the project's walking tasks want every clip that starts walking;
-   a walk that breaks into a run is rare in CMU's listing).
-8. ``run``, 9. ``jump``, 10. ``fight`` (punch, kick, boxing, martial arts,
-   swordplay), 11. ``sports``, 12. ``reach`` (reach, wave, point, signals,
-   gestures, handshakes: motion of the arms), 13. ``everyday`` (sitting,
-   standing up, drinking, cleaning, lifting, carrying, climbing, dressing,
-   tools...), 14. ``pantomime`` (animals and characters without the mark).
+The order (the table of ``docs/data.md``, "Labels") and its reasons: first
+``calibration`` (range of motion, T-pose...: never tracked as an activity), then
+``other`` for texts that describe no motion ("Unknown", "clean", "bad AMC"),
+then a category prefix (``dance - ...``, ``basketball - ...``), then CMU's
+"(human subject)" mark of acted animals (so "dancing bear (human subject)" is a
+pantomime, not a dance); then :data:`_RULES` in order: acrobatics before jump
+and dance, dance before walk ("dance - Egyptian walk"), walk before run ("walk
+to run" and "walking, running, jumping" are walks: the walking tasks want every
+clip that starts walking), then run, jump, fight, sports, reach (motion of the
+arms), everyday and pantomime (animals and characters without the mark).
 
 Anything else is ``other``. :func:`activity_label` is what the library uses;
 :data:`ACTIVITY_LABELS` lists every label it can return.
