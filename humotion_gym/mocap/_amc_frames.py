@@ -331,15 +331,9 @@ def _amc_general(
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Read frames of any layout (bones in any order, some missing), checking everything.
 
-    Args:
-        spath: The file, for errors.
-        sk: The skeleton.
-        widths: ``(1 + B,)`` values per line of the root and each bone.
-        counts: Tokens on each body line.
-        tokens: The body's tokens.
-        first: The file line of the body's first line.
-        on_nan: As :func:`load_amc`.
-        limits: The bounds in force.
+    ``widths`` holds the values per line of the root and each bone, ``counts``
+    the tokens on each line of the body (``tokens``), ``first`` the file line of
+    the body's first line.
 
     Returns:
         The ``(T, C)`` channels (NaN where nothing was read) and the frame numbers.

@@ -249,10 +249,7 @@ class _Part:
         validator = side.get("validator") if side else None
         total = side.get("total") if side else None
         if (
-            not have
-            or not isinstance(validator, str)
-            or not validator
-            or not isinstance(total, int)
+            not (have and isinstance(validator, str) and validator and isinstance(total, int))
             or have > total
         ):
             self.discard()

@@ -59,12 +59,9 @@ def read_motion_bytes(path: str | Path, name: str = "path") -> bytes:
     line feeds. CR LF files are read as they are (the readers take CR as
     space).
 
-    Args:
-        path: The file.
-        name: The reader's argument that gave it, for the error.
-
     Raises:
-        TypeError: If ``path`` is not a str or os.PathLike (naming ``name``).
+        TypeError: If ``path`` is not a str or os.PathLike (naming ``name``, the
+            reader's argument that gave it).
         OSError: If the file cannot be read.
     """
     if not isinstance(path, str | os.PathLike) or not isinstance(os.fspath(path), str):
