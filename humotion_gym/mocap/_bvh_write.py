@@ -73,7 +73,7 @@ def write_bvh(
     )
     out.append("MOTION")
     out.append(f"Frames: {vals.shape[0]}")
-    out.append(f"Frame Time: {fmt(frame_time) if decimals is None else repr(float(frame_time))}")
+    out.append(f"Frame Time: {float(frame_time)!r}")
     # str() of a Python float is its shortest exact text (the repr), and the fastest.
     cell = str if decimals is None else fmt
     rows = (" ".join(map(cell, row)) for row in vals[:, cols].tolist())

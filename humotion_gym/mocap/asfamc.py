@@ -110,6 +110,7 @@ _MIN_FPS, _MAX_FPS = 1.0, 1e4
 
 
 _AXIS = {"x": 0, "y": 1, "z": 2}
+_ANGLE_UNITS: dict[bytes, Literal["deg", "rad"]] = {b":DEGREES": "deg", b":RADIANS": "rad"}
 
 
 def _angles_to_rad(values: NDArray[np.float64], unit: str) -> NDArray[np.float64]:
@@ -338,11 +339,7 @@ def load_amc(
             break
         lineno += 1
         pos = end + 1
-        key = line.upper()
-        if key == b":DEGREES":
-            angle_unit = "deg"
-        elif key == b":RADIANS":
-            angle_unit = "rad"
+        angle_unit = _ANGLE_UNITS.get(line.upper(), angle_unit)
     body = data[pos:]
     first = lineno + 1  # file line of the body's first line
 

@@ -525,16 +525,12 @@ def _check_values(
         MocapFormatError: For a value above :data:`MAX_ABS_VALUE`, or a NaN
             with ``on_nan="raise"``, naming the line, channel and joint.
     """
-    n_chan = values.shape[1] if values.ndim == 2 else 0
-
-    def channel_of(col: int) -> str:
-        j = int(np.searchsorted(starts, col, side="right") - 1)
-        return f"channel {hdr.channels[j][col - starts[j]]} of joint {hdr.names[j]!r}"
-
     problem = _first_bad_value(values, MAX_ABS_VALUE, on_nan)
     if problem is not None:
-        t, col = divmod(problem[0], n_chan)
-        raise MocapFormatError(spath, first + t, f"{problem[1]} in {channel_of(col)}")
+        t, col = divmod(problem[0], values.shape[1])
+        j = int(np.searchsorted(starts, col, side="right") - 1)
+        channel = f"channel {hdr.channels[j][col - starts[j]]} of joint {hdr.names[j]!r}"
+        raise MocapFormatError(spath, first + t, f"{problem[1]} in {channel}")
     return np.isfinite(values).all(axis=1)
 
 
