@@ -198,16 +198,14 @@ class _AsfReader:
         if line.startswith(":"):
             self._section(ln, toks)
             return
-        key = toks[0].lower()
-        if self.section == "units":
-            self._units(ln, line, toks, key)
-        elif self.section == "root":
-            self._root(ln, line, toks, key)
-        elif self.section == "bonedata":
-            self._bonedata(ln, line, toks, key)
-        elif self.section == "hierarchy":
-            self._hierarchy(ln, line, toks, key)
-        # Other sections (:version, :documentation, :skin...) carry nothing we use.
+        read = {
+            "units": self._units,
+            "root": self._root,
+            "bonedata": self._bonedata,
+            "hierarchy": self._hierarchy,
+        }.get(self.section)
+        if read is not None:  # other sections (:version, :skin...) carry nothing we use
+            read(ln, line, toks, toks[0].lower())
 
     def _check_closed(self, ln: int, found: str = "") -> None:
         """Refuse a new section or bone, or the file's end, while a bone or :hierarchy is open.

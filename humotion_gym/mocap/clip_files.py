@@ -161,9 +161,6 @@ def find_clips(paths: Iterable[str | Path] | str | Path) -> list[ClipSource]:
             files.append(path)
         else:
             raise FileNotFoundError(f"{path}: no such file or folder of motion capture")
-    # One file is one clip however its path is written (relative, absolute, through
-    # a link): the path of the first argument that reaches it, the first by name
-    # within a folder, names it.
     unique: dict[str, Path] = {}
     for f in files:
         unique.setdefault(os.path.realpath(f), f)

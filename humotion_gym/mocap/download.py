@@ -235,9 +235,6 @@ def list_cmu_trials(
     return _read_listing(url, code, timeout, deadline, max_listing_bytes, max_listing_entries)
 
 
-# --- files ----------------------------------------------------------------------
-
-
 def _read_manifest(dest: Path, strict: bool = False) -> dict[str, dict[str, Any]]:
     """The download folder's manifest; ``{}`` where it is missing or damaged.
 
