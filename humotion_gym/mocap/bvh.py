@@ -371,8 +371,6 @@ def _infer_position_mode(
             continue
         kinds = [(k, _CHANNEL_KIND[c.lower()]) for k, c in enumerate(chans)]
         p_cols = [(k, axis) for k, (rot, axis) in kinds if not rot]
-        if not p_cols:
-            continue
         norm = float(np.linalg.norm(offsets[j]))
         carried = [(k, axis) for k, axis in p_cols if abs(offsets[j, axis]) >= 0.25 * norm]
         if norm == 0.0 or not carried:  # nothing to repeat, or no channel on its axes
