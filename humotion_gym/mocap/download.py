@@ -384,12 +384,12 @@ def _download_one(
     retries: int,
     timeout: float,
     progress: bool,
-) -> tuple[Path, bool]:
-    """Fetch one file unless the manifest (and registry) say it is intact; (path, fetched)."""
+) -> Path:
+    """Fetch one file unless the manifest (and registry) say it is intact; its path."""
     target = dest / rel
     expected = registry.get(rel)
     if _check_file(target, manifest.get(rel), expected) is None:
-        return target, False
+        return target
     target.parent.mkdir(parents=True, exist_ok=True)
     # Drop the stale entry and any unverified file at the final name first: if
     # the download then fails, no final-named file is left that the manifest
@@ -415,7 +415,7 @@ def _download_one(
         "status": "verified" if expected is not None else "unverified",
         "downloaded_at": datetime.now(timezone.utc).isoformat(timespec="seconds"),
     }
-    return target, True
+    return target
 
 
 def download_cmu(
@@ -557,7 +557,7 @@ def _download_subject(
     out: list[Path] = []
     subject_url = _subject_url(base_url, code)
     try:
-        path, _ = _download_one(
+        path = _download_one(
             subject_url + f"{code}.asf", dest, f"{code}/{code}.asf", manifest, **opts
         )
     except DownloadError as e:
@@ -577,7 +577,7 @@ def _download_subject(
     for t in trials or range(1, _MAX_TRIALS + 1):
         name = f"{code}_{t:02d}.amc"
         try:
-            path, _ = _download_one(subject_url + name, dest, f"{code}/{name}", manifest, **opts)
+            path = _download_one(subject_url + name, dest, f"{code}/{name}", manifest, **opts)
         except DownloadError as e:
             if e.status == 404 and not trials:
                 break
