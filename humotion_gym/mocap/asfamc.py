@@ -127,17 +127,14 @@ def _axis_rotation(angles: NDArray[np.float64], order: str, unit: str) -> NDArra
 class AcclaimClip(PointsOnce):
     """A parsed AMC file on its ASF skeleton; a :class:`~.skeleton.SkeletonClip`.
 
+    Its ``path`` is the AMC file's and its points are ``"root"`` and every bone's
+    tip; ``n_frames`` counts from the first frame number to the last, the numbers
+    the file skips being invalid frames; ``fps`` is the one given (AMC files do
+    not say; CMU's are 120); ``units_to_mm`` comes from the ASF's ``:units
+    length`` (None without one).
+
     Attributes:
-        path: The AMC file.
         skeleton: The ASF skeleton.
-        point_names: ``"root"`` and every bone (the bone's point is its tip).
-        parents: ``(P,)`` parent point of each point, -1 for the root.
-        fps: Frames per second (AMC files do not say; CMU's are 120).
-        n_frames: Number of frames ``T``, from the first frame number to the
-            last, including numbers the file skips.
-        frame_valid: ``(T,)`` False for a skipped frame or one holding NaN.
-        units_to_mm: Millimetres per file length unit (None when the ASF has no
-            ``:units length``).
         frame_numbers: ``(T,)`` the AMC frame number of each row.
         channels: ``(T, C)`` the motion values, columns as
             ``skeleton.channel_names``; NaN where a frame number is skipped

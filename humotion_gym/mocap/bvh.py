@@ -165,8 +165,12 @@ def _snap_fps(frame_time: float, token: str) -> float:
 class BvhClip(PointsOnce):
     """A parsed BVH file; a :class:`~humotion_gym.mocap.skeleton.SkeletonClip`.
 
+    Its points are the joints and end sites (``"<joint>_End"``, ``"_End2"``...) in
+    file order; ``fps`` is ``1 / frame_time``, snapped to a whole rate when the
+    written frame time is that rate's period rounded; ``units_to_mm`` is always
+    None (BVH does not say its units).
+
     Attributes:
-        path: The file.
         joint_names: ``(J,)`` joint names, in file order.
         joint_parents: ``(J,)`` index of each joint's parent joint, -1 for a root.
         offsets: ``(J, 3)`` each joint's ``OFFSET``, in file units.
@@ -180,14 +184,6 @@ class BvhClip(PointsOnce):
         position_channels: How position channels were applied: ``"add"``
             (translation = offset + channels) or ``"replace"`` (translation =
             channels, the offset filling axes without a channel).
-        point_names: The joints and end sites (``"<joint>_End"``, ``"_End2"``...)
-            in file order.
-        parents: ``(P,)`` index of each point's parent point, -1 for a root.
-        fps: Frames per second: ``1 / frame_time``, snapped to a whole rate
-            when the written frame time is that rate's period rounded.
-        n_frames: Number of frames ``T``.
-        frame_valid: ``(T,)`` False where a frame holds a NaN or infinite value.
-        units_to_mm: Always None: BVH does not say its units.
     """
 
     path: str
