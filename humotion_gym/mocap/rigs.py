@@ -171,17 +171,9 @@ class RigProfile:
 
         Returns:
             The mapping from profile point names to the skeleton's names, and
-            the keypoints that could not be found.
+            the keypoints that could not be found (as :meth:`plan`).
         """
-        found = self._found(available)
-        missing = []
-        for kp, src in self.keypoints.items():
-            alt = self.fallbacks.get(kp)
-            if any(n not in found for n in _points_of(src)) and (
-                alt is None or any(n not in found for n in _points_of(alt))
-            ):
-                missing.append(kp)
-        return found, missing
+        return self._found(available), self.plan(available)[1]
 
     def keypoints_from(self, clip: SkeletonClip, units_to_mm: float) -> NDArray[np.float64]:
         """The clip's 15 keypoints in the world frame (z up), mm: ``(T, 15, 3)``.
@@ -223,12 +215,18 @@ def plan_points(sources: Mapping[str, KeypointSource]) -> list[str]:
     return list(dict.fromkeys(n for src in sources.values() for n in _points_of(src)))
 
 
-def _sided(template: Mapping[str, str], right: str, left: str) -> dict[str, str]:
-    """Expand ``{"hip": "{S}UpLeg"}`` into right and left keypoints."""
+def _sided(patterns: str, right: str, left: str, prefix: str = "") -> dict[str, str]:
+    """Right and left limb keypoints from their names, ``{S}`` standing for the side.
+
+    ``patterns`` names the hip, knee, ankle, shoulder, elbow and wrist in that
+    order, separated by spaces: ``"{S}UpLeg {S}Leg {S}Foot {S}Arm {S}ForeArm {S}Hand"``;
+    ``prefix`` (a namespace) goes before every name.
+    """
     out: dict[str, str] = {}
-    for kp, pattern in template.items():
-        out[f"r_{kp}"] = pattern.format(S=right)
-        out[f"l_{kp}"] = pattern.format(S=left)
+    limbs = ("hip", "knee", "ankle", "shoulder", "elbow", "wrist")
+    for kp, pattern in zip(limbs, patterns.split(), strict=True):
+        out[f"r_{kp}"] = prefix + pattern.format(S=right)
+        out[f"l_{kp}"] = prefix + pattern.format(S=left)
     return out
 
 
@@ -245,31 +243,13 @@ CMU_ASF = RigProfile(
         "pelvis": "root",
         "neck": "thorax",
         "head_top": "head",
-        **_sided(
-            {
-                "hip": "{S}hipjoint",
-                "knee": "{S}femur",
-                "ankle": "{S}tibia",
-                "shoulder": "{S}clavicle",
-                "elbow": "{S}humerus",
-                "wrist": "{S}radius",
-            },
-            "r",
-            "l",
-        ),
+        **_sided("{S}hipjoint {S}femur {S}tibia {S}clavicle {S}humerus {S}radius", "r", "l"),
     },
 )
 
 # The limbs of the CMU BVH conversions (LeftUpLeg, LeftForeArm...), which
 # Mixamo's rigs name the same way behind their namespace.
-_UPLEG_LIMBS = {
-    "hip": "{S}UpLeg",
-    "knee": "{S}Leg",
-    "ankle": "{S}Foot",
-    "shoulder": "{S}Arm",
-    "elbow": "{S}ForeArm",
-    "wrist": "{S}Hand",
-}
+_UPLEG_LIMBS = "{S}UpLeg {S}Leg {S}Foot {S}Arm {S}ForeArm {S}Hand"
 
 CMU_BVH = RigProfile(
     name="cmu-bvh",
@@ -293,18 +273,7 @@ CMU_BVH_JOINT_NAMES = RigProfile(
         "pelvis": "Hips",
         "neck": "Neck",
         "head_top": "Head_End",
-        **_sided(
-            {
-                "hip": "{S}Hip",
-                "knee": "{S}Knee",
-                "ankle": "{S}Ankle",
-                "shoulder": "{S}Shoulder",
-                "elbow": "{S}Elbow",
-                "wrist": "{S}Wrist",
-            },
-            "Right",
-            "Left",
-        ),
+        **_sided("{S}Hip {S}Knee {S}Ankle {S}Shoulder {S}Elbow {S}Wrist", "Right", "Left"),
     },
     aliases={"Head_End": ("Head_end", "HeadEnd", "Head_Nub"), "Neck": ("Neck1",)},
     fallbacks={"head_top": Extend("Head", "Neck", _HEAD_EXTENSION_MM)},
@@ -323,18 +292,7 @@ CMU_BVH_ASF_NAMES = RigProfile(
         "pelvis": "root",
         "neck": "lowerneck",
         "head_top": "head_End",
-        **_sided(
-            {
-                "hip": "{S}femur",
-                "knee": "{S}tibia",
-                "ankle": "{S}foot",
-                "shoulder": "{S}humerus",
-                "elbow": "{S}radius",
-                "wrist": "{S}wrist",
-            },
-            "r",
-            "l",
-        ),
+        **_sided("{S}femur {S}tibia {S}foot {S}humerus {S}radius {S}wrist", "r", "l"),
     },
     aliases={"root": ("Hips", "hip"), "head_End": ("head_end", "head_Nub")},
     fallbacks={"head_top": Extend("head", "lowerneck", _HEAD_EXTENSION_MM)},
@@ -349,18 +307,7 @@ DAZ = RigProfile(
         "pelvis": "hip",
         "neck": "neck",
         "head_top": "head_End",
-        **_sided(
-            {
-                "hip": "{S}Thigh",
-                "knee": "{S}Shin",
-                "ankle": "{S}Foot",
-                "shoulder": "{S}Shldr",
-                "elbow": "{S}ForeArm",
-                "wrist": "{S}Hand",
-            },
-            "r",
-            "l",
-        ),
+        **_sided("{S}Thigh {S}Shin {S}Foot {S}Shldr {S}ForeArm {S}Hand", "r", "l"),
     },
     aliases={
         **{f"{s}Thigh": (f"{s}ThighBend",) for s in "rl"},
@@ -380,16 +327,7 @@ CHARACTER_CREATOR = RigProfile(
         "neck": "CC_Base_NeckTwist01",
         "head_top": Extend("CC_Base_Head", "CC_Base_NeckTwist01", _HEAD_EXTENSION_MM),
         **_sided(
-            {
-                "hip": "CC_Base_{S}_Thigh",
-                "knee": "CC_Base_{S}_Calf",
-                "ankle": "CC_Base_{S}_Foot",
-                "shoulder": "CC_Base_{S}_Upperarm",
-                "elbow": "CC_Base_{S}_Forearm",
-                "wrist": "CC_Base_{S}_Hand",
-            },
-            "R",
-            "L",
+            "{S}_Thigh {S}_Calf {S}_Foot {S}_Upperarm {S}_Forearm {S}_Hand", "R", "L", "CC_Base_"
         ),
     },
 )
@@ -401,18 +339,7 @@ BANDAI = RigProfile(
         "pelvis": "Hips",
         "neck": "Neck",
         "head_top": Extend("Head", "Neck", _HEAD_EXTENSION_MM),
-        **_sided(
-            {
-                "hip": "UpperLeg_{S}",
-                "knee": "LowerLeg_{S}",
-                "ankle": "Foot_{S}",
-                "shoulder": "UpperArm_{S}",
-                "elbow": "LowerArm_{S}",
-                "wrist": "Hand_{S}",
-            },
-            "R",
-            "L",
-        ),
+        **_sided("UpperLeg_{S} LowerLeg_{S} Foot_{S} UpperArm_{S} LowerArm_{S} Hand_{S}", "R", "L"),
     },
 )
 
@@ -423,7 +350,7 @@ MIXAMO = RigProfile(
         "pelvis": "mixamorig:Hips",
         "neck": "mixamorig:Neck",
         "head_top": "mixamorig:HeadTop_End",
-        **_sided({kp: f"mixamorig:{name}" for kp, name in _UPLEG_LIMBS.items()}, "Right", "Left"),
+        **_sided(_UPLEG_LIMBS, "Right", "Left", "mixamorig:"),
     },
     aliases={"mixamorig:HeadTop_End": ("mixamorig:HeadTop_End_End", "mixamorig:Head_End")},
 )
