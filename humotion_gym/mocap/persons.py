@@ -11,35 +11,24 @@ Signature:
     :func:`skeleton_signature` measures the nine *rigid* bones of the source
     skeleton as the cone body sees them, in mm: the hip width (right hip to
     left hip) and, left and right separately, the upper arm, forearm, thigh and
-    shin (:data:`SIGNATURE_NAMES`). Each is the median over frames of the
-    distance between two source keypoints (``Motion.keypoints`` with
-    :data:`humotion_gym.body.KEYPOINT_INDEX`). The keypoints, not
+    shin (:data:`SIGNATURE_NAMES`), each the median over frames of the distance
+    between two source keypoints (``Motion.keypoints``). The keypoints, not
     ``Motion.shape``, because the shape averages left and right (an asymmetry
-    tells people apart: CMU subject 1's right upper arm is 15 mm longer than
-    the left) and fits its torso points (``neck_up``, ``shoulder_half_width``)
-    in a torso frame that moves with the spine. Those torso distances are left
-    out: pelvis to neck and shoulder to shoulder go through the spine and
-    clavicles and change with the pose (up to 72 mm within one dance clip of
-    CMU subject 5, 42 mm between clips of one Bandai style), as does the head
-    top placed along the neck. The nine bones are joint-to-joint distances of
-    a rigid skeleton: on every clip of the shared data they are constant to
-    0.0002 mm within a clip and across all clips of a subject (the keypoints
-    are stored as float32). Resampling to a rate that is not a divisor of the
-    source's interpolates keypoints linearly, which shortens a bone on the
-    in-between frames (up to 30 mm in a fast spin); the median moves by at most
-    0.01 mm (CMU 02_01 and 005_18 at 25 and 47 Hz). A clip without one frame of
-    finite keypoints falls back on the shape's symmetric lengths.
+    tells people apart) and fits its torso points in a frame that moves with
+    the spine. Torso distances (pelvis to neck, shoulder to shoulder, the head
+    top) go through the spine and clavicles and change with the pose, so they
+    are left out; the nine bones of a rigid skeleton are constant within a clip
+    and across a subject's clips, and the median barely moves when resampling
+    interpolates the keypoints. A clip without one frame of finite keypoints
+    falls back on the shape's symmetric lengths.
 
 Tolerances:
     Two skeletons are the same (:func:`same_skeleton`) when every bone agrees
-    within ``atol_mm + rtol * length``, by default 1 mm + 2 %. Measured on the
-    shared data: the same skeleton differs from itself by at most 0.0002 mm
-    (2e-8 relative); the closest two *different* skeletons differ by 9.1 % on
-    some bone (CMU subjects 2 and 3: 38 mm on the right thigh), and the closest
-    synthetic subjects by 7.8 %. The threshold sits far above the first (room
-    for a re-sampled clip or the same person re-calibrated a few mm off) and
-    more than four times below the second, so it neither splits a person nor
-    merges two.
+    within ``atol_mm + rtol * length``, by default 1 mm + 2 %: far above how
+    much one skeleton differs from itself (room for a resampled clip or a
+    person re-calibrated a few mm off) and several times below the smallest
+    difference between two people of the shared or synthetic data, so it
+    neither splits a person nor merges two.
 
 What it cannot see:
     Two people converted onto one fixed skeleton (CMU 5 and 7 on the Character
@@ -139,7 +128,7 @@ def skeleton_signature(motion: Motion) -> FloatArray:
     kp = motion.keypoints
     lengths = np.linalg.norm(kp[:, _BONE_A] - kp[:, _BONE_B], axis=-1)  # (T, 9)
     seen = np.isfinite(lengths)
-    if lengths.size and seen.all():  # the usual clip; nanmedian took two thirds of the time
+    if lengths.size and seen.all():  # the usual clip: a plain median, much cheaper than nanmedian
         return np.median(lengths, axis=0)
     out = _shape_signature(motion)
     cols = seen.any(axis=0)
@@ -190,10 +179,8 @@ def same_skeleton(
     """True when two skeletons cannot be told apart: every bone within tolerance.
 
     The test is symmetric: bone ``i`` matches when
-    ``|a_i - b_i| <= atol_mm + rtol * max(a_i, b_i)``. The defaults (2 %, 1 mm)
-    lie between the within-skeleton spread (under 0.001 mm) and the smallest
-    difference between two people in the shared data (9.1 %); see the module
-    docstring.
+    ``|a_i - b_i| <= atol_mm + rtol * max(a_i, b_i)``; the module docstring
+    says why the defaults (2 %, 1 mm).
 
     Args:
         a: A clip or a ``(9,)`` signature.
@@ -522,13 +509,11 @@ def check_data_persons(
     A test person's file copied under another person's folder (or a user's
     clip put on the test side by ``split_by`` while its skeleton is a training
     person's) would otherwise train the priors and policies on the test
-    persons (the split is by person name; :func:`check_person_split` compares
-    the skeletons, about 0.1-0.3 s for the shared data). The held-out persons
-    whose skeletons the package knows (:func:`known_test_pairs`) are compared
-    too, whether or not their own files are loaded. Every path that loads
-    clips for training or tracking calls it: the environments (once per
-    library, whether from folders or given as ``library=``) and the validation
-    folds; ``humotion-gym data persons`` reports it.
+    persons: the split is by name, this compares skeletons
+    (:func:`check_person_split`), the packaged ones of held-out persons
+    included, loaded or not (:func:`known_test_pairs`). The environments (once
+    per library, from folders or ``library=``) and the validation folds call
+    it; ``humotion-gym data persons`` reports it.
 
     Args:
         library: The clips.
