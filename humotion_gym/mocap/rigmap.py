@@ -17,19 +17,11 @@ when none fits it maps the hierarchy itself (:func:`map_humanoid`):
    joint up (or down, for a missing foot or hand). The pelvis is where the two
    legs meet (their lowest common ancestor); the neck is the head's parent
    when no joint is called neck. Without side or limb names at all, the
-   hierarchy is read as a body: the chest where the spine splits into two
-   arms and the head (the two branches alike in shape are the arms), the
-   legs as the largest pair of alike branches elsewhere (so legs and spine
-   may leave one joint or two), each limb's three keypoints at the two
-   longest consecutive bones of its chain (a girdle passed over: where both
-   limbs of a pair leave one point, a first bone shorter than the next), the
-   head where the neck's chain first branches, and left and right from the
-   geometry of up to 200 frames spread through the clip: the legs' by the
-   median over the frames of which one is on the left (left is ``up x
-   forward`` with forward the toes' direction; without toes +z for a y-up
-   skeleton, the BVH convention, and -y for a z-up one), the arms' by the
-   median of which one is on the left leg's side (a running stride swings
-   the arms across the body; the hips stay on their sides).
+   hierarchy is read as a body (:func:`_by_topology`): the chest where the
+   spine splits into two alike arms and the head, the legs as the largest
+   pair of alike branches elsewhere, each limb at the two longest consecutive
+   bones of its chain, the head where the neck's chain first branches, and
+   left and right from the geometry of up to 200 frames spread through the clip.
 3. **Where points sit.** In BVH a joint's point is where its bone starts
    (``LeftUpLeg`` is the hip); in ASF/AMC a bone's point is its tip (``lfemur``
    is the knee), so every ASF keypoint is taken one bone higher. The shape of
@@ -219,9 +211,7 @@ def _limbs_by_names(
     """Each limb's keypoints into ``out``: by its joints' names, else by the tree around them."""
     for side in ("l", "r"):
         for segs, kps in _LIMBS:
-            distal_c = [i for i in cands.get((side, segs[0]), [])]
-            middle_c = cands.get((side, segs[1]), [])
-            prox_c = cands.get((side, segs[2]), [])
+            distal_c, middle_c, _ = (cands.get((side, s), []) for s in segs)
             chain: list[int | None] = [None, None, None]
             how = ["name", "name", "name"]
             if distal_c:
@@ -231,16 +221,13 @@ def _limbs_by_names(
                 kids = _kids(tree, m)
                 if kids:
                     chain[0], how[0] = kids[0], "topology"
-            if chain[0] is not None:
-                up = tree.ancestors(chain[0])
-                named = [a for a in up if a in middle_c]
-                chain[1] = named[0] if named else (up[0] if up else None)
-                how[1] = "name" if named else "topology"
-            if chain[1] is not None:
-                up = tree.ancestors(chain[1])
-                named = [a for a in up if a in prox_c]
-                chain[2] = named[0] if named else (up[0] if up else None)
-                how[2] = "name" if named else "topology"
+            for k in (1, 2):  # the middle, then the proximal joint, up from the one below
+                below = chain[k - 1]
+                if below is not None:
+                    up = tree.ancestors(below)
+                    named = [a for a in up if a in cands.get((side, segs[k]), [])]
+                    chain[k] = named[0] if named else (up[0] if up else None)
+                    how[k] = "name" if named else "topology"
             for kp, j, h in zip(kps, chain, how, strict=True):
                 if j is not None:
                     out.joints[f"{side}_{kp}"] = j
