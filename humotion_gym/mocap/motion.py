@@ -150,11 +150,7 @@ class Motion:
         header: dict[str, Any] = {
             "clip_id": self.clip_id,
             "fps": float(self.fps),
-            "subject": self.subject,
-            "label": self.label,
-            "source": self.source,
-            "dataset": self.dataset,
-            "description": self.description,
+            **{name: getattr(self, name) for name in _TEXT_FIELDS},
             "synthetic": bool(self.synthetic),
             "meta": dict(self.meta),
             "digest": content_digest(arrays),
@@ -162,8 +158,7 @@ class Motion:
         if extra is not None:
             header["extra"] = {str(k): str(v) for k, v in extra.items()}
         with open(path, "wb") as fh:
-            # Stored, not deflated: the floats shrink by a tenth at most, and
-            # deflating them was a seventh of a library's first load.
+            # Stored, not deflated: floats barely compress, and deflating slows a first load.
             np.savez(fh, header=np.array(json.dumps(header)), **arrays)
 
     @classmethod
@@ -172,9 +167,9 @@ class Motion:
 
         Raises:
             ValueError: If the file is not a saved motion: unreadable, not an
-                ``.npz`` archive, a damaged archive, missing or extra arrays,
-                arrays or header fields of the wrong type, or arrays that do
-                not match the header's digest.
+                ``.npz`` archive, damaged, missing or extra arrays, arrays or
+                header fields of the wrong type, or arrays that do not match
+                the header's digest.
         """
         return cls.load_with_extra(path)[0]
 
@@ -186,9 +181,7 @@ class Motion:
             The motion and the ``extra`` mapping (empty when none was saved).
 
         Raises:
-            ValueError: As :meth:`load`; every failure to read, whatever its
-                kind (a truncated or corrupted archive, a directory at the
-                path, a ``.npy`` file...), is raised as ``ValueError``.
+            ValueError: As :meth:`load`, for every failure to read.
         """
         try:
             # Open the file here so that it is closed whatever np.load raises.
@@ -216,11 +209,7 @@ class Motion:
                 fps=float(header["fps"]),
                 shape=BodyShape.from_vector(arrays["shape"]),
                 keypoints=arrays["keypoints"].astype(np.float64),
-                subject=header["subject"],
-                label=header["label"],
-                source=header["source"],
-                dataset=header.get("dataset", ""),
-                description=header.get("description", ""),
+                **{name: header.get(name, "") for name in _TEXT_FIELDS},
                 synthetic=header.get("synthetic", False),
                 meta=dict(header.get("meta", {})),
             )
@@ -238,15 +227,13 @@ _ARRAY_KINDS: dict[str, str] = {
     "keypoints": "f",
 }
 _SAVED_ARRAYS = frozenset(_ARRAY_KINDS)
+#: The motion's text fields, saved as such in the header.
+_TEXT_FIELDS = ("subject", "label", "source", "dataset", "description")
 #: The header's fields and their JSON types; ``fps`` is a number, not a bool.
 _HEADER_TYPES: dict[str, type | tuple[type, ...]] = {
     "clip_id": str,
     "fps": (int, float),
-    "subject": str,
-    "label": str,
-    "source": str,
-    "dataset": str,
-    "description": str,
+    **dict.fromkeys(_TEXT_FIELDS, str),
     "synthetic": bool,
     "meta": dict,
     "digest": str,
