@@ -90,17 +90,7 @@ class PointsOnce:
         raise NotImplementedError
 
     def point_positions(self, names: Sequence[str] | None = None) -> NDArray[np.float64]:
-        """Global positions of points, in the file's own axes and units.
-
-        Args:
-            names: The points wanted (all of :attr:`point_names` when None).
-
-        Returns:
-            ``(T, len(names), 3)`` positions. Rows of invalid frames are NaN.
-
-        Raises:
-            KeyError: If a name is not one of :attr:`point_names`.
-        """
+        """Global positions of points, as :meth:`SkeletonClip.point_positions` says."""
         if names is None:
             wanted = list(range(len(self.point_names)))
         else:
