@@ -54,7 +54,7 @@ from humotion_gym.mocap.clip_files import (  # re-exported, part of the API
 )
 from humotion_gym.mocap.labels import activity_label  # noqa: F401  (re-exported)
 from humotion_gym.mocap.motion import Motion
-from humotion_gym.mocap.splits import (  # the split's names, re-exported as before
+from humotion_gym.mocap.splits import (  # the split's names, re-exported
     CMU_TEST_SUBJECTS,  # noqa: F401
     CMU_VALIDATION_SUBJECTS,  # noqa: F401
     EPISODE_SPLITS,
@@ -67,12 +67,8 @@ from humotion_gym.mocap.splits import (  # the split's names, re-exported as bef
     user_split,
 )
 
-#: Version of the cached clip format and retargeting; bump to invalidate caches.
-#: 2: rigs matched by :func:`humotion_gym.mocap.rigmap.match_rig`, leading T-pose dropped;
-#: 3: a profile's up axis read from the clip, no zero-length head top, units by a human leg;
-#: 4: BVH position channels judged on the offset's axes, a profile's zero-length head end
-#: site its fallback, a toeless z-up rig facing -y, an ASF of the AMC's own name;
-#: 5: an AMC frame lacking the line of a bone with dof refused, not masked.
+#: Version of the cached clip format and retargeting; bump to invalidate caches
+#: whenever parsing or retargeting changes what a clip holds.
 CACHE_VERSION = "5"
 
 #: Environment variable naming folders of real mocap (``os.pathsep``-separated).
@@ -207,8 +203,8 @@ def clips_fingerprint(paths: Sequence[str | Path], fps: float | None) -> str:
     resolved files' paths, sizes and modification times, the frame rate and
     versions), so it changes exactly when a cache entry would: a clip added,
     removed or renamed, a file rewritten. It lists and stats the files but
-    parses none (about 30 ms for the shared data's 532 clips); a
-    :class:`DuplicateTrialWarning` is left for the load itself to give.
+    parses none; a :class:`DuplicateTrialWarning` is left for the load itself
+    to give.
 
     Raises:
         FileNotFoundError: If a path does not exist (as :func:`load_library`).
@@ -602,8 +598,9 @@ def load_library(
             them; :func:`user_split` (one person in five to test, by hash)
             for clips it leaves out. CMU, Bandai-Namco and synthetic clips
             keep the benchmark's split: a mapping's key of theirs, or one
-            that names nothing loaded, is warned of and ignored. Each clip's ``meta["split_rule"]``
-            and :attr:`MotionLibrary.split_rules` say which rule was used.
+            that names nothing loaded, is warned of and ignored. Each clip's
+            ``meta["split_rule"]`` and :attr:`MotionLibrary.split_rules` say
+            which rule was used.
 
     Returns:
         The library, clips sorted by path; its test split is
