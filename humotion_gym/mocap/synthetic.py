@@ -16,13 +16,10 @@ arm swing, posture lean, toe-out, stance width, turning tendency):
   time-warped per subject, with stride-to-stride variation; arms swing opposite
   to the legs; the pelvis rotates, lists and tilts a little. The feet are kept
   on the ground by construction: the root height puts the lower ankle at
-  :data:`ANKLE_HEIGHT` (a smooth minimum over the two ankles, computed with
-  :func:`~humotion_gym.body.forward_kinematics`), plus the lift of the flight
-  phases of running and skipping. While a foot supports the body, its thigh
-  angle is solved (two-link inverse kinematics) so that the ankle moves back
-  at a steady rate, and the root advances with the backward speed of the
-  supporting ankle, integrated along a gently turning heading: the stance foot
-  stays put and the speed is the one the stride implies.
+  :data:`ANKLE_HEIGHT` (plus the lift of the flight phases), a supporting
+  leg's thigh is solved so that its ankle moves back at a steady rate, and
+  the root advances with the supporting ankle's backward speed along a gently
+  turning heading, so the stance foot stays put (:func:`_locomotion`).
 * ``arm_swing``, ``reach`` and ``wave``: the subject stands with small postural
   sway while the right arm (and in some clips the left) swings like a pendulum,
   reaches for random targets along minimum-jerk paths, or waves. Shoulder twist
@@ -34,11 +31,11 @@ within ``body.PARAM_LOWER`` / ``body.PARAM_UPPER``; locomotion paths are placed
 (heading and offset) so that the root stays within its +-10 m box, and a clip
 too long to fit is cut short.
 
-Everything is vectorised over frames and deterministic given the seed; each
-subject draws from its own spawned generator, so subject ``k``'s clips do not
-depend on ``n_subjects``. Motion is built at an internal rate (the least
-multiple of ``fps`` that is at least 120 Hz) and sampled at ``fps``, so frame
-rates that divide 120 Hz (24, 30, 40, 60, 120) give the very same motion.
+Everything is deterministic given the seed; each subject draws from its own
+spawned generator, so subject ``k``'s clips do not depend on ``n_subjects``.
+Motion is built at an internal rate (the least multiple of ``fps`` that is at
+least 120 Hz) and sampled at ``fps``, so frame rates that divide 120 Hz (24,
+30, 40, 60, 120) give the very same motion.
 """
 
 from __future__ import annotations
