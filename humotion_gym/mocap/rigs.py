@@ -10,6 +10,7 @@ picks one from the joint names and a user can pass their own mapping.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import re
 from collections.abc import Mapping, Sequence
@@ -264,19 +265,17 @@ CMU_BVH = RigProfile(
     fallbacks={"head_top": Extend("Head", "Neck", _HEAD_EXTENSION_MM)},
 )
 
-CMU_BVH_JOINT_NAMES = RigProfile(
+# The same conversions' trunk and head, their limbs named by place.
+CMU_BVH_JOINT_NAMES = dataclasses.replace(
+    CMU_BVH,
     name="cmu-bvh-joint-names",
     description="CMU BVH conversions naming joints by place (Hips, LHipJoint, LeftHip, "
     "LeftKnee, LeftAnkle, LeftCollar, LeftShoulder, LeftElbow, LeftWrist)",
     formats=("bvh",),
     keypoints={
-        "pelvis": "Hips",
-        "neck": "Neck",
-        "head_top": "Head_End",
+        **CMU_BVH.keypoints,
         **_sided("{S}Hip {S}Knee {S}Ankle {S}Shoulder {S}Elbow {S}Wrist", "Right", "Left"),
     },
-    aliases={"Head_End": ("Head_end", "HeadEnd", "Head_Nub"), "Neck": ("Neck1",)},
-    fallbacks={"head_top": Extend("Head", "Neck", _HEAD_EXTENSION_MM)},
 )
 
 # In a BVH that keeps CMU's ASF bone names every joint sits at the start of
