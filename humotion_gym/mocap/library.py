@@ -232,15 +232,10 @@ def _cache_place(src: ClipSource, fps: float | None) -> str:
 def _clip_entry(
     clip_dir: Path, src: ClipSource, fps: float | None
 ) -> tuple[str, dict[str, str], str, Path | None, str | None]:
-    """A clip's cache key, stored info, place, entry file and what blocked its name."""
+    """A clip's cache key, stored info (checked on read), place, file, what blocked it."""
     key, place = _cache_key(src, fps), _cache_place(src, fps)
     target, blocked = placed_entry_path(clip_dir, place, key, legacy=key)
-    return key, _clip_entry_info(src, fps, key), place, target, blocked
-
-
-def _clip_entry_info(src: ClipSource, fps: float | None, key: str) -> dict[str, str]:
-    """What a clip cache entry stores about itself, compared on every read."""
-    return {
+    info = {
         "key": key,
         "clip_id": src.clip_id,
         "source": str(src.path.resolve()),
@@ -249,6 +244,7 @@ def _clip_entry_info(src: ClipSource, fps: float | None, key: str) -> dict[str, 
         "cache_version": CACHE_VERSION,
         "package_version": package_version(),
     }
+    return key, info, place, target, blocked
 
 
 def _read_clip_entry(path: Path, src: ClipSource, info: Mapping[str, str]) -> Motion:
@@ -480,14 +476,12 @@ class MotionLibrary:
         if which == "test":
             return self.split("test")
         train = self.split("train")
-        if which == "train":
-            return MotionLibrary(
-                tuple(m for m in train if m.subject not in VALIDATION_SUBJECTS), self.test_subjects
-            )
+        validation = which == "validation"
         chosen = MotionLibrary(
-            tuple(m for m in train if m.subject in VALIDATION_SUBJECTS), self.test_subjects
+            tuple(m for m in train if (m.subject in VALIDATION_SUBJECTS) == validation),
+            self.test_subjects,
         )
-        if len(chosen) == 0:
+        if validation and len(chosen) == 0:
             raise ValueError(
                 "split='validation': the library holds none of the validation persons "
                 f"{sorted(VALIDATION_SUBJECTS)} (its training persons: {train.subjects})"
