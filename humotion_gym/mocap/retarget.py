@@ -155,8 +155,7 @@ def fit_shape(
     med = np.median(local, axis=0)
     neck, r_sh, l_sh, r_hip, l_hip = med
 
-    # Each segment's median length over the frames, all in one pass (a median
-    # is taken column by column).
+    # Each segment's median length over the frames.
     starts, ends = ([_K[name] for name in side] for side in zip(*_SEGMENTS, strict=True))
     lengths = np.median(np.linalg.norm(kp[:, starts] - kp[:, ends], axis=-1), axis=0)
     median_length = {seg: float(v) for seg, v in zip(_SEGMENTS, lengths, strict=True)}
@@ -242,9 +241,7 @@ def _limbs(
     the torso frame gives the outer two angles of Rx(a) Ry(b) Rz(c):
     -u = (sin b, -sin a cos b, cos a cos b). The lower segment lies in the plane
     of u and the joint frame's y axis: f = sign*sin(k) y + cos(k) u, which
-    gives the twist c. The limbs go through numpy together (each limb's
-    arithmetic is its own); only the twist's unwrapping and holding, along
-    each limb's bent frames, loop over them.
+    gives the twist c.
 
     Args:
         base: ``(L, T, 3)`` the body's joint each limb hangs from.
@@ -513,14 +510,10 @@ def retarget_keypoints(
 
 
 def check_some_frame(path: object, valid: NDArray[np.bool_]) -> None:
-    """Refuse a clip with no whole frame to retarget, saying why.
-
-    Args:
-        path: The file, for the message.
-        valid: ``(T,)`` which frames are whole.
+    """Refuse a clip with no whole frame (``valid``: ``(T,)``) to retarget, naming ``path``.
 
     Raises:
-        RigError: If no frame is whole.
+        RigError: If no frame is whole, saying why.
     """
     if np.any(valid):
         return
