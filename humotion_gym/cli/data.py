@@ -206,29 +206,15 @@ def _cmd_data_info(args: argparse.Namespace) -> int:
 
 
 def _cmd_data_persons(args: argparse.Namespace) -> int:
-    from humotion_gym.mocap.library import (
-        MOCAP_ENV,
-        configured_data_dirs,
-        default_library,
-        load_library,
-    )
-    from humotion_gym.mocap.persons import (
-        SIGNATURE_NAMES,
-        SplitError,
-        check_data_persons,
-        check_person_split,
-        held_out_subjects,
-        skeleton_groups,
-        subject_skeletons,
-    )
+    from humotion_gym.mocap import library, persons
 
     if args.paths:
-        lib = load_library(args.paths, fps=args.fps, progress=not args.json)
+        lib = library.load_library(args.paths, fps=args.fps, progress=not args.json)
     else:
-        dirs = configured_data_dirs(None)
+        dirs = library.configured_data_dirs(None)
         if dirs:  # refused as by the commands with --data-dir: never "nothing to compare"
-            check_mocap_paths(dirs, f"${MOCAP_ENV}")
-        lib = default_library(None, fps=args.fps, progress=not args.json)
+            check_mocap_paths(dirs, f"${library.MOCAP_ENV}")
+        lib = library.default_library(None, fps=args.fps, progress=not args.json)
     if args.test:
         unknown = sorted(set(args.test) - set(lib.subjects))
         if unknown:
@@ -236,17 +222,17 @@ def _cmd_data_persons(args: argparse.Namespace) -> int:
                 f"--test: no subject {', '.join(unknown)} in the data; its subjects are "
                 f"{', '.join(lib.subjects[:12])}{' ...' if len(lib.subjects) > 12 else ''}"
             )
-    test = frozenset(args.test) if args.test else held_out_subjects(lib)
-    groups = skeleton_groups(lib)
+    test = frozenset(args.test) if args.test else persons.held_out_subjects(lib)
+    groups = persons.skeleton_groups(lib)
     person_of = {m.subject: m.meta.get("person", m.subject) for m in lib}
     group_of = {s: i for i, g in enumerate(groups) for s in g}
     try:
         if args.test:  # a held-out set to try: the data's own skeletons, compared
-            report = check_person_split(lib, test)
+            report = persons.check_person_split(lib, test)
         else:  # the check an environment on this data runs, packaged test skeletons included
-            report = check_data_persons(lib)
+            report = persons.check_data_persons(lib)
         ok, message = True, str(report)
-    except SplitError as exc:
+    except persons.SplitError as exc:
         ok, message = False, str(exc) if args.test else _leak_message(exc.pairs, lib.subjects)
     rows: list[dict[str, Any]] = [
         {
@@ -257,13 +243,14 @@ def _cmd_data_persons(args: argparse.Namespace) -> int:
             "person": person_of.get(s.subject, s.subject),
             "split": "test" if s.subject in test else "train",
             "signature_mm": {
-                n: round(float(v), 2) for n, v in zip(SIGNATURE_NAMES, s.signature, strict=True)
+                n: round(float(v), 2)
+                for n, v in zip(persons.SIGNATURE_NAMES, s.signature, strict=True)
             },
             "spread_mm": round(s.spread_mm, 4),
             "group": f"G{group_of[s.subject] + 1}",
             "same_skeleton_as": [o for o in groups[group_of[s.subject]] if o != s.subject],
         }
-        for s in subject_skeletons(lib)
+        for s in persons.subject_skeletons(lib)
     ]
     if args.json:
         print(json_text({
