@@ -157,10 +157,7 @@ def _tokens(name: str) -> tuple[str | None, str]:
 def _segment(words: str) -> str | None:
     if _EXCLUDE.search(words):
         return None
-    for seg, pattern in _SEGMENTS:
-        if pattern.search(words):
-            return seg
-    return None
+    return next((seg for seg, pattern in _SEGMENTS if pattern.search(words)), None)
 
 
 class _Tree:
