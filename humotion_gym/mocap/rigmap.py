@@ -30,9 +30,8 @@ when none fits it maps the hierarchy itself (:func:`map_humanoid`):
 
 The result, :class:`RigMatch`, names the profile, how each keypoint was
 found (``profile``, ``name``, ``topology``, ``extended`` or ``fallback``) and
-a confidence (the mean over keypoints of 1 for a profile or name, 0.8 for an
-extended or fallback point, 0.5 for topology). Where the mapper cannot place
-every keypoint, :class:`~humotion_gym.errors.RigError` lists the keypoints it
+a confidence (the mean of :data:`METHOD_CONFIDENCE` over keypoints). Where the
+mapper cannot place every keypoint, :class:`~humotion_gym.errors.RigError` lists the keypoints it
 could not find and the candidates it saw.
 """
 
@@ -408,11 +407,9 @@ def _pair_axis(pos: NDArray[np.float64], triples: list[list[int]]) -> NDArray[np
 def _joint_positions(
     tree: _Tree, fmt: str, positions: NDArray[np.float64] | None
 ) -> NDArray[np.float64] | None:
-    """Where each joint starts (the BVH sense of a point), from the points' positions.
+    """Where each joint starts (the BVH sense of a point; see the module docstring, step 3).
 
-    The hierarchy is read in one sense for both formats, so that every joint
-    it picks is then placed as one picked by name (:func:`_place`). An ASF
-    bone starts at its parent's tip; the root, which has none, at its own point.
+    An ASF bone starts at its parent's tip, the root at its own point.
     ``positions`` is ``(P, 3)`` or ``(F, P, 3)``.
     """
     if positions is None or fmt == "bvh":
@@ -551,7 +548,7 @@ def map_humanoid(
     cands = _candidates(tree)
     out = _Mapping()
     _limbs_by_names(tree, cands, out)
-    if "head" in {s for _, s in cands}:
+    if (None, "head") in cands:
         out.joints["head"] = min(cands[(None, "head")], key=lambda i: tree.depth[i])
         out.how["head"] = "name"
     if (None, "neck") in cands:
