@@ -181,8 +181,7 @@ def _cycle(keys: tuple[tuple[float, float], ...], phase: FloatArray) -> FloatArr
 
 def _cycle_mean(keys: tuple[tuple[float, float], ...]) -> float:
     """Mean of the keyframed curve over one cycle."""
-    spline = _cycle_spline(keys)
-    return float(spline.integrate(0.0, 1.0))
+    return float(_cycle_spline(keys).integrate(0.0, 1.0))
 
 
 # ---------------------------------------------------------------------------
