@@ -8,17 +8,12 @@ clip is rebuilt when its source file changes, and a damaged or foreign entry is
 reported (:class:`CacheWarning`) and rebuilt. With no data configured,
 :func:`default_library` gives the built-in synthetic motions.
 
-Train and test are split by person (named in :mod:`humotion_gym.mocap.splits`),
-checked from the skeletons: the CMU database by person
-(:mod:`humotion_gym.mocap.cmu`: subject numbers grouped into persons,
-:data:`~humotion_gym.mocap.splits.CMU_TEST_SUBJECTS` every number of a test
-person), where the held-out subjects' ASF skeletons differ from every training
-skeleton; the Bandai-Namco sets, whose files do not name their actor and share
-one skeleton across every style, train whole; a user's folders by the rule in
-:func:`user_split` unless ``load_library(split_by=...)`` says otherwise. Every
-clip's person, split and the rule that put it there are in its ``meta``, and
-loading refuses a person on both sides. The tracked person is never in a
-prior's training data.
+Train and test are split by person: :mod:`humotion_gym.mocap.splits` names
+who each data set holds out and why, :mod:`humotion_gym.mocap.persons` checks
+it from the skeletons, and a user's folders follow :func:`user_split` unless
+``load_library(split_by=...)`` says otherwise. Every clip's person, split and
+the rule that put it there are in its ``meta``, and loading refuses a person
+on both sides. The tracked person is never in a prior's training data.
 """
 
 from __future__ import annotations
