@@ -227,12 +227,7 @@ def _set_trunk(
 ) -> None:
     """Write the pelvis's (and rigid trunk's) rotations and the head's into ``params``.
 
-    Args:
-        params: ``(T, 25)`` parameters, written in place.
-        gait: The kind of locomotion.
-        q: The right leg's phase in its cycle.
-        lean: The forward lean of the torso.
-        noise: :func:`_locomotion`'s smooth noise (columns 18-20: the neck).
+    ``q`` is the right leg's phase, ``noise`` :func:`_locomotion`'s (columns 18-20: the neck).
     """
     # Pelvis (and, the torso being rigid, trunk): transverse rotation that brings
     # the side of the swinging leg forward, list that drops the swing side in
@@ -540,15 +535,10 @@ def _wave(style: _Style, rng: np.random.Generator, t: FloatArray) -> FloatArray:
 
 
 def _root_height(ankle_z: FloatArray, lift: FloatArray) -> FloatArray:
-    """Root height that puts the lower ankle at :data:`ANKLE_HEIGHT` (plus ``lift``).
+    """``(T,)`` root height (mm) that puts the lower ankle at :data:`ANKLE_HEIGHT` plus ``lift``.
 
-    Args:
-        ankle_z: ``(T, 2)`` ankle heights with the root at height 0, mm.
-        lift: ``(T,)`` ankle lift of the aerial phases, mm.
-
-    Returns:
-        ``(T,)`` root height, mm. A smooth minimum over the two ankles (never
-        above the lower one) keeps the hand-over between the feet smooth.
+    ``ankle_z`` ``(T, 2)`` are the ankles' heights with the root at 0. A smooth
+    minimum over the two (never above the lower one) keeps the hand-over smooth.
     """
     low = ankle_z.min(axis=1)
     softmin = low - _SOFTMIN_MM * np.log(
