@@ -190,8 +190,15 @@ class _Tree:
     def subtree_height(self, i: int) -> int:
         return 1 + max((self.subtree_height(c) for c in _kids(self, i)), default=0)
 
+    def subtree(self, i: int) -> list[int]:
+        """``i`` and every joint below it (end sites left out)."""
+        out = [i]
+        for j in out:
+            out.extend(_kids(self, j))
+        return out
+
     def subtree_size(self, i: int) -> int:
-        return 1 + sum(self.subtree_size(c) for c in _kids(self, i))
+        return len(self.subtree(i))
 
 
 @dataclass
@@ -318,29 +325,17 @@ def _find_body(
             continue
         others = [c for c in kids if c not in pair]
 
-        def branches_again(c: int) -> bool:
+        def limbs_at(j: int) -> bool:
             # A pair of limbs further down (the chest below a pelvis); eyes do not count.
-            stack = [c]
-            while stack:
-                j = stack.pop()
-                if j in branchy:
-                    limbs = _alike_pair(tree, _kids(tree, j))
-                    if limbs is not None and tree.subtree_height(limbs[0]) >= 3:
-                        return True
-                stack.extend(_kids(tree, j))
-            return False
+            limbs = _alike_pair(tree, _kids(tree, j)) if j in branchy else None
+            return limbs is not None and tree.subtree_height(limbs[0]) >= 3
 
-        if not any(branches_again(c) for c in others):
+        if not any(limbs_at(j) for c in others for j in tree.subtree(c)):
             chest, arms = i, pair
             break
     if chest is None:
         return "no joint splits into two alike arms and a head (the chest)"
-    inside = {chest}
-    stack = [chest]
-    while stack:
-        for c in _kids(tree, stack.pop()):
-            inside.add(c)
-            stack.append(c)
+    inside = set(tree.subtree(chest))
     path = set(tree.ancestors(chest))
     best: tuple[tuple[int, int], int, tuple[int, int]] | None = None
     for p in range(n):
