@@ -207,6 +207,9 @@ class _Mapping:
     how: dict[str, str] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
 
+    def put(self, key: str, joint: int, how: str) -> None:
+        self.joints[key], self.how[key] = joint, how
+
 
 def _limbs_by_names(
     tree: _Tree, cands: dict[tuple[str | None, str], list[int]], out: _Mapping
@@ -233,8 +236,7 @@ def _limbs_by_names(
                     how[k] = "name" if named else "topology"
             for kp, j, h in zip(kps, chain, how, strict=True):
                 if j is not None:
-                    out.joints[f"{side}_{kp}"] = j
-                    out.how[f"{side}_{kp}"] = h
+                    out.put(f"{side}_{kp}", j, h)
 
 
 def _chain(tree: _Tree, start: int) -> list[int]:
@@ -458,19 +460,16 @@ def _by_topology(
             for kp, j in zip(kps, t, strict=True):
                 key = f"{side}_{kp}"
                 if key not in out.joints:
-                    out.joints[key] = j
-                    out.how[key] = "topology"
+                    out.put(key, j, "topology")
     if "pelvis" not in out.joints:
-        out.joints["pelvis"], out.how["pelvis"] = pelvis, "topology"
+        out.put("pelvis", pelvis, "topology")
     if head_branch and "head" not in out.joints:
         chain = _chain(tree, max(head_branch, key=tree.subtree_height))
         # The head is where the chain first branches (eyes, jaw), else its end.
         split = [j for j in chain if len(_kids(tree, j)) >= 2]
-        out.joints["head"] = split[0] if split else chain[-1]
-        out.how["head"] = "topology"
+        out.put("head", split[0] if split else chain[-1], "topology")
         if "neck" not in out.joints:
-            out.joints["neck"] = chain[0] if len(chain) > 1 else chest
-            out.how["neck"] = "topology"
+            out.put("neck", chain[0] if len(chain) > 1 else chest, "topology")
 
 
 def _candidates(tree: _Tree) -> dict[tuple[str | None, str], list[int]]:
@@ -544,28 +543,24 @@ def map_humanoid(
     out = _Mapping()
     _limbs_by_names(tree, cands, out)
     if (None, "head") in cands:
-        out.joints["head"] = min(cands[(None, "head")], key=lambda i: tree.depth[i])
-        out.how["head"] = "name"
+        out.put("head", min(cands[(None, "head")], key=lambda i: tree.depth[i]), "name")
     if (None, "neck") in cands:
         head = out.joints.get("head")
         necks = cands[(None, "neck")]
         above = [n for n in necks if head is None or n in tree.ancestors(head)]
-        out.joints["neck"] = min(above or necks, key=lambda i: tree.depth[i])
-        out.how["neck"] = "name"
+        out.put("neck", min(above or necks, key=lambda i: tree.depth[i]), "name")
     if "l_hip" in out.joints and "r_hip" in out.joints:
         j = tree.lca(out.joints["l_hip"], out.joints["r_hip"])
         if j >= 0:
             _, words = _tokens(tree.names[j])
-            out.joints["pelvis"] = j
-            out.how["pelvis"] = "name" if _PELVIS.search(words) else "topology"
+            out.put("pelvis", j, "name" if _PELVIS.search(words) else "topology")
     joints = ("hip", "knee", "ankle", "shoulder", "elbow", "wrist")
     limb_keys = [f"{s}_{k}" for s in "lr" for k in joints]
     if any(k not in out.joints for k in (*limb_keys, "pelvis", "head")):
         starts = _joint_positions(tree, fmt, positions)
         _by_topology(tree, starts, out, _joint_positions(tree, fmt, frames))
     if "neck" not in out.joints and "head" in out.joints and tree.parents[out.joints["head"]] >= 0:
-        out.joints["neck"] = tree.parents[out.joints["head"]]
-        out.how["neck"] = "topology"
+        out.put("neck", tree.parents[out.joints["head"]], "topology")
     keypoints, how = _place(tree, fmt, out, cands, positions)
     missing = [k for k in KEYPOINT_NAMES if k not in keypoints]
     if missing:
