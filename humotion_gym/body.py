@@ -203,21 +203,14 @@ SHAPE_TABLE_SIZE = _compiled.SHAPE_TABLE_SIZE
 
 
 def _positive_array(name: str, value: ArrayLike, shape: tuple[int, ...]) -> FloatArray:
-    """A shape's ``radii`` or ``aspect`` as float64, refused unless of ``shape``, finite, > 0.
-
-    A NaN or infinite entry would pass a plain ``> 0`` test (or fail it
-    silently) and leave a cone that the renderer cannot draw.
-    """
-    try:
-        a: FloatArray | None = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        a = None
+    """A shape's ``radii`` or ``aspect`` as a float64 copy of ``shape``, all finite and > 0."""
+    a = float_array(value)
     if a is None or a.shape != shape:
         got = "values that are not numbers" if a is None else str(a.shape)
         raise ValueError(f"BodyShape.{name}: expected shape {shape}, got {got}")
     if not np.all(np.isfinite(a) & (a > 0)):
         raise ValueError(f"BodyShape: {name} must be finite and positive, got {a.tolist()}")
-    return a
+    return a.copy()
 
 
 # The last shape BodyShape.from_vector made, by its class and vector, per process.
@@ -305,9 +298,8 @@ class BodyShape:
     def from_vector(cls, vector: ArrayLike) -> BodyShape:
         """Rebuild a shape from :meth:`to_vector`'s output.
 
-        The same vector as the last call gives the same (immutable) shape
-        object: an agent reads the shape from every observation, and checking
-        a new one costs more than reading the rest of the observation.
+        The same vector as the last call gives the same (immutable) object:
+        agents read the shape from every observation.
 
         Raises:
             ValueError: If the vector is not ``SHAPE_VECTOR_SIZE`` numbers, or
@@ -359,11 +351,7 @@ class BodyShape:
         return self.thigh_length + self.shin_length - self.hip_up + self.neck_up + self.head_length
 
     def torso_points(self) -> FloatArray:
-        """The five torso points in the body frame, shape (5, 3).
-
-        Rows: pelvis, neck base, right shoulder, left shoulder, right hip, left hip
-        without the pelvis; i.e. neck, r_shoulder, l_shoulder, r_hip, l_hip.
-        """
+        """The neck base, right and left shoulder, right and left hip in the body frame, (5, 3)."""
         sx, sy, sz = self.shoulder_half_width, self.shoulder_forward, self.shoulder_up
         hx, hy, hz = self.hip_half_width, self.hip_forward, self.hip_up
         return np.array(
@@ -531,11 +519,7 @@ def _check_shape(shape: Any) -> None:
 
 
 def _check_dtype(where: str, dtype: Any) -> type:
-    """``np.float64`` or ``np.float32`` for ``dtype``, refused unless it names one of them.
-
-    The compiled kinematics has no other float type (numba refuses float16
-    deep inside), and an integer type would truncate every angle silently.
-    """
+    """``np.float64`` or ``np.float32`` for ``dtype``: the compiled kinematics has no other."""
     if dtype is np.float64 or dtype is np.float32:  # as the kinematics passes it, every step
         return dtype
     try:
@@ -585,8 +569,7 @@ def kinematics_inputs(
     """
     dtype = _check_dtype("kinematics_inputs", dtype)
     flat: NDArray[Any] = np.ascontiguousarray(params, dtype=dtype)
-    # OpenCV's transpose works in tiles: at thousands of poses it takes half
-    # the time of numpy's strided copy (it returns None for an empty array).
+    # OpenCV's tiled transpose beats numpy's strided copy (but gives None for an empty array).
     p: NDArray[Any] = cv2.transpose(flat) if flat.size else flat.T.copy()
     angles = p[3:]
     tables: NDArray[Any] = np.ascontiguousarray(np.asarray(shapes).T, dtype=dtype)
@@ -594,14 +577,7 @@ def kinematics_inputs(
 
 
 def _geometry(params: NDArray[Any], shapes: NDArray[Any], dtype: type = np.float64) -> NDArray[Any]:
-    """``(N, 35, 3)`` keypoints and cone axes of ``(N, 25)`` poses.
-
-    Args:
-        params: ``(N, 25)`` poses.
-        shapes: ``(1, 24)`` one shape table, or ``(N, 24)`` one per pose.
-        dtype: ``np.float64`` or ``np.float32`` (a thousandth of a millimetre
-            from the float64 keypoints).
-    """
+    """``(N, 35, 3)`` keypoints and cone axes of ``(N, 25)`` poses and ``(1 or N, 24)`` shapes."""
     p, cos, sin, tables = kinematics_inputs(params, shapes, dtype)
     out: NDArray[Any] = np.empty((p.shape[1], 3 * _compiled.GEOMETRY_ROWS), dtype)
     _compiled.pose_geometry(p, cos, sin, tables, out)
@@ -647,10 +623,9 @@ def pose_geometry(params: ArrayLike, shape: BodyShape, dtype: type = np.float64)
     Args:
         params: ``(..., 25)`` pose parameters (``PARAM_NAMES`` order).
         shape: The subject's shape.
-        dtype: ``np.float64`` (default) or ``np.float32``: everything in
-            single precision, about a thousandth of a millimetre off, for the
-            many poses of a particle filter (numpy's float32 sines and cosines
-            are vectorised, its float64 ones are not).
+        dtype: ``np.float64`` (default) or ``np.float32``: single precision,
+            about a thousandth of a millimetre off, for a particle filter's
+            many poses (numpy vectorises float32 sines and cosines only).
 
     Returns:
         ``(..., 35, 3)`` of ``dtype``, in the world frame: rows 0-14 the keypoints

@@ -39,8 +39,7 @@ def _check_size(width: int, height: int, fov_deg: float, where: str) -> None:
     """Refuse an image size or field of view a camera cannot have, naming ``where``."""
     if not (is_integer(width) and is_integer(height)):  # a bool is no size
         raise ValueError(f"{where}: width and height must be integers, got {width!r}, {height!r}")
-    # One pixel has no half-width from its centre to the border: fit_camera
-    # would divide by zero.
+    # One pixel has no half-width from its centre to the border (fit_camera divides by it).
     if width < 2 or height < 2:
         raise ValueError(
             f"{where}: width and height must be at least 2 pixels, got {width}x{height}"
@@ -108,21 +107,12 @@ class Camera:
         )
 
     def __hash__(self) -> int:
-        return hash(
-            (
-                self.width,
-                self.height,
-                self.fov_deg,
-                self.rotation.tobytes(),
-                self.position.tobytes(),
-            )
-        )
+        return hash((self.width, self.height, self.to_vector().tobytes()))
 
     def to_vector(self) -> FloatArray:
-        """``(13,)`` the field of view, the rotation's rows and the position.
+        """``(13,)`` the field of view, the rotation's rows and the position (no image size).
 
-        The camera as a plain vector (an observation's ``camera`` entry); the
-        image size is the frame's. :meth:`from_vector` inverts it exactly.
+        An observation's ``camera`` entry; :meth:`from_vector` inverts it exactly.
         """
         return np.concatenate([[self.fov_deg], self.rotation.ravel(), self.position])
 
@@ -182,8 +172,7 @@ class Camera:
         rotation = _look_at_rotation(eye_v, target, up, "Camera.look_at")
         eye_v = eye_v.copy()  # the camera's own, read-only
         eye_v.setflags(write=False)
-        # A rotation built from orthonormal axes around finite points (checked
-        # above): the constructor's checks would cost more than the rest.
+        # Orthonormal axes about finite points: the constructor's checks would cost more.
         cam = object.__new__(cls)
         cam.__dict__.update(
             width=int(width), height=int(height), fov_deg=float(fov_deg), rotation=rotation,
@@ -194,9 +183,8 @@ class Camera:
     def shifted(self, offsets: ArrayLike) -> list[Camera]:
         """Copies of this camera moved by each of ``offsets``: a following camera.
 
-        The copies share this camera's rotation array and intrinsics (nothing
-        is validated again but the offsets), so a camera per frame of an
-        episode costs a few microseconds each.
+        The copies share this camera's rotation array and intrinsics (only
+        the offsets are checked).
 
         Args:
             offsets: ``(T, 3)`` translations of the camera centre, mm.
@@ -420,9 +408,8 @@ def fit_camera(
     every point, grown into a sphere of ``pad_mm`` (to cover the cones' radii),
     projects inside the image with ``margin`` of the image left free on each side.
 
-    Typical uses: a general view of a body clip (azimuth 30, elevation 10); a
-    side view of walking (azimuth from :func:`side_view_azimuth`); a close-up of
-    one arm (pass only that arm's keypoints, ``keypoints[:, [9, 10, 11]]``).
+    E.g. a side view of walking (azimuth from :func:`side_view_azimuth`), or a
+    close-up of one arm (only its keypoints, ``keypoints[:, [9, 10, 11]]``).
 
     Args:
         keypoints: ``(..., 3)`` points to keep in view, e.g. a clip's keypoints
@@ -450,12 +437,10 @@ def fit_camera(
     pts = _check_points(keypoints, "fit_camera").reshape(-1, 3)
     if pts.shape[0] == 0:
         raise ValueError("fit_camera: expected at least one point, all finite")
-    # Each coordinate's extremes from a contiguous copy of its column: numpy
-    # reduces a few hundred rows along the first axis in twice the time.
+    # Each coordinate's extremes from a contiguous copy of its column (the faster reduction).
     columns = np.ascontiguousarray(pts.T)
     lo, hi = columns.min(axis=1), columns.max(axis=1)
-    # A NaN makes its column's min and max NaN, an infinity one of them
-    # infinite: six numbers tell whether every point is finite.
+    # A NaN or an infinity shows in its column's extremes.
     if not all(math.isfinite(v) for v in lo.tolist() + hi.tolist()):
         raise ValueError("fit_camera: expected at least one point, all finite")
     if not (is_real(azimuth_deg) and math.isfinite(azimuth_deg)):
@@ -481,11 +466,7 @@ def fit_cameras(
 ) -> list[Camera]:
     """:func:`fit_camera` of several sets of points at once: the same cameras, bit for bit.
 
-    The vector environment fits the cameras of the episodes it starts in one
-    call: the extremes, distances and margins of every set are computed
-    together (numpy's calls cost more than their work on a hundred points),
-    while each set's rotation and projection are :func:`fit_camera`'s own
-    steps.
+    The vector environment fits the cameras of the episodes it starts in one call.
 
     Args:
         points: ``(E, M, 3)`` E sets of M points to keep in view, mm.
@@ -564,16 +545,12 @@ def _fit_sets(
 ) -> list[Camera]:
     """The cameras of :func:`fit_camera` and :func:`fit_cameras`, their arguments checked.
 
-    ``pts`` holds ``(E, M, 3)`` sets of points, ``targets`` the ``(E, 3)``
-    centres of their bounding boxes, ``size`` the image's width, height and
-    field of view; ``azimuths`` and ``pads`` give one per set, and ``where``
-    names the caller in errors.
+    ``pts``: ``(E, M, 3)`` sets of points; ``targets``: their ``(E, 3)`` box
+    centres; ``size``: width, height and field of view; one azimuth and pad a set.
     """
     width, height, fov_deg = size
     n = pts.shape[0]
-    # Each step for the E sets at once where it is elementwise (the same
-    # roundings per element) and per set where it is not (the rotation on
-    # Python floats, the projection's matrix product).
+    # Elementwise steps for the E sets at once, the rotation and projection per set.
     rel = np.empty_like(pts)
     directions = []
     for j, azimuth in enumerate(azimuths):
@@ -611,12 +588,9 @@ def cameras_around(camera: Camera, target: ArrayLike, views: int) -> list[Camera
 
     Camera ``k`` is ``camera`` turned ``360 k / views`` degrees
     counter-clockwise (seen from above) about the vertical line through
-    ``target``: the same distance to ``target``, the same height and
-    elevation, the same intrinsics, looking at ``target`` (the point
-    ``camera`` looks at, e.g. :func:`fit_camera`'s, the centre of the
-    points' bounding box). A ring of calibrated cameras around the subject,
-    as in HumanEva's 4-7 camera studio (Sigal, Balan & Black, *HumanEva*,
-    IJCV 2010).
+    ``target`` (the point ``camera`` looks at), at the same distance and
+    height, with the same intrinsics, looking at ``target``: a ring of
+    calibrated cameras as in HumanEva's studio (Sigal, Balan & Black, IJCV 2010).
 
     Args:
         camera: View 0.

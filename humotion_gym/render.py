@@ -108,28 +108,11 @@ def _check_camera(camera: Camera, scene: SceneOptions, where: str) -> None:
 def _figure_polygons(
     geometry: NDArray[np.float64], shape: BodyShape, camera: Camera, scene: SceneOptions
 ) -> tuple[list[list[int]], NDArray[np.int32], NDArray[np.int32], NDArray[np.uint8], list]:
-    """Everything the drawing loop needs, for T frames and all ten cones.
+    """The fields of a :class:`FigureSequence` after its scene, for T frames.
 
-    One compiled pass over frames and cones
-    (:func:`humotion_gym._compiled.figure_polygons`, where the geometry of the
-    silhouettes and the shading is written out): the same work in numpy, some
-    sixty calls on small arrays per episode, costs ten times more. Pixel
-    coordinates are in OpenCV's fixed point (``_SHIFT`` fractional bits).
-
-    Args:
-        geometry: ``(T, 35, 3)`` keypoints and cone axes in each frame's camera
-            frame (the layout of :func:`~humotion_gym.body.pose_geometry`).
-        shape: The subject's shape.
-        camera: The cameras' intrinsics (every frame's camera has the same).
-        scene: Scene options.
-
-    Returns:
-        Per frame, the drawing order (far first, only cones in front of the
-        camera); silhouettes ``(T, 10, 2K, 2)`` (the hulls of the end
-        ellipses, padded) and strip quads
-        ``(T, 10, S, 4, 2)`` in fixed point; uint8 colours ``(T, 10, 2 + S, C)``
-        (cap, flat, strips); whether each cone is wide enough for strips
-        (``T x 10`` lists).
+    One compiled pass (:func:`humotion_gym._compiled.figure_polygons`) over
+    ``geometry``, ``(T, 35, 3)`` in each frame's camera frame; ``camera``
+    gives the intrinsics every frame's camera shares.
     """
     const: dict[str, NDArray] = scene._drawing  # type: ignore[attr-defined]
     n = geometry.shape[0]
@@ -257,14 +240,11 @@ def figure_sequences(
 ) -> list[FigureSequence]:
     """:func:`figure_sequence` of several sequences, prepared in one pass.
 
-    Each sequence's poses are brought into its cameras' frames as
-    :func:`figure_sequence` does; then the silhouettes, shading and depth
-    order of the frames of every sequence whose figure has the same radii and
-    aspect and whose cameras the same intrinsics are computed together (in
-    chunks of whole sequences of up to 64 frames, the size that stays in the
-    caches). The result is the same, frame for frame and bit for bit, as one call per
-    sequence (every step is elementwise over frames); the vector environment
-    prepares the episodes it starts in one step this way.
+    The frames of sequences whose figures have the same radii and aspect and
+    whose cameras the same intrinsics are prepared together, in chunks of
+    whole sequences of up to 64 frames (what stays in the caches): the same
+    result, bit for bit, as one call per sequence. The vector environment
+    prepares the episodes it starts this way.
 
     Args:
         sequences: ``(params, shape, cameras, geometry)`` per sequence, the
@@ -279,9 +259,7 @@ def figure_sequences(
     for i, ((_, shape, _, _), (_, cam, _)) in enumerate(zip(sequences, prepared, strict=True)):
         key = (shape.radii.tobytes(), shape.aspect.tobytes(), cam.focal, cam.principal_point)
         groups.setdefault(key, []).append(i)
-    # Each group is prepared in chunks of whole sequences of at most
-    # _CHUNK_FRAMES frames (a longer sequence alone): beyond about 64 frames
-    # the arrays outgrow the caches and a frame costs twice as much.
+    # Chunks of whole sequences of at most _CHUNK_FRAMES frames (a longer one alone).
     chunks: list[list[int]] = []
     for members in groups.values():
         chunk: list[int] = []
@@ -386,8 +364,7 @@ def _draw_figure(img: NDArray[np.uint8], figures: FigureSequence, t: int) -> Non
     """
     colors_l = figures.colors[t].tolist()  # lists of ints, for OpenCV
     ellipses, quads, wide = figures.ellipses[t], figures.quads[t], figures.wide[t]
-    # Local names: this loop runs some twenty OpenCV calls per frame, and the
-    # attribute look-ups would be a tenth of its Python time.
+    # Local names: the attribute look-ups would show in this hot loop.
     fill, line8 = cv2.fillConvexPoly, cv2.LINE_8
     for c in figures.order[t]:
         color = colors_l[c]
@@ -432,14 +409,10 @@ def _noise_window(rng: np.random.Generator, h: int, w: int) -> tuple[int, int]:
 
 
 def _noise_windows(rng: np.random.Generator, h: int, w: int, count: int) -> NDArray[np.int64]:
-    """``(count,)`` windows as flat indices: :func:`_noise_window` called ``count`` times.
+    """``(count,)`` flat windows (row ``v // (W + 1)``, column ``v % (W + 1)``).
 
-    Window ``v`` is at row ``v // (W + 1)`` and column ``v % (W + 1)``. One
-    call of ``rng.integers`` with ``size=count`` gives the numbers that
-    ``count`` scalar calls give, in order, and leaves the generator where they
-    leave it (numpy bounds each element alone; ``tests/test_render.py``
-    checks both). The vector environment draws an episode's windows at its
-    start, and splits those of a step's frames into rows and columns at once.
+    The same numbers, and generator state, as ``count`` calls of
+    :func:`_noise_window` (``tests/test_render.py``).
     """
     return rng.integers(0, (h + 1) * (w + 1), size=count)
 
@@ -556,13 +529,9 @@ def _compose(
     out: NDArray[np.uint8] | None = None,
     window: tuple[int, int] | None = None,
 ) -> NDArray[np.uint8]:
-    """Background, figure, occluders, noise and blur: one frame.
+    """Background, figure, occluders, noise and blur: one frame, drawn into ``out`` if given.
 
-    ``out``, when given, is the ``(H, W, C)`` uint8 array to draw into (the
-    vector environment draws each frame straight into its row of the batch,
-    saving a copy per frame); otherwise a new array. ``window``, when given,
-    is the noise window drawn beforehand from ``rng`` (:func:`_noise_windows`);
-    otherwise the frame draws it. Returns the frame.
+    ``window``: the noise window drawn beforehand (:func:`_noise_windows`), else drawn here.
     """
     scene = figures.scene
     if background.scene is not scene and background.scene != scene:
@@ -596,21 +565,15 @@ def gaussian_blur(img: NDArray[Any], sigma: float, dst: NDArray[Any] | None = No
     Returns:
         The blurred image.
     """
-    if dst is None:
-        return cv2.GaussianBlur(img, (0, 0), sigma)
     return cv2.GaussianBlur(img, (0, 0), sigma, dst=dst)
 
 
-#: The colour tuple :func:`_rgb` checked last and its ints: an environment passes the
-#: same (immutable) tuple every frame, and the same object needs no second check.
+#: The colour tuple :func:`_rgb` checked last and its ints (environments pass one every frame).
 _LAST_COLOR: list[Any] = [None, None]
 
 
 def _rgb(color: Any) -> Color:
-    """``color`` as a tuple of three ints, refused unless three integers in [0, 255].
-
-    OpenCV would saturate a channel out of range, or fail in its own words.
-    """
+    """``color`` as three ints, refused unless integers in [0, 255] (OpenCV would saturate)."""
     if color is _LAST_COLOR[0]:
         return _LAST_COLOR[1]
     try:

@@ -65,18 +65,14 @@ _SLEEVE: Color = (0, 60, 20)
 
 #: v2's palette: :data:`DEFAULT_FIGURE_COLORS` with dark green sleeves, so
 #: that the upper arms stand apart from the torso in hue and in luminance
-#: (about 38 grey levels against the shirt's 79 and the forearms' 192: gray
-#: frames show them too) while left and right limbs stay alike. Dark and
-#: saturated, they stay far from the grey wall at every shade; white sleeves
-#: shade into the wall's grey on their dark side, and on validation persons
-#: cost a tracker 26 mm on WalkTrack-v1 where these gained 11
-#: (docs/v2_limbs.md).
+#: (gray frames show them too) while left and right limbs stay alike. Dark and
+#: saturated, they stay far from the grey wall at every shade, where white
+#: sleeves shaded into it (docs/v2_limbs.md).
 SHADED_FIGURE_COLORS: tuple[Color, ...] = _recoloured(r_upper_arm=_SLEEVE, l_upper_arm=_SLEEVE)
 
 #: The opt-in easier palette: left and right limbs differ, the right ones warm
-#: and light, the left ones cool, in luminance as well (grey levels: sleeves
-#: 226 against 37, forearms 192 against 243, legs 206 against 58), so gray
-#: frames tell the sides apart too. A tracker no longer has to resolve the
+#: and light, the left ones cool, in luminance as well (so gray frames tell
+#: the sides apart too). A tracker no longer has to resolve the
 #: left-right ambiguity of a silhouette (Sminchisescu and Triggs, "Kinematic
 #: jump processes for monocular 3D human tracking", 2003) from motion alone.
 SIDED_FIGURE_COLORS: tuple[Color, ...] = _recoloured(
@@ -96,8 +92,7 @@ FIGURE_PALETTES: dict[str, tuple[Color, ...]] = {
     "sided": SIDED_FIGURE_COLORS,
 }
 
-#: RGB colour of the floor's grid lines: a darker grey than the wall (about
-#: 110 grey levels against 150), lighter than the shirt and trousers.
+#: RGB colour of the floor's grid lines: darker than the wall, lighter than the clothes.
 FLOOR_COLOR: Color = (112, 112, 108)
 
 #: Spacing of the floor's grid lines (mm): half a metre, a large tile.
@@ -114,8 +109,7 @@ FLOOR_NEAR_MM = 100.0
 #: The smallest and the largest frame, ``(width, height)`` in pixels.
 MIN_IMAGE_SIZE = (64, 64)
 MAX_IMAGE_SIZE = (640, 480)
-#: The largest of each scene setting taken: more would only make a frame slow (a
-#: million occluders take five seconds a step) or all noise.
+#: The largest of each scene setting taken: more would only make a frame slow or all noise.
 SCENE_MAXIMA: dict[str, float] = {
     "clutter_density": 16.0, "noise_sigma": 255.0, "blur_sigma": 64.0, "ambient": 1.0,
     "diffuse": 1.0, "occluders": 64, "shading_strips": 16,
@@ -306,14 +300,11 @@ class Background:
         noise: ``(2, 2H, 2W, C)`` uint8 bank of Gaussian sensor noise (rounded
             to grey levels, tails cut at 2.89 sigma), split into its positive
             and negative parts. Each frame adds the ``(H, W)`` window of the bank
-            at an offset drawn from the frame's generator: within a frame the
-            noise is i.i.d. per pixel, and a pixel's noise in two frames is
-            independent unless their offsets coincide (one chance in
-            ``(H + 1)(W + 1)``), though the two frames' noise fields are shifted
-            copies of parts of one bank. Drawing fresh Gaussian noise per frame
-            would cost more than the rest of the frame. A bank may serve many
-            episodes (:func:`noise_bank`): the environments draw one per
-            seeded reset.
+            at an offset drawn from the frame's generator: i.i.d. per pixel
+            within a frame, and independent between two frames unless their
+            offsets coincide (one chance in ``(H + 1)(W + 1)``); fresh noise
+            per frame would cost more than the rest of the frame. A bank may
+            serve many episodes (:func:`noise_bank`).
     """
 
     scene: SceneOptions
@@ -324,11 +315,9 @@ class Background:
 
 
 def _numbers(value: Any, kinds: str) -> NDArray[Any] | None:
-    """``value`` as an array if it holds numbers of numpy's dtype ``kinds`` alone, else None.
+    """``value`` as an array if its dtype's kind is in ``kinds`` (``"iuf"``), else None.
 
-    ``kinds`` is a string of dtype kinds (``"i"`` and ``"u"`` integers, ``"f"``
-    floats): text, bools and ragged nestings give None, where a conversion to
-    float would read ``"5"`` as 5 or raise in numpy's words.
+    Text, bools and ragged nestings give None (a conversion would read ``"5"`` as 5).
     """
     try:
         array = np.asarray(value)
@@ -365,12 +354,9 @@ def _paint_texture(
     angle: float,
     checker: bool,
 ) -> None:
-    """Paint a stripe or checker texture of two colours where ``inside``.
+    """Paint stripes (``checker``: and stripes across them) of ``palette``'s two colours.
 
-    ``region`` is a view of the image (written in place), ``inside`` a uint8
-    mask of its size (non-zero inside); ``palette`` the two colours ``(2,
-    C)``, ``period`` (pixels) and ``angle`` the stripes', ``checker`` adds
-    the stripes across them.
+    Written in place into the image view ``region`` where the mask ``inside`` is non-zero.
     """
     h, w, channels = region.shape
     # The texture's axes scaled to stripes, in float32 as the pixels' steps are.
@@ -432,11 +418,9 @@ def _clutter_box(kind: int, geometry: list[int], cx: float, cy: float) -> tuple[
 
 
 def _clutter_plan(rng: np.random.Generator, h: int, w: int, density: float) -> ClutterPlan:
-    """Every random draw of a background's clutter, made in a few array draws.
+    """Every random draw of a background's clutter, each for every shape (or line) at once.
 
-    Each draw is made for every shape (or line) at once, whether its kind
-    uses it or not: a dozen generator calls per background instead of some
-    seventy scalar ones.
+    A draw is made for a shape whether its kind uses it or not.
     """
     size, shape_rate, line_rate, unit = _clutter_sizes(h, w, density)
     n_shapes = int(rng.poisson(shape_rate))
@@ -568,9 +552,8 @@ def _draw_clutter_shapes(
 def noise_bank(scene: SceneOptions, rng: np.random.Generator) -> NDArray[np.uint8]:
     """A bank of sensor noise for :func:`make_background` (see :class:`Background`).
 
-    Drawing it is a third of the cost of a background; the environments draw
-    one per seeded reset and reuse it for the episodes that follow (each frame
-    still reads its own random window of it).
+    The environments draw one per seeded reset and reuse it for the episodes
+    that follow (each frame still reads its own random window of it).
 
     Args:
         scene: Scene options (their size, channels and ``noise_sigma``).
@@ -624,17 +607,16 @@ def make_background(
     base = np.asarray(scene.background_color, dtype=np.float64)
     clutter = scene.background == "clutter" and scene.clutter_density > 0
     if clutter:
-        # np.clip's per-call cost is ten times its work on three numbers.
-        base = np.minimum(np.maximum(base + rng.uniform(-20, 20), 0.0), 255.0)
+        base = np.minimum(np.maximum(base + rng.uniform(-20, 20), 0.0), 255.0)  # np.clip is slower
     img = np.empty((h, w, channels), np.uint8)
-    # Fill one row, then the image from it: broadcasting a colour over every
-    # pixel at once is 20 times slower.
+    # One row, then the image from it (faster than broadcasting the colour).
     img[0] = _to_channels(base, channels).round().astype(np.uint8)
     img[1:] = img[0]
     if clutter:
         _draw_clutter(img, scene, rng)
     k = scene.occluders
     occ = np.zeros((k, 7))
+    occ_colors = np.zeros((0, channels), np.uint8)  # no draw for no occluder
     if k:
         # Each occluder sweeps across the image along a line through the middle
         # third (where fitted cameras put the figure), once per period.
@@ -649,10 +631,7 @@ def make_background(
         # Bars lie roughly across their motion (a pole passing by); blobs anyhow.
         across = heading + np.pi / 2 + rng.uniform(-0.35, 0.35, k)
         occ[:, 6] = np.where(occ[:, 0] == 0, across, rng.uniform(0, np.pi, k))
-    if k:
         occ_colors = _to_channels(rng.uniform(20, 235, (k, 3)), channels).round().astype(np.uint8)
-    else:  # (no draw is made for no occluder: the generator is where it was)
-        occ_colors = np.zeros((0, channels), np.uint8)
     img.setflags(write=False)
     if noise is None:
         noise = noise_bank(scene, rng)
