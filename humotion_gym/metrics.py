@@ -62,13 +62,6 @@ def _checked_pair(
     return a, b
 
 
-def _checked_index(where: str, name: str, value: Any, size: int) -> int:
-    """``value`` as an int, refused unless it is an integer (not a bool) in ``[0, size)``."""
-    if not (is_integer(value) and 0 <= value < size):
-        raise ValueError(f"{where}: {name} must be an integer in [0, {size}), got {value!r}")
-    return int(value)
-
-
 def _checked_indices(
     where: str, name: str, values: ArrayLike, size: int, *, allow_empty: bool = False
 ) -> NDArray[np.intp]:
@@ -94,12 +87,7 @@ def _check_threshold(where: str, threshold_mm: Any) -> None:
 
 
 def _check_run(run: Any) -> None:
-    """Refuse a run that is not a count >= 0 (integer dtype for an array of counts).
-
-    O(1) for what the environments pass (an int, an integer array): an array's
-    counts are not each checked for sign, which would cost a pass over it every
-    step.
-    """
+    """Refuse a run that is not a count >= 0 (an array: of an integer dtype, O(1) per step)."""
     if type(run) is int:  # the single environment's, tested first: the cheap test
         ok = run >= 0
     elif isinstance(run, np.ndarray):  # the vector environment's
@@ -158,8 +146,12 @@ def aligned_point_errors(
     a, b = _checked_pair("aligned_point_errors", ("estimate_points", "truth_points"),
                          estimate_points, truth_points, _POINTS)  # fmt: skip
     diff = a - b
-    i = _checked_index("aligned_point_errors", "anchor", anchor, diff.shape[-2])
-    return np.linalg.norm(diff - diff[..., i : i + 1, :], axis=-1)
+    size = diff.shape[-2]
+    if not (is_integer(anchor) and 0 <= anchor < size):  # a bool is no index
+        raise ValueError(
+            f"aligned_point_errors: anchor must be an integer in [0, {size}), got {anchor!r}"
+        )
+    return np.linalg.norm(diff - diff[..., anchor : anchor + 1, :], axis=-1)
 
 
 class StepScores(NamedTuple):
@@ -406,8 +398,7 @@ def update_lost_run(run: ArrayLike, error_mm: ArrayLike, threshold_mm: float) ->
 
     Raises:
         ValueError: If ``run`` is not a count >= 0 (for an array: of an
-            integer dtype; its entries' signs are not checked, to keep this
-            step-path function O(1) in checks), or ``threshold_mm`` is not a
+            integer dtype, its signs unchecked), or ``threshold_mm`` is not a
             real number or is NaN.
     """
     _check_run(run)
