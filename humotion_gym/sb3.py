@@ -60,11 +60,7 @@ _SET_HERE = {
 
 
 def _same(a: dict[str, Any], b: dict[str, Any]) -> bool:
-    """Whether two episodes' reset options are the same (arrays compared element-wise).
-
-    A value that cannot be compared (a clip's arrays inside a ``Motion``) is
-    the same only as itself.
-    """
+    """Whether two episodes' reset options are the same (arrays element-wise; else by identity)."""
     if a is b:
         return True
     if a.keys() != b.keys():
@@ -210,14 +206,11 @@ class LearnerVecEnv(VecEnv):
         obs, rewards, terminated, truncated, info = self.venv.step(self._actions)
         frames, initial = frame_and_initial(obs, info)
         self.last_infos = info
-        # LearnerObservation: the action becomes the next observation's
-        # previous estimate, clipped (np.clip's numbers, in a third of its time).
+        # As LearnerObservation: the action, clipped, is the next previous estimate.
         previous = np.maximum(np.asarray(self._actions, dtype=np.float32), -1.0)
         self._previous = np.minimum(previous, 1.0, out=previous)
         dones = terminated | truncated
-        # Each key's column as Python numbers, from the finished episode's
-        # final info where one ended (what ``.item()`` per episode and key
-        # gives, in one ``tolist`` per key and source).
+        # Each key's column as Python numbers, from the final info where an episode ended.
         final = info.get("final_info", {})
         done_list = dones.tolist()
         columns = []
@@ -260,10 +253,8 @@ class LearnerVecEnv(VecEnv):
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
         """Set an attribute of each episode's environment.
 
-        The vector environment's settings go through its ``set_attr`` and its
-        checks: a fixed one (the split, the library, the spaces...) is refused,
-        a batch one must cover every episode; and so does every attribute
-        where the frames are drawn ahead, whose process would not see it.
+        The vector environment's settings (and every attribute where the frames
+        are drawn ahead) go through its ``set_attr`` and its checks.
         """
         if attr_name in FIXED_SETTINGS or attr_name in BATCH_SETTINGS or self.venv.draws_ahead:
             rows = set(self._get_indices(indices))

@@ -54,21 +54,9 @@ def _wrappers(env: gym.Env) -> list[gym.Wrapper]:
 def _check_actions_pass_through(env: gym.Env, who: str, note: str = "") -> PoseTrackingEnv:
     """The task's environment under ``env``, refusing a wrapper between them that maps actions.
 
-    A learner wrapper reads actions in the task's own coordinates: the
-    previous estimate and the initial pose (:class:`LearnerObservation`), the
-    true action (:class:`Supervision`). Through an action wrapper they would
-    be in two coordinate systems at once, silently. Mapping them through the
-    chain is not exact in general (``ClipAction`` loses what it clips, a
-    ``TransformAction`` has no inverse), so such a chain is refused: the action
-    wrappers go outside, where they see the learner wrapper's actions.
-
-    Args:
-        env: The chain to check.
-        who: The wrapper asking, for the message.
-        note: Added to the message (what the advice means for ``who``).
-
-    Raises:
-        ValueError: Naming the wrapper that maps the actions.
+    The learner wrappers read actions in the task's own coordinates, and an
+    action wrapper's map need not invert (``ClipAction``): it goes outside.
+    ``who`` (the wrapper asking) and ``note`` go into the ValueError naming it.
     """
     base = _base(env)
     for wrapper in reversed(_wrappers(env)):  # innermost first: the first to map them
@@ -83,14 +71,9 @@ def _check_actions_pass_through(env: gym.Env, who: str, note: str = "") -> PoseT
 
 
 def _check_observations_pass_through(env: gym.Env, base: PoseTrackingEnv, who: str) -> None:
-    """Refuse a wrapper between ``env`` and the task's environment that changes the frame.
+    """Refuse (naming it) a wrapper under ``env`` that changes the frame or the initial pose.
 
-    :class:`LearnerObservation` reads one frame and the initial pose as the
-    task shows them (a stacked or flattened frame is not one), so wrappers
-    that change them go outside it, where they see the learner observation.
-
-    Raises:
-        ValueError: Naming the wrapper that changes them.
+    :class:`LearnerObservation` reads them as the task shows them: such wrappers go outside.
     """
 
     def shows_the_task(space: spaces.Space[Any]) -> bool:
@@ -175,8 +158,7 @@ class FrameObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
 def check_frame_size(size: Any, what: str) -> None:
     """Refuse a learner's frame side that is not an integer in [8, 640] or None.
 
-    640, the widest frame an environment renders: a larger side would only
-    upsample it (and 100,000 asked for 28 GB).
+    640 is the widest frame an environment renders: a larger side would only upsample it.
 
     Raises:
         ValueError: Naming ``what``.
@@ -227,12 +209,9 @@ def learner_frames(frames: NDArray[np.uint8], size: int | None) -> NDArray[np.ui
         return np.ascontiguousarray(f.transpose(0, 3, 1, 2))
     if n == 0:  # (OpenCV refuses an empty image)
         return np.empty((0, c, size, size), np.uint8)
-    # INTER_AREA averages the pixels a target pixel covers: no aliasing of
-    # the cone edges, which a nearest-pixel subsampling would break up.
+    # INTER_AREA averages the pixels a target pixel covers: no aliasing of the cone edges.
     if h % size == 0 and w % size == 0:
-        # A whole-number shrink: INTER_AREA averages aligned blocks that
-        # never straddle two frames, so one resize of the frames stacked
-        # vertically gives each frame's own resize (one OpenCV call).
+        # A whole-number shrink averages blocks within a frame: resize them all stacked at once.
         small = cv2.resize(f.reshape(n * h, w, c), (size, n * size), interpolation=cv2.INTER_AREA)
     else:
         small = np.stack(
@@ -249,9 +228,7 @@ def learner_observation(
 ) -> dict[str, NDArray[Any]]:
     """The ``Dict`` observation of :class:`LearnerObservation` from its parts.
 
-    One function serves the wrapper (training) and the agent that runs a saved
-    policy in the plain environment (:mod:`baselines.agents.learned`), so the two
-    cannot drift apart.
+    Also the agent's that runs a saved policy (:mod:`baselines.agents.learned`).
     """
     return {  # in the space's order (spaces.Dict sorts its keys)
         "frame": learner_frame(frame, size),
