@@ -95,11 +95,8 @@ TRACEBACK_ENV = "HUMOTION_TRACEBACK"
 def _runtime_errors() -> tuple[type[BaseException], ...]:
     """Exceptions reported as one line with exit code 1 (the user can act on them).
 
-    ``ValueError`` is how the packages refuse what they are given (a clip too
-    short for the episode, a setting out of range, a file that does not parse:
-    ``json``'s and Unicode's errors are ValueErrors too), each naming what was
-    wrong; ``EOFError`` is a truncated compressed file. Other exceptions are
-    bugs and keep their traceback.
+    ``ValueError`` is how the packages refuse what they are given, naming it;
+    ``EOFError`` is a truncated compressed file.
     """
     from humotion_gym.errors import MocapFormatError, RigError
     from humotion_gym.mocap.download import DownloadError
@@ -205,13 +202,9 @@ def _error(parser: argparse.ArgumentParser, args: argparse.Namespace, message: s
 def _check_inputs(args: argparse.Namespace) -> None:
     """Refuse mocap that a command cannot use before it starts any work.
 
-    One place for every command: ``--data-dir`` (else ``$HUMOTION_MOCAP``, which
-    the command would read) is loaded here, so a file that does not parse, a
-    folder without mocap or one trial twice ends the command in one line
-    before progress bars, fits or outputs begin; the clips are cached, so the
-    command's own load reads them back. The ``PATH`` arguments and ``slds
-    classify``'s ``--train``/``--test``, which their commands load first
-    thing, are checked for files of motion capture.
+    ``--data-dir`` (else ``$HUMOTION_MOCAP``) is loaded here (into the cache
+    the command then reads); the ``PATH``, ``--train`` and ``--test``
+    arguments are checked for motion capture.
     """
     from humotion_gym.mocap.library import MOCAP_ENV, configured_data_dirs, load_library
 
@@ -228,12 +221,9 @@ def _check_inputs(args: argparse.Namespace) -> None:
 
 
 class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised where the command is, so that it ends as Ctrl-C does.
+    """SIGTERM, raised where the command is, so that it ends as Ctrl-C does (exit code 143).
 
-    A ``KeyboardInterrupt``: every ``finally`` runs (a file being written is
-    removed, not left cut), the leaderboard saves what it finished, and the
-    command ends in one line, with exit code 143 (128 + SIGTERM) instead of
-    Ctrl-C's 130.
+    A ``KeyboardInterrupt``: every ``finally`` runs, and the command ends in one line.
     """
 
 
@@ -283,15 +273,12 @@ def terminated_as_interrupt() -> Iterator[None]:
 def main(argv: Sequence[str] | None = None, modules: Sequence[str] = COMMAND_MODULES) -> int:
     """Run one command line over the given command modules; returns the exit code.
 
-    The bare command (no arguments) prints the help on stdout and exits 0, as
-    ``pip`` and ``docker`` do: it is how one discovers the commands, and it
-    writes nothing; so does a bare command group (``data``, ``slds``), with its
-    subcommands. A usage error ends in one line and exit code 2, an error
-    the user can act on (:func:`_runtime_errors`) in one line and 1 (with
-    ``HUMOTION_TRACEBACK=1``, its traceback instead), Ctrl-C in one line and
-    130 (under :func:`terminated_as_interrupt`, as the console scripts run it,
-    SIGTERM as Ctrl-C, in one line and 143); any other exception is a bug and
-    keeps its traceback.
+    The bare command, or a bare command group (``data``), prints its help and
+    exits 0. A usage error ends in one line and exit code 2, an error the
+    user can act on (:func:`_runtime_errors`) in one line and 1 (with
+    ``HUMOTION_TRACEBACK=1``, its traceback), Ctrl-C in one line and 130
+    (SIGTERM, under :func:`terminated_as_interrupt`, 143); any other
+    exception is a bug and keeps its traceback.
 
     Args:
         argv: The arguments (default: ``sys.argv[1:]``).

@@ -51,14 +51,8 @@ def refused_as(
 
     How a command turns a refusal of what it called into its own error and
     exit code (:class:`UsageError` 2, :class:`CommandError` 1, or argparse's
-    ``ArgumentTypeError`` in an argument type), the flag named in ``prefix``.
-    The refusal's traceback is dropped (``from None``): its message says what
-    was wrong.
-
-    Args:
-        error: The exception to raise, made from one message.
-        kinds: The exceptions turned into ``error``; others pass unchanged.
-        prefix: Put before the message, e.g. ``"--agent: "`` (default: none).
+    ``ArgumentTypeError``), the flag named in ``prefix`` (e.g. ``"--agent: "``);
+    other exceptions pass unchanged, and the refusal's traceback is dropped.
     """
     try:
         yield
@@ -214,13 +208,10 @@ def hold_output_folders(args: argparse.Namespace) -> Iterator[None]:
     """Make each :class:`OutputFolder` argument and hold it for this command alone meanwhile.
 
     Two commands writing into one folder at once would interleave their
-    files (a resumed leaderboard run twice recorded every episode twice; two
-    trainings wrote one ``progress.csv``). Each folder is locked with
-    ``flock`` on the folder itself: nothing is written into it, and the lock
-    goes with the process however it ends. Where it cannot be locked (no
-    ``fcntl`` on Windows; a file system without ``flock``, NFS or Lustre; a
-    folder one may write but not read) the command runs unheld, saying so
-    (but silently on Windows).
+    files. Each folder is locked with ``flock`` on the folder itself (the
+    lock goes with the process however it ends); where it cannot be (NFS,
+    Lustre, a folder one may write but not read) the command runs unheld,
+    saying so (silently on Windows, which has no ``fcntl``).
 
     Raises:
         UsageError: Naming the flag and the folder another command holds.
@@ -375,8 +366,7 @@ class Distinct(argparse.Action):
 def check_fresh_output(out: Path, names: Sequence[str], what: str, flag: str = "--out") -> None:
     """Refuse a folder that already holds a run's results, before the run starts.
 
-    A long run's outputs (a sweep, an oracle run, trained weights) are never
-    written over: a rerun into the folder of a recorded result would replace it.
+    A rerun into the folder of a recorded result (a sweep, trained weights) would replace it.
 
     Raises:
         UsageError: Naming the flag, the folder and the file found.
@@ -460,16 +450,9 @@ def add_int(
     kind: Callable[[str], int] = positive_int,
     **kwargs: Any,
 ) -> None:
-    """An integer flag, read by ``kind``, whose help is ``what`` and then its default.
+    """An integer ``flag`` read by ``kind``, its help ``what`` then ``(default: N)``.
 
-    Args:
-        parser: The command's parser.
-        flag: The flag, e.g. ``--episodes``.
-        default: Its default, shown in the help as ``(default: N)``.
-        what: The help before the default.
-        kind: The argparse ``type`` (default: :data:`positive_int`); e.g.
-            :data:`episode_count` for ``--episodes``.
-        **kwargs: Passed on to ``add_argument`` (``metavar``...).
+    ``kwargs`` go on to ``add_argument`` (``metavar``...).
     """
     help_text = f"{what} (default: {default})"
     parser.add_argument(flag, type=kind, default=default, help=help_text, **kwargs)

@@ -37,10 +37,8 @@ MAX_SCALE = 16
 def _file_made_later(*suffixes: str) -> Callable[[str], Path]:
     """:func:`output_file`'s check, its folders left for :func:`_cmd_render` to make.
 
-    The command line makes an output file's missing folders before a command
-    starts; render refuses some requests only once it has made its
-    environment (too many frames for the task), and a refused run would leave
-    the empty folders behind.
+    Render refuses some requests only once it has made its environment: a
+    refused run would leave the folders the command line makes behind.
     """
     check = output_file(*suffixes)
 
