@@ -59,9 +59,8 @@ BLOCK_SIZE = (_SINE + 3 + N_ANGLES) * BLOCK
 _ROW = 3 * BLOCK
 
 
-# Not inlined by numba (its inlining of many small calls took seconds to
-# compile); LLVM inlines it. Callers pass the index ``row * _ROW + q``, not the
-# row: numba compiles a function once per literal argument it is called with.
+# Not inlined by numba (slow to compile); LLVM inlines it. Callers pass the
+# index ``row * _ROW + q``, not the row: numba compiles once per literal argument.
 @compiled()
 def _write(work: NDArray[Any], at: int, x: float, y: float, z: float) -> None:
     """A geometry row's x, y and z of one pose of a block, at ``row * _ROW + q``."""
@@ -98,8 +97,7 @@ def pose_block(
     for this many rows), so the block's inputs are copied in first; a last,
     partial block computes on whatever its columns ``m`` on hold and leaves
     them unread. A pass over many poses runs this a block at a time and uses
-    each block while it is in the cache; compiled once per dtype and called
-    by every such pass (inlined into each, it took seconds more to compile).
+    each block while it is in the cache (not inlined: slow to compile).
 
     Args:
         params: ``(25, N)`` poses (``body.PARAM_NAMES`` order by rows).

@@ -1,14 +1,11 @@
 """numba's compiler for every compiled pass of both packages, its cache kept where it can be.
 
-numba writes each compiled function to a cache (``$NUMBA_CACHE_DIR``, else
-``__pycache__`` beside the module, else ``~/.cache/numba``), so that later
-processes load it in milliseconds instead of compiling for seconds. It looks
-for that folder when a function is decorated, on import, and raises where it
-finds none that it can write: an install in a read-only image with a
-read-only home would fail on ``import humotion_gym``. :func:`compiled` then
-points numba's cache at a folder of the user's own under the system's
-temporary folder, once, with a warning naming ``NUMBA_CACHE_DIR``; where even
-that cannot be written, the functions are compiled in every process.
+numba caches each compiled function (``$NUMBA_CACHE_DIR``, else
+``__pycache__`` beside the module, else ``~/.cache/numba``), and raises on
+import where it can write none (a read-only image with a read-only home).
+:func:`compiled` then points the cache at a folder of the user's own under
+the temporary folder, once, with a warning naming ``NUMBA_CACHE_DIR``; where
+even that cannot be written, the functions are compiled in every process.
 """
 
 from __future__ import annotations
@@ -98,11 +95,8 @@ def compiled(**options: Any) -> Callable[[Callable[..., Any]], Any]:
     """``numba.njit(cache=True, nogil=True, **options)``, with a cache wherever one can be.
 
     ``nogil``: filters and environments on several threads run in parallel.
-    Where numba finds no folder it can write its cache to, the cache moves to
-    the temporary folder (:func:`_use_temporary_cache`), else is dropped.
-
-    Args:
-        **options: numba's other options (``inline``, ``error_model``...).
+    Without a writable cache folder the cache moves (:func:`_use_temporary_cache`)
+    or is dropped.
     """
 
     def decorate(function: Callable[..., Any]) -> Any:

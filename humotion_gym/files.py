@@ -31,10 +31,8 @@ def write_atomically(
     """Write a file through ``write(temporary path)`` then rename it onto ``path``.
 
     The temporary file lies in the same folder (the rename is then atomic)
-    with a hidden name unique to the call, so concurrent writers never share
-    one and a reader never sees half a file.
-    It is removed if writing fails or is interrupted. Its folder is created
-    if missing.
+    with a hidden name unique to the call, and is removed if writing fails or
+    is interrupted. The folder is created if missing.
 
     Args:
         path: The file to write.
@@ -126,10 +124,8 @@ _NPY_MAGIC = b"\x93NUMPY"
 def load_npz(fh: BinaryIO) -> np.lib.npyio.NpzFile:
     """``np.load(fh, allow_pickle=False)`` of an ``.npz`` archive; anything else refused.
 
-    numpy reads bytes that are neither a zip archive nor a ``.npy`` array as a
-    pickle, which ``allow_pickle=False`` refuses with advice to load it
-    unsafely: for a damaged file, the wrong advice. The first bytes are
-    checked here instead.
+    The first bytes are checked first: numpy would read a damaged file as a
+    pickle and advise loading it unsafely.
 
     Args:
         fh: A binary file open for reading, at the archive's start (the

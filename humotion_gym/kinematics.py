@@ -40,23 +40,11 @@ def single_pose_geometry(
     rotation: FloatArray | None = None,
     translation: FloatArray | None = None,
 ) -> FloatArray:
-    """Keypoints and cone axes of one pose, as one ``(35, 3)`` float64 array.
-
-    Rows 0-14 are the keypoints (``KEYPOINT_NAMES`` order); rows ``15 + 2 c``
-    and ``16 + 2 c`` the x (width) and y (depth) axes of cone ``c``. With
-    ``rotation`` and ``translation`` everything is given in that frame
-    (``x' = rotation @ x + translation``, the axes only rotated), e.g. a
-    camera's. Either may be left out: no rotation is the identity, no
-    translation is zero (a translation alone moves the keypoints only).
-
-    Args:
-        params: ``(25,)`` pose parameters.
-        shape: The subject's shape.
-        rotation: Optional ``(3, 3)`` rotation to another frame.
-        translation: Optional ``(3,)`` translation to another frame (mm).
+    """Keypoints and cone axes of one ``(25,)`` pose: :func:`batch_pose_geometry` of one.
 
     Returns:
-        ``(35, 3)`` keypoints then cone axes.
+        ``(35, 3)`` keypoints then cone axes, in the frame of the optional
+        ``(3, 3)`` rotation and ``(3,)`` translation (e.g. a camera's).
 
     Raises:
         ValueError: If the pose, rotation or translation has the wrong shape.

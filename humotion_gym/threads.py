@@ -2,8 +2,7 @@
 
 The hot loops (particle filtering, the priors' fits) multiply small matrices
 thousands of times. A multi-threaded BLAS spends longer waking and
-synchronising its threads than computing: on 2 shared cores a tracked frame is
-about 6 times slower, and the cyclic PCA fit about 4 times, than on one thread.
+synchronising its threads than computing.
 
 The decision:
 
@@ -60,8 +59,7 @@ def limit_blas_threads(threads: int = 1) -> bool:
 
     Raises:
         ValueError: If ``threads`` is not an integer >= 1 (threadpoolctl reads
-            0 or None as "no limit", which would leave BLAS as it was while
-            this said it applied).
+            0 or None as "no limit").
     """
     check_count("limit_blas_threads: threads", threads)
     if _chosen_by_user():
@@ -73,14 +71,9 @@ def limit_blas_threads(threads: int = 1) -> bool:
 def single_threaded_blas(unless_chosen: bool = False) -> contextlib.AbstractContextManager:
     """A context in which BLAS runs on one thread (restored on exit).
 
-    The controller (which scans the loaded libraries, a few milliseconds) is
-    made once per process.
-
     Args:
         unless_chosen: Leave BLAS as it is when the user chose its threads
-            through :data:`THREAD_ENV_VARS`, as :func:`limit_blas_threads`
-            does (so that work done here sums as in worker processes that
-            called it).
+            through :data:`THREAD_ENV_VARS`, as :func:`limit_blas_threads` does.
     """
     if unless_chosen and _chosen_by_user():
         return contextlib.nullcontext()

@@ -72,12 +72,9 @@ def _image(caller: str, what: str, value: object) -> NDArray[np.uint8]:
 
 
 def _frames(caller: str, frames: object) -> list[NDArray[np.uint8]]:
-    """``frames`` (a sequence of images, or an ``(N, H, W[, 3])`` array) checked, as a list.
+    """``frames`` (images, or an ``(N, H, W[, 3])`` array) as a list of images of one size.
 
-    Raises:
-        ValueError: Naming the first frame that is not a uint8 image of the
-            first one's size, or saying there are none.
-        TypeError: If ``frames`` is not a sequence or an array.
+    A ValueError names the first frame at fault (a TypeError: neither a sequence nor an array).
     """
     if isinstance(frames, np.ndarray):
         if frames.ndim not in (3, 4) or (frames.ndim == 3 and frames.shape[-1] == 3):
@@ -147,12 +144,11 @@ def _check_fps(fps: object) -> float:
 
 
 def _mp4_fps(fps: float) -> float:
-    """``fps`` as OpenCV can write it to an ``.mp4``.
+    """``fps`` as an ``.mp4`` holds it, where OpenCV would fail.
 
-    OpenCV counts time in steps of 1/(fps to 3 decimals, as a whole number of
-    thousandths, hundredths, ...), and MPEG-4 part 2 takes no more than 65535
-    steps a second: above 65.535 fps the rate is rounded to the finest decimal
-    that fits (2 decimals up to 655.35 fps), where OpenCV would fail.
+    MPEG-4 part 2 counts at most 65535 time steps a second, and OpenCV's step
+    is the rate's last decimal: 3 decimals, rounded to 2 above 65.535 fps and
+    to 1 above 655.35.
     """
     if fps * 1000 <= 65535:
         return fps
