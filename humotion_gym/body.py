@@ -670,16 +670,7 @@ def forward_kinematics(params: ArrayLike, shape: BodyShape) -> FloatArray:
 
 
 def cone_geometry(params: ArrayLike, shape: BodyShape) -> ConeGeometry:
-    """Keypoints, cone end points and cone frames, batched over leading axes.
-
-    Args:
-        params: ``(..., 25)`` pose parameters.
-        shape: The subject's shape.
-
-    Returns:
-        The :class:`ConeGeometry` of the poses (each cone's frame is right
-        handed: its z axis is the cross product of its x and y axes).
-    """
+    """The :class:`ConeGeometry` of ``(..., 25)`` poses (each cone's frame right handed)."""
     geometry = pose_geometry(params, shape)
     keypoints = geometry[..., :N_KEYPOINTS, :]
     axes = geometry[..., N_KEYPOINTS:, :].reshape(geometry.shape[:-2] + (N_CONES, 2, 3))

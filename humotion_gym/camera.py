@@ -252,14 +252,7 @@ class Camera:
     # -- projection -------------------------------------------------------
 
     def to_camera(self, points: ArrayLike) -> FloatArray:
-        """World points to camera coordinates.
-
-        Args:
-            points: ``(..., 3)`` world points, mm.
-
-        Returns:
-            ``(..., 3)`` camera-frame points, mm.
-        """
+        """``(..., 3)`` world points (mm) in camera coordinates (mm)."""
         p = _check_points(points, "Camera.to_camera")
         return (p - self.position) @ self.rotation.T
 
@@ -269,15 +262,7 @@ class Camera:
         return (p - self.position) @ self.rotation[2]
 
     def project(self, points: ArrayLike) -> FloatArray:
-        """Project world points to pixel coordinates.
-
-        Args:
-            points: ``(..., 3)`` world points, mm.
-
-        Returns:
-            ``(..., 2)`` pixel coordinates ``(u, v)``. Points at or behind the
-            camera centre (depth <= 0) get ``nan``.
-        """
+        """``(..., 3)`` world points (mm) as ``(..., 2)`` pixels ``(u, v)``; NaN at depth <= 0."""
         cam = self.to_camera(points)
         z = cam[..., 2]
         inv = np.full(z.shape, np.nan)
@@ -289,13 +274,7 @@ class Camera:
         return out
 
     def pixels_per_mm(self, depth: ArrayLike) -> FloatArray:
-        """Image size in pixels of 1 mm seen fronto-parallel at the given depth.
-
-        Args:
-            depth: Camera-space depth(s) in mm (positive).
-
-        Returns:
-            ``focal / depth``, the same shape as ``depth``.
+        """``focal / depth``: pixels of 1 mm seen fronto-parallel at camera-space ``depth`` (mm).
 
         Raises:
             ValueError: If a depth is not positive.

@@ -76,25 +76,16 @@ __all__ = [
 ]
 
 _SHIFT = 4  # fixed-point bits for sub-pixel polygon vertices
-
-_MAX_THICKNESS = 32767  # OpenCV's largest line thickness
-
 _ONE = float(1 << _SHIFT)
+_MAX_THICKNESS = 32767  # OpenCV's largest line thickness
 #: The skeleton's edges as rows of keypoint pairs (one fancy index draws them all).
 _EDGES = np.array(body.SKELETON_EDGES, np.intp).reshape(-1, 2)
-
 _NEAR_MM = 1.0  # cones with an end closer to the camera plane are not drawn
-
 _FAR_PX = 1e6  # projected coordinates are clipped to +-1e6 pixels
-
-_CONE_ROWS = np.asarray(CONE_KEYPOINTS)  # rows of each cone's start and end keypoints
-
 # Cones narrower than this (silhouette half-width in pixels at both ends) are
 # drawn in one flat shade: strips of less than a pixel would not show.
 _STRIP_MIN_HALF_WIDTH_PX = 3.0
-
-# Frames prepared per call by figure_sequences (see there).
-_CHUNK_FRAMES = 64
+_CHUNK_FRAMES = 64  # frames prepared per call by figure_sequences
 
 
 def _check_camera(camera: Camera, scene: SceneOptions, where: str) -> None:
@@ -127,7 +118,7 @@ def _figure_polygons(
     intrinsics = np.array([fx, cx * _ONE, cy * _ONE, _NEAR_MM, _FAR_PX * _ONE])
     lighting = np.array([scene.ambient, scene.diffuse, _STRIP_MIN_HALF_WIDTH_PX * _ONE])
     _compiled.figure_polygons(
-        np.ascontiguousarray(geometry, np.float64), _CONE_ROWS, shape.radii, shape.aspect,
+        np.ascontiguousarray(geometry, np.float64), CONE_KEYPOINTS, shape.radii, shape.aspect,
         const["ring"], intrinsics, const["edges"], const["light"], const["shading"],
         const["base"], lighting, ellipses, quads, colors, order, counts, wide,
     )  # fmt: skip

@@ -33,9 +33,7 @@ from humotion_gym.checks import is_count, is_integer, is_real
 Color = tuple[int, int, int]
 
 _SHIRT: Color = (170, 40, 40)
-
 _SKIN: Color = (230, 180, 150)
-
 _TROUSERS: Color = (40, 55, 120)
 
 #: Default colour (RGB) of each cone, in ``body.CONE_NAMES`` order: a red shirt,
@@ -94,18 +92,14 @@ FIGURE_PALETTES: dict[str, tuple[Color, ...]] = {
 
 #: RGB colour of the floor's grid lines: darker than the wall, lighter than the clothes.
 FLOOR_COLOR: Color = (112, 112, 108)
-
 #: Spacing of the floor's grid lines (mm): half a metre, a large tile.
 FLOOR_SPACING_MM = 500.0
-
 #: The floor is drawn within this distance (mm) of the point under the camera:
 #: farther lines would crowd the horizon.
 FLOOR_RADIUS_MM = 10000.0
-
 #: Floor lines are cut where they come nearer than this (mm) to the camera
 #: plane, so their projections stay finite.
 FLOOR_NEAR_MM = 100.0
-
 #: The smallest and the largest frame, ``(width, height)`` in pixels.
 MIN_IMAGE_SIZE = (64, 64)
 MAX_IMAGE_SIZE = (640, 480)
@@ -114,16 +108,13 @@ SCENE_MAXIMA: dict[str, float] = {
     "clutter_density": 16.0, "noise_sigma": 255.0, "blur_sigma": 64.0, "ambient": 1.0,
     "diffuse": 1.0, "occluders": 64, "shading_strips": 16,
 }  # fmt: skip
-
 _ELLIPSE_POINTS = 12
-
 _UNIT_CIRCLE = np.stack(
     [
         np.cos(2 * np.pi * np.arange(_ELLIPSE_POINTS) / _ELLIPSE_POINTS),
         np.sin(2 * np.pi * np.arange(_ELLIPSE_POINTS) / _ELLIPSE_POINTS),
     ]
 )  # (2, K)
-
 _LUMA = np.array([0.299, 0.587, 0.114])  # ITU-R BT.601, as cv2.cvtColor
 
 
