@@ -375,9 +375,6 @@ def default_shape(height: float = 1750.0) -> BodyShape:
     Args:
         height: Standing height (ankle to head top plus the ankle height) in mm.
 
-    Returns:
-        The shape.
-
     Raises:
         ValueError: If ``height`` is not a positive finite number.
     """
@@ -552,12 +549,7 @@ def kinematics_inputs(
     """The kinematics kernels' inputs in ``dtype`` from ``(N, 25)`` poses, ``(M, 24)`` shapes.
 
     Both compiled kinematics passes take them: :func:`humotion_gym.kinematics.pose_block`
-    and the kernel behind :func:`pose_geometry`.
-
-    Args:
-        params: ``(N, 25)`` poses.
-        shapes: ``(M, 24)`` shape tables (:func:`shape_table`).
-        dtype: ``np.float64`` or ``np.float32``.
+    and the kernel behind :func:`pose_geometry`; ``shapes`` are :func:`shape_table`'s.
 
     Returns:
         The poses as ``(25, N)`` rows, the cosines and the sines of their angles

@@ -159,9 +159,6 @@ class Camera:
             fov_deg: Vertical field of view in degrees.
             up: The world direction that should point up in the image.
 
-        Returns:
-            The camera.
-
         Raises:
             ValueError: If ``eye``, ``target`` or ``up`` is not 3 numbers,
                 ``eye == target``, the size is not two integers >= 2, the field
@@ -351,19 +348,13 @@ def _check_points(points: ArrayLike, where: str) -> FloatArray:
 
 
 def view_direction(azimuth_deg: float, elevation_deg: float) -> FloatArray:
-    """Unit vector from the target to the camera for an azimuth and elevation.
+    """``(3,)`` unit vector from the target to the camera for an azimuth and elevation (degrees).
 
     Azimuth 0 puts the camera on the ``+y`` side of the target, so it sees the
     front of a subject at heading 0 (who faces ``+y``); positive azimuth turns the
     camera counter-clockwise seen from above (90 degrees: on the ``-x`` side, the
-    subject's left). Elevation raises the camera above the horizontal plane.
-
-    Args:
-        azimuth_deg: Azimuth in degrees.
-        elevation_deg: Elevation in degrees, in [-90, 90].
-
-    Returns:
-        ``(3,)`` unit vector.
+    subject's left). Elevation, in [-90, 90], raises the camera above the
+    horizontal plane.
     """
     az, el = math.radians(azimuth_deg), math.radians(elevation_deg)
     return np.array([-math.sin(az) * math.cos(el), math.cos(az) * math.cos(el), math.sin(el)])
@@ -404,9 +395,6 @@ def fit_camera(
         min_distance_mm: The camera never stands closer to the target than this
             (finite, > 0).
 
-    Returns:
-        The camera.
-
     Raises:
         ValueError: Naming the argument, for a size under 2x2, a field of view,
             margin, elevation, azimuth, pad or distance out of range or not a
@@ -445,19 +433,10 @@ def fit_cameras(
 ) -> list[Camera]:
     """:func:`fit_camera` of several sets of points at once: the same cameras, bit for bit.
 
-    The vector environment fits the cameras of the episodes it starts in one call.
-
-    Args:
-        points: ``(E, M, 3)`` E sets of M points to keep in view, mm.
-        width: Image width in pixels.
-        height: Image height in pixels.
-        fov_deg: Vertical field of view in degrees, in (1, 179).
-        azimuths_deg: ``(E,)`` each set's viewing azimuth (or one for all).
-        elevation_deg: Viewing elevation in degrees, in [-89, 89].
-        margin: Fraction of the image's half-size left free at each border, in
-            [0, 0.9].
-        pads_mm: ``(E,)`` each set's pad radius, mm (>= 0), or one for all.
-        min_distance_mm: The cameras never stand closer to their targets than this.
+    ``points`` holds E sets of M points, ``(E, M, 3)`` in mm; ``azimuths_deg``
+    and ``pads_mm`` give each set's azimuth and pad (or one for all); the other
+    arguments are :func:`fit_camera`'s. The vector environment fits the cameras
+    of the episodes it starts in one call.
 
     Returns:
         E cameras, the ``j``-th ``fit_camera(points[j], ..., azimuths_deg[j],
