@@ -190,9 +190,7 @@ def _writable_folder(folder: Path) -> str | None:
 class OutputFile(type(Path())):  # type: ignore[misc]
     """A file a command will write, checked by :func:`output_file` when parsed.
 
-    The command line creates its missing folders (:func:`make_output_folders`)
-    after every argument has parsed and before the command starts, so that a
-    long job never ends in a folder that is not there.
+    Its missing folders are made before the command starts (:func:`make_output_folders`).
     """
 
 
@@ -342,10 +340,9 @@ def output_dir(text: str) -> Path:
 
 
 def shared_output_dir(text: str) -> Path:
-    """:func:`output_dir`, for a folder other commands may write their own files into meanwhile.
+    """:func:`output_dir`, not held: other commands may write their own files into it meanwhile.
 
-    Not held while the command runs (``train --export``: two trainings put
-    their policies into one folder of checkpoints, each under its own name).
+    E.g. ``train --export``: trainings put their policies into one folder, each under its name.
     """
     return Path(output_dir(text))
 

@@ -27,9 +27,8 @@ from humotion_gym.cli._common import (
     refused_as,
     wrote,
 )
+from humotion_gym.video import VIDEO_SUFFIXES
 
-#: Video suffixes OpenCV writes here.
-VIDEO_SUFFIXES = (".mp4", ".avi")
 #: The largest pixel scale of the video.
 MAX_SCALE = 16
 
