@@ -396,9 +396,7 @@ def fit_camera(
             (finite, > 0).
 
     Raises:
-        ValueError: Naming the argument, for a size under 2x2, a field of view,
-            margin, elevation, azimuth, pad or distance out of range or not a
-            finite number, or points that are not all finite.
+        ValueError: Naming the argument, for one that is not as described above.
     """
     _check_size(width, height, fov_deg, "fit_camera")
     pts = _check_points(keypoints, "fit_camera").reshape(-1, 3)

@@ -594,10 +594,8 @@ def draw_pose_overlay(
         frames are converted to three channels so the colour shows).
 
     Raises:
-        ValueError: Naming the argument, for a frame that is not a uint8 image,
-            a camera made for another frame size, a malformed pose or
-            keypoints, a colour that is not three integers in [0, 255] or a
-            thickness that is not an integer in [1, 32767].
+        ValueError: Naming the argument, for one that is not as described
+            above (the camera: made for another frame size).
     """
     img = np.asarray(frame)
     if img.ndim == 3 and img.shape[2] == 1:

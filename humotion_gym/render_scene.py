@@ -388,15 +388,6 @@ class ClutterPlan(NamedTuple):
     lines: NDArray[np.float64]
 
 
-def _clutter_sizes(h: int, w: int, density: float) -> tuple[int, float, float, int]:
-    """The short side, the mean numbers of shapes and of lines, and the lines' thickness unit."""
-    size = min(h, w)
-    # Shapes are sized relative to the short side, so their number grows with
-    # the aspect ratio only: the clutter covers the same fraction at any size.
-    area = (h * w) / float(size * size)
-    return size, 8.0 * density * area, 4.0 * density * area, max(1, size // 128)
-
-
 def _clutter_box(kind: int, geometry: list[int], cx: float, cy: float) -> tuple[float, ...]:
     """A clutter shape's bounding box ``(lo_x, lo_y, hi_x, hi_y)`` from its plan geometry."""
     if kind == 0:
@@ -413,9 +404,12 @@ def _clutter_plan(rng: np.random.Generator, h: int, w: int, density: float) -> C
 
     A draw is made for a shape whether its kind uses it or not.
     """
-    size, shape_rate, line_rate, unit = _clutter_sizes(h, w, density)
-    n_shapes = int(rng.poisson(shape_rate))
-    n_lines = int(rng.poisson(line_rate))
+    size = min(h, w)
+    # Shapes are sized relative to the short side, so their number grows with
+    # the aspect ratio only: the clutter covers the same fraction at any size.
+    area = (h * w) / float(size * size)
+    n_shapes = int(rng.poisson(8.0 * density * area))
+    n_lines = int(rng.poisson(4.0 * density * area))
     kinds = rng.integers(0, 3, n_shapes).tolist()
     centres = (rng.uniform(-0.1, 1.1, (n_shapes, 2)) * (w, h)).tolist()
     half_axes = (rng.uniform(0.05, 0.3, (n_shapes, 2)) * size).tolist()
@@ -456,7 +450,7 @@ def _clutter_plan(rng: np.random.Generator, h: int, w: int, density: float) -> C
     lines[:, 2:4] = rng.normal(size=(n_lines, 2))
     lines[:, 4] = rng.uniform(0.2, 1.0, n_lines) * size
     lines[:, 5:8] = rng.uniform(20, 240, (n_lines, 3))
-    lines[:, 8] = rng.integers(1, 3, n_lines) * unit
+    lines[:, 8] = rng.integers(1, 3, n_lines) * max(1, size // 128)  # thickness
     return ClutterPlan(shapes, floats, lines)
 
 
