@@ -112,8 +112,8 @@ def whole_body_likelihood(task: str) -> str:
     (``coverage_weight={settings["coverage_weight"]:g}``,
     ``coverage_points={settings["coverage_points"]}``: foreground the cones
     leave uncovered costs), chosen by cross-validation on training persons
-    (``humotion-gym select``; the commands and numbers are beside the
-    settings in ``humotion_gym/envs/tasks.py``).
+    (``humotion-gym select``; the commands are beside the settings in
+    ``humotion_gym/envs/tasks.py``).
     Agents pass ``GivenBody(..., backdrop=model.read_backdrop(
     first_frame, initial_pose, shape, camera))`` to ``model.prepare``.
 """

@@ -193,11 +193,8 @@ _WALK = ("walk",)
 _WALK_RUN = ("walk", "run")
 
 # Framing from the first frame (``CameraSpec.travel_mm``: back, forward, right,
-# left, down, up in mm). The boxes cover the root's travel over an episode in
-# most training episodes (measured on the training split): BodyTrack's 30
-# frames of mixed activity, about the 75th
-# percentile of forward travel (1.5 m; runs and dashes go further and leave
-# the frame in part); WalkTrack's 60 frames of walking, about the 80th (2.8 m).
+# left, down, up in mm): the root's travel in most training episodes (the
+# percentiles are on the tasks' pages; runs and dashes go further).
 BODY_TRAVEL_MM = (300.0, 1500.0, 300.0, 300.0, 200.0, 300.0)
 WALK_TRAVEL_MM = (0.0, 2800.0, 300.0, 300.0, 100.0, 100.0)
 # SideWalk's camera pans with the pelvis (the root is given); the box is the
@@ -210,27 +207,13 @@ ARM_MIN_MOTION_MM = 150.0
 # likelihood's scale (each cone one observation) leaves the arm's weights nearly
 # flat, and its foreground term rewards an arm laid over the torso. Chosen by
 # cross-validation on training persons (pf-tree, 300 particles, 20 episodes of
-# CMU subjects 1, 5 and 7, priors fitted on the Bandai-Namco clips):
-# ``humotion-gym select --task ArmTrack-v1 --grid sharpness=1,2,3
-# foreground_weight=0,0.5 orientation_bins=4,8 --data-dir ../shared/mocap`` gave
-# 158 mm for sharpness 3, no foreground term, 8 orientation bins, against 200 mm
-# for the shared defaults (hold: 217 mm); sharpness 5 and 8 gave 173 and 177 mm.
-# Then the two terms that use the given body (ObservationModel.residual_weight:
-# edges the given body leaves must lie on the arm's outline; appearance_weight:
-# the arm's axis on its own colour, read at the first frame), the same way:
-# ``humotion-gym select --task ArmTrack-v1 --grid appearance_weight=0,1,3
-# residual_weight=0,1 --data-dir ../shared/mocap`` gave 149 mm for both at 1,
-# 152 for appearance alone, 163 for residual edges alone, 160 for neither, 169-171
-# at appearance 3 (hold: 217 mm).
-# Then the backdrop read at the first frame (ObservationModel.backdrop; on
-# ArmTrack its effect is the clutter edges it drops, as the arm's axis points
-# read the appearance maps, not the foreground), the same way:
-# ``humotion-gym select --task ArmTrack-v1 --grid backdrop=0,1
-# foreground_weight=0,0.5 --data-dir ../shared/mocap`` gave 144.1 mm with it
-# against 149.7 without (foreground weight no change); ``--grid backdrop=1
-# coverage_weight=0,1,2,4,8`` 144.1 mm without the coverage term and 154-178
-# with it; ``--grid backdrop=1 appearance_weight=0,1 foreground_weight=0.5,1
-# backdrop_reach=2,5`` 146.6-154.0 (hold: 217.2 mm).
+# CMU subjects 1, 5 and 7) in three rounds of ``humotion-gym select --task
+# ArmTrack-v1 --data-dir ../shared/mocap``: ``--grid sharpness=1,2,3
+# foreground_weight=0,0.5 orientation_bins=4,8``; then the two terms that use the
+# given body (residual edges on the arm's outline, the arm's axis on its colour),
+# ``--grid appearance_weight=0,1,3 residual_weight=0,1``; then the backdrop
+# (here its effect is the clutter edges it drops), ``--grid backdrop=0,1
+# foreground_weight=0,0.5``.
 ARM_OBSERVATION: tuple[tuple[str, float | int | bool], ...] = (
     ("sharpness", 3.0),
     ("foreground_weight", 0.0),
@@ -240,81 +223,11 @@ ARM_OBSERVATION: tuple[tuple[str, float | int | bool], ...] = (
     ("backdrop", True),
 )
 # The whole-body tasks: the backdrop and the coverage term (foreground pixels
-# of the known backdrop that no cone covers cost; ObservationModel.
-# coverage_weight), chosen on training persons (pf-tree, 300 particles, 20
-# episodes of CMU subjects 1, 5 and 7). First ``humotion-gym select --task TASK
-# --grid backdrop=0,1 --data-dir ../shared/mocap``: without the backdrop / with
-# it, BodyTrack 235.4 / 234.2 mm (hold 653.8), WalkTrack 514.9 / 451.2 (hold
-# 1730.5), SideWalk 146.9 / 141.7 (hold 229.1). Then the coverage term (time
-# grows with its points): ``--grid backdrop=1 coverage_weight=0,1,2,4
-# coverage_points=32,64``, weight 0 / 1 / 2 / 4 at 32 points, then at 64:
-# BodyTrack 234.2 / 224.3 / 225.3 / 215.6, 234.2 / 231.4 / 221.7 / 219.4;
-# WalkTrack 451.2 / 448.0 / 427.8 / 419.6, 451.2 / 467.8 / 418.2 / 442.5;
-# SideWalk 141.7 / 110.5 / 104.9 / 118.7, 141.7 / 121.6 / 103.6 / 113.6. The
-# lowest of each task chosen; neighbouring settings differ by 5-15 mm, about
-# what 20 episodes resolve. Tried and not kept: learning, frame by frame, the
-# backdrop the figure uncovers (pixels outside the estimate's silhouette grown
-# by 4-16 px that did not change since the last frame): pf-tree on the
-# validation persons, without / with (margin 4, 8, 16): WalkTrack 418.2 / 448.4,
-# 426.1, 418.2; BodyTrack 215.6 / 225.7, 213.8, 216.9; SideWalk 103.6 / 106.9
-# (margin 4); ArmTrack 144.1 / 149.8 (margin 4).
-# Tried and not kept: the floor term (ObservationModel.floor_below_mm,
-# floor_above_mm: the lowest ankle keeps near its height in the given first
-# pose), against the depth the image barely shows (``humotion-gym
-# discrimination``: over +-400 mm along the camera ray the true pose's
-# log-likelihood spans about 1 nat). Rule declared before the runs: kept on a
-# task where it lowers the validation mean error by more than 5% at 60
-# episodes. ``humotion-gym select --task BodyTrack-v1 --grid
-# floor_below_mm=inf,4,8 floor_above_mm=inf,15,25 --episodes 60 --data-dir
-# ../shared/mocap``: 246.6 mm without it, 244.6-263.8 with it (hold 597.0); on
-# WalkTrack (``--grid floor_below_mm=inf,4,8,20 floor_above_mm=inf,60``) 383.0
-# without, 352.6 with floor_below_mm=4 alone (353-363 for 4-20 below only, 357-400
-# with a limit above; hold 1632.1), but the same setting made pf-cv (174.7 ->
-# 183.8) and pf-mix (192.3 -> 207.7) worse (``--agent pf-cv --grid
-# floor_below_mm=inf,4 --episodes 60``): not kept.
-# Tried and not kept: the renderer's fill in the model (ObservationModel.
-# raster_pad_px = 0.5: cv2.fillConvexPoly paints every pixel a cone's outline
-# crosses, so drawn cones are 0.48 px wider per side than their projection, and
-# without the pad the model leans towards the camera: on BodyTrack's test frames
-# the truth slid along the camera ray peaks 151 mm in front of it, 22 mm behind
-# it with the pad). Rule declared before the runs: the default where, at 60
-# validation episodes, it lowers the mean error of most of the eight
-# task/agent pairs below and raises none by more than 5%. ``humotion-gym select
-# --task TASK --agent AGENT --grid raster_pad_px=0,0.5 --episodes 60
-# --data-dir ../shared/mocap``, without / with: BodyTrack pf-tree 246.6 /
-# 249.9, pf-cv 198.3 / 198.6, pf-mix 194.4 / 190.3; WalkTrack pf-tree 383.0 /
-# 413.4, pf-cv 174.7 / 175.6, pf-mix 192.3 / 192.3; ArmTrack pf-tree 157.6 /
-# 151.3; SideWalk pf-tree 99.1 / 110.1: not kept. A centred depth profile does
-# not track better: what limits depth is how little the image shows of it, not
-# which way the model leans. Nor does the pad hold still persons (rule declared
-# before the run: each of pf-cv's and pf-tree's still-episode errors down by a
-# quarter, no ordinary error up by more than 5%): ``--task BodyTrack-v1 --agent
-# AGENT --grid raster_pad_px=0,0.5 --still 11``, ordinary and still mm without /
-# with, pf-cv 167.2 and 108.2 / 175.4 and 100.0, pf-tree 184.5 and 134.0 / 175.9
-# and 132.7 (hold 653.8 and 11.6). Nor is the depth the model barely sees a
-# matter of reading the cost maps at the nearest pixel: a prototype reading them
-# bilinearly (each point the four pixels around it, weighted) left the depth
-# profile as it was (``experiments.discrimination.likelihood_depth_profile``,
-# what ``humotion-gym discrimination`` reports, on 10 episodes of the validation
-# persons; contrast over +-400 mm and highest point, nearest / bilinear: BodyTrack
-# 1.22 nats, 171 mm in front / 1.06, 178; WalkTrack 1.16, 196 / 1.00, 222), at
-# four lookups a point instead of one: not added.
-# Tried and not kept: another likelihood temperature (ObservationModel.sharpness;
-# 1 on these tasks had been set from a truth-centred cloud, never by tracking).
-# Rule declared before the runs: a task's default changes to a value where, at
-# 60 validation episodes, at least three of pf-cv, pf-tree, pf-tree-vel and
-# pf-mix lower their mean error by more than 5% against 1 and none raises it by
-# more than 5%. ``humotion-gym select --task TASK --agent AGENT --grid
-# sharpness=0.3,0.5,1,2 --episodes 60 --data-dir ../shared/mocap``, mm at 0.3 /
-# 0.5 / 1 / 2: BodyTrack pf-cv 208.1 / 204.3 / 198.3 / 217.5, pf-tree 231.5 /
-# 233.2 / 229.7 / 247.2, pf-tree-vel 217.1 / 204.5 / 197.6 / 212.0, pf-mix 208.6
-# / 200.7 / 194.4 / 197.9 (hold 597.0); WalkTrack pf-cv 216.7 / 191.5 / 174.7 /
-# 172.2, pf-tree 168.6 / 155.5 / 140.8 / 166.1, pf-tree-vel 132.4 / 133.0 /
-# 123.8 / 128.4, pf-mix 209.0 / 202.7 / 181.6 / 163.2 (hold 1,632.1); SideWalk
-# pf-cv 154.8 / 153.2 / 142.0 / 139.2, pf-tree 68.0 / 60.2 / 51.0 / 50.0,
-# pf-tree-vel 51.1 / 48.3 / 44.7 / 46.3, pf-mix 120.1 / 107.2 / 92.8 / 95.0
-# (hold 215.2). 1 is best or within 3% of the best for every agent but
-# WalkTrack's pf-mix (-10% at 2, where pf-tree rises 18%): 1 stays.
+# of the known backdrop that no cone covers cost), chosen the same way with
+# ``humotion-gym select --task TASK --grid backdrop=0,1``, then ``--grid
+# backdrop=1 coverage_weight=0,1,2,4 coverage_points=32,64`` (each task's lowest).
+# Tried and not kept (a floor term, the renderer's half pixel in the model,
+# other temperatures): docs/experiments.md and docs/priors.md.
 BODY_OBSERVATION: tuple[tuple[str, float | int | bool], ...] = (
     ("backdrop", True),
     ("coverage_weight", 4.0),
@@ -397,25 +310,14 @@ SIDE_WALK = TaskSpec(
 )
 
 #: The whole-body tasks' look in version 2, chosen on the validation persons
-#: (CMU 1, 5, 7; pf-mix, 300 particles, 80 episodes x 3 agent seeds each;
-#: docs/v2_limbs.md, ``benchmarks/v2_limbs.py``): upper arms shaded apart from
-#: the torso (dark green sleeves) and a camera raised 30 degrees more. Against
-#: v1's look the two lowered pf-mix's mean error by 11.6 mm on BodyTrack
-#: (95% interval over clips 4.3-18.8) and 28.9 mm on WalkTrack (14.0-49.4).
-#: A floor grid changed nothing (+1.2 and +0.4 mm), a tighter margin helped
-#: BodyTrack and hurt WalkTrack: neither is kept. Not measured on ArmTrack and
-#: SideWalk, which keep v1's look.
+#: (docs/v2_limbs.md, ``benchmarks/v2_limbs.py``): upper arms shaded apart from
+#: the torso (dark green sleeves) and a camera raised 30 degrees more. ArmTrack
+#: and SideWalk keep v1's look.
 V2_SCENE: tuple[tuple[str, Any], ...] = (("palette", "shaded"),)
 V2_ELEVATION_DEG = 40.0
 
-#: The benchmark's current tasks (version 2). What changed from version 1:
-#: the observation is a ``Dict`` holding every input an agent may use (the
-#: frame, the initial pose, the given parameters, the camera, the shape) and
-#: ``info`` holds scores and diagnostics only; ``gym.make`` draws training
-#: persons by default; ArmTrack no longer keeps only starts where the arm
-#: moves (its test episodes are the declared list of
-#: :mod:`humotion_gym.envs.episodes`, and its ``hold`` floor does not depend on
-#: a selection of moving arms).
+#: The benchmark's current tasks (version 2; what changed: each task's page,
+#: ``## Version History``). ArmTrack-v2 keeps every start.
 CURRENT_TASKS: tuple[TaskSpec, ...] = (
     replace(ARM_TRACK, name="ArmTrack-v2", min_motion_mm=0.0),
     *(
