@@ -72,18 +72,27 @@ def _check_natural(name: str, value: Any) -> None:
     check_count(name, value, least=0)
 
 
-def action_array(action: Any, what: str, shape: tuple[int, ...]) -> NDArray[Any]:
-    """``np.asarray(action)``, with a ragged nested sequence refused in the env's words.
+def checked_action(action: Any, what: str, shape: tuple[int, ...], free: Any) -> NDArray[Any]:
+    """``np.asarray(action)``, refused in the env's words unless real, finite and of ``shape``.
 
     Raises:
-        ValueError: Naming ``what`` and the expected ``shape``.
+        ValueError: Naming ``what``, the expected ``shape`` and the ``free`` parameters.
     """
     try:
-        return np.asarray(action)
+        raw = np.asarray(action)
     except ValueError:
         raise ValueError(
             f"{what} must be an array of shape {shape}, got a ragged sequence"
         ) from None
+    if raw.dtype.kind not in "iuf":
+        raise ValueError(f"{what} must hold real numbers, got dtype {raw.dtype}")
+    if raw.shape != shape:
+        raise ValueError(
+            f"{what} must have shape {shape} (the free parameters {list(free)}), got {raw.shape}"
+        )
+    if not np.isfinite(raw).all():
+        raise ValueError(f"{what} must be finite, got {raw.tolist()}")
+    return raw
 
 
 def episode_seeds(seed: Any, n: int) -> list[int | None]:

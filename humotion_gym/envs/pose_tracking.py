@@ -25,7 +25,7 @@ from humotion_gym.camera import Camera
 from humotion_gym.checks import check_count, check_positive, is_real
 from humotion_gym.envs import description
 from humotion_gym.envs._cameras import EpisodeCameras
-from humotion_gym.envs._checks import action_array, check_env_arguments
+from humotion_gym.envs._checks import check_env_arguments, checked_action
 from humotion_gym.envs._episode_choice import EpisodeChoice
 from humotion_gym.envs.description import TaskDescription
 from humotion_gym.envs.tasks import TaskSpec, get_task
@@ -649,7 +649,9 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         """
         if self._motion is None:
             raise RuntimeError("step() called before reset()")
-        a = self._checked_action(action)
+        a = checked_action(
+            action, f"{self.task.name}: action", self.action_space.shape, self.task.free
+        ).astype(np.float64)
         if self._done:
             return self._after_end()
         estimate = self.action_to_pose(a, self._truth())
@@ -674,23 +676,6 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         info = self._info()
         info.update(_scored_info(scores, bool(lost)))
         return obs, float(scores.reward), terminated, truncated, info
-
-    def _checked_action(self, action: NDArray) -> FloatArray:
-        """The action as float64, refused with a clear ``ValueError`` when malformed."""
-        raw = action_array(action, f"{self.task.name}: action", self.action_space.shape)
-        if raw.dtype.kind not in "iuf":
-            raise ValueError(
-                f"{self.task.name}: action must hold real numbers, got dtype {raw.dtype}"
-            )
-        a = raw.astype(np.float64)
-        if a.shape != self.action_space.shape:
-            raise ValueError(
-                f"{self.task.name}: action must have shape {self.action_space.shape} "
-                f"(the free parameters {list(self.task.free)}), got {a.shape}"
-            )
-        if not np.isfinite(a).all():
-            raise ValueError(f"{self.task.name}: action must be finite, got {a.tolist()}")
-        return a
 
     def _scores(self, estimate_keypoints: FloatArray, truth_keypoints: FloatArray) -> StepScores:
         """The step's errors and reward (:func:`~humotion_gym.metrics.step_scores`)."""

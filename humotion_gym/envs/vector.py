@@ -61,7 +61,7 @@ from humotion_gym.envs._batch_info import (
     _item,
 )
 from humotion_gym.envs._cameras import place_cameras
-from humotion_gym.envs._checks import action_array, episode_seeds
+from humotion_gym.envs._checks import checked_action, episode_seeds
 from humotion_gym.envs.description import action_to_pose
 from humotion_gym.envs.frame_stream import FrameStream, episode_marks, twin_seeds
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv, _scored_info
@@ -526,16 +526,9 @@ class PoseTrackingVectorEnv(VectorEnv):
             self._all_started = bool(self._started.all())
             if not self._all_started:
                 raise RuntimeError("step() called before reset()")
-        raw = action_array(actions, f"{self.task.name}: actions", self._action_shape)
-        if raw.dtype.kind not in "iuf":
-            raise ValueError(f"{self.task.name}: actions must hold real numbers, got {raw.dtype}")
-        if raw.shape != self._action_shape:
-            raise ValueError(
-                f"{self.task.name}: actions must have shape {self._action_shape}, got {raw.shape}"
-            )
-        if not np.isfinite(raw).all():
-            raise ValueError(f"{self.task.name}: actions must be finite")
-        return raw
+        return checked_action(
+            actions, f"{self.task.name}: actions", self._action_shape, self.task.free
+        )
 
     def _score(
         self, raw: NDArray[Any]
