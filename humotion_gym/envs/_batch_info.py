@@ -64,12 +64,10 @@ def _add_step_info(
 
 
 def _add_infos(infos: dict[str, Any], rows: list[int], items: list[dict[str, Any]], n: int) -> None:
-    """:func:`_add_info` of ``items[j]`` for episode ``rows[j]``, in order, key by key.
+    """:func:`_add_info` of ``items[j]`` for episode ``rows[j]``, in order.
 
-    The episodes a step starts give infos with the same keys; each key's
-    array and mask are then looked up once for all of them (a tenth of an
-    episode's start, done one info at a time). Infos with other keys, or
-    with nested ones, go one at a time.
+    Infos with the same flat keys (the episodes a step starts) are added key by
+    key, each key's array and mask looked up once; others go one at a time.
     """
     if not items:
         return

@@ -9,6 +9,7 @@ around it.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from typing import Any
 
@@ -23,12 +24,9 @@ from humotion_gym.mocap.motion import Motion
 FloatArray = NDArray[np.float64]
 
 
-def _sphere(radius: float, n: int = 26) -> FloatArray:
+def _sphere(radius: float) -> FloatArray:
     """Points on a sphere (the 26 directions of a cube's faces, edges, corners)."""
-    grid = np.stack(np.meshgrid(*[np.array([-1.0, 0.0, 1.0])] * 3, indexing="ij"), -1).reshape(
-        -1, 3
-    )
-    grid = grid[np.any(grid != 0, axis=1)][:n]
+    grid = np.array([d for d in itertools.product((-1.0, 0.0, 1.0), repeat=3) if any(d)])
     return radius * grid / np.linalg.norm(grid, axis=1, keepdims=True)
 
 
@@ -60,16 +58,11 @@ class EpisodeCameras:
     def _place_camera(self) -> None:
         """Cameras for every frame of the episode, from the first frame only.
 
-        The camera is handed to the agent, so it may depend on the episode up
-        to the frame on show and nothing later (a camera fitted to the whole
-        episode tells where the body will go). A static camera frames the
-        initial pose swept through the task's travel box, oriented by the
-        initial heading; a following camera frames the initial pose about the
-        followed point (or the arm's reach) and moves with that point, which
-        the task gives the agent anyway. With several views the task's camera
-        is view 0, the others turned about the vertical through the point it
-        looks at (:func:`~humotion_gym.camera.cameras_around`), placed from
-        the same first frame and moving with the same followed point.
+        The camera is handed to the agent, so nothing after the frame on show
+        may place it (:class:`~humotion_gym.envs.tasks.CameraSpec`'s rules).
+        With several views the task's camera is view 0, the others turned
+        about the vertical through the point it looks at
+        (:func:`~humotion_gym.camera.cameras_around`).
         """
         place_cameras([self])
 
@@ -87,11 +80,8 @@ class EpisodeCameras:
         assert m is not None
         idx = self._t0 + np.arange(self.episode_frames + 1) * self.frame_skip
         self._episode_params = m.params[idx]
-        # Keypoints and cone axes of every frame of the episode at once: the
-        # renderer's figures are prepared from them in one vectorised pass.
-        # Read from the clip's table, which gives the same numbers as computing
-        # the episode's frames alone (the kinematics is elementwise over frames;
-        # tests/envs/test_render_reuse.py).
+        # Every frame's keypoints and cone axes, from the clip's table (the
+        # kinematics is elementwise over frames: the same numbers).
         self._geometry = clip_geometry(m)[idx]
         kp = self._geometry[:, :N_KEYPOINTS]
         self._truth_keypoints = kp  # scored against in step()
@@ -137,10 +127,8 @@ def place_cameras(envs: Sequence[EpisodeCameras]) -> None:
     """Each episode's :meth:`~EpisodeCameras._place_camera`, the camera fits done together.
 
     :func:`~humotion_gym.camera.fit_cameras` gives each episode the camera
-    :func:`~humotion_gym.camera.fit_camera` gives it alone, bit for bit: the
-    vector environment fits the episodes it starts in one call, in two thirds
-    of the time. The episodes share a task, so each frames as many points
-    (the travel box's corners at every keypoint, or the arm's reach sphere).
+    :func:`~humotion_gym.camera.fit_camera` gives it alone, bit for bit. The
+    episodes share a task, so each frames as many points.
     """
     spec, scene = envs[0].task.camera, envs[0].scene
     requests = [env._camera_request() for env in envs]

@@ -31,9 +31,8 @@ FloatArray = NDArray[np.float64]
 RESET_OPTIONS: tuple[str, ...] = ("clip_id", "file", "motion", "start")
 
 # Keypoints and cone axes of every frame of the clips episodes were drawn from,
-# computed once per clip and shared by every environment of the process (a
-# reset then indexes its frames instead of running the kinematics). Least
-# recently used clips go beyond _CLIP_GEOMETRY_FRAMES frames (~840 bytes each).
+# computed once per clip and shared by every environment of the process; the
+# least recently used clips go beyond _CLIP_GEOMETRY_FRAMES frames.
 _CLIP_GEOMETRY: OrderedDict[int, tuple[weakref.ref[Motion], FloatArray]] = OrderedDict()
 _CLIP_GEOMETRY_FRAMES = 60_000
 
@@ -219,15 +218,10 @@ class EpisodeChoice:
     def _check_person(self, motion: Motion, option: str) -> Motion:
         """``motion``, refused where it shows a person this split must not show.
 
-        A ``"train"`` environment never shows a test or validation person, a
-        ``"validation"`` one never a test person, by name and by skeleton
-        (:func:`~humotion_gym.mocap.persons.same_skeleton` against every
-        such person of the library: a held-out person's file under another
-        name is still that person).
-
-        A clip from outside the library carries its own split (``meta``, from
-        its data set's rule): one of a test person is refused too, though the
-        library holds no clip of that person to compare with.
+        By name and by skeleton (:func:`~humotion_gym.mocap.persons.same_skeleton`
+        against each such person of the library: a held-out person's file under
+        another name is still that person); a clip from outside the library also
+        by its own split (``meta``, from its data set's rule).
 
         Raises:
             ValueError: Naming the option, the clip and the person.
@@ -253,15 +247,12 @@ class EpisodeChoice:
                     break
             else:
                 return motion
+        showing = "test" if shown in self.library.held_out else "validation"
         raise ValueError(
             f"reset: options[{option!r}] {motion.clip_id!r} shows {person}, a held-out person; "
             f"a split={self.split!r} environment never shows the persons {sorted(unseen)} "
-            f"(make it with split={self._split_showing(shown)!r})"
+            f"(make it with split={showing!r})"
         )
-
-    def _split_showing(self, person: str) -> str:
-        """The split whose environments show ``person``'s clips: validation or test."""
-        return "test" if person in self.library.held_out else "validation"
 
     def _unseen_signatures(self) -> list[tuple[str, FloatArray]]:
         """A skeleton signature of each person of the library this split must not show."""
@@ -317,8 +308,7 @@ class EpisodeChoice:
         if self.task.min_motion_mm > 0 and good.size:
             good = good[self._episode_motion(motion)[good] >= self.task.min_motion_mm]
         # The library's clips, and at most STARTS_EXTRA others, the oldest going
-        # first: a long run of reset(options={"motion": ...}) with new clips
-        # kept every one alive, some 190 KB an episode.
+        # first: a long run of reset(options={"motion": ...}) keeps no clip alive.
         own = self._own_clips
         if own.get(motion.clip_id) is not motion and motion.clip_id not in self._starts:
             given = [k for k, (m, _) in self._starts.items() if own.get(k) is not m]

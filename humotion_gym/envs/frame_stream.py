@@ -29,8 +29,7 @@ the learner's generator states, and its next slot holds the reset's frames),
 each slot's episodes against its own: a twin out of step is an error, never
 a wrong frame. The learner never writes to the socket between resets: a message
 wakes the worker, and a woken process is often run on the waker's core for
-a while (tens of microseconds to milliseconds of the learner's time on a
-virtual machine); a worker with no free slot sleeps a little instead.
+a while; a worker with no free slot sleeps a little instead.
 
 Limits: POSIX systems only; the environment's arguments are pickled to the
 worker, which must be able to load them (a class defined in ``__main__`` it
@@ -160,8 +159,7 @@ class FrameStream:
         self._closer = weakref.finalize(self, _close, self._process, ours, self._shm)
         # The worker's end is a multiprocessing Connection; this end reads and
         # writes its frames (a 4-byte big-endian length, then the bytes) on the
-        # socket itself: a Connection's poll builds a selector on every call,
-        # a tenth of what this end is left to do in a step.
+        # socket itself: a Connection's poll builds a selector on every call.
         self._sock = ours
         self._poller = select.poll()
         self._poller.register(ours, select.POLLIN)
@@ -170,7 +168,7 @@ class FrameStream:
         # package, and the settings (a motion library) can be megabytes.
         # The learner's sys.path goes along: the settings may name modules found there.
         message = pickle.dumps((self._shm.name, depth, shape, sys.path, config))
-        self._sending = threading.Thread(target=self._send_config, args=(message,), daemon=True)
+        self._sending = threading.Thread(target=self._send, args=(message, True), daemon=True)
         self._sending.start()
         self._read = 0
         self._epoch = 0
@@ -236,17 +234,13 @@ class FrameStream:
         """The oldest slot taken is done with: the worker may fill it again."""
         self._taken[0] = self._read
 
-    def _send(self, message: bytes) -> None:
+    def _send(self, message: bytes, quiet: bool = False) -> None:
+        """Send ``message``; a worker gone raises why, unless ``quiet`` (then _receive says)."""
         try:
             self._sock.sendall(_HEADER.pack(len(message)) + message)
         except OSError:
-            self._ended()
-
-    def _send_config(self, message: bytes) -> None:
-        try:
-            self._sock.sendall(_HEADER.pack(len(message)) + message)
-        except OSError:  # the worker ended, or the stream closed, first: _receive says how
-            pass
+            if not quiet:
+                self._ended()
 
     def _ended(self) -> None:
         """Raise why the worker is gone: its own message, else its exit code."""

@@ -60,11 +60,9 @@ _REGIONS: dict[str, tuple[str, ...]] = {
 
 
 # The libraries loaded from folders, newest last: (the folders as given and resolved,
-# the frame rate) -> (the files' fingerprint, the library). gym.make is called
-# again and again with the same folders (tests, the leaderboard's cells): a hit
-# lists and stats the files (clips_fingerprint) but parses none, and a changed
-# file, a person's folder added or removed, or the same relative name in another
-# working folder loads and checks the data afresh.
+# the frame rate) -> (the files' fingerprint, the library). A hit stats the files
+# but parses none; a changed file or folder, or the same relative name in another
+# working folder, loads and checks the data afresh.
 _LOADED: collections.OrderedDict[
     tuple[tuple[str, ...], tuple[str, ...], float], tuple[str, MotionLibrary]
 ] = collections.OrderedDict()
@@ -335,10 +333,7 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         """Normalise a pose's free parameters to the action range [-1, 1].
 
         :func:`humotion_gym.envs.description.pose_to_action` with the
-        episode's initial pose: angles wrapped to [-pi, pi), then each free
-        parameter mapped linearly from its range to [-1, 1] and clipped (joint
-        angles: ``body.PARAM_LOWER``/``PARAM_UPPER``; a free root position:
-        the initial root position plus or minus ``task.root_range_mm``).
+        episode's initial pose (which sets a free root's range).
 
         Args:
             pose: ``(..., 25)`` full poses.
@@ -551,13 +546,10 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
     ) -> None:
         """A reset up to the figures: clip, start, background, noise, cameras.
 
-        ``scene=False`` leaves out the noise bank and backgrounds, which only
-        drawing reads (the vector environment's ``draw_ahead``: another process draws).
-
-        :meth:`_reset` then prepares the episode's figures and shows the first
-        frame (:meth:`_first_frame`); the vector environment prepares the
-        figures of several episodes in one pass between the two, and fits
-        their cameras together (``cameras=False`` leaves them to it).
+        The vector environment fits several episodes' cameras together
+        (``cameras=False``) and, with ``draw_ahead``, leaves out the noise bank
+        and backgrounds that only drawing reads (``scene=False``); it prepares
+        their figures before :meth:`_first_frame`, as :meth:`_reset` does.
         """
         super().reset(seed=seed)
         self._done = False
@@ -567,8 +559,7 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         self._episode_seed = int(self.np_random.integers(2**63 - 1))
         if scene and (seed is not None or self._noise is None):
             # The sensor-noise bank is drawn at a seeded (or the first) reset
-            # and serves the episodes that follow: a third of a background's
-            # cost saved per episode, and frames still read random windows.
+            # and serves the episodes that follow (frames read random windows).
             self._noise = noise_bank(self.scene, np.random.default_rng([self._episode_seed, 2]))
         # One generator per episode: the background's draws, then each frame's
         # sensor noise in turn, so the same seed and steps give the same frames.

@@ -71,12 +71,10 @@ from humotion_gym.render import FigureSequence, _compose, _noise_windows, figure
 FloatArray = NDArray[np.float64]
 
 # An episode's figures are prepared for its first frames when it starts, and
-# for the rest when it reaches them (all frames are prepared the same way, each
-# on its own): an episode that loses track from its first frame, as most do
-# under an untrained policy, ends on step ``lost_patience`` having shown frames
-# 1..lost_patience, and never pays for the frames it does not show. Episodes
-# that run their full length (terminate_on_lost=False) are prepared whole at
-# their start: one pass costs less than two.
+# for the rest when it reaches them: one that loses track early, as most do
+# under an untrained policy, never pays for the frames it does not show.
+# Episodes that run their full length (terminate_on_lost=False) are prepared
+# whole at their start: one pass costs less than two.
 
 
 class PoseTrackingVectorEnv(VectorEnv):
@@ -144,10 +142,8 @@ class PoseTrackingVectorEnv(VectorEnv):
         if max_episode_steps is not None and max_episode_steps != -1:
             check_count("max_episode_steps", max_episode_steps)
         template = PoseTrackingEnv(task=task, **kwargs)
-        # What TimeLimit does to a single env: the episode is drawn at its own
-        # length and cut after this many steps, showing its next frame. By
-        # default the spec's (the task's length), as gym.make's TimeLimit; -1,
-        # Gymnasium's "no TimeLimit": the episode's own length.
+        # As TimeLimit cuts a single env's episode, drawn at its own length (-1:
+        # Gymnasium's "no TimeLimit").
         if max_episode_steps is None:
             max_episode_steps = template.task.episode_frames
         elif max_episode_steps == -1:
