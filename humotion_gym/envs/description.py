@@ -1,31 +1,26 @@
 """What an agent is given: the observation's parts, the task's description, the action's map.
 
-An agent of a version-2 task uses its observation and nothing else. The
-observation is a ``Dict`` (:func:`observation_space`) holding every input
-the benchmark gives:
+An agent of a version-2 task uses its observation and nothing else, a ``Dict``
+(:func:`observation_space`) holding every input the benchmark gives:
 
 * ``frame``: ``Box(0, 255, (H, W, C), uint8)``, the rendered frame;
-* ``initial_pose``: ``Box(-1e9, 1e9, (25,), float64)``, the true pose of the
-  frame before the first one shown (the papers set frame 0 by hand);
-* ``fixed_params``: ``Box(-1e9, 1e9, (n_fixed,), float64)``, the true values
-  of the parameters the task does not track, for the frame on show
-  (``task.fixed_indices`` order);
-* ``camera``: ``Box(-1e9, 1e9, (13,), float64)``, the frame's camera
-  (:meth:`~humotion_gym.camera.Camera.to_vector`);
-* ``shape``: ``Box(-1e9, 1e9, (43,), float64)``, the subject's shape
-  (:meth:`~humotion_gym.body.BodyShape.to_vector`).
+* ``initial_pose``: ``(25,)``, the true pose of the frame before the first one
+  shown (the papers set frame 0 by hand);
+* ``fixed_params``: ``(n_fixed,)``, the true values of the parameters the task
+  does not track, for the frame on show (``task.fixed_indices`` order);
+* ``camera``: ``(13,)``, the frame's camera (:meth:`~humotion_gym.camera.Camera.to_vector`);
+* ``shape``: ``(43,)``, the subject's shape (:meth:`~humotion_gym.body.BodyShape.to_vector`);
 
-With ``views=N`` cameras (``N > 1``; :attr:`~humotion_gym.envs.tasks.TaskSpec.views`)
-the frame is ``(N, H, W, C)``, one image per view, and the camera ``(N, 13)``,
-one row per view; view 0 is the task's own camera.
+the vectors float64 within +-:data:`VECTOR_BOUND`. With ``views=N > 1``
+(:attr:`~humotion_gym.envs.tasks.TaskSpec.views`) the frame is ``(N, H, W, C)`` and
+the camera ``(N, 13)``, one per view, view 0 the task's own camera.
 
-:func:`read_observation` turns one into typed parts. A
-:class:`TaskDescription` is what an agent is built from: the task, how its
-frames look, its rate, its spaces and the clips a prior may learn from (the
-training persons only). The action's map (:func:`pose_to_action`,
-:func:`action_to_pose`) is a function of the task and the episode's initial
-pose, both of which the agent is given: the environment uses the same
-functions.
+:func:`read_observation` turns one into typed parts. A :class:`TaskDescription`
+is what an agent is built from: the task, how its frames look, its rate, its
+spaces and the clips a prior may learn from (the training persons only). The
+action's map (:func:`pose_to_action`, :func:`action_to_pose`) is a function of
+the task and the episode's initial pose, both given to the agent: the
+environment uses the same functions.
 """
 
 from __future__ import annotations
@@ -189,10 +184,7 @@ def read_observation(observation: Any, description: TaskDescription | None = Non
 def _check_task_observation(
     frame: NDArray[Any], numbers: dict[str, FloatArray], description: TaskDescription
 ) -> None:
-    """Refuse an observation that is not ``description``'s task's (see :func:`read_observation`).
-
-    ``frame`` and ``numbers`` (its numeric parts by key) are its arrays as read.
-    """
+    """Refuse an observation (its arrays as read) that is not ``description``'s task's."""
     want = description.observation_space["fixed_params"].shape  # type: ignore[index]
     if numbers["fixed_params"].shape != want:
         raise ValueError(
@@ -236,10 +228,7 @@ def _bounds(
     initial_pose: FloatArray | None,
     bounds: tuple[FloatArray, FloatArray] | None,
 ) -> tuple[FloatArray, FloatArray]:
-    """``bounds``, or :func:`action_bounds` computed, refusing an initial pose not ``(25,)``.
-
-    ``where`` names the function in the error.
-    """
+    """``bounds``, or :func:`action_bounds` computed; a bad initial pose refused as ``where``."""
     if bounds is not None:
         return bounds
     lo, hi = PARAM_LOWER.copy(), PARAM_UPPER.copy()

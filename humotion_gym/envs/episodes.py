@@ -1,30 +1,18 @@
 """The declared test episodes: a fixed list of windows per task and data source.
 
-The benchmark's test set is a list, not a draw: for each task, every window of
-test-person motion an agent is scored on, written down once and shipped with
-the package (``humotion_gym/envs/episodes/{Task}.json``). Two data sources
-each have their own list: ``"cmu"`` (the CMU test persons of the real motion
-capture) and ``"synthetic"`` (the built-in synthetic library's test subjects,
-so the leaderboard runs on default data without downloads).
-
-The list is what :func:`make_windows` gives, a pure function of the task spec,
-the library's test clips and :data:`PER_CLIP`: in each test clip whose label
-the task takes and which holds one window, windows of ``episode_frames *
-frame_skip + 1`` frames (``frame_skip`` 1) in which every frame is observed,
-no two of them sharing a frame, at most :data:`PER_CLIP` of them per clip,
-spread evenly across the clip. Nothing about any agent's results enters it,
-and, unlike the starts ArmTrack-v1 draws, no start is dropped for a limb that
-rests (``TaskSpec.min_motion_mm`` is not applied). Each window carries the
-clip's frame count as a fingerprint: :func:`check_windows` refuses a library
-whose clips differ from the ones the list was made on.
+The benchmark's test set is a list, not a draw, written down once and shipped
+with the package (``humotion_gym/envs/episodes/{Task}.json``), one list per data
+source: ``"cmu"`` (the CMU test persons of the real motion capture) and
+``"synthetic"`` (the built-in library's test subjects, so the leaderboard runs
+without downloads). The list is what :func:`make_windows` gives, a pure function
+of the task spec, the library's test clips and :data:`PER_CLIP`; :data:`MADE`
+states the rule (docs/protocol.md, "The declared test list"). Each window carries
+its clip's frame count: :func:`check_windows` refuses a library whose clips differ.
 
 Rebuild the files (the synthetic lists always, the CMU lists from the shared
-motion capture)::
+motion capture), or check them against the rule without writing::
 
     python -m humotion_gym.envs.episodes --write --data-dir ../shared/mocap
-
-and check the shipped files against the rule without writing::
-
     python -m humotion_gym.envs.episodes --check --data-dir ../shared/mocap
 """
 
@@ -168,7 +156,7 @@ def qualifying_clips(spec: TaskSpec, library: MotionLibrary) -> list[Motion]:
 
 
 def make_windows(spec: TaskSpec, library: MotionLibrary, per_clip: int) -> list[EpisodeWindow]:
-    """The rule: a task's declared windows on a library's test clips (module docstring).
+    """The rule: a task's declared windows on a library's test clips (:data:`MADE`).
 
     Args:
         spec: The task.
