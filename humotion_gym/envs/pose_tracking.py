@@ -41,7 +41,6 @@ from humotion_gym.mocap.library import (
 from humotion_gym.mocap.motion import Motion
 from humotion_gym.mocap.persons import check_data_persons
 from humotion_gym.render import (
-    FigureSequence,
     SceneOptions,
     draw_pose_overlay,
     figure_sequences,
@@ -413,30 +412,14 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         assert self._motion is not None, "call reset() first"
         return np.array(self._motion.params[self._frame_index(k)])
 
-    # View 0's tables: the task's own camera, figures, background and noise.
     @property
     def _cameras(self) -> list[Camera]:
+        """View 0's cameras, frame by frame: the task's own."""
         return self._view_cameras[0]
 
     @_cameras.setter
     def _cameras(self, cameras: list[Camera]) -> None:
         self._view_cameras[0] = cameras
-
-    @property
-    def _figures(self) -> FigureSequence:
-        return self._view_figures[0]
-
-    @_figures.setter
-    def _figures(self, figures: FigureSequence) -> None:
-        self._view_figures[0] = figures
-
-    @property
-    def _background(self) -> Any:
-        return self._backgrounds[0]
-
-    @property
-    def _noise_rng(self) -> np.random.Generator:
-        return self._noise_rngs[0]
 
     @property
     def camera(self) -> Camera:
@@ -511,7 +494,15 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         """
         options = self._check_options(options)
         with self._all_or_nothing():
-            return self._reset(seed, options)
+            self._begin_episode(seed, options)
+            self._view_figures = figure_sequences(
+                [
+                    (self._episode_params, self.shape, cameras, self._geometry)
+                    for cameras in self._view_cameras
+                ],
+                self.scene,
+            )
+            return self._first_frame()
 
     @contextlib.contextmanager
     def _all_or_nothing(self) -> Iterator[None]:
@@ -530,17 +521,6 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
                 self._np_random.bit_generator.state = rng_state
             raise
 
-    def _reset(self, seed: int | None, options: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
-        self._begin_episode(seed, options)
-        self._view_figures = figure_sequences(
-            [
-                (self._episode_params, self.shape, cameras, self._geometry)
-                for cameras in self._view_cameras
-            ],
-            self.scene,
-        )
-        return self._first_frame()
-
     def _begin_episode(
         self, seed: int | None, options: dict[str, Any], cameras: bool = True, scene: bool = True
     ) -> None:
@@ -549,7 +529,7 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         The vector environment fits several episodes' cameras together
         (``cameras=False``) and, with ``draw_ahead``, leaves out the noise bank
         and backgrounds that only drawing reads (``scene=False``); it prepares
-        their figures before :meth:`_first_frame`, as :meth:`_reset` does.
+        their figures before :meth:`_first_frame`, as :meth:`reset` does.
         """
         super().reset(seed=seed)
         self._done = False
@@ -650,7 +630,9 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         # Kept for render(), which draws these keypoints over the frame they estimate.
         self._estimate_keypoints = forward_kinematics(estimate, self.shape)
         self._estimated = (self._frame, self._k)
-        scores = self._scores(self._estimate_keypoints, self._truth_keypoints[self._k])
+        scores = step_scores(
+            self._estimate_keypoints, self._truth_keypoints[self._k], self._scoring
+        )
         self._lost_run = int(
             update_lost_run(self._lost_run, scores.error_mm, self.lost_threshold_mm)
         )
@@ -667,10 +649,6 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         info = self._info()
         info.update(_scored_info(scores, bool(lost)))
         return obs, float(scores.reward), terminated, truncated, info
-
-    def _scores(self, estimate_keypoints: FloatArray, truth_keypoints: FloatArray) -> StepScores:
-        """The step's errors and reward (:func:`~humotion_gym.metrics.step_scores`)."""
-        return step_scores(estimate_keypoints, truth_keypoints, self._scoring)
 
     def _after_end(self) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         """A step after the episode ended: the terminal transition again (see :meth:`step`)."""

@@ -65,7 +65,7 @@ from humotion_gym.envs._checks import checked_action, episode_seeds
 from humotion_gym.envs.description import action_to_pose
 from humotion_gym.envs.frame_stream import FrameStream, episode_marks, twin_seeds
 from humotion_gym.envs.pose_tracking import PoseTrackingEnv, _scored_info
-from humotion_gym.metrics import StepScores, update_lost_run
+from humotion_gym.metrics import StepScores, step_scores, update_lost_run
 from humotion_gym.render import FigureSequence, _compose, _noise_windows, figure_sequences
 
 FloatArray = NDArray[np.float64]
@@ -264,7 +264,7 @@ class PoseTrackingVectorEnv(VectorEnv):
         for i, env, figure in zip(rows, envs, figures, strict=True):
             env._view_figures = [figure]  # type: ignore[list-item]
             if noisy:  # the windows of frames 1, 2, ..., the order they are shown in
-                self._windows[i, 1:] = _noise_windows(env._noise_rng, h, w, n_shown)
+                self._windows[i, 1:] = _noise_windows(env._noise_rngs[0], h, w, n_shown)
             # drawn (below) straight into the batch's row, which is then the frame on show
             _, infos[i] = env._first_frame(self._obs[i])
             self._params[i] = env._episode_params
@@ -308,8 +308,8 @@ class PoseTrackingVectorEnv(VectorEnv):
         for i, t, y, x in zip(rows.tolist(), ts.tolist(), ys.tolist(), xs.tolist(), strict=True):
             env = self.envs[i]
             _compose(
-                env._figures, t, env._noise_rng, env._background, t, "step", observations[i],
-                (y, x),
+                env._view_figures[0], t, env._noise_rngs[0], env._backgrounds[0], t, "step",
+                observations[i], (y, x),
             )  # fmt: skip
 
     def _prepare_rest(self, rows: list[int]) -> None:
@@ -317,7 +317,7 @@ class PoseTrackingVectorEnv(VectorEnv):
         envs = [self.envs[i] for i in rows]
         rest = self._figures(envs, self._first_figures, self._params.shape[1])
         for env, more in zip(envs, rest, strict=True):
-            env._figures = env._figures.concatenated(more)
+            env._view_figures[0] = env._view_figures[0].concatenated(more)
 
     def reset(
         self,
@@ -541,7 +541,7 @@ class PoseTrackingVectorEnv(VectorEnv):
             self.task, raw, self._params[self._rows, k], bounds=(self._lo, self._hi)
         )
         keypoints = pose_geometry_of(estimate, self._shape_tables)[:, :N_KEYPOINTS]
-        scores = template._scores(keypoints, self._truth_kp[self._rows, k])
+        scores = step_scores(keypoints, self._truth_kp[self._rows, k], template._scoring)
         self._lost_run = update_lost_run(
             self._lost_run, scores.error_mm, template.lost_threshold_mm
         )
