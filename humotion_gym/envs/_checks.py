@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import numpy as np
@@ -50,8 +51,8 @@ def check_env_arguments(
         ValueError: Naming the first argument that is not what it should be.
     """
     groups = (
-        (counts, check_count), (positive, check_positive),
-        (at_least_zero, check_at_least_zero), (naturals, _check_natural), (flags, check_bool),
+        (counts, check_count), (positive, check_positive), (at_least_zero, check_at_least_zero),
+        (naturals, functools.partial(check_count, least=0)), (flags, check_bool),
     )  # fmt: skip
     for values, check in groups:
         for name, value in values.items():
@@ -66,10 +67,6 @@ def check_env_arguments(
     check_positive("fps", fps)
     if not FPS_RANGE[0] <= fps <= FPS_RANGE[1]:
         raise ValueError(f"fps: expected {FPS_RANGE[0]:g} to {FPS_RANGE[1]:g} Hz, got {fps!r}")
-
-
-def _check_natural(name: str, value: Any) -> None:
-    check_count(name, value, least=0)
 
 
 def checked_action(action: Any, what: str, shape: tuple[int, ...], free: Any) -> NDArray[Any]:

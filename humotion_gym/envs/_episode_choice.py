@@ -90,9 +90,7 @@ class TooFewFrames(ValueError):
 class EpisodeChoice:
     """The episode-choosing part of the tracking environment (see the module docstring).
 
-    The environment provides ``library``, ``split``, ``task``, ``clips``,
-    ``episode_frames``, ``frame_skip``, ``np_random`` and the caches
-    ``_starts``, ``_own_clips`` (the library's clips by id) and ``_unseen_cache``.
+    The environment provides the attributes annotated below.
     """
 
     library: MotionLibrary
@@ -101,7 +99,7 @@ class EpisodeChoice:
     episode_frames: int
     frame_skip: int
     _starts: dict[str, tuple[Motion, NDArray[np.intp]]]
-    _own_clips: dict[str, Motion]
+    _own_clips: dict[str, Motion]  # the library's clips by id
     _unseen_cache: list[tuple[str, FloatArray]] | None
     _err_kp: NDArray[np.intp]
     task: Any

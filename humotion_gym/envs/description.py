@@ -202,10 +202,6 @@ def _check_task_observation(
                 )
 
 
-def _wrap(angles: FloatArray) -> FloatArray:
-    return (angles + np.pi) % (2 * np.pi) - np.pi
-
-
 def action_bounds(task: TaskSpec, initial_pose: FloatArray | None) -> tuple[FloatArray, FloatArray]:
     """The free parameters' ranges that the action's [-1, 1] maps onto.
 
@@ -272,7 +268,7 @@ def pose_to_action(
     p = np.array(pose, dtype=np.float64)
     if p.ndim == 0 or p.shape[-1] != N_PARAMS:
         raise ValueError(f"pose_to_action: expected poses of shape (..., 25), got {p.shape}")
-    p[..., ANGLE_MASK] = _wrap(p[..., ANGLE_MASK])
+    p[..., ANGLE_MASK] = (p[..., ANGLE_MASK] + np.pi) % (2 * np.pi) - np.pi
     lo, hi = _bounds("pose_to_action", task, initial_pose, bounds)
     a = 2.0 * (p[..., task.free_indices] - lo) / (hi - lo) - 1.0
     return np.clip(a, -1.0, 1.0).astype(np.float32)

@@ -1,19 +1,13 @@
 """A vector environment's frames drawn ahead in a second process (``draw_ahead=True``).
 
-When episodes run their full length (``terminate_on_lost=False``), no action
-changes which episodes start, where, or what their frames show: actions
-change only the scores. A second Python process then runs a twin of the
-vector environment (the same task, settings and seeds) stepped with any
-actions, and draws its frames a few steps ahead of the learner into shared
-memory; the learner's own environment does everything else (episode starts,
-cameras, scores, info) but the drawing, and takes each step's frames from
-the stream. A learner such as PPO, whose own step is its policy's forward
-pass, then spends almost nothing on the frames: drawing, the figures and
-backgrounds run on another core while it trains.
-
-Nothing the agent is given depends on the truth after its step: the frames
-ahead wait in shared memory that only the environment reads, one step's
-frames at a time.
+When episodes run their full length (``terminate_on_lost=False``), actions
+change only the scores, never which episodes start or what their frames show.
+A second Python process then runs a twin of the vector environment (the same
+task, settings and seeds) and draws its frames a few steps ahead into shared
+memory, on another core (a learner such as PPO trains meanwhile); the learner's
+environment does everything else (episode starts, cameras, scores, info) and
+takes each step's frames from the stream. Nothing the agent is given depends on
+the truth after its step: the frames ahead wait in memory only the environment reads.
 
 Protocol. Shared memory holds a ring of slots, each one step's frames, the
 last frames of the episodes that step ended, its epoch and each episode's

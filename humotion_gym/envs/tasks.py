@@ -27,11 +27,10 @@ _UP = np.array([0.0, 0.0, 1.0])
 class CameraSpec:
     """Where a task's camera stands: rules that use the first frame only.
 
-    Nothing here may depend on the episode after its first frame: the camera is
-    handed to the agent, so a camera fitted to the whole episode would tell
-    where the body goes. A static camera frames the initial pose swept through
-    ``travel_mm``, a box of root displacements fixed per task; a following
-    camera moves with a point the task gives the agent anyway.
+    The camera is handed to the agent, so nothing after the first frame may place
+    it (a camera fitted to the whole episode would tell where the body goes): a
+    static camera frames the initial pose swept through ``travel_mm``; a
+    following camera moves with a point the task gives the agent anyway.
 
     Attributes:
         azimuth_deg: Viewing direction about the vertical, relative to the
@@ -84,10 +83,7 @@ class CameraSpec:
 
     @functools.cached_property
     def _corner_distances(self) -> tuple[NDArray[np.float64], ...]:
-        """The travel box's corners: ``(8, 1)`` distances along, across and up.
-
-        Made once per spec; every episode's start reads them.
-        """
+        """The travel box's corners: ``(8, 1)`` distances along, across and up (once per spec)."""
         back, forward, right, left, down, up = self.travel_mm
         along = np.array([-back, forward])
         across = np.array([-left, right])

@@ -1,34 +1,23 @@
 """N tracking episodes advanced together: the environments' ``vector_entry_point``.
 
 ``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``
-gives a :class:`PoseTrackingVectorEnv`. It returns what a
-``SyncVectorEnv`` of N single environments returns for the same seeds
-(the same frames and episode ends, rewards and errors to rounding, the same
-batched ``info`` with its ``_key`` masks; ``tests/envs/test_vector_env.py``), with Gymnasium
-1.x's autoreset modes (``NEXT_STEP`` by default, ``SAME_STEP``,
-``DISABLED``), at a fraction of the cost:
+gives a :class:`PoseTrackingVectorEnv`: what a ``SyncVectorEnv`` of N single
+environments returns for the same seeds (frames, episode ends, rewards and errors
+to rounding, the batched ``info`` with its ``_key`` masks;
+``tests/envs/test_vector_env.py``), with Gymnasium 1.x's autoreset modes, at a
+fraction of the cost. The step's action map, kinematics
+(:func:`~humotion_gym.body.pose_geometry_of`), scores
+(:func:`~humotion_gym.metrics.step_scores`), lost-track counts and info are
+computed for the N episodes at once; an episode starts by the single
+environment's own reset, but the cameras of the episodes a step starts are fitted
+together (:func:`~humotion_gym.camera.fit_cameras`) and their figures prepared in
+one pass (:func:`~humotion_gym.render.figure_sequences`); each frame is drawn by
+the single environment's renderer straight into its row of the batch, its noise
+at windows drawn at the episode's start (:func:`~humotion_gym.render._noise_windows`).
 
-* the step's action mapping, kinematics
-  (:func:`~humotion_gym.body.pose_geometry_of`, each episode with its
-  subject's shape), errors and rewards
-  (:func:`~humotion_gym.metrics.step_scores`, the single environment's
-  function), lost-track counts and info are computed for the N episodes at
-  once;
-* an episode's start (clip, start frame, background) is the single
-  environment's own reset, but the cameras of the episodes a step starts
-  are fitted together (:func:`~humotion_gym.camera.fit_cameras`) and their
-  figures prepared in one pass (:func:`~humotion_gym.render.figure_sequences`),
-  for their first frames only until they get further (whole, when episodes
-  run their full length: ``terminate_on_lost=False``);
-* each frame is drawn by the single environment's renderer straight into
-  its row of the batch, its sensor noise at windows drawn from the
-  episode's generator at its start, as its frames would draw them one by
-  one (:func:`~humotion_gym.render._noise_windows`).
-
-Each of the N episodes is held by a :class:`PoseTrackingEnv` (``envs``: the
-base class, made with the task), kept in step, so its methods
-(``pose_to_action``, ``action_to_pose``, ``true_pose``, ``camera``, ``shape``,
-``render``) answer exactly as in the single environment; step them through
+Each episode is held by a :class:`PoseTrackingEnv` (``envs``), kept in step, so
+its methods (``pose_to_action``, ``action_to_pose``, ``true_pose``, ``camera``,
+``shape``, ``render``) answer as in the single environment; step them through
 the vector environment only (their figures are prepared by it).
 """
 
@@ -506,11 +495,7 @@ class PoseTrackingVectorEnv(VectorEnv):
             )
 
     def _check_open(self, call: str) -> None:
-        """Refuse a call after ``close()``, as ``AsyncVectorEnv`` does.
-
-        Drawing in-process too: with ``draw_ahead`` the drawing process is gone,
-        and a program must not change with where its frames are drawn.
-        """
+        """Refuse a call after ``close()``, as ``AsyncVectorEnv`` does (drawing ahead or not)."""
         if self.closed:
             raise ClosedEnvironmentError(
                 f"{call}: the vector environment was closed (close()); make a new one"
