@@ -39,8 +39,7 @@ def episode_info(info: dict[str, Any], i: int) -> dict[str, Any]:
 def _batch_of(value: Any, n: int) -> NDArray[Any]:
     """An empty batch of ``n`` values of ``value``'s kind, as ``SyncVectorEnv`` makes it.
 
-    Numbers and bools in a numpy array of their type, arrays stacked, anything
-    else in an object array of None.
+    Numbers and bools of their type, arrays stacked, anything else objects (None).
     """
     if type(value) in (int, float, bool) or isinstance(value, np.number):
         return np.zeros(n, dtype=type(value))

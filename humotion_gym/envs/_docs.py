@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from humotion_gym.envs.tasks import get_task
+
 COMMON_SECTIONS = """
     ## Rewards
 
@@ -98,8 +100,6 @@ COMMON_SECTIONS = """
 
 def whole_body_likelihood(task: str) -> str:
     """The ``## Likelihood`` section of a whole-body task, from its settings."""
-    from humotion_gym.envs.tasks import get_task
-
     settings = dict(get_task(task).observation)
     return f"""
     ## Likelihood

@@ -303,11 +303,10 @@ class PoseTrackingEnv(EpisodeChoice, EpisodeCameras, gym.Env):
         self.action_space = spaces.Box(-1.0, 1.0, shape=(n_free,), dtype=np.float32)
         self._fixed = self.task.fixed_indices
         self._err_kp = self.task.error_keypoint_indices
-        self._region_of = {
-            name: [i for i, k in enumerate(self.task.error_keypoints) if k in members]
+        self._reward_terms = [
+            (f"reward_{name}", [i for i, k in enumerate(self.task.error_keypoints) if k in members])
             for name, members in _REGIONS.items()
-        }
-        self._reward_terms = [(f"reward_{name}", idx) for name, idx in self._region_of.items()]
+        ]
         self._scoring = Scoring.of(self._err_kp, self._reward_terms, float(reward_scale_mm))
         self._motion: Motion | None = None
         self._done = False

@@ -226,11 +226,8 @@ class PoseTrackingVectorEnv(VectorEnv):
     ) -> dict[int, dict[str, Any]]:
         """Start the episodes ``rows`` (the single environment's reset) and copy their tables.
 
-        Each episode's reset runs as in the single environment, except that
-        the figures of all of them are prepared in one pass
-        (:func:`~humotion_gym.render.figure_sequences`). All or nothing: a
-        reset refused for one episode's seed or options leaves every episode
-        as it was (the batch's tables are written only once all have started).
+        Their cameras are fitted, and their figures prepared, in one pass. All or
+        nothing: a reset refused for one episode leaves every episode as it was.
 
         Returns:
             The reset info of each row.
