@@ -19,11 +19,8 @@ knows the pose but not which way it is moving, so at every pose of the gait
 cycle it must predict the mean of the forward and backward swings and spend
 its noise on the velocity; with the previous frame in the state every model is
 a damped oscillator of the angles, which is what a gait cycle locally is, and
-the one-step noise falls to the size of the accelerations. On the
-Bandai-Namco walking of the training styles (4 states, 20 EM iterations) the
-second-order model's cost is about 6.6 nats per frame lower than the
-first-order one's, and walk/run classification with it makes fewer errors.
-(The learned emission of :mod:`~baselines.priors.slds_inference`, used for
+the one-step noise falls to the size of the accelerations (docs/priors.md
+compares the two orders). (The learned emission of :mod:`~baselines.priors.slds_inference`, used for
 the speed benchmark, is the general ``y = C x + d`` with ``C``, ``d`` learned.)
 
 Learning (section 2.3): EM with the approximate Viterbi E-step
@@ -34,10 +31,8 @@ joined into one SLDS with a block transition matrix (section 4.1,
 ``switch_prob`` per frame (default :data:`SWITCH_PROB`, about one activity
 change per 100 frames, 3.3 s at 30 Hz) the switch leaves the current activity's
 block. EM's piecewise fit of the gait cycle leaves some models slightly
-unstable (spectral radius up to about 1.06 on walking): harmless, indeed
-needed, while data steer the switch (pulling the eigenvalues inside the unit
-circle raised the walk/run classifier's error from about 2.5% to 13-24%), but
-noise-driven synthesis amplifies it, so :func:`synthesize` stabilises the
+unstable: harmless, indeed needed for classification, while data steer the
+switch, but noise-driven synthesis amplifies it, so :func:`synthesize` stabilises the
 models first (:data:`MAX_RADIUS`,
 :func:`~baselines.priors.slds_inference.stabilise`).
 :func:`activity_model` takes one activity's states out of a joined model
@@ -112,36 +107,21 @@ SAGITTAL_INDEX: NDArray[np.intp] = np.array([PARAM_INDEX[n] for n in SAGITTAL], 
 N_STATES = 4
 #: Probability per frame of switching from one activity's model to another's.
 SWITCH_PROB = 0.01
-#: EM iterations per activity model. EM's cost still falls by about 0.1% an
-#: iteration at 20, but the models track no better for it. Chosen on the
-#: validation persons (pf-slds, 300 particles; priors fitted on the other
-#: training persons): ``humotion-gym select --task SideWalk-v2 --agent pf-slds
-#: --grid fit.n_iter=5,10,20 --episodes 60 --data-dir ../shared/mocap`` gave
-#: 72.4, 63.0 and 68.8 mm (hold 215.2), ``--grid fit.n_iter=20,40 --episodes
-#: 40`` 66.3 and 70.6 (hold 221.3). Rule declared before the confirming runs:
-#: 10 where, on 60 other episodes (``--seed 100``), its error is within 5% of
-#: 20's on both of pf-slds's tasks; it was lower (SideWalk 77.7 against 80.5 mm,
-#: hold 190.4; ArmTrack-v2 112.8 against 121.4, hold 205.6), at half the fit.
+#: EM iterations per activity model, chosen by tracking on the validation
+#: persons (``humotion-gym select --grid fit.n_iter=...``; docs/priors.md).
 N_ITER = 10
 #: EM iterations per activity in the classification experiments
 #: (:mod:`baselines.experiments.pavlovic1999`, ``humotion-gym slds``): 20, as
 #: in their recorded runs.
 CLASSIFY_N_ITER = 20
-#: Sequences decoded together (64: fewer steps of the time loop than 32, and the
-#: covariance table keeps the work per step nearly flat in it; larger batches
-#: were slower on the walking data, 25 s at 64 against 35 s at 200 and 400).
+#: Sequences decoded together (the covariance table keeps the work per step of
+#: the time loop nearly flat in it; much larger batches are slower).
 MAX_BATCH = 64
 #: Identification tolerance of the E-step's covariance table when :func:`fit`
 #: fits the prior (:class:`~baselines.priors.slds_inference.CovarianceTable`;
-#: the library's default, ``COV_RTOL`` = 1e-10, is what :func:`fit_activity` and
-#: the classification experiments use). The prior is fitted on an agent's first
-#: use, where its seconds count. On the training data 1e-6 leaves every decoded
-#: path as it was and moves the fitted parameters orders of magnitude less than
-#: EM's last iteration still changes them, for a quarter to two fifths less
-#: time. 1e-4 changes decoded paths. Tracking does not tell them apart:
-#: ``humotion-gym select --task SideWalk-v2 --agent pf-slds --grid
-#: fit.cov_rtol=1e-10,1e-8,1e-6 --episodes 60 --data-dir ../shared/mocap`` gave
-#: 63.0, 63.0 and 62.1 mm (hold 215.2).
+#: :func:`fit_activity` and the classification keep ``COV_RTOL`` = 1e-10): the
+#: same decoded paths for less time, and tracking does not tell them apart
+#: (``humotion-gym select --grid fit.cov_rtol=...``; docs/priors.md).
 FIT_COV_RTOL = 1e-6
 #: Settings of :func:`fit` that say how it runs, not what it fits: left out of
 #: the fitted-prior cache's key (:func:`baselines.priors.fitting.fit_prior`).
@@ -199,11 +179,6 @@ def _start_activity(
         _TooFewFrames: If the clips of 3 frames or more hold fewer than two
             observed frames per state (before ``rng`` is drawn from).
     """
-    if not motions:
-        raise ValueError("slds.fit_activity: no training motions")
-    rates = sorted({float(m.fps) for m in motions})
-    if len(rates) > 1:
-        raise ValueError(f"slds.fit_activity: the clips mix frame rates {rates}; resample them")
     idx = free_indices(free, "slds.fit", SAGITTAL_INDEX)
     ys, masks = motion_sequences(motions, idx, frame_skip)
     keep = [k for k, y in enumerate(ys) if y.shape[0] >= 3]
@@ -259,6 +234,7 @@ def fit_activity(
     Returns:
         The fit with its cost per iteration (of EM, before the stabilisation).
     """
+    training_clips(motions, frame_skip, "slds.fit_activity")
     cov_rtol = check_cov_rtol(cov_rtol, "slds.fit_activity")
     _check_order(order, "slds.fit_activity")
     start = _start_activity(motions, free, rng, n_states, order, frame_skip, label)
@@ -460,10 +436,8 @@ def fit(
 def _em_work(start: EMStart) -> float:
     """How long a model's EM takes, in relative units: its time loop's steps and its frames.
 
-    Measured on ArmTrack-v2's 18 activity models in one process (20 EM
-    iterations): about 2.3 ms per step of the time loop (a batch of sequences
-    takes as many steps as its longest) and 0.16 ms per frame, so one clip of
-    1,900 frames takes longer than 218 clips of 19,000.
+    A batch takes as many steps as its longest sequence; the weight of a frame
+    against a step is measured (docs/priors.md).
     """
     lengths = np.array([a.shape[0] for a in start.arrays])
     steps = sum(int(lengths[ch].max()) for ch in length_batches(lengths, MAX_BATCH))

@@ -23,9 +23,8 @@ states, with the only Python loop over time:
   backtracking (eq. 12).
 * :func:`filter_path` and :func:`rts_smoother`: the Kalman filter and the
   Rauch-Tung-Striebel smoother of ``x`` given a switch sequence, which give the
-  sufficient statistics of the M-step.
-* learning (section 2.3, EM with the Viterbi E-step) is in
-  :mod:`baselines.priors.slds_learning`, built on these functions.
+  sufficient statistics of the M-step (learning by EM, section 2.3, is in
+  :mod:`baselines.priors.slds_learning`).
 * :func:`combine`: models learned per activity joined into one SLDS with a
   block transition matrix (section 4.1).
 * :func:`decode`, :func:`sample` and :func:`smooth`: Viterbi segmentation
@@ -47,8 +46,6 @@ exactly onto the latent space,
 
 where ``c(y)`` does not depend on ``x`` or the switch, so every decision is the
 same and the costs stay exact while every matrix is ``dx`` wide instead of ``dy``.
-
-Learning (MAP by EM) is described in :mod:`baselines.priors.slds_learning`.
 """
 
 from __future__ import annotations
@@ -476,16 +473,6 @@ def rts_smoother(
     return SmootherResult(mean, cov, cross)
 
 
-# ---------------------------------------------------------------------------
-# Learning (section 2.3)
-# ---------------------------------------------------------------------------
-
-
-# ---------------------------------------------------------------------------
-# Initial segmentation (section 2.3: clustering under a simple dynamic model)
-# ---------------------------------------------------------------------------
-
-
 def length_batches(
     lengths: IntArray, max_batch: int, max_frames: int | None = None
 ) -> list[IntArray]:
@@ -572,9 +559,9 @@ def stabilise(params: SLDSParams, max_radius: float = 1.0) -> SLDSParams:
     """Every model's dynamics with its eigenvalues pulled inside ``max_radius``.
 
     EM's linear models fit a gait cycle piece by piece and some come out
-    slightly unstable (spectral radius up to about 1.06 on walking): harmless
-    while the data steer the switch, but noise-driven sampling (section 4.3)
-    and particles that the likelihood does not hold then drift off. Each
+    slightly unstable: harmless while the data steer the switch, but
+    noise-driven sampling (section 4.3) and particles that the likelihood does
+    not hold then drift off. Each
     eigenvalue ``lambda`` with ``|lambda| > max_radius`` is scaled to that
     radius, keeping its phase (frequency) and its eigenvector. For order 2 the
     eigenvectors ``[lambda v; v]`` become ``[lambda' v; v]``, so the matrix

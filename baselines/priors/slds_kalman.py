@@ -220,9 +220,8 @@ def _cholesky(s: FloatArray) -> FloatArray:
 def _solve_lower(chol: FloatArray, rhs: FloatArray) -> FloatArray:
     """``L^-1 B`` for batched lower-triangular ``L`` by forward substitution.
 
-    A loop over the (few) rows, each one batched matmul over every matrix of
-    the batch; several times faster than ``numpy.linalg.solve`` on stacks of
-    small matrices.
+    A loop over the (few) rows, each one batched matmul over the whole batch:
+    faster than ``numpy.linalg.solve`` on stacks of small matrices.
     """
     n = chol.shape[-1]
     shape = np.broadcast_shapes(chol.shape[:-2], rhs.shape[:-2]) + rhs.shape[-2:]
@@ -294,11 +293,7 @@ COV_RTOL = 1e-10
 
 
 def _pending(ids: IntArray, need: NDArray[np.bool_]) -> IntArray | None:
-    """The distinct ``ids`` where ``need``, or None where none is.
-
-    Once the recursion has converged nothing is new, and the check spares
-    ``np.unique``'s sort.
-    """
+    """The distinct ``ids`` where ``need``, or None (sparing ``np.unique``'s sort) where none is."""
     return np.unique(ids[need]) if need.any() else None
 
 
@@ -309,9 +304,7 @@ class CovarianceTable:
     on the measurements, and after a few frames in the same states it
     converges: sequences, frames and Viterbi's pairs ``j -> i`` that share a
     recent switch history share their covariances, though only to within a
-    small tolerance, not bit for bit (on the walking data about 23 of 32
-    sequences hold bitwise different covariances at any frame, agreeing to
-    about 1e-13 relative). Each distinct covariance gets an id; its prediction
+    small tolerance, not bit for bit. Each distinct covariance gets an id; its prediction
     through every model (eq. 3) and, as a predicted covariance, its innovation
     factor, gain and update (eqs. 4-5) are computed once, vectorised over the
     new ids, and the filters carry ids instead of matrices. Covariances within
@@ -319,8 +312,7 @@ class CovarianceTable:
     of a power-of-two spacing at most that, for the lookup; the first one
     stored stands for the others), so results differ from the plain recursion
     by about ``rtol`` relative: the recursion contracts, so a substitution's
-    error does not grow. With the default, the fitted SideWalk-v2 model
-    differs from the plain recursion's by at most 5e-12 (same switch paths).
+    error does not grow.
 
     One table serves every call with the same model and measurement noise (all
     batches of one E-step).
@@ -352,8 +344,7 @@ class CovarianceTable:
         """Empty the table for another model of the same sizes, keeping its memory.
 
         EM's every E-step needs a new table; reusing the arrays (their pages
-        already mapped) saves the first-touch cost of fresh memory, which on a
-        virtual machine is a sizeable part of filling the table.
+        already mapped) saves the first-touch cost of fresh memory.
         """
         if (params.n_states, params.latent_dim, r.shape[0]) != (self.n_states, self.dx, self.dz):
             raise ValueError("CovarianceTable.reset: the model's sizes differ from the table's")
@@ -362,17 +353,12 @@ class CovarianceTable:
         self.q = params.Q
         self.r = r
         self.n = 0
-        # Hash of a key -> its id. A dict: a call looks up a few hashes (median
-        # 8, mean 28 on the walking data), where a Python dict is 3-12 times
-        # faster than probing an open-addressing array with numpy.
+        # Hash of a key -> its id. A dict: a call looks up only a few hashes,
+        # where a dict is faster than probing an open-addressing array with numpy.
         self._index: dict[int, int] = {}
 
     def _alloc(self, cap: int) -> None:
-        """(Re)allocate the per-id arrays with room for ``cap`` ids.
-
-        ``np.empty`` only reserves: pages are touched as ids are added, so a
-        generous capacity costs nothing until used (and growing copies).
-        """
+        """(Re)allocate the per-id arrays with room for ``cap`` ids (touched only when used)."""
         s, dx, dz, n = self.n_states, self.dx, self.dz, self.n
         first = not hasattr(self, "cov")
 

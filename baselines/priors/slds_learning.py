@@ -26,7 +26,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -54,8 +53,7 @@ from humotion_gym.checks import is_real
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
 #: Largest identification tolerance EM accepts: beyond it the E-step's shared
-#: covariances are no longer the recursion's to within a small error (at 1e-4
-#: the walking data's decoded paths already change).
+#: covariances are no longer the recursion's to within a small error.
 MAX_COV_RTOL = 1e-3
 
 
@@ -538,21 +536,15 @@ def _e_step(
         sub = Sequences(seqs.y[idx, :n_t], seqs.observed[idx, :n_t], seqs.lengths[idx])
         meas_old = Measurements(meas.z[idx, :n_t], meas.R, meas.const[idx, :n_t])
         old = filter_path(params, sub, old_path[idx, :n_t], meas_old, table=table)
-        back = idx[old.cost < new_cost[idx]]  # the new path must cost no more to replace it
+        pick = np.flatnonzero(old.cost < new_cost[idx])  # the new path must cost no more
+        back = idx[pick]
         if back.size:
-            pick = np.flatnonzero(old.cost < new_cost[idx])
             path = path.copy()
             path[back] = old_path[back]
             cost[back] = old.cost[pick]
-            fields: list[NDArray[Any]] = [filt.m_pred, filt.p_pred, filt.m_filt, filt.p_filt]
-            olds: list[NDArray[Any]] = [old.m_pred, old.p_pred, old.m_filt, old.p_filt]
             # The ids too (one table for both), for the smoother's shared gains.
-            assert filt.pred_id is not None and filt.filt_id is not None
-            assert old.pred_id is not None and old.filt_id is not None
-            fields += [filt.pred_id, filt.filt_id]
-            olds += [old.pred_id, old.filt_id]
-            for field, value in zip(fields, olds, strict=True):
-                field[back, :n_t] = value[pick]
+            for name in ("m_pred", "p_pred", "m_filt", "p_filt", "pred_id", "filt_id"):
+                getattr(filt, name)[back, :n_t] = getattr(old, name)[pick]
     if stats is not None:
         sm = rts_smoother(params, path, filt, seqs.lengths)
         _accumulate(stats, params, seqs, meas, path, sm)
@@ -612,11 +604,9 @@ def fit_em(
         progress: Called after every E-step with its index (0 to ``n_iter``)
             and the cost (for a progress bar).
         cov_rtol: The E-step's covariance table's identification tolerance
-            (:class:`~baselines.priors.slds_inference.CovarianceTable`):
-            the default keeps the exact recursion's model to about 1e-11
-            relative; larger values trade that for speed (1e-6: about 1e-6
-            relative, a quarter to two fifths less time on the shared training
-            data).
+            (:class:`~baselines.priors.slds_inference.CovarianceTable`): the
+            default keeps the exact recursion's model to rounding; larger
+            values trade that for speed.
 
     Returns:
         The model, the cost per iteration and the segmentations.
