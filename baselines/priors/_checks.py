@@ -141,35 +141,6 @@ def check_settings(
             raise ValueError(f"{where}: {name} must be a whole number >= {least}, got {value!r}")
 
 
-def check_fitted(
-    owner: str,
-    free: Any,
-    numbers: Mapping[str, Any] | None = None,
-    counts: Mapping[str, tuple[Any, int]] | None = None,
-    positive: Collection[str] = (),
-) -> None:
-    """Refuse fitted parameters that ``initial`` and ``transition`` would fail on, by name.
-
-    For a parameters class's ``__post_init__``: a file edited or damaged past
-    its format is then refused when it is loaded (``load_fitted`` adds the
-    file to the message), not by an ``IndexError`` when a particle moves.
-
-    Args:
-        owner: The class, for the message (``"ConstantVelocityParams"``).
-        free: The modelled parameters' indices: distinct integers in [0, 25)
-            (:func:`free_indices`).
-        numbers: Scalars that must be finite numbers >= 0 (> 0 for those in
-            ``positive``), as :func:`check_settings`.
-        counts: ``{name: (value, least)}``: whole numbers >= ``least``.
-        positive: The ``numbers`` that must be above 0.
-
-    Raises:
-        ValueError: Naming the class, the field and its value.
-    """
-    free_indices(free, owner)
-    check_settings(owner, numbers, counts, positive)
-
-
 def check_shapes(
     owner: str, arrays: Mapping[str, Any], want: Mapping[str, tuple[int, ...]]
 ) -> None:

@@ -36,19 +36,13 @@ def save_fitted(fitted: Any, path: str | Path, cls: type | None = None) -> None:
 
     Raises:
         TypeError: If ``fitted`` is not a dataclass (of ``cls``) or holds a
-            non-array field.
+            non-array field (named by :func:`save_arrays`).
     """
     if not dataclasses.is_dataclass(fitted) or (cls is not None and not isinstance(fitted, cls)):
         want = "a dataclass instance" if cls is None else f"{cls.__name__}"
         raise TypeError(f"save: expected {want}, got {type(fitted).__name__}")
-    arrays: dict[str, np.ndarray] = {"__kind__": np.array(type(fitted).__name__)}
-    for f in dataclasses.fields(fitted):
-        value = getattr(fitted, f.name)
-        arr = np.asarray(value)
-        if arr.dtype == object:
-            raise TypeError(f"save_fitted: field {f.name!r} is not an array or scalar")
-        arrays[f.name] = arr
-    save_arrays(arrays, path)
+    arrays = {f.name: np.asarray(getattr(fitted, f.name)) for f in dataclasses.fields(fitted)}
+    save_arrays({"__kind__": np.array(type(fitted).__name__), **arrays}, path)
 
 
 def save_arrays(arrays: dict[str, np.ndarray], path: str | Path) -> None:

@@ -37,13 +37,12 @@ def check_request(base_pose: ArrayLike, frames: int, fps: float, rng: Any) -> Fl
             integer >= 1, ``fps`` not a positive number or ``rng`` not a
             ``numpy.random.Generator``.
     """
-    check_generator(rng, "synthesize_motion")
+    check_synthesis(frames, rng, "synthesize_motion")
     base = np.asarray(base_pose, dtype=np.float64)
     if base.shape != (N_PARAMS,):
         raise ValueError(f"synthesize_motion: base_pose must have shape (25,), got {base.shape}")
     if not np.all(np.isfinite(base)):
         raise ValueError("synthesize_motion: base_pose must be finite")
-    check_synthesis(frames, rng, "synthesize_motion")
     if not (is_real(fps) and np.isfinite(fps) and fps > 0):
         raise ValueError(f"synthesize_motion: fps must be a positive number, got {fps!r}")
     return base

@@ -40,7 +40,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from baselines.filtering import ParticleState
 from baselines.priors._checks import (
-    check_fitted,
     check_generator,
     check_settings,
     free_indices,
@@ -86,7 +85,8 @@ class ConstantVelocityParams:
     def __post_init__(self) -> None:
         # What initial and transition rely on (a loaded file is checked here too).
         where = "ConstantVelocityParams"
-        check_fitted(where, self.free, numbers={"fps": self.fps}, positive={"fps"})
+        free_indices(self.free, where)
+        check_settings(where, numbers={"fps": self.fps}, positive={"fps"})
         _check_scales(where, self.multiplier, self.damping, self.position_noise)
         d = np.shape(self.free)
         for name in ("accel_std", "velocity_std"):
@@ -103,11 +103,8 @@ class ConstantVelocityParams:
 def _check_scales(where: str, multiplier: Any, damping: Any, position_noise: Any) -> None:
     """Refuse the noise settings that :func:`fit` takes and the parameters hold, by name.
 
-    ``multiplier`` and ``position_noise`` finite numbers >= 0, ``damping`` a
-    number in [0, 1].
-
-    Raises:
-        ValueError: Naming ``where`` (the fit or the class) and the setting.
+    ``multiplier`` and ``position_noise`` must be finite numbers >= 0, ``damping``
+    in [0, 1]; the ValueError names ``where`` (the fit or the class) and the setting.
     """
     check_settings(where, numbers={"multiplier": multiplier, "position_noise": position_noise})
     if not (is_real(damping) and 0.0 <= damping <= 1.0):

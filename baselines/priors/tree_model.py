@@ -16,7 +16,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from baselines.priors._checks import check_fitted, check_settings, check_shapes
+from baselines.priors._checks import check_settings, check_shapes, free_indices
 from humotion_gym.body import PARAM_INDEX
 from humotion_gym.mocap.motion import Motion
 
@@ -28,10 +28,9 @@ WINDOW = 10
 #: Precision of the particles' histories: they only feed the coefficients, and
 #: single precision halves the memory that every step and resampling copies.
 HISTORY_DTYPE = np.float32
-#: Precision of the database's poses: single precision (a relative rounding of
-#: 6e-8, under 1e-4 mm at 2 m and 1e-6 rad, far below the transition noise) is
-#: what :func:`save` stores exactly, in half the bytes of double (the tests check
-#: that the tree's searches pick the same windows as from the unrounded clips).
+#: Precision of the database's poses: single precision (its rounding far below
+#: the transition noise) is what :func:`save` stores exactly, in half the bytes
+#: of double (the tests check that the searches pick the unrounded clips' windows).
 DATABASE_DTYPE: type[np.floating] = np.float32
 #: Ways of choosing a window inside the leaf the descent reached.
 LEAF_RULES: tuple[str, ...] = ("weighted", "uniform")
@@ -242,7 +241,8 @@ def check_fields(where: str, values: Mapping[str, Any]) -> None:
     """
     counts = {"window": (values["window"], 1), "depth": (values["depth"], 1)}
     numbers = {"fps": values["fps"], "explained_variance": values["explained_variance"]}
-    check_fitted(where, values["free"], numbers, counts, positive=("fps",))
+    free_indices(values["free"], where)
+    check_settings(where, numbers, counts, positive=("fps",))
     check_sampling(where, values)
     for name in _STORED_ARRAYS:
         if np.asarray(values[name]).dtype.kind not in "fiu":
@@ -314,16 +314,6 @@ def _rotate(x: FloatArray, y: FloatArray, angle: FloatArray) -> tuple[FloatArray
     """``R_z(angle) [x, y]`` (body.py convention: yaw turns +y towards -x)."""
     c, s = np.cos(angle), np.sin(angle)
     return c * x - s * y, s * x + c * y
-
-
-def _heading_frame(xy: NDArray[Any], heading: NDArray[Any]) -> FloatArray:
-    """``(N, F, 2)`` root paths ``xy`` turned into the frame of ``heading`` ``(N, 1)``.
-
-    ``R_z(-heading)`` in the inputs' precision, stored in double precision.
-    """
-    out = np.empty(xy.shape)
-    out[..., 0], out[..., 1] = _rotate(xy[..., 0], xy[..., 1], -heading)
-    return out
 
 
 def _anchor_relative(rel: FloatArray, lay: _Layout) -> FloatArray:
@@ -461,9 +451,12 @@ def _coefficients(
     elif lay.rel_xy is not None:
         ix, iy = _root_xy(lay)
         heading = history[:, -1:, lay.relative[lay.rel_yaw]]
-        # Both columns in one gather: each is a strided pass over the whole
-        # history (11 MB at 10,000 particles), so reading them together halves it.
-        c += _heading_frame(history[..., [ix, iy]], heading).reshape(n, -1) @ projection_heading
+        # Both columns in one gather (each is a strided pass over the whole
+        # history); turned by R_z(-heading) in their precision, stored in double.
+        xy = history[..., [ix, iy]]
+        path = np.empty(xy.shape)
+        path[..., 0], path[..., 1] = _rotate(xy[..., 0], xy[..., 1], -heading)
+        c += path.reshape(n, -1) @ projection_heading
     return c
 
 
