@@ -90,28 +90,20 @@ def descend(
     rng: np.random.Generator,
     want_log_prob: bool,
 ) -> tuple[IntArray, IntArray, FloatArray]:
-    """The probabilistic descent of every probe, level by level (eq. 7).
+    """The probabilistic descent of every probe (rows of ``coefficients``), level by level (eq. 7).
 
-    Level ``l`` splits on the sign of coefficient ``l``; a node whose one
-    child is empty sends every probe to the other, one with both children
-    takes eq. 7's branch. Every probe takes level ``l`` before any takes
-    level ``l + 1`` (the draws' order): the probes' reads of the tree are
-    independent of each other, so many are in flight at once, where one
-    probe's walk from the root would wait on each of its own.
-
-    Args:
-        coefficients: ``(N, b)`` the probes ``c_t``.
-        sigma: ``(b,)`` each coefficient's standard deviation.
-        beta: The temperature.
-        node_flags: ``(2**b - 1,)`` per inner node (heap order): bit 0 set
-            when its ``-`` child holds windows, bit 1 the ``+`` one.
-        offsets: ``(2**b + 1,)`` each leaf's first window.
-        rng: The draws.
-        want_log_prob: Also sum the log probabilities of the branches taken.
+    Level ``l`` splits on the sign of coefficient ``l`` (standard deviation
+    ``sigma[l]``); a node whose one child is empty (``node_flags``, heap order:
+    bit 0 set when its ``-`` child holds windows, bit 1 the ``+`` one) sends
+    every probe to the other, one with both children takes eq. 7's branch.
+    Every probe takes level ``l`` before any takes level ``l + 1`` (the draws'
+    order): the probes' reads of the tree are independent of each other, so many
+    are in flight at once, where one probe's walk from the root would wait on
+    each of its own.
 
     Returns:
-        ``[lo, hi)`` each probe's leaf and the log probability of reaching it
-        (zeros unless asked).
+        ``[lo, hi)`` each probe's leaf (``offsets``: each leaf's first window)
+        and, with ``want_log_prob``, the log probability of reaching it (else zeros).
     """
     n, b = coefficients.shape
     prefix = np.zeros(n, np.intp)  # each probe's node within its level
@@ -261,36 +253,21 @@ def replay(
     relative: NDArray[np.bool_],
     rng: np.random.Generator,
 ) -> FloatArray:
-    """The chosen windows' next steps replayed from the particles' poses.
+    """The chosen windows' next steps ``steps (N, D)`` replayed from the particles' ``pose (N, D)``.
 
-    Per particle ``p``: the step ``steps[p]``; where ``velocity[j]``, plus
-    ``pose[p, j] - ends[p, j]`` (the parameter moves by the database's
-    velocity from the particle's own pose); root x and y (``root = [x, y]``
-    columns; empty: not turned) times the particle's speed (``speed`` empty:
-    none); plus ``noise_std * N(0, 1)`` (``noise_std`` empty: no noise). Then
-    the relative parameters move by the step from the pose, root x and y
-    turned by the pose's heading, and the absolute ones take it.
+    Per particle ``p``: the step ``steps[p]``; where ``velocity[j]`` (``(D,)``),
+    plus ``pose[p, j] - ends[p, j]``, the window's last pose ``ends`` (the
+    parameter moves by the database's velocity from the particle's own pose;
+    ``ends`` may be empty where no parameter does); root x and y (``root = [x,
+    y]`` columns; empty: not turned) times the particle's ``speed`` (empty:
+    none); plus ``noise_std * N(0, 1)`` drawn from ``rng`` (``noise_std``
+    empty: no noise). Then the ``relative`` parameters move by the step from the
+    pose, root x and y turned by the pose's heading (``cos_sin``, ``(2, N)``),
+    and the absolute ones take it. Returns the ``(N, D)`` new poses.
 
     The caller gathers each particle's rows of the database beforehand
     (``np.take``): a gather's reads are independent of each other and overlap,
     where this loop, between its random draws, would wait on each row.
-
-    Args:
-        steps: ``(N, D)`` the state that followed each particle's window.
-        ends: ``(N, D)`` the last pose of each particle's window (read only
-            where ``velocity``; may be empty where none is).
-        pose: ``(N, D)`` the particles' poses.
-        velocity: ``(D,)`` the parameters replayed by velocity.
-        speed: ``(N,)`` the particles' speeds, or empty.
-        root: Root x and y columns, or empty.
-        cos_sin: ``(2, N)`` the cosines and sines of the particles' headings
-            (with ``root``).
-        noise_std: ``(D,)`` the noise's standard deviations, or empty.
-        relative: ``(D,)`` the parameters that move relative to the pose.
-        rng: The noise's draws.
-
-    Returns:
-        ``(N, D)`` the new poses.
     """
     n, dim = pose.shape
     out_pose = np.empty((n, dim))

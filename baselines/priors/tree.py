@@ -81,12 +81,10 @@ What the tree approximates (derived): following the signs of
     coefficients spread as ``N(0, sigma^2)`` eq. 3 takes the ``+`` side of a
     split with probability ``Phi(c_t,l / (sqrt(beta) sigma_l sqrt(1 + beta)))``,
     so at ``beta = 1`` the tree is more decisive at every level, and the
-    levels compound: the measured distance is about 0.2 at the first split and
-    0.65 over windows (``b = 10``, see the tests). Beyond the paper,
+    levels compound (docs/priors.md gives the distance). Beyond the paper,
     ``proposals = K > 1`` descends ``K`` times and keeps one window by
     importance weight ``p_eq3 / q_tree`` (sampling-importance-resampling),
-    which approaches eq. 3 as ``K`` grows (0.05 at ``K = 64``) at ``K`` times
-    the cost.
+    which approaches eq. 3 as ``K`` grows, at ``K`` times the cost.
 
 Transition: the chosen window's following state plus Gaussian noise,
     ``noise_scale`` times the standard deviation of each parameter's per-frame
@@ -258,10 +256,8 @@ def follow(old: ParticleState, pose: FloatArray) -> dict[str, NDArray[Any]]:
 def _last_pose_distances(fitted: TreeParams, pose: FloatArray, lay: _Layout) -> FloatArray:
     """``(n_windows,)`` squared scaled distances of each window's last pose to ``pose``.
 
-    ``sum_k ((x_k - p_k) / s_k)^2`` over the absolute parameters, ``s`` their
-    feature scales. Taken a column at a time (the fitted frames are in
-    Fortran order), without gathering ``frames[window_end][:, absolute]`` and
-    its temporaries.
+    ``sum_k ((x_k - p_k) / s_k)^2`` over the absolute parameters (``s`` their
+    feature scales), a column at a time: the fitted frames are in Fortran order.
     """
     scale = np.sqrt(fitted.feature_var[: lay.absolute.size])
     values = np.empty(fitted.window_end.size, fitted.frames.dtype)
@@ -346,17 +342,6 @@ def _has_speed(fitted: TreeParams, lay: _Layout) -> bool:
     return fitted.speed_spread > 0 and lay.rel_xy is not None
 
 
-def _paced_path(history: NDArray[Any], speed: FloatArray, lay: _Layout) -> FloatArray:
-    """``(N, d + 1, 2)`` each history's root path at the database's pace, in its heading frame.
-
-    The path relative to the last frame is divided by the particle's speed
-    (``last + (x - last) / speed``), then turned by the last frame's heading
-    (``_coefficients``' ``turned``), in double precision.
-    """
-    ix, iy = _root_xy(lay)
-    return compiled.paced_path(history, speed, ix, iy, int(lay.relative[lay.rel_yaw]))
-
-
 def _search_coefficients(
     fitted: TreeParams, history: NDArray[Any], speed: FloatArray | None, lay: _Layout
 ) -> FloatArray:
@@ -371,13 +356,15 @@ def _search_coefficients(
     """
     if speed is None:
         return window_coefficients(fitted, history)
+    ix, iy = _root_xy(lay)
+    paced = compiled.paced_path(history, speed, ix, iy, int(lay.relative[lay.rel_yaw]))
     return _coefficients(
         history,
         lay,
         fitted.projection,
         fitted.projection_heading,
         fitted.projection_offset,
-        _paced_path(history, speed, lay),
+        paced,
     )
 
 
@@ -385,9 +372,8 @@ class _Particles(NamedTuple):
     """What :func:`transition` reads of the particles: a history per distinct particle.
 
     ``history`` ``(K, d + 1, D)`` and ``speed`` ``(K,)`` hold one row per
-    distinct particle (resampling repeats them: at 3,000 particles about 40%
-    are distinct), particle ``p``'s at ``rows[p]`` (its own row where
-    ``rows`` is None).
+    distinct particle (resampling repeats them), particle ``p``'s at
+    ``rows[p]`` (its own row where ``rows`` is None).
     """
 
     history: NDArray[Any]

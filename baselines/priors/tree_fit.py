@@ -47,11 +47,8 @@ def _check_fit_arguments(
 ) -> NDArray[np.intp]:  # fmt: skip
     """The modelled parameters' indices, after checking :func:`fit`'s arguments.
 
-    Every one before the database is built: the sampling ``settings`` by the
-    same check as :class:`TreeParams`'s (:func:`check_sampling`).
-
-    Raises:
-        ValueError: As documented in :func:`fit`.
+    Every one before the database is built (ValueError as in :func:`fit`); the
+    sampling ``settings`` by :class:`TreeParams`'s own check (:func:`check_sampling`).
     """
     training_clips(motions, frame_skip, "tree.fit")
     idx = free_indices(free, "tree.fit")
@@ -60,9 +57,6 @@ def _check_fit_arguments(
     if depth is not None and not is_count(depth, 1):  # its range needs the database
         raise ValueError(f"tree.fit: depth must be a whole number >= 1 or None, got {depth!r}")
     check_sampling("tree.fit", settings)
-    rates = {float(m.fps) for m in motions}
-    if len(rates) != 1:
-        raise ValueError(f"tree.fit: every clip must have the same frame rate, got {sorted(rates)}")
     return idx
 
 
@@ -161,42 +155,21 @@ def _history_projection(
         ``(projection ((d + 1) * D, b), projection_heading (2 (d + 1), b), offset (b,))``.
     """
     b = components.shape[1]
-    idx_size = n_free
-    width = mean.size
-    span = (d + 1) * idx_size
-    basis = np.eye(span).reshape(span, d + 1, idx_size)
-    lin = _features(basis, lay, search).reshape(span, width)
-    full = lin @ (components * inv_sd[:, None])
+    span = (d + 1) * n_free
+    basis = np.eye(span).reshape(span, d + 1, n_free)
+    lin = _features(basis, lay, search).reshape(span, mean.size)
+    projection = lin @ (components * inv_sd[:, None])
     offset = (mean * inv_sd) @ components
-    projection = full
     projection_heading = np.zeros((d + 1, 2, b))
     if lay.rel_xy is not None:
         # The root's path enters rotated into the heading frame (R_z(-h)).
         ix, iy = _root_xy(lay)
-        rows = np.arange(d + 1) * idx_size
-        projection_heading[:, 0], projection_heading[:, 1] = full[rows + ix], full[rows + iy]
+        rows = np.arange(d + 1) * n_free
+        projection_heading[:, 0] = projection[rows + ix]
+        projection_heading[:, 1] = projection[rows + iy]
         projection[rows + ix] = 0.0
         projection[rows + iy] = 0.0
-    projection_heading = projection_heading.reshape(2 * (d + 1), b)
-
-    return projection, projection_heading, offset
-
-
-def _database_coefficients(
-    frames: FloatArray,
-    ends: IntArray,
-    lay: _Layout,
-    d: int,
-    projection: FloatArray,
-    projection_heading: FloatArray,
-    offset: FloatArray,
-) -> FloatArray:
-    """``(n, b)`` the coefficients of the windows ending at ``ends``, in that order (chunked)."""
-    coefficients = np.empty((ends.size, offset.size))
-    for part in _chunks(ends.size, (d + 1) * frames.shape[1]):
-        hist = _histories(frames, ends[part], d)
-        coefficients[part] = _coefficients(hist, lay, projection, projection_heading, offset)
-    return coefficients
+    return projection, projection_heading.reshape(2 * (d + 1), b), offset
 
 
 class _Tree(NamedTuple):
@@ -229,9 +202,10 @@ def _tree_order(
     grouped, which could move a coefficient at zero across the split).
     """
     for _ in range(8):
-        coefficients = _database_coefficients(
-            frames, ends, lay, d, projection, projection_heading, offset
-        )
+        coefficients = np.empty((ends.size, offset.size))  # in chunks, in the order of ends
+        for part in _chunks(ends.size, (d + 1) * frames.shape[1]):
+            hist = _histories(frames, ends[part], d)
+            coefficients[part] = _coefficients(hist, lay, projection, projection_heading, offset)
         order, codes, offsets, flags = _tree_arrays(coefficients)
         if np.array_equal(order, np.arange(ends.size)):
             break
@@ -334,8 +308,7 @@ def fit(
 def _depth(n: int, width: int, depth: int | None, clips: int, d: int) -> int:
     """``b``: ``floor(log2 n)`` when ``depth`` is None, else ``depth``, checked.
 
-    Raises:
-        ValueError: If fewer than two windows fit, or ``depth`` is out of range.
+    Raises ValueError if fewer than two windows fit, or ``depth`` is out of range.
     """
     if n < 2:
         raise ValueError(
