@@ -37,11 +37,8 @@ def get_prior(name: str) -> ModuleType:
 def _prior_by_name(module: ModuleType) -> tuple:
     """Pickle a prior module as its import name: agents and filters hold their prior module.
 
-    A prior is a module of functions over its fitted arrays, so a tracker holds
-    the module itself, which pickle and ``copy.deepcopy`` refuse. Registered for
-    modules, this pickles one that has a prior's functions and is importable by
-    its name (the package's and a user's own); any other module is refused as
-    before.
+    A module of a prior's functions that is importable by its name (the package's
+    or a user's own) pickles and deep-copies; any other module is refused as before.
     """
     name = module.__name__
     prior = callable(getattr(module, "initial", None)) and callable(

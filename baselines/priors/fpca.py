@@ -286,15 +286,10 @@ def _checked_inputs(
     n_components: int,
     n_harmonics: int,
 ) -> tuple[FloatArray, NDArray[np.bool_], NDArray[np.intp], int]:
-    """:func:`fpca`'s inputs, checked.
+    """:func:`fpca`'s inputs, checked (ValueError for what :func:`fpca` refuses).
 
-    Returns:
-        The cycles, the mask of what is observed and finite, each cycle's
-        group and the rank ``q``.
-
-    Raises:
-        ValueError: On shapes that do not match, no observed entry, or a rank
-            or a number of harmonics that is not a whole number >= 1.
+    Returns the cycles, the mask of what is observed and finite, each cycle's
+    group and the rank ``q``.
     """
     x = np.asarray(values, dtype=np.float64)
     if x.ndim != 3:
