@@ -55,9 +55,7 @@ from humotion_gym.mocap.motion import Motion, content_digest
 
 #: Version of the prior cache's entries (part of the key, beside the library's
 #: :data:`~humotion_gym.mocap.library.CACHE_VERSION`): raised when a prior's file
-#: format changes, so that older entries are refitted instead of read (2: the
-#: tree prior's database saved once, in single precision; 3: cyclic PCA's
-#: components signed so that each one's largest entry is positive).
+#: format changes, so that older entries are refitted instead of read.
 PRIOR_CACHE_VERSION = "3"
 
 
@@ -135,8 +133,7 @@ def code_digest(module: ModuleType) -> str:
     file = getattr(module, "__file__", None)
     if not file or not Path(file).is_file():
         return "none"
-    # Read on every fit (about a millisecond for baselines/priors): a module
-    # edited and reloaded in a running process is seen.
+    # Read on every fit: a module edited and reloaded in a running process is seen.
     h = hashlib.sha256()
     for path in sorted(Path(file).resolve().parent.glob("*.py")):
         if path.name.startswith("."):  # an editor's lock or backup file, not code

@@ -374,7 +374,7 @@ def fit(
             starting processes would slow). 1: all in this process.
         cov_rtol: The E-step's covariance table's tolerance
             (:data:`FIT_COV_RTOL`; ``slds_inference.COV_RTOL`` for the exact
-            recursion's model to rounding, at a third to two thirds more time).
+            recursion's model to rounding, in more time).
 
     Returns:
         The fitted parameters.
