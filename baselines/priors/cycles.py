@@ -24,18 +24,13 @@ motion using functional analysis*, Image and Vision Computing 23 (2005):
 
 2. **Offsets** (section 3.2, Fig. 6). Every sequence ``i`` has its own period
    ``p_i`` and an offset ``o_i`` (frames): frame ``t`` is at phase
-   ``((t - o_i) / p_i) mod 1``. Starting from offsets of zero, the algorithm
-   alternates between fitting one reference curve per angle to the frames of
-   every sequence at their current phases, and moving each sequence's offset
-   to the one that fits the reference best, until the total squared error
-   improves by less than ``tol`` (1e-6). The reference curves are periodically
-   constrained cubic regression splines (Appendix A; :func:`periodic_spline_basis`).
+   ``((t - o_i) / p_i) mod 1``. :func:`align_offsets` fits them against
+   reference curves, periodically constrained cubic regression splines
+   (Appendix A; :func:`periodic_spline_basis`).
 
-3. **Reference domain** (section 3.4). Each cycle of each sequence and angle is
-   smoothed by a cubic regression spline in time and resampled on ``S`` points
-   of phase; samples that fall before the first or after the last frame
-   (partial cycles at the ends) or between unobserved frames keep a missing
-   label. Stacking the cycles gives the design matrix ``X`` of
+3. **Reference domain** (section 3.4). :func:`segment` resamples each cycle of
+   each sequence and angle on ``S`` points of phase, with a missing label where
+   the clip has no data; stacked, the cycles are the design matrix ``X`` of
    :class:`Segmentation` that functional PCA (:mod:`baselines.priors.fpca`)
    completes.
 
