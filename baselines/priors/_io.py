@@ -109,13 +109,8 @@ def read_arrays(
     A file with an array of no field (another release's, or an edit; names
     in double underscores label the file) is refused, and so is one with a
     NaN or infinite number: no fitted parameter is one, and sampling from it
-    would spread NaN without a word.
-
-    Args:
-        data: The open file.
-        path: The file, for the messages.
-        names: The arrays to read.
-        optional: Those of ``names`` an older file may lack.
+    would spread NaN without a word. ``optional``: those of ``names`` an older
+    file may lack; ``path`` names the file in the messages.
 
     Raises:
         ValueError: Naming the file and the array.
@@ -177,11 +172,7 @@ class _Members:
 
 @contextlib.contextmanager
 def open_npz(path: str | Path, what: str) -> Iterator[Any]:
-    """``np.load(path, allow_pickle=False)`` of an ``.npz``, its damage named.
-
-    Args:
-        path: The file.
-        what: What it should hold, for the messages.
+    """``np.load(path, allow_pickle=False)`` of an ``.npz`` holding ``what``, its damage named.
 
     Yields:
         The file's arrays: ``files`` (their names), ``name in``, ``[name]``.

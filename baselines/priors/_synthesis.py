@@ -61,15 +61,10 @@ def to_motion(
     frames: int,
     fps: float,
 ) -> FloatArray:
-    """``(frames, 25)``: ``base`` everywhere, ``free`` from ``poses`` resampled linearly.
+    """``(frames, 25)`` at ``fps``: ``base`` ``(25,)`` everywhere, ``free`` from ``poses``.
 
-    Args:
-        base: ``(25,)`` values of the parameters the model does not cover.
-        free: ``(D,)`` indices of the modelled parameters.
-        poses: ``(M, D)`` the model's poses at ``model_fps``.
-        model_fps: The model's frame rate.
-        frames: Output frames.
-        fps: Output frame rate.
+    ``poses`` ``(M, D)``, the model's poses of the ``free`` ``(D,)`` parameters
+    at ``model_fps``, are resampled linearly.
     """
     t_out = np.arange(int(frames)) * (model_fps / float(fps))
     t_model = np.arange(poses.shape[0])

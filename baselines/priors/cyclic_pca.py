@@ -570,12 +570,6 @@ def initial(
     does not explain becomes a fixed per-angle offset (``keep_offset``); the
     global parameters start at the pose with a heading-aligned velocity.
 
-    Args:
-        fitted: The prior.
-        pose: ``(D,)`` the free parameters at the first frame.
-        n: Number of particles.
-        rng: Generator.
-
     Returns:
         The particles; ``extra`` holds ``phase (N,)``, ``speed (N,)``,
         ``coef (N, q)``, ``offset (N, A)`` and ``root_velocity (N, 3)``.
@@ -731,12 +725,8 @@ def synthesize(fitted: CyclicPCAParams, frames: int, rng: np.random.Generator) -
     """Random walking cycles from random combinations of the components.
 
     Coefficients start at a draw from ``N(0, sd_k^2)`` and drift by the fitted
-    random walk; the speed starts at a draw from the clips' spread.
-
-    Args:
-        fitted: The prior.
-        frames: Number of frames (at ``fitted.fps``).
-        rng: Generator.
+    random walk; the speed starts at a draw from the clips' spread. ``frames``
+    are at ``fitted.fps``.
 
     Returns:
         ``(frames, 25)`` parameters: the modelled joint angles from the model,

@@ -164,12 +164,6 @@ def initial(
 ) -> ParticleState:
     """N particles at the known pose, each part with the past of its own database window.
 
-    Args:
-        fitted: The prior.
-        pose: ``(D,)`` the known first pose.
-        n: Number of particles.
-        rng: Random generator.
-
     Returns:
         ``pose (N, D)`` all equal to ``pose``; part ``g``'s tree memory as
         ``extra["NAME/past"]``, ``extra["NAME/last"]`` and ``extra["NAME/window"]``.
@@ -190,16 +184,7 @@ def initial(
 def transition(
     fitted: LimbsParams, state: ParticleState, rng: np.random.Generator
 ) -> ParticleState:
-    """One step: every part searches its own tree with its own history (the factorised eq.).
-
-    Args:
-        fitted: The prior.
-        state: The particles, as made by :func:`initial` or a previous transition.
-        rng: Random generator.
-
-    Returns:
-        The moved particles.
-    """
+    """One step: every part searches its own tree with its own history (the factorised eq.)."""
     pose = np.empty_like(state.pose)
     extras: dict[str, Mapping[str, NDArray[Any]]] = {}
     for g, (name, cols, part) in enumerate(

@@ -527,12 +527,6 @@ def initial(fitted: SLDSParams, pose: ArrayLike, n: int, rng: np.random.Generato
     initial covariance ``Q0(s)`` conditioned on a measurement of the pose, so
     the angles stay within the measurement noise of the pose and the previous
     frame spreads as the training clips' first frames did.
-
-    Args:
-        fitted: The prior.
-        pose: ``(D,)`` the free parameters at the first frame.
-        n: Number of particles.
-        rng: Generator.
     """
     y = start_pose(pose, fitted.obs_dim, n, rng, "slds.initial")
     c, r, q0 = fitted.C, fitted.R, fitted.Q0

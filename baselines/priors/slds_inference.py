@@ -122,12 +122,7 @@ def viterbi(
     innovation cost and the update. The path is read back from the best final
     state (eq. 12). Along the returned path the kept estimates are exactly the
     Kalman filter of that path, so the returned cost is that path's exact
-    ``-log p(y, s)``.
-
-    Args:
-        params: The model.
-        seqs: The sequences.
-        meas: Precomputed measurements (internal).
+    ``-log p(y, s)``. ``meas``: precomputed measurements (internal).
 
     Returns:
         ``(B, T)`` switch sequences (padding repeats the last state) and
@@ -421,16 +416,11 @@ class SmootherResult:
 def rts_smoother(
     params: SLDSParams, path: ArrayLike, filt: FilterResult, lengths: ArrayLike
 ) -> SmootherResult:
-    """Rauch-Tung-Striebel smoothing of ``x`` given a switch sequence.
+    """Rauch-Tung-Striebel smoothing of ``x`` given a switch sequence ``path`` ``(B, T)``.
 
-    Args:
-        params: The model.
-        path: ``(B, T)`` switch states.
-        filt: The filter's output along the same path.
-        lengths: ``(B,)`` sequence lengths.
-
-    Returns:
-        Smoothed means, covariances and lag-one cross-covariances.
+    ``filt`` is the filter's output along the same path, ``lengths`` ``(B,)``
+    the sequences' lengths. Returns the smoothed means, covariances and
+    lag-one cross-covariances.
     """
     path = np.asarray(path, dtype=np.intp)
     lengths = np.asarray(lengths)

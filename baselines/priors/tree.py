@@ -97,17 +97,11 @@ Transition: the chosen window's following state plus Gaussian noise,
     own pose: the search is the same, but a subject whose joint angles the
     database does not hold exactly is followed rather than snapped to the
     database's poses. Each particle carries its last ``d + 1`` poses, single
-    precision: the ``d`` earlier ones in ``ParticleState.extra["past"]``
-    (``(N, d, D)``) and its current pose in ``extra["last"]`` (``(N, D)``;
-    :func:`histories` joins them), and the window it followed in
-    ``extra["window"]``. Resampled particles share their past: a transition
-    joins one history per distinct particle, and the particles it moves keep
-    rows of those (:func:`baselines.filtering.gathered`) instead of a copy
-    each. The coefficients
-    are one matrix product over the particles; the descent (``O(log n)`` per
-    particle), the choice in the leaf and the replay are sequential per
-    particle and compiled (:mod:`baselines.priors._tree_compiled`, where eq. 3
-    and eq. 7 are written once each).
+    precision (``extra["past"]`` and ``extra["last"]``, which :func:`histories`
+    joins), and the window it followed (``extra["window"]``); resampled
+    particles share their past (:func:`transition`). The coefficients are one
+    matrix product over the particles; the descent, the choice in the leaf and
+    the replay are compiled loops (:mod:`baselines.priors._tree_compiled`).
 
 Walking speed (beyond the paper): the database walks at its actors' speeds,
     so a subject who walks faster or slower is given the database's speed,
@@ -289,12 +283,6 @@ def initial_windows(
 
 def initial(fitted: TreeParams, pose: ArrayLike, n: int, rng: np.random.Generator) -> ParticleState:
     """N particles at the known pose, each with the past of a matching database window.
-
-    Args:
-        fitted: The prior.
-        pose: ``(D,)`` the known first pose (absolute units).
-        n: Number of particles.
-        rng: Random generator.
 
     Returns:
         The particles: ``pose (N, D)`` all equal to ``pose``; ``extra["past"]``
