@@ -443,9 +443,8 @@ def fit(
     check_settings("cyclic_pca.fit", {**noises, "tol": tol}, counts, positive=("tol",))
     _check_curve_settings(n_harmonics, n_samples, keep_offset)
     idx = free_indices(free, "cyclic_pca.fit")
-    training_clips(motions, frame_skip, "cyclic_pca.fit")
+    fps = training_clips(motions, frame_skip, "cyclic_pca.fit")
     clips = _walking_clips(motions, labels)
-    fps = float(clips[0].fps) / frame_skip
     series = [m.params[::frame_skip] for m in clips]
     observed = [m.observed[::frame_skip] for m in clips]
     keep, xs, ws, periods = _cycling_clips(series, observed, fps)
