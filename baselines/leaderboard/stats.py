@@ -4,30 +4,24 @@ Following Agarwal, Schwarzer, Castro, Courville & Bellemare, *Deep
 reinforcement learning at the edge of the statistical precipice*, NeurIPS 2021
 (the rliable library): report the interquartile mean (IQM) beside the mean,
 with percentile bootstrap confidence intervals over runs, stratified by task
-when runs cover several (each task's runs are resampled on their own, so every
-resample keeps every task); normalise each task's scores against a reference
-before aggregating; and report the probability that one method beats another
-on a random run.
+when runs cover several (each task's runs are resampled on their own);
+normalise each task's scores against a reference before aggregating; and
+report the probability that one method beats another on a random run.
 
 Here a run is one seeded episode and its score the episode's mean keypoint
-error in mm (lower is better); the reference is ``hold``, the agent that keeps
-the initial pose. Every bootstrap is :func:`scipy.stats.bootstrap` with the
-percentile method and a seeded :class:`numpy.random.Generator`, so the same
-episodes and seed give the same interval bit for bit, whichever process or
-machine computes them.
+error in mm (lower is better); the reference is ``hold``. Every interval is
+two-sided at ``confidence``, from ``n_resamples`` percentile bootstrap
+resamples drawn from ``seed`` (a seed or a :class:`numpy.random.Generator`),
+so the same episodes and seed give the same interval bit for bit anywhere.
 
-A cell run with several agent seeds on the same episodes
-(:func:`~baselines.leaderboard.rows.seed_matrix`) has its mean's interval, and that of its ratio to
-``hold``, from :func:`two_level_bootstrap`: episodes resampled, then the
-agent seeds within each, so the seeds' variance is in the interval.
-
-Episodes cut from one clip are not independent (one person, one motion, one
-take): where episodes carry their clip, :func:`cluster_bootstrap_ci` and
-:func:`two_level_bootstrap` with ``clusters`` resample whole clips (every
-episode of each drawn clip), the cluster bootstrap of Davison & Hinkley (1997,
-section 3.8) and Field & Welsh, *Bootstrapping clustered data*, JRSS B 2007.
-Resampling episodes instead makes the interval too narrow when clips differ
-more than episodes within a clip.
+A cell run with several agent seeds on the same episodes has its mean's
+interval, and that of its ratio to ``hold``, from :func:`two_level_bootstrap`:
+episodes resampled, then the agent seeds within each. Episodes cut from one
+clip are not independent (one person, one motion, one take): where episodes
+carry their clip, :func:`cluster_bootstrap_ci` and :func:`two_level_bootstrap`
+with ``clusters`` resample whole clips, the cluster bootstrap of Davison &
+Hinkley (1997, section 3.8) and Field & Welsh, *Bootstrapping clustered data*,
+JRSS B 2007; resampling episodes instead makes the interval too narrow.
 """
 
 from __future__ import annotations
@@ -113,15 +107,10 @@ def bootstrap_ci(
     confidence: float = 0.95,
     seed: int | np.random.Generator = 0,
 ) -> tuple[float, float]:
-    """Percentile bootstrap interval of a statistic of a 1-D sample.
+    """Percentile bootstrap interval of a statistic of a 1-D sample (a cell's episode errors).
 
-    Args:
-        values: The sample (e.g. one cell's episode errors).
-        statistic: ``np.mean``, ``np.median``, :func:`iqm` (vectorised) or any
-            function of a 1-D array.
-        n_resamples: Bootstrap resamples.
-        confidence: Confidence level of the two-sided interval.
-        seed: Seed or generator of the resampling.
+    ``statistic``: ``np.mean``, ``np.median``, :func:`iqm` (vectorised) or any
+    function of a 1-D array.
 
     Returns:
         The lower and upper bound: NaN for an empty sample, the value itself
@@ -136,11 +125,23 @@ def bootstrap_ci(
         return float("nan"), float("nan")
     if v.size == 1:
         return float(v[0]), float(v[0])
-    res = stats.bootstrap(
-        (v,), _vectorised(statistic), n_resamples=n_resamples, vectorized=True,
+    ci = _bootstrap((v,), _vectorised(statistic), n_resamples, confidence, seed)
+    return float(ci.low), float(ci.high)
+
+
+def _bootstrap(
+    samples: tuple[FloatArray, ...],
+    statistic: Callable[..., Any],
+    n_resamples: int,
+    confidence: float,
+    seed: int | np.random.Generator,
+    **options: Any,
+) -> Any:
+    """:func:`scipy.stats.bootstrap`'s vectorised percentile interval, from a seeded generator."""
+    return stats.bootstrap(
+        samples, statistic, n_resamples=n_resamples, vectorized=True, **options,
         confidence_level=confidence, method="percentile", rng=np.random.default_rng(seed),
-    )  # fmt: skip
-    return float(res.confidence_interval.low), float(res.confidence_interval.high)
+    ).confidence_interval  # fmt: skip
 
 
 def stratified_bootstrap_ci(
@@ -152,18 +153,9 @@ def stratified_bootstrap_ci(
 ) -> tuple[float, float]:
     """Bootstrap interval of a statistic of all scores, resampling runs within each task.
 
-    Each task's runs form one sample of :func:`scipy.stats.bootstrap`, which
-    resamples every sample independently: that is the stratified bootstrap of
-    Agarwal et al. (2021) (rliable's ``get_interval_estimates``), and every resample keeps
-    every task's share.
-
-    Args:
-        scores: A ``(runs, tasks)`` matrix, or one 1-D array of runs per task
-            (tasks may have different numbers of runs).
-        statistic: Aggregate of the pooled scores (:func:`iqm` by default).
-        n_resamples: Bootstrap resamples.
-        confidence: Confidence level.
-        seed: Seed or generator of the resampling.
+    ``scores``: a ``(runs, tasks)`` matrix, or one 1-D array of runs per task.
+    Each task's runs are one sample of :func:`scipy.stats.bootstrap`: the
+    stratified bootstrap of Agarwal et al. (2021), rliable's ``get_interval_estimates``.
 
     Returns:
         The lower and upper bound (NaN if there are no scores).
@@ -180,8 +172,7 @@ def stratified_bootstrap_ci(
         value = float(statistic(np.concatenate(columns)))
         return value, value
     along = _vectorised(statistic)
-    # a task with one run is constant under resampling: bootstrap refuses it, so
-    # it is appended to every resample instead of being resampled
+    # a task of one run, which bootstrap refuses, is appended to every resample
     varied = tuple(c for c in columns if c.size > 1)
     fixed = np.concatenate(single) if single else np.empty(0)
 
@@ -192,11 +183,8 @@ def stratified_bootstrap_ci(
             parts.append(np.broadcast_to(fixed, shape))
         return along(np.concatenate(parts, axis=-1), -1)
 
-    res = stats.bootstrap(
-        varied, statistic_of, n_resamples=n_resamples, vectorized=True, axis=-1, batch=_BATCH,
-        confidence_level=confidence, method="percentile", rng=np.random.default_rng(seed),
-    )  # fmt: skip
-    return float(res.confidence_interval.low), float(res.confidence_interval.high)
+    ci = _bootstrap(varied, statistic_of, n_resamples, confidence, seed, axis=-1, batch=_BATCH)
+    return float(ci.low), float(ci.high)
 
 
 def _columns(where: str, scores: ArrayLike | Sequence[ArrayLike]) -> list[FloatArray]:
@@ -300,19 +288,10 @@ def mean_band(
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Mean over episodes at every frame, with a percentile bootstrap band.
 
-    ``(episodes, frames)`` errors without ``clusters``: episodes are resampled
-    one by one, the frames of one episode together. Otherwise the band
-    resamples what :func:`two_level_bootstrap` does: clusters (clips) whole
-    where given, else episodes, then each drawn episode's agent seeds; a
-    resample's mean at a frame is over every (episode, seed) it drew.
-
-    Args:
-        errors: ``(episodes, frames)`` errors, or ``(episodes, agent seeds,
-            frames)``.
-        confidence: Confidence level.
-        n_resamples: Bootstrap resamples.
-        seed: Seed or generator.
-        clusters: ``(episodes,)`` each episode's cluster (its clip id), or None.
+    ``(episodes, frames)`` errors without ``clusters`` resample episodes one by
+    one, each episode's frames together; ``(episodes, agent seeds, frames)``
+    errors, or ``clusters`` (each episode's clip id), resample what
+    :func:`two_level_bootstrap` does.
 
     Returns:
         ``(mean, low, high)``, each ``(frames,)``.
@@ -333,11 +312,8 @@ def mean_band(
                                       n_resamples, confidence, seed)  # fmt: skip
     if e.shape[0] == 1:
         return mean, mean.copy(), mean.copy()
-    res = stats.bootstrap(
-        (e,), np.mean, n_resamples=n_resamples, vectorized=True, axis=0, batch=_BATCH,
-        confidence_level=confidence, method="percentile", rng=np.random.default_rng(seed),
-    )  # fmt: skip
-    return mean, np.asarray(res.confidence_interval.low), np.asarray(res.confidence_interval.high)
+    ci = _bootstrap((e,), np.mean, n_resamples, confidence, seed, axis=0, batch=_BATCH)
+    return mean, np.asarray(ci.low), np.asarray(ci.high)
 
 
 def _two_level_band(
@@ -402,12 +378,9 @@ def _runs(where: str, x: Sequence[ArrayLike], y: Sequence[ArrayLike]) -> list[Fl
 def _poi(*samples: FloatArray, sign: float, axis: int = -1) -> FloatArray:
     """Mean over tasks of the pairwise win rate; ``samples`` = X's tasks then Y's.
 
-    A task's rate is Mann-Whitney's ``U / (n_x n_y)`` from the ranks of the two
-    samples together (ties at their mean rank): ``U_x = R_x - n_x (n_x + 1) / 2``
-    counts the pairs where X's run is the larger, ties by one half. Sorting
-    takes ``O(n log n)`` per resample where the table of every pair took
-    ``O(n^2)``; ``U`` is a sum of halves, exact in float64, so the rate is the
-    pairs' mean bit for bit (``tests/baselines/test_stats_report.py``).
+    A task's rate is Mann-Whitney's ``U / (n_x n_y)`` from the joint ranks (ties
+    at their mean rank): ``U_x = R_x - n_x (n_x + 1) / 2`` counts the pairs where
+    X's run is the larger, ties by one half; a sum of halves, exact in float64.
     """
     m = len(samples) // 2
     rates = []
@@ -443,18 +416,14 @@ def probability_of_improvement_ci(
     if all(s.size == 1 for s in samples):
         value = float(_poi(*samples, sign=sign))
         return value, value
-    # bootstrap needs two runs per sample: a single run is repeated (it is
-    # constant under resampling anyway, so the interval is unchanged)
+    # bootstrap needs two runs per sample: a single run, constant anyway, is repeated
     samples = [np.repeat(s, 2) if s.size == 1 else s for s in samples]
 
     def statistic(*resampled: FloatArray, axis: int = -1) -> FloatArray:
         return _poi(*resampled, sign=sign)
 
-    res = stats.bootstrap(
-        tuple(samples), statistic, n_resamples=n_resamples, vectorized=True, axis=-1, batch=_BATCH,
-        confidence_level=confidence, method="percentile", rng=np.random.default_rng(seed),
-    )  # fmt: skip
-    return float(res.confidence_interval.low), float(res.confidence_interval.high)
+    ci = _bootstrap(tuple(samples), statistic, n_resamples, confidence, seed, axis=-1, batch=_BATCH)
+    return float(ci.low), float(ci.high)
 
 
 def two_level_bootstrap(
@@ -468,27 +437,17 @@ def two_level_bootstrap(
     """Percentile intervals of a mean over episodes and agent seeds, and of a ratio to it.
 
     The two-stage bootstrap of a balanced two-level design (Davison & Hinkley,
-    *Bootstrap Methods and their Application*, 1997, section 3.8: resampling at
-    both stages): each resample draws the episodes with replacement, then
-    within each drawn episode its agent seeds with replacement, and takes the
-    mean of what it drew. The seeds' variance enters twice, through each
-    episode's mean over seeds and through the second stage, so the interval
-    errs wide, never narrow. With one agent seed it is the episode bootstrap.
-    With ``clusters``, the first stage draws clusters (clips) with replacement
-    and takes every episode of each drawn one, then the agent seeds within
-    each episode as before; the mean is over every drawn (episode, seed).
+    *Bootstrap Methods and their Application*, 1997, section 3.8): each
+    resample draws the episodes (with ``clusters``: the clusters, every episode
+    of each) with replacement, then within each drawn episode its agent seeds
+    with replacement, and takes the mean of what it drew. The seeds' variance
+    enters twice, so the interval errs wide, never narrow; with one agent seed
+    it is the episode bootstrap.
 
-    Args:
-        values: ``(episodes, agent seeds)`` values (a cell's mean errors,
-            :func:`~baselines.leaderboard.rows.seed_matrix`).
-        reference: ``(episodes, any seeds)`` values of the same episodes, in
-            the same order (``hold``'s): the ratio's numerator is its mean over
-            each resample's episodes (its mean over its own seeds per episode).
-        n_resamples: Bootstrap resamples.
-        confidence: Confidence level of the two-sided intervals.
-        seed: Seed or generator of the resampling.
-        clusters: ``(episodes,)`` the cluster (clip id) of each episode, to
-            resample clusters instead of episodes; None: every episode its own.
+    ``values`` are ``(episodes, agent seeds)`` (a cell's mean errors,
+    :func:`~baselines.leaderboard.rows.seed_matrix`); ``reference`` the same
+    episodes' values over any seeds (``hold``'s), the ratio's numerator;
+    ``clusters`` each episode's clip id (None: every episode its own).
 
     Returns:
         ``((low, high) of the mean, (low, high) of reference mean / mean or
@@ -575,15 +534,8 @@ def _draw_clusters(
 ) -> tuple[NDArray[np.intp], NDArray[np.bool_]]:
     """Resampled clusters' episodes: ``(resamples, clusters, largest size)`` indices and mask.
 
-    Each resample draws as many clusters as there are, with replacement; with
-    one episode per cluster the draws are :func:`scipy.stats.bootstrap`'s
-    (the same generator calls), so the two bootstraps agree.
-
-    Args:
-        members: :func:`_cluster_members`' episode indices per cluster.
-        present: Its mask.
-        n_resamples: Resamples.
-        rng: The generator.
+    Each resample draws as many clusters as there are (of :func:`_cluster_members`'),
+    with replacement: with one episode per cluster, :func:`scipy.stats.bootstrap`'s draws.
     """
     drawn = rng.integers(members.shape[0], size=(n_resamples, members.shape[0]))
     return members[drawn], present[drawn]
@@ -599,19 +551,10 @@ def cluster_bootstrap_ci(
 ) -> tuple[float, float]:
     """Percentile bootstrap interval of a statistic, resampling clusters (clips) whole.
 
+    ``values`` and ``clusters``: each episode's value and cluster (clip id).
     Each resample draws as many clusters as there are, with replacement, and
-    takes every episode of each drawn cluster (a resample's size varies with
-    the clusters drawn); the statistic is of the pooled episodes. With one
-    episode per cluster it is :func:`bootstrap_ci` with the same seed (equal
-    to rounding). It is :func:`stratified_cluster_bootstrap_ci` of one task.
-
-    Args:
-        values: ``(episodes,)`` values (a cell's episode errors).
-        clusters: ``(episodes,)`` each episode's cluster (its clip id).
-        statistic: ``np.mean`` (vectorised) or any function of a 1-D array.
-        n_resamples: Bootstrap resamples.
-        confidence: Confidence level of the two-sided interval.
-        seed: Seed or generator of the resampling.
+    pools every episode of each: :func:`stratified_cluster_bootstrap_ci` of one
+    task, and with one episode per cluster :func:`bootstrap_ci` (equal to rounding).
 
     Returns:
         The lower and upper bound: NaN for no values, the statistic twice for
@@ -638,20 +581,11 @@ def stratified_cluster_bootstrap_ci(
 ) -> tuple[float, float]:
     """:func:`stratified_bootstrap_ci` with each task's clusters resampled whole.
 
-    Within each task (stratum) a resample draws as many of its clusters as it
-    has, with replacement, and takes every episode of each; the statistic is
-    of every task's drawn episodes pooled. A task without clusters (None)
-    resamples its episodes one by one. This is the cluster bootstrap
-    (Davison & Hinkley, 1997, section 3.8) done per stratum, as rliable's
-    stratified bootstrap (Agarwal et al., 2021) is done per task.
-
-    Args:
-        columns: One 1-D array of episode values per task.
-        clusters: Per task, ``(episodes,)`` each episode's cluster, or None.
-        statistic: ``np.mean`` (vectorised) or any function of a 1-D array.
-        n_resamples: Bootstrap resamples.
-        confidence: Confidence level of the two-sided interval.
-        seed: Seed or generator of the resampling.
+    ``columns``: one 1-D array of episode values per task; ``clusters``: per
+    task, each episode's cluster, or None to resample its episodes one by one.
+    The cluster bootstrap (Davison & Hinkley, 1997, section 3.8) done per task,
+    as rliable's stratified bootstrap is: each task's clusters drawn with
+    replacement, every episode of each, the statistic of all tasks' draws pooled.
 
     Returns:
         The lower and upper bound: NaN for no values, the statistic twice when
@@ -720,20 +654,9 @@ def clustered_improvement_ci(
 ) -> tuple[float, float]:
     """:func:`probability_of_improvement_ci` with each task's clusters resampled whole.
 
-    X's and Y's clusters are drawn independently within each task, as their
-    runs are in the unclustered interval; a resample's win rate is over every
-    pair of the runs it drew. A task without clusters (None) resamples its
-    runs one by one.
-
-    Args:
-        x: One 1-D array of X's runs per task.
-        y: Y's runs on the same tasks, in the same order.
-        x_clusters: Per task, each of X's runs' cluster, or None.
-        y_clusters: The same for Y.
-        lower_is_better: True for errors.
-        n_resamples: Bootstrap resamples.
-        confidence: Confidence level of the two-sided interval.
-        seed: Seed or generator of the resampling.
+    ``x_clusters`` and ``y_clusters``: per task, each run's cluster, or None to
+    resample the runs one by one. X's and Y's clusters are drawn independently
+    within each task; a resample's win rate is over every pair of runs it drew.
 
     Raises:
         ValueError: As :func:`probability_of_improvement_ci`, or if the clusters
@@ -770,10 +693,8 @@ def _weighted_win_rate(
 ) -> FloatArray:
     """Each resample's share of (X run, Y run) pairs X wins, ties one half, runs weighted.
 
-    With weights the counts of :func:`_cluster_weights`, it is the pairwise
-    win rate of the resample's runs with their repeats; every term is a whole
-    or half number, so it is exact in float64. ``b`` is sorted once: the Y
-    weight below, at and above each X run are differences of cumulative sums.
+    Exact in float64 (whole and half counts); the Y weight below, at and above
+    each X run are differences of cumulative sums over ``b`` sorted once.
     """
     order = np.argsort(b, kind="stable")
     cum = np.zeros((wb.shape[0], b.size + 1))
