@@ -20,12 +20,14 @@ from numpy.typing import NDArray
 from baselines.experiments._plotting import pyplot, save
 from baselines.leaderboard import stats
 from baselines.leaderboard.evaluation import run_interval
-from baselines.leaderboard.rows import by_clip, cell_label, episode_clips, run_clusters, seed_matrix
-
-
-def ran(row: dict[str, Any]) -> bool:
-    """Whether a row has episodes (it was neither skipped nor failed)."""
-    return "summary" in row and "skipped" not in row and "error" not in row
+from baselines.leaderboard.rows import (
+    by_clip,
+    cell_label,
+    episode_clips,
+    ran,
+    run_clusters,
+    seed_matrix,
+)
 
 
 def figures_available() -> bool:
@@ -35,6 +37,13 @@ def figures_available() -> bool:
 
 def _tasks(rows: Sequence[dict[str, Any]]) -> list[str]:
     return list(dict.fromkeys(r["task"] for r in rows if ran(r)))
+
+
+def _panels(tasks: list[str], width: float, height: float) -> tuple[Any, Any]:
+    """A figure of one panel per task: the figure and its ``(axes, task)`` pairs."""
+    size = (width * len(tasks), height)
+    fig, axes = pyplot().subplots(1, len(tasks), figsize=size, squeeze=False)
+    return fig, zip(axes[0], tasks, strict=True)
 
 
 def _legend_or_note(ax: Any) -> None:
@@ -61,9 +70,7 @@ def error_band(
     """A cell's mean error at each frame with its 95% band, over the frames every run has.
 
     The band resamples what the cell's mean error interval does
-    (:func:`~baselines.leaderboard.evaluation.summarize`): a declared list's
-    clips whole, then each episode's agent seeds; else the episodes, then
-    their agent seeds; with one agent seed, the episodes one by one.
+    (:func:`~baselines.leaderboard.evaluation.summarize`).
 
     Returns:
         ``(mean, low, high)`` (:func:`~baselines.leaderboard.stats.mean_band`).
@@ -80,10 +87,8 @@ def error_band(
 
 def figure_error_over_frames(rows: Sequence[dict[str, Any]], path: Path, seed: int = 0) -> Path:
     """Mean error at each frame per cell, with 95% bands (:func:`error_band`)."""
-    plt = pyplot()
-    tasks = _tasks(rows)
-    fig, axes = plt.subplots(1, len(tasks), figsize=(5 * len(tasks), 3.6), squeeze=False)
-    for ax, task in zip(axes[0], tasks, strict=True):
+    fig, panels = _panels(_tasks(rows), 5, 3.6)
+    for ax, task in panels:
         # a record kept without its per-frame series (a summary of runs) has no curve
         with_series = (r for r in rows if ran(r) and r["task"] == task and _has_series(r))
         for r in with_series:
@@ -98,10 +103,8 @@ def figure_error_over_frames(rows: Sequence[dict[str, Any]], path: Path, seed: i
 
 def figure_survival(rows: Sequence[dict[str, Any]], path: Path) -> Path:
     """Fraction of episodes still tracking after each frame (Kaplan-Meier, 95% band)."""
-    plt = pyplot()
-    tasks = _tasks(rows)
-    fig, axes = plt.subplots(1, len(tasks), figsize=(5 * len(tasks), 3.6), squeeze=False)
-    for ax, task in zip(axes[0], tasks, strict=True):
+    fig, panels = _panels(_tasks(rows), 5, 3.6)
+    for ax, task in panels:
         for r in (r for r in rows if ran(r) and r["task"] == task and _has_series(r)):
             eps = r["episodes"]
             length = max(len(e["errors_mm"]) for e in eps)
@@ -119,12 +122,7 @@ def figure_survival(rows: Sequence[dict[str, Any]], path: Path) -> Path:
 
 
 def iqm_interval(row: dict[str, Any], seed: int = 0) -> list[float]:
-    """A cell's IQM interval as its summary draws it (``iqm_error_ci`` of ``summarize``).
-
-    A declared list's clips resampled whole, else an episode's agent seeds
-    together, else the episodes one by one
-    (:func:`~baselines.leaderboard.evaluation.run_interval`).
-    """
+    """A cell's IQM interval as its summary draws it (``iqm_error_ci`` of ``summarize``)."""
     eps = row["episodes"]
     values = [e["mean_error_mm"] for e in eps]
     return run_interval(values, run_clusters(eps, by_clip(row)), stats.iqm, seed)
@@ -132,12 +130,10 @@ def iqm_interval(row: dict[str, Any], seed: int = 0) -> list[float]:
 
 def figure_iqm_per_task(rows: Sequence[dict[str, Any]], path: Path, seed: int = 0) -> Path:
     """Each cell's IQM error with its 95% interval (:func:`iqm_interval`), one panel per task."""
-    plt = pyplot()
     tasks = _tasks(rows)
     n_cells = max(sum(1 for r in rows if ran(r) and r["task"] == t) for t in tasks)
-    height = 0.9 + 0.32 * n_cells
-    fig, axes = plt.subplots(1, len(tasks), figsize=(4.4 * len(tasks), height), squeeze=False)
-    for ax, task in zip(axes[0], tasks, strict=True):
+    fig, panels = _panels(tasks, 4.4, 0.9 + 0.32 * n_cells)
+    for ax, task in panels:
         cells = [r for r in rows if ran(r) and r["task"] == task]
         values = [stats.iqm([e["mean_error_mm"] for e in r["episodes"]]) for r in cells]
         cis = [iqm_interval(r, seed) for r in cells]

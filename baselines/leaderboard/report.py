@@ -3,36 +3,20 @@
 :func:`write_report` takes the rows of :func:`baselines.leaderboard.run.run_leaderboard`
 (or of a saved results file, :func:`load_rows`) and writes into one folder:
 
-* ``tables.md``: the leaderboard table (the columns of
-  :func:`baselines.leaderboard.tables.markdown_table`, which the README pastes), the
-  per-cell statistics (IQM with its interval, lost-track fraction with its
-  Wilson interval, median lost frame), the aggregate over tasks (normalised
-  score against ``hold``, IQM with a stratified bootstrap interval) and the
-  probability that one cell beats another on a random episode; failed and
-  skipped cells are listed with their reason;
+* ``tables.md``: the leaderboard table (:func:`baselines.leaderboard.tables.markdown_table`,
+  which the README pastes), the per-cell statistics (IQM, lost-track fraction
+  with its Wilson interval, median lost frame), the aggregate over tasks
+  (normalised score against ``hold``) and the probability that one cell beats
+  another on a random episode; cells that did not run, with their reason;
 * ``stats.json``: the same numbers, machine-readable;
-* figures (matplotlib, the ``plots`` extra; without it the report says so and
-  writes the rest): error over the episode's frames per cell with 95% bands,
-  lost-track survival curves (Kaplan-Meier), IQMs with intervals per task, the
-  aggregate scores;
-* ``videos/``: the best, median and worst episode of each cell re-run with the
-  estimate drawn over the frame (WebM, VP8, plays in browsers) and a contact
-  sheet of each (JPEG); re-running an episode must reproduce its recorded
-  errors, or the report stops (:class:`ReplayMismatch`);
-* ``index.html``: all of it on one static page, opening with the command,
-  commit, data folders and date of the run and each task's verdict; tables
-  sortable by a click on a column (a few lines of inline JavaScript, no
-  external assets);
-* ``report.json``: the results file the report was made from, so that a
-  folder is never given the report of another run (:func:`reported_run`);
-  written before the report's other files (after the videos, whose replay
-  stops the report before anything is written), so that a report that stops
-  half-way is rebuilt by its rerun.
-  The tables are made before any other file is written: a row they refuse
-  leaves no statistics of its own.
-
-Figures are :mod:`baselines.leaderboard.figures`, videos
-:mod:`baselines.leaderboard.videos`.
+* figures (:mod:`baselines.leaderboard.figures`; the ``plots`` extra);
+* ``videos/``: each cell's best, median and worst episode re-run and drawn
+  (:mod:`baselines.leaderboard.videos`);
+* ``index.html``: all of it on one static page with sortable tables, opening
+  with what made the numbers and each task's verdict;
+* ``report.json``: the results file the report was made from
+  (:func:`reported_run`), written before the other files so that a report that
+  stops half-way is rebuilt by its rerun.
 
 The statistics follow Agarwal, Schwarzer, Castro, Courville & Bellemare, *Deep
 reinforcement learning at the edge of the statistical precipice*, NeurIPS 2021
@@ -57,9 +41,8 @@ from baselines.leaderboard.figures import (
     figure_iqm_per_task,
     figure_survival,
     figures_available,
-    ran,
 )
-from baselines.leaderboard.rows import agent_label, by_clip
+from baselines.leaderboard.rows import agent_label, by_clip, ran
 from baselines.leaderboard.tables import (
     markdown_table,
     person_rows,
@@ -196,9 +179,8 @@ _EPISODE_NUMBERS = ("mean_error_mm", "final_error_mm", "ms_per_frame", "mean_rew
 def _ran_row_problem(row: dict[str, Any]) -> str | None:
     """What is wrong with the numbers the report reads of a row that ran, or None.
 
-    The report recomputes every statistic from the episodes (:func:`summaries`);
-    of the stored summary it reads the mean (``humotion-gym ratio``) and
-    whether the intervals resample clips.
+    Of the stored summary it reads the mean and whether intervals resample clips;
+    the rest it recomputes from the episodes (:func:`summaries`).
     """
     summary, episodes = row.get("summary"), row.get("episodes")
     if not isinstance(summary, dict) or not is_real(summary.get("mean_error_mm")):
@@ -255,11 +237,7 @@ def _with_ci(value: float, pair: Sequence[float], episodes: int) -> str:
 
 
 def statistics_table(rows: Sequence[dict[str, Any]]) -> list[list[str]]:
-    """Per-cell statistics from each row's summary: header then one list of cells per row that ran.
-
-    The report passes the rows :func:`restated` with :func:`compute`'s
-    summaries, those of ``stats.json``.
-    """
+    """Per-cell statistics from each row's summary: header then one list per row that ran."""
     out = [
         [
             "task", "agent", "particles", "episodes", "mean error mm (95% CI)",
@@ -342,12 +320,7 @@ _Section = tuple[str, list[list[str]], str, str | None]
 
 
 def _sections(rows: Sequence[dict[str, Any]], computed: dict[str, Any]) -> list[_Section]:
-    """The sections both ``tables.md`` and ``index.html`` show, in order; empty ones left out.
-
-    The per-person table only where an episode names its person; the aggregate
-    and the probabilities of improvement where computed; the cells that did
-    not run where there are any.
-    """
+    """The sections both ``tables.md`` and ``index.html`` show, in order; empty ones left out."""
     # the cells' summaries of stats.json, drawn with the report's seed
     cells = restated(rows, [c["summary"] for c in computed["cells"]])
     sections: list[_Section] = [("Cell statistics", statistics_table(cells), "cells", None)]
@@ -367,11 +340,7 @@ def _sections(rows: Sequence[dict[str, Any]], computed: dict[str, Any]) -> list[
 
 
 def markdown_report(rows: Sequence[dict[str, Any]], computed: dict[str, Any]) -> str:
-    """``tables.md``: the leaderboard table, statistics, aggregate, failures.
-
-    The leaderboard table and the verdicts are of ``rows`` as they are (their
-    summaries); the statistics are ``computed``'s (:func:`compute`).
-    """
+    """``tables.md``: the table and verdicts of ``rows``, then ``computed``'s sections."""
     good = [r for r in rows if ran(r)]
     # every row: markdown_table shows a cell that did not run with its reason
     parts = ["# Leaderboard", "", markdown_table(rows), ""]
@@ -385,11 +354,8 @@ def markdown_report(rows: Sequence[dict[str, Any]], computed: dict[str, Any]) ->
 def summaries(rows: Sequence[dict[str, Any]], seed: int = 0) -> list[dict[str, Any]]:
     """Each row that ran summarised anew from its episodes, in order (:func:`summarize`).
 
-    The intervals are the row's own kind (a declared list resamples clips
-    whole, then agent seeds within each episode), drawn with ``seed``: what
-    ``stats.json`` holds and ``tests/test_recorded_tables.py`` rebuilds the
-    recorded tables from. A summary stored in a record is never shown: one
-    written by older code holds other intervals.
+    The intervals are the row's own kind, drawn with ``seed``. A summary stored
+    in a record is never shown: older code's holds other intervals.
     """
     return [summarize(r["episodes"], seed=seed, by_clip=by_clip(r)) for r in rows if ran(r)]
 
@@ -409,9 +375,7 @@ def restated(rows: Sequence[dict[str, Any]], new: Sequence[dict[str, Any]]) -> l
 def compute(rows: Sequence[dict[str, Any]], seed: int = 0) -> dict[str, Any]:
     """Every statistic of the report (``stats.json``): cells, aggregate, pairwise, persons.
 
-    Each cell's summary is :func:`summaries`' (recomputed from the episodes).
-    ``persons`` (:func:`~baselines.leaderboard.tables.person_rows`) only where
-    an episode names its person.
+    ``persons`` only where an episode names its person.
     """
     cells = [
         {"task": r["task"], "agent": r["agent"], "particles": r["particles"], "summary": s}
@@ -495,11 +459,9 @@ def _leaderboard_table(rows: Sequence[dict[str, Any]]) -> list[list[str]]:
 def run_lines(run: Mapping[str, Any] | None) -> list[tuple[str, str]]:
     """What made the numbers, as ``(label, text)`` pairs for the page's head.
 
-    From a results document (``results.json`` less its rows; see
-    :func:`baselines.leaderboard.results.write_results`): the command, the
-    code's commit and version, the motion capture folders and the date. A
-    field the document lacks (an older file, a bare list of rows) reads
-    ``not recorded``.
+    From a results document less its rows: the command, the code's commit and
+    version, the motion capture folders and the date; a field it lacks (an
+    older file, a bare list of rows) reads ``not recorded``.
     """
     run = run or {}
     missing = "not recorded"
@@ -534,12 +496,7 @@ def html_page(
     files: Sequence[str] = (),
     run: Mapping[str, Any] | None = None,
 ) -> str:
-    """The static ``index.html`` (inline CSS and JavaScript, links relative to its folder).
-
-    It opens with what made the numbers (:func:`run_lines`) and each task's
-    verdict (:func:`~baselines.leaderboard.tables.validity_lines`), then the
-    tables, figures and videos.
-    """
+    """The static ``index.html``: run, verdicts, tables, figures, videos (nothing external)."""
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
@@ -640,8 +597,7 @@ def write_report(
 ) -> Path:
     """Write the whole report of a leaderboard into ``folder``.
 
-    Without matplotlib (:func:`~baselines.leaderboard.figures.figures_available`
-    is False) the page has no figures and says so; the caller should say so too.
+    Without matplotlib the page has no figures and says so; the caller should too.
 
     Args:
         rows: The rows of :func:`baselines.leaderboard.run.run_leaderboard` (or
@@ -653,21 +609,16 @@ def write_report(
         env_kwargs: The environment settings of the run (needed for videos:
             ``data_dir`` and difficulty must be the run's to reproduce it).
         video_cells: Only cells for which this returns True get videos.
-        seed: Seeds the bootstrap of the report's statistics: the cells'
-            (recomputed from their episodes, :func:`summaries`), the
-            aggregate, the probabilities of improvement (``stats.json`` and
-            their tables) and the figures' intervals.
+        seed: Seeds the bootstrap of the report's statistics (``stats.json``,
+            their tables) and of the figures' intervals.
         title: The page's title.
         progress: Show a progress bar while making videos.
-        run: What made the numbers, shown at the top of the page
-            (:func:`run_lines`): the settings :func:`load_rows` returns, or
-            the results document.
+        run: What made the numbers (:func:`run_lines`): the settings
+            :func:`load_rows` returns, or the results document.
         source: The results file the rows were read from, recorded in
-            :data:`REPORT_SOURCE` (:func:`reported_run`); None removes an
-            earlier one, which would name other rows.
-        table_seed: Seeds the leaderboard table's and the verdicts' intervals,
-            recomputed from the episodes too: the run's seed gives its
-            ``table.md``, digit for digit. None: ``seed``.
+            :data:`REPORT_SOURCE`; None removes an earlier one.
+        table_seed: Seeds the leaderboard table's and the verdicts' intervals
+            (the run's seed gives its ``table.md``). None: ``seed``.
 
     Returns:
         The path of ``index.html``.

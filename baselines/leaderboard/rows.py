@@ -37,6 +37,11 @@ def agent_label(agent: str) -> str:
     return agent
 
 
+def ran(row: Mapping[str, Any]) -> bool:
+    """Whether a row has episodes (it was neither skipped nor failed)."""
+    return "summary" in row and "skipped" not in row and "error" not in row
+
+
 def cell_label(row: dict[str, Any]) -> str:
     """``agent`` for references and learned policies, ``agent@particles`` for filters.
 

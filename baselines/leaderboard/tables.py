@@ -1,27 +1,19 @@
 """The leaderboard's tables: each cell against ``hold``, and each task's verdict.
 
 :func:`markdown_table` is the table the README pastes: per cell the mean error
-with its interval, the IQM, the pelvis-aligned error, the ratio ``x hold`` (the
-ratio of ``hold``'s mean error to the row's: above 1 better than doing nothing)
-and the paired episodes it beats ``hold`` on. :func:`validity_lines` says per
-task whether the best particle filter beats ``hold`` clearly
-(:data:`VALID_RATIO`) and, where the table has the cells, judges the classic
-comparison of the tree prior with constant velocity (:func:`classic_line`) and
-the best prior's lead over ``pf-follow`` (:func:`follow_line`), each from the
-bounds of its ratio's interval (:func:`ratio_verdict`). Agents are shown by their short label
-(:func:`~baselines.leaderboard.rows.agent_label`: ``mine`` for
-``mine=runs/x/model.zip``).
+with its interval, the IQM, the pelvis-aligned error, ``x hold`` (``hold``'s
+mean error over the row's: above 1 better than doing nothing) and the paired
+episodes it beats ``hold`` on. :func:`validity_lines` says per task whether the
+best particle filter beats ``hold`` clearly (:data:`VALID_RATIO`) and, where the
+table has the cells, judges the tree prior against constant velocity
+(:func:`classic_line`) and the best prior's lead over ``pf-follow``
+(:func:`follow_line`), each from its ratio's interval (:func:`ratio_verdict`).
 
-Rows of several agent seeds (``run_leaderboard(..., agent_seeds=K)``) add a
-column, the spread of the seeds' mean errors (lowest-highest), give ``x hold``
-its 95% interval (:func:`hold_ratio_interval`), and their task's verdict is
-judged on that interval's lower bound for the agents of
-:data:`REFERENCE_AGENTS`. Rows of one agent seed print as they always have.
-
+Rows of several agent seeds add the spread of the seeds' mean errors, give
+``x hold`` its 95% interval (:func:`hold_ratio_interval`), and their task's
+verdict takes that interval's lower bound among :data:`REFERENCE_AGENTS`.
 :func:`person_rows` and :func:`person_table` break each cell's mean error down
-by the person tracked (an episode's ``person``, else the person its CMU or
-synthetic clip id names): the test set has few persons, and a mean over
-episodes weights each by how many of its clips the list holds.
+by the person tracked: the test set has few persons.
 """
 
 from __future__ import annotations
@@ -32,7 +24,14 @@ from typing import Any
 
 import numpy as np
 
-from baselines.leaderboard.rows import agent_label, by_clip, cell_label, episode_clips, seed_matrix
+from baselines.leaderboard.rows import (
+    agent_label,
+    by_clip,
+    cell_label,
+    episode_clips,
+    ran,
+    seed_matrix,
+)
 from baselines.leaderboard.stats import two_level_bootstrap
 from humotion_gym.mocap.cmu import cmu_person
 from humotion_gym.mocap.synthetic import synthetic_subject
@@ -71,10 +70,7 @@ def seeds_of(row: dict[str, Any]) -> int:
 
 
 def same_episodes(row: dict[str, Any], reference: dict[str, Any]) -> None:
-    """Refuse a reference that did not run exactly the row's episode seeds.
-
-    A ratio of means over other episodes, or wins over a few of them, pairs
-    nothing (a row that ran 4 of hold's 8 episodes read 1.10x and "2/4").
+    """Refuse a reference that did not run exactly the row's episode seeds (it pairs nothing).
 
     Raises:
         ValueError: Naming the task, both rows and their episode seeds.
@@ -111,10 +107,8 @@ def hold_ratio_interval(
 def no_interval(row: dict[str, Any]) -> str | None:
     """Why resampling cannot vary a row's intervals, or None where it can.
 
-    Its intervals (and :func:`hold_ratio_interval`) resample a declared
-    list's clips, else its episodes, then its agent seeds within each: one
-    of them with one agent seed gives every resample the same value, a
-    "interval" of zero width that can decide no verdict.
+    One clip of a declared list, or one episode, of one agent seed gives every
+    resample the same value: an interval of zero width decides no verdict.
 
     Returns:
         ``"one clip"`` or ``"one episode"``, or None.
@@ -156,10 +150,8 @@ def _floor_of(rows: Sequence[dict[str, Any]], task: str) -> dict[str, Any] | Non
 def compare_to_hold(row: dict[str, Any], hold: dict[str, Any]) -> tuple[float, int, int]:
     """``hold``'s mean error over the row's, and the paired episodes the row wins.
 
-    Episodes are paired by episode seed (every cell runs the same seeds): each
-    of the row's episodes (each agent seed's) against the reference's mean
-    error on that episode over its own agent seeds (``hold``'s are all the
-    same). Any other reference row (``pf-follow``'s) is compared the same way.
+    Each of the row's episodes (each agent seed's) is paired by episode seed
+    with the reference's mean error on it over the reference's agent seeds.
 
     Returns:
         ``(ratio, wins, paired)``.
@@ -310,16 +302,12 @@ def ratio_verdict(low: float, high: float, first: str, second: str) -> str:
 def classic_line(filters: Sequence[dict[str, Any]], fewest: int) -> str | None:
     """The classic comparison of one task's filter rows (:data:`CLASSIC`), or None.
 
-    The tree prior at ``fewest`` particles against constant velocity at ten
-    times as many, on the same episodes: the ratio of constant velocity's mean
-    error to the tree's (above 1: the tree is better) with its 95% interval
-    (:func:`hold_ratio_interval`, constant velocity in ``hold``'s place), and
-    a verdict from the interval's bounds, not from the means. Where constant
-    velocity also ran at ``fewest``, the same against it, and whether the
-    classic result is shown: the tree better than constant velocity at
-    ``fewest`` (lower bound above 1) and not worse than it at ten times as
-    many (upper bound at least 1). Where the tree's runs give no interval
-    (:func:`no_interval`), the line says so and judges nothing.
+    Constant velocity's mean error over the tree's at ``fewest`` particles
+    against ten times as many, with its 95% interval (:func:`judged_ratio`,
+    constant velocity in ``hold``'s place) and a verdict from its bounds. Where
+    constant velocity also ran at ``fewest``, the same against it, and whether
+    the classic result is shown: the tree better at ``fewest`` (lower bound
+    above 1) and not worse at ten times as many (upper bound at least 1).
     """
     learned, plain, factor = CLASSIC
     tree = next((r for r in filters if r["agent"] == learned and r["particles"] == fewest), None)
@@ -395,16 +383,11 @@ def follow_line(priors: Sequence[dict[str, Any]], follow: dict[str, Any], fewest
 def validity_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
     """Per task: does the best particle filter beat ``hold`` by :data:`VALID_RATIO`?
 
-    Judged at the smallest particle count run, where the papers' claims are made.
-    Where the task's rows have one agent seed, on the point ratio of the best
-    filter of the table, whichever it is (the recorded tables' verdicts).
-    Where they have several (``agent_seeds`` above 1), on the best of the
-    :data:`REFERENCE_AGENTS` that ran, from the lower bound of its ``x hold``
-    interval (:func:`seeds_verdict`); no such line where none of them ran.
-    Where the table has :data:`CLASSIC`'s two cells, a line judges them
-    (:func:`classic_line`). Where :data:`FOLLOW` ran at that count too, a line
-    compares the best other filter with it: what the motion prior adds to
-    following the body.
+    Judged at the smallest particle count run, where the papers' claims are
+    made: with one agent seed on the best filter's point ratio; with several,
+    on the best of the :data:`REFERENCE_AGENTS` that ran (:func:`seeds_verdict`).
+    Then a line for :data:`CLASSIC` (:func:`classic_line`) and one against
+    :data:`FOLLOW` (:func:`follow_line`), where the table has their cells.
 
     Raises:
         ValueError: If a compared row did not run its reference's episodes
@@ -473,7 +456,7 @@ def person_rows(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """
     out = []
     for r in rows:
-        if "summary" not in r or "skipped" in r or "error" in r:
+        if not ran(r):
             continue
         errors: dict[str, list[float]] = {}
         for e in r.get("episodes", []):
@@ -491,13 +474,9 @@ def person_rows(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def person_table(per_person: Sequence[dict[str, Any]]) -> list[list[str]]:
-    """:func:`person_rows` as a table: one row per cell, one column per person.
+    """:func:`person_rows` as a table: header then one row per cell (empty for no rows).
 
-    Each entry is the person's mean error in mm with its episodes in
-    parentheses, ``-`` where the cell has none of that person's episodes.
-
-    Returns:
-        Header then rows (empty when there are no rows).
+    One column per person: the mean error in mm with its episodes in parentheses, or ``-``.
     """
     if not per_person:
         return []

@@ -24,17 +24,13 @@ from tqdm.auto import tqdm
 
 from baselines.leaderboard.engine import run_cell_episode
 from baselines.leaderboard.evaluation import EpisodeResult
-from baselines.leaderboard.figures import ran
-from baselines.leaderboard.rows import cell_label
+from baselines.leaderboard.rows import cell_label, ran
 from humotion_gym.files import write_atomically
 from humotion_gym.video import contact_sheet
 
-#: How far a replay's per-frame error may be from the recorded one: the
-#: repository's compact results keep the series to the whole millimetre
-#: (:data:`baselines.leaderboard.results.SERIES_KEYS`), some rounded from a
-#: tenth first, so half of one plus half a tenth, with room for the float's own
-#: rounding. The episode's mean error, kept to seven digits, is checked tighter
-#: (:data:`MEAN_RTOL`).
+#: How far a replay's per-frame error may be from the recorded one: compact
+#: results keep whole millimetres (:data:`baselines.leaderboard.results.SERIES_KEYS`),
+#: some rounded from a tenth first: half of one plus half a tenth, and the float's rounding.
 SERIES_ATOL_MM = 0.55 + 1e-6
 #: How far a replay's mean error may be from the recorded one, relatively.
 MEAN_RTOL = 1e-5
@@ -45,11 +41,7 @@ class ReplayMismatch(RuntimeError):
 
 
 def first_agent_seed(row: dict[str, Any]) -> list[dict[str, Any]]:
-    """The row's episodes of its first agent seed (all of them where none is recorded).
-
-    A run with several agent seeds (``agent_seeds``) records each episode once
-    per agent seed; the videos show one of them, the run's own seed's.
-    """
+    """The row's episodes of its first agent seed (all of them where none is recorded)."""
     episodes = list(row["episodes"])
     seeds = [e["agent_seed"] for e in episodes if "agent_seed" in e]
     if not seeds:
@@ -61,9 +53,8 @@ def first_agent_seed(row: dict[str, Any]) -> list[dict[str, Any]]:
 def choose_episodes(row: dict[str, Any]) -> dict[str, int]:
     """The seeds of a cell's best, median and worst episode by mean error.
 
-    Among the episodes of the row's first agent seed (:func:`first_agent_seed`).
-    The median is the lower middle of the sorted episodes; ties go to the
-    smaller seed. A choice may share a seed with another (few episodes).
+    Of its first agent seed's episodes; the median is the lower middle, ties go
+    to the smaller seed, and choices may share a seed.
     """
     ranked = sorted(first_agent_seed(row), key=lambda e: (e["mean_error_mm"], e["seed"]))
     return {
@@ -83,9 +74,7 @@ def replay_episodes(
 
     Each episode is re-run on its own with
     :func:`~baselines.leaderboard.engine.run_cell_episode`, its agent seeded as
-    the run seeded it (the episode's ``agent_seed``, else the cell's first
-    episode seed, the leaderboard's seed), on its declared window where the run
-    scored the declared episodes.
+    the run seeded it.
 
     Args:
         row: A leaderboard row that ran.
