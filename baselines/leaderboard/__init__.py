@@ -1,17 +1,11 @@
 """The leaderboard: agents x tasks x particle counts x seeded episodes, its tables and report.
 
-* :mod:`~baselines.leaderboard.evaluation`: the one evaluation loop (any
-  agent with SB3's ``predict``) and a cell's summary;
-* :mod:`~baselines.leaderboard.stats`: bootstrap intervals, IQM, survival,
-  normalised scores, probability of improvement;
-* :mod:`~baselines.leaderboard.engine`: episodes as the unit of work, in-process or on Ray;
-* :mod:`~baselines.leaderboard.run`: :func:`run_leaderboard`;
-* :mod:`~baselines.leaderboard.results`: the results folder (resume, ``results.json``);
-* :mod:`~baselines.leaderboard.tables`: the Markdown table and each task's verdict;
-* :mod:`~baselines.leaderboard.report`, :mod:`~baselines.leaderboard.figures`,
-  :mod:`~baselines.leaderboard.videos`: the report page.
-
-This package's modules import each other, never this ``__init__``.
+:func:`run_leaderboard` (:mod:`~baselines.leaderboard.run`) runs the episodes
+(:mod:`~baselines.leaderboard.engine`, :mod:`~baselines.leaderboard.evaluation`)
+into a results folder (:mod:`~baselines.leaderboard.results`);
+:mod:`~baselines.leaderboard.tables` and :mod:`~baselines.leaderboard.report`
+show them, with the statistics of :mod:`~baselines.leaderboard.stats`. This
+package's modules import each other, never this ``__init__``.
 """
 
 from baselines.leaderboard.results import (

@@ -1,18 +1,11 @@
 """Across tasks: normalised scores, their aggregate, and P(X beats Y) for every pair of cells.
 
 The statistics of :mod:`baselines.leaderboard.stats` applied to leaderboard
-rows, as the report shows them (Agarwal et al., *Deep reinforcement learning
-at the edge of the statistical precipice*, NeurIPS 2021): each episode's error
-over ``hold``'s on the same episode, their IQM and mean over every task's
-episodes, and the probability that a random episode of one cell beats one of
-another on the same task, averaged over tasks.
-
-Every interval is stratified by task (each task's runs are resampled on their
-own) and resamples what the cell's own intervals resample
-(:func:`~baselines.leaderboard.rows.run_clusters`): the clips of a declared
-list whole, an episode's agent seeds together, else the runs one by one.
-Runs of one clip, or one episode's agent seeds, are not independent, and
-resampling them one by one gives intervals that are too narrow.
+rows (Agarwal et al., NeurIPS 2021): each episode's error over ``hold``'s on
+the same episode, their IQM and mean over every task's episodes, and the
+probability that a random episode of one cell beats one of another on the same
+task, averaged over tasks. Every interval is stratified by task and resamples
+what the cell's own intervals resample (:func:`~baselines.leaderboard.rows.run_clusters`).
 """
 
 from __future__ import annotations
@@ -78,9 +71,8 @@ def scored_runs(
 ) -> dict[str, dict[str, Runs]]:
     """Each cell's runs scored against the reference's on the same episode seeds.
 
-    A score of 0.5 halves ``hold``'s error on that episode; 1 is no better
-    than holding the initial pose. Runs without a reference episode of the
-    same seed on the same task are left out.
+    A score of 0.5 halves ``hold``'s error on that episode. Runs without a
+    reference episode of the same seed on the same task are left out.
 
     Returns:
         ``{cell label: {task: Runs of scores}}`` in the rows' order, for every
@@ -202,10 +194,7 @@ def pairwise_improvement(
     seed: int = 0,
     n_resamples: int = N_RESAMPLES,
 ) -> list[dict[str, Any]]:
-    """P(X beats Y) for every ordered pair of cells on the tasks both ran.
-
-    Compared on raw episode errors per task (the probability is invariant to a
-    per-task normalisation), averaged over the shared tasks.
+    """P(X beats Y) for every ordered pair of cells, on raw errors, over the tasks both ran.
 
     Returns:
         One dict per ordered pair: ``x``, ``y``, ``tasks``, ``probability``, ``ci``.

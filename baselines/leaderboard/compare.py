@@ -1,10 +1,7 @@
 """Two leaderboard runs compared episode by episode: does a rerun reproduce a record?
 
-An episode is known by its cell (task, agent, particles), its agent seed and its
-episode seed; it reproduces when its mean keypoint error equals the record's to
-``rtol`` (the repository's records keep 7 significant digits, so ``5e-7``
-asks for the same number). A rerun may hold a subset of the record's episodes
-(one agent seed, say): only the episodes both hold are compared, and the
+An episode (:data:`EpisodeKey`) reproduces when its mean keypoint error equals
+the record's to ``rtol``. Only the episodes both runs hold are compared, and the
 counts say how many each holds. ``humotion-gym compare`` is the command.
 """
 
@@ -26,10 +23,7 @@ SAME_RTOL = 5e-7
 def episode_means(rows: Sequence[dict[str, Any]], agent_seed: int = 0) -> dict[EpisodeKey, float]:
     """Each episode's mean error (mm) of a run's rows, by :data:`EpisodeKey`.
 
-    Args:
-        rows: The run's rows.
-        agent_seed: The agent seed of an episode that names none: a run of one
-            agent seed writes none, and its agent seed is the run's ``seed``.
+    ``agent_seed``: that of an episode that names none (the run's ``seed``).
 
     Raises:
         ValueError: If an episode appears twice.
@@ -82,8 +76,7 @@ def compare_runs(
 ) -> Comparison:
     """Compare a rerun's episodes with a record's (:func:`episode_means` of each).
 
-    ``agent_seeds``: each run's ``seed``, the agent seed of its episodes that
-    name none (see :func:`episode_means`).
+    ``agent_seeds``: each run's ``seed``, for its episodes that name none.
 
     Raises:
         ValueError: If ``rtol`` is not a finite real number >= 0 (a bool or a

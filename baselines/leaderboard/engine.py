@@ -1,38 +1,24 @@
 """The leaderboard's engine: episodes as the unit of work, in-process or on Ray.
 
-A leaderboard is a list of **cells** (task, agent, particle count), each run
-on the same seeded episodes. The unit of work is one **episode**: a cell and
-an episode seed. An :class:`EpisodeRunner` runs episodes; it builds each
-cell's environment and agent once and keeps them (a small cache keyed by the
-cell), so an episode costs its tracking alone. Two engines drive runners:
+A leaderboard is a list of **cells** (task, agent, particle count), each run on
+the same seeded episodes; the unit of work is one **episode** (a cell and an
+episode seed). An :class:`EpisodeRunner` runs episodes, keeping each cell's
+environment and agent between them. :class:`InProcessEngine` (the default) runs
+one runner in this process; :class:`RayEngine` (the ``distributed`` extra) one
+per Ray actor, on a local Ray or an existing cluster.
 
-* :class:`InProcessEngine` (the default; needs nothing beyond the package): one
-  runner in this process, episodes one after another;
-* :class:`RayEngine` (the ``distributed`` extra, ``pip install
-  'humotion-gym[distributed]'``): one runner per Ray actor, on a local Ray
-  started with ``workers`` CPUs or on an existing cluster (``address`` or
-  ``RAY_ADDRESS``). Each actor has at most two episodes queued, so it never
-  waits for the driver between episodes.
+An episode's result depends on its cell, its seed and the run's settings alone:
+:func:`~baselines.leaderboard.evaluation.run_episode` reseeds the agent from
+(agent seed, episode seed) and every runner tracks with one BLAS thread, so any
+engine and number of workers gives the same numbers, timings aside. Priors are
+fitted once, in the driver (:func:`prepare_cells`), and shipped to the runners,
+which never fit; hybrids of a filter and a policy read their filter's prior
+from the on-disk cache (``HUMOTION_CACHE``).
 
-**Same numbers on any engine and any number of workers.** An episode's result
-depends on its cell, its seed and the run's settings alone:
-:func:`baselines.leaderboard.evaluation.run_episode` reseeds the agent from (agent seed,
-episode seed) before each episode and the environment's seeded reset draws
-everything else, and every runner tracks with one BLAS thread. Only the
-timings (``ms_per_frame``, ``wall_s``) differ between runs.
-
-**Priors are fitted once, in the driver** (:func:`prepare_cells`), before any
-episode is dispatched: a fit is written to the on-disk prior cache
-(``HUMOTION_CACHE``) and the fitted parameters of every particle-filter agent
-are shipped to the runners (through Ray's object store on Ray), which build
-their filters from them and never fit. Hybrids of a filter and a learned
-policy read their filter's prior from the on-disk cache.
-
-Every finished episode comes back as a **record**, a plain-JSON dict: the
-cell's ``task``, ``agent`` and ``particles``, the episode ``seed``, ``wall_s``
-(the episode's wall time in its worker), and either ``result``
-(:meth:`~baselines.leaderboard.evaluation.EpisodeResult.to_dict`) or ``error`` (``"Type:
-message"``) with ``traceback``; and ``agent_seed``, the seed its agent was built with.
+Every finished episode comes back as a plain-JSON **record**: ``task``,
+``agent``, ``particles``, ``seed``, ``agent_seed``, ``wall_s`` (in its worker)
+and either ``result`` (:meth:`~baselines.leaderboard.evaluation.EpisodeResult.to_dict`)
+or ``error`` (``"Type: message"``) with ``traceback``.
 """
 
 from __future__ import annotations
@@ -186,15 +172,10 @@ def task_windows(task: str, env_kwargs: Mapping[str, Any] | None) -> list[tuple[
 
 
 def build_agent(cell: Cell, env: gym.Env, seed: int, fits: Fits | None = None) -> Any:
-    """A cell's agent; a particle filter from its shipped fit when there is one.
+    """A cell's agent, seeded with ``seed``: a particle filter from its fit in ``fits``.
 
-    Args:
-        cell: The cell.
-        env: Its environment.
-        seed: The agent's seed (the leaderboard's seed).
-        fits: Fitted priors from :func:`prepare_cells`; without the cell's,
-            :func:`baselines.agents.make` builds the agent (reading or writing
-            the on-disk prior cache).
+    Without the cell's fit (from :func:`prepare_cells`), :func:`baselines.agents.make`
+    builds the agent (reading or writing the on-disk prior cache).
     """
     fit = (fits or {}).get((cell.task, cell.agent))
     n = max(cell.particles, 1)
@@ -226,8 +207,8 @@ def run_cell_episode(
         agent: Agent name.
         particles: Particle count (0 for agents that take none).
         episode_seed: The episode's seed.
-        first_seed: The agent's seed: the leaderboard's seed (its first
-            episode's), or the episode's ``agent_seed`` where it has one.
+        first_seed: The agent's seed: the episode's ``agent_seed``, else the
+            leaderboard's seed.
         env_kwargs: The run's environment settings (add ``render_mode`` for
             ``on_frame``).
         on_frame: Called with each rendered frame and its info.
@@ -377,11 +358,7 @@ class InProcessEngine:
         self.runner = EpisodeRunner(seed, env_kwargs)
 
     def start(self, fits: Fits, agents: Collection[str] = ()) -> None:
-        """Hand the runner the driver's fitted priors (before :meth:`run`).
-
-        ``agents``: the run's agent names (the Ray engine's workers take their
-        registrations; this process has them).
-        """
+        """Hand the runner the driver's fitted priors (``agents``: the Ray engine's alone)."""
         del agents
         self.runner.fits = dict(fits)
 
@@ -396,33 +373,24 @@ class InProcessEngine:
 
 
 class _RayWorker:
-    """A Ray actor's body: an :class:`EpisodeRunner` in a worker process.
-
-    Importing this module imports :mod:`humotion_gym`, which registers the env
-    ids in the worker; BLAS and OpenCV get one thread each (an actor has one CPU).
-    """
+    """A Ray actor's body: an :class:`EpisodeRunner` with one BLAS and OpenCV thread."""
 
     def __init__(self, seed: int, env_kwargs: Mapping[str, Any], tasks: Sequence[str]) -> None:
         limit_blas_threads()
-        # one CPU per actor: OpenCV's own pool (rendering; one thread per core by
-        # default) would have N workers run N threads per core
-        cv2.setNumThreads(1)
+        cv2.setNumThreads(1)  # one CPU per actor: OpenCV's pool would take every core
         self.version = package_version()
         self.runner = EpisodeRunner(seed, env_kwargs)
-        for task in tasks:  # load the clips while the driver fits (about 1 s on real data)
+        for task in tasks:  # load the clips while the driver fits
             try:
                 self.runner._env(task)
             except Exception:  # the episode that needs it reports the error
                 pass
 
     def start(self, fits: Fits, registry: Registry) -> tuple[str, int]:
-        """Take the fitted priors and the driver's agents; this worker's version and pid.
+        """Take the fitted priors and the driver's registered agents; this worker's version and pid.
 
-        ``registry``: the driver's :data:`~baselines.agents.AGENTS` and
-        :data:`~baselines.agents.REFERENCES`, so that agents registered in the
-        driver's process (``register_agent``, ``register_reference``) are
-        built here by the same names; their classes' modules are imported
-        from the driver's ``sys.path`` where this worker's lacks a folder.
+        Agents registered in the driver (``register_agent``, ``register_reference``)
+        are built here by the same names, their modules found on the driver's ``sys.path``.
         """
         paths, blob = registry
         sys.path.extend(p for p in paths if p not in sys.path)
@@ -452,10 +420,9 @@ def _import_ray() -> Any:
 class _Schedule:
     """Which episode a free worker runs next: preferably one of a cell it has built.
 
-    A worker keeps to its cell while the cell has episodes left, then takes a
-    cell no worker has started, then helps on the cell with the most episodes
-    left. Each cell is built by as few workers as possible (building one costs
-    a few episodes on real data); the order changes nothing in the numbers.
+    A worker keeps to its cell while it has episodes left, then takes a cell no
+    worker has started, then helps on the one with the most left, so that each
+    cell is built by as few workers as possible; the order changes no number.
     """
 
     def __init__(self, episodes: Iterable[Episode]) -> None:
@@ -487,11 +454,8 @@ class _Schedule:
 def _keeping_sigterm(call: Callable[[], Any]) -> None:
     """Run ``call`` (``ray.init``, ``ray.shutdown``), then give SIGTERM back to the program.
 
-    ``ray.init`` puts its C++ failure handler on SIGTERM in the driver, which
-    prints a stack dump and kills the process, and ``ray.shutdown`` resets it
-    to the default, which kills it silently: a handler the program set (the
-    console scripts' :class:`~humotion_gym.cli.Terminated`, which saves the
-    run and exits 143 in one line) would never run. Without one, Ray's stays.
+    Both replace the SIGTERM handler, so the program's own (the console scripts'
+    :class:`~humotion_gym.cli.Terminated`: save the run, exit 143) would never run.
     """
     main = threading.current_thread() is threading.main_thread()
     previous = signal.getsignal(signal.SIGTERM) if main else None

@@ -77,12 +77,10 @@ def run_episode(
 ) -> EpisodeResult:
     """Track one episode with any agent that has SB3's ``predict``.
 
-    The agent is given its observations and nothing else: never ``info``
-    (scores and diagnostics, read here to score), never the environment.
-    The environment must have ``terminate_on_lost=False``: every episode runs
-    its full length and the lost-track frame is found from the errors (an
-    episode that ended where track was lost would leave its worst frames out
-    of the mean, so a tracker that loses track early would score better).
+    The agent is given its observations and nothing else: never ``info``, never
+    the environment. The environment must have ``terminate_on_lost=False``: an
+    episode that ended where track was lost would leave its worst frames out of
+    the mean; the lost-track frame is found from the errors instead.
 
     Args:
         agent: Has ``predict(obs, state, episode_start, deterministic)``.
@@ -184,16 +182,11 @@ def warm_up(
 ) -> float:
     """Answer an episode's first ``frames`` frames untimed; the seconds the answers took.
 
-    An agent's first calls in a process pay once what no later frame does:
-    numba compiles its kernels (on the first run after an install; later
-    processes load them from numba's cache in tens of milliseconds) and
-    caches fill. A filter's first frame starts its particles and its second
-    is the first to move them, so two frames reach the kernels every frame
-    runs (the likelihood scores each term a frame carries from the first
-    frame scored, before the term has any points). Timed inside an episode
-    that cost would be charged to its ``ms_per_frame``. Nothing carries
-    over: each episode starts the agent afresh (``episode_start``) and
-    reseeds it (``seed_episode``).
+    An agent's first calls in a process pay once (numba compiles its kernels,
+    caches fill) what would otherwise be charged to an episode's ``ms_per_frame``;
+    a filter's second frame is the first to move its particles, so two frames
+    reach every kernel. Nothing carries over: each episode starts the agent
+    afresh and reseeds it.
 
     Raises:
         TypeError: If the agent's ``predict`` does not return ``(action, state)``.
@@ -239,13 +232,8 @@ def run_interval(
 ) -> list[float]:
     """A cell's 95% interval of a statistic of its runs, as :func:`summarize` draws it.
 
-    Args:
-        values: One value per run.
-        clusters: What the cell's intervals resample whole, one per run
-            (:func:`~baselines.leaderboard.rows.run_clusters`); None: the
-            runs one by one.
-        statistic: ``np.mean``, :func:`~baselines.leaderboard.stats.iqm`...
-        seed: Seed of the resampling.
+    ``clusters``: what the intervals resample whole, one per run
+    (:func:`~baselines.leaderboard.rows.run_clusters`); None: the runs one by one.
     """
     if clusters is None:  # independent episodes
         return list(bootstrap_ci(values, statistic, seed=seed))
@@ -262,12 +250,11 @@ def summarize(
             (so a saved leaderboard can be summarised again).
         seed: Seeds every bootstrap (same episodes and seed, same numbers).
         by_clip: The episodes are windows of clips (a declared test list):
-            the intervals resample clips whole (a cluster bootstrap: windows
-            of one clip are not independent; ``mean_error_ci`` then agent
-            seeds within each episode); the summary says ``"intervals":
-            "clip"``. Without it, several agent seeds of one episode are
-            resampled together. The lost fraction's Wilson interval counts
-            as many trials as clusters.
+            the intervals resample clips whole (windows of one clip are not
+            independent), and the summary says ``"intervals": "clip"``.
+            Without it, several agent seeds of one episode are resampled
+            together. The lost fraction's Wilson interval counts as many
+            trials as clusters.
 
     Returns:
         ``episodes``; ``mean_error_mm`` and ``iqm_error_mm`` (over the episodes'
@@ -280,14 +267,12 @@ def summarize(
         put together) with ``aligned_error_ci``, both None unless every
         episode has it.
 
-        Where the episodes carry more than one ``agent_seed`` (the same
-        episode seeds run with each; the leaderboard's ``agent_seeds``), every
-        statistic is over all of them, ``episodes`` counts every run, and
-        ``mean_error_ci`` is the two-level interval of
-        :func:`~baselines.leaderboard.stats.two_level_bootstrap` (episodes,
-        then seeds within each); the summary adds ``agent_seeds`` (how many),
-        ``seed_means_mm`` (each agent seed's mean error, in seed order) and
-        ``seed_spread_mm`` (their minimum and maximum).
+        Where the episodes carry several ``agent_seed``, every statistic is
+        over all runs, ``mean_error_ci`` is the interval of
+        :func:`~baselines.leaderboard.stats.two_level_bootstrap`, and the
+        summary adds ``agent_seeds`` (how many), ``seed_means_mm`` (each
+        seed's mean error, in seed order) and ``seed_spread_mm`` (their
+        minimum and maximum).
 
     Raises:
         ValueError: If there are no episodes, or the agent seeds do not cover
@@ -297,8 +282,6 @@ def summarize(
         raise ValueError("results: expected at least one episode")
     eps = [r.to_dict() if isinstance(r, EpisodeResult) else r for r in results]
     seeded = len({e.get("agent_seed") for e in eps}) > 1
-    # What the intervals resample whole: clips of a declared list, else the
-    # episodes several agent seeds repeat, else nothing (independent episodes).
     clusters = run_clusters(eps, by_clip)
 
     def interval(values: NDArray[np.float64], statistic: Any = np.mean) -> list[float]:

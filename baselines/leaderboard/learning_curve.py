@@ -45,9 +45,8 @@ def _found_run(config: TrainConfig, points: int) -> bool:
 
     Raises:
         CurveUsageError: If it holds another run, one checkpointed at other
-            steps than the ``points`` asked for (:func:`_check_points`), one
-            longer than ``config.steps`` (its points past them would be
-            plotted), models without the run's record, or another command's files.
+            steps (:func:`_check_points`) or longer than ``config.steps``,
+            models without the run's record, or another command's files.
         ValueError: If its record or its model is unreadable.
     """
     out = Path(config.out)
@@ -90,10 +89,6 @@ def _spacing(algo: str, steps: Any, every: Any, rounds: Any) -> int | None:
 
 def _check_points(saved: dict[str, Any], config: TrainConfig, points: int) -> None:
     """Refuse a found run checkpointed at other steps than the curve's points.
-
-    A resume may change ``checkpoint_every`` and ``bc``'s ``rounds``: the run's
-    checkpoints would be plotted as the points asked for, and its record would
-    say it was made so.
 
     Raises:
         CurveUsageError: Naming both spacings, the found run's and the one asked.
@@ -156,18 +151,12 @@ def learning_curve(
 
     Each (algorithm, seed) run trains on the training persons for ``steps``
     env steps with ``points`` evenly spaced checkpoints (a ``bc`` round per
-    point), resuming a run found under ``runs_dir`` (the same run, of at
-    most ``steps``: a longer one's checkpoints are not the points asked for,
-    and its record would be rewritten as a shorter run's). Each checkpoint
-    tracks the same ``episodes`` seeded test episodes. A point of the curve
-    is the interquartile mean of the (seed, episode) mean errors with a 95%
-    stratified bootstrap interval (seeds resampled within each episode;
-    Agarwal et al., *Deep reinforcement learning at the edge of the
-    statistical precipice*, NeurIPS 2021); step 0 is the untrained policy,
-    which is ``hold`` (:func:`start_as_hold`). Writes the figure to ``out``
-    and the numbers to ``out`` with the suffix ``.json``. The runs track the
-    validation persons as they train (``validation``; logged, never plotted:
-    the points are the test persons').
+    point), resuming the same run found under ``runs_dir``. Each checkpoint
+    tracks the same ``episodes`` seeded test episodes; a point of the curve is
+    the IQM of the (seed, episode) mean errors with a 95% stratified bootstrap
+    interval; step 0 is the untrained policy, ``hold``. Writes the figure to
+    ``out`` and the numbers beside it (``.json``). With ``validation`` the runs
+    track the validation persons as they train (logged, never plotted).
 
     Raises:
         CurveUsageError: Before any run trains: a seed given twice, a setting
@@ -242,11 +231,9 @@ def _plot_curve(result: dict[str, Any], out: Path) -> None:
     fig, ax = pyplot().subplots(figsize=(5.5, 3.6))
     for algo, rows in result["curves"].items():
         x = [r["steps"] for r in rows]
-        y = [r["iqm_mm"] for r in rows]
-        lo = [r["iqm_ci"][0] for r in rows]
-        hi = [r["iqm_ci"][1] for r in rows]
-        ax.plot(x, y, marker="o", label=algo)
-        ax.fill_between(x, lo, hi, alpha=0.2)
+        ax.plot(x, [r["iqm_mm"] for r in rows], marker="o", label=algo)
+        low, high = np.array([r["iqm_ci"] for r in rows]).T
+        ax.fill_between(x, low, high, alpha=0.2)
     ax.axhline(result["hold_mm"], color="gray", linestyle="--", label="hold (IQM)")
     ax.set_xlabel("environment steps (training persons)")
     ax.set_ylabel("test-person mean error, mm (IQM)")

@@ -1,10 +1,8 @@
 """The platform a leaderboard ran on, as ``results.json`` records it.
 
-A particle filter's numbers depend on the last bit of every float it computes,
-and that bit on the CPU (numpy and OpenBLAS pick their SIMD code by CPU), the
-BLAS and its thread count (the order of a product's sums). A table read on
-another machine is compared within its stated tolerance; :func:`run_platform`
-records what is needed to tell why two runs differ.
+A particle filter's last bits depend on the CPU (numpy and OpenBLAS pick their
+SIMD code by CPU), the BLAS and its thread count: :func:`run_platform` records
+what tells why two runs differ.
 """
 
 from __future__ import annotations
@@ -22,8 +20,7 @@ from threadpoolctl import threadpool_info
 from humotion_gym.threads import THREAD_ENV_VARS, available_cores
 
 #: Distributions whose versions are recorded, by the name they are reported
-#: under; each is looked up under its alternative distribution names in turn
-#: (OpenCV ships as several wheels), and a missing one is recorded as None.
+#: under, each with its distribution names in turn (OpenCV ships as several wheels).
 PACKAGES: dict[str, tuple[str, ...]] = {
     "numpy": ("numpy",),
     "scipy": ("scipy",),
@@ -48,8 +45,7 @@ BLAS_KEYS: tuple[str, ...] = (
 def package_versions() -> dict[str, str | None]:
     """The installed version of each of :data:`PACKAGES` and of Python (None where absent).
 
-    Read from the installed distributions' metadata: nothing is imported, so
-    recording torch's version does not load torch.
+    Read from the distributions' metadata: nothing is imported.
     """
     versions: dict[str, str | None] = {"python": platform.python_version()}
     for name, distributions in PACKAGES.items():
@@ -64,10 +60,7 @@ def package_versions() -> dict[str, str | None]:
 
 
 def cpu_model(cpuinfo: str | Path = "/proc/cpuinfo") -> str:
-    """The CPU's model name: ``/proc/cpuinfo``'s where it exists, else :func:`platform.processor`.
-
-    Args:
-        cpuinfo: The file to read (Linux's ``/proc/cpuinfo``).
+    """The CPU's model name: ``cpuinfo``'s where it exists, else :func:`platform.processor`.
 
     Returns:
         The model name ("" where the platform does not tell it).
@@ -88,11 +81,9 @@ def cpu_model(cpuinfo: str | Path = "/proc/cpuinfo") -> str:
 
 
 def blas_libraries() -> list[dict[str, Any]]:
-    """The BLAS and OpenMP libraries loaded in this process, with their thread counts.
+    """The BLAS and OpenMP libraries loaded, as :func:`threadpoolctl.threadpool_info` has them.
 
-    Each as :func:`threadpoolctl.threadpool_info` reports it, keeping
-    :data:`BLAS_KEYS` (``internal_api``: openblas, mkl, blis...; ``num_threads``:
-    the threads it would use now).
+    Each with the keys of :data:`BLAS_KEYS` it has (``num_threads``: what it would use now).
     """
     return [{k: lib.get(k) for k in BLAS_KEYS if k in lib} for lib in threadpool_info()]
 
@@ -100,13 +91,9 @@ def blas_libraries() -> list[dict[str, Any]]:
 def thread_counts() -> dict[str, Any]:
     """The threads this process computes with.
 
-    ``blas``: each loaded BLAS library's thread count (what the run's products
-    used: the command line limits BLAS to one thread unless an environment
-    variable says otherwise, :mod:`humotion_gym.threads`); ``numba``: numba's
-    thread pool size; ``torch``: torch's intra-op threads where torch is
-    already loaded (None otherwise: it is not imported for this);
-    ``environment``: the thread variables set (:data:`THREAD_ENV_VARS`);
-    ``available_cores``: the cores this process may run on.
+    ``blas``: each loaded BLAS library's; ``numba``: its pool's; ``torch``: its
+    intra-op threads where torch is loaded (else None); ``environment``: the
+    variables of :data:`THREAD_ENV_VARS` set; ``available_cores``.
     """
     import numba
 

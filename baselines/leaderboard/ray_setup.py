@@ -1,10 +1,7 @@
 """Ray's address checked before a run joins it, and Ray's notes that ask nothing of the user.
 
-The leaderboard's Ray engine (:mod:`baselines.leaderboard.engine`) joins a
-cluster at an address or starts one of its own. The address is checked here
-first, and Ray's note that its default token authentication is on (which Ray
-prints for every cluster it starts) is kept out of the command's output; its
-warning that authentication is off stays.
+Ray's note that its default token authentication is on (printed for every
+cluster it starts) is kept out of the output; its warning that it is off stays.
 """
 
 from __future__ import annotations
@@ -39,9 +36,8 @@ def check_ray_address(address: str, timeout: float = 5.0) -> None:
     """Refuse an address Ray cannot take, or a ``host:port`` where no Ray listens.
 
     Ray would retry such a port for minutes; ``auto`` and ``local`` are left to
-    it. Ray's ports speak gRPC; a port that answers a plain HTTP request is a
-    web server (most often Ray's dashboard, 8265, which ``ray start`` prints
-    beside the cluster's address).
+    it. A port that answers a plain HTTP request is a web server (most often
+    Ray's dashboard), not Ray's gRPC.
 
     Raises:
         NoRayCluster: Naming the address, when its port takes no connection

@@ -39,12 +39,9 @@ class ResumeError(ValueError):
 class ResultsFolder:
     """A run's results folder, written as the run goes.
 
-    ``run.json`` holds the settings that decide the numbers (seed, environment
-    settings, package version); ``episodes.jsonl`` one engine record per
-    finished episode (:mod:`baselines.leaderboard.engine`), appended as each finishes with
-    one ``write`` of one line, so an interrupted run loses at most the
-    episodes in flight; ``results.json`` and ``table.md`` are written at the
-    end (:func:`write_results`).
+    Each engine record (:mod:`baselines.leaderboard.engine`) is appended to
+    ``episodes.jsonl`` with one ``write`` of one line, so an interrupted run
+    loses at most the episodes in flight.
 
     Args:
         folder: The folder (made if missing).
@@ -182,12 +179,10 @@ def write_results(
     videos: bool = False,
     progress: bool = True,
 ) -> None:
-    """Write ``results.json`` and ``table.md``, then the report.
+    """Write ``results.json`` and ``table.md``, then the report (unless not ``report``).
 
-    The report (:func:`baselines.leaderboard.report.write_report`: tables,
-    figures, ``index.html``, with ``videos`` the best, median and worst episode
-    of each cell) draws its figures with the ``plots`` extra; without it the
-    page has the tables alone, and a line on stderr says so.
+    The report (:func:`baselines.leaderboard.report.write_report`) has no
+    figures without the ``plots`` extra, and a line on stderr says so.
 
     ``results.json`` (schema :data:`SCHEMA_VERSION`, docs/leaderboard.md):
     ``schema_version``, ``kind``, ``created`` (UTC), ``package_version``,
@@ -246,10 +241,9 @@ def write_results(
 
 
 def data_folders(env_kwargs: dict[str, Any]) -> list[str]:
-    """The motion capture folders of a run: ``data_dir``, else ``$HUMOTION_MOCAP``.
+    """The absolute motion capture folders of a run: ``data_dir``, else ``$HUMOTION_MOCAP``.
 
-    Absolute, whichever way they were named (so a run saved with one resumes
-    with the other); empty where the run used the built-in synthetic motion.
+    Empty where the run used the built-in synthetic motion.
     """
     given = env_kwargs.get("data_dir") or None
     return [str(Path(d).resolve()) for d in configured_data_dirs(given)]
@@ -286,30 +280,23 @@ def save(rows: Sequence[dict[str, Any]], path: str | Path) -> None:
     write_text_atomically(path, json.dumps(list(rows), indent=1, default=json_default))
 
 
-#: Per-frame series the repository keeps to the whole millimetre: figures draw
-#: them (a millimetre is below a pixel of any of them) and a video replay checks
-#: them (:data:`baselines.leaderboard.videos.SERIES_ATOL_MM`); every number a
-#: table prints, and every episode's mean, keeps its significant digits.
+#: Per-frame series the repository keeps to the whole millimetre (figures draw
+#: them, video replays check them: :data:`baselines.leaderboard.videos.SERIES_ATOL_MM`).
 SERIES_KEYS = frozenset({"errors_mm", "along_mm", "across_mm", "along_abs_mm"})
-#: Per-frame series the repository does not keep: nothing is drawn or checked from
-#: them, and each episode keeps their mean (``mean_aligned_error_mm``).
+#: Per-frame series the repository does not keep (each episode keeps their mean).
 DROPPED_KEYS = frozenset({"aligned_errors_mm"})
 
 
 def compact(source: str | Path, target: str | Path, digits: int = 7) -> None:
     """Write a results document as the repository keeps it: gzipped, rounded, minified.
 
-    ``results/`` in the repository holds each table's ``table.md`` and this file,
-    from which ``humotion-gym report`` rebuilds the figures and the page. Seven
-    significant digits keep every printed number and each episode's mean
-    error to its recorded precision; the per-frame series (:data:`SERIES_KEYS`)
-    keep whole millimetres, and the pelvis-aligned series (:data:`DROPPED_KEYS`)
-    only its mean, which takes the file to about a fifth.
+    ``humotion-gym report`` rebuilds the figures and the page from it. Floats
+    keep ``digits`` significant digits, the per-frame series (:data:`SERIES_KEYS`)
+    whole millimetres, and the series of :data:`DROPPED_KEYS` go.
 
     Args:
         source: A ``results.json`` (or an already compact ``.json.gz``).
-        target: The ``.json.gz`` to write (the gzip header carries no time, so
-            the same document gives the same bytes).
+        target: The ``.json.gz`` to write (the same document, the same bytes).
         digits: Significant digits kept of every float outside the series.
 
     Raises:

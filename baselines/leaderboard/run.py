@@ -2,26 +2,16 @@
 
 Every cell runs the same seeded episodes (``seed``, ``seed + 1``, ...) through
 :func:`baselines.leaderboard.evaluation.run_episode`, so agents see the same
-clips, start frames and scenes. Cells report the mean keypoint error with a 95%
-bootstrap interval, its interquartile mean, the fraction of episodes that lost
-track and the milliseconds per frame.
+clips, start frames and scenes; the ``hold`` reference runs on every task, the
+floor every row is read against (:mod:`baselines.leaderboard.tables`). With
+``agent_seeds`` K above 1 every cell runs its episodes with the agent seeds
+``seed`` ... ``seed + K - 1``.
 
-The ``hold`` reference (the initial pose every frame) runs on every task, once
-(references take no particles), whether or not it was asked for: it is the
-floor every row is read against (:mod:`baselines.leaderboard.tables`).
-
-With ``agent_seeds`` K above 1 every cell runs its episodes K times, with the
-agent seeds ``seed`` ... ``seed + K - 1`` (the episodes stay the same: only
-the agents' generators change); each of the row's episodes then carries its
-``agent_seed`` and its summary the seeds' means and spread
-(:func:`~baselines.leaderboard.evaluation.summarize`).
-
-Episodes are the unit of work, run in-process or on Ray by
-:mod:`baselines.leaderboard.engine` with the same numbers either way. With a
-results folder (:mod:`baselines.leaderboard.results`) each finished episode is
-saved as it finishes, an interrupted run resumes where it stopped, and the run
-ends with ``results.json``, ``table.md`` and the report
-(:mod:`baselines.leaderboard.report`).
+Episodes are run in-process or on Ray by :mod:`baselines.leaderboard.engine`,
+with the same numbers either way. With a results folder
+(:mod:`baselines.leaderboard.results`) each episode is saved as it finishes,
+an interrupted run resumes where it stopped, and the run ends with
+``results.json``, ``table.md`` and the report (:mod:`baselines.leaderboard.report`).
 """
 
 from __future__ import annotations
@@ -75,10 +65,9 @@ def grid_cells(
     cells: list[tuple[str, str, int]] = []
     for task in tasks:
         for name in names:
-            # references and learned policies take no particles: one cell per task
             counts = list(particles) if uses_particles(name) else [0]
             cells.extend((task, name, n) for n in counts)
-    return list(dict.fromkeys(cells))  # a task or count given twice runs once
+    return list(dict.fromkeys(cells))
 
 
 def run_leaderboard(
@@ -105,9 +94,7 @@ def run_leaderboard(
 
     Reference agents (``hold``, ``random``) and learned policies (``bc``,
     ``ppo``, ``LABEL=PATH.zip``) run once per task with ``particles`` 0. Every
-    cell runs episodes ``seed`` ... ``seed + episodes - 1``, one unit of work
-    each (:mod:`baselines.leaderboard.engine`): the same numbers on every
-    engine and number of workers, only the timings differ.
+    cell runs episodes ``seed`` ... ``seed + episodes - 1``.
 
     Args:
         tasks: Task names.
@@ -190,11 +177,10 @@ def _run_left(
     kwargs: dict[str, Any],
     progress: bool,
 ) -> tuple[dict[tuple[str, str], tuple[str, str]], dict[Cell, list[dict[str, Any]]]]:
-    """Prepare the cells and run the episodes left on ``runner`` (closed at the end).
+    """Fit the priors, then run the episodes left on ``runner`` (closed at the end).
 
-    The engine's workers (Ray: a process each) start while the driver fits
-    the priors. Returns the cells that could not run (by task and agent: why)
-    and the failed episodes' records; finished ones go into ``done``.
+    Returns the cells that could not run (by task and agent: why) and the
+    failed episodes' records; finished ones go into ``done``.
     """
     failures: dict[Cell, list[dict[str, Any]]] = {}
     try:
@@ -329,10 +315,8 @@ def _left(
 def policy_hashes(agents: Sequence[str]) -> dict[str, str]:
     """The SHA-256 of each learned agent's saved policy file, by agent name.
 
-    What a row of a learned agent measured: the file, not its path (a path
-    may be trained over between two runs). Pretrained policies (``bc``,
-    ``ppo``) are the package's own and left out, as are files not found
-    (the agent's making reports those).
+    A path may be trained over between two runs; the package's pretrained
+    policies and files not found (the agent's making reports them) are left out.
     """
     out = {}
     for name in agents:
@@ -420,11 +404,9 @@ def _run_episodes(
 def _settings(seed: int, env_kwargs: dict[str, Any], declared: bool) -> dict[str, Any]:
     """What decides an episode's numbers besides its cell and seed (checked on resume).
 
-    The data are the absolute folders whichever way they were named
-    (``data_dir`` or ``$HUMOTION_MOCAP``; None: the synthetic set); the code is
-    the package version and the checkout's commit (a run resumed after a pull
-    would mix two versions of the code in one row); ``declared`` says which
-    episodes a seed stands for (a declared window or a drawn one).
+    The data as absolute folders (None: the synthetic set), the code's version
+    and commit (a resume after a pull would mix two codes in one row), and
+    whether a seed stands for a declared window or a drawn one.
     """
     return {
         "schema_version": SCHEMA_VERSION,
