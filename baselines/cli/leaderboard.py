@@ -6,10 +6,8 @@
     humotion-gym leaderboard --engine ray --workers 2 --out results/lb   # on a local Ray
     humotion-gym leaderboard --engine ray --workers 2 --out results/lb --resume
 
-Exit codes: 0 when every cell ran or was skipped (an agent that does not cover
-a task shows as a row with its reason); 1 when a cell failed (its agent could
-not be built, or an episode raised): the table shows it and stderr names it;
-2 on a usage error; 130 when interrupted (``--out`` keeps what finished).
+Exit codes (the command's ``details``): 0 when every cell ran or was skipped;
+1 when a cell failed; 2 on a usage error; 130 when interrupted.
 """
 
 from __future__ import annotations
@@ -137,14 +135,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _check_results_folder(args: argparse.Namespace) -> None:
     """Refuse ``--out`` holding a run without ``--resume``, and a resume on another grid.
 
-    A folder of another command's run (an oracle run's ``table.md`` would be
-    written over), of a leaderboard's results without its episodes (a
-    recorded run), or of a report alone (``humotion-gym report``'s, of another
-    run) is refused with or without ``--resume``.
-
-    A resumed run keeps the saved episodes of its own cells only; one whose
-    tasks, agents, particle counts or seeds leave out saved episodes would
-    drop them from the table, so it is refused (a grid that adds cells is fine).
+    Another command's run, a leaderboard's results without their episodes, or
+    a report alone are refused with or without ``--resume``; so is a resume
+    whose grid or seeds would drop saved episodes from the table.
 
     Raises:
         UsageError: Naming ``--out`` or ``--resume``.
@@ -202,12 +195,11 @@ def _check_results_folder(args: argparse.Namespace) -> None:
             f"{seeds.start}-{seeds.stop - 1} (--seed {args.seed}, --episodes {args.episodes}); "
             "give the run's --seed and --episodes"
         )
-    left_out = other_cells
-    if left_out:
-        shown = ", ".join(f"{a} on {t} ({n} particles)" for t, a, n in left_out[:3])
+    if other_cells:
+        shown = ", ".join(f"{a} on {t} ({n} particles)" for t, a, n in other_cells[:3])
         raise UsageError(
             f"--resume: {args.out} holds episodes outside this grid ({shown}"
-            f"{' ...' if len(left_out) > 3 else ''}); give the run's --tasks, --agents, "
+            f"{' ...' if len(other_cells) > 3 else ''}); give the run's --tasks, --agents, "
             "--particles, --episodes and --seed"
         )
 
@@ -224,14 +216,9 @@ def _unless_default(tasks: Sequence[str], field: str, value: Any) -> Any:
 
 
 def _check_flags(args: argparse.Namespace) -> None:
-    """The flags that conflict with each other (exit 2); ``--episodes``'s default set.
-
-    Raises:
-        UsageError: Naming the flag.
-    """
+    """Refuse flags that conflict with each other (UsageError, naming one); set ``--episodes``."""
     from baselines.leaderboard.run import check_labels
 
-    # two agents of one label: the arguments conflict (exit 2)
     with refused_as(UsageError, ValueError, "--"):
         check_labels(args.agents)
     if args.resume and args.out is None:
@@ -268,8 +255,7 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         raise UsageError(
             f"--out: expected a results folder (it holds results.json), got the file {args.out}"
         )
-    # A difficulty given at every task's own value is no setting: a run saved
-    # without it resumes with it, and the other way round.
+    # a difficulty at every task's own value is no setting: saved without it, resumed with it
     args.background = _unless_default(args.tasks, "background", args.background)
     args.noise = _unless_default(args.tasks, "noise_sigma", args.noise)
     if args.out is not None:

@@ -78,7 +78,6 @@ def _cmd_ratio(args: argparse.Namespace) -> int:
     cells: dict[str, dict[str, Any]] = {}
     ran_with: dict[str, tuple[str, Any]] = {}  # each cell's file and what decided its frames
     there: set[str] = set()
-    # a file given twice is read once
     for path in dict.fromkeys(results_file(given) for given in args.results):
         # ValueError innermost, so checked first (io.UnsupportedOperation is both)
         with refused_as(CommandError, OSError, f"{path}: "), refused_as(CommandError, ValueError):

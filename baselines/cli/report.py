@@ -114,9 +114,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
 def _check_out(out: Path, results: Path) -> None:
     """Refuse an ``--out`` whose files are another run's: the report would mix two runs.
 
-    The run's own folder is fine (its report is rebuilt), and so is a folder
-    holding an earlier report of the same results file (its ``report.json``
-    names the file; :func:`~baselines.leaderboard.report.reported_run`).
+    The run's own folder is fine, and so is one holding an earlier report of the
+    same results file (:func:`~baselines.leaderboard.report.reported_run`).
 
     Raises:
         UsageError: Naming ``--out`` and what it holds.
