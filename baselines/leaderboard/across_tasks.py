@@ -78,19 +78,12 @@ def scored_runs(
         ``{cell label: {task: Runs of scores}}`` in the rows' order, for every
         cell that ran (not skipped or failed) on a task with a reference.
     """
-    return _scored(runs_by_cell(rows), rows, reference)
-
-
-def _scored(
-    per_cell: dict[str, dict[str, Runs]], rows: Sequence[dict[str, Any]], reference: str
-) -> dict[str, dict[str, Runs]]:
-    """:func:`scored_runs` of the runs :func:`runs_by_cell` gave for ``rows``."""
     refs = {
         r["task"]: {e["seed"]: e["mean_error_mm"] for e in r["episodes"]}
         for r in rows if r["agent"] == reference and "episodes" in r
     }  # fmt: skip
     out: dict[str, dict[str, Runs]] = {}
-    for label, per_task in per_cell.items():
+    for label, per_task in runs_by_cell(rows).items():
         for task, runs in per_task.items():
             held = refs.get(task)
             if held is None:
@@ -162,7 +155,7 @@ def aggregate(
         by clip or by episode, else ``"runs"``).
     """
     errors = runs_by_cell(rows)
-    scores = _scored(errors, rows, reference)
+    scores = scored_runs(rows, reference)
     references = {r["task"]: cell_label(r) for r in rows if r["agent"] == reference}
     out = []
     for label, per_task in scores.items():

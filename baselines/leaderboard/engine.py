@@ -306,12 +306,10 @@ def prepare_cells(
     where hybrids' runners read them.
 
     Returns:
-        ``(fits, problems)``: the fitted prior of every particle-filter agent by
-        (task, agent); and by (task, agent), ``("skipped", reason)`` where the
-        agent does not cover the task (``make`` raised
-        :class:`~baselines.agents.TaskNotSupported`) or
-        ``("error", reason)`` where building it failed otherwise (a fit that
-        raised).
+        ``(fits, problems)`` by (task, agent): each particle-filter agent's
+        fitted prior; ``("skipped", reason)`` where the agent does not cover the
+        task (:class:`~baselines.agents.TaskNotSupported`), ``("error", reason)``
+        where building it failed otherwise.
     """
     first: dict[tuple[str, str], Cell] = {}
     for cell in cells:

@@ -129,11 +129,9 @@ def reported_run(folder: Path) -> tuple[str, str | None] | None:
 def load_rows(path: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """Rows and run settings of a saved leaderboard (a file, or a folder: :func:`results_file`).
 
-    Accepts a JSON object with a ``rows`` list (the ``results.json`` that
-    ``humotion-gym leaderboard --out`` writes), whose other keys (e.g.
-    ``env_kwargs``, ``seed``) are returned as the settings, or a bare list
-    of rows (:func:`baselines.leaderboard.results.save`'s; no settings);
-    gzipped when the name ends in ``.gz`` (the repository's ``results/``).
+    Accepts a ``results.json`` (an object with a ``rows`` list, its other keys
+    the settings) or a bare list of rows (:func:`baselines.leaderboard.results.save`'s;
+    no settings), gzipped when the name ends in ``.gz``.
 
     Raises:
         OSError: If the file cannot be read.

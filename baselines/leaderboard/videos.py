@@ -215,13 +215,12 @@ def write_videos(
     earlier = {e.get("video"): e for e in earlier_videos(folder)}
     (folder / "videos").mkdir(parents=True, exist_ok=True)
     chosen = [r for r in rows if ran(r) and (cells is None or cells(r))]
+    settings = env_kwargs or {}
     out = []
     for r in tqdm(chosen, desc="videos", disable=not progress):
         picks = choose_episodes(r)
         replayed = replay_episodes(r, sorted(set(picks.values())), env_kwargs, declared)
-        fps = float((env_kwargs or {}).get("fps", 30.0)) / int(
-            (env_kwargs or {}).get("frame_skip", 1)
-        )
+        fps = float(settings.get("fps", 30.0)) / int(settings.get("frame_skip", 1))
         for choice, s in picks.items():
             result, frames = replayed[s]
             stem = file_slug(f"{r['task']}_{cell_label(r)}_{choice}_seed{s}")
