@@ -142,7 +142,7 @@ def _check_results_folder(args: argparse.Namespace) -> None:
     Raises:
         UsageError: Naming ``--out`` or ``--resume``.
     """
-    from baselines.leaderboard import EPISODES_FILE, RUN_FILE, ResultsFolder, grid_cells
+    from baselines.leaderboard import EPISODES_FILE, ResultsFolder, grid_cells
     from baselines.leaderboard.report import reported_run
 
     held = held_run(args.out)
@@ -157,9 +157,8 @@ def _check_results_folder(args: argparse.Namespace) -> None:
             f"--out: {args.out} holds a report of another run ({report[0]}); give another --out"
         )
     folder = ResultsFolder(args.out)
-    holds_run = (args.out / RUN_FILE).is_file() or (
-        (args.out / EPISODES_FILE).is_file() and (args.out / EPISODES_FILE).stat().st_size > 0
-    )
+    episodes = folder.episodes_path
+    holds_run = folder.run_path.is_file() or (episodes.is_file() and episodes.stat().st_size > 0)
     if not holds_run and held is not None and held[1] != EPISODES_FILE:
         raise UsageError(
             f"--out: {args.out} already holds a leaderboard run's results ({held[1]}) but no "

@@ -201,18 +201,10 @@ def run_cell_episode(
 
     Episodes do not depend on each other, so this reproduces an episode of a
     saved leaderboard (for a video, say) without running its cell's others.
-
-    Args:
-        task: Task name.
-        agent: Agent name.
-        particles: Particle count (0 for agents that take none).
-        episode_seed: The episode's seed.
-        first_seed: The agent's seed: the episode's ``agent_seed``, else the
-            leaderboard's seed.
-        env_kwargs: The run's environment settings (add ``render_mode`` for
-            ``on_frame``).
-        on_frame: Called with each rendered frame and its info.
-        window: The declared episode's ``(clip_id, start)``, if it is one.
+    ``first_seed`` is the agent's seed: the episode's ``agent_seed``, else the
+    leaderboard's seed; ``on_frame`` is called with each rendered frame and its
+    info (``env_kwargs`` must then set ``render_mode``); ``window`` is a declared
+    episode's ``(clip_id, start)``.
     """
     env = make_env(task, env_kwargs)
     try:
@@ -226,13 +218,9 @@ def run_cell_episode(
 class EpisodeRunner:
     """Runs episodes, keeping each cell's environment and agent between them.
 
-    One per process: the in-process engine's, or one per Ray actor.
-
-    Args:
-        seed: The agents' seed where an episode names none.
-        env_kwargs: The environments' settings.
-        fits: Fitted priors shipped by the driver.
-        cached_cells: Agents kept, one per (cell, agent seed) (:data:`CACHED_CELLS`).
+    One per process: the in-process engine's, or one per Ray actor. ``seed``
+    seeds the agents of episodes that name none; ``fits`` are the driver's
+    fitted priors; ``cached_cells`` agents are kept, one per (cell, agent seed).
     """
 
     def __init__(

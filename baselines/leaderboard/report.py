@@ -269,15 +269,10 @@ def aggregate_table(aggregates: Sequence[dict[str, Any]]) -> list[list[str]]:
             "P(beats hold) (95% CI)",
         ]
     ]  # fmt: skip
+    keys = ("iqm_score", "mean_score", "beats_reference")  # each with its _ci
     for a in aggregates:
-        out.append(
-            [
-                a["cell"], str(len(a["tasks"])), str(a["episodes"]),
-                f"{a['iqm_score']:.2f} ({_ci(a['iqm_score_ci'], 2)})",
-                f"{a['mean_score']:.2f} ({_ci(a['mean_score_ci'], 2)})",
-                f"{a['beats_reference']:.2f} ({_ci(a['beats_reference_ci'], 2)})",
-            ]
-        )  # fmt: skip
+        scores = [f"{a[k]:.2f} ({_ci(a[f'{k}_ci'], 2)})" for k in keys]
+        out.append([a["cell"], str(len(a["tasks"])), str(a["episodes"]), *scores])
     return out
 
 

@@ -60,16 +60,13 @@ class ResultsFolder:
     ) -> list[dict[str, Any]]:
         """Open the folder for a run; the finished episodes' records when resuming.
 
-        Args:
-            settings: What decides the numbers; a resumed run must have the same.
-            resume: Continue the run saved here (skipping its finished episodes).
-            policies: The SHA-256 of each learned agent's policy file, by agent
-                name: an agent the saved run has must have the same file (a
-                resumed run may add agents).
+        A resumed run must have the same ``settings`` (what decides the numbers),
+        and each of its agents the same policy file (``policies``: SHA-256 by
+        agent name); it may add agents.
 
         Returns:
-            The finished episodes' records, read once (empty unless resuming).
-            Failed episodes are not among them: a resumed run retries them.
+            The finished episodes' records (empty unless resuming; failed ones,
+            which a resumed run retries, left out).
 
         Raises:
             FileExistsError: If the folder holds episodes and ``resume`` is False.

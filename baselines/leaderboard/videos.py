@@ -72,16 +72,10 @@ def replay_episodes(
 ) -> dict[int, tuple[EpisodeResult, list[NDArray[np.uint8]]]]:
     """Re-run a cell's episodes with rendering; check they reproduce the recorded errors.
 
-    Each episode is re-run on its own with
-    :func:`~baselines.leaderboard.engine.run_cell_episode`, its agent seeded as
-    the run seeded it.
-
-    Args:
-        row: A leaderboard row that ran.
-        seeds: Episode seeds to record (of the row's first agent seed).
-        env_kwargs: The environment's keyword arguments of the run (difficulty, data).
-        declared: The run scored the task's declared episodes (``--declared``):
-            each is reset to its recorded clip and start frame.
+    Each of ``seeds`` (of the row's first agent seed) is re-run on its own with
+    :func:`~baselines.leaderboard.engine.run_cell_episode` on the run's
+    ``env_kwargs``, its agent seeded as the run seeded it; with ``declared``
+    (the run scored the declared episodes) on its recorded clip and start frame.
 
     Returns:
         ``{seed: (result, frames)}``; each frame is the rendered frame with
