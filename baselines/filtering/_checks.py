@@ -18,14 +18,12 @@ def floor_and_bounds(
 ) -> tuple[FloatArray, FloatArray | None, FloatArray | None]:
     """A search's floor on its step (``min_std``) and the valid poses' bounds, checked.
 
-    Each is a number or ``(D,)``; their lengths are checked against each
-    other and D by the filter (``_check_dimensions``).
+    Each is a number or ``(D,)`` (the filter checks the lengths against D).
 
     Raises:
         ValueError: Naming ``owner`` and the argument, if ``min_std`` is not
-            finite and >= 0, a bound is NaN (every particle would be out of
-            bounds and the likelihood silently unused), or a lower bound
-            exceeds its upper one (likewise).
+            finite and >= 0, a bound is NaN or a lower bound exceeds its upper
+            one (either would leave no valid pose).
     """
     floor = per_dimension(owner, "min_std", min_std)
     if np.any(floor < 0) or not np.all(np.isfinite(floor)):
@@ -55,11 +53,7 @@ def floor_and_bounds(
 
 
 def per_dimension(owner: str, name: str, value: ArrayLike) -> FloatArray:
-    """``value`` as a float array of one entry per pose dimension, or a number.
-
-    Raises:
-        ValueError: If ``value`` is not numbers, or has more than one axis.
-    """
+    """``value`` as a float array of one entry per pose dimension, or a number (else ValueError)."""
     out = float_array(value)
     if out is None:
         raise ValueError(f"{owner}: {name} must be a number or (D,) numbers, got {value!r}")
@@ -69,12 +63,7 @@ def per_dimension(owner: str, name: str, value: ArrayLike) -> FloatArray:
 
 
 def angle_mask_of(owner: str, angle_mask: ArrayLike) -> NDArray[np.bool_]:
-    """``angle_mask`` checked: a 1-D array of True/False.
-
-    Raises:
-        ValueError: If it is not (indices such as ``[0, 1]`` would read as
-            ``[False, True]``).
-    """
+    """``angle_mask`` checked: a 1-D array of True/False, not indices (else ValueError)."""
     mask = np.asarray(angle_mask)
     if mask.dtype != np.bool_ or mask.ndim != 1:
         raise ValueError(
@@ -85,11 +74,7 @@ def angle_mask_of(owner: str, angle_mask: ArrayLike) -> NDArray[np.bool_]:
 
 
 def initial_pose_of(who: str, initial_pose: ArrayLike) -> FloatArray:
-    """``initial_pose`` as a ``(D,)`` float array of finite numbers.
-
-    Raises:
-        ValueError: Naming ``who`` and the argument, if it is not one.
-    """
+    """``initial_pose`` as a ``(D,)`` float array of finite numbers (else ValueError)."""
     pose = float_array(initial_pose)
     if pose is None:
         raise ValueError(

@@ -138,19 +138,9 @@ class ParticleFilter:
         self.log_evidence = 0.0 if self._evidence else float("nan")
 
     def _check_dimensions(self, dims: int | None, source: str = "") -> tuple[int | None, str]:
-        """The pose's dimension D, checked against every setting of one entry per dimension.
+        """D and where it comes from (``source``), checked against each per-dimension setting.
 
-        Args:
-            dims: D where known (from the initial pose), else None: the
-                settings are then checked against each other, D taken from
-                the first that has one entry per dimension.
-            source: Where ``dims`` comes from, for the message.
-
-        Returns:
-            D (None where nothing tells it yet) and where it comes from.
-
-        Raises:
-            ValueError: Naming the setting whose length is not D.
+        ``dims`` None (before the initial pose): D is the first such setting's length.
         """
         owner = type(self).__name__
         for name in self._PER_DIMENSION:
@@ -167,14 +157,7 @@ class ParticleFilter:
         return dims, source
 
     def _checked(self, state: Any, step: str) -> ParticleState:
-        """``state`` if the prior's ``step`` returned a :class:`ParticleState` of ``(n, D)`` poses.
-
-        A type check and a shape comparison: the prior's output is checked
-        every frame, before the likelihood reads it.
-
-        Raises:
-            ValueError: Naming ``prior.<step>``, what it returned and what was expected.
-        """
+        """``state`` if the prior's ``step`` returned a ParticleState of ``(n, D)`` poses."""
         expected = (self.n, self._dims)
         if not isinstance(state, ParticleState):
             raise ValueError(
@@ -193,24 +176,16 @@ class ParticleFilter:
     def _estimate(
         self, pose: FloatArray, weights: FloatArray, rank: FloatArray | None = None
     ) -> FloatArray:
-        """``(D,)`` the weighted particles' estimate: their mean, or the MAP particle.
+        """``(D,)`` the weighted mean, or the particle of largest ``rank`` (default: weight).
 
-        ``rank``: what the MAP particle maximises (the weights when None; the
-        filter passes their logarithms, which keep apart weights that
-        underflow alike).
+        The filter ranks by log weights, which keep apart weights that underflow alike.
         """
         if self.estimate_kind == "map":
             return pose[int(np.argmax(weights if rank is None else rank))].copy()
         return weighted_mean(pose, weights, self.angle_mask)
 
     def _predict(self) -> tuple[ParticleState, np.random.Generator]:
-        """The particles moved on by the prior, and the filter's generator.
-
-        Raises:
-            RuntimeError: Before :meth:`reset`, naming the filter's class.
-            ValueError: If the prior returns no :class:`ParticleState` of
-                ``(n, D)`` poses.
-        """
+        """The particles moved on by the prior, and the generator (RuntimeError before reset)."""
         if self.state is None or self.log_weights is None or self._rng is None:
             raise RuntimeError(f"{type(self).__name__}.step() called before reset()")
         state = self.prior.transition(self.fitted, self.state, self._rng)
@@ -235,17 +210,11 @@ class ParticleFilter:
     def _weigh(
         self, log_w: FloatArray, pose: FloatArray, evidence: bool = True
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Normalise a frame's log weights; add to the log evidence and set the ESS.
+        """The normalised log weights, the weights and the estimate; sets the ESS.
 
-        ``evidence`` False leaves the log evidence to the caller (weights that
-        are not the prior's proposals weighed by the likelihood).
-
-        Returns:
-            The normalised log weights, the weights and the estimate of ``pose``.
-
-        Raises:
-            ValueError: If a log weight is ``+inf`` (the likelihood returned it),
-                naming the likelihood's class.
+        Adds to the log evidence unless ``evidence`` is False (weights that are
+        not the prior's proposals weighed by the likelihood). A log weight of
+        ``+inf`` raises a ValueError naming the likelihood's class.
         """
         norm = log_sum_exp(log_w)
         if not np.isfinite(norm):  # +inf checked here alone: the normal path costs nothing
@@ -266,10 +235,7 @@ class ParticleFilter:
         return log_w, weights, self._estimate(pose, weights, log_w)
 
     def step(self, frame: Any) -> FloatArray:
-        """Advance one frame: predict, weight, estimate, resample.
-
-        Args:
-            frame: The observation, passed to the observation model unchanged.
+        """Advance one frame (``frame`` goes to the likelihood): predict, weight, resample.
 
         Returns:
             ``(D,)`` the estimate (posterior mean or MAP particle).
@@ -342,10 +308,8 @@ class AnnealedParticleFilter(ParticleFilter):
 
     Attributes:
         log_evidence: As :class:`ParticleFilter`'s where the filter is the
-            plain one (``layers=1, betas=(1.0,)``); NaN otherwise: each layer
-            weighs its particles by the likelihood raised to ``beta_m`` afresh,
-            not by an increment over the layer before, and the diffusion moves
-            them off the layer's target, so the weights estimate no ``p(y_t)``.
+            plain one (``layers=1, betas=(1.0,)``); NaN otherwise (tempered,
+            diffused layers estimate no ``p(y_t)``).
 
     Raises:
         ValueError: If a setting is out of range, or the settings of one
@@ -396,7 +360,7 @@ class AnnealedParticleFilter(ParticleFilter):
         if not beta_max > 0:
             raise ValueError(f"AnnealedParticleFilter: beta_max must be > 0, got {beta_max}")
         self.beta_max = float(beta_max)
-        #: Per layer of the last frame: the exponent and the survival rate.
+        #: Per layer of the last frame: the exponent and the survival rate (ESS / N).
         self.layer_betas: list[float] = []
         self.layer_survival: list[float] = []
         self._evidence = bool(self.layers == 1 and self.betas is not None and self.betas[0] == 1.0)
@@ -404,14 +368,7 @@ class AnnealedParticleFilter(ParticleFilter):
         self._check_dimensions(None)
 
     def step(self, frame: Any) -> FloatArray:
-        """Advance one frame: propose from the prior, then anneal through the layers.
-
-        Args:
-            frame: The observation, passed to the observation model unchanged.
-
-        Returns:
-            ``(D,)`` the estimate of the last layer.
-        """
+        """Advance one frame: propose from the prior, anneal; the last layer's ``(D,)`` estimate."""
         state, rng = self._predict()
         base_std = np.maximum(state.pose.std(axis=0), self.min_std) * self.diffusion
         self.layer_betas, self.layer_survival = [], []
@@ -480,28 +437,20 @@ class PartitionedParticleFilter(ParticleFilter):
 
     MacCormick & Isard, *Partitioned sampling, articulated objects, and
     interface-quality hand tracking*, ECCV 2000. The state is searched one
-    part at a time: stage ``k`` (of ``0..K-1``) moves its own dimensions,
-    then the particles are weighed by ``g_k / g_{k-1}`` and resampled
-    (section 3's weighted resampling), where ``g_k`` is the likelihood of the
-    partial model built from the groups of stages ``0..k`` and depends on no
-    dimension a later stage moves. For the figure: the root and torso first
-    (their cones' likelihood, with the coverage of the foreground by those
-    cones alone), then each limb, whose cones hang from the root. The last
-    stage weighs by ``L / g_{K-2}``: its own ``g_{K-1} / g_{K-2}`` and the
-    whole likelihood's ``L / g_{K-1}`` (the floor term, and the cones no stage
-    places) in one, so the estimate is the weighted mean of its particles and
-    one stage is the plain filter; a last resampling leaves equal weights for
-    the next frame. Each stage thus searches a few dimensions against the
-    part of the image they explain, instead of the whole body at once.
+    part at a time: stage ``k`` moves its own dimensions, then the particles
+    are weighed by ``g_k / g_{k-1}`` and resampled (section 3's weighted
+    resampling), ``g_k`` the likelihood of the partial model of the groups of
+    stages ``0..k``, which depends on no dimension a later stage moves (for
+    the figure: the root and torso, then each limb). The last stage weighs by
+    ``L / g_{K-2}``, the whole likelihood's ``L / g_{K-1}`` (the floor term,
+    the cones no stage places) folded in, so one stage is the plain filter.
 
-    The prior moves every dimension once per frame, before the first stage.
-    A later stage's particles are then copies of the few that survived the
-    stages before it, so its dimensions are first diffused by a Gaussian of
-    ``diffusion`` times the per-dimension spread of the prior's proposal
-    (floored by ``min_std``): the search within the stage, as the annealed
-    filter's diffusion (:class:`AnnealedParticleFilter`). With ``diffusion =
-    0`` the stages only split one weighting into several. Each frame costs
-    ``len(stages) * n`` likelihood evaluations.
+    The prior moves every dimension once per frame, before the first stage;
+    a later stage first diffuses its dimensions by a Gaussian of
+    ``diffusion`` times the proposal's per-dimension spread (floored by
+    ``min_std``), as the annealed filter does, since its particles are copies
+    of the few that survived. Each frame costs ``len(stages) * n`` likelihood
+    evaluations.
 
     Args:
         prior, fitted, n, angle_mask, resampling, estimate: As
@@ -517,17 +466,14 @@ class PartitionedParticleFilter(ParticleFilter):
 
     Attributes:
         log_evidence: As :class:`ParticleFilter`'s with one stage or
-            ``diffusion = 0``: the product of the stages' mean weights
-            ``g_k / g_{k-1}`` then estimates ``p(y_t)`` (a sequential Monte
-            Carlo sampler through the partial figures). NaN with diffusion
-            and several stages: the diffused particles are no sample of the
-            stage before's target, so their weights estimate no ``p(y_t)``.
+            ``diffusion = 0`` (the product of the stages' mean weights); NaN
+            otherwise: diffused particles are no sample of the stage before's
+            target.
 
     Raises:
         ValueError: If a setting is out of range, a stage's ``dims`` are not
             integer indices >= 0 or overlap an earlier stage's, or the
-            settings of one entry per pose dimension differ in length (or a
-            stage's dimension is beyond theirs).
+            per-dimension settings differ in length (or from the stages').
     """
 
     _PER_DIMENSION = ("angle_mask", "min_std", "lower", "upper")
@@ -575,14 +521,7 @@ class PartitionedParticleFilter(ParticleFilter):
         return dims, source
 
     def step(self, frame: Any) -> FloatArray:
-        """Advance one frame: propose from the prior, then weigh and resample stage by stage.
-
-        Args:
-            frame: The observation, passed to the observation model unchanged.
-
-        Returns:
-            ``(D,)`` the estimate (after the final weighing).
-        """
+        """Advance one frame: propose, weigh and resample stage by stage; the ``(D,)`` estimate."""
         state, rng = self._predict()
         base_std = np.maximum(state.pose.std(axis=0), self.min_std) * self.diffusion
         self.stage_survival = []
@@ -609,9 +548,7 @@ class PartitionedParticleFilter(ParticleFilter):
             self.stage_survival.append(effective_sample_size(weights) / self.n)
             index = self.resample_fn(weights, rng)
             state = state.take(index)
-        # The last stage's g_{K-1} / g_{K-2} and the whole figure's L / g_{K-1}
-        # in one, L / g_{K-2}: the estimate is the weighted mean of the last
-        # stage's particles (with one stage, the plain filter's).
+        # The last stage weighs by L / g_{K-2} (its own increment and the whole figure's).
         weights = self._stage_weights(_increment(partial, len(groups) - 1, len(groups)))
         self.ess = effective_sample_size(weights)
         self.stage_survival.append(self.ess / self.n)
@@ -629,11 +566,7 @@ class PartitionedParticleFilter(ParticleFilter):
 
 
 def _stage_dims(stages: Sequence[Stage]) -> tuple[NDArray[np.intp], ...]:
-    """Each stage's dimensions as an index array: non-empty, integers >= 0, no overlap.
-
-    Raises:
-        ValueError: Naming the stage, if its ``dims`` are not such indices.
-    """
+    """Each stage's dimensions as an index array: non-empty, integers >= 0, no overlap."""
     out: list[NDArray[np.intp]] = []
     seen: set[int] = set()
     for stage in stages:

@@ -1,41 +1,23 @@
 """Local search on the likelihood: the best particles climb before they are weighed.
 
 Bray, Koller-Meier & Van Gool, *Smart particle filtering for 3D hand
-tracking*, FG 2004 (and *Smart particle filtering for high-dimensional
-tracking*, CVIU 2007): after the prior has moved the particles, each of a few
-of them is carried uphill on the likelihood by a few steps of local
+tracking*, FG 2004 (and CVIU 2007): after the prior has moved the particles,
+a few of them are carried uphill on the likelihood by a few steps of local
 optimisation, so that a sharp likelihood, whose peak a few hundred samples of
 a 25-dimensional proposal almost never land in, is still met. The paper
-descends the gradient (stochastic meta-descent); the likelihoods here (a
-rendered figure against an image, truth oracles) have no gradient to hand,
-so the climb is derivative-free, in one of two ways:
+descends the gradient; the likelihoods here have none to hand, so the climb
+is derivative-free: ``"parabola"`` (the default), a finite-difference Newton
+step per dimension of a block, or ``"random"``, the ``(1+1)`` evolution
+strategy (Rechenberg 1973; Schwefel 1981). A step is kept only where it
+scores higher, and each particle's step size per block grows on a success
+and shrinks on a failure (the one-fifth success rule's factors by default).
 
-* ``"parabola"`` (the default): per dimension of a block, probes one step
-  either side, fits a parabola through the three scores and proposes the
-  coordinate-wise Newton step to its vertex (and half of it) -- a finite-
-  difference Newton method on the block's diagonal, ``2 |b| + 2``
-  evaluations, two calls;
-* ``"random"``: an elitist random search, the ``(1+1)`` evolution strategy
-  (Rechenberg 1973; Schwefel 1981), one Gaussian step per block, one
-  evaluation.
-
-Either way a step is kept only where it scores higher, and each particle's
-step size per block grows on a success and shrinks on a failure (the
-one-fifth success rule's factors by default).
-
-The steps move one block of dimensions at a time (for a body, one part of
-the kinematic tree: the root with the torso, then each limb; MacCormick &
-Isard's partitions, Deutscher & Reid 2005's hierarchy), cycling through the
-blocks. A limb's keypoints depend on its own angles and the root's alone,
-so a step on one limb is a search in 3-4 dimensions instead of 25.
-
-:func:`climb` is the search over ``K`` particles at once (one or two
-likelihood calls of ``K`` times the block's proposals per step);
+The steps move one block of dimensions at a time, cycling through the blocks
+(for a body, the root with the torso, then each limb: MacCormick & Isard's
+partitions), so a step on one limb is a search in 3-4 dimensions instead of
+25. :func:`climb` is the search over ``K`` particles at once;
 :class:`SearchParticleFilter` is CONDENSATION with it between the weighing
-and the resampling. A particle's score never falls, the poses stay within
-the bounds (proposals are clipped into them), and each frame costs ``n``
-evaluations plus the climb's (:attr:`Climb.evaluations`; for the body's five
-parts with the defaults, ``n + 5 * 120``).
+and the resampling.
 """
 
 from __future__ import annotations
@@ -150,16 +132,13 @@ def climb(
     Step ``s`` works on block ``b = s mod B`` of every particle, with step
     ``h = sigma_kb * d`` per dimension (``d`` the ``step_std``, ``sigma_kb``
     the particle's step size for the block, starting at ``settings.scale``).
-    ``settings.method`` ``"random"`` proposes ``x' = x + h z`` on the
-    block (``z`` standard normal), one evaluation. ``"parabola"`` probes
-    ``x +- h_i e_i`` for each dimension ``i`` of the block, fits a parabola
-    through the three scores of each (its vertex ``-g_i / c_i`` where the
-    curvature ``c_i < 0``, else a step ``h_i`` uphill) and proposes that
-    coordinate-wise Newton step and its half: ``2 |b| + 2`` evaluations, one
-    call. Either way the best proposal is kept where it scores higher than
-    the particle, and ``sigma_kb`` grows by ``settings.grow`` on a success and
-    shrinks by ``settings.shrink`` on a failure. Proposals are clipped into
-    the bounds.
+    ``"random"`` proposes ``x + h z`` on the block (``z`` standard normal).
+    ``"parabola"`` probes ``x +- h_i e_i`` for each dimension ``i`` of the
+    block and proposes the coordinate-wise step to each parabola's vertex
+    (:func:`vertex_step`) and its half: ``2 |b| + 2`` evaluations. The best
+    proposal is kept where it beats the particle, and ``sigma_kb`` grows by
+    ``settings.grow`` on a success and shrinks by ``settings.shrink`` on a
+    failure. Proposals are clipped into the bounds.
 
     Args:
         log_likelihood: ``(M, D)`` poses to ``(M,)`` log-likelihoods.
@@ -169,9 +148,8 @@ def climb(
         blocks: Index arrays of the dimensions each block moves (non-empty).
         settings: The climb's settings.
         rng: The generator.
-        lower: ``(D,)`` or scalar lower bounds the proposals are clipped into
-            (None: none).
-        upper: ``(D,)`` or scalar upper bounds, likewise.
+        lower: ``(D,)`` or scalar lower bound of the proposals (None: none).
+        upper: ``(D,)`` or scalar upper bound, likewise.
 
     Returns:
         The climbed particles, their scores and the evaluations spent.
@@ -212,11 +190,7 @@ def climb(
 
 
 def _bound(bound: ArrayLike | None, none: float, d: int, name: str) -> FloatArray:
-    """``(D,)`` a bound given as None (``none`` everywhere), a number or ``(D,)`` numbers.
-
-    Raises:
-        ValueError: If it is neither a number nor ``(D,)``.
-    """
+    """``(D,)`` a bound given as None (``none`` everywhere), a number or ``(D,)`` numbers."""
     if bound is None:
         return np.full(d, none)
     value = np.asarray(bound, dtype=np.float64)
@@ -254,11 +228,7 @@ def _parabola(
     log_likelihood: ProbeFn, x: FloatArray, f: FloatArray, cols: NDArray[np.intp],
     step: FloatArray, rng: np.random.Generator, lo: FloatArray, hi: FloatArray,
 ) -> tuple[FloatArray, FloatArray]:  # fmt: skip
-    """The probes ``x +- h_i e_i``, the coordinate-wise Newton step and its half, scored.
-
-    ``(K, 2 |b| + 2, D)`` poses and their ``(K, 2 |b| + 2)`` scores (two calls:
-    the probes, then the steps they give).
-    """
+    """The probes ``x +- h_i e_i``, the Newton step and its half: ``(K, 2 |b| + 2, D)``, scored."""
     del rng
     k, d = x.shape
     m = cols.size
@@ -294,15 +264,7 @@ def vertex_step(
     upward, is flat, or a probe could not move (a bound), the step goes to the
     better probe if it beats the centre, else nowhere.
 
-    Args:
-        plus: Scores at ``+h_plus`` (any shape; the arguments broadcast).
-        minus: Scores at ``-h_minus``.
-        centre: Scores at 0.
-        h_plus: The upper probes' distances (>= 0).
-        h_minus: The lower probes' distances (>= 0).
-
-    Returns:
-        The steps, the broadcast shape.
+    The arguments (scores, and the probes' distances >= 0) broadcast; so do the steps.
     """
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         width = h_plus + h_minus
@@ -321,19 +283,14 @@ def vertex_step(
 class SearchParticleFilter(ParticleFilter):
     """CONDENSATION whose best particles climb the likelihood before the weighing.
 
-    Per frame: the prior moves the particles on (it stays the proposal), the
-    likelihood scores them, the ``search.top`` highest climb for
-    ``search.steps`` steps (:func:`climb`, block by block), then the
-    particles are weighed by their scores (tempered for ``search.survival``
-    where set), the estimate taken and the particles resampled, the climbed
-    ones in place of where they started. A prior's own per-particle memory
-    (its velocities, a tree's history) is kept as it was: the climb moves the
-    pose alone. The climb's base step is the proposal's per-dimension spread
-    (the prior's uncertainty about this frame), floored by ``min_std``.
-
-    Bray, Koller-Meier & Van Gool 2004 (see :mod:`baselines.filtering.search`).
-    With ``top = 0`` or ``steps = 0`` it is :class:`ParticleFilter` resampling
-    every frame.
+    Per frame: the prior moves the particles on, the likelihood scores them,
+    the ``search.top`` highest climb for ``search.steps`` steps
+    (:func:`climb`), then the particles are weighed by their scores (tempered
+    for ``search.survival`` where set), the estimate taken and the particles
+    resampled. The climb moves the pose alone (a prior's per-particle memory
+    is kept); its base step is the proposal's per-dimension spread, floored
+    by ``min_std``. With ``top = 0`` or ``steps = 0`` it is
+    :class:`ParticleFilter` resampling every frame.
 
     Args:
         prior, fitted, observation_model, n, angle_mask, resampling, estimate:
@@ -348,17 +305,13 @@ class SearchParticleFilter(ParticleFilter):
 
     Attributes:
         log_evidence: As :class:`ParticleFilter`'s, from the prior's proposals
-            as the likelihood scores them, before the climb and untempered:
-            the climbed particles and tempered weights are no importance
-            sample, so with a climb (or ``search.survival``) the next frames'
-            particles are not the filtering distribution's and the estimate
-            is an approximation; with ``top = 0`` or ``steps = 0`` (and no
-            survival) it is the plain filter's.
+            before the climb and untempered (climbed particles and tempered
+            weights are no importance sample: with them it approximates).
 
     Raises:
-        ValueError: If a setting is out of range, or the settings of one
-            entry per pose dimension (``angle_mask``, ``min_std``, ``lower``,
-            ``upper``) differ in length.
+        ValueError: If a setting is out of range, or the per-dimension
+            settings (``angle_mask``, ``min_std``, ``lower``, ``upper``)
+            differ in length.
     """
 
     _PER_DIMENSION = ("angle_mask", "min_std", "lower", "upper")
@@ -390,21 +343,12 @@ class SearchParticleFilter(ParticleFilter):
         self._check_dimensions(None)
 
     def step(self, frame: Any) -> FloatArray:
-        """Advance one frame: predict, score, climb, weigh, estimate, resample.
-
-        Args:
-            frame: The observation, passed to the observation model unchanged.
-
-        Returns:
-            ``(D,)`` the estimate (posterior mean or MAP particle).
-        """
+        """Advance one frame: predict, score, climb, weigh, resample; the ``(D,)`` estimate."""
         state, rng = self._predict()
         pose = np.array(state.pose, dtype=np.float64)
         bounds = (self.lower, self.upper)
         loglik = self._scores(frame, pose, bounds)
-        # The plain filter's: the log weights (uniform, as it resamples every
-        # frame) plus the scores, before the climb moves any particle.
-        evidence = log_sum_exp(loglik) - np.log(self.n)
+        evidence = log_sum_exp(loglik) - np.log(self.n)  # the plain filter's, before the climb
         self.evaluations = self.n
         self.accepted = 0
         k = min(self.search.top, int(np.isfinite(loglik).sum()))

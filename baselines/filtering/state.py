@@ -67,12 +67,9 @@ class ParticleState:
         """The particles at ``index`` (with repeats): resampling.
 
         The poses are copied now; the prior's arrays are gathered when first
-        read, each once (:class:`_Gathered`). A prior that reads its arrays
-        through the rows (:func:`deferred_rows`) need not copy them per
-        particle: the tree prior's histories are read once per distinct row.
-
-        Raises:
-            IndexError: If an index is out of range (numpy's, from the poses).
+        read, each once (:class:`_Gathered`), or read through the rows by a
+        prior that asks :func:`deferred_rows`. An index out of range raises
+        numpy's IndexError.
         """
         index = np.asarray(index)
         if index.dtype == bool:  # a mask selects, as fancy indexing would
@@ -93,11 +90,9 @@ Part = tuple[NDArray[Any], "NDArray[np.intp] | None"]
 class _Gathered(Mapping[str, NDArray[Any]]):
     """A prior's per-particle arrays, each a source and its rows, gathered when first read.
 
-    Reading a key gives the same array as ``source[rows]`` (the source itself
-    where the rows are None), the same object on every read;
-    :func:`deferred_rows` gives the source and the rows instead, for a prior
-    that reads through them. The arrays one resampling deferred share one rows
-    array (the same object), so a prior can tell that they go together.
+    A key reads as ``source[rows]`` (the source where the rows are None), the
+    same object on every read. The arrays one resampling deferred share one
+    rows array (the same object), so a prior can tell that they go together.
     """
 
     def __init__(self, parts: Mapping[str, Part]) -> None:
@@ -154,8 +149,8 @@ def gathered(parts: Mapping[str, Part]) -> Mapping[str, NDArray[Any]]:
     the rows without copying. ``rows`` None: the source is the particles' own.
 
     Raises:
-        IndexError: If a row is not one of its source's (a prior may read the
-            rows in compiled code, which does not check them).
+        IndexError: If a row is not one of its source's (compiled code reading
+            through the rows would not check them).
     """
     out: dict[str, Part] = {}
     for key, (source, rows) in parts.items():
@@ -192,11 +187,8 @@ def select(
     """The arrays whose keys start with ``prefix``, the prefix dropped, at ``rows`` when given.
 
     ``select(extra, "p/", rows)[key]`` is ``extra["p/" + key][rows]``. A
-    composite prior (one made of others, each keeping its memory under a
-    prefix) hands its parts their arrays this way: what resampling deferred
-    stays deferred, the rows composed, so a part that reads through the rows
-    (:func:`deferred_rows`) never copies them, and one that does not gathers
-    each array once.
+    composite prior hands its parts their arrays this way: what resampling
+    deferred stays deferred, the rows composed.
     """
     cut = len(prefix)
     part = _Gathered({k[cut:]: v for k, v in _parts(extra).parts.items() if k.startswith(prefix)})
@@ -225,11 +217,7 @@ def deferred_rows(
 
 
 def _rows(array: NDArray[Any], index: NDArray[np.intp]) -> NDArray[Any]:
-    """``array[index]``: ``np.take`` where it is faster (a C-contiguous array).
-
-    On another layout ``np.take`` would first copy the whole array, so fancy
-    indexing is used there; the rows are the same either way.
-    """
+    """``array[index]``: ``np.take`` on a C-contiguous array (faster), else fancy indexing."""
     return np.take(array, index, axis=0) if array.flags.c_contiguous else array[index]
 
 

@@ -15,22 +15,13 @@ from humotion_gym.checks import check_count, float_array, is_real
 
 FloatArray = NDArray[np.float64]
 
-#: How far from 1 the sum of the weights given to a resampling scheme or to
-#: :func:`effective_sample_size` may be. The filters normalise in double
-#: precision, so their N weights sum to 1 within about N machine epsilons
-#: (2e-10 at a million particles); 1e-6 lets weights normalised in single
-#: precision through too, and still refuses weights never normalised.
+#: How far from 1 the sum of normalised weights may be: weights normalised in
+#: single precision pass, weights never normalised do not.
 WEIGHT_SUM_TOLERANCE = 1e-6
 
 
 def normalised_weights(weights: ArrayLike, who: str) -> FloatArray:
-    """``weights`` as a float array, checked to be normalised weights.
-
-    O(N): a minimum and a sum, nothing copied for a float array.
-
-    Args:
-        weights: ``(N,)`` weights.
-        who: The function, for the message.
+    """``(N,)`` ``weights`` as a float array, checked to be normalised weights.
 
     Raises:
         ValueError: Naming ``who``, if ``weights`` is not a non-empty 1-D
@@ -61,9 +52,7 @@ def systematic_resample(weights: FloatArray, rng: np.random.Generator) -> NDArra
 
     Kitagawa, *Monte Carlo filter and smoother for non-Gaussian nonlinear state
     space models*, JCGS 1996. Lowest variance of the common schemes, O(N).
-
-    Raises:
-        ValueError: If ``weights`` are not normalised (:func:`normalised_weights`).
+    Weights that are not normalised raise a ValueError (:func:`normalised_weights`).
     """
     w = normalised_weights(weights, "systematic_resample")
     n = w.shape[0]
@@ -71,21 +60,13 @@ def systematic_resample(weights: FloatArray, rng: np.random.Generator) -> NDArra
 
 
 def multinomial_resample(weights: FloatArray, rng: np.random.Generator) -> NDArray[np.intp]:
-    """Multinomial resampling: N independent draws from the weights.
-
-    Raises:
-        ValueError: If ``weights`` are not normalised (:func:`normalised_weights`).
-    """
+    """Multinomial resampling: N independent draws from the (normalised) weights."""
     w = normalised_weights(weights, "multinomial_resample")
     return _pointed(w, rng.random(w.shape[0]))
 
 
 def stratified_resample(weights: FloatArray, rng: np.random.Generator) -> NDArray[np.intp]:
-    """Stratified resampling: one uniform draw in each of N equal strata.
-
-    Raises:
-        ValueError: If ``weights`` are not normalised (:func:`normalised_weights`).
-    """
+    """Stratified resampling: one uniform draw in each of N equal strata (normalised weights)."""
     w = normalised_weights(weights, "stratified_resample")
     n = w.shape[0]
     return _pointed(w, (rng.random(n) + np.arange(n)) / n)
@@ -107,18 +88,10 @@ RESAMPLING: dict[str, Callable[[FloatArray, np.random.Generator], NDArray[np.int
 
 
 def log_sum_exp(values: FloatArray) -> float:
-    """``log(sum(exp(values)))`` of a 1-D array, without overflow.
+    """``log(sum(exp(values)))`` of ``(N,)`` log weights, without overflow.
 
-    The largest value is taken out of the sum (``a_max + log(sum(exp(a -
-    a_max)))``); an all ``-inf`` input gives ``-inf``, a NaN NaN, as
-    :func:`scipy.special.logsumexp` (which costs about 40 us a call whatever N,
-    through its array-API layer).
-
-    Args:
-        values: ``(N,)`` log weights.
-
-    Returns:
-        ``log(sum(exp(values)))``.
+    The largest value is taken out of the sum; an all ``-inf`` input gives
+    ``-inf``, a NaN NaN, as :func:`scipy.special.logsumexp` (slower per call).
     """
     if values.size == 0:
         return -np.inf
@@ -129,11 +102,7 @@ def log_sum_exp(values: FloatArray) -> float:
 
 
 def effective_sample_size(weights: FloatArray) -> float:
-    """Kish's effective sample size 1 / sum(w^2) of normalised weights.
-
-    Raises:
-        ValueError: If ``weights`` are not normalised (:func:`normalised_weights`).
-    """
+    """Kish's effective sample size 1 / sum(w^2) of normalised weights (else a ValueError)."""
     w = normalised_weights(weights, "effective_sample_size")
     return float(1.0 / np.sum(np.square(w)))
 
@@ -147,14 +116,10 @@ def weighted_mean(
     sin(a - r), sum w cos(a - r))``, the same angle as ``atan2(sum w sin a,
     sum w cos a)`` on the branch nearest ``r``. The offsets ``a - r`` are
     wrapped to ``[-pi, pi]`` in double precision and their sines and cosines
-    taken in single precision, about 20 times faster than in double (NumPy
-    vectorises only the single-precision ones): their errors are relative to
-    the offsets, so the mean is within about 1e-7 times the largest offset
-    of the double-precision one. For a cloud on one branch the offsets are
-    its spread (tested); a cloud whose angles straddle the cut at +-pi as
-    principal values (some near pi, some near -pi) has its linear mean half a
-    turn from its particles, offsets near +-pi, and so an error of up to
-    about 2e-7 rad whatever its spread (tested).
+    taken in single precision (NumPy vectorises only those), so the mean is
+    within about 1e-7 times the largest offset of the double-precision one: a
+    cloud's spread, or for angles straddling the cut at +-pi, about 2e-7 rad
+    whatever its spread (tested).
 
     Args:
         particles: ``(N, D)``.
@@ -183,9 +148,7 @@ def possible(loglik: FloatArray, who: str = "the likelihood") -> NDArray[np.bool
     """Which log-likelihoods are finite (``-inf`` and NaN mark impossible poses).
 
     Raises:
-        ValueError: For a log-likelihood of ``+inf``, which is no probability,
-            naming ``who`` returned it (checked only where some value is not
-            finite: the usual case costs nothing).
+        ValueError: Naming ``who``, for a log-likelihood of ``+inf`` (no probability).
     """
     ok = np.isfinite(loglik)
     if not ok.all() and np.isposinf(loglik).any():
@@ -257,8 +220,7 @@ def temper_for_survival(
     if spread <= 0.0 or ok.sum() <= alpha * n:
         return 1.0, weights(1.0)
     # The bisection's ESS, as effective_sample_size(weights(beta)) computes it,
-    # in one reused buffer: 60 rounds per layer made its allocations and
-    # wrappers a third of an annealed 300-particle frame.
+    # in one reused buffer (it runs 60 rounds a layer).
     buffer = np.empty(n)
     target = alpha * n
 
