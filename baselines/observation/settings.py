@@ -22,23 +22,16 @@ from humotion_gym.checks import is_count, is_real
 MAX_LENGTH = 1e6
 
 #: The smallest scale setting (``edge_sigma``, reference px; the floor's, mm):
-#: a thousandth of a pixel or of a millimetre is far finer than any edge or
-#: any motion capture, and it bounds the squared cost ratios
-#: (``MAX_LENGTH / MIN_SCALE`` squared, 1e18) so that the single-precision
-#: scorer cannot overflow.
+#: far finer than any edge or motion capture, it bounds the squared cost
+#: ratios (``(MAX_LENGTH / MIN_SCALE)^2``) within the single-precision scorer.
 MIN_SCALE = 1e-3
 
-#: The largest weight of a term or of the whole log-likelihood. A weight
-#: multiplies costs of up to 5e17 nats (see :data:`MIN_SCALE`); 1e6 keeps the
-#: product within single precision (3.4e38), where a weight of 1e308 made every
-#: pose score -0. (a flat likelihood).
+#: The largest weight of a term or of the whole log-likelihood: it keeps a
+#: weight times the largest cost (see :data:`MIN_SCALE`) within single precision.
 MAX_WEIGHT = 1e6
 
-#: The largest ``edge_blur`` (image pixels). The blur suppresses sensor noise
-#: of a pixel or two; a sigma of 100 px spreads each pixel over +-300 px,
-#: flattening a figure in any benchmark frame, and OpenCV's kernel (about
-#: 6 sigma + 1 taps) makes larger ones cost seconds per frame, without end
-#: for an infinite one.
+#: The largest ``edge_blur`` (image pixels): already flattens a figure in any
+#: frame, and OpenCV's kernel (about 6 sigma + 1 taps) grows without end.
 MAX_EDGE_BLUR = 100.0
 
 #: The largest ``outline_samples`` and ``axis_samples``: a thousand points on a
@@ -69,11 +62,8 @@ class ObservationSettings:
     is off by ``edge_truncation`` scores about 20 nats below one that fits.
     Particle filters may temper it further.
 
-    Each setting is checked on creation (:func:`check_settings`): a number
-    must be a real number (not a bool or a string) within its bounds, e.g.
-    ``edge_blur`` in [0, :data:`MAX_EDGE_BLUR`], weights and ``sharpness`` at
-    most :data:`MAX_WEIGHT`, lengths at most :data:`MAX_LENGTH`; anything else
-    raises a ValueError naming the setting.
+    Each setting is checked on creation (:func:`check_settings`): anything out
+    of range raises a ValueError naming the setting.
 
     Attributes:
         edge_sigma: Standard deviation (reference px, default 1.5) of the
@@ -84,11 +74,8 @@ class ObservationSettings:
             outline point costs no more. The robust truncation of the chamfer
             cost: outline points with no edge (an outline hidden behind another
             limb, a low-contrast edge, a point off the image) cost a bounded
-            amount, so the score counts how much of the outline is explained.
-            Three reference pixels is 50-100 mm on a body filling a 128-pixel
-            frame: tuned on the test of ``tests/test_observation.py`` (true
-            pose against poses 5-10 cm off), where 6 px gave 95-97% and 3 px
-            99%.
+            amount, so the score counts how much of the outline is explained
+            (tuned on the test of ``tests/test_observation.py``).
         foreground_weight: Weight (default 0.5) of the foreground term: the
             cost, per cone, of its axis lying wholly on background; a quarter of
             the edge term's range. It holds a pose on the figure where edges are
@@ -122,29 +109,20 @@ class ObservationSettings:
         orientation_bins: Number of edge orientation bins (default 4: 0, 45, 90
             and 135 degrees; every edge pixel counts for its two nearest bins,
             so an outline matches edges within 45 degrees of its own
-            orientation). 1 gives plain (unoriented) chamfer matching; 6 and 8
-            scored the same as 4 on the tests and cost more distance transforms.
+            orientation). 1 gives plain (unoriented) chamfer matching.
         sharpness: Multiplier of the whole log-likelihood (an inverse
             temperature; default 1). Per-cone costs are means over the cone's
             points, so the default treats each cone, not each point, as one
-            observation; ``outline_samples * 2`` would treat points as
-            independent. Left at 1 for every agent: a truth-centred particle
-            cloud is estimated best at 0.3-1 (BodyTrack: 13 mm at 1, 25 mm at 3,
-            54 mm at 10), i.e. sharper weights are overconfident.
+            observation. Sharper weights are overconfident (``docs/priors.md``).
         residual_weight: Weight (default 0: off) of the *residual-edge* term,
             the image-to-model direction of the chamfer cost, used where a task
-            gives part of the body (:class:`GivenBody`). The given cones'
-            outlines are drawn once per frame; the edge pixels they leave
-            unexplained within reach of the free cones (the free limbs' own
-            edges, and clutter) should lie on a free cone's outline, and each
-            such point costs ``min(d, residual_truncation)^2 / (2 sigma^2)``,
-            averaged over the points and multiplied by this weight. The
-            model-to-image term alone is maximised by any limb laid along edges
-            that are there anyway (the torso's side, the other side of the
-            limb, clutter); this term asks that the limb explain the edges
-            only it can explain. On ArmTrack, a greedy search over arm poses on
-            flat-background validation frames went from 264 mm (worse than not
-            moving, 191 mm) without it to 87 mm with it.
+            gives part of the body (:class:`GivenBody`). The edge pixels the
+            given cones' outlines leave unexplained within reach of the free
+            cones should lie on a free cone's outline; each such point costs
+            ``min(d, residual_truncation)^2 / (2 sigma^2)``, averaged over the
+            points and multiplied by this weight. The model-to-image term
+            alone is maximised by any limb laid along edges that are there
+            anyway; this term asks that the limb explain the edges only it can.
         residual_truncation: Distance (reference px, default 6) beyond which a
             residual point costs no more.
         residual_points: At most this many residual points per frame (default
@@ -199,31 +177,19 @@ class ObservationSettings:
         floor_below_mm: Scale (mm; default ``inf``: off) of the *floor term*'s
             cost for a pose whose lowest ankle is below the height it had in
             the episode's given first pose (``GivenBody.floor``): ``d`` mm below
-            costs ``(d / floor_below_mm)^2 / 2`` nats. Not an image cue but
-            the scene's: the floor is flat and feet do not sink into it. The
-            image barely shows depth (a figure 5 m away grows one pixel in 128
-            per 100 mm nearer; on BodyTrack's validation frames the
-            log-likelihood of the true pose slid along the camera ray varies
-            by under 1.5 nats over +-400 mm), while sliding a figure along its
-            ray moves it up or down (the cameras look down on it), so the floor
-            was meant to pin the depth; on the validation persons it did not
-            help (off on every task; numbers in ``humotion_gym/envs/tasks.py``).
-            Added to the log-likelihood after ``sharpness``.
+            costs ``(d / floor_below_mm)^2 / 2`` nats. The scene's cue, not the
+            image's: the image barely shows depth, while sliding a figure along
+            its camera ray moves it up or down. Off on every task (numbers in
+            ``humotion_gym/envs/tasks.py``). Added after ``sharpness``.
         floor_above_mm: Scale (mm; default ``inf``: off) of the floor term's
             cost for a lowest ankle *above* that height (a person jumps, so it
             is looser than ``floor_below_mm`` where used).
         raster_pad_px: Image pixels (not reference pixels; default 0) added to
-            every cone's projected half-width. The renderer fills each cone
-            with ``cv2.fillConvexPoly`` (8-connected), which paints every
-            pixel its outline passes through: the drawn figure is about half a
-            pixel wider on each side than the cone's exact projection (0.48
-            px, measured over random strips in ``tests/test_raster_pad.py``).
-            A model without it finds the drawn limbs too thick for the true
-            depth and prefers the figure nearer the camera (on BodyTrack's test
-            frames the true pose slid along the camera ray scores best 151 mm
-            in front of the truth; with 0.5, 22 mm behind it). Off by default:
-            on the validation persons it tracked no better (worse on the walks;
-            numbers in ``humotion_gym/envs/tasks.py``).
+            every cone's projected half-width: ``cv2.fillConvexPoly`` paints
+            every pixel a cone's outline passes through, about half a pixel
+            beyond its exact projection (``tests/test_raster_pad.py``), so a
+            model without it prefers the figure nearer the camera. Off: it
+            tracked no better (numbers in ``humotion_gym/envs/tasks.py``).
     """
 
     edge_sigma: float = 1.5
@@ -278,19 +244,6 @@ class ObservationSettings:
         return weights
 
 
-def _real(
-    name: str, value: object, low: float, high: float, what: str, positive: bool = False
-) -> None:
-    """Refuse ``value`` unless a real number in ``[low, high]`` (``> low`` if ``positive``).
-
-    Raises:
-        ValueError: Naming the setting and what was expected.
-    """
-    # NaN fails every comparison; a bool or a string fails is_real
-    if not (is_real(value) and low <= value <= high and (value > low or not positive)):  # type: ignore[operator]
-        raise ValueError(f"ObservationModel.{name}: expected {what}, got {value!r}")
-
-
 def _ordered(low_name: str, high_name: str, settings: ObservationSettings, strict: bool) -> None:
     """Refuse a pair of thresholds unless ``low < high`` (``<=`` unless ``strict``)."""
     low, high = getattr(settings, low_name), getattr(settings, high_name)
@@ -299,6 +252,41 @@ def _ordered(low_name: str, high_name: str, settings: ObservationSettings, stric
         raise ValueError(
             f"ObservationModel: expected {low_name} {sign} {high_name}, got {low!r} and {high!r}"
         )
+
+
+#: Each number's range, checked in this order: ``(names, low, high, what,
+#: positive)``, ``positive`` refusing ``low`` itself.
+_RANGES: tuple[tuple[tuple[str, ...], float, float, str, bool], ...] = (
+    (
+        ("edge_truncation", "near_mm", "residual_truncation", "coverage_truncation"),
+        0.0, MAX_LENGTH, f"a positive length up to {MAX_LENGTH:g}", True,
+    ),
+    (("edge_sigma",), MIN_SCALE, MAX_LENGTH, f"a length in [{MIN_SCALE:g}, {MAX_LENGTH:g}]", False),
+    (
+        ("residual_clearance", "backdrop_margin", "backdrop_reach", "raster_pad_px"),
+        0.0, MAX_LENGTH, f"a length in [0, {MAX_LENGTH:g}]", False,
+    ),
+    (
+        ("edge_blur",), 0.0, MAX_EDGE_BLUR, f"a blur sigma in [0, {MAX_EDGE_BLUR:g}] pixels",
+        False,
+    ),
+    (
+        ("foreground_weight", "residual_weight", "appearance_weight", "coverage_weight"),
+        0.0, MAX_WEIGHT, f"a weight in [0, {MAX_WEIGHT:g}]", False,
+    ),
+    (("sharpness",), 0.0, MAX_WEIGHT, f"a weight in (0, {MAX_WEIGHT:g}]", True),
+    (
+        ("floor_below_mm", "floor_above_mm"), MIN_SCALE, math.inf,
+        f"a scale >= {MIN_SCALE:g} mm (inf: off)", False,
+    ),
+    (
+        (
+            "foreground_low", "foreground_high", "canny_low", "canny_high", "appearance_low",
+            "appearance_high",
+        ),
+        0.0, MAX_LENGTH, f"a number of grey levels in [0, {MAX_LENGTH:g}]", False,
+    ),
+)  # fmt: skip
 
 
 def check_settings(settings: ObservationSettings) -> None:
@@ -312,57 +300,20 @@ def check_settings(settings: ObservationSettings) -> None:
     Raises:
         ValueError: Naming the setting.
     """
-    length = f"a positive length up to {MAX_LENGTH:g}"
-    for name in ("edge_truncation", "near_mm", "residual_truncation", "coverage_truncation"):
-        _real(name, getattr(settings, name), 0.0, MAX_LENGTH, length, positive=True)
-    _real(
-        "edge_sigma", settings.edge_sigma, MIN_SCALE, MAX_LENGTH,
-        f"a length in [{MIN_SCALE:g}, {MAX_LENGTH:g}]",
-    )  # fmt: skip
-    for name in (
-        "residual_clearance", "backdrop_margin", "backdrop_reach", "raster_pad_px",
-    ):  # fmt: skip
-        _real(name, getattr(settings, name), 0.0, MAX_LENGTH, f"a length in [0, {MAX_LENGTH:g}]")
-    _real(
-        "edge_blur", settings.edge_blur, 0.0, MAX_EDGE_BLUR,
-        f"a blur sigma in [0, {MAX_EDGE_BLUR:g}] pixels",
-    )  # fmt: skip
-    weight = f"a weight in [0, {MAX_WEIGHT:g}]"
-    for name in ("foreground_weight", "residual_weight", "appearance_weight", "coverage_weight"):
-        _real(name, getattr(settings, name), 0.0, MAX_WEIGHT, weight)
-    _real(
-        "sharpness",
-        settings.sharpness,
-        0.0,
-        MAX_WEIGHT,
-        f"a weight in (0, {MAX_WEIGHT:g}]",
-        positive=True,
-    )
-    for name in ("floor_below_mm", "floor_above_mm"):
-        _real(
-            name,
-            getattr(settings, name),
-            MIN_SCALE,
-            math.inf,
-            f"a scale >= {MIN_SCALE:g} mm (inf: off)",
-        )
-    level = f"a number of grey levels in [0, {MAX_LENGTH:g}]"
-    for name in (
-        "foreground_low", "foreground_high", "canny_low", "canny_high",
-        "appearance_low", "appearance_high",
-    ):  # fmt: skip
-        _real(name, getattr(settings, name), 0.0, MAX_LENGTH, level)
+    for names, low, high, what, positive in _RANGES:
+        for name in names:
+            value = getattr(settings, name)
+            # NaN fails every comparison; a bool or a string fails is_real
+            if not (is_real(value) and low <= value <= high and (value > low or not positive)):
+                raise ValueError(f"ObservationModel.{name}: expected {what}, got {value!r}")
     _ordered("foreground_low", "foreground_high", settings, strict=True)
     _ordered("appearance_low", "appearance_high", settings, strict=True)
     _ordered("canny_low", "canny_high", settings, strict=False)
-    _real(
-        "canny_low",
-        settings.canny_low,
-        0.0,
-        MAX_LENGTH,
-        f"a number of grey levels in (0, {MAX_LENGTH:g}]",
-        positive=True,
-    )
+    if not settings.canny_low > 0:
+        raise ValueError(
+            f"ObservationModel.canny_low: expected a number of grey levels in "
+            f"(0, {MAX_LENGTH:g}], got {settings.canny_low!r}"
+        )
     if not isinstance(settings.backdrop, (bool, np.bool_)):
         raise ValueError(f"ObservationModel.backdrop: expected a bool, got {settings.backdrop!r}")
     for name, most in (
