@@ -41,28 +41,23 @@ class FrameFeatures:
         foreground: ``(H, W)`` float32 foreground probability in [0, 1].
         background_color: The estimated background colour (one value per
             channel), or None where the known backdrop was used instead.
-        cost: Flat uint8 lookup table: the ``B`` padded ``(H + 2, W + 2)`` edge
-            cost maps followed by the padded foreground cost map, per point, in
-            units of ``cost_unit``; the 1-pixel border holds the cost of a point
-            outside the image.
+        cost: Flat uint8 lookup table (:func:`cost_table`): the ``B`` padded
+            ``(H + 2, W + 2)`` edge cost maps, the foreground's, then each
+            appearance cone's, in units of ``cost_unit``; the 1-pixel border
+            holds the cost of a point outside the image.
         cost_unit: The cost (nats) of one unit of ``cost``.
         residual: ``(2, E)`` float32 image coordinates (plus the table's
-            padding offset) of the edge points the given body does not explain
-            (see :class:`GivenBody`), or ``None`` when no body part was given.
-        residual_cones: The cones (indices into ``CONE_NAMES``) whose outline
-            must explain ``residual``: those that move with the free parameters.
+            padding offset) of the edge points the given body does not
+            explain, or ``None`` when no body part was given.
+        residual_cones: The free cones (indices into ``CONE_NAMES``), whose
+            outlines must explain ``residual``.
         appearance_cones: The cones whose axis points read their own colour
-            map (the maps after the foreground map in ``cost``, in this
-            order), or ``None``.
+            map (in this order), or ``None``.
         coverage: ``(2, F)`` float32 image coordinates (plus the padding
-            offset) of foreground pixels the free cones must cover (the
-            coverage term, see ``ObservationModel.coverage_weight``), or
-            ``None``.
-        coverage_cones: The cones that may cover them (those that move with
-            the free parameters).
+            offset) of foreground pixels the free cones must cover, or ``None``.
+        coverage_cones: The free cones, which may cover them.
         floor: Height (mm, world z) of the lowest ankle in the episode's given
-            first pose, for the floor term (``GivenBody.floor``), or ``None``
-            where the model has no floor term.
+            first pose (``GivenBody.floor``), or ``None`` without a floor term.
     """
 
     width: int
@@ -87,10 +82,9 @@ class Backdrop:
 
     The renderer draws each episode's backdrop once, fixed in the image, and
     only sensor noise changes it from frame to frame (a static camera's
-    background, as in the background subtraction Deutscher, Blake & Reid, CVPR
-    2000, took their silhouettes from). At the first frame the figure's pose is
-    given, so every pixel its silhouette does not cover shows the backdrop.
-    Nothing after the first frame is used.
+    background, as in Deutscher, Blake & Reid's background subtraction, CVPR
+    2000). At the first frame the figure's pose is given, so every pixel its
+    silhouette does not cover shows the backdrop.
 
     Attributes:
         image: ``(H, W, C)`` uint8, the first frame blurred by the model's
@@ -164,18 +158,10 @@ def smoothed(frame: ArrayLike, blur: float, where: str) -> NDArray[np.uint8]:
 def oriented_edges(
     smooth: NDArray[np.uint8], low: float, high: float, n_bins: int, keep: NDArray | None = None
 ) -> tuple[NDArray[np.uint8], NDArray[np.uint8], NDArray[np.bool_]]:
-    """Canny edges and their split into orientation bins.
+    """Canny edges (hysteresis ``low``, ``high``) of the blurred frame, split into ``n_bins``.
 
-    On colour frames ``cv2.Canny`` takes, per pixel, the strongest channel's
-    gradient; the orientation comes from the strongest channel's Sobel
-    gradient.
-
-    Args:
-        smooth: ``(H, W, C)`` the blurred frame.
-        low: Canny's lower hysteresis threshold.
-        high: Its upper one.
-        n_bins: Orientation bins.
-        keep: uint8, 255 where edges count (or None: everywhere).
+    On colour frames, per pixel, the strongest channel's gradient. ``keep``:
+    uint8, 255 where edges count (None: everywhere).
 
     Returns:
         The ``(H, W)`` edge map; ``(B, H, W)`` uint8 maps for
@@ -187,15 +173,14 @@ def oriented_edges(
     h, w, channels = smooth.shape
     image = smooth if channels == 3 else smooth[:, :, 0]
     # Canny's own derivatives (3x3 Sobel, replicated border), handed to its
-    # derivative form: the same edges, and on colour frames in about 60% of
-    # the time Canny takes to compute them itself.
+    # derivative form: the same edges, sooner.
     dx = cv2.Sobel(image, cv2.CV_16S, 1, 0, ksize=3, borderType=cv2.BORDER_REPLICATE)
     dy = cv2.Sobel(image, cv2.CV_16S, 0, 1, ksize=3, borderType=cv2.BORDER_REPLICATE)
     edges = cv2.Canny(dx, dy, low, high)
     if keep is not None:
         cv2.bitwise_and(edges, keep, dst=edges)
     bins = np.full((n_bins, h, w), 255, np.uint8)
-    found = cv2.findNonZero(edges)  # raster order, as np.nonzero (several times faster)
+    found = cv2.findNonZero(edges)  # raster order, as np.nonzero (faster)
     if found is None:
         return edges, bins, np.zeros(n_bins, bool)
     found = found.reshape(-1, 2)
@@ -218,12 +203,7 @@ def oriented_edges(
 def strongest_gradients(
     dx: NDArray[np.int16], dy: NDArray[np.int16], xs: NDArray[np.int32], ys: NDArray[np.int32]
 ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
-    """``(K,)`` float32 x and y gradients of the strongest channel at pixels ``(xs, ys)``.
-
-    The first channel of largest ``dx^2 + dy^2`` (``np.argmax``'s first; exact
-    in integers: a 3x3 Sobel of bytes is below ``2**10``). ``dx`` and ``dy``
-    are ``(H, W, C)``.
-    """
+    """``(K,)`` float32 x and y gradients at ``(xs, ys)`` of the first channel of largest norm."""
     u, v = dx[ys, xs].astype(np.int32), dy[ys, xs].astype(np.int32)
     best = np.argmax(u * u + v * v, axis=1)
     rows = np.arange(xs.size)
@@ -236,11 +216,9 @@ def mark_bins(
     ys: NDArray[np.int32],
     bins: NDArray[np.uint8],
 ) -> NDArray[np.bool_]:
-    """Each pixel marked (0) in its two nearest orientation bins; which bins hold one.
+    """Mark (0) each pixel in ``bins`` ``floor(turns) mod B`` and the next; which bins hold one.
 
-    Pixel ``i`` at orientation ``turns[i]`` (in bin widths, ``[0, B]``) goes to
-    bins ``floor(turns[i]) mod B`` and the next (mod ``B``) of ``bins``
-    (in/out, ``(B, H, W)``). Returns ``(B,)`` whether each bin holds a pixel.
+    ``turns``: each pixel's orientation in bin widths, ``[0, B]``.
     """
     n_bins = bins.shape[0]
     lo = np.floor(turns).astype(np.int64) % n_bins
@@ -257,21 +235,13 @@ def edge_distances(
 ) -> tuple[NDArray[np.float32], Box]:
     """``(B, H, W)`` each bin's ``cv2.distanceTransform`` (pixels) up to ``reach``; the box.
 
-    Only the edges' bounding box widened by ``reach`` pixels is transformed;
-    pixels outside it, and every pixel of a bin without edges, get inf. A
-    chamfer distance is at least the Chebyshev distance (each mask step costs
-    at least the pixels it crosses), so a pixel outside is more than ``reach``
-    from every edge; inside, a shortest chamfer path runs within the bounding
-    box of its two ends, which the crop holds: the same distances there.
-
-    Args:
-        bins: ``(B, H, W)`` the maps of :func:`oriented_edges`.
-        found: ``(B,)`` whether each bin holds an edge pixel.
-        edges: ``(H, W)`` the edge map (nonzero on every bin's edge pixels).
-        reach: Pixels beyond which distances may read inf (the truncation's).
-
-    Returns:
-        The distances and the transformed box ``(y0, y1, x0, x1)``.
+    Only the edges' bounding box widened by ``reach`` pixels is transformed
+    (the box is returned, ``(y0, y1, x0, x1)``); pixels outside it, and every
+    pixel of a bin without edges, get inf. A chamfer distance is at least the
+    Chebyshev distance, so a pixel outside is more than ``reach`` from every
+    edge; inside, a shortest chamfer path runs within the bounding box of its
+    two ends, which the crop holds: the same distances there. ``bins`` and
+    ``found`` are :func:`oriented_edges`', ``edges`` its edge map.
     """
     n_bins, h, w = bins.shape
     x, y, bw, bh = cv2.boundingRect(edges)
@@ -321,9 +291,9 @@ def border_color(smooth: NDArray[np.uint8], width: int) -> NDArray[np.float64]:
 def backdrop_low(model: ObservationSettings, counts: NDArray[np.int64]) -> float | None:
     """How far a pixel must differ from the backdrop, from the known pixels' histogram.
 
-    ``foreground_low`` or 2.5 times the known pixels' median difference (about
-    their 99.5th percentile), whichever is larger; None where that reaches
-    ``foreground_high`` or no pixel is known (the backdrop is then not used).
+    ``foreground_low`` or 2.5 times the known pixels' median difference,
+    whichever is larger; None where that reaches ``foreground_high`` or no
+    pixel is known (the backdrop is then not used).
     """
     low = model.foreground_low
     total = counts.sum()
@@ -349,19 +319,18 @@ def foreground(
     left or another part of it (1/2).
 
     Returns:
-        The ``(H, W)`` float32 probability, the border's median colour (None
-        where the backdrop was used instead), with a backdrop used and a
-        positive ``backdrop_reach`` the uint8 mask of where edges count
-        (within reach of a pixel that differs from the known backdrop, or
-        where it is unknown), else None, and the backdrop
-        if it was used, else None.
+        The ``(H, W)`` float32 probability; the border's median colour (None
+        where the backdrop was used); with a backdrop and a positive
+        ``backdrop_reach``, the uint8 mask of where edges count (near a pixel
+        that differs from the known backdrop, or where it is unknown), else
+        None; the backdrop if it was used, else None.
     """
     channels = smooth.shape[2]
     bg, keep, low = None, None, None
     if backdrop is not None:
         near = channel_max(cv2.absdiff(smooth, backdrop.image).reshape(smooth.shape))
-        # The known pixels' histogram, as np.bincount(near[known]) counts it, in
-        # a third of the time (float32 counts: exact below 2**24 pixels).
+        # The known pixels' histogram, as np.bincount(near[known]) counts it
+        # (float32 counts: exact below 2**24 pixels).
         counts = cv2.calcHist([near], [0], backdrop.known.view(np.uint8), [256], [0, 256])
         low = backdrop_low(model, counts.astype(np.int64).reshape(-1))
         if low is None:
@@ -443,27 +412,15 @@ def edge_foreground_bytes(
     inv_unit: np.float32,
     out: NDArray[np.uint8],
 ) -> None:
-    """The cost table's edge and foreground maps, quantised.
+    """The cost table's edge and foreground maps, quantised, into ``out`` ``(B + 1, H + 2, W + 2)``.
 
     Per orientation bin ``b`` the padded map ``rint(min(d s, tau)^2 e / u)``
-    (``d = dist[b]``, which takes ``min(d s, tau)`` in place), then the
-    foreground's ``rint((1 - fg) f / u)``; the one-pixel border holds
-    ``rint(edge_out / u)`` and ``rint(fg_out / u)``. All in float32, in
-    that order.
-
-    Args:
-        dist: ``(B, H, W)`` distances to the edges (pixels), inf outside
-            ``box``; rescaled and truncated in place.
-        box: ``(y0, y1, x0, x1)``: outside it every edge cost is the truncation's.
-        fg: ``(H, W)`` foreground probabilities.
-        inv_scale: ``s``, reference pixels per pixel.
-        truncation: ``tau``.
-        edge_scale: ``e``.
-        edge_out: The edge cost off the image.
-        fg_scale: ``f``.
-        fg_out: The foreground cost off the image.
-        inv_unit: ``1 / u``, table units per nat.
-        out: Out, ``(B + 1, H + 2, W + 2)``.
+    (``d = dist[b]``, pixels, inf outside ``box``, which takes ``min(d s,
+    tau)`` in place; ``s = inv_scale``, ``tau = truncation``, ``e =
+    edge_scale``, ``1 / u = inv_unit``), then the foreground's ``rint((1 -
+    fg) f / u)`` (``f = fg_scale``); the one-pixel border holds ``rint(edge_out
+    / u)`` and ``rint(fg_out / u)``, the costs off the image. All in float32,
+    in that order.
     """
     n_bins = dist.shape[0]
     y0, y1, x0, x1 = box
@@ -496,22 +453,14 @@ def appearance_bytes(
     inv_unit: np.float32,
     out: NDArray[np.uint8],
 ) -> None:
-    """The cost table's appearance maps, quantised.
+    """The cost table's appearance maps, quantised, into ``out`` ``(K, H + 2, W + 2)``.
 
-    Per colour ``k`` the padded map ``rint(clip((m - low) span, 0, 1) a / u)``
-    of the largest channel difference ``m = max_c |smooth[..., c] - colors[k, c]|``;
-    the one-pixel border holds ``rint(a / u)`` (a point off the image matches
-    no colour). All in float32, in that order.
-
-    Args:
-        smooth: ``(H, W, C)`` the blurred frame.
-        colors: ``(K, C)`` the colours to match.
-        low: The difference below which a pixel matches (cost 0).
-        span: ``1 / (high - low)``: the difference from ``low`` on, in units of
-            the ramp to the full cost.
-        scale: ``a``, the full cost (nats).
-        inv_unit: ``1 / u``, table units per nat.
-        out: Out, ``(K, H + 2, W + 2)`` the table's appearance maps.
+    Per colour ``k`` of ``(K, C)`` ``colors`` the padded map ``rint(clip((m -
+    low) span, 0, 1) a / u)`` of the largest channel difference ``m = max_c
+    |smooth[..., c] - colors[k, c]|`` (``span = 1 / (high - low)``, ``a =
+    scale`` the full cost, ``1 / u = inv_unit``); the one-pixel border holds
+    ``rint(a / u)`` (a point off the image matches no colour). All in
+    float32, in that order.
     """
     if not colors.shape[0]:
         return
@@ -540,9 +489,8 @@ def _border(maps: NDArray[np.uint8], value: np.floating) -> None:
 def spread_points(mask: NDArray[np.bool_], most: int) -> NDArray[np.float32]:
     """At most ``most`` of ``mask``'s set pixels, evenly spread: ``(2, F)`` x then y (+1.5).
 
-    The pixels ``np.nonzero(mask)`` gives, in its order, thinned to
-    ``np.linspace(0, n - 1, most)``'s picks where there are more; 1.5 is the
-    cost table's offset (one pixel of padding, and 0.5 so truncation rounds).
+    ``np.nonzero``'s order, thinned to ``np.linspace(0, n - 1, most)``'s
+    picks; 1.5 is the cost table's offset (padding, and 0.5 so truncation rounds).
     """
     flat = np.flatnonzero(mask)
     if flat.size > most:
@@ -594,9 +542,8 @@ def residual_edges(
     the nearest depth it can reach) is kept.
 
     Returns:
-        ``(2, E)`` points (x then y, plus the cost table's 1.5 offset; at
-        most ``residual_points``, evenly spread: :func:`spread_points`) and
-        the free cones' indices.
+        ``(2, E)`` points (:func:`spread_points`, at most ``residual_points``)
+        and the free cones' indices.
     """
     camera = given.camera
     cones, (geo, ends, moved) = free

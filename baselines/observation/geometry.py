@@ -81,22 +81,15 @@ def cone_bases(
     n_bins: int,
     plane: int,
 ) -> tuple[NDArray[np.float32], NDArray[np.int32], NDArray[np.float32]]:
-    """Each cone's image basis and outline map for N poses.
+    """Each cone's image basis and outline map for ``(N, 25)`` finite poses.
 
     Round cones take the mean of their section's two semi-axes as radius; an
     elliptical one (aspect not 1: the torso) its width across the image
     normal, per pose (:func:`~baselines.observation._compiled.cone_bases`).
-    The poses' geometry is single precision (the points are placed in float32
-    anyway, and numpy's float32 sines and cosines are vectorised).
-
-    Args:
-        params: ``(N, 25)`` finite poses.
-        shape: The subject's shape.
-        camera: The frame's camera.
-        near_mm: Keypoints nearer the camera plane than this are off the image.
-        raster_pad_px: Pixels added to every projected radius.
-        n_bins: Orientation bins of the edge maps.
-        plane: Entries of one map of the cost table.
+    The poses' geometry is single precision, as the points are placed.
+    Keypoints nearer the camera plane than ``near_mm`` are off the image;
+    ``raster_pad_px`` is added to every projected radius; ``plane`` is the
+    size of one map of the cost table (``n_bins`` edge maps).
 
     Returns:
         ``basis`` ``(8, 10, N)`` float32: rows ``(s_u, s_v, e_u, e_v)`` the
@@ -130,10 +123,8 @@ def free_cones(given_pose: Any, given_free: Any, shape: BodyShape) -> tuple[NDAr
     """The cones that move with the free parameters, and the probe's geometry.
 
     Two moves of the free parameters tell which cone ends depend on them. The
-    same given pose, free parameters and shape give the same answer: on tasks
-    that give the same thing every frame the probe runs once per episode. The
-    shape is compared by value: an agent reads a new shape object from every
-    observation.
+    last answer is kept (the shape compared by value): on tasks that give the
+    same thing every frame the probe runs once per episode.
 
     Returns:
         The free cones' indices and ``(geometry, ends, moved)``: the probe's
@@ -188,11 +179,9 @@ def cone_parameters() -> NDArray[np.bool_]:
 def fixed_cones(params: NDArray) -> NDArray[np.bool_] | None:
     """``(10,)`` True for the cones every pose of ``(N, 25)`` places the same; None for none.
 
-    A cone's cost depends only on its ends and axes, so a cone none of whose
-    parameters differ between poses (the body a task gives) costs the same in
-    all of them. Every cone hangs from the root: where the first two poses'
-    root x differ (the whole-body tasks) none is fixed, known without a pass
-    over N.
+    A cone none of whose parameters differ between poses (the body a task
+    gives) costs the same in all of them. Every cone hangs from the root:
+    where the first two poses' root x differ, none is fixed (no pass over N).
     """
     if params.shape[0] < 2 or params[0, 0] != params[1, 0]:
         return None

@@ -40,11 +40,7 @@ FloatArray = NDArray[np.float64]
 
 
 def pose_batch(params: ArrayLike, where: str) -> NDArray[np.float64]:
-    """``(N, 25)`` float64 poses of ``params``, checked for a keypoint term's scoring.
-
-    Raises:
-        ValueError: Naming ``where``, if ``params`` is not ``(N, 25)``.
-    """
+    """``(N, 25)`` float64 poses of ``params``; a ValueError naming ``where`` if they are not."""
     p = np.asarray(params, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != N_PARAMS:
         raise ValueError(f"{where}: expected poses of shape (N, 25), got {p.shape}")
@@ -52,15 +48,11 @@ def pose_batch(params: ArrayLike, where: str) -> NDArray[np.float64]:
 
 
 def left_right_partners(keypoints: Sequence[int]) -> NDArray[np.intp]:
-    """Each keypoint's left/right partner, as positions in ``keypoints`` (itself if none).
+    """``(K,)`` each keypoint's left/right partner, as positions in ``keypoints``.
 
-    Args:
-        keypoints: Keypoint indices (:data:`~humotion_gym.body.KEYPOINT_NAMES`).
-
-    Returns:
-        ``(K,)`` positions: ``r_elbow``'s is ``l_elbow``'s position and back;
-        a keypoint without a side, or whose partner is not in ``keypoints``,
-        is its own.
+    ``keypoints`` are indices of :data:`~humotion_gym.body.KEYPOINT_NAMES`;
+    ``r_elbow``'s partner is ``l_elbow`` and back; a keypoint without a side,
+    or whose partner is not among them, is its own.
     """
     names = [KEYPOINT_NAMES[int(k)] for k in keypoints]
     flip = {"r_": "l_", "l_": "r_"}
@@ -111,7 +103,7 @@ class KeypointScorer:
 
         Raises:
             TypeError: Naming the owner's method ``caller``, if ``frame`` is not a ``kind``.
-            ValueError: If ``params`` is not ``(N, 25)`` (:func:`pose_batch`).
+            ValueError: If ``params`` is not ``(N, 25)``.
         """
         where = f"{self.caller}.{caller}"
         if not isinstance(frame, kind):
@@ -125,10 +117,7 @@ class KeypointScorer:
         return np.ones((1, self.keypoints.size), dtype=bool)
 
     def partial_masks(self, groups: Sequence[Sequence[int]]) -> NDArray[np.bool_]:
-        """``(G + 1, K)``: the keypoints placed once groups ``0..g`` of cones are; last: all.
-
-        Column ``g``'s keypoints are those the cones of groups ``0..g`` end on
-        (:data:`~humotion_gym.body.CONE_KEYPOINTS`).
+        """``(G + 1, K)``: the keypoints groups ``0..g`` of cones end on; last: all.
 
         Raises:
             ValueError: If a group names a cone that does not exist or one an
@@ -166,8 +155,7 @@ class KeypointScorer:
         Returns:
             ``(N, M)`` non-negative costs.
         """
-        # d2[n, k, j]: squared distance of pose n's keypoint k to observed
-        # point partners[k] if j else k (the same for labelled points).
+        # d2[n, k, j]: pose n's keypoint k to observed point partners[k] if j else k.
         d2 = np.stack(
             [
                 np.sum((points - observed) ** 2, axis=-1),

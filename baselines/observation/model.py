@@ -1,11 +1,6 @@
-"""The observation model: a frozen dataclass of settings composing the likelihood.
+"""The observation model: its settings and the methods that compose features and terms.
 
-The model compares each hypothesised pose with the frame through two cues, in
-the spirit of the edge and foreground cues of Sidenbladh, Black & Sigal (ECCV
-2002) and of Deutscher, Blake & Reid's annealed particle filter (CVPR 2000):
-an oriented chamfer edge term (Shotton, Blake & Cipolla, PAMI 2008) on the
-cones' outlines and a foreground term on their axes, plus optional terms
-where a task gives part of the body. The image features are
+See :mod:`baselines.observation` for the likelihood; the image features are
 :mod:`.features`', the terms that score poses :mod:`.terms`'.
 """
 
@@ -36,14 +31,11 @@ from humotion_gym.envs.tasks import TaskSpec
 FloatArray = NDArray[np.float64]
 
 #: The largest magnitude of a parameter (mm or radians) a pose may have to be
-#: scored: the scorer works in single precision, and beyond this a keypoint's
-#: camera coordinates could overflow it (to infinities, then NaNs). Poses past
-#: it score ``-inf``, like those with a NaN. 2^100 (about 1.3e30) is the same
-#: number in single and double precision.
+#: scored (exact in single and double precision): beyond it a keypoint could
+#: overflow the single-precision scorer. Poses past it score ``-inf``.
 POSE_LIMIT = 2.0**100
 
-#: At most this many poses are scored in one pass: the scratch of a pass (about
-#: 3.4 KB a pose) then stays in the L2 cache.
+#: At most this many poses are scored in one pass: its scratch stays in the L2 cache.
 CHUNK_POSES = 3072
 
 
@@ -77,11 +69,8 @@ class ObservationModel(ObservationSettings):
                 positive ``coverage_weight``, the points to cover.
 
         Returns:
-            The frame's features, to pass to :meth:`log_likelihood` for any
-            number of poses.
-
-        Raises:
-            ValueError: If the frame is not a uint8 image of that shape.
+            The frame's features, for :meth:`log_likelihood` (a ValueError if
+            the frame is not a uint8 image of that shape).
         """
         return features.frame_features(self, frame, given)
 
@@ -97,16 +86,14 @@ class ObservationModel(ObservationSettings):
         """What the model keeps of an episode's first frame, with the given initial pose.
 
         Returns:
-            Each cone's colour (:meth:`cone_colors`) where the model has an
-            appearance term, the backdrop (:meth:`read_backdrop`) where it uses
-            one, the floor height (:meth:`floor_height`) where it has a floor
-            term; ``None`` for what it does not use. They go in
-            :class:`GivenBody` for every frame of the episode.
+            Each cone's colour (:meth:`cone_colors`), the backdrop
+            (:meth:`read_backdrop`) and the floor height (:meth:`floor_height`)
+            where the model uses them, else ``None``: the episode's
+            :class:`GivenBody` carries them.
 
         Raises:
-            ValueError: If the pose is not a finite ``(25,)`` vector, or
-                (where the model reads the frame) the frame is not a uint8
-                image of the camera's size.
+            ValueError: If the pose is not a finite ``(25,)`` vector, or the
+                frame read is not a uint8 image of the camera's size.
         """
         pose = checked_pose(pose, "ObservationModel.read_first_frame")
         colors = (
@@ -118,11 +105,7 @@ class ObservationModel(ObservationSettings):
 
     @staticmethod
     def floor_height(pose: ArrayLike, shape: BodyShape) -> float:
-        """Height (mm, world z) of the lowest ankle of a pose: the floor term's reference.
-
-        Raises:
-            ValueError: If the pose is not a finite ``(25,)`` vector.
-        """
+        """Height (mm, world z) of a finite ``(25,)`` pose's lowest ankle: the floor's reference."""
         p = checked_pose(pose, "ObservationModel.floor_height")
         keypoints = forward_kinematics(p, shape)
         return float(keypoints[ANKLES, 2].min())
@@ -132,15 +115,9 @@ class ObservationModel(ObservationSettings):
     ) -> Backdrop:
         """The backdrop of an episode from its first frame and the given initial pose.
 
-        Every pixel outside the pose's silhouette (each cone's projected
-        outline and end discs, with the larger semi-axis of its section, grown
-        by ``backdrop_margin``) shows the backdrop.
-
-        Args:
-            frame: The episode's first frame.
-            pose: ``(25,)`` the pose in that frame (``info["initial_pose"]``).
-            shape: The subject's shape.
-            camera: The camera of that frame.
+        Every pixel outside the ``(25,)`` pose's silhouette (each cone's
+        projected outline and end discs, grown by ``backdrop_margin``) shows
+        the backdrop.
 
         Raises:
             ValueError: If the frame is not a uint8 image of the camera's size
@@ -206,19 +183,11 @@ class ObservationModel(ObservationSettings):
         coverage and residual terms measured against those cones only (a
         foreground point no cone of theirs covers costs the truncation, as it
         would with the cone missing); the floor term waits for the whole
-        figure. When group ``g``'s cones depend only on parameters the earlier
-        groups' do and its own, column ``g`` is a function of those
-        parameters: the importance functions of partitioned sampling
-        (:class:`~baselines.filtering.PartitionedParticleFilter`). The last
-        column is :meth:`log_likelihood` itself.
-
-        Args:
-            frame: As :meth:`log_likelihood`.
-            params: As :meth:`log_likelihood`.
-            shape: As :meth:`log_likelihood`.
-            camera: As :meth:`log_likelihood`.
-            groups: Cone indices (:data:`~humotion_gym.body.CONE_NAMES`
-                order) per group, in the order the figure is built.
+        figure. These are partitioned sampling's importance functions
+        (:class:`~baselines.filtering.PartitionedParticleFilter`); the last
+        column is :meth:`log_likelihood` itself. ``groups``: cone indices
+        (:data:`~humotion_gym.body.CONE_NAMES` order) per group, in the order
+        the figure is built; the other arguments as :meth:`log_likelihood`.
 
         Returns:
             ``(..., len(groups) + 1)`` float64; a pose with a parameter
@@ -284,9 +253,8 @@ class FrameModel(Protocol):
 
     The agent reads each frame's features once (:meth:`prepare`), what it
     keeps of an episode's first frame (:meth:`read_first_frame`), then scores
-    any number of full poses. The registered agents use
-    :class:`ObservationModel` alone; the truth oracles of
-    :mod:`baselines.diagnostics` follow this protocol too, for analysis only.
+    any number of full poses. The truth oracles of :mod:`baselines.diagnostics`
+    follow it too, for analysis only.
     """
 
     def prepare(self, frame: Any, given: GivenBody | None = None) -> Any:

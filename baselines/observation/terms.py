@@ -26,8 +26,8 @@ from humotion_gym.camera import Camera
 
 FloatArray = NDArray[np.float64]
 
-# Fewer poses than this are scored in one pass even when some cones are the
-# same in all of them: the bookkeeping would cost about what it saves.
+# Below this many poses, cones the same in all of them are scored with the rest
+# (the bookkeeping would cost about what it saves).
 _SHARED_MIN_POSES = 1000
 
 
@@ -55,9 +55,8 @@ def score(
     )  # fmt: skip
     figures = (rows.astype(np.float64) @ per_cone).T  # (n, G + 1)
     figures *= feats.cost_unit
-    # A frame that carries a term scores it even with no points (it adds
-    # zero then): its kernel then compiles with the first frame scored, not
-    # mid-episode where the first points appear.
+    # A frame that carries a term scores it even with no points (adding zero),
+    # so its kernel compiles at the first frame, not mid-episode.
     if feats.residual is not None and model.residual_weight > 0:
         figures += residual_cost(model, feats, basis, rows)
     if feats.coverage is not None and model.coverage_weight > 0:
