@@ -1,19 +1,14 @@
 """The particle-filter agent: a filter over one motion prior, answering like an SB3 policy.
 
 A :class:`ParticleFilterAgent` is a :class:`~baselines.filtering.ParticleFilter`
-(or its annealed or partitioned variant) over one prior, scoring particles with
-the task's observation model (:class:`TaskLikelihood`), the camera and the
-subject's known shape. It follows stable-baselines3's
-``predict(observation, state, episode_start, deterministic)`` so one evaluation
-loop scores particle filters and learned policies alike. It is built from the
-task's description and reads its observation alone: the frame, the initial
-pose, the subject's shape, the camera and the parameters the task does not
-track (:mod:`humotion_gym.envs.description`), never the truth of the tracked
-ones. Which prior and settings each named agent uses is
+(or its annealed, partitioned or searching variant) over one prior, scoring
+particles with the task's observation model (:class:`TaskLikelihood`). It
+follows stable-baselines3's ``predict(observation, state, episode_start,
+deterministic)``, is built from the task's description and reads its
+observation alone (:mod:`humotion_gym.envs.description`), never the truth of
+the tracked parameters. Which prior and settings each named agent uses is
 :mod:`baselines.agents.specs`. Each frame's features are read on a second
-thread while the filter's prior moves the particles
-(:mod:`baselines.agents.background`): the same numbers as in turn, sooner
-where a core is free.
+thread while the prior moves the particles (:mod:`baselines.agents.background`).
 """
 
 from __future__ import annotations
@@ -77,11 +72,9 @@ class TaskLikelihood:
     task gives (``observation["fixed_params"]``) and scores full poses with the
     environment's model, camera and the known shape. With several views the
     log-likelihood is the sum of each view's, the views' images being
-    independent given the pose (each with its own clutter and noise), as in
-    multi-camera trackers (Deutscher & Reid, *Articulated body motion capture
-    by stochastic search*, IJCV 2005): each view keeps its own camera and
-    first-frame reading, and its frame's features are prepared on their own
-    (:meth:`prepare`).
+    independent given the pose, as in multi-camera trackers (Deutscher & Reid,
+    *Articulated body motion capture by stochastic search*, IJCV 2005): each
+    view keeps its own camera, first-frame reading and features.
     """
 
     def __init__(self, model: FrameModel, free: NDArray[np.intp], fixed: NDArray[np.intp]) -> None:
@@ -89,9 +82,8 @@ class TaskLikelihood:
         self.free = free
         self.fixed = fixed
         self.base = np.zeros(N_PARAMS)
-        # Consecutive free parameters are filled in through a slice: numpy's
-        # assignment through an index array is several times slower (at
-        # 10,000 particles, about 1 ms of pf-tree's 19 per BodyTrack-v2 frame).
+        # Consecutive free parameters are filled in through a slice, faster
+        # than numpy's assignment through an index array.
         cols = np.asarray(free, dtype=np.intp)
         self._columns: slice | NDArray[np.intp] = cols
         if cols.size and np.array_equal(cols, np.arange(cols[0], cols[0] + cols.size)):
@@ -131,12 +123,10 @@ class TaskLikelihood:
         )
 
     def read_first_frame(self, frames: Any, initial_pose: FloatArray) -> None:
-        """What the model keeps of the episode's first frame, from the given initial pose.
+        """Each view's :meth:`~baselines.observation.ObservationModel.read_first_frame`.
 
-        :meth:`~baselines.observation.ObservationModel.read_first_frame` of
-        each view (``frames``: one ``(H, W, C)`` frame, or ``(views, H, W, C)``
-        / a sequence of them, in :meth:`update`'s camera order): each cone's
-        colour, the backdrop and the floor height, where the model uses them.
+        ``frames``: one ``(H, W, C)`` frame, or ``(views, H, W, C)`` / a
+        sequence of them, in :meth:`update`'s camera order.
         """
         assert self.shape is not None and self.cameras
         shape = self.shape
@@ -150,12 +140,10 @@ class TaskLikelihood:
         return _prepared(self.model, self._bodies(frames))
 
     def prepare_later(self, frames: Any) -> Future[list[Any]]:
-        """:meth:`prepare` on the features thread (:mod:`baselines.agents.background`).
+        """:meth:`prepare` on the features thread; the future stands for the frame.
 
-        What it reads of this object (the given parameters, shape, cameras and
-        first frames) is read now, so a later :meth:`update` cannot reach it.
-        :meth:`log_likelihood` and :meth:`log_likelihood_partial` take the
-        returned future as the frame and wait for it.
+        What it reads of this object is read now, so a later :meth:`update`
+        cannot reach it; the scoring methods wait for the future.
         """
         return in_background(_prepared, self.model, self._bodies(frames))
 
@@ -198,11 +186,7 @@ class TaskLikelihood:
     def _view_sum(
         self, score: Callable[..., FloatArray], frame: Any, particles: FloatArray, *extra: Any
     ) -> FloatArray:
-        """The sum over the views of ``score(seen, poses, shape, camera, *extra)``, view 0 first.
-
-        Each view's term is added to the sum of those before it, in camera
-        order (one view: its own array).
-        """
+        """The sum over the views of ``score(seen, poses, shape, camera, *extra)``, in order."""
         assert self.shape is not None and self.cameras
         poses, shape = self.full_pose(particles), self.shape
         views = _views(resolved(frame), len(self.cameras))
@@ -214,10 +198,7 @@ class TaskLikelihood:
 
 
 def _views(frames: Any, count: int) -> list[Any]:
-    """Each view's frame or features: a list as given, or the views of an array.
-
-    A single frame (``(H, W, C)``) or features object is one view; a
-    ``(views, H, W, C)`` array or a list holds one per view.
+    """Each view's frame or features (a list, a ``(views, H, W, C)`` array, or one view).
 
     Raises:
         ValueError: If the number of views is not ``count``.
@@ -252,12 +233,10 @@ PART_CONES: dict[str, tuple[str, ...]] = {
 def body_part_stages(free: NDArray[np.intp]) -> list[Stage]:
     """Partitioned sampling's stages for a task: the torso with the root, then each limb.
 
-    Each stage searches one body part's free parameters (columns of the free
-    vector, :func:`baselines.priors.limbs.part_columns`) and adds the cones
-    that part places to the partial figure
-    (:meth:`TaskLikelihood.log_likelihood_partial`). A part with no free
-    parameter has no stage; its cones weigh the particles at the end, with
-    the whole figure.
+    Each stage searches one body part's free parameters
+    (:func:`baselines.priors.limbs.part_columns`) and adds the cones that
+    part places to the partial figure. A part with no free parameter has no
+    stage; its cones weigh the particles at the end, with the whole figure.
     """
     stages = []
     for name, cols in part_columns(free):
@@ -280,14 +259,9 @@ def search_floor(free: NDArray[np.intp]) -> FloatArray:
 def search_blocks(free: NDArray[np.intp], kind: str) -> list[NDArray[np.intp]]:
     """The local search's blocks (columns of the free vector) for a task.
 
-    Args:
-        free: The task's free parameters.
-        kind: ``"parts"``: the body parts of :func:`body_part_stages`;
-            ``"joints"``: the root's position, the root's rotation, then each
-            joint's angles (the neck, each shoulder, elbow, hip and knee).
-
-    Raises:
-        ValueError: If ``kind`` is neither.
+    ``kind`` ``"parts"``: the body parts of :func:`body_part_stages`;
+    ``"joints"``: the root's position, its rotation, then each joint's angles
+    (else a ValueError).
     """
     if kind == "parts":
         return [stage.dims for stage in body_part_stages(free)]
@@ -333,10 +307,8 @@ class ParticleFilterAgent:
     Raises:
         ValueError: If ``n_particles`` or ``layers`` is not an integer >= 1,
             ``seed`` not an integer >= 0, ``observation_model`` reads the
-            truth (an oracle of :mod:`baselines.diagnostics` is analysis
-            only), or the settings do not go together (a setting its filter
-            does not read among them:
-            :data:`~baselines.agents.settings.FILTER_READS`).
+            truth, or the settings do not go together (one its filter does
+            not read: :data:`~baselines.agents.settings.FILTER_READS`).
     """
 
     def __init__(
@@ -385,34 +357,27 @@ class ParticleFilterAgent:
         diffusion = 1.0 if diffusion is None else diffusion
         alpha = 0.5 if alpha is None else alpha
         beta_max = float("inf") if beta_max is None else beta_max
+        common = (prior, fitted, self.likelihood, self.n_particles)
+        angles = ANGLE_MASK[self.free]
+        bounds = {"lower": VALID_LOWER[self.free], "upper": VALID_UPPER[self.free]}
         if search is not None:
             self.filter = SearchParticleFilter(
-                prior, fitted, self.likelihood, self.n_particles, search, ANGLE_MASK[self.free],
-                estimate=estimate, blocks=search_blocks(self.free, search.blocks),
-                min_std=search_floor(self.free), lower=VALID_LOWER[self.free],
-                upper=VALID_UPPER[self.free],
+                *common, search, angles, estimate=estimate,
+                blocks=search_blocks(self.free, search.blocks), min_std=search_floor(self.free),
+                **bounds,
             )  # fmt: skip
         elif partitioned:
             self.filter = PartitionedParticleFilter(
-                prior, fitted, self.likelihood, self.n_particles, body_part_stages(self.free),
-                ANGLE_MASK[self.free], estimate=estimate, diffusion=diffusion,
-                lower=VALID_LOWER[self.free], upper=VALID_UPPER[self.free],
+                *common, body_part_stages(self.free), angles, estimate=estimate,
+                diffusion=diffusion, **bounds,
             )  # fmt: skip
         elif self.layers == 1:
-            # Resampling every frame (CONDENSATION; ess_threshold 1), as chosen on
-            # the validation persons: resampling only when the effective sample
-            # size falls below 0.25 or 0.5 of N lowered no task's mean error by
-            # more than 5% for even one of pf-cv, pf-tree, pf-tree-vel and pf-mix
-            # (60 episodes each; docs/priors.md, "Resampling every frame").
-            self.filter = ParticleFilter(
-                prior, fitted, self.likelihood, self.n_particles, ANGLE_MASK[self.free],
-                estimate=estimate,
-            )  # fmt: skip
+            # CONDENSATION, resampling every frame (docs/priors.md, "Resampling every frame")
+            self.filter = ParticleFilter(*common, angles, estimate=estimate)
         else:
             self.filter = AnnealedParticleFilter(
-                prior, fitted, self.likelihood, self.n_particles, ANGLE_MASK[self.free],
-                estimate=estimate, layers=self.layers, diffusion=diffusion, alpha=alpha,
-                beta_max=beta_max, lower=VALID_LOWER[self.free], upper=VALID_UPPER[self.free],
+                *common, angles, estimate=estimate, layers=self.layers, diffusion=diffusion,
+                alpha=alpha, beta_max=beta_max, **bounds,
             )  # fmt: skip
         self.seed = int(seed)
         self._seed_rng = np.random.default_rng(seed)
@@ -423,13 +388,11 @@ class ParticleFilterAgent:
     def seed_episode(self, episode_seed: int) -> None:
         """Seed the next episode's filter from ``(seed, episode_seed)`` alone.
 
-        The evaluation loop calls it before each episode, so an episode's result
-        does not depend on which episodes this agent ran before (any order, any
-        worker: the same numbers).
+        The evaluation loop calls it before each episode, so an episode's
+        result does not depend on which episodes this agent ran before.
 
         Raises:
-            ValueError: If ``episode_seed`` is not an integer >= 0 (1.7 would
-                have seeded episode 1).
+            ValueError: If ``episode_seed`` is not an integer >= 0.
         """
         check_count("seed_episode: episode_seed", episode_seed, 0)
         self._seed_rng = np.random.default_rng([self.seed, int(episode_seed)])
@@ -473,9 +436,7 @@ class ParticleFilterAgent:
         self.likelihood.update(given.fixed_params, given.shape, given.cameras)
         if first:
             self.likelihood.read_first_frame(given.frames, given.initial_pose)
-        # The frame's features are read on the features thread while the
-        # filter's prior moves the particles (independent halves of the frame);
-        # its likelihood waits for them when it first scores.
+        # The features are read on the features thread while the prior moves the particles.
         features = self.likelihood.prepare_later(given.frames)
         estimate = self.filter.step(features)
         features.result()  # nothing of this frame's left running past it
