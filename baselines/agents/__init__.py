@@ -106,29 +106,23 @@ def make(
         filter_settings: Overrides of the filter's settings (names in
             :data:`FILTER_SETTINGS`, those the agent's filter reads:
             :data:`~baselines.agents.settings.FILTER_READS`).
-        observation_model: A particle filter's likelihood, in place of its
-            default: the task's (:func:`~baselines.observation.task_model`),
-            or for a ``-det`` agent (a spec with a ``detector``) the task's
-            with the keypoint detector's term, which it builds itself and
-            so refuses to have replaced. It needs the
-            :class:`~baselines.observation.FrameModel` methods the agent's
-            filter calls: ``prepare``, ``read_first_frame``,
-            ``log_likelihood``, and ``log_likelihood_partial`` for a
-            partitioned filter (:func:`~baselines.agents.specs.check_observation_model`).
+        observation_model: A particle filter's likelihood in place of the
+            task's (:func:`~baselines.observation.task_model`), with the
+            :class:`~baselines.observation.FrameModel` methods its filter
+            calls (:func:`~baselines.agents.specs.check_observation_model`);
+            a ``-det`` agent builds its own and refuses one.
 
     Raises:
         KeyError: If the name is unknown.
         TaskNotSupported: If the agent does not cover the env's task (a
             ``ValueError``).
         ValueError: If a saved policy's label is empty (``=PATH.zip``), a fit
-            or filter setting is unknown or out of range, a
-            filter setting is not one the agent's filter reads, ``n_particles`` or
-            ``seed`` is out of range, or ``observation_model`` is given to an
-            agent that builds its own likelihood (a ``-det`` agent).
+            or filter setting is unknown, out of range or not read by the
+            agent's filter, ``n_particles`` or ``seed`` is out of range, or
+            ``observation_model`` is given to a ``-det`` agent.
         TypeError: If ``name`` is not a string, ``task`` is neither a
             description nor a tracking environment, or ``observation_model``
-            lacks a :class:`~baselines.observation.FrameModel` method the
-            agent's filter calls.
+            lacks a method the agent's filter calls.
     """
     if not isinstance(name, str):
         raise TypeError(f"agents.make: name must be an agent's name, got {name!r}")

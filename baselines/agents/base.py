@@ -29,12 +29,7 @@ READS_TRUTH = "reads_truth"
 
 
 def refuse_truth(thing: Any, argument: str) -> None:
-    """Refuse an object that reads the truth where an agent or its likelihood belongs.
-
-    Raises:
-        ValueError: Naming ``argument``, if ``thing`` (an object or a class)
-            has a true :data:`READS_TRUTH` attribute.
-    """
+    """Refuse (ValueError naming ``argument``) a ``thing`` with a true :data:`READS_TRUTH`."""
     if getattr(thing, READS_TRUTH, False) is True:
         name = getattr(thing, "__name__", type(thing).__name__)
         raise ValueError(
@@ -46,8 +41,7 @@ def refuse_truth(thing: Any, argument: str) -> None:
 def tracking_env(env: gym.Env) -> PoseTrackingEnv:
     """The :class:`~humotion_gym.envs.pose_tracking.PoseTrackingEnv` under an env's wrappers.
 
-    For the evaluation and the experiments, which score and analyse episodes;
-    agents are built from :func:`describe` and never hold the environment.
+    For the evaluation and the experiments; agents never hold the environment.
 
     Raises:
         TypeError: If ``env`` is not (a wrapper of) a pose-tracking environment.
@@ -62,12 +56,10 @@ def tracking_env(env: gym.Env) -> PoseTrackingEnv:
 
 
 def describe(task: TaskDescription | gym.Env) -> TaskDescription:
-    """The description an agent is built from: given as is, or an environment's.
+    """The :class:`~humotion_gym.envs.description.TaskDescription` an agent is built from.
 
-    Agents take a :class:`~humotion_gym.envs.description.TaskDescription`
-    (an environment's :meth:`~humotion_gym.envs.pose_tracking.PoseTrackingEnv.describe`)
-    and keep nothing of the environment: what they see of an episode is its
-    observations.
+    Given as is, or an environment's
+    (:meth:`~humotion_gym.envs.pose_tracking.PoseTrackingEnv.describe`).
 
     Raises:
         TypeError: If ``task`` is neither a description nor a tracking environment.
@@ -89,11 +81,9 @@ def episode_begins(
     """Whether an observation starts a new episode for an agent.
 
     At SB3's ``episode_start``, before the agent's first episode, and where
-    the observation's initial pose is not the one the agent started from. A
-    caller that does not pass ``episode_start`` starts a new episode only where
-    the initial pose changes: an episode reset to the same start (the same
-    seed) continues the last one's filter. Pass ``episode_start=True`` at each
-    reset, as stable-baselines3 and the evaluation do.
+    the observation's initial pose is not the one the agent started from
+    (without ``episode_start``, a reset to the same start continues the last
+    episode: pass it at each reset, as stable-baselines3 does).
     """
     if episode_start is not None and bool(np.any(episode_start)):
         return True
@@ -104,10 +94,7 @@ Predict = TypeVar("Predict", bound=Callable[..., tuple[Any, Any]])
 
 
 def batch_size(observation: Any) -> int | None:
-    """The rows of a vector env's batch of observations, or None for one observation.
-
-    A version-2 observation's ``initial_pose`` is ``(25,)``; a batch's is ``(N, 25)``.
-    """
+    """The rows of a batch of observations (``initial_pose`` ``(N, 25)``), or None for one."""
     if not isinstance(observation, dict) or "initial_pose" not in observation:
         return None  # not an observation: predict says what it expected
     initial = np.asarray(observation["initial_pose"])
@@ -117,11 +104,9 @@ def batch_size(observation: Any) -> int | None:
 def accepts_batch_of_one(predict: Predict) -> Predict:
     """Let an agent's ``predict`` take a batch of one observation, as an SB3 policy does.
 
-    stable-baselines3 wraps a single environment in a vector env of one
-    (``evaluate_policy(agent, env)``), so ``predict`` meets ``(1, ...)``
-    observations and ``episode_start`` of shape ``(1,)``, and must answer
-    ``(1, A)``. One agent tracks one episode: a batch of more is refused,
-    naming :class:`AgentBatch`, which holds one agent per environment.
+    stable-baselines3 wraps a single environment in a vector env of one, so
+    ``predict`` meets ``(1, ...)`` observations and must answer ``(1, A)``. A
+    batch of more is refused, naming :class:`AgentBatch`.
     """
 
     @functools.wraps(predict)
@@ -153,8 +138,7 @@ class AgentBatch:
     """One agent per environment of a vector env, answering for the batch as an SB3 policy.
 
     ``predict`` hands row ``i`` of the observations (and of ``episode_start``)
-    to agent ``i`` and stacks their actions, so stable-baselines3's
-    ``evaluate_policy`` and a loop over a vector env score any agent. Made by
+    to agent ``i`` and stacks their actions. Made by
     :func:`baselines.agents.make_batch`.
 
     Args:

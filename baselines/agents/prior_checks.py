@@ -1,14 +1,11 @@
 """What a registered agent's prior module must be, checked when the agent is registered.
 
 A prior is a module (docs/priors.md) whose functions the filter and the fit's
-cache call as :data:`PRIOR_CALLS` says: ``fit(motions, free=..., rng=...,
-**settings)`` (:func:`baselines.priors.fitting.fit_prior`; a task whose
-``frame_skip`` is above 1 passes it as a setting), ``initial(fitted, pose, n,
-rng)``, ``transition(fitted, state, rng)``, ``save(fitted, path)`` and
-``load(path)``. :func:`import_prior` and :func:`check_prior_module` refuse a
-module that does not import, or whose functions are missing or cannot be
-called so, in the words of the registration; :func:`fit_keywords` reads which
-settings a ``fit`` takes, once per function.
+cache call as :data:`PRIOR_CALLS` says (``fit`` also takes its settings, and
+``frame_skip`` on a task that skips frames). :func:`import_prior` and
+:func:`check_prior_module` refuse a module that does not import, or whose
+functions are missing or cannot be called so; :func:`fit_keywords` reads
+which settings a ``fit`` takes.
 """
 
 from __future__ import annotations
@@ -50,9 +47,7 @@ def described_call(function: str) -> str:
 def fit_keywords(fit: Callable[..., Any]) -> tuple[frozenset[str], bool]:
     """The settings a prior's ``fit`` takes by name, and whether it takes any (``**settings``).
 
-    Read once per function (at registration, then by each fit): the names of
-    its parameters that a keyword can give, but ``motions``, ``free`` and
-    ``rng``. A function whose signature cannot be read takes any.
+    Read once per function; a function whose signature cannot be read takes any.
     """
     try:
         params = list(inspect.signature(fit).parameters.values())
@@ -74,8 +69,7 @@ def import_prior(prior: str, who: str) -> ModuleType:
 
     Raises:
         ValueError: Naming ``who`` and the prior, if it is no prior's name nor
-            a module's dotted path, or its module raises while it is imported
-            (whatever it raises: a syntax error, a runtime error).
+            a module's dotted path, or its module raises whatever it raises.
     """
     try:
         return prior_module(prior)

@@ -23,9 +23,6 @@ from humotion_gym.envs.description import TaskDescription, read_observation
 class HoldAgent:
     """The ``hold`` reference: the initial pose (``observation["initial_pose"]``) every frame.
 
-    It tracks nothing: its error is what the motion of the episode itself
-    costs. A task measures tracking only where the baselines beat it clearly.
-
     Args:
         task: The task's description (or an environment, whose description is taken).
         seed: Unused (the answer is deterministic).

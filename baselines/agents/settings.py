@@ -22,30 +22,21 @@ import yaml
 from humotion_gym.checks import is_real
 from humotion_gym.envs.tasks import TASKS
 
-#: The settings file, shipped in the package (an installed copy of baselines
-#: finds it as an editable one does); ``hyperparams/ppo.yml`` beside the
-#: repository is the RL Zoo's, read by the Zoo's own command line.
+#: The settings file, shipped in the package.
 PF_SETTINGS_FILE = Path(__file__).resolve().parent / "pf.yml"
 
 _SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 #: The filter's settings an agent may set per task and ``humotion-gym select
-#: --grid filter.NAME=...`` may try: the annealed filter's layers per frame,
-#: survival rate per layer, diffusion scale and cap on its exponents (the
-#: partitioned filter takes the diffusion alone); a local search's
-#: (:class:`~baselines.filtering.search.LocalSearch`) ``search_NAME``. An
-#: agent takes those its filter reads (:data:`FILTER_READS`) alone.
+#: --grid filter.NAME=...`` may try: the annealed filter's layers, survival
+#: rate, diffusion and exponent cap; a local search's ``search_NAME``. An agent
+#: takes those its filter reads (:data:`FILTER_READS`) alone.
 FILTER_SETTINGS: tuple[str, ...] = (
     "layers", "alpha", "diffusion", "beta_max",
     "search_top", "search_steps", "search_scale", "search_survival",
 )  # fmt: skip
 
-#: The filter settings each kind of filter reads (:func:`filter_kind`): the
-#: plain particle filter none, the annealed filter its layers, survival rate,
-#: diffusion and cap (:class:`~baselines.filtering.AnnealedParticleFilter`), the
-#: partitioned filter its diffusion alone
-#: (:class:`~baselines.filtering.PartitionedParticleFilter`), the local search
-#: its climb's (:class:`~baselines.filtering.search.SearchParticleFilter`).
+#: The filter settings each kind of filter reads (:func:`filter_kind`).
 FILTER_READS: dict[str, tuple[str, ...]] = {
     "plain particle filter": (),
     "annealed particle filter": ("layers", "alpha", "diffusion", "beta_max"),
@@ -57,11 +48,7 @@ FILTER_READS: dict[str, tuple[str, ...]] = {
 
 
 def filter_kind(layers: int, partitioned: bool, search: bool) -> str:
-    """Which filter an agent runs (a key of :data:`FILTER_READS`).
-
-    A local search or partitioned sampling runs in a filter without annealing
-    layers; with more than one layer the filter is the annealed one.
-    """
+    """Which filter an agent runs (a key of :data:`FILTER_READS`)."""
     if search:
         return "particle filter with a local search"
     if partitioned:
@@ -189,7 +176,7 @@ def load(path: str | Path = PF_SETTINGS_FILE) -> dict[str, AgentSettings]:
     if not p.is_file():
         raise FileNotFoundError(f"{p}: no particle-filter settings file (baselines/agents/pf.yml)")
     try:
-        # libyaml's safe loader where PyYAML was built with it: 2 ms against 21 (pure Python)
+        # libyaml's safe loader where PyYAML was built with it (ten times faster)
         data = yaml.load(p.read_text(encoding="utf-8"), Loader=_SAFE_LOADER)
     except yaml.YAMLError as exc:
         raise SettingsError(p, "(file)", f"not valid YAML ({exc})") from exc

@@ -74,30 +74,26 @@ class AgentSpec:
             (:class:`~baselines.filtering.AnnealedParticleFilter`), which
             then evaluates ``layers`` times the particle count per frame.
         task_fit_settings: Per task name, fit settings chosen for that task
-            by cross-validation on training persons (``humotion-gym select
-            --grid fit.NAME=...``); they override ``fit_settings``.
-        components: For a mixture prior (``prior`` is
-            :mod:`baselines.priors.mixture`): ``(label, spec)`` per
-            component, each fitted (and cached) as its own agent would be; the
-            settings ``weight.LABEL`` (a component's probability; the first
-            takes the rest) and ``LABEL.NAME`` (a component's fit setting)
-            apply.
+            on training persons (``humotion-gym select --grid fit.NAME=...``);
+            they override ``fit_settings``.
+        components: For a mixture prior (:mod:`baselines.priors.mixture`):
+            ``(label, spec)`` per component, each fitted (and cached) as its
+            own agent would be; the settings ``weight.LABEL`` (a component's
+            probability; the first takes the rest) and ``LABEL.NAME`` apply.
         per_part: The prior is one tree prior per body part
-            (:mod:`baselines.priors.limbs`), each fitted (and cached) on its
-            part's free parameters with the same settings (the tree's).
+            (:mod:`baselines.priors.limbs`), each fitted on its part's free
+            parameters with the tree's settings.
         partitioned: Partitioned sampling
             (:class:`~baselines.filtering.PartitionedParticleFilter`), the
-            torso then each limb: one likelihood evaluation per particle per
-            stage (five per frame for the whole body).
-        diffusion: The annealed or partitioned filter's diffusion: the
-            standard deviation of its search, as a multiple of the spread of
-            the prior's proposal.
+            torso then each limb.
+        diffusion: The annealed or partitioned filter's diffusion, as a
+            multiple of the spread of the prior's proposal.
         alpha: The annealed filter's survival rate per layer (ESS / N).
         beta_max: Cap on the annealed filter's exponents (inf: none).
-        task_filter_settings: Per task name, the filter's own settings (the
-            names of :data:`FILTER_SETTINGS`) chosen for that task by
-            cross-validation on training persons (``humotion-gym select --grid
-            filter.NAME=...``); they override the fields above.
+        task_filter_settings: Per task name, the filter's own settings (names
+            of :data:`FILTER_SETTINGS`) chosen on training persons
+            (``humotion-gym select --grid filter.NAME=...``); they override
+            the fields above.
         search: A local search of the best particles on the likelihood each
             frame (:class:`~baselines.filtering.search.SearchParticleFilter`);
             its fields are the filter settings ``search_NAME``.
@@ -123,15 +119,7 @@ class AgentSpec:
     detector: DetectorTerm | None = None
 
     def __post_init__(self) -> None:
-        """Refuse fields of the wrong kind, and task names that are no task's.
-
-        Raises:
-            TypeError: Naming the field, if ``prior`` is not a string, a
-                settings field not a mapping of names, ``tasks`` a string, or
-                ``components`` not ``(label, AgentSpec)`` pairs.
-            ValueError: Naming the field and the tasks, for an unknown task
-                name (a registered agent would then never match it).
-        """
+        """Refuse fields of the wrong kind (TypeError) and unknown task names (ValueError)."""
         if not isinstance(self.prior, str) or not self.prior:
             raise TypeError(
                 f"AgentSpec.prior: expected a prior's name or its module's dotted path "
@@ -181,12 +169,9 @@ class AgentSpec:
 
         Raises:
             ValueError: Naming the setting, the agent and what its filter
-                reads, if a name is not one of :data:`FILTER_SETTINGS` or not
-                one the agent's filter reads (:data:`FILTER_READS`: the plain
-                filter none, the partitioned filter the diffusion alone), or
-                an override of the annealed filter's survival rate, diffusion
-                or cap comes with ``layers`` 1 (the plain filter, which reads
-                none).
+                reads, if a name is not one of :data:`FILTER_SETTINGS`, not
+                one the agent's filter reads (:data:`FILTER_READS`), or an
+                annealing setting comes with ``layers`` 1.
         """
         chosen = {**self.task_filter_settings.get(task, {}), **(overrides or {})}
         unknown = sorted(set(chosen) - set(FILTER_SETTINGS))
@@ -277,22 +262,14 @@ class AgentSpec:
 
 
 def _names_of(field_name: str, value: Any) -> Mapping[str, Any]:
-    """An AgentSpec field that maps names to values, refused unless it does.
-
-    Raises:
-        TypeError: Naming the field, if it is not a mapping with string keys.
-    """
+    """An AgentSpec field that maps names to values; a TypeError naming it unless it does."""
     if not isinstance(value, Mapping) or not all(isinstance(k, str) for k in value):
         raise TypeError(f"AgentSpec.{field_name}: expected a mapping of names, got {value!r}")
     return value
 
 
 def _known_tasks(field_name: str, names: Iterable[str]) -> None:
-    """Refuse task names that are no task's (``humotion_gym/`` is gymnasium's prefix).
-
-    Raises:
-        ValueError: Naming the field, the name and the tasks.
-    """
+    """Refuse task names that are no task's, naming the field, the name and the tasks."""
     for name in names:
         if name not in TASKS:
             raise ValueError(
@@ -307,12 +284,7 @@ ANNEALING: tuple[str, ...] = ("alpha", "diffusion", "beta_max")
 
 
 def _whole(name: str, value: Any, least: int = 0) -> int:
-    """A count given as a number (a grid may give ``5.0``): refused unless whole.
-
-    Raises:
-        ValueError: Naming the setting, if ``value`` is not a whole number
-            (or is below ``least``).
-    """
+    """A count given as a number (a grid may give ``5.0``); a ValueError unless whole, >= least."""
     try:
         whole = float(value).is_integer()
     except (TypeError, ValueError):
@@ -489,11 +461,7 @@ AGENTS: dict[str, AgentSpec] = specs_from_file()
 
 
 def _check_prior(spec: AgentSpec, name: str) -> None:
-    """Refuse a spec whose prior module (or a component's) is missing, or is not a prior.
-
-    Not a prior: a function is missing or cannot be called as the filter and
-    the fit call it, or a fit setting is not one its ``fit`` takes.
-    """
+    """Refuse a spec whose prior module (or a component's) is missing or is not a prior."""
     if not isinstance(spec, AgentSpec):
         got = type(spec).__name__
         raise TypeError(f"register_agent {name!r}: expected an AgentSpec, got {got}")
@@ -546,8 +514,7 @@ def _check_filter(spec: AgentSpec, name: str) -> None:
 def _check_new_name(name: str, who: str, replace: bool = False) -> None:
     """Refuse a name that is taken, or that the command line would read as another agent.
 
-    ``pf-NAME+POLICY`` is a hybrid, ``LABEL=PATH`` and ``PATH.zip`` learned
-    policies: a registered name of that form could not be named there.
+    ``pf-NAME+POLICY`` is a hybrid, ``LABEL=PATH`` and ``PATH.zip`` learned policies.
     """
     if not isinstance(name, str) or not name.strip() or name != name.strip():
         raise ValueError(f"{who}: expected a name without surrounding spaces, got {name!r}")
@@ -594,14 +561,13 @@ def register_agent(name: str, spec: AgentSpec, replace: bool = False) -> None:
             reference agent's name is never taken.
 
     Raises:
-        ValueError: If the name is taken (without ``replace``); the prior
-            module (or a component's) does not import, lacks a function of a
-            prior (:data:`PRIOR_FUNCTIONS`) or has one that cannot be called
-            as the filter and the fit call it
-            (:data:`~baselines.agents.prior_checks.PRIOR_CALLS`); a fit
-            setting is not one its ``fit`` takes (any, for ``**settings``);
-            or the filter cannot be built or would not read one of its
-            settings. Each names the agent and the module, function or field.
+        ValueError: Naming the agent and the module, function or field, if
+            the name is taken (without ``replace``); the prior module (or a
+            component's) does not import, lacks a function of
+            :data:`PRIOR_FUNCTIONS` or has one that cannot be called as
+            :data:`~baselines.agents.prior_checks.PRIOR_CALLS` says; a fit
+            setting is not one its ``fit`` takes; or the filter cannot be
+            built or would not read one of its settings.
         TypeError: If ``spec`` is not an :class:`AgentSpec`.
     """
     _check_new_name(name, "register_agent", replace)
@@ -617,21 +583,12 @@ FRAME_MODEL_CALLS = ("prepare", "read_first_frame", "log_likelihood")
 def check_observation_model(name: str, spec: AgentSpec | None, model: Any, who: str) -> None:
     """Refuse an observation model the agent cannot use, naming the agent.
 
-    Every filter reads frames with ``prepare`` and ``read_first_frame`` and
-    scores poses with ``log_likelihood`` (the annealed filter and the local
-    search too); a partitioned filter scores its stages with
-    ``log_likelihood_partial`` instead. An agent with a ``detector`` builds
-    its own likelihood (the task's with the keypoint detector's term): a
-    model given would replace it whole and drop the term while the agent
-    still bears the detector's name, so it is refused rather than warned
-    of (a warning is lost in a leaderboard's rows).
-
-    Args:
-        name: The agent's name.
-        spec: Its spec; None for an agent that is no particle filter (the
-            three calls alone are checked).
-        model: The observation model given; None passes.
-        who: The function named in the message.
+    Every filter calls :data:`FRAME_MODEL_CALLS`; a partitioned filter
+    ``log_likelihood_partial`` too. An agent with a ``detector`` builds its
+    own likelihood: a model given would drop the detector's term while the
+    agent still bears its name, so it is refused (a warning would be lost in
+    a leaderboard's rows). ``spec`` is None for an agent that is no particle
+    filter; ``model`` None passes; ``who`` is named in the message.
 
     Raises:
         TypeError: If ``model`` lacks a method the agent's filter calls.
@@ -731,14 +688,12 @@ def filter_agent(
     check_observation_model(name, spec, observation_model, "filter_agent")
     base = describe(task)
     settings = spec.filter_settings_for(base.task.name, filter_settings, name)
-    # the filter is handed what it reads alone (the annealed filter's at
-    # layers 1, the plain filter's, are the spec's, not given to it)
+    # the filter is handed what it reads alone
     kind = kind_of_filter(settings["layers"], spec.partitioned, spec.search is not None)
     reads = {n: settings[n] for n in FILTER_READS[kind] if n in ANNEALING}
     model: FrameModel | None = observation_model
     if spec.detector is not None and model is None:
-        # The detector's network runs on torch (the rl extra): imported only
-        # when an agent that uses it is built, so the other agents need none.
+        # The detector runs on torch (the rl extra): imported for the agents that use it.
         try:
             from baselines.detector.term import detector_model
         except ModuleNotFoundError as exc:  # the CLI adds how to install the extra
