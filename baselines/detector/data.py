@@ -1,11 +1,9 @@
 """The detector's training data: rendered frames and their keypoints' pixels.
 
-Frames are the environments' own (their scenes, clutter, noise and cameras),
-drawn from episodes of one split's persons; each label is a scored keypoint
-of the true pose projected by that frame's camera. Reading the environment's
-truth is what making labels means: this is data generation, never an agent.
-The detector is trained on ``split="train"`` (the training persons less the
-validation persons) and measured on ``split="validation"``.
+Frames are the environments' own, drawn from episodes of one split's persons;
+each label is a keypoint of the true pose projected by that frame's camera
+(reading the truth to make labels: data generation, never an agent). The
+detector is trained on ``split="train"`` and measured on ``split="validation"``.
 """
 
 from __future__ import annotations
@@ -24,9 +22,7 @@ from humotion_gym.body import forward_kinematics
 
 FloatArray = NDArray[np.float64]
 
-#: Where frames come from: ``(task id, views)``. The whole-body tasks with
-#: four views show the body from the front, sides and back; the arm and the
-#: side-on walk add their own cameras.
+#: Where frames come from: ``(task id, views)``.
 SOURCES: tuple[tuple[str, int], ...] = (
     ("BodyTrack-v2", 4),
     ("WalkTrack-v2", 4),
@@ -98,7 +94,7 @@ def render_frames(
             split=split,
             data_dir=data_dir,
             terminate_on_lost=False,
-        )  # fmt: skip
+        )
         for task, views in sources
     ]
     frames: list[NDArray[np.uint8]] = []

@@ -1,23 +1,17 @@
 """The heatmap network: one rendered view in, a heatmap per keypoint out.
 
 A small fully convolutional network in the manner of the heatmap regressors of
-2D pose estimation (Tompson, Jain, LeCun & Bregler, *Joint training of a
-convolutional network and a graphical model for human pose estimation*, NIPS
-2014; Newell, Yang & Deng, *Stacked hourglass networks for human pose
-estimation*, ECCV 2016), cut down to what a CPU trains in minutes: a 128x128
-frame is brought to 32x32 (stride 4) and to 16x16 (stride 8, with dilated
-convolutions for a receptive field the size of the figure), the coarse map is
-upsampled and joined with the 32x32 one, and a 1x1 convolution gives one
-32x32 map of logits per keypoint.
+2D pose estimation (Tompson et al., NIPS 2014; Newell, Yang & Deng, *Stacked
+hourglass networks*, ECCV 2016), cut down to what a CPU trains in minutes: a
+128x128 frame is brought to 32x32 (stride 4) and to 16x16 (stride 8, dilated
+for a receptive field the size of the figure), the coarse map is upsampled
+and joined with the fine one, and a 1x1 convolution gives one 32x32 map of
+logits per keypoint.
 
-Each map's softmax is read as the keypoint's position distribution
-(integral regression: Sun, Xiao, Wei, Liang & Wei, *Integral human pose
-regression*, ECCV 2018); :func:`decode` takes the expectation in a small
-window about the map's peak (sub-pixel, and not pulled to the middle of two
-modes as the whole map's expectation would be).
-
-Weights are stored as a ``.npz`` of plain arrays (the state dict, plus the
-architecture's sizes), read back without pickle (:func:`load_weights`).
+Each map's softmax is read as the keypoint's position distribution (integral
+regression: Sun et al., ECCV 2018); :func:`decode` takes the expectation in a
+small window about the map's peak (not pulled between two modes as the whole
+map's would be). Weights are a ``.npz`` of plain arrays, read without pickle.
 """
 
 from __future__ import annotations
@@ -113,10 +107,7 @@ def frames_to_tensor(frames: NDArray[np.uint8]) -> th.Tensor:
 
 
 def cell_to_pixel(cells: FloatArray) -> FloatArray:
-    """Heatmap cell coordinates to frame pixels (cell ``i`` covers pixels ``4i .. 4i + 3``).
-
-    The inverse is :func:`pixel_to_cell`; training labels go one way, detections back.
-    """
+    """Heatmap cell coordinates to frame pixels (cell ``i`` covers pixels ``4i .. 4i + 3``)."""
     return (np.asarray(cells, dtype=np.float64) + 0.5) * STRIDE - 0.5
 
 
@@ -174,9 +165,8 @@ def load_weights(path: str | Path) -> HeatmapNet:
 
     Raises:
         FileNotFoundError: If the file does not exist.
-        ValueError: If it is not such a file (unreadable without pickle,
-            damaged, made for another input size or keypoint count, missing
-            weights or holding non-finite ones).
+        ValueError: If it is not such a file (damaged, made for another
+            architecture, missing weights or holding non-finite ones).
     """
     p = Path(path)
     if not p.is_file():
@@ -212,9 +202,8 @@ class Detector:
     Args:
         net: The network (put in evaluation mode).
         memo: Remember the detections of up to this many frames, by their
-            bytes (0: none). A leaderboard runs every agent and seed on the
-            same frames; the network is a function of the frame alone, so a
-            frame seen before is answered from the memo, unchanged.
+            bytes (0: none): a leaderboard runs every agent and seed on the
+            same frames.
     """
 
     def __init__(self, net: HeatmapNet, memo: int = 0) -> None:

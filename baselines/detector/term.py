@@ -12,13 +12,8 @@ the truth oracles' scorer)::
 ``sigma_k`` is ``sigma_scale`` times the detector's own error on the
 validation persons (each keypoint's median distance over ``sqrt(2 ln 2)``,
 the standard deviation of a 2D Gaussian of that median), ``cap`` an outlier
-process for the detections that are wrong (a limb taken for its partner, a
-keypoint hidden), and ``image_weight`` the share of the image likelihood kept
-(0: the detections alone). :class:`~baselines.agents.filters.TaskLikelihood`
-sums the views.
-
-The term reads the frame alone (the detections are the network's, on the
-pixels the agent is shown): agents may use it.
+process for wrong detections, and ``image_weight`` the share of the image
+likelihood kept. The term reads the frame alone: agents may use it.
 """
 
 from __future__ import annotations
@@ -113,9 +108,8 @@ def validation_sigmas(meta: dict[str, Any]) -> FloatArray:
 class DetectorLikelihood:
     """A likelihood of the detector's keypoints, with the image's or alone.
 
-    Follows :class:`~baselines.observation.FrameModel` (a particle-filter
-    agent's likelihood; :class:`~baselines.agents.filters.TaskLikelihood`
-    prepares and sums the views).
+    A :class:`~baselines.observation.FrameModel` of one view
+    (:class:`~baselines.agents.filters.TaskLikelihood` sums the views).
 
     Args:
         image: The image likelihood (the task's, :func:`~baselines.observation.task_model`).
@@ -192,8 +186,8 @@ class DetectorLikelihood:
         """``(N, G + 1)``: the figure built up group by group of cones (the last: whole).
 
         Raises:
-            ValueError: As :meth:`log_likelihood`, or if a group names a cone
-                that does not exist or one an earlier group has.
+            TypeError, ValueError: As :meth:`log_likelihood`, or for a group
+                naming a cone that does not exist or one an earlier group has.
         """
         p = self.scorer.checked(frame, Detections, params, "log_likelihood_partial")
         out = self._keypoints(frame, p, shape, camera, self.scorer.partial_masks(groups))
