@@ -151,9 +151,9 @@ def make_batch(
 ) -> AgentBatch:
     """One agent per environment of a vector env: :func:`make` ``n_envs`` times.
 
-    Agent ``i`` gets the seed ``seed + i`` (``seed`` from ``kwargs``, else 0),
-    so the environments' episodes are tracked independently. Its ``predict``
-    takes a batch, as stable-baselines3's ``evaluate_policy`` hands it::
+    Agent ``i`` gets the seed ``seed + i`` (``seed`` from ``kwargs``, else 0).
+    Its ``predict`` takes a batch, as stable-baselines3's ``evaluate_policy``
+    hands it::
 
         agent = agents.make_batch("pf-tree", env, n_envs=4, n_particles=300)
         evaluate_policy(agent, vec_env)  # a VecEnv of 4 of the task's environments

@@ -287,20 +287,17 @@ class ParticleFilterAgent:
         estimate: ``"mean"`` or ``"map"``.
         name: Shown in tables.
         layers: 1 for the particle filter; more for the annealed particle
-            filter with that many layers per frame (``n_particles`` per layer;
-            particles outside the joint limits never survive a layer).
+            filter with that many layers per frame (within the joint limits).
         partitioned: Partitioned sampling instead
-            (:class:`~baselines.filtering.PartitionedParticleFilter`): the
-            torso, then each limb (:func:`body_part_stages`), ``n_particles``
-            per stage; particles outside the joint limits never survive a stage.
+            (:class:`~baselines.filtering.PartitionedParticleFilter`), stages
+            :func:`body_part_stages`, within the joint limits.
         diffusion: The annealed or partitioned filter's diffusion scale
             (None: 1).
         alpha: The annealed filter's survival rate per layer (None: 0.5).
         beta_max: Cap on the annealed filter's exponents (None: none).
-        search: A local search of the best particles on the likelihood each
-            frame (:class:`~baselines.filtering.search.SearchParticleFilter`),
-            block by block along the body parts (:func:`body_part_stages`),
-            within the joint limits; None: none.
+        search: A local search of the best particles each frame
+            (:class:`~baselines.filtering.search.SearchParticleFilter`), along
+            the body parts, within the joint limits; None: none.
         observation_model: The likelihood (default: the task's,
             :func:`~baselines.observation.task_model`).
 

@@ -76,10 +76,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _clip_options(args: argparse.Namespace) -> dict[str, str] | None:
     """The reset options of ``--clip``: a clip id, or a mocap file (checked here).
 
-    A file's clip is tracked by priors fitted on the library's training
-    persons; without ``--data-dir`` (or ``$HUMOTION_MOCAP``) that library is
-    the synthetic one, so a file needs one (``hold`` and ``random``, which
-    fit nothing, do not).
+    A file needs real mocap (``--data-dir``) for the priors' training persons,
+    unless the agent fits nothing (a reference).
 
     Raises:
         FileNotFoundError: If ``--clip`` names a missing ``.bvh``/``.amc`` file.

@@ -68,15 +68,10 @@ def render_frames(
     Args:
         n_frames: How many frames (each view of a step is one frame).
         seed: Seeds the episodes drawn.
-        split: The environments' split (``"train"`` to train on,
-            ``"validation"`` to measure; never ``"test"``).
+        split: The environments' split (``"train"`` or ``"validation"``).
         data_dir: Mocap folders (None: the environments' default).
-        stride: Steps between kept frames of an episode (neighbouring frames
-            are nearly the same image).
+        stride: Steps between kept frames of an episode.
         sources: ``(task id, views)`` pairs, visited in turn, an episode each.
-
-    Returns:
-        The frames, their keypoints' pixels and the persons seen.
 
     Raises:
         ValueError: If ``n_frames`` or ``stride`` is not positive, or the

@@ -39,9 +39,8 @@ class ParticleFilter:
         fitted: The prior's fitted parameters.
         observation_model: Gives ``log_likelihood(frame, poses)``.
         n: Number of particles.
-        angle_mask: ``(D,)`` True or False per pose dimension, True for angles
-            (circular mean); all False when None. A mask, not indices
-            (``[0, 1]`` is refused: it would read as ``[False, True]``).
+        angle_mask: ``(D,)`` True for angles (circular mean), False elsewhere;
+            all False when None. A mask, not indices (``[0, 1]`` is refused).
         resampling: A name in :data:`RESAMPLING`.
         ess_threshold: Resample when the effective sample size falls below
             this fraction of N; 1.0 (the default) resamples every frame, as
@@ -52,12 +51,10 @@ class ParticleFilter:
         state: The particles after the last step (resampled where it resampled).
         log_weights: Their normalised log weights.
         ess: The effective sample size of the last step's weights.
-        log_evidence: The sum over the episode's frames of the log of the
-            weighted mean likelihood: the particle filter's estimate of
-            ``log p(y_1..t)``, in the likelihood's own units (a likelihood
-            known only up to a constant shifts it by that constant a frame).
-            A frame where every particle is impossible (every log-likelihood
-            ``-inf`` or NaN) estimates ``p(y_t) = 0``: ``-inf`` from then on.
+        log_evidence: The filter's estimate of ``log p(y_1..t)``, the sum over
+            the frames of the log weighted mean likelihood (up to the
+            likelihood's constant a frame); ``-inf`` from a frame where every
+            particle is impossible.
 
     Raises:
         ValueError: If ``n`` is not an integer >= 1, a setting is not one
@@ -276,17 +273,14 @@ class AnnealedParticleFilter(ParticleFilter):
     """The annealed particle filter over any prior.
 
     Deutscher, Blake & Reid, CVPR 2000 (the HumanEva baseline of Sigal, Balan &
-    Black, IJCV 2010). Per frame: the prior moves the particles on (so the first
-    layer proposes from the motion prior and any prior works), then ``layers``
-    times the particles are weighted by the likelihood raised to ``beta_m``,
-    chosen so that the survival rate ``ESS / N`` is ``alpha`` (:func:`temper_for_survival`:
-    in a layer with at most ``alpha N`` poses within ``lower`` and ``upper``, beta
-    is 1 and the survival rate less; a fixed schedule with ``betas``), resampled and
-    diffused by a Gaussian whose covariance is ``alpha^m`` times the
+    Black, IJCV 2010). Per frame: the prior moves the particles on, then
+    ``layers`` times the particles are weighted by the likelihood raised to
+    ``beta_m``, chosen so that the survival rate ``ESS / N`` is ``alpha``
+    (:func:`temper_for_survival`; or a fixed schedule, ``betas``), resampled
+    and diffused by a Gaussian whose covariance is ``alpha^m`` times the
     per-dimension variance of the prior's proposal (section 3: the search
-    narrows as the layers concentrate). The estimate is the weighted mean (or
-    heaviest particle) of the last layer, whose resampled set carries over to
-    the next frame. Each frame costs ``layers * n`` likelihood evaluations.
+    narrows as the layers concentrate). The estimate is the last layer's.
+    Each frame costs ``layers * n`` likelihood evaluations.
 
     Args:
         prior, fitted, observation_model, n, angle_mask, resampling, estimate:
@@ -296,15 +290,14 @@ class AnnealedParticleFilter(ParticleFilter):
         betas: A fixed exponent per layer instead of the adaptive ones (length
             ``layers``); ``layers=1, betas=(1.0,), diffusion=0`` is
             :class:`ParticleFilter` with ``ess_threshold=1``.
-        diffusion: Scale on the diffusion's standard deviation (default 1; 0
-            turns diffusion off).
+        diffusion: Scale on the diffusion's standard deviation (0: off).
         min_std: ``(D,)`` or scalar floor on the diffusion's base standard
-            deviation, so a collapsed proposal still searches (default 0).
-        lower, upper: ``(D,)`` or scalar bounds of valid poses (e.g. joint
-            limits; -inf or inf for none, never NaN, lower <= upper):
-            particles outside get weight 0 in every layer, so none survives.
-        beta_max: Cap on the adaptive exponents (default: none). 1 never
-            sharpens the weights beyond the likelihood's own.
+            deviation, so a collapsed proposal still searches.
+        lower, upper: ``(D,)`` or scalar bounds of valid poses (joint limits;
+            -inf or inf for none, never NaN, lower <= upper): particles
+            outside get weight 0 in every layer.
+        beta_max: Cap on the adaptive exponents (1: never sharper than the
+            likelihood's own).
 
     Attributes:
         log_evidence: As :class:`ParticleFilter`'s where the filter is the

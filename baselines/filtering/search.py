@@ -50,19 +50,14 @@ class LocalSearch:
             proposal's per-dimension spread (floored by the filter's ``min_std``).
         grow: Factor on a particle's step size for its block after a success.
         shrink: Factor after a failure; ``grow * shrink^4 = 1`` is the
-            one-fifth rule (the defaults: 1.5 and 0.9036).
-        survival: With ``0 < survival <= 1``, the weights after the climb are
-            tempered (``w ~ L^beta``, ``beta <= 1``) so that at least this
-            fraction of the particles survives (``ESS / N``) where more than
-            that fraction is possible (:func:`temper_for_survival`; else, as at
-            1, the likelihood's own weights); 0 keeps the likelihood's own weights.
-        method: ``"random"`` (a Gaussian step per block, one evaluation) or
-            ``"parabola"`` (coordinate-wise Newton steps from probes of each
-            dimension of the block, ``2 |b| + 2`` evaluations); see :func:`climb`.
+            one-fifth rule (the defaults).
+        survival: Above 0, the weights after the climb are tempered (``w ~
+            L^beta``, ``beta <= 1``) so that at least this fraction of the
+            particles survives (:func:`temper_for_survival`); 0 keeps the
+            likelihood's own weights.
+        method: ``"random"`` or ``"parabola"`` (see :func:`climb`).
         blocks: How the state is cut into blocks, a name the filter's owner
-            interprets (for a body: ``"parts"``, the root with the torso then
-            each limb; ``"joints"``, the root's position, its rotation, then
-            each joint).
+            interprets (for a body: ``"parts"`` or ``"joints"``).
 
     Raises:
         ValueError: If a count is below 0, a factor is out of range or

@@ -178,22 +178,15 @@ def temper_for_survival(
     """The exponent ``beta`` whose weights ``w ~ exp(beta loglik)`` keep ``ESS / N = alpha``.
 
     Deutscher, Blake & Reid, *Articulated body motion capture by annealed
-    particle filtering*, CVPR 2000, section 3: the survival rate
-    ``alpha = ESS / N`` of a layer is fixed and ``beta`` found to match it. The
-    ESS of tempered weights falls monotonically from N (``beta = 0``) as
-    ``beta`` grows, so bisection on ``log beta`` finds it.
-
-    Args:
-        loglik: ``(N,)`` log-likelihoods; ``-inf`` marks impossible poses, which
-            get weight 0 whatever ``beta``.
-        alpha: Target survival rate in (0, 1].
-        iterations: Bisection steps (60 reach float precision in ``log beta``).
+    particle filtering*, CVPR 2000, section 3. The ESS of tempered weights
+    falls monotonically from N (``beta = 0``) as ``beta`` grows, so bisection
+    on ``log beta`` finds it (60 ``iterations`` reach float precision).
+    ``loglik``: ``(N,)``, ``-inf`` for impossible poses (weight 0).
 
     Returns:
-        ``beta`` and the normalised ``(N,)`` weights. When the possible
-        particles alone fall below ``alpha N`` (many impossible poses), or the
-        log-likelihoods are all equal, ``beta`` is 1 and the weights are those
-        of the untempered likelihood.
+        ``beta`` and the normalised ``(N,)`` weights; ``beta`` is 1 (the
+        untempered weights) where the possible particles alone fall below
+        ``alpha N`` or the log-likelihoods are all equal.
 
     Raises:
         ValueError: If ``loglik`` is not a non-empty 1-D array, ``alpha`` not in

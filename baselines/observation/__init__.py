@@ -28,14 +28,10 @@ Pixel distances are in *reference pixels* (those of a 128-pixel-high frame),
 so one set of parameters serves every image size. Points outside the image
 cost the truncation value (and count as background).
 
-The package: :mod:`.features` (a frame's image features and its cost
-table), :mod:`.geometry` (the cones' image geometry), :mod:`.terms` (the
-terms that score poses), :mod:`.settings` (the model's settings),
-:mod:`.model` (:class:`ObservationModel`: the settings and the methods that
-compose features and terms) and :mod:`._compiled` (the fused passes over
-poses).
-The model uses the frame, the camera and the subject's known shape only; it
-has no access to the ground truth.
+The modules: :mod:`.features` (image features, cost table), :mod:`.geometry`,
+:mod:`.terms`, :mod:`.settings`, :mod:`.model` and :mod:`._compiled` (the
+fused passes over poses). The model uses the frame, the camera and the
+subject's known shape only, never the ground truth.
 """
 
 from baselines.observation.features import Backdrop, FirstFrame, FrameFeatures, GivenBody

@@ -107,15 +107,10 @@ class GivenBody:
         free: Indices of the parameters the agent estimates.
         shape: The subject's shape.
         camera: The frame's camera.
-        colors: ``(10, C)`` each cone's colour as seen at the episode's first
-            frame (:meth:`ObservationModel.cone_colors` with the given initial
-            pose), for the appearance term; ``None`` without one.
-        backdrop: The scene behind the figure, read at the first frame
-            (:meth:`ObservationModel.read_backdrop`), for a model with
-            ``backdrop`` on; ``None`` without one.
-        floor: Height (mm) of the lowest ankle in the episode's given first
-            pose (:meth:`ObservationModel.floor_height`), for a model with a
-            floor term; ``None`` without one.
+        colors: ``(10, C)`` each cone's colour at the episode's first frame
+            (:meth:`ObservationModel.cone_colors`), or ``None``.
+        backdrop: The first frame's :meth:`ObservationModel.read_backdrop`, or ``None``.
+        floor: The first frame's :meth:`ObservationModel.floor_height`, or ``None``.
     """
 
     pose: NDArray[np.float64]

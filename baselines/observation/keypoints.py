@@ -9,20 +9,12 @@ the camera for 2D points) and observed points ``y``::
 
     cost(x) = sum over keypoints k of  w_k |k(x) - y_k|^2
 
-with ``w_k`` a weight per keypoint (``1 / (2 sigma_k^2)`` for a Gaussian of
-standard deviation ``sigma_k``; the caller may instead scale a plain sum), each
-term optionally capped at ``cap`` (an outlier process: a detection further
-than the cap allows costs the same however far it lies, as the truncated
-quadratic of robust estimation, Black & Rangarajan, *On the unification of
-line processes, outlier rejection, and robust statistics*, IJCV 1996).
-
-With the left/right identity unknown, each left/right pair of keypoints
-(the hips, knees, ankles, shoulders, elbows, wrists) scores the better of its
-two assignments, ``min(d(a, A) + d(b, B), d(a, B) + d(b, A))``, pair by pair.
-
-Partial figures (partitioned sampling) score the keypoints placed so far
-(``masks``), an unlabelled keypoint whose partner is not yet placed taking the
-nearer of the pair's two points.
+with ``w_k`` a weight per keypoint (``1 / (2 sigma_k^2)`` for a Gaussian),
+each term optionally capped at ``cap`` (an outlier process, the truncated
+quadratic of Black & Rangarajan, IJCV 1996). With the left/right identity
+unknown, each left/right pair scores the better of its two assignments,
+``min(d(a, A) + d(b, B), d(a, B) + d(b, A))``. Partial figures (partitioned
+sampling) score the keypoints placed so far (``masks``).
 """
 
 from __future__ import annotations

@@ -71,16 +71,12 @@ class ObservationSettings:
             explains: the pixel quantisation of edges and of the cone outline
             plus the blur. It sets the likelihood's sharpness (see above).
         edge_truncation: Distance (reference px, default 3.0) beyond which an
-            outline point costs no more. The robust truncation of the chamfer
-            cost: outline points with no edge (an outline hidden behind another
-            limb, a low-contrast edge, a point off the image) cost a bounded
-            amount, so the score counts how much of the outline is explained
-            (tuned on the test of ``tests/test_observation.py``).
-        foreground_weight: Weight (default 0.5) of the foreground term: the
-            cost, per cone, of its axis lying wholly on background; a quarter of
-            the edge term's range. It holds a pose on the figure where edges are
-            missing (low contrast, occluders) without letting the crude border
-            colour model (clutter counts as foreground) override the edges.
+            outline point costs no more (the chamfer cost's robust truncation:
+            an outline point with no edge costs a bounded amount).
+        foreground_weight: Weight (default 0.5) of the foreground term, the
+            cost per cone of its axis lying wholly on background: it holds a
+            pose on the figure where edges are missing, below the edges' range
+            (the border colour model counts clutter as foreground).
         foreground_low: Colour distance (grey levels, default 25) from the
             background colour below which a pixel counts as background; above
             the renderer's default noise (sigma 4) after ``edge_blur``.
@@ -88,8 +84,7 @@ class ObservationSettings:
             pixel counts as certain foreground; between the two the probability
             rises linearly.
         border_width: Width in pixels (default 2) of the frame border whose
-            median colour estimates the background colour. The figure rarely
-            touches the border (cameras are fitted with a margin).
+            median colour estimates the background colour.
         canny_low: Lower hysteresis threshold of ``cv2.Canny`` (default 40).
         canny_high: Upper hysteresis threshold of ``cv2.Canny`` (default 100):
             well above the gradient of the renderer's noise after ``edge_blur``,
@@ -98,8 +93,7 @@ class ObservationSettings:
             before edge detection and foreground estimation, to suppress sensor
             noise; 0 turns it off.
         outline_samples: Points per silhouette line of each cone (default 5, at
-            the centres of equal parts of the cone's length): 10 outline points
-            per cone, 100 per pose. Time grows linearly with the points.
+            the centres of equal parts of the cone's length).
         axis_samples: Points along each cone's projected axis for the foreground
             term (default 3).
         reference_height: Image height (default 128) whose pixels are the unit
@@ -115,14 +109,12 @@ class ObservationSettings:
             points, so the default treats each cone, not each point, as one
             observation. Sharper weights are overconfident (``docs/priors.md``).
         residual_weight: Weight (default 0: off) of the *residual-edge* term,
-            the image-to-model direction of the chamfer cost, used where a task
-            gives part of the body (:class:`GivenBody`). The edge pixels the
-            given cones' outlines leave unexplained within reach of the free
-            cones should lie on a free cone's outline; each such point costs
-            ``min(d, residual_truncation)^2 / (2 sigma^2)``, averaged over the
-            points and multiplied by this weight. The model-to-image term
-            alone is maximised by any limb laid along edges that are there
-            anyway; this term asks that the limb explain the edges only it can.
+            the image-to-model direction of the chamfer cost, where a task
+            gives part of the body (:class:`GivenBody`): the edge pixels the
+            given cones leave unexplained near the free cones cost
+            ``min(d, residual_truncation)^2 / (2 sigma^2)`` each, ``d`` their
+            distance to a free cone's outline, averaged. It asks that a limb
+            explain the edges only it can, not lie along any edge there.
         residual_truncation: Distance (reference px, default 6) beyond which a
             residual point costs no more.
         residual_points: At most this many residual points per frame (default
@@ -130,46 +122,36 @@ class ObservationSettings:
         residual_clearance: Half-width (reference px, default 2) of the band
             around the given cones' outlines whose edges count as explained.
         appearance_weight: Weight (default 0: off) of the *appearance* term,
-            used where a task gives part of the body and the colours of the
-            cones were read at the first frame (``GivenBody.colors``): the
-            axis points of each free cone cost, per cone, up to this weight
-            where the pixel's colour differs from that cone's (between
-            ``appearance_low`` and ``appearance_high`` grey levels of the
-            largest channel difference the cost rises linearly). Clutter and
-            the torso rarely share a forearm's colour.
+            where a task gives part of the body and the cones' colours were
+            read at the first frame (``GivenBody.colors``): each free cone's
+            axis points cost up to this weight per cone where the pixel's
+            colour differs from the cone's (rising linearly from
+            ``appearance_low`` to ``appearance_high``).
         appearance_low: Colour difference (default 20) below which a pixel
             matches the cone's colour.
         appearance_high: Colour difference (default 60) above which it does
             not match at all.
         backdrop: Whether to use the backdrop read at the first frame
-            (default False; :class:`Backdrop`, handed in ``GivenBody.backdrop``).
+            (default False; :class:`Backdrop`, in ``GivenBody.backdrop``).
             Where it is known, a pixel's foreground probability comes from its
-            colour distance to the backdrop's pixel instead of to the border's
-            median (clutter is backdrop, not figure), and edges farther than
-            ``backdrop_reach`` from any foreground pixel are dropped (the
-            clutter's edges: the figure's outline borders its foreground).
-            Elsewhere (under the initial figure, or without a backdrop) the
-            border rule and every edge remain. The threshold rises with the
-            frame's sensor noise (measured on the known pixels); where the
-            noise hides ``foreground_high`` the border rule is used alone.
+            colour distance to the backdrop's pixel (clutter is backdrop), and
+            edges farther than ``backdrop_reach`` from any foreground pixel
+            are dropped; elsewhere the border rule and every edge remain. The
+            threshold rises with the sensor noise of the known pixels
+            (:func:`~baselines.observation.features.backdrop_low`).
         backdrop_margin: Reference pixels (default 2) the initial pose's
             silhouette is grown by before the rest counts as known backdrop:
             the blur and the cones' rounded ends spill past their outline.
         backdrop_reach: Reference pixels (default 3) around the foreground
             within which edges are kept; 0 keeps every edge.
         coverage_weight: Weight (default 0: off) of the *coverage* term, the
-            image-to-model direction of the foreground cue (the silhouette
-            explained, as in Deutscher, Blake & Reid's silhouette cue and
-            Sidenbladh & Black's foreground likelihood, which both count
-            foreground the model leaves unexplained). It needs the backdrop:
-            the pixels that differ clearly from the known backdrop
-            (``foreground_high``) and that the given body's cones do not
-            cover are the free limbs' own; each should lie inside a free
-            cone's projection, and costs ``min(d, coverage_truncation)^2 /
-            (2 sigma^2)`` for ``d`` its distance outside the nearest one,
-            averaged over the points and multiplied by this weight. The
-            model-to-image foreground term alone is as happy with both legs on
-            one leg's pixels as with each on its own.
+            image-to-model direction of the foreground cue (as Deutscher,
+            Blake & Reid's silhouette cue and Sidenbladh & Black's foreground
+            likelihood). It needs the backdrop: the pixels that differ clearly
+            from it and that the given cones do not cover cost
+            ``min(d, coverage_truncation)^2 / (2 sigma^2)`` each, ``d`` their
+            distance outside the nearest free cone, averaged; so both legs
+            cannot share one leg's pixels.
         coverage_truncation: Distance (reference px, default 4) beyond which
             a coverage point costs no more.
         coverage_points: At most this many coverage points per frame
