@@ -62,11 +62,8 @@ LEARNED: dict[str, str] = {
 #: The hybrid's defaults: the fraction of particles redrawn around the learned
 #: estimate each frame, and the spread of those draws in normalised action units.
 #: Where the task estimates the root position only the root position is redrawn
-#: (the particles keep their joint angles): on 10 BodyTrack episodes of the
-#: training persons (pf-tree, 300 particles), redrawing whole poses raised the
-#: mean error (181 mm without proposals, 208 with 10% of whole poses), redrawing
-#: the root position lowered it (178 mm at 25%, 172 mm at 50%). Tasks with a
-#: given root redraw whole poses, at 10%; not measured.
+#: (redrawing whole poses raised the error there: docs/rl.md); tasks with a
+#: given root redraw whole poses, at 10%.
 HYBRID_FRACTION = 0.5
 HYBRID_FRACTION_WHOLE_POSE = 0.1
 HYBRID_SPREAD = 0.02

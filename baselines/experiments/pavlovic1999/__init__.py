@@ -47,71 +47,15 @@ folder given as ``--test`` leaves no test clip and is refused. Without
 sprint) counted as run (:data:`LABEL_ALIASES`).
 
 Settings chosen by cross-validation (:func:`select_classifier_settings`,
-``slds select``): the parameter subset (legs ``r_hip_x r_knee l_hip_x
-l_knee``; legs and the shoulders' swing ``r_shoulder_x l_shoulder_x``; the
-eight sagittal angles) and the switch probability (1e-2, 1e-3, 1e-4, 1e-5)
-are chosen by leave-one-group-out CV on the training split alone (a clip of a
-test person raises ``ValueError``). A group is a Bandai-Namco style (15 of
-set 1, 4 of set 2: "style held out, same performers") or a training person
-(``person_folds``, the default: CMU subjects 5 and 7, who only walk, each a
-fold, "person held out"; without it only a person with both activities is a
-fold, none in the shared data). Each fold fits the walk and run models once
-per subset and features on every other training clip and decodes footnote-4
-sequences of the held-out group at every switch probability and extra
-assumed noise; the lowest criterion wins (ties: fewer angles, then the
-earlier features, switch probability and noise). The criterion
-(:func:`criterion_scores`) is ``"kinds"`` by default, the mean of the style
-folds' pooled error and the person folds' pooled error (1,241 person frames
-against 52,070 style frames would otherwise count for nothing), or
-``"frames"``, the fraction of all held-out frames misclassified.
+``slds select``, training split only): the parameter subset, the switch
+probability, the features (:func:`feature_transform`) and the extra noise the
+decoder assumes are chosen by leave-one-group-out CV, a group being a
+Bandai-Namco style or a training person (:func:`cv_groups`), scored by
+:func:`criterion_scores`. :data:`CLASSIFY_PARAMS`, :data:`CLASSIFY_SWITCH_PROB`,
+:data:`CLASSIFY_FEATURES` and :data:`CLASSIFY_EXTRA_NOISE_DEG` are its choices
+on ``../shared/mocap``.
 
-Variants for new persons, each an option of the setting and chosen only by
-that CV: the features (:func:`feature_transform`, causal: ``centred-Ns``
-subtracts the running mean posture, ``velocity`` differences the angles),
-extra measurement noise the decoder assumes on top of the test noise
-(``extra_noise_deg``: ``R`` grows by its square), and longer switch dwells
-(down to 1e-8). :data:`CLASSIFY_PARAMS`, :data:`CLASSIFY_SWITCH_PROB`,
-:data:`CLASSIFY_FEATURES` and :data:`CLASSIFY_EXTRA_NOISE_DEG` are the CV's
-choices on ``../shared/mocap``.
-
-Measured on ``../shared/mocap`` (30 Hz, 4 switch states per activity, 20 EM
-iterations, noise 2 deg; the paper: 2.9% over 8,312 frames). The errors of
-the hard cases (``active``, CMU 3) move by 15-25 points with details of EM
-and by several with the seed:
-
-* Variant CV for new persons (the command in :data:`CLASSIFY_SWITCH_PROB`;
-  21 folds: the 19 styles and CMU 5 and 7 held out in turn), legs+shoulders:
-  angles with 1e-5 and no extra noise score 7.11% (style folds 10.91%,
-  person folds 3.30%); angles with 1e-8 and 4 deg 5.49% (10.26%, 0.73%,
-  chosen; the frames criterion would take 2 deg: 9.94% against 10.73%);
-  centred-4s at best 8.81% (its person folds 5-24%: the running mean lags
-  every junction and a person's posture no longer tells walk from run);
-  velocity at best 6.54% (person folds 0%, style folds 13.1%: ``active``
-  walking 57% read as running).
-* ``splits --training-persons`` (seed 0), the chosen setting: ``active``
-  42.90% of 10,573 frames in 29 sequences, ``feminine`` 0.91% of 10,840 in
-  22, ``masculine`` 1.18% of 10,254 in 27, ``normal`` 0.91% of 10,841 in 27;
-  CMU 2 + 3 3.52% of 2,727 in 2, CMU 2 2.93% of 205 in 1, CMU 3 5.15% of
-  2,522 in 1; training persons CMU 5 0% of 150, CMU 7 2.11% of 1,091 in 5.
-  Seed 1 (other EM start and test sequences): ``active`` 40.79%,
-  ``feminine`` 1.13%, ``masculine`` 1.12%, ``normal`` 0.77%, CMU 2 + 3 3.37%
-  (4 sequences), CMU 2 0.98%, CMU 3 3.17%, CMU 5 0%, CMU 7 2.29%. Not
-  chosen, for comparison: velocity (1e-4) gives CMU 3 0.56% and CMU 2 + 3
-  1.17% but ``active`` 58.75%.
-* ``humotion-gym slds select --data-dir ../shared/mocap --jobs 2`` (seed 0;
-  384 training clips, 19 folds, 52,070 held-out frames): CV error legs
-  14.0-14.1%, legs+shoulders 7.2% (1e-2), 6.4% (1e-3), 5.9% (1e-4), 5.4%
-  (1e-5), sagittal 11.8-11.9%. Nearly all of the legs' error is the held-out
-  Bandai-2 style ``active``, whose walking is read as running (57-60% of
-  that fold); the other Bandai-2 styles give 1.1-2.5% with every setting.
-  The test persons are few and mostly walking (one 44-frame run).
-* ``humotion-gym slds interpolate --data-dir ../shared/mocap`` (seed 0):
-  frames 50-99 of the test persons' walks filled (:func:`person_split`: the
-  models fitted on the training persons), the 3 walks long enough (CMU 3's
-  03_01, 03_03 and 03_04): mean absolute joint-angle error in degrees 18.2
-  for the Viterbi fill (one decoded switch path), 13.2 for the posterior
-  mean over switch paths, 15.6 for linear and 23.3 for cubic-spline
-  interpolation (docs/priors.md).
+The measured errors of these commands on ``../shared/mocap`` are in docs/priors.md.
 """
 
 from __future__ import annotations

@@ -38,23 +38,13 @@ CANDIDATE_SWITCH_PROBS: tuple[float, ...] = (1e-2, 1e-3, 1e-4, 1e-5)
 #: looking at held-out results (kept only to compare with, never as a default).
 OLD_CLASSIFY_PARAMS: tuple[str, ...] = LEG_PARAMS
 OLD_CLASSIFY_SWITCH_PROB = 1e-3
-#: Angles the classifier sees: chosen by leave-one-group-out cross-validation
-#: on the training split only (``humotion-gym slds select --data-dir
-#: ../shared/mocap``, seed 0, 4 states, 20 EM iterations): the legs and the
-#: shoulders' swing, CV error 5.42% over 52,070 frames in 19 folds (legs only:
-#: 14.0-14.1%; all eight sagittal angles: 11.8-11.9%). The variant run below
-#: kept it fixed.
+#: Angles the classifier sees: the legs and the shoulders' swing, chosen by
+#: ``humotion-gym slds select --data-dir ../shared/mocap`` (docs/priors.md).
 CLASSIFY_PARAMS: tuple[str, ...] = CANDIDATE_PARAMS["legs+shoulders"]
 #: The between-activity switching probability per frame and the extra noise
-#: (deg) the decoder assumes: chosen by the variant run of the CV, training
-#: split only, with leave-one-person-out folds (CMU 5, 7) and the ``"kinds"``
-#: criterion (``humotion-gym slds select --data-dir ../shared/mocap
-#: --param-sets legs+shoulders --switch-probs 1e-4 1e-5 1e-6 1e-8 --features
-#: angles centred-4s velocity --extra-noise-degs 0 2 4 8 16 --jobs 2``, seed 0,
-#: 21 folds, 53,311 frames): angles, 1e-8, 4 deg, score 5.49% (style folds
-#: 10.26%, person folds 0.73%) against 7.11% (10.91%, 3.30%) for 1e-5 with no
-#: extra noise. 1e-8 is the smallest candidate, and most of the gain is within
-#: the CV's noise (see the package docstring).
+#: (deg) the decoder assumes: chosen by the variant run of that CV with
+#: leave-one-person-out folds and the ``"kinds"`` criterion (its command in
+#: docs/priors.md); 1e-8 is the grid's smallest candidate.
 CLASSIFY_SWITCH_PROB = 1e-8
 CLASSIFY_EXTRA_NOISE_DEG = 4.0
 CLASSIFY_INDEX: NDArray[np.intp] = np.array([PARAM_INDEX[n] for n in CLASSIFY_PARAMS], np.intp)
@@ -63,8 +53,7 @@ CANDIDATE_FEATURES: tuple[str, ...] = ("angles", "centred-4s", "velocity")
 #: Candidate extra measurement noise (deg) the decoder assumes on top of the
 #: test noise (inflating ``R`` tolerates a new person's postures and styles).
 CANDIDATE_EXTRA_NOISE_DEG: tuple[float, ...] = (0.0, 2.0, 4.0, 8.0, 16.0)
-#: The classifier's features by default: the angles (the CV's choice; the
-#: centred and velocity variants scored worse, see the package docstring).
+#: The classifier's features by default: the angles (the CV's choice).
 CLASSIFY_FEATURES = "angles"
 #: How ``select_classifier_settings`` scores a setting: ``"kinds"`` the mean
 #: of the pooled error of the style folds and that of the person folds (each
