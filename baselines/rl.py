@@ -72,11 +72,8 @@ from baselines.experiments.selection import validation_library
 from baselines.leaderboard.evaluation import evaluate
 from baselines.leaderboard.results import source_commit
 from baselines.rl_config import (  # noqa: F401  (the training API, re-exported)
-    ALGOS,
     BC_DEFAULTS,
     PPO_DEFAULTS,
-    RESUME_KEYS,
-    SETTING_RANGES,
     InitMismatch,
     ResumeMismatch,
     TrainConfig,
@@ -287,11 +284,8 @@ class _Milestones(BaseCallback):
 
 
 def _vec_env(config: TrainConfig, fold: MotionLibrary | None) -> VecMonitor:
-    # The episodes stepped as one batch (humotion_gym.sb3.LearnerVecEnv): the
-    # same observations, rewards and episode ends as a DummyVecEnv of
-    # make_learner_env environments with the same seeds
-    # (tests/envs/test_vector_env.py), cheaper; their frames drawn ahead in a
-    # second process, the same frames (tests/envs/test_frame_stream.py).
+    # The episodes stepped as one batch, as a DummyVecEnv of make_learner_env
+    # environments would step them, their frames drawn ahead in a second process.
     s = config.settings
     batched = learner_vec_env(
         config.task, int(s["n_envs"]), "train", s["frame_size"], draw_ahead=True,
@@ -588,12 +582,8 @@ def _start_model(
 def _start_from(model: PPO, source: PPO | None, init: str | None) -> None:
     """Load the policy ``source`` (the saved model ``init``) into ``model``'s network, if given.
 
-    Every tensor is loaded or none: a network of other parts (another
-    extractor, other heads) is refused as one of other sizes is.
-
     Raises:
-        InitMismatch: If its network is not this run's (another task's
-            actions, frame size, ``features_dim``, extractor or heads).
+        InitMismatch: If its network is not this run's, tensor for tensor.
     """
     if source is None:
         return
@@ -627,12 +617,8 @@ def _resumed(path: Path, env: Any = None) -> PPO:
 def check_init(config: TrainConfig) -> PPO | None:
     """The policy a run starts from, read and checked before the run writes anything.
 
-    It must be a readable policy for the task's actions and frames (what
-    :class:`~baselines.agents.learned.LearnedAgent` checks when it is scored)
-    whose network fits this run's (loaded into a model of this run's settings
-    on the task's spaces, which the data does not change); where its record
-    says it learned another task, or real data while this run trains on the
-    synthetic library, it warns as scoring does
+    It must fit the task as scoring checks it (:class:`~baselines.agents.learned.LearnedAgent`)
+    and load into this run's network; its record is warned of as scoring does
     (:func:`~baselines.agents.learned.check_record`).
 
     Returns:
@@ -686,17 +672,12 @@ def train_bc(
 ) -> Path:
     """Behaviour cloning with DAgger-style rollouts (see the module docstring).
 
-    The budget ``steps`` is split into ``rounds`` rounds of rollouts. Round r
-    acts, at each step of each environment, with the expert (the true action
-    plus ``N(0, expert_noise)``) with probability ``0.5 ** r`` and with the
-    policy's mean otherwise; every step adds (observation, true action) to a
-    first-in-first-out buffer of ``buffer_size`` pairs. After each round the
-    policy takes ``passes * new pairs / batch_size`` Adam steps on minibatches
-    drawn from the whole buffer, minimising the squared action error weighted
-    by :func:`keypoint_sensitivity`. A checkpoint is written after each round
-    (and resumed from: the buffer is refilled by the rounds that follow), and
-    each round's reward, loss and (when due) validation error are logged.
-    ``init`` is the policy ``config.init`` names, read by :func:`check_init`.
+    ``steps`` is split into ``rounds`` rounds; every step adds (observation,
+    true action) to a first-in-first-out buffer of ``buffer_size`` pairs, and
+    after each round the policy takes ``passes * new pairs / batch_size`` Adam
+    steps on minibatches of the whole buffer, then writes a checkpoint (a
+    resume refills the buffer from the rounds that follow). ``init`` is the
+    policy ``config.init`` names, read by :func:`check_init`.
     """
     s = config.settings
     out = Path(config.out)

@@ -263,10 +263,7 @@ def load_hyperparams(path: str | Path, task: str) -> dict[str, Any]:
 def _zoo_policy_kwargs(text: Any, where: str) -> dict[str, Any]:
     """``log_std_init`` and ``features_dim`` of a zoo ``policy_kwargs`` string, the rest checked.
 
-    The string is read as Python syntax, never run: a ``dict(...)`` call whose
-    keywords are the extractor (:class:`baselines.agents.policy.TrackingExtractor`),
-    its ``features_extractor_kwargs=dict(features_dim=N)``, ``log_std_init``
-    and :data:`ZOO_POLICY_FIXED`.
+    The string is parsed as a ``dict(...)`` call, never run.
     """
     if text is None:
         return {}
@@ -309,11 +306,7 @@ def _is_dict_call(node: ast.expr) -> TypeGuard[ast.Call]:
 
 
 def _literal(node: ast.expr) -> Any:
-    """A literal, with ``dict(a=...)`` read as ``{"a": ...}``.
-
-    Raises:
-        ValueError: Quoting the text where it is not a literal (a name, a call).
-    """
+    """A literal, with ``dict(a=...)`` read as ``{"a": ...}`` (ValueError quoting any other)."""
     if _is_dict_call(node):
         return {k.arg: _literal(k.value) for k in node.keywords}
     try:
@@ -323,11 +316,7 @@ def _literal(node: ast.expr) -> Any:
 
 
 def _read_zoo_yaml(path: Path) -> dict[str, Any]:
-    """The entries of a zoo hyperparameter file.
-
-    Raises:
-        ValueError: If it is not YAML, or not text (the message names the file).
-    """
+    """The entries of a zoo hyperparameter file (ValueError naming it if it is not YAML text)."""
     try:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
     except UnicodeDecodeError as exc:
@@ -359,11 +348,8 @@ class InitMismatch(ValueError):
 def run_data_dirs(data_dir: Sequence[str | Path] | None) -> list[str]:
     """The motion capture folders a run given ``data_dir`` reads, absolute; [] for synthetic.
 
-    As the library resolves them
-    (:func:`~humotion_gym.mocap.library.configured_data_dirs`): ``data_dir``
-    where given, else ``$HUMOTION_MOCAP``'s; none is the built-in synthetic
-    library. A run's record keeps these as its ``data_dir``, so that a resume,
-    a learning curve and a score see the data it read, however it was named.
+    As :func:`~humotion_gym.mocap.library.configured_data_dirs` resolves them
+    (``$HUMOTION_MOCAP``'s where ``data_dir`` is None); a run's record keeps them.
     """
     return [str(p.expanduser().resolve()) for p in configured_data_dirs(data_dir)]
 
@@ -371,10 +357,8 @@ def run_data_dirs(data_dir: Sequence[str | Path] | None) -> list[str]:
 def _comparable(key: str, value: Any) -> Any:
     """A recorded value as a resume compares it: paths resolved, so that spellings agree.
 
-    A ``data_dir`` of null is a record written before the folders read were
-    recorded, when it held only folders given as ``--data-dir``: it is taken
-    for the built-in synthetic library, the data such a run read unless
-    ``$HUMOTION_MOCAP`` was set.
+    A ``data_dir`` of null (an older record, of ``--data-dir`` folders only) is
+    taken for the built-in synthetic library.
     """
     if key == "data_dir":
         return [] if value is None else run_data_dirs(value)
@@ -399,15 +383,10 @@ def read_record(path: Path) -> dict[str, Any]:
 
 
 def resume_differences(saved: dict[str, Any], config: TrainConfig) -> list[str]:
-    """How ``config`` is another run than the recorded one ``saved``; empty if the same.
+    """``"KEY: saved A, now B"`` for each of :data:`RESUME_KEYS` and the settings that differ.
 
-    A resumed run continues the recorded one's model, so it must be that run:
-    the same :data:`RESUME_KEYS` and algorithm settings; only its length (with
-    :data:`RESUME_FREE_SETTINGS`) and how often it checkpoints and validates
-    may differ.
-
-    Returns:
-        ``"KEY: saved A, now B"`` for each field that differs.
+    Only the run's length (with :data:`RESUME_FREE_SETTINGS`) and how often it
+    checkpoints and validates may differ in a resumed run.
     """
     now = {key: _comparable(key, getattr(config, key)) for key in RESUME_KEYS}
     now["data_dir"] = run_data_dirs(config.data_dir)  # what it would read: $HUMOTION_MOCAP too
@@ -428,11 +407,7 @@ def _shown(value: Any) -> str:
 
 
 def longer_recorded(saved: dict[str, Any], config: TrainConfig) -> int | None:
-    """The env steps the recorded run ``saved`` asked for, where more than ``config``'s.
-
-    A resumed run is the same run, longer: one given fewer steps than its
-    record would rewrite the record as a shorter run's, its models being longer.
-    """
+    """The env steps the recorded run ``saved`` asked for, where more than ``config``'s."""
     asked = saved.get("steps")
     return asked if isinstance(asked, int) and asked > config.steps else None
 
@@ -507,11 +482,7 @@ def _training_output(path: Path) -> bool:
 
 
 def foreign_names(out: Path) -> list[str]:
-    """What ``out`` holds that no training run writes (:func:`_training_output`), at most 3.
-
-    Hidden names are left out: an interrupted write's temporary file (``.NAME.tmp``)
-    is no other command's output.
-    """
+    """What ``out`` holds that no training run writes, at most 3 (hidden names left out)."""
     if not out.is_dir():
         return []
     names = sorted(p.name for p in out.iterdir()

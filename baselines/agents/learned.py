@@ -72,10 +72,8 @@ HYBRID_SPREAD = 0.02
 class OtherDataWarning(UserWarning):
     """A learned policy trained on real motion capture is scored on the synthetic library.
 
-    Its record (``config.json`` beside a trained ``model.zip``, or a
-    checkpoint's sidecar JSON) names the folders it was trained on; scoring it
-    on the built-in synthetic motion measures another distribution. Pass the
-    same ``data_dir`` (``--data-dir``) to score it on the data it knows.
+    Its record (:func:`policy_record`) names the folders it was trained on;
+    pass the same ``data_dir`` (``--data-dir``) to score it on the data it knows.
     """
 
 
@@ -99,9 +97,8 @@ class UnrecordedPolicyWarning(UserWarning):
 class NoCheckpointError(FileNotFoundError, TaskNotSupported):
     """No pretrained checkpoint of a learned agent for a task.
 
-    A :class:`~baselines.agents.TaskNotSupported` (the leaderboard skips an
-    agent that does not cover a task) and a ``FileNotFoundError`` (the command
-    line reports it in one line).
+    A :class:`~baselines.agents.TaskNotSupported` (the leaderboard skips the
+    cell) and a ``FileNotFoundError`` (the command line reports it in one line).
     """
 
 
@@ -111,11 +108,7 @@ def checkpoint_path(algo: str, task: str) -> Path:
 
 
 def _split_label(name: str) -> tuple[str, str]:
-    """``(label, path)`` of ``LABEL=PATH.zip`` or ``PATH.zip``.
-
-    Raises:
-        ValueError: If the label before ``=`` is empty (a row no table could name).
-    """
+    """``(label, path)`` of ``LABEL=PATH.zip`` or ``PATH.zip`` (ValueError for an empty label)."""
     if "=" in name:
         label, path = name.split("=", 1)
         if not label.strip():
@@ -186,10 +179,8 @@ def policy_record(path: str | Path) -> dict[str, Any] | None:
 def trained_data_dirs(path: str | Path) -> list[str] | None:
     """The motion-capture folders a saved policy's record (:func:`policy_record`) names.
 
-    None where there is no readable record or it names none: the run read the
-    built-in synthetic library (a record written before the folders read were
-    recorded, whose ``data_dir`` is null, named only ``--data-dir`` folders:
-    it is taken for the synthetic library too).
+    None where there is no readable record or it names none (a null ``data_dir``
+    included): the run read the built-in synthetic library.
     """
     return _record_data_dirs(policy_record(path) or {})
 
@@ -251,9 +242,7 @@ _PACKAGE = str(Path(__file__).parents[1]) + os.sep
 def _callers_level() -> int:
     """The ``stacklevel`` of the first caller outside ``baselines``, for the caller's warnings.
 
-    A warning then points at the user's line (``agents.make(...)``, ``train(...)``)
-    however deep in the package it is raised (``warnings.warn``'s
-    ``skip_file_prefixes``, which Python 3.10 lacks).
+    (``warnings.warn``'s ``skip_file_prefixes``, which Python 3.10 lacks.)
     """
     frame, level = sys._getframe(1), 1  # the function about to warn: level 1
     while frame.f_back is not None and frame.f_code.co_filename.startswith(_PACKAGE):
@@ -280,8 +269,7 @@ def load_policy(path: str | Path) -> Any:
             f"{p}: no saved policy; train one with `humotion-gym train --algo bc --task TASK "
             f"--steps N --out runs/NAME` (it writes runs/NAME/model.zip)"
         )
-    # Checked before torch is imported (seconds): every SB3 save is a zip with a
-    # "data" member holding its settings.
+    # Checked before torch is imported: every SB3 save is a zip with a "data" member.
     try:
         with zipfile.ZipFile(p) as archive:
             saved = "data" in archive.namelist()
