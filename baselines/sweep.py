@@ -135,14 +135,11 @@ def run_sweep(
         engine_options: Keyword arguments of
             :func:`~baselines.leaderboard.run_leaderboard` that choose its
             engine (``engine="ray"``, ``workers``, ``address``); none: in-process.
-        out: A folder for each point's leaderboard results
-            (:func:`point_folder`): every finished episode is kept as it
-            finishes, so an interrupted sweep loses only the episodes in flight.
+        out: A folder for each point's leaderboard results (:func:`point_folder`),
+            every episode kept as it finishes.
         resume: Continue the sweep saved in ``out`` (its :data:`SETTINGS_FILE`
-            must hold these settings): each point's run resumes where it
-            stopped (a point not yet started runs afresh).
-        setting_name: How a resume's message names a setting that differs
-            (the command gives its flag).
+            must hold these settings), each point where it stopped.
+        setting_name: How a resume's message names a setting (the command's flag).
 
     Returns:
         The sweep (plain JSON, :data:`VERSION`): ``tasks``, ``agents``,
@@ -151,8 +148,7 @@ def run_sweep(
 
     Raises:
         ValueError: If the grid is empty, names an unknown setting or holds a
-            value a task's environment refuses (:func:`check_points`: every
-            value, before the first point runs).
+            value a task's environment refuses (:func:`check_points`).
         ResumeError: If resuming a sweep saved with other settings
             (:func:`check_resume`), or a point's saved run cannot be resumed.
         FileExistsError: If ``out`` holds a sweep and ``resume`` is False.
@@ -229,10 +225,8 @@ def check_resume(
 ) -> None:
     """Refuse to resume the sweep saved in ``folder`` with other settings.
 
-    Every setting must be the saved one: another grid would number its
-    points otherwise (a point folder of each grid side by side, and the
-    summary of the new grid alone), other agents or episodes would leave
-    saved episodes out of the table.
+    Another grid would number its points otherwise, and other agents or
+    episodes would leave saved episodes out of the table.
 
     Args:
         folder: The sweep's folder.
@@ -305,11 +299,7 @@ def _shown(key: str, value: Any) -> str:
 def _start(
     folder: Path, settings: dict[str, Any], resume: bool, name: Callable[[str], str]
 ) -> None:
-    """Check a resumed sweep's settings, or keep a new one's before its first point.
-
-    Raises:
-        FileExistsError: If ``resume`` is False and the folder holds a sweep's settings.
-    """
+    """Check a resumed sweep's settings, or keep a new one's (refused over another sweep)."""
     path = folder / SETTINGS_FILE
     if resume:
         check_resume(folder, settings, name)

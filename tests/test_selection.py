@@ -223,12 +223,12 @@ def test_the_declared_rule_on_set_numbers():
         ]
 
     plain = [{"mean_error_mm": m} for m in (5.0, 3.0, 3.0, 4.0)]
-    assert selection._chosen(plain) == 1
+    assert selection._choose(plain)[0] == 1
     # a: lowest mean but not standing; b: on the bound; c: well within it
     standing = rows((1.0, 9.0, STILL_RATIO + 1), (3.5, 2.0, STILL_RATIO), (4.0, 3.0, 1.0))
-    assert selection._chosen(standing) == 1
+    assert selection._choose(standing)[0] == 1
     none_standing = rows((1.0, 9.0, STILL_RATIO + 1), (5.0, 2.0, STILL_RATIO + 0.5))
-    assert selection._chosen(none_standing) == 1
+    assert selection._choose(none_standing)[0] == 1
 
 
 @pytest.mark.parametrize(

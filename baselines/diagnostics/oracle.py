@@ -251,17 +251,10 @@ class TruthOracle:
     def log_likelihood(
         self, frame: Any, params: ArrayLike, shape: BodyShape, camera: Camera
     ) -> FloatArray:
-        """``(N,)`` log-likelihoods of ``(N, 25)`` poses given the observation.
+        """``(N,)`` log-likelihoods of ``(N, 25)`` poses given :meth:`prepare`'s observation.
 
-        Args:
-            frame: The :class:`OracleObservation` (:meth:`prepare`'s).
-            params: ``(N, 25)`` poses.
-            shape: The subject's shape.
-            camera: The frame's camera (2D oracles project with it).
-
-        Returns:
-            ``(N,)``; ``-inf`` for a pose with a keypoint at or behind the
-            camera (2D) or a parameter that is not finite.
+        ``-inf`` for a pose with a keypoint at or behind the camera (2D) or a
+        parameter that is not finite.
 
         Raises:
             TypeError: If ``frame`` is not an :class:`OracleObservation`.

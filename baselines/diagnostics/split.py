@@ -183,8 +183,7 @@ def run_split(
         settings: Overrides of every agent's settings: ``fit.NAME`` its prior's,
             ``filter.NAME`` its filter's (as ``humotion-gym select``'s grid names them).
         done: Rows an interrupted run of the same arguments finished (as ``on_row``
-            gave them), kept as they are: every row tracks its episodes with its
-            own agents and oracle seeds, so the rest come out as in one run.
+            gave them), kept: the rest come out as in one run.
 
     Returns:
         ``{"task", "particles", "seed", "agent_seeds", "declared", "windows",
@@ -254,12 +253,7 @@ def run_split(
 def _windows(
     task: str, episodes: int | None, declared: bool, env_kwargs: Mapping[str, Any] | None
 ) -> tuple[list[tuple[str, int] | None], int]:
-    """The episodes :func:`run_split` tracks, and how many windows the task declares.
-
-    Returns:
-        The declared windows tracked (or None per seeded draw), and the
-        task's count of declared windows (0 without ``declared``).
-    """
+    """The windows :func:`run_split` tracks (None: a seeded draw), and the count declared."""
     if not declared:
         return [None] * (episodes or 20), 0
     listed: list[tuple[str, int] | None] = list(task_windows(task, env_kwargs))
@@ -303,11 +297,7 @@ def _done_rows(
     windows: int,
     agent_seeds: int,
 ) -> list[dict[str, Any]]:
-    """``done`` checked to be the first rows of ``runs``, as fresh dicts.
-
-    Raises:
-        ValueError: Naming the first row that is not this run's.
-    """
+    """``done`` checked to be the first rows of ``runs`` (ValueError naming one that is not)."""
     if len(done) > len(runs):
         raise ValueError(f"done: {len(done)} rows of {task}, but this run has {len(runs)}")
     for k, (row, (name, oracle)) in enumerate(zip(done, runs[: len(done)], strict=True)):
@@ -353,8 +343,7 @@ def _builder(
     """``build(name, agent_seed)``: an agent with ``settings``, each agent tried once first.
 
     Raises:
-        SettingsError: If a setting is not ``fit.NAME`` or ``filter.NAME``, or an
-            agent lacks it (before any episode runs).
+        SettingsError: If a setting is not ``fit.NAME`` or ``filter.NAME`` of every agent.
     """
     fit, search = agent_settings(settings)
     unknown = sorted(k for k in settings if not k.startswith((FIT_PREFIX, FILTER_PREFIX)))
@@ -382,16 +371,15 @@ def _builder(
 
 
 def compact(result: Mapping[str, Any]) -> dict[str, Any]:
-    """The result with each episode's numbers rounded (0.1 mm, 0.01 px, 0.1 ESS)."""
-    out = dict(result)
-    rows = []
-    for row in result["rows"]:
-        eps = []
-        for e in row["episodes"]:
-            eps.append({k: round(v, 2) if isinstance(v, float) else v for k, v in e.items()})
-        rows.append({**row, "episodes": eps})
-    out["rows"] = rows
-    return out
+    """The result with each episode's numbers rounded to two decimals."""
+    rows = [
+        {**row, "episodes": [
+            {k: round(v, 2) if isinstance(v, float) else v for k, v in e.items()}
+            for e in row["episodes"]
+        ]}
+        for row in result["rows"]
+    ]  # fmt: skip
+    return {**result, "rows": rows}
 
 
 def episode_rows(data: Any, path: str | Path) -> list[dict[str, Any]]:
@@ -506,11 +494,8 @@ def markdown_report(results: Sequence[Mapping[str, Any]]) -> str:
         if res.get("validation_persons"):
             what += f" of the validation persons {', '.join(res['validation_persons'])}"
         if res["declared"]:
-            what = (
-                f"the first {n} of {listed} declared test windows"
-                if n < listed
-                else (f"the {n} declared test windows")
-            )
+            what = f"the first {n} of {listed}" if n < listed else f"the {n}"
+            what += " declared test windows"
         filters = any(r["agent"] != "hold" for r in res["rows"])  # hold alone has no split
         parts.append(
             f"## {res['task']}: {what}, {res['particles']} particles, "

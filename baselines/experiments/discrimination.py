@@ -67,17 +67,8 @@ def _scored_frames(
                 break
 
 
-def _given(
-    base: Any,
-    truth: FloatArray,
-    seen: Given,
-    first: FirstFrame,
-) -> GivenBody:
-    """What the task gives of the frame's body (the agent's view, not the truth's free part).
-
-    With ``first``, what the model kept of the episode's first frame
-    (:meth:`~baselines.observation.ObservationModel.read_first_frame`).
-    """
+def _given(base: Any, truth: FloatArray, seen: Given, first: FirstFrame) -> GivenBody:
+    """What the task gives of the frame's body, with what the model kept of the first frame."""
     pose = np.zeros_like(truth)
     fixed = base.task.fixed_indices
     pose[fixed] = seen.fixed_params
@@ -94,11 +85,7 @@ def _around(truth: FloatArray, free: NDArray[np.intp], offsets: FloatArray) -> F
 def _keypoint_errors(
     poses: FloatArray, shape: BodyShape, scored: NDArray[np.intp]
 ) -> tuple[FloatArray, FloatArray]:
-    """The scored keypoints of ``poses`` and each later pose's mean distance (mm) from the first's.
-
-    Returns:
-        ``(N + 1, K, 3)`` keypoints and ``(N,)`` errors.
-    """
+    """``(N + 1, K, 3)`` scored keypoints and ``(N,)`` later poses' mean mm from the first's."""
     kp = forward_kinematics(poses, shape)[:, scored]
     return kp, np.linalg.norm(kp[1:] - kp[:1], axis=-1).mean(axis=1)
 

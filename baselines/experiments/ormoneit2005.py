@@ -30,11 +30,6 @@ from humotion_gym.mocap.motion import Motion
 FloatArray = NDArray[np.float64]
 
 
-# ---------------------------------------------------------------------------
-# Cycle lengths: eq. 3 against the feet
-# ---------------------------------------------------------------------------
-
-
 @dataclass(frozen=True)
 class CycleLength:
     """The cycle length of one clip, from eq. 3 and from the feet.
@@ -165,11 +160,6 @@ def cycle_lengths(motions: Sequence[Motion]) -> list[CycleLength]:
     return out
 
 
-# ---------------------------------------------------------------------------
-# Figures 5 and 7 (cycle length, alignment)
-# ---------------------------------------------------------------------------
-
-
 def plot_snr(
     series: ArrayLike,
     path: str | Path,
@@ -270,11 +260,6 @@ def plot_aligned(
     save(fig, path, dpi=120)
 
 
-# ---------------------------------------------------------------------------
-# Figures 9 and 10
-# ---------------------------------------------------------------------------
-
-
 def plot_components(
     result: fpca.FPCAResult,
     path: str | Path,
@@ -325,11 +310,6 @@ def plot_components(
     if title:
         fig.suptitle(title)
     save(fig, path)
-
-
-# ---------------------------------------------------------------------------
-# Figures 5, 7, 9 and 10 on a library's training walks
-# ---------------------------------------------------------------------------
 
 
 def make_figures(

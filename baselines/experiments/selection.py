@@ -164,11 +164,7 @@ def _check_grid(grid: Mapping[str, Sequence[float]], agent: str) -> None:
 
 
 def _typed(default: ObservationModel, name: str, value: float) -> Any:
-    """A grid's number as the likelihood setting's own type: a whole number, or 0/1 for a switch.
-
-    Raises:
-        ValueError: If the number is not one (1.2 would have run as 1).
-    """
+    """A grid's number as the likelihood setting's type (ValueError where 1.2 would run as 1)."""
     kind = type(getattr(default, name))
     if kind is bool and value not in (0, 1):
         raise ValueError(f"{name} is on (1) or off (0), got {value:g}")
@@ -215,9 +211,7 @@ class _Runs:
 def _check_fits(runs: _Runs, agent: str, grid: Mapping[str, Sequence[float]]) -> None:
     """Build the agent with every combination of the grid's ``fit.`` values, running nothing.
 
-    Each prior checks its own settings when it fits (on the fold, as the
-    combination will, so the fit is cached for it): a value out of range is
-    refused before ``hold``'s episodes and the first combination run.
+    Each prior checks its settings when it fits (on the fold, cached for the run).
 
     Raises:
         ValueError: Naming the combination's ``fit.`` values and what the prior said.
@@ -246,11 +240,7 @@ def _check_fits(runs: _Runs, agent: str, grid: Mapping[str, Sequence[float]]) ->
 def _still_episodes(
     task: str, library: MotionLibrary, env_kwargs: dict[str, Any], count: int, max_hold_mm: float
 ) -> list[Any]:
-    """Up to ``count`` still episodes of the fold's held-out persons (none for 0).
-
-    Raises:
-        ValueError: If ``count`` > 0 and the persons have no still episode.
-    """
+    """Up to ``count`` still episodes of the fold's held-out persons (ValueError: none)."""
     if count <= 0:
         return []
     probe = gym.make(f"humotion_gym/{task}", library=library, split="test", **env_kwargs)
@@ -299,27 +289,20 @@ def select_observation_settings(
     Args:
         task: Task id.
         agent: Agent name (a particle filter of :data:`baselines.agents.AGENTS`).
-        grid: Candidate values per :class:`ObservationModel` field
-            (``{"sharpness": [1, 2], "foreground_weight": [0, 0.5]}``), or per
-            setting of the agent's prior with a ``fit.`` prefix
-            (``{"fit.damping": [1, 0.5]}``: a keyword of the prior's ``fit``),
-            or per setting of the annealed filter with a ``filter.`` prefix
-            (``{"filter.alpha": [0.5, 0.8]}``,
-            :data:`baselines.agents.FILTER_SETTINGS`); every combination is
-            tried, starting from the task's own settings and the agent's
-            registered fit and filter settings.
+        grid: Candidate values per :class:`ObservationModel` field (``sharpness``),
+            prior setting (``fit.damping``) or annealed filter setting
+            (``filter.alpha``, :data:`baselines.agents.FILTER_SETTINGS`); every
+            combination is tried over the task's and the agent's own settings.
         library: A validation fold (:func:`validation_library`).
         particles: Particles of the agent.
         episodes: Seeded episodes per combination (the same for every one).
         seed: First episode seed.
         env_kwargs: Other environment keywords (difficulty).
-        still: When > 0, also track up to this many *still* episodes of the
-            validation persons (:func:`baselines.stillness.still_windows`:
-            where ``hold`` scores lowest), and choose by the rule declared
-            before any result is seen: among the combinations whose still
-            error is within :data:`baselines.stillness.STILL_RATIO` times
-            ``hold``'s, the lowest mean error; when none is, the lowest still
-            error.
+        still: When > 0, also track up to this many still episodes of the
+            validation persons (:func:`baselines.stillness.still_windows`) and
+            choose the lowest mean error among the combinations within
+            :data:`baselines.stillness.STILL_RATIO` times ``hold``'s there
+            (none: the lowest still error).
         still_max_hold_mm: The still episodes' bound on ``hold``'s error.
 
     Returns:
@@ -331,10 +314,8 @@ def select_observation_settings(
         lowest mean error (ties: the first in grid order).
 
     Raises:
-        ValueError: If a name is neither a likelihood setting, a ``fit.`` keyword of the prior
-            nor a ``filter.`` setting of an annealed agent, a value list is empty, a ``fit.``
-            value the prior refuses (every one, before any episode runs), or ``library`` is not
-            a validation fold of training persons (:func:`check_validation_fold`).
+        ValueError: Before any episode runs, if a name or value of the grid is none
+            of the agent's, or ``library`` is no validation fold (:func:`check_validation_fold`).
     """
     _check_grid(grid, agent)
     check_validation_fold(library)
@@ -383,13 +364,8 @@ def select_observation_settings(
     }
 
 
-def _chosen(rows: Sequence[Mapping[str, Any]]) -> int:
-    """The row the declared rule picks (see :func:`select_observation_settings`)."""
-    return _choose(rows)[0]
-
-
 def _choose(rows: Sequence[Mapping[str, Any]]) -> tuple[int, str]:
-    """The row the declared rule picks, and which part of the rule picked it, in words."""
+    """The row the declared rule picks (:func:`select_observation_settings`), and why in words."""
     order = range(len(rows))
     by = "the lowest mean error"
     if rows and "still_ratio" in rows[0]:

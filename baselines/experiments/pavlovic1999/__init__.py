@@ -24,27 +24,11 @@ The modules, each one part of the paper's section 4:
 
 Every public name of these modules is importable from this package.
 
-Command line (:mod:`baselines.cli.slds`)::
-
-    humotion-gym slds classify --train PATH... --test PATH... [--seed S] [--json] [--figure F]
-    humotion-gym slds select [--data-dir DIR] [--jobs N] [--json]
-    humotion-gym slds splits [--data-dir DIR] [--jobs N] [--seed S] [--json]
-    humotion-gym slds interpolate [--data-dir DIR] [--json] [--figure F]
-    humotion-gym slds figures [--data-dir DIR] [--out-dir DIR]
-
-Train/test for ``classify``: the clips under ``--train`` train and those under
-``--test`` test. A file reached by both (the same folder given twice) is
-refused: a test clip would be scored on its own fit. Different files of one
-clip (the same clip id, ``dataset/stem``: a copy of a trial in another
-folder, or ``02_01.amc`` in one and ``02_01.bvh`` in the other) are split by
-person with the library's named constants (:func:`split_train_test`,
-:meth:`~humotion_gym.mocap.library.MotionLibrary.split`): training uses the
-train split of ``--train``, testing the test split of ``--test``, the clips of
-CMU subjects 2 and 3 (``library.TEST_SUBJECTS``). Every Bandai-Namco clip is
-training data (one set of actors performs every style), so a copy of a Bandai
-folder given as ``--test`` leaves no test clip and is refused. Without
-``--labels`` the activities are walk and run, Bandai-Namco set 1's ``dash`` (a
-sprint) counted as run (:data:`LABEL_ALIASES`).
+Command line: ``humotion-gym slds classify|select|splits|interpolate|figures``
+(:mod:`baselines.cli.slds`). ``classify`` refuses a file reached by both
+``--train`` and ``--test``; different files of one clip id are split by person
+(:func:`split_train_test`). Without ``--labels`` the activities are walk and
+run, Bandai-Namco set 1's ``dash`` counted as run (:data:`LABEL_ALIASES`).
 
 Settings chosen by cross-validation (:func:`select_classifier_settings`,
 ``slds select``, training split only): the parameter subset, the switch
@@ -60,7 +44,7 @@ The measured errors of these commands on ``../shared/mocap`` are in docs/priors.
 
 from __future__ import annotations
 
-from baselines.experiments.pavlovic1999.classification import (
+from baselines.experiments.pavlovic1999.classification import (  # noqa: F401
     ClassificationResult,
     TestSequence,
     build_test_sequences,
@@ -71,7 +55,7 @@ from baselines.experiments.pavlovic1999.classification import (
     sequence_features,
     with_measurement_noise,
 )
-from baselines.experiments.pavlovic1999.cross_validation import (
+from baselines.experiments.pavlovic1999.cross_validation import (  # noqa: F401
     SelectionResult,
     check_training_only,
     criterion_scores,
@@ -80,14 +64,14 @@ from baselines.experiments.pavlovic1999.cross_validation import (
     held_out_groups,
     select_classifier_settings,
 )
-from baselines.experiments.pavlovic1999.data import (
+from baselines.experiments.pavlovic1999.data import (  # noqa: F401
     activity_clips,
     default_motions,
     load_motions,
     person_split,
     split_train_test,
 )
-from baselines.experiments.pavlovic1999.features import (
+from baselines.experiments.pavlovic1999.features import (  # noqa: F401
     FEATURES_HELP,
     assumed_noise,
     feature_noise,
@@ -96,22 +80,22 @@ from baselines.experiments.pavlovic1999.features import (
     parse_features,
     running_mean,
 )
-from baselines.experiments.pavlovic1999.figures import (
+from baselines.experiments.pavlovic1999.figures import (  # noqa: F401
     plot_interpolation,
     plot_segmentation,
     plot_synthesis,
 )
-from baselines.experiments.pavlovic1999.interpolation import (
+from baselines.experiments.pavlovic1999.interpolation import (  # noqa: F401
     InterpolationResult,
     interpolate_gap,
     run_interpolation,
 )
-from baselines.experiments.pavlovic1999.scoring import (
+from baselines.experiments.pavlovic1999.scoring import (  # noqa: F401
     SettingScores,
     run_jobs,
     score_fits,
 )
-from baselines.experiments.pavlovic1999.settings import (
+from baselines.experiments.pavlovic1999.settings import (  # noqa: F401
     BLEND_FRAMES,
     CANDIDATE_EXTRA_NOISE_DEG,
     CANDIDATE_FEATURES,
@@ -136,78 +120,10 @@ from baselines.experiments.pavlovic1999.settings import (
     param_indices,
     setting_name,
 )
-from baselines.experiments.pavlovic1999.splits import (
+from baselines.experiments.pavlovic1999.splits import (  # noqa: F401
     SplitRow,
     check_splits,
     evaluate_splits,
     splits_table,
 )
-from baselines.priors import slds
-
-__all__ = [
-    "BLEND_FRAMES",
-    "CANDIDATE_EXTRA_NOISE_DEG",
-    "CANDIDATE_FEATURES",
-    "CANDIDATE_PARAMS",
-    "CANDIDATE_SWITCH_PROBS",
-    "CLASSIFY_EXTRA_NOISE_DEG",
-    "CLASSIFY_FEATURES",
-    "CLASSIFY_INDEX",
-    "CLASSIFY_LABELS",
-    "CLASSIFY_PARAMS",
-    "CLASSIFY_SWITCH_PROB",
-    "CLIPS_PER_SEQUENCE",
-    "CV_CRITERIA",
-    "FEATURES_HELP",
-    "GAP",
-    "LABEL_ALIASES",
-    "LEG_PARAMS",
-    "NOISE_STD",
-    "OLD_CLASSIFY_PARAMS",
-    "OLD_CLASSIFY_SWITCH_PROB",
-    "ClassificationResult",
-    "ClassifierSetting",
-    "InterpolationResult",
-    "SelectionResult",
-    "SettingScores",
-    "SplitRow",
-    "TestSequence",
-    "activity_clips",
-    "assumed_noise",
-    "build_test_sequences",
-    "check_splits",
-    "check_training_only",
-    "classify",
-    "criterion_scores",
-    "cv_groups",
-    "default_motions",
-    "default_settings",
-    "evaluate_splits",
-    "feature_noise",
-    "feature_transform",
-    "fit_activities",
-    "fit_activity_models",
-    "group_kind",
-    "held_out_groups",
-    "interpolate_gap",
-    "load_motions",
-    "motion_features",
-    "param_indices",
-    "parse_features",
-    "person_split",
-    "plot_interpolation",
-    "plot_segmentation",
-    "plot_synthesis",
-    "run_classification",
-    "run_interpolation",
-    "run_jobs",
-    "running_mean",
-    "score_fits",
-    "select_classifier_settings",
-    "sequence_features",
-    "setting_name",
-    "slds",
-    "split_train_test",
-    "splits_table",
-    "with_measurement_noise",
-]
+from baselines.priors import slds  # noqa: F401

@@ -259,11 +259,7 @@ def _candidate_grid(
     features: Sequence[str],
     extra_noise_degs: Sequence[float],
 ) -> tuple[list[tuple[tuple[str, ...], str]], list[str], list[tuple[float, float]]]:
-    """The fits (simplest subset first), their subsets' names, and the decodes.
-
-    Raises:
-        ValueError: If a list is empty or a candidate is malformed.
-    """
+    """The fits (simplest subset first), their subsets' names, and the decodes, checked."""
     what = "select_classifier_settings"
     if not param_sets or not switch_probs or not features or not extra_noise_degs:
         raise ValueError(

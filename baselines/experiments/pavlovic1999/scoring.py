@@ -104,14 +104,10 @@ def score_fits(
 ) -> list[SettingScores]:
     """Learn once per fit, decode every test set at every decode option.
 
-    Each activity's SLDS is fitted once per ``(params, features)`` pair (EM
-    seeded by ``[seed, 1]``, the same for every one); the switch probability
-    and the extra assumed noise only change the decoding
-    (:func:`~baselines.priors.slds_inference.combine`, ``R``), so they cost a
-    decode, not a fit. Each test set's footnote-4 sequences are drawn once
-    (seeded by ``[seed, 2, k]``) and shared by every setting; the features of
-    a sequence are computed from its noisy angles, causally from its first
-    frame. Clips whose label is not in ``labels`` are dropped.
+    EM is seeded by ``[seed, 1]`` for every fit; each test set's footnote-4
+    sequences are drawn once (seeded by ``[seed, 2, k]``) and shared by every
+    setting, their features computed causally from their noisy angles. Clips
+    whose label is not in ``labels`` are dropped.
 
     Args:
         train: Training clips with the activity labels.

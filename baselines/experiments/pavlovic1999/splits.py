@@ -83,11 +83,7 @@ def _held_out(train_ids: list[int], clips: Sequence[Motion], subject: str) -> tu
 def _split_plans(
     clips: Sequence[Motion], style_dataset: str, training_persons: bool
 ) -> list[_Plan]:
-    """The splits of :func:`evaluate_splits`, in the order their seeds are drawn.
-
-    Raises:
-        ValueError: If there is neither a style nor a test person to hold out.
-    """
+    """The splits of :func:`evaluate_splits`, in the order their seeds are drawn."""
     is_test = np.array([m.subject in TEST_SUBJECTS for m in clips], dtype=bool)
     train_ids = np.flatnonzero(~is_test).tolist()
     styles = sorted({clips[i].subject for i in train_ids if clips[i].dataset == style_dataset})
