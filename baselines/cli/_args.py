@@ -47,10 +47,8 @@ def agent_name(text: str) -> str:
 
     if text not in agent_names() and Path(text).is_dir():
         raise argparse.ArgumentTypeError(_folder_for_policy(text, Path(text)))
-    try:
+    with refused_as(argparse.ArgumentTypeError, ValueError):  # =PATH.zip: a row without name
         learned = is_learned(text)
-    except ValueError as exc:  # =PATH.zip: a row no table could name
-        raise argparse.ArgumentTypeError(str(exc)) from None
     if text not in agent_names() and not learned:
         raise argparse.ArgumentTypeError(
             f"unknown agent {text[:80]}; the agents are {', '.join(agent_names())}, each "
@@ -91,12 +89,10 @@ def add_particles(parser: argparse.ArgumentParser, what: str = "particles") -> N
 
 
 def add_imports(parser: argparse.ArgumentParser) -> None:
-    """``--import MODULE``: a module of the user's that registers agents, imported first.
+    """``--import MODULE``, declared for ``--help`` and the parser.
 
     The import itself happens before the arguments are parsed
-    (:func:`baselines.cli.import_agent_modules`), so that ``--agents`` and
-    ``--agent`` know the names it registers; the flag is declared here for
-    ``--help`` and so that the parser accepts it.
+    (:func:`baselines.cli.import_agent_modules`), so that ``--agents`` knows its agents.
     """
     parser.add_argument(
         "--import", dest="imports", action="append", default=[], metavar="MODULE",
@@ -197,12 +193,8 @@ def key_setting(text: str) -> tuple[str, float | str]:
 def check_policy_files(agents: Sequence[str]) -> None:
     """Refuse a saved policy in ``--agents`` that is no policy, before any episode runs.
 
-    Each cell would build the agent and fail, and the command say so only
-    after every other cell had run. The check is the load every agent's
-    making does (``track`` refuses the same file as it makes its agent).
-
     Raises:
-        CommandError: Naming ``--agents`` and the file.
+        CommandError: Naming ``--agents`` and the file (what loading it said).
     """
     from baselines.agents.learned import load_policy, policy_file
 

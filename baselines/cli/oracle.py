@@ -178,10 +178,7 @@ def run_settings(args: argparse.Namespace) -> dict:
 def _resume_settings(args: argparse.Namespace) -> dict:
     """What a resumed run must share with the run it continues (``partial.json.gz`` keeps it).
 
-    :func:`run_settings` with the mocap folders as the run reads them
-    (absolute, whichever way they were spelled; ``$HUMOTION_MOCAP``'s when
-    ``--data-dir`` is not given), so that ``/data/``, ``/data`` and
-    ``../data`` resume one run and a changed ``$HUMOTION_MOCAP`` does not.
+    :func:`run_settings` with the mocap folders as the run reads them, however spelt.
     """
     from baselines.leaderboard.results import data_folders
 
@@ -359,11 +356,7 @@ def _check_saved_rows(
 
 
 def _save_row(args: argparse.Namespace, saved: dict[str, list], rows: list, row: dict) -> None:
-    """Add a finished row to ``saved`` and, with ``--out``, save the unfinished run.
-
-    The rows keep every number at full precision, so a resumed run writes
-    what one uninterrupted run would.
-    """
+    """Add a finished row to ``saved`` and, with ``--out``, save the unfinished run (unrounded)."""
     rows.append(row)
     if args.out is not None:
         write_json_gz(args.out / PARTIAL, {"settings": _resume_settings(args), "rows": saved})

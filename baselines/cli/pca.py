@@ -24,6 +24,7 @@ from humotion_gym.cli._common import (
     int_at_least,
     output_dir,
     print_json,
+    refused_as,
     wrote,
 )
 
@@ -124,10 +125,8 @@ def _cmd_figures(args: argparse.Namespace) -> int:
     from humotion_gym.mocap.library import default_library
 
     lib = default_library(args.data_dir or None, fps=args.fps, progress=False)
-    try:
+    with refused_as(CommandError, ValueError):
         written, about = make_figures(lib, args.out_dir, args.fps, args.components)
-    except ValueError as exc:
-        raise CommandError(str(exc)) from exc
     print(about)
     for p in written:
         wrote(p)

@@ -84,16 +84,16 @@ def parse_grid(items: Sequence[str]) -> dict[str, list[float]]:
     grid: dict[str, list[float]] = {}
     for item in items:
         name, sep, values = item.partition("=")
-        if name.strip() in grid:
-            raise UsageError(f"--grid: {name.strip()} given twice; list its values once, V1,V2")
+        name = name.strip()
+        if name in grid:
+            raise UsageError(f"--grid: {name} given twice; list its values once, V1,V2")
         try:
-            grid[name.strip()] = [float(v) for v in values.split(",") if v.strip()]
+            numbers = [float(v) for v in values.split(",") if v.strip()]
         except ValueError:
-            sep = ""
-        if not all(math.isfinite(v) for v in grid.get(name.strip(), [])):
-            sep = ""
-        if not sep or not name.strip() or not grid.get(name.strip()):
+            numbers = []
+        if not sep or not name or not numbers or not all(map(math.isfinite, numbers)):
             raise UsageError(f"--grid: expected NAME=V1,V2,... of finite numbers, got {item[:80]}")
+        grid[name] = numbers
     return grid
 
 

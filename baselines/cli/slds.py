@@ -14,6 +14,7 @@ The experiments are in :mod:`baselines.experiments.pavlovic1999`::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from collections.abc import Sequence
 
@@ -329,15 +330,7 @@ def _cmd_classify(args: argparse.Namespace) -> int:
 
 
 def _check_two_activities(labels: Sequence[str] | None, trained: Sequence[str]) -> None:
-    """Refuse a classification among fewer than two activities.
-
-    With one activity's model every frame is decoded as that activity: an
-    error of 0% that measures nothing.
-
-    Args:
-        labels: ``--labels`` (None: the default activities).
-        trained: The activities ``--train`` has clips of, among those classified.
-    """
+    """Refuse fewer than two activities in ``--labels`` or among ``--train``'s (``trained``)."""
     why = "with one activity's model every frame is read as it, an error of 0% that says nothing"
     if labels is not None and len(labels) < 2:
         raise UsageError(f"--labels: classification needs two or more activities, got only "
@@ -430,18 +423,12 @@ def _cmd_splits(args: argparse.Namespace) -> int:
     from baselines.experiments import pavlovic1999 as pav
 
     settings = pav.default_settings()
-    given = (args.params, args.switch_prob, args.features, args.extra_noise_deg)
-    if any(v is not None for v in given):
-        params = tuple(args.params) if args.params is not None else pav.CLASSIFY_PARAMS
-        prob = args.switch_prob if args.switch_prob is not None else pav.CLASSIFY_SWITCH_PROB
-        feats = args.features if args.features is not None else pav.CLASSIFY_FEATURES
-        extra = (
-            args.extra_noise_deg if args.extra_noise_deg is not None
-            else pav.CLASSIFY_EXTRA_NOISE_DEG
-        )  # fmt: skip
-        settings["given"] = pav.ClassifierSetting(
-            params, prob, pav.setting_name(params), feats, extra
-        )
+    flags = ("params", "switch_prob", "features", "extra_noise_deg")
+    given = {k: getattr(args, k) for k in flags if getattr(args, k) is not None}
+    if given:  # the CV-chosen setting with what the flags give
+        params = given["params"] = tuple(given.get("params", pav.CLASSIFY_PARAMS))
+        name = pav.setting_name(params)
+        settings["given"] = dataclasses.replace(settings["CV-chosen"], name=name, **given)
     motions = pav.default_motions(args.data_dir)
     with refused_as(CommandError, ValueError, f"{_source(args.data_dir)}: "):
         pav.check_splits(motions)  # before the splits' fits start

@@ -134,11 +134,7 @@ def _flag(setting: str) -> str:
 def _check_out(args: argparse.Namespace) -> None:
     """Refuse ``--out`` holding a sweep without ``--resume``, and ``--resume`` with none there.
 
-    ``run_sweep`` compares a resumed sweep's settings with the saved ones,
-    naming each flag that differs, before its first point runs.
-
-    Raises:
-        UsageError: Naming ``--out`` or ``--resume``.
+    (``run_sweep`` compares a resumed sweep's settings with the saved ones.)
     """
     from baselines import sweep
 

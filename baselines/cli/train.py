@@ -215,12 +215,8 @@ def _train(args: argparse.Namespace, out: Path) -> int:
 def _export_path(args: argparse.Namespace, task: str, out: Path) -> Path | None:
     """Where ``--export`` copies the policy, checked before the training; None without it.
 
-    An earlier file there is replaced with ``--force``, or, when resuming, if
-    it is this run's own earlier export (a copy of ``OUT/model.zip``): the
-    longer run's policy takes its place. ``--force`` cannot go with ``--resume``.
-
-    Raises:
-        UsageError: If the file is there and may not be replaced.
+    An earlier file there is replaced with ``--force``, or with ``--resume`` where it
+    is this run's own earlier export (a copy of ``OUT/model.zip``); else a UsageError.
     """
     if args.export is None:
         return None
