@@ -158,15 +158,9 @@ def track_with_depth(
 ) -> tuple[EpisodeResult, DepthEpisode]:
     """One episode of :func:`~baselines.leaderboard.evaluation.run_episode`, split by the ray.
 
-    Args:
-        agent: Any agent with SB3's ``predict``.
-        env: The environment (``terminate_on_lost=False`` for whole episodes).
-        seed: Reset seed (and the agent's episode seed).
-        options: Reset options.
-
     Returns:
         The loop's :class:`~baselines.leaderboard.evaluation.EpisodeResult` and the
-        :class:`DepthEpisode`.
+        :class:`DepthEpisode` (``env`` with ``terminate_on_lost=False``: whole episodes).
     """
     episode = DepthEpisode(seed=seed, clip_id="", start_frame=0)
     result = run_episode(agent, env, seed, options, on_step=_Recorder(env, episode))
@@ -232,9 +226,8 @@ def run_depth(
 ) -> dict[str, Any]:
     """Every agent (and ``hold``) on seeded episodes, each error split by the line of sight.
 
-    The episodes are the leaderboard's (seeds ``seed``, ``seed + 1``...,
-    ``terminate_on_lost=False``) and each agent is seeded as there, so the
-    errors are the leaderboard's for the same command.
+    The episodes and the agents' seeds are the leaderboard's (seeds ``seed``,
+    ``seed + 1``..., ``terminate_on_lost=False``), so are the errors.
 
     Args:
         task: A task id (``BodyTrack-v2``).
@@ -242,8 +235,7 @@ def run_depth(
         particles: Particles of the particle filters.
         episodes: Seeded episodes per agent.
         seed: First episode seed and the agents' seed.
-        env_kwargs: Keyword arguments of ``gym.make`` (``data_dir``,
-            ``library`` for a validation fold...).
+        env_kwargs: Keyword arguments of ``gym.make`` (``data_dir``, ``library``...).
         progress: Show a progress bar.
 
     Returns:

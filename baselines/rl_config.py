@@ -74,8 +74,7 @@ class TrainConfig:
         seed: Seed of the policy, the episodes and the rollouts.
         out: Output folder (``model.zip``, ``config.json``, ``checkpoints/``).
         data_dir: Motion capture folders (None: ``$HUMOTION_MOCAP``'s, else the
-            synthetic library). ``config.json`` records the folders the run read
-            (:func:`run_data_dirs`), whichever way they were named.
+            synthetic library; ``config.json`` records :func:`run_data_dirs`).
         settings: Algorithm settings (:data:`PPO_DEFAULTS`/:data:`BC_DEFAULTS`
             overridden by the hyperparameter file and the caller).
         init: A saved policy to start from (PPO fine-tuning from ``bc``).
@@ -83,11 +82,9 @@ class TrainConfig:
             the first end of an update at or past each multiple).
         threads: Torch threads.
         validation: Track the validation persons
-            (:func:`baselines.experiments.selection.validation_library`)
-            every ``eval_every`` env steps and at the end (the error is
-            logged as ``eval/mean_error_mm``); False tracks none. Training
-            never shows them either way: a ``"train"`` environment leaves
-            the validation persons out.
+            (:func:`baselines.experiments.selection.validation_library`, never
+            trained on) every ``eval_every`` env steps and at the end, logged
+            as ``eval/mean_error_mm``.
         eval_every: Env steps between two validation runs.
         eval_episodes: Validation episodes per run.
     """

@@ -123,12 +123,10 @@ def run_still(
         progress: Show progress bars.
 
     Returns:
-        ``{"task", "max_hold_mm", "settings" (agents, particles, seed,
-        env_kwargs, count), "windows": [...], "rows": [{"agent", "particles", "mean_error_mm",
-        "mean_error_ci", "x_hold", "within": bool, "episodes": [...]}]}``; ``x_hold``
-        is ``hold``'s mean error over the row's (above 1: better than ``hold``),
-        ``within`` whether the row's error is at most :data:`STILL_RATIO` times
-        ``hold``'s.
+        ``{"task", "max_hold_mm", "settings", "windows", "rows": [{"agent",
+        "particles", "mean_error_mm", "mean_error_ci", "x_hold", "within",
+        "episodes"}]}``; ``x_hold`` is ``hold``'s mean error over the row's,
+        ``within`` whether the row's is at most :data:`STILL_RATIO` times ``hold``'s.
 
     Raises:
         ValueError: If ``windows`` is empty, or none was given and no still

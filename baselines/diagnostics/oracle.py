@@ -5,26 +5,20 @@ perfect detector would give, less some noise, so a run with it says what the
 agent's search and prior make of near-perfect evidence:
 
 * ``2d``: the scored keypoints of the true pose projected by the frame's
-  camera, each coordinate plus Gaussian noise of ``noise_px`` pixels (default
-  1); ``log L(x) = -sum_k |pi(k(x)) - y_k|^2 / (2 sigma^2)``, ``pi`` the
-  camera's projection and ``k(x)`` a pose's keypoints
-  (:func:`humotion_gym.body.forward_kinematics`).
-* ``2d-unlabelled``: the same detections with the left/right identity
-  unknown (default 3 px). Each left/right pair of keypoints (the hips,
-  knees, ankles, shoulders, elbows, wrists) scores the better of its two
-  assignments, ``min(d(a, A) + d(b, B), d(a, B) + d(b, A))``, pair by pair:
-  a detector that finds "an elbow" twice says nothing about which limb holds
-  it, and assigning limbs whole would claim a grouping it does not give
-  (every limb-wise assignment is one of the pair-wise ones, so the pair-wise
-  score is the weaker evidence of the two).
-* ``3d``: the true keypoints in the world frame, each axis plus Gaussian
-  noise of ``noise_mm`` mm, or by default of ``noise_px`` (1) pixels at the
-  true pelvis' depth (``noise_px * depth / focal``: about 34 mm at the
-  BodyTrack-v2 camera's 5 m); ``log L(x) = -sum_k |k(x) - y_k|^2 / (2 sigma^2)``.
+  camera, each coordinate plus Gaussian noise of ``noise_px`` pixels (default 1);
+* ``2d-unlabelled``: the same detections with the left/right identity unknown
+  (default 3 px): each left/right pair scores the better of its two
+  assignments, pair by pair (the weaker evidence: a detector that finds "an
+  elbow" twice does not say which limb holds it);
+* ``3d``: the true keypoints in the world frame, each axis plus Gaussian noise
+  of ``noise_mm`` mm, or by default of ``noise_px`` (1) pixels at the true
+  pelvis' depth (``noise_px * depth / focal``).
 
-The likelihood's sigma is the noise's. Noise is drawn once per frame from a
-:class:`numpy.random.Generator` seeded with ``(seed, episode seed)``: the same
-run, the same detections, whichever agent reads them.
+Each scores ``-sum_k d_k^2 / (2 sigma^2)``, ``d_k`` a pose's keypoint's
+distance from its detection (projected, in 2D; docs/diagnostics.md) and sigma
+the noise's. Noise is drawn once per frame from a generator seeded with
+``(seed, episode seed)``: the same run, the same detections, whichever agent
+reads them.
 
 **Analysis only.** An oracle reads the truth of the frame on show, handed to
 it by the diagnostics loop (:class:`OracleFeed`, a wrapper of the environment
