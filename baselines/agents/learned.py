@@ -547,13 +547,6 @@ class HybridAgent:
         return action, None
 
 
-def _policy_for(spec: str, task: str) -> tuple[str, str]:
-    """``(label, path)`` of a policy named ``bc``/``ppo`` or given as a path."""
-    if spec in ("bc", "ppo"):
-        return spec, str(checkpoint_path(spec, task))
-    return _split_label(spec)
-
-
 def make_learned(
     name: str, task: TaskDescription | gym.Env, n_particles: int = 300, seed: int = 0
 ) -> Any:
@@ -573,8 +566,11 @@ def make_learned(
             f"views={env.views} (track it with a particle filter, or make it with views=1)"
         )
     hybrid, spec = takes_particles(name), policy_spec(name)  # a plain policy's spec: its name
-    label, path = _policy_for(spec, task_name)
-    if spec in ("bc", "ppo") and not Path(path).is_file():
+    pretrained = spec in ("bc", "ppo")
+    label, path = (
+        (spec, str(checkpoint_path(spec, task_name))) if pretrained else _split_label(spec)
+    )
+    if pretrained and not Path(path).is_file():
         if hybrid:
             raise NoCheckpointError(
                 f"{name}: no pretrained {spec} checkpoint for {task_name} ({path})"

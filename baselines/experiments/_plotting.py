@@ -25,16 +25,10 @@ def pyplot() -> Any:
 def save(fig: Any, path: str | Path, dpi: int = 110, layout: bool = True) -> Path:
     """Write ``fig`` to ``path``, whole or not at all, and free it; returns ``path``.
 
-    Every figure of both packages' reports and experiments is written here.
-    The format is ``path``'s suffix (PNG where it has none: the file is
-    written at ``path`` as given), named to matplotlib, since the temporary
-    file written first has another suffix.
-
-    Args:
-        fig: The matplotlib figure.
-        path: The file to write.
-        dpi: Its resolution.
-        layout: Lay it out first (``tight_layout``); False where the caller did.
+    Every figure of both packages' reports and experiments is written here,
+    laid out first (``tight_layout``) unless ``layout`` is False. The format
+    is ``path``'s suffix (PNG where it has none), named to matplotlib, since
+    the temporary file written first has another suffix.
     """
     path = Path(path)
     if layout:

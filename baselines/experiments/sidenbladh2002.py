@@ -241,11 +241,11 @@ def explained_variance_by_features(
     """What share of the windows' variance ``b`` components hold, by feature set and scaling.
 
     The paper's 16 components held 89% of the variance of its database
-    (section 4); the whole-body prior's hold about 60%. This recomputes the
-    share on a sample of the prior's windows for the features the prior uses
-    (every frame's absolute parameters and every free parameter's velocity),
-    the poses alone and the velocities alone, each with the per-feature
-    scaling ``Gamma^-1/2`` of section 4 and without it.
+    (section 4; the shared data's numbers are in docs/priors.md). This
+    recomputes the share on a sample of the prior's windows for the features
+    the prior uses (every frame's absolute parameters and every free
+    parameter's velocity), the poses alone and the velocities alone, each with
+    the per-feature scaling ``Gamma^-1/2`` of section 4 and without it.
 
     Args:
         fitted: A fitted tree prior.

@@ -247,11 +247,11 @@ def fit_activity_models(
         motions: Training clips.
         labels: The activities, in order.
         free: Modelled parameters (:data:`~baselines.priors.slds.SAGITTAL_INDEX` when None).
-        rngs: One generator per label (the same one repeated is drawn from in turn):
-            it picks the clips when there are more than ``max_clips`` and seeds EM.
+        rngs: One generator per label (a repeated one is drawn from in turn): it
+            picks ``max_clips`` clips where there are more, and seeds EM.
         n_states: Switch states per activity.
         n_iter: EM iterations per activity.
-        max_clips: At most this many clips per activity, drawn without replacement.
+        max_clips: At most this many clips per activity.
 
     Raises:
         ValueError: Naming a label no clip has.
@@ -319,11 +319,10 @@ def run_classification(
         noise_std: Noise of the test sequences (rad), known to the decoder.
         max_train_clips: At most this many training clips per activity.
         clips_per_sequence: Clips per test sequence (inclusive range).
-        features: What the models see (:func:`parse_features`): the training
-            clips and the test sequences (from their noisy angles, causally)
-            are transformed alike.
-        extra_noise_deg: Measurement noise (deg, >= 0) the decoder assumes on
-            top of ``noise_std``.
+        features: What the models see (:func:`parse_features`), training clips
+            and test sequences alike.
+        extra_noise_deg: Measurement noise (deg) the decoder assumes on top of
+            ``noise_std``.
 
     Raises:
         ValueError: If ``features`` or ``extra_noise_deg`` is malformed, or no
