@@ -165,15 +165,15 @@ SYMMETRY_RTOL = 1e-9
 def check_nonnegative(
     owner: str, values: Mapping[str, Any], positive: Collection[str] = ()
 ) -> None:
-    """Refuse scales below 0 (at or below 0 for those in ``positive``), naming the array.
+    """Refuse scales below 0 or NaN (at or below 0 for those in ``positive``), naming the array.
 
     Raises:
-        ValueError: Naming ``owner`` and ``name`` and its smallest value.
+        ValueError: Naming ``owner`` and ``name`` and its smallest value (NaN if it holds one).
     """
     for name, value in values.items():
         arr = np.asarray(value, dtype=np.float64)
-        low = float(arr.min()) if arr.size else 0.0
-        if low < 0 or (name in positive and low <= 0):
+        low = float(arr.min()) if arr.size else 0.0  # NaN where arr holds one
+        if not low >= 0 or (name in positive and low <= 0):
             bound = "> 0" if name in positive else ">= 0"
             raise ValueError(f"{owner}: {name} must be {bound}, got a smallest value of {low:g}")
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -388,6 +390,17 @@ def test_load_refuses_values_initial_and_transition_cannot_use(
         cyclic_pca.load(bad)
 
 
+@pytest.mark.parametrize("member", ["residual_std", "root_accel_std", "fps", "coef_noise"])
+def test_nan_scales_are_refused(fitted, member):
+    """``min() < 0`` is False for NaN, so a NaN scale was accepted as a valid one."""
+    value = getattr(fitted, member)
+    nan = np.full(np.shape(value), np.nan) if np.ndim(value) else float("nan")
+    with pytest.raises(
+        ValueError, match=rf"CyclicPCAParams: {member} must be >=? 0, got a smallest value of nan"
+    ):
+        dataclasses.replace(fitted, **{member: nan})
+
+
 def test_particle_filter_runs_with_the_prior(fitted, synthetic_walks):
     m = synthetic_walks[-1]
 
@@ -436,7 +449,6 @@ def test_fit_needs_walking_clips():
 @pytest.mark.parametrize("damage", ["unobserved", "motionless"])
 def test_a_walking_clip_that_shows_no_cycle_is_skipped(synthetic_walks, damage):
     """It was taken for a cycle of the shortest period tried (15 frames), skewing the speeds."""
-    import dataclasses
 
     walks = list(synthetic_walks[:2])
     bad = walks[0]
@@ -451,7 +463,6 @@ def test_a_walking_clip_that_shows_no_cycle_is_skipped(synthetic_walks, damage):
 
 
 def test_reversion_keeps_the_walks_spread_at_the_datas():
-    import dataclasses
 
     from baselines.filtering import ParticleState
 
