@@ -60,7 +60,7 @@ from baselines.agents.specs import (
     training_motions,
 )
 from baselines.observation import ObservationModel
-from humotion_gym.checks import is_count
+from humotion_gym.checks import check_count, is_count
 from humotion_gym.envs.description import TaskDescription
 
 
@@ -132,8 +132,12 @@ def make(
         raise ValueError(f"agents.make: name {exc}") from None
     if name not in REFERENCES and name not in AGENTS and not learned:
         raise KeyError(f"unknown agent {name!r}; the agents are {agent_names()}")
-    _check_count("n_particles", n_particles, 1, MAX_PARTICLES)
-    _check_count("seed", seed, 0)
+    if not (is_count(n_particles) and n_particles <= MAX_PARTICLES):
+        raise ValueError(
+            f"agents.make: n_particles: expected an integer in [1, {MAX_PARTICLES:,}], "
+            f"got {n_particles!r}"
+        )
+    check_count("agents.make: seed", seed, 0)
     check_observation_model(name, AGENTS.get(name), observation_model, "agents.make")
     description = describe(task)
     if name in REFERENCES:
@@ -167,17 +171,10 @@ def make_batch(
     Raises:
         ValueError: If ``n_envs`` is not an integer >= 1, or as :func:`make`.
     """
-    _check_count("n_envs", n_envs, 1)
+    check_count("agents.make_batch: n_envs", n_envs)
     seed = kwargs.pop("seed", 0)
-    _check_count("seed", seed, 0)
+    check_count("agents.make_batch: seed", seed, 0)
     return AgentBatch([make(name, task, seed=seed + i, **kwargs) for i in range(n_envs)])
-
-
-def _check_count(name: str, value: Any, low: int, high: int | None = None) -> None:
-    """Refuse anything but an integer in ``[low, high]`` (numpy's too; not a bool), naming it."""
-    if not is_count(value, low) or (high is not None and value > high):
-        within = f">= {low}" if high is None else f"in [{low}, {high:,}]"
-        raise ValueError(f"agents.make: {name} must be an integer {within}, got {value!r}")
 
 
 __all__ = [

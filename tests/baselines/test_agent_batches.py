@@ -95,7 +95,7 @@ def test_batches_of_the_wrong_size_are_refused_in_words():
         batch.predict({k: v[0] for k, v in obs.items()})
     venv.close()
     for bad in (0, True, 1.5):
-        with pytest.raises(ValueError, match="n_envs must be an integer >= 1"):
+        with pytest.raises(ValueError, match="agents.make_batch: n_envs: expected an integer >= 1"):
             agents.make_batch("hold", gym.make(TASK), n_envs=bad)
     with pytest.raises(ValueError, match="at least one agent"):
         AgentBatch([])

@@ -44,7 +44,7 @@ def test_make_refuses_counts_that_are_not_integers_naming_them(kwargs):
     env = gym.make("humotion_gym/ArmTrack-v2")
     name = next(iter(kwargs))
     for agent in ("pf-cv", "hold"):
-        with pytest.raises(ValueError, match=f"agents.make: {name} must be an integer"):
+        with pytest.raises(ValueError, match=f"agents.make: {name}: expected an integer"):
             make(agent, env, **kwargs)
     make("pf-cv", env, n_particles=np.int64(10), seed=np.int32(3))
 
