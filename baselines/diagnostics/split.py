@@ -40,6 +40,7 @@ from baselines.diagnostics.oracle import OracleFeed, OracleSettings, TruthOracle
 from baselines.experiments.selection import FILTER_PREFIX, FIT_PREFIX, agent_settings
 from baselines.leaderboard.engine import make_env, task_windows, window_options
 from baselines.leaderboard.evaluation import run_episode
+from baselines.leaderboard.tables import markdown_rows
 from humotion_gym.body import KEYPOINT_INDEX, forward_kinematics
 from humotion_gym.threads import single_threaded_blas
 
@@ -459,7 +460,7 @@ def split_table(result: Mapping[str, Any]) -> str:
         "depth: 2D run along / across (aligned)", "2D unlabelled - 2D",
         *(f"search: {k} mm" for k in three_d),
     ]  # fmt: skip
-    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    table = [columns]
     for agent, cells in by_agent.items():
         img, two, unl = cells.get("image"), cells.get("2d"), cells.get("2d-unlabelled")
 
@@ -472,13 +473,12 @@ def split_table(result: Mapping[str, Any]) -> str:
                 f"{_num(two['along_abs_mm'])} / {_num(two['across_mm'])} "
                 f"({_num(two['aligned_along_abs_mm'])} / {_num(two['aligned_across_mm'])})"
             )
-        row = [
+        table.append([
             agent, _num(img and img["error_mm"]), _num(two and two["error_mm"]), gap(img, two),
             depth, gap(unl, two), *(_num(cells[k]["error_mm"]) if k in cells else "-"
                                     for k in three_d),
-        ]  # fmt: skip
-        lines.append("| " + " | ".join(row) + " |")
-    return "\n".join(lines)
+        ])  # fmt: skip
+    return markdown_rows(table)
 
 
 def markdown_report(results: Sequence[Mapping[str, Any]]) -> str:

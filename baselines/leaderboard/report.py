@@ -44,6 +44,7 @@ from baselines.leaderboard.figures import (
 )
 from baselines.leaderboard.rows import agent_label, by_clip, ran
 from baselines.leaderboard.tables import (
+    markdown_rows,
     markdown_table,
     person_rows,
     person_table,
@@ -300,13 +301,6 @@ def failures_table(rows: Sequence[dict[str, Any]]) -> list[list[str]]:
     return out
 
 
-def _markdown(table: list[list[str]]) -> str:
-    def line(cells: list[str]) -> str:
-        return "| " + " | ".join(c.replace("|", "/") for c in cells) + " |"
-
-    return "\n".join([line(table[0]), "|" + "---|" * len(table[0])] + [line(r) for r in table[1:]])
-
-
 #: A section of the report after the leaderboard table: its heading, its table
 #: (header then rows), the HTML table's id and the legend under it (None: none).
 _Section = tuple[str, list[list[str]], str, str | None]
@@ -339,7 +333,7 @@ def markdown_report(rows: Sequence[dict[str, Any]], computed: dict[str, Any]) ->
     parts = ["# Leaderboard", "", markdown_table(rows), ""]
     parts += [f"- {line}" for line in validity_lines(good)] + [""]
     for heading, table, _, legend in _sections(rows, computed):
-        parts += [f"## {heading}", "", _markdown(table), ""]
+        parts += [f"## {heading}", "", markdown_rows(table), ""]
         parts += [] if legend is None else [legend, ""]
     return "\n".join(parts)
 

@@ -204,6 +204,12 @@ def ratio_text(ratio: float, reference: str = FLOOR, thresholds: Sequence[float]
     return f"{text}x {reference}: worse than {reference}"
 
 
+def markdown_rows(table: Sequence[Sequence[str]]) -> str:
+    """A Markdown table of a header row then rows of cells (a ``|`` in a cell shown as ``/``)."""
+    lines = ["| " + " | ".join(c.replace("|", "/") for c in cells) + " |" for cells in table]
+    return "\n".join([lines[0], "|" + "---|" * len(table[0]), *lines[1:]])
+
+
 def markdown_table(rows: Sequence[dict[str, Any]]) -> str:
     """The leaderboard as a Markdown table, with each row's ratio to ``hold``.
 
