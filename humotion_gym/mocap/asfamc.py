@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
@@ -142,10 +142,19 @@ class AcclaimClip(PointsOnce):
         angle_unit: The unit of the AMC's angles (``:DEGREES`` or ``:RADIANS``).
     """
 
+    path: str
     skeleton: AsfSkeleton
+    point_names: tuple[str, ...]
+    parents: NDArray[np.intp]
+    fps: float
+    n_frames: int
+    frame_valid: NDArray[np.bool_]
+    units_to_mm: float | None
     frame_numbers: NDArray[np.int64]
     channels: NDArray[np.float64]
     angle_unit: Literal["deg", "rad"]
+    # Each point's positions once computed (a copy of the clip starts afresh).
+    _positions: dict[int, NDArray[np.float64]] = field(default_factory=dict, init=False, repr=False)
 
     def _points(self, wanted: Sequence[int]) -> NDArray[np.float64]:
         """Acclaim forward kinematics of the points ``wanted``, looping over bones.

@@ -186,6 +186,7 @@ class BvhClip(PointsOnce):
             channels, the offset filling axes without a channel).
     """
 
+    path: str
     joint_names: tuple[str, ...]
     joint_parents: NDArray[np.intp]
     offsets: NDArray[np.float64]
@@ -195,7 +196,15 @@ class BvhClip(PointsOnce):
     end_site_parents: NDArray[np.intp]
     end_site_offsets: NDArray[np.float64]
     position_channels: Literal["add", "replace"]
+    point_names: tuple[str, ...]
+    parents: NDArray[np.intp]
+    fps: float
+    n_frames: int
+    frame_valid: NDArray[np.bool_]
+    units_to_mm: float | None = None
     _point_joint: tuple[tuple[bool, int], ...] = field(default=(), repr=False)
+    # Each point's positions once computed (a copy of the clip starts afresh).
+    _positions: dict[int, NDArray[np.float64]] = field(default_factory=dict, init=False, repr=False)
 
     @property
     def channel_starts(self) -> NDArray[np.intp]:

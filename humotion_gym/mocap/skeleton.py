@@ -9,7 +9,6 @@ clips inherit it from :class:`PointsOnce`, which computes the positions once.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -72,9 +71,8 @@ def with_ancestors(parents: NDArray[np.intp], nodes: Sequence[int]) -> NDArray[n
     return marked
 
 
-@dataclass(eq=False)
 class PointsOnce:
-    """What both parsers' clips share: :class:`SkeletonClip`'s fields and :meth:`point_positions`.
+    """What both parsers' clips share: :meth:`point_positions`, each point computed once and kept.
 
     A clip (:class:`~humotion_gym.mocap.bvh.BvhClip`,
     :class:`~humotion_gym.mocap.asfamc.AcclaimClip`) gives the positions of
@@ -84,13 +82,8 @@ class PointsOnce:
 
     path: str
     point_names: tuple[str, ...]
-    parents: NDArray[np.intp]
-    fps: float
     n_frames: int
-    frame_valid: NDArray[np.bool_]
-    units_to_mm: float | None
-    # Each point's positions once computed (a copy of the clip starts afresh).
-    _positions: dict[int, NDArray[np.float64]] = field(default_factory=dict, init=False, repr=False)
+    _positions: dict[int, NDArray[np.float64]]
 
     def _points(self, wanted: Sequence[int]) -> NDArray[np.float64]:
         """``(T, len(wanted), 3)`` the points ``wanted`` (indices into :attr:`point_names`)."""
