@@ -30,6 +30,7 @@ way at reset (``benchmarks/bench_render.py`` times both).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -170,6 +171,11 @@ class FigureSequence:
             floor,
         )
 
+    @functools.cached_property
+    def counts(self) -> list[int]:
+        """Per frame, how many cones are drawn."""
+        return [len(cones) for cones in self.order]
+
 
 def figure_sequence(
     params: ArrayLike,
@@ -194,6 +200,9 @@ def figure_sequence(
         geometry: The poses' world-frame keypoints and cone axes from
             :func:`~humotion_gym.kinematics.batch_pose_geometry`, when already
             computed (``(T, 35, 3)``).
+
+    Returns:
+        The prepared figures.
 
     Raises:
         ValueError: For malformed poses, cameras of another size or field of
@@ -537,7 +546,16 @@ def _compose(
 
 
 def gaussian_blur(img: NDArray[Any], sigma: float, dst: NDArray[Any] | None = None) -> NDArray[Any]:
-    """``img`` blurred by a Gaussian of ``sigma`` pixels (OpenCV's kernel size), into ``dst``."""
+    """``cv2.GaussianBlur(img, (0, 0), sigma)``: OpenCV's kernel size for ``sigma``.
+
+    Args:
+        img: The image.
+        sigma: The Gaussian's standard deviation in pixels (> 0).
+        dst: Where to write (``img`` itself for in place), or None.
+
+    Returns:
+        The blurred image.
+    """
     return cv2.GaussianBlur(img, (0, 0), sigma, dst=dst)
 
 
