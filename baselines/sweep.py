@@ -26,7 +26,7 @@ from baselines.leaderboard.across_tasks import normalised_scores
 from baselines.leaderboard.engine import make_env
 from baselines.leaderboard.evaluation import summarize
 from baselines.leaderboard.results import RUN_FILE, ResumeError, _jsonable, data_folders
-from baselines.leaderboard.rows import cell_label, ran
+from baselines.leaderboard.rows import cell_label
 from baselines.leaderboard.run import check_grid, run_leaderboard
 from baselines.leaderboard.stats import bootstrap_ci, iqm
 from baselines.leaderboard.videos import file_slug
@@ -364,7 +364,7 @@ def curves(sweep: Mapping[str, Any], metric: str = "error") -> list[dict[str, An
     for point in sweep["points"]:
         scores = normalised_scores(point["rows"]) if metric == "score" else {}
         for r in point["rows"]:
-            if not ran(r):
+            if "episodes" not in r or "skipped" in r or "error" in r:
                 continue
             s = summarize(r["episodes"], seed=seed)
             if metric == "score":

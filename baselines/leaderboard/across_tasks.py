@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from baselines.leaderboard.rows import by_clip, cell_label, ran, run_clusters
+from baselines.leaderboard.rows import by_clip, cell_label, run_clusters
 from baselines.leaderboard.stats import (
     N_RESAMPLES,
     FloatArray,
@@ -56,7 +56,7 @@ def runs_by_cell(rows: Sequence[dict[str, Any]]) -> dict[str, dict[str, Runs]]:
     """``{cell label: {task: its runs' mean errors}}`` of the rows that ran, in row order."""
     out: dict[str, dict[str, Runs]] = {}
     for r in rows:
-        if ran(r) and r["episodes"]:
+        if "episodes" in r and "skipped" not in r and "error" not in r and r["episodes"]:
             eps = r["episodes"]
             out.setdefault(cell_label(r), {})[r["task"]] = Runs(
                 np.array([e["mean_error_mm"] for e in eps], dtype=np.float64),
