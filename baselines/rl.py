@@ -72,8 +72,11 @@ from baselines.experiments.selection import validation_library
 from baselines.leaderboard.evaluation import evaluate
 from baselines.leaderboard.results import source_commit
 from baselines.rl_config import (  # noqa: F401  (the training API, re-exported)
+    ALGOS,
     BC_DEFAULTS,
     PPO_DEFAULTS,
+    RESUME_KEYS,
+    SETTING_RANGES,
     InitMismatch,
     ResumeMismatch,
     TrainConfig,
