@@ -151,7 +151,8 @@ def aligned_point_errors(
         raise ValueError(
             f"aligned_point_errors: anchor must be an integer in [0, {size}), got {anchor!r}"
         )
-    return np.linalg.norm(diff - diff[..., anchor : anchor + 1, :], axis=-1)
+    i = int(anchor)  # np.uint8(255) + 1 would wrap to 0
+    return np.linalg.norm(diff - diff[..., i : i + 1, :], axis=-1)
 
 
 class StepScores(NamedTuple):

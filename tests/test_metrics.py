@@ -254,6 +254,17 @@ def test_a_perfect_estimate_scores_exactly_1_with_every_task(task) -> None:
     env.close()
 
 
+def test_a_small_numpy_integer_anchor_is_the_same_index() -> None:
+    """``np.uint8(255) + 1`` wraps to 0 in numpy: the anchor is taken as a Python int."""
+    rng = np.random.default_rng(0)
+    a, b = rng.normal(size=(2, 300, 3)), rng.normal(size=(2, 300, 3))
+    want = aligned_point_errors(a, b, anchor=255)
+    np.testing.assert_array_equal(aligned_point_errors(a, b, anchor=np.uint8(255)), want)
+    np.testing.assert_array_equal(
+        aligned_point_errors(a, b, anchor=np.int8(127)), aligned_point_errors(a, b, anchor=127)
+    )
+
+
 def test_the_checks_keep_the_documented_inputs() -> None:
     """Broadcasting, numpy integers and the environments' run arrays still pass."""
     pts = np.ones((2, N_KEYPOINTS, 3))
