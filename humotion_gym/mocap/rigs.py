@@ -172,9 +172,17 @@ class RigProfile:
 
         Returns:
             The mapping from profile point names to the skeleton's names, and
-            the keypoints that could not be found (as :meth:`plan`).
+            the keypoints that could not be found, in the profile's order.
         """
-        return self._found(available), self.plan(available)[1]
+        found = self._found(available)
+        missing = []
+        for kp, src in self.keypoints.items():
+            alt = self.fallbacks.get(kp)
+            if any(n not in found for n in _points_of(src)) and (
+                alt is None or any(n not in found for n in _points_of(alt))
+            ):
+                missing.append(kp)
+        return found, missing
 
     def keypoints_from(self, clip: SkeletonClip, units_to_mm: float) -> NDArray[np.float64]:
         """The clip's 15 keypoints in the world frame (z up), mm: ``(T, 15, 3)``.

@@ -203,6 +203,12 @@ def test_unknown_rig_lists_missing_keypoints():
     assert "walk.bvh" in msg and "r_hip" in msg and "'cmu-bvh'" in msg
 
 
+def test_missing_keypoints_come_in_the_profile_order():
+    """A profile's own order (right limb, then left), which a user reads its names in."""
+    rig = rigs.make_rig({k: k for k in reversed(KEYPOINT_NAMES)})
+    assert rig.resolve(["pelvis"])[1] == [k for k in reversed(KEYPOINT_NAMES) if k != "pelvis"]
+
+
 def test_custom_rig_must_name_all_keypoints():
     mapping = {k: f"J_{k}" for k in KEYPOINT_NAMES}
     rig = rigs.make_rig(mapping)
