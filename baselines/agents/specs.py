@@ -583,8 +583,9 @@ FRAME_MODEL_CALLS = ("prepare", "read_first_frame", "log_likelihood")
 def check_observation_model(name: str, spec: AgentSpec | None, model: Any, who: str) -> None:
     """Refuse an observation model the agent cannot use, naming the agent.
 
-    Every filter calls :data:`FRAME_MODEL_CALLS`; a partitioned filter
-    ``log_likelihood_partial`` too. An agent with a ``detector`` builds its
+    Every filter calls :data:`FRAME_MODEL_CALLS`, but a partitioned filter
+    scores its stages with ``log_likelihood_partial`` instead of
+    ``log_likelihood`` (both are required of its model). An agent with a ``detector`` builds its
     own likelihood: a model given would drop the detector's term while the
     agent still bears its name, so it is refused (a warning would be lost in
     a leaderboard's rows). ``spec`` is None for an agent that is no particle

@@ -276,7 +276,9 @@ class AnnealedParticleFilter(ParticleFilter):
     Black, IJCV 2010). Per frame: the prior moves the particles on, then
     ``layers`` times the particles are weighted by the likelihood raised to
     ``beta_m``, chosen so that the survival rate ``ESS / N`` is ``alpha``
-    (:func:`temper_for_survival`; or a fixed schedule, ``betas``), resampled
+    (:func:`temper_for_survival`: in a layer with at most ``alpha N`` poses
+    within ``lower`` and ``upper``, beta is 1 and the survival rate less; or a
+    fixed schedule, ``betas``), resampled
     and diffused by a Gaussian whose covariance is ``alpha^m`` times the
     per-dimension variance of the prior's proposal (section 3: the search
     narrows as the layers concentrate). The estimate is the last layer's.

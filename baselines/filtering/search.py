@@ -53,8 +53,9 @@ class LocalSearch:
             one-fifth rule (the defaults).
         survival: Above 0, the weights after the climb are tempered (``w ~
             L^beta``, ``beta <= 1``) so that at least this fraction of the
-            particles survives (:func:`temper_for_survival`); 0 keeps the
-            likelihood's own weights.
+            particles survives where more than that fraction is possible
+            (:func:`temper_for_survival`; else beta is 1 and fewer survive);
+            0 keeps the likelihood's own weights.
         method: ``"random"`` or ``"parabola"`` (see :func:`climb`).
         blocks: How the state is cut into blocks, a name the filter's owner
             interprets (for a body: ``"parts"`` or ``"joints"``).

@@ -107,7 +107,9 @@ class ObservationSettings:
         sharpness: Multiplier of the whole log-likelihood (an inverse
             temperature; default 1). Per-cone costs are means over the cone's
             points, so the default treats each cone, not each point, as one
-            observation. Sharper weights are overconfident (``docs/priors.md``).
+            observation. A task may set its own (ArmTrack's is 3,
+            :mod:`humotion_gym.envs.tasks`); ``docs/priors.md`` gives the
+            temperature's selection runs.
         residual_weight: Weight (default 0: off) of the *residual-edge* term,
             the image-to-model direction of the chamfer cost, where a task
             gives part of the body (:class:`GivenBody`): the edge pixels the
