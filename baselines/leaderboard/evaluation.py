@@ -268,7 +268,8 @@ def summarize(
         episode has it.
 
         Where the episodes carry several ``agent_seed``, every statistic is
-        over all runs, ``mean_error_ci`` is the interval of
+        over all runs (``episodes`` counts every run, episode seeds times
+        agent seeds), ``mean_error_ci`` is the interval of
         :func:`~baselines.leaderboard.stats.two_level_bootstrap`, and the
         summary adds ``agent_seeds`` (how many), ``seed_means_mm`` (each
         seed's mean error, in seed order) and ``seed_spread_mm`` (their

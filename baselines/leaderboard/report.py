@@ -15,8 +15,9 @@
 * ``index.html``: all of it on one static page with sortable tables, opening
   with what made the numbers and each task's verdict;
 * ``report.json``: the results file the report was made from
-  (:func:`reported_run`), written before the other files so that a report that
-  stops half-way is rebuilt by its rerun.
+  (:func:`reported_run`), written after the videos (whose replay stops the
+  report before anything is written) and before the other files, so that a
+  report that stops half-way is rebuilt by its rerun.
 
 The statistics follow Agarwal, Schwarzer, Castro, Courville & Bellemare, *Deep
 reinforcement learning at the edge of the statistical precipice*, NeurIPS 2021

@@ -179,7 +179,8 @@ def write_results(
     """Write ``results.json`` and ``table.md``, then the report (unless not ``report``).
 
     The report (:func:`baselines.leaderboard.report.write_report`) has no
-    figures without the ``plots`` extra, and a line on stderr says so.
+    figures without the ``plots`` extra, and a line on stderr says so; with
+    ``videos`` it adds each cell's best, median and worst episode.
 
     ``results.json`` (schema :data:`SCHEMA_VERSION`, docs/leaderboard.md):
     ``schema_version``, ``kind``, ``created`` (UTC), ``package_version``,

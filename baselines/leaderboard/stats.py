@@ -10,9 +10,11 @@ report the probability that one method beats another on a random run.
 
 Here a run is one seeded episode and its score the episode's mean keypoint
 error in mm (lower is better); the reference is ``hold``. Every interval is
-two-sided at ``confidence``, from ``n_resamples`` percentile bootstrap
-resamples drawn from ``seed`` (a seed or a :class:`numpy.random.Generator`),
-so the same episodes and seed give the same interval bit for bit anywhere.
+two-sided at ``confidence``. A bootstrap interval is the percentile one of
+``n_resamples`` resamples drawn from ``seed`` (a seed or a
+:class:`numpy.random.Generator`), so the same episodes and seed give the same
+interval bit for bit anywhere; :func:`proportion_ci` (Wilson) and
+:func:`survival` (Kaplan-Meier, log-log) are closed-form and draw nothing.
 
 A cell run with several agent seeds on the same episodes has its mean's
 interval, and that of its ratio to ``hold``, from :func:`two_level_bootstrap`:
