@@ -396,7 +396,8 @@ def fit_camera(
             (finite, > 0).
 
     Raises:
-        ValueError: Naming the argument, for one that is not as described above.
+        ValueError: Naming the argument, for one that is not as described above
+            (keypoints included: none, or any not finite).
     """
     _check_size(width, height, fov_deg, "fit_camera")
     pts = _check_points(keypoints, "fit_camera").reshape(-1, 3)

@@ -99,7 +99,7 @@ def _check_camera(camera: Camera, scene: SceneOptions, where: str) -> None:
 def _figure_polygons(
     geometry: NDArray[np.float64], shape: BodyShape, camera: Camera, scene: SceneOptions
 ) -> tuple[list[list[int]], NDArray[np.int32], NDArray[np.int32], NDArray[np.uint8], list]:
-    """The fields of a :class:`FigureSequence` after its scene, for T frames.
+    """A :class:`FigureSequence`'s fields but ``floor``, after its scene, for T frames.
 
     One compiled pass (:func:`humotion_gym._compiled.figure_polygons`) over
     ``geometry``, ``(T, 35, 3)`` in each frame's camera frame; ``camera``

@@ -90,7 +90,8 @@ FIGURE_PALETTES: dict[str, tuple[Color, ...]] = {
     "sided": SIDED_FIGURE_COLORS,
 }
 
-#: RGB colour of the floor's grid lines: darker than the wall, lighter than the clothes.
+#: RGB colour of the floor's grid lines: darker than the wall, lighter than the shirt and
+#: trousers of the default palettes.
 FLOOR_COLOR: Color = (112, 112, 108)
 #: Spacing of the floor's grid lines (mm): half a metre, a large tile.
 FLOOR_SPACING_MM = 500.0

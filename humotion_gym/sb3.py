@@ -60,7 +60,11 @@ _SET_HERE = {
 
 
 def _same(a: dict[str, Any], b: dict[str, Any]) -> bool:
-    """Whether two episodes' reset options are the same (arrays element-wise; else by identity)."""
+    """Whether two episodes' reset options are the same.
+
+    Each value is the same object or ``==`` (arrays element-wise); a value
+    ``==`` cannot compare makes them differ.
+    """
     if a is b:
         return True
     if a.keys() != b.keys():

@@ -37,7 +37,8 @@ _ARM_CONES = [CONE_NAMES.index("r_upper_arm"), CONE_NAMES.index("r_forearm")]
 class EpisodeCameras:
     """The camera-placing part of the tracking environment (see the module docstring).
 
-    The environment provides the attributes annotated below; a reset sets the rest.
+    The environment provides ``task``, ``scene``, ``views``, ``episode_frames``,
+    ``frame_skip``, the episode's ``_motion`` and ``_t0``; a reset here sets the rest.
     """
 
     task: Any

@@ -306,7 +306,8 @@ class EpisodeChoice:
         if self.task.min_motion_mm > 0 and good.size:
             good = good[self._episode_motion(motion)[good] >= self.task.min_motion_mm]
         # The library's clips, and at most STARTS_EXTRA others, the oldest going
-        # first: a long run of reset(options={"motion": ...}) keeps no clip alive.
+        # first: a long run of reset(options={"motion": ...}) keeps only the
+        # last STARTS_EXTRA given clips alive, not every one.
         own = self._own_clips
         if own.get(motion.clip_id) is not motion and motion.clip_id not in self._starts:
             given = [k for k, (m, _) in self._starts.items() if own.get(k) is not m]

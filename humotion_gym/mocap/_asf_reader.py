@@ -1,6 +1,6 @@
 """ASF skeletons: :class:`AsfSkeleton` and :class:`_AsfReader`, which reads one line by line.
 
-:func:`humotion_gym.mocap.asfamc.load_asf` (which re-exports :class:`AsfSkeleton`)
+:func:`humotion_gym.mocap.asfamc.load_asf` (its module re-exports :class:`AsfSkeleton`)
 feeds the reader and builds the skeleton; the bounds are
 :mod:`humotion_gym.mocap.asfamc`'s ``MAX_*`` constants, passed at each call as
 :class:`AsfLimits` so that raising one there takes effect.
