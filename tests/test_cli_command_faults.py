@@ -505,6 +505,30 @@ def test_sweep_passes_its_data_and_grid_on(walk_bvh: Path, tmp_path: Path, monke
     assert run.args[6] == {"data_dir": [str(walk_bvh.parent)]}
 
 
+@pytest.mark.parametrize("command", ["leaderboard", "sweep"])
+def test_a_ray_worker_that_cannot_start_ends_in_one_line(
+    command: str, tmp_path: Path, monkeypatch, capsys
+) -> None:
+    """WorkerStartError is a RuntimeError: sweep left it to the main loop, a traceback."""
+    import baselines.leaderboard as leaderboard
+    import baselines.sweep as sweep
+    from baselines.leaderboard.engine import WorkerStartError
+
+    def fail(*args: Any, **kwargs: Any) -> None:
+        raise WorkerStartError("a worker runs another humotion_gym")
+
+    monkeypatch.setattr(sweep, "run_sweep", fail)
+    monkeypatch.setattr(leaderboard, "run_leaderboard", fail)
+    argv = [command, "--tasks", "ArmTrack-v2", "--agents", "pf-cv", "--episodes", "1",
+            "--out", str(tmp_path / "out")]  # fmt: skip
+    argv += ["--noise", "2"] if command == "sweep" else ["--no-report"]
+    assert main(argv) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"humotion-gym {command}: error: --engine ray: a worker runs another humotion_gym"
+    ]
+
+
 def test_data_info_no_cache_parses_afresh(walk_bvh: Path, monkeypatch, capsys) -> None:
     """data info --no-cache loads without the cache; without it, with the cache."""
     import humotion_gym.mocap.library as library

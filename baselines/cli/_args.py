@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import argparse
-from collections.abc import Sequence
+import contextlib
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -141,6 +142,28 @@ def check_engine(args: argparse.Namespace) -> None:
     if args.address is not None:
         with refused_as(UsageError, ValueError, "--"):
             check_ray_address_form(args.address)
+
+
+@contextlib.contextmanager
+def engine_errors() -> Iterator[None]:
+    """Ray's failures, in one line naming the flag: ``leaderboard``'s and ``sweep``'s."""
+    from baselines.leaderboard.engine import BadWorkers, WorkerStartError
+    from baselines.leaderboard.ray_setup import NoRayCluster
+
+    try:
+        yield
+    except ModuleNotFoundError as exc:
+        if exc.name != "ray":
+            raise
+        raise CommandError(f"--engine ray: {exc}") from None
+    except NoRayCluster as exc:  # --address where no Ray cluster listens
+        raise CommandError(f"--{exc}") from None
+    except ConnectionError as exc:  # Ray's own: no cluster for auto, a refused token
+        raise CommandError(f"--address: {exc}") from None
+    except BadWorkers as exc:  # more workers than the joined cluster's CPUs
+        raise UsageError(f"--workers: {exc}") from None
+    except WorkerStartError as exc:  # a worker of another version, or that cannot take an agent
+        raise CommandError(f"--engine ray: {exc}") from None
 
 
 def key_value(text: str) -> tuple[str, float]:

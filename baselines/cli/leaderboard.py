@@ -22,6 +22,7 @@ from baselines.cli._args import (
     add_engine,
     check_engine,
     check_policy_files,
+    engine_errors,
     particle_count,
     tracked_task,
 )
@@ -245,8 +246,6 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         run_leaderboard,
         validity_lines,
     )
-    from baselines.leaderboard.engine import BadWorkers, WorkerStartError
-    from baselines.leaderboard.ray_setup import NoRayCluster
     from baselines.leaderboard.videos import ReplayMismatch
 
     _check_flags(args)
@@ -274,24 +273,13 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
         declared=args.declared, imports=args.imports,
     )  # fmt: skip
     try:
-        rows = run_leaderboard(
-            args.tasks, args.agents, args.particles, args.episodes, args.seed, kwargs,
-            engine=args.engine, workers=args.workers, address=args.address, out=args.out,
-            resume=args.resume, command=command, report=not args.no_report, videos=args.videos,
-            agent_seeds=args.agent_seeds, declared=args.declared,
-        )  # fmt: skip
-    except ModuleNotFoundError as exc:
-        if exc.name != "ray":
-            raise
-        raise CommandError(f"--engine ray: {exc}") from None
-    except NoRayCluster as exc:  # --address where no Ray cluster listens
-        raise CommandError(f"--{exc}") from None
-    except ConnectionError as exc:  # Ray's own: no cluster for auto, a refused token
-        raise CommandError(f"--address: {exc}") from None
-    except BadWorkers as exc:  # more workers than the joined cluster's CPUs
-        raise UsageError(f"--workers: {exc}") from None
-    except WorkerStartError as exc:  # a worker of another version, or that cannot take an agent
-        raise CommandError(f"--engine ray: {exc}") from None
+        with engine_errors():
+            rows = run_leaderboard(
+                args.tasks, args.agents, args.particles, args.episodes, args.seed, kwargs,
+                engine=args.engine, workers=args.workers, address=args.address, out=args.out,
+                resume=args.resume, command=command, report=not args.no_report,
+                videos=args.videos, agent_seeds=args.agent_seeds, declared=args.declared,
+            )  # fmt: skip
     except ResumeError as exc:  # the saved run's other settings: the arguments conflict
         raise UsageError(f"--resume: {exc}") from None
     except ReplayMismatch as exc:  # a video's episode did not reproduce: the run is saved

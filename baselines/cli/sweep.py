@@ -21,6 +21,7 @@ from baselines.cli._args import (
     add_engine,
     check_engine,
     check_policy_files,
+    engine_errors,
     particle_count,
     tracked_task,
 )
@@ -163,7 +164,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         engine = {"engine": args.engine, "workers": args.workers, "address": args.address}
     # the saved sweep's settings (checked before any point runs), or a point's saved run
     # of other code or another policy file: the arguments conflict
-    with refused_as(UsageError, ResumeError, "--resume: "):
+    with refused_as(UsageError, ResumeError, "--resume: "), engine_errors():
         result = sweep.run_sweep(
             args.tasks, args.agents, args.particles, grid, args.episodes, args.seed,
             env_kwargs(args), engine_options=engine, out=args.out, resume=args.resume,
