@@ -36,10 +36,16 @@ def float_array(value: Any) -> NDArray[np.float64] | None:
         return None
 
 
-def check_count(name: str, value: Any, least: int = 1) -> None:
-    """Refuse anything but an integer >= ``least`` (a bool too), naming the argument."""
-    if not is_count(value, least):
-        raise ValueError(f"{name}: expected an integer >= {least}, got {value!r}")
+def check_count(name: str, value: Any, least: int = 1, most: int | None = None) -> None:
+    """Refuse anything but an integer >= ``least``, and <= ``most`` if given (a bool too).
+
+    The message names the argument (``name``) and the range.
+    """
+    if most is None:
+        if not is_count(value, least):
+            raise ValueError(f"{name}: expected an integer >= {least}, got {value!r}")
+    elif not (is_count(value, least) and value <= most):
+        raise ValueError(f"{name}: expected an integer in [{least}, {most:,}], got {value!r}")
 
 
 def check_positive(name: str, value: Any) -> None:

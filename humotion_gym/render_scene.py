@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from humotion_gym.body import CONE_NAMES, N_CONES
-from humotion_gym.checks import is_count, is_integer, is_real
+from humotion_gym.checks import check_count, is_integer, is_real
 
 Color = tuple[int, int, int]
 
@@ -214,11 +214,7 @@ class SceneOptions:
                     f"SceneOptions.{name}: expected a number in [0, {top:g}], got {value!r}"
                 )
         for name, low in (("occluders", 0), ("shading_strips", 1)):
-            value, top = getattr(self, name), int(SCENE_MAXIMA[name])
-            if not (is_count(value, low) and value <= top):
-                raise ValueError(
-                    f"SceneOptions.{name}: expected an integer in [{low}, {top}], got {value!r}"
-                )
+            check_count(f"SceneOptions.{name}", getattr(self, name), low, int(SCENE_MAXIMA[name]))
         period = self.occluder_period
         # Under a frame the occluders' speed (the image's diagonal per period)
         # overflows: a crossing quicker than a frame is never seen moving.

@@ -52,6 +52,14 @@ def test_count_bound_is_inclusive() -> None:
     assert not is_count(np.int8(-1), 0)
 
 
+def test_a_count_with_a_ceiling_names_its_range() -> None:
+    check_count("n", 100_000, most=100_000)
+    check_count("n", np.int64(0), 0, 5)
+    for value in (100_001, 0, True, 2.0):
+        with pytest.raises(ValueError, match=r"n: expected an integer in \[1, 100,000\], got "):
+            check_count("n", value, most=100_000)
+
+
 def test_checks_name_the_argument_and_what_was_expected() -> None:
     with pytest.raises(ValueError, match=r"episodes: expected an integer >= 1, got True"):
         check_count("episodes", True)

@@ -60,7 +60,7 @@ from baselines.agents.specs import (
     training_motions,
 )
 from baselines.observation import ObservationModel
-from humotion_gym.checks import check_count, is_count
+from humotion_gym.checks import check_count
 from humotion_gym.envs.description import TaskDescription
 
 
@@ -132,11 +132,7 @@ def make(
         raise ValueError(f"agents.make: name {exc}") from None
     if name not in REFERENCES and name not in AGENTS and not learned:
         raise KeyError(f"unknown agent {name!r}; the agents are {agent_names()}")
-    if not (is_count(n_particles) and n_particles <= MAX_PARTICLES):
-        raise ValueError(
-            f"agents.make: n_particles: expected an integer in [1, {MAX_PARTICLES:,}], "
-            f"got {n_particles!r}"
-        )
+    check_count("agents.make: n_particles", n_particles, most=MAX_PARTICLES)
     check_count("agents.make: seed", seed, 0)
     check_observation_model(name, AGENTS.get(name), observation_model, "agents.make")
     description = describe(task)

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from baselines.observation.geometry import sample_weights
-from humotion_gym.checks import is_count, is_real
+from humotion_gym.checks import check_count, is_real
 
 #: The largest length setting (reference px, px or mm): a million is beyond
 #: any frame or scene.
@@ -309,8 +309,4 @@ def check_settings(settings: ObservationSettings) -> None:
         ("residual_points", MAX_COUNT),
         ("coverage_points", MAX_COUNT),
     ):
-        value = getattr(settings, name)
-        if not (is_count(value) and value <= most):
-            raise ValueError(
-                f"ObservationModel.{name}: expected an integer in [1, {most}], got {value!r}"
-            )
+        check_count(f"ObservationModel.{name}", getattr(settings, name), most=most)
